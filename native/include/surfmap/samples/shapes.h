@@ -1,0 +1,63 @@
+#pragma once
+// Procedural closed test surfaces: analytic tori of revolution, and smooth
+// implicit shapes of any genus 1..8 in the spirit of the paper's models
+// (vase, amphora, cup, polycube, n-hole torus), meshed by marching
+// tetrahedra. Every generator returns a closed, manifold, one-component,
+// outward-oriented (signed volume > 0) triangle mesh of the stated genus with
+// no zero-area faces; tests and benchmarks build their inputs from these.
+#include <Eigen/Core>
+
+#include "surfmap/mesh/tri_mesh.h"
+
+namespace surfmap::samples {
+
+/// Torus of revolution, major radius R > minor radius r > 0, n_major x n_minor
+/// quad grid split into triangles (2*n_major*n_minor faces, n_major*n_minor
+/// vertices, all exactly on (sqrt(x^2+y^2)-R)^2 + z^2 = r^2).
+/// `connectivity_variant` changes the triangulation of the same vertex set
+/// (0: all quads split along one diagonal; 1: alternating diagonals in a
+/// checkerboard; 2: every other ring offset by half a cell; other values: a
+/// seeded random diagonal per quad), so the same surface gets a different F.
+/// Throws InputError on R <= r, r <= 0, n_major < 3 or n_minor < 3.
+TriMesh torus_of_revolution(double R, double r, int n_major, int n_minor,
+                            int connectivity_variant = 0);
+
+/// Smooth closed surface of genus n (n = 1..8): n holes in a row (n <= 4) or
+/// a wheel with n spokes (n >= 5), the zero set of an implicit function meshed
+/// by marching tetrahedra on a grid of `resolution` cells along the longest
+/// axis. smooth=true improves the triangles (tangential relaxation, edge flips
+/// and projection back onto the level set, never flipping a triangle);
+/// smooth=false leaves the raw marching-tets output with its slivers (the
+/// "ugly mesh" the tests want). #V grows like resolution^2.
+TriMesh n_hole_torus(int n, int resolution = 64, bool smooth = true);
+
+/// Vase with two handles (genus 2).
+TriMesh vase(int resolution = 64, bool smooth = true);
+/// Amphora: tall neck, pointed foot, two handles from neck to shoulder
+/// (genus 2, proportions unlike the vase).
+TriMesh amphora(int resolution = 64, bool smooth = true);
+/// Squat cup/teapot-like body with `handles` handles around it (genus =
+/// handles, 1..8).
+TriMesh cup(int handles = 1, int resolution = 64, bool smooth = true);
+/// Polycube-like rounded block with `holes` square through-holes in a row
+/// (genus = holes, 1..8).
+TriMesh polycube(int holes = 3, int resolution = 64, bool smooth = true);
+
+/// Moves every vertex by a random tangential offset of `amplitude` times the
+/// local mean edge length (seeded, deterministic). A move that would flip or
+/// degenerate an incident triangle is shrunk, so the result stays embedded
+/// and consistently oriented. Requires 0 <= amplitude < 0.3.
+TriMesh jitter(const TriMesh& mesh, double amplitude, unsigned seed);
+
+/// Inversion in the sphere with centre c and radius rho:
+/// x -> c + rho^2 (x - c) / |x - c|^2, a conformal copy of the mesh
+/// (DESIGN.md section 3). c must lie outside the surface's vertices (throws
+/// InputError if it coincides with one). Faces are reversed when c is outside
+/// the enclosed solid, so the result stays outward-oriented.
+TriMesh sphere_inversion(const TriMesh& mesh, const Eigen::Vector3d& c, double rho);
+
+/// Genus-0 unit sphere: an icosahedron subdivided `subdivisions` times
+/// (10*4^s + 2 vertices), vertices projected onto the sphere.
+TriMesh sphere(int subdivisions = 3);
+
+}  // namespace surfmap::samples
