@@ -1,0 +1,94 @@
+#pragma once
+// Discrete Ricci flow / discrete uniformization metric (paper §V; DESIGN.md
+// §2.4). Finds conformal factors u (one per vertex) such that the conformally
+// changed metric has the wanted angle defect K_i = 2π − Σθ_i at every vertex:
+// flat (Euclidean background, genus 1 and punctured spheres) or curvature −1
+// (hyperbolic background, genus >= 2).
+//
+// Schemes:
+//  * VertexScaling (default; discrete Yamabe, Bobenko–Pinkall–Springborn 2015):
+//      Euclidean   l̃_ij = e^{(u_i+u_j)/2} l_ij
+//      Hyperbolic  sinh(l̃_ij/2) = e^{(u_i+u_j)/2} l_ij/2   (l_ij: the input,
+//                  Euclidean, lengths; i.e. the initial hyperbolic metric has
+//                  sinh(l_hyp/2) = l/2). The energy is convex in u; triangles
+//                  that violate the triangle inequality during the solve use
+//                  the extended (C¹, convex) energy with angles (π, 0, 0).
+//  * InversiveDistance (the paper's Bowers–Stephenson circle packing):
+//      r_i = e^{u_i} (Euclidean) or tanh(r_i/2) = e^{u_i} (hyperbolic) with
+//      the inversive distances I_ij fixed from initial circles;
+//      Euclidean   l² = r_i² + r_j² + 2 r_i r_j I_ij
+//      Hyperbolic  cosh l = cosh r_i cosh r_j + I_ij sinh r_i sinh r_j.
+//
+// Methods: Newton with line search on a sparse Hessian (default), or the
+// paper's explicit flow du/dt = K_target − K (for comparison).
+//
+// Usage by the layout / CLI / Python code: call ricci_flow(conn, edge_lengths(mesh, conn),
+// Background::Euclidean or ::Hyperbolic); check `converged` (never true with
+// a wrong metric: degenerate triangles or NaNs give converged=false and a
+// message naming the face); use result.edge_lengths (#E, in Connectivity's
+// edge order) as the intrinsic metric to lay out. Errors in the inputs
+// (wrong sizes, non-positive lengths, targets violating Gauss–Bonnet) throw
+// InputError; a progress callback returning false throws Cancelled.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "surfmap/mesh/connectivity.h"
+#include "surfmap/mesh/tri_mesh.h"
+
+namespace surfmap {
+
+/// Flat (genus 1, and the punctured sphere) or curvature −1 (genus >= 2).
+enum class Background { Euclidean, Hyperbolic };
+/// VertexScaling = discrete Yamabe (default); InversiveDistance = the paper's circle packing.
+enum class RicciScheme { VertexScaling, InversiveDistance };
+/// Newton with line search (default); the paper's explicit flow du/dt = K_target − K.
+enum class RicciMethod { Newton, GradientFlow };
+
+struct RicciFlowOptions {
+  RicciScheme scheme = RicciScheme::VertexScaling;
+  RicciMethod method = RicciMethod::Newton;
+  /// Stop when max_i |K_i − target_i| <= tolerance.
+  double tolerance = 1e-10;
+  /// 0: 100 for Newton, 200000 for the flow.
+  int max_iterations = 0;
+  /// Time step of the explicit flow u += flow_step (K_target − K).
+  double flow_step = 0.1;
+  /// Called once per iteration with the current max curvature error; return
+  /// false to cancel (ricci_flow then throws Cancelled).
+  std::function<bool(int iteration, double residual)> progress;
+};
+
+struct RicciFlowResult {
+  bool converged = false;
+  int iterations = 0;
+  /// max_i |K_i − target_i| of the returned metric.
+  double max_curvature_error = 0;
+  /// max curvature error before each iteration (and the final one).
+  std::vector<double> residual_history;
+  /// #V conformal factors (start 0). Euclidean: defined up to a common
+  /// constant; the solver keeps u_0 = 0 (Newton) / Σu = 0 (flow).
+  Eigen::VectorXd u;
+  /// #E final lengths, edge order of Connectivity (Euclidean or hyperbolic lengths).
+  Eigen::VectorXd edge_lengths;
+  Background background = Background::Euclidean;
+  double time_s = 0;
+  /// Why it failed, naming the element when there is one; empty on success.
+  std::string message;
+};
+
+/// mesh: closed, oriented connectivity; edge_lengths: #E positive Euclidean
+/// lengths satisfying the triangle inequality (e.g. edge_lengths(mesh, conn)).
+/// target_curvature: #V (angle defect 2π − Σθ wanted at each vertex); empty =
+/// all zero. Euclidean targets must sum to 2πχ; hyperbolic targets to more
+/// than 2πχ (the excess is the hyperbolic area).
+RicciFlowResult ricci_flow(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
+                           Background background, const RicciFlowOptions& options = {},
+                           const Eigen::VectorXd& target_curvature = {});
+
+/// 3D edge lengths of `mesh`, #E in the edge order of `conn`.
+Eigen::VectorXd edge_lengths(const TriMesh& mesh, const Connectivity& conn);
+
+}  // namespace surfmap
