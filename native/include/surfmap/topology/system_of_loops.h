@@ -1,0 +1,60 @@
+#pragma once
+// Greedy system of loops (paper §IV-A; Erickson–Whittlesey greedy homotopy
+// basis; DESIGN.md §2.2) and the refinement that makes the 2g loops simple and
+// disjoint except at the base vertex.
+#include <string>
+#include <vector>
+
+#include "surfmap/mesh/connectivity.h"
+#include "surfmap/mesh/tri_mesh.h"
+
+namespace surfmap {
+
+struct SystemOfLoopsOptions {
+  /// Base vertex x of the loops. -1 (default): a well-chosen vertex (high
+  /// valence, near the middle of the shape).
+  int base_vertex = -1;
+  /// Split edges so that loops are simple and meet only at x (default: true).
+  bool refine = true;
+};
+
+/// Everything refers to `mesh` (the refined mesh when refinement ran).
+struct SystemOfLoops {
+  /// Refined mesh. Its first #V(input) vertices are the input vertices, at
+  /// the same positions; the others lie on input edges or inside input faces.
+  TriMesh mesh;
+  /// For every vertex of `mesh`: the input face containing it and its
+  /// barycentric coordinates there (#V x 1 and #V x 3), so that split points
+  /// can be mapped back onto the input surface exactly.
+  std::vector<int> origin_face;
+  RowMatrixX3d origin_barycentric;
+  int genus = 0;
+  int base_vertex = -1;
+  /// Shortest-path tree T from x: per vertex, the halfedge from its parent to
+  /// it (-1 at x). Halfedge numbering as in Connectivity(mesh.F).
+  std::vector<int> tree_parent_halfedge;
+  /// Cut tree T*: per face, the halfedge of that face across which its parent
+  /// face lies (-1 at the root face). Faces of the disk obtained by cutting
+  /// along the loops are exactly connected through these dual edges.
+  std::vector<int> dual_tree_parent_halfedge;
+  /// The 2g edges in neither T nor crossed by T*, one per loop (loop k uses
+  /// generator_edges[k]).
+  std::vector<int> generator_edges;
+  /// 2g closed vertex paths [x, v1, ..., x] along edges of `mesh`; loop k is
+  /// path(x, a) + (a, b) + path(b, x) for generator edge k. Simple, pairwise
+  /// disjoint except at x when refined.
+  std::vector<std::vector<int>> loops;
+  /// Cyclic boundary word of the 4g-gon obtained by cutting along the loops,
+  /// read counter-clockwise: letters are loop indices, +k+1 for loop k in its
+  /// own direction and -(k+1) reversed (so each of ±1..±2g occurs once).
+  std::vector<int> word;
+  /// The same word as text, loops named a1 b1 a2 b2 ... by index order
+  /// (loop 2i -> a_{i+1}, loop 2i+1 -> b_{i+1}); inverse written with "^-1".
+  std::string word_text;
+};
+
+/// Computes the system of loops of a closed, manifold, oriented mesh of genus
+/// g >= 1 (throws InputError for genus 0: there are no loops to cut).
+SystemOfLoops system_of_loops(const TriMesh& mesh, const SystemOfLoopsOptions& options = {});
+
+}  // namespace surfmap

@@ -1,0 +1,40 @@
+// One exception hierarchy seen from Python: surfmap.Error is the base;
+// InputError is also a ValueError, SolveError also a RuntimeError.
+#include "bindings.h"
+#include "surfmap/error.h"
+
+namespace py = pybind11;
+
+namespace surfmap::python {
+
+void bind_errors(py::module_& m) {
+  static py::handle error = PyErr_NewExceptionWithDoc(
+      "surfmap.Error", "Base of every error raised by surfmap.", PyExc_Exception, nullptr);
+  static py::handle input_error = PyErr_NewExceptionWithDoc(
+      "surfmap.InputError", "The input mesh or arguments are unusable; the message names the element.",
+      py::make_tuple(error, py::handle(PyExc_ValueError)).release().ptr(), nullptr);
+  static py::handle solve_error = PyErr_NewExceptionWithDoc(
+      "surfmap.SolveError", "A numerical solve did not converge or produced an invalid result.",
+      py::make_tuple(error, py::handle(PyExc_RuntimeError)).release().ptr(), nullptr);
+  static py::handle cancelled = PyErr_NewExceptionWithDoc(
+      "surfmap.Cancelled", "The progress callback asked to stop.", error.ptr(), nullptr);
+  m.attr("Error") = error;
+  m.attr("InputError") = input_error;
+  m.attr("SolveError") = solve_error;
+  m.attr("Cancelled") = cancelled;
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const InputError& e) {
+      PyErr_SetString(input_error.ptr(), e.what());
+    } catch (const SolveError& e) {
+      PyErr_SetString(solve_error.ptr(), e.what());
+    } catch (const Cancelled& e) {
+      PyErr_SetString(cancelled.ptr(), e.what());
+    } catch (const Error& e) {
+      PyErr_SetString(error.ptr(), e.what());
+    }
+  });
+}
+
+}  // namespace surfmap::python

@@ -1,0 +1,8 @@
+#include "bindings.h"
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "surfmap native core";
+  surfmap::python::bind_errors(m);
+  surfmap::python::bind_mesh(m);
+  // SURFMAP_PY_BIND (keep this marker: add one bind_* call per line above it)
+}

@@ -1,0 +1,99 @@
+#include "surfmap/mesh/connectivity.h"
+
+#include <algorithm>
+#include <array>
+#include <string>
+#include <unordered_map>
+
+#include "surfmap/error.h"
+
+namespace surfmap {
+
+Connectivity::Connectivity(const RowMatrixX3i& F, int num_vertices) : F_(F) {
+  const int nf = static_cast<int>(F.rows());
+  num_vertices_ = num_vertices >= 0 ? num_vertices : (nf ? F.maxCoeff() + 1 : 0);
+  const int nh = 3 * nf;
+  twin_.assign(nh, -1);
+  edge_of_.assign(nh, -1);
+  vertex_out_.assign(num_vertices_, -1);
+  // Sort halfedges by (min vertex, max vertex) to pair twins without hashing.
+  std::vector<std::pair<long long, int>> keys(nh);
+  for (int h = 0; h < nh; ++h) {
+    const int a = tail(h), b = head(h);
+    if (a < 0 || a >= num_vertices_ || b < 0 || b >= num_vertices_)
+      throw InputError("face " + std::to_string(h / 3) + " has a vertex index out of range");
+    keys[h] = {static_cast<long long>(std::min(a, b)) * num_vertices_ + std::max(a, b), h};
+    vertex_out_[a] = h;
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<std::array<int, 2>> ev;
+  ev.reserve(nh / 2);
+  for (size_t i = 0; i < keys.size();) {
+    size_t j = i;
+    while (j < keys.size() && keys[j].first == keys[i].first) ++j;
+    const int h0 = keys[i].second;
+    const int a = std::min(tail(h0), head(h0)), b = std::max(tail(h0), head(h0));
+    const std::string name = "edge (" + std::to_string(a) + ", " + std::to_string(b) + ")";
+    if (j - i == 1)
+      throw InputError(name + " is a boundary edge (only one face, " + std::to_string(h0 / 3) +
+                       "); open surfaces are not supported");
+    if (j - i > 2)
+      throw InputError(name + " is non-manifold: it has " + std::to_string(j - i) + " faces");
+    const int h1 = keys[i + 1].second;
+    if (tail(h0) == tail(h1))
+      throw InputError("faces " + std::to_string(h0 / 3) + " and " + std::to_string(h1 / 3) +
+                       " are inconsistently oriented across " + name);
+    const int e = static_cast<int>(ev.size());
+    ev.push_back({a, b});
+    twin_[h0] = h1;
+    twin_[h1] = h0;
+    edge_of_[h0] = edge_of_[h1] = e;
+    edge_halfedge_.push_back(tail(h0) == a ? h0 : h1);
+    i = j;
+  }
+  edge_vertices_.resize(static_cast<int>(ev.size()), 2);
+  for (int e = 0; e < static_cast<int>(ev.size()); ++e) {
+    edge_vertices_(e, 0) = ev[e][0];
+    edge_vertices_(e, 1) = ev[e][1];
+  }
+  // Every vertex must be used, and its faces must form one fan (a disk).
+  std::vector<int> fan_size(num_vertices_, 0);
+  for (int h = 0; h < nh; ++h) ++fan_size[tail(h)];
+  for (int v = 0; v < num_vertices_; ++v) {
+    if (vertex_out_[v] < 0)
+      throw InputError("vertex " + std::to_string(v) + " is not used by any face");
+    int count = 0, h = vertex_out_[v];
+    do {
+      h = rotate_ccw(h);
+      ++count;
+    } while (h != vertex_out_[v] && count <= fan_size[v]);
+    if (count != fan_size[v])
+      throw InputError("vertex " + std::to_string(v) +
+                       " is non-manifold: its faces form more than one fan");
+  }
+}
+
+int Connectivity::find_halfedge(int a, int b) const {
+  const int start = vertex_out_[a];
+  int h = start;
+  do {
+    if (head(h) == b) return h;
+    h = rotate_ccw(h);
+  } while (h != start);
+  return -1;
+}
+
+std::vector<int> Connectivity::outgoing(int v) const {
+  std::vector<int> out;
+  const int start = vertex_out_[v];
+  int h = start;
+  do {
+    out.push_back(h);
+    h = rotate_ccw(h);
+  } while (h != start);
+  return out;
+}
+
+int Connectivity::valence(int v) const { return static_cast<int>(outgoing(v).size()); }
+
+}  // namespace surfmap

@@ -1,0 +1,295 @@
+#include "surfmap/mesh/intake.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numeric>
+#include <sstream>
+#include <string>
+
+#include <Eigen/Geometry>
+
+#include "surfmap/error.h"
+#include "surfmap/mesh/connectivity.h"
+
+namespace surfmap {
+namespace {
+
+std::string plural(size_t n, const std::string& word) {
+  if (n == 1) return "1 " + word;
+  return std::to_string(n) + " " + (word == "vertex" ? std::string("vertices") : word + "s");
+}
+
+struct UnionFind {
+  std::vector<int> parent;
+  explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  int find(int x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  }
+  void unite(int a, int b) { parent[find(a)] = find(b); }
+};
+
+// Fan triangulation of the soup, remembering each triangle's polygon. Only
+// well-formed polygons (>= 3 distinct in-range indices) are triangulated.
+struct Triangulation {
+  std::vector<std::array<int, 3>> tris;
+  std::vector<int> source_polygon;
+};
+
+// The analysis shared by inspect() and intake(): every check, each problem
+// with its offending elements, in the order a user should fix them.
+struct Analysis {
+  MeshInfo info;
+  Triangulation tri;
+  bool usable_topology = false;  // triangles well-formed, closed, manifold, oriented
+};
+
+Analysis analyse(const PolygonSoup& soup, const IntakeOptions& options) {
+  Analysis a;
+  MeshInfo& info = a.info;
+  const int nv = static_cast<int>(soup.V.rows());
+  info.num_vertices = nv;
+  auto& problems = info.problems;
+
+  if (nv == 0 || soup.polygons.empty()) {
+    problems.push_back("the mesh is empty (" + plural(nv, "vertex") + ", " +
+                       plural(soup.polygons.size(), "face") + ")");
+    return a;
+  }
+
+  // Coordinates.
+  for (int v = 0; v < nv; ++v) {
+    if (!soup.V.row(v).allFinite()) {
+      std::ostringstream s;
+      s << "vertex " << v << " has a non-finite coordinate (" << soup.V(v, 0) << ", " << soup.V(v, 1)
+        << ", " << soup.V(v, 2) << ")";
+      problems.push_back(s.str());
+      return a;  // nothing geometric can be trusted after this
+    }
+  }
+
+  // Face indices.
+  bool indices_ok = true;
+  for (size_t p = 0; p < soup.polygons.size(); ++p) {
+    const auto& poly = soup.polygons[p];
+    if (poly.size() < 3) {
+      problems.push_back("face " + std::to_string(p) + " has only " + plural(poly.size(), "vertex"));
+      indices_ok = false;
+      continue;
+    }
+    for (int idx : poly) {
+      if (idx < 0 || idx >= nv) {
+        problems.push_back("face " + std::to_string(p) + " refers to vertex " + std::to_string(idx) +
+                           ", out of range (the mesh has " + plural(nv, "vertex") + ")");
+        indices_ok = false;
+        break;
+      }
+    }
+    std::vector<int> sorted = poly;
+    std::sort(sorted.begin(), sorted.end());
+    auto dup = std::adjacent_find(sorted.begin(), sorted.end());
+    if (dup != sorted.end()) {
+      problems.push_back("face " + std::to_string(p) + " repeats vertex " + std::to_string(*dup));
+      indices_ok = false;
+    }
+  }
+  info.num_faces = static_cast<int>(soup.polygons.size());
+  if (!indices_ok) return a;
+
+  for (size_t p = 0; p < soup.polygons.size(); ++p) {
+    const auto& poly = soup.polygons[p];
+    for (size_t k = 1; k + 1 < poly.size(); ++k) {
+      a.tri.tris.push_back({poly[0], poly[k], poly[k + 1]});
+      a.tri.source_polygon.push_back(static_cast<int>(p));
+    }
+  }
+  const int nt = static_cast<int>(a.tri.tris.size());
+
+  // Degenerate faces, relative to the bounding box so the test is scale-free.
+  const Eigen::Vector3d lo = soup.V.colwise().minCoeff(), hi = soup.V.colwise().maxCoeff();
+  const double diag2 = std::max((hi - lo).squaredNorm(), 1e-300);
+  {
+    std::vector<int> degenerate;
+    for (int t = 0; t < nt; ++t) {
+      const auto& f = a.tri.tris[t];
+      const Eigen::Vector3d e1 = soup.V.row(f[1]) - soup.V.row(f[0]);
+      const Eigen::Vector3d e2 = soup.V.row(f[2]) - soup.V.row(f[0]);
+      if (0.5 * e1.cross(e2).norm() <= options.area_tolerance * diag2) degenerate.push_back(a.tri.source_polygon[t]);
+    }
+    degenerate.erase(std::unique(degenerate.begin(), degenerate.end()), degenerate.end());
+    if (!degenerate.empty()) {
+      std::string list;
+      for (size_t i = 0; i < std::min<size_t>(degenerate.size(), 5); ++i)
+        list += (i ? ", " : "") + std::to_string(degenerate[i]);
+      problems.push_back(plural(degenerate.size(), "zero-area face") + " (face " + list +
+                         (degenerate.size() > 5 ? ", ..." : "") + ")");
+    }
+  }
+
+  // Edges: group halfedges by their unordered vertex pair.
+  std::vector<std::pair<long long, int>> keys(3 * nt);
+  for (int h = 0; h < 3 * nt; ++h) {
+    const int u = a.tri.tris[h / 3][h % 3], w = a.tri.tris[h / 3][(h % 3 + 1) % 3];
+    keys[h] = {static_cast<long long>(std::min(u, w)) * nv + std::max(u, w), h};
+  }
+  std::sort(keys.begin(), keys.end());
+  int num_edges = 0, nonmanifold = 0, boundary = 0, misoriented = 0;
+  std::string first_nonmanifold, first_boundary, first_misoriented;
+  UnionFind vertices_uf(nv), boundary_uf(nv);
+  std::vector<char> on_boundary(nv, 0);
+  for (size_t i = 0; i < keys.size();) {
+    size_t j = i;
+    while (j < keys.size() && keys[j].first == keys[i].first) ++j;
+    ++num_edges;
+    const int h0 = keys[i].second;
+    const int u = a.tri.tris[h0 / 3][h0 % 3], w = a.tri.tris[h0 / 3][(h0 % 3 + 1) % 3];
+    const std::string name = "(" + std::to_string(std::min(u, w)) + ", " + std::to_string(std::max(u, w)) + ")";
+    auto face_of = [&](size_t k) { return std::to_string(a.tri.source_polygon[keys[k].second / 3]); };
+    vertices_uf.unite(u, w);
+    if (j - i == 1) {
+      if (boundary++ == 0) first_boundary = name + " of face " + face_of(i);
+      on_boundary[u] = on_boundary[w] = 1;
+      boundary_uf.unite(u, w);
+    } else if (j - i > 2) {
+      if (nonmanifold++ == 0) {
+        first_nonmanifold = name + ", shared by faces ";
+        for (size_t k = i; k < j; ++k) first_nonmanifold += (k > i ? ", " : "") + face_of(k);
+      }
+    } else {
+      const int h1 = keys[i + 1].second;
+      if (a.tri.tris[h1 / 3][h1 % 3] == u) {
+        if (misoriented++ == 0)
+          first_misoriented = "faces " + face_of(i) + " and " + face_of(i + 1) + " across edge " + name;
+      }
+    }
+    i = j;
+  }
+  info.num_edges = num_edges;
+  if (nonmanifold)
+    problems.push_back(plural(nonmanifold, "non-manifold edge") + " (more than two faces), first: edge " +
+                       first_nonmanifold);
+  if (boundary) {
+    int loops = 0;
+    for (int v = 0; v < nv; ++v)
+      if (on_boundary[v] && boundary_uf.find(v) == v) ++loops;
+    info.num_boundary_loops = loops;
+    problems.push_back("the surface is open: " + plural(boundary, "boundary edge") + " in " +
+                       plural(loops, "boundary loop") + ", first: edge " + first_boundary +
+                       "; open surfaces are not supported yet (close the holes first)");
+  }
+  if (misoriented)
+    problems.push_back(plural(misoriented, "edge") + " with inconsistently oriented faces, first: " +
+                       first_misoriented);
+
+  // Components (faces sharing a vertex belong together, so two surfaces
+  // touching at a vertex are one component with a non-manifold vertex).
+  std::vector<char> used(nv, 0);
+  for (const auto& f : a.tri.tris) used[f[0]] = used[f[1]] = used[f[2]] = 1;
+  {
+    int comps = 0;
+    for (int v = 0; v < nv; ++v)
+      if (used[v] && vertices_uf.find(v) == v) ++comps;
+    info.num_components = comps;
+    if (comps > 1)
+      problems.push_back("the mesh has " + std::to_string(comps) +
+                         " separate components; map one connected surface at a time");
+    const auto unused = std::find(used.begin(), used.end(), 0);
+    if (unused != used.end())
+      problems.push_back("vertex " + std::to_string(unused - used.begin()) +
+                         " is not used by any face (loose vertex)");
+  }
+  info.euler_characteristic = info.num_vertices - num_edges + info.num_faces;
+
+  if (nonmanifold || boundary || misoriented) return a;
+
+  // Non-manifold vertices: with manifold edges, a vertex's faces must form one fan.
+  RowMatrixX3i F(nt, 3);
+  for (int t = 0; t < nt; ++t) F.row(t) << a.tri.tris[t][0], a.tri.tris[t][1], a.tri.tris[t][2];
+  if (std::find(used.begin(), used.end(), 0) == used.end()) {
+    try {
+      Connectivity conn(F, nv);
+      info.euler_characteristic = conn.euler_characteristic();
+    } catch (const InputError& e) {
+      problems.push_back(e.what());
+      return a;
+    }
+  } else {
+    return a;
+  }
+  // Triangulated counts: the Euler characteristic is the same for polygons.
+  if (info.num_components == 1) {
+    info.genus = (2 - info.euler_characteristic) / 2;
+    if (info.euler_characteristic % 2 != 0 || info.euler_characteristic > 2)
+      problems.push_back("Euler characteristic " + std::to_string(info.euler_characteristic) +
+                         " is impossible for a closed orientable surface");
+  }
+
+  // Orientation: signed volume of the closed surface.
+  double vol = 0.0;
+  for (const auto& f : a.tri.tris)
+    vol += soup.V.row(f[0]).dot(Eigen::Vector3d(soup.V.row(f[1])).cross(Eigen::Vector3d(soup.V.row(f[2])))) / 6.0;
+  info.signed_volume = vol;
+  if (vol < 0 && options.orient_outward)
+    info.notes.push_back("faces were oriented inward (signed volume " + std::to_string(vol) +
+                         "); all faces flipped to orient the surface outward");
+  a.usable_topology = true;
+  info.valid = problems.empty();
+  return a;
+}
+
+}  // namespace
+
+MeshInfo inspect(const PolygonSoup& soup, const IntakeOptions& options) {
+  return analyse(soup, options).info;
+}
+
+IntakeResult intake(const PolygonSoup& soup, const IntakeOptions& options) {
+  Analysis a = analyse(soup, options);
+  if (!a.info.valid) {
+    std::string msg = a.info.problems.empty() ? "invalid mesh" : a.info.problems.front();
+    if (a.info.problems.size() > 1)
+      msg += " (and " + plural(a.info.problems.size() - 1, "more problem") + ")";
+    throw InputError(msg);
+  }
+  IntakeResult r;
+  r.info = std::move(a.info);
+  r.mesh.V = soup.V;
+  const int nt = static_cast<int>(a.tri.tris.size());
+  r.mesh.F.resize(nt, 3);
+  r.flipped = options.orient_outward && r.info.signed_volume < 0;
+  for (int t = 0; t < nt; ++t) {
+    const auto& f = a.tri.tris[t];
+    if (r.flipped)
+      r.mesh.F.row(t) << f[0], f[2], f[1];
+    else
+      r.mesh.F.row(t) << f[0], f[1], f[2];
+  }
+  r.source_polygon = std::move(a.tri.source_polygon);
+  return r;
+}
+
+IntakeResult intake(const RowMatrixX3d& V, const RowMatrixX3i& F, const IntakeOptions& options) {
+  PolygonSoup soup;
+  soup.V = V;
+  soup.polygons.resize(F.rows());
+  for (int f = 0; f < F.rows(); ++f) soup.polygons[f] = {F(f, 0), F(f, 1), F(f, 2)};
+  return intake(soup, options);
+}
+
+IntakeResult load_mesh(const std::string& path, const IntakeOptions& options) {
+  const PolygonSoup soup = read_polygon_soup(path);
+  try {
+    return intake(soup, options);
+  } catch (const InputError& e) {
+    throw InputError("'" + path + "': " + e.what());
+  }
+}
+
+void check_same_genus(const MeshInfo& source, const MeshInfo& target) {
+  if (source.genus != target.genus)
+    throw InputError("the source has genus " + std::to_string(source.genus) + " but the target has genus " +
+                     std::to_string(target.genus) + "; both surfaces must have the same genus");
+}
+
+}  // namespace surfmap
