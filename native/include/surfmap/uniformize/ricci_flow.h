@@ -14,8 +14,10 @@
 //                  that violate the triangle inequality during the solve use
 //                  the extended (C¹, convex) energy with angles (π, 0, 0).
 //  * InversiveDistance (the paper's Bowers–Stephenson circle packing):
-//      r_i = e^{u_i} (Euclidean) or tanh(r_i/2) = e^{u_i} (hyperbolic) with
-//      the inversive distances I_ij fixed from initial circles;
+//      r_i = r⁰_i e^{u_i} (Euclidean) or tanh(r_i/2) = tanh(r⁰_i/2) e^{u_i}
+//      (hyperbolic) with initial radii r⁰_i = 1/3 of the shortest edge at i
+//      (hyperbolic: of the initial hyperbolic lengths, sinh(l_hyp/2) = l/2)
+//      and the inversive distances I_ij fixed from these initial circles;
 //      Euclidean   l² = r_i² + r_j² + 2 r_i r_j I_ij
 //      Hyperbolic  cosh l = cosh r_i cosh r_j + I_ij sinh r_i sinh r_j.
 //
@@ -34,6 +36,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/mesh/tri_mesh.h"
@@ -87,6 +90,22 @@ struct RicciFlowResult {
 RicciFlowResult ricci_flow(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
                            Background background, const RicciFlowOptions& options = {},
                            const Eigen::VectorXd& target_curvature = {});
+
+/// The linearisation at u, for tests and for callers that need it: the
+/// curvatures K (#V, angle defects of the metric given by u) and the Jacobian
+/// dK/du (#V x #V, symmetric; the Hessian of the flow's energy). Triangles
+/// violating the triangle inequality get angles (π, 0, 0) and contribute
+/// nothing to the Jacobian; their count is `degenerate_faces`.
+struct RicciLinearization {
+  Eigen::VectorXd curvature;
+  Eigen::SparseMatrix<double> jacobian;
+  Eigen::VectorXd edge_lengths;  ///< #E lengths of the metric at u
+  int degenerate_faces = 0;
+};
+RicciLinearization ricci_linearization(const Connectivity& mesh,
+                                       const Eigen::VectorXd& edge_lengths,
+                                       Background background, RicciScheme scheme,
+                                       const Eigen::VectorXd& u);
 
 /// 3D edge lengths of `mesh`, #E in the edge order of `conn`.
 Eigen::VectorXd edge_lengths(const TriMesh& mesh, const Connectivity& conn);

@@ -1,0 +1,39 @@
+#pragma once
+// Private core of the discrete Ricci flow, shared by ricci_flow.cpp and
+// spherical.cpp. Works on a plain face/edge table so that it also handles a
+// disk (the punctured sphere), which Connectivity (closed meshes only) cannot.
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include "surfmap/mesh/connectivity.h"
+#include "surfmap/uniformize/ricci_flow.h"
+
+namespace surfmap::detail {
+
+using RowMatrixX2i = Eigen::Matrix<int, Eigen::Dynamic, 2, Eigen::RowMajor>;
+
+struct RicciDomain {
+  int num_vertices = 0;
+  RowMatrixX3i F;       ///< #F x 3
+  RowMatrixX3i FE;      ///< #F x 3: edge of the side opposite corner k of face f
+  RowMatrixX2i EV;      ///< #E x 2 edge endpoints
+  /// #V: 2π at interior vertices, π at boundary vertices, so that
+  /// K_i = full_angle_i − Σθ_i is the angle defect / geodesic curvature.
+  Eigen::VectorXd full_angle;
+};
+
+RicciDomain domain_from_connectivity(const Connectivity& conn);
+/// Any manifold oriented triangle list (boundary allowed).
+RicciDomain domain_from_faces(int num_vertices, const RowMatrixX3i& F);
+
+RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengths,
+                            Background background, const RicciFlowOptions& options,
+                            const Eigen::VectorXd& target, const Eigen::VectorXd* u_start);
+
+RicciLinearization ricci_linearize(const RicciDomain& dom, const Eigen::VectorXd& lengths,
+                                   Background background, RicciScheme scheme,
+                                   const Eigen::VectorXd& u);
+
+}  // namespace surfmap::detail

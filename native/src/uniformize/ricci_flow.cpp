@@ -1,0 +1,499 @@
+// Discrete Ricci flow (paper §V; DESIGN.md §2.4). See ricci_flow.h.
+//
+// Everything is written as "lengths as functions of u" (per scheme) composed
+// with "angles as functions of lengths" (per background), so that one
+// chain rule gives the Jacobian dK/du for all four combinations:
+//   dθ_i/dl_i = l_i / (2A)                         (Euclidean, A = area)
+//             = sinh l_i / (sinh l_j sinh l_k sin θ_i)   (hyperbolic)
+//   dθ_i/dl_j = −dθ_i/dl_i · cos θ_k               (both; k the third corner)
+// (differentiate the law of cosines). K_i = full_i − Σθ_i, so dK/du = −Σ dθ/du;
+// for vertex scaling this is the Hessian of the Bobenko–Pinkall–Springborn
+// convex energy (Euclidean: the cotangent Laplacian / 2).
+#include "surfmap/uniformize/ricci_flow.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <string>
+
+#include <Eigen/CholmodSupport>
+#include <Eigen/SparseCore>
+
+#include "ricci_core.h"
+#include "surfmap/error.h"
+
+namespace surfmap {
+namespace detail {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::string fmt(double x) {
+  std::ostringstream s;
+  s.precision(3);
+  s << x;
+  return s.str();
+}
+
+/// Lengths of the metric at u and their derivatives dl_e/du at both endpoints.
+class SchemeMetric {
+ public:
+  SchemeMetric(const RicciDomain& dom, const Eigen::VectorXd& l0, Background bg, RicciScheme scheme)
+      : dom_(dom), bg_(bg), scheme_(scheme), l0_(l0) {
+    const int ne = static_cast<int>(dom.EV.rows()), nv = dom.num_vertices;
+    if (scheme == RicciScheme::InversiveDistance) {
+      // Initial metric in the background geometry.
+      Eigen::VectorXd lb = l0;
+      if (bg == Background::Hyperbolic)
+        for (int e = 0; e < ne; ++e) lb[e] = 2.0 * std::asinh(l0[e] / 2.0);
+      r0_ = Eigen::VectorXd::Constant(nv, std::numeric_limits<double>::infinity());
+      for (int e = 0; e < ne; ++e)
+        for (int k = 0; k < 2; ++k) r0_[dom.EV(e, k)] = std::min(r0_[dom.EV(e, k)], lb[e] / 3.0);
+      inv_.resize(ne);
+      for (int e = 0; e < ne; ++e) {
+        const double ri = r0_[dom.EV(e, 0)], rj = r0_[dom.EV(e, 1)];
+        if (bg == Background::Euclidean)
+          inv_[e] = (lb[e] * lb[e] - ri * ri - rj * rj) / (2.0 * ri * rj);
+        else
+          inv_[e] = (std::cosh(lb[e]) - std::cosh(ri) * std::cosh(rj)) /
+                    (std::sinh(ri) * std::sinh(rj));
+      }
+      if (bg == Background::Hyperbolic) {
+        tanh_half_r0_.resize(nv);
+        for (int v = 0; v < nv; ++v) tanh_half_r0_[v] = std::tanh(r0_[v] / 2.0);
+      }
+    }
+  }
+
+  /// Fills l (#E) and dldu (#E x 2: d l_e / d u_{EV(e,0)}, d l_e / d u_{EV(e,1)}).
+  /// Returns the first edge whose length is not a finite positive number, or -1.
+  int lengths(const Eigen::VectorXd& u, Eigen::VectorXd& l, Eigen::MatrixX2d* dldu) const {
+    const int ne = static_cast<int>(dom_.EV.rows());
+    l.resize(ne);
+    if (dldu) dldu->resize(ne, 2);
+    Eigen::VectorXd r;
+    if (scheme_ == RicciScheme::InversiveDistance) {
+      r.resize(dom_.num_vertices);
+      for (int v = 0; v < dom_.num_vertices; ++v) {
+        if (bg_ == Background::Euclidean) {
+          r[v] = r0_[v] * std::exp(u[v]);
+        } else {
+          const double t = tanh_half_r0_[v] * std::exp(u[v]);
+          r[v] = t < 1.0 ? 2.0 * std::atanh(t) : std::numeric_limits<double>::infinity();
+        }
+      }
+    }
+    int bad = -1;
+    for (int e = 0; e < ne; ++e) {
+      const int i = dom_.EV(e, 0), j = dom_.EV(e, 1);
+      double le, di, dj;
+      if (scheme_ == RicciScheme::VertexScaling) {
+        const double s = std::exp(0.5 * (u[i] + u[j]));
+        if (bg_ == Background::Euclidean) {
+          le = s * l0_[e];
+          di = dj = 0.5 * le;
+        } else {
+          // sinh(l/2) = e^{(ui+uj)/2} l0/2  =>  dl/du_i = tanh(l/2).
+          le = 2.0 * std::asinh(s * l0_[e] / 2.0);
+          di = dj = std::tanh(0.5 * le);
+        }
+      } else {
+        const double ri = r[i], rj = r[j], I = inv_[e];
+        if (bg_ == Background::Euclidean) {
+          le = std::sqrt(std::max(0.0, ri * ri + rj * rj + 2.0 * ri * rj * I));
+          di = (ri * ri + ri * rj * I) / le;
+          dj = (rj * rj + ri * rj * I) / le;
+        } else {
+          const double ci = std::cosh(ri), cj = std::cosh(rj), si = std::sinh(ri),
+                       sj = std::sinh(rj);
+          const double ch = ci * cj + I * si * sj;
+          le = ch > 1.0 ? std::acosh(ch) : 0.0;
+          const double sl = std::sinh(le);
+          // dr/du = sinh r for tanh(r/2) = c e^u.
+          di = si * (si * cj + I * ci * sj) / sl;
+          dj = sj * (sj * ci + I * cj * si) / sl;
+        }
+      }
+      l[e] = le;
+      if (dldu) {
+        (*dldu)(e, 0) = di;
+        (*dldu)(e, 1) = dj;
+      }
+      if (!(std::isfinite(le) && le > 0.0 && std::isfinite(di) && std::isfinite(dj)) && bad < 0)
+        bad = e;
+    }
+    return bad;
+  }
+
+ private:
+  const RicciDomain& dom_;
+  Background bg_;
+  RicciScheme scheme_;
+  Eigen::VectorXd l0_, r0_, inv_, tanh_half_r0_;
+};
+
+/// Angles of a triangle with sides l[k] opposite corner k, and D(i,m) =
+/// dθ_i/dl_m. Returns false (angles π,0,0 opposite the too-long side, D = 0)
+/// when the triangle inequality fails: the extended convex energy of
+/// Bobenko–Pinkall–Springborn / Luo.
+bool triangle_angles(const double l[3], Background bg, double theta[3], double D[3][3],
+                     double* slack) {
+  const double s = 0.5 * (l[0] + l[1] + l[2]);
+  double sk[3];
+  for (int k = 0; k < 3; ++k) sk[k] = 0.5 * (l[(k + 1) % 3] + l[(k + 2) % 3] - l[k]);
+  int worst = 0;
+  for (int k = 1; k < 3; ++k)
+    if (sk[k] < sk[worst]) worst = k;
+  if (slack) *slack = sk[worst] / s;
+  if (!(sk[worst] > 0.0)) {
+    for (int k = 0; k < 3; ++k) {
+      theta[k] = (k == worst) ? kPi : 0.0;
+      for (int m = 0; m < 3; ++m) D[k][m] = 0.0;
+    }
+    return false;
+  }
+  double f[3], fs, twice;  // "half-perimeter" quantities of the half-angle formulas
+  if (bg == Background::Euclidean) {
+    for (int k = 0; k < 3; ++k) f[k] = sk[k];
+    fs = s;
+    twice = 2.0 * std::sqrt(s * sk[0] * sk[1] * sk[2]);  // 2A = l_j l_k sin θ_i
+  } else {
+    for (int k = 0; k < 3; ++k) f[k] = std::sinh(sk[k]);
+    fs = std::sinh(s);
+    twice = 2.0 * std::sqrt(fs * f[0] * f[1] * f[2]);  // = sinh l_j sinh l_k sin θ_i
+  }
+  for (int k = 0; k < 3; ++k)
+    theta[k] = 2.0 * std::atan2(std::sqrt(f[(k + 1) % 3] * f[(k + 2) % 3]), std::sqrt(fs * f[k]));
+  for (int i = 0; i < 3; ++i) {
+    const double dii = (bg == Background::Euclidean ? l[i] : std::sinh(l[i])) / twice;
+    D[i][i] = dii;
+    for (int m = 0; m < 3; ++m)
+      if (m != i) D[i][m] = -dii * std::cos(theta[3 - i - m]);
+  }
+  return true;
+}
+
+struct Evaluation {
+  Eigen::VectorXd l, K;
+  int bad_edge = -1;
+  int first_degenerate = -1;
+  int degenerate = 0;
+  double min_slack = 1.0;
+  int min_slack_face = -1;
+  std::vector<Eigen::Triplet<double>> triplets;
+};
+
+void evaluate(const RicciDomain& dom, const SchemeMetric& metric, Background bg,
+              const Eigen::VectorXd& u, bool jacobian, Evaluation& ev) {
+  Eigen::MatrixX2d dldu;
+  ev.bad_edge = metric.lengths(u, ev.l, jacobian ? &dldu : nullptr);
+  ev.K = dom.full_angle;
+  ev.degenerate = 0;
+  ev.first_degenerate = -1;
+  ev.min_slack = 1.0;
+  ev.min_slack_face = -1;
+  ev.triplets.clear();
+  if (ev.bad_edge >= 0) return;
+  const int nf = static_cast<int>(dom.F.rows());
+  if (jacobian) ev.triplets.reserve(9 * static_cast<size_t>(nf));
+  for (int f = 0; f < nf; ++f) {
+    double l[3], th[3], D[3][3], slack;
+    for (int k = 0; k < 3; ++k) l[k] = ev.l[dom.FE(f, k)];
+    if (!triangle_angles(l, bg, th, D, &slack)) {
+      ++ev.degenerate;
+      if (ev.first_degenerate < 0) ev.first_degenerate = f;
+    }
+    if (slack < ev.min_slack) {
+      ev.min_slack = slack;
+      ev.min_slack_face = f;
+    }
+    for (int k = 0; k < 3; ++k) ev.K[dom.F(f, k)] -= th[k];
+    if (!jacobian) continue;
+    // dl_m/du at the corners: side m joins corners m+1 and m+2.
+    double J[3][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};  // J(m, corner w) = dl_m/du_w
+    for (int m = 0; m < 3; ++m) {
+      const int e = dom.FE(f, m);
+      for (int q = 1; q <= 2; ++q) {
+        const int w = (m + q) % 3;
+        J[m][w] = dom.EV(e, 0) == dom.F(f, w) ? dldu(e, 0) : dldu(e, 1);
+      }
+    }
+    for (int i = 0; i < 3; ++i)
+      for (int w = 0; w < 3; ++w) {
+        double d = 0.0;
+        for (int m = 0; m < 3; ++m) d += D[i][m] * J[m][w];
+        ev.triplets.emplace_back(dom.F(f, i), dom.F(f, w), -d);  // dK = −dθ
+      }
+  }
+}
+
+int argmax_abs(const Eigen::VectorXd& x) {
+  int best = 0;
+  for (int i = 1; i < x.size(); ++i)
+    if (std::abs(x[i]) > std::abs(x[best])) best = i;
+  return best;
+}
+
+}  // namespace
+
+RicciDomain domain_from_connectivity(const Connectivity& conn) {
+  RicciDomain d;
+  d.num_vertices = conn.num_vertices();
+  d.F = conn.faces();
+  d.EV = conn.edge_vertices();
+  d.FE.resize(conn.num_faces(), 3);
+  for (int f = 0; f < conn.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) d.FE(f, k) = conn.edge(3 * f + (k + 1) % 3);
+  d.full_angle = Eigen::VectorXd::Constant(d.num_vertices, 2.0 * kPi);
+  return d;
+}
+
+RicciDomain domain_from_faces(int num_vertices, const RowMatrixX3i& F) {
+  RicciDomain d;
+  d.num_vertices = num_vertices;
+  d.F = F;
+  const int nf = static_cast<int>(F.rows());
+  std::vector<std::pair<long long, int>> keys(3 * static_cast<size_t>(nf));
+  for (int f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = F(f, (k + 1) % 3), b = F(f, (k + 2) % 3);
+      keys[3 * f + k] = {static_cast<long long>(std::min(a, b)) * num_vertices + std::max(a, b),
+                         3 * f + k};
+    }
+  std::sort(keys.begin(), keys.end());
+  d.FE.resize(nf, 3);
+  std::vector<std::array<int, 2>> ev;
+  d.full_angle = Eigen::VectorXd::Constant(num_vertices, 2.0 * kPi);
+  for (size_t i = 0; i < keys.size();) {
+    size_t j = i;
+    while (j < keys.size() && keys[j].first == keys[i].first) ++j;
+    if (j - i > 2) throw InputError("non-manifold edge in face " + std::to_string(keys[i].second / 3));
+    const int e = static_cast<int>(ev.size());
+    const long long key = keys[i].first;
+    ev.push_back({static_cast<int>(key / num_vertices), static_cast<int>(key % num_vertices)});
+    for (size_t q = i; q < j; ++q) d.FE(keys[q].second / 3, keys[q].second % 3) = e;
+    if (j - i == 1) d.full_angle[ev.back()[0]] = d.full_angle[ev.back()[1]] = kPi;
+    i = j;
+  }
+  d.EV.resize(static_cast<int>(ev.size()), 2);
+  for (int e = 0; e < static_cast<int>(ev.size()); ++e) {
+    d.EV(e, 0) = ev[e][0];
+    d.EV(e, 1) = ev[e][1];
+  }
+  return d;
+}
+
+RicciLinearization ricci_linearize(const RicciDomain& dom, const Eigen::VectorXd& lengths,
+                                   Background background, RicciScheme scheme,
+                                   const Eigen::VectorXd& u) {
+  SchemeMetric metric(dom, lengths, background, scheme);
+  Evaluation ev;
+  evaluate(dom, metric, background, u, true, ev);
+  if (ev.bad_edge >= 0)
+    throw SolveError("edge " + std::to_string(ev.bad_edge) + " has no valid length at this u");
+  RicciLinearization out;
+  out.curvature = ev.K;
+  out.edge_lengths = ev.l;
+  out.degenerate_faces = ev.degenerate;
+  out.jacobian.resize(dom.num_vertices, dom.num_vertices);
+  out.jacobian.setFromTriplets(ev.triplets.begin(), ev.triplets.end());
+  return out;
+}
+
+RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengths,
+                            Background background, const RicciFlowOptions& options,
+                            const Eigen::VectorXd& target_in, const Eigen::VectorXd* u_start) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const int nv = dom.num_vertices, ne = static_cast<int>(dom.EV.rows()),
+            nf = static_cast<int>(dom.F.rows());
+  if (lengths.size() != ne)
+    throw InputError("ricci_flow: expected " + std::to_string(ne) + " edge lengths, got " +
+                     std::to_string(lengths.size()));
+  for (int e = 0; e < ne; ++e)
+    if (!(std::isfinite(lengths[e]) && lengths[e] > 0.0))
+      throw InputError("ricci_flow: edge " + std::to_string(e) + " (" +
+                       std::to_string(dom.EV(e, 0)) + ", " + std::to_string(dom.EV(e, 1)) +
+                       ") has length " + fmt(lengths[e]));
+  for (int f = 0; f < nf; ++f) {
+    double l[3];
+    for (int k = 0; k < 3; ++k) l[k] = lengths[dom.FE(f, k)];
+    for (int k = 0; k < 3; ++k)
+      if (!(l[k] < l[(k + 1) % 3] + l[(k + 2) % 3]))
+        throw InputError("ricci_flow: face " + std::to_string(f) +
+                         " violates the triangle inequality in the input lengths (zero area)");
+  }
+  Eigen::VectorXd target = target_in.size() == 0 ? Eigen::VectorXd::Zero(nv) : target_in;
+  if (target.size() != nv)
+    throw InputError("ricci_flow: expected " + std::to_string(nv) + " target curvatures, got " +
+                     std::to_string(target.size()));
+  // Gauss–Bonnet: Σ K_i = Σ full_i − π #F (+ area in the hyperbolic case).
+  const double gb = dom.full_angle.sum() - kPi * nf;
+  if (background == Background::Euclidean) {
+    if (std::abs(target.sum() - gb) > 1e-8 * (1.0 + std::abs(gb)))
+      throw InputError("ricci_flow: flat target curvatures sum to " + fmt(target.sum()) +
+                       " but Gauss–Bonnet requires " + fmt(gb) + " (2π χ)");
+  } else if (!(target.sum() - gb > 0.0)) {
+    throw InputError("ricci_flow: hyperbolic target curvatures sum to " + fmt(target.sum()) +
+                     ", which leaves no positive area (need more than 2π χ = " + fmt(gb) + ")");
+  }
+
+  const bool newton = options.method == RicciMethod::Newton;
+  const int max_it = options.max_iterations > 0 ? options.max_iterations : (newton ? 100 : 200000);
+  const bool flat = background == Background::Euclidean;
+  SchemeMetric metric(dom, lengths, background, options.scheme);
+
+  RicciFlowResult res;
+  res.background = background;
+  res.u = u_start ? *u_start : Eigen::VectorXd::Zero(nv);
+  Evaluation ev, trial;
+  evaluate(dom, metric, background, res.u, newton, ev);
+  if (ev.bad_edge >= 0)
+    throw InputError("ricci_flow: edge " + std::to_string(ev.bad_edge) +
+                     " has no valid length in the initial metric");
+  Eigen::VectorXd g = ev.K - target;
+  double err = g.cwiseAbs().maxCoeff();
+  res.residual_history.push_back(err);
+
+  Eigen::SparseMatrix<double> H(nv, nv);
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> llt;
+  bool analyzed = false;
+  double mu = 0.0;  // Levenberg shift, only used when a plain Newton step fails
+  std::string failure;
+  int it = 0;
+  for (; it < max_it && err > options.tolerance; ++it) {
+    if (options.progress && !options.progress(it, err))
+      throw Cancelled("ricci_flow cancelled at iteration " + std::to_string(it));
+    if (!newton) {
+      res.u -= options.flow_step * g;
+      evaluate(dom, metric, background, res.u, false, ev);
+      if (ev.bad_edge >= 0) {
+        failure = "the flow produced an invalid length at edge " + std::to_string(ev.bad_edge) +
+                  " (step too large?)";
+        break;
+      }
+      g = ev.K - target;
+      err = g.cwiseAbs().maxCoeff();
+      if (!std::isfinite(err)) {
+        failure = "the flow diverged (non-finite curvature)";
+        break;
+      }
+      res.residual_history.push_back(err);
+      continue;
+    }
+    // Newton: H δ = −g, gauge fixed by pinning vertex 0 (adding e0 e0ᵀ makes H
+    // definite; since Σg = 0 the solution then has δ_0 = 0 and solves H δ = −g).
+    H.setFromTriplets(ev.triplets.begin(), ev.triplets.end());
+    if (flat) H.coeffRef(0, 0) += 1.0;
+    const double g2 = g.squaredNorm();
+    bool accepted = false;
+    for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
+      Eigen::SparseMatrix<double> A = H;
+      if (mu > 0.0)
+        for (int v = 0; v < nv; ++v) A.coeffRef(v, v) += mu;
+      if (!analyzed) {
+        llt.analyzePattern(A);
+        analyzed = true;
+      }
+      llt.factorize(A);
+      Eigen::VectorXd delta;
+      if (llt.info() == Eigen::Success) delta = llt.solve(-g);
+      if (llt.info() != Eigen::Success || !delta.allFinite()) {
+        mu = std::max(mu * 10.0, 1e-10 * (1.0 + H.diagonal().cwiseAbs().maxCoeff()));
+        continue;
+      }
+      // Backtracking on the residual norm (the Newton direction decreases
+      // |g|² at rate −2|g|²); K is continuous across degenerate triangles
+      // thanks to the extended angles.
+      for (double t = 1.0; t > 1e-6; t *= 0.5) {
+        Eigen::VectorXd ut = res.u + t * delta;
+        if (flat) ut.array() -= ut[0];
+        evaluate(dom, metric, background, ut, true, trial);
+        if (trial.bad_edge >= 0) continue;
+        const Eigen::VectorXd gt = trial.K - target;
+        if (gt.allFinite() && gt.squaredNorm() <= (1.0 - 1e-4 * t) * g2) {
+          res.u = ut;
+          std::swap(ev, trial);
+          g = gt;
+          accepted = true;
+          break;
+        }
+      }
+      if (accepted) {
+        mu *= 0.1;
+        if (mu < 1e-14) mu = 0.0;
+      } else {
+        mu = std::max(mu * 100.0, 1e-8 * (1.0 + H.diagonal().cwiseAbs().maxCoeff()));
+      }
+    }
+    if (!accepted) {
+      failure = "Newton line search failed to decrease the curvature residual";
+      break;
+    }
+    err = g.cwiseAbs().maxCoeff();
+    res.residual_history.push_back(err);
+  }
+  res.iterations = it;
+
+  // Final validation: never report success with an invalid metric.
+  evaluate(dom, metric, background, res.u, false, ev);
+  res.edge_lengths = ev.l;
+  if (ev.bad_edge >= 0) {
+    res.converged = false;
+    res.message = "edge " + std::to_string(ev.bad_edge) + " has no valid length in the final metric";
+    res.max_curvature_error = std::numeric_limits<double>::infinity();
+  } else {
+    g = ev.K - target;
+    res.max_curvature_error = g.cwiseAbs().maxCoeff();
+    const int worst = argmax_abs(g);
+    if (ev.degenerate > 0) {
+      res.converged = false;
+      res.message = "face " + std::to_string(ev.first_degenerate) +
+                    " violates the triangle inequality in the final metric (" +
+                    std::to_string(ev.degenerate) + " degenerate faces)";
+    } else if (ev.min_slack < 1e-13) {
+      res.converged = false;
+      res.message = "face " + std::to_string(ev.min_slack_face) +
+                    " is numerically degenerate in the final metric";
+    } else if (!(res.max_curvature_error <= options.tolerance)) {
+      res.converged = false;
+      res.message = (failure.empty() ? std::string("did not reach the tolerance") : failure) +
+                    " after " + std::to_string(it) + " iterations: max curvature error " +
+                    fmt(res.max_curvature_error) + " at vertex " + std::to_string(worst);
+    } else {
+      res.converged = true;
+    }
+  }
+  res.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+}  // namespace detail
+
+RicciFlowResult ricci_flow(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
+                           Background background, const RicciFlowOptions& options,
+                           const Eigen::VectorXd& target_curvature) {
+  const detail::RicciDomain dom = detail::domain_from_connectivity(mesh);
+  return detail::ricci_solve(dom, edge_lengths, background, options, target_curvature, nullptr);
+}
+
+RicciLinearization ricci_linearization(const Connectivity& mesh,
+                                       const Eigen::VectorXd& edge_lengths,
+                                       Background background, RicciScheme scheme,
+                                       const Eigen::VectorXd& u) {
+  const detail::RicciDomain dom = detail::domain_from_connectivity(mesh);
+  if (u.size() != dom.num_vertices || edge_lengths.size() != dom.EV.rows())
+    throw InputError("ricci_linearization: u must have #V entries and edge_lengths #E");
+  return detail::ricci_linearize(dom, edge_lengths, background, scheme, u);
+}
+
+Eigen::VectorXd edge_lengths(const TriMesh& mesh, const Connectivity& conn) {
+  Eigen::VectorXd l(conn.num_edges());
+  for (int e = 0; e < conn.num_edges(); ++e)
+    l[e] = (mesh.V.row(conn.edge_vertex(e, 0)) - mesh.V.row(conn.edge_vertex(e, 1))).norm();
+  return l;
+}
+
+}  // namespace surfmap
