@@ -1,5 +1,6 @@
 #include "bindings.h"
 #include "convert.h"
+
 #include "surfmap/mesh/intake.h"
 #include "surfmap/mesh/mesh_io.h"
 

@@ -4,6 +4,7 @@
 #include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
+#include <pybind11/stl.h>  // every bind_*.cpp must see the same casters
 
 #include <string>
 

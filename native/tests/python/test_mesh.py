@@ -1,0 +1,88 @@
+"""Mesh intake from Python and the `surfmap info` contract."""
+import math
+
+import numpy as np
+import pytest
+
+import surfmap
+
+OCTA_V = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+OCTA_F = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+
+
+def quad_torus(n=12, m=8, R=1.0, r=0.4):
+    u, v = np.meshgrid(np.arange(n) * 2 * math.pi / n, np.arange(m) * 2 * math.pi / m, indexing="ij")
+    V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1).reshape(-1, 3)
+    quads = [[i * m + j, ((i + 1) % n) * m + j, ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m]
+             for i in range(n) for j in range(m)]
+    return V, quads
+
+
+def test_exception_hierarchy():
+    assert issubclass(surfmap.InputError, surfmap.Error)
+    assert issubclass(surfmap.InputError, ValueError)
+    assert issubclass(surfmap.SolveError, RuntimeError)
+    assert issubclass(surfmap.Cancelled, surfmap.Error)
+
+
+def test_inspect_counts_and_genus():
+    info = surfmap.inspect(OCTA_V, OCTA_F)
+    assert info["valid"] and info["genus"] == 0 and info["num_edges"] == 12
+    V, quads = quad_torus()
+    info = surfmap.inspect(V, quads)
+    assert info["valid"] and info["genus"] == 1 and info["euler_characteristic"] == 0
+
+
+def test_intake_triangulates_polygons_and_keeps_corner_map():
+    V, quads = quad_torus(9, 7)
+    r = surfmap.intake(V, quads)
+    assert r["F"].shape == (2 * 9 * 7, 3)
+    for t, tri in enumerate(r["F"]):
+        assert set(tri) <= set(quads[r["source_polygon"][t]])
+
+
+def test_intake_orients_outward():
+    V, quads = quad_torus()
+    r = surfmap.intake(V, [q[::-1] for q in quads])
+    assert r["flipped"]
+    a, b, c = (r["V"][r["F"][:, k]] for k in range(3))
+    assert np.einsum("ij,ij->i", a, np.cross(b, c)).sum() > 0
+
+
+@pytest.mark.parametrize(
+    "mutate, expected",
+    [
+        (lambda V, F: (np.where(np.arange(18).reshape(6, 3) == 7, np.nan, V), F), "vertex 2"),
+        (lambda V, F: (V, np.where(F == 5, 9, F)), "out of range"),
+        (lambda V, F: (V, F[:-1]), "open"),
+        (lambda V, F: (V, np.vstack([F[:-1], F[-1][::-1]])), "inconsistently oriented"),
+    ],
+)
+def test_bad_input_raises_input_error_naming_the_problem(mutate, expected):
+    V, F = mutate(OCTA_V.copy(), OCTA_F.copy())
+    with pytest.raises(surfmap.InputError, match=expected):
+        surfmap.intake(V, F)
+
+
+def test_bad_shapes_of_arrays():
+    with pytest.raises(surfmap.InputError):
+        surfmap.intake(np.zeros((4, 2)), OCTA_F)
+    with pytest.raises(surfmap.InputError):
+        surfmap.intake(OCTA_V, np.zeros((3, 4, 1), int))
+
+
+def test_cli_info_exit_status(tmp_path, cli):
+    good = tmp_path / "octa.obj"
+    surfmap.write_obj(str(good), OCTA_V, OCTA_F)
+    r = cli("info", good)
+    assert r.returncode == 0, r.stderr
+    assert "genus 0" in r.stdout
+    bad = tmp_path / "open.obj"
+    surfmap.write_obj(str(bad), OCTA_V, OCTA_F[:-1])
+    r = cli("info", bad)
+    assert r.returncode == 1
+    assert "open" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    r = cli("info", tmp_path / "missing.obj")
+    assert r.returncode == 1 and "does not exist" in r.stderr
+    r = cli("info", "--json", good)
+    assert '"genus": 0' in r.stdout

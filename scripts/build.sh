@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# Configures and builds everything (core, CLI, Python module, tests, add-on zip)
+# in $SURFMAP_BUILD_DIR (default: <repo>/build), Release by default.
+set -euo pipefail
+repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+build="${SURFMAP_BUILD_DIR:-$repo/build}"
+bash "$repo/scripts/bootstrap.sh"
+jobs="${SURFMAP_JOBS:-$(nproc)}"
+cmake -S "$repo" -B "$build" -DCMAKE_BUILD_TYPE="${SURFMAP_BUILD_TYPE:-Release}" -DPython_EXECUTABLE=/usr/bin/python3 >/dev/null
+cmake --build "$build" -j"$jobs"
