@@ -1,0 +1,30 @@
+#pragma once
+// Words in a free group. A letter is a nonzero int: +k is generator k (1-based)
+// and -k its inverse. Used for polygon schemata and homotopy classes.
+#include <string>
+#include <vector>
+
+namespace surfmap {
+
+using Word = std::vector<int>;
+
+/// Freely reduced form (no x x^-1 pairs).
+Word reduce(const Word& w);
+/// w^-1.
+Word inverse(const Word& w);
+/// Reduced concatenation u v.
+Word concat(const Word& u, const Word& v);
+Word concat(std::initializer_list<Word> parts);
+/// Cyclically reduced form (reduced, and first letter not the inverse of the last).
+Word cyclic_reduce(const Word& w);
+/// True when u and v are conjugate in the free group (equal as cyclic words
+/// after cyclic reduction).
+bool conjugate(const Word& u, const Word& v);
+/// Product of commutators a1 b1 a1^-1 b1^-1 ... for generators given as
+/// words [a1, b1, a2, b2, ...].
+Word commutator_product(const std::vector<Word>& generators);
+/// Text form: letters named by `names` (index k-1 for letter k), inverses
+/// written with "^-1", separated by spaces.
+std::string to_text(const Word& w, const std::vector<std::string>& names);
+
+}  // namespace surfmap

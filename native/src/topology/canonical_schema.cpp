@@ -1,0 +1,123 @@
+#include "surfmap/topology/canonical_schema.h"
+
+#include <cstdlib>
+#include <string>
+
+#include "surfmap/error.h"
+
+namespace surfmap {
+namespace {
+
+int position_of(const Word& w, int letter) {
+  for (size_t i = 0; i < w.size(); ++i)
+    if (w[i] == letter) return static_cast<int>(i);
+  return -1;
+}
+
+void check_schema_word(const Word& word) {
+  if (word.empty() || word.size() % 4 != 0)
+    throw InputError("a boundary word of a closed orientable surface has length 4g; got " +
+                     std::to_string(word.size()));
+  const int n = static_cast<int>(word.size()) / 2;
+  std::vector<int> plus(n + 1, 0), minus(n + 1, 0);
+  for (int x : word) {
+    if (x == 0 || std::abs(x) > n)
+      throw InputError("letter " + std::to_string(x) + " is out of range for a word of length " +
+                       std::to_string(word.size()));
+    ++(x > 0 ? plus : minus)[std::abs(x)];
+  }
+  for (int k = 1; k <= n; ++k)
+    if (plus[k] != 1 || minus[k] != 1)
+      throw InputError("loop letter " + std::to_string(k) + " occurs " + std::to_string(plus[k]) +
+                       " times forward and " + std::to_string(minus[k]) +
+                       " times reversed; each must occur once each way");
+}
+
+}  // namespace
+
+int schema_vertex_count(const Word& w) {
+  // Side p (letter x > 0) runs corner p -> p+1; the side of x^-1 at q runs
+  // corner q+1 -> q in x's direction, so gluing identifies p ~ q+1, p+1 ~ q.
+  const int n = static_cast<int>(w.size());
+  std::vector<int> parent(n);
+  for (int i = 0; i < n; ++i) parent[i] = i;
+  auto find = [&](int x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (int p = 0; p < n; ++p) {
+    if (w[p] < 0) continue;
+    const int q = position_of(w, -w[p]);
+    if (q < 0) continue;
+    parent[find(p)] = find((q + 1) % n);
+    parent[find((p + 1) % n)] = find(q);
+  }
+  int classes = 0;
+  for (int i = 0; i < n; ++i) classes += find(i) == i;
+  return classes;
+}
+
+CanonicalSchema canonical_schema(const Word& word) {
+  check_schema_word(word);
+  if (const int nv = schema_vertex_count(word); nv != 1)
+    throw InputError("the boundary word glues the polygon's corners into " + std::to_string(nv) +
+                     " vertices; a system of loops through one base vertex gives exactly 1");
+  CanonicalSchema out;
+  out.genus = static_cast<int>(word.size()) / 4;
+  // Invariant: word ~ [done generators' commutators] * rest (cyclically,
+  // i.e. up to conjugation), with `rest` a word in the original letters
+  // that still uses each remaining letter once with each sign.
+  Word rest = word;
+  while (!rest.empty()) {
+    const int n = static_cast<int>(rest.size());
+    // Find x at i with x^-1 at j > i and a letter y occurring once in (i, j)
+    // and once outside: an interleaved pair (x, y).
+    int i = -1, j = -1, k = -1;
+    for (int p = 0; p < n && k < 0; ++p) {
+      const int q = position_of(rest, -rest[p]);
+      if (q < p) continue;
+      for (int r = p + 1; r < q; ++r) {
+        const int s = position_of(rest, -rest[r]);
+        if (s > q || s < p) {
+          i = p, j = q, k = r;
+          break;
+        }
+      }
+    }
+    if (k < 0)
+      throw InputError("the boundary word has a letter with no interleaved partner; it is not the "
+                       "word of a one-vertex schema of an orientable surface");
+    // Rotate so the word starts at x: rest = P x ..., and move P to the end;
+    // conjugating the finished commutators by P keeps the invariant.
+    const Word P(rest.begin(), rest.begin() + i);
+    Word rotated(rest.begin() + i, rest.end());
+    rotated.insert(rotated.end(), P.begin(), P.end());
+    for (Word& g : out.generators) g = concat({inverse(P), g, P});
+    j -= i;
+    k -= i;
+    int b = rotated[k];
+    int l = position_of(rotated, -b);  // l > j: y^-1 is after x^-1
+    // W = a B b C a^-1 D b^-1 F
+    const Word B(rotated.begin() + 1, rotated.begin() + k);
+    const Word C(rotated.begin() + k + 1, rotated.begin() + j);
+    const Word D(rotated.begin() + j + 1, rotated.begin() + l);
+    const Word F(rotated.begin() + l + 1, rotated.end());
+    const Word a{rotated[0]}, bw{b};
+    // b' = b C B,  a' = B^-1 C^-1 D^-1 a B. Then rotated = Q [a',b'] F with
+    // Q = D C B, so G rotated ~ (Q^-1 G Q) [a',b'] (F D C B): the finished
+    // generators are conjugated by Q and F D C B is what is left.
+    const Word Q = concat({D, C, B});
+    for (Word& g : out.generators) g = concat({inverse(Q), g, Q});
+    out.generators.push_back(concat({inverse(B), inverse(C), inverse(D), a, B}));
+    out.generators.push_back(concat({bw, C, B}));
+    Word next = F;
+    next.insert(next.end(), D.begin(), D.end());
+    next.insert(next.end(), C.begin(), C.end());
+    next.insert(next.end(), B.begin(), B.end());
+    rest = std::move(next);
+    ++out.moves;
+  }
+  return out;
+}
+
+}  // namespace surfmap

@@ -1,0 +1,100 @@
+#include "surfmap/topology/canonical_schema.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <numeric>
+#include <random>
+
+#include "surfmap/error.h"
+
+namespace surfmap {
+namespace {
+
+// A uniformly random one-vertex schema of genus g (rejection sampling over
+// random words using each letter once with each sign).
+Word random_schema(int g, std::mt19937& rng) {
+  for (;;) {
+    Word w;
+    for (int k = 1; k <= 2 * g; ++k) w.insert(w.end(), {k, -k});
+    std::shuffle(w.begin(), w.end(), rng);
+    if (schema_vertex_count(w) == 1) return w;
+  }
+}
+
+void expect_canonical(const Word& w) {
+  const CanonicalSchema s = canonical_schema(w);
+  ASSERT_EQ(s.genus * 4, static_cast<int>(w.size()));
+  ASSERT_EQ(static_cast<int>(s.generators.size()), 2 * s.genus);
+  EXPECT_TRUE(conjugate(commutator_product(s.generators), w))
+      << "commutator product is not conjugate to the input word";
+  // The new generators must generate the whole group: their abelianisation
+  // (exponent sums per letter) is unimodular, |det| = 1.
+  const int n = 2 * s.genus;
+  std::vector<std::vector<double>> M(n, std::vector<double>(n, 0.0));
+  for (int i = 0; i < n; ++i)
+    for (int x : s.generators[i]) M[i][std::abs(x) - 1] += x > 0 ? 1 : -1;
+  double det = 1;
+  for (int c = 0; c < n; ++c) {
+    int piv = c;
+    for (int r = c; r < n; ++r)
+      if (std::abs(M[r][c]) > std::abs(M[piv][c])) piv = r;
+    if (std::abs(M[piv][c]) < 1e-12) {
+      det = 0;
+      break;
+    }
+    if (piv != c) std::swap(M[piv], M[c]), det = -det;
+    det *= M[c][c];
+    for (int r = c + 1; r < n; ++r) {
+      const double f = M[r][c] / M[c][c];
+      for (int k = c; k < n; ++k) M[r][k] -= f * M[c][k];
+    }
+  }
+  EXPECT_NEAR(std::abs(det), 1.0, 1e-9);
+}
+
+TEST(Words, ReduceInverseConjugate) {
+  EXPECT_EQ(reduce({1, 2, -2, -1, 3}), (Word{3}));
+  EXPECT_EQ(inverse({1, -2, 3}), (Word{-3, 2, -1}));
+  EXPECT_TRUE(conjugate({1, 2, 3}, {3, 1, 2}));
+  EXPECT_TRUE(conjugate({-4, 1, 2, 4}, {1, 2}));
+  EXPECT_FALSE(conjugate({1, 2}, {2, -1}));
+  EXPECT_EQ(to_text({1, -2}, {"a1", "b1"}), "a1 b1^-1");
+}
+
+TEST(CanonicalSchema, CanonicalWordNeedsNoRewriting) {
+  for (int g = 1; g <= 4; ++g) {
+    Word w;
+    for (int i = 0; i < g; ++i) w.insert(w.end(), {2 * i + 1, 2 * i + 2, -(2 * i + 1), -(2 * i + 2)});
+    const CanonicalSchema s = canonical_schema(w);
+    EXPECT_TRUE(conjugate(commutator_product(s.generators), w));
+    for (const Word& gen : s.generators) EXPECT_EQ(gen.size(), 1u);
+  }
+}
+
+TEST(CanonicalSchema, NonCanonicalGenusTwoWord) {
+  // a b c a^-1 d c^-1 b^-1 d^-1 style words arise from greedy loops.
+  expect_canonical({1, 2, -1, 3, -2, 4, -3, -4});
+  expect_canonical({1, 3, 2, -1, -3, 4, -2, -4});
+  expect_canonical({1, 2, 3, 4, -1, -2, -3, -4});
+}
+
+TEST(CanonicalSchema, RandomSchemataOfHighGenus) {
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 300; ++trial) {
+    const int g = 1 + trial % 6;
+    const Word w = random_schema(g, rng);
+    ASSERT_EQ(schema_vertex_count(w), 1);
+    expect_canonical(w);
+  }
+}
+
+TEST(CanonicalSchema, RejectsWordsThatAreNotSchemata) {
+  EXPECT_THROW(canonical_schema({1, 2, -1}), InputError);
+  EXPECT_THROW(canonical_schema({1, 1, -2, -2}), InputError);
+  EXPECT_THROW(canonical_schema({1, -1, 2, -2}), InputError);  // no interleaving: a sphere-like word
+  EXPECT_THROW(canonical_schema({1, 2, 3, -1, 4, -3, -2, -4}), InputError);  // three vertices
+}
+
+}  // namespace
+}  // namespace surfmap
