@@ -1,0 +1,37 @@
+"""Surface Map: globally optimal maps between closed surfaces of equal genus
+(Li et al., TVCG 2008). Blender side of the surfmap project.
+
+Module layout (like the glTF add-on): core.py and native.py never import bpy; blender_io.py,
+operators.py, panel.py and properties.py are the Blender side.
+"""
+bl_info = {
+    "name": "Surface Map",
+    "author": "surfmap project",
+    "version": (0, 1, 0),
+    "blender": (3, 4, 0),
+    "location": "3D Viewport > Sidebar (N) > Surface Map",
+    "description": "Cut loops and globally optimal maps between closed surfaces of equal genus",
+    "category": "Mesh",
+}
+
+if "bpy" in locals():
+    import importlib
+    for _m in ("native", "core", "blender_io", "properties", "operators", "panel"):
+        if _m in locals():
+            importlib.reload(locals()[_m])
+
+import bpy  # noqa: E402
+
+from . import native, core, blender_io, properties, operators, panel  # noqa: E402,F401
+
+_modules = (properties, operators, panel)
+
+
+def register():
+    for m in _modules:
+        m.register()
+
+
+def unregister():
+    for m in reversed(_modules):
+        m.unregister()
