@@ -42,7 +42,7 @@ def _candidate_dirs(extra_dirs=()):
 
 def _has_core(mod):
     # A namespace package or a half-built folder imports but has no native core.
-    return hasattr(mod, "system_of_loops") and hasattr(mod, "intake")
+    return hasattr(mod, "intake") and hasattr(mod, "Error")
 
 
 def load(extra_dirs=(), force=False):
@@ -60,6 +60,7 @@ def load(extra_dirs=(), force=False):
         if mod is not None and _has_core(mod):
             _module, _error, _origin = mod, "", os.path.dirname(mod.__file__)
             return _module
+        errors.append(f"vendored copy at {getattr(mod, '__path__', '?')} has no native core")
     except ImportError as e:
         if getattr(e, "name", None) not in (f"{__package__}.surfmap",):
             errors.append(f"vendored copy: {e}")

@@ -60,6 +60,10 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
     def execute(self, context):
         sm = surfmap_module(context)
         settings = context.scene.surfmap
+        if not hasattr(sm, "system_of_loops"):
+            self.report({'ERROR'}, f"the surfmap module at {native.origin()} is too old: it has "
+                                   f"no system_of_loops (rebuild it)")
+            return {'CANCELLED'}
         try:
             source, target = pick_objects(context)
             depsgraph = context.evaluated_depsgraph_get()
