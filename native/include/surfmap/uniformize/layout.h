@@ -1,0 +1,142 @@
+#pragma once
+// Isometric layout of the disk obtained by cutting a closed surface along its
+// system of loops, and the deck transformations that glue it back
+// (paper §V-C "embedding"; DESIGN.md §2.5).
+//
+// Input: a flat (genus 1) or hyperbolic (genus >= 2) metric given by edge
+// lengths (the output of ricci_flow) and the system of loops of the same mesh.
+// Faces are laid out one by one in breadth-first order along the cut tree T*
+// (SystemOfLoops::dual_tree_parent_halfedge) starting from the face at the
+// centre of that tree (fewest steps to every face, so round-off accumulates
+// least). Every face has a chart: an isometry M_f taking its canonical
+// triangle (vertex F(f,0) at 0, F(f,1) on the positive real axis) to its place
+// in the plane / Poincaré disk; a child's chart is its parent's chart composed
+// with a well-conditioned transition between the two canonical triangles, so
+// hyperbolic positions are never computed from points near |z| = 1.
+//
+// Conventions (orientation matters for the group relations):
+//  * Deck map of a cut edge e, with h = conn.edge_halfedge(e): the isometry
+//    taking the copy of e bordering face(h) onto the copy bordering
+//    face(twin(h)); it maps the copy of face(twin(h)) that would sit next to
+//    face(h) onto the laid-out copy of face(twin(h)).
+//  * Side pairing D_k of loop k: the deck map of the loop's edges oriented
+//    along the loop: takes the copy of loop k with the disk on its LEFT (the
+//    boundary side read as letter +k when the boundary is read
+//    counter-clockwise) onto the copy with the disk on its right (letter −k).
+//  * Boundary word: the disk boundary read counter-clockwise from the base
+//    corner c_0; side i runs from corner c_i to c_{i+1}; letter +(k+1) when
+//    it is loop k in its own direction, −(k+1) reversed.
+//  * Loop generators g_k (the deck group element of loop k seen from the base
+//    corner c_0): lifting loop k from c_0 ends at g_k(c_0); they satisfy the
+//    word relation g_{w_0} g_{w_1} ... g_{w_{4g−1}} = id (inverse for negative
+//    letters; canonical word a1 b1 a1⁻¹ b1⁻¹ ... gives Π [a_i, b_i] = id).
+//    Corner c_i = G_i(c_0) with G_i = g_{w_0}...g_{w_{i−1}}.
+#include <complex>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "surfmap/geometry/hyperbolic.h"
+#include "surfmap/mesh/connectivity.h"
+#include "surfmap/topology/system_of_loops.h"
+#include "surfmap/uniformize/ricci_flow.h"
+
+namespace surfmap {
+
+using Complex = std::complex<double>;
+using RowMatrixX3c = Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+struct LayoutOptions {
+  /// Face to lay out first; -1 (default): the centre of the cut tree.
+  int root_face = -1;
+  /// Move the result so that its centre sits at 0 (default true): hyperbolic,
+  /// the Karcher mean (point minimising the sum of squared distances) of the
+  /// corner positions is moved to 0 by a Möbius map, so that points do not
+  /// crowd |z| = 1; flat, the area centroid is translated to 0.
+  bool recentre = true;
+};
+
+struct DiskLayout {
+  Background background = Background::Euclidean;
+  int genus = 0;
+  int root_face = -1;
+  /// #F x 3 positions of the face corners (corner k of face f is vertex
+  /// F(f,k)); plane or Poincaré disk coordinates.
+  RowMatrixX3c corners;
+  /// The cut disk as its own mesh: #F x 3 indices into disk_positions, and
+  /// per disk vertex the mesh vertex it is a copy of. Vertices off the loops
+  /// have one copy, loop vertices two, the base vertex 4g.
+  RowMatrixX3i disk_faces;
+  std::vector<Complex> disk_positions;
+  std::vector<int> disk_vertex_origin;
+  /// #V: a position per mesh vertex (its first copy in breadth-first order)
+  /// and its number of copies in the disk.
+  std::vector<Complex> vertex_positions;
+  std::vector<int> vertex_copies;
+  /// Per-face charts (hyperbolic: SU(1,1) maps; flat: stored as rotation
+  /// r = a/ā and translation b/ā of z ↦ r z + t, i.e. Mobius{a,b} is not used;
+  /// see face_rotation / face_translation).
+  std::vector<hyperbolic::Mobius> face_charts;     ///< hyperbolic only (#F)
+  std::vector<Complex> face_rotation, face_translation;  ///< flat only (#F)
+  /// Per edge: true when cut (on a loop). Deck maps of cut edges (identity
+  /// for the others), convention in the file comment.
+  std::vector<bool> cut_edge;
+  std::vector<hyperbolic::Mobius> edge_deck_mobius;  ///< hyperbolic, #E
+  std::vector<Complex> edge_deck_translation;        ///< flat, #E
+  /// Boundary of the disk counter-clockwise from the base corner: halfedges
+  /// with the disk on their left, the corner indices where sides start, and
+  /// the word (letters ±(k+1)).
+  std::vector<int> boundary_halfedges;
+  std::vector<int> side_start;  ///< 4g indices into boundary_halfedges
+  std::vector<int> word;
+  /// 2g side pairings D_k and 2g loop generators g_k (file comment).
+  std::vector<hyperbolic::Mobius> side_pairings, generators;  ///< hyperbolic
+  std::vector<Complex> side_translations, generator_translations;  ///< flat
+  /// Distance from ±identity of g_{w_0} ... g_{w_{4g−1}} (matrix norm for
+  /// SU(1,1), |sum| for translations relative to the lattice scale).
+  double product_relation_error = 0;
+  /// Diagnostics: max over interior edges of the distance between the two
+  /// copies of each endpoint (should be round-off); max over cut edges of
+  /// how far the edge deck map is from its loop's side pairing; flat only:
+  /// max |rotation part − 1| of the deck maps (holonomy; 0 for a flat torus).
+  double max_interior_mismatch = 0;
+  double max_deck_inconsistency = 0;
+  double max_holonomy_rotation = 0;
+  /// Number of corner triangles with non-positive orientation.
+  int num_flipped = 0;
+  /// Sum of the triangle areas of the metric (hyperbolic: 4π(g−1) when the
+  /// metric has zero curvature at every vertex).
+  double area = 0;
+  double time_s = 0;
+};
+
+/// Lays out the disk cut along `loops`. `conn` must be Connectivity(loops.mesh.F)
+/// and `edge_lengths` (#E, edge order of conn) a flat or hyperbolic metric with
+/// zero angle defect at every vertex (e.g. RicciFlowResult::edge_lengths).
+/// Throws InputError on size mismatches or a face violating the triangle
+/// inequality (naming it), SolveError when the layout is inconsistent (the
+/// boundary is not one 4g-gon of loop sides).
+DiskLayout layout_disk(const Connectivity& conn, const Eigen::VectorXd& edge_lengths,
+                       Background background, const SystemOfLoops& loops,
+                       const LayoutOptions& options = {});
+
+/// Conformal modulus of a flat torus with lattice ω1 Z + ω2 Z.
+struct TorusModulus {
+  Complex omega1, omega2;
+  /// τ = ω2/ω1, with ω2 negated if needed so that Im τ > 0.
+  Complex tau;
+  bool omega2_negated = false;
+  /// τ reduced to the modular fundamental domain |Re τ| <= ½, |τ| >= 1, and
+  /// the SL(2,Z) matrix [[a, b], [c, d]] (row-major) with
+  /// tau_reduced = (a τ + b) / (c τ + d).
+  Complex tau_reduced;
+  int sl2z[4] = {1, 0, 0, 1};
+};
+
+TorusModulus torus_modulus(Complex omega1, Complex omega2);
+
+/// Reduces τ (Im τ > 0) to the modular fundamental domain; writes the
+/// SL(2,Z) matrix (row-major) to `matrix` when non-null.
+Complex reduce_modulus(Complex tau, int* matrix = nullptr);
+
+}  // namespace surfmap

@@ -1,0 +1,578 @@
+// Isometric disk layout and deck transformations (layout.h; DESIGN.md §2.5).
+#include "surfmap/uniformize/layout.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <queue>
+#include <string>
+#include <type_traits>
+
+#include "surfmap/error.h"
+
+namespace surfmap {
+namespace {
+
+using hyperbolic::Mobius;
+
+/// z ↦ r z + t with |r| = 1: orientation-preserving isometry of the plane.
+struct Rigid {
+  Complex r{1.0, 0.0}, t{0.0, 0.0};
+  Complex apply(Complex z) const { return r * z + t; }
+  Rigid operator*(const Rigid& o) const { return {r * o.r, r * o.t + t}; }
+  Rigid inverse() const { return {std::conj(r), -std::conj(r) * t}; }
+  Rigid normalized() const { return {r / std::abs(r), t}; }
+};
+
+// The two geometries share the layout code; each supplies its charts.
+struct Flat {
+  using Chart = Rigid;
+  /// Coordinate on the positive real axis of the point at distance l from 0.
+  static double coord(double l) { return l; }
+  static double angle(double a, double b, double c) { return hyperbolic::euclidean_angle(a, b, c); }
+  static double distance(Complex z, Complex w) { return std::abs(z - w); }
+  /// The chart taking 0 to p and the positive real axis towards q.
+  static Chart frame(Complex p, Complex q) {
+    const Complex d = q - p;
+    return {d / std::abs(d), p};
+  }
+  /// Half-turn about the midpoint of the standard segment [0, l]: swaps its ends.
+  static Chart flip(double l) { return {Complex(-1.0, 0.0), Complex(l, 0.0)}; }
+  static double area(double a, double b, double c) {
+    // Heron in the stable (Kahan) ordering.
+    double x[3] = {a, b, c};
+    std::sort(x, x + 3);
+    const double C = x[0], B = x[1], A = x[2];
+    const double p = (A + (B + C)) * (C - (A - B)) * (C + (A - B)) * (A + (B - C));
+    return 0.25 * std::sqrt(std::max(0.0, p));
+  }
+};
+
+struct Hyper {
+  using Chart = Mobius;
+  static double coord(double l) { return std::tanh(l / 2); }
+  static double angle(double a, double b, double c) { return hyperbolic::law_of_cosines_angle(a, b, c); }
+  static double distance(Complex z, Complex w) { return hyperbolic::distance(z, w); }
+  static Chart frame(Complex p, Complex q) {
+    const Mobius tp = Mobius::centring(p);
+    return tp.inverse() * Mobius::rotation(std::arg(tp.apply(q)));
+  }
+  static Chart flip(double l) {
+    // z ↦ −z, then the translation taking 0 to tanh(l/2).
+    return Mobius::translation_to(Complex(std::tanh(l / 2), 0.0)) * Mobius{Complex(0.0, 1.0), Complex(0.0)};
+  }
+  static double area(double a, double b, double c) { return hyperbolic::triangle_area(a, b, c); }
+};
+
+double chart_distance(const Rigid& a, const Rigid& b) {
+  return std::max(std::abs(a.r - b.r), std::abs(a.t - b.t));
+}
+double chart_distance(const Mobius& a, const Mobius& b) { return hyperbolic::mobius_distance(a, b); }
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// Breadth-first distances on the cut tree (adjacency lists); returns the
+/// farthest face and fills parent.
+int tree_bfs(const std::vector<std::vector<int>>& adj, int start, std::vector<int>& parent,
+             std::vector<int>& order) {
+  const int n = static_cast<int>(adj.size());
+  parent.assign(n, -2);
+  order.clear();
+  std::queue<int> q;
+  q.push(start);
+  parent[start] = -1;
+  int last = start;
+  while (!q.empty()) {
+    const int f = q.front();
+    q.pop();
+    order.push_back(f);
+    last = f;
+    for (int g : adj[f])
+      if (parent[g] == -2) {
+        parent[g] = f;
+        q.push(g);
+      }
+  }
+  return last;
+}
+
+template <class G>
+void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const SystemOfLoops& loops,
+                 const LayoutOptions& options, DiskLayout& out) {
+  using Chart = typename G::Chart;
+  const int nF = conn.num_faces(), nE = conn.num_edges(), nV = conn.num_vertices();
+  const RowMatrixX3i& F = conn.faces();
+  const int genus = conn.genus();
+  out.genus = genus;
+
+  // Canonical triangle of every face: corner 0 at 0, corner 1 on the positive
+  // real axis, corner 2 above it (counter-clockwise).
+  std::vector<std::array<Complex, 3>> canon(nF);
+  for (int f = 0; f < nF; ++f) {
+    const double l0 = L[conn.edge(3 * f)], l1 = L[conn.edge(3 * f + 1)], l2 = L[conn.edge(3 * f + 2)];
+    if (!(l0 > 0 && l1 > 0 && l2 > 0) || !std::isfinite(l0 + l1 + l2))
+      throw InputError("layout: face " + std::to_string(f) + " has a non-positive or non-finite edge length");
+    if (l0 > l1 + l2 || l1 > l2 + l0 || l2 > l0 + l1)
+      throw InputError("layout: face " + std::to_string(f) + " violates the triangle inequality (lengths " +
+                       std::to_string(l0) + ", " + std::to_string(l1) + ", " + std::to_string(l2) + ")");
+    const double alpha0 = G::angle(l0, l2, l1);
+    canon[f] = {Complex(0.0), Complex(G::coord(l0), 0.0), std::polar(G::coord(l2), alpha0)};
+  }
+  // Frame of each halfedge inside its face's canonical triangle.
+  auto frame = [&](int h) {
+    const int f = h / 3, k = h % 3;
+    if (k == 0) return Chart{};
+    return G::frame(canon[f][k], canon[f][(k + 1) % 3]);
+  };
+  // Transition across halfedge h: maps the canonical coordinates of
+  // face(twin(h)) to those of face(h), gluing the two copies of the edge.
+  auto transition = [&](int h) {
+    const int t = conn.twin(h);
+    return (frame(h) * G::flip(L[conn.edge(h)]) * frame(t).inverse()).normalized();
+  };
+
+  // Loop membership of every edge, with the halfedge running along the loop;
+  // the cut edges are exactly the loop edges.
+  const int nloops = static_cast<int>(loops.loops.size());
+  if (nloops != 2 * genus)
+    throw SolveError("layout: " + std::to_string(nloops) + " loops for genus " + std::to_string(genus));
+  std::vector<int> edge_loop(nE, -1), edge_forward(nE, -1);
+  for (int k = 0; k < nloops; ++k) {
+    const auto& path = loops.loops[k];
+    if (path.size() < 2 || path.front() != loops.base_vertex || path.back() != loops.base_vertex)
+      throw SolveError("layout: loop " + std::to_string(k) + " does not start and end at the base vertex");
+    for (size_t i = 0; i + 1 < path.size(); ++i) {
+      if (path[i] < 0 || path[i] >= nV || path[i + 1] < 0 || path[i + 1] >= nV)
+        throw InputError("layout: loop " + std::to_string(k) + " has a vertex index out of range");
+      const int h = conn.find_halfedge(path[i], path[i + 1]);
+      if (h < 0)
+        throw SolveError("layout: loop " + std::to_string(k) + " steps between non-adjacent vertices " +
+                         std::to_string(path[i]) + " and " + std::to_string(path[i + 1]));
+      const int e = conn.edge(h);
+      if (edge_loop[e] >= 0)
+        throw SolveError("layout: edge " + std::to_string(e) + " lies on loops " +
+                         std::to_string(edge_loop[e]) + " and " + std::to_string(k));
+      edge_loop[e] = k;
+      edge_forward[e] = h;
+    }
+  }
+  out.cut_edge.assign(nE, false);
+  for (int e = 0; e < nE; ++e) out.cut_edge[e] = edge_loop[e] >= 0;
+  // The cut tree T* never crosses a loop (checked: a wrong system of loops
+  // would otherwise be laid out silently wrong).
+  if (static_cast<int>(loops.dual_tree_parent_halfedge.size()) != nF)
+    throw InputError("layout: dual_tree_parent_halfedge has " +
+                     std::to_string(loops.dual_tree_parent_halfedge.size()) + " entries for " +
+                     std::to_string(nF) + " faces");
+  for (int f = 0; f < nF; ++f) {
+    const int h = loops.dual_tree_parent_halfedge[f];
+    if (h < 0) continue;
+    if (h >= 3 * nF || Connectivity::face(h) != f)
+      throw InputError("layout: dual tree parent halfedge of face " + std::to_string(f) + " is not in that face");
+    if (out.cut_edge[conn.edge(h)])
+      throw SolveError("layout: the cut tree crosses loop " + std::to_string(edge_loop[conn.edge(h)]) +
+                       " at edge " + std::to_string(conn.edge(h)));
+  }
+  // Faces of the disk are adjacent across every uncut edge. The layout walks
+  // this graph breadth-first (a spanning tree of it, like T*, but of the
+  // least depth from the root, so that the fewest chart products pile up).
+  std::vector<std::vector<int>> adj(nF);
+  std::vector<std::vector<int>> adj_halfedge(nF);
+  for (int h = 0; h < 3 * nF; ++h) {
+    if (out.cut_edge[conn.edge(h)]) continue;
+    adj[Connectivity::face(h)].push_back(Connectivity::face(conn.twin(h)));
+    adj_halfedge[Connectivity::face(h)].push_back(h);
+  }
+  std::vector<int> parent, order;
+  // The tree centre: middle of a longest path (two sweeps).
+  int root = options.root_face;
+  {
+    const int a = tree_bfs(adj, 0, parent, order);
+    if (static_cast<int>(order.size()) != nF)
+      throw SolveError("layout: the cut tree reaches " + std::to_string(order.size()) + " of " +
+                       std::to_string(nF) + " faces; the loops disconnect the surface");
+    const int b = tree_bfs(adj, a, parent, order);
+    std::vector<int> path;
+    for (int f = b; f != -1; f = parent[f]) path.push_back(f);
+    if (root < 0) root = path[path.size() / 2];
+    if (root >= nF) throw InputError("layout: root face " + std::to_string(root) + " out of range");
+  }
+  out.root_face = root;
+
+  // Charts in breadth-first order from the root.
+  std::vector<Chart> chart(nF);
+  std::vector<char> done(nF, 0);
+  std::vector<int> bfs;
+  bfs.reserve(nF);
+  {
+    std::queue<int> q;
+    q.push(root);
+    done[root] = 1;
+    while (!q.empty()) {
+      const int f = q.front();
+      q.pop();
+      bfs.push_back(f);
+      for (size_t i = 0; i < adj[f].size(); ++i) {
+        const int g = adj[f][i];
+        if (done[g]) continue;
+        done[g] = 1;
+        chart[g] = (chart[f] * transition(adj_halfedge[f][i])).normalized();
+        q.push(g);
+      }
+    }
+  }
+  auto compute_corners = [&]() {
+    out.corners.resize(nF, 3);
+    for (int f = 0; f < nF; ++f)
+      for (int k = 0; k < 3; ++k) out.corners(f, k) = chart[f].apply(canon[f][k]);
+  };
+  compute_corners();
+
+  // Re-centre.
+  if (options.recentre) {
+    if constexpr (std::is_same_v<G, Hyper>) {
+      // Karcher mean of the corner positions: c ← exp_c(mean log_c(z)).
+      Complex c(0.0);
+      for (int it = 0; it < 100; ++it) {
+        Complex g(0.0);
+        for (int f = 0; f < nF; ++f)
+          for (int k = 0; k < 3; ++k) g += hyperbolic::log_map(c, out.corners(f, k));
+        g /= 3.0 * nF;
+        c = hyperbolic::exp_map(c, g);
+        if (std::abs(g) < 1e-14) break;
+      }
+      const Mobius tc = Mobius::centring(c);
+      for (int f = 0; f < nF; ++f) chart[f] = (tc * chart[f]).normalized();
+    } else {
+      Complex c(0.0);
+      double total = 0;
+      for (int f = 0; f < nF; ++f) {
+        const Complex a = out.corners(f, 0), b = out.corners(f, 1), d = out.corners(f, 2);
+        const double w = 0.5 * std::imag(std::conj(b - a) * (d - a));
+        c += w * (a + b + d) / 3.0;
+        total += w;
+      }
+      c /= total;
+      for (int f = 0; f < nF; ++f) chart[f].t -= c;
+    }
+    compute_corners();
+  }
+  if constexpr (std::is_same_v<G, Hyper>) {
+    out.face_charts = chart;
+  } else {
+    out.face_rotation.resize(nF);
+    out.face_translation.resize(nF);
+    for (int f = 0; f < nF; ++f) {
+      out.face_rotation[f] = chart[f].r;
+      out.face_translation[f] = chart[f].t;
+    }
+  }
+
+  // Orientation and area.
+  out.num_flipped = 0;
+  out.area = 0;
+  for (int f = 0; f < nF; ++f) {
+    const Complex a = out.corners(f, 0), b = out.corners(f, 1), d = out.corners(f, 2);
+    if (!(std::imag(std::conj(b - a) * (d - a)) > 0)) ++out.num_flipped;
+    out.area += G::area(L[conn.edge(3 * f)], L[conn.edge(3 * f + 1)], L[conn.edge(3 * f + 2)]);
+  }
+
+  // Interior edges: the two copies of each endpoint coincide.
+  auto corner_of = [&](int f, int v) {
+    for (int k = 0; k < 3; ++k)
+      if (F(f, k) == v) return out.corners(f, k);
+    return Complex(NAN, NAN);
+  };
+  std::vector<Chart> deck(nE);
+  out.max_interior_mismatch = 0;
+  for (int e = 0; e < nE; ++e) {
+    const int h = conn.edge_halfedge(e), t = conn.twin(h);
+    const int f = Connectivity::face(h), g = Connectivity::face(t);
+    if (!out.cut_edge[e]) {
+      for (int v : {conn.tail(h), conn.head(h)})
+        out.max_interior_mismatch =
+            std::max(out.max_interior_mismatch, G::distance(corner_of(f, v), corner_of(g, v)));
+      continue;
+    }
+    // The copy of face g glued to face f along e is chart[f] ∘ E; the deck map
+    // carries it onto the laid-out copy chart[g].
+    deck[e] = (chart[g] * (chart[f] * transition(h)).inverse()).normalized();
+  }
+
+  // Edge deck maps, and the holonomy check in the flat case.
+  out.max_holonomy_rotation = 0;
+  if constexpr (std::is_same_v<G, Hyper>) {
+    out.edge_deck_mobius = deck;
+  } else {
+    out.edge_deck_translation.assign(nE, Complex(0.0));
+    for (int e = 0; e < nE; ++e) {
+      out.edge_deck_translation[e] = deck[e].t;
+      out.max_holonomy_rotation = std::max(out.max_holonomy_rotation, std::abs(deck[e].r - 1.0));
+    }
+  }
+
+  // Boundary of the disk, counter-clockwise (disk on the left of each
+  // halfedge): after h, turn clockwise around head(h) inside the disk until
+  // the next cut edge.
+  const int x = loops.base_vertex;
+  if (x < 0 || x >= nV) throw InputError("layout: base vertex " + std::to_string(x) + " out of range");
+  int num_cut = 0;
+  for (int e = 0; e < nE; ++e) num_cut += out.cut_edge[e];
+  int start = -1;
+  for (int h : conn.outgoing(x))
+    if (out.cut_edge[conn.edge(h)]) {
+      start = h;
+      break;
+    }
+  if (start < 0) throw SolveError("layout: no loop passes through the base vertex " + std::to_string(x));
+  std::vector<int> boundary;
+  for (int h = start;;) {
+    boundary.push_back(h);
+    if (static_cast<int>(boundary.size()) > 2 * num_cut) break;
+    int c = Connectivity::next(h);
+    for (int guard = 0; !out.cut_edge[conn.edge(c)]; ++guard) {
+      c = Connectivity::next(conn.twin(c));
+      if (guard > 3 * nF) throw SolveError("layout: boundary walk lost around vertex " + std::to_string(conn.head(h)));
+    }
+    h = c;
+    if (h == start) break;
+  }
+  if (static_cast<int>(boundary.size()) != 2 * num_cut)
+    throw SolveError("layout: the cut disk boundary has " + std::to_string(boundary.size()) +
+                     " halfedges, expected " + std::to_string(2 * num_cut) + " (the cut is not a disk)");
+  // Sides: maximal runs between copies of x.
+  std::vector<int> starts;
+  for (int i = 0; i < static_cast<int>(boundary.size()); ++i)
+    if (conn.tail(boundary[i]) == x) starts.push_back(i);
+  const int n = static_cast<int>(starts.size());
+  if (n != 4 * genus)
+    throw SolveError("layout: the disk boundary passes the base vertex " + std::to_string(n) +
+                     " times, expected " + std::to_string(4 * genus));
+  std::vector<int> letters(n);
+  for (int s = 0; s < n; ++s) {
+    const int b = starts[s], e_ = (s + 1 < n) ? starts[s + 1] : static_cast<int>(boundary.size());
+    int letter = 0;
+    for (int i = b; i < e_; ++i) {
+      const int h = boundary[i], e = conn.edge(h);
+      const int l = (edge_forward[e] == h) ? edge_loop[e] + 1 : -(edge_loop[e] + 1);
+      if (i == b) letter = l;
+      if (l != letter)
+        throw SolveError("layout: a side of the cut disk switches from loop letter " + std::to_string(letter) +
+                         " to " + std::to_string(l) + " at edge " + std::to_string(e) +
+                         " (loops touch away from the base vertex)");
+    }
+    const int k = std::abs(letter) - 1;
+    if (e_ - b != static_cast<int>(loops.loops[k].size()) - 1)
+      throw SolveError("layout: a side of the cut disk covers " + std::to_string(e_ - b) + " of the " +
+                       std::to_string(loops.loops[k].size() - 1) + " edges of loop " + std::to_string(k));
+    letters[s] = letter;
+  }
+  // Rotate so that the word starts with +1 (loop 0 forward).
+  int rot = 0;
+  for (int s = 0; s < n; ++s)
+    if (letters[s] == 1) rot = s;
+  out.word.resize(n);
+  out.side_start.resize(n);
+  out.boundary_halfedges.resize(boundary.size());
+  const int off = starts[rot];
+  for (size_t i = 0; i < boundary.size(); ++i) out.boundary_halfedges[i] = boundary[(i + off) % boundary.size()];
+  for (int s = 0; s < n; ++s) {
+    out.word[s] = letters[(s + rot) % n];
+    out.side_start[s] = (starts[(s + rot) % n] - off + static_cast<int>(boundary.size())) %
+                        static_cast<int>(boundary.size());
+  }
+  std::vector<int> plus_side(nloops, -1), minus_side(nloops, -1);
+  for (int s = 0; s < n; ++s) {
+    const int k = std::abs(out.word[s]) - 1;
+    int& slot = out.word[s] > 0 ? plus_side[k] : minus_side[k];
+    if (slot >= 0) throw SolveError("layout: loop letter " + std::to_string(out.word[s]) + " occurs twice");
+    slot = s;
+  }
+
+  // Side pairings D_k: deck maps of the loop's edges oriented along the loop.
+  auto oriented_deck = [&](int h) {
+    const int e = conn.edge(h);
+    return conn.edge_halfedge(e) == h ? deck[e] : deck[e].inverse();
+  };
+  std::vector<Chart> D(nloops);
+  for (int k = 0; k < nloops; ++k) D[k] = oriented_deck(out.boundary_halfedges[out.side_start[plus_side[k]]]);
+  out.max_deck_inconsistency = 0;
+  for (int e = 0; e < nE; ++e)
+    if (edge_loop[e] >= 0)
+      out.max_deck_inconsistency =
+          std::max(out.max_deck_inconsistency, chart_distance(oriented_deck(edge_forward[e]), D[edge_loop[e]]));
+
+  // Corner elements Ψ_m (c_m = Ψ_m(c_0)) through the vertex cycle:
+  // D_k Ψ_i = Ψ_{j+1} and D_k Ψ_{i+1} = Ψ_j for sides i = +k, j = −k.
+  struct Rel { int from, to, k; };
+  std::vector<Rel> rels;
+  for (int k = 0; k < nloops; ++k) {
+    const int i = plus_side[k], j = minus_side[k];
+    rels.push_back({i, (j + 1) % n, k});
+    rels.push_back({(i + 1) % n, j, k});
+  }
+  std::vector<Chart> psi(n);
+  std::vector<char> known(n, 0);
+  known[0] = 1;
+  std::vector<char> used(rels.size(), 0);
+  for (bool progress = true; progress;) {
+    progress = false;
+    for (size_t r = 0; r < rels.size(); ++r) {
+      if (used[r]) continue;
+      const Rel& rel = rels[r];
+      if (known[rel.from] && !known[rel.to]) {
+        psi[rel.to] = (D[rel.k] * psi[rel.from]).normalized();
+        known[rel.to] = 1;
+      } else if (known[rel.to] && !known[rel.from]) {
+        psi[rel.from] = (D[rel.k].inverse() * psi[rel.to]).normalized();
+        known[rel.from] = 1;
+      } else {
+        continue;
+      }
+      used[r] = 1;
+      progress = true;
+    }
+  }
+  for (int m = 0; m < n; ++m)
+    if (!known[m]) throw SolveError("layout: the corners of the cut disk do not form one vertex cycle");
+  const Complex c0 = out.corners(Connectivity::face(out.boundary_halfedges[0]), out.boundary_halfedges[0] % 3);
+  for (int m = 0; m < n; ++m) {
+    const int h = out.boundary_halfedges[out.side_start[m]];
+    const Complex cm = out.corners(Connectivity::face(h), h % 3);
+    out.max_deck_inconsistency = std::max(out.max_deck_inconsistency, G::distance(psi[m].apply(c0), cm));
+  }
+  std::vector<Chart> gen(nloops);
+  for (int k = 0; k < nloops; ++k) {
+    const int i = plus_side[k];
+    gen[k] = (psi[i].inverse() * psi[(i + 1) % n]).normalized();
+  }
+  Chart prod{};
+  for (int s = 0; s < n; ++s) {
+    const int k = std::abs(out.word[s]) - 1;
+    prod = prod * (out.word[s] > 0 ? gen[k] : gen[k].inverse());
+  }
+  if constexpr (std::is_same_v<G, Hyper>) {
+    out.side_pairings = D;
+    out.generators = gen;
+    out.product_relation_error = hyperbolic::distance_from_identity(prod);
+  } else {
+    out.side_translations.resize(nloops);
+    out.generator_translations.resize(nloops);
+    double scale = 0;
+    for (int k = 0; k < nloops; ++k) {
+      out.side_translations[k] = D[k].t;
+      out.generator_translations[k] = gen[k].t;
+      scale = std::max(scale, std::abs(gen[k].t));
+    }
+    out.product_relation_error = std::max(std::abs(prod.r - 1.0), std::abs(prod.t) / scale);
+  }
+
+  // Copies of vertices: wedges around each vertex separated by cut edges.
+  out.disk_faces.resize(nF, 3);
+  out.disk_positions.clear();
+  out.disk_vertex_origin.clear();
+  out.vertex_copies.assign(nV, 0);
+  for (int v = 0; v < nV; ++v) {
+    const std::vector<int> hs = conn.outgoing(v);
+    const int m = static_cast<int>(hs.size());
+    int s = -1;
+    for (int i = 0; i < m; ++i)
+      if (out.cut_edge[conn.edge(Connectivity::prev(hs[i]))]) {
+        s = i;
+        break;
+      }
+    int id = -1;
+    for (int t = 1; t <= m; ++t) {
+      const int h = hs[((s < 0 ? 0 : s) + t) % m];
+      if (id < 0) {
+        id = static_cast<int>(out.disk_positions.size());
+        out.disk_positions.push_back(out.corners(Connectivity::face(h), h % 3));
+        out.disk_vertex_origin.push_back(v);
+        ++out.vertex_copies[v];
+      }
+      out.disk_faces(Connectivity::face(h), h % 3) = id;
+      if (out.cut_edge[conn.edge(Connectivity::prev(h))]) id = -1;
+    }
+  }
+  out.vertex_positions.assign(nV, Complex(NAN, NAN));
+  std::vector<char> placed(nV, 0);
+  for (int f : bfs)
+    for (int k = 0; k < 3; ++k)
+      if (!placed[F(f, k)]) {
+        placed[F(f, k)] = 1;
+        out.vertex_positions[F(f, k)] = out.corners(f, k);
+      }
+}
+
+}  // namespace
+
+DiskLayout layout_disk(const Connectivity& conn, const Eigen::VectorXd& edge_lengths, Background background,
+                       const SystemOfLoops& loops, const LayoutOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (edge_lengths.size() != conn.num_edges())
+    throw InputError("layout: " + std::to_string(edge_lengths.size()) + " edge lengths for " +
+                     std::to_string(conn.num_edges()) + " edges");
+  if (loops.mesh.num_faces() != conn.num_faces())
+    throw InputError("layout: the system of loops refers to a mesh with " + std::to_string(loops.mesh.num_faces()) +
+                     " faces, the connectivity has " + std::to_string(conn.num_faces()));
+  if (conn.genus() < 1) throw InputError("layout: genus 0 has no loops to cut along (use the spherical layout)");
+  DiskLayout out;
+  out.background = background;
+  if (background == Background::Hyperbolic)
+    layout_impl<Hyper>(conn, edge_lengths, loops, options, out);
+  else
+    layout_impl<Flat>(conn, edge_lengths, loops, options, out);
+  out.time_s = seconds_since(t0);
+  return out;
+}
+
+Complex reduce_modulus(Complex tau, int* matrix) {
+  if (!(std::imag(tau) > 0)) throw InputError("reduce_modulus: Im tau must be positive");
+  long a = 1, b = 0, c = 0, d = 1;  // tau_current = (a tau0 + b) / (c tau0 + d)
+  const Complex tau0 = tau;
+  for (int it = 0; it < 1000; ++it) {
+    const double n = std::round(std::real(tau));
+    if (n != 0) {
+      // τ − n: [[1, −n], [0, 1]] · M
+      tau -= n;
+      a -= static_cast<long>(n) * c;
+      b -= static_cast<long>(n) * d;
+    }
+    if (std::norm(tau) < 1.0 - 1e-15) {
+      // −1/τ: [[0, −1], [1, 0]] · M
+      tau = -1.0 / tau;
+      const long na = -c, nb = -d, nc = a, nd = b;
+      a = na, b = nb, c = nc, d = nd;
+    } else {
+      break;
+    }
+  }
+  // Recompute from the integer matrix to avoid drift.
+  tau = (static_cast<double>(a) * tau0 + static_cast<double>(b)) / (static_cast<double>(c) * tau0 + static_cast<double>(d));
+  if (matrix) {
+    matrix[0] = static_cast<int>(a), matrix[1] = static_cast<int>(b);
+    matrix[2] = static_cast<int>(c), matrix[3] = static_cast<int>(d);
+  }
+  return tau;
+}
+
+TorusModulus torus_modulus(Complex omega1, Complex omega2) {
+  TorusModulus m;
+  m.omega1 = omega1;
+  m.omega2 = omega2;
+  if (std::abs(omega1) == 0 || std::abs(omega2) == 0) throw SolveError("torus_modulus: zero lattice vector");
+  m.tau = omega2 / omega1;
+  if (std::imag(m.tau) < 0) {
+    m.tau = -m.tau;
+    m.omega2 = -omega2;
+    m.omega2_negated = true;
+  }
+  if (!(std::imag(m.tau) > 0)) throw SolveError("torus_modulus: the lattice vectors are parallel");
+  m.tau_reduced = reduce_modulus(m.tau, m.sl2z);
+  return m;
+}
+
+}  // namespace surfmap
