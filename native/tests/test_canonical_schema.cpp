@@ -28,6 +28,17 @@ void expect_canonical(const Word& w) {
   ASSERT_EQ(static_cast<int>(s.generators.size()), 2 * s.genus);
   EXPECT_TRUE(conjugate(commutator_product(s.generators), w))
       << "commutator product is not conjugate to the input word";
+  // The inverse substitution: replacing each generator by its word in the
+  // loops turns letter k's expression back into letter k.
+  ASSERT_EQ(static_cast<int>(s.letters.size()), 2 * s.genus);
+  for (int k = 1; k <= 2 * s.genus; ++k) {
+    Word back;
+    for (int x : s.letters[k - 1]) {
+      const Word& g = s.generators[std::abs(x) - 1];
+      back = concat(back, x > 0 ? g : inverse(g));
+    }
+    EXPECT_EQ(back, Word{k}) << "letter " << k;
+  }
   // The new generators must generate the whole group: their abelianisation
   // (exponent sums per letter) is unimodular, |det| = 1.
   const int n = 2 * s.genus;

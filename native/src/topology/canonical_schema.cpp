@@ -1,5 +1,7 @@
 #include "surfmap/topology/canonical_schema.h"
 
+#include <algorithm>
+#include <array>
 #include <cstdlib>
 #include <string>
 
@@ -68,6 +70,7 @@ CanonicalSchema canonical_schema(const Word& word) {
   // i.e. up to conjugation), with `rest` a word in the original letters
   // that still uses each remaining letter once with each sign.
   Word rest = word;
+  std::vector<std::array<int, 2>> consumed;  // the letters (a, b) of each move
   while (!rest.empty()) {
     const int n = static_cast<int>(rest.size());
     // Find x at i with x^-1 at j > i and a letter y occurring once in (i, j)
@@ -115,8 +118,43 @@ CanonicalSchema canonical_schema(const Word& word) {
     next.insert(next.end(), C.begin(), C.end());
     next.insert(next.end(), B.begin(), B.end());
     rest = std::move(next);
+    consumed.push_back({rotated[0], b});
     ++out.moves;
   }
+  // Back-substitution. Generator 2m (2m+1) is U x V with x the letter a (b)
+  // consumed by move m, and U, V words in letters consumed by later moves
+  // only (B, C, D and the later conjugators P, Q come from the rest word,
+  // which no longer holds a and b). So letters are solved last move first.
+  const int n = static_cast<int>(word.size()) / 2;
+  std::vector<Word> letter_in_gens(n + 1);
+  std::vector<char> known(n + 1, 0);
+  auto substitute = [&](const Word& w) {
+    Word r;
+    for (int x : w) {
+      const int k = std::abs(x);
+      if (!known[k]) throw SolveError("canonical_schema: back-substitution met an unsolved letter");
+      const Word& e = letter_in_gens[k];
+      r = concat(r, x > 0 ? e : inverse(e));
+    }
+    return r;
+  };
+  for (int m = out.moves - 1; m >= 0; --m) {
+    for (int which = 0; which < 2; ++which) {
+      const int x = consumed[m][which];
+      const Word& g = out.generators[2 * m + which];
+      const auto it = std::find_if(g.begin(), g.end(), [&](int y) { return std::abs(y) == std::abs(x); });
+      if (it == g.end() || std::count_if(g.begin(), g.end(), [&](int y) { return std::abs(y) == std::abs(x); }) != 1)
+        throw SolveError("canonical_schema: generator does not contain its letter exactly once");
+      const Word U(g.begin(), it), V(it + 1, g.end());
+      // g = U y V with y = ±|x|:  y = U^-1 g V^-1 (in generators).
+      const Word gen{2 * m + which + 1};
+      Word y = concat({inverse(substitute(U)), gen, inverse(substitute(V))});
+      if (*it < 0) y = inverse(y);
+      letter_in_gens[std::abs(x)] = y;
+      known[std::abs(x)] = 1;
+    }
+  }
+  out.letters.assign(letter_in_gens.begin() + 1, letter_in_gens.end());
   return out;
 }
 

@@ -17,6 +17,11 @@ struct CanonicalSchema {
   /// 2g words in the original loop letters: [a1, b1, a2, b2, ...]. Their
   /// commutator product a1 b1 a1^-1 b1^-1 ... is conjugate to the input word.
   std::vector<Word> generators;
+  /// The inverse substitution: each original loop letter k (index k-1) as a
+  /// word in the new generators, whose letters are 1..2g for a1, b1, a2, ...
+  /// Evaluating these in a group where the a_i, b_i are known gives the
+  /// image of every loop (DESIGN.md §2.6).
+  std::vector<Word> letters;
   /// Number of cut-and-paste moves applied (one per handle).
   int moves = 0;
 };
