@@ -1,0 +1,276 @@
+// Genus-0 uniformization: punctured flat disk -> circle -> stereographic
+// projection -> Möbius centring. See spherical.h.
+#include "surfmap/uniformize/spherical.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <sstream>
+#include <unordered_map>
+
+#include <Eigen/Geometry>
+
+#include "ricci_core.h"
+#include "surfmap/error.h"
+#include "surfmap/mesh/connectivity.h"
+
+namespace surfmap {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::string fmt(double x) {
+  std::ostringstream s;
+  s.precision(3);
+  s << x;
+  return s.str();
+}
+
+/// Exterior angles of the polygon with side lengths l (cyclic; side i joins
+/// boundary vertices i and i+1) inscribed in a circle: vertex i turns by
+/// asin(l_{i-1}/2R) + asin(l_i/2R), R chosen so that the turns sum to 2π.
+Eigen::VectorXd inscribed_turning(const std::vector<double>& l) {
+  const int n = static_cast<int>(l.size());
+  double lmax = 0, lsum = 0;
+  for (double x : l) {
+    lmax = std::max(lmax, x);
+    lsum += x;
+  }
+  auto total = [&](double R) {
+    double s = 0;
+    for (double x : l) s += 2.0 * std::asin(std::min(1.0, x / (2.0 * R)));
+    return s - 2.0 * kPi;
+  };
+  double lo = lmax / 2.0, hi = std::max(lo, lsum / 4.0);
+  for (int it = 0; it < 200; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (total(mid) > 0 ? lo : hi) = mid;
+  }
+  const double R = 0.5 * (lo + hi);
+  Eigen::VectorXd k(n);
+  for (int i = 0; i < n; ++i)
+    k[i] = std::asin(std::min(1.0, l[(i + n - 1) % n] / (2.0 * R))) +
+           std::asin(std::min(1.0, l[i] / (2.0 * R)));
+  // If the longest side subtends more than π the bisection clamps; rescale so
+  // that Gauss–Bonnet (Σ = 2π) holds exactly either way.
+  k *= 2.0 * kPi / k.sum();
+  return k;
+}
+
+/// Ball automorphism of the unit ball sending c to 0 (keeps the unit sphere).
+Eigen::Vector3d mobius(const Eigen::Vector3d& c, const Eigen::Vector3d& x) {
+  const double c2 = c.squaredNorm(), x2 = x.squaredNorm();
+  const Eigen::Vector3d d = x - c;
+  return ((1.0 - c2) * d - d.squaredNorm() * c) / (1.0 - 2.0 * c.dot(x) + c2 * x2);
+}
+
+}  // namespace
+
+SphericalUniformization spherical_uniformization(const TriMesh& mesh,
+                                                 const SphericalUniformizationOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Connectivity conn(mesh.F, mesh.num_vertices());
+  if (conn.euler_characteristic() != 2)
+    throw InputError("spherical_uniformization needs a genus-0 surface; this one has genus " +
+                     std::to_string(conn.genus()));
+  const int nv = conn.num_vertices();
+  if (nv < 4) throw InputError("spherical_uniformization needs at least 4 vertices");
+  SphericalUniformization out;
+  int v0 = options.removed_vertex;
+  if (v0 < 0) {
+    v0 = 0;
+    for (int v = 1; v < nv; ++v)
+      if (conn.valence(v) > conn.valence(v0)) v0 = v;
+  } else if (v0 >= nv) {
+    throw InputError("removed_vertex " + std::to_string(v0) + " is out of range");
+  }
+  out.removed_vertex = v0;
+
+  // Punctured disk, vertices renumbered without v0.
+  std::vector<int> new_id(nv, -1), old_id;
+  for (int v = 0; v < nv; ++v)
+    if (v != v0) {
+      new_id[v] = static_cast<int>(old_id.size());
+      old_id.push_back(v);
+    }
+  RowMatrixX3i F2(conn.num_faces() - conn.valence(v0), 3);
+  for (int f = 0, r = 0; f < conn.num_faces(); ++f) {
+    if (mesh.F(f, 0) == v0 || mesh.F(f, 1) == v0 || mesh.F(f, 2) == v0) continue;
+    for (int k = 0; k < 3; ++k) F2(r, k) = new_id[mesh.F(f, k)];
+    ++r;
+  }
+  const int n2 = nv - 1;
+  const detail::RicciDomain dom = detail::domain_from_faces(n2, F2);
+  std::vector<int> ring;  // boundary = link of v0, in order
+  for (int h : conn.outgoing(v0)) ring.push_back(new_id[conn.head(h)]);
+  const int nb = static_cast<int>(ring.size());
+  int boundary_count = 0;
+  for (int v = 0; v < n2; ++v) boundary_count += dom.full_angle[v] < 4.0;
+  if (boundary_count != nb)
+    throw InputError("the link of vertex " + std::to_string(v0) +
+                     " is not a simple cycle; choose another removed_vertex");
+  std::unordered_map<long long, int> edge_of;
+  for (int e = 0; e < dom.EV.rows(); ++e)
+    edge_of[static_cast<long long>(dom.EV(e, 0)) * n2 + dom.EV(e, 1)] = e;
+  std::vector<int> ring_edge(nb);
+  for (int i = 0; i < nb; ++i) {
+    const int a = ring[i], b = ring[(i + 1) % nb];
+    ring_edge[i] = edge_of.at(static_cast<long long>(std::min(a, b)) * n2 + std::max(a, b));
+  }
+  Eigen::VectorXd l0(dom.EV.rows());
+  for (int e = 0; e < dom.EV.rows(); ++e)
+    l0[e] = (mesh.V.row(old_id[dom.EV(e, 0)]) - mesh.V.row(old_id[dom.EV(e, 1)])).norm();
+
+  // Flatten; boundary turning angles from the inscribed polygon, iterated.
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(n2), target = Eigen::VectorXd::Zero(n2);
+  Eigen::VectorXd lengths = l0;
+  RicciFlowResult flat;
+  bool have = false;
+  out.circle_error = std::numeric_limits<double>::infinity();
+  for (int round = 0; round < options.max_boundary_iterations; ++round) {
+    std::vector<double> bl(nb);
+    for (int i = 0; i < nb; ++i) bl[i] = lengths[ring_edge[i]];
+    const Eigen::VectorXd k = inscribed_turning(bl);
+    if (have) {
+      out.circle_error = 0;
+      for (int i = 0; i < nb; ++i)
+        out.circle_error = std::max(out.circle_error, std::abs(k[i] - target[ring[i]]));
+      if (out.circle_error <= options.circle_tolerance) break;
+    }
+    for (int i = 0; i < nb; ++i) target[ring[i]] = k[i];
+    flat = detail::ricci_solve(dom, l0, Background::Euclidean, options.flow, target, &u);
+    out.flow_iterations += flat.iterations;
+    out.boundary_iterations = round + 1;
+    out.max_curvature_error = flat.max_curvature_error;
+    have = true;
+    u = flat.u;
+    lengths = flat.edge_lengths;
+    if (!flat.converged) {
+      out.message = "flattening the punctured disk failed: " + flat.message;
+      break;
+    }
+  }
+  if (out.message.empty() && !(out.circle_error <= options.circle_tolerance))
+    out.message = "the boundary did not become a circle: error " + fmt(out.circle_error) +
+                  " after " + std::to_string(out.boundary_iterations) + " rounds";
+
+  // Lay the disk out in the plane, breadth first over faces.
+  const int nf2 = static_cast<int>(F2.rows());
+  std::vector<std::vector<int>> faces_of_edge(dom.EV.rows());
+  for (int f = 0; f < nf2; ++f)
+    for (int k = 0; k < 3; ++k) faces_of_edge[dom.FE(f, k)].push_back(f);
+  Eigen::MatrixX2d P(n2, 2);
+  std::vector<char> placed(n2, 0), done(nf2, 0);
+  auto side = [&](int f, int k) { return lengths[dom.FE(f, k)]; };  // opposite corner k
+  auto place_third = [&](int f, int k) {  // corner k from corners k+1, k+2 (ccw)
+    const int s = F2(f, (k + 1) % 3), t = F2(f, (k + 2) % 3), r = F2(f, k);
+    const Eigen::Vector2d ps = P.row(s).transpose(), pt = P.row(t).transpose();
+    const double d = (pt - ps).norm(), a = side(f, (k + 2) % 3), b = side(f, (k + 1) % 3);
+    const double x = (a * a - b * b + d * d) / (2.0 * d), y = std::sqrt(std::max(0.0, a * a - x * x));
+    const Eigen::Vector2d e = (pt - ps) / d, nrm(-e.y(), e.x());
+    P.row(r) = (ps + x * e + y * nrm).transpose();
+    placed[r] = 1;
+  };
+  {
+    P.row(F2(0, 0)) << 0, 0;
+    P.row(F2(0, 1)) << side(0, 2), 0;
+    placed[F2(0, 0)] = placed[F2(0, 1)] = 1;
+    place_third(0, 2);
+    done[0] = 1;
+    std::deque<int> queue{0};
+    while (!queue.empty()) {
+      const int f = queue.front();
+      queue.pop_front();
+      for (int k = 0; k < 3; ++k)
+        for (int g : faces_of_edge[dom.FE(f, k)]) {
+          if (done[g]) continue;
+          done[g] = 1;
+          for (int q = 0; q < 3; ++q)
+            if (!placed[F2(g, q)]) place_third(g, q);
+          queue.push_back(g);
+        }
+    }
+  }
+  // Circle through the boundary (algebraic least-squares fit), to the unit circle.
+  Eigen::MatrixXd A(nb, 3);
+  Eigen::VectorXd rhs(nb);
+  for (int i = 0; i < nb; ++i) {
+    const double x = P(ring[i], 0), y = P(ring[i], 1);
+    A.row(i) << x, y, 1.0;
+    rhs[i] = -(x * x + y * y);
+  }
+  const Eigen::Vector3d sol = A.colPivHouseholderQr().solve(rhs);
+  const Eigen::Vector2d centre(-sol[0] / 2, -sol[1] / 2);
+  const double radius = std::sqrt(std::max(1e-300, centre.squaredNorm() - sol[2]));
+
+  // Inverse stereographic projection from the north pole; y is mirrored
+  // because a counter-clockwise layout seen from +z would face inward on the
+  // southern hemisphere.
+  out.positions.resize(nv, 3);
+  for (int i = 0; i < n2; ++i) {
+    const double x = (P(i, 0) - centre.x()) / radius, y = -(P(i, 1) - centre.y()) / radius;
+    const double q = x * x + y * y;
+    out.positions.row(old_id[i]) << 2 * x / (q + 1), 2 * y / (q + 1), (q - 1) / (q + 1);
+  }
+  out.positions.row(v0) << 0, 0, 1;
+
+  // Möbius centring with the input's vertex areas as weights.
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(nv);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose(),
+                          b = mesh.V.row(mesh.F(f, 1)).transpose(),
+                          c = mesh.V.row(mesh.F(f, 2)).transpose();
+    const double area = 0.5 * (b - a).cross(c - a).norm();
+    for (int k = 0; k < 3; ++k) w[mesh.F(f, k)] += area / 3.0;
+  }
+  w /= w.sum();
+  auto centre_of = [&](const RowMatrixX3d& X) {
+    return Eigen::Vector3d((w.transpose() * X).transpose());
+  };
+  Eigen::Vector3d cm = centre_of(out.positions);
+  for (int it = 0; it < options.max_centring_iterations && cm.norm() > options.centring_tolerance;
+       ++it) {
+    bool improved = false;
+    for (double t = 1.0; t > 1e-4 && !improved; t *= 0.5) {
+      const Eigen::Vector3d c = t * cm;
+      RowMatrixX3d X(nv, 3);
+      for (int v = 0; v < nv; ++v)
+        X.row(v) = mobius(c, out.positions.row(v).transpose()).normalized().transpose();
+      const Eigen::Vector3d cn = centre_of(X);
+      if (cn.norm() < cm.norm()) {
+        out.positions = X;
+        cm = cn;
+        improved = true;
+      }
+    }
+    if (!improved) break;
+  }
+  out.centre_of_mass_norm = cm.norm();
+  if (out.message.empty() && !(out.centre_of_mass_norm <= options.centring_tolerance))
+    out.message = "Möbius centring stalled at |centre| = " + fmt(out.centre_of_mass_norm);
+
+  // Orientation check on the sphere.
+  int first_flipped = -1;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = out.positions.row(mesh.F(f, 0)).transpose(),
+                          b = out.positions.row(mesh.F(f, 1)).transpose(),
+                          c = out.positions.row(mesh.F(f, 2)).transpose();
+    if (!((b - a).cross(c - a).dot(a + b + c) > 0.0)) {
+      ++out.flipped_faces;
+      if (first_flipped < 0) first_flipped = f;
+    }
+  }
+  if (!out.positions.allFinite()) {
+    out.message = "non-finite positions on the sphere";
+  } else if (out.flipped_faces > 0 && out.message.empty()) {
+    out.message = "face " + std::to_string(first_flipped) + " is flipped on the sphere (" +
+                  std::to_string(out.flipped_faces) + " flipped faces)";
+  }
+  out.converged = out.message.empty();
+  out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+}  // namespace surfmap

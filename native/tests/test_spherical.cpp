@@ -1,0 +1,143 @@
+// Tests of the genus-0 uniformization (uniformize/spherical.h): points on the
+// unit sphere, centred, no flipped triangles, and (nearly) conformal: corner
+// angles are preserved much better than by a radial projection.
+#include "surfmap/uniformize/spherical.h"
+
+#include <array>
+#include <cmath>
+#include <map>
+#include <random>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "surfmap/error.h"
+
+namespace surfmap {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+TriMesh icosphere(int subdivisions) {
+  const double t = (1 + std::sqrt(5.0)) / 2;
+  std::vector<Eigen::Vector3d> V = {{-1, t, 0}, {1, t, 0},  {-1, -t, 0}, {1, -t, 0},
+                                    {0, -1, t}, {0, 1, t},  {0, -1, -t}, {0, 1, -t},
+                                    {t, 0, -1}, {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
+  std::vector<std::array<int, 3>> F = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                                       {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                                       {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                                       {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+  for (auto& v : V) v.normalize();
+  for (int s = 0; s < subdivisions; ++s) {
+    std::map<std::pair<int, int>, int> mid;
+    auto m = [&](int a, int b) {
+      auto key = std::make_pair(std::min(a, b), std::max(a, b));
+      auto it = mid.find(key);
+      if (it != mid.end()) return it->second;
+      V.push_back((V[a] + V[b]).normalized());
+      return mid[key] = static_cast<int>(V.size()) - 1;
+    };
+    std::vector<std::array<int, 3>> G;
+    for (auto f : F) {
+      const int a = m(f[0], f[1]), b = m(f[1], f[2]), c = m(f[2], f[0]);
+      G.push_back({f[0], a, c});
+      G.push_back({f[1], b, a});
+      G.push_back({f[2], c, b});
+      G.push_back({a, b, c});
+    }
+    F = G;
+  }
+  TriMesh out;
+  out.V.resize(static_cast<int>(V.size()), 3);
+  for (size_t i = 0; i < V.size(); ++i) out.V.row(i) = V[i].transpose();
+  out.F.resize(static_cast<int>(F.size()), 3);
+  for (size_t i = 0; i < F.size(); ++i) out.F.row(i) << F[i][0], F[i][1], F[i][2];
+  return out;
+}
+
+// Mean |corner angle difference| between two meshes with the same faces.
+double mean_angle_change(const TriMesh& a, const RowMatrixX3d& b) {
+  double sum = 0;
+  for (int f = 0; f < a.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      auto angle = [&](const auto& X) {
+        const Eigen::Vector3d p = X.row(a.F(f, k)).transpose(), q = X.row(a.F(f, (k + 1) % 3)).transpose(),
+                              r = X.row(a.F(f, (k + 2) % 3)).transpose();
+        return std::acos(std::max(-1.0, std::min(1.0, (q - p).normalized().dot((r - p).normalized()))));
+      };
+      sum += std::abs(angle(a.V) - angle(b));
+    }
+  return sum / (3.0 * a.num_faces());
+}
+
+void expect_valid(const TriMesh& m, const SphericalUniformization& s) {
+  ASSERT_TRUE(s.converged) << s.message;
+  ASSERT_EQ(s.positions.rows(), m.V.rows());
+  EXPECT_LT((s.positions.rowwise().norm().array() - 1).abs().maxCoeff(), 1e-12);
+  EXPECT_EQ(s.flipped_faces, 0);
+  // Independent orientation check and centre of mass (input vertex areas).
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(m.V.rows());
+  for (int f = 0; f < m.num_faces(); ++f) {
+    const Eigen::Vector3d a = s.positions.row(m.F(f, 0)).transpose(),
+                          b = s.positions.row(m.F(f, 1)).transpose(),
+                          c = s.positions.row(m.F(f, 2)).transpose();
+    EXPECT_GT((b - a).cross(c - a).dot(a + b + c), 0) << "face " << f;
+    const Eigen::Vector3d A = m.V.row(m.F(f, 0)).transpose(), B = m.V.row(m.F(f, 1)).transpose(),
+                          C = m.V.row(m.F(f, 2)).transpose();
+    for (int k = 0; k < 3; ++k) w[m.F(f, k)] += (B - A).cross(C - A).norm() / 6;
+  }
+  const Eigen::Vector3d cm = (w.transpose() * s.positions).transpose() / w.sum();
+  EXPECT_LT(cm.norm(), 1e-8);
+  EXPECT_LT(s.circle_error, 1e-9);
+}
+
+TEST(Spherical, RoundSphereStaysNearlyRound) {
+  const TriMesh m = icosphere(3);
+  const SphericalUniformization s = spherical_uniformization(m);
+  expect_valid(m, s);
+  // A centred conformal map of the round sphere is a rotation: angles and
+  // pairwise distances survive (discrete conformality is not exact).
+  EXPECT_LT(mean_angle_change(m, s.positions), 0.02);
+}
+
+TEST(Spherical, StretchedBumpySphereIsNearlyConformal) {
+  TriMesh m = icosphere(3);
+  for (int v = 0; v < m.V.rows(); ++v) {
+    const double bump = 1 + 0.15 * std::sin(3 * m.V(v, 0)) * std::cos(2 * m.V(v, 1));
+    m.V.row(v) = (m.V.row(v) * bump).cwiseProduct(Eigen::RowVector3d(2.0, 1.0, 0.6));
+  }
+  const SphericalUniformization s = spherical_uniformization(m);
+  expect_valid(m, s);
+  // Radial projection (a non-conformal map onto the sphere) as the yardstick.
+  RowMatrixX3d radial = m.V.rowwise().normalized();
+  EXPECT_LT(mean_angle_change(m, s.positions), 0.5 * mean_angle_change(m, radial));
+  // Every removed-vertex choice gives a valid result.
+  SphericalUniformizationOptions o;
+  o.removed_vertex = 17;
+  expect_valid(m, spherical_uniformization(m, o));
+}
+
+TEST(Spherical, JitteredSphere) {
+  TriMesh m = icosphere(3);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> U(-0.02, 0.02);  // edge length ~0.16
+  for (int v = 0; v < m.V.rows(); ++v)
+    for (int k = 0; k < 3; ++k) m.V(v, k) += U(rng);
+  expect_valid(m, spherical_uniformization(m));
+}
+
+TEST(Spherical, RejectsHigherGenus) {
+  TriMesh t;  // minimal 7-vertex torus (Möbius–Kantor / Császár triangulation)
+  t.V.resize(7, 3);
+  for (int i = 0; i < 7; ++i) t.V.row(i) << std::cos(2 * kPi * i / 7), std::sin(2 * kPi * i / 7), 0.1 * i;
+  t.F.resize(14, 3);
+  for (int i = 0; i < 7; ++i) {
+    t.F.row(2 * i) << i, (i + 1) % 7, (i + 3) % 7;
+    t.F.row(2 * i + 1) << i, (i + 3) % 7, (i + 2) % 7;
+  }
+  EXPECT_THROW(spherical_uniformization(t), InputError);
+}
+
+}  // namespace
+}  // namespace surfmap
