@@ -1,0 +1,76 @@
+#include "surfmap/topology/edge_homotopy.h"
+
+#include <gtest/gtest.h>
+
+#include "surfmap/samples/shapes.h"
+#include "surfmap/topology/system_of_loops.h"
+#include "surfmap/topology/words.h"
+
+namespace surfmap {
+namespace {
+
+const GroupOps<Word> kFreeGroup{Word{}, [](const Word& a, const Word& b) { return concat(a, b); },
+                                [](const Word& a) { return inverse(a); }};
+
+// The loop's first endpoint on its generator edge: the vertex the loop
+// reaches first when walking loops[k] from the base vertex.
+std::vector<int> loop_first_vertices(const SystemOfLoops& s, const Connectivity& c) {
+  std::vector<int> first;
+  for (size_t k = 0; k < s.loops.size(); ++k) {
+    const int e = s.generator_edges[k];
+    const int u = c.edge_vertex(e, 0), w = c.edge_vertex(e, 1);
+    const auto& L = s.loops[k];
+    int found = -1;
+    for (size_t q = 0; q + 1 < L.size(); ++q)
+      if ((L[q] == u && L[q + 1] == w) || (L[q] == w && L[q + 1] == u)) found = L[q];
+    EXPECT_GE(found, 0) << "loop " << k << " does not use its generator edge";
+    first.push_back(found);
+  }
+  return first;
+}
+
+void check_free_group_elements(const TriMesh& mesh, bool refine, int base_vertex) {
+  SystemOfLoopsOptions opt;
+  opt.refine = refine;
+  opt.base_vertex = base_vertex;
+  const SystemOfLoops s = system_of_loops(mesh, opt);
+  const Connectivity c(s.mesh.F, s.mesh.num_vertices());
+  std::vector<Word> letters;
+  for (size_t k = 0; k < s.loops.size(); ++k) letters.push_back({static_cast<int>(k) + 1});
+  const auto value = edge_group_elements(c, s.tree_parent_halfedge, s.dual_tree_parent_halfedge,
+                                         s.generator_edges, loop_first_vertices(s, c), letters, kFreeGroup);
+  auto of = [&](int h) {
+    const int e = c.edge(h);
+    return c.edge_halfedge(e) == h ? value[e] : inverse(value[e]);
+  };
+  for (int v = 0; v < c.num_vertices(); ++v)
+    if (s.tree_parent_halfedge[v] >= 0) EXPECT_TRUE(value[c.edge(s.tree_parent_halfedge[v])].empty());
+  int root = -1;
+  for (int f = 0; f < c.num_faces(); ++f) {
+    const Word around = concat({of(3 * f), of(3 * f + 1), of(3 * f + 2)});
+    if (s.dual_tree_parent_halfedge[f] < 0) {
+      root = f;
+      // Around the root face the relation of the surface appears: the
+      // product is conjugate to the boundary word or its inverse.
+      EXPECT_TRUE(conjugate(around, s.word) || conjugate(around, inverse(s.word)))
+          << "root face product " << to_text(around, {}) << " vs word " << s.word_text;
+    } else {
+      EXPECT_TRUE(around.empty()) << "face " << f;
+    }
+  }
+  EXPECT_GE(root, 0);
+}
+
+TEST(EdgeHomotopy, FreeGroupElementsSatisfyFaceRelations) {
+  const TriMesh torus = samples::torus_of_revolution(1.0, 0.4, 24, 12);
+  check_free_group_elements(torus, false, -1);
+  check_free_group_elements(torus, true, 17);
+  const TriMesh g2 = samples::n_hole_torus(2, 40, true);
+  check_free_group_elements(g2, false, -1);
+  check_free_group_elements(g2, true, 5);
+  const TriMesh g3 = samples::n_hole_torus(3, 40, false);  // raw marching tets, slivers
+  check_free_group_elements(g3, false, 11);
+}
+
+}  // namespace
+}  // namespace surfmap
