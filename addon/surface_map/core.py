@@ -134,7 +134,7 @@ def pair_colour(k, genus=None):
     if k % 2 == 0:
         r, g, b = colorsys.hsv_to_rgb(hue, 0.95, 1.0)
     else:
-        r, g, b = colorsys.hsv_to_rgb((hue + 0.07) % 1.0, 0.75, 0.45)
+        r, g, b = colorsys.hsv_to_rgb((hue + 0.07) % 1.0, 0.8, 0.55)
     # HSV values are display (sRGB) values; Blender colours are linear.
     lin = [c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4 for c in (r, g, b)]
     return (lin[0], lin[1], lin[2], 1.0)
