@@ -20,6 +20,7 @@
 #include <string>
 
 #include <Eigen/CholmodSupport>
+#include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
 #include "ricci_core.h"
@@ -330,9 +331,13 @@ RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengt
     throw InputError("ricci_flow: expected " + std::to_string(nv) + " target curvatures, got " +
                      std::to_string(target.size()));
   // Gauss–Bonnet: Σ K_i = Σ full_i − π #F (+ area in the hyperbolic case).
-  const double gb = dom.full_angle.sum() - kPi * nf;
+  // (computed as an integer multiple of π: summing 2π over 10⁵ vertices in
+  // floating point would itself be off by more than a tight tolerance)
+  long long gb_pi = -static_cast<long long>(nf);
+  for (int v = 0; v < nv; ++v) gb_pi += std::llround(dom.full_angle[v] / kPi);
+  const double gb = kPi * static_cast<double>(gb_pi);
   if (background == Background::Euclidean) {
-    if (std::abs(target.sum() - gb) > 1e-8 * (1.0 + std::abs(gb)))
+    if (std::abs(target.sum() - gb) > 1e-8 * (1.0 + std::abs(gb) + target.cwiseAbs().sum()))
       throw InputError("ricci_flow: flat target curvatures sum to " + fmt(target.sum()) +
                        " but Gauss–Bonnet requires " + fmt(gb) + " (2π χ)");
   } else if (!(target.sum() - gb > 0.0)) {
@@ -358,8 +363,11 @@ RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengt
   res.residual_history.push_back(err);
 
   Eigen::SparseMatrix<double> H(nv, nv);
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> llt;
-  bool analyzed = false;
+#ifndef SURFMAP_RICCI_SOLVER
+#define SURFMAP_RICCI_SOLVER Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower>
+#endif
+  SURFMAP_RICCI_SOLVER llt;
+  bool analyzed = false, factor_valid = false;
   double mu = 0.0;  // Levenberg shift, only used when a plain Newton step fails
   std::string failure;
   int it = 0;
@@ -390,19 +398,49 @@ RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengt
     const double g2 = g.squaredNorm();
     bool accepted = false;
     for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
-      Eigen::SparseMatrix<double> A = H;
-      if (mu > 0.0)
-        for (int v = 0; v < nv; ++v) A.coeffRef(v, v) += mu;
-      if (!analyzed) {
-        llt.analyzePattern(A);
-        analyzed = true;
-      }
-      llt.factorize(A);
       Eigen::VectorXd delta;
-      if (llt.info() == Eigen::Success) delta = llt.solve(-g);
-      if (llt.info() != Eigen::Success || !delta.allFinite()) {
-        mu = std::max(mu * 10.0, 1e-10 * (1.0 + H.diagonal().cwiseAbs().maxCoeff()));
-        continue;
+      // Cheap path: the factor of an earlier Hessian as a preconditioner for
+      // conjugate gradients on the current one (H changes little between
+      // Newton steps); refactorize when that does not converge quickly.
+      if (factor_valid && mu == 0.0) {
+        delta = Eigen::VectorXd::Zero(nv);
+        Eigen::VectorXd r = -g, z = llt.solve(r), p = z;
+        double rz = r.dot(z);
+        const double stop = 1e-12 * g.norm();
+        bool ok = false;
+        for (int k = 0; k < 40; ++k) {
+          const Eigen::VectorXd Hp = H * p;
+          const double pHp = p.dot(Hp);
+          if (!(pHp > 0.0)) break;
+          const double a = rz / pHp;
+          delta += a * p;
+          r -= a * Hp;
+          if (r.norm() <= stop) {
+            ok = true;
+            break;
+          }
+          z = llt.solve(r);
+          const double rz_new = r.dot(z);
+          p = z + (rz_new / rz) * p;
+          rz = rz_new;
+        }
+        if (!ok || !delta.allFinite()) delta.resize(0);
+      }
+      if (delta.size() == 0) {
+        Eigen::SparseMatrix<double> A = H;
+        if (mu > 0.0)
+          for (int v = 0; v < nv; ++v) A.coeffRef(v, v) += mu;
+        if (!analyzed) {
+          llt.analyzePattern(A);
+          analyzed = true;
+        }
+        llt.factorize(A);
+        factor_valid = llt.info() == Eigen::Success && mu == 0.0;
+        if (llt.info() == Eigen::Success) delta = llt.solve(-g);
+        if (llt.info() != Eigen::Success || !delta.allFinite()) {
+          mu = std::max(mu * 10.0, 1e-10 * (1.0 + H.diagonal().cwiseAbs().maxCoeff()));
+          continue;
+        }
       }
       // Backtracking on the residual norm (the Newton direction decreases
       // |g|² at rate −2|g|²); K is continuous across degenerate triangles
