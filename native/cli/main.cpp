@@ -10,6 +10,7 @@ int main(int argc, char** argv) {
   CLI::App app{"surfmap: globally optimal maps between closed surfaces of equal genus"};
   app.require_subcommand(1);
   surfmap::cli::register_info(app);
+  surfmap::cli::register_loops(app);
   // SURFMAP_CLI_REGISTER (keep this marker: add one register_* call per line above it)
   try {
     app.parse(argc, argv);

@@ -4,5 +4,6 @@ PYBIND11_MODULE(_core, m) {
   m.doc() = "surfmap native core";
   surfmap::python::bind_errors(m);
   surfmap::python::bind_mesh(m);
+  surfmap::python::bind_topology(m);
   // SURFMAP_PY_BIND (keep this marker: add one bind_* call per line above it)
 }
