@@ -1,0 +1,89 @@
+#pragma once
+// The globally optimal surface map (paper §III–VII; DESIGN.md §2.3–2.11).
+//
+// Flat case (genus 1), implemented here: the target is uniformized to a flat
+// torus C / (ω1 Z + ω2 Z); the map is given by one point z_i per source
+// vertex and one lattice translation t_ij per source edge (the homotopy
+// class, from both surfaces' canonical polygon schemata), and the harmonic
+// energy E = Σ w_ij |z_i − z_j − t_ij|² with the cotangent weights of the
+// source's intrinsic Delaunay triangulation is quadratic: one sparse solve
+// gives the exact optimum (unique up to a translation of the torus). Each
+// candidate homotopy class (handle correspondence) reuses the same
+// factorisation; the one of lowest energy is the default.
+//
+// Genus 0 and genus >= 2 are not implemented yet (InputError says so).
+#include <complex>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "surfmap/mesh/tri_mesh.h"
+
+namespace surfmap {
+
+struct SurfaceMapOptions {
+  /// Homotopy class to use: index into SurfaceMapResult::candidates, or -1
+  /// (default) for the one of lowest energy.
+  int homotopy = -1;
+  /// Base vertices of the systems of loops (-1: automatic).
+  int source_base_vertex = -1, target_base_vertex = -1;
+  /// Curvature tolerance of the target's uniformization (default 1e-10).
+  double uniformization_tolerance = 1e-10;
+  /// Called between stages with the stage name and a fraction in [0, 1];
+  /// return false to cancel (throws Cancelled).
+  std::function<bool(const std::string& stage, double fraction)> progress;
+};
+
+/// One candidate homotopy class: for genus 1 an SL(2,Z) matrix taking the
+/// source's reduced lattice basis to integer combinations of the target's.
+struct HomotopyCandidate {
+  std::string description;
+  int matrix[4] = {1, 0, 0, 1};
+  double energy = 0;
+};
+
+struct PointOnSurface {
+  int face = -1;                 ///< face of the other surface's input mesh
+  Eigen::Vector3d barycentric;   ///< weights of that face's corners
+  Eigen::Vector3d position;      ///< 3D point
+};
+
+struct SurfaceMapResult {
+  int genus = 0;
+  bool converged = false;
+  /// Harmonic energy Σ w_ij |z_i − z_j − t_ij|² of the initial map and of
+  /// the optimum. The initial map is, for now, the Tutte-type embedding in
+  /// the same homotopy class (uniform weights), not yet the paper's
+  /// canonical-polygon composition (§IV-B).
+  double initial_energy = 0, final_energy = 0;
+  std::vector<double> energy_history;
+  int iterations = 0;
+  /// Per source vertex: its image on the target; per target vertex: its
+  /// preimage on the source (the inverse map).
+  std::vector<PointOnSurface> forward, inverse;
+  /// Dilatation D' of the optimised map (per source face, mean, max) and of
+  /// the initial map; flipped / degenerate image triangles of each.
+  std::vector<double> dilatation;
+  double mean_dilatation = 0, max_dilatation = 0;
+  double initial_mean_dilatation = 0, initial_max_dilatation = 0;
+  int flipped_triangles = 0, degenerate_triangles = 0;
+  int initial_flipped_triangles = 0;
+  std::vector<HomotopyCandidate> candidates;
+  int chosen_candidate = -1;
+  /// Target lattice (flat case) and the source's image in the plane.
+  std::complex<double> target_omega1, target_omega2;
+  std::vector<std::complex<double>> source_image;  ///< #V_source z_i
+  /// Seconds per stage, in order, and in total.
+  std::vector<std::pair<std::string, double>> stage_times;
+  double total_time = 0;
+};
+
+/// Maps `source` onto `target` (both closed, manifold, outward oriented, of
+/// the same genus: run intake first). Throws InputError (unequal genus,
+/// unsupported genus), SolveError (uniformization failed, flipped triangles
+/// in the optimum: never returned as a success), Cancelled.
+SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options = {});
+
+}  // namespace surfmap

@@ -1,0 +1,70 @@
+#include "surfmap/map/distortion.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Dense>
+
+namespace surfmap {
+namespace {
+
+// Corners of a planar triangle with the given sides: c0 = 0, c1 on the x axis.
+Eigen::Matrix2d frame_from_sides(const Eigen::Vector3d& s) {
+  const double a = s[0], b = s[1], c = s[2];  // |c0c1|, |c1c2|, |c2c0|
+  const double x = (a * a + c * c - b * b) / (2 * a);
+  const double y = std::sqrt(std::max(c * c - x * x, 0.0));
+  Eigen::Matrix2d E;  // columns: c1 - c0, c2 - c0
+  E << a, x, 0, y;
+  return E;
+}
+
+double dilatation_of(const Eigen::Matrix2d& src, const Eigen::Matrix2d& img) {
+  if (std::abs(src.determinant()) <= 0) return std::numeric_limits<double>::infinity();
+  const Eigen::Matrix2d A = img * src.inverse();
+  Eigen::JacobiSVD<Eigen::Matrix2d> svd(A);
+  const auto s = svd.singularValues();
+  if (!(s[1] > 0)) return std::numeric_limits<double>::infinity();
+  return s[0] / s[1];
+}
+
+}  // namespace
+
+double triangle_dilatation(const Eigen::Vector3d& source_sides, const Eigen::Vector3d& image_sides) {
+  return dilatation_of(frame_from_sides(source_sides), frame_from_sides(image_sides));
+}
+
+DistortionStats planar_distortion(const RowMatrixX3d& V, const RowMatrixX3i& F,
+                                  const Eigen::Matrix<std::complex<double>, Eigen::Dynamic, 3, Eigen::RowMajor>& image) {
+  DistortionStats out;
+  const int nf = static_cast<int>(F.rows());
+  out.per_face.assign(nf, std::numeric_limits<double>::infinity());
+  double weighted = 0, total_area = 0;
+  for (int f = 0; f < nf; ++f) {
+    const Eigen::Vector3d p0 = V.row(F(f, 0)), p1 = V.row(F(f, 1)), p2 = V.row(F(f, 2));
+    const Eigen::Vector3d s(( p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm());
+    const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+    const std::complex<double> e1 = image(f, 1) - image(f, 0), e2 = image(f, 2) - image(f, 0);
+    const double signed_area = 0.5 * (e1.real() * e2.imag() - e1.imag() * e2.real());
+    const double scale2 = std::max({std::norm(e1), std::norm(e2), std::norm(image(f, 2) - image(f, 1))});
+    if (std::abs(signed_area) <= 1e-14 * scale2) {
+      ++out.degenerate;
+      continue;
+    }
+    if (signed_area < 0) {
+      ++out.flipped;
+      continue;
+    }
+    Eigen::Matrix2d img;
+    img << e1.real(), e2.real(), e1.imag(), e2.imag();
+    const double d = dilatation_of(frame_from_sides(s), img);
+    out.per_face[f] = d;
+    weighted += area * d;
+    total_area += area;
+    out.max = std::max(out.max, d);
+  }
+  out.mean = total_area > 0 ? weighted / total_area : std::numeric_limits<double>::infinity();
+  return out;
+}
+
+}  // namespace surfmap
