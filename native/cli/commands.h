@@ -10,5 +10,6 @@ void register_info(CLI::App& app);
 void register_loops(CLI::App& app);
 void register_uniformize(CLI::App& app);
 void register_generate(CLI::App& app);
+void register_map(CLI::App& app);
 
 }  // namespace surfmap::cli

@@ -11,6 +11,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   surfmap::cli::register_info(app);
   surfmap::cli::register_loops(app);
+  surfmap::cli::register_map(app);
   // SURFMAP_CLI_REGISTER (keep this marker: add one register_* call per line above it)
   try {
     app.parse(argc, argv);

@@ -1,0 +1,112 @@
+// Map layer bindings: the globally optimal surface map (paper §III–VII).
+#include <optional>
+
+#include "bindings.h"
+#include "convert.h"
+#include "surfmap/error.h"
+#include "surfmap/map/surface_map.h"
+#include "surfmap/mesh/intake.h"
+
+namespace py = pybind11;
+
+namespace surfmap::python {
+namespace {
+
+py::dict points_to_dict(const std::vector<PointOnSurface>& pts) {
+  std::vector<int> face(pts.size());
+  RowMatrixX3d bary(pts.size(), 3), pos(pts.size(), 3);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    face[i] = pts[i].face;
+    bary.row(i) = pts[i].barycentric.transpose();
+    pos.row(i) = pts[i].position.transpose();
+  }
+  py::dict d;
+  d["face"] = to_numpy(face);
+  d["barycentric"] = to_numpy(bary);
+  d["position"] = to_numpy(pos);
+  return d;
+}
+
+}  // namespace
+
+void bind_map(py::module_& m) {
+  m.def(
+      "surface_map",
+      [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
+         int target_base_vertex, py::object progress) {
+        const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
+        const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
+        SurfaceMapOptions opt;
+        opt.homotopy = homotopy;
+        opt.source_base_vertex = source_base_vertex;
+        opt.target_base_vertex = target_base_vertex;
+        // The callback runs on this thread with the GIL re-acquired; a Python
+        // exception inside it stops the solve and is re-raised as is.
+        std::optional<py::error_already_set> callback_error;
+        if (!progress.is_none())
+          opt.progress = [&](const std::string& stage, double fraction) {
+            py::gil_scoped_acquire gil;
+            try {
+              const py::object r = progress(stage, fraction);
+              return r.is_none() || r.cast<bool>();
+            } catch (py::error_already_set& e) {
+              callback_error.emplace(std::move(e));
+              return false;
+            }
+          };
+        SurfaceMapResult r;
+        IntakeResult src, dst;
+        try {
+          py::gil_scoped_release release;
+          try {
+            src = intake(vs, fs);
+          } catch (const InputError& e) {
+            throw InputError(std::string("source: ") + e.what());
+          }
+          try {
+            dst = intake(vt, ft);
+          } catch (const InputError& e) {
+            throw InputError(std::string("target: ") + e.what());
+          }
+          check_same_genus(src.info, dst.info);
+          r = surface_map(src.mesh, dst.mesh, opt);
+        } catch (const Cancelled&) {
+          if (callback_error) throw std::move(*callback_error);
+          throw;
+        }
+        py::dict d;
+        d["genus"] = r.genus;
+        d["converged"] = r.converged;
+        d["iterations"] = r.iterations;
+        d["energy"] = py::dict(py::arg("initial") = r.initial_energy, py::arg("final") = r.final_energy,
+                               py::arg("history") = r.energy_history);
+        d["distortion"] = py::dict(py::arg("mean") = r.mean_dilatation, py::arg("max") = r.max_dilatation,
+                                   py::arg("per_face") = to_numpy(r.dilatation));
+        d["initial_distortion"] =
+            py::dict(py::arg("mean") = r.initial_mean_dilatation, py::arg("max") = r.initial_max_dilatation);
+        d["flipped_triangles"] = r.flipped_triangles;
+        d["degenerate_triangles"] = r.degenerate_triangles;
+        d["forward"] = points_to_dict(r.forward);
+        d["inverse"] = points_to_dict(r.inverse);
+        py::list cands;
+        for (const auto& c : r.candidates)
+          cands.append(py::dict(py::arg("description") = c.description, py::arg("energy") = c.energy,
+                                py::arg("matrix") = std::vector<int>(c.matrix, c.matrix + 4)));
+        d["homotopy"] = py::dict(py::arg("chosen") = r.chosen_candidate, py::arg("candidates") = cands);
+        py::dict times;
+        for (const auto& [stage, s] : r.stage_times) times[py::str(stage)] = s;
+        times["total"] = r.total_time;
+        d["time_s"] = times;
+        d["source_flipped"] = src.flipped;
+        d["target_flipped"] = dst.flipped;
+        return d;
+      },
+      py::arg("source_V"), py::arg("source_F"), py::arg("target_V"), py::arg("target_F"), py::arg("homotopy") = -1,
+      py::arg("source_base_vertex") = -1, py::arg("target_base_vertex") = -1, py::arg("progress") = py::none(),
+      "Globally optimal map from the source onto the target (same genus; genus 1 for now). Returns a dict "
+      "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
+      "vertex, on the source), energies, distortion and the homotopy candidates. `progress(stage, fraction)` "
+      "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
+}
+
+}  // namespace surfmap::python
