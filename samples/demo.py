@@ -86,15 +86,22 @@ def load_pair(sm):
             return (make_object(os.path.splitext(a)[0], *read_obj(pa)),
                     make_object(os.path.splitext(b)[0], *read_obj(pb)))
     print("demo: no sample pair in samples/meshes; using the built-in shapes")
-    shapes = sm.shapes
-    if hasattr(shapes, "n_hole_torus") and hasattr(shapes, "vase"):
-        (Va, Fa), (Vb, Fb), names = shapes.n_hole_torus(2), shapes.vase(), ("double_torus", "vase")
-    else:
-        (Va, Fa), (Vb, Fb) = shapes.torus_of_revolution(1.0, 0.5, 64, 32), \
-            shapes.torus_of_revolution(1.5, 0.5, 64, 32)
-        names = ("torus_R1", "torus_R1.5")
-    return (make_object(names[0], Va.tolist(), Fa.tolist()),
-            make_object(names[1], Vb.tolist(), Fb.tolist()))
+    shapes = getattr(sm, "shapes", None)
+    if shapes is not None and hasattr(shapes, "n_hole_torus") and hasattr(shapes, "vase"):
+        (Va, Fa), (Vb, Fb) = shapes.n_hole_torus(2), shapes.vase()
+        return (make_object("double_torus", Va.tolist(), Fa.tolist()),
+                make_object("vase", Vb.tolist(), Fb.tolist()))
+    # Blender's own (quad) tori
+    objs = []
+    for name, R in (("torus_R1", 1.0), ("torus_R1.5", 1.5)):
+        bpy.ops.mesh.primitive_torus_add(major_segments=64, minor_segments=32,
+                                         major_radius=R, minor_radius=0.5)
+        ob = bpy.context.active_object
+        ob.name = ob.data.name = name
+        for p in ob.data.polygons:
+            p.use_smooth = True
+        objs.append(ob)
+    return tuple(objs)
 
 
 def normalise(ob, size=2.0):
@@ -213,7 +220,7 @@ def main():
     target.location.x += 1.3
     bpy.context.view_layer.update()
 
-    bpy.context.scene.surfmap.loop_bevel = 0.006
+    bpy.context.scene.surfmap.loop_bevel = 0.0045
     for ob in bpy.context.view_layer.objects:
         ob.select_set(ob in (source, target))
     bpy.context.view_layer.objects.active = target

@@ -127,14 +127,14 @@ def loop_name(k):
 
 
 def pair_colour(k, genus=None):
-    """Linear RGBA colour of loop k: a_i and b_i share a hue family (a bright and saturated,
-    b darker and shifted), each handle i gets a hue far from the others (golden-ratio steps)."""
+    """Linear RGBA colour of loop k: a_i and b_i share a hue family (a deep and saturated,
+    b a light pastel of a neighbouring hue), each handle i gets a hue far from the others (golden-ratio steps)."""
     i = k // 2
     hue = (0.02 + i * 0.618033988749895) % 1.0
     if k % 2 == 0:
-        r, g, b = colorsys.hsv_to_rgb(hue, 0.95, 1.0)
+        r, g, b = colorsys.hsv_to_rgb(hue, 1.0, 0.9)
     else:
-        r, g, b = colorsys.hsv_to_rgb((hue + 0.07) % 1.0, 0.8, 0.55)
+        r, g, b = colorsys.hsv_to_rgb((hue + 0.09) % 1.0, 0.4, 1.0)
     # HSV values are display (sRGB) values; Blender colours are linear.
     lin = [c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4 for c in (r, g, b)]
     return (lin[0], lin[1], lin[2], 1.0)

@@ -113,7 +113,7 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
                  f"{results[o.name]['base_vertex']}, word {results[o.name]['word_text']}"
                  for o in objs]
         msg = "; ".join(parts)
-        settings.status = msg
+        settings.status = "; ".join([msg] + notes)
         for note in notes:
             self.report({'WARNING'} if "modifiers" in note else {'INFO'}, note)
         self.report({'INFO'}, msg)

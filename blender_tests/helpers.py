@@ -1,0 +1,203 @@
+"""Shared helpers of the Blender tests (not a test file)."""
+import os
+
+import bpy
+import numpy as np
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SAMPLES = os.path.join(REPO, "samples", "meshes")
+
+
+def sm():
+    """The native surfmap module as the add-on found it (tests fail loudly when missing)."""
+    from surface_map import native
+    mod = native.load()
+    assert mod is not None, f"surfmap native module missing: {native.error()}"
+    return mod
+
+
+def reset_scene():
+    if bpy.context.object is not None and bpy.context.object.mode != 'OBJECT':
+        bpy.ops.object.mode_set(mode='OBJECT')
+    for ob in list(bpy.data.objects):
+        bpy.data.objects.remove(ob, do_unlink=True)
+    for coll in (bpy.data.meshes, bpy.data.curves, bpy.data.cameras, bpy.data.lights,
+                 bpy.data.materials, bpy.data.collections):
+        for block in list(coll):
+            coll.remove(block)
+    bpy.context.scene.surfmap.status = ""
+    bpy.context.scene.surfmap.source_base_vertex = -1
+    bpy.context.scene.surfmap.target_base_vertex = -1
+
+
+def mesh_object(name, V, F, location=(0, 0, 0)):
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(np.asarray(V, dtype=float).tolist(), [], np.asarray(F).tolist()
+                   if not isinstance(F, list) else F)
+    me.update()
+    ob = bpy.data.objects.new(name, me)
+    ob.location = location
+    bpy.context.scene.collection.objects.link(ob)
+    return ob
+
+
+def torus_of_revolution(R, r, n_major, n_minor):
+    """Triangulated torus around z (the same surface as surfmap.shapes.torus_of_revolution)."""
+    u = 2 * np.pi * np.arange(n_major) / n_major
+    v = 2 * np.pi * np.arange(n_minor) / n_minor
+    U, W = np.meshgrid(u, v, indexing="ij")
+    V = np.stack([(R + r * np.cos(W)) * np.cos(U), (R + r * np.cos(W)) * np.sin(U),
+                  r * np.sin(W)], axis=-1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(n_major), np.arange(n_minor), indexing="ij")
+    a = i * n_minor + j
+    b = ((i + 1) % n_major) * n_minor + j
+    c = ((i + 1) % n_major) * n_minor + (j + 1) % n_minor
+    d = i * n_minor + (j + 1) % n_minor
+    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3),
+                        np.stack([a, c, d], -1).reshape(-1, 3)])
+    return V, F
+
+
+def torus(name, R=1.0, r=0.5, location=(0, 0, 0)):
+    shapes = getattr(sm(), "shapes", None)
+    if shapes is not None and hasattr(shapes, "torus_of_revolution"):
+        V, F = shapes.torus_of_revolution(R, r, 48, 24)
+    else:
+        V, F = torus_of_revolution(R, r, 48, 24)
+    return mesh_object(name, V, F, location)
+
+
+def voxel_surface(filled):
+    """Closed quad surface of a set of unit voxels (i, j, k): one quad per voxel face whose
+    neighbour is empty, vertices shared on the integer lattice, faces outward."""
+    filled = set(filled)
+    index, V, polys = {}, [], []
+
+    def vid(p):
+        if p not in index:
+            index[p] = len(V)
+            V.append(p)
+        return index[p]
+    for (i, j, k) in sorted(filled):
+        for axis in range(3):
+            for s in (0, 1):
+                n = [i, j, k]
+                n[axis] += 1 if s else -1
+                if tuple(n) in filled:
+                    continue
+                u, w = (axis + 1) % 3, (axis + 2) % 3
+                corners = []
+                for du, dw in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                    c = [i, j, k]
+                    c[axis] += s
+                    c[u] += du
+                    c[w] += dw
+                    corners.append(vid(tuple(c)))
+                polys.append(corners if s else corners[::-1])
+    return np.array(V, dtype=float), polys
+
+
+def polycube_double_torus(k=3):
+    """A genus-2 slab (5 x 3 x 1 blocks of k^3 voxels with two 1-block holes), triangulated."""
+    holes = {(1, 1), (3, 1)}
+    filled = [(i, j, z) for i in range(5 * k) for j in range(3 * k) for z in range(k)
+              if (i // k, j // k) not in holes]
+    V, polys = voxel_surface(filled)
+    F = [[p[0], p[1], p[2]] for p in polys] + [[p[0], p[2], p[3]] for p in polys]
+    return V / k, np.array(F)
+
+
+def double_torus(name, location=(0, 0, 0)):
+    shapes = getattr(sm(), "shapes", None)
+    if shapes is not None and hasattr(shapes, "n_hole_torus"):
+        V, F = shapes.n_hole_torus(2)
+    else:
+        V, F = polycube_double_torus()
+    return mesh_object(name, V, F, location)
+
+
+def import_obj(path, name, location=(0, 0, 0)):
+    V, polys = [], []
+    with open(path) as f:
+        for line in f:
+            t = line.split()
+            if not t:
+                continue
+            if t[0] == "v":
+                V.append([float(x) for x in t[1:4]])
+            elif t[0] == "f":
+                polys.append([int(x.split("/")[0]) - 1 for x in t[1:]])
+    return mesh_object(name, V, polys, location)
+
+
+def select(objs, active):
+    for ob in bpy.context.view_layer.objects:
+        ob.select_set(False)
+    for ob in objs:
+        ob.select_set(True)
+    bpy.context.view_layer.objects.active = active
+
+
+def mesh_snapshot(ob):
+    me = ob.data
+    co = np.empty(len(me.vertices) * 3)
+    me.vertices.foreach_get("co", co)
+    faces = [tuple(p.vertices) for p in me.polygons]
+    seams = [e.index for e in me.edges if e.use_seam]
+    return co.tobytes(), faces, seams
+
+
+def scene_snapshot():
+    """Everything an operator that cancels must leave untouched."""
+    return {
+        "objects": sorted(o.name for o in bpy.data.objects),
+        "collections": sorted(c.name for c in bpy.data.collections),
+        "curves": sorted(c.name for c in bpy.data.curves),
+        "materials": sorted(m.name for m in bpy.data.materials),
+        "meshes": {o.name: mesh_snapshot(o) for o in bpy.data.objects if o.type == 'MESH'},
+        "attributes": {o.name: sorted(a.name for a in o.data.attributes)
+                       for o in bpy.data.objects if o.type == 'MESH'},
+    }
+
+
+def run_op():
+    """Runs show_cut_loops; returns (result set, None) or (None, error text)."""
+    try:
+        return bpy.ops.surfmap.show_cut_loops(), None
+    except RuntimeError as e:
+        return None, str(e)
+
+
+def loop_curves(ob):
+    return sorted((o for o in bpy.data.objects if o.get("surfmap_loops_of") == ob.name),
+                  key=lambda o: o.name)
+
+
+def seam_graph(ob):
+    """(vertices, edges) of the edges marked as seams."""
+    edges = [tuple(sorted(e.vertices)) for e in ob.data.edges if e.use_seam]
+    verts = sorted({v for e in edges for v in e})
+    return verts, edges
+
+
+def faces_connected_across_non_seams(ob):
+    """True when the faces stay one piece after cutting along the seams."""
+    me = ob.data
+    edge_faces = {}
+    for p in me.polygons:
+        for ek in p.edge_keys:
+            edge_faces.setdefault(ek, []).append(p.index)
+    seams = {tuple(sorted(e.vertices)) for e in me.edges if e.use_seam}
+    parent = list(range(len(me.polygons)))
+
+    def find(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+    for ek, fs in edge_faces.items():
+        if ek in seams:
+            continue
+        for f in fs[1:]:
+            parent[find(f)] = find(fs[0])
+    return len({find(i) for i in range(len(me.polygons))}) == 1
