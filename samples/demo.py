@@ -7,7 +7,8 @@ missing; the built-in shapes when no sample is there), runs Surface Map > Show C
 both (source = first, target = active), lights the scene, renders with Cycles on the CPU one
 PNG per object (loops in pair colours, from the front and from behind) plus one of both, and
 saves DIR/demo.blend.
-Options (after --): --out DIR (default <repo>/demo_out), --samples N (32), --size WxH (640x480).
+Options (after --): --out DIR (default <repo>/demo_out), --samples N (32), --size WxH (640x480),
+--meshes DIR (default samples/meshes).
 """
 import math
 import os
@@ -28,17 +29,18 @@ PAIRS = [  # (genus, source, target)
 
 def parse_args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-    opts = {"out": os.path.join(REPO, "demo_out"), "samples": 32, "size": "640x480"}
+    opts = {"out": os.path.join(REPO, "demo_out"), "samples": 32, "size": "640x480",
+            "meshes": MESHES}
     i = 0
     while i < len(argv):
         key = argv[i].lstrip("-")
         if key not in opts or i + 1 >= len(argv):
             raise SystemExit(f"demo.py: unknown or incomplete option {argv[i]!r} "
-                             f"(use --out DIR, --samples N, --size WxH)")
+                             f"(use --out DIR, --samples N, --size WxH, --meshes DIR)")
         opts[key] = argv[i + 1]
         i += 2
     w, h = (int(x) for x in str(opts["size"]).lower().split("x"))
-    return os.path.abspath(opts["out"]), int(opts["samples"]), (w, h)
+    return os.path.abspath(opts["out"]), int(opts["samples"]), (w, h), opts["meshes"]
 
 
 def enable_addon():
@@ -78,9 +80,9 @@ def make_object(name, V, polys):
     return ob
 
 
-def load_pair(sm):
+def load_pair(sm, meshes):
     for genus, a, b in PAIRS:
-        pa, pb = os.path.join(MESHES, a), os.path.join(MESHES, b)
+        pa, pb = os.path.join(meshes, a), os.path.join(meshes, b)
         if os.path.exists(pa) and os.path.exists(pb):
             print(f"demo: genus-{genus} pair {a} -> {b}")
             return (make_object(os.path.splitext(a)[0], *read_obj(pa)),
@@ -206,12 +208,12 @@ def show_only(objs):
 
 
 def main():
-    out, samples, size = parse_args()
+    out, samples, size, meshes = parse_args()
     os.makedirs(out, exist_ok=True)
     for ob in list(bpy.data.objects):
         bpy.data.objects.remove(ob, do_unlink=True)
     sm = enable_addon()
-    source, target = load_pair(sm)
+    source, target = load_pair(sm, meshes)
     mat = surface_material()
     for ob in (source, target):
         normalise(ob)
