@@ -405,3 +405,69 @@ TEST(RicciFlow, InputErrorsAndCancel) {
 
 }  // namespace
 }  // namespace surfmap
+
+namespace surfmap {
+namespace {
+
+// Angle sums per vertex on the triangulation the result lives on
+// (faces / face_edges: side opposite corner k), from the law of cosines.
+Eigen::VectorXd angle_sums_on_result(const RicciFlowResult& r, int nv) {
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(nv);
+  for (int f = 0; f < r.faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const double a = r.edge_lengths[r.face_edges(f, k)],  // opposite corner k
+          b = r.edge_lengths[r.face_edges(f, (k + 1) % 3)], c = r.edge_lengths[r.face_edges(f, (k + 2) % 3)];
+      EXPECT_LT(a, b + c) << "face " << f;
+      sum[r.faces(f, k)] += corner_angle(b, c, a, Background::Euclidean);
+    }
+  return sum;
+}
+
+TEST(RicciFlow, WithoutFlipsResultTriangulationIsTheInput) {
+  const TriMesh m = torus(3, 1, 12, 8);
+  Connectivity c(m.F);
+  const RicciFlowResult r = ricci_flow(c, edge_lengths(m, c), Background::Euclidean);
+  ASSERT_TRUE(r.converged);
+  EXPECT_EQ(r.flips, 0);
+  EXPECT_TRUE(r.faces == m.F);
+  EXPECT_TRUE(r.edge_vertices == c.edge_vertices());
+  for (int f = 0; f < c.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(r.face_edges(f, k), c.edge(3 * f + (k + 1) % 3));
+}
+
+TEST(RicciFlow, IntrinsicDelaunayFlipsMakeSliverToriFlat) {
+  // The meshes whose fixed-connectivity solve may degenerate
+  // (SliverMeshEitherFlatOrHonestFailure) always get a flat metric with
+  // Ptolemy flips (Gillespie–Springborn–Crane 2021).
+  int total_flips = 0;
+  for (unsigned seed : {11u, 12u, 13u}) {
+    SCOPED_TRACE(seed);
+    const TriMesh m = jitter3d(torus(3, 1, 40, 20), 0.3, seed);
+    Connectivity c(m.F);
+    RicciFlowOptions o;
+    o.intrinsic_delaunay = true;
+    const RicciFlowResult r = ricci_flow(c, edge_lengths(m, c), Background::Euclidean, o);
+    ASSERT_TRUE(r.converged) << r.message;
+    total_flips += r.flips;
+    EXPECT_LT(r.max_curvature_error, 1e-9);
+    EXPECT_LE(r.iterations, 30);
+    const Eigen::VectorXd sums = angle_sums_on_result(r, c.num_vertices());
+    EXPECT_LT((sums.array() - 2 * kPi).abs().maxCoeff(), 1e-9);
+    // Still a triangulation of the torus: same counts, every edge used twice.
+    EXPECT_EQ(r.faces.rows(), c.num_faces());
+    std::vector<int> uses(r.edge_vertices.rows(), 0);
+    for (int f = 0; f < r.faces.rows(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        const int e = r.face_edges(f, k);
+        ++uses[e];
+        const int a = r.faces(f, (k + 1) % 3), b = r.faces(f, (k + 2) % 3);
+        EXPECT_EQ(std::min(a, b), r.edge_vertices(e, 0));
+        EXPECT_EQ(std::max(a, b), r.edge_vertices(e, 1));
+      }
+    for (int u : uses) EXPECT_EQ(u, 2);
+  }
+  EXPECT_GT(total_flips, 0);
+}
+
+}  // namespace
+}  // namespace surfmap

@@ -133,7 +133,8 @@ class SchemeMetric {
   const RicciDomain& dom_;
   Background bg_;
   RicciScheme scheme_;
-  Eigen::VectorXd l0_, r0_, inv_, tanh_half_r0_;
+  const Eigen::VectorXd& l0_;  // Penner coordinates when flipping (updated in place)
+  Eigen::VectorXd r0_, inv_, tanh_half_r0_;
 };
 
 /// Angles of a triangle with sides l[k] opposite corner k, and D(i,m) =
@@ -177,6 +178,108 @@ bool triangle_angles(const double l[3], Background bg, double theta[3], double D
   return true;
 }
 
+
+/// Extended angle (see triangle_angles) at corner k of face f for lengths L.
+template <class LengthOf>
+double corner_angle(const RicciDomain& d, int f, int k, const LengthOf& L) {
+  double l[3], th[3], D[3][3];
+  for (int q = 0; q < 3; ++q) l[q] = L(d.FE(f, q));
+  triangle_angles(l, Background::Euclidean, th, D, nullptr);
+  return th[k];
+}
+
+/// Mutable intrinsic triangulation for the Delaunay-flip variant of the
+/// Euclidean vertex-scaling flow (Gillespie–Springborn–Crane 2021): the
+/// domain's faces/edges change by flips, `pen` holds the Penner coordinates
+/// (lengths at u = 0) of the current edges.
+struct FlipContext {
+  RicciDomain* dom = nullptr;
+  RowMatrixX2i EF;  // faces on both sides of every edge, -1 on the boundary
+  Eigen::VectorXd* pen = nullptr;
+  long long flips = 0;
+  long long version = 0;
+  long long max_flips = 0;
+
+  void init(RicciDomain& d, Eigen::VectorXd& p) {
+    dom = &d;
+    pen = &p;
+    EF = RowMatrixX2i::Constant(d.EV.rows(), 2, -1);
+    for (int f = 0; f < d.F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        const int e = d.FE(f, k);
+        EF(e, EF(e, 0) < 0 ? 0 : 1) = f;
+      }
+    max_flips = 1000LL * (d.EV.rows() + 10);
+  }
+
+  /// Flips towards the Delaunay triangulation of the metric at u (u == null:
+  /// the input metric, flipped exactly with Euclidean flips; otherwise
+  /// Ptolemy flips of the Penner coordinates). Returns false when the flip
+  /// budget ran out.
+  bool make_delaunay(const Eigen::VectorXd* u) {
+    RicciDomain& d = *dom;
+    Eigen::VectorXd& P = *pen;
+    auto len = [&](int e) {
+      return u ? std::exp(0.5 * ((*u)[d.EV(e, 0)] + (*u)[d.EV(e, 1)])) * P[e] : P[e];
+    };
+    const int ne = static_cast<int>(d.EV.rows());
+    std::vector<int> stack(ne);
+    std::vector<char> queued(ne, 1);
+    for (int e = 0; e < ne; ++e) stack[e] = ne - 1 - e;
+    long long local = 0;
+    while (!stack.empty()) {
+      const int e = stack.back();
+      stack.pop_back();
+      queued[e] = 0;
+      const int f0 = EF(e, 0), f1 = EF(e, 1);
+      if (f0 < 0 || f1 < 0 || f0 == f1) continue;
+      int a0 = 0, a1 = 0;
+      while (d.FE(f0, a0) != e) ++a0;
+      while (d.FE(f1, a1) != e) ++a1;
+      const double alpha = corner_angle(d, f0, a0, len), beta = corner_angle(d, f1, a1, len);
+      if (alpha + beta <= kPi + 1e-12) continue;
+      // Quad v_k, s, v_m, t (counter-clockwise); e = s–t becomes v_k–v_m.
+      const int vk = d.F(f0, a0), s = d.F(f0, (a0 + 1) % 3), t = d.F(f0, (a0 + 2) % 3);
+      const int vm = d.F(f1, a1);
+      if (d.F(f1, (a1 + 1) % 3) != t || d.F(f1, (a1 + 2) % 3) != s) continue;  // not a plain quad
+      const int e_tk = d.FE(f0, (a0 + 1) % 3), e_ks = d.FE(f0, (a0 + 2) % 3);
+      const int e_sm = d.FE(f1, (a1 + 1) % 3), e_mt = d.FE(f1, (a1 + 2) % 3);
+      if (e_tk == e || e_ks == e || e_sm == e || e_mt == e) continue;
+      double lnew;
+      if (!u) {
+        // Exact (metric-preserving) flip: unfold the quad at s.
+        const double th = corner_angle(d, f0, (a0 + 1) % 3, len) + corner_angle(d, f1, (a1 + 2) % 3, len);
+        const double x = P[e_ks], y = P[e_sm];
+        lnew = std::sqrt(std::max(0.0, x * x + y * y - 2.0 * x * y * std::cos(th)));
+      } else {
+        // Ptolemy: commutes with vertex scaling, so it acts on Penner coordinates.
+        lnew = (P[e_tk] * P[e_sm] + P[e_ks] * P[e_mt]) / P[e];
+      }
+      if (!(lnew > 0.0) || !std::isfinite(lnew)) continue;
+      P[e] = lnew;
+      d.F.row(f0) << vk, s, vm;
+      d.FE.row(f0) << e_sm, e, e_ks;
+      d.F.row(f1) << vm, t, vk;
+      d.FE.row(f1) << e_tk, e, e_mt;
+      d.EV(e, 0) = std::min(vk, vm);
+      d.EV(e, 1) = std::max(vk, vm);
+      for (int q = 0; q < 2; ++q) {
+        if (EF(e_sm, q) == f1) EF(e_sm, q) = f0;
+        if (EF(e_tk, q) == f0) EF(e_tk, q) = f1;
+      }
+      ++flips;
+      ++version;
+      if (++local > max_flips) return false;
+      for (int x : {e_tk, e_ks, e_sm, e_mt})
+        if (!queued[x]) {
+          queued[x] = 1;
+          stack.push_back(x);
+        }
+    }
+    return true;
+  }
+};
+
 struct Evaluation {
   Eigen::VectorXd l, K;
   int bad_edge = -1;
@@ -188,7 +291,9 @@ struct Evaluation {
 };
 
 void evaluate(const RicciDomain& dom, const SchemeMetric& metric, Background bg,
-              const Eigen::VectorXd& u, bool jacobian, Evaluation& ev) {
+              const Eigen::VectorXd& u, bool jacobian, Evaluation& ev,
+              FlipContext* flips = nullptr) {
+  if (flips) flips->make_delaunay(&u);
   Eigen::MatrixX2d dldu;
   ev.bad_edge = metric.lengths(u, ev.l, jacobian ? &dldu : nullptr);
   ev.K = dom.full_angle;
@@ -304,10 +409,11 @@ RicciLinearization ricci_linearize(const RicciDomain& dom, const Eigen::VectorXd
   return out;
 }
 
-RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengths,
+RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& lengths,
                             Background background, const RicciFlowOptions& options,
                             const Eigen::VectorXd& target_in, const Eigen::VectorXd* u_start) {
   const auto t0 = std::chrono::steady_clock::now();
+  RicciDomain dom = dom_in;  // mutable: edge flips change it
   const int nv = dom.num_vertices, ne = static_cast<int>(dom.EV.rows()),
             nf = static_cast<int>(dom.F.rows());
   if (lengths.size() != ne)
@@ -348,13 +454,22 @@ RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengt
   const bool newton = options.method == RicciMethod::Newton;
   const int max_it = options.max_iterations > 0 ? options.max_iterations : (newton ? 100 : 200000);
   const bool flat = background == Background::Euclidean;
-  SchemeMetric metric(dom, lengths, background, options.scheme);
+  Eigen::VectorXd base = lengths;  // Penner coordinates of the current edges
+  SchemeMetric metric(dom, base, background, options.scheme);
+  FlipContext flip_ctx;
+  FlipContext* flips = nullptr;
+  if (options.intrinsic_delaunay && flat && options.scheme == RicciScheme::VertexScaling) {
+    flip_ctx.init(dom, base);
+    if (!flip_ctx.make_delaunay(nullptr))
+      throw SolveError("ricci_flow: intrinsic Delaunay flips of the input did not terminate");
+    flips = &flip_ctx;
+  }
 
   RicciFlowResult res;
   res.background = background;
   res.u = u_start ? *u_start : Eigen::VectorXd::Zero(nv);
   Evaluation ev, trial;
-  evaluate(dom, metric, background, res.u, newton, ev);
+  evaluate(dom, metric, background, res.u, newton, ev, flips);
   if (ev.bad_edge >= 0)
     throw InputError("ricci_flow: edge " + std::to_string(ev.bad_edge) +
                      " has no valid length in the initial metric");
@@ -368,6 +483,7 @@ RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengt
 #endif
   SURFMAP_RICCI_SOLVER llt;
   bool analyzed = false, factor_valid = false;
+  long long analyzed_version = 0;
   double mu = 0.0;  // Levenberg shift, only used when a plain Newton step fails
   std::string failure;
   int it = 0;
@@ -376,7 +492,7 @@ RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengt
       throw Cancelled("ricci_flow cancelled at iteration " + std::to_string(it));
     if (!newton) {
       res.u -= options.flow_step * g;
-      evaluate(dom, metric, background, res.u, false, ev);
+      evaluate(dom, metric, background, res.u, false, ev, flips);
       if (ev.bad_edge >= 0) {
         failure = "the flow produced an invalid length at edge " + std::to_string(ev.bad_edge) +
                   " (step too large?)";
@@ -430,9 +546,10 @@ RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengt
         Eigen::SparseMatrix<double> A = H;
         if (mu > 0.0)
           for (int v = 0; v < nv; ++v) A.coeffRef(v, v) += mu;
-        if (!analyzed) {
-          llt.analyzePattern(A);
+        if (!analyzed || analyzed_version != flip_ctx.version) {
+          llt.analyzePattern(A);  // again when flips changed the sparsity pattern
           analyzed = true;
+          analyzed_version = flip_ctx.version;
         }
         llt.factorize(A);
         factor_valid = llt.info() == Eigen::Success && mu == 0.0;
@@ -448,7 +565,7 @@ RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengt
       for (double t = 1.0; t > 1e-6; t *= 0.5) {
         Eigen::VectorXd ut = res.u + t * delta;
         if (flat) ut.array() -= ut[0];
-        evaluate(dom, metric, background, ut, true, trial);
+        evaluate(dom, metric, background, ut, true, trial, flips);
         if (trial.bad_edge >= 0) continue;
         const Eigen::VectorXd gt = trial.K - target;
         if (gt.allFinite() && gt.squaredNorm() <= (1.0 - 1e-4 * t) * g2) {
@@ -476,8 +593,12 @@ RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengt
   res.iterations = it;
 
   // Final validation: never report success with an invalid metric.
-  evaluate(dom, metric, background, res.u, false, ev);
+  evaluate(dom, metric, background, res.u, false, ev, flips);
   res.edge_lengths = ev.l;
+  res.flips = static_cast<int>(flip_ctx.flips);
+  res.faces = dom.F;
+  res.face_edges = dom.FE;
+  res.edge_vertices = dom.EV;
   if (ev.bad_edge >= 0) {
     res.converged = false;
     res.message = "edge " + std::to_string(ev.bad_edge) + " has no valid length in the final metric";

@@ -68,24 +68,11 @@ Eigen::Vector3d mobius(const Eigen::Vector3d& c, const Eigen::Vector3d& x) {
 
 }  // namespace
 
-SphericalUniformization spherical_uniformization(const TriMesh& mesh,
-                                                 const SphericalUniformizationOptions& options) {
+static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& conn, int v0,
+                                       const SphericalUniformizationOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
-  const Connectivity conn(mesh.F, mesh.num_vertices());
-  if (conn.euler_characteristic() != 2)
-    throw InputError("spherical_uniformization needs a genus-0 surface; this one has genus " +
-                     std::to_string(conn.genus()));
   const int nv = conn.num_vertices();
-  if (nv < 4) throw InputError("spherical_uniformization needs at least 4 vertices");
   SphericalUniformization out;
-  int v0 = options.removed_vertex;
-  if (v0 < 0) {
-    v0 = 0;
-    for (int v = 1; v < nv; ++v)
-      if (conn.valence(v) > conn.valence(v0)) v0 = v;
-  } else if (v0 >= nv) {
-    throw InputError("removed_vertex " + std::to_string(v0) + " is out of range");
-  }
   out.removed_vertex = v0;
 
   // Punctured disk, vertices renumbered without v0.
@@ -140,7 +127,10 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
       if (out.circle_error <= options.circle_tolerance) break;
     }
     for (int i = 0; i < nb; ++i) target[ring[i]] = k[i];
-    flat = detail::ricci_solve(dom, l0, Background::Euclidean, options.flow, target, &u);
+    RicciFlowOptions fo = options.flow;
+    fo.intrinsic_delaunay = options.intrinsic_delaunay;
+    flat = detail::ricci_solve(dom, l0, Background::Euclidean, fo, target, &u);
+    out.edge_flips = flat.flips;
     out.flow_iterations += flat.iterations;
     out.boundary_iterations = round + 1;
     out.max_curvature_error = flat.max_curvature_error;
@@ -156,16 +146,21 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
     out.message = "the boundary did not become a circle: error " + fmt(out.circle_error) +
                   " after " + std::to_string(out.boundary_iterations) + " rounds";
 
-  // Lay the disk out in the plane, breadth first over faces.
-  const int nf2 = static_cast<int>(F2.rows());
+  if (!have) throw InputError("spherical_uniformization: max_boundary_iterations must be >= 1");
+  // Lay the disk out in the plane, breadth first over the faces of the
+  // (possibly flipped) triangulation the flat metric lives on. Boundary
+  // edges never flip, so ring_edge stays valid.
+  const RowMatrixX3i& FL = flat.faces;
+  const RowMatrixX3i& FEL = flat.face_edges;
+  const int nf2 = static_cast<int>(FL.rows());
   std::vector<std::vector<int>> faces_of_edge(dom.EV.rows());
   for (int f = 0; f < nf2; ++f)
-    for (int k = 0; k < 3; ++k) faces_of_edge[dom.FE(f, k)].push_back(f);
+    for (int k = 0; k < 3; ++k) faces_of_edge[FEL(f, k)].push_back(f);
   Eigen::MatrixX2d P(n2, 2);
   std::vector<char> placed(n2, 0), done(nf2, 0);
-  auto side = [&](int f, int k) { return lengths[dom.FE(f, k)]; };  // opposite corner k
+  auto side = [&](int f, int k) { return lengths[FEL(f, k)]; };  // opposite corner k
   auto place_third = [&](int f, int k) {  // corner k from corners k+1, k+2 (ccw)
-    const int s = F2(f, (k + 1) % 3), t = F2(f, (k + 2) % 3), r = F2(f, k);
+    const int s = FL(f, (k + 1) % 3), t = FL(f, (k + 2) % 3), r = FL(f, k);
     const Eigen::Vector2d ps = P.row(s).transpose(), pt = P.row(t).transpose();
     const double d = (pt - ps).norm(), a = side(f, (k + 2) % 3), b = side(f, (k + 1) % 3);
     const double x = (a * a - b * b + d * d) / (2.0 * d), y = std::sqrt(std::max(0.0, a * a - x * x));
@@ -174,9 +169,9 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
     placed[r] = 1;
   };
   {
-    P.row(F2(0, 0)) << 0, 0;
-    P.row(F2(0, 1)) << side(0, 2), 0;
-    placed[F2(0, 0)] = placed[F2(0, 1)] = 1;
+    P.row(FL(0, 0)) << 0, 0;
+    P.row(FL(0, 1)) << side(0, 2), 0;
+    placed[FL(0, 0)] = placed[FL(0, 1)] = 1;
     place_third(0, 2);
     done[0] = 1;
     std::deque<int> queue{0};
@@ -184,11 +179,11 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
       const int f = queue.front();
       queue.pop_front();
       for (int k = 0; k < 3; ++k)
-        for (int g : faces_of_edge[dom.FE(f, k)]) {
+        for (int g : faces_of_edge[FEL(f, k)]) {
           if (done[g]) continue;
           done[g] = 1;
           for (int q = 0; q < 3; ++q)
-            if (!placed[F2(g, q)]) place_third(g, q);
+            if (!placed[FL(g, q)]) place_third(g, q);
           queue.push_back(g);
         }
     }
@@ -271,6 +266,46 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
   out.converged = out.message.empty();
   out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
+}
+
+SphericalUniformization spherical_uniformization(const TriMesh& mesh,
+                                                 const SphericalUniformizationOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Connectivity conn(mesh.F, mesh.num_vertices());
+  if (conn.euler_characteristic() != 2)
+    throw InputError("spherical_uniformization needs a genus-0 surface; this one has genus " +
+                     std::to_string(conn.genus()));
+  const int nv = conn.num_vertices();
+  if (nv < 4) throw InputError("spherical_uniformization needs at least 4 vertices");
+  if (options.removed_vertex >= nv)
+    throw InputError("removed_vertex " + std::to_string(options.removed_vertex) + " is out of range");
+  if (options.removed_vertex >= 0) return attempt(mesh, conn, options.removed_vertex, options);
+  // Default: the highest-valence vertex; when that fails (the flat metric of
+  // the punctured disk can degenerate next to the fixed boundary), a few more
+  // candidates spread over the vertex order, keeping the best result.
+  int best_v = 0;
+  for (int v = 1; v < nv; ++v)
+    if (conn.valence(v) > conn.valence(best_v)) best_v = v;
+  std::vector<int> candidates{best_v};
+  for (int k = 1; k <= 6; ++k) candidates.push_back(static_cast<int>((static_cast<long long>(nv) * k) / 7));
+  SphericalUniformization best;
+  bool have = false;
+  std::string tried;
+  for (int v0 : candidates) {
+    SphericalUniformization r = attempt(mesh, conn, v0, options);
+    if (r.converged) {
+      r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      return r;
+    }
+    tried += (tried.empty() ? "" : "; ") + std::to_string(v0) + ": " + r.message;
+    if (!have || r.flipped_faces < best.flipped_faces) {
+      best = r;
+      have = true;
+    }
+  }
+  best.message = "no removed vertex gave a valid map (" + tried + ")";
+  best.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return best;
 }
 
 }  // namespace surfmap

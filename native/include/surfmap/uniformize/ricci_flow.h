@@ -59,6 +59,15 @@ struct RicciFlowOptions {
   int max_iterations = 0;
   /// Time step of the explicit flow u += flow_step (K_target − K).
   double flow_step = 0.1;
+  /// Euclidean vertex scaling only (ignored otherwise): keep the triangulation
+  /// intrinsically Delaunay during the solve — Euclidean flips of the input
+  /// metric first, then Ptolemy flips (Gillespie–Springborn–Crane 2021,
+  /// "Discrete conformal equivalence of polyhedral surfaces"). A flat metric
+  /// then exists for every mesh and target (no degenerate triangles), but it
+  /// lives on the flipped triangulation result.faces / result.edge_vertices,
+  /// not on the input edges (check result.flips). Default false: fixed
+  /// connectivity, result.edge_lengths in Connectivity's edge order.
+  bool intrinsic_delaunay = false;
   /// Called once per iteration with the current max curvature error; return
   /// false to cancel (ricci_flow then throws Cancelled).
   std::function<bool(int iteration, double residual)> progress;
@@ -80,6 +89,15 @@ struct RicciFlowResult {
   double time_s = 0;
   /// Why it failed, naming the element when there is one; empty on success.
   std::string message;
+  /// Edge flips done (only with options.intrinsic_delaunay). The triangulation
+  /// the final metric lives on: faces #F x 3 (same vertices), face_edges(f, k)
+  /// = edge of the side opposite corner k, edge_vertices #E x 2. With
+  /// flips == 0 these are the input faces and Connectivity's edges, and
+  /// edge_lengths is indexed like edge_vertices either way.
+  int flips = 0;
+  RowMatrixX3i faces;
+  RowMatrixX3i face_edges;
+  Eigen::Matrix<int, Eigen::Dynamic, 2, Eigen::RowMajor> edge_vertices;
 };
 
 /// mesh: closed, oriented connectivity; edge_lengths: #E positive Euclidean

@@ -25,6 +25,11 @@ struct SphericalUniformizationOptions {
   int removed_vertex = -1;
   /// Options of the inner Euclidean flow (scheme/method/tolerance/progress).
   RicciFlowOptions flow;
+  /// Overrides flow.intrinsic_delaunay (default true): flatten with Ptolemy
+  /// flips so that badly shaped meshes have a solution; the flattened
+  /// intrinsic triangulation is laid out, and the input faces are then
+  /// checked on the sphere (flipped_faces).
+  bool intrinsic_delaunay = true;
   /// Max |geodesic curvature − inscribed-polygon curvature| on the boundary.
   double circle_tolerance = 1e-9;
   int max_boundary_iterations = 60;
@@ -46,6 +51,7 @@ struct SphericalUniformization {
   double circle_error = 0;             ///< as circle_tolerance
   double centre_of_mass_norm = 0;      ///< after centring
   int flipped_faces = 0;               ///< faces whose normal points inward on the sphere
+  int edge_flips = 0;                  ///< intrinsic flips in the last flattening
   double time_s = 0;
   std::string message;                 ///< why it failed (names the element), empty on success
 };
