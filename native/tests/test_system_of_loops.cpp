@@ -240,7 +240,10 @@ TEST(SystemOfLoops, RefinedLoopsAreSimpleAndCutToADisk) {
       const SystemOfLoops s = system_of_loops(c.mesh, opt);
       EXPECT_EQ(s.genus, c.genus);
       if (base >= 0) EXPECT_EQ(s.base_vertex, base);
+      EXPECT_TRUE(s.shortcut_used);
       check_refined(c.mesh, s);
+      opt.shortcut_branches = false;
+      check_refined(c.mesh, system_of_loops(c.mesh, opt));
       if (::testing::Test::HasFailure()) return;
     }
   }

@@ -28,6 +28,7 @@
 #include <limits>
 #include <numeric>
 #include <queue>
+#include <set>
 #include <string>
 #include <utility>
 
@@ -240,7 +241,22 @@ struct NewVertex {
   Eigen::Vector3d bc;  // barycentric coordinates there
   int edge = -1;       // input edge for edge points
   double t = 0;        // parameter from edge_vertex(edge, 0)
+  // Bend points: the chord's side k of the face, midpoint and span along it.
+  int bend_side = -1;
+  double bend_mid = 0, bend_span = 0;
 };
+
+// Barycentric coordinates of a bend point: a tent over its chord whose
+// height grows with the square of the span, which keeps nested tents (also
+// tents sharing an endpoint) strictly apart for every scale alpha.
+Eigen::Vector3d bend_bc(int k, double mid, double span, double alpha) {
+  const double eta = 0.8 * alpha * span * span;
+  Eigen::Vector3d c;
+  c[k] = 1 - mid - 0.5 * eta;
+  c[(k + 1) % 3] = mid - 0.5 * eta;
+  c[(k + 2) % 3] = eta;
+  return c;
+}
 
 struct Refiner {
   const TriMesh& mesh;
@@ -249,9 +265,15 @@ struct Refiner {
   std::vector<NewVertex> nv;  // vertices n_in, n_in+1, ...
   std::vector<std::vector<std::pair<double, int>>> edge_points;  // per input edge
   std::vector<std::vector<std::vector<int>>> face_chords;       // per input face
+  std::vector<std::vector<int>> face_interior;                  // per input face
 
   Refiner(const TriMesh& m, const Connectivity& c)
-      : mesh(m), conn(c), n_in(m.num_vertices()), edge_points(c.num_edges()), face_chords(c.num_faces()) {}
+      : mesh(m),
+        conn(c),
+        n_in(m.num_vertices()),
+        edge_points(c.num_edges()),
+        face_chords(c.num_faces()),
+        face_interior(c.num_faces()) {}
 
   int add_edge_point(int e, double t) {
     const int h = conn.edge_halfedge(e);  // runs from edge_vertex(e,0) to (e,1)
@@ -268,16 +290,31 @@ struct Refiner {
     return id;
   }
 
+  int add_interior(int f, const Eigen::Vector3d& bc) {
+    NewVertex p;
+    p.face = f;
+    p.bc = bc;
+    nv.push_back(p);
+    const int id = n_in + static_cast<int>(nv.size()) - 1;
+    face_interior[f].push_back(id);
+    return id;
+  }
+
   // Barycentric coordinates of vertex `id` in face f (which must contain it).
   Eigen::Vector3d local_bc(int f, int id) const {
     Eigen::Vector3d b = Eigen::Vector3d::Zero();
     if (id < n_in) {
+      bool found = false;
       for (int k = 0; k < 3; ++k)
-        if (conn.faces()(f, k) == id) b[k] = 1;
+        if (conn.faces()(f, k) == id) b[k] = 1, found = true;
+      if (!found) throw SolveError("system of loops: internal error, vertex " + std::to_string(id) + " not on face " + std::to_string(f));
       return b;
     }
     const NewVertex& p = nv[id - n_in];
-    if (p.edge < 0) return p.bc;
+    if (p.edge < 0) {
+      if (p.face != f) throw SolveError("system of loops: internal error, interior point not in face " + std::to_string(f));
+      return p.bc;
+    }
     for (int k = 0; k < 3; ++k) {
       const int h = 3 * f + k;
       if (conn.edge(h) != p.edge) continue;
@@ -298,19 +335,16 @@ struct Refiner {
       const int o = (k + 2) % 3;
       if (bp[o] != 0 || bq[o] != 0) continue;
       // Both on edge k (corner k -> corner k+1): a straight chord would lie
-      // on the edge, so bend it into the face. Tent height grows with the
-      // square of the chord's span, which keeps nested tents (also tents
-      // sharing an endpoint) strictly apart.
+      // on the edge, so it bends at a point inside the face (first guess: a
+      // tent; triangulate_face flattens the tents if they fold a triangle).
       const double sp = bp[(k + 1) % 3], sq = bq[(k + 1) % 3];
       const double span = std::abs(sq - sp), mid = 0.5 * (sp + sq);
-      const double eta = 0.8 * span * span;
-      NewVertex c;
-      c.face = f;
-      c.bc[k] = 1 - mid - 0.5 * eta;
-      c.bc[(k + 1) % 3] = mid - 0.5 * eta;
-      c.bc[o] = eta;
-      nv.push_back(c);
-      chord.push_back(n_in + static_cast<int>(nv.size()) - 1);
+      const Eigen::Vector3d c = bend_bc(k, mid, span, 1.0);
+      const int id = add_interior(f, c);
+      nv.back().bend_side = k;
+      nv.back().bend_mid = mid;
+      nv.back().bend_span = span;
+      chord.push_back(id);
       break;
     }
     chord.push_back(Q);
@@ -331,25 +365,15 @@ double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::V
   return (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
 }
 
-bool inside_polygon(const std::vector<int>& poly, const std::vector<Eigen::Vector2d>& pos,
-                    const std::function<int(int)>& loc, const Eigen::Vector2d& p) {
-  bool in = false;
-  const size_t n = poly.size();
-  for (size_t i = 0, j = n - 1; i < n; j = i++) {
-    const Eigen::Vector2d& a = pos[loc(poly[i])];
-    const Eigen::Vector2d& b = pos[loc(poly[j])];
-    if ((a.y() > p.y()) != (b.y() > p.y()) &&
-        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x())
-      in = !in;
-  }
-  return in;
-}
-
 // Triangulates input face f with its split points and chords; appends
-// triangles (counter-clockwise, like the face) to `out`.
-void triangulate_face(const Refiner& R, int f, std::vector<std::array<int, 3>>& out) {
+// triangles (counter-clockwise, like the face) to `out`. The pieces are
+// found combinatorially (chords split the boundary cycle), triangulated
+// without ever joining two points of one side of the face, and the interior
+// (bend and centre) points are placed by a Tutte embedding if the first
+// guess folds a triangle: with the face boundary convex and no such
+// "dividing" edge, Tutte/Floater guarantees an embedding.
+void triangulate_face(Refiner& R, int f, std::vector<std::array<int, 3>>& out) {
   const Connectivity& conn = R.conn;
-  // Boundary polygon.
   std::vector<int> boundary;
   for (int k = 0; k < 3; ++k) {
     const int h = 3 * f + k;
@@ -366,40 +390,39 @@ void triangulate_face(const Refiner& R, int f, std::vector<std::array<int, 3>>& 
     out.push_back({boundary[0], boundary[1], boundary[2]});
     return;
   }
-  // Local 2D positions of every vertex involved (isometric copy of the face).
+  // Isometric 2D copy of the face.
   Eigen::Vector3d P[3];
   for (int k = 0; k < 3; ++k) P[k] = R.mesh.V.row(R.mesh.F(f, k)).transpose();
   const double l01 = (P[1] - P[0]).norm();
   const Eigen::Vector3d u = (P[1] - P[0]) / l01;
   const Eigen::Vector2d c2((P[2] - P[0]).dot(u), ((P[2] - P[0]) - (P[2] - P[0]).dot(u) * u).norm());
   const Eigen::Vector2d C[3] = {Eigen::Vector2d(0, 0), Eigen::Vector2d(l01, 0), c2};
-  std::vector<int> ids = boundary;
-  for (const auto& ch : chords)
-    for (size_t i = 1; i + 1 < ch.size(); ++i) ids.push_back(ch[i]);
-  std::vector<Eigen::Vector2d> pos;
-  std::vector<std::pair<int, int>> index;  // (id, local index), sorted
-  for (int id : ids) {
+  const double eps = 1e-13 * std::max({l01 * l01, c2.squaredNorm(), (C[1] - c2).squaredNorm()});
+  auto pos = [&](int id) {
     const Eigen::Vector3d b = R.local_bc(f, id);
-    index.push_back({id, static_cast<int>(pos.size())});
-    pos.push_back(b[0] * C[0] + b[1] * C[1] + b[2] * C[2]);
-  }
-  std::sort(index.begin(), index.end());
-  auto loc = [&](int id) {
-    auto it = std::lower_bound(index.begin(), index.end(), std::make_pair(id, -1));
-    return it->second;
+    return Eigen::Vector2d(b[0] * C[0] + b[1] * C[1] + b[2] * C[2]);
   };
-  const double scale2 = std::max({l01 * l01, c2.squaredNorm(), (C[1] - c2).squaredNorm()});
-  // Split the face into regions along the chords.
+  auto sides = [&](int id) {  // bit k: on side k (corner k -> corner k+1)
+    const Eigen::Vector3d b = R.local_bc(f, id);
+    int m = 0;
+    for (int k = 0; k < 3; ++k)
+      if (b[(k + 2) % 3] == 0) m |= 1 << k;
+    return m;
+  };
+  std::set<std::pair<int, int>> edges;
+  auto key = [](int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); };
+  for (size_t i = 0; i < boundary.size(); ++i) edges.insert(key(boundary[i], boundary[(i + 1) % boundary.size()]));
+  for (const auto& ch : chords)
+    for (size_t i = 0; i + 1 < ch.size(); ++i) edges.insert(key(ch[i], ch[i + 1]));
+  // Split the boundary cycle along the chords.
   std::vector<std::vector<int>> regions{boundary};
   for (const auto& ch : chords) {
     const int A = ch.front(), B = ch.back();
-    const Eigen::Vector2d probe = 0.5 * (pos[loc(ch[0])] + pos[loc(ch[1])]);
     bool split = false;
     for (size_t r = 0; r < regions.size() && !split; ++r) {
       auto& poly = regions[r];
       const auto ia = std::find(poly.begin(), poly.end(), A), ib = std::find(poly.begin(), poly.end(), B);
       if (ia == poly.end() || ib == poly.end()) continue;
-      if (!inside_polygon(poly, pos, loc, probe)) continue;
       const size_t i = ia - poly.begin(), j = ib - poly.begin(), n = poly.size();
       std::vector<int> p1, p2;  // p1: A .. B along the polygon, then the chord back
       for (size_t q = i; q != j; q = (q + 1) % n) p1.push_back(poly[q]);
@@ -414,44 +437,108 @@ void triangulate_face(const Refiner& R, int f, std::vector<std::array<int, 3>>& 
     }
     if (!split)
       throw SolveError("system of loops: refinement chord " + std::to_string(A) + " -> " + std::to_string(B) +
-                       " does not fit inside face " + std::to_string(f));
+                       " crosses another one in face " + std::to_string(f));
   }
-  // Ear clipping, best (largest smallest angle) ear first.
-  const double eps = 1e-14 * scale2;
+  // Triangulate every piece: ears that are geometrically good under the
+  // current guess first, any combinatorially valid ear next, a centre point
+  // as the last resort. If a triangle folds, flatten the tents and retry.
+  const size_t first_tri = out.size(), nv0 = R.nv.size(), ni0 = R.face_interior[f].size();
+  auto folded = [&]() {
+    for (size_t t = first_tri; t < out.size(); ++t)
+      if (cross2(pos(out[t][0]), pos(out[t][1]), pos(out[t][2])) <= eps) return true;
+    return false;
+  };
+  const std::set<std::pair<int, int>> edges0 = edges;
+  for (int attempt = 0; attempt < 30; ++attempt) {
+  edges = edges0;
+  out.resize(first_tri);
+  R.nv.resize(nv0);
+  R.face_interior[f].resize(ni0);
+  for (int id : R.face_interior[f]) {
+    NewVertex& p = R.nv[id - R.n_in];
+    if (p.bend_side >= 0) p.bc = bend_bc(p.bend_side, p.bend_mid, p.bend_span, std::pow(0.5, attempt));
+  }
   for (auto poly : regions) {
     while (poly.size() > 3) {
       const size_t n = poly.size();
-      double best_q = -1;
+      double best_q = -std::numeric_limits<double>::infinity();
       size_t best = n;
       for (size_t i = 0; i < n; ++i) {
-        const Eigen::Vector2d &a = pos[loc(poly[(i + n - 1) % n])], &b = pos[loc(poly[i])],
-                              &c = pos[loc(poly[(i + 1) % n])];
-        const double area2 = cross2(a, b, c);
-        if (area2 <= eps) continue;
-        bool empty = true;
-        for (size_t j = 0; j < n && empty; ++j) {
-          if (j == i || j == (i + 1) % n || j == (i + n - 1) % n) continue;
-          const Eigen::Vector2d& p = pos[loc(poly[j])];
-          if (cross2(a, b, p) >= -eps && cross2(b, c, p) >= -eps && cross2(c, a, p) >= -eps) empty = false;
+        const int a = poly[(i + n - 1) % n], b = poly[i], c = poly[(i + 1) % n];
+        if (sides(a) & sides(b) & sides(c)) continue;  // three points of one side
+        if (sides(a) & sides(c)) continue;             // dividing diagonal
+        if (edges.count(key(a, c))) continue;          // would double an edge
+        const Eigen::Vector2d pa = pos(a), pb = pos(b), pc = pos(c);
+        const double area2 = cross2(pa, pb, pc);
+        double q = -1;
+        if (area2 > eps) {
+          bool empty = true;
+          for (size_t j = 0; j < n && empty; ++j) {
+            if (j == i || j == (i + 1) % n || j == (i + n - 1) % n) continue;
+            const Eigen::Vector2d p = pos(poly[j]);
+            if (cross2(pa, pb, p) >= -eps && cross2(pb, pc, p) >= -eps && cross2(pc, pa, p) >= -eps) empty = false;
+          }
+          if (empty) q = area2 / ((pa - pb).squaredNorm() + (pb - pc).squaredNorm() + (pc - pa).squaredNorm());
         }
-        if (!empty) continue;
-        // Quality: area over the sum of squared edge lengths.
-        const double q = area2 / ((a - b).squaredNorm() + (b - c).squaredNorm() + (c - a).squaredNorm());
         if (q > best_q) {
           best_q = q;
           best = i;
         }
       }
-      if (best == n)
-        throw SolveError("system of loops: cannot triangulate a refined piece of face " + std::to_string(f));
-      out.push_back({poly[(best + n - 1) % n], poly[best], poly[(best + 1) % n]});
+      if (best == n) {
+        Eigen::Vector3d bc = Eigen::Vector3d::Zero();
+        for (int id : poly) bc += R.local_bc(f, id);
+        const int c = R.add_interior(f, bc / static_cast<double>(poly.size()));
+        for (size_t i = 0; i < n; ++i) out.push_back({poly[i], poly[(i + 1) % n], c});
+        poly.clear();
+        break;
+      }
+      const int a = poly[(best + n - 1) % n], c = poly[(best + 1) % n];
+      out.push_back({a, poly[best], c});
+      edges.insert(key(a, c));
       poly.erase(poly.begin() + best);
     }
-    const Eigen::Vector2d &a = pos[loc(poly[0])], &b = pos[loc(poly[1])], &c = pos[loc(poly[2])];
-    if (cross2(a, b, c) <= eps)
-      throw SolveError("system of loops: degenerate refined triangle in face " + std::to_string(f));
-    out.push_back({poly[0], poly[1], poly[2]});
+    if (poly.size() == 3) out.push_back({poly[0], poly[1], poly[2]});
   }
+  if (!folded()) return;
+  }
+  // Tutte embedding of the interior points (uniform weights).
+  const auto& inner = R.face_interior[f];
+  const int m = static_cast<int>(inner.size());
+  std::vector<std::pair<int, int>> local;
+  for (int i = 0; i < m; ++i) local.push_back({inner[i], i});
+  std::sort(local.begin(), local.end());
+  auto index_of = [&](int id) {
+    auto it = std::lower_bound(local.begin(), local.end(), std::make_pair(id, -1));
+    return (it != local.end() && it->first == id) ? it->second : -1;
+  };
+  std::set<std::pair<int, int>> tri_edges;
+  for (size_t t = first_tri; t < out.size(); ++t)
+    for (int k = 0; k < 3; ++k) tri_edges.insert(key(out[t][k], out[t][(k + 1) % 3]));
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(m, 2);
+  for (const auto& [a, b] : tri_edges) {
+    const int ia = index_of(a), ib = index_of(b);
+    for (int s = 0; s < 2; ++s) {
+      const int i = s ? ib : ia, j = s ? ia : ib, other = s ? a : b;
+      if (i < 0) continue;
+      A(i, i) += 1;
+      if (j >= 0)
+        A(i, j) -= 1;
+      else
+        rhs.row(i) += pos(other).transpose();
+    }
+  }
+  const Eigen::MatrixXd X = A.partialPivLu().solve(rhs);
+  Eigen::Matrix2d T;
+  T.col(0) = C[1] - C[0];
+  T.col(1) = C[2] - C[0];
+  for (int i = 0; i < m; ++i) {
+    const Eigen::Vector2d l = T.inverse() * (X.row(i).transpose() - C[0]);
+    R.nv[inner[i] - R.n_in].bc = Eigen::Vector3d(1 - l[0] - l[1], l[0], l[1]);
+  }
+  if (folded())
+    throw SolveError("system of loops: could not embed the refined pieces of face " + std::to_string(f));
 }
 
 struct Refined {
@@ -461,7 +548,10 @@ struct Refined {
   std::vector<std::vector<int>> loops;
 };
 
-Refined refine(const TriMesh& mesh, const Connectivity& conn, const Greedy& g, int x) {
+// shortcut=true: arcs that pass a whole branch of T' cross its root edge
+// instead of travelling around it (short loops, few split points);
+// shortcut=false: every arc follows the Euler tour (kept as a fallback).
+Refined refine(const TriMesh& mesh, const Connectivity& conn, const Greedy& g, int x, bool shortcut) {
   const int ne = conn.num_edges();
   const int ng = static_cast<int>(g.generators.size());
   // T': tree edges on the paths from x to the generator endpoints.
@@ -488,55 +578,90 @@ Refined refine(const TriMesh& mesh, const Connectivity& conn, const Greedy& g, i
     }
   }
   if (h_last < 0) throw SolveError("system of loops: the base vertex has no tree edge to the generators");
-  // Euler tour around T': the slots (non-T' halfedges leaving T' vertices),
-  // until the last arc has left.
+  // Euler tour around T' from the start corner until the last arc has left:
+  // slots (non-T' halfedges leaving T' vertices) and T' traversals.
+  enum { SLOT, DOWN, UP };
+  struct Event {
+    int type, h, lo = 0, hi = -1;
+  };
   const int n_arcs = 2 * ng;
-  std::vector<int> slots;
+  std::vector<Event> events;
   {
     int exits = 0, guard = 0;
     int o = Connectivity::next(h_last);
+    std::vector<size_t> open;
     while (exits < n_arcs) {
       if (++guard > 4 * conn.num_halfedges()) throw SolveError("system of loops: Euler tour did not close");
       if (tp[conn.edge(o)]) {
+        const bool down = g.parent_he[conn.head(o)] == o;
+        events.push_back({down ? DOWN : UP, o, exits, -1});
+        if (down) {
+          open.push_back(events.size() - 1);
+        } else {
+          if (open.empty()) throw SolveError("system of loops: internal error in the Euler tour");
+          events[open.back()].hi = exits - 1;  // exits inside that branch
+          open.pop_back();
+        }
         o = Connectivity::next(o);
         continue;
       }
-      slots.push_back(o);
+      events.push_back({SLOT, o, exits, exits});
       if (gen_of_edge[conn.edge(o)] >= 0) ++exits;
       o = Connectivity::next(conn.twin(o));
     }
+    for (size_t i : open) events[i].hi = n_arcs - 1;
   }
   Refiner R(mesh, conn);
-  // arc paths by level (level 0 innermost = the arc that exits last).
   std::vector<std::vector<int>> arc(n_arcs, std::vector<int>{x});
+  std::vector<int> cur(n_arcs, x);  // current end point of every arc
   // exit_arc[k][0]: arc ending near the tail of gen_halfedge[k]; [1]: near its head.
   std::vector<std::array<int, 2>> exit_arc(ng, {-1, -1});
   const double Lambda = 0.4;
-  int present = n_arcs;
-  std::vector<int> prev_points;  // points of the previous slot, by level
-  int prev_slot = -1;
-  for (int o : slots) {
-    const int v = conn.tail(o), e = conn.edge(o);
-    std::vector<int> pts(present);
-    for (int l = 0; l < present; ++l) {
-      const double lambda = Lambda * (l + 1) / present;
-      pts[l] = R.add_edge_point(e, v == conn.edge_vertex(e, 0) ? lambda : 1 - lambda);
+  int lo = 0, hi = n_arcs - 1;  // arcs present: lo..hi (hi runs innermost)
+  struct Parked {
+    int lo, hi;
+  };
+  std::vector<Parked> parked;
+  // Points for arcs lo..hi on edge e near vertex v, hi closest to v; chords
+  // from the arcs' current ends inside face f.
+  auto advance = [&](int e, int v, int f, int a, int b) {
+    const int n = b - a + 1;
+    for (int k = a; k <= b; ++k) {
+      const double lambda = Lambda * (b - k + 1) / n;
+      const int p = R.add_edge_point(e, v == conn.edge_vertex(e, 0) ? lambda : 1 - lambda);
+      const std::vector<int> app = R.add_chord(f, cur[k], p);
+      arc[k].insert(arc[k].end(), app.begin(), app.end());
+      cur[k] = p;
     }
-    const int f = Connectivity::face(o);
-    if (prev_slot >= 0 && Connectivity::face(conn.twin(prev_slot)) != f)
-      throw SolveError("system of loops: internal error in the Euler tour");
-    for (int l = 0; l < present; ++l) {
-      const std::vector<int> app = R.add_chord(f, prev_slot < 0 ? x : prev_points[l], pts[l]);
-      arc[l].insert(arc[l].end(), app.begin(), app.end());
+  };
+  for (const Event& ev : events) {
+    const int o = ev.h, v = conn.tail(o), e = conn.edge(o), f = Connectivity::face(o);
+    if (ev.type == SLOT) {
+      if (lo > hi) continue;
+      advance(e, v, f, lo, hi);
+      const int k = gen_of_edge[e];
+      if (k >= 0) {
+        if (ev.lo != lo) throw SolveError("system of loops: internal error, arcs leave out of order");
+        exit_arc[k][conn.tail(g.gen_halfedge[k]) == v ? 0 : 1] = lo;
+        ++lo;  // the outermost arc leaves here
+      }
+    } else if (shortcut && ev.type == DOWN) {
+      if (ev.lo != lo || ev.hi < lo || ev.hi > hi)
+        throw SolveError("system of loops: internal error, branch arcs out of order");
+      // Arcs that pass this whole branch cross its root edge near v.
+      if (ev.hi < hi) advance(e, v, f, ev.hi + 1, hi);
+      parked.push_back({ev.hi + 1, hi});
+      hi = ev.hi;
+    } else if (shortcut && ev.type == UP) {
+      if (lo <= hi || parked.empty()) throw SolveError("system of loops: internal error, arcs left in a branch");
+      lo = parked.back().lo;
+      hi = parked.back().hi;
+      parked.pop_back();
     }
-    const int k = gen_of_edge[e];
-    if (k >= 0) {
-      --present;  // the outermost arc leaves here
-      exit_arc[k][conn.tail(g.gen_halfedge[k]) == v ? 0 : 1] = present;
-    }
-    prev_points = pts;
-    prev_slot = o;
   }
+  for (int k = 0; k < ng; ++k)
+    if (exit_arc[k][0] < 0 || exit_arc[k][1] < 0)
+      throw SolveError("system of loops: internal error, generator " + std::to_string(k) + " not reached");
   // Refined faces.
   std::vector<std::array<int, 3>> tris;
   tris.reserve(conn.num_faces() + 4 * R.nv.size());
@@ -547,16 +672,13 @@ Refined refine(const TriMesh& mesh, const Connectivity& conn, const Greedy& g, i
   out.mesh.V.topRows(R.n_in) = mesh.V;
   out.origin_face.resize(n_total);
   out.origin_bc.setZero(n_total, 3);
-  {
-    // Input vertices: a corner of some face.
-    for (int f = 0; f < conn.num_faces(); ++f)
-      for (int k = 0; k < 3; ++k) {
-        const int v = mesh.F(f, k);
-        out.origin_face[v] = f;
-        out.origin_bc.row(v).setZero();
-        out.origin_bc(v, k) = 1;
-      }
-  }
+  for (int f = 0; f < conn.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int v = mesh.F(f, k);
+      out.origin_face[v] = f;
+      out.origin_bc.row(v).setZero();
+      out.origin_bc(v, k) = 1;
+    }
   for (int i = 0; i < static_cast<int>(R.nv.size()); ++i) {
     const int id = R.n_in + i;
     out.mesh.V.row(id) = R.position(id).transpose();
@@ -716,15 +838,27 @@ SystemOfLoops system_of_loops(const TriMesh& mesh, const SystemOfLoopsOptions& o
     s.word_text = word_to_text(s.word);
     return s;
   }
-  Refined r = refine(mesh, conn, g, x);
-  s.mesh = std::move(r.mesh);
-  s.origin_face = std::move(r.origin_face);
-  s.origin_barycentric = std::move(r.origin_bc);
-  s.loops = std::move(r.loops);
-  try {
-    finish_from_simple_loops(s);
-  } catch (const InputError& e) {
-    throw SolveError(std::string("system of loops: the refined mesh is invalid: ") + e.what());
+  // The short construction first; the full Euler-tour construction (longer
+  // loops, more split points, but the simplest geometry) if it fails.
+  std::string first_error;
+  for (const bool shortcut : {options.shortcut_branches, false}) {
+    try {
+      Refined r = refine(mesh, conn, g, x, shortcut);
+      SystemOfLoops t = s;
+      t.mesh = std::move(r.mesh);
+      t.origin_face = std::move(r.origin_face);
+      t.origin_barycentric = std::move(r.origin_bc);
+      t.loops = std::move(r.loops);
+      finish_from_simple_loops(t);
+      t.shortcut_used = shortcut;
+      return t;
+    } catch (const Error& e) {
+      if (!shortcut) {
+        throw SolveError(std::string("system of loops: refinement failed: ") + e.what() +
+                         (first_error.empty() ? "" : " (shortcut construction: " + first_error + ")"));
+      }
+      first_error = e.what();
+    }
   }
   return s;
 }

@@ -16,6 +16,11 @@ struct SystemOfLoopsOptions {
   int base_vertex = -1;
   /// Split edges so that loops are simple and meet only at x (default: true).
   bool refine = true;
+  /// Refinement: arcs that pass a whole branch of the tree cross the
+  /// branch's root edge instead of running around it (default: true; much
+  /// shorter loops and fewer split points). false: every arc follows the
+  /// full Euler tour of the tree (also the automatic fallback).
+  bool shortcut_branches = true;
 };
 
 /// Everything refers to `mesh` (the refined mesh when refinement ran).
@@ -51,6 +56,9 @@ struct SystemOfLoops {
   /// The same word as text, loops named a1 b1 a2 b2 ... by index order
   /// (loop 2i -> a_{i+1}, loop 2i+1 -> b_{i+1}); inverse written with "^-1".
   std::string word_text;
+  /// True when the refinement used the short construction
+  /// (SystemOfLoopsOptions::shortcut_branches) rather than the fallback.
+  bool shortcut_used = false;
 };
 
 /// Computes the system of loops of a closed, manifold, oriented mesh of genus
