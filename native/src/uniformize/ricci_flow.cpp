@@ -179,19 +179,22 @@ bool triangle_angles(const double l[3], Background bg, double theta[3], double D
 }
 
 
-/// Extended angle (see triangle_angles) at corner k of face f for lengths L.
+/// Extended angles (see triangle_angles) of face f for lengths L.
 template <class LengthOf>
-double corner_angle(const RicciDomain& d, int f, int k, const LengthOf& L) {
-  double l[3], th[3], D[3][3];
+void face_angles(const RicciDomain& d, int f, Background bg, const LengthOf& L, double th[3]) {
+  double l[3], D[3][3];
   for (int q = 0; q < 3; ++q) l[q] = L(d.FE(f, q));
-  triangle_angles(l, Background::Euclidean, th, D, nullptr);
-  return th[k];
+  triangle_angles(l, bg, th, D, nullptr);
 }
 
 /// Mutable intrinsic triangulation for the Delaunay-flip variant of the
-/// Euclidean vertex-scaling flow (Gillespie–Springborn–Crane 2021): the
-/// domain's faces/edges change by flips, `pen` holds the Penner coordinates
-/// (lengths at u = 0) of the current edges.
+/// vertex-scaling flow (Gillespie–Springborn–Crane 2021 for the Euclidean
+/// case; Gu–Guo–Luo–Sun–Wu 2018 for the hyperbolic one): the domain's
+/// faces/edges change by flips; `pen` holds the base lengths l⁰ of the
+/// current edges, so that l = e^{(u_i+u_j)/2} l⁰ (Euclidean) or
+/// sinh(l/2) = e^{(u_i+u_j)/2} l⁰/2 (hyperbolic). Both Ptolemy relations —
+/// Euclidean l, hyperbolic sinh(l/2) for a cyclic quadrilateral — then read
+/// l⁰_new l⁰_e = l⁰_a l⁰_c + l⁰_b l⁰_d, which commutes with vertex scaling.
 struct FlipContext {
   RicciDomain* dom = nullptr;
   RowMatrixX2i EF;  // faces on both sides of every edge, -1 on the boundary
@@ -199,8 +202,10 @@ struct FlipContext {
   long long flips = 0;
   long long version = 0;
   long long max_flips = 0;
+  Background bg = Background::Euclidean;
 
-  void init(RicciDomain& d, Eigen::VectorXd& p) {
+  void init(RicciDomain& d, Eigen::VectorXd& p, Background background) {
+    bg = background;
     dom = &d;
     pen = &p;
     EF = RowMatrixX2i::Constant(d.EV.rows(), 2, -1);
@@ -220,7 +225,8 @@ struct FlipContext {
     RicciDomain& d = *dom;
     Eigen::VectorXd& P = *pen;
     auto len = [&](int e) {
-      return u ? std::exp(0.5 * ((*u)[d.EV(e, 0)] + (*u)[d.EV(e, 1)])) * P[e] : P[e];
+      const double x = u ? std::exp(0.5 * ((*u)[d.EV(e, 0)] + (*u)[d.EV(e, 1)])) * P[e] : P[e];
+      return bg == Background::Euclidean ? x : 2.0 * std::asinh(0.5 * x);
     };
     const int ne = static_cast<int>(d.EV.rows());
     std::vector<int> stack(ne);
@@ -236,8 +242,14 @@ struct FlipContext {
       int a0 = 0, a1 = 0;
       while (d.FE(f0, a0) != e) ++a0;
       while (d.FE(f1, a1) != e) ++a1;
-      const double alpha = corner_angle(d, f0, a0, len), beta = corner_angle(d, f1, a1, len);
-      if (alpha + beta <= kPi + 1e-12) continue;
+      double th0[3], th1[3];
+      face_angles(d, f0, bg, len, th0);
+      face_angles(d, f1, bg, len, th1);
+      // Delaunay: the opposite angles do not exceed the angles at the edge's
+      // ends (Euclidean: α + β <= π; equality = cyclic quadrilateral).
+      const double opposite = th0[a0] + th1[a1];
+      const double at_ends = th0[(a0 + 1) % 3] + th0[(a0 + 2) % 3] + th1[(a1 + 1) % 3] + th1[(a1 + 2) % 3];
+      if (opposite <= at_ends + 1e-12) continue;
       // Quad v_k, s, v_m, t (counter-clockwise); e = s–t becomes v_k–v_m.
       const int vk = d.F(f0, a0), s = d.F(f0, (a0 + 1) % 3), t = d.F(f0, (a0 + 2) % 3);
       const int vm = d.F(f1, a1);
@@ -248,11 +260,16 @@ struct FlipContext {
       double lnew;
       if (!u) {
         // Exact (metric-preserving) flip: unfold the quad at s.
-        const double th = corner_angle(d, f0, (a0 + 1) % 3, len) + corner_angle(d, f1, (a1 + 2) % 3, len);
-        const double x = P[e_ks], y = P[e_sm];
-        lnew = std::sqrt(std::max(0.0, x * x + y * y - 2.0 * x * y * std::cos(th)));
+        const double th = th0[(a0 + 1) % 3] + th1[(a1 + 2) % 3];
+        const double x = len(e_ks), y = len(e_sm);
+        if (bg == Background::Euclidean) {
+          lnew = std::sqrt(std::max(0.0, x * x + y * y - 2.0 * x * y * std::cos(th)));
+        } else {
+          const double c = std::cosh(x) * std::cosh(y) - std::sinh(x) * std::sinh(y) * std::cos(th);
+          lnew = 2.0 * std::sinh(0.5 * std::acosh(std::max(1.0, c)));  // back to l⁰
+        }
       } else {
-        // Ptolemy: commutes with vertex scaling, so it acts on Penner coordinates.
+        // Ptolemy: commutes with vertex scaling, so it acts on the base lengths.
         lnew = (P[e_tk] * P[e_sm] + P[e_ks] * P[e_mt]) / P[e];
       }
       if (!(lnew > 0.0) || !std::isfinite(lnew)) continue;
@@ -458,8 +475,8 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
   SchemeMetric metric(dom, base, background, options.scheme);
   FlipContext flip_ctx;
   FlipContext* flips = nullptr;
-  if (options.intrinsic_delaunay && flat && options.scheme == RicciScheme::VertexScaling) {
-    flip_ctx.init(dom, base);
+  if (options.intrinsic_delaunay && options.scheme == RicciScheme::VertexScaling) {
+    flip_ctx.init(dom, base, background);
     if (!flip_ctx.make_delaunay(nullptr))
       throw SolveError("ricci_flow: intrinsic Delaunay flips of the input did not terminate");
     flips = &flip_ctx;

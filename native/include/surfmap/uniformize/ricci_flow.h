@@ -59,11 +59,12 @@ struct RicciFlowOptions {
   int max_iterations = 0;
   /// Time step of the explicit flow u += flow_step (K_target − K).
   double flow_step = 0.1;
-  /// Euclidean vertex scaling only (ignored otherwise): keep the triangulation
-  /// intrinsically Delaunay during the solve — Euclidean flips of the input
-  /// metric first, then Ptolemy flips (Gillespie–Springborn–Crane 2021,
-  /// "Discrete conformal equivalence of polyhedral surfaces"). A flat metric
-  /// then exists for every mesh and target (no degenerate triangles), but it
+  /// Vertex scaling only (ignored for inversive distance): keep the
+  /// triangulation intrinsically Delaunay during the solve — exact flips of
+  /// the input metric first, then Ptolemy flips (Gillespie–Springborn–Crane
+  /// 2021 "Discrete conformal equivalence of polyhedral surfaces"; hyperbolic:
+  /// Gu–Guo–Luo–Sun–Wu 2018). A flat / hyperbolic metric then exists for
+  /// every mesh and admissible target (no degenerate triangles), but it
   /// lives on the flipped triangulation result.faces / result.edge_vertices,
   /// not on the input edges (check result.flips). Default false: fixed
   /// connectivity, result.edge_lengths in Connectivity's edge order.
