@@ -32,6 +32,8 @@ struct Flat {
   static double coord(double l) { return l; }
   static double angle(double a, double b, double c) { return hyperbolic::euclidean_angle(a, b, c); }
   static double distance(Complex z, Complex w) { return std::abs(z - w); }
+  /// Coordinates in which geodesics are straight (for orientation tests).
+  static Complex straight(Complex z) { return z; }
   /// The chart taking 0 to p and the positive real axis towards q.
   static Chart frame(Complex p, Complex q) {
     const Complex d = q - p;
@@ -54,6 +56,10 @@ struct Hyper {
   static double coord(double l) { return std::tanh(l / 2); }
   static double angle(double a, double b, double c) { return hyperbolic::law_of_cosines_angle(a, b, c); }
   static double distance(Complex z, Complex w) { return hyperbolic::distance(z, w); }
+  /// Klein model: geodesics are straight chords, so the sign of the cross
+  /// product is the orientation of the geodesic triangle (in the Poincaré
+  /// model three nearly collinear points lie on a circular arc instead).
+  static Complex straight(Complex z) { return hyperbolic::poincare_to_klein(z); }
   static Chart frame(Complex p, Complex q) {
     const Mobius tp = Mobius::centring(p);
     return tp.inverse() * Mobius::rotation(std::arg(tp.apply(q)));
@@ -64,11 +70,6 @@ struct Hyper {
   }
   static double area(double a, double b, double c) { return hyperbolic::triangle_area(a, b, c); }
 };
-
-double chart_distance(const Rigid& a, const Rigid& b) {
-  return std::max(std::abs(a.r - b.r), std::abs(a.t - b.t));
-}
-double chart_distance(const Mobius& a, const Mobius& b) { return hyperbolic::mobius_distance(a, b); }
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -234,15 +235,34 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
   // Re-centre.
   if (options.recentre) {
     if constexpr (std::is_same_v<G, Hyper>) {
-      // Karcher mean of the corner positions: c ← exp_c(mean log_c(z)).
+      // Karcher mean of the corner positions: minimise Σ d(c, z)² by
+      // Riemannian gradient steps c ← exp_c(t · mean log_c(z)) with
+      // backtracking (a full step overshoots: the Hessian of d² grows like
+      // d coth d in negative curvature).
+      auto objective = [&](Complex c) {
+        double sum = 0;
+        for (int f = 0; f < nF; ++f)
+          for (int k = 0; k < 3; ++k) sum += std::pow(hyperbolic::distance(c, out.corners(f, k)), 2);
+        return sum;
+      };
       Complex c(0.0);
-      for (int it = 0; it < 100; ++it) {
+      double fc = objective(c);
+      for (int it = 0; it < 200; ++it) {
         Complex g(0.0);
         for (int f = 0; f < nF; ++f)
           for (int k = 0; k < 3; ++k) g += hyperbolic::log_map(c, out.corners(f, k));
         g /= 3.0 * nF;
-        c = hyperbolic::exp_map(c, g);
-        if (std::abs(g) < 1e-14) break;
+        if (std::abs(g) < 1e-13) break;
+        bool moved = false;
+        for (double t = 1.0; t > 1e-6; t *= 0.5) {
+          const Complex cn = hyperbolic::exp_map(c, t * g);
+          const double fn = objective(cn);
+          if (fn < fc) {
+            c = cn, fc = fn, moved = true;
+            break;
+          }
+        }
+        if (!moved) break;
       }
       const Mobius tc = Mobius::centring(c);
       for (int f = 0; f < nF; ++f) chart[f] = (tc * chart[f]).normalized();
@@ -275,7 +295,8 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
   out.num_flipped = 0;
   out.area = 0;
   for (int f = 0; f < nF; ++f) {
-    const Complex a = out.corners(f, 0), b = out.corners(f, 1), d = out.corners(f, 2);
+    const Complex a = G::straight(out.corners(f, 0)), b = G::straight(out.corners(f, 1)),
+                  d = G::straight(out.corners(f, 2));
     if (!(std::imag(std::conj(b - a) * (d - a)) > 0)) ++out.num_flipped;
     out.area += G::area(L[conn.edge(3 * f)], L[conn.edge(3 * f + 1)], L[conn.edge(3 * f + 2)]);
   }
@@ -399,11 +420,20 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
   };
   std::vector<Chart> D(nloops);
   for (int k = 0; k < nloops; ++k) D[k] = oriented_deck(out.boundary_halfedges[out.side_start[plus_side[k]]]);
+  // Every loop edge's left copy must land on its right copy under the one
+  // side pairing of its loop. Measured as a distance between points (in the
+  // metric), not between matrices: hyperbolic deck matrices of a long
+  // fundamental domain have large entries whose rounding is no error.
   out.max_deck_inconsistency = 0;
-  for (int e = 0; e < nE; ++e)
-    if (edge_loop[e] >= 0)
-      out.max_deck_inconsistency =
-          std::max(out.max_deck_inconsistency, chart_distance(oriented_deck(edge_forward[e]), D[edge_loop[e]]));
+  for (int e = 0; e < nE; ++e) {
+    if (edge_loop[e] < 0) continue;
+    const int hf = edge_forward[e], t = conn.twin(hf);
+    const Chart& Dk = D[edge_loop[e]];
+    const int f = Connectivity::face(hf), g = Connectivity::face(t);
+    const double d0 = G::distance(Dk.apply(out.corners(f, hf % 3)), out.corners(g, (t % 3 + 1) % 3));
+    const double d1 = G::distance(Dk.apply(out.corners(f, (hf % 3 + 1) % 3)), out.corners(g, t % 3));
+    out.max_deck_inconsistency = std::max({out.max_deck_inconsistency, d0, d1});
+  }
 
   // Corner elements Ψ_m (c_m = Ψ_m(c_0)) through the vertex cycle:
   // D_k Ψ_i = Ψ_{j+1} and D_k Ψ_{i+1} = Ψ_j for sides i = +k, j = −k.
@@ -449,10 +479,19 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     const int i = plus_side[k];
     gen[k] = (psi[i].inverse() * psi[(i + 1) % n]).normalized();
   }
+  // The word relation, multiplied out in the chart centring the base corner
+  // c_0: there each generator's entries are about cosh(loop length / 2),
+  // while in the layout's own frame they grow with the distance of c_0 from
+  // the centre and the product would drown in rounding.
+  Chart to_base{};
+  if constexpr (std::is_same_v<G, Hyper>) to_base = Mobius::centring(c0);
   Chart prod{};
   for (int s = 0; s < n; ++s) {
     const int k = std::abs(out.word[s]) - 1;
-    prod = prod * (out.word[s] > 0 ? gen[k] : gen[k].inverse());
+    const Chart gk = (to_base * gen[k] * to_base.inverse()).normalized();
+    prod = prod * (out.word[s] > 0 ? gk : gk.inverse());
+    if constexpr (std::is_same_v<G, Hyper>)
+      out.relation_condition = std::max(out.relation_condition, std::norm(std::abs(prod.a) + std::abs(prod.b)));
   }
   if constexpr (std::is_same_v<G, Hyper>) {
     out.side_pairings = D;

@@ -92,17 +92,30 @@ struct DiskLayout {
   /// 2g side pairings D_k and 2g loop generators g_k (file comment).
   std::vector<hyperbolic::Mobius> side_pairings, generators;  ///< hyperbolic
   std::vector<Complex> side_translations, generator_translations;  ///< flat
-  /// Distance from ±identity of g_{w_0} ... g_{w_{4g−1}} (matrix norm for
-  /// SU(1,1), |sum| for translations relative to the lattice scale).
+  /// The word relation g_{w_0} ... g_{w_{4g−1}} = ±id: distance of the
+  /// product from ±identity (max |entry difference| of the SU(1,1) matrices),
+  /// multiplied out in the chart centring the base corner c_0 (where the
+  /// generators have entries ~ cosh(loop length/2); in the layout frame they
+  /// can reach 1e5 and the product is meaningless in floating point).
+  /// Flat: |Σ ± g_k| / max |g_k|.
   double product_relation_error = 0;
+  /// Hyperbolic: (|a| + |b|)² of the largest partial product of that word
+  /// (1 for flat). Entry errors of the product are this times the relative
+  /// accuracy of the layout: a domain of hyperbolic diameter d gives about
+  /// e^d, so a long, thin fundamental domain (long loops) makes the matrix
+  /// relation lose digits although every point glues to 1e-7 (see
+  /// max_deck_inconsistency for the well-conditioned, point-wise check).
+  double relation_condition = 1;
   /// Diagnostics: max over interior edges of the distance between the two
   /// copies of each endpoint (should be round-off); max over cut edges of
-  /// how far the edge deck map is from its loop's side pairing; flat only:
+  /// the distance between the side pairing's image of an endpoint copy and
+  /// the other copy (and over the corners, Ψ_m(c_0) vs c_m); flat only:
   /// max |rotation part − 1| of the deck maps (holonomy; 0 for a flat torus).
   double max_interior_mismatch = 0;
   double max_deck_inconsistency = 0;
   double max_holonomy_rotation = 0;
-  /// Number of corner triangles with non-positive orientation.
+  /// Number of corner triangles with non-positive orientation (hyperbolic:
+  /// tested in the Klein model, where the triangle sides are straight).
   int num_flipped = 0;
   /// Sum of the triangle areas of the metric (hyperbolic: 4π(g−1) when the
   /// metric has zero curvature at every vertex).
