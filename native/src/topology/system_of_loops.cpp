@@ -246,11 +246,14 @@ struct NewVertex {
   double bend_mid = 0, bend_span = 0;
 };
 
-// Barycentric coordinates of a bend point: a tent over its chord whose
-// height grows with the square of the span, which keeps nested tents (also
-// tents sharing an endpoint) strictly apart for every scale alpha.
-Eigen::Vector3d bend_bc(int k, double mid, double span, double alpha) {
-  const double eta = 0.8 * alpha * span * span;
+// Barycentric coordinates of a bend point: the apex of a symmetric tent over
+// its chord, of height eta = slope * span / 2 (in units of the face's
+// barycentric coordinate of the opposite corner). Tents on one side of a face
+// whose slopes grow with their spans are nested without touching, also when
+// they share an endpoint (the arcs leaving x); eta <= span keeps the apex
+// inside the face.
+Eigen::Vector3d bend_bc(int k, double mid, double span, double slope) {
+  const double eta = std::min(slope, 1.2) * 0.5 * span;
   Eigen::Vector3d c;
   c[k] = 1 - mid - 0.5 * eta;
   c[(k + 1) % 3] = mid - 0.5 * eta;
@@ -454,9 +457,18 @@ void triangulate_face(Refiner& R, int f, std::vector<std::array<int, 3>>& out) {
   out.resize(first_tri);
   R.nv.resize(nv0);
   R.face_interior[f].resize(ni0);
-  for (int id : R.face_interior[f]) {
-    NewVertex& p = R.nv[id - R.n_in];
-    if (p.bend_side >= 0) p.bc = bend_bc(p.bend_side, p.bend_mid, p.bend_span, std::pow(0.5, attempt));
+  // Tent slopes by rank of span on their side (even angles between the
+  // nested tents), halved on every retry.
+  for (int side = 0; side < 3; ++side) {
+    std::vector<std::pair<double, int>> tents;
+    for (int id : R.face_interior[f])
+      if (R.nv[id - R.n_in].bend_side == side) tents.push_back({R.nv[id - R.n_in].bend_span, id});
+    std::sort(tents.begin(), tents.end());
+    for (size_t r = 0; r < tents.size(); ++r) {
+      NewVertex& p = R.nv[tents[r].second - R.n_in];
+      const double slope = 1.2 * (r + 1.0) / tents.size() * std::pow(0.5, attempt);
+      p.bc = bend_bc(side, p.bend_mid, p.bend_span, slope);
+    }
   }
   for (auto poly : regions) {
     while (poly.size() > 3) {
