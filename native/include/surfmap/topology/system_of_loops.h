@@ -35,15 +35,19 @@ struct SystemOfLoops {
   RowMatrixX3d origin_barycentric;
   int genus = 0;
   int base_vertex = -1;
-  /// Shortest-path tree T from x: per vertex, the halfedge from its parent to
-  /// it (-1 at x). Halfedge numbering as in Connectivity(mesh.F).
+  /// Spanning tree T rooted at x: per vertex, the halfedge from its parent to
+  /// it (-1 at x). Halfedge numbering as in Connectivity(mesh.F). Without
+  /// refinement it is the shortest-path (Dijkstra) tree; after refinement it
+  /// is the tree of the refined mesh made of both halves of every loop plus
+  /// the edges that neither T* crosses nor are generators (T, T* and the 2g
+  /// generator edges partition the edges).
   std::vector<int> tree_parent_halfedge;
   /// Cut tree T*: per face, the halfedge of that face across which its parent
   /// face lies (-1 at the root face). Faces of the disk obtained by cutting
   /// along the loops are exactly connected through these dual edges.
   std::vector<int> dual_tree_parent_halfedge;
   /// The 2g edges in neither T nor crossed by T*, one per loop (loop k uses
-  /// generator_edges[k]).
+  /// generator_edges[k]; after refinement, the middle edge of the loop).
   std::vector<int> generator_edges;
   /// 2g closed vertex paths [x, v1, ..., x] along edges of `mesh`; loop k is
   /// path(x, a) + (a, b) + path(b, x) for generator edge k. Simple, pairwise
