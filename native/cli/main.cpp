@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   surfmap::cli::register_info(app);
   surfmap::cli::register_loops(app);
   surfmap::cli::register_map(app);
+  surfmap::cli::register_uniformize(app);
   // SURFMAP_CLI_REGISTER (keep this marker: add one register_* call per line above it)
   try {
     app.parse(argc, argv);

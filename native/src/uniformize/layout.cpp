@@ -252,7 +252,7 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
         for (int f = 0; f < nF; ++f)
           for (int k = 0; k < 3; ++k) g += hyperbolic::log_map(c, out.corners(f, k));
         g /= 3.0 * nF;
-        if (std::abs(g) < 1e-13) break;
+        if (std::abs(g) < 1e-10) break;  // far below any use of the centre
         bool moved = false;
         for (double t = 1.0; t > 1e-6; t *= 0.5) {
           const Complex cn = hyperbolic::exp_map(c, t * g);

@@ -32,9 +32,12 @@ void check_layout(const DiskLayout& L, double tolerance) {
   if (L.max_deck_inconsistency > tol)
     throw SolveError("uniformize: the deck maps of a loop disagree along its edges (" +
                      fmt(L.max_deck_inconsistency) + ")");
-  if (L.product_relation_error > tol)
+  // The matrix relation loses digits in proportion to relation_condition
+  // (large for long fundamental domains) even when every point glues; only
+  // an error beyond that is a failure.
+  if (L.product_relation_error > tol * L.relation_condition)
     throw SolveError("uniformize: the generators violate the boundary-word relation (" +
-                     fmt(L.product_relation_error) + ")");
+                     fmt(L.product_relation_error) + ", condition " + fmt(L.relation_condition) + ")");
 }
 
 }  // namespace
