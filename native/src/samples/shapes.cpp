@@ -174,8 +174,8 @@ Shape vase_shape() {
   auto rho = [](double z) {
     return 0.3 + 0.6 * std::exp(-std::pow((z - 1.0) / 0.65, 2)) + 0.22 * smoothstep((z - 2.2) / 0.8);
   };
-  const std::vector<ArcTube> handles = {handle(0, 0.55, 2.15, 0.45, 150 * M_PI / 180, 0.08),
-                                         handle(M_PI, 0.55, 2.15, 0.45, 150 * M_PI / 180, 0.08)};
+  const std::vector<ArcTube> handles = {handle(0, 0.55, 2.15, 0.45, 150 * M_PI / 180, 0.11),
+                                         handle(M_PI, 0.55, 2.15, 0.45, 150 * M_PI / 180, 0.11)};
   s.f = [=](const Vector3d& p) {
     double d = revolution(p, rho, 0.0, 3.0, 0.12);
     for (const auto& hd : handles) d = smin_tube(d, hd, p, 0.08);
@@ -192,10 +192,10 @@ Shape amphora_shape() {
   s.name = "amphora";
   auto rho = [](double z) {
     return 0.2 + 0.7 * std::exp(-std::pow((z - 1.5) / 0.8, 2)) + 0.12 * smoothstep((z - 3.6) / 0.4) -
-           0.12 * (1 - smoothstep(z / 0.5));
+           0.07 * (1 - smoothstep(z / 0.5));
   };
-  const std::vector<ArcTube> handles = {handle(0, 0.45, 2.85, 0.55, 150 * M_PI / 180, 0.07),
-                                         handle(M_PI, 0.45, 2.85, 0.55, 150 * M_PI / 180, 0.07)};
+  const std::vector<ArcTube> handles = {handle(0, 0.45, 2.85, 0.55, 150 * M_PI / 180, 0.1),
+                                         handle(M_PI, 0.45, 2.85, 0.55, 150 * M_PI / 180, 0.1)};
   s.f = [=](const Vector3d& p) {
     double d = revolution(p, rho, 0.0, 4.0, 0.06);
     for (const auto& hd : handles) d = smin_tube(d, hd, p, 0.07);
@@ -213,7 +213,7 @@ Shape cup_shape(int handles) {
   auto rho = [](double z) { return 0.85 + 0.15 * std::sin(M_PI * z / 1.6); };
   std::vector<ArcTube> tubes;
   for (int i = 0; i < handles; ++i)
-    tubes.push_back(handle(2 * M_PI * i / handles, 1.0, 0.8, 0.45, 140 * M_PI / 180, 0.09));
+    tubes.push_back(handle(2 * M_PI * i / handles, 1.0, 0.8, 0.45, 140 * M_PI / 180, 0.12));
   s.f = [=](const Vector3d& p) {
     double d = revolution(p, rho, 0.0, 1.6, 0.15);
     for (const auto& hd : tubes) d = smin_tube(d, hd, p, 0.08);

@@ -28,7 +28,11 @@ TriMesh torus_of_revolution(double R, double r, int n_major, int n_minor,
 /// axis. smooth=true improves the triangles (tangential relaxation, edge flips
 /// and projection back onto the level set, never flipping a triangle);
 /// smooth=false leaves the raw marching-tets output with its slivers (the
-/// "ugly mesh" the tests want). #V grows like resolution^2.
+/// "ugly mesh" the tests want). #V grows like resolution^2 (about 7k-9k
+/// vertices at 32, 25k-35k at 64, 250k at 200, 1M at 400). Every implicit
+/// shape is resolved from resolution 32 up; below that thin parts may not be,
+/// and the generator throws Error (it always checks closedness, manifoldness,
+/// one component, genus and orientation of what it returns).
 TriMesh n_hole_torus(int n, int resolution = 64, bool smooth = true);
 
 /// Vase with two handles (genus 2).
