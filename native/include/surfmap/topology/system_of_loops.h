@@ -66,7 +66,20 @@ struct SystemOfLoops {
 };
 
 /// Computes the system of loops of a closed, manifold, oriented mesh of genus
-/// g >= 1 (throws InputError for genus 0: there are no loops to cut).
+/// g >= 1 (throws InputError for genus 0: there are no loops to cut, or for a
+/// base vertex out of range).
+///
+/// Greedy basis: Dijkstra tree T from x by edge length; maximum spanning tree
+/// T* of the dual graph of the non-tree edges, weighted by |sigma(e)|; the 2g
+/// remaining edges are the generators, loops sorted by length.
+/// Refinement (see system_of_loops.cpp): the 4g halves of the greedy loops
+/// are redrawn as arcs fanning out from x inside a thin neighbourhood of the
+/// tree paths, through split points on input edges (and bend points inside
+/// input faces); the refined loops are homotopic to the greedy ones (same
+/// boundary word up to rotation). The result is verified (edge paths, simple,
+/// disjoint except at x, one disk with a 4g-gon word, T and T* spanning
+/// trees); a failed verification throws SolveError. O(n log n) plus the
+/// number of split points.
 SystemOfLoops system_of_loops(const TriMesh& mesh, const SystemOfLoopsOptions& options = {});
 
 }  // namespace surfmap
