@@ -373,7 +373,8 @@ void improve_on_level_set(TriMesh& mesh, const Implicit& f, double h, int rounds
   }
   flip_pass();
   for (int v = 0; v < nv; ++v) {
-    // Final exact projection; keep the old point if it would spoil a face.
+    // Final exact projection (the per-round single Newton step leaves a
+    // second-order residual); a long jump would mean a wrong branch, skip it.
     const Vector3d q = project(P[v]);
     if ((q - P[v]).norm() < 0.05 * h) P[v] = q;
   }

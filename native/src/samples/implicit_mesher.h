@@ -24,9 +24,11 @@ TriMesh marching_tetrahedra(const Implicit& f, const Eigen::Vector3d& lo,
 
 /// Improves triangle shapes while staying on {f = 0}: rounds of
 /// angle-improving edge flips and tangential umbrella relaxation followed by
-/// Newton projection back to the level set. A vertex move that would flip a
-/// face (normal turning by more than 90 degrees in one step) or shrink it to
-/// (near) zero area is reverted, so the mesh stays consistently oriented.
+/// Newton projection back to the level set. A vertex move that would turn a
+/// face away from the outward surface normal (cosine with grad f below 0.1
+/// and lower than before) or shrink it to (near) zero area is reverted, and
+/// flips are only made when both new faces agree with grad f, so no face
+/// ever ends up flipped or degenerate.
 /// `h` is the grid spacing (length scale for tolerances).
 void improve_on_level_set(TriMesh& mesh, const Implicit& f, double h, int rounds);
 
