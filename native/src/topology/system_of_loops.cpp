@@ -646,11 +646,24 @@ Refined refine(const TriMesh& mesh, const Connectivity& conn, const Greedy& g, i
       cur[k] = p;
     }
   };
-  for (const Event& ev : events) {
+  // The arcs leave x one group per face of the start corner (outermost
+  // first) instead of all through its first face, so no single face of x
+  // has to hold all 4g bends.
+  int leading = 0;
+  while (leading < static_cast<int>(events.size()) && events[leading].type == SLOT) ++leading;
+  int departed = 0;  // arcs < departed have left x
+  for (size_t i = 0; i < events.size(); ++i) {
+    const Event& ev = events[i];
     const int o = ev.h, v = conn.tail(o), e = conn.edge(o), f = Connectivity::face(o);
     if (ev.type == SLOT) {
       if (lo > hi) continue;
-      advance(e, v, f, lo, hi);
+      if (static_cast<int>(i) < leading) {
+        const int share = (n_arcs * (static_cast<int>(i) + 1) + leading - 1) / leading;
+        departed = std::min(hi + 1, std::max({departed, share, lo + 1}));
+      } else {
+        departed = hi + 1;
+      }
+      advance(e, v, f, lo, std::min(hi, departed - 1));
       const int k = gen_of_edge[e];
       if (k >= 0) {
         if (ev.lo != lo) throw SolveError("system of loops: internal error, arcs leave out of order");
