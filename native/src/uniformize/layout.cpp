@@ -235,10 +235,10 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
   // Re-centre.
   if (options.recentre) {
     if constexpr (std::is_same_v<G, Hyper>) {
-      // Karcher mean of the corner positions: minimise Σ d(c, z)² by
-      // Riemannian gradient steps c ← exp_c(t · mean log_c(z)) with
-      // backtracking (a full step overshoots: the Hessian of d² grows like
-      // d coth d in negative curvature).
+      // Karcher mean of the corner positions: minimise ½Σ d(c, z)² by
+      // Riemannian Newton steps c ← exp_c(H⁻¹ Σ log_c(z)), with H the exact
+      // Hessian (DESIGN.md §7: 1 along each geodesic, d coth d across it),
+      // and backtracking on the objective (it is geodesically convex).
       auto objective = [&](Complex c) {
         double sum = 0;
         for (int f = 0; f < nF; ++f)
@@ -247,15 +247,27 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
       };
       Complex c(0.0);
       double fc = objective(c);
-      for (int it = 0; it < 200; ++it) {
+      for (int it = 0; it < 100; ++it) {
         Complex g(0.0);
+        double hxx = 0, hxy = 0, hyy = 0;
         for (int f = 0; f < nF; ++f)
-          for (int k = 0; k < 3; ++k) g += hyperbolic::log_map(c, out.corners(f, k));
-        g /= 3.0 * nF;
-        if (std::abs(g) < 1e-10) break;  // far below any use of the centre
+          for (int k = 0; k < 3; ++k) {
+            const Complex l = hyperbolic::log_map(c, out.corners(f, k));
+            g += l;
+            const double d = std::abs(l);
+            const double normal = d > 1e-8 ? d / std::tanh(d) : 1.0;
+            const Complex u = d > 1e-8 ? l / d : Complex(1.0, 0.0);
+            // H = u uᵀ + normal (I − u uᵀ)
+            hxx += normal + (1 - normal) * u.real() * u.real();
+            hxy += (1 - normal) * u.real() * u.imag();
+            hyy += normal + (1 - normal) * u.imag() * u.imag();
+          }
+        if (std::abs(g) < 1e-10 * 3.0 * nF) break;  // far below any use of the centre
+        const double det = hxx * hyy - hxy * hxy;
+        const Complex step((hyy * g.real() - hxy * g.imag()) / det, (hxx * g.imag() - hxy * g.real()) / det);
         bool moved = false;
         for (double t = 1.0; t > 1e-6; t *= 0.5) {
-          const Complex cn = hyperbolic::exp_map(c, t * g);
+          const Complex cn = hyperbolic::exp_map(c, t * step);
           const double fn = objective(cn);
           if (fn < fc) {
             c = cn, fc = fn, moved = true;
