@@ -95,3 +95,49 @@ TEST(SurfaceMap, RejectsGenusMismatchAndUnknownClass) {
 
 }  // namespace
 }  // namespace surfmap
+
+namespace surfmap {
+namespace {
+
+double bbox_diagonal(const TriMesh& m) { return (m.V.colwise().maxCoeff() - m.V.colwise().minCoeff()).norm(); }
+
+TEST(SurfaceMapHyperbolic, GenusTwoPairConvergesByNewtonWithoutFlips) {
+  const TriMesh a = samples::n_hole_torus(2, 36, true);
+  const TriMesh b = samples::vase(40, true);
+  const SurfaceMapResult m = surface_map(a, b);
+  expect_valid_map(m, a, b);
+  EXPECT_EQ(m.genus, 2);
+  EXPECT_LE(m.iterations, 30);
+  // Energies decrease monotonically along the Newton iterations.
+  for (size_t k = 1; k < m.energy_history.size(); ++k) EXPECT_LT(m.energy_history[k], m.energy_history[k - 1]);
+  EXPECT_TRUE(std::isfinite(m.mean_dilatation));
+  EXPECT_GE(m.mean_dilatation, 1.0);
+}
+
+TEST(SurfaceMapHyperbolic, ResultDoesNotDependOnTheStartPoint) {
+  // Paper §VII-D: the energy is convex, so different initial maps give the
+  // same optimum.
+  const TriMesh a = samples::n_hole_torus(2, 30, true);
+  const TriMesh b = samples::vase(34, true);
+  SurfaceMapOptions o1, o2;
+  o2.start_seed = 12345;
+  const SurfaceMapResult m1 = surface_map(a, b, o1), m2 = surface_map(a, b, o2);
+  expect_valid_map(m1, a, b);
+  expect_valid_map(m2, a, b);
+  EXPECT_NEAR(m1.final_energy, m2.final_energy, 1e-8 * m1.final_energy);
+  const double tol = 1e-3 * bbox_diagonal(b);
+  double worst = 0;
+  for (int i = 0; i < a.num_vertices(); ++i)
+    worst = std::max(worst, (m1.forward[i].position - m2.forward[i].position).norm());
+  EXPECT_LT(worst, tol);
+}
+
+TEST(SurfaceMapHyperbolic, SliverSourceHasNoFlips) {
+  const TriMesh a = samples::n_hole_torus(2, 40, false);  // raw marching tetrahedra
+  const TriMesh b = samples::amphora(36, true);
+  const SurfaceMapResult m = surface_map(a, b);
+  expect_valid_map(m, a, b);
+}
+
+}  // namespace
+}  // namespace surfmap

@@ -11,7 +11,12 @@
 // candidate homotopy class (handle correspondence) reuses the same
 // factorisation; the one of lowest energy is the default.
 //
-// Genus 0 and genus >= 2 are not implemented yet (InputError says so).
+// Hyperbolic case (genus >= 2): the energy Σ w_ij d(z_i, ρ_ij z_j)² in the
+// Poincaré disk is geodesically convex; Riemannian Newton with line search
+// (map/hyperbolic_harmonic.h) converges in a handful of iterations. So far
+// only the canonical class a_i -> a'_i, b_i -> b'_i is offered for genus >= 2.
+//
+// Genus 0 is not implemented yet (InputError says so).
 #include <complex>
 #include <functional>
 #include <string>
@@ -29,6 +34,10 @@ struct SurfaceMapOptions {
   int homotopy = -1;
   /// Base vertices of the systems of loops (-1: automatic).
   int source_base_vertex = -1, target_base_vertex = -1;
+  /// Start of the hyperbolic solve: 0 (default) puts every vertex at the
+  /// origin; another value draws random start points (seeded) in the disk of
+  /// radius 0.5. The energy is convex, so the result must not depend on it.
+  unsigned start_seed = 0;
   /// Curvature tolerance of the target's uniformization (default 1e-10).
   double uniformization_tolerance = 1e-10;
   /// Called between stages with the stage name and a fraction in [0, 1];
