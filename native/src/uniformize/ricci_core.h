@@ -28,9 +28,12 @@ RicciDomain domain_from_connectivity(const Connectivity& conn);
 /// Any manifold oriented triangle list (boundary allowed).
 RicciDomain domain_from_faces(int num_vertices, const RowMatrixX3i& F);
 
+/// fixed (optional, #V): vertices whose u stays at its start value
+/// (Dirichlet); their curvature is excluded from the residual.
 RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengths,
                             Background background, const RicciFlowOptions& options,
-                            const Eigen::VectorXd& target, const Eigen::VectorXd* u_start);
+                            const Eigen::VectorXd& target, const Eigen::VectorXd* u_start,
+                            const std::vector<char>* fixed = nullptr);
 
 RicciLinearization ricci_linearize(const RicciDomain& dom, const Eigen::VectorXd& lengths,
                                    Background background, RicciScheme scheme,

@@ -428,7 +428,8 @@ RicciLinearization ricci_linearize(const RicciDomain& dom, const Eigen::VectorXd
 
 RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& lengths,
                             Background background, const RicciFlowOptions& options,
-                            const Eigen::VectorXd& target_in, const Eigen::VectorXd* u_start) {
+                            const Eigen::VectorXd& target_in, const Eigen::VectorXd* u_start,
+                            const std::vector<char>* fixed_in) {
   const auto t0 = std::chrono::steady_clock::now();
   RicciDomain dom = dom_in;  // mutable: edge flips change it
   const int nv = dom.num_vertices, ne = static_cast<int>(dom.EV.rows()),
@@ -453,13 +454,19 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
   if (target.size() != nv)
     throw InputError("ricci_flow: expected " + std::to_string(nv) + " target curvatures, got " +
                      std::to_string(target.size()));
+  if (fixed_in && static_cast<int>(fixed_in->size()) != nv)
+    throw InputError("ricci_flow: fixed mask must have #V entries");
   // Gauss–Bonnet: Σ K_i = Σ full_i − π #F (+ area in the hyperbolic case).
   // (computed as an integer multiple of π: summing 2π over 10⁵ vertices in
   // floating point would itself be off by more than a tight tolerance)
   long long gb_pi = -static_cast<long long>(nf);
   for (int v = 0; v < nv; ++v) gb_pi += std::llround(dom.full_angle[v] / kPi);
   const double gb = kPi * static_cast<double>(gb_pi);
-  if (background == Background::Euclidean) {
+  const bool has_fixed =
+      fixed_in && std::find(fixed_in->begin(), fixed_in->end(), 1) != fixed_in->end();
+  if (has_fixed) {
+    // Dirichlet problem: the fixed vertices absorb the Gauss–Bonnet balance.
+  } else if (background == Background::Euclidean) {
     if (std::abs(target.sum() - gb) > 1e-8 * (1.0 + std::abs(gb) + target.cwiseAbs().sum()))
       throw InputError("ricci_flow: flat target curvatures sum to " + fmt(target.sum()) +
                        " but Gauss–Bonnet requires " + fmt(gb) + " (2π χ)");
@@ -468,6 +475,15 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
                      ", which leaves no positive area (need more than 2π χ = " + fmt(gb) + ")");
   }
 
+  // Dirichlet vertices keep their start u; their curvature is not a target.
+  const bool any_fixed = has_fixed;
+  auto residual = [&](const Eigen::VectorXd& K) {
+    Eigen::VectorXd r = K - target;
+    if (any_fixed)
+      for (int v = 0; v < nv; ++v)
+        if ((*fixed_in)[v]) r[v] = 0.0;
+    return r;
+  };
   const bool newton = options.method == RicciMethod::Newton;
   const int max_it = options.max_iterations > 0 ? options.max_iterations : (newton ? 100 : 200000);
   const bool flat = background == Background::Euclidean;
@@ -490,7 +506,7 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
   if (ev.bad_edge >= 0)
     throw InputError("ricci_flow: edge " + std::to_string(ev.bad_edge) +
                      " has no valid length in the initial metric");
-  Eigen::VectorXd g = ev.K - target;
+  Eigen::VectorXd g = residual(ev.K);
   double err = g.cwiseAbs().maxCoeff();
   res.residual_history.push_back(err);
 
@@ -517,7 +533,7 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
                   " (step too large?)";
         break;
       }
-      g = ev.K - target;
+      g = residual(ev.K);
       err = g.cwiseAbs().maxCoeff();
       if (!std::isfinite(err)) {
         failure = "the flow diverged (non-finite curvature)";
@@ -528,8 +544,19 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
     }
     // Newton: H δ = −g, gauge fixed by pinning vertex 0 (adding e0 e0ᵀ makes H
     // definite; since Σg = 0 the solution then has δ_0 = 0 and solves H δ = −g).
-    H.setFromTriplets(ev.triplets.begin(), ev.triplets.end());
-    if (flat) H.coeffRef(0, 0) += 1.0;
+    if (any_fixed) {
+      // Identity rows/columns for the fixed vertices (their step is 0).
+      std::vector<Eigen::Triplet<double>> kept;
+      kept.reserve(ev.triplets.size() + nv);
+      for (const auto& t : ev.triplets)
+        if (!(*fixed_in)[t.row()] && !(*fixed_in)[t.col()]) kept.push_back(t);
+      for (int v = 0; v < nv; ++v)
+        if ((*fixed_in)[v]) kept.emplace_back(v, v, 1.0);
+      H.setFromTriplets(kept.begin(), kept.end());
+    } else {
+      H.setFromTriplets(ev.triplets.begin(), ev.triplets.end());
+      if (flat) H.coeffRef(0, 0) += 1.0;
+    }
     const double g2 = g.squaredNorm();
     bool accepted = false;
     for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
@@ -583,10 +610,10 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
       // thanks to the extended angles.
       for (double t = 1.0; t > 1e-6; t *= 0.5) {
         Eigen::VectorXd ut = res.u + t * delta;
-        if (flat) ut.array() -= ut[0];
+        if (flat && !any_fixed) ut.array() -= ut[0];
         evaluate(dom, metric, background, ut, true, trial, flips);
         if (trial.bad_edge >= 0) continue;
-        const Eigen::VectorXd gt = trial.K - target;
+        const Eigen::VectorXd gt = residual(trial.K);
         if (gt.allFinite() && gt.squaredNorm() <= (1.0 - 1e-4 * t) * g2) {
           res.u = ut;
           std::swap(ev, trial);
@@ -623,7 +650,7 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
     res.message = "edge " + std::to_string(ev.bad_edge) + " has no valid length in the final metric";
     res.max_curvature_error = std::numeric_limits<double>::infinity();
   } else {
-    g = ev.K - target;
+    g = residual(ev.K);
     res.max_curvature_error = g.cwiseAbs().maxCoeff();
     const int worst = argmax_abs(g);
     if (ev.degenerate > 0) {

@@ -1,5 +1,5 @@
-// Genus-0 uniformization: punctured flat disk -> circle -> stereographic
-// projection -> Möbius centring. See spherical.h.
+// Genus-0 uniformization: v0 at infinity -> flat punctured disk ->
+// stereographic projection -> Möbius centring. See spherical.h.
 #include "surfmap/uniformize/spherical.h"
 
 #include <algorithm>
@@ -26,37 +26,6 @@ std::string fmt(double x) {
   s.precision(3);
   s << x;
   return s.str();
-}
-
-/// Exterior angles of the polygon with side lengths l (cyclic; side i joins
-/// boundary vertices i and i+1) inscribed in a circle: vertex i turns by
-/// asin(l_{i-1}/2R) + asin(l_i/2R), R chosen so that the turns sum to 2π.
-Eigen::VectorXd inscribed_turning(const std::vector<double>& l) {
-  const int n = static_cast<int>(l.size());
-  double lmax = 0, lsum = 0;
-  for (double x : l) {
-    lmax = std::max(lmax, x);
-    lsum += x;
-  }
-  auto total = [&](double R) {
-    double s = 0;
-    for (double x : l) s += 2.0 * std::asin(std::min(1.0, x / (2.0 * R)));
-    return s - 2.0 * kPi;
-  };
-  double lo = lmax / 2.0, hi = std::max(lo, lsum / 4.0);
-  for (int it = 0; it < 200; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    (total(mid) > 0 ? lo : hi) = mid;
-  }
-  const double R = 0.5 * (lo + hi);
-  Eigen::VectorXd k(n);
-  for (int i = 0; i < n; ++i)
-    k[i] = std::asin(std::min(1.0, l[(i + n - 1) % n] / (2.0 * R))) +
-           std::asin(std::min(1.0, l[i] / (2.0 * R)));
-  // If the longest side subtends more than π the bisection clamps; rescale so
-  // that Gauss–Bonnet (Σ = 2π) holds exactly either way.
-  k *= 2.0 * kPi / k.sum();
-  return k;
 }
 
 /// Ball automorphism of the unit ball sending c to 0 (keeps the unit sphere).
@@ -98,58 +67,38 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   if (boundary_count != nb)
     throw InputError("the link of vertex " + std::to_string(v0) +
                      " is not a simple cycle; choose another removed_vertex");
-  std::unordered_map<long long, int> edge_of;
-  for (int e = 0; e < dom.EV.rows(); ++e)
-    edge_of[static_cast<long long>(dom.EV(e, 0)) * n2 + dom.EV(e, 1)] = e;
-  std::vector<int> ring_edge(nb);
-  for (int i = 0; i < nb; ++i) {
-    const int a = ring[i], b = ring[(i + 1) % nb];
-    ring_edge[i] = edge_of.at(static_cast<long long>(std::min(a, b)) * n2 + std::max(a, b));
-  }
   Eigen::VectorXd l0(dom.EV.rows());
   for (int e = 0; e < dom.EV.rows(); ++e)
     l0[e] = (mesh.V.row(old_id[dom.EV(e, 0)]) - mesh.V.row(old_id[dom.EV(e, 1)])).norm();
 
-  // Flatten; boundary turning angles from the inscribed polygon, iterated.
-  Eigen::VectorXd u = Eigen::VectorXd::Zero(n2), target = Eigen::VectorXd::Zero(n2);
-  Eigen::VectorXd lengths = l0;
-  RicciFlowResult flat;
-  bool have = false;
-  out.circle_error = std::numeric_limits<double>::infinity();
-  for (int round = 0; round < options.max_boundary_iterations; ++round) {
-    std::vector<double> bl(nb);
-    for (int i = 0; i < nb; ++i) bl[i] = lengths[ring_edge[i]];
-    const Eigen::VectorXd k = inscribed_turning(bl);
-    if (have) {
-      out.circle_error = 0;
-      for (int i = 0; i < nb; ++i)
-        out.circle_error = std::max(out.circle_error, std::abs(k[i] - target[ring[i]]));
-      if (out.circle_error <= options.circle_tolerance) break;
-    }
-    for (int i = 0; i < nb; ++i) target[ring[i]] = k[i];
-    RicciFlowOptions fo = options.flow;
-    fo.intrinsic_delaunay = options.intrinsic_delaunay;
-    flat = detail::ricci_solve(dom, l0, Background::Euclidean, fo, target, &u);
-    out.edge_flips = flat.flips;
-    out.flow_iterations += flat.iterations;
-    out.boundary_iterations = round + 1;
-    out.max_curvature_error = flat.max_curvature_error;
-    have = true;
-    u = flat.u;
-    lengths = flat.edge_lengths;
-    if (!flat.converged) {
-      out.message = "flattening the punctured disk failed: " + flat.message;
-      break;
-    }
-  }
-  if (out.message.empty() && !(out.circle_error <= options.circle_tolerance))
-    out.message = "the boundary did not become a circle: error " + fmt(out.circle_error) +
-                  " after " + std::to_string(out.boundary_iterations) + " rounds";
+  // Flatten with v0 at infinity. Sending v0 to ∞ keeps the length cross
+  // ratios only if l̃(v0, j) / l̃(v0, k) -> 1 for all ring vertices, i.e.
+  // e^{u_j/2} l(v0, j) is the same for all j: a Dirichlet condition
+  // u_j = −2 log l(v0, j) on the ring, with K = 0 at the interior vertices.
+  // Projecting the planar layout stereographically then gives chord lengths
+  // that are a vertex scaling of the input lengths, edges to v0 included: a
+  // discrete conformal map onto an inscribed polyhedron.
+  // Start: u_i = −2 log |x_i − x_{v0}| everywhere, the conformal factor of
+  // the inversion in the unit sphere around v0 — so the initial metric is the
+  // (valid, 3D) edge lengths of the inverted mesh, already satisfying the
+  // ring condition; the flow then only has to flatten it.
+  Eigen::VectorXd u(n2), target = Eigen::VectorXd::Zero(n2);
+  for (int i = 0; i < n2; ++i) u[i] = -2.0 * std::log((mesh.V.row(old_id[i]) - mesh.V.row(v0)).norm());
+  std::vector<char> fixed(n2, 0);
+  for (int h : conn.outgoing(v0)) fixed[new_id[conn.head(h)]] = 1;
+  RicciFlowOptions fo = options.flow;
+  fo.intrinsic_delaunay = options.intrinsic_delaunay;
+  const RicciFlowResult flat = detail::ricci_solve(dom, l0, Background::Euclidean, fo, target, &u, &fixed);
+  const Eigen::VectorXd& lengths = flat.edge_lengths;
+  out.edge_flips = flat.flips;
+  out.flow_iterations = flat.iterations;
+  out.circle_error = 0.0;
+  out.max_curvature_error = flat.max_curvature_error;
+  if (!flat.converged) out.message = "flattening the punctured disk failed: " + flat.message;
 
-  if (!have) throw InputError("spherical_uniformization: max_boundary_iterations must be >= 1");
   // Lay the disk out in the plane, breadth first over the faces of the
   // (possibly flipped) triangulation the flat metric lives on. Boundary
-  // edges never flip, so ring_edge stays valid.
+  // edges never flip.
   const RowMatrixX3i& FL = flat.faces;
   const RowMatrixX3i& FEL = flat.face_edges;
   const int nf2 = static_cast<int>(FL.rows());
@@ -188,17 +137,21 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
         }
     }
   }
-  // Circle through the boundary (algebraic least-squares fit), to the unit circle.
-  Eigen::MatrixXd A(nb, 3);
-  Eigen::VectorXd rhs(nb);
-  for (int i = 0; i < nb; ++i) {
-    const double x = P(ring[i], 0), y = P(ring[i], 1);
-    A.row(i) << x, y, 1.0;
-    rhs[i] = -(x * x + y * y);
+  // Normalise: area centroid at 0 and unit mean radius of the ring (the
+  // Möbius centring below removes what is left of this choice).
+  Eigen::Vector2d centre(0, 0);
+  double area_sum = 0;
+  for (int f = 0; f < nf2; ++f) {
+    const Eigen::Vector2d a = P.row(FL(f, 0)).transpose(), b = P.row(FL(f, 1)).transpose(),
+                          c = P.row(FL(f, 2)).transpose();
+    const double A = 0.5 * std::abs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
+    centre += A * (a + b + c) / 3.0;
+    area_sum += A;
   }
-  const Eigen::Vector3d sol = A.colPivHouseholderQr().solve(rhs);
-  const Eigen::Vector2d centre(-sol[0] / 2, -sol[1] / 2);
-  const double radius = std::sqrt(std::max(1e-300, centre.squaredNorm() - sol[2]));
+  centre /= std::max(area_sum, 1e-300);
+  double radius = 0;
+  for (int i = 0; i < nb; ++i) radius += (P.row(ring[i]).transpose() - centre).norm() / nb;
+  radius = std::max(radius, 1e-300);
 
   // Inverse stereographic projection from the north pole; y is mirrored
   // because a counter-clockwise layout seen from +z would face inward on the

@@ -2,16 +2,19 @@
 // Genus-0 uniformization (paper §V; DESIGN.md §2.4): a map of a closed genus-0
 // mesh onto the unit sphere.
 //
-// Method: remove one vertex v0 (its star); flatten the remaining disk with the
-// Euclidean discrete Ricci flow (vertex scaling, Newton): curvature 0 at the
-// interior vertices and, at the boundary vertices, the geodesic curvature of
-// a polygon inscribed in a circle with the current boundary edge lengths —
-// recomputed from the solution and re-solved (warm start) until the boundary
-// is a circle to `circle_tolerance`. Lay the disk out in the plane, scale the
-// circle to the unit circle, project stereographically (unit circle ->
-// equator, v0 -> the pole), then Möbius-centre: repeatedly apply the ball
-// automorphism that moves the area-weighted centre of mass (vertex areas of
-// the input mesh) to the origin.
+// Method: send one vertex v0 to infinity. Remove its star and flatten the
+// remaining disk with the Euclidean discrete Ricci flow (vertex scaling,
+// Newton, intrinsic Delaunay flips by default): curvature 0 at the interior
+// vertices and the Dirichlet condition u_j = −2 log l(v0, j) on the ring of
+// v0's neighbours — the limit of vertex scaling with u_{v0} -> ∞, which keeps
+// every length cross ratio, edges to v0 included. Lay the disk out in the
+// plane, project stereographically (v0 -> the pole): the chord lengths on the
+// sphere are then again a vertex scaling of the input lengths, i.e. the
+// result is a discrete conformal map onto a polyhedron inscribed in the unit
+// sphere (Springborn–Schröder–Pinkall 2008; Bobenko–Pinkall–Springborn
+// 2015). Finally Möbius-centre: repeatedly apply the ball automorphism that
+// moves the area-weighted centre of mass (vertex areas of the input mesh)
+// to the origin.
 #include <string>
 
 #include "surfmap/mesh/tri_mesh.h"
@@ -21,18 +24,15 @@ namespace surfmap {
 
 struct SphericalUniformizationOptions {
   /// Vertex sent to the pole before centring; -1 (default): the vertex of
-  /// highest valence (a rounder hole).
+  /// highest valence, then a few others if that one fails.
   int removed_vertex = -1;
   /// Options of the inner Euclidean flow (scheme/method/tolerance/progress).
   RicciFlowOptions flow;
   /// Overrides flow.intrinsic_delaunay (default true): flatten with Ptolemy
   /// flips so that badly shaped meshes have a solution; the flattened
   /// intrinsic triangulation is laid out, and the input faces are then
-  /// checked on the sphere (flipped_faces).
+  /// checked on the sphere (flipped_faces; any flipped face -> not converged).
   bool intrinsic_delaunay = true;
-  /// Max |geodesic curvature − inscribed-polygon curvature| on the boundary.
-  double circle_tolerance = 1e-9;
-  int max_boundary_iterations = 60;
   /// Stop centring when |centre of mass| <= centring_tolerance.
   double centring_tolerance = 1e-10;
   int max_centring_iterations = 500;
@@ -41,14 +41,15 @@ struct SphericalUniformizationOptions {
 struct SphericalUniformization {
   /// #V positions on the unit sphere (same vertex order as the input).
   RowMatrixX3d positions;
-  /// True when the flow converged, the boundary became a circle, the centre
-  /// of mass reached the tolerance and no triangle is flipped.
+  /// True when the flow converged, the centre of mass reached the tolerance
+  /// and no input triangle is flipped on the sphere.
   bool converged = false;
   int removed_vertex = -1;
-  int boundary_iterations = 0;
-  int flow_iterations = 0;             ///< Newton iterations summed over boundary rounds
-  double max_curvature_error = 0;      ///< interior and boundary, last flow
-  double circle_error = 0;             ///< as circle_tolerance
+  int flow_iterations = 0;             ///< Newton iterations of the flattening
+  double max_curvature_error = 0;      ///< at the interior vertices of the disk
+  /// Always 0: the former circular-boundary iteration was replaced by the
+  /// exact vertex-at-infinity condition (field kept for the CLI's JSON).
+  double circle_error = 0;
   double centre_of_mass_norm = 0;      ///< after centring
   int flipped_faces = 0;               ///< faces whose normal points inward on the sphere
   int edge_flips = 0;                  ///< intrinsic flips in the last flattening
