@@ -288,6 +288,24 @@ TEST(SystemOfLoops, UnrefinedGreedyLoopsCutToADiskAndGiveTheSameWord) {
   }
 }
 
+TEST(SystemOfLoops, CoarsestToriFromEveryBaseVertex) {
+  // 9 to 16 vertices: every face near x carries several arcs, bends and
+  // crossings at once.
+  for (int variant = 0; variant < 4; ++variant)
+    for (int n : {3, 4}) {
+      const TriMesh t = samples::torus_of_revolution(2.0, 0.6, n, 3, variant);
+      for (int base = 0; base < t.num_vertices(); ++base) {
+        SCOPED_TRACE("variant " + std::to_string(variant) + " n " + std::to_string(n) + " base " + std::to_string(base));
+        SystemOfLoopsOptions opt;
+        opt.base_vertex = base;
+        const SystemOfLoops s = system_of_loops(t, opt);
+        EXPECT_TRUE(s.shortcut_used);
+        check_refined(t, s);
+        if (::testing::Test::HasFailure()) return;
+      }
+    }
+}
+
 TEST(SystemOfLoops, GenusZeroAndBadBaseVertexAreInputErrors) {
   EXPECT_THROW(system_of_loops(samples::sphere(2)), InputError);
   SystemOfLoopsOptions opt;
