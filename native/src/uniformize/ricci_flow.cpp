@@ -559,7 +559,10 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
     }
     const double g2 = g.squaredNorm();
     bool accepted = false;
-    for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
+    // Close to the tolerance a failed line search means the round-off floor
+    // of the angle sums has been reached: do not spend refactorizations on it.
+    const int max_attempts = err < 1e3 * options.tolerance ? 2 : 12;
+    for (int attempt = 0; attempt < max_attempts && !accepted; ++attempt) {
       Eigen::VectorXd delta;
       // Cheap path: the factor of an earlier Hessian as a preconditioner for
       // conjugate gradients on the current one (H changes little between
@@ -630,11 +633,20 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
       }
     }
     if (!accepted) {
-      failure = "Newton line search failed to decrease the curvature residual";
+      failure = err < 1e3 * options.tolerance
+                    ? "Newton stalled at the floating-point floor of the angle sums"
+                    : "Newton line search failed to decrease the curvature residual";
       break;
     }
     err = g.cwiseAbs().maxCoeff();
     res.residual_history.push_back(err);
+    const size_t nh = res.residual_history.size();
+    if (nh >= 4 && err > options.tolerance && err < 1e3 * options.tolerance &&
+        err > 0.9 * res.residual_history[nh - 4]) {
+      failure = "Newton stalled at the floating-point floor of the angle sums";
+      ++it;
+      break;
+    }
   }
   res.iterations = it;
 
