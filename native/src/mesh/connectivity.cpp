@@ -33,16 +33,17 @@ Connectivity::Connectivity(const RowMatrixX3i& F, int num_vertices) : F_(F) {
     while (j < keys.size() && keys[j].first == keys[i].first) ++j;
     const int h0 = keys[i].second;
     const int a = std::min(tail(h0), head(h0)), b = std::max(tail(h0), head(h0));
-    const std::string name = "edge (" + std::to_string(a) + ", " + std::to_string(b) + ")";
+    // Built only on the error paths: this loop runs once per edge.
+    auto name = [a, b] { return "edge (" + std::to_string(a) + ", " + std::to_string(b) + ")"; };
     if (j - i == 1)
-      throw InputError(name + " is a boundary edge (only one face, " + std::to_string(h0 / 3) +
+      throw InputError(name() + " is a boundary edge (only one face, " + std::to_string(h0 / 3) +
                        "); open surfaces are not supported");
     if (j - i > 2)
-      throw InputError(name + " is non-manifold: it has " + std::to_string(j - i) + " faces");
+      throw InputError(name() + " is non-manifold: it has " + std::to_string(j - i) + " faces");
     const int h1 = keys[i + 1].second;
     if (tail(h0) == tail(h1))
       throw InputError("faces " + std::to_string(h0 / 3) + " and " + std::to_string(h1 / 3) +
-                       " are inconsistently oriented across " + name);
+                       " are inconsistently oriented across " + name());
     const int e = static_cast<int>(ev.size());
     ev.push_back({a, b});
     twin_[h0] = h1;
