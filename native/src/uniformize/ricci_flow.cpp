@@ -559,6 +559,12 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
     }
     const double g2 = g.squaredNorm();
     bool accepted = false;
+    // Flat, no Dirichlet vertex: the constant part of g cannot be removed by
+    // any u (Σ K = 2πχ); it is only round-off of the angle sums (~1e-10 at
+    // 500k vertices). Solving with it would pile it onto the pinned vertex
+    // 0, so drop it and let it stay spread evenly (~1e-16 per vertex).
+    Eigen::VectorXd rhs = -g;
+    if (flat && !any_fixed) rhs.array() += g.mean();
     for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
       Eigen::VectorXd delta;
       // Cheap path: the factor of an earlier Hessian as a preconditioner for
@@ -566,9 +572,9 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
       // Newton steps); refactorize when that does not converge quickly.
       if (factor_valid && mu == 0.0) {
         delta = Eigen::VectorXd::Zero(nv);
-        Eigen::VectorXd r = -g, z = llt.solve(r), p = z;
+        Eigen::VectorXd r = rhs, z = llt.solve(r), p = z;
         double rz = r.dot(z);
-        const double stop = 1e-12 * g.norm();
+        const double stop = 1e-12 * rhs.norm();
         bool ok = false;
         for (int k = 0; k < 40; ++k) {
           const Eigen::VectorXd Hp = H * p;
@@ -599,7 +605,7 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
         }
         llt.factorize(A);
         factor_valid = llt.info() == Eigen::Success && mu == 0.0;
-        if (llt.info() == Eigen::Success) delta = llt.solve(-g);
+        if (llt.info() == Eigen::Success) delta = llt.solve(rhs);
         if (llt.info() != Eigen::Success || !delta.allFinite()) {
           mu = std::max(mu * 10.0, 1e-10 * (1.0 + H.diagonal().cwiseAbs().maxCoeff()));
           continue;
