@@ -22,7 +22,17 @@
 //      Hyperbolic  cosh l = cosh r_i cosh r_j + I_ij sinh r_i sinh r_j.
 //
 // Methods: Newton with line search on a sparse Hessian (default), or the
-// paper's explicit flow du/dt = K_target − K (for comparison).
+// paper's explicit flow du/dt = K_target − K (for comparison). Newton:
+// Jacobian dK/du by the chain rule through the law of cosines (Euclidean
+// vertex scaling: the cotangent Laplacian / 2), CHOLMOD Cholesky reused as a
+// conjugate-gradient preconditioner across steps, backtracking on |K − K*|₂,
+// a Levenberg shift only when a step fails; flat gauge: u_0 stays 0.
+//
+// With fixed connectivity a solution need not exist (crumpled slivers, long
+// CAD triangles: the minimiser of the extended energy has degenerate
+// triangles); then converged = false with the face named. Setting
+// options.intrinsic_delaunay gives a metric on a flipped triangulation
+// instead (see RicciFlowResult::faces).
 //
 // Usage by the layout / CLI / Python code: call ricci_flow(conn, edge_lengths(mesh, conn),
 // Background::Euclidean or ::Hyperbolic); check `converged` (never true with
