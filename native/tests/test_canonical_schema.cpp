@@ -73,6 +73,28 @@ TEST(Words, ReduceInverseConjugate) {
   EXPECT_EQ(to_text({1, -2}, {"a1", "b1"}), "a1 b1^-1");
 }
 
+TEST(Words, DehnReductionSolvesTheWordProblem) {
+  std::mt19937 rng(3);
+  for (int g = 2; g <= 5; ++g) {
+    const Word R = random_schema(g, rng);
+    // Conjugates of R^±1 multiplied together are the identity.
+    for (int trial = 0; trial < 20; ++trial) {
+      Word w;
+      for (int k = 0; k < 3; ++k) {
+        Word c;
+        for (int q = 0; q < 4; ++q) c.push_back((1 + rng() % (2 * g)) * (rng() % 2 ? 1 : -1));
+        Word rr = R;
+        std::rotate(rr.begin(), rr.begin() + rng() % rr.size(), rr.end());
+        w = concat({w, c, rng() % 2 ? rr : inverse(rr), inverse(c)});
+      }
+      EXPECT_TRUE(dehn_reduce(w, R).empty()) << "g=" << g;
+    }
+    // Non-trivial elements stay non-trivial; short words are kept as they are.
+    EXPECT_FALSE(dehn_reduce(concat(Word{1}, R), R).empty());
+    EXPECT_EQ(dehn_reduce(Word{1, 2}, R), (Word{1, 2}));
+  }
+}
+
 TEST(CanonicalSchema, CanonicalWordNeedsNoRewriting) {
   for (int g = 1; g <= 4; ++g) {
     Word w;

@@ -70,6 +70,7 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
   double E = energy(r.z);
   r.energy_history.push_back(E);
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> solver;
+  solver.cholmod().print = 0;  // indefinite tries are expected and handled below
   bool analysed = false;
   for (int it = 0; it < options.max_iterations; ++it) {
     // Riemannian Newton (DESIGN.md §7). Unknowns: a tangent vector per
@@ -119,14 +120,21 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
       r.iterations = it;
       break;
     }
-    // A small Levenberg shift keeps the factorisation definite where the
-    // map is nearly flat (the normal surplus d coth d − 1 is O(d²)).
-    for (int k = 0; k < 2 * n; ++k) trip.emplace_back(k, k, 1e-9 * max_w);
-    Eigen::SparseMatrix<double> H(2 * n, 2 * n);
-    H.setFromTriplets(trip.begin(), trip.end());
-    if (!analysed) solver.analyzePattern(H), analysed = true;
-    solver.factorize(H);
-    if (solver.info() != Eigen::Success) throw SolveError("hyperbolic harmonic map: Hessian factorisation failed");
+    // A Levenberg shift keeps the factorisation definite: tiny where the
+    // model is exact (the normal surplus d coth d − 1 is O(d²)), raised when
+    // far from the optimum the frame bookkeeping leaves it indefinite.
+    Eigen::SparseMatrix<double> H0(2 * n, 2 * n);
+    H0.setFromTriplets(trip.begin(), trip.end());
+    Eigen::SparseMatrix<double> H;
+    for (double shift = 1e-9 * max_w;; shift *= 100) {
+      Eigen::SparseMatrix<double> I(2 * n, 2 * n);
+      I.setIdentity();
+      H = H0 + shift * I;
+      if (!analysed) solver.analyzePattern(H), analysed = true;
+      solver.factorize(H);
+      if (solver.info() == Eigen::Success) break;
+      if (shift > 1e6 * max_w) throw SolveError("hyperbolic harmonic map: Hessian factorisation failed");
+    }
     Eigen::VectorXd step = solver.solve(-g);
     // Far from the optimum the frame bookkeeping makes the model Hessian
     // inexact; fall back to the diagonally scaled gradient when the Newton

@@ -258,7 +258,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   for (const Word& w : scs.letters) {
     Word img;
     for (int x : w) img = concat(img, x > 0 ? tcs.generators[x - 1] : inverse(tcs.generators[-x - 1]));
-    letter_image.push_back(img);
+    letter_image.push_back(dehn_reduce(img, layout.word));
   }
   std::vector<Word> src_letters;
   for (size_t k = 0; k < scs.letters.size(); ++k) src_letters.push_back({static_cast<int>(k) + 1});
@@ -271,6 +271,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   for (size_t e = 0; e < edge_word.size(); ++e)
     for (int x : edge_word[e])
       target_word[e] = concat(target_word[e], x > 0 ? letter_image[x - 1] : inverse(letter_image[-x - 1]));
+  // Shortest-form words keep the products of SU(1,1) matrices small.
+  for (Word& w : target_word) w = dehn_reduce(w, layout.word);
   auto word_of = [&](int h) {
     const int e = sc.edge(h);
     return sc.edge_halfedge(e) == h ? target_word[e] : inverse(target_word[e]);
@@ -281,14 +283,11 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     const int e = sc.edge(h);
     return sc.edge_halfedge(e) == h ? rho_edge[e] : rho_edge[e].inverse();
   };
-  // Exact checks in the free group on the target's loops: the product around
-  // every face is trivial, except around the root of T*, where the whole
-  // surface relation appears (the target's boundary word, up to conjugation).
+  // Exact check (Dehn's algorithm solves the word problem of the surface
+  // group): the product around every source face is the identity.
   for (int f = 0; f < source.num_faces(); ++f) {
     const Word around = concat({word_of(3 * f), word_of(3 * f + 1), word_of(3 * f + 2)});
-    const bool ok = sl.dual_tree_parent_halfedge[f] >= 0
-                        ? around.empty()
-                        : conjugate(around, layout.word) || conjugate(around, inverse(layout.word));
+    const bool ok = dehn_reduce(around, layout.word).empty();
     if (!ok) throw SolveError("homotopy data inconsistent around source face " + std::to_string(f));
   }
   const IntrinsicDelaunayResult idt = intrinsic_delaunay(sc, edge_lengths(source, sc));
@@ -301,7 +300,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     edges[e].w = ie.cot_weight;
     Word w;
     for (int h : ie.path) w = concat(w, word_of(h));
-    edges[e].rho = evaluate_mobius(w, layout.generators);
+    edges[e].rho = evaluate_mobius(dehn_reduce(w, layout.word), layout.generators);
   }
   HomotopyCandidate c;
   c.description = "a_i -> a'_i, b_i -> b'_i (canonical systems of both surfaces)";

@@ -64,6 +64,36 @@ Word commutator_product(const std::vector<Word>& generators) {
   return w;
 }
 
+Word dehn_reduce(const Word& w, const Word& relator) {
+  const int n = static_cast<int>(relator.size());
+  std::vector<Word> rotations;
+  for (const Word& r : {relator, inverse(relator)})
+    for (int s = 0; s < n; ++s) {
+      Word rot(r.begin() + s, r.end());
+      rot.insert(rot.end(), r.begin(), r.begin() + s);
+      rotations.push_back(std::move(rot));
+    }
+  Word cur = reduce(w);
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (size_t i = 0; i < cur.size() && !changed; ++i)
+      for (const Word& r : rotations) {
+        size_t k = 0;
+        while (k < r.size() && i + k < cur.size() && cur[i + k] == r[k]) ++k;
+        if (2 * k <= r.size()) continue;
+        // cur = X r[0..k) Y with r[0..k) r[k..n) = 1: r[0..k) = (r[k..n))^-1.
+        Word next(cur.begin(), cur.begin() + i);
+        const Word rest = inverse(Word(r.begin() + k, r.end()));
+        next.insert(next.end(), rest.begin(), rest.end());
+        next.insert(next.end(), cur.begin() + i + k, cur.end());
+        cur = reduce(next);
+        changed = true;
+        break;
+      }
+  }
+  return cur;
+}
+
 std::string to_text(const Word& w, const std::vector<std::string>& names) {
   std::string s;
   for (size_t i = 0; i < w.size(); ++i) {

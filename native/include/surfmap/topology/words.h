@@ -23,6 +23,13 @@ bool conjugate(const Word& u, const Word& v);
 /// Product of commutators a1 b1 a1^-1 b1^-1 ... for generators given as
 /// words [a1, b1, a2, b2, ...].
 Word commutator_product(const std::vector<Word>& generators);
+/// Dehn's algorithm for the surface group with the single relator R (a
+/// one-vertex schema word: every letter once with each sign, so pieces have
+/// length 1 and the presentation is C'(1/6) for genus >= 2): while the word
+/// holds more than half of a cyclic rotation of R or R^-1, replace that part
+/// by the inverse of the rest. The result is freely reduced and represents
+/// the same group element; the identity reduces to the empty word.
+Word dehn_reduce(const Word& w, const Word& relator);
 /// Text form: letters named by `names` (index k-1 for letter k), inverses
 /// written with "^-1", separated by spaces.
 std::string to_text(const Word& w, const std::vector<std::string>& names);
