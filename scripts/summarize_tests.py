@@ -14,6 +14,9 @@ for name in ("ctest.xml", "pytest.xml"):
         continue
     root = ET.parse(path).getroot()
     suites = [root] if root.tag == "testsuite" else root.findall("testsuite")
+    if sum(int(s.get("tests", 0)) for s in suites) == 0:
+        print(f"surfmap: {name} holds no test results (the suite found no tests)")
+        failed += 1
     for s in suites:
         tests = int(s.get("tests", 0))
         bad = int(s.get("failures", 0)) + int(s.get("errors", 0))
