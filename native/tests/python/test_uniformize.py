@@ -171,6 +171,20 @@ def test_ricci_flow_binding():
     assert np.allclose(r["edge_lengths"], np.exp((r["u"][e[:, 0]] + r["u"][e[:, 1]]) / 2) * l0, rtol=1e-9)
 
 
+def test_sphere():
+    V, F = _core.shapes.sphere(2)
+    V = V * np.array([1.0, 1.5, 0.7])  # an ellipsoid
+    res = _core.uniformize(V, F)
+    assert res["genus"] == 0 and res["kind"] == "spherical" and res["converged"]
+    P = res["sphere_positions"]
+    assert P.shape == V.shape
+    assert np.allclose(np.linalg.norm(P, axis=1), 1, atol=1e-9)
+    assert res["flipped_faces"] == 0
+    # Outward orientation kept: every face's normal points away from the centre.
+    a, b, c = P[F[:, 0]], P[F[:, 1]], P[F[:, 2]]
+    assert np.all(np.einsum("ij,ij->i", np.cross(b - a, c - a), a + b + c) > 0)
+
+
 def test_cli_report_and_layout(cli, tmp_path):
     V, F = torus(2.0, 1.0, 60, 30)
     mesh = tmp_path / "torus.obj"
