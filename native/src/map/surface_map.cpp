@@ -115,19 +115,46 @@ Eigen::Vector3d barycentric_in_face(const TriMesh& m, int f, const Eigen::Vector
   return b / b.sum();
 }
 
-FlatTarget flat_target(const TriMesh& target, const SurfaceMapOptions& options) {
-  FlatTarget t;
+// The target laid out in its uniformization metric: system of loops (refined,
+// as the layout needs simple loops), Ricci flow, disk layout.
+struct UniformizedTarget {
+  SystemOfLoops loops;
+  DiskLayout layout;
+};
+
+UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options) {
+  UniformizedTarget t;
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.target_base_vertex;
   t.loops = system_of_loops(target, lo);
   const Connectivity conn(t.loops.mesh.F, t.loops.mesh.num_vertices());
   RicciFlowOptions ro;
   ro.tolerance = options.uniformization_tolerance;
-  const RicciFlowResult flow = ricci_flow(conn, edge_lengths(t.loops.mesh, conn), Background::Euclidean, ro);
+  const RicciFlowResult flow = ricci_flow(conn, edge_lengths(t.loops.mesh, conn), background, ro);
   if (!flow.converged) throw SolveError("target uniformization did not converge: " + flow.message);
-  t.layout = layout_disk(conn, flow.edge_lengths, Background::Euclidean, t.loops);
+  t.layout = layout_disk(conn, flow.edge_lengths, background, t.loops);
   if (t.layout.num_flipped > 0)
     throw SolveError("target layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
+  return t;
+}
+
+// The source's unrefined system of loops: it keeps the source's own
+// connectivity, and contracting its tree gives a one-vertex schema.
+SystemOfLoops source_loops(const TriMesh& source, const SurfaceMapOptions& options) {
+  SystemOfLoopsOptions slo;
+  slo.base_vertex = options.source_base_vertex;
+  slo.refine = false;
+  SystemOfLoops sl = system_of_loops(source, slo);
+  if (sl.mesh.num_vertices() != source.num_vertices() || sl.mesh.F != source.F)
+    throw SolveError("the unrefined system of loops changed the source mesh");
+  return sl;
+}
+
+FlatTarget flat_target(const TriMesh& target, const SurfaceMapOptions& options) {
+  FlatTarget t;
+  UniformizedTarget u = uniformized_target(target, Background::Euclidean, options);
+  t.loops = std::move(u.loops);
+  t.layout = std::move(u.layout);
   const CanonicalSchema cs = canonical_schema(t.layout.word);
   t.A = evaluate(cs.generators[0], t.layout.generator_translations);
   t.B = evaluate(cs.generators[1], t.layout.generator_translations);
@@ -228,27 +255,14 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   };
 
   // Target: hyperbolic metric, layout, canonical generators.
-  SystemOfLoopsOptions tlo;
-  tlo.base_vertex = options.target_base_vertex;
-  const SystemOfLoops tl = system_of_loops(target, tlo);
-  const Connectivity trc(tl.mesh.F, tl.mesh.num_vertices());
-  RicciFlowOptions ro;
-  ro.tolerance = options.uniformization_tolerance;
-  const RicciFlowResult flow = ricci_flow(trc, edge_lengths(tl.mesh, trc), Background::Hyperbolic, ro);
-  if (!flow.converged) throw SolveError("target uniformization did not converge: " + flow.message);
-  const DiskLayout layout = layout_disk(trc, flow.edge_lengths, Background::Hyperbolic, tl);
-  if (layout.num_flipped > 0)
-    throw SolveError("target layout has " + std::to_string(layout.num_flipped) + " flipped triangles");
+  const UniformizedTarget ut = uniformized_target(target, Background::Hyperbolic, options);
+  const SystemOfLoops& tl = ut.loops;
+  const DiskLayout& layout = ut.layout;
   const CanonicalSchema tcs = canonical_schema(layout.word);
   stage_done("target uniformization", 0.3);
 
   // Source homotopy data in the target's deck group.
-  SystemOfLoopsOptions slo;
-  slo.base_vertex = options.source_base_vertex;
-  slo.refine = false;
-  const SystemOfLoops sl = system_of_loops(source, slo);
-  if (sl.mesh.num_vertices() != source.num_vertices() || sl.mesh.F != source.F)
-    throw SolveError("the unrefined system of loops changed the source mesh");
+  const SystemOfLoops sl = source_loops(source, options);
   const CanonicalSchema scs = canonical_schema(sl.word);
   // Deck elements are computed as words first and multiplied out only when
   // reduced: products like g g^-1 of large SU(1,1) matrices lose digits, and
@@ -540,14 +554,8 @@ SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const
   const FlatTarget tgt = flat_target(target, options);
   stage_done("target uniformization", 0.3);
 
-  // Source: homotopy data. The unrefined system of loops keeps the source's
-  // own connectivity; contracting its tree gives a one-vertex schema.
-  SystemOfLoopsOptions slo;
-  slo.base_vertex = options.source_base_vertex;
-  slo.refine = false;
-  const SystemOfLoops sl = system_of_loops(source, slo);
-  if (sl.mesh.num_vertices() != source.num_vertices() || sl.mesh.F != source.F)
-    throw SolveError("the unrefined system of loops changed the source mesh");
+  // Source: homotopy data.
+  const SystemOfLoops sl = source_loops(source, options);
   const CanonicalSchema scs = canonical_schema(sl.word);
   const std::vector<int> first = loop_first_vertices(sl, sc);
 
