@@ -2,6 +2,8 @@
 // Private core of the discrete Ricci flow, shared by ricci_flow.cpp and
 // spherical.cpp. Works on a plain face/edge table so that it also handles a
 // disk (the punctured sphere), which Connectivity (closed meshes only) cannot.
+#include <sstream>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -11,6 +13,16 @@
 #include "surfmap/uniformize/ricci_flow.h"
 
 namespace surfmap::detail {
+
+constexpr double kPi = 3.14159265358979323846;
+
+/// A number with 3 significant digits, for error messages.
+inline std::string fmt(double x) {
+  std::ostringstream s;
+  s.precision(3);
+  s << x;
+  return s.str();
+}
 
 using RowMatrixX2i = Eigen::Matrix<int, Eigen::Dynamic, 2, Eigen::RowMajor>;
 

@@ -30,14 +30,6 @@ namespace surfmap {
 namespace detail {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-std::string fmt(double x) {
-  std::ostringstream s;
-  s.precision(3);
-  s << x;
-  return s.str();
-}
 
 /// Lengths of the metric at u and their derivatives dl_e/du at both endpoints.
 class SchemeMetric {

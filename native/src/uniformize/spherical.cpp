@@ -19,14 +19,6 @@
 namespace surfmap {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-std::string fmt(double x) {
-  std::ostringstream s;
-  s.precision(3);
-  s << x;
-  return s.str();
-}
 
 /// Ball automorphism of the unit ball sending c to 0 (keeps the unit sphere).
 Eigen::Vector3d mobius(const Eigen::Vector3d& c, const Eigen::Vector3d& x) {
@@ -197,7 +189,7 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   }
   out.centre_of_mass_norm = cm.norm();
   if (out.message.empty() && !(out.centre_of_mass_norm <= options.centring_tolerance))
-    out.message = "Möbius centring stalled at |centre| = " + fmt(out.centre_of_mass_norm);
+    out.message = "Möbius centring stalled at |centre| = " + detail::fmt(out.centre_of_mass_norm);
 
   // Orientation check on the sphere.
   int first_flipped = -1;
