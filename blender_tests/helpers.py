@@ -116,20 +116,6 @@ def double_torus(name, location=(0, 0, 0)):
     return mesh_object(name, V, F, location)
 
 
-def import_obj(path, name, location=(0, 0, 0)):
-    V, polys = [], []
-    with open(path) as f:
-        for line in f:
-            t = line.split()
-            if not t:
-                continue
-            if t[0] == "v":
-                V.append([float(x) for x in t[1:4]])
-            elif t[0] == "f":
-                polys.append([int(x.split("/")[0]) - 1 for x in t[1:]])
-    return mesh_object(name, V, polys, location)
-
-
 def select(objs, active):
     for ob in bpy.context.view_layer.objects:
         ob.select_set(False)

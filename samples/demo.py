@@ -55,20 +55,6 @@ def enable_addon():
     return mod
 
 
-def read_obj(path):
-    V, polys = [], []
-    with open(path) as f:
-        for line in f:
-            t = line.split()
-            if not t:
-                continue
-            if t[0] == "v":
-                V.append([float(x) for x in t[1:4]])
-            elif t[0] == "f":
-                polys.append([int(x.split("/")[0]) - 1 for x in t[1:]])
-    return V, polys
-
-
 def make_object(name, V, polys):
     me = bpy.data.meshes.new(name)
     me.from_pydata(V, [], polys)
@@ -85,8 +71,10 @@ def load_pair(sm, meshes):
         pa, pb = os.path.join(meshes, a), os.path.join(meshes, b)
         if os.path.exists(pa) and os.path.exists(pb):
             print(f"demo: genus-{genus} pair {a} -> {b}")
-            return (make_object(os.path.splitext(a)[0], *read_obj(pa)),
-                    make_object(os.path.splitext(b)[0], *read_obj(pb)))
+            # The native module reads OBJ/OFF/PLY through OpenMesh.
+            (Va, Pa), (Vb, Pb) = sm.read_polygon_soup(pa), sm.read_polygon_soup(pb)
+            return (make_object(os.path.splitext(a)[0], Va.tolist(), Pa),
+                    make_object(os.path.splitext(b)[0], Vb.tolist(), Pb))
     print("demo: no sample pair in samples/meshes; using the built-in shapes")
     shapes = getattr(sm, "shapes", None)
     if shapes is not None and hasattr(shapes, "n_hole_torus") and hasattr(shapes, "vase"):

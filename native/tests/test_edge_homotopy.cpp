@@ -12,23 +12,6 @@ namespace {
 const GroupOps<Word> kFreeGroup{Word{}, [](const Word& a, const Word& b) { return concat(a, b); },
                                 [](const Word& a) { return inverse(a); }};
 
-// The loop's first endpoint on its generator edge: the vertex the loop
-// reaches first when walking loops[k] from the base vertex.
-std::vector<int> loop_first_vertices(const SystemOfLoops& s, const Connectivity& c) {
-  std::vector<int> first;
-  for (size_t k = 0; k < s.loops.size(); ++k) {
-    const int e = s.generator_edges[k];
-    const int u = c.edge_vertex(e, 0), w = c.edge_vertex(e, 1);
-    const auto& L = s.loops[k];
-    int found = -1;
-    for (size_t q = 0; q + 1 < L.size(); ++q)
-      if ((L[q] == u && L[q + 1] == w) || (L[q] == w && L[q + 1] == u)) found = L[q];
-    EXPECT_GE(found, 0) << "loop " << k << " does not use its generator edge";
-    first.push_back(found);
-  }
-  return first;
-}
-
 void check_free_group_elements(const TriMesh& mesh, bool refine, int base_vertex) {
   SystemOfLoopsOptions opt;
   opt.refine = refine;

@@ -14,8 +14,15 @@
 
 #include "surfmap/error.h"
 #include "surfmap/mesh/connectivity.h"
+#include "surfmap/topology/system_of_loops.h"
 
 namespace surfmap {
+
+/// For each loop k of `loops`, the endpoint of its generator edge that the
+/// loop reaches first when walked from the base vertex (the
+/// `loop_first_vertex` argument of edge_group_elements). `conn` must be
+/// Connectivity(loops.mesh.F). Throws SolveError if a loop misses its edge.
+std::vector<int> loop_first_vertices(const SystemOfLoops& loops, const Connectivity& conn);
 
 /// Group operations for edge_group_elements.
 template <class G>
