@@ -99,6 +99,33 @@ Eigen::Vector3d barycentric_in_face(const TriMesh& m, int f, const Eigen::Vector
   return b / b.sum();
 }
 
+// The point with (clamped, renormalised) barycentrics b in face f of m.
+PointOnSurface point_in_face(const TriMesh& m, int f, Eigen::Vector3d b) {
+  b = b.cwiseMax(0.0);
+  b /= b.sum();
+  PointOnSurface ps;
+  ps.face = f;
+  ps.barycentric = b;
+  ps.position = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) ps.position += b[k] * m.V.row(m.F(f, k)).transpose();
+  return ps;
+}
+
+// A point given in face rf of the refined mesh s.mesh, expressed on the input
+// mesh (face + barycentrics). `cache` (#F refined, initially -1) remembers the
+// input face of each refined face.
+PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, const SystemOfLoops& s,
+                              std::vector<int>& cache, int rf, const Eigen::Vector3d& b) {
+  PointOnSurface ps = point_in_face(s.mesh, rf, b);
+  if (cache[rf] < 0) {
+    Eigen::Vector3d unused;
+    cache[rf] = containing_input_face(input, ic, s, rf, &unused);
+  }
+  ps.face = cache[rf];
+  ps.barycentric = barycentric_in_face(input, ps.face, ps.position);
+  return ps;
+}
+
 // The target laid out in its uniformization metric: system of loops (refined,
 // as the layout needs simple loops), Ricci flow, disk layout.
 struct UniformizedTarget {
@@ -230,8 +257,6 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
                     const SurfaceMapOptions& options, SurfaceMapResult& out,
                     const std::function<void(const std::string&, double)>& stage_done) {
   using hyperbolic::Mobius;
-  const GroupOps<Mobius> ops{Mobius(), [](const Mobius& a, const Mobius& b) { return (a * b).normalized(); },
-                             [](const Mobius& a) { return a.inverse(); }};
   auto evaluate_mobius = [](const Word& w, const std::vector<Mobius>& values) {
     Mobius m;
     for (int x : w) m = (m * (x > 0 ? values[std::abs(x) - 1] : values[std::abs(x) - 1].inverse())).normalized();
@@ -475,17 +500,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     Eigen::Vector3d b;
     const int rf = locate(tgrid, zp[i], &b);
     if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
-    b = b.cwiseMax(0.0);
-    b /= b.sum();
-    Eigen::Vector3d p = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) p += b[k] * tl.mesh.V.row(tl.mesh.F(rf, k)).transpose();
-    if (refined_face_origin[rf] < 0) {
-      Eigen::Vector3d unused;
-      refined_face_origin[rf] = containing_input_face(target, tc, tl, rf, &unused);
-    }
-    out.forward[i].position = p;
-    out.forward[i].face = refined_face_origin[rf];
-    out.forward[i].barycentric = barycentric_in_face(target, out.forward[i].face, p);
+    out.forward[i] = point_on_input(target, tc, tl, refined_face_origin, rf, b);
   }
   stage_done("forward location", 0.85);
   std::vector<std::array<Complex, 3>> stris(source.num_faces());
@@ -497,12 +512,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     Eigen::Vector3d b;
     const int f = locate(sgrid, layout.vertex_positions[v], &b);
     if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
-    b = b.cwiseMax(0.0);
-    b /= b.sum();
-    out.inverse[v].face = f;
-    out.inverse[v].barycentric = b;
-    out.inverse[v].position = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) out.inverse[v].position += b[k] * source.V.row(source.F(f, k)).transpose();
+    out.inverse[v] = point_in_face(source, f, b);
   }
   stage_done("inverse location", 1.0);
 }
@@ -733,26 +743,12 @@ SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const
   centre /= double(ntf);
   const TriangleGrid tgrid(ttris);
   std::vector<int> refined_face_origin(ntf, -1);
-  auto input_face_of = [&](int rf) {
-    if (refined_face_origin[rf] < 0) {
-      Eigen::Vector3d unused;
-      refined_face_origin[rf] = containing_input_face(target, tc, tgt.loops, rf, &unused);
-    }
-    return refined_face_origin[rf];
-  };
   out.forward.resize(n);
   for (int i = 0; i < n; ++i) {
     Eigen::Vector3d b;
     const int rf = locate_periodic(tgrid, z[i], centre, tgt.A, tgt.B, &b);
     if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
-    b = b.cwiseMax(0.0);
-    b /= b.sum();
-    Eigen::Vector3d p = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) p += b[k] * tgt.loops.mesh.V.row(tgt.loops.mesh.F(rf, k)).transpose();
-    PointOnSurface& ps = out.forward[i];
-    ps.position = p;
-    ps.face = input_face_of(rf);
-    ps.barycentric = barycentric_in_face(target, ps.face, p);
+    out.forward[i] = point_on_input(target, tc, tgt.loops, refined_face_origin, rf, b);
   }
   stage_done("forward location", 0.85);
 
@@ -770,13 +766,7 @@ SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const
     Eigen::Vector3d b;
     const int f = locate_periodic(sgrid, tgt.layout.vertex_positions[v], scentre, tgt.A, tgt.B, &b);
     if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
-    b = b.cwiseMax(0.0);
-    b /= b.sum();
-    PointOnSurface& ps = out.inverse[v];
-    ps.face = f;
-    ps.barycentric = b;
-    ps.position = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) ps.position += b[k] * source.V.row(source.F(f, k)).transpose();
+    out.inverse[v] = point_in_face(source, f, b);
   }
   stage_done("inverse location", 1.0);
   out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();
