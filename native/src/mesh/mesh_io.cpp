@@ -38,7 +38,7 @@ class SoupImporter : public OM::IO::BaseImporter {
     return OM::VertexHandle(static_cast<int>(points.size()) - 1);
   }
   OM::VertexHandle add_vertex() override { return add_vertex(OM::Vec3d(0, 0, 0)); }
-  OM::HalfedgeHandle add_edge(OM::VertexHandle, OM::VertexHandle) override { return {}; }
+  OM::HalfedgeHandle add_edge(OM::VertexHandle, OM::VertexHandle) override { return OM::HalfedgeHandle(); }
   OM::FaceHandle add_face(const VHandles& idx) override {
     std::vector<int> poly;
     poly.reserve(idx.size());
@@ -46,7 +46,7 @@ class SoupImporter : public OM::IO::BaseImporter {
     polygons.push_back(std::move(poly));
     return OM::FaceHandle(static_cast<int>(polygons.size()) - 1);
   }
-  OM::FaceHandle add_face(OM::HalfedgeHandle) override { return {}; }
+  OM::FaceHandle add_face(OM::HalfedgeHandle) override { return OM::FaceHandle(); }
   void add_face_texcoords(OM::FaceHandle, OM::VertexHandle, const std::vector<OM::Vec2f>&) override {}
   void add_face_texcoords(OM::FaceHandle, OM::VertexHandle, const std::vector<OM::Vec3f>&) override {}
   void set_face_texindex(OM::FaceHandle, int) override {}
