@@ -4,7 +4,10 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <cstdint>
 #include <sstream>
+#include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -15,12 +18,40 @@
 #include "surfmap/mesh/mesh_io.h"
 
 namespace surfmap::cli {
+namespace {
+
+// Landmark pairs, one 'source_vertex target_vertex' per line; blank lines and
+// '#' comments are skipped. Errors name the file and line.
+std::vector<std::pair<int, int>> read_landmarks(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError("cannot read landmarks file " + path);
+  std::vector<std::pair<int, int>> pairs;
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.resize(hash);
+    std::istringstream s(line);
+    long long a = 0, b = 0;
+    std::string rest;
+    if (!(s >> a)) {
+      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      throw InputError(path + ":" + std::to_string(number) + ": expected 'source_vertex target_vertex'");
+    }
+    if (!(s >> b) || (s >> rest) || a < 0 || b < 0 || a > INT32_MAX || b > INT32_MAX)
+      throw InputError(path + ":" + std::to_string(number) + ": expected two vertex indices, got '" + line + "'");
+    pairs.emplace_back(static_cast<int>(a), static_cast<int>(b));
+  }
+  return pairs;
+}
+
+}  // namespace
 
 void register_map(CLI::App& app) {
   auto* cmd = app.add_subcommand("map", "Globally optimal map from SRC onto DST (same genus)");
   struct Args {
-    std::string src, dst, out, report, correspondence;
-    int homotopy = -1, base_vertex = -1, target_base_vertex = -1;
+    std::string src, dst, out, report, correspondence, method = "newton", landmarks;
+    int homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
+    double tolerance = 1e-10;
     bool quiet = false;
   };
   auto a = std::make_shared<Args>();
@@ -33,6 +64,14 @@ void register_map(CLI::App& app) {
   cmd->add_option("--homotopy", a->homotopy, "Homotopy class (index into the report's candidates; default: lowest energy)");
   cmd->add_option("--base-vertex", a->base_vertex, "Base vertex of the source's system of loops");
   cmd->add_option("--target-base-vertex", a->target_base_vertex, "Base vertex of the target's system of loops");
+  cmd->add_option("--method", a->method, "Optimiser of the harmonic energy (genus >= 2)")
+      ->check(CLI::IsMember({"newton", "relaxation"}));
+  cmd->add_option("--landmarks", a->landmarks,
+                  "PAIRS.txt: one 'source_vertex target_vertex' pair per line (# starts a comment), held fixed");
+  cmd->add_option("--tolerance", a->tolerance, "Relative gradient tolerance of the harmonic solve")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--max-iterations", a->max_iterations, "Iteration cap of the harmonic solve")
+      ->check(CLI::PositiveNumber);
   cmd->add_flag("--quiet", a->quiet, "No progress lines on stderr");
   cmd->callback([a] {
     const IntakeResult src = load_mesh(a->src), dst = load_mesh(a->dst);
@@ -41,6 +80,10 @@ void register_map(CLI::App& app) {
     opt.homotopy = a->homotopy;
     opt.source_base_vertex = a->base_vertex;
     opt.target_base_vertex = a->target_base_vertex;
+    opt.method = a->method == "relaxation" ? MapMethod::Relaxation : MapMethod::Newton;
+    opt.tolerance = a->tolerance;
+    opt.max_iterations = a->max_iterations;
+    if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     if (!a->quiet)
       opt.progress = [](const std::string& stage, double fraction) {
         std::cerr << "surfmap: " << std::setw(3) << static_cast<int>(100 * fraction) << "% " << stage << "\n";
@@ -70,6 +113,8 @@ void register_map(CLI::App& app) {
         {"energy", {{"initial", m.initial_energy}, {"final", m.final_energy}, {"history", m.energy_history}}},
         {"distortion", {{"mean", m.mean_dilatation}, {"max", m.max_dilatation}}},
         {"initial_distortion", {{"mean", m.initial_mean_dilatation}, {"max", m.initial_max_dilatation}}},
+        {"method", a->method},
+        {"landmarks", opt.landmarks.size()},
         {"flipped_triangles", m.flipped_triangles},
         {"degenerate_triangles", m.degenerate_triangles},
         {"initial_flipped_triangles", m.initial_flipped_triangles},

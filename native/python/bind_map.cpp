@@ -1,4 +1,5 @@
 // Map layer bindings: the globally optimal surface map (paper §III–VII).
+#include <cstdint>
 #include <optional>
 
 #include "bindings.h"
@@ -33,13 +34,30 @@ void bind_map(py::module_& m) {
   m.def(
       "surface_map",
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
-         int target_base_vertex, py::object progress) {
+         int target_base_vertex, py::object progress, py::object landmarks, const std::string& method,
+         double tolerance, int max_iterations) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         SurfaceMapOptions opt;
         opt.homotopy = homotopy;
         opt.source_base_vertex = source_base_vertex;
         opt.target_base_vertex = target_base_vertex;
+        if (method == "newton") opt.method = MapMethod::Newton;
+        else if (method == "relaxation") opt.method = MapMethod::Relaxation;
+        else throw InputError("method must be 'newton' or 'relaxation', not '" + method + "'");
+        if (!(tolerance > 0)) throw InputError("tolerance must be positive");
+        if (max_iterations < 1) throw InputError("max_iterations must be at least 1");
+        opt.tolerance = tolerance;
+        opt.max_iterations = max_iterations;
+        if (!landmarks.is_none()) {
+          const auto pairs = py::cast<std::vector<std::vector<long long>>>(
+              py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
+          for (const auto& p : pairs) {
+            if (p[0] < 0 || p[1] < 0 || p[0] > INT32_MAX || p[1] > INT32_MAX)
+              throw InputError("landmark (" + std::to_string(p[0]) + ", " + std::to_string(p[1]) + ") has a negative or too large index");
+            opt.landmarks.emplace_back(static_cast<int>(p[0]), static_cast<int>(p[1]));
+          }
+        }
         // The callback runs on this thread with the GIL re-acquired; a Python
         // exception inside it stops the solve and is re-raised as is.
         std::optional<py::error_already_set> callback_error;
@@ -83,7 +101,8 @@ void bind_map(py::module_& m) {
         d["distortion"] = py::dict(py::arg("mean") = r.mean_dilatation, py::arg("max") = r.max_dilatation,
                                    py::arg("per_face") = to_numpy(r.dilatation));
         d["initial_distortion"] =
-            py::dict(py::arg("mean") = r.initial_mean_dilatation, py::arg("max") = r.initial_max_dilatation);
+            py::dict(py::arg("mean") = r.initial_mean_dilatation, py::arg("max") = r.initial_max_dilatation,
+                     py::arg("per_face") = to_numpy(r.initial_dilatation));
         d["flipped_triangles"] = r.flipped_triangles;
         d["degenerate_triangles"] = r.degenerate_triangles;
         d["forward"] = points_to_dict(r.forward);
@@ -103,9 +122,12 @@ void bind_map(py::module_& m) {
       },
       py::arg("source_V"), py::arg("source_F"), py::arg("target_V"), py::arg("target_F"), py::arg("homotopy") = -1,
       py::arg("source_base_vertex") = -1, py::arg("target_base_vertex") = -1, py::arg("progress") = py::none(),
-      "Globally optimal map from the source onto the target (same genus; genus 1 for now). Returns a dict "
+      py::arg("landmarks") = py::none(), py::arg("method") = "newton", py::arg("tolerance") = 1e-10,
+      py::arg("max_iterations") = 300,
+      "Globally optimal map from the source onto the target (same genus >= 1). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
-      "vertex, on the source), energies, distortion and the homotopy candidates. `progress(stage, fraction)` "
+      "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "
+      "(source vertex, target vertex) pairs held fixed; `method`: 'newton' or 'relaxation'. `progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
 }
 

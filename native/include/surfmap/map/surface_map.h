@@ -20,6 +20,7 @@
 #include <complex>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -27,6 +28,13 @@
 #include "surfmap/mesh/tri_mesh.h"
 
 namespace surfmap {
+
+/// Optimiser of the harmonic energy (genus >= 2; the flat case is one exact
+/// linear solve either way).
+enum class MapMethod {
+  Newton,      ///< Riemannian Newton with line search (DESIGN.md §7), the default
+  Relaxation,  ///< the paper's per-vertex relaxation in Möbius-centred charts (§VI-B), for comparison
+};
 
 struct SurfaceMapOptions {
   /// Homotopy class to use: index into SurfaceMapResult::candidates, or -1
@@ -40,6 +48,16 @@ struct SurfaceMapOptions {
   unsigned start_seed = 0;
   /// Curvature tolerance of the target's uniformization (default 1e-10).
   double uniformization_tolerance = 1e-10;
+  /// Optimiser of the harmonic energy (default Newton).
+  MapMethod method = MapMethod::Newton;
+  /// Relative gradient tolerance of the harmonic solve (default 1e-10) and
+  /// its iteration cap (default 300).
+  double tolerance = 1e-10;
+  int max_iterations = 300;
+  /// Landmark pairs (source vertex, target vertex) whose images are held
+  /// fixed: the source vertex maps exactly onto the target vertex (paper
+  /// §VII-C). Indices must be valid and each vertex used at most once.
+  std::vector<std::pair<int, int>> landmarks;
   /// Called between stages with the stage name and a fraction in [0, 1];
   /// return false to cancel (throws Cancelled).
   std::function<bool(const std::string& stage, double fraction)> progress;
@@ -77,6 +95,7 @@ struct SurfaceMapResult {
   std::vector<double> dilatation;
   double mean_dilatation = 0, max_dilatation = 0;
   double initial_mean_dilatation = 0, initial_max_dilatation = 0;
+  std::vector<double> initial_dilatation;  ///< #F_source D' of the initial map (empty when not computed)
   int flipped_triangles = 0, degenerate_triangles = 0;
   int initial_flipped_triangles = 0;
   std::vector<HomotopyCandidate> candidates;

@@ -1,0 +1,304 @@
+// Genus 1: the flat-torus case of the optimal map (paper §VI; DESIGN.md §2.8).
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <memory>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include <Eigen/CholmodSupport>
+#include <Eigen/SparseCore>
+
+#include "map_support.h"
+#include "surfmap/error.h"
+#include "surfmap/geometry/intrinsic_delaunay.h"
+#include "surfmap/map/distortion.h"
+#include "surfmap/topology/canonical_schema.h"
+#include "surfmap/topology/edge_homotopy.h"
+
+namespace surfmap::detail {
+namespace {
+
+const GroupOps<Complex> kTranslations{Complex(0.0), [](const Complex& a, const Complex& b) { return a + b; },
+                                      [](const Complex& a) { return -a; }};
+
+// Evaluates a word whose letters index `values` (1-based) in the translation group.
+Complex evaluate(const Word& w, const std::vector<Complex>& values) {
+  Complex s = 0;
+  for (int x : w) s += (x > 0 ? 1.0 : -1.0) * values[std::abs(x) - 1];
+  return s;
+}
+
+// Everything about the target that the solve needs: its flat layout (on the
+// refined mesh of its system of loops) and the canonical lattice basis.
+struct FlatTarget {
+  SystemOfLoops loops;
+  DiskLayout layout;
+  Complex A, B;  // translations of the canonical generators a', b'
+  std::vector<int> refined_to_input_face;
+};
+
+FlatTarget flat_target(const TriMesh& target, const SurfaceMapOptions& options) {
+  FlatTarget t;
+  UniformizedTarget u = uniformized_target(target, Background::Euclidean, options);
+  t.loops = std::move(u.loops);
+  t.layout = std::move(u.layout);
+  const CanonicalSchema cs = canonical_schema(t.layout.word);
+  t.A = evaluate(cs.generators[0], t.layout.generator_translations);
+  t.B = evaluate(cs.generators[1], t.layout.generator_translations);
+  return t;
+}
+
+// Locates p modulo the lattice (w1, w2) in the grid: reduce p to the
+// parallelogram around `centre`, then try nearby translates.
+int locate_periodic(const TriangleGrid& grid, Complex p, Complex centre, Complex w1, Complex w2,
+                    Eigen::Vector3d* bary) {
+  const double det = w1.real() * w2.imag() - w1.imag() * w2.real();
+  const Complex d = p - centre;
+  const double alpha = (d.real() * w2.imag() - d.imag() * w2.real()) / det;
+  const double beta = (w1.real() * d.imag() - w1.imag() * d.real()) / det;
+  const Complex q = p - std::round(alpha) * w1 - std::round(beta) * w2;
+  for (int ring = 0; ring <= 3; ++ring)
+    for (int m = -ring; m <= ring; ++m)
+      for (int n = -ring; n <= ring; ++n) {
+        if (std::max(std::abs(m), std::abs(n)) != ring) continue;
+        const int f = grid.locate(q + double(m) * w1 + double(n) * w2, bary);
+        if (f >= 0) return f;
+      }
+  return -1;
+}
+
+}  // namespace
+
+void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
+              const SurfaceMapOptions& options, SurfaceMapResult& out, const StageDone& stage_done) {
+  // Target: flat uniformization and canonical lattice basis.
+  const FlatTarget tgt = flat_target(target, options);
+  stage_done("target uniformization", 0.3);
+
+  // Source: homotopy data.
+  const SystemOfLoops sl = source_loops(source, options);
+  const CanonicalSchema scs = canonical_schema(sl.word);
+  const std::vector<int> first = loop_first_vertices(sl, sc);
+
+  // Source weights: intrinsic Delaunay cotangents of its 3D metric.
+  Eigen::VectorXd lengths = edge_lengths(source, sc);
+  const IntrinsicDelaunayResult idt = intrinsic_delaunay(sc, lengths);
+  if (!idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
+  stage_done("source homotopy data and weights", 0.4);
+
+  // Laplacian with vertex 0 pinned (the optimum is unique up to translation).
+  const int n = source.num_vertices();
+  auto factor = [&](bool uniform) {
+    std::vector<Eigen::Triplet<double>> trip;
+    for (const auto& e : idt.edges) {
+      const double w = uniform ? 1.0 : e.cot_weight;
+      if (w == 0) continue;
+      for (auto [a, b, s] : {std::tuple{e.i, e.i, w}, std::tuple{e.j, e.j, w}, std::tuple{e.i, e.j, -w},
+                             std::tuple{e.j, e.i, -w}})
+        if (a > 0 && b > 0) trip.emplace_back(a - 1, b - 1, s);
+    }
+    Eigen::SparseMatrix<double> L(n - 1, n - 1);
+    L.setFromTriplets(trip.begin(), trip.end());
+    auto solver = std::make_unique<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>>();
+    solver->compute(L);
+    if (solver->info() != Eigen::Success)
+      throw SolveError("the source Laplacian could not be factorised (weights disconnect the mesh?)");
+    return solver;
+  };
+  const auto solver = factor(false);
+  const auto tutte = factor(true);
+
+  // Translation of each intrinsic edge for a given homotopy class.
+  auto intrinsic_translations = [&](const Complex a_img, const Complex b_img) {
+    std::vector<Complex> letter_values;
+    for (const Word& w : scs.letters) letter_values.push_back(evaluate(w, {a_img, b_img}));
+    const std::vector<Complex> edge_t = edge_group_elements(sc, sl.tree_parent_halfedge, sl.dual_tree_parent_halfedge,
+                                                            sl.generator_edges, first, letter_values, kTranslations);
+    auto of = [&](int h) { return sc.edge_halfedge(sc.edge(h)) == h ? edge_t[sc.edge(h)] : -edge_t[sc.edge(h)]; };
+    // Around every face (the root of T* included) the translations must
+    // cancel: the abelianised surface relation.
+    const double scale = std::abs(a_img) + std::abs(b_img);
+    for (int f = 0; f < source.num_faces(); ++f)
+      if (std::abs(of(3 * f) + of(3 * f + 1) + of(3 * f + 2)) > 1e-9 * scale)
+        throw SolveError("homotopy data inconsistent around source face " + std::to_string(f));
+    std::vector<Complex> t(idt.edges.size());
+    for (size_t e = 0; e < idt.edges.size(); ++e) {
+      Complex s = 0;
+      for (int h : idt.edges[e].path) s += of(h);
+      t[e] = s;
+    }
+    return std::make_pair(t, std::vector<Complex>(edge_t));
+  };
+  // Solve L z = b with b_i += w t, b_j -= w t for each edge i->j (image of the
+  // edge runs from z_i to z_j + t, energy w |z_j + t - z_i|^2, whose
+  // gradient in z_i is 2w (z_i - z_j - t)).
+  auto solve = [&](const auto& factorisation, const std::vector<Complex>& t, bool uniform) {
+    Eigen::VectorXd bx = Eigen::VectorXd::Zero(n), by = Eigen::VectorXd::Zero(n);
+    for (size_t e = 0; e < idt.edges.size(); ++e) {
+      const auto& ie = idt.edges[e];
+      const double w = uniform ? 1.0 : ie.cot_weight;
+      bx[ie.i] += w * t[e].real(), by[ie.i] += w * t[e].imag();
+      bx[ie.j] -= w * t[e].real(), by[ie.j] -= w * t[e].imag();
+    }
+    const Eigen::VectorXd x = factorisation->solve(bx.tail(n - 1)), y = factorisation->solve(by.tail(n - 1));
+    std::vector<Complex> z(n, 0.0);
+    for (int i = 1; i < n; ++i) z[i] = Complex(x[i - 1], y[i - 1]);
+    double energy = 0;
+    for (size_t e = 0; e < idt.edges.size(); ++e) {
+      const auto& ie = idt.edges[e];
+      energy += ie.cot_weight * std::norm(z[ie.j] + t[e] - z[ie.i]);
+    }
+    return std::make_pair(z, energy);
+  };
+
+  // Candidate classes: a -> p A + q B, b -> r A + s B for small SL(2,Z)
+  // matrices (the handle correspondences of a torus), up to the sign ±I,
+  // which gives the same energy (the hyperelliptic involution).
+  std::vector<std::array<int, 4>> mats;
+  for (int p = -1; p <= 1; ++p)
+    for (int q = -1; q <= 1; ++q)
+      for (int r = -1; r <= 1; ++r)
+        for (int s2 = -1; s2 <= 1; ++s2) {
+          if (p * s2 - q * r != 1) continue;
+          const bool canonical_sign = p > 0 || (p == 0 && q > 0);
+          if (canonical_sign) mats.push_back({p, q, r, s2});
+        }
+  std::sort(mats.begin(), mats.end(), [](const auto& m1, const auto& m2) {
+    auto cost = [](const auto& m) { return std::abs(m[0]) + std::abs(m[1]) + std::abs(m[2]) + std::abs(m[3]); };
+    return cost(m1) < cost(m2);
+  });
+  for (const auto& m : mats) {
+    HomotopyCandidate c;
+    std::copy(m.begin(), m.end(), c.matrix);
+    c.description = "a -> " + std::to_string(m[0]) + " a' + " + std::to_string(m[1]) + " b',  b -> " +
+                    std::to_string(m[2]) + " a' + " + std::to_string(m[3]) + " b'";
+    const auto tr = intrinsic_translations(double(m[0]) * tgt.A + double(m[1]) * tgt.B,
+                                           double(m[2]) * tgt.A + double(m[3]) * tgt.B);
+    c.energy = solve(solver, tr.first, false).second;
+    out.candidates.push_back(c);
+  }
+  out.chosen_candidate = options.homotopy;
+  if (out.chosen_candidate < 0) {
+    out.chosen_candidate = 0;
+    for (size_t i = 1; i < out.candidates.size(); ++i)
+      if (out.candidates[i].energy < out.candidates[out.chosen_candidate].energy) out.chosen_candidate = static_cast<int>(i);
+  } else if (out.chosen_candidate >= static_cast<int>(out.candidates.size())) {
+    throw InputError("homotopy class " + std::to_string(options.homotopy) + " does not exist; there are " +
+                     std::to_string(out.candidates.size()) + " candidates (0.." +
+                     std::to_string(out.candidates.size() - 1) + ")");
+  }
+  stage_done("homotopy candidates", 0.6);
+
+  const int* M = out.candidates[out.chosen_candidate].matrix;
+  const auto [t_intrinsic, t_edges] = intrinsic_translations(double(M[0]) * tgt.A + double(M[1]) * tgt.B,
+                                                             double(M[2]) * tgt.A + double(M[3]) * tgt.B);
+  const auto [z_init, e_init_unused] = solve(tutte, t_intrinsic, true);
+  (void)e_init_unused;
+  auto [z, energy] = solve(solver, t_intrinsic, false);
+  // The optimum is unique up to a translation of the torus; put the source's
+  // base vertex where the target's base vertex lies (both are central
+  // vertices of their shapes), a reproducible and usually natural choice.
+  const Complex shift = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z[sl.base_vertex];
+  for (Complex& zi : z) zi += shift;
+  double e_init = 0;
+  for (size_t e = 0; e < idt.edges.size(); ++e) {
+    const auto& ie = idt.edges[e];
+    e_init += ie.cot_weight * std::norm(z_init[ie.j] + t_intrinsic[e] - z_init[ie.i]);
+  }
+  out.initial_energy = e_init;
+  out.final_energy = energy;
+  out.energy_history.assign({e_init, static_cast<double>(energy)});
+  out.iterations = 1;
+  out.converged = true;
+  out.source_image = z;
+  out.target_omega1 = tgt.A;
+  out.target_omega2 = tgt.B;
+  stage_done("harmonic solve", 0.7);
+
+  // Quality on the source's own triangles.
+  auto image_corners = [&](const std::vector<Complex>& zz) {
+    Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> img(source.num_faces(), 3);
+    auto of = [&](int h) { return sc.edge_halfedge(sc.edge(h)) == h ? t_edges[sc.edge(h)] : -t_edges[sc.edge(h)]; };
+    for (int f = 0; f < source.num_faces(); ++f) {
+      // corner 0 at z_{F0}; corner 1 = z_{F1} + t(F0->F1); corner 2 = z_{F2} - t(F2->F0).
+      img(f, 0) = zz[source.F(f, 0)];
+      img(f, 1) = zz[source.F(f, 1)] + of(3 * f);
+      img(f, 2) = zz[source.F(f, 2)] - of(3 * f + 2);
+    }
+    return img;
+  };
+  const auto img = image_corners(z);
+  const DistortionStats q = planar_distortion(source.V, source.F, img);
+  const DistortionStats q0 = planar_distortion(source.V, source.F, image_corners(z_init));
+  out.dilatation = q.per_face;
+  out.mean_dilatation = q.mean;
+  out.max_dilatation = q.max;
+  out.flipped_triangles = q.flipped;
+  out.degenerate_triangles = q.degenerate;
+  out.initial_dilatation = q0.per_face;
+  out.initial_mean_dilatation = q0.mean;
+  out.initial_max_dilatation = q0.max;
+  out.initial_flipped_triangles = q0.flipped;
+  // The energy lives on the intrinsic triangulation, where positive weights
+  // guarantee an embedding; count its image triangles too.
+  int intrinsic_flipped = 0;
+  for (int f = 0; f < idt.F.rows(); ++f) {
+    Complex c[3];
+    c[0] = z[idt.F(f, 0)];
+    for (int k = 1; k < 3; ++k) {
+      const int e = idt.face_edges(f, k - 1);  // side from corner k-1 to corner k
+      const auto& ie = idt.edges[e];
+      const bool along = ie.i == idt.F(f, k - 1) && ie.j == idt.F(f, k);
+      c[k] = c[k - 1] + (along ? (z[ie.j] + t_intrinsic[e] - z[ie.i]) : -(z[ie.j] + t_intrinsic[e] - z[ie.i]));
+    }
+    const Complex e1 = c[1] - c[0], e2 = c[2] - c[0];
+    if (e1.real() * e2.imag() - e1.imag() * e2.real() <= 0) ++intrinsic_flipped;
+  }
+  if (q.flipped || q.degenerate)
+    throw SolveError("the optimised map has " + std::to_string(q.flipped) + " flipped and " +
+                     std::to_string(q.degenerate) + " degenerate image triangles (" +
+                     std::to_string(intrinsic_flipped) + " in the intrinsic triangulation); it is not returned");
+  stage_done("quality", 0.75);
+
+  // Forward map: locate every z_i in the target's disk (modulo the lattice).
+  const int ntf = tgt.loops.mesh.num_faces();
+  std::vector<std::array<Complex, 3>> ttris(ntf);
+  Complex centre = 0;
+  for (int f = 0; f < ntf; ++f) {
+    for (int k = 0; k < 3; ++k) ttris[f][k] = tgt.layout.corners(f, k);
+    centre += (ttris[f][0] + ttris[f][1] + ttris[f][2]) / 3.0;
+  }
+  centre /= double(ntf);
+  const TriangleGrid tgrid(ttris);
+  std::vector<int> refined_face_origin(ntf, -1);
+  out.forward.resize(n);
+  for (int i = 0; i < n; ++i) {
+    Eigen::Vector3d b;
+    const int rf = locate_periodic(tgrid, z[i], centre, tgt.A, tgt.B, &b);
+    if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
+    out.forward[i] = point_on_input(target, tc, tgt.loops, refined_face_origin, rf, b);
+  }
+  stage_done("forward location", 0.85);
+
+  // Inverse map: locate every target vertex in the image of the source triangles.
+  std::vector<std::array<Complex, 3>> stris(source.num_faces());
+  Complex scentre = 0;
+  for (int f = 0; f < source.num_faces(); ++f) {
+    for (int k = 0; k < 3; ++k) stris[f][k] = img(f, k);
+    scentre += (stris[f][0] + stris[f][1] + stris[f][2]) / 3.0;
+  }
+  scentre /= double(source.num_faces());
+  const TriangleGrid sgrid(stris);
+  out.inverse.resize(target.num_vertices());
+  for (int v = 0; v < target.num_vertices(); ++v) {
+    Eigen::Vector3d b;
+    const int f = locate_periodic(sgrid, tgt.layout.vertex_positions[v], scentre, tgt.A, tgt.B, &b);
+    if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
+    out.inverse[v] = point_in_face(source, f, b);
+  }
+  stage_done("inverse location", 1.0);
+}
+
+}  // namespace surfmap::detail

@@ -1,0 +1,290 @@
+// Genus >= 2: the hyperbolic case of the optimal map (paper §VI; DESIGN.md §2.8, §7).
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "map_support.h"
+#include "surfmap/error.h"
+#include "surfmap/geometry/intrinsic_delaunay.h"
+#include "surfmap/map/distortion.h"
+#include "surfmap/map/hyperbolic_harmonic.h"
+#include "surfmap/topology/canonical_schema.h"
+#include "surfmap/topology/edge_homotopy.h"
+
+namespace surfmap::detail {
+
+// Genus >= 2: hyperbolic target, harmonic map by preconditioned Riemannian
+// descent (map/hyperbolic_harmonic.h), only the canonical class a_i -> a'_i,
+// b_i -> b'_i for now.
+void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
+                    const SurfaceMapOptions& options, SurfaceMapResult& out,
+                    const StageDone& stage_done) {
+  using hyperbolic::Mobius;
+  auto evaluate_mobius = [](const Word& w, const std::vector<Mobius>& values) {
+    Mobius m;
+    for (int x : w) m = (m * (x > 0 ? values[std::abs(x) - 1] : values[std::abs(x) - 1].inverse())).normalized();
+    return m;
+  };
+
+  // Target: hyperbolic metric, layout, canonical generators.
+  const UniformizedTarget ut = uniformized_target(target, Background::Hyperbolic, options);
+  const SystemOfLoops& tl = ut.loops;
+  const DiskLayout& layout = ut.layout;
+  const CanonicalSchema tcs = canonical_schema(layout.word);
+  stage_done("target uniformization", 0.3);
+
+  // Source homotopy data in the target's deck group.
+  const SystemOfLoops sl = source_loops(source, options);
+  const CanonicalSchema scs = canonical_schema(sl.word);
+  // Deck elements are computed as words first and multiplied out only when
+  // reduced: products like g g^-1 of large SU(1,1) matrices lose digits, and
+  // the words of single edges are short (their crossings with the cut).
+  // Source letter k as a word in the target's loop letters:
+  std::vector<Word> letter_image;
+  for (const Word& w : scs.letters) {
+    Word img;
+    for (int x : w) img = concat(img, x > 0 ? tcs.generators[x - 1] : inverse(tcs.generators[-x - 1]));
+    letter_image.push_back(dehn_reduce(img, layout.word));
+  }
+  std::vector<Word> src_letters;
+  for (size_t k = 0; k < scs.letters.size(); ++k) src_letters.push_back({static_cast<int>(k) + 1});
+  const GroupOps<Word> free_group{Word{}, [](const Word& u, const Word& v) { return concat(u, v); },
+                                  [](const Word& u) { return inverse(u); }};
+  const std::vector<Word> edge_word =
+      edge_group_elements(sc, sl.tree_parent_halfedge, sl.dual_tree_parent_halfedge, sl.generator_edges,
+                          loop_first_vertices(sl, sc), src_letters, free_group);
+  std::vector<Word> target_word(edge_word.size());
+  for (size_t e = 0; e < edge_word.size(); ++e)
+    for (int x : edge_word[e])
+      target_word[e] = concat(target_word[e], x > 0 ? letter_image[x - 1] : inverse(letter_image[-x - 1]));
+  // Shortest-form words keep the products of SU(1,1) matrices small.
+  for (Word& w : target_word) w = dehn_reduce(w, layout.word);
+  auto word_of = [&](int h) {
+    const int e = sc.edge(h);
+    return sc.edge_halfedge(e) == h ? target_word[e] : inverse(target_word[e]);
+  };
+  std::vector<Mobius> rho_edge(edge_word.size());
+  for (size_t e = 0; e < edge_word.size(); ++e) rho_edge[e] = evaluate_mobius(target_word[e], layout.generators);
+  auto rho_of = [&](int h) {
+    const int e = sc.edge(h);
+    return sc.edge_halfedge(e) == h ? rho_edge[e] : rho_edge[e].inverse();
+  };
+  // Exact check (Dehn's algorithm solves the word problem of the surface
+  // group): the product around every source face is the identity.
+  for (int f = 0; f < source.num_faces(); ++f) {
+    const Word around = concat({word_of(3 * f), word_of(3 * f + 1), word_of(3 * f + 2)});
+    const bool ok = dehn_reduce(around, layout.word).empty();
+    if (!ok) throw SolveError("homotopy data inconsistent around source face " + std::to_string(f));
+  }
+  const IntrinsicDelaunayResult idt = intrinsic_delaunay(sc, edge_lengths(source, sc));
+  if (!idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
+  std::vector<WeightedEdge> edges(idt.edges.size());
+  for (size_t e = 0; e < idt.edges.size(); ++e) {
+    const auto& ie = idt.edges[e];
+    edges[e].i = ie.i;
+    edges[e].j = ie.j;
+    edges[e].w = ie.cot_weight;
+    Word w;
+    for (int h : ie.path) w = concat(w, word_of(h));
+    edges[e].rho = evaluate_mobius(dehn_reduce(w, layout.word), layout.generators);
+  }
+  HomotopyCandidate c;
+  c.description = "a_i -> a'_i, b_i -> b'_i (canonical systems of both surfaces)";
+  out.candidates = {c};
+  if (options.homotopy > 0)
+    throw InputError("homotopy class " + std::to_string(options.homotopy) +
+                     " does not exist; for genus >= 2 only class 0 (canonical handle order) is available so far");
+  out.chosen_candidate = 0;
+  stage_done("source homotopy data and weights", 0.4);
+
+  HyperbolicHarmonicOptions ho;
+  ho.tolerance = options.tolerance;
+  ho.max_iterations = options.max_iterations;
+  if (options.progress)
+    ho.progress = [&](int it, double E, double g) { return options.progress("harmonic solve", 0.4 + 0.3 * std::min(1.0, it / 50.0)); };
+  std::vector<Complex> start(source.num_vertices(), Complex(0.0));
+  if (options.start_seed != 0) {
+    std::mt19937 rng(options.start_seed);
+    std::uniform_real_distribution<double> U(-0.35, 0.35);
+    for (Complex& z : start) z = Complex(U(rng), U(rng));
+  }
+  const HyperbolicHarmonicResult hr = hyperbolic_harmonic_map(source.num_vertices(), edges, layout.generators, start, ho);
+  if (!hr.converged)
+    throw SolveError("the harmonic map solve did not converge in " + std::to_string(hr.iterations) +
+                     " iterations (gradient " + std::to_string(hr.gradient_history.back()) + ")");
+  out.converged = true;
+  out.iterations = hr.iterations;
+  out.energy_history = hr.energy_history;
+  out.initial_energy = hr.energy_history.front();
+  out.final_energy = hr.energy;
+  out.candidates[0].energy = hr.energy;
+  stage_done("harmonic solve", 0.7);
+
+  // The geodesic 4g-gon P on the layout's corners is a convex fundamental
+  // domain (in the Klein model) with side maps built from its corners:
+  // side i (c_i -> c_i+1, letter x) is glued to the side j of letter x^-1,
+  // traversed backwards, so M_i takes (c_i, c_i+1) to (c_j+1, c_j) and the
+  // outside of side i to the inside of P along side j.
+  const int nsides = static_cast<int>(layout.side_start.size());
+  std::vector<Complex> corner(nsides), kcorner(nsides);
+  for (int i = 0; i < nsides; ++i) {
+    const int h = layout.boundary_halfedges[layout.side_start[i]];
+    corner[i] = layout.corners(h / 3, h % 3);
+    kcorner[i] = hyperbolic::poincare_to_klein(corner[i]);
+  }
+  std::vector<Mobius> side_map(nsides);
+  for (int i = 0; i < nsides; ++i) {
+    int j = -1;
+    for (int q = 0; q < nsides; ++q)
+      if (layout.word[q] == -layout.word[i]) j = q;
+    if (j < 0) throw SolveError("the target's boundary word has no partner for side " + std::to_string(i));
+    side_map[i] = hyperbolic::isometry_from_pairs(corner[i], corner[(i + 1) % nsides], corner[(j + 1) % nsides], corner[j]);
+  }
+  // Moves z into P; returns the element applied.
+  auto reduce_into_polygon = [&](Complex& z) {
+    Mobius acc;
+    for (int guard = 0; guard < 200; ++guard) {
+      const Complex k = hyperbolic::poincare_to_klein(z);
+      int worst = -1;
+      double worst_value = -1e-13;
+      for (int i = 0; i < nsides; ++i) {
+        const Complex e = kcorner[(i + 1) % nsides] - kcorner[i], d = k - kcorner[i];
+        const double side = (e.real() * d.imag() - e.imag() * d.real()) / std::abs(e);
+        if (side < worst_value) worst_value = side, worst = i;
+      }
+      if (worst < 0) break;
+      z = side_map[worst].apply(z);
+      acc = (side_map[worst] * acc).normalized();
+    }
+    return acc;
+  };
+  std::vector<Complex> zp = hr.z;
+  std::vector<Mobius> deck = hr.vertex_deck;
+  for (int i = 0; i < source.num_vertices(); ++i) deck[i] = (reduce_into_polygon(zp[i]) * deck[i]).normalized();
+
+  // Effective element of source halfedge h after the solve's chart moves.
+  auto eff = [&](int h) { return (deck[sc.tail(h)] * rho_of(h) * deck[sc.head(h)].inverse()).normalized(); };
+  // Image triangles: corners in the Poincaré disk, anchored at corner 0.
+  Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> img(source.num_faces(), 3);
+  for (int f = 0; f < source.num_faces(); ++f) {
+    img(f, 0) = zp[source.F(f, 0)];
+    img(f, 1) = eff(3 * f).apply(zp[source.F(f, 1)]);
+    img(f, 2) = eff(3 * f + 2).inverse().apply(zp[source.F(f, 2)]);
+  }
+  // Dilatation from hyperbolic side lengths; orientation in the chart
+  // centring corner 0 (Möbius maps preserve orientation).
+  out.dilatation.assign(source.num_faces(), std::numeric_limits<double>::infinity());
+  double weighted = 0, total_area = 0;
+  for (int f = 0; f < source.num_faces(); ++f) {
+    const Mobius T = Mobius::centring(img(f, 0));
+    const Complex b = T.apply(img(f, 1)), cc = T.apply(img(f, 2));
+    const double cross = b.real() * cc.imag() - b.imag() * cc.real();
+    if (std::abs(cross) <= 1e-14 * std::max(std::norm(b), std::norm(cc))) {
+      ++out.degenerate_triangles;
+      continue;
+    }
+    if (cross < 0) {
+      ++out.flipped_triangles;
+      continue;
+    }
+    const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
+                          p2 = source.V.row(source.F(f, 2));
+    const Eigen::Vector3d ss((p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm());
+    const Eigen::Vector3d is(hyperbolic::distance(img(f, 0), img(f, 1)), hyperbolic::distance(img(f, 1), img(f, 2)),
+                             hyperbolic::distance(img(f, 2), img(f, 0)));
+    const double d = triangle_dilatation(ss, is);
+    out.dilatation[f] = d;
+    const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+    weighted += area * d;
+    total_area += area;
+    out.max_dilatation = std::max(out.max_dilatation, d);
+  }
+  out.mean_dilatation = weighted / std::max(total_area, 1e-300);
+  out.initial_mean_dilatation = std::numeric_limits<double>::quiet_NaN();
+  out.initial_max_dilatation = std::numeric_limits<double>::quiet_NaN();
+  if (out.flipped_triangles || out.degenerate_triangles)
+    throw SolveError("the optimised map has " + std::to_string(out.flipped_triangles) + " flipped and " +
+                     std::to_string(out.degenerate_triangles) + " degenerate image triangles; it is not returned");
+  out.source_image = zp;
+  stage_done("quality", 0.75);
+
+  // Location, with geodesic triangles as straight ones in the Klein model.
+  // How far (in Klein units) a point lies outside P; 0 inside.
+  auto outside_P = [&](Complex z) {
+    const Complex k = hyperbolic::poincare_to_klein(z);
+    double out_by = 0;
+    for (int i = 0; i < nsides; ++i) {
+      const Complex e = kcorner[(i + 1) % nsides] - kcorner[i], d = k - kcorner[i];
+      out_by = std::max(out_by, -(e.real() * d.imag() - e.imag() * d.real()) / std::abs(e));
+    }
+    return out_by;
+  };
+  // Points are first reduced into P. The mesh regions differ from P only
+  // near its sides and corners, so the containing triangle is in an image
+  // of the point under side maps that keep it near P (around a corner up to
+  // 4g of them): breadth first over those, pruning images far from P.
+  auto locate = [&](const TriangleGrid& grid, Complex z, Eigen::Vector3d* bary) {
+    reduce_into_polygon(z);
+    // Exhaustively up to two side maps (the usual case: the mesh's cut
+    // sides bulge away from P's geodesic sides) ...
+    int f = grid.locate(hyperbolic::poincare_to_klein(z), bary);
+    for (int a1 = 0; f < 0 && a1 < nsides; ++a1) {
+      const Complex w = side_map[a1].apply(z);
+      f = grid.locate(hyperbolic::poincare_to_klein(w), bary);
+      for (int a2 = 0; f < 0 && a2 < nsides; ++a2)
+        f = grid.locate(hyperbolic::poincare_to_klein(side_map[a2].apply(w)), bary);
+    }
+    if (f >= 0) return f;
+    // ... then breadth first over longer words (around corners up to 4g),
+    // pruning images that are far from P.
+    std::vector<Complex> frontier{z};
+    std::set<std::pair<long long, long long>> seen;
+    auto key = [](Complex w) { return std::make_pair(std::llround(w.real() * 1e9), std::llround(w.imag() * 1e9)); };
+    seen.insert(key(z));
+    for (int depth = 1; depth <= nsides && !frontier.empty() && seen.size() < 20000; ++depth) {
+      std::vector<Complex> next;
+      for (Complex w : frontier)
+        for (const auto& m : side_map) {
+          const Complex q = m.apply(w);
+          if (outside_P(q) > 0.5 || !seen.insert(key(q)).second) continue;
+          if ((f = grid.locate(hyperbolic::poincare_to_klein(q), bary)) >= 0) return f;
+          next.push_back(q);
+        }
+      frontier.swap(next);
+    }
+    return -1;
+  };
+  const int ntf = tl.mesh.num_faces();
+  std::vector<std::array<Complex, 3>> ttris(ntf);
+  for (int f = 0; f < ntf; ++f)
+    for (int k = 0; k < 3; ++k) ttris[f][k] = hyperbolic::poincare_to_klein(layout.corners(f, k));
+  const TriangleGrid tgrid(ttris);
+  std::vector<int> refined_face_origin(ntf, -1);
+  out.forward.resize(source.num_vertices());
+  for (int i = 0; i < source.num_vertices(); ++i) {
+    Eigen::Vector3d b;
+    const int rf = locate(tgrid, zp[i], &b);
+    if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
+    out.forward[i] = point_on_input(target, tc, tl, refined_face_origin, rf, b);
+  }
+  stage_done("forward location", 0.85);
+  std::vector<std::array<Complex, 3>> stris(source.num_faces());
+  for (int f = 0; f < source.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) stris[f][k] = hyperbolic::poincare_to_klein(img(f, k));
+  const TriangleGrid sgrid(stris);
+  out.inverse.resize(target.num_vertices());
+  for (int v = 0; v < target.num_vertices(); ++v) {
+    Eigen::Vector3d b;
+    const int f = locate(sgrid, layout.vertex_positions[v], &b);
+    if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
+    out.inverse[v] = point_in_face(source, f, b);
+  }
+  stage_done("inverse location", 1.0);
+}
+
+}  // namespace surfmap::detail

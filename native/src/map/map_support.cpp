@@ -1,0 +1,108 @@
+#include "map_support.h"
+
+#include <cmath>
+#include <limits>
+
+#include "surfmap/error.h"
+
+namespace surfmap::detail {
+namespace {
+
+// The input face that contains refined face rf: among the faces around its
+// vertices' origins, the one whose plane holds the centroid with all
+// barycentrics >= -eps. Refined faces lie inside input faces.
+int containing_input_face(const TriMesh& input, const Connectivity& ic, const SystemOfLoops& s, int rf,
+                          Eigen::Vector3d* bary_of_centroid) {
+  const Eigen::Vector3d c =
+      (s.mesh.V.row(s.mesh.F(rf, 0)) + s.mesh.V.row(s.mesh.F(rf, 1)) + s.mesh.V.row(s.mesh.F(rf, 2))) / 3.0;
+  std::vector<int> candidates;
+  for (int k = 0; k < 3; ++k) {
+    const int v = s.mesh.F(rf, k);
+    candidates.push_back(s.origin_face[v]);
+    if (v < input.num_vertices())
+      for (int h : ic.outgoing(v)) candidates.push_back(Connectivity::face(h));
+    else
+      for (int k2 = 0; k2 < 3; ++k2) {  // faces across the origin face's edges
+        const int h = 3 * s.origin_face[v] + k2;
+        candidates.push_back(Connectivity::face(ic.twin(h)));
+      }
+  }
+  int best = -1;
+  double best_score = -std::numeric_limits<double>::infinity();
+  for (int f : candidates) {
+    const Eigen::Vector3d p0 = input.V.row(input.F(f, 0)), p1 = input.V.row(input.F(f, 1)),
+                          p2 = input.V.row(input.F(f, 2));
+    const Eigen::Vector3d n = (p1 - p0).cross(p2 - p0);
+    const double n2 = n.squaredNorm();
+    if (n2 <= 0) continue;
+    const Eigen::Vector3d b((p1 - c).cross(p2 - c).dot(n) / n2, (p2 - c).cross(p0 - c).dot(n) / n2,
+                            (p0 - c).cross(p1 - c).dot(n) / n2);
+    const double off_plane = std::abs((c - p0).dot(n)) / std::sqrt(n2);
+    const double score = b.minCoeff() - off_plane / std::sqrt(std::sqrt(n2));
+    if (score > best_score) best_score = score, best = f, *bary_of_centroid = b;
+  }
+  return best;
+}
+
+}  // namespace
+
+Eigen::Vector3d barycentric_in_face(const TriMesh& m, int f, const Eigen::Vector3d& p) {
+  const Eigen::Vector3d p0 = m.V.row(m.F(f, 0)), p1 = m.V.row(m.F(f, 1)), p2 = m.V.row(m.F(f, 2));
+  const Eigen::Vector3d n = (p1 - p0).cross(p2 - p0);
+  const double n2 = n.squaredNorm();
+  Eigen::Vector3d b((p1 - p).cross(p2 - p).dot(n) / n2, (p2 - p).cross(p0 - p).dot(n) / n2,
+                    (p0 - p).cross(p1 - p).dot(n) / n2);
+  b = b.cwiseMax(0.0);
+  return b / b.sum();
+}
+
+PointOnSurface point_in_face(const TriMesh& m, int f, Eigen::Vector3d b) {
+  b = b.cwiseMax(0.0);
+  b /= b.sum();
+  PointOnSurface ps;
+  ps.face = f;
+  ps.barycentric = b;
+  ps.position = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) ps.position += b[k] * m.V.row(m.F(f, k)).transpose();
+  return ps;
+}
+
+PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, const SystemOfLoops& s,
+                              std::vector<int>& cache, int rf, const Eigen::Vector3d& b) {
+  PointOnSurface ps = point_in_face(s.mesh, rf, b);
+  if (cache[rf] < 0) {
+    Eigen::Vector3d unused;
+    cache[rf] = containing_input_face(input, ic, s, rf, &unused);
+  }
+  ps.face = cache[rf];
+  ps.barycentric = barycentric_in_face(input, ps.face, ps.position);
+  return ps;
+}
+
+UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options) {
+  UniformizedTarget t;
+  SystemOfLoopsOptions lo;
+  lo.base_vertex = options.target_base_vertex;
+  t.loops = system_of_loops(target, lo);
+  const Connectivity conn(t.loops.mesh.F, t.loops.mesh.num_vertices());
+  RicciFlowOptions ro;
+  ro.tolerance = options.uniformization_tolerance;
+  const RicciFlowResult flow = ricci_flow(conn, edge_lengths(t.loops.mesh, conn), background, ro);
+  if (!flow.converged) throw SolveError("target uniformization did not converge: " + flow.message);
+  t.layout = layout_disk(conn, flow.edge_lengths, background, t.loops);
+  if (t.layout.num_flipped > 0)
+    throw SolveError("target layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
+  return t;
+}
+
+SystemOfLoops source_loops(const TriMesh& source, const SurfaceMapOptions& options) {
+  SystemOfLoopsOptions slo;
+  slo.base_vertex = options.source_base_vertex;
+  slo.refine = false;
+  SystemOfLoops sl = system_of_loops(source, slo);
+  if (sl.mesh.num_vertices() != source.num_vertices() || sl.mesh.F != source.F)
+    throw SolveError("the unrefined system of loops changed the source mesh");
+  return sl;
+}
+
+}  // namespace surfmap::detail
