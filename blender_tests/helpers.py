@@ -25,9 +25,11 @@ def reset_scene():
                  bpy.data.materials, bpy.data.collections):
         for block in list(coll):
             coll.remove(block)
-    bpy.context.scene.surfmap.status = ""
-    bpy.context.scene.surfmap.source_base_vertex = -1
-    bpy.context.scene.surfmap.target_base_vertex = -1
+    settings = bpy.context.scene.surfmap
+    for prop in settings.bl_rna.properties:
+        if prop.identifier not in ("rna_type", "name", "candidates") and not prop.is_readonly:
+            settings.property_unset(prop.identifier)
+    settings.candidates.clear()
 
 
 def mesh_object(name, V, F, location=(0, 0, 0)):
@@ -143,6 +145,13 @@ def scene_snapshot():
         "meshes": {o.name: mesh_snapshot(o) for o in bpy.data.objects if o.type == 'MESH'},
         "attributes": {o.name: sorted(a.name for a in o.data.attributes)
                        for o in bpy.data.objects if o.type == 'MESH'},
+        "uv_layers": {o.name: [u.name for u in o.data.uv_layers]
+                      for o in bpy.data.objects if o.type == 'MESH'},
+        "shape_keys": {o.name: [k.name for k in o.data.shape_keys.key_blocks]
+                       if o.data.shape_keys else [] for o in bpy.data.objects
+                       if o.type == 'MESH'},
+        "id_props": {o.name: sorted(o.data.keys()) for o in bpy.data.objects
+                     if o.type == 'MESH'},
     }
 
 
@@ -187,3 +196,91 @@ def faces_connected_across_non_seams(ob):
         for f in fs[1:]:
             parent[find(f)] = find(fs[0])
     return len({find(i) for i in range(len(me.polygons))}) == 1
+
+
+def load_sample(name, location=(0, 0, 0)):
+    """A shipped sample mesh (samples/meshes/NAME.obj) as an object, read by the native module."""
+    V, polys = sm().read_polygon_soup(os.path.join(SAMPLES, name + ".obj"))
+    return mesh_object(name, np.asarray(V), [list(p) for p in polys], location)
+
+
+def loop_uv_array(ob, name=None):
+    me = ob.data
+    layer = me.uv_layers[name] if name else me.uv_layers.active
+    a = np.empty(len(me.loops) * 2)
+    layer.data.foreach_get("uv", a)
+    return a.reshape(-1, 2)
+
+
+def set_loop_uvs(ob, name, uv):
+    layer = ob.data.uv_layers.get(name) or ob.data.uv_layers.new(name=name)
+    layer.data.foreach_set("uv", np.asarray(uv, dtype=np.float32).ravel())
+    return layer
+
+
+def torus_uvs(ob, R):
+    """Per-corner (u, v) of a torus of revolution around z with major radius R: the classic
+    rectangle layout, one island with seams along u = 0 and v = 0 (UVs unwrapped per polygon)."""
+    me = ob.data
+    co = np.array([v.co for v in me.vertices])
+    lv = np.array([l.vertex_index for l in me.loops])
+    P = co[lv]
+    u = np.arctan2(P[:, 1], P[:, 0]) / (2 * np.pi) % 1.0
+    v = np.arctan2(P[:, 2], np.hypot(P[:, 0], P[:, 1]) - R) / (2 * np.pi) % 1.0
+    for p in me.polygons:
+        s = slice(p.loop_start, p.loop_start + p.loop_total)
+        for a in (u, v):
+            a[s] = np.where(a[s].max() - a[s] > 0.5, a[s] + 1.0, a[s])
+    return np.stack([u, v], axis=1)
+
+
+def box_uvs(ob):
+    """Cube projection per polygon (like Blender's Cube Projection): each polygon is projected
+    along the axis its normal is closest to, mirrored so that every island keeps the outward
+    orientation; islands are scaled into their own cell of a 3x2 grid. Many islands, no flips."""
+    me = ob.data
+    co = np.array([v.co for v in me.vertices])
+    lo, hi = co.min(axis=0), co.max(axis=0)
+    size = float((hi - lo).max()) or 1.0
+    uv = np.zeros((len(me.loops), 2))
+    for p in me.polygons:
+        n = np.array(p.normal)
+        ax = int(np.argmax(np.abs(n)))
+        sgn = 1.0 if n[ax] > 0 else -1.0
+        u_ax, v_ax = (ax + 1) % 3, (ax + 2) % 3
+        cell = ax * 2 + (0 if sgn > 0 else 1)
+        for li in range(p.loop_start, p.loop_start + p.loop_total):
+            x = co[me.loops[li].vertex_index]
+            uu = (x[u_ax] - lo[u_ax]) / size
+            vv = (x[v_ax] - lo[v_ax]) / size
+            if sgn < 0:
+                uu = 1.0 - uu
+            uv[li] = ((cell % 3) + 0.05 + 0.9 * uu) / 3.0, ((cell // 3) + 0.05 + 0.9 * vv) / 2.0
+    return uv
+
+
+def run(op, **kw):
+    """Runs bpy.ops.surfmap.<op>; returns (result set, None) or (None, error text)."""
+    try:
+        return getattr(bpy.ops.surfmap, op)(**kw), None
+    except RuntimeError as e:
+        return None, str(e)
+
+
+def triangles_of(ob):
+    """(F (m,3) vertex indices, loops (m,3)) of Blender's loop triangles."""
+    me = ob.data
+    me.calc_loop_triangles()
+    m = len(me.loop_triangles)
+    F = np.empty(m * 3, dtype=np.int64)
+    L = np.empty(m * 3, dtype=np.int64)
+    me.loop_triangles.foreach_get("vertices", F)
+    me.loop_triangles.foreach_get("loops", L)
+    return F.reshape(m, 3), L.reshape(m, 3)
+
+
+def coords(ob):
+    me = ob.data
+    co = np.empty(len(me.vertices) * 3)
+    me.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3)

@@ -9,6 +9,8 @@ import helpers
 def _registered():
     return (hasattr(bpy.types, "SURFMAP_PT_main")
             and hasattr(bpy.types, "SURFMAP_OT_show_cut_loops")
+            and all(hasattr(bpy.types, "SURFMAP_OT_" + op) for op in (
+                "compute_map", "transfer_uvs", "create_morph", "paint_distortion"))
             and hasattr(bpy.types.Scene, "surfmap"))
 
 
@@ -80,6 +82,11 @@ def test_panel_shows_module_status_settings_and_button():
     panel.SURFMAP_PT_main.draw(p, bpy.context)
     assert ("label", "Native module: loaded") in p.log
     assert ("operator", "surfmap.show_cut_loops") in p.log
+    for op in ("compute_map", "transfer_uvs", "create_morph", "paint_distortion"):
+        assert ("operator", "surfmap." + op) in p.log, op
+    for name in ("homotopy", "landmark_mode", "method", "tolerance", "write_uvs", "write_morph",
+                 "write_distortion", "morph_space"):
+        assert ("prop", name) in p.log, name
     for name in ("source_base_vertex", "target_base_vertex", "loop_bevel", "mark_seams"):
         assert ("prop", name) in p.log
     # module missing: the panel says so and shows why

@@ -1,8 +1,8 @@
 """Surface Map: globally optimal maps between closed surfaces of equal genus
 (Li et al., TVCG 2008). Blender side of the surfmap project.
 
-Module layout (like the glTF add-on): core.py and native.py never import bpy; blender_io.py,
-operators.py, panel.py and properties.py are the Blender side.
+Module layout (like the glTF add-on): core.py, mapping.py, mapjob.py and native.py never import
+bpy; blender_io.py, operators.py, map_ops.py, panel.py and properties.py are the Blender side.
 """
 bl_info = {
     "name": "Surface Map",
@@ -16,15 +16,17 @@ bl_info = {
 
 if "bpy" in locals():
     import importlib
-    for _m in ("native", "core", "blender_io", "properties", "operators", "panel"):
+    for _m in ("native", "core", "mapping", "mapjob", "blender_io", "properties", "operators",
+               "map_ops", "panel"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
 import bpy  # noqa: E402
 
-from . import native, core, blender_io, properties, operators, panel  # noqa: E402,F401
+from . import (native, core, mapping, mapjob, blender_io, properties, operators,  # noqa: E402,F401
+               map_ops, panel)
 
-_modules = (properties, operators, panel)
+_modules = (properties, operators, map_ops, panel)
 
 
 def register():

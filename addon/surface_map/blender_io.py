@@ -146,3 +146,234 @@ def add_loop_curves(scene, obj, curves, bevel):
         ob.matrix_basis.identity()
         made.append(ob)
     return made
+
+
+# --- the map's inputs and outputs -------------------------------------------------------------
+
+LAYERS_KEY = "surfmap_layers"      # mesh ID property: names of the layers this add-on wrote
+CORR_FACE = "surfmap_map_face"      # INT point attribute: face of the partner's triangles
+CORR_BARY = "surfmap_map_bary"      # FLOAT_VECTOR point attribute: barycentrics there
+CORR_KEY = "surfmap_map"            # mesh ID property group: partner, fingerprints, summary
+DILATATION = "surfmap_dilatation"   # FLOAT face attribute: D' of the optimised map
+DILATATION_INITIAL = "surfmap_dilatation_initial"
+
+
+def read_map_mesh(obj, depsgraph):
+    """read_object_mesh plus what the map's outputs need: the polygon layout (loop_start,
+    loop_total, loop_vertex), whether the evaluated mesh has the object's own topology, the UV
+    maps as per-loop arrays {name: (L,2)}, and the vertex groups {name: (indices, weights)}."""
+    d = read_object_mesh(obj, depsgraph)
+    evaluated = d["evaluated"]
+    if evaluated:
+        ob_eval = obj.evaluated_get(depsgraph)
+        mesh = ob_eval.to_mesh(preserve_all_data_layers=True, depsgraph=depsgraph)
+    else:
+        ob_eval, mesh = None, obj.data
+    try:
+        P = len(mesh.polygons)
+        L = len(mesh.loops)
+        start = np.empty(P, dtype=np.int64)
+        total = np.empty(P, dtype=np.int64)
+        lv = np.empty(L, dtype=np.int64)
+        mesh.polygons.foreach_get("loop_start", start)
+        mesh.polygons.foreach_get("loop_total", total)
+        mesh.loops.foreach_get("vertex_index", lv)
+        uvs = {}
+        for layer in mesh.uv_layers:
+            a = np.empty(L * 2, dtype=np.float64)
+            layer.data.foreach_get("uv", a)
+            uvs[layer.name] = a.reshape(L, 2)
+        groups = {}
+        names = {g.index: g.name for g in obj.vertex_groups}
+        if names:
+            for v in mesh.vertices:
+                for g in v.groups:
+                    name = names.get(g.group)
+                    if name is not None:
+                        groups.setdefault(name, ([], []))
+                        groups[name][0].append(v.index)
+                        groups[name][1].append(g.weight)
+            for name in names.values():
+                groups.setdefault(name, ([], []))
+        same = True
+        if evaluated:
+            own = obj.data
+            if len(own.vertices) != len(mesh.vertices) or len(own.loops) != L or \
+                    len(own.polygons) != P:
+                same = False
+            else:
+                lv_own = np.empty(L, dtype=np.int64)
+                own.loops.foreach_get("vertex_index", lv_own)
+                same = bool(np.array_equal(lv_own, lv))
+        d.update(loop_start=start, loop_total=total, loop_vertex=lv, uv_layers=uvs,
+                 vertex_groups=groups, same_topology=same)
+        return d
+    finally:
+        if ob_eval is not None:
+            ob_eval.to_mesh_clear()
+
+
+def selected_vertex_order(mesh):
+    """Selected vertices (the mesh's own flags) in the order they were selected (the mesh's
+    selection history), then the other selected ones in index order."""
+    import bmesh
+    sel = np.zeros(len(mesh.vertices), dtype=bool)
+    mesh.vertices.foreach_get("select", sel)
+    bm = bmesh.new()
+    try:
+        bm.from_mesh(mesh)
+        hist = [e.index for e in bm.select_history
+                if isinstance(e, bmesh.types.BMVert) and sel[e.index]]
+    finally:
+        bm.free()
+    seen = set(hist)
+    return hist + [int(i) for i in np.nonzero(sel)[0] if int(i) not in seen]
+
+
+def applied_copy(obj, depsgraph, name):
+    """A new object holding obj's evaluated mesh (modifiers applied), same transform and
+    collections, for outputs that need that mesh's own topology."""
+    ob_eval = obj.evaluated_get(depsgraph)
+    me = bpy.data.meshes.new_from_object(ob_eval, preserve_all_data_layers=True,
+                                         depsgraph=depsgraph)
+    me.name = name
+    ob = bpy.data.objects.new(name, me)
+    ob.matrix_world = obj.matrix_world.copy()
+    for coll in obj.users_collection:
+        coll.objects.link(ob)
+    return ob
+
+
+def _ours(mesh):
+    return list(mesh.get(LAYERS_KEY, []))
+
+
+def _remember(mesh, kind, name):
+    names = _ours(mesh)
+    tag = f"{kind}:{name}"
+    if tag not in names:
+        names.append(tag)
+        mesh[LAYERS_KEY] = names
+
+
+def _layer_name(mesh, kind, wanted, existing):
+    """`wanted`, or when a layer of that name exists that this add-on did not write, the first
+    free 'wanted.001', ... (nothing of the user's is overwritten)."""
+    ours = set(_ours(mesh))
+    name, i = wanted, 0
+    while name in existing and f"{kind}:{name}" not in ours:
+        i += 1
+        name = f"{wanted}.{i:03d}"
+    return name
+
+
+def write_point_float3(mesh, name, values, data_type='FLOAT_VECTOR', domain='POINT'):
+    a = mesh.attributes.get(name)
+    if a is not None and (a.data_type != data_type or a.domain != domain):
+        mesh.attributes.remove(a)
+        a = None
+    if a is None:
+        a = mesh.attributes.new(name, data_type, domain)
+    key = "vector" if data_type == 'FLOAT_VECTOR' else "value"
+    a.data.foreach_set(key, np.ascontiguousarray(values, dtype=np.float32 if data_type != 'INT'
+                                                 else np.int32).ravel())
+    return a
+
+
+def write_correspondence(mesh, face, bary, meta):
+    """Per vertex: the partner's triangle and barycentrics (survive saving); meta (dict of
+    str/int/float) as the mesh's CORR_KEY ID property."""
+    write_point_float3(mesh, CORR_FACE, np.asarray(face, dtype=np.int32), 'INT')
+    write_point_float3(mesh, CORR_BARY, np.asarray(bary, dtype=np.float32))
+    mesh[CORR_KEY] = dict(meta)
+
+
+def read_correspondence(mesh):
+    """(face (n,), bary (n,3), meta dict) or None when the mesh has no stored map."""
+    a, b = mesh.attributes.get(CORR_FACE), mesh.attributes.get(CORR_BARY)
+    meta = mesh.get(CORR_KEY)
+    if a is None or b is None or meta is None:
+        return None
+    n = len(mesh.vertices)
+    if len(a.data) != n or len(b.data) != n:
+        return None
+    face = np.empty(n, dtype=np.int32)
+    a.data.foreach_get("value", face)
+    bary = np.empty(n * 3, dtype=np.float32)
+    b.data.foreach_get("vector", bary)
+    return face.astype(np.int64), bary.reshape(n, 3).astype(np.float64), meta.to_dict()
+
+
+def write_face_float(mesh, name, values):
+    write_point_float3(mesh, name, np.asarray(values, dtype=np.float32), 'FLOAT', 'FACE')
+
+
+def read_face_float(mesh, name):
+    a = mesh.attributes.get(name)
+    if a is None or a.domain != 'FACE' or a.data_type != 'FLOAT' or len(a.data) != len(mesh.polygons):
+        return None
+    v = np.empty(len(mesh.polygons), dtype=np.float32)
+    a.data.foreach_get("value", v)
+    return v.astype(np.float64)
+
+
+def write_uv_map(mesh, wanted, loop_uv):
+    """A UV map named `wanted` (or a free variant) holding loop_uv (L,2). Returns its name, or
+    None when the mesh already has the maximum number of UV maps."""
+    existing = [u.name for u in mesh.uv_layers]
+    name = _layer_name(mesh, "uv", wanted, existing)
+    layer = mesh.uv_layers.get(name)
+    if layer is None:
+        if len(mesh.uv_layers) >= 8:
+            return None
+        layer = mesh.uv_layers.new(name=name, do_init=False)
+        if layer is None:
+            return None
+    layer.data.foreach_set("uv", np.ascontiguousarray(loop_uv, dtype=np.float32).ravel())
+    _remember(mesh, "uv", name)
+    return name
+
+
+def free_uv_slots(mesh, wanted_names):
+    """How many of wanted_names need a new UV map (not already one of ours) and whether they fit."""
+    ours = set(_ours(mesh))
+    need = sum(1 for w in wanted_names if f"uv:{w}" not in ours or mesh.uv_layers.get(w) is None)
+    return need <= 8 - len(mesh.uv_layers), need
+
+
+def write_colour(mesh, wanted, rgba, domain):
+    """A FLOAT_COLOR attribute (domain 'POINT' or 'CORNER') named `wanted` (or a free
+    variant). Returns its name."""
+    existing = [a.name for a in mesh.attributes]
+    name = _layer_name(mesh, "colour", wanted, existing)
+    a = mesh.attributes.get(name)
+    if a is not None:
+        mesh.attributes.remove(a)
+    a = mesh.color_attributes.new(name, 'FLOAT_COLOR', domain)
+    a.data.foreach_set("color", np.ascontiguousarray(rgba, dtype=np.float32).ravel())
+    _remember(mesh, "colour", name)
+    return name
+
+
+def write_shape_key(obj, wanted, co):
+    """A shape key named `wanted` (or a free variant) with the given local coordinates; a
+    'Basis' key from the current mesh is added first when the object has none. The new key's
+    value is left at 0 (slide it to 1 for the morph). Returns its name."""
+    mesh = obj.data
+    if mesh.shape_keys is None:
+        obj.shape_key_add(name="Basis", from_mix=False)
+    blocks = mesh.shape_keys.key_blocks
+    name = _layer_name(mesh, "shape", wanted, [k.name for k in blocks])
+    key = blocks.get(name)
+    if key is None:
+        key = obj.shape_key_add(name=name, from_mix=False)
+    key.data.foreach_set("co", np.ascontiguousarray(co, dtype=np.float32).ravel())
+    key.value = 0.0
+    key.slider_min, key.slider_max = 0.0, 1.0
+    _remember(mesh, "shape", name)
+    mesh.update()
+    return name
+
+
+def matrix_np(m):
+    return np.array([list(r) for r in m], dtype=np.float64)

@@ -43,6 +43,38 @@ class SURFMAP_PT_main(bpy.types.Panel):
         if settings.status:
             for line in _wrap(settings.status, 40)[:6]:
                 layout.label(text=line)
+        draw_map(layout, settings)
+
+
+def draw_map(layout, settings):
+    """The map's options, its button, the candidates of the last run and the re-runs."""
+    box = layout.box()
+    box.label(text="Optimal Map", icon='MOD_UVPROJECT')
+    col = box.column(align=True)
+    col.prop(settings, "homotopy")
+    for c in settings.candidates:
+        mark = "* " if c.index == settings.chosen_candidate else "  "
+        col.label(text=f"{mark}{c.index}: E = {c.energy:.6g}  {c.description}"[:80])
+    col = box.column(align=True)
+    col.prop(settings, "landmark_mode")
+    col.prop(settings, "method")
+    col.prop(settings, "tolerance")
+    col = box.column(align=True)
+    col.label(text="Outputs:")
+    row = col.row(align=True)
+    row.prop(settings, "write_uvs")
+    row.prop(settings, "write_morph")
+    row.prop(settings, "write_distortion")
+    col.prop(settings, "morph_space")
+    box.operator("surfmap.compute_map", icon='PLAY')
+    col = box.column(align=True)
+    col.label(text="From the stored map:")
+    col.operator("surfmap.transfer_uvs", icon='UV')
+    col.operator("surfmap.create_morph", icon='SHAPEKEY_DATA')
+    col.operator("surfmap.paint_distortion", icon='COLOR')
+    if settings.map_status:
+        for line in _wrap(settings.map_status, 40)[:8]:
+            box.label(text=line)
 
 
 classes = (SURFMAP_PT_main,)

@@ -1,8 +1,16 @@
 """Scene settings (one PropertyGroup: scene.surfmap) and the add-on preferences."""
 import bpy
-from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty,
+                       IntProperty, PointerProperty, StringProperty)
 
 from . import native
+
+
+class SURFMAP_PG_candidate(bpy.types.PropertyGroup):
+    """One handle correspondence (homotopy class) of the last run, with its energy."""
+    index: IntProperty(name="Index")
+    description: StringProperty(name="Description")
+    energy: FloatProperty(name="Energy")
 
 
 class SURFMAP_PG_settings(bpy.types.PropertyGroup):
@@ -24,6 +32,44 @@ class SURFMAP_PG_settings(bpy.types.PropertyGroup):
     status: StringProperty(
         name="Status", default="",
         description="Result of the last run")
+    # --- the map
+    homotopy: IntProperty(
+        name="Handle Correspondence", default=-1, min=-1,
+        description="Homotopy class of the map: index into the candidates listed after a run "
+                    "(-1: the one of lowest energy)")
+    candidates: CollectionProperty(type=SURFMAP_PG_candidate)
+    chosen_candidate: IntProperty(name="Chosen Candidate", default=-1)
+    landmark_mode: EnumProperty(
+        name="Landmarks", default='NONE',
+        items=(('NONE', "None", "No landmarks"),
+               ('GROUPS', "Vertex Groups", "Pairs of vertex groups of the same name starting "
+                "with 'lm_' on both objects (e.g. lm_nose): each group's vertex of largest "
+                "weight is held on the other's"),
+               ('SELECTED', "Selected Vertices", "The vertices selected on each object, in "
+                "selection order, paired one to one")))
+    method: EnumProperty(
+        name="Method", default='NEWTON',
+        items=(('NEWTON', "Newton", "Newton's method on the harmonic energy (fast)"),
+               ('RELAXATION', "Relaxation", "The paper's per-vertex heat-diffusion relaxation "
+                "(slow; for comparison)")))
+    tolerance: FloatProperty(
+        name="Tolerance", default=0.0, min=0.0, precision=10, step=0.0001,
+        description="Convergence tolerance of the solve (0: the core's default)")
+    write_uvs: BoolProperty(name="UVs", default=True,
+                            description="Transfer every UV map of the source onto the target")
+    write_morph: BoolProperty(name="Morph", default=True,
+                              description="Shape keys morphing each object into the other")
+    write_distortion: BoolProperty(
+        name="Distortion", default=True,
+        description="Colour attributes of the dilatation, conformal factor and mean-curvature "
+                    "difference on the source")
+    morph_space: EnumProperty(
+        name="Morph Space", default='IN_PLACE',
+        items=(('IN_PLACE', "In Place", "Each object takes the other's shape (with its "
+                "rotation and scale) around its own origin"),
+               ('WORLD', "Onto Other", "Each object moves onto the other where it stands")))
+    map_status: StringProperty(name="Map Status", default="",
+                               description="Result of the last Compute Map")
 
 
 class SURFMAP_AP_preferences(bpy.types.AddonPreferences):
@@ -67,7 +113,7 @@ def extra_module_dirs(context):
     return ()
 
 
-classes = (SURFMAP_PG_settings, SURFMAP_AP_preferences)
+classes = (SURFMAP_PG_candidate, SURFMAP_PG_settings, SURFMAP_AP_preferences)
 
 
 def register():

@@ -1,0 +1,154 @@
+"""The add-on's bpy-free maths (addon/surface_map/mapping.py), imported by file, outside
+Blender: UV transfer across seams, distortion measures, colour scales, landmarks, fingerprints."""
+import importlib.util
+import math
+import pathlib
+
+import numpy as np
+import pytest
+
+import surfmap
+
+_path = pathlib.Path(__file__).resolve().parents[3] / "addon" / "surface_map" / "mapping.py"
+_spec = importlib.util.spec_from_file_location("surfmap_addon_mapping", _path)
+M = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(M)
+
+
+def torus(R, r, n, m):
+    V, F = surfmap.shapes.torus_of_revolution(R, r, n, m)
+    return np.asarray(V, dtype=float), np.asarray(F)
+
+
+def torus_corner_uv(V, F, R):
+    """(u, v) angles per triangle corner, unwrapped per triangle: one island, seams at 0."""
+    P = V[F]
+    u = np.arctan2(P[..., 1], P[..., 0]) / (2 * np.pi) % 1.0
+    v = np.arctan2(P[..., 2], np.hypot(P[..., 0], P[..., 1]) - R) / (2 * np.pi) % 1.0
+    for a in (u, v):
+        a[:] = np.where(a.max(axis=1, keepdims=True) - a > 0.5, a + 1.0, a)
+    return np.stack([u, v], -1)
+
+
+@pytest.fixture(scope="module")
+def tori():
+    Vs, Fs = torus(1.0, 0.5, 48, 24)
+    Vt, Ft = torus(1.5, 0.5, 40, 20)
+    m = surfmap.surface_map(Vs, Fs, Vt, Ft)
+    return Vs, Fs, Vt, Ft, m
+
+
+def _transfer(Vs, Fs, Ft, m, uv):
+    X = M.UVTransfer(Fs, uv, Vs)
+    lv = Ft.reshape(-1)
+    f, b = m["inverse"]["face"][lv], m["inverse"]["barycentric"][lv]
+    out, strad = X.polygon_uvs(f, b, np.arange(len(Ft)) * 3, np.full(len(Ft), 3))
+    pre = M.points_at(Vs, Fs, m["inverse"]["face"], m["inverse"]["barycentric"])[Ft]
+    return X, out.reshape(-1, 3, 2), X.naive(f, b).reshape(-1, 3, 2), strad, pre
+
+
+@pytest.mark.parametrize("layout", ["one island", "four rotated islands"])
+def test_uv_transfer_has_no_flips_or_seam_straddling(tori, layout):
+    Vs, Fs, Vt, Ft, m = tori
+    uv = torus_corner_uv(Vs, Fs, 1.0)
+    if layout != "one island":  # quadrants, each rotated, scaled and moved in the layout
+        isl = (uv[:, :, 0].mean(1) % 1 < 0.5).astype(int) * 2 + (uv[:, :, 1].mean(1) % 1 < 0.5)
+        z = uv[..., 0] + 1j * uv[..., 1]
+        z = z * (np.exp(1j * np.pi / 2 * isl) * (0.5 + 0.2 * isl))[:, None] \
+            + (isl * (1.7 + 0.9j))[:, None]
+        uv = np.stack([z.real, z.imag], -1)
+    assert M.uv_quality(uv, Vs[Fs])[0] == 0
+    X, ours, naive, strad, pre = _transfer(Vs, Fs, Ft, m, uv)
+    assert X.island.max() + 1 == (1 if layout == "one island" else 4)
+    assert np.sum(M.signed_uv_areas(ours) <= 0) == 0
+    assert M.seam_straddling(ours, pre, uv, Vs[Fs]) == 0
+    # the naive per-vertex transfer straddles every seam crossing, and those are the
+    # triangles the transfer unfolded; elsewhere both agree exactly
+    n_naive = M.seam_straddling(naive, pre, uv, Vs[Fs])
+    assert n_naive > 50
+    assert strad.sum() >= n_naive
+    assert np.allclose(ours[~strad], naive[~strad])
+    # the unfolded UVs are continuous across the seam: each target edge has the same UV
+    # length (up to the map's smoothness) as its neighbours, nothing spans the layout
+    assert np.max(M.uv_stretch(ours, Vt[Ft])) < 3 * np.median(M.uv_stretch(ours, Vt[Ft]))
+
+
+def test_uv_transfer_self_map_reproduces_the_uvs():
+    # identity correspondence (a torus onto itself): every corner's preimage is its own vertex
+    V, F = torus(1.0, 0.5, 24, 12)
+    uv = torus_corner_uv(V, F, 1.0)
+    X = M.UVTransfer(F, uv, V)
+    # the preimage of vertex v: some triangle containing it, barycentric 1 there
+    face = np.zeros(len(V), dtype=int)
+    bary = np.zeros((len(V), 3))
+    for f in range(len(F) - 1, -1, -1):
+        for k in range(3):
+            face[F[f, k]] = f
+    for v in range(len(V)):
+        bary[v, list(F[face[v]]).index(v)] = 1.0
+    lv = F.reshape(-1)
+    out, _ = X.polygon_uvs(face[lv], bary[lv], np.arange(len(F)) * 3, np.full(len(F), 3))
+    out = out.reshape(-1, 3, 2)
+    # each triangle's UVs equal the original up to a whole-period shift of the layout
+    d = out - uv
+    assert np.allclose(d, np.round(d), atol=1e-9)
+    assert np.allclose(d - d[:, :1], 0, atol=1e-9)
+
+
+def test_dilatation_and_conformal_factor_of_known_maps():
+    V, F = torus(1.0, 0.5, 24, 12)
+    # a uniform scaling is conformal: D' = 1, λ = 1 (areas normalised)
+    D, flipped = M.dilatation(V, F, 3.0 * V, M.face_normals(V, F))
+    assert np.allclose(D, 1.0) and not flipped.any()
+    assert np.allclose(M.conformal_factor(V, F, 3.0 * V), 1.0)
+    # stretching a flat triangle by 2 in x: D' = 2
+    Vp = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    Fp = np.array([[0, 1, 2]])
+    D, _ = M.dilatation(Vp, Fp, Vp * [2, 1, 1])
+    assert abs(D[0] - 2.0) < 1e-12
+    # a mirror image is flipped relative to the normal
+    D, fl = M.dilatation(Vp, Fp, Vp * [-1, 1, 1], np.array([[0, 0, 1.0]]))
+    assert fl[0] and np.isinf(D[0])
+
+
+def test_mean_curvature_sphere_and_torus():
+    V, F = surfmap.shapes.sphere(4)
+    H = M.mean_curvature(np.asarray(V, float) * 7.0, np.asarray(F))   # scale-free: 1 on any sphere
+    # barycentric areas are off at the 12 valence-5 vertices; elsewhere H is 1 to 1%
+    assert abs(np.median(H) - 1.0) < 0.01 and np.all(np.abs(H - 1.0) < 0.16), (H.min(), H.max())
+    R, r = 1.0, 0.4
+    V, F = torus(R, r, 96, 48)
+    H = M.mean_curvature(V, F) / math.sqrt(4 * math.pi ** 2 * R * r / (4 * math.pi))
+    # analytic: H = (R + 2 r cos v) / (2 r (R + r cos v)) (outer equator: (R+2r)/(2r(R+r)))
+    outer = int(np.argmax(np.hypot(V[:, 0], V[:, 1])))
+    assert abs(H[outer] - (R + 2 * r) / (2 * r * (R + r))) < 0.02 * H[outer]
+
+
+def test_colour_scale_ranges_and_invalid():
+    rgba = M.colour_scale(np.array([1.0, 2.0, 3.0, np.inf]), 1.0, 3.0)
+    assert rgba.shape == (4, 4) and np.allclose(rgba[:, 3], 1.0)
+    assert np.allclose(rgba[0, :3], M._srgb_to_linear(M.SEQUENTIAL[0]))
+    assert np.allclose(rgba[2, :3], M._srgb_to_linear(M.SEQUENTIAL[-1]))
+    assert np.allclose(rgba[3, :3], M.INVALID)
+    lo, hi = M.symmetric_range(np.array([-0.5, 0.1, 0.2]), q=1.0)
+    assert lo == -0.5 and hi == 0.5
+
+
+def test_landmarks_and_fingerprints():
+    pairs, names, problems = M.landmark_pairs(
+        {"lm_a": ([3, 4], [0.2, 0.9]), "lm_b": ([1], [1.0]), "other": ([0], [1.0])},
+        {"lm_a": ([7], [1.0]), "lm_c": ([2], [1.0])})
+    assert pairs.tolist() == [[4, 7]] and names == ["lm_a"]
+    assert any("lm_b" in p and "source" in p for p in problems)
+    assert any("lm_c" in p and "target" in p for p in problems)
+    with pytest.raises(ValueError, match="out of range"):
+        M.check_landmarks([[0, 9]], 5, 5)
+    with pytest.raises(ValueError, match="two landmarks"):
+        M.check_landmarks([[1, 2], [1, 3]], 5, 5)
+    V, F = torus(1.0, 0.5, 12, 6)
+    fp = M.fingerprint(V, F)
+    assert fp == M.fingerprint(V.copy(), F.copy())
+    V2 = V.copy()
+    V2[3, 0] += 1e-3
+    assert M.fingerprint(V2, F) != fp
+    assert M.fingerprint(V, F[:, [0, 2, 1]]) != fp
