@@ -208,6 +208,8 @@ def compute_outputs(source, target, res, options, only=None):
             Dp = mapping.per_polygon(D, tri_poly, npoly, areas)
         Dp_init = res.get("initial_dilatation_per_polygon")
         D_init = res.get("initial_distortion", {}).get("per_face")
+        if D_init is not None and len(D_init) != len(Fs):
+            D_init = None  # not measured for this genus by this core
         if Dp_init is None and D_init is not None:
             Dp_init = mapping.per_polygon(np.asarray(D_init, dtype=np.float64), tri_poly, npoly,
                                           areas)
