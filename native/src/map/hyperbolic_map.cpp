@@ -13,6 +13,8 @@
 #include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/map/distortion.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
+#include "surfmap/map/harmonic_relaxation.h"
+#include "surfmap/map/initial_map.h"
 #include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/edge_homotopy.h"
 
@@ -102,25 +104,69 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   out.chosen_candidate = 0;
   stage_done("source homotopy data and weights", 0.4);
 
-  HyperbolicHarmonicOptions ho;
-  ho.tolerance = options.tolerance;
-  ho.max_iterations = options.max_iterations;
-  if (options.progress)
-    ho.progress = [&](int it, double E, double g) { return options.progress("harmonic solve", 0.4 + 0.3 * std::min(1.0, it / 50.0)); };
-  std::vector<Complex> start(source.num_vertices(), Complex(0.0));
+  // Initial map (map/initial_map.h): the uniform-weight (Tutte-type) map in
+  // this class; the "before" figures, and the start unless start_seed asks
+  // for a random one.
+  std::vector<Mobius> halfedge_rho(3 * source.num_faces());
+  for (int h = 0; h < 3 * source.num_faces(); ++h) halfedge_rho[h] = rho_of(h);
+  HyperbolicInitialMapResult init;
+  try {
+    init = hyperbolic_initial_map(sc, halfedge_rho, layout.generators);
+  } catch (const SolveError&) {
+    // The start then is every vertex at the origin (as before the initial
+    // map existed); the "before" figures report its degenerate triangles.
+    init.z.assign(source.num_vertices(), Complex(0.0));
+    init.vertex_deck.assign(source.num_vertices(), Mobius());
+  }
+  const DistortionStats q0 = hyperbolic_distortion(source, halfedge_rho, init.z, init.vertex_deck);
+  out.initial_dilatation = q0.per_face;
+  out.initial_mean_dilatation = q0.mean;
+  out.initial_max_dilatation = q0.max;
+  out.initial_flipped_triangles = q0.flipped;
+  stage_done("initial map", 0.45);
+
+  // The solve runs on the edges expressed in the initial map's charts
+  // (effective elements), its vertex decks are composed back afterwards.
+  std::vector<WeightedEdge> start_edges = edges;
+  for (auto& e : start_edges)
+    e.rho = (init.vertex_deck[e.i] * e.rho * init.vertex_deck[e.j].inverse()).normalized();
+  std::vector<Complex> start = init.z;
+  std::vector<Mobius> start_deck = init.vertex_deck;
+  out.initial_energy = hyperbolic_energy(start_edges, start, std::vector<Mobius>(start.size()));
   if (options.start_seed != 0) {
     std::mt19937 rng(options.start_seed);
     std::uniform_real_distribution<double> U(-0.35, 0.35);
     for (Complex& z : start) z = Complex(U(rng), U(rng));
+    start_edges = edges;
+    start_deck.assign(start.size(), Mobius());
   }
-  const HyperbolicHarmonicResult hr = hyperbolic_harmonic_map(source.num_vertices(), edges, layout.generators, start, ho);
+  auto solve_progress = [&](int it, double E, double g) {
+    return !options.progress || options.progress("harmonic solve", 0.45 + 0.25 * std::min(1.0, it / 50.0));
+  };
+  HyperbolicHarmonicResult hr;
+  if (options.method == MapMethod::Relaxation) {
+    HarmonicRelaxationOptions ro;
+    ro.tolerance = options.tolerance;
+    ro.max_iterations = options.max_iterations;
+    ro.check_every = 10;  // the evaluation pass costs about a sweep
+    ro.progress = solve_progress;
+    hr = as_harmonic_result(harmonic_relaxation(source.num_vertices(), start_edges, layout.generators, start, ro));
+  } else {
+    HyperbolicHarmonicOptions ho;
+    ho.tolerance = options.tolerance;
+    ho.max_iterations = options.max_iterations;
+    ho.progress = solve_progress;
+    hr = hyperbolic_harmonic_map(source.num_vertices(), start_edges, layout.generators, start, ho);
+  }
+  for (size_t i = 0; i < hr.vertex_deck.size(); ++i) hr.vertex_deck[i] = (hr.vertex_deck[i] * start_deck[i]).normalized();
   if (!hr.converged)
-    throw SolveError("the harmonic map solve did not converge in " + std::to_string(hr.iterations) +
-                     " iterations (gradient " + std::to_string(hr.gradient_history.back()) + ")");
+    throw SolveError(std::string("the harmonic map solve (") +
+                     (options.method == MapMethod::Relaxation ? "relaxation" : "Newton") + ") did not converge in " +
+                     std::to_string(hr.iterations) + " iterations (gradient " +
+                     std::to_string(hr.gradient_history.back()) + "); raise max_iterations or the tolerance");
   out.converged = true;
   out.iterations = hr.iterations;
   out.energy_history = hr.energy_history;
-  out.initial_energy = hr.energy_history.front();
   out.final_energy = hr.energy;
   out.candidates[0].energy = hr.energy;
   stage_done("harmonic solve", 0.7);
@@ -205,8 +251,6 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     out.max_dilatation = std::max(out.max_dilatation, d);
   }
   out.mean_dilatation = weighted / std::max(total_area, 1e-300);
-  out.initial_mean_dilatation = std::numeric_limits<double>::quiet_NaN();
-  out.initial_max_dilatation = std::numeric_limits<double>::quiet_NaN();
   if (out.flipped_triangles || out.degenerate_triangles)
     throw SolveError("the optimised map has " + std::to_string(out.flipped_triangles) + " flipped and " +
                      std::to_string(out.degenerate_triangles) + " degenerate image triangles; it is not returned");

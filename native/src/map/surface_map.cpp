@@ -44,7 +44,6 @@ SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const
     src_used[s] = dst_used[t] = static_cast<int>(k);
   }
   if (!options.landmarks.empty()) throw InputError("landmarks are not implemented yet");
-  if (options.method == MapMethod::Relaxation) throw InputError("the relaxation method is not implemented yet");
   if (out.genus == 0)
     throw InputError("surface maps of genus 0 are not implemented yet; genus >= 1 is");
   if (out.genus == 1)

@@ -33,7 +33,9 @@ namespace surfmap {
 /// linear solve either way).
 enum class MapMethod {
   Newton,      ///< Riemannian Newton with line search (DESIGN.md §7), the default
-  Relaxation,  ///< the paper's per-vertex relaxation in Möbius-centred charts (§VI-B), for comparison
+  /// the paper's per-vertex relaxation in Möbius-centred charts (§VI-B,
+  /// map/harmonic_relaxation.h), for comparison; genus 1 keeps the exact solve
+  Relaxation,
 };
 
 struct SurfaceMapOptions {
@@ -42,16 +44,20 @@ struct SurfaceMapOptions {
   int homotopy = -1;
   /// Base vertices of the systems of loops (-1: automatic).
   int source_base_vertex = -1, target_base_vertex = -1;
-  /// Start of the hyperbolic solve: 0 (default) puts every vertex at the
-  /// origin; another value draws random start points (seeded) in the disk of
-  /// radius 0.5. The energy is convex, so the result must not depend on it.
+  /// Start of the hyperbolic solve: 0 (default) starts from the initial map
+  /// (map/initial_map.h, the uniform-weight Tutte-type map in the class);
+  /// another value draws random start points (seeded) in the disk of radius
+  /// 0.5. The energy is convex, so the result must not depend on it.
   unsigned start_seed = 0;
   /// Curvature tolerance of the target's uniformization (default 1e-10).
   double uniformization_tolerance = 1e-10;
   /// Optimiser of the harmonic energy (default Newton).
   MapMethod method = MapMethod::Newton;
   /// Relative gradient tolerance of the harmonic solve (default 1e-10) and
-  /// its iteration cap (default 300).
+  /// its iteration cap (default 300). For the relaxation an iteration is one
+  /// sweep over all vertices, and it needs of the order of #V sweeps per
+  /// decade of gradient: raise the cap (e.g. 1e6) or the tolerance. Either
+  /// method not reaching the tolerance within the cap is a SolveError.
   double tolerance = 1e-10;
   int max_iterations = 300;
   /// Landmark pairs (source vertex, target vertex) whose images are held
@@ -80,10 +86,11 @@ struct PointOnSurface {
 struct SurfaceMapResult {
   int genus = 0;
   bool converged = false;
-  /// Harmonic energy Σ w_ij |z_i − z_j − t_ij|² of the initial map and of
-  /// the optimum. The initial map is, for now, the Tutte-type embedding in
-  /// the same homotopy class (uniform weights), not yet the paper's
-  /// canonical-polygon composition (§IV-B).
+  /// Harmonic energy (cotangent weights) of the initial map and of the
+  /// optimum. The initial map is the Tutte-type embedding in the same
+  /// homotopy class (uniform weights; flat for genus 1, hyperbolic for genus
+  /// >= 2, map/initial_map.h says why it replaces the paper's
+  /// canonical-polygon composition, §IV-B); it is also the default start.
   double initial_energy = 0, final_energy = 0;
   std::vector<double> energy_history;
   int iterations = 0;

@@ -1,0 +1,356 @@
+#include "surfmap/map/harmonic_relaxation.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <random>
+#include <vector>
+
+#include "surfmap/error.h"
+#include "surfmap/map/hyperbolic_harmonic.h"
+#include "surfmap/map/initial_map.h"
+#include "surfmap/map/surface_map.h"
+#include "surfmap/mesh/connectivity.h"
+#include "surfmap/samples/shapes.h"
+
+namespace surfmap {
+namespace {
+
+using hyperbolic::Mobius;
+using Complex = std::complex<double>;
+
+// A small closed hyperbolic surface of genus 2 built algebraically (no
+// mesher): the regular octagon with angles π/4 in the Poincaré disk, sides
+// glued by the canonical word a1 b1 a1⁻¹ b1⁻¹ a2 b2 a2⁻¹ b2⁻¹, each of its 8
+// sectors (centre, p_k, p_k+1) split into m² triangles on a grid that is
+// straight in the Klein model (so geodesic). Every vertex of the closed
+// surface gets one representative point z and every edge the deck element ρ
+// with "image of i -> j runs from z_i to ρ z_j" (the map's data), so the
+// identity map of this surface is a point of the harmonic-map problem.
+struct OctagonSurface {
+  int n = 0;
+  std::vector<WeightedEdge> edges;
+  std::vector<Mobius> generators;
+  std::vector<Complex> z;  // representative points
+  RowMatrixX3i F;
+};
+
+OctagonSurface octagon_surface(int m) {
+  const int N = 8;
+  const int word[N] = {1, 2, -1, -2, 3, 4, -3, -4};
+  const double r0 = std::pow(2.0, -0.25);  // corner radius of the regular octagon with angles π/4
+  std::vector<Complex> p(N);
+  for (int k = 0; k < N; ++k) p[k] = std::polar(r0, 2 * M_PI * k / N);
+  std::vector<Mobius> side_map(N);  // takes side i (p_i -> p_i+1) onto its partner, reversed
+  std::vector<int> partner(N);
+  for (int i = 0; i < N; ++i) {
+    for (int j = 0; j < N; ++j)
+      if (word[j] == -word[i]) partner[i] = j;
+    const int j = partner[i];
+    side_map[i] = hyperbolic::isometry_from_pairs(p[i], p[(i + 1) % N], p[(j + 1) % N], p[j]);
+  }
+  // Disk vertices, deduplicated by their grid address on the octagon.
+  std::map<std::pair<long long, long long>, int> index;
+  std::vector<Complex> disk;
+  auto vertex = [&](Complex klein) {
+    const auto key = std::make_pair(std::llround(klein.real() * 1e9), std::llround(klein.imag() * 1e9));
+    auto it = index.find(key);
+    if (it != index.end()) return it->second;
+    disk.push_back(hyperbolic::klein_to_poincare(klein));
+    return index[key] = static_cast<int>(disk.size()) - 1;
+  };
+  std::vector<Complex> kp(N);
+  for (int k = 0; k < N; ++k) kp[k] = hyperbolic::poincare_to_klein(p[k]);
+  auto grid = [&](int k, int i, int j) {  // i steps towards p_k, j towards p_k+1
+    return vertex((double(i) * kp[k] + double(j) * kp[(k + 1) % N]) / double(m));
+  };
+  std::vector<std::array<int, 3>> tris;
+  for (int k = 0; k < N; ++k)
+    for (int i = 0; i < m; ++i)
+      for (int j = 0; i + j < m; ++j) {
+        tris.push_back({grid(k, i, j), grid(k, i + 1, j), grid(k, i, j + 1)});
+        if (i + j + 1 < m) tris.push_back({grid(k, i + 1, j), grid(k, i + 1, j + 1), grid(k, i, j + 1)});
+      }
+  // Gluing: copy on side j at step s from p_j equals side_map[i] of the copy
+  // on side i at step m − s from p_i; all corners are one vertex.
+  const int nd = static_cast<int>(disk.size());
+  std::vector<int> cls(nd, -1);
+  std::vector<Mobius> gamma(nd);  // copy = gamma(representative)
+  int n = 0;
+  for (int v = 0; v < nd; ++v) {
+    const Complex k = hyperbolic::poincare_to_klein(disk[v]);
+    bool on_boundary = false;
+    for (int s = 0; s < N && !on_boundary; ++s) {
+      const Complex e = kp[(s + 1) % N] - kp[s], d = k - kp[s];
+      on_boundary = std::abs(e.real() * d.imag() - e.imag() * d.real()) < 1e-9;
+    }
+    if (!on_boundary) cls[v] = n++;
+  }
+  // Corners: BFS over side maps from p_0 finds the element reaching each p_k.
+  {
+    const int c0 = grid(0, m, 0);
+    cls[c0] = n;
+    std::vector<std::pair<Complex, Mobius>> frontier{{p[0], Mobius()}};
+    for (int depth = 0; depth < 8; ++depth) {
+      std::vector<std::pair<Complex, Mobius>> next;
+      for (const auto& [q, g] : frontier)
+        for (int s = 0; s < N; ++s) {
+          const Complex w = side_map[s].apply(q);
+          for (int k = 0; k < N; ++k)
+            if (std::abs(w - p[k]) < 1e-9) {
+              const int c = grid(k, m, 0);
+              if (cls[c] < 0) cls[c] = n, gamma[c] = (side_map[s] * g).normalized(), next.emplace_back(w, gamma[c]);
+            }
+        }
+      frontier.swap(next);
+    }
+    ++n;
+  }
+  for (int i = 0; i < N; ++i) {
+    if (word[i] < 0) continue;
+    const int j = partner[i];
+    for (int s = 1; s < m; ++s) {
+      const int a = grid(i, m - s, s), b = grid(j, s, m - s);
+      cls[a] = n, cls[b] = n++;
+      gamma[b] = side_map[i];
+    }
+  }
+  OctagonSurface S;
+  S.n = n;
+  S.z.assign(n, Complex(0.0));
+  for (int v = 0; v < nd; ++v)
+    if (gamma[v].b == Complex(0.0) && std::abs(gamma[v].a - 1.0) < 1e-15) S.z[cls[v]] = disk[v];
+  S.F.resize(static_cast<int>(tris.size()), 3);
+  std::map<std::pair<int, int>, int> edge_of;
+  for (size_t f = 0; f < tris.size(); ++f)
+    for (int c = 0; c < 3; ++c) {
+      S.F(static_cast<int>(f), c) = cls[tris[f][c]];
+      const int a = tris[f][c], b = tris[f][(c + 1) % 3];
+      const int i = cls[a], j = cls[b];
+      // Image of i -> j in the face, moved so i sits at its representative.
+      const Mobius rho = (gamma[a].inverse() * gamma[b]).normalized();
+      const auto key = std::make_pair(std::min(i, j), std::max(i, j));
+      if (edge_of.count(key)) continue;
+      edge_of[key] = static_cast<int>(S.edges.size());
+      WeightedEdge e;
+      e.i = i, e.j = j, e.w = 1.0, e.rho = rho;
+      S.edges.push_back(e);
+    }
+  for (int i = 0; i < N; ++i)
+    if (word[i] > 0) S.generators.push_back(side_map[i]);
+  return S;
+}
+
+double mobius_error(const Mobius& a, const Mobius& b) { return hyperbolic::mobius_distance(a.normalized(), b.normalized()); }
+
+TEST(OctagonSurface, IsAClosedGenusTwoSurfaceWithConsistentDeckData) {
+  const OctagonSurface S = octagon_surface(5);
+  const Connectivity c(S.F, S.n);
+  EXPECT_EQ(c.genus(), 2);
+  // Every face closes up: ρ(01) ρ(12) ρ(20) = id, checked through the edges.
+  std::map<std::pair<int, int>, Mobius> rho;
+  for (const auto& e : S.edges) rho[{e.i, e.j}] = e.rho, rho[{e.j, e.i}] = e.rho.inverse();
+  for (int f = 0; f < S.F.rows(); ++f) {
+    Mobius prod;
+    for (int k = 0; k < 3; ++k) prod = prod * rho.at({S.F(f, k), S.F(f, (k + 1) % 3)});
+    EXPECT_LT(hyperbolic::distance_from_identity(prod.normalized()), 1e-9) << "face " << f;
+  }
+  (void)mobius_error;
+}
+
+// Random positive weights: the identity is then not the optimum, and the
+// optimum is unique (geodesically convex energy).
+OctagonSurface weighted_octagon(int m, unsigned seed) {
+  OctagonSurface S = octagon_surface(m);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> U(0.3, 1.7);
+  for (auto& e : S.edges) e.w = U(rng);
+  return S;
+}
+
+// Position of vertex i in the lift where edges carry their original ρ.
+Complex lifted(const std::vector<Complex>& z, const std::vector<Mobius>& deck, int i) { return deck[i].inverse().apply(z[i]); }
+
+TEST(HarmonicRelaxation, ReachesNewtonsEnergyAndMap) {
+  const OctagonSurface S = weighted_octagon(7, 3);
+  HyperbolicHarmonicOptions no;
+  no.tolerance = 1e-11;
+  const HyperbolicHarmonicResult newton = hyperbolic_harmonic_map(S.n, S.edges, S.generators, S.z, no);
+  ASSERT_TRUE(newton.converged);
+  HarmonicRelaxationOptions ro;
+  ro.tolerance = 1e-10;
+  const HarmonicRelaxationResult relax = harmonic_relaxation(S.n, S.edges, S.generators, S.z, ro);
+  ASSERT_TRUE(relax.converged) << relax.stop_reason << " after " << relax.iterations;
+  EXPECT_EQ(relax.stop_reason, "tolerance");
+  EXPECT_GT(relax.iterations, 10);
+  EXPECT_NEAR(relax.energy, newton.energy, 1e-9 * newton.energy);
+  // The energy recomputed independently from the returned points and decks.
+  EXPECT_NEAR(hyperbolic_energy(S.edges, relax.z, relax.vertex_deck), relax.energy, 1e-12 * relax.energy);
+  double worst = 0;
+  for (int i = 0; i < S.n; ++i)
+    worst = std::max(worst, hyperbolic::distance(lifted(relax.z, relax.vertex_deck, i), lifted(newton.z, newton.vertex_deck, i)));
+  EXPECT_LT(worst, 1e-6);
+  // The optimum moved away from the start (non-uniform weights).
+  double moved = 0;
+  for (int i = 0; i < S.n; ++i) moved = std::max(moved, hyperbolic::distance(lifted(relax.z, relax.vertex_deck, i), S.z[i]));
+  EXPECT_GT(moved, 1e-3);
+}
+
+TEST(HarmonicRelaxation, EnergyDecreasesMonotonicallyFromAFarStart) {
+  // All vertices at the origin: edges crossing the octagon's sides start
+  // with images of hyperbolic length ~3, where step ½ needs its safeguard.
+  const OctagonSurface S = weighted_octagon(6, 11);
+  HarmonicRelaxationOptions ro;
+  ro.max_iterations = 400;
+  const HarmonicRelaxationResult r = harmonic_relaxation(S.n, S.edges, S.generators, std::vector<Complex>(S.n, 0.0), ro);
+  ASSERT_GE(r.energy_history.size(), 401u);
+  for (size_t k = 1; k < r.energy_history.size(); ++k)
+    EXPECT_LE(r.energy_history[k], r.energy_history[k - 1] * (1 + 1e-14)) << "sweep " << k;
+  EXPECT_LT(r.energy_history.back(), 0.5 * r.energy_history.front());
+  // The iteration cap is reported honestly.
+  if (!r.converged) EXPECT_EQ(r.stop_reason, "iteration cap");
+  EXPECT_EQ(r.time_history.size(), r.energy_history.size());
+  for (size_t k = 1; k < r.time_history.size(); ++k) EXPECT_GE(r.time_history[k], r.time_history[k - 1]);
+}
+
+TEST(HarmonicRelaxation, TimeBudgetAndBadInput) {
+  const OctagonSurface S = weighted_octagon(5, 1);
+  HarmonicRelaxationOptions ro;
+  ro.time_budget_s = 1e-9;
+  const HarmonicRelaxationResult r = harmonic_relaxation(S.n, S.edges, S.generators, S.z, ro);
+  EXPECT_FALSE(r.converged);
+  EXPECT_EQ(r.stop_reason, "time budget");
+  EXPECT_EQ(r.iterations, 1);
+  std::vector<Complex> outside(S.n, 0.0);
+  outside[3] = 1.5;
+  EXPECT_THROW(harmonic_relaxation(S.n, S.edges, S.generators, outside), InputError);
+  HarmonicRelaxationOptions bad;
+  bad.step = 0;
+  EXPECT_THROW(harmonic_relaxation(S.n, S.edges, S.generators, S.z, bad), InputError);
+  std::vector<WeightedEdge> neg = S.edges;
+  neg[0].w = -1;
+  EXPECT_THROW(harmonic_relaxation(S.n, neg, S.generators, S.z), InputError);
+}
+
+TEST(HarmonicRelaxation, FlatRelaxationReachesTheExactOptimum) {
+  // Flat torus C / (Z + iZ) as an m x m grid, random positive weights; the
+  // optimum solves a linear system, checked here by its gradient and by
+  // the energy of the exact (affine) solution for uniform weights.
+  const int m = 12;
+  std::vector<int> ei, ej;
+  std::vector<double> w;
+  std::vector<Complex> t;
+  auto id = [&](int x, int y) { return ((y + m) % m) * m + (x + m) % m; };
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> U(0.5, 1.5);
+  for (int y = 0; y < m; ++y)
+    for (int x = 0; x < m; ++x)
+      for (auto [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}, std::pair{1, 1}}) {
+        ei.push_back(id(x, y)), ej.push_back(id(x + dx, y + dy));
+        // z_j + t − z_i is the edge's image: the grid step, wrapping by the lattice.
+        const Complex step(dx / double(m), dy / double(m));
+        const Complex zi(x / double(m), y / double(m)), zj(((x + dx) % m) / double(m), ((y + dy) % m) / double(m));
+        t.push_back(zi + step - zj);
+        w.push_back(1.0);
+      }
+  std::vector<Complex> z0(m * m);
+  std::uniform_real_distribution<double> J(-0.3, 0.3);
+  for (auto& z : z0) z = Complex(J(rng), J(rng));
+  HarmonicRelaxationOptions ro;
+  ro.tolerance = 1e-11;
+  const HarmonicRelaxationResult r = flat_harmonic_relaxation(m * m, ei, ej, w, t, z0, ro);
+  ASSERT_TRUE(r.converged);
+  // Uniform weights: the affine grid (zero energy defect) is optimal, E = Σ |step|².
+  double expected = 0;
+  for (size_t e = 0; e < ei.size(); ++e) {
+    const int dx = (ej[e] % m - ei[e] % m + m) % m, dy = (ej[e] / m - ei[e] / m + m) % m;
+    expected += std::norm(Complex(dx, dy) / double(m));
+  }
+  EXPECT_NEAR(r.energy, expected, 1e-9 * expected);
+  for (size_t k = 1; k < r.energy_history.size(); ++k) EXPECT_LE(r.energy_history[k], r.energy_history[k - 1] * (1 + 1e-14));
+  // Random weights: still converges (gradient test), energy monotone.
+  for (double& x : w) x = U(rng);
+  const HarmonicRelaxationResult r2 = flat_harmonic_relaxation(m * m, ei, ej, w, t, z0, ro);
+  EXPECT_TRUE(r2.converged);
+  EXPECT_LE(r2.energy, expected * 1.7);
+}
+
+TEST(HyperbolicInitialMap, OctagonTutteMapIsAnEmbedding) {
+  // Uniform weights on the symmetric octagon: the Tutte-type map is an
+  // embedding (no flipped triangles) and hyperbolic_distortion sees D' >= 1.
+  const OctagonSurface S = octagon_surface(6);
+  const Connectivity c(S.F, S.n);
+  std::map<std::pair<int, int>, Mobius> rho;
+  for (const auto& e : S.edges) rho[{e.i, e.j}] = e.rho, rho[{e.j, e.i}] = e.rho.inverse();
+  std::vector<Mobius> hr(3 * S.F.rows());
+  for (int h = 0; h < 3 * S.F.rows(); ++h) hr[h] = rho.at({c.tail(h), c.head(h)});
+  const HyperbolicInitialMapResult init = hyperbolic_initial_map(c, hr, S.generators);
+  ASSERT_TRUE(init.converged);
+  TriMesh mesh;
+  mesh.F = S.F;
+  mesh.V.resize(S.n, 3);
+  for (int i = 0; i < S.n; ++i) mesh.V.row(i) << S.z[i].real(), S.z[i].imag(), 0.0;  // any 3D metric will do
+  const DistortionStats q = hyperbolic_distortion(mesh, hr, init.z, init.vertex_deck);
+  EXPECT_EQ(q.flipped, 0);
+  EXPECT_EQ(q.degenerate, 0);
+  EXPECT_GE(q.mean, 1.0);
+  for (double d : q.per_face) EXPECT_TRUE(std::isfinite(d));
+}
+
+double bbox_diagonal(const TriMesh& m) { return (m.V.colwise().maxCoeff() - m.V.colwise().minCoeff()).norm(); }
+
+TEST(SurfaceMapInitialMap, GenusTwoBeforeFiguresAreFilledAndNoWorseThanTheOptimum) {
+  const TriMesh a = samples::n_hole_torus(2, 32, true), b = samples::vase(34, true);
+  const SurfaceMapResult m = surface_map(a, b);
+  ASSERT_TRUE(m.converged);
+  ASSERT_EQ(static_cast<int>(m.initial_dilatation.size()), a.num_faces());
+  EXPECT_EQ(m.initial_flipped_triangles, 0);
+  for (double d : m.initial_dilatation) {
+    EXPECT_TRUE(std::isfinite(d));
+    EXPECT_GE(d, 1.0 - 1e-12);
+  }
+  EXPECT_GE(m.initial_mean_dilatation, 1.0);
+  EXPECT_GE(m.initial_max_dilatation, m.initial_mean_dilatation);
+  EXPECT_GE(m.initial_energy, m.final_energy);
+  // The Newton history starts at the initial map (the default start).
+  EXPECT_NEAR(m.energy_history.front(), m.initial_energy, 1e-9 * m.initial_energy);
+  // Relaxation with too few sweeps is a failure, not a result.
+  SurfaceMapOptions o;
+  o.method = MapMethod::Relaxation;
+  o.max_iterations = 20;
+  try {
+    surface_map(a, b, o);
+    ADD_FAILURE() << "20 relaxation sweeps cannot reach the tolerance";
+  } catch (const SolveError& e) {
+    EXPECT_NE(std::string(e.what()).find("relaxation"), std::string::npos) << e.what();
+  }
+  (void)bbox_diagonal;
+}
+
+TEST(SurfaceMapInitialMap, SliverSourceInitialMapHasNoFlips) {
+  const TriMesh a = samples::n_hole_torus(2, 40, false), b = samples::amphora(34, true);
+  const SurfaceMapResult m = surface_map(a, b);
+  EXPECT_EQ(m.initial_flipped_triangles, 0);
+  EXPECT_EQ(static_cast<int>(m.initial_dilatation.size()), a.num_faces());
+  EXPECT_GE(m.initial_energy, m.final_energy);
+}
+
+TEST(SurfaceMapInitialMap, GenusOneRelaxationOptionKeepsTheExactSolveAndTheInitialMap) {
+  const TriMesh a = samples::torus_of_revolution(1.0, 0.5, 48, 24), b = samples::torus_of_revolution(1.5, 0.5, 60, 24, 1);
+  SurfaceMapOptions o;
+  const SurfaceMapResult newton = surface_map(a, b, o);
+  o.method = MapMethod::Relaxation;
+  const SurfaceMapResult relax = surface_map(a, b, o);
+  EXPECT_EQ(relax.final_energy, newton.final_energy);
+  ASSERT_EQ(static_cast<int>(relax.initial_dilatation.size()), a.num_faces());
+  EXPECT_EQ(relax.initial_flipped_triangles, 0);
+  EXPECT_GE(relax.initial_energy, relax.final_energy);
+  EXPECT_GE(relax.initial_mean_dilatation, 1.0);  // (a harmonic map need not have the lower mean D')
+  for (double d : relax.initial_dilatation) EXPECT_TRUE(std::isfinite(d));
+}
+
+}  // namespace
+}  // namespace surfmap
