@@ -115,6 +115,8 @@ void register_map(CLI::App& app) {
         {"initial_distortion", {{"mean", m.initial_mean_dilatation}, {"max", m.initial_max_dilatation}}},
         {"method", a->method},
         {"landmarks", opt.landmarks.size()},
+        {"landmark_error", m.max_landmark_error},
+        {"repaired_vertices", m.repaired_vertices},
         {"flipped_triangles", m.flipped_triangles},
         {"degenerate_triangles", m.degenerate_triangles},
         {"initial_flipped_triangles", m.initial_flipped_triangles},

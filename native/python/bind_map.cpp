@@ -105,6 +105,8 @@ void bind_map(py::module_& m) {
                      py::arg("per_face") = to_numpy(r.initial_dilatation));
         d["flipped_triangles"] = r.flipped_triangles;
         d["degenerate_triangles"] = r.degenerate_triangles;
+        d["landmark_error"] = r.max_landmark_error;
+        d["repaired_vertices"] = r.repaired_vertices;
         d["forward"] = points_to_dict(r.forward);
         d["inverse"] = points_to_dict(r.inverse);
         py::list cands;
@@ -124,7 +126,7 @@ void bind_map(py::module_& m) {
       py::arg("source_base_vertex") = -1, py::arg("target_base_vertex") = -1, py::arg("progress") = py::none(),
       py::arg("landmarks") = py::none(), py::arg("method") = "newton", py::arg("tolerance") = 1e-10,
       py::arg("max_iterations") = 300,
-      "Globally optimal map from the source onto the target (same genus >= 1). Returns a dict "
+      "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
       "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "
       "(source vertex, target vertex) pairs held fixed; `method`: 'newton' or 'relaxation'. `progress(stage, fraction)` "

@@ -113,6 +113,10 @@ class TriangleGrid {
 void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
               const SurfaceMapOptions& options, SurfaceMapResult& out, const StageDone& stage_done);
 
+/// Genus 0 (through the unit sphere): fills `out` (map/spherical_map.h).
+void map_spherical(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
+                   const SurfaceMapOptions& options, SurfaceMapResult& out, const StageDone& stage_done);
+
 /// Genus >= 2 (hyperbolic target): fills `out` (Riemannian Newton, DESIGN.md §7).
 void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
                     const SurfaceMapOptions& options, SurfaceMapResult& out, const StageDone& stage_done);

@@ -1,5 +1,6 @@
 #include "surfmap/map/surface_map.h"
 
+#include <algorithm>
 #include <chrono>
 #include <string>
 
@@ -43,13 +44,16 @@ SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const
       throw InputError(which + ": target vertex " + std::to_string(t) + " is already landmark " + std::to_string(dst_used[t]));
     src_used[s] = dst_used[t] = static_cast<int>(k);
   }
-  if (!options.landmarks.empty()) throw InputError("landmarks are not implemented yet");
+  if (!options.landmarks.empty() && out.genus > 0) throw InputError("landmarks are not implemented yet");
   if (out.genus == 0)
-    throw InputError("surface maps of genus 0 are not implemented yet; genus >= 1 is");
-  if (out.genus == 1)
+    detail::map_spherical(source, target, sc, tc, options, out, stage_done);
+  else if (out.genus == 1)
     detail::map_flat(source, target, sc, tc, options, out, stage_done);
   else
     detail::map_hyperbolic(source, target, sc, tc, options, out, stage_done);
+  // How far each landmark's source vertex lands from its target vertex.
+  for (const auto& [s, t] : options.landmarks)
+    out.max_landmark_error = std::max(out.max_landmark_error, (out.forward[s].position - target.V.row(t).transpose()).norm());
   out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();
   return out;
 }

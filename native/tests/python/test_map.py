@@ -129,3 +129,61 @@ def test_cli_map_bad_input_writes_nothing(tmp_path, cli):
     assert r.returncode == 1
     assert "open" in r.stderr and "open.obj" in r.stderr
     assert not out.exists() and not rep.exists()
+
+
+# Genus 0: through the unit sphere (map/spherical_map.h).
+
+def blob(subdivisions):
+    """An asymmetric genus-0 shape: a scaled, bulged icosphere."""
+    V, F = surfmap.shapes.sphere(subdivisions)
+    V = V / np.linalg.norm(V, axis=1, keepdims=True)
+    bulge = 1.0 + 0.25 * V[:, 0] + 0.1 * V[:, 1] * V[:, 2]
+    return V * np.array([1.6, 1.0, 0.7]) * bulge[:, None], F
+
+
+def test_genus0_conformal_copy_and_landmarks():
+    Vs, Fs = blob(3)
+    Vt, Ft = surfmap.shapes.sphere_inversion(Vs, Fs, np.array([3.0, 0.5, -0.4]), 2.5)
+    r = surfmap.surface_map(Vs, Fs, Vt, Ft)
+    assert r["genus"] == 0 and r["converged"] and r["flipped_triangles"] == 0
+    # Conformally equivalent copies: D' close to 1 (first-order discretisation error at 642 vertices).
+    assert 1.0 <= r["distortion"]["mean"] < 1.08
+    fwd = r["forward"]
+    recon = np.einsum("ik,ikj->ij", fwd["barycentric"], Vt[Ft[fwd["face"]]])
+    assert np.abs(recon - fwd["position"]).max() < 1e-9
+    assert r["inverse"]["face"].shape == (len(Vt),)
+    # Three landmarks are hit exactly; more are fitted in least squares and the residual is reported.
+    pairs = np.array([[0, 40], [111, 300], [500, 20]])
+    r3 = surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=pairs)
+    assert r3["flipped_triangles"] == 0
+    assert np.abs(r3["forward"]["position"][pairs[:, 0]] - Vt[pairs[:, 1]]).max() < 1e-9
+    assert r3["landmark_error"] < 1e-9
+    # Four landmarks that agree with the free map (each source vertex to the target vertex nearest its image).
+    src = np.array([0, 111, 500, 250])
+    dst = np.array([np.linalg.norm(Vt - fwd["position"][i], axis=1).argmin() for i in src])
+    r4 = surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=np.stack([src, dst], 1))
+    worst = np.linalg.norm(r4["forward"]["position"][src] - Vt[dst], axis=1).max()
+    assert r4["flipped_triangles"] == 0
+    # The least-squares fit does about as well as the free map already did on these pairs.
+    free_error = np.linalg.norm(fwd["position"][src] - Vt[dst], axis=1).max()
+    assert r4["landmark_error"] == pytest.approx(worst) and 0 < worst < 1.5 * free_error
+    with pytest.raises(surfmap.InputError, match="out of range"):
+        surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=[[0, len(Vt)]])
+
+
+def test_genus0_cli(tmp_path, cli):
+    Vs, Fs = blob(2)
+    Vt, Ft = surfmap.shapes.jitter(Vs * 2.0 + 1.0, Fs, 0.2, 4)
+    src, dst = tmp_path / "a.obj", tmp_path / "b.obj"
+    surfmap.write_obj(str(src), Vs, Fs)
+    surfmap.write_obj(str(dst), Vt, Ft)
+    lm = tmp_path / "pairs.txt"
+    lm.write_text("0 0\n10 10\n")
+    out, rep = tmp_path / "morph.obj", tmp_path / "report.json"
+    r = cli("map", src, dst, "--out", out, "--report", rep, "--landmarks", lm, "--quiet")
+    assert r.returncode == 0, r.stderr
+    report = json.loads(rep.read_text())
+    assert report["genus"] == 0 and report["flipped_triangles"] == 0 and report["landmark_error"] < 1e-9
+    morph = surfmap.load_mesh(str(out))["V"]
+    # A jittered copy of the same shape: the map is close to the identity.
+    assert np.abs(morph - (Vs * 2.0 + 1.0)).max() < 0.05 * np.ptp(Vt, axis=0).max()

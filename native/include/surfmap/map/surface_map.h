@@ -16,7 +16,10 @@
 // (map/hyperbolic_harmonic.h) converges in a handful of iterations. So far
 // only the canonical class a_i -> a'_i, b_i -> b'_i is offered for genus >= 2.
 //
-// Genus 0 is not implemented yet (InputError says so).
+// Genus 0 (map/spherical_map.h): both surfaces are uniformized onto the unit
+// sphere and Möbius-centred; all harmonic maps are then conformal, and the
+// remaining Möbius freedom is fixed by a rigid rotation aligning the shapes,
+// or by the landmarks.
 #include <complex>
 #include <functional>
 #include <string>
@@ -104,6 +107,13 @@ struct SurfaceMapResult {
   double initial_mean_dilatation = 0, initial_max_dilatation = 0;
   std::vector<double> initial_dilatation;  ///< #F_source D' of the initial map (empty when not computed)
   int flipped_triangles = 0, degenerate_triangles = 0;
+  /// Largest distance between a landmark's forward image and its target
+  /// vertex (0 up to round-off, except for genus 0 with more than 3
+  /// landmarks, where the Möbius map fits them in least squares).
+  double max_landmark_error = 0;
+  /// Genus 0: vertices whose sphere image was re-placed to untangle input
+  /// faces flipped by the uniformization (map/spherical_map.h); 0 otherwise.
+  int repaired_vertices = 0;
   int initial_flipped_triangles = 0;
   std::vector<HomotopyCandidate> candidates;
   int chosen_candidate = -1;

@@ -1,0 +1,744 @@
+// Genus 0: maps through the unit sphere (DESIGN.md §2.4, §2.10). See
+// map/spherical_map.h for the choice of the Möbius map.
+#include "surfmap/map/spherical_map.h"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <limits>
+#include <string>
+
+#include <Eigen/Dense>
+#include <Eigen/Geometry>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+
+#include "map_support.h"
+#include "surfmap/error.h"
+#include "surfmap/geometry/intrinsic_delaunay.h"
+#include "surfmap/map/distortion.h"
+#include "surfmap/mesh/connectivity.h"
+#include "surfmap/uniformize/spherical.h"
+
+namespace surfmap {
+namespace {
+
+using Complex = std::complex<double>;
+using Hom = Eigen::Vector2cd;  // homogeneous coordinates [w1 : w2] of z = w1 / w2
+
+// Stereographic projection from the north pole in homogeneous coordinates,
+// using whichever of the two equivalent forms avoids the division by ~0.
+Hom to_hom(const Eigen::Vector3d& p) {
+  if (p.z() <= 0) return Hom(Complex(p.x(), p.y()), Complex(1.0 - p.z(), 0.0));
+  return Hom(Complex(1.0 + p.z(), 0.0), Complex(p.x(), -p.y()));
+}
+
+Eigen::Vector3d from_hom(const Hom& w) {
+  const double a = std::norm(w[0]), b = std::norm(w[1]), s = a + b;
+  const Complex c = w[0] * std::conj(w[1]);
+  return Eigen::Vector3d(2 * c.real() / s, 2 * c.imag() / s, (a - b) / s);
+}
+
+Eigen::Matrix2cd normalized(Eigen::Matrix2cd m) {
+  const Complex d = m.determinant();
+  return m / std::sqrt(d);
+}
+
+// |det(u, v)| relative to |u| |v|: 0 when the two points coincide.
+double separation(const Hom& u, const Hom& v) {
+  return std::abs(u[0] * v[1] - u[1] * v[0]) / (u.norm() * v.norm());
+}
+
+// The Möbius map sending u1 -> 0, u2 -> 1, u3 -> ∞.
+Eigen::Matrix2cd to_standard(const Hom& u1, const Hom& u2, const Hom& u3) {
+  const Complex lambda = u3[1] * u2[0] - u3[0] * u2[1], mu = u1[1] * u2[0] - u1[0] * u2[1];
+  Eigen::Matrix2cd s;
+  s << lambda * u1[1], -lambda * u1[0], mu * u3[1], -mu * u3[0];
+  return s;
+}
+
+Eigen::Matrix3d rotation_between(const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
+  Eigen::Vector3d axis = p.cross(q);
+  const double s = axis.norm(), c = p.dot(q);
+  if (s < 1e-15) {
+    if (c > 0) return Eigen::Matrix3d::Identity();
+    // Antipodal: half turn about any axis perpendicular to p.
+    axis = p.unitOrthogonal();
+    return Eigen::AngleAxisd(M_PI, axis).toRotationMatrix();
+  }
+  return Eigen::AngleAxisd(std::atan2(s, c), axis / s).toRotationMatrix();
+}
+
+double squared_residual(const SphereMobius& m, const std::vector<Eigen::Vector3d>& from,
+                        const std::vector<Eigen::Vector3d>& to) {
+  double r = 0;
+  for (size_t k = 0; k < from.size(); ++k) r += (m.apply(from[k]) - to[k]).squaredNorm();
+  return r;
+}
+
+// M · (I + X(θ)) for the six real parameters of X ∈ sl(2, C).
+SphereMobius perturbed(const SphereMobius& m, const Eigen::Matrix<double, 6, 1>& t) {
+  Eigen::Matrix2cd x;
+  x << Complex(t[0], t[1]), Complex(t[2], t[3]), Complex(t[4], t[5]), -Complex(t[0], t[1]);
+  SphereMobius out;
+  out.m = normalized(m.m * (Eigen::Matrix2cd::Identity() + x));
+  return out;
+}
+
+// Levenberg–Marquardt on Σ |M(from_k) − to_k|² over the 6 real dimensions of
+// PSL(2, C), from `start`.
+SphereMobius least_squares_mobius(SphereMobius m, const std::vector<Eigen::Vector3d>& from,
+                                  const std::vector<Eigen::Vector3d>& to) {
+  const int k = static_cast<int>(from.size());
+  auto residual = [&](const SphereMobius& mm) {
+    Eigen::VectorXd r(3 * k);
+    for (int i = 0; i < k; ++i) r.segment<3>(3 * i) = mm.apply(from[i]) - to[i];
+    return r;
+  };
+  Eigen::VectorXd r = residual(m);
+  double cost = r.squaredNorm(), lambda = 1e-3;
+  for (int it = 0; it < 200 && cost > 1e-30; ++it) {
+    Eigen::MatrixXd J(3 * k, 6);
+    const double h = 1e-7;
+    for (int c = 0; c < 6; ++c) {
+      Eigen::Matrix<double, 6, 1> t = Eigen::Matrix<double, 6, 1>::Zero();
+      t[c] = h;
+      const Eigen::VectorXd rp = residual(perturbed(m, t));
+      t[c] = -h;
+      J.col(c) = (rp - residual(perturbed(m, t))) / (2 * h);
+    }
+    const Eigen::Matrix<double, 6, 6> JtJ = J.transpose() * J;
+    const Eigen::Matrix<double, 6, 1> g = J.transpose() * r;
+    bool accepted = false;
+    for (int tries = 0; tries < 30 && !accepted; ++tries) {
+      Eigen::Matrix<double, 6, 6> A = JtJ;
+      for (int c = 0; c < 6; ++c) A(c, c) += lambda * std::max(JtJ(c, c), 1e-12);
+      const Eigen::Matrix<double, 6, 1> step = A.ldlt().solve(-g);
+      const SphereMobius trial = perturbed(m, step);
+      const Eigen::VectorXd rt = residual(trial);
+      if (rt.squaredNorm() < cost) {
+        const double gain = cost - rt.squaredNorm();
+        m = trial, r = rt, cost = rt.squaredNorm();
+        lambda = std::max(lambda / 3, 1e-12);
+        accepted = true;
+        if (step.norm() < 1e-13 || gain < 1e-15 * cost) return m;
+      } else {
+        lambda *= 4;
+      }
+    }
+    if (!accepted) break;
+  }
+  return m;
+}
+
+// The 24 rotations of the cube (signed permutation matrices of det +1).
+std::vector<Eigen::Matrix3d> cube_rotations() {
+  std::vector<Eigen::Matrix3d> out;
+  const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (const auto& p : perms)
+    for (int signs = 0; signs < 8; ++signs) {
+      Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
+      for (int r = 0; r < 3; ++r) R(r, p[r]) = (signs >> r & 1) ? -1.0 : 1.0;
+      if (R.determinant() > 0) out.push_back(R);
+    }
+  return out;
+}
+
+// Area-weighted normalisation: centroid of the surface at 0, total area 1.
+RowMatrixX3d normalised_shape(const RowMatrixX3d& V, const RowMatrixX3i& F, Eigen::VectorXd* vertex_area) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  double total = 0;
+  vertex_area->setZero(V.rows());
+  for (int f = 0; f < F.rows(); ++f) {
+    const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), d = V.row(F(f, 2));
+    const double A = 0.5 * (b - a).cross(d - a).norm();
+    c += A * (a + b + d) / 3.0;
+    total += A;
+    for (int k = 0; k < 3; ++k) (*vertex_area)[F(f, k)] += A / 3.0;
+  }
+  total = std::max(total, 1e-300);
+  c /= total;
+  RowMatrixX3d out = (V.rowwise() - c.transpose()) / std::sqrt(total);
+  *vertex_area /= total;
+  return out;
+}
+
+
+// Positive orientation of the chordal triangle (a, b, c) seen from outside.
+double orientation(const RowMatrixX3d& P, const RowMatrixX3i& F, int f) {
+  const Eigen::Vector3d a = P.row(F(f, 0)), b = P.row(F(f, 1)), c = P.row(F(f, 2));
+  return a.dot(b.cross(c));
+}
+
+bool bad_face(const RowMatrixX3d& P, const RowMatrixX3i& F, int f) {
+  const Eigen::Vector3d a = P.row(F(f, 0)), b = P.row(F(f, 1)), c = P.row(F(f, 2));
+  const double scale = std::max({(b - a).squaredNorm(), (c - a).squaredNorm(), (c - b).squaredNorm()});
+  return !(orientation(P, F, f) > 1e-12 * scale);
+}
+
+}  // namespace
+
+int untangle_sphere_image(RowMatrixX3d& P, const RowMatrixX3i& F, int max_vertices) {
+  const int nv = static_cast<int>(P.rows()), nf = static_cast<int>(F.rows());
+  const Connectivity conn(F, nv);
+  std::vector<int> bad;
+  for (int f = 0; f < nf; ++f)
+    if (bad_face(P, F, f)) bad.push_back(f);
+  if (bad.empty()) return 0;
+  std::vector<char> in(nv, 0);
+  std::vector<int> region;
+  auto add = [&](int v) {
+    if (!in[v]) in[v] = 1, region.push_back(v);
+  };
+  for (int f : bad)
+    for (int k = 0; k < 3; ++k) add(F(f, k));
+  const RowMatrixX3d original = P;
+  for (int grow = 0; grow < 64; ++grow) {
+    // One more ring: the region's boundary gets rounder, and Tutte's theorem
+    // needs a convex one.
+    const std::vector<int> current = region;
+    for (int v : current)
+      for (int h : conn.outgoing(v)) add(conn.head(h));
+    if (static_cast<int>(region.size()) > max_vertices) break;
+    // Gnomonic chart at the region's mean direction: great circles become
+    // lines, so planar orientation there is the chordal orientation on the
+    // sphere.
+    Eigen::Vector3d n = Eigen::Vector3d::Zero();
+    for (int v : region) n += original.row(v).transpose();
+    if (n.norm() < 1e-12) break;
+    n.normalize();
+    const Eigen::Vector3d e1 = n.unitOrthogonal(), e2 = n.cross(e1);
+    std::vector<int> index(nv, -1), boundary_of;
+    int ni = 0;
+    // Interior unknowns: region vertices all of whose neighbours are in the
+    // region; the rest of the region plus its outer ring stay fixed.
+    std::vector<int> interior;
+    for (int v : region) {
+      bool all = true;
+      for (int h : conn.outgoing(v)) all = all && in[conn.head(h)];
+      if (all) index[v] = ni++, interior.push_back(v);
+    }
+    if (ni == 0) continue;
+    auto chart = [&](int v, Eigen::Vector2d* x) {
+      const Eigen::Vector3d p = original.row(v).transpose();
+      const double d = p.dot(n);
+      if (!(d > 1e-3)) return false;
+      *x = Eigen::Vector2d((p / d).dot(e1), (p / d).dot(e2));
+      return true;
+    };
+    bool ok = true;
+    std::vector<Eigen::Triplet<double>> trip;
+    Eigen::MatrixX2d rhs = Eigen::MatrixX2d::Zero(ni, 2);
+    for (int v : interior) {
+      const int i = index[v];
+      for (int h : conn.outgoing(v)) {
+        const int u = conn.head(h);
+        trip.emplace_back(i, i, 1.0);
+        if (index[u] >= 0) {
+          trip.emplace_back(i, index[u], -1.0);
+        } else {
+          Eigen::Vector2d x;
+          ok = ok && chart(u, &x);
+          rhs.row(i) += x.transpose();
+        }
+      }
+    }
+    if (!ok) break;
+    Eigen::SparseMatrix<double> L(ni, ni);
+    L.setFromTriplets(trip.begin(), trip.end());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(L);
+    if (solver.info() != Eigen::Success) break;
+    const Eigen::MatrixX2d X = solver.solve(rhs);
+    P = original;
+    for (int v : interior)
+      P.row(v) = (n + X(index[v], 0) * e1 + X(index[v], 1) * e2).normalized().transpose();
+    bool clean = true;
+    for (int f = 0; f < nf && clean; ++f)
+      if ((index[F(f, 0)] >= 0 || index[F(f, 1)] >= 0 || index[F(f, 2)] >= 0 || in[F(f, 0)]) && bad_face(P, F, f))
+        clean = false;
+    if (clean) {
+      for (int f = 0; f < nf; ++f)
+        if (bad_face(P, F, f)) clean = false;
+      if (clean) return ni;
+    }
+  }
+  P = original;
+  return -1;
+}
+
+namespace {
+
+// A spherical uniformization usable for the map: converged, or converged in
+// its angle sums with a few input faces flipped on the sphere (or one
+// degenerate intrinsic face at the fixed ring), which are then untangled
+// locally. Tries the same removed vertices as spherical_uniformization.
+SphericalUniformization usable_sphere(const TriMesh& mesh, const SphericalUniformizationOptions& uo,
+                                      const std::string& which, int* repaired) {
+  *repaired = 0;
+  SphericalUniformization r = spherical_uniformization(mesh, uo);
+  if (r.converged) return r;
+  const std::string first_message = r.message;
+  const int nv = mesh.num_vertices();
+  const int limit = std::max(50, nv / 50);
+  auto usable = [&](SphericalUniformization& u) {
+    if (!u.positions.allFinite() || !(u.max_curvature_error <= std::max(1e3 * uo.flow.tolerance, 1e-8)) ||
+        !(u.centre_of_mass_norm <= 1e-6))
+      return false;
+    const int moved = untangle_sphere_image(u.positions, mesh.F, limit);
+    if (moved < 0) return false;
+    *repaired = moved;
+    u.converged = true;
+    return true;
+  };
+  if (usable(r)) return r;
+  const Connectivity conn(mesh.F, nv);
+  int best_v = 0;
+  for (int v = 1; v < nv; ++v)
+    if (conn.valence(v) > conn.valence(best_v)) best_v = v;
+  std::vector<int> candidates{best_v};
+  for (int k = 1; k <= 6; ++k) candidates.push_back(static_cast<int>((static_cast<long long>(nv) * k) / 7));
+  for (int v0 : candidates) {
+    SphericalUniformizationOptions o = uo;
+    o.removed_vertex = v0;
+    SphericalUniformization a = spherical_uniformization(mesh, o);
+    if (a.converged || usable(a)) return a;
+  }
+  throw SolveError(which + " spherical uniformization failed: " + first_message);
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// SphereMobius
+
+Eigen::Vector3d SphereMobius::apply(const Eigen::Vector3d& p) const { return from_hom(m * to_hom(p)); }
+
+SphereMobius SphereMobius::operator*(const SphereMobius& other) const {
+  SphereMobius out;
+  out.m = normalized(m * other.m);
+  return out;
+}
+
+SphereMobius SphereMobius::inverse() const {
+  SphereMobius out;
+  out.m << m(1, 1), -m(0, 1), -m(1, 0), m(0, 0);
+  out.m = normalized(out.m);
+  return out;
+}
+
+SphereMobius SphereMobius::from_three_points(const std::array<Eigen::Vector3d, 3>& from,
+                                             const std::array<Eigen::Vector3d, 3>& to) {
+  std::array<Hom, 3> u, v;
+  for (int k = 0; k < 3; ++k) u[k] = to_hom(from[k].normalized()), v[k] = to_hom(to[k].normalized());
+  for (int a = 0; a < 3; ++a)
+    for (int b = a + 1; b < 3; ++b) {
+      if (separation(u[a], u[b]) < 1e-12)
+        throw InputError("Möbius map from three points: source points " + std::to_string(a) + " and " +
+                         std::to_string(b) + " coincide");
+      if (separation(v[a], v[b]) < 1e-12)
+        throw InputError("Möbius map from three points: target points " + std::to_string(a) + " and " +
+                         std::to_string(b) + " coincide");
+    }
+  const Eigen::Matrix2cd S = to_standard(u[0], u[1], u[2]), T = to_standard(v[0], v[1], v[2]);
+  SphereMobius out;
+  out.m = normalized(T.inverse() * S);
+  return out;
+}
+
+SphereMobius SphereMobius::from_rotation(const Eigen::Matrix3d& R) {
+  const std::array<Eigen::Vector3d, 3> e = {Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY(),
+                                            Eigen::Vector3d::UnitZ()};
+  return from_three_points(e, {R * e[0], R * e[1], R * e[2]});
+}
+
+SphereMobius fit_sphere_mobius(const std::vector<Eigen::Vector3d>& from_in, const std::vector<Eigen::Vector3d>& to_in,
+                               double* rms) {
+  if (from_in.size() != to_in.size() || from_in.empty())
+    throw InputError("fit_sphere_mobius: needs the same number (>= 1) of source and target points");
+  std::vector<Eigen::Vector3d> from, to;
+  for (size_t k = 0; k < from_in.size(); ++k) from.push_back(from_in[k].normalized()), to.push_back(to_in[k].normalized());
+  const int k = static_cast<int>(from.size());
+  for (int a = 0; a < k; ++a)
+    for (int b = a + 1; b < k; ++b) {
+      if ((from[a] - from[b]).norm() < 1e-12)
+        throw InputError("landmarks " + std::to_string(a) + " and " + std::to_string(b) +
+                         " coincide on the source's sphere");
+      if ((to[a] - to[b]).norm() < 1e-12)
+        throw InputError("landmarks " + std::to_string(a) + " and " + std::to_string(b) +
+                         " coincide on the target's sphere");
+    }
+  SphereMobius m;
+  if (k == 1) {
+    m = SphereMobius::from_rotation(rotation_between(from[0], to[0]));
+  } else if (k == 2) {
+    // A third, fixed point as far as possible from the four given ones keeps
+    // the map close to the identity where nothing was asked for.
+    const Eigen::Vector3d candidates[] = {-(from[0] + from[1] + to[0] + to[1]), from[0].cross(from[1]),
+                                          to[0].cross(to[1]), Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY(),
+                                          Eigen::Vector3d::UnitZ(), -Eigen::Vector3d::UnitX(),
+                                          -Eigen::Vector3d::UnitY(), -Eigen::Vector3d::UnitZ()};
+    Eigen::Vector3d best(0, 0, 1);
+    double best_d = -1;
+    for (const Eigen::Vector3d& c : candidates) {
+      if (c.norm() < 1e-6) continue;
+      const Eigen::Vector3d r = c.normalized();
+      const double d = std::min({(r - from[0]).norm(), (r - from[1]).norm(), (r - to[0]).norm(), (r - to[1]).norm()});
+      if (d > best_d) best_d = d, best = r;
+    }
+    m = SphereMobius::from_three_points({from[0], from[1], best}, {to[0], to[1], best});
+  } else if (k == 3) {
+    m = SphereMobius::from_three_points({from[0], from[1], from[2]}, {to[0], to[1], to[2]});
+  } else {
+    // Start from the best exact fit of a triple (all triples for few
+    // landmarks, a deterministic sample otherwise), then least squares.
+    double best = squared_residual(m, from, to);
+    auto try_triple = [&](int a, int b, int c) {
+      try {
+        const SphereMobius t = SphereMobius::from_three_points({from[a], from[b], from[c]}, {to[a], to[b], to[c]});
+        const double r = squared_residual(t, from, to);
+        if (r < best) best = r, m = t;
+      } catch (const InputError&) {
+      }
+    };
+    if (k <= 12) {
+      for (int a = 0; a < k; ++a)
+        for (int b = a + 1; b < k; ++b)
+          for (int c = b + 1; c < k; ++c) try_triple(a, b, c);
+    } else {
+      unsigned state = 12345u;
+      auto next = [&]() { return static_cast<int>((state = state * 1664525u + 1013904223u) >> 8) % k; };
+      for (int s = 0; s < 300; ++s) {
+        const int a = next(), b = next(), c = next();
+        if (a != b && b != c && a != c) try_triple(a, b, c);
+      }
+    }
+    m = least_squares_mobius(m, from, to);
+  }
+  if (rms) *rms = std::sqrt(squared_residual(m, from, to) / k);
+  return m;
+}
+
+// ---------------------------------------------------------------------------
+// SphereLocator
+
+SphereLocator::SphereLocator(const RowMatrixX3d& positions, const RowMatrixX3i& F) : P_(positions), F_(F) {
+  const Connectivity c(F, static_cast<int>(positions.rows()));
+  const int nf = static_cast<int>(F.rows()), nv = static_cast<int>(positions.rows());
+  neighbour_.assign(3 * nf, -1);
+  for (int f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) neighbour_[3 * f + k] = Connectivity::face(c.twin(3 * f + (k + 1) % 3));
+  vertex_face_.assign(nv, 0);
+  for (int f = nf - 1; f >= 0; --f)
+    for (int k = 0; k < 3; ++k) vertex_face_[F(f, k)] = f;
+  // About two vertices per occupied cell (the sphere meets ~π res² cells).
+  res_ = std::clamp(static_cast<int>(std::sqrt(nv / (2.0 * M_PI))), 1, 128);
+  auto cell_of = [&](const Eigen::Vector3d& p) {
+    int idx[3];
+    for (int a = 0; a < 3; ++a) idx[a] = std::clamp(static_cast<int>((p[a] + 1.0) * 0.5 * res_), 0, res_ - 1);
+    return (static_cast<size_t>(idx[2]) * res_ + idx[1]) * res_ + idx[0];
+  };
+  const size_t ncells = static_cast<size_t>(res_) * res_ * res_;
+  cell_start_.assign(ncells + 1, 0);
+  for (int v = 0; v < nv; ++v) ++cell_start_[cell_of(P_.row(v).transpose()) + 1];
+  for (size_t i = 0; i < ncells; ++i) cell_start_[i + 1] += cell_start_[i];
+  cell_vertices_.assign(nv, -1);
+  std::vector<int> fill(cell_start_.begin(), cell_start_.end() - 1);
+  for (int v = 0; v < nv; ++v) cell_vertices_[fill[cell_of(P_.row(v).transpose())]++] = v;
+}
+
+Eigen::Vector3d SphereLocator::cone_barycentric(int f, const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d a = P_.row(F_(f, 0)), b = P_.row(F_(f, 1)), c = P_.row(F_(f, 2));
+  // det(p, b, c) etc.: proportional to the barycentrics of the point where
+  // the ray through p meets the plane of (a, b, c); all >= 0 iff p lies in
+  // the face's cone.
+  return Eigen::Vector3d(p.dot(b.cross(c)), p.dot(c.cross(a)), p.dot(a.cross(b)));
+}
+
+int SphereLocator::start_face(const Eigen::Vector3d& p) const {
+  int idx[3];
+  for (int a = 0; a < 3; ++a) idx[a] = std::clamp(static_cast<int>((p[a] + 1.0) * 0.5 * res_), 0, res_ - 1);
+  int best = -1;
+  double best_d = std::numeric_limits<double>::infinity();
+  for (int ring = 0; ring < res_ && (best < 0 || ring <= 1); ++ring) {
+    for (int z = idx[2] - ring; z <= idx[2] + ring; ++z)
+      for (int y = idx[1] - ring; y <= idx[1] + ring; ++y)
+        for (int x = idx[0] - ring; x <= idx[0] + ring; ++x) {
+          if (x < 0 || y < 0 || z < 0 || x >= res_ || y >= res_ || z >= res_) continue;
+          if (std::max({std::abs(x - idx[0]), std::abs(y - idx[1]), std::abs(z - idx[2])}) != ring) continue;
+          const size_t cell = (static_cast<size_t>(z) * res_ + y) * res_ + x;
+          // A start for the walk need not be the nearest vertex: cap the scan
+          // in crowded cells (conformal factors cluster vertices).
+          const int end = std::min(cell_start_[cell + 1], cell_start_[cell] + 32);
+          for (int i = cell_start_[cell]; i < end; ++i) {
+            const int v = cell_vertices_[i];
+            const double d = (P_.row(v).transpose() - p).squaredNorm();
+            if (d < best_d) best_d = d, best = v;
+          }
+        }
+  }
+  return best < 0 ? 0 : vertex_face_[best];
+}
+
+int SphereLocator::locate(const Eigen::Vector3d& p, Eigen::Vector3d* bary, int hint) const {
+  const int nf = static_cast<int>(F_.rows());
+  auto walk = [&](int f, int budget) {
+    for (int step = 0; step < budget; ++step) {
+      const Eigen::Vector3d b = cone_barycentric(f, p);
+      const double s = b.sum();
+      int k;
+      const double worst = b.minCoeff(&k);
+      if (s > 0 && worst >= -1e-13 * s) {
+        *bary = b.cwiseMax(0.0) / b.cwiseMax(0.0).sum();
+        return f;
+      }
+      f = neighbour_[3 * f + k];
+      if (f < 0) return -1;
+    }
+    return -1;
+  };
+  int f = -1;
+  if (hint >= 0 && hint < nf) f = walk(hint, 64);
+  if (f < 0) f = walk(start_face(p), 4 * static_cast<int>(std::sqrt(static_cast<double>(nf))) + 256);
+  if (f >= 0) return f;
+  // Walks can cycle on non-Delaunay triangulations: exhaustive search for the
+  // face whose cone holds p best.
+  ++fallbacks;
+  int best = 0;
+  double best_score = -std::numeric_limits<double>::infinity();
+  for (int g = 0; g < nf; ++g) {
+    const Eigen::Vector3d b = cone_barycentric(g, p);
+    const double s = b.sum();
+    if (!(s > 0)) continue;
+    const double score = b.minCoeff() / s;
+    if (score > best_score) best_score = score, best = g;
+  }
+  const Eigen::Vector3d b = cone_barycentric(best, p).cwiseMax(0.0);
+  *bary = b.sum() > 0 ? Eigen::Vector3d(b / b.sum()) : Eigen::Vector3d(1.0 / 3, 1.0 / 3, 1.0 / 3);
+  return best;
+}
+
+// ---------------------------------------------------------------------------
+// Rotation alignment
+
+SphereAlignmentResult align_sphere_rotation(const RowMatrixX3d& source_V, const RowMatrixX3i& source_F,
+                                            const RowMatrixX3d& source_sphere, const RowMatrixX3d& target_V,
+                                            const RowMatrixX3i& target_F, const RowMatrixX3d& target_sphere,
+                                            const SphereLocator& target_locator,
+                                            const SphereAlignmentOptions& options) {
+  Eigen::VectorXd a_s, a_t;
+  const RowMatrixX3d Ys = normalised_shape(source_V, source_F, &a_s);
+  const RowMatrixX3d Zt = normalised_shape(target_V, target_F, &a_t);
+  const int ns = static_cast<int>(source_V.rows());
+  const int stride = std::max(1, (ns + options.max_samples - 1) / std::max(options.max_samples, 1));
+  std::vector<int> samples;
+  for (int i = 0; i < ns; i += stride) samples.push_back(i);
+  std::vector<int> hint(samples.size(), -1);
+  double weight = 0;
+  for (int i : samples) weight += a_s[i];
+  weight = std::max(weight, 1e-300);
+
+  SphereAlignmentResult out;
+  auto J = [&](const Eigen::Matrix3d& R) {
+    ++out.evaluations;
+    double sum = 0;
+    for (size_t k = 0; k < samples.size(); ++k) {
+      const int i = samples[k];
+      const Eigen::Vector3d q = R * source_sphere.row(i).transpose();
+      Eigen::Vector3d b;
+      const int f = target_locator.locate(q, &b, hint[k]);
+      hint[k] = f;
+      Eigen::Vector3d z = Eigen::Vector3d::Zero();
+      for (int c = 0; c < 3; ++c) z += b[c] * Zt.row(target_F(f, c)).transpose();
+      sum += a_s[i] * (Ys.row(i).transpose() - z).squaredNorm();
+    }
+    return sum / weight;
+  };
+  auto refine = [&](Eigen::Matrix3d R, double value, double final_step) {
+    for (double step = options.initial_step; step >= final_step; step *= 0.5) {
+      for (bool improved = true; improved;) {
+        improved = false;
+        for (int axis = 0; axis < 3; ++axis)
+          for (double sign : {1.0, -1.0}) {
+            const Eigen::Matrix3d Rt =
+                Eigen::AngleAxisd(sign * step, Eigen::Vector3d::Unit(axis)).toRotationMatrix() * R;
+            const double v = J(Rt);
+            if (v < value) value = v, R = Rt, improved = true;
+          }
+      }
+    }
+    return std::make_pair(R, value);
+  };
+  std::vector<std::pair<double, Eigen::Matrix3d>> starts;
+  for (const Eigen::Matrix3d& R : cube_rotations()) {
+    const double v = J(R);
+    if (R.isIdentity()) out.identity_mismatch = v;
+    starts.emplace_back(v, R);
+  }
+  std::sort(starts.begin(), starts.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  // The three best starts to a coarse level, the best of those to the end.
+  std::pair<Eigen::Matrix3d, double> best(Eigen::Matrix3d::Identity(), std::numeric_limits<double>::infinity());
+  for (size_t s = 0; s < std::min<size_t>(3, starts.size()); ++s) {
+    const auto r = refine(starts[s].second, starts[s].first, 0.03);
+    if (r.second < best.second) best = r;
+  }
+  best = refine(best.first, best.second, options.final_step);
+  out.rotation = best.first;
+  out.mismatch = best.second;
+  return out;
+}
+
+// ---------------------------------------------------------------------------
+// The genus-0 path of surface_map()
+
+namespace detail {
+
+void map_spherical(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
+                   const SurfaceMapOptions& options, SurfaceMapResult& out, const StageDone& stage_done) {
+  if (options.homotopy > 0)
+    throw InputError("homotopy class " + std::to_string(options.homotopy) +
+                     " does not exist; a genus-0 surface has one class (0)");
+  SphericalUniformizationOptions uo;
+  uo.flow.tolerance = options.uniformization_tolerance;
+  int repaired_t = 0, repaired_s = 0;
+  const SphericalUniformization ut = usable_sphere(target, uo, "target", &repaired_t);
+  stage_done("target uniformization", 0.3);
+  const SphericalUniformization us = usable_sphere(source, uo, "source", &repaired_s);
+  out.repaired_vertices = repaired_s + repaired_t;
+  stage_done("source uniformization", 0.45);
+
+  const SphereLocator tloc(ut.positions, target.F);
+  const SphereAlignmentResult al =
+      align_sphere_rotation(source.V, source.F, us.positions, target.V, target.F, ut.positions, tloc);
+  const int ns = source.num_vertices(), nt = target.num_vertices();
+  RowMatrixX3d X(ns, 3);
+  for (int i = 0; i < ns; ++i) X.row(i) = (al.rotation * us.positions.row(i).transpose()).transpose();
+  if (!options.landmarks.empty()) {
+    std::vector<Eigen::Vector3d> from, to;
+    for (const auto& [s, t] : options.landmarks)
+      from.push_back(X.row(s).transpose()), to.push_back(ut.positions.row(t).transpose());
+    double rms = 0;
+    const SphereMobius M = fit_sphere_mobius(from, to, &rms);
+    for (int i = 0; i < ns; ++i) X.row(i) = M.apply(X.row(i).transpose()).transpose();
+    // Exact fits (<= 3 landmarks) hit their targets to round-off; put them
+    // exactly there so the forward point is the target vertex itself.
+    if (options.landmarks.size() <= 3)
+      for (const auto& [s, t] : options.landmarks) X.row(s) = ut.positions.row(t);
+  }
+  out.iterations = al.evaluations;
+  out.converged = true;
+  stage_done("alignment", 0.55);
+
+  // Orientation of every image triangle on the sphere: a Möbius map keeps
+  // small triangles positive, but one whose circle it turns inside out would
+  // wrap the sphere.
+  int first_bad = -1;
+  for (int f = 0; f < source.num_faces(); ++f) {
+    const Eigen::Vector3d a = X.row(source.F(f, 0)), b = X.row(source.F(f, 1)), c = X.row(source.F(f, 2));
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    const double scale = std::max({(b - a).squaredNorm(), (c - a).squaredNorm(), (c - b).squaredNorm()});
+    const double vol = n.dot(a + b + c);
+    if (std::abs(vol) <= 1e-12 * scale)
+      ++out.degenerate_triangles, first_bad = first_bad < 0 ? f : first_bad;
+    else if (vol < 0)
+      ++out.flipped_triangles, first_bad = first_bad < 0 ? f : first_bad;
+  }
+  if (out.flipped_triangles || out.degenerate_triangles)
+    throw SolveError("the genus-0 map has " + std::to_string(out.flipped_triangles) + " flipped and " +
+                     std::to_string(out.degenerate_triangles) + " degenerate image triangles on the sphere (first: source face " +
+                     std::to_string(first_bad) + ")" +
+                     (options.landmarks.empty() ? std::string()
+                                                : std::string("; the Möbius map fixed by the landmarks stretches the sphere "
+                                                              "too much for this mesh: check the landmark pairs")) +
+                     "; it is not returned");
+
+  // Forward map; D' of each source triangle onto the triangle of its corners'
+  // 3D images on the target (the morph's triangles: what the user sees, and
+  // it carries the discretisation error of both uniformizations).
+  auto forward_of = [&](const RowMatrixX3d& Y) {
+    std::vector<PointOnSurface> fw(ns);
+    int hint = -1;
+    for (int i = 0; i < ns; ++i) {
+      Eigen::Vector3d b;
+      hint = tloc.locate(Y.row(i).transpose(), &b, hint);
+      fw[i] = point_in_face(target, hint, b);
+    }
+    return fw;
+  };
+  struct Quality {
+    std::vector<double> per_face;
+    double mean = 0, max = 0;
+    int degenerate = 0;
+  };
+  auto quality = [&](const std::vector<PointOnSurface>& fw) {
+    Quality q;
+    q.per_face.assign(source.num_faces(), std::numeric_limits<double>::infinity());
+    double weighted = 0, total = 0;
+    for (int f = 0; f < source.num_faces(); ++f) {
+      const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
+                            p2 = source.V.row(source.F(f, 2));
+      const Eigen::Vector3d i0 = fw[source.F(f, 0)].position, i1 = fw[source.F(f, 1)].position,
+                            i2 = fw[source.F(f, 2)].position;
+      const double d = triangle_dilatation(Eigen::Vector3d((p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()),
+                                           Eigen::Vector3d((i1 - i0).norm(), (i2 - i1).norm(), (i0 - i2).norm()));
+      if (!std::isfinite(d)) {
+        ++q.degenerate;
+        continue;
+      }
+      q.per_face[f] = d;
+      const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+      weighted += area * d, total += area;
+      q.max = std::max(q.max, d);
+    }
+    q.mean = weighted / std::max(total, 1e-300);
+    return q;
+  };
+  out.forward = forward_of(X);
+  const Quality q = quality(out.forward);
+  out.dilatation = q.per_face;
+  out.mean_dilatation = q.mean;
+  out.max_dilatation = q.max;
+  out.degenerate_triangles = q.degenerate;
+  if (q.degenerate)
+    throw SolveError("the genus-0 map has " + std::to_string(q.degenerate) +
+                     " source triangles whose image on the target is degenerate; it is not returned");
+  // The "initial" map: both centred images, no alignment and no landmarks.
+  const Quality q0 = quality(forward_of(us.positions));
+  out.initial_dilatation = q0.per_face;
+  out.initial_mean_dilatation = q0.mean;
+  out.initial_max_dilatation = q0.max;
+  out.initial_flipped_triangles = 0;  // Möbius-centred uniformizations are checked for flips
+  stage_done("forward location", 0.75);
+
+  // Harmonic energy of the sphere-valued map, Σ w_ij |X_i − X_j|² with the
+  // source's intrinsic Delaunay cotangent weights (chordal distances): a
+  // rotation leaves it unchanged, landmarks' Möbius maps change it.
+  const IntrinsicDelaunayResult idt = intrinsic_delaunay(sc, edge_lengths(source, sc));
+  auto energy = [&](const RowMatrixX3d& Y) {
+    double e = 0;
+    for (const auto& ie : idt.edges) e += ie.cot_weight * (Y.row(ie.i) - Y.row(ie.j)).squaredNorm();
+    return e;
+  };
+  out.initial_energy = energy(us.positions);
+  out.final_energy = energy(X);
+  out.energy_history = {out.initial_energy, out.final_energy};
+  HomotopyCandidate c;
+  c.description = "genus 0: the only class (the sphere is simply connected)";
+  c.energy = out.final_energy;
+  out.candidates = {c};
+  out.chosen_candidate = 0;
+  stage_done("energy", 0.8);
+
+  // Inverse map: every target vertex located in the source's aligned image.
+  const SphereLocator sloc(X, source.F);
+  out.inverse.resize(nt);
+  int hint = -1;
+  for (int v = 0; v < nt; ++v) {
+    Eigen::Vector3d b;
+    hint = sloc.locate(ut.positions.row(v).transpose(), &b, hint);
+    out.inverse[v] = point_in_face(source, hint, b);
+  }
+  stage_done("inverse location", 1.0);
+}
+
+}  // namespace detail
+}  // namespace surfmap

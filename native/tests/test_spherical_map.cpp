@@ -1,0 +1,240 @@
+// Genus-0 maps (map/spherical_map.h): Möbius maps of the sphere, point
+// location on it, the rotation alignment and the whole surface_map() path.
+#include "surfmap/map/spherical_map.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include <Eigen/Geometry>
+
+#include "surfmap/error.h"
+#include "surfmap/map/surface_map.h"
+#include "surfmap/samples/shapes.h"
+
+namespace surfmap {
+namespace {
+
+Eigen::Vector3d random_unit(std::mt19937& rng) {
+  std::normal_distribution<double> N;
+  return Eigen::Vector3d(N(rng), N(rng), N(rng)).normalized();
+}
+
+// A smooth, asymmetric genus-0 shape: the unit sphere scaled and bulged.
+Eigen::Vector3d blob(const Eigen::Vector3d& p) {
+  return Eigen::Vector3d(1.6 * p.x(), 1.0 * p.y(), 0.7 * p.z()) * (1.0 + 0.25 * p.x() + 0.1 * p.y() * p.z());
+}
+
+TriMesh blob_mesh(int subdivisions) {
+  TriMesh m = samples::sphere(subdivisions);
+  for (int i = 0; i < m.num_vertices(); ++i) m.V.row(i) = blob(m.V.row(i).transpose().normalized()).transpose();
+  return m;
+}
+
+double bbox_diagonal(const TriMesh& m) { return (m.V.colwise().maxCoeff() - m.V.colwise().minCoeff()).norm(); }
+
+void expect_valid_genus0_map(const SurfaceMapResult& m, const TriMesh& source, const TriMesh& target) {
+  EXPECT_EQ(m.genus, 0);
+  EXPECT_TRUE(m.converged);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.degenerate_triangles, 0);
+  ASSERT_EQ(static_cast<int>(m.forward.size()), source.num_vertices());
+  ASSERT_EQ(static_cast<int>(m.inverse.size()), target.num_vertices());
+  for (const auto* side : {&m.forward, &m.inverse}) {
+    const TriMesh& on = side == &m.forward ? target : source;
+    for (const auto& p : *side) {
+      ASSERT_GE(p.face, 0);
+      ASSERT_LT(p.face, on.num_faces());
+      EXPECT_NEAR(p.barycentric.sum(), 1.0, 1e-9);
+      EXPECT_GE(p.barycentric.minCoeff(), -1e-12);
+      Eigen::Vector3d q = Eigen::Vector3d::Zero();
+      for (int k = 0; k < 3; ++k) q += p.barycentric[k] * on.V.row(on.F(p.face, k)).transpose();
+      EXPECT_LT((q - p.position).norm(), 1e-9);
+    }
+  }
+  // The image of the source's triangles is an embedding on the target:
+  // every source triangle's 3D image is non-degenerate with finite D' >= 1.
+  for (double d : m.dilatation) {
+    EXPECT_TRUE(std::isfinite(d));
+    EXPECT_GE(d, 1.0 - 1e-9);
+  }
+}
+
+TEST(SphereMobius, ThreePointsAreHitExactlyAndInverseUndoes) {
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 50; ++trial) {
+    std::array<Eigen::Vector3d, 3> a, b;
+    for (int k = 0; k < 3; ++k) a[k] = random_unit(rng), b[k] = random_unit(rng);
+    if (trial == 0) a[0] = Eigen::Vector3d::UnitZ(), b[1] = Eigen::Vector3d::UnitZ();  // the pole is not special
+    const SphereMobius m = SphereMobius::from_three_points(a, b);
+    for (int k = 0; k < 3; ++k) EXPECT_LT((m.apply(a[k]) - b[k]).norm(), 1e-10) << trial;
+    const Eigen::Vector3d p = random_unit(rng);
+    EXPECT_NEAR(m.apply(p).norm(), 1.0, 1e-12);
+    EXPECT_LT((m.inverse().apply(m.apply(p)) - p).norm(), 1e-9);
+    EXPECT_LT(((m * m.inverse()).apply(p) - p).norm(), 1e-9);
+  }
+  const Eigen::Vector3d e = Eigen::Vector3d::UnitX();
+  EXPECT_THROW(SphereMobius::from_three_points({e, e, Eigen::Vector3d::UnitY()},
+                                               {e, Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ()}),
+               InputError);
+}
+
+TEST(SphereMobius, RotationsAndLeastSquaresRecoverAKnownMap) {
+  std::mt19937 rng(11);
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(1.1, Eigen::Vector3d(1, 2, -0.5).normalized()).toRotationMatrix();
+  const SphereMobius r = SphereMobius::from_rotation(R);
+  for (int k = 0; k < 20; ++k) {
+    const Eigen::Vector3d p = random_unit(rng);
+    EXPECT_LT((r.apply(p) - R * p).norm(), 1e-12);
+  }
+  // Points moved by a known (non-rotation) Möbius map: the least-squares fit
+  // over 7 pairs finds it; 1, 2 and 3 pairs are hit exactly.
+  const SphereMobius known = SphereMobius::from_three_points(
+      {random_unit(rng), random_unit(rng), random_unit(rng)}, {random_unit(rng), random_unit(rng), random_unit(rng)});
+  std::vector<Eigen::Vector3d> from, to;
+  for (int k = 0; k < 7; ++k) from.push_back(random_unit(rng)), to.push_back(known.apply(from.back()));
+  double rms = 1;
+  const SphereMobius fit = fit_sphere_mobius(from, to, &rms);
+  EXPECT_LT(rms, 1e-9);
+  for (int k = 0; k < 10; ++k) {
+    const Eigen::Vector3d p = random_unit(rng);
+    EXPECT_LT((fit.apply(p) - known.apply(p)).norm(), 1e-7);
+  }
+  for (int n = 1; n <= 3; ++n) {
+    std::vector<Eigen::Vector3d> f, t;
+    for (int k = 0; k < n; ++k) f.push_back(random_unit(rng)), t.push_back(random_unit(rng));
+    const SphereMobius m = fit_sphere_mobius(f, t, &rms);
+    EXPECT_LT(rms, 1e-10) << n;
+    for (int k = 0; k < n; ++k) EXPECT_LT((m.apply(f[k]) - t[k]).norm(), 1e-10) << n;
+  }
+  // Noisy pairs: the fit is no worse than the exact map of the noise-free data.
+  for (auto& p : to) p = (p + 0.01 * random_unit(rng)).normalized();
+  fit_sphere_mobius(from, to, &rms);
+  double known_rms = 0;
+  for (size_t k = 0; k < from.size(); ++k) known_rms += (known.apply(from[k]) - to[k]).squaredNorm();
+  EXPECT_LE(rms, std::sqrt(known_rms / from.size()) + 1e-12);
+}
+
+TEST(SphereLocator, FindsTheConeOfEveryPoint) {
+  const TriMesh s = samples::jitter(samples::sphere(3), 0.25, 5);
+  RowMatrixX3d P = s.V.rowwise().normalized();
+  const SphereLocator loc(P, s.F);
+  std::mt19937 rng(3);
+  int hint = -1;
+  for (int k = 0; k < 2000; ++k) {
+    const Eigen::Vector3d p = random_unit(rng);
+    Eigen::Vector3d b;
+    const int f = loc.locate(p, &b, k % 2 ? hint : -1);
+    hint = f;
+    ASSERT_GE(f, 0);
+    EXPECT_GE(b.minCoeff(), 0.0);
+    EXPECT_NEAR(b.sum(), 1.0, 1e-12);
+    // The barycentric point lies on the ray through p.
+    Eigen::Vector3d q = Eigen::Vector3d::Zero();
+    for (int c = 0; c < 3; ++c) q += b[c] * P.row(s.F(f, c)).transpose();
+    EXPECT_LT(q.normalized().cross(p).norm(), 1e-9);
+    EXPECT_GT(q.dot(p), 0);
+  }
+  EXPECT_EQ(loc.fallbacks, 0);
+}
+
+TEST(SphericalMap, SphereToInvertedCopyIsNearlyConformal) {
+  // Inversion is conformal, so the optimal (conformal) map has D' near 1.
+  const TriMesh a = samples::sphere(4);
+  const TriMesh b = samples::sphere_inversion(samples::sphere(4), Eigen::Vector3d(2.0, 0.5, 0.3), 1.5);
+  const SurfaceMapResult m = surface_map(a, b);
+  expect_valid_genus0_map(m, a, b);
+  EXPECT_LT(m.mean_dilatation, 1.02);
+  EXPECT_LT(m.max_dilatation, 1.25);
+}
+
+TEST(SphericalMap, EllipsoidToItsInversionConvergesToConformal) {
+  // An ellipsoid and its inverted copy are conformally equivalent: D' -> 1
+  // under refinement, at first order (1.065, 1.032, 1.016 at 642, 2562,
+  // 10242 vertices).
+  double excess[2];
+  for (int s : {3, 4}) {
+    TriMesh a = samples::sphere(s);
+    for (int i = 0; i < a.num_vertices(); ++i) a.V.row(i) = a.V.row(i).cwiseProduct(Eigen::RowVector3d(1.8, 1.0, 0.6));
+    const TriMesh b = samples::sphere_inversion(a, Eigen::Vector3d(3.0, 0.4, -0.2), 2.5);
+    const SurfaceMapResult m = surface_map(a, b);
+    expect_valid_genus0_map(m, a, b);
+    excess[s - 3] = m.mean_dilatation - 1;
+    // A rotation does not change the energy of a sphere-valued map.
+    EXPECT_NEAR(m.final_energy, m.initial_energy, 1e-9 * m.initial_energy);
+  }
+  EXPECT_LT(excess[1], 0.04);
+  EXPECT_LT(excess[1], 0.6 * excess[0]);
+}
+
+TEST(SphericalMap, RemeshedCopyGivesNearlyTheIdentity) {
+  // The same shape meshed twice (different resolution, jitter), the target
+  // moved and scaled: the centred, rotation-aligned conformal map is close to
+  // the identity.
+  const TriMesh a = blob_mesh(4);
+  TriMesh b = samples::jitter(blob_mesh(3), 0.2, 9);
+  const Eigen::RowVector3d shift(3.0, -1.0, 0.5);
+  b.V = (b.V * 1.7).rowwise() + shift;
+  const SurfaceMapResult m = surface_map(a, b);
+  expect_valid_genus0_map(m, a, b);
+  double worst = 0;
+  for (int i = 0; i < a.num_vertices(); ++i)
+    worst = std::max(worst, (m.forward[i].position - (1.7 * a.V.row(i) + shift).transpose()).norm());
+  EXPECT_LT(worst, 0.03 * bbox_diagonal(b));
+}
+
+TEST(SphericalMap, SliversGiveNoFlips) {
+  const TriMesh a = samples::jitter(blob_mesh(3), 0.29, 4);
+  const TriMesh b = samples::jitter(samples::sphere(3), 0.29, 8);
+  const SurfaceMapResult m = surface_map(a, b);
+  expect_valid_genus0_map(m, a, b);
+  const SurfaceMapResult back = surface_map(b, a);
+  expect_valid_genus0_map(back, b, a);
+}
+
+TEST(SphericalMap, LandmarksAreHitExactly) {
+  const TriMesh a = blob_mesh(3);
+  const TriMesh b = samples::jitter(samples::sphere(3), 0.2, 2);
+  const SurfaceMapResult free = surface_map(a, b);
+  expect_valid_genus0_map(free, a, b);
+  // Landmarks far from where the free map sends them: the Möbius map must
+  // move the source vertices onto the target vertices.
+  const std::vector<std::pair<int, int>> pairs = {{0, 100}, {57, 12}, {300, 501}};
+  for (size_t k = 1; k <= pairs.size(); ++k) {
+    SurfaceMapOptions o;
+    o.landmarks.assign(pairs.begin(), pairs.begin() + k);
+    const SurfaceMapResult m = surface_map(a, b, o);
+    expect_valid_genus0_map(m, a, b);
+    for (const auto& [s, t] : o.landmarks)
+      EXPECT_LT((m.forward[s].position - b.V.row(t).transpose()).norm(), 1e-9) << k << " landmarks";
+    EXPECT_LT(m.max_landmark_error, 1e-9);
+  }
+  // More than three: least squares, reported honestly.
+  SurfaceMapOptions o;
+  o.landmarks = {{0, 100}, {57, 12}, {300, 501}, {420, 7}};
+  const SurfaceMapResult m = surface_map(a, b, o);
+  expect_valid_genus0_map(m, a, b);
+  EXPECT_GT(m.max_landmark_error, 0.0);
+  double recomputed = 0;
+  for (const auto& [s, t] : o.landmarks)
+    recomputed = std::max(recomputed, (m.forward[s].position - b.V.row(t).transpose()).norm());
+  EXPECT_DOUBLE_EQ(m.max_landmark_error, recomputed);
+}
+
+TEST(SphericalMap, ConsistentLandmarksKeepTheMap) {
+  // Landmarks that agree with the free map change (almost) nothing.
+  const TriMesh a = blob_mesh(3);
+  TriMesh b = blob_mesh(3);
+  b.V *= 2.0;
+  const SurfaceMapResult free = surface_map(a, b);
+  SurfaceMapOptions o;
+  o.landmarks = {{5, 5}, {200, 200}, {555, 555}, {40, 40}};
+  const SurfaceMapResult m = surface_map(a, b, o);
+  expect_valid_genus0_map(m, a, b);
+  EXPECT_LT(m.max_landmark_error, 1e-3 * bbox_diagonal(b));
+  EXPECT_NEAR(m.mean_dilatation, free.mean_dilatation, 1e-3);
+}
+
+}  // namespace
+}  // namespace surfmap
