@@ -2,13 +2,21 @@
 
   blender -b --factory-startup --python-exit-code 1 --python samples/demo.py -- --out DIR
 
-Loads the genus-2 sample pair from samples/meshes (the genus-1 pair when the genus-2 one is
-missing; the built-in shapes when no sample is there), runs Surface Map > Show Cut Loops on
-both (source = first, target = active), lights the scene, renders with Cycles on the CPU one
-PNG per object (loops in pair colours, from the front and from behind) plus one of both, and
-saves DIR/demo.blend.
-Options (after --): --out DIR (default <repo>/demo_out), --samples N (32), --size WxH (640x480),
---meshes DIR (default samples/meshes).
+For the genus-2 sample pair (double torus -> vase) and the genus-1 pair of tori (paper
+Fig. 9c) from samples/meshes: Surface Map > Show Cut Loops on both, the source unwrapped along
+its cut loops (one UV island) and given a checker texture, then Surface Map > Compute Map, which
+writes the transferred UVs, the morph shape keys, the distortion colours and the stored
+correspondence. Renders with Cycles on the CPU (denoising off), per pair:
+  <pair>_loops.png             both objects with their cut loops
+  <pair>_source_checker.png    the source with the checker on its own UVs
+  <pair>_target_transferred.png the target with the checker on the transferred UVs
+  <pair>_morph50.png           the source at 50% of its morph shape key (checker kept)
+  <pair>_distortion_before.png the dilatation D' of the initial map (when the core measures
+                               it for that genus), on the same colour scale as
+  <pair>_distortion_after.png  the D' of the optimised map
+and saves DIR/demo.blend with every object and output. Options (after --): --out DIR
+(default <repo>/demo_out), --samples N (24), --size WxH (640x480), --meshes DIR
+(default samples/meshes), --pairs g2,g1.
 """
 import math
 import os
@@ -21,26 +29,28 @@ from mathutils import Vector
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 MESHES = os.path.join(HERE, "meshes")
-PAIRS = [  # (genus, source, target)
-    (2, "double_torus_g2.obj", "vase_g2.obj"),
-    (1, "torus_R1_r0.5.obj", "torus_R1.5_r0.5.obj"),
-]
+PAIRS = {  # tag: (genus, source, target)
+    "g2": (2, "double_torus_g2.obj", "vase_g2.obj"),
+    "g1": (1, "torus_R1_r0.5.obj", "torus_R1.5_r0.5.obj"),
+}
 
 
 def parse_args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-    opts = {"out": os.path.join(REPO, "demo_out"), "samples": 32, "size": "640x480",
-            "meshes": MESHES}
+    opts = {"out": os.path.join(REPO, "demo_out"), "samples": 24, "size": "640x480",
+            "meshes": MESHES, "pairs": "g2,g1"}
     i = 0
     while i < len(argv):
         key = argv[i].lstrip("-")
         if key not in opts or i + 1 >= len(argv):
             raise SystemExit(f"demo.py: unknown or incomplete option {argv[i]!r} "
-                             f"(use --out DIR, --samples N, --size WxH, --meshes DIR)")
+                             f"(use --out DIR, --samples N, --size WxH, --meshes DIR, "
+                             f"--pairs g2,g1)")
         opts[key] = argv[i + 1]
         i += 2
     w, h = (int(x) for x in str(opts["size"]).lower().split("x"))
-    return os.path.abspath(opts["out"]), int(opts["samples"]), (w, h), opts["meshes"]
+    return (os.path.abspath(opts["out"]), int(opts["samples"]), (w, h), opts["meshes"],
+            [t for t in opts["pairs"].split(",") if t])
 
 
 def enable_addon():
@@ -66,32 +76,17 @@ def make_object(name, V, polys):
     return ob
 
 
-def load_pair(sm, meshes):
-    for genus, a, b in PAIRS:
-        pa, pb = os.path.join(meshes, a), os.path.join(meshes, b)
-        if os.path.exists(pa) and os.path.exists(pb):
-            print(f"demo: genus-{genus} pair {a} -> {b}")
-            # The native module reads OBJ/OFF/PLY through OpenMesh.
-            (Va, Pa), (Vb, Pb) = sm.read_polygon_soup(pa), sm.read_polygon_soup(pb)
-            return (make_object(os.path.splitext(a)[0], Va.tolist(), Pa),
-                    make_object(os.path.splitext(b)[0], Vb.tolist(), Pb))
-    print("demo: no sample pair in samples/meshes; using the built-in shapes")
-    shapes = getattr(sm, "shapes", None)
-    if shapes is not None and hasattr(shapes, "n_hole_torus") and hasattr(shapes, "vase"):
-        (Va, Fa), (Vb, Fb) = shapes.n_hole_torus(2), shapes.vase()
-        return (make_object("double_torus", Va.tolist(), Fa.tolist()),
-                make_object("vase", Vb.tolist(), Fb.tolist()))
-    # Blender's own (quad) tori
-    objs = []
-    for name, R in (("torus_R1", 1.0), ("torus_R1.5", 1.5)):
-        bpy.ops.mesh.primitive_torus_add(major_segments=64, minor_segments=32,
-                                         major_radius=R, minor_radius=0.5)
-        ob = bpy.context.active_object
-        ob.name = ob.data.name = name
-        for p in ob.data.polygons:
-            p.use_smooth = True
-        objs.append(ob)
-    return tuple(objs)
+def load_pair(sm, meshes, tag):
+    genus, a, b = PAIRS[tag]
+    pa, pb = os.path.join(meshes, a), os.path.join(meshes, b)
+    if not (os.path.exists(pa) and os.path.exists(pb)):
+        raise SystemExit(f"demo.py: the sample pair {a}, {b} is missing from {meshes} "
+                         f"(samples/generate.py writes it)")
+    print(f"demo: genus-{genus} pair {a} -> {b}")
+    # The native module reads OBJ/OFF/PLY through OpenMesh.
+    (Va, Pa), (Vb, Pb) = sm.read_polygon_soup(pa), sm.read_polygon_soup(pb)
+    return (make_object(os.path.splitext(a)[0], Va.tolist(), Pa),
+            make_object(os.path.splitext(b)[0], Vb.tolist(), Pb))
 
 
 def normalise(ob, size=2.0):
@@ -163,10 +158,15 @@ def aim(cam, objs, direction):
     centre = (lo + hi) / 2
     radius = (hi - lo).length / 2
     pts = []
+    depsgraph = bpy.context.evaluated_depsgraph_get()
     for ob in objs:
-        step = max(1, len(ob.data.vertices) // 4000)
-        verts = ob.data.vertices
+        verts = ob.evaluated_get(depsgraph).data.vertices  # with shape keys and modifiers
+        step = max(1, len(verts) // 4000)
         pts += [ob.matrix_world @ verts[i].co for i in range(0, len(verts), step)]
+    if pts:
+        lo = Vector((min(p.x for p in pts), min(p.y for p in pts), min(p.z for p in pts)))
+        hi = Vector((max(p.x for p in pts), max(p.y for p in pts), max(p.z for p in pts)))
+        centre, radius = (lo + hi) / 2, (hi - lo).length / 2
     d = Vector(direction).normalized()
     cam.rotation_euler = (-d).to_track_quat('-Z', 'Y').to_euler()
     dist = radius * 4
@@ -188,52 +188,180 @@ def render(path):
     print(f"demo: rendered {path} in {time.time() - t:.1f}s")
 
 
-def show_only(objs):
+def show_only(objs, curves=False):
     keep = set(objs)
     for ob in bpy.data.objects:
-        if ob.type in {'MESH', 'CURVE'}:
-            ob.hide_render = ob not in keep and ob.parent not in keep
+        if ob.type == 'MESH':
+            ob.hide_render = ob not in keep
+        elif ob.type == 'CURVE':
+            ob.hide_render = not (curves and ob.parent in keep)
 
 
-def main():
-    out, samples, size, meshes = parse_args()
-    os.makedirs(out, exist_ok=True)
-    for ob in list(bpy.data.objects):
-        bpy.data.objects.remove(ob, do_unlink=True)
-    sm = enable_addon()
-    source, target = load_pair(sm, meshes)
-    mat = surface_material()
+def checker_material(name, uv_map):
+    """Checker on the named UV map (two warm/cool tones and a fine grid of lines)."""
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nt = mat.node_tree
+    bsdf = nt.nodes["Principled BSDF"]
+    uv = nt.nodes.new("ShaderNodeUVMap")
+    uv.uv_map = uv_map
+    chk = nt.nodes.new("ShaderNodeTexChecker")
+    chk.inputs["Scale"].default_value = 16.0
+    chk.inputs["Color1"].default_value = (0.85, 0.55, 0.12, 1.0)
+    chk.inputs["Color2"].default_value = (0.08, 0.25, 0.55, 1.0)
+    nt.links.new(uv.outputs["UV"], chk.inputs["Vector"])
+    nt.links.new(chk.outputs["Color"], bsdf.inputs["Base Color"])
+    bsdf.inputs["Roughness"].default_value = 0.55
+    return mat
+
+
+def attribute_material(name, attribute):
+    """Shows a colour attribute as it is (emission plus a little shading for the shape)."""
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nt = mat.node_tree
+    bsdf = nt.nodes["Principled BSDF"]
+    col = nt.nodes.new("ShaderNodeVertexColor")
+    col.layer_name = attribute
+    nt.links.new(col.outputs["Color"], bsdf.inputs["Base Color"])
+    if "Emission" in bsdf.inputs:
+        nt.links.new(col.outputs["Color"], bsdf.inputs["Emission"])
+    if "Emission Strength" in bsdf.inputs:
+        bsdf.inputs["Emission Strength"].default_value = 0.5
+    bsdf.inputs["Roughness"].default_value = 0.6
+    return mat
+
+
+def set_material(ob, mat):
+    ob.data.materials.clear()
+    ob.data.materials.append(mat)
+
+
+def select_pair(source, target):
+    for ob in bpy.context.view_layer.objects:
+        ob.select_set(ob in (source, target))
+    bpy.context.view_layer.objects.active = target
+
+
+def unwrap_along_seams(ob):
+    """UV-unwraps ob (angle based) along its marked seams: the cut loops give one island."""
+    for o in bpy.context.view_layer.objects:
+        o.select_set(o == ob)
+    bpy.context.view_layer.objects.active = ob
+    if not ob.data.uv_layers:
+        ob.data.uv_layers.new(name="UVMap")
+    bpy.ops.object.mode_set(mode='EDIT')
+    bpy.ops.mesh.select_all(action='SELECT')
+    bpy.ops.uv.unwrap(method='ANGLE_BASED', margin=0.02)
+    bpy.ops.object.mode_set(mode='OBJECT')
+
+
+VIEW = (0.55, -1.0, 0.75)
+
+
+def caption(cam, text):
+    """A line of white text at the bottom of the camera's view (parented to the camera)."""
+    cu = bpy.data.curves.new("caption", 'FONT')
+    cu.body = text
+    cu.align_x = 'CENTER'
+    cu.size = 0.017
+    ob = bpy.data.objects.new("caption", cu)
+    bpy.context.scene.collection.objects.link(ob)
+    mat = bpy.data.materials.get("SurfMap caption") or bpy.data.materials.new("SurfMap caption")
+    mat.use_nodes = True
+    nodes = mat.node_tree.nodes
+    for n in list(nodes):
+        nodes.remove(n)
+    em = nodes.new("ShaderNodeEmission")
+    em.inputs["Color"].default_value = (1, 1, 1, 1)
+    outn = nodes.new("ShaderNodeOutputMaterial")
+    mat.node_tree.links.new(em.outputs["Emission"], outn.inputs["Surface"])
+    cu.materials.append(mat)
+    ob.parent = cam
+    ob.location = (0.0, -0.245, -1.0)   # camera space: 1 unit ahead, near the bottom edge
+    ob.hide_render = False
+    return ob
+
+
+def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
+    t0 = time.time()
+    source, target = load_pair(sm, meshes, tag)
+    plain = surface_material()
     for ob in (source, target):
         normalise(ob)
-        ob.data.materials.append(mat)
+        ob.location.y += offset_y
+        set_material(ob, plain)
     source.location.x -= 1.3
     target.location.x += 1.3
     bpy.context.view_layer.update()
 
+    # 1. cut loops on both (they become the source's UV seams), one UV island on the source
     bpy.context.scene.surfmap.loop_bevel = 0.0045
-    for ob in bpy.context.view_layer.objects:
-        ob.select_set(ob in (source, target))
-    bpy.context.view_layer.objects.active = target
+    select_pair(source, target)
     result = bpy.ops.surfmap.show_cut_loops()
     if result != {'FINISHED'}:
         raise SystemExit(f"demo.py: show_cut_loops returned {result}")
     print("demo:", bpy.context.scene.surfmap.status)
+    unwrap_along_seams(source)
+    uv_name = source.data.uv_layers.active.name
 
+    # 2. the map and all its outputs
+    select_pair(source, target)
+    t = time.time()
+    result = bpy.ops.surfmap.compute_map()
+    if result != {'FINISHED'}:
+        raise SystemExit(f"demo.py: compute_map returned {result}")
+    print(f"demo: compute_map in {time.time() - t:.1f}s:", bpy.context.scene.surfmap.map_status)
+    cands = bpy.context.scene.surfmap.candidates
+    print("demo: handle correspondences (energy):",
+          "; ".join(f"{c.index}: {c.energy:.6g}" for c in cands))
+
+    def shot(name, objs, curves=False, direction=VIEW):
+        show_only(objs, curves)
+        aim(cam, objs, direction)
+        path = os.path.join(out, f"{tag}_{name}.png")
+        render(path)
+        written.append(path)
+
+    shot("loops", [source, target], curves=True, direction=(0.15, -1.0, 0.55))
+    set_material(source, checker_material(f"{source.name} checker", uv_name))
+    set_material(target, checker_material(f"{target.name} checker", f"surfmap {uv_name}"))
+    shot("source_checker", [source])
+    shot("target_transferred", [target])
+    key = source.data.shape_keys.key_blocks[f"surfmap to {target.name}"]
+    key.value = 0.5
+    bpy.context.view_layer.update()
+    shot("morph50", [source])
+    key.value = 0.0
+    bpy.context.view_layer.update()
+    for which, attr in (("before", "surfmap dilatation initial"), ("after", "surfmap dilatation")):
+        if source.data.color_attributes.get(attr) is None:
+            print(f"demo: no {attr!r} (the core does not measure the initial map's per-face "
+                  f"D' for genus {source.data['surfmap_map']['genus']}); skipping {which}")
+            continue
+        set_material(source, attribute_material(f"{source.name} {attr}", attr))
+        lo, hi = bpy.context.scene.surfmap.dilatation_range
+        label = caption(cam, f"{which} optimisation: dilatation D' {lo:.2f} (violet) to "
+                             f"{hi:.2f} (yellow)")
+        shot(f"distortion_{which}", [source])
+        bpy.data.objects.remove(label, do_unlink=True)
+    set_material(source, checker_material(f"{source.name} checker", uv_name))
+    print(f"demo: pair {tag} done in {time.time() - t0:.1f}s")
+    return source, target
+
+
+def main():
+    out, samples, size, meshes, tags = parse_args()
+    os.makedirs(out, exist_ok=True)
+    for ob in list(bpy.data.objects):
+        bpy.data.objects.remove(ob, do_unlink=True)
+    sm = enable_addon()
     cam = setup_scene(samples, size)
     written = []
-    for ob in (source, target):
-        show_only([ob])
-        for view, direction in (("front", (0.55, -1.0, 0.75)), ("back", (-0.55, 1.0, 0.75))):
-            aim(cam, [ob], direction)
-            path = os.path.join(out, f"{ob.name}_loops_{view}.png")
-            render(path)
-            written.append(path)
-    show_only([source, target])
-    aim(cam, [source, target], (0.15, -1.0, 0.55))
-    path = os.path.join(out, "pair_loops.png")
-    render(path)
-    written.append(path)
-    show_only([source, target])
+    objs = []
+    for i, tag in enumerate(tags):
+        objs += demo_pair(sm, meshes, tag, 6.0 * i, cam, out, written)
+    show_only(objs, curves=True)
     blend = os.path.join(out, "demo.blend")
     bpy.ops.wm.save_as_mainfile(filepath=blend)
     written.append(blend)

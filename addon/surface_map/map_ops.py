@@ -204,6 +204,7 @@ def write_outputs(context, source, target, src, tgt, out, res, which):
         if me.color_attributes.get(names[0]) is not None:
             me.color_attributes.active_color = me.color_attributes[names[0]]
         lines.append(f"colour attributes on '{s_obj.name}': " + ", ".join(names))
+        context.scene.surfmap.dilatation_range = out["ranges"]["dilatation"]
     for o in (s_obj, t_obj):
         o.data.update()
     return lines

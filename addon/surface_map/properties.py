@@ -1,7 +1,7 @@
 """Scene settings (one PropertyGroup: scene.surfmap) and the add-on preferences."""
 import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty,
-                       IntProperty, PointerProperty, StringProperty)
+                       FloatVectorProperty, IntProperty, PointerProperty, StringProperty)
 
 from . import native
 
@@ -68,6 +68,9 @@ class SURFMAP_PG_settings(bpy.types.PropertyGroup):
         items=(('IN_PLACE', "In Place", "Each object takes the other's shape (with its "
                 "rotation and scale) around its own origin"),
                ('WORLD', "Onto Other", "Each object moves onto the other where it stands")))
+    dilatation_range: FloatVectorProperty(
+        name="D' Colour Range", size=2, default=(1.0, 2.0),
+        description="Dilatation values at the two ends of the last distortion colour scale")
     map_status: StringProperty(name="Map Status", default="",
                                description="Result of the last Compute Map")
 
