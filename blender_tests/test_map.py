@@ -342,3 +342,132 @@ def test_worker_thread_cancel_leaves_no_result():
     assert job2.error is None and job2.outputs is not None, job2.error
     assert "harmonic" in job2.stage or job2.stage == "writing outputs"
     assert isinstance(mapjob.MapJob, type)
+
+
+class _Log:
+    """Stands in for the window manager / workspace / area of a UI session."""
+
+    def __init__(self):
+        self.calls = []
+
+    def __getattr__(self, name):
+        return lambda *a, **k: self.calls.append((name,) + a)
+
+
+class _Context:
+    def __init__(self):
+        self.window_manager, self.workspace, self.area = _Log(), _Log(), _Log()
+        self.scene = bpy.context.scene
+
+    def evaluated_depsgraph_get(self):
+        return bpy.context.evaluated_depsgraph_get()
+
+
+class _Event:
+    def __init__(self, type, value='NOTHING'):
+        self.type, self.value = type, value
+
+
+def _modal_operator(job, notes):
+    """The UI's modal operator, driven by hand: its modal() and _finish() on stand-ins for the
+    window manager, status bar and events (background Blender has no windows)."""
+    from surface_map.map_ops import SURFMAP_OT_compute_map as Op
+
+    class Driven:
+        modal, _finish, _cleanup, _status = Op.modal, Op._finish, Op._cleanup, Op._status
+
+        def __init__(self):
+            self._job, self._timer, self._notes, self.reports = job, object(), notes, []
+
+        def report(self, kind, msg):
+            self.reports.append((set(kind), msg))
+    return Driven()
+
+
+def _drive(op, ctx, first_event=None, limit=6000):
+    if first_event is not None:
+        r = op.modal(ctx, first_event)
+        if r != {'RUNNING_MODAL'} and r != {'PASS_THROUGH'}:
+            return r
+    import time
+    for _ in range(limit):
+        r = op.modal(ctx, _Event('TIMER'))
+        if r not in ({'RUNNING_MODAL'}, {'PASS_THROUGH'}):
+            return r
+        time.sleep(0.01)
+    raise AssertionError("the modal operator never finished")
+
+
+def test_modal_operator_progress_and_esc():
+    from surface_map import map_ops
+    sm = helpers.sm()
+    a, b = _torus_pair()
+    # Esc: the worker stops at its next progress call, the operator cancels, nothing changes
+    before = helpers.scene_snapshot()
+    job, notes = map_ops.prepare_job(bpy.context, sm)
+    op, ctx = _modal_operator(job, notes), _Context()
+    job.start()
+    r = _drive(op, ctx, _Event('ESC', 'PRESS'))
+    assert r == {'CANCELLED'}, r
+    assert any("cancelled" in m and "unchanged" in m for _, m in op.reports), op.reports
+    assert helpers.scene_snapshot() == before
+    names = [c[0] for c in ctx.window_manager.calls]
+    assert "progress_end" in names and "event_timer_remove" in names
+    assert ctx.workspace.calls[-1] == ("status_text_set", None)   # status bar restored
+    # a full run: progress goes up, the status bar names the stages, the outputs are written
+    job, notes = map_ops.prepare_job(bpy.context, sm)
+    op, ctx = _modal_operator(job, notes), _Context()
+    job.start()
+    # navigation passes through to the view while the solve runs; editing keys do not
+    assert op.modal(ctx, _Event('MIDDLEMOUSE', 'PRESS')) in ({'PASS_THROUGH'}, {'FINISHED'})
+    r = _drive(op, ctx)
+    assert r == {'FINISHED'}, (r, op.reports)
+    progress = [c[1] for c in ctx.window_manager.calls if c[0] == "progress_update"]
+    assert progress == sorted(progress)
+    texts = [c[1] for c in ctx.workspace.calls if c[0] == "status_text_set" and c[1]]
+    assert progress and texts, (progress, texts)
+    assert all(t.startswith("Surface Map:") and "Esc" in t for t in texts), texts
+    assert b.data.uv_layers.get("surfmap UVMap") is not None
+    assert a.data.shape_keys.key_blocks.get("surfmap to Target") is not None
+    # in background mode INVOKE_DEFAULT runs synchronously
+    res, err = run("compute_map", )
+    assert res == {'FINISHED'}, err
+    assert bpy.ops.surfmap.compute_map('INVOKE_DEFAULT') == {'FINISHED'}
+
+
+def test_against_blender_data_transfer():
+    """Blender's Data Transfer (face corner UVs, nearest face interpolated) on the same pair,
+    placed on top of each other: it folds and stretches UV triangles where ours has none."""
+    M = _mapping()
+    a, b = _torus_pair()
+    a.location = b.location = (0, 0, 0)
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    Ft, Lt = helpers.triangles_of(b)
+    Vt = helpers.coords(b)
+    ours = helpers.loop_uv_array(b, "surfmap UVMap")[Lt]
+    # Data Transfer into a fresh UV map of the target, read from the evaluated mesh
+    b.data.uv_layers.active = b.data.uv_layers.new(name="DT")
+    a.data.uv_layers.active = a.data.uv_layers["UVMap"]
+    mod = b.modifiers.new("DT", 'DATA_TRANSFER')
+    mod.object = a
+    mod.use_loop_data = True
+    mod.data_types_loops = {'UV'}
+    mod.loop_mapping = 'POLYINTERP_NEAREST'
+    mod.layers_uv_select_src = 'UVMap'   # the source's layers by name
+    mod.layers_uv_select_dst = 'DT'
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = b.evaluated_get(dg)
+    me = ev.to_mesh()
+    L = len(me.loops)
+    dt = np.empty(L * 2)
+    me.uv_layers["DT"].data.foreach_get("uv", dt)
+    ev.to_mesh_clear()
+    b.modifiers.remove(mod)
+    dt = dt.reshape(-1, 2)[Lt]
+    f_ours, s_ours = M.uv_quality(ours, Vt[Ft])
+    f_dt, s_dt = M.uv_quality(dt, Vt[Ft])
+    print(f"    torus pair, {len(Ft)} target triangles: Data Transfer {f_dt} flipped, {s_dt} "
+          f"stretched across the layout; surfmap {f_ours} flipped, {s_ours} stretched")
+    assert f_ours == 0 and s_ours == 0
+    assert f_dt + s_dt > 0

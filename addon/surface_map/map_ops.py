@@ -308,8 +308,8 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
         return {'RUNNING_MODAL'}
 
     def _finish(self, context, job):
-        if job.error is not None:
-            kind, msg = job.error
+        if job.cancel or job.error is not None:
+            kind, msg = job.error if job.error is not None else ("cancelled", "cancelled")
             if kind == "cancelled":
                 self.report({'WARNING'}, "Surface Map cancelled; the scene is unchanged")
             else:

@@ -86,6 +86,9 @@ class MapJob:
                 raise sm.Cancelled("cancelled")
             self.stage, self.fraction = "writing outputs", 1.0
             self.outputs = compute_outputs(self.source, self.target, self.result, self.options)
+            if self.cancel:
+                self.outputs = None
+                raise sm.Cancelled("cancelled")
         except sm.Cancelled:
             self.error = ("cancelled", "cancelled")
         except sm.InputError as e:
