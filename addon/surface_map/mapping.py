@@ -376,6 +376,7 @@ class UVTransfer:
         self.island = uv_islands(self.F, self.uv, self.seam)
         self.max_visits = max_visits
         self.unresolved = 0   # corners the walk did not reach (naive UV kept)
+        self.folded = 0       # straddling polygons left folded in every chart tried
 
     def naive(self, face, bary):
         """Per-point UV in the point's own triangle: sum_k bary_k uv[face, k] (n',2)."""
@@ -492,21 +493,46 @@ class UVTransfer:
             if self.V is not None and len(set(islands)) == 1 and \
                     not self._stretched(out[s:s + n], lf[s:s + n], lb[s:s + n]):
                 continue  # one island and not spread across the layout: its own UVs
-            best = max(set(islands), key=lambda i: (islands.count(i), -islands.index(i)))
-            refp = faces[islands.index(best)]
-            T = self._continue(refp, set(faces))
-            changed = False
-            for c, f in enumerate(faces):
-                t = T.get(f)
-                if t is None:
-                    self.unresolved += 1
-                    continue
-                if t is IDENTITY:
-                    continue
-                out[s + c] = _apply(t, out[s + c][None])[0]
-                changed = True
+            # reference charts to try: the island most corners are in first, then the others;
+            # the first whose UV polygon keeps the reference triangle's orientation wins
+            order = sorted(range(n), key=lambda c: (-islands.count(islands[c]), c))
+            refs = list(dict.fromkeys(faces[c] for c in order))
+            best = None
+            for refp in refs:
+                T = self._continue(refp, set(faces))
+                uvp = out[s:s + n].copy()
+                changed = False
+                for c, f in enumerate(faces):
+                    t = T.get(f)
+                    if t is None or t is IDENTITY:
+                        continue
+                    uvp[c] = _apply(t, uvp[c][None])[0]
+                    changed = True
+                missing = sum(1 for f in faces if f not in T)
+                want = np.sign(_polygon_area(self.uv[refp])) or 1.0
+                good = missing == 0 and np.all(_fan_areas(uvp) * want > 0)
+                if best is None or (good and not best[0]):
+                    best = (good, uvp, changed, missing)
+                if good:
+                    break
+            good, uvp, changed, missing = best
+            self.unresolved += missing
+            self.folded += 0 if good else 1
+            out[s:s + n] = uvp
             straddling[p] = changed
         return out, straddling
+
+
+def _polygon_area(uv):
+    """Twice the signed area of a UV polygon (k,2) (shoelace)."""
+    x, y = uv[:, 0], uv[:, 1]
+    return float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def _fan_areas(uv):
+    """Twice the signed areas of the fan triangles (0, i, i+1) of a UV polygon (k,2)."""
+    e = uv[1:] - uv[0]
+    return e[:-1, 0] * e[1:, 1] - e[:-1, 1] * e[1:, 0]
 
 
 def _edge_coords(p, q, o):
