@@ -196,6 +196,17 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
                                                              double(M[2]) * tgt.A + double(M[3]) * tgt.B);
   const auto [z_init, e_init_unused] = solve(tutte, t_intrinsic, true);
   (void)e_init_unused;
+  if (options.inspect_problem) {
+    HarmonicProblem p;
+    p.flat = true;
+    p.num_vertices = n;
+    for (size_t e = 0; e < idt.edges.size(); ++e) {
+      p.flat_i.push_back(idt.edges[e].i), p.flat_j.push_back(idt.edges[e].j);
+      p.flat_weight.push_back(idt.edges[e].cot_weight), p.flat_translation.push_back(t_intrinsic[e]);
+    }
+    p.start = z_init;
+    options.inspect_problem(p);
+  }
   auto [z, energy] = solve(solver, t_intrinsic, false);
   // The optimum is unique up to a translation of the torus; put the source's
   // base vertex where the target's base vertex lies (both are central

@@ -16,6 +16,22 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
+// Complex division without the C99 inf/nan special cases (__divdc3) that
+// dominate the sweep otherwise; the denominators here are never zero (they
+// are b̄z + ā and 1 − p̄y with |z|, |p|, |y| < 1).
+inline Complex quick_div(Complex num, Complex den) { return num * std::conj(den) / std::norm(den); }
+
+// exp_p(ξ) = T_{−p}(tanh(|ξ|/2) ξ/|ξ|), T_{−p}(u) = (u + p) / (1 + p̄ u).
+inline Complex quick_exp(Complex p, Complex xi) {
+  const double n = std::sqrt(std::norm(xi));
+  if (n == 0.0) return p;
+  const Complex u = (std::tanh(n / 2) / n) * xi;
+  return quick_div(u + p, 1.0 + std::conj(p) * u);
+}
+
+// m(z) for an SU(1,1) element.
+inline Complex quick_apply(const Mobius& m, Complex z) { return quick_div(m.a * z + m.b, std::conj(m.b) * z + std::conj(m.a)); }
+
 // Moves z towards the origin with generators while that helps; returns the
 // accumulated element (the same rule as the Newton solver's dynamic charts).
 Mobius reduce_towards_origin(Complex& z, const std::vector<Mobius>& moves) {
@@ -61,13 +77,17 @@ Incidence incidence(int n, size_t m, EdgeEnds ends) {
   return inc;
 }
 
+// Weights must be >= 0; cotangents of an intrinsic Delaunay triangulation
+// can come out as −1e-17 from round-off, which is accepted (and used as 0).
 void check_edges(int n, const std::vector<int>& ei, const std::vector<int>& ej, const std::vector<double>& w,
                  const char* who) {
+  double max_w = 0;
+  for (double x : w) max_w = std::max(max_w, std::abs(x));
   for (size_t e = 0; e < ei.size(); ++e) {
     if (ei[e] < 0 || ei[e] >= n || ej[e] < 0 || ej[e] >= n || ei[e] == ej[e])
       throw InputError(std::string(who) + ": edge " + std::to_string(e) + " has invalid endpoints " +
                        std::to_string(ei[e]) + ", " + std::to_string(ej[e]));
-    if (!(w[e] >= 0) || !std::isfinite(w[e]))
+    if (!(w[e] >= -1e-12 * max_w) || !std::isfinite(w[e]))
       throw InputError(std::string(who) + ": edge " + std::to_string(e) + " has weight " + std::to_string(w[e]) +
                        "; weights must be finite and >= 0");
   }
@@ -161,28 +181,32 @@ HarmonicRelaxationResult harmonic_relaxation(int n, const std::vector<WeightedEd
   // Image of vertex v's k-th neighbour in the current charts.
   auto neighbour_image = [&](int k) {
     const int e = inc.edge[k];
-    return inc.is_tail[k] ? eff[e].apply(r.z[edges[e].j]) : eff_inv[e].apply(r.z[edges[e].i]);
+    return inc.is_tail[k] ? quick_apply(eff[e], r.z[edges[e].j]) : quick_apply(eff_inv[e], r.z[edges[e].i]);
   };
   // Local energy Σ w d(p, y_k)² of vertex v at p.
   auto local_energy = [&](int v, Complex p) {
     double s = 0;
     for (int k = inc.start[v]; k < inc.start[v + 1]; ++k) {
+      if (edges[inc.edge[k]].w <= 0) continue;
       const double d = hyperbolic::distance(p, neighbour_image(k));
       s += edges[inc.edge[k]].w * d * d;
     }
     return s;
   };
+  std::vector<double> settled(n, 0.0);  // |z|² below which the chart test is skipped
   auto sweep = [&]() {
     for (int v = 0; v < n; ++v) {
-      const Mobius T = Mobius::centring(r.z[v]);
+      // The chart centring p = z_v: T(y) = (y − p) / (1 − p̄ y) (SU(1,1) scale cancels).
+      const Complex p = r.z[v], pc = std::conj(p);
       Complex sum(0.0);
       double W = 0, e_old = 0, d_max = 0;
       for (int k = inc.start[v]; k < inc.start[v + 1]; ++k) {
         const double w = edges[inc.edge[k]].w;
         if (w <= 0) continue;
         // log_{z_v}(y) in the chart centring z_v.
-        const Complex t = T.apply(neighbour_image(k));
-        const double a = std::abs(t);
+        const Complex y = neighbour_image(k);
+        const Complex t = quick_div(y - p, 1.0 - pc * y);
+        const double a = std::sqrt(std::norm(t));
         if (a == 0) {
           W += w;
           continue;
@@ -195,22 +219,28 @@ HarmonicRelaxationResult harmonic_relaxation(int n, const std::vector<WeightedEd
       }
       if (W <= 0) continue;
       Complex xi = options.step * sum / W;
-      Complex next = hyperbolic::exp_map(r.z[v], xi);
+      Complex next = quick_exp(p, xi);
       // Step ½ is a decrease for image edges shorter than ~3.8 (file
       // comment); longer ones are checked and the step halved if needed.
       if (d_max > 1.5) {
         for (int bt = 0; bt < 30 && local_energy(v, next) > e_old; ++bt) {
           xi *= 0.5;
-          next = hyperbolic::exp_map(r.z[v], xi);
+          next = quick_exp(p, xi);
         }
         if (local_energy(v, next) > e_old) continue;
       }
       r.z[v] = next;
     }
-    // Dynamic charts: bring far-out vertices back towards the origin.
+    // Dynamic charts: bring far-out vertices back towards the origin. A
+    // vertex that no generator brings closer is re-tried only once it has
+    // drifted further out (the fundamental domain reaches beyond 0.6).
     for (int v = 0; v < n; ++v) {
-      if (std::abs(r.z[v]) <= 0.6) continue;
+      const double r2 = std::norm(r.z[v]);
+      if (r2 <= 0.36 || r2 <= settled[v]) continue;
       const Mobius gk = reduce_towards_origin(r.z[v], moves);
+      const double after = std::norm(r.z[v]);
+      settled[v] = std::min(1.0, std::sqrt(after) + 0.02) * std::min(1.0, std::sqrt(after) + 0.02);
+      if (after >= r2) continue;
       r.vertex_deck[v] = (gk * r.vertex_deck[v]).normalized();
       for (int k = inc.start[v]; k < inc.start[v + 1]; ++k) refresh(inc.edge[k]);
     }
@@ -255,6 +285,7 @@ HarmonicRelaxationResult flat_harmonic_relaxation(int n, const std::vector<int>&
       double W = 0;
       for (int k = inc.start[v]; k < inc.start[v + 1]; ++k) {
         const int e = inc.edge[k];
+        if (w[e] <= 0) continue;
         // Image of the neighbour: z_j + t from the tail, z_i − t from the head.
         const Complex y = inc.is_tail[k] ? r.z[ej[e]] + t[e] : r.z[ei[e]] - t[e];
         sum += w[e] * (y - r.z[v]);
@@ -268,6 +299,7 @@ HarmonicRelaxationResult flat_harmonic_relaxation(int n, const std::vector<int>&
     E = 0;
     std::fill(grad.begin(), grad.end(), Complex(0.0));
     for (size_t e = 0; e < ei.size(); ++e) {
+      if (w[e] <= 0) continue;
       const Complex d = r.z[ej[e]] + t[e] - r.z[ei[e]];
       E += w[e] * std::norm(d);
       grad[ei[e]] -= 2 * w[e] * d, grad[ej[e]] += 2 * w[e] * d;

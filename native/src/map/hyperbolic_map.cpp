@@ -141,8 +141,17 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     start_deck.assign(start.size(), Mobius());
   }
   auto solve_progress = [&](int it, double E, double g) {
+    if (options.solve_progress && !options.solve_progress(it, E, g)) return false;
     return !options.progress || options.progress("harmonic solve", 0.45 + 0.25 * std::min(1.0, it / 50.0));
   };
+  if (options.inspect_problem) {
+    HarmonicProblem p;
+    p.num_vertices = source.num_vertices();
+    p.edges = start_edges;
+    p.generators = layout.generators;
+    p.start = start;
+    options.inspect_problem(p);
+  }
   HyperbolicHarmonicResult hr;
   if (options.method == MapMethod::Relaxation) {
     HarmonicRelaxationOptions ro;

@@ -6,7 +6,9 @@
 //
 // Same problem as hyperbolic_harmonic_map: minimise
 // E(z) = Σ_e w_e d(z_i, ρ_e z_j)² over one point z_i per vertex in the
-// Poincaré disk, with a deck element ρ_e per edge i->j and weights w_e >= 0.
+// Poincaré disk, with a deck element ρ_e per edge i->j and weights w_e >= 0
+// (round-off negatives down to −1e-12 · max w, as intrinsic Delaunay
+// cotangents produce, are accepted and used as 0).
 //
 // Method (Gauss–Seidel sweeps over the vertices in index order): in the chart
 // centring z_i the neighbours' images ρ_ij z_j sit at log_{z_i}(ρ_ij z_j);
@@ -96,6 +98,24 @@ HarmonicRelaxationResult flat_harmonic_relaxation(int num_vertices, const std::v
                                                   const std::vector<std::complex<double>>& translation,
                                                   std::vector<std::complex<double>> z0,
                                                   const HarmonicRelaxationOptions& options = {});
+
+/// The harmonic-map problem of one surface map as the solvers see it, handed
+/// to SurfaceMapOptions::inspect_problem (benchmarks and tests run both
+/// solvers on exactly the pipeline's input). Hyperbolic (genus >= 2):
+/// `edges` with their deck elements expressed in the start's charts, the
+/// target's `generators` and the `start` points. Flat (genus 1): edge ends,
+/// weights and lattice translations of the chosen class (energy
+/// Σ w |z_j + t − z_i|²) and the start (the initial map).
+struct HarmonicProblem {
+  bool flat = false;
+  int num_vertices = 0;
+  std::vector<WeightedEdge> edges;
+  std::vector<hyperbolic::Mobius> generators;
+  std::vector<int> flat_i, flat_j;
+  std::vector<double> flat_weight;
+  std::vector<std::complex<double>> flat_translation;
+  std::vector<std::complex<double>> start;
+};
 
 /// The relaxation's outcome in the form of HyperbolicHarmonicResult, for
 /// callers that accept either solver (iterations = sweeps; the histories are

@@ -28,6 +28,7 @@
 
 #include <Eigen/Core>
 
+#include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/mesh/tri_mesh.h"
 
 namespace surfmap {
@@ -70,6 +71,13 @@ struct SurfaceMapOptions {
   /// Called between stages with the stage name and a fraction in [0, 1];
   /// return false to cancel (throws Cancelled).
   std::function<bool(const std::string& stage, double fraction)> progress;
+  /// Called during the harmonic solve (genus >= 2) at every Newton
+  /// iteration / relaxation check with (iteration, energy, gradient norm);
+  /// return false to cancel (throws Cancelled).
+  std::function<bool(int iteration, double energy, double gradient)> solve_progress;
+  /// For benchmarks and tests: called once with the harmonic-map problem
+  /// just before it is solved (map/harmonic_relaxation.h, HarmonicProblem).
+  std::function<void(const HarmonicProblem&)> inspect_problem;
 };
 
 /// One candidate homotopy class: for genus 1 an SL(2,Z) matrix taking the
