@@ -174,6 +174,44 @@ def test_genus0_pair_writes_every_output():
     _check_outputs(a, b, 0, uv_names=("Box",))
 
 
+def test_refined_morph_object():
+    a = helpers.torus("Source", 1.0, 0.5, (-3, 0, 0))   # 48 x 24
+    V, F = helpers.torus_of_revolution(1.5, 0.5, 120, 60)  # a much finer target
+    b = helpers.mesh_object("Target", V, F, (3, 0, 0))
+    helpers.set_loop_uvs(a, "UVMap", helpers.torus_uvs(a, 1.0))
+    select([a, b], b)
+    bpy.context.scene.surfmap.write_refined = True
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    r = bpy.data.objects.get("Source refined morph")
+    assert r is not None and r["surfmap_refined_of"] == "Source"
+    assert len(r.data.vertices) > 2 * len(a.data.vertices)
+    assert r.data.uv_layers.get("UVMap") is not None
+    _check_morph(r, b, "surfmap to Target")
+    # its morph follows the target more closely than the coarse one: face centres of the
+    # morphed meshes are nearer the target surface
+    M = _mapping()
+
+    def centre_gap(ob):
+        kb = ob.data.shape_keys.key_blocks["surfmap to Target"]
+        co = np.empty(len(ob.data.vertices) * 3)
+        kb.data.foreach_get("co", co)
+        co = co.reshape(-1, 3)
+        A, B = np.array(ob.matrix_world), np.array(b.matrix_world)
+        shift = np.eye(4)
+        shift[:3, 3] = B[:3, 3] - A[:3, 3]
+        co = M.apply_matrix(np.linalg.inv(B) @ shift @ A, co)
+        F, _ = helpers.triangles_of(ob)
+        c = co[F].mean(axis=1)
+        return float(np.mean([(np.array(b.closest_point_on_mesh(p)[1]) - p).dot(
+            np.array(b.closest_point_on_mesh(p)[1]) - p) ** 0.5 for p in c[::7]]))
+    assert centre_gap(r) < 0.5 * centre_gap(a), (centre_gap(r), centre_gap(a))
+    # a second run replaces it
+    res, err = run("create_morph")
+    assert res == {'FINISHED'}, err
+    assert len([o for o in bpy.data.objects if o.get("surfmap_refined_of") == "Source"]) == 1
+
+
 def test_stored_map_survives_save_and_reload():
     a, b = _torus_pair()
     res, err = run("compute_map")

@@ -11,6 +11,8 @@ correspondence. Renders with Cycles on the CPU (denoising off), per pair:
   <pair>_source_checker.png    the source with the checker on its own UVs
   <pair>_target_transferred.png the target with the checker on the transferred UVs
   <pair>_morph50.png           the source at 50% of its morph shape key (checker kept)
+  <pair>_refined_morph100.png  the refined morph object (paper §VII-E) at 100%: the source's
+                               checker on the target's shape
   <pair>_distortion_before.png the dilatation D' of the initial map (when the core measures
                                it for that genus), on the same colour scale as
   <pair>_distortion_after.png  the D' of the optimised map
@@ -307,6 +309,7 @@ def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
 
     # 2. the map and all its outputs
     select_pair(source, target)
+    bpy.context.scene.surfmap.write_refined = True
     t = time.time()
     result = bpy.ops.surfmap.compute_map()
     if result != {'FINISHED'}:
@@ -333,6 +336,13 @@ def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
     bpy.context.view_layer.update()
     shot("morph50", [source])
     key.value = 0.0
+    refined = bpy.data.objects.get(f"{source.name} refined morph")
+    if refined is not None:  # the refined morph at 100%, beside the target it imitates
+        set_material(refined, checker_material(f"{refined.name} checker", uv_name))
+        refined.data.shape_keys.key_blocks[f"surfmap to {target.name}"].value = 1.0
+        bpy.context.view_layer.update()
+        shot("refined_morph100", [refined])
+        refined.hide_render = True
     bpy.context.view_layer.update()
     for which, attr in (("before", "surfmap dilatation initial"), ("after", "surfmap dilatation")):
         if source.data.color_attributes.get(attr) is None:

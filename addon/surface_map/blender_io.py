@@ -377,3 +377,70 @@ def write_shape_key(obj, wanted, co):
 
 def matrix_np(m):
     return np.array([list(r) for r in m], dtype=np.float64)
+
+
+REFINED_KEY = "surfmap_refined_of"   # object property: the refined morph object of <source>
+
+
+def refined_morph_object(source_obj, src, tgt, image, image_face, morph_matrix, key_name,
+                         max_bend=0.02, rounds=4):
+    """The source refined where its image is long or bends (paper §VII-E), as a new object
+    '<source> refined morph' (replacing the one made earlier) with the source's UV maps and
+    materials and a shape key onto the target. Returns (object, refinement dict)."""
+    from mathutils import Vector
+    from mathutils.bvhtree import BVHTree
+
+    from . import mapjob, mapping
+    Vt, Ft = tgt["V"], tgt["F"]
+    bvh = BVHTree.FromPolygons(Vt.tolist(), Ft.tolist(), all_triangles=True)
+    FN = mapping.face_normals(Vt, Ft)
+    FN /= np.maximum(np.linalg.norm(FN, axis=1), 1e-300)[:, None]
+
+    def project(P):
+        pos = np.empty((len(P), 3))
+        nrm = np.empty((len(P), 3))
+        for i, p in enumerate(P):
+            loc, _, idx, _ = bvh.find_nearest(Vector(p))
+            pos[i] = loc
+            nrm[i] = FN[idx]
+        return pos, nrm
+    e = np.concatenate([Ft[:, [0, 1]], Ft[:, [1, 2]], Ft[:, [2, 0]]])
+    max_len = float(np.median(np.linalg.norm(Vt[e[:, 0]] - Vt[e[:, 1]], axis=1)))
+    r = mapping.refine_for_morph(src["V"], src["F"], image, FN[image_face], project, max_len,
+                                 max_bend=max_bend, rounds=rounds)
+    for ob in list(bpy.data.objects):
+        if ob.get(REFINED_KEY) == source_obj.name:
+            me_old = ob.data
+            bpy.data.objects.remove(ob, do_unlink=True)
+            if me_old is not None and me_old.users == 0:
+                bpy.data.meshes.remove(me_old)
+    name = f"{source_obj.name} refined morph"
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(r["V"].tolist(), [], r["F"].tolist())
+    for uv_name, loop_uv in src["uv_layers"].items():
+        cu = mapjob.corner_uvs(src, loop_uv)[r["origin_face"]]          # (m',3,2)
+        uv = np.einsum("tkj,tjx->tkx", r["origin_bary"], cu)
+        layer = me.uv_layers.new(name=uv_name)
+        layer.data.foreach_set("uv", uv.astype(np.float32).ravel())
+    for mat in source_obj.data.materials:
+        me.materials.append(mat)
+    own = source_obj.data
+    if len(own.polygons) == src["num_polygons"] and len(own.polygons):
+        mi = np.empty(len(own.polygons), dtype=np.int32)
+        own.polygons.foreach_get("material_index", mi)
+        me.polygons.foreach_set("material_index",
+                                mi[np.asarray(src["tri_polygon"])[r["origin_face"]]])
+        smooth = bool(own.polygons[0].use_smooth)
+        me.polygons.foreach_set("use_smooth", np.full(len(me.polygons), smooth))
+    me.update()
+    ob = bpy.data.objects.new(name, me)
+    ob[REFINED_KEY] = source_obj.name
+    ob.matrix_world = source_obj.matrix_world.copy()
+    for coll in source_obj.users_collection:
+        coll.objects.link(ob)
+    ob.shape_key_add(name="Basis", from_mix=False)
+    key = ob.shape_key_add(name=key_name, from_mix=False)
+    from .mapping import apply_matrix
+    key.data.foreach_set("co", apply_matrix(morph_matrix, r["image"]).astype(np.float32).ravel())
+    key.value = 0.0
+    return ob, r

@@ -11,7 +11,8 @@ import numpy as np
 from . import blender_io, core, mapjob, mapping
 from .operators import pick_objects, surfmap_module
 
-OUTPUT_FLAGS = (("write_uvs", "UV"), ("write_morph", "MORPH"), ("write_distortion", "DISTORTION"))
+OUTPUT_FLAGS = (("write_uvs", "UV"), ("write_morph", "MORPH"), ("write_distortion", "DISTORTION"),
+                ("write_refined", "REFINED"))
 
 
 # --- reading -----------------------------------------------------------------------------------
@@ -191,6 +192,15 @@ def write_outputs(context, source, target, src, tgt, out, res, which):
         k2 = blender_io.write_shape_key(t_obj, f"surfmap to {s_obj.name}", out["morph_target"])
         lines.append(f"morph shape keys: '{k1}' on '{s_obj.name}', '{k2}' on '{t_obj.name}' "
                      f"(slide 0 -> 1)")
+    if "REFINED" in which:
+        M = mapjob.morph_matrix(tgt["matrix"], src["matrix"],
+                                context.scene.surfmap.morph_space)
+        ob, r = blender_io.refined_morph_object(
+            s_obj, src, tgt, out["image_of_source"], out["forward"][0], M,
+            f"surfmap to {t_obj.name}")
+        lines.append(f"refined morph object '{ob.name}': {len(src['V'])} -> {len(r['V'])} "
+                     f"vertices in {r['rounds']} round(s) of splitting the edges whose image "
+                     f"is long or bends (shape key '{ob.data.shape_keys.key_blocks[1].name}')")
     if "DISTORTION" in which and out["colours"]:
         me = s_obj.data
         blender_io.write_face_float(me, blender_io.DILATATION,
@@ -422,7 +432,10 @@ class _StoredMapOperator:
             out = mapjob.compute_outputs(src, tgt, dict(res, **dist), opts, only={self.output})
             if self.output == "UV" and not out["uv"]:
                 raise core.ObjectProblem(f"the source '{source.name}' has no UV map to transfer")
-            lines = write_outputs(context, source, target, src, tgt, out, None, {self.output})
+            which = {self.output}
+            if self.output == "MORPH" and settings.write_refined:
+                which.add("REFINED")
+            lines = write_outputs(context, source, target, src, tgt, out, None, which)
         except core.ObjectProblem as e:
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}

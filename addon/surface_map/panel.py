@@ -65,6 +65,7 @@ def draw_map(layout, settings):
     row.prop(settings, "write_uvs")
     row.prop(settings, "write_morph")
     row.prop(settings, "write_distortion")
+    col.prop(settings, "write_refined")
     col.prop(settings, "morph_space")
     box.operator("surfmap.compute_map", icon='PLAY')
     col = box.column(align=True)

@@ -63,6 +63,10 @@ class SURFMAP_PG_settings(bpy.types.PropertyGroup):
         name="Distortion", default=True,
         description="Colour attributes of the dilatation, conformal factor and mean-curvature "
                     "difference on the source")
+    write_refined: BoolProperty(
+        name="Refined Morph", default=False,
+        description="Also a new object: the source refined where its image is long or bends "
+                    "(paper §VII-E), with a shape key onto the target that follows its detail")
     morph_space: EnumProperty(
         name="Morph Space", default='IN_PLACE',
         items=(('IN_PLACE', "In Place", "Each object takes the other's shape (with its "

@@ -152,3 +152,47 @@ def test_landmarks_and_fingerprints():
     V2[3, 0] += 1e-3
     assert M.fingerprint(V2, F) != fp
     assert M.fingerprint(V, F[:, [0, 2, 1]]) != fp
+
+
+def test_refinement_follows_the_target():
+    Vs, Fs = torus(1.0, 0.5, 24, 12)       # a coarse source
+    Vt, Ft = torus(1.5, 0.5, 96, 48)       # a fine target
+    m = surfmap.surface_map(Vs, Fs, Vt, Ft)
+    img = m["forward"]["position"]
+    R, r = 1.5, 0.5
+
+    def project(P):  # closest point on the torus of revolution and its normal (analytic)
+        rho = np.hypot(P[:, 0], P[:, 1])
+        c = np.stack([P[:, 0] / rho * R, P[:, 1] / rho * R, np.zeros(len(P))], 1)
+        d = P - c
+        n = d / np.linalg.norm(d, axis=1)[:, None]
+        return c + r * n, n
+    _, n0 = project(img)
+    L = 0.05
+    out = M.refine_for_morph(Vs, Fs, img, n0, project, max_length=L, rounds=3)
+    V, F, I = out["V"], out["F"], out["image"]
+    assert out["rounds"] >= 2 and len(V) > 3 * len(Vs)
+    # the original vertices and their images are kept; new vertices lie on the source's
+    # triangles (given by origin face + barycentrics) and their images on the target
+    assert np.array_equal(V[:len(Vs)], Vs) and np.array_equal(I[:len(Vs)], img)
+    P = np.einsum("tkj,tjx->tkx", out["origin_bary"], Vs[Fs[out["origin_face"]]])
+    assert np.allclose(P, V[F], atol=1e-12)
+    assert np.allclose(project(I[len(Vs):])[0], I[len(Vs):], atol=1e-12)
+    # still a closed manifold surface (no T-junctions): every edge in exactly two triangles,
+    # each way once, and the Euler characteristic of a torus
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    _, counts = np.unique(e, axis=0, return_counts=True)
+    assert np.all(counts == 1)
+    und = np.unique(np.sort(e, axis=1), axis=0)
+    assert len(und) * 2 == len(e) and len(V) - len(und) + len(F) == 0
+    # image edges got much shorter than the coarse source's
+    def longest(Vx, Fx):
+        ee = np.concatenate([Fx[:, [0, 1]], Fx[:, [1, 2]], Fx[:, [2, 0]]])
+        return np.linalg.norm(Vx[ee[:, 0]] - Vx[ee[:, 1]], axis=1).max()
+    assert longest(I, F) < 0.5 * longest(img, Fs)
+    # the morph target (images) is on the target surface, where the coarse morph's flat
+    # triangles cut through it: their midpoints are off the surface, the refined ones close
+    def mid_off(Vx, Fx):
+        c = Vx[Fx].mean(axis=1)
+        return np.abs(np.linalg.norm(c - project(c)[0], axis=1)).max()
+    assert mid_off(I, F) < 0.3 * mid_off(img, Fs)
