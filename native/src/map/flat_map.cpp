@@ -10,6 +10,7 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCore>
 
+#include "landmarks.h"
 #include "map_support.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
@@ -153,6 +154,26 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     return std::make_pair(z, energy);
   };
 
+  // Landmarks (landmarks.h): each source vertex held at the lift of its
+  // target vertex nearest to where the unconstrained optimum puts it; the
+  // classes are then ranked by their energy with the landmarks held.
+  const bool landmarks = !options.landmarks.empty();
+  std::vector<int> lm_source;
+  std::vector<Complex> lm_target;
+  for (const auto& [s, t] : options.landmarks)
+    lm_source.push_back(s), lm_target.push_back(tgt.layout.vertex_positions[t]);
+  std::unique_ptr<PinnedFlatHarmonic> pinned_cot, pinned_uniform;
+  if (landmarks) {
+    pinned_cot = std::make_unique<PinnedFlatHarmonic>(n, idt.edges, lm_source, false);
+    pinned_uniform = std::make_unique<PinnedFlatHarmonic>(n, idt.edges, lm_source, true);
+  }
+  // (optimum, lifts) with the landmarks held.
+  auto pinned_solve = [&](const std::vector<Complex>& t) {
+    const std::vector<Complex> free = solve(solver, t, false).first;
+    const std::vector<Complex> lifts = flat_landmark_lifts(free, lm_source, lm_target, tgt.A, tgt.B);
+    return std::make_pair(pinned_cot->solve(t, lifts), lifts);
+  };
+
   // Candidate classes: a -> p A + q B, b -> r A + s B for small SL(2,Z)
   // matrices (the handle correspondences of a torus), up to the sign ±I,
   // which gives the same energy (the hyperelliptic involution).
@@ -176,7 +197,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
                     std::to_string(m[2]) + " a' + " + std::to_string(m[3]) + " b'";
     const auto tr = intrinsic_translations(double(m[0]) * tgt.A + double(m[1]) * tgt.B,
                                            double(m[2]) * tgt.A + double(m[3]) * tgt.B);
-    c.energy = solve(solver, tr.first, false).second;
+    c.energy = landmarks ? pinned_solve(tr.first).first.second : solve(solver, tr.first, false).second;
     out.candidates.push_back(c);
   }
   out.chosen_candidate = options.homotopy;
@@ -194,8 +215,22 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   const int* M = out.candidates[out.chosen_candidate].matrix;
   const auto [t_intrinsic, t_edges] = intrinsic_translations(double(M[0]) * tgt.A + double(M[1]) * tgt.B,
                                                              double(M[2]) * tgt.A + double(M[3]) * tgt.B);
-  const auto [z_init, e_init_unused] = solve(tutte, t_intrinsic, true);
-  (void)e_init_unused;
+  std::vector<Complex> z, z_init;
+  double energy = 0;
+  if (landmarks) {
+    // The initial (Tutte-type) map holds the same lifts.
+    const auto [held, lifts] = pinned_solve(t_intrinsic);
+    std::tie(z, energy) = held;
+    z_init = pinned_uniform->solve(t_intrinsic, lifts).first;
+  } else {
+    z_init = solve(tutte, t_intrinsic, true).first;
+    std::tie(z, energy) = solve(solver, t_intrinsic, false);
+    // The optimum is unique up to a translation of the torus; put the source's
+    // base vertex where the target's base vertex lies (both are central
+    // vertices of their shapes), a reproducible and usually natural choice.
+    const Complex shift = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z[sl.base_vertex];
+    for (Complex& zi : z) zi += shift;
+  }
   if (options.inspect_problem) {
     HarmonicProblem p;
     p.flat = true;
@@ -207,12 +242,6 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     p.start = z_init;
     options.inspect_problem(p);
   }
-  auto [z, energy] = solve(solver, t_intrinsic, false);
-  // The optimum is unique up to a translation of the torus; put the source's
-  // base vertex where the target's base vertex lies (both are central
-  // vertices of their shapes), a reproducible and usually natural choice.
-  const Complex shift = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z[sl.base_vertex];
-  for (Complex& zi : z) zi += shift;
   double e_init = 0;
   for (size_t e = 0; e < idt.edges.size(); ++e) {
     const auto& ie = idt.edges[e];

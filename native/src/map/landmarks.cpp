@@ -1,0 +1,119 @@
+#include "landmarks.h"
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "surfmap/error.h"
+
+namespace surfmap::detail {
+
+Complex nearest_lattice_translate(Complex z, Complex p, Complex w1, Complex w2) {
+  const double det = w1.real() * w2.imag() - w1.imag() * w2.real();
+  const Complex d = z - p;
+  const double alpha = (d.real() * w2.imag() - d.imag() * w2.real()) / det;
+  const double beta = (w1.real() * d.imag() - w1.imag() * d.real()) / det;
+  // Rounding lattice coordinates is nearest only for orthogonal bases: look
+  // at the neighbours of the rounded point too.
+  Complex best = p;
+  double best_d = std::numeric_limits<double>::infinity();
+  for (int dm = -1; dm <= 1; ++dm)
+    for (int dn = -1; dn <= 1; ++dn) {
+      const Complex q = p + (std::round(alpha) + dm) * w1 + (std::round(beta) + dn) * w2;
+      if (std::abs(q - z) < best_d) best_d = std::abs(q - z), best = q;
+    }
+  return best;
+}
+
+std::vector<Complex> flat_landmark_lifts(const std::vector<Complex>& z, const std::vector<int>& source,
+                                         const std::vector<Complex>& target_position, Complex w1, Complex w2) {
+  const size_t k = source.size();
+  std::vector<Complex> lift(k);
+  Complex shift = target_position[0] - z[source[0]];
+  for (int it = 0; it < 20; ++it) {
+    Complex mean = 0;
+    bool changed = false;
+    for (size_t a = 0; a < k; ++a) {
+      const Complex q = nearest_lattice_translate(z[source[a]] + shift, target_position[a], w1, w2);
+      changed = changed || it == 0 || std::abs(q - lift[a]) > 1e-12 * (std::abs(w1) + std::abs(w2));
+      lift[a] = q;
+      mean += q - z[source[a]];
+    }
+    shift = mean / double(k);
+    if (!changed) break;
+  }
+  return lift;
+}
+
+PinnedFlatHarmonic::PinnedFlatHarmonic(int num_vertices, const std::vector<IntrinsicEdge>& edges,
+                                       const std::vector<int>& pinned, bool uniform)
+    : n_(num_vertices), edges_(edges), pinned_(pinned), free_index_(num_vertices, -1), uniform_(uniform) {
+  if (pinned.empty()) throw InputError("PinnedFlatHarmonic: at least one pinned vertex is needed");
+  std::vector<int> pinned_index(n_, -1);
+  for (size_t k = 0; k < pinned.size(); ++k) pinned_index[pinned[k]] = static_cast<int>(k);
+  int nf = 0;
+  for (int v = 0; v < n_; ++v)
+    if (pinned_index[v] < 0) free_index_[v] = nf++;
+  std::vector<Eigen::Triplet<double>> ff, fp;
+  for (const auto& e : edges_) {
+    const double w = uniform_ ? 1.0 : e.cot_weight;
+    if (w == 0) continue;
+    const int a = free_index_[e.i], b = free_index_[e.j];
+    if (a >= 0) ff.emplace_back(a, a, w);
+    if (b >= 0) ff.emplace_back(b, b, w);
+    if (a >= 0 && b >= 0) ff.emplace_back(a, b, -w), ff.emplace_back(b, a, -w);
+    if (a >= 0 && b < 0) fp.emplace_back(a, pinned_index[e.j], -w);
+    if (b >= 0 && a < 0) fp.emplace_back(b, pinned_index[e.i], -w);
+  }
+  Eigen::SparseMatrix<double> L(nf, nf);
+  L.setFromTriplets(ff.begin(), ff.end());
+  coupling_.resize(nf, static_cast<int>(pinned.size()));
+  coupling_.setFromTriplets(fp.begin(), fp.end());
+  llt_ = std::make_unique<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>>();
+  llt_->compute(L);
+  if (llt_->info() != Eigen::Success)
+    throw SolveError("the source Laplacian with the landmarks pinned could not be factorised");
+}
+
+std::pair<std::vector<Complex>, double> PinnedFlatHarmonic::solve(const std::vector<Complex>& t,
+                                                                  const std::vector<Complex>& values) const {
+  const int nf = static_cast<int>(coupling_.rows()), np = static_cast<int>(pinned_.size());
+  Eigen::VectorXd bx = Eigen::VectorXd::Zero(nf), by = Eigen::VectorXd::Zero(nf);
+  for (size_t e = 0; e < edges_.size(); ++e) {
+    const auto& ie = edges_[e];
+    const double w = uniform_ ? 1.0 : ie.cot_weight;
+    if (free_index_[ie.i] >= 0) bx[free_index_[ie.i]] += w * t[e].real(), by[free_index_[ie.i]] += w * t[e].imag();
+    if (free_index_[ie.j] >= 0) bx[free_index_[ie.j]] -= w * t[e].real(), by[free_index_[ie.j]] -= w * t[e].imag();
+  }
+  Eigen::VectorXd px(np), py(np);
+  for (int k = 0; k < np; ++k) px[k] = values[k].real(), py[k] = values[k].imag();
+  bx -= coupling_ * px;
+  by -= coupling_ * py;
+  const Eigen::VectorXd x = llt_->solve(bx), y = llt_->solve(by);
+  std::vector<Complex> z(n_);
+  for (int v = 0; v < n_; ++v)
+    if (free_index_[v] >= 0) z[v] = Complex(x[free_index_[v]], y[free_index_[v]]);
+  for (int k = 0; k < np; ++k) z[pinned_[k]] = values[k];
+  double energy = 0;
+  for (size_t e = 0; e < edges_.size(); ++e) {
+    const auto& ie = edges_[e];
+    energy += ie.cot_weight * std::norm(z[ie.j] + t[e] - z[ie.i]);
+  }
+  return {z, energy};
+}
+
+Complex nearest_deck_image(Complex z, Complex p, const std::vector<hyperbolic::Mobius>& side_maps) {
+  Complex best = p;
+  double best_d = hyperbolic::distance(z, p);
+  for (const auto& a : side_maps) {
+    const Complex q1 = a.apply(p);
+    if (const double d = hyperbolic::distance(z, q1); d < best_d) best_d = d, best = q1;
+    for (const auto& b : side_maps) {
+      const Complex q2 = b.apply(q1);
+      if (const double d = hyperbolic::distance(z, q2); d < best_d) best_d = d, best = q2;
+    }
+  }
+  return best;
+}
+
+}  // namespace surfmap::detail

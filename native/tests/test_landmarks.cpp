@@ -1,0 +1,107 @@
+// Landmarks (paper §VII-C): source vertices held on their target vertices
+// for genus >= 1 (map/landmarks.h); genus 0 is in test_spherical_map.cpp.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "surfmap/error.h"
+#include "surfmap/map/surface_map.h"
+#include "surfmap/samples/shapes.h"
+
+namespace surfmap {
+namespace {
+
+int nearest_vertex(const TriMesh& m, const Eigen::Vector3d& p) {
+  int best = 0;
+  (m.V.rowwise() - p.transpose()).rowwise().squaredNorm().minCoeff(&best);
+  return best;
+}
+
+void expect_landmarks_hit(const SurfaceMapResult& m, const TriMesh& target, const SurfaceMapOptions& o) {
+  for (const auto& [s, t] : o.landmarks)
+    EXPECT_LT((m.forward[s].position - target.V.row(t).transpose()).norm(), 1e-9) << s << " -> " << t;
+  EXPECT_LT(m.max_landmark_error, 1e-9);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.degenerate_triangles, 0);
+  // The held map is the optimum of the held problem: no worse than its
+  // Tutte-type initial map holding the same lifts.
+  EXPECT_LE(m.final_energy, m.initial_energy * (1 + 1e-12));
+}
+
+TEST(LandmarksFlat, OneLandmarkIsATranslation) {
+  // The flat optimum is unique up to translation, so holding one vertex
+  // anywhere costs nothing: same energy, every vertex moved by the same
+  // translation of the torus.
+  const TriMesh a = samples::torus_of_revolution(1.0, 0.5, 60, 30);
+  const TriMesh b = samples::torus_of_revolution(1.5, 0.5, 75, 30, 1);
+  const SurfaceMapResult free = surface_map(a, b);
+  for (const auto& pair : {std::pair{0, 0}, std::pair{17, 1234}, std::pair{900, 77}}) {
+    SurfaceMapOptions o;
+    o.landmarks = {pair};
+    const SurfaceMapResult m = surface_map(a, b, o);
+    expect_landmarks_hit(m, b, o);
+    EXPECT_NEAR(m.final_energy, free.final_energy, 1e-9 * free.final_energy);
+    EXPECT_NEAR(m.mean_dilatation, free.mean_dilatation, 1e-6);
+    EXPECT_EQ(m.chosen_candidate, free.chosen_candidate);
+  }
+}
+
+TEST(LandmarksFlat, ConsistentLandmarksHitExactlyWithoutFlips) {
+  // Landmarks where the free map (nearly) sends them, on a sliver source:
+  // hit exactly, no flips, and holding them can only raise the energy.
+  const TriMesh a = samples::n_hole_torus(1, 34, false);
+  const TriMesh b = samples::torus_of_revolution(1.3, 0.45, 80, 36);
+  const SurfaceMapResult free = surface_map(a, b);
+  ASSERT_EQ(free.flipped_triangles, 0);
+  const int picks[] = {3, a.num_vertices() / 3, (2 * a.num_vertices()) / 3};
+  for (int k = 1; k <= 3; ++k) {
+    SurfaceMapOptions o;
+    for (int q = 0; q < k; ++q) o.landmarks.emplace_back(picks[q], nearest_vertex(b, free.forward[picks[q]].position));
+    const SurfaceMapResult m = surface_map(a, b, o);
+    expect_landmarks_hit(m, b, o);
+    EXPECT_GE(m.final_energy, free.final_energy * (1 - 1e-12));
+    EXPECT_LT(m.final_energy, 1.05 * free.final_energy) << k;  // consistent landmarks cost little
+  }
+}
+
+TEST(LandmarksFlat, LandmarksAwayFromTheFreeMapRaiseTheEnergyOrFailHonestly) {
+  // Vertex 34 u + v of each torus grid sits at angles (2π u/n, 2π v/34).
+  const TriMesh a = samples::torus_of_revolution(1.0, 0.45, 64, 34);
+  const TriMesh b = samples::torus_of_revolution(1.4, 0.5, 64, 34, 2);
+  SurfaceMapOptions o;
+  o.landmarks = {{0, 0}};
+  const SurfaceMapResult one = surface_map(a, b, o);
+  // Where the map holding vertex 0 sends vertex s, in grid coordinates of b.
+  const int s = 34 * 20 + 5, t = nearest_vertex(b, one.forward[s].position);
+  auto grid = [](int u, int v) { return 34 * ((u % 64 + 64) % 64) + (v % 34 + 34) % 34; };
+  // The second landmark two cells off: hit, no flips, a higher energy.
+  o.landmarks = {{0, 0}, {s, grid(t / 34 + 2, t % 34 + 1)}};
+  const SurfaceMapResult m = surface_map(a, b, o);
+  expect_landmarks_hit(m, b, o);
+  EXPECT_GT(m.final_energy, one.final_energy * 1.0001);
+  // A quarter turn off: a point-constrained harmonic map folds next to the
+  // pinned vertices; the map with flips is refused, never returned.
+  o.landmarks = {{0, 0}, {s, grid(t / 34 + 16, t % 34)}};
+  try {
+    surface_map(a, b, o);
+    FAIL() << "a folded map was returned";
+  } catch (const SolveError& e) {
+    EXPECT_NE(std::string(e.what()).find("flipped"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Landmarks, BadPairsAreInputErrors) {
+  const TriMesh a = samples::torus_of_revolution(1.0, 0.5, 20, 10);
+  SurfaceMapOptions o;
+  o.landmarks = {{0, 1000}};
+  EXPECT_THROW(surface_map(a, a, o), InputError);
+  o.landmarks = {{0, 1}, {0, 2}};
+  EXPECT_THROW(surface_map(a, a, o), InputError);
+  o.landmarks = {{0, 1}, {3, 1}};
+  EXPECT_THROW(surface_map(a, a, o), InputError);
+  o.landmarks = {{-1, 1}};
+  EXPECT_THROW(surface_map(a, a, o), InputError);
+}
+
+}  // namespace
+}  // namespace surfmap
