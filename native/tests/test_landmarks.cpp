@@ -90,6 +90,28 @@ TEST(LandmarksFlat, LandmarksAwayFromTheFreeMapRaiseTheEnergyOrFailHonestly) {
   }
 }
 
+TEST(LandmarksHyperbolic, ConsistentLandmarksHitExactlyWithoutFlips) {
+  // Genus 2: landmarks where the free optimum (nearly) sends them are held
+  // exactly by the Newton solve, with no flips and no lower energy.
+  const TriMesh a = samples::n_hole_torus(2, 30, true);
+  const TriMesh b = samples::vase(34, true);
+  const SurfaceMapResult free = surface_map(a, b);
+  const int picks[] = {11, a.num_vertices() / 3, (2 * a.num_vertices()) / 3};
+  for (int k : {1, 3}) {
+    SurfaceMapOptions o;
+    for (int q = 0; q < k; ++q) o.landmarks.emplace_back(picks[q], nearest_vertex(b, free.forward[picks[q]].position));
+    const SurfaceMapResult m = surface_map(a, b, o);
+    expect_landmarks_hit(m, b, o);
+    EXPECT_TRUE(m.converged);
+    EXPECT_GE(m.final_energy, free.final_energy * (1 - 1e-9)) << k;
+    EXPECT_LT(m.final_energy, 1.05 * free.final_energy) << k;
+  }
+  SurfaceMapOptions relax;
+  relax.method = MapMethod::Relaxation;
+  relax.landmarks = {{0, 0}};
+  EXPECT_THROW(surface_map(a, b, relax), InputError);
+}
+
 TEST(Landmarks, BadPairsAreInputErrors) {
   const TriMesh a = samples::torus_of_revolution(1.0, 0.5, 20, 10);
   SurfaceMapOptions o;

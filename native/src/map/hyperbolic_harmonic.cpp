@@ -56,6 +56,8 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
   if (static_cast<int>(z0.size()) != n) throw InputError("hyperbolic_harmonic_map: one start point per vertex needed");
   for (int i = 0; i < n; ++i)
     if (!(std::abs(z0[i]) < 1)) throw InputError("hyperbolic_harmonic_map: start point of vertex " + std::to_string(i) + " is outside the disk");
+  if (!options.fixed.empty() && static_cast<int>(options.fixed.size()) != n)
+    throw InputError("hyperbolic_harmonic_map: the fixed mask needs one entry per vertex");
   std::vector<Mobius> moves;
   for (const auto& g : generators) moves.push_back(g), moves.push_back(g.inverse());
 
@@ -110,6 +112,20 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
           trip.emplace_back(2 * e.i + p, 2 * e.j + q, Hij(p, q));
           trip.emplace_back(2 * e.j + q, 2 * e.i + p, Hij(p, q));
         }
+    }
+    // Held vertices (landmarks): no gradient and identity rows/columns, so
+    // their Newton step is 0 and the other vertices see them as fixed.
+    if (!options.fixed.empty()) {
+      std::vector<Eigen::Triplet<double>> kept;
+      kept.reserve(trip.size());
+      for (const auto& t : trip)
+        if (!options.fixed[t.row() / 2] && !options.fixed[t.col() / 2]) kept.push_back(t);
+      for (int i = 0; i < n; ++i)
+        if (options.fixed[i]) {
+          g[2 * i] = g[2 * i + 1] = 0;
+          kept.emplace_back(2 * i, 2 * i, max_w), kept.emplace_back(2 * i + 1, 2 * i + 1, max_w);
+        }
+      trip.swap(kept);
     }
     double gnorm = 0;
     for (int i = 0; i < n; ++i) gnorm = std::max(gnorm, std::hypot(g[2 * i], g[2 * i + 1]));

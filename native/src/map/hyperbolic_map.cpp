@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "landmarks.h"
 #include "map_support.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
@@ -173,6 +174,25 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
                      (options.method == MapMethod::Relaxation ? "relaxation" : "Newton") + ") did not converge in " +
                      std::to_string(hr.iterations) + " iterations (gradient " +
                      std::to_string(hr.gradient_history.back()) + "); raise max_iterations or the tolerance");
+  if (!options.landmarks.empty()) {
+    // Landmarks (landmarks.h): held at the lifts nearest to the free optimum.
+    std::vector<int> lm_source;
+    std::vector<Complex> lm_target;
+    for (const auto& [s, t] : options.landmarks)
+      lm_source.push_back(s), lm_target.push_back(layout.vertex_positions[t]);
+    HyperbolicHarmonicOptions ho;
+    ho.tolerance = options.tolerance;
+    ho.max_iterations = options.max_iterations;
+    ho.progress = solve_progress;
+    HyperbolicHarmonicResult held =
+        hold_hyperbolic_landmarks(source.num_vertices(), edges, layout.generators, hr, lm_source, lm_target, ho);
+    if (!held.converged)
+      throw SolveError("the harmonic map with the landmarks held did not converge in " +
+                       std::to_string(held.iterations) + " iterations");
+    held.energy_history.insert(held.energy_history.begin(), hr.energy_history.begin(), hr.energy_history.end());
+    held.iterations += hr.iterations;
+    hr = std::move(held);
+  }
   out.converged = true;
   out.iterations = hr.iterations;
   out.energy_history = hr.energy_history;

@@ -1,6 +1,7 @@
 #include "landmarks.h"
 
 #include <cmath>
+#include <set>
 #include <limits>
 #include <string>
 
@@ -102,18 +103,52 @@ std::pair<std::vector<Complex>, double> PinnedFlatHarmonic::solve(const std::vec
   return {z, energy};
 }
 
-Complex nearest_deck_image(Complex z, Complex p, const std::vector<hyperbolic::Mobius>& side_maps) {
-  Complex best = p;
-  double best_d = hyperbolic::distance(z, p);
-  for (const auto& a : side_maps) {
-    const Complex q1 = a.apply(p);
-    if (const double d = hyperbolic::distance(z, q1); d < best_d) best_d = d, best = q1;
-    for (const auto& b : side_maps) {
-      const Complex q2 = b.apply(q1);
-      if (const double d = hyperbolic::distance(z, q2); d < best_d) best_d = d, best = q2;
+HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<WeightedEdge>& edges,
+                                                   const std::vector<hyperbolic::Mobius>& generators,
+                                                   const HyperbolicHarmonicResult& free, const std::vector<int>& source,
+                                                   const std::vector<Complex>& target_position,
+                                                   HyperbolicHarmonicOptions options) {
+  using hyperbolic::Mobius;
+  std::vector<Mobius> moves;
+  for (const auto& g : generators) moves.push_back(g), moves.push_back(g.inverse());
+  // The solve runs in the free optimum's charts: effective edge elements and
+  // its points (all near the origin) as the start.
+  std::vector<WeightedEdge> held_edges = edges;
+  for (auto& e : held_edges) e.rho = (free.vertex_deck[e.i] * e.rho * free.vertex_deck[e.j].inverse()).normalized();
+  std::vector<Complex> start = free.z;
+  options.fixed.assign(n, 0);
+  for (size_t k = 0; k < source.size(); ++k) {
+    const Complex z = free.z[source[k]];
+    // Breadth first over deck images of the target point, keeping only those
+    // that stay within reach of z (the nearest lift can need a word of
+    // length ~4g in the generators when z lies near a far corner of the
+    // domain, seen at 5 on a genus-2 pair).
+    Complex best = target_position[k];
+    double best_d = hyperbolic::distance(z, best);
+    const double reach = std::max(best_d, 1.0) + 4.0;
+    std::set<std::pair<long long, long long>> seen;
+    auto key = [](Complex w) { return std::make_pair(std::llround(w.real() * 1e9), std::llround(w.imag() * 1e9)); };
+    std::vector<Complex> frontier{best};
+    seen.insert(key(best));
+    for (int depth = 1; depth <= 2 * static_cast<int>(moves.size()) + 2 && !frontier.empty(); ++depth) {
+      std::vector<Complex> next;
+      for (const Complex& q : frontier)
+        for (const auto& m : moves) {
+          const Complex w = m.apply(q);
+          const double d = hyperbolic::distance(z, w);
+          if (d > reach || !seen.insert(key(w)).second) continue;
+          if (d < best_d) best_d = d, best = w;
+          next.push_back(w);
+        }
+      if (seen.size() > 200000) break;
+      frontier.swap(next);
     }
+    start[source[k]] = best;
+    options.fixed[source[k]] = 1;
   }
-  return best;
+  HyperbolicHarmonicResult held = hyperbolic_harmonic_map(n, held_edges, generators, start, options);
+  for (int i = 0; i < n; ++i) held.vertex_deck[i] = (held.vertex_deck[i] * free.vertex_deck[i]).normalized();
+  return held;
 }
 
 }  // namespace surfmap::detail

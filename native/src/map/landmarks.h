@@ -21,6 +21,7 @@
 
 #include "surfmap/geometry/hyperbolic.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
+#include "surfmap/map/hyperbolic_harmonic.h"
 
 namespace surfmap::detail {
 
@@ -57,10 +58,19 @@ class PinnedFlatHarmonic {
   std::unique_ptr<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>> llt_;
 };
 
-/// Hyperbolic case: the image γ(p) of p under the target's deck group
-/// nearest to z (hyperbolic distance), searched over words of length <= 2 in
-/// the side maps of the fundamental polygon (p and z both lie in or next to
-/// it, so the nearest lift is among those).
-Complex nearest_deck_image(Complex z, Complex p, const std::vector<hyperbolic::Mobius>& side_maps);
+/// Hyperbolic case: re-solves the harmonic map (Riemannian Newton,
+/// map/hyperbolic_harmonic.h) from the free optimum `free` (its vertex decks
+/// relative to `edges`) with each source[k] held at the deck image of
+/// target_position[k] (a point of the target's layout) nearest, in
+/// hyperbolic distance, to where `free` put it; images are searched breadth
+/// first over words in the generators and their inverses, pruned to those
+/// within reach of the free position (the nearest lift can need a word of
+/// length ~4g when the point lies near a far corner of the domain). The
+/// returned vertex decks are again relative to `edges`.
+HyperbolicHarmonicResult hold_hyperbolic_landmarks(int num_vertices, const std::vector<WeightedEdge>& edges,
+                                                   const std::vector<hyperbolic::Mobius>& generators,
+                                                   const HyperbolicHarmonicResult& free, const std::vector<int>& source,
+                                                   const std::vector<Complex>& target_position,
+                                                   HyperbolicHarmonicOptions options);
 
 }  // namespace surfmap::detail

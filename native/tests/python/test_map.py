@@ -187,3 +187,17 @@ def test_genus0_cli(tmp_path, cli):
     morph = surfmap.load_mesh(str(out))["V"]
     # A jittered copy of the same shape: the map is close to the identity.
     assert np.abs(morph - (Vs * 2.0 + 1.0)).max() < 0.05 * np.ptp(Vt, axis=0).max()
+
+
+def test_landmarks_genus1_hit_exactly(pair):
+    (Vs, Fs), (Vt, Ft) = pair
+    free = surfmap.surface_map(Vs, Fs, Vt, Ft)
+    # Landmarks where the free map (nearly) sends them: held exactly, no flips, no lower energy.
+    src = np.array([5, 2000, 5000])
+    dst = np.array([np.linalg.norm(Vt - free["forward"]["position"][i], axis=1).argmin() for i in src])
+    r = surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=np.stack([src, dst], 1))
+    assert r["flipped_triangles"] == 0 and r["landmark_error"] < 1e-9
+    assert np.abs(r["forward"]["position"][src] - Vt[dst]).max() < 1e-9
+    assert r["energy"]["final"] >= free["energy"]["final"] * (1 - 1e-12)
+    with pytest.raises(surfmap.InputError, match="already landmark"):
+        surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=[[1, 2], [1, 3]])

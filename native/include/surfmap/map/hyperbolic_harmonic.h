@@ -30,6 +30,10 @@ struct HyperbolicHarmonicOptions {
   /// Called every iteration with (iteration, energy, gradient norm); return
   /// false to cancel (throws Cancelled).
   std::function<bool(int, double, double)> progress;
+  /// #V or empty (default): vertices held at their start point (landmarks,
+  /// paper §VII-C). Their Newton step is zero; the chart moves may still
+  /// re-express them by a deck element, which is the same point of the surface.
+  std::vector<char> fixed;
 };
 
 struct WeightedEdge {

@@ -67,6 +67,12 @@ struct SurfaceMapOptions {
   /// Landmark pairs (source vertex, target vertex) whose images are held
   /// fixed: the source vertex maps exactly onto the target vertex (paper
   /// §VII-C). Indices must be valid and each vertex used at most once.
+  /// Genus >= 1: each source vertex is held at the lift of its target vertex
+  /// (in the universal cover) nearest to where the map without landmarks
+  /// puts it, so landmarks add no winding (src/map/landmarks.h); a held map
+  /// that folds is a SolveError. Genus >= 2 needs MapMethod::Newton. Genus 0:
+  /// the Möbius map fixed by the landmarks (map/spherical_map.h), exact for
+  /// up to 3, least squares beyond (see max_landmark_error).
   std::vector<std::pair<int, int>> landmarks;
   /// Called between stages with the stage name and a fraction in [0, 1];
   /// return false to cancel (throws Cancelled).
