@@ -526,3 +526,63 @@ def test_against_blender_data_transfer():
           f"stretched across the layout; surfmap {f_ours} flipped, {s_ours} stretched")
     assert f_ours == 0 and s_ours == 0
     assert f_dt + s_dt > 0
+
+
+def test_linked_duplicates_cancel():
+    a = helpers.torus("A")
+    b = bpy.data.objects.new("B", a.data)       # same mesh data
+    bpy.context.scene.collection.objects.link(b)
+    b.location.x = 3
+    _expect_cancel([a, b], b, "share the mesh", "make single user")
+
+
+def test_operators_are_undoable():
+    from surface_map import map_ops
+    for cls in map_ops.classes:
+        assert {'REGISTER', 'UNDO'} <= set(cls.bl_options), cls.bl_idname
+
+
+def test_handle_correspondence_choice():
+    a, b = _torus_pair()
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    settings = bpy.context.scene.surfmap
+    cands = [(c.index, c.energy) for c in settings.candidates]
+    best = settings.chosen_candidate
+    other = max(cands, key=lambda c: c[1])[0]
+    assert other != best
+    settings.homotopy = other
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    assert settings.chosen_candidate == other
+    assert a.data["surfmap_map"]["homotopy"] == other
+    assert a.data["surfmap_map"]["energy"] > dict(cands)[best] * 1.5
+    # a higher-energy class is a worse map: more dilatation
+    d = np.empty(len(a.data.polygons))
+    a.data.attributes["surfmap_dilatation"].data.foreach_get("value", d)
+    assert float(np.median(d)) > 2.0
+
+
+def test_genus0_landmarks_pin_vertices():
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=4, location=(-3, 0, 0))
+    a = bpy.context.active_object
+    a.name = "Source"
+    V, F = helpers.sm().shapes.sphere(4)
+    b = helpers.mesh_object("Target", np.asarray(V, dtype=float) * [1.6, 1.0, 0.7],
+                            np.asarray(F), (3, 0, 0))
+    pairs = [(0, 5), (40, 300), (600, 1500)]
+    for k, (i, j) in enumerate(pairs):
+        a.vertex_groups.new(name=f"lm_{k}").add([i], 1.0, 'REPLACE')
+        b.vertex_groups.new(name=f"lm_{k}").add([j], 1.0, 'REPLACE')
+    bpy.context.scene.surfmap.landmark_mode = 'GROUPS'
+    select([a, b], b)
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    assert "3 landmark(s) from vertex groups lm_0, lm_1, lm_2" in bpy.context.scene.surfmap.map_status
+    Fb, _ = helpers.triangles_of(b)
+    Vb = helpers.coords(b)
+    for i, j in pairs:
+        face = a.data.attributes["surfmap_map_face"].data[i].value
+        bary = np.array(a.data.attributes["surfmap_map_bary"].data[i].vector)
+        p = _mapping().points_at(Vb, Fb, [face], [bary])[0]
+        assert np.linalg.norm(p - Vb[j]) < 1e-5, (i, j, np.linalg.norm(p - Vb[j]))

@@ -99,6 +99,10 @@ def prepare_job(context, sm):
     if source is None:
         raise core.ObjectProblem(f"only '{target.name}' is selected: select two meshes (the "
                                  f"source, then the target as the active object)")
+    if source.data == target.data:
+        raise core.ObjectProblem(f"'{source.name}' and '{target.name}' share the mesh "
+                                 f"'{target.data.name}': the map's layers would overwrite each "
+                                 f"other (Object > Relations > Make Single User first)")
     depsgraph = context.evaluated_depsgraph_get()
     src = _side(source, depsgraph, sm)
     tgt = _side(target, depsgraph, sm)
