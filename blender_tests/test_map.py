@@ -599,3 +599,16 @@ def test_landmarks_from_selected_vertices():
         bary = np.array(a.data.attributes["surfmap_map_bary"].data[i].vector)
         p = _mapping().points_at(Vb, Fb, [face], [bary])[0]
         assert np.linalg.norm(p - Vb[j]) < 1e-5, (i, j)
+
+
+def test_relaxation_method_reaches_newtons_energy():
+    a, b = _torus_pair()
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    e_newton = a.data["surfmap_map"]["energy"]
+    bpy.context.scene.surfmap.method = 'RELAXATION'
+    bpy.context.scene.surfmap.tolerance = 1e-9
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    e_relax = a.data["surfmap_map"]["energy"]
+    assert abs(e_relax - e_newton) < 1e-3 * e_newton, (e_relax, e_newton)

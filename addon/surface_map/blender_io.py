@@ -267,7 +267,7 @@ def _layer_name(mesh, kind, wanted, existing):
     return name
 
 
-def write_point_float3(mesh, name, values, data_type='FLOAT_VECTOR', domain='POINT'):
+def write_attribute(mesh, name, values, data_type='FLOAT_VECTOR', domain='POINT'):
     a = mesh.attributes.get(name)
     if a is not None and (a.data_type != data_type or a.domain != domain):
         mesh.attributes.remove(a)
@@ -283,8 +283,8 @@ def write_point_float3(mesh, name, values, data_type='FLOAT_VECTOR', domain='POI
 def write_correspondence(mesh, face, bary, meta):
     """Per vertex: the partner's triangle and barycentrics (survive saving); meta (dict of
     str/int/float) as the mesh's CORR_KEY ID property."""
-    write_point_float3(mesh, CORR_FACE, np.asarray(face, dtype=np.int32), 'INT')
-    write_point_float3(mesh, CORR_BARY, np.asarray(bary, dtype=np.float32))
+    write_attribute(mesh, CORR_FACE, np.asarray(face, dtype=np.int32), 'INT')
+    write_attribute(mesh, CORR_BARY, np.asarray(bary, dtype=np.float32))
     mesh[CORR_KEY] = dict(meta)
 
 
@@ -305,7 +305,7 @@ def read_correspondence(mesh):
 
 
 def write_face_float(mesh, name, values):
-    write_point_float3(mesh, name, np.asarray(values, dtype=np.float32), 'FLOAT', 'FACE')
+    write_attribute(mesh, name, np.asarray(values, dtype=np.float32), 'FLOAT', 'FACE')
 
 
 def read_face_float(mesh, name):

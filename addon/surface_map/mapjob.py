@@ -69,19 +69,10 @@ class MapJob:
         sm = self.sm
         self.t0 = time.time()
         try:
-            kw = self.native_kwargs()
-            try:
-                self.result = sm.surface_map(
-                    self.source["V"], self.source["F"], self.target["V"], self.target["F"],
-                    progress=self._progress, **kw)
-            except TypeError as e:
-                unsupported = [k for k in ("landmarks", "method", "tolerance") if k in kw
-                               and k in str(e)] or [k for k in ("landmarks", "method",
-                                                                 "tolerance") if k in kw]
-                if unsupported and "incompatible function arguments" in str(e):
-                    raise _Unsupported("this build of the surfmap module does not support "
-                                       + ", ".join(unsupported) + " yet (rebuild it)") from None
-                raise
+            kw = self.native_kwargs()   # prepare_job checked the core accepts them
+            self.result = sm.surface_map(
+                self.source["V"], self.source["F"], self.target["V"], self.target["F"],
+                progress=self._progress, **kw)
             if self.cancel:
                 raise sm.Cancelled("cancelled")
             self.stage, self.fraction = "writing outputs", 1.0
@@ -97,8 +88,6 @@ class MapJob:
             self.error = ("solve", f"the map solve failed: {e}")
         except sm.Error as e:
             self.error = ("solve", f"surfmap: {e}")
-        except _Unsupported as e:
-            self.error = ("input", str(e))
         except Exception as e:  # a bug on our side: report it rather than crash Blender
             import traceback
             traceback.print_exc()
@@ -120,10 +109,6 @@ class MapJob:
         if self.t0 is not None:
             s += f", {time.time() - self.t0:.1f}s"
         return s + " — Esc to cancel"
-
-
-class _Unsupported(Exception):
-    pass
 
 
 # --- outputs -----------------------------------------------------------------------------------
