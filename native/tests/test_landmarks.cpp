@@ -17,9 +17,17 @@ int nearest_vertex(const TriMesh& m, const Eigen::Vector3d& p) {
   return best;
 }
 
-void expect_landmarks_hit(const SurfaceMapResult& m, const TriMesh& target, const SurfaceMapOptions& o) {
-  for (const auto& [s, t] : o.landmarks)
-    EXPECT_LT((m.forward[s].position - target.V.row(t).transpose()).norm(), 1e-9) << s << " -> " << t;
+void expect_landmarks_hit(const SurfaceMapResult& m, const TriMesh& source, const TriMesh& target,
+                          const SurfaceMapOptions& o) {
+  for (const auto& [s, t] : o.landmarks) {
+    EXPECT_LT((m.forward[s].position - target.V.row(t).transpose()).norm(), 1e-12) << s << " -> " << t;
+    EXPECT_LT((m.inverse[t].position - source.V.row(s).transpose()).norm(), 1e-12) << s << " -> " << t;
+    const auto& b = m.forward[s].barycentric;
+    EXPECT_DOUBLE_EQ(b.maxCoeff(), 1.0);
+    EXPECT_EQ(target.F(m.forward[s].face, [&] { int k; b.maxCoeff(&k); return k; }()), t);
+  }
+  // Where the solve and the location put it before it was set onto its
+  // vertex: the held landmark really is on the target vertex.
   EXPECT_LT(m.max_landmark_error, 1e-9);
   EXPECT_EQ(m.flipped_triangles, 0);
   EXPECT_EQ(m.degenerate_triangles, 0);
@@ -39,7 +47,7 @@ TEST(LandmarksFlat, OneLandmarkIsATranslation) {
     SurfaceMapOptions o;
     o.landmarks = {pair};
     const SurfaceMapResult m = surface_map(a, b, o);
-    expect_landmarks_hit(m, b, o);
+    expect_landmarks_hit(m, a, b, o);
     EXPECT_NEAR(m.final_energy, free.final_energy, 1e-9 * free.final_energy);
     EXPECT_NEAR(m.mean_dilatation, free.mean_dilatation, 1e-6);
     EXPECT_EQ(m.chosen_candidate, free.chosen_candidate);
@@ -58,7 +66,7 @@ TEST(LandmarksFlat, ConsistentLandmarksHitExactlyWithoutFlips) {
     SurfaceMapOptions o;
     for (int q = 0; q < k; ++q) o.landmarks.emplace_back(picks[q], nearest_vertex(b, free.forward[picks[q]].position));
     const SurfaceMapResult m = surface_map(a, b, o);
-    expect_landmarks_hit(m, b, o);
+    expect_landmarks_hit(m, a, b, o);
     EXPECT_GE(m.final_energy, free.final_energy * (1 - 1e-12));
     EXPECT_LT(m.final_energy, 1.05 * free.final_energy) << k;  // consistent landmarks cost little
   }
@@ -77,7 +85,7 @@ TEST(LandmarksFlat, LandmarksAwayFromTheFreeMapRaiseTheEnergyOrFailHonestly) {
   // The second landmark two cells off: hit, no flips, a higher energy.
   o.landmarks = {{0, 0}, {s, grid(t / 34 + 2, t % 34 + 1)}};
   const SurfaceMapResult m = surface_map(a, b, o);
-  expect_landmarks_hit(m, b, o);
+  expect_landmarks_hit(m, a, b, o);
   EXPECT_GT(m.final_energy, one.final_energy * 1.0001);
   // A quarter turn off: a point-constrained harmonic map folds next to the
   // pinned vertices; the map with flips is refused, never returned.
@@ -101,7 +109,7 @@ TEST(LandmarksHyperbolic, ConsistentLandmarksHitExactlyWithoutFlips) {
     SurfaceMapOptions o;
     for (int q = 0; q < k; ++q) o.landmarks.emplace_back(picks[q], nearest_vertex(b, free.forward[picks[q]].position));
     const SurfaceMapResult m = surface_map(a, b, o);
-    expect_landmarks_hit(m, b, o);
+    expect_landmarks_hit(m, a, b, o);
     EXPECT_TRUE(m.converged);
     EXPECT_GE(m.final_energy, free.final_energy * (1 - 1e-9)) << k;
     EXPECT_LT(m.final_energy, 1.05 * free.final_energy) << k;

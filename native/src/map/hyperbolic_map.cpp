@@ -185,7 +185,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     ho.max_iterations = options.max_iterations;
     ho.progress = solve_progress;
     HyperbolicHarmonicResult held =
-        hold_hyperbolic_landmarks(source.num_vertices(), edges, layout.generators, hr, lm_source, lm_target, ho);
+        hold_hyperbolic_landmarks(source.num_vertices(), edges, layout.generators, layout.side_pairings, hr,
+                                  lm_source, lm_target, ho);
     if (!held.converged)
       throw SolveError("the harmonic map with the landmarks held did not converge in " +
                        std::to_string(held.iterations) + " iterations");

@@ -105,12 +105,16 @@ std::pair<std::vector<Complex>, double> PinnedFlatHarmonic::solve(const std::vec
 
 HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<WeightedEdge>& edges,
                                                    const std::vector<hyperbolic::Mobius>& generators,
+                                                   const std::vector<hyperbolic::Mobius>& side_pairings,
                                                    const HyperbolicHarmonicResult& free, const std::vector<int>& source,
                                                    const std::vector<Complex>& target_position,
                                                    HyperbolicHarmonicOptions options) {
   using hyperbolic::Mobius;
+  // Side pairings move the layout's cut disk to its neighbours (short
+  // translations); the loop generators can be long (entries ~1e5 seen in
+  // the layout frame), and words that come back near z would be pruned.
   std::vector<Mobius> moves;
-  for (const auto& g : generators) moves.push_back(g), moves.push_back(g.inverse());
+  for (const auto& g : side_pairings) moves.push_back(g), moves.push_back(g.inverse());
   // The solve runs in the free optimum's charts: effective edge elements and
   // its points (all near the origin) as the start.
   std::vector<WeightedEdge> held_edges = edges;
@@ -120,9 +124,8 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<Weig
   for (size_t k = 0; k < source.size(); ++k) {
     const Complex z = free.z[source[k]];
     // Breadth first over deck images of the target point, keeping only those
-    // that stay within reach of z (the nearest lift can need a word of
-    // length ~4g in the generators when z lies near a far corner of the
-    // domain, seen at 5 on a genus-2 pair).
+    // that stay within reach of z (around a corner of the domain the nearest
+    // lift can need a word of length ~4g).
     Complex best = target_position[k];
     double best_d = hyperbolic::distance(z, best);
     const double reach = std::max(best_d, 1.0) + 4.0;

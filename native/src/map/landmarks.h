@@ -63,12 +63,13 @@ class PinnedFlatHarmonic {
 /// relative to `edges`) with each source[k] held at the deck image of
 /// target_position[k] (a point of the target's layout) nearest, in
 /// hyperbolic distance, to where `free` put it; images are searched breadth
-/// first over words in the generators and their inverses, pruned to those
-/// within reach of the free position (the nearest lift can need a word of
-/// length ~4g when the point lies near a far corner of the domain). The
+/// first over words in the layout's side pairings and their inverses (which
+/// move the cut disk to its neighbours), pruned to those within reach of the
+/// free position. `generators` are the solve's chart moves. The
 /// returned vertex decks are again relative to `edges`.
 HyperbolicHarmonicResult hold_hyperbolic_landmarks(int num_vertices, const std::vector<WeightedEdge>& edges,
                                                    const std::vector<hyperbolic::Mobius>& generators,
+                                                   const std::vector<hyperbolic::Mobius>& side_pairings,
                                                    const HyperbolicHarmonicResult& free, const std::vector<int>& source,
                                                    const std::vector<Complex>& target_position,
                                                    HyperbolicHarmonicOptions options);

@@ -275,9 +275,6 @@ namespace {
 SphericalUniformization usable_sphere(const TriMesh& mesh, const SphericalUniformizationOptions& uo,
                                       const std::string& which, int* repaired) {
   *repaired = 0;
-  SphericalUniformization r = spherical_uniformization(mesh, uo);
-  if (r.converged) return r;
-  const std::string first_message = r.message;
   const int nv = mesh.num_vertices();
   const int limit = std::max(50, nv / 50);
   auto usable = [&](SphericalUniformization& u) {
@@ -290,18 +287,27 @@ SphericalUniformization usable_sphere(const TriMesh& mesh, const SphericalUnifor
     u.converged = true;
     return true;
   };
-  if (usable(r)) return r;
+  // The removed vertices spherical_uniformization tries by default, each
+  // accepted as soon as it converged or is repairable.
   const Connectivity conn(mesh.F, nv);
   int best_v = 0;
   for (int v = 1; v < nv; ++v)
     if (conn.valence(v) > conn.valence(best_v)) best_v = v;
   std::vector<int> candidates{best_v};
   for (int k = 1; k <= 6; ++k) candidates.push_back(static_cast<int>((static_cast<long long>(nv) * k) / 7));
+  std::string first_message;
   for (int v0 : candidates) {
     SphericalUniformizationOptions o = uo;
     o.removed_vertex = v0;
-    SphericalUniformization a = spherical_uniformization(mesh, o);
+    SphericalUniformization a;
+    try {
+      a = spherical_uniformization(mesh, o);
+    } catch (const InputError& e) {  // e.g. a link that is not a simple cycle: try the next vertex
+      first_message += (first_message.empty() ? "" : "; ") + std::to_string(v0) + ": " + e.what();
+      continue;
+    }
     if (a.converged || usable(a)) return a;
+    first_message += (first_message.empty() ? "" : "; ") + std::to_string(v0) + ": " + a.message;
   }
   throw SolveError(which + " spherical uniformization failed: " + first_message);
 }

@@ -121,9 +121,10 @@ struct SurfaceMapResult {
   double initial_mean_dilatation = 0, initial_max_dilatation = 0;
   std::vector<double> initial_dilatation;  ///< #F_source D' of the initial map (empty when not computed)
   int flipped_triangles = 0, degenerate_triangles = 0;
-  /// Largest distance between a landmark's forward image and its target
-  /// vertex (0 up to round-off, except for genus 0 with more than 3
-  /// landmarks, where the Möbius map fits them in least squares).
+  /// Largest distance between a landmark's located forward image and its
+  /// target vertex: the least-squares residual for genus 0 with more than 3
+  /// landmarks, otherwise the round-off of locating a held landmark (those
+  /// are then set exactly onto their vertex in `forward` and `inverse`).
   double max_landmark_error = 0;
   /// Genus 0: vertices whose sphere image was re-placed to untangle input
   /// faces flipped by the uniformization (map/spherical_map.h); 0 otherwise.
