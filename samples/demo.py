@@ -4,12 +4,15 @@
 
 For the genus-2 sample pair (double torus -> vase) and the genus-1 pair of tori (paper
 Fig. 9c) from samples/meshes: Surface Map > Show Cut Loops on both, the source unwrapped along
-its cut loops (one UV island) and given a checker texture, then Surface Map > Compute Map, which
+its cut loops (one UV island; the torus gets the classic (u, v) layout instead, on which the
+checker tiles across the seams) and given a checker texture, then Surface Map > Compute Map, which
 writes the transferred UVs, the morph shape keys, the distortion colours and the stored
 correspondence. Renders with Cycles on the CPU (denoising off), per pair:
   <pair>_loops.png             both objects with their cut loops
   <pair>_source_checker.png    the source with the checker on its own UVs
   <pair>_target_transferred.png the target with the checker on the transferred UVs
+  <pair>_target_datatransfer.png for comparison: Blender's Data Transfer (nearest face
+                               interpolated UVs) of the same checker, with its defect counts
   <pair>_morph50.png           the source at 50% of its morph shape key (checker kept)
   <pair>_refined_morph100.png  the refined morph object (paper §VII-E) at 100%: the source's
                                checker on the target's shape
@@ -17,7 +20,7 @@ correspondence. Renders with Cycles on the CPU (denoising off), per pair:
                                it for that genus), on the same colour scale as
   <pair>_distortion_after.png  the D' of the optimised map
 and saves DIR/demo.blend with every object and output. Options (after --): --out DIR
-(default <repo>/demo_out), --samples N (24), --size WxH (640x480), --meshes DIR
+(default <repo>/demo_out), --samples N (16), --size WxH (640x480), --meshes DIR
 (default samples/meshes), --pairs g2,g1.
 """
 import math
@@ -26,6 +29,7 @@ import sys
 import time
 
 import bpy
+import numpy as np
 from mathutils import Vector
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -39,7 +43,7 @@ PAIRS = {  # tag: (genus, source, target)
 
 def parse_args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-    opts = {"out": os.path.join(REPO, "demo_out"), "samples": 24, "size": "640x480",
+    opts = {"out": os.path.join(REPO, "demo_out"), "samples": 16, "size": "640x480",
             "meshes": MESHES, "pairs": "g2,g1"}
     i = 0
     while i < len(argv):
@@ -261,6 +265,32 @@ def unwrap_along_seams(ob):
 VIEW = (0.55, -1.0, 0.75)
 
 
+def torus_uvs(ob, R):
+    """UV map 'UVMap' of a torus of revolution around z (major radius R, local coordinates):
+    u along the ring, v around the tube, each in [0, 1) with the seams at 0 (per polygon
+    unwrapped, so polygons across the seams get UVs just past 1)."""
+    me = ob.data
+    layer = me.uv_layers.get("UVMap") or me.uv_layers.new(name="UVMap")
+    me.uv_layers.active = layer
+    co = np.empty(len(me.vertices) * 3)
+    me.vertices.foreach_get("co", co)
+    lv = np.empty(len(me.loops), dtype=np.int64)
+    me.loops.foreach_get("vertex_index", lv)
+    P = co.reshape(-1, 3)[lv]
+    u = np.arctan2(P[:, 1], P[:, 0]) / (2 * np.pi) % 1.0
+    v = np.arctan2(P[:, 2], np.hypot(P[:, 0], P[:, 1]) - R) / (2 * np.pi) % 1.0
+    start = np.empty(len(me.polygons), dtype=np.int64)
+    me.polygons.foreach_get("loop_start", start)
+    total = np.empty(len(me.polygons), dtype=np.int64)
+    me.polygons.foreach_get("loop_total", total)
+    poly = np.repeat(np.arange(len(start)), total)
+    for a in (u, v):
+        mx = np.zeros(len(start))
+        np.maximum.at(mx, poly, a)
+        a[:] = np.where(mx[poly] - a > 0.5, a + 1.0, a)
+    layer.data.foreach_set("uv", np.stack([u, v], axis=1).astype(np.float32).ravel())
+
+
 def caption(cam, text):
     """A line of white text at the bottom of the camera's view (parented to the camera)."""
     cu = bpy.data.curves.new("caption", 'FONT')
@@ -285,6 +315,54 @@ def caption(cam, text):
     return ob
 
 
+def compare_with_data_transfer(source, target, uv_name, shot, cam):
+    """For comparison: Blender's own Data Transfer (face corner UVs, nearest face interpolated)
+    onto a copy of the target placed on top of the source, rendered like ours."""
+    from surface_map import mapping
+    copy = bpy.data.objects.new(f"{target.name} (Data Transfer)", target.data.copy())
+    bpy.context.scene.collection.objects.link(copy)
+    copy.matrix_world = source.matrix_world.copy()    # overlap the source: DT works in space
+    copy.scale = target.scale
+    copy.location = source.location
+    dt_layer = copy.data.uv_layers.new(name=uv_name)   # filled by name from the source's
+    mod = copy.modifiers.new("DataTransfer", 'DATA_TRANSFER')
+    mod.object = source
+    mod.use_loop_data = True
+    mod.data_types_loops = {'UV'}
+    mod.loop_mapping = 'POLYINTERP_NEAREST'
+    mod.layers_uv_select_src = uv_name
+    mod.layers_uv_select_dst = 'NAME'
+    set_material(copy, checker_material(f"{copy.name} checker", dt_layer.name))
+    bpy.context.view_layer.update()
+    # the counts of the transfer's defects, ours and Data Transfer's, on the target's triangles
+    ev = copy.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    me = ev.to_mesh()
+    me.calc_loop_triangles()
+    m = len(me.loop_triangles)
+    L = np.empty(m * 3, dtype=np.int64)
+    me.loop_triangles.foreach_get("loops", L)
+    Fv = np.empty(m * 3, dtype=np.int64)
+    me.loop_triangles.foreach_get("vertices", Fv)
+    co = np.empty(len(me.vertices) * 3)
+    me.vertices.foreach_get("co", co)
+    xyz = co.reshape(-1, 3)[Fv.reshape(-1, 3)]
+    counts = {}
+    for name in (uv_name, f"surfmap {uv_name}"):
+        uv = np.empty(len(me.loops) * 2)
+        me.uv_layers[name].data.foreach_get("uv", uv)
+        counts[name] = mapping.uv_quality(uv.reshape(-1, 2)[L.reshape(-1, 3)], xyz)
+    ev.to_mesh_clear()
+    print(f"demo: {m} target triangles; UV triangles flipped / stretched across the layout: "
+          f"surfmap {counts[f'surfmap {uv_name}']}, Data Transfer {counts[uv_name]}")
+    fl, st = counts[uv_name]
+    shot("target_datatransfer", [copy],
+         text=f"Blender Data Transfer (nearest face interpolated): {fl} flipped, {st} "
+              f"stretched UV triangles")
+    copy.hide_render = True
+    copy.hide_set(True)
+    return counts[f"surfmap {uv_name}"]
+
+
 def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
     t0 = time.time()
     source, target = load_pair(sm, meshes, tag)
@@ -304,7 +382,10 @@ def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
     if result != {'FINISHED'}:
         raise SystemExit(f"demo.py: show_cut_loops returned {result}")
     print("demo:", bpy.context.scene.surfmap.status)
-    unwrap_along_seams(source)
+    if tag == "g1":
+        torus_uvs(source, 1.0)   # the classic (u, v) layout: the checker tiles across its seams
+    else:
+        unwrap_along_seams(source)
     uv_name = source.data.uv_layers.active.name
 
     # 2. the map and all its outputs
@@ -319,29 +400,39 @@ def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
     print("demo: handle correspondences (energy):",
           "; ".join(f"{c.index}: {c.energy:.6g}" for c in cands))
 
-    def shot(name, objs, curves=False, direction=VIEW):
+    def shot(name, objs, curves=False, direction=VIEW, text=None):
         show_only(objs, curves)
         aim(cam, objs, direction)
+        label = caption(cam, text) if text else None
         path = os.path.join(out, f"{tag}_{name}.png")
         render(path)
         written.append(path)
+        if label is not None:
+            bpy.data.objects.remove(label, do_unlink=True)
 
-    shot("loops", [source, target], curves=True, direction=(0.15, -1.0, 0.55))
+    shot("loops", [source, target], curves=True, direction=(0.15, -1.0, 0.55),
+         text=f"cut loops of {source.name} (source) and {target.name} (target)")
     set_material(source, checker_material(f"{source.name} checker", uv_name))
     set_material(target, checker_material(f"{target.name} checker", f"surfmap {uv_name}"))
-    shot("source_checker", [source])
-    shot("target_transferred", [target])
+    shot("source_checker", [source], text=f"source {source.name}: checker on its UV map")
+    fl, st = compare_with_data_transfer(source, target, uv_name, shot, cam)
+    shot("target_transferred", [target],
+         text=f"surfmap: the source's checker through the map: {fl} flipped, {st} stretched "
+              f"UV triangles")
     key = source.data.shape_keys.key_blocks[f"surfmap to {target.name}"]
     key.value = 0.5
     bpy.context.view_layer.update()
-    shot("morph50", [source])
+    shot("morph50", [source], text=f"{source.name} at 50% of its morph onto {target.name}")
     key.value = 0.0
     refined = bpy.data.objects.get(f"{source.name} refined morph")
     if refined is not None:  # the refined morph at 100%, beside the target it imitates
         set_material(refined, checker_material(f"{refined.name} checker", uv_name))
         refined.data.shape_keys.key_blocks[f"surfmap to {target.name}"].value = 1.0
         bpy.context.view_layer.update()
-        shot("refined_morph100", [refined])
+        n0, n1 = len(source.data.vertices), len(refined.data.vertices)
+        shot("refined_morph100", [refined], text=f"refined morph at 100% ({n0} -> {n1} "
+                                                 f"vertices): the source's checker in the "
+                                                 f"target's shape")
         refined.hide_render = True
     bpy.context.view_layer.update()
     for which, attr in (("before", "surfmap dilatation initial"), ("after", "surfmap dilatation")):
@@ -351,10 +442,9 @@ def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
             continue
         set_material(source, attribute_material(f"{source.name} {attr}", attr))
         lo, hi = bpy.context.scene.surfmap.dilatation_range
-        label = caption(cam, f"{which} optimisation: dilatation D' {lo:.2f} (violet) to "
-                             f"{hi:.2f} (yellow)")
-        shot(f"distortion_{which}", [source])
-        bpy.data.objects.remove(label, do_unlink=True)
+        shot(f"distortion_{which}", [source],
+             text=f"{'initial' if which == 'before' else 'optimised'} map: dilatation D' "
+                  f"{lo:.2f} (violet) to {hi:.2f} (yellow)")
     set_material(source, checker_material(f"{source.name} checker", uv_name))
     print(f"demo: pair {tag} done in {time.time() - t0:.1f}s")
     return source, target
