@@ -139,6 +139,39 @@ TEST(SphereLocator, FindsTheConeOfEveryPoint) {
   EXPECT_EQ(loc.fallbacks, 0);
 }
 
+TEST(SphereUntangle, RepairsAFoldLocallyWithoutFlips) {
+  // A sphere image with one vertex pushed across its neighbours (the kind of
+  // fold a chord drawn over an intrinsic triangulation leaves behind).
+  const TriMesh m = samples::jitter(samples::sphere(3), 0.2, 6);
+  RowMatrixX3d P = m.V.rowwise().normalized();
+  const RowMatrixX3d before = P;
+  const int v = 100;
+  int u = -1;
+  for (int f = 0; f < m.num_faces() && u < 0; ++f)
+    for (int k = 0; k < 3; ++k)
+      if (m.F(f, k) == v) u = m.F(f, (k + 1) % 3);
+  P.row(v) = (P.row(u) + 1.5 * (P.row(u) - P.row(v))).normalized();
+  auto flipped = [&](const RowMatrixX3d& X) {
+    int n = 0;
+    for (int f = 0; f < m.num_faces(); ++f) {
+      const Eigen::Vector3d a = X.row(m.F(f, 0)), b = X.row(m.F(f, 1)), c = X.row(m.F(f, 2));
+      n += !(a.dot(b.cross(c)) > 0);
+    }
+    return n;
+  };
+  ASSERT_GT(flipped(P), 0);
+  const int moved = untangle_sphere_image(P, m.V, m.F, 200);
+  ASSERT_GT(moved, 0);
+  EXPECT_LT(moved, 60);
+  EXPECT_EQ(flipped(P), 0);
+  int changed = 0;
+  for (int i = 0; i < m.num_vertices(); ++i) changed += (P.row(i) - before.row(i)).norm() > 1e-15;
+  EXPECT_LE(changed, moved);  // vertices outside the patch are untouched
+  EXPECT_LT((P.rowwise().norm().array() - 1).abs().maxCoeff(), 1e-12);
+  RowMatrixX3d clean = before;
+  EXPECT_EQ(untangle_sphere_image(clean, m.V, m.F, 200), 0);  // nothing to do
+}
+
 TEST(SphericalMap, SphereToInvertedCopyIsNearlyConformal) {
   // Inversion is conformal, so the optimal (conformal) map has D' near 1.
   const TriMesh a = samples::sphere(4);

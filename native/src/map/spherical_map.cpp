@@ -10,7 +10,7 @@
 
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
-#include <Eigen/SparseCholesky>
+#include <Eigen/SparseLU>
 #include <Eigen/SparseCore>
 
 #include "map_support.h"
@@ -178,7 +178,7 @@ bool bad_face(const RowMatrixX3d& P, const RowMatrixX3i& F, int f) {
 
 }  // namespace
 
-int untangle_sphere_image(RowMatrixX3d& P, const RowMatrixX3i& F, int max_vertices) {
+int untangle_sphere_image(RowMatrixX3d& P, const RowMatrixX3d& V, const RowMatrixX3i& F, int max_vertices) {
   const int nv = static_cast<int>(P.rows()), nf = static_cast<int>(F.rows());
   const Connectivity conn(F, nv);
   std::vector<int> bad;
@@ -194,7 +194,7 @@ int untangle_sphere_image(RowMatrixX3d& P, const RowMatrixX3i& F, int max_vertic
     for (int k = 0; k < 3; ++k) add(F(f, k));
   const RowMatrixX3d original = P;
   for (int grow = 0; grow < 64; ++grow) {
-    // One more ring: the region's boundary gets rounder, and Tutte's theorem
+    // One more ring: the region's boundary gets rounder, and Floater's theorem
     // needs a convex one.
     const std::vector<int> current = region;
     for (int v : current)
@@ -226,27 +226,40 @@ int untangle_sphere_image(RowMatrixX3d& P, const RowMatrixX3i& F, int max_vertic
       *x = Eigen::Vector2d((p / d).dot(e1), (p / d).dot(e2));
       return true;
     };
+    // Floater's mean value weights of the 3D mesh (positive, so with a
+    // convex boundary the patch is embedded; and close to conformal, so the
+    // patch keeps the shape of its triangles far better than uniform
+    // weights, which gave D' ~150 on a jittered bunny).
     bool ok = true;
     std::vector<Eigen::Triplet<double>> trip;
     Eigen::MatrixX2d rhs = Eigen::MatrixX2d::Zero(ni, 2);
     for (int v : interior) {
       const int i = index[v];
+      const Eigen::Vector3d xv = V.row(v).transpose();
       for (int h : conn.outgoing(v)) {
-        const int u = conn.head(h);
-        trip.emplace_back(i, i, 1.0);
-        if (index[u] >= 0) {
-          trip.emplace_back(i, index[u], -1.0);
-        } else {
-          Eigen::Vector2d x;
-          ok = ok && chart(u, &x);
-          rhs.row(i) += x.transpose();
+        const int b = conn.head(h), c = conn.opposite_vertex(h);
+        const Eigen::Vector3d eb = V.row(b).transpose() - xv, ec = V.row(c).transpose() - xv;
+        const double lb = eb.norm(), lc = ec.norm();
+        const double theta = std::atan2(eb.cross(ec).norm(), eb.dot(ec));
+        const double t = std::tan(0.5 * theta);
+        for (const auto& [u, w] : {std::pair{b, t / std::max(lb, 1e-300)}, std::pair{c, t / std::max(lc, 1e-300)}}) {
+          trip.emplace_back(i, i, w);
+          if (index[u] >= 0) {
+            trip.emplace_back(i, index[u], -w);
+          } else {
+            Eigen::Vector2d x;
+            ok = ok && chart(u, &x);
+            rhs.row(i) += w * x.transpose();
+          }
         }
       }
     }
     if (!ok) break;
     Eigen::SparseMatrix<double> L(ni, ni);
     L.setFromTriplets(trip.begin(), trip.end());
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(L);
+    L.makeCompressed();
+    Eigen::SparseLU<Eigen::SparseMatrix<double>> solver;
+    solver.compute(L);
     if (solver.info() != Eigen::Success) break;
     const Eigen::MatrixX2d X = solver.solve(rhs);
     P = original;
@@ -276,12 +289,12 @@ SphericalUniformization usable_sphere(const TriMesh& mesh, const SphericalUnifor
                                       const std::string& which, int* repaired) {
   *repaired = 0;
   const int nv = mesh.num_vertices();
-  const int limit = std::max(50, nv / 50);
+  const int limit = std::max(200, nv / 20);
   auto usable = [&](SphericalUniformization& u) {
     if (!u.positions.allFinite() || !(u.max_curvature_error <= std::max(1e3 * uo.flow.tolerance, 1e-8)) ||
         !(u.centre_of_mass_norm <= 1e-6))
       return false;
-    const int moved = untangle_sphere_image(u.positions, mesh.F, limit);
+    const int moved = untangle_sphere_image(u.positions, mesh.V, mesh.F, limit);
     if (moved < 0) return false;
     *repaired = moved;
     u.converged = true;

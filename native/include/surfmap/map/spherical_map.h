@@ -39,10 +39,10 @@
 // input faces, drawn as chords between their vertices' sphere points, can
 // come out flipped (g0_bunny: one face for every removed vertex tried). Such
 // a sphere image is used when its angle sums converged: the flipped faces'
-// vertices and a few rings around them are re-placed by a Tutte embedding in
-// the gnomonic chart of that patch (untangle_sphere_image; Tutte's theorem
-// makes it flip-free once the patch boundary is convex, and the patch grows
-// until it is). The map is then bijective but only approximately conformal
+// vertices and a few rings around them are re-placed by a Tutte-type
+// embedding with mean value weights in the gnomonic chart of that patch
+// (untangle_sphere_image; Floater's theorem makes it flip-free once the patch
+// boundary is convex, and the patch grows until it is). The map is then bijective but only approximately conformal
 // on that patch; SurfaceMapResult::repaired_vertices counts the moved
 // vertices.
 #include <array>
@@ -108,11 +108,12 @@ class SphereLocator {
 };
 
 /// Re-places vertices so that no face of the sphere image P (#V x 3 unit
-/// vectors, faces F) is flipped or degenerate: a Tutte embedding, in the
-/// gnomonic chart, of the patch around the bad faces, grown ring by ring up
-/// to `max_vertices` vertices. Returns the number of moved vertices (0 when
+/// vectors, faces F) is flipped or degenerate: a Tutte-type embedding with
+/// Floater's mean value weights of the 3D mesh V (#V x 3), in the gnomonic
+/// chart, of the patch around the bad faces, grown ring by ring up to
+/// `max_vertices` vertices. Returns the number of moved vertices (0 when
 /// nothing was flipped) or -1 (P unchanged) when no patch worked.
-int untangle_sphere_image(RowMatrixX3d& P, const RowMatrixX3i& F, int max_vertices);
+int untangle_sphere_image(RowMatrixX3d& P, const RowMatrixX3d& V, const RowMatrixX3i& F, int max_vertices);
 
 struct SphereAlignmentOptions {
   /// Source vertices used in J (an evenly strided subset above this count;
