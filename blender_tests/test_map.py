@@ -37,7 +37,8 @@ def _check_uvs(src, tgt, uv_name, max_flipped=0.0, max_straddling=0.0):
     Ft, Lt = helpers.triangles_of(tgt)
     Vs, Vt = helpers.coords(src), helpers.coords(tgt)
     suv = helpers.loop_uv_array(src, uv_name)[Ls]
-    tuv = helpers.loop_uv_array(tgt, f"surfmap {uv_name}")[Lt]
+    tname = uv_name if uv_name.startswith("surfmap ") else f"surfmap {uv_name}"
+    tuv = helpers.loop_uv_array(tgt, tname)[Lt]
     face = np.empty(len(Vt), dtype=np.int32)
     tgt.data.attributes["surfmap_map_face"].data.foreach_get("value", face)
     bary = np.empty(len(Vt) * 3, dtype=np.float32)
@@ -93,7 +94,8 @@ def _check_outputs(src, tgt, genus, uv_names=("UVMap", "Box"), max_flipped=0.0,
         meta = me["surfmap_map"]
         assert meta["role"] == role and meta["partner"] == partner and meta["genus"] == genus
     for n in uv_names:
-        assert t.uv_layers.get(f"surfmap {n}") is not None, [u.name for u in t.uv_layers]
+        tname = n if n.startswith("surfmap ") else f"surfmap {n}"
+        assert t.uv_layers.get(tname) is not None, [u.name for u in t.uv_layers]
         _check_uvs(src, tgt, n, max_flipped, max_straddling)
     _check_morph(src, tgt, f"surfmap to {tgt.name}")
     _check_morph(tgt, src, f"surfmap to {src.name}")
@@ -612,3 +614,22 @@ def test_relaxation_method_reaches_newtons_energy():
     assert res == {'FINISHED'}, err
     e_relax = a.data["surfmap_map"]["energy"]
     assert abs(e_relax - e_newton) < 1e-3 * e_newton, (e_relax, e_newton)
+
+
+def test_source_without_uvs_gets_a_cube_projection():
+    a = helpers.torus("Source", 1.0, 0.5, (-3, 0, 0))
+    b = helpers.torus("Target", 1.5, 0.5, (3, 0, 0))
+    assert not a.data.uv_layers
+    select([a, b], b)
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    assert "no UV map" in bpy.context.scene.surfmap.map_status
+    assert [u.name for u in a.data.uv_layers] == ["surfmap box projection"]
+    _check_outputs(a, b, 1, uv_names=("surfmap box projection",))
+
+
+def test_too_many_uv_maps_refused_before_the_solve():
+    a, b = _torus_pair()
+    for i in range(7):
+        b.data.uv_layers.new(name=f"mine{i}")
+    _expect_cancel([a, b], b, "UV maps", "do not fit")

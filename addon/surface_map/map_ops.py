@@ -11,6 +11,7 @@ import numpy as np
 from . import blender_io, core, mapjob, mapping
 from .operators import pick_objects, surfmap_module
 
+GENERATED_UV = "surfmap box projection"
 OUTPUT_FLAGS = (("write_uvs", "UV"), ("write_morph", "MORPH"), ("write_distortion", "DISTORTION"),
                 ("write_refined", "REFINED"))
 
@@ -122,7 +123,23 @@ def prepare_job(context, sm):
     options = {"homotopy": settings.homotopy, "landmarks": landmarks,
                "method": settings.method.lower(), "tolerance": settings.tolerance,
                "outputs": outputs, "morph_space": settings.morph_space}
+    if "UV" in outputs:
+        ours = set(target.data.get(blender_io.LAYERS_KEY, [])) if not (
+            tgt["evaluated"] and not tgt["same_topology"]) else set()
+        wanted = [target_uv_name(n) for n in (src["uv_layers"] or [GENERATED_UV])]
+        need = sum(1 for n in wanted if f"uv:{n}" not in ours)
+        if need > 8 - len(tgt["uv_layers"]):
+            raise core.ObjectProblem(f"'{target.name}' has {len(tgt['uv_layers'])} UV maps; the "
+                                     f"{need} transferred ones do not fit (Blender allows 8): "
+                                     f"remove some, or untick the UVs output")
     notes = [n for n in (_modifier_note(src), _modifier_note(tgt)) if n]
+    if "UV" in outputs and not src["uv_layers"]:
+        # nothing to carry over: give the source a cube projection (a new layer) and carry that
+        src["uv_layers"][GENERATED_UV] = mapping.box_projection(
+            src["V"], src["loop_vertex"], src["loop_start"], src["loop_total"])
+        src["generated_uv"] = GENERATED_UV
+        notes.append(f"'{source.name}' has no UV map: wrote a cube projection '{GENERATED_UV}' "
+                     f"on it and transferred that")
     for side in (src, tgt):
         if side["has_ngons"]:
             notes.append(f"'{side['name']}': polygons with more than 3 sides were triangulated "
@@ -153,12 +170,17 @@ def _meta(side, partner, role, res):
     return m
 
 
+def target_uv_name(source_uv_name):
+    """'surfmap <name>' (without doubling the prefix of a layer this add-on made)."""
+    return source_uv_name if source_uv_name.startswith("surfmap ") else f"surfmap {source_uv_name}"
+
+
 def write_outputs(context, source, target, src, tgt, out, res, which):
     """Writes the outputs in `which` ({'CORRESPONDENCE','UV','MORPH','DISTORTION'}); returns
     report lines. source/target: the objects; src/tgt: their sides; out: compute_outputs'."""
     lines = []
     # Checks that could refuse come first (nothing written yet).
-    uv_names = [f"surfmap {n}" for n in out["uv"]] if "UV" in which else []
+    uv_names = [target_uv_name(n) for n in out["uv"]] if "UV" in which else []
     if uv_names:
         room = 8 - len(tgt["uv_layers"])
         ours = set(target.data.get(blender_io.LAYERS_KEY, [])) if not (
@@ -185,8 +207,12 @@ def write_outputs(context, source, target, src, tgt, out, res, which):
                      f"{blender_io.CORR_FACE}, {blender_io.CORR_BARY})")
     if "UV" in which and out["uv"]:
         written = []
+        if src.get("generated_uv"):
+            name = src["generated_uv"]
+            blender_io.write_uv_map(s_obj.data, name, src["uv_layers"][name])
+            lines.append(f"UV map '{name}' (cube projection) on '{s_obj.name}'")
         for name, uv in out["uv"].items():
-            got = blender_io.write_uv_map(t_obj.data, f"surfmap {name}", uv)
+            got = blender_io.write_uv_map(t_obj.data, target_uv_name(name), uv)
             if got is not None:
                 written.append(got)
         if written:

@@ -744,3 +744,36 @@ def refine_for_morph(V, F, image, image_normal, project, max_length, max_bend=0.
         done_rounds += 1
     return {"V": V, "F": F, "image": img, "origin_face": origin, "origin_bary": obary,
             "rounds": done_rounds}
+
+
+# --- a UV map for a source that has none --------------------------------------------------------
+
+def box_projection(V, loop_vertex, loop_start, loop_total):
+    """Cube-projection UVs per polygon corner (L,2): each polygon is projected along the axis its
+    (Newell) normal is closest to, mirrored on the negative sides so every island keeps the
+    outward orientation, the six sides in the cells of a 3 x 2 grid. Islands are the connected
+    polygons of one side; no UV triangle is flipped."""
+    V = np.asarray(V, dtype=np.float64)
+    lv = np.asarray(loop_vertex, dtype=np.int64)
+    start = np.asarray(loop_start, dtype=np.int64)
+    total = np.asarray(loop_total, dtype=np.int64)
+    poly = np.repeat(np.arange(len(start)), total)
+    nxt = np.arange(len(lv)) + 1
+    last = start + total - 1
+    nxt[last] = start
+    P, Q = V[lv], V[lv[nxt]]
+    cr = np.cross(P, Q)                      # Newell: the polygon normal is the sum
+    N = np.add.reduceat(cr, start, axis=0) if len(start) else np.zeros((0, 3))
+    ax = np.argmax(np.abs(N), axis=1)
+    sg = np.sign(N[np.arange(len(N)), ax])
+    sg[sg == 0] = 1.0
+    lo = V.min(axis=0) if len(V) else np.zeros(3)
+    size = float(np.ptp(V, axis=0).max()) if len(V) else 1.0
+    size = size if size > 0 else 1.0
+    a, s = ax[poly], sg[poly]
+    u = (P[np.arange(len(P)), (a + 1) % 3] - lo[(a + 1) % 3]) / size
+    v = (P[np.arange(len(P)), (a + 2) % 3] - lo[(a + 2) % 3]) / size
+    u = np.where(s < 0, 1.0 - u, u)
+    cell = a * 2 + (s < 0)
+    return np.stack([((cell % 3) + 0.05 + 0.9 * u) / 3.0,
+                     ((cell // 3) + 0.05 + 0.9 * v) / 2.0], axis=1)

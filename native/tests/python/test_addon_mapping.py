@@ -196,3 +196,13 @@ def test_refinement_follows_the_target():
         c = Vx[Fx].mean(axis=1)
         return np.abs(np.linalg.norm(c - project(c)[0], axis=1)).max()
     assert mid_off(I, F) < 0.3 * mid_off(img, Fs)
+
+
+def test_box_projection_has_islands_and_no_flips():
+    V, F = surfmap.shapes.n_hole_torus(2)
+    V, F = np.asarray(V, dtype=float), np.asarray(F)
+    uv = M.box_projection(V, F.reshape(-1), np.arange(len(F)) * 3, np.full(len(F), 3))
+    uv = uv.reshape(-1, 3, 2)
+    assert np.all(M.signed_uv_areas(uv) > 0)
+    assert M.uv_islands(F, uv).max() + 1 >= 6
+    assert uv.min() >= 0 and uv.max() <= 1
