@@ -51,6 +51,7 @@ void register_map(CLI::App& app) {
   struct Args {
     std::string src, dst, out, report, correspondence, method = "newton", landmarks;
     int homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
+    int homotopy_candidates = 8, homotopy_full_solves = 2;
     double tolerance = 1e-10;
     bool quiet = false;
   };
@@ -72,6 +73,10 @@ void register_map(CLI::App& app) {
       ->check(CLI::PositiveNumber);
   cmd->add_option("--max-iterations", a->max_iterations, "Iteration cap of the harmonic solve")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--homotopy-candidates", a->homotopy_candidates,
+                  "Genus >= 2: handle correspondences considered (best matching handle positions first)");
+  cmd->add_option("--homotopy-full-solves", a->homotopy_full_solves,
+                  "Genus >= 2: candidates solved to convergence after ranking all by a short solve");
   cmd->add_flag("--quiet", a->quiet, "No progress lines on stderr");
   cmd->callback([a] {
     const IntakeResult src = load_mesh(a->src), dst = load_mesh(a->dst);
@@ -83,6 +88,8 @@ void register_map(CLI::App& app) {
     opt.method = a->method == "relaxation" ? MapMethod::Relaxation : MapMethod::Newton;
     opt.tolerance = a->tolerance;
     opt.max_iterations = a->max_iterations;
+    opt.homotopy_candidates = a->homotopy_candidates;
+    opt.homotopy_full_solves = a->homotopy_full_solves;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     if (!a->quiet)
       opt.progress = [](const std::string& stage, double fraction) {
@@ -96,6 +103,7 @@ void register_map(CLI::App& app) {
     nlohmann::json candidates = nlohmann::json::array();
     for (size_t i = 0; i < m.candidates.size(); ++i)
       candidates.push_back({{"index", i}, {"description", m.candidates[i].description}, {"energy", m.candidates[i].energy},
+                            {"solved", m.candidates[i].solved},
                             {"matrix", {m.candidates[i].matrix[0], m.candidates[i].matrix[1], m.candidates[i].matrix[2],
                                         m.candidates[i].matrix[3]}}});
     nlohmann::json times = nlohmann::json::object();

@@ -111,7 +111,7 @@ void bind_map(py::module_& m) {
         d["inverse"] = points_to_dict(r.inverse);
         py::list cands;
         for (const auto& c : r.candidates)
-          cands.append(py::dict(py::arg("description") = c.description, py::arg("energy") = c.energy,
+          cands.append(py::dict(py::arg("description") = c.description, py::arg("energy") = c.energy, py::arg("solved") = c.solved,
                                 py::arg("matrix") = std::vector<int>(c.matrix, c.matrix + 4)));
         d["homotopy"] = py::dict(py::arg("chosen") = r.chosen_candidate, py::arg("candidates") = cands);
         py::dict times;

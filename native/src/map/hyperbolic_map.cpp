@@ -3,10 +3,14 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <random>
 #include <set>
 #include <string>
 #include <vector>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
 
 #include "landmarks.h"
 #include "map_support.h"
@@ -18,12 +22,15 @@
 #include "surfmap/map/initial_map.h"
 #include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/edge_homotopy.h"
+#include "surfmap/topology/handle_basis.h"
+#include "surfmap/topology/projected_loops.h"
 
 namespace surfmap::detail {
 
 // Genus >= 2: hyperbolic target, harmonic map by preconditioned Riemannian
-// descent (map/hyperbolic_harmonic.h), only the canonical class a_i -> a'_i,
-// b_i -> b'_i for now.
+// Newton (map/hyperbolic_harmonic.h) or the paper's relaxation, in the handle
+// correspondence of lowest energy among the candidates of
+// topology/handle_basis.h and topology/projected_loops.h.
 void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
                     const SurfaceMapOptions& options, SurfaceMapResult& out,
                     const StageDone& stage_done) {
@@ -47,13 +54,6 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   // Deck elements are computed as words first and multiplied out only when
   // reduced: products like g g^-1 of large SU(1,1) matrices lose digits, and
   // the words of single edges are short (their crossings with the cut).
-  // Source letter k as a word in the target's loop letters:
-  std::vector<Word> letter_image;
-  for (const Word& w : scs.letters) {
-    Word img;
-    for (int x : w) img = concat(img, x > 0 ? tcs.generators[x - 1] : inverse(tcs.generators[-x - 1]));
-    letter_image.push_back(dehn_reduce(img, layout.word));
-  }
   std::vector<Word> src_letters;
   for (size_t k = 0; k < scs.letters.size(); ++k) src_letters.push_back({static_cast<int>(k) + 1});
   const GroupOps<Word> free_group{Word{}, [](const Word& u, const Word& v) { return concat(u, v); },
@@ -61,49 +61,258 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   const std::vector<Word> edge_word =
       edge_group_elements(sc, sl.tree_parent_halfedge, sl.dual_tree_parent_halfedge, sl.generator_edges,
                           loop_first_vertices(sl, sc), src_letters, free_group);
-  std::vector<Word> target_word(edge_word.size());
-  for (size_t e = 0; e < edge_word.size(); ++e)
-    for (int x : edge_word[e])
-      target_word[e] = concat(target_word[e], x > 0 ? letter_image[x - 1] : inverse(letter_image[-x - 1]));
-  // Shortest-form words keep the products of SU(1,1) matrices small.
-  for (Word& w : target_word) w = dehn_reduce(w, layout.word);
-  auto word_of = [&](int h) {
-    const int e = sc.edge(h);
-    return sc.edge_halfedge(e) == h ? target_word[e] : inverse(target_word[e]);
+  const IntrinsicDelaunayResult idt = intrinsic_delaunay(sc, edge_lengths(source, sc));
+  if (!idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
+
+  // Handle correspondences (topology/handle_basis.h): meridian/longitude
+  // bases of both surfaces from linking numbers, signed handle permutations
+  // between them, each an exact isomorphism of the canonical surface groups.
+  const HandleBasis shb = handle_basis(source, sl.loops, scs);
+  const HandleBasis thb = handle_basis(tl.mesh, tl.loops, tcs);
+  std::vector<HandleCandidate> handle_classes = handle_candidates(shb, thb, options.homotopy_candidates);
+  // The class of the two canonical polygon schemata, a_i -> a'_i, b_i -> b'_i:
+  // short words whatever the loops look like (the lifted handle classes can
+  // differ from the intended ones by long Torelli twists).
+  {
+    HandleCandidate hc;
+    const int n = 2 * out.genus;
+    for (int j = 0; j < n; ++j) hc.map.push_back({j + 1});
+    hc.homology = IntMatrix::Identity(n, n);
+    std::string handles;
+    handle_correspondence_of(shb, thb, hc.homology, &hc.permutation, &hc.sign, &handles);
+    hc.description = handles + "  [a_i -> a'_i, b_i -> b'_i of the canonical polygon schemata]";
+    handle_classes.erase(std::remove_if(handle_classes.begin(), handle_classes.end(),
+                                        [&](const HandleCandidate& c) { return c.homology == hc.homology; }),
+                         handle_classes.end());
+    handle_classes.insert(handle_classes.begin(), hc);
+  }
+  // The class induced by overlaying the two shapes (topology/projected_loops.h)
+  // comes first: for a remeshed copy it is the identity, for shapes posed
+  // alike it sends handles to the handles they overlap.
+  {
+    const ProjectedLoopsResult proj = project_loops(source, sl.loops, tl, layout.word);
+    const int n = 2 * out.genus;
+    const Word R = canonical_relator(out.genus);
+    GroupMap theta(n);
+    bool ok = proj.ok;
+    for (int j = 0; j < n && ok; ++j)
+      theta[j] = dehn_reduce(substitute(substitute(scs.generators[j], proj.loop_images), tcs.letters), R);
+    if (ok) {
+      const IntMatrix M = homology_matrix(theta, n), J = symplectic_form(out.genus);
+      ok = M.transpose() * J * M == J && dehn_reduce(substitute(R, theta), R).empty();
+      if (ok) {
+        HandleCandidate hc;
+        hc.map = theta;
+        hc.homology = M;
+        std::string handles;
+        handle_correspondence_of(shb, thb, M, &hc.permutation, &hc.sign, &handles);
+        hc.description = handles + "  [as the shapes overlap: loops carried to the nearest points]";
+        // Same action on homology as a handle candidate: keep the overlay's
+        // (geometric) version only.
+        handle_classes.erase(std::remove_if(handle_classes.begin(), handle_classes.end(),
+                                            [&](const HandleCandidate& c) { return c.homology == M; }),
+                             handle_classes.end());
+        handle_classes.insert(handle_classes.begin(), hc);
+      }
+    }
+  }
+
+  // The homotopy data of one class theta (source canonical generator ->
+  // word in the target's canonical generators): a deck element per source
+  // edge (checked exactly around every face) and per intrinsic edge.
+  struct ClassData {
+    std::vector<Mobius> rho_edge;
+    std::vector<WeightedEdge> edges;
   };
-  std::vector<Mobius> rho_edge(edge_word.size());
-  for (size_t e = 0; e < edge_word.size(); ++e) rho_edge[e] = evaluate_mobius(target_word[e], layout.generators);
+  auto class_data = [&](const GroupMap& theta) {
+    // Source loop letter k as a word in the target's loop letters.
+    std::vector<Word> letter_image;
+    for (const Word& w : scs.letters)
+      letter_image.push_back(dehn_reduce(substitute(substitute(w, theta), tcs.generators), layout.word));
+    std::vector<Word> target_word(edge_word.size());
+    // Shortest-form words keep the products of SU(1,1) matrices small. Few
+    // distinct words occur (edges crossing the same loops share one), so
+    // each is reduced once.
+    std::map<Word, Word> memo;
+    auto reduced = [&](const Word& w) -> const Word& {
+      auto it = memo.find(w);
+      if (it == memo.end()) it = memo.emplace(w, dehn_reduce(w, layout.word)).first;
+      return it->second;
+    };
+    for (size_t e = 0; e < edge_word.size(); ++e) target_word[e] = reduced(substitute(edge_word[e], letter_image));
+    auto word_of = [&](int h) {
+      const int e = sc.edge(h);
+      return sc.edge_halfedge(e) == h ? target_word[e] : inverse(target_word[e]);
+    };
+    // Exact check (Dehn's algorithm solves the word problem of the surface
+    // group): the product around every source face is the identity.
+    for (int f = 0; f < source.num_faces(); ++f) {
+      const Word around = concat({word_of(3 * f), word_of(3 * f + 1), word_of(3 * f + 2)});
+      if (!reduced(around).empty())
+        throw SolveError("homotopy data inconsistent around source face " + std::to_string(f));
+    }
+    if (std::getenv("SURFMAP_DEBUG_HANDLES")) {
+      size_t L = 0;
+      for (const Word& w : target_word) L = std::max(L, w.size());
+      size_t Li = 0;
+      for (const Word& w : letter_image) Li = std::max(Li, w.size());
+      std::fprintf(stderr, "class data: longest edge word %zu, longest letter image %zu, distinct %zu\n", L, Li, memo.size());
+    }
+    ClassData cd;
+    cd.rho_edge.resize(edge_word.size());
+    for (size_t e = 0; e < edge_word.size(); ++e) cd.rho_edge[e] = evaluate_mobius(target_word[e], layout.generators);
+    cd.edges.resize(idt.edges.size());
+    for (size_t e = 0; e < idt.edges.size(); ++e) {
+      const auto& ie = idt.edges[e];
+      cd.edges[e].i = ie.i;
+      cd.edges[e].j = ie.j;
+      cd.edges[e].w = ie.cot_weight;
+      Word w;
+      for (int h : ie.path) w = concat(w, word_of(h));
+      cd.edges[e].rho = evaluate_mobius(reduced(w), layout.generators);
+    }
+    return cd;
+  };
+  const int ncand = static_cast<int>(handle_classes.size());
+  if (options.homotopy >= ncand)
+    throw InputError("homotopy class " + std::to_string(options.homotopy) + " does not exist; there are " +
+                     std::to_string(ncand) + " candidates (0.." + std::to_string(ncand - 1) + ")");
+  if (std::getenv("SURFMAP_DEBUG_HANDLES")) {
+    for (const HandleBasis* hb : {&shb, &thb}) {
+      std::fprintf(stderr, "basis geometric=%d msg=%s roundoff=%g meridian loops=%zu\n", hb->geometric, hb->message.c_str(),
+                   hb->linking_roundoff, hb->meridian_loops.size());
+      std::cerr << "loop linking\n" << hb->loop_linking << "\nP\n" << hb->P << "\n";
+      for (int i = 0; i < hb->genus; ++i)
+        std::cerr << " handle " << i << " pos " << hb->position[i].transpose() << " am " << hb->meridian_area[i].transpose()
+                  << " al " << hb->longitude_area[i].transpose() << "\n";
+    }
+    for (const HandleCandidate& hc : handle_classes) {
+      size_t L = 0;
+      for (const Word& w : hc.map) L = std::max(L, w.size());
+      std::fprintf(stderr, "cand %s score %g maxlen %zu\n", hc.description.c_str(), hc.geometric_score, L);
+    }
+  }
+  std::vector<ClassData> data;
+  std::vector<char> usable(handle_classes.size(), 1);
+  for (const HandleCandidate& hc : handle_classes) {
+    data.push_back(class_data(hc.map));
+    HomotopyCandidate c;
+    c.description = hc.description;
+    for (int r = 0; r < hc.homology.rows(); ++r)
+      for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
+    out.candidates.push_back(c);
+  }
+  stage_done("source homotopy data and weights", 0.4);
+
+  // Ranking start: every vertex at the origin (the classes' own initial
+  // maps are built only for the chosen one).
+  HyperbolicHarmonicOptions ho;
+  ho.tolerance = options.tolerance;
+  ho.max_iterations = options.max_iterations;
+  if (options.progress)
+    ho.progress = [&](int, double, double) { return options.progress("homotopy candidates", 0.4); };
+  const std::vector<Complex> start(source.num_vertices(), Complex(0.0));
+  // A class whose solve fails numerically (deck elements too large for
+  // double precision: very twisted classes) is reported with infinite
+  // energy instead of failing the whole map, unless it was asked for.
+  auto solve_class = [&](int k, const HyperbolicHarmonicOptions& o, HyperbolicHarmonicResult& r) {
+    std::string why;
+    try {
+      r = hyperbolic_harmonic_map(source.num_vertices(), data[k].edges, layout.generators, start, o);
+      bool finite = std::isfinite(r.energy);
+      for (size_t i = 0; i < r.z.size() && finite; ++i) finite = std::isfinite(r.z[i].real()) && std::isfinite(r.z[i].imag());
+      if (finite) return true;
+      why = "non-finite energy or positions";
+    } catch (const SolveError& e) {
+      why = e.what();
+    }
+    if (options.homotopy == k)
+      throw SolveError("the harmonic map solve of the requested homotopy class " + std::to_string(k) + " failed: " + why);
+    usable[k] = 0;
+    out.candidates[k].energy = std::numeric_limits<double>::infinity();
+    out.candidates[k].solved = false;
+    out.candidates[k].description += "  [solve failed: " + why + "]";
+    return false;
+  };
+  // Ranking (DESIGN §2.10): every candidate gets a short solve (its energy
+  // only decreases, so this is an upper bound of the class's optimum); the
+  // most promising `homotopy_full_solves` (and the requested class) are
+  // solved to convergence and the lowest converged energy is the default.
+  const int short_iterations = 1;
+  std::vector<int> order(ncand);
+  for (int k = 0; k < ncand; ++k) order[k] = k;
+  const int full_solves = options.homotopy_full_solves <= 0 ? ncand : options.homotopy_full_solves;
+  const bool rank_first = ncand > full_solves;
+  if (rank_first) {
+    HyperbolicHarmonicOptions hs = ho;
+    hs.max_iterations = short_iterations;
+    for (int k = 0; k < ncand; ++k) {
+      HyperbolicHarmonicResult r;
+      if (!solve_class(k, hs, r)) continue;
+      out.candidates[k].energy = r.energy;
+      out.candidates[k].solved = false;
+    }
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
+  }
+  std::vector<char> full(ncand, 0);
+  for (int q = 0; q < ncand; ++q) full[order[q]] = !rank_first || q < full_solves;
+  if (options.homotopy >= 0) std::fill(full.begin(), full.end(), 0);  // the requested class is solved below
+  out.chosen_candidate = -1;
+  std::vector<char> done(ncand, 0);
+  for (;;) {
+    int k = -1;
+    for (int q = 0; q < ncand && k < 0; ++q)
+      if (full[order[q]] && !done[order[q]]) k = order[q];
+    if (k < 0) break;
+    done[k] = 1;
+    if (!usable[k]) continue;
+    HyperbolicHarmonicResult r;
+    if (!solve_class(k, ho, r)) continue;
+    if (!r.converged) {
+      const std::string why = "did not converge in " + std::to_string(r.iterations) + " iterations (gradient " +
+                              std::to_string(r.gradient_history.back()) + ")";
+      if (options.homotopy == k || options.homotopy < 0 && ncand == 1)
+        throw SolveError("the harmonic map solve of homotopy class " + std::to_string(k) + " " + why);
+      usable[k] = 0;
+      out.candidates[k].energy = std::numeric_limits<double>::infinity();
+      out.candidates[k].solved = false;
+      out.candidates[k].description += "  [solve failed: " + why + "]";
+      continue;
+    }
+    out.candidates[k].energy = r.energy;
+    out.candidates[k].solved = true;
+    if (std::getenv("SURFMAP_DEBUG_HANDLES")) {
+      std::fprintf(stderr, "class %d:", k);
+      for (double e : r.energy_history) std::fprintf(stderr, " %.4g", e);
+      std::fprintf(stderr, "\n");
+    }
+    const bool better = options.homotopy >= 0 ? k == options.homotopy
+                                              : (out.chosen_candidate < 0 || r.energy < out.candidates[out.chosen_candidate].energy);
+    if (better) out.chosen_candidate = k;
+    // An unsolved class whose upper bound is already below the best optimum
+    // is provably better than it: solve it too.
+    if (options.homotopy < 0)
+      for (int q = 0; q < ncand; ++q)
+        if (!full[q] && out.candidates[q].energy < out.candidates[out.chosen_candidate].energy) full[q] = 1;
+  }
+  if (options.homotopy >= 0) out.chosen_candidate = options.homotopy;
+  if (out.chosen_candidate < 0) throw SolveError("the harmonic map solve failed in every candidate homotopy class");
+  // Ties (symmetric shapes: a symmetry composed with the best class has the
+  // same energy) go to the earliest candidate, the overlay class first.
+  if (options.homotopy < 0)
+    for (int k = 0; k < out.chosen_candidate; ++k)
+      if (out.candidates[k].solved && out.candidates[k].energy <= out.candidates[out.chosen_candidate].energy * (1 + 1e-6)) {
+        out.chosen_candidate = k;
+        break;
+      }
+  stage_done("homotopy candidates", 0.42);
+  const std::vector<Mobius>& rho_edge = data[out.chosen_candidate].rho_edge;
+  const std::vector<WeightedEdge>& edges = data[out.chosen_candidate].edges;
   auto rho_of = [&](int h) {
     const int e = sc.edge(h);
     return sc.edge_halfedge(e) == h ? rho_edge[e] : rho_edge[e].inverse();
   };
-  // Exact check (Dehn's algorithm solves the word problem of the surface
-  // group): the product around every source face is the identity.
-  for (int f = 0; f < source.num_faces(); ++f) {
-    const Word around = concat({word_of(3 * f), word_of(3 * f + 1), word_of(3 * f + 2)});
-    const bool ok = dehn_reduce(around, layout.word).empty();
-    if (!ok) throw SolveError("homotopy data inconsistent around source face " + std::to_string(f));
-  }
-  const IntrinsicDelaunayResult idt = intrinsic_delaunay(sc, edge_lengths(source, sc));
-  if (!idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
-  std::vector<WeightedEdge> edges(idt.edges.size());
-  for (size_t e = 0; e < idt.edges.size(); ++e) {
-    const auto& ie = idt.edges[e];
-    edges[e].i = ie.i;
-    edges[e].j = ie.j;
-    edges[e].w = ie.cot_weight;
-    Word w;
-    for (int h : ie.path) w = concat(w, word_of(h));
-    edges[e].rho = evaluate_mobius(dehn_reduce(w, layout.word), layout.generators);
-  }
-  HomotopyCandidate c;
-  c.description = "a_i -> a'_i, b_i -> b'_i (canonical systems of both surfaces)";
-  out.candidates = {c};
-  if (options.homotopy > 0)
-    throw InputError("homotopy class " + std::to_string(options.homotopy) +
-                     " does not exist; for genus >= 2 only class 0 (canonical handle order) is available so far");
-  out.chosen_candidate = 0;
-  stage_done("source homotopy data and weights", 0.4);
 
   // Initial map (map/initial_map.h): the uniform-weight (Tutte-type) map in
   // this class; the "before" figures, and the start unless start_seed asks
@@ -198,7 +407,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   out.iterations = hr.iterations;
   out.energy_history = hr.energy_history;
   out.final_energy = hr.energy;
-  out.candidates[0].energy = hr.energy;
+  out.candidates[out.chosen_candidate].energy = hr.energy;
+  out.candidates[out.chosen_candidate].solved = true;
   stage_done("harmonic solve", 0.7);
 
   // The geodesic 4g-gon P on the layout's corners is a convex fundamental

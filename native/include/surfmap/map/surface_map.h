@@ -13,8 +13,13 @@
 //
 // Hyperbolic case (genus >= 2): the energy Σ w_ij d(z_i, ρ_ij z_j)² in the
 // Poincaré disk is geodesically convex; Riemannian Newton with line search
-// (map/hyperbolic_harmonic.h) converges in a handful of iterations. So far
-// only the canonical class a_i -> a'_i, b_i -> b'_i is offered for genus >= 2.
+// (map/hyperbolic_harmonic.h) converges in a handful of iterations. The
+// candidate classes are handle correspondences between meridian/longitude
+// bases found from linking numbers (topology/handle_basis.h): every
+// candidate gets a short solve (1 Newton step, an upper bound of its
+// optimum), the best `homotopy_full_solves` by that bound are solved to
+// convergence (and any other whose bound falls below the best optimum), and
+// the lowest converged energy is the default.
 //
 // Genus 0 (map/spherical_map.h): both surfaces are uniformized onto the unit
 // sphere and Möbius-centred; all harmonic maps are then conformal, and the
@@ -46,6 +51,13 @@ struct SurfaceMapOptions {
   /// Homotopy class to use: index into SurfaceMapResult::candidates, or -1
   /// (default) for the one of lowest energy.
   int homotopy = -1;
+  /// Genus >= 2: how many handle correspondences (signed handle
+  /// permutations, topology/handle_basis.h, ranked by how well the handle
+  /// positions match) are considered (default 8: all of them for genus 2),
+  /// and how many of those, ranked by the energy after a short solve, are
+  /// solved to convergence (default 2; <= 0 or >= the count: all).
+  int homotopy_candidates = 8;
+  int homotopy_full_solves = 2;
   /// Base vertices of the systems of loops (-1: automatic).
   int source_base_vertex = -1, target_base_vertex = -1;
   /// Start of the hyperbolic solve: 0 (default) starts from the initial map
@@ -87,11 +99,21 @@ struct SurfaceMapOptions {
 };
 
 /// One candidate homotopy class: for genus 1 an SL(2,Z) matrix taking the
-/// source's reduced lattice basis to integer combinations of the target's.
+/// source's reduced lattice basis to integer combinations of the target's;
+/// for genus >= 2 a handle correspondence (description: "handle 1 -> handle
+/// 2, handle 2 -> handle 1 (half turn)", handles numbered along each shape's
+/// longest axis; `matrix` unused).
 struct HomotopyCandidate {
   std::string description;
   int matrix[4] = {1, 0, 0, 1};
+  /// Harmonic energy of the class's optimum, or, when `solved` is false
+  /// (genus >= 2, ranked out after a short solve), the energy reached by that
+  /// short solve: an upper bound of the optimum.
   double energy = 0;
+  bool solved = true;
+  /// Genus >= 2: the class's action on H_1, 2g x 2g row-major, in the
+  /// canonical coordinates (a_1, b_1, ...) of both surfaces; empty for genus 1.
+  std::vector<int> homology;
 };
 
 struct PointOnSurface {

@@ -1,0 +1,670 @@
+#include "surfmap/topology/handle_basis.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <numeric>
+#include <string>
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+
+#include "surfmap/error.h"
+
+namespace surfmap {
+namespace {
+
+using IntVector = Eigen::Matrix<long long, Eigen::Dynamic, 1>;
+
+GroupMap identity_map(int n) {
+  GroupMap m(n);
+  for (int j = 0; j < n; ++j) m[j] = {j + 1};
+  return m;
+}
+
+// Letters of handle i (0-based).
+int A(int i) { return 2 * i + 1; }
+int B(int i) { return 2 * i + 2; }
+Word power(int letter, long long q) {
+  Word w;
+  for (long long k = 0; k < std::abs(q); ++k) w.push_back(q > 0 ? letter : -letter);
+  return w;
+}
+
+struct Move {
+  GroupMap fwd, inv;
+};
+
+Move then(const Move& outer, const Move& inner) {  // outer ∘ inner
+  return {compose(outer.fwd, inner.fwd), compose(inner.inv, outer.inv)};
+}
+
+void dehn_all(GroupMap& m, const Word& R) {
+  for (Word& w : m) w = dehn_reduce(w, R);
+}
+
+// a_i -> a_i b_i^q (homology a_i += q b_i); its inverse uses -q.
+Move twist_a(int g, int i, long long q) {
+  Move m{identity_map(2 * g), identity_map(2 * g)};
+  m.fwd[A(i) - 1] = concat({A(i)}, power(B(i), q));
+  m.inv[A(i) - 1] = concat({A(i)}, power(B(i), -q));
+  return m;
+}
+// b_i -> b_i a_i^q (homology b_i += q a_i).
+Move twist_b(int g, int i, long long q) {
+  Move m{identity_map(2 * g), identity_map(2 * g)};
+  m.fwd[B(i) - 1] = concat({B(i)}, power(A(i), q));
+  m.inv[B(i) - 1] = concat({B(i)}, power(A(i), -q));
+  return m;
+}
+
+// Half turn of handle i: (a, b) -> (ab) (a^-1, b^-1) (ab)^-1, which fixes
+// [a, b] exactly; homology -I on the handle. Inverse found by a word search
+// and checked: a -> b a^-1 b^-1, b -> b a b^-1 a^-1 b^-1.
+Move half_turn(int g, int i) {
+  Move m{identity_map(2 * g), identity_map(2 * g)};
+  const int a = A(i), b = B(i);
+  m.fwd[a - 1] = {a, b, -a, -b, -a};
+  m.fwd[b - 1] = {a, -b, -a};
+  m.inv[a - 1] = {b, -a, -b};
+  m.inv[b - 1] = {b, a, -b, -a, -b};
+  return m;
+}
+
+// Rewrites a genus-2 pattern (letters 1..4 for handles i, i+1) in genus g.
+GroupMap embed_pair(int g, int i, const std::vector<Word>& pattern) {
+  GroupMap m = identity_map(2 * g);
+  for (int k = 0; k < 4; ++k) {
+    Word w;
+    for (int x : pattern[k]) w.push_back((x > 0 ? 1 : -1) * (2 * i + std::abs(x)));
+    m[2 * i + k] = w;
+  }
+  return m;
+}
+
+// Swap of handles i and i+1: (H_i, H_i+1) -> (c_i H_i+1 c_i^-1, H_i) with
+// c_i = [a_i, b_i]; fixes c_i c_i+1 exactly. Inverse: (H_i+1, c_i+1^-1 H_i c_i+1).
+Move swap(int g, int i) {
+  const Word c1{1, 2, -1, -2}, c2{3, 4, -3, -4};
+  const std::vector<Word> fwd{concat({c1, {3}, inverse(c1)}), concat({c1, {4}, inverse(c1)}), {1}, {2}};
+  const std::vector<Word> inv{{3}, {4}, concat({inverse(c2), {1}, c2}), concat({inverse(c2), {2}, c2})};
+  return {embed_pair(g, i, fwd), embed_pair(g, i, inv)};
+}
+
+// Mixing of handles i, i+1: homology a_i += a_i+1, b_i+1 -= b_i (coordinates:
+// v[a_i+1] += v[a_i], v[b_i] -= v[b_i+1]). Found by a search over short words
+// and made to fix [a1,b1][a2,b2] exactly (not only up to conjugation) by an
+// inner automorphism; its inverse was checked to compose to the identity.
+Move mix_adjacent(int g, int i) {
+  const std::vector<Word> fwd{{1, 3}, {-3, 2, 3}, {-3, 2, 3, -2, 3}, {4, -3, -2, 3}};
+  const std::vector<Word> inv{{1, -2, -3, 2}, {-2, 3, 2, -3, 2}, {-2, 3, 2}, {4, 2}};
+  return {embed_pair(g, i, fwd), embed_pair(g, i, inv)};
+}
+
+// v[a_to] += v[a_from], v[b_from] -= v[b_to] for any two handles: the
+// adjacent mixing conjugated by swaps that carry positions (h0, h0+1) to
+// (from, to).
+Move mix(int g, int from, int to) {
+  Move C{identity_map(2 * g), identity_map(2 * g)};
+  int h0;
+  if (from < to) {
+    h0 = from;
+    for (int j = from + 1; j <= to - 1; ++j) C = then(swap(g, j), C);
+  } else {
+    h0 = to;
+    C = swap(g, to);
+    for (int j = to + 1; j <= from - 1; ++j) C = then(swap(g, j), C);
+  }
+  const Move U = mix_adjacent(g, h0);
+  Move m{compose(C.fwd, compose(U.fwd, C.inv)), compose(C.fwd, compose(U.inv, C.inv))};
+  return m;
+}
+
+IntMatrix integer_inverse(const IntMatrix& M) {
+  const Eigen::MatrixXd inv = M.cast<double>().inverse();
+  IntMatrix r = inv.array().round().cast<long long>().matrix();
+  if (M * r != IntMatrix::Identity(M.rows(), M.cols()))
+    throw SolveError("handle basis: an integer matrix that should be unimodular is not");
+  return r;
+}
+
+// Basis (columns) of the integer kernel {x : A x = 0} by unimodular column
+// operations (A V = [H | 0]), size-reduced afterwards.
+IntMatrix integer_kernel(const IntMatrix& A_in) {
+  IntMatrix A = A_in;
+  const int n = static_cast<int>(A.cols());
+  IntMatrix V = IntMatrix::Identity(n, n);
+  int col = 0;
+  for (int r = 0; r < A.rows() && col < n; ++r) {
+    // Euclid on row r among columns col..n-1.
+    for (;;) {
+      int piv = -1;
+      for (int c = col; c < n; ++c)
+        if (A(r, c) != 0 && (piv < 0 || std::abs(A(r, c)) < std::abs(A(r, piv)))) piv = c;
+      if (piv < 0) break;
+      A.col(piv).swap(A.col(col));
+      V.col(piv).swap(V.col(col));
+      bool done = true;
+      for (int c = col + 1; c < n; ++c) {
+        if (A(r, c) == 0) continue;
+        const long long q = A(r, c) / A(r, col);
+        A.col(c) -= q * A.col(col);
+        V.col(c) -= q * V.col(col);
+        if (A(r, c) != 0) done = false;
+      }
+      if (done) {
+        ++col;
+        break;
+      }
+    }
+  }
+  IntMatrix K = V.rightCols(n - col);
+  // Size reduction: pairwise x_i -= q x_j while it shortens (L1).
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (int i = 0; i < K.cols(); ++i)
+      for (int j = 0; j < K.cols(); ++j) {
+        if (i == j) continue;
+        for (int s : {1, -1}) {
+          const IntVector t = K.col(i) - s * K.col(j);
+          if (t.cwiseAbs().sum() < K.col(i).cwiseAbs().sum()) K.col(i) = t, changed = true;
+        }
+      }
+  }
+  return K;
+}
+
+}  // namespace
+
+Word substitute(const Word& w, const GroupMap& images) {
+  Word r;
+  for (int x : w) {
+    const Word& e = images.at(std::abs(x) - 1);
+    if (x > 0)
+      r.insert(r.end(), e.begin(), e.end());
+    else
+      for (auto it = e.rbegin(); it != e.rend(); ++it) r.push_back(-*it);
+  }
+  return reduce(r);
+}
+
+GroupMap compose(const GroupMap& outer, const GroupMap& inner) {
+  GroupMap m(inner.size());
+  for (size_t j = 0; j < inner.size(); ++j) m[j] = substitute(inner[j], outer);
+  return m;
+}
+
+Eigen::Matrix<long long, Eigen::Dynamic, 1> abelianize(const Word& w, int n) {
+  IntVector v = IntVector::Zero(n);
+  for (int x : w) {
+    if (std::abs(x) > n) throw InputError("abelianize: letter " + std::to_string(x) + " out of range");
+    v[std::abs(x) - 1] += x > 0 ? 1 : -1;
+  }
+  return v;
+}
+
+IntMatrix homology_matrix(const GroupMap& map, int n) {
+  IntMatrix M(n, n);
+  for (int j = 0; j < n; ++j) M.col(j) = abelianize(map[j], n);
+  return M;
+}
+
+IntMatrix symplectic_form(int genus) {
+  IntMatrix J = IntMatrix::Zero(2 * genus, 2 * genus);
+  for (int i = 0; i < genus; ++i) J(2 * i, 2 * i + 1) = 1, J(2 * i + 1, 2 * i) = -1;
+  return J;
+}
+
+Word canonical_relator(int genus) {
+  Word R;
+  for (int i = 0; i < genus; ++i) R.insert(R.end(), {A(i), B(i), -A(i), -B(i)});
+  return R;
+}
+
+SurfaceAutomorphism lift_symplectic(const IntMatrix& P) {
+  const int n = static_cast<int>(P.rows());
+  if (n % 2 != 0 || P.cols() != n || n == 0) throw InputError("lift_symplectic: P must be 2g x 2g");
+  const int g = n / 2;
+  const IntMatrix J = symplectic_form(g);
+  if (P.transpose() * J * P != J) throw InputError("lift_symplectic: P does not preserve the intersection form");
+  const Word R = canonical_relator(g);
+  // Reduce Q = P^-1 to I by left multiplications T_k ... T_1 Q = I; then
+  // T_k ... T_1 = P and the automorphism is tau_k ∘ ... ∘ tau_1.
+  IntMatrix Q = -J * P.transpose() * J;  // P^-1 for symplectic P
+  SurfaceAutomorphism out{identity_map(n), identity_map(n), 0};
+  auto apply = [&](const Move& m) {
+    Q = homology_matrix(m.fwd, n) * Q;
+    out.map = compose(m.fwd, out.map);
+    out.inverse = compose(out.inverse, m.inv);
+    dehn_all(out.map, R);
+    dehn_all(out.inverse, R);
+    if (++out.moves > 2000) throw SolveError("lift_symplectic: too many moves (entries of P too large)");
+    // Word lengths can grow exponentially with the entries of P; realistic
+    // changes of basis (signed permutations, a few twists) stay short.
+    for (const GroupMap* gm : {&out.map, &out.inverse})
+      for (const Word& w : *gm)
+        if (w.size() > 3000) throw SolveError("lift_symplectic: words too long (entries of P too large)");
+  };
+  auto apply_power = [&](const Move& m, long long q) {
+    for (long long k = 0; k < std::abs(q); ++k) apply(q > 0 ? m : Move{m.inv, m.fwd});
+  };
+  auto ra = [](int i) { return 2 * i; };
+  auto rb = [](int i) { return 2 * i + 1; };
+  for (int h = 0; h < g; ++h) {
+    const int ca = ra(h), cb = rb(h);
+    // Column a_h -> e_{a_h}. When handle h holds none of it, bring a handle
+    // that does to position h by adjacent swaps (short words; mixing would
+    // also do it, with longer ones).
+    if (Q(ra(h), ca) == 0 && Q(rb(h), ca) == 0) {
+      int k = h + 1;
+      while (k < g && Q(ra(k), ca) == 0 && Q(rb(k), ca) == 0) ++k;
+      if (k == g) throw SolveError("lift_symplectic: zero column");
+      for (int j = k - 1; j >= h; --j) apply(swap(g, j));
+    }
+    // Clear the b-rows handle by handle.
+    for (int k = h; k < g; ++k)
+      while (Q(rb(k), ca) != 0) {
+        if (Q(ra(k), ca) == 0) {
+          apply(twist_b(g, k, 1));  // v_a += v_b
+          continue;
+        }
+        apply(twist_a(g, k, -(Q(rb(k), ca) / Q(ra(k), ca))));  // v_b -= q v_a
+        if (Q(rb(k), ca) != 0) apply(twist_b(g, k, -(Q(ra(k), ca) / Q(rb(k), ca))));
+      }
+    // Then Euclid across handles on the a-rows (mixing keeps b-rows zero).
+    for (int k = h + 1; k < g; ++k)
+      while (Q(ra(k), ca) != 0) {
+        if (Q(ra(h), ca) == 0) {
+          apply(mix(g, k, h));  // v[a_h] += v[a_k]
+          continue;
+        }
+        apply_power(mix(g, h, k), -(Q(ra(k), ca) / Q(ra(h), ca)));
+        if (Q(ra(k), ca) != 0) apply_power(mix(g, k, h), -(Q(ra(h), ca) / Q(ra(k), ca)));
+      }
+    if (Q(ra(h), ca) == -1) apply(half_turn(g, h));
+    if (Q(ra(h), ca) != 1) throw SolveError("lift_symplectic: column of a_" + std::to_string(h + 1) + " is not primitive");
+    // Column b_h -> e_{b_h}, keeping column a_h.
+    if (Q(rb(h), cb) != 1) throw SolveError("lift_symplectic: reduction lost the symplectic pairing");
+    for (int k = h + 1; k < g; ++k) {
+      // mix(k, h): v[a_h] += v[a_k], v[b_k] -= v[b_h] (= 1 here).
+      if (Q(ra(k), cb) != 0) {
+        apply_power(mix(g, k, h), Q(rb(k), cb) + Q(ra(k), cb));  // b_k -> -a_k
+        apply(twist_b(g, k, 1));                                  // a_k += b_k -> 0
+      }
+      apply_power(mix(g, k, h), Q(rb(k), cb));
+    }
+    if (Q(ra(h), cb) != 0) apply(twist_b(g, h, -Q(ra(h), cb)));
+  }
+  if (Q != IntMatrix::Identity(n, n)) throw SolveError("lift_symplectic: reduction did not reach the identity");
+  if (homology_matrix(out.map, n) != P) throw SolveError("lift_symplectic: lifted map has the wrong homology");
+  return out;
+}
+
+bool is_surface_automorphism(const SurfaceAutomorphism& a, int genus) {
+  const int n = 2 * genus;
+  if (static_cast<int>(a.map.size()) != n || static_cast<int>(a.inverse.size()) != n) return false;
+  const Word R = canonical_relator(genus);
+  if (!dehn_reduce(substitute(R, a.map), R).empty()) return false;
+  if (!dehn_reduce(substitute(R, a.inverse), R).empty()) return false;
+  const GroupMap fi = compose(a.map, a.inverse), iff = compose(a.inverse, a.map);
+  for (int j = 0; j < n; ++j) {
+    if (!dehn_reduce(concat(fi[j], {-(j + 1)}), R).empty()) return false;
+    if (!dehn_reduce(concat(iff[j], {-(j + 1)}), R).empty()) return false;
+  }
+  const IntMatrix M = homology_matrix(a.map, n), J = symplectic_form(genus);
+  return M.transpose() * J * M == J;
+}
+
+double linking_number(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
+  // Klenin & Langowski (Biopolymers 2000): signed solid angle of a segment
+  // pair from the four normalised face normals of the tetrahedron it spans.
+  double total = 0;
+  const size_t na = a.size(), nb = b.size();
+  for (size_t i = 0; i < na; ++i) {
+    const Eigen::Vector3d& p1 = a[i];
+    const Eigen::Vector3d& p2 = a[(i + 1) % na];
+    for (size_t j = 0; j < nb; ++j) {
+      const Eigen::Vector3d& p3 = b[j];
+      const Eigen::Vector3d& p4 = b[(j + 1) % nb];
+      const Eigen::Vector3d r13 = p3 - p1, r14 = p4 - p1, r23 = p3 - p2, r24 = p4 - p2;
+      Eigen::Vector3d n[4] = {r13.cross(r14), r14.cross(r24), r24.cross(r23), r23.cross(r13)};
+      bool degenerate = false;
+      for (auto& v : n) {
+        const double l = v.norm();
+        if (l <= 1e-300) degenerate = true;
+        else v /= l;
+      }
+      if (degenerate) continue;  // collinear pair: zero solid angle
+      double omega = 0;
+      for (int k = 0; k < 4; ++k) omega += std::asin(std::clamp(n[k].dot(n[(k + 1) % 4]), -1.0, 1.0));
+      const double s = (p4 - p3).cross(p2 - p1).dot(r13);
+      if (s != 0) total += (s > 0 ? omega : -omega);
+    }
+  }
+  return total / (4.0 * M_PI);
+}
+
+HandleBasis handle_basis(const TriMesh& mesh, const std::vector<std::vector<int>>& loops,
+                         const CanonicalSchema& schema) {
+  const int g = schema.genus, n = 2 * g;
+  if (static_cast<int>(loops.size()) != n || static_cast<int>(schema.letters.size()) != n)
+    throw InputError("handle_basis: need 2g loops and the canonical schema of their word");
+  HandleBasis hb;
+  hb.genus = g;
+  const IntMatrix J = symplectic_form(g);
+  // Loop k's class in canonical coordinates (H, columns) and canonical
+  // generators in loop coordinates (Ginv = H^-1).
+  IntMatrix H(n, n), Ginv(n, n);
+  for (int k = 0; k < n; ++k) H.col(k) = abelianize(schema.letters[k], n);
+  for (int j = 0; j < n; ++j) Ginv.col(j) = abelianize(schema.generators[j], n);
+  if (H * Ginv != IntMatrix::Identity(n, n)) throw SolveError("handle_basis: schema substitutions are not inverse in homology");
+
+  // Normal frame: vertex normals, push distance 0.2 x shortest incident edge.
+  const int nv = mesh.num_vertices();
+  std::vector<Eigen::Vector3d> normal(nv, Eigen::Vector3d::Zero());
+  std::vector<double> shortest(nv, std::numeric_limits<double>::infinity());
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d p0 = mesh.V.row(mesh.F(f, 0)), p1 = mesh.V.row(mesh.F(f, 1)), p2 = mesh.V.row(mesh.F(f, 2));
+    const Eigen::Vector3d nf = (p1 - p0).cross(p2 - p0);
+    for (int k = 0; k < 3; ++k) {
+      const int v = mesh.F(f, k), w = mesh.F(f, (k + 1) % 3);
+      normal[v] += nf;
+      const double l = (mesh.V.row(v) - mesh.V.row(w)).norm();
+      shortest[v] = std::min(shortest[v], l);
+      shortest[w] = std::min(shortest[w], l);
+    }
+  }
+  const Eigen::Vector3d lo = mesh.V.colwise().minCoeff(), hi = mesh.V.colwise().maxCoeff();
+  const double diag = (hi - lo).norm();
+  const Eigen::Vector3d centre = mesh.V.colwise().mean();
+  std::vector<std::vector<Eigen::Vector3d>> on(n), inside(n);
+  std::vector<Eigen::Vector3d> loop_centroid(n), loop_area(n);
+  std::vector<double> loop_length(n, 0);
+  for (int k = 0; k < n; ++k) {
+    const auto& path = loops[k];
+    const size_t m = path.size() >= 2 && path.front() == path.back() ? path.size() - 1 : path.size();
+    Eigen::Vector3d c = Eigen::Vector3d::Zero(), area = Eigen::Vector3d::Zero();
+    for (size_t i = 0; i < m; ++i) {
+      const int v = path[i];
+      const Eigen::Vector3d p = (mesh.V.row(v).transpose() - centre) / diag;
+      on[k].push_back(p);
+      const double nn = normal[v].norm();
+      const Eigen::Vector3d nrm = nn > 0 ? Eigen::Vector3d(normal[v] / nn) : Eigen::Vector3d::Zero();
+      inside[k].push_back(p - 0.2 * shortest[v] / diag * nrm);
+    }
+    for (size_t i = 0; i < m; ++i) {
+      const Eigen::Vector3d &p = on[k][i], &q = on[k][(i + 1) % m];
+      const double l = (q - p).norm();
+      c += 0.5 * l * (p + q);
+      loop_length[k] += l;
+      area += 0.5 * p.cross(q);
+    }
+    loop_centroid[k] = loop_length[k] > 0 ? Eigen::Vector3d(c / loop_length[k]) : on[k].front();
+    loop_area[k] = area;
+  }
+  hb.loop_linking = IntMatrix::Zero(n, n);
+  for (int k = 0; k < n; ++k)
+    for (int l = 0; l < n; ++l) {
+      const double lk = linking_number(inside[k], on[l]);
+      const double r = std::round(lk);
+      hb.linking_roundoff = std::max(hb.linking_roundoff, std::abs(lk - r));
+      hb.loop_linking(k, l) = static_cast<long long>(r);
+    }
+  const IntMatrix Lc = Ginv.transpose() * hb.loop_linking * Ginv;
+  const IntMatrix anti = Lc - Lc.transpose();
+
+  // Handles: meridian m_i (canonical coordinates), its loop-coordinate
+  // vector, and the dual longitude l_i.
+  IntMatrix M(n, g), Lg(n, g);
+  hb.geometric = hb.linking_roundoff < 0.2 && (anti == J || anti == -J);
+  if (!hb.geometric) {
+    hb.message = hb.linking_roundoff >= 0.2 ? "linking numbers are not integral (round-off " +
+                                                  std::to_string(hb.linking_roundoff) + "): loops too close to the surface?"
+                                            : "linking form is inconsistent with the intersection form";
+  } else {
+    for (int k = 0; k < n; ++k)
+      if (hb.loop_linking.row(k).isZero()) hb.meridian_loops.push_back(k);
+    IntMatrix merid;
+    if (static_cast<int>(hb.meridian_loops.size()) == g) {
+      merid.resize(n, g);
+      for (int i = 0; i < g; ++i) merid.col(i) = H.col(hb.meridian_loops[i]);
+    } else {
+      // Meridians in loop coordinates: u with u^T Ll = 0; reduced there, so
+      // they are short combinations of loops.
+      merid = H * integer_kernel(hb.loop_linking.transpose());
+    }
+    const IntMatrix longi = integer_kernel(Lc);
+    if (merid.cols() != g || longi.cols() != g) {
+      hb.geometric = false;
+      hb.message = "meridian or longitude lattice does not have rank g";
+    } else {
+      const IntMatrix pairing = merid.transpose() * J * longi;
+      const long long det = std::llround(pairing.cast<double>().determinant());
+      if (std::abs(det) != 1) {
+        hb.geometric = false;
+        hb.message = "meridians and longitudes are not dual under intersection";
+      } else {
+        M = merid;
+        Lg = longi * integer_inverse(pairing);  // m_i . l_j = delta_ij
+      }
+    }
+  }
+  if (!hb.geometric) {
+    for (int i = 0; i < g; ++i) M.col(i) = IntMatrix::Identity(n, n).col(2 * i), Lg.col(i) = IntMatrix::Identity(n, n).col(2 * i + 1);
+  }
+  // Per handle: position (centroid of its meridian's loops) and vector areas.
+  struct Handle {
+    IntVector m, l;
+    Eigen::Vector3d pos, am, al;
+  };
+  std::vector<Handle> handles(g);
+  for (int i = 0; i < g; ++i) {
+    Handle& h = handles[i];
+    h.m = M.col(i), h.l = Lg.col(i);
+    const IntVector um = Ginv * h.m, ul = Ginv * h.l;
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    double wsum = 0;
+    h.am.setZero(), h.al.setZero();
+    // The handle sits where its longitude runs round the hole: meridians
+    // are less telling (the meridian lattice of a double torus holds both
+    // outer arms and the middle bar).
+    for (int k = 0; k < n; ++k) {
+      const double w = std::abs(static_cast<double>(ul[k])) * loop_length[k];
+      c += w * loop_centroid[k], wsum += w;
+      h.am += static_cast<double>(um[k]) * loop_area[k];
+      h.al += static_cast<double>(ul[k]) * loop_area[k];
+    }
+    h.pos = wsum > 0 ? Eigen::Vector3d(c / wsum) : Eigen::Vector3d::Zero();
+  }
+  // The meridian lattice has many bases (a double torus's outer arms and its
+  // middle bar give three meridians, any two a basis); the handles an artist
+  // sees are the basis whose meridian discs and longitude holes are
+  // smallest. Greedy reduction of sum |vector area| over the elementary
+  // changes m_i += s m_j, l_j -= s l_i (which keep m_i . l_j = delta_ij).
+  if (hb.geometric) {
+    auto cost = [&]() {
+      double c = 0;
+      for (const Handle& h : handles) c += h.am.norm() + h.al.norm();
+      return c;
+    };
+    double best = cost();
+    for (int round = 0; round < 100; ++round) {
+      bool improved = false;
+      for (int i = 0; i < g; ++i)
+        for (int j = 0; j < g; ++j) {
+          if (i == j) continue;
+          for (int sgn : {1, -1}) {
+            Handle& hi_ = handles[i];
+            Handle& hj_ = handles[j];
+            hi_.m += sgn * hj_.m, hi_.am += sgn * hj_.am;
+            hj_.l -= sgn * hi_.l, hj_.al -= sgn * hi_.al;
+            const double c = cost();
+            if (c < best * (1 - 1e-9)) {
+              best = c, improved = true;
+            } else {
+              hj_.l += sgn * hi_.l, hj_.al += sgn * hi_.al;
+              hi_.m -= sgn * hj_.m, hi_.am -= sgn * hj_.am;
+            }
+          }
+        }
+      if (!improved) break;
+    }
+    // Positions follow the (possibly new) longitudes.
+    for (Handle& h : handles) {
+      const IntVector ul = Ginv * h.l;
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      double wsum = 0;
+      for (int k = 0; k < n; ++k) {
+        const double w = std::abs(static_cast<double>(ul[k])) * loop_length[k];
+        c += w * loop_centroid[k], wsum += w;
+      }
+      h.pos = wsum > 0 ? Eigen::Vector3d(c / wsum) : Eigen::Vector3d::Zero();
+    }
+  }
+  // Order handles along the longest axis of the bounding box (ties: the
+  // others), and orient each so that its longitude turns positively about
+  // the shortest axis (the normal of a flat shape's plane; next axis when
+  // nearly perpendicular): "half turn" then means something geometric.
+  int axis = 0, thin = 0;
+  for (int d = 1; d < 3; ++d) {
+    if (hi[d] - lo[d] > hi[axis] - lo[axis]) axis = d;
+    if (hi[d] - lo[d] < hi[thin] - lo[thin]) thin = d;
+  }
+  for (Handle& h : handles) {
+    const double len = h.al.norm();
+    int d = thin;
+    for (int t = 0; t < 3 && std::abs(h.al[d]) < 0.2 * len; ++t) d = (d + 1) % 3;
+    if (h.al[d] < 0) h.m = -h.m, h.l = -h.l, h.am = -h.am, h.al = -h.al;
+  }
+  std::stable_sort(handles.begin(), handles.end(), [&](const Handle& x, const Handle& y) {
+    for (int d = 0; d < 3; ++d) {
+      const int e = (axis + d) % 3;
+      if (std::abs(x.pos[e] - y.pos[e]) > 1e-6) return x.pos[e] < y.pos[e];
+    }
+    return false;
+  });
+  hb.P.resize(n, n);
+  for (int i = 0; i < g; ++i) {
+    hb.P.col(2 * i) = handles[i].m;
+    hb.P.col(2 * i + 1) = handles[i].l;
+    hb.position.push_back(handles[i].pos);
+    hb.meridian_area.push_back(handles[i].am);
+    hb.longitude_area.push_back(handles[i].al);
+  }
+  if (hb.P.transpose() * J * hb.P != J) throw SolveError("handle_basis: meridian/longitude basis is not symplectic");
+  try {
+    hb.to_canonical = lift_symplectic(hb.P);
+  } catch (const SolveError& e) {
+    // Geometric basis too far from the canonical one to lift with short
+    // words: fall back to the canonical handles.
+    hb.geometric = false;
+    hb.message = std::string("meridian basis not used: ") + e.what();
+    hb.P = IntMatrix::Identity(n, n);
+    hb.to_canonical = lift_symplectic(hb.P);
+  }
+  return hb;
+}
+
+namespace {
+std::string describe(const std::vector<int>& perm, const std::vector<int>& sign) {
+  std::string d;
+  for (size_t i = 0; i < perm.size(); ++i) {
+    if (i) d += ", ";
+    d += "handle " + std::to_string(i + 1) + " -> handle " + std::to_string(perm[i] + 1);
+    if (sign[i] < 0) d += " (half turn)";
+  }
+  return d;
+}
+}  // namespace
+
+bool handle_correspondence_of(const HandleBasis& source, const HandleBasis& target, const IntMatrix& homology,
+                              std::vector<int>* permutation, std::vector<int>* sign, std::string* description) {
+  const int g = source.genus;
+  const IntMatrix S = integer_inverse(target.P) * homology * source.P;
+  std::vector<int> perm(g, -1), sg(g, 0);
+  bool ok = true;
+  for (int i = 0; i < g && ok; ++i) {
+    for (int j = 0; j < g; ++j) {
+      const auto blk = S.block(2 * j, 2 * i, 2, 2);
+      if (blk.isZero()) continue;
+      if (perm[i] >= 0) ok = false;
+      if (blk == IntMatrix::Identity(2, 2)) perm[i] = j, sg[i] = 1;
+      else if (blk == -IntMatrix::Identity(2, 2)) perm[i] = j, sg[i] = -1;
+      else ok = false;
+    }
+    if (perm[i] < 0) ok = false;
+  }
+  if (permutation) *permutation = perm;
+  if (sign) *sign = sg;
+  if (description) *description = ok ? describe(perm, sg) : "mixes handles";
+  return ok;
+}
+
+std::vector<HandleCandidate> handle_candidates(const HandleBasis& source, const HandleBasis& target,
+                                               int max_candidates) {
+  const int g = source.genus, n = 2 * g;
+  if (target.genus != g) throw InputError("handle_candidates: the surfaces have different genus");
+  const IntMatrix J = symplectic_form(g);
+  const Word R = canonical_relator(g);
+  auto unit = [](const Eigen::Vector3d& v) {
+    const double l = v.norm();
+    return l > 1e-12 ? Eigen::Vector3d(v / l) : Eigen::Vector3d::Zero();
+  };
+  struct Choice {
+    std::vector<int> perm, sign;
+    double score;
+  };
+  std::vector<Choice> choices;
+  std::vector<int> perm(g);
+  std::iota(perm.begin(), perm.end(), 0);
+  do {
+    for (int mask = 0; mask < (1 << g); ++mask) {
+      Choice c{perm, std::vector<int>(g, 1), 0.0};
+      for (int i = 0; i < g; ++i) {
+        if (mask & (1 << i)) c.sign[i] = -1;
+        const int j = perm[i];
+        const double d = 0.5 * (unit(source.meridian_area[i]).dot(unit(target.meridian_area[j])) +
+                                unit(source.longitude_area[i]).dot(unit(target.longitude_area[j])));
+        c.score += (source.position[i] - target.position[j]).squaredNorm() + 0.05 * (1.0 - c.sign[i] * d);
+      }
+      choices.push_back(c);
+    }
+  } while (std::next_permutation(perm.begin(), perm.end()));
+  std::stable_sort(choices.begin(), choices.end(), [](const Choice& x, const Choice& y) { return x.score < y.score; });
+  if (max_candidates > 0 && static_cast<int>(choices.size()) > max_candidates) choices.resize(max_candidates);
+
+  const IntMatrix Ps_inv = integer_inverse(source.P);
+  std::vector<HandleCandidate> out;
+  for (size_t q = 0; q < choices.size(); ++q) {
+    const Choice& c = choices[q];
+    IntMatrix S = IntMatrix::Zero(n, n);
+    for (int i = 0; i < g; ++i) {
+      S(2 * c.perm[i], 2 * i) = c.sign[i];
+      S(2 * c.perm[i] + 1, 2 * i + 1) = c.sign[i];
+    }
+    const SurfaceAutomorphism sigma = lift_symplectic(S);
+    HandleCandidate hc;
+    hc.permutation = c.perm;
+    hc.sign = c.sign;
+    hc.geometric_score = c.score;
+    // Source canonical -> source geometric -> (signed permutation) target
+    // geometric -> target canonical.
+    hc.map = compose(target.to_canonical.map, compose(sigma.map, source.to_canonical.inverse));
+    for (Word& w : hc.map) w = dehn_reduce(w, R);
+    hc.homology = homology_matrix(hc.map, n);
+    if (hc.homology != target.P * S * Ps_inv) throw SolveError("handle_candidates: composed map has the wrong homology");
+    if (hc.homology.transpose() * J * hc.homology != J)
+      throw SolveError("handle_candidates: candidate does not preserve the intersection form");
+    if (!dehn_reduce(substitute(R, hc.map), R).empty())
+      throw SolveError("handle_candidates: candidate does not respect the surface relation");
+    std::string d = describe(c.perm, c.sign);
+    if (q == 0) d += source.geometric && target.geometric ? "  [closest handle positions]" : "";
+    if (!source.geometric || !target.geometric) d += "  [canonical handles: meridians unknown]";
+    hc.description = d;
+    out.push_back(std::move(hc));
+  }
+  return out;
+}
+
+}  // namespace surfmap

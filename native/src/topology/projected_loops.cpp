@@ -1,0 +1,157 @@
+#include "surfmap/topology/projected_loops.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+
+#include "surfmap/topology/edge_homotopy.h"
+
+namespace surfmap {
+namespace {
+
+// Per-axis bounding-box normalisation to [-1/2, 1/2]^3.
+struct BoxFrame {
+  Eigen::Vector3d centre, scale;
+  explicit BoxFrame(const RowMatrixX3d& V) {
+    const Eigen::Vector3d lo = V.colwise().minCoeff(), hi = V.colwise().maxCoeff();
+    centre = 0.5 * (lo + hi);
+    const double longest = (hi - lo).maxCoeff();
+    for (int d = 0; d < 3; ++d) scale[d] = 1.0 / std::max(hi[d] - lo[d], 1e-3 * longest);
+  }
+  Eigen::Vector3d operator()(const Eigen::Vector3d& p) const { return (p - centre).cwiseProduct(scale); }
+};
+
+double mean_edge_length(const TriMesh& m, const BoxFrame& frame) {
+  double s = 0;
+  for (int f = 0; f < m.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k)
+      s += (frame(m.V.row(m.F(f, k)).transpose()) - frame(m.V.row(m.F(f, (k + 1) % 3)).transpose())).norm();
+  return s / std::max(1, 3 * m.num_faces());
+}
+
+// Nearest vertex by a uniform grid.
+class VertexGrid {
+ public:
+  VertexGrid(std::vector<Eigen::Vector3d> p, double cell) : p_(std::move(p)), cell_(cell) {
+    for (int i = 0; i < static_cast<int>(p_.size()); ++i) cells_[key(cellof(p_[i]))].push_back(i);
+  }
+  int nearest(const Eigen::Vector3d& q) const {
+    const Eigen::Vector3i c = cellof(q);
+    int best = -1;
+    double bd = std::numeric_limits<double>::infinity();
+    for (int r = 0; r < 64; ++r) {
+      for (int x = -r; x <= r; ++x)
+        for (int y = -r; y <= r; ++y)
+          for (int z = -r; z <= r; ++z) {
+            if (std::max({std::abs(x), std::abs(y), std::abs(z)}) != r) continue;
+            auto it = cells_.find(key(c + Eigen::Vector3i(x, y, z)));
+            if (it == cells_.end()) continue;
+            for (int i : it->second) {
+              const double d = (p_[i] - q).squaredNorm();
+              if (d < bd) bd = d, best = i;
+            }
+          }
+      // Everything within r cells is seen; a closer point outside would be
+      // at least r * cell away.
+      if (best >= 0 && std::sqrt(bd) <= r * cell_) break;
+    }
+    return best;
+  }
+
+ private:
+  Eigen::Vector3i cellof(const Eigen::Vector3d& q) const {
+    return Eigen::Vector3i(static_cast<int>(std::floor(q[0] / cell_)), static_cast<int>(std::floor(q[1] / cell_)),
+                           static_cast<int>(std::floor(q[2] / cell_)));
+  }
+  static long long key(const Eigen::Vector3i& c) {
+    return ((static_cast<long long>(c[0]) + 1048576) << 42) ^ ((static_cast<long long>(c[1]) + 1048576) << 21) ^
+           (static_cast<long long>(c[2]) + 1048576);
+  }
+  std::vector<Eigen::Vector3d> p_;
+  double cell_;
+  std::unordered_map<long long, std::vector<int>> cells_;
+};
+
+}  // namespace
+
+ProjectedLoopsResult project_loops(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
+                                   const SystemOfLoops& target, const Word& target_word,
+                                   const ProjectedLoopsOptions& options) {
+  ProjectedLoopsResult out;
+  const TriMesh& tm = target.mesh;
+  const Connectivity conn(tm.F, tm.num_vertices());
+  // Target edge elements in the free group on its loop letters.
+  std::vector<Word> letters;
+  for (size_t k = 0; k < target.generator_edges.size(); ++k) letters.push_back({static_cast<int>(k) + 1});
+  const GroupOps<Word> free_group{Word{}, [](const Word& u, const Word& v) { return concat(u, v); },
+                                  [](const Word& u) { return inverse(u); }};
+  const std::vector<Word> edge_word =
+      edge_group_elements(conn, target.tree_parent_halfedge, target.dual_tree_parent_halfedge, target.generator_edges,
+                          loop_first_vertices(target, conn), letters, free_group);
+
+  const BoxFrame sf(source.V), tf(tm.V);
+  const double s_edge = mean_edge_length(source, sf), t_edge = mean_edge_length(tm, tf);
+  std::vector<Eigen::Vector3d> tp(tm.num_vertices());
+  for (int v = 0; v < tm.num_vertices(); ++v) tp[v] = tf(tm.V.row(v).transpose());
+  const VertexGrid grid(tp, 2.0 * t_edge);
+  const int max_gap = static_cast<int>(std::ceil(options.max_gap_factor * std::max(1.0, s_edge / t_edge)));
+
+  // Halfedge from a to b, or -1.
+  std::vector<int> parent_h(tm.num_vertices(), -1), stamp(tm.num_vertices(), -1);
+  int search = 0;
+  for (const auto& loop : source_loops) {
+    const size_t m = loop.size() >= 2 && loop.front() == loop.back() ? loop.size() - 1 : loop.size();
+    std::vector<int> img(m);
+    for (size_t i = 0; i < m; ++i) img[i] = grid.nearest(sf(source.V.row(loop[i]).transpose()));
+    Word w;
+    for (size_t i = 0; i < m; ++i) {
+      const int a = img[i], b = img[(i + 1) % m];
+      if (a == b) continue;
+      // Breadth-first shortest edge path a -> b, at most max_gap edges.
+      ++search;
+      std::vector<int> frontier{a}, next;
+      stamp[a] = search;
+      parent_h[a] = -1;
+      bool found = false;
+      for (int depth = 0; depth < max_gap && !found && !frontier.empty(); ++depth) {
+        next.clear();
+        for (int v : frontier) {
+          for (int h : conn.outgoing(v)) {
+            const int u = conn.head(h);
+            if (stamp[u] == search) continue;
+            stamp[u] = search;
+            parent_h[u] = h;
+            if (u == b) {
+              found = true;
+              break;
+            }
+            next.push_back(u);
+          }
+          if (found) break;
+        }
+        frontier.swap(next);
+        out.longest_gap = std::max(out.longest_gap, depth + 1);
+      }
+      if (!found) {
+        out.message = "the shapes do not overlap: consecutive loop vertices land more than " + std::to_string(max_gap) +
+                      " target edges apart";
+        out.loop_images.clear();
+        return out;
+      }
+      Word seg;
+      for (int v = b; v != a;) {
+        const int h = parent_h[v];
+        const int e = conn.edge(h);
+        seg = concat(conn.edge_halfedge(e) == h ? edge_word[e] : inverse(edge_word[e]), seg);
+        v = conn.tail(h);
+      }
+      w = concat(w, seg);
+    }
+    out.loop_images.push_back(dehn_reduce(w, target_word));
+  }
+  out.ok = true;
+  return out;
+}
+
+}  // namespace surfmap

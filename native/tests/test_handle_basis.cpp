@@ -1,0 +1,168 @@
+#include "surfmap/topology/handle_basis.h"
+
+#include <cmath>
+#include <random>
+#include <set>
+
+#include <Eigen/LU>
+#include <gtest/gtest.h>
+
+#include "surfmap/error.h"
+#include "surfmap/samples/shapes.h"
+#include "surfmap/topology/system_of_loops.h"
+
+namespace surfmap {
+namespace {
+
+// Random symplectic matrix of the kind a change to a meridian basis gives:
+// a product of a few elementary ones (signed handle permutations, twists
+// a += q b / b += q a, mixing of two handles).
+IntMatrix random_symplectic(int g, std::mt19937& rng, int steps) {
+  const int n = 2 * g;
+  const IntMatrix J = symplectic_form(g);
+  IntMatrix P = IntMatrix::Identity(n, n);
+  std::uniform_int_distribution<int> kind(0, 3), handle(0, g - 1), q(-2, 2);
+  for (int s = 0; s < steps; ++s) {
+    IntMatrix T = IntMatrix::Identity(n, n);
+    const int i = handle(rng), j = handle(rng);
+    switch (kind(rng)) {
+      case 0: T(2 * i + 1, 2 * i) = q(rng); break;  // a_i += q b_i
+      case 1: T(2 * i, 2 * i + 1) = q(rng); break;  // b_i += q a_i
+      case 2:                                       // swap handles i, j
+        T.block(2 * i, 2 * i, 2, 2).setZero(), T.block(2 * j, 2 * j, 2, 2).setZero();
+        T.block(2 * i, 2 * j, 2, 2).setIdentity(), T.block(2 * j, 2 * i, 2, 2).setIdentity();
+        if (i == j) T.block(2 * i, 2 * i, 2, 2) = -IntMatrix::Identity(2, 2);
+        break;
+      default:  // a_j += a_i, b_i -= b_j
+        if (i != j) T(2 * j, 2 * i) = 1, T(2 * i + 1, 2 * j + 1) = -1;
+    }
+    P = T * P;
+  }
+  EXPECT_EQ(P.transpose() * J * P, J);
+  return P;
+}
+
+TEST(HandleBasis, LiftOfSymplecticMatricesIsAnExactAutomorphism) {
+  std::mt19937 rng(7);
+  for (int g = 1; g <= 4; ++g)
+    for (int trial = 0; trial < (g <= 2 ? 40 : 10); ++trial) {
+      const IntMatrix P = random_symplectic(g, rng, 1 + trial % 4);
+      const SurfaceAutomorphism a = lift_symplectic(P);
+      EXPECT_EQ(homology_matrix(a.map, 2 * g), P);
+      EXPECT_TRUE(is_surface_automorphism(a, g)) << "genus " << g << " trial " << trial;
+    }
+  // Not symplectic (anti-symplectic: orientation reversing) is refused.
+  IntMatrix Q = IntMatrix::Identity(4, 4);
+  Q(1, 1) = -1;
+  Q(3, 3) = -1;
+  EXPECT_THROW(lift_symplectic(Q), InputError);
+}
+
+TEST(HandleBasis, AnEndomorphismThatBreaksTheRelatorIsRejected) {
+  // Swapping two handles without the conjugation: a1 <-> a2, b1 <-> b2 maps
+  // [a1,b1][a2,b2] to [a2,b2][a1,b1], a conjugate, but in genus 3 the
+  // product with [a3,b3] is no longer trivial.
+  SurfaceAutomorphism bad;
+  bad.map = {{3}, {4}, {1}, {2}, {5}, {6}};
+  bad.inverse = bad.map;
+  EXPECT_FALSE(is_surface_automorphism(bad, 3));
+}
+
+TEST(HandleBasis, LinkingNumbersOfPolygons) {
+  auto circle = [](Eigen::Vector3d c, Eigen::Vector3d u, Eigen::Vector3d v, int n) {
+    std::vector<Eigen::Vector3d> p;
+    for (int k = 0; k < n; ++k) {
+      const double t = 2 * M_PI * k / n;
+      p.push_back(c + std::cos(t) * u + std::sin(t) * v);
+    }
+    return p;
+  };
+  const auto a = circle({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 37);
+  const auto hopf = circle({1, 0, 0}, {1, 0, 0}, {0, 0, 1}, 29);  // through a's disc once
+  const auto apart = circle({5, 0, 0}, {1, 0, 0}, {0, 0, 1}, 29);
+  EXPECT_NEAR(std::abs(linking_number(a, hopf)), 1.0, 1e-9);
+  EXPECT_NEAR(linking_number(a, hopf), linking_number(hopf, a), 1e-9);  // symmetric
+  EXPECT_NEAR(linking_number(a, apart), 0.0, 1e-9);
+  std::vector<Eigen::Vector3d> rev(hopf.rbegin(), hopf.rend());
+  EXPECT_NEAR(linking_number(a, rev), -linking_number(a, hopf), 1e-9);
+}
+
+HandleBasis basis_of(const TriMesh& m) {
+  const SystemOfLoops sl = system_of_loops(m);
+  return handle_basis(sl.mesh, sl.loops, canonical_schema(sl.word));
+}
+
+TEST(HandleBasis, TorusMeridianIsTheSmallCircle) {
+  // Meridians are the left kernel of lk(x pushed inside, y): on a torus of
+  // revolution the small circle (length 2 pi r), not the long way round.
+  const TriMesh t = samples::torus_of_revolution(1.0, 0.3, 48, 20);
+  const SystemOfLoops sl = system_of_loops(t);
+  const CanonicalSchema cs = canonical_schema(sl.word);
+  const HandleBasis hb = handle_basis(sl.mesh, sl.loops, cs);
+  ASSERT_TRUE(hb.geometric) << hb.message;
+  EXPECT_LT(hb.linking_roundoff, 1e-6);
+  ASSERT_EQ(hb.meridian_loops.size(), 1u);
+  auto length = [&](const std::vector<int>& loop) {
+    double l = 0;
+    for (size_t i = 0; i + 1 < loop.size(); ++i) l += (sl.mesh.V.row(loop[i + 1]) - sl.mesh.V.row(loop[i])).norm();
+    return l;
+  };
+  const double lm = length(sl.loops[hb.meridian_loops[0]]);
+  EXPECT_LT(lm, 1.3 * 2 * M_PI * 0.3);  // edge paths zigzag a little
+  EXPECT_GT(length(sl.loops[1 - hb.meridian_loops[0]]), 2 * M_PI * 0.6);
+}
+
+TEST(HandleBasis, GenusTwoAndThreeShapesHaveMeridiansAndLongitudes) {
+  for (const TriMesh& m : {samples::n_hole_torus(2, 32, true), samples::n_hole_torus(3, 36, false),
+                           samples::vase(36, true)}) {
+    const HandleBasis hb = basis_of(m);
+    ASSERT_TRUE(hb.geometric) << hb.message;
+    const int g = hb.genus, n = 2 * g;
+    EXPECT_LT(hb.linking_roundoff, 1e-3);
+    EXPECT_EQ(hb.P.transpose() * symplectic_form(g) * hb.P, symplectic_form(g));
+    EXPECT_TRUE(is_surface_automorphism(hb.to_canonical, g));
+    EXPECT_EQ(homology_matrix(hb.to_canonical.map, n), hb.P);
+    // Each meridian is in the left kernel of the linking form, each
+    // longitude in the right kernel: lk(m^-, .) = 0 and lk(., l) = 0.
+    const SystemOfLoops sl = system_of_loops(m);
+    const CanonicalSchema cs = canonical_schema(sl.word);
+    IntMatrix Ginv(n, n);
+    for (int j = 0; j < n; ++j) Ginv.col(j) = abelianize(cs.generators[j], n);
+    const IntMatrix Lc = Ginv.transpose() * hb.loop_linking * Ginv;
+    for (int i = 0; i < g; ++i) {
+      EXPECT_TRUE((hb.P.col(2 * i).transpose() * Lc).isZero());
+      EXPECT_TRUE((Lc * hb.P.col(2 * i + 1)).isZero());
+      EXPECT_TRUE(hb.position[i].allFinite());
+    }
+  }
+}
+
+TEST(HandleBasis, CandidatesAreDistinctExactClasses) {
+  const HandleBasis a = basis_of(samples::n_hole_torus(2, 32, true));
+  const HandleBasis b = basis_of(samples::amphora(36, true));
+  const std::vector<HandleCandidate> c = handle_candidates(a, b, 100);
+  ASSERT_EQ(c.size(), 8u);  // 2! permutations x 2^2 half turns
+  const Word R = canonical_relator(2);
+  std::set<std::vector<long long>> seen;
+  for (const HandleCandidate& hc : c) {
+    EXPECT_TRUE(dehn_reduce(substitute(R, hc.map), R).empty()) << hc.description;
+    EXPECT_EQ(hc.homology.transpose() * symplectic_form(2) * hc.homology, symplectic_form(2));
+    EXPECT_EQ(hc.homology, b.P * [&] {
+      IntMatrix S = IntMatrix::Zero(4, 4);
+      for (int i = 0; i < 2; ++i) S(2 * hc.permutation[i], 2 * i) = S(2 * hc.permutation[i] + 1, 2 * i + 1) = hc.sign[i];
+      return S;
+    }() * a.P.cast<double>().inverse().array().round().cast<long long>().matrix());
+    seen.insert(std::vector<long long>(hc.homology.data(), hc.homology.data() + 16));
+    EXPECT_NE(hc.description.find("handle 1 -> handle"), std::string::npos);
+  }
+  EXPECT_EQ(seen.size(), c.size());
+  for (size_t k = 1; k < c.size(); ++k) EXPECT_LE(c[k - 1].geometric_score, c[k].geometric_score);
+  // The same shape against itself: the best-scored class is the identity on handles.
+  const std::vector<HandleCandidate> self = handle_candidates(a, a, 8);
+  EXPECT_EQ(self[0].permutation, (std::vector<int>{0, 1}));
+  EXPECT_EQ(self[0].sign, (std::vector<int>{1, 1}));
+  EXPECT_EQ(self[0].homology, IntMatrix::Identity(4, 4));
+}
+
+}  // namespace
+}  // namespace surfmap
