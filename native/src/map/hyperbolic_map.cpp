@@ -211,14 +211,14 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   ho.max_iterations = options.max_iterations;
   if (options.progress)
     ho.progress = [&](int, double, double) { return options.progress("homotopy candidates", 0.4); };
-  const std::vector<Complex> start(source.num_vertices(), Complex(0.0));
+  const std::vector<Complex> origin(source.num_vertices(), Complex(0.0));
   // A class whose solve fails numerically (deck elements too large for
   // double precision: very twisted classes) is reported with infinite
   // energy instead of failing the whole map, unless it was asked for.
   auto solve_class = [&](int k, const HyperbolicHarmonicOptions& o, HyperbolicHarmonicResult& r) {
     std::string why;
     try {
-      r = hyperbolic_harmonic_map(source.num_vertices(), data[k].edges, layout.generators, start, o);
+      r = hyperbolic_harmonic_map(source.num_vertices(), data[k].edges, layout.generators, origin, o);
       bool finite = std::isfinite(r.energy);
       for (size_t i = 0; i < r.z.size() && finite; ++i) finite = std::isfinite(r.z[i].real()) && std::isfinite(r.z[i].imag());
       if (finite) return true;
