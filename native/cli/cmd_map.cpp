@@ -71,7 +71,7 @@ void register_map(CLI::App& app) {
                   "PAIRS.txt: one 'source_vertex target_vertex' pair per line (# starts a comment), held fixed");
   cmd->add_option("--tolerance", a->tolerance, "Relative gradient tolerance of the harmonic solve")
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--max-iterations", a->max_iterations, "Iteration cap of the harmonic solve")
+  cmd->add_option("--max-iterations", a->max_iterations, "Iteration cap of the harmonic solve (relaxation: sweeps, of the order of #V per decade of gradient)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--homotopy-candidates", a->homotopy_candidates,
                   "Genus >= 2: handle correspondences considered (best matching handle positions first)");
