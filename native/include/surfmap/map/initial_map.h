@@ -23,8 +23,10 @@
 // images. With positive weights this map is an embedding (the hyperbolic
 // Tutte theorem; DESIGN.md §2.8), on any triangulation, slivers included,
 // and it is the exact counterpart of the genus-1 initial map (flat_map.cpp:
-// the uniform-weight Tutte embedding of the flat torus). It is composed with
-// the target through the same point location as the optimum. Cost: a
+// the uniform-weight Tutte embedding of the flat torus). Its figures
+// (energy, D' per source face, flips) are measured on the image triangles in
+// the Poincaré disk, where they are intrinsic to the target's metric; only
+// the optimum is located on the target's triangles (3D points). Cost: a
 // Newton solve from the origin with uniform weights (about 7 iterations on
 // the generated shapes), which the main solve earns back: from this start it
 // needs about 3 Newton iterations instead of 8–13 from the origin.
