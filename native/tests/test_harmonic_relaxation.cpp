@@ -304,6 +304,7 @@ TEST(SurfaceMapInitialMap, GenusTwoBeforeFiguresAndRelaxationOnThePipelinesProbl
   const TriMesh a = samples::n_hole_torus(2, 32, true), b = samples::vase(34, true);
   HarmonicProblem p;
   SurfaceMapOptions o;
+  o.homotopy = 0;  // any class will do; skips the ranking's full solves
   o.inspect_problem = [&](const HarmonicProblem& q) { p = q; };
   const SurfaceMapResult m = surface_map(a, b, o);
   ASSERT_TRUE(m.converged);
@@ -337,6 +338,7 @@ TEST(SurfaceMapInitialMap, GenusTwoBeforeFiguresAndRelaxationOnThePipelinesProbl
   EXPECT_LT(r.energy - m.final_energy, 0.5 * (m.initial_energy - m.final_energy));
   // Relaxation through surface_map with too few sweeps is a failure, not a result.
   SurfaceMapOptions o2;
+  o2.homotopy = 0;
   o2.method = MapMethod::Relaxation;
   o2.max_iterations = 20;
   try {
@@ -349,7 +351,9 @@ TEST(SurfaceMapInitialMap, GenusTwoBeforeFiguresAndRelaxationOnThePipelinesProbl
 
 TEST(SurfaceMapInitialMap, SliverSourceInitialMapHasNoFlips) {
   const TriMesh a = samples::n_hole_torus(2, 40, false), b = samples::amphora(34, true);
-  const SurfaceMapResult m = surface_map(a, b);
+  SurfaceMapOptions o;
+  o.homotopy = 0;
+  const SurfaceMapResult m = surface_map(a, b, o);
   EXPECT_EQ(m.initial_flipped_triangles, 0);
   EXPECT_EQ(static_cast<int>(m.initial_dilatation.size()), a.num_faces());
   EXPECT_GE(m.initial_energy, m.final_energy);
