@@ -255,6 +255,27 @@ TEST(SphericalMap, LandmarksAreHitExactly) {
   EXPECT_DOUBLE_EQ(m.max_landmark_error, recomputed);
 }
 
+TEST(SphericalMap, TwoLandmarkRefinementKeepsTheLandmarksAndFitsTheShapeBetter) {
+  const TriMesh a = blob_mesh(3);
+  TriMesh b = blob_mesh(3);
+  b.V *= 1.5;
+  const RowMatrixX3d P = a.V.rowwise().normalized();  // a centred-enough image for the test
+  RowMatrixX3d Q = b.V.rowwise().normalized();
+  const SphereLocator loc(Q, b.F);
+  // Two landmarks off the identity: the fixed-third-point map hits them, the
+  // refinement keeps hitting them and lowers the mismatch.
+  const std::vector<Eigen::Vector3d> from = {P.row(0).transpose(), P.row(200).transpose()};
+  const std::vector<Eigen::Vector3d> to = {Q.row(30).transpose(), Q.row(420).transpose()};
+  const SphereMobius m0 = fit_sphere_mobius(from, to);
+  double before = 0, after = 0;
+  int evaluations = 0;
+  const SphereMobius m1 =
+      refine_two_landmark_mobius(m0, to[0], to[1], a.V, a.F, P, b.V, b.F, loc, {}, &evaluations, &before, &after);
+  for (int k = 0; k < 2; ++k) EXPECT_LT((m1.apply(from[k]) - to[k]).norm(), 1e-9);
+  EXPECT_GT(evaluations, 4);
+  EXPECT_LT(after, before);
+}
+
 TEST(SphericalMap, ConsistentLandmarksKeepTheMap) {
   // Landmarks that agree with the free map change (almost) nothing.
   const TriMesh a = blob_mesh(3);

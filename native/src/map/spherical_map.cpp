@@ -131,6 +131,53 @@ SphereMobius least_squares_mobius(SphereMobius m, const std::vector<Eigen::Vecto
   return m;
 }
 
+RowMatrixX3d normalised_shape(const RowMatrixX3d& V, const RowMatrixX3i& F, Eigen::VectorXd* vertex_area);
+
+// The shape mismatch J (spherical_map.h) of a map of the source's sphere
+// image, over an evenly strided sample of source vertices; remembers each
+// sample's last face so that nearby maps locate quickly.
+class ShapeMismatch {
+ public:
+  ShapeMismatch(const RowMatrixX3d& source_V, const RowMatrixX3i& source_F, const RowMatrixX3d& source_sphere,
+                const RowMatrixX3d& target_V, const RowMatrixX3i& target_F, const SphereLocator& locator,
+                int max_samples)
+      : sphere_(source_sphere), target_F_(target_F), locator_(locator) {
+    Ys_ = normalised_shape(source_V, source_F, &a_s_);
+    Eigen::VectorXd a_t;
+    Zt_ = normalised_shape(target_V, target_F, &a_t);
+    const int ns = static_cast<int>(source_V.rows());
+    const int stride = std::max(1, (ns + max_samples - 1) / std::max(max_samples, 1));
+    for (int i = 0; i < ns; i += stride) samples_.push_back(i), weight_ += a_s_[i];
+    weight_ = std::max(weight_, 1e-300);
+    hint_.assign(samples_.size(), -1);
+  }
+  template <class Map>
+  double operator()(const Map& map) {
+    ++evaluations;
+    double sum = 0;
+    for (size_t k = 0; k < samples_.size(); ++k) {
+      const int i = samples_[k];
+      Eigen::Vector3d b;
+      const int f = locator_.locate(map(Eigen::Vector3d(sphere_.row(i).transpose())), &b, hint_[k]);
+      hint_[k] = f;
+      Eigen::Vector3d z = Eigen::Vector3d::Zero();
+      for (int c = 0; c < 3; ++c) z += b[c] * Zt_.row(target_F_(f, c)).transpose();
+      sum += a_s_[i] * (Ys_.row(i).transpose() - z).squaredNorm();
+    }
+    return sum / weight_;
+  }
+  int evaluations = 0;
+
+ private:
+  const RowMatrixX3d& sphere_;
+  const RowMatrixX3i& target_F_;
+  const SphereLocator& locator_;
+  RowMatrixX3d Ys_, Zt_;
+  Eigen::VectorXd a_s_;
+  std::vector<int> samples_, hint_;
+  double weight_ = 0;
+};
+
 // The 24 rotations of the cube (signed permutation matrices of det +1).
 std::vector<Eigen::Matrix3d> cube_rotations() {
   std::vector<Eigen::Matrix3d> out;
@@ -544,34 +591,9 @@ SphereAlignmentResult align_sphere_rotation(const RowMatrixX3d& source_V, const 
                                             const RowMatrixX3i& target_F, const RowMatrixX3d& target_sphere,
                                             const SphereLocator& target_locator,
                                             const SphereAlignmentOptions& options) {
-  Eigen::VectorXd a_s, a_t;
-  const RowMatrixX3d Ys = normalised_shape(source_V, source_F, &a_s);
-  const RowMatrixX3d Zt = normalised_shape(target_V, target_F, &a_t);
-  const int ns = static_cast<int>(source_V.rows());
-  const int stride = std::max(1, (ns + options.max_samples - 1) / std::max(options.max_samples, 1));
-  std::vector<int> samples;
-  for (int i = 0; i < ns; i += stride) samples.push_back(i);
-  std::vector<int> hint(samples.size(), -1);
-  double weight = 0;
-  for (int i : samples) weight += a_s[i];
-  weight = std::max(weight, 1e-300);
-
+  ShapeMismatch mismatch(source_V, source_F, source_sphere, target_V, target_F, target_locator, options.max_samples);
   SphereAlignmentResult out;
-  auto J = [&](const Eigen::Matrix3d& R) {
-    ++out.evaluations;
-    double sum = 0;
-    for (size_t k = 0; k < samples.size(); ++k) {
-      const int i = samples[k];
-      const Eigen::Vector3d q = R * source_sphere.row(i).transpose();
-      Eigen::Vector3d b;
-      const int f = target_locator.locate(q, &b, hint[k]);
-      hint[k] = f;
-      Eigen::Vector3d z = Eigen::Vector3d::Zero();
-      for (int c = 0; c < 3; ++c) z += b[c] * Zt.row(target_F(f, c)).transpose();
-      sum += a_s[i] * (Ys.row(i).transpose() - z).squaredNorm();
-    }
-    return sum / weight;
-  };
+  auto J = [&](const Eigen::Matrix3d& R) { return mismatch([&](const Eigen::Vector3d& x) { return Eigen::Vector3d(R * x); }); };
   auto refine = [&](Eigen::Matrix3d R, double value, double final_step) {
     for (double step = options.initial_step; step >= final_step; step *= 0.5) {
       for (bool improved = true; improved;) {
@@ -603,7 +625,48 @@ SphereAlignmentResult align_sphere_rotation(const RowMatrixX3d& source_V, const 
   best = refine(best.first, best.second, options.final_step);
   out.rotation = best.first;
   out.mismatch = best.second;
+  out.evaluations = mismatch.evaluations;
   return out;
+}
+
+SphereMobius refine_two_landmark_mobius(const SphereMobius& M, const Eigen::Vector3d& q0, const Eigen::Vector3d& q1,
+                                        const RowMatrixX3d& source_V, const RowMatrixX3i& source_F,
+                                        const RowMatrixX3d& source_sphere, const RowMatrixX3d& target_V,
+                                        const RowMatrixX3i& target_F, const SphereLocator& target_locator,
+                                        const SphereAlignmentOptions& options, int* evaluations,
+                                        double* mismatch_before, double* mismatch_after) {
+  // C sends q0 -> 0 (south pole), q1 -> ∞ (north pole); z -> λ z then fixes
+  // both, so C⁻¹ D_λ C M (λ = e^(a + i b)) are all the Möbius maps taking
+  // the two landmarks where M takes them.
+  Eigen::Vector3d r = (q0 + q1).norm() > 1e-6 ? Eigen::Vector3d(-(q0 + q1).normalized()) : q0.unitOrthogonal();
+  if ((r - q0).norm() < 1e-6 || (r - q1).norm() < 1e-6) r = q0.cross(q1).normalized();
+  const SphereMobius C = SphereMobius::from_three_points({q0, r, q1}, {-Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX(),
+                                                                       Eigen::Vector3d::UnitZ()});
+  const SphereMobius Ci = C.inverse(), CM = C * M;
+  auto family = [&](double a, double b) {
+    SphereMobius D;
+    const std::complex<double> h = std::exp(0.5 * std::complex<double>(a, b));
+    D.m << h, 0, 0, 1.0 / h;
+    return Ci * D * CM;
+  };
+  ShapeMismatch mismatch(source_V, source_F, source_sphere, target_V, target_F, target_locator, options.max_samples);
+  auto J = [&](double a, double b) {
+    const SphereMobius F = family(a, b);
+    return mismatch([&](const Eigen::Vector3d& x) { return F.apply(x); });
+  };
+  double a = 0, b = 0, value = J(0, 0);
+  if (mismatch_before) *mismatch_before = value;
+  for (double step = 0.5; step >= 1e-3; step *= 0.5)
+    for (bool improved = true; improved;) {
+      improved = false;
+      for (const auto& [da, db] : {std::pair{step, 0.0}, std::pair{-step, 0.0}, std::pair{0.0, step}, std::pair{0.0, -step}}) {
+        const double v = J(a + da, b + db);
+        if (v < value) value = v, a += da, b += db, improved = true;
+      }
+    }
+  if (evaluations) *evaluations = mismatch.evaluations;
+  if (mismatch_after) *mismatch_after = value;
+  return family(a, b);
 }
 
 // ---------------------------------------------------------------------------
@@ -636,14 +699,19 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
     for (const auto& [s, t] : options.landmarks)
       from.push_back(X.row(s).transpose()), to.push_back(ut.positions.row(t).transpose());
     double rms = 0;
-    const SphereMobius M = fit_sphere_mobius(from, to, &rms);
+    SphereMobius M = fit_sphere_mobius(from, to, &rms);
+    if (options.landmarks.size() == 2) {
+      int evaluations = 0;
+      M = refine_two_landmark_mobius(M, to[0], to[1], source.V, source.F, X, target.V, target.F, tloc, {}, &evaluations);
+      out.iterations += evaluations;
+    }
     for (int i = 0; i < ns; ++i) X.row(i) = M.apply(X.row(i).transpose()).transpose();
     // Exact fits (<= 3 landmarks) hit their targets to round-off; put them
     // exactly there so the forward point is the target vertex itself.
     if (options.landmarks.size() <= 3)
       for (const auto& [s, t] : options.landmarks) X.row(s) = ut.positions.row(t);
   }
-  out.iterations = al.evaluations;
+  out.iterations += al.evaluations;
   out.converged = true;
   stage_done("alignment", 0.55);
 

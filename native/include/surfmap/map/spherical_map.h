@@ -27,7 +27,9 @@
 //   * Landmarks (paper §VII-C): after that rotation, 1 pair is hit by the
 //     smallest rotation taking one point to the other (an isometry: centring
 //     kept); 2 pairs by the Möbius map taking both points to their targets
-//     and fixing a third point far from all four; 3 pairs by the unique
+//     that minimises the same shape mismatch J over the two real parameters
+//     left (refine_two_landmark_mobius, started from the one fixing a third
+//     point far from all four); 3 pairs by the unique
 //     Möbius map taking the three points to the three targets (exact);
 //     more than 3 by the Möbius map closest to them in least squares
 //     (Levenberg–Marquardt on the sphere, started from the best exact
@@ -140,5 +142,18 @@ SphereAlignmentResult align_sphere_rotation(const RowMatrixX3d& source_V, const 
                                             const RowMatrixX3i& target_F, const RowMatrixX3d& target_sphere,
                                             const SphereLocator& target_locator,
                                             const SphereAlignmentOptions& options = {});
+
+/// Two landmarks leave two real parameters of the Möbius map: the maps
+/// C⁻¹ ∘ (z ↦ λz) ∘ C ∘ M (C sending q0, q1 to 0, ∞) all take the landmarks
+/// where M takes them (onto q0, q1). Picks λ minimising the shape mismatch J
+/// of the source image `source_sphere` (already rotated) mapped by the
+/// family, by pattern search on log λ. evaluations, mismatch_before (λ = 1)
+/// and mismatch_after are optional outputs.
+SphereMobius refine_two_landmark_mobius(const SphereMobius& M, const Eigen::Vector3d& q0, const Eigen::Vector3d& q1,
+                                        const RowMatrixX3d& source_V, const RowMatrixX3i& source_F,
+                                        const RowMatrixX3d& source_sphere, const RowMatrixX3d& target_V,
+                                        const RowMatrixX3i& target_F, const SphereLocator& target_locator,
+                                        const SphereAlignmentOptions& options = {}, int* evaluations = nullptr,
+                                        double* mismatch_before = nullptr, double* mismatch_after = nullptr);
 
 }  // namespace surfmap
