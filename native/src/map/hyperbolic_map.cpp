@@ -350,9 +350,19 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     start_edges = edges;
     start_deck.assign(start.size(), Mobius());
   }
+  // Progress fraction: Newton by iterations; the relaxation (thousands of
+  // sweeps) by how many of the decades from its first gradient down to the
+  // tolerance are done.
+  double first_gradient = -1;
   auto solve_progress = [&](int it, double E, double g) {
     if (options.solve_progress && !options.solve_progress(it, E, g)) return false;
-    return !options.progress || options.progress("harmonic solve", 0.45 + 0.25 * std::min(1.0, it / 50.0));
+    if (first_gradient < 0) first_gradient = g;
+    double done = std::min(1.0, it / 50.0);
+    if (options.method == MapMethod::Relaxation && first_gradient > 0 && g > 0) {
+      const double decades = std::log(first_gradient / std::max(options.tolerance, 1e-300));
+      done = decades > 0 ? std::clamp(std::log(first_gradient / g) / decades, 0.0, 1.0) : 1.0;
+    }
+    return !options.progress || options.progress("harmonic solve", 0.45 + 0.25 * done);
   };
   if (options.inspect_problem) {
     HarmonicProblem p;
