@@ -314,22 +314,22 @@ def uv_islands(F, corner_uv, seams=None):
     if seams is None:
         seams = uv_seams(F, corner_uv)
     nf, _ = face_adjacency(F)
-    parent = np.arange(m)
-
-    def find(x):
-        root = x
-        while parent[root] != root:
-            root = parent[root]
-        while parent[x] != root:
-            parent[x], x = root, parent[x]
-        return root
     fs, ks = np.nonzero(~seams & (nf >= 0))
-    for f, k in zip(fs.tolist(), ks.tolist()):
-        g = int(nf[f, k])
-        a, b = find(f), find(g)
-        if a != b:
-            parent[max(a, b)] = min(a, b)
-    roots = np.array([find(i) for i in range(m)], dtype=np.int64)
+    f, g = fs, nf[fs, ks]
+    # connected components by hooking and pointer jumping (Shiloach-Vishkin style, vectorised)
+    roots = np.arange(m)
+    while True:
+        rf, rg = roots[f], roots[g]
+        if np.array_equal(rf, rg):
+            break
+        lo = np.minimum(rf, rg)
+        np.minimum.at(roots, rf, lo)
+        np.minimum.at(roots, rg, lo)
+        while True:
+            nxt = roots[roots]
+            if np.array_equal(nxt, roots):
+                break
+            roots = nxt
     _, island = np.unique(roots, return_inverse=True)
     return island
 
@@ -389,19 +389,18 @@ class UVTransfer:
         return np.einsum("ik,ikj->ij", np.asarray(bary, dtype=np.float64),
                          self.uv[np.asarray(face, dtype=np.int64)])
 
-    def _stretched(self, uv, face, bary, factor=3.0):
-        """True when the corners' UVs are much farther apart than their preimages on the
-        surface allow (more than `factor` times the source's largest UV-per-length ratio)."""
+    def _stretched_polygons(self, uv, face, bary, start, total, factor=3.0):
+        """Per polygon: True when some edge's UV length exceeds `factor` times the source's
+        largest UV-per-length ratio times the distance of its corners' preimages."""
         if not hasattr(self, "_max_ratio"):
             self._max_ratio = float(np.max(uv_stretch(self.uv, self.V[self.F])))
-        P = points_at(self.V, self.F, face, bary)
-        n = len(uv)
-        for c in range(n):
-            d = float(np.linalg.norm(P[(c + 1) % n] - P[c]))
-            du = float(np.linalg.norm(uv[(c + 1) % n] - uv[c]))
-            if du > factor * self._max_ratio * max(d, 1e-300):
-                return True
-        return False
+        Pp = points_at(self.V, self.F, face, bary)
+        nxt = np.arange(len(face)) + 1
+        nxt[start + total - 1] = start
+        d = np.linalg.norm(Pp[nxt] - Pp, axis=1)
+        du = np.linalg.norm(uv[nxt] - uv, axis=1)
+        bad = du > factor * self._max_ratio * np.maximum(d, 1e-300)
+        return np.logical_or.reduceat(bad, start)
 
     def _seam_step(self, h, k):
         """Affine map taking the own UVs of the triangle across h's seam edge k into h's own
@@ -501,15 +500,17 @@ class UVTransfer:
         for k in range(3):
             ok |= (lf == self.nf[ref, k]) & ~self.seam[ref, k]
         poly_ok = np.logical_and.reduceat(ok, start) if P else np.zeros(0, dtype=bool)
+        if self.V is not None and P:
+            # also kept: polygons in one island whose UVs are not spread across the layout
+            li = self.island[lf]
+            one = np.minimum.reduceat(li, start) == np.maximum.reduceat(li, start)
+            poly_ok |= one & ~self._stretched_polygons(out, lf, lb, start, total)
         straddling = np.zeros(P, dtype=bool)
         isl = self.island
         for p in np.nonzero(~poly_ok)[0].tolist():
             s, n = int(start[p]), int(total[p])
             faces = lf[s:s + n].tolist()
             islands = [int(isl[f]) for f in faces]
-            if self.V is not None and len(set(islands)) == 1 and \
-                    not self._stretched(out[s:s + n], lf[s:s + n], lb[s:s + n]):
-                continue  # one island and not spread across the layout: its own UVs
             # reference charts to try: the island most corners are in first, then the others;
             # the first whose UV polygon keeps the reference triangle's orientation wins
             order = sorted(range(n), key=lambda c: (-islands.count(islands[c]), c))
