@@ -91,9 +91,14 @@ void register_map(CLI::App& app) {
     opt.homotopy_candidates = a->homotopy_candidates;
     opt.homotopy_full_solves = a->homotopy_full_solves;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
+    // One line per stage and percent (the relaxation reports every few sweeps).
+    std::string last_line;
     if (!a->quiet)
-      opt.progress = [](const std::string& stage, double fraction) {
-        std::cerr << "surfmap: " << std::setw(3) << static_cast<int>(100 * fraction) << "% " << stage << "\n";
+      opt.progress = [&last_line](const std::string& stage, double fraction) {
+        std::ostringstream line;
+        line << "surfmap: " << std::setw(3) << static_cast<int>(100 * fraction) << "% " << stage;
+        if (line.str() != last_line) std::cerr << line.str() << "\n";
+        last_line = line.str();
         return true;
       };
     const SurfaceMapResult m = surface_map(src.mesh, dst.mesh, opt);
