@@ -112,8 +112,9 @@ def _check_outputs(src, tgt, genus, uv_names=("UVMap", "Box"), max_flipped=0.0,
     settings = bpy.context.scene.surfmap
     assert "genus %d" % genus in settings.map_status, settings.map_status
     assert len(settings.candidates) >= 1
-    energies = [c.energy for c in settings.candidates]
+    energies = [c.energy if c.solved else np.inf for c in settings.candidates]
     assert settings.chosen_candidate == int(np.argmin(energies))
+    assert settings.candidates[settings.chosen_candidate].solved
 
 
 def test_genus1_pair_writes_every_output():

@@ -398,7 +398,8 @@ def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
     print(f"demo: compute_map in {time.time() - t:.1f}s:", bpy.context.scene.surfmap.map_status)
     cands = bpy.context.scene.surfmap.candidates
     print("demo: handle correspondences (energy):",
-          "; ".join(f"{c.index}: {c.energy:.6g}" for c in cands))
+          "; ".join(f"{c.index}: {c.energy:.6g}" if c.solved else f"{c.index}: not solved"
+                    for c in cands))
 
     def shot(name, objs, curves=False, direction=VIEW, text=None):
         show_only(objs, curves)

@@ -5,6 +5,8 @@ surfmap.transfer_uvs, surfmap.create_morph and surfmap.paint_distortion.
 Reading the scene and writing it are the only bpy work here; the maths is in mapping.py and
 mapjob.py. Everything that can fail is checked before the first write, so a refusal leaves the
 scene as it was."""
+import math
+
 import bpy
 import numpy as np
 
@@ -369,10 +371,17 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
             return {'CANCELLED'}
         settings = context.scene.surfmap
         settings.candidates.clear()
+        lines_c = []
         for i, c in enumerate(res["homotopy"]["candidates"]):
             item = settings.candidates.add()
-            item.index, item.description, item.energy = i, c["description"], float(c["energy"])
+            e = float(c["energy"])
+            item.index, item.description = i, c["description"]
+            item.solved = bool(c.get("solved", True)) and math.isfinite(e)
+            item.energy = e if item.solved else 0.0
+            lines_c.append(f"{i}: " + (f"E = {e:.6g}" if item.solved else "not solved"))
         settings.chosen_candidate = int(res["homotopy"]["chosen"])
+        lines.append(f"handle correspondences (chosen {settings.chosen_candidate}): "
+                     + "; ".join(lines_c))
         summary = f"'{source.name}' -> '{target.name}': " + _summary(res, job.elapsed)
         settings.map_status = "; ".join([summary] + self._notes)
         for note in self._notes:

@@ -54,7 +54,8 @@ def draw_map(layout, settings):
     col.prop(settings, "homotopy")
     for c in settings.candidates:
         mark = "* " if c.index == settings.chosen_candidate else "  "
-        col.label(text=f"{mark}{c.index}: E = {c.energy:.6g}  {c.description}"[:80])
+        energy = f"E = {c.energy:.6g}" if c.solved else "not solved"
+        col.label(text=f"{mark}{c.index}: {energy}  {c.description}"[:90])
     col = box.column(align=True)
     col.prop(settings, "landmark_mode")
     col.prop(settings, "method")

@@ -11,6 +11,8 @@ class SURFMAP_PG_candidate(bpy.types.PropertyGroup):
     index: IntProperty(name="Index")
     description: StringProperty(name="Description")
     energy: FloatProperty(name="Energy")
+    solved: BoolProperty(name="Solved", default=True,
+                         description="False when the core could not solve this class (no energy)")
 
 
 class SURFMAP_PG_settings(bpy.types.PropertyGroup):
