@@ -634,3 +634,26 @@ def test_too_many_uv_maps_refused_before_the_solve():
     for i in range(7):
         b.data.uv_layers.new(name=f"mine{i}")
     _expect_cancel([a, b], b, "UV maps", "do not fit")
+
+
+def test_morph_onto_a_rotated_scaled_target_in_world_space():
+    import math
+    a, b = _torus_pair()
+    b.rotation_euler = (0.3, 0.0, math.radians(30))
+    b.scale = (2.0, 2.0, 2.0)
+    a.scale = (0.5, 0.5, 0.5)
+    bpy.context.view_layer.update()
+    bpy.context.scene.surfmap.morph_space = 'WORLD'
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    M = _mapping()
+    for src, tgt in ((a, b), (b, a)):
+        kb = src.data.shape_keys.key_blocks[f"surfmap to {tgt.name}"]
+        co = np.empty(len(src.data.vertices) * 3)
+        kb.data.foreach_get("co", co)
+        world = M.apply_matrix(np.array(src.matrix_world), co.reshape(-1, 3))
+        local = M.apply_matrix(np.linalg.inv(np.array(tgt.matrix_world)), world)
+        diag = M.bounding_diagonal(helpers.coords(tgt))
+        worst = max((np.array(tgt.closest_point_on_mesh(p)[1]) - p).dot(
+            np.array(tgt.closest_point_on_mesh(p)[1]) - p) ** 0.5 for p in local[::5])
+        assert worst < 1e-5 * diag, (src.name, worst)
