@@ -8,9 +8,6 @@
 #include <set>
 #include <string>
 #include <vector>
-#include <cstdio>
-#include <cstdlib>
-#include <iostream>
 
 #include "landmarks.h"
 #include "map_support.h"
@@ -70,6 +67,15 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   const HandleBasis shb = handle_basis(source, sl.loops, scs);
   const HandleBasis thb = handle_basis(tl.mesh, tl.loops, tcs);
   std::vector<HandleCandidate> handle_classes = handle_candidates(shb, thb, options.homotopy_candidates);
+  // Of the Torelli-equivalent versions of each lifted class, the one whose
+  // source loops have the shortest images in the target (least twisted).
+  auto loop_image_length = [&](const GroupMap& theta) {
+    double total = 0;
+    for (const Word& w : scs.letters)
+      total += static_cast<double>(dehn_reduce(substitute(substitute(w, theta), tcs.generators), layout.word).size());
+    return total;
+  };
+  for (HandleCandidate& hc : handle_classes) hc.map = reduce_separating_twists(hc.map, out.genus, loop_image_length);
   // The class of the two canonical polygon schemata, a_i -> a'_i, b_i -> b'_i:
   // short words whatever the loops look like (the lifted handle classes can
   // differ from the intended ones by long Torelli twists).
@@ -151,13 +157,6 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
       if (!reduced(around).empty())
         throw SolveError("homotopy data inconsistent around source face " + std::to_string(f));
     }
-    if (std::getenv("SURFMAP_DEBUG_HANDLES")) {
-      size_t L = 0;
-      for (const Word& w : target_word) L = std::max(L, w.size());
-      size_t Li = 0;
-      for (const Word& w : letter_image) Li = std::max(Li, w.size());
-      std::fprintf(stderr, "class data: longest edge word %zu, longest letter image %zu, distinct %zu\n", L, Li, memo.size());
-    }
     ClassData cd;
     cd.rho_edge.resize(edge_word.size());
     for (size_t e = 0; e < edge_word.size(); ++e) cd.rho_edge[e] = evaluate_mobius(target_word[e], layout.generators);
@@ -177,21 +176,6 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   if (options.homotopy >= ncand)
     throw InputError("homotopy class " + std::to_string(options.homotopy) + " does not exist; there are " +
                      std::to_string(ncand) + " candidates (0.." + std::to_string(ncand - 1) + ")");
-  if (std::getenv("SURFMAP_DEBUG_HANDLES")) {
-    for (const HandleBasis* hb : {&shb, &thb}) {
-      std::fprintf(stderr, "basis geometric=%d msg=%s roundoff=%g meridian loops=%zu\n", hb->geometric, hb->message.c_str(),
-                   hb->linking_roundoff, hb->meridian_loops.size());
-      std::cerr << "loop linking\n" << hb->loop_linking << "\nP\n" << hb->P << "\n";
-      for (int i = 0; i < hb->genus; ++i)
-        std::cerr << " handle " << i << " pos " << hb->position[i].transpose() << " am " << hb->meridian_area[i].transpose()
-                  << " al " << hb->longitude_area[i].transpose() << "\n";
-    }
-    for (const HandleCandidate& hc : handle_classes) {
-      size_t L = 0;
-      for (const Word& w : hc.map) L = std::max(L, w.size());
-      std::fprintf(stderr, "cand %s score %g maxlen %zu\n", hc.description.c_str(), hc.geometric_score, L);
-    }
-  }
   std::vector<ClassData> data;
   std::vector<char> usable(handle_classes.size(), 1);
   for (const HandleCandidate& hc : handle_classes) {
@@ -272,7 +256,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     if (!r.converged) {
       const std::string why = "did not converge in " + std::to_string(r.iterations) + " iterations (gradient " +
                               std::to_string(r.gradient_history.back()) + ")";
-      if (options.homotopy == k || options.homotopy < 0 && ncand == 1)
+      if (options.homotopy == k || (options.homotopy < 0 && ncand == 1))
         throw SolveError("the harmonic map solve of homotopy class " + std::to_string(k) + " " + why);
       usable[k] = 0;
       out.candidates[k].energy = std::numeric_limits<double>::infinity();
@@ -282,11 +266,6 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     }
     out.candidates[k].energy = r.energy;
     out.candidates[k].solved = true;
-    if (std::getenv("SURFMAP_DEBUG_HANDLES")) {
-      std::fprintf(stderr, "class %d:", k);
-      for (double e : r.energy_history) std::fprintf(stderr, " %.4g", e);
-      std::fprintf(stderr, "\n");
-    }
     const bool better = options.homotopy >= 0 ? k == options.homotopy
                                               : (out.chosen_candidate < 0 || r.energy < out.candidates[out.chosen_candidate].energy);
     if (better) out.chosen_candidate = k;

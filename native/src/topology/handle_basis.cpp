@@ -477,51 +477,6 @@ HandleBasis handle_basis(const TriMesh& mesh, const std::vector<std::vector<int>
     }
     h.pos = wsum > 0 ? Eigen::Vector3d(c / wsum) : Eigen::Vector3d::Zero();
   }
-  // The meridian lattice has many bases (a double torus's outer arms and its
-  // middle bar give three meridians, any two a basis); the handles an artist
-  // sees are the basis whose meridian discs and longitude holes are
-  // smallest. Greedy reduction of sum |vector area| over the elementary
-  // changes m_i += s m_j, l_j -= s l_i (which keep m_i . l_j = delta_ij).
-  if (hb.geometric) {
-    auto cost = [&]() {
-      double c = 0;
-      for (const Handle& h : handles) c += h.am.norm() + h.al.norm();
-      return c;
-    };
-    double best = cost();
-    for (int round = 0; round < 100; ++round) {
-      bool improved = false;
-      for (int i = 0; i < g; ++i)
-        for (int j = 0; j < g; ++j) {
-          if (i == j) continue;
-          for (int sgn : {1, -1}) {
-            Handle& hi_ = handles[i];
-            Handle& hj_ = handles[j];
-            hi_.m += sgn * hj_.m, hi_.am += sgn * hj_.am;
-            hj_.l -= sgn * hi_.l, hj_.al -= sgn * hi_.al;
-            const double c = cost();
-            if (c < best * (1 - 1e-9)) {
-              best = c, improved = true;
-            } else {
-              hj_.l += sgn * hi_.l, hj_.al += sgn * hi_.al;
-              hi_.m -= sgn * hj_.m, hi_.am -= sgn * hj_.am;
-            }
-          }
-        }
-      if (!improved) break;
-    }
-    // Positions follow the (possibly new) longitudes.
-    for (Handle& h : handles) {
-      const IntVector ul = Ginv * h.l;
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      double wsum = 0;
-      for (int k = 0; k < n; ++k) {
-        const double w = std::abs(static_cast<double>(ul[k])) * loop_length[k];
-        c += w * loop_centroid[k], wsum += w;
-      }
-      h.pos = wsum > 0 ? Eigen::Vector3d(c / wsum) : Eigen::Vector3d::Zero();
-    }
-  }
   // Order handles along the longest axis of the bounding box (ties: the
   // others), and orient each so that its longitude turns positively about
   // the shortest axis (the normal of a flat shape's plane; next axis when
@@ -577,6 +532,40 @@ std::string describe(const std::vector<int>& perm, const std::vector<int>& sign)
   return d;
 }
 }  // namespace
+
+GroupMap reduce_separating_twists(const GroupMap& map, int genus, const std::function<double(const GroupMap&)>& cost,
+                                  int max_steps) {
+  const int n = 2 * genus;
+  const Word R = canonical_relator(genus);
+  std::vector<GroupMap> twists;  // T_j and T_j^-1
+  for (int j = 1; j < genus; ++j)
+    for (int s : {1, -1}) {
+      Word C;
+      for (int i = 0; i < j; ++i) C = concat({C, {A(i), B(i), -A(i), -B(i)}});
+      if (s < 0) C = inverse(C);
+      GroupMap t = identity_map(n);
+      for (int i = 0; i < j; ++i)
+        for (int x : {A(i), B(i)}) t[x - 1] = concat({C, {x}, inverse(C)});
+      twists.push_back(t);
+    }
+  GroupMap cur = map;
+  double best = cost(cur);
+  for (int step = 0; step < max_steps; ++step) {
+    GroupMap next;
+    double next_cost = best;
+    for (const GroupMap& t : twists)
+      for (const GroupMap& cand : {compose(cur, t), compose(t, cur)}) {
+        GroupMap c = cand;
+        for (Word& w : c) w = dehn_reduce(w, R);
+        const double v = cost(c);
+        if (v < next_cost) next_cost = v, next = std::move(c);
+      }
+    if (next.empty()) break;
+    cur = std::move(next);
+    best = next_cost;
+  }
+  return cur;
+}
 
 bool handle_correspondence_of(const HandleBasis& source, const HandleBasis& target, const IntMatrix& homology,
                               std::vector<int>* permutation, std::vector<int>* sign, std::string* description) {

@@ -46,6 +46,7 @@
 // against each other. Isomorphisms that differ by Torelli elements (same
 // homology, e.g. twists along a curve that separates handles) are not
 // enumerated; the lift picks one.
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -153,6 +154,17 @@ struct HandleCandidate {
 /// handles") when it is not one.
 bool handle_correspondence_of(const HandleBasis& source, const HandleBasis& target, const IntMatrix& homology,
                               std::vector<int>* permutation, std::vector<int>* sign, std::string* description);
+
+/// Lifts fix a class only up to the Torelli group (same action on
+/// homology): e.g. the two ways round of a handle swap differ by a twist
+/// along the curve separating the handles. This composes `map` (canonical
+/// source generators -> words in the canonical target generators) greedily
+/// with the twists T_j along the separating curves [a_1,b_1]...[a_j,b_j]
+/// (j < g; T_j conjugates handles 1..j by that product, an exact
+/// automorphism) on either side, while `cost` (e.g. the total length of the
+/// source loops' images) decreases. Homology is unchanged.
+GroupMap reduce_separating_twists(const GroupMap& map, int genus, const std::function<double(const GroupMap&)>& cost,
+                                  int max_steps = 40);
 
 /// All signed handle permutations (g! 2^g), ranked by geometric score, the
 /// first `max_candidates` kept. Each is checked exactly (Dehn's algorithm on
