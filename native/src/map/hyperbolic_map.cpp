@@ -286,6 +286,25 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         break;
       }
   stage_done("homotopy candidates", 0.42);
+  // The chosen class, then (when it was the default and fails below: solve
+  // from its initial map, flips, location) the next solved ones by energy.
+  // The body of this loop is the single-class pipeline, left unindented.
+  std::vector<int> fallback;
+  for (int k = 0; k < ncand; ++k)
+    if (k != out.chosen_candidate && out.candidates[k].solved && std::isfinite(out.candidates[k].energy))
+      fallback.push_back(k);
+  std::stable_sort(fallback.begin(), fallback.end(),
+                   [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
+  if (options.homotopy >= 0) fallback.clear();
+  fallback.insert(fallback.begin(), out.chosen_candidate);
+  const SurfaceMapResult before_attempts = out;
+  for (size_t attempt = 0;; ++attempt) try {
+  if (attempt > 0) {
+    const std::vector<HomotopyCandidate> cands = out.candidates;
+    out = before_attempts;
+    out.candidates = cands;
+  }
+  out.chosen_candidate = fallback[attempt];
   const std::vector<Mobius>& rho_edge = data[out.chosen_candidate].rho_edge;
   const std::vector<WeightedEdge>& edges = data[out.chosen_candidate].edges;
   auto rho_of = [&](int h) {
@@ -558,6 +577,11 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     out.inverse[v] = point_in_face(source, f, b);
   }
   stage_done("inverse location", 1.0);
+  return;
+  } catch (const SolveError& e) {
+    if (attempt + 1 >= fallback.size()) throw;
+    out.candidates[fallback[attempt]].description += std::string("  [not used: ") + e.what() + "]";
+  }
 }
 
 }  // namespace surfmap::detail
