@@ -657,3 +657,22 @@ def test_morph_onto_a_rotated_scaled_target_in_world_space():
         worst = max((np.array(tgt.closest_point_on_mesh(p)[1]) - p).dot(
             np.array(tgt.closest_point_on_mesh(p)[1]) - p) ** 0.5 for p in local[::5])
         assert worst < 1e-5 * diag, (src.name, worst)
+
+
+def test_selected_landmarks_follow_the_selection_order():
+    import bmesh
+    from surface_map import blender_io
+    a = helpers.torus("Source")
+    select([a], a)
+    bpy.ops.object.mode_set(mode='EDIT')
+    bm = bmesh.from_edit_mesh(a.data)
+    for v in bm.verts:
+        v.select = False
+    bm.select_flush(False)
+    bm.verts.ensure_lookup_table()
+    for i in (50, 7, 300):          # clicked in this order
+        bm.verts[i].select = True
+        bm.select_history.add(bm.verts[i])
+    bmesh.update_edit_mesh(a.data)
+    bpy.ops.object.mode_set(mode='OBJECT')
+    assert blender_io.selected_vertex_order(a.data) == [50, 7, 300]
