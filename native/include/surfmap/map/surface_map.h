@@ -14,12 +14,28 @@
 // Hyperbolic case (genus >= 2): the energy Σ w_ij d(z_i, ρ_ij z_j)² in the
 // Poincaré disk is geodesically convex; Riemannian Newton with line search
 // (map/hyperbolic_harmonic.h) converges in a handful of iterations. The
-// candidate classes are handle correspondences between meridian/longitude
-// bases found from linking numbers (topology/handle_basis.h): every
-// candidate gets a short solve (1 Newton step, an upper bound of its
-// optimum), the best `homotopy_full_solves` by that bound are solved to
-// convergence (and any other whose bound falls below the best optimum), and
-// the lowest converged energy is the default.
+// candidate classes (DESIGN §2.10), in this order: (0) the class the two
+// shapes induce when overlaid in normalised bounding boxes (the source's
+// loops carried to the nearest target points, topology/projected_loops.h:
+// the identity for a remeshed copy, handles to the handles they overlap for
+// shapes posed alike; absent when the images jump); (1) a_i -> a'_i,
+// b_i -> b'_i of the two canonical polygon schemata; (2...) the signed
+// handle permutations between meridian/longitude bases found from linking
+// numbers (topology/handle_basis.h), best-matching handle positions first,
+// each lifted to an exact surface-group isomorphism and shortened over
+// separating twists; classes with the same action on homology as an
+// earlier one are dropped. Ranking (the cost of a class is a Newton solve
+// from the origin): every candidate gets 1 Newton step (its energy only
+// decreases, so this is an upper bound of the optimum), the best
+// `homotopy_full_solves` by that bound are solved to convergence (and any
+// other whose bound falls below the best optimum), the lowest converged
+// energy is the default (ties within 1e-6, from symmetric shapes, go to the
+// earlier candidate), and that class then runs the full pipeline (initial
+// map, chosen method, landmarks, location). If that pipeline fails for the
+// default class, the next solved class by energy is used and the failed
+// one's description says "[not used: ...]". Classes whose solve fails
+// numerically (deck elements too large) are listed with infinite energy and
+// "[solve failed: ...]".
 //
 // Genus 0 (map/spherical_map.h): both surfaces are uniformized onto the unit
 // sphere and Möbius-centred; all harmonic maps are then conformal, and the

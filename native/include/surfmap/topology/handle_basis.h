@@ -34,8 +34,8 @@
 // made exact by the conjugations that the lift inserts: a transposition of
 // adjacent handles is (a_i, b_i, a_i+1, b_i+1) -> (c a_i+1 c^-1, c b_i+1 c^-1,
 // a_i, b_i) with c = [a_i, b_i], which fixes [a_i,b_i][a_i+1,b_i+1] exactly;
-// a half turn of handle i is the square of (a, b) -> (b^-1-like) twists
-// a -> a b^-1, b -> b a. Every candidate is verified in the surface group
+// a half turn of handle i is (a, b) -> (ab) (a^-1, b^-1) (ab)^-1, which fixes
+// [a_i, b_i] exactly. Every candidate is verified in the surface group
 // (Dehn's algorithm: the image of R reduces to the identity; the inverse
 // composes to the identity) and by its homology matrix (symplectic, unimodular).
 // Candidates are ranked by a geometric score: distance of the handle
@@ -45,7 +45,9 @@
 // side) plus a penalty when the meridians' and longitudes' vector areas point
 // against each other. Isomorphisms that differ by Torelli elements (same
 // homology, e.g. twists along a curve that separates handles) are not
-// enumerated; the lift picks one.
+// enumerated: the lift picks one, which reduce_separating_twists() can
+// shorten; the geometric class for shapes posed alike comes from
+// topology/projected_loops.h instead.
 #include <functional>
 #include <string>
 #include <vector>
