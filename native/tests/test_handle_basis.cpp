@@ -166,3 +166,35 @@ TEST(HandleBasis, CandidatesAreDistinctExactClasses) {
 
 }  // namespace
 }  // namespace surfmap
+
+#include "surfmap/topology/projected_loops.h"
+
+namespace surfmap {
+namespace {
+
+TEST(ProjectedLoops, OwnLoopsProjectToThemselvesAndOtherBasesGiveAnIsomorphism) {
+  const TriMesh m = samples::n_hole_torus(2, 30, true);
+  const SystemOfLoops a = system_of_loops(m);
+  // Onto the same system: every loop is its own letter.
+  const ProjectedLoopsResult same = project_loops(a.mesh, a.loops, a, a.word);
+  ASSERT_TRUE(same.ok) << same.message;
+  for (size_t k = 0; k < a.loops.size(); ++k) EXPECT_EQ(same.loop_images[k], (Word{static_cast<int>(k) + 1}));
+  // Onto a jittered copy with loops from another base vertex: the images
+  // define a homomorphism (the source's boundary word maps to the identity)
+  // that is an isomorphism on homology.
+  SystemOfLoopsOptions o;
+  o.base_vertex = m.num_vertices() / 2;
+  const SystemOfLoops b = system_of_loops(samples::jitter(m, 0.2, 3), o);
+  const ProjectedLoopsResult other = project_loops(a.mesh, a.loops, b, b.word);
+  ASSERT_TRUE(other.ok) << other.message;
+  EXPECT_TRUE(dehn_reduce(substitute(a.word, other.loop_images), b.word).empty());
+  const IntMatrix H = homology_matrix(other.loop_images, 4);
+  EXPECT_EQ(std::llabs(std::llround(H.cast<double>().determinant())), 1);
+  // Normalised boxes: the shape translated by half its size still overlays.
+  TriMesh shifted = a.mesh;
+  shifted.V.col(0).array() += 0.5 * (m.V.col(0).maxCoeff() - m.V.col(0).minCoeff());
+  EXPECT_TRUE(project_loops(shifted, a.loops, a, a.word).ok);
+}
+
+}  // namespace
+}  // namespace surfmap

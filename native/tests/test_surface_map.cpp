@@ -37,12 +37,12 @@ void expect_valid_map(const SurfaceMapResult& m, const TriMesh& source, const Tr
   }
   // The optimum is no worse than the initial map and than every other class.
   EXPECT_LE(m.final_energy, m.initial_energy * (1 + 1e-12));
-  // Ties within 1e-6 (symmetric shapes) go to the earlier candidate; a
+  // Ties within 1e-4 (symmetric shapes) go to the earlier candidate; a
   // lower class whose map failed afterwards (location) says so.
   if (default_class)
     for (const auto& c : m.candidates)
       if (c.description.find("[not used:") == std::string::npos)
-        EXPECT_GE(c.energy, m.candidates[m.chosen_candidate].energy * (1 - 1e-6)) << c.description;
+        EXPECT_GE(c.energy, m.candidates[m.chosen_candidate].energy * (1 - 1e-4)) << c.description;
 }
 
 TEST(SurfaceMap, ExtremalMapBetweenToriOfRevolution) {
@@ -208,7 +208,7 @@ TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) 
     classes.insert(c.homology);
   }
   EXPECT_EQ(classes.size(), m.candidates.size());  // distinct classes
-  for (const HomotopyCandidate& c : m.candidates) EXPECT_GE(c.energy, m.final_energy * (1 - 1e-6));
+  for (const HomotopyCandidate& c : m.candidates) EXPECT_GE(c.energy, m.final_energy * (1 - 1e-4));
   EXPECT_DOUBLE_EQ(m.candidates[m.chosen_candidate].energy, m.final_energy);
 
   // Another class on request: its energy is the one listed, and higher.
@@ -222,7 +222,7 @@ TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) 
   expect_valid_map(m2, a, b, false);
   EXPECT_EQ(m2.chosen_candidate, other);
   EXPECT_NEAR(m2.final_energy, m.candidates[other].energy, 1e-8 * m2.final_energy);
-  EXPECT_GE(m2.final_energy, m.final_energy * (1 - 1e-6));
+  EXPECT_GE(m2.final_energy, m.final_energy * (1 - 1e-4));
   // The ranked default (short solves, two full solves) picks the same class.
   const SurfaceMapResult m3 = surface_map(a, b);
   EXPECT_EQ(m3.chosen_candidate, m.chosen_candidate);

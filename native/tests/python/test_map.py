@@ -201,3 +201,17 @@ def test_landmarks_genus1_hit_exactly(pair):
     assert r["energy"]["final"] >= free["energy"]["final"] * (1 - 1e-12)
     with pytest.raises(surfmap.InputError, match="already landmark"):
         surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=[[1, 2], [1, 3]])
+
+
+def test_genus2_candidates_are_described_and_the_overlay_class_wins():
+    a = surfmap.shapes.n_hole_torus(2, 30, True)
+    b = surfmap.shapes.jitter(*surfmap.shapes.n_hole_torus(2, 34, True), 0.2, 4)
+    r = surfmap.surface_map(*a, *b)
+    cands = r["homotopy"]["candidates"]
+    assert len(cands) >= 8
+    for c in cands:
+        assert set(c) >= {"description", "energy", "solved"}
+        assert "handle 1 -> handle" in c["description"] or "mixes handles" in c["description"]
+    chosen = cands[r["homotopy"]["chosen"]]
+    assert chosen["solved"] and "as the shapes overlap" in chosen["description"]
+    assert r["distortion"]["mean"] < 1.08

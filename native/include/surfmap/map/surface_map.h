@@ -27,10 +27,10 @@
 // earlier one are dropped. Ranking (the cost of a class is a Newton solve
 // from the origin): every candidate gets 1 Newton step (its energy only
 // decreases, so this is an upper bound of the optimum), the best
-// `homotopy_full_solves` by that bound are solved to convergence (and any
-// other whose bound falls below the best optimum), the lowest converged
-// energy is the default (ties within 1e-6, from symmetric shapes, go to the
-// earlier candidate), and that class then runs the full pipeline (initial
+// `homotopy_full_solves` by that bound and the overlay class are solved to
+// convergence (and any other whose bound falls below the best optimum), the
+// lowest converged energy is the default (ties within 1e-4 relative, from
+// symmetric shapes, go to the earlier candidate), and that class then runs the full pipeline (initial
 // map, chosen method, landmarks, location). If that pipeline fails for the
 // default class, the next solved class by energy is used and the failed
 // one's description says "[not used: ...]". Classes whose solve fails
