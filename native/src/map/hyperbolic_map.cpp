@@ -64,8 +64,38 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   // Handle correspondences (topology/handle_basis.h): meridian/longitude
   // bases of both surfaces from linking numbers, signed handle permutations
   // between them, each an exact isomorphism of the canonical surface groups.
+  const int n = 2 * out.genus;
+  const Word R = canonical_relator(out.genus);
+  const IntMatrix J = symplectic_form(out.genus);
   const HandleBasis shb = handle_basis(source, sl.loops, scs);
-  const HandleBasis thb = handle_basis(tl.mesh, tl.loops, tcs);
+  HandleBasis thb = handle_basis(tl.mesh, tl.loops, tcs);
+  // The class induced by overlaying the two shapes (topology/projected_loops.h)
+  // comes first: for a remeshed copy it is the identity, for shapes posed
+  // alike it sends handles to the handles they overlap.
+  GroupMap overlay(n);
+  bool have_overlay = false;  // candidate 0 is the overlay class
+  {
+    const ProjectedLoopsResult proj = project_loops(source, sl.loops, tl, layout.word);
+    have_overlay = proj.ok;
+    for (int j = 0; j < n && have_overlay; ++j)
+      overlay[j] = dehn_reduce(substitute(substitute(scs.generators[j], proj.loop_images), tcs.letters), R);
+    if (have_overlay) {
+      const IntMatrix M = homology_matrix(overlay, n);
+      have_overlay = M.transpose() * J * M == J && dehn_reduce(substitute(R, overlay), R).empty();
+    }
+  }
+  if (have_overlay) {
+    // The target's handles are then the overlay's images of the source's:
+    // the other candidates are the overlay composed with a signed handle
+    // permutation of the source (no lift on the target side, so no Torelli
+    // ambiguity there), and descriptions are consistent with it.
+    HandleBasis moved = shb;
+    moved.P = homology_matrix(overlay, n) * shb.P;
+    moved.to_canonical.map = compose(overlay, shb.to_canonical.map);
+    for (Word& w : moved.to_canonical.map) w = dehn_reduce(w, R);
+    moved.to_canonical.inverse.clear();  // not needed for a target basis
+    thb = std::move(moved);
+  }
   std::vector<HandleCandidate> handle_classes = handle_candidates(shb, thb, options.homotopy_candidates);
   // Of the Torelli-equivalent versions of each lifted class, the one whose
   // source loops have the shortest images in the target (least twisted).
@@ -76,54 +106,26 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     return total;
   };
   for (HandleCandidate& hc : handle_classes) hc.map = reduce_separating_twists(hc.map, out.genus, loop_image_length);
-  // The class of the two canonical polygon schemata, a_i -> a'_i, b_i -> b'_i:
-  // short words whatever the loops look like (the lifted handle classes can
-  // differ from the intended ones by long Torelli twists).
-  {
+  // Adds a class in front, dropping a lifted one with the same homology
+  // (the named class is the more geometric or the shorter version).
+  auto put_first = [&](const GroupMap& theta, const std::string& tag) {
     HandleCandidate hc;
-    const int n = 2 * out.genus;
-    for (int j = 0; j < n; ++j) hc.map.push_back({j + 1});
-    hc.homology = IntMatrix::Identity(n, n);
+    hc.map = theta;
+    hc.homology = homology_matrix(theta, n);
     std::string handles;
     handle_correspondence_of(shb, thb, hc.homology, &hc.permutation, &hc.sign, &handles);
-    hc.description = handles + "  [a_i -> a'_i, b_i -> b'_i of the canonical polygon schemata]";
+    hc.description = handles + "  [" + tag + "]";
     handle_classes.erase(std::remove_if(handle_classes.begin(), handle_classes.end(),
                                         [&](const HandleCandidate& c) { return c.homology == hc.homology; }),
                          handle_classes.end());
     handle_classes.insert(handle_classes.begin(), hc);
-  }
-  bool have_overlay = false;  // candidate 0 is the overlay class
-  // The class induced by overlaying the two shapes (topology/projected_loops.h)
-  // comes first: for a remeshed copy it is the identity, for shapes posed
-  // alike it sends handles to the handles they overlap.
-  {
-    const ProjectedLoopsResult proj = project_loops(source, sl.loops, tl, layout.word);
-    const int n = 2 * out.genus;
-    const Word R = canonical_relator(out.genus);
-    GroupMap theta(n);
-    bool ok = proj.ok;
-    for (int j = 0; j < n && ok; ++j)
-      theta[j] = dehn_reduce(substitute(substitute(scs.generators[j], proj.loop_images), tcs.letters), R);
-    if (ok) {
-      const IntMatrix M = homology_matrix(theta, n), J = symplectic_form(out.genus);
-      ok = M.transpose() * J * M == J && dehn_reduce(substitute(R, theta), R).empty();
-      if (ok) {
-        HandleCandidate hc;
-        hc.map = theta;
-        hc.homology = M;
-        std::string handles;
-        handle_correspondence_of(shb, thb, M, &hc.permutation, &hc.sign, &handles);
-        hc.description = handles + "  [as the shapes overlap: loops carried to the nearest points]";
-        // Same action on homology as a handle candidate: keep the overlay's
-        // (geometric) version only.
-        handle_classes.erase(std::remove_if(handle_classes.begin(), handle_classes.end(),
-                                            [&](const HandleCandidate& c) { return c.homology == M; }),
-                             handle_classes.end());
-        handle_classes.insert(handle_classes.begin(), hc);
-        have_overlay = true;
-      }
-    }
-  }
+  };
+  // The class of the two canonical polygon schemata, a_i -> a'_i, b_i -> b'_i:
+  // short words whatever the loops look like.
+  GroupMap canonical(n);
+  for (int j = 0; j < n; ++j) canonical[j] = {j + 1};
+  put_first(canonical, "a_i -> a'_i, b_i -> b'_i of the canonical polygon schemata");
+  if (have_overlay) put_first(overlay, "as the shapes overlap: loops carried to the nearest points");
 
   // The homotopy data of one class theta (source canonical generator ->
   // word in the target's canonical generators): a deck element per source
