@@ -23,7 +23,9 @@
 // handle permutations between meridian/longitude bases found from linking
 // numbers (topology/handle_basis.h), best-matching handle positions first,
 // each lifted to an exact surface-group isomorphism and shortened over
-// separating twists; classes with the same action on homology as an
+// separating twists (with an overlay class: the overlay composed with a
+// signed handle permutation of the source, the target's handles being the
+// overlay's images of the source's); classes with the same action on homology as an
 // earlier one are dropped. Ranking (the cost of a class is a Newton solve
 // from the origin): every candidate gets 1 Newton step (its energy only
 // decreases, so this is an upper bound of the optimum), the best
