@@ -231,3 +231,49 @@ TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) 
 
 }  // namespace
 }  // namespace surfmap
+
+// Numerical robustness at high genus (long fundamental domains: base corner
+// ~9 units from the centre, loop generators with entries ~1e5, polygon
+// corners at 1 - |z| ~ 1e-4, layout triangles at 1 - |k| ~ 1e-9 in Klein
+// coordinates).
+namespace surfmap {
+namespace {
+
+double diagonal(const TriMesh& m) { return (m.V.colwise().maxCoeff() - m.V.colwise().minCoeff()).norm(); }
+
+// A surface mapped to itself: the class is the identity (same loops on both
+// sides), so the optimum is close to the identity map.
+void expect_near_identity_self_map(const TriMesh& m, SurfaceMapOptions o) {
+  // One handle candidate besides the overlay and canonical classes: the
+  // ranking is not what this is about (test_handle_basis, SurfaceMapHandles).
+  o.homotopy_candidates = 1;
+  o.homotopy_full_solves = 1;
+  const SurfaceMapResult r = surface_map(m, m, o);
+  expect_valid_map(r, m, m);
+  EXPECT_LE(r.iterations, 30);
+  EXPECT_LT(r.mean_dilatation, 1.1);
+  double fwd = 0, inv = 0;
+  for (int i = 0; i < m.num_vertices(); ++i) {
+    fwd = std::max(fwd, (r.forward[i].position - m.V.row(i).transpose()).norm());
+    inv = std::max(inv, (r.inverse[i].position - m.V.row(i).transpose()).norm());
+  }
+  EXPECT_LT(fwd, 1e-2 * diagonal(m));
+  EXPECT_LT(inv, 1e-2 * diagonal(m));
+}
+
+TEST(SurfaceMapHighGenus, GenusFiveSelfMapIsLocatedAndNearIdentity) {
+  // Used to fail: "source vertex could not be located on the target" (Klein
+  // barycentrics of tiny triangles near the rim).
+  expect_near_identity_self_map(samples::n_hole_torus(5, 32, true), {});
+}
+
+TEST(SurfaceMapHighGenus, GenusSixSelfMapFromARandomStart) {
+  // Used to fail in the inverse location; the random start also makes the
+  // first iterations move every vertex across many tiles.
+  SurfaceMapOptions o;
+  o.start_seed = 7;
+  expect_near_identity_self_map(samples::n_hole_torus(6, 32, true), o);
+}
+
+}  // namespace
+}  // namespace surfmap

@@ -21,8 +21,67 @@
 #include "surfmap/topology/edge_homotopy.h"
 #include "surfmap/topology/handle_basis.h"
 #include "surfmap/topology/projected_loops.h"
+#include "surfmap/uniformize/deck_group.h"
 
 namespace surfmap::detail {
+namespace {
+
+// Point location by a straight walk in the universal cover: from a point
+// inside face f along the geodesic towards q, face by face. corners(f) gives
+// face f's three corners in its own frame (counter-clockwise); cross(f, s,
+// c, q) returns the face across side s (corner s -> s+1) and moves the two
+// points into that face's frame. The geodesic is straight in the Klein
+// model, and every test runs in the chart centring q, so tiny triangles near
+// |z| = 1 keep their digits; following the segment (rather than the most
+// violated side) cannot cycle on a triangulation with long thin triangles.
+// Returns the face with q's hyperboloid barycentrics, or -1.
+template <class Corners, class Cross>
+int straight_walk(int f, Complex q, const Corners& corners, const Cross& cross, int max_steps, double tol,
+                  Eigen::Vector3d* bary) {
+  auto orient = [](Complex a, Complex b, Complex c) {
+    return (b.real() - a.real()) * (c.imag() - a.imag()) - (b.imag() - a.imag()) * (c.real() - a.real());
+  };
+  std::array<Complex, 3> t = corners(f);
+  Complex c = hyperbolic::geodesic_point(t[0], hyperbolic::midpoint(t[1], t[2]), 2.0 / 3.0);
+  int entry = -1;
+  for (int step = 0; step < max_steps; ++step) {
+    double l[3];
+    hyperbolic::triangle_barycentric(q, t[0], t[1], t[2], l);
+    if (std::min({l[0], l[1], l[2]}) >= -tol) {
+      *bary = Eigen::Vector3d(l[0], l[1], l[2]);
+      return f;
+    }
+    Complex k[3];
+    for (int i = 0; i < 3; ++i) k[i] = hyperbolic::poincare_to_klein(hyperbolic::centred(q, t[i]));
+    const Complex kc = hyperbolic::poincare_to_klein(hyperbolic::centred(q, c));
+    // Exit side: crossed by the segment c -> q (q is the origin here), with q
+    // beyond it; else the side opposite the most negative barycentric.
+    int exit = -1;
+    double best = 0;
+    for (int s = 0; s < 3; ++s) {
+      if (s == entry) continue;
+      const Complex p0 = k[s], p1 = k[(s + 1) % 3];
+      const double o0 = orient(kc, Complex(0.0), p0), o1 = orient(kc, Complex(0.0), p1);
+      const double beyond = orient(p0, p1, Complex(0.0));
+      if (o0 * o1 <= 0 && beyond < 0 && beyond < best) best = beyond, exit = s;
+    }
+    if (exit < 0) {
+      int worst = 0;
+      for (int i = 1; i < 3; ++i)
+        if (l[i] < l[worst]) worst = i;
+      exit = (worst + 1) % 3;  // the side opposite corner `worst`
+    }
+    int g_entry = -1;
+    const int g = cross(f, exit, c, q, &g_entry);
+    if (g < 0 || !(std::abs(q) < 1) || !(std::abs(c) < 1)) return -1;
+    f = g;
+    entry = g_entry;
+    t = corners(f);
+  }
+  return -1;
+}
+
+}  // namespace
 
 // Genus >= 2: hyperbolic target, harmonic map by preconditioned Riemannian
 // Newton (map/hyperbolic_harmonic.h) or the paper's relaxation, in the handle
@@ -32,17 +91,49 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
                     const SurfaceMapOptions& options, SurfaceMapResult& out,
                     const StageDone& stage_done) {
   using hyperbolic::Mobius;
-  auto evaluate_mobius = [](const Word& w, const std::vector<Mobius>& values) {
-    Mobius m;
-    for (int x : w) m = (m * (x > 0 ? values[std::abs(x) - 1] : values[std::abs(x) - 1].inverse())).normalized();
-    return m;
-  };
 
   // Target: hyperbolic metric, layout, canonical generators.
   const UniformizedTarget ut = uniformized_target(target, Background::Hyperbolic, options);
   const SystemOfLoops& tl = ut.loops;
   const DiskLayout& layout = ut.layout;
   const CanonicalSchema tcs = canonical_schema(layout.word);
+  // Words are multiplied out through the polygon's side pairings, never
+  // through the loop generators' (possibly huge) matrices: deck_group.h.
+  const DeckGroup deck_group(layout);
+  // The geodesic 4g-gon P on the layout's corners is a convex fundamental
+  // domain (in the Klein model) with side maps built from its corners:
+  // side i (c_i -> c_i+1, letter x) is glued to the side j of letter x^-1,
+  // traversed backwards, so M_i takes (c_i, c_i+1) to (c_j+1, c_j) and the
+  // outside of side i to the inside of P along side j.
+  const int nsides = static_cast<int>(layout.side_start.size());
+  std::vector<Complex> corner(nsides), kcorner(nsides);
+  for (int i = 0; i < nsides; ++i) {
+    const int h = layout.boundary_halfedges[layout.side_start[i]];
+    corner[i] = layout.corners(h / 3, h % 3);
+    kcorner[i] = hyperbolic::poincare_to_klein(corner[i]);
+  }
+  // Side i carries letter w_i; its side map is D_k for w_i = +(k+1) and
+  // D_k^-1 for -(k+1), i.e. side letter w_i (DiskLayout::side_relator).
+  std::vector<Mobius> side_map(nsides);
+  for (int i = 0; i < nsides; ++i) side_map[i] = deck_group.evaluate_side_word(Word{layout.word[i]});
+  // Moves z into P; returns the side word of the element applied.
+  auto reduce_into_polygon = [&](Complex& z) {
+    Word acc;
+    for (int guard = 0; guard < 200; ++guard) {
+      const Complex k = hyperbolic::poincare_to_klein(z);
+      int worst = -1;
+      double worst_value = -1e-13;
+      for (int i = 0; i < nsides; ++i) {
+        const Complex e = kcorner[(i + 1) % nsides] - kcorner[i], d = k - kcorner[i];
+        const double side = (e.real() * d.imag() - e.imag() * d.real()) / std::abs(e);
+        if (side < worst_value) worst_value = side, worst = i;
+      }
+      if (worst < 0) break;
+      z = side_map[worst].apply(z);
+      acc.insert(acc.begin(), layout.word[worst]);
+    }
+    return acc;
+  };
   stage_done("target uniformization", 0.3);
 
   // Source homotopy data in the target's deck group.
@@ -132,8 +223,27 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   // edge (checked exactly around every face) and per intrinsic edge.
   struct ClassData {
     std::vector<Mobius> rho_edge;
+    std::vector<Word> side_word_edge;  ///< rho_edge as reduced side words
     std::vector<WeightedEdge> edges;
   };
+  // Every original source edge is a solver edge too (weight 0 when the
+  // intrinsic triangulation flipped it away), so that the image triangles of
+  // the source's own faces come out of the solve in local charts
+  // (HyperbolicHarmonicResult::edge_local), to round-off.
+  std::vector<int> orig_solver_edge(sc.num_edges());
+  std::vector<char> orig_forward(sc.num_edges(), 1);
+  {
+    int next = static_cast<int>(idt.edges.size());
+    for (int e = 0; e < sc.num_edges(); ++e) {
+      const int h = sc.edge_halfedge(e);
+      if (idt.edges[e].path.size() == 1 && sc.edge(idt.edges[e].path[0]) == e) {
+        orig_solver_edge[e] = e;
+        orig_forward[e] = idt.edges[e].path[0] == h;
+      } else {
+        orig_solver_edge[e] = next++;
+      }
+    }
+  }
   auto class_data = [&](const GroupMap& theta) {
     // Source loop letter k as a word in the target's loop letters.
     std::vector<Word> letter_image;
@@ -163,7 +273,17 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     }
     ClassData cd;
     cd.rho_edge.resize(edge_word.size());
-    for (size_t e = 0; e < edge_word.size(); ++e) cd.rho_edge[e] = evaluate_mobius(target_word[e], layout.generators);
+    cd.side_word_edge.resize(edge_word.size());
+    std::map<Word, Word> side_memo;
+    auto side_word = [&](const Word& w) -> const Word& {
+      auto it = side_memo.find(w);
+      if (it == side_memo.end()) it = side_memo.emplace(w, deck_group.side_word(w)).first;
+      return it->second;
+    };
+    for (size_t e = 0; e < edge_word.size(); ++e) {
+      cd.side_word_edge[e] = side_word(target_word[e]);
+      cd.rho_edge[e] = deck_group.evaluate_side_word(cd.side_word_edge[e]);
+    }
     cd.edges.resize(idt.edges.size());
     for (size_t e = 0; e < idt.edges.size(); ++e) {
       const auto& ie = idt.edges[e];
@@ -172,7 +292,19 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
       cd.edges[e].w = ie.cot_weight;
       Word w;
       for (int h : ie.path) w = concat(w, word_of(h));
-      cd.edges[e].rho = evaluate_mobius(reduced(w), layout.generators);
+      cd.edges[e].rho_word = side_word(reduced(w));
+      cd.edges[e].rho = deck_group.evaluate_side_word(cd.edges[e].rho_word);
+    }
+    for (int e = 0; e < sc.num_edges(); ++e) {
+      if (orig_solver_edge[e] < static_cast<int>(idt.edges.size())) continue;
+      const int h = sc.edge_halfedge(e);
+      WeightedEdge we;
+      we.i = sc.tail(h);
+      we.j = sc.head(h);
+      we.w = 0;
+      we.rho_word = cd.side_word_edge[e];
+      we.rho = cd.rho_edge[e];
+      cd.edges.push_back(we);
     }
     return cd;
   };
@@ -197,6 +329,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   HyperbolicHarmonicOptions ho;
   ho.tolerance = options.tolerance;
   ho.max_iterations = options.max_iterations;
+  ho.relator = deck_group.side_relator();
+  ho.reduce_point = [&](Complex& z) { return reduce_into_polygon(z); };
   if (options.progress)
     ho.progress = [&](int, double, double) { return options.progress("homotopy candidates", 0.4); };
   const std::vector<Complex> origin(source.num_vertices(), Complex(0.0));
@@ -206,7 +340,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   auto solve_class = [&](int k, const HyperbolicHarmonicOptions& o, HyperbolicHarmonicResult& r) {
     std::string why;
     try {
-      r = hyperbolic_harmonic_map(source.num_vertices(), data[k].edges, layout.generators, origin, o);
+      r = hyperbolic_harmonic_map(source.num_vertices(), data[k].edges, deck_group.side_pairings(), origin, o);
       bool finite = std::isfinite(r.energy);
       for (size_t i = 0; i < r.z.size() && finite; ++i) finite = std::isfinite(r.z[i].real()) && std::isfinite(r.z[i].imag());
       if (finite) return true;
@@ -315,6 +449,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   out.chosen_candidate = fallback[attempt];
   const std::vector<Mobius>& rho_edge = data[out.chosen_candidate].rho_edge;
   const std::vector<WeightedEdge>& edges = data[out.chosen_candidate].edges;
+  const std::vector<Word>& side_word_edge = data[out.chosen_candidate].side_word_edge;
   auto rho_of = [&](int h) {
     const int e = sc.edge(h);
     return sc.edge_halfedge(e) == h ? rho_edge[e] : rho_edge[e].inverse();
@@ -327,12 +462,13 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   for (int h = 0; h < 3 * source.num_faces(); ++h) halfedge_rho[h] = rho_of(h);
   HyperbolicInitialMapResult init;
   try {
-    init = hyperbolic_initial_map(sc, halfedge_rho, layout.generators);
+    init = hyperbolic_initial_map(sc, halfedge_rho, deck_group.side_pairings());
   } catch (const SolveError&) {
     // The start then is every vertex at the origin (as before the initial
     // map existed); the "before" figures report its degenerate triangles.
     init.z.assign(source.num_vertices(), Complex(0.0));
     init.vertex_deck.assign(source.num_vertices(), Mobius());
+    init.vertex_deck_word.assign(source.num_vertices(), Word{});
   }
   const DistortionStats q0 = hyperbolic_distortion(source, halfedge_rho, init.z, init.vertex_deck);
   out.initial_dilatation = q0.per_face;
@@ -343,11 +479,17 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
 
   // The solve runs on the edges expressed in the initial map's charts
   // (effective elements), its vertex decks are composed back afterwards.
+  // Conjugated as reduced side words (the initial map's decks are side
+  // words too), never as products of the deck matrices.
   std::vector<WeightedEdge> start_edges = edges;
-  for (auto& e : start_edges)
-    e.rho = (init.vertex_deck[e.i] * e.rho * init.vertex_deck[e.j].inverse()).normalized();
+  for (auto& e : start_edges) {
+    e.rho_word = deck_group.reduce(
+        concat({init.vertex_deck_word[e.i], e.rho_word, inverse(init.vertex_deck_word[e.j])}));
+    e.rho = deck_group.evaluate_side_word(e.rho_word);
+  }
   std::vector<Complex> start = init.z;
   std::vector<Mobius> start_deck = init.vertex_deck;
+  std::vector<Word> start_deck_word = init.vertex_deck_word;
   out.initial_energy = hyperbolic_energy(start_edges, start, std::vector<Mobius>(start.size()));
   if (options.start_seed != 0) {
     std::mt19937 rng(options.start_seed);
@@ -355,6 +497,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     for (Complex& z : start) z = Complex(U(rng), U(rng));
     start_edges = edges;
     start_deck.assign(start.size(), Mobius());
+    start_deck_word.assign(start.size(), Word{});
   }
   // Progress fraction: Newton by iterations; the relaxation (thousands of
   // sweeps) by how many of the decades from its first gradient down to the
@@ -374,7 +517,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     HarmonicProblem p;
     p.num_vertices = source.num_vertices();
     p.edges = start_edges;
-    p.generators = layout.generators;
+    p.generators = deck_group.side_pairings();
     p.start = start;
     options.inspect_problem(p);
   }
@@ -385,15 +528,20 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     ro.max_iterations = options.max_iterations;
     ro.check_every = 10;  // the evaluation pass costs about a sweep
     ro.progress = solve_progress;
-    hr = as_harmonic_result(harmonic_relaxation(source.num_vertices(), start_edges, layout.generators, start, ro));
+    hr = as_harmonic_result(harmonic_relaxation(source.num_vertices(), start_edges, deck_group.side_pairings(), start, ro));
   } else {
     HyperbolicHarmonicOptions ho;
     ho.tolerance = options.tolerance;
     ho.max_iterations = options.max_iterations;
     ho.progress = solve_progress;
-    hr = hyperbolic_harmonic_map(source.num_vertices(), start_edges, layout.generators, start, ho);
+    ho.relator = deck_group.side_relator();
+    ho.reduce_point = [&](Complex& z) { return reduce_into_polygon(z); };
+    hr = hyperbolic_harmonic_map(source.num_vertices(), start_edges, deck_group.side_pairings(), start, ho);
   }
   for (size_t i = 0; i < hr.vertex_deck.size(); ++i) hr.vertex_deck[i] = (hr.vertex_deck[i] * start_deck[i]).normalized();
+  if (hr.vertex_deck_word.size() == hr.vertex_deck.size())
+    for (size_t i = 0; i < hr.vertex_deck_word.size(); ++i)
+      hr.vertex_deck_word[i] = deck_group.reduce(concat(hr.vertex_deck_word[i], start_deck_word[i]));
   if (!hr.converged)
     throw SolveError(std::string("the harmonic map solve (") +
                      (options.method == MapMethod::Relaxation ? "relaxation" : "Newton") + ") did not converge in " +
@@ -410,7 +558,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     ho.max_iterations = options.max_iterations;
     ho.progress = solve_progress;
     HyperbolicHarmonicResult held =
-        hold_hyperbolic_landmarks(source.num_vertices(), edges, layout.generators, layout.side_pairings, hr,
+        hold_hyperbolic_landmarks(source.num_vertices(), edges, deck_group.side_pairings(), deck_group.side_pairings(), hr,
                                   lm_source, lm_target, ho);
     if (!held.converged)
       throw SolveError("the harmonic map with the landmarks held did not converge in " +
@@ -427,50 +575,44 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   out.candidates[out.chosen_candidate].solved = true;
   stage_done("harmonic solve", 0.7);
 
-  // The geodesic 4g-gon P on the layout's corners is a convex fundamental
-  // domain (in the Klein model) with side maps built from its corners:
-  // side i (c_i -> c_i+1, letter x) is glued to the side j of letter x^-1,
-  // traversed backwards, so M_i takes (c_i, c_i+1) to (c_j+1, c_j) and the
-  // outside of side i to the inside of P along side j.
-  const int nsides = static_cast<int>(layout.side_start.size());
-  std::vector<Complex> corner(nsides), kcorner(nsides);
-  for (int i = 0; i < nsides; ++i) {
-    const int h = layout.boundary_halfedges[layout.side_start[i]];
-    corner[i] = layout.corners(h / 3, h % 3);
-    kcorner[i] = hyperbolic::poincare_to_klein(corner[i]);
-  }
-  std::vector<Mobius> side_map(nsides);
-  for (int i = 0; i < nsides; ++i) {
-    int j = -1;
-    for (int q = 0; q < nsides; ++q)
-      if (layout.word[q] == -layout.word[i]) j = q;
-    if (j < 0) throw SolveError("the target's boundary word has no partner for side " + std::to_string(i));
-    side_map[i] = hyperbolic::isometry_from_pairs(corner[i], corner[(i + 1) % nsides], corner[(j + 1) % nsides], corner[j]);
-  }
-  // Moves z into P; returns the element applied.
-  auto reduce_into_polygon = [&](Complex& z) {
-    Mobius acc;
-    for (int guard = 0; guard < 200; ++guard) {
-      const Complex k = hyperbolic::poincare_to_klein(z);
-      int worst = -1;
-      double worst_value = -1e-13;
-      for (int i = 0; i < nsides; ++i) {
-        const Complex e = kcorner[(i + 1) % nsides] - kcorner[i], d = k - kcorner[i];
-        const double side = (e.real() * d.imag() - e.imag() * d.real()) / std::abs(e);
-        if (side < worst_value) worst_value = side, worst = i;
-      }
-      if (worst < 0) break;
-      z = side_map[worst].apply(z);
-      acc = (side_map[worst] * acc).normalized();
-    }
-    return acc;
-  };
+  // Every vertex in P, with its chart change as a side word (the solve's
+  // moves were side pairings too).
+  // (A solver that keeps no deck words, the relaxation, falls back to the
+  // products of its deck matrices, and to local charts built from points.)
+  const int nv = source.num_vertices();
+  const bool have_words = static_cast<int>(hr.vertex_deck_word.size()) == nv;
   std::vector<Complex> zp = hr.z;
-  std::vector<Mobius> deck = hr.vertex_deck;
-  for (int i = 0; i < source.num_vertices(); ++i) deck[i] = (reduce_into_polygon(zp[i]) * deck[i]).normalized();
+  std::vector<Word> deck(nv);
+  std::vector<Mobius> deck_matrix(nv);
+  for (int i = 0; i < nv; ++i) {
+    const Word into_P = reduce_into_polygon(zp[i]);
+    if (have_words)
+      deck[i] = deck_group.reduce(concat(into_P, hr.vertex_deck_word[i]));
+    else
+      deck_matrix[i] = (deck_group.evaluate_side_word(into_P) * hr.vertex_deck[i]).normalized();
+  }
 
-  // Effective element of source halfedge h after the solve's chart moves.
-  auto eff = [&](int h) { return (deck[sc.tail(h)] * rho_of(h) * deck[sc.head(h)].inverse()).normalized(); };
+  // Effective element of every source edge after the chart moves, as a
+  // reduced side word (short: the tile next to P holding the edge's far end).
+  std::vector<Mobius> eff_edge(edge_word.size());
+  for (size_t e = 0; e < edge_word.size(); ++e) {
+    const int h = sc.edge_halfedge(static_cast<int>(e));
+    eff_edge[e] = have_words ? deck_group.evaluate_side_word(deck_group.reduce(
+                                   concat({deck[sc.tail(h)], side_word_edge[e], inverse(deck[sc.head(h)])})))
+                             : (deck_matrix[sc.tail(h)] * rho_edge[e] * deck_matrix[sc.head(h)].inverse()).normalized();
+  }
+  if (hr.edge_local.size() != edges.size()) {
+    hr.edge_local.resize(edges.size());
+    for (int e = 0; e < sc.num_edges(); ++e) {
+      const int h = sc.edge_halfedge(e);
+      const Mobius A = (Mobius::centring(zp[sc.tail(h)]) * eff_edge[e] * Mobius::translation_to(zp[sc.head(h)])).normalized();
+      hr.edge_local[orig_solver_edge[e]] = orig_forward[e] ? A : A.inverse();
+    }
+  }
+  auto eff = [&](int h) {
+    const int e = sc.edge(h);
+    return sc.edge_halfedge(e) == h ? eff_edge[e] : eff_edge[e].inverse();
+  };
   // Image triangles: corners in the Poincaré disk, anchored at corner 0.
   Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> img(source.num_faces(), 3);
   for (int f = 0; f < source.num_faces(); ++f) {
@@ -478,13 +620,20 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     img(f, 1) = eff(3 * f).apply(zp[source.F(f, 1)]);
     img(f, 2) = eff(3 * f + 2).inverse().apply(zp[source.F(f, 2)]);
   }
-  // Dilatation from hyperbolic side lengths; orientation in the chart
-  // centring corner 0 (Möbius maps preserve orientation).
+  // Halfedge h's element in the solve's charts of its ends (edge_local).
+  auto local = [&](int h) {
+    const int e = sc.edge(h);
+    const Mobius& A = hr.edge_local[orig_solver_edge[e]];
+    return (sc.edge_halfedge(e) == h) == static_cast<bool>(orig_forward[e]) ? A : A.inverse();
+  };
+  // Dilatation from hyperbolic side lengths and orientation, both in the
+  // chart of corner 0 where the corners are 0, A_01(0) and A_20^-1(0):
+  // exact to round-off however close to |z| = 1 the triangle lies in P.
   out.dilatation.assign(source.num_faces(), std::numeric_limits<double>::infinity());
   double weighted = 0, total_area = 0;
   for (int f = 0; f < source.num_faces(); ++f) {
-    const Mobius T = Mobius::centring(img(f, 0));
-    const Complex b = T.apply(img(f, 1)), cc = T.apply(img(f, 2));
+    const Mobius A01 = local(3 * f), A12 = local(3 * f + 1), A20 = local(3 * f + 2);
+    const Complex b = A01.apply(Complex(0.0)), cc = A20.inverse().apply(Complex(0.0));
     const double cross = b.real() * cc.imag() - b.imag() * cc.real();
     if (std::abs(cross) <= 1e-14 * std::max(std::norm(b), std::norm(cc))) {
       ++out.degenerate_triangles;
@@ -497,9 +646,30 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
                           p2 = source.V.row(source.F(f, 2));
     const Eigen::Vector3d ss((p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm());
-    const Eigen::Vector3d is(hyperbolic::distance(img(f, 0), img(f, 1)), hyperbolic::distance(img(f, 1), img(f, 2)),
-                             hyperbolic::distance(img(f, 2), img(f, 0)));
-    const double d = triangle_dilatation(ss, is);
+    const Eigen::Vector3d is(A01.displacement_of_origin(), A12.displacement_of_origin(), A20.displacement_of_origin());
+    // From the side lengths (paper §VII-A) unless the image is needle-thin:
+    // then a + b − c is below the lengths' round-off (~1e-9 relative after a
+    // long solve) and the Euclidean frame built from them is meaningless,
+    // although the orientation test above resolved the area. Then take the
+    // affine map to the image seen from the chart centring its centroid (D'
+    // is scale-free, so the conformal factor there does not matter), with
+    // the source frame built from the 3D corners: D' + 1/D' = |A|_F²/|det A|.
+    const double defect = std::min({is[0] + is[1] - is[2], is[1] + is[2] - is[0], is[2] + is[0] - is[1]});
+    double d = defect > 1e-4 * is.sum() ? triangle_dilatation(ss, is) : std::numeric_limits<double>::infinity();
+    if (!std::isfinite(d)) {
+      const Complex m = hyperbolic::klein_to_poincare(
+          (hyperbolic::poincare_to_klein(b) + hyperbolic::poincare_to_klein(cc)) / 3.0);
+      const Complex w0 = hyperbolic::centred(m, Complex(0.0)), w1 = hyperbolic::centred(m, b) - w0,
+                    w2 = hyperbolic::centred(m, cc) - w0;
+      const Eigen::Vector3d e1 = p1 - p0, e2 = p2 - p0;
+      const double l1 = e1.norm();
+      Eigen::Matrix2d S, I;
+      S << l1, e2.dot(e1) / l1, 0, e1.cross(e2).norm() / l1;
+      I << w1.real(), w2.real(), w1.imag(), w2.imag();
+      const Eigen::Matrix2d A = I * S.inverse();
+      const double q = A.squaredNorm() / std::abs(A.determinant());
+      d = 0.5 * (q + std::sqrt(std::max(q * q - 4.0, 0.0)));
+    }
     out.dilatation[f] = d;
     const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
     weighted += area * d;
@@ -513,7 +683,11 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   out.source_image = zp;
   stage_done("quality", 0.75);
 
-  // Location, with geodesic triangles as straight ones in the Klein model.
+  // Location. Barycentrics are those of the hyperboloid model, computed in
+  // the chart centring the query point (geometry/hyperbolic.h): exact to
+  // round-off for tiny triangles near |z| = 1, where Klein coordinates of
+  // the whole layout (1 − |k| ~ 1e-9 at 10 units from the centre) would
+  // leave a handful of digits. The Klein grid only proposes candidates.
   // How far (in Klein units) a point lies outside P; 0 inside.
   auto outside_P = [&](Complex z) {
     const Complex k = hyperbolic::poincare_to_klein(z);
@@ -524,20 +698,33 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     }
     return out_by;
   };
+  constexpr double kInsideTol = 1e-9;
+  using Tris = std::vector<std::array<Complex, 3>>;
+  // Best candidate triangle for z (largest smallest barycentric), or -1.
+  auto exact_locate = [&](const TriangleGrid& grid, const Tris& tris, Complex z, Eigen::Vector3d* bary) {
+    int best = -1;
+    double best_min = -kInsideTol;
+    for (int t : grid.candidates(hyperbolic::poincare_to_klein(z))) {
+      double l[3];
+      hyperbolic::triangle_barycentric(z, tris[t][0], tris[t][1], tris[t][2], l);
+      const double m = std::min({l[0], l[1], l[2]});
+      if (m >= best_min) best_min = m, best = t, *bary = Eigen::Vector3d(l[0], l[1], l[2]);
+    }
+    return best;
+  };
   // Points are first reduced into P. The mesh regions differ from P only
   // near its sides and corners, so the containing triangle is in an image
   // of the point under side maps that keep it near P (around a corner up to
   // 4g of them): breadth first over those, pruning images far from P.
-  auto locate = [&](const TriangleGrid& grid, Complex z, Eigen::Vector3d* bary) {
+  auto locate = [&](const TriangleGrid& grid, const Tris& tris, Complex z, Eigen::Vector3d* bary) {
     reduce_into_polygon(z);
     // Exhaustively up to two side maps (the usual case: the mesh's cut
     // sides bulge away from P's geodesic sides) ...
-    int f = grid.locate(hyperbolic::poincare_to_klein(z), bary);
+    int f = exact_locate(grid, tris, z, bary);
     for (int a1 = 0; f < 0 && a1 < nsides; ++a1) {
       const Complex w = side_map[a1].apply(z);
-      f = grid.locate(hyperbolic::poincare_to_klein(w), bary);
-      for (int a2 = 0; f < 0 && a2 < nsides; ++a2)
-        f = grid.locate(hyperbolic::poincare_to_klein(side_map[a2].apply(w)), bary);
+      f = exact_locate(grid, tris, w, bary);
+      for (int a2 = 0; f < 0 && a2 < nsides; ++a2) f = exact_locate(grid, tris, side_map[a2].apply(w), bary);
     }
     if (f >= 0) return f;
     // ... then breadth first over longer words (around corners up to 4g),
@@ -552,7 +739,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         for (const auto& m : side_map) {
           const Complex q = m.apply(w);
           if (outside_P(q) > 0.5 || !seen.insert(key(q)).second) continue;
-          if ((f = grid.locate(hyperbolic::poincare_to_klein(q), bary)) >= 0) return f;
+          if ((f = exact_locate(grid, tris, q, bary)) >= 0) return f;
           next.push_back(q);
         }
       frontier.swap(next);
@@ -560,28 +747,83 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     return -1;
   };
   const int ntf = tl.mesh.num_faces();
-  std::vector<std::array<Complex, 3>> ttris(ntf);
+  Tris tpoints(ntf), ttris(ntf);
   for (int f = 0; f < ntf; ++f)
-    for (int k = 0; k < 3; ++k) ttris[f][k] = hyperbolic::poincare_to_klein(layout.corners(f, k));
-  const TriangleGrid tgrid(ttris);
+    for (int k = 0; k < 3; ++k) {
+      tpoints[f][k] = layout.corners(f, k);
+      ttris[f][k] = hyperbolic::poincare_to_klein(layout.corners(f, k));
+    }
+  const TriangleGrid tgrid(ttris, 1e-12);
+  // Forward map: a straight walk over the target's faces in the universal
+  // cover, from the face found for the previous vertex. Crossing a cut edge
+  // applies its deck map, so the walk never leaves the layout and does not
+  // depend on how the cut disk differs from P.
+  const Connectivity tconn(tl.mesh.F, tl.mesh.num_vertices());
+  auto target_corners = [&](int f) {
+    return std::array<Complex, 3>{layout.corners(f, 0), layout.corners(f, 1), layout.corners(f, 2)};
+  };
+  auto target_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
+    const int h = 3 * f + s, e = tconn.edge(h), t = tconn.twin(h);
+    if (layout.cut_edge[e]) {
+      const Mobius D = tconn.edge_halfedge(e) == h ? layout.edge_deck_mobius[e] : layout.edge_deck_mobius[e].inverse();
+      c = D.apply(c), q = D.apply(q);
+    }
+    *entry = t % 3;
+    return Connectivity::face(t);
+  };
+  auto walk = [&](int f, Complex q, Eigen::Vector3d* bary) {
+    return straight_walk(f, q, target_corners, target_cross, 4 * ntf + 100, kInsideTol, bary);
+  };
   std::vector<int> refined_face_origin(ntf, -1);
   out.forward.resize(source.num_vertices());
+  int last_face = layout.root_face >= 0 ? layout.root_face : 0;
   for (int i = 0; i < source.num_vertices(); ++i) {
     Eigen::Vector3d b;
-    const int rf = locate(tgrid, zp[i], &b);
+    int rf = walk(last_face, zp[i], &b);
+    if (rf < 0) rf = locate(tgrid, tpoints, zp[i], &b);
     if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
+    last_face = rf;
     out.forward[i] = point_on_input(target, tc, tl, refined_face_origin, rf, b);
   }
   stage_done("forward location", 0.85);
-  std::vector<std::array<Complex, 3>> stris(source.num_faces());
+  Tris spoints(source.num_faces()), stris(source.num_faces());
   for (int f = 0; f < source.num_faces(); ++f)
-    for (int k = 0; k < 3; ++k) stris[f][k] = hyperbolic::poincare_to_klein(img(f, k));
-  const TriangleGrid sgrid(stris);
+    for (int k = 0; k < 3; ++k) {
+      spoints[f][k] = img(f, k);
+      stris[f][k] = hyperbolic::poincare_to_klein(img(f, k));
+    }
+  const TriangleGrid sgrid(stris, 1e-12);
+  // Inverse map: the same walk over the source's image triangles. Face f's
+  // image is stored with corner k at γ_{f,k}(zp[F(f,k)]) (γ_{f,0} = id,
+  // γ_{f,1} = eff(h0), γ_{f,2} = eff(h2)^-1); crossing into face g through
+  // the vertex u they share maps the query by γ_{g,u} γ_{f,u}^-1 (identity
+  // unless the edge straddles a side of P).
+  auto corner_element = [&](int f, int k) {
+    return k == 0 ? Mobius() : k == 1 ? eff(3 * f) : eff(3 * f + 2).inverse();
+  };
+  auto source_corners = [&](int f) { return std::array<Complex, 3>{img(f, 0), img(f, 1), img(f, 2)}; };
+  auto source_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
+    const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
+    // Shared vertex u = tail(h) = corner s of f = corner (t+1)%3 of g.
+    const int cg = (t % 3 + 1) % 3;
+    const Mobius M = (corner_element(g, cg) * corner_element(f, s).inverse()).normalized();
+    c = M.apply(c), q = M.apply(q);
+    *entry = t % 3;
+    return g;
+  };
+  auto walk_source = [&](int f, Complex q, Eigen::Vector3d* bary) {
+    return straight_walk(f, q, source_corners, source_cross, 4 * source.num_faces() + 100, kInsideTol, bary);
+  };
   out.inverse.resize(target.num_vertices());
+  int last_source_face = 0;
   for (int v = 0; v < target.num_vertices(); ++v) {
     Eigen::Vector3d b;
-    const int f = locate(sgrid, layout.vertex_positions[v], &b);
+    Complex q = layout.vertex_positions[v];
+    reduce_into_polygon(q);
+    int f = walk_source(last_source_face, q, &b);
+    if (f < 0) f = locate(sgrid, spoints, layout.vertex_positions[v], &b);
     if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
+    last_source_face = f;
     out.inverse[v] = point_in_face(source, f, b);
   }
   stage_done("inverse location", 1.0);

@@ -39,6 +39,7 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const Connectivity& sc, const 
   r.iterations = hr.iterations;
   r.z = std::move(hr.z);
   r.vertex_deck = std::move(hr.vertex_deck);
+  r.vertex_deck_word = std::move(hr.vertex_deck_word);
   r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }

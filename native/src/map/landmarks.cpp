@@ -118,7 +118,16 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<Weig
   // The solve runs in the free optimum's charts: effective edge elements and
   // its points (all near the origin) as the start.
   std::vector<WeightedEdge> held_edges = edges;
-  for (auto& e : held_edges) e.rho = (free.vertex_deck[e.i] * e.rho * free.vertex_deck[e.j].inverse()).normalized();
+  // (The free solve's own effective elements when it has them: well
+  // conditioned, unlike products of its vertex decks.)
+  const bool have_effective = free.edge_effective.size() == edges.size();
+  for (size_t k = 0; k < held_edges.size(); ++k) {
+    auto& e = held_edges[k];
+    e.rho = have_effective ? free.edge_effective[k]
+                           : (free.vertex_deck[e.i] * e.rho * free.vertex_deck[e.j].inverse()).normalized();
+    e.rho_word.clear();  // the held solve runs without words (no relator)
+  }
+  options.relator.clear();
   std::vector<Complex> start = free.z;
   options.fixed.assign(n, 0);
   for (size_t k = 0; k < source.size(); ++k) {
@@ -151,6 +160,10 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<Weig
   }
   HyperbolicHarmonicResult held = hyperbolic_harmonic_map(n, held_edges, generators, start, options);
   for (int i = 0; i < n; ++i) held.vertex_deck[i] = (held.vertex_deck[i] * free.vertex_deck[i]).normalized();
+  if (free.vertex_deck_word.size() == static_cast<size_t>(n))
+    for (int i = 0; i < n; ++i) held.vertex_deck_word[i] = concat(held.vertex_deck_word[i], free.vertex_deck_word[i]);
+  else
+    held.vertex_deck_word.clear();
   return held;
 }
 

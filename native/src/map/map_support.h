@@ -53,7 +53,10 @@ SystemOfLoops source_loops(const TriMesh& source, const SurfaceMapOptions& optio
 // Uniform grid over triangles in the plane for point location.
 class TriangleGrid {
  public:
-  TriangleGrid(const std::vector<std::array<Complex, 3>>& tris) : tris_(tris) {
+  /// `margin`: bounding boxes are widened by this much (absolute) when
+  /// binning, so that candidates() misses no triangle whose exact test
+  /// (done by the caller in better coordinates) would accept the point.
+  TriangleGrid(const std::vector<std::array<Complex, 3>>& tris, double margin = 0) : tris_(tris) {
     double xmin = 1e300, xmax = -1e300, ymin = 1e300, ymax = -1e300, perimeter = 0;
     for (const auto& t : tris_)
       for (int k = 0; k < 3; ++k) {
@@ -74,10 +77,10 @@ class TriangleGrid {
     cells_.assign(static_cast<size_t>(nx_) * ny_, {});
     for (int i = 0; i < static_cast<int>(tris_.size()); ++i) {
       const auto& t = tris_[i];
-      const int ix0 = cx(std::min({t[0].real(), t[1].real(), t[2].real()}));
-      const int ix1 = cx(std::max({t[0].real(), t[1].real(), t[2].real()}));
-      const int iy0 = cy(std::min({t[0].imag(), t[1].imag(), t[2].imag()}));
-      const int iy1 = cy(std::max({t[0].imag(), t[1].imag(), t[2].imag()}));
+      const int ix0 = cx(std::min({t[0].real(), t[1].real(), t[2].real()}) - margin);
+      const int ix1 = cx(std::max({t[0].real(), t[1].real(), t[2].real()}) + margin);
+      const int iy0 = cy(std::min({t[0].imag(), t[1].imag(), t[2].imag()}) - margin);
+      const int iy1 = cy(std::max({t[0].imag(), t[1].imag(), t[2].imag()}) + margin);
       for (int x = ix0; x <= ix1; ++x)
         for (int y = iy0; y <= iy1; ++y) cells_[static_cast<size_t>(y) * nx_ + x].push_back(i);
     }
@@ -93,6 +96,13 @@ class TriangleGrid {
       if (b.minCoeff() >= best_min) best_min = b.minCoeff(), best = i, *bary = b;
     }
     return best;
+  }
+  /// Triangles whose (widened) bounding box may contain p; empty outside the grid.
+  const std::vector<int>& candidates(Complex p) const {
+    static const std::vector<int> none;
+    const double fx = (p.real() - x0_) / cell_, fy = (p.imag() - y0_) / cell_;
+    if (!(fx >= 0 && fy >= 0 && fx < nx_ && fy < ny_)) return none;
+    return cells_[static_cast<size_t>(fy) * nx_ + static_cast<int>(fx)];
   }
   static Eigen::Vector3d barycentric(const std::array<Complex, 3>& t, Complex p) {
     auto cross = [](Complex a, Complex b) { return a.real() * b.imag() - a.imag() * b.real(); };

@@ -64,15 +64,21 @@ Word commutator_product(const std::vector<Word>& generators) {
   return w;
 }
 
-Word dehn_reduce(const Word& w, const Word& relator) {
+Word dehn_reduce(const Word& w, const Word& relator) { return DehnReducer(relator)(w); }
+
+DehnReducer::DehnReducer(const Word& relator) {
   const int n = static_cast<int>(relator.size());
-  std::vector<Word> rotations;
+  if (n == 0) return;
   for (const Word& r : {relator, inverse(relator)})
     for (int s = 0; s < n; ++s) {
       Word rot(r.begin() + s, r.end());
       rot.insert(rot.end(), r.begin(), r.begin() + s);
-      rotations.push_back(std::move(rot));
+      rotations_.push_back(std::move(rot));
     }
+}
+
+Word DehnReducer::operator()(const Word& w) const {
+  const std::vector<Word>& rotations = rotations_;
   Word cur = reduce(w);
   for (bool changed = true; changed;) {
     changed = false;

@@ -457,6 +457,7 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     rels.push_back({(i + 1) % n, j, k});
   }
   std::vector<Chart> psi(n);
+  std::vector<Word> psi_word(n);  // Ψ_m as a side word (DiskLayout::side_relator)
   std::vector<char> known(n, 0);
   known[0] = 1;
   std::vector<char> used(rels.size(), 0);
@@ -467,9 +468,11 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
       const Rel& rel = rels[r];
       if (known[rel.from] && !known[rel.to]) {
         psi[rel.to] = (D[rel.k] * psi[rel.from]).normalized();
+        psi_word[rel.to] = concat(Word{rel.k + 1}, psi_word[rel.from]);
         known[rel.to] = 1;
       } else if (known[rel.to] && !known[rel.from]) {
         psi[rel.from] = (D[rel.k].inverse() * psi[rel.to]).normalized();
+        psi_word[rel.from] = concat(Word{-(rel.k + 1)}, psi_word[rel.to]);
         known[rel.from] = 1;
       } else {
         continue;
@@ -480,6 +483,28 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
   }
   for (int m = 0; m < n; ++m)
     if (!known[m]) throw SolveError("layout: the corners of the cut disk do not form one vertex cycle");
+  // The corner relations form one cycle through the 4g corners; the one not
+  // used above closes it: D_k Ψ_from Ψ_to⁻¹ = id is the vertex-cycle relator.
+  out.side_relator.clear();
+  for (size_t r = 0; r < rels.size(); ++r)
+    if (!used[r]) {
+      const Rel& rel = rels[r];
+      out.side_relator = cyclic_reduce(concat({Word{rel.k + 1}, psi_word[rel.from], inverse(psi_word[rel.to])}));
+    }
+  {
+    std::vector<int> plus(nloops, 0), minus(nloops, 0);
+    for (int x : out.side_relator) ++(x > 0 ? plus : minus)[std::abs(x) - 1];
+    bool ok = static_cast<int>(out.side_relator.size()) == n;
+    for (int k = 0; k < nloops; ++k) ok = ok && plus[k] == 1 && minus[k] == 1;
+    if (!ok)
+      throw SolveError("layout: the vertex cycle of the side pairings is not a one-vertex relation of length " +
+                       std::to_string(n));
+  }
+  out.generator_side_words.assign(nloops, Word{});
+  for (int k = 0; k < nloops; ++k) {
+    const int i = plus_side[k];
+    out.generator_side_words[k] = dehn_reduce(concat(inverse(psi_word[i]), psi_word[(i + 1) % n]), out.side_relator);
+  }
   const Complex c0 = out.corners(Connectivity::face(out.boundary_halfedges[0]), out.boundary_halfedges[0] % 3);
   for (int m = 0; m < n; ++m) {
     const int h = out.boundary_halfedges[out.side_start[m]];

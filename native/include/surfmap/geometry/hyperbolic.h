@@ -34,6 +34,14 @@ struct Mobius {
   /// The hyperbolic translation along the geodesic through 0 and p taking 0
   /// to p: T_{−p}.
   static Mobius translation_to(Complex p) { return centring(-p); }
+  /// The translation by the tangent vector ξ at 0 (orthonormal coordinates):
+  /// takes 0 to exp_0(ξ), a = cosh(|ξ|/2), b = sinh(|ξ|/2) ξ/|ξ|. Exact for
+  /// long ξ too, where translation_to(exp_0(ξ)) would divide by 1 − |p|² ≈ 0.
+  static Mobius translation(Complex xi) {
+    const double n = std::abs(xi);
+    if (n == 0.0) return {};
+    return {Complex(std::cosh(n / 2), 0.0), std::sinh(n / 2) * (xi / n)};
+  }
 
   Complex apply(Complex z) const { return (a * z + b) / (std::conj(b) * z + std::conj(a)); }
   Complex operator()(Complex z) const { return apply(z); }
@@ -46,10 +54,26 @@ struct Mobius {
   /// |a|² − |b|², 1 for an exact SU(1,1) element.
   double determinant() const { return std::norm(a) - std::norm(b); }
   /// Rescales to determinant 1 (removes round-off drift after many products).
+  /// The determinant |a|² − |b|² carries an error of round-off times
+  /// |a|² + |b|², so rescaling by it injects that much noise into every
+  /// entry (beyond entries of ~1e8 it can even come out negative). Matrices
+  /// with |a|² + |b|² >= 1e4 are therefore returned unchanged: a product of
+  /// determinant-1 factors keeps every entry to a relative round-off per
+  /// factor, which is all that the distance 2 asinh|b|, the direction b/ā
+  /// and the derivative need.
   Mobius normalized() const {
-    const double s = 1.0 / std::sqrt(determinant());
+    const double big = std::norm(a) + std::norm(b);
+    if (!(big < 1e4)) return *this;
+    const double det = determinant();
+    if (!(det > 0)) return *this;
+    const double s = 1.0 / std::sqrt(det);
     return {a * s, b * s};
   }
+  /// |a| + |b|: bounds how much the map amplifies round-off.
+  double size() const { return std::abs(a) + std::abs(b); }
+  /// Distance d(0, m(0)) = 2 asinh|b| (for determinant 1): exact for near
+  /// and far images alike, unlike distances between points near |z| = 1.
+  double displacement_of_origin() const { return 2.0 * std::asinh(std::abs(b)); }
   /// Derivative at z: 1 / (b̄ z + ā)².
   Complex derivative(Complex z) const {
     const Complex d = std::conj(b) * z + std::conj(a);
@@ -76,6 +100,42 @@ inline double mobius_distance(const Mobius& m, const Mobius& n) {
 inline double conformal_denominator(Complex z) {
   const double r = std::abs(z);
   return (1.0 - r) * (1.0 + r);
+}
+
+/// T_p(z) = (z − p) / (1 − p̄ z), the point z in the chart centring p,
+/// evaluated as (z − p) / ((1 − |p|²) − p̄ (z − p)): for p near |z| = 1 and
+/// z close to p, 1 − p̄ z cancels to a few digits while this form keeps
+/// them (z − p is exact for nearby floats).
+inline Complex centred(Complex p, Complex z) {
+  const Complex d = z - p;
+  const double r = std::abs(p);
+  return d / ((1.0 - r) * (1.0 + r) - std::conj(p) * d);
+}
+
+/// Barycentric coordinates (λ0, λ1, λ2), Σλ = 1, of q in the geodesic
+/// triangle c0 c1 c2, in the hyperboloid model: q ∝ Σ λ_k X_k with X_k the
+/// corners on the hyperboloid. Unlike Klein-model barycentrics they do not
+/// depend on the chart (isometries act linearly on the hyperboloid), and all
+/// are >= 0 exactly when q is in the triangle. Computed in the chart centring
+/// q (Klein barycentrics μ of the origin there, λ_k ∝ μ_k / cosh d(q, c_k)),
+/// so tiny triangles near |z| = 1 keep their digits.
+inline void triangle_barycentric(Complex q, Complex c0, Complex c1, Complex c2, double lambda[3]) {
+  const Complex w[3] = {centred(q, c0), centred(q, c1), centred(q, c2)};
+  Complex k[3];
+  double inv_cosh[3];
+  for (int i = 0; i < 3; ++i) {
+    const double n = std::norm(w[i]);
+    k[i] = 2.0 * w[i] / (1.0 + n);
+    inv_cosh[i] = (1.0 - n) / (1.0 + n);
+  }
+  auto cross = [](Complex a, Complex b) { return a.real() * b.imag() - a.imag() * b.real(); };
+  // Affine barycentrics of the origin: μ_i ∝ cross(k_{i+1}, k_{i+2}).
+  double sum = 0;
+  for (int i = 0; i < 3; ++i) {
+    lambda[i] = cross(k[(i + 1) % 3], k[(i + 2) % 3]) * inv_cosh[i];
+    sum += lambda[i];
+  }
+  for (int i = 0; i < 3; ++i) lambda[i] /= sum;
 }
 
 /// Hyperbolic distance d(z, w) = 2 artanh(|z − w| / |1 − w̄ z|), evaluated as

@@ -5,20 +5,21 @@
 // weights w_e >= 0. E is geodesically convex (the disk is a Hadamard space),
 // so the minimiser in the homotopy class fixed by ρ is unique.
 //
-// Method: Laplacian-preconditioned Riemannian descent. The gradient at z_i is
-// −2 Σ w log_{z_i}(ρ z_j) in the orthonormal frame of the chart centring z_i
-// (where frames of neighbours agree up to a rotation of order the edge
-// length); the step solves (L + D) ξ = Σ w log(...) with the weight
-// Laplacian L and the diagonal D of the normal-block surplus d·coth d − 1
-// (DESIGN.md §7), factorised once, then z_i ← exp_{z_i}(α ξ_i) with a
-// backtracking line search on E. Vertices that wander far from the origin are
-// moved back by deck elements (the algebraic form of the paper's dynamic
+// Method: Riemannian Newton with the Hessian of DESIGN.md §7 (radial and
+// normal blocks, frame rotations), a Levenberg shift when the model is
+// indefinite, and a backtracking line search on E along the exponential map.
+// The solve runs in charts: every vertex has an isometry C_i with C_i(0) = z_i
+// and every edge its element in the charts of its two ends, so no distance is
+// computed between points near |z| = 1 and no deck matrix is multiplied by a
+// chart (see the .cpp). Vertices that wander far from the origin are moved to
+// another sheet by deck elements (the algebraic form of the paper's dynamic
 // charts, §VI-A): z_i ← γ z_i and, implicitly, ρ_e ← γ_i ρ_e γ_j⁻¹.
 #include <complex>
 #include <functional>
 #include <vector>
 
 #include "surfmap/geometry/hyperbolic.h"
+#include "surfmap/topology/words.h"
 
 namespace surfmap {
 
@@ -34,12 +35,29 @@ struct HyperbolicHarmonicOptions {
   /// paper §VII-C). Their Newton step is zero; the chart moves may still
   /// re-express them by a deck element, which is the same point of the surface.
   std::vector<char> fixed;
+  /// Optional: the group's relator in generator letters (e.g.
+  /// DeckGroup::side_relator()). With it, and WeightedEdge::rho_word on the
+  /// edges, an edge whose element was long at some point (a bad start: a
+  /// canonical generator 20 tiles away has entries 1e13) is re-derived from
+  /// its reduced word once it is short, instead of carrying the absolute
+  /// round-off of its largest matrix into the result.
+  Word relator;
+  /// Optional: moves a point into the fundamental domain and returns the
+  /// element applied (z_new = γ(z_old)) as a word in generator letters, e.g.
+  /// by crossing the polygon's sides. Called on every vertex after every step
+  /// so that no chart drifts far from the domain. Default: greedy moves by
+  /// the generators while |z| decreases (which can stall outside the domain
+  /// near a corner of a long polygon).
+  std::function<Word(std::complex<double>&)> reduce_point;
 };
 
 struct WeightedEdge {
   int i = -1, j = -1;
   double w = 0;
   hyperbolic::Mobius rho;  ///< image of the edge runs from z_i to rho(z_j)
+  /// Optional: rho as a word in generator letters (+(k+1) = generators[k]),
+  /// see HyperbolicHarmonicOptions::relator.
+  Word rho_word;
 };
 
 struct HyperbolicHarmonicResult {
@@ -48,14 +66,30 @@ struct HyperbolicHarmonicResult {
   std::vector<double> energy_history, gradient_history;
   /// #V points in the Poincaré disk and the deck element applied to each
   /// vertex while solving: the effective element of edge i->j is
-  /// vertex_deck[i] * rho * vertex_deck[j]^-1.
+  /// vertex_deck[i] * rho * vertex_deck[j]^-1. The matrices of long decks
+  /// can have huge entries, and that product then keeps no digits: use
+  /// edge_effective for the solve's edges, and vertex_deck_word (the same
+  /// elements as freely reduced words, letter +(k+1) = generators[k], -(k+1)
+  /// its inverse, product order as written) to build others exactly.
   std::vector<std::complex<double>> z;
   std::vector<hyperbolic::Mobius> vertex_deck;
+  std::vector<Word> vertex_deck_word;
+  /// #edges: the effective element of each edge at the end, i.e.
+  /// vertex_deck[i] * rho * vertex_deck[j]^-1 (multiplied out from small
+  /// matrices only).
+  std::vector<hyperbolic::Mobius> edge_effective;
+  /// #edges: each edge in the charts of its ends, A_e = C_i^-1 ρ_e C_j with
+  /// C_i the isometry taking 0 to z[i] (frames parallel-transported along the
+  /// solve): the edge's image runs from 0 to A_e(0) in i's chart. Accurate to
+  /// round-off whatever |z| is; use it for orientation and length tests.
+  std::vector<hyperbolic::Mobius> edge_local;
   double energy = 0;
 };
 
 /// `generators`: the deck group's generators (their inverses are used too)
-/// for moving vertices back towards the origin. `z0`: #V start points.
+/// for moving vertices back towards the origin; pass the side pairings of
+/// the fundamental polygon (DeckGroup::side_pairings), whose matrices are
+/// small, rather than loop generators based at a far corner. `z0`: #V start points.
 HyperbolicHarmonicResult hyperbolic_harmonic_map(int num_vertices, const std::vector<WeightedEdge>& edges,
                                                  const std::vector<hyperbolic::Mobius>& generators,
                                                  std::vector<std::complex<double>> z0,

@@ -57,6 +57,9 @@ struct HyperbolicInitialMapResult {
   /// #V points and per-vertex deck elements (as HyperbolicHarmonicResult).
   std::vector<std::complex<double>> z;
   std::vector<hyperbolic::Mobius> vertex_deck;
+  /// The same decks as words in the generators' letters (see
+  /// HyperbolicHarmonicResult::vertex_deck_word).
+  std::vector<Word> vertex_deck_word;
   double time_s = 0;
 };
 

@@ -30,6 +30,16 @@ Word commutator_product(const std::vector<Word>& generators);
 /// by the inverse of the rest. The result is freely reduced and represents
 /// the same group element; the identity reduces to the empty word.
 Word dehn_reduce(const Word& w, const Word& relator);
+/// The same, with the relator's rotations prepared once (for many words).
+/// An empty relator gives free reduction only.
+class DehnReducer {
+ public:
+  explicit DehnReducer(const Word& relator);
+  Word operator()(const Word& w) const;
+
+ private:
+  std::vector<Word> rotations_;
+};
 /// Text form: letters named by `names` (index k-1 for letter k), inverses
 /// written with "^-1", separated by spaces.
 std::string to_text(const Word& w, const std::vector<std::string>& names);

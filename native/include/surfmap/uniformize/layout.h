@@ -39,6 +39,7 @@
 #include "surfmap/geometry/hyperbolic.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/topology/system_of_loops.h"
+#include "surfmap/topology/words.h"
 #include "surfmap/uniformize/ricci_flow.h"
 
 namespace surfmap {
@@ -92,6 +93,20 @@ struct DiskLayout {
   /// 2g side pairings D_k and 2g loop generators g_k (file comment).
   std::vector<hyperbolic::Mobius> side_pairings, generators;  ///< hyperbolic
   std::vector<Complex> side_translations, generator_translations;  ///< flat
+  /// The same group presented by the side pairings (Poincaré's polygon
+  /// theorem), in "side letters": +(k+1) is D_k, −(k+1) its inverse, and a
+  /// word x_1 x_2 ... stands for the product D_{x_1} ∘ D_{x_2} ∘ ... .
+  /// `side_relator`: the vertex-cycle relation (cyclic, length 4g, every
+  /// letter once with each sign, so Dehn's algorithm applies to it as to
+  /// `word`). `generator_side_words[k]`: g_k as a reduced side word.
+  /// Why: g_k is a loop seen from the base corner c_0, which can sit far from
+  /// the centre, so its matrix can have entries of 1e5 and products of such
+  /// matrices lose every digit; D_k moves the tile across one side of the
+  /// polygon onto the polygon, and the elements that matter (the tiles around
+  /// the polygon) are short side words whose partial products stay small.
+  /// See uniformize/deck_group.h.
+  Word side_relator;
+  std::vector<Word> generator_side_words;
   /// The word relation g_{w_0} ... g_{w_{4g−1}} = ±id: distance of the
   /// product from ±identity (max |entry difference| of the SU(1,1) matrices),
   /// multiplied out in the chart centring the base corner c_0 (where the
