@@ -11,8 +11,10 @@
 // The relaxation runs under a time budget; when the budget ends first its
 // remaining time is extrapolated from the observed linear rate of the energy
 // gap E − E_newton over the second half of the run (marked "~"), assuming
-// that rate holds (checked on the 10k genus-2 pair: 37 s extrapolated from a
-// 20 s budget, 35.7 s measured with a 150 s budget). Relaxation
+// that rate holds. The rate only slows down, so a short budget flatters the
+// relaxation: 10k genus 2, 37 s extrapolated from 20 s vs 35.7 s measured
+// with 150 s; 200k genus 2, ~361 s from 20 s but ~2020 s from 240 s. Give
+// large meshes a budget of minutes (--relax-budget). Relaxation
 // times count sweeps only (the energy evaluations every few sweeps, needed
 // just for this table, are excluded).
 //
