@@ -52,6 +52,11 @@ class MapJob:
                 break
         return not self.cancel
 
+    def _solve_progress(self, iteration, energy, gradient):
+        """Per iteration of the harmonic solve: the status text shows the energy."""
+        self.energy = float(energy)
+        return not self.cancel
+
     def native_kwargs(self):
         o = self.options
         kw = {"homotopy": int(o.get("homotopy", -1))}
@@ -62,6 +67,8 @@ class MapJob:
             kw["method"] = o["method"]
         if o.get("tolerance"):
             kw["tolerance"] = float(o["tolerance"])
+        if "solve_progress" in (getattr(self.sm.surface_map, "__doc__", None) or ""):
+            kw["solve_progress"] = self._solve_progress
         return kw
 
     def run(self):

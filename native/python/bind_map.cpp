@@ -35,7 +35,8 @@ void bind_map(py::module_& m) {
       "surface_map",
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
          int target_base_vertex, py::object progress, py::object landmarks, const std::string& method,
-         double tolerance, int max_iterations) {
+         double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
+         int homotopy_full_solves) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         SurfaceMapOptions opt;
@@ -49,6 +50,10 @@ void bind_map(py::module_& m) {
         if (max_iterations < 1) throw InputError("max_iterations must be at least 1");
         opt.tolerance = tolerance;
         opt.max_iterations = max_iterations;
+        if (homotopy_candidates < 1) throw InputError("homotopy_candidates must be at least 1");
+        if (homotopy_full_solves < 1) throw InputError("homotopy_full_solves must be at least 1");
+        opt.homotopy_candidates = homotopy_candidates;
+        opt.homotopy_full_solves = homotopy_full_solves;
         if (!landmarks.is_none()) {
           const auto pairs = py::cast<std::vector<std::vector<long long>>>(
               py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
@@ -66,6 +71,17 @@ void bind_map(py::module_& m) {
             py::gil_scoped_acquire gil;
             try {
               const py::object r = progress(stage, fraction);
+              return r.is_none() || r.cast<bool>();
+            } catch (py::error_already_set& e) {
+              callback_error.emplace(std::move(e));
+              return false;
+            }
+          };
+        if (!solve_progress.is_none())
+          opt.solve_progress = [&](int iteration, double energy, double gradient) {
+            py::gil_scoped_acquire gil;
+            try {
+              const py::object r = solve_progress(iteration, energy, gradient);
               return r.is_none() || r.cast<bool>();
             } catch (py::error_already_set& e) {
               callback_error.emplace(std::move(e));
@@ -125,11 +141,15 @@ void bind_map(py::module_& m) {
       py::arg("source_V"), py::arg("source_F"), py::arg("target_V"), py::arg("target_F"), py::arg("homotopy") = -1,
       py::arg("source_base_vertex") = -1, py::arg("target_base_vertex") = -1, py::arg("progress") = py::none(),
       py::arg("landmarks") = py::none(), py::arg("method") = "newton", py::arg("tolerance") = 1e-10,
-      py::arg("max_iterations") = 300,
+      py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
+      py::arg("homotopy_full_solves") = 2,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
       "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "
-      "(source vertex, target vertex) pairs held fixed; `method`: 'newton' or 'relaxation'. `progress(stage, fraction)` "
+      "(source vertex, target vertex) pairs held fixed; `method`: 'newton' or 'relaxation'; "
+      "`solve_progress(iteration, energy, gradient)` is called every iteration of the harmonic solve (genus >= 2) "
+      "and may return False to cancel; `homotopy_candidates` / `homotopy_full_solves`: how many genus >= 2 "
+      "handle classes are listed / solved to convergence for the ranking. `progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
 }
 

@@ -215,3 +215,20 @@ def test_genus2_candidates_are_described_and_the_overlay_class_wins():
     chosen = cands[r["homotopy"]["chosen"]]
     assert chosen["solved"] and "as the shapes overlap" in chosen["description"]
     assert r["distortion"]["mean"] < 1.08
+
+
+def test_genus2_solve_progress_reports_energies_and_cancels():
+    a = surfmap.shapes.n_hole_torus(2, 24, True)
+    b = surfmap.shapes.vase(28, True)
+    seen = []
+    r = surfmap.surface_map(*a, *b, homotopy=0,
+                            solve_progress=lambda it, e, g: seen.append((it, e, g)) or True)
+    assert seen, "solve_progress was never called"
+    energies = [e for _, e, _ in seen]
+    # Newton decreases the energy at every accepted step and ends at the reported optimum.
+    assert all(e2 <= e1 * (1 + 1e-12) for e1, e2 in zip(energies, energies[1:]))
+    assert abs(energies[-1] - r["energy"]["final"]) <= 1e-9 * r["energy"]["final"]
+    with pytest.raises(surfmap.Cancelled):
+        surfmap.surface_map(*a, *b, homotopy=0, solve_progress=lambda it, e, g: it < 1)
+    with pytest.raises(ZeroDivisionError):
+        surfmap.surface_map(*a, *b, homotopy=0, solve_progress=lambda it, e, g: 1 / 0)
