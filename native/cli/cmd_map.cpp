@@ -132,6 +132,7 @@ void register_map(CLI::App& app) {
         {"repaired_vertices", m.repaired_vertices},
         {"flipped_triangles", m.flipped_triangles},
         {"degenerate_triangles", m.degenerate_triangles},
+        {"intrinsic_flipped_triangles", m.intrinsic_flipped_triangles},
         {"initial_flipped_triangles", m.initial_flipped_triangles},
         {"homotopy", {{"chosen", m.chosen_candidate}, {"candidates", candidates}}},
         {"target_lattice", {{m.target_omega1.real(), m.target_omega1.imag()}, {m.target_omega2.real(), m.target_omega2.imag()}}},

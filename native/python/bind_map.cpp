@@ -121,6 +121,7 @@ void bind_map(py::module_& m) {
                      py::arg("per_face") = to_numpy(r.initial_dilatation));
         d["flipped_triangles"] = r.flipped_triangles;
         d["degenerate_triangles"] = r.degenerate_triangles;
+        d["intrinsic_flipped_triangles"] = r.intrinsic_flipped_triangles;
         d["landmark_error"] = r.max_landmark_error;
         d["repaired_vertices"] = r.repaired_vertices;
         d["forward"] = points_to_dict(r.forward);

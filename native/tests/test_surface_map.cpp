@@ -250,6 +250,7 @@ void expect_near_identity_self_map(const TriMesh& m, SurfaceMapOptions o) {
   o.homotopy_full_solves = 1;
   const SurfaceMapResult r = surface_map(m, m, o);
   expect_valid_map(r, m, m);
+  EXPECT_EQ(r.intrinsic_flipped_triangles, 0);
   EXPECT_LE(r.iterations, 30);
   EXPECT_LT(r.mean_dilatation, 1.1);
   double fwd = 0, inv = 0;

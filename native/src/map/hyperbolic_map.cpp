@@ -677,9 +677,31 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     out.max_dilatation = std::max(out.max_dilatation, d);
   }
   out.mean_dilatation = weighted / std::max(total_area, 1e-300);
+  // The intrinsic Delaunay triangles (the energy's own triangulation): their
+  // images from the solver's local charts, oriented by the face's corners.
+  out.intrinsic_flipped_triangles = 0;
+  if (hr.edge_local.size() >= idt.edges.size()) {
+    for (int f = 0; f < static_cast<int>(idt.F.rows()); ++f) {
+      Mobius side[3];
+      bool known = true;
+      for (int k = 0; k < 3; ++k) {
+        const int e = idt.face_edges(f, k);
+        const auto& ie = idt.edges[e];
+        const int a = idt.F(f, k), b = idt.F(f, (k + 1) % 3);
+        if (ie.i == a && ie.j == b && a != b) side[k] = hr.edge_local[e];
+        else if (ie.i == b && ie.j == a && a != b) side[k] = hr.edge_local[e].inverse();
+        else known = false;  // a loop edge: orientation not recorded
+      }
+      if (!known) continue;
+      const Complex p1 = side[0].apply(Complex(0.0)), p2 = side[2].inverse().apply(Complex(0.0));
+      if (p1.real() * p2.imag() - p1.imag() * p2.real() <= 0) ++out.intrinsic_flipped_triangles;
+    }
+  }
   if (out.flipped_triangles || out.degenerate_triangles)
     throw SolveError("the optimised map has " + std::to_string(out.flipped_triangles) + " flipped and " +
-                     std::to_string(out.degenerate_triangles) + " degenerate image triangles; it is not returned");
+                     std::to_string(out.degenerate_triangles) + " degenerate image triangles of the source's faces (" +
+                     std::to_string(out.intrinsic_flipped_triangles) +
+                     " flipped on its intrinsic Delaunay triangulation, where the energy lives); it is not returned");
   out.source_image = zp;
   stage_done("quality", 0.75);
 

@@ -161,6 +161,14 @@ struct SurfaceMapResult {
   double initial_mean_dilatation = 0, initial_max_dilatation = 0;
   std::vector<double> initial_dilatation;  ///< #F_source D' of the initial map (empty when not computed)
   int flipped_triangles = 0, degenerate_triangles = 0;
+  /// Genus >= 2: flipped images among the triangles of the source's
+  /// intrinsic Delaunay triangulation, on which the energy (and so the
+  /// discrete harmonic map, an embedding for positive weights) is defined;
+  /// -1 when not computed. flipped_triangles counts the source's own faces
+  /// with straight (geodesic) images between the mapped vertices: on
+  /// meshes with slivers that can be non-zero while this is 0, and the map
+  /// then still fails (MORPH.obj uses the source's faces).
+  int intrinsic_flipped_triangles = -1;
   /// Largest distance between a landmark's located forward image and its
   /// target vertex: the least-squares residual for genus 0 with more than 3
   /// landmarks, otherwise the round-off of locating a held landmark (those
