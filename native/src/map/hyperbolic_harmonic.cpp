@@ -116,12 +116,13 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
   std::vector<Mobius> A(edges.size());
   for (size_t e = 0; e < edges.size(); ++e)
     A[e] = (chart[edges[e].i].inverse() * edges[e].rho * chart[edges[e].j]).normalized();
-  // Edges longer than ~140 units at the start (entries beyond 1e30; a class
-  // twisted by hundreds of tiles, seen from a start at the origin) would
-  // take the solve hundreds of capped steps, and no map with such an edge
-  // is an embedding of a mesh of this size: refused at once.
+  // Edges longer than ~70 units at the start (entries beyond 1e15; a class
+  // twisted by dozens of tiles, seen from a start at the origin) would take
+  // the solve hundreds of capped steps (minutes at genus 5 when the class
+  // ranking tries such classes), and no map with such an edge is an
+  // embedding of a mesh of this size: refused at once.
   for (size_t e = 0; e < edges.size(); ++e)
-    if (!(A[e].size() < 1e30))
+    if (!(A[e].size() < 1e15))
       throw SolveError("hyperbolic harmonic map: edge " + std::to_string(e) + " starts " +
                        std::to_string(A[e].displacement_of_origin()) +
                        " units long (deck element beyond double range for this solve)");
