@@ -386,12 +386,16 @@ def test_worker_thread_cancel_leaves_no_result():
     job.start()
     job.thread.join(60)
     assert job.done() and job.error == ("cancelled", "cancelled") and job.outputs is None
-    # and a normal threaded run gives the same map as the synchronous one
+    # and a normal threaded run: the worker does the native solve only (no Python work runs
+    # beside Blender's main thread), the outputs are computed afterwards on the main thread
     job2, _ = map_ops.prepare_job(bpy.context, sm)
     job2.start()
     job2.thread.join(120)
+    assert job2.error is None and job2.result is not None, job2.error
+    assert job2.outputs is None
+    job2.compute_outputs()
     assert job2.error is None and job2.outputs is not None, job2.error
-    assert "harmonic" in job2.stage or job2.stage == "writing outputs"
+    assert job2.stage == "writing outputs"
     assert isinstance(mapjob.MapJob, type)
 
 

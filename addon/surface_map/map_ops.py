@@ -342,6 +342,8 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
             self._status(context, job.status_text() if not job.cancel else
                          "Surface Map: cancelling...")
         if job.done():
+            if not job.cancel:
+                job.compute_outputs()
             self._cleanup(context)
             return self._finish(context, job)
         if event.type in {'MIDDLEMOUSE', 'WHEELUPMOUSE', 'WHEELDOWNMOUSE', 'TRACKPADPAN',

@@ -71,22 +71,42 @@ class MapJob:
             kw["solve_progress"] = self._solve_progress
         return kw
 
-    def run(self):
-        """The whole computation; never raises (the error is kept in self.error)."""
-        sm = self.sm
+    def run(self, with_outputs=True):
+        """The native solve and, with `with_outputs`, the outputs; never raises (the error is
+        kept in self.error)."""
         self.t0 = time.time()
+        self._guarded(self._solve)
+        if with_outputs:
+            self.compute_outputs()
+        self.elapsed = time.time() - self.t0
+
+    def compute_outputs(self):
+        """The numpy outputs of a finished solve. The modal operator calls this on Blender's
+        main thread: Blender releases the GIL inside bpy.ops calls, so Python running on the
+        worker thread meanwhile is not safe (a numpy call there crashed under a screenshot
+        operator); the worker runs only the native solve, which holds no Python state."""
+        if self.error is None and self.result is not None and self.outputs is None:
+            self._guarded(self._outputs)
+
+    def _solve(self):
+        kw = self.native_kwargs()   # prepare_job checked the core accepts them
+        self.result = self.sm.surface_map(
+            self.source["V"], self.source["F"], self.target["V"], self.target["F"],
+            progress=self._progress, **kw)
+        if self.cancel:
+            raise self.sm.Cancelled("cancelled")
+
+    def _outputs(self):
+        self.stage, self.fraction = "writing outputs", 1.0
+        self.outputs = compute_outputs(self.source, self.target, self.result, self.options)
+        if self.cancel:
+            self.outputs = None
+            raise self.sm.Cancelled("cancelled")
+
+    def _guarded(self, step):
+        sm = self.sm
         try:
-            kw = self.native_kwargs()   # prepare_job checked the core accepts them
-            self.result = sm.surface_map(
-                self.source["V"], self.source["F"], self.target["V"], self.target["F"],
-                progress=self._progress, **kw)
-            if self.cancel:
-                raise sm.Cancelled("cancelled")
-            self.stage, self.fraction = "writing outputs", 1.0
-            self.outputs = compute_outputs(self.source, self.target, self.result, self.options)
-            if self.cancel:
-                self.outputs = None
-                raise sm.Cancelled("cancelled")
+            step()
         except sm.Cancelled:
             self.error = ("cancelled", "cancelled")
         except sm.InputError as e:
@@ -99,10 +119,11 @@ class MapJob:
             import traceback
             traceback.print_exc()
             self.error = ("internal", f"{type(e).__name__}: {e}")
-        self.elapsed = time.time() - self.t0
 
     def start(self):
-        self.thread = threading.Thread(target=self.run, name="surfmap solve", daemon=True)
+        """The native solve on a worker thread (outputs: compute_outputs on the main thread)."""
+        self.thread = threading.Thread(target=self.run, kwargs={"with_outputs": False},
+                                       name="surfmap solve", daemon=True)
         self.thread.start()
 
     def done(self):
