@@ -6,7 +6,6 @@ surface, choosing the original edges to mark as seams, loop names and colours. N
 imports bpy, so it runs (and is tested) outside Blender too.
 """
 import colorsys
-import math
 
 import numpy as np
 
@@ -146,12 +145,8 @@ def srgb_from_linear(rgba):
     return tuple(out) + tuple(rgba[3:])
 
 
-def bounding_diagonal(V):
-    V = np.asarray(V, dtype=np.float64)
-    if len(V) == 0:
-        return 1.0
-    d = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    return d if d > 0 and math.isfinite(d) else 1.0
+# One definition for the loops and the map outputs (mapping.py is bpy-free too).
+from .mapping import bounding_diagonal  # noqa: E402,F401
 
 
 # --- one object through the native pipeline ---------------------------------------------------
