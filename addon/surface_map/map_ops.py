@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 
 from . import blender_io, core, mapjob, mapping
-from .operators import pick_objects, surfmap_module
+from .operators import native_and_object_mode, pick_objects, surfmap_module
 
 GENERATED_UV = "surfmap box projection"
 OUTPUT_FLAGS = (("write_uvs", "UV"), ("write_morph", "MORPH"), ("write_distortion", "DISTORTION"),
@@ -276,14 +276,7 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if surfmap_module(context) is None:
-            cls.poll_message_set("The surfmap native module is missing (see the Surface Map "
-                                 "panel)")
-            return False
-        if context.mode != 'OBJECT':
-            cls.poll_message_set("Switch to Object Mode")
-            return False
-        return True
+        return native_and_object_mode(cls, context)
 
     def _prepare(self, context):
         sm = surfmap_module(context)

@@ -9,6 +9,18 @@ def surfmap_module(context):
     return native.load(extra_dirs=extra_module_dirs(context))
 
 
+def native_and_object_mode(cls, context):
+    """The poll precondition every Surface Map operator shares: the native module is there
+    and Blender is in Object Mode (otherwise the reason goes to poll_message_set)."""
+    if surfmap_module(context) is None:
+        cls.poll_message_set("The surfmap native module is missing (see the Surface Map panel)")
+        return False
+    if context.mode != 'OBJECT':
+        cls.poll_message_set("Switch to Object Mode")
+        return False
+    return True
+
+
 def pick_objects(context):
     """(source, target) following Blender's selected-to-active habit: the active object is the
     target, the other selected mesh the source (None with a single mesh). Raises
@@ -45,12 +57,7 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if surfmap_module(context) is None:
-            cls.poll_message_set("The surfmap native module is missing (see the Surface Map "
-                                 "panel)")
-            return False
-        if context.mode != 'OBJECT':
-            cls.poll_message_set("Switch to Object Mode")
+        if not native_and_object_mode(cls, context):
             return False
         if not any(o.type == 'MESH' for o in context.selected_objects):
             cls.poll_message_set("Select one or two mesh objects (active = target)")
