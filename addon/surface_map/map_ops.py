@@ -505,12 +505,4 @@ class SURFMAP_OT_paint_distortion(_StoredMapOperator, bpy.types.Operator):
 classes = (SURFMAP_OT_compute_map, SURFMAP_OT_transfer_uvs, SURFMAP_OT_create_morph,
            SURFMAP_OT_paint_distortion)
 
-
-def register():
-    for c in classes:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(classes):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -129,12 +129,4 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
 
 classes = (SURFMAP_OT_show_cut_loops,)
 
-
-def register():
-    for c in classes:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(classes):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(classes)
