@@ -40,6 +40,32 @@
 namespace surfmap {
 namespace {
 
+// Breadth-first spanning tree of the faces from face 0, crossing only the
+// edges `crossable(e)` allows. parent[f] is the halfedge of f through which
+// it was reached (inside f, pointing back at its parent face), -1 for face 0
+// and for faces not reached. Returns the number of faces reached.
+template <class Crossable>
+int dual_bfs_tree(const Connectivity& conn, const Crossable& crossable, std::vector<int>& parent) {
+  const int nf = conn.num_faces();
+  parent.assign(nf, -1);
+  std::vector<char> seen(nf, 0);
+  std::vector<int> queue{0};
+  seen[0] = 1;
+  for (size_t i = 0; i < queue.size(); ++i) {
+    const int f = queue[i];
+    for (int k = 0; k < 3; ++k) {
+      const int h = 3 * f + k;
+      if (!crossable(conn.edge(h))) continue;
+      const int nbr = Connectivity::face(conn.twin(h));
+      if (seen[nbr]) continue;
+      seen[nbr] = 1;
+      parent[nbr] = conn.twin(h);
+      queue.push_back(nbr);
+    }
+  }
+  return static_cast<int>(queue.size());
+}
+
 struct UnionFind {
   std::vector<int> p;
   explicit UnionFind(int n) : p(n) { std::iota(p.begin(), p.end(), 0); }
@@ -152,23 +178,8 @@ Greedy greedy_basis(const TriMesh& mesh, const Connectivity& conn, int x, int ge
                      " generator edges, expected 2g = " + std::to_string(2 * genus));
   std::sort(gens.begin(), gens.end());
   // Dual tree parents by BFS over T* from face 0.
-  g.dual_parent_he.assign(nf, -1);
-  std::vector<char> fseen(nf, 0);
-  std::vector<int> queue{0};
-  fseen[0] = 1;
-  for (size_t i = 0; i < queue.size(); ++i) {
-    const int f = queue[i];
-    for (int k = 0; k < 3; ++k) {
-      const int h = 3 * f + k;
-      if (!in_dual[conn.edge(h)]) continue;
-      const int nbr = Connectivity::face(conn.twin(h));
-      if (fseen[nbr]) continue;
-      fseen[nbr] = 1;
-      g.dual_parent_he[nbr] = conn.twin(h);
-      queue.push_back(nbr);
-    }
-  }
-  if (static_cast<int>(queue.size()) != nf) throw SolveError("system of loops: the cut tree does not span all faces");
+  if (dual_bfs_tree(conn, [&](int e) { return in_dual[e] != 0; }, g.dual_parent_he) != nf)
+    throw SolveError("system of loops: the cut tree does not span all faces");
   for (const auto& [w, e] : gens) {
     const int h = conn.edge_halfedge(e);
     g.generators.push_back(e);
@@ -763,26 +774,11 @@ void finish_from_simple_loops(SystemOfLoops& s) {
   check_word(s.word, s.genus);
   s.word_text = word_to_text(s.word);
   // Cut tree T*: spanning tree of the faces, never crossing a loop edge.
-  std::vector<char> in_dual(ne, 0);
-  s.dual_tree_parent_halfedge.assign(nf, -1);
-  std::vector<char> fseen(nf, 0);
-  std::vector<int> queue{0};
-  fseen[0] = 1;
-  for (size_t i = 0; i < queue.size(); ++i) {
-    const int f = queue[i];
-    for (int k = 0; k < 3; ++k) {
-      const int h = 3 * f + k;
-      if (on_loop[conn.edge(h)]) continue;
-      const int nbr = Connectivity::face(conn.twin(h));
-      if (fseen[nbr]) continue;
-      fseen[nbr] = 1;
-      in_dual[conn.edge(h)] = 1;
-      s.dual_tree_parent_halfedge[nbr] = conn.twin(h);
-      queue.push_back(nbr);
-    }
-  }
-  if (static_cast<int>(queue.size()) != nf)
+  if (dual_bfs_tree(conn, [&](int e) { return !on_loop[e]; }, s.dual_tree_parent_halfedge) != nf)
     throw SolveError("system of loops: the loops cut the surface into more than one piece");
+  std::vector<char> in_dual(ne, 0);
+  for (int f = 0; f < nf; ++f)
+    if (s.dual_tree_parent_halfedge[f] >= 0) in_dual[conn.edge(s.dual_tree_parent_halfedge[f])] = 1;
   // Tree T: the edges T* does not cross, minus the generators; it contains
   // both halves of every loop, so loop k = path(x,a) + generator + path(b,x).
   std::vector<char> gen(ne, 0);
