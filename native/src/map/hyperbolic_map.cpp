@@ -188,15 +188,34 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     thb = std::move(moved);
   }
   std::vector<HandleCandidate> handle_classes = handle_candidates(shb, thb, options.homotopy_candidates);
-  // Of the Torelli-equivalent versions of each lifted class, the one whose
-  // source loops have the shortest images in the target (least twisted).
+  // Source loop letter k as a word in the target's loop letters under theta.
+  // Reduced after each substitution: the unreduced product of the three
+  // substitutions grows like the product of their lengths (over 5e5 letters
+  // for a twisted genus-3 class: minutes of Dehn reduction per candidate).
+  const DehnReducer reduce_canonical(R), reduce_target_loops(layout.word);
+  auto loop_letter_images = [&](const GroupMap& theta) {
+    std::vector<Word> images;
+    for (const Word& w : scs.letters)
+      images.push_back(reduce_target_loops(substitute(reduce_canonical(substitute(w, theta)), tcs.generators)));
+    return images;
+  };
   auto loop_image_length = [&](const GroupMap& theta) {
     double total = 0;
-    for (const Word& w : scs.letters)
-      total += static_cast<double>(dehn_reduce(substitute(substitute(w, theta), tcs.generators), layout.word).size());
+    for (const Word& w : loop_letter_images(theta)) total += static_cast<double>(w.size());
     return total;
   };
-  for (HandleCandidate& hc : handle_classes) hc.map = reduce_separating_twists(hc.map, out.genus, loop_image_length);
+  // A class whose loops' images are this long (in letters, summed over the
+  // 2g loops) is not evaluated: its deck elements would be products of
+  // hundreds of side pairings per edge, far beyond double precision (the
+  // solve refuses points beyond ~70 hyperbolic units), and building its
+  // homotopy data alone took minutes (lifted classes of some cuts reach 1e6
+  // letters; the classes that solve have a few hundred at most).
+  const double max_image_letters = 500.0 * n;
+  // Of the Torelli-equivalent versions of each lifted class, the one whose
+  // source loops have the shortest images in the target (least twisted).
+  for (HandleCandidate& hc : handle_classes)
+    if (loop_image_length(hc.map) <= max_image_letters)
+      hc.map = reduce_separating_twists(hc.map, out.genus, loop_image_length);
   // Adds a class in front, dropping a lifted one with the same homology
   // (the named class is the more geometric or the shorter version).
   auto put_first = [&](const GroupMap& theta, const std::string& tag) {
@@ -245,10 +264,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     }
   }
   auto class_data = [&](const GroupMap& theta) {
-    // Source loop letter k as a word in the target's loop letters.
-    std::vector<Word> letter_image;
-    for (const Word& w : scs.letters)
-      letter_image.push_back(dehn_reduce(substitute(substitute(w, theta), tcs.generators), layout.word));
+    const std::vector<Word> letter_image = loop_letter_images(theta);
     std::vector<Word> target_word(edge_word.size());
     // Shortest-form words keep the products of SU(1,1) matrices small. Few
     // distinct words occur (edges crossing the same loops share one), so
@@ -314,10 +330,25 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
                      std::to_string(ncand) + " candidates (0.." + std::to_string(ncand - 1) + ")");
   std::vector<ClassData> data;
   std::vector<char> usable(handle_classes.size(), 1);
-  for (const HandleCandidate& hc : handle_classes) {
-    data.push_back(class_data(hc.map));
+  for (size_t k = 0; k < handle_classes.size(); ++k) {
+    const HandleCandidate& hc = handle_classes[k];
+    const double letters = loop_image_length(hc.map);
     HomotopyCandidate c;
     c.description = hc.description;
+    if (letters <= max_image_letters) {
+      data.push_back(class_data(hc.map));
+    } else {
+      data.emplace_back();
+      usable[k] = 0;
+      c.energy = std::numeric_limits<double>::infinity();
+      c.solved = false;
+      c.description += "  [not solved: the images of the source's loops have " + std::to_string(static_cast<long>(letters)) +
+                       " letters, too twisted for double-precision deck elements]";
+      if (options.homotopy == static_cast<int>(k))
+        throw SolveError("homotopy class " + std::to_string(k) + " cannot be solved: the images of the source's loops have " +
+                         std::to_string(static_cast<long>(letters)) + " letters in the target's group (at most " +
+                         std::to_string(static_cast<long>(max_image_letters)) + " can be evaluated in double precision)");
+    }
     for (int r = 0; r < hc.homology.rows(); ++r)
       for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
     out.candidates.push_back(c);
@@ -370,7 +401,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     hs.max_iterations = short_iterations;
     for (int k = 0; k < ncand; ++k) {
       HyperbolicHarmonicResult r;
-      if (!solve_class(k, hs, r)) continue;
+      if (!usable[k] || !solve_class(k, hs, r)) continue;
       out.candidates[k].energy = r.energy;
       out.candidates[k].solved = false;
     }
