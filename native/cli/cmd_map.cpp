@@ -49,7 +49,7 @@ std::vector<std::pair<int, int>> read_landmarks(const std::string& path) {
 void register_map(CLI::App& app) {
   auto* cmd = app.add_subcommand("map", "Globally optimal map from SRC onto DST (same genus)");
   struct Args {
-    std::string src, dst, out, report, correspondence, method = "newton", landmarks;
+    std::string src, dst, out, report, correspondence, method = "newton", landmarks, initial = "polygon", initial_out;
     int homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
     int homotopy_candidates = 8, homotopy_full_solves = 2;
     double tolerance = 1e-10;
@@ -77,6 +77,12 @@ void register_map(CLI::App& app) {
                   "Genus >= 2: handle correspondences considered (best matching handle positions first)");
   cmd->add_option("--homotopy-full-solves", a->homotopy_full_solves,
                   "Genus >= 2: candidates solved to convergence after ranking all by a short solve");
+  cmd->add_option("--initial-map", a->initial,
+                  "Genus >= 2 initial map: polygon (source disk onto the target's geodesic polygon of the source's "
+                  "loops when convex, else uniform) or uniform (the uniform-weight harmonic map)")
+      ->check(CLI::IsMember({"polygon", "uniform"}));
+  cmd->add_option("--initial-out", a->initial_out,
+                  "INITIAL.obj: the source's connectivity at the initial map's positions on the target (genus >= 1)");
   cmd->add_flag("--quiet", a->quiet, "No progress lines on stderr");
   cmd->callback([a] {
     const IntakeResult src = load_mesh(a->src), dst = load_mesh(a->dst);
@@ -90,6 +96,7 @@ void register_map(CLI::App& app) {
     opt.max_iterations = a->max_iterations;
     opt.homotopy_candidates = a->homotopy_candidates;
     opt.homotopy_full_solves = a->homotopy_full_solves;
+    opt.initial_map = a->initial == "uniform" ? InitialMapMethod::UniformHarmonic : InitialMapMethod::Polygon;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     // One line per stage and percent (the relaxation reports every few sweeps).
     std::string last_line;
@@ -134,6 +141,18 @@ void register_map(CLI::App& app) {
         {"degenerate_triangles", m.degenerate_triangles},
         {"intrinsic_flipped_triangles", m.intrinsic_flipped_triangles},
         {"initial_flipped_triangles", m.initial_flipped_triangles},
+        {"initial_map",
+         {{"construction", m.initial_map.construction},
+          {"polygon", {{"status", m.initial_map.polygon_status},
+                       {"convex", m.initial_map.polygon_convex},
+                       {"min_turn", m.initial_map.polygon_min_turn},
+                       {"perimeter", m.initial_map.polygon_perimeter},
+                       {"chords_split", m.initial_map.polygon_chords_split},
+                       {"flipped_before_relaxing", m.initial_map.polygon_flipped},
+                       {"relaxed_vertices", m.initial_map.polygon_relaxed_vertices}}},
+          {"iterations", m.initial_map.iterations},
+          {"time_s", m.initial_map.time_s},
+          {"located", !m.initial_forward.empty()}}},
         {"homotopy", {{"chosen", m.chosen_candidate}, {"candidates", candidates}}},
         {"target_lattice", {{m.target_omega1.real(), m.target_omega1.imag()}, {m.target_omega2.real(), m.target_omega2.imag()}}},
         {"time_s", times},
@@ -148,7 +167,14 @@ void register_map(CLI::App& app) {
         s << p.face << ' ' << p.barycentric[0] << ' ' << p.barycentric[1] << ' ' << p.barycentric[2] << '\n';
       corr = s.str();
     }
+    if (!a->initial_out.empty() && m.initial_forward.empty())
+      throw InputError("--initial-out: this map has no located initial map (genus 0)");
     write_obj(a->out, morph, src.mesh.F);
+    if (!a->initial_out.empty()) {
+      RowMatrixX3d before(src.mesh.num_vertices(), 3);
+      for (int i = 0; i < before.rows(); ++i) before.row(i) = m.initial_forward[i].position.transpose();
+      write_obj(a->initial_out, before, src.mesh.F);
+    }
     write_text_file(a->report, report.dump(2) + "\n");
     if (!a->correspondence.empty()) write_text_file(a->correspondence, corr);
     if (!a->quiet)

@@ -36,7 +36,7 @@ void bind_map(py::module_& m) {
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
          int target_base_vertex, py::object progress, py::object landmarks, const std::string& method,
          double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
-         int homotopy_full_solves) {
+         int homotopy_full_solves, const std::string& initial_map) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         SurfaceMapOptions opt;
@@ -54,6 +54,9 @@ void bind_map(py::module_& m) {
         if (homotopy_full_solves < 1) throw InputError("homotopy_full_solves must be at least 1");
         opt.homotopy_candidates = homotopy_candidates;
         opt.homotopy_full_solves = homotopy_full_solves;
+        if (initial_map == "polygon") opt.initial_map = InitialMapMethod::Polygon;
+        else if (initial_map == "uniform") opt.initial_map = InitialMapMethod::UniformHarmonic;
+        else throw InputError("initial_map must be 'polygon' or 'uniform', not '" + initial_map + "'");
         if (!landmarks.is_none()) {
           const auto pairs = py::cast<std::vector<std::vector<long long>>>(
               py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
@@ -121,11 +124,25 @@ void bind_map(py::module_& m) {
                      py::arg("per_face") = to_numpy(r.initial_dilatation));
         d["flipped_triangles"] = r.flipped_triangles;
         d["degenerate_triangles"] = r.degenerate_triangles;
+        d["initial_flipped_triangles"] = r.initial_flipped_triangles;
         d["intrinsic_flipped_triangles"] = r.intrinsic_flipped_triangles;
         d["landmark_error"] = r.max_landmark_error;
         d["repaired_vertices"] = r.repaired_vertices;
         d["forward"] = points_to_dict(r.forward);
         d["inverse"] = points_to_dict(r.inverse);
+        const InitialMapInfo& im = r.initial_map;
+        d["initial_map"] = py::dict(
+            py::arg("construction") = im.construction,
+            py::arg("polygon") = py::dict(py::arg("status") = im.polygon_status, py::arg("convex") = im.polygon_convex,
+                                          py::arg("min_turn") = im.polygon_min_turn,
+                                          py::arg("perimeter") = im.polygon_perimeter,
+                                          py::arg("chords_split") = im.polygon_chords_split,
+                                          py::arg("flipped_before_relaxing") = im.polygon_flipped,
+                                          py::arg("relaxed_vertices") = im.polygon_relaxed_vertices),
+            py::arg("iterations") = im.iterations, py::arg("time_s") = im.time_s);
+        // The initial map located on the target (None for genus 0 or when it
+        // could not be located).
+        d["initial_forward"] = r.initial_forward.empty() ? py::object(py::none()) : py::object(points_to_dict(r.initial_forward));
         py::list cands;
         for (const auto& c : r.candidates)
           cands.append(py::dict(py::arg("description") = c.description, py::arg("energy") = c.energy, py::arg("solved") = c.solved,
@@ -143,14 +160,16 @@ void bind_map(py::module_& m) {
       py::arg("source_base_vertex") = -1, py::arg("target_base_vertex") = -1, py::arg("progress") = py::none(),
       py::arg("landmarks") = py::none(), py::arg("method") = "newton", py::arg("tolerance") = 1e-10,
       py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
-      py::arg("homotopy_full_solves") = 2,
+      py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = "polygon",
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
       "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "
       "(source vertex, target vertex) pairs held fixed; `method`: 'newton' or 'relaxation'; "
       "`solve_progress(iteration, energy, gradient)` is called every iteration of the harmonic solve (genus >= 2) "
       "and may return False to cancel; `homotopy_candidates` / `homotopy_full_solves`: how many genus >= 2 "
-      "handle classes are listed / solved to convergence for the ranking. `progress(stage, fraction)` "
+      "handle classes are listed / solved to convergence for the ranking; `initial_map`: 'polygon' (genus >= 2: the "
+      "source disk onto the target's geodesic polygon of the source's loops when convex, else uniform) or 'uniform' "
+      "('initial_map' in the result says which was used; 'initial_forward': the initial map located on the target). `progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
 }
 

@@ -230,6 +230,9 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     // vertices of their shapes), a reproducible and usually natural choice.
     const Complex shift = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z[sl.base_vertex];
     for (Complex& zi : z) zi += shift;
+    // The initial map likewise (it is located below for the "before" morph).
+    const Complex shift0 = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z_init[sl.base_vertex];
+    for (Complex& zi : z_init) zi += shift0;
   }
   if (options.inspect_problem) {
     HarmonicProblem p;
@@ -319,6 +322,18 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     const int rf = locate_periodic(tgrid, z[i], centre, tgt.A, tgt.B, &b);
     if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
     out.forward[i] = point_on_input(target, tc, tgt.loops, refined_face_origin, rf, b);
+  }
+  // The initial (uniform Tutte) map located the same way ("before" morph).
+  out.initial_map.construction = "uniform Tutte";
+  out.initial_forward.resize(n);
+  for (int i = 0; i < n; ++i) {
+    Eigen::Vector3d b;
+    const int rf = locate_periodic(tgrid, z_init[i], centre, tgt.A, tgt.B, &b);
+    if (rf < 0) {
+      out.initial_forward.clear();  // left unlocated, not an error
+      break;
+    }
+    out.initial_forward[i] = point_on_input(target, tc, tgt.loops, refined_face_origin, rf, b);
   }
   stage_done("forward location", 0.85);
 

@@ -486,21 +486,34 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     return sc.edge_halfedge(e) == h ? rho_edge[e] : rho_edge[e].inverse();
   };
 
-  // Initial map (map/initial_map.h): the uniform-weight (Tutte-type) map in
-  // this class; the "before" figures, and the start unless start_seed asks
-  // for a random one.
+  // Initial map (map/initial_map.h): the source's cut disk flattened onto
+  // the target's geodesic polygon of the source's loops when that polygon is
+  // convex, else the uniform-weight (Tutte-type) map in this class; the
+  // "before" figures, and the start unless start_seed asks for a random one.
   std::vector<Mobius> halfedge_rho(3 * source.num_faces());
-  for (int h = 0; h < 3 * source.num_faces(); ++h) halfedge_rho[h] = rho_of(h);
+  std::vector<Word> halfedge_word(3 * source.num_faces());
+  for (int h = 0; h < 3 * source.num_faces(); ++h) {
+    halfedge_rho[h] = rho_of(h);
+    const int e = sc.edge(h);
+    halfedge_word[h] = sc.edge_halfedge(e) == h ? side_word_edge[e] : inverse(side_word_edge[e]);
+  }
   HyperbolicInitialMapResult init;
   try {
-    init = hyperbolic_initial_map(sc, halfedge_rho, deck_group.side_pairings());
+    HyperbolicInitialMapOptions io;
+    io.polygon = options.initial_map == InitialMapMethod::Polygon;
+    io.base_vertex = sl.base_vertex;
+    io.reduce_point = [&](Complex& z) { return reduce_into_polygon(z); };
+    init = hyperbolic_initial_map(source, sc, halfedge_rho, halfedge_word, deck_group, io);
   } catch (const SolveError&) {
     // The start then is every vertex at the origin (as before the initial
     // map existed); the "before" figures report its degenerate triangles.
     init.z.assign(source.num_vertices(), Complex(0.0));
     init.vertex_deck.assign(source.num_vertices(), Mobius());
     init.vertex_deck_word.assign(source.num_vertices(), Word{});
+    init.construction = "none (the uniform-weight solve failed; origin)";
   }
+  set_initial_map_info(init, out.initial_map);
+  if (options.inspect_initial_map) options.inspect_initial_map({&halfedge_rho, &halfedge_word, &deck_group, &init});
   const DistortionStats q0 = hyperbolic_distortion(source, halfedge_rho, init.z, init.vertex_deck);
   out.initial_dilatation = q0.per_face;
   out.initial_mean_dilatation = q0.mean;
@@ -837,6 +850,23 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
     last_face = rf;
     out.forward[i] = point_on_input(target, tc, tl, refined_face_origin, rf, b);
+  }
+  // The initial map, located the same way (the "before" morph and UVs); a
+  // vertex that cannot be located leaves it unlocated (empty), not an error.
+  out.initial_forward.resize(source.num_vertices());
+  last_face = layout.root_face >= 0 ? layout.root_face : 0;
+  for (int i = 0; i < source.num_vertices(); ++i) {
+    Eigen::Vector3d b;
+    Complex q = init.z[i];
+    reduce_into_polygon(q);
+    int rf = walk(last_face, q, &b);
+    if (rf < 0) rf = locate(tgrid, tpoints, q, &b);
+    if (rf < 0) {
+      out.initial_forward.clear();
+      break;
+    }
+    last_face = rf;
+    out.initial_forward[i] = point_on_input(target, tc, tl, refined_face_origin, rf, b);
   }
   stage_done("forward location", 0.85);
   Tris spoints(source.num_faces()), stris(source.num_faces());

@@ -1,14 +1,21 @@
 #include "surfmap/map/initial_map.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <string>
 
+#include <unordered_map>
+
+#include <Eigen/CholmodSupport>
 #include <Eigen/Geometry>
+#include <Eigen/Sparse>
 
 #include "surfmap/error.h"
+#include "surfmap/topology/cut_mesh.h"
+#include "surfmap/topology/system_of_loops.h"
 
 namespace surfmap {
 
@@ -41,6 +48,500 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const Connectivity& sc, const 
   r.vertex_deck = std::move(hr.vertex_deck);
   r.vertex_deck_word = std::move(hr.vertex_deck_word);
   r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Σ_s d(p, A_s p) and its Riemannian gradient at p (orthonormal coordinates
+// of the chart centring p), everything evaluated in that chart.
+double displacement_sum(const std::vector<Mobius>& A, Complex p, Complex* gradient) {
+  const Mobius T = Mobius::centring(p), Ti = T.inverse();
+  double sum = 0;
+  Complex g(0.0);
+  for (const Mobius& a : A) {
+    const Mobius B = (T * a * Ti).normalized();
+    sum += B.displacement_of_origin();
+    for (const Complex q : {B.apply(Complex(0.0)), B.inverse().apply(Complex(0.0))})
+      if (std::abs(q) > 0) g -= q / std::abs(q);
+  }
+  if (gradient) *gradient = g;
+  return sum;
+}
+
+// The convex function Σ_s d(p, A_s p) (a sum of displacement functions) by
+// gradient descent with backtracking; returns its minimiser from p0.
+Complex minimise_displacement(const std::vector<Mobius>& A, Complex p0, int iterations) {
+  Complex p = p0, g;
+  double F = displacement_sum(A, p, &g), step = 0.5;
+  for (int it = 0; it < iterations && std::abs(g) > 1e-9; ++it) {
+    bool moved = false;
+    for (int back = 0; back < 40; ++back, step *= 0.5) {
+      const Complex xi = -step * g;
+      const Complex q = Mobius::centring(p).inverse().apply(Mobius::translation(xi).apply(Complex(0.0)));
+      Complex gq;
+      const double Fq = displacement_sum(A, q, &gq);
+      if (Fq <= F - 1e-4 * step * std::norm(g)) {
+        p = q, F = Fq, g = gq, moved = true;
+        step *= 2;
+        break;
+      }
+    }
+    if (!moved) break;
+  }
+  return p;
+}
+
+// The flattening embeds the refined disk, but its derivative jumps across
+// the cut (each bank is pulled onto a fixed side), so a source face crossed
+// by a loop, straight between its corners' images, can flip. Those corners
+// and their neighbours are relaxed: Gauss–Seidel sweeps moving a vertex to
+// the weighted hyperbolic barycentre of its neighbours' images (one Karcher
+// step in the chart centring it; mean-value weights of the source). Grows
+// the set by a ring while flips remain. Returns the vertices relaxed.
+int repair_flips(const TriMesh& source, const Connectivity& sc, const std::vector<Word>& halfedge_word,
+                 const DeckGroup& group, const DistortionStats& q0, int sweeps, PolygonInitialMapResult& poly) {
+  const int nv = source.num_vertices();
+  std::vector<char> active(nv, 0);
+  for (int f = 0; f < source.num_faces(); ++f)
+    if (!std::isfinite(q0.per_face[f]))
+      for (int k = 0; k < 3; ++k) active[source.F(f, k)] = 1;
+  auto grow = [&] {
+    std::vector<char> next = active;
+    for (int v = 0; v < nv; ++v)
+      if (active[v])
+        for (int h : sc.outgoing(v)) next[sc.head(h)] = 1;
+    active.swap(next);
+  };
+  grow();
+  // Mean-value weight of halfedge h (tail's coordinate), from the 3D angles.
+  auto weight = [&](int h) {
+    double w = 0;
+    const Eigen::Vector3d pi = source.V.row(sc.tail(h)), pj = source.V.row(sc.head(h));
+    for (int g : {h, sc.twin(h)}) {  // the angle at the tail in both faces of the edge
+      const Eigen::Vector3d a = pj - pi, b = source.V.row(sc.opposite_vertex(g)).transpose() - pi;
+      w += a.cross(b).norm() / std::max(a.norm() * b.norm() + a.dot(b), 1e-300);
+    }
+    return w / std::max((pj - pi).norm(), 1e-300);
+  };
+  int relaxed = 0;
+  for (int round = 0; round < 4; ++round) {
+    std::vector<int> set;
+    for (int v = 0; v < nv; ++v)
+      if (active[v]) set.push_back(v);
+    relaxed = static_cast<int>(set.size());
+    for (int sweep = 0; sweep < sweeps; ++sweep)
+      for (int v : set) {
+        const Mobius T = Mobius::centring(poly.z[v]);
+        Complex xi(0.0);
+        double wsum = 0;
+        for (int h : sc.outgoing(v)) {
+          const int u = sc.head(h);
+          const Mobius eff = group.evaluate_side_word(group.reduce(
+              concat({poly.vertex_deck_word[v], halfedge_word[h], inverse(poly.vertex_deck_word[u])})));
+          const double w = weight(h);
+          xi += w * hyperbolic::log_map(Complex(0.0), (T * eff).normalized().apply(poly.z[u]));
+          wsum += w;
+        }
+        poly.z[v] = T.inverse().apply(hyperbolic::exp_map(Complex(0.0), xi / wsum));
+      }
+    // Flips left?
+    std::vector<Mobius> rho(3 * source.num_faces());
+    for (int h = 0; h < 3 * source.num_faces(); ++h) rho[h] = group.evaluate_side_word(halfedge_word[h]);
+    const DistortionStats q = hyperbolic_distortion(source, rho, poly.z, poly.vertex_deck);
+    if (!q.flipped && !q.degenerate) break;
+    for (int f = 0; f < source.num_faces(); ++f)
+      if (!std::isfinite(q.per_face[f]))
+        for (int k = 0; k < 3; ++k) active[source.F(f, k)] = 1;
+    grow();
+  }
+  return relaxed;
+}
+
+}  // namespace
+
+PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connectivity& sc,
+                                            const std::vector<Word>& halfedge_word, const DeckGroup& group,
+                                            const PolygonInitialMapOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PolygonInitialMapResult out;
+  const int n_in = source.num_vertices();
+  if (static_cast<int>(halfedge_word.size()) != 3 * sc.num_faces() || sc.num_vertices() != n_in)
+    throw InputError("polygon_initial_map: one side word per source halfedge (3 x #F) needed");
+  auto give_up = [&](const std::string& why) {
+    out.applied = false;
+    out.reason = why;
+    out.z.clear(), out.vertex_deck.clear(), out.vertex_deck_word.clear();
+    out.time_s = seconds_since(t0);
+    return out;
+  };
+  // Refined loops: simple, meeting only at x, so the cut is a 4g-gon. The
+  // refined mesh keeps the input vertices first (system_of_loops.h).
+  SystemOfLoopsOptions lo;
+  lo.base_vertex = options.base_vertex;
+  lo.refine = true;
+  SystemOfLoops rs;
+  try {
+    rs = system_of_loops(source, lo);
+  } catch (const SolveError& e) {
+    return give_up(std::string("refined loops: ") + e.what());
+  }
+  const TriMesh& rm = rs.mesh;
+
+  const int x = rs.base_vertex, nrv = rm.num_vertices(), nrf = rm.num_faces();
+  out.refined_vertices = nrv;
+  if (static_cast<int>(rs.face_origin.size()) != nrf) return give_up("refined mesh without face origins");
+  const Connectivity rc(rm.F, nrv);
+  std::vector<char> cut(rc.num_edges(), 0);
+  for (const auto& loop : rs.loops)
+    for (size_t q = 0; q + 1 < loop.size(); ++q) {
+      const int h = rc.find_halfedge(loop[q], loop[q + 1]);
+      if (h < 0) return give_up("refined loop is not an edge path");
+      cut[rc.edge(h)] = 1;
+    }
+  const CutMesh cm = cut_mesh_along_edges(rm, rc, cut);
+  if (cm.euler_characteristic != 1 || cm.boundary_loops.size() != 1) return give_up("the refined cut is not a disk");
+  const int nd = static_cast<int>(cm.original_vertex.size());
+  out.disk_vertices = nd;
+
+  // The class's flat connection carried to the refined mesh: every refined
+  // vertex u gets a home frame (an input vertex its own lift; a split or
+  // bend point the frame of its origin face, i.e. that face developed with
+  // corner 0 at its lift), and psi(f', k) is the element taking corner k of
+  // refined face f' from its home frame into the frame of the input face
+  // F holding f': the position of u in F's frame is psi * lift(u).
+  auto phi = [&](int F, int k) -> Word {
+    return k == 0 ? Word{} : k == 1 ? halfedge_word[3 * F] : inverse(halfedge_word[3 * F + 2]);
+  };
+  auto corner_of = [&](int F, int v) {
+    for (int k = 0; k < 3; ++k)
+      if (source.F(F, k) == v) return k;
+    return -1;
+  };
+  std::vector<Word> psi(3 * static_cast<size_t>(nrf));
+  for (int f = 0; f < nrf; ++f) {
+    const int F = rs.face_origin[f];
+    for (int k = 0; k < 3; ++k) {
+      const int u = rm.F(f, k);
+      if (u < n_in) {
+        const int ku = corner_of(F, u);
+        if (ku < 0) return give_up("refined face " + std::to_string(f) + " has a corner outside its input face");
+        psi[3 * f + k] = phi(F, ku);
+        continue;
+      }
+      const int H = rs.origin_face[u];
+      if (H == F) continue;  // identity
+      // u lies on an edge shared by F and its home face H: compare an
+      // endpoint's position in both frames.
+      int kh = -1, kf = -1;
+      for (int j = 0; j < 3 && kf < 0; ++j)
+        if (rs.origin_barycentric(u, j) > 0) kh = j, kf = corner_of(F, source.F(H, j));
+      if (kf < 0 || rs.origin_barycentric.row(u).minCoeff() > 0)
+        return give_up("refined vertex " + std::to_string(u) + " is not on its face's input face");
+      psi[3 * f + k] = group.reduce(concat(phi(F, kf), inverse(phi(H, kh))));
+    }
+  }
+
+  // Develop the disk: per face the frame element b_f of its input face,
+  // per disk vertex c_d = b_f psi (the deck element of that copy: its point
+  // in the development is c_d(lift)). Neighbours across uncut edges share
+  // the copy of their common vertex.
+  std::vector<Word> c(nd), b(nrf);
+  std::vector<char> has_c(nd, 0), seen(nrf, 0);
+  double mismatch = 0;
+  std::vector<int> queue{0};
+  seen[0] = 1;
+  auto assign_corners = [&](int f) {
+    for (int k = 0; k < 3; ++k) {
+      const int d = cm.mesh.F(f, k);
+      Word w = group.reduce(concat(b[f], psi[3 * f + k]));
+      if (!has_c[d]) {
+        c[d] = std::move(w), has_c[d] = 1;
+      } else if (w != c[d]) {
+        mismatch = std::max(mismatch, hyperbolic::mobius_distance(group.evaluate_side_word(w), group.evaluate_side_word(c[d])));
+      }
+    }
+  };
+  assign_corners(0);
+  for (size_t q = 0; q < queue.size(); ++q) {
+    const int f = queue[q];
+    for (int k = 0; k < 3; ++k) {
+      const int h = 3 * f + k;
+      if (cut[rc.edge(h)]) continue;
+      const int t = rc.twin(h), g = Connectivity::face(t);
+      if (seen[g]) continue;
+      seen[g] = 1;
+      const int kg = (t % 3 + 1) % 3;  // corner of g at tail(h)
+      b[g] = group.reduce(concat(c[cm.mesh.F(f, k)], inverse(psi[3 * g + kg])));
+      assign_corners(g);
+      queue.push_back(g);
+    }
+  }
+  if (static_cast<int>(queue.size()) != nrf) return give_up("the refined cut disk is not connected");
+  if (mismatch > 1e-6) return give_up("the class's deck elements are not flat on the refined mesh (" + std::to_string(mismatch) + ")");
+
+  // Boundary: 4g sides between the copies of x, counter-clockwise.
+  std::vector<int> bl = cm.boundary_loops[0];
+  std::vector<int> corner_pos;
+  for (int i = 0; i < static_cast<int>(bl.size()); ++i)
+    if (cm.original_vertex[bl[i]] == x) corner_pos.push_back(i);
+  const int ns = static_cast<int>(corner_pos.size());
+  if (ns != 4 * rs.genus || ns < 8) return give_up("the refined cut has " + std::to_string(ns) + " corners, not 4g");
+  std::rotate(bl.begin(), bl.begin() + corner_pos[0], bl.end());
+  for (int& i : corner_pos) i -= corner_pos[0];
+  corner_pos.push_back(static_cast<int>(bl.size()));
+  bl.push_back(bl[0]);
+  std::vector<int> side_of(nd, -1);  // non-corner boundary copies
+  std::vector<std::vector<int>> sides_of_refined(nrv);
+  for (int s = 0; s < ns; ++s) {
+    for (int i = corner_pos[s] + 1; i < corner_pos[s + 1]; ++i) {
+      side_of[bl[i]] = s;
+      sides_of_refined[cm.original_vertex[bl[i]]].push_back(s);
+    }
+    if (corner_pos[s + 1] - corner_pos[s] < 2) return give_up("side " + std::to_string(s) + " has no inner vertex");
+  }
+  out.corner_word.resize(ns);
+  for (int s = 0; s < ns; ++s) out.corner_word[s] = c[bl[corner_pos[s]]];
+  out.side_partner.assign(ns, -1);
+  out.side_pairing_word.resize(ns);
+  for (int s = 0; s < ns; ++s) {
+    const int d = bl[corner_pos[s] + 1];
+    const auto& ss = sides_of_refined[cm.original_vertex[d]];
+    if (ss.size() != 2) return give_up("a loop vertex is not on two sides");
+    const int partner = ss[0] == s ? ss[1] : ss[0];
+    out.side_partner[s] = partner;
+    int d2 = -1;
+    for (int i = corner_pos[partner] + 1; i < corner_pos[partner + 1] && d2 < 0; ++i)
+      if (cm.original_vertex[bl[i]] == cm.original_vertex[d]) d2 = bl[i];
+    out.side_pairing_word[s] = group.reduce(concat(c[d], inverse(c[d2])));
+  }
+
+  // Base point p (the lift of x): minimiser of the perimeter Σ_s d(p, A_s p),
+  // A_s = C_s^-1 C_s+1 (the side elements), which makes the sides short and
+  // balanced; the start is the target domain's centre.
+  std::vector<Mobius> A(ns);
+  for (int s = 0; s < ns; ++s)
+    A[s] = group.evaluate_side_word(group.reduce(concat(inverse(out.corner_word[s]), out.corner_word[(s + 1) % ns])));
+  const Complex p = minimise_displacement(A, Complex(0.0), options.base_point_iterations);
+  out.base_point = p;
+  out.perimeter = displacement_sum(A, p, nullptr) / 2;  // each side counted from both ends
+  std::vector<Mobius> C(ns);
+  out.corners.resize(ns);
+  for (int s = 0; s < ns; ++s) {
+    C[s] = group.evaluate_side_word(out.corner_word[s]);
+    out.corners[s] = C[s].apply(p);
+  }
+  // The chart: centred at the (Klein) centroid of the corners.
+  Mobius chart = Mobius::centring(p);
+  for (int it = 0; it < 3; ++it) {
+    Complex m(0.0);
+    for (int s = 0; s < ns; ++s) m += hyperbolic::poincare_to_klein((chart * C[s]).normalized().apply(p));
+    chart = (Mobius::centring(hyperbolic::klein_to_poincare(m / double(ns))) * chart).normalized();
+  }
+  std::vector<Complex> qc(ns), kq(ns);
+  for (int s = 0; s < ns; ++s) {
+    qc[s] = (chart * C[s]).normalized().apply(p);
+    kq[s] = hyperbolic::poincare_to_klein(qc[s]);
+  }
+  // Convexity in the Klein model: every exterior angle in (0, π), total 2π.
+  double total_turn = 0;
+  out.min_turn = 10, out.max_turn = -10;
+  for (int s = 0; s < ns; ++s) {
+    const Complex e0 = kq[s] - kq[(s + ns - 1) % ns], e1 = kq[(s + 1) % ns] - kq[s];
+    const double turn = std::arg(e1 / e0);
+    total_turn += turn;
+    out.min_turn = std::min(out.min_turn, turn);
+    out.max_turn = std::max(out.max_turn, turn);
+  }
+  out.convex = out.min_turn > options.min_turn && std::abs(total_turn - 2 * M_PI) < 1e-6;
+  if (!out.convex) {
+    const bool clockwise = std::abs(total_turn + 2 * M_PI) < 1e-6;
+    return give_up(clockwise ? "the polygon is negatively oriented"
+                   : std::abs(total_turn - 2 * M_PI) < 1e-6
+                       ? "the polygon is simple but not convex (smallest turn " + std::to_string(out.min_turn) + ")"
+                       : "the polygon is not simple (total turn " + std::to_string(total_turn / (2 * M_PI)) + " x 2pi)");
+  }
+
+  // Disk positions (Klein model of the chart). Boundary: on side s at the
+  // fraction of the loop's 3D length, the same on both copies of a loop, so
+  // that the side pairing carries one copy onto the other.
+  std::vector<Complex> k(nd, Complex(0.0));
+  std::vector<char> on_boundary(nd, 0);
+  for (int s = 0; s < ns; ++s) {
+    std::vector<double> cum{0.0};
+    for (int i = corner_pos[s]; i < corner_pos[s + 1]; ++i)
+      cum.push_back(cum.back() + (cm.mesh.V.row(bl[i + 1]) - cm.mesh.V.row(bl[i])).norm());
+    for (int i = corner_pos[s]; i < corner_pos[s + 1]; ++i) {
+      const double t = cum[i - corner_pos[s]] / cum.back();
+      k[bl[i]] = hyperbolic::poincare_to_klein(hyperbolic::geodesic_point(qc[s], qc[(s + 1) % ns], t));
+      on_boundary[bl[i]] = 1;
+    }
+    k[bl[corner_pos[s]]] = kq[s];
+  }
+  // Symmetrised mean-value weights (Floater) from the 3D geometry: positive
+  // on any triangle, so the flattening onto a convex polygon is an embedding.
+  struct DiskEdge {
+    double w = 0;
+    int opposite[2] = {-1, -1};
+    int faces = 0;
+  };
+  std::unordered_map<long long, DiskEdge> dedges;
+  dedges.reserve(3 * nrf);
+  auto key = [&](int a, int bb) { return static_cast<long long>(std::min(a, bb)) * nd + std::max(a, bb); };
+  for (int f = 0; f < nrf; ++f)
+    for (int q = 0; q < 3; ++q) {
+      const int i = cm.mesh.F(f, q), j = cm.mesh.F(f, (q + 1) % 3), o = cm.mesh.F(f, (q + 2) % 3);
+      const Eigen::Vector3d pi = cm.mesh.V.row(i), pj = cm.mesh.V.row(j), po = cm.mesh.V.row(o);
+      auto half_tan = [](const Eigen::Vector3d& a, const Eigen::Vector3d& bv) {
+        return a.cross(bv).norm() / std::max(a.norm() * bv.norm() + a.dot(bv), 1e-300);
+      };
+      const double len = std::max((pj - pi).norm(), 1e-300);
+      DiskEdge& de = dedges[key(i, j)];
+      de.w += (half_tan(pj - pi, po - pi) + half_tan(pi - pj, po - pj)) / len;
+      if (de.faces < 2) de.opposite[de.faces] = o;
+      ++de.faces;
+    }
+  // Unknowns: interior copies, plus midpoints of the chords (interior edges
+  // joining two boundary copies of one side, whose faces would degenerate).
+  auto shares_side = [&](int a, int bb) {
+    auto sides = [&](int d, int* s2) {
+      if (side_of[d] >= 0) return *s2 = side_of[d], side_of[d];
+      for (int s = 0; s < ns; ++s)
+        if (bl[corner_pos[s]] == d) return *s2 = s, (s + ns - 1) % ns;
+      return *s2 = -1, -1;
+    };
+    int a2, b2;
+    const int a1 = sides(a, &a2), b1 = sides(bb, &b2);
+    return a1 >= 0 && b1 >= 0 && (a1 == b1 || a1 == b2 || a2 == b1 || a2 == b2);
+  };
+  std::vector<int> unknown(nd, -1);
+  int nu = 0;
+  for (int d = 0; d < nd; ++d)
+    if (!on_boundary[d]) unknown[d] = nu++;
+  std::vector<Eigen::Triplet<double>> trip;
+  Eigen::MatrixXd rhs;
+  struct GraphEdge {
+    int a, b;  // node ids: disk vertices, then nd + chord midpoint
+    double w;
+  };
+  std::vector<GraphEdge> graph;
+  for (const auto& [kk, de] : dedges) {
+    const int i = static_cast<int>(kk / nd), j = static_cast<int>(kk % nd);
+    if (de.faces != 2) {
+      if (de.faces != 1 || !on_boundary[i] || !on_boundary[j]) return give_up("the refined cut disk is not a manifold disk");
+      continue;  // boundary edge: both ends fixed
+    }
+    if (on_boundary[i] && on_boundary[j] && shares_side(i, j)) {
+      const int m = nd + out.chords_split++;
+      graph.push_back({i, m, de.w});
+      graph.push_back({j, m, de.w});
+      graph.push_back({de.opposite[0], m, de.w});
+      graph.push_back({de.opposite[1], m, de.w});
+    } else {
+      graph.push_back({i, j, de.w});
+    }
+  }
+  const int nunk = nu + out.chords_split;
+  auto unk = [&](int node) { return node >= nd ? nu + (node - nd) : unknown[node]; };
+  rhs.setZero(nunk, 2);
+  std::vector<double> diag(nunk, 0.0);
+  for (const auto& [a, bb, w] : graph) {
+    const int ua = unk(a), ub = unk(bb);
+    if (ua >= 0) diag[ua] += w;
+    if (ub >= 0) diag[ub] += w;
+    if (ua >= 0 && ub >= 0) {
+      trip.emplace_back(ua, ub, -w), trip.emplace_back(ub, ua, -w);
+    } else if (ua >= 0) {
+      rhs(ua, 0) += w * k[bb].real(), rhs(ua, 1) += w * k[bb].imag();
+    } else if (ub >= 0) {
+      rhs(ub, 0) += w * k[a].real(), rhs(ub, 1) += w * k[a].imag();
+    }
+  }
+  for (int u = 0; u < nunk; ++u) trip.emplace_back(u, u, diag[u]);
+  if (nunk > 0) {
+    Eigen::SparseMatrix<double> L(nunk, nunk);
+    L.setFromTriplets(trip.begin(), trip.end());
+    Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt(L);
+    if (llt.info() != Eigen::Success) return give_up("the flattening's Laplacian could not be factorised");
+    const Eigen::MatrixXd X = llt.solve(rhs);
+    for (int d = 0; d < nd; ++d)
+      if (unknown[d] >= 0) k[d] = Complex(X(unknown[d], 0), X(unknown[d], 1));
+  }
+
+  // The input vertices: the point of one copy (global frame) and its deck
+  // element c_d, then moved into the target's domain.
+  std::vector<int> copy_of(nrv, -1);
+  for (int d = 0; d < nd; ++d)
+    if (copy_of[cm.original_vertex[d]] < 0) copy_of[cm.original_vertex[d]] = d;
+  const Mobius unchart = chart.inverse();
+  out.z.resize(n_in);
+  out.vertex_deck.resize(n_in);
+  out.vertex_deck_word.resize(n_in);
+  for (int i = 0; i < n_in; ++i) {
+    const int d = copy_of[i];
+    if (d < 0) return give_up("input vertex " + std::to_string(i) + " is missing from the refined mesh");
+    Complex zi = unchart.apply(hyperbolic::klein_to_poincare(k[d]));
+    Word w = c[d];
+    if (options.reduce_point) w = group.reduce(concat(options.reduce_point(zi), w));
+    out.z[i] = zi;
+    out.vertex_deck[i] = group.evaluate_side_word(w);
+    out.vertex_deck_word[i] = std::move(w);
+  }
+  out.applied = true;
+  out.time_s = seconds_since(t0);
+  return out;
+}
+
+HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const Connectivity& sc,
+                                                  const std::vector<Mobius>& halfedge_rho,
+                                                  const std::vector<Word>& halfedge_word, const DeckGroup& group,
+                                                  const HyperbolicInitialMapOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  HyperbolicInitialMapResult r;
+  if (options.polygon) {
+    PolygonInitialMapOptions po;
+    po.base_vertex = options.base_vertex;
+    po.reduce_point = options.reduce_point;
+    PolygonInitialMapResult poly = polygon_initial_map(source, sc, halfedge_word, group, po);
+    if (poly.applied) {
+      // The flattening is an embedding of the refined disk; the source's own
+      // faces, straight between its vertices' images, are checked too.
+      DistortionStats q = hyperbolic_distortion(source, halfedge_rho, poly.z, poly.vertex_deck);
+      poly.source_flipped = q.flipped;
+      poly.source_degenerate = q.degenerate;
+      if (q.flipped || q.degenerate) {
+        poly.repaired_vertices = repair_flips(source, sc, halfedge_word, group, q, options.repair_sweeps, poly);
+        q = hyperbolic_distortion(source, halfedge_rho, poly.z, poly.vertex_deck);
+      }
+      if (q.flipped || q.degenerate) {
+        poly.applied = false;
+        poly.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate) +
+                      " degenerate source faces (" + std::to_string(poly.source_flipped) + " before relaxing " +
+                      std::to_string(poly.repaired_vertices) + " vertices)";
+      }
+    }
+    if (poly.applied) {
+      r.converged = true;
+      r.construction = "polygon";
+      r.z = std::move(poly.z);
+      r.vertex_deck = std::move(poly.vertex_deck);
+      r.vertex_deck_word = std::move(poly.vertex_deck_word);
+    }
+    poly.z.clear(), poly.vertex_deck.clear(), poly.vertex_deck_word.clear();
+    r.polygon = std::move(poly);
+  }
+  if (r.construction.empty()) {
+    HyperbolicInitialMapOptions uo = options;
+    HyperbolicInitialMapResult u = hyperbolic_initial_map(sc, halfedge_rho, group.side_pairings(), uo);
+    u.polygon = std::move(r.polygon);
+    r = std::move(u);
+    r.construction = "uniform harmonic";
+  }
+  r.time_s = seconds_since(t0);
   return r;
 }
 

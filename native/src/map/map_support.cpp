@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "surfmap/error.h"
+#include "surfmap/map/initial_map.h"
 
 namespace surfmap::detail {
 namespace {
@@ -93,6 +94,20 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
   if (t.layout.num_flipped > 0)
     throw SolveError("target layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
   return t;
+}
+
+void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo& info) {
+  info.construction = init.construction;
+  const PolygonInitialMapResult& p = init.polygon;
+  info.polygon_status = init.construction == "polygon" ? "used" : p.reason.empty() ? "not tried" : p.reason;
+  info.polygon_convex = p.convex;
+  info.polygon_min_turn = p.min_turn;
+  info.polygon_perimeter = p.perimeter;
+  info.polygon_chords_split = p.chords_split;
+  info.polygon_flipped = p.source_flipped;
+  info.polygon_relaxed_vertices = p.repaired_vertices;
+  info.iterations = init.construction == "polygon" ? 0 : init.iterations;
+  info.time_s = init.time_s;
 }
 
 SystemOfLoops source_loops(const TriMesh& source, const SurfaceMapOptions& options) {

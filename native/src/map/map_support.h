@@ -19,7 +19,14 @@
 #include "surfmap/uniformize/layout.h"
 #include "surfmap/uniformize/ricci_flow.h"
 
+namespace surfmap {
+struct HyperbolicInitialMapResult;
+}
+
 namespace surfmap::detail {
+
+/// Copies the construction and polygon figures of a genus >= 2 initial map.
+void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo& info);
 
 using Complex = std::complex<double>;
 /// Records the end of a stage (name, overall fraction) and may throw Cancelled.

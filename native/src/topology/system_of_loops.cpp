@@ -568,6 +568,7 @@ struct Refined {
   TriMesh mesh;
   std::vector<int> origin_face;
   RowMatrixX3d origin_bc;
+  std::vector<int> face_origin;  // per refined face, the input face holding it
   std::vector<std::vector<int>> loops;
 };
 
@@ -701,8 +702,12 @@ Refined refine(const TriMesh& mesh, const Connectivity& conn, const Greedy& g, i
   // Refined faces.
   std::vector<std::array<int, 3>> tris;
   tris.reserve(conn.num_faces() + 4 * R.nv.size());
-  for (int f = 0; f < conn.num_faces(); ++f) triangulate_face(R, f, tris);
   Refined out;
+  out.face_origin.reserve(conn.num_faces() + 4 * R.nv.size());
+  for (int f = 0; f < conn.num_faces(); ++f) {
+    triangulate_face(R, f, tris);
+    out.face_origin.resize(tris.size(), f);
+  }
   const int n_total = R.n_in + static_cast<int>(R.nv.size());
   out.mesh.V.resize(n_total, 3);
   out.mesh.V.topRows(R.n_in) = mesh.V;
@@ -835,6 +840,8 @@ SystemOfLoops system_of_loops(const TriMesh& mesh, const SystemOfLoopsOptions& o
     const int nv = mesh.num_vertices();
     s.origin_face.assign(nv, -1);
     s.origin_barycentric.setZero(nv, 3);
+    s.face_origin.resize(mesh.num_faces());
+    for (int f = 0; f < mesh.num_faces(); ++f) s.face_origin[f] = f;
     for (int f = 0; f < mesh.num_faces(); ++f)
       for (int k = 0; k < 3; ++k) {
         s.origin_face[mesh.F(f, k)] = f;
@@ -869,6 +876,7 @@ SystemOfLoops system_of_loops(const TriMesh& mesh, const SystemOfLoopsOptions& o
       t.mesh = std::move(r.mesh);
       t.origin_face = std::move(r.origin_face);
       t.origin_barycentric = std::move(r.origin_bc);
+      t.face_origin = std::move(r.face_origin);
       t.loops = std::move(r.loops);
       finish_from_simple_loops(t);
       t.shortcut_used = shortcut;

@@ -232,3 +232,37 @@ def test_genus2_solve_progress_reports_energies_and_cancels():
         surfmap.surface_map(*a, *b, homotopy=0, solve_progress=lambda it, e, g: it < 1)
     with pytest.raises(ZeroDivisionError):
         surfmap.surface_map(*a, *b, homotopy=0, solve_progress=lambda it, e, g: 1 / 0)
+
+
+def test_genus2_initial_map_construction_and_location(tmp_path, cli):
+    a = surfmap.shapes.n_hole_torus(2, 32, True)
+    b = surfmap.shapes.n_hole_torus(2, 40, True)
+    r = surfmap.surface_map(*a, *b, homotopy=0)
+    im = r["initial_map"]
+    assert im["construction"] == "polygon" and im["polygon"]["status"] == "used" and im["polygon"]["convex"]
+    assert r["initial_flipped_triangles"] == 0
+    init = r["initial_forward"]
+    Vt, Ft = b
+    assert init["position"].shape == a[0].shape
+    # Located initial points lie on the target's faces.
+    q = np.einsum("ik,ikj->ij", init["barycentric"], Vt[Ft[init["face"]]])
+    assert np.abs(q - init["position"]).max() < 1e-9 and init["barycentric"].min() >= -1e-9
+    u = surfmap.surface_map(*a, *b, homotopy=0, initial_map="uniform")
+    assert u["initial_map"]["construction"] == "uniform harmonic" and u["initial_map"]["iterations"] > 0
+    # One optimum from either start (paper §VII-D).
+    assert abs(u["energy"]["final"] - r["energy"]["final"]) <= 1e-8 * r["energy"]["final"]
+    diag = np.linalg.norm(Vt.max(0) - Vt.min(0))
+    assert np.abs(u["forward"]["position"] - r["forward"]["position"]).max() < 1e-3 * diag
+    with pytest.raises(surfmap.InputError):
+        surfmap.surface_map(*a, *b, homotopy=0, initial_map="canonical")
+    # CLI: the report says which construction, --initial-out writes the "before" morph.
+    src, dst = tmp_path / "a.obj", tmp_path / "b.obj"
+    surfmap.write_obj(str(src), *a)
+    surfmap.write_obj(str(dst), *b)
+    out, rep, ini = tmp_path / "m.obj", tmp_path / "r.json", tmp_path / "i.obj"
+    p = cli("map", src, dst, "--out", out, "--report", rep, "--initial-out", ini, "--homotopy", "0", "--quiet")
+    assert p.returncode == 0, p.stderr
+    report = json.loads(rep.read_text())
+    assert report["initial_map"]["construction"] == "polygon" and report["initial_map"]["located"]
+    before = surfmap.load_mesh(str(ini))
+    assert np.abs(before["V"] - init["position"]).max() < 1e-6

@@ -3,34 +3,59 @@
 // DESIGN.md §2.7) and the quality of any map given by points and deck
 // elements (paper §VII-A).
 //
-// What is built, and why it is not literally the paper's construction: the
-// paper cuts both surfaces along canonical loops, flattens each cut disk
-// harmonically onto the same canonical 4g-gon and composes the two. Here the
-// source keeps its own connectivity, and its greedy loops are not refined:
-// they share tree paths, so the source cut along them is not a 4g-gon (its
-// corners are the branch points of the loop graph, up to 12g−6 sides, and a
-// 4g-gon side would have to run along both banks of a shared path); and the
-// boundary words of the two surfaces differ (canonical generators are words
-// in the loops, the mesh is never re-cut: DESIGN.md §2.3), so no side of one
-// disk corresponds to a side of the other, and the polygon with corners
-// G_i(p) that the source word spells in the target's group is in general not
-// simple, so flattening onto it would not in general give an embedding.
-// What the composition is for (a map in the chosen homotopy class that is
-// an embedding and a sensible start) is obtained instead
-// by the Tutte-type map in the same class: the discrete harmonic map with
-// uniform weights (every source edge weight 1) into the target's hyperbolic
-// surface, i.e. each vertex at the hyperbolic barycentre of its neighbours'
-// images. With positive weights this map is an embedding (the hyperbolic
-// Tutte theorem; DESIGN.md §2.8), on any triangulation, slivers included,
-// and it is the exact counterpart of the genus-1 initial map (flat_map.cpp:
-// the uniform-weight Tutte embedding of the flat torus). Its figures
-// (energy, D' per source face, flips) are measured on the image triangles in
-// the Poincaré disk, where they are intrinsic to the target's metric; only
-// the optimum is located on the target's triangles (3D points). Cost: a
-// Newton solve from the origin with uniform weights (about 7 iterations on
-// the generated shapes), which the main solve earns back: from this start it
-// needs about 3 Newton iterations instead of 8–13 from the origin.
+// What is built (hyperbolic_initial_map with the source mesh, the default):
+//  1. The polygon construction (polygon_initial_map). The source is cut along
+//     its REFINED loops (topology/system_of_loops.h: split points on input
+//     edges, bend points inside input faces, loops simple and meeting only
+//     at x; the input vertices keep their indices), a disk D whose boundary
+//     is a 4g-gon with the source's word w_S. The class's deck element of
+//     every source halfedge (side words of the target's group, DeckGroup) is
+//     carried to the refined mesh through the input face holding each
+//     refined face, and D is developed face by face: every copy d of a
+//     vertex gets the deck element c_d of its tile. The 4g copies of x give
+//     the corners Q_s = C_s(p) = θ(prefix_s of w_S)(p): the target's
+//     geodesic polygon of the SOURCE's loops; paired sides are deck images
+//     of each other (E_s takes the partner side onto side s, reversed). The
+//     base point p (the lift of x) minimises the perimeter Σ_s d(p, A_s p),
+//     A_s = C_s⁻¹ C_s+1, a convex function (sum of displacement functions).
+//     When Q is simple, positively oriented and convex in the Klein model
+//     (checked; it is not always), D is flattened onto it there: boundary
+//     copies on their side at the fraction of the loop's 3D length (the
+//     same on both banks, so the pairing carries one copy onto the other),
+//     interior ones by one sparse Cholesky solve with two right-hand sides,
+//     symmetrised mean-value weights of the 3D refined mesh (positive, so
+//     Floater's theorem gives an embedding of D); interior edges joining two
+//     boundary copies of one side (whose faces would be degenerate) are
+//     split first. The input vertices are read off with their decks c_d.
+//     The refined disk is embedded, but a source face crossed by a loop,
+//     straight between its corners' images, can still flip (the flattening's
+//     derivative jumps across the fixed sides): the corners of such faces
+//     and a ring around them are relaxed by a few Gauss–Seidel sweeps to the
+//     hyperbolic barycentre of their neighbours; if flips remain, fallback.
+//  2. The fallback, and InitialMapMethod::UniformHarmonic: the Tutte-type map
+//     in the same class, the discrete harmonic map with uniform weights
+//     (every source edge weight 1) into the target's hyperbolic surface,
+//     i.e. each vertex at the hyperbolic barycentre of its neighbours'
+//     images; with positive weights an embedding (the hyperbolic Tutte
+//     theorem; DESIGN.md §2.8), the counterpart of the genus-1 initial map
+//     (flat_map.cpp: the uniform Tutte embedding of the flat torus). Cost: a
+//     Newton solve from the origin (about 6-7 iterations).
+// Where this differs from the paper (§IV-B; DESIGN.md §2.7): the paper cuts
+// BOTH surfaces along corresponding canonical loops, flattens both disks
+// onto the same canonical 4g-gon and composes the two maps. Here the
+// target is never cut along the source's loops (its canonical generators are
+// words in its own loops; the mesh is not re-cut, DESIGN.md §2.3) and
+// the source is not cut along canonical loops: the source's disk goes
+// straight onto the target's geodesic polygon of the source's own loops,
+// which plays the role of the common polygon (no second flattening and no
+// composition through barycentric coordinates; the map is located on the
+// target afterwards like the optimum). That polygon is convex only for some
+// pairs and base points, hence the fallback. Figures (energy, D' per source
+// face, flips) are measured on the image triangles in the Poincaré disk,
+// where they are intrinsic to the target's metric.
 #include <complex>
+#include <functional>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -40,6 +65,7 @@
 #include "surfmap/map/hyperbolic_harmonic.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/mesh/tri_mesh.h"
+#include "surfmap/uniformize/deck_group.h"
 
 namespace surfmap {
 
@@ -49,6 +75,73 @@ struct HyperbolicInitialMapOptions {
   /// and one factorisation is saved; the map only starts the real solve).
   double tolerance = 1e-4;
   int max_iterations = 100;
+  /// Overload with the source mesh only: try the polygon construction first
+  /// (default true); false builds the uniform-weight map directly.
+  bool polygon = true;
+  /// Gauss–Seidel sweeps per round of the local relaxation undoing flips of
+  /// source faces crossed by the polygon's sides (default 10).
+  int repair_sweeps = 10;
+  /// Passed to polygon_initial_map (PolygonInitialMapOptions).
+  int base_vertex = -1;
+  std::function<Word(std::complex<double>&)> reduce_point;
+};
+
+struct PolygonInitialMapOptions {
+  /// Base vertex x of the source's refined loops (-1: automatic, as
+  /// system_of_loops); pass the base vertex of the loops `halfedge_word`
+  /// was computed from, so that both cuts start at the same vertex.
+  int base_vertex = -1;
+  /// Iterations of the Riemannian gradient descent choosing the base point p
+  /// (minimiser of Σ_s d(p, A_s p) over the side elements A_s; default 200).
+  int base_point_iterations = 200;
+  /// A corner is convex when its turn, the exterior angle in the Klein model,
+  /// exceeds this (radians, default 1e-9): flatter corners make degenerate
+  /// boundary triangles.
+  double min_turn = 1e-9;
+  /// Optional: moves a point into the target's fundamental domain and
+  /// returns the side word applied (as HyperbolicHarmonicOptions::reduce_point).
+  std::function<Word(std::complex<double>&)> reduce_point;
+};
+
+/// The source's cut disk flattened onto the target's geodesic polygon of the
+/// source's loops (file comment).
+struct PolygonInitialMapResult {
+  /// True when the polygon was simple, positively oriented and convex and
+  /// the flattening was computed; otherwise `reason` says why not and the
+  /// map fields are empty.
+  bool applied = false;
+  std::string reason;
+  /// The 4g corners Q_s = C_s(p) (Poincaré disk, counter-clockwise along the
+  /// disk's boundary), their deck elements C_s as reduced side words, and per
+  /// side s (Q_s -> Q_s+1): the side it is glued to and the deck element E_s
+  /// (side word) taking that side onto side s, reversed:
+  /// E_s(Q_partner) = Q_s+1, E_s(Q_partner+1) = Q_s.
+  std::vector<std::complex<double>> corners;
+  std::vector<Word> corner_word;
+  std::vector<int> side_partner;
+  std::vector<Word> side_pairing_word;
+  /// The chosen base point p (lift of the base vertex) and Σ_s d(Q_s, Q_s+1).
+  std::complex<double> base_point;
+  double perimeter = 0;
+  /// Smallest and largest exterior angle of Q in the Klein model (radians).
+  double min_turn = 0, max_turn = 0;
+  bool convex = false;
+  /// Size of the refined source mesh and of its disk, and the interior edges
+  /// joining two boundary vertices of one side that were split before the
+  /// flattening (Floater's theorem needs none).
+  int refined_vertices = 0, disk_vertices = 0, chords_split = 0;
+  /// #V_source points and deck elements (HyperbolicHarmonicResult contract:
+  /// z_i = vertex_deck_i(lift_i); edge i->j has the effective element
+  /// vertex_deck[i] * rho * vertex_deck[j]^-1); words are side words.
+  std::vector<std::complex<double>> z;
+  std::vector<hyperbolic::Mobius> vertex_deck;
+  std::vector<Word> vertex_deck_word;
+  /// Flipped / degenerate images of the source's own faces (geodesic
+  /// triangles between the input vertices' images), when applied.
+  int source_flipped = 0, source_degenerate = 0;
+  /// Vertices relaxed to undo those flips (hyperbolic_initial_map).
+  int repaired_vertices = 0;
+  double time_s = 0;
 };
 
 struct HyperbolicInitialMapResult {
@@ -60,6 +153,11 @@ struct HyperbolicInitialMapResult {
   /// The same decks as words in the generators' letters (see
   /// HyperbolicHarmonicResult::vertex_deck_word).
   std::vector<Word> vertex_deck_word;
+  /// "polygon" or "uniform harmonic": which construction gave the map.
+  std::string construction;
+  /// The polygon attempt (its figures and, when not used, why; its map
+  /// fields are emptied); applied = false and empty reason when not tried.
+  PolygonInitialMapResult polygon;
   double time_s = 0;
 };
 
@@ -71,6 +169,35 @@ struct HyperbolicInitialMapResult {
 HyperbolicInitialMapResult hyperbolic_initial_map(const Connectivity& source, const std::vector<hyperbolic::Mobius>& halfedge_rho,
                                                   const std::vector<hyperbolic::Mobius>& generators,
                                                   const HyperbolicInitialMapOptions& options = {});
+
+/// The paper's polygon construction in the form that applies to one
+/// surface's loops (file comment). `source`/`sc`: the source mesh;
+/// `halfedge_word` (#3F): the class's deck element of every source halfedge
+/// as a side word of `group` (its twin carries the inverse), flat around
+/// every face. Throws InputError on size mismatches; a polygon that is not
+/// convex is not an error (applied = false).
+PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connectivity& sc,
+                                            const std::vector<Word>& halfedge_word, const DeckGroup& group,
+                                            const PolygonInitialMapOptions& options = {});
+
+/// The initial map: polygon_initial_map when options.polygon and it applies
+/// and its images of the source's faces are not flipped, otherwise the
+/// uniform-weight map above. `halfedge_rho` (#3F) and `halfedge_word` (#3F,
+/// the same elements as side words of `group`).
+HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const Connectivity& sc,
+                                                  const std::vector<hyperbolic::Mobius>& halfedge_rho,
+                                                  const std::vector<Word>& halfedge_word, const DeckGroup& group,
+                                                  const HyperbolicInitialMapOptions& options = {});
+
+/// What SurfaceMapOptions::inspect_initial_map sees (pointers valid during
+/// the call): the class's source halfedge elements (#3F, as matrices and as
+/// side words of `group`) and the initial map built from them.
+struct InitialMapInspection {
+  const std::vector<hyperbolic::Mobius>* halfedge_rho = nullptr;
+  const std::vector<Word>* halfedge_word = nullptr;
+  const DeckGroup* group = nullptr;
+  const HyperbolicInitialMapResult* init = nullptr;
+};
 
 /// Quality of the map given by `z` (#V points in the Poincaré disk),
 /// `vertex_deck` (#V) and `halfedge_rho` (#3F, as above): the image of face f

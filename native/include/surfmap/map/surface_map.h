@@ -56,6 +56,8 @@
 
 namespace surfmap {
 
+struct InitialMapInspection;  // map/initial_map.h
+
 /// Optimiser of the harmonic energy (genus >= 2; the flat case is one exact
 /// linear solve either way).
 enum class MapMethod {
@@ -63,6 +65,16 @@ enum class MapMethod {
   /// the paper's per-vertex relaxation in Möbius-centred charts (§VI-B,
   /// map/harmonic_relaxation.h), for comparison; genus 1 keeps the exact solve
   Relaxation,
+};
+
+/// Initial ("before") map of genus >= 2 (map/initial_map.h).
+enum class InitialMapMethod {
+  /// The source's cut disk flattened onto the target's geodesic polygon of
+  /// the source's loops when that polygon is convex (and the source's faces
+  /// come out unflipped), else the uniform-weight harmonic map (the default)
+  Polygon,
+  /// Always the uniform-weight (Tutte-type) harmonic map in the class
+  UniformHarmonic,
 };
 
 struct SurfaceMapOptions {
@@ -83,6 +95,9 @@ struct SurfaceMapOptions {
   /// another value draws random start points (seeded) in the disk of radius
   /// 0.5. The energy is convex, so the result must not depend on it.
   unsigned start_seed = 0;
+  /// Genus >= 2: how the initial map is built (default Polygon, with the
+  /// uniform-weight map as fallback).
+  InitialMapMethod initial_map = InitialMapMethod::Polygon;
   /// Curvature tolerance of the target's uniformization (default 1e-10).
   double uniformization_tolerance = 1e-10;
   /// Optimiser of the harmonic energy (default Newton).
@@ -114,6 +129,9 @@ struct SurfaceMapOptions {
   /// For benchmarks and tests: called once with the harmonic-map problem
   /// just before it is solved (map/harmonic_relaxation.h, HarmonicProblem).
   std::function<void(const HarmonicProblem&)> inspect_problem;
+  /// For tests: called with the genus >= 2 initial map and its inputs
+  /// (map/initial_map.h, InitialMapInspection) once it is built.
+  std::function<void(const InitialMapInspection&)> inspect_initial_map;
 };
 
 /// One candidate homotopy class: for genus 1 an SL(2,Z) matrix taking the
@@ -140,14 +158,40 @@ struct PointOnSurface {
   Eigen::Vector3d position;      ///< 3D point
 };
 
+/// How the initial map was built, and the polygon attempt's figures.
+struct InitialMapInfo {
+  /// "polygon" (genus >= 2, source disk onto the target's geodesic polygon
+  /// of the source's loops), "uniform harmonic" (genus >= 2, Tutte-type map
+  /// in the class), "uniform Tutte" (genus 1, flat), "" (genus 0: none).
+  std::string construction;
+  /// Genus >= 2: "used", "not tried", or why the polygon was not used
+  /// ("the polygon is not simple ...", "... flipped source faces").
+  std::string polygon_status;
+  /// The polygon's smallest exterior angle in the Klein model (radians;
+  /// convex when > 0 with total 2π), its perimeter Σ d(Q_s, Q_s+1), chords
+  /// split before the flattening; 0 when not computed.
+  bool polygon_convex = false;
+  double polygon_min_turn = 0, polygon_perimeter = 0;
+  int polygon_chords_split = 0;
+  /// Source faces (crossed by the polygon's sides) whose images the
+  /// flattening flipped, and the vertices around them relaxed locally to
+  /// undo it (map/initial_map.h); 0 when not computed.
+  int polygon_flipped = 0, polygon_relaxed_vertices = 0;
+  /// Newton iterations of the uniform-weight solve (0 for the polygon).
+  int iterations = 0;
+  double time_s = 0;
+};
+
 struct SurfaceMapResult {
   int genus = 0;
   bool converged = false;
   /// Harmonic energy (cotangent weights) of the initial map and of the
-  /// optimum. The initial map is the Tutte-type embedding in the same
-  /// homotopy class (uniform weights; flat for genus 1, hyperbolic for genus
-  /// >= 2, map/initial_map.h says why it replaces the paper's
-  /// canonical-polygon composition, §IV-B); it is also the default start.
+  /// optimum. The initial map (`initial_map` says which): genus 1 the
+  /// uniform Tutte embedding of the flat torus; genus >= 2 the source's cut
+  /// disk flattened onto the target's geodesic polygon of the source's loops
+  /// when it is convex, else the uniform-weight Tutte-type map in the class
+  /// (map/initial_map.h: how both differ from the paper's §IV-B
+  /// composition); it is also the default start.
   double initial_energy = 0, final_energy = 0;
   std::vector<double> energy_history;
   int iterations = 0;
@@ -178,6 +222,10 @@ struct SurfaceMapResult {
   /// faces flipped by the uniformization (map/spherical_map.h); 0 otherwise.
   int repaired_vertices = 0;
   int initial_flipped_triangles = 0;
+  InitialMapInfo initial_map;
+  /// Per source vertex: the initial map's image on the target (face,
+  /// barycentrics, 3D point), located like `forward`; empty for genus 0.
+  std::vector<PointOnSurface> initial_forward;
   std::vector<HomotopyCandidate> candidates;
   int chosen_candidate = -1;
   /// Target lattice (flat case) and the source's image in the plane.

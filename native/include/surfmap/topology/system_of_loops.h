@@ -33,6 +33,9 @@ struct SystemOfLoops {
   /// can be mapped back onto the input surface exactly.
   std::vector<int> origin_face;
   RowMatrixX3d origin_barycentric;
+  /// For every face of `mesh`: the input face that contains it (#F; the
+  /// identity without refinement). Refined faces lie inside input faces.
+  std::vector<int> face_origin;
   int genus = 0;
   int base_vertex = -1;
   /// Spanning tree T rooted at x: per vertex, the halfedge from its parent to

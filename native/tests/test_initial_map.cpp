@@ -1,0 +1,163 @@
+// The genus >= 2 initial map (map/initial_map.h): the source's cut disk
+// flattened onto the target's geodesic polygon of the source's loops, its
+// fallback, and the initial map located on the target (all genera >= 1).
+#include "surfmap/map/initial_map.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <optional>
+
+#include "surfmap/map/surface_map.h"
+#include "surfmap/samples/shapes.h"
+
+namespace surfmap {
+namespace {
+
+using hyperbolic::Mobius;
+
+// What a test keeps of one initial map (the inspection's pointers die with the call).
+struct Seen {
+  std::vector<Mobius> rho;
+  std::vector<Word> words;
+  HyperbolicInitialMapResult init;
+  std::vector<Mobius> side_pairing, corner_element;
+  HarmonicProblem problem;
+};
+
+SurfaceMapResult map_and_inspect(const TriMesh& a, const TriMesh& b, InitialMapMethod method, Seen* seen) {
+  SurfaceMapOptions o;
+  o.homotopy = 0;  // the overlay class (identity of a remeshed copy): no ranking needed
+  o.initial_map = method;
+  o.inspect_initial_map = [&](const InitialMapInspection& in) {
+    seen->rho = *in.halfedge_rho;
+    seen->words = *in.halfedge_word;
+    seen->init = *in.init;
+    for (const Word& w : in.init->polygon.side_pairing_word) seen->side_pairing.push_back(in.group->evaluate_side_word(w));
+    for (const Word& w : in.init->polygon.corner_word) seen->corner_element.push_back(in.group->evaluate_side_word(w));
+  };
+  o.inspect_problem = [&](const HarmonicProblem& p) { seen->problem = p; };
+  return surface_map(a, b, o);
+}
+
+// Q's sides are glued by deck elements: E_s takes the partner side onto side
+// s reversed, E_s(Q_partner) = Q_s+1 and E_s(Q_partner+1) = Q_s; and every
+// corner is the image of the base point, Q_s = C_s(p).
+void expect_consistent_polygon(const Seen& s) {
+  const PolygonInitialMapResult& P = s.init.polygon;
+  const int n = static_cast<int>(P.corners.size());
+  ASSERT_GE(n, 8);
+  ASSERT_EQ(n % 4, 0);
+  ASSERT_EQ(static_cast<int>(s.side_pairing.size()), n);
+  for (int k = 0; k < n; ++k) {
+    const int j = P.side_partner[k];
+    ASSERT_GE(j, 0);
+    EXPECT_EQ(P.side_partner[j], k);
+    EXPECT_LT(hyperbolic::distance(s.side_pairing[k].apply(P.corners[j]), P.corners[(k + 1) % n]), 1e-7) << "side " << k;
+    EXPECT_LT(hyperbolic::distance(s.side_pairing[k].apply(P.corners[(j + 1) % n]), P.corners[k]), 1e-7) << "side " << k;
+    EXPECT_LT(hyperbolic::distance(s.corner_element[k].apply(P.base_point), P.corners[k]), 1e-9);
+  }
+}
+
+// Σ w d(z_i, ρ z_j)² from the problem's edges with the distance formula written out.
+double energy_by_hand(const HarmonicProblem& p) {
+  double e = 0;
+  for (const WeightedEdge& ed : p.edges) {
+    const std::complex<double> zi = p.start[ed.i], zj = ed.rho.apply(p.start[ed.j]);
+    const double d = 2 * std::atanh(std::abs(zi - zj) / std::abs(1.0 - std::conj(zj) * zi));
+    e += ed.w * d * d;
+  }
+  return e;
+}
+
+void expect_on_target(const std::vector<PointOnSurface>& pts, const TriMesh& target, int n) {
+  ASSERT_EQ(static_cast<int>(pts.size()), n);
+  for (const PointOnSurface& p : pts) {
+    ASSERT_GE(p.face, 0);
+    ASSERT_LT(p.face, target.num_faces());
+    EXPECT_NEAR(p.barycentric.sum(), 1.0, 1e-9);
+    EXPECT_GE(p.barycentric.minCoeff(), -1e-9);
+    Eigen::Vector3d q = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) q += p.barycentric[k] * target.V.row(target.F(p.face, k)).transpose();
+    EXPECT_LT((q - p.position).norm(), 1e-9);
+  }
+}
+
+TEST(PolygonInitialMap, CleanPairFlattensOntoAConvexPolygonAndReachesTheSameOptimum) {
+  const TriMesh a = samples::n_hole_torus(2, 32, true), b = samples::n_hole_torus(2, 40, true);
+  Seen sp, su;
+  const SurfaceMapResult mp = map_and_inspect(a, b, InitialMapMethod::Polygon, &sp);
+  const SurfaceMapResult mu = map_and_inspect(a, b, InitialMapMethod::UniformHarmonic, &su);
+  // The polygon applies to this pair, with no repair needed.
+  EXPECT_EQ(mp.initial_map.construction, "polygon");
+  EXPECT_EQ(mp.initial_map.polygon_status, "used");
+  EXPECT_TRUE(sp.init.polygon.convex);
+  EXPECT_GT(sp.init.polygon.min_turn, 0);
+  EXPECT_EQ(sp.init.polygon.source_flipped, 0);
+  expect_consistent_polygon(sp);
+  // 0 flipped and degenerate source faces, independently of the result's count.
+  const DistortionStats q = hyperbolic_distortion(a, sp.rho, sp.init.z, sp.init.vertex_deck);
+  EXPECT_EQ(q.flipped, 0);
+  EXPECT_EQ(q.degenerate, 0);
+  EXPECT_EQ(mp.initial_flipped_triangles, 0);
+  ASSERT_EQ(sp.init.vertex_deck_word.size(), sp.init.z.size());
+  // Initial energy: the solve starts there, and the formula by hand agrees.
+  EXPECT_NEAR(energy_by_hand(sp.problem), mp.initial_energy, 1e-9 * mp.initial_energy);
+  EXPECT_GT(mp.initial_energy, mp.final_energy);
+  // The uniform start is another map in the same class...
+  EXPECT_EQ(mu.initial_map.construction, "uniform harmonic");
+  EXPECT_EQ(mu.initial_map.polygon_status, "not tried");
+  EXPECT_GT(std::abs(mp.initial_energy - mu.initial_energy), 1e-3 * mu.initial_energy);
+  // ... and the convex energy has one minimum (paper §VII-D): same energy,
+  // same points on the target.
+  EXPECT_NEAR(mp.final_energy, mu.final_energy, 1e-8 * mu.final_energy);
+  const double diag = (b.V.colwise().maxCoeff() - b.V.colwise().minCoeff()).norm();
+  double worst = 0;
+  for (int i = 0; i < a.num_vertices(); ++i) worst = std::max(worst, (mp.forward[i].position - mu.forward[i].position).norm());
+  EXPECT_LT(worst, 1e-3 * diag);
+  // Both initial maps are located on the target, and they differ.
+  expect_on_target(mp.initial_forward, b, a.num_vertices());
+  expect_on_target(mu.initial_forward, b, a.num_vertices());
+  double moved = 0;
+  for (int i = 0; i < a.num_vertices(); ++i)
+    moved = std::max(moved, (mp.initial_forward[i].position - mu.initial_forward[i].position).norm());
+  EXPECT_GT(moved, 1e-3 * diag);
+}
+
+TEST(PolygonInitialMap, SliverSourceKeepsConsistentSidesAndAnUnflippedStart) {
+  // Raw marching-tetrahedra source: the polygon is built on the refined cut
+  // of a mesh with slivers; whichever construction is used, the start has
+  // no flipped source face and the polygon (when convex) is glued exactly.
+  const TriMesh a = samples::n_hole_torus(2, 32, false), b = samples::n_hole_torus(2, 36, true);
+  Seen s;
+  const SurfaceMapResult m = map_and_inspect(a, b, InitialMapMethod::Polygon, &s);
+  ASSERT_FALSE(s.init.polygon.corners.empty()) << s.init.polygon.reason;
+  if (s.init.polygon.convex) expect_consistent_polygon(s);
+  EXPECT_TRUE(m.initial_map.construction == "polygon" || m.initial_map.construction == "uniform harmonic");
+  if (m.initial_map.construction == "polygon") EXPECT_EQ(m.initial_map.polygon_status, "used");
+  EXPECT_EQ(m.initial_flipped_triangles, 0);
+  EXPECT_NEAR(energy_by_hand(s.problem), m.initial_energy, 1e-9 * m.initial_energy);
+  expect_on_target(m.initial_forward, b, a.num_vertices());
+}
+
+TEST(PolygonInitialMap, TorusInitialMapIsLocated) {
+  // Genus 1: the uniform Tutte map of the flat torus, located like the optimum.
+  const TriMesh a = samples::torus_of_revolution(1.0, 0.5, 40, 20), b = samples::torus_of_revolution(1.5, 0.5, 36, 18, 1);
+  const SurfaceMapResult m = surface_map(a, b);
+  EXPECT_EQ(m.initial_map.construction, "uniform Tutte");
+  expect_on_target(m.initial_forward, b, a.num_vertices());
+  // A different map from the optimum (uniform weights on a torus whose
+  // triangles differ in size), still mapping the base vertex's ring nearby.
+  double moved = 0;
+  for (int i = 0; i < a.num_vertices(); ++i) moved = std::max(moved, (m.initial_forward[i].position - m.forward[i].position).norm());
+  EXPECT_GT(moved, 1e-4);
+}
+
+TEST(PolygonInitialMap, SphereHasNoLocatedInitialMap) {
+  const SurfaceMapResult m = surface_map(samples::sphere(2), samples::sphere(3));
+  EXPECT_TRUE(m.initial_forward.empty());
+  EXPECT_EQ(m.initial_map.construction, "");
+}
+
+}  // namespace
+}  // namespace surfmap
