@@ -129,7 +129,7 @@ int repair_flips(const TriMesh& source, const Connectivity& sc, const std::vecto
     return w / std::max((pj - pi).norm(), 1e-300);
   };
   int relaxed = 0;
-  for (int round = 0; round < 4; ++round) {
+  for (int round = 0; round < 2; ++round) {
     std::vector<int> set;
     for (int v = 0; v < nv; ++v)
       if (active[v]) set.push_back(v);
@@ -262,7 +262,11 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
       if (!has_c[d]) {
         c[d] = std::move(w), has_c[d] = 1;
       } else if (w != c[d]) {
-        mismatch = std::max(mismatch, hyperbolic::mobius_distance(group.evaluate_side_word(w), group.evaluate_side_word(c[d])));
+        // Relative to the entries' size: long words (twisted classes) carry
+        // round-off of size² times machine precision.
+        const Mobius m1 = group.evaluate_side_word(w), m2 = group.evaluate_side_word(c[d]);
+        const double size = std::max(m1.size(), m2.size());
+        mismatch = std::max(mismatch, hyperbolic::mobius_distance(m1, m2) / (size * size));
       }
     }
   };
@@ -502,6 +506,8 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
                                                   const HyperbolicInitialMapOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   HyperbolicInitialMapResult r;
+  std::vector<Complex> start_z;
+  std::vector<Word> start_word;
   if (options.polygon) {
     PolygonInitialMapOptions po;
     po.base_vertex = options.base_vertex;
@@ -513,9 +519,15 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
       DistortionStats q = hyperbolic_distortion(source, halfedge_rho, poly.z, poly.vertex_deck);
       poly.source_flipped = q.flipped;
       poly.source_degenerate = q.degenerate;
-      if (q.flipped || q.degenerate) {
+      // A few flips are often undone by relaxing around them; many are the
+      // sign of a badly stretched flattening (measured: relaxing then made
+      // them more), and the attempt stops there.
+      if ((q.flipped || q.degenerate) && q.flipped + q.degenerate <= options.repair_max_flips) {
+        const std::vector<Complex> z_before = poly.z;
         poly.repaired_vertices = repair_flips(source, sc, halfedge_word, group, q, options.repair_sweeps, poly);
-        q = hyperbolic_distortion(source, halfedge_rho, poly.z, poly.vertex_deck);
+        const DistortionStats q2 = hyperbolic_distortion(source, halfedge_rho, poly.z, poly.vertex_deck);
+        if (q2.flipped + q2.degenerate <= q.flipped + q.degenerate) q = q2;
+        else poly.z = z_before;
       }
       if (q.flipped || q.degenerate) {
         poly.applied = false;
@@ -530,16 +542,48 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
       r.z = std::move(poly.z);
       r.vertex_deck = std::move(poly.vertex_deck);
       r.vertex_deck_word = std::move(poly.vertex_deck_word);
+    } else if (!poly.z.empty()) {
+      // Flipped faces: the uniform-weight map, started from the flattening
+      // (the same unique map, in fewer Newton steps than from the origin).
+      start_z = std::move(poly.z);
+      start_word = std::move(poly.vertex_deck_word);
     }
     poly.z.clear(), poly.vertex_deck.clear(), poly.vertex_deck_word.clear();
     r.polygon = std::move(poly);
   }
   if (r.construction.empty()) {
-    HyperbolicInitialMapOptions uo = options;
-    HyperbolicInitialMapResult u = hyperbolic_initial_map(sc, halfedge_rho, group.side_pairings(), uo);
-    u.polygon = std::move(r.polygon);
-    r = std::move(u);
-    r.construction = "uniform harmonic";
+    const int nv = sc.num_vertices();
+    const bool from_polygon = !start_z.empty();
+    if (!from_polygon) start_z.assign(nv, Complex(0.0)), start_word.assign(nv, Word{});
+    // Edges in the start's charts (effective elements, as reduced side words).
+    std::vector<WeightedEdge> edges(sc.num_edges());
+    for (int e = 0; e < sc.num_edges(); ++e) {
+      const int h = sc.edge_halfedge(e);
+      edges[e].i = sc.tail(h);
+      edges[e].j = sc.head(h);
+      edges[e].w = 1.0;
+      edges[e].rho_word = group.reduce(concat({start_word[edges[e].i], halfedge_word[h], inverse(start_word[edges[e].j])}));
+      edges[e].rho = group.evaluate_side_word(edges[e].rho_word);
+    }
+    HyperbolicHarmonicOptions ho;
+    ho.tolerance = options.tolerance;
+    ho.max_iterations = options.max_iterations;
+    ho.relator = group.side_relator();
+    ho.reduce_point = options.reduce_point;
+    HyperbolicHarmonicResult hr = hyperbolic_harmonic_map(nv, edges, group.side_pairings(), start_z, ho);
+    r.polygon.z.clear();
+    r.converged = hr.converged;
+    r.iterations = hr.iterations;
+    r.z = std::move(hr.z);
+    r.vertex_deck_word.resize(nv);
+    r.vertex_deck.resize(nv);
+    const bool words = hr.vertex_deck_word.size() == static_cast<size_t>(nv);
+    for (int i = 0; i < nv; ++i) {
+      r.vertex_deck_word[i] = words ? group.reduce(concat(hr.vertex_deck_word[i], start_word[i])) : start_word[i];
+      r.vertex_deck[i] = words ? group.evaluate_side_word(r.vertex_deck_word[i])
+                               : (hr.vertex_deck[i] * group.evaluate_side_word(start_word[i])).normalized();
+    }
+    r.construction = from_polygon ? "uniform harmonic (from the polygon)" : "uniform harmonic";
   }
   r.time_s = seconds_since(t0);
   return r;

@@ -29,9 +29,12 @@
 //     split first. The input vertices are read off with their decks c_d.
 //     The refined disk is embedded, but a source face crossed by a loop,
 //     straight between its corners' images, can still flip (the flattening's
-//     derivative jumps across the fixed sides): the corners of such faces
-//     and a ring around them are relaxed by a few Gauss–Seidel sweeps to the
-//     hyperbolic barycentre of their neighbours; if flips remain, fallback.
+//     derivative jumps across the fixed sides, and where greedy loops shared
+//     a tree path the refined loops run side by side: the thin strips
+//     between them are spread across the polygon): up to repair_max_flips
+//     of them are relaxed away (a few Gauss–Seidel sweeps moving the corners
+//     and a ring around them to the hyperbolic barycentre of their
+//     neighbours); if flips remain, fallback, started from the flattening.
 //  2. The fallback, and InitialMapMethod::UniformHarmonic: the Tutte-type map
 //     in the same class, the discrete harmonic map with uniform weights
 //     (every source edge weight 1) into the target's hyperbolic surface,
@@ -39,7 +42,9 @@
 //     images; with positive weights an embedding (the hyperbolic Tutte
 //     theorem; DESIGN.md §2.8), the counterpart of the genus-1 initial map
 //     (flat_map.cpp: the uniform Tutte embedding of the flat torus). Cost: a
-//     Newton solve from the origin (about 6-7 iterations).
+//     Newton solve, about 6-7 iterations from the origin and 4 from a
+//     flattening with flips ("uniform harmonic (from the polygon)": the
+//     same unique map, reached sooner).
 // Where this differs from the paper (§IV-B; DESIGN.md §2.7): the paper cuts
 // BOTH surfaces along corresponding canonical loops, flattens both disks
 // onto the same canonical 4g-gon and composes the two maps. Here the
@@ -81,6 +86,9 @@ struct HyperbolicInitialMapOptions {
   /// Gauss–Seidel sweeps per round of the local relaxation undoing flips of
   /// source faces crossed by the polygon's sides (default 10).
   int repair_sweeps = 10;
+  /// The relaxation is tried only for at most this many flipped or
+  /// degenerate source faces (default 8).
+  int repair_max_flips = 8;
   /// Passed to polygon_initial_map (PolygonInitialMapOptions).
   int base_vertex = -1;
   std::function<Word(std::complex<double>&)> reduce_point;

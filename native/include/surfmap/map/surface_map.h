@@ -162,7 +162,9 @@ struct PointOnSurface {
 struct InitialMapInfo {
   /// "polygon" (genus >= 2, source disk onto the target's geodesic polygon
   /// of the source's loops), "uniform harmonic" (genus >= 2, Tutte-type map
-  /// in the class), "uniform Tutte" (genus 1, flat), "" (genus 0: none).
+  /// in the class, from the origin; "uniform harmonic (from the polygon)"
+  /// when started from a flattening that had flipped faces: the same map),
+  /// "uniform Tutte" (genus 1, flat), "" (genus 0: none).
   std::string construction;
   /// Genus >= 2: "used", "not tried", or why the polygon was not used
   /// ("the polygon is not simple ...", "... flipped source faces").
