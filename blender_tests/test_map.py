@@ -86,6 +86,10 @@ def _check_morph(src, tgt, key, tol=1e-6):
     assert kb.value == 0.0
 
 
+def settings_status():
+    return bpy.context.scene.surfmap.map_status
+
+
 def _check_outputs(src, tgt, genus, uv_names=("UVMap", "Box"), max_flipped=0.0,
                    max_straddling=0.0):
     s, t = src.data, tgt.data
@@ -99,6 +103,18 @@ def _check_outputs(src, tgt, genus, uv_names=("UVMap", "Box"), max_flipped=0.0,
         _check_uvs(src, tgt, n, max_flipped, max_straddling)
     _check_morph(src, tgt, f"surfmap to {tgt.name}")
     _check_morph(tgt, src, f"surfmap to {src.name}")
+    # the "before" morph: the initial map, located on the target too (genus >= 1; genus 0
+    # has no initial map)
+    if genus >= 1:
+        _check_morph(src, tgt, f"surfmap before to {tgt.name}")
+        before = np.empty(len(s.vertices) * 3)
+        after = np.empty(len(s.vertices) * 3)
+        s.shape_keys.key_blocks[f"surfmap before to {tgt.name}"].data.foreach_get("co", before)
+        s.shape_keys.key_blocks[f"surfmap to {tgt.name}"].data.foreach_get("co", after)
+        assert np.abs(before - after).max() > 1e-4, "the initial map should differ from the optimum"
+        assert "initial map: " in settings_status(), settings_status()
+    else:
+        assert s.shape_keys.key_blocks.get(f"surfmap before to {tgt.name}") is None
     names = {c.name: c for c in s.color_attributes}
     for n, domain in (("surfmap dilatation", 'CORNER'), ("surfmap conformal factor", 'POINT'),
                       ("surfmap mean curvature difference", 'POINT')):
@@ -241,7 +257,9 @@ def test_stored_map_survives_save_and_reload():
     _check_morph(a, b, "surfmap to Target")
     # run twice: our own layers are replaced, not duplicated
     assert not any(u.name.endswith(".001") for u in b.data.uv_layers)
-    assert [k.name for k in a.data.shape_keys.key_blocks] == ["Basis", "surfmap to Target"]
+    # (the "before" key comes from compute_map only: a stored map keeps no initial map)
+    assert [k.name for k in a.data.shape_keys.key_blocks] == ["Basis", "surfmap to Target",
+                                                             "surfmap before to Target"]
 
 
 def test_stale_or_missing_map_is_refused():

@@ -224,6 +224,12 @@ def write_outputs(context, source, target, src, tgt, out, res, which):
         k2 = blender_io.write_shape_key(t_obj, f"surfmap to {s_obj.name}", out["morph_target"])
         lines.append(f"morph shape keys: '{k1}' on '{s_obj.name}', '{k2}' on '{t_obj.name}' "
                      f"(slide 0 -> 1)")
+        if "morph_source_initial" in out:
+            k0 = blender_io.write_shape_key(s_obj, f"surfmap before to {t_obj.name}",
+                                            out["morph_source_initial"])
+            how = res.get("initial_map", {}).get("construction", "")
+            lines.append(f"'before' shape key '{k0}' on '{s_obj.name}': the initial map"
+                         + (f" ({how})" if how else ""))
     if "REFINED" in which:
         M = mapjob.morph_matrix(tgt["matrix"], src["matrix"],
                                 context.scene.surfmap.morph_space)
@@ -259,6 +265,9 @@ def _summary(res, elapsed):
     s = (f"genus {res['genus']}, energy {e['initial']:.6g} -> {e['final']:.6g} in "
          f"{res['iterations']} iteration(s), mean D' {res['distortion']['mean']:.4g} (max "
          f"{res['distortion']['max']:.4g}), {res['flipped_triangles']} flipped, {elapsed:.1f}s")
+    how = res.get("initial_map", {}).get("construction")
+    if how:
+        s += f", initial map: {how}"
     if not res.get("converged", True):
         s += " (NOT converged)"
     return s

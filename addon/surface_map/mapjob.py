@@ -169,7 +169,8 @@ def compute_outputs(source, target, res, options, only=None):
     correspondence: res then holds only 'forward' and 'inverse' {'face','barycentric'}).
 
     Returns dict with: forward/inverse (face, bary); morph_source (n_s,3) / morph_target (n_t,3)
-    local coordinates for the shape keys; uv {name: (L_t,2)} and uv_report; colours
+    local coordinates for the shape keys (and morph_source_initial, the initial map's, when the
+    result has a located initial map); uv {name: (L_t,2)} and uv_report; colours
     {name: (rgba, domain)}; dilatation per polygon (final, initial or None); ranges and the
     report lines."""
     outputs = set(options.get("outputs", {"UV", "MORPH", "DISTORTION"})) if only is None else only
@@ -189,6 +190,13 @@ def compute_outputs(source, target, res, options, only=None):
             morph_matrix(target["matrix"], source["matrix"], space), pos_s)
         out["morph_target"] = mapping.apply_matrix(
             morph_matrix(source["matrix"], target["matrix"], space), pos_t)
+        # The "before" morph: the initial map located on the target (genus >= 1).
+        init = res.get("initial_forward")
+        if init is not None:
+            pos0 = mapping.points_at(Vt, Ft, np.asarray(init["face"], dtype=np.int64),
+                                     np.asarray(init["barycentric"], dtype=np.float64))
+            out["morph_source_initial"] = mapping.apply_matrix(
+                morph_matrix(target["matrix"], source["matrix"], space), pos0)
     if "UV" in outputs:
         lv = target["loop_vertex"]
         total_straddling, names = 0, []
