@@ -592,6 +592,7 @@ bool handle_correspondence_of(const HandleBasis& source, const HandleBasis& targ
 
 std::vector<HandleCandidate> handle_candidates(const HandleBasis& source, const HandleBasis& target,
                                                int max_candidates) {
+  constexpr size_t kMaxCandidateLetters = 200000;
   const int g = source.genus, n = 2 * g;
   if (target.genus != g) throw InputError("handle_candidates: the surfaces have different genus");
   const IntMatrix J = symplectic_form(g);
@@ -624,6 +625,7 @@ std::vector<HandleCandidate> handle_candidates(const HandleBasis& source, const 
   if (max_candidates > 0 && static_cast<int>(choices.size()) > max_candidates) choices.resize(max_candidates);
 
   const IntMatrix Ps_inv = integer_inverse(source.P);
+  const DehnReducer dehn(R);
   std::vector<HandleCandidate> out;
   for (size_t q = 0; q < choices.size(); ++q) {
     const Choice& c = choices[q];
@@ -639,8 +641,22 @@ std::vector<HandleCandidate> handle_candidates(const HandleBasis& source, const 
     hc.geometric_score = c.score;
     // Source canonical -> source geometric -> (signed permutation) target
     // geometric -> target canonical.
-    hc.map = compose(target.to_canonical.map, compose(sigma.map, source.to_canonical.inverse));
-    for (Word& w : hc.map) w = dehn_reduce(w, R);
+    // Composed as (target ∘ sigma) ∘ source^-1, reducing in the target's
+    // canonical letters after each step: the unreduced triple composition
+    // grows like the product of the three lengths (minutes for genus 5).
+    GroupMap target_sigma = compose(target.to_canonical.map, sigma.map);
+    for (Word& w : target_sigma) w = dehn(w);
+    // Classes whose words would be this long are left out: the map needs
+    // their deck elements, which at this length are far beyond double
+    // precision (surface_map refuses loop images beyond 500 letters), and
+    // building them alone took minutes (a genus-5 target whose meridian
+    // basis is 9e4 letters in its canonical generators: 1.7e7 per class).
+    size_t predicted = 0;
+    for (const Word& w : source.to_canonical.inverse)
+      for (int x : w) predicted += target_sigma[std::abs(x) - 1].size();
+    if (predicted > kMaxCandidateLetters) continue;
+    hc.map = compose(target_sigma, source.to_canonical.inverse);
+    for (Word& w : hc.map) w = dehn(w);
     hc.homology = homology_matrix(hc.map, n);
     if (hc.homology != target.P * S * Ps_inv) throw SolveError("handle_candidates: composed map has the wrong homology");
     if (hc.homology.transpose() * J * hc.homology != J)

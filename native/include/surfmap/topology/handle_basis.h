@@ -170,7 +170,10 @@ GroupMap reduce_separating_twists(const GroupMap& map, int genus, const std::fun
 
 /// All signed handle permutations (g! 2^g), ranked by geometric score, the
 /// first `max_candidates` kept. Each is checked exactly (Dehn's algorithm on
-/// the relator's image, symplectic homology). Throws InputError on unequal genus.
+/// the relator's image, symplectic homology). A class whose words would
+/// exceed 2e5 letters is left out (its deck elements could not be evaluated
+/// in double precision), so fewer may come back, even none. Throws
+/// InputError on unequal genus.
 std::vector<HandleCandidate> handle_candidates(const HandleBasis& source, const HandleBasis& target,
                                                int max_candidates = 8);
 
