@@ -137,8 +137,7 @@ void bind_map(py::module_& m) {
                                           py::arg("min_turn") = im.polygon_min_turn,
                                           py::arg("perimeter") = im.polygon_perimeter,
                                           py::arg("chords_split") = im.polygon_chords_split,
-                                          py::arg("flipped_before_relaxing") = im.polygon_flipped,
-                                          py::arg("relaxed_vertices") = im.polygon_relaxed_vertices),
+                                          py::arg("flipped") = im.polygon_flipped),
             py::arg("iterations") = im.iterations, py::arg("time_s") = im.time_s);
         // The initial map located on the target (None for genus 0 or when it
         // could not be located).

@@ -96,72 +96,6 @@ Complex minimise_displacement(const std::vector<Mobius>& A, Complex p0, int iter
   return p;
 }
 
-// The flattening embeds the refined disk, but its derivative jumps across
-// the cut (each bank is pulled onto a fixed side), so a source face crossed
-// by a loop, straight between its corners' images, can flip. Those corners
-// and their neighbours are relaxed: Gauss–Seidel sweeps moving a vertex to
-// the weighted hyperbolic barycentre of its neighbours' images (one Karcher
-// step in the chart centring it; mean-value weights of the source). Grows
-// the set by a ring while flips remain. Returns the vertices relaxed.
-int repair_flips(const TriMesh& source, const Connectivity& sc, const std::vector<Word>& halfedge_word,
-                 const DeckGroup& group, const DistortionStats& q0, int sweeps, PolygonInitialMapResult& poly) {
-  const int nv = source.num_vertices();
-  std::vector<char> active(nv, 0);
-  for (int f = 0; f < source.num_faces(); ++f)
-    if (!std::isfinite(q0.per_face[f]))
-      for (int k = 0; k < 3; ++k) active[source.F(f, k)] = 1;
-  auto grow = [&] {
-    std::vector<char> next = active;
-    for (int v = 0; v < nv; ++v)
-      if (active[v])
-        for (int h : sc.outgoing(v)) next[sc.head(h)] = 1;
-    active.swap(next);
-  };
-  grow();
-  // Mean-value weight of halfedge h (tail's coordinate), from the 3D angles.
-  auto weight = [&](int h) {
-    double w = 0;
-    const Eigen::Vector3d pi = source.V.row(sc.tail(h)), pj = source.V.row(sc.head(h));
-    for (int g : {h, sc.twin(h)}) {  // the angle at the tail in both faces of the edge
-      const Eigen::Vector3d a = pj - pi, b = source.V.row(sc.opposite_vertex(g)).transpose() - pi;
-      w += a.cross(b).norm() / std::max(a.norm() * b.norm() + a.dot(b), 1e-300);
-    }
-    return w / std::max((pj - pi).norm(), 1e-300);
-  };
-  int relaxed = 0;
-  for (int round = 0; round < 2; ++round) {
-    std::vector<int> set;
-    for (int v = 0; v < nv; ++v)
-      if (active[v]) set.push_back(v);
-    relaxed = static_cast<int>(set.size());
-    for (int sweep = 0; sweep < sweeps; ++sweep)
-      for (int v : set) {
-        const Mobius T = Mobius::centring(poly.z[v]);
-        Complex xi(0.0);
-        double wsum = 0;
-        for (int h : sc.outgoing(v)) {
-          const int u = sc.head(h);
-          const Mobius eff = group.evaluate_side_word(group.reduce(
-              concat({poly.vertex_deck_word[v], halfedge_word[h], inverse(poly.vertex_deck_word[u])})));
-          const double w = weight(h);
-          xi += w * hyperbolic::log_map(Complex(0.0), (T * eff).normalized().apply(poly.z[u]));
-          wsum += w;
-        }
-        poly.z[v] = T.inverse().apply(hyperbolic::exp_map(Complex(0.0), xi / wsum));
-      }
-    // Flips left?
-    std::vector<Mobius> rho(3 * source.num_faces());
-    for (int h = 0; h < 3 * source.num_faces(); ++h) rho[h] = group.evaluate_side_word(halfedge_word[h]);
-    const DistortionStats q = hyperbolic_distortion(source, rho, poly.z, poly.vertex_deck);
-    if (!q.flipped && !q.degenerate) break;
-    for (int f = 0; f < source.num_faces(); ++f)
-      if (!std::isfinite(q.per_face[f]))
-        for (int k = 0; k < 3; ++k) active[source.F(f, k)] = 1;
-    grow();
-  }
-  return relaxed;
-}
-
 }  // namespace
 
 PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connectivity& sc,
@@ -426,8 +360,6 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
   int nu = 0;
   for (int d = 0; d < nd; ++d)
     if (!on_boundary[d]) unknown[d] = nu++;
-  std::vector<Eigen::Triplet<double>> trip;
-  Eigen::MatrixXd rhs;
   struct GraphEdge {
     int a, b;  // node ids: disk vertices, then nd + chord midpoint
     double w;
@@ -451,30 +383,47 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
   }
   const int nunk = nu + out.chords_split;
   auto unk = [&](int node) { return node >= nd ? nu + (node - nd) : unknown[node]; };
-  rhs.setZero(nunk, 2);
-  std::vector<double> diag(nunk, 0.0);
-  for (const auto& [a, bb, w] : graph) {
-    const int ua = unk(a), ub = unk(bb);
-    if (ua >= 0) diag[ua] += w;
-    if (ub >= 0) diag[ub] += w;
-    if (ua >= 0 && ub >= 0) {
-      trip.emplace_back(ua, ub, -w), trip.emplace_back(ub, ua, -w);
-    } else if (ua >= 0) {
-      rhs(ua, 0) += w * k[bb].real(), rhs(ua, 1) += w * k[bb].imag();
-    } else if (ub >= 0) {
-      rhs(ub, 0) += w * k[a].real(), rhs(ub, 1) += w * k[a].imag();
+  // Klein positions of every node (chord midpoints after the disk copies).
+  std::vector<Complex> kn(k);
+  kn.resize(nd + out.chords_split, Complex(0.0));
+  // The barycentre condition in the hyperboloid model, X_i ∝ Σ_j w_ij X_j,
+  // is invariant under isometries (linear maps of the hyperboloid), so both
+  // banks of a side are treated alike wherever they sit in the polygon. In
+  // Klein coordinates it reads Σ_j w_ij γ_j (k_j − k_i) = 0 with γ_j =
+  // cosh d(0, k_j) = 1/sqrt(1 − |k_j|²): linear for fixed γ, symmetric after
+  // scaling row i by γ_i. γ = 1 is the plain Klein-model Tutte map; each
+  // round takes γ from the previous positions (a fixed-point iteration of
+  // linear solves, every one a Tutte map with positive weights).
+  auto gamma = [&](int node) { return 1.0 / std::sqrt(std::max(1e-300, 1.0 - std::norm(kn[node]))); };
+  for (int round = 0; round <= options.hyperboloid_rounds && nunk > 0; ++round) {
+    std::vector<Eigen::Triplet<double>> trip;
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nunk, 2);
+    std::vector<double> diag(nunk, 0.0);
+    for (const auto& [a, bb, w0] : graph) {
+      const double w = round == 0 ? w0 : w0 * gamma(a) * gamma(bb);
+      const int ua = unk(a), ub = unk(bb);
+      if (ua >= 0) diag[ua] += w;
+      if (ub >= 0) diag[ub] += w;
+      if (ua >= 0 && ub >= 0) {
+        trip.emplace_back(ua, ub, -w), trip.emplace_back(ub, ua, -w);
+      } else if (ua >= 0) {
+        rhs(ua, 0) += w * kn[bb].real(), rhs(ua, 1) += w * kn[bb].imag();
+      } else if (ub >= 0) {
+        rhs(ub, 0) += w * kn[a].real(), rhs(ub, 1) += w * kn[a].imag();
+      }
     }
-  }
-  for (int u = 0; u < nunk; ++u) trip.emplace_back(u, u, diag[u]);
-  if (nunk > 0) {
+    for (int u = 0; u < nunk; ++u) trip.emplace_back(u, u, diag[u]);
     Eigen::SparseMatrix<double> L(nunk, nunk);
     L.setFromTriplets(trip.begin(), trip.end());
     Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt(L);
     if (llt.info() != Eigen::Success) return give_up("the flattening's Laplacian could not be factorised");
     const Eigen::MatrixXd X = llt.solve(rhs);
-    for (int d = 0; d < nd; ++d)
-      if (unknown[d] >= 0) k[d] = Complex(X(unknown[d], 0), X(unknown[d], 1));
+    for (int node = 0; node < nd + out.chords_split; ++node) {
+      const int u = unk(node);
+      if (u >= 0) kn[node] = Complex(X(u, 0), X(u, 1));
+    }
   }
+  for (int d = 0; d < nd; ++d) k[d] = kn[d];
 
   // The input vertices: the point of one copy (global frame) and its deck
   // element c_d, then moved into the target's domain.
@@ -516,24 +465,13 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
     if (poly.applied) {
       // The flattening is an embedding of the refined disk; the source's own
       // faces, straight between its vertices' images, are checked too.
-      DistortionStats q = hyperbolic_distortion(source, halfedge_rho, poly.z, poly.vertex_deck);
+      const DistortionStats q = hyperbolic_distortion(source, halfedge_rho, poly.z, poly.vertex_deck);
       poly.source_flipped = q.flipped;
       poly.source_degenerate = q.degenerate;
-      // A few flips are often undone by relaxing around them; many are the
-      // sign of a badly stretched flattening (measured: relaxing then made
-      // them more), and the attempt stops there.
-      if ((q.flipped || q.degenerate) && q.flipped + q.degenerate <= options.repair_max_flips) {
-        const std::vector<Complex> z_before = poly.z;
-        poly.repaired_vertices = repair_flips(source, sc, halfedge_word, group, q, options.repair_sweeps, poly);
-        const DistortionStats q2 = hyperbolic_distortion(source, halfedge_rho, poly.z, poly.vertex_deck);
-        if (q2.flipped + q2.degenerate <= q.flipped + q.degenerate) q = q2;
-        else poly.z = z_before;
-      }
       if (q.flipped || q.degenerate) {
         poly.applied = false;
         poly.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate) +
-                      " degenerate source faces (" + std::to_string(poly.source_flipped) + " before relaxing " +
-                      std::to_string(poly.repaired_vertices) + " vertices)";
+                      " degenerate source faces";
       }
     }
     if (poly.applied) {

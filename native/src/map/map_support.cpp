@@ -105,7 +105,6 @@ void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo
   info.polygon_perimeter = p.perimeter;
   info.polygon_chords_split = p.chords_split;
   info.polygon_flipped = p.source_flipped;
-  info.polygon_relaxed_vertices = p.repaired_vertices;
   info.iterations = init.construction == "polygon" ? 0 : init.iterations;
   info.time_s = init.time_s;
 }

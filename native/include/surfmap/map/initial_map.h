@@ -22,19 +22,25 @@
 //     (checked; it is not always), D is flattened onto it there: boundary
 //     copies on their side at the fraction of the loop's 3D length (the
 //     same on both banks, so the pairing carries one copy onto the other),
-//     interior ones by one sparse Cholesky solve with two right-hand sides,
-//     symmetrised mean-value weights of the 3D refined mesh (positive, so
-//     Floater's theorem gives an embedding of D); interior edges joining two
-//     boundary copies of one side (whose faces would be degenerate) are
-//     split first. The input vertices are read off with their decks c_d.
-//     The refined disk is embedded, but a source face crossed by a loop,
-//     straight between its corners' images, can still flip (the flattening's
-//     derivative jumps across the fixed sides, and where greedy loops shared
-//     a tree path the refined loops run side by side: the thin strips
-//     between them are spread across the polygon): up to repair_max_flips
-//     of them are relaxed away (a few Gauss–Seidel sweeps moving the corners
-//     and a ring around them to the hyperbolic barycentre of their
-//     neighbours); if flips remain, fallback, started from the flattening.
+//     interior ones by sparse Cholesky solves with two right-hand sides and
+//     symmetrised mean-value weights w of the 3D refined mesh (positive, so
+//     Floater's theorem gives an embedding of D in every solve); interior
+//     edges joining two boundary copies of one side (whose faces would be
+//     degenerate) are split first. Solve 0 is the plain Klein-model Tutte
+//     map; it is not isometry-invariant (Klein coordinates are anisotropic
+//     towards the polygon's far corners), so the two banks of a side, which
+//     sit at different places of Q, were treated differently and source
+//     faces crossing the side flipped (66 flips on n-hole torus -> polycube
+//     genus 2). Rounds 1..hyperboloid_rounds re-weight towards the
+//     hyperboloid barycentre condition X_i ∝ Σ_j w_ij X_j, invariant under
+//     isometries: in Klein coordinates Σ_j w_ij γ_i γ_j (k_j − k_i) = 0 with
+//     γ = 1/sqrt(1 − |k|²) from the previous round (66 -> 3 flips there;
+//     clean remeshed pairs: max D' 85 -> 9). The input vertices are read
+//     off with their decks c_d. A source face crossed by a loop, straight
+//     between its corners' images, can still flip (the flattening's
+//     derivative jumps across the fixed sides); then the fallback is used,
+//     started from the flattening (a local relaxation of the flipped
+//     corners was tried and made more flips than it removed).
 //  2. The fallback, and InitialMapMethod::UniformHarmonic: the Tutte-type map
 //     in the same class, the discrete harmonic map with uniform weights
 //     (every source edge weight 1) into the target's hyperbolic surface,
@@ -83,12 +89,6 @@ struct HyperbolicInitialMapOptions {
   /// Overload with the source mesh only: try the polygon construction first
   /// (default true); false builds the uniform-weight map directly.
   bool polygon = true;
-  /// Gauss–Seidel sweeps per round of the local relaxation undoing flips of
-  /// source faces crossed by the polygon's sides (default 10).
-  int repair_sweeps = 10;
-  /// The relaxation is tried only for at most this many flipped or
-  /// degenerate source faces (default 8).
-  int repair_max_flips = 8;
   /// Passed to polygon_initial_map (PolygonInitialMapOptions).
   int base_vertex = -1;
   std::function<Word(std::complex<double>&)> reduce_point;
@@ -106,6 +106,10 @@ struct PolygonInitialMapOptions {
   /// exceeds this (radians, default 1e-9): flatter corners make degenerate
   /// boundary triangles.
   double min_turn = 1e-9;
+  /// Rounds re-weighting the flattening towards the hyperboloid barycentre
+  /// condition X_i ∝ Σ w_ij X_j (isometry-invariant, unlike the plain
+  /// Klein-model Tutte map of round 0; default 3, 0: plain Klein Tutte).
+  int hyperboloid_rounds = 3;
   /// Optional: moves a point into the target's fundamental domain and
   /// returns the side word applied (as HyperbolicHarmonicOptions::reduce_point).
   std::function<Word(std::complex<double>&)> reduce_point;
@@ -147,8 +151,6 @@ struct PolygonInitialMapResult {
   /// Flipped / degenerate images of the source's own faces (geodesic
   /// triangles between the input vertices' images), when applied.
   int source_flipped = 0, source_degenerate = 0;
-  /// Vertices relaxed to undo those flips (hyperbolic_initial_map).
-  int repaired_vertices = 0;
   double time_s = 0;
 };
 

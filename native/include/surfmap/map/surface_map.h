@@ -175,10 +175,9 @@ struct InitialMapInfo {
   bool polygon_convex = false;
   double polygon_min_turn = 0, polygon_perimeter = 0;
   int polygon_chords_split = 0;
-  /// Source faces (crossed by the polygon's sides) whose images the
-  /// flattening flipped, and the vertices around them relaxed locally to
-  /// undo it (map/initial_map.h); 0 when not computed.
-  int polygon_flipped = 0, polygon_relaxed_vertices = 0;
+  /// Source faces (crossed by the loops) whose images the flattening
+  /// flipped (then the fallback is used); 0 when not computed.
+  int polygon_flipped = 0;
   /// Newton iterations of the uniform-weight solve (0 for the polygon).
   int iterations = 0;
   double time_s = 0;
