@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <optional>
 
 #include "surfmap/map/surface_map.h"
@@ -122,6 +123,33 @@ TEST(PolygonInitialMap, CleanPairFlattensOntoAConvexPolygonAndReachesTheSameOpti
   for (int i = 0; i < a.num_vertices(); ++i)
     moved = std::max(moved, (mp.initial_forward[i].position - mu.initial_forward[i].position).norm());
   EXPECT_GT(moved, 1e-3 * diag);
+}
+
+TEST(PolygonInitialMap, IsometryInvariantFlatteningFlipsNoFaceWhereKleinTutteDoes) {
+  // n-hole torus -> cup (genus 2): the plain Klein-model Tutte map (round 0)
+  // treats the two banks of a side differently and flips faces crossing the
+  // loops; the hyperboloid-barycentre rounds do not (map/initial_map.h).
+  const TriMesh a = samples::n_hole_torus(2, 32, true), b = samples::cup(2, 32, true);
+  const Connectivity sc(a.F, a.num_vertices());
+  int flips[2] = {-1, -1};
+  PolygonInitialMapResult kept;
+  SurfaceMapOptions o;
+  o.homotopy = 0;
+  o.inspect_initial_map = [&](const InitialMapInspection& in) {
+    for (int rounds : {0, 3}) {
+      PolygonInitialMapOptions po;
+      po.hyperboloid_rounds = rounds;
+      const PolygonInitialMapResult p = polygon_initial_map(a, sc, *in.halfedge_word, *in.group, po);
+      ASSERT_TRUE(p.applied) << p.reason;
+      flips[rounds > 0] = hyperbolic_distortion(a, *in.halfedge_rho, p.z, p.vertex_deck).flipped;
+    }
+  };
+  const SurfaceMapResult m = surface_map(a, b, o);
+  std::printf("    flipped source faces: Klein Tutte %d, hyperboloid barycentre %d\n", flips[0], flips[1]);
+  EXPECT_GT(flips[0], 0);
+  EXPECT_EQ(flips[1], 0);
+  EXPECT_EQ(m.initial_map.construction, "polygon");
+  EXPECT_EQ(m.initial_flipped_triangles, 0);
 }
 
 TEST(PolygonInitialMap, SliverSourceKeepsConsistentSidesAndAnUnflippedStart) {
