@@ -152,6 +152,7 @@ void register_map(CLI::App& app) {
           {"iterations", m.initial_map.iterations},
           {"time_s", m.initial_map.time_s},
           {"located", !m.initial_forward.empty()}}},
+        {"target_refinement_splits", m.target_refinement_splits},
         {"homotopy", {{"chosen", m.chosen_candidate}, {"candidates", candidates}}},
         {"target_lattice", {{m.target_omega1.real(), m.target_omega1.imag()}, {m.target_omega2.real(), m.target_omega2.imag()}}},
         {"time_s", times},

@@ -37,6 +37,7 @@ struct FlatTarget {
   SystemOfLoops loops;
   DiskLayout layout;
   Complex A, B;  // translations of the canonical generators a', b'
+  int refinement_splits = 0;  // exact splits that made the metric exist
   std::vector<int> refined_to_input_face;
 };
 
@@ -44,6 +45,7 @@ FlatTarget flat_target(const TriMesh& target, const SurfaceMapOptions& options) 
   FlatTarget t;
   UniformizedTarget u = uniformized_target(target, Background::Euclidean, options);
   t.loops = std::move(u.loops);
+  t.refinement_splits = u.refinement_splits;
   t.layout = std::move(u.layout);
   const CanonicalSchema cs = canonical_schema(t.layout.word);
   t.A = evaluate(cs.generators[0], t.layout.generator_translations);
@@ -76,6 +78,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
               const SurfaceMapOptions& options, SurfaceMapResult& out, const StageDone& stage_done) {
   // Target: flat uniformization and canonical lattice basis.
   const FlatTarget tgt = flat_target(target, options);
+  out.target_refinement_splits = tgt.refinement_splits;
   stage_done("target uniformization", 0.3);
 
   // Source: homotopy data.

@@ -94,6 +94,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
 
   // Target: hyperbolic metric, layout, canonical generators.
   const UniformizedTarget ut = uniformized_target(target, Background::Hyperbolic, options);
+  out.target_refinement_splits = ut.refinement_splits;
   const SystemOfLoops& tl = ut.loops;
   const DiskLayout& layout = ut.layout;
   const CanonicalSchema tcs = canonical_schema(layout.word);

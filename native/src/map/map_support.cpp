@@ -5,6 +5,7 @@
 
 #include "surfmap/error.h"
 #include "surfmap/map/initial_map.h"
+#include "surfmap/uniformize/feasible_metric.h"
 
 namespace surfmap::detail {
 namespace {
@@ -85,11 +86,24 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.target_base_vertex;
   t.loops = system_of_loops(target, lo);
+  // Fixed connectivity first; when its metric does not exist (caps on CAD
+  // meshes), the loops' mesh is refined exactly and the flow runs again
+  // (uniformize/feasible_metric.h); the layout and location below only see a
+  // refined system of loops with origins on the user's target.
+  FeasibleMetricOptions fo;
+  fo.flow.tolerance = options.uniformization_tolerance;
+  FeasibleMetricResult fm = feasible_metric(target, t.loops, background, fo);
+  const RicciFlowResult& flow = fm.flow;
+  if (!flow.converged)
+    throw SolveError("target uniformization did not converge: " + flow.message +
+                     (fm.refinement_splits > 0 ? " (after refining the target exactly: " +
+                                                     std::to_string(fm.refinement_splits) + " splits; unrefined: " +
+                                                     fm.unrefined_failure + ")"
+                                               : std::string()));
+  t.loops = std::move(fm.loops);
+  t.refinement_splits = fm.refinement_splits;
+  t.refinement_max_angle = fm.refinement_max_angle;
   const Connectivity conn(t.loops.mesh.F, t.loops.mesh.num_vertices());
-  RicciFlowOptions ro;
-  ro.tolerance = options.uniformization_tolerance;
-  const RicciFlowResult flow = ricci_flow(conn, edge_lengths(t.loops.mesh, conn), background, ro);
-  if (!flow.converged) throw SolveError("target uniformization did not converge: " + flow.message);
   t.layout = layout_disk(conn, flow.edge_lengths, background, t.loops);
   if (t.layout.num_flipped > 0)
     throw SolveError("target layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");

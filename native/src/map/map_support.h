@@ -49,6 +49,10 @@ PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, cons
 struct UniformizedTarget {
   SystemOfLoops loops;
   DiskLayout layout;
+  /// Exact splits added so that the metric exists (0: none were needed) and
+  /// the max-angle bound used (uniformize/feasible_metric.h).
+  int refinement_splits = 0;
+  double refinement_max_angle = 0;
 };
 
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options);

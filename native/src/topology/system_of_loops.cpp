@@ -819,6 +819,8 @@ void finish_from_simple_loops(SystemOfLoops& s) {
 
 }  // namespace
 
+void rebuild_system_of_loops(SystemOfLoops& s) { finish_from_simple_loops(s); }
+
 SystemOfLoops system_of_loops(const TriMesh& mesh, const SystemOfLoopsOptions& options) {
   const Connectivity conn(mesh.F, mesh.num_vertices());
   const int genus = conn.genus();

@@ -7,6 +7,7 @@
 
 #include "surfmap/error.h"
 #include "surfmap/mesh/connectivity.h"
+#include "surfmap/uniformize/feasible_metric.h"
 
 namespace surfmap {
 namespace {
@@ -74,10 +75,17 @@ UniformizeResult uniformize(const TriMesh& mesh, const UniformizeOptions& option
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.base_vertex;
   r.loops = system_of_loops(mesh, lo);
-  Connectivity conn(r.loops.mesh.F, r.loops.mesh.num_vertices());
   const Background bg = r.genus == 1 ? Background::Euclidean : Background::Hyperbolic;
   r.kind = r.genus == 1 ? "flat" : "hyperbolic";
-  r.ricci = ricci_flow(conn, edge_lengths(r.loops.mesh, conn), bg, flow);
+  // Fixed connectivity, refined exactly when that metric does not exist
+  // (uniformize/feasible_metric.h).
+  FeasibleMetricOptions fo;
+  fo.flow = flow;
+  FeasibleMetricResult fm = feasible_metric(mesh, r.loops, bg, fo);
+  r.loops = std::move(fm.loops);
+  r.ricci = std::move(fm.flow);
+  r.refinement_splits = fm.refinement_splits;
+  const Connectivity conn(r.loops.mesh.F, r.loops.mesh.num_vertices());
   r.iterations = r.ricci.iterations;
   r.max_curvature_error = r.ricci.max_curvature_error;
   r.residual_history = r.ricci.residual_history;

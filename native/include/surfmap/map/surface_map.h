@@ -227,6 +227,11 @@ struct SurfaceMapResult {
   /// Per source vertex: the initial map's image on the target (face,
   /// barycentrics, 3D point), located like `forward`; empty for genus 0.
   std::vector<PointOnSurface> initial_forward;
+  /// Genus >= 1: vertices added to the target by the exact refinement that
+  /// made its uniformization metric exist (uniformize/feasible_metric.h; 0
+  /// when the fixed-connectivity metric existed). Outputs stay on the
+  /// user's target either way.
+  int target_refinement_splits = 0;
   std::vector<HomotopyCandidate> candidates;
   int chosen_candidate = -1;
   /// Target lattice (flat case) and the source's image in the plane.

@@ -85,4 +85,10 @@ struct SystemOfLoops {
 /// number of split points.
 SystemOfLoops system_of_loops(const TriMesh& mesh, const SystemOfLoopsOptions& options = {});
 
+/// After s.mesh was refined further and s.loops updated to match (simple,
+/// disjoint except at s.base_vertex, edge paths of s.mesh): recomputes the
+/// word, T*, T and the generator edges from the loops, with the same checks
+/// as system_of_loops (throws SolveError). Origins are the caller's.
+void rebuild_system_of_loops(SystemOfLoops& s);
+
 }  // namespace surfmap

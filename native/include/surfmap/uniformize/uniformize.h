@@ -58,7 +58,10 @@ struct UniformizeResult {
   std::vector<hyperbolic::Mobius> generators;
   double product_relation_error = 0;
   DiskLayout layout;
+  /// The loops' mesh (refined further when the fixed-connectivity metric did
+  /// not exist: refinement_splits exact splits, uniformize/feasible_metric.h).
   SystemOfLoops loops;
+  int refinement_splits = 0;
   RicciFlowResult ricci;
   /// Genus 0: #V positions on the unit sphere (input vertex order).
   SphericalUniformization sphere;
