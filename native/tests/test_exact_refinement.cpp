@@ -122,6 +122,20 @@ TEST(ExactRefinement, InfeasibleSliverTargetGetsAHyperbolicMetric) {
     for (int k = 0; k < 3; ++k) q += fm.loops.origin_barycentric(v, k) * m.V.row(m.F(fm.loops.origin_face[v], k));
     EXPECT_LT((q - rm.V.row(v)).norm(), 1e-12 * scale) << "vertex " << v;
   }
+  // Every refined face lies in its recorded input face.
+  ASSERT_EQ(static_cast<int>(fm.loops.face_origin.size()), rm.num_faces());
+  for (int f = 0; f < rm.num_faces(); ++f) {
+    const int o = fm.loops.face_origin[f];
+    const Eigen::Vector3d p0 = m.V.row(m.F(o, 0)), p1 = m.V.row(m.F(o, 1)), p2 = m.V.row(m.F(o, 2));
+    const Eigen::Vector3d n = (p1 - p0).cross(p2 - p0);
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d p = rm.V.row(rm.F(f, k));
+      EXPECT_LT(std::abs((p - p0).dot(n.normalized())), 1e-12 * scale);
+      const Eigen::Vector3d b = Eigen::Vector3d((p1 - p).cross(p2 - p).dot(n), (p2 - p).cross(p0 - p).dot(n),
+                                                (p0 - p).cross(p1 - p).dot(n)) / n.squaredNorm();
+      EXPECT_GE(b.minCoeff(), -1e-9) << "refined face " << f << " leaves input face " << o;
+    }
+  }
   EXPECT_EQ(Connectivity(rm.F, rm.num_vertices()).genus(), 3);
   const UniformizeResult u = uniformize(m);
   EXPECT_TRUE(u.converged);

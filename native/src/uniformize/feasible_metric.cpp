@@ -60,6 +60,11 @@ SystemOfLoops refined_loops(const TriMesh& input, const Connectivity& ic, const 
   const int nv0 = loops.mesh.num_vertices(), nv = s.mesh.num_vertices();
   std::vector<Combination> comb(nv);
   for (int v = 0; v < nv0; ++v) comb[v] = combination_of(input, loops.origin_face[v], loops.origin_barycentric.row(v));
+  // Refined faces lie inside loops-mesh faces, which lie inside input faces.
+  if (loops.face_origin.size() == static_cast<size_t>(loops.mesh.num_faces())) {
+    s.face_origin.resize(s.mesh.num_faces());
+    for (int f = 0; f < s.mesh.num_faces(); ++f) s.face_origin[f] = loops.face_origin[r.face_origin[f]];
+  }
   s.origin_face.resize(nv);
   s.origin_barycentric.conservativeResize(nv, 3);
   std::vector<char> on_loop(nv, 0);
