@@ -480,9 +480,12 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
       r.z = std::move(poly.z);
       r.vertex_deck = std::move(poly.vertex_deck);
       r.vertex_deck_word = std::move(poly.vertex_deck_word);
-    } else if (!poly.z.empty()) {
+    } else if (!poly.z.empty() && std::all_of(poly.z.begin(), poly.z.end(), [](Complex z) { return std::abs(z) < 1; })) {
       // Flipped faces: the uniform-weight map, started from the flattening
       // (the same unique map, in fewer Newton steps than from the origin).
+      // A flattening with points on or beyond |z| = 1 (or NaN: very twisted
+      // deck words) is no start at all (genus-6 sliver source from base
+      // vertex 1000); the origin is used then.
       start_z = std::move(poly.z);
       start_word = std::move(poly.vertex_deck_word);
     }
