@@ -21,7 +21,7 @@
 // Each run happens in a forked child so that peak RSS (ru_maxrss) is its own;
 // with --repeat N every case runs N times and the medians are printed.
 //
-//   build/bin/bench_map [--quick] [--relax-budget S] [--repeat N] [--sizes 10000,50000,200000] [--genus 1,2,...]
+//   build/bin/bench_map [--quick] [--stages] [--relax-budget S] [--repeat N] [--sizes 10000,50000,200000] [--genus 1,2,...]
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -48,6 +48,8 @@ using namespace surfmap;
 using Clock = std::chrono::steady_clock;
 
 namespace {
+
+bool g_stages = false;  // --stages: every stage's time of every run, on stderr
 
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
@@ -108,6 +110,10 @@ std::vector<double> run_case(int genus, int v, double budget, std::string* error
     else if (stage.find("solve") != std::string::npos) t[3] += s;
     else if (stage.find("location") != std::string::npos) t[4] += s;
     else other += s;
+  }
+  if (g_stages) {
+    for (const auto& [stage, sec] : m.stage_times) std::fprintf(stderr, "  %-40s %7.3f s\n", stage.c_str(), sec);
+    std::fprintf(stderr, "  %-40s %7.3f s\n", "total", m.total_time);
   }
   r[kUnif] = t[0], r[kHomotopy] = t[1], r[kInit] = t[2], r[kSolve] = t[3], r[kLocate] = t[4], r[kOther] = other;
   r[kTotal] = m.total_time;
@@ -213,6 +219,8 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--quick")) {
       quick = true;
+    } else if (!std::strcmp(argv[i], "--stages")) {
+      g_stages = true;
     } else if (!std::strcmp(argv[i], "--relax-budget") && i + 1 < argc) {
       budget = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc) {
@@ -223,7 +231,7 @@ int main(int argc, char** argv) {
       genera = parse_list(argv[++i]);
     } else {
       std::fprintf(stderr,
-                   "usage: %s [--quick] [--relax-budget S] [--repeat N] [--sizes a,b,c] [--genus g1,g2,...]\n"
+                   "usage: %s [--quick] [--stages] [--relax-budget S] [--repeat N] [--sizes a,b,c] [--genus g1,g2,...]\n"
                    "  --quick: genus 1-3 at 10k vertices, relaxation budget 5 s\n",
                    argv[0]);
       return 2;

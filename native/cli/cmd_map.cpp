@@ -115,7 +115,7 @@ void register_map(CLI::App& app) {
     nlohmann::json candidates = nlohmann::json::array();
     for (size_t i = 0; i < m.candidates.size(); ++i)
       candidates.push_back({{"index", i}, {"description", m.candidates[i].description}, {"energy", m.candidates[i].energy},
-                            {"solved", m.candidates[i].solved},
+                            {"solved", m.candidates[i].solved}, {"coarse_energy", m.candidates[i].coarse_energy},
                             {"matrix", {m.candidates[i].matrix[0], m.candidates[i].matrix[1], m.candidates[i].matrix[2],
                                         m.candidates[i].matrix[3]}}});
     nlohmann::json times = nlohmann::json::object();

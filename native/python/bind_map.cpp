@@ -146,7 +146,7 @@ void bind_map(py::module_& m) {
         py::list cands;
         for (const auto& c : r.candidates)
           cands.append(py::dict(py::arg("description") = c.description, py::arg("energy") = c.energy, py::arg("solved") = c.solved,
-                                py::arg("matrix") = std::vector<int>(c.matrix, c.matrix + 4)));
+                                py::arg("coarse_energy") = c.coarse_energy, py::arg("matrix") = std::vector<int>(c.matrix, c.matrix + 4)));
         d["homotopy"] = py::dict(py::arg("chosen") = r.chosen_candidate, py::arg("candidates") = cands);
         py::dict times;
         for (const auto& [stage, s] : r.stage_times) times[py::str(stage)] = s;

@@ -1,12 +1,15 @@
 #include "surfmap/map/hyperbolic_harmonic.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <string>
 
-#include <Eigen/CholmodSupport>
+#include <cholmod.h>
+
 #include <Eigen/Dense>
-#include <Eigen/SparseCore>
 
 #include "surfmap/error.h"
 
@@ -60,6 +63,151 @@ struct LongMobius {
 
 // Move index (2k: generator k, 2k+1: its inverse) as a word letter.
 int move_letter(int m) { return m % 2 == 0 ? m / 2 + 1 : -(m / 2 + 1); }
+
+// The Newton system: 2x2 blocks on a fixed pattern (the vertex graph of the
+// edges with w > 0), assembled straight into CHOLMOD's upper-triangular
+// column storage, and its symbolic factorisation, computed once per solve.
+// The fill-reducing ordering is computed on the vertex graph (a quarter of
+// the size) and expanded to the blocks, which keeps each vertex's two
+// unknowns adjacent; METIS nested dissection on large meshes: at 50k source
+// vertices it halves the factorisation flops of CHOLMOD's default AMD
+// (1.5e9 against 2.8e9), which on the reference BLAS of this platform is
+// 0.7 s against 1.2 s per Newton iteration.
+class BlockHessian {
+ public:
+  BlockHessian(int n, const std::vector<WeightedEdge>& edges) : n_(n) {
+    cholmod_start(&c_);
+    c_.print = 0;  // indefinite tries are expected and handled by the caller
+    // Lower neighbours of every vertex (the blocks (I, J), I < J, of column J).
+    std::vector<std::vector<int>> lower(n);
+    for (const auto& e : edges)
+      if (e.w > 0 && e.i != e.j) lower[std::max(e.i, e.j)].push_back(std::min(e.i, e.j));
+    for (auto& l : lower) std::sort(l.begin(), l.end()), l.erase(std::unique(l.begin(), l.end()), l.end());
+    colptr_.assign(2 * n + 1, 0);
+    for (int J = 0; J < n; ++J) {
+      const int d = static_cast<int>(lower[J].size());
+      colptr_[2 * J + 1] = colptr_[2 * J] + 2 * d + 1;
+      colptr_[2 * J + 2] = colptr_[2 * J + 1] + 2 * d + 2;
+    }
+    const int nnz = colptr_[2 * n];
+    rows_.resize(nnz);
+    for (int J = 0; J < n; ++J) {
+      int p = colptr_[2 * J], q = colptr_[2 * J + 1];
+      for (int I : lower[J]) rows_[p++] = 2 * I, rows_[p++] = 2 * I + 1, rows_[q++] = 2 * I, rows_[q++] = 2 * I + 1;
+      rows_[p] = 2 * J, rows_[q] = 2 * J, rows_[q + 1] = 2 * J + 1;
+    }
+    // Per edge: position of its off-diagonal block's first entry in column
+    // 2·max (the block's k-th lower neighbour sits at colptr + 2k).
+    pair_.assign(edges.size(), -1);
+    for (size_t e = 0; e < edges.size(); ++e) {
+      const auto& ed = edges[e];
+      if (!(ed.w > 0) || ed.i == ed.j) continue;
+      const int J = std::max(ed.i, ed.j), I = std::min(ed.i, ed.j);
+      pair_[e] = static_cast<int>(std::lower_bound(lower[J].begin(), lower[J].end(), I) - lower[J].begin());
+    }
+    lower_size_.resize(n);
+    for (int J = 0; J < n; ++J) lower_size_[J] = static_cast<int>(lower[J].size());
+    values_.assign(nnz, 0.0);
+    A_ = cholmod_allocate_sparse(2 * n, 2 * n, nnz, 1, 1, 1, CHOLMOD_REAL, &c_);
+    std::copy(colptr_.begin(), colptr_.end(), static_cast<int*>(A_->p));
+    std::copy(rows_.begin(), rows_.end(), static_cast<int*>(A_->i));
+
+    // Ordering of the vertex graph, expanded to the 2x2 blocks.
+    std::vector<int> vp(n + 1, 0), vi;
+    for (int J = 0; J < n; ++J) {
+      vp[J + 1] = vp[J] + lower_size_[J] + 1;
+      for (int I : lower[J]) vi.push_back(I);
+      vi.push_back(J);
+    }
+    cholmod_sparse* G = cholmod_allocate_sparse(n, n, vi.size(), 1, 1, 1, CHOLMOD_PATTERN, &c_);
+    std::copy(vp.begin(), vp.end(), static_cast<int*>(G->p));
+    std::copy(vi.begin(), vi.end(), static_cast<int*>(G->i));
+    c_.nmethods = 1;
+    c_.method[0].ordering = n > 20000 ? CHOLMOD_METIS : CHOLMOD_AMD;
+    std::vector<int> perm(2 * n);
+    {
+      cholmod_factor* Lg = cholmod_analyze(G, &c_);
+      if (!Lg) {
+        cholmod_free_sparse(&G, &c_);
+        throw SolveError("hyperbolic harmonic map: ordering of the Hessian failed");
+      }
+      const int* P = static_cast<const int*>(Lg->Perm);
+      for (int k = 0; k < n; ++k) perm[2 * k] = 2 * P[k], perm[2 * k + 1] = 2 * P[k] + 1;
+      cholmod_free_factor(&Lg, &c_);
+    }
+    cholmod_free_sparse(&G, &c_);
+    c_.method[0].ordering = CHOLMOD_GIVEN;
+    L_ = cholmod_analyze_p(A_, perm.data(), nullptr, 0, &c_);
+    if (!L_) throw SolveError("hyperbolic harmonic map: symbolic factorisation of the Hessian failed");
+  }
+  ~BlockHessian() {
+    cholmod_free_factor(&L_, &c_);
+    cholmod_free_sparse(&A_, &c_);
+    cholmod_finish(&c_);
+  }
+  BlockHessian(const BlockHessian&) = delete;
+  BlockHessian& operator=(const BlockHessian&) = delete;
+
+  void clear() { std::fill(values_.begin(), values_.end(), 0.0); }
+  // Adds the symmetric block D at (J, J).
+  void add_diagonal(int J, const Eigen::Matrix2d& D) {
+    const int d = lower_size_[J];
+    values_[colptr_[2 * J] + 2 * d] += D(0, 0);
+    values_[colptr_[2 * J + 1] + 2 * d] += D(0, 1);
+    values_[colptr_[2 * J + 1] + 2 * d + 1] += D(1, 1);
+  }
+  // Adds M at (i, j) (and M^T at (j, i)) for edge e, i != j.
+  void add_offdiagonal(size_t e, int i, int j, const Eigen::Matrix2d& M) {
+    const int k = pair_[e];
+    const Eigen::Matrix2d B = i < j ? M : Eigen::Matrix2d(M.transpose());  // block (min, max)
+    const int J = std::max(i, j);
+    values_[colptr_[2 * J] + 2 * k] += B(0, 0);
+    values_[colptr_[2 * J] + 2 * k + 1] += B(1, 0);
+    values_[colptr_[2 * J + 1] + 2 * k] += B(0, 1);
+    values_[colptr_[2 * J + 1] + 2 * k + 1] += B(1, 1);
+  }
+  double diagonal(int k) const {
+    const int J = k / 2, d = lower_size_[J];
+    return k % 2 == 0 ? values_[colptr_[2 * J] + 2 * d] : values_[colptr_[2 * J + 1] + 2 * d + 1];
+  }
+  // Numeric factorisation of the assembled matrix plus shift·I; false when
+  // it is not positive definite.
+  bool factorize(double shift) {
+    double* x = static_cast<double*>(A_->x);
+    std::copy(values_.begin(), values_.end(), x);
+    for (int J = 0; J < n_; ++J) {
+      const int d = lower_size_[J];
+      x[colptr_[2 * J] + 2 * d] += shift;
+      x[colptr_[2 * J + 1] + 2 * d + 1] += shift;
+    }
+    cholmod_factorize(A_, L_, &c_);
+    return c_.status == CHOLMOD_OK && L_->minor == L_->n;
+  }
+  Eigen::VectorXd solve(const Eigen::VectorXd& b) {
+    cholmod_dense B;
+    B.nrow = B.d = static_cast<size_t>(b.size());
+    B.ncol = 1;
+    B.nzmax = B.nrow;
+    B.x = const_cast<double*>(b.data());
+    B.z = nullptr;
+    B.xtype = CHOLMOD_REAL;
+    B.dtype = CHOLMOD_DOUBLE;
+    cholmod_dense* X = cholmod_solve(CHOLMOD_A, L_, &B, &c_);
+    Eigen::VectorXd x(b.size());
+    if (!X) x.setConstant(std::numeric_limits<double>::quiet_NaN());
+    else std::copy(static_cast<double*>(X->x), static_cast<double*>(X->x) + b.size(), x.data());
+    cholmod_free_dense(&X, &c_);
+    return x;
+  }
+
+ private:
+  int n_;
+  cholmod_common c_{};
+  cholmod_sparse* A_ = nullptr;
+  cholmod_factor* L_ = nullptr;
+  std::vector<int> colptr_, rows_, pair_, lower_size_;
+  std::vector<double> values_;
+};
 
 }  // namespace
 
@@ -171,9 +319,7 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
   };
   double E = energy_of(A);
   r.energy_history.push_back(E);
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> solver;
-  solver.cholmod().print = 0;  // indefinite tries are expected and handled below
-  bool analysed = false;
+  std::unique_ptr<BlockHessian> hessian;  // built at the first iteration that needs it
   std::vector<Mobius> trial_A(edges.size()), step_map(n);
   // Trial edge elements for the step alpha * xi (all vertices at once).
   auto trial_edges = [&](const Eigen::VectorXd& xi, double alpha) {
@@ -241,8 +387,17 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
     // with direction u; the Hessian of ½d² is [1 -1; -1 1] along u and
     // [a -b; -b a] across it (a = d coth d, b = d / sinh d), and y's own
     // frame is rotated by theta = arg A_e'(0).
-    std::vector<Eigen::Triplet<double>> trip;
-    trip.reserve(edges.size() * 16 + 2 * n);
+    using Clock = std::chrono::steady_clock;
+    auto seconds_since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
+    if (!hessian) {
+      const auto t0 = Clock::now();
+      hessian = std::make_unique<BlockHessian>(n, edges);
+      r.analysis_seconds += seconds_since(t0);
+    }
+    BlockHessian& H = *hessian;
+    H.clear();
+    const bool any_fixed = !options.fixed.empty();
+    auto is_free = [&](int v) { return !any_fixed || !options.fixed[v]; };
     Eigen::VectorXd g = Eigen::VectorXd::Zero(2 * n);
     for (size_t ei = 0; ei < edges.size(); ++ei) {
       const WeightedEdge& e = edges[ei];
@@ -265,28 +420,23 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
       Eigen::Matrix2d R;
       R << std::cos(th), -std::sin(th), std::sin(th), std::cos(th);
       const Eigen::Matrix2d Hii = 2 * e.w * P, Hjj = 2 * e.w * R.transpose() * P * R, Hij = -2 * e.w * Q * R;
-      for (int p = 0; p < 2; ++p)
-        for (int q = 0; q < 2; ++q) {
-          trip.emplace_back(2 * e.i + p, 2 * e.i + q, Hii(p, q));
-          trip.emplace_back(2 * e.j + p, 2 * e.j + q, Hjj(p, q));
-          trip.emplace_back(2 * e.i + p, 2 * e.j + q, Hij(p, q));
-          trip.emplace_back(2 * e.j + q, 2 * e.i + p, Hij(p, q));
-        }
+      // Held vertices (landmarks, below): their rows and columns are left out.
+      if (e.i == e.j) {
+        if (is_free(e.i)) H.add_diagonal(e.i, Hii + Hjj + Hij + Hij.transpose());
+        continue;
+      }
+      if (is_free(e.i)) H.add_diagonal(e.i, Hii);
+      if (is_free(e.j)) H.add_diagonal(e.j, Hjj);
+      if (is_free(e.i) && is_free(e.j)) H.add_offdiagonal(ei, e.i, e.j, Hij);
     }
     // Held vertices (landmarks): no gradient and identity rows/columns, so
     // their Newton step is 0 and the other vertices see them as fixed.
-    if (!options.fixed.empty()) {
-      std::vector<Eigen::Triplet<double>> kept;
-      kept.reserve(trip.size());
-      for (const auto& t : trip)
-        if (!options.fixed[t.row() / 2] && !options.fixed[t.col() / 2]) kept.push_back(t);
+    if (any_fixed)
       for (int i = 0; i < n; ++i)
         if (options.fixed[i]) {
           g[2 * i] = g[2 * i + 1] = 0;
-          kept.emplace_back(2 * i, 2 * i, max_w), kept.emplace_back(2 * i + 1, 2 * i + 1, max_w);
+          H.add_diagonal(i, max_w * Eigen::Matrix2d::Identity());
         }
-      trip.swap(kept);
-    }
     if (!g.allFinite() || !std::isfinite(E))
       throw SolveError("hyperbolic harmonic map: non-finite energy or gradient at iteration " + std::to_string(it));
     double gnorm = 0;
@@ -301,24 +451,22 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
     // A Levenberg shift keeps the factorisation definite: tiny where the
     // model is exact (the normal surplus d coth d − 1 is O(d²)), raised when
     // far from the optimum the frame bookkeeping leaves it indefinite.
-    Eigen::SparseMatrix<double> H0(2 * n, 2 * n);
-    H0.setFromTriplets(trip.begin(), trip.end());
-    Eigen::SparseMatrix<double> H;
-    for (double shift = 1e-9 * max_w;; shift *= 100) {
-      Eigen::SparseMatrix<double> I(2 * n, 2 * n);
-      I.setIdentity();
-      H = H0 + shift * I;
-      if (!analysed) solver.analyzePattern(H), analysed = true;
-      solver.factorize(H);
-      if (solver.info() == Eigen::Success) break;
+    double shift = 1e-9 * max_w;
+    for (;; shift *= 100) {
+      const auto t0 = Clock::now();
+      const bool ok = H.factorize(shift);
+      r.factorization_seconds += seconds_since(t0);
+      ++r.factorizations;
+      if (ok) break;
       if (shift > 1e6 * max_w) throw SolveError("hyperbolic harmonic map: Hessian factorisation failed");
     }
-    Eigen::VectorXd step = solver.solve(-g);
+    auto diag = [&](int k) { return H.diagonal(k) + shift; };
+    Eigen::VectorXd step = H.solve(-g);
     // Far from the optimum the frame bookkeeping makes the model Hessian
     // inexact; fall back to the diagonally scaled gradient when the Newton
     // direction is not a descent direction.
     if (!(g.dot(step) < 0) || !step.allFinite()) {
-      for (int k = 0; k < 2 * n; ++k) step[k] = -g[k] / std::max(H.coeff(k, k), 1e-300);
+      for (int k = 0; k < 2 * n; ++k) step[k] = -g[k] / std::max(diag(k), 1e-300);
     }
     // Backtracking line search on E. The first trial moves no vertex by more
     // than kMaxStep (a bad start can ask for steps of 30 units, whose
@@ -339,6 +487,7 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
     for (int ls = 0; ls < 40; ++ls) {
       trial_edges(step, alpha);
       const double Et = energy_of(trial_A);
+      ++r.energy_evaluations;
       if (Et < E && (Et <= E + 1e-4 * alpha * slope || alpha < 1e-3)) {
         accept(Et);
         accepted = true;
@@ -351,12 +500,13 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
       // No decrease along the Newton direction. Try the scaled gradient once
       // before concluding that round-off has been reached.
       Eigen::VectorXd gs(2 * n);
-      for (int k = 0; k < 2 * n; ++k) gs[k] = -g[k] / std::max(H.coeff(k, k), 1e-300);
+      for (int k = 0; k < 2 * n; ++k) gs[k] = -g[k] / std::max(diag(k), 1e-300);
       double gl = 0;
       for (int i = 0; i < n; ++i) gl = std::max(gl, std::hypot(gs[2 * i], gs[2 * i + 1]));
       for (double beta = gl > kMaxStep ? kMaxStep / gl : 1.0; beta > 1e-8 && !accepted; beta *= 0.25) {
         trial_edges(gs, beta);
         const double Et = energy_of(trial_A);
+        ++r.energy_evaluations;
         if (Et < E) accept(Et), accepted = true;
       }
       if (!accepted) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <memory>
 #include <random>
 #include <set>
 #include <string>
@@ -13,6 +14,7 @@
 #include "map_support.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
+#include "surfmap/map/coarse_source.h"
 #include "surfmap/map/distortion.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
 #include "surfmap/map/harmonic_relaxation.h"
@@ -356,8 +358,18 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   }
   stage_done("source homotopy data and weights", 0.4);
 
-  // Ranking start: every vertex at the origin (the classes' own initial
-  // maps are built only for the chosen one).
+  // Ranking (DESIGN §2.10). The energy of a class is a property of the two
+  // continuous surfaces, so every candidate is solved to convergence on a
+  // coarse copy of the source (map/coarse_source.h; its vertices are fine
+  // vertices, its deck elements products of the fine ones along paths, so a
+  // coarse solution is also a start for the fine solve), and only the best by
+  // that estimate (and whichever are within kCoarseMargin of it, up to
+  // `homotopy_full_solves`) are solved at full resolution, from their coarse
+  // solutions prolonged to the fine vertices. The energy is geodesically
+  // convex, so that converged solve is the class's optimum: the chosen class
+  // is not solved again. Small sources (fewer than 4 coarse copies' worth of
+  // vertices) are ranked by full-resolution solves of every class instead.
+  constexpr double kCoarseMargin = 0.1;
   HyperbolicHarmonicOptions ho;
   ho.tolerance = options.tolerance;
   ho.max_iterations = options.max_iterations;
@@ -365,89 +377,205 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   ho.reduce_point = [&](Complex& z) { return reduce_into_polygon(z); };
   if (options.progress)
     ho.progress = [&](int, double, double) { return options.progress("homotopy candidates", 0.4); };
-  const std::vector<Complex> origin(source.num_vertices(), Complex(0.0));
-  // A class whose solve fails numerically (deck elements too large for
-  // double precision: very twisted classes) is reported with infinite
-  // energy instead of failing the whole map, unless it was asked for.
-  auto solve_class = [&](int k, const HyperbolicHarmonicOptions& o, HyperbolicHarmonicResult& r) {
+  const int nv = source.num_vertices();
+  // Side word of source halfedge h in class data cd.
+  auto side_of = [&](const ClassData& cd, int h) {
+    const int e = sc.edge(h);
+    return sc.edge_halfedge(e) == h ? cd.side_word_edge[e] : inverse(cd.side_word_edge[e]);
+  };
+  // A solve of `edges` (n vertices) from points `start` with vertex decks
+  // `deck_word` (side words): the edges are conjugated by the decks (as
+  // words, never as matrix products), and the decks are composed back, so
+  // the result is relative to `edges` as given.
+  auto solve_from = [&](int n, const std::vector<WeightedEdge>& edges, const std::vector<Complex>& start,
+                        const std::vector<Word>& deck_word, const HyperbolicHarmonicOptions& o) {
+    std::vector<WeightedEdge> e = edges;
+    std::vector<Mobius> deck(n);
+    bool any = false;
+    for (int i = 0; i < n; ++i)
+      if (!deck_word[i].empty()) any = true, deck[i] = deck_group.evaluate_side_word(deck_word[i]);
+    if (any)
+      for (auto& ed : e) {
+        if (deck_word[ed.i].empty() && deck_word[ed.j].empty()) continue;
+        ed.rho_word = deck_group.reduce(concat({deck_word[ed.i], ed.rho_word, inverse(deck_word[ed.j])}));
+        ed.rho = deck_group.evaluate_side_word(ed.rho_word);
+      }
+    HyperbolicHarmonicResult r = hyperbolic_harmonic_map(n, e, deck_group.side_pairings(), start, o);
+    if (any)
+      for (int i = 0; i < n; ++i) {
+        r.vertex_deck[i] = (r.vertex_deck[i] * deck[i]).normalized();
+        r.vertex_deck_word[i] = deck_group.reduce(concat(r.vertex_deck_word[i], deck_word[i]));
+      }
+    return r;
+  };
+  // Runs a solve of class k; a class whose solve fails numerically (deck
+  // elements too large for double precision: very twisted classes) or does
+  // not converge is reported with infinite energy instead of failing the
+  // whole map, unless it was asked for.
+  // A failed coarse solve (`coarse`) of a class that must be solved anyway
+  // (requested, or the only one) only loses its estimate: it is then solved
+  // at full resolution from the origin.
+  std::vector<char> coarse_failed(ncand, 0);
+  auto try_solve = [&](int k, const std::function<HyperbolicHarmonicResult()>& solve, HyperbolicHarmonicResult& r,
+                       bool coarse = false) {
     std::string why;
     try {
-      r = hyperbolic_harmonic_map(source.num_vertices(), data[k].edges, deck_group.side_pairings(), origin, o);
+      r = solve();
       bool finite = std::isfinite(r.energy);
       for (size_t i = 0; i < r.z.size() && finite; ++i) finite = std::isfinite(r.z[i].real()) && std::isfinite(r.z[i].imag());
-      if (finite) return true;
-      why = "non-finite energy or positions";
+      if (!finite) why = "non-finite energy or positions";
+      else if (!r.converged)
+        why = "did not converge in " + std::to_string(r.iterations) + " iterations (gradient " +
+              std::to_string(r.gradient_history.empty() ? 0.0 : r.gradient_history.back()) + ")";
+      else return true;
     } catch (const SolveError& e) {
       why = e.what();
     }
-    if (options.homotopy == k)
-      throw SolveError("the harmonic map solve of the requested homotopy class " + std::to_string(k) + " failed: " + why);
+    const bool needed = options.homotopy == k || (options.homotopy < 0 && ncand == 1);
+    if (needed && coarse) {
+      coarse_failed[k] = 1;
+      return false;
+    }
+    if (needed) throw SolveError("the harmonic map solve of homotopy class " + std::to_string(k) + " failed: " + why);
     usable[k] = 0;
     out.candidates[k].energy = std::numeric_limits<double>::infinity();
     out.candidates[k].solved = false;
     out.candidates[k].description += "  [solve failed: " + why + "]";
     return false;
   };
-  // Ranking (DESIGN §2.10): every candidate gets a short solve (its energy
-  // only decreases, so this is an upper bound of the class's optimum); the
-  // most promising `homotopy_full_solves` (and the requested class) are
-  // solved to convergence and the lowest converged energy is the default.
-  const int short_iterations = 1;
+
+  // The ranking level: the coarse copy, its class data, and its solves.
+  CoarseSourceOptions cso;
+  cso.target_vertices = std::min(options.homotopy_coarse_vertices, nv / 4);
+  CoarseSource cs;
+  if (options.homotopy_coarse_vertices > 0 && cso.target_vertices >= 500) cs = coarse_source(source, sc, cso);
+  std::vector<std::vector<WeightedEdge>> coarse_data;
+  if (cs.ok) {
+    const Connectivity cc(cs.mesh.F, cs.mesh.num_vertices());
+    const IntrinsicDelaunayResult cidt = intrinsic_delaunay(cc, edge_lengths(cs.mesh, cc));
+    for (int k = 0; k < ncand && cs.ok; ++k) {
+      std::vector<Word> ch(cc.num_halfedges());
+      for (int e = 0; e < cc.num_edges(); ++e) {
+        Word w;
+        for (int h : cs.edge_path[e]) w = concat(w, side_of(data[k], h));
+        const int h = cc.edge_halfedge(e);
+        ch[h] = deck_group.reduce(w);
+        ch[cc.twin(h)] = inverse(ch[h]);
+      }
+      // The fine paths around every coarse face must bound a disk: exactly
+      // when the product of their deck elements is the identity.
+      for (int f = 0; f < cc.num_faces() && cs.ok; ++f)
+        if (!deck_group.reduce(concat({ch[3 * f], ch[3 * f + 1], ch[3 * f + 2]})).empty())
+          cs.ok = false, cs.why = "the fine paths around coarse face " + std::to_string(f) + " are not contractible";
+      std::vector<WeightedEdge> edges(cidt.edges.size());
+      for (size_t e = 0; e < cidt.edges.size() && cs.ok; ++e) {
+        const auto& ie = cidt.edges[e];
+        edges[e].i = ie.i, edges[e].j = ie.j, edges[e].w = ie.cot_weight;
+        Word w;
+        for (int h : ie.path) w = concat(w, ch[h]);
+        edges[e].rho_word = deck_group.reduce(w);
+        edges[e].rho = deck_group.evaluate_side_word(edges[e].rho_word);
+      }
+      coarse_data.push_back(std::move(edges));
+    }
+    if (!cs.ok || !cidt.delaunay) cs.ok = false, coarse_data.clear();
+  }
+  // The requested class's full-resolution solve reports to solve_progress live.
+  auto fine_options = [&](int k) {
+    HyperbolicHarmonicOptions o = ho;
+    if (options.homotopy == k && options.solve_progress)
+      o.progress = [&](int it, double E, double g) {
+        return options.solve_progress(it, E, g) && (!options.progress || options.progress("harmonic solve", 0.43));
+      };
+    return o;
+  };
+  // Full-resolution solves kept for the pipeline below (by class).
+  std::vector<std::unique_ptr<HyperbolicHarmonicResult>> fine_result(ncand);
+  std::vector<char> full(ncand, 0);
   std::vector<int> order(ncand);
   for (int k = 0; k < ncand; ++k) order[k] = k;
-  const int full_solves = options.homotopy_full_solves <= 0 ? ncand : options.homotopy_full_solves;
-  const bool rank_first = ncand > full_solves;
-  if (rank_first) {
-    HyperbolicHarmonicOptions hs = ho;
-    hs.max_iterations = short_iterations;
+  const int full_solves = options.homotopy_full_solves <= 0 ? ncand : std::min(options.homotopy_full_solves, ncand);
+  if (cs.ok) {
+    const int ncv = cs.mesh.num_vertices();
+    const std::vector<Complex> corigin(ncv, Complex(0.0));
+    const std::vector<Word> no_decks(ncv);
+    std::vector<HyperbolicHarmonicResult> coarse_result(ncand);
     for (int k = 0; k < ncand; ++k) {
-      HyperbolicHarmonicResult r;
-      if (!usable[k] || !solve_class(k, hs, r)) continue;
-      out.candidates[k].energy = r.energy;
+      if (!try_solve(k, [&] { return solve_from(ncv, coarse_data[k], corigin, no_decks, ho); }, coarse_result[k], true))
+        continue;
+      out.candidates[k].coarse_energy = coarse_result[k].energy;
+      out.candidates[k].energy = coarse_result[k].energy;
       out.candidates[k].solved = false;
     }
     std::stable_sort(order.begin(), order.end(),
                      [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
-  }
-  std::vector<char> full(ncand, 0);
-  for (int q = 0; q < ncand; ++q) full[order[q]] = !rank_first || q < full_solves;
-  // The overlay class is always solved: from the origin one step says little
-  // about it (a remeshed copy: bound 97 against an optimum of 25).
-  if (have_overlay) full[0] = 1;
-  if (options.homotopy >= 0) std::fill(full.begin(), full.end(), 0);  // the requested class is solved below
-  out.chosen_candidate = -1;
-  std::vector<char> done(ncand, 0);
-  for (;;) {
-    int k = -1;
-    for (int q = 0; q < ncand && k < 0; ++q)
-      if (full[order[q]] && !done[order[q]]) k = order[q];
-    if (k < 0) break;
-    done[k] = 1;
-    if (!usable[k]) continue;
-    HyperbolicHarmonicResult r;
-    if (!solve_class(k, ho, r)) continue;
-    if (!r.converged) {
-      const std::string why = "did not converge in " + std::to_string(r.iterations) + " iterations (gradient " +
-                              std::to_string(r.gradient_history.back()) + ")";
-      if (options.homotopy == k || (options.homotopy < 0 && ncand == 1))
-        throw SolveError("the harmonic map solve of homotopy class " + std::to_string(k) + " " + why);
-      usable[k] = 0;
-      out.candidates[k].energy = std::numeric_limits<double>::infinity();
-      out.candidates[k].solved = false;
-      out.candidates[k].description += "  [solve failed: " + why + "]";
-      continue;
+    // Which classes get the full-resolution solve: the requested one, or the
+    // best by coarse energy and those within the margin of it. The margin is
+    // a few times the coarse-versus-fine energy differences measured between
+    // classes (the discretisation error is mostly common to all classes of
+    // one source, so the ranking is more accurate than the energies are).
+    if (options.homotopy >= 0) {
+      full[options.homotopy] = usable[options.homotopy];
+    } else {
+      const double best = out.candidates[order[0]].energy;
+      for (int q = 0, taken = 0; q < ncand && taken < full_solves; ++q) {
+        const int k = order[q];
+        if (!usable[k] || !(q == 0 || options.homotopy_full_solves <= 0 ||
+                            out.candidates[k].energy <= best * (1 + kCoarseMargin)))
+          continue;
+        full[k] = 1, ++taken;
+      }
     }
-    out.candidates[k].energy = r.energy;
-    out.candidates[k].solved = true;
-    const bool better = options.homotopy >= 0 ? k == options.homotopy
-                                              : (out.chosen_candidate < 0 || r.energy < out.candidates[out.chosen_candidate].energy);
-    if (better) out.chosen_candidate = k;
-    // An unsolved class whose upper bound is already below the best optimum
-    // is provably better than it: solve it too.
-    if (options.homotopy < 0)
-      for (int q = 0; q < ncand; ++q)
-        if (!full[q] && out.candidates[q].energy < out.candidates[out.chosen_candidate].energy) full[q] = 1;
+    stage_done("homotopy candidates", 0.42);
+    // Prolongation: a coarse vertex is its fine vertex (same point, same
+    // deck); every other fine vertex starts at the image of its region's
+    // coarse vertex, with that deck times the element of the tree path to it
+    // (the collapsed start has the right global layout; Newton spreads the
+    // clusters in a few steps).
+    std::vector<int> settle;  // fine vertices, parents first
+    {
+      std::vector<char> seen(nv, 0);
+      for (int v = 0; v < nv; ++v) {
+        std::vector<int> chain;
+        for (int u = v; u >= 0 && !seen[u]; u = cs.parent_halfedge[u] >= 0 ? sc.tail(cs.parent_halfedge[u]) : -1)
+          chain.push_back(u), seen[u] = 1;
+        settle.insert(settle.end(), chain.rbegin(), chain.rend());
+      }
+    }
+    for (int k = 0; k < ncand; ++k) {
+      if (!full[k] || !usable[k]) continue;
+      const HyperbolicHarmonicResult& rc = coarse_result[k];
+      std::vector<Complex> z(nv);
+      std::vector<Word> deck(nv);
+      for (int v : settle) {
+        if (coarse_failed[k]) break;  // from the origin
+        const int c = cs.region[v], ph = cs.parent_halfedge[v];
+        z[v] = rc.z[c];
+        deck[v] = ph < 0 ? rc.vertex_deck_word[c] : deck_group.reduce(concat(deck[sc.tail(ph)], side_of(data[k], ph)));
+      }
+      auto r = std::make_unique<HyperbolicHarmonicResult>();
+      if (!try_solve(k, [&] { return solve_from(nv, data[k].edges, z, deck, fine_options(k)); }, *r)) continue;
+      out.candidates[k].energy = r->energy;
+      out.candidates[k].solved = true;
+      fine_result[k] = std::move(r);
+    }
+  } else {
+    const std::vector<Complex> origin(nv, Complex(0.0));
+    const std::vector<Word> no_decks(nv);
+    for (int k = 0; k < ncand; ++k) {
+      auto r = std::make_unique<HyperbolicHarmonicResult>();
+      if (!try_solve(k, [&] { return solve_from(nv, data[k].edges, origin, no_decks, fine_options(k)); }, *r)) continue;
+      out.candidates[k].energy = r->energy;
+      out.candidates[k].solved = true;
+      full[k] = 1;
+      fine_result[k] = std::move(r);
+    }
+    stage_done("homotopy candidates", 0.42);
   }
+  out.chosen_candidate = -1;
+  for (int k = 0; k < ncand; ++k)
+    if (out.candidates[k].solved && (out.chosen_candidate < 0 || out.candidates[k].energy < out.candidates[out.chosen_candidate].energy))
+      out.chosen_candidate = k;
   if (options.homotopy >= 0) out.chosen_candidate = options.homotopy;
   if (out.chosen_candidate < 0) throw SolveError("the harmonic map solve failed in every candidate homotopy class");
   // Ties (symmetric shapes: a symmetry composed with the best class has the
@@ -459,16 +587,18 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         out.chosen_candidate = k;
         break;
       }
-  stage_done("homotopy candidates", 0.42);
-  // The chosen class, then (when it was the default and fails below: solve
-  // from its initial map, flips, location) the next solved ones by energy.
+  stage_done("full-resolution solve", 0.44);
+  // The chosen class, then (when it was the default and fails below: flips,
+  // location) the next ones: solved classes by energy, then the coarse-ranked
+  // ones by their estimate (solved below from their initial maps).
   // The body of this loop is the single-class pipeline, left unindented.
   std::vector<int> fallback;
   for (int k = 0; k < ncand; ++k)
-    if (k != out.chosen_candidate && out.candidates[k].solved && std::isfinite(out.candidates[k].energy))
-      fallback.push_back(k);
-  std::stable_sort(fallback.begin(), fallback.end(),
-                   [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
+    if (k != out.chosen_candidate && usable[k] && std::isfinite(out.candidates[k].energy)) fallback.push_back(k);
+  std::stable_sort(fallback.begin(), fallback.end(), [&](int x, int y) {
+    const bool sx = out.candidates[x].solved, sy = out.candidates[y].solved;
+    return sx != sy ? sx : out.candidates[x].energy < out.candidates[y].energy;
+  });
   if (options.homotopy >= 0) fallback.clear();
   fallback.insert(fallback.begin(), out.chosen_candidate);
   const SurfaceMapResult before_attempts = out;
@@ -567,7 +697,22 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     options.inspect_problem(p);
   }
   HyperbolicHarmonicResult hr;
-  if (options.method == MapMethod::Relaxation) {
+  // The class's full-resolution Newton solve from the ranking is its
+  // optimum (convex energy): kept, unless another start or method is asked
+  // for (uniqueness checks, the relaxation for comparison).
+  const bool reuse = fine_result[out.chosen_candidate] && options.method == MapMethod::Newton && options.start_seed == 0;
+  if (reuse) {
+    hr = std::move(*fine_result[out.chosen_candidate]);
+    fine_result[out.chosen_candidate].reset();
+    // solve_progress saw the requested class's solve live; otherwise (the
+    // default class is known only after the ranking) its iterations are
+    // reported now.
+    if (options.homotopy < 0 && options.solve_progress)
+      for (size_t it = 0; it < hr.gradient_history.size(); ++it)
+        if (!options.solve_progress(static_cast<int>(it), hr.energy_history[std::min(it, hr.energy_history.size() - 1)],
+                                    hr.gradient_history[it]))
+          throw Cancelled("harmonic map solve cancelled");
+  } else if (options.method == MapMethod::Relaxation) {
     HarmonicRelaxationOptions ro;
     ro.tolerance = options.tolerance;
     ro.max_iterations = options.max_iterations;
@@ -583,10 +728,12 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     ho.reduce_point = [&](Complex& z) { return reduce_into_polygon(z); };
     hr = hyperbolic_harmonic_map(source.num_vertices(), start_edges, deck_group.side_pairings(), start, ho);
   }
+  if (!reuse) {
   for (size_t i = 0; i < hr.vertex_deck.size(); ++i) hr.vertex_deck[i] = (hr.vertex_deck[i] * start_deck[i]).normalized();
   if (hr.vertex_deck_word.size() == hr.vertex_deck.size())
     for (size_t i = 0; i < hr.vertex_deck_word.size(); ++i)
       hr.vertex_deck_word[i] = deck_group.reduce(concat(hr.vertex_deck_word[i], start_deck_word[i]));
+  }
   if (!hr.converged)
     throw SolveError(std::string("the harmonic map solve (") +
                      (options.method == MapMethod::Relaxation ? "relaxation" : "Newton") + ") did not converge in " +

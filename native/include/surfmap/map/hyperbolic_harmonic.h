@@ -84,6 +84,12 @@ struct HyperbolicHarmonicResult {
   /// round-off whatever |z| is; use it for orientation and length tests.
   std::vector<hyperbolic::Mobius> edge_local;
   double energy = 0;
+  /// Cost breakdown: numeric factorisations of the Newton system (each
+  /// Levenberg retry counts), energy evaluations of the line searches, and
+  /// seconds spent in the symbolic analysis (once per solve) and in the
+  /// numeric factorisations.
+  int factorizations = 0, energy_evaluations = 0;
+  double analysis_seconds = 0, factorization_seconds = 0;
 };
 
 /// `generators`: the deck group's generators (their inverses are used too)

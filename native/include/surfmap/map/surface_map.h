@@ -26,17 +26,22 @@
 // separating twists (with an overlay class: the overlay composed with a
 // signed handle permutation of the source, the target's handles being the
 // overlay's images of the source's); classes with the same action on homology as an
-// earlier one are dropped. Ranking (the cost of a class is a Newton solve
-// from the origin): every candidate gets 1 Newton step (its energy only
-// decreases, so this is an upper bound of the optimum), the best
-// `homotopy_full_solves` by that bound and the overlay class are solved to
-// convergence (and any other whose bound falls below the best optimum), the
-// lowest converged energy is the default (ties within 1e-4 relative, from
-// symmetric shapes, go to the earlier candidate), and that class then runs the full pipeline (initial
-// map, chosen method, landmarks, location). If that pipeline fails for the
-// default class, the next solved class by energy is used and the failed
+// earlier one are dropped. Ranking: every candidate is solved to convergence
+// on a coarse copy of the source (map/coarse_source.h, 3000 vertices by
+// default; the class energy is a property of the surfaces, so this estimates
+// it, and is recorded as HomotopyCandidate::coarse_energy); the best by that
+// estimate, and up to `homotopy_full_solves` in all of those within 10% of
+// it, are solved at full resolution, starting from their coarse solutions
+// (sources under 2000 vertices: every class at full resolution). The lowest
+// full-resolution energy is the default (ties within 1e-4 relative, from
+// symmetric shapes, go to the earlier candidate); its converged solve is the
+// optimum (convex energy) and is kept, and that class then runs the rest of the
+// pipeline (initial map for the "before" figures, landmarks, location; with
+// another start_seed or the relaxation method it is solved again from that
+// start). If that pipeline fails for the default class, the next class is
+// used (solved ones by energy, then the coarse-ranked ones by estimate) and the failed
 // one's description says "[not used: ...]". Classes whose solve fails
-// numerically (deck elements too large) are listed with infinite energy and
+// numerically (deck elements too large) or does not converge are listed with infinite energy and
 // "[solve failed: ...]".
 //
 // Genus 0 (map/spherical_map.h): both surfaces are uniformized onto the unit
@@ -45,6 +50,7 @@
 // or by the landmarks.
 #include <complex>
 #include <functional>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -84,10 +90,16 @@ struct SurfaceMapOptions {
   /// Genus >= 2: how many handle correspondences (signed handle
   /// permutations, topology/handle_basis.h, ranked by how well the handle
   /// positions match) are considered (default 8: all of them for genus 2),
-  /// and how many of those, ranked by the energy after a short solve, are
-  /// solved to convergence (default 2; <= 0 or >= the count: all).
+  /// and at most how many of those, ranked by their energy on the coarse
+  /// copy of the source, are solved at full resolution (default 2: the best
+  /// and the runner-up when within 10% of it; <= 0: all of them).
   int homotopy_candidates = 8;
   int homotopy_full_solves = 2;
+  /// Genus >= 2: vertices of the coarse copy of the source on which every
+  /// candidate class is solved to rank them (map/coarse_source.h; default
+  /// 3000, at most a quarter of the source's vertices; 0, or a source under
+  /// 2000 vertices: every class is solved at full resolution instead).
+  int homotopy_coarse_vertices = 3000;
   /// Base vertices of the systems of loops (-1: automatic).
   int source_base_vertex = -1, target_base_vertex = -1;
   /// Start of the hyperbolic solve: 0 (default) starts from the initial map
@@ -142,11 +154,16 @@ struct SurfaceMapOptions {
 struct HomotopyCandidate {
   std::string description;
   int matrix[4] = {1, 0, 0, 1};
-  /// Harmonic energy of the class's optimum, or, when `solved` is false
-  /// (genus >= 2, ranked out after a short solve), the energy reached by that
-  /// short solve: an upper bound of the optimum.
+  /// Harmonic energy of the class's optimum at full resolution (`solved`),
+  /// or, when `solved` is false (genus >= 2, ranked out on the coarse copy
+  /// of the source), the coarse estimate `coarse_energy`; infinite when the
+  /// class's solve failed.
   double energy = 0;
   bool solved = true;
+  /// Genus >= 2: the class's converged energy on the coarse copy of the
+  /// source used for ranking (NaN when the ranking ran at full resolution).
+  /// When `solved` is false and this is finite, `energy` is this estimate.
+  double coarse_energy = std::numeric_limits<double>::quiet_NaN();
   /// Genus >= 2: the class's action on H_1, 2g x 2g row-major, in the
   /// canonical coordinates (a_1, b_1, ...) of both surfaces; empty for genus 1.
   std::vector<int> homology;
