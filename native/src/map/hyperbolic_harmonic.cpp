@@ -320,6 +320,9 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
   double E = energy_of(A);
   r.energy_history.push_back(E);
   std::unique_ptr<BlockHessian> hessian;  // built at the first iteration that needs it
+  // Factorisation state kept across iterations (chord steps, below).
+  double shift = 0, last_gnorm = std::numeric_limits<double>::infinity();
+  bool factored = false, last_full_step = false;
   std::vector<Mobius> trial_A(edges.size()), step_map(n);
   // Trial edge elements for the step alpha * xi (all vertices at once).
   auto trial_edges = [&](const Eigen::VectorXd& xi, double alpha) {
@@ -451,17 +454,28 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
     // A Levenberg shift keeps the factorisation definite: tiny where the
     // model is exact (the normal surplus d coth d − 1 is O(d²)), raised when
     // far from the optimum the frame bookkeeping leaves it indefinite.
-    double shift = 1e-9 * max_w;
-    for (;; shift *= 100) {
-      const auto t0 = Clock::now();
-      const bool ok = H.factorize(shift);
-      r.factorization_seconds += seconds_since(t0);
-      ++r.factorizations;
-      if (ok) break;
-      if (shift > 1e6 * max_w) throw SolveError("hyperbolic harmonic map: Hessian factorisation failed");
-    }
+    auto factorize = [&] {
+      for (shift = 1e-9 * max_w;; shift *= 100) {
+        const auto t0 = Clock::now();
+        const bool ok = H.factorize(shift);
+        r.factorization_seconds += seconds_since(t0);
+        ++r.factorizations;
+        if (ok) break;
+        if (shift > 1e6 * max_w) throw SolveError("hyperbolic harmonic map: Hessian factorisation failed");
+      }
+    };
+    // Chord steps: near the optimum the Hessian hardly changes between
+    // iterations (on a fine mesh the edges are short, d coth d ≈ 1, and the
+    // frames turn little), so the last factorisation is kept while it still
+    // gives full steps that cut the gradient at least fourfold; a
+    // factorisation costs ~30 solves with it (2·10^5 unknowns: 0.7 s against
+    // 0.02 s).
+    const bool chord = factored && last_full_step && gnorm <= 0.25 * last_gnorm;
+    if (!chord) factorize(), factored = true;
     auto diag = [&](int k) { return H.diagonal(k) + shift; };
     Eigen::VectorXd step = H.solve(-g);
+    if (chord && (!(g.dot(step) < 0) || !step.allFinite())) factorize(), step = H.solve(-g);
+    last_gnorm = gnorm;
     // Far from the optimum the frame bookkeeping makes the model Hessian
     // inexact; fall back to the diagonally scaled gradient when the Newton
     // direction is not a descent direction.
@@ -475,6 +489,7 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
     double longest = 0;
     for (int i = 0; i < n; ++i) longest = std::max(longest, std::hypot(step[2 * i], step[2 * i + 1]));
     double alpha = longest > kMaxStep ? kMaxStep / longest : 1.0;
+    last_full_step = false;
     bool accepted = false;
     const double slope = g.dot(step);
     // Newton decrement below the round-off of E (a sum of #E terms): the
@@ -491,11 +506,18 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
       if (Et < E && (Et <= E + 1e-4 * alpha * slope || alpha < 1e-3)) {
         accept(Et);
         accepted = true;
+        last_full_step = alpha == 1.0;
         break;
       }
       alpha *= 0.5;
     }
     r.iterations = it + 1;
+    if (!accepted && chord) {
+      // The kept factorisation gave no decrease: the next iteration
+      // factorises afresh (last_full_step is false) from the same point.
+      last_gnorm = std::numeric_limits<double>::infinity();
+      continue;
+    }
     if (!accepted) {
       // No decrease along the Newton direction. Try the scaled gradient once
       // before concluding that round-off has been reached.
