@@ -454,6 +454,10 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     const Connectivity cc(cs.mesh.F, cs.mesh.num_vertices());
     const IntrinsicDelaunayResult cidt = intrinsic_delaunay(cc, edge_lengths(cs.mesh, cc));
     for (int k = 0; k < ncand && cs.ok; ++k) {
+      if (!usable[k]) {  // no homotopy data (a class refused before its data was built)
+        coarse_data.emplace_back();
+        continue;
+      }
       std::vector<Word> ch(cc.num_halfedges());
       for (int e = 0; e < cc.num_edges(); ++e) {
         Word w;
@@ -501,6 +505,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     const std::vector<Word> no_decks(ncv);
     std::vector<HyperbolicHarmonicResult> coarse_result(ncand);
     for (int k = 0; k < ncand; ++k) {
+      if (!usable[k]) continue;
       if (!try_solve(k, [&] { return solve_from(ncv, coarse_data[k], corigin, no_decks, ho); }, coarse_result[k], true))
         continue;
       out.candidates[k].coarse_energy = coarse_result[k].energy;
@@ -563,6 +568,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     const std::vector<Complex> origin(nv, Complex(0.0));
     const std::vector<Word> no_decks(nv);
     for (int k = 0; k < ncand; ++k) {
+      if (!usable[k]) continue;
       auto r = std::make_unique<HyperbolicHarmonicResult>();
       if (!try_solve(k, [&] { return solve_from(nv, data[k].edges, origin, no_decks, fine_options(k)); }, *r)) continue;
       out.candidates[k].energy = r->energy;
