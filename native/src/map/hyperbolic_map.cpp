@@ -523,13 +523,19 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
       full[options.homotopy] = usable[options.homotopy];
     } else {
       const double best = out.candidates[order[0]].energy;
-      for (int q = 0, taken = 0; q < ncand && taken < full_solves; ++q) {
-        const int k = order[q];
-        if (!usable[k] || !(q == 0 || options.homotopy_full_solves <= 0 ||
-                            out.candidates[k].energy <= best * (1 + kCoarseMargin)))
-          continue;
-        full[k] = 1, ++taken;
-      }
+      // Ties (symmetric shapes: equal energies to ~1e-7 on the coarse copy
+      // too) are decided at full resolution by the earliest candidate, the
+      // overlay class first, so the earliest of the tied goes first here.
+      std::vector<int> pick;
+      for (int q = 0; q < ncand; ++q)
+        if (usable[order[q]] && (q == 0 || options.homotopy_full_solves <= 0 ||
+                                 out.candidates[order[q]].energy <= best * (1 + kCoarseMargin)))
+          pick.push_back(order[q]);
+      int leader = -1;
+      for (int k : pick)
+        if (out.candidates[k].energy <= best * (1 + 1e-4) && (leader < 0 || k < leader)) leader = k;
+      if (leader >= 0) pick.erase(std::find(pick.begin(), pick.end(), leader)), pick.insert(pick.begin(), leader);
+      for (int q = 0; q < static_cast<int>(pick.size()) && q < full_solves; ++q) full[pick[q]] = 1;
     }
     stage_done("homotopy candidates", 0.42);
     // Prolongation: a coarse vertex is its fine vertex (same point, same
