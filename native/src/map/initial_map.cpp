@@ -285,6 +285,11 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
     qc[s] = (chart * C[s]).normalized().apply(p);
     kq[s] = hyperbolic::poincare_to_klein(qc[s]);
   }
+  // A polygon reaching |k| ~ 1 in its own centred chart (very twisted
+  // classes: corners tens of units apart) has no digits left for positions.
+  for (int s = 0; s < ns; ++s)
+    if (!(std::isfinite(kq[s].real()) && std::isfinite(kq[s].imag()) && std::abs(kq[s]) < 1 - 1e-9))
+      return give_up("the polygon is too large for double precision (corner " + std::to_string(s) + ")");
   // Convexity in the Klein model: every exterior angle in (0, π), total 2π.
   double total_turn = 0;
   out.min_turn = 10, out.max_turn = -10;
@@ -438,6 +443,8 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
     const int d = copy_of[i];
     if (d < 0) return give_up("input vertex " + std::to_string(i) + " is missing from the refined mesh");
     Complex zi = unchart.apply(hyperbolic::klein_to_poincare(k[d]));
+    if (!(std::isfinite(zi.real()) && std::isfinite(zi.imag()) && std::abs(zi) < 1 - 1e-12))
+      return give_up("input vertex " + std::to_string(i) + " lands at the disk's boundary (no digits left)");
     Word w = c[d];
     if (options.reduce_point) w = group.reduce(concat(options.reduce_point(zi), w));
     out.z[i] = zi;
@@ -461,7 +468,13 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
     PolygonInitialMapOptions po;
     po.base_vertex = options.base_vertex;
     po.reduce_point = options.reduce_point;
-    PolygonInitialMapResult poly = polygon_initial_map(source, sc, halfedge_word, group, po);
+    PolygonInitialMapResult poly;
+    try {
+      poly = polygon_initial_map(source, sc, halfedge_word, group, po);
+    } catch (const Error& e) {
+      poly = PolygonInitialMapResult();
+      poly.reason = e.what();
+    }
     if (poly.applied) {
       // The flattening is an embedding of the refined disk; the source's own
       // faces, straight between its vertices' images, are checked too.
@@ -511,7 +524,19 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
     ho.max_iterations = options.max_iterations;
     ho.relator = group.side_relator();
     ho.reduce_point = options.reduce_point;
-    HyperbolicHarmonicResult hr = hyperbolic_harmonic_map(nv, edges, group.side_pairings(), start_z, ho);
+    HyperbolicHarmonicResult hr;
+    try {
+      hr = hyperbolic_harmonic_map(nv, edges, group.side_pairings(), start_z, ho);
+    } catch (const Error&) {
+      if (!from_polygon) throw;
+      // The flattening was no usable start after all: from the origin.
+      HyperbolicInitialMapOptions o = options;
+      o.polygon = false;
+      HyperbolicInitialMapResult u = hyperbolic_initial_map(source, sc, halfedge_rho, halfedge_word, group, o);
+      u.polygon = std::move(r.polygon);
+      u.time_s = seconds_since(t0);
+      return u;
+    }
     r.polygon.z.clear();
     r.converged = hr.converged;
     r.iterations = hr.iterations;
