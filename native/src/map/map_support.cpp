@@ -121,6 +121,7 @@ void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo
   info.polygon_flipped = p.source_flipped;
   info.iterations = init.construction == "polygon" ? 0 : init.iterations;
   info.time_s = init.time_s;
+  info.polygon_time_s = p.time_s;
 }
 
 SystemOfLoops source_loops(const TriMesh& source, const SurfaceMapOptions& options) {

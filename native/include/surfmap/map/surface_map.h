@@ -197,7 +197,8 @@ struct InitialMapInfo {
   int polygon_flipped = 0;
   /// Newton iterations of the uniform-weight solve (0 for the polygon).
   int iterations = 0;
-  double time_s = 0;
+  /// Seconds: the whole initial map, and of it the polygon attempt.
+  double time_s = 0, polygon_time_s = 0;
 };
 
 struct SurfaceMapResult {
