@@ -49,7 +49,8 @@ std::vector<std::pair<int, int>> read_landmarks(const std::string& path) {
 void register_map(CLI::App& app) {
   auto* cmd = app.add_subcommand("map", "Globally optimal map from SRC onto DST (same genus)");
   struct Args {
-    std::string src, dst, out, report, correspondence, method = "newton", landmarks, initial = "polygon", initial_out;
+    std::string src, dst, out, report, correspondence, method = "newton", landmarks, initial = "polygon", initial_out,
+        source_weights = "auto";
     int homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
     int homotopy_candidates = 8, homotopy_full_solves = 2;
     double tolerance = 1e-10;
@@ -67,6 +68,10 @@ void register_map(CLI::App& app) {
   cmd->add_option("--target-base-vertex", a->target_base_vertex, "Base vertex of the target's system of loops");
   cmd->add_option("--method", a->method, "Optimiser of the harmonic energy (genus >= 2)")
       ->check(CLI::IsMember({"newton", "relaxation"}));
+  cmd->add_option("--source-weights", a->source_weights,
+                  "Genus >= 2: energy weights on the source: auto (intrinsic Delaunay cotangents, positive weights on the "
+                  "source's own edges if its faces' images fold), intrinsic, own")
+      ->check(CLI::IsMember({"auto", "intrinsic", "own"}));
   cmd->add_option("--landmarks", a->landmarks,
                   "PAIRS.txt: one 'source_vertex target_vertex' pair per line (# starts a comment), held fixed");
   cmd->add_option("--tolerance", a->tolerance, "Relative gradient tolerance of the harmonic solve")
@@ -92,6 +97,9 @@ void register_map(CLI::App& app) {
     opt.source_base_vertex = a->base_vertex;
     opt.target_base_vertex = a->target_base_vertex;
     opt.method = a->method == "relaxation" ? MapMethod::Relaxation : MapMethod::Newton;
+    opt.source_weights = a->source_weights == "own"         ? SourceWeights::OwnEdges
+                         : a->source_weights == "intrinsic" ? SourceWeights::IntrinsicDelaunay
+                                                            : SourceWeights::Automatic;
     opt.tolerance = a->tolerance;
     opt.max_iterations = a->max_iterations;
     opt.homotopy_candidates = a->homotopy_candidates;
@@ -154,6 +162,7 @@ void register_map(CLI::App& app) {
           {"time_s", m.initial_map.time_s},
           {"located", !m.initial_forward.empty()}}},
         {"target_refinement_splits", m.target_refinement_splits},
+        {"source_weights", m.source_weights},
         {"homotopy", {{"chosen", m.chosen_candidate}, {"candidates", candidates}}},
         {"target_lattice", {{m.target_omega1.real(), m.target_omega1.imag()}, {m.target_omega2.real(), m.target_omega2.imag()}}},
         {"time_s", times},

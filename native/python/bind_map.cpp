@@ -127,6 +127,7 @@ void bind_map(py::module_& m) {
         d["initial_flipped_triangles"] = r.initial_flipped_triangles;
         d["intrinsic_flipped_triangles"] = r.intrinsic_flipped_triangles;
         d["target_refinement_splits"] = r.target_refinement_splits;
+        d["source_weights"] = r.source_weights;
         d["landmark_error"] = r.max_landmark_error;
         d["repaired_vertices"] = r.repaired_vertices;
         d["forward"] = points_to_dict(r.forward);

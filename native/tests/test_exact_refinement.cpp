@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "surfmap/error.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
@@ -171,6 +172,53 @@ TEST(ExactRefinement, MapOntoAnInfeasibleTargetStaysOnTheUsersMesh) {
     ASSERT_LT(p.face, s.num_faces());
   }
   EXPECT_LT(m.mean_dilatation, 3);
+}
+
+}  // namespace
+}  // namespace surfmap
+
+namespace surfmap {
+namespace {
+
+// A source with caps (CAD-like): the intrinsic Delaunay weights embed its
+// intrinsic triangulation, but straight images of its own caps fold; the
+// automatic fallback solves with positive weights on its own edges, which
+// embed the user's faces (Tutte-type theorem).
+TEST(SourceWeights, FoldingSourceFallsBackToPositiveOwnEdgeWeights) {
+  const TriMesh s = with_caps(samples::n_hole_torus(2, 32, true), 5, 0.002);
+  const TriMesh t = samples::amphora(36, true);
+  SurfaceMapOptions o;
+  o.homotopy_candidates = 1;
+  o.source_weights = SourceWeights::IntrinsicDelaunay;
+  try {
+    surface_map(s, t, o);
+    ADD_FAILURE() << "the fixture should fold with the intrinsic weights";
+  } catch (const SolveError& e) {
+    EXPECT_NE(std::string(e.what()).find("flipped"), std::string::npos) << e.what();
+  }
+  o.source_weights = SourceWeights::Automatic;
+  const SurfaceMapResult m = surface_map(s, t, o);
+  EXPECT_EQ(m.source_weights, "positive on the source's own edges");
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.degenerate_triangles, 0);
+  ASSERT_EQ(static_cast<int>(m.forward.size()), s.num_vertices());
+  for (double d : m.dilatation) EXPECT_TRUE(std::isfinite(d));
+  // The same as asking for the own-edge weights directly.
+  o.source_weights = SourceWeights::OwnEdges;
+  const SurfaceMapResult m2 = surface_map(s, t, o);
+  EXPECT_NEAR(m2.final_energy, m.final_energy, 1e-9 * m.final_energy);
+  EXPECT_NEAR(m2.mean_dilatation, m.mean_dilatation, 1e-6);
+}
+
+// On a clean mesh the automatic choice keeps the intrinsic weights.
+TEST(SourceWeights, CleanSourceKeepsIntrinsicDelaunayWeights) {
+  const TriMesh s = samples::n_hole_torus(2, 32, true);
+  const TriMesh t = samples::amphora(36, true);
+  SurfaceMapOptions o;
+  o.homotopy_candidates = 1;
+  const SurfaceMapResult m = surface_map(s, t, o);
+  EXPECT_EQ(m.source_weights, "intrinsic Delaunay cotangent");
+  EXPECT_EQ(m.flipped_triangles, 0);
 }
 
 }  // namespace

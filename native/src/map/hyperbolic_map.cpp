@@ -14,6 +14,7 @@
 #include "map_support.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
+#include "surfmap/geometry/positive_edge_weights.h"
 #include "surfmap/map/coarse_source.h"
 #include "surfmap/map/distortion.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
@@ -152,7 +153,12 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   const std::vector<Word> edge_word =
       edge_group_elements(sc, sl.tree_parent_halfedge, sl.dual_tree_parent_halfedge, sl.generator_edges,
                           loop_first_vertices(sl, sc), src_letters, free_group);
-  const IntrinsicDelaunayResult idt = intrinsic_delaunay(sc, edge_lengths(source, sc));
+  // The energy's triangulation and weights: intrinsic Delaunay, or positive
+  // weights on the source's own edges (options.source_weights; the automatic
+  // fallback below switches when the user's faces fold).
+  bool own_weights = options.source_weights == SourceWeights::OwnEdges;
+  IntrinsicDelaunayResult idt = own_weights ? positive_edge_weights(sc, edge_lengths(source, sc))
+                                            : intrinsic_delaunay(sc, edge_lengths(source, sc));
   if (!idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
 
   // Handle correspondences (topology/handle_basis.h): meridian/longitude
@@ -254,7 +260,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   // (HyperbolicHarmonicResult::edge_local), to round-off.
   std::vector<int> orig_solver_edge(sc.num_edges());
   std::vector<char> orig_forward(sc.num_edges(), 1);
-  {
+  auto index_solver_edges = [&] {
     int next = static_cast<int>(idt.edges.size());
     for (int e = 0; e < sc.num_edges(); ++e) {
       const int h = sc.edge_halfedge(e);
@@ -265,7 +271,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         orig_solver_edge[e] = next++;
       }
     }
-  }
+  };
+  index_solver_edges();
   auto class_data = [&](const GroupMap& theta) {
     const std::vector<Word> letter_image = loop_letter_images(theta);
     std::vector<Word> target_word(edge_word.size());
@@ -621,6 +628,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     out.candidates = cands;
   }
   out.chosen_candidate = fallback[attempt];
+  out.source_weights = own_weights ? "positive on the source's own edges" : "intrinsic Delaunay cotangent";
   const std::vector<Mobius>& rho_edge = data[out.chosen_candidate].rho_edge;
   const std::vector<WeightedEdge>& edges = data[out.chosen_candidate].edges;
   const std::vector<Word>& side_word_edge = data[out.chosen_candidate].side_word_edge;
@@ -900,6 +908,23 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
       const Complex p1 = side[0].apply(Complex(0.0)), p2 = side[2].inverse().apply(Complex(0.0));
       if (p1.real() * p2.imag() - p1.imag() * p2.real() <= 0) ++out.intrinsic_flipped_triangles;
     }
+  }
+  if ((out.flipped_triangles || out.degenerate_triangles) && !own_weights &&
+      options.source_weights == SourceWeights::Automatic) {
+    // The intrinsic triangulation is embedded but straight images of the
+    // user's own faces fold (slivers): positive weights on the own edges
+    // embed those faces (Tutte-type theorem); the class stays, the energy
+    // and so the map change. Every class's data follows the new weights.
+    own_weights = true;
+    idt = positive_edge_weights(sc, edge_lengths(source, sc));
+    index_solver_edges();
+    for (int k = 0; k < ncand; ++k)
+      if (!data[k].edges.empty()) data[k] = class_data(handle_classes[k].map);  // empty: never evaluable
+    const std::vector<HomotopyCandidate> cands = out.candidates;
+    out = before_attempts;
+    out.candidates = cands;
+    --attempt;  // the same class again
+    continue;
   }
   if (out.flipped_triangles || out.degenerate_triangles)
     throw SolveError("the optimised map has " + std::to_string(out.flipped_triangles) + " flipped and " +

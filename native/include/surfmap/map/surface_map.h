@@ -83,6 +83,21 @@ enum class InitialMapMethod {
   UniformHarmonic,
 };
 
+/// Weights of the harmonic energy on the source (genus >= 2).
+enum class SourceWeights {
+  /// Intrinsic Delaunay cotangent weights; if the straight images of the
+  /// source's own faces then fold, the map is solved again with OwnEdges
+  /// (the default).
+  Automatic,
+  /// Cotangent weights of the source's intrinsic Delaunay triangulation
+  /// only (DESIGN.md §2.8): reproduce affine maps, embed the intrinsic
+  /// triangulation; folds of the user's faces are a SolveError.
+  IntrinsicDelaunay,
+  /// Positive weights on the source's own edges
+  /// (geometry/positive_edge_weights.h): embed the user's faces.
+  OwnEdges,
+};
+
 struct SurfaceMapOptions {
   /// Homotopy class to use: index into SurfaceMapResult::candidates, or -1
   /// (default) for the one of lowest energy.
@@ -114,6 +129,8 @@ struct SurfaceMapOptions {
   double uniformization_tolerance = 1e-10;
   /// Optimiser of the harmonic energy (default Newton).
   MapMethod method = MapMethod::Newton;
+  /// Genus >= 2: weights of the energy on the source (default Automatic).
+  SourceWeights source_weights = SourceWeights::Automatic;
   /// Relative gradient tolerance of the harmonic solve (default 1e-10) and
   /// its iteration cap (default 300). For the relaxation an iteration is one
   /// sweep over all vertices, and it needs of the order of #V sweeps per
@@ -250,6 +267,11 @@ struct SurfaceMapResult {
   /// when the fixed-connectivity metric existed). Outputs stay on the
   /// user's target either way.
   int target_refinement_splits = 0;
+  /// Genus >= 2: the weights the returned map was solved with:
+  /// "intrinsic Delaunay cotangent" or "positive on the source's own edges"
+  /// (SourceWeights; the candidates' energies are always those of the
+  /// intrinsic weights). Empty for genus 0 and 1.
+  std::string source_weights;
   std::vector<HomotopyCandidate> candidates;
   int chosen_candidate = -1;
   /// Target lattice (flat case) and the source's image in the plane.
