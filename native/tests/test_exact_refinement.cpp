@@ -206,7 +206,9 @@ TEST(SourceWeights, FoldingSourceFallsBackToPositiveOwnEdgeWeights) {
   // The same as asking for the own-edge weights directly.
   o.source_weights = SourceWeights::OwnEdges;
   const SurfaceMapResult m2 = surface_map(s, t, o);
-  EXPECT_NEAR(m2.final_energy, m.final_energy, 1e-9 * m.final_energy);
+  // Same weights, same convex problem: equal optima to the solve tolerance
+  // (other weights differ by percents).
+  EXPECT_NEAR(m2.final_energy, m.final_energy, 1e-7 * m.final_energy);
   EXPECT_NEAR(m2.mean_dilatation, m.mean_dilatation, 1e-6);
 }
 
