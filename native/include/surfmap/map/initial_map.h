@@ -53,12 +53,14 @@
 //     same unique map, reached sooner).
 // How often it applies (session-3 measurements, generated pairs at ~5-10k
 // vertices in the overlay / canonical class and the real meshes): Q was
-// convex whenever it fitted in double precision; the flattening was used
-// (no flipped source face) on remeshed n-hole-torus pairs of genus 2 and 4,
-// n-hole torus -> cup and -> vase (genus 2), and the real double-torus <->
-// eight pair and self-maps (genus 2, 3); it fell back with 1-8 flipped
-// faces crossing the loops on sliver sources, on the genus-3 remeshed pair,
-// cup -> n-hole torus, n-hole torus -> polycube and fertility (genus 4);
+// convex in every case that fitted in double precision but one (a genus-6
+// sliver source); the flattening was used (no flipped source face) on
+// remeshed n-hole-torus pairs of genus 2 and 4, n-hole torus -> cup (genus
+// 2), n-hole torus -> vase at 5k (not at 7k: 1 flip), vase -> amphora, and
+// the real double-torus <-> eight pair and self-maps (genus 2, 3); it fell
+// back with 1-12 flipped faces crossing the loops on sliver sources, the
+// genus-3 remeshed pair, cup -> n-hole torus, n-hole torus -> polycube,
+// amphora -> vase, vase -> n-hole torus and fertility (genus 4);
 // and before flattening when corners reach |k| > 1 − 1e-9 in the polygon's
 // own Klein chart (genus 5 pairs, botijo; very twisted classes). The
 // polygon start costs the main Newton solve 0-1 extra iteration against the
