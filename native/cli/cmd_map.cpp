@@ -52,7 +52,7 @@ void register_map(CLI::App& app) {
     std::string src, dst, out, report, correspondence, method = "newton", landmarks, initial = "polygon", initial_out,
         source_weights = "auto";
     int homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
-    int homotopy_candidates = 8, homotopy_full_solves = 2;
+    int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3;
     double tolerance = 1e-10;
     bool quiet = false;
   };
@@ -88,6 +88,9 @@ void register_map(CLI::App& app) {
       ->check(CLI::IsMember({"polygon", "uniform"}));
   cmd->add_option("--initial-out", a->initial_out,
                   "INITIAL.obj: the source's connectivity at the initial map's positions on the target (genus >= 1)");
+  cmd->add_option("--homotopy-extra-cuts", a->homotopy_extra_cuts,
+                  "Genus >= 2: other systems of source loops whose lifted handle classes are added (other twist representatives)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--quiet", a->quiet, "No progress lines on stderr");
   cmd->callback([a] {
     const IntakeResult src = load_mesh(a->src), dst = load_mesh(a->dst);
@@ -105,6 +108,7 @@ void register_map(CLI::App& app) {
     opt.homotopy_candidates = a->homotopy_candidates;
     opt.homotopy_full_solves = a->homotopy_full_solves;
     opt.initial_map = a->initial == "uniform" ? InitialMapMethod::UniformHarmonic : InitialMapMethod::Polygon;
+    opt.homotopy_extra_cuts = a->homotopy_extra_cuts;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     // One line per stage and percent (the relaxation reports every few sweeps).
     std::string last_line;

@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
+
+#include <Eigen/Geometry>
 #include <set>
 
 #include "surfmap/error.h"
@@ -177,6 +180,84 @@ TEST(SurfaceMapHandles, RemeshedJitteredCopyGivesNearlyTheIdentity) {
   EXPECT_NE(c.description.find("as the shapes overlap"), std::string::npos) << c.description;
 }
 
+// Shapes not posed alike (DESIGN §2.10, projected_loops.h
+// rotation_overlay_poses): a surface mapped to a turned, remeshed and
+// jittered copy of itself must get the identity-like class, i.e. after
+// undoing the rotation the map is close to the identity and nearly
+// conformal. The overlay as posed cannot see that class (the copy does not
+// overlap the original), so without the aligned overlays the default is
+// some other class with D' far above 1.
+Eigen::Matrix3d rotation(const Eigen::Vector3d& axis, double degrees) {
+  return Eigen::AngleAxisd(degrees * M_PI / 180.0, axis.normalized()).toRotationMatrix();
+}
+
+TriMesh rotated(TriMesh m, const Eigen::Matrix3d& R, const Eigen::Vector3d& shift) {
+  for (int i = 0; i < m.num_vertices(); ++i) m.V.row(i) = (R * m.V.row(i).transpose() + shift).transpose();
+  return m;
+}
+
+// Mean distance of the map, rotation undone, from p -> deform(S p) for the
+// best of the half turns S about the axes (the n-hole tori are symmetric
+// under them, so the classes they induce are as good as the identity: the
+// energies tie, and which one comes first depends on the signs of the
+// principal axes).
+double mean_error_up_to_symmetry(const SurfaceMapResult& m, const TriMesh& a, const Eigen::Matrix3d& R,
+                                 const Eigen::Vector3d& shift, double stretch) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const Eigen::Vector3d d : {Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(1, -1, -1), Eigen::Vector3d(-1, 1, -1),
+                                  Eigen::Vector3d(-1, -1, 1)}) {
+    double mean = 0;
+    for (int i = 0; i < a.num_vertices(); ++i) {
+      const Eigen::Vector3d back = R.transpose() * (m.forward[i].position - shift);
+      Eigen::Vector3d expected = d.cwiseProduct(a.V.row(i).transpose());
+      expected[0] *= 1.0 + stretch * expected[0];
+      mean += (back - expected).norm() / a.num_vertices();
+    }
+    best = std::min(best, mean);
+  }
+  return best;
+}
+
+void expect_turned_copy_gives_identity(const TriMesh& a, const TriMesh& b_posed, const Eigen::Matrix3d& R, double max_mean_dilatation) {
+  const Eigen::Vector3d shift(0.3, -0.2, 0.1);
+  const TriMesh b = rotated(b_posed, R, shift);
+  const SurfaceMapResult m = surface_map(a, b);
+  expect_valid_map(m, a, b);
+  const HomotopyCandidate& c = m.candidates[m.chosen_candidate];
+  EXPECT_NE(c.description.find("after a rotation"), std::string::npos) << c.description;
+  EXPECT_LT(m.mean_dilatation, max_mean_dilatation);
+  const double diag = (a.V.colwise().maxCoeff() - a.V.colwise().minCoeff()).norm();
+  EXPECT_LT(mean_error_up_to_symmetry(m, a, R, shift, 0.0), 0.01 * diag);
+}
+
+TEST(SurfaceMapHandles, TurnedJitteredCopyGivesTheIdentityClass) {
+  const TriMesh a = samples::n_hole_torus(2, 30, true);
+  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 36, true), 0.2, 5);
+  // Any angle: through the principal axes.
+  expect_turned_copy_gives_identity(a, b, rotation(Eigen::Vector3d(1, 2, 3), 50), 1.08);
+  // A quarter turn about z, which swaps the long and middle axes of the
+  // box: a rotation of the cube group.
+  expect_turned_copy_gives_identity(a, b, rotation(Eigen::Vector3d(0, 0, 1), 90), 1.08);
+}
+
+TEST(SurfaceMapHandles, TurnedDeformedGenusThreeCopyGivesTheIdentityClass) {
+  const TriMesh a = samples::n_hole_torus(3, 36, true);
+  // Remeshed, jittered and mildly deformed (stretched along its row of
+  // holes by -7% .. +7%, x in [-3.7, 3.7]).
+  TriMesh b = samples::jitter(samples::n_hole_torus(3, 40, true), 0.15, 3);
+  for (int i = 0; i < b.num_vertices(); ++i) b.V(i, 0) *= 1.0 + 0.02 * b.V(i, 0);
+  const Eigen::Matrix3d R = rotation(Eigen::Vector3d(-1, 0.5, 2), 130);
+  const Eigen::Vector3d shift(0.3, -0.2, 0.1);
+  const TriMesh bt = rotated(b, R, shift);
+  const SurfaceMapResult m = surface_map(a, bt);
+  expect_valid_map(m, a, bt);
+  const HomotopyCandidate& c = m.candidates[m.chosen_candidate];
+  EXPECT_NE(c.description.find("after a rotation"), std::string::npos) << c.description;
+  EXPECT_LT(m.mean_dilatation, 1.1);
+  const double diag = (a.V.colwise().maxCoeff() - a.V.colwise().minCoeff()).norm();
+  EXPECT_LT(mean_error_up_to_symmetry(m, a, R, shift, 0.02), 0.01 * diag);
+}
+
 TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) {
   const TriMesh a = samples::n_hole_torus(2, 30, false);  // slivers
   const TriMesh b = samples::jitter(samples::n_hole_torus(2, 34, true), 0.2, 9);
@@ -205,9 +286,12 @@ TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) 
           for (int j = 0; j < 4; ++j) s += c.homology[4 * i + r] * J[i][j] * c.homology[4 * j + q];
         EXPECT_EQ(s, J[r][q]);
       }
-    classes.insert(c.homology);
+    // Lifts from other cuts are other Torelli representatives (same
+    // homology, distinct by their fingerprint); the rest have distinct homology.
+    if (c.description.find("lifted from the loops at source vertex") == std::string::npos) {
+      EXPECT_TRUE(classes.insert(c.homology).second) << c.description;
+    }
   }
-  EXPECT_EQ(classes.size(), m.candidates.size());  // distinct classes
   for (const HomotopyCandidate& c : m.candidates) EXPECT_GE(c.energy, m.final_energy * (1 - 1e-4));
   EXPECT_DOUBLE_EQ(m.candidates[m.chosen_candidate].energy, m.final_energy);
 

@@ -169,20 +169,70 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   const IntMatrix J = symplectic_form(out.genus);
   const HandleBasis shb = handle_basis(source, sl.loops, scs);
   HandleBasis thb = handle_basis(tl.mesh, tl.loops, tcs);
-  // The class induced by overlaying the two shapes (topology/projected_loops.h)
-  // comes first: for a remeshed copy it is the identity, for shapes posed
-  // alike it sends handles to the handles they overlap.
-  GroupMap overlay(n);
-  bool have_overlay = false;  // candidate 0 is the overlay class
-  {
-    const ProjectedLoopsResult proj = project_loops(source, sl.loops, tl, layout.word);
-    have_overlay = proj.ok;
-    for (int j = 0; j < n && have_overlay; ++j)
-      overlay[j] = dehn_reduce(substitute(substitute(scs.generators[j], proj.loop_images), tcs.letters), R);
-    if (have_overlay) {
-      const IntMatrix M = homology_matrix(overlay, n);
-      have_overlay = M.transpose() * J * M == J && dehn_reduce(substitute(R, overlay), R).empty();
+  // The classes induced by overlaying the two shapes
+  // (topology/projected_loops.h): as posed, then after the rigid alignments
+  // of rotation_overlay_poses for shapes not posed alike. For a remeshed
+  // copy, as posed or turned, one of them is the identity; for shapes posed
+  // alike up to a rotation they send handles to the handles they overlap.
+  // Each must be an isomorphism (relator image trivial, symplectic
+  // homology); poses whose images jump are refused by project_loops.
+  std::vector<OverlayPose> poses{{Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity(), "as posed"}};
+  for (OverlayPose& p : rotation_overlay_poses(source, tl.mesh)) poses.push_back(std::move(p));
+  const std::vector<ProjectedLoopsResult> projections = project_loops(source, sl.loops, tl, layout.word, poses);
+  auto overlay_class = [&](const ProjectedLoopsResult& proj, GroupMap* theta) {
+    if (!proj.ok) return false;
+    theta->assign(n, Word{});
+    for (int j = 0; j < n; ++j)
+      (*theta)[j] = dehn_reduce(substitute(substitute(scs.generators[j], proj.loop_images), tcs.letters), R);
+    const IntMatrix M = homology_matrix(*theta, n);
+    return M.transpose() * J * M == J && dehn_reduce(substitute(R, *theta), R).empty();
+  };
+  // A class's fingerprint: the hyperbolic lengths in the target of the
+  // images of the source's generators x_j and of x_i x_j^±1 (conjugation
+  // invariant, so the same for every representative of an outer class;
+  // classes differing by a Torelli element, same homology, differ here).
+  // Equal fingerprints: the same class, or classes differing by an isometry
+  // of the target, which have the same energy too.
+  const DehnReducer fp_canonical(R), fp_target_loops(layout.word);
+  auto fingerprint = [&](const GroupMap& theta) {
+    std::vector<Word> probes;
+    for (int i = 0; i < n; ++i) {
+      probes.push_back({i + 1});
+      for (int j = i + 1; j < n; ++j) probes.push_back({i + 1, j + 1}), probes.push_back({i + 1, -(j + 1)});
     }
+    std::vector<double> lengths;
+    for (const Word& w : probes) {
+      const Word image = fp_target_loops(substitute(fp_canonical(substitute(w, theta)), tcs.generators));
+      const Mobius m = deck_group.evaluate(image);
+      lengths.push_back(2 * std::acosh(std::max(1.0, std::abs(m.a.real()) / std::sqrt(std::max(m.determinant(), 1e-300)))));
+    }
+    return lengths;
+  };
+  auto same_fingerprint = [](const std::vector<double>& x, const std::vector<double>& y) {
+    if (x.empty() || x.size() != y.size()) return false;
+    for (size_t k = 0; k < x.size(); ++k)
+      if (!std::isfinite(x[k]) || !(std::abs(x[k] - y[k]) <= 1e-6 * std::max({1.0, x[k], y[k]}))) return false;
+    return true;
+  };
+  struct NamedClass {
+    GroupMap theta;
+    std::string tag;
+    std::vector<double> fingerprint;
+  };
+  std::vector<NamedClass> overlays;
+  GroupMap overlay(n);
+  bool have_overlay = false;  // candidate 0 is the overlay class as posed
+  for (size_t p = 0; p < projections.size(); ++p) {
+    GroupMap theta;
+    if (!overlay_class(projections[p], &theta)) continue;
+    if (p == 0) have_overlay = true, overlay = theta;
+    NamedClass c{theta,
+                 p == 0 ? "as the shapes overlap: loops carried to the nearest points"
+                        : "as the shapes overlap after a rotation (" + poses[p].description + ")",
+                 fingerprint(theta)};
+    bool seen = false;
+    for (const NamedClass& o : overlays) seen = seen || same_fingerprint(o.fingerprint, c.fingerprint);
+    if (!seen) overlays.push_back(std::move(c));
   }
   if (have_overlay) {
     // The target's handles are then the overlay's images of the source's:
@@ -225,26 +275,112 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   for (HandleCandidate& hc : handle_classes)
     if (loop_image_length(hc.map) <= max_image_letters)
       hc.map = reduce_separating_twists(hc.map, out.genus, loop_image_length);
-  // Adds a class in front, dropping a lifted one with the same homology
-  // (the named class is the more geometric or the shorter version).
-  auto put_first = [&](const GroupMap& theta, const std::string& tag) {
+  // Named classes go in front, in order: the overlay classes, then the
+  // canonical one. A named class drops the lifted ones with its homology
+  // (it is the more geometric or the shorter version of that Torelli
+  // coset), and is itself dropped when an earlier named class has its
+  // fingerprint (the same class).
+  std::vector<std::vector<double>> named_fingerprints;
+  int num_named = 0;
+  auto add_named = [&](const GroupMap& theta, const std::string& tag, const std::vector<double>& fp) {
+    for (const auto& other : named_fingerprints)
+      if (same_fingerprint(other, fp)) return false;
     HandleCandidate hc;
     hc.map = theta;
     hc.homology = homology_matrix(theta, n);
     std::string handles;
     handle_correspondence_of(shb, thb, hc.homology, &hc.permutation, &hc.sign, &handles);
     hc.description = handles + "  [" + tag + "]";
-    handle_classes.erase(std::remove_if(handle_classes.begin(), handle_classes.end(),
+    handle_classes.erase(std::remove_if(handle_classes.begin() + num_named, handle_classes.end(),
                                         [&](const HandleCandidate& c) { return c.homology == hc.homology; }),
                          handle_classes.end());
-    handle_classes.insert(handle_classes.begin(), hc);
+    handle_classes.insert(handle_classes.begin() + num_named, hc);
+    named_fingerprints.push_back(fp);
+    ++num_named;
+    return true;
   };
+  for (const NamedClass& c : overlays) add_named(c.theta, c.tag, c.fingerprint);
   // The class of the two canonical polygon schemata, a_i -> a'_i, b_i -> b'_i:
   // short words whatever the loops look like.
   GroupMap canonical(n);
   for (int j = 0; j < n; ++j) canonical[j] = {j + 1};
-  put_first(canonical, "a_i -> a'_i, b_i -> b'_i of the canonical polygon schemata");
-  if (have_overlay) put_first(overlay, "as the shapes overlap: loops carried to the nearest points");
+  add_named(canonical, "a_i -> a'_i, b_i -> b'_i of the canonical polygon schemata", fingerprint(canonical));
+
+  // Lifted classes are fixed only up to Torelli elements (same homology),
+  // and which representative the lift picks depends on the loops: lifts
+  // from the systems of loops at other source base vertices give other
+  // representatives, and sometimes the geometric one where the default cut
+  // does not (double_torus_g2 -> vase_g2: energy 66.9, mean D' 5.4 from the
+  // default cut; 26.0, D' 1.36 from the cut at vertex 2000). Those classes
+  // are carried to the default cut's generators by the identity overlay of
+  // the source onto itself (each loop of the default system as a word in
+  // the other system's letters), kept when their fingerprint is new.
+  if (options.homotopy_extra_cuts > 0) {
+    std::vector<std::vector<double>> known;
+    size_t longest = 0;  // total word length of the longest lifted class from the default cut
+    for (const HandleCandidate& hc : handle_classes) {
+      // (Classes too twisted to be evaluated get no fingerprint.)
+      known.push_back(loop_image_length(hc.map) <= max_image_letters ? fingerprint(hc.map) : std::vector<double>{});
+      size_t total = 0;
+      for (const Word& w : hc.map) total += w.size();
+      longest = std::max(longest, total);
+    }
+    // Classes from another cut whose words come out much longer than any
+    // from the default cut are very twisted (their energies are orders of
+    // magnitude above the others'): skipped, which also keeps the twist
+    // reduction below (Dehn's algorithm on every try) cheap.
+    // (Lengths seen: 14..144 letters in genus 2 where the default cut's
+    // longest is 86.)
+    const size_t word_cap = std::min(4 * longest + 16 * static_cast<size_t>(n), 48 * static_cast<size_t>(n));
+    // Base vertices spread over the vertex list (deterministic). Not the
+    // farthest points: those are the shape's extremities, where the loops
+    // come out long and skewed (the demo pair: no geometric class from the
+    // two farthest; from 3 of 7 spread ones).
+    std::vector<int> bases{sl.base_vertex};
+    for (int c = 1; c <= options.homotopy_extra_cuts; ++c)
+      bases.push_back(static_cast<int>((static_cast<long long>(source.num_vertices()) * c) / (options.homotopy_extra_cuts + 1)));
+    for (size_t c = 1; c < bases.size(); ++c) {
+      SurfaceMapOptions o2 = options;
+      o2.source_base_vertex = bases[c];
+      SystemOfLoops sl2;
+      try {
+        sl2 = source_loops(source, o2);
+      } catch (const Error&) {
+        continue;  // no system of loops at that vertex: the default one is enough
+      }
+      const CanonicalSchema scs2 = canonical_schema(sl2.word);
+      const ProjectedLoopsResult self = project_loops(source, sl.loops, sl2, sl2.word);
+      if (!self.ok) continue;
+      GroupMap psi(n);  // default canonical generator -> word in the other cut's canonical generators
+      for (int j = 0; j < n; ++j)
+        psi[j] = dehn_reduce(substitute(substitute(scs.generators[j], self.loop_images), scs2.letters), R);
+      const IntMatrix Mpsi = homology_matrix(psi, n);
+      if (Mpsi.transpose() * J * Mpsi != J || !dehn_reduce(substitute(R, psi), R).empty()) continue;
+      const HandleBasis shb2 = handle_basis(source, sl2.loops, scs2);
+      for (HandleCandidate hc : handle_candidates(shb2, thb, options.homotopy_candidates)) {
+        size_t lifted = 0;
+        for (const Word& w : hc.map) lifted += w.size();
+        if (lifted > 4 * word_cap) continue;  // composing would only make it longer
+        GroupMap theta = compose(hc.map, psi);
+        for (Word& w : theta) w = dehn_reduce(w, R);
+        size_t total = 0;
+        for (const Word& w : theta) total += w.size();
+        if (total > word_cap || !dehn_reduce(substitute(R, theta), R).empty()) continue;
+        theta = reduce_separating_twists(theta, out.genus, loop_image_length, 10);
+        const std::vector<double> fp = fingerprint(theta);
+        bool seen = false;
+        for (const auto& k : known) seen = seen || same_fingerprint(k, fp);
+        if (seen) continue;
+        known.push_back(fp);
+        hc.map = theta;
+        hc.homology = homology_matrix(theta, n);
+        std::string handles;
+        handle_correspondence_of(shb, thb, hc.homology, &hc.permutation, &hc.sign, &handles);
+        hc.description = handles + "  [lifted from the loops at source vertex " + std::to_string(bases[c]) + "]";
+        handle_classes.push_back(hc);
+      }
+    }
+  }
 
   // The homotopy data of one class theta (source canonical generator ->
   // word in the target's canonical generators): a deck element per source

@@ -5,21 +5,25 @@
 #include <limits>
 #include <unordered_map>
 
+#include <Eigen/Eigenvalues>
+
 #include "surfmap/topology/edge_homotopy.h"
 
 namespace surfmap {
 namespace {
 
-// Per-axis bounding-box normalisation to [-1/2, 1/2]^3.
+// Linear map T, then per-axis bounding-box normalisation to [-1/2, 1/2]^3.
 struct BoxFrame {
+  Eigen::Matrix3d T;
   Eigen::Vector3d centre, scale;
-  explicit BoxFrame(const RowMatrixX3d& V) {
-    const Eigen::Vector3d lo = V.colwise().minCoeff(), hi = V.colwise().maxCoeff();
+  BoxFrame(const RowMatrixX3d& V, const Eigen::Matrix3d& transform) : T(transform) {
+    const RowMatrixX3d W = V * T.transpose();
+    const Eigen::Vector3d lo = W.colwise().minCoeff(), hi = W.colwise().maxCoeff();
     centre = 0.5 * (lo + hi);
     const double longest = (hi - lo).maxCoeff();
     for (int d = 0; d < 3; ++d) scale[d] = 1.0 / std::max(hi[d] - lo[d], 1e-3 * longest);
   }
-  Eigen::Vector3d operator()(const Eigen::Vector3d& p) const { return (p - centre).cwiseProduct(scale); }
+  Eigen::Vector3d operator()(const Eigen::Vector3d& p) const { return (T * p - centre).cwiseProduct(scale); }
 };
 
 double mean_edge_length(const TriMesh& m, const BoxFrame& frame) {
@@ -75,22 +79,24 @@ class VertexGrid {
 
 }  // namespace
 
-ProjectedLoopsResult project_loops(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
-                                   const SystemOfLoops& target, const Word& target_word,
-                                   const ProjectedLoopsOptions& options) {
-  ProjectedLoopsResult out;
-  const TriMesh& tm = target.mesh;
-  const Connectivity conn(tm.F, tm.num_vertices());
-  // Target edge elements in the free group on its loop letters.
+namespace {
+
+// Target edge elements in the free group on its loop letters.
+std::vector<Word> target_edge_words(const SystemOfLoops& target, const Connectivity& conn) {
   std::vector<Word> letters;
   for (size_t k = 0; k < target.generator_edges.size(); ++k) letters.push_back({static_cast<int>(k) + 1});
   const GroupOps<Word> free_group{Word{}, [](const Word& u, const Word& v) { return concat(u, v); },
                                   [](const Word& u) { return inverse(u); }};
-  const std::vector<Word> edge_word =
-      edge_group_elements(conn, target.tree_parent_halfedge, target.dual_tree_parent_halfedge, target.generator_edges,
-                          loop_first_vertices(target, conn), letters, free_group);
+  return edge_group_elements(conn, target.tree_parent_halfedge, target.dual_tree_parent_halfedge,
+                             target.generator_edges, loop_first_vertices(target, conn), letters, free_group);
+}
 
-  const BoxFrame sf(source.V), tf(tm.V);
+ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
+                                  const SystemOfLoops& target, const Word& target_word, const Connectivity& conn,
+                                  const std::vector<Word>& edge_word, const ProjectedLoopsOptions& options) {
+  ProjectedLoopsResult out;
+  const TriMesh& tm = target.mesh;
+  const BoxFrame sf(source.V, options.source_transform), tf(tm.V, options.target_transform);
   const double s_edge = mean_edge_length(source, sf), t_edge = mean_edge_length(tm, tf);
   std::vector<Eigen::Vector3d> tp(tm.num_vertices());
   for (int v = 0; v < tm.num_vertices(); ++v) tp[v] = tf(tm.V.row(v).transpose());
@@ -152,6 +158,108 @@ ProjectedLoopsResult project_loops(const TriMesh& source, const std::vector<std:
   }
   out.ok = true;
   return out;
+}
+
+// Unit eigenvectors of the area-weighted second moment of the surface about
+// its area centroid (columns, ascending eigenvalues, right-handed) and
+// whether the eigenvalues are separated by more than `tol` relative.
+bool principal_axes(const TriMesh& m, double tol, Eigen::Matrix3d* axes) {
+  double area = 0;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+  for (int f = 0; f < m.num_faces(); ++f) {
+    const Eigen::Vector3d p0 = m.V.row(m.F(f, 0)), p1 = m.V.row(m.F(f, 1)), p2 = m.V.row(m.F(f, 2));
+    const double a = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+    const Eigen::Vector3d s = p0 + p1 + p2;
+    // Exact ∫ x x^T dA over a triangle: A/12 (Σ p_i p_i^T + s s^T).
+    S += a / 12.0 * (p0 * p0.transpose() + p1 * p1.transpose() + p2 * p2.transpose() + s * s.transpose());
+    c += a * s / 3.0;
+    area += a;
+  }
+  if (!(area > 0)) return false;
+  c /= area;
+  const Eigen::Matrix3d C = S / area - c * c.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+  const Eigen::Vector3d l = es.eigenvalues();
+  *axes = es.eigenvectors();
+  if (axes->determinant() < 0) axes->col(2) *= -1;
+  const double top = std::max(l[2], 1e-300);
+  return l[1] - l[0] > tol * top && l[2] - l[1] > tol * top;
+}
+
+bool is_signed_permutation(const Eigen::Matrix3d& M, double tol) {
+  for (int r = 0; r < 3; ++r) {
+    int big = 0;
+    for (int c = 0; c < 3; ++c) {
+      const double a = std::abs(M(r, c));
+      if (std::abs(a - 1) < tol) ++big;
+      else if (a > tol) return false;
+    }
+    if (big != 1) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+ProjectedLoopsResult project_loops(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
+                                   const SystemOfLoops& target, const Word& target_word,
+                                   const ProjectedLoopsOptions& options) {
+  const Connectivity conn(target.mesh.F, target.mesh.num_vertices());
+  return project_with(source, source_loops, target, target_word, conn, target_edge_words(target, conn), options);
+}
+
+std::vector<ProjectedLoopsResult> project_loops(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
+                                                const SystemOfLoops& target, const Word& target_word,
+                                                const std::vector<OverlayPose>& poses,
+                                                const ProjectedLoopsOptions& options) {
+  const Connectivity conn(target.mesh.F, target.mesh.num_vertices());
+  const std::vector<Word> edge_word = target_edge_words(target, conn);
+  std::vector<ProjectedLoopsResult> out;
+  for (const OverlayPose& pose : poses) {
+    ProjectedLoopsOptions o = options;
+    o.source_transform = pose.source_transform;
+    o.target_transform = pose.target_transform;
+    out.push_back(project_with(source, source_loops, target, target_word, conn, edge_word, o));
+  }
+  return out;
+}
+
+std::vector<OverlayPose> rotation_overlay_poses(const TriMesh& source, const TriMesh& target, double axis_tolerance) {
+  // The cube group: signed permutation matrices of determinant +1.
+  std::vector<Eigen::Matrix3d> cube;
+  const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (const auto& p : perms)
+    for (int signs = 0; signs < 8; ++signs) {
+      Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+      for (int r = 0; r < 3; ++r) M(r, p[r]) = (signs >> r) & 1 ? -1.0 : 1.0;
+      if (M.determinant() > 0) cube.push_back(M);
+    }
+  std::vector<OverlayPose> poses;
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  for (size_t k = 0; k < cube.size(); ++k) {
+    if (cube[k].isApprox(I)) continue;
+    poses.push_back({cube[k], I, "world axes, cube rotation " + std::to_string(k + 1) + " of 24"});
+  }
+  // Principal axes: source frame -> target frame, with the four sign
+  // choices of the axes that keep them right-handed (the order of the
+  // axes is fixed by the eigenvalues, so the other 20 rotations would send
+  // a long axis to a short one).
+  Eigen::Matrix3d Fs, Ft;
+  if (principal_axes(source, axis_tolerance, &Fs) && principal_axes(target, axis_tolerance, &Ft)) {
+    int k = 0;
+    for (int signs = 0; signs < 8; ++signs) {
+      Eigen::Matrix3d D = Eigen::Matrix3d::Zero();
+      for (int r = 0; r < 3; ++r) D(r, r) = (signs >> r) & 1 ? -1.0 : 1.0;
+      if (D.determinant() < 0) continue;
+      ++k;
+      const Eigen::Matrix3d relative = Ft * D * Fs.transpose();  // the rotation applied to the source
+      // Already among the world poses (shapes aligned with the axes).
+      if (is_signed_permutation(Ft, 1e-3) && is_signed_permutation(relative, 1e-3)) continue;
+      poses.push_back({D * Fs.transpose(), Ft.transpose(), "principal axes, sign choice " + std::to_string(k) + " of 4"});
+    }
+  }
+  return poses;
 }
 
 }  // namespace surfmap

@@ -115,6 +115,12 @@ struct SurfaceMapOptions {
   /// 3000, at most a quarter of the source's vertices; 0, or a source under
   /// 2000 vertices: every class is solved at full resolution instead).
   int homotopy_coarse_vertices = 3000;
+  /// Genus >= 2: lifted handle classes are also built from this many other
+  /// systems of source loops (base vertices spread evenly over the vertex
+  /// list), which give other Torelli representatives of the same signed
+  /// handle permutations; only classes new by their fingerprint (target
+  /// lengths of the generators' images) are added (default 3; 0: none).
+  int homotopy_extra_cuts = 3;
   /// Base vertices of the systems of loops (-1: automatic).
   int source_base_vertex = -1, target_base_vertex = -1;
   /// Start of the hyperbolic solve: 0 (default) starts from the initial map

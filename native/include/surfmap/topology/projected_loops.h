@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/mesh/tri_mesh.h"
 #include "surfmap/topology/system_of_loops.h"
@@ -29,6 +31,14 @@ struct ProjectedLoopsOptions {
   /// consecutive loop vertices, relative to the ratio of mean edge lengths
   /// (default 6: images that jump further mean the shapes do not overlap).
   double max_gap_factor = 6.0;
+  /// Linear maps applied to the source's and the target's vertices before
+  /// the per-axis box normalisation (default identity: the shapes as posed).
+  /// A rigid alignment of shapes not posed alike (rotation_overlay_poses)
+  /// rotates the source into the target's frame of principal axes, and the
+  /// target into that frame too, so that the boxes are taken along the
+  /// principal axes.
+  Eigen::Matrix3d source_transform = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d target_transform = Eigen::Matrix3d::Identity();
 };
 
 struct ProjectedLoopsResult {
@@ -47,5 +57,34 @@ struct ProjectedLoopsResult {
 ProjectedLoopsResult project_loops(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
                                    const SystemOfLoops& target, const Word& target_word,
                                    const ProjectedLoopsOptions& options = {});
+
+/// One rigid pose of the source relative to the target for project_loops.
+struct OverlayPose {
+  Eigen::Matrix3d source_transform, target_transform;
+  std::string description;  ///< e.g. "principal axes, rotation 5 of 24"
+};
+
+/// project_loops for several poses (options.source_transform and
+/// target_transform replaced by each pose's), sharing the target's edge
+/// elements: one result per pose, in order.
+std::vector<ProjectedLoopsResult> project_loops(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
+                                                const SystemOfLoops& target, const Word& target_word,
+                                                const std::vector<OverlayPose>& poses,
+                                                const ProjectedLoopsOptions& options = {});
+
+/// Poses to try when the shapes are not posed alike (DESIGN §2.10): the 23
+/// non-identity rotations of the cube group (signed permutation matrices of
+/// determinant +1; reflections would make the overlay orientation-reversing)
+/// acting on the world axes, for shapes posed along the axes but turned;
+/// then, for shapes rotated by any angle, the source's principal axes
+/// (eigenvectors of the area-weighted second moment of the surface, ordered
+/// by eigenvalue) turned onto the target's, with the 4 right-handed sign
+/// choices of the axes, boxes taken along the target's principal axes.
+/// The identity pose (the plain overlay) is not included; principal-axis
+/// poses are left out when a shape's eigenvalues are within
+/// `axis_tolerance` (relative to the largest) of each other, as its axes
+/// are then arbitrary, and when they coincide with world poses.
+std::vector<OverlayPose> rotation_overlay_poses(const TriMesh& source, const TriMesh& target,
+                                                double axis_tolerance = 0.05);
 
 }  // namespace surfmap
