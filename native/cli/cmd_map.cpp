@@ -81,7 +81,7 @@ void register_map(CLI::App& app) {
   cmd->add_option("--homotopy-candidates", a->homotopy_candidates,
                   "Genus >= 2: handle correspondences considered (best matching handle positions first)");
   cmd->add_option("--homotopy-full-solves", a->homotopy_full_solves,
-                  "Genus >= 2: candidates solved to convergence after ranking all by a short solve");
+                  "Genus >= 2: most candidates solved at full resolution after ranking all on a coarse copy of the source (the best, plus runners-up within 10%)");
   cmd->add_option("--initial-map", a->initial,
                   "Genus >= 2 initial map: polygon (source disk onto the target's geodesic polygon of the source's "
                   "loops when convex, else uniform) or uniform (the uniform-weight harmonic map)")
