@@ -5,6 +5,7 @@
 
 #include "surfmap/error.h"
 #include "surfmap/map/initial_map.h"
+#include "surfmap/mesh/exact_refinement.h"
 #include "surfmap/uniformize/feasible_metric.h"
 
 namespace surfmap::detail {
@@ -48,16 +49,6 @@ int containing_input_face(const TriMesh& input, const Connectivity& ic, const Sy
 
 }  // namespace
 
-Eigen::Vector3d barycentric_in_face(const TriMesh& m, int f, const Eigen::Vector3d& p) {
-  const Eigen::Vector3d p0 = m.V.row(m.F(f, 0)), p1 = m.V.row(m.F(f, 1)), p2 = m.V.row(m.F(f, 2));
-  const Eigen::Vector3d n = (p1 - p0).cross(p2 - p0);
-  const double n2 = n.squaredNorm();
-  Eigen::Vector3d b((p1 - p).cross(p2 - p).dot(n) / n2, (p2 - p).cross(p0 - p).dot(n) / n2,
-                    (p0 - p).cross(p1 - p).dot(n) / n2);
-  b = b.cwiseMax(0.0);
-  return b / b.sum();
-}
-
 PointOnSurface point_in_face(const TriMesh& m, int f, Eigen::Vector3d b) {
   b = b.cwiseMax(0.0);
   b /= b.sum();
@@ -77,7 +68,7 @@ PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, cons
     cache[rf] = containing_input_face(input, ic, s, rf, &unused);
   }
   ps.face = cache[rf];
-  ps.barycentric = barycentric_in_face(input, ps.face, ps.position);
+  ps.barycentric = barycentric_in_input_face(input, ps.face, ps.position);
   return ps;
 }
 

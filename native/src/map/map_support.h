@@ -32,9 +32,6 @@ using Complex = std::complex<double>;
 /// Records the end of a stage (name, overall fraction) and may throw Cancelled.
 using StageDone = std::function<void(const std::string&, double)>;
 
-/// Barycentrics (clamped to >= 0, renormalised) of p projected into face f of m.
-Eigen::Vector3d barycentric_in_face(const TriMesh& m, int f, const Eigen::Vector3d& p);
-
 /// The point with (clamped, renormalised) barycentrics b in face f of m.
 PointOnSurface point_in_face(const TriMesh& m, int f, Eigen::Vector3d b);
 

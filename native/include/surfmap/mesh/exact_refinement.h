@@ -60,9 +60,9 @@ struct ExactRefinementResult {
 /// mesh: closed, manifold, oriented (after intake). O(#splits log #F).
 ExactRefinementResult refine_obtuse_triangles(const TriMesh& mesh, const ExactRefinementOptions& options = {});
 
-/// Barycentrics (#3, summing to 1) of a refined vertex's position in the
-/// input face `input_face` computed from positions; for checks and for
-/// callers converting located points: refined face rf, barycentrics b ->
+/// Barycentrics (#3, clamped to >= 0, summing to 1) of p projected into the
+/// input face `input_face` (also what map/ uses to turn a located 3D point
+/// into face coordinates); for checks and for callers converting located points: refined face rf, barycentrics b ->
 /// input face face_origin[rf], Σ_k b_k · bary(corner k).
 Eigen::Vector3d barycentric_in_input_face(const TriMesh& input, int input_face, const Eigen::Vector3d& p);
 
