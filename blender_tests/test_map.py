@@ -257,7 +257,7 @@ def test_stored_map_survives_save_and_reload():
     _check_morph(a, b, "surfmap to Target")
     # run twice: our own layers are replaced, not duplicated
     assert not any(u.name.endswith(".001") for u in b.data.uv_layers)
-    # (the "before" key comes from compute_map only: a stored map keeps no initial map)
+    # (the stored map keeps the initial map too: the "before" key is made again, not doubled)
     assert [k.name for k in a.data.shape_keys.key_blocks] == ["Basis", "surfmap to Target",
                                                              "surfmap before to Target"]
 
@@ -698,3 +698,95 @@ def test_selected_landmarks_follow_the_selection_order():
     bmesh.update_edit_mesh(a.data)
     bpy.ops.object.mode_set(mode='OBJECT')
     assert blender_io.selected_vertex_order(a.data) == [50, 7, 300]
+
+
+def _corr(ob, face_name, bary_name):
+    me = ob.data
+    face = np.empty(len(me.vertices), dtype=np.int32)
+    me.attributes[face_name].data.foreach_get("value", face)
+    bary = np.empty(len(me.vertices) * 3, dtype=np.float32)
+    me.attributes[bary_name].data.foreach_get("vector", bary)
+    return face, bary.reshape(-1, 3).astype(float)
+
+
+def test_before_uvs_and_the_stored_initial_map():
+    a, b = _torus_pair()
+    settings = bpy.context.scene.surfmap
+    settings.write_uvs_before = True
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    names = [u.name for u in b.data.uv_layers]
+    for n in ("UVMap", "Box"):
+        assert f"surfmap {n}" in names and f"surfmap before {n}" in names, names
+    M = _mapping()
+    Fs, Ls = helpers.triangles_of(a)
+    Ft, Lt = helpers.triangles_of(b)
+    Vs = helpers.coords(a)
+    # The initial map kept on both meshes (source: its images on the target; target: its
+    # preimages on the source through the initial map).
+    fi, bi = _corr(b, "surfmap_map_initial_face", "surfmap_map_initial_bary")
+    ff, bf = _corr(b, "surfmap_map_face", "surfmap_map_bary")
+    assert a.data["surfmap_map"]["has_initial"] == 1 and b.data["surfmap_map"]["has_initial"] == 1
+    assert fi.min() >= 0 and fi.max() < len(Fs) and np.abs(bi.sum(1) - 1).max() < 1e-5
+    pre0, pre1 = M.points_at(Vs, Fs, fi, bi), M.points_at(Vs, Fs, ff, bf)
+    assert np.abs(pre0 - pre1).max() > 1e-2, "the initial preimages should differ from the optimum's"
+    # The before UVs are the source's UVs at the initial preimages: same orientation (the
+    # genus-1 initial map is the uniform Tutte embedding, no folds), no seam straddling, and
+    # not the optimum's UVs.
+    suv = helpers.loop_uv_array(a, "UVMap")[Ls]
+    tuv0 = helpers.loop_uv_array(b, "surfmap before UVMap")[Lt]
+    tuv1 = helpers.loop_uv_array(b, "surfmap UVMap")[Lt]
+    assert int(np.sum(M.signed_uv_areas(tuv0) <= 0)) == 0
+    assert M.seam_straddling(tuv0, pre0[Ft], suv, Vs[Fs]) == 0
+    assert np.abs(tuv0 - tuv1).max() > 1e-2
+    uv0 = helpers.loop_uv_array(b, "surfmap before UVMap").copy()
+    # From the stored map alone: remove the before outputs, regenerate them without a solve.
+    b.data.uv_layers.remove(b.data.uv_layers["surfmap before UVMap"])
+    a.shape_key_remove(a.data.shape_keys.key_blocks["surfmap before to Target"])
+    select([a, b], b)
+    for op in ("transfer_uvs", "create_morph"):
+        res, err = run(op)
+        assert res == {'FINISHED'}, (op, err)
+    assert np.allclose(helpers.loop_uv_array(b, "surfmap before UVMap"), uv0, atol=1e-6)
+    _check_morph(a, b, "surfmap before to Target")
+    assert not any(u.name.endswith(".001") for u in b.data.uv_layers)
+    # Without the option the stored re-run writes no before UVs (and the refusal for
+    # too many UV maps counts them when it is on).
+    settings.write_uvs_before = False
+    b.data.uv_layers.remove(b.data.uv_layers["surfmap before Box"])
+    res, err = run("transfer_uvs")
+    assert res == {'FINISHED'}, err
+    assert b.data.uv_layers.get("surfmap before Box") is None
+
+
+def test_before_uvs_count_against_the_uv_limit():
+    a, b = _torus_pair()
+    for i in range(5):     # 5 + 2 transferred fit in 8, 5 + 2 + 2 before do not
+        b.data.uv_layers.new(name=f"mine{i}")
+    bpy.context.scene.surfmap.write_uvs_before = True
+    _expect_cancel([a, b], b, "UV maps", "do not fit")
+    bpy.context.scene.surfmap.write_uvs_before = False
+    select([a, b], b)
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+
+
+def test_source_weights_setting_reaches_the_core():
+    shapes = helpers.sm().shapes
+    Va, Fa = shapes.n_hole_torus(2, 14, True)
+    Vb, Fb = shapes.vase(18, True)
+    a = helpers.mesh_object("Source", np.asarray(Va), [list(f) for f in Fa], (-3, 0, 0))
+    b = helpers.mesh_object("Target", np.asarray(Vb), [list(f) for f in Fb], (3, 0, 0))
+    select([a, b], b)
+    settings = bpy.context.scene.surfmap
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    assert "source weights: intrinsic Delaunay" in settings.map_status, settings.map_status
+    e_auto = a.data["surfmap_map"]["energy"]
+    settings.source_weights = 'OWN'
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    assert "source weights: positive on the source's own edges" in settings.map_status
+    assert abs(a.data["surfmap_map"]["energy"] - e_auto) > 1e-6 * e_auto
+    # genus >= 2 pairs keep their initial map too
+    assert a.data["surfmap_map"]["has_initial"] == 1

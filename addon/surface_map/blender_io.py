@@ -154,6 +154,8 @@ LAYERS_KEY = "surfmap_layers"      # mesh ID property: names of the layers this 
 CORR_FACE = "surfmap_map_face"      # INT point attribute: face of the partner's triangles
 CORR_BARY = "surfmap_map_bary"      # FLOAT_VECTOR point attribute: barycentrics there
 CORR_KEY = "surfmap_map"            # mesh ID property group: partner, fingerprints, summary
+CORR_FACE_INITIAL = "surfmap_map_initial_face"   # the same for the initial map (genus >= 1)
+CORR_BARY_INITIAL = "surfmap_map_initial_bary"
 DILATATION = "surfmap_dilatation"   # FLOAT face attribute: D' of the optimised map
 DILATATION_INITIAL = "surfmap_dilatation_initial"
 
@@ -280,28 +282,54 @@ def write_attribute(mesh, name, values, data_type='FLOAT_VECTOR', domain='POINT'
     return a
 
 
-def write_correspondence(mesh, face, bary, meta):
+def write_correspondence(mesh, face, bary, meta, initial=None):
     """Per vertex: the partner's triangle and barycentrics (survive saving); meta (dict of
-    str/int/float) as the mesh's CORR_KEY ID property."""
+    str/int/float) as the mesh's CORR_KEY ID property. initial: (face, bary) of the initial
+    map, kept so the "before" outputs can be made again without a solve; None removes an
+    initial map stored by an earlier run (it would belong to another map)."""
     write_attribute(mesh, CORR_FACE, np.asarray(face, dtype=np.int32), 'INT')
     write_attribute(mesh, CORR_BARY, np.asarray(bary, dtype=np.float32))
-    mesh[CORR_KEY] = dict(meta)
+    if initial is not None:
+        write_attribute(mesh, CORR_FACE_INITIAL, np.asarray(initial[0], dtype=np.int32), 'INT')
+        write_attribute(mesh, CORR_BARY_INITIAL, np.asarray(initial[1], dtype=np.float32))
+    else:
+        for name in (CORR_FACE_INITIAL, CORR_BARY_INITIAL):
+            a = mesh.attributes.get(name)
+            if a is not None:
+                mesh.attributes.remove(a)
+    mesh[CORR_KEY] = dict(meta, has_initial=int(initial is not None))
 
 
-def read_correspondence(mesh):
-    """(face (n,), bary (n,3), meta dict) or None when the mesh has no stored map."""
-    a, b = mesh.attributes.get(CORR_FACE), mesh.attributes.get(CORR_BARY)
-    meta = mesh.get(CORR_KEY)
-    if a is None or b is None or meta is None:
+def _read_point_map(mesh, face_name, bary_name):
+    a, b = mesh.attributes.get(face_name), mesh.attributes.get(bary_name)
+    if a is None or b is None:
         return None
     n = len(mesh.vertices)
-    if len(a.data) != n or len(b.data) != n:
+    if len(a.data) != n or len(b.data) != n or a.data_type != 'INT' or b.data_type != 'FLOAT_VECTOR':
         return None
     face = np.empty(n, dtype=np.int32)
     a.data.foreach_get("value", face)
     bary = np.empty(n * 3, dtype=np.float32)
     b.data.foreach_get("vector", bary)
-    return face.astype(np.int64), bary.reshape(n, 3).astype(np.float64), meta.to_dict()
+    return face.astype(np.int64), bary.reshape(n, 3).astype(np.float64)
+
+
+def read_correspondence(mesh):
+    """(face (n,), bary (n,3), meta dict) or None when the mesh has no stored map."""
+    meta = mesh.get(CORR_KEY)
+    got = _read_point_map(mesh, CORR_FACE, CORR_BARY)
+    if got is None or meta is None:
+        return None
+    return got[0], got[1], meta.to_dict()
+
+
+def read_initial_correspondence(mesh):
+    """(face (n,), bary (n,3)) of the stored initial map, or None (none stored, e.g. genus 0,
+    or a map stored by an older version of the add-on)."""
+    meta = mesh.get(CORR_KEY)
+    if meta is None or not meta.get("has_initial", 0):
+        return None
+    return _read_point_map(mesh, CORR_FACE_INITIAL, CORR_BARY_INITIAL)
 
 
 def write_face_float(mesh, name, values):

@@ -117,18 +117,23 @@ def prepare_job(context, sm):
     doc = sm.surface_map.__doc__ or ""
     for word, wanted in (("landmarks", landmarks is not None),
                          ("method", settings.method != 'NEWTON'),
-                         ("tolerance", settings.tolerance > 0)):
+                         ("tolerance", settings.tolerance > 0),
+                         ("source_weights", settings.source_weights != 'AUTO')):
         if wanted and word not in doc:
             raise core.ObjectProblem(f"this build of the surfmap module does not support "
                                      f"{word} yet (rebuild it from a newer checkout)")
     outputs = {flag for prop, flag in OUTPUT_FLAGS if getattr(settings, prop)}
     options = {"homotopy": settings.homotopy, "landmarks": landmarks,
                "method": settings.method.lower(), "tolerance": settings.tolerance,
-               "outputs": outputs, "morph_space": settings.morph_space}
+               "source_weights": settings.source_weights.lower(),
+               "outputs": outputs, "uv_before": bool(settings.write_uvs_before),
+               "morph_space": settings.morph_space}
     if "UV" in outputs:
         ours = set(target.data.get(blender_io.LAYERS_KEY, [])) if not (
             tgt["evaluated"] and not tgt["same_topology"]) else set()
         wanted = [target_uv_name(n) for n in (src["uv_layers"] or [GENERATED_UV])]
+        if settings.write_uvs_before and src["genus"] >= 1:
+            wanted += [before_uv_name(n) for n in (src["uv_layers"] or [GENERATED_UV])]
         need = sum(1 for n in wanted if f"uv:{n}" not in ours)
         if need > 8 - len(tgt["uv_layers"]):
             raise core.ObjectProblem(f"'{target.name}' has {len(tgt['uv_layers'])} UV maps; the "
@@ -177,12 +182,19 @@ def target_uv_name(source_uv_name):
     return source_uv_name if source_uv_name.startswith("surfmap ") else f"surfmap {source_uv_name}"
 
 
+def before_uv_name(source_uv_name):
+    """'surfmap before <name>': the UVs carried through the initial map."""
+    n = source_uv_name[len("surfmap "):] if source_uv_name.startswith("surfmap ") else source_uv_name
+    return f"surfmap before {n}"
+
+
 def write_outputs(context, source, target, src, tgt, out, res, which):
     """Writes the outputs in `which` ({'CORRESPONDENCE','UV','MORPH','DISTORTION'}); returns
     report lines. source/target: the objects; src/tgt: their sides; out: compute_outputs'."""
     lines = []
     # Checks that could refuse come first (nothing written yet).
-    uv_names = [target_uv_name(n) for n in out["uv"]] if "UV" in which else []
+    uv_names = ([target_uv_name(n) for n in out["uv"]]
+                + [before_uv_name(n) for n in out.get("uv_before", {})]) if "UV" in which else []
     if uv_names:
         room = 8 - len(tgt["uv_layers"])
         ours = set(target.data.get(blender_io.LAYERS_KEY, [])) if not (
@@ -203,10 +215,18 @@ def write_outputs(context, source, target, src, tgt, out, res, which):
     if "CORRESPONDENCE" in which:
         fw_f, fw_b = out["forward"]
         iv_f, iv_b = out["inverse"]
-        blender_io.write_correspondence(s_obj.data, fw_f, fw_b, _meta(src, tgt, "source", res))
-        blender_io.write_correspondence(t_obj.data, iv_f, iv_b, _meta(tgt, src, "target", res))
+        # The initial map is kept only when both directions were located (the "before"
+        # morph and UVs are then regenerated from the stored map).
+        i_fw, i_iv = out.get("initial_forward"), out.get("initial_inverse")
+        both = i_fw is not None and i_iv is not None
+        blender_io.write_correspondence(s_obj.data, fw_f, fw_b, _meta(src, tgt, "source", res),
+                                        i_fw if both else None)
+        blender_io.write_correspondence(t_obj.data, iv_f, iv_b, _meta(tgt, src, "target", res),
+                                        i_iv if both else None)
         lines.append(f"correspondence stored on '{s_obj.name}' and '{t_obj.name}' (attributes "
-                     f"{blender_io.CORR_FACE}, {blender_io.CORR_BARY})")
+                     f"{blender_io.CORR_FACE}, {blender_io.CORR_BARY}"
+                     + (f"; the initial map in {blender_io.CORR_FACE_INITIAL}, "
+                        f"{blender_io.CORR_BARY_INITIAL}" if both else "") + ")")
     if "UV" in which and out["uv"]:
         written = []
         if src.get("generated_uv"):
@@ -215,6 +235,10 @@ def write_outputs(context, source, target, src, tgt, out, res, which):
             lines.append(f"UV map '{name}' (cube projection) on '{s_obj.name}'")
         for name, uv in out["uv"].items():
             got = blender_io.write_uv_map(t_obj.data, target_uv_name(name), uv)
+            if got is not None:
+                written.append(got)
+        for name, uv in out.get("uv_before", {}).items():
+            got = blender_io.write_uv_map(t_obj.data, before_uv_name(name), uv)
             if got is not None:
                 written.append(got)
         if written:
@@ -227,7 +251,7 @@ def write_outputs(context, source, target, src, tgt, out, res, which):
         if "morph_source_initial" in out:
             k0 = blender_io.write_shape_key(s_obj, f"surfmap before to {t_obj.name}",
                                             out["morph_source_initial"])
-            how = res.get("initial_map", {}).get("construction", "")
+            how = (res or {}).get("initial_map", {}).get("construction", "")
             lines.append(f"'before' shape key '{k0}' on '{s_obj.name}': the initial map"
                          + (f" ({how})" if how else ""))
     if "REFINED" in which:
@@ -268,6 +292,8 @@ def _summary(res, elapsed):
     how = res.get("initial_map", {}).get("construction")
     if how:
         s += f", initial map: {how}"
+    if res.get("source_weights") and res.get("genus", 0) >= 2:
+        s += f", source weights: {res['source_weights']}"
     if not res.get("converged", True):
         s += " (NOT converged)"
     return s
@@ -443,6 +469,14 @@ def stored_pair(context):
                                      f"'{other['name']}' does not have: run Compute Map again")
     res = {"forward": {"face": stored["source"][0], "barycentric": stored["source"][1]},
            "inverse": {"face": stored["target"][0], "barycentric": stored["target"][1]}}
+    i_fw = blender_io.read_initial_correspondence(source.data)
+    i_iv = blender_io.read_initial_correspondence(target.data)
+    if i_fw is not None and i_iv is not None:
+        ok = (i_fw[0].min(initial=0) >= 0 and i_fw[0].max(initial=0) < len(tgt["F"])
+              and i_iv[0].min(initial=0) >= 0 and i_iv[0].max(initial=0) < len(src["F"]))
+        if ok:  # (otherwise the "before" outputs are left out, the map itself is fine)
+            res["initial_forward"] = {"face": i_fw[0], "barycentric": i_fw[1]}
+            res["initial_inverse"] = {"face": i_iv[0], "barycentric": i_iv[1]}
     return source, target, src, tgt, res
 
 
@@ -471,7 +505,8 @@ class _StoredMapOperator:
                     d = blender_io.read_face_float(source.data, name)
                     if d is not None:
                         dist[key] = np.where(d < 0, np.inf, d)
-            opts = {"morph_space": settings.morph_space}
+            opts = {"morph_space": settings.morph_space,
+                    "uv_before": bool(settings.write_uvs_before)}
             out = mapjob.compute_outputs(src, tgt, dict(res, **dist), opts, only={self.output})
             if self.output == "UV" and not out["uv"]:
                 raise core.ObjectProblem(f"the source '{source.name}' has no UV map to transfer")

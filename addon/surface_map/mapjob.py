@@ -26,8 +26,10 @@ STAGE_NAMES = {
 
 class MapJob:
     def __init__(self, sm, source, target, options):
-        """options: homotopy (int), landmarks ((k,2) or None), method, tolerance, outputs
-        (set of 'UV', 'MORPH', 'DISTORTION'), morph_space ('IN_PLACE' | 'WORLD')."""
+        """options: homotopy (int), landmarks ((k,2) or None), method, tolerance,
+        source_weights ('auto' | 'intrinsic' | 'own'), outputs (set of 'UV', 'MORPH',
+        'DISTORTION'), uv_before (bool: also the UVs through the initial map), morph_space
+        ('IN_PLACE' | 'WORLD')."""
         self.sm = sm
         self.source, self.target = source, target
         self.options = options
@@ -67,6 +69,8 @@ class MapJob:
             kw["method"] = o["method"]
         if o.get("tolerance"):
             kw["tolerance"] = float(o["tolerance"])
+        if o.get("source_weights", "auto") != "auto":
+            kw["source_weights"] = o["source_weights"]
         if "solve_progress" in (getattr(self.sm.surface_map, "__doc__", None) or ""):
             kw["solve_progress"] = self._solve_progress
         return kw
@@ -170,7 +174,8 @@ def compute_outputs(source, target, res, options, only=None):
 
     Returns dict with: forward/inverse (face, bary); morph_source (n_s,3) / morph_target (n_t,3)
     local coordinates for the shape keys (and morph_source_initial, the initial map's, when the
-    result has a located initial map); uv {name: (L_t,2)} and uv_report; colours
+    result has a located initial map); uv {name: (L_t,2)} and uv_report, uv_before {name:
+    (L_t,2)} through the initial map (options uv_before, when res has 'initial_inverse'); colours
     {name: (rgba, domain)}; dilatation per polygon (final, initial or None); ranges and the
     report lines."""
     outputs = set(options.get("outputs", {"UV", "MORPH", "DISTORTION"})) if only is None else only
@@ -180,7 +185,11 @@ def compute_outputs(source, target, res, options, only=None):
     iv_f = np.asarray(res["inverse"]["face"], dtype=np.int64)
     iv_b = np.asarray(res["inverse"]["barycentric"], dtype=np.float64)
     out = {"forward": (fw_f, fw_b), "inverse": (iv_f, iv_b), "colours": {}, "uv": {},
-           "report": [], "ranges": {}}
+           "uv_before": {}, "report": [], "ranges": {}}
+    for key in ("initial_forward", "initial_inverse"):
+        init = res.get(key)
+        out[key] = None if init is None else (np.asarray(init["face"], dtype=np.int64),
+                                              np.asarray(init["barycentric"], dtype=np.float64))
     pos_s = mapping.points_at(Vt, Ft, fw_f, fw_b)   # source vertices on the target (target local)
     pos_t = mapping.points_at(Vs, Fs, iv_f, iv_b)   # target vertices on the source (source local)
     out["image_of_source"] = pos_s
@@ -191,10 +200,8 @@ def compute_outputs(source, target, res, options, only=None):
         out["morph_target"] = mapping.apply_matrix(
             morph_matrix(source["matrix"], target["matrix"], space), pos_t)
         # The "before" morph: the initial map located on the target (genus >= 1).
-        init = res.get("initial_forward")
-        if init is not None:
-            pos0 = mapping.points_at(Vt, Ft, np.asarray(init["face"], dtype=np.int64),
-                                     np.asarray(init["barycentric"], dtype=np.float64))
+        if out["initial_forward"] is not None:
+            pos0 = mapping.points_at(Vt, Ft, *out["initial_forward"])
             out["morph_source_initial"] = mapping.apply_matrix(
                 morph_matrix(target["matrix"], source["matrix"], space), pos0)
     if "UV" in outputs:
@@ -210,10 +217,23 @@ def compute_outputs(source, target, res, options, only=None):
             if tr.unresolved:
                 out["report"].append(f"UV map '{name}': {tr.unresolved} corners kept their own "
                                      f"island's UV (no short path across the seam)")
+            if options.get("uv_before") and out["initial_inverse"] is not None:
+                # The same transfer through the initial map (the "before" figure); where the
+                # initial map folds, a target vertex takes one of the covering source faces.
+                i0_f, i0_b = out["initial_inverse"]
+                out["uv_before"][name], _ = tr.polygon_uvs(i0_f[lv], i0_b[lv],
+                                                           target["loop_start"],
+                                                           target["loop_total"])
         if names:
             out["report"].append(f"UVs: {len(names)} map(s) transferred ({', '.join(names)}); "
                                  f"{total_straddling} target faces across source seams were "
                                  f"unfolded into one chart")
+            if out["uv_before"]:
+                out["report"].append(f"UVs through the initial map ('before'): "
+                                     f"{len(out['uv_before'])} map(s)")
+            elif options.get("uv_before"):
+                out["report"].append("UVs through the initial map: none (no initial map "
+                                     "located for this pair, e.g. genus 0, or not stored)")
         else:
             out["report"].append(f"UVs: the source '{source['name']}' has no UV map to transfer")
     if "DISTORTION" in outputs:

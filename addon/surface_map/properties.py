@@ -57,8 +57,22 @@ class SURFMAP_PG_settings(bpy.types.PropertyGroup):
     tolerance: FloatProperty(
         name="Tolerance", default=0.0, min=0.0, precision=10, step=0.0001,
         description="Convergence tolerance of the solve (0: the core's default)")
+    source_weights: EnumProperty(
+        name="Source Weights", default='AUTO',
+        items=(('AUTO', "Automatic", "Cotangent weights of the source's intrinsic Delaunay "
+                "triangulation; solved again with positive weights on the source's own edges "
+                "when the images of its faces fold (slivers, caps)"),
+               ('INTRINSIC', "Intrinsic Delaunay", "Intrinsic Delaunay cotangent weights only "
+                "(a fold of the source's own faces is then an error)"),
+               ('OWN', "Own Edges", "Positive weights on the source's own edges (embeds its "
+                "faces; more distortion where both work)")))
     write_uvs: BoolProperty(name="UVs", default=True,
                             description="Transfer every UV map of the source onto the target")
+    write_uvs_before: BoolProperty(
+        name="Before UVs", default=False,
+        description="Also transfer the UVs through the initial map (before the optimisation), "
+                    "as UV maps 'surfmap before <name>' on the target, for comparison "
+                    "(genus >= 1)")
     write_morph: BoolProperty(name="Morph", default=True,
                               description="Shape keys morphing each object into the other")
     write_distortion: BoolProperty(

@@ -36,7 +36,7 @@ void bind_map(py::module_& m) {
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
          int target_base_vertex, py::object progress, py::object landmarks, const std::string& method,
          double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
-         int homotopy_full_solves, const std::string& initial_map) {
+         int homotopy_full_solves, const std::string& initial_map, const std::string& source_weights) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         SurfaceMapOptions opt;
@@ -57,6 +57,10 @@ void bind_map(py::module_& m) {
         if (initial_map == "polygon") opt.initial_map = InitialMapMethod::Polygon;
         else if (initial_map == "uniform") opt.initial_map = InitialMapMethod::UniformHarmonic;
         else throw InputError("initial_map must be 'polygon' or 'uniform', not '" + initial_map + "'");
+        if (source_weights == "auto") opt.source_weights = SourceWeights::Automatic;
+        else if (source_weights == "intrinsic") opt.source_weights = SourceWeights::IntrinsicDelaunay;
+        else if (source_weights == "own") opt.source_weights = SourceWeights::OwnEdges;
+        else throw InputError("source_weights must be 'auto', 'intrinsic' or 'own', not '" + source_weights + "'");
         if (!landmarks.is_none()) {
           const auto pairs = py::cast<std::vector<std::vector<long long>>>(
               py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
@@ -145,6 +149,7 @@ void bind_map(py::module_& m) {
         // The initial map located on the target (None for genus 0 or when it
         // could not be located).
         d["initial_forward"] = r.initial_forward.empty() ? py::object(py::none()) : py::object(points_to_dict(r.initial_forward));
+        d["initial_inverse"] = r.initial_inverse.empty() ? py::object(py::none()) : py::object(points_to_dict(r.initial_inverse));
         py::list cands;
         for (const auto& c : r.candidates)
           cands.append(py::dict(py::arg("description") = c.description, py::arg("energy") = c.energy, py::arg("solved") = c.solved,
@@ -162,7 +167,7 @@ void bind_map(py::module_& m) {
       py::arg("source_base_vertex") = -1, py::arg("target_base_vertex") = -1, py::arg("progress") = py::none(),
       py::arg("landmarks") = py::none(), py::arg("method") = "newton", py::arg("tolerance") = 1e-10,
       py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
-      py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = "polygon",
+      py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = "polygon", py::arg("source_weights") = "auto",
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
       "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "
@@ -171,7 +176,10 @@ void bind_map(py::module_& m) {
       "and may return False to cancel; `homotopy_candidates` / `homotopy_full_solves`: how many genus >= 2 "
       "handle classes are listed / solved to convergence for the ranking; `initial_map`: 'polygon' (genus >= 2: the "
       "source disk onto the target's geodesic polygon of the source's loops when convex, else uniform) or 'uniform' "
-      "('initial_map' in the result says which was used; 'initial_forward': the initial map located on the target). `progress(stage, fraction)` "
+      "('initial_map' in the result says which was used; 'initial_forward': the initial map located on the target, "
+      "'initial_inverse': each target vertex located on the source through the initial map); `source_weights`: 'auto' "
+      "(intrinsic Delaunay cotangents, the source's own edges when their images fold), 'intrinsic' or 'own' "
+      "('source_weights' in the result says which were used). `progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
 }
 

@@ -114,10 +114,33 @@ TEST(LandmarksHyperbolic, ConsistentLandmarksHitExactlyWithoutFlips) {
     EXPECT_GE(m.final_energy, free.final_energy * (1 - 1e-9)) << k;
     EXPECT_LT(m.final_energy, 1.05 * free.final_energy) << k;
   }
-  SurfaceMapOptions relax;
-  relax.method = MapMethod::Relaxation;
-  relax.landmarks = {{0, 0}};
-  EXPECT_THROW(surface_map(a, b, relax), InputError);
+}
+
+TEST(LandmarksHyperbolic, RelaxationHoldsThemLikeNewton) {
+  // The paper's per-vertex relaxation with the landmarks' vertices skipped
+  // solves the same held problem as Newton: same energy, same map.
+  const TriMesh a = samples::n_hole_torus(2, 14, true);
+  const TriMesh b = samples::vase(18, true);
+  const SurfaceMapResult free = surface_map(a, b);
+  SurfaceMapOptions o;
+  for (int p : {11, a.num_vertices() / 3, (2 * a.num_vertices()) / 3})
+    o.landmarks.emplace_back(p, nearest_vertex(b, free.forward[p].position));
+  const SurfaceMapResult newton = surface_map(a, b, o);
+  expect_landmarks_hit(newton, a, b, o);
+  o.method = MapMethod::Relaxation;
+  o.tolerance = 1e-7;
+  o.max_iterations = 100000;
+  const SurfaceMapResult relax = surface_map(a, b, o);
+  expect_landmarks_hit(relax, a, b, o);
+  EXPECT_TRUE(relax.converged);
+  EXPECT_GT(relax.iterations, newton.iterations);  // sweeps, not Newton steps
+  EXPECT_NEAR(relax.final_energy, newton.final_energy, 1e-8 * newton.final_energy);
+  EXPECT_GT(relax.final_energy, free.final_energy * (1 + 1e-6));  // the landmarks did move the map
+  const double diag = (b.V.colwise().maxCoeff() - b.V.colwise().minCoeff()).norm();
+  double worst = 0;
+  for (int i = 0; i < a.num_vertices(); ++i)
+    worst = std::max(worst, (relax.forward[i].position - newton.forward[i].position).norm());
+  EXPECT_LT(worst, 1e-4 * diag);
 }
 
 TEST(Landmarks, BadPairsAreInputErrors) {

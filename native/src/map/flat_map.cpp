@@ -356,6 +356,29 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
     out.inverse[v] = point_in_face(source, f, b);
   }
+  // The initial map's inverse the same way (the "before" UV transfer); left
+  // empty, not an error, when a target vertex is not covered.
+  {
+    const auto img0 = image_corners(z_init);
+    std::vector<std::array<Complex, 3>> stris0(source.num_faces());
+    Complex scentre0 = 0;
+    for (int f = 0; f < source.num_faces(); ++f) {
+      for (int k = 0; k < 3; ++k) stris0[f][k] = img0(f, k);
+      scentre0 += (stris0[f][0] + stris0[f][1] + stris0[f][2]) / 3.0;
+    }
+    scentre0 /= double(source.num_faces());
+    const TriangleGrid sgrid0(stris0);
+    out.initial_inverse.resize(target.num_vertices());
+    for (int v = 0; v < target.num_vertices(); ++v) {
+      Eigen::Vector3d b;
+      const int f = locate_periodic(sgrid0, tgt.layout.vertex_positions[v], scentre0, tgt.A, tgt.B, &b);
+      if (f < 0) {
+        out.initial_inverse.clear();
+        break;
+      }
+      out.initial_inverse[v] = point_in_face(source, f, b);
+    }
+  }
   stage_done("inverse location", 1.0);
 }
 

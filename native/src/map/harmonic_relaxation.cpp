@@ -194,8 +194,12 @@ HarmonicRelaxationResult harmonic_relaxation(int n, const std::vector<WeightedEd
     return s;
   };
   std::vector<double> settled(n, 0.0);  // |z|² below which the chart test is skipped
+  const bool any_fixed = !options.fixed.empty();
+  if (any_fixed && static_cast<int>(options.fixed.size()) != n)
+    throw InputError("harmonic_relaxation: the fixed mask needs one entry per vertex");
   auto sweep = [&]() {
     for (int v = 0; v < n; ++v) {
+      if (any_fixed && options.fixed[v]) continue;
       // The chart centring p = z_v: T(y) = (y − p) / (1 − p̄ y) (SU(1,1) scale cancels).
       const Complex p = r.z[v], pc = std::conj(p);
       Complex sum(0.0);
@@ -258,7 +262,8 @@ HarmonicRelaxationResult harmonic_relaxation(int n, const std::vector<WeightedEd
       grad[i] -= 2 * edges[e].w * li, grad[j] -= 2 * edges[e].w * lj;
     }
     g = 0;
-    for (const Complex& x : grad) g = std::max(g, std::abs(x));
+    for (int v = 0; v < n; ++v)
+      if (!any_fixed || !options.fixed[v]) g = std::max(g, std::abs(grad[v]));
   };
   relax_loop(r, max_w, options, sweep, evaluate);
   return r;
@@ -279,8 +284,12 @@ HarmonicRelaxationResult flat_harmonic_relaxation(int n, const std::vector<int>&
   const Incidence inc = incidence(n, ei.size(), [&](size_t e) { return std::make_pair(ei[e], ej[e]); });
   double max_w = 0;
   for (double x : w) max_w = std::max(max_w, x);
+  const bool any_fixed = !options.fixed.empty();
+  if (any_fixed && static_cast<int>(options.fixed.size()) != n)
+    throw InputError("flat_harmonic_relaxation: the fixed mask needs one entry per vertex");
   auto sweep = [&]() {
     for (int v = 0; v < n; ++v) {
+      if (any_fixed && options.fixed[v]) continue;
       Complex sum(0.0);
       double W = 0;
       for (int k = inc.start[v]; k < inc.start[v + 1]; ++k) {
@@ -305,7 +314,8 @@ HarmonicRelaxationResult flat_harmonic_relaxation(int n, const std::vector<int>&
       grad[ei[e]] -= 2 * w[e] * d, grad[ej[e]] += 2 * w[e] * d;
     }
     g = 0;
-    for (const Complex& x : grad) g = std::max(g, std::abs(x));
+    for (int v = 0; v < n; ++v)
+      if (!any_fixed || !options.fixed[v]) g = std::max(g, std::abs(grad[v]));
   };
   relax_loop(r, max_w, options, sweep, evaluate);
   return r;

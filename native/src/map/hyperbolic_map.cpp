@@ -905,12 +905,19 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     ho.tolerance = options.tolerance;
     ho.max_iterations = options.max_iterations;
     ho.progress = solve_progress;
+    // The relaxation holds them too (its sweeps skip the held vertices).
+    const bool relax = options.method == MapMethod::Relaxation;
+    HarmonicRelaxationOptions ro;
+    ro.tolerance = options.tolerance;
+    ro.max_iterations = options.max_iterations;
+    ro.check_every = 10;
+    ro.progress = solve_progress;
     HyperbolicHarmonicResult held =
         hold_hyperbolic_landmarks(source.num_vertices(), edges, deck_group.side_pairings(), deck_group.side_pairings(), hr,
-                                  lm_source, lm_target, ho);
+                                  lm_source, lm_target, ho, relax, ro);
     if (!held.converged)
-      throw SolveError("the harmonic map with the landmarks held did not converge in " +
-                       std::to_string(held.iterations) + " iterations");
+      throw SolveError(std::string("the harmonic map with the landmarks held (") + (relax ? "relaxation" : "Newton") +
+                       ") did not converge in " + std::to_string(held.iterations) + " iterations");
     held.energy_history.insert(held.energy_history.begin(), hr.energy_history.begin(), hr.energy_history.end());
     held.iterations += hr.iterations;
     hr = std::move(held);
@@ -1229,6 +1236,60 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
     last_source_face = f;
     out.inverse[v] = point_in_face(source, f, b);
+  }
+  // The initial map's inverse (the "before" UV transfer): its image
+  // triangles from its own chart elements, each moved into P by the
+  // reduction of its corner 0, located by the grid; left empty (not an
+  // error) when a target vertex is not covered.
+  {
+    const bool init_words = init.vertex_deck_word.size() == init.z.size();
+    auto init_eff = [&](int h) {
+      const int i = sc.tail(h), j = sc.head(h);
+      if (init_words)
+        return deck_group.evaluate_side_word(
+            deck_group.reduce(concat({init.vertex_deck_word[i], halfedge_word[h], inverse(init.vertex_deck_word[j])})));
+      return (init.vertex_deck[i] * halfedge_rho[h] * init.vertex_deck[j].inverse()).normalized();
+    };
+    // Corner k of face f is init_corner[3f+k] applied to its vertex's point
+    // (corner 0 reduced into P); the walk crosses into the neighbour g
+    // through the shared vertex u by init_corner(g, u) init_corner(f, u)^-1.
+    std::vector<Mobius> init_corner(3 * source.num_faces());
+    Tris ipoints(source.num_faces()), itris(source.num_faces());
+    for (int f = 0; f < source.num_faces(); ++f) {
+      Complex c0 = init.z[source.F(f, 0)];
+      const Mobius R = deck_group.evaluate_side_word(reduce_into_polygon(c0));
+      init_corner[3 * f] = R;
+      init_corner[3 * f + 1] = (R * init_eff(3 * f)).normalized();
+      init_corner[3 * f + 2] = (R * init_eff(3 * f + 2).inverse()).normalized();
+      ipoints[f] = {c0, init_corner[3 * f + 1].apply(init.z[source.F(f, 1)]),
+                    init_corner[3 * f + 2].apply(init.z[source.F(f, 2)])};
+      for (int k = 0; k < 3; ++k) itris[f][k] = hyperbolic::poincare_to_klein(ipoints[f][k]);
+    }
+    auto init_corners = [&](int f) { return ipoints[f]; };
+    auto init_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
+      const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
+      const int cg = (t % 3 + 1) % 3;
+      const Mobius M = (init_corner[3 * g + cg] * init_corner[3 * f + s].inverse()).normalized();
+      c = M.apply(c), q = M.apply(q);
+      *entry = t % 3;
+      return g;
+    };
+    const TriangleGrid igrid(itris, 1e-12);
+    out.initial_inverse.resize(target.num_vertices());
+    int last_face0 = 0;
+    for (int v = 0; v < target.num_vertices(); ++v) {
+      Eigen::Vector3d b;
+      Complex q = layout.vertex_positions[v];
+      reduce_into_polygon(q);
+      int f = straight_walk(last_face0, q, init_corners, init_cross, 4 * source.num_faces() + 100, kInsideTol, &b);
+      if (f < 0) f = locate(igrid, ipoints, layout.vertex_positions[v], &b);
+      if (f < 0) {
+        out.initial_inverse.clear();
+        break;
+      }
+      last_face0 = f;
+      out.initial_inverse[v] = point_in_face(source, f, b);
+    }
   }
   stage_done("inverse location", 1.0);
   return;

@@ -108,7 +108,8 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<Weig
                                                    const std::vector<hyperbolic::Mobius>& side_pairings,
                                                    const HyperbolicHarmonicResult& free, const std::vector<int>& source,
                                                    const std::vector<Complex>& target_position,
-                                                   HyperbolicHarmonicOptions options) {
+                                                   HyperbolicHarmonicOptions options, bool relaxation,
+                                                   HarmonicRelaxationOptions relaxation_options) {
   using hyperbolic::Mobius;
   // Side pairings move the layout's cut disk to its neighbours (short
   // translations); the loop generators can be long (entries ~1e5 seen in
@@ -158,7 +159,13 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<Weig
     start[source[k]] = best;
     options.fixed[source[k]] = 1;
   }
-  HyperbolicHarmonicResult held = hyperbolic_harmonic_map(n, held_edges, generators, start, options);
+  HyperbolicHarmonicResult held;
+  if (relaxation) {
+    relaxation_options.fixed = options.fixed;
+    held = as_harmonic_result(harmonic_relaxation(n, held_edges, generators, start, relaxation_options));
+  } else {
+    held = hyperbolic_harmonic_map(n, held_edges, generators, start, options);
+  }
   for (int i = 0; i < n; ++i) held.vertex_deck[i] = (held.vertex_deck[i] * free.vertex_deck[i]).normalized();
   if (free.vertex_deck_word.size() == static_cast<size_t>(n))
     for (int i = 0; i < n; ++i) held.vertex_deck_word[i] = concat(held.vertex_deck_word[i], free.vertex_deck_word[i]);

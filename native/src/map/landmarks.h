@@ -21,6 +21,7 @@
 
 #include "surfmap/geometry/hyperbolic.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
+#include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
 
 namespace surfmap::detail {
@@ -66,12 +67,16 @@ class PinnedFlatHarmonic {
 /// first over words in the layout's side pairings and their inverses (which
 /// move the cut disk to its neighbours), pruned to those within reach of the
 /// free position. `generators` are the solve's chart moves. The
-/// returned vertex decks are again relative to `edges`.
+/// returned vertex decks are again relative to `edges`. With `relaxation`
+/// the held problem is solved by the paper's per-vertex relaxation
+/// (map/harmonic_relaxation.h, the held vertices skipped) with
+/// `relaxation_options` instead of Newton with `options`.
 HyperbolicHarmonicResult hold_hyperbolic_landmarks(int num_vertices, const std::vector<WeightedEdge>& edges,
                                                    const std::vector<hyperbolic::Mobius>& generators,
                                                    const std::vector<hyperbolic::Mobius>& side_pairings,
                                                    const HyperbolicHarmonicResult& free, const std::vector<int>& source,
                                                    const std::vector<Complex>& target_position,
-                                                   HyperbolicHarmonicOptions options);
+                                                   HyperbolicHarmonicOptions options, bool relaxation = false,
+                                                   HarmonicRelaxationOptions relaxation_options = {});
 
 }  // namespace surfmap::detail

@@ -44,8 +44,6 @@ SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const
       throw InputError(which + ": target vertex " + std::to_string(t) + " is already landmark " + std::to_string(dst_used[t]));
     src_used[s] = dst_used[t] = static_cast<int>(k);
   }
-  if (!options.landmarks.empty() && out.genus >= 2 && options.method == MapMethod::Relaxation)
-    throw InputError("landmarks are held by the Newton solver only; use method newton with landmarks");
   if (out.genus == 0)
     detail::map_spherical(source, target, sc, tc, options, out, stage_done);
   else if (out.genus == 1)

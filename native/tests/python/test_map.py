@@ -266,3 +266,44 @@ def test_genus2_initial_map_construction_and_location(tmp_path, cli):
     assert report["initial_map"]["construction"] == "polygon" and report["initial_map"]["located"]
     before = surfmap.load_mesh(str(ini))
     assert np.abs(before["V"] - init["position"]).max() < 1e-6
+
+
+@pytest.mark.parametrize("genus", [1, 2])
+def test_initial_inverse_inverts_the_initial_map(genus):
+    # 'initial_inverse' (the "before" UV transfer): each target vertex located on the source
+    # through the initial map. Pushing it forward again with the initial map's own images
+    # of that source face lands on the target vertex, up to the chord of the image triangle.
+    if genus == 1:
+        a, b = torus(1.0, 0.5, 40, 20), torus(1.5, 0.5, 50, 20, 1)
+    else:
+        a, b = surfmap.shapes.n_hole_torus(2, 18, True), surfmap.shapes.vase(22, True)
+    (Vs, Fs), (Vt, Ft) = a, b
+    r = surfmap.surface_map(Vs, Fs, Vt, Ft)
+    fw, iv = r["initial_forward"], r["initial_inverse"]
+    assert fw is not None and iv is not None and r["initial_flipped_triangles"] == 0
+    assert iv["face"].shape == (len(Vt),) and iv["barycentric"].min() >= -1e-9
+    assert np.allclose(iv["barycentric"].sum(1), 1)
+    q = np.einsum("ik,ikj->ij", iv["barycentric"], Vs[Fs[iv["face"]]])
+    assert np.abs(q - iv["position"]).max() < 1e-9
+    img = fw["position"]
+    back = np.einsum("ik,ikj->ij", iv["barycentric"], img[Fs[iv["face"]]])
+    edge = max(np.linalg.norm(img[Fs[:, k]] - img[Fs[:, (k + 1) % 3]], axis=1).max() for k in range(3))
+    err = np.linalg.norm(back - Vt, axis=1)
+    assert err.max() < 0.5 * edge, (err.max(), edge)
+    # ... and it is the initial map's inverse, not the optimum's.
+    fin = r["inverse"]["position"]
+    assert np.abs(fin - iv["position"]).max() > 1e-3 * np.linalg.norm(Vs.max(0) - Vs.min(0))
+
+
+def test_source_weights_kwarg():
+    a = surfmap.shapes.n_hole_torus(2, 14, True)
+    b = surfmap.shapes.vase(18, True)
+    auto = surfmap.surface_map(*a, *b)
+    own = surfmap.surface_map(*a, *b, source_weights="own")
+    intrinsic = surfmap.surface_map(*a, *b, source_weights="intrinsic")
+    assert auto["source_weights"] == intrinsic["source_weights"] != own["source_weights"]
+    assert own["flipped_triangles"] == 0
+    assert abs(auto["energy"]["final"] - intrinsic["energy"]["final"]) <= 1e-9 * auto["energy"]["final"]
+    assert abs(own["energy"]["final"] - auto["energy"]["final"]) > 1e-6 * auto["energy"]["final"]
+    with pytest.raises(surfmap.InputError, match="source_weights"):
+        surfmap.surface_map(*a, *b, source_weights="uniform")

@@ -57,6 +57,11 @@ struct HarmonicRelaxationOptions {
   /// Called at every evaluation with (sweep, energy, gradient norm); return
   /// false to cancel (throws Cancelled).
   std::function<bool(int, double, double)> progress;
+  /// #V or empty (default): vertices held at their start point (landmarks,
+  /// paper §VII-C), as HyperbolicHarmonicOptions::fixed: never relaxed, and
+  /// left out of the convergence test's gradient. A chart move may still
+  /// change a held vertex's point by a deck element (same point on the target).
+  std::vector<char> fixed;
 };
 
 struct HarmonicRelaxationResult {

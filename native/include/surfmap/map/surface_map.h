@@ -268,6 +268,11 @@ struct SurfaceMapResult {
   /// Per source vertex: the initial map's image on the target (face,
   /// barycentrics, 3D point), located like `forward`; empty for genus 0.
   std::vector<PointOnSurface> initial_forward;
+  /// Per target vertex: its preimage on the source under the initial map
+  /// (located in the initial map's image triangles like `inverse`; where
+  /// the initial map folds, one of the covering triangles), for the "before"
+  /// UV transfer; empty for genus 0 or when it could not be located.
+  std::vector<PointOnSurface> initial_inverse;
   /// Genus >= 1: vertices added to the target by the exact refinement that
   /// made its uniformization metric exist (uniformize/feasible_metric.h; 0
   /// when the fixed-connectivity metric existed). Outputs stay on the
