@@ -321,10 +321,13 @@ TEST(SurfaceMapInitialMap, GenusTwoBeforeFiguresAndRelaxationOnThePipelinesProbl
   EXPECT_GE(m.initial_energy, m.final_energy);
   // The kept Newton solve is the class's full-resolution solve from the
   // ranking (started at its coarse solution, not at the initial map): its
-  // energy decreases at every step down to the optimum. The problem handed
+  // energy decreases at every step down to the optimum (to the round-off of
+  // E: at the end the steps are judged by the gradient, and the edges are
+  // derived afresh after every step). The problem handed
   // out starts at the initial map: its start energy, recomputed, is the
   // initial energy.
-  for (size_t k = 1; k < m.energy_history.size(); ++k) EXPECT_LE(m.energy_history[k], m.energy_history[k - 1]);
+  for (size_t k = 1; k < m.energy_history.size(); ++k)
+    EXPECT_LE(m.energy_history[k], m.energy_history[k - 1] * (1 + 1e-13));
   EXPECT_DOUBLE_EQ(m.energy_history.back(), m.final_energy);
   ASSERT_FALSE(p.flat);
   ASSERT_EQ(p.num_vertices, a.num_vertices());

@@ -117,8 +117,10 @@ TEST(SurfaceMapHyperbolic, GenusTwoPairConvergesByNewtonWithoutFlips) {
   expect_valid_map(m, a, b);
   EXPECT_EQ(m.genus, 2);
   EXPECT_LE(m.iterations, 30);
-  // Energies decrease monotonically along the Newton iterations.
-  for (size_t k = 1; k < m.energy_history.size(); ++k) EXPECT_LT(m.energy_history[k], m.energy_history[k - 1]);
+  // Energies decrease monotonically along the Newton iterations (to the
+  // round-off of E, below which the last steps are judged by the gradient).
+  for (size_t k = 1; k < m.energy_history.size(); ++k)
+    EXPECT_LE(m.energy_history[k], m.energy_history[k - 1] * (1 + 1e-13));
   EXPECT_TRUE(std::isfinite(m.mean_dilatation));
   EXPECT_GE(m.mean_dilatation, 1.0);
 }

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "surfmap/error.h"
+#include "surfmap/geometry/dynamic_charts.h"
 
 namespace surfmap {
 namespace {
@@ -32,20 +33,13 @@ inline Complex quick_exp(Complex p, Complex xi) {
 // m(z) for an SU(1,1) element.
 inline Complex quick_apply(const Mobius& m, Complex z) { return quick_div(m.a * z + m.b, std::conj(m.b) * z + std::conj(m.a)); }
 
-// Moves z towards the origin with generators while that helps; returns the
-// accumulated element (the same rule as the Newton solver's dynamic charts).
-Mobius reduce_towards_origin(Complex& z, const std::vector<Mobius>& moves) {
+// Moves z towards the origin (geometry/dynamic_charts.h, the same rule as
+// the Newton solver's dynamic charts); returns the element applied.
+Mobius move_towards_origin(Complex& z, const std::vector<Mobius>& moves) {
   Mobius acc;
-  for (int guard = 0; guard < 64; ++guard) {
-    double best = std::abs(z);
-    int arg = -1;
-    for (size_t k = 0; k < moves.size(); ++k) {
-      const double r = std::abs(moves[k].apply(z));
-      if (r < best - 1e-12) best = r, arg = static_cast<int>(k);
-    }
-    if (arg < 0) break;
-    z = moves[arg].apply(z);
-    acc = (moves[arg] * acc).normalized();
+  for (int k : reduce_towards_origin(Mobius::translation_to(z), moves)) {
+    z = moves[k].apply(z);
+    acc = (moves[k] * acc).normalized();
   }
   return acc;
 }
@@ -165,7 +159,7 @@ HarmonicRelaxationResult harmonic_relaxation(int n, const std::vector<WeightedEd
   HarmonicRelaxationResult r;
   r.z = std::move(z0);
   r.vertex_deck.assign(n, Mobius());
-  for (int i = 0; i < n; ++i) r.vertex_deck[i] = reduce_towards_origin(r.z[i], moves);
+  for (int i = 0; i < n; ++i) r.vertex_deck[i] = move_towards_origin(r.z[i], moves);
   // Effective element per edge (i -> j) and its inverse, kept up to date
   // when a vertex changes chart.
   std::vector<Mobius> eff(edges.size()), eff_inv(edges.size());
@@ -241,7 +235,7 @@ HarmonicRelaxationResult harmonic_relaxation(int n, const std::vector<WeightedEd
     for (int v = 0; v < n; ++v) {
       const double r2 = std::norm(r.z[v]);
       if (r2 <= 0.36 || r2 <= settled[v]) continue;
-      const Mobius gk = reduce_towards_origin(r.z[v], moves);
+      const Mobius gk = move_towards_origin(r.z[v], moves);
       const double after = std::norm(r.z[v]);
       settled[v] = std::min(1.0, std::sqrt(after) + 0.02) * std::min(1.0, std::sqrt(after) + 0.02);
       if (after >= r2) continue;

@@ -12,6 +12,7 @@
 #include <Eigen/Dense>
 
 #include "surfmap/error.h"
+#include "surfmap/geometry/dynamic_charts.h"
 
 namespace surfmap {
 namespace {
@@ -23,26 +24,8 @@ Mobius effective(const WeightedEdge& e, const std::vector<Mobius>& deck) {
   return deck[e.i] * e.rho * deck[e.j].inverse();
 }
 
-// Moves z towards the origin with the moves while that helps; returns the
-// indices of the moves applied, in order.
-std::vector<int> reduce_towards_origin(Complex& z, const std::vector<Mobius>& moves) {
-  std::vector<int> applied;
-  for (int guard = 0; guard < 64; ++guard) {
-    double best = std::abs(z);
-    int arg = -1;
-    for (size_t k = 0; k < moves.size(); ++k) {
-      const double r = std::abs(moves[k].apply(z));
-      if (r < best - 1e-12) best = r, arg = static_cast<int>(k);
-    }
-    if (arg < 0) break;
-    z = moves[arg].apply(z);
-    applied.push_back(arg);
-  }
-  return applied;
-}
-
-// SU(1,1) arithmetic in long double for re-deriving long-lived edges
-// (below): about three more digits than double on x86.
+// SU(1,1) arithmetic in long double for the effective elements and the
+// edges derived from them (below): about three more digits than double on x86.
 struct LongMobius {
   using C = std::complex<long double>;
   C a{1.0L, 0.0L}, b{0.0L, 0.0L};
@@ -249,21 +232,80 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
   // The solve runs in charts (paper §VI-A, done algebraically): vertex i has
   // a chart C_i (an isometry with C_i(0) = z_i, its frame parallel-transported
   // along the steps), and every edge its element in the charts of its ends,
-  // A_e = C_i^-1 ρ_e C_j, so that the image of the edge runs from 0 to A_e(0)
-  // in i's chart. Energies, gradients and Hessians are read off A_e alone:
-  // d = 2 asinh|b|, direction b/ā, frame rotation arg A_e'(0) = 2 arg a. A step
-  // ξ updates C_i ← C_i τ(ξ_i) and A_e ← τ(ξ_i)^-1 A_e τ(ξ_j) with the exact
-  // translations τ, so no quantity is ever formed from points near |z| = 1 or
-  // from products with the (possibly huge) deck matrices, and the far edges of
-  // a bad start (translation length 30: entries 1e6) cost no digits either.
-  // Moving a vertex to another sheet (C_i ← γ C_i, ρ_e ← γ ρ_e) leaves A_e
-  // unchanged; it only keeps C_i small and is recorded in the vertex decks.
+  // A_e = C_i^-1 ρ'_e C_j, so that the image of the edge runs from 0 to A_e(0)
+  // in i's chart; ρ'_e = deck_i ρ_e deck_j^-1 is the edge's effective element
+  // after the chart moves. Energies, gradients and Hessians are read off A_e
+  // alone: d = 2 asinh|b|, direction b/ā, frame rotation arg A_e'(0) = 2 arg a.
+  // A step ξ takes C_i to C_i τ(ξ_i) with the exact translations τ, and the
+  // line search's trial elements are τ(ξ_i)^-1 A_e τ(ξ_j).
+  //
+  // The state carried from one iteration to the next is only the charts
+  // (small: every vertex is brought back to the fundamental domain) and the
+  // effective elements (as reduced words when a relator is given, so short
+  // once the edge is short); A_e is derived from them afresh after every
+  // step. Updating A_e in place instead (A_e ← τ^-1 A_e τ at every step)
+  // accumulates the absolute round-off of its largest size: a twisted class
+  // seen from an all-at-origin start has edges of size 1e8..1e14, whose
+  // in-place updates had drifted by up to 0.75 in length by the end, so the
+  // solve converged (to its own, wrong, A_e) at a folded point of higher
+  // energy than the true optimum of the class (n_hole_torus(2,40) -> vase:
+  // 439.89 where the class's optimum is 443.21 from the coarse start; the
+  // positions' true energy was 456.41).
   HyperbolicHarmonicResult r;
   std::vector<Mobius> chart(n);
   for (int i = 0; i < n; ++i) chart[i] = Mobius::translation_to(z0[i]);
+  const bool words = !options.relator.empty();
+  if (words)
+    for (size_t e = 0; e < edges.size(); ++e)
+      if (edges[e].rho_word.empty() && hyperbolic::distance_from_identity(edges[e].rho) > 1e-12)
+        throw InputError("hyperbolic_harmonic_map: edge " + std::to_string(e) +
+                         " has no rho_word although a relator was given");
+  const DehnReducer reduce_word(words ? options.relator : Word{});
+  // Incident edges of every vertex (CSR), for the conjugations of the chart moves.
+  std::vector<int> inc_start(n + 1, 0), inc_edge;
+  for (const auto& ed : edges) {
+    ++inc_start[ed.i + 1];
+    if (ed.j != ed.i) ++inc_start[ed.j + 1];
+  }
+  for (int v = 0; v < n; ++v) inc_start[v + 1] += inc_start[v];
+  inc_edge.resize(inc_start[n]);
+  {
+    std::vector<int> fill(inc_start.begin(), inc_start.end() - 1);
+    for (size_t e = 0; e < edges.size(); ++e) {
+      inc_edge[fill[edges[e].i]++] = static_cast<int>(e);
+      if (edges[e].j != edges[e].i) inc_edge[fill[edges[e].j]++] = static_cast<int>(e);
+    }
+  }
+  // Effective elements: with words, evaluated from the reduced word (in long
+  // double) whenever it changes; without, conjugated as matrices.
+  auto evaluate_long = [&](const Word& w) {
+    LongMobius m;
+    for (int x : w) {
+      const int k = std::abs(x) - 1;
+      if (k < 0 || k >= static_cast<int>(generators.size()))
+        throw InputError("hyperbolic_harmonic_map: letter " + std::to_string(x) + " names no generator");
+      m = (m * LongMobius::from(moves[x > 0 ? 2 * k : 2 * k + 1])).normalized();
+    }
+    return m;
+  };
+  std::vector<Word> eff_word(words ? edges.size() : 0);
+  std::vector<LongMobius> eff(edges.size());
+  for (size_t e = 0; e < edges.size(); ++e) {
+    if (words) {
+      eff_word[e] = reduce_word(edges[e].rho_word);
+      eff[e] = evaluate_long(eff_word[e]);
+    } else {
+      eff[e] = LongMobius::from(edges[e].rho);
+    }
+  }
   std::vector<Mobius> A(edges.size());
-  for (size_t e = 0; e < edges.size(); ++e)
-    A[e] = (chart[edges[e].i].inverse() * edges[e].rho * chart[edges[e].j]).normalized();
+  auto derive_edges = [&] {
+    for (size_t e = 0; e < edges.size(); ++e) {
+      const LongMobius ci = LongMobius::from(chart[edges[e].i]), cj = LongMobius::from(chart[edges[e].j]);
+      A[e] = (ci.inverse() * eff[e] * cj).normalized().to_double().normalized();
+    }
+  };
+  derive_edges();
   // Edges longer than ~70 units at the start (entries beyond 1e15; a class
   // twisted by dozens of tiles, seen from a start at the origin) would take
   // the solve hundreds of capped steps (minutes at genus 5 when the class
@@ -276,35 +318,40 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
                        " units long (deck element beyond double range for this solve)");
   r.vertex_deck.assign(n, Mobius());
   r.vertex_deck_word.assign(n, Word{});
-  auto evaluate_word = [&](const Word& w) {
-    Mobius m;
-    for (int x : w) {
-      const int k = std::abs(x) - 1;
-      if (k < 0 || k >= static_cast<int>(generators.size()))
-        throw InputError("hyperbolic_harmonic_map: letter " + std::to_string(x) + " names no generator");
-      m = (m * moves[x > 0 ? 2 * k : 2 * k + 1]).normalized();
+  // Vertex v to another sheet by γ (word w when words are kept): C_v ← γ C_v,
+  // and its edges conjugated, ρ'_e ← γ ρ'_e where v is the tail and
+  // ρ'_e ← ρ'_e γ^-1 where it is the head, so that A_e is unchanged.
+  auto change_sheet = [&](int v, const Word& w, const Mobius& gamma) {
+    chart[v] = (gamma * chart[v]).normalized();
+    r.vertex_deck[v] = (gamma * r.vertex_deck[v]).normalized();
+    r.vertex_deck_word[v] = concat(w, r.vertex_deck_word[v]);
+    const LongMobius g = LongMobius::from(gamma);
+    for (int k = inc_start[v]; k < inc_start[v + 1]; ++k) {
+      const int e = inc_edge[k];
+      const WeightedEdge& ed = edges[e];
+      if (words) {
+        Word x = eff_word[e];
+        if (ed.i == v) x = concat(w, x);
+        if (ed.j == v) x = concat(x, inverse(w));
+        eff_word[e] = reduce_word(x);
+        eff[e] = evaluate_long(eff_word[e]);
+      } else {
+        if (ed.i == v) eff[e] = (g * eff[e]).normalized();
+        if (ed.j == v) eff[e] = (eff[e] * g.inverse()).normalized();
+      }
     }
-    return m;
   };
   auto move_vertex = [&](int v) {
-    Complex z = chart[v].apply(Complex(0.0));
     if (options.reduce_point) {
+      Complex z = chart[v].apply(Complex(0.0));
       const Word w = options.reduce_point(z);
-      if (w.empty()) return;
-      const Mobius gamma = evaluate_word(w);
-      chart[v] = (gamma * chart[v]).normalized();
-      r.vertex_deck[v] = (gamma * r.vertex_deck[v]).normalized();
-      r.vertex_deck_word[v] = concat(w, r.vertex_deck_word[v]);
+      if (!w.empty()) change_sheet(v, w, evaluate_long(w).to_double().normalized());
       return;
     }
-    const std::vector<int> applied = reduce_towards_origin(z, moves);
-    for (int m : applied) {
-      chart[v] = (moves[m] * chart[v]).normalized();
-      r.vertex_deck[v] = (moves[m] * r.vertex_deck[v]).normalized();
-      r.vertex_deck_word[v] = concat(Word{move_letter(m)}, r.vertex_deck_word[v]);
-    }
+    for (int m : reduce_towards_origin(chart[v], moves)) change_sheet(v, Word{move_letter(m)}, moves[m]);
   };
   for (int i = 0; i < n; ++i) move_vertex(i);
+  derive_edges();
 
   double max_w = 0;
   for (const auto& e : edges) max_w = std::max(max_w, e.w);
@@ -335,53 +382,33 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
     for (int i = 0; i < n; ++i) chart[i] = (chart[i] * step_map[i]).normalized();
     E = Et;
   };
-  // Re-deriving long-lived edges from words. Updating A_e in place keeps
-  // an error of round-off times the largest size A_e ever had; evaluating
-  // C_i^-1 ρ_eff C_j afresh (ρ_eff = deck_i ρ_e deck_j^-1 as a reduced word,
-  // short once the edge is short) costs round-off times |C_i||ρ_eff||C_j|
-  // plus the drift of the charts, which are long products themselves. The
-  // charts' drift puts re-derived and updated edges in slightly different
-  // frames (measured: 1e-5 relative energy differences between starts on a
-  // genus-6 self-map when re-deriving from sizes 1e4), so it is used only
-  // for edges that were beyond 1e8 (absolute error 1e-8 and worse), where
-  // the updated matrix is the worse of the two.
-  const bool words = !options.relator.empty();
-  if (words)
-    for (size_t e = 0; e < edges.size(); ++e)
-      if (edges[e].rho_word.empty() && hyperbolic::distance_from_identity(edges[e].rho) > 1e-12)
-        throw InputError("hyperbolic_harmonic_map: edge " + std::to_string(e) +
-                         " has no rho_word although a relator was given");
-  // peak: the error scale A_e carries (its largest size since it was last
-  // derived afresh); tried: the iteration at which re-deriving last did not
-  // pay (the charts were still far), so that it is retried a few iterations
-  // later rather than every iteration; the final pass tries every edge.
-  std::vector<double> peak(edges.size());
-  std::vector<int> tried(edges.size(), -1000);
-  int iteration = 0;
-  for (size_t e = 0; e < edges.size(); ++e) peak[e] = A[e].size();
-  const DehnReducer reduce_word(words ? options.relator : Word{});
-  auto refresh = [&](bool final_pass) {
-    if (!words) return;
+  // Largest per-vertex gradient length for edge elements `a` (free vertices).
+  std::vector<Complex> grad_buf(n);
+  auto gradient_norm = [&](const std::vector<Mobius>& a) {
+    std::fill(grad_buf.begin(), grad_buf.end(), Complex(0.0));
     for (size_t e = 0; e < edges.size(); ++e) {
-      peak[e] = std::max(peak[e], A[e].size());
-      if (peak[e] < 1e8 || (!final_pass && (A[e].size() * 100 > peak[e] || iteration - tried[e] < 4))) continue;
-      const WeightedEdge& ed = edges[e];
-      const Word w = reduce_word(concat({r.vertex_deck_word[ed.i], ed.rho_word, inverse(r.vertex_deck_word[ed.j])}));
-      LongMobius rho_eff;
-      for (int x : w) {
-        const int k = std::abs(x) - 1;
-        rho_eff = (rho_eff * LongMobius::from(moves[x > 0 ? 2 * k : 2 * k + 1])).normalized();
-      }
-      const double rho_size = static_cast<double>(std::abs(rho_eff.a) + std::abs(rho_eff.b));
-      const double cost = 1e-3 * chart[ed.i].size() * rho_size * chart[ed.j].size();  // long double: ~3 more digits
-      if (cost * 10 < peak[e]) {
-        const LongMobius ci = LongMobius::from(chart[ed.i]), cj = LongMobius::from(chart[ed.j]);
-        A[e] = (ci.inverse() * rho_eff * cj).normalized().to_double().normalized();
-        peak[e] = std::max(cost, A[e].size());
-      } else {
-        tried[e] = iteration;
-      }
+      if (edges[e].w <= 0) continue;
+      const Mobius& M = a[e];
+      const double d = M.displacement_of_origin(), bn = std::abs(M.b);
+      if (!(bn > 0)) continue;
+      grad_buf[edges[e].i] -= 2 * edges[e].w * d * (M.b / std::conj(M.a)) * (std::abs(M.a) / bn);
+      grad_buf[edges[e].j] -= 2 * edges[e].w * d * (-M.b / M.a) * (std::abs(M.a) / bn);
     }
+    double gn = 0;
+    for (int i = 0; i < n; ++i)
+      if (options.fixed.empty() || !options.fixed[i]) gn = std::max(gn, std::abs(grad_buf[i]));
+    return gn;
+  };
+  // The full Newton step where E cannot resolve its decrease: taken when it
+  // at least halves the gradient (quadratic convergence near the optimum
+  // does far better), otherwise the gradient is at its round-off floor.
+  auto gradient_step = [&](const Eigen::VectorXd& step, double gnorm) {
+    trial_edges(step, 1.0);
+    ++r.energy_evaluations;
+    if (!(gradient_norm(trial_A) <= 0.5 * gnorm)) return false;
+    accept(energy_of(trial_A));
+    last_full_step = true;
+    return true;
   };
   for (int it = 0; it < options.max_iterations; ++it) {
     // Riemannian Newton (DESIGN.md §7). Unknowns: a tangent vector per
@@ -492,14 +519,20 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
     last_full_step = false;
     bool accepted = false;
     const double slope = g.dot(step);
-    // Newton decrement below the round-off of E (a sum of #E terms): the
-    // gradient is at its floating-point floor.
+    // Newton decrement below the round-off of E (a sum of #E terms): E can
+    // no longer judge the step, but the gradient still can. Stopping here
+    // instead (as before) left gradients of ~1e-7 · max w on a 2.6k-vertex
+    // source (decrement ~|g|² / λ_min with λ_min ~ 1e-3), a thousand times
+    // the tolerance, and maps 1e-6 apart from different starts.
     if (-0.5 * slope <= 1e-13 * E) {
-      r.converged = true;
       r.iterations = it;
-      break;
+      if (!gradient_step(step, gnorm)) {
+        r.converged = true;
+        break;
+      }
+      accepted = true;
     }
-    for (int ls = 0; ls < 40; ++ls) {
+    for (int ls = 0; ls < 40 && !accepted; ++ls) {
       trial_edges(step, alpha);
       const double Et = energy_of(trial_A);
       ++r.energy_evaluations;
@@ -531,28 +564,31 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
         ++r.energy_evaluations;
         if (Et < E) accept(Et), accepted = true;
       }
+      // The decrease Newton still predicts (−g·step/2) may be below what E
+      // resolves: then the full step is judged by the gradient.
+      if (!accepted && -0.5 * slope <= 1e-9 * E) accepted = gradient_step(step, gnorm);
       if (!accepted) {
         // Converged if the gradient is tiny, or if the decrease Newton still
-        // predicts (−g·step/2) is below what E can resolve in floating point.
+        // predicts is below what E can resolve in floating point.
         r.converged = gnorm <= 1e4 * options.tolerance * std::max(max_w, 1e-300) || -0.5 * slope <= 1e-9 * E;
         break;
       }
     }
-    r.energy_history.push_back(E);
     // Dynamic charts: bring far-out vertices back towards the origin.
     for (int i = 0; i < n; ++i)
       if (options.reduce_point || std::abs(chart[i].b) > 0.75) move_vertex(i);  // greedy: |C_i(0)| > 0.6
-    iteration = it + 1;
-    refresh(false);
+    // The new charts and sheets: every A_e afresh (file comment above), and
+    // the energy the next iteration starts from.
+    derive_edges();
+    E = energy_of(A);
+    r.energy_history.push_back(E);
   }
-  refresh(true);
   r.energy = E;
   r.z.resize(n);
   for (int i = 0; i < n; ++i) r.z[i] = chart[i].apply(Complex(0.0));
   r.edge_local = A;
   r.edge_effective.resize(edges.size());
-  for (size_t e = 0; e < edges.size(); ++e)
-    r.edge_effective[e] = (chart[edges[e].i] * A[e] * chart[edges[e].j].inverse()).normalized();
+  for (size_t e = 0; e < edges.size(); ++e) r.edge_effective[e] = eff[e].to_double().normalized();
   return r;
 }
 

@@ -850,6 +850,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     p.edges = start_edges;
     p.generators = deck_group.side_pairings();
     p.start = start;
+    p.relator = deck_group.side_relator();
+    p.reduce_point = [&](Complex& z) { return reduce_into_polygon(z); };
     options.inspect_problem(p);
   }
   HyperbolicHarmonicResult hr;

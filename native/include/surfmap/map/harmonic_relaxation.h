@@ -120,6 +120,12 @@ struct HarmonicProblem {
   std::vector<double> flat_weight;
   std::vector<std::complex<double>> flat_translation;
   std::vector<std::complex<double>> start;
+  /// Hyperbolic: the group's relator in generator letters and the
+  /// pipeline's reduction into the fundamental polygon, as the Newton solve
+  /// uses them (HyperbolicHarmonicOptions::relator, reduce_point; the edges
+  /// carry their side words). reduce_point is valid only during the call.
+  Word relator;
+  std::function<Word(std::complex<double>&)> reduce_point;
 };
 
 /// The relaxation's outcome in the form of HyperbolicHarmonicResult, for

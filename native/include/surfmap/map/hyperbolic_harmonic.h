@@ -37,17 +37,20 @@ struct HyperbolicHarmonicOptions {
   std::vector<char> fixed;
   /// Optional: the group's relator in generator letters (e.g.
   /// DeckGroup::side_relator()). With it, and WeightedEdge::rho_word on the
-  /// edges, an edge whose element was long at some point (a bad start: a
-  /// canonical generator 20 tiles away has entries 1e13) is re-derived from
-  /// its reduced word once it is short, instead of carrying the absolute
-  /// round-off of its largest matrix into the result.
+  /// edges, every edge's effective element (after the chart moves) is kept
+  /// as a Dehn-reduced word and multiplied out afresh when it changes, so an
+  /// edge that was long at some point (a bad start: a canonical generator 20
+  /// tiles away has entries 1e13) carries no round-off of its largest
+  /// matrix into the result. Without it the effective elements are
+  /// conjugated as matrices (fine while they stay small).
   Word relator;
   /// Optional: moves a point into the fundamental domain and returns the
   /// element applied (z_new = γ(z_old)) as a word in generator letters, e.g.
   /// by crossing the polygon's sides. Called on every vertex after every step
   /// so that no chart drifts far from the domain. Default: greedy moves by
-  /// the generators while |z| decreases (which can stall outside the domain
-  /// near a corner of a long polygon).
+  /// the generators while the distance from the origin decreases
+  /// (geometry/dynamic_charts.h), which can stall outside the domain when
+  /// the polygon is not a Dirichlet domain centred at the origin.
   std::function<Word(std::complex<double>&)> reduce_point;
 };
 
