@@ -128,6 +128,7 @@ void register_map(CLI::App& app) {
     for (size_t i = 0; i < m.candidates.size(); ++i)
       candidates.push_back({{"index", i}, {"description", m.candidates[i].description}, {"energy", m.candidates[i].energy},
                             {"solved", m.candidates[i].solved}, {"coarse_energy", m.candidates[i].coarse_energy},
+                            {"landmark_energy", m.candidates[i].landmark_energy},
                             {"matrix", {m.candidates[i].matrix[0], m.candidates[i].matrix[1], m.candidates[i].matrix[2],
                                         m.candidates[i].matrix[3]}}});
     nlohmann::json times = nlohmann::json::object();
@@ -148,6 +149,9 @@ void register_map(CLI::App& app) {
         {"method", a->method},
         {"landmarks", opt.landmarks.size()},
         {"landmark_error", m.max_landmark_error},
+        {"landmark_rings", m.landmark_rings},
+        {"landmark_solves", m.landmark_solves},
+        {"landmark_held_vertices", m.landmark_held_vertices},
         {"repaired_vertices", m.repaired_vertices},
         {"flipped_triangles", m.flipped_triangles},
         {"degenerate_triangles", m.degenerate_triangles},

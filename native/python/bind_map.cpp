@@ -133,6 +133,9 @@ void bind_map(py::module_& m) {
         d["target_refinement_splits"] = r.target_refinement_splits;
         d["source_weights"] = r.source_weights;
         d["landmark_error"] = r.max_landmark_error;
+        d["landmark_rings"] = r.landmark_rings;
+        d["landmark_solves"] = r.landmark_solves;
+        d["landmark_held_vertices"] = r.landmark_held_vertices;
         d["repaired_vertices"] = r.repaired_vertices;
         d["forward"] = points_to_dict(r.forward);
         d["inverse"] = points_to_dict(r.inverse);
@@ -153,7 +156,8 @@ void bind_map(py::module_& m) {
         py::list cands;
         for (const auto& c : r.candidates)
           cands.append(py::dict(py::arg("description") = c.description, py::arg("energy") = c.energy, py::arg("solved") = c.solved,
-                                py::arg("coarse_energy") = c.coarse_energy, py::arg("matrix") = std::vector<int>(c.matrix, c.matrix + 4)));
+                                py::arg("coarse_energy") = c.coarse_energy,
+                                py::arg("landmark_energy") = c.landmark_energy, py::arg("matrix") = std::vector<int>(c.matrix, c.matrix + 4)));
         d["homotopy"] = py::dict(py::arg("chosen") = r.chosen_candidate, py::arg("candidates") = cands);
         py::dict times;
         for (const auto& [stage, s] : r.stage_times) times[py::str(stage)] = s;

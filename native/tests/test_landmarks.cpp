@@ -3,8 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <complex>
+#include <vector>
 
 #include "surfmap/error.h"
+#include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/samples/shapes.h"
 
@@ -87,15 +90,101 @@ TEST(LandmarksFlat, LandmarksAwayFromTheFreeMapRaiseTheEnergyOrFailHonestly) {
   const SurfaceMapResult m = surface_map(a, b, o);
   expect_landmarks_hit(m, a, b, o);
   EXPECT_GT(m.final_energy, one.final_energy * 1.0001);
-  // A quarter turn off: a point-constrained harmonic map folds next to the
-  // pinned vertices; the map with flips is refused, never returned.
+  // A quarter turn off (16 columns, ~16 edge lengths): the plain pins fold,
+  // and the neighbourhoods the two landmarks must carry to keep the map
+  // bijective meet (they are 20 columns apart): refused, naming both.
   o.landmarks = {{0, 0}, {s, grid(t / 34 + 16, t % 34)}};
   try {
     surface_map(a, b, o);
-    FAIL() << "a folded map was returned";
+    FAIL() << "a map was returned";
   } catch (const SolveError& e) {
-    EXPECT_NE(std::string(e.what()).find("flipped"), std::string::npos) << e.what();
+    const std::string w = e.what();
+    EXPECT_NE(w.find("landmark 0 (0 -> 0)"), std::string::npos) << w;
+    EXPECT_NE(w.find("landmark 1 (" + std::to_string(s) + " -> "), std::string::npos) << w;
+    EXPECT_NE(w.find("cannot be held without folding"), std::string::npos) << w;
   }
+}
+
+// Target vertices along a shortest edge path from `from` towards the target
+// vertex farthest from it (path[k] is k edges away).
+std::vector<int> path_away(const TriMesh& m, int from) {
+  std::vector<std::vector<int>> nb(m.num_vertices());
+  for (int f = 0; f < m.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) nb[m.F(f, k)].push_back(m.F(f, (k + 1) % 3)), nb[m.F(f, (k + 1) % 3)].push_back(m.F(f, k));
+  int far = 0;
+  (m.V.rowwise() - m.V.row(from)).rowwise().squaredNorm().maxCoeff(&far);
+  std::vector<int> prev(m.num_vertices(), -2), queue{from};
+  prev[from] = -1;
+  for (size_t q = 0; q < queue.size(); ++q)
+    for (int v : nb[queue[q]])
+      if (prev[v] == -2) prev[v] = queue[q], queue.push_back(v);
+  std::vector<int> path;
+  for (int v = far; v >= 0; v = prev[v]) path.push_back(v);
+  return {path.rbegin(), path.rend()};
+}
+
+double mean_edge(const TriMesh& m) {
+  double s = 0;
+  for (int f = 0; f < m.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) s += (m.V.row(m.F(f, k)) - m.V.row(m.F(f, (k + 1) % 3))).norm();
+  return s / (3.0 * m.num_faces());
+}
+
+TEST(LandmarksFlat, FarLandmarksCarryTheirNeighbourhoodAndStayBijective) {
+  // A landmark 12 edges (~13 edge lengths) from where the free map puts it:
+  // plain pins fold (the held optimum is unique, so no continuation helps);
+  // carrying rings of its free neighbourhood keeps the map bijective, and
+  // everything else is the exact harmonic map with those vertices held.
+  const TriMesh a = samples::torus_of_revolution(1.0, 0.45, 64, 34);
+  const TriMesh b = samples::torus_of_revolution(1.4, 0.5, 64, 34, 2);
+  const SurfaceMapResult free = surface_map(a, b);
+  const int s = 34 * 20 + 5;
+  const std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
+  ASSERT_GT(path.size(), 13u);
+  const int t = path[12];
+  const double h = mean_edge(b);
+  EXPECT_GT((b.V.row(t).transpose() - free.forward[s].position).norm(), 10 * h);
+  SurfaceMapOptions o;
+  o.landmarks = {{0, nearest_vertex(b, free.forward[0].position)}, {s, t}};
+  HarmonicProblem problem;
+  o.inspect_problem = [&](const HarmonicProblem& p) { problem = p; };
+  const SurfaceMapResult m = surface_map(a, b, o);
+  expect_landmarks_hit(m, a, b, o);
+  ASSERT_EQ(m.landmark_rings.size(), 2u);
+  EXPECT_GT(m.landmark_rings[1], 0);
+  EXPECT_GT(m.landmark_solves, 1);
+  EXPECT_GT(m.final_energy, free.final_energy * 1.001);
+  // Energy recomputed from the returned cover positions and the problem's
+  // own edges, weights and translations; the gradient vanishes except on at
+  // most the held vertices, all within their landmark's rings.
+  ASSERT_TRUE(problem.flat);
+  const auto& z = m.source_image;
+  double E = 0, wmax = 0;
+  std::vector<std::complex<double>> g(a.num_vertices());
+  std::vector<std::vector<int>> nb(a.num_vertices());
+  for (size_t e = 0; e < problem.flat_i.size(); ++e) {
+    const int i = problem.flat_i[e], j = problem.flat_j[e];
+    const std::complex<double> d = z[j] + problem.flat_translation[e] - z[i];
+    E += problem.flat_weight[e] * std::norm(d);
+    g[i] -= 2 * problem.flat_weight[e] * d, g[j] += 2 * problem.flat_weight[e] * d;
+    wmax = std::max(wmax, problem.flat_weight[e]);
+    nb[i].push_back(j), nb[j].push_back(i);
+  }
+  EXPECT_NEAR(E, m.final_energy, 1e-9 * m.final_energy);
+  std::vector<int> hops(a.num_vertices(), 1 << 30), queue;
+  std::vector<int> owner(a.num_vertices(), -1);
+  for (int k = 0; k < 2; ++k) hops[o.landmarks[k].first] = 0, owner[o.landmarks[k].first] = k, queue.push_back(o.landmarks[k].first);
+  for (size_t q = 0; q < queue.size(); ++q)
+    for (int v : nb[queue[q]])
+      if (hops[v] > hops[queue[q]] + 1) hops[v] = hops[queue[q]] + 1, owner[v] = owner[queue[q]], queue.push_back(v);
+  int unbalanced = 0;
+  for (int v = 0; v < a.num_vertices(); ++v)
+    if (std::abs(g[v]) > 1e-8 * wmax) {
+      ++unbalanced;
+      EXPECT_LE(hops[v], std::max(m.landmark_rings[0], m.landmark_rings[1])) << v;
+    }
+  EXPECT_GT(unbalanced, 2);  // more than the two pins are held
+  EXPECT_LE(unbalanced, m.landmark_held_vertices);
 }
 
 TEST(LandmarksHyperbolic, ConsistentLandmarksHitExactlyWithoutFlips) {
@@ -114,6 +203,27 @@ TEST(LandmarksHyperbolic, ConsistentLandmarksHitExactlyWithoutFlips) {
     EXPECT_GE(m.final_energy, free.final_energy * (1 - 1e-9)) << k;
     EXPECT_LT(m.final_energy, 1.05 * free.final_energy) << k;
   }
+}
+
+TEST(LandmarksHyperbolic, FarLandmarkStaysBijective) {
+  // Genus 2: a landmark 8 edges (10.8 mean edge lengths) from its free
+  // image. Its plain pin folds the map (refused before); with its
+  // neighbourhood carried along the geodesic it is hit exactly, no flips.
+  const TriMesh a = samples::n_hole_torus(2, 20, true);
+  const TriMesh b = samples::vase(24, true);
+  const SurfaceMapResult free = surface_map(a, b);
+  const int s = a.num_vertices() / 3;
+  const std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
+  ASSERT_GT(path.size(), 9u);
+  SurfaceMapOptions o;
+  o.landmarks = {{s, path[8]}};
+  EXPECT_GT((b.V.row(path[8]).transpose() - free.forward[s].position).norm(), 10 * mean_edge(b));
+  const SurfaceMapResult m = surface_map(a, b, o);
+  expect_landmarks_hit(m, a, b, o);
+  EXPECT_TRUE(m.converged);
+  ASSERT_EQ(m.landmark_rings.size(), 1u);
+  EXPECT_GT(m.landmark_rings[0], 0);
+  EXPECT_GT(m.final_energy, free.final_energy * 1.001);
 }
 
 TEST(LandmarksHyperbolic, RelaxationHoldsThemLikeNewton) {

@@ -165,10 +165,9 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   std::vector<Complex> lm_target;
   for (const auto& [s, t] : options.landmarks)
     lm_source.push_back(s), lm_target.push_back(tgt.layout.vertex_positions[t]);
-  std::unique_ptr<PinnedFlatHarmonic> pinned_cot, pinned_uniform;
+  std::unique_ptr<PinnedFlatHarmonic> pinned_cot;
   if (landmarks) {
     pinned_cot = std::make_unique<PinnedFlatHarmonic>(n, idt.edges, lm_source, false);
-    pinned_uniform = std::make_unique<PinnedFlatHarmonic>(n, idt.edges, lm_source, true);
   }
   // (optimum, lifts) with the landmarks held.
   auto pinned_solve = [&](const std::vector<Complex>& t) {
@@ -201,6 +200,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     const auto tr = intrinsic_translations(double(m[0]) * tgt.A + double(m[1]) * tgt.B,
                                            double(m[2]) * tgt.A + double(m[3]) * tgt.B);
     c.energy = landmarks ? pinned_solve(tr.first).first.second : solve(solver, tr.first, false).second;
+    if (landmarks) c.landmark_energy = c.energy;
     out.candidates.push_back(c);
   }
   out.chosen_candidate = options.homotopy;
@@ -218,13 +218,50 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   const int* M = out.candidates[out.chosen_candidate].matrix;
   const auto [t_intrinsic, t_edges] = intrinsic_translations(double(M[0]) * tgt.A + double(M[1]) * tgt.B,
                                                              double(M[2]) * tgt.A + double(M[3]) * tgt.B);
+  // The image triangles of the source's own faces.
+  auto image_corners = [&](const std::vector<Complex>& zz) {
+    Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> img(source.num_faces(), 3);
+    auto of = [&](int h) { return sc.edge_halfedge(sc.edge(h)) == h ? t_edges[sc.edge(h)] : -t_edges[sc.edge(h)]; };
+    for (int f = 0; f < source.num_faces(); ++f) {
+      // corner 0 at z_{F0}; corner 1 = z_{F1} + t(F0->F1); corner 2 = z_{F2} - t(F2->F0).
+      img(f, 0) = zz[source.F(f, 0)];
+      img(f, 1) = zz[source.F(f, 1)] + of(3 * f);
+      img(f, 2) = zz[source.F(f, 2)] - of(3 * f + 2);
+    }
+    return img;
+  };
   std::vector<Complex> z, z_init;
   double energy = 0;
   if (landmarks) {
-    // The initial (Tutte-type) map holds the same lifts.
-    const auto [held, lifts] = pinned_solve(t_intrinsic);
-    std::tie(z, energy) = held;
-    z_init = pinned_uniform->solve(t_intrinsic, lifts).first;
+    // Each landmark on its lift; one whose plain pin folds the map carries
+    // a neighbourhood of its free image, translated with it (landmarks.h).
+    // The initial (Tutte-type) map holds the same vertices at the same points.
+    const std::vector<Complex> free = solve(solver, t_intrinsic, false).first;
+    const std::vector<Complex> lifts = flat_landmark_lifts(free, lm_source, lm_target, tgt.A, tgt.B);
+    std::vector<std::pair<int, int>> ends(idt.edges.size());
+    for (size_t e = 0; e < idt.edges.size(); ++e) ends[e] = {idt.edges[e].i, idt.edges[e].j};
+    std::vector<int> held_vertices;
+    std::vector<Complex> held_values;
+    const LandmarkPatchSearch search = grow_landmark_patches(
+        n, ends, source.F, options.landmarks, [&](const std::vector<LandmarkPatch>& patches) {
+          held_vertices.clear(), held_values.clear();
+          for (size_t a = 0; a < patches.size(); ++a)
+            for (size_t r = 0; r < patches[a].vertex.size(); ++r) {
+              const int v = patches[a].vertex[r];
+              held_vertices.push_back(v);
+              held_values.push_back(r == 0 ? lifts[a] : free[v] + (lifts[a] - free[lm_source[a]]));
+            }
+          std::tie(z, energy) = PinnedFlatHarmonic(n, idt.edges, held_vertices, false).solve(t_intrinsic, held_values);
+          const DistortionStats q = planar_distortion(source.V, source.F, image_corners(z));
+          std::vector<int> bad;
+          for (int f = 0; f < source.num_faces(); ++f)
+            if (!std::isfinite(q.per_face[f])) bad.push_back(f);
+          return bad;
+        });
+    out.landmark_rings = search.rings;
+    out.landmark_solves = search.solves;
+    out.landmark_held_vertices = search.held_vertices;
+    z_init = PinnedFlatHarmonic(n, idt.edges, held_vertices, true).solve(t_intrinsic, held_values).first;
   } else {
     z_init = solve(tutte, t_intrinsic, true).first;
     std::tie(z, energy) = solve(solver, t_intrinsic, false);
@@ -264,17 +301,6 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   stage_done("harmonic solve", 0.7);
 
   // Quality on the source's own triangles.
-  auto image_corners = [&](const std::vector<Complex>& zz) {
-    Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> img(source.num_faces(), 3);
-    auto of = [&](int h) { return sc.edge_halfedge(sc.edge(h)) == h ? t_edges[sc.edge(h)] : -t_edges[sc.edge(h)]; };
-    for (int f = 0; f < source.num_faces(); ++f) {
-      // corner 0 at z_{F0}; corner 1 = z_{F1} + t(F0->F1); corner 2 = z_{F2} - t(F2->F0).
-      img(f, 0) = zz[source.F(f, 0)];
-      img(f, 1) = zz[source.F(f, 1)] + of(3 * f);
-      img(f, 2) = zz[source.F(f, 2)] - of(3 * f + 2);
-    }
-    return img;
-  };
   const auto img = image_corners(z);
   const DistortionStats q = planar_distortion(source.V, source.F, img);
   const DistortionStats q0 = planar_distortion(source.V, source.F, image_corners(z_init));

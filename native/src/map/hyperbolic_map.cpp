@@ -742,6 +742,32 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         out.chosen_candidate = k;
         break;
       }
+  // Landmarks change which class is best: the solved classes are ranked by
+  // their energy with the landmarks held (plain pins at the nearest lifts,
+  // one Newton solve from each class's optimum; landmarks.h). Classes only
+  // estimated on the coarse copy are not re-ranked (their free estimate is
+  // a lower bound of the held energy but not comparable to it).
+  if (!options.landmarks.empty() && options.homotopy < 0) {
+    std::vector<int> lm_s, lm_t;
+    std::vector<Complex> lm_p;
+    for (const auto& [s, t] : options.landmarks) lm_s.push_back(s), lm_t.push_back(t), lm_p.push_back(layout.vertex_positions[t]);
+    HyperbolicHarmonicOptions lo;
+    lo.tolerance = options.tolerance;
+    lo.max_iterations = options.max_iterations;
+    int best = -1;
+    for (int k = 0; k < ncand; ++k) {
+      if (!out.candidates[k].solved || !fine_result[k]) continue;
+      try {
+        const HyperbolicHarmonicResult held = hold_hyperbolic_landmarks(
+            nv, data[k].edges, deck_group.side_pairings(), deck_group.side_pairings(), *fine_result[k], lm_s, lm_p, lm_t, lo);
+        if (!held.converged) continue;
+        out.candidates[k].landmark_energy = held.energy;
+        if (best < 0 || held.energy < out.candidates[best].landmark_energy) best = k;
+      } catch (const SolveError&) {
+      }
+    }
+    if (best >= 0) out.chosen_candidate = best;
+  }
   stage_done("full-resolution solve", 0.44);
   // The chosen class, then (when it was the default and fails below: flips,
   // location) the next ones: solved classes by energy, then the coarse-ranked
@@ -914,9 +940,37 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     ro.max_iterations = options.max_iterations;
     ro.check_every = 10;
     ro.progress = solve_progress;
-    HyperbolicHarmonicResult held =
-        hold_hyperbolic_landmarks(source.num_vertices(), edges, deck_group.side_pairings(), deck_group.side_pairings(), hr,
-                                  lm_source, lm_target, ho, relax, ro);
+    std::vector<int> lm_target_vertex;
+    for (const auto& pr : options.landmarks) lm_target_vertex.push_back(pr.second);
+    // Source faces a held result folds (orientation in the chart of corner
+    // 0, chart elements from reduced side words when the solver kept them);
+    // far landmarks then carry their neighbourhoods (landmarks.h).
+    auto held_bad_faces = [&](const HyperbolicHarmonicResult& held) {
+      const bool words = held.vertex_deck_word.size() == held.z.size();
+      auto eff_h = [&](int h) {
+        const int i = sc.tail(h), j = sc.head(h);
+        if (words)
+          return deck_group.evaluate_side_word(
+              deck_group.reduce(concat({held.vertex_deck_word[i], halfedge_word[h], inverse(held.vertex_deck_word[j])})));
+        return (held.vertex_deck[i] * halfedge_rho[h] * held.vertex_deck[j].inverse()).normalized();
+      };
+      std::vector<int> bad;
+      for (int f = 0; f < source.num_faces(); ++f) {
+        const Mobius T = Mobius::centring(held.z[source.F(f, 0)]);
+        const Complex b = (T * eff_h(3 * f)).apply(held.z[source.F(f, 1)]);
+        const Complex c = (T * eff_h(3 * f + 2).inverse()).apply(held.z[source.F(f, 2)]);
+        const double cross = b.real() * c.imag() - b.imag() * c.real();
+        if (!(cross > 1e-14 * std::max(std::norm(b), std::norm(c)))) bad.push_back(f);
+      }
+      return bad;
+    };
+    LandmarkPatchSearch search;
+    HyperbolicHarmonicResult held = hold_hyperbolic_landmarks(
+        source.num_vertices(), edges, deck_group.side_pairings(), deck_group.side_pairings(), hr, lm_source, lm_target,
+        lm_target_vertex, ho, relax, ro, &source.F, held_bad_faces, &search);
+    out.landmark_rings = search.rings;
+    out.landmark_solves = search.solves;
+    out.landmark_held_vertices = search.held_vertices;
     if (!held.converged)
       throw SolveError(std::string("the harmonic map with the landmarks held (") + (relax ? "relaxation" : "Newton") +
                        ") did not converge in " + std::to_string(held.iterations) + " iterations");

@@ -1,6 +1,8 @@
 #include "landmarks.h"
 
+#include <algorithm>
 #include <cmath>
+#include <deque>
 #include <set>
 #include <limits>
 #include <string>
@@ -103,13 +105,107 @@ std::pair<std::vector<Complex>, double> PinnedFlatHarmonic::solve(const std::vec
   return {z, energy};
 }
 
+namespace {
+
+std::string landmark_name(const std::vector<std::pair<int, int>>& landmarks, int a) {
+  return "landmark " + std::to_string(a) + " (" + std::to_string(landmarks[a].first) + " -> " +
+         std::to_string(landmarks[a].second) + ")";
+}
+
+}  // namespace
+
+LandmarkPatchSearch grow_landmark_patches(
+    int n, const std::vector<std::pair<int, int>>& edge_ends, const RowMatrixX3i& faces,
+    const std::vector<std::pair<int, int>>& landmarks,
+    const std::function<std::vector<int>(const std::vector<LandmarkPatch>&)>& solve) {
+  const int k = static_cast<int>(landmarks.size());
+  // Incident edges per vertex (self-loops of the intrinsic triangulation skipped).
+  std::vector<std::vector<std::pair<int, int>>> nb(n);  // (edge, other end)
+  for (size_t e = 0; e < edge_ends.size(); ++e) {
+    const auto [i, j] = edge_ends[e];
+    if (i == j) continue;
+    nb[i].emplace_back(static_cast<int>(e), j), nb[j].emplace_back(static_cast<int>(e), i);
+  }
+  // Which landmark each vertex is nearest to (multi-source breadth first):
+  // a folded face is charged to the landmark nearest to it.
+  std::vector<int> owner(n, -1);
+  {
+    std::deque<int> queue;
+    for (int a = 0; a < k; ++a) owner[landmarks[a].first] = a, queue.push_back(landmarks[a].first);
+    while (!queue.empty()) {
+      const int u = queue.front();
+      queue.pop_front();
+      for (const auto& [e, v] : nb[u])
+        if (owner[v] < 0) owner[v] = owner[u], queue.push_back(v);
+    }
+  }
+  LandmarkPatchSearch search;
+  search.rings.assign(k, 0);
+  std::vector<int> member(n, -1);
+  for (int round = 0; round < 40; ++round) {
+    std::vector<LandmarkPatch> patches(k);
+    std::fill(member.begin(), member.end(), -1);
+    int held = 0;
+    for (int a = 0; a < k; ++a) {
+      LandmarkPatch& P = patches[a];
+      std::vector<int> depth{0};
+      P.vertex.push_back(landmarks[a].first), P.parent.push_back(-1), P.edge.push_back(-1), P.head.push_back(0);
+      member[landmarks[a].first] = a;
+      for (size_t q = 0; q < P.vertex.size(); ++q) {
+        if (depth[q] >= search.rings[a]) continue;
+        for (const auto& [e, v] : nb[P.vertex[q]]) {
+          if (member[v] == a) continue;
+          if (member[v] >= 0)
+            throw SolveError(landmark_name(landmarks, a) + " and " + landmark_name(landmarks, member[v]) +
+                             " cannot be held without folding the map in this homotopy class: the neighbourhoods "
+                             "they must carry to keep it bijective (" + std::to_string(search.rings[a]) + " and " +
+                             std::to_string(search.rings[member[v]]) +
+                             " rings) meet. Their targets are too far from where the map without landmarks puts them "
+                             "for landmarks this close together; move them nearer or drop one");
+          member[v] = a;
+          P.vertex.push_back(v), P.parent.push_back(static_cast<int>(q)), P.edge.push_back(e);
+          P.head.push_back(edge_ends[e].second == v && edge_ends[e].first == P.vertex[q]);
+          depth.push_back(depth[q] + 1);
+        }
+      }
+      held += static_cast<int>(P.vertex.size());
+    }
+    if (2 * held > n) {
+      std::string names;
+      for (int a = 0; a < k; ++a)
+        if (search.rings[a] > 0) names += (names.empty() ? "" : ", ") + landmark_name(landmarks, a);
+      throw SolveError("the landmarks cannot be held without folding the map in this homotopy class: keeping it "
+                       "bijective would hold more than half of the source rigidly (" + names +
+                       "; their targets are far from where the map without landmarks puts them)");
+    }
+    const std::vector<int> bad = solve(patches);
+    ++search.solves;
+    search.held_vertices = held;
+    if (bad.empty()) return search;
+    std::vector<char> grow(k, 0);
+    for (int f : bad)
+      for (int c = 0; c < 3; ++c)
+        if (owner[faces(f, c)] >= 0) grow[owner[faces(f, c)]] = 1;
+    for (int a = 0; a < k; ++a)
+      if (grow[a]) search.rings[a] = std::max(search.rings[a] + 1, (3 * search.rings[a] + 1) / 2);
+  }
+  std::string names;
+  for (int a = 0; a < k; ++a) names += (names.empty() ? "" : ", ") + landmark_name(landmarks, a);
+  throw SolveError("the landmarks could not be held without folding the map (" + names + ")");
+}
+
 HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<WeightedEdge>& edges,
                                                    const std::vector<hyperbolic::Mobius>& generators,
                                                    const std::vector<hyperbolic::Mobius>& side_pairings,
                                                    const HyperbolicHarmonicResult& free, const std::vector<int>& source,
                                                    const std::vector<Complex>& target_position,
+                                                   const std::vector<int>& target_vertex,
                                                    HyperbolicHarmonicOptions options, bool relaxation,
-                                                   HarmonicRelaxationOptions relaxation_options) {
+                                                   HarmonicRelaxationOptions relaxation_options,
+                                                   const RowMatrixX3i* faces,
+                                                   const std::function<std::vector<int>(const HyperbolicHarmonicResult&)>&
+                                                       bad_faces,
+                                                   LandmarkPatchSearch* search) {
   using hyperbolic::Mobius;
   // Side pairings move the layout's cut disk to its neighbours (short
   // translations); the loop generators can be long (entries ~1e5 seen in
@@ -129,8 +225,7 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<Weig
     e.rho_word.clear();  // the held solve runs without words (no relator)
   }
   options.relator.clear();
-  std::vector<Complex> start = free.z;
-  options.fixed.assign(n, 0);
+  std::vector<Complex> lift(source.size());
   for (size_t k = 0; k < source.size(); ++k) {
     const Complex z = free.z[source[k]];
     // Breadth first over deck images of the target point, keeping only those
@@ -156,22 +251,67 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<Weig
       if (seen.size() > 200000) break;
       frontier.swap(next);
     }
-    start[source[k]] = best;
-    options.fixed[source[k]] = 1;
+    lift[k] = best;
   }
-  HyperbolicHarmonicResult held;
-  if (relaxation) {
-    relaxation_options.fixed = options.fixed;
-    held = as_harmonic_result(harmonic_relaxation(n, held_edges, generators, start, relaxation_options));
-  } else {
-    held = hyperbolic_harmonic_map(n, held_edges, generators, start, options);
-  }
-  for (int i = 0; i < n; ++i) held.vertex_deck[i] = (held.vertex_deck[i] * free.vertex_deck[i]).normalized();
-  if (free.vertex_deck_word.size() == static_cast<size_t>(n))
-    for (int i = 0; i < n; ++i) held.vertex_deck_word[i] = concat(held.vertex_deck_word[i], free.vertex_deck_word[i]);
-  else
-    held.vertex_deck_word.clear();
-  return held;
+  // One held solve with the landmarks' neighbourhoods (patches; vertex 0
+  // the landmark) held: each patch vertex at the image of its free point
+  // under the isometry moving the landmark's free image to its lift along
+  // the geodesic (conjugated into the vertex's own chart by the edge
+  // elements along the patch's tree), every other vertex starting at its
+  // free point (the free optimum's charts).
+  auto held_solve = [&](const std::vector<LandmarkPatch>& patches) {
+    std::vector<Complex> z0 = free.z;
+    HyperbolicHarmonicOptions ho = options;
+    ho.fixed.assign(n, 0);
+    for (size_t a = 0; a < patches.size(); ++a) {
+      const LandmarkPatch& P = patches[a];
+      const Complex p = free.z[source[a]], q = lift[a];
+      const Mobius C = Mobius::centring(p);
+      const Mobius T = (Mobius::translation_to(p) * Mobius::translation_to(C.apply(q)) * C).normalized();
+      std::vector<Mobius> to_landmark(P.vertex.size());  // vertex q's chart -> the landmark's
+      for (size_t r = 0; r < P.vertex.size(); ++r) {
+        const int v = P.vertex[r];
+        if (r > 0) {
+          const Mobius& rho = held_edges[P.edge[r]].rho;  // j's chart into i's
+          to_landmark[r] = (to_landmark[P.parent[r]] * (P.head[r] ? rho : rho.inverse())).normalized();
+        }
+        z0[v] = r == 0 ? q : to_landmark[r].inverse().apply(T.apply(to_landmark[r].apply(free.z[v])));
+        ho.fixed[v] = 1;
+      }
+    }
+    HyperbolicHarmonicResult held;
+    if (relaxation) {
+      HarmonicRelaxationOptions ro = relaxation_options;
+      ro.fixed = ho.fixed;
+      held = as_harmonic_result(harmonic_relaxation(n, held_edges, generators, z0, ro));
+    } else {
+      held = hyperbolic_harmonic_map(n, held_edges, generators, z0, ho);
+    }
+    for (int i = 0; i < n; ++i) held.vertex_deck[i] = (held.vertex_deck[i] * free.vertex_deck[i]).normalized();
+    if (free.vertex_deck_word.size() == static_cast<size_t>(n) && held.vertex_deck_word.size() == static_cast<size_t>(n))
+      for (int i = 0; i < n; ++i) held.vertex_deck_word[i] = concat(held.vertex_deck_word[i], free.vertex_deck_word[i]);
+    else
+      held.vertex_deck_word.clear();
+    return held;
+  };
+  std::vector<LandmarkPatch> pins(source.size());
+  for (size_t a = 0; a < source.size(); ++a)
+    pins[a].vertex = {source[a]}, pins[a].parent = {-1}, pins[a].edge = {-1}, pins[a].head = {0};
+  if (!faces || !bad_faces) return held_solve(pins);
+  std::vector<std::pair<int, int>> ends(held_edges.size()), pairs(source.size());
+  for (size_t e = 0; e < held_edges.size(); ++e) ends[e] = {held_edges[e].i, held_edges[e].j};
+  for (size_t a = 0; a < source.size(); ++a) pairs[a] = {source[a], target_vertex[a]};
+  HyperbolicHarmonicResult accepted;
+  const LandmarkPatchSearch found =
+      grow_landmark_patches(n, ends, *faces, pairs, [&](const std::vector<LandmarkPatch>& patches) {
+        accepted = held_solve(patches);
+        if (!accepted.converged)
+          throw SolveError("the harmonic map with the landmarks held did not converge in " +
+                           std::to_string(accepted.iterations) + " iterations");
+        return bad_faces(accepted);
+      });
+  if (search) *search = found;
+  return accepted;
 }
 
 }  // namespace surfmap::detail

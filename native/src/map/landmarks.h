@@ -12,6 +12,7 @@
 // already have; for genus 1 the optimum is first translated (it is unique
 // only up to a translation) to fit the landmarks best in least squares.
 #include <complex>
+#include <functional>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -23,6 +24,7 @@
 #include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
+#include "surfmap/mesh/tri_mesh.h"
 
 namespace surfmap::detail {
 
@@ -59,6 +61,46 @@ class PinnedFlatHarmonic {
   std::unique_ptr<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>> llt_;
 };
 
+/// A landmark's carried neighbourhood: the source vertices within `rings`
+/// hops of it on the energy's edge graph, breadth first (vertex[0] is the
+/// landmark); parent[q] is the position of q's BFS parent in the list (-1
+/// for the landmark), edge[q] the edge joining them and head[q] whether q is
+/// that edge's j end.
+struct LandmarkPatch {
+  std::vector<int> vertex, parent, edge;
+  std::vector<char> head;
+};
+
+/// Far landmarks (paper §VII-C asks for a bijective map): a source vertex
+/// pinned far from where the free optimum puts it makes the held optimum
+/// fold around it — the held problem is convex (flat: strictly; hyperbolic:
+/// a non-positively curved target), so its minimiser is unique and no
+/// continuation or warm start changes it (measured: plain pins fold beyond
+/// ~5 edge lengths). What does change it is what is held. A held disk of
+/// radius r carried rigidly by d keeps its harmonic surround unfolded about
+/// while d < r log(R/r) (radial harmonic annulus: det = 1 − d/(r log(R/r))
+/// on the inner circle), so each landmark carries a neighbourhood of its
+/// free image, moved by the isometry taking its free image to its lift, and
+/// the rest of the map is the harmonic map with those vertices held.
+///
+/// The driver: every landmark starts with 0 rings (the plain pin, the exact
+/// held optimum when it does not fold). `solve(patches)` solves the held
+/// problem and returns the source faces whose images flip or degenerate;
+/// the landmarks nearest (in hops) to those faces grow their neighbourhood
+/// (0, 1, 2, 3, 5, 8, 12, ... rings) and the problem is solved again.
+/// Throws SolveError naming the landmarks when two neighbourhoods meet or
+/// the held vertices would exceed half the source: those landmarks cannot
+/// be held bijectively this way in this class.
+struct LandmarkPatchSearch {
+  std::vector<int> rings;  ///< per landmark, the rings of the accepted solve
+  int solves = 0;          ///< held solves done
+  int held_vertices = 0;   ///< source vertices held in the accepted solve
+};
+LandmarkPatchSearch grow_landmark_patches(
+    int num_vertices, const std::vector<std::pair<int, int>>& edge_ends, const RowMatrixX3i& faces,
+    const std::vector<std::pair<int, int>>& landmarks,
+    const std::function<std::vector<int>(const std::vector<LandmarkPatch>&)>& solve);
+
 /// Hyperbolic case: re-solves the harmonic map (Riemannian Newton,
 /// map/hyperbolic_harmonic.h) from the free optimum `free` (its vertex decks
 /// relative to `edges`) with each source[k] held at the deck image of
@@ -66,7 +108,10 @@ class PinnedFlatHarmonic {
 /// hyperbolic distance, to where `free` put it; images are searched breadth
 /// first over words in the layout's side pairings and their inverses (which
 /// move the cut disk to its neighbours), pruned to those within reach of the
-/// free position. `generators` are the solve's chart moves. The
+/// free position. With `faces` and `bad_faces` (the source faces a held
+/// result folds; vertex decks relative to `edges`), landmarks whose plain
+/// pins fold carry their neighbourhoods (grow_landmark_patches; `search`
+/// receives its record). `generators` are the solve's chart moves. The
 /// returned vertex decks are again relative to `edges`. With `relaxation`
 /// the held problem is solved by the paper's per-vertex relaxation
 /// (map/harmonic_relaxation.h, the held vertices skipped) with
@@ -76,7 +121,12 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int num_vertices, const std::
                                                    const std::vector<hyperbolic::Mobius>& side_pairings,
                                                    const HyperbolicHarmonicResult& free, const std::vector<int>& source,
                                                    const std::vector<Complex>& target_position,
+                                                   const std::vector<int>& target_vertex,
                                                    HyperbolicHarmonicOptions options, bool relaxation = false,
-                                                   HarmonicRelaxationOptions relaxation_options = {});
+                                                   HarmonicRelaxationOptions relaxation_options = {},
+                                                   const RowMatrixX3i* faces = nullptr,
+                                                   const std::function<std::vector<int>(const HyperbolicHarmonicResult&)>&
+                                                       bad_faces = {},
+                                                   LandmarkPatchSearch* search = nullptr);
 
 }  // namespace surfmap::detail

@@ -307,3 +307,28 @@ def test_source_weights_kwarg():
     assert abs(own["energy"]["final"] - auto["energy"]["final"]) > 1e-6 * auto["energy"]["final"]
     with pytest.raises(surfmap.InputError, match="source_weights"):
         surfmap.surface_map(*a, *b, source_weights="uniform")
+
+
+def test_genus2_classes_are_ranked_with_the_landmarks_held():
+    # With landmarks, the classes solved at full resolution are ranked by their energy with
+    # the landmarks held (plain pins); the chosen class is the lowest, and with no carried
+    # neighbourhood its final energy is exactly that held energy.
+    a = surfmap.shapes.n_hole_torus(2, 14, True)
+    b = surfmap.shapes.vase(18, True)
+    Vb, n = b[0], len(a[0])
+    other = surfmap.surface_map(*a, *b, homotopy=0)      # a near-symmetric class of the best
+    lm = [(s, int(np.argmin(((Vb - other["forward"]["position"][s]) ** 2).sum(1)))) for s in range(0, n, n // 6)]
+    r = surfmap.surface_map(*a, *b, landmarks=lm, homotopy_full_solves=8)
+    cands = r["homotopy"]["candidates"]
+    held = {i: c["landmark_energy"] for i, c in enumerate(cands) if c["solved"] and math.isfinite(c["energy"])}
+    assert len(held) >= 2 and all(math.isfinite(e) for e in held.values()), held
+    assert all(math.isnan(c["landmark_energy"]) for i, c in enumerate(cands) if i not in held)
+    chosen = r["homotopy"]["chosen"]
+    assert chosen == min(held, key=held.get)
+    assert all(e >= c["energy"] * (1 - 1e-9) for c, e in ((cands[i], e) for i, e in held.items()))
+    assert r["landmark_rings"] == [0] * len(lm) and r["flipped_triangles"] == 0
+    assert abs(r["energy"]["final"] - held[chosen]) <= 1e-8 * held[chosen]
+    # Genus 1 ranks by the held energy too (reported as both).
+    (Vs, Fs), (Vt, Ft) = torus(1.0, 0.5, 30, 15), torus(1.5, 0.5, 36, 15, 1)
+    g1 = surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=[(0, 0), (200, 300)])
+    assert all(c["landmark_energy"] == c["energy"] for c in g1["homotopy"]["candidates"])

@@ -149,8 +149,12 @@ struct SurfaceMapOptions {
   /// §VII-C). Indices must be valid and each vertex used at most once.
   /// Genus >= 1: each source vertex is held at the lift of its target vertex
   /// (in the universal cover) nearest to where the map without landmarks
-  /// puts it, so landmarks add no winding (src/map/landmarks.h); a held map
-  /// that folds is a SolveError. Genus >= 2 needs MapMethod::Newton. Genus 0:
+  /// puts it, so landmarks add no winding (src/map/landmarks.h). A landmark
+  /// whose plain pin folds the map carries rings of its free neighbourhood
+  /// rigidly along (the rest is the harmonic map with those held; see
+  /// landmark_rings); landmarks whose carried neighbourhoods would meet, or
+  /// hold half the source, are a SolveError naming them. Both methods hold
+  /// landmarks (the relaxation skips the held vertices). Genus 0:
   /// the Möbius map fixed by the landmarks (map/spherical_map.h), exact for
   /// up to 3, least squares beyond (see max_landmark_error).
   std::vector<std::pair<int, int>> landmarks;
@@ -187,6 +191,11 @@ struct HomotopyCandidate {
   /// source used for ranking (NaN when the ranking ran at full resolution).
   /// When `solved` is false and this is finite, `energy` is this estimate.
   double coarse_energy = std::numeric_limits<double>::quiet_NaN();
+  /// With landmarks: the class's energy with the landmarks held at their
+  /// nearest lifts (plain pins), by which the classes are then ranked; NaN
+  /// when not computed (no landmarks; genus >= 2: classes not solved at full
+  /// resolution; genus 1 ranks by it and reports it as `energy` too).
+  double landmark_energy = std::numeric_limits<double>::quiet_NaN();
   /// Genus >= 2: the class's action on H_1, 2g x 2g row-major, in the
   /// canonical coordinates (a_1, b_1, ...) of both surfaces; empty for genus 1.
   std::vector<int> homology;
@@ -260,6 +269,13 @@ struct SurfaceMapResult {
   /// landmarks, otherwise the round-off of locating a held landmark (those
   /// are then set exactly onto their vertex in `forward` and `inverse`).
   double max_landmark_error = 0;
+  /// Genus >= 1 with landmarks: per landmark, the rings of source
+  /// neighbours carried rigidly with it so the held map stays bijective (0:
+  /// the plain pin, the exact held optimum; src/map/landmarks.h), the held
+  /// solves that took, and the source vertices held in the accepted one.
+  std::vector<int> landmark_rings;
+  int landmark_solves = 0;
+  int landmark_held_vertices = 0;
   /// Genus 0: vertices whose sphere image was re-placed to untangle input
   /// faces flipped by the uniformization (map/spherical_map.h); 0 otherwise.
   int repaired_vertices = 0;
