@@ -25,6 +25,7 @@
 // with --repeat N every case runs N times and the medians are printed.
 //
 //   build/bin/bench_map [--quick] [--stages] [--relax-budget S] [--repeat N] [--sizes 10000,50000,200000] [--genus 1,2,...]
+#include <dlfcn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -87,6 +88,10 @@ enum Field {
 // kReachKind: 0 measured (reached), 1 own converged best, 2 extrapolated, 3 no decrease.
 
 std::vector<double> run_case(int genus, int v, double budget, std::string* error) {
+  // One core each for the Newton-versus-relaxation comparison (the
+  // relaxation's sweeps are sequential); the pipeline itself runs its BLAS
+  // single-threaded too (src/map/concurrency.h), with its own threads.
+  if (auto set = reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) set(1);
   std::vector<double> r(kNumFields, NAN);
   r[kOk] = 0;
   const int res = resolution_for(genus, v);
@@ -253,6 +258,18 @@ int main(int argc, char** argv) {
     sizes = {10000};
     genera = {1, 2, 3};
     budget = std::min(budget, 5.0);
+  }
+  {
+    // Which BLAS CHOLMOD runs on (scripts/bootstrap.sh installs OpenBLAS).
+    Dl_info info{};
+    void* gemm = dlsym(RTLD_DEFAULT, "dgemm_");
+    char path[4096] = "?";
+    if (gemm && dladdr(gemm, &info) && info.dli_fname && !realpath(info.dli_fname, path))
+      std::snprintf(path, sizeof path, "%s", info.dli_fname);
+    auto threads = reinterpret_cast<int (*)()>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
+    std::printf("BLAS %s%s; pipeline threads %s\n", path,
+                threads ? (" (OpenBLAS, " + std::to_string(threads()) + " threads; 1 in the runs)").c_str() : "",
+                std::getenv("SURFMAP_THREADS") ? std::getenv("SURFMAP_THREADS") : "auto");
   }
   std::printf("relaxation budget %.0f s per case; %d run(s) per case (medians); times in seconds\n", budget, repeat);
   std::printf("%2s %7s %7s | %5s %5s %5s %6s %5s %6s | %3s %7s | %7s %7s %9s %9s %8s | %6s %5s %5s %6s %6s\n", "g",

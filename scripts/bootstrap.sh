@@ -7,8 +7,15 @@ PACKAGES=(
   cmake g++ make pkg-config
   libeigen3-dev libopenmesh-dev pybind11-dev python3-dev python3-numpy python3-pytest
   libgtest-dev libbenchmark-dev libsuitesparse-dev libtbb-dev nlohmann-json3-dev libcli11-dev
+  libopenblas0-pthread
   blender zip
 )
+# libopenblas0-pthread: an optimised BLAS/LAPACK for CHOLMOD's supernodal
+# factorisations (the Newton solves, the Ricci flow): installing it makes it
+# libblas.so.3 / liblapack.so.3 through update-alternatives (priority 100
+# against 10 for the reference BLAS that libsuitesparse-dev pulls in), so
+# nothing needs relinking. `update-alternatives --display
+# libblas.so.3-x86_64-linux-gnu` shows which one is used; bench_map prints it.
 
 missing=()
 for p in "${PACKAGES[@]}"; do

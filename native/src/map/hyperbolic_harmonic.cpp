@@ -11,6 +11,7 @@
 
 #include <Eigen/Dense>
 
+#include "concurrency.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/dynamic_charts.h"
 
@@ -109,6 +110,7 @@ class BlockHessian {
     c_.method[0].ordering = n > 20000 ? CHOLMOD_METIS : CHOLMOD_AMD;
     std::vector<int> perm(2 * n);
     {
+      std::lock_guard<std::mutex> lock(detail::ordering_mutex());
       cholmod_factor* Lg = cholmod_analyze(G, &c_);
       if (!Lg) {
         cholmod_free_sparse(&G, &c_);

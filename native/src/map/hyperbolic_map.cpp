@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "concurrency.h"
 #include "landmarks.h"
 #include "map_support.h"
 #include "surfmap/error.h"
@@ -94,6 +95,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
                     const SurfaceMapOptions& options, SurfaceMapResult& out,
                     const StageDone& stage_done) {
   using hyperbolic::Mobius;
+  const SingleThreadedBlas single_threaded_blas;  // concurrency.h: our own threads instead
 
   // Target: hyperbolic metric, layout, canonical generators.
   const UniformizedTarget ut = uniformized_target(target, Background::Hyperbolic, options);
@@ -513,6 +515,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   // is not solved again. Small sources (fewer than 4 coarse copies' worth of
   // vertices) are ranked by full-resolution solves of every class instead.
   constexpr double kCoarseMargin = 0.1;
+  const int threads = pipeline_threads(options.threads);
   HyperbolicHarmonicOptions ho;
   ho.tolerance = options.tolerance;
   ho.max_iterations = options.max_iterations;
@@ -551,6 +554,51 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
       }
     return r;
   };
+  // The initial map of class k (map/initial_map.h): the source's cut disk
+  // flattened onto the target's geodesic polygon of the source's loops when
+  // that polygon is convex, else the uniform-weight (Tutte-type) map in this
+  // class; the "before" figures, and the start unless start_seed asks for a
+  // random one. `stop` (another thread's task, concurrency.h): gives up
+  // (Cancelled) when raised.
+  struct InitialOf {
+    std::vector<Mobius> halfedge_rho;
+    std::vector<Word> halfedge_word;
+    HyperbolicInitialMapResult init;
+  };
+  auto initial_of = [&](int k, const std::atomic<bool>* stop) {
+    InitialOf r;
+    const ClassData& cd = data[k];
+    r.halfedge_rho.resize(3 * source.num_faces());
+    r.halfedge_word.resize(3 * source.num_faces());
+    for (int h = 0; h < 3 * source.num_faces(); ++h) {
+      const int e = sc.edge(h);
+      const bool fwd = sc.edge_halfedge(e) == h;
+      r.halfedge_rho[h] = fwd ? cd.rho_edge[e] : cd.rho_edge[e].inverse();
+      r.halfedge_word[h] = fwd ? cd.side_word_edge[e] : inverse(cd.side_word_edge[e]);
+    }
+    try {
+      HyperbolicInitialMapOptions io;
+      io.polygon = options.initial_map == InitialMapMethod::Polygon;
+      io.base_vertex = sl.base_vertex;
+      io.reduce_point = [&](Complex& z) { return reduce_into_polygon(z); };
+      if (stop) io.keep_going = [stop] { return !*stop; };
+      r.init = hyperbolic_initial_map(source, sc, r.halfedge_rho, r.halfedge_word, deck_group, io);
+    } catch (const SolveError&) {
+      // The start then is every vertex at the origin (as before the initial
+      // map existed); the "before" figures report its degenerate triangles.
+      r.init = HyperbolicInitialMapResult();
+      r.init.z.assign(source.num_vertices(), Complex(0.0));
+      r.init.vertex_deck.assign(source.num_vertices(), Mobius());
+      r.init.vertex_deck_word.assign(source.num_vertices(), Word{});
+      r.init.construction = "none (the uniform-weight solve failed; origin)";
+    }
+    return r;
+  };
+  // The class most likely chosen (the requested one, or the ranking's
+  // leader) and its initial map when it was computed next to the
+  // full-resolution solves.
+  int likely_class = -1;
+  std::unique_ptr<InitialOf> likely_init;
   // Runs a solve of class k; a class whose solve fails numerically (deck
   // elements too large for double precision: very twisted classes) or does
   // not converge is reported with infinite energy instead of failing the
@@ -647,14 +695,18 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     const std::vector<Complex> corigin(ncv, Complex(0.0));
     const std::vector<Word> no_decks(ncv);
     std::vector<HyperbolicHarmonicResult> coarse_result(ncand);
-    for (int k = 0; k < ncand; ++k) {
-      if (!usable[k]) continue;
-      if (!try_solve(k, [&] { return solve_from(ncv, coarse_data[k], corigin, no_decks, ho); }, coarse_result[k], true))
-        continue;
+    // Independent solves, on two threads (concurrency.h: only this thread
+    // calls the progress callback, the other one sees a stop flag).
+    parallel_for(threads, ncand, [&](int k, const std::atomic<bool>* stop) {
+      if (!usable[k]) return;
+      HyperbolicHarmonicOptions o = ho;
+      if (stop) o.progress = [stop](int, double, double) { return !*stop; };
+      if (!try_solve(k, [&] { return solve_from(ncv, coarse_data[k], corigin, no_decks, o); }, coarse_result[k], true))
+        return;
       out.candidates[k].coarse_energy = coarse_result[k].energy;
       out.candidates[k].energy = coarse_result[k].energy;
       out.candidates[k].solved = false;
-    }
+    });
     std::stable_sort(order.begin(), order.end(),
                      [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
     // Which classes get the full-resolution solve: the requested one, or the
@@ -664,6 +716,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     // one source, so the ranking is more accurate than the energies are).
     if (options.homotopy >= 0) {
       full[options.homotopy] = usable[options.homotopy];
+      likely_class = options.homotopy;
     } else {
       const double best = out.candidates[order[0]].energy;
       // Ties (symmetric shapes: equal energies to ~1e-7 on the coarse copy
@@ -679,6 +732,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         if (out.candidates[k].energy <= best * (1 + 1e-4) && (leader < 0 || k < leader)) leader = k;
       if (leader >= 0) pick.erase(std::find(pick.begin(), pick.end(), leader)), pick.insert(pick.begin(), leader);
       for (int q = 0; q < static_cast<int>(pick.size()) && q < full_solves; ++q) full[pick[q]] = 1;
+      if (!pick.empty()) likely_class = pick[0];
     }
     stage_done("homotopy candidates", 0.42);
     // Prolongation: a coarse vertex is its fine vertex (same point, same
@@ -696,8 +750,25 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         settle.insert(settle.end(), chain.rbegin(), chain.rend());
       }
     }
-    for (int k = 0; k < ncand; ++k) {
-      if (!full[k] || !usable[k]) continue;
+    // The full-resolution solves (the first on this thread: it may report
+    // live progress) and, on the second thread, the likely class's initial
+    // map (-1 in the task list; with one thread it is built when needed).
+    std::vector<int> tasks;
+    for (int k = 0; k < ncand; ++k)
+      if (full[k] && usable[k]) tasks.push_back(k);
+    const bool init_ahead = threads > 1 && likely_class >= 0 && usable[likely_class];
+    if (init_ahead) tasks.insert(tasks.begin() + std::min<size_t>(1, tasks.size()), -1);
+    std::exception_ptr init_error;
+    parallel_for(threads, static_cast<int>(tasks.size()), [&](int t, const std::atomic<bool>* stop) {
+      const int k = tasks[t];
+      if (k < 0) {
+        try {
+          likely_init = std::make_unique<InitialOf>(initial_of(likely_class, stop));
+        } catch (...) {
+          init_error = std::current_exception();  // rethrown only if the class is chosen: built again then
+        }
+        return;
+      }
       const HyperbolicHarmonicResult& rc = coarse_result[k];
       std::vector<Complex> z(nv);
       std::vector<Word> deck(nv);
@@ -707,12 +778,15 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         z[v] = rc.z[c];
         deck[v] = ph < 0 ? rc.vertex_deck_word[c] : deck_group.reduce(concat(deck[sc.tail(ph)], side_of(data[k], ph)));
       }
+      HyperbolicHarmonicOptions o = fine_options(k);
+      if (stop) o.progress = [stop](int, double, double) { return !*stop; };
       auto r = std::make_unique<HyperbolicHarmonicResult>();
-      if (!try_solve(k, [&] { return solve_from(nv, data[k].edges, z, deck, fine_options(k)); }, *r)) continue;
+      if (!try_solve(k, [&] { return solve_from(nv, data[k].edges, z, deck, o); }, *r)) return;
       out.candidates[k].energy = r->energy;
       out.candidates[k].solved = true;
       fine_result[k] = std::move(r);
-    }
+    });
+    if (init_error) likely_init.reset();
   } else {
     const std::vector<Complex> origin(nv, Complex(0.0));
     const std::vector<Word> no_decks(nv);
@@ -794,37 +868,19 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   const std::vector<Mobius>& rho_edge = data[out.chosen_candidate].rho_edge;
   const std::vector<WeightedEdge>& edges = data[out.chosen_candidate].edges;
   const std::vector<Word>& side_word_edge = data[out.chosen_candidate].side_word_edge;
-  auto rho_of = [&](int h) {
-    const int e = sc.edge(h);
-    return sc.edge_halfedge(e) == h ? rho_edge[e] : rho_edge[e].inverse();
-  };
 
-  // Initial map (map/initial_map.h): the source's cut disk flattened onto
-  // the target's geodesic polygon of the source's loops when that polygon is
-  // convex, else the uniform-weight (Tutte-type) map in this class; the
-  // "before" figures, and the start unless start_seed asks for a random one.
-  std::vector<Mobius> halfedge_rho(3 * source.num_faces());
-  std::vector<Word> halfedge_word(3 * source.num_faces());
-  for (int h = 0; h < 3 * source.num_faces(); ++h) {
-    halfedge_rho[h] = rho_of(h);
-    const int e = sc.edge(h);
-    halfedge_word[h] = sc.edge_halfedge(e) == h ? side_word_edge[e] : inverse(side_word_edge[e]);
+  // Initial map (initial_of above), computed next to the full-resolution
+  // solves when this class was the likely choice.
+  InitialOf initial;
+  if (likely_init && likely_class == out.chosen_candidate) {
+    initial = std::move(*likely_init);
+    likely_init.reset();
+  } else {
+    initial = initial_of(out.chosen_candidate, nullptr);
   }
-  HyperbolicInitialMapResult init;
-  try {
-    HyperbolicInitialMapOptions io;
-    io.polygon = options.initial_map == InitialMapMethod::Polygon;
-    io.base_vertex = sl.base_vertex;
-    io.reduce_point = [&](Complex& z) { return reduce_into_polygon(z); };
-    init = hyperbolic_initial_map(source, sc, halfedge_rho, halfedge_word, deck_group, io);
-  } catch (const SolveError&) {
-    // The start then is every vertex at the origin (as before the initial
-    // map existed); the "before" figures report its degenerate triangles.
-    init.z.assign(source.num_vertices(), Complex(0.0));
-    init.vertex_deck.assign(source.num_vertices(), Mobius());
-    init.vertex_deck_word.assign(source.num_vertices(), Word{});
-    init.construction = "none (the uniform-weight solve failed; origin)";
-  }
+  const std::vector<Mobius>& halfedge_rho = initial.halfedge_rho;
+  const std::vector<Word>& halfedge_word = initial.halfedge_word;
+  HyperbolicInitialMapResult& init = initial.init;
   set_initial_map_info(init, out.initial_map);
   if (options.inspect_initial_map) options.inspect_initial_map({&halfedge_rho, &halfedge_word, &deck_group, &init});
   const DistortionStats q0 = hyperbolic_distortion(source, halfedge_rho, init.z, init.vertex_deck);

@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/Sparse>
 
+#include "concurrency.h"
 #include "surfmap/error.h"
 #include "surfmap/topology/cut_mesh.h"
 #include "surfmap/topology/system_of_loops.h"
@@ -400,6 +401,8 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
   // round takes γ from the previous positions (a fixed-point iteration of
   // linear solves, every one a Tutte map with positive weights).
   auto gamma = [&](int node) { return 1.0 / std::sqrt(std::max(1e-300, 1.0 - std::norm(kn[node]))); };
+  // Every round has the same sparsity pattern: one symbolic analysis.
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
   for (int round = 0; round <= options.hyperboloid_rounds && nunk > 0; ++round) {
     std::vector<Eigen::Triplet<double>> trip;
     Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nunk, 2);
@@ -420,7 +423,11 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
     for (int u = 0; u < nunk; ++u) trip.emplace_back(u, u, diag[u]);
     Eigen::SparseMatrix<double> L(nunk, nunk);
     L.setFromTriplets(trip.begin(), trip.end());
-    Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt(L);
+    if (round == 0) {
+      std::lock_guard<std::mutex> lock(detail::ordering_mutex());  // CHOLMOD may try METIS
+      llt.analyzePattern(L);
+    }
+    llt.factorize(L);
     if (llt.info() != Eigen::Success) return give_up("the flattening's Laplacian could not be factorised");
     const Eigen::MatrixXd X = llt.solve(rhs);
     for (int node = 0; node < nd + out.chords_split; ++node) {
@@ -524,6 +531,7 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
     ho.max_iterations = options.max_iterations;
     ho.relator = group.side_relator();
     ho.reduce_point = options.reduce_point;
+    if (options.keep_going) ho.progress = [&](int, double, double) { return options.keep_going(); };
     HyperbolicHarmonicResult hr;
     try {
       hr = hyperbolic_harmonic_map(nv, edges, group.side_pairings(), start_z, ho);

@@ -107,6 +107,10 @@ struct HyperbolicInitialMapOptions {
   /// Passed to polygon_initial_map (PolygonInitialMapOptions).
   int base_vertex = -1;
   std::function<Word(std::complex<double>&)> reduce_point;
+  /// Optional: asked before every Newton iteration of the uniform-weight
+  /// solve; false stops it (Cancelled). Lets a caller that builds the map on
+  /// another thread abandon it (map/concurrency.h).
+  std::function<bool()> keep_going;
 };
 
 struct PolygonInitialMapOptions {

@@ -144,6 +144,12 @@ struct SurfaceMapOptions {
   /// method not reaching the tolerance within the cap is a SolveError.
   double tolerance = 1e-10;
   int max_iterations = 300;
+  /// Threads the pipeline runs at once (genus >= 2: the coarse class solves
+  /// of the ranking, and the initial map next to the full-resolution solves;
+  /// src/map/concurrency.h). 0 (default): SURFMAP_THREADS when set, else 2
+  /// on hardware with two or more cores; 1: every stage in order. Results do
+  /// not depend on it, and the callbacks are only called on the calling thread.
+  int threads = 0;
   /// Landmark pairs (source vertex, target vertex) whose images are held
   /// fixed: the source vertex maps exactly onto the target vertex (paper
   /// §VII-C). Indices must be valid and each vertex used at most once.

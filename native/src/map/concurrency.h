@@ -1,0 +1,128 @@
+#pragma once
+// Stage concurrency of the map pipeline (issue 4's speed target: 2 cores).
+// Independent work runs on a second thread: the coarse class solves of the
+// ranking, and the initial ("before") map next to the full-resolution solves.
+//
+// Callbacks (SurfaceMapOptions::progress, solve_progress) are only ever
+// called on the calling thread: Blender's progress reporting must not run on
+// another thread, and Python callbacks then never race. The other threads
+// see a stop flag instead, raised when any thread fails (Cancelled
+// included), so that they give up early; the first exception is rethrown on
+// the calling thread, unchanged.
+#include <dlfcn.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cstdlib>
+#include <exception>
+#include <future>
+#include <mutex>
+#include <thread>
+#include <utility>
+#include <vector>
+
+namespace surfmap::detail {
+
+/// Held around sparse fill-reducing orderings: METIS keeps its random
+/// generator's state in globals, so two orderings at once would race (and
+/// could order differently from run to run).
+inline std::mutex& ordering_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+/// Threads the pipeline runs at once for SurfaceMapOptions::threads =
+/// `requested`: itself when >= 1; 0: SURFMAP_THREADS when set, else the
+/// hardware's, at most 2 (the stages that overlap are two or three, and
+/// each holds a sparse factorisation in memory).
+inline int pipeline_threads(int requested) {
+  if (requested >= 1) return std::min(requested, 8);
+  if (const char* s = std::getenv("SURFMAP_THREADS")) {
+    const int n = std::atoi(s);
+    if (n >= 1) return std::min(n, 8);
+  }
+  return std::thread::hardware_concurrency() >= 2 ? 2 : 1;
+}
+
+/// While alive, a multithreaded BLAS (OpenBLAS, when libblas.so.3 is it:
+/// scripts/bootstrap.sh) runs single-threaded; restored after. Two of our
+/// threads each factorising then do not start four BLAS threads on two
+/// cores, and the results do not depend on SurfaceMapOptions::threads: the
+/// BLAS's blocking follows its thread count, and its round-off moves the
+/// coarse estimates of very twisted classes (whose solves stop short of
+/// their optimum) by up to 1e-3 relative. Nothing happens with another BLAS
+/// (the reference one has no threads). Construct it only while no BLAS
+/// call of this process is running.
+class SingleThreadedBlas {
+ public:
+  SingleThreadedBlas() {
+    // The library CHOLMOD loaded (a dependency of libblas.so.3); not found
+    // through RTLD_DEFAULT when our Python module was loaded RTLD_LOCAL.
+    void* lib = dlopen("libopenblas.so.0", RTLD_LAZY | RTLD_NOLOAD);
+    void* where = lib ? lib : RTLD_DEFAULT;
+    get_ = reinterpret_cast<int (*)()>(dlsym(where, "openblas_get_num_threads"));
+    set_ = reinterpret_cast<void (*)(int)>(dlsym(where, "openblas_set_num_threads"));
+    if (lib) dlclose(lib);  // NOLOAD took a reference; the library stays loaded
+    if (get_ && set_) {
+      saved_ = get_();
+      if (saved_ > 1) set_(1);
+    }
+  }
+  ~SingleThreadedBlas() {
+    if (get_ && set_ && saved_ > 1) set_(saved_);
+  }
+  SingleThreadedBlas(const SingleThreadedBlas&) = delete;
+  SingleThreadedBlas& operator=(const SingleThreadedBlas&) = delete;
+
+ private:
+  int (*get_)() = nullptr;
+  void (*set_)(int) = nullptr;
+  int saved_ = 0;
+};
+
+/// body(k, stop) for k = 0..n-1, each k once, on `threads` threads;
+/// `stop` is nullptr on the calling thread (it may call callbacks) and the
+/// shared stop flag on the others. The calling thread runs k = 0 (so a task
+/// that reports progress can be put first); the others are taken in order. The first exception (the calling thread's
+/// first) is rethrown after every thread has finished.
+template <class Body>
+void parallel_for(int threads, int n, Body body) {
+  threads = std::min(threads, n);
+  if (threads <= 1) {
+    for (int k = 0; k < n; ++k) body(k, static_cast<const std::atomic<bool>*>(nullptr));
+    return;
+  }
+  std::atomic<int> next{1};  // k = 0 is the calling thread's
+  std::atomic<bool> stop{false};
+  auto loop = [&](const std::atomic<bool>* flag) {
+    for (int k; !stop && (k = next++) < n;) body(k, flag);
+  };
+  std::vector<std::future<void>> workers;
+  for (int t = 1; t < threads; ++t)
+    workers.push_back(std::async(std::launch::async, [&] {
+      try {
+        loop(&stop);
+      } catch (...) {
+        stop = true;
+        throw;
+      }
+    }));
+  std::exception_ptr first;
+  try {
+    body(0, static_cast<const std::atomic<bool>*>(nullptr));
+    loop(nullptr);
+  } catch (...) {
+    first = std::current_exception();
+    stop = true;
+  }
+  for (auto& w : workers) {
+    try {
+      w.get();
+    } catch (...) {
+      if (!first) first = std::current_exception();
+    }
+  }
+  if (first) std::rethrow_exception(first);
+}
+
+}  // namespace surfmap::detail

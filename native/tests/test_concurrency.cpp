@@ -1,0 +1,100 @@
+// Stage concurrency of the genus >= 2 pipeline (src/map/concurrency.h):
+// the coarse class solves run on two threads and the initial map next to
+// the full-resolution solves. Same results as in order, callbacks only on
+// the calling thread, cancellation from either kind of callback.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "surfmap/error.h"
+#include "surfmap/map/surface_map.h"
+#include "surfmap/samples/shapes.h"
+
+namespace surfmap {
+namespace {
+
+struct Pair {
+  TriMesh a = samples::n_hole_torus(2, 36, true);
+  TriMesh b = samples::vase(40, true);
+};
+
+const Pair& pair() {
+  static const Pair p;
+  return p;
+}
+
+TEST(SurfaceMapConcurrency, TwoThreadsGiveTheMapOfOneAndCallBackOnTheCallingThread) {
+  const Pair& p = pair();
+  // Big enough for the coarse ranking (at least 2000 source vertices), so
+  // that both parallel sections run.
+  ASSERT_GE(p.a.num_vertices(), 2000);
+  SurfaceMapOptions o1, o2;
+  o1.threads = 1;
+  o2.threads = 2;
+  const std::thread::id me = std::this_thread::get_id();
+  int calls = 0, foreign = 0;
+  std::vector<std::string> stages;
+  o2.progress = [&](const std::string& s, double) {
+    ++calls, foreign += std::this_thread::get_id() != me;
+    if (stages.empty() || stages.back() != s) stages.push_back(s);
+    return true;
+  };
+  o2.solve_progress = [&](int, double, double) {
+    ++calls, foreign += std::this_thread::get_id() != me;
+    return true;
+  };
+  const SurfaceMapResult m1 = surface_map(p.a, p.b, o1), m2 = surface_map(p.a, p.b, o2);
+  EXPECT_GT(calls, 10);
+  EXPECT_EQ(foreign, 0);
+  EXPECT_NE(std::find(stages.begin(), stages.end(), "homotopy candidates"), stages.end());
+  EXPECT_NE(std::find(stages.begin(), stages.end(), "initial map"), stages.end());
+  // Same class, energies and map (the threads only change which core runs a
+  // solve; BLAS blocking may differ, hence round-off tolerances).
+  EXPECT_EQ(m1.chosen_candidate, m2.chosen_candidate);
+  ASSERT_EQ(m1.candidates.size(), m2.candidates.size());
+  for (size_t k = 0; k < m1.candidates.size(); ++k) {
+    EXPECT_EQ(m1.candidates[k].solved, m2.candidates[k].solved) << k;
+    if (std::isfinite(m1.candidates[k].energy))
+      EXPECT_NEAR(m1.candidates[k].energy, m2.candidates[k].energy, 1e-9 * m1.candidates[k].energy) << k;
+  }
+  EXPECT_NEAR(m1.final_energy, m2.final_energy, 1e-9 * m1.final_energy);
+  EXPECT_EQ(m2.flipped_triangles + m2.degenerate_triangles, 0);
+  // The initial map (built on the other thread with two) and its figures.
+  EXPECT_EQ(m1.initial_map.construction, m2.initial_map.construction);
+  EXPECT_EQ(m1.initial_flipped_triangles, m2.initial_flipped_triangles);
+  EXPECT_NEAR(m1.initial_energy, m2.initial_energy, 1e-9 * m1.initial_energy);
+  EXPECT_NEAR(m1.initial_mean_dilatation, m2.initial_mean_dilatation, 1e-6 * m1.initial_mean_dilatation);
+  ASSERT_EQ(m1.initial_forward.size(), m2.initial_forward.size());
+  double worst = 0, worst0 = 0;
+  for (size_t i = 0; i < m1.forward.size(); ++i)
+    worst = std::max(worst, (m1.forward[i].position - m2.forward[i].position).norm());
+  for (size_t i = 0; i < m1.initial_forward.size(); ++i)
+    worst0 = std::max(worst0, (m1.initial_forward[i].position - m2.initial_forward[i].position).norm());
+  EXPECT_LT(worst, 1e-6);
+  EXPECT_LT(worst0, 1e-6);
+}
+
+TEST(SurfaceMapConcurrency, CancellingDuringParallelSectionsThrowsCancelled) {
+  const Pair& p = pair();
+  // From the coarse solves' progress (the ranking runs on two threads).
+  SurfaceMapOptions o;
+  o.threads = 2;
+  int ranking_calls = 0;
+  o.progress = [&](const std::string& s, double) { return s != "homotopy candidates" || ++ranking_calls < 3; };
+  EXPECT_THROW(surface_map(p.a, p.b, o), Cancelled);
+  EXPECT_EQ(ranking_calls, 3);
+  // From the live solve_progress of a requested class's full-resolution
+  // solve, while the initial map is being built on the other thread.
+  SurfaceMapOptions o2;
+  o2.threads = 2;
+  o2.homotopy = 0;
+  o2.solve_progress = [](int it, double, double) { return it < 1; };
+  EXPECT_THROW(surface_map(p.a, p.b, o2), Cancelled);
+}
+
+}  // namespace
+}  // namespace surfmap
