@@ -63,7 +63,8 @@ TEST(SurfaceMapConcurrency, TwoThreadsGiveTheMapOfOneAndCallBackOnTheCallingThre
   }
   EXPECT_NEAR(m1.final_energy, m2.final_energy, 1e-9 * m1.final_energy);
   EXPECT_EQ(m2.flipped_triangles + m2.degenerate_triangles, 0);
-  // The initial map (built on the other thread with two) and its figures.
+  // The initial map (built and located on the other thread with two) and
+  // its figures.
   EXPECT_EQ(m1.initial_map.construction, m2.initial_map.construction);
   EXPECT_EQ(m1.initial_flipped_triangles, m2.initial_flipped_triangles);
   EXPECT_NEAR(m1.initial_energy, m2.initial_energy, 1e-9 * m1.initial_energy);
@@ -74,6 +75,12 @@ TEST(SurfaceMapConcurrency, TwoThreadsGiveTheMapOfOneAndCallBackOnTheCallingThre
     worst = std::max(worst, (m1.forward[i].position - m2.forward[i].position).norm());
   for (size_t i = 0; i < m1.initial_forward.size(); ++i)
     worst0 = std::max(worst0, (m1.initial_forward[i].position - m2.initial_forward[i].position).norm());
+  ASSERT_EQ(m1.initial_inverse.size(), m2.initial_inverse.size());
+  for (size_t v = 0; v < m1.inverse.size(); ++v)
+    worst = std::max(worst, (m1.inverse[v].position - m2.inverse[v].position).norm());
+  for (size_t v = 0; v < m1.initial_inverse.size(); ++v)
+    worst0 = std::max(worst0, (m1.initial_inverse[v].position - m2.initial_inverse[v].position).norm());
+  EXPECT_FALSE(m2.initial_forward.empty());
   EXPECT_LT(worst, 1e-6);
   EXPECT_LT(worst0, 1e-6);
 }

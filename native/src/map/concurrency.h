@@ -44,6 +44,32 @@ inline int pipeline_threads(int requested) {
   return std::thread::hardware_concurrency() >= 2 ? 2 : 1;
 }
 
+/// OpenBLAS's thread-count functions when it is the BLAS this process
+/// loaded (libblas.so.3 through update-alternatives), else nullptrs.
+struct OpenBlasThreads {
+  int (*get)() = nullptr;
+  void (*set)(int) = nullptr;
+};
+inline OpenBlasThreads openblas_threads() {
+  // The library CHOLMOD loaded (a dependency of libblas.so.3); not found
+  // through RTLD_DEFAULT when our Python module was loaded RTLD_LOCAL.
+  OpenBlasThreads t;
+  void* lib = dlopen("libopenblas.so.0", RTLD_LAZY | RTLD_NOLOAD);
+  void* where = lib ? lib : RTLD_DEFAULT;
+  t.get = reinterpret_cast<int (*)()>(dlsym(where, "openblas_get_num_threads"));
+  t.set = reinterpret_cast<void (*)(int)>(dlsym(where, "openblas_set_num_threads"));
+  if (lib) dlclose(lib);  // NOLOAD took a reference; the library stays loaded
+  if (!t.get || !t.set) t = OpenBlasThreads();
+  return t;
+}
+
+/// True when the BLAS is an optimised one (OpenBLAS), which changes which
+/// sparse ordering pays (hyperbolic_harmonic.cpp).
+inline bool optimised_blas() {
+  static const bool yes = openblas_threads().get != nullptr;
+  return yes;
+}
+
 /// While alive, a multithreaded BLAS (OpenBLAS, when libblas.so.3 is it:
 /// scripts/bootstrap.sh) runs single-threaded; restored after. Two of our
 /// threads each factorising then do not start four BLAS threads on two
@@ -55,28 +81,20 @@ inline int pipeline_threads(int requested) {
 /// call of this process is running.
 class SingleThreadedBlas {
  public:
-  SingleThreadedBlas() {
-    // The library CHOLMOD loaded (a dependency of libblas.so.3); not found
-    // through RTLD_DEFAULT when our Python module was loaded RTLD_LOCAL.
-    void* lib = dlopen("libopenblas.so.0", RTLD_LAZY | RTLD_NOLOAD);
-    void* where = lib ? lib : RTLD_DEFAULT;
-    get_ = reinterpret_cast<int (*)()>(dlsym(where, "openblas_get_num_threads"));
-    set_ = reinterpret_cast<void (*)(int)>(dlsym(where, "openblas_set_num_threads"));
-    if (lib) dlclose(lib);  // NOLOAD took a reference; the library stays loaded
-    if (get_ && set_) {
-      saved_ = get_();
-      if (saved_ > 1) set_(1);
+  SingleThreadedBlas() : blas_(openblas_threads()) {
+    if (blas_.get) {
+      saved_ = blas_.get();
+      if (saved_ > 1) blas_.set(1);
     }
   }
   ~SingleThreadedBlas() {
-    if (get_ && set_ && saved_ > 1) set_(saved_);
+    if (blas_.set && saved_ > 1) blas_.set(saved_);
   }
   SingleThreadedBlas(const SingleThreadedBlas&) = delete;
   SingleThreadedBlas& operator=(const SingleThreadedBlas&) = delete;
 
  private:
-  int (*get_)() = nullptr;
-  void (*set_)(int) = nullptr;
+  OpenBlasThreads blas_;
   int saved_ = 0;
 };
 

@@ -53,10 +53,13 @@ int move_letter(int m) { return m % 2 == 0 ? m / 2 + 1 : -(m / 2 + 1); }
 // column storage, and its symbolic factorisation, computed once per solve.
 // The fill-reducing ordering is computed on the vertex graph (a quarter of
 // the size) and expanded to the blocks, which keeps each vertex's two
-// unknowns adjacent; METIS nested dissection on large meshes: at 50k source
-// vertices it halves the factorisation flops of CHOLMOD's default AMD
-// (1.5e9 against 2.8e9), which on the reference BLAS of this platform is
-// 0.7 s against 1.2 s per Newton iteration.
+// unknowns adjacent. AMD, except on large meshes with the reference BLAS:
+// there METIS nested dissection pays, as it halves the factorisation flops
+// (50k source vertices: 1.7e9 against 3.2e9; 0.7 s against 1.2 s per
+// factorisation on netlib BLAS), but with OpenBLAS (scripts/bootstrap.sh)
+// both factorise in 0.23-0.3 s (single-threaded) and METIS's ordering costs
+// 0.5 s against 0.08 s for AMD, more than it saves over the 1-3
+// factorisations of a solve from a good start.
 class BlockHessian {
  public:
   BlockHessian(int n, const std::vector<WeightedEdge>& edges) : n_(n) {
@@ -107,7 +110,7 @@ class BlockHessian {
     std::copy(vp.begin(), vp.end(), static_cast<int*>(G->p));
     std::copy(vi.begin(), vi.end(), static_cast<int*>(G->i));
     c_.nmethods = 1;
-    c_.method[0].ordering = n > 20000 ? CHOLMOD_METIS : CHOLMOD_AMD;
+    c_.method[0].ordering = n > 20000 && !detail::optimised_blas() ? CHOLMOD_METIS : CHOLMOD_AMD;
     std::vector<int> perm(2 * n);
     {
       std::lock_guard<std::mutex> lock(detail::ordering_mutex());

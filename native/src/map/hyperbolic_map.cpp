@@ -1280,129 +1280,140 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   auto walk = [&](int f, Complex q, Eigen::Vector3d* bary) {
     return straight_walk(f, q, target_corners, target_cross, 4 * ntf + 100, kInsideTol, bary);
   };
-  std::vector<int> refined_face_origin(ntf, -1);
-  out.forward.resize(source.num_vertices());
-  int last_face = layout.root_face >= 0 ? layout.root_face : 0;
-  for (int i = 0; i < source.num_vertices(); ++i) {
-    Eigen::Vector3d b;
-    int rf = walk(last_face, zp[i], &b);
-    if (rf < 0) rf = locate(tgrid, tpoints, zp[i], &b);
-    if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
-    last_face = rf;
-    out.forward[i] = point_on_input(target, tc, tl, refined_face_origin, rf, b);
-  }
-  // The initial map, located the same way (the "before" morph and UVs); a
-  // vertex that cannot be located leaves it unlocated (empty), not an error.
-  out.initial_forward.resize(source.num_vertices());
-  last_face = layout.root_face >= 0 ? layout.root_face : 0;
-  for (int i = 0; i < source.num_vertices(); ++i) {
-    Eigen::Vector3d b;
-    Complex q = init.z[i];
-    reduce_into_polygon(q);
-    int rf = walk(last_face, q, &b);
-    if (rf < 0) rf = locate(tgrid, tpoints, q, &b);
-    if (rf < 0) {
-      out.initial_forward.clear();
-      break;
+  // The initial map's location (below, its "before" morph and UVs) runs
+  // next to the optimum's (concurrency.h), which reports the stages.
+  auto locate_initial = [&](const std::atomic<bool>* stop) {
+    // The initial map, located the same way (the "before" morph and UVs); a
+    // vertex that cannot be located leaves it unlocated (empty), not an error.
+    std::vector<int> initial_face_origin(ntf, -1);
+    out.initial_forward.resize(source.num_vertices());
+    int last_face = layout.root_face >= 0 ? layout.root_face : 0;
+    for (int i = 0; i < source.num_vertices(); ++i) {
+      if (*stop) return;
+      Eigen::Vector3d b;
+      Complex q = init.z[i];
+      reduce_into_polygon(q);
+      int rf = walk(last_face, q, &b);
+      if (rf < 0) rf = locate(tgrid, tpoints, q, &b);
+      if (rf < 0) {
+        out.initial_forward.clear();
+        break;
+      }
+      last_face = rf;
+      out.initial_forward[i] = point_on_input(target, tc, tl, initial_face_origin, rf, b);
     }
-    last_face = rf;
-    out.initial_forward[i] = point_on_input(target, tc, tl, refined_face_origin, rf, b);
-  }
-  stage_done("forward location", 0.85);
-  Tris spoints(source.num_faces()), stris(source.num_faces());
-  for (int f = 0; f < source.num_faces(); ++f)
-    for (int k = 0; k < 3; ++k) {
-      spoints[f][k] = img(f, k);
-      stris[f][k] = hyperbolic::poincare_to_klein(img(f, k));
+    // The initial map's inverse (the "before" UV transfer): its image
+    // triangles from its own chart elements, each moved into P by the
+    // reduction of its corner 0, located by the grid; left empty (not an
+    // error) when a target vertex is not covered.
+    {
+      const bool init_words = init.vertex_deck_word.size() == init.z.size();
+      auto init_eff = [&](int h) {
+        const int i = sc.tail(h), j = sc.head(h);
+        if (init_words)
+          return deck_group.evaluate_side_word(
+              deck_group.reduce(concat({init.vertex_deck_word[i], halfedge_word[h], inverse(init.vertex_deck_word[j])})));
+        return (init.vertex_deck[i] * halfedge_rho[h] * init.vertex_deck[j].inverse()).normalized();
+      };
+      // Corner k of face f is init_corner[3f+k] applied to its vertex's point
+      // (corner 0 reduced into P); the walk crosses into the neighbour g
+      // through the shared vertex u by init_corner(g, u) init_corner(f, u)^-1.
+      std::vector<Mobius> init_corner(3 * source.num_faces());
+      Tris ipoints(source.num_faces()), itris(source.num_faces());
+      for (int f = 0; f < source.num_faces(); ++f) {
+        Complex c0 = init.z[source.F(f, 0)];
+        const Mobius R = deck_group.evaluate_side_word(reduce_into_polygon(c0));
+        init_corner[3 * f] = R;
+        init_corner[3 * f + 1] = (R * init_eff(3 * f)).normalized();
+        init_corner[3 * f + 2] = (R * init_eff(3 * f + 2).inverse()).normalized();
+        ipoints[f] = {c0, init_corner[3 * f + 1].apply(init.z[source.F(f, 1)]),
+                      init_corner[3 * f + 2].apply(init.z[source.F(f, 2)])};
+        for (int k = 0; k < 3; ++k) itris[f][k] = hyperbolic::poincare_to_klein(ipoints[f][k]);
+      }
+      auto init_corners = [&](int f) { return ipoints[f]; };
+      auto init_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
+        const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
+        const int cg = (t % 3 + 1) % 3;
+        const Mobius M = (init_corner[3 * g + cg] * init_corner[3 * f + s].inverse()).normalized();
+        c = M.apply(c), q = M.apply(q);
+        *entry = t % 3;
+        return g;
+      };
+      const TriangleGrid igrid(itris, 1e-12);
+      out.initial_inverse.resize(target.num_vertices());
+      int last_face0 = 0;
+      for (int v = 0; v < target.num_vertices(); ++v) {
+        if (*stop) return;
+        Eigen::Vector3d b;
+        Complex q = layout.vertex_positions[v];
+        reduce_into_polygon(q);
+        int f = straight_walk(last_face0, q, init_corners, init_cross, 4 * source.num_faces() + 100, kInsideTol, &b);
+        if (f < 0) f = locate(igrid, ipoints, layout.vertex_positions[v], &b);
+        if (f < 0) {
+          out.initial_inverse.clear();
+          break;
+        }
+        last_face0 = f;
+        out.initial_inverse[v] = point_in_face(source, f, b);
+      }
     }
-  const TriangleGrid sgrid(stris, 1e-12);
-  // Inverse map: the same walk over the source's image triangles. Face f's
-  // image is stored with corner k at γ_{f,k}(zp[F(f,k)]) (γ_{f,0} = id,
-  // γ_{f,1} = eff(h0), γ_{f,2} = eff(h2)^-1); crossing into face g through
-  // the vertex u they share maps the query by γ_{g,u} γ_{f,u}^-1 (identity
-  // unless the edge straddles a side of P).
-  auto corner_element = [&](int f, int k) {
-    return k == 0 ? Mobius() : k == 1 ? eff(3 * f) : eff(3 * f + 2).inverse();
   };
-  auto source_corners = [&](int f) { return std::array<Complex, 3>{img(f, 0), img(f, 1), img(f, 2)}; };
-  auto source_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
-    const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
-    // Shared vertex u = tail(h) = corner s of f = corner (t+1)%3 of g.
-    const int cg = (t % 3 + 1) % 3;
-    const Mobius M = (corner_element(g, cg) * corner_element(f, s).inverse()).normalized();
-    c = M.apply(c), q = M.apply(q);
-    *entry = t % 3;
-    return g;
-  };
-  auto walk_source = [&](int f, Complex q, Eigen::Vector3d* bary) {
-    return straight_walk(f, q, source_corners, source_cross, 4 * source.num_faces() + 100, kInsideTol, bary);
-  };
-  out.inverse.resize(target.num_vertices());
-  int last_source_face = 0;
-  for (int v = 0; v < target.num_vertices(); ++v) {
-    Eigen::Vector3d b;
-    Complex q = layout.vertex_positions[v];
-    reduce_into_polygon(q);
-    int f = walk_source(last_source_face, q, &b);
-    if (f < 0) f = locate(sgrid, spoints, layout.vertex_positions[v], &b);
-    if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
-    last_source_face = f;
-    out.inverse[v] = point_in_face(source, f, b);
-  }
-  // The initial map's inverse (the "before" UV transfer): its image
-  // triangles from its own chart elements, each moved into P by the
-  // reduction of its corner 0, located by the grid; left empty (not an
-  // error) when a target vertex is not covered.
-  {
-    const bool init_words = init.vertex_deck_word.size() == init.z.size();
-    auto init_eff = [&](int h) {
-      const int i = sc.tail(h), j = sc.head(h);
-      if (init_words)
-        return deck_group.evaluate_side_word(
-            deck_group.reduce(concat({init.vertex_deck_word[i], halfedge_word[h], inverse(init.vertex_deck_word[j])})));
-      return (init.vertex_deck[i] * halfedge_rho[h] * init.vertex_deck[j].inverse()).normalized();
+  const std::atomic<bool> never{false};
+  parallel_for(threads, 2, [&](int task, const std::atomic<bool>* stop) {
+    if (task == 1) return locate_initial(stop ? stop : &never);
+    std::vector<int> refined_face_origin(ntf, -1);
+    out.forward.resize(source.num_vertices());
+    int last_face = layout.root_face >= 0 ? layout.root_face : 0;
+    for (int i = 0; i < source.num_vertices(); ++i) {
+      Eigen::Vector3d b;
+      int rf = walk(last_face, zp[i], &b);
+      if (rf < 0) rf = locate(tgrid, tpoints, zp[i], &b);
+      if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
+      last_face = rf;
+      out.forward[i] = point_on_input(target, tc, tl, refined_face_origin, rf, b);
+    }
+    stage_done("forward location", 0.85);
+    Tris spoints(source.num_faces()), stris(source.num_faces());
+    for (int f = 0; f < source.num_faces(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        spoints[f][k] = img(f, k);
+        stris[f][k] = hyperbolic::poincare_to_klein(img(f, k));
+      }
+    const TriangleGrid sgrid(stris, 1e-12);
+    // Inverse map: the same walk over the source's image triangles. Face f's
+    // image is stored with corner k at γ_{f,k}(zp[F(f,k)]) (γ_{f,0} = id,
+    // γ_{f,1} = eff(h0), γ_{f,2} = eff(h2)^-1); crossing into face g through
+    // the vertex u they share maps the query by γ_{g,u} γ_{f,u}^-1 (identity
+    // unless the edge straddles a side of P).
+    auto corner_element = [&](int f, int k) {
+      return k == 0 ? Mobius() : k == 1 ? eff(3 * f) : eff(3 * f + 2).inverse();
     };
-    // Corner k of face f is init_corner[3f+k] applied to its vertex's point
-    // (corner 0 reduced into P); the walk crosses into the neighbour g
-    // through the shared vertex u by init_corner(g, u) init_corner(f, u)^-1.
-    std::vector<Mobius> init_corner(3 * source.num_faces());
-    Tris ipoints(source.num_faces()), itris(source.num_faces());
-    for (int f = 0; f < source.num_faces(); ++f) {
-      Complex c0 = init.z[source.F(f, 0)];
-      const Mobius R = deck_group.evaluate_side_word(reduce_into_polygon(c0));
-      init_corner[3 * f] = R;
-      init_corner[3 * f + 1] = (R * init_eff(3 * f)).normalized();
-      init_corner[3 * f + 2] = (R * init_eff(3 * f + 2).inverse()).normalized();
-      ipoints[f] = {c0, init_corner[3 * f + 1].apply(init.z[source.F(f, 1)]),
-                    init_corner[3 * f + 2].apply(init.z[source.F(f, 2)])};
-      for (int k = 0; k < 3; ++k) itris[f][k] = hyperbolic::poincare_to_klein(ipoints[f][k]);
-    }
-    auto init_corners = [&](int f) { return ipoints[f]; };
-    auto init_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
+    auto source_corners = [&](int f) { return std::array<Complex, 3>{img(f, 0), img(f, 1), img(f, 2)}; };
+    auto source_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
       const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
+      // Shared vertex u = tail(h) = corner s of f = corner (t+1)%3 of g.
       const int cg = (t % 3 + 1) % 3;
-      const Mobius M = (init_corner[3 * g + cg] * init_corner[3 * f + s].inverse()).normalized();
+      const Mobius M = (corner_element(g, cg) * corner_element(f, s).inverse()).normalized();
       c = M.apply(c), q = M.apply(q);
       *entry = t % 3;
       return g;
     };
-    const TriangleGrid igrid(itris, 1e-12);
-    out.initial_inverse.resize(target.num_vertices());
-    int last_face0 = 0;
+    auto walk_source = [&](int f, Complex q, Eigen::Vector3d* bary) {
+      return straight_walk(f, q, source_corners, source_cross, 4 * source.num_faces() + 100, kInsideTol, bary);
+    };
+    out.inverse.resize(target.num_vertices());
+    int last_source_face = 0;
     for (int v = 0; v < target.num_vertices(); ++v) {
       Eigen::Vector3d b;
       Complex q = layout.vertex_positions[v];
       reduce_into_polygon(q);
-      int f = straight_walk(last_face0, q, init_corners, init_cross, 4 * source.num_faces() + 100, kInsideTol, &b);
-      if (f < 0) f = locate(igrid, ipoints, layout.vertex_positions[v], &b);
-      if (f < 0) {
-        out.initial_inverse.clear();
-        break;
-      }
-      last_face0 = f;
-      out.initial_inverse[v] = point_in_face(source, f, b);
+      int f = walk_source(last_source_face, q, &b);
+      if (f < 0) f = locate(sgrid, spoints, layout.vertex_positions[v], &b);
+      if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
+      last_source_face = f;
+      out.inverse[v] = point_in_face(source, f, b);
     }
-  }
+  });
   stage_done("inverse location", 1.0);
   return;
   } catch (const SolveError& e) {
