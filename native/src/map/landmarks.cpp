@@ -142,6 +142,7 @@ LandmarkPatchSearch grow_landmark_patches(
   LandmarkPatchSearch search;
   search.rings.assign(k, 0);
   std::vector<int> member(n, -1);
+  int last_bad = std::numeric_limits<int>::max(), worse = 0;
   for (int round = 0; round < 40; ++round) {
     std::vector<LandmarkPatch> patches(k);
     std::fill(member.begin(), member.end(), -1);
@@ -182,6 +183,21 @@ LandmarkPatchSearch grow_landmark_patches(
     ++search.solves;
     search.held_vertices = held;
     if (bad.empty()) return search;
+    // Carrying more usually cuts the folds (not monotonically: 7, 14, 6, 1,
+    // 2, 0 seen); when it adds folds round after round, the surround has no
+    // room to absorb the move (g2_double-torus -> g2_eight at 5.5 edges:
+    // 13, 41, 75, 123, ... up to half the source held) and it is given up.
+    worse = static_cast<int>(bad.size()) > last_bad ? worse + 1 : 0;
+    last_bad = static_cast<int>(bad.size());
+    if (worse >= 3) {
+      std::string names;
+      for (int a = 0; a < k; ++a)
+        if (search.rings[a] > 0) names += (names.empty() ? "" : ", ") + landmark_name(landmarks, a);
+      throw SolveError("the landmarks cannot be held without folding the map in this homotopy class: carrying "
+                       "larger neighbourhoods with them folds more of it (" + std::to_string(bad.size()) +
+                       " faces with " + std::to_string(held) + " vertices held; " + names +
+                       "; their targets are far from where the map without landmarks puts them)");
+    }
     std::vector<char> grow(k, 0);
     for (int f : bad)
       for (int c = 0; c < 3; ++c)

@@ -88,9 +88,10 @@ struct LandmarkPatch {
 /// problem and returns the source faces whose images flip or degenerate;
 /// the landmarks nearest (in hops) to those faces grow their neighbourhood
 /// (0, 1, 2, 3, 5, 8, 12, ... rings) and the problem is solved again.
-/// Throws SolveError naming the landmarks when two neighbourhoods meet or
-/// the held vertices would exceed half the source: those landmarks cannot
-/// be held bijectively this way in this class.
+/// Throws SolveError naming the landmarks when two neighbourhoods meet, the
+/// held vertices would exceed half the source, or growing them adds folds
+/// three rounds running: those landmarks cannot be held bijectively this
+/// way in this class.
 struct LandmarkPatchSearch {
   std::vector<int> rings;  ///< per landmark, the rings of the accepted solve
   int solves = 0;          ///< held solves done
