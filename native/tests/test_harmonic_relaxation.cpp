@@ -278,26 +278,35 @@ TEST(HarmonicRelaxation, FlatRelaxationReachesTheExactOptimum) {
   EXPECT_LE(r2.energy, expected * 1.7);
 }
 
-TEST(HyperbolicInitialMap, OctagonTutteMapIsAnEmbedding) {
-  // Uniform weights on the symmetric octagon: the Tutte-type map is an
-  // embedding (no flipped triangles) and hyperbolic_distortion sees D' >= 1.
-  const OctagonSurface S = octagon_surface(6);
-  const Connectivity c(S.F, S.n);
-  std::map<std::pair<int, int>, Mobius> rho;
-  for (const auto& e : S.edges) rho[{e.i, e.j}] = e.rho, rho[{e.j, e.i}] = e.rho.inverse();
-  std::vector<Mobius> hr(3 * S.F.rows());
-  for (int h = 0; h < 3 * S.F.rows(); ++h) hr[h] = rho.at({c.tail(h), c.head(h)});
-  const HyperbolicInitialMapResult init = hyperbolic_initial_map(c, hr, S.generators);
-  ASSERT_TRUE(init.converged);
-  TriMesh mesh;
-  mesh.F = S.F;
-  mesh.V.resize(S.n, 3);
-  for (int i = 0; i < S.n; ++i) mesh.V.row(i) << S.z[i].real(), S.z[i].imag(), 0.0;  // any 3D metric will do
-  const DistortionStats q = hyperbolic_distortion(mesh, hr, init.z, init.vertex_deck);
-  EXPECT_EQ(q.flipped, 0);
-  EXPECT_EQ(q.degenerate, 0);
-  EXPECT_GE(q.mean, 1.0);
-  for (double d : q.per_face) EXPECT_TRUE(std::isfinite(d));
+TEST(HyperbolicInitialMap, UniformWeightMapOfASliverSourceIsAnEmbedding) {
+  // Uniform weights on the source's own edges (raw marching-tetrahedra
+  // source: slivers, needles): the Tutte-type harmonic map into the
+  // hyperbolic surface is an embedding, so hyperbolic_distortion sees no
+  // flipped or degenerate face and D' >= 1 everywhere. Built from the
+  // pipeline's class data, from the origin (no polygon, no reduction into it).
+  const TriMesh a = samples::n_hole_torus(2, 20, false), b = samples::vase(24, true);
+  const Connectivity c(a.F, a.num_vertices());
+  int seen = 0;
+  SurfaceMapOptions o;
+  o.homotopy = 0;
+  o.homotopy_coarse_vertices = 0;
+  o.inspect_initial_map = [&](const InitialMapInspection& in) {
+    if (seen++) return;
+    HyperbolicInitialMapOptions io;
+    io.polygon = false;
+    const HyperbolicInitialMapResult init = hyperbolic_initial_map(a, c, *in.halfedge_rho, *in.halfedge_word, *in.group, io);
+    ASSERT_TRUE(init.converged);
+    EXPECT_EQ(init.construction, "uniform harmonic");
+    ASSERT_EQ(init.z.size(), static_cast<size_t>(a.num_vertices()));
+    ASSERT_EQ(init.vertex_deck_word.size(), init.z.size());
+    const DistortionStats q = hyperbolic_distortion(a, *in.halfedge_rho, init.z, init.vertex_deck);
+    EXPECT_EQ(q.flipped, 0);
+    EXPECT_EQ(q.degenerate, 0);
+    EXPECT_GE(q.mean, 1.0);
+    for (double d : q.per_face) EXPECT_TRUE(std::isfinite(d));
+  };
+  surface_map(a, b, o);
+  EXPECT_GE(seen, 1);
 }
 
 TEST(SurfaceMapInitialMap, GenusTwoBeforeFiguresAndRelaxationOnThePipelinesProblem) {

@@ -87,10 +87,12 @@ void check_edges(int n, const std::vector<int>& ei, const std::vector<int>& ej, 
   }
 }
 
-void check_options(const HarmonicRelaxationOptions& o, const char* who) {
+void check_options(const HarmonicRelaxationOptions& o, int n, const char* who) {
   if (!(o.step > 0 && o.step <= 1)) throw InputError(std::string(who) + ": step must lie in (0, 1]");
   if (o.max_iterations < 0) throw InputError(std::string(who) + ": max_iterations must be >= 0");
   if (o.check_every < 1) throw InputError(std::string(who) + ": check_every must be >= 1");
+  if (!o.fixed.empty() && static_cast<int>(o.fixed.size()) != n)
+    throw InputError(std::string(who) + ": the fixed mask needs one entry per vertex");
 }
 
 // The sweep / evaluate / stop loop shared by the flat and the hyperbolic
@@ -142,7 +144,7 @@ HarmonicRelaxationResult harmonic_relaxation(int n, const std::vector<WeightedEd
                                              const std::vector<Mobius>& generators, std::vector<Complex> z0,
                                              const HarmonicRelaxationOptions& options) {
   const char* who = "harmonic_relaxation";
-  check_options(options, who);
+  check_options(options, n, who);
   if (static_cast<int>(z0.size()) != n) throw InputError("harmonic_relaxation: one start point per vertex needed");
   for (int i = 0; i < n; ++i)
     if (!(std::abs(z0[i]) < 1))
@@ -189,8 +191,6 @@ HarmonicRelaxationResult harmonic_relaxation(int n, const std::vector<WeightedEd
   };
   std::vector<double> settled(n, 0.0);  // |z|² below which the chart test is skipped
   const bool any_fixed = !options.fixed.empty();
-  if (any_fixed && static_cast<int>(options.fixed.size()) != n)
-    throw InputError("harmonic_relaxation: the fixed mask needs one entry per vertex");
   auto sweep = [&]() {
     for (int v = 0; v < n; ++v) {
       if (any_fixed && options.fixed[v]) continue;
@@ -267,7 +267,7 @@ HarmonicRelaxationResult flat_harmonic_relaxation(int n, const std::vector<int>&
                                                   const std::vector<double>& w, const std::vector<Complex>& t,
                                                   std::vector<Complex> z0, const HarmonicRelaxationOptions& options) {
   const char* who = "flat_harmonic_relaxation";
-  check_options(options, who);
+  check_options(options, n, who);
   if (static_cast<int>(z0.size()) != n) throw InputError("flat_harmonic_relaxation: one start point per vertex needed");
   if (ej.size() != ei.size() || w.size() != ei.size() || t.size() != ei.size())
     throw InputError("flat_harmonic_relaxation: edge_i, edge_j, weight and translation must have the same size");
@@ -279,8 +279,6 @@ HarmonicRelaxationResult flat_harmonic_relaxation(int n, const std::vector<int>&
   double max_w = 0;
   for (double x : w) max_w = std::max(max_w, x);
   const bool any_fixed = !options.fixed.empty();
-  if (any_fixed && static_cast<int>(options.fixed.size()) != n)
-    throw InputError("flat_harmonic_relaxation: the fixed mask needs one entry per vertex");
   auto sweep = [&]() {
     for (int v = 0; v < n; ++v) {
       if (any_fixed && options.fixed[v]) continue;

@@ -23,35 +23,6 @@ namespace surfmap {
 using hyperbolic::Mobius;
 using Complex = std::complex<double>;
 
-HyperbolicInitialMapResult hyperbolic_initial_map(const Connectivity& sc, const std::vector<Mobius>& halfedge_rho,
-                                                  const std::vector<Mobius>& generators,
-                                                  const HyperbolicInitialMapOptions& options) {
-  const auto t0 = std::chrono::steady_clock::now();
-  if (static_cast<int>(halfedge_rho.size()) != 3 * sc.num_faces())
-    throw InputError("hyperbolic_initial_map: one deck element per halfedge (3 x #F) needed");
-  std::vector<WeightedEdge> edges(sc.num_edges());
-  for (int e = 0; e < sc.num_edges(); ++e) {
-    const int h = sc.edge_halfedge(e);
-    edges[e].i = sc.tail(h);
-    edges[e].j = sc.head(h);
-    edges[e].w = 1.0;
-    edges[e].rho = halfedge_rho[h];
-  }
-  HyperbolicHarmonicOptions ho;
-  ho.tolerance = options.tolerance;
-  ho.max_iterations = options.max_iterations;
-  HyperbolicHarmonicResult hr =
-      hyperbolic_harmonic_map(sc.num_vertices(), edges, generators, std::vector<Complex>(sc.num_vertices(), Complex(0.0)), ho);
-  HyperbolicInitialMapResult r;
-  r.converged = hr.converged;
-  r.iterations = hr.iterations;
-  r.z = std::move(hr.z);
-  r.vertex_deck = std::move(hr.vertex_deck);
-  r.vertex_deck_word = std::move(hr.vertex_deck_word);
-  r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return r;
-}
-
 namespace {
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {

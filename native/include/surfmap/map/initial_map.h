@@ -101,8 +101,8 @@ struct HyperbolicInitialMapOptions {
   /// and one factorisation is saved; the map only starts the real solve).
   double tolerance = 1e-4;
   int max_iterations = 100;
-  /// Overload with the source mesh only: try the polygon construction first
-  /// (default true); false builds the uniform-weight map directly.
+  /// Try the polygon construction first (default true); false builds the
+  /// uniform-weight map directly.
   bool polygon = true;
   /// Passed to polygon_initial_map (PolygonInitialMapOptions).
   int base_vertex = -1;
@@ -190,15 +190,6 @@ struct HyperbolicInitialMapResult {
   double time_s = 0;
 };
 
-/// Uniform-weight harmonic map in the class given by `halfedge_rho`
-/// (#3F: the deck element of source halfedge h = 3f+k, which runs from
-/// F(f,k) to F(f,k+1); the twin's element is the inverse).
-/// `generators`: the target's deck group generators (for the dynamic charts).
-/// Throws SolveError if the solve breaks down.
-HyperbolicInitialMapResult hyperbolic_initial_map(const Connectivity& source, const std::vector<hyperbolic::Mobius>& halfedge_rho,
-                                                  const std::vector<hyperbolic::Mobius>& generators,
-                                                  const HyperbolicInitialMapOptions& options = {});
-
 /// The paper's polygon construction in the form that applies to one
 /// surface's loops (file comment). `source`/`sc`: the source mesh;
 /// `halfedge_word` (#3F): the class's deck element of every source halfedge
@@ -211,8 +202,12 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
 
 /// The initial map: polygon_initial_map when options.polygon and it applies
 /// and its images of the source's faces are not flipped, otherwise the
-/// uniform-weight map above. `halfedge_rho` (#3F) and `halfedge_word` (#3F,
-/// the same elements as side words of `group`).
+/// uniform-weight harmonic map in the class (weight 1 on every source edge,
+/// Newton from the flattening when there is one, else from the origin).
+/// `halfedge_rho` (#3F: the deck element of source halfedge h = 3f+k, which
+/// runs from F(f,k) to F(f,k+1); the twin's element is the inverse) and
+/// `halfedge_word` (#3F, the same elements as side words of `group`).
+/// Throws SolveError if the uniform-weight solve breaks down.
 HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const Connectivity& sc,
                                                   const std::vector<hyperbolic::Mobius>& halfedge_rho,
                                                   const std::vector<Word>& halfedge_word, const DeckGroup& group,
