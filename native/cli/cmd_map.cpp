@@ -69,7 +69,7 @@ void register_map(CLI::App& app) {
   cmd->add_option("--method", a->method, "Optimiser of the harmonic energy (genus >= 2)")
       ->check(CLI::IsMember({"newton", "relaxation"}));
   cmd->add_option("--source-weights", a->source_weights,
-                  "Genus >= 2: energy weights on the source: auto (intrinsic Delaunay cotangents, positive weights on the "
+                  "Genus >= 1: energy weights on the source: auto (intrinsic Delaunay cotangents, positive weights on the "
                   "source's own edges if its faces' images fold), intrinsic, own")
       ->check(CLI::IsMember({"auto", "intrinsic", "own"}));
   cmd->add_option("--landmarks", a->landmarks,

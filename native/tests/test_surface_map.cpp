@@ -2,13 +2,17 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <complex>
 #include <limits>
+#include <vector>
 
 #include <Eigen/Geometry>
 #include <set>
 
 #include "surfmap/error.h"
+#include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
 
@@ -85,6 +89,85 @@ TEST(SurfaceMap, UglyMarchingTetsTorusHasNoFlips) {
   const SurfaceMapResult m = surface_map(a, b);
   expect_valid_map(m, a, b);
   EXPECT_TRUE(std::isfinite(m.mean_dilatation));
+}
+
+// Caps (CAD-style): in every `every`-th face (u, v, a) the edge uv gets a
+// vertex m just off it towards a (eps of the way), and the face becomes
+// (u, m, a), (m, v, a) and the cap (u, v, m), whose angle at m is ~180°.
+TriMesh with_caps(const TriMesh& mesh, int every, double eps) {
+  std::vector<Eigen::Vector3d> V;
+  for (int i = 0; i < mesh.num_vertices(); ++i) V.push_back(mesh.V.row(i));
+  std::vector<std::array<int, 3>> F;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int u = mesh.F(f, 0), v = mesh.F(f, 1), a = mesh.F(f, 2);
+    if (f % every != 0) {
+      F.push_back({u, v, a});
+      continue;
+    }
+    const Eigen::Vector3d mid = 0.5 * (V[u] + V[v]);
+    V.push_back(mid + eps * (V[a] - mid));
+    const int m = static_cast<int>(V.size()) - 1;
+    F.push_back({u, m, a}), F.push_back({m, v, a}), F.push_back({u, v, m});
+  }
+  TriMesh out;
+  out.V.resize(static_cast<int>(V.size()), 3);
+  for (size_t i = 0; i < V.size(); ++i) out.V.row(static_cast<int>(i)) = V[i];
+  out.F.resize(static_cast<int>(F.size()), 3);
+  for (size_t f = 0; f < F.size(); ++f) out.F.row(static_cast<int>(f)) << F[f][0], F[f][1], F[f][2];
+  return out;
+}
+
+TEST(SurfaceMap, CappedTorusFallsBackToPositiveWeightsOnItsOwnEdges) {
+  // Genus 1, as genus >= 2: with the intrinsic Delaunay weights the straight
+  // images of the caps fold (63 flipped faces here), so the automatic
+  // choice solves again with positive weights on the source's own edges,
+  // which embed the mesh itself (Tutte-type theorem on the torus).
+  const TriMesh a = with_caps(samples::torus_of_revolution(1.0, 0.5, 40, 16), 7, 0.01);
+  const TriMesh b = samples::torus_of_revolution(1.5, 0.5, 60, 24);
+  const Connectivity ac(a.F, a.num_vertices());
+  ASSERT_EQ(ac.genus(), 1);
+  SurfaceMapOptions intrinsic;
+  intrinsic.source_weights = SourceWeights::IntrinsicDelaunay;
+  EXPECT_THROW(surface_map(a, b, intrinsic), SolveError);
+  HarmonicProblem p;
+  SurfaceMapOptions automatic, own;
+  automatic.inspect_problem = [&](const HarmonicProblem& q) { p = q; };  // the last pass's problem
+  const SurfaceMapResult m = surface_map(a, b, automatic);
+  expect_valid_map(m, a, b);
+  EXPECT_EQ(m.source_weights, "positive on the source's own edges");
+  EXPECT_EQ(m.intrinsic_flipped_triangles, 0);
+  // The class chosen with the intrinsic weights stays (explicit own-edge
+  // weights rank with those weights instead); in that class both agree.
+  own.source_weights = SourceWeights::OwnEdges;
+  own.homotopy = m.chosen_candidate;
+  const SurfaceMapResult mo = surface_map(a, b, own);
+  EXPECT_EQ(mo.source_weights, m.source_weights);
+  EXPECT_NEAR(mo.final_energy, m.final_energy, 1e-9 * m.final_energy);
+  // The solved problem lives on the source's own edges with positive
+  // weights; its energy, recomputed from the returned image, is the final
+  // energy, and the image is stationary (the gradient recomputed vanishes).
+  ASSERT_TRUE(p.flat);
+  ASSERT_EQ(static_cast<int>(p.flat_i.size()), ac.num_edges());
+  double E = 0, max_w = 0;
+  std::vector<std::complex<double>> g(a.num_vertices(), 0.0);
+  const auto& z = m.source_image;
+  for (size_t e = 0; e < p.flat_i.size(); ++e) {
+    const int i = p.flat_i[e], j = p.flat_j[e];
+    EXPECT_GT(p.flat_weight[e], 0);
+    max_w = std::max(max_w, p.flat_weight[e]);
+    const std::complex<double> d = z[j] + p.flat_translation[e] - z[i];
+    E += p.flat_weight[e] * std::norm(d);
+    g[i] -= 2 * p.flat_weight[e] * d, g[j] += 2 * p.flat_weight[e] * d;
+  }
+  EXPECT_NEAR(E, m.final_energy, 1e-9 * m.final_energy);
+  double worst = 0;
+  for (const auto& x : g) worst = std::max(worst, std::abs(x));
+  EXPECT_LT(worst, 1e-9 * max_w * std::sqrt(m.final_energy));
+  // A raw marching-tetrahedra torus (slivers, no caps) keeps the intrinsic weights.
+  const TriMesh raw = samples::n_hole_torus(1, 24, false);
+  const SurfaceMapResult mr = surface_map(raw, b);
+  expect_valid_map(mr, raw, b);
+  EXPECT_EQ(mr.source_weights, "intrinsic Delaunay cotangent");
 }
 
 TEST(SurfaceMap, RejectsGenusMismatchAndUnknownClass) {

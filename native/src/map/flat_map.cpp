@@ -14,6 +14,7 @@
 #include "map_support.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
+#include "surfmap/geometry/positive_edge_weights.h"
 #include "surfmap/map/distortion.h"
 #include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/edge_homotopy.h"
@@ -86,10 +87,23 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   const CanonicalSchema scs = canonical_schema(sl.word);
   const std::vector<int> first = loop_first_vertices(sl, sc);
 
-  // Source weights: intrinsic Delaunay cotangents of its 3D metric.
-  Eigen::VectorXd lengths = edge_lengths(source, sc);
-  const IntrinsicDelaunayResult idt = intrinsic_delaunay(sc, lengths);
+  // Source weights: intrinsic Delaunay cotangents of its 3D metric, or
+  // positive weights on the source's own edges (options.source_weights),
+  // as for genus >= 2. The automatic fallback below switches to the latter
+  // when the straight images of the user's own faces fold (caps: a vertex
+  // just off the opposite edge): the intrinsic triangulation's image is an
+  // embedding, but not those faces'; with positive weights on the mesh's own
+  // edges the harmonic map into the flat torus embeds the mesh itself (the
+  // Tutte-type theorem on the torus, Gortler-Gotsman-Thurston 2006). The
+  // class chosen with the intrinsic weights stays.
+  const Eigen::VectorXd lengths = edge_lengths(source, sc);
+  bool own_weights = options.source_weights == SourceWeights::OwnEdges;
+  // The body of this loop (one pass per choice of weights) is the rest of
+  // the pipeline, left unindented.
+  for (bool first_pass = true;; first_pass = false) {
+  const IntrinsicDelaunayResult idt = own_weights ? positive_edge_weights(sc, lengths) : intrinsic_delaunay(sc, lengths);
   if (!idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
+  out.source_weights = own_weights ? "positive on the source's own edges" : "intrinsic Delaunay cotangent";
   stage_done("source homotopy data and weights", 0.4);
 
   // Laplacian with vertex 0 pinned (the optimum is unique up to translation).
@@ -192,7 +206,9 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     auto cost = [](const auto& m) { return std::abs(m[0]) + std::abs(m[1]) + std::abs(m[2]) + std::abs(m[3]); };
     return cost(m1) < cost(m2);
   });
-  for (const auto& m : mats) {
+  // (Ranked once: on the pass with own-edge weights the class chosen with
+  // the intrinsic weights stays, and so do the candidates' energies.)
+  for (const auto& m : first_pass ? mats : std::vector<std::array<int, 4>>{}) {
     HomotopyCandidate c;
     std::copy(m.begin(), m.end(), c.matrix);
     c.description = "a -> " + std::to_string(m[0]) + " a' + " + std::to_string(m[1]) + " b',  b -> " +
@@ -203,6 +219,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     if (landmarks) c.landmark_energy = c.energy;
     out.candidates.push_back(c);
   }
+  if (first_pass) {
   out.chosen_candidate = options.homotopy;
   if (out.chosen_candidate < 0) {
     out.chosen_candidate = 0;
@@ -212,6 +229,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     throw InputError("homotopy class " + std::to_string(options.homotopy) + " does not exist; there are " +
                      std::to_string(out.candidates.size()) + " candidates (0.." +
                      std::to_string(out.candidates.size() - 1) + ")");
+  }
   }
   stage_done("homotopy candidates", 0.6);
 
@@ -328,6 +346,11 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     const Complex e1 = c[1] - c[0], e2 = c[2] - c[0];
     if (e1.real() * e2.imag() - e1.imag() * e2.real() <= 0) ++intrinsic_flipped;
   }
+  out.intrinsic_flipped_triangles = intrinsic_flipped;
+  if ((q.flipped || q.degenerate) && !own_weights && options.source_weights == SourceWeights::Automatic) {
+    own_weights = true;
+    continue;
+  }
   if (q.flipped || q.degenerate)
     throw SolveError("the optimised map has " + std::to_string(q.flipped) + " flipped and " +
                      std::to_string(q.degenerate) + " degenerate image triangles (" +
@@ -366,46 +389,40 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   }
   stage_done("forward location", 0.85);
 
-  // Inverse map: locate every target vertex in the image of the source triangles.
-  std::vector<std::array<Complex, 3>> stris(source.num_faces());
-  Complex scentre = 0;
-  for (int f = 0; f < source.num_faces(); ++f) {
-    for (int k = 0; k < 3; ++k) stris[f][k] = img(f, k);
-    scentre += (stris[f][0] + stris[f][1] + stris[f][2]) / 3.0;
-  }
-  scentre /= double(source.num_faces());
-  const TriangleGrid sgrid(stris);
-  out.inverse.resize(target.num_vertices());
-  for (int v = 0; v < target.num_vertices(); ++v) {
-    Eigen::Vector3d b;
-    const int f = locate_periodic(sgrid, tgt.layout.vertex_positions[v], scentre, tgt.A, tgt.B, &b);
-    if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
-    out.inverse[v] = point_in_face(source, f, b);
-  }
-  // The initial map's inverse the same way (the "before" UV transfer); left
-  // empty, not an error, when a target vertex is not covered.
-  {
-    const auto img0 = image_corners(z_init);
-    std::vector<std::array<Complex, 3>> stris0(source.num_faces());
-    Complex scentre0 = 0;
+  // Inverse map: locate every target vertex in the image of the source
+  // triangles `im`; false (and `inv` emptied) if one is not covered.
+  auto locate_inverse = [&](const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& im,
+                            std::vector<PointOnSurface>& inv, int* missed) {
+    std::vector<std::array<Complex, 3>> stris(source.num_faces());
+    Complex scentre = 0;
     for (int f = 0; f < source.num_faces(); ++f) {
-      for (int k = 0; k < 3; ++k) stris0[f][k] = img0(f, k);
-      scentre0 += (stris0[f][0] + stris0[f][1] + stris0[f][2]) / 3.0;
+      for (int k = 0; k < 3; ++k) stris[f][k] = im(f, k);
+      scentre += (stris[f][0] + stris[f][1] + stris[f][2]) / 3.0;
     }
-    scentre0 /= double(source.num_faces());
-    const TriangleGrid sgrid0(stris0);
-    out.initial_inverse.resize(target.num_vertices());
+    scentre /= double(source.num_faces());
+    const TriangleGrid sgrid(stris);
+    inv.resize(target.num_vertices());
     for (int v = 0; v < target.num_vertices(); ++v) {
       Eigen::Vector3d b;
-      const int f = locate_periodic(sgrid0, tgt.layout.vertex_positions[v], scentre0, tgt.A, tgt.B, &b);
+      const int f = locate_periodic(sgrid, tgt.layout.vertex_positions[v], scentre, tgt.A, tgt.B, &b);
       if (f < 0) {
-        out.initial_inverse.clear();
-        break;
+        inv.clear();
+        *missed = v;
+        return false;
       }
-      out.initial_inverse[v] = point_in_face(source, f, b);
+      inv[v] = point_in_face(source, f, b);
     }
-  }
+    return true;
+  };
+  int missed = -1;
+  if (!locate_inverse(img, out.inverse, &missed))
+    throw SolveError("target vertex " + std::to_string(missed) + " could not be located in the source image");
+  // The initial map's inverse the same way (the "before" UV transfer); left
+  // empty, not an error, when a target vertex is not covered.
+  locate_inverse(image_corners(z_init), out.initial_inverse, &missed);
   stage_done("inverse location", 1.0);
+  return;
+  }
 }
 
 }  // namespace surfmap::detail

@@ -83,11 +83,11 @@ enum class InitialMapMethod {
   UniformHarmonic,
 };
 
-/// Weights of the harmonic energy on the source (genus >= 2).
+/// Weights of the harmonic energy on the source (genus >= 1).
 enum class SourceWeights {
   /// Intrinsic Delaunay cotangent weights; if the straight images of the
-  /// source's own faces then fold, the map is solved again with OwnEdges
-  /// (the default).
+  /// source's own faces then fold, the chosen class is solved again with
+  /// OwnEdges (the default).
   Automatic,
   /// Cotangent weights of the source's intrinsic Delaunay triangulation
   /// only (DESIGN.md §2.8): reproduce affine maps, embed the intrinsic
@@ -135,7 +135,7 @@ struct SurfaceMapOptions {
   double uniformization_tolerance = 1e-10;
   /// Optimiser of the harmonic energy (default Newton).
   MapMethod method = MapMethod::Newton;
-  /// Genus >= 2: weights of the energy on the source (default Automatic).
+  /// Genus >= 1: weights of the energy on the source (default Automatic).
   SourceWeights source_weights = SourceWeights::Automatic;
   /// Relative gradient tolerance of the harmonic solve (default 1e-10) and
   /// its iteration cap (default 300). For the relaxation an iteration is one
@@ -262,7 +262,7 @@ struct SurfaceMapResult {
   double initial_mean_dilatation = 0, initial_max_dilatation = 0;
   std::vector<double> initial_dilatation;  ///< #F_source D' of the initial map (empty when not computed)
   int flipped_triangles = 0, degenerate_triangles = 0;
-  /// Genus >= 2: flipped images among the triangles of the source's
+  /// Genus >= 1: flipped images among the triangles of the source's
   /// intrinsic Delaunay triangulation, on which the energy (and so the
   /// discrete harmonic map, an embedding for positive weights) is defined;
   /// -1 when not computed. flipped_triangles counts the source's own faces
@@ -300,10 +300,10 @@ struct SurfaceMapResult {
   /// when the fixed-connectivity metric existed). Outputs stay on the
   /// user's target either way.
   int target_refinement_splits = 0;
-  /// Genus >= 2: the weights the returned map was solved with:
+  /// Genus >= 1: the weights the returned map was solved with:
   /// "intrinsic Delaunay cotangent" or "positive on the source's own edges"
-  /// (SourceWeights; the candidates' energies are always those of the
-  /// intrinsic weights). Empty for genus 0 and 1.
+  /// (SourceWeights; after the automatic fallback the candidates' energies
+  /// and the ranking are those of the intrinsic weights). Empty for genus 0.
   std::string source_weights;
   std::vector<HomotopyCandidate> candidates;
   int chosen_candidate = -1;
