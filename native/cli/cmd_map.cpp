@@ -52,9 +52,9 @@ void register_map(CLI::App& app) {
     std::string src, dst, out, report, correspondence, method = "newton", landmarks, initial = "polygon", initial_out,
         source_weights = "auto";
     int homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
-    int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3;
+    int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
     double tolerance = 1e-10;
-    bool quiet = false;
+    bool quiet = false, no_homotopy_search = false;
   };
   auto a = std::make_shared<Args>();
   cmd->add_option("SRC", a->src, "Source mesh")->required();
@@ -91,6 +91,11 @@ void register_map(CLI::App& app) {
   cmd->add_option("--homotopy-extra-cuts", a->homotopy_extra_cuts,
                   "Genus >= 2: other systems of source loops whose lifted handle classes are added (other twist representatives)")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--no-homotopy-search", a->no_homotopy_search,
+               "Genus >= 2: no search in the mapping class group (Dehn twists) from the best candidate");
+  cmd->add_option("--homotopy-search-evaluations", a->homotopy_search_evaluations,
+                  "Genus >= 2: most coarse solves of the class search (report: homotopy.search)")
+      ->check(CLI::PositiveNumber);
   cmd->add_flag("--quiet", a->quiet, "No progress lines on stderr");
   cmd->callback([a] {
     const IntakeResult src = load_mesh(a->src), dst = load_mesh(a->dst);
@@ -109,6 +114,8 @@ void register_map(CLI::App& app) {
     opt.homotopy_full_solves = a->homotopy_full_solves;
     opt.initial_map = a->initial == "uniform" ? InitialMapMethod::UniformHarmonic : InitialMapMethod::Polygon;
     opt.homotopy_extra_cuts = a->homotopy_extra_cuts;
+    opt.homotopy_search = !a->no_homotopy_search;
+    opt.homotopy_search_evaluations = a->homotopy_search_evaluations;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     // One line per stage and percent (the relaxation reports every few sweeps).
     std::string last_line;
@@ -137,6 +144,25 @@ void register_map(CLI::App& app) {
     nlohmann::json notes = nlohmann::json::array();
     for (const auto* r : {&src, &dst})
       for (const auto& n : r->info.notes) notes.push_back((r == &src ? "source: " : "target: ") + n);
+    const HomotopySearchInfo& hs = m.homotopy_search;
+    nlohmann::json evaluated = nlohmann::json::array();
+    for (size_t k = 0; k < hs.evaluated_moves.size(); ++k)
+      evaluated.push_back({{"step", hs.evaluated_step[k]},
+                           {"move", hs.evaluated_moves[k]},
+                           {"screen", hs.evaluated_screen[k]},
+                           {"energy", hs.evaluated_energy[k]}});
+    const nlohmann::json search = {{"run", hs.run},
+                                   {"start_candidate", hs.start_candidate},
+                                   {"start_energy", hs.start_energy},
+                                   {"energy", hs.energy},
+                                   {"moves", hs.moves},
+                                   {"energies", hs.energies},
+                                   {"evaluations", hs.evaluations},
+                                   {"screened", hs.screened},
+                                   {"stop_reason", hs.stop_reason},
+                                   {"time_s", hs.time_s},
+                                   {"found_candidate", hs.found_candidate},
+                                   {"evaluated", evaluated}};
     const nlohmann::json report = {
         {"source", a->src},
         {"target", a->dst},
@@ -171,7 +197,7 @@ void register_map(CLI::App& app) {
           {"located", !m.initial_forward.empty()}}},
         {"target_refinement_splits", m.target_refinement_splits},
         {"source_weights", m.source_weights},
-        {"homotopy", {{"chosen", m.chosen_candidate}, {"candidates", candidates}}},
+        {"homotopy", {{"chosen", m.chosen_candidate}, {"candidates", candidates}, {"search", search}}},
         {"target_lattice", {{m.target_omega1.real(), m.target_omega1.imag()}, {m.target_omega2.real(), m.target_omega2.imag()}}},
         {"time_s", times},
         {"notes", notes}};

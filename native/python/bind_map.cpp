@@ -36,7 +36,8 @@ void bind_map(py::module_& m) {
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
          int target_base_vertex, py::object progress, py::object landmarks, const std::string& method,
          double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
-         int homotopy_full_solves, const std::string& initial_map, const std::string& source_weights) {
+         int homotopy_full_solves, const std::string& initial_map, const std::string& source_weights,
+         bool homotopy_search, int homotopy_search_evaluations) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         SurfaceMapOptions opt;
@@ -54,6 +55,9 @@ void bind_map(py::module_& m) {
         if (homotopy_full_solves < 1) throw InputError("homotopy_full_solves must be at least 1");
         opt.homotopy_candidates = homotopy_candidates;
         opt.homotopy_full_solves = homotopy_full_solves;
+        if (homotopy_search_evaluations < 1) throw InputError("homotopy_search_evaluations must be at least 1");
+        opt.homotopy_search = homotopy_search;
+        opt.homotopy_search_evaluations = homotopy_search_evaluations;
         if (initial_map == "polygon") opt.initial_map = InitialMapMethod::Polygon;
         else if (initial_map == "uniform") opt.initial_map = InitialMapMethod::UniformHarmonic;
         else throw InputError("initial_map must be 'polygon' or 'uniform', not '" + initial_map + "'");
@@ -158,7 +162,18 @@ void bind_map(py::module_& m) {
           cands.append(py::dict(py::arg("description") = c.description, py::arg("energy") = c.energy, py::arg("solved") = c.solved,
                                 py::arg("coarse_energy") = c.coarse_energy,
                                 py::arg("landmark_energy") = c.landmark_energy, py::arg("matrix") = std::vector<int>(c.matrix, c.matrix + 4)));
-        d["homotopy"] = py::dict(py::arg("chosen") = r.chosen_candidate, py::arg("candidates") = cands);
+        const HomotopySearchInfo& hs = r.homotopy_search;
+        py::dict search(py::arg("run") = hs.run, py::arg("start_candidate") = hs.start_candidate,
+                        py::arg("start_energy") = hs.start_energy, py::arg("energy") = hs.energy,
+                        py::arg("moves") = hs.moves, py::arg("energies") = hs.energies,
+                        py::arg("evaluations") = hs.evaluations, py::arg("screened") = hs.screened,
+                        py::arg("evaluated") = py::dict(py::arg("move") = hs.evaluated_moves, py::arg("step") = hs.evaluated_step,
+                                                        py::arg("screen") = hs.evaluated_screen,
+                                                        py::arg("energy") = hs.evaluated_energy),
+                        py::arg("stop_reason") = hs.stop_reason, py::arg("time_s") = hs.time_s,
+                        py::arg("found_candidate") = hs.found_candidate);
+        d["homotopy"] = py::dict(py::arg("chosen") = r.chosen_candidate, py::arg("candidates") = cands,
+                                 py::arg("search") = search);
         py::dict times;
         for (const auto& [stage, s] : r.stage_times) times[py::str(stage)] = s;
         times["total"] = r.total_time;
@@ -172,13 +187,16 @@ void bind_map(py::module_& m) {
       py::arg("landmarks") = py::none(), py::arg("method") = "newton", py::arg("tolerance") = 1e-10,
       py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
       py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = "polygon", py::arg("source_weights") = "auto",
+      py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
       "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "
       "(source vertex, target vertex) pairs held fixed; `method`: 'newton' or 'relaxation'; "
       "`solve_progress(iteration, energy, gradient)` is called every iteration of the harmonic solve (genus >= 2) "
       "and may return False to cancel; `homotopy_candidates` / `homotopy_full_solves`: how many genus >= 2 "
-      "handle classes are listed / solved to convergence for the ranking; `initial_map`: 'polygon' (genus >= 2: the "
+      "handle classes are listed / solved to convergence for the ranking; `homotopy_search`: search the mapping class "
+      "group from the best candidate over Dehn twists, at most `homotopy_search_evaluations` coarse solves ('homotopy' "
+      "'search' in the result: moves, energies, every neighbour evaluated); `initial_map`: 'polygon' (genus >= 2: the "
       "source disk onto the target's geodesic polygon of the source's loops when convex, else uniform) or 'uniform' "
       "('initial_map' in the result says which was used; 'initial_forward': the initial map located on the target, "
       "'initial_inverse': each target vertex located on the source through the initial map); `source_weights`: 'auto' "

@@ -1,6 +1,7 @@
 // Genus >= 2: the hyperbolic case of the optimal map (paper §VI; DESIGN.md §2.8, §7).
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -24,6 +25,7 @@
 #include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/edge_homotopy.h"
 #include "surfmap/topology/handle_basis.h"
+#include "surfmap/topology/mapping_class_search.h"
 #include "surfmap/topology/projected_loops.h"
 #include "surfmap/uniformize/deck_group.h"
 
@@ -272,6 +274,32 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   // homotopy data alone took minutes (lifted classes of some cuts reach 1e6
   // letters; the classes that solve have a few hundred at most).
   const double max_image_letters = 500.0 * n;
+  // Screening score of a class: sum over the source's loops of (target
+  // length of its image / its source length)^2, a rough stand-in for the
+  // energy (a map's energy is at least the squared length of any curve's
+  // image over the curve's extremal length), conjugation invariant, with no
+  // solve (+inf when the images are too long to evaluate). Used to choose
+  // which lifted classes of the extra cuts are solved and by the class
+  // search (measured: the order agrees with the coarse energies' among the
+  // twist neighbours of a class, 2.29 -> 26.7, 3.71 -> 46.8, 4.33 -> 63.9).
+  std::vector<double> loop_length(sl.loops.size(), 0.0);
+  for (size_t k = 0; k < sl.loops.size(); ++k)
+    for (size_t q = 0; q + 1 < sl.loops[k].size(); ++q)
+      loop_length[k] += (sl.mesh.V.row(sl.loops[k][q + 1]) - sl.mesh.V.row(sl.loops[k][q])).norm();
+  auto class_screen = [&](const GroupMap& theta) {
+    const std::vector<Word> images = loop_letter_images(theta);
+    double letters = 0, score = 0;
+    for (const Word& w : images) letters += static_cast<double>(w.size());
+    if (letters > max_image_letters) return std::numeric_limits<double>::infinity();
+    for (size_t k = 0; k < images.size(); ++k) {
+      const Mobius m = deck_group.evaluate(images[k]);
+      const double t = std::abs(m.a.real()) / std::sqrt(std::max(m.determinant(), 1e-300));
+      if (!std::isfinite(t)) return std::numeric_limits<double>::infinity();  // beyond double range
+      const double l = 2 * std::acosh(std::max(1.0, t));
+      score += l * l / std::max(loop_length[k] * loop_length[k], 1e-300);
+    }
+    return std::isfinite(score) ? score : std::numeric_limits<double>::infinity();
+  };
   // Of the Torelli-equivalent versions of each lifted class, the one whose
   // source loops have the shortest images in the target (least twisted).
   for (HandleCandidate& hc : handle_classes)
@@ -338,6 +366,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     // farthest points: those are the shape's extremities, where the loops
     // come out long and skewed (the demo pair: no geometric class from the
     // two farthest; from 3 of 7 spread ones).
+    std::vector<std::pair<double, HandleCandidate>> extra;  // new lifted classes and their screening scores
     std::vector<int> bases{sl.base_vertex};
     for (int c = 1; c <= options.homotopy_extra_cuts; ++c)
       bases.push_back(static_cast<int>((static_cast<long long>(source.num_vertices()) * c) / (options.homotopy_extra_cuts + 1)));
@@ -379,9 +408,14 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         std::string handles;
         handle_correspondence_of(shb, thb, hc.homology, &hc.permutation, &hc.sign, &handles);
         hc.description = handles + "  [lifted from the loops at source vertex " + std::to_string(bases[c]) + "]";
-        handle_classes.push_back(hc);
+        extra.push_back({class_screen(theta), std::move(hc)});
       }
     }
+    // Only the most promising new classes get homotopy data and a coarse
+    // solve (each costs about as much as the cut itself).
+    std::stable_sort(extra.begin(), extra.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    for (size_t k = 0; k < extra.size() && static_cast<int>(k) < options.homotopy_extra_cut_classes; ++k)
+      handle_classes.push_back(std::move(extra[k].second));
   }
 
   // The homotopy data of one class theta (source canonical generator ->
@@ -472,7 +506,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     }
     return cd;
   };
-  const int ncand = static_cast<int>(handle_classes.size());
+  int ncand = static_cast<int>(handle_classes.size());
   if (options.homotopy >= ncand)
     throw InputError("homotopy class " + std::to_string(options.homotopy) + " does not exist; there are " +
                      std::to_string(ncand) + " candidates (0.." + std::to_string(ncand - 1) + ")");
@@ -641,9 +675,36 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   CoarseSource cs;
   if (options.homotopy_coarse_vertices > 0 && cso.target_vertices >= 500) cs = coarse_source(source, sc, cso);
   std::vector<std::vector<WeightedEdge>> coarse_data;
+  // For the class search: every coarse solver edge's element as a reduced
+  // word in the source's loop letters (class independent), so a new class's
+  // coarse data is one substitution per edge, without fine data.
+  std::vector<WeightedEdge> coarse_template;
+  std::vector<Word> coarse_source_word;
   if (cs.ok) {
     const Connectivity cc(cs.mesh.F, cs.mesh.num_vertices());
     const IntrinsicDelaunayResult cidt = intrinsic_delaunay(cc, edge_lengths(cs.mesh, cc));
+    if (options.homotopy_search && options.homotopy < 0 && cidt.delaunay) {
+      const DehnReducer reduce_source_loops(sl.word);
+      std::vector<Word> csw(cc.num_halfedges());
+      for (int e = 0; e < cc.num_edges(); ++e) {
+        Word w;
+        for (int h : cs.edge_path[e]) {
+          const int fe = sc.edge(h);
+          w = concat(w, sc.edge_halfedge(fe) == h ? edge_word[fe] : inverse(edge_word[fe]));
+        }
+        const int h = cc.edge_halfedge(e);
+        csw[h] = reduce_source_loops(w);
+        csw[cc.twin(h)] = inverse(csw[h]);
+      }
+      for (const auto& ie : cidt.edges) {
+        WeightedEdge we;
+        we.i = ie.i, we.j = ie.j, we.w = ie.cot_weight;
+        Word w;
+        for (int h : ie.path) w = concat(w, csw[h]);
+        coarse_template.push_back(we);
+        coarse_source_word.push_back(reduce_source_loops(w));
+      }
+    }
     for (int k = 0; k < ncand && cs.ok; ++k) {
       if (!usable[k]) {  // no homotopy data (a class refused before its data was built)
         coarse_data.emplace_back();
@@ -709,6 +770,138 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     });
     std::stable_sort(order.begin(), order.end(),
                      [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
+    // Class search (topology/mapping_class_search.h): from the best class on
+    // the coarse copy, a greedy descent over Dehn twists screened by
+    // class_screen, each neighbour evaluated by a solve on the coarse copy.
+    if (options.homotopy_search_start >= ncand)
+      throw InputError("homotopy_search_start " + std::to_string(options.homotopy_search_start) + " does not exist; there are " +
+                       std::to_string(ncand) + " candidates");
+    const int search_start = options.homotopy_search_start >= 0 ? options.homotopy_search_start : order[0];
+    // Every map of degree 1 onto the hyperbolic target has E >= 2 x its
+    // area = 8 pi (g - 1) (|df|^2 >= 2 J_f, equality for conformal maps), so
+    // a start within homotopy_search_gap of that bound leaves nothing worth
+    // a search (the coarse energies of good classes sit 0.3-4% above it:
+    // 75.8 vs 75.4 at genus 4, 26.0 vs 25.1 for the genus-2 demo pair).
+    const double conformal_bound = 8 * M_PI * (out.genus - 1);
+    const bool near_bound = options.homotopy_search_start_twists.empty() &&
+                            out.candidates[search_start].energy <= (1 + options.homotopy_search_gap) * conformal_bound;
+    if (!coarse_source_word.empty() && near_bound)
+      out.homotopy_search.stop_reason = "not run: the best class is within " +
+                                        std::to_string(static_cast<int>(std::lround(100 * options.homotopy_search_gap))) +
+                                        "% of the conformal bound 8 pi (g - 1)";
+    if (!coarse_source_word.empty() && usable[search_start] && !near_bound &&
+        (std::isfinite(out.candidates[search_start].energy) || !options.homotopy_search_start_twists.empty())) {
+      const auto t_search = std::chrono::steady_clock::now();
+      HomotopySearchInfo& info = out.homotopy_search;
+      info.run = true;
+      info.start_candidate = search_start;
+      GroupMap search_from = handle_classes[search_start].map;
+      if (!options.homotopy_search_start_twists.empty()) {
+        const std::vector<MappingClassMove> moves = twist_moves(out.genus);
+        for (const std::string& name : options.homotopy_search_start_twists) {
+          auto it = std::find_if(moves.begin(), moves.end(), [&](const MappingClassMove& m) { return m.name == name; });
+          if (it == moves.end()) throw InputError("homotopy_search_start_twists: no move named '" + name + "'");
+          search_from = compose(search_from, it->automorphism.map);
+          for (Word& w : search_from) w = reduce_canonical(w);
+        }
+      }
+      auto coarse_edges_of = [&](const GroupMap& theta) {
+        const std::vector<Word> image = loop_letter_images(theta);
+        std::vector<WeightedEdge> e = coarse_template;
+        std::map<Word, Word> memo;
+        for (size_t k = 0; k < e.size(); ++k) {
+          auto it = memo.find(coarse_source_word[k]);
+          if (it == memo.end())
+            it = memo.emplace(coarse_source_word[k],
+                              deck_group.side_word(dehn_reduce(substitute(coarse_source_word[k], image), layout.word))).first;
+          e[k].rho_word = it->second;
+          e[k].rho = deck_group.evaluate_side_word(e[k].rho_word);
+        }
+        return e;
+      };
+      struct Evaluated {
+        GroupMap theta;
+        std::vector<WeightedEdge> edges;
+        HyperbolicHarmonicResult result;
+      };
+      std::vector<Evaluated> evaluated;
+      auto coarse_energy = [&](const GroupMap& theta) {
+        try {
+          Evaluated ev{theta, coarse_edges_of(theta), {}};
+          ev.result = solve_from(ncv, ev.edges, corigin, no_decks, ho);
+          bool finite = std::isfinite(ev.result.energy) && ev.result.converged;
+          for (size_t i = 0; i < ev.result.z.size() && finite; ++i) finite = std::isfinite(std::abs(ev.result.z[i]));
+          if (!finite) return std::numeric_limits<double>::infinity();
+          const double E = ev.result.energy;
+          evaluated.push_back(std::move(ev));
+          return E;
+        } catch (const SolveError&) {
+          return std::numeric_limits<double>::infinity();
+        }
+      };
+      info.start_energy = options.homotopy_search_start_twists.empty() ? out.candidates[search_start].energy
+                                                                        : coarse_energy(search_from);
+      TwistSearchOptions tso;
+      tso.max_evaluations = options.homotopy_search_evaluations;
+      const TwistSearchResult ts =
+          twist_search(search_from, info.start_energy, out.genus, class_screen, coarse_energy, tso);
+      info.moves = ts.moves;
+      info.energies = ts.energies;
+      info.energy = ts.energy;
+      info.evaluations = static_cast<int>(ts.evaluations.size());
+      for (const TwistSearchEvaluation& ev : ts.evaluations) {
+        info.evaluated_moves.push_back(ev.move);
+        info.evaluated_step.push_back(ev.step);
+        info.evaluated_screen.push_back(ev.screen);
+        info.evaluated_energy.push_back(ev.energy);
+      }
+      info.screened = ts.screened;
+      info.stop_reason = ts.stop_reason;
+      const Evaluated* found = nullptr;
+      if (!ts.moves.empty())
+        for (const Evaluated& ev : evaluated)
+          if (ev.theta == ts.best) found = &ev;
+      ClassData found_data;
+      if (found && loop_image_length(found->theta) > max_image_letters) found = nullptr;
+      if (found) try {
+          found_data = class_data(found->theta);
+        } catch (const SolveError&) {
+          found = nullptr;  // (cannot happen for an exact automorphism; then the search found nothing usable)
+        }
+      if (found) {
+        HandleCandidate hc;
+        hc.map = found->theta;
+        hc.homology = homology_matrix(hc.map, n);
+        std::string handles;
+        handle_correspondence_of(shb, thb, hc.homology, &hc.permutation, &hc.sign, &handles);
+        std::string path;
+        for (const std::string& m : ts.moves) path += (path.empty() ? "" : ", ") + m;
+        std::string from = std::to_string(search_start);
+        for (const std::string& m : options.homotopy_search_start_twists) from += " " + m;
+        hc.description = handles + "  [class search from candidate " + from + ": " + path + "]";
+        HomotopyCandidate c;
+        c.description = hc.description;
+        c.coarse_energy = c.energy = found->result.energy;
+        c.solved = false;
+        for (int r = 0; r < hc.homology.rows(); ++r)
+          for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
+        data.push_back(std::move(found_data));
+        handle_classes.push_back(std::move(hc));
+        out.candidates.push_back(c);
+        usable.push_back(1);
+        coarse_failed.push_back(0);
+        coarse_data.push_back(found->edges);
+        coarse_result.push_back(found->result);
+        fine_result.emplace_back();
+        full.push_back(0);
+        order.push_back(ncand);
+        info.found_candidate = ncand;
+        ++ncand;
+        std::stable_sort(order.begin(), order.end(),
+                         [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
+      }
+      info.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_search).count();
+    }
     // Which classes get the full-resolution solve: the requested one, or the
     // best by coarse energy and those within the margin of it. The margin is
     // a few times the coarse-versus-fine energy differences measured between

@@ -301,6 +301,12 @@ SurfaceAutomorphism lift_symplectic(const IntMatrix& P) {
   return out;
 }
 
+SurfaceAutomorphism adjacent_handle_mixing(int genus, int i) {
+  if (i < 0 || i + 1 >= genus) throw InputError("adjacent_handle_mixing: handle " + std::to_string(i) + " has no next handle");
+  const Move m = mix_adjacent(genus, i);
+  return {m.fwd, m.inv, 1};
+}
+
 bool is_surface_automorphism(const SurfaceAutomorphism& a, int genus) {
   const int n = 2 * genus;
   if (static_cast<int>(a.map.size()) != n || static_cast<int>(a.inverse.size()) != n) return false;

@@ -121,6 +121,31 @@ struct SurfaceMapOptions {
   /// handle permutations; only classes new by their fingerprint (target
   /// lengths of the generators' images) are added (default 3; 0: none).
   int homotopy_extra_cuts = 3;
+  /// Of the new lifted classes from the extra cuts, at most this many (the
+  /// lowest by a screening score from the target lengths of the source
+  /// loops' images, no solve) are kept and ranked (default 6).
+  int homotopy_extra_cut_classes = 6;
+  /// Genus >= 2, default class only: a greedy search in the mapping class
+  /// group from the best candidate on the coarse copy
+  /// (topology/mapping_class_search.h): neighbours are the class composed
+  /// with Dehn twists along a_i, b_i, the chain curves and separating curves
+  /// (on either surface), screened by the target lengths of the source
+  /// loops' images and ranked by converged coarse solves; an improved class
+  /// is added as a candidate ("[class search ...]"). At most
+  /// `homotopy_search_evaluations` coarse solves (default 24). Not run when
+  /// the best candidate's coarse energy is within `homotopy_search_gap`
+  /// (default 0.1) of the conformal lower bound 8 pi (g - 1) that every
+  /// degree-1 map's energy exceeds (nothing to gain; it costs 0.3-0.5 s per
+  /// coarse solve at genus 2-6).
+  bool homotopy_search = true;
+  int homotopy_search_evaluations = 24;
+  double homotopy_search_gap = 0.1;
+  /// For tests and comparisons: start the class search from this candidate
+  /// (-1: the best on the coarse copy) composed on the source side with the
+  /// named moves of topology/mapping_class_search.h twist_moves, in order
+  /// (e.g. {"T(a1)", "T(a1)"}; an unknown name is an InputError).
+  int homotopy_search_start = -1;
+  std::vector<std::string> homotopy_search_start_twists;
   /// Base vertices of the systems of loops (-1: automatic).
   int source_base_vertex = -1, target_base_vertex = -1;
   /// Start of the hyperbolic solve: 0 (default) starts from the initial map
@@ -205,6 +230,31 @@ struct HomotopyCandidate {
   /// Genus >= 2: the class's action on H_1, 2g x 2g row-major, in the
   /// canonical coordinates (a_1, b_1, ...) of both surfaces; empty for genus 1.
   std::vector<int> homology;
+};
+
+/// Genus >= 2: the class search of SurfaceMapOptions::homotopy_search.
+struct HomotopySearchInfo {
+  bool run = false;
+  /// Candidate it started from, its coarse energy and the energy reached.
+  int start_candidate = -1;
+  double start_energy = std::numeric_limits<double>::quiet_NaN();
+  double energy = std::numeric_limits<double>::quiet_NaN();
+  /// Moves taken ("source T(a1)^-1", "target [T(c1)] T(s1)", ...) and the
+  /// coarse energy after each.
+  std::vector<std::string> moves;
+  std::vector<double> energies;
+  /// Every neighbour solved on the coarse copy: its move (from the class
+  /// current at that step, `evaluated_step`), screening score and coarse
+  /// energy (infinite when its solve failed).
+  std::vector<std::string> evaluated_moves;
+  std::vector<int> evaluated_step;
+  std::vector<double> evaluated_screen, evaluated_energy;
+  /// Coarse solves run, neighbours screened, why it stopped, seconds.
+  int evaluations = 0, screened = 0;
+  std::string stop_reason;
+  double time_s = 0;
+  /// Candidate index of the class found (-1: no improvement, nothing added).
+  int found_candidate = -1;
 };
 
 struct PointOnSurface {
@@ -307,6 +357,7 @@ struct SurfaceMapResult {
   std::string source_weights;
   std::vector<HomotopyCandidate> candidates;
   int chosen_candidate = -1;
+  HomotopySearchInfo homotopy_search;
   /// Target lattice (flat case) and the source's image in the plane.
   std::complex<double> target_omega1, target_omega2;
   std::vector<std::complex<double>> source_image;  ///< #V_source z_i

@@ -94,6 +94,13 @@ struct SurfaceAutomorphism {
 /// Throws InputError when P is not symplectic, SolveError if a check fails.
 SurfaceAutomorphism lift_symplectic(const IntMatrix& P);
 
+/// The mixing of adjacent handles i, i+1 (0-based, i + 1 < genus) that
+/// lift_symplectic uses: a_i -> a_i a_i+1, homology a_i += a_i+1,
+/// b_i+1 -= b_i; it fixes the canonical relator exactly. The image of a_i is
+/// then a simple closed curve through both handles (a chain curve,
+/// topology/mapping_class_search.h).
+SurfaceAutomorphism adjacent_handle_mixing(int genus, int i);
+
 /// Exact checks in the surface group of `genus`: the image of R is trivial
 /// (Dehn's algorithm), inverse ∘ map and map ∘ inverse are the identity, and
 /// the homology matrix is symplectic.

@@ -1,0 +1,222 @@
+#include "surfmap/topology/mapping_class_search.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "surfmap/error.h"
+
+namespace surfmap {
+namespace {
+
+GroupMap identity_map(int n) {
+  GroupMap m(n);
+  for (int j = 0; j < n; ++j) m[j] = {j + 1};
+  return m;
+}
+
+int A(int i) { return 2 * i + 1; }
+int B(int i) { return 2 * i + 2; }
+
+void dehn_all(GroupMap& m, const DehnReducer& reduce) {
+  for (Word& w : m) w = reduce(w);
+}
+
+// outer ∘ inner with Dehn-reduced words.
+SurfaceAutomorphism then(const SurfaceAutomorphism& outer, const SurfaceAutomorphism& inner, const DehnReducer& reduce) {
+  SurfaceAutomorphism r{compose(outer.map, inner.map), compose(inner.inverse, outer.inverse), outer.moves + inner.moves};
+  dehn_all(r.map, reduce);
+  dehn_all(r.inverse, reduce);
+  return r;
+}
+
+SurfaceAutomorphism inverse_of(const SurfaceAutomorphism& a) { return {a.inverse, a.map, a.moves}; }
+
+// L x L^-1.
+SurfaceAutomorphism conjugated(const SurfaceAutomorphism& L, const SurfaceAutomorphism& x, const DehnReducer& reduce) {
+  return then(then(L, x, reduce), inverse_of(L), reduce);
+}
+
+std::string inv_name(const std::string& s) { return s + "^-1"; }
+
+size_t letters(const GroupMap& m) {
+  size_t t = 0;
+  for (const Word& w : m) t += w.size();
+  return t;
+}
+
+}  // namespace
+
+std::vector<MappingClassMove> twist_moves(int genus, bool torelli_conjugates) {
+  if (genus < 2) throw InputError("twist_moves: genus " + std::to_string(genus) + " (needs genus >= 2)");
+  const int n = 2 * genus;
+  const DehnReducer reduce(canonical_relator(genus));
+  auto hname = [](const char* c, int i) { return std::string("T(") + c + std::to_string(i + 1) + ")"; };
+  // Twists along a_i (b_i -> b_i a_i) and b_i (a_i -> a_i b_i^-1), both of
+  // the same handedness: on homology x -> x + <c, x> c for the curve's class
+  // c, <a_i, b_i> = 1 (symplectic_form).
+  std::vector<SurfaceAutomorphism> Ta(genus), Tb(genus), Tc(genus - 1), Ts(genus - 1);
+  for (int i = 0; i < genus; ++i) {
+    Ta[i] = {identity_map(n), identity_map(n), 1};
+    Ta[i].map[B(i) - 1] = {B(i), A(i)};
+    Ta[i].inverse[B(i) - 1] = {B(i), -A(i)};
+    Tb[i] = {identity_map(n), identity_map(n), 1};
+    Tb[i].map[A(i) - 1] = {A(i), -B(i)};
+    Tb[i].inverse[A(i) - 1] = {A(i), B(i)};
+  }
+  for (int i = 0; i + 1 < genus; ++i) Tc[i] = conjugated(adjacent_handle_mixing(genus, i), Ta[i], reduce);
+  for (int j = 1; j < genus; ++j) {
+    Word C;
+    for (int i = 0; i < j; ++i) C = concat({C, {A(i), B(i), -A(i), -B(i)}});
+    SurfaceAutomorphism t{identity_map(n), identity_map(n), 1};
+    for (int i = 0; i < j; ++i)
+      for (int x : {A(i), B(i)}) {
+        t.map[x - 1] = concat({C, {x}, inverse(C)});
+        t.inverse[x - 1] = concat({inverse(C), {x}, C});
+      }
+    Ts[j - 1] = t;
+  }
+  std::vector<MappingClassMove> moves;
+  auto add = [&](const std::string& name, const SurfaceAutomorphism& a) {
+    if (!is_surface_automorphism(a, genus)) throw SolveError("twist_moves: " + name + " is not an automorphism");
+    // (Some conjugates coincide as words: X disjoint from T(c_j)(s_j).)
+    for (const MappingClassMove& m : moves)
+      if (m.automorphism.map == a.map) return;
+    moves.push_back({name, a});
+    moves.push_back({inv_name(name), inverse_of(a)});
+  };
+  for (int i = 0; i < genus; ++i) add(hname("a", i), Ta[i]), add(hname("b", i), Tb[i]);
+  for (int i = 0; i + 1 < genus; ++i) add(hname("c", i), Tc[i]);
+  for (int j = 0; j + 1 < genus; ++j) add(hname("s", j), Ts[j]);
+  if (torelli_conjugates) {
+    // Of the Lickorish twists only T(c_j) crosses s_j (the others are
+    // disjoint from it and commute with T(s_j)), so the conjugators are
+    // T(c_j)^±1, T(c_j)^±2 and X T(c_j)^±1 for the twists X^±1 along
+    // a_j, b_j, a_j+1, b_j+1: twists along the separating curves one or two
+    // twists away from s_j.
+    for (int j = 0; j + 1 < genus; ++j) {
+      std::vector<std::pair<std::string, SurfaceAutomorphism>> conj;
+      for (int e : {1, -1}) {
+        const SurfaceAutomorphism C = e > 0 ? Tc[j] : inverse_of(Tc[j]);
+        const std::string cn = e > 0 ? hname("c", j) : inv_name(hname("c", j));
+        conj.push_back({cn, C});
+        conj.push_back({cn + " " + cn, then(C, C, reduce)});
+        const std::pair<std::string, const SurfaceAutomorphism*> xs[] = {
+            {hname("a", j), &Ta[j]}, {hname("b", j), &Tb[j]}, {hname("a", j + 1), &Ta[j + 1]}, {hname("b", j + 1), &Tb[j + 1]}};
+        for (const auto& [xn, X] : xs)
+          for (int f : {1, -1})
+            conj.push_back({(f > 0 ? xn : inv_name(xn)) + " " + cn, then(f > 0 ? *X : inverse_of(*X), C, reduce)});
+      }
+      for (const auto& [ln, L] : conj) add("[" + ln + "] " + hname("s", j), conjugated(L, Ts[j], reduce));
+    }
+  }
+  return moves;
+}
+
+TwistSearchResult twist_search(const GroupMap& start, double start_energy, int genus,
+                               const std::function<double(const GroupMap&)>& screen,
+                               const std::function<double(const GroupMap&)>& energy, const TwistSearchOptions& options) {
+  const std::vector<MappingClassMove> moves = twist_moves(genus);
+  const DehnReducer reduce(canonical_relator(genus));
+  const Word R = canonical_relator(genus);
+  const IntMatrix J = symplectic_form(genus);
+  const int n = 2 * genus;
+  TwistSearchResult res;
+  res.best = start;
+  res.start_energy = res.energy = start_energy;
+  std::vector<double> seen{screen(start)};
+  auto is_seen = [&](double s) {
+    for (double t : seen)
+      if (std::abs(s - t) <= 1e-9 * std::max({1.0, std::abs(s), std::abs(t)})) return true;
+    return false;
+  };
+  int evaluations = 0;
+  struct Neighbour {
+    GroupMap theta;
+    std::string move;
+    double screen;
+  };
+  auto neighbours = [&](const GroupMap& cur, bool only_new) {
+    std::vector<Neighbour> nb;
+    for (const MappingClassMove& m : moves)
+      for (int side = 0; side < 2; ++side) {
+        if ((side == 0 && !options.source_side) || (side == 1 && !options.target_side)) continue;
+        GroupMap theta = side == 0 ? compose(cur, m.automorphism.map) : compose(m.automorphism.map, cur);
+        dehn_all(theta, reduce);
+        if (letters(theta) > options.max_letters) continue;
+        const double s = screen(theta);
+        ++res.screened;
+        if (!std::isfinite(s) || (only_new && is_seen(s))) continue;
+        nb.push_back({std::move(theta), (side == 0 ? "source " : "target ") + m.name, s});
+      }
+    return nb;
+  };
+  // Descent on the screening score (cheap), then one evaluation of its end.
+  if (options.screen_steps > 0) {
+    GroupMap cur = start;
+    double cur_s = seen[0];
+    for (int step = 0; step < options.screen_steps; ++step) {
+      std::vector<Neighbour> nb = neighbours(cur, false);
+      int best = -1;
+      for (size_t k = 0; k < nb.size(); ++k)
+        if (nb[k].screen < cur_s * (1 - 1e-9) && (best < 0 || nb[k].screen < nb[best].screen)) best = static_cast<int>(k);
+      if (best < 0) break;
+      cur = std::move(nb[best].theta);
+      cur_s = nb[best].screen;
+      res.screen_moves.push_back(nb[best].move);
+      res.screen_scores.push_back(cur_s);
+    }
+    if (!res.screen_moves.empty() && evaluations < options.max_evaluations) {
+      const double e = energy(cur);
+      ++evaluations;
+      res.evaluations.push_back({0, "screen descent (" + std::to_string(res.screen_moves.size()) + " moves)", cur_s,
+                                 std::isfinite(e) ? e : std::numeric_limits<double>::infinity()});
+      seen.push_back(cur_s);
+      if (std::isfinite(e) && e < res.energy * (1 - options.tolerance)) {
+        res.best = cur;
+        res.energy = e;
+        // (Only the end point was solved: the steps before it have NaN.)
+        for (size_t k = 0; k < res.screen_moves.size(); ++k) {
+          res.moves.push_back(res.screen_moves[k]);
+          res.energies.push_back(k + 1 == res.screen_moves.size() ? e : std::numeric_limits<double>::quiet_NaN());
+        }
+      }
+    }
+  }
+  res.stop_reason = "step budget";
+  for (int step = 0; step < options.max_steps; ++step) {
+    std::vector<Neighbour> nb;
+    for (Neighbour& x : neighbours(res.best, true))
+      if (!is_seen(x.screen)) seen.push_back(x.screen), nb.push_back(std::move(x));
+    std::stable_sort(nb.begin(), nb.end(), [](const Neighbour& x, const Neighbour& y) { return x.screen < y.screen; });
+    int best = -1;
+    double best_energy = res.energy * (1 - options.tolerance);
+    const int k_max = std::min<int>(static_cast<int>(nb.size()), options.evaluations_per_step);
+    for (int k = 0; k < k_max && evaluations < options.max_evaluations; ++k) {
+      // The moves are exact automorphisms; this guards the composition.
+      const IntMatrix M = homology_matrix(nb[k].theta, n);
+      if (M.transpose() * J * M != J || !reduce(substitute(R, nb[k].theta)).empty())
+        throw SolveError("twist_search: neighbour " + nb[k].move + " is not an isomorphism");
+      const double e = energy(nb[k].theta);
+      ++evaluations;
+      res.evaluations.push_back({step, nb[k].move, nb[k].screen, std::isfinite(e) ? e : std::numeric_limits<double>::infinity()});
+      if (std::isfinite(e) && e < best_energy) best_energy = e, best = k;
+    }
+    if (best < 0) {
+      res.stop_reason = evaluations >= options.max_evaluations ? "evaluation budget" : "no improving neighbour";
+      break;
+    }
+    res.best = std::move(nb[best].theta);
+    res.energy = best_energy;
+    res.moves.push_back(nb[best].move);
+    res.energies.push_back(best_energy);
+    if (evaluations >= options.max_evaluations) {
+      res.stop_reason = "evaluation budget";
+      break;
+    }
+  }
+  return res;
+}
+
+}  // namespace surfmap

@@ -1,0 +1,133 @@
+#include "surfmap/topology/mapping_class_search.h"
+
+#include <set>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "surfmap/error.h"
+
+namespace surfmap {
+namespace {
+
+using IntVector = Eigen::Matrix<long long, Eigen::Dynamic, 1>;
+
+GroupMap identity(int n) {
+  GroupMap m(n);
+  for (int j = 0; j < n; ++j) m[j] = {j + 1};
+  return m;
+}
+
+const MappingClassMove& move_named(const std::vector<MappingClassMove>& moves, const std::string& name) {
+  for (const MappingClassMove& m : moves)
+    if (m.name == name) return m;
+  throw std::runtime_error("no move " + name);
+}
+
+// The transvection x -> x + <c, x> c of a simple curve of class c.
+IntMatrix transvection(const IntVector& c, int g) {
+  const IntMatrix J = symplectic_form(g);
+  return IntMatrix::Identity(2 * g, 2 * g) + c * (c.transpose() * J);
+}
+
+TEST(MappingClassSearch, TwistMovesAreExactAutomorphismsWithTheTwistsHomology) {
+  for (int g = 2; g <= 5; ++g) {
+    const int n = 2 * g;
+    const std::vector<MappingClassMove> moves = twist_moves(g);
+    EXPECT_EQ(static_cast<int>(twist_moves(g, false).size()), 8 * g - 4) << "genus " << g;
+    EXPECT_GT(static_cast<int>(moves.size()), 8 * g - 4 + 10 * (g - 1)) << "genus " << g;
+    EXPECT_LE(static_cast<int>(moves.size()), 48 * g - 44) << "genus " << g;
+    const Word R = canonical_relator(g);
+    const IntMatrix J = symplectic_form(g);
+    std::set<GroupMap> distinct;
+    for (const MappingClassMove& m : moves) {
+      // The relator is fixed exactly (not only up to conjugation), the
+      // inverse composes to the identity, the action on H_1 is symplectic.
+      EXPECT_TRUE(is_surface_automorphism(m.automorphism, g)) << m.name;
+      EXPECT_TRUE(dehn_reduce(concat(substitute(R, m.automorphism.map), inverse(R)), R).empty()) << m.name;
+      const IntMatrix M = homology_matrix(m.automorphism.map, n);
+      EXPECT_EQ(M.transpose() * J * M, J) << m.name;
+      distinct.insert(m.automorphism.map);
+    }
+    EXPECT_EQ(distinct.size(), moves.size()) << "genus " << g << ": some moves coincide";
+    for (int i = 0; i < g; ++i) {
+      IntVector a = IntVector::Zero(n), b = IntVector::Zero(n);
+      a[2 * i] = 1, b[2 * i + 1] = 1;
+      const std::string h = std::to_string(i + 1);
+      EXPECT_EQ(homology_matrix(move_named(moves, "T(a" + h + ")").automorphism.map, n), transvection(a, g));
+      EXPECT_EQ(homology_matrix(move_named(moves, "T(b" + h + ")").automorphism.map, n), transvection(b, g));
+      EXPECT_EQ(homology_matrix(move_named(moves, "T(a" + h + ")^-1").automorphism.map, n),
+                IntMatrix(2 * IntMatrix::Identity(n, n) - transvection(a, g)));  // (I + N)^-1 = I - N, N^2 = 0
+      if (i + 1 < g) {
+        // The chain curve through handles i and i+1: class a_i + a_i+1.
+        IntVector c = IntVector::Zero(n);
+        c[2 * i] = 1, c[2 * i + 2] = 1;
+        EXPECT_EQ(homology_matrix(move_named(moves, "T(c" + h + ")").automorphism.map, n), transvection(c, g));
+        // Separating curves: Torelli elements (trivial on homology), and not
+        // inner automorphisms (a generator's image is not conjugate to it).
+        const GroupMap& s = move_named(moves, "T(s" + h + ")").automorphism.map;
+        EXPECT_EQ(homology_matrix(s, n), IntMatrix::Identity(n, n));
+        const GroupMap& sc = move_named(moves, "[T(c" + h + ")] T(s" + h + ")").automorphism.map;
+        EXPECT_EQ(homology_matrix(sc, n), IntMatrix::Identity(n, n));
+        bool moved = false;
+        for (int j = 0; j < n; ++j) moved = moved || !conjugate(dehn_reduce(sc[j], R), Word{j + 1});
+        EXPECT_TRUE(moved) << "genus " << g << " conjugated T(s" << h << ") acts like an inner automorphism";
+      }
+    }
+  }
+  EXPECT_THROW(twist_moves(1), InputError);
+}
+
+// The descent on a known landscape: energy = total cyclically reduced length
+// of the generators' images (conjugation invariant, minimal, 2g, exactly at
+// the identity class among these). From the identity composed with twists
+// along a_1 (twice) and b_2 and a separating twist, it must come back.
+TEST(MappingClassSearch, DescentUndoesKnownTwists) {
+  const int g = 2, n = 4;
+  const std::vector<MappingClassMove> moves = twist_moves(g);
+  const DehnReducer reduce(canonical_relator(g));
+  auto length = [&](const GroupMap& theta) {
+    double total = 0;
+    for (const Word& w : theta) total += static_cast<double>(cyclic_reduce(reduce(w)).size());
+    return total;
+  };
+  GroupMap start = identity(n);
+  for (const char* name : {"T(a1)", "T(a1)", "T(b2)^-1", "T(s1)"}) {
+    start = compose(start, move_named(moves, name).automorphism.map);
+    for (Word& w : start) w = reduce(w);
+  }
+  ASSERT_GT(length(start), 2.0 * g);
+  int evaluations = 0;
+  TwistSearchOptions o;
+  o.max_evaluations = 200;
+  o.max_steps = 20;
+  o.evaluations_per_step = 200;
+  o.screen_steps = 0;
+  const TwistSearchResult r = twist_search(start, length(start), g, length, [&](const GroupMap& t) {
+    ++evaluations;
+    return length(t);
+  }, o);
+  EXPECT_EQ(r.energy, 2.0 * g);
+  EXPECT_EQ(length(r.best), 2.0 * g);
+  EXPECT_EQ(static_cast<int>(r.evaluations.size()), evaluations);
+  EXPECT_LE(r.moves.size(), 4u);
+  EXPECT_EQ(r.stop_reason, "no improving neighbour");
+  // The screening descent alone (no energy evaluations but its end point's).
+  o.screen_steps = 20;
+  evaluations = 0;
+  const TwistSearchResult s = twist_search(start, length(start), g, length, [&](const GroupMap& t) {
+    ++evaluations;
+    return length(t);
+  }, o);
+  EXPECT_EQ(s.energy, 2.0 * g);
+  EXPECT_EQ(s.screen_scores.back(), 2.0 * g);
+  // A budget of one evaluation stops there.
+  o.screen_steps = 0;
+  o.max_evaluations = 1;
+  const TwistSearchResult b = twist_search(start, length(start), g, length, length, o);
+  EXPECT_EQ(b.evaluations.size(), 1u);
+  EXPECT_EQ(b.stop_reason, "evaluation budget");
+}
+
+}  // namespace
+}  // namespace surfmap
