@@ -34,13 +34,16 @@ inline Complex quick_exp(Complex p, Complex xi) {
 inline Complex quick_apply(const Mobius& m, Complex z) { return quick_div(m.a * z + m.b, std::conj(m.b) * z + std::conj(m.a)); }
 
 // Moves z towards the origin (geometry/dynamic_charts.h, the same rule as
-// the Newton solver's dynamic charts); returns the element applied.
-Mobius move_towards_origin(Complex& z, const std::vector<Mobius>& moves) {
+// the Newton solver's dynamic charts); returns the element applied, and in
+// `moved` whether any move was.
+Mobius move_towards_origin(Complex& z, const std::vector<Mobius>& moves, bool* moved = nullptr) {
   Mobius acc;
-  for (int k : reduce_towards_origin(Mobius::translation_to(z), moves)) {
+  const std::vector<int> applied = reduce_towards_origin(Mobius::translation_to(z), moves);
+  for (int k : applied) {
     z = moves[k].apply(z);
     acc = (moves[k] * acc).normalized();
   }
+  if (moved) *moved = !applied.empty();
   return acc;
 }
 
@@ -232,15 +235,25 @@ HarmonicRelaxationResult harmonic_relaxation(int n, const std::vector<WeightedEd
     // Dynamic charts: bring far-out vertices back towards the origin. A
     // vertex that no generator brings closer is re-tried only once it has
     // drifted further out (the fundamental domain reaches beyond 0.6).
+    // The vertex's edges are conjugated by the element applied (ρ' ← γ ρ'
+    // where v is the tail, ρ' ← ρ' γ⁻¹ where it is the head), not rebuilt
+    // from the accumulated decks, whose matrices grow without bound on a far
+    // start and whose product then keeps no digits.
     for (int v = 0; v < n; ++v) {
       const double r2 = std::norm(r.z[v]);
       if (r2 <= 0.36 || r2 <= settled[v]) continue;
-      const Mobius gk = move_towards_origin(r.z[v], moves);
+      bool moved = false;
+      const Mobius gk = move_towards_origin(r.z[v], moves, &moved);
       const double after = std::norm(r.z[v]);
       settled[v] = std::min(1.0, std::sqrt(after) + 0.02) * std::min(1.0, std::sqrt(after) + 0.02);
-      if (after >= r2) continue;
+      if (!moved) continue;
       r.vertex_deck[v] = (gk * r.vertex_deck[v]).normalized();
-      for (int k = inc.start[v]; k < inc.start[v + 1]; ++k) refresh(inc.edge[k]);
+      for (int k = inc.start[v]; k < inc.start[v + 1]; ++k) {
+        const size_t e = inc.edge[k];
+        if (edges[e].i == v) eff[e] = (gk * eff[e]).normalized();
+        if (edges[e].j == v) eff[e] = (eff[e] * gk.inverse()).normalized();
+        eff_inv[e] = eff[e].inverse();
+      }
     }
   };
   std::vector<Complex> grad(n);
