@@ -3,6 +3,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <future>
 #include <limits>
 #include <map>
 #include <memory>
@@ -99,6 +100,48 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   using hyperbolic::Mobius;
   const SingleThreadedBlas single_threaded_blas;  // concurrency.h: our own threads instead
 
+  // The source's side of the homotopy data (loops, edge words, weights,
+  // handle basis, coarse copy) needs no target: built on the second thread
+  // while the target is uniformized (concurrency.h; its errors are rethrown
+  // below, after the target's). With one thread it is built there, in order.
+  const int threads = pipeline_threads(options.threads);
+  struct SourceSide {
+    SystemOfLoops sl;
+    CanonicalSchema scs;
+    std::vector<Word> edge_word;
+    IntrinsicDelaunayResult idt;
+    HandleBasis shb;
+    CoarseSource cs;
+  };
+  bool own_weights = options.source_weights == SourceWeights::OwnEdges;
+  const int nv = source.num_vertices();
+  CoarseSourceOptions cso;
+  cso.target_vertices = std::min(options.homotopy_coarse_vertices, nv / 4);
+  std::future<SourceSide> source_side = std::async(threads > 1 ? std::launch::async : std::launch::deferred, [&] {
+    SourceSide ss;
+    ss.sl = source_loops(source, options);
+    ss.scs = canonical_schema(ss.sl.word);
+    // Deck elements are computed as words first and multiplied out only when
+    // reduced: products like g g^-1 of large SU(1,1) matrices lose digits, and
+    // the words of single edges are short (their crossings with the cut).
+    std::vector<Word> src_letters;
+    for (size_t k = 0; k < ss.scs.letters.size(); ++k) src_letters.push_back({static_cast<int>(k) + 1});
+    const GroupOps<Word> free_group{Word{}, [](const Word& u, const Word& v) { return concat(u, v); },
+                                    [](const Word& u) { return inverse(u); }};
+    ss.edge_word = edge_group_elements(sc, ss.sl.tree_parent_halfedge, ss.sl.dual_tree_parent_halfedge,
+                                       ss.sl.generator_edges, loop_first_vertices(ss.sl, sc), src_letters, free_group);
+    // The energy's triangulation and weights: intrinsic Delaunay, or positive
+    // weights on the source's own edges (options.source_weights; the automatic
+    // fallback below switches when the user's faces fold).
+    ss.idt = own_weights ? positive_edge_weights(sc, edge_lengths(source, sc))
+                         : intrinsic_delaunay(sc, edge_lengths(source, sc));
+    if (!ss.idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
+    ss.shb = handle_basis(source, ss.sl.loops, ss.scs);
+    // The ranking level (below): a coarse copy of the source.
+    if (options.homotopy_coarse_vertices > 0 && cso.target_vertices >= 500) ss.cs = coarse_source(source, sc, cso);
+    return ss;
+  });
+
   // Target: hyperbolic metric, layout, canonical generators.
   const UniformizedTarget ut = uniformized_target(target, Background::Hyperbolic, options);
   out.target_refinement_splits = ut.refinement_splits;
@@ -145,25 +188,11 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   stage_done("target uniformization", 0.3);
 
   // Source homotopy data in the target's deck group.
-  const SystemOfLoops sl = source_loops(source, options);
-  const CanonicalSchema scs = canonical_schema(sl.word);
-  // Deck elements are computed as words first and multiplied out only when
-  // reduced: products like g g^-1 of large SU(1,1) matrices lose digits, and
-  // the words of single edges are short (their crossings with the cut).
-  std::vector<Word> src_letters;
-  for (size_t k = 0; k < scs.letters.size(); ++k) src_letters.push_back({static_cast<int>(k) + 1});
-  const GroupOps<Word> free_group{Word{}, [](const Word& u, const Word& v) { return concat(u, v); },
-                                  [](const Word& u) { return inverse(u); }};
-  const std::vector<Word> edge_word =
-      edge_group_elements(sc, sl.tree_parent_halfedge, sl.dual_tree_parent_halfedge, sl.generator_edges,
-                          loop_first_vertices(sl, sc), src_letters, free_group);
-  // The energy's triangulation and weights: intrinsic Delaunay, or positive
-  // weights on the source's own edges (options.source_weights; the automatic
-  // fallback below switches when the user's faces fold).
-  bool own_weights = options.source_weights == SourceWeights::OwnEdges;
-  IntrinsicDelaunayResult idt = own_weights ? positive_edge_weights(sc, edge_lengths(source, sc))
-                                            : intrinsic_delaunay(sc, edge_lengths(source, sc));
-  if (!idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
+  SourceSide ss = source_side.get();
+  const SystemOfLoops& sl = ss.sl;
+  const CanonicalSchema& scs = ss.scs;
+  const std::vector<Word>& edge_word = ss.edge_word;
+  IntrinsicDelaunayResult& idt = ss.idt;
 
   // Handle correspondences (topology/handle_basis.h): meridian/longitude
   // bases of both surfaces from linking numbers, signed handle permutations
@@ -171,7 +200,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   const int n = 2 * out.genus;
   const Word R = canonical_relator(out.genus);
   const IntMatrix J = symplectic_form(out.genus);
-  const HandleBasis shb = handle_basis(source, sl.loops, scs);
+  const HandleBasis& shb = ss.shb;
   HandleBasis thb = handle_basis(tl.mesh, tl.loops, tcs);
   // The classes induced by overlaying the two shapes
   // (topology/projected_loops.h): as posed, then after the rigid alignments
@@ -549,7 +578,6 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   // is not solved again. Small sources (fewer than 4 coarse copies' worth of
   // vertices) are ranked by full-resolution solves of every class instead.
   constexpr double kCoarseMargin = 0.1;
-  const int threads = pipeline_threads(options.threads);
   HyperbolicHarmonicOptions ho;
   ho.tolerance = options.tolerance;
   ho.max_iterations = options.max_iterations;
@@ -557,7 +585,6 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   ho.reduce_point = [&](Complex& z) { return reduce_into_polygon(z); };
   if (options.progress)
     ho.progress = [&](int, double, double) { return options.progress("homotopy candidates", 0.4); };
-  const int nv = source.num_vertices();
   // Side word of source halfedge h in class data cd.
   auto side_of = [&](const ClassData& cd, int h) {
     const int e = sc.edge(h);
@@ -670,10 +697,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   };
 
   // The ranking level: the coarse copy, its class data, and its solves.
-  CoarseSourceOptions cso;
-  cso.target_vertices = std::min(options.homotopy_coarse_vertices, nv / 4);
-  CoarseSource cs;
-  if (options.homotopy_coarse_vertices > 0 && cso.target_vertices >= 500) cs = coarse_source(source, sc, cso);
+  CoarseSource& cs = ss.cs;
   std::vector<std::vector<WeightedEdge>> coarse_data;
   // For the class search: every coarse solver edge's element as a reduced
   // word in the source's loop letters (class independent), so a new class's
