@@ -90,8 +90,10 @@ enum Field {
 std::vector<double> run_case(int genus, int v, double budget, std::string* error) {
   // One core each for the Newton-versus-relaxation comparison (the
   // relaxation's sweeps are sequential); the pipeline itself runs its BLAS
-  // single-threaded too (src/map/concurrency.h), with its own threads.
+  // and CHOLMOD's OpenMP loops single-threaded too (src/map/concurrency.h),
+  // with its own threads.
   if (auto set = reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) set(1);
+  if (auto set = reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"))) set(0);  // CHOLMOD's loops
   std::vector<double> r(kNumFields, NAN);
   r[kOk] = 0;
   const int res = resolution_for(genus, v);

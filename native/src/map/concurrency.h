@@ -71,14 +71,18 @@ inline bool optimised_blas() {
 }
 
 /// While alive, a multithreaded BLAS (OpenBLAS, when libblas.so.3 is it:
-/// scripts/bootstrap.sh) runs single-threaded; restored after. Two of our
-/// threads each factorising then do not start four BLAS threads on two
-/// cores, and the results do not depend on SurfaceMapOptions::threads: the
-/// BLAS's blocking follows its thread count, and its round-off moves the
-/// coarse estimates of very twisted classes (whose solves stop short of
-/// their optimum) by up to 1e-3 relative. Nothing happens with another BLAS
-/// (the reference one has no threads). Construct it only while no BLAS
-/// call of this process is running.
+/// scripts/bootstrap.sh) runs single-threaded, and so do CHOLMOD's OpenMP
+/// loops (libgomp's max-active-levels 0: every parallel region gets a team
+/// of one); both restored after. Two of our threads each factorising then do
+/// not start more threads than cores: CHOLMOD asks for teams of 4 in small
+/// supernodal loops, whose spinning threads cost ~1 s of CPU (user + system)
+/// per 50k genus-2 map on two cores, measured with OMP_THREAD_LIMIT=1. And
+/// the results do not depend on SurfaceMapOptions::threads: the BLAS's
+/// blocking follows its thread count, and its round-off moves the coarse
+/// estimates of very twisted classes (whose solves stop short of their
+/// optimum) by up to 1e-3 relative. Nothing happens with a BLAS without
+/// threads. Both settings are process-wide: construct it only while no BLAS
+/// call or OpenMP region of this process is running.
 class SingleThreadedBlas {
  public:
   SingleThreadedBlas() : blas_(openblas_threads()) {
@@ -86,9 +90,21 @@ class SingleThreadedBlas {
       saved_ = blas_.get();
       if (saved_ > 1) blas_.set(1);
     }
+    if (void* gomp = dlopen("libgomp.so.1", RTLD_LAZY | RTLD_NOLOAD)) {
+      get_levels_ = reinterpret_cast<int (*)()>(dlsym(gomp, "omp_get_max_active_levels"));
+      set_levels_ = reinterpret_cast<void (*)(int)>(dlsym(gomp, "omp_set_max_active_levels"));
+      dlclose(gomp);  // NOLOAD took a reference; CHOLMOD keeps it loaded
+      if (get_levels_ && set_levels_) {
+        saved_levels_ = get_levels_();
+        set_levels_(0);
+      } else {
+        set_levels_ = nullptr;
+      }
+    }
   }
   ~SingleThreadedBlas() {
     if (blas_.set && saved_ > 1) blas_.set(saved_);
+    if (set_levels_) set_levels_(saved_levels_);
   }
   SingleThreadedBlas(const SingleThreadedBlas&) = delete;
   SingleThreadedBlas& operator=(const SingleThreadedBlas&) = delete;
@@ -96,6 +112,9 @@ class SingleThreadedBlas {
  private:
   OpenBlasThreads blas_;
   int saved_ = 0;
+  int (*get_levels_)() = nullptr;
+  void (*set_levels_)(int) = nullptr;
+  int saved_levels_ = 0;
 };
 
 /// body(k, stop) for k = 0..n-1, each k once, on `threads` threads;
