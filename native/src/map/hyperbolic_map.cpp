@@ -1100,7 +1100,11 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   HyperbolicInitialMapResult& init = initial.init;
   set_initial_map_info(init, out.initial_map);
   if (options.inspect_initial_map) options.inspect_initial_map({&halfedge_rho, &halfedge_word, &deck_group, &init});
-  const DistortionStats q0 = hyperbolic_distortion(source, halfedge_rho, init.z, init.vertex_deck);
+  // From reduced words when the map has them (initial_map.h: the matrix
+  // products lose digits for large decks).
+  const DistortionStats q0 = init.vertex_deck_word.size() == init.z.size()
+                                 ? hyperbolic_distortion(source, deck_group, halfedge_word, init.z, init.vertex_deck_word)
+                                 : hyperbolic_distortion(source, halfedge_rho, init.z, init.vertex_deck);
   out.initial_dilatation = q0.per_face;
   out.initial_mean_dilatation = q0.mean;
   out.initial_max_dilatation = q0.max;

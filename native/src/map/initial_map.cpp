@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <string>
 
 #include <unordered_map>
@@ -456,7 +457,7 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
     if (poly.applied) {
       // The flattening is an embedding of the refined disk; the source's own
       // faces, straight between its vertices' images, are checked too.
-      const DistortionStats q = hyperbolic_distortion(source, halfedge_rho, poly.z, poly.vertex_deck);
+      const DistortionStats q = hyperbolic_distortion(source, group, halfedge_word, poly.z, poly.vertex_deck_word);
       poly.source_flipped = q.flipped;
       poly.source_degenerate = q.degenerate;
       if (q.flipped || q.degenerate) {
@@ -534,17 +535,14 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
   return r;
 }
 
-DistortionStats hyperbolic_distortion(const TriMesh& source, const std::vector<Mobius>& halfedge_rho,
-                                      const std::vector<Complex>& z, const std::vector<Mobius>& deck,
-                                      Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>* image) {
+namespace {
+
+// The figures of a map given by `z` and the effective element eff(h) of
+// every halfedge h (hyperbolic_distortion below).
+template <class Eff>
+DistortionStats distortion_of(const TriMesh& source, const std::vector<Complex>& z, const Eff& eff,
+                              Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>* image) {
   const int nf = source.num_faces();
-  if (static_cast<int>(halfedge_rho.size()) != 3 * nf || static_cast<int>(z.size()) != source.num_vertices() ||
-      deck.size() != z.size())
-    throw InputError("hyperbolic_distortion: sizes of halfedge_rho (3 x #F), z and vertex_deck (#V) do not match the mesh");
-  auto eff = [&](int h) {
-    const int f = h / 3, k = h % 3;
-    return (deck[source.F(f, k)] * halfedge_rho[h] * deck[source.F(f, (k + 1) % 3)].inverse()).normalized();
-  };
   Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> img(nf, 3);
   DistortionStats out;
   out.per_face.assign(nf, std::numeric_limits<double>::infinity());
@@ -580,6 +578,44 @@ DistortionStats hyperbolic_distortion(const TriMesh& source, const std::vector<M
   out.mean = total_area > 0 ? weighted / total_area : std::numeric_limits<double>::infinity();
   if (image) *image = std::move(img);
   return out;
+}
+
+}  // namespace
+
+DistortionStats hyperbolic_distortion(const TriMesh& source, const std::vector<Mobius>& halfedge_rho,
+                                      const std::vector<Complex>& z, const std::vector<Mobius>& deck,
+                                      Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>* image) {
+  const int nf = source.num_faces();
+  if (static_cast<int>(halfedge_rho.size()) != 3 * nf || static_cast<int>(z.size()) != source.num_vertices() ||
+      deck.size() != z.size())
+    throw InputError("hyperbolic_distortion: sizes of halfedge_rho (3 x #F), z and vertex_deck (#V) do not match the mesh");
+  auto eff = [&](int h) {
+    const int f = h / 3, k = h % 3;
+    return (deck[source.F(f, k)] * halfedge_rho[h] * deck[source.F(f, (k + 1) % 3)].inverse()).normalized();
+  };
+  return distortion_of(source, z, eff, image);
+}
+
+DistortionStats hyperbolic_distortion(const TriMesh& source, const DeckGroup& group,
+                                      const std::vector<Word>& halfedge_word, const std::vector<Complex>& z,
+                                      const std::vector<Word>& vertex_deck_word,
+                                      Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>* image) {
+  const int nf = source.num_faces();
+  if (static_cast<int>(halfedge_word.size()) != 3 * nf || static_cast<int>(z.size()) != source.num_vertices() ||
+      vertex_deck_word.size() != z.size())
+    throw InputError("hyperbolic_distortion: sizes of halfedge_word (3 x #F), z and vertex_deck_word (#V) do not match the mesh");
+  // Few distinct effective words occur (the tiles next to P): each is
+  // reduced and multiplied out once.
+  std::map<Word, Mobius> memo;
+  auto eff = [&](int h) {
+    const int f = h / 3, k = h % 3;
+    const Word w = concat({vertex_deck_word[source.F(f, k)], halfedge_word[h],
+                           inverse(vertex_deck_word[source.F(f, (k + 1) % 3)])});
+    auto it = memo.find(w);
+    if (it == memo.end()) it = memo.emplace(w, group.evaluate_side_word(group.reduce(w))).first;
+    return it->second;
+  };
+  return distortion_of(source, z, eff, image);
 }
 
 }  // namespace surfmap

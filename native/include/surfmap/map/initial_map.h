@@ -235,4 +235,18 @@ DistortionStats hyperbolic_distortion(const TriMesh& source, const std::vector<h
                                       const std::vector<hyperbolic::Mobius>& vertex_deck,
                                       Eigen::Matrix<std::complex<double>, Eigen::Dynamic, 3, Eigen::RowMajor>* image = nullptr);
 
+/// The same from side words of `group`: `halfedge_word` (#3F) and the
+/// vertices' decks `vertex_deck_word` (#V). The effective element of every
+/// halfedge is then its reduced word multiplied out (short: a tile next to
+/// the fundamental domain), where the matrix products above lose digits when
+/// the decks are large, and thin triangles far out come out flipped that are
+/// not: 89 of them on a 50k-vertex uniform-weight map in a twisted genus-2
+/// class (n_hole_torus(2,103) -> vase) that has none in the solver's own
+/// charts, and none by this overload.
+DistortionStats hyperbolic_distortion(const TriMesh& source, const DeckGroup& group,
+                                      const std::vector<Word>& halfedge_word,
+                                      const std::vector<std::complex<double>>& z,
+                                      const std::vector<Word>& vertex_deck_word,
+                                      Eigen::Matrix<std::complex<double>, Eigen::Dynamic, 3, Eigen::RowMajor>* image = nullptr);
+
 }  // namespace surfmap
