@@ -176,6 +176,7 @@ void register_map(CLI::App& app) {
         {"landmarks", opt.landmarks.size()},
         {"landmark_error", m.max_landmark_error},
         {"landmark_rings", m.landmark_rings},
+        {"landmark_method", m.landmark_method},
         {"landmark_solves", m.landmark_solves},
         {"landmark_held_vertices", m.landmark_held_vertices},
         {"repaired_vertices", m.repaired_vertices},

@@ -138,6 +138,7 @@ void bind_map(py::module_& m) {
         d["source_weights"] = r.source_weights;
         d["landmark_error"] = r.max_landmark_error;
         d["landmark_rings"] = r.landmark_rings;
+        d["landmark_method"] = r.landmark_method;
         d["landmark_solves"] = r.landmark_solves;
         d["landmark_held_vertices"] = r.landmark_held_vertices;
         d["repaired_vertices"] = r.repaired_vertices;

@@ -258,27 +258,56 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     const std::vector<Complex> lifts = flat_landmark_lifts(free, lm_source, lm_target, tgt.A, tgt.B);
     std::vector<std::pair<int, int>> ends(idt.edges.size());
     for (size_t e = 0; e < idt.edges.size(); ++e) ends[e] = {idt.edges[e].i, idt.edges[e].j};
-    std::vector<int> held_vertices;
-    std::vector<Complex> held_values;
-    const LandmarkPatchSearch search = grow_landmark_patches(
-        n, ends, source.F, options.landmarks, [&](const std::vector<LandmarkPatch>& patches) {
-          held_vertices.clear(), held_values.clear();
-          for (size_t a = 0; a < patches.size(); ++a)
-            for (size_t r = 0; r < patches[a].vertex.size(); ++r) {
-              const int v = patches[a].vertex[r];
-              held_vertices.push_back(v);
-              held_values.push_back(r == 0 ? lifts[a] : free[v] + (lifts[a] - free[lm_source[a]]));
-            }
-          std::tie(z, energy) = PinnedFlatHarmonic(n, idt.edges, held_vertices, false).solve(t_intrinsic, held_values);
-          const DistortionStats q = planar_distortion(source.V, source.F, image_corners(z));
-          std::vector<int> bad;
-          for (int f = 0; f < source.num_faces(); ++f)
-            if (!std::isfinite(q.per_face[f])) bad.push_back(f);
-          return bad;
-        });
-    out.landmark_rings = search.rings;
-    out.landmark_solves = search.solves;
-    out.landmark_held_vertices = search.held_vertices;
+    // Plain pins first (the exact held optimum); if that folds, the
+    // interior-point continuation (the bijective map of least energy, up to
+    // its barrier), and if that stalls, carried neighbourhoods.
+    std::vector<int> held_vertices = lm_source;
+    std::vector<Complex> held_values = lifts;
+    std::tie(z, energy) = PinnedFlatHarmonic(n, idt.edges, lm_source, false).solve(t_intrinsic, lifts);
+    auto folds = [&](const std::vector<Complex>& zz) {
+      const DistortionStats q = planar_distortion(source.V, source.F, image_corners(zz));
+      return q.flipped > 0 || q.degenerate > 0;
+    };
+    out.landmark_method = "pinned";
+    out.landmark_rings.assign(lm_source.size(), 0);
+    out.landmark_solves = 1;
+    out.landmark_held_vertices = static_cast<int>(lm_source.size());
+    if (folds(z)) {
+      const FlatBarrierResult br =
+          flat_barrier_landmarks(n, idt.edges, t_intrinsic, source.F, image_corners(std::vector<Complex>(n, Complex(0.0))),
+                                 free, lm_source, lifts);
+      out.landmark_solves += br.steps;
+      if (br.ok && !folds(br.z)) {
+        z = br.z, energy = br.energy;
+        out.landmark_method = "barrier continuation";
+      } else {
+        out.landmark_method = "carried neighbourhoods";
+        try {
+          const LandmarkPatchSearch search = grow_landmark_patches(
+              n, ends, source.F, options.landmarks, [&](const std::vector<LandmarkPatch>& patches) {
+                held_vertices.clear(), held_values.clear();
+                for (size_t a = 0; a < patches.size(); ++a)
+                  for (size_t r = 0; r < patches[a].vertex.size(); ++r) {
+                    const int v = patches[a].vertex[r];
+                    held_vertices.push_back(v);
+                    held_values.push_back(r == 0 ? lifts[a] : free[v] + (lifts[a] - free[lm_source[a]]));
+                  }
+                std::tie(z, energy) = PinnedFlatHarmonic(n, idt.edges, held_vertices, false).solve(t_intrinsic, held_values);
+                const DistortionStats q = planar_distortion(source.V, source.F, image_corners(z));
+                std::vector<int> bad;
+                for (int f = 0; f < source.num_faces(); ++f)
+                  if (!std::isfinite(q.per_face[f])) bad.push_back(f);
+                return bad;
+              });
+          out.landmark_rings = search.rings;
+          out.landmark_solves += search.solves;
+          out.landmark_held_vertices = search.held_vertices;
+        } catch (const SolveError& e) {
+          throw SolveError("the landmarks cannot be held bijectively: the interior-point continuation stalled " +
+                           std::to_string(static_cast<int>(100 * br.reached)) + "% of the way to them, and " + e.what());
+        }
+      }
+    }
     z_init = PinnedFlatHarmonic(n, idt.edges, held_vertices, true).solve(t_intrinsic, held_values).first;
   } else {
     z_init = solve(tutte, t_intrinsic, true).first;

@@ -1246,6 +1246,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         source.num_vertices(), edges, deck_group.side_pairings(), deck_group.side_pairings(), hr, lm_source, lm_target,
         lm_target_vertex, ho, relax, ro, &source.F, held_bad_faces, &search);
     out.landmark_rings = search.rings;
+    out.landmark_method = search.solves > 1 ? "carried neighbourhoods" : "pinned";
     out.landmark_solves = search.solves;
     out.landmark_held_vertices = search.held_vertices;
     if (!held.converged)

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+
+#include <Eigen/Eigenvalues>
 #include <set>
 #include <limits>
 #include <string>
@@ -208,6 +210,204 @@ LandmarkPatchSearch grow_landmark_patches(
   std::string names;
   for (int a = 0; a < k; ++a) names += (names.empty() ? "" : ", ") + landmark_name(landmarks, a);
   throw SolveError("the landmarks could not be held without folding the map (" + names + ")");
+}
+
+FlatBarrierResult flat_barrier_landmarks(int n, const std::vector<IntrinsicEdge>& edges,
+                                         const std::vector<Complex>& t, const RowMatrixX3i& F,
+                                         const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& off,
+                                         const std::vector<Complex>& free, const std::vector<int>& source,
+                                         const std::vector<Complex>& lifts) {
+  FlatBarrierResult out;
+  const int nf = static_cast<int>(F.rows());
+  // Free unknowns: every vertex but the landmarks, x and y interleaved.
+  std::vector<int> index(n, -1);
+  std::vector<char> held(n, 0);
+  for (int s : source) held[s] = 1;
+  int m = 0;
+  for (int v = 0; v < n; ++v)
+    if (!held[v]) index[v] = m++;
+  auto area = [&](const std::vector<Complex>& z, int f) {
+    const Complex p0 = z[F(f, 0)] + off(f, 0), p1 = z[F(f, 1)] + off(f, 1), p2 = z[F(f, 2)] + off(f, 2);
+    const Complex e1 = p1 - p0, e2 = p2 - p0;
+    return 0.5 * (e1.real() * e2.imag() - e1.imag() * e2.real());
+  };
+  auto dirichlet = [&](const std::vector<Complex>& z) {
+    double E = 0;
+    for (size_t e = 0; e < edges.size(); ++e) E += edges[e].cot_weight * std::norm(z[edges[e].j] + t[e] - z[edges[e].i]);
+    return E;
+  };
+  std::vector<double> c(nf);
+  for (int f = 0; f < nf; ++f) {
+    c[f] = 0.25 * area(free, f);
+    if (!(c[f] > 0)) return out;  // the free map itself is not embedded: nothing to continue from
+  }
+  const double mu = dirichlet(free) / nf;
+  // F(z) = E + μ Σ φ(A/c); +inf when a face is not positively oriented.
+  auto objective = [&](const std::vector<Complex>& z) {
+    double B = 0;
+    for (int f = 0; f < nf; ++f) {
+      const double x = area(z, f) / c[f];
+      if (!(x > 0)) return std::numeric_limits<double>::infinity();
+      if (x < 1) B += x - 1 - std::log(x);
+    }
+    return dirichlet(z) + mu * B;
+  };
+  // Fixed sparsity: Laplacian couplings and every face's corners.
+  std::vector<Eigen::Triplet<double>> pattern;
+  auto couple = [&](int a, int b) {
+    if (index[a] < 0 || index[b] < 0) return;
+    for (int u = 0; u < 2; ++u)
+      for (int w = 0; w < 2; ++w) pattern.emplace_back(2 * index[a] + u, 2 * index[b] + w, 0.0);
+  };
+  for (const auto& e : edges) couple(e.i, e.i), couple(e.j, e.j), couple(e.i, e.j), couple(e.j, e.i);
+  for (int f = 0; f < nf; ++f)
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) couple(F(f, a), F(f, b));
+  Eigen::SparseMatrix<double> H(2 * m, 2 * m);
+  H.setFromTriplets(pattern.begin(), pattern.end());
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
+  llt.analyzePattern(H);
+  // Gradient of the objective in the free unknowns at z and (with
+  // `hessian`) its Hessian in H (the barrier's per-face blocks projected).
+  auto assemble = [&](const std::vector<Complex>& z, Eigen::VectorXd& g, bool hessian) {
+    {
+      std::vector<Eigen::Triplet<double>> trip;
+      trip.reserve(pattern.size());
+      for (const auto& p : pattern) trip.emplace_back(p.row(), p.col(), 0.0);
+      g = Eigen::VectorXd::Zero(2 * m);
+      auto add = [&](int a, int b, double hxx, double hxy, double hyx, double hyy) {
+        if (index[a] < 0 || index[b] < 0) return;
+        trip.emplace_back(2 * index[a], 2 * index[b], hxx), trip.emplace_back(2 * index[a], 2 * index[b] + 1, hxy);
+        trip.emplace_back(2 * index[a] + 1, 2 * index[b], hyx), trip.emplace_back(2 * index[a] + 1, 2 * index[b] + 1, hyy);
+      };
+      for (size_t e = 0; e < edges.size(); ++e) {
+        const int i = edges[e].i, j = edges[e].j;
+        const double w = edges[e].cot_weight;
+        if (i == j) continue;
+        const Complex d = z[j] + t[e] - z[i];
+        if (index[i] >= 0) g[2 * index[i]] -= 2 * w * d.real(), g[2 * index[i] + 1] -= 2 * w * d.imag();
+        if (index[j] >= 0) g[2 * index[j]] += 2 * w * d.real(), g[2 * index[j] + 1] += 2 * w * d.imag();
+        add(i, i, 2 * w, 0, 0, 2 * w), add(j, j, 2 * w, 0, 0, 2 * w);
+        add(i, j, -2 * w, 0, 0, -2 * w), add(j, i, -2 * w, 0, 0, -2 * w);
+      }
+      for (int f = 0; f < nf; ++f) {
+        const double x = area(z, f) / c[f];
+        if (x >= 1) continue;
+        Complex p[3];
+        for (int k = 0; k < 3; ++k) p[k] = z[F(f, k)] + off(f, k);
+        // ∂A/∂(x_k, y_k) = ½ (y_{k+1} − y_{k+2}, x_{k+2} − x_{k+1}).
+        double gA[3][2];
+        for (int k = 0; k < 3; ++k) {
+          const Complex a = p[(k + 1) % 3], b = p[(k + 2) % 3];
+          gA[k][0] = 0.5 * (a.imag() - b.imag()), gA[k][1] = 0.5 * (b.real() - a.real());
+        }
+        const double d1 = mu * (1 - 1 / x) / c[f], d2 = mu / (x * x * c[f] * c[f]);
+        // Face Hessian d2 ∇A∇Aᵀ + d1 ∇²A (∇²A: the shoelace's constant
+        // ∂²A/∂x_a∂y_b = ½(δ_{b,a+1} − δ_{b,a+2})), projected onto PSD.
+        Eigen::Matrix<double, 6, 1> ga;
+        Eigen::Matrix<double, 6, 6> K = Eigen::Matrix<double, 6, 6>::Zero();
+        for (int a = 0; a < 3; ++a) ga[2 * a] = gA[a][0], ga[2 * a + 1] = gA[a][1];
+        for (int a = 0; a < 3; ++a) {
+          K(2 * a, 2 * ((a + 1) % 3) + 1) += 0.5 * d1, K(2 * ((a + 1) % 3) + 1, 2 * a) += 0.5 * d1;
+          K(2 * a, 2 * ((a + 2) % 3) + 1) -= 0.5 * d1, K(2 * ((a + 2) % 3) + 1, 2 * a) -= 0.5 * d1;
+        }
+        K += d2 * ga * ga.transpose();
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> es(K);
+        const Eigen::Matrix<double, 6, 1> lam = es.eigenvalues().cwiseMax(0.0);
+        K = es.eigenvectors() * lam.asDiagonal() * es.eigenvectors().transpose();
+        for (int a = 0; a < 3; ++a) {
+          const int va = F(f, a);
+          if (index[va] >= 0) g[2 * index[va]] += d1 * gA[a][0], g[2 * index[va] + 1] += d1 * gA[a][1];
+          for (int b = 0; b < 3; ++b)
+            add(va, F(f, b), K(2 * a, 2 * b), K(2 * a, 2 * b + 1), K(2 * a + 1, 2 * b), K(2 * a + 1, 2 * b + 1));
+        }
+      }
+      if (hessian) H.setFromTriplets(trip.begin(), trip.end());
+    }
+  };
+  double wmax = 0;
+  for (const auto& e : edges) wmax = std::max(wmax, e.cot_weight);
+  // Newton corrections at fixed landmark positions; false when the line
+  // search cannot make progress.
+  auto newton = [&](std::vector<Complex>& z, int max_it) {
+    double Fz = objective(z);
+    for (int it = 0; it < max_it; ++it) {
+      Eigen::VectorXd g;
+      assemble(z, g, true);
+      double gmax = g.lpNorm<Eigen::Infinity>();
+      if (gmax <= 1e-10 * std::max(1.0, mu / std::max(wmax, 1e-300)) * wmax) return true;
+      llt.factorize(H);
+      if (llt.info() != Eigen::Success) return false;
+      const Eigen::VectorXd step = llt.solve(-g);
+      const double slope = g.dot(step);
+      double alpha = 1;
+      std::vector<Complex> trial(z);
+      bool moved = false;
+      for (int ls = 0; ls < 40; ++ls, alpha *= 0.5) {
+        for (int v = 0; v < n; ++v)
+          if (index[v] >= 0) trial[v] = z[v] + alpha * Complex(step[2 * index[v]], step[2 * index[v] + 1]);
+        const double Ft = objective(trial);
+        if (Ft <= Fz + 1e-4 * alpha * slope) {
+          moved = true;
+          // Converged when the decrease is at round-off.
+          const bool tiny = Fz - Ft <= 1e-12 * std::abs(Fz);
+          z.swap(trial), Fz = Ft;
+          ++out.newton_iterations;
+          if (tiny) return true;
+          break;
+        }
+      }
+      if (!moved) return false;
+    }
+    return true;
+  };
+  // The landmarks' move extended harmonically (the predictor direction).
+  std::vector<Complex> move(source.size());
+  for (size_t a = 0; a < source.size(); ++a) move[a] = lifts[a] - free[source[a]];
+  const std::vector<Complex> zero_t(edges.size(), Complex(0.0));
+  const std::vector<Complex> direction = PinnedFlatHarmonic(n, edges, source, false).solve(zero_t, move).first;
+  std::vector<Complex> z = free;
+  double s = 0, ds = 1;
+  while (s < 1 && ds > 1e-3) {
+    const double next = std::min(1.0, s + ds);
+    // Euler predictor along the path of optima: the free unknowns' response
+    // −H⁻¹ ∂g/∂s to the landmarks' move (∂g/∂s by a difference); the
+    // harmonic extension of the move from the free map at the start.
+    std::vector<Complex> dir = direction;
+    if (s > 0) {
+      Eigen::VectorXd g0, g1;
+      assemble(z, g0, true);
+      llt.factorize(H);
+      std::vector<Complex> zh = z;
+      const double h = 1e-6;
+      for (size_t a = 0; a < source.size(); ++a) zh[source[a]] += h * move[a];
+      assemble(zh, g1, false);
+      if (llt.info() == Eigen::Success) {
+        const Eigen::VectorXd d = llt.solve(-(g1 - g0) / h);
+        for (int v = 0; v < n; ++v)
+          dir[v] = index[v] >= 0 ? Complex(d[2 * index[v]], d[2 * index[v] + 1]) : Complex(0.0);
+      }
+    }
+    std::vector<Complex> trial = z;
+    for (int v = 0; v < n; ++v) trial[v] += (next - s) * dir[v];
+    for (size_t a = 0; a < source.size(); ++a) trial[source[a]] = free[source[a]] + next * move[a];
+    bool good = std::isfinite(objective(trial)) && newton(trial, next < 1 ? 8 : 60);
+    if (good) {
+      z.swap(trial), s = next, ++out.steps;
+      ds *= 2;
+    } else {
+      ds *= 0.5;
+    }
+  }
+  out.reached = s;
+  if (s < 1) return out;
+  // Polish at the final positions (the landmarks exactly on their lifts).
+  for (size_t a = 0; a < source.size(); ++a) z[source[a]] = lifts[a];
+  newton(z, 40);
+  out.ok = true;
+  out.energy = dirichlet(z);
+  out.z = std::move(z);
+  return out;
 }
 
 HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<WeightedEdge>& edges,

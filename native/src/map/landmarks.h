@@ -102,6 +102,33 @@ LandmarkPatchSearch grow_landmark_patches(
     const std::vector<std::pair<int, int>>& landmarks,
     const std::function<std::vector<int>(const std::vector<LandmarkPatch>&)>& solve);
 
+/// Genus 1, landmarks whose plain pins fold the map: the landmarked map of
+/// lowest harmonic energy among bijective ones, approached by an interior
+/// point continuation. Minimises E(z) + μ Σ_f φ(A_f(z) / c_f) with the
+/// landmarks held, where A_f is the signed area of source face f's image,
+/// c_f = 1/4 of its area in the free optimum, φ(x) = x − 1 − log x below 1
+/// and 0 above (C¹; inactive where a face keeps a quarter of its free
+/// area), μ = E(free) / #F. The landmarks move from their free images to
+/// their lifts in steps; each step is predicted by the harmonic extension of
+/// the landmarks' move and corrected by Newton (Gauss–Newton barrier
+/// Hessian, line search keeping every A_f > 0), so the map is bijective at
+/// every step. A step whose prediction folds, or whose correction stalls, is
+/// halved; success doubles the next. Flat counterpart only (the hyperbolic
+/// target has no such signed-area form in one chart).
+struct FlatBarrierResult {
+  bool ok = false;
+  std::vector<Complex> z;  ///< #V cover positions (valid when ok)
+  double energy = 0;       ///< E(z), the harmonic part only
+  int steps = 0, newton_iterations = 0;
+  double reached = 0;  ///< fraction of the way the landmarks got (1 when ok)
+};
+FlatBarrierResult flat_barrier_landmarks(int num_vertices, const std::vector<IntrinsicEdge>& edges,
+                                         const std::vector<Complex>& translations,
+                                         const RowMatrixX3i& faces,
+                                         const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& face_offsets,
+                                         const std::vector<Complex>& free, const std::vector<int>& source,
+                                         const std::vector<Complex>& lifts);
+
 /// Hyperbolic case: re-solves the harmonic map (Riemannian Newton,
 /// map/hyperbolic_harmonic.h) from the free optimum `free` (its vertex decks
 /// relative to `edges`) with each source[k] held at the deck image of

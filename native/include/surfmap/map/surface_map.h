@@ -180,11 +180,13 @@ struct SurfaceMapOptions {
   /// §VII-C). Indices must be valid and each vertex used at most once.
   /// Genus >= 1: each source vertex is held at the lift of its target vertex
   /// (in the universal cover) nearest to where the map without landmarks
-  /// puts it, so landmarks add no winding (src/map/landmarks.h). A landmark
-  /// whose plain pin folds the map carries rings of its free neighbourhood
-  /// rigidly along (the rest is the harmonic map with those held; see
-  /// landmark_rings); landmarks whose carried neighbourhoods would meet, or
-  /// hold half the source, are a SolveError naming them. Both methods hold
+  /// puts it, so landmarks add no winding (src/map/landmarks.h). When the
+  /// plain pins fold the map: genus 1 moves the landmarks there by an
+  /// interior-point continuation (bijective at every step; the held map of
+  /// least energy among bijective ones, up to the barrier), genus >= 2 (and
+  /// genus 1 if that stalls) carries rings of each landmark's free
+  /// neighbourhood rigidly along (see landmark_method, landmark_rings);
+  /// landmarks that cannot be held so are a SolveError naming them. Both methods hold
   /// landmarks (the relaxation skips the held vertices). Genus 0:
   /// the Möbius map fixed by the landmarks (map/spherical_map.h), exact for
   /// up to 3, least squares beyond (see max_landmark_error).
@@ -330,6 +332,11 @@ struct SurfaceMapResult {
   /// the plain pin, the exact held optimum; src/map/landmarks.h), the held
   /// solves that took, and the source vertices held in the accepted one.
   std::vector<int> landmark_rings;
+  /// How the landmarks were held: "pinned" (the exact held optimum),
+  /// "barrier continuation" (genus 1, when the pins fold: the bijective
+  /// held map of least energy up to the barrier, src/map/landmarks.h) or
+  /// "carried neighbourhoods"; empty without landmarks.
+  std::string landmark_method;
   int landmark_solves = 0;
   int landmark_held_vertices = 0;
   /// Genus 0: vertices whose sphere image was re-placed to untangle input
