@@ -162,6 +162,8 @@ void register_map(CLI::App& app) {
                                    {"stop_reason", hs.stop_reason},
                                    {"time_s", hs.time_s},
                                    {"found_candidate", hs.found_candidate},
+                                   {"cut_classes", hs.cut_classes},
+                                   {"cuts_time_s", hs.cuts_time_s},
                                    {"evaluated", evaluated}};
     const nlohmann::json report = {
         {"source", a->src},

@@ -172,7 +172,8 @@ void bind_map(py::module_& m) {
                                                         py::arg("screen") = hs.evaluated_screen,
                                                         py::arg("energy") = hs.evaluated_energy),
                         py::arg("stop_reason") = hs.stop_reason, py::arg("time_s") = hs.time_s,
-                        py::arg("found_candidate") = hs.found_candidate);
+                        py::arg("found_candidate") = hs.found_candidate, py::arg("cut_classes") = hs.cut_classes,
+                        py::arg("cuts_time_s") = hs.cuts_time_s);
         d["homotopy"] = py::dict(py::arg("chosen") = r.chosen_candidate, py::arg("candidates") = cands,
                                  py::arg("search") = search);
         py::dict times;

@@ -374,8 +374,13 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   // are carried to the default cut's generators by the identity overlay of
   // the source onto itself (each loop of the default system as a word in
   // the other system's letters), kept when their fingerprint is new.
+  std::vector<std::vector<double>> known;  // fingerprints of the classes listed so far
+  size_t word_cap = 0;
+  std::vector<int> cut_bases_used{sl.base_vertex};
+  // Lifted classes from the systems of loops at `cut_bases`: the new ones
+  // (by fingerprint), at most homotopy_extra_cut_classes, lowest screen first.
+  std::function<std::vector<HandleCandidate>(const std::vector<int>&)> lift_from_cuts;
   if (options.homotopy_extra_cuts > 0) {
-    std::vector<std::vector<double>> known;
     size_t longest = 0;  // total word length of the longest lifted class from the default cut
     for (const HandleCandidate& hc : handle_classes) {
       // (Classes too twisted to be evaluated get no fingerprint.)
@@ -390,15 +395,17 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     // reduction below (Dehn's algorithm on every try) cheap.
     // (Lengths seen: 14..144 letters in genus 2 where the default cut's
     // longest is 86.)
-    const size_t word_cap = std::min(4 * longest + 16 * static_cast<size_t>(n), 48 * static_cast<size_t>(n));
+    word_cap = std::min(4 * longest + 16 * static_cast<size_t>(n), 48 * static_cast<size_t>(n));
     // Base vertices spread over the vertex list (deterministic). Not the
     // farthest points: those are the shape's extremities, where the loops
     // come out long and skewed (the demo pair: no geometric class from the
     // two farthest; from 3 of 7 spread ones).
+    lift_from_cuts = [&](const std::vector<int>& cut_bases) {
     std::vector<std::pair<double, HandleCandidate>> extra;  // new lifted classes and their screening scores
     std::vector<int> bases{sl.base_vertex};
-    for (int c = 1; c <= options.homotopy_extra_cuts; ++c)
-      bases.push_back(static_cast<int>((static_cast<long long>(source.num_vertices()) * c) / (options.homotopy_extra_cuts + 1)));
+    for (int b : cut_bases)
+      if (std::find(cut_bases_used.begin(), cut_bases_used.end(), b) == cut_bases_used.end())
+        bases.push_back(b), cut_bases_used.push_back(b);
     for (size_t c = 1; c < bases.size(); ++c) {
       SurfaceMapOptions o2 = options;
       o2.source_base_vertex = bases[c];
@@ -443,8 +450,15 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     // Only the most promising new classes get homotopy data and a coarse
     // solve (each costs about as much as the cut itself).
     std::stable_sort(extra.begin(), extra.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    std::vector<HandleCandidate> kept;
     for (size_t k = 0; k < extra.size() && static_cast<int>(k) < options.homotopy_extra_cut_classes; ++k)
-      handle_classes.push_back(std::move(extra[k].second));
+      kept.push_back(std::move(extra[k].second));
+    return kept;
+    };
+    std::vector<int> first_bases;
+    for (int c = 1; c <= options.homotopy_extra_cuts; ++c)
+      first_bases.push_back(static_cast<int>((static_cast<long long>(source.num_vertices()) * c) / (options.homotopy_extra_cuts + 1)));
+    for (HandleCandidate& hc : lift_from_cuts(first_bases)) handle_classes.push_back(std::move(hc));
   }
 
   // The homotopy data of one class theta (source canonical generator ->
@@ -797,6 +811,94 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     // Class search (topology/mapping_class_search.h): from the best class on
     // the coarse copy, a greedy descent over Dehn twists screened by
     // class_screen, each neighbour evaluated by a solve on the coarse copy.
+    auto coarse_edges_of = [&](const GroupMap& theta) {
+      const std::vector<Word> image = loop_letter_images(theta);
+      std::vector<WeightedEdge> e = coarse_template;
+      std::map<Word, Word> memo;
+      for (size_t k = 0; k < e.size(); ++k) {
+        auto it = memo.find(coarse_source_word[k]);
+        if (it == memo.end())
+          it = memo.emplace(coarse_source_word[k],
+                            deck_group.side_word(dehn_reduce(substitute(coarse_source_word[k], image), layout.word))).first;
+        e[k].rho_word = it->second;
+        e[k].rho = deck_group.evaluate_side_word(e[k].rho_word);
+      }
+      return e;
+    };
+    struct Evaluated {
+      GroupMap theta;
+      std::vector<WeightedEdge> edges;
+      HyperbolicHarmonicResult result;
+    };
+    // A converged coarse solve of class theta from the origin (false when
+    // it fails or does not converge).
+    auto solve_coarse = [&](const GroupMap& theta, Evaluated* ev) {
+      try {
+        *ev = Evaluated{theta, coarse_edges_of(theta), {}};
+        ev->result = solve_from(ncv, ev->edges, corigin, no_decks, ho);
+        bool finite = std::isfinite(ev->result.energy) && ev->result.converged;
+        for (size_t i = 0; i < ev->result.z.size() && finite; ++i) finite = std::isfinite(std::abs(ev->result.z[i]));
+        return finite;
+      } catch (const SolveError&) {
+        return false;
+      }
+    };
+    // Appends a class found after the ranking, with its coarse solve.
+    auto append_class = [&](HandleCandidate hc, ClassData cd, const Evaluated& ev) {
+      hc.map = ev.theta;
+      hc.homology = homology_matrix(hc.map, n);
+      HomotopyCandidate c;
+      c.description = hc.description;
+      c.coarse_energy = c.energy = ev.result.energy;
+      c.solved = false;
+      for (int r = 0; r < hc.homology.rows(); ++r)
+        for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
+      data.push_back(std::move(cd));
+      handle_classes.push_back(std::move(hc));
+      out.candidates.push_back(c);
+      usable.push_back(1);
+      coarse_failed.push_back(0);
+      coarse_data.push_back(ev.edges);
+      coarse_result.push_back(ev.result);
+      fine_result.emplace_back();
+      full.push_back(0);
+      order.push_back(ncand);
+      ++ncand;
+      std::stable_sort(order.begin(), order.end(),
+                       [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
+      return ncand - 1;
+    };
+    const double conformal_bound = 8 * M_PI * (out.genus - 1);
+    // The class search, stage 1: when the best class is far from the
+    // conformal bound (see below), lifts from homotopy_search_cuts more
+    // source cuts (other Torelli representatives; cheap next to their
+    // solves, and of their new classes only the lowest-screen ones are
+    // solved). The bench pair n_hole_torus(2) -> vase at 50k vertices gets
+    // its geometric class (E 25.96, mean D' 1.36) only this way: the 3
+    // default cuts give 66.8 (D' 5.41), and no twist neighbour of that
+    // class is lower.
+    if (!coarse_source_word.empty() && lift_from_cuts && options.homotopy_search_cuts > 0 &&
+        options.homotopy_search_start < 0 && usable[order[0]] &&
+        out.candidates[order[0]].energy > (1 + options.homotopy_search_gap) * conformal_bound) {
+      const auto t_cuts = std::chrono::steady_clock::now();
+      std::vector<int> late;
+      for (int c = 1; c <= options.homotopy_search_cuts; ++c)
+        late.push_back(static_cast<int>((static_cast<long long>(nv) * c) / (options.homotopy_search_cuts + 1)));
+      for (HandleCandidate& hc : lift_from_cuts(late)) {
+        if (loop_image_length(hc.map) > max_image_letters) continue;
+        ClassData cd;
+        Evaluated ev;
+        try {
+          cd = class_data(hc.map);
+        } catch (const SolveError&) {
+          continue;
+        }
+        ++out.homotopy_search.cut_classes;
+        if (!solve_coarse(hc.map, &ev)) continue;
+        append_class(std::move(hc), std::move(cd), ev);
+      }
+      out.homotopy_search.cuts_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cuts).count();
+    }
     if (options.homotopy_search_start >= ncand)
       throw InputError("homotopy_search_start " + std::to_string(options.homotopy_search_start) + " does not exist; there are " +
                        std::to_string(ncand) + " candidates");
@@ -806,7 +908,6 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     // a start within homotopy_search_gap of that bound leaves nothing worth
     // a search (the coarse energies of good classes sit 0.3-4% above it:
     // 75.8 vs 75.4 at genus 4, 26.0 vs 25.1 for the genus-2 demo pair).
-    const double conformal_bound = 8 * M_PI * (out.genus - 1);
     const bool near_bound = options.homotopy_search_start_twists.empty() &&
                             out.candidates[search_start].energy <= (1 + options.homotopy_search_gap) * conformal_bound;
     if (!coarse_source_word.empty() && near_bound)
@@ -829,39 +930,12 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
           for (Word& w : search_from) w = reduce_canonical(w);
         }
       }
-      auto coarse_edges_of = [&](const GroupMap& theta) {
-        const std::vector<Word> image = loop_letter_images(theta);
-        std::vector<WeightedEdge> e = coarse_template;
-        std::map<Word, Word> memo;
-        for (size_t k = 0; k < e.size(); ++k) {
-          auto it = memo.find(coarse_source_word[k]);
-          if (it == memo.end())
-            it = memo.emplace(coarse_source_word[k],
-                              deck_group.side_word(dehn_reduce(substitute(coarse_source_word[k], image), layout.word))).first;
-          e[k].rho_word = it->second;
-          e[k].rho = deck_group.evaluate_side_word(e[k].rho_word);
-        }
-        return e;
-      };
-      struct Evaluated {
-        GroupMap theta;
-        std::vector<WeightedEdge> edges;
-        HyperbolicHarmonicResult result;
-      };
       std::vector<Evaluated> evaluated;
       auto coarse_energy = [&](const GroupMap& theta) {
-        try {
-          Evaluated ev{theta, coarse_edges_of(theta), {}};
-          ev.result = solve_from(ncv, ev.edges, corigin, no_decks, ho);
-          bool finite = std::isfinite(ev.result.energy) && ev.result.converged;
-          for (size_t i = 0; i < ev.result.z.size() && finite; ++i) finite = std::isfinite(std::abs(ev.result.z[i]));
-          if (!finite) return std::numeric_limits<double>::infinity();
-          const double E = ev.result.energy;
-          evaluated.push_back(std::move(ev));
-          return E;
-        } catch (const SolveError&) {
-          return std::numeric_limits<double>::infinity();
-        }
+        Evaluated ev;
+        if (!solve_coarse(theta, &ev)) return std::numeric_limits<double>::infinity();
+        evaluated.push_back(std::move(ev));
+        return evaluated.back().result.energy;
       };
       info.start_energy = options.homotopy_search_start_twists.empty() ? out.candidates[search_start].energy
                                                                         : coarse_energy(search_from);
@@ -894,8 +968,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         }
       if (found) {
         HandleCandidate hc;
-        hc.map = found->theta;
-        hc.homology = homology_matrix(hc.map, n);
+        hc.homology = homology_matrix(found->theta, n);
         std::string handles;
         handle_correspondence_of(shb, thb, hc.homology, &hc.permutation, &hc.sign, &handles);
         std::string path;
@@ -903,26 +976,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         std::string from = std::to_string(search_start);
         for (const std::string& m : options.homotopy_search_start_twists) from += " " + m;
         hc.description = handles + "  [class search from candidate " + from + ": " + path + "]";
-        HomotopyCandidate c;
-        c.description = hc.description;
-        c.coarse_energy = c.energy = found->result.energy;
-        c.solved = false;
-        for (int r = 0; r < hc.homology.rows(); ++r)
-          for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
-        data.push_back(std::move(found_data));
-        handle_classes.push_back(std::move(hc));
-        out.candidates.push_back(c);
-        usable.push_back(1);
-        coarse_failed.push_back(0);
-        coarse_data.push_back(found->edges);
-        coarse_result.push_back(found->result);
-        fine_result.emplace_back();
-        full.push_back(0);
-        order.push_back(ncand);
-        info.found_candidate = ncand;
-        ++ncand;
-        std::stable_sort(order.begin(), order.end(),
-                         [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
+        info.found_candidate = append_class(std::move(hc), std::move(found_data), *found);
       }
       info.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_search).count();
     }

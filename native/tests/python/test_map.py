@@ -217,6 +217,23 @@ def test_genus2_candidates_are_described_and_the_overlay_class_wins():
     assert r["distortion"]["mean"] < 1.08
 
 
+def test_genus2_class_search_is_reported_and_skipped_near_the_conformal_bound():
+    a = surfmap.shapes.n_hole_torus(2, 30, True)
+    b = surfmap.shapes.jitter(*surfmap.shapes.n_hole_torus(2, 34, True), 0.2, 4)
+    r = surfmap.surface_map(*a, *b)
+    s = r["homotopy"]["search"]
+    assert set(s) >= {"run", "moves", "energies", "evaluations", "evaluated", "stop_reason", "time_s", "found_candidate"}
+    # A jittered copy's identity class is nearly conformal: E within 10% of
+    # 8 pi (g - 1), so there is nothing for the search to find.
+    assert r["energy"]["final"] < 1.1 * 8 * np.pi
+    assert not s["run"] and "conformal bound" in s["stop_reason"] and s["evaluations"] == 0
+    off = surfmap.surface_map(*a, *b, homotopy_search=False)
+    assert not off["homotopy"]["search"]["run"] and off["homotopy"]["search"]["stop_reason"] == ""
+    assert abs(off["energy"]["final"] - r["energy"]["final"]) < 1e-9 * r["energy"]["final"]
+    with pytest.raises(surfmap.InputError, match="homotopy_search_evaluations"):
+        surfmap.surface_map(*a, *b, homotopy_search_evaluations=0)
+
+
 def test_genus2_solve_progress_reports_energies_and_cancels():
     a = surfmap.shapes.n_hole_torus(2, 24, True)
     b = surfmap.shapes.vase(28, True)

@@ -26,7 +26,10 @@
 // separating twists (with an overlay class: the overlay composed with a
 // signed handle permutation of the source, the target's handles being the
 // overlay's images of the source's); classes with the same action on homology as an
-// earlier one are dropped. Ranking: every candidate is solved to convergence
+// earlier one are dropped. When the best coarse energy is more than 10% above
+// the conformal bound 8 pi (g - 1), the class search adds lifted classes from
+// more cuts and then descends over Dehn twists (topology/mapping_class_search.h,
+// SurfaceMapOptions::homotopy_search). Ranking: every candidate is solved to convergence
 // on a coarse copy of the source (map/coarse_source.h, 3000 vertices by
 // default; the class energy is a property of the surfaces, so this estimates
 // it, and is recorded as HomotopyCandidate::coarse_energy); the best by that
@@ -137,9 +140,14 @@ struct SurfaceMapOptions {
   /// (default 0.1) of the conformal lower bound 8 pi (g - 1) that every
   /// degree-1 map's energy exceeds (nothing to gain; it costs 0.3-0.5 s per
   /// coarse solve at genus 2-6).
+  /// Before the twists, under the same condition: lifted classes from
+  /// `homotopy_search_cuts` more source cuts (default 12, spread over the
+  /// vertex list; at most homotopy_extra_cut_classes of their new classes
+  /// solved on the coarse copy and added).
   bool homotopy_search = true;
   int homotopy_search_evaluations = 24;
   double homotopy_search_gap = 0.1;
+  int homotopy_search_cuts = 12;
   /// For tests and comparisons: start the class search from this candidate
   /// (-1: the best on the coarse copy) composed on the source side with the
   /// named moves of topology/mapping_class_search.h twist_moves, in order
@@ -255,6 +263,10 @@ struct HomotopySearchInfo {
   int evaluations = 0, screened = 0;
   std::string stop_reason;
   double time_s = 0;
+  /// Stage 1 (homotopy_search_cuts): lifted classes from the late cuts that
+  /// were new and tried on the coarse copy, and its seconds.
+  int cut_classes = 0;
+  double cuts_time_s = 0;
   /// Candidate index of the class found (-1: no improvement, nothing added).
   int found_candidate = -1;
 };
