@@ -194,6 +194,7 @@ void register_map(CLI::App& app) {
                        {"perimeter", m.initial_map.polygon_perimeter},
                        {"chords_split", m.initial_map.polygon_chords_split},
                        {"flipped", m.initial_map.polygon_flipped},
+                       {"repaired_vertices", m.initial_map.polygon_repaired_vertices},
                        {"time_s", m.initial_map.polygon_time_s}}},
           {"iterations", m.initial_map.iterations},
           {"time_s", m.initial_map.time_s},

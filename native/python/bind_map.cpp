@@ -152,6 +152,7 @@ void bind_map(py::module_& m) {
                                           py::arg("perimeter") = im.polygon_perimeter,
                                           py::arg("chords_split") = im.polygon_chords_split,
                                           py::arg("flipped") = im.polygon_flipped,
+                                          py::arg("repaired_vertices") = im.polygon_repaired_vertices,
                                           py::arg("time_s") = im.polygon_time_s),
             py::arg("iterations") = im.iterations, py::arg("time_s") = im.time_s);
         // The initial map located on the target (None for genus 0 or when it

@@ -435,6 +435,87 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
   return out;
 }
 
+namespace {
+
+// A flattening with a few bad faces (the 50k genus-2 bench source: 2 of 1e5,
+// where the loops cross) is kept and repaired where it is bad: the
+// uniform-weight harmonic map of the rings around those faces, the rest of
+// the flattening held (hyperbolic_harmonic.h `fixed`). That costs a solve of
+// a few hundred vertices instead of the whole uniform-weight map, whose full
+// solve is the fallback when the repair does not clear every fold.
+bool repair_flattening(const TriMesh& source, const std::vector<Word>& halfedge_word, const DeckGroup& group,
+                       const HyperbolicInitialMapOptions& options, const std::vector<double>& per_face,
+                       PolygonInitialMapResult& poly) {
+  const int nv = source.num_vertices(), nf = source.num_faces();
+  if (static_cast<int>(poly.z.size()) != nv ||
+      !std::all_of(poly.z.begin(), poly.z.end(), [](Complex z) { return std::abs(z) < 1; }))
+    return false;
+  std::vector<std::vector<int>> neighbours(nv);
+  for (int f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) neighbours[source.F(f, k)].push_back(source.F(f, (k + 1) % 3));
+  for (int rings : {3, 6, 12}) {
+    std::vector<int> ring(nv, -1), frontier;
+    for (int f = 0; f < nf; ++f)
+      if (!std::isfinite(per_face[f]))
+        for (int k = 0; k < 3; ++k)
+          if (ring[source.F(f, k)] < 0) ring[source.F(f, k)] = 0, frontier.push_back(source.F(f, k));
+    for (size_t q = 0; q < frontier.size(); ++q) {
+      const int v = frontier[q];
+      if (ring[v] == rings) continue;
+      for (int u : neighbours[v])
+        if (ring[u] < 0) ring[u] = ring[v] + 1, frontier.push_back(u);
+    }
+    if (static_cast<int>(frontier.size()) > nv / 4) return false;  // not local: the full fallback
+    std::vector<char> fixed(nv, 1);
+    for (int v : frontier) fixed[v] = 0;
+    // Edges touching a free vertex (the others' energy is constant), in the
+    // flattening's charts.
+    std::vector<WeightedEdge> edges;
+    for (int f = 0; f < nf; ++f)
+      for (int k = 0; k < 3; ++k) {
+        const int i = source.F(f, k), j = source.F(f, (k + 1) % 3);
+        if ((fixed[i] && fixed[j]) || i > j) continue;  // each edge once, from its lower-numbered end's face
+        WeightedEdge e;
+        e.i = i, e.j = j, e.w = 1.0;
+        e.rho_word = group.reduce(concat({poly.vertex_deck_word[i], halfedge_word[3 * f + k], inverse(poly.vertex_deck_word[j])}));
+        e.rho = group.evaluate_side_word(e.rho_word);
+        edges.push_back(std::move(e));
+      }
+    HyperbolicHarmonicOptions ho;
+    ho.tolerance = options.tolerance;
+    ho.max_iterations = options.max_iterations;
+    ho.relator = group.side_relator();
+    ho.reduce_point = options.reduce_point;
+    ho.fixed = fixed;
+    if (options.keep_going) ho.progress = [&](int, double, double) { return options.keep_going(); };
+    HyperbolicHarmonicResult hr;
+    try {
+      hr = hyperbolic_harmonic_map(nv, edges, group.side_pairings(), poly.z, ho);
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const Error&) {
+      return false;
+    }
+    std::vector<Word> words(nv);
+    const bool have_words = hr.vertex_deck_word.size() == static_cast<size_t>(nv);
+    for (int v = 0; v < nv && have_words; ++v)
+      words[v] = group.reduce(concat(hr.vertex_deck_word[v], poly.vertex_deck_word[v]));
+    if (!have_words) return false;  // chart moves without words cannot be composed exactly
+    const DistortionStats q = hyperbolic_distortion(source, group, halfedge_word, hr.z, words);
+    if (q.flipped || q.degenerate) continue;
+    poly.z = std::move(hr.z);
+    poly.vertex_deck_word = std::move(words);
+    poly.vertex_deck.resize(nv);
+    for (int v = 0; v < nv; ++v) poly.vertex_deck[v] = group.evaluate_side_word(poly.vertex_deck_word[v]);
+    poly.repaired_vertices = static_cast<int>(frontier.size());
+    poly.reason.clear();
+    return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const Connectivity& sc,
                                                   const std::vector<Mobius>& halfedge_rho,
                                                   const std::vector<Word>& halfedge_word, const DeckGroup& group,
@@ -464,6 +545,8 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
         poly.applied = false;
         poly.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate) +
                       " degenerate source faces";
+        if (q.flipped + q.degenerate <= std::max(8, source.num_faces() / 2000))
+          poly.applied = repair_flattening(source, halfedge_word, group, options, q.per_face, poly);
       }
     }
     if (poly.applied) {

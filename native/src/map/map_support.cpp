@@ -110,6 +110,7 @@ void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo
   info.polygon_perimeter = p.perimeter;
   info.polygon_chords_split = p.chords_split;
   info.polygon_flipped = p.source_flipped;
+  info.polygon_repaired_vertices = p.repaired_vertices;
   info.iterations = init.construction == "polygon" ? 0 : init.iterations;
   info.time_s = init.time_s;
   info.polygon_time_s = p.time_s;

@@ -251,6 +251,21 @@ def test_genus2_solve_progress_reports_energies_and_cancels():
         surfmap.surface_map(*a, *b, homotopy=0, solve_progress=lambda it, e, g: 1 / 0)
 
 
+def test_polygon_flattening_with_a_fold_is_repaired_locally():
+    # Raw marching-tets source: the flattening folds one face where the
+    # loops cross; the rings around it are re-solved (the rest held) instead
+    # of the whole uniform-weight map, and the repaired map has no folds.
+    a = surfmap.shapes.n_hole_torus(2, 30, False)
+    b = surfmap.shapes.vase(30, True)
+    r = surfmap.surface_map(*a, *b)
+    im = r["initial_map"]
+    assert im["construction"] == "polygon" and im["polygon"]["status"] == "used"
+    assert im["polygon"]["flipped"] > 0 and 0 < im["polygon"]["repaired_vertices"] < len(a[0]) // 4
+    assert im["iterations"] == 0
+    assert r["initial_flipped_triangles"] == 0
+    assert r["flipped_triangles"] == 0
+
+
 def test_genus2_initial_map_construction_and_location(tmp_path, cli):
     a = surfmap.shapes.n_hole_torus(2, 32, True)
     b = surfmap.shapes.n_hole_torus(2, 40, True)

@@ -170,6 +170,9 @@ struct PolygonInitialMapResult {
   /// Flipped / degenerate images of the source's own faces (geodesic
   /// triangles between the input vertices' images), when applied.
   int source_flipped = 0, source_degenerate = 0;
+  /// Vertices re-solved (uniform weights, the rest held) around those faces
+  /// when there were only a few and that cleared them; 0 otherwise.
+  int repaired_vertices = 0;
   double time_s = 0;
 };
 

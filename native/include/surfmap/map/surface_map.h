@@ -295,8 +295,11 @@ struct InitialMapInfo {
   double polygon_min_turn = 0, polygon_perimeter = 0;
   int polygon_chords_split = 0;
   /// Source faces (crossed by the loops) whose images the flattening
-  /// flipped (then the fallback is used); 0 when not computed.
-  int polygon_flipped = 0;
+  /// flipped; 0 when not computed. A few (at most max(8, #F/2000)) are
+  /// repaired by re-solving `polygon_repaired_vertices` vertices around them
+  /// with uniform weights (the rest of the flattening held); when that does
+  /// not clear them, or there are more, the fallback is used.
+  int polygon_flipped = 0, polygon_repaired_vertices = 0;
   /// Newton iterations of the uniform-weight solve (0 for the polygon).
   int iterations = 0;
   /// Seconds: the whole initial map, and of it the polygon attempt.
