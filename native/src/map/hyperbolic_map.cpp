@@ -1005,8 +1005,9 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
       // A runner-up tied with the leader to 1e-6 on the coarse copy is the
       // same optimum up to a symmetry of the shapes (its full solve gave the
       // leader's energy to 1e-10 on the 50k bench pair): solving it again at
-      // full resolution cannot change the choice, so it is not.
-      if (!pick.empty()) {
+      // full resolution cannot change the choice, so it is not (unless every
+      // class is asked for: homotopy_full_solves <= 0).
+      if (!pick.empty() && options.homotopy_full_solves > 0) {
         const double lead = out.candidates[pick[0]].energy;
         pick.erase(std::remove_if(pick.begin() + 1, pick.end(),
                                   [&](int k) { return std::abs(out.candidates[k].energy - lead) <= 1e-6 * lead; }),
