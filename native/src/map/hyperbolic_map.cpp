@@ -640,7 +640,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     std::vector<Word> halfedge_word;
     HyperbolicInitialMapResult init;
   };
-  auto initial_of = [&](int k, const std::atomic<bool>* stop) {
+  auto initial_of = [&](int k, const std::atomic<bool>* stop, std::vector<Complex> start_z = {},
+                        std::vector<Word> start_word = {}) {
     InitialOf r;
     const ClassData& cd = data[k];
     r.halfedge_rho.resize(3 * source.num_faces());
@@ -657,6 +658,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
       io.base_vertex = sl.base_vertex;
       io.reduce_point = [&](Complex& z) { return reduce_into_polygon(z); };
       if (stop) io.keep_going = [stop] { return !*stop; };
+      io.start_z = std::move(start_z), io.start_word = std::move(start_word);
       r.init = hyperbolic_initial_map(source, sc, r.halfedge_rho, r.halfedge_word, deck_group, io);
     } catch (const SolveError&) {
       // The start then is every vertex at the origin (as before the initial
@@ -1041,25 +1043,37 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     const bool init_ahead = threads > 1 && likely_class >= 0 && usable[likely_class];
     if (init_ahead) tasks.insert(tasks.begin() + std::min<size_t>(1, tasks.size()), -1);
     std::exception_ptr init_error;
-    parallel_for(threads, static_cast<int>(tasks.size()), [&](int t, const std::atomic<bool>* stop) {
-      const int k = tasks[t];
-      if (k < 0) {
-        try {
-          likely_init = std::make_unique<InitialOf>(initial_of(likely_class, stop));
-        } catch (...) {
-          init_error = std::current_exception();  // rethrown only if the class is chosen: built again then
-        }
-        return;
-      }
+    // Class k's coarse solution prolonged to the fine vertices (all at the
+    // origin when its coarse solve failed).
+    auto prolonged = [&](int k, std::vector<Complex>& z, std::vector<Word>& deck) {
       const HyperbolicHarmonicResult& rc = coarse_result[k];
-      std::vector<Complex> z(nv);
-      std::vector<Word> deck(nv);
+      z.assign(nv, Complex(0.0));
+      deck.assign(nv, Word{});
       for (int v : settle) {
         if (coarse_failed[k]) break;  // from the origin
         const int c = cs.region[v], ph = cs.parent_halfedge[v];
         z[v] = rc.z[c];
         deck[v] = ph < 0 ? rc.vertex_deck_word[c] : deck_group.reduce(concat(deck[sc.tail(ph)], side_of(data[k], ph)));
       }
+    };
+    parallel_for(threads, static_cast<int>(tasks.size()), [&](int t, const std::atomic<bool>* stop) {
+      const int k = tasks[t];
+      if (k < 0) {
+        try {
+          // The uniform-weight fallback (polygon not usable) starts from the
+          // class's prolonged coarse solution: the same map, in fewer steps.
+          std::vector<Complex> z;
+          std::vector<Word> deck;
+          if (!coarse_failed[likely_class]) prolonged(likely_class, z, deck);
+          likely_init = std::make_unique<InitialOf>(initial_of(likely_class, stop, std::move(z), std::move(deck)));
+        } catch (...) {
+          init_error = std::current_exception();  // rethrown only if the class is chosen: built again then
+        }
+        return;
+      }
+      std::vector<Complex> z;
+      std::vector<Word> deck;
+      prolonged(k, z, deck);
       HyperbolicHarmonicOptions o = fine_options(k);
       if (stop) o.progress = [stop](int, double, double) { return !*stop; };
       auto r = std::make_unique<HyperbolicHarmonicResult>();

@@ -570,7 +570,10 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
   if (r.construction.empty()) {
     const int nv = sc.num_vertices();
     const bool from_polygon = !start_z.empty();
-    if (!from_polygon) start_z.assign(nv, Complex(0.0)), start_word.assign(nv, Word{});
+    const bool from_given = !from_polygon && static_cast<int>(options.start_z.size()) == nv &&
+                            static_cast<int>(options.start_word.size()) == nv;
+    if (from_given) start_z = options.start_z, start_word = options.start_word;
+    else if (!from_polygon) start_z.assign(nv, Complex(0.0)), start_word.assign(nv, Word{});
     // Edges in the start's charts (effective elements, as reduced side words).
     std::vector<WeightedEdge> edges(sc.num_edges());
     for (int e = 0; e < sc.num_edges(); ++e) {
@@ -591,10 +594,12 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
     try {
       hr = hyperbolic_harmonic_map(nv, edges, group.side_pairings(), start_z, ho);
     } catch (const Error&) {
-      if (!from_polygon) throw;
-      // The flattening was no usable start after all: from the origin.
+      if (!from_polygon && !from_given) throw;
+      // The flattening (or the given start) was no usable start after all:
+      // from the origin.
       HyperbolicInitialMapOptions o = options;
       o.polygon = false;
+      o.start_z.clear(), o.start_word.clear();
       HyperbolicInitialMapResult u = hyperbolic_initial_map(source, sc, halfedge_rho, halfedge_word, group, o);
       u.polygon = std::move(r.polygon);
       u.time_s = seconds_since(t0);
