@@ -12,12 +12,6 @@ namespace {
 
 using IntVector = Eigen::Matrix<long long, Eigen::Dynamic, 1>;
 
-GroupMap identity(int n) {
-  GroupMap m(n);
-  for (int j = 0; j < n; ++j) m[j] = {j + 1};
-  return m;
-}
-
 const MappingClassMove& move_named(const std::vector<MappingClassMove>& moves, const std::string& name) {
   for (const MappingClassMove& m : moves)
     if (m.name == name) return m;
@@ -91,7 +85,7 @@ TEST(MappingClassSearch, DescentUndoesKnownTwists) {
     for (const Word& w : theta) total += static_cast<double>(cyclic_reduce(reduce(w)).size());
     return total;
   };
-  GroupMap start = identity(n);
+  GroupMap start = identity_map(n);
   for (const char* name : {"T(a1)", "T(a1)", "T(b2)^-1", "T(s1)"}) {
     start = compose(start, move_named(moves, name).automorphism.map);
     for (Word& w : start) w = reduce(w);

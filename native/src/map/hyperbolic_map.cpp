@@ -88,6 +88,19 @@ int straight_walk(int f, Complex q, const Corners& corners, const Cross& cross, 
   return -1;
 }
 
+// The effective element of halfedge h (tail's chart to head's) for a
+// solution with per-vertex charts (HyperbolicHarmonicResult or
+// HyperbolicInitialMapResult): from reduced side words when the solver kept
+// them (no round-off of long deck matrices), else from the matrices.
+template <class Charts>
+hyperbolic::Mobius effective_element(const Charts& r, int h, const Connectivity& sc, const DeckGroup& group,
+                                       const std::vector<Word>& halfedge_word, const std::vector<hyperbolic::Mobius>& halfedge_rho) {
+  const int i = sc.tail(h), j = sc.head(h);
+  if (r.vertex_deck_word.size() == r.z.size())
+    return group.evaluate_side_word(group.reduce(concat({r.vertex_deck_word[i], halfedge_word[h], inverse(r.vertex_deck_word[j])})));
+  return (r.vertex_deck[i] * halfedge_rho[h] * r.vertex_deck[j].inverse()).normalized();
+}
+
 }  // namespace
 
 // Genus >= 2: hyperbolic target, harmonic map by preconditioned Riemannian
@@ -1302,14 +1315,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     // 0, chart elements from reduced side words when the solver kept them);
     // far landmarks then carry their neighbourhoods (landmarks.h).
     auto held_bad_faces = [&](const HyperbolicHarmonicResult& held) {
-      const bool words = held.vertex_deck_word.size() == held.z.size();
-      auto eff_h = [&](int h) {
-        const int i = sc.tail(h), j = sc.head(h);
-        if (words)
-          return deck_group.evaluate_side_word(
-              deck_group.reduce(concat({held.vertex_deck_word[i], halfedge_word[h], inverse(held.vertex_deck_word[j])})));
-        return (held.vertex_deck[i] * halfedge_rho[h] * held.vertex_deck[j].inverse()).normalized();
-      };
+      auto eff_h = [&](int h) { return effective_element(held, h, sc, deck_group, halfedge_word, halfedge_rho); };
       std::vector<int> bad;
       for (int f = 0; f < source.num_faces(); ++f) {
         const Mobius T = Mobius::centring(held.z[source.F(f, 0)]);
@@ -1608,14 +1614,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     // reduction of its corner 0, located by the grid; left empty (not an
     // error) when a target vertex is not covered.
     {
-      const bool init_words = init.vertex_deck_word.size() == init.z.size();
-      auto init_eff = [&](int h) {
-        const int i = sc.tail(h), j = sc.head(h);
-        if (init_words)
-          return deck_group.evaluate_side_word(
-              deck_group.reduce(concat({init.vertex_deck_word[i], halfedge_word[h], inverse(init.vertex_deck_word[j])})));
-        return (init.vertex_deck[i] * halfedge_rho[h] * init.vertex_deck[j].inverse()).normalized();
-      };
+      auto init_eff = [&](int h) { return effective_element(init, h, sc, deck_group, halfedge_word, halfedge_rho); };
       // Corner k of face f is init_corner[3f+k] applied to its vertex's point
       // (corner 0 reduced into P); the walk crosses into the neighbour g
       // through the shared vertex u by init_corner(g, u) init_corner(f, u)^-1.

@@ -443,16 +443,27 @@ namespace {
 // the flattening held (hyperbolic_harmonic.h `fixed`). That costs a solve of
 // a few hundred vertices instead of the whole uniform-weight map, whose full
 // solve is the fallback when the repair does not clear every fold.
-bool repair_flattening(const TriMesh& source, const std::vector<Word>& halfedge_word, const DeckGroup& group,
-                       const HyperbolicInitialMapOptions& options, const std::vector<double>& per_face,
-                       PolygonInitialMapResult& poly) {
+// Source edge e with weight 1, its element in the charts of `vertex_word`
+// (the effective element as a reduced side word).
+WeightedEdge uniform_edge_in_charts(const Connectivity& sc, int e, const std::vector<Word>& halfedge_word,
+                                    const DeckGroup& group, const std::vector<Word>& vertex_word) {
+  const int h = sc.edge_halfedge(e);
+  WeightedEdge out;
+  out.i = sc.tail(h);
+  out.j = sc.head(h);
+  out.w = 1.0;
+  out.rho_word = group.reduce(concat({vertex_word[out.i], halfedge_word[h], inverse(vertex_word[out.j])}));
+  out.rho = group.evaluate_side_word(out.rho_word);
+  return out;
+}
+
+bool repair_flattening(const TriMesh& source, const Connectivity& sc, const std::vector<Word>& halfedge_word,
+                       const DeckGroup& group, const HyperbolicInitialMapOptions& options,
+                       const std::vector<double>& per_face, PolygonInitialMapResult& poly) {
   const int nv = source.num_vertices(), nf = source.num_faces();
   if (static_cast<int>(poly.z.size()) != nv ||
       !std::all_of(poly.z.begin(), poly.z.end(), [](Complex z) { return std::abs(z) < 1; }))
     return false;
-  std::vector<std::vector<int>> neighbours(nv);
-  for (int f = 0; f < nf; ++f)
-    for (int k = 0; k < 3; ++k) neighbours[source.F(f, k)].push_back(source.F(f, (k + 1) % 3));
   for (int rings : {3, 6, 12}) {
     std::vector<int> ring(nv, -1), frontier;
     for (int f = 0; f < nf; ++f)
@@ -462,8 +473,8 @@ bool repair_flattening(const TriMesh& source, const std::vector<Word>& halfedge_
     for (size_t q = 0; q < frontier.size(); ++q) {
       const int v = frontier[q];
       if (ring[v] == rings) continue;
-      for (int u : neighbours[v])
-        if (ring[u] < 0) ring[u] = ring[v] + 1, frontier.push_back(u);
+      for (int h : sc.outgoing(v))
+        if (const int u = sc.head(h); ring[u] < 0) ring[u] = ring[v] + 1, frontier.push_back(u);
     }
     if (static_cast<int>(frontier.size()) > nv / 4) return false;  // not local: the full fallback
     std::vector<char> fixed(nv, 1);
@@ -471,16 +482,9 @@ bool repair_flattening(const TriMesh& source, const std::vector<Word>& halfedge_
     // Edges touching a free vertex (the others' energy is constant), in the
     // flattening's charts.
     std::vector<WeightedEdge> edges;
-    for (int f = 0; f < nf; ++f)
-      for (int k = 0; k < 3; ++k) {
-        const int i = source.F(f, k), j = source.F(f, (k + 1) % 3);
-        if ((fixed[i] && fixed[j]) || i > j) continue;  // each edge once, from its lower-numbered end's face
-        WeightedEdge e;
-        e.i = i, e.j = j, e.w = 1.0;
-        e.rho_word = group.reduce(concat({poly.vertex_deck_word[i], halfedge_word[3 * f + k], inverse(poly.vertex_deck_word[j])}));
-        e.rho = group.evaluate_side_word(e.rho_word);
-        edges.push_back(std::move(e));
-      }
+    for (int e = 0; e < sc.num_edges(); ++e)
+      if (!fixed[sc.edge_vertex(e, 0)] || !fixed[sc.edge_vertex(e, 1)])
+        edges.push_back(uniform_edge_in_charts(sc, e, halfedge_word, group, poly.vertex_deck_word));
     HyperbolicHarmonicOptions ho;
     ho.tolerance = options.tolerance;
     ho.max_iterations = options.max_iterations;
@@ -546,7 +550,7 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
         poly.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate) +
                       " degenerate source faces";
         if (q.flipped + q.degenerate <= std::max(8, source.num_faces() / 2000))
-          poly.applied = repair_flattening(source, halfedge_word, group, options, q.per_face, poly);
+          poly.applied = repair_flattening(source, sc, halfedge_word, group, options, q.per_face, poly);
       }
     }
     if (poly.applied) {
@@ -576,14 +580,7 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
     else if (!from_polygon) start_z.assign(nv, Complex(0.0)), start_word.assign(nv, Word{});
     // Edges in the start's charts (effective elements, as reduced side words).
     std::vector<WeightedEdge> edges(sc.num_edges());
-    for (int e = 0; e < sc.num_edges(); ++e) {
-      const int h = sc.edge_halfedge(e);
-      edges[e].i = sc.tail(h);
-      edges[e].j = sc.head(h);
-      edges[e].w = 1.0;
-      edges[e].rho_word = group.reduce(concat({start_word[edges[e].i], halfedge_word[h], inverse(start_word[edges[e].j])}));
-      edges[e].rho = group.evaluate_side_word(edges[e].rho_word);
-    }
+    for (int e = 0; e < sc.num_edges(); ++e) edges[e] = uniform_edge_in_charts(sc, e, halfedge_word, group, start_word);
     HyperbolicHarmonicOptions ho;
     ho.tolerance = options.tolerance;
     ho.max_iterations = options.max_iterations;

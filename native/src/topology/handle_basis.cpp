@@ -17,12 +17,6 @@ namespace {
 
 using IntVector = Eigen::Matrix<long long, Eigen::Dynamic, 1>;
 
-GroupMap identity_map(int n) {
-  GroupMap m(n);
-  for (int j = 0; j < n; ++j) m[j] = {j + 1};
-  return m;
-}
-
 // Letters of handle i (0-based).
 int A(int i) { return 2 * i + 1; }
 int B(int i) { return 2 * i + 2; }
@@ -187,6 +181,12 @@ Word substitute(const Word& w, const GroupMap& images) {
       for (auto it = e.rbegin(); it != e.rend(); ++it) r.push_back(-*it);
   }
   return reduce(r);
+}
+
+GroupMap identity_map(int n) {
+  GroupMap m(n);
+  for (int j = 0; j < n; ++j) m[j] = {j + 1};
+  return m;
 }
 
 GroupMap compose(const GroupMap& outer, const GroupMap& inner) {

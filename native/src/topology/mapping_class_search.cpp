@@ -10,12 +10,6 @@
 namespace surfmap {
 namespace {
 
-GroupMap identity_map(int n) {
-  GroupMap m(n);
-  for (int j = 0; j < n; ++j) m[j] = {j + 1};
-  return m;
-}
-
 int A(int i) { return 2 * i + 1; }
 int B(int i) { return 2 * i + 2; }
 

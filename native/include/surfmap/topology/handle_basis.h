@@ -68,6 +68,8 @@ using GroupMap = std::vector<Word>;
 
 /// w with every letter k replaced by images[k-1] (inverse for -k).
 Word substitute(const Word& w, const GroupMap& images);
+/// The identity of the group on letters 1..n (letter j -> the word {j}).
+GroupMap identity_map(int n);
 /// outer ∘ inner: letter j -> outer applied to inner[j].
 GroupMap compose(const GroupMap& outer, const GroupMap& inner);
 /// 2g x 2g integer matrix of the map on H_1: column j is the abelianised image of letter j+1.
