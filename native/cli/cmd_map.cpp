@@ -180,6 +180,7 @@ void register_map(CLI::App& app) {
         {"landmark_rings", m.landmark_rings},
         {"landmark_method", m.landmark_method},
         {"landmark_solves", m.landmark_solves},
+        {"landmark_steps", m.landmark_steps},
         {"landmark_held_vertices", m.landmark_held_vertices},
         {"repaired_vertices", m.repaired_vertices},
         {"flipped_triangles", m.flipped_triangles},

@@ -140,6 +140,7 @@ void bind_map(py::module_& m) {
         d["landmark_rings"] = r.landmark_rings;
         d["landmark_method"] = r.landmark_method;
         d["landmark_solves"] = r.landmark_solves;
+        d["landmark_steps"] = r.landmark_steps;
         d["landmark_held_vertices"] = r.landmark_held_vertices;
         d["repaired_vertices"] = r.repaired_vertices;
         d["forward"] = points_to_dict(r.forward);

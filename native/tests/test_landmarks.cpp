@@ -4,15 +4,20 @@
 
 #include <cmath>
 #include <complex>
+#include <set>
+#include <string>
 #include <vector>
 
 #include "surfmap/error.h"
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/samples/shapes.h"
+#include "../src/map/landmarks.h"
 
 namespace surfmap {
 namespace {
+
+using Complex = std::complex<double>;
 
 int nearest_vertex(const TriMesh& m, const Eigen::Vector3d& p) {
   int best = 0;
@@ -160,46 +165,131 @@ TEST(LandmarksFlat, FarLandmarksStayBijectiveByInteriorPointContinuation) {
   EXPECT_GT(m.final_energy, free.final_energy * 1.01);
 }
 
-TEST(LandmarksHyperbolic, FarLandmarkStaysBijective) {
-  // Genus 2: a landmark 8 edges (10.8 mean edge lengths) from its free
-  // image. Its plain pin folds the map (refused before); with its
-  // neighbourhood carried along the geodesic it is hit exactly, no flips.
+TEST(LandmarksHyperbolic, FarLandmarkStaysBijectiveByBarrierContinuation) {
+  // Genus 2: a landmark 20 edges (22 mean edge lengths, 0.36 of the
+  // diagonal) from its free image. Its plain pin folds the map, and
+  // carrying its neighbourhood rigidly folds it too (refused before); the
+  // barrier continuation walks it there with the map bijective at every
+  // step: hit exactly, no flips, an energy between the free optimum and
+  // the folded plain-pin infimum's neighbourhood.
   const TriMesh a = samples::n_hole_torus(2, 20, true);
   const TriMesh b = samples::vase(24, true);
   const SurfaceMapResult free = surface_map(a, b);
   const int s = a.num_vertices() / 3;
   const std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
-  ASSERT_GT(path.size(), 9u);
+  ASSERT_GT(path.size(), 21u);
   SurfaceMapOptions o;
-  o.landmarks = {{s, path[8]}};
-  EXPECT_GT((b.V.row(path[8]).transpose() - free.forward[s].position).norm(), 10 * mean_edge(b));
+  o.landmarks = {{s, path[20]}};
+  o.homotopy = free.chosen_candidate;
+  EXPECT_GT((b.V.row(path[20]).transpose() - free.forward[s].position).norm(), 20 * mean_edge(b));
   const SurfaceMapResult m = surface_map(a, b, o);
   expect_landmarks_hit(m, a, b, o);
   EXPECT_TRUE(m.converged);
+  EXPECT_EQ(m.landmark_method, "barrier continuation");
+  EXPECT_GT(m.landmark_steps, 0);
+  EXPECT_EQ(m.landmark_solves, 1 + m.landmark_steps);  // the plain pins, then the steps
   ASSERT_EQ(m.landmark_rings.size(), 1u);
-  EXPECT_GT(m.landmark_rings[0], 0);
+  EXPECT_EQ(m.landmark_rings[0], 0);
   EXPECT_GT(m.final_energy, free.final_energy * 1.001);
+  EXPECT_LT(m.final_energy, free.final_energy * 1.1);
 }
 
-TEST(LandmarksHyperbolic, LandmarksTooFarAreRefusedByName) {
-  // 10 edges on this coarse genus-2 source (a third of the way round): the
-  // carried neighbourhood would hold half the source; refused, naming it.
+TEST(LandmarksHyperbolic, SwappedLandmarksAreHeldBijectively) {
+  // Two landmarks near each other (neighbours of one vertex), each sent to
+  // the other's free image: the plain pins fold (the faces between them
+  // turn over); the continuation walks them past each other (a half twist
+  // of the pair, no change of the map's class on the surface) with the map
+  // bijective at every step.
   const TriMesh a = samples::n_hole_torus(2, 14, true);
   const TriMesh b = samples::vase(18, true);
   const SurfaceMapResult free = surface_map(a, b);
   const int s = a.num_vertices() / 3;
-  const std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
+  int s2 = -1;
+  for (int f = 0; f < a.num_faces() && s2 < 0; ++f)
+    for (int k = 0; k < 3; ++k)
+      if (a.F(f, k) == s) {
+        const int n1 = a.F(f, (k + 1) % 3);
+        for (int g = 0; g < a.num_faces() && s2 < 0; ++g)
+          for (int c = 0; c < 3; ++c)
+            if (a.F(g, c) == n1 && a.F(g, (c + 1) % 3) != s && a.F(g, (c + 2) % 3) != s) s2 = a.F(g, (c + 1) % 3);
+      }
+  ASSERT_GE(s2, 0);
+  const int t1 = nearest_vertex(b, free.forward[s].position), t2 = nearest_vertex(b, free.forward[s2].position);
+  ASSERT_NE(t1, t2);
   SurfaceMapOptions o;
-  o.landmarks = {{s, path[10]}};
-  o.homotopy = free.chosen_candidate;  // this class only
-  try {
-    surface_map(a, b, o);
-    FAIL() << "a map was returned";
-  } catch (const SolveError& e) {
-    const std::string w = e.what();
-    EXPECT_NE(w.find("landmark 0 (" + std::to_string(s) + " -> " + std::to_string(path[10]) + ")"), std::string::npos) << w;
-    EXPECT_NE(w.find("cannot be held without folding the map in this homotopy class"), std::string::npos) << w;
-  }
+  o.landmarks = {{s, t2}, {s2, t1}};
+  o.homotopy = free.chosen_candidate;
+  const SurfaceMapResult m = surface_map(a, b, o);
+  expect_landmarks_hit(m, a, b, o);
+  EXPECT_EQ(m.landmark_method, "barrier continuation");
+  EXPECT_GT(m.final_energy, free.final_energy * (1 + 1e-6));
+}
+
+TEST(LandmarksHyperbolic, BarrierContinuationOnAHyperbolicDisk) {
+  // The continuation alone (landmarks.h), on a grid in the Poincaré disk
+  // (|x|, |y| <= 0.5) with its boundary held and its centre dragged 0.6 of
+  // the way towards a corner: the plain pinned harmonic map folds; the
+  // continuation's map has every face positively oriented (tested in Klein
+  // coordinates, where geodesics are straight), the landmark exactly on
+  // its target, the boundary where it was, and its energy recomputed by
+  // hyperbolic_energy is the one it reports, above the folded infimum.
+  const int N = 16;
+  std::vector<Complex> z0;
+  for (int i = 0; i <= N; ++i)
+    for (int j = 0; j <= N; ++j) z0.emplace_back(-0.5 + double(i) / N, -0.5 + double(j) / N);
+  const int n = static_cast<int>(z0.size());
+  auto id = [&](int i, int j) { return i * (N + 1) + j; };
+  RowMatrixX3i F(2 * N * N, 3);
+  std::vector<WeightedEdge> edges;
+  std::set<std::pair<int, int>> seen;
+  int f = 0;
+  auto edge = [&](int u, int v) {
+    if (seen.insert({std::min(u, v), std::max(u, v)}).second) edges.push_back({u, v, 1.0, {}, {}});
+  };
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < N; ++j) {
+      const int p = id(i, j), q = id(i + 1, j), r = id(i + 1, j + 1), t = id(i, j + 1);
+      F.row(f++) << p, q, r;
+      F.row(f++) << p, r, t;
+      edge(p, q), edge(q, r), edge(r, p), edge(r, t), edge(t, p);
+    }
+  std::vector<int> source;
+  std::vector<Complex> lifts;
+  for (int i = 0; i <= N; ++i)
+    for (int j = 0; j <= N; ++j)
+      if (i == 0 || j == 0 || i == N || j == N) source.push_back(id(i, j)), lifts.push_back(z0[id(i, j)]);
+  const int centre = id(N / 2, N / 2);
+  const Complex target(0.3, 0.3);
+  source.push_back(centre), lifts.push_back(target);
+  auto oriented = [&](const std::vector<Complex>& z) {
+    int bad = 0;
+    for (int g = 0; g < F.rows(); ++g) {
+      Complex k[3];
+      for (int c = 0; c < 3; ++c) k[c] = 2.0 * z[F(g, c)] / (1.0 + std::norm(z[F(g, c)]));
+      const Complex e1 = k[1] - k[0], e2 = k[2] - k[0];
+      if (!(e1.real() * e2.imag() - e1.imag() * e2.real() > 0)) ++bad;
+    }
+    return bad;
+  };
+  ASSERT_EQ(oriented(z0), 0);
+  // The plain pins: Newton with the held vertices fixed.
+  HyperbolicHarmonicOptions ho;
+  ho.fixed.assign(n, 0);
+  std::vector<Complex> start = z0;
+  for (size_t k = 0; k < source.size(); ++k) ho.fixed[source[k]] = 1, start[source[k]] = lifts[k];
+  const HyperbolicHarmonicResult plain = hyperbolic_harmonic_map(n, edges, {}, start, ho);
+  ASSERT_TRUE(plain.converged);
+  EXPECT_GT(oriented(plain.z), 0);
+  const std::vector<hyperbolic::Mobius> face_elements(3 * F.rows());
+  const detail::HyperbolicBarrierResult r = detail::hyperbolic_barrier_landmarks(n, edges, F, face_elements, z0, source, lifts);
+  ASSERT_TRUE(r.ok);
+  EXPECT_GT(r.steps, 0);
+  EXPECT_EQ(oriented(r.z), 0);
+  for (size_t k = 0; k < source.size(); ++k) EXPECT_EQ(r.z[source[k]], lifts[k]) << k;
+  const double E = hyperbolic_energy(edges, r.z, std::vector<hyperbolic::Mobius>(n));
+  EXPECT_NEAR(E, r.energy, 1e-12 * E);
+  EXPECT_GT(E, plain.energy * (1 + 1e-6));
+  EXPECT_LT(E, plain.energy * 1.5);
 }
 
 TEST(LandmarksHyperbolic, RelaxationHoldsThemLikeNewton) {

@@ -277,6 +277,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
           flat_barrier_landmarks(n, idt.edges, t_intrinsic, source.F, image_corners(std::vector<Complex>(n, Complex(0.0))),
                                  free, lm_source, lifts);
       out.landmark_solves += br.steps;
+      out.landmark_steps = br.steps;
       if (br.ok && !folds(br.z)) {
         z = br.z, energy = br.energy;
         out.landmark_method = "barrier continuation";

@@ -1125,15 +1125,53 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         out.chosen_candidate = k;
         break;
       }
-  // Landmarks change which class is best: the solved classes are ranked by
-  // their energy with the landmarks held (plain pins at the nearest lifts,
-  // one Newton solve from each class's optimum; landmarks.h). Classes only
-  // estimated on the coarse copy are not re-ranked (their free estimate is
-  // a lower bound of the held energy but not comparable to it).
+  // Landmarks in class k from its free optimum `free_k` (landmarks.h):
+  // plain pins, else the barrier continuation, else carried
+  // neighbourhoods; the returned map is bijective or this throws. Folds are
+  // the source faces hyperbolic_distortion leaves without a dilatation
+  // (flipped or degenerate; chart elements from reduced side words when the
+  // solver kept them); the continuation's face elements are the free
+  // optimum's.
+  auto hold_in_class = [&](int k, const HyperbolicHarmonicResult& free_k, const HyperbolicHarmonicOptions& ho,
+                           bool relax, const HarmonicRelaxationOptions& ro, LandmarkHold& hold) {
+    std::vector<int> lm_source, lm_target_vertex;
+    std::vector<Complex> lm_target;
+    for (const auto& [s, t] : options.landmarks)
+      lm_source.push_back(s), lm_target_vertex.push_back(t), lm_target.push_back(layout.vertex_positions[t]);
+    std::vector<Mobius> halfedge_rho(3 * source.num_faces());
+    std::vector<Word> halfedge_word(3 * source.num_faces());
+    for (int h = 0; h < 3 * source.num_faces(); ++h) {
+      const int e = sc.edge(h);
+      const bool fwd = sc.edge_halfedge(e) == h;
+      halfedge_rho[h] = fwd ? data[k].rho_edge[e] : data[k].rho_edge[e].inverse();
+      halfedge_word[h] = fwd ? data[k].side_word_edge[e] : inverse(data[k].side_word_edge[e]);
+    }
+    auto bad_faces = [&](const HyperbolicHarmonicResult& held) {
+      const DistortionStats q = held.vertex_deck_word.size() == held.z.size()
+                                    ? hyperbolic_distortion(source, deck_group, halfedge_word, held.z, held.vertex_deck_word)
+                                    : hyperbolic_distortion(source, halfedge_rho, held.z, held.vertex_deck);
+      std::vector<int> bad;
+      for (int f = 0; f < source.num_faces(); ++f)
+        if (!std::isfinite(q.per_face[f])) bad.push_back(f);
+      return bad;
+    };
+    std::vector<Mobius> face_elements(3 * source.num_faces());
+    for (int h = 0; h < 3 * source.num_faces(); ++h)
+      face_elements[h] = effective_element(free_k, h, sc, deck_group, halfedge_word, halfedge_rho);
+    return hold_hyperbolic_landmarks(source.num_vertices(), data[k].edges, deck_group.side_pairings(),
+                                     deck_group.side_pairings(), free_k, lm_source, lm_target, lm_target_vertex, ho, relax,
+                                     ro, &source.F, bad_faces, &hold, &face_elements);
+  };
+  // Landmarks change which class is best: the classes solved at full
+  // resolution are ranked by their energy with the landmarks held the way
+  // the returned map holds them (hold_in_class: the bijective held map;
+  // a class whose landmarks cannot be held so is out of the ranking), and
+  // the chosen class's held map is kept. Classes only estimated on the
+  // coarse copy are not re-ranked (their free estimate is a lower bound of
+  // the held energy but not comparable to it): landmark_energy stays NaN.
+  std::vector<std::unique_ptr<HyperbolicHarmonicResult>> held_result(ncand);
+  std::vector<LandmarkHold> held_record(ncand);
   if (!options.landmarks.empty() && options.homotopy < 0) {
-    std::vector<int> lm_s, lm_t;
-    std::vector<Complex> lm_p;
-    for (const auto& [s, t] : options.landmarks) lm_s.push_back(s), lm_t.push_back(t), lm_p.push_back(layout.vertex_positions[t]);
     HyperbolicHarmonicOptions lo;
     lo.tolerance = options.tolerance;
     lo.max_iterations = options.max_iterations;
@@ -1141,12 +1179,13 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     for (int k = 0; k < ncand; ++k) {
       if (!out.candidates[k].solved || !fine_result[k]) continue;
       try {
-        const HyperbolicHarmonicResult held = hold_hyperbolic_landmarks(
-            nv, data[k].edges, deck_group.side_pairings(), deck_group.side_pairings(), *fine_result[k], lm_s, lm_p, lm_t, lo);
-        if (!held.converged) continue;
-        out.candidates[k].landmark_energy = held.energy;
-        if (best < 0 || held.energy < out.candidates[best].landmark_energy) best = k;
+        auto held = std::make_unique<HyperbolicHarmonicResult>(hold_in_class(k, *fine_result[k], lo, false, {}, held_record[k]));
+        if (!held->converged) continue;
+        out.candidates[k].landmark_energy = held->energy;
+        if (best < 0 || held->energy < out.candidates[best].landmark_energy) best = k;
+        held_result[k] = std::move(held);
       } catch (const SolveError&) {
+        out.candidates[k].landmark_energy = std::numeric_limits<double>::infinity();
       }
     }
     if (best >= 0) out.chosen_candidate = best;
@@ -1293,11 +1332,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
                      std::to_string(hr.iterations) + " iterations (gradient " +
                      std::to_string(hr.gradient_history.back()) + "); raise max_iterations or the tolerance");
   if (!options.landmarks.empty()) {
-    // Landmarks (landmarks.h): held at the lifts nearest to the free optimum.
-    std::vector<int> lm_source;
-    std::vector<Complex> lm_target;
-    for (const auto& [s, t] : options.landmarks)
-      lm_source.push_back(s), lm_target.push_back(layout.vertex_positions[t]);
+    // Landmarks (hold_in_class above): held at the lifts nearest to the free
+    // optimum; the ranking's held map when it was this class's.
     HyperbolicHarmonicOptions ho;
     ho.tolerance = options.tolerance;
     ho.max_iterations = options.max_iterations;
@@ -1309,31 +1345,20 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     ro.max_iterations = options.max_iterations;
     ro.check_every = 10;
     ro.progress = solve_progress;
-    std::vector<int> lm_target_vertex;
-    for (const auto& pr : options.landmarks) lm_target_vertex.push_back(pr.second);
-    // Source faces a held result folds (orientation in the chart of corner
-    // 0, chart elements from reduced side words when the solver kept them);
-    // far landmarks then carry their neighbourhoods (landmarks.h).
-    auto held_bad_faces = [&](const HyperbolicHarmonicResult& held) {
-      auto eff_h = [&](int h) { return effective_element(held, h, sc, deck_group, halfedge_word, halfedge_rho); };
-      std::vector<int> bad;
-      for (int f = 0; f < source.num_faces(); ++f) {
-        const Mobius T = Mobius::centring(held.z[source.F(f, 0)]);
-        const Complex b = (T * eff_h(3 * f)).apply(held.z[source.F(f, 1)]);
-        const Complex c = (T * eff_h(3 * f + 2).inverse()).apply(held.z[source.F(f, 2)]);
-        const double cross = b.real() * c.imag() - b.imag() * c.real();
-        if (!(cross > 1e-14 * std::max(std::norm(b), std::norm(c)))) bad.push_back(f);
-      }
-      return bad;
-    };
-    LandmarkPatchSearch search;
-    HyperbolicHarmonicResult held = hold_hyperbolic_landmarks(
-        source.num_vertices(), edges, deck_group.side_pairings(), deck_group.side_pairings(), hr, lm_source, lm_target,
-        lm_target_vertex, ho, relax, ro, &source.F, held_bad_faces, &search);
-    out.landmark_rings = search.rings;
-    out.landmark_method = search.solves > 1 ? "carried neighbourhoods" : "pinned";
-    out.landmark_solves = search.solves;
-    out.landmark_held_vertices = search.held_vertices;
+    LandmarkHold hold;
+    HyperbolicHarmonicResult held;
+    if (reuse && held_result[out.chosen_candidate]) {
+      held = std::move(*held_result[out.chosen_candidate]);
+      held_result[out.chosen_candidate].reset();
+      hold = held_record[out.chosen_candidate];
+    } else {
+      held = hold_in_class(out.chosen_candidate, hr, ho, relax, ro, hold);
+    }
+    out.landmark_rings = hold.rings;
+    out.landmark_method = hold.method;
+    out.landmark_solves = hold.solves;
+    out.landmark_steps = hold.barrier_steps;
+    out.landmark_held_vertices = hold.held_vertices;
     if (!held.converged)
       throw SolveError(std::string("the harmonic map with the landmarks held (") + (relax ? "relaxation" : "Newton") +
                        ") did not converge in " + std::to_string(held.iterations) + " iterations");

@@ -14,6 +14,7 @@
 #include <complex>
 #include <functional>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -113,8 +114,8 @@ LandmarkPatchSearch grow_landmark_patches(
 /// the landmarks' move and corrected by Newton (Gauss–Newton barrier
 /// Hessian, line search keeping every A_f > 0), so the map is bijective at
 /// every step. A step whose prediction folds, or whose correction stalls, is
-/// halved; success doubles the next. Flat counterpart only (the hyperbolic
-/// target has no such signed-area form in one chart).
+/// halved; success doubles the next. The hyperbolic counterpart is
+/// hyperbolic_barrier_landmarks.
 struct FlatBarrierResult {
   bool ok = false;
   std::vector<Complex> z;  ///< #V cover positions (valid when ok)
@@ -129,6 +130,55 @@ FlatBarrierResult flat_barrier_landmarks(int num_vertices, const std::vector<Int
                                          const std::vector<Complex>& free, const std::vector<int>& source,
                                          const std::vector<Complex>& lifts);
 
+/// Genus >= 2, landmarks whose plain pins fold the map: the hyperbolic
+/// counterpart of flat_barrier_landmarks. Minimises E(z) + μ Σ_f φ(A_f(z) /
+/// c_f) with the landmarks held, where E = Σ w d(z_i, ρ z_j)² (hyperbolic
+/// distance), A_f is twice the Euclidean area of source face f's image
+/// triangle in the Klein model seen from the chart centring its corner 0
+/// (geodesics are straight there, so the sign of A_f is the orientation of
+/// the geodesic triangle), c_f = 1/4 of it in the free optimum, φ and μ as
+/// in the flat case. The landmarks walk the geodesics from their free
+/// images to their lifts in steps; each step is predicted by the free
+/// points' response −H⁻¹ ∂g/∂s and corrected by Newton in the points'
+/// Poincaré coordinates (exact Hessian by forward differentiation of the
+/// edge and face terms when it is positive definite, else every term's
+/// block projected onto PSD), with a line search that rejects any point
+/// outside the disk and any face with A_f ≤ 0, so the map is bijective at
+/// every step. A step that cannot be taken is halved; success doubles the
+/// next. No chart moves: the points stay in the free optimum's charts
+/// (`free`, `edges` with their effective elements), where the landmarks'
+/// lifts are at most the target's diameter away from the domain.
+/// `face_elements`: 3 x #F, the element of source halfedge (F(f,k) ->
+/// F(f,k+1)) in those charts, so face f's image corners are z[F(f,0)],
+/// face_elements[3f](z[F(f,1)]) and face_elements[3f+2]⁻¹(z[F(f,2)]).
+struct HyperbolicBarrierResult {
+  bool ok = false;
+  std::vector<Complex> z;  ///< #V points in the free optimum's charts (valid when ok)
+  double energy = 0;       ///< E(z), the harmonic part only
+  int steps = 0, newton_iterations = 0;
+  double reached = 0;  ///< fraction of the way the landmarks got (1 when ok)
+};
+HyperbolicBarrierResult hyperbolic_barrier_landmarks(int num_vertices, const std::vector<WeightedEdge>& edges,
+                                                     const RowMatrixX3i& faces,
+                                                     const std::vector<hyperbolic::Mobius>& face_elements,
+                                                     const std::vector<Complex>& free, const std::vector<int>& source,
+                                                     const std::vector<Complex>& lifts);
+
+/// How hold_hyperbolic_landmarks held the landmarks: `method` is "pinned"
+/// (the exact held optimum), "barrier continuation" or "carried
+/// neighbourhoods"; `rings` per landmark (all 0 unless carried), `solves`
+/// the held solves (plain pins, continuation steps, carried rounds),
+/// `held_vertices` those held in the accepted solve; the continuation's
+/// steps, Newton iterations and how far it got (1 when it arrived, also
+/// when its result was not used).
+struct LandmarkHold {
+  std::string method;
+  std::vector<int> rings;
+  int solves = 0, held_vertices = 0;
+  int barrier_steps = 0, barrier_newton_iterations = 0;
+  double barrier_reached = 0;
+};
+
 /// Hyperbolic case: re-solves the harmonic map (Riemannian Newton,
 /// map/hyperbolic_harmonic.h) from the free optimum `free` (its vertex decks
 /// relative to `edges`) with each source[k] held at the deck image of
@@ -138,12 +188,15 @@ FlatBarrierResult flat_barrier_landmarks(int num_vertices, const std::vector<Int
 /// move the cut disk to its neighbours), pruned to those within reach of the
 /// free position. With `faces` and `bad_faces` (the source faces a held
 /// result folds; vertex decks relative to `edges`), landmarks whose plain
-/// pins fold carry their neighbourhoods (grow_landmark_patches; `search`
-/// receives its record). `generators` are the solve's chart moves. The
-/// returned vertex decks are again relative to `edges`. With `relaxation`
-/// the held problem is solved by the paper's per-vertex relaxation
-/// (map/harmonic_relaxation.h, the held vertices skipped) with
-/// `relaxation_options` instead of Newton with `options`.
+/// pins fold are moved there by hyperbolic_barrier_landmarks when
+/// `face_elements` (as there, in the free optimum's charts) is given, and
+/// when that does not arrive (or without it) carry their neighbourhoods
+/// (grow_landmark_patches); `hold` receives the record. `generators` are
+/// the solve's chart moves. The returned vertex decks are again relative to
+/// `edges`. With `relaxation` the plain and carried held problems are solved
+/// by the paper's per-vertex relaxation (map/harmonic_relaxation.h, the held
+/// vertices skipped) with `relaxation_options` instead of Newton with
+/// `options`; the continuation is Newton's in either case.
 HyperbolicHarmonicResult hold_hyperbolic_landmarks(int num_vertices, const std::vector<WeightedEdge>& edges,
                                                    const std::vector<hyperbolic::Mobius>& generators,
                                                    const std::vector<hyperbolic::Mobius>& side_pairings,
@@ -155,6 +208,7 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int num_vertices, const std::
                                                    const RowMatrixX3i* faces = nullptr,
                                                    const std::function<std::vector<int>(const HyperbolicHarmonicResult&)>&
                                                        bad_faces = {},
-                                                   LandmarkPatchSearch* search = nullptr);
+                                                   LandmarkHold* hold = nullptr,
+                                                   const std::vector<hyperbolic::Mobius>* face_elements = nullptr);
 
 }  // namespace surfmap::detail

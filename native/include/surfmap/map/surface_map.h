@@ -189,11 +189,12 @@ struct SurfaceMapOptions {
   /// Genus >= 1: each source vertex is held at the lift of its target vertex
   /// (in the universal cover) nearest to where the map without landmarks
   /// puts it, so landmarks add no winding (src/map/landmarks.h). When the
-  /// plain pins fold the map: genus 1 moves the landmarks there by an
+  /// plain pins fold the map, the landmarks are moved there by an
   /// interior-point continuation (bijective at every step; the held map of
-  /// least energy among bijective ones, up to the barrier), genus >= 2 (and
-  /// genus 1 if that stalls) carries rings of each landmark's free
-  /// neighbourhood rigidly along (see landmark_method, landmark_rings);
+  /// least energy among bijective ones, up to the barrier; genus >= 2 along
+  /// hyperbolic geodesics), and if that stalls each landmark carries rings
+  /// of its free neighbourhood rigidly along (see landmark_method,
+  /// landmark_steps, landmark_rings);
   /// landmarks that cannot be held so are a SolveError naming them. Both methods hold
   /// landmarks (the relaxation skips the held vertices). Genus 0:
   /// the Möbius map fixed by the landmarks (map/spherical_map.h), exact for
@@ -233,9 +234,12 @@ struct HomotopyCandidate {
   /// When `solved` is false and this is finite, `energy` is this estimate.
   double coarse_energy = std::numeric_limits<double>::quiet_NaN();
   /// With landmarks: the class's energy with the landmarks held at their
-  /// nearest lifts (plain pins), by which the classes are then ranked; NaN
-  /// when not computed (no landmarks; genus >= 2: classes not solved at full
-  /// resolution; genus 1 ranks by it and reports it as `energy` too).
+  /// nearest lifts, by which the classes are then ranked. Genus 1: plain
+  /// pins (also reported as `energy`). Genus >= 2: the held map the
+  /// pipeline would return in this class (plain pins, else the barrier
+  /// continuation, else carried rings), +inf when the landmarks cannot be
+  /// held bijectively in it, NaN for classes not solved at full resolution
+  /// (and without landmarks).
   double landmark_energy = std::numeric_limits<double>::quiet_NaN();
   /// Genus >= 2: the class's action on H_1, 2g x 2g row-major, in the
   /// canonical coordinates (a_1, b_1, ...) of both surfaces; empty for genus 1.
@@ -348,11 +352,15 @@ struct SurfaceMapResult {
   /// solves that took, and the source vertices held in the accepted one.
   std::vector<int> landmark_rings;
   /// How the landmarks were held: "pinned" (the exact held optimum),
-  /// "barrier continuation" (genus 1, when the pins fold: the bijective
+  /// "barrier continuation" (genus >= 1, when the pins fold: the bijective
   /// held map of least energy up to the barrier, src/map/landmarks.h) or
   /// "carried neighbourhoods"; empty without landmarks.
   std::string landmark_method;
   int landmark_solves = 0;
+  /// Steps the barrier continuation took (0 when it was not needed; also
+  /// counted in landmark_solves, and kept when it stalled and the
+  /// neighbourhoods were carried instead).
+  int landmark_steps = 0;
   int landmark_held_vertices = 0;
   /// Genus 0: vertices whose sphere image was re-placed to untangle input
   /// faces flipped by the uniformization (map/spherical_map.h); 0 otherwise.
