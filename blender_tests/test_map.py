@@ -597,6 +597,7 @@ def test_genus0_landmarks_pin_vertices():
     res, err = run("compute_map")
     assert res == {'FINISHED'}, err
     assert "3 landmark(s) from vertex groups lm_0, lm_1, lm_2" in bpy.context.scene.surfmap.map_status
+    assert bpy.context.scene.surfmap.landmark_status == "3 landmark(s): the Möbius map they fix (exact)"
     Fb, _ = helpers.triangles_of(b)
     Vb = helpers.coords(b)
     for i, j in pairs:
@@ -617,6 +618,10 @@ def test_landmarks_from_selected_vertices():
     res, err = run("compute_map")
     assert res == {'FINISHED'}, err
     assert "2 landmark(s) from the selected vertices" in bpy.context.scene.surfmap.map_status
+    # consistent landmarks: held by plain pins, said in the panel's landmark line and the report
+    status = bpy.context.scene.surfmap.landmark_status
+    assert status.startswith("2 landmark(s) held by plain pins"), status
+    assert status in bpy.context.scene.surfmap.map_status
     Fb, _ = helpers.triangles_of(b)
     Vb = helpers.coords(b)
     for i, j in ((10, 59), (500, 549)):    # paired in index order (no selection history)
@@ -624,6 +629,61 @@ def test_landmarks_from_selected_vertices():
         bary = np.array(a.data.attributes["surfmap_map_bary"].data[i].vector)
         p = _mapping().points_at(Vb, Fb, [face], [bary])[0]
         assert np.linalg.norm(p - Vb[j]) < 1e-5, (i, j)
+
+
+def test_far_genus2_landmark_is_held_by_the_barrier_continuation():
+    # Genus 2, a landmark 6 edges from where the map without landmarks puts it: its plain pin
+    # folds the map, the barrier continuation walks it there; the panel's landmark line and
+    # the report say so with its steps, the landmark lands on its target vertex, no flips.
+    import collections
+    import re
+    mod = helpers.sm()
+    Va, Fa = mod.shapes.n_hole_torus(2, 14, True)
+    Vb, Fb = mod.shapes.vase(18, True)
+    free = mod.surface_map(Va, Fa, Vb, Fb)
+    s = len(Va) // 3
+    t0 = int(np.argmin(((Vb - free["forward"]["position"][s]) ** 2).sum(1)))
+    nb = collections.defaultdict(set)
+    for f in Fb:
+        for k in range(3):
+            nb[f[k]].add(f[(k + 1) % 3])
+            nb[f[(k + 1) % 3]].add(f[k])
+    hops = {t0: 0}
+    queue = collections.deque([t0])
+    while queue:
+        u = queue.popleft()
+        for v in nb[u]:
+            if v not in hops:
+                hops[v] = hops[u] + 1
+                queue.append(v)
+    far = int(np.argmax(((Vb - Vb[t0]) ** 2).sum(1)))
+    t = far
+    while hops[t] > 6:       # back along a shortest path to 6 edges from the free image
+        t = min(nb[t], key=lambda v: hops[v])
+    a = helpers.mesh_object("Source", Va, Fa, (-3, 0, 0))
+    b = helpers.mesh_object("Target", Vb, Fb, (3, 0, 0))
+    a.vertex_groups.new(name="lm_far").add([s], 1.0, 'REPLACE')
+    b.vertex_groups.new(name="lm_far").add([int(t)], 1.0, 'REPLACE')
+    settings = bpy.context.scene.surfmap
+    settings.landmark_mode = 'GROUPS'
+    settings.write_uvs = settings.write_distortion = False
+    select([a, b], b)
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    status = settings.landmark_status
+    m = re.match(r"1 landmark\(s\) held by barrier continuation in (\d+) step\(s\)", status)
+    assert m and int(m.group(1)) >= 1, status
+    assert status in settings.map_status and "0 flipped" in settings.map_status, settings.map_status
+    assert a.data["surfmap_map"]["genus"] == 2
+    face = a.data.attributes["surfmap_map_face"].data[s].value
+    bary = np.array(a.data.attributes["surfmap_map_bary"].data[s].vector)
+    p = _mapping().points_at(helpers.coords(b), helpers.triangles_of(b)[0], [face], [bary])[0]
+    assert np.linalg.norm(p - Vb[t]) < 1e-6
+    # a run without landmarks clears the line
+    settings.landmark_mode = 'NONE'
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    assert settings.landmark_status == ""
 
 
 def test_relaxation_method_reaches_newtons_energy():

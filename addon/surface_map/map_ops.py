@@ -413,6 +413,11 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
         lines.append(f"handle correspondences (chosen {settings.chosen_candidate}): "
                      + "; ".join(lines_c))
         summary = f"'{source.name}' -> '{target.name}': " + _summary(res, job.elapsed)
+        lm = job.options.get("landmarks")
+        lm_line = mapping.landmark_summary(res, 0 if lm is None else len(lm))
+        settings.landmark_status = lm_line or ""
+        if lm_line:
+            summary += "; " + lm_line
         settings.map_status = "; ".join([summary] + self._notes)
         for note in self._notes:
             self.report({'WARNING'} if "modifiers" in note else {'INFO'}, note)

@@ -644,6 +644,37 @@ def check_landmarks(pairs, n_source, n_target):
             raise ValueError(f"{side} vertex {int(u[c > 1][0])} is used by two landmarks")
 
 
+def landmark_summary(res, count):
+    """How the landmarks of a surface_map result were held, in one line (None without any).
+
+    Genus 0: the Möbius map they fix (exact up to 3, least squares beyond). Genus >= 1, from
+    res['landmark_method']: plain pins (the exact held optimum), the barrier continuation (the
+    landmarks walked to their targets with the map bijective at every step; its steps), or
+    carried neighbourhoods (rings of neighbours held rigidly with each landmark; tried when
+    the continuation stalls)."""
+    if not count:
+        return None
+    if res.get("genus", 0) == 0:
+        err = float(res.get("landmark_error", 0.0))
+        return (f"{count} landmark(s): the Möbius map they fix"
+                + (" (exact)" if count <= 3 else f" (least squares, largest miss {err:.3g})"))
+    method = res.get("landmark_method", "")
+    steps, solves = int(res.get("landmark_steps", 0)), int(res.get("landmark_solves", 0))
+    if method == "pinned":
+        how = "plain pins (the exact held optimum; nothing folded)"
+    elif method == "barrier continuation":
+        how = (f"barrier continuation in {steps} step(s) (plain pins folded the map; bijective "
+               f"at every step)")
+    elif method == "carried neighbourhoods":
+        rings = [int(r) for r in res.get("landmark_rings", [])]
+        how = (f"carried neighbourhoods (rings {rings}, {int(res.get('landmark_held_vertices', 0))} "
+               f"vertices held rigidly, {solves} solve(s)"
+               + (f"; the barrier continuation stalled after {steps} step(s)" if steps else "") + ")")
+    else:
+        how = method or "held"
+    return f"{count} landmark(s) held by {how}"
+
+
 def seam_straddling(uv_tri, preimage_tri, source_uv_tri, source_xyz_tri, factor=3.0):
     """Counts transferred UV triangles that span a seam of the source's UV layout.
 

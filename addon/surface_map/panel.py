@@ -58,6 +58,9 @@ def draw_map(layout, settings):
         col.label(text=f"{mark}{c.index}: {energy}  {c.description}"[:90])
     col = box.column(align=True)
     col.prop(settings, "landmark_mode")
+    if settings.landmark_status:
+        for i, line in enumerate(_wrap(settings.landmark_status, 40)[:4]):
+            col.label(text=line, icon='PINNED' if i == 0 else 'BLANK1')
     col.prop(settings, "method")
     col.prop(settings, "source_weights")
     col.prop(settings, "tolerance")

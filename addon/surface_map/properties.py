@@ -93,6 +93,10 @@ class SURFMAP_PG_settings(bpy.types.PropertyGroup):
         description="Dilatation values at the two ends of the last distortion colour scale")
     map_status: StringProperty(name="Map Status", default="",
                                description="Result of the last Compute Map")
+    landmark_status: StringProperty(
+        name="Landmark Status", default="",
+        description="How the last Compute Map held its landmarks: plain pins, the barrier "
+                    "continuation (and its steps) or carried neighbourhoods; empty without")
 
 
 class SURFMAP_AP_preferences(bpy.types.AddonPreferences):

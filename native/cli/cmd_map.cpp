@@ -136,6 +136,7 @@ void register_map(CLI::App& app) {
       candidates.push_back({{"index", i}, {"description", m.candidates[i].description}, {"energy", m.candidates[i].energy},
                             {"solved", m.candidates[i].solved}, {"coarse_energy", m.candidates[i].coarse_energy},
                             {"landmark_energy", m.candidates[i].landmark_energy},
+                            {"landmark_lower_bound", m.candidates[i].landmark_lower_bound},
                             {"matrix", {m.candidates[i].matrix[0], m.candidates[i].matrix[1], m.candidates[i].matrix[2],
                                         m.candidates[i].matrix[3]}}});
     nlohmann::json times = nlohmann::json::object();
@@ -226,9 +227,14 @@ void register_map(CLI::App& app) {
     }
     write_text_file(a->report, report.dump(2) + "\n");
     if (!a->correspondence.empty()) write_text_file(a->correspondence, corr);
-    if (!a->quiet)
+    if (!a->quiet) {
       std::cerr << "surfmap: mean dilatation " << m.mean_dilatation << ", max " << m.max_dilatation
                 << ", flipped triangles " << m.flipped_triangles << ", " << m.total_time << " s\n";
+      if (!opt.landmarks.empty() && !m.landmark_method.empty())
+        std::cerr << "surfmap: " << opt.landmarks.size() << " landmark(s) held by " << m.landmark_method
+                  << (m.landmark_steps ? " (" + std::to_string(m.landmark_steps) + " continuation steps)" : std::string())
+                  << ", " << m.landmark_solves << " held solve(s)\n";
+    }
   });
 }
 

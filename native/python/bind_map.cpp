@@ -164,7 +164,8 @@ void bind_map(py::module_& m) {
         for (const auto& c : r.candidates)
           cands.append(py::dict(py::arg("description") = c.description, py::arg("energy") = c.energy, py::arg("solved") = c.solved,
                                 py::arg("coarse_energy") = c.coarse_energy,
-                                py::arg("landmark_energy") = c.landmark_energy, py::arg("matrix") = std::vector<int>(c.matrix, c.matrix + 4)));
+                                py::arg("landmark_energy") = c.landmark_energy,
+                                py::arg("landmark_lower_bound") = c.landmark_lower_bound, py::arg("matrix") = std::vector<int>(c.matrix, c.matrix + 4)));
         const HomotopySearchInfo& hs = r.homotopy_search;
         py::dict search(py::arg("run") = hs.run, py::arg("start_candidate") = hs.start_candidate,
                         py::arg("start_energy") = hs.start_energy, py::arg("energy") = hs.energy,

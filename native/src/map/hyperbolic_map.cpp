@@ -1164,20 +1164,43 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   };
   // Landmarks change which class is best: the classes solved at full
   // resolution are ranked by their energy with the landmarks held the way
-  // the returned map holds them (hold_in_class: the bijective held map;
-  // a class whose landmarks cannot be held so is out of the ranking), and
-  // the chosen class's held map is kept. Classes only estimated on the
-  // coarse copy are not re-ranked (their free estimate is a lower bound of
-  // the held energy but not comparable to it): landmark_energy stays NaN.
+  // the returned map holds them (hold_in_class: the bijective held map),
+  // and the chosen class's held map is kept. That can take a continuation
+  // per class, so it is a branch and bound: the plain pins' energy (one
+  // Newton solve from the class's optimum) is the infimum over all held
+  // maps, folded ones included, so a lower bound; classes are held in the
+  // order of their bounds, and one whose bound is not below the best held
+  // energy so far cannot win and is not held (landmark_energy NaN,
+  // landmark_lower_bound set). A class whose landmarks cannot be held
+  // bijectively has +inf. Classes only estimated on the coarse copy are
+  // not ranked (their free estimate is not comparable).
   std::vector<std::unique_ptr<HyperbolicHarmonicResult>> held_result(ncand);
   std::vector<LandmarkHold> held_record(ncand);
   if (!options.landmarks.empty() && options.homotopy < 0) {
     HyperbolicHarmonicOptions lo;
     lo.tolerance = options.tolerance;
     lo.max_iterations = options.max_iterations;
-    int best = -1;
+    std::vector<int> lm_s, lm_t;
+    std::vector<Complex> lm_p;
+    for (const auto& [s, t] : options.landmarks) lm_s.push_back(s), lm_t.push_back(t), lm_p.push_back(layout.vertex_positions[t]);
+    std::vector<int> order;
     for (int k = 0; k < ncand; ++k) {
       if (!out.candidates[k].solved || !fine_result[k]) continue;
+      try {
+        const HyperbolicHarmonicResult pins = hold_hyperbolic_landmarks(
+            nv, data[k].edges, deck_group.side_pairings(), deck_group.side_pairings(), *fine_result[k], lm_s, lm_p, lm_t, lo);
+        if (!pins.converged) continue;
+        out.candidates[k].landmark_lower_bound = pins.energy;
+        order.push_back(k);
+      } catch (const SolveError&) {
+      }
+    }
+    std::stable_sort(order.begin(), order.end(), [&](int x, int y) {
+      return out.candidates[x].landmark_lower_bound < out.candidates[y].landmark_lower_bound;
+    });
+    int best = -1;
+    for (int k : order) {
+      if (best >= 0 && out.candidates[k].landmark_lower_bound >= out.candidates[best].landmark_energy) break;
       try {
         auto held = std::make_unique<HyperbolicHarmonicResult>(hold_in_class(k, *fine_result[k], lo, false, {}, held_record[k]));
         if (!held->converged) continue;

@@ -134,6 +134,22 @@ def test_colour_scale_ranges_and_invalid():
     assert lo == -0.5 and hi == 0.5
 
 
+def test_landmark_summary_says_how_they_were_held():
+    # The report fields of surface_map (landmark_method, _steps, _solves, _rings) in one line.
+    assert M.landmark_summary({"genus": 2}, 0) is None
+    assert M.landmark_summary({"genus": 0, "landmark_error": 0.0}, 3).endswith("they fix (exact)")
+    assert "largest miss 0.012" in M.landmark_summary({"genus": 0, "landmark_error": 0.012}, 5)
+    pinned = {"genus": 1, "landmark_method": "pinned", "landmark_steps": 0, "landmark_solves": 1}
+    assert M.landmark_summary(pinned, 2).startswith("2 landmark(s) held by plain pins")
+    barrier = {"genus": 2, "landmark_method": "barrier continuation", "landmark_steps": 7,
+               "landmark_solves": 8}
+    assert M.landmark_summary(barrier, 1).startswith("1 landmark(s) held by barrier continuation in 7 step(s)")
+    carried = {"genus": 2, "landmark_method": "carried neighbourhoods", "landmark_steps": 3,
+               "landmark_solves": 6, "landmark_rings": [2, 0], "landmark_held_vertices": 20}
+    line = M.landmark_summary(carried, 2)
+    assert "rings [2, 0], 20 vertices held rigidly" in line and "stalled after 3 step(s)" in line
+
+
 def test_landmarks_and_fingerprints():
     pairs, names, problems = M.landmark_pairs(
         {"lm_a": ([3, 4], [0.2, 0.9]), "lm_b": ([1], [1.0]), "other": ([0], [1.0])},

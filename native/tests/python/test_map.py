@@ -344,8 +344,10 @@ def test_source_weights_kwarg():
 def test_genus2_classes_are_ranked_with_the_landmarks_held():
     # With landmarks, the classes solved at full resolution are ranked by their energy with
     # the landmarks held the way the returned map holds them (plain pins, else the barrier
-    # continuation, else carried rings; inf where they cannot be held bijectively); the chosen
-    # class is the lowest, and its final energy is exactly that held energy.
+    # continuation, else carried rings; inf where they cannot be held bijectively), by branch
+    # and bound: the plain pins' energy is a lower bound, and a class whose bound is not below
+    # the best held energy is not held (NaN). The chosen class is the lowest, its final energy
+    # exactly that held energy.
     a = surfmap.shapes.n_hole_torus(2, 14, True)
     b = surfmap.shapes.vase(18, True)
     Vb, n = b[0], len(a[0])
@@ -353,16 +355,23 @@ def test_genus2_classes_are_ranked_with_the_landmarks_held():
     lm = [(s, int(np.argmin(((Vb - other["forward"]["position"][s]) ** 2).sum(1)))) for s in range(0, n, n // 6)]
     r = surfmap.surface_map(*a, *b, landmarks=lm, homotopy_full_solves=8)
     cands = r["homotopy"]["candidates"]
-    held = {i: c["landmark_energy"] for i, c in enumerate(cands) if c["solved"] and math.isfinite(c["energy"])}
-    finite = {i: e for i, e in held.items() if math.isfinite(e)}
-    assert len(finite) >= 2 and all(e == math.inf for i, e in held.items() if i not in finite), held
-    assert all(math.isnan(c["landmark_energy"]) for i, c in enumerate(cands) if i not in held)
+    solved = [i for i, c in enumerate(cands) if c["solved"] and math.isfinite(c["energy"])]
+    assert len(solved) >= 2
+    assert all(math.isfinite(cands[i]["landmark_lower_bound"]) for i in solved)
+    assert all(math.isnan(c["landmark_lower_bound"]) and math.isnan(c["landmark_energy"])
+               for i, c in enumerate(cands) if i not in solved)
+    for i in solved:    # bound <= held; the free optimum is below both
+        c = cands[i]
+        assert c["landmark_lower_bound"] >= c["energy"] * (1 - 1e-9)
+        assert math.isnan(c["landmark_energy"]) or c["landmark_energy"] >= c["landmark_lower_bound"] * (1 - 1e-9)
+    held = {i: cands[i]["landmark_energy"] for i in solved if math.isfinite(cands[i]["landmark_energy"])}
     chosen = r["homotopy"]["chosen"]
-    assert chosen == min(finite, key=finite.get)
-    assert all(e >= cands[i]["energy"] * (1 - 1e-9) for i, e in finite.items())
+    assert chosen == min(held, key=held.get)
+    # Pruned classes could not have won.
+    assert all(cands[i]["landmark_lower_bound"] >= held[chosen] for i in solved if math.isnan(cands[i]["landmark_energy"]))
     assert r["flipped_triangles"] == 0 and r["landmark_method"] in ("pinned", "barrier continuation")
     assert r["landmark_solves"] == 1 + r["landmark_steps"] and r["landmark_rings"] == [0] * len(lm)
-    assert abs(r["energy"]["final"] - finite[chosen]) <= 1e-8 * finite[chosen]
+    assert abs(r["energy"]["final"] - held[chosen]) <= 1e-8 * held[chosen]
     # Genus 1 ranks by the held energy too (reported as both).
     (Vs, Fs), (Vt, Ft) = torus(1.0, 0.5, 30, 15), torus(1.5, 0.5, 36, 15, 1)
     g1 = surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=[(0, 0), (200, 300)])

@@ -238,9 +238,14 @@ struct HomotopyCandidate {
   /// pins (also reported as `energy`). Genus >= 2: the held map the
   /// pipeline would return in this class (plain pins, else the barrier
   /// continuation, else carried rings), +inf when the landmarks cannot be
-  /// held bijectively in it, NaN for classes not solved at full resolution
-  /// (and without landmarks).
+  /// held bijectively in it, NaN for classes not solved at full resolution,
+  /// for those whose landmark_lower_bound was not below the best held
+  /// energy (they cannot win; not held), and without landmarks.
   double landmark_energy = std::numeric_limits<double>::quiet_NaN();
+  /// Genus >= 2 with landmarks, classes solved at full resolution: the
+  /// plain pins' energy, the infimum over held maps (folded ones included),
+  /// so a lower bound of landmark_energy; NaN otherwise.
+  double landmark_lower_bound = std::numeric_limits<double>::quiet_NaN();
   /// Genus >= 2: the class's action on H_1, 2g x 2g row-major, in the
   /// canonical coordinates (a_1, b_1, ...) of both surfaces; empty for genus 1.
   std::vector<int> homology;
