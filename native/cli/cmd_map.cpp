@@ -49,7 +49,7 @@ std::vector<std::pair<int, int>> read_landmarks(const std::string& path) {
 void register_map(CLI::App& app) {
   auto* cmd = app.add_subcommand("map", "Globally optimal map from SRC onto DST (same genus)");
   struct Args {
-    std::string src, dst, out, report, correspondence, method = "newton", landmarks, initial = "polygon", initial_out,
+    std::string src, dst, out, report, correspondence, method = "newton", landmarks, initial = "cut-graph", initial_out,
         source_weights = "auto";
     int homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
@@ -83,9 +83,10 @@ void register_map(CLI::App& app) {
   cmd->add_option("--homotopy-full-solves", a->homotopy_full_solves,
                   "Genus >= 2: most candidates solved at full resolution after ranking all on a coarse copy of the source (the best, plus runners-up within 10%)");
   cmd->add_option("--initial-map", a->initial,
-                  "Genus >= 2 initial map: polygon (source disk onto the target's geodesic polygon of the source's "
-                  "loops when convex, else uniform) or uniform (the uniform-weight harmonic map)")
-      ->check(CLI::IsMember({"polygon", "uniform"}));
+                  "Genus >= 2 initial map: cut-graph (source disk cut along its own edges onto the convex polygon of "
+                  "its cut graph's harmonic map; else as polygon), polygon (source disk onto the target's geodesic "
+                  "polygon of the source's loops when convex, else uniform) or uniform (the uniform-weight harmonic map)")
+      ->check(CLI::IsMember({"cut-graph", "polygon", "uniform"}));
   cmd->add_option("--initial-out", a->initial_out,
                   "INITIAL.obj: the source's connectivity at the initial map's positions on the target (genus >= 1)");
   cmd->add_option("--homotopy-extra-cuts", a->homotopy_extra_cuts,
@@ -112,7 +113,9 @@ void register_map(CLI::App& app) {
     opt.max_iterations = a->max_iterations;
     opt.homotopy_candidates = a->homotopy_candidates;
     opt.homotopy_full_solves = a->homotopy_full_solves;
-    opt.initial_map = a->initial == "uniform" ? InitialMapMethod::UniformHarmonic : InitialMapMethod::Polygon;
+    opt.initial_map = a->initial == "uniform"   ? InitialMapMethod::UniformHarmonic
+                      : a->initial == "polygon" ? InitialMapMethod::Polygon
+                                                : InitialMapMethod::CutGraph;
     opt.homotopy_extra_cuts = a->homotopy_extra_cuts;
     opt.homotopy_search = !a->no_homotopy_search;
     opt.homotopy_search_evaluations = a->homotopy_search_evaluations;
@@ -190,6 +193,14 @@ void register_map(CLI::App& app) {
         {"initial_flipped_triangles", m.initial_flipped_triangles},
         {"initial_map",
          {{"construction", m.initial_map.construction},
+          {"cut_graph", {{"status", m.initial_map.cut_graph_status},
+                         {"branch_vertices", m.initial_map.cut_graph_branch_vertices},
+                         {"sides", m.initial_map.cut_graph_sides},
+                         {"chords_rerouted", m.initial_map.cut_graph_chords_rerouted},
+                         {"min_turn", m.initial_map.cut_graph_min_turn},
+                         {"flipped", m.initial_map.cut_graph_flipped},
+                         {"degenerate", m.initial_map.cut_graph_degenerate},
+                         {"time_s", m.initial_map.cut_graph_time_s}}},
           {"polygon", {{"status", m.initial_map.polygon_status},
                        {"convex", m.initial_map.polygon_convex},
                        {"min_turn", m.initial_map.polygon_min_turn},

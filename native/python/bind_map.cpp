@@ -58,9 +58,10 @@ void bind_map(py::module_& m) {
         if (homotopy_search_evaluations < 1) throw InputError("homotopy_search_evaluations must be at least 1");
         opt.homotopy_search = homotopy_search;
         opt.homotopy_search_evaluations = homotopy_search_evaluations;
-        if (initial_map == "polygon") opt.initial_map = InitialMapMethod::Polygon;
+        if (initial_map == "cut_graph") opt.initial_map = InitialMapMethod::CutGraph;
+        else if (initial_map == "polygon") opt.initial_map = InitialMapMethod::Polygon;
         else if (initial_map == "uniform") opt.initial_map = InitialMapMethod::UniformHarmonic;
-        else throw InputError("initial_map must be 'polygon' or 'uniform', not '" + initial_map + "'");
+        else throw InputError("initial_map must be 'cut_graph', 'polygon' or 'uniform', not '" + initial_map + "'");
         if (source_weights == "auto") opt.source_weights = SourceWeights::Automatic;
         else if (source_weights == "intrinsic") opt.source_weights = SourceWeights::IntrinsicDelaunay;
         else if (source_weights == "own") opt.source_weights = SourceWeights::OwnEdges;
@@ -148,6 +149,14 @@ void bind_map(py::module_& m) {
         const InitialMapInfo& im = r.initial_map;
         d["initial_map"] = py::dict(
             py::arg("construction") = im.construction,
+            py::arg("cut_graph") = py::dict(py::arg("status") = im.cut_graph_status,
+                                            py::arg("branch_vertices") = im.cut_graph_branch_vertices,
+                                            py::arg("sides") = im.cut_graph_sides,
+                                            py::arg("chords_rerouted") = im.cut_graph_chords_rerouted,
+                                            py::arg("min_turn") = im.cut_graph_min_turn,
+                                            py::arg("flipped") = im.cut_graph_flipped,
+                                            py::arg("degenerate") = im.cut_graph_degenerate,
+                                            py::arg("time_s") = im.cut_graph_time_s),
             py::arg("polygon") = py::dict(py::arg("status") = im.polygon_status, py::arg("convex") = im.polygon_convex,
                                           py::arg("min_turn") = im.polygon_min_turn,
                                           py::arg("perimeter") = im.polygon_perimeter,
@@ -191,7 +200,7 @@ void bind_map(py::module_& m) {
       py::arg("source_base_vertex") = -1, py::arg("target_base_vertex") = -1, py::arg("progress") = py::none(),
       py::arg("landmarks") = py::none(), py::arg("method") = "newton", py::arg("tolerance") = 1e-10,
       py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
-      py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = "polygon", py::arg("source_weights") = "auto",
+      py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = "cut_graph", py::arg("source_weights") = "auto",
       py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
@@ -201,7 +210,9 @@ void bind_map(py::module_& m) {
       "and may return False to cancel; `homotopy_candidates` / `homotopy_full_solves`: how many genus >= 2 "
       "handle classes are listed / solved to convergence for the ranking; `homotopy_search`: search the mapping class "
       "group from the best candidate over Dehn twists, at most `homotopy_search_evaluations` coarse solves ('homotopy' "
-      "'search' in the result: moves, energies, every neighbour evaluated); `initial_map`: 'polygon' (genus >= 2: the "
+      "'search' in the result: moves, energies, every neighbour evaluated); `initial_map`: 'cut_graph' (genus >= 2, the default: the source cut "
+      "along its own cut graph onto the convex polygon of that graph's harmonic map into the target, an embedding by "
+      "construction; else as 'polygon'), 'polygon' (the "
       "source disk onto the target's geodesic polygon of the source's loops when convex, else uniform) or 'uniform' "
       "('initial_map' in the result says which was used; 'initial_forward': the initial map located on the target, "
       "'initial_inverse': each target vertex located on the source through the initial map); `source_weights`: 'auto' "

@@ -345,7 +345,7 @@ TEST(HyperbolicInitialMap, UniformWeightMapOfASliverSourceIsAnEmbedding) {
   o.inspect_initial_map = [&](const InitialMapInspection& in) {
     if (seen++) return;
     HyperbolicInitialMapOptions io;
-    io.polygon = false;
+    io.cut_graph = io.polygon = false;
     const HyperbolicInitialMapResult init = hyperbolic_initial_map(a, c, *in.halfedge_rho, *in.halfedge_word, *in.group, io);
     ASSERT_TRUE(init.converged);
     EXPECT_EQ(init.construction, "uniform harmonic");

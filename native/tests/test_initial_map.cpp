@@ -2,6 +2,7 @@
 // flattened onto the target's geodesic polygon of the source's loops, its
 // fallback, and the initial map located on the target (all genera >= 1).
 #include "surfmap/map/initial_map.h"
+#include "surfmap/map/cut_graph_initial_map.h"
 
 #include <gtest/gtest.h>
 
@@ -135,6 +136,7 @@ TEST(PolygonInitialMap, IsometryInvariantFlatteningFlipsNoFaceWhereKleinTutteDoe
   PolygonInitialMapResult kept;
   SurfaceMapOptions o;
   o.homotopy = 0;
+  o.initial_map = InitialMapMethod::Polygon;
   o.inspect_initial_map = [&](const InitialMapInspection& in) {
     for (int rounds : {0, 3}) {
       PolygonInitialMapOptions po;
@@ -166,6 +168,49 @@ TEST(PolygonInitialMap, SliverSourceKeepsConsistentSidesAndAnUnflippedStart) {
   EXPECT_EQ(m.initial_flipped_triangles, 0);
   EXPECT_NEAR(energy_by_hand(s.problem), m.initial_energy, 1e-9 * m.initial_energy);
   expect_on_target(m.initial_forward, b, a.num_vertices());
+}
+
+// The cut-graph polygon (map/cut_graph_initial_map.h) on raw
+// marching-tetrahedra sources, where the refined-loop polygon folds 4-6
+// faces and its local repair does not clear them (the uniform-weight
+// fallback ran): no fold at all, and the same optimum as from the
+// uniform-weight start.
+void expect_cut_graph_start(const TriMesh& a, const TriMesh& b) {
+  Seen sc, su;
+  const SurfaceMapResult mc = map_and_inspect(a, b, InitialMapMethod::CutGraph, &sc);
+  EXPECT_EQ(mc.initial_map.construction, "cut-graph polygon") << mc.initial_map.cut_graph_status;
+  EXPECT_EQ(mc.initial_map.cut_graph_status, "used");
+  const CutGraphInitialMapResult& cg = sc.init.cut_graph;
+  EXPECT_TRUE(cg.convex);
+  EXPECT_GT(cg.min_turn, 0);
+  EXPECT_GE(cg.branch_vertices, 1);
+  EXPECT_EQ(static_cast<int>(cg.corners.size()), 2 * cg.chains);
+  // 0 flipped and degenerate source faces, recomputed from the matrices
+  // (not the reduced words the construction was checked with).
+  const DistortionStats q = hyperbolic_distortion(a, sc.rho, sc.init.z, sc.init.vertex_deck);
+  EXPECT_EQ(q.flipped, 0);
+  EXPECT_EQ(q.degenerate, 0);
+  EXPECT_EQ(mc.initial_flipped_triangles, 0);
+  EXPECT_EQ(mc.flipped_triangles, 0);
+  EXPECT_NEAR(energy_by_hand(sc.problem), mc.initial_energy, 1e-9 * mc.initial_energy);
+  expect_on_target(mc.initial_forward, b, a.num_vertices());
+  // Another start, one optimum (paper §VII-D).
+  const SurfaceMapResult mu = map_and_inspect(a, b, InitialMapMethod::UniformHarmonic, &su);
+  EXPECT_EQ(mu.initial_map.construction, "uniform harmonic");
+  EXPECT_GT(std::abs(mc.initial_energy - mu.initial_energy), 1e-3 * mu.initial_energy);
+  EXPECT_NEAR(mc.final_energy, mu.final_energy, 1e-8 * mu.final_energy);
+  const double diag = (b.V.colwise().maxCoeff() - b.V.colwise().minCoeff()).norm();
+  double worst = 0;
+  for (int i = 0; i < a.num_vertices(); ++i) worst = std::max(worst, (mc.forward[i].position - mu.forward[i].position).norm());
+  EXPECT_LT(worst, 1e-3 * diag);
+}
+
+TEST(CutGraphInitialMap, Genus3SliverSourceHasNoFoldAndTheSameOptimum) {
+  expect_cut_graph_start(samples::n_hole_torus(3, 30, false), samples::n_hole_torus(3, 36, true));
+}
+
+TEST(CutGraphInitialMap, Genus2SliverSourceHasNoFoldAndTheSameOptimum) {
+  expect_cut_graph_start(samples::n_hole_torus(2, 30, false), samples::vase(30, true));
 }
 
 TEST(PolygonInitialMap, TorusInitialMapIsLocated) {

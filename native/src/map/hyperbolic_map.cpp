@@ -667,7 +667,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     }
     try {
       HyperbolicInitialMapOptions io;
-      io.polygon = options.initial_map == InitialMapMethod::Polygon;
+      io.cut_graph = options.initial_map == InitialMapMethod::CutGraph;
+      io.polygon = options.initial_map != InitialMapMethod::UniformHarmonic;
       io.base_vertex = sl.base_vertex;
       io.reduce_point = [&](Complex& z) { return reduce_into_polygon(z); };
       if (stop) io.keep_going = [stop] { return !*stop; };

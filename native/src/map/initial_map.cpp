@@ -10,11 +10,10 @@
 
 #include <unordered_map>
 
-#include <Eigen/CholmodSupport>
 #include <Eigen/Geometry>
 #include <Eigen/Sparse>
 
-#include "concurrency.h"
+#include "disk_flattening.h"
 #include "surfmap/error.h"
 #include "surfmap/topology/cut_mesh.h"
 #include "surfmap/topology/system_of_loops.h"
@@ -300,27 +299,7 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
   }
   // Symmetrised mean-value weights (Floater) from the 3D geometry: positive
   // on any triangle, so the flattening onto a convex polygon is an embedding.
-  struct DiskEdge {
-    double w = 0;
-    int opposite[2] = {-1, -1};
-    int faces = 0;
-  };
-  std::unordered_map<long long, DiskEdge> dedges;
-  dedges.reserve(3 * nrf);
-  auto key = [&](int a, int bb) { return static_cast<long long>(std::min(a, bb)) * nd + std::max(a, bb); };
-  for (int f = 0; f < nrf; ++f)
-    for (int q = 0; q < 3; ++q) {
-      const int i = cm.mesh.F(f, q), j = cm.mesh.F(f, (q + 1) % 3), o = cm.mesh.F(f, (q + 2) % 3);
-      const Eigen::Vector3d pi = cm.mesh.V.row(i), pj = cm.mesh.V.row(j), po = cm.mesh.V.row(o);
-      auto half_tan = [](const Eigen::Vector3d& a, const Eigen::Vector3d& bv) {
-        return a.cross(bv).norm() / std::max(a.norm() * bv.norm() + a.dot(bv), 1e-300);
-      };
-      const double len = std::max((pj - pi).norm(), 1e-300);
-      DiskEdge& de = dedges[key(i, j)];
-      de.w += (half_tan(pj - pi, po - pi) + half_tan(pi - pj, po - pj)) / len;
-      if (de.faces < 2) de.opposite[de.faces] = o;
-      ++de.faces;
-    }
+  const auto dedges = detail::mean_value_disk_edges(cm.mesh);
   // Unknowns: interior copies, plus midpoints of the chords (interior edges
   // joining two boundary copies of one side, whose faces would degenerate).
   auto shares_side = [&](int a, int bb) {
@@ -334,15 +313,7 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
     const int a1 = sides(a, &a2), b1 = sides(bb, &b2);
     return a1 >= 0 && b1 >= 0 && (a1 == b1 || a1 == b2 || a2 == b1 || a2 == b2);
   };
-  std::vector<int> unknown(nd, -1);
-  int nu = 0;
-  for (int d = 0; d < nd; ++d)
-    if (!on_boundary[d]) unknown[d] = nu++;
-  struct GraphEdge {
-    int a, b;  // node ids: disk vertices, then nd + chord midpoint
-    double w;
-  };
-  std::vector<GraphEdge> graph;
+  std::vector<detail::FlatteningEdge> graph;
   for (const auto& [kk, de] : dedges) {
     const int i = static_cast<int>(kk / nd), j = static_cast<int>(kk % nd);
     if (de.faces != 2) {
@@ -359,54 +330,13 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
       graph.push_back({i, j, de.w});
     }
   }
-  const int nunk = nu + out.chords_split;
-  auto unk = [&](int node) { return node >= nd ? nu + (node - nd) : unknown[node]; };
   // Klein positions of every node (chord midpoints after the disk copies).
   std::vector<Complex> kn(k);
   kn.resize(nd + out.chords_split, Complex(0.0));
-  // The barycentre condition in the hyperboloid model, X_i ∝ Σ_j w_ij X_j,
-  // is invariant under isometries (linear maps of the hyperboloid), so both
-  // banks of a side are treated alike wherever they sit in the polygon. In
-  // Klein coordinates it reads Σ_j w_ij γ_j (k_j − k_i) = 0 with γ_j =
-  // cosh d(0, k_j) = 1/sqrt(1 − |k_j|²): linear for fixed γ, symmetric after
-  // scaling row i by γ_i. γ = 1 is the plain Klein-model Tutte map; each
-  // round takes γ from the previous positions (a fixed-point iteration of
-  // linear solves, every one a Tutte map with positive weights).
-  auto gamma = [&](int node) { return 1.0 / std::sqrt(std::max(1e-300, 1.0 - std::norm(kn[node]))); };
-  // Every round has the same sparsity pattern: one symbolic analysis.
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
-  for (int round = 0; round <= options.hyperboloid_rounds && nunk > 0; ++round) {
-    std::vector<Eigen::Triplet<double>> trip;
-    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nunk, 2);
-    std::vector<double> diag(nunk, 0.0);
-    for (const auto& [a, bb, w0] : graph) {
-      const double w = round == 0 ? w0 : w0 * gamma(a) * gamma(bb);
-      const int ua = unk(a), ub = unk(bb);
-      if (ua >= 0) diag[ua] += w;
-      if (ub >= 0) diag[ub] += w;
-      if (ua >= 0 && ub >= 0) {
-        trip.emplace_back(ua, ub, -w), trip.emplace_back(ub, ua, -w);
-      } else if (ua >= 0) {
-        rhs(ua, 0) += w * kn[bb].real(), rhs(ua, 1) += w * kn[bb].imag();
-      } else if (ub >= 0) {
-        rhs(ub, 0) += w * kn[a].real(), rhs(ub, 1) += w * kn[a].imag();
-      }
-    }
-    for (int u = 0; u < nunk; ++u) trip.emplace_back(u, u, diag[u]);
-    Eigen::SparseMatrix<double> L(nunk, nunk);
-    L.setFromTriplets(trip.begin(), trip.end());
-    if (round == 0) {
-      std::lock_guard<std::mutex> lock(detail::ordering_mutex());  // CHOLMOD may try METIS
-      llt.analyzePattern(L);
-    }
-    llt.factorize(L);
-    if (llt.info() != Eigen::Success) return give_up("the flattening's Laplacian could not be factorised");
-    const Eigen::MatrixXd X = llt.solve(rhs);
-    for (int node = 0; node < nd + out.chords_split; ++node) {
-      const int u = unk(node);
-      if (u >= 0) kn[node] = Complex(X(u, 0), X(u, 1));
-    }
-  }
+  std::vector<char> fixed(on_boundary);
+  fixed.resize(nd + out.chords_split, 0);
+  std::string why;
+  if (!detail::flatten_in_klein(graph, fixed, options.hyperboloid_rounds, kn, &why)) return give_up(why);
   for (int d = 0; d < nd; ++d) k[d] = kn[d];
 
   // The input vertices: the point of one copy (global frame) and its deck
@@ -528,7 +458,39 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
   HyperbolicInitialMapResult r;
   std::vector<Complex> start_z;
   std::vector<Word> start_word;
-  if (options.polygon) {
+  if (options.cut_graph) {
+    CutGraphInitialMapOptions co;
+    co.base_vertex = options.base_vertex;
+    co.reduce_point = options.reduce_point;
+    CutGraphInitialMapResult cg;
+    try {
+      cg = cut_graph_initial_map(source, sc, halfedge_word, group, co);
+    } catch (const Error& e) {
+      cg = CutGraphInitialMapResult();
+      cg.reason = e.what();
+    }
+    if (cg.applied) {
+      // An embedding by construction; checked all the same (round-off on
+      // sliver faces), from reduced words.
+      const DistortionStats q = hyperbolic_distortion(source, group, halfedge_word, cg.z, cg.vertex_deck_word);
+      r.cut_graph_flipped = q.flipped;
+      r.cut_graph_degenerate = q.degenerate;
+      if (q.flipped || q.degenerate) {
+        cg.applied = false;
+        cg.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate) + " degenerate source faces";
+      }
+    }
+    if (cg.applied) {
+      r.converged = true;
+      r.construction = "cut-graph polygon";
+      r.z = std::move(cg.z);
+      r.vertex_deck = std::move(cg.vertex_deck);
+      r.vertex_deck_word = std::move(cg.vertex_deck_word);
+    }
+    cg.z.clear(), cg.vertex_deck.clear(), cg.vertex_deck_word.clear();
+    r.cut_graph = std::move(cg);
+  }
+  if (options.polygon && r.construction.empty()) {
     PolygonInitialMapOptions po;
     po.base_vertex = options.base_vertex;
     po.reduce_point = options.reduce_point;
@@ -595,10 +557,12 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
       // The flattening (or the given start) was no usable start after all:
       // from the origin.
       HyperbolicInitialMapOptions o = options;
-      o.polygon = false;
+      o.polygon = o.cut_graph = false;
       o.start_z.clear(), o.start_word.clear();
       HyperbolicInitialMapResult u = hyperbolic_initial_map(source, sc, halfedge_rho, halfedge_word, group, o);
       u.polygon = std::move(r.polygon);
+      u.cut_graph = std::move(r.cut_graph);
+      u.cut_graph_flipped = r.cut_graph_flipped, u.cut_graph_degenerate = r.cut_graph_degenerate;
       u.time_s = seconds_since(t0);
       return u;
     }

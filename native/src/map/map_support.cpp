@@ -111,7 +111,16 @@ void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo
   info.polygon_chords_split = p.chords_split;
   info.polygon_flipped = p.source_flipped;
   info.polygon_repaired_vertices = p.repaired_vertices;
-  info.iterations = init.construction == "polygon" ? 0 : init.iterations;
+  const CutGraphInitialMapResult& c = init.cut_graph;
+  info.cut_graph_status = init.construction == "cut-graph polygon" ? "used" : c.reason.empty() ? "not tried" : c.reason;
+  info.cut_graph_branch_vertices = c.branch_vertices;
+  info.cut_graph_sides = 2 * c.chains;
+  info.cut_graph_chords_rerouted = c.chords_rerouted;
+  info.cut_graph_min_turn = c.min_turn;
+  info.cut_graph_flipped = init.cut_graph_flipped;
+  info.cut_graph_degenerate = init.cut_graph_degenerate;
+  info.cut_graph_time_s = c.time_s;
+  info.iterations = init.construction.rfind("uniform harmonic", 0) == 0 ? init.iterations : 0;
   info.time_s = init.time_s;
   info.polygon_time_s = p.time_s;
 }

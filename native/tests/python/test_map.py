@@ -257,9 +257,10 @@ def test_polygon_flattening_with_a_fold_is_repaired_locally():
     # of the whole uniform-weight map, and the repaired map has no folds.
     a = surfmap.shapes.n_hole_torus(2, 30, False)
     b = surfmap.shapes.vase(30, True)
-    r = surfmap.surface_map(*a, *b)
+    r = surfmap.surface_map(*a, *b, initial_map="polygon")
     im = r["initial_map"]
     assert im["construction"] == "polygon" and im["polygon"]["status"] == "used"
+    assert im["cut_graph"]["status"] == "not tried"
     assert im["polygon"]["flipped"] > 0 and 0 < im["polygon"]["repaired_vertices"] < len(a[0]) // 4
     assert im["iterations"] == 0
     assert r["initial_flipped_triangles"] == 0
@@ -271,8 +272,13 @@ def test_genus2_initial_map_construction_and_location(tmp_path, cli):
     b = surfmap.shapes.n_hole_torus(2, 40, True)
     r = surfmap.surface_map(*a, *b, homotopy=0)
     im = r["initial_map"]
-    assert im["construction"] == "polygon" and im["polygon"]["status"] == "used" and im["polygon"]["convex"]
+    # The default: the source cut along its own cut graph onto a convex polygon.
+    assert im["construction"] == "cut-graph polygon" and im["cut_graph"]["status"] == "used"
+    assert im["cut_graph"]["min_turn"] > 0 and im["cut_graph"]["flipped"] == 0 and im["iterations"] == 0
+    assert im["polygon"]["status"] == "not tried"
     assert r["initial_flipped_triangles"] == 0
+    p = surfmap.surface_map(*a, *b, homotopy=0, initial_map="polygon")
+    assert p["initial_map"]["construction"] == "polygon" and p["initial_map"]["polygon"]["convex"]
     init = r["initial_forward"]
     Vt, Ft = b
     assert init["position"].shape == a[0].shape
@@ -295,7 +301,8 @@ def test_genus2_initial_map_construction_and_location(tmp_path, cli):
     p = cli("map", src, dst, "--out", out, "--report", rep, "--initial-out", ini, "--homotopy", "0", "--quiet")
     assert p.returncode == 0, p.stderr
     report = json.loads(rep.read_text())
-    assert report["initial_map"]["construction"] == "polygon" and report["initial_map"]["located"]
+    assert report["initial_map"]["construction"] == "cut-graph polygon" and report["initial_map"]["located"]
+    assert report["initial_map"]["cut_graph"]["status"] == "used"
     before = surfmap.load_mesh(str(ini))
     assert np.abs(before["V"] - init["position"]).max() < 1e-6
 

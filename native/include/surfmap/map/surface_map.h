@@ -78,9 +78,16 @@ enum class MapMethod {
 
 /// Initial ("before") map of genus >= 2 (map/initial_map.h).
 enum class InitialMapMethod {
+  /// The source cut along its cut graph and flattened onto the convex
+  /// polygon of the cut graph's harmonic map into the target
+  /// (map/cut_graph_initial_map.h; an embedding by construction); when that
+  /// polygon is not strictly convex (or round-off degenerates a face), as
+  /// Polygon (the default)
+  CutGraph,
   /// The source's cut disk flattened onto the target's geodesic polygon of
   /// the source's loops when that polygon is convex (and the source's faces
-  /// come out unflipped), else the uniform-weight harmonic map (the default)
+  /// come out unflipped, or a few folds are repaired locally), else the
+  /// uniform-weight harmonic map
   Polygon,
   /// Always the uniform-weight (Tutte-type) harmonic map in the class
   UniformHarmonic,
@@ -161,9 +168,9 @@ struct SurfaceMapOptions {
   /// another value draws random start points (seeded) in the disk of radius
   /// 0.5. The energy is convex, so the result must not depend on it.
   unsigned start_seed = 0;
-  /// Genus >= 2: how the initial map is built (default Polygon, with the
-  /// uniform-weight map as fallback).
-  InitialMapMethod initial_map = InitialMapMethod::Polygon;
+  /// Genus >= 2: how the initial map is built (default CutGraph, with the
+  /// polygon and the uniform-weight map as fallbacks).
+  InitialMapMethod initial_map = InitialMapMethod::CutGraph;
   /// Curvature tolerance of the target's uniformization (default 1e-10).
   double uniformization_tolerance = 1e-10;
   /// Optimiser of the harmonic energy (default Newton).
@@ -288,8 +295,10 @@ struct PointOnSurface {
 
 /// How the initial map was built, and the polygon attempt's figures.
 struct InitialMapInfo {
-  /// "polygon" (genus >= 2, source disk onto the target's geodesic polygon
-  /// of the source's loops), "uniform harmonic" (genus >= 2, Tutte-type map
+  /// "cut-graph polygon" (genus >= 2, the source cut along its own cut
+  /// graph onto the convex polygon of that graph's harmonic map into the
+  /// target, map/cut_graph_initial_map.h), "polygon" (genus >= 2, source
+  /// disk onto the target's geodesic polygon of the source's loops), "uniform harmonic" (genus >= 2, Tutte-type map
   /// in the class, from the origin; "uniform harmonic (from the polygon)"
   /// when started from a flattening that had flipped faces: the same map),
   /// "uniform Tutte" (genus 1, flat), "" (genus 0: none).
@@ -297,6 +306,15 @@ struct InitialMapInfo {
   /// Genus >= 2: "used", "not tried", or why the polygon was not used
   /// ("the polygon is not simple ...", "... flipped source faces").
   std::string polygon_status;
+  /// Genus >= 2: "used", "not tried", or why the cut-graph polygon was not
+  /// used; its branch vertices, sides, chords rerouted, smallest Klein
+  /// exterior angle, flipped / degenerate source faces (round-off; 0 when
+  /// used) and seconds.
+  std::string cut_graph_status;
+  int cut_graph_branch_vertices = 0, cut_graph_sides = 0, cut_graph_chords_rerouted = 0;
+  double cut_graph_min_turn = 0;
+  int cut_graph_flipped = 0, cut_graph_degenerate = 0;
+  double cut_graph_time_s = 0;
   /// The polygon's smallest exterior angle in the Klein model (radians;
   /// convex when > 0 with total 2π), its perimeter Σ d(Q_s, Q_s+1), chords
   /// split before the flattening; 0 when not computed.
@@ -320,9 +338,11 @@ struct SurfaceMapResult {
   bool converged = false;
   /// Harmonic energy (cotangent weights) of the initial map and of the
   /// optimum. The initial map (`initial_map` says which): genus 1 the
-  /// uniform Tutte embedding of the flat torus; genus >= 2 the source's cut
-  /// disk flattened onto the target's geodesic polygon of the source's loops
-  /// when it is convex, else the uniform-weight Tutte-type map in the class
+  /// uniform Tutte embedding of the flat torus; genus >= 2 the source cut
+  /// along its cut graph onto the convex polygon of that graph's harmonic
+  /// map into the target (map/cut_graph_initial_map.h), else the source's
+  /// cut disk flattened onto the target's geodesic polygon of the source's
+  /// loops when it is convex, else the uniform-weight Tutte-type map in the class
   /// (map/initial_map.h: how both differ from the paper's §IV-B
   /// composition); it is also the default start.
   double initial_energy = 0, final_energy = 0;

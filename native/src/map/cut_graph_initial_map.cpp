@@ -1,0 +1,391 @@
+#include "surfmap/map/cut_graph_initial_map.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <string>
+#include <unordered_map>
+
+#include "disk_flattening.h"
+#include "surfmap/error.h"
+#include "surfmap/topology/cut_mesh.h"
+#include "surfmap/topology/system_of_loops.h"
+
+namespace surfmap {
+
+using hyperbolic::Mobius;
+using Complex = std::complex<double>;
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// One chain of the cut graph, seen from one of its banks: from branch
+// vertex a (corner copy with deck word c_a) to branch vertex b (c_b); its
+// term is w d(p_a, M p_b)² with M = c_a^-1 c_b.
+struct Chain {
+  int a, b;
+  Mobius M, Mi;
+  double w;
+};
+
+// The minimiser of Σ_chains w d(p_a, M p_b)² by Gauss-Seidel: each branch point moved
+// to the weighted Karcher-mean step of its chains' far ends, halved until
+// the energy does not increase (chains from a branch vertex to itself make
+// the one-point problem non-quadratic). A convex function: the sweeps
+// converge to the unique minimiser.
+int minimise_network(const std::vector<Chain>& chains, std::vector<Complex>& p, int sweeps, double tolerance) {
+  const int nb = static_cast<int>(p.size());
+  std::vector<std::vector<int>> at(nb);
+  for (int c = 0; c < static_cast<int>(chains.size()); ++c) {
+    at[chains[c].a].push_back(c);
+    if (chains[c].b != chains[c].a) at[chains[c].b].push_back(c);
+  }
+  auto local_energy = [&](int v) {
+    double e = 0;
+    for (int c : at[v]) {
+      const double d = hyperbolic::distance(p[chains[c].a], chains[c].M.apply(p[chains[c].b]));
+      e += chains[c].w * d * d;
+    }
+    return e;
+  };
+  int sweep = 0;
+  for (; sweep < sweeps; ++sweep) {
+    double largest = 0;
+    for (int v = 0; v < nb; ++v) {
+      Complex step(0.0);
+      double wsum = 0;
+      for (int c : at[v]) {
+        const Chain& ch = chains[c];
+        if (ch.a == v) step += ch.w * hyperbolic::log_map(p[v], ch.M.apply(p[ch.b])), wsum += ch.w;
+        if (ch.b == v) step += ch.w * hyperbolic::log_map(p[v], ch.Mi.apply(p[ch.a])), wsum += ch.w;
+      }
+      if (wsum <= 0) continue;
+      step /= wsum;
+      const double e0 = local_energy(v);
+      const Complex p0 = p[v];
+      for (int back = 0; back < 30; ++back, step *= 0.5) {
+        p[v] = hyperbolic::exp_map(p0, step);
+        if (local_energy(v) <= e0) break;
+        p[v] = p0;
+      }
+      largest = std::max(largest, hyperbolic::distance(p0, p[v]));
+    }
+    if (largest < tolerance) break;
+  }
+  return sweep;
+}
+
+}  // namespace
+
+CutGraphInitialMapResult cut_graph_initial_map(const TriMesh& source, const Connectivity& sc,
+                                               const std::vector<Word>& halfedge_word, const DeckGroup& group,
+                                               const CutGraphInitialMapOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CutGraphInitialMapResult out;
+  const int nv = source.num_vertices(), nf = source.num_faces();
+  if (static_cast<int>(halfedge_word.size()) != 3 * nf || sc.num_vertices() != nv || sc.num_faces() != nf)
+    throw InputError("cut_graph_initial_map: one side word per source halfedge (3 x #F) needed");
+  auto give_up = [&](const std::string& why) {
+    out.applied = false;
+    out.reason = why;
+    out.z.clear(), out.vertex_deck.clear(), out.vertex_deck_word.clear();
+    out.time_s = seconds_since(t0);
+    return out;
+  };
+
+  // 1. The cut graph: the unrefined loops' edges, dangling edges pruned.
+  SystemOfLoopsOptions lo;
+  lo.base_vertex = options.base_vertex;
+  lo.refine = false;
+  SystemOfLoops sl;
+  try {
+    sl = system_of_loops(source, lo);
+  } catch (const Error& e) {
+    return give_up(std::string("loops: ") + e.what());
+  }
+  std::vector<char> cut(sc.num_edges(), 0);
+  for (const auto& loop : sl.loops)
+    for (size_t q = 0; q + 1 < loop.size(); ++q) {
+      const int h = sc.find_halfedge(loop[q], loop[q + 1]);
+      if (h < 0) return give_up("a loop is not an edge path of the source");
+      cut[sc.edge(h)] = 1;
+    }
+  std::vector<int> degree(nv, 0);
+  auto count_degrees = [&] {
+    std::fill(degree.begin(), degree.end(), 0);
+    for (int e = 0; e < sc.num_edges(); ++e)
+      if (cut[e]) ++degree[sc.edge_vertex(e, 0)], ++degree[sc.edge_vertex(e, 1)];
+  };
+  count_degrees();
+  {
+    std::vector<int> leaves;
+    for (int v = 0; v < nv; ++v)
+      if (degree[v] == 1) leaves.push_back(v);
+    while (!leaves.empty()) {
+      const int v = leaves.back();
+      leaves.pop_back();
+      if (degree[v] != 1) continue;
+      for (int h : sc.outgoing(v))
+        if (cut[sc.edge(h)]) {
+          cut[sc.edge(h)] = 0;
+          --degree[v];
+          if (--degree[sc.head(h)] == 1) leaves.push_back(sc.head(h));
+          break;
+        }
+    }
+  }
+
+  // 2.-4. Cut, read the sides, reroute chords, until there is none.
+  CutMesh cm;
+  std::vector<int> bl, corner_pos, partner;
+  int nd = 0, ns = 0;
+  for (int reroute = 0;; ++reroute) {
+    count_degrees();
+    cm = cut_mesh_along_edges(source, sc, cut);
+    if (cm.euler_characteristic != 1 || cm.boundary_loops.size() != 1) return give_up("the cut graph does not cut the source into a disk");
+    nd = static_cast<int>(cm.original_vertex.size());
+    bl = cm.boundary_loops[0];
+    const int nb = static_cast<int>(bl.size());
+    corner_pos.clear();
+    for (int i = 0; i < nb; ++i)
+      if (degree[cm.original_vertex[bl[i]]] >= 3) corner_pos.push_back(i);
+    ns = static_cast<int>(corner_pos.size());
+    if (ns < 3) return give_up("the cut graph has fewer than 3 corners");
+    std::rotate(bl.begin(), bl.begin() + corner_pos[0], bl.end());
+    for (int i = ns - 1; i >= 0; --i) corner_pos[i] -= corner_pos[0];
+    corner_pos.push_back(nb);
+    // Every cut edge occurs twice along the boundary; a side's partner is
+    // the side holding the other occurrence of its first edge, reversed.
+    std::vector<int> side_at(nb), edge_at(nb);
+    std::unordered_map<int, std::vector<int>> positions;
+    for (int s = 0; s < ns; ++s)
+      for (int i = corner_pos[s]; i < corner_pos[s + 1]; ++i) {
+        side_at[i] = s;
+        const int h = sc.find_halfedge(cm.original_vertex[bl[i]], cm.original_vertex[bl[(i + 1) % nb]]);
+        if (h < 0 || !cut[sc.edge(h)]) return give_up("a boundary edge of the cut disk is not a cut edge");
+        edge_at[i] = sc.edge(h);
+        positions[edge_at[i]].push_back(i);
+      }
+    partner.assign(ns, -1);
+    for (int s = 0; s < ns; ++s) {
+      const auto& ps = positions[edge_at[corner_pos[s]]];
+      if (ps.size() != 2) return give_up("a cut edge is not on the boundary twice");
+      const int other = ps[0] == corner_pos[s] ? ps[1] : ps[0];
+      const int t = side_at[other];
+      // Reversed: the first edge of s is the last of t, and the lengths agree.
+      if (other != corner_pos[t + 1] - 1 || corner_pos[t + 1] - corner_pos[t] != corner_pos[s + 1] - corner_pos[s])
+        return give_up("the sides of the cut disk are not paired");
+      partner[s] = t;
+    }
+    // Chords: interior edges (not cut) joining two copies on one side.
+    // Offsets along side s of boundary position i (-1: not on side s).
+    std::vector<int> pos_of(nd, -1);
+    for (int i = 0; i < nb; ++i) pos_of[bl[i]] = i;
+    auto offset_on = [&](int i, int s) {
+      if (i >= corner_pos[s] && i <= corner_pos[s + 1]) return i - corner_pos[s];
+      if (i == 0 && s == ns - 1) return nb - corner_pos[s];
+      return -1;
+    };
+    struct Chord {
+      int side, from, to, edge;
+    };
+    std::vector<Chord> chords;
+    for (int f = 0; f < nf; ++f)
+      for (int q = 0; q < 3; ++q) {
+        const int h = 3 * f + q, e = sc.edge(h);
+        if (cut[e] || sc.edge_halfedge(e) != h) continue;  // once per interior edge
+        const int i = pos_of[cm.mesh.F(f, q)], j = pos_of[cm.mesh.F(f, (q + 1) % 3)];
+        if (i < 0 || j < 0) continue;
+        for (int s : {side_at[i], (side_at[i] + ns - 1) % ns}) {
+          const int oi = offset_on(i, s), oj = offset_on(j, s);
+          if (oi >= 0 && oj >= 0) {
+            chords.push_back({s, std::min(oi, oj), std::max(oi, oj), e});
+            break;
+          }
+        }
+      }
+    if (chords.empty()) break;
+    if (reroute >= options.max_reroutes) return give_up("chords of the cut disk remain after " + std::to_string(reroute) + " reroutings");
+    // The longest chords first, one per chain (a side and its partner) per round.
+    std::sort(chords.begin(), chords.end(), [](const Chord& x, const Chord& y) { return x.to - x.from > y.to - y.from; });
+    std::vector<char> used(ns, 0);
+    for (const Chord& c : chords) {
+      if (used[c.side] || used[partner[c.side]]) continue;
+      used[c.side] = used[partner[c.side]] = 1;
+      for (int o = c.from; o < c.to; ++o) cut[edge_at[(corner_pos[c.side] + o) % nb]] = 0;
+      cut[c.edge] = 1;
+      ++out.chords_rerouted;
+    }
+  }
+  const int nb = static_cast<int>(bl.size());
+  bl.push_back(bl[0]);
+  std::vector<int> branch_index(nv, -1);
+  for (int v = 0; v < nv; ++v)
+    if (degree[v] >= 3) branch_index[v] = out.branch_vertices++;
+  out.chains = ns / 2;
+
+  // 2. Development: the frame element b_f of every face (the frame of its
+  // corner 0), and per disk copy d the deck word c_d = b_f phi(f, k).
+  auto phi = [&](int f, int k) -> Word {
+    return k == 0 ? Word{} : k == 1 ? halfedge_word[3 * f] : inverse(halfedge_word[3 * f + 2]);
+  };
+  std::vector<Word> c(nd), b(nf);
+  std::vector<char> has_c(nd, 0), seen(nf, 0);
+  double mismatch = 0;
+  auto assign_corners = [&](int f) {
+    for (int k = 0; k < 3; ++k) {
+      const int d = cm.mesh.F(f, k);
+      Word w = group.reduce(concat(b[f], phi(f, k)));
+      if (!has_c[d]) {
+        c[d] = std::move(w), has_c[d] = 1;
+      } else if (w != c[d]) {
+        // Relative to the entries' size: long words carry round-off of
+        // size² times machine precision.
+        const Mobius m1 = group.evaluate_side_word(w), m2 = group.evaluate_side_word(c[d]);
+        const double size = std::max(m1.size(), m2.size());
+        mismatch = std::max(mismatch, hyperbolic::mobius_distance(m1, m2) / (size * size));
+      }
+    }
+  };
+  std::vector<int> queue{0};
+  seen[0] = 1;
+  assign_corners(0);
+  for (size_t q = 0; q < queue.size(); ++q) {
+    const int f = queue[q];
+    for (int k = 0; k < 3; ++k) {
+      const int h = 3 * f + k;
+      if (cut[sc.edge(h)]) continue;
+      const int t = sc.twin(h), g = Connectivity::face(t);
+      if (seen[g]) continue;
+      seen[g] = 1;
+      const int kg = (t % 3 + 1) % 3;  // corner of g at tail(h)
+      b[g] = group.reduce(concat(c[cm.mesh.F(f, k)], inverse(phi(g, kg))));
+      assign_corners(g);
+      queue.push_back(g);
+    }
+  }
+  if (static_cast<int>(queue.size()) != nf) return give_up("the cut disk is not connected");
+  if (mismatch > 1e-6) return give_up("the class's deck elements are not flat (" + std::to_string(mismatch) + ")");
+
+  // 3. The corner points: the harmonic map of the metric cut graph.
+  std::vector<double> side_length_3d(ns, 0);
+  for (int s = 0; s < ns; ++s)
+    for (int i = corner_pos[s]; i < corner_pos[s + 1]; ++i)
+      side_length_3d[s] += (cm.mesh.V.row(bl[i + 1]) - cm.mesh.V.row(bl[i])).norm();
+  std::vector<Chain> chains;
+  for (int s = 0; s < ns; ++s) {
+    if (partner[s] < s) continue;
+    const int da = bl[corner_pos[s]], db = bl[corner_pos[s + 1]];
+    Chain ch;
+    ch.a = branch_index[cm.original_vertex[da]];
+    ch.b = branch_index[cm.original_vertex[db]];
+    if (ch.a < 0 || ch.b < 0) return give_up("a corner of the cut disk is not a branch vertex");
+    ch.M = group.evaluate_side_word(group.reduce(concat(inverse(c[da]), c[db])));
+    ch.Mi = ch.M.inverse();
+    ch.w = 1.0 / std::max(side_length_3d[s], 1e-300);
+    chains.push_back(ch);
+  }
+  std::vector<Complex> p(out.branch_vertices, Complex(0.0));
+  out.network_sweeps = minimise_network(chains, p, options.network_sweeps, options.network_tolerance);
+  std::vector<Mobius> C(ns);
+  std::vector<Complex> Q(ns);
+  for (int s = 0; s < ns; ++s) {
+    const int d = bl[corner_pos[s]];
+    C[s] = group.evaluate_side_word(c[d]);
+    Q[s] = C[s].apply(p[branch_index[cm.original_vertex[d]]]);
+  }
+  out.corners = Q;
+  for (int s = 0; s < ns; ++s) {
+    const double len = hyperbolic::distance(Q[s], Q[(s + 1) % ns]);
+    out.perimeter += len;
+    if (!(len > 1e-9)) return give_up("side " + std::to_string(s) + " of the polygon has no length (a chain of the cut graph collapsed)");
+  }
+  // The chart centred at the corners' Klein centroid.
+  Mobius chart = Mobius();
+  for (int it = 0; it < 4; ++it) {
+    Complex m(0.0);
+    for (int s = 0; s < ns; ++s) m += hyperbolic::poincare_to_klein(chart.apply(Q[s]));
+    chart = (Mobius::centring(hyperbolic::klein_to_poincare(m / double(ns))) * chart).normalized();
+  }
+  std::vector<Complex> qc(ns), kq(ns);
+  for (int s = 0; s < ns; ++s) {
+    // Through the corner's deck element, where the digits are.
+    const int d = bl[corner_pos[s]];
+    qc[s] = (chart * C[s]).normalized().apply(p[branch_index[cm.original_vertex[d]]]);
+    kq[s] = hyperbolic::poincare_to_klein(qc[s]);
+    if (!(std::isfinite(kq[s].real()) && std::isfinite(kq[s].imag()) && std::abs(kq[s]) < 1 - 1e-9))
+      return give_up("the polygon is too large for double precision (corner " + std::to_string(s) + ")");
+  }
+  double total_turn = 0;
+  out.min_turn = 10, out.max_turn = -10;
+  for (int s = 0; s < ns; ++s) {
+    const Complex e0 = kq[s] - kq[(s + ns - 1) % ns], e1 = kq[(s + 1) % ns] - kq[s];
+    const double turn = std::arg(e1 / e0);
+    total_turn += turn;
+    out.min_turn = std::min(out.min_turn, turn);
+    out.max_turn = std::max(out.max_turn, turn);
+  }
+  out.convex = out.min_turn > options.min_turn && std::abs(total_turn - 2 * M_PI) < 1e-6;
+  if (!out.convex)
+    return give_up(std::abs(total_turn - 2 * M_PI) < 1e-6
+                       ? "the polygon is simple but not strictly convex (smallest turn " + std::to_string(out.min_turn) + ")"
+                       : "the polygon is not simple (total turn " + std::to_string(total_turn / (2 * M_PI)) + " x 2pi)");
+
+  // 5. Boundary copies at the fraction of their chain's 3D length (measured
+  // from the side's start; the partner runs the other way, so both copies
+  // of a vertex get the same point of the chain), interior ones by Floater.
+  std::vector<Complex> k(nd, Complex(0.0));
+  std::vector<char> on_boundary(nd, 0);
+  for (int s = 0; s < ns; ++s) {
+    double along = 0;
+    for (int i = corner_pos[s]; i < corner_pos[s + 1]; ++i) {
+      k[bl[i]] = hyperbolic::poincare_to_klein(
+          hyperbolic::geodesic_point(qc[s], qc[(s + 1) % ns], along / std::max(side_length_3d[s], 1e-300)));
+      on_boundary[bl[i]] = 1;
+      along += (cm.mesh.V.row(bl[i + 1]) - cm.mesh.V.row(bl[i])).norm();
+    }
+    k[bl[corner_pos[s]]] = kq[s];
+  }
+  (void)nb;
+  const auto dedges = detail::mean_value_disk_edges(cm.mesh);
+  std::vector<detail::FlatteningEdge> graph;
+  graph.reserve(dedges.size());
+  for (const auto& [key, de] : dedges) {
+    const int i = static_cast<int>(key / nd), j = static_cast<int>(key % nd);
+    if (de.faces == 2) graph.push_back({i, j, de.w});
+    else if (de.faces != 1 || !on_boundary[i] || !on_boundary[j]) return give_up("the cut disk is not a manifold disk");
+  }
+  std::string why;
+  if (!detail::flatten_in_klein(graph, on_boundary, options.hyperboloid_rounds, k, &why)) return give_up(why);
+
+  // The input vertices: one copy's point (global frame) and its deck word,
+  // then moved into the target's domain.
+  std::vector<int> copy_of(nv, -1);
+  for (int d = 0; d < nd; ++d)
+    if (copy_of[cm.original_vertex[d]] < 0) copy_of[cm.original_vertex[d]] = d;
+  const Mobius unchart = chart.inverse();
+  out.z.resize(nv);
+  out.vertex_deck.resize(nv);
+  out.vertex_deck_word.resize(nv);
+  for (int i = 0; i < nv; ++i) {
+    const int d = copy_of[i];
+    if (d < 0) return give_up("vertex " + std::to_string(i) + " is missing from the cut disk");
+    Complex zi = unchart.apply(hyperbolic::klein_to_poincare(k[d]));
+    if (!(std::isfinite(zi.real()) && std::isfinite(zi.imag()) && std::abs(zi) < 1 - 1e-12))
+      return give_up("vertex " + std::to_string(i) + " lands at the disk's boundary (no digits left)");
+    Word w = c[d];
+    if (options.reduce_point) w = group.reduce(concat(options.reduce_point(zi), w));
+    out.z[i] = zi;
+    out.vertex_deck[i] = group.evaluate_side_word(w);
+    out.vertex_deck_word[i] = std::move(w);
+  }
+  out.applied = true;
+  out.time_s = seconds_since(t0);
+  return out;
+}
+
+}  // namespace surfmap

@@ -1,0 +1,89 @@
+#include "disk_flattening.h"
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+
+#include <Eigen/CholmodSupport>
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <Eigen/Sparse>
+
+#include "concurrency.h"
+
+namespace surfmap::detail {
+
+using Complex = std::complex<double>;
+
+std::unordered_map<long long, DiskEdge> mean_value_disk_edges(const TriMesh& disk) {
+  const int nd = disk.num_vertices(), nf = disk.num_faces();
+  std::unordered_map<long long, DiskEdge> edges;
+  edges.reserve(3 * static_cast<size_t>(nf));
+  auto half_tan = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return a.cross(b).norm() / std::max(a.norm() * b.norm() + a.dot(b), 1e-300);
+  };
+  for (int f = 0; f < nf; ++f)
+    for (int q = 0; q < 3; ++q) {
+      const int i = disk.F(f, q), j = disk.F(f, (q + 1) % 3), o = disk.F(f, (q + 2) % 3);
+      const Eigen::Vector3d pi = disk.V.row(i), pj = disk.V.row(j), po = disk.V.row(o);
+      const double len = std::max((pj - pi).norm(), 1e-300);
+      DiskEdge& de = edges[disk_edge_key(i, j, nd)];
+      // tan(α/2) at both ends of the edge, over its length: Floater's
+      // mean-value weight, summed over the edge's two faces (symmetric).
+      de.w += (half_tan(pj - pi, po - pi) + half_tan(pi - pj, po - pj)) / len;
+      if (de.faces < 2) de.opposite[de.faces] = o;
+      ++de.faces;
+    }
+  return edges;
+}
+
+bool flatten_in_klein(const std::vector<FlatteningEdge>& graph, const std::vector<char>& fixed, int hyperboloid_rounds,
+                      std::vector<Complex>& k, std::string* why) {
+  const int nn = static_cast<int>(k.size());
+  std::vector<int> unknown(nn, -1);
+  int nu = 0;
+  for (int n = 0; n < nn; ++n)
+    if (!fixed[n]) unknown[n] = nu++;
+  if (nu == 0) return true;
+  auto gamma = [&](int node) { return 1.0 / std::sqrt(std::max(1e-300, 1.0 - std::norm(k[node]))); };
+  // Every round has the same sparsity pattern: one symbolic analysis.
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
+  for (int round = 0; round <= hyperboloid_rounds; ++round) {
+    std::vector<Eigen::Triplet<double>> trip;
+    trip.reserve(2 * graph.size() + nu);
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nu, 2);
+    std::vector<double> diag(nu, 0.0);
+    for (const auto& [a, b, w0] : graph) {
+      // Row i scaled by γ_i: symmetric.
+      const double w = round == 0 ? w0 : w0 * gamma(a) * gamma(b);
+      const int ua = unknown[a], ub = unknown[b];
+      if (ua >= 0) diag[ua] += w;
+      if (ub >= 0) diag[ub] += w;
+      if (ua >= 0 && ub >= 0) {
+        trip.emplace_back(ua, ub, -w), trip.emplace_back(ub, ua, -w);
+      } else if (ua >= 0) {
+        rhs(ua, 0) += w * k[b].real(), rhs(ua, 1) += w * k[b].imag();
+      } else if (ub >= 0) {
+        rhs(ub, 0) += w * k[a].real(), rhs(ub, 1) += w * k[a].imag();
+      }
+    }
+    for (int u = 0; u < nu; ++u) trip.emplace_back(u, u, diag[u]);
+    Eigen::SparseMatrix<double> L(nu, nu);
+    L.setFromTriplets(trip.begin(), trip.end());
+    if (round == 0) {
+      std::lock_guard<std::mutex> lock(ordering_mutex());  // CHOLMOD may try METIS
+      llt.analyzePattern(L);
+    }
+    llt.factorize(L);
+    if (llt.info() != Eigen::Success) {
+      if (why) *why = "the flattening's Laplacian could not be factorised";
+      return false;
+    }
+    const Eigen::MatrixXd X = llt.solve(rhs);
+    for (int n = 0; n < nn; ++n)
+      if (unknown[n] >= 0) k[n] = Complex(X(unknown[n], 0), X(unknown[n], 1));
+  }
+  return true;
+}
+
+}  // namespace surfmap::detail
