@@ -8,19 +8,7 @@ import numpy as np
 import pytest
 
 import surfmap
-
-
-def torus(R, r, n, m, shift=0):
-    """Torus of revolution, n x m grid, quads split along one diagonal (shift varies the connectivity)."""
-    u, v = np.meshgrid(np.arange(n) * 2 * math.pi / n, (np.arange(m) + 0.5 * shift) * 2 * math.pi / m, indexing="ij")
-    V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1).reshape(-1, 3)
-    F = []
-    for i in range(n):
-        for j in range(m):
-            a, b = i * m + j, ((i + 1) % n) * m + j
-            c, d = ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m
-            F += [[a, b, c], [a, c, d]] if (i + j + shift) % 2 == 0 else [[a, b, d], [b, c, d]]
-    return V, np.array(F)
+from mesh_helpers import nearest_vertex, torus
 
 
 def modulus(R, r):
@@ -359,7 +347,7 @@ def test_genus2_classes_are_ranked_with_the_landmarks_held():
     b = surfmap.shapes.vase(18, True)
     Vb, n = b[0], len(a[0])
     other = surfmap.surface_map(*a, *b, homotopy=0)      # a near-symmetric class of the best
-    lm = [(s, int(np.argmin(((Vb - other["forward"]["position"][s]) ** 2).sum(1)))) for s in range(0, n, n // 6)]
+    lm = [(s, nearest_vertex(Vb, other["forward"]["position"][s])) for s in range(0, n, n // 6)]
     r = surfmap.surface_map(*a, *b, landmarks=lm, homotopy_full_solves=8)
     cands = r["homotopy"]["candidates"]
     solved = [i for i, c in enumerate(cands) if c["solved"] and math.isfinite(c["energy"])]
