@@ -31,6 +31,14 @@ struct ProjectedLoopsOptions {
   /// consecutive loop vertices, relative to the ratio of mean edge lengths
   /// (default 6: images that jump further mean the shapes do not overlap).
   double max_gap_factor = 6.0;
+  /// When > 0, consecutive images up to this far apart in the unit box are
+  /// joined too (by the target's shortest path, at most about twice as
+  /// long), whatever max_gap_factor allows (default 0: off; see
+  /// ProjectedLoopsResult::ok_with_joins). The nearest point jumps where a
+  /// loop crosses the target's medial axis (a round tube over a square one:
+  /// from one wall to the opposite one); the join is then a guess that the
+  /// caller must verify.
+  double max_jump_box = 0.0;
   /// Linear maps applied to the source's and the target's vertices before
   /// the per-axis box normalisation (default identity: the shapes as posed).
   /// A rigid alignment of shapes not posed alike (rotation_overlay_poses)
@@ -42,13 +50,21 @@ struct ProjectedLoopsOptions {
 };
 
 struct ProjectedLoopsResult {
+  /// Every gap passed the test of max_gap_factor.
   bool ok = false;
+  /// Every gap passed it or was a jump joined under max_jump_box (then
+  /// loop_images is filled but `ok` is false: a guess to verify).
+  bool ok_with_joins = false;
   std::string message;
   /// Per source loop: its image's class as a Dehn-reduced word in the
-  /// target's loop letters (relator: the target's boundary word).
+  /// target's loop letters (relator: the target's boundary word); filled
+  /// when ok_with_joins.
   std::vector<Word> loop_images;
-  /// Longest edge path used to join consecutive images.
+  /// Longest edge path used to join consecutive images (within the
+  /// ordinary gap test).
   int longest_gap = 0;
+  /// Jumps beyond it joined under ProjectedLoopsOptions::max_jump_box.
+  int joined_jumps = 0;
 };
 
 /// `source`: the mesh of `source_loops` (closed vertex paths); `target`: the
