@@ -130,7 +130,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   const int nv = source.num_vertices();
   CoarseSourceOptions cso;
   cso.target_vertices = std::min(options.homotopy_coarse_vertices, nv / 4);
-  std::future<SourceSide> source_side = std::async(threads > 1 ? std::launch::async : std::launch::deferred, [&] {
+  auto build_source_side = [&] {
     SourceSide ss;
     ss.sl = source_loops(source, options);
     ss.scs = canonical_schema(ss.sl.word);
@@ -153,7 +153,102 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     // The ranking level (below): a coarse copy of the source.
     if (options.homotopy_coarse_vertices > 0 && cso.target_vertices >= 500) ss.cs = coarse_source(source, sc, cso);
     return ss;
-  });
+  };
+
+  // The source-only part of lifting classes from other source cuts (below:
+  // the loops at another base vertex, the default cut's generators as words
+  // in that cut's, and its handle basis; ~0.2 s per cut at 50k vertices)
+  // for every cut the class search may ask for, in the order it asks: the
+  // homotopy_extra_cuts first, then stage 1's homotopy_search_cuts. The
+  // second thread prepares them after the source side, while the target is
+  // still being uniformized, until the coarse ranking needs that thread
+  // (cut_prep_stop); the others are prepared on demand, where they are used.
+  // Whichever thread prepares a cut, the result is the same.
+  struct CutPrep {
+    bool ok = false;
+    GroupMap psi;  ///< default canonical generator -> word in this cut's canonical generators
+    HandleBasis shb;
+  };
+  struct CutSlot {
+    int base = -1;
+    std::once_flag once;
+    CutPrep prep;
+  };
+  std::vector<int> prep_bases;
+  if (options.homotopy_extra_cuts > 0) {
+    for (int c = 1; c <= options.homotopy_extra_cuts; ++c)
+      prep_bases.push_back(static_cast<int>((static_cast<long long>(nv) * c) / (options.homotopy_extra_cuts + 1)));
+    if (options.homotopy_search && options.homotopy < 0)
+      for (int c = 1; c <= options.homotopy_search_cuts; ++c)
+        prep_bases.push_back(static_cast<int>((static_cast<long long>(nv) * c) / (options.homotopy_search_cuts + 1)));
+  }
+  std::vector<CutSlot> cut_slots(prep_bases.size());
+  for (size_t k = 0; k < prep_bases.size(); ++k) cut_slots[k].base = prep_bases[k];
+  // What preparing a cut needs of the default one (set before the source
+  // side is handed over, read-only after).
+  std::vector<std::vector<int>> default_loops;
+  std::vector<Word> default_generators;
+  auto prepare_cut = [&](CutSlot& slot) -> const CutPrep& {
+    std::call_once(slot.once, [&] {
+      CutPrep cp;
+      const int n2 = 2 * out.genus;
+      SurfaceMapOptions o2 = options;
+      o2.source_base_vertex = slot.base;
+      SystemOfLoops sl2;
+      try {
+        sl2 = source_loops(source, o2);
+      } catch (const Error&) {
+        slot.prep = std::move(cp);  // no system of loops at that vertex: the default one is enough
+        return;
+      }
+      const CanonicalSchema scs2 = canonical_schema(sl2.word);
+      const ProjectedLoopsResult self = project_loops(source, default_loops, sl2, sl2.word);
+      if (self.ok) {
+        const Word R2 = canonical_relator(out.genus);
+        const IntMatrix J2 = symplectic_form(out.genus);
+        cp.psi.assign(n2, Word{});
+        for (int j = 0; j < n2; ++j)
+          cp.psi[j] = dehn_reduce(substitute(substitute(default_generators[j], self.loop_images), scs2.letters), R2);
+        const IntMatrix Mpsi = homology_matrix(cp.psi, n2);
+        if (Mpsi.transpose() * J2 * Mpsi == J2 && dehn_reduce(substitute(R2, cp.psi), R2).empty()) {
+          cp.shb = handle_basis(source, sl2.loops, scs2);
+          cp.ok = true;
+        }
+      }
+      slot.prep = std::move(cp);
+    });
+    return slot.prep;
+  };
+  std::atomic<bool> cut_prep_stop{false};
+  std::promise<SourceSide> source_promise;
+  std::future<SourceSide> source_side = source_promise.get_future();
+  std::future<void> side_thread;
+  if (threads > 1)
+    side_thread = std::async(std::launch::async, [&] {
+      try {
+        SourceSide ss = build_source_side();
+        default_loops = ss.sl.loops;
+        default_generators = ss.scs.generators;
+        source_promise.set_value(std::move(ss));
+      } catch (...) {
+        source_promise.set_exception(std::current_exception());
+        return;
+      }
+      try {
+        for (CutSlot& slot : cut_slots) {
+          if (cut_prep_stop) break;
+          prepare_cut(slot);
+        }
+      } catch (...) {
+        // (prepared again where needed, which reports the error)
+      }
+    });
+  // Raised before anything that needs the second thread, and on the way out
+  // (the thread is joined by side_thread's destructor, after this).
+  struct RaiseOnExit {
+    std::atomic<bool>& flag;
+    ~RaiseOnExit() { flag = true; }
+  } raise_cut_prep_stop{cut_prep_stop};
 
   // Target: hyperbolic metric, layout, canonical generators.
   const UniformizedTarget ut = uniformized_target(target, Background::Hyperbolic, options);
@@ -201,7 +296,14 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   stage_done("target uniformization", 0.3);
 
   // Source homotopy data in the target's deck group.
-  SourceSide ss = source_side.get();
+  SourceSide ss;
+  if (threads > 1) {
+    ss = source_side.get();
+  } else {
+    ss = build_source_side();
+    default_loops = ss.sl.loops;
+    default_generators = ss.scs.generators;
+  }
   const SystemOfLoops& sl = ss.sl;
   const CanonicalSchema& scs = ss.scs;
   const std::vector<Word>& edge_word = ss.edge_word;
@@ -440,23 +542,13 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
       if (std::find(cut_bases_used.begin(), cut_bases_used.end(), b) == cut_bases_used.end())
         bases.push_back(b), cut_bases_used.push_back(b);
     for (size_t c = 1; c < bases.size(); ++c) {
-      SurfaceMapOptions o2 = options;
-      o2.source_base_vertex = bases[c];
-      SystemOfLoops sl2;
-      try {
-        sl2 = source_loops(source, o2);
-      } catch (const Error&) {
-        continue;  // no system of loops at that vertex: the default one is enough
-      }
-      const CanonicalSchema scs2 = canonical_schema(sl2.word);
-      const ProjectedLoopsResult self = project_loops(source, sl.loops, sl2, sl2.word);
-      if (!self.ok) continue;
-      GroupMap psi(n);  // default canonical generator -> word in the other cut's canonical generators
-      for (int j = 0; j < n; ++j)
-        psi[j] = dehn_reduce(substitute(substitute(scs.generators[j], self.loop_images), scs2.letters), R);
-      const IntMatrix Mpsi = homology_matrix(psi, n);
-      if (Mpsi.transpose() * J * Mpsi != J || !dehn_reduce(substitute(R, psi), R).empty()) continue;
-      const HandleBasis shb2 = handle_basis(source, sl2.loops, scs2);
+      auto slot = std::find_if(cut_slots.begin(), cut_slots.end(), [&](const CutSlot& x) { return x.base == bases[c]; });
+      CutSlot unplanned;  // (every cut asked for is planned above; this keeps a mismatch harmless)
+      unplanned.base = bases[c];
+      const CutPrep& cp = prepare_cut(slot != cut_slots.end() ? *slot : unplanned);
+      if (!cp.ok) continue;
+      const GroupMap& psi = cp.psi;
+      const HandleBasis& shb2 = cp.shb;
       for (HandleCandidate hc : handle_candidates(shb2, thb, options.homotopy_candidates)) {
         size_t lifted = 0;
         for (const Word& w : hc.map) lifted += w.size();
@@ -492,6 +584,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     for (int c = 1; c <= options.homotopy_extra_cuts; ++c)
       first_bases.push_back(static_cast<int>((static_cast<long long>(source.num_vertices()) * c) / (options.homotopy_extra_cuts + 1)));
     for (HandleCandidate& hc : lift_from_cuts(first_bases)) handle_classes.push_back(std::move(hc));
+    if (!ss.cs.ok) cut_prep_stop = true;  // no coarse copy: no class search, no more cuts needed
   }
 
   // The homotopy data of one class theta (source canonical generator ->
@@ -830,6 +923,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     const std::vector<Complex> corigin(ncv, Complex(0.0));
     const std::vector<Word> no_decks(ncv);
     std::vector<HyperbolicHarmonicResult> coarse_result(ncand);
+    cut_prep_stop = true;  // the second thread is needed here
     // Independent solves, on two threads (concurrency.h: only this thread
     // calls the progress callback, the other one sees a stop flag).
     parallel_for(threads, ncand, [&](int k, const std::atomic<bool>* stop) {
@@ -909,10 +1003,11 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     // conformal bound (see below), lifts from homotopy_search_cuts more
     // source cuts (other Torelli representatives; cheap next to their
     // solves, and of their new classes only the lowest-screen ones are
-    // solved). The bench pair n_hole_torus(2) -> vase at 50k vertices gets
-    // its geometric class (E 25.96, mean D' 1.36) only this way: the 3
-    // default cuts give 66.8 (D' 5.41), and no twist neighbour of that
-    // class is lower.
+    // solved, in that order, until one is within the gap: what the twist
+    // search would not run for either). The bench pair n_hole_torus(2) ->
+    // vase at 50k vertices gets its geometric class (E 25.96, mean D' 1.36)
+    // only this way: the 3 default cuts give 66.8 (D' 5.41), and no twist
+    // neighbour of that class is lower.
     if (!coarse_source_word.empty() && lift_from_cuts && options.homotopy_search_cuts > 0 &&
         options.homotopy_search_start < 0 && usable[order[0]] &&
         out.candidates[order[0]].energy > (1 + options.homotopy_search_gap) * conformal_bound) {
@@ -920,7 +1015,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
       std::vector<int> late;
       for (int c = 1; c <= options.homotopy_search_cuts; ++c)
         late.push_back(static_cast<int>((static_cast<long long>(nv) * c) / (options.homotopy_search_cuts + 1)));
-      for (HandleCandidate& hc : lift_from_cuts(late)) {
+      auto lifted_late = lift_from_cuts(late);
+      for (HandleCandidate& hc : lifted_late) {
         if (loop_image_length(hc.map) > max_image_letters) continue;
         ClassData cd;
         Evaluated ev;
@@ -932,6 +1028,9 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         ++out.homotopy_search.cut_classes;
         if (!solve_coarse(hc.map, &ev)) continue;
         append_class(std::move(hc), std::move(cd), ev);
+        // Within the gap of the bound: what the search below would not run
+        // for, so the rest (lowest screen first) are not solved either.
+        if (ev.result.energy <= (1 + options.homotopy_search_gap) * conformal_bound) break;
       }
       out.homotopy_search.cuts_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cuts).count();
     }

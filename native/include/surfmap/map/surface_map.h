@@ -150,7 +150,8 @@ struct SurfaceMapOptions {
   /// Before the twists, under the same condition: lifted classes from
   /// `homotopy_search_cuts` more source cuts (default 12, spread over the
   /// vertex list; at most homotopy_extra_cut_classes of their new classes
-  /// solved on the coarse copy and added).
+  /// solved on the coarse copy, lowest screen first, and added; the rest
+  /// are dropped once one comes within `homotopy_search_gap` of the bound).
   bool homotopy_search = true;
   int homotopy_search_evaluations = 24;
   double homotopy_search_gap = 0.1;
