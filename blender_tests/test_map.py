@@ -675,6 +675,11 @@ def test_far_genus2_landmark_is_held_by_the_barrier_continuation():
     assert m and int(m.group(1)) >= 1, status
     assert status in settings.map_status and "0 flipped" in settings.map_status, settings.map_status
     assert a.data["surfmap_map"]["genus"] == 2
+    # the candidates list the energy with the landmarks held; the chosen class is its minimum
+    held = {c.index: c.landmark_energy for c in settings.candidates if c.landmark_energy == c.landmark_energy}
+    assert settings.chosen_candidate == min(held, key=held.get), held
+    # (FloatProperty: single precision)
+    assert abs(held[settings.chosen_candidate] - a.data["surfmap_map"]["energy"]) < 1e-6 * held[settings.chosen_candidate]
     face = a.data.attributes["surfmap_map_face"].data[s].value
     bary = np.array(a.data.attributes["surfmap_map_bary"].data[s].vector)
     p = _mapping().points_at(helpers.coords(b), helpers.triangles_of(b)[0], [face], [bary])[0]

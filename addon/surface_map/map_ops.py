@@ -408,7 +408,10 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
             item.index, item.description = i, c["description"]
             item.solved = bool(c.get("solved", True)) and math.isfinite(e)
             item.energy = e if item.solved else 0.0
-            lines_c.append(f"{i}: " + (f"E = {e:.6g}" if item.solved else "not solved"))
+            held = float(c.get("landmark_energy", math.nan))
+            item.landmark_energy = held
+            lines_c.append(f"{i}: " + (f"E = {e:.6g}" if item.solved else "not solved")
+                           + (f", with landmarks {held:.6g}" if not math.isnan(held) else ""))
         settings.chosen_candidate = int(res["homotopy"]["chosen"])
         lines.append(f"handle correspondences (chosen {settings.chosen_candidate}): "
                      + "; ".join(lines_c))

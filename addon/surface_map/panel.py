@@ -55,6 +55,8 @@ def draw_map(layout, settings):
     for c in settings.candidates:
         mark = "* " if c.index == settings.chosen_candidate else "  "
         energy = f"E = {c.energy:.6g}" if c.solved else "not solved"
+        if c.landmark_energy == c.landmark_energy:  # not nan: ranked with the landmarks held
+            energy += f" (landmarks: {c.landmark_energy:.6g})"
         col.label(text=f"{mark}{c.index}: {energy}  {c.description}"[:90])
     col = box.column(align=True)
     col.prop(settings, "landmark_mode")

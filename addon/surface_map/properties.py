@@ -13,6 +13,11 @@ class SURFMAP_PG_candidate(bpy.types.PropertyGroup):
     energy: FloatProperty(name="Energy")
     solved: BoolProperty(name="Solved", default=True,
                          description="False when the core could not solve this class (no energy)")
+    landmark_energy: FloatProperty(
+        name="Energy With Landmarks", default=float("nan"),
+        description="With landmarks: the class's energy with them held as the map holds them "
+                    "(the ranking's key; inf where they cannot be held bijectively, nan when "
+                    "not computed: its lower bound could not beat the best)")
 
 
 class SURFMAP_PG_settings(bpy.types.PropertyGroup):

@@ -190,6 +190,88 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     return std::make_pair(pinned_cot->solve(t, lifts), lifts);
   };
 
+  // The image triangles of the source's own faces for a class's edge
+  // translations (corner 0 at z_{F0}; corner 1 = z_{F1} + t(F0->F1);
+  // corner 2 = z_{F2} - t(F2->F0)).
+  auto image_corners_of = [&](const std::vector<Complex>& te, const std::vector<Complex>& zz) {
+    Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> img(source.num_faces(), 3);
+    auto of = [&](int h) { return sc.edge_halfedge(sc.edge(h)) == h ? te[sc.edge(h)] : -te[sc.edge(h)]; };
+    for (int f = 0; f < source.num_faces(); ++f) {
+      img(f, 0) = zz[source.F(f, 0)];
+      img(f, 1) = zz[source.F(f, 1)] + of(3 * f);
+      img(f, 2) = zz[source.F(f, 2)] - of(3 * f + 2);
+    }
+    return img;
+  };
+  // The landmarks held in one class (translations t on the intrinsic
+  // edges, te on the source's own): each on its lift; plain pins first (the
+  // exact held optimum); if that folds, the interior-point continuation
+  // (the bijective map of least energy, up to its barrier), and if that
+  // stalls, carried neighbourhoods (landmarks.h), or a SolveError naming
+  // them. `held`/`values`: the vertices held and where (the initial map
+  // holds the same).
+  struct FlatHold {
+    std::vector<Complex> z;
+    double energy = 0;
+    std::string method = "pinned";
+    std::vector<int> rings;
+    int solves = 1, steps = 0, held_count = 0;
+    std::vector<int> held;
+    std::vector<Complex> values;
+  };
+  auto hold_landmarks = [&](const std::vector<Complex>& t, const std::vector<Complex>& te) {
+    FlatHold h;
+    const std::vector<Complex> free = solve(solver, t, false).first;
+    const std::vector<Complex> lifts = flat_landmark_lifts(free, lm_source, lm_target, tgt.A, tgt.B);
+    std::vector<std::pair<int, int>> ends(idt.edges.size());
+    for (size_t e = 0; e < idt.edges.size(); ++e) ends[e] = {idt.edges[e].i, idt.edges[e].j};
+    h.held = lm_source, h.values = lifts;
+    h.rings.assign(lm_source.size(), 0);
+    h.held_count = static_cast<int>(lm_source.size());
+    std::tie(h.z, h.energy) = pinned_cot->solve(t, lifts);
+    auto folds = [&](const std::vector<Complex>& zz) {
+      const DistortionStats q = planar_distortion(source.V, source.F, image_corners_of(te, zz));
+      return q.flipped > 0 || q.degenerate > 0;
+    };
+    if (!folds(h.z)) return h;
+    const FlatBarrierResult br =
+        flat_barrier_landmarks(n, idt.edges, t, source.F, image_corners_of(te, std::vector<Complex>(n, Complex(0.0))),
+                               free, lm_source, lifts);
+    h.solves += br.steps;
+    h.steps = br.steps;
+    if (br.ok && !folds(br.z)) {
+      h.z = br.z, h.energy = br.energy;
+      h.method = "barrier continuation";
+      return h;
+    }
+    h.method = "carried neighbourhoods";
+    try {
+      const LandmarkPatchSearch search = grow_landmark_patches(
+          n, ends, source.F, options.landmarks, [&](const std::vector<LandmarkPatch>& patches) {
+            h.held.clear(), h.values.clear();
+            for (size_t a = 0; a < patches.size(); ++a)
+              for (size_t r = 0; r < patches[a].vertex.size(); ++r) {
+                const int v = patches[a].vertex[r];
+                h.held.push_back(v);
+                h.values.push_back(r == 0 ? lifts[a] : free[v] + (lifts[a] - free[lm_source[a]]));
+              }
+            std::tie(h.z, h.energy) = PinnedFlatHarmonic(n, idt.edges, h.held, false).solve(t, h.values);
+            const DistortionStats q = planar_distortion(source.V, source.F, image_corners_of(te, h.z));
+            std::vector<int> bad;
+            for (int f = 0; f < source.num_faces(); ++f)
+              if (!std::isfinite(q.per_face[f])) bad.push_back(f);
+            return bad;
+          });
+      h.rings = search.rings;
+      h.solves += search.solves;
+      h.held_count = search.held_vertices;
+    } catch (const SolveError& e) {
+      throw SolveError("the landmarks cannot be held bijectively: the interior-point continuation stalled " +
+                       std::to_string(static_cast<int>(100 * br.reached)) + "% of the way to them, and " + e.what());
+    }
+    return h;
+  };
+
   // Candidate classes: a -> p A + q B, b -> r A + s B for small SL(2,Z)
   // matrices (the handle correspondences of a torus), up to the sign ±I,
   // which gives the same energy (the hyperelliptic involution).
@@ -206,25 +288,59 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     auto cost = [](const auto& m) { return std::abs(m[0]) + std::abs(m[1]) + std::abs(m[2]) + std::abs(m[3]); };
     return cost(m1) < cost(m2);
   });
+  auto translations_of = [&](const int* m) {
+    return intrinsic_translations(double(m[0]) * tgt.A + double(m[1]) * tgt.B, double(m[2]) * tgt.A + double(m[3]) * tgt.B);
+  };
   // (Ranked once: on the pass with own-edge weights the class chosen with
   // the intrinsic weights stays, and so do the candidates' energies.)
+  // Each class's free optimum energy; with landmarks also its plain pins'
+  // energy, the infimum over held maps (folded ones included) and so a
+  // lower bound of the bijective held energy.
   for (const auto& m : first_pass ? mats : std::vector<std::array<int, 4>>{}) {
     HomotopyCandidate c;
     std::copy(m.begin(), m.end(), c.matrix);
     c.description = "a -> " + std::to_string(m[0]) + " a' + " + std::to_string(m[1]) + " b',  b -> " +
                     std::to_string(m[2]) + " a' + " + std::to_string(m[3]) + " b'";
-    const auto tr = intrinsic_translations(double(m[0]) * tgt.A + double(m[1]) * tgt.B,
-                                           double(m[2]) * tgt.A + double(m[3]) * tgt.B);
-    c.energy = landmarks ? pinned_solve(tr.first).first.second : solve(solver, tr.first, false).second;
-    if (landmarks) c.landmark_energy = c.energy;
+    const auto tr = translations_of(c.matrix);
+    c.energy = solve(solver, tr.first, false).second;
+    if (landmarks) c.landmark_lower_bound = pinned_solve(tr.first).first.second;
     out.candidates.push_back(c);
   }
+  std::unique_ptr<FlatHold> chosen_hold;
   if (first_pass) {
   out.chosen_candidate = options.homotopy;
-  if (out.chosen_candidate < 0) {
+  if (out.chosen_candidate < 0 && !landmarks) {
     out.chosen_candidate = 0;
     for (size_t i = 1; i < out.candidates.size(); ++i)
       if (out.candidates[i].energy < out.candidates[out.chosen_candidate].energy) out.chosen_candidate = static_cast<int>(i);
+  } else if (out.chosen_candidate < 0) {
+    // With landmarks the classes are ranked by the energy of the map the
+    // pipeline returns (hold_landmarks), by branch and bound on the plain
+    // pins' lower bounds: held in the order of their bounds until none is
+    // below the best held energy (the rest: landmark_energy NaN); +inf
+    // where the landmarks cannot be held bijectively.
+    std::vector<int> order(out.candidates.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+    std::stable_sort(order.begin(), order.end(), [&](int x, int y) {
+      return out.candidates[x].landmark_lower_bound < out.candidates[y].landmark_lower_bound;
+    });
+    int best = -1;
+    for (int k : order) {
+      HomotopyCandidate& c = out.candidates[k];
+      if (best >= 0 && c.landmark_lower_bound >= out.candidates[best].landmark_energy) break;
+      const auto tr = translations_of(c.matrix);
+      try {
+        auto h = std::make_unique<FlatHold>(hold_landmarks(tr.first, tr.second));
+        c.landmark_energy = h->energy;
+        if (best < 0 || h->energy < out.candidates[best].landmark_energy) best = k, chosen_hold = std::move(h);
+      } catch (const SolveError&) {
+        c.landmark_energy = std::numeric_limits<double>::infinity();
+      }
+    }
+    if (best < 0)
+      throw SolveError("the landmarks cannot be held bijectively in any of the " + std::to_string(out.candidates.size()) +
+                       " homotopy classes tried");
+    out.chosen_candidate = best;
   } else if (out.chosen_candidate >= static_cast<int>(out.candidates.size())) {
     throw InputError("homotopy class " + std::to_string(options.homotopy) + " does not exist; there are " +
                      std::to_string(out.candidates.size()) + " candidates (0.." +
@@ -234,82 +350,22 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   stage_done("homotopy candidates", 0.6);
 
   const int* M = out.candidates[out.chosen_candidate].matrix;
-  const auto [t_intrinsic, t_edges] = intrinsic_translations(double(M[0]) * tgt.A + double(M[1]) * tgt.B,
-                                                             double(M[2]) * tgt.A + double(M[3]) * tgt.B);
-  // The image triangles of the source's own faces.
-  auto image_corners = [&](const std::vector<Complex>& zz) {
-    Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> img(source.num_faces(), 3);
-    auto of = [&](int h) { return sc.edge_halfedge(sc.edge(h)) == h ? t_edges[sc.edge(h)] : -t_edges[sc.edge(h)]; };
-    for (int f = 0; f < source.num_faces(); ++f) {
-      // corner 0 at z_{F0}; corner 1 = z_{F1} + t(F0->F1); corner 2 = z_{F2} - t(F2->F0).
-      img(f, 0) = zz[source.F(f, 0)];
-      img(f, 1) = zz[source.F(f, 1)] + of(3 * f);
-      img(f, 2) = zz[source.F(f, 2)] - of(3 * f + 2);
-    }
-    return img;
-  };
+  const auto [t_intrinsic, t_edges] = translations_of(M);
+  auto image_corners = [&](const std::vector<Complex>& zz) { return image_corners_of(t_edges, zz); };
   std::vector<Complex> z, z_init;
   double energy = 0;
   if (landmarks) {
-    // Each landmark on its lift; one whose plain pin folds the map carries
-    // a neighbourhood of its free image, translated with it (landmarks.h).
+    // The ranking's held map of this class when it has one (first pass).
+    const FlatHold h = chosen_hold ? std::move(*chosen_hold) : hold_landmarks(t_intrinsic, t_edges);
+    if (options.homotopy >= 0 && first_pass) out.candidates[out.chosen_candidate].landmark_energy = h.energy;
+    z = h.z, energy = h.energy;
+    out.landmark_method = h.method;
+    out.landmark_rings = h.rings;
+    out.landmark_solves = h.solves;
+    out.landmark_steps = h.steps;
+    out.landmark_held_vertices = h.held_count;
     // The initial (Tutte-type) map holds the same vertices at the same points.
-    const std::vector<Complex> free = solve(solver, t_intrinsic, false).first;
-    const std::vector<Complex> lifts = flat_landmark_lifts(free, lm_source, lm_target, tgt.A, tgt.B);
-    std::vector<std::pair<int, int>> ends(idt.edges.size());
-    for (size_t e = 0; e < idt.edges.size(); ++e) ends[e] = {idt.edges[e].i, idt.edges[e].j};
-    // Plain pins first (the exact held optimum); if that folds, the
-    // interior-point continuation (the bijective map of least energy, up to
-    // its barrier), and if that stalls, carried neighbourhoods.
-    std::vector<int> held_vertices = lm_source;
-    std::vector<Complex> held_values = lifts;
-    std::tie(z, energy) = PinnedFlatHarmonic(n, idt.edges, lm_source, false).solve(t_intrinsic, lifts);
-    auto folds = [&](const std::vector<Complex>& zz) {
-      const DistortionStats q = planar_distortion(source.V, source.F, image_corners(zz));
-      return q.flipped > 0 || q.degenerate > 0;
-    };
-    out.landmark_method = "pinned";
-    out.landmark_rings.assign(lm_source.size(), 0);
-    out.landmark_solves = 1;
-    out.landmark_held_vertices = static_cast<int>(lm_source.size());
-    if (folds(z)) {
-      const FlatBarrierResult br =
-          flat_barrier_landmarks(n, idt.edges, t_intrinsic, source.F, image_corners(std::vector<Complex>(n, Complex(0.0))),
-                                 free, lm_source, lifts);
-      out.landmark_solves += br.steps;
-      out.landmark_steps = br.steps;
-      if (br.ok && !folds(br.z)) {
-        z = br.z, energy = br.energy;
-        out.landmark_method = "barrier continuation";
-      } else {
-        out.landmark_method = "carried neighbourhoods";
-        try {
-          const LandmarkPatchSearch search = grow_landmark_patches(
-              n, ends, source.F, options.landmarks, [&](const std::vector<LandmarkPatch>& patches) {
-                held_vertices.clear(), held_values.clear();
-                for (size_t a = 0; a < patches.size(); ++a)
-                  for (size_t r = 0; r < patches[a].vertex.size(); ++r) {
-                    const int v = patches[a].vertex[r];
-                    held_vertices.push_back(v);
-                    held_values.push_back(r == 0 ? lifts[a] : free[v] + (lifts[a] - free[lm_source[a]]));
-                  }
-                std::tie(z, energy) = PinnedFlatHarmonic(n, idt.edges, held_vertices, false).solve(t_intrinsic, held_values);
-                const DistortionStats q = planar_distortion(source.V, source.F, image_corners(z));
-                std::vector<int> bad;
-                for (int f = 0; f < source.num_faces(); ++f)
-                  if (!std::isfinite(q.per_face[f])) bad.push_back(f);
-                return bad;
-              });
-          out.landmark_rings = search.rings;
-          out.landmark_solves += search.solves;
-          out.landmark_held_vertices = search.held_vertices;
-        } catch (const SolveError& e) {
-          throw SolveError("the landmarks cannot be held bijectively: the interior-point continuation stalled " +
-                           std::to_string(static_cast<int>(100 * br.reached)) + "% of the way to them, and " + e.what());
-        }
-      }
-    }
-    z_init = PinnedFlatHarmonic(n, idt.edges, held_vertices, true).solve(t_intrinsic, held_values).first;
+    z_init = PinnedFlatHarmonic(n, idt.edges, h.held, true).solve(t_intrinsic, h.values).first;
   } else {
     z_init = solve(tutte, t_intrinsic, true).first;
     std::tie(z, energy) = solve(solver, t_intrinsic, false);

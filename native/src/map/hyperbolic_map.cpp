@@ -1497,6 +1497,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     } else {
       held = hold_in_class(out.chosen_candidate, hr, ho, relax, ro, hold);
     }
+    out.candidates[out.chosen_candidate].landmark_energy = held.energy;
     out.landmark_rings = hold.rings;
     out.landmark_method = hold.method;
     out.landmark_solves = hold.solves;

@@ -242,17 +242,18 @@ struct HomotopyCandidate {
   /// When `solved` is false and this is finite, `energy` is this estimate.
   double coarse_energy = std::numeric_limits<double>::quiet_NaN();
   /// With landmarks: the class's energy with the landmarks held at their
-  /// nearest lifts, by which the classes are then ranked. Genus 1: plain
-  /// pins (also reported as `energy`). Genus >= 2: the held map the
-  /// pipeline would return in this class (plain pins, else the barrier
-  /// continuation, else carried rings), +inf when the landmarks cannot be
-  /// held bijectively in it, NaN for classes not solved at full resolution,
-  /// for those whose landmark_lower_bound was not below the best held
-  /// energy (they cannot win; not held), and without landmarks.
+  /// nearest lifts the way the pipeline would return its map (plain pins,
+  /// else the barrier continuation, else carried rings), by which the
+  /// classes are then ranked (branch and bound on landmark_lower_bound);
+  /// +inf when the landmarks cannot be held bijectively in it; NaN when not
+  /// computed: no landmarks, genus >= 2 classes not solved at full
+  /// resolution, classes whose lower bound was not below the best held
+  /// energy (they cannot win), or, with `homotopy` given, the other classes.
+  /// `energy` stays the class's free optimum.
   double landmark_energy = std::numeric_limits<double>::quiet_NaN();
-  /// Genus >= 2 with landmarks, classes solved at full resolution: the
-  /// plain pins' energy, the infimum over held maps (folded ones included),
-  /// so a lower bound of landmark_energy; NaN otherwise.
+  /// With landmarks (genus 1: every class; genus >= 2: those solved at full
+  /// resolution): the plain pins' energy, the infimum over held maps (folded
+  /// ones included), so a lower bound of landmark_energy; NaN otherwise.
   double landmark_lower_bound = std::numeric_limits<double>::quiet_NaN();
   /// Genus >= 2: the class's action on H_1, 2g x 2g row-major, in the
   /// canonical coordinates (a_1, b_1, ...) of both surfaces; empty for genus 1.
