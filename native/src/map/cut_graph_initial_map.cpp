@@ -7,6 +7,8 @@
 #include <string>
 #include <unordered_map>
 
+#include <Eigen/Geometry>
+
 #include "disk_flattening.h"
 #include "surfmap/error.h"
 #include "surfmap/topology/cut_mesh.h"
@@ -98,17 +100,21 @@ CutGraphInitialMapResult cut_graph_initial_map(const TriMesh& source, const Conn
   };
 
   // 1. The cut graph: the unrefined loops' edges, dangling edges pruned.
-  SystemOfLoopsOptions lo;
-  lo.base_vertex = options.base_vertex;
-  lo.refine = false;
-  SystemOfLoops sl;
-  try {
-    sl = system_of_loops(source, lo);
-  } catch (const Error& e) {
-    return give_up(std::string("loops: ") + e.what());
+  SystemOfLoops own;
+  const std::vector<std::vector<int>>* loops = options.loops;
+  if (!loops) {
+    SystemOfLoopsOptions lo;
+    lo.base_vertex = options.base_vertex;
+    lo.refine = false;
+    try {
+      own = system_of_loops(source, lo);
+    } catch (const Error& e) {
+      return give_up(std::string("loops: ") + e.what());
+    }
+    loops = &own.loops;
   }
   std::vector<char> cut(sc.num_edges(), 0);
-  for (const auto& loop : sl.loops)
+  for (const auto& loop : *loops)
     for (size_t q = 0; q + 1 < loop.size(); ++q) {
       const int h = sc.find_halfedge(loop[q], loop[q + 1]);
       if (h < 0) return give_up("a loop is not an edge path of the source");
@@ -276,7 +282,17 @@ CutGraphInitialMapResult cut_graph_initial_map(const TriMesh& source, const Conn
   for (int s = 0; s < ns; ++s)
     for (int i = corner_pos[s]; i < corner_pos[s + 1]; ++i)
       side_length_3d[s] += (cm.mesh.V.row(bl[i + 1]) - cm.mesh.V.row(bl[i])).norm();
+  // Dynamic charts (the algebraic form of the paper's, §VI-A): branch
+  // vertex b's point is H_b(q_b) with q_b kept in the target's domain by
+  // options.reduce_point, so corner d of b sits at (c_d H_b)(q_b). In a
+  // twisted class the development's words are long (chain elements
+  // displacing the origin by 35 on the 50k genus-2 bench pair) and the
+  // chains' far ends lie where the matrices have no digits left; in these
+  // charts every chain element is short.
+  std::vector<Word> H(out.branch_vertices);
+  auto corner_word = [&](int d) { return group.reduce(concat(c[d], H[branch_index[cm.original_vertex[d]]])); };
   std::vector<Chain> chains;
+  std::vector<int> chain_side;
   for (int s = 0; s < ns; ++s) {
     if (partner[s] < s) continue;
     const int da = bl[corner_pos[s]], db = bl[corner_pos[s + 1]];
@@ -284,40 +300,89 @@ CutGraphInitialMapResult cut_graph_initial_map(const TriMesh& source, const Conn
     ch.a = branch_index[cm.original_vertex[da]];
     ch.b = branch_index[cm.original_vertex[db]];
     if (ch.a < 0 || ch.b < 0) return give_up("a corner of the cut disk is not a branch vertex");
-    ch.M = group.evaluate_side_word(group.reduce(concat(inverse(c[da]), c[db])));
-    ch.Mi = ch.M.inverse();
     ch.w = 1.0 / std::max(side_length_3d[s], 1e-300);
     chains.push_back(ch);
+    chain_side.push_back(s);
   }
+  auto chain_elements = [&] {
+    for (size_t q = 0; q < chains.size(); ++q) {
+      const int s = chain_side[q];
+      chains[q].M = group.evaluate_side_word(
+          group.reduce(concat(inverse(corner_word(bl[corner_pos[s]])), corner_word(bl[corner_pos[s + 1]]))));
+      chains[q].Mi = chains[q].M.inverse();
+    }
+  };
+  chain_elements();
   std::vector<Complex> p(out.branch_vertices, Complex(0.0));
-  out.network_sweeps = minimise_network(chains, p, options.network_sweeps, options.network_tolerance);
+  for (int round = 0; round < 100; ++round) {
+    const int budget = options.network_sweeps - out.network_sweeps;
+    if (budget <= 0) break;
+    const int used = minimise_network(chains, p, std::min(budget, 25), options.network_tolerance);
+    out.network_sweeps += used;
+    bool moved = false;
+    if (options.reduce_point)
+      for (int v = 0; v < out.branch_vertices; ++v) {
+        if (!(std::isfinite(p[v].real()) && std::isfinite(p[v].imag()) && std::abs(p[v]) < 1)) break;
+        const Word w = options.reduce_point(p[v]);  // p_new = w(p_old)
+        if (w.empty()) continue;
+        H[v] = group.reduce(concat(H[v], inverse(w)));
+        moved = true;
+      }
+    if (moved) chain_elements();
+    else if (used < std::min(budget, 25)) break;  // converged in these charts
+  }
+  for (const Complex& q : p)
+    if (!(std::isfinite(q.real()) && std::isfinite(q.imag()) && std::abs(q) < 1))
+      return give_up("the cut graph's harmonic map has no digits left (a branch point at the disk's boundary)");
+  // The whole development moved by one deck element g so that corner 0
+  // lies in the target's domain: the polygon then sits near the origin,
+  // where the final points keep their digits.
+  if (options.reduce_point) {
+    const int d0 = bl[corner_pos[0]];
+    Complex q0 = group.evaluate_side_word(corner_word(d0)).apply(p[branch_index[cm.original_vertex[d0]]]);
+    if (std::isfinite(q0.real()) && std::isfinite(q0.imag()) && std::abs(q0) < 1) {
+      const Word g = options.reduce_point(q0);
+      if (!g.empty())
+        for (Word& w : c) w = group.reduce(concat(g, w));
+    }
+  }
   std::vector<Mobius> C(ns);
   std::vector<Complex> Q(ns);
   for (int s = 0; s < ns; ++s) {
     const int d = bl[corner_pos[s]];
-    C[s] = group.evaluate_side_word(c[d]);
+    C[s] = group.evaluate_side_word(corner_word(d));
     Q[s] = C[s].apply(p[branch_index[cm.original_vertex[d]]]);
   }
   out.corners = Q;
   for (int s = 0; s < ns; ++s) {
     const double len = hyperbolic::distance(Q[s], Q[(s + 1) % ns]);
     out.perimeter += len;
-    if (!(len > 1e-9)) return give_up("side " + std::to_string(s) + " of the polygon has no length (a chain of the cut graph collapsed)");
+    if (!(len > 1e-9)) return give_up("side " + std::to_string(s) +
+                                          " of the polygon has no length (a chain collapsed, or the polygon is too large for double precision)");
   }
-  // The chart centred at the corners' Klein centroid.
-  Mobius chart = Mobius();
-  for (int it = 0; it < 4; ++it) {
-    Complex m(0.0);
-    for (int s = 0; s < ns; ++s) m += hyperbolic::poincare_to_klein(chart.apply(Q[s]));
-    chart = (Mobius::centring(hyperbolic::klein_to_poincare(m / double(ns))) * chart).normalized();
+  // The chart centred near the centre of the corners' smallest enclosing
+  // disk (Badoiu-Clarkson steps towards the farthest corner): long, thin
+  // polygons (many sides, genus >= 5) keep every corner as far from the
+  // Klein boundary as they can, which the Klein centroid does not.
+  Complex centre = Q[0];
+  for (int it = 1; it <= 400; ++it) {
+    int far = 0;
+    double dfar = -1;
+    for (int s = 0; s < ns; ++s)
+      if (const double d = hyperbolic::distance(centre, Q[s]); d > dfar) dfar = d, far = s;
+    centre = hyperbolic::geodesic_point(centre, Q[far], 1.0 / (it + 1));
   }
+  const Mobius chart = Mobius::centring(centre);
   std::vector<Complex> qc(ns), kq(ns);
   for (int s = 0; s < ns; ++s) {
     // Through the corner's deck element, where the digits are.
     const int d = bl[corner_pos[s]];
     qc[s] = (chart * C[s]).normalized().apply(p[branch_index[cm.original_vertex[d]]]);
     kq[s] = hyperbolic::poincare_to_klein(qc[s]);
-    if (!(std::isfinite(kq[s].real()) && std::isfinite(kq[s].imag()) && std::abs(kq[s]) < 1 - 1e-9))
+    // |k| = tanh d: 1 - 1e-12 is 14 units from the centre, where a triangle
+    // of size 0.05 still spans ~1e-13 in k (the flattening's result is
+    // checked for flips from reduced words all the same).
+    if (!(std::isfinite(kq[s].real()) && std::isfinite(kq[s].imag()) && std::abs(kq[s]) < 1 - 1e-12))
       return give_up("the polygon is too large for double precision (corner " + std::to_string(s) + ")");
   }
   double total_turn = 0;
@@ -351,14 +416,23 @@ CutGraphInitialMapResult cut_graph_initial_map(const TriMesh& source, const Conn
     k[bl[corner_pos[s]]] = kq[s];
   }
   (void)nb;
-  const auto dedges = detail::mean_value_disk_edges(cm.mesh);
-  std::vector<detail::FlatteningEdge> graph;
-  graph.reserve(dedges.size());
-  for (const auto& [key, de] : dedges) {
-    const int i = static_cast<int>(key / nd), j = static_cast<int>(key % nd);
-    if (de.faces == 2) graph.push_back({i, j, de.w});
-    else if (de.faces != 1 || !on_boundary[i] || !on_boundary[j]) return give_up("the cut disk is not a manifold disk");
-  }
+  // Mean-value weights (disk_flattening.h) per interior edge of the disk,
+  // i.e. per source edge not cut, between the copies its faces see.
+  std::vector<detail::FlatteningEdge> graph(sc.num_edges(), detail::FlatteningEdge{-1, -1, 0.0});
+  auto half_tan = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return a.cross(b).norm() / std::max(a.norm() * b.norm() + a.dot(b), 1e-300);
+  };
+  for (int f = 0; f < nf; ++f)
+    for (int q = 0; q < 3; ++q) {
+      const int e = sc.edge(3 * f + q);
+      if (cut[e]) continue;
+      const int i = cm.mesh.F(f, q), j = cm.mesh.F(f, (q + 1) % 3), o = cm.mesh.F(f, (q + 2) % 3);
+      const Eigen::Vector3d pi = cm.mesh.V.row(i), pj = cm.mesh.V.row(j), po = cm.mesh.V.row(o);
+      graph[e].a = i, graph[e].b = j;
+      graph[e].w += (half_tan(pj - pi, po - pi) + half_tan(pi - pj, po - pj)) / std::max((pj - pi).norm(), 1e-300);
+    }
+  graph.erase(std::remove_if(graph.begin(), graph.end(), [](const detail::FlatteningEdge& g) { return g.a < 0; }),
+              graph.end());
   std::string why;
   if (!detail::flatten_in_klein(graph, on_boundary, options.hyperboloid_rounds, k, &why)) return give_up(why);
 

@@ -75,6 +75,7 @@ bool flatten_in_klein(const std::vector<FlatteningEdge>& graph, const std::vecto
       llt.analyzePattern(L);
     }
     llt.factorize(L);
+
     if (llt.info() != Eigen::Success) {
       if (why) *why = "the flattening's Laplacian could not be factorised";
       return false;

@@ -783,6 +783,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
       io.cut_graph = options.initial_map == InitialMapMethod::CutGraph;
       io.polygon = options.initial_map != InitialMapMethod::UniformHarmonic;
       io.base_vertex = sl.base_vertex;
+      io.source_loops = &sl.loops;
       io.reduce_point = [&](Complex& z) { return reduce_into_polygon(z); };
       if (stop) io.keep_going = [stop] { return !*stop; };
       io.start_z = std::move(start_z), io.start_word = std::move(start_word);

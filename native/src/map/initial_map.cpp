@@ -461,6 +461,7 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
   if (options.cut_graph) {
     CutGraphInitialMapOptions co;
     co.base_vertex = options.base_vertex;
+    co.loops = options.source_loops;
     co.reduce_point = options.reduce_point;
     CutGraphInitialMapResult cg;
     try {

@@ -26,6 +26,14 @@
 //     polygon of initial_map.h has no such property, its 4g corners share
 //     one angle sum of 2π). Simplicity and strict convexity are checked in
 //     the Klein model; when they fail the map is not built (applied = false).
+//     The branch points live in dynamic charts (paper §VI-A in algebraic
+//     form): p_b = H_b(q_b) with q_b kept in the target's domain by
+//     reduce_point and H_b a deck word folded into the corners' words, and
+//     the whole development is moved by one deck element so that corner 0
+//     lies in the domain. In a twisted class the development's words are
+//     long (chain elements displacing the origin by 30-38 on the 50k genus-2
+//     bench pair); without the charts the branch points drifted to |z| ~ 1
+//     and a chain came out with no length.
 //  4. Floater's theorem needs no interior edge joining two vertices of one
 //     side (its faces would be degenerate): such a chord of D replaces the
 //     part of its chain it spans (G stays a cut graph: the chord and that
@@ -39,8 +47,14 @@
 //     face is a positively oriented geodesic triangle: no fold to repair.
 //     Round-off can still make a sliver face's image degenerate; the caller
 //     checks (hyperbolic_distortion).
-// Cost: the unrefined loops, one cut, the development, four sparse Cholesky
-// solves of the source's size (no Newton solve).
+// Cost: one cut (the caller's unrefined loops), the development, and
+// 1 + hyperboloid_rounds sparse Cholesky factorisations of the source's size
+// (no Newton solve): 0.9-1.4 s on the 50k genus-2 bench pair under a load
+// of 6 on 2 cores, where the uniform-weight fallback it replaces took
+// 4.4-4.7 s (the refined-loop polygon is not convex there).
+// Measured where it does not apply: very twisted classes (real
+// block -> 3holes, fertility -> generated genus 4: corner elements with
+// entries of 1e7) are too large for double precision; the fallbacks run.
 // Where it differs from the paper (§IV-B): the paper cuts both surfaces
 // along canonical loops and composes two flattenings onto one canonical
 // 4g-gon; here only the source is cut, along its own cut graph, and the
@@ -61,8 +75,11 @@ namespace surfmap {
 
 struct CutGraphInitialMapOptions {
   /// Base vertex of the source's unrefined loops (-1: automatic, as
-  /// system_of_loops).
+  /// system_of_loops), computed here unless `loops` is given.
   int base_vertex = -1;
+  /// Optional: the source's unrefined loops (SystemOfLoops::loops, closed
+  /// vertex paths along source edges) when the caller has them.
+  const std::vector<std::vector<int>>* loops = nullptr;
   /// Gauss-Seidel sweeps of the polygon's corner points at most (default
   /// 20000; each costs O(#chains) Möbius maps) and the step length (in the
   /// target's metric) below which they stop (default 1e-11).
@@ -73,9 +90,12 @@ struct CutGraphInitialMapOptions {
   double min_turn = 1e-9;
   /// Chord reroutings of the cut graph at most (default 64).
   int max_reroutes = 64;
-  /// Hyperboloid-barycentre rounds of the flattening (default 3; 0: the
-  /// plain Klein-model Tutte map).
-  int hyperboloid_rounds = 3;
+  /// Hyperboloid-barycentre rounds of the flattening (default 1; 0: the
+  /// plain Klein-model Tutte map). Every round is an embedding; the rounds
+  /// only make the start closer to the optimum (50k genus-2 bench pair:
+  /// initial energy 44.0 / 30.2 / 29.7 after 0 / 1 / 3 rounds, final 25.96),
+  /// one sparse factorisation each.
+  int hyperboloid_rounds = 1;
   /// Optional: moves a point into the target's fundamental domain and
   /// returns the side word applied (HyperbolicHarmonicOptions::reduce_point).
   std::function<Word(std::complex<double>&)> reduce_point;

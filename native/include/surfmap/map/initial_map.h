@@ -7,10 +7,11 @@
 //  0. First, the cut-graph polygon (map/cut_graph_initial_map.h): the source
 //     cut along its own edges (the unrefined loops' cut graph) onto the
 //     convex polygon of that graph's harmonic map into the target, an
-//     embedding by construction with no fold to repair (no sliver source
-//     measured folds; 0.1-0.4 s at 2-7k vertices). When that polygon is not
-//     strictly convex or too large for double precision (genus-6 sliver
-//     sources; very twisted classes), 1 and 2 below.
+//     embedding by construction with no fold to repair (0 folds on every
+//     raw sliver source of genus 2-6 measured, the jittered one, the real
+//     genus-2/3 pairs and the 50k bench pair; 0.1-0.4 s at 2-7k vertices).
+//     When that polygon is not strictly convex or too large for double
+//     precision (very twisted classes), 1 and 2 below.
 //  1. The polygon construction (polygon_initial_map). The source is cut along
 //     its REFINED loops (topology/system_of_loops.h: split points on input
 //     edges, bend points inside input faces, loops simple and meeting only
@@ -116,8 +117,12 @@ struct HyperbolicInitialMapOptions {
   /// Try the polygon construction (default true); false with cut_graph
   /// false builds the uniform-weight map directly.
   bool polygon = true;
-  /// Passed to polygon_initial_map (PolygonInitialMapOptions).
+  /// Passed to polygon_initial_map (PolygonInitialMapOptions) and
+  /// cut_graph_initial_map.
   int base_vertex = -1;
+  /// Optional: the source's unrefined loops from base_vertex, for
+  /// cut_graph_initial_map (CutGraphInitialMapOptions::loops).
+  const std::vector<std::vector<int>>* source_loops = nullptr;
   std::function<Word(std::complex<double>&)> reduce_point;
   /// Optional: asked before every Newton iteration of the uniform-weight
   /// solve; false stops it (Cancelled). Lets a caller that builds the map on
