@@ -196,5 +196,42 @@ TEST(ProjectedLoops, OwnLoopsProjectToThemselvesAndOtherBasesGiveAnIsomorphism) 
   EXPECT_TRUE(project_loops(shifted, a.loops, a, a.word).ok);
 }
 
+// Round tubes over square ones (n_hole_torus(3) onto polycube(3), posed
+// alike): the nearest points jump from wall to wall, so the strict test
+// refuses; with max_jump_box the jumps are joined, and the result (when
+// every jump was within it) is flagged as a guess (ok false, ok_with_joins
+// true). A LoopProjector reused over poses (cached target frames) gives
+// exactly the results of fresh projections.
+TEST(ProjectedLoops, JumpsAreJoinedOnlyWhenAskedAndTheProjectorsCacheChangesNothing) {
+  const TriMesh src = samples::n_hole_torus(3, 44, true), dst = samples::polycube(3, 44, true);
+  const SystemOfLoops s = system_of_loops(src, {-1, false});
+  const SystemOfLoops t = system_of_loops(dst);
+  const ProjectedLoopsResult strict = project_loops(src, s.loops, t, t.word);
+  EXPECT_FALSE(strict.ok);
+  EXPECT_FALSE(strict.ok_with_joins);
+  ProjectedLoopsOptions po;
+  po.max_jump_box = 0.25;
+  const ProjectedLoopsResult joined = project_loops(src, s.loops, t, t.word, po);
+  EXPECT_FALSE(joined.ok);
+  ASSERT_TRUE(joined.ok_with_joins) << joined.message;
+  EXPECT_GT(joined.joined_jumps, 0);
+  ASSERT_EQ(joined.loop_images.size(), s.loops.size());
+  // Still a homomorphism of the surface groups here: the source's boundary
+  // word maps to the identity.
+  EXPECT_TRUE(dehn_reduce(substitute(s.word, joined.loop_images), t.word).empty());
+  std::vector<OverlayPose> poses{{Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity(), "as posed"}};
+  for (OverlayPose& p : rotation_overlay_poses(src, dst)) poses.push_back(std::move(p));
+  const LoopProjector projector(t, t.word);
+  const std::vector<ProjectedLoopsResult> all = projector.project(src, s.loops, poses, po);
+  ASSERT_EQ(all.size(), poses.size());
+  for (size_t k = 0; k < poses.size(); k += 5) {
+    ProjectedLoopsOptions o = po;
+    o.source_transform = poses[k].source_transform, o.target_transform = poses[k].target_transform;
+    const ProjectedLoopsResult fresh = project_loops(src, s.loops, t, t.word, o);
+    EXPECT_EQ(fresh.ok_with_joins, all[k].ok_with_joins) << k;
+    EXPECT_EQ(fresh.loop_images, all[k].loop_images) << k;
+  }
+}
+
 }  // namespace
 }  // namespace surfmap

@@ -168,6 +168,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     bool ok = false;
     GroupMap psi;  ///< default canonical generator -> word in this cut's canonical generators
     HandleBasis shb;
+    std::vector<std::vector<int>> loops;  ///< this cut's loops and canonical generators (for its overlay)
+    std::vector<Word> generators;
   };
   struct CutSlot {
     int base = -1;
@@ -212,6 +214,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         const IntMatrix Mpsi = homology_matrix(cp.psi, n2);
         if (Mpsi.transpose() * J2 * Mpsi == J2 && dehn_reduce(substitute(R2, cp.psi), R2).empty()) {
           cp.shb = handle_basis(source, sl2.loops, scs2);
+          cp.loops = sl2.loops;
+          cp.generators = scs2.generators;
           cp.ok = true;
         }
       }
@@ -325,13 +329,14 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   // Each must be an isomorphism (relator image trivial, symplectic
   // homology); poses whose images jump are refused by project_loops (but
   // see the fallback below).
-  constexpr double kOverlayJump = 0.15;  // (see the fallback below)
+  constexpr double kOverlayJump = 0.25;  // (see the fallback below)
   std::vector<OverlayPose> poses{{Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity(), "as posed"}};
   for (OverlayPose& p : rotation_overlay_poses(source, tl.mesh)) poses.push_back(std::move(p));
   // (Jumps are joined in the same pass, for the fallback below.)
   ProjectedLoopsOptions plo;
   plo.max_jump_box = kOverlayJump;
-  const std::vector<ProjectedLoopsResult> projections = project_loops(source, sl.loops, tl, layout.word, poses, plo);
+  const LoopProjector projector(tl, layout.word);
+  const std::vector<ProjectedLoopsResult> projections = projector.project(source, sl.loops, poses, plo);
   auto overlay_class = [&](const ProjectedLoopsResult& proj, bool joined, GroupMap* theta) {
     if (!(joined ? proj.ok_with_joins && !proj.ok : proj.ok)) return false;
     theta->assign(n, Word{});
@@ -397,11 +402,13 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   // (n_hole_torus(3) -> polycube(3): jumps of 0.14-0.3 of the unit box on
   // every pose, so no overlay, and the lifted classes reached 4e4-1e5
   // letters, unsolvable: mean D' 123 from a twist search stuck at E 229
-  // against the bound 50.3). Jumps up to kOverlayJump of the box are then
+  // against the bound 50.3; with 0.15 resolution 32 of that pair still had
+  // no joined overlay from any cut). Jumps up to kOverlayJump of the box are then
   // joined by the target's shortest path between the two images; a wrong
   // join gives a non-isomorphism (refused by overlay_class) or one more
   // candidate, ranked by its energy like the others.
-  if (overlays.empty()) collect_overlays(true);
+  const bool strict_overlay = !overlays.empty();
+  if (!strict_overlay) collect_overlays(true);
   if (have_overlay) {
     // The target's handles are then the overlay's images of the source's:
     // the other candidates are the overlay composed with a signed handle
@@ -537,6 +544,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     // two farthest; from 3 of 7 spread ones).
     lift_from_cuts = [&](const std::vector<int>& cut_bases) {
     std::vector<std::pair<double, HandleCandidate>> extra;  // new lifted classes and their screening scores
+    std::vector<HandleCandidate> overlaid;                   // new overlay classes from the other cuts
     std::vector<int> bases{sl.base_vertex};
     for (int b : cut_bases)
       if (std::find(cut_bases_used.begin(), cut_bases_used.end(), b) == cut_bases_used.end())
@@ -549,6 +557,41 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
       if (!cp.ok) continue;
       const GroupMap& psi = cp.psi;
       const HandleBasis& shb2 = cp.shb;
+      // Without a strict overlay from the default cut, the other cuts' loops
+      // are overlaid too (as posed, jumps joined): which loops jump depends
+      // on the cut (n_hole_torus(3, 36) -> polycube(3, 36): the geometric
+      // class from 5 of 12 cuts' loops, from neither the default cut nor
+      // the lifts).
+      if (!strict_overlay) {
+        ProjectedLoopsOptions po;
+        po.max_jump_box = kOverlayJump;
+        const ProjectedLoopsResult proj = projector.project(source, cp.loops, po);
+        if (proj.ok_with_joins) {
+          GroupMap theta2(n);
+          for (int j = 0; j < n; ++j)
+            theta2[j] = dehn_reduce(substitute(substitute(cp.generators[j], proj.loop_images), tcs.letters), R);
+          GroupMap theta = compose(theta2, psi);
+          for (Word& w : theta) w = dehn_reduce(w, R);
+          const IntMatrix M = homology_matrix(theta, n);
+          if (M.transpose() * J * M == J && dehn_reduce(substitute(R, theta), R).empty() &&
+              loop_image_length(theta) <= max_image_letters) {
+            const std::vector<double> fp = fingerprint(theta);
+            bool seen = false;
+            for (const auto& k : known) seen = seen || same_fingerprint(k, fp);
+            if (!seen) {
+              known.push_back(fp);
+              HandleCandidate hc;
+              hc.map = theta;
+              hc.homology = M;
+              std::string handles;
+              handle_correspondence_of(shb, thb, hc.homology, &hc.permutation, &hc.sign, &handles);
+              hc.description = handles + "  [as the shapes overlap: the loops at source vertex " + std::to_string(bases[c]) +
+                               " carried to the nearest points" + (proj.ok ? "" : ", jumps joined") + "]";
+              overlaid.push_back(std::move(hc));
+            }
+          }
+        }
+      }
       for (HandleCandidate hc : handle_candidates(shb2, thb, options.homotopy_candidates)) {
         size_t lifted = 0;
         for (const Word& w : hc.map) lifted += w.size();
@@ -575,7 +618,8 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     // Only the most promising new classes get homotopy data and a coarse
     // solve (each costs about as much as the cut itself).
     std::stable_sort(extra.begin(), extra.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
-    std::vector<HandleCandidate> kept;
+    // The overlay classes go first (few: most cuts' overlays coincide).
+    std::vector<HandleCandidate> kept = std::move(overlaid);
     for (size_t k = 0; k < extra.size() && static_cast<int>(k) < options.homotopy_extra_cut_classes; ++k)
       kept.push_back(std::move(extra[k].second));
     return kept;

@@ -257,33 +257,54 @@ bool is_signed_permutation(const Eigen::Matrix3d& M, double tol) {
 
 }  // namespace
 
+struct LoopProjector::Impl {
+  const SystemOfLoops& target;
+  Word target_word;
+  Connectivity conn;
+  std::vector<Word> edge_word;
+  std::unique_ptr<TargetFrame> frame;  // the last target frame used
+  Impl(const SystemOfLoops& t, const Word& w) : target(t), target_word(w), conn(t.mesh.F, t.mesh.num_vertices()) {
+    edge_word = target_edge_words(target, conn);
+  }
+};
+
+LoopProjector::LoopProjector(const SystemOfLoops& target, const Word& target_word)
+    : impl_(std::make_unique<Impl>(target, target_word)) {}
+LoopProjector::~LoopProjector() = default;
+
+ProjectedLoopsResult LoopProjector::project(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
+                                            const ProjectedLoopsOptions& options) const {
+  Impl& m = *impl_;
+  if (!m.frame || m.frame->transform != options.target_transform)
+    m.frame = std::make_unique<TargetFrame>(m.target.mesh, options.target_transform);
+  return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, *m.frame, options);
+}
+
+std::vector<ProjectedLoopsResult> LoopProjector::project(const TriMesh& source,
+                                                         const std::vector<std::vector<int>>& source_loops,
+                                                         const std::vector<OverlayPose>& poses,
+                                                         const ProjectedLoopsOptions& options) const {
+  std::vector<ProjectedLoopsResult> out;
+  for (const OverlayPose& pose : poses) {
+    ProjectedLoopsOptions o = options;
+    o.source_transform = pose.source_transform;
+    o.target_transform = pose.target_transform;
+    out.push_back(project(source, source_loops, o));
+  }
+  return out;
+}
+
 ProjectedLoopsResult project_loops(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
                                    const SystemOfLoops& target, const Word& target_word,
                                    const ProjectedLoopsOptions& options) {
-  const Connectivity conn(target.mesh.F, target.mesh.num_vertices());
-  return project_with(source, source_loops, target, target_word, conn, target_edge_words(target, conn),
-                      TargetFrame(target.mesh, options.target_transform), options);
+  return LoopProjector(target, target_word).project(source, source_loops, options);
 }
 
 std::vector<ProjectedLoopsResult> project_loops(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
                                                 const SystemOfLoops& target, const Word& target_word,
                                                 const std::vector<OverlayPose>& poses,
                                                 const ProjectedLoopsOptions& options) {
-  const Connectivity conn(target.mesh.F, target.mesh.num_vertices());
-  const std::vector<Word> edge_word = target_edge_words(target, conn);
-  std::vector<ProjectedLoopsResult> out;
-  std::vector<std::unique_ptr<TargetFrame>> frames;
-  for (const OverlayPose& pose : poses) {
-    ProjectedLoopsOptions o = options;
-    o.source_transform = pose.source_transform;
-    o.target_transform = pose.target_transform;
-    if (frames.empty() || frames.back()->transform != o.target_transform) {
-      frames.clear();  // (poses sharing a target frame come in a row)
-      frames.push_back(std::make_unique<TargetFrame>(target.mesh, o.target_transform));
-    }
-    out.push_back(project_with(source, source_loops, target, target_word, conn, edge_word, *frames.back(), o));
-  }
-  return out;
+  return LoopProjector(target, target_word).project(source, source_loops, poses, options);
 }
 
 std::vector<OverlayPose> rotation_overlay_poses(const TriMesh& source, const TriMesh& target, double axis_tolerance) {

@@ -14,6 +14,7 @@
 // (`ok` false) rather than guessed. The caller still verifies that the
 // loop images define an isomorphism (relator image trivial, symplectic
 // homology).
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -87,6 +88,25 @@ std::vector<ProjectedLoopsResult> project_loops(const TriMesh& source, const std
                                                 const SystemOfLoops& target, const Word& target_word,
                                                 const std::vector<OverlayPose>& poses,
                                                 const ProjectedLoopsOptions& options = {});
+
+/// The same with the target's edge elements and box frame kept between
+/// calls (poses sharing the target's frame, e.g. all the world-axis ones,
+/// share one nearest-vertex grid; several source cuts projected onto one
+/// target share everything). `target` must outlive it.
+class LoopProjector {
+ public:
+  LoopProjector(const SystemOfLoops& target, const Word& target_word);
+  ~LoopProjector();
+  ProjectedLoopsResult project(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
+                               const ProjectedLoopsOptions& options = {}) const;
+  std::vector<ProjectedLoopsResult> project(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
+                                            const std::vector<OverlayPose>& poses,
+                                            const ProjectedLoopsOptions& options = {}) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 /// Poses to try when the shapes are not posed alike (DESIGN §2.10): the 23
 /// non-identity rotations of the cube group (signed permutation matrices of
