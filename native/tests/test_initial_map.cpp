@@ -10,9 +10,12 @@
 #include <cstdio>
 #include <memory>
 #include <optional>
+#include <string>
 
+#include "surfmap/error.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/samples/shapes.h"
+#include "surfmap/topology/system_of_loops.h"
 
 namespace surfmap {
 namespace {
@@ -223,6 +226,61 @@ TEST(CutGraphInitialMap, Genus6SliverSourceHasNoFoldAndTheSameOptimum) {
   // A 54-sided polygon, long and thin (its corners up to ~11 units from its
   // centre): the refined-loop polygon is too large for double precision here.
   expect_cut_graph_start(samples::n_hole_torus(6, 22, false), samples::n_hole_torus(6, 26, true));
+}
+
+TEST(CutGraphInitialMap, ChordOfASideIsReroutedIntoTheCutGraph) {
+  // Loops given with a detour u -> w -> v around one face (u, v, w) instead
+  // of the edge u -> v: that edge is then an interior edge joining two
+  // vertices of one side (Floater's theorem excludes it: its face would be
+  // degenerate); it must be rerouted into the cut graph, and the map stays
+  // fold-free.
+  const TriMesh a = samples::n_hole_torus(2, 32, true), b = samples::n_hole_torus(2, 40, true);
+  const Connectivity sc(a.F, a.num_vertices());
+  SystemOfLoopsOptions lo;
+  lo.refine = false;
+  const SystemOfLoops sl = system_of_loops(a, lo);
+  std::vector<char> on_loop(a.num_vertices(), 0);
+  for (const auto& loop : sl.loops)
+    for (int v : loop) on_loop[v] = 1;
+  // An edge in the middle of loop 0 with a face whose third vertex is off every loop.
+  int u = -1, v = -1, w = -1;
+  const auto& l0 = sl.loops[0];
+  for (size_t q = l0.size() / 3; q + 1 < l0.size() && w < 0; ++q) {
+    const int h = sc.find_halfedge(l0[q], l0[q + 1]);
+    ASSERT_GE(h, 0);
+    for (int hh : {h, sc.twin(h)})
+      if (const int o = sc.opposite_vertex(hh); !on_loop[o] && w < 0) u = l0[q], v = l0[q + 1], w = o;
+  }
+  ASSERT_GE(w, 0);
+  std::vector<std::vector<int>> detoured = sl.loops;
+  for (auto& loop : detoured) {
+    std::vector<int> out{loop[0]};
+    for (size_t q = 1; q < loop.size(); ++q) {
+      if ((loop[q - 1] == u && loop[q] == v) || (loop[q - 1] == v && loop[q] == u)) out.push_back(w);
+      out.push_back(loop[q]);
+    }
+    loop = out;
+  }
+  int seen = 0;
+  SurfaceMapOptions o;
+  o.homotopy = 0;
+  o.progress = [&](const std::string&, double) { return seen == 0; };
+  o.inspect_initial_map = [&](const InitialMapInspection& in) {
+    if (seen++) return;
+    for (int pass = 0; pass < 2; ++pass) {
+      CutGraphInitialMapOptions co;
+      co.loops = pass == 0 ? &sl.loops : &detoured;
+      const CutGraphInitialMapResult r = cut_graph_initial_map(a, sc, *in.halfedge_word, *in.group, co);
+      ASSERT_TRUE(r.applied) << r.reason;
+      if (pass == 0) EXPECT_EQ(r.chords_rerouted, 0);
+      else EXPECT_GE(r.chords_rerouted, 1);
+      const DistortionStats q = hyperbolic_distortion(a, *in.group, *in.halfedge_word, r.z, r.vertex_deck_word);
+      EXPECT_EQ(q.flipped, 0) << "pass " << pass;
+      EXPECT_EQ(q.degenerate, 0) << "pass " << pass;
+    }
+  };
+  EXPECT_THROW(surface_map(a, b, o), Cancelled);
+  EXPECT_EQ(seen, 1);
 }
 
 TEST(PolygonInitialMap, TorusInitialMapIsLocated) {

@@ -74,7 +74,9 @@ int minimise_network(const std::vector<Chain>& chains, std::vector<Complex>& p, 
         if (local_energy(v) <= e0) break;
         p[v] = p0;
       }
-      largest = std::max(largest, hyperbolic::distance(p0, p[v]));
+      const double moved = hyperbolic::distance(p0, p[v]);
+      if (!std::isfinite(moved)) return sweep;  // no digits left: the caller gives up
+      largest = std::max(largest, moved);
     }
     if (largest < tolerance) break;
   }
@@ -245,7 +247,7 @@ CutGraphInitialMapResult cut_graph_initial_map(const TriMesh& source, const Conn
   auto assign_corners = [&](int f) {
     for (int k = 0; k < 3; ++k) {
       const int d = cm.mesh.F(f, k);
-      Word w = group.reduce(concat(b[f], phi(f, k)));
+      Word w = k == 0 ? b[f] : group.reduce(concat(b[f], phi(f, k)));  // b_f is reduced
       if (!has_c[d]) {
         c[d] = std::move(w), has_c[d] = 1;
       } else if (w != c[d]) {
@@ -319,6 +321,8 @@ CutGraphInitialMapResult cut_graph_initial_map(const TriMesh& source, const Conn
     if (budget <= 0) break;
     const int used = minimise_network(chains, p, std::min(budget, 25), options.network_tolerance);
     out.network_sweeps += used;
+    if (!std::all_of(p.begin(), p.end(), [](Complex q) { return std::isfinite(q.real()) && std::isfinite(q.imag()); }))
+      break;
     bool moved = false;
     if (options.reduce_point)
       for (int v = 0; v < out.branch_vertices; ++v) {
