@@ -28,9 +28,11 @@ TEST(MappingClassSearch, TwistMovesAreExactAutomorphismsWithTheTwistsHomology) {
   for (int g = 2; g <= 5; ++g) {
     const int n = 2 * g;
     const std::vector<MappingClassMove> moves = twist_moves(g);
-    EXPECT_EQ(static_cast<int>(twist_moves(g, false).size()), 8 * g - 4) << "genus " << g;
-    EXPECT_GT(static_cast<int>(moves.size()), 8 * g - 4 + 10 * (g - 1)) << "genus " << g;
-    EXPECT_LE(static_cast<int>(moves.size()), 48 * g - 44) << "genus " << g;
+    EXPECT_EQ(static_cast<int>(twist_moves(g, false, false).size()), 8 * g - 4) << "genus " << g;
+    const int bp = g >= 3 ? 4 * (g - 1) : 0;  // bounding pair maps and inverses
+    EXPECT_EQ(static_cast<int>(twist_moves(g, false, true).size()), 8 * g - 4 + bp) << "genus " << g;
+    EXPECT_GT(static_cast<int>(moves.size()), 8 * g - 4 + 10 * (g - 1) + bp) << "genus " << g;
+    EXPECT_LE(static_cast<int>(moves.size()), 48 * g - 44 + bp) << "genus " << g;
     const Word R = canonical_relator(g);
     const IntMatrix J = symplectic_form(g);
     std::set<GroupMap> distinct;
@@ -66,6 +68,20 @@ TEST(MappingClassSearch, TwistMovesAreExactAutomorphismsWithTheTwistsHomology) {
         bool moved = false;
         for (int j = 0; j < n; ++j) moved = moved || !conjugate(dehn_reduce(sc[j], R), Word{j + 1});
         EXPECT_TRUE(moved) << "genus " << g << " conjugated T(s" << h << ") acts like an inner automorphism";
+        // Bounding pair maps (genus >= 3): trivial on homology, and unlike
+        // T(s_j) (which conjugates generators, each staying in its
+        // conjugacy class) some generator's image is not conjugate to it.
+        if (g >= 3) {
+          const std::string hn = std::to_string(i + 2);
+          for (const std::string& name :
+               {"BP(T(a" + hn + "); T(a" + h + ") T(b" + h + ") T(c" + h + "))", "BP(T(a" + h + "); T(c" + h + ") T(b" + hn + ") T(a" + hn + "))"}) {
+            const GroupMap& b = move_named(moves, name).automorphism.map;
+            EXPECT_EQ(homology_matrix(b, n), IntMatrix::Identity(n, n)) << name;
+            bool off = false;
+            for (int j = 0; j < n; ++j) off = off || !conjugate(dehn_reduce(b[j], R), Word{j + 1});
+            EXPECT_TRUE(off) << name << " fixes every generator's conjugacy class";
+          }
+        }
       }
     }
   }

@@ -42,7 +42,7 @@ size_t letters(const GroupMap& m) {
 
 }  // namespace
 
-std::vector<MappingClassMove> twist_moves(int genus, bool torelli_conjugates) {
+std::vector<MappingClassMove> twist_moves(int genus, bool torelli_conjugates, bool bounding_pairs) {
   if (genus < 2) throw InputError("twist_moves: genus " + std::to_string(genus) + " (needs genus >= 2)");
   const int n = 2 * genus;
   const DehnReducer reduce(canonical_relator(genus));
@@ -103,6 +103,38 @@ std::vector<MappingClassMove> twist_moves(int genus, bool torelli_conjugates) {
             conj.push_back({(f > 0 ? xn : inv_name(xn)) + " " + cn, then(f > 0 ? *X : inverse_of(*X), C, reduce)});
       }
       for (const auto& [ln, L] : conj) add("[" + ln + "] " + hname("s", j), conjugated(L, Ts[j], reduce));
+    }
+  }
+  if (bounding_pairs && genus >= 3) {
+    // Genus-1 bounding pairs (Torelli elements the separating twists do not
+    // generate; Johnson: for genus >= 3 the bounding pair maps generate the
+    // Torelli group). The 3-chain a_j, b_j, c_j has a neighbourhood of genus
+    // 1 whose two boundary curves d, d' are disjoint and both homologous to
+    // a_j+1, and the chain relation gives (T(a_j) T(b_j) T(c_j))^4 =
+    // T(d) T(d'); so T(a_j+1)^2 (T(a_j) T(b_j) T(c_j))^-4 has the identity
+    // homology (checked), and it is the bounding pair map T(a_j+1) T(d')^-1
+    // when d is a_j+1 (not verified geometrically here; as a move it only
+    // needs to be an exact Torelli element, which it is). Mirrored: the
+    // chain c_j, b_j+1, a_j+1 and a_j. (In genus 2 both come out as the
+    // identity and are not added.)
+    const IntMatrix I = IntMatrix::Identity(n, n);
+    auto chain_pair = [&](const SurfaceAutomorphism& x, const SurfaceAutomorphism& y, const SurfaceAutomorphism& z,
+                          const SurfaceAutomorphism& t) {
+      const SurfaceAutomorphism P = then(then(x, y, reduce), z, reduce);
+      const SurfaceAutomorphism P2 = then(P, P, reduce), P4 = then(P2, P2, reduce);
+      return then(then(t, t, reduce), inverse_of(P4), reduce);
+    };
+    for (int j = 0; j + 1 < genus; ++j) {
+      const std::pair<std::string, SurfaceAutomorphism> bps[] = {
+          {"BP(" + hname("a", j + 1) + "; " + hname("a", j) + " " + hname("b", j) + " " + hname("c", j) + ")",
+           chain_pair(Ta[j], Tb[j], Tc[j], Ta[j + 1])},
+          {"BP(" + hname("a", j) + "; " + hname("c", j) + " " + hname("b", j + 1) + " " + hname("a", j + 1) + ")",
+           chain_pair(Tc[j], Tb[j + 1], Ta[j + 1], Ta[j])}};
+      for (const auto& [name, a] : bps) {
+        if (a.map == identity_map(n) || homology_matrix(a.map, n) != I)
+          throw SolveError("twist_moves: " + name + " is not a nontrivial Torelli element");  // (never seen)
+        add(name, a);
+      }
     }
   }
   return moves;

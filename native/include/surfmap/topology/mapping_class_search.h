@@ -35,7 +35,12 @@
 //    differ from the geometric class by exactly such twists;
 //  - with `torelli_conjugates`: T(s_j) conjugated by the Lickorish twists of
 //    the handles on both sides of s_j (L T(s_j) L^-1 = T(L(s_j)), the twist
-//    along another separating curve).
+//    along another separating curve);
+//  - with `bounding_pairs`, genus >= 3: bounding pair maps T(d) T(d')^-1
+//    (d, d' disjoint, homologous, together bounding a genus-1 piece), from
+//    the chain relation; for genus >= 3 such maps generate the Torelli group
+//    (Johnson), which separating twists alone do not (only these 4(g - 1)
+//    are listed, not their conjugates).
 // Each comes with both directions (the move and its inverse).
 #include <functional>
 #include <string>
@@ -58,7 +63,11 @@ struct MappingClassMove {
 /// moves, at most 48g - 44 with the conjugates (those equal as words to an
 /// earlier move are left out: 37 of 52 remain in genus 2). Every move is checked with
 /// is_surface_automorphism; throws InputError for genus < 2.
-std::vector<MappingClassMove> twist_moves(int genus, bool torelli_conjugates = true);
+/// With `bounding_pairs` (genus >= 3): 4(g - 1) more, T(a_j+1)^2 (T(a_j)
+/// T(b_j) T(c_j))^-4 and T(a_j)^2 (T(c_j) T(b_j+1) T(a_j+1))^-4 and their
+/// inverses (bounding pair maps by the chain relation,
+/// mapping_class_search.cpp), each checked to be a nontrivial Torelli element.
+std::vector<MappingClassMove> twist_moves(int genus, bool torelli_conjugates = true, bool bounding_pairs = true);
 
 struct TwistSearchOptions {
   /// Most moves taken (default 6).
