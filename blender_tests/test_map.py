@@ -684,6 +684,16 @@ def test_far_genus2_landmark_is_held_by_the_barrier_continuation():
     bary = np.array(a.data.attributes["surfmap_map_bary"].data[s].vector)
     p = _mapping().points_at(helpers.coords(b), helpers.triangles_of(b)[0], [face], [bary])[0]
     assert np.linalg.norm(p - Vb[t]) < 1e-6
+    # the panel shows the line under the Landmarks setting, and the held energies
+    from surface_map import panel
+    from test_addon import _FakePanel
+    fake = _FakePanel()
+    panel.SURFMAP_PT_main.draw(fake, bpy.context)
+    labels = [x[1] for x in fake.log if x[0] == "label"]
+    at = fake.log.index(("prop", "landmark_mode"))
+    shown = " ".join(x[1] for x in fake.log[at + 1:at + 5] if x[0] == "label")
+    assert "barrier continuation in" in shown, fake.log[at:at + 5]
+    assert any(f"* {settings.chosen_candidate}: E = " in x and "(landmarks: " in x for x in labels), labels
     # a run without landmarks clears the line
     settings.landmark_mode = 'NONE'
     res, err = run("compute_map")
