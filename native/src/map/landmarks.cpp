@@ -689,16 +689,13 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
         r = std::max(r, std::hypot(g[2 * index[v]], g[2 * index[v] + 1]) * 0.5 * hyperbolic::conformal_denominator(z[v]));
     return r;
   };
-  // Newton direction: exact Hessian when positive definite, else projected.
-  auto direction = [&](const std::vector<Complex>& z, const Eigen::VectorXd& rhs, Eigen::VectorXd& d) {
-    Eigen::VectorXd g;
+  // Gradient at z and the Newton matrix factorised: the exact Hessian
+  // when it is positive definite, else every term's block projected.
+  auto factorise_at = [&](const std::vector<Complex>& z, Eigen::VectorXd& g) {
     for (int project = 0; project < 2; ++project) {
       assemble(z, g, true, project);
       llt.factorize(H);
-      if (llt.info() == Eigen::Success) {
-        d = llt.solve(rhs);
-        return true;
-      }
+      if (llt.info() == Eigen::Success) return true;
     }
     return false;
   };
@@ -706,9 +703,9 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
     double Fz = objective(z);
     for (int it = 0; it < max_it; ++it) {
       Eigen::VectorXd g, step;
-      assemble(z, g, false, false);
+      if (!factorise_at(z, g)) return false;
       if (gradient_norm(z, g) <= 1e-10 * scale) return true;
-      if (!direction(z, -g, step)) return false;
+      step = llt.solve(-g);
       double slope = g.dot(step);
       if (!(slope < 0)) {  // the exact model was not a descent direction
         assemble(z, g, true, true);
@@ -760,14 +757,15 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
     std::vector<Complex> trial = z;
     {
       const double h = 1e-6;
-      Eigen::VectorXd g0, g1, d;
+      Eigen::VectorXd g0, g1;
       std::vector<Complex> zh = z;
       place(zh, s + h);
-      assemble(z, g0, false, false);
       assemble(zh, g1, false, false);
-      if (direction(z, -(g1 - g0) / h, d))
+      if (factorise_at(z, g0)) {
+        const Eigen::VectorXd d = llt.solve(-(g1 - g0) / h);
         for (int v = 0; v < n; ++v)
           if (index[v] >= 0) trial[v] += (next - s) * Complex(d[2 * index[v]], d[2 * index[v] + 1]);
+      }
     }
     place(trial, next);
     const bool good = std::isfinite(objective(trial)) && newton(trial, next < 1 ? 8 : 60);
