@@ -19,6 +19,10 @@ correspondence. Renders with Cycles on the CPU (denoising off), per pair:
   <pair>_distortion_before.png the dilatation D' of the initial map (when the core measures
                                it for that genus), on the same colour scale as
   <pair>_distortion_after.png  the D' of the optimised map
+  g2_landmark_free.png         close-up of the target's checker around a target vertex (red) ...
+  g2_landmark_far.png          ... and the same view of a second map (copies of the genus-2 pair)
+                               with one landmark held on that vertex, 5 edges from where the map
+                               puts it: the checker through that map, and how it was held
 and saves DIR/demo.blend with every object and output. Options (after --): --out DIR
 (default <repo>/demo_out), --samples N (16), --size WxH (640x480), --meshes DIR
 (default samples/meshes), --pairs g2,g1.
@@ -296,7 +300,10 @@ def caption(cam, text):
     cu = bpy.data.curves.new("caption", 'FONT')
     cu.body = text
     cu.align_x = 'CENTER'
-    cu.size = 0.017
+    # Just beyond the near clip plane (scaled with its depth, so it looks the same): nothing
+    # comes in front of it however close the camera is.
+    depth = 2.0 * cam.data.clip_start
+    cu.size = 0.017 * depth
     ob = bpy.data.objects.new("caption", cu)
     bpy.context.scene.collection.objects.link(ob)
     mat = bpy.data.materials.get("SurfMap caption") or bpy.data.materials.new("SurfMap caption")
@@ -310,8 +317,32 @@ def caption(cam, text):
     mat.node_tree.links.new(em.outputs["Emission"], outn.inputs["Surface"])
     cu.materials.append(mat)
     ob.parent = cam
-    ob.location = (0.0, -0.245, -1.0)   # camera space: 1 unit ahead, near the bottom edge
+    ob.location = (0.0, -0.245 * depth, -depth)   # camera space, near the bottom edge
     ob.hide_render = False
+    # A dark plate behind the text (its child): readable over a bright object too.
+    bpy.context.view_layer.update()
+    w, h = ob.dimensions.x, cu.size
+    pm = bpy.data.meshes.new("caption plate")
+    pm.from_pydata([(-0.52 * w, -0.35 * h, 0), (0.52 * w, -0.35 * h, 0), (0.52 * w, 1.0 * h, 0),
+                    (-0.52 * w, 1.0 * h, 0)], [], [(0, 1, 2, 3)])
+    plate = bpy.data.objects.new("caption plate", pm)
+    bpy.context.scene.collection.objects.link(plate)
+    pmat = bpy.data.materials.get("SurfMap caption plate") or bpy.data.materials.new("SurfMap caption plate")
+    pmat.use_nodes = True
+    pn = pmat.node_tree.nodes
+    for n in list(pn):
+        pn.remove(n)
+    pe = pn.new("ShaderNodeEmission")
+    pe.inputs["Color"].default_value = (0.05, 0.05, 0.06, 1)
+    po = pn.new("ShaderNodeOutputMaterial")
+    pmat.node_tree.links.new(pe.outputs["Emission"], po.inputs["Surface"])
+    pm.materials.append(pmat)
+    plate.parent = ob
+    plate.location = (0.0, 0.0, -0.002 * depth)
+    plate.hide_render = False
+    for o in (ob, plate):     # no shadows of the caption onto the scene
+        if hasattr(o, "visible_shadow"):
+            o.visible_shadow = False
     return ob
 
 
@@ -363,6 +394,106 @@ def compare_with_data_transfer(source, target, uv_name, shot, cam):
     return counts[f"surfmap {uv_name}"]
 
 
+def marker(name, location, radius):
+    """A small red emissive sphere (landmark targets)."""
+    me = bpy.data.meshes.new(name)
+    import bmesh
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=16, v_segments=8, radius=radius)
+    bm.to_mesh(me)
+    bm.free()
+    ob = bpy.data.objects.new(name, me)
+    ob.location = location
+    bpy.context.scene.collection.objects.link(ob)
+    mat = bpy.data.materials.new(f"{name} red")
+    mat.use_nodes = True
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0.9, 0.05, 0.03, 1.0)
+    if "Emission" in bsdf.inputs:
+        bsdf.inputs["Emission"].default_value = (0.9, 0.05, 0.03, 1.0)
+    set_material(ob, mat)
+    return ob
+
+
+def landmark_demo(source, target, uv_name, shot, hops=5):
+    """Copies of the mapped pair, one landmark: a source vertex held on the target vertex
+    `hops` edges (along a shortest path towards the farthest vertex) from where the map
+    without landmarks put it; mapped again (plain pins would fold the map there; the core
+    walks the landmark there by its barrier continuation) and the target copy rendered with
+    the checker through that map, a marker on the landmark's target."""
+    from surface_map import blender_io
+    import collections
+    s_copy = source.copy()
+    s_copy.data = source.data.copy()
+    t_copy = target.copy()
+    t_copy.data = target.data.copy()
+    for ob, n in ((s_copy, f"{source.name} (landmark)"), (t_copy, f"{target.name} (landmark)")):
+        ob.name = n       # (the copied layers are the add-on's: the new map overwrites them)
+        bpy.context.scene.collection.objects.link(ob)
+    me_t = target.data
+    Vt = np.empty(len(me_t.vertices) * 3)
+    me_t.vertices.foreach_get("co", Vt)
+    Vt = Vt.reshape(-1, 3)
+    sv = len(source.data.vertices) // 3
+    face = source.data.attributes[blender_io.CORR_FACE].data[sv].value
+    bary = np.array(source.data.attributes[blender_io.CORR_BARY].data[sv].vector)
+    me_t.calc_loop_triangles()
+    tri = np.empty(len(me_t.loop_triangles) * 3, dtype=np.int64)
+    me_t.loop_triangles.foreach_get("vertices", tri)
+    tri = tri.reshape(-1, 3)
+    image = bary @ Vt[tri[face]]
+    t0 = int(np.argmin(((Vt - image) ** 2).sum(1)))
+    nb = collections.defaultdict(set)
+    for e in me_t.edges:
+        a, b = e.vertices
+        nb[a].add(b), nb[b].add(a)
+    far = int(np.argmax(((Vt - Vt[t0]) ** 2).sum(1)))
+    prev, queue = {t0: -1}, collections.deque([t0])
+    while queue:
+        u = queue.popleft()
+        for v in nb[u]:
+            if v not in prev:
+                prev[v], _ = u, queue.append(v)
+    path = [far]
+    while prev[path[-1]] != -1:
+        path.append(prev[path[-1]])
+    tv = path[::-1][min(hops, len(path) - 1)]
+    s_copy.vertex_groups.new(name="lm_demo").add([sv], 1.0, 'REPLACE')
+    t_copy.vertex_groups.new(name="lm_demo").add([int(tv)], 1.0, 'REPLACE')
+    settings = bpy.context.scene.surfmap
+    saved = (settings.landmark_mode, settings.write_refined, settings.write_distortion,
+             settings.write_morph)
+    settings.landmark_mode, settings.write_refined = 'GROUPS', False
+    settings.write_distortion = settings.write_morph = False
+    select_pair(s_copy, t_copy)
+    t = time.time()
+    result = bpy.ops.surfmap.compute_map()
+    (settings.landmark_mode, settings.write_refined, settings.write_distortion,
+     settings.write_morph) = saved
+    if result != {'FINISHED'}:
+        raise SystemExit(f"demo.py: compute_map with a landmark returned {result}")
+    status = settings.landmark_status
+    print(f"demo: compute_map with a far landmark in {time.time() - t:.1f}s:", settings.map_status)
+    set_material(t_copy, checker_material(f"{t_copy.name} checker", f"surfmap {uv_name}"))
+    size = (Vector(t_copy.bound_box[6]) - Vector(t_copy.bound_box[0])).length
+    where = t_copy.matrix_world @ Vector(Vt[tv])
+    m = marker("landmark target", where, 0.01 * size * t_copy.scale[0])
+    # the frame: a (not rendered) sphere around the target vertex, half the object across
+    # (nearer, the object would come in front of the caption, 1 unit ahead of the camera)
+    frame = marker("landmark frame", where, 0.25 * size * t_copy.scale[0])
+    frame.hide_render = True
+    normal = (t_copy.matrix_world.to_3x3() @ t_copy.data.vertices[int(tv)].normal).normalized()
+    facing = normal + Vector(VIEW).normalized() * 0.3   # looking at the target vertex
+    shot("landmark_free", [target, m], direction=tuple(facing), fit=[frame],
+         text="the map without landmarks around the landmark's target vertex (red)")
+    shot("landmark_far", [t_copy, m], direction=tuple(facing), fit=[frame],
+         text=f"{status.split(' (')[0]}, {hops} edges from its free image (red: its target)")
+    bpy.data.objects.remove(frame, do_unlink=True)
+    for ob in (s_copy, t_copy, m):
+        ob.hide_render = True
+        ob.hide_set(True)
+
+
 def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
     t0 = time.time()
     source, target = load_pair(sm, meshes, tag)
@@ -401,14 +532,16 @@ def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
           "; ".join(f"{c.index}: {c.energy:.6g}" if c.solved else f"{c.index}: not solved"
                     for c in cands))
 
-    def shot(name, objs, curves=False, direction=VIEW, text=None):
+    def shot(name, objs, curves=False, direction=VIEW, text=None, fit=None):
         show_only(objs, curves)
-        aim(cam, objs, direction)
+        aim(cam, fit or objs, direction)
         label = caption(cam, text) if text else None
         path = os.path.join(out, f"{tag}_{name}.png")
         render(path)
         written.append(path)
         if label is not None:
+            for child in list(label.children):
+                bpy.data.objects.remove(child, do_unlink=True)
             bpy.data.objects.remove(label, do_unlink=True)
 
     shot("loops", [source, target], curves=True, direction=(0.15, -1.0, 0.55),
@@ -447,6 +580,8 @@ def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
              text=f"{'initial' if which == 'before' else 'optimised'} map: dilatation D' "
                   f"{lo:.2f} (violet) to {hi:.2f} (yellow)")
     set_material(source, checker_material(f"{source.name} checker", uv_name))
+    if tag == "g2":
+        landmark_demo(source, target, uv_name, shot)
     print(f"demo: pair {tag} done in {time.time() - t0:.1f}s")
     return source, target
 
