@@ -1345,6 +1345,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
     HyperbolicHarmonicOptions lo;
     lo.tolerance = options.tolerance;
     lo.max_iterations = options.max_iterations;
+    lo.progress = [&](int, double, double) { return !options.progress || options.progress("landmarks", 0.44); };
     std::vector<int> lm_s, lm_t;
     std::vector<Complex> lm_p;
     for (const auto& [s, t] : options.landmarks) lm_s.push_back(s), lm_t.push_back(t), lm_p.push_back(layout.vertex_positions[t]);

@@ -580,7 +580,8 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
                                                      const RowMatrixX3i& F,
                                                      const std::vector<hyperbolic::Mobius>& face_elements,
                                                      const std::vector<Complex>& free, const std::vector<int>& source,
-                                                     const std::vector<Complex>& lifts) {
+                                                     const std::vector<Complex>& lifts,
+                                                     const std::function<bool(int, double, double)>& progress) {
   using hyperbolic::Mobius;
   HyperbolicBarrierResult out;
   const int nf = static_cast<int>(F.rows());
@@ -704,7 +705,9 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
     for (int it = 0; it < max_it; ++it) {
       Eigen::VectorXd g, step;
       if (!factorise_at(z, g)) return false;
-      if (gradient_norm(z, g) <= 1e-10 * scale) return true;
+      const double gn = gradient_norm(z, g);
+      if (progress && !progress(out.newton_iterations, Fz, gn)) throw Cancelled("harmonic map solve cancelled");
+      if (gn <= 1e-10 * scale) return true;
       step = llt.solve(-g);
       double slope = g.dot(step);
       if (!(slope < 0)) {  // the exact model was not a descent direction
@@ -907,7 +910,7 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<Weig
   // least energy up to its barrier), then carried neighbourhoods.
   if (face_elements) {
     const HyperbolicBarrierResult br =
-        hyperbolic_barrier_landmarks(n, held_edges, *faces, *face_elements, free.z, source, lift);
+        hyperbolic_barrier_landmarks(n, held_edges, *faces, *face_elements, free.z, source, lift, options.progress);
     record.barrier_steps = br.steps, record.barrier_newton_iterations = br.newton_iterations;
     record.barrier_reached = br.reached;
     record.solves += br.steps;

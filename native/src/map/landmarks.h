@@ -158,11 +158,15 @@ struct HyperbolicBarrierResult {
   int steps = 0, newton_iterations = 0;
   double reached = 0;  ///< fraction of the way the landmarks got (1 when ok)
 };
+/// `progress` (optional, as HyperbolicHarmonicOptions::progress): called
+/// every Newton iteration with (iterations so far, objective, gradient);
+/// false cancels (Cancelled).
 HyperbolicBarrierResult hyperbolic_barrier_landmarks(int num_vertices, const std::vector<WeightedEdge>& edges,
                                                      const RowMatrixX3i& faces,
                                                      const std::vector<hyperbolic::Mobius>& face_elements,
                                                      const std::vector<Complex>& free, const std::vector<int>& source,
-                                                     const std::vector<Complex>& lifts);
+                                                     const std::vector<Complex>& lifts,
+                                                     const std::function<bool(int, double, double)>& progress = {});
 
 /// How hold_hyperbolic_landmarks held the landmarks: `method` is "pinned"
 /// (the exact held optimum), "barrier continuation" or "carried

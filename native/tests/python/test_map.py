@@ -336,6 +336,41 @@ def test_source_weights_kwarg():
         surfmap.surface_map(*a, *b, source_weights="uniform")
 
 
+def test_genus2_barrier_continuation_reports_progress_and_cancels():
+    # A far genus-2 landmark (its plain pin folds): the continuation's Newton iterations are
+    # reported through solve_progress after the free and the pinned solves (a third run of
+    # iteration counts), and a False from the callback there cancels the map.
+    from mesh_helpers import adjacency, nearest_vertex, shortest_path
+    a = surfmap.shapes.n_hole_torus(2, 14, True)
+    b = surfmap.shapes.vase(18, True)
+    free = surfmap.surface_map(*a, *b)
+    s = len(a[0]) // 3
+    t0 = nearest_vertex(b[0], free["forward"]["position"][s])
+    far = int(np.argmax(((b[0] - b[0][t0]) ** 2).sum(1)))
+    t = shortest_path(adjacency(b[1], len(b[0])), t0, far)[6]
+    kw = dict(homotopy=free["homotopy"]["chosen"])
+
+    def runs(lm):
+        calls = []
+        r = surfmap.surface_map(*a, *b, landmarks=lm, solve_progress=lambda i, e, g: calls.append(i) or True, **kw)
+        starts = [k for k in range(len(calls)) if k == 0 or calls[k] < calls[k - 1]]
+        return r, starts
+
+    near, near_starts = runs([(s, t0)])
+    r, starts = runs([(s, t)])
+    assert near["landmark_method"] == "pinned" and r["landmark_method"] == "barrier continuation"
+    assert len(starts) == len(near_starts) + 1
+    seen = []
+
+    def stop_in_the_continuation(i, e, g):
+        seen.append(i)
+        return len(seen) <= starts[-1]
+
+    with pytest.raises(surfmap.Cancelled):
+        surfmap.surface_map(*a, *b, landmarks=[(s, t)], solve_progress=stop_in_the_continuation, **kw)
+    assert len(seen) == starts[-1] + 1
+
+
 def test_genus2_classes_are_ranked_with_the_landmarks_held():
     # With landmarks, the classes solved at full resolution are ranked by their energy with
     # the landmarks held the way the returned map holds them (plain pins, else the barrier
