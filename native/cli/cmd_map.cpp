@@ -242,7 +242,8 @@ void register_map(CLI::App& app) {
       std::cerr << "surfmap: mean dilatation " << m.mean_dilatation << ", max " << m.max_dilatation
                 << ", flipped triangles " << m.flipped_triangles << ", " << m.total_time << " s\n";
       if (!opt.landmarks.empty() && !m.landmark_method.empty())
-        std::cerr << "surfmap: " << opt.landmarks.size() << " landmark(s) held by " << m.landmark_method
+        std::cerr << "surfmap: " << opt.landmarks.size() << " landmark(s) held by "
+                  << (m.landmark_method == "pinned" ? std::string("plain pins") : m.landmark_method)
                   << (m.landmark_steps ? " (" + std::to_string(m.landmark_steps) + " continuation steps)" : std::string())
                   << ", " << m.landmark_solves << " held solve(s)\n";
     }

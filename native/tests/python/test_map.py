@@ -107,6 +107,28 @@ def test_cli_map_writes_outputs(tmp_path, cli, pair):
     assert morph["V"].shape == Vs.shape
 
 
+def test_cli_map_says_how_landmarks_were_held(tmp_path, cli):
+    # A far genus-1 landmark pair (a quarter turn: the plain pins fold): the report and the
+    # summary line say it was held by the barrier continuation, with its steps.
+    (Vs, Fs), (Vt, Ft) = torus(1.0, 0.45, 64, 34), torus(1.4, 0.5, 64, 34, 2)
+    free = surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=[(0, 0)])
+    s = 34 * 20 + 5
+    t = nearest_vertex(Vt, free["forward"]["position"][s])
+    t = 34 * ((t // 34 + 16) % 64) + t % 34
+    src, dst, lm = tmp_path / "a.obj", tmp_path / "b.obj", tmp_path / "lm.txt"
+    surfmap.write_obj(str(src), Vs, Fs)
+    surfmap.write_obj(str(dst), Vt, Ft)
+    lm.write_text(f"0 0\n{s} {t}\n")
+    out, rep = tmp_path / "morph.obj", tmp_path / "report.json"
+    r = cli("map", src, dst, "--out", out, "--report", rep, "--landmarks", lm)
+    assert r.returncode == 0, r.stderr
+    report = json.loads(rep.read_text())
+    assert report["landmark_method"] == "barrier continuation" and report["landmark_steps"] > 0
+    assert report["landmark_solves"] == 1 + report["landmark_steps"] and report["flipped_triangles"] == 0
+    assert (f"2 landmark(s) held by barrier continuation ({report['landmark_steps']} continuation steps)"
+            in r.stderr), r.stderr
+
+
 def test_cli_map_bad_input_writes_nothing(tmp_path, cli):
     Vs, Fs = torus(1.0, 0.4, 20, 10)
     src, bad = tmp_path / "a.obj", tmp_path / "open.obj"
