@@ -160,10 +160,10 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   // in that cut's, and its handle basis; ~0.2 s per cut at 50k vertices)
   // for every cut the class search may ask for, in the order it asks: the
   // homotopy_extra_cuts first, then stage 1's homotopy_search_cuts. The
-  // second thread prepares them after the source side, while the target is
-  // still being uniformized, until the coarse ranking needs that thread
-  // (cut_prep_stop); the others are prepared on demand, where they are used.
-  // Whichever thread prepares a cut, the result is the same.
+  // second thread prepares the first ones after the source side, while the
+  // target is still being uniformized; stage 1's are prepared on both
+  // threads when it runs. Whichever thread prepares a cut, the result is
+  // the same.
   struct CutPrep {
     bool ok = false;
     GroupMap psi;  ///< default canonical generator -> word in this cut's canonical generators
@@ -239,9 +239,14 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
         return;
       }
       try {
-        for (CutSlot& slot : cut_slots) {
+        // Only the homotopy_extra_cuts, which are always lifted: the
+        // machine's scheduler shares CPU between sessions, not threads
+        // (autogroups), so under load speculative work on this thread slows
+        // the other one down (10k genus 6, load 8, where stage 1 does not
+        // run: 13-15 s with all 15 cuts prepared here against 9-10 s).
+        for (int k = 0; k < static_cast<int>(cut_slots.size()) && k < options.homotopy_extra_cuts; ++k) {
           if (cut_prep_stop) break;
-          prepare_cut(slot);
+          prepare_cut(cut_slots[k]);
         }
       } catch (...) {
         // (prepared again where needed, which reports the error)
@@ -1060,6 +1065,11 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
       std::vector<int> late;
       for (int c = 1; c <= options.homotopy_search_cuts; ++c)
         late.push_back(static_cast<int>((static_cast<long long>(nv) * c) / (options.homotopy_search_cuts + 1)));
+      // The late cuts' source-only parts, on both threads.
+      parallel_for(threads, static_cast<int>(late.size()), [&](int k, const std::atomic<bool>*) {
+        auto slot = std::find_if(cut_slots.begin(), cut_slots.end(), [&](const CutSlot& x) { return x.base == late[k]; });
+        if (slot != cut_slots.end()) prepare_cut(*slot);
+      });
       auto lifted_late = lift_from_cuts(late);
       for (HandleCandidate& hc : lifted_late) {
         if (loop_image_length(hc.map) > max_image_letters) continue;
