@@ -442,25 +442,10 @@ CutGraphInitialMapResult cut_graph_initial_map(const TriMesh& source, const Conn
 
   // The input vertices: one copy's point (global frame) and its deck word,
   // then moved into the target's domain.
-  std::vector<int> copy_of(nv, -1);
-  for (int d = 0; d < nd; ++d)
-    if (copy_of[cm.original_vertex[d]] < 0) copy_of[cm.original_vertex[d]] = d;
-  const Mobius unchart = chart.inverse();
-  out.z.resize(nv);
-  out.vertex_deck.resize(nv);
-  out.vertex_deck_word.resize(nv);
-  for (int i = 0; i < nv; ++i) {
-    const int d = copy_of[i];
-    if (d < 0) return give_up("vertex " + std::to_string(i) + " is missing from the cut disk");
-    Complex zi = unchart.apply(hyperbolic::klein_to_poincare(k[d]));
-    if (!(std::isfinite(zi.real()) && std::isfinite(zi.imag()) && std::abs(zi) < 1 - 1e-12))
-      return give_up("vertex " + std::to_string(i) + " lands at the disk's boundary (no digits left)");
-    Word w = c[d];
-    if (options.reduce_point) w = group.reduce(concat(options.reduce_point(zi), w));
-    out.z[i] = zi;
-    out.vertex_deck[i] = group.evaluate_side_word(w);
-    out.vertex_deck_word[i] = std::move(w);
-  }
+  const std::string unread = detail::read_disk_vertices(cm.original_vertex, nv, k, c, chart, options.reduce_point, group,
+                                                        "vertex", "the cut disk", out.z, out.vertex_deck,
+                                                        out.vertex_deck_word);
+  if (!unread.empty()) return give_up(unread);
   out.applied = true;
   out.time_s = seconds_since(t0);
   return out;

@@ -87,4 +87,34 @@ bool flatten_in_klein(const std::vector<FlatteningEdge>& graph, const std::vecto
   return true;
 }
 
+std::string read_disk_vertices(const std::vector<int>& original_vertex, int inputs,
+                               const std::vector<std::complex<double>>& k, const std::vector<Word>& c,
+                               const hyperbolic::Mobius& chart,
+                               const std::function<Word(std::complex<double>&)>& reduce_point,
+                               const DeckGroup& group, const std::string& vertex_noun,
+                               const std::string& disk_noun, std::vector<std::complex<double>>& z,
+                               std::vector<hyperbolic::Mobius>& vertex_deck, std::vector<Word>& vertex_deck_word) {
+  const int nd = static_cast<int>(original_vertex.size());
+  std::vector<int> copy_of(inputs, -1);
+  for (int d = 0; d < nd; ++d)  // copies of vertices added by a refinement (>= inputs) are not read
+    if (const int o = original_vertex[d]; o < inputs && copy_of[o] < 0) copy_of[o] = d;
+  const hyperbolic::Mobius unchart = chart.inverse();
+  z.resize(inputs);
+  vertex_deck.resize(inputs);
+  vertex_deck_word.resize(inputs);
+  for (int i = 0; i < inputs; ++i) {
+    const int d = copy_of[i];
+    if (d < 0) return vertex_noun + " " + std::to_string(i) + " is missing from " + disk_noun;
+    std::complex<double> zi = unchart.apply(hyperbolic::klein_to_poincare(k[d]));
+    if (!(std::isfinite(zi.real()) && std::isfinite(zi.imag()) && std::abs(zi) < 1 - 1e-12))
+      return vertex_noun + " " + std::to_string(i) + " lands at the disk's boundary (no digits left)";
+    Word w = c[d];
+    if (reduce_point) w = group.reduce(concat(reduce_point(zi), w));
+    z[i] = zi;
+    vertex_deck[i] = group.evaluate_side_word(w);
+    vertex_deck_word[i] = std::move(w);
+  }
+  return "";
+}
+
 }  // namespace surfmap::detail

@@ -5,11 +5,15 @@
 // by linear solves with positive weights (Tutte / Floater), so that the
 // result embeds the disk (Floater 2003, "Mean value coordinates").
 #include <complex>
+#include <functional>
 #include <string>
 #include <unordered_map>
 #include <vector>
 
+#include "surfmap/geometry/hyperbolic.h"
 #include "surfmap/mesh/tri_mesh.h"
+#include "surfmap/topology/words.h"
+#include "surfmap/uniformize/deck_group.h"
 
 namespace surfmap::detail {
 
@@ -47,5 +51,21 @@ struct FlatteningEdge {
 /// Laplacian cannot be factorised.
 bool flatten_in_klein(const std::vector<FlatteningEdge>& graph, const std::vector<char>& fixed, int hyperboloid_rounds,
                       std::vector<std::complex<double>>& k, std::string* why);
+
+/// The input vertices read off a flattened disk: vertex i (0 <= i <
+/// #inputs) takes its first copy d (original_vertex[d] == i; #disk
+/// vertices entries), whose Klein position k[d] in `chart` is taken back to
+/// the global Poincaré frame, and that copy's deck word c[d]; both are moved
+/// into the target's domain by `reduce_point` when it is set. Fills z,
+/// vertex_deck and vertex_deck_word (#inputs each). Returns "" or why not;
+/// `vertex_noun` and `disk_noun` name the vertices and the disk in that
+/// message.
+std::string read_disk_vertices(const std::vector<int>& original_vertex, int inputs,
+                               const std::vector<std::complex<double>>& k, const std::vector<Word>& c,
+                               const hyperbolic::Mobius& chart,
+                               const std::function<Word(std::complex<double>&)>& reduce_point,
+                               const DeckGroup& group, const std::string& vertex_noun,
+                               const std::string& disk_noun, std::vector<std::complex<double>>& z,
+                               std::vector<hyperbolic::Mobius>& vertex_deck, std::vector<Word>& vertex_deck_word);
 
 }  // namespace surfmap::detail

@@ -339,27 +339,12 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
   if (!detail::flatten_in_klein(graph, fixed, options.hyperboloid_rounds, kn, &why)) return give_up(why);
   for (int d = 0; d < nd; ++d) k[d] = kn[d];
 
-  // The input vertices: the point of one copy (global frame) and its deck
-  // element c_d, then moved into the target's domain.
-  std::vector<int> copy_of(nrv, -1);
-  for (int d = 0; d < nd; ++d)
-    if (copy_of[cm.original_vertex[d]] < 0) copy_of[cm.original_vertex[d]] = d;
-  const Mobius unchart = chart.inverse();
-  out.z.resize(n_in);
-  out.vertex_deck.resize(n_in);
-  out.vertex_deck_word.resize(n_in);
-  for (int i = 0; i < n_in; ++i) {
-    const int d = copy_of[i];
-    if (d < 0) return give_up("input vertex " + std::to_string(i) + " is missing from the refined mesh");
-    Complex zi = unchart.apply(hyperbolic::klein_to_poincare(k[d]));
-    if (!(std::isfinite(zi.real()) && std::isfinite(zi.imag()) && std::abs(zi) < 1 - 1e-12))
-      return give_up("input vertex " + std::to_string(i) + " lands at the disk's boundary (no digits left)");
-    Word w = c[d];
-    if (options.reduce_point) w = group.reduce(concat(options.reduce_point(zi), w));
-    out.z[i] = zi;
-    out.vertex_deck[i] = group.evaluate_side_word(w);
-    out.vertex_deck_word[i] = std::move(w);
-  }
+  // The input vertices: one copy's point (global frame) and its deck word,
+  // then moved into the target's domain.
+  const std::string unread = detail::read_disk_vertices(cm.original_vertex, n_in, k, c, chart, options.reduce_point, group,
+                                                        "input vertex", "the refined mesh", out.z, out.vertex_deck,
+                                                        out.vertex_deck_word);
+  if (!unread.empty()) return give_up(unread);
   out.applied = true;
   out.time_s = seconds_since(t0);
   return out;
