@@ -110,6 +110,30 @@ std::pair<std::vector<Complex>, double> PinnedFlatHarmonic::solve(const std::vec
 
 namespace {
 
+// One backtracking (Armijo) step of the barrier Newton solves below: z
+// (#V) moves along `step` (x and y of each free vertex v at 2 index[v]) to
+// the first halving that decreases `objective` by 1e-4 of the predicted
+// slope; the barrier makes every infeasible trial +inf. Returns false when
+// no halving does; `tiny` is set when the decrease was at round-off
+// (<= rel_tiny |F|), which the callers take as converged.
+template <class Objective>
+bool armijo_step(std::vector<Complex>& z, double& Fz, const Eigen::VectorXd& step, double slope,
+                 const std::vector<int>& index, const Objective& objective, double rel_tiny, bool& tiny) {
+  std::vector<Complex> trial(z);
+  double alpha = 1;
+  for (int ls = 0; ls < 40; ++ls, alpha *= 0.5) {
+    for (size_t v = 0; v < z.size(); ++v)
+      if (index[v] >= 0) trial[v] = z[v] + alpha * Complex(step[2 * index[v]], step[2 * index[v] + 1]);
+    const double Ft = objective(trial);
+    if (Ft <= Fz + 1e-4 * alpha * slope) {
+      tiny = Fz - Ft <= rel_tiny * std::abs(Fz);
+      z.swap(trial), Fz = Ft;
+      return true;
+    }
+  }
+  return false;
+}
+
 std::string landmark_name(const std::vector<std::pair<int, int>>& landmarks, int a) {
   return "landmark " + std::to_string(a) + " (" + std::to_string(landmarks[a].first) + " -> " +
          std::to_string(landmarks[a].second) + ")";
@@ -341,24 +365,10 @@ FlatBarrierResult flat_barrier_landmarks(int n, const std::vector<IntrinsicEdge>
       if (llt.info() != Eigen::Success) return false;
       const Eigen::VectorXd step = llt.solve(-g);
       const double slope = g.dot(step);
-      double alpha = 1;
-      std::vector<Complex> trial(z);
-      bool moved = false;
-      for (int ls = 0; ls < 40; ++ls, alpha *= 0.5) {
-        for (int v = 0; v < n; ++v)
-          if (index[v] >= 0) trial[v] = z[v] + alpha * Complex(step[2 * index[v]], step[2 * index[v] + 1]);
-        const double Ft = objective(trial);
-        if (Ft <= Fz + 1e-4 * alpha * slope) {
-          moved = true;
-          // Converged when the decrease is at round-off.
-          const bool tiny = Fz - Ft <= 1e-12 * std::abs(Fz);
-          z.swap(trial), Fz = Ft;
-          ++out.newton_iterations;
-          if (tiny) return true;
-          break;
-        }
-      }
-      if (!moved) return false;
+      bool tiny = false;  // converged when the decrease is at round-off
+      if (!armijo_step(z, Fz, step, slope, index, objective, 1e-12, tiny)) return false;
+      ++out.newton_iterations;
+      if (tiny) return true;
     }
     return true;
   };
@@ -716,23 +726,10 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
         if (llt.info() != Eigen::Success) return false;
         step = llt.solve(-g), slope = g.dot(step);
       }
-      double alpha = 1;
-      std::vector<Complex> trial(z);
-      bool moved = false;
-      for (int ls = 0; ls < 40; ++ls, alpha *= 0.5) {
-        for (int v = 0; v < n; ++v)
-          if (index[v] >= 0) trial[v] = z[v] + alpha * Complex(step[2 * index[v]], step[2 * index[v] + 1]);
-        const double Ft = objective(trial);
-        if (Ft <= Fz + 1e-4 * alpha * slope) {
-          moved = true;
-          const bool tiny = Fz - Ft <= 1e-13 * std::abs(Fz);
-          z.swap(trial), Fz = Ft;
-          ++out.newton_iterations;
-          if (tiny) return true;
-          break;
-        }
-      }
-      if (!moved) return false;
+      bool tiny = false;
+      if (!armijo_step(z, Fz, step, slope, index, objective, 1e-13, tiny)) return false;
+      ++out.newton_iterations;
+      if (tiny) return true;
     }
     return true;
   };
