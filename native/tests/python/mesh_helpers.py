@@ -6,9 +6,10 @@ import math
 import numpy as np
 
 
-def torus(R, r, n, m, shift=0):
-    """Torus of revolution, n x m grid, quads split along alternating diagonals (shift varies
-    the connectivity and offsets the minor angle by half a step per unit)."""
+def torus(R, r, n, m, shift=0, alternate=True):
+    """Torus of revolution, n x m grid, outward oriented, quads split along alternating
+    diagonals (alternate=False: all along the same one; shift varies the connectivity and
+    offsets the minor angle by half a step per unit)."""
     u, v = np.meshgrid(np.arange(n) * 2 * math.pi / n, (np.arange(m) + 0.5 * shift) * 2 * math.pi / m, indexing="ij")
     V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1).reshape(-1, 3)
     F = []
@@ -16,7 +17,7 @@ def torus(R, r, n, m, shift=0):
         for j in range(m):
             a, b = i * m + j, ((i + 1) % n) * m + j
             c, d = ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m
-            F += [[a, b, c], [a, c, d]] if (i + j + shift) % 2 == 0 else [[a, b, d], [b, c, d]]
+            F += [[a, b, c], [a, c, d]] if not alternate or (i + j + shift) % 2 == 0 else [[a, b, d], [b, c, d]]
     return V, np.array(F)
 
 

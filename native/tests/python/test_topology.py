@@ -1,23 +1,15 @@
 """System of loops from Python and the `surfmap loops` contract."""
 import json
-import math
 
 import numpy as np
 import pytest
 
 import surfmap
+from mesh_helpers import torus
 
 
 def tri_torus(n=16, m=9, R=1.0, r=0.35):
-    u, v = np.meshgrid(np.arange(n) * 2 * math.pi / n, np.arange(m) * 2 * math.pi / m, indexing="ij")
-    V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1).reshape(-1, 3)
-    F = []
-    for i in range(n):
-        for j in range(m):
-            a, b = i * m + j, ((i + 1) % n) * m + j
-            c, d = ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m
-            F += [[a, b, c], [a, c, d]]
-    return V, np.array(F)
+    return torus(R, r, n, m, alternate=False)
 
 
 def check_loops(r, n_input):

@@ -8,19 +8,11 @@ import pytest
 
 import surfmap
 from surfmap import _core
+from mesh_helpers import torus as grid_torus
 
 
 def torus(R, r, n, m):
-    """Torus of revolution, n x m grid, outward oriented."""
-    u, v = np.meshgrid(np.arange(n) * 2 * math.pi / n, np.arange(m) * 2 * math.pi / m, indexing="ij")
-    V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1).reshape(-1, 3)
-    F = []
-    for i in range(n):
-        for j in range(m):
-            a, b = i * m + j, ((i + 1) % n) * m + j
-            c, d = ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m
-            F += [[a, b, c], [a, c, d]]
-    return V, np.array(F)
+    return grid_torus(R, r, n, m, alternate=False)
 
 
 def su11(g):
