@@ -241,43 +241,10 @@ CutGraphInitialMapResult cut_graph_initial_map(const TriMesh& source, const Conn
   auto phi = [&](int f, int k) -> Word {
     return k == 0 ? Word{} : k == 1 ? halfedge_word[3 * f] : inverse(halfedge_word[3 * f + 2]);
   };
-  std::vector<Word> c(nd), b(nf);
-  std::vector<char> has_c(nd, 0), seen(nf, 0);
-  double mismatch = 0;
-  auto assign_corners = [&](int f) {
-    for (int k = 0; k < 3; ++k) {
-      const int d = cm.mesh.F(f, k);
-      Word w = k == 0 ? b[f] : group.reduce(concat(b[f], phi(f, k)));  // b_f is reduced
-      if (!has_c[d]) {
-        c[d] = std::move(w), has_c[d] = 1;
-      } else if (w != c[d]) {
-        // Relative to the entries' size: long words carry round-off of
-        // size² times machine precision.
-        const Mobius m1 = group.evaluate_side_word(w), m2 = group.evaluate_side_word(c[d]);
-        const double size = std::max(m1.size(), m2.size());
-        mismatch = std::max(mismatch, hyperbolic::mobius_distance(m1, m2) / (size * size));
-      }
-    }
-  };
-  std::vector<int> queue{0};
-  seen[0] = 1;
-  assign_corners(0);
-  for (size_t q = 0; q < queue.size(); ++q) {
-    const int f = queue[q];
-    for (int k = 0; k < 3; ++k) {
-      const int h = 3 * f + k;
-      if (cut[sc.edge(h)]) continue;
-      const int t = sc.twin(h), g = Connectivity::face(t);
-      if (seen[g]) continue;
-      seen[g] = 1;
-      const int kg = (t % 3 + 1) % 3;  // corner of g at tail(h)
-      b[g] = group.reduce(concat(c[cm.mesh.F(f, k)], inverse(phi(g, kg))));
-      assign_corners(g);
-      queue.push_back(g);
-    }
-  }
-  if (static_cast<int>(queue.size()) != nf) return give_up("the cut disk is not connected");
-  if (mismatch > 1e-6) return give_up("the class's deck elements are not flat (" + std::to_string(mismatch) + ")");
+  detail::DiskDevelopment dev = detail::develop_disk(cm.mesh, sc, cut, group, phi);
+  std::vector<Word>& c = dev.c;  // re-centred below
+  if (dev.faces_reached != nf) return give_up("the cut disk is not connected");
+  if (dev.mismatch > 1e-6) return give_up("the class's deck elements are not flat (" + std::to_string(dev.mismatch) + ")");
 
   // 3. The corner points: the harmonic map of the metric cut graph.
   std::vector<double> side_length_3d(ns, 0);

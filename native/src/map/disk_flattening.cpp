@@ -87,6 +87,49 @@ bool flatten_in_klein(const std::vector<FlatteningEdge>& graph, const std::vecto
   return true;
 }
 
+DiskDevelopment develop_disk(const TriMesh& disk, const Connectivity& conn, const std::vector<char>& cut,
+                             const DeckGroup& group, const std::function<Word(int, int)>& corner_word) {
+  const int nd = disk.num_vertices(), nf = disk.num_faces();
+  DiskDevelopment out;
+  out.c.resize(nd);
+  out.b.resize(nf);
+  std::vector<char> has_c(nd, 0), seen(nf, 0);
+  auto assign_corners = [&](int f) {
+    for (int k = 0; k < 3; ++k) {
+      const int d = disk.F(f, k);
+      const Word p = corner_word(f, k);
+      Word w = p.empty() ? out.b[f] : group.reduce(concat(out.b[f], p));  // b_f is reduced
+      if (!has_c[d]) {
+        out.c[d] = std::move(w), has_c[d] = 1;
+      } else if (w != out.c[d]) {
+        const hyperbolic::Mobius m1 = group.evaluate_side_word(w), m2 = group.evaluate_side_word(out.c[d]);
+        const double size = std::max(m1.size(), m2.size());
+        out.mismatch = std::max(out.mismatch, hyperbolic::mobius_distance(m1, m2) / (size * size));
+      }
+    }
+  };
+  if (nf == 0) return out;
+  std::vector<int> queue{0};
+  seen[0] = 1;
+  assign_corners(0);
+  for (size_t q = 0; q < queue.size(); ++q) {
+    const int f = queue[q];
+    for (int k = 0; k < 3; ++k) {
+      const int h = 3 * f + k;
+      if (cut[conn.edge(h)]) continue;
+      const int t = conn.twin(h), g = Connectivity::face(t);
+      if (seen[g]) continue;
+      seen[g] = 1;
+      const int kg = (t % 3 + 1) % 3;  // corner of g at tail(h)
+      out.b[g] = group.reduce(concat(out.c[disk.F(f, k)], inverse(corner_word(g, kg))));
+      assign_corners(g);
+      queue.push_back(g);
+    }
+  }
+  out.faces_reached = static_cast<int>(queue.size());
+  return out;
+}
+
 std::string read_disk_vertices(const std::vector<int>& original_vertex, int inputs,
                                const std::vector<std::complex<double>>& k, const std::vector<Word>& c,
                                const hyperbolic::Mobius& chart,

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "surfmap/geometry/hyperbolic.h"
+#include "surfmap/mesh/connectivity.h"
 #include "surfmap/mesh/tri_mesh.h"
 #include "surfmap/topology/words.h"
 #include "surfmap/uniformize/deck_group.h"
@@ -51,6 +52,24 @@ struct FlatteningEdge {
 /// Laplacian cannot be factorised.
 bool flatten_in_klein(const std::vector<FlatteningEdge>& graph, const std::vector<char>& fixed, int hyperboloid_rounds,
                       std::vector<std::complex<double>>& k, std::string* why);
+
+/// The development of a cut disk, breadth first from face 0 across the
+/// edges not cut (cut[conn.edge(h)] == 0; `conn`: the connectivity whose
+/// faces are the disk's faces): per face f its frame word b_f (b_0 = 1) and
+/// per disk vertex d the deck word c_d = b_f corner_word(f, k) of that copy
+/// (k: f's corner at d; an empty corner word leaves the reduced b_f as it
+/// is), all reduced side words. Two faces that disagree on a copy's word
+/// give `mismatch` (their elements' distance over size²: long words carry
+/// round-off of size² times machine precision); a disk whose faces are not
+/// all reached is not connected.
+struct DiskDevelopment {
+  std::vector<Word> c;  ///< #disk vertices
+  std::vector<Word> b;  ///< #disk faces
+  int faces_reached = 0;
+  double mismatch = 0;
+};
+DiskDevelopment develop_disk(const TriMesh& disk, const Connectivity& conn, const std::vector<char>& cut,
+                             const DeckGroup& group, const std::function<Word(int, int)>& corner_word);
 
 /// The input vertices read off a flattened disk: vertex i (0 <= i <
 /// #inputs) takes its first copy d (original_vertex[d] == i; #disk

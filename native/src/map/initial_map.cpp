@@ -156,43 +156,11 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
   // per disk vertex c_d = b_f psi (the deck element of that copy: its point
   // in the development is c_d(lift)). Neighbours across uncut edges share
   // the copy of their common vertex.
-  std::vector<Word> c(nd), b(nrf);
-  std::vector<char> has_c(nd, 0), seen(nrf, 0);
-  double mismatch = 0;
-  std::vector<int> queue{0};
-  seen[0] = 1;
-  auto assign_corners = [&](int f) {
-    for (int k = 0; k < 3; ++k) {
-      const int d = cm.mesh.F(f, k);
-      Word w = group.reduce(concat(b[f], psi[3 * f + k]));
-      if (!has_c[d]) {
-        c[d] = std::move(w), has_c[d] = 1;
-      } else if (w != c[d]) {
-        // Relative to the entries' size: long words (twisted classes) carry
-        // round-off of size² times machine precision.
-        const Mobius m1 = group.evaluate_side_word(w), m2 = group.evaluate_side_word(c[d]);
-        const double size = std::max(m1.size(), m2.size());
-        mismatch = std::max(mismatch, hyperbolic::mobius_distance(m1, m2) / (size * size));
-      }
-    }
-  };
-  assign_corners(0);
-  for (size_t q = 0; q < queue.size(); ++q) {
-    const int f = queue[q];
-    for (int k = 0; k < 3; ++k) {
-      const int h = 3 * f + k;
-      if (cut[rc.edge(h)]) continue;
-      const int t = rc.twin(h), g = Connectivity::face(t);
-      if (seen[g]) continue;
-      seen[g] = 1;
-      const int kg = (t % 3 + 1) % 3;  // corner of g at tail(h)
-      b[g] = group.reduce(concat(c[cm.mesh.F(f, k)], inverse(psi[3 * g + kg])));
-      assign_corners(g);
-      queue.push_back(g);
-    }
-  }
-  if (static_cast<int>(queue.size()) != nrf) return give_up("the refined cut disk is not connected");
-  if (mismatch > 1e-6) return give_up("the class's deck elements are not flat on the refined mesh (" + std::to_string(mismatch) + ")");
+  const detail::DiskDevelopment dev =
+      detail::develop_disk(cm.mesh, rc, cut, group, [&](int f, int k) { return psi[3 * f + k]; });
+  const std::vector<Word>& c = dev.c;
+  if (dev.faces_reached != nrf) return give_up("the refined cut disk is not connected");
+  if (dev.mismatch > 1e-6) return give_up("the class's deck elements are not flat on the refined mesh (" + std::to_string(dev.mismatch) + ")");
 
   // Boundary: 4g sides between the copies of x, counter-clockwise.
   std::vector<int> bl = cm.boundary_loops[0];
