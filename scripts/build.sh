@@ -6,5 +6,11 @@ repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${SURFMAP_BUILD_DIR:-$repo/build}"
 bash "$repo/scripts/bootstrap.sh"
 jobs="${SURFMAP_JOBS:-$(nproc)}"
-cmake -S "$repo" -B "$build" -DCMAKE_BUILD_TYPE="${SURFMAP_BUILD_TYPE:-Release}" -DPython_EXECUTABLE=/usr/bin/python3 >/dev/null
+# ccache, when installed, lets several checkouts (worktrees) share compiled
+# objects; the build does not depend on it.
+launcher=()
+if command -v ccache >/dev/null 2>&1; then
+  launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+fi
+cmake -S "$repo" -B "$build" -DCMAKE_BUILD_TYPE="${SURFMAP_BUILD_TYPE:-Release}" -DPython_EXECUTABLE=/usr/bin/python3 "${launcher[@]}" >/dev/null
 cmake --build "$build" -j"$jobs"
