@@ -17,7 +17,7 @@ namespace surfmap::cli {
 void register_domain(CLI::App& app) {
   struct Args {
     std::string kind = "n-torus", layout = "row", out, report;
-    int genus = 2, resolution = 40;
+    int genus = 2, resolution = 24;
     bool keep_scale = false;
   };
   auto a = std::make_shared<Args>();
@@ -29,7 +29,7 @@ void register_domain(CLI::App& app) {
   cmd->add_option("--layout", a->layout, "n-torus: holes in a row or in a ring")
       ->check(CLI::IsMember({"row", "ring"}))
       ->capture_default_str();
-  cmd->add_option("--resolution", a->resolution, "Grid cells per hole (>= 32); #V grows like genus x resolution^2")
+  cmd->add_option("--resolution", a->resolution, "Grid cells per hole (>= 16); #V grows like genus x resolution^2")
       ->capture_default_str();
   cmd->add_flag("--keep-scale", a->keep_scale, "Keep the modelling units (default: scaled to total area 1)");
   cmd->add_option("--out,-o", a->out, "Output .obj file (written atomically)")->required();

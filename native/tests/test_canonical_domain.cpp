@@ -81,7 +81,7 @@ TEST(CanonicalDomain, KeepScaleAndBadOptions) {
   EXPECT_GT(d.area, 5.0);  // two tori of tube radius 0.4 around circles of radius 1: about 2 x 4 pi^2 x 0.4
   EXPECT_THROW(canonical_domain({9, DomainKind::NTorus, DomainLayout::Row, 32, true}), InputError);
   EXPECT_THROW(canonical_domain({-1, DomainKind::NTorus, DomainLayout::Row, 32, true}), InputError);
-  EXPECT_THROW(canonical_domain({2, DomainKind::NTorus, DomainLayout::Row, 16, true}), InputError);
+  EXPECT_THROW(canonical_domain({2, DomainKind::NTorus, DomainLayout::Row, 12, true}), InputError);
   EXPECT_THROW(canonical_domain({2, DomainKind::Polycube, DomainLayout::Ring, 32, true}), InputError);
 }
 

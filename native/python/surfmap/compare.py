@@ -29,7 +29,7 @@ import sys
 import numpy as np
 
 from . import _core
-from .mapcall import inverse_points, map_report, run_map
+from .mapcall import forward_points, inverse_points, map_report, run_map  # noqa: F401
 
 # ---- meshes ----------------------------------------------------------------------------
 
@@ -118,13 +118,19 @@ def pulled_back_fields(V_shape, F_shape, V_dom, F_dom, inv_face, inv_bary, inv_p
     return lam, H
 
 
+def map_normalised(Vs, Fs, Vt, Ft, map_options=None, progress=None):
+    """The native map between the two shapes each centred and scaled to unit area (so the
+    class search's overlays see them alike). Faces and barycentrics of the result refer to
+    the given meshes; its positions are in the normalised coordinates."""
+    return run_map(normalise(Vs, Fs), Fs, normalise(Vt, Ft), Ft, map_options, progress=progress)
+
+
 def domain_fields(shape, domain, map_options=None, progress=None):
     """Maps one shape onto the domain (both normalised to unit area) and returns
     {"lambda": (nd,), "H": (nd,), "report": map_report}."""
     Vs, Fs = load_shape(shape)
     Vd, Fd = load_shape(domain)
-    Vs, Vd = normalise(Vs, Fs), normalise(Vd, Fd)
-    m = run_map(Vs, Fs, Vd, Fd, map_options, progress=progress)
+    m = map_normalised(Vs, Fs, Vd, Fd, map_options, progress=progress)
     face, bary, pos = inverse_points(m)
     lam, H = pulled_back_fields(Vs, Fs, Vd, Fd, face, bary, pos)
     return {"lambda": lam, "H": H, "report": map_report(m)}
@@ -194,13 +200,15 @@ def pair_distance(shape_i, shape_j, beta=1.0, map_options=None, progress=None):
     Returns (E, map_report)."""
     Vi, Fi = load_shape(shape_i)
     Vj, Fj = load_shape(shape_j)
-    Vi, Vj = normalise(Vi, Fi), normalise(Vj, Fj)
-    m = run_map(Vi, Fi, Vj, Fj, map_options, progress=progress)
+    m = map_normalised(Vi, Fi, Vj, Fj, map_options, progress=progress)
+    return distance_of_map(Vi, Fi, Vj, Fj, m, beta), map_report(m)
+
+
+def distance_of_map(Vi, Fi, Vj, Fj, m, beta=1.0):
+    """Direct mode's E from a computed map i -> j (the native result dict)."""
     face, bary, pos = inverse_points(m)
     lam, H = pulled_back_fields(Vi, Fi, Vj, Fj, face, bary, pos)
-    Hj = mean_curvature(Vj, Fj)
-    e = field_distance(lam, H, np.zeros_like(lam), Hj, domain_weights(Vj, Fj), beta)
-    return e, map_report(m)
+    return field_distance(lam, H, np.zeros_like(lam), mean_curvature(Vj, Fj), domain_weights(Vj, Fj), beta)
 
 
 def shape_name(shape, k):

@@ -121,8 +121,8 @@ void measure(CanonicalDomainResult& r) {
 CanonicalDomainResult canonical_domain(const CanonicalDomainOptions& o) {
   if (o.genus < 0 || o.genus > 8)
     throw InputError("canonical domain: genus " + std::to_string(o.genus) + " is out of range (0..8)");
-  if (o.resolution < 32)
-    throw InputError("canonical domain: resolution " + std::to_string(o.resolution) + " is too low (need >= 32)");
+  if (o.resolution < 16)
+    throw InputError("canonical domain: resolution " + std::to_string(o.resolution) + " is too low (need >= 16)");
   if (o.kind == DomainKind::Polycube && o.layout == DomainLayout::Ring)
     throw InputError("canonical domain: the polycube kind has its holes in a row (no ring layout)");
   CanonicalDomainResult r;

@@ -22,7 +22,7 @@ struct CanonicalDomainOptions {
   int genus = 2;                          ///< 0..8 (0: unit icosphere, whatever the kind)
   DomainKind kind = DomainKind::NTorus;
   DomainLayout layout = DomainLayout::Row;
-  int resolution = 40;                    ///< grid cells along the longest axis (>= 32); #V grows like resolution^2
+  int resolution = 24;                    ///< grid cells per hole tile (>= 16); #V grows like genus x resolution^2
   bool unit_area = true;                  ///< scale (about the centroid) to total area 1
 };
 
@@ -42,7 +42,7 @@ struct CanonicalDomainResult {
 /// triangles are close to equilateral; the result is checked (closed,
 /// manifold, genus, orientation, no zero-area face) and its triangle quality
 /// is measured. Throws InputError on a genus outside 0..8, a resolution below
-/// 32, or DomainLayout::Ring with DomainKind::Polycube.
+/// 16, or DomainLayout::Ring with DomainKind::Polycube.
 CanonicalDomainResult canonical_domain(const CanonicalDomainOptions& options);
 
 }  // namespace surfmap::samples
