@@ -121,7 +121,7 @@ def test_compare_genus1_invariance(mode, tmp_path):
     # Scale invariance exactly where nothing else changes: the same mesh scaled by 7.
     V, F = S["fat"]
     r2 = C.compare([(V, F), (7.0 * V, F), S["base"]], dom, beta=1.0)
-    assert r2["matrix"][0, 1] < 1e-6 * r2["matrix"][0, 2]
+    assert r2["matrix"][0, 1] < 1e-4 * r2["matrix"][0, 2]
     np.testing.assert_allclose(r2["matrix"][0, 2], r2["matrix"][1, 2], rtol=1e-5)
 
 
