@@ -21,8 +21,8 @@ import demo  # noqa: E402  (samples/demo.py: its functions, not its main)
 
 import bpy  # noqa: E402
 
-SHARED_G4 = os.path.join(os.path.dirname(os.path.dirname(HERE)), "shared", "meshes",
-                         "g4_fertility_libigl.off")
+# ../shared/meshes beside the repository (the project's development meshes).
+SHARED_G4 = os.path.join(os.path.dirname(demo.REPO), "shared", "meshes", "g4_fertility_libigl.off")
 
 
 def main():

@@ -133,7 +133,7 @@ class SURFMAP_OT_map_onto_selected(_Modal, bpy.types.Operator):
             self.report({'ERROR'}, str(e))
             return False
         self._count = len(self._targets)
-        self._jobs, self._lines, self._failed = {}, [], 0
+        self._jobs, self._lines, self._mapped = {}, [], 0
         return True
 
     def _override(self, context, target):
@@ -156,12 +156,11 @@ class SURFMAP_OT_map_onto_selected(_Modal, bpy.types.Operator):
             return job
         return solve
 
-    def _record(self, target, text):
-        if text.startswith("skipped") or text.startswith("failed"):
-            self._failed += 1
+    def _record(self, target, text, ok=False):
+        """One line per target; `ok` counts it as mapped."""
+        self._mapped += bool(ok)
         self._lines.append(f"{target.name}: {text}")
-        self.report({'WARNING'} if self._failed and text[:6] in ("skippe", "failed") else {'INFO'},
-                    f"'{self._template.name}' -> '{target.name}': {text}")
+        self.report({'INFO'} if ok else {'WARNING'}, f"'{self._template.name}' -> '{target.name}': {text}")
 
     def _end(self, context, k, result):
         target = self._targets[k]
@@ -178,7 +177,7 @@ class SURFMAP_OT_map_onto_selected(_Modal, bpy.types.Operator):
             res = job.result
             target[DILATATION_KEY] = float(res["distortion"]["mean"])
             self._record(target, f"done: mean D' {res['distortion']['mean']:.4g}, energy "
-                                 f"{res['energy']['final']:.6g}, {job.elapsed:.1f}s")
+                                 f"{res['energy']['final']:.6g}, {job.elapsed:.1f}s", ok=True)
         else:
             self._record(target, "failed: outputs not written")
 
@@ -198,11 +197,11 @@ class SURFMAP_OT_map_onto_selected(_Modal, bpy.types.Operator):
         return f"Surface Map: object {self._k + 1}/{self._count} '{name}' — {inner}"
 
     def _done(self, context, cancelled):
-        done = len(self._lines) - self._failed
+        done = self._mapped
         text = (f"'{self._template.name}' mapped onto {done} of {self._count} objects"
                 + (" (cancelled: the rest were not mapped)" if cancelled else ""))
         context.scene.surfmap.map_status = "; ".join([text] + self._lines)
-        self.report({'WARNING'} if cancelled or self._failed else {'INFO'}, text)
+        self.report({'WARNING'} if cancelled or done < self._count else {'INFO'}, text)
         return {'FINISHED'} if done else {'CANCELLED'}
 
     def execute(self, context):
