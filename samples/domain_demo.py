@@ -20,9 +20,26 @@ sys.path.insert(0, HERE)
 import demo  # noqa: E402  (samples/demo.py: its functions, not its main)
 
 import bpy  # noqa: E402
+import numpy as np  # noqa: E402
 
 # ../shared/meshes beside the repository (the project's development meshes).
 SHARED_G4 = os.path.join(os.path.dirname(demo.REPO), "shared", "meshes", "g4_fertility_libigl.off")
+
+
+def posed_like(V, V_shape):
+    """The domain turned onto the shape's principal axes (longest along longest) and scaled to
+    its size, so the linear morph between them does not have to turn it (the map itself does
+    not depend on the pose)."""
+    def axes(X):
+        c = X.mean(axis=0)
+        w, U = np.linalg.eigh(np.cov((X - c).T))
+        U = U[:, ::-1]
+        if np.linalg.det(U) < 0:
+            U[:, 2] *= -1
+        return c, np.sqrt(w[::-1]), U
+    c0, s0, U0 = axes(np.asarray(V))
+    c1, s1, U1 = axes(np.asarray(V_shape))
+    return (np.asarray(V) - c0) @ U0 @ U1.T * (s1[0] / s0[0]) + c1
 
 
 def main():
@@ -49,15 +66,18 @@ def main():
         print("domain_demo: no real genus-4 mesh; using the generated polycube_g4")
     shapes = {2: os.path.join(demo.MESHES, "double_torus_gpjs_g2.obj"), 4: os.path.abspath(g4)}
     written, objs = [], []
-    for i, (genus, shape) in enumerate(shapes.items()):
+    for i, (genus, path) in enumerate(shapes.items()):
+        shape = sm.load_mesh(path)
+        name = os.path.splitext(os.path.basename(path))[0]
+        sm.write_obj(os.path.join(out, f"{name}.obj"), shape["V"], shape["F"])
         V, F, q = sm.shapes.canonical_domain(genus, "n-torus", "row", 20 if genus == 2 else 16)
-        domain = os.path.join(out, f"domain_g{genus}.obj")
-        sm.write_obj(domain, V, F)
+        V = posed_like(V, shape["V"])
+        sm.write_obj(os.path.join(out, f"domain_g{genus}.obj"), V, F)
         print(f"domain_demo: {q['description']}: {len(V)} vertices, min angle "
               f"{q['min_angle_deg']:.1f} deg")
         tag = f"d{genus}"
-        demo.PAIRS[tag] = (genus, shape, domain)  # absolute paths: os.path.join keeps them
-        objs += demo.demo_pair(sm, demo.MESHES, tag, 6.0 * i, cam, out, written)
+        demo.PAIRS[tag] = (genus, f"{name}.obj", f"domain_g{genus}.obj")
+        objs += demo.demo_pair(sm, out, tag, 6.0 * i, cam, out, written)
     demo.show_only(objs, curves=True)
     blend = os.path.join(out, "domain_demo.blend")
     bpy.ops.wm.save_as_mainfile(filepath=blend)

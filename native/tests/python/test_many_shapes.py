@@ -222,7 +222,11 @@ def test_batch_cluster_equals_serial_and_resumes(tmp_path):
     sphere = tmp_path / "meshes" / "sphere.obj"
     surfmap.write_obj(str(sphere), *surfmap.shapes.sphere(2))
     jobs2 = jobs + [{"id": "bad", "source": paths[0], "target": str(sphere)}]
-    res2 = B.run_jobs(jobs2, str(out), workers=2, quiet=True)
+    # This time on an existing cluster, reached through its scheduler's address.
+    from distributed import LocalCluster
+    B._ensure_worker_path()
+    with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None) as cluster:
+        res2 = B.run_jobs(jobs2, str(out), scheduler=cluster.scheduler_address, quiet=True)
     status = {r["id"]: r["status"] for r in res2}
     assert {k for k, s in status.items() if s == "done"} == set(lost)
     assert {k for k, s in status.items() if s == "skipped"} == set(kept)
