@@ -604,4 +604,5 @@ def main():
     print("demo: wrote", ", ".join(os.path.basename(p) for p in written))
 
 
-main()
+if __name__ == "__main__":  # samples/domain_demo.py imports this file
+    main()

@@ -17,7 +17,7 @@ bl_info = {
 if "bpy" in locals():
     import importlib
     for _m in ("native", "core", "mapping", "mapjob", "blender_io", "properties", "operators",
-               "map_ops", "panel"):
+               "map_ops", "panel", "batch_operators"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
@@ -25,8 +25,9 @@ import bpy  # noqa: E402
 
 from . import (native, core, mapping, mapjob, blender_io, properties, operators,  # noqa: E402,F401
                map_ops, panel)
+from . import batch_operators  # noqa: E402
 
-_modules = (properties, operators, map_ops, panel)
+_modules = (properties, operators, map_ops, panel, batch_operators)
 
 
 def register():

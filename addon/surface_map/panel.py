@@ -1,7 +1,7 @@
 """The 'Surface Map' sidebar panel of the 3D view (N-panel, category 'Surface Map')."""
 import bpy
 
-from . import native
+from . import batch_operators, native
 from .properties import _wrap, extra_module_dirs
 
 
@@ -44,6 +44,7 @@ class SURFMAP_PT_main(bpy.types.Panel):
             for line in _wrap(settings.status, 40)[:6]:
                 layout.label(text=line)
         draw_map(layout, settings)
+        batch_operators.draw_rows(layout)  # many objects: map onto selected, compare selected
 
 
 def draw_map(layout, settings):

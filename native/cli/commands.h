@@ -11,5 +11,7 @@ void register_loops(CLI::App& app);
 void register_uniformize(CLI::App& app);
 void register_generate(CLI::App& app);
 void register_map(CLI::App& app);
+void register_domain(CLI::App& app);
+void register_python_commands(CLI::App& app);  // compare, batch
 
 }  // namespace surfmap::cli

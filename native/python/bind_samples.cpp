@@ -3,6 +3,7 @@
 #include "bindings.h"
 #include "convert.h"
 
+#include "surfmap/samples/canonical_domain.h"
 #include "surfmap/samples/shapes.h"
 
 namespace surfmap::python {
@@ -89,6 +90,33 @@ void bind_samples(py::module_& m) {
           return out(samples::sphere_inversion(in(V, F), c, rho));
         },
         arg("V"), arg("F"), arg("c"), arg("rho"), "Conformal copy by inversion in the sphere (c, rho), outward.");
+  s.def("canonical_domain",
+        [](int genus, const std::string& kind, const std::string& layout, int resolution, bool unit_area) {
+          samples::CanonicalDomainOptions o;
+          o.genus = genus;
+          if (kind == "n-torus") o.kind = samples::DomainKind::NTorus;
+          else if (kind == "polycube") o.kind = samples::DomainKind::Polycube;
+          else throw InputError("kind must be 'n-torus' or 'polycube', not '" + kind + "'");
+          if (layout == "row") o.layout = samples::DomainLayout::Row;
+          else if (layout == "ring") o.layout = samples::DomainLayout::Ring;
+          else throw InputError("layout must be 'row' or 'ring', not '" + layout + "'");
+          o.resolution = resolution;
+          o.unit_area = unit_area;
+          samples::CanonicalDomainResult d;
+          {
+            py::gil_scoped_release nogil;
+            d = samples::canonical_domain(o);
+          }
+          py::dict quality(py::arg("description") = d.description, py::arg("genus") = d.genus,
+                           py::arg("area") = d.area, py::arg("signed_volume") = d.signed_volume,
+                           py::arg("min_angle_deg") = d.min_angle_deg,
+                           py::arg("mean_min_angle_deg") = d.mean_min_angle_deg,
+                           py::arg("fraction_below_20_deg") = d.fraction_below_20_deg);
+          return py::make_tuple(to_numpy(d.mesh.V), to_numpy(d.mesh.F), quality);
+        },
+        arg("genus"), arg("kind") = "n-torus", arg("layout") = "row", arg("resolution") = 24,
+        arg("unit_area") = true,
+        "Canonical genus-g domain (samples/canonical_domain.h): (V, F, quality dict).");
   s.def("sphere", [](int subdivisions) { return out(samples::sphere(subdivisions)); }, arg("subdivisions") = 3,
         "Subdivided icosahedron on the unit sphere (genus 0).");
 }

@@ -1,0 +1,62 @@
+"""The one place where the many-shape tools (surfmap.compare, surfmap.batch, the add-on's
+batch operators) call the native map and read its result.
+
+Everything else goes through `run_map` (keyword options -> result dict) and `map_report`
+(result dict -> JSON-able summary), so a change of the native options or of the result's
+layout is adapted here only.
+"""
+import numpy as np
+
+from . import _core
+
+# Options the many-shape tools pass through to surfmap.surface_map (all optional); the
+# names are the keyword arguments of the native call.
+MAP_OPTION_NAMES = (
+    "homotopy", "method", "tolerance", "max_iterations", "homotopy_candidates",
+    "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search",
+    "homotopy_search_evaluations",
+)
+
+
+def run_map(Vs, Fs, Vt, Ft, options=None, progress=None):
+    """The optimal map source -> target (the native surface_map, GIL released during the
+    solve). options: dict with keys from MAP_OPTION_NAMES; unknown keys raise InputError.
+    Returns the native result dict."""
+    options = dict(options or {})
+    unknown = sorted(set(options) - set(MAP_OPTION_NAMES))
+    if unknown:
+        raise _core.InputError(f"unknown map option(s): {', '.join(unknown)}")
+    return _core.surface_map(Vs, Fs, Vt, Ft, progress=progress, **options)
+
+
+def forward_points(result):
+    """(face (n,), barycentric (n,3), position (n,3)) of every source vertex on the target."""
+    f = result["forward"]
+    return np.asarray(f["face"]), np.asarray(f["barycentric"]), np.asarray(f["position"])
+
+
+def inverse_points(result):
+    """(face (m,), barycentric (m,3), position (m,3)) of every target vertex on the source."""
+    f = result["inverse"]
+    return np.asarray(f["face"]), np.asarray(f["barycentric"]), np.asarray(f["position"])
+
+
+def map_report(result):
+    """A small JSON-able summary of a map result (no per-vertex arrays)."""
+    h = result["homotopy"]
+    chosen = h["chosen"]
+    cands = h["candidates"]
+    return {
+        "genus": int(result["genus"]),
+        "converged": bool(result["converged"]),
+        "iterations": int(result["iterations"]),
+        "energy": {"initial": float(result["energy"]["initial"]),
+                   "final": float(result["energy"]["final"])},
+        "distortion": {"mean": float(result["distortion"]["mean"]),
+                       "max": float(result["distortion"]["max"])},
+        "flipped_triangles": int(result["flipped_triangles"]),
+        "homotopy": {"chosen": int(chosen),
+                     "description": cands[chosen]["description"] if 0 <= chosen < len(cands) else "",
+                     "candidates": len(cands)},
+        "time_s": float(result["time_s"]["total"]),
+    }
