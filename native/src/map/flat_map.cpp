@@ -12,10 +12,13 @@
 
 #include "landmarks.h"
 #include "map_support.h"
+#include "stages/flat_location.h"
+#include "stages/landmark_ranking.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/geometry/positive_edge_weights.h"
 #include "surfmap/map/distortion.h"
+#include "surfmap/map/point_location.h"
 #include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/edge_homotopy.h"
 
@@ -54,29 +57,11 @@ FlatTarget flat_target(const TriMesh& target, const SurfaceMapOptions& options) 
   return t;
 }
 
-// Locates p modulo the lattice (w1, w2) in the grid: reduce p to the
-// parallelogram around `centre`, then try nearby translates.
-int locate_periodic(const TriangleGrid& grid, Complex p, Complex centre, Complex w1, Complex w2,
-                    Eigen::Vector3d* bary) {
-  const double det = w1.real() * w2.imag() - w1.imag() * w2.real();
-  const Complex d = p - centre;
-  const double alpha = (d.real() * w2.imag() - d.imag() * w2.real()) / det;
-  const double beta = (w1.real() * d.imag() - w1.imag() * d.real()) / det;
-  const Complex q = p - std::round(alpha) * w1 - std::round(beta) * w2;
-  for (int ring = 0; ring <= 3; ++ring)
-    for (int m = -ring; m <= ring; ++m)
-      for (int n = -ring; n <= ring; ++n) {
-        if (std::max(std::abs(m), std::abs(n)) != ring) continue;
-        const int f = grid.locate(q + double(m) * w1 + double(n) * w2, bary);
-        if (f >= 0) return f;
-      }
-  return -1;
-}
-
 }  // namespace
 
 void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
-              const SurfaceMapOptions& options, SurfaceMapResult& out, const StageDone& stage_done) {
+              const SurfaceMapOptions& options, const testing::MapHooks& hooks, SurfaceMapResult& out,
+              const StageDone& stage_done) {
   // Target: flat uniformization and canonical lattice basis.
   const FlatTarget tgt = flat_target(target, options);
   out.target_refinement_splits = tgt.refinement_splits;
@@ -319,24 +304,16 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     // pins' lower bounds: held in the order of their bounds until none is
     // below the best held energy (the rest: landmark_energy NaN); +inf
     // where the landmarks cannot be held bijectively.
+    // (stages/landmark_ranking.h; every class has its bound here.)
     std::vector<int> order(out.candidates.size());
     for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
-    std::stable_sort(order.begin(), order.end(), [&](int x, int y) {
-      return out.candidates[x].landmark_lower_bound < out.candidates[y].landmark_lower_bound;
+    std::vector<std::unique_ptr<FlatHold>> holds(out.candidates.size());
+    const int best = landmark_branch_and_bound(order, out.candidates, [&](int k) -> std::optional<double> {
+      const auto tr = translations_of(out.candidates[k].matrix);
+      holds[k] = std::make_unique<FlatHold>(hold_landmarks(tr.first, tr.second));
+      return holds[k]->energy;
     });
-    int best = -1;
-    for (int k : order) {
-      HomotopyCandidate& c = out.candidates[k];
-      if (best >= 0 && c.landmark_lower_bound >= out.candidates[best].landmark_energy) break;
-      const auto tr = translations_of(c.matrix);
-      try {
-        auto h = std::make_unique<FlatHold>(hold_landmarks(tr.first, tr.second));
-        c.landmark_energy = h->energy;
-        if (best < 0 || h->energy < out.candidates[best].landmark_energy) best = k, chosen_hold = std::move(h);
-      } catch (const SolveError&) {
-        c.landmark_energy = std::numeric_limits<double>::infinity();
-      }
-    }
+    if (best >= 0) chosen_hold = std::move(holds[best]);
     if (best < 0)
       throw SolveError("the landmarks cannot be held bijectively in any of the " + std::to_string(out.candidates.size()) +
                        " homotopy classes tried");
@@ -378,7 +355,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     const Complex shift0 = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z_init[sl.base_vertex];
     for (Complex& zi : z_init) zi += shift0;
   }
-  if (options.inspect_problem) {
+  if (hooks.inspect_problem) {
     HarmonicProblem p;
     p.flat = true;
     p.num_vertices = n;
@@ -387,7 +364,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
       p.flat_weight.push_back(idt.edges[e].cot_weight), p.flat_translation.push_back(t_intrinsic[e]);
     }
     p.start = z_init;
-    options.inspect_problem(p);
+    hooks.inspect_problem(p);
   }
   double e_init = 0;
   for (size_t e = 0; e < idt.edges.size(); ++e) {
@@ -443,69 +420,14 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
                      std::to_string(intrinsic_flipped) + " in the intrinsic triangulation); it is not returned");
   stage_done("quality", 0.75);
 
-  // Forward map: locate every z_i in the target's disk (modulo the lattice).
-  const int ntf = tgt.loops.mesh.num_faces();
-  std::vector<std::array<Complex, 3>> ttris(ntf);
-  Complex centre = 0;
-  for (int f = 0; f < ntf; ++f) {
-    for (int k = 0; k < 3; ++k) ttris[f][k] = tgt.layout.corners(f, k);
-    centre += (ttris[f][0] + ttris[f][1] + ttris[f][2]) / 3.0;
-  }
-  centre /= double(ntf);
-  const TriangleGrid tgrid(ttris);
-  std::vector<int> refined_face_origin(ntf, -1);
-  out.forward.resize(n);
-  for (int i = 0; i < n; ++i) {
-    Eigen::Vector3d b;
-    const int rf = locate_periodic(tgrid, z[i], centre, tgt.A, tgt.B, &b);
-    if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
-    out.forward[i] = point_on_input(target, tc, tgt.loops, refined_face_origin, rf, b);
-  }
-  // The initial (uniform Tutte) map located the same way ("before" morph).
+  // Location (stages/flat_location.h); the initial map is the uniform Tutte one.
   out.initial_map.construction = "uniform Tutte";
-  out.initial_forward.resize(n);
-  for (int i = 0; i < n; ++i) {
-    Eigen::Vector3d b;
-    const int rf = locate_periodic(tgrid, z_init[i], centre, tgt.A, tgt.B, &b);
-    if (rf < 0) {
-      out.initial_forward.clear();  // left unlocated, not an error
-      break;
-    }
-    out.initial_forward[i] = point_on_input(target, tc, tgt.loops, refined_face_origin, rf, b);
-  }
-  stage_done("forward location", 0.85);
-
-  // Inverse map: locate every target vertex in the image of the source
-  // triangles `im`; false (and `inv` emptied) if one is not covered.
-  auto locate_inverse = [&](const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& im,
-                            std::vector<PointOnSurface>& inv, int* missed) {
-    std::vector<std::array<Complex, 3>> stris(source.num_faces());
-    Complex scentre = 0;
-    for (int f = 0; f < source.num_faces(); ++f) {
-      for (int k = 0; k < 3; ++k) stris[f][k] = im(f, k);
-      scentre += (stris[f][0] + stris[f][1] + stris[f][2]) / 3.0;
-    }
-    scentre /= double(source.num_faces());
-    const TriangleGrid sgrid(stris);
-    inv.resize(target.num_vertices());
-    for (int v = 0; v < target.num_vertices(); ++v) {
-      Eigen::Vector3d b;
-      const int f = locate_periodic(sgrid, tgt.layout.vertex_positions[v], scentre, tgt.A, tgt.B, &b);
-      if (f < 0) {
-        inv.clear();
-        *missed = v;
-        return false;
-      }
-      inv[v] = point_in_face(source, f, b);
-    }
-    return true;
-  };
-  int missed = -1;
-  if (!locate_inverse(img, out.inverse, &missed))
-    throw SolveError("target vertex " + std::to_string(missed) + " could not be located in the source image");
-  // The initial map's inverse the same way (the "before" UV transfer); left
-  // empty, not an error, when a target vertex is not covered.
-  locate_inverse(image_corners(z_init), out.initial_inverse, &missed);
+  FlatLocationResult located = locate_flat_map(source, target, tc, tgt.loops, tgt.layout, tgt.A, tgt.B, z, z_init, img,
+                                               image_corners(z_init), stage_done);
+  out.forward = std::move(located.forward);
+  out.inverse = std::move(located.inverse);
+  out.initial_forward = std::move(located.initial_forward);
+  out.initial_inverse = std::move(located.initial_inverse);
   stage_done("inverse location", 1.0);
   return;
   }
