@@ -6,6 +6,8 @@
 
 #include <Eigen/Dense>
 
+#include "surfmap/geometry/hyperbolic.h"
+
 namespace surfmap {
 namespace {
 
@@ -32,6 +34,37 @@ double dilatation_of(const Eigen::Matrix2d& src, const Eigen::Matrix2d& img) {
 
 double triangle_dilatation(const Eigen::Vector3d& source_sides, const Eigen::Vector3d& image_sides) {
   return dilatation_of(frame_from_sides(source_sides), frame_from_sides(image_sides));
+}
+
+int image_orientation(std::complex<double> b, std::complex<double> c) {
+  const double cross = b.real() * c.imag() - b.imag() * c.real();
+  if (!(std::abs(cross) > 1e-14 * std::max(std::norm(b), std::norm(c)))) return 0;
+  return cross < 0 ? -1 : 1;
+}
+
+double hyperbolic_face_dilatation(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Eigen::Vector3d& p2,
+                                  std::complex<double> b, std::complex<double> cc, const Eigen::Vector3d& is,
+                                  bool thin_images) {
+  using Complex = std::complex<double>;
+  const Eigen::Vector3d ss((p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm());
+  if (!thin_images) return triangle_dilatation(ss, is);
+  const double defect = std::min({is[0] + is[1] - is[2], is[1] + is[2] - is[0], is[2] + is[0] - is[1]});
+  double d = defect > 1e-4 * is.sum() ? triangle_dilatation(ss, is) : std::numeric_limits<double>::infinity();
+  if (!std::isfinite(d)) {
+    const Complex m = hyperbolic::klein_to_poincare(
+        (hyperbolic::poincare_to_klein(b) + hyperbolic::poincare_to_klein(cc)) / 3.0);
+    const Complex w0 = hyperbolic::centred(m, Complex(0.0)), w1 = hyperbolic::centred(m, b) - w0,
+                  w2 = hyperbolic::centred(m, cc) - w0;
+    const Eigen::Vector3d e1 = p1 - p0, e2 = p2 - p0;
+    const double l1 = e1.norm();
+    Eigen::Matrix2d S, I;
+    S << l1, e2.dot(e1) / l1, 0, e1.cross(e2).norm() / l1;
+    I << w1.real(), w2.real(), w1.imag(), w2.imag();
+    const Eigen::Matrix2d A = I * S.inverse();
+    const double q = A.squaredNorm() / std::abs(A.determinant());
+    d = 0.5 * (q + std::sqrt(std::max(q * q - 4.0, 0.0)));
+  }
+  return d;
 }
 
 DistortionStats planar_distortion(const RowMatrixX3d& V, const RowMatrixX3i& F,

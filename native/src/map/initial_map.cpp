@@ -557,21 +557,20 @@ DistortionStats distortion_of(const TriMesh& source, const std::vector<Complex>&
     // Möbius maps preserve orientation: test it in the chart centring corner 0.
     const Mobius T = Mobius::centring(img(f, 0));
     const Complex b = T.apply(img(f, 1)), c = T.apply(img(f, 2));
-    const double cross = b.real() * c.imag() - b.imag() * c.real();
-    if (!(std::abs(cross) > 1e-14 * std::max(std::norm(b), std::norm(c)))) {
+    const int orientation = image_orientation(b, c);
+    if (orientation == 0) {
       ++out.degenerate;
       continue;
     }
-    if (cross < 0) {
+    if (orientation < 0) {
       ++out.flipped;
       continue;
     }
     const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
                           p2 = source.V.row(source.F(f, 2));
-    const Eigen::Vector3d ss((p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm());
     const Eigen::Vector3d is(hyperbolic::distance(img(f, 0), img(f, 1)), hyperbolic::distance(img(f, 1), img(f, 2)),
                              hyperbolic::distance(img(f, 2), img(f, 0)));
-    const double d = triangle_dilatation(ss, is);
+    const double d = hyperbolic_face_dilatation(p0, p1, p2, b, c, is, false);
     out.per_face[f] = d;
     const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
     weighted += area * d;

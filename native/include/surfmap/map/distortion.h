@@ -18,6 +18,28 @@ namespace surfmap {
 /// side lengths `image`. Returns +inf for a degenerate image.
 double triangle_dilatation(const Eigen::Vector3d& source_sides, const Eigen::Vector3d& image_sides);
 
+/// Orientation of the triangle with corners 0, b, c: +1, -1 (flipped) or 0
+/// (degenerate: |cross| not above 1e-14 max(|b|², |c|²), non-finite
+/// included). For a hyperbolic image seen in a chart centring its corner 0
+/// (Möbius maps preserve orientation) as for a planar one.
+int image_orientation(std::complex<double> b, std::complex<double> c);
+
+/// D' of one source face (3D corners p0, p1, p2) onto a positively oriented
+/// geodesic triangle of the Poincaré disk with corners 0, b, c in a chart and
+/// hyperbolic side lengths `image_sides` (side k from corner k to k+1): from
+/// the side lengths (paper §VII-A). With `thin_images`, a needle-thin image
+/// (a + b - c below 1e-4 of the perimeter: the lengths' round-off, ~1e-9
+/// relative after a long solve, leaves the frame built from them
+/// meaningless, although the orientation was resolved) is measured by the
+/// affine map to the image seen from the chart centring its centroid (D' is
+/// scale-free, so the conformal factor there does not matter), with the
+/// source frame from the 3D corners: D' + 1/D' = |A|_F²/|det A|. The
+/// optimum's figures use it; the initial map's do not (yet), so that their
+/// printed values stay those of before.
+double hyperbolic_face_dilatation(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Eigen::Vector3d& p2,
+                                  std::complex<double> b, std::complex<double> c, const Eigen::Vector3d& image_sides,
+                                  bool thin_images);
+
 struct DistortionStats {
   std::vector<double> per_face;  ///< #F dilatation D' (inf for degenerate or flipped images)
   double mean = 0;               ///< area-weighted by the source areas

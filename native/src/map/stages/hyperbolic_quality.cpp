@@ -81,42 +81,19 @@ DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc, 
   for (int f = 0; f < source.num_faces(); ++f) {
     const Mobius A01 = local(3 * f), A12 = local(3 * f + 1), A20 = local(3 * f + 2);
     const Complex b = A01.apply(Complex(0.0)), cc = A20.inverse().apply(Complex(0.0));
-    const double cross = b.real() * cc.imag() - b.imag() * cc.real();
-    if (std::abs(cross) <= 1e-14 * std::max(std::norm(b), std::norm(cc))) {
+    const int orientation = image_orientation(b, cc);
+    if (orientation == 0) {
       ++out.degenerate;
       continue;
     }
-    if (cross < 0) {
+    if (orientation < 0) {
       ++out.flipped;
       continue;
     }
     const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
                           p2 = source.V.row(source.F(f, 2));
-    const Eigen::Vector3d ss((p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm());
     const Eigen::Vector3d is(A01.displacement_of_origin(), A12.displacement_of_origin(), A20.displacement_of_origin());
-    // From the side lengths (paper §VII-A) unless the image is needle-thin:
-    // then a + b − c is below the lengths' round-off (~1e-9 relative after a
-    // long solve) and the Euclidean frame built from them is meaningless,
-    // although the orientation test above resolved the area. Then take the
-    // affine map to the image seen from the chart centring its centroid (D'
-    // is scale-free, so the conformal factor there does not matter), with
-    // the source frame built from the 3D corners: D' + 1/D' = |A|_F²/|det A|.
-    const double defect = std::min({is[0] + is[1] - is[2], is[1] + is[2] - is[0], is[2] + is[0] - is[1]});
-    double d = defect > 1e-4 * is.sum() ? triangle_dilatation(ss, is) : std::numeric_limits<double>::infinity();
-    if (!std::isfinite(d)) {
-      const Complex m = hyperbolic::klein_to_poincare(
-          (hyperbolic::poincare_to_klein(b) + hyperbolic::poincare_to_klein(cc)) / 3.0);
-      const Complex w0 = hyperbolic::centred(m, Complex(0.0)), w1 = hyperbolic::centred(m, b) - w0,
-                    w2 = hyperbolic::centred(m, cc) - w0;
-      const Eigen::Vector3d e1 = p1 - p0, e2 = p2 - p0;
-      const double l1 = e1.norm();
-      Eigen::Matrix2d S, I;
-      S << l1, e2.dot(e1) / l1, 0, e1.cross(e2).norm() / l1;
-      I << w1.real(), w2.real(), w1.imag(), w2.imag();
-      const Eigen::Matrix2d A = I * S.inverse();
-      const double q = A.squaredNorm() / std::abs(A.determinant());
-      d = 0.5 * (q + std::sqrt(std::max(q * q - 4.0, 0.0)));
-    }
+    const double d = hyperbolic_face_dilatation(p0, p1, p2, b, cc, is, true);
     out.per_face[f] = d;
     const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
     weighted += area * d;
