@@ -67,6 +67,38 @@ double hyperbolic_face_dilatation(const Eigen::Vector3d& p0, const Eigen::Vector
   return d;
 }
 
+DistortionStats hyperbolic_image_distortion(
+    const TriMesh& source,
+    const std::function<std::pair<std::complex<double>, std::complex<double>>(int f)>& image_in_chart,
+    const std::function<Eigen::Vector3d(int f)>& image_sides, bool thin_images) {
+  const int nf = source.num_faces();
+  DistortionStats out;
+  out.per_face.assign(nf, std::numeric_limits<double>::infinity());
+  double weighted = 0, total_area = 0;
+  for (int f = 0; f < nf; ++f) {
+    const auto [b, c] = image_in_chart(f);
+    const int orientation = image_orientation(b, c);
+    if (orientation == 0) {
+      ++out.degenerate;
+      continue;
+    }
+    if (orientation < 0) {
+      ++out.flipped;
+      continue;
+    }
+    const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
+                          p2 = source.V.row(source.F(f, 2));
+    const double d = hyperbolic_face_dilatation(p0, p1, p2, b, c, image_sides(f), thin_images);
+    out.per_face[f] = d;
+    const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+    weighted += area * d;
+    total_area += area;
+    out.max = std::max(out.max, d);
+  }
+  out.mean = total_area > 0 ? weighted / total_area : std::numeric_limits<double>::infinity();
+  return out;
+}
+
 DistortionStats planar_distortion(const RowMatrixX3d& V, const RowMatrixX3i& F,
                                   const Eigen::Matrix<std::complex<double>, Eigen::Dynamic, 3, Eigen::RowMajor>& image) {
   DistortionStats out;

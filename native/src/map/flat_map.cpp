@@ -2,7 +2,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -212,8 +214,47 @@ std::pair<std::vector<Complex>, std::vector<Complex>> class_translations(
   return std::make_pair(t, std::vector<Complex>(edge_t));
 }
 
+
+// The default genus-1 class: the requested one, else the lowest free
+// energy, else with landmarks the lowest held energy (paper §VII-C,
+// stages/landmark_ranking.h: branch and bound on the plain pins' lower
+// bounds, every class has one here; +inf where the landmarks cannot be held
+// bijectively, a SolveError when that is every class). `hold(k)` holds the
+// landmarks in class k; the chosen class's held map goes to `chosen_hold`.
+int choose_flat_class(const SurfaceMapOptions& options, std::vector<HomotopyCandidate>& candidates,
+                      const std::function<FlatHold(int k)>& hold, std::unique_ptr<FlatHold>* chosen_hold) {
+  int chosen = options.homotopy;
+  if (chosen < 0 && options.landmarks.empty()) {
+    chosen = 0;
+    for (size_t i = 1; i < candidates.size(); ++i)
+      if (candidates[i].energy < candidates[chosen].energy) chosen = static_cast<int>(i);
+  } else if (chosen < 0) {
+    std::vector<int> order(candidates.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+    std::vector<std::unique_ptr<FlatHold>> holds(candidates.size());
+    const int best = landmark_branch_and_bound(order, candidates, [&](int k) -> std::optional<double> {
+      holds[k] = std::make_unique<FlatHold>(hold(k));
+      return holds[k]->energy;
+    });
+    if (best < 0)
+      throw SolveError("the landmarks cannot be held bijectively in any of the " + std::to_string(candidates.size()) +
+                       " homotopy classes tried");
+    *chosen_hold = std::move(holds[best]);
+    chosen = best;
+  } else if (chosen >= static_cast<int>(candidates.size())) {
+    throw InputError("homotopy class " + std::to_string(options.homotopy) + " does not exist; there are " +
+                     std::to_string(candidates.size()) + " candidates (0.." + std::to_string(candidates.size() - 1) + ")");
+  }
+  return chosen;
+}
+
 }  // namespace
 
+// Genus 1 (paper §VI, flat case): one exact sparse solve per class. Longer
+// than a page because one loop, a pass per choice of source weights (the
+// automatic fallback to the source's own edges), runs the whole pipeline;
+// its steps are the helpers above and stages/flat_landmarks.h,
+// stages/landmark_ranking.h, stages/flat_location.h.
 void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
               const SurfaceMapOptions& options, const testing::MapHooks& hooks, SurfaceMapResult& out,
               const StageDone& stage_done) {
@@ -311,39 +352,14 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     if (landmarks) c.landmark_lower_bound = pinned_solve(tr.first).first.second;
     out.candidates.push_back(c);
   }
+  // The default class (choose_flat_class), and with landmarks the chosen
+  // class's held map from the ranking; the class chosen on the first pass stays.
   std::unique_ptr<FlatHold> chosen_hold;
-  if (first_pass) {
-  out.chosen_candidate = options.homotopy;
-  if (out.chosen_candidate < 0 && !landmarks) {
-    out.chosen_candidate = 0;
-    for (size_t i = 1; i < out.candidates.size(); ++i)
-      if (out.candidates[i].energy < out.candidates[out.chosen_candidate].energy) out.chosen_candidate = static_cast<int>(i);
-  } else if (out.chosen_candidate < 0) {
-    // With landmarks the classes are ranked by the energy of the map the
-    // pipeline returns (hold_landmarks), by branch and bound on the plain
-    // pins' lower bounds: held in the order of their bounds until none is
-    // below the best held energy (the rest: landmark_energy NaN); +inf
-    // where the landmarks cannot be held bijectively.
-    // (stages/landmark_ranking.h; every class has its bound here.)
-    std::vector<int> order(out.candidates.size());
-    for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
-    std::vector<std::unique_ptr<FlatHold>> holds(out.candidates.size());
-    const int best = landmark_branch_and_bound(order, out.candidates, [&](int k) -> std::optional<double> {
+  if (first_pass)
+    out.chosen_candidate = choose_flat_class(options, out.candidates, [&](int k) {
       const auto tr = translations_of(out.candidates[k].matrix);
-      holds[k] = std::make_unique<FlatHold>(hold_landmarks(tr.first, tr.second));
-      return holds[k]->energy;
-    });
-    if (best >= 0) chosen_hold = std::move(holds[best]);
-    if (best < 0)
-      throw SolveError("the landmarks cannot be held bijectively in any of the " + std::to_string(out.candidates.size()) +
-                       " homotopy classes tried");
-    out.chosen_candidate = best;
-  } else if (out.chosen_candidate >= static_cast<int>(out.candidates.size())) {
-    throw InputError("homotopy class " + std::to_string(options.homotopy) + " does not exist; there are " +
-                     std::to_string(out.candidates.size()) + " candidates (0.." +
-                     std::to_string(out.candidates.size() - 1) + ")");
-  }
-  }
+      return hold_landmarks(tr.first, tr.second);
+    }, &chosen_hold);
   stage_done("homotopy candidates", 0.6);
 
   const int* M = out.candidates[out.chosen_candidate].matrix;

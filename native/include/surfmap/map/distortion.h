@@ -4,6 +4,8 @@
 // affine map from a source triangle to its image), its area-weighted mean and
 // max, and flipped / degenerate image triangles.
 #include <complex>
+#include <functional>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -47,6 +49,19 @@ struct DistortionStats {
   int flipped = 0;     ///< image triangles with negative orientation
   int degenerate = 0;  ///< image triangles with (near) zero area
 };
+
+/// The figures of hyperbolic image triangles of the source's faces (paper
+/// §VII-A): `image_in_chart(f)` gives face f's image seen in a chart
+/// centring its corner 0 (corners 0, b, c), `image_sides(f)` its hyperbolic
+/// side lengths (asked for positively oriented images only); D' per face by
+/// hyperbolic_face_dilatation, the area-weighted (3D areas) mean and the
+/// max over the faces with a D', flipped and degenerate counts as in
+/// image_orientation. The one loop behind every hyperbolic D' figure
+/// (initial map, optimum, landmark folds).
+DistortionStats hyperbolic_image_distortion(
+    const TriMesh& source,
+    const std::function<std::pair<std::complex<double>, std::complex<double>>(int f)>& image_in_chart,
+    const std::function<Eigen::Vector3d(int f)>& image_sides, bool thin_images);
 
 /// Source triangles in 3D, images as #F x 3 planar corner positions (complex
 /// numbers; corner k of face f is the image of F(f,k)). Flipped and

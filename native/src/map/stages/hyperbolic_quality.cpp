@@ -66,7 +66,6 @@ MapInPolygon place_in_polygon(const TriMesh& source, const Connectivity& sc, con
 
 DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc, const std::vector<Mobius>& edge_local,
                                  const SolverEdgeIndex& index) {
-  DistortionStats out;
   // Halfedge h's element in the solve's charts of its ends (edge_local).
   auto local = [&](int h) {
     const int e = sc.edge(h);
@@ -76,32 +75,14 @@ DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc, 
   // Dilatation from hyperbolic side lengths and orientation, both in the
   // chart of corner 0 where the corners are 0, A_01(0) and A_20^-1(0):
   // exact to round-off however close to |z| = 1 the triangle lies in P.
-  out.per_face.assign(source.num_faces(), std::numeric_limits<double>::infinity());
-  double weighted = 0, total_area = 0;
-  for (int f = 0; f < source.num_faces(); ++f) {
-    const Mobius A01 = local(3 * f), A12 = local(3 * f + 1), A20 = local(3 * f + 2);
-    const Complex b = A01.apply(Complex(0.0)), cc = A20.inverse().apply(Complex(0.0));
-    const int orientation = image_orientation(b, cc);
-    if (orientation == 0) {
-      ++out.degenerate;
-      continue;
-    }
-    if (orientation < 0) {
-      ++out.flipped;
-      continue;
-    }
-    const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
-                          p2 = source.V.row(source.F(f, 2));
-    const Eigen::Vector3d is(A01.displacement_of_origin(), A12.displacement_of_origin(), A20.displacement_of_origin());
-    const double d = hyperbolic_face_dilatation(p0, p1, p2, b, cc, is, true);
-    out.per_face[f] = d;
-    const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
-    weighted += area * d;
-    total_area += area;
-    out.max = std::max(out.max, d);
-  }
-  out.mean = weighted / std::max(total_area, 1e-300);
-  return out;
+  return hyperbolic_image_distortion(
+      source,
+      [&](int f) { return std::make_pair(local(3 * f).apply(Complex(0.0)), local(3 * f + 2).inverse().apply(Complex(0.0))); },
+      [&](int f) {
+        return Eigen::Vector3d(local(3 * f).displacement_of_origin(), local(3 * f + 1).displacement_of_origin(),
+                               local(3 * f + 2).displacement_of_origin());
+      },
+      true);
 }
 
 int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::vector<Mobius>& edge_local) {
