@@ -4,7 +4,7 @@
 // Newton solve (genus 1: the exact sparse solve) with the paper's relaxation
 // (map/harmonic_relaxation.h) on exactly the same input: the pipeline hands
 // its harmonic-map problem (edges, deck elements, start = the initial map)
-// over through SurfaceMapOptions::inspect_problem.
+// over through testing::MapHooks::inspect_problem (testing/map_hooks.h).
 //
 // Ratio column: (time the relaxation needs to reach Newton's final energy
 // within a relative 1e-6, or its own converged best) / (Newton's solve time
@@ -54,6 +54,7 @@
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
 #include "surfmap/map/surface_map.h"
+#include "surfmap/testing/map_hooks.h"
 #include "surfmap/samples/shapes.h"
 
 using namespace surfmap;
@@ -109,10 +110,11 @@ std::vector<double> run_case(int genus, int v, double budget, std::string* error
   r[kVs] = a.num_vertices(), r[kVt] = b.num_vertices();
   HarmonicProblem problem;
   SurfaceMapOptions opt;
-  opt.inspect_problem = [&](const HarmonicProblem& p) { problem = p; };
+  testing::MapHooks hooks;
+  hooks.inspect_problem = [&](const HarmonicProblem& p) { problem = p; };
   SurfaceMapResult m;
   try {
-    m = surface_map(a, b, opt);
+    m = surface_map(a, b, opt, hooks);
   } catch (const std::exception& e) {
     *error = e.what();
     return r;

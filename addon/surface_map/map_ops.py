@@ -114,12 +114,12 @@ def prepare_job(context, sm):
                                  f"'{target.name}' has genus {tgt['genus']}: a map needs equal "
                                  f"genus")
     landmarks, lm_desc = _landmarks(settings, source, target, src, tgt)
-    doc = sm.surface_map.__doc__ or ""
+    capabilities = getattr(sm, "CAPABILITIES", frozenset())
     for word, wanted in (("landmarks", landmarks is not None),
                          ("method", settings.method != 'NEWTON'),
                          ("tolerance", settings.tolerance > 0),
                          ("source_weights", settings.source_weights != 'AUTO')):
-        if wanted and word not in doc:
+        if wanted and word not in capabilities:
             raise core.ObjectProblem(f"this build of the surfmap module does not support "
                                      f"{word} yet (rebuild it from a newer checkout)")
     outputs = {flag for prop, flag in OUTPUT_FLAGS if getattr(settings, prop)}

@@ -71,7 +71,7 @@ class MapJob:
             kw["tolerance"] = float(o["tolerance"])
         if o.get("source_weights", "auto") != "auto":
             kw["source_weights"] = o["source_weights"]
-        if "solve_progress" in (getattr(self.sm.surface_map, "__doc__", None) or ""):
+        if "solve_progress" in getattr(self.sm, "CAPABILITIES", frozenset()):
             kw["solve_progress"] = self._solve_progress
         return kw
 

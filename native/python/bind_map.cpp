@@ -31,6 +31,13 @@ py::dict points_to_dict(const std::vector<PointOnSurface>& pts) {
 }  // namespace
 
 void bind_map(py::module_& m) {
+  // What this build's surface_map accepts beyond the meshes, by keyword
+  // argument name, for callers that must work with older builds (the
+  // add-on): read this set instead of searching docstrings.
+  m.attr("CAPABILITIES") = py::frozenset(py::make_tuple(
+      "homotopy", "landmarks", "method", "tolerance", "max_iterations", "solve_progress", "homotopy_candidates",
+      "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
+      "progress", "source_base_vertex", "target_base_vertex"));
   m.def(
       "surface_map",
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,

@@ -8,6 +8,7 @@
 #include <map>
 #include <numeric>
 #include <random>
+#include <thread>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,7 @@
 #include "surfmap/map/hyperbolic_harmonic.h"
 #include "surfmap/map/initial_map.h"
 #include "surfmap/map/surface_map.h"
+#include "surfmap/testing/map_hooks.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
 
@@ -267,6 +269,49 @@ TEST(HarmonicRelaxation, FarSheetStartReachesTheSameOptimumInBothSolvers) {
               longest, reference.energy, newton.energy, newton.iterations, relax.energy, relax.iterations);
 }
 
+TEST(HyperbolicHarmonicSolver, OneAnalysisServesEveryProblemOfThePatternBitForBit) {
+  // Two problems on one sparsity pattern, as two homotopy classes of one
+  // source are (same edges and weights, other deck elements): the solver
+  // built once gives each the result of hyperbolic_harmonic_map exactly
+  // (same ordering, same numeric factorisations), also from two threads at
+  // once; another pattern is refused.
+  const OctagonSurface S = weighted_octagon(4, 9);
+  std::vector<WeightedEdge> other = S.edges;
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> letter(0, static_cast<int>(S.generators.size()) - 1);
+  for (WeightedEdge& e : other)  // a conjugation of every edge by a generator at its tail: another problem
+    e.rho = (S.generators[letter(rng)] * e.rho).normalized();
+  const std::vector<Complex> origin(S.n, Complex(0.0));
+  HyperbolicHarmonicOptions no;
+  no.tolerance = 1e-11;
+  no.max_iterations = 400;
+  const HyperbolicHarmonicResult direct[2] = {hyperbolic_harmonic_map(S.n, S.edges, S.generators, S.z, no),
+                                              hyperbolic_harmonic_map(S.n, other, S.generators, origin, no)};
+  ASSERT_TRUE(direct[0].converged);
+  EXPECT_NE(direct[0].energy, direct[1].energy);
+  const HyperbolicHarmonicSolver solver(S.n, S.edges);
+  HyperbolicHarmonicResult shared[2];
+  std::thread second([&] { shared[1] = solver.solve(other, S.generators, origin, no); });
+  shared[0] = solver.solve(S.edges, S.generators, S.z, no);
+  second.join();
+  for (int p = 0; p < 2; ++p) {
+    EXPECT_EQ(shared[p].converged, direct[p].converged);
+    EXPECT_EQ(shared[p].iterations, direct[p].iterations);
+    EXPECT_EQ(shared[p].energy, direct[p].energy);
+    EXPECT_EQ(shared[p].factorizations, direct[p].factorizations);
+    ASSERT_EQ(shared[p].z.size(), direct[p].z.size());
+    for (int i = 0; i < S.n; ++i) EXPECT_EQ(shared[p].z[i], direct[p].z[i]) << "problem " << p << " vertex " << i;
+  }
+  std::vector<WeightedEdge> fewer = S.edges;
+  for (WeightedEdge& e : fewer)
+    if (e.w > 0 && e.i != e.j) {
+      e.w = 0;  // one edge less in the Hessian's pattern
+      break;
+    }
+  EXPECT_THROW(solver.solve(fewer, S.generators, S.z, no), InputError);
+  EXPECT_THROW(solver.solve(S.edges, S.generators, std::vector<Complex>(S.n + 1, 0.0), no), InputError);
+}
+
 TEST(HarmonicRelaxation, TimeBudgetAndBadInput) {
   const OctagonSurface S = weighted_octagon(5, 1);
   HarmonicRelaxationOptions ro;
@@ -342,7 +387,8 @@ TEST(HyperbolicInitialMap, UniformWeightMapOfASliverSourceIsAnEmbedding) {
   o.homotopy = 0;
   // Only the class data are needed: the pipeline is cancelled after the check.
   o.progress = [&](const std::string&, double) { return seen == 0; };
-  o.inspect_initial_map = [&](const InitialMapInspection& in) {
+  testing::MapHooks hooks;
+  hooks.inspect_initial_map = [&](const InitialMapInspection& in) {
     if (seen++) return;
     HyperbolicInitialMapOptions io;
     io.cut_graph = io.polygon = false;
@@ -357,7 +403,7 @@ TEST(HyperbolicInitialMap, UniformWeightMapOfASliverSourceIsAnEmbedding) {
     EXPECT_GE(q.mean, 1.0);
     for (double d : q.per_face) EXPECT_TRUE(std::isfinite(d));
   };
-  EXPECT_THROW(surface_map(a, b, o), Cancelled);
+  EXPECT_THROW(surface_map(a, b, o, hooks), Cancelled);
   EXPECT_EQ(seen, 1);
 }
 
@@ -366,8 +412,9 @@ TEST(SurfaceMapInitialMap, GenusTwoBeforeFiguresAndRelaxationOnThePipelinesProbl
   HarmonicProblem p;
   SurfaceMapOptions o;
   o.homotopy = 0;  // any class will do; skips the ranking's full solves
-  o.inspect_problem = [&](const HarmonicProblem& q) { p = q; };
-  const SurfaceMapResult m = surface_map(a, b, o);
+  testing::MapHooks hooks;
+  hooks.inspect_problem = [&](const HarmonicProblem& q) { p = q; };
+  const SurfaceMapResult m = surface_map(a, b, o, hooks);
   ASSERT_TRUE(m.converged);
   // The "before" figures: one finite D' >= 1 per source face, no flips, an
   // energy no lower than the optimum's.

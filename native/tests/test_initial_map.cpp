@@ -14,6 +14,7 @@
 
 #include "surfmap/error.h"
 #include "surfmap/map/surface_map.h"
+#include "surfmap/testing/map_hooks.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/topology/system_of_loops.h"
 
@@ -36,7 +37,8 @@ SurfaceMapResult map_and_inspect(const TriMesh& a, const TriMesh& b, InitialMapM
   SurfaceMapOptions o;
   o.homotopy = 0;  // the overlay class (identity of a remeshed copy): no ranking needed
   o.initial_map = method;
-  o.inspect_initial_map = [&](const InitialMapInspection& in) {
+  testing::MapHooks hooks;
+  hooks.inspect_initial_map = [&](const InitialMapInspection& in) {
     seen->rho = *in.halfedge_rho;
     seen->words = *in.halfedge_word;
     seen->init = *in.init;
@@ -44,8 +46,8 @@ SurfaceMapResult map_and_inspect(const TriMesh& a, const TriMesh& b, InitialMapM
     for (const Word& w : in.init->polygon.side_pairing_word) seen->side_pairing.push_back(in.group->evaluate_side_word(w));
     for (const Word& w : in.init->polygon.corner_word) seen->corner_element.push_back(in.group->evaluate_side_word(w));
   };
-  o.inspect_problem = [&](const HarmonicProblem& p) { seen->problem = p; };
-  return surface_map(a, b, o);
+  hooks.inspect_problem = [&](const HarmonicProblem& p) { seen->problem = p; };
+  return surface_map(a, b, o, hooks);
 }
 
 // Q's sides are glued by deck elements: E_s takes the partner side onto side
@@ -143,7 +145,8 @@ TEST(PolygonInitialMap, IsometryInvariantFlatteningFlipsNoFaceWhereKleinTutteDoe
   SurfaceMapOptions o;
   o.homotopy = 0;
   o.initial_map = InitialMapMethod::Polygon;
-  o.inspect_initial_map = [&](const InitialMapInspection& in) {
+  testing::MapHooks hooks;
+  hooks.inspect_initial_map = [&](const InitialMapInspection& in) {
     for (int rounds : {0, 3}) {
       PolygonInitialMapOptions po;
       po.hyperboloid_rounds = rounds;
@@ -152,7 +155,7 @@ TEST(PolygonInitialMap, IsometryInvariantFlatteningFlipsNoFaceWhereKleinTutteDoe
       flips[rounds > 0] = hyperbolic_distortion(a, *in.halfedge_rho, p.z, p.vertex_deck).flipped;
     }
   };
-  const SurfaceMapResult m = surface_map(a, b, o);
+  const SurfaceMapResult m = surface_map(a, b, o, hooks);
   std::printf("    flipped source faces: Klein Tutte %d, hyperboloid barycentre %d\n", flips[0], flips[1]);
   EXPECT_GT(flips[0], 0);
   EXPECT_EQ(flips[1], 0);
@@ -265,7 +268,8 @@ TEST(CutGraphInitialMap, ChordOfASideIsReroutedIntoTheCutGraph) {
   SurfaceMapOptions o;
   o.homotopy = 0;
   o.progress = [&](const std::string&, double) { return seen == 0; };
-  o.inspect_initial_map = [&](const InitialMapInspection& in) {
+  testing::MapHooks hooks;
+  hooks.inspect_initial_map = [&](const InitialMapInspection& in) {
     if (seen++) return;
     for (int pass = 0; pass < 2; ++pass) {
       CutGraphInitialMapOptions co;
@@ -279,7 +283,7 @@ TEST(CutGraphInitialMap, ChordOfASideIsReroutedIntoTheCutGraph) {
       EXPECT_EQ(q.degenerate, 0) << "pass " << pass;
     }
   };
-  EXPECT_THROW(surface_map(a, b, o), Cancelled);
+  EXPECT_THROW(surface_map(a, b, o, hooks), Cancelled);
   EXPECT_EQ(seen, 1);
 }
 

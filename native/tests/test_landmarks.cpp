@@ -11,6 +11,7 @@
 #include "surfmap/error.h"
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/map/surface_map.h"
+#include "surfmap/testing/map_hooks.h"
 #include "surfmap/samples/shapes.h"
 #include "../src/map/landmarks.h"
 
@@ -145,8 +146,9 @@ TEST(LandmarksFlat, FarLandmarksStayBijectiveByInteriorPointContinuation) {
   SurfaceMapOptions o;
   o.landmarks = {{0, nearest_vertex(b, free.forward[0].position)}, {s, t}};
   HarmonicProblem problem;
-  o.inspect_problem = [&](const HarmonicProblem& p) { problem = p; };
-  const SurfaceMapResult m = surface_map(a, b, o);
+  testing::MapHooks hooks;
+  hooks.inspect_problem = [&](const HarmonicProblem& p) { problem = p; };
+  const SurfaceMapResult m = surface_map(a, b, o, hooks);
   expect_landmarks_hit(m, a, b, o);
   EXPECT_EQ(m.landmark_method, "barrier continuation");
   EXPECT_GT(m.landmark_solves, 2);

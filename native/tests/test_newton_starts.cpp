@@ -20,6 +20,7 @@
 #include "surfmap/map/hyperbolic_harmonic.h"
 #include "surfmap/map/initial_map.h"
 #include "surfmap/map/surface_map.h"
+#include "surfmap/testing/map_hooks.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/topology/words.h"
 #include "surfmap/uniformize/deck_group.h"
@@ -184,14 +185,15 @@ TEST(NewtonStarts, TwistedClassReachesTheSameOptimumFromEveryStart) {
   // perturbation of the initial map, and every vertex in its own far sheet.
   // Energy and gradient recomputed from the returned points and words.
   int direct_solves = 0;
-  coarse.inspect_problem = [&](const HarmonicProblem& p) {
+  testing::MapHooks coarse_hooks;
+  coarse_hooks.inspect_problem = [&](const HarmonicProblem& p) {
     ++direct_solves;
     ASSERT_EQ(p.num_vertices, a.num_vertices());
     ASSERT_FALSE(p.relator.empty());
     ASSERT_TRUE(p.reduce_point);
     check_direct_solves(p, tol);
   };
-  const SurfaceMapResult mc = surface_map(a, b, coarse), mo = surface_map(a, b, origin);
+  const SurfaceMapResult mc = surface_map(a, b, coarse, coarse_hooks), mo = surface_map(a, b, origin);
   EXPECT_EQ(direct_solves, 1);
   const double diag = bbox_diagonal(b);
   for (const SurfaceMapResult* m : {&mc, &mo}) {

@@ -1,4 +1,5 @@
 #include "surfmap/map/surface_map.h"
+#include "surfmap/testing/map_hooks.h"
 
 #include <gtest/gtest.h>
 
@@ -131,8 +132,9 @@ TEST(SurfaceMap, CappedTorusFallsBackToPositiveWeightsOnItsOwnEdges) {
   EXPECT_THROW(surface_map(a, b, intrinsic), SolveError);
   HarmonicProblem p;
   SurfaceMapOptions automatic, own;
-  automatic.inspect_problem = [&](const HarmonicProblem& q) { p = q; };  // the last pass's problem
-  const SurfaceMapResult m = surface_map(a, b, automatic);
+  testing::MapHooks hooks;
+  hooks.inspect_problem = [&](const HarmonicProblem& q) { p = q; };  // the last pass's problem
+  const SurfaceMapResult m = surface_map(a, b, automatic, hooks);
   expect_valid_map(m, a, b);
   EXPECT_EQ(m.source_weights, "positive on the source's own edges");
   EXPECT_EQ(m.intrinsic_flipped_triangles, 0);
@@ -283,10 +285,11 @@ TEST(SurfaceMapHandles, ClassSearchUndoesKnownTwists) {
   ASSERT_TRUE(std::isfinite(coarse0));
 
   SurfaceMapOptions o;
-  o.homotopy_search_start = identity;
-  o.homotopy_search_start_twists = {"T(a1)", "T(a1)", "T(b2)^-1"};
+  testing::MapHooks hooks;
+  hooks.homotopy_search_start = identity;
+  hooks.homotopy_search_start_twists = {"T(a1)", "T(a1)", "T(b2)^-1"};
   o.homotopy_search_evaluations = 40;
-  const SurfaceMapResult m = surface_map(a, b, o);
+  const SurfaceMapResult m = surface_map(a, b, o, hooks);
   expect_valid_map(m, a, b);
   const HomotopySearchInfo& s = m.homotopy_search;
   ASSERT_TRUE(s.run);
@@ -304,8 +307,8 @@ TEST(SurfaceMapHandles, ClassSearchUndoesKnownTwists) {
   for (int i = 0; i < a.num_vertices(); ++i) mean += (m.forward[i].position - a.V.row(i).transpose()).norm() / a.num_vertices();
   EXPECT_LT(mean, 0.01 * diag);
   // An unknown move name is refused.
-  o.homotopy_search_start_twists = {"T(z1)"};
-  EXPECT_THROW(surface_map(a, b, o), InputError);
+  hooks.homotopy_search_start_twists = {"T(z1)"};
+  EXPECT_THROW(surface_map(a, b, o, hooks), InputError);
 }
 
 // Shapes not posed alike (DESIGN §2.10, projected_loops.h
@@ -445,10 +448,11 @@ TEST(SurfaceMapHandles, GenusThreeClassSearchUndoesKnownTwists) {
   const double coarse = m.candidates[m.chosen_candidate].coarse_energy;
   ASSERT_TRUE(std::isfinite(coarse));
   SurfaceMapOptions o;
-  o.homotopy_search_start = m.chosen_candidate;
-  o.homotopy_search_start_twists = {"T(s2)^-1", "T(a1)", "T(b3)^-1"};
+  testing::MapHooks hooks;
+  hooks.homotopy_search_start = m.chosen_candidate;
+  hooks.homotopy_search_start_twists = {"T(s2)^-1", "T(a1)", "T(b3)^-1"};
   o.homotopy_search_evaluations = 40;
-  const SurfaceMapResult t = surface_map(a, b, o);
+  const SurfaceMapResult t = surface_map(a, b, o, hooks);
   expect_valid_map(t, a, b);
   ASSERT_TRUE(t.homotopy_search.run);
   EXPECT_GT(t.homotopy_search.start_energy, 2 * coarse);

@@ -12,6 +12,11 @@ from ._core import Cancelled, Error, InputError, SolveError  # noqa: F401
 
 __version__ = "0.1.0"
 
+#: Keyword arguments this build's ``surface_map`` accepts (a frozenset of
+#: names, e.g. "landmarks", "solve_progress"): test membership here rather
+#: than searching docstrings.
+capabilities = _core.CAPABILITIES
+
 
 def system_of_loops(V, F, base_vertex=-1, refine=True):
     """System of loops of a closed surface of genus >= 1 (paper §IV-A).

@@ -6,6 +6,8 @@
 
 #include <Eigen/Dense>
 
+#include "surfmap/geometry/hyperbolic.h"
+
 namespace surfmap {
 namespace {
 
@@ -32,6 +34,69 @@ double dilatation_of(const Eigen::Matrix2d& src, const Eigen::Matrix2d& img) {
 
 double triangle_dilatation(const Eigen::Vector3d& source_sides, const Eigen::Vector3d& image_sides) {
   return dilatation_of(frame_from_sides(source_sides), frame_from_sides(image_sides));
+}
+
+int image_orientation(std::complex<double> b, std::complex<double> c) {
+  const double cross = b.real() * c.imag() - b.imag() * c.real();
+  if (!(std::abs(cross) > 1e-14 * std::max(std::norm(b), std::norm(c)))) return 0;
+  return cross < 0 ? -1 : 1;
+}
+
+double hyperbolic_face_dilatation(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Eigen::Vector3d& p2,
+                                  std::complex<double> b, std::complex<double> cc, const Eigen::Vector3d& is,
+                                  bool thin_images) {
+  using Complex = std::complex<double>;
+  const Eigen::Vector3d ss((p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm());
+  if (!thin_images) return triangle_dilatation(ss, is);
+  const double defect = std::min({is[0] + is[1] - is[2], is[1] + is[2] - is[0], is[2] + is[0] - is[1]});
+  double d = defect > 1e-4 * is.sum() ? triangle_dilatation(ss, is) : std::numeric_limits<double>::infinity();
+  if (!std::isfinite(d)) {
+    const Complex m = hyperbolic::klein_to_poincare(
+        (hyperbolic::poincare_to_klein(b) + hyperbolic::poincare_to_klein(cc)) / 3.0);
+    const Complex w0 = hyperbolic::centred(m, Complex(0.0)), w1 = hyperbolic::centred(m, b) - w0,
+                  w2 = hyperbolic::centred(m, cc) - w0;
+    const Eigen::Vector3d e1 = p1 - p0, e2 = p2 - p0;
+    const double l1 = e1.norm();
+    Eigen::Matrix2d S, I;
+    S << l1, e2.dot(e1) / l1, 0, e1.cross(e2).norm() / l1;
+    I << w1.real(), w2.real(), w1.imag(), w2.imag();
+    const Eigen::Matrix2d A = I * S.inverse();
+    const double q = A.squaredNorm() / std::abs(A.determinant());
+    d = 0.5 * (q + std::sqrt(std::max(q * q - 4.0, 0.0)));
+  }
+  return d;
+}
+
+DistortionStats hyperbolic_image_distortion(
+    const TriMesh& source,
+    const std::function<std::pair<std::complex<double>, std::complex<double>>(int f)>& image_in_chart,
+    const std::function<Eigen::Vector3d(int f)>& image_sides, bool thin_images) {
+  const int nf = source.num_faces();
+  DistortionStats out;
+  out.per_face.assign(nf, std::numeric_limits<double>::infinity());
+  double weighted = 0, total_area = 0;
+  for (int f = 0; f < nf; ++f) {
+    const auto [b, c] = image_in_chart(f);
+    const int orientation = image_orientation(b, c);
+    if (orientation == 0) {
+      ++out.degenerate;
+      continue;
+    }
+    if (orientation < 0) {
+      ++out.flipped;
+      continue;
+    }
+    const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
+                          p2 = source.V.row(source.F(f, 2));
+    const double d = hyperbolic_face_dilatation(p0, p1, p2, b, c, image_sides(f), thin_images);
+    out.per_face[f] = d;
+    const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+    weighted += area * d;
+    total_area += area;
+    out.max = std::max(out.max, d);
+  }
+  out.mean = total_area > 0 ? weighted / total_area : std::numeric_limits<double>::infinity();
+  return out;
 }
 
 DistortionStats planar_distortion(const RowMatrixX3d& V, const RowMatrixX3i& F,

@@ -2,7 +2,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -12,10 +14,14 @@
 
 #include "landmarks.h"
 #include "map_support.h"
+#include "stages/flat_landmarks.h"
+#include "stages/flat_location.h"
+#include "stages/landmark_ranking.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/geometry/positive_edge_weights.h"
 #include "surfmap/map/distortion.h"
+#include "surfmap/map/point_location.h"
 #include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/edge_homotopy.h"
 
@@ -54,29 +60,204 @@ FlatTarget flat_target(const TriMesh& target, const SurfaceMapOptions& options) 
   return t;
 }
 
-// Locates p modulo the lattice (w1, w2) in the grid: reduce p to the
-// parallelogram around `centre`, then try nearby translates.
-int locate_periodic(const TriangleGrid& grid, Complex p, Complex centre, Complex w1, Complex w2,
-                    Eigen::Vector3d* bary) {
-  const double det = w1.real() * w2.imag() - w1.imag() * w2.real();
-  const Complex d = p - centre;
-  const double alpha = (d.real() * w2.imag() - d.imag() * w2.real()) / det;
-  const double beta = (w1.real() * d.imag() - w1.imag() * d.real()) / det;
-  const Complex q = p - std::round(alpha) * w1 - std::round(beta) * w2;
-  for (int ring = 0; ring <= 3; ++ring)
-    for (int m = -ring; m <= ring; ++m)
-      for (int n = -ring; n <= ring; ++n) {
-        if (std::max(std::abs(m), std::abs(n)) != ring) continue;
-        const int f = grid.locate(q + double(m) * w1 + double(n) * w2, bary);
-        if (f >= 0) return f;
-      }
-  return -1;
+
+// The source's Laplacian (cotangent weights of `idt`, or uniform ones for
+// the Tutte-type initial map) with vertex 0 pinned, factorised once and
+// solved for every class's translations.
+class FlatSolver {
+ public:
+  FlatSolver(int n, const IntrinsicDelaunayResult& idt, bool uniform) : n_(n), idt_(idt), uniform_(uniform) {
+    std::vector<Eigen::Triplet<double>> trip;
+    for (const auto& e : idt.edges) {
+      const double w = uniform ? 1.0 : e.cot_weight;
+      if (w == 0) continue;
+      for (auto [a, b, s] : {std::tuple{e.i, e.i, w}, std::tuple{e.j, e.j, w}, std::tuple{e.i, e.j, -w},
+                             std::tuple{e.j, e.i, -w}})
+        if (a > 0 && b > 0) trip.emplace_back(a - 1, b - 1, s);
+    }
+    Eigen::SparseMatrix<double> L(n - 1, n - 1);
+    L.setFromTriplets(trip.begin(), trip.end());
+    factorisation_ = std::make_unique<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>>();
+    factorisation_->compute(L);
+    if (factorisation_->info() != Eigen::Success)
+      throw SolveError("the source Laplacian could not be factorised (weights disconnect the mesh?)");
+  }
+  // Solves L z = b with b_i += w t, b_j -= w t for each edge i->j (image of
+  // the edge runs from z_i to z_j + t, energy w |z_j + t - z_i|^2, whose
+  // gradient in z_i is 2w (z_i - z_j - t)); returns z and the cotangent
+  // energy.
+  std::pair<std::vector<Complex>, double> solve(const std::vector<Complex>& t) const {
+    const int n = n_;
+    const IntrinsicDelaunayResult& idt = idt_;
+    Eigen::VectorXd bx = Eigen::VectorXd::Zero(n), by = Eigen::VectorXd::Zero(n);
+    for (size_t e = 0; e < idt.edges.size(); ++e) {
+      const auto& ie = idt.edges[e];
+      const double w = uniform_ ? 1.0 : ie.cot_weight;
+      bx[ie.i] += w * t[e].real(), by[ie.i] += w * t[e].imag();
+      bx[ie.j] -= w * t[e].real(), by[ie.j] -= w * t[e].imag();
+    }
+    const Eigen::VectorXd x = factorisation_->solve(bx.tail(n - 1)), y = factorisation_->solve(by.tail(n - 1));
+    std::vector<Complex> z(n, 0.0);
+    for (int i = 1; i < n; ++i) z[i] = Complex(x[i - 1], y[i - 1]);
+    double energy = 0;
+    for (size_t e = 0; e < idt.edges.size(); ++e) {
+      const auto& ie = idt.edges[e];
+      energy += ie.cot_weight * std::norm(z[ie.j] + t[e] - z[ie.i]);
+    }
+    return std::make_pair(z, energy);
+  }
+
+ private:
+  int n_;
+  const IntrinsicDelaunayResult& idt_;
+  bool uniform_;
+  std::unique_ptr<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>> factorisation_;
+};
+
+// The image triangles of the source's own faces for a class's edge
+// translations `te` (#E) and points `zz` (#V): corner 0 at z_{F0}; corner 1
+// = z_{F1} + t(F0->F1); corner 2 = z_{F2} - t(F2->F0).
+Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> flat_image_corners(const TriMesh& source, const Connectivity& sc,
+                                                                             const std::vector<Complex>& te,
+                                                                             const std::vector<Complex>& zz) {
+  Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> img(source.num_faces(), 3);
+  auto of = [&](int h) { return sc.edge_halfedge(sc.edge(h)) == h ? te[sc.edge(h)] : -te[sc.edge(h)]; };
+  for (int f = 0; f < source.num_faces(); ++f) {
+    img(f, 0) = zz[source.F(f, 0)];
+    img(f, 1) = zz[source.F(f, 1)] + of(3 * f);
+    img(f, 2) = zz[source.F(f, 2)] - of(3 * f + 2);
+  }
+  return img;
+}
+
+// Candidate classes: a -> p A + q B, b -> r A + s B for small SL(2,Z)
+// matrices (the handle correspondences of a torus), up to the sign ±I,
+// which gives the same energy (the hyperelliptic involution); simplest first.
+std::vector<std::array<int, 4>> candidate_matrices() {
+  std::vector<std::array<int, 4>> mats;
+  for (int p = -1; p <= 1; ++p)
+    for (int q = -1; q <= 1; ++q)
+      for (int r = -1; r <= 1; ++r)
+        for (int s2 = -1; s2 <= 1; ++s2) {
+          if (p * s2 - q * r != 1) continue;
+          const bool canonical_sign = p > 0 || (p == 0 && q > 0);
+          if (canonical_sign) mats.push_back({p, q, r, s2});
+        }
+  std::sort(mats.begin(), mats.end(), [](const auto& m1, const auto& m2) {
+    auto cost = [](const auto& m) { return std::abs(m[0]) + std::abs(m[1]) + std::abs(m[2]) + std::abs(m[3]); };
+    return cost(m1) < cost(m2);
+  });
+  return mats;
+}
+
+// Flipped images among the triangles of the intrinsic triangulation (the
+// energy lives there, where positive weights guarantee an embedding), for
+// points z and translations t (#idt edges).
+int flat_intrinsic_flipped(const IntrinsicDelaunayResult& idt, const std::vector<Complex>& z,
+                           const std::vector<Complex>& t_intrinsic) {
+  int intrinsic_flipped = 0;
+  for (int f = 0; f < idt.F.rows(); ++f) {
+    Complex c[3];
+    c[0] = z[idt.F(f, 0)];
+    for (int k = 1; k < 3; ++k) {
+      const int e = idt.face_edges(f, k - 1);  // side from corner k-1 to corner k
+      const auto& ie = idt.edges[e];
+      const bool along = ie.i == idt.F(f, k - 1) && ie.j == idt.F(f, k);
+      c[k] = c[k - 1] + (along ? (z[ie.j] + t_intrinsic[e] - z[ie.i]) : -(z[ie.j] + t_intrinsic[e] - z[ie.i]));
+    }
+    const Complex e1 = c[1] - c[0], e2 = c[2] - c[0];
+    if (e1.real() * e2.imag() - e1.imag() * e2.real() <= 0) ++intrinsic_flipped;
+  }
+  return intrinsic_flipped;
+}
+
+// The flat harmonic-map problem as solved (testing/map_hooks.h).
+HarmonicProblem flat_problem(const IntrinsicDelaunayResult& idt, const std::vector<Complex>& t_intrinsic,
+                             const std::vector<Complex>& z_init) {
+  HarmonicProblem p;
+  p.flat = true;
+  p.num_vertices = static_cast<int>(z_init.size());
+  for (size_t e = 0; e < idt.edges.size(); ++e) {
+    p.flat_i.push_back(idt.edges[e].i), p.flat_j.push_back(idt.edges[e].j);
+    p.flat_weight.push_back(idt.edges[e].cot_weight), p.flat_translation.push_back(t_intrinsic[e]);
+  }
+  p.start = z_init;
+  return p;
+}
+
+
+// The homotopy data of the class a -> a_img, b -> b_img (paper §V-B, flat
+// case: translations): the translation of every intrinsic edge (#idt edges)
+// and of every source edge (#E, along its edge_halfedge); the translations
+// around every source face (the root of T* included) must cancel, the
+// abelianised surface relation (a SolveError names the face otherwise).
+std::pair<std::vector<Complex>, std::vector<Complex>> class_translations(
+    const TriMesh& source, const Connectivity& sc, const SystemOfLoops& sl, const CanonicalSchema& scs,
+    const std::vector<int>& first, const IntrinsicDelaunayResult& idt, const Complex a_img, const Complex b_img) {
+  std::vector<Complex> letter_values;
+  for (const Word& w : scs.letters) letter_values.push_back(evaluate(w, {a_img, b_img}));
+  const std::vector<Complex> edge_t = edge_group_elements(sc, sl.tree_parent_halfedge, sl.dual_tree_parent_halfedge,
+                                                          sl.generator_edges, first, letter_values, kTranslations);
+  auto of = [&](int h) { return sc.edge_halfedge(sc.edge(h)) == h ? edge_t[sc.edge(h)] : -edge_t[sc.edge(h)]; };
+  // Around every face (the root of T* included) the translations must
+  // cancel: the abelianised surface relation.
+  const double scale = std::abs(a_img) + std::abs(b_img);
+  for (int f = 0; f < source.num_faces(); ++f)
+    if (std::abs(of(3 * f) + of(3 * f + 1) + of(3 * f + 2)) > 1e-9 * scale)
+      throw SolveError("homotopy data inconsistent around source face " + std::to_string(f));
+  std::vector<Complex> t(idt.edges.size());
+  for (size_t e = 0; e < idt.edges.size(); ++e) {
+    Complex s = 0;
+    for (int h : idt.edges[e].path) s += of(h);
+    t[e] = s;
+  }
+  return std::make_pair(t, std::vector<Complex>(edge_t));
+}
+
+
+// The default genus-1 class: the requested one, else the lowest free
+// energy, else with landmarks the lowest held energy (paper §VII-C,
+// stages/landmark_ranking.h: branch and bound on the plain pins' lower
+// bounds, every class has one here; +inf where the landmarks cannot be held
+// bijectively, a SolveError when that is every class). `hold(k)` holds the
+// landmarks in class k; the chosen class's held map goes to `chosen_hold`.
+int choose_flat_class(const SurfaceMapOptions& options, std::vector<HomotopyCandidate>& candidates,
+                      const std::function<FlatHold(int k)>& hold, std::unique_ptr<FlatHold>* chosen_hold) {
+  int chosen = options.homotopy;
+  if (chosen < 0 && options.landmarks.empty()) {
+    chosen = 0;
+    for (size_t i = 1; i < candidates.size(); ++i)
+      if (candidates[i].energy < candidates[chosen].energy) chosen = static_cast<int>(i);
+  } else if (chosen < 0) {
+    std::vector<int> order(candidates.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+    std::vector<std::unique_ptr<FlatHold>> holds(candidates.size());
+    const int best = landmark_branch_and_bound(order, candidates, [&](int k) -> std::optional<double> {
+      holds[k] = std::make_unique<FlatHold>(hold(k));
+      return holds[k]->energy;
+    });
+    if (best < 0)
+      throw SolveError("the landmarks cannot be held bijectively in any of the " + std::to_string(candidates.size()) +
+                       " homotopy classes tried");
+    *chosen_hold = std::move(holds[best]);
+    chosen = best;
+  } else if (chosen >= static_cast<int>(candidates.size())) {
+    throw InputError("homotopy class " + std::to_string(options.homotopy) + " does not exist; there are " +
+                     std::to_string(candidates.size()) + " candidates (0.." + std::to_string(candidates.size() - 1) + ")");
+  }
+  return chosen;
 }
 
 }  // namespace
 
+// Genus 1 (paper §VI, flat case): one exact sparse solve per class. Longer
+// than a page because one loop, a pass per choice of source weights (the
+// automatic fallback to the source's own edges), runs the whole pipeline;
+// its steps are the helpers above and stages/flat_landmarks.h,
+// stages/landmark_ranking.h, stages/flat_location.h.
 void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
-              const SurfaceMapOptions& options, SurfaceMapResult& out, const StageDone& stage_done) {
+              const SurfaceMapOptions& options, const testing::MapHooks& hooks, SurfaceMapResult& out,
+              const StageDone& stage_done) {
   // Target: flat uniformization and canonical lattice basis.
   const FlatTarget tgt = flat_target(target, options);
   out.target_refinement_splits = tgt.refinement_splits;
@@ -106,69 +287,14 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   out.source_weights = own_weights ? "positive on the source's own edges" : "intrinsic Delaunay cotangent";
   stage_done("source homotopy data and weights", 0.4);
 
-  // Laplacian with vertex 0 pinned (the optimum is unique up to translation).
+  // Laplacian with vertex 0 pinned (the optimum is unique up to
+  // translation), cotangent and uniform (FlatSolver above).
   const int n = source.num_vertices();
-  auto factor = [&](bool uniform) {
-    std::vector<Eigen::Triplet<double>> trip;
-    for (const auto& e : idt.edges) {
-      const double w = uniform ? 1.0 : e.cot_weight;
-      if (w == 0) continue;
-      for (auto [a, b, s] : {std::tuple{e.i, e.i, w}, std::tuple{e.j, e.j, w}, std::tuple{e.i, e.j, -w},
-                             std::tuple{e.j, e.i, -w}})
-        if (a > 0 && b > 0) trip.emplace_back(a - 1, b - 1, s);
-    }
-    Eigen::SparseMatrix<double> L(n - 1, n - 1);
-    L.setFromTriplets(trip.begin(), trip.end());
-    auto solver = std::make_unique<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>>();
-    solver->compute(L);
-    if (solver->info() != Eigen::Success)
-      throw SolveError("the source Laplacian could not be factorised (weights disconnect the mesh?)");
-    return solver;
-  };
-  const auto solver = factor(false);
-  const auto tutte = factor(true);
+  const FlatSolver solver(n, idt, false), tutte(n, idt, true);
 
   // Translation of each intrinsic edge for a given homotopy class.
   auto intrinsic_translations = [&](const Complex a_img, const Complex b_img) {
-    std::vector<Complex> letter_values;
-    for (const Word& w : scs.letters) letter_values.push_back(evaluate(w, {a_img, b_img}));
-    const std::vector<Complex> edge_t = edge_group_elements(sc, sl.tree_parent_halfedge, sl.dual_tree_parent_halfedge,
-                                                            sl.generator_edges, first, letter_values, kTranslations);
-    auto of = [&](int h) { return sc.edge_halfedge(sc.edge(h)) == h ? edge_t[sc.edge(h)] : -edge_t[sc.edge(h)]; };
-    // Around every face (the root of T* included) the translations must
-    // cancel: the abelianised surface relation.
-    const double scale = std::abs(a_img) + std::abs(b_img);
-    for (int f = 0; f < source.num_faces(); ++f)
-      if (std::abs(of(3 * f) + of(3 * f + 1) + of(3 * f + 2)) > 1e-9 * scale)
-        throw SolveError("homotopy data inconsistent around source face " + std::to_string(f));
-    std::vector<Complex> t(idt.edges.size());
-    for (size_t e = 0; e < idt.edges.size(); ++e) {
-      Complex s = 0;
-      for (int h : idt.edges[e].path) s += of(h);
-      t[e] = s;
-    }
-    return std::make_pair(t, std::vector<Complex>(edge_t));
-  };
-  // Solve L z = b with b_i += w t, b_j -= w t for each edge i->j (image of the
-  // edge runs from z_i to z_j + t, energy w |z_j + t - z_i|^2, whose
-  // gradient in z_i is 2w (z_i - z_j - t)).
-  auto solve = [&](const auto& factorisation, const std::vector<Complex>& t, bool uniform) {
-    Eigen::VectorXd bx = Eigen::VectorXd::Zero(n), by = Eigen::VectorXd::Zero(n);
-    for (size_t e = 0; e < idt.edges.size(); ++e) {
-      const auto& ie = idt.edges[e];
-      const double w = uniform ? 1.0 : ie.cot_weight;
-      bx[ie.i] += w * t[e].real(), by[ie.i] += w * t[e].imag();
-      bx[ie.j] -= w * t[e].real(), by[ie.j] -= w * t[e].imag();
-    }
-    const Eigen::VectorXd x = factorisation->solve(bx.tail(n - 1)), y = factorisation->solve(by.tail(n - 1));
-    std::vector<Complex> z(n, 0.0);
-    for (int i = 1; i < n; ++i) z[i] = Complex(x[i - 1], y[i - 1]);
-    double energy = 0;
-    for (size_t e = 0; e < idt.edges.size(); ++e) {
-      const auto& ie = idt.edges[e];
-      energy += ie.cot_weight * std::norm(z[ie.j] + t[e] - z[ie.i]);
-    }
-    return std::make_pair(z, energy);
+    return class_translations(source, sc, sl, scs, first, idt, a_img, b_img);
   };
 
   // Landmarks (landmarks.h): each source vertex held at the lift of its
@@ -185,109 +311,29 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   }
   // (optimum, lifts) with the landmarks held.
   auto pinned_solve = [&](const std::vector<Complex>& t) {
-    const std::vector<Complex> free = solve(solver, t, false).first;
+    const std::vector<Complex> free = solver.solve(t).first;
     const std::vector<Complex> lifts = flat_landmark_lifts(free, lm_source, lm_target, tgt.A, tgt.B);
     return std::make_pair(pinned_cot->solve(t, lifts), lifts);
   };
 
-  // The image triangles of the source's own faces for a class's edge
-  // translations (corner 0 at z_{F0}; corner 1 = z_{F1} + t(F0->F1);
-  // corner 2 = z_{F2} - t(F2->F0)).
   auto image_corners_of = [&](const std::vector<Complex>& te, const std::vector<Complex>& zz) {
-    Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> img(source.num_faces(), 3);
-    auto of = [&](int h) { return sc.edge_halfedge(sc.edge(h)) == h ? te[sc.edge(h)] : -te[sc.edge(h)]; };
-    for (int f = 0; f < source.num_faces(); ++f) {
-      img(f, 0) = zz[source.F(f, 0)];
-      img(f, 1) = zz[source.F(f, 1)] + of(3 * f);
-      img(f, 2) = zz[source.F(f, 2)] - of(3 * f + 2);
-    }
-    return img;
+    return flat_image_corners(source, sc, te, zz);
   };
-  // The landmarks held in one class (translations t on the intrinsic
-  // edges, te on the source's own): each on its lift; plain pins first (the
-  // exact held optimum); if that folds, the interior-point continuation
-  // (the bijective map of least energy, up to its barrier), and if that
-  // stalls, carried neighbourhoods (landmarks.h), or a SolveError naming
-  // them. `held`/`values`: the vertices held and where (the initial map
-  // holds the same).
-  struct FlatHold {
-    std::vector<Complex> z;
-    double energy = 0;
-    std::string method = "pinned";
-    std::vector<int> rings;
-    int solves = 1, steps = 0, held_count = 0;
-    std::vector<int> held;
-    std::vector<Complex> values;
-  };
+  // The landmarks held in one class (stages/flat_landmarks.h).
+  FlatLandmarkProblem lm_problem;
+  lm_problem.source = &source, lm_problem.idt = &idt, lm_problem.landmarks = &options.landmarks;
+  lm_problem.lm_source = lm_source, lm_problem.lm_target = lm_target, lm_problem.w1 = tgt.A, lm_problem.w2 = tgt.B;
+  lm_problem.free_optimum = [&](const std::vector<Complex>& t) { return solver.solve(t).first; };
+  lm_problem.pinned = pinned_cot.get();
+  lm_problem.image_corners = image_corners_of;
   auto hold_landmarks = [&](const std::vector<Complex>& t, const std::vector<Complex>& te) {
-    FlatHold h;
-    const std::vector<Complex> free = solve(solver, t, false).first;
-    const std::vector<Complex> lifts = flat_landmark_lifts(free, lm_source, lm_target, tgt.A, tgt.B);
-    std::vector<std::pair<int, int>> ends(idt.edges.size());
-    for (size_t e = 0; e < idt.edges.size(); ++e) ends[e] = {idt.edges[e].i, idt.edges[e].j};
-    h.held = lm_source, h.values = lifts;
-    h.rings.assign(lm_source.size(), 0);
-    h.held_count = static_cast<int>(lm_source.size());
-    std::tie(h.z, h.energy) = pinned_cot->solve(t, lifts);
-    auto folds = [&](const std::vector<Complex>& zz) {
-      const DistortionStats q = planar_distortion(source.V, source.F, image_corners_of(te, zz));
-      return q.flipped > 0 || q.degenerate > 0;
-    };
-    if (!folds(h.z)) return h;
-    const FlatBarrierResult br =
-        flat_barrier_landmarks(n, idt.edges, t, source.F, image_corners_of(te, std::vector<Complex>(n, Complex(0.0))),
-                               free, lm_source, lifts);
-    h.solves += br.steps;
-    h.steps = br.steps;
-    if (br.ok && !folds(br.z)) {
-      h.z = br.z, h.energy = br.energy;
-      h.method = "barrier continuation";
-      return h;
-    }
-    h.method = "carried neighbourhoods";
-    try {
-      const LandmarkPatchSearch search = grow_landmark_patches(
-          n, ends, source.F, options.landmarks, [&](const std::vector<LandmarkPatch>& patches) {
-            h.held.clear(), h.values.clear();
-            for (size_t a = 0; a < patches.size(); ++a)
-              for (size_t r = 0; r < patches[a].vertex.size(); ++r) {
-                const int v = patches[a].vertex[r];
-                h.held.push_back(v);
-                h.values.push_back(r == 0 ? lifts[a] : free[v] + (lifts[a] - free[lm_source[a]]));
-              }
-            std::tie(h.z, h.energy) = PinnedFlatHarmonic(n, idt.edges, h.held, false).solve(t, h.values);
-            const DistortionStats q = planar_distortion(source.V, source.F, image_corners_of(te, h.z));
-            std::vector<int> bad;
-            for (int f = 0; f < source.num_faces(); ++f)
-              if (!std::isfinite(q.per_face[f])) bad.push_back(f);
-            return bad;
-          });
-      h.rings = search.rings;
-      h.solves += search.solves;
-      h.held_count = search.held_vertices;
-    } catch (const SolveError& e) {
-      throw SolveError("the landmarks cannot be held bijectively: the interior-point continuation stalled " +
-                       std::to_string(static_cast<int>(100 * br.reached)) + "% of the way to them, and " + e.what());
-    }
-    return h;
+    return hold_flat_landmarks(lm_problem, t, te);
   };
 
   // Candidate classes: a -> p A + q B, b -> r A + s B for small SL(2,Z)
   // matrices (the handle correspondences of a torus), up to the sign ±I,
   // which gives the same energy (the hyperelliptic involution).
-  std::vector<std::array<int, 4>> mats;
-  for (int p = -1; p <= 1; ++p)
-    for (int q = -1; q <= 1; ++q)
-      for (int r = -1; r <= 1; ++r)
-        for (int s2 = -1; s2 <= 1; ++s2) {
-          if (p * s2 - q * r != 1) continue;
-          const bool canonical_sign = p > 0 || (p == 0 && q > 0);
-          if (canonical_sign) mats.push_back({p, q, r, s2});
-        }
-  std::sort(mats.begin(), mats.end(), [](const auto& m1, const auto& m2) {
-    auto cost = [](const auto& m) { return std::abs(m[0]) + std::abs(m[1]) + std::abs(m[2]) + std::abs(m[3]); };
-    return cost(m1) < cost(m2);
-  });
+  const std::vector<std::array<int, 4>> mats = candidate_matrices();
   auto translations_of = [&](const int* m) {
     return intrinsic_translations(double(m[0]) * tgt.A + double(m[1]) * tgt.B, double(m[2]) * tgt.A + double(m[3]) * tgt.B);
   };
@@ -302,51 +348,18 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     c.description = "a -> " + std::to_string(m[0]) + " a' + " + std::to_string(m[1]) + " b',  b -> " +
                     std::to_string(m[2]) + " a' + " + std::to_string(m[3]) + " b'";
     const auto tr = translations_of(c.matrix);
-    c.energy = solve(solver, tr.first, false).second;
+    c.energy = solver.solve(tr.first).second;
     if (landmarks) c.landmark_lower_bound = pinned_solve(tr.first).first.second;
     out.candidates.push_back(c);
   }
+  // The default class (choose_flat_class), and with landmarks the chosen
+  // class's held map from the ranking; the class chosen on the first pass stays.
   std::unique_ptr<FlatHold> chosen_hold;
-  if (first_pass) {
-  out.chosen_candidate = options.homotopy;
-  if (out.chosen_candidate < 0 && !landmarks) {
-    out.chosen_candidate = 0;
-    for (size_t i = 1; i < out.candidates.size(); ++i)
-      if (out.candidates[i].energy < out.candidates[out.chosen_candidate].energy) out.chosen_candidate = static_cast<int>(i);
-  } else if (out.chosen_candidate < 0) {
-    // With landmarks the classes are ranked by the energy of the map the
-    // pipeline returns (hold_landmarks), by branch and bound on the plain
-    // pins' lower bounds: held in the order of their bounds until none is
-    // below the best held energy (the rest: landmark_energy NaN); +inf
-    // where the landmarks cannot be held bijectively.
-    std::vector<int> order(out.candidates.size());
-    for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
-    std::stable_sort(order.begin(), order.end(), [&](int x, int y) {
-      return out.candidates[x].landmark_lower_bound < out.candidates[y].landmark_lower_bound;
-    });
-    int best = -1;
-    for (int k : order) {
-      HomotopyCandidate& c = out.candidates[k];
-      if (best >= 0 && c.landmark_lower_bound >= out.candidates[best].landmark_energy) break;
-      const auto tr = translations_of(c.matrix);
-      try {
-        auto h = std::make_unique<FlatHold>(hold_landmarks(tr.first, tr.second));
-        c.landmark_energy = h->energy;
-        if (best < 0 || h->energy < out.candidates[best].landmark_energy) best = k, chosen_hold = std::move(h);
-      } catch (const SolveError&) {
-        c.landmark_energy = std::numeric_limits<double>::infinity();
-      }
-    }
-    if (best < 0)
-      throw SolveError("the landmarks cannot be held bijectively in any of the " + std::to_string(out.candidates.size()) +
-                       " homotopy classes tried");
-    out.chosen_candidate = best;
-  } else if (out.chosen_candidate >= static_cast<int>(out.candidates.size())) {
-    throw InputError("homotopy class " + std::to_string(options.homotopy) + " does not exist; there are " +
-                     std::to_string(out.candidates.size()) + " candidates (0.." +
-                     std::to_string(out.candidates.size() - 1) + ")");
-  }
-  }
+  if (first_pass)
+    out.chosen_candidate = choose_flat_class(options, out.candidates, [&](int k) {
+      const auto tr = translations_of(out.candidates[k].matrix);
+      return hold_landmarks(tr.first, tr.second);
+    }, &chosen_hold);
   stage_done("homotopy candidates", 0.6);
 
   const int* M = out.candidates[out.chosen_candidate].matrix;
@@ -367,8 +380,8 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     // The initial (Tutte-type) map holds the same vertices at the same points.
     z_init = PinnedFlatHarmonic(n, idt.edges, h.held, true).solve(t_intrinsic, h.values).first;
   } else {
-    z_init = solve(tutte, t_intrinsic, true).first;
-    std::tie(z, energy) = solve(solver, t_intrinsic, false);
+    z_init = tutte.solve(t_intrinsic).first;
+    std::tie(z, energy) = solver.solve(t_intrinsic);
     // The optimum is unique up to a translation of the torus; put the source's
     // base vertex where the target's base vertex lies (both are central
     // vertices of their shapes), a reproducible and usually natural choice.
@@ -378,17 +391,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     const Complex shift0 = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z_init[sl.base_vertex];
     for (Complex& zi : z_init) zi += shift0;
   }
-  if (options.inspect_problem) {
-    HarmonicProblem p;
-    p.flat = true;
-    p.num_vertices = n;
-    for (size_t e = 0; e < idt.edges.size(); ++e) {
-      p.flat_i.push_back(idt.edges[e].i), p.flat_j.push_back(idt.edges[e].j);
-      p.flat_weight.push_back(idt.edges[e].cot_weight), p.flat_translation.push_back(t_intrinsic[e]);
-    }
-    p.start = z_init;
-    options.inspect_problem(p);
-  }
+  if (hooks.inspect_problem) hooks.inspect_problem(flat_problem(idt, t_intrinsic, z_init));
   double e_init = 0;
   for (size_t e = 0; e < idt.edges.size(); ++e) {
     const auto& ie = idt.edges[e];
@@ -419,19 +422,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   out.initial_flipped_triangles = q0.flipped;
   // The energy lives on the intrinsic triangulation, where positive weights
   // guarantee an embedding; count its image triangles too.
-  int intrinsic_flipped = 0;
-  for (int f = 0; f < idt.F.rows(); ++f) {
-    Complex c[3];
-    c[0] = z[idt.F(f, 0)];
-    for (int k = 1; k < 3; ++k) {
-      const int e = idt.face_edges(f, k - 1);  // side from corner k-1 to corner k
-      const auto& ie = idt.edges[e];
-      const bool along = ie.i == idt.F(f, k - 1) && ie.j == idt.F(f, k);
-      c[k] = c[k - 1] + (along ? (z[ie.j] + t_intrinsic[e] - z[ie.i]) : -(z[ie.j] + t_intrinsic[e] - z[ie.i]));
-    }
-    const Complex e1 = c[1] - c[0], e2 = c[2] - c[0];
-    if (e1.real() * e2.imag() - e1.imag() * e2.real() <= 0) ++intrinsic_flipped;
-  }
+  const int intrinsic_flipped = flat_intrinsic_flipped(idt, z, t_intrinsic);
   out.intrinsic_flipped_triangles = intrinsic_flipped;
   if ((q.flipped || q.degenerate) && !own_weights && options.source_weights == SourceWeights::Automatic) {
     own_weights = true;
@@ -443,69 +434,14 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
                      std::to_string(intrinsic_flipped) + " in the intrinsic triangulation); it is not returned");
   stage_done("quality", 0.75);
 
-  // Forward map: locate every z_i in the target's disk (modulo the lattice).
-  const int ntf = tgt.loops.mesh.num_faces();
-  std::vector<std::array<Complex, 3>> ttris(ntf);
-  Complex centre = 0;
-  for (int f = 0; f < ntf; ++f) {
-    for (int k = 0; k < 3; ++k) ttris[f][k] = tgt.layout.corners(f, k);
-    centre += (ttris[f][0] + ttris[f][1] + ttris[f][2]) / 3.0;
-  }
-  centre /= double(ntf);
-  const TriangleGrid tgrid(ttris);
-  std::vector<int> refined_face_origin(ntf, -1);
-  out.forward.resize(n);
-  for (int i = 0; i < n; ++i) {
-    Eigen::Vector3d b;
-    const int rf = locate_periodic(tgrid, z[i], centre, tgt.A, tgt.B, &b);
-    if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
-    out.forward[i] = point_on_input(target, tc, tgt.loops, refined_face_origin, rf, b);
-  }
-  // The initial (uniform Tutte) map located the same way ("before" morph).
+  // Location (stages/flat_location.h); the initial map is the uniform Tutte one.
   out.initial_map.construction = "uniform Tutte";
-  out.initial_forward.resize(n);
-  for (int i = 0; i < n; ++i) {
-    Eigen::Vector3d b;
-    const int rf = locate_periodic(tgrid, z_init[i], centre, tgt.A, tgt.B, &b);
-    if (rf < 0) {
-      out.initial_forward.clear();  // left unlocated, not an error
-      break;
-    }
-    out.initial_forward[i] = point_on_input(target, tc, tgt.loops, refined_face_origin, rf, b);
-  }
-  stage_done("forward location", 0.85);
-
-  // Inverse map: locate every target vertex in the image of the source
-  // triangles `im`; false (and `inv` emptied) if one is not covered.
-  auto locate_inverse = [&](const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& im,
-                            std::vector<PointOnSurface>& inv, int* missed) {
-    std::vector<std::array<Complex, 3>> stris(source.num_faces());
-    Complex scentre = 0;
-    for (int f = 0; f < source.num_faces(); ++f) {
-      for (int k = 0; k < 3; ++k) stris[f][k] = im(f, k);
-      scentre += (stris[f][0] + stris[f][1] + stris[f][2]) / 3.0;
-    }
-    scentre /= double(source.num_faces());
-    const TriangleGrid sgrid(stris);
-    inv.resize(target.num_vertices());
-    for (int v = 0; v < target.num_vertices(); ++v) {
-      Eigen::Vector3d b;
-      const int f = locate_periodic(sgrid, tgt.layout.vertex_positions[v], scentre, tgt.A, tgt.B, &b);
-      if (f < 0) {
-        inv.clear();
-        *missed = v;
-        return false;
-      }
-      inv[v] = point_in_face(source, f, b);
-    }
-    return true;
-  };
-  int missed = -1;
-  if (!locate_inverse(img, out.inverse, &missed))
-    throw SolveError("target vertex " + std::to_string(missed) + " could not be located in the source image");
-  // The initial map's inverse the same way (the "before" UV transfer); left
-  // empty, not an error, when a target vertex is not covered.
-  locate_inverse(image_corners(z_init), out.initial_inverse, &missed);
+  FlatLocationResult located = locate_flat_map(source, target, tc, tgt.loops, tgt.layout, tgt.A, tgt.B, z, z_init, img,
+                                               image_corners(z_init), stage_done);
+  out.forward = std::move(located.forward);
+  out.inverse = std::move(located.inverse);
+  out.initial_forward = std::move(located.initial_forward);
+  out.initial_inverse = std::move(located.initial_inverse);
   stage_done("inverse location", 1.0);
   return;
   }

@@ -1,6 +1,7 @@
 #include "surfmap/map/hyperbolic_harmonic.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -50,83 +51,135 @@ int move_letter(int m) { return m % 2 == 0 ? m / 2 + 1 : -(m / 2 + 1); }
 
 // The Newton system: 2x2 blocks on a fixed pattern (the vertex graph of the
 // edges with w > 0), assembled straight into CHOLMOD's upper-triangular
-// column storage, and its symbolic factorisation, computed once per solve.
-// The fill-reducing ordering is computed on the vertex graph (a quarter of
-// the size) and expanded to the blocks, which keeps each vertex's two
-// unknowns adjacent. AMD, except on large meshes with the reference BLAS:
-// there METIS nested dissection pays, as it halves the factorisation flops
-// (50k source vertices: 1.7e9 against 3.2e9; 0.7 s against 1.2 s per
-// factorisation on netlib BLAS), but with OpenBLAS (scripts/bootstrap.sh)
-// both factorise in 0.23-0.3 s (single-threaded) and METIS's ordering costs
-// 0.5 s against 0.08 s for AMD, more than it saves over the 1-3
-// factorisations of a solve from a good start.
-class BlockHessian {
- public:
-  BlockHessian(int n, const std::vector<WeightedEdge>& edges) : n_(n) {
-    cholmod_start(&c_);
-    c_.print = 0;  // indefinite tries are expected and handled by the caller
+// column storage, and its symbolic factorisation (HessianAnalysis), computed
+// once per pattern: per solve, or once for every solve on the same pattern
+// (HyperbolicHarmonicSolver). The fill-reducing ordering is computed on the
+// vertex graph (a quarter of the size) and expanded to the blocks, which
+// keeps each vertex's two unknowns adjacent. AMD, except on large meshes
+// with the reference BLAS: there METIS nested dissection pays, as it halves
+// the factorisation flops (50k source vertices: 1.7e9 against 3.2e9; 0.7 s
+// against 1.2 s per factorisation on netlib BLAS), but with OpenBLAS
+// (scripts/bootstrap.sh) both factorise in 0.23-0.3 s (single-threaded) and
+// METIS's ordering costs 0.5 s against 0.08 s for AMD, more than it saves
+// over the 1-3 factorisations of a solve from a good start.
+}  // namespace
+
+struct HessianAnalysis {
+  int n = 0;
+  std::vector<int> colptr, rows, pair, lower_size;
+  /// Per edge: i, j and whether it enters the Hessian (w > 0, i != j): the pattern.
+  std::vector<std::array<int, 3>> edge_key;
+  cholmod_common c{};
+  cholmod_factor* L = nullptr;  ///< symbolic factor (copied by every solve)
+
+  HessianAnalysis(int num_vertices, const std::vector<WeightedEdge>& edges) : n(num_vertices) {
+    cholmod_start(&c);
+    c.print = 0;
     // Lower neighbours of every vertex (the blocks (I, J), I < J, of column J).
     std::vector<std::vector<int>> lower(n);
     for (const auto& e : edges)
       if (e.w > 0 && e.i != e.j) lower[std::max(e.i, e.j)].push_back(std::min(e.i, e.j));
     for (auto& l : lower) std::sort(l.begin(), l.end()), l.erase(std::unique(l.begin(), l.end()), l.end());
-    colptr_.assign(2 * n + 1, 0);
+    colptr.assign(2 * n + 1, 0);
     for (int J = 0; J < n; ++J) {
       const int d = static_cast<int>(lower[J].size());
-      colptr_[2 * J + 1] = colptr_[2 * J] + 2 * d + 1;
-      colptr_[2 * J + 2] = colptr_[2 * J + 1] + 2 * d + 2;
+      colptr[2 * J + 1] = colptr[2 * J] + 2 * d + 1;
+      colptr[2 * J + 2] = colptr[2 * J + 1] + 2 * d + 2;
     }
-    const int nnz = colptr_[2 * n];
-    rows_.resize(nnz);
+    const int nnz = colptr[2 * n];
+    rows.resize(nnz);
     for (int J = 0; J < n; ++J) {
-      int p = colptr_[2 * J], q = colptr_[2 * J + 1];
-      for (int I : lower[J]) rows_[p++] = 2 * I, rows_[p++] = 2 * I + 1, rows_[q++] = 2 * I, rows_[q++] = 2 * I + 1;
-      rows_[p] = 2 * J, rows_[q] = 2 * J, rows_[q + 1] = 2 * J + 1;
+      int p = colptr[2 * J], q = colptr[2 * J + 1];
+      for (int I : lower[J]) rows[p++] = 2 * I, rows[p++] = 2 * I + 1, rows[q++] = 2 * I, rows[q++] = 2 * I + 1;
+      rows[p] = 2 * J, rows[q] = 2 * J, rows[q + 1] = 2 * J + 1;
     }
     // Per edge: position of its off-diagonal block's first entry in column
     // 2·max (the block's k-th lower neighbour sits at colptr + 2k).
-    pair_.assign(edges.size(), -1);
+    pair.assign(edges.size(), -1);
+    edge_key.resize(edges.size());
     for (size_t e = 0; e < edges.size(); ++e) {
       const auto& ed = edges[e];
+      edge_key[e] = {ed.i, ed.j, ed.w > 0 && ed.i != ed.j};
       if (!(ed.w > 0) || ed.i == ed.j) continue;
       const int J = std::max(ed.i, ed.j), I = std::min(ed.i, ed.j);
-      pair_[e] = static_cast<int>(std::lower_bound(lower[J].begin(), lower[J].end(), I) - lower[J].begin());
+      pair[e] = static_cast<int>(std::lower_bound(lower[J].begin(), lower[J].end(), I) - lower[J].begin());
     }
-    lower_size_.resize(n);
-    for (int J = 0; J < n; ++J) lower_size_[J] = static_cast<int>(lower[J].size());
-    values_.assign(nnz, 0.0);
-    A_ = cholmod_allocate_sparse(2 * n, 2 * n, nnz, 1, 1, 1, CHOLMOD_REAL, &c_);
-    std::copy(colptr_.begin(), colptr_.end(), static_cast<int*>(A_->p));
-    std::copy(rows_.begin(), rows_.end(), static_cast<int*>(A_->i));
+    lower_size.resize(n);
+    for (int J = 0; J < n; ++J) lower_size[J] = static_cast<int>(lower[J].size());
+    cholmod_sparse* A = cholmod_allocate_sparse(2 * n, 2 * n, nnz, 1, 1, 1, CHOLMOD_REAL, &c);
+    std::copy(colptr.begin(), colptr.end(), static_cast<int*>(A->p));
+    std::copy(rows.begin(), rows.end(), static_cast<int*>(A->i));
 
     // Ordering of the vertex graph, expanded to the 2x2 blocks.
     std::vector<int> vp(n + 1, 0), vi;
     for (int J = 0; J < n; ++J) {
-      vp[J + 1] = vp[J] + lower_size_[J] + 1;
+      vp[J + 1] = vp[J] + lower_size[J] + 1;
       for (int I : lower[J]) vi.push_back(I);
       vi.push_back(J);
     }
-    cholmod_sparse* G = cholmod_allocate_sparse(n, n, vi.size(), 1, 1, 1, CHOLMOD_PATTERN, &c_);
+    cholmod_sparse* G = cholmod_allocate_sparse(n, n, vi.size(), 1, 1, 1, CHOLMOD_PATTERN, &c);
     std::copy(vp.begin(), vp.end(), static_cast<int*>(G->p));
     std::copy(vi.begin(), vi.end(), static_cast<int*>(G->i));
-    c_.nmethods = 1;
-    c_.method[0].ordering = n > 20000 && !detail::optimised_blas() ? CHOLMOD_METIS : CHOLMOD_AMD;
+    c.nmethods = 1;
+    c.method[0].ordering = n > 20000 && !detail::optimised_blas() ? CHOLMOD_METIS : CHOLMOD_AMD;
     std::vector<int> perm(2 * n);
     {
       std::lock_guard<std::mutex> lock(detail::ordering_mutex());
-      cholmod_factor* Lg = cholmod_analyze(G, &c_);
+      cholmod_factor* Lg = cholmod_analyze(G, &c);
       if (!Lg) {
-        cholmod_free_sparse(&G, &c_);
+        cholmod_free_sparse(&G, &c);
+        cholmod_free_sparse(&A, &c);
+        cholmod_finish(&c);
         throw SolveError("hyperbolic harmonic map: ordering of the Hessian failed");
       }
       const int* P = static_cast<const int*>(Lg->Perm);
       for (int k = 0; k < n; ++k) perm[2 * k] = 2 * P[k], perm[2 * k + 1] = 2 * P[k] + 1;
-      cholmod_free_factor(&Lg, &c_);
+      cholmod_free_factor(&Lg, &c);
     }
-    cholmod_free_sparse(&G, &c_);
-    c_.method[0].ordering = CHOLMOD_GIVEN;
-    L_ = cholmod_analyze_p(A_, perm.data(), nullptr, 0, &c_);
-    if (!L_) throw SolveError("hyperbolic harmonic map: symbolic factorisation of the Hessian failed");
+    cholmod_free_sparse(&G, &c);
+    c.method[0].ordering = CHOLMOD_GIVEN;
+    L = cholmod_analyze_p(A, perm.data(), nullptr, 0, &c);
+    cholmod_free_sparse(&A, &c);
+    if (!L) {
+      cholmod_finish(&c);
+      throw SolveError("hyperbolic harmonic map: symbolic factorisation of the Hessian failed");
+    }
+  }
+  ~HessianAnalysis() {
+    cholmod_free_factor(&L, &c);
+    cholmod_finish(&c);
+  }
+  HessianAnalysis(const HessianAnalysis&) = delete;
+  HessianAnalysis& operator=(const HessianAnalysis&) = delete;
+  /// Whether `edges` on `num_vertices` have this pattern.
+  bool matches(int num_vertices, const std::vector<WeightedEdge>& edges) const {
+    if (num_vertices != n || edges.size() != edge_key.size()) return false;
+    for (size_t e = 0; e < edges.size(); ++e) {
+      const auto& ed = edges[e];
+      if (edge_key[e] != std::array<int, 3>{ed.i, ed.j, ed.w > 0 && ed.i != ed.j}) return false;
+    }
+    return true;
+  }
+};
+
+namespace {
+
+// The numeric side of the Newton system for one solve: values on the
+// analysis's pattern and a numeric factor (a copy of the symbolic one, so
+// solves on two threads do not share CHOLMOD state).
+class BlockHessian {
+ public:
+  explicit BlockHessian(const HessianAnalysis& analysis)
+      : n_(analysis.n), colptr_(analysis.colptr), pair_(analysis.pair), lower_size_(analysis.lower_size) {
+    cholmod_start(&c_);
+    c_.print = 0;  // indefinite tries are expected and handled by the caller
+    const int nnz = colptr_[2 * n_];
+    values_.assign(nnz, 0.0);
+    A_ = cholmod_allocate_sparse(2 * n_, 2 * n_, nnz, 1, 1, 1, CHOLMOD_REAL, &c_);
+    std::copy(analysis.colptr.begin(), analysis.colptr.end(), static_cast<int*>(A_->p));
+    std::copy(analysis.rows.begin(), analysis.rows.end(), static_cast<int*>(A_->i));
+    L_ = cholmod_copy_factor(analysis.L, &c_);
+    if (!L_) throw SolveError("hyperbolic harmonic map: copying the symbolic factorisation of the Hessian failed");
   }
   ~BlockHessian() {
     cholmod_free_factor(&L_, &c_);
@@ -193,7 +246,9 @@ class BlockHessian {
   cholmod_common c_{};
   cholmod_sparse* A_ = nullptr;
   cholmod_factor* L_ = nullptr;
-  std::vector<int> colptr_, rows_, pair_, lower_size_;
+  const std::vector<int>& colptr_;
+  const std::vector<int>& pair_;
+  const std::vector<int>& lower_size_;
   std::vector<double> values_;
 };
 
@@ -209,9 +264,14 @@ double hyperbolic_energy(const std::vector<WeightedEdge>& edges, const std::vect
   return E;
 }
 
-HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<WeightedEdge>& edges,
-                                                 const std::vector<Mobius>& generators, std::vector<Complex> z0,
-                                                 const HyperbolicHarmonicOptions& options) {
+namespace {
+
+// The Newton solve; the pattern's analysis is `shared` when given (the
+// caller checked that `edges` have its pattern), else built at the first
+// iteration that needs it.
+HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& generators,
+                                      std::vector<Complex> z0, const HyperbolicHarmonicOptions& options,
+                                      const HessianAnalysis* shared) {
   if (static_cast<int>(z0.size()) != n) throw InputError("hyperbolic_harmonic_map: one start point per vertex needed");
   for (int i = 0; i < n; ++i)
     if (!(std::abs(z0[i]) < 1)) throw InputError("hyperbolic_harmonic_map: start point of vertex " + std::to_string(i) + " is outside the disk");
@@ -371,6 +431,7 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
   };
   double E = energy_of(A);
   r.energy_history.push_back(E);
+  std::unique_ptr<HessianAnalysis> own_analysis;
   std::unique_ptr<BlockHessian> hessian;  // built at the first iteration that needs it
   // Factorisation state kept across iterations (chord steps, below).
   double shift = 0, last_gnorm = std::numeric_limits<double>::infinity();
@@ -426,7 +487,8 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
     auto seconds_since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
     if (!hessian) {
       const auto t0 = Clock::now();
-      hessian = std::make_unique<BlockHessian>(n, edges);
+      if (!shared) own_analysis = std::make_unique<HessianAnalysis>(n, edges);
+      hessian = std::make_unique<BlockHessian>(shared ? *shared : *own_analysis);
       r.analysis_seconds += seconds_since(t0);
     }
     BlockHessian& H = *hessian;
@@ -595,6 +657,33 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
   r.edge_effective.resize(edges.size());
   for (size_t e = 0; e < edges.size(); ++e) r.edge_effective[e] = eff[e].to_double().normalized();
   return r;
+}
+
+}  // namespace
+
+HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<WeightedEdge>& edges,
+                                                 const std::vector<Mobius>& generators, std::vector<Complex> z0,
+                                                 const HyperbolicHarmonicOptions& options) {
+  return newton_solve(n, edges, generators, std::move(z0), options, nullptr);
+}
+
+HyperbolicHarmonicSolver::HyperbolicHarmonicSolver(int num_vertices, const std::vector<WeightedEdge>& edges) {
+  for (const auto& ed : edges)
+    if (ed.i < 0 || ed.i >= num_vertices || ed.j < 0 || ed.j >= num_vertices)
+      throw InputError("HyperbolicHarmonicSolver: an edge has an endpoint out of range");
+  analysis_ = std::make_shared<const HessianAnalysis>(num_vertices, edges);
+}
+
+HyperbolicHarmonicSolver::~HyperbolicHarmonicSolver() = default;
+
+HyperbolicHarmonicResult HyperbolicHarmonicSolver::solve(const std::vector<WeightedEdge>& edges,
+                                                         const std::vector<Mobius>& generators, std::vector<Complex> z0,
+                                                         const HyperbolicHarmonicOptions& options) const {
+  const int n = static_cast<int>(z0.size());
+  if (!analysis_->matches(n, edges))
+    throw InputError("HyperbolicHarmonicSolver::solve: the edges (endpoints, positive weights) or the vertex count "
+                     "differ from those the solver was built for");
+  return newton_solve(n, edges, generators, std::move(z0), options, analysis_.get());
 }
 
 }  // namespace surfmap

@@ -547,38 +547,23 @@ DistortionStats distortion_of(const TriMesh& source, const std::vector<Complex>&
                               Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>* image) {
   const int nf = source.num_faces();
   Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> img(nf, 3);
-  DistortionStats out;
-  out.per_face.assign(nf, std::numeric_limits<double>::infinity());
-  double weighted = 0, total_area = 0;
   for (int f = 0; f < nf; ++f) {
     img(f, 0) = z[source.F(f, 0)];
     img(f, 1) = eff(3 * f).apply(z[source.F(f, 1)]);
     img(f, 2) = eff(3 * f + 2).inverse().apply(z[source.F(f, 2)]);
-    // Möbius maps preserve orientation: test it in the chart centring corner 0.
-    const Mobius T = Mobius::centring(img(f, 0));
-    const Complex b = T.apply(img(f, 1)), c = T.apply(img(f, 2));
-    const double cross = b.real() * c.imag() - b.imag() * c.real();
-    if (!(std::abs(cross) > 1e-14 * std::max(std::norm(b), std::norm(c)))) {
-      ++out.degenerate;
-      continue;
-    }
-    if (cross < 0) {
-      ++out.flipped;
-      continue;
-    }
-    const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
-                          p2 = source.V.row(source.F(f, 2));
-    const Eigen::Vector3d ss((p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm());
-    const Eigen::Vector3d is(hyperbolic::distance(img(f, 0), img(f, 1)), hyperbolic::distance(img(f, 1), img(f, 2)),
-                             hyperbolic::distance(img(f, 2), img(f, 0)));
-    const double d = triangle_dilatation(ss, is);
-    out.per_face[f] = d;
-    const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
-    weighted += area * d;
-    total_area += area;
-    out.max = std::max(out.max, d);
   }
-  out.mean = total_area > 0 ? weighted / total_area : std::numeric_limits<double>::infinity();
+  // Möbius maps preserve orientation: tested in the chart centring corner 0.
+  DistortionStats out = hyperbolic_image_distortion(
+      source,
+      [&](int f) {
+        const Mobius T = Mobius::centring(img(f, 0));
+        return std::make_pair(T.apply(img(f, 1)), T.apply(img(f, 2)));
+      },
+      [&](int f) {
+        return Eigen::Vector3d(hyperbolic::distance(img(f, 0), img(f, 1)), hyperbolic::distance(img(f, 1), img(f, 2)),
+                               hyperbolic::distance(img(f, 2), img(f, 0)));
+      },
+      false);
   if (image) *image = std::move(img);
   return out;
 }

@@ -13,6 +13,11 @@ namespace surfmap {
 using Clock = std::chrono::steady_clock;
 
 SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options) {
+  return testing::surface_map(source, target, options, testing::MapHooks{});
+}
+
+SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                      const MapHooks& hooks) {
   SurfaceMapResult out;
   const auto t_start = Clock::now();
   auto t_stage = t_start;
@@ -47,9 +52,9 @@ SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const
   if (out.genus == 0)
     detail::map_spherical(source, target, sc, tc, options, out, stage_done);
   else if (out.genus == 1)
-    detail::map_flat(source, target, sc, tc, options, out, stage_done);
+    detail::map_flat(source, target, sc, tc, options, hooks, out, stage_done);
   else
-    detail::map_hyperbolic(source, target, sc, tc, options, out, stage_done);
+    detail::map_hyperbolic(source, target, sc, tc, options, hooks, out, stage_done);
   // How far each landmark's source vertex was located from its target
   // vertex. Held landmarks (every genus but 0 with more than 3) sit on a lift
   // of the target vertex by construction, so what remains is the round-off

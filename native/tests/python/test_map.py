@@ -39,6 +39,21 @@ def test_extremal_map_between_tori(pair):
     assert min(c["energy"] for c in cands) == cands[r["homotopy"]["chosen"]]["energy"]
 
 
+def test_capabilities_name_keywords_surface_map_accepts():
+    # The add-on tests membership here (no docstring search): every name
+    # must be a keyword argument of surface_map, and the ones the add-on
+    # asks for must be there.
+    caps = surfmap.capabilities
+    assert isinstance(caps, frozenset) and caps is surfmap._core.CAPABILITIES
+    assert {"landmarks", "method", "tolerance", "source_weights", "solve_progress"} <= caps
+    signature = surfmap.surface_map.__doc__.splitlines()[0]
+    params = {part.strip().split(":")[0] for part in signature[signature.index("(") + 1:signature.rindex(")")].split(",")}
+    assert caps <= params, caps - params
+    Vs, Fs = torus(1.0, 0.5, 12, 6)
+    with pytest.raises(TypeError):
+        surfmap.surface_map(Vs, Fs, Vs, Fs, no_such_keyword=1)
+
+
 def test_progress_cancel_and_callback_errors(pair):
     (Vs, Fs), (Vt, Ft) = pair
     stages = []

@@ -4,6 +4,8 @@
 // affine map from a source triangle to its image), its area-weighted mean and
 // max, and flipped / degenerate image triangles.
 #include <complex>
+#include <functional>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -18,6 +20,28 @@ namespace surfmap {
 /// side lengths `image`. Returns +inf for a degenerate image.
 double triangle_dilatation(const Eigen::Vector3d& source_sides, const Eigen::Vector3d& image_sides);
 
+/// Orientation of the triangle with corners 0, b, c: +1, -1 (flipped) or 0
+/// (degenerate: |cross| not above 1e-14 max(|b|², |c|²), non-finite
+/// included). For a hyperbolic image seen in a chart centring its corner 0
+/// (Möbius maps preserve orientation) as for a planar one.
+int image_orientation(std::complex<double> b, std::complex<double> c);
+
+/// D' of one source face (3D corners p0, p1, p2) onto a positively oriented
+/// geodesic triangle of the Poincaré disk with corners 0, b, c in a chart and
+/// hyperbolic side lengths `image_sides` (side k from corner k to k+1): from
+/// the side lengths (paper §VII-A). With `thin_images`, a needle-thin image
+/// (a + b - c below 1e-4 of the perimeter: the lengths' round-off, ~1e-9
+/// relative after a long solve, leaves the frame built from them
+/// meaningless, although the orientation was resolved) is measured by the
+/// affine map to the image seen from the chart centring its centroid (D' is
+/// scale-free, so the conformal factor there does not matter), with the
+/// source frame from the 3D corners: D' + 1/D' = |A|_F²/|det A|. The
+/// optimum's figures use it; the initial map's do not (yet), so that their
+/// printed values stay those of before.
+double hyperbolic_face_dilatation(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Eigen::Vector3d& p2,
+                                  std::complex<double> b, std::complex<double> c, const Eigen::Vector3d& image_sides,
+                                  bool thin_images);
+
 struct DistortionStats {
   std::vector<double> per_face;  ///< #F dilatation D' (inf for degenerate or flipped images)
   double mean = 0;               ///< area-weighted by the source areas
@@ -25,6 +49,19 @@ struct DistortionStats {
   int flipped = 0;     ///< image triangles with negative orientation
   int degenerate = 0;  ///< image triangles with (near) zero area
 };
+
+/// The figures of hyperbolic image triangles of the source's faces (paper
+/// §VII-A): `image_in_chart(f)` gives face f's image seen in a chart
+/// centring its corner 0 (corners 0, b, c), `image_sides(f)` its hyperbolic
+/// side lengths (asked for positively oriented images only); D' per face by
+/// hyperbolic_face_dilatation, the area-weighted (3D areas) mean and the
+/// max over the faces with a D', flipped and degenerate counts as in
+/// image_orientation. The one loop behind every hyperbolic D' figure
+/// (initial map, optimum, landmark folds).
+DistortionStats hyperbolic_image_distortion(
+    const TriMesh& source,
+    const std::function<std::pair<std::complex<double>, std::complex<double>>(int f)>& image_in_chart,
+    const std::function<Eigen::Vector3d(int f)>& image_sides, bool thin_images);
 
 /// Source triangles in 3D, images as #F x 3 planar corner positions (complex
 /// numbers; corner k of face f is the image of F(f,k)). Flipped and

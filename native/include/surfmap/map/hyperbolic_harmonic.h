@@ -16,6 +16,7 @@
 // charts, §VI-A): z_i ← γ z_i and, implicitly, ρ_e ← γ_i ρ_e γ_j⁻¹.
 #include <complex>
 #include <functional>
+#include <memory>
 #include <vector>
 
 #include "surfmap/geometry/hyperbolic.h"
@@ -103,6 +104,33 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int num_vertices, const std::ve
                                                  const std::vector<hyperbolic::Mobius>& generators,
                                                  std::vector<std::complex<double>> z0,
                                                  const HyperbolicHarmonicOptions& options = {});
+
+struct HessianAnalysis;  // (hyperbolic_harmonic.cpp)
+
+/// The same solve for many problems on one sparsity pattern: the edges'
+/// endpoints and which weights are positive (every homotopy class of one
+/// source shares it, as do the class search's solves on the coarse copy;
+/// only the deck elements and the weights' values differ). The fill-reducing
+/// ordering and symbolic factorisation of the Newton Hessian are computed
+/// once, here, and every solve (every Newton iteration of it) factorises
+/// numerically on that analysis. Results are those of hyperbolic_harmonic_map
+/// bit for bit. solve() is const and may run on several threads at once.
+class HyperbolicHarmonicSolver {
+ public:
+  /// `edges` (#E): the pattern (endpoints, w > 0) on `num_vertices`
+  /// vertices; deck elements are not read. Throws SolveError when the
+  /// ordering or the symbolic factorisation fails, InputError on bad endpoints.
+  HyperbolicHarmonicSolver(int num_vertices, const std::vector<WeightedEdge>& edges);
+  ~HyperbolicHarmonicSolver();
+  /// hyperbolic_harmonic_map(#z0, edges, generators, z0, options) for edges
+  /// of the solver's pattern (InputError otherwise).
+  HyperbolicHarmonicResult solve(const std::vector<WeightedEdge>& edges,
+                                 const std::vector<hyperbolic::Mobius>& generators, std::vector<std::complex<double>> z0,
+                                 const HyperbolicHarmonicOptions& options = {}) const;
+
+ private:
+  std::shared_ptr<const HessianAnalysis> analysis_;
+};
 
 /// E(z) for the given effective deck elements (for independent checks).
 double hyperbolic_energy(const std::vector<WeightedEdge>& edges, const std::vector<std::complex<double>>& z,

@@ -65,8 +65,6 @@
 
 namespace surfmap {
 
-struct InitialMapInspection;  // map/initial_map.h
-
 /// Optimiser of the harmonic energy (genus >= 2; the flat case is one exact
 /// linear solve either way).
 enum class MapMethod {
@@ -152,16 +150,11 @@ struct SurfaceMapOptions {
   /// vertex list; at most homotopy_extra_cut_classes of their new classes
   /// solved on the coarse copy, lowest screen first, and added; the rest
   /// are dropped once one comes within `homotopy_search_gap` of the bound).
+  /// (Tests can start the search elsewhere: testing/map_hooks.h.)
   bool homotopy_search = true;
   int homotopy_search_evaluations = 24;
   double homotopy_search_gap = 0.1;
   int homotopy_search_cuts = 12;
-  /// For tests and comparisons: start the class search from this candidate
-  /// (-1: the best on the coarse copy) composed on the source side with the
-  /// named moves of topology/mapping_class_search.h twist_moves, in order
-  /// (e.g. {"T(a1)", "T(a1)"}; an unknown name is an InputError).
-  int homotopy_search_start = -1;
-  std::vector<std::string> homotopy_search_start_twists;
   /// Base vertices of the systems of loops (-1: automatic).
   int source_base_vertex = -1, target_base_vertex = -1;
   /// Start of the hyperbolic solve: 0 (default) starts from the initial map
@@ -215,12 +208,6 @@ struct SurfaceMapOptions {
   /// iteration / relaxation check with (iteration, energy, gradient norm);
   /// return false to cancel (throws Cancelled).
   std::function<bool(int iteration, double energy, double gradient)> solve_progress;
-  /// For benchmarks and tests: called once with the harmonic-map problem
-  /// just before it is solved (map/harmonic_relaxation.h, HarmonicProblem).
-  std::function<void(const HarmonicProblem&)> inspect_problem;
-  /// For tests: called with the genus >= 2 initial map and its inputs
-  /// (map/initial_map.h, InitialMapInspection) once it is built.
-  std::function<void(const InitialMapInspection&)> inspect_initial_map;
 };
 
 /// One candidate homotopy class: for genus 1 an SL(2,Z) matrix taking the

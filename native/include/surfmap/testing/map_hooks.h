@@ -1,0 +1,40 @@
+#pragma once
+// Hooks into the surface-map pipeline for tests and benchmarks, kept out of
+// the public options (map/surface_map.h): they expose intermediate problems
+// and steer internal choices, which applications have no use for.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "surfmap/map/surface_map.h"
+
+namespace surfmap {
+struct HarmonicProblem;       // map/harmonic_relaxation.h
+struct InitialMapInspection;  // map/initial_map.h
+}  // namespace surfmap
+
+namespace surfmap::testing {
+
+struct MapHooks {
+  /// Called once with the harmonic-map problem just before it is solved
+  /// (genus >= 1; map/harmonic_relaxation.h, HarmonicProblem), e.g. to run
+  /// another solver on exactly the same input.
+  std::function<void(const HarmonicProblem&)> inspect_problem;
+  /// Genus >= 2: called with the initial map and its inputs
+  /// (map/initial_map.h, InitialMapInspection) once it is built.
+  std::function<void(const InitialMapInspection&)> inspect_initial_map;
+  /// Genus >= 2, default class: start the class search
+  /// (SurfaceMapOptions::homotopy_search) from this candidate (-1: the best
+  /// on the coarse copy) composed on the source side with the named moves
+  /// of topology/mapping_class_search.h twist_moves, in order (e.g.
+  /// {"T(a1)", "T(a1)"}; an unknown name is an InputError). A start given
+  /// here skips stage 1 (more cuts) of the search.
+  int homotopy_search_start = -1;
+  std::vector<std::string> homotopy_search_start_twists;
+};
+
+/// surface_map (map/surface_map.h) with the hooks.
+SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                             const MapHooks& hooks);
+
+}  // namespace surfmap::testing

@@ -1,0 +1,60 @@
+#pragma once
+// The class search of the genus >= 2 ranking (SurfaceMapOptions::
+// homotopy_search; topology/mapping_class_search.h; docs/ method notes):
+// when the best class on the coarse copy is far from the conformal bound
+// 8 pi (g - 1), (1) lifted classes from more source cuts, then (2) a greedy
+// descent over Dehn twists, every class evaluated by a converged solve on
+// the coarse copy. Internal to src/map/hyperbolic_map.cpp.
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "class_data.h"
+#include "homotopy_classes.h"
+#include "surfmap/map/hyperbolic_harmonic.h"
+#include "surfmap/map/surface_map.h"
+
+namespace surfmap::detail {
+
+/// A class solved on the coarse copy: its map, coarse edges and converged solve.
+struct CoarseEvaluation {
+  GroupMap theta;
+  std::vector<WeightedEdge> edges;
+  HyperbolicHarmonicResult result;
+};
+
+/// Solves class theta on the coarse copy from the origin; false when the
+/// solve fails, does not converge or is not finite.
+using CoarseSolve = std::function<bool(const GroupMap& theta, CoarseEvaluation* ev)>;
+
+/// A class found by the search, ready to be appended to the candidates.
+struct FoundClass {
+  HomotopyClass hc;  ///< description set; map and homology from `evaluation`
+  ClassData data;
+  CoarseEvaluation evaluation;
+};
+
+/// Stage 1: lifts from options.homotopy_search_cuts more cuts (`lifter`,
+/// bases spread over the source's `num_vertices`; their source-only parts
+/// prepared first on `threads` threads), each new class's data built by
+/// `data_of` and solved on the coarse copy, lowest screen first, until one
+/// comes within homotopy_search_gap of `conformal_bound`. Counts the classes
+/// tried in info.cut_classes and the seconds in info.cuts_time_s.
+std::vector<FoundClass> classes_from_more_cuts(CutLifter& lifter, SourceCuts& cuts, const ClassSpace& space,
+                                               int num_vertices, int threads, double conformal_bound,
+                                               const std::function<ClassData(const GroupMap&)>& data_of,
+                                               const CoarseSolve& solve_coarse, const SurfaceMapOptions& options,
+                                               HomotopySearchInfo& info);
+
+/// Stage 2: the twist search from `start_map` (candidate `start_index`,
+/// composed with `start_twists`, testing/map_hooks.h; `start_energy` its
+/// coarse energy, re-evaluated when twists are given). Fills `info` (moves,
+/// energies, evaluations, stop reason, seconds) and returns the coarse
+/// evaluation of the class reached when it improved on the start.
+std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, int start_index, double start_energy,
+                                                   const ClassSpace& space, const CoarseSolve& solve_coarse,
+                                                   const std::vector<std::string>& start_twists,
+                                                   const SurfaceMapOptions& options, HomotopySearchInfo& info);
+
+}  // namespace surfmap::detail

@@ -1,0 +1,84 @@
+#include "flat_location.h"
+
+#include <array>
+#include <string>
+
+#include "surfmap/error.h"
+#include "surfmap/map/point_location.h"
+
+namespace surfmap::detail {
+
+FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target, const Connectivity& tc,
+                                   const SystemOfLoops& target_loops, const DiskLayout& layout, Complex w1, Complex w2,
+                                   const std::vector<Complex>& z, const std::vector<Complex>& z_init,
+                                   const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& image,
+                                   const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& initial_image,
+                                   const StageDone& stage_done) {
+  FlatLocationResult out;
+  // Forward map: locate every z_i in the target's disk (modulo the lattice).
+  const int n = source.num_vertices();
+  const int ntf = target_loops.mesh.num_faces();
+  std::vector<std::array<Complex, 3>> ttris(ntf);
+  Complex centre = 0;
+  for (int f = 0; f < ntf; ++f) {
+    for (int k = 0; k < 3; ++k) ttris[f][k] = layout.corners(f, k);
+    centre += (ttris[f][0] + ttris[f][1] + ttris[f][2]) / 3.0;
+  }
+  centre /= double(ntf);
+  const TriangleGrid tgrid(ttris);
+  std::vector<int> refined_face_origin(ntf, -1);
+  out.forward.resize(n);
+  for (int i = 0; i < n; ++i) {
+    Eigen::Vector3d b;
+    const int rf = locate_periodic(tgrid, z[i], centre, w1, w2, &b);
+    if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
+    out.forward[i] = point_on_input(target, tc, target_loops, refined_face_origin, rf, b);
+  }
+  // The initial (uniform Tutte) map located the same way ("before" morph).
+  out.initial_forward.resize(n);
+  for (int i = 0; i < n; ++i) {
+    Eigen::Vector3d b;
+    const int rf = locate_periodic(tgrid, z_init[i], centre, w1, w2, &b);
+    if (rf < 0) {
+      out.initial_forward.clear();  // left unlocated, not an error
+      break;
+    }
+    out.initial_forward[i] = point_on_input(target, tc, target_loops, refined_face_origin, rf, b);
+  }
+  stage_done("forward location", 0.85);
+
+  // Inverse map: locate every target vertex in the image of the source
+  // triangles `im`; false (and `inv` emptied) if one is not covered.
+  auto locate_inverse = [&](const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& im,
+                            std::vector<PointOnSurface>& inv, int* missed) {
+    std::vector<std::array<Complex, 3>> stris(source.num_faces());
+    Complex scentre = 0;
+    for (int f = 0; f < source.num_faces(); ++f) {
+      for (int k = 0; k < 3; ++k) stris[f][k] = im(f, k);
+      scentre += (stris[f][0] + stris[f][1] + stris[f][2]) / 3.0;
+    }
+    scentre /= double(source.num_faces());
+    const TriangleGrid sgrid(stris);
+    inv.resize(target.num_vertices());
+    for (int v = 0; v < target.num_vertices(); ++v) {
+      Eigen::Vector3d b;
+      const int f = locate_periodic(sgrid, layout.vertex_positions[v], scentre, w1, w2, &b);
+      if (f < 0) {
+        inv.clear();
+        *missed = v;
+        return false;
+      }
+      inv[v] = point_in_face(source, f, b);
+    }
+    return true;
+  };
+  int missed = -1;
+  if (!locate_inverse(image, out.inverse, &missed))
+    throw SolveError("target vertex " + std::to_string(missed) + " could not be located in the source image");
+  // The initial map's inverse the same way (the "before" UV transfer); left
+  // empty, not an error, when a target vertex is not covered.
+  locate_inverse(initial_image, out.initial_inverse, &missed);
+  return out;
+}
+
+}  // namespace surfmap::detail

@@ -1,0 +1,317 @@
+#include "homotopy_classes.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "surfmap/geometry/hyperbolic.h"
+
+namespace surfmap::detail {
+
+using hyperbolic::Mobius;
+
+ClassSpace::ClassSpace(int genus, const SystemOfLoops& sl, const CanonicalSchema& scs, const CanonicalSchema& tcs,
+                       const DiskLayout& layout, const DeckGroup& group)
+    : genus_(genus), n_(2 * genus), scs_(scs), tcs_(tcs), group_(group), R_(canonical_relator(genus)),
+      J_(symplectic_form(genus)), reduce_canonical_(R_), reduce_target_loops_(layout.word) {
+  loop_length_.assign(sl.loops.size(), 0.0);
+  for (size_t k = 0; k < sl.loops.size(); ++k)
+    for (size_t q = 0; q + 1 < sl.loops[k].size(); ++q)
+      loop_length_[k] += (sl.mesh.V.row(sl.loops[k][q + 1]) - sl.mesh.V.row(sl.loops[k][q])).norm();
+}
+
+std::vector<Word> ClassSpace::loop_letter_images(const GroupMap& theta) const {
+  std::vector<Word> images;
+  for (const Word& w : scs_.letters)
+    images.push_back(reduce_target_loops_(substitute(reduce_canonical_(substitute(w, theta)), tcs_.generators)));
+  return images;
+}
+
+double ClassSpace::loop_image_length(const GroupMap& theta) const {
+  double total = 0;
+  for (const Word& w : loop_letter_images(theta)) total += static_cast<double>(w.size());
+  return total;
+}
+
+std::vector<double> ClassSpace::fingerprint(const GroupMap& theta) const {
+  std::vector<Word> probes;
+  for (int i = 0; i < n_; ++i) {
+    probes.push_back({i + 1});
+    for (int j = i + 1; j < n_; ++j) probes.push_back({i + 1, j + 1}), probes.push_back({i + 1, -(j + 1)});
+  }
+  std::vector<double> lengths;
+  for (const Word& w : probes) {
+    const Word image = reduce_target_loops_(substitute(reduce_canonical_(substitute(w, theta)), tcs_.generators));
+    const Mobius m = group_.evaluate(image);
+    lengths.push_back(2 * std::acosh(std::max(1.0, std::abs(m.a.real()) / std::sqrt(std::max(m.determinant(), 1e-300)))));
+  }
+  return lengths;
+}
+
+bool ClassSpace::same_fingerprint(const std::vector<double>& x, const std::vector<double>& y) {
+  if (x.empty() || x.size() != y.size()) return false;
+  for (size_t k = 0; k < x.size(); ++k)
+    if (!std::isfinite(x[k]) || !(std::abs(x[k] - y[k]) <= 1e-6 * std::max({1.0, x[k], y[k]}))) return false;
+  return true;
+}
+
+double ClassSpace::screen(const GroupMap& theta) const {
+  const std::vector<Word> images = loop_letter_images(theta);
+  double letters = 0, score = 0;
+  for (const Word& w : images) letters += static_cast<double>(w.size());
+  if (letters > max_image_letters()) return std::numeric_limits<double>::infinity();
+  for (size_t k = 0; k < images.size(); ++k) {
+    const Mobius m = group_.evaluate(images[k]);
+    const double t = std::abs(m.a.real()) / std::sqrt(std::max(m.determinant(), 1e-300));
+    if (!std::isfinite(t)) return std::numeric_limits<double>::infinity();  // beyond double range
+    const double l = 2 * std::acosh(std::max(1.0, t));
+    score += l * l / std::max(loop_length_[k] * loop_length_[k], 1e-300);
+  }
+  return std::isfinite(score) ? score : std::numeric_limits<double>::infinity();
+}
+
+GroupMap ClassSpace::through_loop_images(const std::vector<Word>& generators, const std::vector<Word>& loop_images) const {
+  GroupMap theta(n_);
+  for (int j = 0; j < n_; ++j) theta[j] = dehn_reduce(substitute(substitute(generators[j], loop_images), tcs_.letters), R_);
+  return theta;
+}
+
+bool ClassSpace::is_isomorphism(const GroupMap& theta) const {
+  const IntMatrix M = homology_matrix(theta, n_);
+  return M.transpose() * J_ * M == J_ && dehn_reduce(substitute(R_, theta), R_).empty();
+}
+
+void ClassSpace::reduce(GroupMap& theta) const {
+  for (Word& w : theta) w = dehn_reduce(w, R_);
+}
+
+namespace {
+
+size_t total_letters(const GroupMap& theta) {
+  size_t total = 0;
+  for (const Word& w : theta) total += w.size();
+  return total;
+}
+
+// `hc` (default: a new class) set to theta, with its homology and the
+// handle correspondence it induces between shb and thb.
+HomotopyClass described(const GroupMap& theta, int n, const HandleBasis& shb, const HandleBasis& thb,
+                        const std::string& tag, HomotopyClass hc = {}) {
+  hc.map = theta;
+  hc.homology = homology_matrix(theta, n);
+  std::string handles;
+  handle_correspondence_of(shb, thb, hc.homology, &hc.permutation, &hc.sign, &handles);
+  hc.description = handles + "  [" + tag + "]";
+  return hc;
+}
+
+}  // namespace
+
+CutLifter::CutLifter(const ClassSpace& space, const TriMesh& source, int default_base, const HandleBasis& shb,
+                     const HandleBasis& thb, const LoopProjector& projector, bool strict_overlay,
+                     const SurfaceMapOptions& options, SourceCuts& cuts, const std::vector<HomotopyClass>& classes)
+    : space_(space), source_(source), shb_(shb), thb_(thb), projector_(projector), strict_overlay_(strict_overlay),
+      options_(options), cuts_(cuts), bases_used_{default_base} {
+  size_t longest = 0;  // total word length of the longest lifted class from the default cut
+  for (const HomotopyClass& hc : classes) {
+    // (Classes too twisted to be evaluated get no fingerprint.)
+    known_.push_back(space.loop_image_length(hc.map) <= space.max_image_letters() ? space.fingerprint(hc.map)
+                                                                                   : std::vector<double>{});
+    longest = std::max(longest, total_letters(hc.map));
+  }
+  // Classes from another cut whose words come out much longer than any
+  // from the default cut are very twisted (their energies are orders of
+  // magnitude above the others'): skipped, which also keeps the twist
+  // reduction (Dehn's algorithm on every try) cheap. (Lengths seen: 14..144
+  // letters in genus 2 where the default cut's longest is 86.)
+  const size_t n = static_cast<size_t>(space.num_letters());
+  word_cap_ = std::min(4 * longest + 16 * n, 48 * n);
+}
+
+bool CutLifter::is_new(const std::vector<double>& fp) {
+  for (const auto& k : known_)
+    if (ClassSpace::same_fingerprint(k, fp)) return false;
+  known_.push_back(fp);
+  return true;
+}
+
+std::vector<HomotopyClass> CutLifter::lift(const std::vector<int>& cut_bases) {
+  const int n = space_.num_letters();
+  std::vector<std::pair<double, HomotopyClass>> extra;  // new lifted classes and their screening scores
+  std::vector<HomotopyClass> overlaid;                  // new overlay classes from the other cuts
+  std::vector<int> bases;
+  for (int b : cut_bases)
+    if (std::find(bases_used_.begin(), bases_used_.end(), b) == bases_used_.end())
+      bases.push_back(b), bases_used_.push_back(b);
+  for (int base : bases) {
+    CutPrep scratch;
+    const CutPrep& cp = cuts_.prepare(base, scratch);
+    if (!cp.ok) continue;
+    // Without a strict overlay from the default cut, the other cuts' loops
+    // are overlaid too (as posed, jumps joined): which loops jump depends on
+    // the cut (n_hole_torus(3, 36) -> polycube(3, 36): the geometric class
+    // from 5 of 12 cuts' loops, from neither the default cut nor the lifts).
+    if (!strict_overlay_) {
+      ProjectedLoopsOptions po;
+      po.max_jump_box = kOverlayJumpBox;
+      const ProjectedLoopsResult proj = projector_.project(source_, cp.loops, po);
+      if (proj.ok_with_joins) {
+        GroupMap theta = compose(space_.through_loop_images(cp.generators, proj.loop_images), cp.psi);
+        space_.reduce(theta);
+        if (space_.is_isomorphism(theta) && space_.loop_image_length(theta) <= space_.max_image_letters() &&
+            is_new(space_.fingerprint(theta)))
+          overlaid.push_back(described(theta, n, shb_, thb_,
+                                       "as the shapes overlap: the loops at source vertex " + std::to_string(base) +
+                                           " carried to the nearest points" + (proj.ok ? "" : ", jumps joined")));
+      }
+    }
+    for (HomotopyClass hc : handle_candidates(cp.shb, thb_, options_.homotopy_candidates)) {
+      if (total_letters(hc.map) > 4 * word_cap_) continue;  // composing would only make it longer
+      GroupMap theta = compose(hc.map, cp.psi);
+      space_.reduce(theta);
+      if (total_letters(theta) > word_cap_ || !dehn_reduce(substitute(space_.relator(), theta), space_.relator()).empty())
+        continue;
+      theta = reduce_separating_twists(theta, space_.genus(), [&](const GroupMap& t) { return space_.loop_image_length(t); },
+                                       10);
+      if (!is_new(space_.fingerprint(theta))) continue;
+      const double score = space_.screen(theta);
+      extra.push_back(
+          {score, described(theta, n, shb_, thb_, "lifted from the loops at source vertex " + std::to_string(base), std::move(hc))});
+    }
+  }
+  // Only the most promising new classes get homotopy data and a coarse
+  // solve (each costs about as much as the cut itself).
+  std::stable_sort(extra.begin(), extra.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  // The overlay classes go first (few: most cuts' overlays coincide).
+  std::vector<HomotopyClass> kept = std::move(overlaid);
+  for (size_t k = 0; k < extra.size() && static_cast<int>(k) < options_.homotopy_extra_cut_classes; ++k)
+    kept.push_back(std::move(extra[k].second));
+  return kept;
+}
+
+CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
+                                   const HandleBasis& shb, const SystemOfLoops& tl, const CanonicalSchema& tcs,
+                                   const LoopProjector& projector, const SurfaceMapOptions& options, SourceCuts& cuts) {
+  const int n = space.num_letters();
+  CandidateClasses out;
+  HandleBasis& thb = out.target_basis;
+  thb = handle_basis(tl.mesh, tl.loops, tcs);
+  // Source 1: the classes induced by overlaying the two shapes
+  // (topology/projected_loops.h): as posed, then after the rigid alignments
+  // of rotation_overlay_poses for shapes not posed alike. For a remeshed
+  // copy, as posed or turned, one of them is the identity; for shapes posed
+  // alike up to a rotation they send handles to the handles they overlap.
+  // Each must be an isomorphism; poses whose images jump are refused by
+  // project_loops (but see the joined jumps below).
+  std::vector<OverlayPose> poses{{Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity(), "as posed"}};
+  for (OverlayPose& p : rotation_overlay_poses(source, tl.mesh)) poses.push_back(std::move(p));
+  // (Jumps are joined in the same pass, for the fallback below.)
+  ProjectedLoopsOptions plo;
+  plo.max_jump_box = kOverlayJumpBox;
+  const std::vector<ProjectedLoopsResult> projections = projector.project(source, sl.loops, poses, plo);
+  struct NamedClass {
+    GroupMap theta;
+    std::string tag;
+    std::vector<double> fingerprint;
+  };
+  std::vector<NamedClass> overlays;
+  GroupMap overlay(n);
+  bool have_overlay = false;  // the overlay class as posed exists
+  auto collect_overlays = [&](bool joined) {
+    for (size_t p = 0; p < projections.size(); ++p) {
+      const ProjectedLoopsResult& proj = projections[p];
+      if (!(joined ? proj.ok_with_joins && !proj.ok : proj.ok)) continue;
+      const GroupMap theta = space.through_loop_images(space.source_generators(), proj.loop_images);
+      if (!space.is_isomorphism(theta)) continue;
+      if (p == 0) have_overlay = true, overlay = theta;
+      NamedClass c{theta,
+                   (p == 0 ? "as the shapes overlap: loops carried to the nearest points"
+                           : "as the shapes overlap after a rotation (" + poses[p].description + ")") +
+                       (joined ? ", jumps joined" : ""),
+                   space.fingerprint(theta)};
+      bool seen = false;
+      for (const NamedClass& o : overlays) seen = seen || ClassSpace::same_fingerprint(o.fingerprint, c.fingerprint);
+      if (!seen) overlays.push_back(std::move(c));
+    }
+  };
+  collect_overlays(false);
+  // No pose overlaps within the strict gap test: shapes alike in layout but
+  // not in cross-section (a round tube over a square one) send a loop to the
+  // nearest points of a wall on one side, then of a wall on the other
+  // (n_hole_torus(3) -> polycube(3): jumps of 0.14-0.3 of the unit box on
+  // every pose, so no overlay, and the lifted classes reached 4e4-1e5
+  // letters, unsolvable: mean D' 123 from a twist search stuck at E 229
+  // against the bound 50.3; with 0.15 resolution 32 of that pair still had
+  // no joined overlay from any cut). Jumps up to kOverlayJumpBox of the box
+  // are then joined by the target's shortest path between the two images; a
+  // wrong join gives a non-isomorphism (refused) or one more candidate,
+  // ranked by its energy like the others.
+  out.strict_overlay = !overlays.empty();
+  if (!out.strict_overlay) collect_overlays(true);
+  if (have_overlay) {
+    // The target's handles are then the overlay's images of the source's:
+    // the other candidates are the overlay composed with a signed handle
+    // permutation of the source (no lift on the target side, so no Torelli
+    // ambiguity there), and descriptions are consistent with it.
+    HandleBasis moved = shb;
+    moved.P = homology_matrix(overlay, n) * shb.P;
+    moved.to_canonical.map = compose(overlay, shb.to_canonical.map);
+    for (Word& w : moved.to_canonical.map) w = dehn_reduce(w, space.relator());
+    moved.to_canonical.inverse.clear();  // not needed for a target basis
+    thb = std::move(moved);
+  }
+  // Source 2: handle correspondences (topology/handle_basis.h): signed
+  // handle permutations between meridian/longitude bases of both surfaces
+  // from linking numbers, each lifted to an exact isomorphism of the
+  // canonical surface groups; of the Torelli-equivalent versions of each,
+  // the one whose source loops have the shortest images (least twisted).
+  std::vector<HomotopyClass>& classes = out.classes;
+  classes = handle_candidates(shb, thb, options.homotopy_candidates);
+  auto loop_image_length = [&](const GroupMap& theta) { return space.loop_image_length(theta); };
+  for (HomotopyClass& hc : classes)
+    if (space.loop_image_length(hc.map) <= space.max_image_letters())
+      hc.map = reduce_separating_twists(hc.map, space.genus(), loop_image_length);
+  // Named classes go in front, in order: the overlay classes, then the
+  // canonical one. A named class drops the lifted ones with its homology
+  // (it is the more geometric or the shorter version of that Torelli
+  // coset), and is itself dropped when an earlier named class has its
+  // fingerprint (the same class).
+  std::vector<std::vector<double>> named_fingerprints;
+  int num_named = 0;
+  auto add_named = [&](const GroupMap& theta, const std::string& tag, const std::vector<double>& fp) {
+    for (const auto& other : named_fingerprints)
+      if (ClassSpace::same_fingerprint(other, fp)) return false;
+    HomotopyClass hc = described(theta, n, shb, thb, tag);
+    classes.erase(std::remove_if(classes.begin() + num_named, classes.end(),
+                                 [&](const HomotopyClass& c) { return c.homology == hc.homology; }),
+                  classes.end());
+    classes.insert(classes.begin() + num_named, hc);
+    named_fingerprints.push_back(fp);
+    ++num_named;
+    return true;
+  };
+  for (const NamedClass& c : overlays) add_named(c.theta, c.tag, c.fingerprint);
+  // Source 3: the class of the two canonical polygon schemata, a_i -> a'_i,
+  // b_i -> b'_i: short words whatever the loops look like.
+  GroupMap canonical(n);
+  for (int j = 0; j < n; ++j) canonical[j] = {j + 1};
+  add_named(canonical, "a_i -> a'_i, b_i -> b'_i of the canonical polygon schemata", space.fingerprint(canonical));
+  // Source 4: lifted classes from homotopy_extra_cuts other source cuts
+  // (CutLifter), new by fingerprint, at most homotopy_extra_cut_classes,
+  // lowest screen first. Base vertices spread over the vertex list
+  // (deterministic); not the farthest points: those are the shape's
+  // extremities, where the loops come out long and skewed (the demo pair:
+  // no geometric class from the two farthest; from 3 of 7 spread ones).
+  if (options.homotopy_extra_cuts > 0) {
+    out.lifter = std::make_unique<CutLifter>(space, source, sl.base_vertex, shb, thb, projector, out.strict_overlay,
+                                             options, cuts, classes);
+    for (HomotopyClass& hc : out.lifter->lift(spread_bases(source.num_vertices(), options.homotopy_extra_cuts)))
+      classes.push_back(std::move(hc));
+  }
+  // Further candidate sources append their classes here (each new by
+  // fingerprint; the ranking solves whatever is listed).
+  return out;
+}
+
+}  // namespace surfmap::detail

@@ -1,0 +1,157 @@
+#pragma once
+// Stage "homotopy-class candidates" of the genus >= 2 map (paper §V-B with
+// the candidate sources of docs/ method notes): which classes of maps
+// source -> target are worth solving. Internal to the pipeline
+// (src/map/hyperbolic_map.cpp).
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "source_cuts.h"
+#include "surfmap/topology/canonical_schema.h"
+#include "surfmap/topology/handle_basis.h"
+#include "surfmap/topology/projected_loops.h"
+#include "surfmap/topology/system_of_loops.h"
+#include "surfmap/uniformize/deck_group.h"
+#include "surfmap/uniformize/layout.h"
+
+namespace surfmap::detail {
+
+/// One candidate homotopy class of maps source -> target (genus >= 2):
+/// `map` is the isomorphism theta of the canonical surface groups (2g
+/// words: source canonical generator j -> word in the target's canonical
+/// generators), `homology` its 2g x 2g action on H_1, `permutation`/`sign`
+/// the handle correspondence it induces, `description` e.g. "handle 1 ->
+/// handle 2, handle 2 -> handle 1 (half turn)  [how it was found]".
+using HomotopyClass = HandleCandidate;
+
+/// The two surfaces' groups and what every stage asks of a class: images of
+/// the source's loops in the target's group, a fingerprint (which classes
+/// are the same), a screening score (no solve), isomorphism checks.
+/// Read-only after construction (safe to share between threads).
+class ClassSpace {
+ public:
+  /// `sl`/`scs`: the source's system of loops and canonical schema;
+  /// `tcs`/`layout`/`group`: the target's canonical schema, disk layout and
+  /// deck group. All must outlive the ClassSpace.
+  ClassSpace(int genus, const SystemOfLoops& sl, const CanonicalSchema& scs, const CanonicalSchema& tcs,
+             const DiskLayout& layout, const DeckGroup& group);
+
+  int genus() const { return genus_; }
+  int num_letters() const { return n_; }  ///< 2g
+  const Word& relator() const { return R_; }
+  /// The source's 2g canonical generators as words in its loop letters.
+  const std::vector<Word>& source_generators() const { return scs_.generators; }
+
+  /// Source loop letter k (#loops) as a word in the target's loop letters
+  /// under theta, reduced after each substitution (the unreduced product
+  /// grows like the product of the substitutions' lengths).
+  std::vector<Word> loop_letter_images(const GroupMap& theta) const;
+  /// Total letters of loop_letter_images.
+  double loop_image_length(const GroupMap& theta) const;
+  /// Classes whose loops' images are longer than this (summed over the 2g
+  /// loops) are not evaluated: their deck elements would be products of
+  /// hundreds of side pairings per edge, far beyond double precision (the
+  /// solve refuses points beyond ~70 hyperbolic units); the classes that
+  /// solve have a few hundred letters at most.
+  double max_image_letters() const { return 500.0 * n_; }
+  /// Fingerprint: target lengths of the images of x_j and x_i x_j^±1
+  /// (conjugation invariant, so equal for every representative of an outer
+  /// class; Torelli-different classes differ here). Equal fingerprints: the
+  /// same class, or classes differing by an isometry of the target.
+  std::vector<double> fingerprint(const GroupMap& theta) const;
+  static bool same_fingerprint(const std::vector<double>& x, const std::vector<double>& y);
+  /// Screening score: sum over the source's loops of (target length of its
+  /// image / its source length)^2, a rough stand-in for the energy (a map's
+  /// energy is at least the squared length of any curve's image over the
+  /// curve's extremal length); +inf when the images are too long to
+  /// evaluate. Measured to order the twist neighbours of a class like their
+  /// coarse energies.
+  double screen(const GroupMap& theta) const;
+  /// theta_j = generators[j] with loop letters replaced by `loop_images`
+  /// (words in the target's loop letters), in target canonical letters,
+  /// Dehn-reduced.
+  GroupMap through_loop_images(const std::vector<Word>& generators, const std::vector<Word>& loop_images) const;
+  /// Symplectic on homology and the relator's image trivial.
+  bool is_isomorphism(const GroupMap& theta) const;
+  /// Dehn-reduces every word of theta (canonical relator).
+  void reduce(GroupMap& theta) const;
+
+ private:
+  int genus_, n_;
+  const CanonicalSchema& scs_;
+  const CanonicalSchema& tcs_;
+  const DeckGroup& group_;
+  Word R_;
+  IntMatrix J_;
+  DehnReducer reduce_canonical_, reduce_target_loops_;
+  std::vector<double> loop_length_;  ///< #loops 3D length of the source's loops
+};
+
+/// Jumps of a projected loop up to this fraction of the unit box are
+/// joined by the target's shortest path when no pose overlaps strictly
+/// (topology/projected_loops.h; see candidate_classes).
+constexpr double kOverlayJumpBox = 0.25;
+
+/// Lifted classes from other source cuts (other Torelli representatives of
+/// the same signed handle permutations, sometimes the geometric one where
+/// the default cut gives none: double_torus_g2 -> vase_g2, energy 66.9 and
+/// mean D' 5.4 from the default cut, 26.0 and 1.36 from the cut at vertex
+/// 2000), carried to the default cut's generators by the identity overlay
+/// of the source onto itself; without a strict overlay, the other cuts'
+/// loops are overlaid too. Only classes new by fingerprint are returned.
+class CutLifter {
+ public:
+  /// `classes`: the candidates so far (their fingerprints are known, and
+  /// the longest of them caps the words accepted from other cuts).
+  CutLifter(const ClassSpace& space, const TriMesh& source, int default_base, const HandleBasis& shb,
+            const HandleBasis& thb, const LoopProjector& projector, bool strict_overlay, const SurfaceMapOptions& options,
+            SourceCuts& cuts, const std::vector<HomotopyClass>& classes);
+  /// The new classes from the cuts at `cut_bases` not lifted from before:
+  /// overlay classes first, then at most homotopy_extra_cut_classes lifted
+  /// ones, lowest screen first.
+  std::vector<HomotopyClass> lift(const std::vector<int>& cut_bases);
+
+ private:
+  bool is_new(const std::vector<double>& fp);
+  const ClassSpace& space_;
+  const TriMesh& source_;
+  const HandleBasis shb_;  // (copies: the caller's may move)
+  const HandleBasis thb_;
+  const LoopProjector& projector_;
+  bool strict_overlay_;
+  const SurfaceMapOptions& options_;
+  SourceCuts& cuts_;
+  std::vector<std::vector<double>> known_;  ///< fingerprints of the classes listed so far
+  size_t word_cap_ = 0;
+  std::vector<int> bases_used_;
+};
+
+/// The candidate classes, in order (paper §V-B; docs/ method notes):
+/// (0) the overlay classes (the source's loops carried to the nearest
+/// target points, as posed and after rigid alignments; the identity for a
+/// remeshed copy), (1) a_i -> a'_i, b_i -> b'_i of the canonical polygon
+/// schemata, (2...) signed handle permutations lifted to isomorphisms and
+/// shortened over separating twists, then lifted classes from
+/// homotopy_extra_cuts other cuts. Classes with the homology of a named
+/// (overlay / canonical) class are dropped.
+struct CandidateClasses {
+  std::vector<HomotopyClass> classes;
+  /// The target's handle basis the descriptions use (the overlay's images
+  /// of the source's handles when there is an overlay class).
+  HandleBasis target_basis;
+  /// An overlay within the strict jump test exists (else jumps were joined).
+  bool strict_overlay = false;
+  /// Lifts from more cuts later (the class search); null when
+  /// homotopy_extra_cuts is 0.
+  std::unique_ptr<CutLifter> lifter;
+};
+
+/// `sl`/`shb`: the source's default loops and handle basis; `tl`: the
+/// target's (refined) loops; `projector`: the target's loop projector (must
+/// outlive the result's lifter, as must everything else passed).
+CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
+                                   const HandleBasis& shb, const SystemOfLoops& tl, const CanonicalSchema& tcs,
+                                   const LoopProjector& projector, const SurfaceMapOptions& options, SourceCuts& cuts);
+
+}  // namespace surfmap::detail

@@ -1,0 +1,212 @@
+#include "hyperbolic_location.h"
+
+#include <array>
+#include <memory>
+#include <atomic>
+#include <string>
+
+#include "../concurrency.h"
+#include "chart_elements.h"
+#include "surfmap/error.h"
+#include "surfmap/map/point_location.h"
+
+namespace surfmap::detail {
+namespace {
+
+using hyperbolic::Mobius;
+
+// The initial map located like the optimum (its "before" morph and UVs); a
+// vertex that cannot be located leaves that output empty, not an error.
+// Gives up when `stop` is raised (the other task failed).
+// The target's laid-out faces (the refined mesh of its system of loops) as
+// a triangulation of the universal cover: a straight walk over them, from
+// the face found for the previous vertex, crossing a cut edge by its deck
+// map (so the walk never leaves the layout and does not depend on how the
+// cut disk differs from P), with locate_in_cover as the fallback.
+struct TargetCover {
+  const HyperbolicLocationInput& in;
+  const int ntf;
+  const Connectivity tconn;
+  PlaneTriangles tpoints, ttris;  ///< #F refined target: Poincaré corners, Klein corners
+  std::unique_ptr<TriangleGrid> grid;
+
+  explicit TargetCover(const HyperbolicLocationInput& input)
+      : in(input), ntf(in.target_loops->mesh.num_faces()),
+        tconn(in.target_loops->mesh.F, in.target_loops->mesh.num_vertices()), tpoints(ntf), ttris(ntf) {
+    for (int f = 0; f < ntf; ++f)
+      for (int k = 0; k < 3; ++k) {
+        tpoints[f][k] = in.layout->corners(f, k);
+        ttris[f][k] = hyperbolic::poincare_to_klein(in.layout->corners(f, k));
+      }
+    grid = std::make_unique<TriangleGrid>(ttris, 1e-12);
+  }
+  /// Refined target face containing q (in P) with barycentrics, or -1.
+  int locate(int start_face, Complex q, Eigen::Vector3d* b) const {
+    const DiskLayout& layout = *in.layout;
+    auto corners = [&](int f) {
+      return std::array<Complex, 3>{layout.corners(f, 0), layout.corners(f, 1), layout.corners(f, 2)};
+    };
+    auto cross = [&](int f, int s, Complex& c, Complex& p, int* entry) {
+      const int h = 3 * f + s, e = tconn.edge(h), t = tconn.twin(h);
+      if (layout.cut_edge[e]) {
+        const Mobius D = tconn.edge_halfedge(e) == h ? layout.edge_deck_mobius[e] : layout.edge_deck_mobius[e].inverse();
+        c = D.apply(c), p = D.apply(p);
+      }
+      *entry = t % 3;
+      return Connectivity::face(t);
+    };
+    int rf = straight_walk(start_face, q, corners, cross, 4 * ntf + 100, kInsideTolerance, b);
+    if (rf < 0) rf = locate_in_cover(*grid, tpoints, *in.polygon, q, b);
+    return rf;
+  }
+};
+
+// The initial map located like the optimum (its "before" morph and UVs); a
+// vertex that cannot be located leaves that output empty, not an error.
+// Gives up when `stop` is raised (the other task failed).
+void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover, const std::atomic<bool>* stop,
+                    HyperbolicLocationResult& out) {
+  const TriMesh& source = *in.source;
+  const Connectivity& sc = *in.sc;
+  const DiskLayout& layout = *in.layout;
+  const FundamentalPolygon& polygon = *in.polygon;
+  const HyperbolicInitialMapResult& init = *in.init;
+  std::vector<int> initial_face_origin(cover.ntf, -1);
+  out.initial_forward.resize(source.num_vertices());
+  int last_face = layout.root_face >= 0 ? layout.root_face : 0;
+  for (int i = 0; i < source.num_vertices(); ++i) {
+    if (*stop) return;
+    Eigen::Vector3d b;
+    Complex q = init.z[i];
+    polygon.reduce(q);
+    const int rf = cover.locate(last_face, q, &b);
+    if (rf < 0) {
+      out.initial_forward.clear();
+      break;
+    }
+    last_face = rf;
+    out.initial_forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, initial_face_origin, rf, b);
+  }
+  // The initial map's inverse (the "before" UV transfer): its image
+  // triangles from its own chart elements, each moved into P by the
+  // reduction of its corner 0, located by the grid; left empty (not an
+  // error) when a target vertex is not covered.
+  auto init_eff = [&](int h) { return effective_element(init, h, sc, *in.group, *in.halfedge_word, *in.halfedge_rho); };
+  // Corner k of face f is init_corner[3f+k] applied to its vertex's point
+  // (corner 0 reduced into P); the walk crosses into the neighbour g
+  // through the shared vertex u by init_corner(g, u) init_corner(f, u)^-1.
+  std::vector<Mobius> init_corner(3 * source.num_faces());
+  PlaneTriangles ipoints(source.num_faces()), itris(source.num_faces());
+  for (int f = 0; f < source.num_faces(); ++f) {
+    Complex c0 = init.z[source.F(f, 0)];
+    const Mobius R = in.group->evaluate_side_word(polygon.reduce(c0));
+    init_corner[3 * f] = R;
+    init_corner[3 * f + 1] = (R * init_eff(3 * f)).normalized();
+    init_corner[3 * f + 2] = (R * init_eff(3 * f + 2).inverse()).normalized();
+    ipoints[f] = {c0, init_corner[3 * f + 1].apply(init.z[source.F(f, 1)]),
+                  init_corner[3 * f + 2].apply(init.z[source.F(f, 2)])};
+    for (int k = 0; k < 3; ++k) itris[f][k] = hyperbolic::poincare_to_klein(ipoints[f][k]);
+  }
+  auto init_corners = [&](int f) { return ipoints[f]; };
+  auto init_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
+    const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
+    const int cg = (t % 3 + 1) % 3;
+    const Mobius M = (init_corner[3 * g + cg] * init_corner[3 * f + s].inverse()).normalized();
+    c = M.apply(c), q = M.apply(q);
+    *entry = t % 3;
+    return g;
+  };
+  const TriangleGrid igrid(itris, 1e-12);
+  out.initial_inverse.resize(in.target->num_vertices());
+  int last_face0 = 0;
+  for (int v = 0; v < in.target->num_vertices(); ++v) {
+    if (*stop) return;
+    Eigen::Vector3d b;
+    Complex q = layout.vertex_positions[v];
+    polygon.reduce(q);
+    int f = straight_walk(last_face0, q, init_corners, init_cross, 4 * source.num_faces() + 100, kInsideTolerance, &b);
+    if (f < 0) f = locate_in_cover(igrid, ipoints, polygon, layout.vertex_positions[v], &b);
+    if (f < 0) {
+      out.initial_inverse.clear();
+      break;
+    }
+    last_face0 = f;
+    out.initial_inverse[v] = point_in_face(source, f, b);
+  }
+}
+
+}  // namespace
+
+HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in, const StageDone& stage_done) {
+  const TriMesh& source = *in.source;
+  const Connectivity& sc = *in.sc;
+  const DiskLayout& layout = *in.layout;
+  const FundamentalPolygon& polygon = *in.polygon;
+  const std::vector<Complex>& zp = *in.zp;
+  const auto& img = *in.image;
+  const TargetCover cover(in);
+  HyperbolicLocationResult out;
+  auto eff = [&](int h) {
+    const int e = sc.edge(h);
+    return sc.edge_halfedge(e) == h ? (*in.eff_edge)[e] : (*in.eff_edge)[e].inverse();
+  };
+  // The initial map's location runs next to the optimum's (concurrency.h),
+  // which reports the stages.
+  const std::atomic<bool> never{false};
+  parallel_for(in.threads, 2, [&](int task, const std::atomic<bool>* stop) {
+    if (task == 1) return locate_initial(in, cover, stop ? stop : &never, out);
+    // Forward map: the walk over the target's faces.
+    std::vector<int> refined_face_origin(cover.ntf, -1);
+    out.forward.resize(source.num_vertices());
+    int last_face = layout.root_face >= 0 ? layout.root_face : 0;
+    for (int i = 0; i < source.num_vertices(); ++i) {
+      Eigen::Vector3d b;
+      const int rf = cover.locate(last_face, zp[i], &b);
+      if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
+      last_face = rf;
+      out.forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, refined_face_origin, rf, b);
+    }
+    stage_done("forward location", 0.85);
+    PlaneTriangles spoints(source.num_faces()), stris(source.num_faces());
+    for (int f = 0; f < source.num_faces(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        spoints[f][k] = img(f, k);
+        stris[f][k] = hyperbolic::poincare_to_klein(img(f, k));
+      }
+    const TriangleGrid sgrid(stris, 1e-12);
+    // Inverse map: the same walk over the source's image triangles. Face f's
+    // image is stored with corner k at γ_{f,k}(zp[F(f,k)]) (γ_{f,0} = id,
+    // γ_{f,1} = eff(h0), γ_{f,2} = eff(h2)^-1); crossing into face g through
+    // the vertex u they share maps the query by γ_{g,u} γ_{f,u}^-1 (identity
+    // unless the edge straddles a side of P).
+    auto corner_element = [&](int f, int k) {
+      return k == 0 ? Mobius() : k == 1 ? eff(3 * f) : eff(3 * f + 2).inverse();
+    };
+    auto source_corners = [&](int f) { return std::array<Complex, 3>{img(f, 0), img(f, 1), img(f, 2)}; };
+    auto source_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
+      const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
+      // Shared vertex u = tail(h) = corner s of f = corner (t+1)%3 of g.
+      const int cg = (t % 3 + 1) % 3;
+      const Mobius M = (corner_element(g, cg) * corner_element(f, s).inverse()).normalized();
+      c = M.apply(c), q = M.apply(q);
+      *entry = t % 3;
+      return g;
+    };
+    out.inverse.resize(in.target->num_vertices());
+    int last_source_face = 0;
+    for (int v = 0; v < in.target->num_vertices(); ++v) {
+      Eigen::Vector3d b;
+      Complex q = layout.vertex_positions[v];
+      polygon.reduce(q);
+      int f = straight_walk(last_source_face, q, source_corners, source_cross, 4 * source.num_faces() + 100,
+                            kInsideTolerance, &b);
+      if (f < 0) f = locate_in_cover(sgrid, spoints, polygon, layout.vertex_positions[v], &b);
+      if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
+      last_source_face = f;
+      out.inverse[v] = point_in_face(source, f, b);
+    }
+  });
+  return out;
+}
+
+}  // namespace surfmap::detail

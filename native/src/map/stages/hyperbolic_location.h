@@ -1,0 +1,56 @@
+#pragma once
+// Stage "location" of the genus >= 2 map (paper §VII: the outputs): every
+// source vertex's image as a point on the target's input mesh (forward),
+// every target vertex's preimage on the source (inverse), and the same two
+// for the initial map (the "before" morph and UV transfer). One straight
+// walk over the target's laid-out faces in the universal cover, resp. over
+// the map's image triangles, with locate_in_cover (map/point_location.h) as
+// the fallback. Internal to the pipeline (src/map/hyperbolic_map.cpp).
+#include <vector>
+
+#include "../map_support.h"
+#include "surfmap/map/fundamental_polygon.h"
+#include "surfmap/map/initial_map.h"
+#include "surfmap/uniformize/deck_group.h"
+
+namespace surfmap::detail {
+
+/// What the location reads. Sizes: #V / #F of the source, #3F halfedges.
+struct HyperbolicLocationInput {
+  const TriMesh* source = nullptr;
+  const TriMesh* target = nullptr;  ///< the user's target (outputs are on it)
+  const Connectivity* sc = nullptr;
+  const Connectivity* tc = nullptr;
+  const SystemOfLoops* target_loops = nullptr;  ///< the target's refined mesh (the layout's faces)
+  const DiskLayout* layout = nullptr;
+  const FundamentalPolygon* polygon = nullptr;
+  const DeckGroup* group = nullptr;
+  /// The optimum: #V points in P, #E effective element of every source edge
+  /// (its edge_halfedge, tail chart to head chart, after the moves into P),
+  /// #F x 3 image corners (corner k of face f is the image of F(f, k),
+  /// anchored at corner 0: γ_{f,0} = id, γ_{f,1} = eff(3f), γ_{f,2} = eff(3f+2)^-1).
+  const std::vector<Complex>* zp = nullptr;
+  const std::vector<hyperbolic::Mobius>* eff_edge = nullptr;
+  const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>* image = nullptr;
+  /// The initial map and the class's #3F halfedge elements (matrices and
+  /// side words) it is expressed in.
+  const HyperbolicInitialMapResult* init = nullptr;
+  const std::vector<hyperbolic::Mobius>* halfedge_rho = nullptr;
+  const std::vector<Word>* halfedge_word = nullptr;
+  int threads = 1;
+};
+
+struct HyperbolicLocationResult {
+  std::vector<PointOnSurface> forward;          ///< #V source
+  std::vector<PointOnSurface> inverse;          ///< #V target
+  std::vector<PointOnSurface> initial_forward;  ///< #V source, or empty when a vertex could not be located
+  std::vector<PointOnSurface> initial_inverse;  ///< #V target, or empty likewise
+};
+
+/// Locates the optimum (forward then inverse, reporting "forward location"
+/// to `stage_done` between them) and, on the second thread when there is
+/// one, the initial map. A vertex of the optimum that cannot be located is
+/// a SolveError; of the initial map, it leaves that output empty.
+HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in, const StageDone& stage_done);
+
+}  // namespace surfmap::detail

@@ -1,0 +1,112 @@
+#include "hyperbolic_quality.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace surfmap::detail {
+
+using hyperbolic::Mobius;
+
+MapInPolygon place_in_polygon(const TriMesh& source, const Connectivity& sc, const FundamentalPolygon& polygon,
+                              const DeckGroup& group, const std::vector<Word>& side_word_edge,
+                              const std::vector<Mobius>& rho_edge, const SolverEdgeIndex& index, int num_solver_edges,
+                              HyperbolicHarmonicResult& hr) {
+  const DeckGroup& deck_group = group;
+  MapInPolygon out;
+  // Every vertex in P, with its chart change as a side word (the solve's
+  // moves were side pairings too).
+  // (A solver that keeps no deck words, the relaxation, falls back to the
+  // products of its deck matrices, and to local charts built from points.)
+  const int nv = source.num_vertices();
+  const bool have_words = static_cast<int>(hr.vertex_deck_word.size()) == nv;
+  std::vector<Complex>& zp = out.zp;
+  zp = hr.z;
+  std::vector<Word> deck(nv);
+  std::vector<Mobius> deck_matrix(nv);
+  for (int i = 0; i < nv; ++i) {
+    const Word into_P = polygon.reduce(zp[i]);
+    if (have_words)
+      deck[i] = deck_group.reduce(concat(into_P, hr.vertex_deck_word[i]));
+    else
+      deck_matrix[i] = (deck_group.evaluate_side_word(into_P) * hr.vertex_deck[i]).normalized();
+  }
+  // Effective element of every source edge after the chart moves, as a
+  // reduced side word (short: the tile next to P holding the edge's far end).
+  std::vector<Mobius>& eff_edge = out.eff_edge;
+  eff_edge.resize(side_word_edge.size());
+  for (size_t e = 0; e < side_word_edge.size(); ++e) {
+    const int h = sc.edge_halfedge(static_cast<int>(e));
+    eff_edge[e] = have_words ? deck_group.evaluate_side_word(deck_group.reduce(
+                                   concat({deck[sc.tail(h)], side_word_edge[e], inverse(deck[sc.head(h)])})))
+                             : (deck_matrix[sc.tail(h)] * rho_edge[e] * deck_matrix[sc.head(h)].inverse()).normalized();
+  }
+  if (static_cast<int>(hr.edge_local.size()) != num_solver_edges) {
+    hr.edge_local.resize(num_solver_edges);
+    for (int e = 0; e < sc.num_edges(); ++e) {
+      const int h = sc.edge_halfedge(e);
+      const Mobius A = (Mobius::centring(zp[sc.tail(h)]) * eff_edge[e] * Mobius::translation_to(zp[sc.head(h)])).normalized();
+      hr.edge_local[index.solver_edge[e]] = index.forward[e] ? A : A.inverse();
+    }
+  }
+  auto eff = [&](int h) {
+    const int e = sc.edge(h);
+    return sc.edge_halfedge(e) == h ? eff_edge[e] : eff_edge[e].inverse();
+  };
+  // Image triangles: corners in the Poincaré disk, anchored at corner 0.
+  ImageCorners& img = out.image;
+  img.resize(source.num_faces(), 3);
+  for (int f = 0; f < source.num_faces(); ++f) {
+    img(f, 0) = zp[source.F(f, 0)];
+    img(f, 1) = eff(3 * f).apply(zp[source.F(f, 1)]);
+    img(f, 2) = eff(3 * f + 2).inverse().apply(zp[source.F(f, 2)]);
+  }
+  return out;
+}
+
+DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc, const std::vector<Mobius>& edge_local,
+                                 const SolverEdgeIndex& index) {
+  // Halfedge h's element in the solve's charts of its ends (edge_local).
+  auto local = [&](int h) {
+    const int e = sc.edge(h);
+    const Mobius& A = edge_local[index.solver_edge[e]];
+    return (sc.edge_halfedge(e) == h) == static_cast<bool>(index.forward[e]) ? A : A.inverse();
+  };
+  // Dilatation from hyperbolic side lengths and orientation, both in the
+  // chart of corner 0 where the corners are 0, A_01(0) and A_20^-1(0):
+  // exact to round-off however close to |z| = 1 the triangle lies in P.
+  return hyperbolic_image_distortion(
+      source,
+      [&](int f) { return std::make_pair(local(3 * f).apply(Complex(0.0)), local(3 * f + 2).inverse().apply(Complex(0.0))); },
+      [&](int f) {
+        return Eigen::Vector3d(local(3 * f).displacement_of_origin(), local(3 * f + 1).displacement_of_origin(),
+                               local(3 * f + 2).displacement_of_origin());
+      },
+      true);
+}
+
+int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::vector<Mobius>& edge_local) {
+  // The intrinsic Delaunay triangles (the energy's own triangulation): their
+  // images from the solver's local charts, oriented by the face's corners.
+  int flipped = 0;
+  if (edge_local.size() >= idt.edges.size()) {
+    for (int f = 0; f < static_cast<int>(idt.F.rows()); ++f) {
+      Mobius side[3];
+      bool known = true;
+      for (int k = 0; k < 3; ++k) {
+        const int e = idt.face_edges(f, k);
+        const auto& ie = idt.edges[e];
+        const int a = idt.F(f, k), b = idt.F(f, (k + 1) % 3);
+        if (ie.i == a && ie.j == b && a != b) side[k] = edge_local[e];
+        else if (ie.i == b && ie.j == a && a != b) side[k] = edge_local[e].inverse();
+        else known = false;  // a loop edge: orientation not recorded
+      }
+      if (!known) continue;
+      const Complex p1 = side[0].apply(Complex(0.0)), p2 = side[2].inverse().apply(Complex(0.0));
+      if (p1.real() * p2.imag() - p1.imag() * p2.real() <= 0) ++flipped;
+    }
+  }
+  return flipped;
+}
+
+}  // namespace surfmap::detail

@@ -1,0 +1,66 @@
+#pragma once
+// Other systems of loops on the source ("cuts"), for lifting homotopy
+// classes from them (stages/homotopy_classes.h, paper §V with DESIGN notes
+// on Torelli representatives in docs/): the loops at another base vertex,
+// the default cut's canonical generators as words in that cut's, and its
+// handle basis. Source-only (~0.2 s per cut at 50k vertices), so prepared
+// on the second thread while the target is uniformized. Internal.
+#include <atomic>
+#include <mutex>
+#include <vector>
+
+#include "surfmap/map/surface_map.h"
+#include "surfmap/topology/handle_basis.h"
+
+namespace surfmap::detail {
+
+/// One prepared cut.
+struct CutPrep {
+  bool ok = false;  ///< false: no system of loops there, or its overlay onto the default cut is not an isomorphism
+  GroupMap psi;     ///< 2g: default canonical generator -> word in this cut's canonical generators
+  HandleBasis shb;  ///< this cut's handle basis (topology/handle_basis.h)
+  std::vector<std::vector<int>> loops;  ///< this cut's loops (vertex paths) and canonical generators (for its overlay)
+  std::vector<Word> generators;
+};
+
+/// The cuts the class search may ask for, in the order it asks: the
+/// options' homotopy_extra_cuts first, then (default class with the search
+/// on) homotopy_search_cuts, base vertices spread evenly over the vertex
+/// list. Whichever thread prepares a cut, the result is the same; each
+/// planned cut is prepared once.
+class SourceCuts {
+ public:
+  SourceCuts(const TriMesh& source, const SurfaceMapOptions& options, int genus);
+  /// The default cut's loops and canonical generators: set once, before
+  /// any cut is prepared.
+  void set_default(const std::vector<std::vector<int>>& loops, const std::vector<Word>& generators);
+  /// The planned cuts' base vertices (#planned, in order).
+  const std::vector<int>& planned_bases() const { return bases_; }
+  /// Prepares planned cut k (once; thread-safe).
+  const CutPrep& prepare_planned(int k);
+  /// Prepares the cut at `base`: the first planned cut there, else an
+  /// unplanned one prepared afresh into `scratch`.
+  const CutPrep& prepare(int base, CutPrep& scratch);
+  /// Raised when no more speculative preparation is wanted (the second
+  /// thread stops preparing ahead).
+  std::atomic<bool> stop{false};
+
+ private:
+  CutPrep build(int base) const;
+  struct Slot {
+    std::once_flag once;
+    CutPrep prep;
+  };
+  const TriMesh& source_;
+  const SurfaceMapOptions& options_;
+  int genus_;
+  std::vector<int> bases_;
+  std::vector<Slot> slots_;
+  std::vector<std::vector<int>> default_loops_;
+  std::vector<Word> default_generators_;
+};
+
+/// Base vertices c * nv / (count + 1), c = 1..count (deterministic spread).
+std::vector<int> spread_bases(int num_vertices, int count);
+
+}  // namespace surfmap::detail

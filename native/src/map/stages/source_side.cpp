@@ -1,0 +1,40 @@
+#include "source_side.h"
+
+#include <algorithm>
+
+#include "../map_support.h"
+#include "surfmap/error.h"
+#include "surfmap/geometry/positive_edge_weights.h"
+#include "surfmap/topology/edge_homotopy.h"
+
+namespace surfmap::detail {
+
+SourceSide build_source_side(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options,
+                             bool own_weights) {
+  CoarseSourceOptions cso;
+  cso.target_vertices = std::min(options.homotopy_coarse_vertices, source.num_vertices() / 4);
+  SourceSide ss;
+  ss.sl = source_loops(source, options);
+  ss.scs = canonical_schema(ss.sl.word);
+  // Deck elements are computed as words first and multiplied out only when
+  // reduced: products like g g^-1 of large SU(1,1) matrices lose digits, and
+  // the words of single edges are short (their crossings with the cut).
+  std::vector<Word> src_letters;
+  for (size_t k = 0; k < ss.scs.letters.size(); ++k) src_letters.push_back({static_cast<int>(k) + 1});
+  const GroupOps<Word> free_group{Word{}, [](const Word& u, const Word& v) { return concat(u, v); },
+                                  [](const Word& u) { return inverse(u); }};
+  ss.edge_word = edge_group_elements(sc, ss.sl.tree_parent_halfedge, ss.sl.dual_tree_parent_halfedge,
+                                     ss.sl.generator_edges, loop_first_vertices(ss.sl, sc), src_letters, free_group);
+  // The energy's triangulation and weights: intrinsic Delaunay, or positive
+  // weights on the source's own edges (options.source_weights; the automatic
+  // fallback below switches when the user's faces fold).
+  ss.idt = own_weights ? positive_edge_weights(sc, edge_lengths(source, sc))
+                       : intrinsic_delaunay(sc, edge_lengths(source, sc));
+  if (!ss.idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
+  ss.shb = handle_basis(source, ss.sl.loops, ss.scs);
+  // The ranking level (below): a coarse copy of the source.
+  if (options.homotopy_coarse_vertices > 0 && cso.target_vertices >= 500) ss.cs = coarse_source(source, sc, cso);
+  return ss;
+}
+
+}  // namespace surfmap::detail
