@@ -11,5 +11,6 @@ void register_loops(CLI::App& app);
 void register_uniformize(CLI::App& app);
 void register_generate(CLI::App& app);
 void register_map(CLI::App& app);
+void register_verify(CLI::App& app);
 
 }  // namespace surfmap::cli

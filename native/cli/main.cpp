@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   surfmap::cli::register_map(app);
   surfmap::cli::register_uniformize(app);
   surfmap::cli::register_generate(app);
+  surfmap::cli::register_verify(app);
   // SURFMAP_CLI_REGISTER (keep this marker: add one register_* call per line above it)
   try {
     app.parse(argc, argv);

@@ -23,6 +23,7 @@
 #include "surfmap/samples/shapes.h"
 #include "surfmap/topology/words.h"
 #include "surfmap/uniformize/deck_group.h"
+#include "certify_helpers.h"
 
 namespace surfmap {
 namespace {
@@ -198,6 +199,7 @@ TEST(NewtonStarts, TwistedClassReachesTheSameOptimumFromEveryStart) {
     EXPECT_TRUE(m->converged);
     EXPECT_EQ(m->flipped_triangles, 0);
     EXPECT_EQ(m->degenerate_triangles, 0);
+    EXPECT_CERTIFIED_MAP(a, b, *m);
     EXPECT_EQ(m->source_weights, mc.source_weights);
     EXPECT_NEAR(m->final_energy, mc.final_energy, 1e-9 * mc.final_energy);
     double worst = 0;

@@ -15,6 +15,7 @@
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
+#include "certify_helpers.h"
 
 namespace surfmap {
 namespace {
@@ -27,6 +28,7 @@ void expect_valid_map(const SurfaceMapResult& m, const TriMesh& source, const Tr
   EXPECT_TRUE(m.converged);
   EXPECT_EQ(m.flipped_triangles, 0);
   EXPECT_EQ(m.degenerate_triangles, 0);
+  EXPECT_CERTIFIED_MAP(source, target, m);
   ASSERT_EQ(static_cast<int>(m.forward.size()), source.num_vertices());
   ASSERT_EQ(static_cast<int>(m.inverse.size()), target.num_vertices());
   // Forward points lie on the target: the 3D point is its face's barycentric combination.
@@ -299,6 +301,7 @@ TEST(SurfaceMapHandles, ClassSearchUndoesKnownTwists) {
   EXPECT_NEAR(m.final_energy, m0.final_energy, 1e-5 * m0.final_energy);
   EXPECT_LT(m.mean_dilatation, 1.08);
   EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_CERTIFIED_MAP(a, b, m);
   const double diag = (b.V.colwise().maxCoeff() - b.V.colwise().minCoeff()).norm();
   double mean = 0;
   for (int i = 0; i < a.num_vertices(); ++i) mean += (m.forward[i].position - a.V.row(i).transpose()).norm() / a.num_vertices();
