@@ -61,7 +61,12 @@ void register_verify(CLI::App& app) {
                                 {"max_inverse_error", c.max_inverse_error},
                                 {"max_forward_error", c.max_forward_error},
                                 {"inverse_failures", c.inverse_failures},
-                                {"forward_failures", c.forward_failures}};
+                                {"forward_failures", c.forward_failures},
+                                {"unresolved_triangles", c.unresolved_triangles},
+                                {"negative_unresolved", c.negative_unresolved},
+                                {"winding_failures_unresolved", c.winding_failures_unresolved},
+                                {"inverse_failures_unresolved", c.inverse_failures_unresolved},
+                                {"forward_failures_unresolved", c.forward_failures_unresolved}};
       write_text_file(a->json, j.dump(2) + "\n");
     }
     if (!c.certified)

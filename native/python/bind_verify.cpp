@@ -91,10 +91,15 @@ void bind_verify(py::module_& m) {
         d["max_forward_error"] = c.max_forward_error;
         d["inverse_failures"] = c.inverse_failures;
         d["forward_failures"] = c.forward_failures;
+        d["unresolved_triangles"] = c.unresolved_triangles;
+        d["negative_unresolved"] = c.negative_unresolved;
+        d["winding_failures_unresolved"] = c.winding_failures_unresolved;
+        d["inverse_failures_unresolved"] = c.inverse_failures_unresolved;
+        d["forward_failures_unresolved"] = c.forward_failures_unresolved;
         return d;
       },
       py::arg("Vs"), py::arg("Fs"), py::arg("Vt"), py::arg("Ft"), py::arg("forward"), py::arg("inverse"),
-      py::arg("barycentric_tolerance") = 1e-9, py::arg("area_tolerance") = 0.25, py::arg("inverse_tolerance") = 0.25,
+      py::arg("barycentric_tolerance") = 1e-9, py::arg("area_tolerance") = 0.25, py::arg("inverse_tolerance") = 1.0,
       "Independent certificate that a map is a bijection (docs/verification.md). forward: {'face', 'barycentric'} "
       "per source vertex (surface_map's 'forward'), inverse: per target vertex. Meshes go through intake as in "
       "surface_map. Returns a dict: 'certified', 'failures', 'summary' and the figures of every check.");

@@ -26,7 +26,7 @@ def system_of_loops(V, F, base_vertex=-1, refine=True):
 
 
 def verify(Vs, Fs, Vt, Ft, forward, inverse=None, barycentric_tolerance=1e-9, area_tolerance=0.25,
-           inverse_tolerance=0.25):
+           inverse_tolerance=1.0):
     """Independent certificate that a map Vs/Fs -> Vt/Ft is a bijection (docs/verification.md).
 
     forward: {'face' (n_s,), 'barycentric' (n_s, 3)} per source vertex, inverse: the same per

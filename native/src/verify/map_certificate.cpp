@@ -76,7 +76,8 @@ double longest_edge(const Vector3d& a, const Vector3d& b, const Vector3d& c) {
 /// frame, the winding of every vertex star, and the signed area sum.
 /// P: #V_source image points; Nf: #V_source target normals at them.
 void check_orientation(const TriMesh& source, const TriMesh& target, const std::vector<Vector3d>& P,
-                       const std::vector<Vector3d>& Nf, const MapCertificateOptions& opt, MapCertificate& c) {
+                       const std::vector<Vector3d>& Nf, const std::vector<char>& unresolved,
+                       const std::vector<char>& star_unresolved, const MapCertificateOptions& opt, MapCertificate& c) {
   const int nv = source.num_vertices();
   std::vector<double> angle_sum(nv, 0.0);
   std::vector<char> unmeasurable(nv, 0);
@@ -95,8 +96,13 @@ void check_orientation(const TriMesh& source, const TriMesh& target, const std::
       c.signed_image_area += signed_area;
       relative = signed_area / h2;
     }
-    if (relative < -opt.orientation_tolerance) ++c.negative_triangles;
-    else if (relative <= opt.orientation_tolerance) ++c.degenerate_triangles;  // also: no frame, collapsed
+    if (relative < -opt.orientation_tolerance) {
+      ++c.negative_triangles;
+      c.negative_unresolved += unresolved[f];
+    } else if (relative <= opt.orientation_tolerance) {  // also: no frame, collapsed
+      ++c.degenerate_triangles;
+      c.degenerate_unresolved += unresolved[f];
+    }
     if (relative < c.min_relative_area) c.min_relative_area = relative, c.worst_triangle = f;
     // Angle of the image star at each corner, in that corner's own frame.
     for (int k = 0; k < 3; ++k) {
@@ -118,6 +124,7 @@ void check_orientation(const TriMesh& source, const TriMesh& target, const std::
     if (unmeasurable[v] || std::lround(winding) != 1) {
       if (c.first_winding_failure < 0) c.first_winding_failure = v;
       ++c.winding_failures;
+      c.winding_failures_unresolved += star_unresolved[v];
     }
   }
   for (int f = 0; f < target.num_faces(); ++f)
@@ -126,13 +133,30 @@ void check_orientation(const TriMesh& source, const TriMesh& target, const std::
   c.degree = static_cast<int>(std::lround(c.area_ratio));
 }
 
+/// Per source triangle: 1 when the target's normals at its corners' images
+/// pairwise make more than `angle` (the image is unresolved); per source
+/// vertex: 1 when a triangle of its star is.
+void mark_unresolved(const TriMesh& source, const std::vector<Vector3d>& Nf, double angle, std::vector<char>* triangles,
+                     std::vector<char>* stars) {
+  const double min_dot = std::cos(angle);
+  triangles->assign(source.num_faces(), 0);
+  stars->assign(source.num_vertices(), 0);
+  for (int f = 0; f < source.num_faces(); ++f) {
+    for (int k = 0; k < 3; ++k)
+      if (!(Nf[source.F(f, k)].dot(Nf[source.F(f, (k + 1) % 3)]) >= min_dot)) (*triangles)[f] = 1;
+    if ((*triangles)[f])
+      for (int k = 0; k < 3; ++k) (*stars)[source.F(f, k)] = 1;
+  }
+}
+
 /// Check 5 in one direction: for every vertex x of `mesh_b`, its point on
 /// `mesh_a` (back[x]) is carried by the other map, given at mesh_a's vertices
 /// as the 3D points `there` (on mesh_b), and compared with x. Returns the
 /// largest error relative to the image triangle's longest edge.
 void check_composition(const TriMesh& mesh_a, const TriMesh& mesh_b, const std::vector<SurfacePoint>& back,
-                       const std::vector<Vector3d>& there, double tolerance, double* max_relative, int* worst,
-                       int* failures, double* max_mean_edges) {
+                       const std::vector<Vector3d>& there, const std::vector<char>& unresolved, double tolerance,
+                       double* max_relative, int* worst, int* failures, int* failures_unresolved,
+                       double* max_mean_edges) {
   const double mean_edge = mean_edge_length(mesh_b);
   for (int x = 0; x < mesh_b.num_vertices(); ++x) {
     const int g = back[x].face;
@@ -142,7 +166,7 @@ void check_composition(const TriMesh& mesh_a, const TriMesh& mesh_b, const std::
     const Vector3d q = back[x].barycentric[0] * a + back[x].barycentric[1] * b + back[x].barycentric[2] * d;
     const double error = (q - mesh_b.V.row(x).transpose()).norm(), scale = longest_edge(a, b, d);
     const double relative = scale > 0 ? error / scale : (error > 0 ? std::numeric_limits<double>::infinity() : 0.0);
-    if (!(relative <= tolerance)) ++*failures;
+    if (!(relative <= tolerance)) ++*failures, *failures_unresolved += unresolved[x];
     if (!(relative <= *max_relative)) *max_relative = relative, *worst = x;
     if (mean_edge > 0) *max_mean_edges = std::max(*max_mean_edges, error / mean_edge);
   }
@@ -176,6 +200,7 @@ MapCertificate certify_map(const TriMesh& source, const TriMesh& target, const s
          " target vertices");
   if (!c.failures.empty()) return c;
   std::string first_invalid;
+  c.min_barycentric = std::numeric_limits<double>::infinity();
   for (int s = 0; s < c.source_vertices; ++s)
     if (!check_point(forward[s], c.target_triangles, opt.barycentric_tolerance, c) && c.invalid_forward++ == 0)
       first_invalid = "source vertex " + std::to_string(s);
@@ -195,32 +220,51 @@ MapCertificate certify_map(const TriMesh& source, const TriMesh& target, const s
     P[s] = evaluate(target, forward[s]);
     Nf[s] = normal_at(target, target_normals, forward[s]);
   }
-  check_orientation(source, target, P, Nf, opt, c);
+  std::vector<char> unresolved, star_unresolved;
+  mark_unresolved(source, Nf, opt.resolved_normal_angle, &unresolved, &star_unresolved);
+  for (char u : unresolved) c.unresolved_triangles += u;
+  check_orientation(source, target, P, Nf, unresolved, star_unresolved, opt, c);
+  auto of_them = [](int n) { return n ? " (" + std::to_string(n) + " of them unresolved)" : std::string(); };
   if (c.negative_triangles > 0)
-    fail(std::to_string(c.negative_triangles) + " source triangles with negatively oriented images (worst: triangle " +
-         std::to_string(c.worst_triangle) + ", relative area " + fmt(c.min_relative_area) + ")");
+    fail(std::to_string(c.negative_triangles) + " source triangles with negatively oriented images" +
+         of_them(c.negative_unresolved) + " (worst: triangle " + std::to_string(c.worst_triangle) +
+         ", relative area " + fmt(c.min_relative_area) + ")");
   if (c.degenerate_triangles > 0)
-    fail(std::to_string(c.degenerate_triangles) + " source triangles with degenerate images");
+    fail(std::to_string(c.degenerate_triangles) + " source triangles with degenerate images" +
+         of_them(c.degenerate_unresolved));
   if (c.winding_failures > 0)
-    fail(std::to_string(c.winding_failures) + " source vertices whose image star does not wind once (first: vertex " +
-         std::to_string(c.first_winding_failure) + ")");
+    fail(std::to_string(c.winding_failures) + " source vertices whose image star does not wind once" +
+         of_them(c.winding_failures_unresolved) + " (first: vertex " + std::to_string(c.first_winding_failure) + ")");
   if (!(std::abs(c.area_ratio - 1.0) <= opt.area_tolerance))
     fail("signed image area / target area = " + fmt(c.area_ratio) + " (degree " + std::to_string(c.degree) +
          "), not within " + fmt(opt.area_tolerance) + " of 1");
   // 5. Compositions.
   for (int t = 0; t < c.target_vertices; ++t) Q[t] = evaluate(source, inverse[t]);
-  check_composition(source, target, inverse, P, opt.inverse_tolerance, &c.max_inverse_error, &c.worst_inverse_vertex,
-                    &c.inverse_failures, &c.max_inverse_error_mean_edges);
-  check_composition(target, source, forward, Q, opt.inverse_tolerance, &c.max_forward_error, &c.worst_forward_vertex,
-                    &c.forward_failures, &c.max_forward_error_mean_edges);
+  std::vector<char> preimage_unresolved(c.target_vertices);
+  for (int t = 0; t < c.target_vertices; ++t) preimage_unresolved[t] = unresolved[inverse[t].face];
+  check_composition(source, target, inverse, P, preimage_unresolved, opt.inverse_tolerance, &c.max_inverse_error,
+                    &c.worst_inverse_vertex, &c.inverse_failures, &c.inverse_failures_unresolved,
+                    &c.max_inverse_error_mean_edges);
+  // I(F(s)) interpolates the inverse's image of F(s)'s target face on the
+  // source: resolved when the source's normals at its corners' preimages agree.
+  const RowMatrixX3d source_normals = vertex_normals(source);
+  std::vector<Vector3d> Ns(c.target_vertices);
+  for (int t = 0; t < c.target_vertices; ++t) Ns[t] = normal_at(source, source_normals, inverse[t]);
+  std::vector<char> target_unresolved, unused;
+  mark_unresolved(target, Ns, opt.resolved_normal_angle, &target_unresolved, &unused);
+  std::vector<char> image_face_unresolved(c.source_vertices);
+  for (int s = 0; s < c.source_vertices; ++s) image_face_unresolved[s] = target_unresolved[forward[s].face];
+  check_composition(target, source, forward, Q, image_face_unresolved, opt.inverse_tolerance, &c.max_forward_error,
+                    &c.worst_forward_vertex, &c.forward_failures, &c.forward_failures_unresolved,
+                    &c.max_forward_error_mean_edges);
   if (c.inverse_failures > 0)
     fail(std::to_string(c.inverse_failures) + " target vertices t with |F(I(t)) - t| above " + fmt(opt.inverse_tolerance) +
-         " of the image triangle (worst: vertex " + std::to_string(c.worst_inverse_vertex) + ", " +
-         fmt(c.max_inverse_error) + ")");
+         " of the image triangle" + of_them(c.inverse_failures_unresolved) + " (worst: vertex " +
+         std::to_string(c.worst_inverse_vertex) + ", " + fmt(c.max_inverse_error) + ")");
   if (c.forward_failures > 0)
     fail(std::to_string(c.forward_failures) + " source vertices s with |I(F(s)) - s| above " + fmt(opt.inverse_tolerance) +
-         " of the preimage triangle (worst: vertex " + std::to_string(c.worst_forward_vertex) + ", " +
-         fmt(c.max_forward_error) + ")");
+         " of the preimage triangle" + of_them(c.forward_failures_unresolved) + " (worst: vertex " +
+         std::to_string(c.worst_forward_vertex) + ", " + fmt(c.max_forward_error) + ")");
   c.certified = c.failures.empty();
   return c;
 }
@@ -233,6 +277,8 @@ std::string MapCertificate::summary() const {
   s << "orientation: " << source_triangles << " source triangles, " << negative_triangles << " negative, "
     << degenerate_triangles << " degenerate; smallest signed area / longest edge^2 " << fmt(min_relative_area)
     << " (triangle " << worst_triangle << ")\n";
+  s << "resolution: " << unresolved_triangles << " source triangles whose image corners' target normals differ by "
+       "more than the resolved angle (unresolved: there the vertex images alone do not pin the map down in R^3)\n";
   s << "winding: " << winding_failures << " source vertex stars not winding once"
     << (first_winding_failure >= 0 ? " (first: vertex " + std::to_string(first_winding_failure) + ")" : std::string())
     << "\n";

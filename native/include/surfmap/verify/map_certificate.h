@@ -24,6 +24,7 @@
 //     preimage returns to t, and at every source vertex s the inverse applied
 //     to its image returns to s, within inverse_tolerance of the size of the
 //     image triangle the composition interpolates in.
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -54,8 +55,18 @@ struct MapCertificateOptions {
   double area_tolerance = 0.25;
   /// Largest composition error |F(I(t)) - t| (and |I(F(s)) - s|) allowed,
   /// relative to the longest edge of the image triangle the composition
-  /// interpolates in (default 0.25).
-  double inverse_tolerance = 0.25;
+  /// interpolates in (default 1: within one image triangle of where the
+  /// forward map puts the preimage; the map is linear on a source triangle
+  /// only in the solver's uniformization domain, and measured in R^3 a
+  /// correct map's composition is off by up to ~0.75 of a triangle on
+  /// strongly stretched real pairs).
+  double inverse_tolerance = 1.0;
+  /// An image triangle is *resolved* when the target's normals at its three
+  /// corners pairwise make at most this angle (radians, default pi/3); the
+  /// chord-and-tangent-plane measures are faithful only there. Unresolved
+  /// triangles are still checked (and can fail); the certificate counts them
+  /// and says which failures lie on them.
+  double resolved_normal_angle = M_PI / 3;
 };
 
 struct MapCertificate {
@@ -72,11 +83,14 @@ struct MapCertificate {
   /// 2. Source triangles whose image is negative / degenerate, the smallest
   /// signed area relative to the image's longest edge squared, and where.
   int negative_triangles = 0, degenerate_triangles = 0;
+  /// Source triangles whose images are unresolved (resolved_normal_angle),
+  /// and how many of the negative / degenerate ones are.
+  int unresolved_triangles = 0, negative_unresolved = 0, degenerate_unresolved = 0;
   double min_relative_area = 0;
   int worst_triangle = -1;
   /// 3. Source vertices whose image star does not wind exactly once (or
   /// cannot be measured: coincident images), and the first of them.
-  int winding_failures = 0;
+  int winding_failures = 0, winding_failures_unresolved = 0;  ///< ... of them at stars with an unresolved image
   int first_winding_failure = -1;
   /// 4. Σ signed image areas, the target's area, their ratio, and the
   /// degree: the ratio's nearest integer (the covering's sheets when 2 and 3 hold).
@@ -88,6 +102,9 @@ struct MapCertificate {
   double max_inverse_error = 0, max_forward_error = 0;
   int worst_inverse_vertex = -1, worst_forward_vertex = -1;
   int inverse_failures = 0, forward_failures = 0;
+  /// ... of them in (target: the preimage's source triangle; source: the
+  /// vertex's star) an unresolved image.
+  int inverse_failures_unresolved = 0, forward_failures_unresolved = 0;
   double max_inverse_error_mean_edges = 0, max_forward_error_mean_edges = 0;
 
   /// A few lines: counts and worst values of every check, then PASS/FAIL.
