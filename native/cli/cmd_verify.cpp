@@ -34,6 +34,9 @@ void register_verify(CLI::App& app) {
   cmd->add_option("--inverse-tolerance", a->opt.inverse_tolerance,
                   "Allowed composition error, relative to the image triangle's longest edge")
       ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_flag("--strict", a->opt.strict,
+               "Fail also on checks that fail only on unresolved images (whose corners' target normals differ by more "
+               "than 60 degrees)");
   cmd->callback([a] {
     const IntakeResult src = load_mesh(a->src), dst = load_mesh(a->dst);
     const CorrespondenceFile corr = read_correspondence(a->correspondence);
@@ -44,6 +47,7 @@ void register_verify(CLI::App& app) {
     if (!a->json.empty()) {
       const nlohmann::json j = {{"certified", c.certified},
                                 {"failures", c.failures},
+                                {"undecided", c.undecided},
                                 {"source", {{"vertices", c.source_vertices}, {"triangles", c.source_triangles}}},
                                 {"target", {{"vertices", c.target_vertices}, {"triangles", c.target_triangles}}},
                                 {"invalid_forward", c.invalid_forward},

@@ -48,7 +48,7 @@ void bind_verify(py::module_& m) {
   m.def(
       "verify",
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, py::handle forward, py::handle inverse,
-         double barycentric_tolerance, double area_tolerance, double inverse_tolerance) {
+         double barycentric_tolerance, double area_tolerance, double inverse_tolerance, bool strict) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         const std::vector<SurfacePoint> fw = to_points(forward, "forward"), iv = to_points(inverse, "inverse");
@@ -56,6 +56,7 @@ void bind_verify(py::module_& m) {
         opt.barycentric_tolerance = barycentric_tolerance;
         opt.area_tolerance = area_tolerance;
         opt.inverse_tolerance = inverse_tolerance;
+        opt.strict = strict;
         MapCertificate c;
         {
           py::gil_scoped_release release;
@@ -75,6 +76,7 @@ void bind_verify(py::module_& m) {
         py::dict d;
         d["certified"] = c.certified;
         d["failures"] = c.failures;
+        d["undecided"] = c.undecided;
         d["summary"] = c.summary();
         d["invalid_forward"] = c.invalid_forward;
         d["invalid_inverse"] = c.invalid_inverse;
@@ -99,10 +101,11 @@ void bind_verify(py::module_& m) {
         return d;
       },
       py::arg("Vs"), py::arg("Fs"), py::arg("Vt"), py::arg("Ft"), py::arg("forward"), py::arg("inverse"),
-      py::arg("barycentric_tolerance") = 1e-9, py::arg("area_tolerance") = 0.25, py::arg("inverse_tolerance") = 1.0,
+      py::arg("barycentric_tolerance") = 1e-9, py::arg("area_tolerance") = 0.25, py::arg("inverse_tolerance") = 1.0, py::arg("strict") = false,
       "Independent certificate that a map is a bijection (docs/verification.md). forward: {'face', 'barycentric'} "
       "per source vertex (surface_map's 'forward'), inverse: per target vertex. Meshes go through intake as in "
-      "surface_map. Returns a dict: 'certified', 'failures', 'summary' and the figures of every check.");
+      "surface_map. Returns a dict: 'certified', 'failures', 'undecided' (checks failed only on unresolved images; "
+      "failures with strict=True), 'summary' and the figures of every check.");
   m.def(
       "read_correspondence",
       [](const std::string& path) {

@@ -225,15 +225,22 @@ MapCertificate certify_map(const TriMesh& source, const TriMesh& target, const s
   for (char u : unresolved) c.unresolved_triangles += u;
   check_orientation(source, target, P, Nf, unresolved, star_unresolved, opt, c);
   auto of_them = [](int n) { return n ? " (" + std::to_string(n) + " of them unresolved)" : std::string(); };
+  // A check that failed only on unresolved images is undecided (a failure
+  // with options.strict); one failure on a resolved image fails it.
+  auto judge = [&c, &opt, &fail](int count, int unresolved_count, const std::string& line) {
+    if (count == 0) return;
+    if (opt.strict || count > unresolved_count) fail(line);
+    else c.undecided.push_back(line);
+  };
   if (c.negative_triangles > 0)
-    fail(std::to_string(c.negative_triangles) + " source triangles with negatively oriented images" +
+    judge(c.negative_triangles, c.negative_unresolved, std::to_string(c.negative_triangles) + " source triangles with negatively oriented images" +
          of_them(c.negative_unresolved) + " (worst: triangle " + std::to_string(c.worst_triangle) +
          ", relative area " + fmt(c.min_relative_area) + ")");
   if (c.degenerate_triangles > 0)
-    fail(std::to_string(c.degenerate_triangles) + " source triangles with degenerate images" +
+    judge(c.degenerate_triangles, c.degenerate_unresolved, std::to_string(c.degenerate_triangles) + " source triangles with degenerate images" +
          of_them(c.degenerate_unresolved));
   if (c.winding_failures > 0)
-    fail(std::to_string(c.winding_failures) + " source vertices whose image star does not wind once" +
+    judge(c.winding_failures, c.winding_failures_unresolved, std::to_string(c.winding_failures) + " source vertices whose image star does not wind once" +
          of_them(c.winding_failures_unresolved) + " (first: vertex " + std::to_string(c.first_winding_failure) + ")");
   if (!(std::abs(c.area_ratio - 1.0) <= opt.area_tolerance))
     fail("signed image area / target area = " + fmt(c.area_ratio) + " (degree " + std::to_string(c.degree) +
@@ -258,11 +265,11 @@ MapCertificate certify_map(const TriMesh& source, const TriMesh& target, const s
                     &c.worst_forward_vertex, &c.forward_failures, &c.forward_failures_unresolved,
                     &c.max_forward_error_mean_edges);
   if (c.inverse_failures > 0)
-    fail(std::to_string(c.inverse_failures) + " target vertices t with |F(I(t)) - t| above " + fmt(opt.inverse_tolerance) +
+    judge(c.inverse_failures, c.inverse_failures_unresolved, std::to_string(c.inverse_failures) + " target vertices t with |F(I(t)) - t| above " + fmt(opt.inverse_tolerance) +
          " of the image triangle" + of_them(c.inverse_failures_unresolved) + " (worst: vertex " +
          std::to_string(c.worst_inverse_vertex) + ", " + fmt(c.max_inverse_error) + ")");
   if (c.forward_failures > 0)
-    fail(std::to_string(c.forward_failures) + " source vertices s with |I(F(s)) - s| above " + fmt(opt.inverse_tolerance) +
+    judge(c.forward_failures, c.forward_failures_unresolved, std::to_string(c.forward_failures) + " source vertices s with |I(F(s)) - s| above " + fmt(opt.inverse_tolerance) +
          " of the preimage triangle" + of_them(c.forward_failures_unresolved) + " (worst: vertex " +
          std::to_string(c.worst_forward_vertex) + ", " + fmt(c.max_forward_error) + ")");
   c.certified = c.failures.empty();
@@ -288,9 +295,16 @@ std::string MapCertificate::summary() const {
     << worst_inverse_vertex << ", " << fmt(max_inverse_error_mean_edges) << " target mean edges), max |I(F(s)) - s| "
     << fmt(max_forward_error) << " (source vertex " << worst_forward_vertex << ", " << fmt(max_forward_error_mean_edges)
     << " source mean edges); " << inverse_failures + forward_failures << " above the tolerance\n";
-  s << (certified ? "CERTIFIED: a bijection (degree 1, locally injective, inverse consistent)"
-                  : "NOT CERTIFIED: " + std::to_string(failures.size()) + " check(s) failed");
+  if (certified && undecided.empty())
+    s << "CERTIFIED: a bijection (degree 1, locally injective, inverse consistent)";
+  else if (certified)
+    s << "CERTIFIED where resolved: degree 1, locally injective and inverse consistent on every resolved image; "
+      << undecided.size() << " check(s) undecided on unresolved images (--strict fails them):";
+  else
+    s << "NOT CERTIFIED: " << failures.size() << " check(s) failed";
   for (const auto& f : failures) s << "\n  " << f;
+  if (!certified && !undecided.empty()) s << "\n  undecided (unresolved images only):";
+  for (const auto& u : undecided) s << "\n  " << u;
   return s.str();
 }
 

@@ -11,7 +11,7 @@ from mesh_helpers import torus
 def mapped(tmp_path_factory):
     """A genus-1 pair mapped by the CLI: (src path, dst path, CORR.txt path, Vs, Fs, Vt, Ft)."""
     d = tmp_path_factory.mktemp("verify")
-    (Vs, Fs), (Vt, Ft) = torus(1.0, 0.45, 40, 20), torus(1.4, 0.5, 36, 18, 1)
+    (Vs, Fs), (Vt, Ft) = torus(1.0, 0.45, 40, 20), torus(1.4, 0.5, 36, 18)  # target: mirror symmetric in z
     src, dst, corr = d / "a.obj", d / "b.obj", d / "corr.txt"
     surfmap.write_obj(str(src), Vs, Fs)
     surfmap.write_obj(str(dst), Vt, Ft)

@@ -24,6 +24,9 @@
 //     preimage returns to t, and at every source vertex s the inverse applied
 //     to its image returns to s, within inverse_tolerance of the size of the
 //     image triangle the composition interpolates in.
+// Checks 2, 3 and 5 are decided on *resolved* images, where the target's
+// normals at the corners agree within resolved_normal_angle; failures on
+// unresolved images only are listed as undecided unless options.strict.
 #include <cmath>
 #include <string>
 #include <vector>
@@ -67,13 +70,17 @@ struct MapCertificateOptions {
   /// triangles are still checked (and can fail); the certificate counts them
   /// and says which failures lie on them.
   double resolved_normal_angle = M_PI / 3;
+  /// false (default): a check whose failures all lie on unresolved images is
+  /// *undecided* (listed, not failed); true: any failure fails.
+  bool strict = false;
 };
 
 struct MapCertificate {
   /// True when every check below passed.
   bool certified = false;
-  /// One line per failed check (empty when certified).
-  std::vector<std::string> failures;
+  /// One line per failed check (empty when certified), and one per check
+  /// that failed only on unresolved images (MapCertificateOptions::strict).
+  std::vector<std::string> failures, undecided;
 
   int source_vertices = 0, source_triangles = 0, target_vertices = 0, target_triangles = 0;
   /// 1. Points with an invalid face or barycentrics, and the worst values:
@@ -102,8 +109,9 @@ struct MapCertificate {
   double max_inverse_error = 0, max_forward_error = 0;
   int worst_inverse_vertex = -1, worst_forward_vertex = -1;
   int inverse_failures = 0, forward_failures = 0;
-  /// ... of them in (target: the preimage's source triangle; source: the
-  /// vertex's star) an unresolved image.
+  /// ... of them in an unresolved image (target vertex: its preimage's
+  /// source triangle's forward image; source vertex: the inverse's image of
+  /// the target face its image lies on).
   int inverse_failures_unresolved = 0, forward_failures_unresolved = 0;
   double max_inverse_error_mean_edges = 0, max_forward_error_mean_edges = 0;
 
