@@ -33,11 +33,14 @@ class SURFMAP_OT_verify_map(bpy.types.Operator):
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}
         lines = cert["summary"].splitlines()
-        for line in lines[:-1]:
+        verdict = next(i for i, line in enumerate(lines) if "CERTIFIED" in line)
+        for line in lines[:verdict]:            # the figures of every check
             self.report({'INFO'}, line)
-        head = f"'{source.name}' -> '{target.name}': {lines[-1]}"
+        for line in cert["undecided"]:          # failed only where the image is unresolved
+            self.report({'WARNING'}, "undecided: " + line)
+        head = f"'{source.name}' -> '{target.name}': {lines[verdict]}"
         if not cert["certified"]:
-            self.report({'ERROR'}, head + ": " + "; ".join(cert["failures"]))
+            self.report({'ERROR'}, head + " " + "; ".join(cert["failures"]))
             return {'CANCELLED'}
         self.report({'INFO'}, head)
         return {'FINISHED'}
