@@ -17,17 +17,17 @@ bl_info = {
 if "bpy" in locals():
     import importlib
     for _m in ("native", "core", "mapping", "mapjob", "blender_io", "properties", "operators",
-               "map_ops", "panel", "batch_operators"):
+               "map_ops", "verify_operator", "panel", "batch_operators"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
 import bpy  # noqa: E402
 
 from . import (native, core, mapping, mapjob, blender_io, properties, operators,  # noqa: E402,F401
-               map_ops, panel)
+               map_ops, verify_operator, panel)
 from . import batch_operators  # noqa: E402
 
-_modules = (properties, operators, map_ops, panel, batch_operators)
+_modules = (properties, operators, map_ops, verify_operator, panel, batch_operators)
 
 
 def register():

@@ -16,6 +16,7 @@
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/intake.h"
 #include "surfmap/mesh/mesh_io.h"
+#include "surfmap/verify/correspondence_file.h"
 
 namespace surfmap::cli {
 namespace {
@@ -62,7 +63,8 @@ void register_map(CLI::App& app) {
   cmd->add_option("--out", a->out, "MORPH.obj: the source's connectivity at the mapped positions")->required();
   cmd->add_option("--report", a->report, "REPORT.json")->required();
   cmd->add_option("--correspondence", a->correspondence,
-                  "CORR.txt: one line per source vertex, 'target_face b0 b1 b2'");
+                  "CORR.txt: one line per source vertex, 'target_face b0 b1 b2', then after a '# inverse' line one per "
+                  "target vertex, 'source_face b0 b1 b2' (surfmap verify checks it)");
   cmd->add_option("--homotopy", a->homotopy, "Homotopy class (index into the report's candidates; default: lowest energy)");
   cmd->add_option("--base-vertex", a->base_vertex, "Base vertex of the source's system of loops");
   cmd->add_option("--target-base-vertex", a->target_base_vertex, "Base vertex of the target's system of loops");
@@ -222,11 +224,11 @@ void register_map(CLI::App& app) {
     // written atomically: a failure leaves no half-written output.
     std::string corr;
     if (!a->correspondence.empty()) {
-      std::ostringstream s;
-      s << std::setprecision(17);
-      for (const auto& p : m.forward)
-        s << p.face << ' ' << p.barycentric[0] << ' ' << p.barycentric[1] << ' ' << p.barycentric[2] << '\n';
-      corr = s.str();
+      // Forward lines as before, then the inverse section (verify/correspondence_file.h).
+      std::vector<SurfacePoint> forward, inverse;
+      for (const auto& p : m.forward) forward.push_back({p.face, p.barycentric});
+      for (const auto& p : m.inverse) inverse.push_back({p.face, p.barycentric});
+      corr = correspondence_text(forward, inverse);
     }
     if (!a->initial_out.empty() && m.initial_forward.empty())
       throw InputError("--initial-out: this map has no located initial map (genus 0)");

@@ -13,5 +13,6 @@ void register_generate(CLI::App& app);
 void register_map(CLI::App& app);
 void register_domain(CLI::App& app);
 void register_python_commands(CLI::App& app);  // compare, batch
+void register_verify(CLI::App& app);
 
 }  // namespace surfmap::cli

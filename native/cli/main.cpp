@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   surfmap::cli::register_generate(app);
   surfmap::cli::register_domain(app);
   surfmap::cli::register_python_commands(app);
+  surfmap::cli::register_verify(app);
   // SURFMAP_CLI_REGISTER (keep this marker: add one register_* call per line above it)
   try {
     app.parse(argc, argv);

@@ -10,5 +10,6 @@ void bind_topology(pybind11::module_& m);
 void bind_uniformize(pybind11::module_& m);
 void bind_samples(pybind11::module_& m);
 void bind_map(pybind11::module_& m);
+void bind_verify(pybind11::module_& m);
 
 }  // namespace surfmap::python

@@ -8,5 +8,6 @@ PYBIND11_MODULE(_core, m) {
   surfmap::python::bind_map(m);
   surfmap::python::bind_samples(m);
   surfmap::python::bind_uniformize(m);
+  surfmap::python::bind_verify(m);
   // SURFMAP_PY_BIND (keep this marker: add one bind_* call per line above it)
 }

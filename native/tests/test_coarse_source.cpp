@@ -10,6 +10,7 @@
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
+#include "certify_helpers.h"
 
 namespace surfmap {
 namespace {
@@ -105,6 +106,7 @@ void expect_coarse_ranking_matches_exhaustive(const TriMesh& a, const TriMesh& b
   EXPECT_EQ(m.chosen_candidate, ex.chosen_candidate);
   EXPECT_NEAR(m.final_energy, ex.final_energy, 1e-6 * ex.final_energy);
   EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_CERTIFIED_MAP(a, b, m);
   int solved = 0, compared = 0;
   for (size_t k = 0; k < m.candidates.size(); ++k) {
     const HomotopyCandidate &c = m.candidates[k], &e = ex.candidates[k];

@@ -13,6 +13,7 @@
 #include "surfmap/error.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/samples/shapes.h"
+#include "certify_helpers.h"
 
 namespace surfmap {
 namespace {
@@ -63,6 +64,7 @@ TEST(SurfaceMapConcurrency, TwoThreadsGiveTheMapOfOneAndCallBackOnTheCallingThre
   }
   EXPECT_NEAR(m1.final_energy, m2.final_energy, 1e-9 * m1.final_energy);
   EXPECT_EQ(m2.flipped_triangles + m2.degenerate_triangles, 0);
+  EXPECT_CERTIFIED_MAP(p.a, p.b, m2);
   // The initial map (built and located on the other thread with two) and
   // its figures.
   EXPECT_EQ(m1.initial_map.construction, m2.initial_map.construction);

@@ -13,6 +13,7 @@
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
+#include "certify_helpers.h"
 
 namespace surfmap {
 namespace {
@@ -52,6 +53,8 @@ void expect_same_map_from_different_cuts(const TriMesh& a, const TriMesh& b) {
   ASSERT_TRUE(m2.converged);
   EXPECT_EQ(m1.flipped_triangles, 0);
   EXPECT_EQ(m2.flipped_triangles, 0);
+  EXPECT_CERTIFIED_MAP(a, b, m1);
+  EXPECT_CERTIFIED_MAP(a, b, m2);
   // The target's loops are refined (edges split where loops meet), so each
   // cut uniformizes a slightly different triangulation of the target: the
   // optima agree to discretisation (measured ~2e-6..7e-6 relative), not to
@@ -104,6 +107,7 @@ TEST(MapSlivers, GenusFourAndFiveSliverSourcesHaveNoFlips) {
     EXPECT_TRUE(m.converged) << "genus " << g;
     EXPECT_EQ(m.flipped_triangles, 0) << "genus " << g;
     EXPECT_EQ(m.degenerate_triangles, 0) << "genus " << g;
+    EXPECT_CERTIFIED_MAP(a, b, m);
     EXPECT_LT(m.mean_dilatation, 1.5) << "genus " << g;
     for (const auto& p : m.forward) {
       ASSERT_GE(p.face, 0);

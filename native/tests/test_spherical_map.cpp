@@ -12,6 +12,7 @@
 #include "surfmap/error.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/samples/shapes.h"
+#include "certify_helpers.h"
 
 namespace surfmap {
 namespace {
@@ -39,6 +40,7 @@ void expect_valid_genus0_map(const SurfaceMapResult& m, const TriMesh& source, c
   EXPECT_TRUE(m.converged);
   EXPECT_EQ(m.flipped_triangles, 0);
   EXPECT_EQ(m.degenerate_triangles, 0);
+  EXPECT_CERTIFIED_MAP(source, target, m);
   ASSERT_EQ(static_cast<int>(m.forward.size()), source.num_vertices());
   ASSERT_EQ(static_cast<int>(m.inverse.size()), target.num_vertices());
   for (const auto* side : {&m.forward, &m.inverse}) {

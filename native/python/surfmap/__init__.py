@@ -28,3 +28,24 @@ def system_of_loops(V, F, base_vertex=-1, refine=True):
     Raises InputError for an invalid mesh or genus 0.
     """
     return _core.system_of_loops(V, F, base_vertex=base_vertex, refine=refine)
+
+
+def verify(Vs, Fs, Vt, Ft, forward, inverse=None, barycentric_tolerance=1e-9, area_tolerance=0.25,
+           inverse_tolerance=1.0, strict=False):
+    """Independent certificate that a map Vs/Fs -> Vt/Ft is a bijection (docs/verification.md).
+
+    forward: {'face' (n_s,), 'barycentric' (n_s, 3)} per source vertex, inverse: the same per
+    target vertex; or pass surface_map's result dict as `forward` (its 'forward' and 'inverse'
+    are used). Shares no code with the solver beyond mesh intake. Returns a dict with
+    'certified', 'failures' (one line per failed check), 'undecided' (checks that failed only on
+    unresolved images, where the target's normals at an image triangle's corners differ by more than
+    60 degrees; failures with strict=True), 'summary' (the printed certificate)
+    and the figures of every check ('negative_triangles', 'winding_failures', 'area_ratio',
+    'degree', 'max_inverse_error', ...). Raises InputError for unusable meshes or arrays.
+    """
+    if inverse is None:
+        if not (isinstance(forward, dict) and "forward" in forward and "inverse" in forward):
+            raise InputError("verify: pass forward and inverse, or a surface_map result")
+        forward, inverse = forward["forward"], forward["inverse"]
+    return _core.verify(Vs, Fs, Vt, Ft, forward, inverse, barycentric_tolerance=barycentric_tolerance,
+                        area_tolerance=area_tolerance, inverse_tolerance=inverse_tolerance, strict=strict)

@@ -25,6 +25,7 @@ def test_extremal_map_between_tori(pair):
     r = surfmap.surface_map(Vs, Fs, Vt, Ft)
     K = modulus(1.0, 0.5) / modulus(1.5, 0.5)
     assert r["flipped_triangles"] == 0 and r["converged"]
+    assert surfmap.verify(Vs, Fs, Vt, Ft, r)["certified"]
     assert abs(r["distortion"]["mean"] / K - 1) < 0.01
     fwd = r["forward"]
     assert fwd["face"].shape == (len(Vs),) and fwd["barycentric"].shape == (len(Vs), 3)
@@ -113,9 +114,12 @@ def test_cli_map_writes_outputs(tmp_path, cli, pair):
                 "flipped_triangles", "homotopy", "time_s"):
         assert key in report
     assert report["flipped_triangles"] == 0 and report["genus"] == 1
+    v = cli("verify", src, dst, "--correspondence", corr)
+    assert v.returncode == 0 and "\nCERTIFIED:" in v.stdout, v.stdout + v.stderr
     assert {"initial", "final", "history"} <= set(report["energy"])
     lines = corr.read_text().splitlines()
-    assert len(lines) == len(Vs)
+    # forward lines first (the original format), then the inverse section (docs/verification.md)
+    assert len(lines) == len(Vs) + 1 + len(Vt) and lines[len(Vs)].startswith("# inverse")
     face, *bary = lines[0].split()
     assert 0 <= int(face) < len(Ft) and abs(sum(map(float, bary)) - 1) < 1e-9
     morph = surfmap.load_mesh(str(out))
@@ -171,6 +175,7 @@ def test_genus0_conformal_copy_and_landmarks():
     Vt, Ft = surfmap.shapes.sphere_inversion(Vs, Fs, np.array([3.0, 0.5, -0.4]), 2.5)
     r = surfmap.surface_map(Vs, Fs, Vt, Ft)
     assert r["genus"] == 0 and r["converged"] and r["flipped_triangles"] == 0
+    assert surfmap.verify(Vs, Fs, Vt, Ft, r)["certified"]
     # Conformally equivalent copies: D' close to 1 (first-order discretisation error at 642 vertices).
     assert 1.0 <= r["distortion"]["mean"] < 1.08
     fwd = r["forward"]
@@ -181,6 +186,7 @@ def test_genus0_conformal_copy_and_landmarks():
     pairs = np.array([[0, 40], [111, 300], [500, 20]])
     r3 = surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=pairs)
     assert r3["flipped_triangles"] == 0
+    assert surfmap.verify(Vs, Fs, Vt, Ft, r3)["certified"]
     assert np.abs(r3["forward"]["position"][pairs[:, 0]] - Vt[pairs[:, 1]]).max() < 1e-9
     assert r3["landmark_error"] < 1e-9
     # Four landmarks that agree with the free map (each source vertex to the target vertex nearest its image).
@@ -189,6 +195,7 @@ def test_genus0_conformal_copy_and_landmarks():
     r4 = surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=np.stack([src, dst], 1))
     worst = np.linalg.norm(r4["forward"]["position"][src] - Vt[dst], axis=1).max()
     assert r4["flipped_triangles"] == 0
+    assert surfmap.verify(Vs, Fs, Vt, Ft, r4)["certified"]
     # The least-squares fit does about as well as the free map already did on these pairs.
     free_error = np.linalg.norm(fwd["position"][src] - Vt[dst], axis=1).max()
     assert r4["landmark_error"] == pytest.approx(worst) and 0 < worst < 1.5 * free_error
@@ -222,6 +229,7 @@ def test_landmarks_genus1_hit_exactly(pair):
     dst = np.array([np.linalg.norm(Vt - free["forward"]["position"][i], axis=1).argmin() for i in src])
     r = surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=np.stack([src, dst], 1))
     assert r["flipped_triangles"] == 0 and r["landmark_error"] < 1e-9
+    assert surfmap.verify(Vs, Fs, Vt, Ft, r)["certified"]
     assert np.abs(r["forward"]["position"][src] - Vt[dst]).max() < 1e-9
     assert r["energy"]["final"] >= free["energy"]["final"] * (1 - 1e-12)
     with pytest.raises(surfmap.InputError, match="already landmark"):
@@ -290,6 +298,7 @@ def test_polygon_flattening_with_a_fold_is_repaired_locally():
     assert im["iterations"] == 0
     assert r["initial_flipped_triangles"] == 0
     assert r["flipped_triangles"] == 0
+    assert surfmap.verify(*a, *b, r)["certified"]
 
 
 def test_genus2_initial_map_construction_and_location(tmp_path, cli):
@@ -367,6 +376,7 @@ def test_source_weights_kwarg():
     intrinsic = surfmap.surface_map(*a, *b, source_weights="intrinsic")
     assert auto["source_weights"] == intrinsic["source_weights"] != own["source_weights"]
     assert own["flipped_triangles"] == 0
+    assert surfmap.verify(*a, *b, own)["certified"]
     assert abs(auto["energy"]["final"] - intrinsic["energy"]["final"]) <= 1e-9 * auto["energy"]["final"]
     assert abs(own["energy"]["final"] - auto["energy"]["final"]) > 1e-6 * auto["energy"]["final"]
     with pytest.raises(surfmap.InputError, match="source_weights"):
@@ -437,6 +447,7 @@ def test_genus2_classes_are_ranked_with_the_landmarks_held():
     # Pruned classes could not have won.
     assert all(cands[i]["landmark_lower_bound"] >= held[chosen] for i in solved if math.isnan(cands[i]["landmark_energy"]))
     assert r["flipped_triangles"] == 0 and r["landmark_method"] in ("pinned", "barrier continuation")
+    assert surfmap.verify(*a, *b, r)["certified"]
     assert r["landmark_solves"] == 1 + r["landmark_steps"] and r["landmark_rings"] == [0] * len(lm)
     assert abs(r["energy"]["final"] - held[chosen]) <= 1e-8 * held[chosen]
     # Genus 1 ranks the same way (every class has a bound: the plain pins of its optimum).

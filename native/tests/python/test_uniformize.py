@@ -105,6 +105,34 @@ def test_genus2_generators_and_relation():
         # lifted loops end at g(c0), a copy of x in a neighbouring tile: at a
         # positive distance from c0 and never NaN
         assert np.isfinite(d).all()
+    # ... and that end is a copy of the base vertex: carried back towards the layout by
+    # the generators and their inverses (greedily, while the distance to the layout's
+    # centre drops) it lands on one of the layout's copies of the base vertex.
+    mats = [su11(x) for x in gens]
+    moves = mats + [np.linalg.inv(M) for M in mats]
+    centre = L["disk_positions"].mean()
+
+    def mob(M, z):
+        return (M[0, 0] * z + M[0, 1]) / (M[1, 0] * z + M[1, 1])
+
+    def hd(z, w):
+        return _core.hyperbolic_distance(np.array([z]), np.array([w]))[0]
+
+    def reduced_distance_to_base_copies(p):
+        for _ in range(200):
+            q = min((mob(h, p) for h in moves), key=lambda z: hd(z, centre))
+            if not hd(q, centre) < hd(p, centre) - 1e-12:
+                break
+            p = q
+        return min(hd(p, c) for c in base_copies)
+
+    c0 = L["base_corner"]
+    for M in mats:
+        assert hd(mob(M, c0), c0) > 0.1
+        assert reduced_distance_to_base_copies(mob(M, c0)) < 1e-6
+    # the check can fail: the image of another vertex's copy is not a copy of the base vertex
+    other = L["disk_positions"][L["disk_vertex_origin"] != res["base_vertex"]][0]
+    assert reduced_distance_to_base_copies(mob(mats[0], other)) > 1e-3
 
 
 def test_hyperbolic_helpers():
