@@ -448,6 +448,7 @@ def _modal_operator(job, notes):
 
     class Driven:
         modal, _finish, _cleanup, _status = Op.modal, Op._finish, Op._cleanup, Op._status
+        _redraw, SLICE, TICK = Op._redraw, Op.SLICE, Op.TICK
 
         def __init__(self):
             self._job, self._timer, self._notes, self.reports = job, object(), notes, []
@@ -686,14 +687,20 @@ def test_far_genus2_landmark_is_held_by_the_barrier_continuation():
     assert np.linalg.norm(p - Vb[t]) < 1e-6
     # the panel shows the line under the Landmarks setting, and the held energies
     from surface_map import panel
-    from test_addon import _FakePanel
+    from test_addon import _FakePanel, draw_all_panels
     fake = _FakePanel()
-    panel.SURFMAP_PT_main.draw(fake, bpy.context)
-    labels = [x[1] for x in fake.log if x[0] == "label"]
+    fake.log = draw_all_panels()
     at = fake.log.index(("prop", "landmark_mode"))
     shown = " ".join(x[1] for x in fake.log[at + 1:at + 5] if x[0] == "label")
     assert "barrier continuation in" in shown, fake.log[at:at + 5]
-    assert any(f"* {settings.chosen_candidate}: E = " in x and "(landmarks: " in x for x in labels), labels
+    # the pairings' list: the chosen one ticked, its row with the energy held with landmarks
+    assert ("list", "SURFMAP_UL_candidates", "candidates") in fake.log
+    chosen = settings.candidates[settings.chosen_candidate]
+    row = _FakePanel()
+    panel.SURFMAP_UL_candidates.draw_item(None, bpy.context, row.layout, settings, chosen, 0,
+                                          settings, "candidate_index")
+    labels = [x[1] for x in row.log if x[0] == "label"]
+    assert labels[0] == f"#{settings.chosen_candidate}" and " lm " in labels[1], labels
     # a run without landmarks clears the line
     settings.landmark_mode = 'NONE'
     res, err = run("compute_map")

@@ -3,7 +3,7 @@
 import bpy
 import numpy as np
 
-from . import core
+from . import cut_loops
 
 OWNER_KEY = "surfmap_loops_of"      # custom property on the curve objects we create
 SEAM_LAYER = "surfmap_loop_seam"     # bool edge attribute: the seams this add-on marked
@@ -137,7 +137,7 @@ def add_loop_curves(scene, obj, curves, bevel):
         sp.points.foreach_set("co", co.ravel())
         sp.use_cyclic_u = True
         k = int(name[1:]) * 2 - 2 + (0 if name[0] == "a" else 1)
-        cu.materials.append(loop_material(name, core.pair_colour(k)))
+        cu.materials.append(loop_material(name, cut_loops.pair_colour(k)))
         ob = bpy.data.objects.new(f"{obj.name} {name}", cu)
         ob[OWNER_KEY] = obj.name
         coll.objects.link(ob)
@@ -418,10 +418,10 @@ def refined_morph_object(source_obj, src, tgt, image, image_face, morph_matrix, 
     from mathutils import Vector
     from mathutils.bvhtree import BVHTree
 
-    from . import mapjob, mapping
+    from . import geometry, morph
     Vt, Ft = tgt["V"], tgt["F"]
     bvh = BVHTree.FromPolygons(Vt.tolist(), Ft.tolist(), all_triangles=True)
-    FN = mapping.face_normals(Vt, Ft)
+    FN = geometry.face_normals(Vt, Ft)
     FN /= np.maximum(np.linalg.norm(FN, axis=1), 1e-300)[:, None]
 
     def project(P):
@@ -434,7 +434,7 @@ def refined_morph_object(source_obj, src, tgt, image, image_face, morph_matrix, 
         return pos, nrm
     e = np.concatenate([Ft[:, [0, 1]], Ft[:, [1, 2]], Ft[:, [2, 0]]])
     max_len = float(np.median(np.linalg.norm(Vt[e[:, 0]] - Vt[e[:, 1]], axis=1)))
-    r = mapping.refine_for_morph(src["V"], src["F"], image, FN[image_face], project, max_len,
+    r = morph.refine_for_morph(src["V"], src["F"], image, FN[image_face], project, max_len,
                                  max_bend=max_bend, rounds=rounds)
     for ob in list(bpy.data.objects):
         if ob.get(REFINED_KEY) == source_obj.name:
@@ -446,7 +446,7 @@ def refined_morph_object(source_obj, src, tgt, image, image_face, morph_matrix, 
     me = bpy.data.meshes.new(name)
     me.from_pydata(r["V"].tolist(), [], r["F"].tolist())
     for uv_name, loop_uv in src["uv_layers"].items():
-        cu = mapjob.corner_uvs(src, loop_uv)[r["origin_face"]]          # (m',3,2)
+        cu = src.corner_uvs(loop_uv)[r["origin_face"]]          # (m',3,2)
         uv = np.einsum("tkj,tjx->tkx", r["origin_bary"], cu)
         layer = me.uv_layers.new(name=uv_name)
         layer.data.foreach_set("uv", uv.astype(np.float32).ravel())
@@ -468,7 +468,28 @@ def refined_morph_object(source_obj, src, tgt, image, image_face, morph_matrix, 
         coll.objects.link(ob)
     ob.shape_key_add(name="Basis", from_mix=False)
     key = ob.shape_key_add(name=key_name, from_mix=False)
-    from .mapping import apply_matrix
+    from .geometry import apply_matrix
     key.data.foreach_set("co", apply_matrix(morph_matrix, r["image"]).astype(np.float32).ravel())
     key.value = 0.0
     return ob, r
+
+
+RAW_PREFIX = "surfmap_raw "   # FLOAT attribute: the values behind a colour output (recolouring)
+
+
+def write_raw_values(mesh, colour_name, values, domain):
+    """The values a colour attribute was made from ('FACE' or 'POINT'), so the legend's range
+    can be changed later without a solve. Infinite values (flipped faces) are kept."""
+    name = RAW_PREFIX + colour_name
+    write_attribute(mesh, name, np.asarray(values, dtype=np.float32), 'FLOAT', domain)
+    _remember(mesh, "raw", name)
+
+
+def read_raw_values(mesh, colour_name):
+    """(values, domain) written by write_raw_values, or None."""
+    a = mesh.attributes.get(RAW_PREFIX + colour_name)
+    if a is None or a.data_type != 'FLOAT':
+        return None
+    v = np.empty(len(a.data), dtype=np.float32)
+    a.data.foreach_get("value", v)
+    return v.astype(np.float64), a.domain

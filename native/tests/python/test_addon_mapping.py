@@ -1,18 +1,25 @@
-"""The add-on's bpy-free maths (addon/surface_map/mapping.py), imported by file, outside
-Blender: UV transfer across seams, distortion measures, colour scales, landmarks, fingerprints."""
-import importlib.util
+"""The add-on's bpy-free modules (addon/surface_map: geometry, distortion, colours, uv_transfer,
+landmarks, morph, side, map_job), imported as a package outside Blender (its __init__ skips the
+bpy half when bpy is missing): UV transfer across seams, distortion measures, colour scales,
+landmarks, fingerprints, the map job's options and its sliced outputs."""
+import importlib
 import math
 import pathlib
+import sys
+import types
 
 import numpy as np
 import pytest
 
 import surfmap
 
-_path = pathlib.Path(__file__).resolve().parents[3] / "addon" / "surface_map" / "mapping.py"
-_spec = importlib.util.spec_from_file_location("surfmap_addon_mapping", _path)
-M = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(M)
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[3] / "addon"))
+_MODULES = ("geometry", "distortion", "colours", "uv_transfer", "landmarks", "morph", "side",
+            "map_job")
+_mods = {name: importlib.import_module(f"surface_map.{name}") for name in _MODULES}
+# One namespace with every name of the bpy-free modules (the tests below predate the split).
+M = types.SimpleNamespace(**{k: v for m in _mods.values() for k, v in vars(m).items()
+                             if not k.startswith("__")})
 
 
 def torus(R, r, n, m):
