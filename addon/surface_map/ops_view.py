@@ -74,8 +74,12 @@ def _save_view(context):
 
 
 def _set_shading(context, color_type):
+    """Solid shading coloured by `color_type`; 'ATTRIBUTE' (Blender 4.x) is 'VERTEX' in 3.x."""
     for _, space in _views(context):
         space.shading.type = 'SOLID'
+        items = space.shading.bl_rna.properties["color_type"].enum_items.keys()
+        if color_type == 'ATTRIBUTE' and color_type not in items:
+            color_type = 'VERTEX'
         space.shading.color_type = color_type
 
 
