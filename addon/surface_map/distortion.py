@@ -69,11 +69,8 @@ def conformal_factor(V_src, F_src, image):
     a_s = face_areas(V_src, F)
     a_i = face_areas(image, F)
     n = len(V_src)
-    ring_s = np.zeros(n)
-    ring_i = np.zeros(n)
-    for k in range(3):
-        np.add.at(ring_s, F[:, k], a_s)
-        np.add.at(ring_i, F[:, k], a_i)
+    ring_s = np.bincount(F.reshape(-1), np.repeat(a_s, 3), minlength=n)
+    ring_i = np.bincount(F.reshape(-1), np.repeat(a_i, 3), minlength=n)
     scale = a_s.sum() / max(a_i.sum(), 1e-300)
     ring_s[ring_s == 0] = 1e-300
     return ring_i / ring_s * scale

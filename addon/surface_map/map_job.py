@@ -287,13 +287,18 @@ class OutputComputation:
         self._total = 2 + len(source["uv_layers"]) * ("UV" in self.outputs) \
             + 3 * ("DISTORTION" in self.outputs)
         self._done = 0
+        self.slice_times = []   # (stage before the slice, seconds): the UI pauses this long
 
     def step(self):
+        t = time.time()
+        stage = self.stage
         try:
             self.stage = next(self._plan)
         except StopIteration:
             self.fraction = 1.0
             return False
+        finally:
+            self.slice_times.append((stage, time.time() - t))
         self.fraction = min(self._done / max(self._total, 1), 1.0)
         return True
 

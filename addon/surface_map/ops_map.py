@@ -356,7 +356,7 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
     _job = None
     _timer = None
     TICK = 0.1        # seconds between the modal timer's ticks
-    SLICE = 0.06      # seconds of output work per tick (keeps the UI drawing)
+    SLICE = 0.05      # seconds of output work per tick (keeps the UI drawing)
 
     @classmethod
     def poll(cls, context):
@@ -404,13 +404,20 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
         return {'RUNNING_MODAL'}
 
     def _status(self, context, text):
+        # The status bar only: a header text on the 3D view redraws the whole view on every
+        # tick (seconds per frame on a software-rendered, busy machine).
         if context.workspace is not None:
             context.workspace.status_text_set(text)
-        if context.area is not None:
-            context.area.header_text_set(text)
+        if text is None and context.area is not None:
+            context.area.header_text_set(None)   # (clears one set by an older version)
 
-    def _redraw(self, context):
-        """The sidebar's progress bar reads the job; its regions are redrawn every tick."""
+    def _redraw(self, context, every=0.0):
+        """The sidebar's progress bar reads the job: its regions are redrawn (at most every
+        `every` seconds: with the sidebar over the view, that redraws the view too)."""
+        now = time.time()
+        if now - getattr(self, "_t_redraw", 0.0) < every:
+            return
+        self._t_redraw = now
         screen = getattr(context, "screen", None)
         for area in (screen.areas if screen is not None else ()):
             if area.type == 'VIEW_3D':
@@ -434,13 +441,15 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
         if event.type == 'ESC' and event.value == 'PRESS':
             job.cancel = True
         if event.type == 'TIMER':
-            getattr(job, "ticks", []).append(time.time())
+            t_in = time.time()
+            getattr(job, "ticks", []).append(t_in)
             if job.done() and not job.cancel and job.error is None:
                 job.step_outputs(self.SLICE)    # one slice per tick: Blender keeps drawing
             context.window_manager.progress_update(int(100 * job.fraction))
             self._status(context, job.status_text() if not job.cancel else
                          "Surface Map: cancelling...")
-            self._redraw(context)
+            self._redraw(context, every=0.5)
+            job.tick_work = getattr(job, "tick_work", []) + [(t_in, time.time() - t_in)]
         if job.done() and (job.cancel or job.error is not None or job.outputs is not None
                            or job.result is None):
             self._cleanup(context)

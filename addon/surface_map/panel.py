@@ -214,9 +214,9 @@ def draw_outputs(layout, settings, context):
     col = layout.column(align=True)
     col.label(text="Again from the stored map:")
     row = col.row(align=True)
-    row.operator("surfmap.transfer_uvs", text="UVs", icon='UV')
-    row.operator("surfmap.create_morph", text="Morph", icon='SHAPEKEY_DATA')
-    row.operator("surfmap.paint_distortion", text="Colours", icon='COLOR')
+    row.operator("surfmap.transfer_uvs", text="UVs")
+    row.operator("surfmap.create_morph", text="Morph")
+    row.operator("surfmap.paint_distortion", text="Colours")
 
 
 class SURFMAP_PT_result(_SubPanel, bpy.types.Panel):

@@ -6,6 +6,7 @@ corner_uv (m,3,2) holds the UV of every triangle corner of the source's triangle
 """
 import heapq
 import math
+import time
 
 import numpy as np
 
@@ -246,9 +247,11 @@ class UVTransfer:
             pass
         return self.result
 
-    def iter_polygon_uvs(self, loop_face, loop_bary, loop_start, loop_total, chunk=64):
-        """polygon_uvs in slices: yields the fraction done after every `chunk` polygons that
-        need a walk (so a UI timer can run between slices); the answer is then self.result."""
+    def iter_polygon_uvs(self, loop_face, loop_bary, loop_start, loop_total,
+                         slice_seconds=0.04):
+        """polygon_uvs in slices: yields the fraction done about every `slice_seconds` of the
+        walks across seams (so a UI timer can run between slices); the answer is then
+        self.result."""
         lf = np.asarray(loop_face, dtype=np.int64)
         lb = np.asarray(loop_bary, dtype=np.float64)
         start = np.asarray(loop_start, dtype=np.int64)
@@ -270,9 +273,11 @@ class UVTransfer:
         straddling = np.zeros(P, dtype=bool)
         isl = self.island
         todo = np.nonzero(~poly_ok)[0].tolist()
+        t_slice = time.perf_counter()
         for done, p in enumerate(todo):
-            if done % chunk == chunk - 1:
+            if time.perf_counter() - t_slice > slice_seconds:
                 yield done / len(todo)
+                t_slice = time.perf_counter()
             s, n = int(start[p]), int(total[p])
             faces = lf[s:s + n].tolist()
             islands = [int(isl[f]) for f in faces]

@@ -1,0 +1,263 @@
+"""Drives the Surface Map sidebar in a real Blender window and takes screenshots (a manual UI
+check, not a test): the sample pair double_torus_g2 -> vase_g2, Compute Map as the button runs
+it (modal, worker thread, outputs in timer slices) while an app timer measures how often the UI
+ticks, Ctrl+Z / Ctrl+Shift+Z on the outputs, then each Show button.
+
+  Xvfb :99 -screen 0 1600x900x24 &
+  blender -b --factory-startup --python-expr \
+      "import bpy; bpy.ops.wm.save_as_mainfile(filepath='/tmp/empty.blend')"
+  DISPLAY=:99 SURFMAP_PYTHONPATH=build/python blender --factory-startup \
+      --window-geometry 0 0 1600 900 /tmp/empty.blend --python scripts/ui_check.py -- --out DIR
+(opening a file skips the splash screen)
+
+Screenshots (ImageMagick's `import -window root`) go to DIR (default /tmp/surfmap_ui); the
+measurements are printed as lines starting with 'UI-CHECK'.
+"""
+import os
+import subprocess
+import sys
+import time
+
+import bpy
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+sys.path.insert(0, os.path.join(REPO, "addon"))
+argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+OUT = argv[argv.index("--out") + 1] if "--out" in argv else "/tmp/surfmap_ui"
+os.makedirs(OUT, exist_ok=True)
+
+
+def log(*a):
+    print("UI-CHECK", *a)
+    sys.stdout.flush()
+
+
+def shot(name):
+    path = os.path.join(OUT, name)
+    subprocess.run(["import", "-window", "root", path], check=False)
+    log("screenshot", path)
+
+
+def view3d():
+    win = bpy.context.window_manager.windows[0]
+    for area in win.screen.areas:
+        if area.type == 'VIEW_3D':
+            region = next(r for r in area.regions if r.type == 'WINDOW')
+            return win, area, region
+    raise RuntimeError("no 3D view")
+
+
+def call(op, *args, **kw):
+    win, area, region = view3d()
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        return op(*args, **kw)
+
+
+def xdo(*args):
+    subprocess.run(["xdotool", *args], check=False)
+
+
+def redraw_all():
+    """Every area redrawn, and the pointer over the sidebar (panels settle on redraws)."""
+    win, area, _ = view3d()
+    for a in win.screen.areas:
+        a.tag_redraw()
+    ui = next(r for r in area.regions if r.type == 'UI')
+    xdo("mousemove", str(ui.x + ui.width // 2), str(win.height - (ui.y + ui.height // 2)))
+
+
+def focus_blender():
+    """Keyboard focus on Blender's window (Xvfb runs no window manager to give it)."""
+    ids = subprocess.run(["xdotool", "search", "--name", "Blender"], capture_output=True,
+                         text=True).stdout.split()
+    for wid in ids:
+        xdo("windowfocus", wid)
+
+
+def setup():
+    import addon_utils
+    addon_utils.enable("surface_map", default_set=True, handle_error=None)
+    from surface_map import native
+    sm = native.load()
+    for ob in list(bpy.data.objects):
+        bpy.data.objects.remove(ob, do_unlink=True)
+    import numpy as np
+    obs = []
+    for name, x in (("double_torus_g2", -1.6), ("vase_g2", 1.6)):
+        V, polys = sm.read_polygon_soup(os.path.join(REPO, "samples", "meshes", name + ".obj"))
+        V = np.asarray(V, dtype=float)
+        V = (V - V.mean(axis=0)) / np.ptp(V, axis=0).max() * 2.4
+        me = bpy.data.meshes.new(name)
+        me.from_pydata(V.tolist(), [], [list(p) for p in polys])
+        me.polygons.foreach_set("use_smooth", [True] * len(me.polygons))
+        me.update()
+        ob = bpy.data.objects.new(name, me)
+        ob.location.x = x
+        if name.startswith("double"):
+            ob.rotation_euler.x = 1.5708
+        bpy.context.scene.collection.objects.link(ob)
+        obs.append(ob)
+    for ob in obs:
+        ob.select_set(True)
+    bpy.context.view_layer.objects.active = obs[1]
+    win, area, region = view3d()
+    space = area.spaces.active
+    space.show_region_ui = True
+    space.overlay.show_floor = False
+    ui = next(r for r in area.regions if r.type == 'UI')
+    log("sidebar width px", ui.width, "window", win.width, win.height)
+
+
+def open_tab():
+    """Clicks the sidebar's 'Surface Map' tab (Blender 3.4 has no Python API for the tab):
+    the tabs are a column at the sidebar's right edge, ours is the last one."""
+    win, area, _ = view3d()
+    ui = next(r for r in area.regions if r.type == 'UI')
+    x = ui.x + ui.width - 10
+    y_top = win.height - (ui.y + ui.height)
+    xdo("mousemove", str(x), str(y_top + 195))
+    xdo("click", "1")
+    call(bpy.ops.view3d.view_axis, type='FRONT')
+    call(bpy.ops.view3d.view_selected)
+
+
+STATE = {"step": 0, "ticks": [], "t_start": None, "progress_shot": False}
+
+
+def count_draw():
+    STATE.setdefault("draws", []).append(time.time())
+
+
+def ticker():
+    from surface_map import map_job
+    job = map_job.ACTIVE.get("job")
+    STATE["ticks"].append(time.time())
+    STATE.setdefault("stages", []).append(job.stage if job is not None else "-")
+    if job is not None and job._slices is not None:
+        STATE["slices"] = job._slices.slice_times
+    if job is not None:
+        STATE["tick_work"] = getattr(job, "tick_work", [])
+    return 0.1
+
+
+def tick_report():
+    from surface_map import map_job  # noqa: F401
+    t = STATE["ticks"]
+    t0, t1 = STATE["t_start"], STATE["t_end"]
+    inside = [x for x in t if t0 <= x <= t1]
+    gaps = [b - a for a, b in zip(inside, inside[1:])]
+    worst_rate = None
+    if t1 - t0 >= 1.0:
+        rates = [sum(1 for x in inside if s <= x < s + 1.0) for s in
+                 [t0 + 0.5 * k for k in range(int((t1 - t0 - 1.0) / 0.5) + 1)]]
+        worst_rate = min(rates)
+    st = STATE.get("stages", [])
+    for k in range(1, len(t)):
+        if t0 <= t[k] <= t1 and t[k] - t[k - 1] > 0.45:
+            log(f"  gap {t[k] - t[k - 1]:.2f}s between stages '{st[k - 1]}' and '{st[k]}'")
+    dr = [x for x in STATE.get("draws", []) if t0 <= x <= t1]
+    log("  3D view draws during the compute:", len(dr), "at (s after start)",
+        [round(x - t0, 1) for x in dr][:40])
+    tw = STATE.get("tick_work", [])
+    log("  modal ticks:", len(tw), "longest work in one tick %.3fs" % max(w for _, w in tw),
+        "longest gap between ticks %.3fs" % max(b[0] - a[0] for a, b in zip(tw, tw[1:])))
+    slow = sorted(STATE.get("slices", []), key=lambda x: -x[1])[:5]
+    log("  slowest output slices:", [(a, round(b, 3)) for a, b in slow])
+    log(f"compute wall {t1 - t0:.1f}s, timer ticks {len(inside)}, longest gap "
+        f"{max(gaps) if gaps else float('nan'):.3f}s, lowest ticks in any 1 s window "
+        f"{worst_rate}")
+
+
+def step():
+    s = STATE["step"]
+    if s == 0:
+        setup()
+        STATE["step"] = 1
+        return 1.0
+    settings = bpy.context.scene.surfmap
+    from surface_map import map_job
+    if s == 1:
+        open_tab()
+        shot("01_panel_before.png")
+    elif s == 2:
+        bpy.app.timers.register(ticker, first_interval=0.1)
+        bpy.types.SpaceView3D.draw_handler_add(count_draw, (), 'WINDOW', 'POST_PIXEL')
+        STATE["t_start"] = time.time()
+        r = call(bpy.ops.surfmap.compute_map, 'INVOKE_DEFAULT')
+        log("compute_map invoke ->", r)
+    elif s == 3:
+        job = map_job.ACTIVE.get("job")
+        if job is not None:
+            if job.fraction > 0.3 and not STATE["progress_shot"]:
+                shot("02_progress.png")
+                STATE["progress_shot"] = True
+            return 0.2     # stay on this step
+        STATE["t_end"] = time.time()
+        tick_report()
+        log("summary:", [(r.name, r.value) for r in settings.summary_rows])
+        log("max tick gap seen by the operator", settings.max_tick_gap)
+    elif s == 4:
+        shot("03_result_panel.png")
+    elif s == 5:
+        win, area, region = view3d()
+        cx, cy = area.x + area.width // 3, win.height - (area.y + area.height // 2)
+        xdo("mousemove", str(cx), str(cy))
+        focus_blender()
+        xdo("key", "ctrl+z")
+    elif s == 6:
+        t = bpy.data.objects.get("vase_g2")
+        gone = t is not None and t.data.attributes.get("surfmap_map_face") is None \
+            and t.data.color_attributes.get("surfmap dilatation") is None \
+            and not t.data.uv_layers.get("surfmap surfmap box projection") \
+            and not any(u.name.startswith("surfmap ") for u in t.data.uv_layers)
+        log("after Ctrl+Z the outputs are gone:", gone)
+        shot("04_after_undo.png")
+        xdo("key", "ctrl+shift+z")
+    elif s == 7:
+        t = bpy.data.objects.get("vase_g2")
+        back = t is not None and t.data.attributes.get("surfmap_map_face") is not None
+        log("after Ctrl+Shift+Z the outputs are back:", back)
+    elif s == 8:
+        r = call(bpy.ops.surfmap.show_output, what='COLOURS',
+                 attribute=map_job.DILATATION_COLOURS)
+        log("show D' ->", r)
+    elif s == 9:
+        shot("05_colours_dilatation.png")
+        call(bpy.ops.surfmap.show_output, what='COLOURS', attribute=map_job.CONFORMAL_COLOURS)
+    elif s == 10:
+        shot("06_colours_area.png")
+        call(bpy.ops.surfmap.show_output, what='TEXTURE')
+    elif s == 11:
+        shot("07_texture.png")
+        call(bpy.ops.surfmap.show_output, what='MORPH')
+    elif s == 12:
+        shot("08_morph_half.png")
+        call(bpy.ops.surfmap.show_output, what='BACK')
+    elif s == 13:
+        shot("09_back.png")
+        call(bpy.ops.surfmap.show_cut_loops)
+    elif s == 14:
+        shot("10_cut_loops.png")
+    else:
+        bpy.app.timers.unregister(ticker) if bpy.app.timers.is_registered(ticker) else None
+        log("done")
+        call(bpy.ops.wm.quit_blender)
+        return None
+    STATE["step"] = s + 1
+    redraw_all()
+    return 4.0
+
+
+def guarded_step():
+    try:
+        return step()
+    except Exception:
+        import traceback
+        traceback.print_exc()
+        log("FAILED at step", STATE["step"])
+        call(bpy.ops.wm.quit_blender)
+        return None
+
+
+bpy.app.timers.register(guarded_step, first_interval=2.0)
