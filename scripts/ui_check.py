@@ -3,11 +3,11 @@ check, not a test): the sample pair double_torus_g2 -> vase_g2, Compute Map as t
 it (modal, worker thread, outputs in timer slices) while an app timer measures how often the UI
 ticks, Ctrl+Z / Ctrl+Shift+Z on the outputs, then each Show button.
 
-  Xvfb :99 -screen 0 1600x900x24 &
+  Xvfb :99 -screen 0 1600x1200x24 &  DISPLAY=:99 twm &   (a window manager: focus)
   blender -b --factory-startup --python-expr \
       "import bpy; bpy.ops.wm.save_as_mainfile(filepath='/tmp/empty.blend')"
   DISPLAY=:99 SURFMAP_PYTHONPATH=build/python blender --factory-startup \
-      --window-geometry 0 0 1600 900 /tmp/empty.blend --python scripts/ui_check.py -- --out DIR
+      --window-geometry 0 0 1600 1200 /tmp/empty.blend --python scripts/ui_check.py -- --out DIR
 (opening a file skips the splash screen)
 
 Screenshots (ImageMagick's `import -window root`) go to DIR (default /tmp/surfmap_ui); the
@@ -101,6 +101,7 @@ def setup():
     for ob in obs:
         ob.select_set(True)
     bpy.context.view_layer.objects.active = obs[1]
+    call(bpy.ops.ed.undo_push, message="ui_check: the sample pair")   # Ctrl+Z stops here
     win, area, region = view3d()
     space = area.spaces.active
     space.show_region_ui = True
@@ -116,8 +117,15 @@ def open_tab():
     ui = next(r for r in area.regions if r.type == 'UI')
     x = ui.x + ui.width - 10
     y_top = win.height - (ui.y + ui.height)
+    focus_blender()
     xdo("mousemove", str(x), str(y_top + 195))
-    xdo("click", "1")
+    time.sleep(0.3)
+    xdo("mousemove", str(x + 1), str(y_top + 196))
+    time.sleep(0.3)
+    xdo("mousedown", "1")
+    time.sleep(0.15)
+    xdo("mouseup", "1")
+    log("clicked the sidebar tab at", x, y_top + 196)
     call(bpy.ops.view3d.view_axis, type='FRONT')
     call(bpy.ops.view3d.view_selected)
 
@@ -169,6 +177,13 @@ def tick_report():
         f"{worst_rate}")
 
 
+def outputs_gone():
+    t = bpy.data.objects.get("vase_g2")
+    return t is not None and t.data.attributes.get("surfmap_map_face") is None \
+        and t.data.color_attributes.get("surfmap dilatation") is None \
+        and not any(u.name.startswith("surfmap ") for u in t.data.uv_layers)
+
+
 def step():
     s = STATE["step"]
     if s == 0:
@@ -179,8 +194,11 @@ def step():
     from surface_map import map_job
     if s == 1:
         open_tab()
-        shot("01_panel_before.png")
+        if os.environ.get("UI_CHECK_QUICK"):
+            STATE["step"] = 99
+            return 3.0
     elif s == 2:
+        shot("01_panel_before.png")
         bpy.app.timers.register(ticker, first_interval=0.1)
         bpy.types.SpaceView3D.draw_handler_add(count_draw, (), 'WINDOW', 'POST_PIXEL')
         STATE["t_start"] = time.time()
@@ -198,47 +216,47 @@ def step():
         log("summary:", [(r.name, r.value) for r in settings.summary_rows])
         log("max tick gap seen by the operator", settings.max_tick_gap)
     elif s == 4:
-        shot("03_result_panel.png")
+        open_tab()
     elif s == 5:
+        shot("03_result_panel.png")
+    elif s == 6:
         win, area, region = view3d()
         cx, cy = area.x + area.width // 3, win.height - (area.y + area.height // 2)
         xdo("mousemove", str(cx), str(cy))
         focus_blender()
         xdo("key", "ctrl+z")
-    elif s == 6:
-        t = bpy.data.objects.get("vase_g2")
-        gone = t is not None and t.data.attributes.get("surfmap_map_face") is None \
-            and t.data.color_attributes.get("surfmap dilatation") is None \
-            and not t.data.uv_layers.get("surfmap surfmap box projection") \
-            and not any(u.name.startswith("surfmap ") for u in t.data.uv_layers)
-        log("after Ctrl+Z the outputs are gone:", gone)
-        shot("04_after_undo.png")
-        xdo("key", "ctrl+shift+z")
     elif s == 7:
-        t = bpy.data.objects.get("vase_g2")
-        back = t is not None and t.data.attributes.get("surfmap_map_face") is not None
-        log("after Ctrl+Shift+Z the outputs are back:", back)
+        log("after Ctrl+Z (xdotool) the outputs are gone:", outputs_gone())
     elif s == 8:
+        shot("04_after_undo.png")
+        focus_blender()
+        xdo("key", "ctrl+shift+z")
+    elif s == 9:
+        log("after Ctrl+Shift+Z the outputs are there:", not outputs_gone())
         r = call(bpy.ops.surfmap.show_output, what='COLOURS',
                  attribute=map_job.DILATATION_COLOURS)
         log("show D' ->", r)
-    elif s == 9:
+    elif s == 10:
         shot("05_colours_dilatation.png")
         call(bpy.ops.surfmap.show_output, what='COLOURS', attribute=map_job.CONFORMAL_COLOURS)
-    elif s == 10:
+    elif s == 11:
         shot("06_colours_area.png")
         call(bpy.ops.surfmap.show_output, what='TEXTURE')
-    elif s == 11:
+    elif s == 12:
         shot("07_texture.png")
         call(bpy.ops.surfmap.show_output, what='MORPH')
-    elif s == 12:
+    elif s == 13:
         shot("08_morph_half.png")
         call(bpy.ops.surfmap.show_output, what='BACK')
-    elif s == 13:
+    elif s == 14:
         shot("09_back.png")
         call(bpy.ops.surfmap.show_cut_loops)
-    elif s == 14:
+    elif s == 15:
         shot("10_cut_loops.png")
+    elif s == 99:
+        shot("00_quick.png")
+        STATE["step"] = 100
+        return 0.1
     else:
         bpy.app.timers.unregister(ticker) if bpy.app.timers.is_registered(ticker) else None
         log("done")
