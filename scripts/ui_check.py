@@ -137,6 +137,10 @@ def count_draw():
     STATE.setdefault("draws", []).append(time.time())
 
 
+def count_ui_draw():
+    STATE.setdefault("ui_draws", []).append(time.time())
+
+
 def ticker():
     from surface_map import map_job
     job = map_job.ACTIVE.get("job")
@@ -167,6 +171,8 @@ def tick_report():
     dr = [x for x in STATE.get("draws", []) if t0 <= x <= t1]
     log("  3D view draws during the compute:", len(dr), "at (s after start)",
         [round(x - t0, 1) for x in dr][:40])
+    ud = [x for x in STATE.get("ui_draws", []) if t0 <= x <= t1]
+    log("  sidebar draws during the compute:", len(ud), "at", [round(x - t0, 1) for x in ud][:40])
     tw = STATE.get("tick_work", [])
     log("  modal ticks:", len(tw), "longest work in one tick %.3fs" % max(w for _, w in tw),
         "longest gap between ticks %.3fs" % max(b[0] - a[0] for a, b in zip(tw, tw[1:])))
@@ -201,6 +207,7 @@ def step():
         shot("01_panel_before.png")
         bpy.app.timers.register(ticker, first_interval=0.1)
         bpy.types.SpaceView3D.draw_handler_add(count_draw, (), 'WINDOW', 'POST_PIXEL')
+        bpy.types.SpaceView3D.draw_handler_add(count_ui_draw, (), 'UI', 'POST_PIXEL')
         STATE["t_start"] = time.time()
         r = call(bpy.ops.surfmap.compute_map, 'INVOKE_DEFAULT')
         log("compute_map invoke ->", r)
