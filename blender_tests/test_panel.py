@@ -240,3 +240,41 @@ def test_legend_bar_geometry():
     assert tuple(col[-2][:3]) == tuple(colours.SEQUENTIAL[-1])
     assert [colours.format_tick(v) for v in (1.0, 12.5, 0.0001, -0.3)] == \
         ["1", "12.5", "1e-04", "-0.3"]
+
+
+def test_loop_curves_follow_the_morph():
+    """The cut-loop curves move with the morph's shape key: each point stays the same
+    combination of mesh vertices, so at 1.0 it sits on the morphed mesh, and back at 0."""
+    from surface_map import blender_io
+    a, b = _torus_pair()
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    res, err = helpers.run_op()
+    assert res == {'FINISHED'}, err
+    curves = [o for o in bpy.data.objects if o.get(blender_io.OWNER_KEY) == a.name]
+    assert len(curves) == 2 and all(o.get(blender_io.LOOP_TRI_KEY) for o in curves)
+
+    def points(ob):
+        p = ob.data.splines[0].points
+        co = np.empty(len(p) * 4)
+        p.foreach_get("co", co)
+        return co.reshape(-1, 4)[:, :3]
+    before = [points(o) for o in curves]
+    key = a.data.shape_keys.key_blocks["surfmap to Target"]
+    key.value = 1.0
+    assert blender_io.follow_shape_keys() == 2
+    kco = np.empty(len(a.data.vertices) * 3)
+    key.data.foreach_get("co", kco)
+    kco = kco.reshape(-1, 3)
+    for ob, p0 in zip(curves, before):
+        t = np.asarray(ob[blender_io.LOOP_TRI_KEY]).reshape(-1, 3)
+        w = np.asarray(ob[blender_io.LOOP_BARY_KEY]).reshape(-1, 3)
+        want = np.einsum("ik,ikj->ij", w, kco[t])
+        got = points(ob)
+        assert np.abs(got - want).max() < 1e-5
+        assert np.abs(got - p0).max() > 0.1          # the morph moved them
+    assert blender_io.follow_shape_keys() == 0       # nothing changed: nothing touched
+    key.value = 0.0
+    bpy.context.view_layer.update()                   # the depsgraph handler runs
+    for ob, p0 in zip(curves, before):
+        assert np.abs(points(ob) - p0).max() < 1e-5

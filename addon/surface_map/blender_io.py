@@ -118,13 +118,20 @@ def loops_collection(scene, obj):
     return coll
 
 
-def add_loop_curves(scene, obj, curves, bevel):
+LOOP_TRI_KEY = "surfmap_loop_vertices"    # curve object: 3 mesh vertices per curve point
+LOOP_BARY_KEY = "surfmap_loop_weights"    # ... and their barycentric weights
+LOOP_SIG_KEY = "surfmap_loop_shape"       # the owner's shape-key values the points follow
+
+
+def add_loop_curves(scene, obj, curves, bevel, weights=None):
     """One cyclic poly curve object per loop, named '<object> a1', ..., points in the
-    object's local space and parented to it (so they follow its transform)."""
+    object's local space and parented to it (so they follow its transform). weights: per
+    curve, (vertices (k,3), barycentrics (k,3)) of its points on the mesh, kept on the curve
+    so follow_shape_keys can move the points with the mesh's shape keys (the morph)."""
     remove_loop_curves(obj.name)
     coll = loops_collection(scene, obj)
     made = []
-    for name, pts in curves:
+    for c, (name, pts) in enumerate(curves):
         cu = bpy.data.curves.new(f"{obj.name} {name}", 'CURVE')
         cu.dimensions = '3D'
         cu.bevel_depth = bevel
@@ -140,6 +147,9 @@ def add_loop_curves(scene, obj, curves, bevel):
         cu.materials.append(loop_material(name, cut_loops.pair_colour(k)))
         ob = bpy.data.objects.new(f"{obj.name} {name}", cu)
         ob[OWNER_KEY] = obj.name
+        if weights is not None:
+            ob[LOOP_TRI_KEY] = np.asarray(weights[c][0], dtype=np.int32).ravel().tolist()
+            ob[LOOP_BARY_KEY] = np.asarray(weights[c][1], dtype=np.float64).ravel().tolist()
         coll.objects.link(ob)
         ob.parent = obj
         ob.matrix_parent_inverse.identity()
@@ -493,3 +503,80 @@ def read_raw_values(mesh, colour_name):
     v = np.empty(len(a.data), dtype=np.float32)
     a.data.foreach_get("value", v)
     return v.astype(np.float64), a.domain
+
+
+def _shape_signature(owner):
+    keys = owner.data.shape_keys if owner.type == 'MESH' else None
+    if keys is None:
+        return ""
+    return ";".join(f"{k.name}={k.value:.6f}{'m' if k.mute else ''}" for k in keys.key_blocks)
+
+
+def follow_shape_keys(depsgraph=None):
+    """Moves the loop curves' points with their mesh's shape keys (e.g. the morph slider):
+    each point is a fixed combination of three of the mesh's vertices, evaluated on the mesh
+    with its shape keys. Only curves whose owner's shape-key values changed are touched.
+    Returns the number of curves moved."""
+    moved = 0
+    cache = {}
+    for ob in bpy.data.objects:
+        tri = ob.get(LOOP_TRI_KEY)
+        owner = bpy.data.objects.get(ob.get(OWNER_KEY, "")) if tri is not None else None
+        if owner is None or owner.type != 'MESH' or ob.type != 'CURVE':
+            continue
+        sig = _shape_signature(owner)
+        if ob.get(LOOP_SIG_KEY, "") == sig:
+            continue
+        if owner.name not in cache:
+            me = owner.data
+            co = np.empty(len(me.vertices) * 3)
+            if me.shape_keys is not None:
+                # the shape keys mixed as Blender mixes them (relative to the basis)
+                basis = me.shape_keys.reference_key
+                basis.data.foreach_get("co", co)
+                base = co.reshape(-1, 3).copy()
+                mix = base.copy()
+                for kb in me.shape_keys.key_blocks:
+                    if kb == basis or kb.mute or kb.value == 0.0:
+                        continue
+                    k = np.empty(len(me.vertices) * 3)
+                    kb.data.foreach_get("co", k)
+                    rel = kb.relative_key
+                    r = np.empty(len(me.vertices) * 3)
+                    rel.data.foreach_get("co", r)
+                    mix += kb.value * (k.reshape(-1, 3) - r.reshape(-1, 3))
+                cache[owner.name] = mix
+            else:
+                me.vertices.foreach_get("co", co)
+                cache[owner.name] = co.reshape(-1, 3)
+        X = cache[owner.name]
+        t = np.asarray(tri, dtype=np.int64).reshape(-1, 3)
+        b = np.asarray(ob.get(LOOP_BARY_KEY), dtype=np.float64).reshape(-1, 3)
+        if len(t) == 0 or t.max() >= len(X) or len(ob.data.splines) != 1 or \
+                len(ob.data.splines[0].points) != len(t):
+            continue
+        pts = np.einsum("ik,ikj->ij", b, X[t])
+        co4 = np.ones((len(pts), 4))
+        co4[:, :3] = pts
+        ob.data.splines[0].points.foreach_set("co", co4.ravel())
+        ob.data.update_tag()
+        ob[LOOP_SIG_KEY] = sig
+        moved += 1
+    return moved
+
+
+@bpy.app.handlers.persistent
+def _follow_handler(scene, depsgraph=None):
+    follow_shape_keys(depsgraph)
+
+
+def register_handlers():
+    for h in (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post):
+        if _follow_handler not in h:
+            h.append(_follow_handler)
+
+
+def unregister_handlers():
+    for h in (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post):
+        while _follow_handler in h:
+            h.remove(_follow_handler)

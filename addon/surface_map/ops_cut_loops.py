@@ -62,7 +62,9 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
         for o in objs:
             r, d, it = results[o.name], data[o.name], intakes[o.name]
             bevel = settings.loop_bevel * cut_loops.bounding_diagonal(it["V"])
-            blender_io.add_loop_curves(context.scene, o, r["curves"], bevel)
+            own = not d["evaluated"] and len(it["V"]) == len(o.data.vertices)
+            blender_io.add_loop_curves(context.scene, o, r["curves"], bevel,
+                                       r.get("curve_weights") if own else None)
             if d["evaluated"]:
                 notes.append(f"'{o.name}': used the mesh with modifiers applied; seams not "
                              f"marked (its edges are not the object's own)")
@@ -87,4 +89,14 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
 
 classes = (SURFMAP_OT_show_cut_loops,)
 
-register, unregister = bpy.utils.register_classes_factory(classes)
+_register, _unregister = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register()
+    blender_io.register_handlers()   # the loop curves follow the morph's shape keys
+
+
+def unregister():
+    blender_io.unregister_handlers()
+    _unregister()
