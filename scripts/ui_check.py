@@ -130,6 +130,8 @@ def open_tab():
     call(bpy.ops.view3d.view_selected)
 
 
+# Compute Map's button, pixels below the sidebar's top at the default layout (Cut Loops closed)
+COMPUTE_BUTTON_Y = 296
 STATE = {"step": 0, "ticks": [], "t_start": None, "progress_shot": False}
 
 
@@ -174,8 +176,9 @@ def tick_report():
     ud = [x for x in STATE.get("ui_draws", []) if t0 <= x <= t1]
     log("  sidebar draws during the compute:", len(ud), "at", [round(x - t0, 1) for x in ud][:40])
     tw = STATE.get("tick_work", [])
-    log("  modal ticks:", len(tw), "longest work in one tick %.3fs" % max(w for _, w in tw),
-        "longest gap between ticks %.3fs" % max(b[0] - a[0] for a, b in zip(tw, tw[1:])))
+    if len(tw) > 1:
+        log("  modal ticks:", len(tw), "longest work in one tick %.3fs" % max(w for _, w in tw),
+            "longest gap between ticks %.3fs" % max(b[0] - a[0] for a, b in zip(tw, tw[1:])))
     slow = sorted(STATE.get("slices", []), key=lambda x: -x[1])[:5]
     log("  slowest output slices:", [(a, round(b, 3)) for a, b in slow])
     log(f"compute wall {t1 - t0:.1f}s, timer ticks {len(inside)}, longest gap "
@@ -204,16 +207,33 @@ def step():
             STATE["step"] = 99
             return 3.0
     elif s == 2:
+        if not STATE.get("tab_again"):      # (the first click may come before focus)
+            STATE["tab_again"] = True
+            open_tab()
+            return 3.0
         shot("01_panel_before.png")
         bpy.app.timers.register(ticker, first_interval=0.1)
         bpy.types.SpaceView3D.draw_handler_add(count_draw, (), 'WINDOW', 'POST_PIXEL')
         bpy.types.SpaceView3D.draw_handler_add(count_ui_draw, (), 'UI', 'POST_PIXEL')
         STATE["t_start"] = time.time()
-        r = call(bpy.ops.surfmap.compute_map, 'INVOKE_DEFAULT')
-        log("compute_map invoke ->", r)
+        if os.environ.get("UI_CHECK_INVOKE"):
+            r = call(bpy.ops.surfmap.compute_map, 'INVOKE_DEFAULT')
+            log("compute_map invoke ->", r)
+        else:   # a click on the panel's Compute Map button, as a user does
+            win, area, _ = view3d()
+            ui = next(r for r in area.regions if r.type == 'UI')
+            x, y = ui.x + ui.width // 2, win.height - (ui.y + ui.height) + COMPUTE_BUTTON_Y
+            focus_blender()
+            xdo("mousemove", str(x), str(y))
+            time.sleep(0.2)
+            xdo("click", "1")
+            log("clicked Compute Map at", x, y)
     elif s == 3:
         job = map_job.ACTIVE.get("job")
+        if job is None and not STATE.get("seen_job") and time.time() - STATE["t_start"] < 20:
+            return 0.2     # the click is not processed yet
         if job is not None:
+            STATE["seen_job"] = True
             if job.fraction > 0.3 and not STATE["progress_shot"]:
                 shot("02_progress.png")
                 STATE["progress_shot"] = True
@@ -260,6 +280,11 @@ def step():
         call(bpy.ops.surfmap.show_cut_loops)
     elif s == 15:
         shot("10_cut_loops.png")
+        call(bpy.ops.surfmap.show_output, what='MORPH')
+        src = bpy.data.objects.get("double_torus_g2")
+        src.data.shape_keys.key_blocks["surfmap to vase_g2"].value = 1.0
+    elif s == 16:
+        shot("11_loops_follow_morph.png")
     elif s == 99:
         shot("00_quick.png")
         STATE["step"] = 100
