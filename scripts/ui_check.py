@@ -102,6 +102,11 @@ def setup():
         ob.select_set(True)
     bpy.context.view_layer.objects.active = obs[1]
     call(bpy.ops.ed.undo_push, message="ui_check: the sample pair")   # Ctrl+Z stops here
+    if os.environ.get("UI_CHECK_VIEWPORT_AA"):
+        # the viewport's progressive anti-aliasing redraws the view several times after each
+        # change; with software OpenGL on a busy machine each redraw takes seconds
+        bpy.context.preferences.system.viewport_aa = os.environ["UI_CHECK_VIEWPORT_AA"]
+        log("viewport anti-aliasing:", bpy.context.preferences.system.viewport_aa)
     win, area, region = view3d()
     space = area.spaces.active
     space.show_region_ui = True

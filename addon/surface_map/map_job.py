@@ -431,6 +431,7 @@ class OutputComputation:
                              f"(yellow), magenta = flipped; mean {mean:.4g}, max {worst:.4g}")
         self._done += 1
         lam = np.log2(distortion.conformal_factor(Vs, Fs, pos_s))
+        yield "conformal factor"
         lam_t = -np.log2(distortion.conformal_factor(Vt, Ft, pos_t))  # source over target too
         l_lo, l_hi = colours.symmetric_range(np.concatenate([lam, lam_t]), q)
         out["raw"][CONFORMAL_COLOURS], out["target_raw"][CONFORMAL_COLOURS] = lam, lam_t
