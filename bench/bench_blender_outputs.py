@@ -26,7 +26,7 @@ import addon_utils  # noqa: E402
 
 addon_utils.enable("surface_map", default_set=True, handle_error=None)
 import helpers  # noqa: E402
-from surface_map import mapping as M  # noqa: E402
+from surface_map import geometry, uv_transfer  # noqa: E402
 
 
 def load(path, name, location):
@@ -42,10 +42,10 @@ def uv_counts(src, tgt, uv_name):
     tuv = helpers.loop_uv_array(tgt, f"surfmap {uv_name}")[Lt]
     face = np.array([d.value for d in tgt.data.attributes["surfmap_map_face"].data])
     bary = np.array([tuple(d.vector) for d in tgt.data.attributes["surfmap_map_bary"].data])
-    pre = M.points_at(Vs, Fs, face, bary)[Ft]
-    flipped = int(np.sum(M.signed_uv_areas(tuv) <= 0))
-    strad = M.seam_straddling(tuv, pre, suv, Vs[Fs])
-    naive = M.seam_straddling(np.einsum("ik,ikj->ij", bary, suv[face])[Ft], pre, suv, Vs[Fs])
+    pre = geometry.points_at(Vs, Fs, face, bary)[Ft]
+    flipped = int(np.sum(uv_transfer.signed_uv_areas(tuv) <= 0))
+    strad = uv_transfer.seam_straddling(tuv, pre, suv, Vs[Fs])
+    naive = uv_transfer.seam_straddling(np.einsum("ik,ikj->ij", bary, suv[face])[Ft], pre, suv, Vs[Fs])
     return flipped, strad, naive, len(Ft)
 
 
@@ -70,7 +70,7 @@ def data_transfer(src, tgt, uv_name):
     tgt.modifiers.remove(mod)
     tgt.data.uv_layers.remove(tgt.data.uv_layers["DT"])
     src.location, tgt.location = saved
-    return M.uv_quality(dt.reshape(-1, 2)[Lt], Vt[Ft])
+    return uv_transfer.uv_quality(dt.reshape(-1, 2)[Lt], Vt[Ft])
 
 
 def morph_error(src, tgt):
@@ -80,12 +80,12 @@ def morph_error(src, tgt):
     A, B = np.array(src.matrix_world), np.array(tgt.matrix_world)
     shift = np.eye(4)
     shift[:3, 3] = B[:3, 3] - A[:3, 3]
-    P = M.apply_matrix(np.linalg.inv(B) @ shift @ A, co.reshape(-1, 3))
+    P = geometry.apply_matrix(np.linalg.inv(B) @ shift @ A, co.reshape(-1, 3))
     worst = 0.0
     for p in P:
         _, loc, _, _ = tgt.closest_point_on_mesh(p)
         worst = max(worst, float(np.linalg.norm(np.array(loc) - p)))
-    return worst / M.bounding_diagonal(helpers.coords(tgt))
+    return worst / geometry.bounding_diagonal(helpers.coords(tgt))
 
 
 def main():

@@ -27,9 +27,12 @@ def reset_scene():
             coll.remove(block)
     settings = bpy.context.scene.surfmap
     for prop in settings.bl_rna.properties:
-        if prop.identifier not in ("rna_type", "name", "candidates") and not prop.is_readonly:
+        if prop.type == 'COLLECTION':
+            getattr(settings, prop.identifier).clear()
+        elif prop.identifier not in ("rna_type", "name") and not prop.is_readonly:
             settings.property_unset(prop.identifier)
-    settings.candidates.clear()
+    from surface_map import map_job
+    map_job.ACTIVE["job"] = None
 
 
 def mesh_object(name, V, F, location=(0, 0, 0)):

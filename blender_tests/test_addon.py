@@ -43,19 +43,38 @@ def test_native_module_loads():
         assert hasattr(mod, name), name
 
 
+class _OpProps:
+    """Stands in for the operator properties layout.operator() returns."""
+
+    def __init__(self, log, idname):
+        self.__dict__["_log"], self.__dict__["_idname"] = log, idname
+
+    def __setattr__(self, name, value):
+        self._log.append(("op_prop", self._idname, name, value))
+
+
 class _FakeLayout:
     """Records what a draw() function puts in the panel (no UI in background mode)."""
 
     def __init__(self, log):
-        self.log = log
+        self.__dict__["log"] = log
+
+    def __setattr__(self, name, value):   # use_property_split, scale_y, alignment, ...
+        self.__dict__[name] = value
 
     def box(self):
         return self
 
-    def column(self, align=False):
+    def column(self, align=False, **kw):
         return self
 
-    def row(self, align=False):
+    def row(self, align=False, **kw):
+        return self
+
+    def split(self, factor=0.0, align=False):
+        return self
+
+    def grid_flow(self, **kw):
         return self
 
     def label(self, text="", icon='NONE'):
@@ -66,6 +85,12 @@ class _FakeLayout:
 
     def operator(self, idname, **kw):
         self.log.append(("operator", idname))
+        if "text" in kw:
+            self.log.append(("button", idname, kw["text"]))
+        return _OpProps(self.log, idname)
+
+    def template_list(self, list_id, name, data, prop, active_data, active_prop, **kw):
+        self.log.append(("list", list_id, prop))
 
 
 class _FakePanel:
@@ -74,17 +99,32 @@ class _FakePanel:
         self.layout = _FakeLayout(self.log)
 
 
+def draw_all_panels(context=None):
+    """The log of every Surface Map panel's draw() (the main panel, then its sub-panels whose
+    poll() passes), as the sidebar shows them one under the other."""
+    from surface_map import panel
+    context = context or bpy.context
+    fake = _FakePanel()
+    for cls in panel.classes:
+        if not issubclass(cls, bpy.types.Panel):
+            continue
+        if hasattr(cls, "poll") and not cls.poll(context):
+            continue
+        cls.draw(fake, context)
+    return fake.log
+
+
 def test_panel_shows_module_status_settings_and_button():
     from surface_map import native, panel
     assert panel.SURFMAP_PT_main.bl_category == "Surface Map"
     assert panel.SURFMAP_PT_main.bl_region_type == 'UI'
     p = _FakePanel()
-    panel.SURFMAP_PT_main.draw(p, bpy.context)
+    p.log = draw_all_panels()
     assert ("label", "Native module: loaded") in p.log
     assert ("operator", "surfmap.show_cut_loops") in p.log
     for op in ("compute_map", "transfer_uvs", "create_morph", "paint_distortion"):
         assert ("operator", "surfmap." + op) in p.log, op
-    for name in ("homotopy", "landmark_mode", "method", "tolerance", "write_uvs", "write_morph",
+    for name in ("homotopy", "landmark_mode", "method", "tolerance_text", "write_uvs", "write_morph",
                  "write_distortion", "morph_space"):
         assert ("prop", name) in p.log, name
     for name in ("source_base_vertex", "target_base_vertex", "loop_bevel", "mark_seams"):
@@ -95,7 +135,7 @@ def test_panel_shows_module_status_settings_and_button():
         native.load = lambda *a, **k: None
         native.error = lambda: "no module named surfmap (searched /nowhere)"
         p = _FakePanel()
-        panel.SURFMAP_PT_main.draw(p, bpy.context)
+        p.log = draw_all_panels()
         assert ("label", "Native module: missing") in p.log
         text = " ".join(x[1] for x in p.log if x[0] == "label")
         assert "/nowhere" in text, text
@@ -105,7 +145,7 @@ def test_panel_shows_module_status_settings_and_button():
 
 
 def test_triangulate_polygons_corner_mapping():
-    from surface_map import core
+    from surface_map import cut_loops as core
     polys = [[0, 1, 2, 3], [3, 2, 4], [4, 5, 6, 7, 8]]
     F, tp, tc = core.triangulate_polygons(polys)
     assert F.shape == (2 + 1 + 3, 3)
@@ -126,7 +166,7 @@ def test_triangulate_polygons_corner_mapping():
 
 
 def test_points_on_surface_and_edges_along_loops():
-    from surface_map import core
+    from surface_map import cut_loops as core
     # Two triangles of a square: 0=(0,0) 1=(1,0) 2=(1,1) 3=(0,1); refined vertex 4 is the
     # midpoint of edge (0,1), vertex 5 the centroid of face 0.
     V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
@@ -149,7 +189,7 @@ def test_points_on_surface_and_edges_along_loops():
 
 def test_pair_colours():
     import colorsys
-    from surface_map import core
+    from surface_map import cut_loops as core
     assert [core.loop_name(k) for k in range(6)] == ["a1", "b1", "a2", "b2", "a3", "b3"]
     cols = [core.pair_colour(k) for k in range(10)]
     assert len(set(cols)) == 10
@@ -172,7 +212,7 @@ def test_pair_colours():
 
 
 def test_genus_check_messages():
-    from surface_map import core
+    from surface_map import cut_loops as core
     try:
         core.check_genus("A", 1, "B", 2)
     except core.ObjectProblem as e:

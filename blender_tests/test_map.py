@@ -10,8 +10,11 @@ from helpers import run, select
 
 
 def _mapping():
-    from surface_map import mapping
-    return mapping
+    """One namespace with the bpy-free maths modules of the add-on."""
+    import types
+    from surface_map import distortion, geometry, uv_transfer
+    return types.SimpleNamespace(**{k: v for m in (geometry, distortion, uv_transfer)
+                                    for k, v in vars(m).items() if not k.startswith("__")})
 
 
 def _torus_pair(quads_target=False):
@@ -399,18 +402,18 @@ def test_genus0_or_failed_solve_cancels():
 
 
 def test_worker_thread_cancel_leaves_no_result():
-    from surface_map import mapjob
+    from surface_map import map_job
     sm = helpers.sm()
     a, b = _torus_pair()
-    from surface_map import map_ops
-    job, notes = map_ops.prepare_job(bpy.context, sm)
+    from surface_map import ops_map
+    job, notes = ops_map.prepare_job(bpy.context, sm)
     job.cancel = True
     job.start()
     job.thread.join(60)
     assert job.done() and job.error == ("cancelled", "cancelled") and job.outputs is None
     # and a normal threaded run: the worker does the native solve only (no Python work runs
     # beside Blender's main thread), the outputs are computed afterwards on the main thread
-    job2, _ = map_ops.prepare_job(bpy.context, sm)
+    job2, _ = ops_map.prepare_job(bpy.context, sm)
     job2.start()
     job2.thread.join(120)
     assert job2.error is None and job2.result is not None, job2.error
@@ -418,7 +421,7 @@ def test_worker_thread_cancel_leaves_no_result():
     job2.compute_outputs()
     assert job2.error is None and job2.outputs is not None, job2.error
     assert job2.stage == "writing outputs"
-    assert isinstance(mapjob.MapJob, type)
+    assert isinstance(map_job.MapJob, type)
 
 
 class _Log:
@@ -448,10 +451,11 @@ class _Event:
 def _modal_operator(job, notes):
     """The UI's modal operator, driven by hand: its modal() and _finish() on stand-ins for the
     window manager, status bar and events (background Blender has no windows)."""
-    from surface_map.map_ops import SURFMAP_OT_compute_map as Op
+    from surface_map.ops_map import SURFMAP_OT_compute_map as Op
 
     class Driven:
         modal, _finish, _cleanup, _status = Op.modal, Op._finish, Op._cleanup, Op._status
+        _redraw, SLICE, TICK = Op._redraw, Op.SLICE, Op.TICK
 
         def __init__(self):
             self._job, self._timer, self._notes, self.reports = job, object(), notes, []
@@ -476,12 +480,12 @@ def _drive(op, ctx, first_event=None, limit=6000):
 
 
 def test_modal_operator_progress_and_esc():
-    from surface_map import map_ops
+    from surface_map import ops_map
     sm = helpers.sm()
     a, b = _torus_pair()
     # Esc: the worker stops at its next progress call, the operator cancels, nothing changes
     before = helpers.scene_snapshot()
-    job, notes = map_ops.prepare_job(bpy.context, sm)
+    job, notes = ops_map.prepare_job(bpy.context, sm)
     op, ctx = _modal_operator(job, notes), _Context()
     job.start()
     r = _drive(op, ctx, _Event('ESC', 'PRESS'))
@@ -492,7 +496,7 @@ def test_modal_operator_progress_and_esc():
     assert "progress_end" in names and "event_timer_remove" in names
     assert ctx.workspace.calls[-1] == ("status_text_set", None)   # status bar restored
     # a full run: progress goes up, the status bar names the stages, the outputs are written
-    job, notes = map_ops.prepare_job(bpy.context, sm)
+    job, notes = ops_map.prepare_job(bpy.context, sm)
     op, ctx = _modal_operator(job, notes), _Context()
     job.start()
     # navigation passes through to the view while the solve runs; editing keys do not
@@ -559,8 +563,13 @@ def test_linked_duplicates_cancel():
 
 
 def test_operators_are_undoable():
-    from surface_map import map_ops
-    for cls in map_ops.classes:
+    from surface_map import ops_cut_loops, ops_map, ops_stored_map, ops_view
+    classes = [c for m in (ops_cut_loops, ops_map, ops_stored_map, ops_view) for c in m.classes]
+    assert len(classes) >= 8
+    for cls in classes:
+        assert cls.__name__.startswith("SURFMAP_OT_") and cls.bl_idname.startswith("surfmap.")
+        if cls.bl_idname == "surfmap.solve_candidate":
+            continue   # it starts compute_map, which is the undo step
         assert {'REGISTER', 'UNDO'} <= set(cls.bl_options), cls.bl_idname
 
 
@@ -692,14 +701,20 @@ def test_far_genus2_landmark_is_held_by_the_barrier_continuation():
     assert np.linalg.norm(p - Vb[t]) < 1e-6
     # the panel shows the line under the Landmarks setting, and the held energies
     from surface_map import panel
-    from test_addon import _FakePanel
+    from test_addon import _FakePanel, draw_all_panels
     fake = _FakePanel()
-    panel.SURFMAP_PT_main.draw(fake, bpy.context)
-    labels = [x[1] for x in fake.log if x[0] == "label"]
+    fake.log = draw_all_panels()
     at = fake.log.index(("prop", "landmark_mode"))
     shown = " ".join(x[1] for x in fake.log[at + 1:at + 5] if x[0] == "label")
     assert "barrier continuation in" in shown, fake.log[at:at + 5]
-    assert any(f"* {settings.chosen_candidate}: E = " in x and "(landmarks: " in x for x in labels), labels
+    # the pairings' list: the chosen one ticked, its row with the energy held with landmarks
+    assert ("list", "SURFMAP_UL_candidates", "candidates") in fake.log
+    chosen = settings.candidates[settings.chosen_candidate]
+    row = _FakePanel()
+    panel.SURFMAP_UL_candidates.draw_item(None, bpy.context, row.layout, settings, chosen, 0,
+                                          settings, "candidate_index")
+    labels = [x[1] for x in row.log if x[0] == "label"]
+    assert labels[0] == f"#{settings.chosen_candidate}" and " lm " in labels[1], labels
     # a run without landmarks clears the line
     settings.landmark_mode = 'NONE'
     res, err = run("compute_map")

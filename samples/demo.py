@@ -349,7 +349,7 @@ def caption(cam, text):
 def compare_with_data_transfer(source, target, uv_name, shot, cam):
     """For comparison: Blender's own Data Transfer (face corner UVs, nearest face interpolated)
     onto a copy of the target placed on top of the source, rendered like ours."""
-    from surface_map import mapping
+    from surface_map import uv_transfer
     copy = bpy.data.objects.new(f"{target.name} (Data Transfer)", target.data.copy())
     bpy.context.scene.collection.objects.link(copy)
     copy.matrix_world = source.matrix_world.copy()    # overlap the source: DT works in space
@@ -381,7 +381,7 @@ def compare_with_data_transfer(source, target, uv_name, shot, cam):
     for name in (uv_name, f"surfmap {uv_name}"):
         uv = np.empty(len(me.loops) * 2)
         me.uv_layers[name].data.foreach_get("uv", uv)
-        counts[name] = mapping.uv_quality(uv.reshape(-1, 2)[L.reshape(-1, 3)], xyz)
+        counts[name] = uv_transfer.uv_quality(uv.reshape(-1, 2)[L.reshape(-1, 3)], xyz)
     ev.to_mesh_clear()
     print(f"demo: {m} target triangles; UV triangles flipped / stretched across the layout: "
           f"surfmap {counts[f'surfmap {uv_name}']}, Data Transfer {counts[uv_name]}")

@@ -1,40 +1,61 @@
 """Surface Map: globally optimal maps between closed surfaces of equal genus
 (Li et al., TVCG 2008). Blender side of the surfmap project.
 
-Module layout (like the glTF add-on): core.py, mapping.py, mapjob.py and native.py never import
-bpy; blender_io.py, operators.py, map_ops.py, panel.py and properties.py are the Blender side.
+Module layout (like the glTF add-on; the data flow file by file is in docs/addon.md):
+  no bpy (plain pytest can import them):
+    native.py       finds and loads the native surfmap module
+    side.py         MeshSide: one object of a map as plain data; ObjectProblem
+    cut_loops.py    the system of loops of one object
+    map_job.py      MapOptions (the panel's choices in the core's spelling), MapJob (the solve
+                    on a worker thread, the outputs in slices)
+    geometry.py, distortion.py, colours.py, uv_transfer.py, landmarks.py, morph.py
+                    the maths of the outputs
+  bpy:
+    properties.py   the scene's PropertyGroup (scene.surfmap) and the add-on preferences
+    blender_io.py   reading meshes, writing attributes, UVs, shape keys, curves
+    ops_common.py   what every operator shares (selection, poll)
+    ops_cut_loops.py, ops_map.py, ops_stored_map.py, ops_view.py   the SURFMAP_OT_* operators
+    panel.py        the sidebar panels and the pairings' UIList
+    legend.py       the colour legend drawn in the 3D views (gpu/blf)
 """
 bl_info = {
     "name": "Surface Map",
     "author": "surfmap project",
-    "version": (0, 1, 0),
+    "version": (0, 2, 0),
     "blender": (3, 4, 0),
     "location": "3D Viewport > Sidebar (N) > Surface Map",
     "description": "Cut loops and globally optimal maps between closed surfaces of equal genus",
     "category": "Mesh",
 }
 
-if "bpy" in locals():
+try:
+    import bpy  # noqa: F401
+except ImportError:   # imported outside Blender (pytest of the bpy-free modules)
+    bpy = None
+
+_BPY_MODULES = ("properties", "blender_io", "ops_common", "ops_cut_loops", "ops_map",
+                "ops_stored_map", "ops_view", "verify_operator", "batch_operators", "panel", "legend")
+_PLAIN_MODULES = ("native", "side", "geometry", "distortion", "colours", "uv_transfer",
+                  "landmarks", "morph", "cut_loops", "map_job")
+
+if bpy is not None:
     import importlib
-    for _m in ("native", "core", "mapping", "mapjob", "blender_io", "properties", "operators",
-               "map_ops", "verify_operator", "panel", "batch_operators"):
-        if _m in locals():
-            importlib.reload(locals()[_m])
+    import sys
+    if "properties" in locals():   # "Reload Scripts": reload in dependency order
+        for _m in _PLAIN_MODULES + _BPY_MODULES:
+            _full = f"{__name__}.{_m}"
+            if _full in sys.modules:
+                importlib.reload(sys.modules[_full])
+    from . import (properties, ops_cut_loops, ops_map, ops_stored_map, ops_view,  # noqa: E402
+                   verify_operator, batch_operators, panel, legend)
 
-import bpy  # noqa: E402
+    _modules = (properties, ops_cut_loops, ops_map, ops_stored_map, ops_view, verify_operator,
+                batch_operators, panel, legend)
 
-from . import (native, core, mapping, mapjob, blender_io, properties, operators,  # noqa: E402,F401
-               map_ops, verify_operator, panel)
-from . import batch_operators  # noqa: E402
+    def register():
+        for m in _modules:
+            m.register()
 
-_modules = (properties, operators, map_ops, verify_operator, panel, batch_operators)
-
-
-def register():
-    for m in _modules:
-        m.register()
-
-
-def unregister():
-    for m in reversed(_modules):
-        m.unregister()
+    def unregister():
+        for m in reversed(_modules):
+            m.unregister()

@@ -14,24 +14,25 @@ import time
 import bpy
 import numpy as np
 
-from . import core, map_ops, mapping
-from .operators import native_and_object_mode, surfmap_module
+from . import colours, ops_map
+from .side import ObjectProblem
+from .ops_common import native_and_object_mode, surfmap_module
 
 COMPARE_TEXT = "surfmap comparison"
 DILATATION_KEY = "surfmap_mean_dilatation_to_active"
 
 
 def _selected_meshes(context):
-    """(active, [other selected meshes]); raises core.ObjectProblem when that does not fit."""
+    """(active, [other selected meshes]); raises ObjectProblem when that does not fit."""
     act = context.active_object
     if act is None or act.type != 'MESH' or not act.select_get():
-        raise core.ObjectProblem("make the template (the reference) the active, selected mesh")
+        raise ObjectProblem("make the template (the reference) the active, selected mesh")
     others = [o for o in context.selected_objects if o != act]
     bad = [o for o in others if o.type != 'MESH']
     if bad:
-        raise core.ObjectProblem(f"'{bad[0].name}' is a {bad[0].type.lower()}, not a mesh")
+        raise ObjectProblem(f"'{bad[0].name}' is a {bad[0].type.lower()}, not a mesh")
     if not others:
-        raise core.ObjectProblem("select the other meshes too (the active one is the template)")
+        raise ObjectProblem("select the other meshes too (the active one is the template)")
     return act, sorted(others, key=lambda o: o.name)
 
 
@@ -129,7 +130,7 @@ class SURFMAP_OT_map_onto_selected(_Modal, bpy.types.Operator):
         self._sm = surfmap_module(context)
         try:
             self._template, self._targets = _selected_meshes(context)
-        except core.ObjectProblem as e:
+        except ObjectProblem as e:
             self.report({'ERROR'}, str(e))
             return False
         self._count = len(self._targets)
@@ -145,8 +146,8 @@ class SURFMAP_OT_map_onto_selected(_Modal, bpy.types.Operator):
         target = self._targets[k]
         try:
             with self._override(context, target):
-                job, notes = map_ops.prepare_job(bpy.context, self._sm)
-        except (core.ObjectProblem, self._sm.Error) as e:
+                job, notes = ops_map.prepare_job(bpy.context, self._sm)
+        except (ObjectProblem, self._sm.Error) as e:
             self._record(target, f"skipped: {e}")
             return None
         self._jobs[k] = (job, notes)
@@ -172,7 +173,7 @@ class SURFMAP_OT_map_onto_selected(_Modal, bpy.types.Operator):
         job.compute_outputs()
         self._notes = notes
         with self._override(context, target):
-            status = map_ops.SURFMAP_OT_compute_map._finish(self, bpy.context, job)
+            status = ops_map.SURFMAP_OT_compute_map._finish(self, bpy.context, job)
         if 'FINISHED' in status:
             res = job.result
             target[DILATATION_KEY] = float(res["distortion"]["mean"])
@@ -261,7 +262,7 @@ class SURFMAP_OT_compare_selected(_Modal, bpy.types.Operator):
                 d = sm.intake(V, F)
                 self._meshes.append((np.asarray(d["V"]), np.asarray(d["F"], dtype=np.int64),
                                      int(d["info"]["genus"])))
-        except core.ObjectProblem as e:
+        except ObjectProblem as e:
             self.report({'ERROR'}, str(e))
             return False
         except sm.Error as e:
@@ -328,7 +329,7 @@ class SURFMAP_OT_compare_selected(_Modal, bpy.types.Operator):
         lines += ["", f"mean D' of '{names[0]}' mapped onto each object:"]
         finite = self._dil[np.isfinite(self._dil)]
         hi = max(float(finite.max()), 1.0 + 1e-6)
-        rgba = mapping.colour_scale(np.nan_to_num(self._dil, nan=hi), 1.0, hi, mapping.SEQUENTIAL)
+        rgba = colours.colour_scale(np.nan_to_num(self._dil, nan=hi), 1.0, hi, colours.SEQUENTIAL)
         for ob, d, c in zip(self._objects, self._dil, rgba):
             lines.append(f"  {ob.name}: {d:.4g}")
             if np.isfinite(d):
@@ -361,7 +362,7 @@ class SURFMAP_OT_compare_selected(_Modal, bpy.types.Operator):
 
 def draw_rows(layout):
     """The two panel rows of these operators."""
-    row = layout.row(align=True)
+    row = layout.column(align=True)
     row.operator(SURFMAP_OT_map_onto_selected.bl_idname, icon='MOD_UVPROJECT')
     row.operator(SURFMAP_OT_compare_selected.bl_idname, icon='SORTSIZE')
 

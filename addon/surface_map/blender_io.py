@@ -3,7 +3,7 @@
 import bpy
 import numpy as np
 
-from . import core
+from . import cut_loops
 
 OWNER_KEY = "surfmap_loops_of"      # custom property on the curve objects we create
 SEAM_LAYER = "surfmap_loop_seam"     # bool edge attribute: the seams this add-on marked
@@ -118,13 +118,20 @@ def loops_collection(scene, obj):
     return coll
 
 
-def add_loop_curves(scene, obj, curves, bevel):
+LOOP_TRI_KEY = "surfmap_loop_vertices"    # curve object: 3 mesh vertices per curve point
+LOOP_BARY_KEY = "surfmap_loop_weights"    # ... and their barycentric weights
+LOOP_SIG_KEY = "surfmap_loop_shape"       # the owner's shape-key values the points follow
+
+
+def add_loop_curves(scene, obj, curves, bevel, weights=None):
     """One cyclic poly curve object per loop, named '<object> a1', ..., points in the
-    object's local space and parented to it (so they follow its transform)."""
+    object's local space and parented to it (so they follow its transform). weights: per
+    curve, (vertices (k,3), barycentrics (k,3)) of its points on the mesh, kept on the curve
+    so follow_shape_keys can move the points with the mesh's shape keys (the morph)."""
     remove_loop_curves(obj.name)
     coll = loops_collection(scene, obj)
     made = []
-    for name, pts in curves:
+    for c, (name, pts) in enumerate(curves):
         cu = bpy.data.curves.new(f"{obj.name} {name}", 'CURVE')
         cu.dimensions = '3D'
         cu.bevel_depth = bevel
@@ -137,9 +144,12 @@ def add_loop_curves(scene, obj, curves, bevel):
         sp.points.foreach_set("co", co.ravel())
         sp.use_cyclic_u = True
         k = int(name[1:]) * 2 - 2 + (0 if name[0] == "a" else 1)
-        cu.materials.append(loop_material(name, core.pair_colour(k)))
+        cu.materials.append(loop_material(name, cut_loops.pair_colour(k)))
         ob = bpy.data.objects.new(f"{obj.name} {name}", cu)
         ob[OWNER_KEY] = obj.name
+        if weights is not None:
+            ob[LOOP_TRI_KEY] = np.asarray(weights[c][0], dtype=np.int32).ravel().tolist()
+            ob[LOOP_BARY_KEY] = np.asarray(weights[c][1], dtype=np.float64).ravel().tolist()
         coll.objects.link(ob)
         ob.parent = obj
         ob.matrix_parent_inverse.identity()
@@ -418,10 +428,10 @@ def refined_morph_object(source_obj, src, tgt, image, image_face, morph_matrix, 
     from mathutils import Vector
     from mathutils.bvhtree import BVHTree
 
-    from . import mapjob, mapping
+    from . import geometry, morph
     Vt, Ft = tgt["V"], tgt["F"]
     bvh = BVHTree.FromPolygons(Vt.tolist(), Ft.tolist(), all_triangles=True)
-    FN = mapping.face_normals(Vt, Ft)
+    FN = geometry.face_normals(Vt, Ft)
     FN /= np.maximum(np.linalg.norm(FN, axis=1), 1e-300)[:, None]
 
     def project(P):
@@ -434,7 +444,7 @@ def refined_morph_object(source_obj, src, tgt, image, image_face, morph_matrix, 
         return pos, nrm
     e = np.concatenate([Ft[:, [0, 1]], Ft[:, [1, 2]], Ft[:, [2, 0]]])
     max_len = float(np.median(np.linalg.norm(Vt[e[:, 0]] - Vt[e[:, 1]], axis=1)))
-    r = mapping.refine_for_morph(src["V"], src["F"], image, FN[image_face], project, max_len,
+    r = morph.refine_for_morph(src["V"], src["F"], image, FN[image_face], project, max_len,
                                  max_bend=max_bend, rounds=rounds)
     for ob in list(bpy.data.objects):
         if ob.get(REFINED_KEY) == source_obj.name:
@@ -446,7 +456,7 @@ def refined_morph_object(source_obj, src, tgt, image, image_face, morph_matrix, 
     me = bpy.data.meshes.new(name)
     me.from_pydata(r["V"].tolist(), [], r["F"].tolist())
     for uv_name, loop_uv in src["uv_layers"].items():
-        cu = mapjob.corner_uvs(src, loop_uv)[r["origin_face"]]          # (m',3,2)
+        cu = src.corner_uvs(loop_uv)[r["origin_face"]]          # (m',3,2)
         uv = np.einsum("tkj,tjx->tkx", r["origin_bary"], cu)
         layer = me.uv_layers.new(name=uv_name)
         layer.data.foreach_set("uv", uv.astype(np.float32).ravel())
@@ -468,7 +478,105 @@ def refined_morph_object(source_obj, src, tgt, image, image_face, morph_matrix, 
         coll.objects.link(ob)
     ob.shape_key_add(name="Basis", from_mix=False)
     key = ob.shape_key_add(name=key_name, from_mix=False)
-    from .mapping import apply_matrix
+    from .geometry import apply_matrix
     key.data.foreach_set("co", apply_matrix(morph_matrix, r["image"]).astype(np.float32).ravel())
     key.value = 0.0
     return ob, r
+
+
+RAW_PREFIX = "surfmap_raw "   # FLOAT attribute: the values behind a colour output (recolouring)
+
+
+def write_raw_values(mesh, colour_name, values, domain):
+    """The values a colour attribute was made from ('FACE' or 'POINT'), so the legend's range
+    can be changed later without a solve. Infinite values (flipped faces) are kept."""
+    name = RAW_PREFIX + colour_name
+    write_attribute(mesh, name, np.asarray(values, dtype=np.float32), 'FLOAT', domain)
+    _remember(mesh, "raw", name)
+
+
+def read_raw_values(mesh, colour_name):
+    """(values, domain) written by write_raw_values, or None."""
+    a = mesh.attributes.get(RAW_PREFIX + colour_name)
+    if a is None or a.data_type != 'FLOAT':
+        return None
+    v = np.empty(len(a.data), dtype=np.float32)
+    a.data.foreach_get("value", v)
+    return v.astype(np.float64), a.domain
+
+
+def _shape_signature(owner):
+    keys = owner.data.shape_keys if owner.type == 'MESH' else None
+    if keys is None:
+        return ""
+    return ";".join(f"{k.name}={k.value:.6f}{'m' if k.mute else ''}" for k in keys.key_blocks)
+
+
+def follow_shape_keys(depsgraph=None):
+    """Moves the loop curves' points with their mesh's shape keys (e.g. the morph slider):
+    each point is a fixed combination of three of the mesh's vertices, evaluated on the mesh
+    with its shape keys. Only curves whose owner's shape-key values changed are touched.
+    Returns the number of curves moved."""
+    moved = 0
+    cache = {}
+    for ob in bpy.data.objects:
+        tri = ob.get(LOOP_TRI_KEY)
+        owner = bpy.data.objects.get(ob.get(OWNER_KEY, "")) if tri is not None else None
+        if owner is None or owner.type != 'MESH' or ob.type != 'CURVE':
+            continue
+        sig = _shape_signature(owner)
+        if ob.get(LOOP_SIG_KEY, "") == sig:
+            continue
+        if owner.name not in cache:
+            me = owner.data
+            co = np.empty(len(me.vertices) * 3)
+            if me.shape_keys is not None:
+                # the shape keys mixed as Blender mixes them (relative to the basis)
+                basis = me.shape_keys.reference_key
+                basis.data.foreach_get("co", co)
+                base = co.reshape(-1, 3).copy()
+                mix = base.copy()
+                for kb in me.shape_keys.key_blocks:
+                    if kb == basis or kb.mute or kb.value == 0.0:
+                        continue
+                    k = np.empty(len(me.vertices) * 3)
+                    kb.data.foreach_get("co", k)
+                    rel = kb.relative_key
+                    r = np.empty(len(me.vertices) * 3)
+                    rel.data.foreach_get("co", r)
+                    mix += kb.value * (k.reshape(-1, 3) - r.reshape(-1, 3))
+                cache[owner.name] = mix
+            else:
+                me.vertices.foreach_get("co", co)
+                cache[owner.name] = co.reshape(-1, 3)
+        X = cache[owner.name]
+        t = np.asarray(tri, dtype=np.int64).reshape(-1, 3)
+        b = np.asarray(ob.get(LOOP_BARY_KEY), dtype=np.float64).reshape(-1, 3)
+        if len(t) == 0 or t.max() >= len(X) or len(ob.data.splines) != 1 or \
+                len(ob.data.splines[0].points) != len(t):
+            continue
+        pts = np.einsum("ik,ikj->ij", b, X[t])
+        co4 = np.ones((len(pts), 4))
+        co4[:, :3] = pts
+        ob.data.splines[0].points.foreach_set("co", co4.ravel())
+        ob.data.update_tag()
+        ob[LOOP_SIG_KEY] = sig
+        moved += 1
+    return moved
+
+
+@bpy.app.handlers.persistent
+def _follow_handler(scene, depsgraph=None):
+    follow_shape_keys(depsgraph)
+
+
+def register_handlers():
+    for h in (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post):
+        if _follow_handler not in h:
+            h.append(_follow_handler)
+
+
+def unregister_handlers():
+    for h in (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post):
+        while _follow_handler in h:
+            h.remove(_follow_handler)

@@ -1,8 +1,70 @@
-"""The 'Surface Map' sidebar panel of the 3D view (N-panel, category 'Surface Map')."""
+"""The 'Surface Map' sidebar of the 3D view (N-panel, tab 'Surface Map'): a main panel (module,
+selection, progress) with the sub-panels Cut Loops, Map, Outputs and Result, the way Blender's
+own panels nest, with labels short enough for the default sidebar width."""
+import math
+
 import bpy
 
-from . import batch_operators, native
+from . import batch_operators, map_job, native
 from .properties import _wrap, extra_module_dirs
+
+WRAP = 34   # characters per label line at the default sidebar width
+
+
+def energy_text(c):
+    """A candidate's energy for the list: '12.34', '~12.3 est.' or '—'."""
+    if c.solved:
+        return f"{c.energy:.5g}"
+    if c.estimated:
+        return f"~{c.energy:.4g} est."
+    return "—"
+
+
+def sorted_candidates(candidates):
+    """Indices into `candidates` by energy (solved or estimated), the ones without last."""
+    def key(i):
+        c = candidates[i]
+        held = c.landmark_energy
+        e = held if held == held else (c.energy if (c.solved or c.estimated) else math.inf)
+        return (e, i)
+    return sorted(range(len(candidates)), key=key)
+
+
+class SURFMAP_UL_candidates(bpy.types.UIList):
+    """The handle pairings of the last run, by energy; the one the map uses is ticked."""
+    bl_idname = "SURFMAP_UL_candidates"
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname,
+                  index=0, flt_flag=0):
+        chosen = item.index == data.chosen_candidate
+        row = layout.row(align=True)
+        row.label(text=f"#{item.index}", icon='CHECKMARK' if chosen else 'BLANK1')
+        text = energy_text(item)
+        if item.landmark_energy == item.landmark_energy:   # not nan: ranked with landmarks
+            text += f" lm {item.landmark_energy:.4g}"
+        sub = row.row()
+        sub.alignment = 'RIGHT'
+        sub.label(text=text)
+
+    def filter_items(self, context, data, propname):
+        items = getattr(data, propname)
+        order = sorted_candidates(items)
+        new_order = [0] * len(items)
+        for pos, i in enumerate(order):
+            new_order[i] = pos
+        return [], new_order
+
+
+class _SubPanel:
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "Surface Map"
+    bl_parent_id = "SURFMAP_PT_main"
+
+
+def _lines(layout, text, limit, icon='NONE'):
+    for i, line in enumerate(_wrap(text, WRAP)[:limit]):
+        layout.label(text=line, icon=icon if i == 0 else 'BLANK1' if icon != 'NONE' else 'NONE')
 
 
 class SURFMAP_PT_main(bpy.types.Panel):
@@ -15,14 +77,13 @@ class SURFMAP_PT_main(bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         mod = native.load(extra_dirs=extra_module_dirs(context))
-        box = layout.box()
         if mod is not None:
-            box.label(text="Native module: loaded", icon='CHECKMARK')
+            layout.label(text="Native module: loaded", icon='CHECKMARK')
         else:
+            box = layout.box()
             box.label(text="Native module: missing", icon='ERROR')
-            for line in _wrap(native.error(), 40)[:8]:
+            for line in _wrap(native.error(), WRAP)[:8]:
                 box.label(text=line)
-        settings = context.scene.surfmap
         sel = [o for o in context.selected_objects if o.type == 'MESH']
         act = context.active_object
         col = layout.column(align=True)
@@ -33,7 +94,31 @@ class SURFMAP_PT_main(bpy.types.Panel):
         elif len(sel) == 1:
             col.label(text=f"Object: {sel[0].name}", icon='MESH_DATA')
         else:
-            col.label(text="Select 1 or 2 meshes (active = target)", icon='INFO')
+            col.label(text="Select 2 meshes", icon='INFO')
+            col.label(text="(the active one is the target)", icon='BLANK1')
+        draw_progress(layout, context.scene.surfmap)
+
+
+def draw_progress(layout, settings):
+    """The running job's progress bar and stage (nothing when idle)."""
+    if map_job.ACTIVE.get("job") is None:
+        return
+    col = layout.column(align=True)
+    col.label(text=settings.progress_stage or "Working", icon='SORTTIME')
+    col.prop(settings, "progress", text="", slider=True)
+    col.label(text="Esc cancels", icon='BLANK1')
+
+
+class SURFMAP_PT_loops(_SubPanel, bpy.types.Panel):
+    bl_idname = "SURFMAP_PT_loops"
+    bl_label = "Cut Loops"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        settings = context.scene.surfmap
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
         col = layout.column(align=True)
         col.prop(settings, "source_base_vertex")
         col.prop(settings, "target_base_vertex")
@@ -41,53 +126,127 @@ class SURFMAP_PT_main(bpy.types.Panel):
         col.prop(settings, "mark_seams")
         layout.operator("surfmap.show_cut_loops", icon='MOD_CURVE')
         if settings.status:
-            for line in _wrap(settings.status, 40)[:6]:
-                layout.label(text=line)
-        draw_map(layout, settings)
-        batch_operators.draw_rows(layout)  # many objects: map onto selected, compare selected
+            _lines(layout.column(align=True), settings.status, 6)
+
+
+class SURFMAP_PT_map(_SubPanel, bpy.types.Panel):
+    bl_idname = "SURFMAP_PT_map"
+    bl_label = "Map"
+
+    def draw(self, context):
+        draw_map(self.layout, context.scene.surfmap)
 
 
 def draw_map(layout, settings):
-    """The map's options, its button, the candidates of the last run and the re-runs."""
-    box = layout.box()
-    box.label(text="Optimal Map", icon='MOD_UVPROJECT')
-    col = box.column(align=True)
+    """The map's options, its button, and the pairings of the last run."""
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    col = layout.column(align=True)
     col.prop(settings, "homotopy")
-    for c in settings.candidates:
-        mark = "* " if c.index == settings.chosen_candidate else "  "
-        energy = f"E = {c.energy:.6g}" if c.solved else "not solved"
-        if c.landmark_energy == c.landmark_energy:  # not nan: ranked with the landmarks held
-            energy += f" (landmarks: {c.landmark_energy:.6g})"
-        col.label(text=f"{mark}{c.index}: {energy}  {c.description}"[:90])
-    col = box.column(align=True)
     col.prop(settings, "landmark_mode")
     if settings.landmark_status:
-        for i, line in enumerate(_wrap(settings.landmark_status, 40)[:4]):
-            col.label(text=line, icon='PINNED' if i == 0 else 'BLANK1')
+        _lines(col, settings.landmark_status, 4, icon='PINNED')
     col.prop(settings, "method")
     col.prop(settings, "source_weights")
-    col.prop(settings, "tolerance")
-    col = box.column(align=True)
-    col.label(text="Outputs:")
+    col.prop(settings, "tolerance_text")
+    row = layout.row()
+    row.scale_y = 1.4
+    row.operator("surfmap.compute_map", icon='PLAY')
+    if len(settings.candidates):
+        layout.label(text="Handle pairings (energy):")
+        layout.template_list("SURFMAP_UL_candidates", "", settings, "candidates", settings,
+                             "candidate_index", rows=3, maxrows=5)
+        layout.operator("surfmap.solve_candidate", icon='FILE_REFRESH')
+
+
+class SURFMAP_PT_outputs(_SubPanel, bpy.types.Panel):
+    bl_idname = "SURFMAP_PT_outputs"
+    bl_label = "Outputs"
+
+    def draw(self, context):
+        draw_outputs(self.layout, context.scene.surfmap, context)
+
+
+def draw_outputs(layout, settings, context):
+    col = layout.column(align=True)
     row = col.row(align=True)
-    row.prop(settings, "write_uvs")
-    row.prop(settings, "write_morph")
-    row.prop(settings, "write_distortion")
-    col.prop(settings, "write_uvs_before")
-    col.prop(settings, "write_refined")
-    col.prop(settings, "morph_space")
-    box.operator("surfmap.compute_map", icon='PLAY')
-    col = box.column(align=True)
-    col.label(text="From the stored map:")
-    col.operator("surfmap.transfer_uvs", icon='UV')
-    col.operator("surfmap.create_morph", icon='SHAPEKEY_DATA')
-    col.operator("surfmap.paint_distortion", icon='COLOR')
-    col.operator("surfmap.verify_map", icon='CHECKMARK')
-    if settings.map_status:
-        for line in _wrap(settings.map_status, 40)[:8]:
-            box.label(text=line)
+    row.prop(settings, "write_uvs", toggle=True)
+    row.prop(settings, "write_morph", toggle=True)
+    row.prop(settings, "write_distortion", toggle=True)
+    row = col.row(align=True)
+    row.prop(settings, "write_uvs_before", toggle=True)
+    row.prop(settings, "write_refined", toggle=True)
+    sub = layout.column()
+    sub.use_property_split = True
+    sub.use_property_decorate = False
+    sub.prop(settings, "morph_space")
+    layout.label(text="Show on both objects:")
+    grid = layout.grid_flow(row_major=True, columns=2, even_columns=True, align=True)
+    for name, text in ((map_job.DILATATION_COLOURS, "Stretch D'"),
+                       (map_job.CONFORMAL_COLOURS, "Area"),
+                       (map_job.CURVATURE_COLOURS, "Curvature")):
+        op = grid.operator("surfmap.show_output", text=text, icon='COLOR',
+                           depress=settings.shown == name)
+        op.what, op.attribute = 'COLOURS', name
+    grid.operator("surfmap.show_output", text="Texture", icon='TEXTURE',
+                  depress=settings.shown == 'TEXTURE').what = 'TEXTURE'
+    grid.operator("surfmap.show_output", text="Morph", icon='SHAPEKEY_DATA',
+                  depress=settings.shown == 'MORPH').what = 'MORPH'
+    grid.operator("surfmap.show_output", text="Back", icon='LOOP_BACK').what = 'BACK'
+    legend = settings.legends.get(settings.shown) if settings.shown else None
+    if legend is not None:
+        box = layout.box()
+        box.label(text=legend.title, icon='COLOR')
+        row = box.row(align=True)
+        row.prop(legend, "lo", text="Low")
+        row.prop(legend, "hi", text="High")
+        row = box.row(align=True)
+        row.prop(settings, "colour_percentile")
+        row.operator("surfmap.colours_from_data", text="", icon='FILE_REFRESH')
+    if settings.shown == 'MORPH':
+        from .ops_view import morph_keys, pair_objects
+        obs = pair_objects(context)
+        if len(obs) == 2:
+            box = layout.box()
+            for ob, key in zip(obs, morph_keys(*obs)):
+                if key is not None:
+                    box.prop(key, "value", text=ob.name, slider=True)
+    col = layout.column(align=True)
+    col.label(text="Again from the stored map:")
+    row = col.row(align=True)
+    row.operator("surfmap.transfer_uvs", text="UVs")
+    row.operator("surfmap.create_morph", text="Morph")
+    row.operator("surfmap.paint_distortion", text="Colours")
+    col.operator("surfmap.verify_map", text="Verify Map", icon='CHECKMARK')
+    batch_operators.draw_rows(layout)   # many objects: map onto selected, compare selected
 
 
-classes = (SURFMAP_PT_main,)
+class SURFMAP_PT_result(_SubPanel, bpy.types.Panel):
+    bl_idname = "SURFMAP_PT_result"
+    bl_label = "Result"
+
+    @classmethod
+    def poll(cls, context):
+        s = context.scene.surfmap
+        return bool(s.map_status or len(s.summary_rows))
+
+    def draw(self, context):
+        draw_result(self.layout, context.scene.surfmap)
+
+
+def draw_result(layout, settings):
+    col = layout.column(align=True)
+    for row in settings.summary_rows:
+        split = col.split(factor=0.45, align=True)
+        split.label(text=row.name)
+        split.label(text=row.value)
+    if settings.map_status and not len(settings.summary_rows):
+        _lines(col, settings.map_status, 8)
+    if settings.landmark_status:
+        _lines(layout.column(align=True), settings.landmark_status, 4, icon='PINNED')
+
+
+classes = (SURFMAP_UL_candidates, SURFMAP_PT_main, SURFMAP_PT_loops, SURFMAP_PT_map,
+           SURFMAP_PT_outputs, SURFMAP_PT_result)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -6,46 +6,107 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
 from . import native
 
 
+def _recolour(self, context):
+    from . import ops_view
+    ops_view.recolour(context)
+
+
+def _percentile_changed(self, context):
+    from . import ops_view
+    ops_view.recolour(context, from_percentile=True)
+
+
+def _active_job():
+    from . import map_job
+    return map_job.ACTIVE.get("job")
+
+
+def _progress_get(self):
+    job = _active_job()
+    return 100.0 * job.fraction if job is not None else 0.0
+
+
+def _stage_get(self):
+    job = _active_job()
+    return job.stage_text() if job is not None else ""
+
+
+def _tolerance_text_get(self):
+    t = self.tolerance
+    return "default" if t <= 0 else f"{t:.1e}"
+
+
+def _tolerance_text_set(self, text):
+    text = text.strip().lower()
+    if text in ("", "0", "default", "auto"):
+        self.tolerance = 0.0
+        return
+    try:
+        value = float(text)
+    except ValueError:
+        return  # not a number: keep the value (the field shows it again)
+    if value >= 0:
+        self.tolerance = value
+
+
 class SURFMAP_PG_candidate(bpy.types.PropertyGroup):
-    """One handle correspondence (homotopy class) of the last run, with its energy."""
+    """One way of pairing the handles of the source with those of the target (a homotopy class
+    of maps), with its energy."""
     index: IntProperty(name="Index")
     description: StringProperty(name="Description")
-    energy: FloatProperty(name="Energy")
+    energy: FloatProperty(name="Energy", description="Energy of the map with this pairing "
+                          "(the solved energy, or the estimate when only estimated)")
     solved: BoolProperty(name="Solved", default=True,
-                         description="False when the core could not solve this class (no energy)")
+                         description="The map with this pairing was solved (else estimated)")
+    estimated: BoolProperty(name="Estimated", default=False,
+                            description="The energy is an estimate (a quick solve on a "
+                            "coarser copy); it was not solved in full")
     landmark_energy: FloatProperty(
         name="Energy With Landmarks", default=float("nan"),
-        description="With landmarks: the class's energy with them held as the map holds them "
-                    "(the ranking's key; inf where they cannot be held bijectively, nan when "
-                    "not computed: its lower bound could not beat the best)")
+        description="With landmarks: the energy with them held (the ranking's key; inf where "
+                    "they cannot be held without folding, nan when not computed)")
+
+
+class SURFMAP_PG_row(bpy.types.PropertyGroup):
+    """One row of the run summary: name is the label."""
+    value: StringProperty(name="Value")
+
+
+class SURFMAP_PG_legend(bpy.types.PropertyGroup):
+    """The colour scale of one colour output (name: its colour attribute)."""
+    title: StringProperty(name="Title")
+    scale: StringProperty(name="Scale", default="SEQUENTIAL")
+    lo: FloatProperty(name="Low", precision=3, update=_recolour,
+                      description="Value at the low end of the colours")
+    hi: FloatProperty(name="High", precision=3, update=_recolour,
+                      description="Value at the high end of the colours")
 
 
 class SURFMAP_PG_settings(bpy.types.PropertyGroup):
     source_base_vertex: IntProperty(
-        name="Source Base Vertex", default=-1, min=-1,
-        description="Vertex where the source's loops meet (-1: chosen automatically)")
+        name="Source Base", default=-1, min=-1,
+        description="Vertex of the source where its loops meet (-1: picked automatically)")
     target_base_vertex: IntProperty(
-        name="Target Base Vertex", default=-1, min=-1,
-        description="Vertex where the target's (active object's) loops meet "
-                    "(-1: chosen automatically)")
+        name="Target Base", default=-1, min=-1,
+        description="Vertex of the target (the active object) where its loops meet "
+                    "(-1: picked automatically)")
     loop_bevel: FloatProperty(
-        name="Loop Bevel", default=0.005, min=0.0, soft_max=0.05, precision=4,
-        description="Thickness of the loop curves, as a fraction of the object's size "
-                    "(bounding-box diagonal)")
+        name="Thickness", default=0.005, min=0.0, soft_max=0.05, precision=4,
+        description="Thickness of the loop curves, as a fraction of the object's size")
     mark_seams: BoolProperty(
         name="Mark Seams", default=True,
-        description="Mark the mesh edges along the loops as UV seams (the cut graph: "
-                    "unwrapping then gives one island)")
-    status: StringProperty(
-        name="Status", default="",
-        description="Result of the last run")
+        description="Mark the mesh edges along the loops as UV seams (Unwrap then gives one "
+                    "island)")
+    status: StringProperty(name="Status", default="", description="Result of the last run")
     # --- the map
     homotopy: IntProperty(
-        name="Handle Correspondence", default=-1, min=-1,
-        description="Homotopy class of the map: index into the candidates listed after a run "
-                    "(-1: the one of lowest energy)")
+        name="Pairing", default=-1, min=-1,
+        description="Which handle of the source goes to which handle of the target: a number "
+                    "from the list shown after a run (-1: the pairing with the lowest energy)")
     candidates: CollectionProperty(type=SURFMAP_PG_candidate)
-    chosen_candidate: IntProperty(name="Chosen Candidate", default=-1)
+    candidate_index: IntProperty(name="Picked Pairing", default=-1,
+                                 description="The pairing picked in the list")
+    chosen_candidate: IntProperty(name="Chosen Pairing", default=-1)
     landmark_mode: EnumProperty(
         name="Landmarks", default='NONE',
         items=(('NONE', "None", "No landmarks"),
@@ -53,46 +114,52 @@ class SURFMAP_PG_settings(bpy.types.PropertyGroup):
                 "with 'lm_' on both objects (e.g. lm_nose): each group's vertex of largest "
                 "weight is held on the other's"),
                ('SELECTED', "Selected Vertices", "The vertices selected on each object, in "
-                "selection order, paired one to one")))
+                "selection order, paired one to one")),
+        description="Points of the source held on chosen points of the target")
     method: EnumProperty(
-        name="Method", default='NEWTON',
-        items=(('NEWTON', "Newton", "Newton's method on the harmonic energy (fast)"),
-               ('RELAXATION', "Relaxation", "The paper's per-vertex heat-diffusion relaxation "
-                "(slow; for comparison)")))
+        name="Solver", default='NEWTON',
+        items=(('NEWTON', "Newton", "Newton's method (fast)"),
+               ('RELAXATION', "Relaxation", "The paper's per-vertex relaxation (slow; for "
+                "comparison)")),
+        description="How the smoothest map is found")
     tolerance: FloatProperty(
         name="Tolerance", default=0.0, min=0.0, precision=10, step=0.0001,
-        description="Convergence tolerance of the solve (0: the core's default)")
+        description="When the solve stops: the change in energy it accepts (0: the default)")
+    tolerance_text: StringProperty(
+        name="Tolerance", get=_tolerance_text_get, set=_tolerance_text_set,
+        description="When the solve stops: the change in energy it accepts, e.g. 1e-10 "
+                    "('default': the solver's own)")
     source_weights: EnumProperty(
-        name="Source Weights", default='AUTO',
-        items=(('AUTO', "Automatic", "Cotangent weights of the source's intrinsic Delaunay "
-                "triangulation; solved again with positive weights on the source's own edges "
-                "when the images of its faces fold (slivers, caps)"),
-               ('INTRINSIC', "Intrinsic Delaunay", "Intrinsic Delaunay cotangent weights only "
-                "(a fold of the source's own faces is then an error)"),
-               ('OWN', "Own Edges", "Positive weights on the source's own edges (embeds its "
-                "faces; more distortion where both work)")))
+        name="Weights", default='AUTO',
+        items=(('AUTO', "Automatic", "Intrinsic weights; the source's own edges where the "
+                "map would fold its faces (slivers, caps)"),
+               ('INTRINSIC', "Intrinsic", "Intrinsic Delaunay weights only (a fold of the "
+                "source's faces is then an error)"),
+               ('OWN', "Own Edges", "The source's own edges (never folds; a little more "
+                "stretch)")),
+        description="How the source's edges are weighted in the energy")
     write_uvs: BoolProperty(name="UVs", default=True,
-                            description="Transfer every UV map of the source onto the target")
+                            description="Copy every UV map of the source onto the target")
     write_uvs_before: BoolProperty(
-        name="Before UVs", default=False,
-        description="Also transfer the UVs through the initial map (before the optimisation), "
-                    "as UV maps 'surfmap before <name>' on the target, for comparison "
-                    "(genus >= 1)")
+        name="UVs Before", default=False,
+        description="Also copy the UVs through the starting map (before the optimisation), "
+                    "as 'surfmap before <name>' on the target, for comparison")
     write_morph: BoolProperty(name="Morph", default=True,
                               description="Shape keys morphing each object into the other")
     write_distortion: BoolProperty(
-        name="Distortion", default=True,
-        description="Colour attributes of the dilatation, conformal factor and mean-curvature "
-                    "difference on the source")
+        name="Colours", default=True,
+        description="Colour both objects by how much the map stretches (D'), grows or "
+                    "shrinks area, and changes curvature")
     write_refined: BoolProperty(
         name="Refined Morph", default=False,
-        description="Also a new object: the source refined where its image is long or bends "
-                    "(paper §VII-E), with a shape key onto the target that follows its detail")
+        description="Also a new object: the source with more detail where its image is long "
+                    "or bends, morphing onto the target")
     morph_space: EnumProperty(
-        name="Morph Space", default='IN_PLACE',
-        items=(('IN_PLACE', "In Place", "Each object takes the other's shape (with its "
-                "rotation and scale) around its own origin"),
-               ('WORLD', "Onto Other", "Each object moves onto the other where it stands")))
+        name="Morph", default='IN_PLACE',
+        items=(('IN_PLACE', "In Place", "Each object takes the other's shape around its own "
+                "origin"),
+               ('WORLD', "Onto Other", "Each object moves onto the other where it stands")),
+        description="Where the morphed shape goes")
     dilatation_range: FloatVectorProperty(
         name="D' Colour Range", size=2, default=(1.0, 2.0),
         description="Dilatation values at the two ends of the last distortion colour scale")
@@ -100,8 +167,30 @@ class SURFMAP_PG_settings(bpy.types.PropertyGroup):
                                description="Result of the last Compute Map")
     landmark_status: StringProperty(
         name="Landmark Status", default="",
-        description="How the last Compute Map held its landmarks: plain pins, the barrier "
-                    "continuation (and its steps) or carried neighbourhoods; empty without")
+        description="How the last Compute Map held its landmarks; empty without")
+    # --- the last run and its outputs
+    summary_rows: CollectionProperty(type=SURFMAP_PG_row)
+    legends: CollectionProperty(type=SURFMAP_PG_legend)
+    legend_pair: StringProperty(name="Coloured Objects", default="",
+                                description="Source and target of the colours (tab-separated)")
+    colour_percentile: FloatProperty(
+        name="Percentile", default=99.0, min=50.0, max=100.0, precision=1,
+        update=_percentile_changed,
+        description="The colours' high end is this percentile of the values (the highest "
+                    "values beyond it share the end colour)")
+    shown: StringProperty(name="Shown", default="",
+                          description="What the viewport shows: '', a colour attribute, "
+                          "'TEXTURE' or 'MORPH'")
+    shown_saved: StringProperty(name="Saved View", default="",
+                                description="The viewport shading before Show (restored by Back)")
+    max_tick_gap: FloatProperty(name="Longest UI Pause", default=0.0, unit='TIME_ABSOLUTE',
+                                description="Longest gap between the UI timer's ticks during "
+                                            "the last run (s)")
+    progress: FloatProperty(name="Progress", subtype='PERCENTAGE', min=0.0, max=100.0,
+                            precision=0, get=_progress_get,
+                            description="How far the running computation is")
+    progress_stage: StringProperty(name="Stage", get=_stage_get,
+                                   description="What the running computation is doing")
 
 
 class SURFMAP_AP_preferences(bpy.types.AddonPreferences):
@@ -145,7 +234,8 @@ def extra_module_dirs(context):
     return ()
 
 
-classes = (SURFMAP_PG_candidate, SURFMAP_PG_settings, SURFMAP_AP_preferences)
+classes = (SURFMAP_PG_candidate, SURFMAP_PG_row, SURFMAP_PG_legend, SURFMAP_PG_settings,
+           SURFMAP_AP_preferences)
 
 
 def register():

@@ -4,9 +4,9 @@ negatively oriented or degenerate image triangle, every vertex star winding once
 the inverse consistent with the forward map."""
 import bpy
 
-from . import core
-from .map_ops import stored_pair
-from .operators import native_and_object_mode, surfmap_module
+from .side import ObjectProblem
+from .ops_stored_map import stored_pair
+from .ops_common import native_and_object_mode, surfmap_module
 
 # Stored barycentrics are float32 attributes: their sums are 1 only to ~1e-7.
 STORED_BARYCENTRIC_TOLERANCE = 1e-5
@@ -29,7 +29,7 @@ class SURFMAP_OT_verify_map(bpy.types.Operator):
             source, target, src, tgt, res = stored_pair(context)
             cert = sm.verify(src["V"], src["F"], tgt["V"], tgt["F"], res["forward"], res["inverse"],
                              barycentric_tolerance=STORED_BARYCENTRIC_TOLERANCE)
-        except (core.ObjectProblem, sm.Error) as e:
+        except (ObjectProblem, sm.Error) as e:
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}
         lines = cert["summary"].splitlines()

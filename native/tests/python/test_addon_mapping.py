@@ -1,18 +1,25 @@
-"""The add-on's bpy-free maths (addon/surface_map/mapping.py), imported by file, outside
-Blender: UV transfer across seams, distortion measures, colour scales, landmarks, fingerprints."""
-import importlib.util
+"""The add-on's bpy-free modules (addon/surface_map: geometry, distortion, colours, uv_transfer,
+landmarks, morph, side, map_job), imported as a package outside Blender (its __init__ skips the
+bpy half when bpy is missing): UV transfer across seams, distortion measures, colour scales,
+landmarks, fingerprints, the map job's options and its sliced outputs."""
+import importlib
 import math
 import pathlib
+import sys
+import types
 
 import numpy as np
 import pytest
 
 import surfmap
 
-_path = pathlib.Path(__file__).resolve().parents[3] / "addon" / "surface_map" / "mapping.py"
-_spec = importlib.util.spec_from_file_location("surfmap_addon_mapping", _path)
-M = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(M)
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[3] / "addon"))
+_MODULES = ("geometry", "distortion", "colours", "uv_transfer", "landmarks", "morph", "side",
+            "map_job")
+_mods = {name: importlib.import_module(f"surface_map.{name}") for name in _MODULES}
+# One namespace with every name of the bpy-free modules (the tests below predate the split).
+M = types.SimpleNamespace(**{k: v for m in _mods.values() for k, v in vars(m).items()
+                             if not k.startswith("__")})
 
 
 def torus(R, r, n, m):
@@ -222,3 +229,72 @@ def test_box_projection_has_islands_and_no_flips():
     assert np.all(M.signed_uv_areas(uv) > 0)
     assert M.uv_islands(F, uv).max() + 1 >= 6
     assert uv.min() >= 0 and uv.max() <= 1
+
+
+def test_map_options_spell_the_core_names_in_one_place():
+    """The panel's enum values become the core's keywords once (MapOptions.from_settings)."""
+    settings = types.SimpleNamespace(homotopy=3, method='RELAXATION', tolerance=1e-9,
+                                     source_weights='OWN', write_uvs_before=True,
+                                     morph_space='WORLD', colour_percentile=95.0)
+    o = M.MapOptions.from_settings(settings, landmarks=np.array([[1, 2]]), outputs={"UV"})
+    kw = o.native_kwargs()
+    assert kw["homotopy"] == 3 and kw["method"] == "relaxation" and kw["source_weights"] == "own"
+    assert kw["tolerance"] == 1e-9 and kw["landmarks"].dtype == np.int32
+    assert o.outputs == {"UV"} and o.morph_space == "WORLD" and o.colour_percentile == 95.0
+    default = M.MapOptions().native_kwargs()
+    assert default == {"homotopy": -1}          # the core's own defaults otherwise
+
+
+def test_core_supports_prefers_the_capabilities_attribute():
+    def surface_map():
+        """Globally optimal map ... `landmarks`: ..."""
+    old = types.SimpleNamespace(surface_map=surface_map)
+    assert M.core_supports(old, "landmarks") and not M.core_supports(old, "method")
+    new = types.SimpleNamespace(surface_map=surface_map, CAPABILITIES={"method", "landmarks"})
+    assert M.core_supports(new, "method")
+    flags = types.SimpleNamespace(surface_map=surface_map,
+                                  _core=types.SimpleNamespace(CAPABILITIES={"method": False}))
+    assert not M.core_supports(flags, "method")
+    nested = types.SimpleNamespace(surface_map=surface_map,
+                                   CAPABILITIES={"surface_map": ["tolerance"]})
+    assert M.core_supports(nested, "tolerance") and not M.core_supports(nested, "method")
+    unsupported = M.MapOptions(method="relaxation").unsupported(old)
+    assert unsupported == "method"
+    assert M.core_supports(surfmap, "landmarks")   # the real module, whichever way it says
+
+
+def test_sliced_outputs_equal_the_whole_and_colour_both_sides(tori):
+    Vs, Fs, Vt, Ft, m = tori
+
+    def side(name, V, F, uv=None):
+        L = len(F) * 3
+        d = dict(V=V, F=F, tri_loops=np.arange(L).reshape(-1, 3), tri_polygon=np.arange(len(F)),
+                 num_polygons=len(F), loop_start=np.arange(0, L, 3),
+                 loop_total=np.full(len(F), 3), loop_vertex=np.asarray(F).reshape(-1))
+        s = M.MeshSide.from_mesh_data(name, np.eye(4), d).orient(False)
+        if uv is not None:
+            s.uv_layers["uv"] = uv.reshape(-1, 2)
+        return s
+    src = side("s", Vs, Fs, torus_corner_uv(Vs, Fs, 1.0))
+    tgt = side("t", Vt, Ft)
+    c = M.OutputComputation(src, tgt, m, M.MapOptions())
+    n = 0
+    while c.step():
+        n += 1
+    out = c.out
+    whole = M.compute_outputs(src, tgt, m, M.MapOptions())
+    assert n >= 5 and np.array_equal(out["uv"]["uv"], whole["uv"]["uv"])
+    for name in (M.DILATATION_COLOURS, M.CONFORMAL_COLOURS, M.CURVATURE_COLOURS):
+        assert name in out["colours"] and name in out["target_colours"]
+    # D' is the same stretch seen from either side (up to the piecewise-linear inverse)
+    Ds, Dt = out["raw"][M.DILATATION_COLOURS], out["target_raw"][M.DILATATION_COLOURS]
+    assert np.all(Dt[np.isfinite(Dt)] >= 1 - 1e-9)
+    assert abs(np.median(Ds) - np.median(Dt)) < 0.05 * np.median(Ds)
+    # the area ratio on the target (through the inverse map, same sign convention) agrees
+    # with the source's at each target vertex's preimage
+    lam_s, lam_t = out["raw"][M.CONFORMAL_COLOURS], out["target_raw"][M.CONFORMAL_COLOURS]
+    face, bary = out["inverse"]
+    lam_s_at = np.einsum("ik,ik->i", bary, lam_s[np.asarray(Fs)[face]])
+    r = np.corrcoef(lam_s_at, lam_t)[0, 1]
+    assert r > 0.9, r
+    assert np.abs(lam_s_at - lam_t).mean() < 0.2 * np.abs(lam_s).max()

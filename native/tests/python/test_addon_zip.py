@@ -19,6 +19,7 @@ def test_zip_holds_the_addon_and_the_native_module():
     names = set(zipfile.ZipFile(ZIP).namelist())
     for py in (REPO / "addon" / "surface_map").glob("*.py"):
         assert f"surface_map/{py.name}" in names, py.name
+    assert "surface_map/blender_manifest.toml" in names
     assert "surface_map/surfmap/__init__.py" in names
     assert any(n.startswith("surface_map/surfmap/_core") and n.endswith(".so") for n in names)
 

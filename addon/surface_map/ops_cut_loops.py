@@ -1,51 +1,9 @@
-"""Operators. SURFMAP_OT_show_cut_loops: the system of loops of the selected mesh(es)."""
+"""surfmap.show_cut_loops (bpy): the system of loops of the selected mesh(es), drawn as curves
+and marked as seams. The maths is in cut_loops.py."""
 import bpy
 
-from . import blender_io, core, native
-from .properties import extra_module_dirs
-
-
-def surfmap_module(context):
-    return native.load(extra_dirs=extra_module_dirs(context))
-
-
-def native_and_object_mode(cls, context):
-    """The poll precondition every Surface Map operator shares: the native module is there
-    and Blender is in Object Mode (otherwise the reason goes to poll_message_set)."""
-    if surfmap_module(context) is None:
-        cls.poll_message_set("The surfmap native module is missing (see the Surface Map panel)")
-        return False
-    if context.mode != 'OBJECT':
-        cls.poll_message_set("Switch to Object Mode")
-        return False
-    return True
-
-
-def pick_objects(context):
-    """(source, target) following Blender's selected-to-active habit: the active object is the
-    target, the other selected mesh the source (None with a single mesh). Raises
-    core.ObjectProblem with a message when the selection does not fit."""
-    selected = list(context.selected_objects)
-    active = context.active_object
-    if active is not None and active.select_get() and active not in selected:
-        selected.append(active)
-    others = [o for o in selected if o.type != 'MESH']
-    if others:
-        o = others[0]
-        raise core.ObjectProblem(f"'{o.name}' is a {o.type.lower()}, not a mesh: "
-                                 f"select one or two mesh objects")
-    if not selected:
-        raise core.ObjectProblem("no mesh selected: select one or two mesh objects")
-    if len(selected) > 2:
-        raise core.ObjectProblem(f"{len(selected)} objects selected: select one mesh, or two "
-                                 f"(the active one is the target, the other the source)")
-    if len(selected) == 1:
-        return None, selected[0]
-    if active not in selected:
-        raise core.ObjectProblem("two meshes selected but neither is active: the active object "
-                                 "is the target (click it last)")
-    source = selected[0] if selected[1] == active else selected[1]
-    return source, active
+from . import blender_io, cut_loops, native
+from .ops_common import native_and_object_mode, pick_objects, surfmap_module
 
 
 class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
@@ -81,18 +39,18 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
             for o in objs:
                 d = blender_io.read_object_mesh(o, depsgraph)
                 if len(d["F"]) == 0:
-                    raise core.ObjectProblem(f"object '{o.name}' has no faces")
+                    raise cut_loops.ObjectProblem(f"object '{o.name}' has no faces")
                 data[o.name] = d
-                intakes[o.name] = core.intake_object(sm, o.name, d["V"], d["F"])
-            core.check_genus(source.name if source else None,
+                intakes[o.name] = cut_loops.intake_object(sm, o.name, d["V"], d["F"])
+            cut_loops.check_genus(source.name if source else None,
                              intakes[source.name]["info"]["genus"] if source else None,
                              target.name, intakes[target.name]["info"]["genus"])
             results = {}
             for o in objs:
                 it = intakes[o.name]
                 base = settings.target_base_vertex if o == target else settings.source_base_vertex
-                results[o.name] = core.loops_of_object(sm, o.name, it["V"], it["F"], base)
-        except core.ObjectProblem as e:
+                results[o.name] = cut_loops.loops_of_object(sm, o.name, it["V"], it["F"], base)
+        except cut_loops.ObjectProblem as e:
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}
         except sm.Error as e:
@@ -103,8 +61,10 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
         notes = []
         for o in objs:
             r, d, it = results[o.name], data[o.name], intakes[o.name]
-            bevel = settings.loop_bevel * core.bounding_diagonal(it["V"])
-            blender_io.add_loop_curves(context.scene, o, r["curves"], bevel)
+            bevel = settings.loop_bevel * cut_loops.bounding_diagonal(it["V"])
+            own = not d["evaluated"] and len(it["V"]) == len(o.data.vertices)
+            blender_io.add_loop_curves(context.scene, o, r["curves"], bevel,
+                                       r.get("curve_weights") if own else None)
             if d["evaluated"]:
                 notes.append(f"'{o.name}': used the mesh with modifiers applied; seams not "
                              f"marked (its edges are not the object's own)")
@@ -129,4 +89,14 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
 
 classes = (SURFMAP_OT_show_cut_loops,)
 
-register, unregister = bpy.utils.register_classes_factory(classes)
+_register, _unregister = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register()
+    blender_io.register_handlers()   # the loop curves follow the morph's shape keys
+
+
+def unregister():
+    blender_io.unregister_handlers()
+    _unregister()

@@ -1,9 +1,7 @@
-"""The Blender-free half of the add-on (like glTF's io/ vs blender/ split).
-
-Plain numpy in, plain numpy out: triangulating polygons with the corner mapping, running the
-native pipeline on one object's mesh, mapping refined loop vertices back onto the original
-surface, choosing the original edges to mark as seams, loop names and colours. Nothing here
-imports bpy, so it runs (and is tested) outside Blender too.
+"""The cut loops of one object (no bpy). Plain numpy in, plain numpy out: triangulating
+polygons with the corner mapping, running the native pipeline on one object's mesh, mapping
+refined loop vertices back onto the original surface, choosing the original edges to mark as
+seams, loop names and colours. Runs (and is tested) outside Blender too.
 """
 import colorsys
 
@@ -145,15 +143,12 @@ def srgb_from_linear(rgba):
     return tuple(out) + tuple(rgba[3:])
 
 
-# One definition for the loops and the map outputs (mapping.py is bpy-free too).
-from .mapping import bounding_diagonal  # noqa: E402,F401
+# One definition for the loops and the map outputs.
+from .geometry import bounding_diagonal  # noqa: E402,F401
+from .side import ObjectProblem  # noqa: E402,F401
 
 
 # --- one object through the native pipeline ---------------------------------------------------
-
-class ObjectProblem(Exception):
-    """A problem with one object's mesh; the message names the object."""
-
 
 def intake_object(sm, name, V, F):
     """Validates one triangulated mesh. Returns the intake dict; raises ObjectProblem."""
@@ -184,6 +179,8 @@ def loops_of_object(sm, name, V, F, base_vertex=-1):
       genus, base_vertex, word_text,
       curves:      list of (name, (k,3) points) per loop, on the original surface, the closing
                    repeat of the base vertex dropped (the curves are cyclic);
+      curve_weights: per loop, (vertices (k,3), barycentrics (k,3)): each curve point as a
+                   combination of three mesh vertices (so the curve can follow a morph);
       seam_edges:  list of (p, q) input vertex pairs to mark as seams: the unrefined loops
                    (their union is the cut graph: cutting along it leaves one disk, so Blender's
                    Unwrap gives one island) — refined loops detour through faces near shared
@@ -204,14 +201,19 @@ def loops_of_object(sm, name, V, F, base_vertex=-1):
     except sm.Error as e:
         raise ObjectProblem(f"object '{name}': system of loops failed: {e}") from None
     P = points_on_surface(V, F, sol["origin_face"], sol["origin_barycentric"])
-    curves = []
+    tri = np.asarray(F, dtype=np.int64)[np.asarray(sol["origin_face"], dtype=np.int64)]
+    bary = np.asarray(sol["origin_barycentric"], dtype=np.float64)
+    curves, weights = [], []
     for k, loop in enumerate(sol["loops"]):
-        curves.append((loop_name(k), P[open_path(loop)]))
+        path = open_path(loop)
+        curves.append((loop_name(k), P[path]))
+        weights.append((tri[path], bary[path]))
     return {
         "genus": int(sol["genus"]),
         "base_vertex": int(sol["base_vertex"]),
         "word_text": str(sol.get("word_text", "")),
         "curves": curves,
+        "curve_weights": weights,
         "seam_edges": loop_edges(raw["loops"]),
         "edges_along": original_edges_along_loops(sol["loops"], n, F, sol["origin_face"],
                                                   sol["origin_barycentric"], V),

@@ -1,0 +1,475 @@
+"""One map computation as plain data (no bpy): the options as the core spells them, the native
+solve (on a worker thread in the UI, inline in background mode), and every output computed with
+numpy in short slices (so a UI timer keeps running between them), ready for the bpy side
+(ops_map.write_outputs) to write. Data flow: docs/addon.md.
+"""
+from dataclasses import dataclass, field
+import threading
+import time
+from typing import Optional, Set
+
+import numpy as np
+
+from . import colours, distortion, geometry, morph, uv_transfer
+from .side import MeshSide  # noqa: F401  (the type of job.source / job.target)
+
+STAGE_NAMES = {
+    "target uniformization": "Uniformizing target",
+    "source homotopy data and weights": "Source weights",
+    "homotopy candidates": "Ranking handle pairings",
+    "harmonic solve": "Harmonic solve",
+    "quality": "Measuring distortion",
+    "forward location": "Locating source on target",
+    "inverse location": "Locating target on source",
+}
+
+# The solve's share of the progress bar; the outputs take the rest.
+SOLVE_SHARE = 0.85
+
+# Panel value -> the core's spelling, in one place.
+METHODS = {"NEWTON": "newton", "RELAXATION": "relaxation"}
+SOURCE_WEIGHTS = {"AUTO": "auto", "INTRINSIC": "intrinsic", "OWN": "own"}
+
+
+def core_supports(sm, word):
+    """Whether the native module takes the surface_map keyword `word`: from its explicit
+    CAPABILITIES attribute when it has one (a set/list of names or a dict of flags, on the
+    package or its _core), else from the function's docstring (older builds)."""
+    caps = getattr(sm, "CAPABILITIES", None)
+    if caps is None:
+        caps = getattr(getattr(sm, "_core", None), "CAPABILITIES", None)
+    if caps is not None:
+        try:
+            if isinstance(caps, dict):
+                if word in caps:
+                    return bool(caps[word])
+                return any(isinstance(v, (set, list, tuple, frozenset)) and word in v
+                           for v in caps.values())
+            return word in caps
+        except TypeError:
+            pass
+    return word in (getattr(getattr(sm, "surface_map", None), "__doc__", None) or "")
+
+
+@dataclass
+class MapOptions:
+    """What the panel asks for, already in the core's spelling (see from_settings)."""
+    homotopy: int = -1
+    landmarks: Optional[np.ndarray] = None   # (k,2) source vertex, target vertex
+    method: str = "newton"
+    tolerance: float = 0.0                   # 0: the core's default
+    source_weights: str = "auto"
+    outputs: Set[str] = field(default_factory=lambda: {"UV", "MORPH", "DISTORTION"})
+    uv_before: bool = False
+    morph_space: str = "IN_PLACE"
+    colour_percentile: float = 99.0
+
+    @classmethod
+    def from_settings(cls, settings, landmarks=None, outputs=None):
+        """From the scene's PropertyGroup (any object with its attribute names)."""
+        return cls(homotopy=int(settings.homotopy), landmarks=landmarks,
+                   method=METHODS.get(settings.method, str(settings.method).lower()),
+                   tolerance=float(settings.tolerance),
+                   source_weights=SOURCE_WEIGHTS.get(settings.source_weights,
+                                                     str(settings.source_weights).lower()),
+                   outputs=set(outputs) if outputs is not None else {"UV", "MORPH",
+                                                                     "DISTORTION"},
+                   uv_before=bool(settings.write_uvs_before),
+                   morph_space=str(settings.morph_space),
+                   colour_percentile=float(getattr(settings, "colour_percentile", 99.0)))
+
+    def native_kwargs(self):
+        """The surface_map keywords that differ from the core's defaults."""
+        kw = {"homotopy": int(self.homotopy)}
+        if self.landmarks is not None and len(self.landmarks):
+            kw["landmarks"] = np.ascontiguousarray(self.landmarks, dtype=np.int32)
+        if self.method != "newton":
+            kw["method"] = self.method
+        if self.tolerance:
+            kw["tolerance"] = float(self.tolerance)
+        if self.source_weights != "auto":
+            kw["source_weights"] = self.source_weights
+        return kw
+
+    def unsupported(self, sm):
+        """The first option this native module does not take, or None."""
+        for word in self.native_kwargs():
+            if word != "homotopy" and not core_supports(sm, word):
+                return word
+        return None
+
+    # Read access by key, for code written against the earlier dict form of the options.
+    def __getitem__(self, key):
+        return getattr(self, key)
+
+    def get(self, key, default=None):
+        return getattr(self, key, default)
+
+
+class MapJob:
+    def __init__(self, sm, source, target, options):
+        """source, target: MeshSide; options: MapOptions."""
+        self.sm = sm
+        self.source, self.target = source, target
+        self.options = options
+        self.stage, self.fraction = "starting", 0.0
+        self.energy = None
+        self.cancel = False
+        self.result = None       # the native dict
+        self.outputs = None      # computed outputs (see OutputComputation)
+        self.error = None        # (kind, message): 'cancelled' | 'input' | 'solve' | 'internal'
+        self.thread = None
+        self.t0 = None
+        self.elapsed = 0.0
+        self.times = {}          # wall seconds per stage: solve, outputs (+ write, by the op)
+        self._slices = None
+
+    # -- the solve ----------------------------------------------------------------------------
+
+    def _progress(self, stage, fraction, *extra):
+        self.stage = str(stage)
+        self.fraction = SOLVE_SHARE * float(fraction)
+        for x in extra:  # newer cores may pass the current energy
+            if isinstance(x, (int, float)):
+                self.energy = float(x)
+                break
+        return not self.cancel
+
+    def _solve_progress(self, iteration, energy, gradient):
+        """Per iteration of the harmonic solve: the status text shows the energy."""
+        self.energy = float(energy)
+        return not self.cancel
+
+    def native_kwargs(self):
+        kw = self.options.native_kwargs()
+        if core_supports(self.sm, "solve_progress"):
+            kw["solve_progress"] = self._solve_progress
+        return kw
+
+    def run(self, with_outputs=True):
+        """The native solve and, with `with_outputs`, the outputs; never raises (the error is
+        kept in self.error)."""
+        if self.t0 is None:
+            self.t0 = time.time()
+        self._guarded(self._solve)
+        if with_outputs:
+            self.compute_outputs()
+        self.elapsed = time.time() - self.t0
+
+    def compute_outputs(self):
+        """All the numpy outputs of a finished solve at once."""
+        while self.step_outputs(budget=None):
+            pass
+
+    def step_outputs(self, budget=0.05):
+        """Runs output slices for about `budget` seconds (None: to the end) on the calling
+        thread (Blender's main thread in the UI: the worker thread runs only the native solve,
+        which holds no Python state). Returns True while slices remain."""
+        if self.error is not None or self.result is None or self.outputs is not None:
+            return False
+        if self._slices is None:
+            self._t_outputs = time.time()
+            self._slices = OutputComputation(self.source, self.target, self.result,
+                                             self.options)
+        t = time.time()
+        while True:
+            more = self._guarded(self._slices.step)
+            if self.error is not None:
+                return False
+            self.stage = self._slices.stage
+            self.fraction = SOLVE_SHARE + (1 - SOLVE_SHARE) * self._slices.fraction
+            if self.cancel:
+                self.error = ("cancelled", "cancelled")
+                return False
+            if not more:
+                self.outputs = self._slices.out
+                self.stage, self.fraction = "writing outputs", 1.0
+                self.times["outputs"] = time.time() - self._t_outputs
+                return False
+            if budget is not None and time.time() - t > budget:
+                return True
+
+    def _solve(self):
+        t = time.time()
+        kw = self.native_kwargs()   # prepare_job checked the core accepts them
+        self.result = self.sm.surface_map(
+            self.source.V, self.source.F, self.target.V, self.target.F,
+            progress=self._progress, **kw)
+        self.times["solve"] = time.time() - t
+        if self.cancel:
+            raise self.sm.Cancelled("cancelled")
+
+    def _guarded(self, step):
+        sm = self.sm
+        try:
+            return step()
+        except sm.Cancelled:
+            self.error = ("cancelled", "cancelled")
+        except sm.InputError as e:
+            self.error = ("input", str(e))
+        except sm.SolveError as e:
+            self.error = ("solve", f"the map solve failed: {e}")
+        except sm.Error as e:
+            self.error = ("solve", f"surfmap: {e}")
+        except Exception as e:  # a bug on our side: report it rather than crash Blender
+            import traceback
+            traceback.print_exc()
+            self.error = ("internal", f"{type(e).__name__}: {e}")
+        return None
+
+    def start(self):
+        """The native solve on a worker thread (outputs: step_outputs on the main thread)."""
+        self.t0 = time.time()
+        self.thread = threading.Thread(target=self.run, kwargs={"with_outputs": False},
+                                       name="surfmap solve", daemon=True)
+        self.thread.start()
+
+    def done(self):
+        return self.thread is None or not self.thread.is_alive()
+
+    def stage_text(self):
+        return STAGE_NAMES.get(self.stage, self.stage[:1].upper() + self.stage[1:])
+
+    def status_text(self):
+        s = f"Surface Map: {self.stage_text()} ({100 * self.fraction:.0f}%)"
+        if self.energy is not None:
+            s += f", energy {self.energy:.6g}"
+        if self.t0 is not None:
+            s += f", {time.time() - self.t0:.1f}s"
+        return s + " — Esc to cancel"
+
+
+# --- outputs -----------------------------------------------------------------------------------
+
+def corner_uvs(side, loop_uv):
+    """(m,3,2) UV of every triangle corner, in the order of the side's triangles F."""
+    return np.asarray(loop_uv, dtype=np.float64)[side["tri_loops"]]
+
+
+def distortion_colours(values_per_polygon, lo, hi, loop_total):
+    """CORNER-domain colours of a per-polygon value (each corner takes its polygon's)."""
+    rgba = colours.colour_scale(values_per_polygon, lo, hi, colours.SEQUENTIAL)
+    return np.repeat(rgba, np.asarray(loop_total, dtype=np.int64), axis=0)
+
+
+# The colour outputs: attribute name -> (legend title, scale, domain of the raw values).
+DILATATION_COLOURS = "surfmap dilatation"
+DILATATION_INITIAL_COLOURS = "surfmap dilatation initial"
+CONFORMAL_COLOURS = "surfmap conformal factor"
+CURVATURE_COLOURS = "surfmap mean curvature difference"
+COLOUR_OUTPUTS = {
+    DILATATION_COLOURS: ("D' (dilatation)", "SEQUENTIAL", 'FACE'),
+    DILATATION_INITIAL_COLOURS: ("D' initial map", "SEQUENTIAL", 'FACE'),
+    CONFORMAL_COLOURS: ("log2 area ratio", "DIVERGING", 'POINT'),
+    CURVATURE_COLOURS: ("mean curv. diff.", "DIVERGING", 'POINT'),
+}
+
+
+def colours_of(name, values, lo, hi, loop_total):
+    """The colour attribute data of one output from its raw values: (rgba, domain)."""
+    title, scale, domain = COLOUR_OUTPUTS[name]
+    if domain == 'FACE':
+        return distortion_colours(values, lo, hi, loop_total), 'CORNER'
+    return colours.colour_scale(values, lo, hi, colours.STOPS[scale]), 'POINT'
+
+
+class OutputComputation:
+    """compute_outputs in slices: step() runs one slice and returns True while more remain;
+    `stage` / `fraction` say where it is, `out` holds the result (see compute_outputs)."""
+
+    def __init__(self, source, target, res, options, only=None):
+        self.source, self.target, self.res, self.options = source, target, res, options
+        self.outputs = set(options.get("outputs", {"UV", "MORPH", "DISTORTION"})) \
+            if only is None else set(only)
+        self.stage, self.fraction = "locating points", 0.0
+        self.out = None
+        self._plan = self._slices()
+        self._total = 2 + len(source["uv_layers"]) * ("UV" in self.outputs) \
+            + 3 * ("DISTORTION" in self.outputs)
+        self._done = 0
+        self.slice_times = []   # (stage before the slice, seconds): the UI pauses this long
+
+    def step(self):
+        t = time.time()
+        stage = self.stage
+        try:
+            self.stage = next(self._plan)
+        except StopIteration:
+            self.fraction = 1.0
+            return False
+        finally:
+            self.slice_times.append((stage, time.time() - t))
+        self.fraction = min(self._done / max(self._total, 1), 1.0)
+        return True
+
+    def _slices(self):
+        source, target, res, options = self.source, self.target, self.res, self.options
+        outputs = self.outputs
+        Vs, Fs, Vt, Ft = source["V"], source["F"], target["V"], target["F"]
+        fw_f = np.asarray(res["forward"]["face"], dtype=np.int64)
+        fw_b = np.asarray(res["forward"]["barycentric"], dtype=np.float64)
+        iv_f = np.asarray(res["inverse"]["face"], dtype=np.int64)
+        iv_b = np.asarray(res["inverse"]["barycentric"], dtype=np.float64)
+        out = {"forward": (fw_f, fw_b), "inverse": (iv_f, iv_b), "colours": {},
+               "target_colours": {}, "raw": {}, "target_raw": {}, "uv": {}, "uv_before": {},
+               "report": [], "ranges": {}}
+        for key in ("initial_forward", "initial_inverse"):
+            init = res.get(key)
+            out[key] = None if init is None else (np.asarray(init["face"], dtype=np.int64),
+                                                  np.asarray(init["barycentric"],
+                                                             dtype=np.float64))
+        pos_s = geometry.points_at(Vt, Ft, fw_f, fw_b)   # source vertices on the target
+        pos_t = geometry.points_at(Vs, Fs, iv_f, iv_b)   # target vertices on the source
+        out["image_of_source"] = pos_s
+        space = options.get("morph_space", "IN_PLACE")
+        if "MORPH" in outputs:
+            out["morph_source"] = geometry.apply_matrix(
+                morph.morph_matrix(target["matrix"], source["matrix"], space), pos_s)
+            out["morph_target"] = geometry.apply_matrix(
+                morph.morph_matrix(source["matrix"], target["matrix"], space), pos_t)
+            # The "before" morph: the initial map located on the target (genus >= 1).
+            if out["initial_forward"] is not None:
+                pos0 = geometry.points_at(Vt, Ft, *out["initial_forward"])
+                out["morph_source_initial"] = geometry.apply_matrix(
+                    morph.morph_matrix(target["matrix"], source["matrix"], space), pos0)
+        self._done += 1
+        yield "morph"
+        if "UV" in outputs:
+            yield from self._uv_slices(out, iv_f, iv_b)
+        if "DISTORTION" in outputs:
+            yield from self._distortion_slices(out, pos_s, pos_t)
+        self._done += 1
+        self.out = out
+
+    def _uv_slices(self, out, iv_f, iv_b):
+        source, target, options = self.source, self.target, self.options
+        Vs, Fs = source["V"], source["F"]
+        lv = target["loop_vertex"]
+        total_straddling, names = 0, []
+        for name, loop_uv in source["uv_layers"].items():
+            tr = uv_transfer.UVTransfer(Fs, corner_uvs(source, loop_uv), Vs)
+            yield f"UV map {name}"
+            for _ in tr.iter_polygon_uvs(iv_f[lv], iv_b[lv], target["loop_start"],
+                                         target["loop_total"]):
+                yield f"UV map {name}"
+            uv, straddling = tr.result
+            out["uv"][name] = uv
+            total_straddling += int(straddling.sum())
+            names.append(name)
+            if tr.unresolved:
+                out["report"].append(f"UV map '{name}': {tr.unresolved} corners kept their own "
+                                     f"island's UV (no short path across the seam)")
+            if options.get("uv_before") and out["initial_inverse"] is not None:
+                # The same transfer through the initial map (the "before" figure); where the
+                # initial map folds, a target vertex takes one of the covering source faces.
+                i0_f, i0_b = out["initial_inverse"]
+                for _ in tr.iter_polygon_uvs(i0_f[lv], i0_b[lv], target["loop_start"],
+                                             target["loop_total"]):
+                    yield f"UV map {name} (before)"
+                out["uv_before"][name] = tr.result[0]
+            self._done += 1
+        if names:
+            out["report"].append(f"UVs: {len(names)} map(s) transferred ({', '.join(names)}); "
+                                 f"{total_straddling} target faces across source seams were "
+                                 f"unfolded into one chart")
+            if out["uv_before"]:
+                out["report"].append(f"UVs through the initial map ('before'): "
+                                     f"{len(out['uv_before'])} map(s)")
+            elif options.get("uv_before"):
+                out["report"].append("UVs through the initial map: none (no initial map "
+                                     "located for this pair, e.g. genus 0, or not stored)")
+        else:
+            out["report"].append(f"UVs: the source '{source['name']}' has no UV map to transfer")
+
+    def _distortion_slices(self, out, pos_s, pos_t):
+        source, target, res = self.source, self.target, self.res
+        q = float(self.options.get("colour_percentile", 99.0)) / 100.0
+        Vs, Fs, Vt, Ft = source["V"], source["F"], target["V"], target["F"]
+        fw_f, fw_b = out["forward"]
+        iv_f, iv_b = out["inverse"]
+        tri_poly, npoly = source["tri_polygon"], source["num_polygons"]
+        areas = geometry.face_areas(Vs, Fs)
+        dist = res.get("distortion", {})
+        if "dilatation_per_polygon" in res:
+            Dp = np.asarray(res["dilatation_per_polygon"], dtype=np.float64)
+            D = Dp[np.asarray(tri_poly, dtype=np.int64)]
+        else:
+            if "per_face" in dist:
+                D = np.asarray(dist["per_face"], dtype=np.float64)
+            else:  # from a stored correspondence: D' of the triangles of the image points
+                nrm = geometry.face_normals(Vt, Ft)[fw_f[Fs[:, 0]]]
+                D, _ = distortion.dilatation(Vs, Fs, pos_s, nrm)
+            Dp = distortion.per_polygon(D, tri_poly, npoly, areas)
+        Dp_init = res.get("initial_dilatation_per_polygon")
+        D_init = res.get("initial_distortion", {}).get("per_face")
+        if D_init is not None and len(D_init) != len(Fs):
+            D_init = None  # not measured for this genus by this core
+        if Dp_init is None and D_init is not None:
+            Dp_init = distortion.per_polygon(np.asarray(D_init, dtype=np.float64), tri_poly,
+                                             npoly, areas)
+        # The target's D' through the inverse map (its triangles onto their preimages).
+        nrm_s = geometry.face_normals(Vs, Fs)[iv_f[np.asarray(Ft)[:, 0]]]
+        Dt, _ = distortion.dilatation(Vt, Ft, pos_t, nrm_s)
+        Dpt = distortion.per_polygon(Dt, target["tri_polygon"], target["num_polygons"],
+                                     geometry.face_areas(Vt, Ft))
+        yield "distortion D'"
+        both = [Dp, Dpt] + ([] if Dp_init is None else [Dp_init])
+        lo, hi = colours.robust_range(np.concatenate(both), hi_q=q, floor=1.0)
+        out["dilatation"] = Dp
+        out["dilatation_initial"] = Dp_init
+        out["dilatation_target"] = Dpt
+        out["raw"][DILATATION_COLOURS] = Dp
+        out["target_raw"][DILATATION_COLOURS] = Dpt
+        if Dp_init is not None:
+            out["raw"][DILATATION_INITIAL_COLOURS] = Dp_init
+        out["ranges"]["dilatation"] = (lo, hi)
+        out["ranges"][DILATATION_COLOURS] = out["ranges"][DILATATION_INITIAL_COLOURS] = (lo, hi)
+        fm = np.isfinite(D)
+        mean = float(np.sum(areas[fm] * D[fm]) / max(float(areas[fm].sum()), 1e-300))
+        worst = float(D[fm].max()) if fm.any() else float("inf")
+        out["report"].append(f"dilatation D' colours: {lo:.3g} (dark violet) to {hi:.3g} "
+                             f"(yellow), magenta = flipped; mean {mean:.4g}, max {worst:.4g}")
+        self._done += 1
+        lam = np.log2(distortion.conformal_factor(Vs, Fs, pos_s))
+        yield "conformal factor"
+        lam_t = -np.log2(distortion.conformal_factor(Vt, Ft, pos_t))  # source over target too
+        l_lo, l_hi = colours.symmetric_range(np.concatenate([lam, lam_t]), q)
+        out["raw"][CONFORMAL_COLOURS], out["target_raw"][CONFORMAL_COLOURS] = lam, lam_t
+        out["ranges"]["conformal"] = out["ranges"][CONFORMAL_COLOURS] = (l_lo, l_hi)
+        out["report"].append(f"conformal factor colours: log2 λ from {l_lo:.3g} (blue, area "
+                             f"shrinks) to {l_hi:.3g} (red, area grows)")
+        self._done += 1
+        yield "conformal factor"
+        dH = distortion.mean_curvature_difference(Vs, Fs, Vt, Ft, fw_f, fw_b)
+        # on the target: (source at the preimage) − target, the same sign as on the source
+        dH_t = -distortion.mean_curvature_difference(Vt, Ft, Vs, Fs, iv_f, iv_b)
+        h_lo, h_hi = colours.symmetric_range(np.concatenate([dH, dH_t]), q)
+        out["raw"][CURVATURE_COLOURS], out["target_raw"][CURVATURE_COLOURS] = dH, dH_t
+        out["ranges"]["curvature"] = out["ranges"][CURVATURE_COLOURS] = (h_lo, h_hi)
+        out["report"].append(f"mean-curvature difference colours (H·sqrt(A/4π), source − "
+                             f"target): {h_lo:.3g} (blue) to {h_hi:.3g} (red)")
+        self._done += 1
+        yield "curvature difference"
+        for raw_key, col_key, side in (("raw", "colours", source),
+                                       ("target_raw", "target_colours", target)):
+            for name, values in out[raw_key].items():
+                lo_, hi_ = out["ranges"][name]
+                out[col_key][name] = colours_of(name, values, lo_, hi_, side["loop_total"])
+
+
+def compute_outputs(source, target, res, options, only=None):
+    """Everything the bpy side writes, from the native result `res` (or from a stored
+    correspondence: res then holds only 'forward' and 'inverse' {'face','barycentric'}).
+
+    Returns dict with: forward/inverse (face, bary); morph_source (n_s,3) / morph_target (n_t,3)
+    local coordinates for the shape keys (and morph_source_initial, the initial map's, when the
+    result has a located initial map); uv {name: (L_t,2)} and uv_report, uv_before {name:
+    (L_t,2)} through the initial map (options uv_before, when res has 'initial_inverse');
+    colours / target_colours {name: (rgba, domain)} and raw / target_raw {name: values} on
+    each object; dilatation per polygon (final, initial or None, target); ranges {name: (lo,
+    hi)} and the report lines."""
+    c = OutputComputation(source, target, res, options, only)
+    while c.step():
+        pass
+    return c.out
+ACTIVE = {"job": None}   # the job the UI is running (read by the panel progress bar)

@@ -1,0 +1,50 @@
+"""What every Surface Map operator shares (bpy): the native module, the Object Mode check and
+the source/target pick from the selection."""
+import bpy  # noqa: F401
+
+from . import native
+from .properties import extra_module_dirs
+from .side import ObjectProblem
+
+
+def surfmap_module(context):
+    return native.load(extra_dirs=extra_module_dirs(context))
+
+
+def native_and_object_mode(cls, context):
+    """The poll precondition every Surface Map operator shares: the native module is there
+    and Blender is in Object Mode (otherwise the reason goes to poll_message_set)."""
+    if surfmap_module(context) is None:
+        cls.poll_message_set("The surfmap native module is missing (see the Surface Map panel)")
+        return False
+    if context.mode != 'OBJECT':
+        cls.poll_message_set("Switch to Object Mode")
+        return False
+    return True
+
+
+def pick_objects(context):
+    """(source, target) following Blender's selected-to-active habit: the active object is the
+    target, the other selected mesh the source (None with a single mesh). Raises
+    ObjectProblem with a message when the selection does not fit."""
+    selected = list(context.selected_objects)
+    active = context.active_object
+    if active is not None and active.select_get() and active not in selected:
+        selected.append(active)
+    others = [o for o in selected if o.type != 'MESH']
+    if others:
+        o = others[0]
+        raise ObjectProblem(f"'{o.name}' is a {o.type.lower()}, not a mesh: "
+                            f"select one or two mesh objects")
+    if not selected:
+        raise ObjectProblem("no mesh selected: select one or two mesh objects")
+    if len(selected) > 2:
+        raise ObjectProblem(f"{len(selected)} objects selected: select one mesh, or two "
+                            f"(the active one is the target, the other the source)")
+    if len(selected) == 1:
+        return None, selected[0]
+    if active not in selected:
+        raise ObjectProblem("two meshes selected but neither is active: the active object "
+                            "is the target (click it last)")
+    source = selected[0] if selected[1] == active else selected[1]
+    return source, active

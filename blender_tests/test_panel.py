@@ -1,0 +1,280 @@
+"""The sidebar (sub-panels, short labels, the pairings' list, the progress bar) and the buttons
+that show the outputs (colours on both objects with a legend, texture, morph, back)."""
+import bpy
+import numpy as np
+
+import helpers
+from helpers import run
+from test_addon import _FakePanel, draw_all_panels
+
+# Labels drawn in the left column (use_property_split) must fit it at the default sidebar
+# width: about 14 characters of Blender's UI font there.
+MAX_SPLIT_LABEL = 14
+
+
+def _torus_pair():
+    a = helpers.torus("Source", 1.0, 0.5, (-3, 0, 0))
+    b = helpers.torus("Target", 1.5, 0.5, (3, 0, 0))
+    helpers.set_loop_uvs(a, "UVMap", helpers.torus_uvs(a, 1.0))
+    helpers.select([a, b], b)
+    return a, b
+
+
+def _colours(ob, name):
+    ca = ob.data.color_attributes[name]
+    rgba = np.empty(len(ca.data) * 4)
+    ca.data.foreach_get("color", rgba)
+    return rgba.reshape(-1, 4)
+
+
+def test_labels_are_short_and_tooltips_plain():
+    settings = bpy.context.scene.surfmap
+    log = draw_all_panels()
+    rna = settings.bl_rna.properties
+    drawn = [x[1] for x in log if x[0] == "prop" and x[1] in rna.keys()]
+    assert len(drawn) >= 12, drawn
+    for name in drawn:
+        label = rna[name].name
+        assert len(label) <= MAX_SPLIT_LABEL, (name, label)
+    for x in log:
+        if x[0] == "label":
+            assert len(x[1]) <= 40, x[1]
+        if x[0] == "button":
+            assert len(x[2]) <= 12, x
+    # tooltips speak of handles and pairings, not of homotopy classes or indices
+    for prop in rna:
+        text = (prop.description or "").lower()
+        assert "homotopy" not in text and "index into" not in text, (prop.identifier, text)
+    assert "which handle of the source goes to which handle of the target" in \
+        rna["homotopy"].description.lower()
+
+
+def test_tolerance_reads_in_scientific_notation():
+    settings = bpy.context.scene.surfmap
+    assert settings.tolerance_text == "default"
+    settings.tolerance_text = "1e-9"
+    assert abs(settings.tolerance - 1e-9) < 1e-15
+    assert settings.tolerance_text == "1.0e-09"
+    settings.tolerance_text = "not a number"          # ignored: the value stays
+    assert abs(settings.tolerance - 1e-9) < 1e-15
+    settings.tolerance_text = "default"
+    assert settings.tolerance == 0.0
+
+
+def test_progress_bar_reads_the_running_job():
+    from surface_map import map_job
+    settings = bpy.context.scene.surfmap
+    assert settings.progress == 0.0
+    assert settings.bl_rna.properties["progress"].is_readonly
+
+    class Job:
+        fraction, stage = 0.42, "harmonic solve"
+
+        def stage_text(self):
+            return map_job.STAGE_NAMES[self.stage]
+    map_job.ACTIVE["job"] = Job()
+    try:
+        assert abs(settings.progress - 42.0) < 1e-4
+        assert settings.progress_stage == "Harmonic solve"
+        log = draw_all_panels()
+        assert ("prop", "progress") in log and ("label", "Harmonic solve") in log
+        assert not bpy.ops.surfmap.compute_map.poll()      # one run at a time
+    finally:
+        map_job.ACTIVE["job"] = None
+    assert ("prop", "progress") not in draw_all_panels()
+
+
+def test_pairings_list_sorted_by_energy_with_estimates():
+    from surface_map import panel
+    settings = bpy.context.scene.surfmap
+    for i, (e, solved, est) in enumerate([(30.0, False, True), (10.0, True, False),
+                                          (0.0, False, False), (20.0, True, False)]):
+        c = settings.candidates.add()
+        c.index, c.energy, c.solved, c.estimated = i, e, solved, est
+    settings.chosen_candidate = 1
+    assert panel.sorted_candidates(settings.candidates) == [1, 3, 0, 2]
+    _, order = panel.SURFMAP_UL_candidates.filter_items(None, bpy.context, settings,
+                                                        "candidates")
+    assert order == [2, 0, 3, 1]    # the position of each item in the sorted list
+    texts = [panel.energy_text(c) for c in settings.candidates]
+    assert texts[0] == "~30 est." and texts[1] == "10" and texts[2] == "—"
+    row = _FakePanel()
+    panel.SURFMAP_UL_candidates.draw_item(None, bpy.context, row.layout, settings,
+                                          settings.candidates[0], 0, settings, "candidate_index")
+    assert [x[1] for x in row.log if x[0] == "label"] == ["#0", "~30 est."]
+    log = draw_all_panels()
+    assert ("list", "SURFMAP_UL_candidates", "candidates") in log
+    assert ("operator", "surfmap.solve_candidate") in log
+
+
+def test_a_run_fills_the_list_summary_and_colours_both_objects():
+    a, b = _torus_pair()
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    settings = bpy.context.scene.surfmap
+    # every pairing has an energy (solved or estimated), the chosen one is the lowest solved
+    assert all(c.solved or c.estimated for c in settings.candidates)
+    solved = [c for c in settings.candidates if c.solved]
+    assert settings.chosen_candidate == min(solved, key=lambda c: c.energy).index
+    rows = {r.name: r.value for r in settings.summary_rows}
+    for label in ("Energy", "Mean D'", "Max D'", "Flipped", "Time", "  solve", "  outputs",
+                  "  write"):
+        assert label in rows, rows
+    assert "→" in rows["Energy"] and all(len(v) <= 22 for v in rows.values()), rows
+    e0, e1 = (float(x) for x in rows["Energy"].split("→"))
+    assert e1 <= e0
+    # colours on the target too (through the inverse map), D' >= 1 there as on the source
+    for ob in (a, b):
+        for name in ("surfmap dilatation", "surfmap conformal factor",
+                     "surfmap mean curvature difference"):
+            assert ob.data.color_attributes.get(name) is not None, (ob.name, name)
+    from surface_map import blender_io
+    d_t, dom = blender_io.read_raw_values(b.data, "surfmap dilatation")
+    assert dom == 'FACE' and len(d_t) == len(b.data.polygons)
+    assert np.all(d_t[np.isfinite(d_t)] >= 1.0 - 1e-5)
+    # the same stretch seen from both sides: D' is symmetric under inversion
+    d_s, _ = blender_io.read_raw_values(a.data, "surfmap dilatation")
+    assert abs(np.median(d_s) - np.median(d_t)) < 0.1 * np.median(d_s), (np.median(d_s),
+                                                                        np.median(d_t))
+    titles = {lg.name: lg for lg in settings.legends}
+    assert "surfmap dilatation" in titles and titles["surfmap dilatation"].lo == 1.0
+    log = draw_all_panels()
+    assert ("prop", "progress") not in log
+
+
+def test_show_buttons_colours_legend_texture_morph_and_back():
+    a, b = _torus_pair()
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    settings = bpy.context.scene.surfmap
+    name = "surfmap conformal factor"
+    assert bpy.ops.surfmap.show_output(what='COLOURS', attribute=name) == {'FINISHED'}
+    for ob in (a, b):
+        assert ob.data.color_attributes.active_color.name == name
+    assert settings.shown == name
+    log = draw_all_panels()
+    assert ("prop", "lo") in log and ("prop", "hi") in log and ("prop", "colour_percentile") in log
+    from surface_map import legend
+    title, scale, labels = legend.legend_lines(settings)
+    assert scale == "DIVERGING" and len(labels) == 3 and labels[1] == "0"
+    # a narrower range saturates more of the colours: the legend's field recolours both
+    item = settings.legends[name]
+    before = _colours(b, name)
+    item.hi = item.hi * 0.25
+    item.lo = -item.hi
+    after = _colours(b, name)
+    assert np.abs(after - before).max() > 0.05
+    # the percentile chooses the range from the data again
+    settings.colour_percentile = 90.0
+    assert 0 < item.hi < 4 * abs(item.lo) + 1e-9 and item.lo == -item.hi
+    # texture: the target shows the transferred UV map with the source's (checker) texture
+    assert bpy.ops.surfmap.show_output(what='TEXTURE') == {'FINISHED'}
+    assert b.data.uv_layers.active.name == "surfmap UVMap"
+    for ob in (a, b):
+        assert ob.material_slots[0].link == 'OBJECT'
+        assert ob.material_slots[0].material.name == "surfmap texture"
+    # morph: the shape keys' sliders in the panel
+    assert bpy.ops.surfmap.show_output(what='MORPH') == {'FINISHED'}
+    key = a.data.shape_keys.key_blocks["surfmap to Target"]
+    assert key.value == 0.5
+    assert ("prop", "value") in draw_all_panels()
+    # back: materials and keys as they were
+    assert bpy.ops.surfmap.show_output(what='BACK') == {'FINISHED'}
+    assert key.value == 0.0 and settings.shown == ""
+    for ob in (a, b):
+        assert all(s.link == 'DATA' for s in ob.material_slots)
+        assert len(ob.data.materials) == 0
+
+
+def test_show_before_a_run_is_refused():
+    helpers.torus("Lonely")
+    r, err = run("show_output", what='COLOURS')
+    assert r is None and "compute map" in err.lower(), err
+
+
+def test_solve_with_a_picked_pairing():
+    a, b = _torus_pair()
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    settings = bpy.context.scene.surfmap
+    best = settings.chosen_candidate
+    other = next(c.index for c in settings.candidates if c.solved and c.index != best)
+    settings.candidate_index = other
+    assert bpy.ops.surfmap.solve_candidate() == {'FINISHED'}
+    assert settings.chosen_candidate == other and settings.homotopy == other
+    assert a.data["surfmap_map"]["homotopy"] == other
+
+
+def test_outputs_are_computed_in_slices():
+    """The job's outputs come in many short slices (the UI timer runs between them) and give
+    the same outputs as the one-go computation."""
+    from surface_map import map_job, ops_map
+    _torus_pair()
+    sm = helpers.sm()
+    job, _ = ops_map.prepare_job(bpy.context, sm)
+    job.run(with_outputs=False)
+    assert job.error is None and job.outputs is None
+    slices, fractions = 0, []
+    while job.step_outputs(budget=0.0):
+        slices += 1
+        fractions.append(job.fraction)
+    assert job.error is None and job.outputs is not None
+    assert slices >= 5, slices
+    assert fractions == sorted(fractions) and fractions[0] >= map_job.SOLVE_SHARE
+    whole = map_job.compute_outputs(job.source, job.target, job.result, job.options)
+    assert np.array_equal(whole["uv"]["UVMap"], job.outputs["uv"]["UVMap"])
+    for k in ("colours", "target_colours"):
+        for name, (rgba, dom) in whole[k].items():
+            assert np.array_equal(rgba, job.outputs[k][name][0]), name
+    assert set(job.times) >= {"solve", "outputs"}
+
+
+def test_legend_bar_geometry():
+    from surface_map import colours, legend
+    pos, col = legend.bar_geometry("SEQUENTIAL", 10, 20, 100, 8)
+    k = len(colours.SEQUENTIAL) - 1
+    assert len(pos) == len(col) == 6 * k
+    xs = [p[0] for p in pos]
+    assert min(xs) == 10 and max(xs) == 110
+    assert tuple(col[0][:3]) == tuple(colours.SEQUENTIAL[0])
+    assert tuple(col[-2][:3]) == tuple(colours.SEQUENTIAL[-1])
+    assert [colours.format_tick(v) for v in (1.0, 12.5, 0.0001, -0.3)] == \
+        ["1", "12.5", "1e-04", "-0.3"]
+
+
+def test_loop_curves_follow_the_morph():
+    """The cut-loop curves move with the morph's shape key: each point stays the same
+    combination of mesh vertices, so at 1.0 it sits on the morphed mesh, and back at 0."""
+    from surface_map import blender_io
+    a, b = _torus_pair()
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    res, err = helpers.run_op()
+    assert res == {'FINISHED'}, err
+    curves = [o for o in bpy.data.objects if o.get(blender_io.OWNER_KEY) == a.name]
+    assert len(curves) == 2 and all(o.get(blender_io.LOOP_TRI_KEY) for o in curves)
+
+    def points(ob):
+        p = ob.data.splines[0].points
+        co = np.empty(len(p) * 4)
+        p.foreach_get("co", co)
+        return co.reshape(-1, 4)[:, :3]
+    before = [points(o) for o in curves]
+    key = a.data.shape_keys.key_blocks["surfmap to Target"]
+    key.value = 1.0
+    assert blender_io.follow_shape_keys() == 2
+    kco = np.empty(len(a.data.vertices) * 3)
+    key.data.foreach_get("co", kco)
+    kco = kco.reshape(-1, 3)
+    for ob, p0 in zip(curves, before):
+        t = np.asarray(ob[blender_io.LOOP_TRI_KEY]).reshape(-1, 3)
+        w = np.asarray(ob[blender_io.LOOP_BARY_KEY]).reshape(-1, 3)
+        want = np.einsum("ik,ikj->ij", w, kco[t])
+        got = points(ob)
+        assert np.abs(got - want).max() < 1e-5
+        assert np.abs(got - p0).max() > 0.1          # the morph moved them
+    assert blender_io.follow_shape_keys() == 0       # nothing changed: nothing touched
+    key.value = 0.0
+    bpy.context.view_layer.update()                   # the depsgraph handler runs
+    for ob, p0 in zip(curves, before):
+        assert np.abs(points(ob) - p0).max() < 1e-5

@@ -1,0 +1,318 @@
+"""Drives the Surface Map sidebar in a real Blender window and takes screenshots (a manual UI
+check, not a test): the sample pair double_torus_g2 -> vase_g2, Compute Map as the button runs
+it (modal, worker thread, outputs in timer slices) while an app timer measures how often the UI
+ticks, Ctrl+Z / Ctrl+Shift+Z on the outputs, then each Show button.
+
+  Xvfb :99 -screen 0 1600x1200x24 &  DISPLAY=:99 twm &   (a window manager: focus)
+  blender -b --factory-startup --python-expr \
+      "import bpy; bpy.ops.wm.save_as_mainfile(filepath='/tmp/empty.blend')"
+  DISPLAY=:99 SURFMAP_PYTHONPATH=build/python blender --factory-startup \
+      --window-geometry 0 0 1600 1200 /tmp/empty.blend --python scripts/ui_check.py -- --out DIR
+(opening a file skips the splash screen)
+
+Screenshots (ImageMagick's `import -window root`) go to DIR (default /tmp/surfmap_ui); the
+measurements are printed as lines starting with 'UI-CHECK'.
+"""
+import os
+import subprocess
+import sys
+import time
+
+import bpy
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+sys.path.insert(0, os.path.join(REPO, "addon"))
+argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+OUT = argv[argv.index("--out") + 1] if "--out" in argv else "/tmp/surfmap_ui"
+os.makedirs(OUT, exist_ok=True)
+
+
+def log(*a):
+    print("UI-CHECK", *a)
+    sys.stdout.flush()
+
+
+def shot(name):
+    path = os.path.join(OUT, name)
+    subprocess.run(["import", "-window", "root", path], check=False)
+    log("screenshot", path)
+
+
+def view3d():
+    win = bpy.context.window_manager.windows[0]
+    for area in win.screen.areas:
+        if area.type == 'VIEW_3D':
+            region = next(r for r in area.regions if r.type == 'WINDOW')
+            return win, area, region
+    raise RuntimeError("no 3D view")
+
+
+def call(op, *args, **kw):
+    win, area, region = view3d()
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        return op(*args, **kw)
+
+
+def xdo(*args):
+    subprocess.run(["xdotool", *args], check=False)
+
+
+def redraw_all():
+    """Every area redrawn, and the pointer over the sidebar (panels settle on redraws)."""
+    win, area, _ = view3d()
+    for a in win.screen.areas:
+        a.tag_redraw()
+    ui = next(r for r in area.regions if r.type == 'UI')
+    xdo("mousemove", str(ui.x + ui.width // 2), str(win.height - (ui.y + ui.height // 2)))
+
+
+def focus_blender():
+    """Keyboard focus on Blender's window (Xvfb runs no window manager to give it)."""
+    ids = subprocess.run(["xdotool", "search", "--name", "Blender"], capture_output=True,
+                         text=True).stdout.split()
+    for wid in ids:
+        xdo("windowfocus", wid)
+
+
+def setup():
+    import addon_utils
+    addon_utils.enable("surface_map", default_set=True, handle_error=None)
+    from surface_map import native
+    sm = native.load()
+    for ob in list(bpy.data.objects):
+        bpy.data.objects.remove(ob, do_unlink=True)
+    import numpy as np
+    obs = []
+    for name, x in (("double_torus_g2", -1.6), ("vase_g2", 1.6)):
+        V, polys = sm.read_polygon_soup(os.path.join(REPO, "samples", "meshes", name + ".obj"))
+        V = np.asarray(V, dtype=float)
+        V = (V - V.mean(axis=0)) / np.ptp(V, axis=0).max() * 2.4
+        me = bpy.data.meshes.new(name)
+        me.from_pydata(V.tolist(), [], [list(p) for p in polys])
+        me.polygons.foreach_set("use_smooth", [True] * len(me.polygons))
+        me.update()
+        ob = bpy.data.objects.new(name, me)
+        ob.location.x = x
+        if name.startswith("double"):
+            ob.rotation_euler.x = 1.5708
+        bpy.context.scene.collection.objects.link(ob)
+        obs.append(ob)
+    for ob in obs:
+        ob.select_set(True)
+    bpy.context.view_layer.objects.active = obs[1]
+    call(bpy.ops.ed.undo_push, message="ui_check: the sample pair")   # Ctrl+Z stops here
+    if os.environ.get("UI_CHECK_VIEWPORT_AA"):
+        # the viewport's progressive anti-aliasing redraws the view several times after each
+        # change; with software OpenGL on a busy machine each redraw takes seconds
+        bpy.context.preferences.system.viewport_aa = os.environ["UI_CHECK_VIEWPORT_AA"]
+        log("viewport anti-aliasing:", bpy.context.preferences.system.viewport_aa)
+    win, area, region = view3d()
+    space = area.spaces.active
+    space.show_region_ui = True
+    space.overlay.show_floor = False
+    ui = next(r for r in area.regions if r.type == 'UI')
+    log("sidebar width px", ui.width, "window", win.width, win.height)
+
+
+def open_tab():
+    """Clicks the sidebar's 'Surface Map' tab (Blender 3.4 has no Python API for the tab):
+    the tabs are a column at the sidebar's right edge, ours is the last one."""
+    win, area, _ = view3d()
+    ui = next(r for r in area.regions if r.type == 'UI')
+    x = ui.x + ui.width - 10
+    y_top = win.height - (ui.y + ui.height)
+    focus_blender()
+    xdo("mousemove", str(x), str(y_top + 195))
+    time.sleep(0.3)
+    xdo("mousemove", str(x + 1), str(y_top + 196))
+    time.sleep(0.3)
+    xdo("mousedown", "1")
+    time.sleep(0.15)
+    xdo("mouseup", "1")
+    log("clicked the sidebar tab at", x, y_top + 196)
+    call(bpy.ops.view3d.view_axis, type='FRONT')
+    call(bpy.ops.view3d.view_selected)
+
+
+# Compute Map's button, pixels below the sidebar's top at the default layout (Cut Loops closed)
+COMPUTE_BUTTON_Y = 296
+STATE = {"step": 0, "ticks": [], "t_start": None, "progress_shot": False}
+
+
+def count_draw():
+    STATE.setdefault("draws", []).append(time.time())
+
+
+def count_ui_draw():
+    STATE.setdefault("ui_draws", []).append(time.time())
+
+
+def ticker():
+    from surface_map import map_job
+    job = map_job.ACTIVE.get("job")
+    STATE["ticks"].append(time.time())
+    STATE.setdefault("stages", []).append(job.stage if job is not None else "-")
+    if job is not None and job._slices is not None:
+        STATE["slices"] = job._slices.slice_times
+    if job is not None:
+        STATE["tick_work"] = getattr(job, "tick_work", [])
+    return 0.1
+
+
+def tick_report():
+    from surface_map import map_job  # noqa: F401
+    t = STATE["ticks"]
+    t0, t1 = STATE["t_start"], STATE["t_end"]
+    inside = [x for x in t if t0 <= x <= t1]
+    gaps = [b - a for a, b in zip(inside, inside[1:])]
+    worst_rate = None
+    if t1 - t0 >= 1.0:
+        rates = [sum(1 for x in inside if s <= x < s + 1.0) for s in
+                 [t0 + 0.5 * k for k in range(int((t1 - t0 - 1.0) / 0.5) + 1)]]
+        worst_rate = min(rates)
+    st = STATE.get("stages", [])
+    for k in range(1, len(t)):
+        if t0 <= t[k] <= t1 and t[k] - t[k - 1] > 0.45:
+            log(f"  gap {t[k] - t[k - 1]:.2f}s between stages '{st[k - 1]}' and '{st[k]}'")
+    dr = [x for x in STATE.get("draws", []) if t0 <= x <= t1]
+    log("  3D view draws during the compute:", len(dr), "at (s after start)",
+        [round(x - t0, 1) for x in dr][:40])
+    ud = [x for x in STATE.get("ui_draws", []) if t0 <= x <= t1]
+    log("  sidebar draws during the compute:", len(ud), "at", [round(x - t0, 1) for x in ud][:40])
+    tw = STATE.get("tick_work", [])
+    if len(tw) > 1:
+        log("  modal ticks:", len(tw), "longest work in one tick %.3fs" % max(w for _, w in tw),
+            "longest gap between ticks %.3fs" % max(b[0] - a[0] for a, b in zip(tw, tw[1:])))
+    slow = sorted(STATE.get("slices", []), key=lambda x: -x[1])[:5]
+    log("  slowest output slices:", [(a, round(b, 3)) for a, b in slow])
+    log(f"compute wall {t1 - t0:.1f}s, timer ticks {len(inside)}, longest gap "
+        f"{max(gaps) if gaps else float('nan'):.3f}s, lowest ticks in any 1 s window "
+        f"{worst_rate}")
+
+
+def outputs_gone():
+    t = bpy.data.objects.get("vase_g2")
+    return t is not None and t.data.attributes.get("surfmap_map_face") is None \
+        and t.data.color_attributes.get("surfmap dilatation") is None \
+        and not any(u.name.startswith("surfmap ") for u in t.data.uv_layers)
+
+
+def step():
+    s = STATE["step"]
+    if s == 0:
+        setup()
+        STATE["step"] = 1
+        return 1.0
+    settings = bpy.context.scene.surfmap
+    from surface_map import map_job
+    if s == 1:
+        open_tab()
+        if os.environ.get("UI_CHECK_QUICK"):
+            STATE["step"] = 99
+            return 3.0
+    elif s == 2:
+        if not STATE.get("tab_again"):      # (the first click may come before focus)
+            STATE["tab_again"] = True
+            open_tab()
+            return 3.0
+        shot("01_panel_before.png")
+        bpy.app.timers.register(ticker, first_interval=0.1)
+        bpy.types.SpaceView3D.draw_handler_add(count_draw, (), 'WINDOW', 'POST_PIXEL')
+        bpy.types.SpaceView3D.draw_handler_add(count_ui_draw, (), 'UI', 'POST_PIXEL')
+        STATE["t_start"] = time.time()
+        if os.environ.get("UI_CHECK_INVOKE"):
+            r = call(bpy.ops.surfmap.compute_map, 'INVOKE_DEFAULT')
+            log("compute_map invoke ->", r)
+        else:   # a click on the panel's Compute Map button, as a user does
+            win, area, _ = view3d()
+            ui = next(r for r in area.regions if r.type == 'UI')
+            x, y = ui.x + ui.width // 2, win.height - (ui.y + ui.height) + COMPUTE_BUTTON_Y
+            focus_blender()
+            xdo("mousemove", str(x), str(y))
+            time.sleep(0.2)
+            xdo("click", "1")
+            log("clicked Compute Map at", x, y)
+    elif s == 3:
+        job = map_job.ACTIVE.get("job")
+        if job is None and not STATE.get("seen_job") and time.time() - STATE["t_start"] < 20:
+            return 0.2     # the click is not processed yet
+        if job is not None:
+            STATE["seen_job"] = True
+            if job.fraction > 0.3 and not STATE["progress_shot"]:
+                shot("02_progress.png")
+                STATE["progress_shot"] = True
+            return 0.2     # stay on this step
+        STATE["t_end"] = time.time()
+        tick_report()
+        log("summary:", [(r.name, r.value) for r in settings.summary_rows])
+        log("max tick gap seen by the operator", settings.max_tick_gap)
+    elif s == 4:
+        open_tab()
+    elif s == 5:
+        shot("03_result_panel.png")
+    elif s == 6:
+        win, area, region = view3d()
+        cx, cy = area.x + area.width // 3, win.height - (area.y + area.height // 2)
+        xdo("mousemove", str(cx), str(cy))
+        focus_blender()
+        xdo("key", "ctrl+z")
+    elif s == 7:
+        log("after Ctrl+Z (xdotool) the outputs are gone:", outputs_gone())
+    elif s == 8:
+        shot("04_after_undo.png")
+        focus_blender()
+        xdo("key", "ctrl+shift+z")
+    elif s == 9:
+        log("after Ctrl+Shift+Z the outputs are there:", not outputs_gone())
+        r = call(bpy.ops.surfmap.show_output, what='COLOURS',
+                 attribute=map_job.DILATATION_COLOURS)
+        log("show D' ->", r)
+    elif s == 10:
+        shot("05_colours_dilatation.png")
+        call(bpy.ops.surfmap.show_output, what='COLOURS', attribute=map_job.CONFORMAL_COLOURS)
+    elif s == 11:
+        shot("06_colours_area.png")
+        call(bpy.ops.surfmap.show_output, what='TEXTURE')
+    elif s == 12:
+        shot("07_texture.png")
+        call(bpy.ops.surfmap.show_output, what='MORPH')
+    elif s == 13:
+        shot("08_morph_half.png")
+        call(bpy.ops.surfmap.show_output, what='BACK')
+    elif s == 14:
+        shot("09_back.png")
+        call(bpy.ops.surfmap.show_cut_loops)
+    elif s == 15:
+        shot("10_cut_loops.png")
+        call(bpy.ops.surfmap.show_output, what='MORPH')
+        src = bpy.data.objects.get("double_torus_g2")
+        src.data.shape_keys.key_blocks["surfmap to vase_g2"].value = 1.0
+    elif s == 16:
+        shot("11_loops_follow_morph.png")
+    elif s == 99:
+        shot("00_quick.png")
+        STATE["step"] = 100
+        return 0.1
+    else:
+        bpy.app.timers.unregister(ticker) if bpy.app.timers.is_registered(ticker) else None
+        log("done")
+        call(bpy.ops.wm.quit_blender)
+        return None
+    STATE["step"] = s + 1
+    redraw_all()
+    return 4.0
+
+
+def guarded_step():
+    try:
+        return step()
+    except Exception:
+        import traceback
+        traceback.print_exc()
+        log("FAILED at step", STATE["step"])
+        call(bpy.ops.wm.quit_blender)
+        return None
+
+
+bpy.app.timers.register(guarded_step, first_interval=2.0)
