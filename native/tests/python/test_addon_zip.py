@@ -60,7 +60,7 @@ def test_zip_installs_and_maps_in_a_fresh_blender(tmp_path):
                        timeout=300, cwd=tmp_path)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     installed = tmp_path / "scripts" / "addons" / "surface_map"
-    assert (installed / "surfmap").is_dir() and (installed / "map_ops.py").exists()
+    assert (installed / "surfmap").is_dir() and (installed / "ops_map.py").exists()
     script = tmp_path / "run.py"
     script.write_text(SCRIPT)
     r = subprocess.run(["blender", "-b", "--python-exit-code", "1", "--python", str(script)],
