@@ -1,7 +1,6 @@
 """Many shapes (docs/many_shapes.md): canonical domains, the comparison table through a common
 domain or pairwise maps, and `surfmap batch` on a 2-worker Dask LocalCluster (resumable)."""
 import csv
-import importlib.util
 import json
 import math
 import os
