@@ -2,6 +2,7 @@
 #include "surfmap/uniformize/layout.h"
 
 #include <algorithm>
+#include <limits>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -312,6 +313,19 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     if (!(std::imag(std::conj(b - a) * (d - a)) > 0)) ++out.num_flipped;
     out.area += G::area(L[conn.edge(3 * f)], L[conn.edge(3 * f + 1)], L[conn.edge(3 * f + 2)]);
   }
+
+  // Round-off of the coordinates in the metric: ε times the metric's scale
+  // factor at the farthest corner (hyperbolic 2/(1−|z|²), which reaches 10¹²
+  // on long fundamental domains; flat |z|). Gluing checks are judged
+  // against it (uniformize.cpp).
+  out.coordinate_roundoff = 0;
+  for (int f = 0; f < nF; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const Complex z = out.corners(f, k);
+      const double factor = std::is_same_v<G, Hyper> ? 2.0 / std::max(1e-300, 1.0 - std::norm(z)) : std::abs(z);
+      out.coordinate_roundoff =
+          std::max(out.coordinate_roundoff, std::numeric_limits<double>::epsilon() * factor);
+    }
 
   // Interior edges: the two copies of each endpoint coincide.
   auto corner_of = [&](int f, int v) {

@@ -86,6 +86,7 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   out.flow_iterations = flat.iterations;
   out.circle_error = 0.0;
   out.max_curvature_error = flat.max_curvature_error;
+  out.stopped_at_floor = flat.stopped_at_floor;
   if (!flat.converged) out.message = "flattening the punctured disk failed: " + flat.message;
 
   // Lay the disk out in the plane, breadth first over the faces of the

@@ -128,6 +128,11 @@ struct DiskLayout {
   /// max |rotation part − 1| of the deck maps (holonomy; 0 for a flat torus).
   double max_interior_mismatch = 0;
   double max_deck_inconsistency = 0;
+  /// Round-off of the corner coordinates expressed in the metric: machine ε
+  /// times the largest scale factor of the model at a corner (hyperbolic
+  /// 2/(1−|z|²), flat |z|). Mismatches of a few hundred times this are
+  /// rounding, not a gluing error (long hyperbolic domains: 1e-4).
+  double coordinate_roundoff = 0;
   double max_holonomy_rotation = 0;
   /// Number of corner triangles with non-positive orientation (hyperbolic:
   /// tested in the Klein model, where the triangle sides are straight).

@@ -47,6 +47,8 @@ struct SphericalUniformization {
   int removed_vertex = -1;
   int flow_iterations = 0;             ///< Newton iterations of the flattening
   double max_curvature_error = 0;      ///< at the interior vertices of the disk
+  /// The flattening stopped at the floating-point floor (RicciFlowResult).
+  bool stopped_at_floor = false;
   /// Always 0: the former circular-boundary iteration was replaced by the
   /// exact vertex-at-infinity condition (field kept for the CLI's JSON).
   double circle_error = 0;
