@@ -87,6 +87,7 @@ void run(const Args& a) {
     j["loop_edges"] = nlohmann::json::array();
     for (const auto& l : r.loops.loops) j["loop_edges"].push_back(static_cast<int>(l.size()) - 1);
     j["num_flipped"] = L.num_flipped;
+    j["num_unresolved"] = L.num_unresolved;
     j["max_interior_mismatch"] = L.max_interior_mismatch;
     j["max_deck_inconsistency"] = L.max_deck_inconsistency;
     j["coordinate_roundoff"] = L.coordinate_roundoff;

@@ -103,6 +103,8 @@ py::dict layout_dict(const DiskLayout& L) {
   const int h0 = L.boundary_halfedges.empty() ? -1 : L.boundary_halfedges[0];
   if (h0 >= 0) d["base_corner"] = L.corners(h0 / 3, h0 % 3);
   d["num_flipped"] = L.num_flipped;
+  d["num_unresolved"] = L.num_unresolved;
+  d["coordinate_roundoff"] = L.coordinate_roundoff;
   d["max_interior_mismatch"] = L.max_interior_mismatch;
   d["max_deck_inconsistency"] = L.max_deck_inconsistency;
   d["max_holonomy_rotation"] = L.max_holonomy_rotation;

@@ -304,28 +304,34 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     }
   }
 
-  // Orientation and area.
+  // Round-off of the coordinates in the metric: ε times the metric's scale
+  // factor at a corner (hyperbolic 2/(1−|z|²), which reaches 10¹² on long
+  // fundamental domains; flat |z|). Gluing checks are judged against its
+  // maximum (uniformize.cpp); a triangle whose sides are all below 100 times
+  // the round-off at its corners cannot be resolved by the coordinates at
+  // all (flat metrics of long thin limbs shrink triangles to 1e-13 at
+  // |z| = 5000): it is counted as unresolved, not as flipped.
+  auto roundoff_at = [&](Complex z) {
+    const double factor = std::is_same_v<G, Hyper> ? 2.0 / std::max(1e-300, 1.0 - std::norm(z)) : std::abs(z);
+    return std::numeric_limits<double>::epsilon() * std::max(factor, 1.0);
+  };
+  out.coordinate_roundoff = 0;
   out.num_flipped = 0;
+  out.num_unresolved = 0;
   out.area = 0;
   for (int f = 0; f < nF; ++f) {
+    double rho = 0;
+    for (int k = 0; k < 3; ++k) rho = std::max(rho, roundoff_at(out.corners(f, k)));
+    out.coordinate_roundoff = std::max(out.coordinate_roundoff, rho);
+    const double lmax = std::max({L[conn.edge(3 * f)], L[conn.edge(3 * f + 1)], L[conn.edge(3 * f + 2)]});
     const Complex a = G::straight(out.corners(f, 0)), b = G::straight(out.corners(f, 1)),
                   d = G::straight(out.corners(f, 2));
-    if (!(std::imag(std::conj(b - a) * (d - a)) > 0)) ++out.num_flipped;
+    if (lmax < 100 * rho)
+      ++out.num_unresolved;
+    else if (!(std::imag(std::conj(b - a) * (d - a)) > 0))
+      ++out.num_flipped;
     out.area += G::area(L[conn.edge(3 * f)], L[conn.edge(3 * f + 1)], L[conn.edge(3 * f + 2)]);
   }
-
-  // Round-off of the coordinates in the metric: ε times the metric's scale
-  // factor at the farthest corner (hyperbolic 2/(1−|z|²), which reaches 10¹²
-  // on long fundamental domains; flat |z|). Gluing checks are judged
-  // against it (uniformize.cpp).
-  out.coordinate_roundoff = 0;
-  for (int f = 0; f < nF; ++f)
-    for (int k = 0; k < 3; ++k) {
-      const Complex z = out.corners(f, k);
-      const double factor = std::is_same_v<G, Hyper> ? 2.0 / std::max(1e-300, 1.0 - std::norm(z)) : std::abs(z);
-      out.coordinate_roundoff =
-          std::max(out.coordinate_roundoff, std::numeric_limits<double>::epsilon() * factor);
-    }
 
   // Interior edges: the two copies of each endpoint coincide.
   auto corner_of = [&](int f, int v) {

@@ -130,13 +130,19 @@ struct DiskLayout {
   double max_deck_inconsistency = 0;
   /// Round-off of the corner coordinates expressed in the metric: machine ε
   /// times the largest scale factor of the model at a corner (hyperbolic
-  /// 2/(1−|z|²), flat |z|). Mismatches of a few hundred times this are
+  /// 2/(1−|z|²), flat max(|z|, 1)). Mismatches of a few hundred times this are
   /// rounding, not a gluing error (long hyperbolic domains: 1e-4).
   double coordinate_roundoff = 0;
   double max_holonomy_rotation = 0;
   /// Number of corner triangles with non-positive orientation (hyperbolic:
-  /// tested in the Klein model, where the triangle sides are straight).
+  /// tested in the Klein model, where the triangle sides are straight),
+  /// among the resolvable ones.
   int num_flipped = 0;
+  /// Triangles whose sides are all shorter than 100 times the coordinate
+  /// round-off at their corners (flat metrics of long thin parts: sides of
+  /// 1e-13 at |z| ~ 5000): double precision cannot place them, so their
+  /// orientation is not tested. Reported, not hidden.
+  int num_unresolved = 0;
   /// Sum of the triangle areas of the metric (hyperbolic: 4π(g−1) when the
   /// metric has zero curvature at every vertex).
   double area = 0;
