@@ -91,6 +91,8 @@ void run(const Args& a) {
     j["max_interior_mismatch"] = L.max_interior_mismatch;
     j["max_deck_inconsistency"] = L.max_deck_inconsistency;
     j["coordinate_roundoff"] = L.coordinate_roundoff;
+    j["max_corner_inconsistency"] = L.max_corner_inconsistency;
+    j["corner_condition"] = L.corner_condition;
     j["gluing_tolerance"] = r.gluing_tolerance;
     j["product_relation_error"] = r.product_relation_error;
     j["layout_time_s"] = L.time_s;

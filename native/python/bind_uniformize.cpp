@@ -107,6 +107,8 @@ py::dict layout_dict(const DiskLayout& L) {
   d["coordinate_roundoff"] = L.coordinate_roundoff;
   d["max_interior_mismatch"] = L.max_interior_mismatch;
   d["max_deck_inconsistency"] = L.max_deck_inconsistency;
+  d["max_corner_inconsistency"] = L.max_corner_inconsistency;
+  d["corner_condition"] = L.corner_condition;
   d["max_holonomy_rotation"] = L.max_holonomy_rotation;
   d["product_relation_error"] = L.product_relation_error;
   d["relation_condition"] = L.relation_condition;

@@ -76,6 +76,7 @@ TEST(IntrinsicUniformization, InfeasibleFixedMetricConvergesWithFlips) {
   EXPECT_EQ(u.layout.num_flipped, 0);
   EXPECT_NEAR(u.area, 4 * kPi * 2, 1e-6);
   EXPECT_LT(u.layout.max_deck_inconsistency, 1e-6);
+  EXPECT_LT(u.layout.max_corner_inconsistency, 1e-6);
   // Independent area: the geodesic triangles of the laid-out corners.
   double area = 0;
   for (int f = 0; f < u.layout.corners.rows(); ++f)

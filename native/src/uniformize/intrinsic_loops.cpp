@@ -3,6 +3,8 @@
 #include "surfmap/uniformize/intrinsic_loops.h"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <array>
 #include <memory>
 #include <cmath>
@@ -69,15 +71,19 @@ bool weights_in(const Support& s, const RowMatrixX3i& F, int g, double w[3]) {
 std::array<Eigen::Vector3d, 3> place(const double l[3], Background bg) {
   std::array<Eigen::Vector3d, 3> X;
   const double c = l[2], b = l[1], a = l[0];  // c: corner 0 -> 1, b: corner 0 -> 2
+  // Angle at corner 0 by the half-angle formula (Euclidean tan(A/2) =
+  // sqrt((s−b)(s−c) / (s(s−a))), hyperbolic the same with sinh): accurate
+  // for slivers, where the law of cosines cancels.
+  const double s = 0.5 * (a + b + c);
+  const double sa = std::max(0.0, s - a), sb = std::max(0.0, s - b), sc = std::max(0.0, s - c);
   if (bg == Background::Euclidean) {
-    const double x = (b * b + c * c - a * a) / (2 * c);
+    const double A = 2.0 * std::atan2(std::sqrt(sb * sc), std::sqrt(s * sa));
     X[0] = {0, 0, 0};
     X[1] = {c, 0, 0};
-    X[2] = {x, std::sqrt(std::max(0.0, b * b - x * x)), 0};
+    X[2] = {b * std::cos(A), b * std::sin(A), 0};
   } else {
-    // Angle at corner 0 from the hyperbolic law of cosines.
-    const double cosA = (std::cosh(b) * std::cosh(c) - std::cosh(a)) / (std::sinh(b) * std::sinh(c));
-    const double A = std::acos(std::clamp(cosA, -1.0, 1.0));
+    const double A =
+        2.0 * std::atan2(std::sqrt(std::sinh(sb) * std::sinh(sc)), std::sqrt(std::sinh(s) * std::sinh(sa)));
     X[0] = {1, 0, 0};
     X[1] = {std::cosh(c), std::sinh(c), 0};
     X[2] = {std::cosh(b), std::sinh(b) * std::cos(A), std::sinh(b) * std::sin(A)};
@@ -149,11 +155,38 @@ IntrinsicLoops intrinsic_loops(const TriMesh& input, const RicciFlowResult& flow
                        std::to_string(b) + ") lies in no single face of the intrinsic triangulation");
     double l[3];
     for (int k = 0; k < 3; ++k) l[k] = flow.edge_lengths[flow.face_edges(g, k)];
-    const auto X = place(l, background);
-    out.lengths[e] = distance(combine(X, wa, background), combine(X, wb, background), background);
+    int side = -1;  // an edge of T' itself: its length exactly
+    if (sup[a].count == 1 && sup[b].count == 1)
+      for (int k = 0; k < 3; ++k)
+        if (wa[k] == 0 && wb[k] == 0) side = k;
+    if (side >= 0) {
+      out.lengths[e] = l[side];
+    } else {
+      const auto X = place(l, background);
+      out.lengths[e] = distance(combine(X, wa, background), combine(X, wb, background), background);
+    }
     if (!(out.lengths[e] > 0) || !std::isfinite(out.lengths[e]))
       throw SolveError("intrinsic_loops: refined edge " + std::to_string(e) + " has length " +
                        std::to_string(out.lengths[e]));
+  }
+  if (std::getenv("SMDBG")) {
+    std::vector<double> sum(nv, 0.0);
+    double worst_orig = 0, worst_new = 0;
+    for (int f = 0; f < R.num_faces(); ++f) {
+      double l[3];
+      for (int k = 0; k < 3; ++k) l[k] = out.lengths[rc.edge(3 * f + (k + 1) % 3)];
+      for (int k = 0; k < 3; ++k) {
+        const double a = l[k], b = l[(k + 1) % 3], c = l[(k + 2) % 3];
+        double cosA = background == Background::Euclidean ? (b * b + c * c - a * a) / (2 * b * c)
+                                                          : (std::cosh(b) * std::cosh(c) - std::cosh(a)) / (std::sinh(b) * std::sinh(c));
+        sum[R.F(f, k)] += std::acos(std::clamp(cosA, -1.0, 1.0));
+      }
+    }
+    for (int v = 0; v < nv; ++v) {
+      const double d = std::abs(sum[v] - 2 * M_PI);
+      if (v < input.num_vertices()) worst_orig = std::max(worst_orig, d); else worst_new = std::max(worst_new, d);
+    }
+    std::fprintf(stderr, "angle sum error: input vertices %g, new vertices %g\n", worst_orig, worst_new);
   }
   return out;
 }

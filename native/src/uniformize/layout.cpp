@@ -451,7 +451,21 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     return conn.edge_halfedge(e) == h ? deck[e] : deck[e].inverse();
   };
   std::vector<Chart> D(nloops);
-  for (int k = 0; k < nloops; ++k) D[k] = oriented_deck(out.boundary_halfedges[out.side_start[plus_side[k]]]);
+  // Side pairing of loop k from its longest edge: the refined loops fan out
+  // of the base vertex through tiny edges, and a deck map read off a tiny
+  // edge has a rotation error of (round-off / edge length), which the far
+  // end of a long loop multiplies (1e-4 gaps on raw genus-8 meshes).
+  const int nb = static_cast<int>(out.boundary_halfedges.size());
+  for (int k = 0; k < nloops; ++k) {
+    const int s0 = out.side_start[plus_side[k]];
+    const int s1 = out.side_start[(plus_side[k] + 1) % n];
+    int best = out.boundary_halfedges[s0];
+    for (int i = s0; i != s1; i = (i + 1) % nb) {
+      const int h = out.boundary_halfedges[i];
+      if (L[conn.edge(h)] > L[conn.edge(best)]) best = h;
+    }
+    D[k] = oriented_deck(best);
+  }
   // Every loop edge's left copy must land on its right copy under the one
   // side pairing of its loop. Measured as a distance between points (in the
   // metric), not between matrices: hyperbolic deck matrices of a long
@@ -526,10 +540,19 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     out.generator_side_words[k] = dehn_reduce(concat(inverse(psi_word[i]), psi_word[(i + 1) % n]), out.side_relator);
   }
   const Complex c0 = out.corners(Connectivity::face(out.boundary_halfedges[0]), out.boundary_halfedges[0] % 3);
+  // The corners through the products Ψ_m of up to 4g side pairings: each
+  // factor's round-off is multiplied by the size of the partial products
+  // ((|a| + |b|)² for SU(1,1) maps), so this check has its own condition.
+  out.max_corner_inconsistency = 0;
+  out.corner_condition = 1;
   for (int m = 0; m < n; ++m) {
     const int h = out.boundary_halfedges[out.side_start[m]];
     const Complex cm = out.corners(Connectivity::face(h), h % 3);
-    out.max_deck_inconsistency = std::max(out.max_deck_inconsistency, G::distance(psi[m].apply(c0), cm));
+    out.max_corner_inconsistency = std::max(out.max_corner_inconsistency, G::distance(psi[m].apply(c0), cm));
+    if constexpr (std::is_same_v<G, Hyper>) {
+      const double size = std::abs(psi[m].a) + std::abs(psi[m].b);
+      out.corner_condition = std::max(out.corner_condition, n * size * size);
+    }
   }
   std::vector<Chart> gen(nloops);
   for (int k = 0; k < nloops; ++k) {

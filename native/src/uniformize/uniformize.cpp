@@ -46,6 +46,9 @@ void check_layout(const DiskLayout& L, double residual) {
     throw SolveError("uniformize: the deck maps of a loop disagree along its edges (" +
                      fmt(L.max_deck_inconsistency) + ", tolerance " + fmt(tol) + " at layout scale " +
                      fmt(std::sqrt(L.area)) + ")");
+  if (L.max_corner_inconsistency > tol * L.corner_condition)
+    throw SolveError("uniformize: the side pairings do not carry the base corner to the polygon's corners (" +
+                     fmt(L.max_corner_inconsistency) + ", condition " + fmt(L.corner_condition) + ")");
   // The matrix relation loses digits in proportion to relation_condition
   // (large for long fundamental domains) even when every point glues; only
   // an error beyond that is a failure.

@@ -124,10 +124,16 @@ struct DiskLayout {
   /// Diagnostics: max over interior edges of the distance between the two
   /// copies of each endpoint (should be round-off); max over cut edges of
   /// the distance between the side pairing's image of an endpoint copy and
-  /// the other copy (and over the corners, Ψ_m(c_0) vs c_m); flat only:
+  /// the other copy (the corners are max_corner_inconsistency); flat only:
   /// max |rotation part − 1| of the deck maps (holonomy; 0 for a flat torus).
   double max_interior_mismatch = 0;
   double max_deck_inconsistency = 0;
+  /// The corners of the 4g-gon against their images c_m = Ψ_m(c_0) under
+  /// the products Ψ_m of side pairings (distance in the metric), and that
+  /// check's condition: 4g × max (|a| + |b|)² of the Ψ_m (1 for flat), the
+  /// factor by which the products multiply the round-off of the pairings.
+  double max_corner_inconsistency = 0;
+  double corner_condition = 1;
   /// Round-off of the corner coordinates expressed in the metric: machine ε
   /// times the largest scale factor of the model at a corner (hyperbolic
   /// 2/(1−|z|²), flat max(|z|, 1)). Mismatches of a few hundred times this are
