@@ -24,7 +24,8 @@ namespace surfmap {
 
 struct SphericalUniformizationOptions {
   /// Vertex sent to the pole before centring; -1 (default): the vertex of
-  /// highest valence, then a few others if that one fails.
+  /// highest valence, then a few others spread over the vertex order and the
+  /// 12 vertices with the best-shaped neighbourhoods if that one fails.
   int removed_vertex = -1;
   /// Options of the inner Euclidean flow (scheme/method/tolerance/progress).
   RicciFlowOptions flow;
