@@ -87,6 +87,31 @@ TEST(IntrinsicUniformization, InfeasibleFixedMetricConvergesWithFlips) {
   EXPECT_EQ(static_cast<int>(u.loops.generator_edges.size()), 6);
 }
 
+// Coarse, very anisotropic, jittered tori (6 segments around the major
+// circle with 600 around the minor one; 8 around a fat minor circle with
+// random diagonals): many flips, loops cut on the flipped triangulation, a
+// layout that glues with no flipped triangle, and a lattice whose cell has
+// the metric's area.
+TEST(IntrinsicUniformization, AnisotropicToriLayOutOnTheFlippedTriangulation) {
+  struct Case { double R, r; int n, m, variant; };
+  for (const Case& k : std::vector<Case>{{3.0, 1.0, 6, 600, 2}, {1.2, 1.0, 400, 8, 3}}) {
+    SCOPED_TRACE(k.m);
+    // A little tangential jitter: no cyclic quadrilaterals (Delaunay ties).
+    const TriMesh m = samples::jitter(samples::torus_of_revolution(k.R, k.r, k.n, k.m, k.variant), 0.05, 3);
+    const UniformizeResult u = uniformize(m);
+    ASSERT_TRUE(u.converged);
+    EXPECT_GT(u.edge_flips, 0);
+    EXPECT_LE(u.max_curvature_error, 1e-10);
+    EXPECT_EQ(u.layout.num_flipped, 0);
+    EXPECT_EQ(u.layout.num_unresolved, 0);
+    EXPECT_LT(u.layout.max_deck_inconsistency, 1e-8 * std::sqrt(u.area));
+    EXPECT_LT(u.layout.max_holonomy_rotation, 1e-8);
+    // The lattice spans the fundamental domain: |ω1 × ω2| = its area.
+    const C w1 = u.modulus.omega1, w2 = u.modulus.omega2;
+    EXPECT_NEAR(std::abs(std::imag(std::conj(w1) * w2)) / u.area, 1.0, 1e-8);
+  }
+}
+
 // Flat tori through the default path: the analytic modulus of a torus of
 // revolution i√(R²−r²)/r within 0.3%, also with long thin triangles
 // (anisotropic grid) and random diagonals, where flips happen.
