@@ -113,6 +113,7 @@ UniformizeResult uniformize(const TriMesh& mesh, const UniformizeOptions& option
       } catch (const SolveError& e) {
         // T' not simplicial (rare): the fixed-connectivity path below.
         r.metric = std::string("fixed connectivity (intrinsic loops failed: ") + e.what() + ")";
+        r.edge_flips = 0;  // the metric laid out is the fixed one
       }
     }
   }
