@@ -3,8 +3,6 @@
 #include "surfmap/uniformize/intrinsic_loops.h"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <array>
 #include <memory>
 #include <cmath>
@@ -168,25 +166,6 @@ IntrinsicLoops intrinsic_loops(const TriMesh& input, const RicciFlowResult& flow
     if (!(out.lengths[e] > 0) || !std::isfinite(out.lengths[e]))
       throw SolveError("intrinsic_loops: refined edge " + std::to_string(e) + " has length " +
                        std::to_string(out.lengths[e]));
-  }
-  if (std::getenv("SMDBG")) {
-    std::vector<double> sum(nv, 0.0);
-    double worst_orig = 0, worst_new = 0;
-    for (int f = 0; f < R.num_faces(); ++f) {
-      double l[3];
-      for (int k = 0; k < 3; ++k) l[k] = out.lengths[rc.edge(3 * f + (k + 1) % 3)];
-      for (int k = 0; k < 3; ++k) {
-        const double a = l[k], b = l[(k + 1) % 3], c = l[(k + 2) % 3];
-        double cosA = background == Background::Euclidean ? (b * b + c * c - a * a) / (2 * b * c)
-                                                          : (std::cosh(b) * std::cosh(c) - std::cosh(a)) / (std::sinh(b) * std::sinh(c));
-        sum[R.F(f, k)] += std::acos(std::clamp(cosA, -1.0, 1.0));
-      }
-    }
-    for (int v = 0; v < nv; ++v) {
-      const double d = std::abs(sum[v] - 2 * M_PI);
-      if (v < input.num_vertices()) worst_orig = std::max(worst_orig, d); else worst_new = std::max(worst_new, d);
-    }
-    std::fprintf(stderr, "angle sum error: input vertices %g, new vertices %g\n", worst_orig, worst_new);
   }
   return out;
 }
