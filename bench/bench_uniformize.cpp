@@ -1,5 +1,6 @@
-// Benchmark of the discrete Ricci flow (uniformize/ricci_flow.h): Newton vs
-// the paper's explicit flow on generated meshes of ~10k, 100k, 500k vertices.
+// Benchmark of the discrete Ricci flow (uniformize/ricci_flow.h): Newton
+// (fixed connectivity), Newton with intrinsic Delaunay flips (the default of
+// uniformize) and the paper's explicit flow on generated meshes of ~10k, 100k, 500k vertices.
 // Every run happens in a forked child so that its peak memory (ru_maxrss) is
 // its own. The flow is capped by a time budget; its residual at the cap and
 // the observed linear rate give an extrapolated iteration count and time.
@@ -119,7 +120,7 @@ struct Row {
 };
 
 void run(const std::string& shape, int target_v, bool hyperbolic, bool newton, double budget,
-         double newton_time) {
+         double newton_time, bool flips = false) {
   TriMesh m;
   if (!hyperbolic) {
     const int n = static_cast<int>(std::round(std::sqrt(2.0 * target_v)));
@@ -132,6 +133,7 @@ void run(const std::string& shape, int target_v, bool hyperbolic, bool newton, d
   const Eigen::VectorXd l = edge_lengths(m, c);
   RicciFlowOptions o;
   o.method = newton ? RicciMethod::Newton : RicciMethod::GradientFlow;
+  o.intrinsic_delaunay = flips;
   std::vector<double> history;
   const auto t0 = std::chrono::steady_clock::now();
   if (!newton) {
@@ -143,7 +145,7 @@ void run(const std::string& shape, int target_v, bool hyperbolic, bool newton, d
   Row row;
   row.shape = shape;
   row.V = c.num_vertices();
-  row.method = newton ? "newton" : "flow";
+  row.method = flips ? "flips" : newton ? "newton" : "flow";
   try {
     const RicciFlowResult r = ricci_flow(c, l, hyperbolic ? Background::Hyperbolic : Background::Euclidean, o);
     row.iterations = r.iterations;
@@ -151,6 +153,8 @@ void run(const std::string& shape, int target_v, bool hyperbolic, bool newton, d
     row.residual = r.max_curvature_error;
     row.converged = r.converged;
     if (!r.converged) row.note = r.message;
+    if (flips) row.note = std::to_string(r.flips) + " Ptolemy flips" + (row.note.empty() ? "" : "; " + row.note);
+    if (r.stopped_at_floor) row.note += " (stopped at the floating-point floor)";
   } catch (const Cancelled&) {
     row.iterations = static_cast<int>(history.size());
     row.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -180,7 +184,7 @@ void run(const std::string& shape, int target_v, bool hyperbolic, bool newton, d
               row.converged ? "yes" : "no", row.note.c_str());
   std::fflush(stdout);
   // Hand the Newton time to the parent through the exit path: write it to stderr-free pipe-less file.
-  if (newton) {
+  if (newton && !flips) {
     FILE* f = std::fopen("/tmp/bench_uniformize_newton_time", "w");
     if (f) {
       std::fprintf(f, "%.17g\n", row.time_s);
@@ -189,12 +193,13 @@ void run(const std::string& shape, int target_v, bool hyperbolic, bool newton, d
   }
 }
 
-void in_child(const std::string& shape, int v, bool hyp, bool newton, double budget, double nt) {
+void in_child(const std::string& shape, int v, bool hyp, bool newton, double budget, double nt,
+              bool flips = false) {
   std::fflush(stdout);
   const pid_t pid = fork();
   if (pid == 0) {
     try {
-      run(shape, v, hyp, newton, budget, nt);
+      run(shape, v, hyp, newton, budget, nt, flips);
     } catch (const std::exception& e) {
       std::printf("%-10s %9d %-7s failed: %s\n", shape.c_str(), v, newton ? "newton" : "flow", e.what());
     }
@@ -243,6 +248,7 @@ int main(int argc, char** argv) {
         if (std::fscanf(f, "%lf", &nt) != 1) nt = 0;
         std::fclose(f);
       }
+      in_child(shape, v, h, true, budget, 0, true);  // Newton with intrinsic Delaunay flips
       if (flow) in_child(shape, v, h, false, budget, nt);
     }
   return 0;

@@ -24,9 +24,10 @@ nlohmann::json mobius(const hyperbolic::Mobius& m) {
 }
 
 struct Args {
-  std::string mesh, report, layout, scheme = "yamabe", method = "newton";
+  std::string mesh, report, layout, scheme = "yamabe", method = "newton", metric = "flips";
+  bool refine = false;
   int base_vertex = -1;
-  double tolerance = 1e-10;
+  double tolerance = 1e-10, floor_tolerance = 1e-7;
   bool quiet = false;
 };
 
@@ -36,6 +37,10 @@ void run(const Args& a) {
   opt.scheme = a.scheme == "inversive" ? RicciScheme::InversiveDistance : RicciScheme::VertexScaling;
   opt.method = a.method == "flow" ? RicciMethod::GradientFlow : RicciMethod::Newton;
   opt.tolerance = a.tolerance;
+  opt.metric = a.metric == "fixed" ? UniformizationMetric::FixedConnectivity : UniformizationMetric::IntrinsicDelaunay;
+  // The altitude-foot refinement of the fixed-connectivity path is opt-in.
+  opt.fixed_connectivity_refinement = a.refine;
+  opt.floor_tolerance = a.floor_tolerance;
   if (a.base_vertex >= in.mesh.num_vertices())
     throw InputError("--base-vertex " + std::to_string(a.base_vertex) + " is out of range (mesh has " +
                      std::to_string(in.mesh.num_vertices()) + " vertices)");
@@ -57,8 +62,14 @@ void run(const Args& a) {
                       {"method", a.method},
                       {"tolerance", a.tolerance},
                       {"converged", r.converged},
+                      {"metric", r.metric},
+                      {"edge_flips", r.edge_flips},
+                      {"refinement_splits", r.refinement_splits},
                       {"iterations", r.iterations},
                       {"max_curvature_error", r.max_curvature_error},
+                      {"stopped_at_floor", r.stopped_at_floor},
+                      {"floor_estimate", r.floor_estimate},
+                      {"floor_tolerance", a.floor_tolerance},
                       {"area", r.area},
                       {"time_s", r.time_s},
                       {"residual_history", r.residual_history}};
@@ -76,8 +87,13 @@ void run(const Args& a) {
     j["loop_edges"] = nlohmann::json::array();
     for (const auto& l : r.loops.loops) j["loop_edges"].push_back(static_cast<int>(l.size()) - 1);
     j["num_flipped"] = L.num_flipped;
+    j["num_unresolved"] = L.num_unresolved;
     j["max_interior_mismatch"] = L.max_interior_mismatch;
     j["max_deck_inconsistency"] = L.max_deck_inconsistency;
+    j["coordinate_roundoff"] = L.coordinate_roundoff;
+    j["max_corner_inconsistency"] = L.max_corner_inconsistency;
+    j["corner_condition"] = L.corner_condition;
+    j["gluing_tolerance"] = r.gluing_tolerance;
     j["product_relation_error"] = r.product_relation_error;
     j["layout_time_s"] = L.time_s;
     j["ricci_time_s"] = r.ricci.time_s;
@@ -135,8 +151,17 @@ void register_uniformize(CLI::App& app) {
       ->check(CLI::IsMember({"yamabe", "inversive"}));
   cmd->add_option("--method", a->method, "newton (default) or flow (the paper's explicit flow)")
       ->check(CLI::IsMember({"newton", "flow"}));
+  cmd->add_option("--metric", a->metric,
+                  "flips (default: Newton with intrinsic Delaunay / Ptolemy flips; a metric always exists) or "
+                  "fixed (the input connectivity, which can fail on slivers)")
+      ->check(CLI::IsMember({"flips", "fixed"}));
+  cmd->add_flag("--refine", a->refine,
+                "With --metric fixed: refine exactly (altitude-foot splits) when the metric does not exist");
   cmd->add_option("--base-vertex", a->base_vertex, "Base vertex of the loops (default: automatic)");
   cmd->add_option("--tolerance", a->tolerance, "Max curvature error (default 1e-10)");
+  cmd->add_option("--floor-tolerance", a->floor_tolerance,
+                  "Residual accepted when Newton stops at the floating-point floor above --tolerance "
+                  "(default 1e-7; reported as stopped_at_floor)");
   cmd->add_flag("--quiet", a->quiet, "No progress or summary output");
   cmd->callback([a] { run(*a); });
 }

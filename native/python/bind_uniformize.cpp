@@ -103,8 +103,12 @@ py::dict layout_dict(const DiskLayout& L) {
   const int h0 = L.boundary_halfedges.empty() ? -1 : L.boundary_halfedges[0];
   if (h0 >= 0) d["base_corner"] = L.corners(h0 / 3, h0 % 3);
   d["num_flipped"] = L.num_flipped;
+  d["num_unresolved"] = L.num_unresolved;
+  d["coordinate_roundoff"] = L.coordinate_roundoff;
   d["max_interior_mismatch"] = L.max_interior_mismatch;
   d["max_deck_inconsistency"] = L.max_deck_inconsistency;
+  d["max_corner_inconsistency"] = L.max_corner_inconsistency;
+  d["corner_condition"] = L.corner_condition;
   d["max_holonomy_rotation"] = L.max_holonomy_rotation;
   d["product_relation_error"] = L.product_relation_error;
   d["relation_condition"] = L.relation_condition;
@@ -126,13 +130,17 @@ void bind_uniformize(py::module_& m) {
   m.def(
       "uniformize",
       [](py::handle Vh, py::handle Fh, const std::string& scheme, const std::string& method, double tolerance,
-         int base_vertex, py::object progress) {
+         int base_vertex, py::object progress, double floor_tolerance, const std::string& metric) {
         const RowMatrixX3d V = to_vertices(Vh, "V");
         const RowMatrixX3i F = to_triangles(Fh, "F");
         UniformizeOptions opt;
         opt.scheme = parse_scheme(scheme);
         opt.method = parse_method(method);
         opt.tolerance = tolerance;
+        opt.floor_tolerance = floor_tolerance;
+        if (metric != "flips" && metric != "fixed")
+          throw InputError("metric must be 'flips' or 'fixed', got '" + metric + "'");
+        opt.metric = metric == "fixed" ? UniformizationMetric::FixedConnectivity : UniformizationMetric::IntrinsicDelaunay;
         opt.base_vertex = base_vertex;
         Progress p{progress, {}};
         opt.progress = p.make();
@@ -154,6 +162,7 @@ void bind_uniformize(py::module_& m) {
         d["converged"] = r.converged;
         d["iterations"] = r.iterations;
         d["max_curvature_error"] = r.max_curvature_error;
+        d["stopped_at_floor"] = r.stopped_at_floor;
         d["residual_history"] = r.residual_history;
         d["area"] = r.area;
         d["time_s"] = r.time_s;
@@ -172,7 +181,10 @@ void bind_uniformize(py::module_& m) {
         for (const auto& l : r.loops.loops) loops.append(to_numpy(l));
         d["loops"] = loops;
         d["u"] = eigen_vector(r.ricci.u);
-        d["edge_lengths"] = eigen_vector(r.ricci.edge_lengths);
+        d["edge_lengths"] = eigen_vector(r.edge_lengths);  // on refined_F's edges
+        d["metric"] = r.metric;
+        d["edge_flips"] = r.edge_flips;
+        d["refinement_splits"] = r.refinement_splits;
         d["layout"] = layout_dict(r.layout);
         d["product_relation_error"] = r.product_relation_error;
         if (r.genus == 1) {
@@ -187,12 +199,15 @@ void bind_uniformize(py::module_& m) {
       },
       py::arg("V"), py::arg("F"), py::arg("scheme") = "yamabe", py::arg("method") = "newton",
       py::arg("tolerance") = 1e-10, py::arg("base_vertex") = -1, py::arg("progress") = py::none(),
+      py::arg("floor_tolerance") = 1e-7, py::arg("metric") = "flips",
       "Uniformization of a closed mesh (V: (n,3) float, F: (m,3) int): genus 0 -> unit sphere "
       "('sphere_positions'), genus 1 -> flat torus ('tau', 'tau_reduced', 'lattice'), genus >= 2 -> "
       "hyperbolic ('generators' as (2g,4) [a.re,a.im,b.re,b.im] of z -> (az+b)/(conj(b)z+conj(a))). "
       "'layout' holds the cut disk (complex 'corners' per face of 'refined_F', 'disk_positions', 'disk_F'). "
       "progress(iteration, residual) may return False to cancel (raises surfmap.Cancelled). Raises "
-      "surfmap.SolveError if the metric does not converge. The GIL is released during the solve.");
+      "surfmap.SolveError if the metric does not converge (a residual above `tolerance` at the floating-point "
+      "floor but within `floor_tolerance` is converged, 'stopped_at_floor'). metric: 'flips' (default; Ptolemy "
+      "flips, loops on the intrinsic triangulation) or 'fixed' (the input connectivity). The GIL is released during the solve.");
 
   m.def(
       "ricci_flow",
@@ -229,6 +244,7 @@ void bind_uniformize(py::module_& m) {
         d["converged"] = r.converged;
         d["iterations"] = r.iterations;
         d["max_curvature_error"] = r.max_curvature_error;
+        d["stopped_at_floor"] = r.stopped_at_floor;
         d["residual_history"] = r.residual_history;
         d["u"] = eigen_vector(r.u);
         d["edge_lengths"] = eigen_vector(r.edge_lengths);

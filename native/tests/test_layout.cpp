@@ -114,6 +114,7 @@ TEST(Layout, ExactFlatTorusRecoversLatticeAndDeckMaps) {
     EXPECT_EQ(L.num_flipped, 0);
     EXPECT_LT(L.max_interior_mismatch, 1e-12);
     EXPECT_LT(L.max_deck_inconsistency, 1e-12);
+    EXPECT_LT(L.max_corner_inconsistency, 1e-12);
     EXPECT_LT(L.max_holonomy_rotation, 1e-12);
     EXPECT_LT(L.product_relation_error, 1e-12);
     // Boundary word a b a⁻¹ b⁻¹ for this orientation.
@@ -245,6 +246,7 @@ TEST(Layout, TorusOfRevolutionModulus) {
     EXPECT_EQ(L.num_flipped, 0);
     EXPECT_LT(L.max_interior_mismatch, 1e-8);
     EXPECT_LT(L.max_deck_inconsistency, 1e-8);
+    EXPECT_LT(L.max_corner_inconsistency, 1e-8);
     EXPECT_LT(L.max_holonomy_rotation, 1e-8);
     EXPECT_LT(L.product_relation_error, 1e-8);
     const TorusModulus tm = torus_modulus(L.generator_translations[0], L.generator_translations[1]);
@@ -282,6 +284,7 @@ void check_hyperbolic(const Pipeline& p, int genus, const Connectivity& conn) {
   // Distances in the hyperbolic metric between copies that must coincide.
   EXPECT_LT(L.max_interior_mismatch, 1e-6);
   EXPECT_LT(L.max_deck_inconsistency, 1e-6);
+  EXPECT_LT(L.max_corner_inconsistency, 1e-6);
   EXPECT_LT(L.product_relation_error, 1e-7 * L.relation_condition);
   ASSERT_EQ(static_cast<int>(L.generators.size()), 2 * genus);
   EXPECT_NEAR(L.area, 4 * M_PI * (genus - 1), 1e-6);

@@ -2,6 +2,7 @@
 #include "surfmap/uniformize/layout.h"
 
 #include <algorithm>
+#include <limits>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -303,13 +304,32 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     }
   }
 
-  // Orientation and area.
+  // Round-off of the coordinates in the metric: ε times the metric's scale
+  // factor at a corner (hyperbolic 2/(1−|z|²), which reaches 10¹² on long
+  // fundamental domains; flat |z|). Gluing checks are judged against its
+  // maximum (uniformize.cpp); a triangle whose sides are all below 100 times
+  // the round-off at its corners cannot be resolved by the coordinates at
+  // all (flat metrics of long thin limbs shrink triangles to 1e-13 at
+  // |z| = 5000): it is counted as unresolved, not as flipped.
+  auto roundoff_at = [&](Complex z) {
+    const double factor = std::is_same_v<G, Hyper> ? 2.0 / std::max(1e-300, 1.0 - std::norm(z)) : std::abs(z);
+    return std::numeric_limits<double>::epsilon() * std::max(factor, 1.0);
+  };
+  out.coordinate_roundoff = 0;
   out.num_flipped = 0;
+  out.num_unresolved = 0;
   out.area = 0;
   for (int f = 0; f < nF; ++f) {
+    double rho = 0;
+    for (int k = 0; k < 3; ++k) rho = std::max(rho, roundoff_at(out.corners(f, k)));
+    out.coordinate_roundoff = std::max(out.coordinate_roundoff, rho);
+    const double lmax = std::max({L[conn.edge(3 * f)], L[conn.edge(3 * f + 1)], L[conn.edge(3 * f + 2)]});
     const Complex a = G::straight(out.corners(f, 0)), b = G::straight(out.corners(f, 1)),
                   d = G::straight(out.corners(f, 2));
-    if (!(std::imag(std::conj(b - a) * (d - a)) > 0)) ++out.num_flipped;
+    if (lmax < 100 * rho)
+      ++out.num_unresolved;
+    else if (!(std::imag(std::conj(b - a) * (d - a)) > 0))
+      ++out.num_flipped;
     out.area += G::area(L[conn.edge(3 * f)], L[conn.edge(3 * f + 1)], L[conn.edge(3 * f + 2)]);
   }
 
@@ -431,7 +451,21 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     return conn.edge_halfedge(e) == h ? deck[e] : deck[e].inverse();
   };
   std::vector<Chart> D(nloops);
-  for (int k = 0; k < nloops; ++k) D[k] = oriented_deck(out.boundary_halfedges[out.side_start[plus_side[k]]]);
+  // Side pairing of loop k from its longest edge: the refined loops fan out
+  // of the base vertex through tiny edges, and a deck map read off a tiny
+  // edge has a rotation error of (round-off / edge length), which the far
+  // end of a long loop multiplies (1e-4 gaps on raw genus-8 meshes).
+  const int nb = static_cast<int>(out.boundary_halfedges.size());
+  for (int k = 0; k < nloops; ++k) {
+    const int s0 = out.side_start[plus_side[k]];
+    const int s1 = out.side_start[(plus_side[k] + 1) % n];
+    int best = out.boundary_halfedges[s0];
+    for (int i = s0; i != s1; i = (i + 1) % nb) {
+      const int h = out.boundary_halfedges[i];
+      if (L[conn.edge(h)] > L[conn.edge(best)]) best = h;
+    }
+    D[k] = oriented_deck(best);
+  }
   // Every loop edge's left copy must land on its right copy under the one
   // side pairing of its loop. Measured as a distance between points (in the
   // metric), not between matrices: hyperbolic deck matrices of a long
@@ -506,10 +540,19 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     out.generator_side_words[k] = dehn_reduce(concat(inverse(psi_word[i]), psi_word[(i + 1) % n]), out.side_relator);
   }
   const Complex c0 = out.corners(Connectivity::face(out.boundary_halfedges[0]), out.boundary_halfedges[0] % 3);
+  // The corners through the products Ψ_m of up to 4g side pairings: each
+  // factor's round-off is multiplied by the size of the partial products
+  // ((|a| + |b|)² for SU(1,1) maps), so this check has its own condition.
+  out.max_corner_inconsistency = 0;
+  out.corner_condition = 1;
   for (int m = 0; m < n; ++m) {
     const int h = out.boundary_halfedges[out.side_start[m]];
     const Complex cm = out.corners(Connectivity::face(h), h % 3);
-    out.max_deck_inconsistency = std::max(out.max_deck_inconsistency, G::distance(psi[m].apply(c0), cm));
+    out.max_corner_inconsistency = std::max(out.max_corner_inconsistency, G::distance(psi[m].apply(c0), cm));
+    if constexpr (std::is_same_v<G, Hyper>) {
+      const double size = std::abs(psi[m].a) + std::abs(psi[m].b);
+      out.corner_condition = std::max(out.corner_condition, n * size * size);
+    }
   }
   std::vector<Chart> gen(nloops);
   for (int k = 0; k < nloops; ++k) {

@@ -216,8 +216,9 @@ struct FlipContext {
   bool make_delaunay(const Eigen::VectorXd* u) {
     RicciDomain& d = *dom;
     Eigen::VectorXd& P = *pen;
+    auto pen = [&](int e) { return u ? std::exp(0.5 * ((*u)[d.EV(e, 0)] + (*u)[d.EV(e, 1)])) * P[e] : P[e]; };
     auto len = [&](int e) {
-      const double x = u ? std::exp(0.5 * ((*u)[d.EV(e, 0)] + (*u)[d.EV(e, 1)])) * P[e] : P[e];
+      const double x = pen(e);
       return bg == Background::Euclidean ? x : 2.0 * std::asinh(0.5 * x);
     };
     const int ne = static_cast<int>(d.EV.rows());
@@ -234,14 +235,24 @@ struct FlipContext {
       int a0 = 0, a1 = 0;
       while (d.FE(f0, a0) != e) ++a0;
       while (d.FE(f1, a1) != e) ++a1;
-      double th0[3], th1[3];
-      face_angles(d, f0, bg, len, th0);
-      face_angles(d, f1, bg, len, th1);
-      // Delaunay: the opposite angles do not exceed the angles at the edge's
-      // ends (Euclidean: α + β <= π; equality = cyclic quadrilateral).
-      const double opposite = th0[a0] + th1[a1];
-      const double at_ends = th0[(a0 + 1) % 3] + th0[(a0 + 2) % 3] + th1[(a1 + 1) % 3] + th1[(a1 + 2) % 3];
-      if (opposite <= at_ends + 1e-12) continue;
+      // Delaunay test on the Penner coordinates x (Euclidean: the lengths;
+      // hyperbolic: 2 sinh(l/2)) through the horocyclic arcs x_opp/(x_a x_b)
+      // of the corners (Epstein–Penner / Springborn 2020): e is Delaunay
+      // when the arcs at the two opposite corners sum to at most the arcs at
+      // its ends. For triangles this equals the circumcircle condition
+      // (Euclidean α + β <= π; hyperbolic: opposite angles <= angles at the
+      // ends; checked numerically on random quadrilaterals of both kinds),
+      // and it stays right where the coordinates violate the triangle
+      // inequality, where an angle test with extended angles (π, 0, 0) ties
+      // and leaves degenerate pairs unflipped. A Delaunay triangulation in
+      // Penner coordinates satisfies the triangle inequality.
+      {
+        const double xe = pen(e), xks = pen(d.FE(f0, (a0 + 2) % 3)), xkt = pen(d.FE(f0, (a0 + 1) % 3)),
+                     xms = pen(d.FE(f1, (a1 + 1) % 3)), xmt = pen(d.FE(f1, (a1 + 2) % 3));
+        const double opposite = xe / (xks * xkt) + xe / (xms * xmt);
+        const double at_ends = (xkt / xks + xmt / xms + xks / xkt + xms / xmt) / xe;
+        if (opposite <= at_ends * (1.0 + 1e-12)) continue;
+      }
       // Quad v_k, s, v_m, t (counter-clockwise); e = s–t becomes v_k–v_m.
       const int vk = d.F(f0, a0), s = d.F(f0, (a0 + 1) % 3), t = d.F(f0, (a0 + 2) % 3);
       const int vm = d.F(f1, a1);
@@ -252,6 +263,9 @@ struct FlipContext {
       double lnew;
       if (!u) {
         // Exact (metric-preserving) flip: unfold the quad at s.
+        double th0[3], th1[3];
+        face_angles(d, f0, bg, len, th0);
+        face_angles(d, f1, bg, len, th1);
         const double th = th0[(a0 + 1) % 3] + th1[(a1 + 2) % 3];
         const double x = len(e_ks), y = len(e_sm);
         if (bg == Background::Euclidean) {
@@ -272,10 +286,18 @@ struct FlipContext {
       d.FE.row(f1) << e_tk, e, e_mt;
       d.EV(e, 0) = std::min(vk, vm);
       d.EV(e, 1) = std::max(vk, vm);
-      for (int q = 0; q < 2; ++q) {
-        if (EF(e_sm, q) == f1) EF(e_sm, q) = f0;
-        if (EF(e_tk, q) == f0) EF(e_tk, q) = f1;
-      }
+      // Faces of the quad's edges, recomputed from the two new faces: after
+      // earlier flips the triangulation need not be simplicial (a vertex
+      // may be both ends of the quad, an edge may be two of its sides), and
+      // an in-place swap of face ids gets those cases wrong.
+      for (int x : {e, e_tk, e_ks, e_sm, e_mt})
+        for (int q = 0; q < 2; ++q)
+          if (EF(x, q) == f0 || EF(x, q) == f1) EF(x, q) = -2;
+      for (int f : {f0, f1})
+        for (int q = 0; q < 3; ++q) {
+          const int x = d.FE(f, q);
+          EF(x, EF(x, 0) == -2 ? 0 : 1) = f;
+        }
       ++flips;
       ++version;
       if (++local > max_flips) return false;
@@ -343,6 +365,24 @@ void evaluate(const RicciDomain& dom, const SchemeMetric& metric, Background bg,
         ev.triplets.emplace_back(dom.F(f, i), dom.F(f, w), -d);  // dK = −dθ
       }
   }
+}
+
+/// RicciFlowResult::floor_estimate: max over vertices of ε Σ_corners
+/// (Σ l²)/(2A) (Euclidean; hyperbolic: the same with sinh l and the
+/// hyperbolic "2A" of triangle_angles), the angle error caused by relative
+/// length errors of ε.
+double angle_sum_roundoff(const RicciDomain& dom, const Eigen::VectorXd& lengths, Background bg) {
+  Eigen::VectorXd per_vertex = Eigen::VectorXd::Zero(dom.num_vertices);
+  for (int f = 0; f < dom.F.rows(); ++f) {
+    double l[3], th[3], D[3][3];
+    for (int k = 0; k < 3; ++k) l[k] = lengths[dom.FE(f, k)];
+    if (!triangle_angles(l, bg, th, D, nullptr)) continue;
+    // D[i][i] = l_i / (2A): Σ_m D[m][m] l_m = (Σ l²)/(2A).
+    double c = 0;
+    for (int m = 0; m < 3; ++m) c += D[m][m] * l[m];
+    for (int k = 0; k < 3; ++k) per_vertex[dom.F(f, k)] += c;
+  }
+  return std::numeric_limits<double>::epsilon() * (per_vertex.size() ? per_vertex.maxCoeff() : 0.0);
 }
 
 int argmax_abs(const Eigen::VectorXd& x) {
@@ -516,6 +556,10 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
   long long analyzed_version = 0;
   double mu = 0.0;  // Levenberg shift, only used when a plain Newton step fails
   std::string failure;
+  // Residuals in (tolerance, floor_tol] where Newton can make no progress are
+  // the floating-point floor of this mesh: success (RicciFlowOptions).
+  const double floor_tol = std::max(options.tolerance, options.floor_tolerance);
+  bool at_floor = false;
   int it = 0;
   for (; it < max_it && err > options.tolerance; ++it) {
     if (options.progress && !options.progress(it, err))
@@ -636,7 +680,8 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
       }
     }
     if (!accepted) {
-      failure = err < 1e3 * options.tolerance
+      at_floor = err <= floor_tol;
+      failure = err < std::max(1e3 * options.tolerance, floor_tol)
                     ? "Newton stalled at the floating-point floor of the angle sums"
                     : "Newton line search failed to decrease the curvature residual";
       break;
@@ -646,19 +691,23 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
     const size_t nh = res.residual_history.size();
     // Eight iterations without 10% progress just above the tolerance: the
     // floating-point floor of this mesh (seen at 500k vertices, ~1.2e-10).
-    if (nh >= 9 && err > options.tolerance && err < 1e3 * options.tolerance &&
+    if (nh >= 9 && err > options.tolerance && err < std::max(1e3 * options.tolerance, floor_tol) &&
         err > 0.9 * res.residual_history[nh - 9]) {
+      at_floor = err <= floor_tol;
       failure = "Newton stalled at the floating-point floor of the angle sums";
       ++it;
       break;
     }
   }
   res.iterations = it;
+  // Newton out of iterations within the floor band: also the floor.
+  if (newton && it >= max_it && err > options.tolerance && err <= floor_tol) at_floor = true;
 
   // Final validation: never report success with an invalid metric.
   evaluate(dom, metric, background, res.u, false, ev, flips);
   res.edge_lengths = ev.l;
   res.flips = static_cast<int>(flip_ctx.flips);
+
   res.faces = dom.F;
   res.face_edges = dom.FE;
   res.edge_vertices = dom.EV;
@@ -669,6 +718,7 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
   } else {
     g = residual(ev.K);
     res.max_curvature_error = g.cwiseAbs().maxCoeff();
+    res.floor_estimate = angle_sum_roundoff(dom, ev.l, background);
     const int worst = argmax_abs(g);
     if (ev.degenerate > 0) {
       res.converged = false;
@@ -679,6 +729,9 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
       res.converged = false;
       res.message = "face " + std::to_string(ev.min_slack_face) +
                     " is numerically degenerate in the final metric";
+    } else if (at_floor && res.max_curvature_error <= floor_tol) {
+      res.converged = true;
+      res.stopped_at_floor = true;
     } else if (!(res.max_curvature_error <= options.tolerance)) {
       res.converged = false;
       res.message = (failure.empty() ? std::string("did not reach the tolerance") : failure) +

@@ -86,6 +86,7 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   out.flow_iterations = flat.iterations;
   out.circle_error = 0.0;
   out.max_curvature_error = flat.max_curvature_error;
+  out.stopped_at_floor = flat.stopped_at_floor;
   if (!flat.converged) out.message = "flattening the punctured disk failed: " + flat.message;
 
   // Lay the disk out in the plane, breadth first over the faces of the
@@ -233,6 +234,33 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
     if (conn.valence(v) > conn.valence(best_v)) best_v = v;
   std::vector<int> candidates{best_v};
   for (int k = 1; k <= 6; ++k) candidates.push_back(static_cast<int>((static_cast<long long>(nv) * k) / 7));
+  // Then the vertices whose neighbourhood is best shaped: the punctured
+  // disk's boundary (v0's ring) is Dirichlet and its edges cannot flip, so a
+  // sliver next to it can degenerate; rank by the smallest corner angle of
+  // the faces touching the ring (coarse, low-quality meshes: g0 bunny).
+  {
+    std::vector<double> min_angle_at(nv, M_PI);
+    for (int f = 0; f < conn.num_faces(); ++f) {
+      const Eigen::Vector3d p[3] = {mesh.V.row(mesh.F(f, 0)), mesh.V.row(mesh.F(f, 1)), mesh.V.row(mesh.F(f, 2))};
+      double m = M_PI;
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector3d a = p[(k + 1) % 3] - p[k], b = p[(k + 2) % 3] - p[k];
+        m = std::min(m, std::atan2(a.cross(b).norm(), a.dot(b)));
+      }
+      for (int k = 0; k < 3; ++k) min_angle_at[mesh.F(f, k)] = std::min(min_angle_at[mesh.F(f, k)], m);
+    }
+    std::vector<std::pair<double, int>> score(nv);
+    for (int v = 0; v < nv; ++v) {
+      double m = min_angle_at[v];
+      for (int h : conn.outgoing(v)) m = std::min(m, min_angle_at[conn.head(h)]);
+      score[v] = {-m, v};
+    }
+    const int extra = std::min(nv, 12);
+    std::partial_sort(score.begin(), score.begin() + extra, score.end());
+    for (int i = 0; i < extra; ++i)
+      if (std::find(candidates.begin(), candidates.end(), score[i].second) == candidates.end())
+        candidates.push_back(score[i].second);
+  }
   SphericalUniformization best;
   bool have = false;
   std::string tried;

@@ -8,6 +8,7 @@
 #include "surfmap/error.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/uniformize/feasible_metric.h"
+#include "surfmap/uniformize/intrinsic_loops.h"
 
 namespace surfmap {
 namespace {
@@ -19,20 +20,35 @@ std::string fmt(double x) {
   return s.str();
 }
 
+}  // namespace
+
+double gluing_tolerance(const DiskLayout& L, double residual) {
+  const double scale = std::sqrt(std::max(L.area, 0.0));
+  return std::max(1e-6, 1e4 * residual) * scale + 1e3 * L.coordinate_roundoff;
+}
+
+namespace {
+
 /// The layout must glue back together; anything else is a failed solve.
-void check_layout(const DiskLayout& L, double tolerance) {
-  // Positions are compared in coordinates; a metric with curvature error ε
-  // shifts copies by about ε times the domain size, so allow a generous
-  // multiple of the flow tolerance but never a visible gap.
-  const double tol = std::max(1e-6, 1e4 * tolerance);
+/// Gluing gaps are judged relative to the layout's scale (DiskLayout::
+/// gluing_tolerance): a metric with curvature error ε shifts copies by about
+/// ε times the domain size, and coordinates far out in the Poincaré disk
+/// carry round-off of coordinate_roundoff. A flipped triangle is always a
+/// failure (a converged metric never has one).
+void check_layout(const DiskLayout& L, double residual) {
+  const double tol = gluing_tolerance(L, residual);
   if (L.num_flipped > 0)
     throw SolveError("uniformize: " + std::to_string(L.num_flipped) + " triangles are flipped in the layout");
   if (L.max_interior_mismatch > tol)
     throw SolveError("uniformize: the layout does not close up (interior edge mismatch " +
-                     fmt(L.max_interior_mismatch) + ")");
+                     fmt(L.max_interior_mismatch) + ", tolerance " + fmt(tol) + ")");
   if (L.max_deck_inconsistency > tol)
     throw SolveError("uniformize: the deck maps of a loop disagree along its edges (" +
-                     fmt(L.max_deck_inconsistency) + ")");
+                     fmt(L.max_deck_inconsistency) + ", tolerance " + fmt(tol) + " at layout scale " +
+                     fmt(std::sqrt(L.area)) + ")");
+  if (L.max_corner_inconsistency > tol * L.corner_condition)
+    throw SolveError("uniformize: the side pairings do not carry the base corner to the polygon's corners (" +
+                     fmt(L.max_corner_inconsistency) + ", condition " + fmt(L.corner_condition) + ")");
   // The matrix relation loses digits in proportion to relation_condition
   // (large for long fundamental domains) even when every point glues; only
   // an error beyond that is a failure.
@@ -53,6 +69,7 @@ UniformizeResult uniformize(const TriMesh& mesh, const UniformizeOptions& option
   flow.method = options.method;
   flow.tolerance = options.tolerance;
   flow.max_iterations = options.max_iterations;
+  flow.floor_tolerance = options.floor_tolerance;
   flow.progress = options.progress;
 
   if (r.genus == 0) {
@@ -67,6 +84,7 @@ UniformizeResult uniformize(const TriMesh& mesh, const UniformizeOptions& option
     r.converged = true;
     r.iterations = r.sphere.flow_iterations;
     r.max_curvature_error = r.sphere.max_curvature_error;
+    r.stopped_at_floor = r.sphere.stopped_at_floor;
     r.area = 4 * M_PI;
     r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return r;
@@ -74,27 +92,60 @@ UniformizeResult uniformize(const TriMesh& mesh, const UniformizeOptions& option
 
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.base_vertex;
-  r.loops = system_of_loops(mesh, lo);
   const Background bg = r.genus == 1 ? Background::Euclidean : Background::Hyperbolic;
   r.kind = r.genus == 1 ? "flat" : "hyperbolic";
-  // Fixed connectivity, refined exactly when that metric does not exist
-  // (uniformize/feasible_metric.h).
-  FeasibleMetricOptions fo;
-  fo.flow = flow;
-  FeasibleMetricResult fm = feasible_metric(mesh, r.loops, bg, fo);
-  r.loops = std::move(fm.loops);
-  r.ricci = std::move(fm.flow);
-  r.refinement_splits = fm.refinement_splits;
+  Eigen::VectorXd lengths;  // the metric on r.loops.mesh, edge order of its Connectivity
+  const bool flips = options.metric == UniformizationMetric::IntrinsicDelaunay &&
+                     options.scheme == RicciScheme::VertexScaling && options.method == RicciMethod::Newton;
+  if (flips) {
+    // Default: Newton with Ptolemy flips on the input's vertices (a metric
+    // always exists), loops on the intrinsic triangulation
+    // (uniformize/intrinsic_loops.h).
+    r.metric = "intrinsic Delaunay";
+    flow.intrinsic_delaunay = true;
+    r.ricci = ricci_flow(input_conn, edge_lengths(mesh, input_conn), bg, flow);
+    r.edge_flips = r.ricci.flips;
+    if (r.ricci.converged) {
+      try {
+        IntrinsicLoops il = intrinsic_loops(mesh, r.ricci, bg, lo);
+        r.loops = std::move(il.loops);
+        lengths = std::move(il.lengths);
+      } catch (const SolveError& e) {
+        // T' not simplicial (rare): the fixed-connectivity path below.
+        r.metric = std::string("fixed connectivity (intrinsic loops failed: ") + e.what() + ")";
+        r.edge_flips = 0;  // the metric laid out is the fixed one
+      }
+    }
+  }
+  if (lengths.size() == 0 && (!flips || r.ricci.converged)) {
+    r.loops = system_of_loops(mesh, lo);
+    if (!flips) r.metric = "fixed connectivity";
+    // Fixed connectivity, refined exactly when that metric does not exist
+    // (uniformize/feasible_metric.h) unless the refinement is switched off.
+    FeasibleMetricOptions fo;
+    fo.flow = flow;
+    fo.flow.intrinsic_delaunay = false;
+    if (!options.fixed_connectivity_refinement) fo.refine_max_angles.clear();
+    FeasibleMetricResult fm = feasible_metric(mesh, r.loops, bg, fo);
+    r.loops = std::move(fm.loops);
+    r.ricci = std::move(fm.flow);
+    r.refinement_splits = fm.refinement_splits;
+    lengths = r.ricci.edge_lengths;
+  }
   const Connectivity conn(r.loops.mesh.F, r.loops.mesh.num_vertices());
   r.iterations = r.ricci.iterations;
   r.max_curvature_error = r.ricci.max_curvature_error;
+  r.stopped_at_floor = r.ricci.stopped_at_floor;
+  r.floor_estimate = r.ricci.floor_estimate;
   r.residual_history = r.ricci.residual_history;
   if (!r.ricci.converged)
     throw SolveError("uniformize: Ricci flow did not converge after " + std::to_string(r.ricci.iterations) +
                      " iterations (max curvature error " + fmt(r.ricci.max_curvature_error) + ")" +
                      (r.ricci.message.empty() ? std::string() : ": " + r.ricci.message));
-  r.layout = layout_disk(conn, r.ricci.edge_lengths, bg, r.loops, options.layout);
-  check_layout(r.layout, options.tolerance);
+  r.layout = layout_disk(conn, lengths, bg, r.loops, options.layout);
+  r.edge_lengths = lengths;
+  check_layout(r.layout, r.max_curvature_error);
+  r.gluing_tolerance = gluing_tolerance(r.layout, r.max_curvature_error);
   r.area = r.layout.area;
   r.product_relation_error = r.layout.product_relation_error;
   if (r.genus == 1) {

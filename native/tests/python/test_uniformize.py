@@ -170,9 +170,12 @@ def test_progress_cancel_and_errors():
 
     with pytest.raises(KeyError):
         _core.uniformize(V, F, progress=boom)
-    # An unreachable tolerance is a failed solve, never a success.
+    # An unreachable tolerance is a failed solve, never a success, unless the
+    # floating-point floor band accepts it (then it says so).
     with pytest.raises(surfmap.SolveError):
-        _core.uniformize(V, F, tolerance=1e-30)
+        _core.uniformize(V, F, tolerance=1e-30, floor_tolerance=0)
+    floor = _core.uniformize(V, F, tolerance=1e-30)
+    assert floor["converged"] and floor["stopped_at_floor"] and floor["max_curvature_error"] <= 1e-7
     with pytest.raises(surfmap.InputError):
         _core.uniformize(V, F, scheme="nonsense")
     with pytest.raises(surfmap.InputError):
@@ -234,7 +237,7 @@ def test_cli_report_and_layout(cli, tmp_path):
     assert abs(j["area"] - 4 * math.pi) < 1e-6
     # Failure: exit status 1 and a one-line message, no report claiming success.
     rep_bad = tmp_path / "bad.json"
-    p = cli("uniformize", mesh2, "--report", rep_bad, "--tolerance", "1e-30", "--quiet")
+    p = cli("uniformize", mesh2, "--report", rep_bad, "--tolerance", "1e-30", "--floor-tolerance", "0", "--quiet")
     assert p.returncode == 1 and "error" in p.stderr and not rep_bad.exists()
     p = cli("uniformize", mesh2, "--report", rep_bad, "--scheme", "bogus")
     assert p.returncode == 2

@@ -124,14 +124,31 @@ struct DiskLayout {
   /// Diagnostics: max over interior edges of the distance between the two
   /// copies of each endpoint (should be round-off); max over cut edges of
   /// the distance between the side pairing's image of an endpoint copy and
-  /// the other copy (and over the corners, Ψ_m(c_0) vs c_m); flat only:
+  /// the other copy (the corners are max_corner_inconsistency); flat only:
   /// max |rotation part − 1| of the deck maps (holonomy; 0 for a flat torus).
   double max_interior_mismatch = 0;
   double max_deck_inconsistency = 0;
+  /// The corners of the 4g-gon against their images c_m = Ψ_m(c_0) under
+  /// the products Ψ_m of side pairings (distance in the metric), and that
+  /// check's condition: 4g × max (|a| + |b|)² of the Ψ_m (1 for flat), the
+  /// factor by which the products multiply the round-off of the pairings.
+  double max_corner_inconsistency = 0;
+  double corner_condition = 1;
+  /// Round-off of the corner coordinates expressed in the metric: machine ε
+  /// times the largest scale factor of the model at a corner (hyperbolic
+  /// 2/(1−|z|²), flat max(|z|, 1)). Mismatches of a few hundred times this are
+  /// rounding, not a gluing error (long hyperbolic domains: 1e-4).
+  double coordinate_roundoff = 0;
   double max_holonomy_rotation = 0;
   /// Number of corner triangles with non-positive orientation (hyperbolic:
-  /// tested in the Klein model, where the triangle sides are straight).
+  /// tested in the Klein model, where the triangle sides are straight),
+  /// among the resolvable ones.
   int num_flipped = 0;
+  /// Triangles whose sides are all shorter than 100 times the coordinate
+  /// round-off at their corners (flat metrics of long thin parts: sides of
+  /// 1e-13 at |z| ~ 5000): double precision cannot place them, so their
+  /// orientation is not tested. Reported, not hidden.
+  int num_unresolved = 0;
   /// Sum of the triangle areas of the metric (hyperbolic: 4π(g−1) when the
   /// metric has zero curvature at every vertex).
   double area = 0;

@@ -65,6 +65,12 @@ struct RicciFlowOptions {
   RicciMethod method = RicciMethod::Newton;
   /// Stop when max_i |K_i − target_i| <= tolerance.
   double tolerance = 1e-10;
+  /// When Newton can make no further progress (the floating-point floor of
+  /// the angle sums: nearly degenerate triangles, 10⁵ angles per sum) with a
+  /// residual <= floor_tolerance, that is a converged result with
+  /// stopped_at_floor = true (the residual and floor_estimate are reported),
+  /// not a failure. Set it <= tolerance to demand the tolerance strictly.
+  double floor_tolerance = 1e-7;
   /// 0: 100 for Newton, 200000 for the flow.
   int max_iterations = 0;
   /// Time step of the explicit flow u += flow_step (K_target − K).
@@ -89,6 +95,15 @@ struct RicciFlowResult {
   int iterations = 0;
   /// max_i |K_i − target_i| of the returned metric.
   double max_curvature_error = 0;
+  /// True when the run stopped at the floating-point floor above the
+  /// tolerance (but within options.floor_tolerance): converged, with
+  /// max_curvature_error the achieved residual.
+  bool stopped_at_floor = false;
+  /// A priori round-off level of the angle sums at the final metric: max over
+  /// vertices of machine epsilon × Σ over the corners of (Σ l²)/(2A) of the
+  /// face (the relative round-off of the lengths propagated to the angles;
+  /// large for nearly degenerate triangles). Diagnostic only.
+  double floor_estimate = 0;
   /// max curvature error before each iteration (and the final one).
   std::vector<double> residual_history;
   /// #V conformal factors (start 0). Euclidean: defined up to a common

@@ -24,7 +24,8 @@ namespace surfmap {
 
 struct SphericalUniformizationOptions {
   /// Vertex sent to the pole before centring; -1 (default): the vertex of
-  /// highest valence, then a few others if that one fails.
+  /// highest valence, then a few others spread over the vertex order and the
+  /// 12 vertices with the best-shaped neighbourhoods if that one fails.
   int removed_vertex = -1;
   /// Options of the inner Euclidean flow (scheme/method/tolerance/progress).
   RicciFlowOptions flow;
@@ -47,6 +48,8 @@ struct SphericalUniformization {
   int removed_vertex = -1;
   int flow_iterations = 0;             ///< Newton iterations of the flattening
   double max_curvature_error = 0;      ///< at the interior vertices of the disk
+  /// The flattening stopped at the floating-point floor (RicciFlowResult).
+  bool stopped_at_floor = false;
   /// Always 0: the former circular-boundary iteration was replaced by the
   /// exact vertex-at-infinity condition (field kept for the CLI's JSON).
   double circle_error = 0;

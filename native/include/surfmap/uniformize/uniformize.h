@@ -18,13 +18,31 @@
 
 namespace surfmap {
 
+/// How the flat / hyperbolic metric of genus >= 1 is found.
+///  * IntrinsicDelaunay (default): Newton on the convex energy with Ptolemy
+///    flips that keep the intrinsic triangulation Delaunay (a metric exists
+///    for every mesh); the loops are cut on that triangulation
+///    (uniformize/intrinsic_loops.h). Needs vertex scaling and Newton; with
+///    another scheme or method the fixed-connectivity path runs.
+///  * FixedConnectivity: the metric on the loops' mesh itself, refined by
+///    altitude-foot splits when it does not exist (fixed_connectivity_refinement).
+enum class UniformizationMetric { IntrinsicDelaunay, FixedConnectivity };
+
 struct UniformizeOptions {
+  UniformizationMetric metric = UniformizationMetric::IntrinsicDelaunay;
+  /// FixedConnectivity only: refine exactly when the metric does not exist
+  /// (uniformize/feasible_metric.h; default false: the altitude-foot
+  /// refinement is no longer needed by default).
+  bool fixed_connectivity_refinement = false;
   /// Discrete conformal scheme (default vertex scaling / discrete Yamabe).
   RicciScheme scheme = RicciScheme::VertexScaling;
   /// Newton (default) or the paper's explicit flow.
   RicciMethod method = RicciMethod::Newton;
   /// Max curvature error of the metric (default 1e-10).
   double tolerance = 1e-10;
+  /// Accepted residual when Newton stops at the floating-point floor above
+  /// `tolerance` (RicciFlowOptions::floor_tolerance; default 1e-7).
+  double floor_tolerance = 1e-7;
   /// 0 (default): the solver's own limit.
   int max_iterations = 0;
   /// Base vertex of the loops (genus >= 1) / vertex sent to the pole
@@ -43,6 +61,13 @@ struct UniformizeResult {
   bool converged = false;
   int iterations = 0;
   double max_curvature_error = 0;
+  /// The metric stopped at the floating-point floor (residual above
+  /// `tolerance`, within `floor_tolerance`), and the a priori floor estimate
+  /// (RicciFlowResult). Still converged.
+  bool stopped_at_floor = false;
+  double floor_estimate = 0;
+  /// Gap allowed between glued copies (gluing_tolerance below).
+  double gluing_tolerance = 0;
   std::vector<double> residual_history;
   /// Area in the uniformization metric before any normalisation: flat, the
   /// area of the fundamental domain; hyperbolic, 4π(g−1) up to the
@@ -58,7 +83,17 @@ struct UniformizeResult {
   std::vector<hyperbolic::Mobius> generators;
   double product_relation_error = 0;
   DiskLayout layout;
-  /// The loops' mesh (refined further when the fixed-connectivity metric did
+  /// "intrinsic Delaunay" or "fixed connectivity" (with the reason when the
+  /// intrinsic path fell back), and the Ptolemy flips of the metric.
+  std::string metric;
+  int edge_flips = 0;
+  /// The metric laid out: #E lengths of Connectivity(loops.mesh.F) (with the
+  /// fixed connectivity equal to ricci.edge_lengths; intrinsic: the flow's
+  /// metric restricted to the loops' refinement of the flipped triangulation).
+  Eigen::VectorXd edge_lengths;
+  /// The loops' mesh (intrinsic Delaunay: the flipped triangulation, refined
+  /// by the loops; its vertex positions interpolate the input's in 3D and
+  /// only serve the loop construction) (refined further when the fixed-connectivity metric did
   /// not exist: refinement_splits exact splits, uniformize/feasible_metric.h).
   SystemOfLoops loops;
   int refinement_splits = 0;
@@ -66,6 +101,11 @@ struct UniformizeResult {
   /// Genus 0: #V positions on the unit sphere (input vertex order).
   SphericalUniformization sphere;
 };
+
+/// The gap allowed between the copies of a glued point in `layout` for a
+/// metric with max curvature error `residual`: max(1e-6, 1e4 residual) ×
+/// sqrt(area) (relative to the layout's scale) + 1e3 × coordinate_roundoff.
+double gluing_tolerance(const DiskLayout& layout, double residual);
 
 /// mesh: closed, manifold, outward-oriented (after intake). Throws
 /// SolveError (with the solver's message) when the metric does not converge

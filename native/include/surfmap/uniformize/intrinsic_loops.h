@@ -1,0 +1,48 @@
+#pragma once
+// The system of loops and the uniformization metric on an intrinsic
+// triangulation (docs/uniformization.md). The flip-based flow
+// (RicciFlowOptions::intrinsic_delaunay; Gillespie–Springborn–Crane 2021,
+// Gu–Guo–Luo–Sun–Wu 2018) returns a flat or hyperbolic metric on a flipped
+// triangulation T' of the input's vertices. This computes a system of loops
+// on T' (combinatorially: T' with the input's vertex positions as a mesh) and
+// the metric's exact lengths on the loops' refined mesh: every refined vertex
+// lies on a face of T' (origin face, barycentric coordinates), every refined
+// edge inside one face of T' or along one of its edges, so its length is
+// the distance of two points of one flat / hyperbolic triangle. The result
+// is laid out by layout_disk like the fixed-connectivity metric.
+//
+// Points are placed in a triangle by their barycentric coordinates:
+// Euclidean, the affine combination of the corners; hyperbolic, the
+// normalised combination of the corners' hyperboloid vectors (invariant
+// under isometries, so a point on an edge is the same point seen from both
+// faces; in the Klein model it is a projective image of the barycentric
+// triangle, so refined faces keep their orientation).
+#include <string>
+
+#include <Eigen/Core>
+
+#include "surfmap/mesh/tri_mesh.h"
+#include "surfmap/topology/system_of_loops.h"
+#include "surfmap/uniformize/ricci_flow.h"
+
+namespace surfmap {
+
+struct IntrinsicLoops {
+  /// System of loops of the intrinsic triangulation (its mesh: the refined
+  /// T', vertex positions = input positions / 3D barycentric interpolation,
+  /// only used for the loops' construction). origin_face refers to the faces
+  /// of flow.faces.
+  SystemOfLoops loops;
+  /// #E(loops.mesh) lengths of the flow's metric, edge order of
+  /// Connectivity(loops.mesh.F).
+  Eigen::VectorXd lengths;
+};
+
+/// input: the mesh the flow ran on (vertex positions); flow: a converged
+/// RicciFlowResult (faces, face_edges, edge_lengths). Throws SolveError when
+/// T' is not a simplicial surface (two edges with the same ends, or a loop
+/// edge: Connectivity cannot represent it) or the loops fail their checks.
+IntrinsicLoops intrinsic_loops(const TriMesh& input, const RicciFlowResult& flow, Background background,
+                               const SystemOfLoopsOptions& options = {});
+
+}  // namespace surfmap

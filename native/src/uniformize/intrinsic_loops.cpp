@@ -1,0 +1,173 @@
+// System of loops and exact lengths on an intrinsic triangulation
+// (uniformize/intrinsic_loops.h).
+#include "surfmap/uniformize/intrinsic_loops.h"
+
+#include <algorithm>
+#include <array>
+#include <memory>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "surfmap/error.h"
+#include "surfmap/mesh/connectivity.h"
+
+namespace surfmap {
+namespace {
+
+/// A point of T' as weights on the corners of one face: the faces that
+/// contain it are found from its support (vertex, edge or face interior).
+struct Support {
+  int count = 0;
+  std::array<int, 3> vertex{{-1, -1, -1}};
+  std::array<double, 3> weight{{0, 0, 0}};
+  int face = -1;
+};
+
+Support support_of(const RowMatrixX3i& F, int face, const Eigen::RowVector3d& b, double zero) {
+  Support s;
+  s.face = face;
+  const double sum = b.sum();
+  for (int k = 0; k < 3; ++k)
+    if (b[k] > zero * sum) {
+      s.vertex[s.count] = F(face, k);
+      s.weight[s.count] = b[k] / sum;
+      ++s.count;
+    }
+  return s;
+}
+
+/// Faces of T' containing the point.
+std::vector<int> faces_containing(const Support& s, const Connectivity& c) {
+  std::vector<int> out;
+  if (s.count == 1) {
+    for (int h : c.outgoing(s.vertex[0])) out.push_back(Connectivity::face(h));
+  } else if (s.count == 2) {
+    const int h = c.find_halfedge(s.vertex[0], s.vertex[1]);
+    if (h >= 0) out = {Connectivity::face(h), Connectivity::face(c.twin(h))};
+  } else {
+    out = {s.face};
+  }
+  return out;
+}
+
+/// The point's barycentric coordinates in face g (which contains it).
+bool weights_in(const Support& s, const RowMatrixX3i& F, int g, double w[3]) {
+  w[0] = w[1] = w[2] = 0;
+  for (int i = 0; i < s.count; ++i) {
+    int k = 0;
+    while (k < 3 && F(g, k) != s.vertex[i]) ++k;
+    if (k == 3) return false;
+    w[k] += s.weight[i];
+  }
+  return true;
+}
+
+/// Corners of a face in a canonical placement: Euclidean (x, y, 0);
+/// hyperbolic on the hyperboloid (t, x, y) with t² − x² − y² = 1.
+/// l[k]: side opposite corner k.
+std::array<Eigen::Vector3d, 3> place(const double l[3], Background bg) {
+  std::array<Eigen::Vector3d, 3> X;
+  const double c = l[2], b = l[1], a = l[0];  // c: corner 0 -> 1, b: corner 0 -> 2
+  // Angle at corner 0 by the half-angle formula (Euclidean tan(A/2) =
+  // sqrt((s−b)(s−c) / (s(s−a))), hyperbolic the same with sinh): accurate
+  // for slivers, where the law of cosines cancels.
+  const double s = 0.5 * (a + b + c);
+  const double sa = std::max(0.0, s - a), sb = std::max(0.0, s - b), sc = std::max(0.0, s - c);
+  if (bg == Background::Euclidean) {
+    const double A = 2.0 * std::atan2(std::sqrt(sb * sc), std::sqrt(s * sa));
+    X[0] = {0, 0, 0};
+    X[1] = {c, 0, 0};
+    X[2] = {b * std::cos(A), b * std::sin(A), 0};
+  } else {
+    const double A =
+        2.0 * std::atan2(std::sqrt(std::sinh(sb) * std::sinh(sc)), std::sqrt(std::sinh(s) * std::sinh(sa)));
+    X[0] = {1, 0, 0};
+    X[1] = {std::cosh(c), std::sinh(c), 0};
+    X[2] = {std::cosh(b), std::sinh(b) * std::cos(A), std::sinh(b) * std::sin(A)};
+  }
+  return X;
+}
+
+Eigen::Vector3d combine(const std::array<Eigen::Vector3d, 3>& X, const double w[3], Background bg) {
+  Eigen::Vector3d p = w[0] * X[0] + w[1] * X[1] + w[2] * X[2];
+  if (bg == Background::Hyperbolic) p /= std::sqrt(std::max(1e-300, p[0] * p[0] - p[1] * p[1] - p[2] * p[2]));
+  return p;
+}
+
+double distance(const Eigen::Vector3d& p, const Eigen::Vector3d& q, Background bg) {
+  const Eigen::Vector3d d = p - q;
+  if (bg == Background::Euclidean) return d.norm();
+  // |p − q|_Lorentz = 2 sinh(dist/2): no cancellation for short distances.
+  const double s2 = std::max(0.0, d[1] * d[1] + d[2] * d[2] - d[0] * d[0]);
+  return 2.0 * std::asinh(0.5 * std::sqrt(s2));
+}
+
+}  // namespace
+
+IntrinsicLoops intrinsic_loops(const TriMesh& input, const RicciFlowResult& flow, Background background,
+                               const SystemOfLoopsOptions& options) {
+  const RowMatrixX3i& F = flow.faces;
+  if (F.rows() == 0 || flow.face_edges.rows() != F.rows())
+    throw InputError("intrinsic_loops: the flow result has no triangulation");
+  TriMesh tm;
+  tm.V = input.V;
+  tm.F = F;
+  std::unique_ptr<Connectivity> ct;
+  try {
+    ct = std::make_unique<Connectivity>(F, input.num_vertices());
+  } catch (const InputError& e) {
+    throw SolveError(std::string("the intrinsic triangulation is not simplicial (") + e.what() + ")");
+  }
+  IntrinsicLoops out;
+  out.loops = system_of_loops(tm, options);
+  const TriMesh& R = out.loops.mesh;
+  const int nv = R.num_vertices();
+  if (static_cast<int>(out.loops.origin_face.size()) != nv)
+    throw SolveError("intrinsic_loops: the loops' mesh has no origins");
+  std::vector<Support> sup(nv);
+  for (int v = 0; v < nv; ++v) {
+    if (v < input.num_vertices()) {
+      sup[v].count = 1;
+      sup[v].vertex[0] = v;
+      sup[v].weight[0] = 1;
+      sup[v].face = out.loops.origin_face[v];
+    } else {
+      sup[v] = support_of(F, out.loops.origin_face[v], out.loops.origin_barycentric.row(v), 1e-15);
+    }
+  }
+  const Connectivity rc(R.F, nv);
+  out.lengths.resize(rc.num_edges());
+  for (int e = 0; e < rc.num_edges(); ++e) {
+    const int a = rc.edge_vertex(e, 0), b = rc.edge_vertex(e, 1);
+    const std::vector<int> fa = faces_containing(sup[a], *ct), fb = faces_containing(sup[b], *ct);
+    int g = -1;
+    for (int x : fa)
+      if (std::find(fb.begin(), fb.end(), x) != fb.end()) {
+        g = x;
+        break;
+      }
+    double wa[3], wb[3];
+    if (g < 0 || !weights_in(sup[a], F, g, wa) || !weights_in(sup[b], F, g, wb))
+      throw SolveError("intrinsic_loops: refined edge " + std::to_string(e) + " (" + std::to_string(a) + ", " +
+                       std::to_string(b) + ") lies in no single face of the intrinsic triangulation");
+    double l[3];
+    for (int k = 0; k < 3; ++k) l[k] = flow.edge_lengths[flow.face_edges(g, k)];
+    int side = -1;  // an edge of T' itself: its length exactly
+    if (sup[a].count == 1 && sup[b].count == 1)
+      for (int k = 0; k < 3; ++k)
+        if (wa[k] == 0 && wb[k] == 0) side = k;
+    if (side >= 0) {
+      out.lengths[e] = l[side];
+    } else {
+      const auto X = place(l, background);
+      out.lengths[e] = distance(combine(X, wa, background), combine(X, wb, background), background);
+    }
+    if (!(out.lengths[e] > 0) || !std::isfinite(out.lengths[e]))
+      throw SolveError("intrinsic_loops: refined edge " + std::to_string(e) + " has length " +
+                       std::to_string(out.lengths[e]));
+  }
+  return out;
+}
+
+}  // namespace surfmap
