@@ -239,6 +239,51 @@ class SplitTarget:
 
 # --- the preimage of target points --------------------------------------------------------------
 
+def common_triangle(F_src, node_face, node_bary, eps=1e-12):
+    """Re-expresses the three source points of each row in ONE source triangle when one holds
+    them all (points on a vertex or an edge belong to every triangle around it), so that the
+    interpolation between them is the exact linear one in that triangle.
+
+    node_face (E,3), node_bary (E,3,3) -> (face (E,3), bary (E,3,3)), rows without a common
+    triangle unchanged."""
+    F = np.asarray(F_src, dtype=np.int64)
+    face = np.array(node_face, dtype=np.int64)
+    bary = np.array(node_bary, dtype=np.float64)
+    E = len(face)
+    if E == 0:
+        return face, bary
+    n = int(F.max()) + 1
+    deg = np.bincount(F.reshape(-1), minlength=n)
+    D = int(deg.max())
+    vf = -np.ones((n, D), dtype=np.int64)
+    order = np.argsort(F.reshape(-1), kind="stable")
+    vs = F.reshape(-1)[order]
+    col = np.arange(len(vs)) - np.repeat(np.cumsum(deg) - deg, deg)
+    vf[vs, col] = order // 3
+    verts = F[face]                                    # (E,3 nodes,3 corners)
+    used = bary > eps
+    v0 = verts[np.arange(E), 0, np.argmax(bary[:, 0], axis=1)]
+    done = np.zeros(E, dtype=bool)
+    for d in range(D):
+        g = vf[v0, d]
+        todo = (~done) & (g >= 0)
+        if not np.any(todo):
+            continue
+        idx = np.nonzero(todo)[0]
+        Fg = F[g[idx]]                                  # (e,3)
+        match = verts[idx][..., None] == Fg[:, None, None, :]   # (e,3,3,3): node, corner, g corner
+        ok = np.all(match.any(axis=3) | ~used[idx], axis=(1, 2))
+        if not np.any(ok):
+            continue
+        idx, Fg, match = idx[ok], Fg[ok], match[ok]
+        w = np.where(used[idx], bary[idx], 0.0)
+        nb = np.einsum("enc,encg->eng", w, match.astype(np.float64))
+        face[idx] = g[idx][:, None]
+        bary[idx] = nb
+        done[idx] = True
+    return face, bary
+
+
 class Preimages:
     """Locates points of the split target's sub-triangles on the source.
 
@@ -246,10 +291,10 @@ class Preimages:
     of the first node's triangle that holds the other two; SourceCharts); the point with
     weights w is sum_k w_k Q_k there, found in the chart's triangle containing it."""
 
-    def __init__(self, charts, split):
+    def __init__(self, charts, split, F_src):
         self.charts = charts
         E = len(split.parent)
-        nf, nsb = split.node_face, split.node_src_bary
+        nf, nsb = common_triangle(F_src, split.node_face, split.node_src_bary)
         anchor = -np.ones(E, dtype=np.int64)
         slots = -np.ones((E, 3), dtype=np.int64)
         for k in range(3):                       # try each node's triangle as the anchor
@@ -472,7 +517,7 @@ def bake(V_src, F_src, F_tgt, target_corner_uv, forward, inverse, colour, width,
     found in no chart triangle), inserted (source vertices made nodes), sub_triangles)."""
     charts = SourceCharts(V_src, F_src, rings=rings)
     st = SplitTarget(F_src, F_tgt, forward[0], forward[1], inverse[0], inverse[1], insert=split)
-    pre = Preimages(charts, st)
+    pre = Preimages(charts, st, F_src)
     uv = np.asarray(target_corner_uv, dtype=np.float64)
     sub_uv = np.einsum("eij,ejk->eik", st.node_bary, uv[st.parent])
     acc = np.zeros((height * width, 4))
