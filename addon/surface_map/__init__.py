@@ -17,7 +17,7 @@ bl_info = {
 if "bpy" in locals():
     import importlib
     for _m in ("native", "core", "mapping", "mapjob", "blender_io", "properties", "operators",
-               "map_ops", "panel"):
+               "map_ops", "panel", "texture_bake", "bake_operator"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
@@ -25,8 +25,9 @@ import bpy  # noqa: E402
 
 from . import (native, core, mapping, mapjob, blender_io, properties, operators,  # noqa: E402,F401
                map_ops, panel)
+from . import texture_bake, bake_operator  # noqa: E402,F401
 
-_modules = (properties, operators, map_ops, panel)
+_modules = (properties, operators, map_ops, panel, bake_operator)
 
 
 def register():

@@ -81,6 +81,7 @@ def draw_map(layout, settings):
     col.operator("surfmap.transfer_uvs", icon='UV')
     col.operator("surfmap.create_morph", icon='SHAPEKEY_DATA')
     col.operator("surfmap.paint_distortion", icon='COLOR')
+    col.operator("surfmap.bake_textures", icon='TEXTURE')
     if settings.map_status:
         for line in _wrap(settings.map_status, 40)[:8]:
             box.label(text=line)
