@@ -8,7 +8,7 @@ PACKAGES=(
   libeigen3-dev libopenmesh-dev pybind11-dev python3-dev python3-numpy python3-pytest
   libgtest-dev libbenchmark-dev libsuitesparse-dev libtbb-dev nlohmann-json3-dev libcli11-dev
   libopenblas0-pthread
-  blender zip
+  blender zip python3-pil
 )
 # libopenblas0-pthread: an optimised BLAS/LAPACK for CHOLMOD's supernodal
 # factorisations (the Newton solves, the Ricci flow): installing it makes it

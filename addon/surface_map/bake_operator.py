@@ -137,7 +137,10 @@ def source_colour(source, src, use_colour_attribute=False):
 def own_uv_name(mesh):
     """The target's own UV map (not one the add-on transferred): the active render one if it
     is its own, else the first own one; None when it has none."""
-    own = [l for l in mesh.uv_layers if not l.name.startswith(OUR_PREFIX) or l.name == BAKE_UV]
+    def usable(layer):   # (Blender 3.4 may list other attributes among the UV maps)
+        return mesh.uv_layers.get(layer.name) is not None and len(layer.data) == len(mesh.loops)
+    own = [l for l in mesh.uv_layers if usable(l) and (l.name == BAKE_UV or not
+                                                        l.name.startswith(("surfmap ", "surfmap_")))]
     for layer in own:
         if layer.active_render:
             return layer.name

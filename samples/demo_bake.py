@@ -1,0 +1,191 @@
+"""The demo's texture-bake part (imported by samples/demo.py, inside Blender): the source's
+checker as an IMAGE texture baked onto the target three ways, and the morph as an animation.
+
+  <pair>_source_image.png            the source with the checker image on its UV map
+  <pair>_target_baked.png            Surface Map > Bake Textures: the checker baked through the
+                                     map into the target's own (Smart UV Project) layout
+  <pair>_target_selected_to_active.png  Blender's own Cycles bake, Selected to Active (rays cast
+                                     from the target, placed over the source, along its normals)
+  <pair>_bake_comparison.png         Data Transfer | transferred UVs | Bake Textures | Selected
+                                     to Active side by side (PIL)
+  <pair>_morph.gif                   the source's morph shape key animated 0 -> 1 -> 0 (keyed
+                                     on frames 0..N-1 in demo.blend), rendered frames as a GIF
+"""
+import math
+import os
+import time
+
+import bpy
+import numpy as np
+
+# Blender's Checker Texture node as the demo's checker_material sets it up (Scale 16, colours
+# in scene-linear): fac = 1 (Color1) where floor(16 u) and floor(16 v) differ in parity.
+CHECKER_SCALE = 16.0
+CHECKER_COLOURS = ((0.85, 0.55, 0.12, 1.0), (0.08, 0.25, 0.55, 1.0))
+
+
+def checker_image(name, size=1024):
+    """A float (scene-linear) image of the demo's checker: the same pattern as the procedural
+    one on the same UVs, now as pixels a bake can read."""
+    c = (np.arange(size) + 0.5) / size * CHECKER_SCALE
+    xi = np.floor(c).astype(np.int64) % 2
+    odd = xi[None, :] != xi[:, None]                 # rows = v, columns = u
+    px = np.where(odd[..., None], CHECKER_COLOURS[0], CHECKER_COLOURS[1]).astype(np.float32)
+    img = bpy.data.images.get(name) or bpy.data.images.new(name, size, size, alpha=True,
+                                                           float_buffer=True)
+    img.pixels.foreach_set(px.ravel())
+    img.pack()
+    return img
+
+
+def image_material(name, image, uv_map):
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nt = mat.node_tree
+    bsdf = nt.nodes["Principled BSDF"]
+    uv = nt.nodes.new("ShaderNodeUVMap")
+    uv.uv_map = uv_map
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+    nt.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    bsdf.inputs["Roughness"].default_value = 0.55
+    nt.nodes.active = tex
+    return mat
+
+
+def selected_to_active(demo, source, target, uv_map, size=1024):
+    """Blender's own bake of the source's image onto a copy of the target: Cycles, Diffuse
+    colour, Selected to Active (the copy placed over the source like the Data Transfer copy,
+    rays from its surface inflated by a cage extrusion, inwards along its normals). Returns the
+    copy, moved back onto the target's place for the render, and the bake's seconds."""
+    copy = bpy.data.objects.new(f"{target.name} (Selected to Active)", target.data.copy())
+    bpy.context.scene.collection.objects.link(copy)
+    copy.matrix_world = source.matrix_world.copy()
+    copy.scale = target.scale
+    copy.location = source.location
+    img = bpy.data.images.new(f"{copy.name} bake", size, size, alpha=True, float_buffer=True)
+    demo.set_material(copy, image_material(f"{copy.name} baked", img, uv_map))
+    for ob in bpy.context.view_layer.objects:
+        ob.select_set(ob in (source, copy))
+    bpy.context.view_layer.objects.active = copy
+    scene = bpy.context.scene
+    saved = scene.cycles.samples
+    scene.cycles.samples = 4
+    diag = max(copy.dimensions)
+    t = time.time()
+    bpy.ops.object.bake(type='DIFFUSE', pass_filter={'COLOR'}, use_selected_to_active=True,
+                        cage_extrusion=0.1 * diag, max_ray_distance=0.0, margin=8,
+                        target='IMAGE_TEXTURES', use_clear=True)
+    seconds = time.time() - t
+    scene.cycles.samples = saved
+    img.pack()
+    copy.matrix_world = target.matrix_world.copy()
+    return copy, seconds
+
+
+def bake_comparison(demo, source, target, uv_name, shot, out, tag, written):
+    """The checker as an image on the source, baked onto the target by Surface Map > Bake
+    Textures and by Blender's Selected to Active bake; renders and a side-by-side strip."""
+    img = checker_image("demo checker image")
+    demo.set_material(source, image_material(f"{source.name} checker image", img, uv_name))
+    shot("source_image", [source], text=f"source {source.name}: the checker as an image "
+                                        f"texture (what the bakes read)")
+    demo.select_pair(source, target)
+    before = [m for m in target.data.materials]
+    t = time.time()
+    result = bpy.ops.surfmap.bake_textures(resolution=2048, supersample=2, margin=8)
+    if result != {'FINISHED'}:
+        raise SystemExit(f"demo.py: bake_textures returned {result}")
+    status = bpy.context.scene.surfmap.map_status
+    print(f"demo: bake_textures in {time.time() - t:.1f}s: {status}")
+    fill = status.split("UV map")[-1].split(":")[1].split("%")[0].strip() if ":" in status else "?"
+    shot("target_baked", [target],
+         text=f"surfmap Bake Textures: the checker image baked through the map into the "
+              f"target's own UVs ({fill}% of island texels filled)")
+    bake_uv = next(l.name for l in target.data.uv_layers if l.name.startswith("surfmap bake")
+                   or not l.name.startswith("surfmap "))
+    copy, seconds = selected_to_active(demo, source, target, bake_uv)
+    print(f"demo: Blender's Selected to Active bake in {seconds:.1f}s")
+    shot("target_selected_to_active", [copy],
+         text="Blender Cycles bake, Selected to Active (ray cast from the target over the "
+              "source): the same image")
+    copy.hide_render = True
+    copy.hide_set(True)
+    # the target shows the transferred checker again for the shots that follow
+    target.data.materials.clear()
+    for m in before:
+        target.data.materials.append(m)
+    names = ("target_datatransfer", "target_transferred", "target_baked",
+             "target_selected_to_active")
+    paths = [os.path.join(out, f"{tag}_{n}.png") for n in names]
+    if all(os.path.exists(p) for p in paths):
+        try:
+            from PIL import Image
+        except ImportError:
+            print("demo: no PIL (python3-pil): no side-by-side strip")
+            return
+        ims = [Image.open(p).convert("RGB") for p in paths]
+        w, h = ims[0].size
+        strip = Image.new("RGB", (w * len(ims) // 2, h // 2))
+        for i, im in enumerate(ims):
+            strip.paste(im.resize((w // 2, h // 2)), (i * (w // 2), 0))
+        path = os.path.join(out, f"{tag}_bake_comparison.png")
+        strip.save(path)
+        written.append(path)
+
+
+def morph_gif(demo, source, target_name, cam, out, tag, written, frames=12):
+    """The source's morph key animated from 0 (frame 0) to 1 (frame frames-1), kept in the
+    file as keyframes, rendered at half size and written as a looping GIF (there and back)."""
+    scene = bpy.context.scene
+    key = source.data.shape_keys.key_blocks[f"surfmap to {target_name}"]
+    key.value = 0.0
+    key.keyframe_insert("value", frame=0)
+    key.value = 1.0
+    key.keyframe_insert("value", frame=frames - 1)
+    scene.frame_start, scene.frame_end = 0, frames - 1
+    demo.show_only([source])
+    # the camera: the farther of the fits to the start and the end shape
+    best = None
+    for f in (0, frames - 1):
+        scene.frame_set(f)
+        demo.aim(cam, [source], demo.VIEW)
+        d = (cam.location - source.matrix_world.translation).length
+        if best is None or d > best[0]:
+            best = (d, cam.location.copy(), cam.data.clip_start, cam.data.clip_end)
+    cam.location, cam.data.clip_start, cam.data.clip_end = best[1], best[2], best[3]
+    label = demo.caption(cam, f"{source.name} morphing onto {target_name} (shape key "
+                              f"'surfmap to {target_name}' 0 -> 1)")
+    saved = (scene.render.resolution_percentage, scene.cycles.samples)
+    scene.render.resolution_percentage, scene.cycles.samples = 50, 8
+    frame_dir = os.path.join(out, f"{tag}_morph_frames")
+    os.makedirs(frame_dir, exist_ok=True)
+    paths = []
+    for f in range(frames):
+        scene.frame_set(f)
+        p = os.path.join(frame_dir, f"{f:02d}.png")
+        demo.render(p)
+        paths.append(p)
+    scene.render.resolution_percentage, scene.cycles.samples = saved
+    for child in list(label.children):
+        bpy.data.objects.remove(child, do_unlink=True)
+    bpy.data.objects.remove(label, do_unlink=True)
+    scene.frame_set(0)
+    try:
+        from PIL import Image
+    except ImportError:
+        print("demo: no PIL (python3-pil): the morph frames stay PNGs in", frame_dir)
+        return
+    ims = [Image.open(p).convert("RGB") for p in paths]
+    seq = ims + ims[-2:0:-1]
+    seq = [im.quantize(colors=255, method=Image.Quantize.MEDIANCUT) for im in seq]
+    gif = os.path.join(out, f"{tag}_morph.gif")
+    durations = [500 if i in (0, frames - 1) else 90 for i in range(len(seq))]
+    seq[0].save(gif, save_all=True, append_images=seq[1:], duration=durations, loop=0)
+    written.append(gif)
+    print(f"demo: wrote {gif} ({len(seq)} frames)")
+
+
+if __name__ == "__main__":
+    raise SystemExit("demo_bake.py is imported by samples/demo.py")
