@@ -171,8 +171,8 @@ def run_pair(label, src_path, tgt_path, opts):
     near = TB.seam_vertices(Fs, suv, rings=2) & ~TB.seam_vertices(Fs, suv, rings=0)
     nodes = TB.bake_error_at_nodes(baked, Fs, Ft, tuv, stored["fw"], stored["iv"], colour, near)
     # random target points through the bake's own interpolation
-    split = TB.SplitTarget(Fs, Ft, *stored["fw"], *stored["iv"])
-    pre = TB.Preimages(TB.SourceCharts(Vs, Fs), split, Fs)
+    split = TB.SplitTarget(Fs, Ft, *stored["fw"], *stored["iv"], V_tgt=Vt)
+    pre = TB.Preimages(TB.SourceCharts(Vs, Fs), split, Fs, Vs)
     face, bary = TB.random_target_points(Ft, Vt, opts["points"], seed=3)
     pf, pb = TB.locate_target_points(split, pre, face, bary)
     want = colour(pf, pb)[:, :3]

@@ -153,6 +153,7 @@ def smart_uv_project(context, obj, name=BAKE_UV):
     if layer is None:
         raise core.ObjectProblem(f"'{obj.name}' cannot take another UV map (8 at most)")
     obj.data.uv_layers.active = layer
+    made = layer.name    # (Edit Mode reallocates the layers: `layer` is stale after it)
     view_layer = context.view_layer
     was_active, was_selected = view_layer.objects.active, list(context.selected_objects)
     for o in was_selected:
@@ -169,7 +170,7 @@ def smart_uv_project(context, obj, name=BAKE_UV):
         for o in was_selected:
             o.select_set(True)
         view_layer.objects.active = was_active
-    return layer.name
+    return made
 
 
 # --- writing ------------------------------------------------------------------------------------
@@ -263,7 +264,8 @@ class SURFMAP_OT_bake_textures(bpy.types.Operator):
                 src["V"], src["F"], tgt["F"], corner_uv,
                 (res["forward"]["face"], res["forward"]["barycentric"]),
                 (res["inverse"]["face"], res["inverse"]["barycentric"]),
-                colour, self.resolution, self.resolution, self.supersample, self.margin)
+                colour, self.resolution, self.resolution, self.supersample, self.margin,
+                V_tgt=tgt["V"])
         except core.ObjectProblem as e:
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}

@@ -10,7 +10,7 @@ own UV seams, bled over by a margin).
 
 What is exact (docs/baking.md, "What is exact"): the stored correspondence gives the map at
 the target's vertices (inverse) and at the images of the source's vertices (forward). Each
-target triangle is split at the images of the source vertices inside it (1 -> 3 splits), so
+target triangle is split at the images of the source vertices inside it (Delaunay), so
 both sets of points are nodes; a texel's preimage is the linear interpolation of its
 sub-triangle's three node preimages in one chart of the source unfolded from its 3D edge
 lengths, located in the source triangle it falls in. At the nodes this is the map itself;
@@ -60,25 +60,28 @@ def face_frames(V, F):
 
 
 class SourceCharts:
-    """Every source triangle (the anchor) with the triangles within `rings` edge steps of it,
-    unfolded into the anchor's plane (face_frames) across the shared edges, breadth first (one
-    unfolding per triangle: around a vertex with angle defect the chart has a slit where the
-    two ways round meet).
+    """Source triangles (the anchors: all, or the given ones) with the triangles within
+    `rings` edge steps of them, unfolded into the anchor's plane (face_frames) across the
+    shared edges, breadth first (one unfolding per triangle: around a vertex with angle
+    defect the chart has a slit where the two ways round meet).
 
-    faces (m,K) int: the triangles of each anchor's chart (-1 pads), anchor first;
-    corners (m,K,3,2): their corners in the anchor's chart."""
+    row_of (m,): each triangle's row (-1: not an anchor); faces (R,K) int: the triangles of
+    each row's chart (-1 pads), the anchor first; corners (R,K,3,2): their corners in the
+    anchor's chart."""
 
-    def __init__(self, V, F, rings=4):
+    def __init__(self, V, F, rings=4, anchors=None):
         F = np.asarray(F, dtype=np.int64)
         m = len(F)
         L = face_frames(V, F)
         nf, ne = face_adjacency(F)
-        anchor = np.arange(m)
-        face = np.arange(m)
-        pos = L.copy()
-        all_a, all_f, all_p = [anchor], [face], [pos]
-        seen = np.sort(anchor * m + face)
-        fa, ff, fp = anchor, face, pos
+        anchors = np.arange(m) if anchors is None else np.unique(np.asarray(anchors, np.int64))
+        R = len(anchors)
+        row = np.arange(R)
+        face = anchors.copy()
+        pos = L[anchors].copy()
+        all_a, all_f, all_p = [row], [face], [pos]
+        seen = np.sort(row * m + face)
+        fa, ff, fp = row, face, pos
         for _ in range(rings):
             na, nff, npos = [], [], []
             for k in range(3):
@@ -115,26 +118,30 @@ class SourceCharts:
         a = np.concatenate(all_a)
         f = np.concatenate(all_f)
         p = np.concatenate(all_p)
-        order = np.argsort(a, kind="stable")     # anchor first within each group (ring order)
+        order = np.argsort(a, kind="stable")     # anchor first within each row (ring order)
         a, f, p = a[order], f[order], p[order]
-        counts = np.bincount(a, minlength=m)
+        counts = np.bincount(a, minlength=R)
         K = int(counts.max(initial=1))
         slot = np.arange(len(a)) - np.repeat(np.cumsum(counts) - counts, counts)
-        self.faces = -np.ones((m, K), dtype=np.int64)
-        self.corners = np.zeros((m, K, 3, 2))
+        self.faces = -np.ones((R, K), dtype=np.int64)
+        self.corners = np.zeros((R, K, 3, 2))
         self.faces[a, slot] = f
         self.corners[a, slot] = p
-        self._keys = a * m + f                   # sorted by anchor, not by face: sort for lookup
-        kord = np.argsort(self._keys)
-        self._keys_sorted = self._keys[kord]
+        self.row_of = -np.ones(m, dtype=np.int64)
+        self.row_of[anchors] = row
+        keys = a * m + f
+        kord = np.argsort(keys)
+        self._keys_sorted = keys[kord]
         self._slot_sorted = slot[kord]
         self.m = m
 
     def slot(self, anchor, face):
-        """Position of `face` in the chart of `anchor` (-1 when it is not in it)."""
-        key = np.asarray(anchor, dtype=np.int64) * self.m + np.asarray(face, dtype=np.int64)
+        """Position of `face` in the chart of `anchor` (-1 when it is not in it, or anchor has
+        no chart here)."""
+        r = self.row_of[np.asarray(anchor, dtype=np.int64)]
+        key = r * self.m + np.asarray(face, dtype=np.int64)
         i = np.clip(np.searchsorted(self._keys_sorted, key), 0, len(self._keys_sorted) - 1)
-        return np.where(self._keys_sorted[i] == key, self._slot_sorted[i], -1)
+        return np.where((r >= 0) & (self._keys_sorted[i] == key), self._slot_sorted[i], -1)
 
 
 def _bary_2d(P, T):
@@ -150,9 +157,13 @@ def _bary_2d(P, T):
 
 # --- target triangles split at the images of the source vertices --------------------------------
 
+EQUILATERAL = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, math.sqrt(3) / 2]])
+
+
 class SplitTarget:
-    """The target's triangles split (1 -> 3) at the images of the source's vertices that lie
-    strictly inside them (forward map), so that the map is known exactly at every node.
+    """The target's triangles split at the images of the source's vertices that lie strictly
+    inside them (forward map; Delaunay in each triangle's plane, from V_tgt (n_t,3) when given,
+    else an equilateral triangle), so that the map is known exactly at every node.
 
     parent (E,): the target triangle of each sub-triangle; node_bary (E,3,3): its corners'
     barycentrics in the parent; node_face (E,3), node_src_bary (E,3,3): the corners' preimages
@@ -161,7 +172,7 @@ class SplitTarget:
     vertices, within `eps` in barycentrics)."""
 
     def __init__(self, F_src, F_tgt, forward_face, forward_bary, inverse_face, inverse_bary,
-                 eps=1e-6, insert=True):
+                 eps=1e-6, insert=True, V_tgt=None):
         F_src = np.asarray(F_src, dtype=np.int64)
         F_tgt = np.asarray(F_tgt, dtype=np.int64)
         mt = len(F_tgt)
@@ -186,13 +197,15 @@ class SplitTarget:
             order = np.argsort(fw_f[verts], kind="stable")
             verts = verts[order]
             keep = np.ones(mt, dtype=bool)
+            frames = None if V_tgt is None else face_frames(V_tgt, F_tgt)
             sub_p, sub_b, sub_f, sub_s = [], [], [], []
             bounds = np.flatnonzero(np.diff(fw_f[verts])) + 1
             for group in np.split(verts, bounds) if len(verts) else []:
                 t = int(fw_f[group[0]])
                 keep[t] = False
-                tris = self._split_one(t, group, fw_b, F_tgt, inv_f, inv_b, vf, vk, eps)
-                self.inserted += len(group)
+                tris = self._split_one(t, group, fw_b, F_tgt, inv_f, inv_b, vf, vk, eps,
+                                       frames[t] if frames is not None else EQUILATERAL)
+                self.inserted += (len(tris) - 1) // 2     # k points: 2k + 1 triangles
                 for bary, faces, sb in tris:
                     sub_p.append(t)
                     sub_b.append(bary)
@@ -208,33 +221,54 @@ class SplitTarget:
         self.node_src_bary = np.concatenate(nsb)
 
     @staticmethod
-    def _split_one(t, group, fw_b, F_tgt, inv_f, inv_b, vf, vk, eps):
-        """The sub-triangles of target triangle t after inserting the source vertices `group`
-        one by one, each into the sub-triangle containing it (1 -> 3)."""
-        eye = np.eye(3)
-        tris = [(eye.copy(), [int(inv_f[F_tgt[t, k]]) for k in range(3)],
-                 [inv_b[F_tgt[t, k]].copy() for k in range(3)])]
+    def _split_one(t, group, fw_b, F_tgt, inv_f, inv_b, vf, vk, eps, corners2d):
+        """The sub-triangles of target triangle t with the source vertices `group` inserted:
+        the Delaunay triangulation of its corners and those points (Bowyer-Watson, in the
+        triangle's own plane `corners2d` (3,2); its edges stay edges since every point is
+        strictly inside), so that the sub-triangles are as round as the points allow and
+        their corners close on the source. Returns [(node bary in t (3,3), source faces (3,),
+        source barys (3,3))]."""
+        pts = [np.eye(3)[k] for k in range(3)]
+        xy = [corners2d[k] for k in range(3)]
+        faces = [int(inv_f[F_tgt[t, k]]) for k in range(3)]
+        sbs = [inv_b[F_tgt[t, k]] for k in range(3)]
+        tris = [(0, 1, 2)]
+        scale = float(np.abs(corners2d).max()) or 1.0
         for v in group:
             p = fw_b[v]
-            best, best_w = -1, None
-            for i, (bary, _, _) in enumerate(tris):
-                w = np.nan_to_num(_bary_2d(p[1:], bary[:, 1:]), nan=-np.inf)  # p = sum w_k bary[k]
-                if best_w is None or w.min() > best_w.min():
-                    best, best_w = i, w
-            if best_w.min() <= eps * 1e-3:      # on a sub-triangle's edge: leave it out
+            q = p @ corners2d
+            if min(float(np.linalg.norm(q - x)) for x in xy) <= 1e-9 * scale:
                 continue
-            bary, faces, sbs = tris.pop(best)
+            i = len(pts)
+            pts.append(p)
+            xy.append(q)
+            faces.append(int(vf[v]))
             unit = np.zeros(3)
             unit[vk[v]] = 1.0
-            for k in range(3):
-                nbary = bary.copy()
-                nbary[k] = p
-                nfaces = list(faces)
-                nfaces[k] = int(vf[v])
-                nsbs = list(sbs)
-                nsbs[k] = unit
-                tris.append((nbary, nfaces, nsbs))
-        return [(b, f, np.asarray(s)) for b, f, s in tris]
+            sbs.append(unit)
+            bad, keep = [], []
+            for tr in tris:
+                (bad if _in_circumcircle(xy[tr[0]], xy[tr[1]], xy[tr[2]], q) else keep).append(tr)
+            if not bad:                       # round-off: the triangle containing q
+                w = [min(_bary_2d(q, np.array([xy[a], xy[b], xy[c]]))) for a, b, c in tris]
+                bad = [tris[int(np.nanargmax(w))]]
+                keep = [tr for tr in tris if tr != bad[0]]
+            count = {}
+            for a, b, c in bad:
+                for e in ((a, b), (b, c), (c, a)):
+                    count[e] = count.get(e, 0) + 1
+            rim = [e for e in count if (e[1], e[0]) not in count]
+            tris = keep + [(a, b, i) for a, b in rim]
+        return [(np.array([pts[a], pts[b], pts[c]]), [faces[a], faces[b], faces[c]],
+                 np.array([sbs[a], sbs[b], sbs[c]])) for a, b, c in tris]
+
+
+def _in_circumcircle(a, b, c, p):
+    """p strictly inside the circumcircle of the counter-clockwise triangle (a, b, c)."""
+    m = np.array([[a[0] - p[0], a[1] - p[1], (a[0] - p[0]) ** 2 + (a[1] - p[1]) ** 2],
+                  [b[0] - p[0], b[1] - p[1], (b[0] - p[0]) ** 2 + (b[1] - p[1]) ** 2],
+                  [c[0] - p[0], c[1] - p[1], (c[0] - p[0]) ** 2 + (c[1] - p[1]) ** 2]])
+    return float(np.linalg.det(m)) > 0
 
 
 # --- the preimage of target points --------------------------------------------------------------
@@ -288,69 +322,95 @@ class Preimages:
     """Locates points of the split target's sub-triangles on the source.
 
     For sub-triangle e the three node preimages are put in one chart of the source (the chart
-    of the first node's triangle that holds the other two; SourceCharts); the point with
-    weights w is sum_k w_k Q_k there, found in the chart's triangle containing it."""
+    of the first node's triangle that holds the other two: first in `charts`, else in a wider
+    chart of `wide_rings` edge steps made for those anchors only); the point with weights w is
+    sum_k w_k Q_k there, found in the chart's triangle containing it."""
 
-    def __init__(self, charts, split, F_src):
-        self.charts = charts
+    def __init__(self, charts, split, F_src, V_src=None, wide_rings=12):
         E = len(split.parent)
         nf, nsb = common_triangle(F_src, split.node_face, split.node_src_bary)
-        anchor = -np.ones(E, dtype=np.int64)
-        slots = -np.ones((E, 3), dtype=np.int64)
-        for k in range(3):                       # try each node's triangle as the anchor
-            cand = nf[:, k]
-            s = np.stack([charts.slot(cand, nf[:, j]) for j in range(3)], -1)
-            take = (anchor < 0) & np.all(s >= 0, axis=1)
-            anchor[take] = cand[take]
-            slots[take] = s[take]
-        self.anchor = anchor
-        self.slots = slots
-        self.unlocated = int(np.sum(anchor < 0))
+        self.node_face, self.node_bary = nf, nsb
+        self.chart_sets = [charts]
+        self.which = -np.ones(E, dtype=np.int64)     # index into chart_sets
+        self.row = -np.ones(E, dtype=np.int64)
+        self.slots = -np.ones((E, 3), dtype=np.int64)
+        self._assign(0)
+        if V_src is not None and np.any(self.which < 0) and wide_rings > 0:
+            need = np.unique(nf[self.which < 0])
+            self.chart_sets.append(SourceCharts(V_src, F_src, rings=wide_rings, anchors=need))
+            self._assign(1)
+        self.unlocated = int(np.sum(self.which < 0))
         Q = np.zeros((E, 3, 2))
-        ok = anchor >= 0
-        for k in range(3):
-            T = charts.corners[anchor[ok], slots[ok, k]]        # (e,3,2)
-            Q[ok, k] = np.einsum("ij,ijk->ik", nsb[ok, k], T)
+        for c, ch in enumerate(self.chart_sets):
+            sel = self.which == c
+            for k in range(3):
+                T = ch.corners[self.row[sel], self.slots[sel, k]]        # (e,3,2)
+                Q[sel, k] = np.einsum("ij,ijk->ik", nsb[sel, k], T)
         self.Q = Q
         self.split = split
 
+    def _assign(self, c):
+        ch = self.chart_sets[c]
+        nf = self.node_face
+        for k in range(3):                       # try each node's triangle as the anchor
+            todo = self.which < 0
+            cand = nf[:, k]
+            s = np.stack([ch.slot(cand, nf[:, j]) for j in range(3)], -1)
+            take = todo & np.all(s >= 0, axis=1)
+            self.which[take] = c
+            self.row[take] = ch.row_of[cand[take]]
+            self.slots[take] = s[take]
+
     def locate(self, element, weights):
         """Source (face (k,), bary (k,3)) of the points with `weights` (k,3) in sub-triangles
-        `element` (k,). Points whose three node preimages are not in one chart take the
+        `element` (k,). Points whose three node preimages are in no chart together take the
         preimage of their nearest node; points in no chart triangle (across a slit or past the
         chart) take the nearest chart triangle's clamped barycentrics. Also returns the count
         of such clamped points (barycentric below -1e-6)."""
         element = np.asarray(element, dtype=np.int64)
         w = np.asarray(weights, dtype=np.float64)
-        a = self.anchor[element]
         P = np.einsum("ij,ijk->ik", w, self.Q[element])
         face = np.empty(len(element), dtype=np.int64)
         bary = np.empty((len(element), 3))
-        lost = a < 0
+        which = self.which[element]
+        lost = which < 0
         if np.any(lost):                         # nearest node's preimage
             k = np.argmax(w[lost], axis=1)
-            face[lost] = self.split.node_face[element[lost], k]
-            bary[lost] = self.split.node_src_bary[element[lost], k]
-        ok = ~lost
-        # first the node triangles (most points fall in one), then the whole chart
-        sl = self.slots[element[ok]]
-        T = self.charts.corners[a[ok][:, None], sl]               # (k,3,3,2)
-        B = _bary_2d(P[ok][:, None, :], T)
+            face[lost] = self.node_face[element[lost], k]
+            bary[lost] = self.node_bary[element[lost], k]
+        clamped = 0
+        for c, ch in enumerate(self.chart_sets):
+            sel = np.nonzero(which == c)[0]
+            if len(sel):
+                f, b, n = self._in_chart(ch, self.row[element[sel]], self.slots[element[sel]],
+                                         P[sel], w[sel])
+                face[sel], bary[sel] = f, b
+                clamped += n
+        return face, bary, clamped
+
+    @staticmethod
+    def _in_chart(ch, row, sl, P, w):
+        """The chart triangles holding the points P (k,2) of chart rows `row`: first among
+        the node triangles `sl` (k,3) (most points fall in one; where unfolded triangles
+        overlap, around a vertex of negative curvature, the triangle of the node with the
+        largest weight w (k,3) wins, so each node maps to its own preimage), then the whole
+        chart."""
+        T = ch.corners[row[:, None], sl]                          # (k,3,3,2)
+        B = _bary_2d(P[:, None, :], T)
         score = np.nan_to_num(B.min(axis=2), nan=-np.inf)
-        best = np.argmax(score, axis=1)
+        best = np.argmax(np.where(score >= -1e-12, 10.0 + w, score), axis=1)
         rows = np.arange(len(best))
         got_b = B[rows, best]
         got_s = sl[rows, best]
         got_score = score[rows, best]
-        miss = got_score < -1e-12
-        for idx in np.array_split(np.nonzero(miss)[0], max(1, int(np.sum(miss)) // 20000 + 1)):
-            if len(idx) == 0:
-                continue
-            am = a[ok][idx]
-            Tm = self.charts.corners[am]                          # (k',K,3,2)
-            Bm = _bary_2d(P[ok][idx][:, None, :], Tm)
+        miss = np.nonzero(got_score < -1e-12)[0]
+        step = max(1, 2_000_000 // ch.faces.shape[1])
+        for start in range(0, len(miss), step):
+            idx = miss[start:start + step]
+            rm = row[idx]
+            Bm = _bary_2d(P[idx][:, None, :], ch.corners[rm])     # (k',K,3)
             sc = np.nan_to_num(Bm.min(axis=2), nan=-np.inf)
-            sc[self.charts.faces[am] < 0] = -np.inf
+            sc[ch.faces[rm] < 0] = -np.inf
             bm = np.argmax(sc, axis=1)
             r = np.arange(len(idx))
             better = sc[r, bm] > got_score[idx]
@@ -360,9 +420,7 @@ class Preimages:
         clamped = int(np.sum(got_score < -1e-6))
         got_b = np.clip(got_b, 0.0, None)
         got_b /= np.maximum(got_b.sum(axis=1, keepdims=True), 1e-300)
-        face[ok] = self.charts.faces[a[ok], got_s]
-        bary[ok] = got_b
-        return face, bary, clamped
+        return ch.faces[row, got_s], got_b, clamped
 
 
 # --- rasterisation ------------------------------------------------------------------------------
@@ -501,14 +559,15 @@ class SourceColour:
 # --- the bake -----------------------------------------------------------------------------------
 
 def bake(V_src, F_src, F_tgt, target_corner_uv, forward, inverse, colour, width, height,
-         supersample=2, margin=8, rings=4, split=True):
+         supersample=2, margin=8, rings=4, split=True, V_tgt=None):
     """Bakes `colour` (SourceColour, or any callable (face, bary) -> (k,4)) of the source into
     a width x height image in the target's UV layout through the inverse map.
 
     V_src (n_s,3), F_src (m_s,3): the source; F_tgt (m_t,3) the target's triangles and
     target_corner_uv (m_t,3,2) their corners' UVs; forward = (face (n_s,), bary (n_s,3)):
     each source vertex on the target; inverse = (face (n_t,), bary (n_t,3)): each target
-    vertex on the source. supersample S: S x S samples per texel, averaged; margin: texels of
+    vertex on the source; V_tgt (n_t,3), optional: the target's vertices (the sub-triangles
+    are Delaunay in the 3D triangles' planes). supersample S: S x S samples per texel, averaged; margin: texels of
     bleed around the islands.
 
     Returns dict(image (h,w,4) float32, filled (h,w) bool before the bleed, islands (h,w) bool
@@ -516,8 +575,9 @@ def bake(V_src, F_src, F_tgt, target_corner_uv, forward, inverse, colour, width,
     samples, unlocated (sub-triangles whose node preimages share no chart), clamped (samples
     found in no chart triangle), inserted (source vertices made nodes), sub_triangles)."""
     charts = SourceCharts(V_src, F_src, rings=rings)
-    st = SplitTarget(F_src, F_tgt, forward[0], forward[1], inverse[0], inverse[1], insert=split)
-    pre = Preimages(charts, st, F_src)
+    st = SplitTarget(F_src, F_tgt, forward[0], forward[1], inverse[0], inverse[1], insert=split,
+                     V_tgt=V_tgt)
+    pre = Preimages(charts, st, F_src, V_src)
     uv = np.asarray(target_corner_uv, dtype=np.float64)
     sub_uv = np.einsum("eij,ejk->eik", st.node_bary, uv[st.parent])
     acc = np.zeros((height * width, 4))
@@ -634,6 +694,7 @@ def locate_target_points(split, preimages, face, bary):
     best_e = np.full(len(face), -1, dtype=np.int64)
     best_w = np.zeros((len(face), 3))
     best_s = np.full(len(face), -np.inf)
+    best_area = np.zeros(len(face))
     for j in range(K):
         has = counts[face] > j
         e = np.full(len(face), -1, dtype=np.int64)
@@ -642,11 +703,16 @@ def locate_target_points(split, preimages, face, bary):
         T = split.node_bary[e[idx]][..., 1:]              # nodes in the parent's (b1, b2) plane
         w = _bary_2d(bary[idx][:, 1:], T)
         w = np.where(np.isfinite(w), w, -np.inf)
-        sc = w.min(axis=1)
-        better = sc > best_s[idx]
+        # inside (up to round-off) counts as inside; ties (a point on a shared edge or node)
+        # go to the rounder sub-triangle, whose barycentrics are the better conditioned
+        sc = np.minimum(np.where(w.min(axis=1) >= -1e-12, 0.0, w.min(axis=1)), 0.0)
+        e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+        area = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+        better = (sc > best_s[idx]) | ((sc == best_s[idx]) & (area > best_area[idx]))
         best_e[idx[better]] = e[idx[better]]
         best_w[idx[better]] = w[better]
         best_s[idx[better]] = sc[better]
+        best_area[idx[better]] = area[better]
     w = np.clip(best_w, 0.0, None)
     w /= np.maximum(w.sum(axis=1, keepdims=True), 1e-300)
     f, b, _ = preimages.locate(best_e, w)

@@ -140,10 +140,10 @@ def tori():
 
 def test_split_target_nodes_are_the_map_itself(tori):
     Vs, Fs, Vt, Ft, fw, iv = tori
-    st = TB.SplitTarget(Fs, Ft, *fw, *iv)
+    st = TB.SplitTarget(Fs, Ft, *fw, *iv, V_tgt=Vt)
     assert st.inserted > 0.5 * len(Vs)           # most source vertices lie inside triangles
     assert len(st.parent) == len(Ft) + 2 * st.inserted
-    pre = TB.Preimages(TB.SourceCharts(Vs, Fs), st, Fs)
+    pre = TB.Preimages(TB.SourceCharts(Vs, Fs), st, Fs, Vs)
     # the images of the source vertices go back to the vertices ...
     f, b = TB.locate_target_points(st, pre, *fw)
     back = np.einsum("ij,ijk->ik", b, Vs[Fs[f]])
