@@ -100,24 +100,21 @@ def pixels(img):
     return a.reshape(h, w, 4)
 
 
-def cycles_selected_to_active(src, tgt, uv_name, res):
-    copy = bpy.data.objects.new(f"{tgt.name} S2A", tgt.data.copy())
-    bpy.context.scene.collection.objects.link(copy)
-    img = bpy.data.images.new("s2a", res, res, alpha=True, float_buffer=True)
-    copy.data.materials.clear()
-    copy.data.materials.append(image_material("s2a", img, uv_name))
-    for ob in bpy.context.view_layer.objects:
-        ob.select_set(ob in (src, copy))
-    bpy.context.view_layer.objects.active = copy
-    scene = bpy.context.scene
-    scene.render.engine = 'CYCLES'
-    scene.cycles.device = 'CPU'
-    scene.cycles.samples = 4
-    t = time.time()
-    bpy.ops.object.bake(type='DIFFUSE', pass_filter={'COLOR'}, use_selected_to_active=True,
-                        cage_extrusion=0.2, max_ray_distance=0.0, margin=8,
-                        target='IMAGE_TEXTURES', use_clear=True)
-    return pixels(img), time.time() - t
+def selected_to_active(src, tgt, uv_name, res, px):
+    """Blender's Selected-to-Active bake as the demo runs it (samples/demo_bake.py: Cycles,
+    or the same rays through mathutils.bvhtree when Cycles returns black)."""
+    import types
+    import demo_bake
+
+    def set_material(ob, mat):
+        ob.data.materials.clear()
+        ob.data.materials.append(mat)
+    bpy.context.scene.render.engine = 'CYCLES'
+    bpy.context.scene.cycles.device = 'CPU'
+    copy, seconds, how = demo_bake.selected_to_active(
+        types.SimpleNamespace(set_material=set_material), src, tgt, uv_name, "UVMap", px, res)
+    img = next(n.image for n in copy.data.materials[0].node_tree.nodes if n.type == 'TEX_IMAGE')
+    return pixels(img), seconds, how
 
 
 def stats(e, wrong=0.25):
@@ -182,18 +179,18 @@ def run_pair(label, src_path, tgt_path, opts):
            "transferred UVs": np.abs(TB.sample_image(px, at(xuv))[:, :3] - want).max(1)}
     t_s2a = None
     if opts["cycles"]:
-        s2a, t_s2a = cycles_selected_to_active(src, tgt, "surfmap bake UV", res)
-        err["Selected to Active"] = np.abs(TB.sample_image(s2a, at(tuv))[:, :3] - want).max(1)
+        s2a, t_s2a, how = selected_to_active(src, tgt, "surfmap bake UV", res, px)
+        err[f"S2A {how}"] = np.abs(TB.sample_image(s2a, at(tuv))[:, :3] - want).max(1)
     print(f"\n## {label}: {os.path.basename(src_path)} ({len(Vs)} v) -> "
           f"{os.path.basename(tgt_path)} ({len(Vt)} v); image {res}^2")
     print(f"compute_map {t_map:.1f}s, bake_textures {t_bake:.1f}s"
-          + (f", Cycles Selected to Active {t_s2a:.1f}s" if t_s2a is not None else ""))
+          + (f", Selected to Active {t_s2a:.1f}s" if t_s2a is not None else ""))
     print(f"fill: {100 * fill:.3f}% of {int(islands.sum())} island texels")
     for k in ("source_vertices", "target_vertices", "near_seams"):
         print(f"nodes {k:16s} {stats(nodes[k])}")
     for k, e in err.items():
-        print(f"random {k:20s} all:   {stats(e)}")
-        print(f"random {k:20s} seams: {stats(e[seam_faces])}")
+        print(f"random {k:26s} all:   {stats(e)}")
+        print(f"random {k:26s} seams: {stats(e[seam_faces])}")
 
 
 def main():

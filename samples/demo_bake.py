@@ -5,9 +5,14 @@ checker as an IMAGE texture baked onto the target three ways, and the morph as a
   <pair>_target_baked.png            Surface Map > Bake Textures: the checker baked through the
                                      map into the target's own (Smart UV Project) layout
   <pair>_target_selected_to_active.png  Blender's own Cycles bake, Selected to Active (rays cast
-                                     from the target, placed over the source, along its normals)
+                                     from the target, placed over the source, along its normals;
+                                     the same rays through mathutils.bvhtree when Cycles bakes
+                                     black, as Debian's Blender 3.4.1 does here)
   <pair>_bake_comparison.png         Data Transfer | transferred UVs | Bake Textures | Selected
                                      to Active side by side (PIL)
+  <pair>_seam_transferred.png, <pair>_seam_baked.png, <pair>_bake_seams.png (both): a close-up
+                                     of a source seam's image on the target, transferred UVs
+                                     (saw-teeth) against the bake
   <pair>_morph.gif                   the source's morph shape key animated 0 -> 1 -> 0 (keyed
                                      on frames 0..N-1 in demo.blend), rendered frames as a GIF
 """
@@ -54,34 +59,159 @@ def image_material(name, image, uv_map):
     return mat
 
 
-def selected_to_active(demo, source, target, uv_map, size=1024):
+def _mesh_arrays(ob, uv_name=None):
+    """World-space vertices, loop triangles (vertex indices), their loops, vertex normals
+    (world) and, with uv_name, the per-loop UVs of an object's own mesh."""
+    me = ob.data
+    me.calc_loop_triangles()
+    n, m = len(me.vertices), len(me.loop_triangles)
+    co = np.empty(n * 3)
+    me.vertices.foreach_get("co", co)
+    nrm = np.empty(n * 3)
+    me.vertices.foreach_get("normal", nrm)
+    F = np.empty(m * 3, dtype=np.int64)
+    me.loop_triangles.foreach_get("vertices", F)
+    L = np.empty(m * 3, dtype=np.int64)
+    me.loop_triangles.foreach_get("loops", L)
+    M = np.array(ob.matrix_world)
+    V = co.reshape(-1, 3) @ M[:3, :3].T + M[:3, 3]
+    N = nrm.reshape(-1, 3) @ np.linalg.inv(M[:3, :3])
+    N /= np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
+    uv = None
+    if uv_name is not None:
+        uv = np.empty(len(me.loops) * 2)
+        me.uv_layers[uv_name].data.foreach_get("uv", uv)
+        uv = uv.reshape(-1, 2)
+    return V, F.reshape(m, 3), L.reshape(m, 3), N, uv
+
+
+def ray_cast_selected_to_active(source, copy, src_uv, src_pixels, uv_map, size, extrusion):
+    """Blender's Selected-to-Active bake, done with Blender's ray caster (mathutils BVHTree):
+    from each texel's point on `copy` pushed out by `extrusion` along its (interpolated)
+    normal, a ray inwards; the first hit on the source gives the colour of the source's image
+    there. Used when Cycles' own bake returns a black image (see docs/baking.md).
+    Returns (h, w, 4) pixels, bled by 8 texels."""
+    from mathutils import Vector
+    from mathutils.bvhtree import BVHTree
+    from surface_map import texture_bake as TB
+    Vs, Fs, Ls, _, suv = _mesh_arrays(source, src_uv)
+    Vc, Fc, Lc, Nc, cuv = _mesh_arrays(copy, uv_map)
+    tree = BVHTree.FromPolygons([tuple(v) for v in Vs], [tuple(f) for f in Fs])
+    img = np.zeros((size * size, 4))
+    hit = np.zeros(size * size, dtype=bool)
+    for t, w, texel in TB.rasterize(cuv[Lc], size, size, 1):
+        P = np.einsum("ij,ijk->ik", w, Vc[Fc[t]])
+        N = np.einsum("ij,ijk->ik", w, Nc[Fc[t]])
+        N /= np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
+        O = P + extrusion * N
+        for i in range(len(t)):
+            loc, _, f, _ = tree.ray_cast(Vector(O[i]), Vector(-N[i]))
+            if f is None:
+                continue
+            tri = Vs[Fs[f]]
+            # barycentrics of the hit in its triangle (least squares in 3D)
+            A = np.stack([tri[1] - tri[0], tri[2] - tri[0]], 1)
+            x = np.linalg.lstsq(A, np.array(loc) - tri[0], rcond=None)[0]
+            b = np.array([1 - x[0] - x[1], x[0], x[1]])
+            uv = b @ suv[Ls[f]]
+            img[texel[i]] = TB.sample_image(src_pixels, uv[None])[0]
+            hit[texel[i]] = True
+    out, _ = TB.bleed(img.reshape(size, size, 4), hit.reshape(size, size), 8)
+    return out.astype(np.float32)
+
+
+def selected_to_active(demo, source, target, uv_map, src_uv, src_pixels, size=1024):
     """Blender's own bake of the source's image onto a copy of the target: Cycles, Diffuse
     colour, Selected to Active (the copy placed over the source like the Data Transfer copy,
-    rays from its surface inflated by a cage extrusion, inwards along its normals). Returns the
-    copy, moved back onto the target's place for the render, and the bake's seconds."""
+    rays from its surface inflated by a cage extrusion, inwards along its normals). When
+    Cycles returns a black image (it does for every shader pass with Debian's Blender 3.4.1
+    here), the same rays through mathutils' BVHTree instead. Returns the copy (moved back
+    onto the target's place for the render), the seconds and which one was used."""
     copy = bpy.data.objects.new(f"{target.name} (Selected to Active)", target.data.copy())
     bpy.context.scene.collection.objects.link(copy)
     copy.matrix_world = source.matrix_world.copy()
     copy.scale = target.scale
     copy.location = source.location
     img = bpy.data.images.new(f"{copy.name} bake", size, size, alpha=True, float_buffer=True)
-    demo.set_material(copy, image_material(f"{copy.name} baked", img, uv_map))
+    mat = image_material(f"{copy.name} baked", img, uv_map)
+    for link in list(mat.node_tree.links):        # the bake target must not feed the shader
+        if link.from_node.type == 'TEX_IMAGE':
+            mat.node_tree.links.remove(link)
+    demo.set_material(copy, mat)
     for ob in bpy.context.view_layer.objects:
         ob.select_set(ob in (source, copy))
     bpy.context.view_layer.objects.active = copy
+    bpy.context.view_layer.update()
     scene = bpy.context.scene
     saved = scene.cycles.samples
     scene.cycles.samples = 4
-    diag = max(copy.dimensions)
+    extrusion = 0.1 * max(copy.dimensions)
     t = time.time()
     bpy.ops.object.bake(type='DIFFUSE', pass_filter={'COLOR'}, use_selected_to_active=True,
-                        cage_extrusion=0.1 * diag, max_ray_distance=0.0, margin=8,
+                        cage_extrusion=extrusion, max_ray_distance=0.0, margin=8,
                         target='IMAGE_TEXTURES', use_clear=True)
-    seconds = time.time() - t
     scene.cycles.samples = saved
+    px = np.empty(size * size * 4, dtype=np.float32)
+    img.pixels.foreach_get(px)
+    how = "Cycles bake"
+    if float(px.reshape(-1, 4)[:, :3].max()) <= 1e-6:
+        print("demo: Cycles' Selected to Active bake gave a black image: the same rays "
+              "through mathutils.bvhtree instead")
+        px = ray_cast_selected_to_active(source, copy, src_uv, src_pixels, uv_map, size,
+                                         extrusion)
+        img.pixels.foreach_set(px.ravel())
+        how = "ray cast (BVHTree)"
+    seconds = time.time() - t
     img.pack()
+    tex = next(n for n in mat.node_tree.nodes if n.type == 'TEX_IMAGE')
+    mat.node_tree.links.new(tex.outputs["Color"],
+                            mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
     copy.matrix_world = target.matrix_world.copy()
-    return copy, seconds
+    return copy, seconds, how
+
+
+def seam_spot(source, target, uv_name, view):
+    """A point on the target where the image of one of the source's UV seams passes, facing
+    the view as much as possible: (world point, world normal)."""
+    from surface_map import texture_bake as TB
+    Vs, Fs, Ls, _, suv = _mesh_arrays(source, uv_name)
+    on = TB.seam_vertices(Fs, suv[Ls], rings=0)
+    Vt, Ft, _, Nt, _ = _mesh_arrays(target)
+    if target.data.get("surfmap_map", {}).get("flipped", 0):
+        Ft = Ft[:, [0, 2, 1]]
+    n = len(source.data.vertices)
+    face = np.empty(n, dtype=np.int32)
+    source.data.attributes["surfmap_map_face"].data.foreach_get("value", face)
+    bary = np.empty(n * 3, dtype=np.float32)
+    source.data.attributes["surfmap_map_bary"].data.foreach_get("vector", bary)
+    bary = bary.reshape(-1, 3).astype(np.float64)
+    P = np.einsum("ij,ijk->ik", bary, Vt[Ft[face]])
+    N = np.einsum("ij,ijk->ik", bary, Nt[Ft[face]])
+    N /= np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
+    d = np.asarray(view, dtype=np.float64)
+    score = np.where(on, N @ (d / np.linalg.norm(d)), -np.inf)
+    i = int(np.argmax(score))
+    return P[i], N[i]
+
+
+def seam_closeups(demo, source, target, uv_name, shot, transferred, baked):
+    """The same close-up of a source seam's image on the target, with the checker through the
+    transferred UVs (saw-teeth) and with the baked image (a clean curve)."""
+    from mathutils import Vector
+    p, nrm = seam_spot(source, target, uv_name, demo.VIEW)
+    size = max(target.dimensions)
+    frame = demo.marker("seam frame", Vector(p), 0.12 * size)
+    frame.hide_render = True
+    facing = tuple(Vector(nrm) + Vector(demo.VIEW).normalized() * 0.3)
+    for name, mats, text in (("seam_transferred", transferred,
+                              "close-up on a source seam's image: checker through the "
+                              "transferred UVs"),
+                             ("seam_baked", baked, "the same close-up: the baked image")):
+        target.data.materials.clear()
+        for m in mats:
+            target.data.materials.append(m)
+        shot(name, [target], direction=facing, fit=[frame], text=text)
+    bpy.data.objects.remove(frame, do_unlink=True)
 
 
 def bake_comparison(demo, source, target, uv_name, shot, out, tag, written):
@@ -101,17 +231,22 @@ def bake_comparison(demo, source, target, uv_name, shot, out, tag, written):
     print(f"demo: bake_textures in {time.time() - t:.1f}s: {status}")
     fill = status.split("UV map")[-1].split(":")[1].split("%")[0].strip() if ":" in status else "?"
     shot("target_baked", [target],
-         text=f"surfmap Bake Textures: the checker image baked through the map into the "
-              f"target's own UVs ({fill}% of island texels filled)")
+         text=f"surfmap Bake Textures into the target's own UVs ({fill}% of island texels "
+              f"filled)")
     bake_uv = next(l.name for l in target.data.uv_layers if l.name.startswith("surfmap bake")
                    or not l.name.startswith("surfmap "))
-    copy, seconds = selected_to_active(demo, source, target, bake_uv)
-    print(f"demo: Blender's Selected to Active bake in {seconds:.1f}s")
+    w = img.size[0]
+    src_px = np.empty(w * w * 4, dtype=np.float32)
+    img.pixels.foreach_get(src_px)
+    copy, seconds, how = selected_to_active(demo, source, target, bake_uv, uv_name,
+                                            src_px.reshape(w, w, 4))
+    print(f"demo: Selected to Active ({how}) in {seconds:.1f}s")
     shot("target_selected_to_active", [copy],
-         text="Blender Cycles bake, Selected to Active (ray cast from the target over the "
-              "source): the same image")
+         text=f"Selected to Active ({how}): rays from the target, placed over the source")
     copy.hide_render = True
     copy.hide_set(True)
+    baked = [m for m in target.data.materials]
+    seam_closeups(demo, source, target, uv_name, shot, before, baked)
     # the target shows the transferred checker again for the shots that follow
     target.data.materials.clear()
     for m in before:
@@ -131,6 +266,14 @@ def bake_comparison(demo, source, target, uv_name, shot, out, tag, written):
         for i, im in enumerate(ims):
             strip.paste(im.resize((w // 2, h // 2)), (i * (w // 2), 0))
         path = os.path.join(out, f"{tag}_bake_comparison.png")
+        strip.save(path)
+        written.append(path)
+        pair = [os.path.join(out, f"{tag}_seam_{n}.png") for n in ("transferred", "baked")]
+        ims = [Image.open(p).convert("RGB") for p in pair]
+        strip = Image.new("RGB", (w * 2, h))
+        for i, im in enumerate(ims):
+            strip.paste(im, (i * w, 0))
+        path = os.path.join(out, f"{tag}_bake_seams.png")
         strip.save(path)
         written.append(path)
 

@@ -403,20 +403,25 @@ class Preimages:
         got_b = B[rows, best]
         got_s = sl[rows, best]
         got_score = score[rows, best]
-        miss = np.nonzero(got_score < -1e-12)[0]
-        step = max(1, 2_000_000 // ch.faces.shape[1])
-        for start in range(0, len(miss), step):
-            idx = miss[start:start + step]
-            rm = row[idx]
-            Bm = _bary_2d(P[idx][:, None, :], ch.corners[rm])     # (k',K,3)
-            sc = np.nan_to_num(Bm.min(axis=2), nan=-np.inf)
-            sc[ch.faces[rm] < 0] = -np.inf
-            bm = np.argmax(sc, axis=1)
-            r = np.arange(len(idx))
-            better = sc[r, bm] > got_score[idx]
-            got_b[idx[better]] = Bm[r, bm][better]
-            got_s[idx[better]] = bm[better]
-            got_score[idx[better]] = sc[r, bm][better]
+        K = ch.faces.shape[1]
+        for lim in (12, 48, K):              # the chart's triangles in ring order: near first
+            lim = min(lim, K)
+            miss = np.nonzero(got_score < -1e-12)[0]
+            step = max(1, 2_000_000 // lim)
+            for start in range(0, len(miss), step):
+                idx = miss[start:start + step]
+                rm = row[idx]
+                Bm = _bary_2d(P[idx][:, None, :], ch.corners[rm, :lim])   # (k',lim,3)
+                sc = np.nan_to_num(Bm.min(axis=2), nan=-np.inf)
+                sc[ch.faces[rm, :lim] < 0] = -np.inf
+                bm = np.argmax(sc, axis=1)
+                r = np.arange(len(idx))
+                better = sc[r, bm] > got_score[idx]
+                got_b[idx[better]] = Bm[r, bm][better]
+                got_s[idx[better]] = bm[better]
+                got_score[idx[better]] = sc[r, bm][better]
+            if lim == K:
+                break
         clamped = int(np.sum(got_score < -1e-6))
         got_b = np.clip(got_b, 0.0, None)
         got_b /= np.maximum(got_b.sum(axis=1, keepdims=True), 1e-300)
