@@ -96,7 +96,7 @@ def ray_cast_selected_to_active(source, copy, src_uv, src_pixels, uv_map, size, 
     from surface_map import texture_bake as TB
     Vs, Fs, Ls, _, suv = _mesh_arrays(source, src_uv)
     Vc, Fc, Lc, Nc, cuv = _mesh_arrays(copy, uv_map)
-    tree = BVHTree.FromPolygons([tuple(v) for v in Vs], [tuple(f) for f in Fs])
+    tree = BVHTree.FromPolygons(Vs.tolist(), Fs.tolist())   # (plain Python numbers)
     img = np.zeros((size * size, 4))
     hit = np.zeros(size * size, dtype=bool)
     for t, w, texel in TB.rasterize(cuv[Lc], size, size, 1):
@@ -224,7 +224,7 @@ def bake_comparison(demo, source, target, uv_name, shot, out, tag, written):
     demo.select_pair(source, target)
     before = [m for m in target.data.materials]
     t = time.time()
-    result = bpy.ops.surfmap.bake_textures(resolution=2048, supersample=2, margin=8)
+    result = bpy.ops.surfmap.bake_textures(resolution=1024, supersample=2, margin=8)
     if result != {'FINISHED'}:
         raise SystemExit(f"demo.py: bake_textures returned {result}")
     status = bpy.context.scene.surfmap.map_status
