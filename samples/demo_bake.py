@@ -214,15 +214,53 @@ def seam_closeups(demo, source, target, uv_name, shot, transferred, baked):
     bpy.data.objects.remove(frame, do_unlink=True)
 
 
+def two_island_uvs(ob, name="UVSplit", base="UVMap"):
+    """A UV map `name` from the torus layout `base` (u along the ring in [0, 1]): the ring's two
+    halves (polygons by their mean u) as two islands side by side, so the checker does not
+    continue across the two straight seams (meridians u = 0 and u = 1/2)."""
+    me = ob.data
+    L = len(me.loops)
+    uv = np.empty(L * 2)
+    me.uv_layers[base].data.foreach_get("uv", uv)
+    uv = uv.reshape(L, 2)
+    start = np.empty(len(me.polygons), dtype=np.int64)
+    me.polygons.foreach_get("loop_start", start)
+    total = np.empty(len(me.polygons), dtype=np.int64)
+    me.polygons.foreach_get("loop_total", total)
+    poly = np.repeat(np.arange(len(start)), total)
+    mean_u = np.bincount(poly, weights=uv[:, 0]) / total
+    second = (mean_u >= 0.5)[poly]
+    x = np.where(second, 0.53 + 0.44 * (uv[:, 0] - 0.5) / 0.5, 0.03 + 0.44 * uv[:, 0] / 0.5)
+    y = 0.05 + 0.9 * uv[:, 1] / 1.05
+    layer = me.uv_layers.get(name) or me.uv_layers.new(name=name)
+    layer.data.foreach_set("uv", np.stack([x, y], 1).astype(np.float32).ravel())
+    return name
+
+
 def bake_comparison(demo, source, target, uv_name, shot, out, tag, written):
     """The checker as an image on the source, baked onto the target by Surface Map > Bake
-    Textures and by Blender's Selected to Active bake; renders and a side-by-side strip."""
+    Textures and by Blender's Selected to Active bake; renders and a side-by-side strip.
+    Genus 1: on a layout of two islands (two_island_uvs), whose straight seams the checker
+    does not continue across; the transferred UVs show them as saw-teeth, the bake as lines."""
     img = checker_image("demo checker image")
+    transferred_image = None
+    if tag == "g1":
+        uv_name = two_island_uvs(source)
+        demo.select_pair(source, target)
+        if bpy.ops.surfmap.transfer_uvs() != {'FINISHED'}:
+            raise SystemExit("demo.py: transfer_uvs failed")
+        transferred_image = [image_material(f"{target.name} checker image (transferred)", img,
+                                            f"surfmap {uv_name}")]
     demo.set_material(source, image_material(f"{source.name} checker image", img, uv_name))
     shot("source_image", [source], text=f"source {source.name}: the checker as an image "
-                                        f"texture (what the bakes read)")
+                                        f"texture on UV map '{uv_name}' (what the bakes read)")
     demo.select_pair(source, target)
     before = [m for m in target.data.materials]
+    if transferred_image is not None:
+        demo.set_material(target, transferred_image[0])
+        shot("target_transferred_image", [target],
+             text=f"the image through the transferred UVs ('surfmap {uv_name}')")
+        demo.set_material(target, before[0])
     t = time.time()
     result = bpy.ops.surfmap.bake_textures(resolution=1024, supersample=2, margin=8)
     if result != {'FINISHED'}:
@@ -246,13 +284,14 @@ def bake_comparison(demo, source, target, uv_name, shot, out, tag, written):
     copy.hide_render = True
     copy.hide_set(True)
     baked = [m for m in target.data.materials]
-    seam_closeups(demo, source, target, uv_name, shot, before, baked)
+    seam_closeups(demo, source, target, uv_name, shot, transferred_image or before, baked)
     # the target shows the transferred checker again for the shots that follow
     target.data.materials.clear()
     for m in before:
         target.data.materials.append(m)
-    names = ("target_datatransfer", "target_transferred", "target_baked",
-             "target_selected_to_active")
+    names = ("target_datatransfer",
+             "target_transferred_image" if transferred_image else "target_transferred",
+             "target_baked", "target_selected_to_active")
     paths = [os.path.join(out, f"{tag}_{n}.png") for n in names]
     if all(os.path.exists(p) for p in paths):
         try:
