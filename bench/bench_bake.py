@@ -15,7 +15,8 @@ squares of two colours). Per pair it prints:
             interpolation (texture_bake.locate_target_points): the baked texel against the
             source's image there, and the same for the checker through the transferred UVs
             ('surfmap <uv>') and through Blender's Selected-to-Active bake into the same UV
-            layout; 'seams' = points whose preimage is within one ring of a source seam;
+            layout (samples/demo_bake.py: Cycles, or the same rays through mathutils.bvhtree
+            when Cycles bakes black); 'seams' = points whose preimage is within one ring of a source seam;
             'wrong' = fraction of points with error > 0.25 (the other square's colour)
 """
 import os
