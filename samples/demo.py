@@ -558,14 +558,16 @@ def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
     shot("target_transferred", [target],
          text=f"surfmap: the source's checker through the map: {fl} flipped, {st} stretched "
               f"UV triangles")
-    demo_bake.bake_comparison(types.SimpleNamespace(**globals()), source, target, uv_name, shot, out, tag, written)
+    demo_bake.bake_comparison(types.SimpleNamespace(**globals()), source, target, uv_name, shot,
+                              out, tag, written)
     key = source.data.shape_keys.key_blocks[f"surfmap to {target.name}"]
     key.value = 0.5
     bpy.context.view_layer.update()
     shot("morph50", [source], text=f"{source.name} at 50% of its morph onto {target.name}")
     key.value = 0.0
     if tag == "g2":
-        demo_bake.morph_gif(types.SimpleNamespace(**globals()), source, target.name, cam, out, tag, written)
+        demo_bake.morph_gif(types.SimpleNamespace(**globals()), source, target.name, cam, out,
+                            tag, written)
     refined = bpy.data.objects.get(f"{source.name} refined morph")
     if refined is not None:  # the refined morph at 100%, beside the target it imitates
         set_material(refined, checker_material(f"{refined.name} checker", uv_name))
