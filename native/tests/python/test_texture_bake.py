@@ -143,6 +143,12 @@ def test_split_target_nodes_are_the_map_itself(tori):
     st = TB.SplitTarget(Fs, Ft, *fw, *iv, V_tgt=Vt)
     assert st.inserted > 0.5 * len(Vs)           # most source vertices lie inside triangles
     assert len(st.parent) == len(Ft) + 2 * st.inserted
+    # the sub-triangles tile their parents: same orientation, areas adding up to the parent's
+    T = st.node_bary[..., 1:]                      # in the parent's (b1, b2) plane, area 1/2
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    assert det.min() > -1e-12
+    assert np.allclose(np.bincount(st.parent, weights=det, minlength=len(Ft)), 1.0)
     pre = TB.Preimages(TB.SourceCharts(Vs, Fs), st, Fs, Vs)
     # the images of the source vertices go back to the vertices ...
     f, b = TB.locate_target_points(st, pre, *fw)
