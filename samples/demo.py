@@ -23,6 +23,7 @@ correspondence. Renders with Cycles on the CPU (denoising off), per pair:
   g2_landmark_far.png          ... and the same view of a second map (copies of the genus-2 pair)
                                with one landmark held on that vertex, 5 edges from where the map
                                puts it: the checker through that map, and how it was held
+plus the texture bake's images and the morph GIF (samples/demo_bake.py lists them),
 and saves DIR/demo.blend with every object and output. Options (after --): --out DIR
 (default <repo>/demo_out), --samples N (16), --size WxH (640x480), --meshes DIR
 (default samples/meshes), --pairs g2,g1.
@@ -35,6 +36,10 @@ import time
 import bpy
 import numpy as np
 from mathutils import Vector
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import types  # noqa: E402
+import demo_bake  # noqa: E402  (samples/demo_bake.py: the texture bake and the morph GIF)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
@@ -553,11 +558,16 @@ def demo_pair(sm, meshes, tag, offset_y, cam, out, written):
     shot("target_transferred", [target],
          text=f"surfmap: the source's checker through the map: {fl} flipped, {st} stretched "
               f"UV triangles")
+    demo_bake.bake_comparison(types.SimpleNamespace(**globals()), source, target, uv_name, shot,
+                              out, tag, written)
     key = source.data.shape_keys.key_blocks[f"surfmap to {target.name}"]
     key.value = 0.5
     bpy.context.view_layer.update()
     shot("morph50", [source], text=f"{source.name} at 50% of its morph onto {target.name}")
     key.value = 0.0
+    if tag == "g2":
+        demo_bake.morph_gif(types.SimpleNamespace(**globals()), source, target.name, cam, out,
+                            tag, written)
     refined = bpy.data.objects.get(f"{source.name} refined morph")
     if refined is not None:  # the refined morph at 100%, beside the target it imitates
         set_material(refined, checker_material(f"{refined.name} checker", uv_name))

@@ -9,10 +9,10 @@ PACKAGES=(
   libgtest-dev libbenchmark-dev libsuitesparse-dev libtbb-dev nlohmann-json3-dev libcli11-dev
   libopenblas0-pthread
   blender zip
-  python3-distributed python3-matplotlib python3-scipy
+  python3-distributed python3-matplotlib python3-scipy python3-pil
 )
 # python3-distributed (Dask), python3-matplotlib, python3-scipy: surfmap batch / compare
-# (docs/many_shapes.md).
+# (docs/many_shapes.md); python3-pil: the demo's morph GIF.
 # libopenblas0-pthread: an optimised BLAS/LAPACK for CHOLMOD's supernodal
 # factorisations (the Newton solves, the Ricci flow): installing it makes it
 # libblas.so.3 / liblapack.so.3 through update-alternatives (priority 100

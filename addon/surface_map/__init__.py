@@ -34,7 +34,8 @@ except ImportError:   # imported outside Blender (pytest of the bpy-free modules
     bpy = None
 
 _BPY_MODULES = ("properties", "blender_io", "ops_common", "ops_cut_loops", "ops_map",
-                "ops_stored_map", "ops_view", "verify_operator", "batch_operators", "panel", "legend")
+                "ops_stored_map", "ops_view", "verify_operator", "batch_operators", "bake_operator", "panel",
+                "legend")
 _PLAIN_MODULES = ("native", "side", "geometry", "distortion", "colours", "uv_transfer",
                   "landmarks", "morph", "cut_loops", "map_job")
 
@@ -47,10 +48,10 @@ if bpy is not None:
             if _full in sys.modules:
                 importlib.reload(sys.modules[_full])
     from . import (properties, ops_cut_loops, ops_map, ops_stored_map, ops_view,  # noqa: E402
-                   verify_operator, batch_operators, panel, legend)
+                   verify_operator, batch_operators, bake_operator, panel, legend)
 
     _modules = (properties, ops_cut_loops, ops_map, ops_stored_map, ops_view, verify_operator,
-                batch_operators, panel, legend)
+                batch_operators, bake_operator, panel, legend)
 
     def register():
         for m in _modules:
