@@ -2,6 +2,8 @@
 // boundary, conformal disk and annulus maps, maps between open surfaces.
 #include <gtest/gtest.h>
 
+#include <iostream>
+
 #include <cmath>
 #include <functional>
 #include <tuple>
@@ -189,6 +191,8 @@ TEST(OpenSurfaces, CylinderModulusWithinHalfPercent) {
     EXPECT_NEAR(r.modulus / exact, 1.0, 0.005) << around << " " << rows;
     EXPECT_LE(r.modulus_from_u, r.modulus_from_theta * (1 + 1e-9));  // the bracket (equal: linear on a prism)
     EXPECT_EQ(r.flipped_faces, 0);
+    std::cout << "  tube " << around << "x" << rows << ": modulus " << r.modulus << " prism value " << exact << " bracket ["
+              << r.modulus_from_u << ", " << r.modulus_from_theta << "]\n";
   }
   // Planar annulus 1 < |z| < 2: modulus ln 2 / 2π (curved boundary: the
   // discretisation error of the inscribed polygons, refined until 0.5%).
@@ -196,6 +200,8 @@ TEST(OpenSurfaces, CylinderModulusWithinHalfPercent) {
   const OpenConformalResult r = annulus_conformal_map(ann, open_surface_topology(ann));
   EXPECT_NEAR(r.modulus / (std::log(2.0) / (2 * M_PI)), 1.0, 0.005) << r.modulus;
   EXPECT_LT(r.modulus_from_u, r.modulus_from_theta);  // a strict bracket on curved boundaries
+  std::cout << "  planar annulus 1..2: modulus " << r.modulus << " exact " << std::log(2.0) / (2 * M_PI) << " bracket ["
+            << r.modulus_from_u << ", " << r.modulus_from_theta << "]\n";
 }
 
 TEST(OpenSurfaces, DiskConformalMapIsCentredAndEmbedded) {
@@ -227,6 +233,9 @@ TEST(OpenSurfaces, HemisphereToSquareIsConformalUnderRefinement) {
     EXPECT_EQ(r.map.degenerate_triangles, 0) << n;
     EXPECT_LT(r.map.mean_dilatation, previous) << n;
     previous = r.map.mean_dilatation;
+    std::cout << "  hemisphere rings " << n << " (" << s.num_faces() << " faces) -> square " << 2 * n << "x" << 2 * n
+              << ": mean D' " << r.map.mean_dilatation << ", max " << r.map.max_dilatation << ", flipped "
+              << r.map.flipped_triangles << "\n";
     // Every target vertex has a preimage on the source surface.
     for (const auto& p : r.map.inverse) EXPECT_NEAR(p.position.norm(), 1.0, 0.02);
   }
@@ -246,6 +255,7 @@ TEST(OpenSurfaces, RemeshedDiskMapsNearIdentity) {
   for (int i = 0; i < a.num_vertices(); ++i) mean += (r.map.forward[i].position - a.V.row(i).transpose()).norm();
   mean /= a.num_vertices();
   EXPECT_LT(mean, 0.02) << "mean displacement of the identity map";
+  std::cout << "  remeshed disk: mean displacement " << mean << ", mean D' " << r.map.mean_dilatation << "\n";
   EXPECT_EQ(r.map.flipped_triangles, 0);
   EXPECT_LT(r.map.mean_dilatation, 1.05);
 }
@@ -265,6 +275,8 @@ TEST(OpenSurfaces, AnnulusMapHitsExtremalDilatation) {
   const double k = mt / (std::log(2.0) / (2 * M_PI));
   EXPECT_NEAR(q.map.mean_dilatation / k, 1.0, 0.01) << q.map.mean_dilatation << " vs " << k;
   EXPECT_EQ(q.map.flipped_triangles, 0);
+  std::cout << "  tube -> tube: mean D' " << r.map.mean_dilatation << " extremal " << mt / ms
+            << "; planar annulus -> tube: mean D' " << q.map.mean_dilatation << " extremal " << k << "\n";
 }
 
 }  // namespace

@@ -195,8 +195,9 @@ double align(const TriMesh& source, const TriMesh& target, const OpenConformalRe
     else
       a = c1, c1 = c2, f1 = f2, c2 = a + g * (b - a), f2 = cost(c2);
   }
-  const double r = 0.5 * (a + b);
-  return r - period * std::floor(r / period);
+  double r = 0.5 * (a + b);
+  r -= period * std::floor(r / period);
+  return r >= period ? r - period : r;  // round-off of a tiny negative r
 }
 
 }  // namespace

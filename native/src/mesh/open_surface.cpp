@@ -24,6 +24,7 @@ struct CornerUnion {
 
 std::string OpenSurfaceTopology::describe() const {
   const int b = num_boundary_loops();
+  if (b == 0) return "genus " + std::to_string(genus) + " (closed)";
   return "genus " + std::to_string(genus) + " with " + std::to_string(b) + " boundary loop" + (b == 1 ? "" : "s");
 }
 
