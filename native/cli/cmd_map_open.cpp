@@ -40,7 +40,8 @@ bool map_open_pair(const OpenMapCliArgs& a) {
   auto domain_json = [](const OpenConformalResult& d) {
     return nlohmann::json{{"modulus", d.modulus},          {"modulus_from_u", d.modulus_from_u},
                           {"modulus_from_theta", d.modulus_from_theta}, {"pole", d.pole},
-                          {"centring_iterations", d.centring_iterations}, {"flipped_faces", d.flipped_faces}};
+                          {"centring_iterations", d.centring_iterations}, {"flipped_faces", d.flipped_faces},
+                          {"degenerate_faces", d.degenerate_faces}};
   };
   const nlohmann::json report = {
       {"source", a.src},
@@ -51,6 +52,8 @@ bool map_open_pair(const OpenMapCliArgs& a) {
        {{"domain", r.domain},
         {"rotation", r.rotation},
         {"extremal_dilatation", r.extremal_dilatation},
+        {"ear_triangles", r.ear_triangles},
+        {"ear_triangles_degenerate", r.ear_triangles_degenerate},
         {"source", domain_json(r.source_domain)},
         {"target", domain_json(r.target_domain)},
         {"description", m.candidates.empty() ? std::string() : m.candidates[0].description}}},

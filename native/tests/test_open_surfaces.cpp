@@ -279,5 +279,29 @@ TEST(OpenSurfaces, AnnulusMapHitsExtremalDilatation) {
             << "; planar annulus -> tube: mean D' " << q.map.mean_dilatation << " extremal " << k << "\n";
 }
 
+TEST(OpenSurfaces, EarTrianglesAreDegenerateNotFlipped) {
+  // A tube with one ear glued onto its top loop: the ear's three corners lie
+  // on one boundary loop, so its image on the cylinder is degenerate.
+  TriMesh s = tube(40, 10, 1.0);
+  const OpenSurfaceTopology before = open_surface_topology(s);
+  const auto& top = before.boundary_loops[0][0] == 0 ? before.boundary_loops[1] : before.boundary_loops[0];
+  const int a = top[0], b = top[1], nv = s.num_vertices(), nf = s.num_faces();
+  const Eigen::Vector3d pa = s.V.row(a), pb = s.V.row(b);
+  s.V.conservativeResize(nv + 1, 3);
+  s.V.row(nv) = (0.5 * (pa + pb) + Eigen::Vector3d(0, 0, 0.05)).transpose();
+  s.F.conservativeResize(nf + 1, 3);
+  s.F.row(nf) << b, a, nv;
+  const OpenSurfaceTopology with_ear = open_surface_topology(s);
+  ASSERT_EQ(with_ear.num_boundary_loops(), 2);
+  const TriMesh t = tube(36, 16, 2.0);
+  const OpenMapResult r = open_surface_map(s, with_ear, t, open_surface_topology(t));
+  EXPECT_EQ(r.ear_triangles, 1);
+  EXPECT_EQ(r.ear_triangles_degenerate, 1);
+  EXPECT_EQ(r.source_domain.degenerate_faces, 1);
+  EXPECT_EQ(r.source_domain.flipped_faces, 0);
+  EXPECT_EQ(r.map.flipped_triangles, 0);
+  EXPECT_NEAR(r.map.mean_dilatation / r.extremal_dilatation, 1.0, 0.01);
+}
+
 }  // namespace
 }  // namespace surfmap

@@ -184,16 +184,22 @@ std::pair<Eigen::VectorXd, double> conjugate(const WeightedEdges& e, const std::
   return {theta, energy};
 }
 
-double signed_area_sum(const OpenConformalResult& r, const TriMesh& mesh, int* flipped) {
+// Σ signed image areas; counts the flipped images and the degenerate ones
+// (|area| <= 1e-12 of the squared edge lengths: the annulus's ears).
+double signed_area_sum(const OpenConformalResult& r, const TriMesh& mesh, int* flipped, int* degenerate = nullptr) {
   double total = 0;
-  int count = 0;
+  int count = 0, zero = 0;
   for (int f = 0; f < mesh.num_faces(); ++f) {
     const auto z = face_image(r, mesh, f);
     const double a = 0.5 * std::imag(std::conj(z[1] - z[0]) * (z[2] - z[0]));
     total += a;
-    if (a <= 0) ++count;
+    if (std::abs(a) <= 1e-12 * (std::norm(z[1] - z[0]) + std::norm(z[2] - z[0])))
+      ++zero;
+    else if (a < 0)
+      ++count;
   }
   if (flipped) *flipped = count;
+  if (degenerate) *degenerate = zero;
   return total;
 }
 
@@ -291,7 +297,7 @@ OpenConformalResult disk_conformal_map(const TriMesh& mesh, const OpenSurfaceTop
   }
   r.centring = total_map_centre;
   for (int v : loop) r.uv[v] /= std::abs(r.uv[v]);  // exactly on the circle
-  signed_area_sum(r, mesh, &r.flipped_faces);
+  signed_area_sum(r, mesh, &r.flipped_faces, &r.degenerate_faces);
   return r;
 }
 
@@ -336,7 +342,7 @@ OpenConformalResult annulus_conformal_map(const TriMesh& mesh, const OpenSurface
   for (int v = 0; v < nv; ++v) r.uv[v] = cd(theta[v] - std::floor(theta[v]), r.modulus * u[v]);
   if (signed_area_sum(r, mesh, nullptr) < 0)
     for (int v = 0; v < nv; ++v) r.uv[v] = cd(-theta[v] - std::floor(-theta[v]), r.modulus * u[v]);
-  signed_area_sum(r, mesh, &r.flipped_faces);
+  signed_area_sum(r, mesh, &r.flipped_faces, &r.degenerate_faces);
   return r;
 }
 

@@ -249,13 +249,28 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
     const int f = sloc.locate(m.inverse(r.target_domain.uv[j]), &bary);
     out.inverse[j] = point_in_face(source, f, bary);
   }
+  // Ears: source faces with all three corners on the boundary. Their image
+  // is fixed by the boundary correspondence alone: on the annulus's straight
+  // boundary lines a degenerate triangle by construction, on a disk the
+  // chord triangle of three boundary points, which is near-degenerate on
+  // the target when the source is much coarser.
+  std::vector<char> on_boundary(source.num_vertices(), 0), ear(source.num_faces(), 0);
+  for (const auto& loop : source_topology.boundary_loops)
+    for (int v : loop) on_boundary[v] = 1;
+  for (int f = 0; f < source.num_faces(); ++f)
+    ear[f] = on_boundary[source.F(f, 0)] && on_boundary[source.F(f, 1)] && on_boundary[source.F(f, 2)];
   // Flips: source faces whose corners' images in the target's domain turn
-  // clockwise (the cylinder unwrapped per face).
+  // clockwise (the cylinder unwrapped per face); ears with a zero-area
+  // image are degenerate instead.
   for (int f = 0; f < source.num_faces(); ++f) {
     std::array<cd, 3> w = face_image(r.source_domain, source, f);
     for (auto& z : w) z = m.forward(z);
     const double area = std::imag(std::conj(w[1] - w[0]) * (w[2] - w[0]));
-    if (area <= 0) ++out.flipped_triangles;
+    const double scale = std::norm(w[1] - w[0]) + std::norm(w[2] - w[0]);
+    if (ear[f] && std::abs(area) <= 1e-12 * scale)
+      ++r.ear_triangles_degenerate;
+    else if (area <= 0)
+      ++out.flipped_triangles;
   }
   // D' on the morph's triangles and the morph's Dirichlet energy
   // (1/4) Σ_corners cot(angle) |opposite image edge|².
@@ -271,6 +286,11 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
     }
     const double d = triangle_dilatation(Eigen::Vector3d((p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()),
                                          Eigen::Vector3d((q[1] - q[0]).norm(), (q[2] - q[1]).norm(), (q[0] - q[2]).norm()));
+    if (ear[f]) {  // left out of mean and max, counted (see above)
+      out.dilatation[f] = d;
+      ++r.ear_triangles;
+      continue;
+    }
     if (!std::isfinite(d)) {
       ++out.degenerate_triangles;
       continue;

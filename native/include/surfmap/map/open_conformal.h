@@ -51,6 +51,9 @@ struct OpenConformalResult {
   /// Faces whose image is flipped (negative orientation; cylinder faces
   /// unwrapped across the seam); 0 for a discrete embedding.
   int flipped_faces = 0;
+  /// Faces whose image has zero area (|area| <= 1e-12 of the squared edge
+  /// lengths): an annulus's ears (three corners on one loop); not flipped.
+  int degenerate_faces = 0;
 };
 
 /// Genus 0, one boundary loop (topology from open_surface_topology):

@@ -39,7 +39,7 @@ struct OpenMapOptions {
 struct OpenMapResult {
   /// forward / inverse (face + barycentrics on the other input mesh),
   /// dilatation (D' of each source face onto its corners' 3D images, the
-  /// morph's triangles), flipped_triangles (source faces whose images in
+  /// morph's triangles; mean and max without the ears, see below), flipped_triangles (source faces whose images in
   /// the target's canonical domain are flipped), final_energy (Dirichlet
   /// energy of the morph with the source's cotangent weights), genus 0.
   SurfaceMapResult map;
@@ -50,6 +50,13 @@ struct OpenMapResult {
   std::string domain;
   double rotation = 0;
   double extremal_dilatation = 1;
+  /// Source faces with all three corners on the boundary ("ears"): their
+  /// image is fixed by the boundary correspondence alone (annulus: three
+  /// points on a straight boundary line of the cylinder, degenerate). Their
+  /// D' is kept in map.dilatation but left out of the mean and max;
+  /// `ear_triangles_degenerate` of them have a zero-area image in the
+  /// target's domain (not counted as flipped).
+  int ear_triangles = 0, ear_triangles_degenerate = 0;
 };
 
 /// Maps `source` onto `target` (both passed through load_open_mesh or
