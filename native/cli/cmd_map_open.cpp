@@ -25,7 +25,11 @@ bool map_open_pair(const OpenMapCliArgs& a) {
     }
   };
   const OpenIntakeResult src = load(src_soup, a.src), dst = load(dst_soup, a.dst);
-  check_same_open_topology(src.topology, dst.topology);
+  try {
+    check_same_open_topology(src.topology, dst.topology);
+  } catch (const InputError& e) {
+    throw InputError("'" + a.src + "' onto '" + a.dst + "': " + e.what() + " (open surfaces: docs/open_surfaces.md)");
+  }
   if (a.landmarks) throw InputError("--landmarks: not supported for open surfaces yet");
   if (!a.initial_out.empty()) throw InputError("--initial-out: open surfaces have no initial map");
   if (!a.quiet) std::cerr << "surfmap: open surfaces, " << src.topology.describe() << "\n";
