@@ -181,6 +181,17 @@ TEST(OpenSurfaces, MismatchedTopologyNamesBoth) {
   }
 }
 
+TEST(OpenSurfaces, DiskWithoutInteriorVertexIsRefused) {
+  TriMesh fan;  // a square of two triangles: every vertex on the boundary
+  fan.V.resize(4, 3);
+  fan.V << 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0;
+  fan.F.resize(2, 3);
+  fan.F << 0, 1, 2, 0, 2, 3;
+  const OpenSurfaceTopology t = open_surface_topology(fan);
+  EXPECT_EQ(t.num_boundary_loops(), 1);
+  EXPECT_THROW(disk_conformal_map(fan, t), InputError);
+}
+
 TEST(OpenSurfaces, CylinderModulusWithinHalfPercent) {
   // Prism tube: exact modulus height / (around * chord).
   for (const auto& [around, rows, height] : {std::tuple{48, 12, 1.0}, std::tuple{40, 30, 3.0}}) {
@@ -213,11 +224,9 @@ TEST(OpenSurfaces, DiskConformalMapIsCentredAndEmbedded) {
   EXPECT_NEAR(max_radius, 1.0, 1e-12);
   // By symmetry the hemisphere's conformal disk map is radial: the images
   // of one latitude ring share a radius (stereographic: tan(phi/2)).
-  const int first = 1 + 6 * (8 - 1) * 8 / 2;  // ring 8 starts after 1 + 6(1 + ... + 7) vertices
-  (void)first;
   int v = 1;
   for (int k = 1; k < 16; ++k) v += 6 * k;  // start of ring 16 (the boundary)
-  int ring8 = 1;
+  int ring8 = 1;  // ring 8 starts after 1 + 6 (1 + ... + 7) vertices
   for (int k = 1; k < 8; ++k) ring8 += 6 * k;
   const double expected = std::tan(M_PI / 8) / std::tan(M_PI / 4);  // stereographic radius at phi = pi/4
   for (int j = 0; j < 48; ++j) EXPECT_NEAR(std::abs(r.uv[ring8 + j]), expected, 0.01);

@@ -249,6 +249,8 @@ OpenConformalResult disk_conformal_map(const TriMesh& mesh, const OpenSurfaceTop
   OpenConformalResult r;
   r.pole = farthest_from_boundary(mesh, full, loop);
   const int p = r.pole;
+  if (std::find(loop.begin(), loop.end(), p) != loop.end())
+    throw InputError("the disk has no interior vertex (every vertex is on its boundary); refine it first");
 
   // u = log|z|: the Green's function, L u = −2π δ_p, u = 0 on the boundary.
   std::vector<char> interior(nv, 1);

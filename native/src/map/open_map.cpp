@@ -31,10 +31,8 @@ class DomainLocator {
         lo_x = std::min(lo_x, z.real()), hi_x = std::max(hi_x, z.real()), lo_y = std::min(lo_y, z.imag()),
         hi_y = std::max(hi_y, z.imag());
     }
-    std::vector<int> boundary_count(mesh.num_vertices(), 0);
     // Faces with a vertex on the boundary: the fallback candidates.
     std::vector<char> on_boundary(mesh.num_vertices(), 0);
-    (void)boundary_count;
     for (int v = 0; v < mesh.num_vertices(); ++v) {
       const cd z = domain.uv[v];
       on_boundary[v] = domain.cylinder ? (z.imag() <= 1e-12 || z.imag() >= domain.modulus - 1e-12)
