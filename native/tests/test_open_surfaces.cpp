@@ -288,6 +288,23 @@ TEST(OpenSurfaces, AnnulusMapHitsExtremalDilatation) {
             << "; planar annulus -> tube: mean D' " << q.map.mean_dilatation << " extremal " << k << "\n";
 }
 
+TEST(OpenSurfaces, AnnulusLoopsCanBeSwapped) {
+  const TriMesh s = tube(40, 10, 1.0), t = tube(36, 16, 2.0);
+  const OpenSurfaceTopology ts = open_surface_topology(s), tt = open_surface_topology(t);
+  OpenMapOptions options;
+  options.swap_annulus_loops = true;
+  const OpenMapResult r = open_surface_map(s, ts, t, tt, options);
+  EXPECT_EQ(r.map.flipped_triangles, 0);
+  EXPECT_NEAR(r.map.mean_dilatation / r.extremal_dilatation, 1.0, 0.01);
+  // The source's loop 0 lands on the target's loop 1 (and vice versa): by
+  // height, the tubes' loops are at z = 0 and z = height.
+  const double z_dst_loop1 = t.V(tt.boundary_loops[1][0], 2);
+  for (int v : ts.boundary_loops[0]) EXPECT_NEAR(r.map.forward[v].position.z(), z_dst_loop1, 1e-9);
+  const OpenMapResult plain = open_surface_map(s, ts, t, tt);
+  for (int v : ts.boundary_loops[0])
+    EXPECT_NEAR(plain.map.forward[v].position.z(), t.V(tt.boundary_loops[0][0], 2), 1e-9);
+}
+
 TEST(OpenSurfaces, EarTrianglesAreDegenerateNotFlipped) {
   // A tube with one ear glued onto its top loop: the ear's three corners lie
   // on one boundary loop, so its image on the cylinder is degenerate.

@@ -208,7 +208,8 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
   const int g = source_topology.genus, b = source_topology.num_boundary_loops();
   if (g != 0 || (b != 1 && b != 2))
     throw InputError("open surfaces of genus " + std::to_string(g) + " with " + std::to_string(b) +
-                     " boundary loops are not supported yet: the source and the target both have " +
+                     (b == 1 ? " boundary loop" : " boundary loops") +
+                     " are not supported yet: the source and the target both have " +
                      source_topology.describe() + " (supported: a disk, genus 0 with 1 loop; an annulus, genus 0 "
                      "with 2 loops; closed surfaces of any genus)");
   OpenMapResult r;
