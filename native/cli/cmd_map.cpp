@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "map_open.h"  // open surfaces (issue 16)
 #include "surfmap/error.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/intake.h"
@@ -101,6 +102,9 @@ void register_map(CLI::App& app) {
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--quiet", a->quiet, "No progress lines on stderr");
   cmd->callback([a] {
+    // Open surfaces (issue 16): map_open.h handles pairs with a boundary.
+    if (map_open_pair({a->src, a->dst, a->out, a->report, a->correspondence, a->initial_out, a->quiet, !a->landmarks.empty()}))
+      return;
     const IntakeResult src = load_mesh(a->src), dst = load_mesh(a->dst);
     check_same_genus(src.info, dst.info);
     SurfaceMapOptions opt;

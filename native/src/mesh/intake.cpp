@@ -174,7 +174,8 @@ Analysis analyse(const PolygonSoup& soup, const IntakeOptions& options) {
     for (int v = 0; v < nv; ++v)
       if (on_boundary[v] && boundary_uf.find(v) == v) ++loops;
     info.num_boundary_loops = loops;
-    problems.push_back("the surface is open: " + plural(boundary, "boundary edge") + " in " +
+    if (!options.allow_boundary)  // open surfaces: mesh/open_surface.h
+      problems.push_back("the surface is open: " + plural(boundary, "boundary edge") + " in " +
                        plural(loops, "boundary loop") + ", first: edge " + first_boundary +
                        "; open surfaces are not supported yet (close the holes first)");
   }
@@ -201,7 +202,13 @@ Analysis analyse(const PolygonSoup& soup, const IntakeOptions& options) {
   }
   info.euler_characteristic = info.num_vertices - num_edges + info.num_faces;
 
-  if (nonmanifold || boundary || misoriented) return a;
+  if (nonmanifold || (boundary && !options.allow_boundary) || misoriented) return a;
+  if (boundary) {  // open surface accepted (allow_boundary): mesh/open_surface.h checks the rest
+    info.genus = (2 - info.euler_characteristic - info.num_boundary_loops) / 2;
+    a.usable_topology = info.num_components == 1;
+    info.valid = problems.empty();
+    return a;
+  }
 
   // Non-manifold vertices: with manifold edges, a vertex's faces must form one fan.
   RowMatrixX3i F(nt, 3);

@@ -31,6 +31,11 @@ struct IntakeOptions {
   double area_tolerance = 1e-14;
   /// Orient the surface outward (signed volume > 0), flipping all faces.
   bool orient_outward = true;
+  /// Accept boundary loops (open surfaces; default false: refused). The
+  /// boundary loops, the genus (2 - chi - b)/2 and the vertex-manifold check
+  /// of open meshes are in mesh/open_surface.h (load_open_mesh), which sets
+  /// this; open meshes are never flipped (no signed volume).
+  bool allow_boundary = false;
 };
 
 struct IntakeResult {

@@ -1,0 +1,19 @@
+#pragma once
+// `surfmap map` for open surfaces (issue 16, docs/open_surfaces.md): called
+// first by cmd_map.cpp; closed pairs return false and take the usual path.
+#include <string>
+
+namespace surfmap::cli {
+
+struct OpenMapCliArgs {
+  std::string src, dst, out, report, correspondence, initial_out;
+  bool quiet = false, landmarks = false;
+};
+
+/// When either mesh has a boundary: validates both (same genus and number of
+/// boundary loops, else an InputError naming both), maps disks and annuli
+/// (map/open_map.h), writes --out, --report and --correspondence like the
+/// closed maps, and returns true. Returns false when both are closed.
+bool map_open_pair(const OpenMapCliArgs& args);
+
+}  // namespace surfmap::cli

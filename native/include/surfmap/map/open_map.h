@@ -1,0 +1,69 @@
+#pragma once
+// The optimal map between two open surfaces of the same topology (issue 16;
+// docs/open_surfaces.md). Supported: disks (genus 0, 1 boundary loop) and
+// annuli (genus 0, 2 boundary loops).
+//  - Disks: source and target are mapped conformally onto the unit disk and
+//    area-centred (map/open_conformal.h); the map is the source's map
+//    composed with the rotation of the disk that best aligns the shapes and
+//    the target's inverse: conformal (D' -> 1 with refinement), the harmonic
+//    energy equals the target's area for every such map, so like the genus-0
+//    sphere case the remaining automorphism is fixed by the alignment.
+//  - Annuli: both are mapped onto flat cylinders R/Z x [0, m]; the map is the
+//    affine stretch (x, y) -> (x + c, y m_t / m_s) (boundary loop i -> loop
+//    i, or swapped on request), the Teichmüller extremal map with constant
+//    dilatation max(m_t/m_s, m_s/m_t), the shift c chosen by the alignment.
+#include <limits>
+#include <string>
+
+#include "surfmap/map/open_conformal.h"
+#include "surfmap/map/surface_map.h"
+#include "surfmap/mesh/open_surface.h"
+
+namespace surfmap {
+
+struct OpenMapOptions {
+  /// Annuli: map the source's loop 0 (the longer) onto the target's loop 1
+  /// instead of loop 0 (default false).
+  bool swap_annulus_loops = false;
+  /// Rotation (disk, radians) or shift (cylinder, in [0, 1)) of the map
+  /// between the canonical domains; NaN (default): chosen by aligning the
+  /// shapes (least squares between the source's vertices and their images,
+  /// both normalised to centroid 0 and unit area, over 64 samples and a
+  /// golden-section refinement).
+  double rotation = std::numeric_limits<double>::quiet_NaN();
+  /// Source vertices used for the alignment (default 400, spread evenly).
+  int alignment_samples = 400;
+  OpenConformalOptions conformal;
+};
+
+struct OpenMapResult {
+  /// forward / inverse (face + barycentrics on the other input mesh),
+  /// dilatation (D' of each source face onto its corners' 3D images, the
+  /// morph's triangles; mean and max without the ears, see below), flipped_triangles (source faces whose images in
+  /// the target's canonical domain are flipped), final_energy (Dirichlet
+  /// energy of the morph with the source's cotangent weights), genus 0.
+  SurfaceMapResult map;
+  OpenSurfaceTopology source_topology, target_topology;
+  OpenConformalResult source_domain, target_domain;
+  /// "disk" or "annulus"; the rotation / shift used; annuli: the analytic
+  /// extremal dilatation max(m_t/m_s, m_s/m_t) of the affine stretch.
+  std::string domain;
+  double rotation = 0;
+  double extremal_dilatation = 1;
+  /// Source faces with all three corners on the boundary ("ears"): their
+  /// image is fixed by the boundary correspondence alone (annulus: three
+  /// points on a straight boundary line of the cylinder, degenerate). Their
+  /// D' is kept in map.dilatation but left out of the mean and max;
+  /// `ear_triangles_degenerate` of them have a zero-area image in the
+  /// target's domain (not counted as flipped).
+  int ear_triangles = 0, ear_triangles_degenerate = 0;
+};
+
+/// Maps `source` onto `target` (both passed through load_open_mesh or
+/// intake_open; topologies from open_surface_topology). Throws InputError
+/// naming (g, b) of both when they differ or are not (0, 1) or (0, 2).
+OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology& source_topology,
+                               const TriMesh& target, const OpenSurfaceTopology& target_topology,
+                               const OpenMapOptions& options = {});
+
+}  // namespace surfmap

@@ -1,0 +1,314 @@
+// The optimal map between two disks or two annuli (docs/open_surfaces.md).
+#include "surfmap/map/open_map.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <Eigen/Geometry>
+
+#include "surfmap/error.h"
+#include "surfmap/map/distortion.h"
+
+namespace surfmap {
+namespace {
+
+using cd = std::complex<double>;
+
+// Point location in a canonical domain (unit disk, or the cylinder unwrapped
+// per face): a uniform grid of face bounding boxes; points outside every
+// face (the disk's boundary arcs lie outside the inscribed boundary polygon)
+// go to the nearest face touching the boundary.
+class DomainLocator {
+ public:
+  DomainLocator(const TriMesh& mesh, const OpenConformalResult& domain) : cylinder_(domain.cylinder) {
+    const int nf = mesh.num_faces();
+    tris_.resize(nf);
+    double lo_x = 1e300, hi_x = -1e300, lo_y = 1e300, hi_y = -1e300;
+    for (int f = 0; f < nf; ++f) {
+      tris_[f] = face_image(domain, mesh, f);
+      for (const cd& z : tris_[f])
+        lo_x = std::min(lo_x, z.real()), hi_x = std::max(hi_x, z.real()), lo_y = std::min(lo_y, z.imag()),
+        hi_y = std::max(hi_y, z.imag());
+    }
+    // Faces with a vertex on the boundary: the fallback candidates.
+    std::vector<char> on_boundary(mesh.num_vertices(), 0);
+    for (int v = 0; v < mesh.num_vertices(); ++v) {
+      const cd z = domain.uv[v];
+      on_boundary[v] = domain.cylinder ? (z.imag() <= 1e-12 || z.imag() >= domain.modulus - 1e-12)
+                                       : std::abs(std::abs(z) - 1.0) < 1e-12;
+    }
+    for (int f = 0; f < nf; ++f)
+      if (on_boundary[mesh.F(f, 0)] || on_boundary[mesh.F(f, 1)] || on_boundary[mesh.F(f, 2)]) rim_.push_back(f);
+    x0_ = lo_x, y0_ = lo_y;
+    const int n = std::max(1, static_cast<int>(std::sqrt(static_cast<double>(nf))));
+    cell_ = std::max(std::max(hi_x - lo_x, hi_y - lo_y) / n, 1e-300);
+    nx_ = static_cast<int>((hi_x - lo_x) / cell_) + 1, ny_ = static_cast<int>((hi_y - lo_y) / cell_) + 1;
+    cells_.assign(static_cast<size_t>(nx_) * ny_, {});
+    for (int f = 0; f < nf; ++f) {
+      const auto& t = tris_[f];
+      const int ix0 = cx(std::min({t[0].real(), t[1].real(), t[2].real()})),
+                ix1 = cx(std::max({t[0].real(), t[1].real(), t[2].real()}));
+      const int iy0 = cy(std::min({t[0].imag(), t[1].imag(), t[2].imag()})),
+                iy1 = cy(std::max({t[0].imag(), t[1].imag(), t[2].imag()}));
+      for (int x = ix0; x <= ix1; ++x)
+        for (int y = iy0; y <= iy1; ++y) cells_[static_cast<size_t>(y) * nx_ + x].push_back(f);
+    }
+  }
+
+  /// Face and barycentrics (clamped to the face) of the point z.
+  int locate(cd z, Eigen::Vector3d* bary) const {
+    if (cylinder_) z = cd(z.real() - std::floor(z.real()), z.imag());
+    const double shifts[3] = {0.0, -1.0, 1.0};
+    for (int s = 0; s < (cylinder_ ? 3 : 1); ++s) {
+      const cd q = z + shifts[s];
+      const double fx = (q.real() - x0_) / cell_, fy = (q.imag() - y0_) / cell_;
+      if (fx < 0 || fy < 0 || fx >= nx_ || fy >= ny_) continue;
+      int best = -1;
+      double best_min = -1e-9;
+      for (int f : cells_[static_cast<size_t>(fy) * nx_ + static_cast<int>(fx)]) {
+        const Eigen::Vector3d b = barycentric(tris_[f], q);
+        if (b.minCoeff() >= best_min) best_min = b.minCoeff(), best = f, *bary = b;
+      }
+      if (best >= 0) {
+        *bary = bary->cwiseMax(0.0);
+        *bary /= bary->sum();
+        return best;
+      }
+    }
+    // Nearest rim face (closest point on its edges).
+    double best_d = 1e300;
+    int best = -1;
+    for (int s = 0; s < (cylinder_ ? 3 : 1); ++s) {
+      const cd q = z + shifts[s];
+      for (int f : rim_) {
+        const auto& t = tris_[f];
+        for (int k = 0; k < 3; ++k) {
+          const cd a = t[k], b = t[(k + 1) % 3];
+          const double len2 = std::norm(b - a);
+          const double s01 = len2 > 0 ? std::clamp(std::real(std::conj(b - a) * (q - a)) / len2, 0.0, 1.0) : 0.0;
+          const double d = std::abs(a + s01 * (b - a) - q);
+          if (d < best_d) {
+            best_d = d, best = f;
+            *bary = Eigen::Vector3d::Zero();
+            (*bary)[k] = 1 - s01, (*bary)[(k + 1) % 3] = s01;
+          }
+        }
+      }
+    }
+    if (best < 0) throw SolveError("point location in the canonical domain failed (no boundary faces)");
+    return best;
+  }
+
+ private:
+  static Eigen::Vector3d barycentric(const std::array<cd, 3>& t, cd p) {
+    auto cross = [](cd a, cd b) { return a.real() * b.imag() - a.imag() * b.real(); };
+    const double area = cross(t[1] - t[0], t[2] - t[0]);
+    if (area == 0) return Eigen::Vector3d::Constant(-1e300);
+    return Eigen::Vector3d(cross(t[1] - p, t[2] - p), cross(t[2] - p, t[0] - p), cross(t[0] - p, t[1] - p)) / area;
+  }
+  int cx(double x) const { return std::clamp(static_cast<int>((x - x0_) / cell_), 0, nx_ - 1); }
+  int cy(double y) const { return std::clamp(static_cast<int>((y - y0_) / cell_), 0, ny_ - 1); }
+  bool cylinder_;
+  std::vector<std::array<cd, 3>> tris_;
+  std::vector<int> rim_;
+  double x0_ = 0, y0_ = 0, cell_ = 1;
+  int nx_ = 1, ny_ = 1;
+  std::vector<std::vector<int>> cells_;
+};
+
+// The map between the canonical domains and its inverse.
+struct DomainMap {
+  bool cylinder = false, swap = false;
+  double rotation = 0, stretch = 1, target_height = 0;
+  cd forward(cd z) const {
+    if (!cylinder) return z * std::polar(1.0, rotation);
+    if (!swap) return cd(z.real() + rotation, z.imag() * stretch);
+    return cd(rotation - z.real(), target_height - z.imag() * stretch);
+  }
+  cd inverse(cd w) const {
+    if (!cylinder) return w * std::polar(1.0, -rotation);
+    if (!swap) return cd(w.real() - rotation, w.imag() / stretch);
+    return cd(rotation - w.real(), (target_height - w.imag()) / stretch);
+  }
+};
+
+PointOnSurface point_in_face(const TriMesh& mesh, int f, const Eigen::Vector3d& b) {
+  PointOnSurface p;
+  p.face = f;
+  p.barycentric = b;
+  p.position = b[0] * mesh.V.row(mesh.F(f, 0)).transpose() + b[1] * mesh.V.row(mesh.F(f, 1)).transpose() +
+               b[2] * mesh.V.row(mesh.F(f, 2)).transpose();
+  return p;
+}
+
+// Positions moved to their area centroid and scaled to unit area.
+RowMatrixX3d normalised(const TriMesh& mesh) {
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  double area = 0;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+    const double w = 0.5 * (b - a).cross(c - a).norm();
+    centroid += w * (a + b + c) / 3, area += w;
+  }
+  centroid /= area;
+  RowMatrixX3d X = mesh.V.rowwise() - centroid.transpose();
+  return X / std::sqrt(area);
+}
+
+// Rotation / shift minimising the squared distance between the sampled
+// source vertices and their images (normalised shapes).
+double align(const TriMesh& source, const TriMesh& target, const OpenConformalResult& sd, const DomainLocator& tloc,
+             DomainMap m, int samples) {
+  const RowMatrixX3d xs = normalised(source), xt = normalised(target);
+  const int ns = source.num_vertices();
+  const int step = std::max(1, ns / std::max(samples, 1));
+  const double period = m.cylinder ? 1.0 : 2 * M_PI;
+  auto cost = [&](double r) {
+    m.rotation = r;
+    double total = 0;
+    for (int i = 0; i < ns; i += step) {
+      Eigen::Vector3d b;
+      const int f = tloc.locate(m.forward(sd.uv[i]), &b);
+      const Eigen::Vector3d y = b[0] * xt.row(target.F(f, 0)).transpose() + b[1] * xt.row(target.F(f, 1)).transpose() +
+                                b[2] * xt.row(target.F(f, 2)).transpose();
+      total += (y - xs.row(i).transpose()).squaredNorm();
+    }
+    return total;
+  };
+  const int coarse = 64;
+  int best = 0;
+  double best_cost = 1e300;
+  for (int k = 0; k < coarse; ++k) {
+    const double c = cost(period * k / coarse);
+    if (c < best_cost) best_cost = c, best = k;
+  }
+  // Golden-section search in the bracket around the best sample.
+  double a = period * (best - 1) / coarse, b = period * (best + 1) / coarse;
+  const double g = (std::sqrt(5.0) - 1) / 2;
+  double c1 = b - g * (b - a), c2 = a + g * (b - a), f1 = cost(c1), f2 = cost(c2);
+  for (int it = 0; it < 30; ++it) {
+    if (f1 < f2)
+      b = c2, c2 = c1, f2 = f1, c1 = b - g * (b - a), f1 = cost(c1);
+    else
+      a = c1, c1 = c2, f1 = f2, c2 = a + g * (b - a), f2 = cost(c2);
+  }
+  double r = 0.5 * (a + b);
+  r -= period * std::floor(r / period);
+  return r >= period ? r - period : r;  // round-off of a tiny negative r
+}
+
+}  // namespace
+
+OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology& source_topology,
+                               const TriMesh& target, const OpenSurfaceTopology& target_topology,
+                               const OpenMapOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  check_same_open_topology(source_topology, target_topology);
+  const int g = source_topology.genus, b = source_topology.num_boundary_loops();
+  if (g != 0 || (b != 1 && b != 2))
+    throw InputError("open surfaces of genus " + std::to_string(g) + " with " + std::to_string(b) +
+                     (b == 1 ? " boundary loop" : " boundary loops") +
+                     " are not supported yet: the source and the target both have " +
+                     source_topology.describe() + " (supported: a disk, genus 0 with 1 loop; an annulus, genus 0 "
+                     "with 2 loops; closed surfaces of any genus)");
+  OpenMapResult r;
+  r.source_topology = source_topology, r.target_topology = target_topology;
+  const bool disk = b == 1;
+  r.domain = disk ? "disk" : "annulus";
+  r.source_domain = disk ? disk_conformal_map(source, source_topology, options.conformal)
+                         : annulus_conformal_map(source, source_topology, options.conformal);
+  r.target_domain = disk ? disk_conformal_map(target, target_topology, options.conformal)
+                         : annulus_conformal_map(target, target_topology, options.conformal);
+  DomainMap m;
+  m.cylinder = !disk;
+  m.swap = !disk && options.swap_annulus_loops;
+  if (!disk) {
+    m.stretch = r.target_domain.modulus / r.source_domain.modulus;
+    m.target_height = r.target_domain.modulus;
+    r.extremal_dilatation = std::max(m.stretch, 1.0 / m.stretch);
+  }
+  const DomainLocator tloc(target, r.target_domain), sloc(source, r.source_domain);
+  m.rotation = std::isnan(options.rotation) ? align(source, target, r.source_domain, tloc, m, options.alignment_samples)
+                                            : options.rotation;
+  r.rotation = m.rotation;
+
+  SurfaceMapResult& out = r.map;
+  out.genus = 0;
+  out.converged = true;
+  out.forward.resize(source.num_vertices());
+  for (int i = 0; i < source.num_vertices(); ++i) {
+    Eigen::Vector3d bary;
+    const int f = tloc.locate(m.forward(r.source_domain.uv[i]), &bary);
+    out.forward[i] = point_in_face(target, f, bary);
+  }
+  out.inverse.resize(target.num_vertices());
+  for (int j = 0; j < target.num_vertices(); ++j) {
+    Eigen::Vector3d bary;
+    const int f = sloc.locate(m.inverse(r.target_domain.uv[j]), &bary);
+    out.inverse[j] = point_in_face(source, f, bary);
+  }
+  // Ears: source faces with all three corners on the boundary. Their image
+  // is fixed by the boundary correspondence alone: on the annulus's straight
+  // boundary lines a degenerate triangle by construction, on a disk the
+  // chord triangle of three boundary points, which is near-degenerate on
+  // the target when the source is much coarser.
+  std::vector<char> on_boundary(source.num_vertices(), 0), ear(source.num_faces(), 0);
+  for (const auto& loop : source_topology.boundary_loops)
+    for (int v : loop) on_boundary[v] = 1;
+  for (int f = 0; f < source.num_faces(); ++f)
+    ear[f] = on_boundary[source.F(f, 0)] && on_boundary[source.F(f, 1)] && on_boundary[source.F(f, 2)];
+  // Flips: source faces whose corners' images in the target's domain turn
+  // clockwise (the cylinder unwrapped per face); ears with a zero-area
+  // image are degenerate instead.
+  for (int f = 0; f < source.num_faces(); ++f) {
+    std::array<cd, 3> w = face_image(r.source_domain, source, f);
+    for (auto& z : w) z = m.forward(z);
+    const double area = std::imag(std::conj(w[1] - w[0]) * (w[2] - w[0]));
+    const double scale = std::norm(w[1] - w[0]) + std::norm(w[2] - w[0]);
+    if (ear[f] && std::abs(area) <= 1e-12 * scale)
+      ++r.ear_triangles_degenerate;
+    else if (area <= 0)
+      ++out.flipped_triangles;
+  }
+  // D' on the morph's triangles and the morph's Dirichlet energy
+  // (1/4) Σ_corners cot(angle) |opposite image edge|².
+  out.dilatation.assign(source.num_faces(), std::numeric_limits<double>::infinity());
+  double weighted = 0, total = 0, energy = 0;
+  for (int f = 0; f < source.num_faces(); ++f) {
+    Eigen::Vector3d p[3], q[3];
+    for (int k = 0; k < 3; ++k) p[k] = source.V.row(source.F(f, k)), q[k] = out.forward[source.F(f, k)].position;
+    const double area = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).norm();
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d u = p[(k + 1) % 3] - p[k], v = p[(k + 2) % 3] - p[k];
+      energy += 0.25 * u.dot(v) / std::max(u.cross(v).norm(), 1e-300) * (q[(k + 2) % 3] - q[(k + 1) % 3]).squaredNorm();
+    }
+    const double d = triangle_dilatation(Eigen::Vector3d((p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()),
+                                         Eigen::Vector3d((q[1] - q[0]).norm(), (q[2] - q[1]).norm(), (q[0] - q[2]).norm()));
+    if (ear[f]) {  // left out of mean and max, counted (see above)
+      out.dilatation[f] = d;
+      ++r.ear_triangles;
+      continue;
+    }
+    if (!std::isfinite(d)) {
+      ++out.degenerate_triangles;
+      continue;
+    }
+    out.dilatation[f] = d;
+    weighted += area * d, total += area;
+    out.max_dilatation = std::max(out.max_dilatation, d);
+  }
+  out.mean_dilatation = weighted / std::max(total, 1e-300);
+  out.final_energy = out.initial_energy = energy;
+  out.initial_mean_dilatation = out.mean_dilatation, out.initial_max_dilatation = out.max_dilatation;
+  out.total_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  out.candidates.push_back(HomotopyCandidate{});
+  out.candidates.back().description = disk ? "disk: conformal, rotation aligning the shapes"
+                                           : (m.swap ? "annulus: affine stretch, loop 0 -> loop 1"
+                                                     : "annulus: affine stretch, loop i -> loop i");
+  out.candidates.back().energy = energy;
+  out.chosen_candidate = 0;
+  return r;
+}
+
+}  // namespace surfmap

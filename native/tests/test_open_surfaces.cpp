@@ -1,0 +1,333 @@
+// Open surfaces (issue 16, docs/open_surfaces.md): intake of meshes with
+// boundary, conformal disk and annulus maps, maps between open surfaces.
+#include <gtest/gtest.h>
+
+#include <iostream>
+
+#include <cmath>
+#include <functional>
+#include <tuple>
+
+#include "surfmap/error.h"
+#include "surfmap/map/open_conformal.h"
+#include "surfmap/map/open_map.h"
+#include "surfmap/mesh/open_surface.h"
+
+namespace surfmap {
+namespace {
+
+// Triangles between two rings of vertices (ids with angles increasing,
+// closed), inner ring first so that faces are counter-clockwise in the
+// (angle, ring) order; greedy by angle.
+void zip_rings(const std::vector<int>& a, const std::vector<double>& ta, const std::vector<int>& b,
+               const std::vector<double>& tb, std::vector<Eigen::Vector3i>& faces) {
+  const int na = static_cast<int>(a.size()), nb = static_cast<int>(b.size());
+  if (na == 1) {
+    for (int j = 0; j < nb; ++j) faces.emplace_back(a[0], b[j], b[(j + 1) % nb]);
+    return;
+  }
+  int i = 0, j = 0;
+  auto angle_a = [&](int k) { return ta[k % na] + 2 * M_PI * (k / na); };
+  auto angle_b = [&](int k) { return tb[k % nb] + 2 * M_PI * (k / nb); };
+  while (i < na || j < nb) {
+    const bool advance_b = j < nb && (i >= na || angle_b(j + 1) < angle_a(i + 1));
+    if (advance_b) {
+      faces.emplace_back(a[i % na], b[j % nb], b[(j + 1) % nb]);
+      ++j;
+    } else {
+      faces.emplace_back(a[i % na], b[j % nb], a[(i + 1) % na]);
+      ++i;
+    }
+  }
+}
+
+// Rings of vertices at "radii" 0..rings (ring k: counts(k) vertices at
+// angles offset by offset(k)), placed by position(ring, angle).
+TriMesh ring_mesh(int rings, const std::function<int(int)>& counts, const std::function<double(int)>& offset,
+                  const std::function<Eigen::Vector3d(int, double)>& position) {
+  std::vector<Eigen::Vector3d> V;
+  std::vector<Eigen::Vector3i> faces;
+  std::vector<int> prev_ids;
+  std::vector<double> prev_angles;
+  for (int k = 0; k <= rings; ++k) {
+    std::vector<int> ids;
+    std::vector<double> angles;
+    const int n = counts(k);
+    for (int j = 0; j < n; ++j) {
+      const double t = offset(k) + 2 * M_PI * j / n;
+      ids.push_back(static_cast<int>(V.size()));
+      angles.push_back(t);
+      V.push_back(position(k, t));
+    }
+    if (k > 0) zip_rings(prev_ids, prev_angles, ids, angles, faces);
+    prev_ids = ids, prev_angles = angles;
+  }
+  TriMesh m;
+  m.V.resize(V.size(), 3);
+  for (size_t i = 0; i < V.size(); ++i) m.V.row(i) = V[i].transpose();
+  m.F.resize(faces.size(), 3);
+  for (size_t f = 0; f < faces.size(); ++f) m.F.row(f) = faces[f].transpose();
+  return m;
+}
+
+// Disk of n rings (6k vertices on ring k), lifted by `lift` from the plane.
+TriMesh disk(int n, const std::function<Eigen::Vector3d(double r, double t)>& lift, double twist = 0) {
+  return ring_mesh(
+      n, [](int k) { return k == 0 ? 1 : 6 * k; }, [twist](int k) { return twist * k; },
+      [&](int k, double t) { return lift(static_cast<double>(k) / n, t); });
+}
+
+TriMesh hemisphere(int n) {
+  return disk(n, [](double r, double t) {
+    const double phi = r * M_PI / 2;
+    return Eigen::Vector3d(std::sin(phi) * std::cos(t), std::sin(phi) * std::sin(t), std::cos(phi));
+  });
+}
+
+// Square [-1, 1]^2 as an n x n grid, diagonals alternating.
+TriMesh square(int n) {
+  TriMesh m;
+  m.V.resize((n + 1) * (n + 1), 3);
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= n; ++j) m.V.row(i * (n + 1) + j) << -1 + 2.0 * j / n, -1 + 2.0 * i / n, 0;
+  m.F.resize(2 * n * n, 3);
+  int f = 0;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const int a = i * (n + 1) + j, b = a + 1, c = a + n + 1, d = c + 1;
+      if ((i + j) % 2) {
+        m.F.row(f++) << a, b, d;
+        m.F.row(f++) << a, d, c;
+      } else {
+        m.F.row(f++) << a, b, c;
+        m.F.row(f++) << b, d, c;
+      }
+    }
+  return m;
+}
+
+// Prism tube: `around` vertices per ring of radius 1, `rows` rows up to
+// `height`; intrinsically a flat cylinder of circumference around * chord.
+TriMesh tube(int around, int rows, double height) {
+  return ring_mesh(
+      rows, [around](int) { return around; }, [around](int k) { return (k % 2) * M_PI / around; },
+      [&](int k, double t) { return Eigen::Vector3d(std::cos(t), std::sin(t), height * k / rows); });
+}
+
+// Planar annulus between radii 1 and r1, geometric radial spacing.
+TriMesh planar_annulus(int around, int rings, double r1) {
+  return ring_mesh(
+      rings, [around](int) { return around; }, [around](int k) { return (k % 2) * M_PI / around; },
+      [&](int k, double t) {
+        const double r = std::pow(r1, static_cast<double>(k) / rings);
+        return Eigen::Vector3d(r * std::cos(t), r * std::sin(t), 0);
+      });
+}
+
+PolygonSoup soup_of(const TriMesh& m) {
+  PolygonSoup s;
+  s.V = m.V;
+  for (int f = 0; f < m.num_faces(); ++f) s.polygons.push_back({m.F(f, 0), m.F(f, 1), m.F(f, 2)});
+  return s;
+}
+
+TEST(OpenSurfaces, IntakeCountsLoopsAndGenus) {
+  const OpenIntakeResult d = intake_open(soup_of(hemisphere(6)));
+  EXPECT_EQ(d.topology.genus, 0);
+  ASSERT_EQ(d.topology.num_boundary_loops(), 1);
+  EXPECT_EQ(d.topology.boundary_loops[0].size(), 36u);
+  EXPECT_EQ(d.intake.info.num_boundary_loops, 1);
+  // Loop direction: the surface on the left, i.e. consecutive loop vertices
+  // run along a face's halfedge.
+  const auto& loop = d.topology.boundary_loops[0];
+  const TriMesh& m = d.intake.mesh;
+  int along = 0;
+  for (int f = 0; f < m.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k)
+      if (m.F(f, k) == loop[0] && m.F(f, (k + 1) % 3) == loop[1]) ++along;
+  EXPECT_EQ(along, 1);
+  const OpenIntakeResult a = intake_open(soup_of(tube(12, 5, 1.0)));
+  EXPECT_EQ(a.topology.genus, 0);
+  EXPECT_EQ(a.topology.num_boundary_loops(), 2);
+  EXPECT_EQ(a.topology.euler_characteristic, 0);
+  // Closed meshes keep refusing boundaries through the ordinary intake.
+  EXPECT_THROW(intake(soup_of(hemisphere(4))), InputError);
+}
+
+TEST(OpenSurfaces, BowtieBoundaryVertexRefusedByName) {
+  // Two squares sharing only vertex 4 (a bowtie on the boundary).
+  PolygonSoup s;
+  s.V.resize(7, 3);
+  s.V << 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 2, 2, 0, 3, 2, 0, 3, 3, 0;
+  s.polygons = {{0, 1, 4}, {0, 4, 3}, {1, 2, 4}, {4, 5, 6}};
+  try {
+    intake_open(s);
+    FAIL() << "bowtie accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("vertex 4"), std::string::npos) << e.what();
+  }
+}
+
+TEST(OpenSurfaces, MismatchedTopologyNamesBoth) {
+  const OpenIntakeResult d = intake_open(soup_of(hemisphere(4)));
+  const OpenIntakeResult a = intake_open(soup_of(tube(12, 4, 1.0)));
+  try {
+    open_surface_map(d.intake.mesh, d.topology, a.intake.mesh, a.topology);
+    FAIL();
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("genus 0 with 1 boundary loop"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("genus 0 with 2 boundary loops"), std::string::npos) << msg;
+  }
+}
+
+TEST(OpenSurfaces, DiskWithoutInteriorVertexIsRefused) {
+  TriMesh fan;  // a square of two triangles: every vertex on the boundary
+  fan.V.resize(4, 3);
+  fan.V << 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0;
+  fan.F.resize(2, 3);
+  fan.F << 0, 1, 2, 0, 2, 3;
+  const OpenSurfaceTopology t = open_surface_topology(fan);
+  EXPECT_EQ(t.num_boundary_loops(), 1);
+  EXPECT_THROW(disk_conformal_map(fan, t), InputError);
+}
+
+TEST(OpenSurfaces, CylinderModulusWithinHalfPercent) {
+  // Prism tube: exact modulus height / (around * chord).
+  for (const auto& [around, rows, height] : {std::tuple{48, 12, 1.0}, std::tuple{40, 30, 3.0}}) {
+    const TriMesh m = tube(around, rows, height);
+    const OpenSurfaceTopology t = open_surface_topology(m);
+    const OpenConformalResult r = annulus_conformal_map(m, t);
+    const double exact = height / (around * 2 * std::sin(M_PI / around));
+    EXPECT_NEAR(r.modulus / exact, 1.0, 0.005) << around << " " << rows;
+    EXPECT_LE(r.modulus_from_u, r.modulus_from_theta * (1 + 1e-9));  // the bracket (equal: linear on a prism)
+    EXPECT_EQ(r.flipped_faces, 0);
+    std::cout << "  tube " << around << "x" << rows << ": modulus " << r.modulus << " prism value " << exact << " bracket ["
+              << r.modulus_from_u << ", " << r.modulus_from_theta << "]\n";
+  }
+  // Planar annulus 1 < |z| < 2: modulus ln 2 / 2π (curved boundary: the
+  // discretisation error of the inscribed polygons, refined until 0.5%).
+  const TriMesh ann = planar_annulus(96, 24, 2.0);
+  const OpenConformalResult r = annulus_conformal_map(ann, open_surface_topology(ann));
+  EXPECT_NEAR(r.modulus / (std::log(2.0) / (2 * M_PI)), 1.0, 0.005) << r.modulus;
+  EXPECT_LT(r.modulus_from_u, r.modulus_from_theta);  // a strict bracket on curved boundaries
+  std::cout << "  planar annulus 1..2: modulus " << r.modulus << " exact " << std::log(2.0) / (2 * M_PI) << " bracket ["
+            << r.modulus_from_u << ", " << r.modulus_from_theta << "]\n";
+}
+
+TEST(OpenSurfaces, DiskConformalMapIsCentredAndEmbedded) {
+  const TriMesh m = hemisphere(16);
+  const OpenConformalResult r = disk_conformal_map(m, open_surface_topology(m));
+  EXPECT_EQ(r.flipped_faces, 0);
+  double max_radius = 0;
+  for (const auto& z : r.uv) max_radius = std::max(max_radius, std::abs(z));
+  EXPECT_NEAR(max_radius, 1.0, 1e-12);
+  // By symmetry the hemisphere's conformal disk map is radial: the images
+  // of one latitude ring share a radius (stereographic: tan(phi/2)).
+  int v = 1;
+  for (int k = 1; k < 16; ++k) v += 6 * k;  // start of ring 16 (the boundary)
+  int ring8 = 1;  // ring 8 starts after 1 + 6 (1 + ... + 7) vertices
+  for (int k = 1; k < 8; ++k) ring8 += 6 * k;
+  const double expected = std::tan(M_PI / 8) / std::tan(M_PI / 4);  // stereographic radius at phi = pi/4
+  for (int j = 0; j < 48; ++j) EXPECT_NEAR(std::abs(r.uv[ring8 + j]), expected, 0.01);
+  EXPECT_NEAR(std::abs(r.uv[v]), 1.0, 1e-12);
+}
+
+TEST(OpenSurfaces, HemisphereToSquareIsConformalUnderRefinement) {
+  double previous = 1e9;
+  for (int n : {8, 16, 32}) {
+    const TriMesh s = hemisphere(n), t = square(2 * n);
+    const OpenMapResult r = open_surface_map(s, open_surface_topology(s), t, open_surface_topology(t));
+    EXPECT_EQ(r.map.flipped_triangles, 0) << n;
+    EXPECT_EQ(r.map.degenerate_triangles, 0) << n;
+    EXPECT_LT(r.map.mean_dilatation, previous) << n;
+    previous = r.map.mean_dilatation;
+    std::cout << "  hemisphere rings " << n << " (" << s.num_faces() << " faces) -> square " << 2 * n << "x" << 2 * n
+              << ": mean D' " << r.map.mean_dilatation << ", max " << r.map.max_dilatation << ", flipped "
+              << r.map.flipped_triangles << "\n";
+    // Every target vertex has a preimage on the source surface.
+    for (const auto& p : r.map.inverse) EXPECT_NEAR(p.position.norm(), 1.0, 0.02);
+  }
+  EXPECT_LT(previous, 1.05);
+}
+
+TEST(OpenSurfaces, RemeshedDiskMapsNearIdentity) {
+  // An asymmetric bumpy disk, meshed twice with different rings and twist.
+  auto lift = [](double r, double t) {
+    const double R = r * (1 + 0.25 * std::cos(t) + 0.1 * std::sin(2 * t));
+    const double x = R * std::cos(t), y = R * std::sin(t);
+    return Eigen::Vector3d(x, y, 0.3 * x * y + 0.2 * x * x - 0.1 * y);
+  };
+  const TriMesh a = disk(14, lift), b = disk(19, lift, 0.13);
+  const OpenMapResult r = open_surface_map(a, open_surface_topology(a), b, open_surface_topology(b));
+  double mean = 0;
+  for (int i = 0; i < a.num_vertices(); ++i) mean += (r.map.forward[i].position - a.V.row(i).transpose()).norm();
+  mean /= a.num_vertices();
+  EXPECT_LT(mean, 0.02) << "mean displacement of the identity map";
+  std::cout << "  remeshed disk: mean displacement " << mean << ", mean D' " << r.map.mean_dilatation << "\n";
+  EXPECT_EQ(r.map.flipped_triangles, 0);
+  EXPECT_LT(r.map.mean_dilatation, 1.05);
+}
+
+TEST(OpenSurfaces, AnnulusMapHitsExtremalDilatation) {
+  // Tube of modulus ~0.25 -> tube of modulus ~0.5: the affine stretch has
+  // D' = ratio of the moduli on every face.
+  const TriMesh s = tube(40, 10, 1.0), t = tube(36, 16, 2.0);
+  const OpenMapResult r = open_surface_map(s, open_surface_topology(s), t, open_surface_topology(t));
+  const double ms = 1.0 / (40 * 2 * std::sin(M_PI / 40)), mt = 2.0 / (36 * 2 * std::sin(M_PI / 36));
+  EXPECT_NEAR(r.extremal_dilatation / (mt / ms), 1.0, 0.005);
+  EXPECT_NEAR(r.map.mean_dilatation / (mt / ms), 1.0, 0.01) << r.map.mean_dilatation;
+  EXPECT_EQ(r.map.flipped_triangles, 0);
+  // Planar annulus (modulus ln 2 / 2π) -> tube: conformal ∘ stretch ∘ conformal.
+  const TriMesh p = planar_annulus(96, 24, 2.0);
+  const OpenMapResult q = open_surface_map(p, open_surface_topology(p), t, open_surface_topology(t));
+  const double k = mt / (std::log(2.0) / (2 * M_PI));
+  EXPECT_NEAR(q.map.mean_dilatation / k, 1.0, 0.01) << q.map.mean_dilatation << " vs " << k;
+  EXPECT_EQ(q.map.flipped_triangles, 0);
+  std::cout << "  tube -> tube: mean D' " << r.map.mean_dilatation << " extremal " << mt / ms
+            << "; planar annulus -> tube: mean D' " << q.map.mean_dilatation << " extremal " << k << "\n";
+}
+
+TEST(OpenSurfaces, AnnulusLoopsCanBeSwapped) {
+  const TriMesh s = tube(40, 10, 1.0), t = tube(36, 16, 2.0);
+  const OpenSurfaceTopology ts = open_surface_topology(s), tt = open_surface_topology(t);
+  OpenMapOptions options;
+  options.swap_annulus_loops = true;
+  const OpenMapResult r = open_surface_map(s, ts, t, tt, options);
+  EXPECT_EQ(r.map.flipped_triangles, 0);
+  EXPECT_NEAR(r.map.mean_dilatation / r.extremal_dilatation, 1.0, 0.01);
+  // The source's loop 0 lands on the target's loop 1 (and vice versa): by
+  // height, the tubes' loops are at z = 0 and z = height.
+  const double z_dst_loop1 = t.V(tt.boundary_loops[1][0], 2);
+  for (int v : ts.boundary_loops[0]) EXPECT_NEAR(r.map.forward[v].position.z(), z_dst_loop1, 1e-9);
+  const OpenMapResult plain = open_surface_map(s, ts, t, tt);
+  for (int v : ts.boundary_loops[0])
+    EXPECT_NEAR(plain.map.forward[v].position.z(), t.V(tt.boundary_loops[0][0], 2), 1e-9);
+}
+
+TEST(OpenSurfaces, EarTrianglesAreDegenerateNotFlipped) {
+  // A tube with one ear glued onto its top loop: the ear's three corners lie
+  // on one boundary loop, so its image on the cylinder is degenerate.
+  TriMesh s = tube(40, 10, 1.0);
+  const OpenSurfaceTopology before = open_surface_topology(s);
+  const auto& top = before.boundary_loops[0][0] == 0 ? before.boundary_loops[1] : before.boundary_loops[0];
+  const int a = top[0], b = top[1], nv = s.num_vertices(), nf = s.num_faces();
+  const Eigen::Vector3d pa = s.V.row(a), pb = s.V.row(b);
+  s.V.conservativeResize(nv + 1, 3);
+  s.V.row(nv) = (0.5 * (pa + pb) + Eigen::Vector3d(0, 0, 0.05)).transpose();
+  s.F.conservativeResize(nf + 1, 3);
+  s.F.row(nf) << b, a, nv;
+  const OpenSurfaceTopology with_ear = open_surface_topology(s);
+  ASSERT_EQ(with_ear.num_boundary_loops(), 2);
+  const TriMesh t = tube(36, 16, 2.0);
+  const OpenMapResult r = open_surface_map(s, with_ear, t, open_surface_topology(t));
+  EXPECT_EQ(r.ear_triangles, 1);
+  EXPECT_EQ(r.ear_triangles_degenerate, 1);
+  EXPECT_EQ(r.source_domain.degenerate_faces, 1);
+  EXPECT_EQ(r.source_domain.flipped_faces, 0);
+  EXPECT_EQ(r.map.flipped_triangles, 0);
+  EXPECT_NEAR(r.map.mean_dilatation / r.extremal_dilatation, 1.0, 0.01);
+}
+
+}  // namespace
+}  // namespace surfmap
