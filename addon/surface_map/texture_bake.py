@@ -23,20 +23,11 @@ Conventions as in mapping.py: V (n,3) float64, F (m,3) int triangles; a point on
 (face, barycentrics (3,)). Images are (h, w, 4) float32 RGBA arrays with row 0 at v = 0 (the
 layout of Blender's Image.pixels); UV (0,0) is the lower-left corner of texel (0,0).
 """
-import importlib.util
 import math
-import pathlib
 
 import numpy as np
 
-try:
-    from .mapping import face_adjacency
-except ImportError:  # imported by file (plain pytest): mapping.py sits beside this file
-    _spec = importlib.util.spec_from_file_location(
-        "surfmap_addon_mapping_for_bake", pathlib.Path(__file__).with_name("mapping.py"))
-    _mapping = importlib.util.module_from_spec(_spec)
-    _spec.loader.exec_module(_mapping)
-    face_adjacency = _mapping.face_adjacency
+from .uv_transfer import face_adjacency, uv_seams
 
 
 # --- charts of the source: each face and its neighbourhood unfolded into the plane ------------
@@ -660,7 +651,7 @@ def seam_vertices(F, corner_uv, rings=1, seams=None):
         try:
             from .mapping import uv_seams
         except ImportError:
-            uv_seams = _mapping.uv_seams
+            uv_seams = uv_seams
         seams = uv_seams(F, corner_uv)
     n = int(F.max(initial=-1)) + 1
     on = np.zeros(n, dtype=bool)

@@ -1,18 +1,16 @@
-"""The add-on's bpy-free texture bake (addon/surface_map/texture_bake.py), imported by file,
-outside Blender: unfolded source charts, the split target, rasterisation, bleed, and the bake
+"""The add-on's bpy-free texture bake (addon/surface_map/texture_bake.py), imported as a package
+module outside Blender: unfolded source charts, the split target, rasterisation, bleed, and the bake
 itself through the identity map (exact) and through a computed map between two tori."""
-import importlib.util
 import pathlib
+import sys
 
 import numpy as np
 import pytest
 
 import surfmap
 
-_path = pathlib.Path(__file__).resolve().parents[3] / "addon" / "surface_map" / "texture_bake.py"
-_spec = importlib.util.spec_from_file_location("surfmap_addon_texture_bake", _path)
-TB = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(TB)
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[3] / "addon"))
+from surface_map import texture_bake as TB  # noqa: E402  (the add-on's bpy-free half)
 
 
 def torus(R, r, n, m):
