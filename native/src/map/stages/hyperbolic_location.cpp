@@ -15,9 +15,6 @@ namespace {
 
 using hyperbolic::Mobius;
 
-// The initial map located like the optimum (its "before" morph and UVs); a
-// vertex that cannot be located leaves that output empty, not an error.
-// Gives up when `stop` is raised (the other task failed).
 // The target's laid-out faces (the refined mesh of its system of loops) as
 // a triangulation of the universal cover: a straight walk over them, from
 // the face found for the previous vertex, crossing a cut edge by its deck
@@ -60,6 +57,41 @@ struct TargetCover {
     return rf;
   }
 };
+
+// Per target vertex (#V of the input target, whose indices the refined mesh
+// keeps) its copies in the cut disk: 1 inside, 2 on a loop, 4g at the base
+// vertex (the corners of P).
+std::vector<std::vector<Complex>> target_vertex_copies(const DiskLayout& layout, int num_vertices) {
+  std::vector<std::vector<Complex>> copies(num_vertices);
+  for (size_t d = 0; d < layout.disk_positions.size(); ++d) {
+    const int v = layout.disk_vertex_origin[d];
+    if (v >= 0 && v < num_vertices) copies[v].push_back(layout.disk_positions[d]);
+  }
+  return copies;
+}
+
+// The inverse of a map, target vertex v: the source face whose image, in
+// its own frame (corner 0 in or next to P), contains one of v's copies in
+// the cut disk; only when none does, the straight walk from `last_face`
+// (image triangles in the cover, the query moved by the chart changes
+// between faces) and then locate_in_cover. Why this order: near a corner of
+// a long, thin P, where the 4g corner copies of the base vertex meet, the
+// chart changes are deck elements with entries of 1e3 and more that send
+// the query to within 1e-10 of |z| = 1; a walk through them lost ~0.4
+// (hyperbolic) of position, enough to end three triangles away
+// (docs/verification.md). The copies need no group element.
+template <class Corners, class Cross>
+int locate_target_vertex(const std::vector<Complex>& copies, Complex position, const FundamentalPolygon& polygon,
+                         const TriangleGrid& grid, const PlaneTriangles& points, int last_face, const Corners& corners,
+                         const Cross& cross, int max_steps, Eigen::Vector3d* b) {
+  int f = locate_copies_in_frame(grid, points, copies, b);
+  if (f >= 0) return f;
+  Complex q = position;
+  polygon.reduce(q);
+  f = straight_walk(last_face, q, corners, cross, max_steps, kInsideTolerance, b);
+  if (f < 0) f = locate_in_cover(grid, points, polygon, position, b);
+  return f;
+}
 
 // The initial map located like the optimum (its "before" morph and UVs); a
 // vertex that cannot be located leaves that output empty, not an error.
@@ -117,15 +149,14 @@ void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover,
     return g;
   };
   const TriangleGrid igrid(itris, 1e-12);
+  const std::vector<std::vector<Complex>> copies = target_vertex_copies(layout, in.target->num_vertices());
   out.initial_inverse.resize(in.target->num_vertices());
   int last_face0 = 0;
   for (int v = 0; v < in.target->num_vertices(); ++v) {
     if (*stop) return;
     Eigen::Vector3d b;
-    Complex q = layout.vertex_positions[v];
-    polygon.reduce(q);
-    int f = straight_walk(last_face0, q, init_corners, init_cross, 4 * source.num_faces() + 100, kInsideTolerance, &b);
-    if (f < 0) f = locate_in_cover(igrid, ipoints, polygon, layout.vertex_positions[v], &b);
+    const int f = locate_target_vertex(copies[v], layout.vertex_positions[v], polygon, igrid, ipoints, last_face0,
+                                       init_corners, init_cross, 4 * source.num_faces() + 100, &b);
     if (f < 0) {
       out.initial_inverse.clear();
       break;
@@ -192,15 +223,13 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
       *entry = t % 3;
       return g;
     };
+    const std::vector<std::vector<Complex>> copies = target_vertex_copies(layout, in.target->num_vertices());
     out.inverse.resize(in.target->num_vertices());
     int last_source_face = 0;
     for (int v = 0; v < in.target->num_vertices(); ++v) {
       Eigen::Vector3d b;
-      Complex q = layout.vertex_positions[v];
-      polygon.reduce(q);
-      int f = straight_walk(last_source_face, q, source_corners, source_cross, 4 * source.num_faces() + 100,
-                            kInsideTolerance, &b);
-      if (f < 0) f = locate_in_cover(sgrid, spoints, polygon, layout.vertex_positions[v], &b);
+      const int f = locate_target_vertex(copies[v], layout.vertex_positions[v], polygon, sgrid, spoints,
+                                         last_source_face, source_corners, source_cross, 4 * source.num_faces() + 100, &b);
       if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
       last_source_face = f;
       out.inverse[v] = point_in_face(source, f, b);
