@@ -1,6 +1,7 @@
 #include "hyperbolic_location.h"
 
 #include <array>
+#include <limits>
 #include <memory>
 #include <atomic>
 #include <string>
@@ -71,20 +72,33 @@ std::vector<std::vector<Complex>> target_vertex_copies(const DiskLayout& layout,
 }
 
 // The inverse of a map, target vertex v: the source face whose image, in
-// its own frame (corner 0 in or next to P), contains one of v's copies in
-// the cut disk; only when none does, the straight walk from `last_face`
-// (image triangles in the cover, the query moved by the chart changes
-// between faces) and then locate_in_cover. Why this order: near a corner of
-// a long, thin P, where the 4g corner copies of the base vertex meet, the
-// chart changes are deck elements with entries of 1e3 and more that send
-// the query to within 1e-10 of |z| = 1; a walk through them lost ~0.4
-// (hyperbolic) of position, enough to end three triangles away
-// (docs/verification.md). The copies need no group element.
+// its own frame (corner 0 in P), contains one of v's copies in the cut disk
+// (no chart change needed); when none does, the straight walk towards the
+// nearest copy from the face whose corner 0 is nearest to it, then the walk
+// from `last_face` towards v's reduced position, then locate_in_cover.
+// Why not simply walk from the previous vertex's face: while the query is
+// far from the walk's current face, the chart changes (deck elements, with
+// entries of 1e3 and more at a corner of a long, thin P where the 4g copies
+// of the base vertex meet) send it to within 1e-10 of |z| = 1, where their
+// round-off moves it by ~0.4 (hyperbolic): the walk then ends up to three
+// triangles from the preimage (docs/verification.md). A walk that starts
+// next to the query keeps it near the current face, where the chart
+// changes are accurate.
 template <class Corners, class Cross>
 int locate_target_vertex(const std::vector<Complex>& copies, Complex position, const FundamentalPolygon& polygon,
                          const TriangleGrid& grid, const PlaneTriangles& points, int last_face, const Corners& corners,
                          const Cross& cross, int max_steps, Eigen::Vector3d* b) {
   int f = locate_copies_in_frame(grid, points, copies, b);
+  if (f >= 0) return f;
+  double nearest = std::numeric_limits<double>::infinity();
+  int start = -1;
+  Complex target_copy;
+  for (const Complex& c : copies)
+    for (int g = 0; g < static_cast<int>(points.size()); ++g) {
+      const double d = hyperbolic::distance(c, points[g][0]);
+      if (d < nearest) nearest = d, start = g, target_copy = c;
+    }
+  if (start >= 0) f = straight_walk(start, target_copy, corners, cross, max_steps, kInsideTolerance, b);
   if (f >= 0) return f;
   Complex q = position;
   polygon.reduce(q);
