@@ -90,14 +90,18 @@ int locate_target_vertex(const std::vector<Complex>& copies, Complex position, c
                          const Cross& cross, int max_steps, Eigen::Vector3d* b) {
   int f = locate_copies_in_frame(grid, points, copies, b);
   if (f >= 0) return f;
+  // Nearest by |c - p|^2 / ((1 - |c|^2)(1 - |p|^2)) = (cosh d - 1) / 2,
+  // monotone in the hyperbolic distance d and free of transcendentals.
   double nearest = std::numeric_limits<double>::infinity();
   int start = -1;
   Complex target_copy;
-  for (const Complex& c : copies)
+  for (const Complex& c : copies) {
+    const double wc = 1.0 / (1.0 - std::norm(c));
     for (int g = 0; g < static_cast<int>(points.size()); ++g) {
-      const double d = hyperbolic::distance(c, points[g][0]);
+      const double d = std::norm(c - points[g][0]) * wc / (1.0 - std::norm(points[g][0]));
       if (d < nearest) nearest = d, start = g, target_copy = c;
     }
+  }
   if (start >= 0) f = straight_walk(start, target_copy, corners, cross, max_steps, kInsideTolerance, b);
   if (f >= 0) return f;
   Complex q = position;
