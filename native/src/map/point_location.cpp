@@ -58,6 +58,18 @@ int locate_in_cover(const TriangleGrid& grid, const PlaneTriangles& tris, const 
   return -1;
 }
 
+int locate_copies_in_frame(const TriangleGrid& grid, const PlaneTriangles& tris, const std::vector<Complex>& copies,
+                           Eigen::Vector3d* bary) {
+  int best = -1;
+  double best_min = -kInsideTolerance;
+  for (const Complex& z : copies) {
+    Eigen::Vector3d b;
+    const int f = exact_locate(grid, tris, z, &b);
+    if (f >= 0 && b.minCoeff() >= best_min) best_min = b.minCoeff(), best = f, *bary = b;
+  }
+  return best;
+}
+
 int locate_periodic(const TriangleGrid& grid, Complex p, Complex centre, Complex w1, Complex w2, Eigen::Vector3d* bary) {
   const double det = w1.real() * w2.imag() - w1.imag() * w2.real();
   const Complex d = p - centre;

@@ -164,6 +164,19 @@ int straight_walk(int f, std::complex<double> q, const Corners& corners, const C
 int locate_in_cover(const TriangleGrid& grid, const PlaneTriangles& tris, const FundamentalPolygon& polygon,
                     std::complex<double> z, Eigen::Vector3d* bary);
 
+/// Hyperbolic location of a point known by its copies in one frame (e.g. a
+/// target vertex's copies in its cut disk: 1 inside, 2 on a loop, 4g at
+/// the base vertex), with no group element applied: the triangle of `tris`
+/// (#T corners in the Poincaré disk; `grid` over their Klein images) that
+/// contains one of `copies` with the largest smallest hyperboloid
+/// barycentric (>= -kInsideTolerance), and that barycentric, or -1. Why:
+/// at a corner of a long, thin fundamental polygon the side maps have
+/// entries of 1e3 and more and send points to within 1e-10 of |z| = 1, so a
+/// walk or a search that moves the query by them can end a visible distance
+/// from every copy (docs/verification.md); the copies themselves are exact.
+int locate_copies_in_frame(const TriangleGrid& grid, const PlaneTriangles& tris,
+                           const std::vector<std::complex<double>>& copies, Eigen::Vector3d* bary);
+
 /// Flat location: p modulo the lattice (w1, w2) in `grid` (Euclidean
 /// barycentrics): p reduced to the parallelogram around `centre`, then the
 /// translates in rings up to 3 lattice steps. Returns the triangle or -1.

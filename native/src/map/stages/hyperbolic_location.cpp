@@ -1,6 +1,7 @@
 #include "hyperbolic_location.h"
 
 #include <array>
+#include <limits>
 #include <memory>
 #include <atomic>
 #include <string>
@@ -15,9 +16,6 @@ namespace {
 
 using hyperbolic::Mobius;
 
-// The initial map located like the optimum (its "before" morph and UVs); a
-// vertex that cannot be located leaves that output empty, not an error.
-// Gives up when `stop` is raised (the other task failed).
 // The target's laid-out faces (the refined mesh of its system of loops) as
 // a triangulation of the universal cover: a straight walk over them, from
 // the face found for the previous vertex, crossing a cut edge by its deck
@@ -60,6 +58,58 @@ struct TargetCover {
     return rf;
   }
 };
+
+// Per target vertex (#V of the input target, whose indices the refined mesh
+// keeps) its copies in the cut disk: 1 inside, 2 on a loop, 4g at the base
+// vertex (the corners of P).
+std::vector<std::vector<Complex>> target_vertex_copies(const DiskLayout& layout, int num_vertices) {
+  std::vector<std::vector<Complex>> copies(num_vertices);
+  for (size_t d = 0; d < layout.disk_positions.size(); ++d) {
+    const int v = layout.disk_vertex_origin[d];
+    if (v >= 0 && v < num_vertices) copies[v].push_back(layout.disk_positions[d]);
+  }
+  return copies;
+}
+
+// The inverse of a map, target vertex v: the source face whose image, in
+// its own frame (corner 0 in P), contains one of v's copies in the cut disk
+// (no chart change needed); when none does, the straight walk towards the
+// nearest copy from the face whose corner 0 is nearest to it, then the walk
+// from `last_face` towards v's reduced position, then locate_in_cover.
+// Why not simply walk from the previous vertex's face: while the query is
+// far from the walk's current face, the chart changes (deck elements, with
+// entries of 1e3 and more at a corner of a long, thin P where the 4g copies
+// of the base vertex meet) send it to within 1e-10 of |z| = 1, where their
+// round-off moves it by ~0.4 (hyperbolic): the walk then ends up to three
+// triangles from the preimage (docs/verification.md). A walk that starts
+// next to the query keeps it near the current face, where the chart
+// changes are accurate.
+template <class Corners, class Cross>
+int locate_target_vertex(const std::vector<Complex>& copies, Complex position, const FundamentalPolygon& polygon,
+                         const TriangleGrid& grid, const PlaneTriangles& points, int last_face, const Corners& corners,
+                         const Cross& cross, int max_steps, Eigen::Vector3d* b) {
+  int f = locate_copies_in_frame(grid, points, copies, b);
+  if (f >= 0) return f;
+  // Nearest by |c - p|^2 / ((1 - |c|^2)(1 - |p|^2)) = (cosh d - 1) / 2,
+  // monotone in the hyperbolic distance d and free of transcendentals.
+  double nearest = std::numeric_limits<double>::infinity();
+  int start = -1;
+  Complex target_copy;
+  for (const Complex& c : copies) {
+    const double wc = 1.0 / (1.0 - std::norm(c));
+    for (int g = 0; g < static_cast<int>(points.size()); ++g) {
+      const double d = std::norm(c - points[g][0]) * wc / (1.0 - std::norm(points[g][0]));
+      if (d < nearest) nearest = d, start = g, target_copy = c;
+    }
+  }
+  if (start >= 0) f = straight_walk(start, target_copy, corners, cross, max_steps, kInsideTolerance, b);
+  if (f >= 0) return f;
+  Complex q = position;
+  polygon.reduce(q);
+  f = straight_walk(last_face, q, corners, cross, max_steps, kInsideTolerance, b);
+  if (f < 0) f = locate_in_cover(grid, points, polygon, position, b);
+  return f;
+}
 
 // The initial map located like the optimum (its "before" morph and UVs); a
 // vertex that cannot be located leaves that output empty, not an error.
@@ -117,15 +167,14 @@ void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover,
     return g;
   };
   const TriangleGrid igrid(itris, 1e-12);
+  const std::vector<std::vector<Complex>> copies = target_vertex_copies(layout, in.target->num_vertices());
   out.initial_inverse.resize(in.target->num_vertices());
   int last_face0 = 0;
   for (int v = 0; v < in.target->num_vertices(); ++v) {
     if (*stop) return;
     Eigen::Vector3d b;
-    Complex q = layout.vertex_positions[v];
-    polygon.reduce(q);
-    int f = straight_walk(last_face0, q, init_corners, init_cross, 4 * source.num_faces() + 100, kInsideTolerance, &b);
-    if (f < 0) f = locate_in_cover(igrid, ipoints, polygon, layout.vertex_positions[v], &b);
+    const int f = locate_target_vertex(copies[v], layout.vertex_positions[v], polygon, igrid, ipoints, last_face0,
+                                       init_corners, init_cross, 4 * source.num_faces() + 100, &b);
     if (f < 0) {
       out.initial_inverse.clear();
       break;
@@ -192,15 +241,13 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
       *entry = t % 3;
       return g;
     };
+    const std::vector<std::vector<Complex>> copies = target_vertex_copies(layout, in.target->num_vertices());
     out.inverse.resize(in.target->num_vertices());
     int last_source_face = 0;
     for (int v = 0; v < in.target->num_vertices(); ++v) {
       Eigen::Vector3d b;
-      Complex q = layout.vertex_positions[v];
-      polygon.reduce(q);
-      int f = straight_walk(last_source_face, q, source_corners, source_cross, 4 * source.num_faces() + 100,
-                            kInsideTolerance, &b);
-      if (f < 0) f = locate_in_cover(sgrid, spoints, polygon, layout.vertex_positions[v], &b);
+      const int f = locate_target_vertex(copies[v], layout.vertex_positions[v], polygon, sgrid, spoints,
+                                         last_source_face, source_corners, source_cross, 4 * source.num_faces() + 100, &b);
       if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
       last_source_face = f;
       out.inverse[v] = point_in_face(source, f, b);
