@@ -9,7 +9,10 @@ PACKAGES=(
   libgtest-dev libbenchmark-dev libsuitesparse-dev libtbb-dev nlohmann-json3-dev libcli11-dev
   libopenblas0-pthread
   blender zip
+  clang libclang-rt-14-dev
 )
+# clang, libclang-rt-14-dev: libFuzzer and the sanitizers for scripts/fuzz.sh
+# (the build itself uses g++).
 # libopenblas0-pthread: an optimised BLAS/LAPACK for CHOLMOD's supernodal
 # factorisations (the Newton solves, the Ricci flow): installing it makes it
 # libblas.so.3 / liblapack.so.3 through update-alternatives (priority 100
