@@ -5,20 +5,22 @@
 // long fans of thin triangles), meshes with exactly zero-area faces, strong
 // edge-length noise, and optionally a 1M-face mesh (--large).
 //
-//   build/bin/bench_robustness [--large] [--no-pairs] [--only SUBSTRING]
+//   build/bin/bench_robustness [--large] [--no-pairs] [--only SUBSTRING] [--row-timeout S]
 //
 // Per mesh: faces mollified at intake, converged, residual (max curvature
 // error), Newton iterations, intrinsic flips, time, peak memory. Per pair
 // (surface_map, default options): converged, flipped triangles, D' mean/max.
 // Every row runs in a forked child, so its peak memory is its own (ru_maxrss)
-// and a crash or an exception shows up as that row's status, not the end of
-// the run.
+// and a crash, an exception or a timeout (default 900 s per row) shows up as
+// that row's status, not the end of the run.
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <functional>
 #include <string>
@@ -42,6 +44,8 @@ struct Case {
 
 // Runs `body` in a child; returns its one-line output (or why it failed) and
 // the child's peak memory in MB.
+int g_row_timeout_s = 900;
+
 std::string in_child(const std::function<std::string()>& body, double* peak_mb) {
   int fd[2];
   if (pipe(fd) != 0) return "pipe failed";
@@ -49,6 +53,7 @@ std::string in_child(const std::function<std::string()>& body, double* peak_mb) 
   const pid_t pid = fork();
   if (pid == 0) {
     close(fd[0]);
+    alarm(static_cast<unsigned>(g_row_timeout_s));
     std::string line;
     try {
       line = body();
@@ -67,6 +72,8 @@ std::string in_child(const std::function<std::string()>& body, double* peak_mb) 
   struct rusage ru {};
   wait4(pid, &status, 0, &ru);
   *peak_mb = ru.ru_maxrss / 1024.0;
+  if (WIFSIGNALED(status) && WTERMSIG(status) == SIGALRM)
+    return "TIMEOUT (more than " + std::to_string(g_row_timeout_s) + " s)";
   if (WIFSIGNALED(status)) return "CRASHED (signal " + std::to_string(WTERMSIG(status)) + ")";
   return out;
 }
@@ -110,8 +117,9 @@ int main(int argc, char** argv) {
     if (arg == "--large") large = true;
     else if (arg == "--no-pairs") pairs = false;
     else if (arg == "--only" && i + 1 < argc) only = argv[++i];
+    else if (arg == "--row-timeout" && i + 1 < argc) g_row_timeout_s = std::atoi(argv[++i]);
     else {
-      std::fprintf(stderr, "usage: bench_robustness [--large] [--no-pairs] [--only SUBSTRING]\n");
+      std::fprintf(stderr, "usage: bench_robustness [--large] [--no-pairs] [--only SUBSTRING] [--row-timeout S]\n");
       return 2;
     }
   }
