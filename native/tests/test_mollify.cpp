@@ -10,6 +10,7 @@
 
 #include "surfmap/error.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
+#include "surfmap/map/distortion.h"
 #include "surfmap/mesh/intake.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/uniformize/ricci_flow.h"
@@ -144,6 +145,25 @@ TEST(Mollify, CoincidentVerticesOnlyAreRefused) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("same position"), std::string::npos) << e.what();
   }
+}
+
+TEST(Distortion, ZeroAreaSourceFacesAreLeftOutOfMeanAndMax) {
+  // The identity map of a planar strip with one collinear (0 area) and one
+  // coincident-corner face: D' = 1 on the others, the two are counted apart.
+  RowMatrixX3d V(5, 3);
+  V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0.5, 0, 0, 1, 0, 0;
+  RowMatrixX3i F(3, 3);
+  F << 0, 1, 2, 0, 3, 1, 1, 4, 2;  // (0, 0.5, 1) collinear; corners 1 and 4 coincide
+  Eigen::Matrix<std::complex<double>, Eigen::Dynamic, 3, Eigen::RowMajor> img(3, 3);
+  for (int f = 0; f < 3; ++f)
+    for (int k = 0; k < 3; ++k) img(f, k) = {V(F(f, k), 0), V(F(f, k), 1)};
+  img(1, 1) += std::complex<double>(0, 0.1);  // images of the flat faces are proper triangles
+  img(2, 1) += std::complex<double>(0.1, 0.1);
+  const DistortionStats q = planar_distortion(V, F, img);
+  EXPECT_EQ(q.degenerate_source, 2);
+  EXPECT_NEAR(q.mean, 1.0, 1e-12);
+  EXPECT_NEAR(q.max, 1.0, 1e-12);
+  EXPECT_TRUE(std::isinf(q.per_face[1]) && std::isinf(q.per_face[2]));
 }
 
 TEST(Shapes, CadPlateAndPeanutAreClosedWithTheirGenus) {

@@ -24,6 +24,9 @@ struct DistortionStats {
   double max = 0;
   int flipped = 0;     ///< image triangles with negative orientation
   int degenerate = 0;  ///< image triangles with (near) zero area
+  /// Source triangles of (near) zero area (D' undefined: infinite, left out
+  /// of mean and max, which they would not weigh in anyway).
+  int degenerate_source = 0;
 };
 
 /// Source triangles in 3D, images as #F x 3 planar corner positions (complex
