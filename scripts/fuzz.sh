@@ -6,7 +6,7 @@
 #
 #   bash scripts/fuzz.sh 600
 #
-# Starts from native/tests/fuzz/corpus/{seeds,findings}; new interesting
+# Starts from native/tests/fuzz/corpus/{seeds,findings,fuzzed}; new interesting
 # inputs collect in $SURFMAP_FUZZ_DIR/corpus (default build-fuzz/corpus), and
 # a crash, hang (> 10 s per input), memory blow-up (> 2 GB) or sanitizer
 # report stops the run with the input saved in build-fuzz/artifacts/. Fix the
@@ -42,4 +42,5 @@ export SURFMAP_FUZZ_SCRATCH="$out/scratch"
 echo "fuzz.sh: fuzzing for $seconds s (corpus $out/corpus)" >&2
 "$out/fuzz_intake" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=2048 \
   -max_len=8192 -dict="$repo/native/tests/fuzz/mesh.dict" -artifact_prefix="$out/artifacts/" \
-  -print_final_stats=1 "$out/corpus" "$repo/native/tests/fuzz/corpus/seeds" "$repo/native/tests/fuzz/corpus/findings"
+  -print_final_stats=1 "$out/corpus" "$repo/native/tests/fuzz/corpus/seeds" "$repo/native/tests/fuzz/corpus/findings" \
+  "$repo/native/tests/fuzz/corpus/fuzzed"

@@ -50,12 +50,35 @@ TEST(FuzzCorpus, SeedsGiveTheExpectedOutcome) {
 TEST(FuzzCorpus, EveryFindingEndsInOkOrOneLineError) {
   // Findings are inputs that once crashed, hung or exhausted memory; replaying
   // them must now return (run_intake_input aborts on anything improper).
-  for (const auto& f : corpus_files("findings")) {
+  const auto files = corpus_files("findings");
+  EXPECT_GE(files.size(), 3u);
+  for (const auto& f : files) {
     SCOPED_TRACE(f.filename().string());
     const std::string outcome = replay(f);
     EXPECT_FALSE(outcome.empty());
     EXPECT_EQ(outcome.find('\n'), std::string::npos);
   }
+}
+
+}  // namespace
+}  // namespace surfmap
+
+namespace surfmap {
+namespace {
+
+TEST(FuzzCorpus, MinimisedFuzzedCorpusEndsInOkOrOneLineError) {
+  // corpus/fuzzed: the libFuzzer corpus of a clean scripts/fuzz.sh run,
+  // minimised with -merge=1 (one input per coverage feature): a cheap replay
+  // of many reader and intake paths with the g++ build.
+  const auto files = corpus_files("fuzzed");
+  EXPECT_GE(files.size(), 100u);
+  int accepted = 0;
+  for (const auto& f : files) {
+    const std::string outcome = replay(f);
+    ASSERT_EQ(outcome.find('\n'), std::string::npos) << f.filename();
+    accepted += outcome == "ok";
+  }
+  EXPECT_GT(accepted, 0);  // the corpus reaches valid meshes too
 }
 
 }  // namespace
