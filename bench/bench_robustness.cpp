@@ -85,7 +85,15 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 std::string uniformize_row(const TriMesh& raw) {
   const IntakeResult in = intake(raw.V, raw.F);
   const auto t0 = std::chrono::steady_clock::now();
-  const UniformizeResult r = uniformize(in.mesh);
+  UniformizeResult r;
+  try {
+    r = uniformize(in.mesh);
+  } catch (const std::exception& e) {  // keep the counts in the row
+    char head[128];
+    std::snprintf(head, sizeof head, "%3d %7d %7d %6d ", in.info.genus, in.mesh.num_vertices(), in.mesh.num_faces(),
+                  in.info.mollified_faces);
+    return head + std::string("error after ") + std::to_string(seconds_since(t0)).substr(0, 6) + " s: " + e.what();
+  }
   const double t = seconds_since(t0);
   const int flips = r.genus == 0 ? r.sphere.edge_flips : r.ricci.flips;
   char line[256];
