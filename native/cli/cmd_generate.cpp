@@ -19,14 +19,16 @@ void register_generate(CLI::App& app) {
     int n_major = 64, n_minor = 32, variant = 0;
     int genus = 2, resolution = 64, subdivisions = 3;
     bool raw = false;
-    double jitter = 0.0;
+    double jitter = 0.0, thickness = 0.1, degenerate_t = 0.5;
+    int segments = 64, degenerate = 0;
     unsigned seed = 0;
   };
   auto a = std::make_shared<Args>();
   auto* cmd = app.add_subcommand("generate", "Write a procedural sample surface as OBJ");
-  cmd->add_option("SHAPE", a->shape, "torus | n-hole-torus | vase | amphora | cup | polycube | sphere")
+  cmd->add_option("SHAPE", a->shape, "torus | n-hole-torus | vase | amphora | cup | polycube | sphere | peanut | cad-plate")
       ->required()
-      ->check(CLI::IsMember({"torus", "n-hole-torus", "vase", "amphora", "cup", "polycube", "sphere"}));
+      ->check(CLI::IsMember(
+          {"torus", "n-hole-torus", "vase", "amphora", "cup", "polycube", "sphere", "peanut", "cad-plate"}));
   cmd->add_option("--out,-o", a->out, "Output .obj file (written atomically)")->required();
   cmd->add_option("--R", a->R, "torus: major radius")->capture_default_str();
   cmd->add_option("--r", a->r, "torus: minor radius")->capture_default_str();
@@ -34,7 +36,7 @@ void register_generate(CLI::App& app) {
   cmd->add_option("--n-minor", a->n_minor, "torus: vertices around the minor circle")->capture_default_str();
   cmd->add_option("--variant", a->variant, "torus: connectivity variant (0, 1, 2, other = random)")
       ->capture_default_str();
-  cmd->add_option("--genus", a->genus, "n-hole-torus: holes; cup: handles; polycube: holes (1..8)")
+  cmd->add_option("--genus", a->genus, "n-hole-torus: holes; cup: handles; polycube, cad-plate: holes (1..8)")
       ->capture_default_str();
   cmd->add_option("--resolution", a->resolution, "implicit shapes: grid cells along the longest axis (>= 32)")
       ->capture_default_str();
@@ -42,7 +44,17 @@ void register_generate(CLI::App& app) {
   cmd->add_flag("--raw", a->raw, "implicit shapes: keep the raw marching-tetrahedra mesh (slivers)");
   cmd->add_option("--jitter", a->jitter, "random tangential vertex offset, x local mean edge length (< 0.3)")
       ->capture_default_str();
-  cmd->add_option("--seed", a->seed, "seed for --jitter")->capture_default_str();
+  cmd->add_option("--seed", a->seed, "seed for --jitter and --degenerate")->capture_default_str();
+  cmd->add_option("--segments", a->segments, "cad-plate: points on each hole's rim (multiple of 4)")
+      ->capture_default_str();
+  cmd->add_option("--thickness", a->thickness, "cad-plate: thickness (0.1 a plate, >= 1 a block)")
+      ->capture_default_str();
+  cmd->add_option("--degenerate", a->degenerate,
+                  "insert this many exactly zero-area faces (samples::insert_degenerate_faces)")
+      ->capture_default_str();
+  cmd->add_option("--degenerate-t", a->degenerate_t,
+                  "position of each inserted vertex on its edge: 0 coincident, 0.5 collinear midpoint")
+      ->capture_default_str();
   cmd->callback([a] {
     namespace s = samples;
     const bool smooth = !a->raw;
@@ -63,11 +75,17 @@ void register_generate(CLI::App& app) {
       m = s::cup(a->genus, a->resolution, smooth);
     } else if (a->shape == "polycube") {
       m = s::polycube(a->genus, a->resolution, smooth);
+    } else if (a->shape == "peanut") {
+      m = s::peanut(a->resolution, smooth);
+      genus = 0;
+    } else if (a->shape == "cad-plate") {
+      m = s::cad_plate(a->genus, a->segments, a->thickness);
     } else {
       m = s::sphere(a->subdivisions);
       genus = 0;
     }
     if (a->jitter != 0.0) m = s::jitter(m, a->jitter, a->seed);
+    if (a->degenerate != 0) m = s::insert_degenerate_faces(m, a->degenerate, a->degenerate_t, a->seed);
     write_obj(a->out, m.V, m.F);
     std::cout << a->out << ": " << a->shape << ", genus " << genus << ", " << m.num_vertices()
               << " vertices, " << m.num_faces() << " faces\n";

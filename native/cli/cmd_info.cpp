@@ -29,6 +29,9 @@ void register_info(CLI::App& app) {
                           {"euler_characteristic", info.euler_characteristic},
                           {"genus", info.genus},
                           {"valid", info.valid},
+                          {"zero_area_faces", info.zero_area_faces},
+                          {"mollified_faces", info.mollified_faces},
+                          {"mollify_epsilon", info.mollify_epsilon},
                           {"problems", info.problems},
                           {"notes", info.notes}};
       std::cout << j.dump(2) << "\n";

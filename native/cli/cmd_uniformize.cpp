@@ -72,7 +72,10 @@ void run(const Args& a) {
                       {"floor_tolerance", a.floor_tolerance},
                       {"area", r.area},
                       {"time_s", r.time_s},
-                      {"residual_history", r.residual_history}};
+                      {"residual_history", r.residual_history},
+                      {"notes", in.info.notes},
+                      {"mollified_faces", in.info.mollified_faces},
+                      {"mollify_epsilon", in.info.mollify_epsilon}};
   if (r.genus == 0) {
     j["removed_vertex"] = r.sphere.removed_vertex;
     j["flipped_faces"] = r.sphere.flipped_faces;
@@ -124,6 +127,7 @@ void run(const Args& a) {
     }
   }
   if (!a.quiet) {
+    for (const auto& n : in.info.notes) std::cout << a.mesh << ": note: " << n << "\n";
     std::cout << a.mesh << ": genus " << r.genus << ", " << r.kind << ", " << r.iterations
               << " iterations, max curvature error " << r.max_curvature_error << ", area " << r.area << ", "
               << r.time_s << " s\n";

@@ -46,6 +46,9 @@ py::dict info_to_dict(const MeshInfo& i) {
   d["problems"] = i.problems;
   d["notes"] = i.notes;
   d["signed_volume"] = i.signed_volume;
+  d["mollified_faces"] = i.mollified_faces;
+  d["mollify_epsilon"] = i.mollify_epsilon;
+  d["zero_area_faces"] = i.zero_area_faces;
   return d;
 }
 

@@ -58,6 +58,17 @@ void bind_samples(py::module_& m) {
   };
   implicit("vase", &samples::vase, "Vase with two handles (genus 2).");
   implicit("amphora", &samples::amphora, "Amphora with two handles (genus 2).");
+  implicit("peanut", &samples::peanut, "Genus-0 peanut (two blended spheres).");
+  s.def("cad_plate",
+        [](int holes, int segments, double thickness) { return out(samples::cad_plate(holes, segments, thickness)); },
+        arg("holes") = 2, arg("segments") = 64, arg("thickness") = 0.1,
+        "CAD-like plate/block with round holes (genus = holes), long fans of thin triangles.");
+  s.def("insert_degenerate_faces",
+        [](py::handle V, py::handle F, int count, double t, unsigned seed) {
+          return out(samples::insert_degenerate_faces(in(V, F), count, t, seed));
+        },
+        arg("V"), arg("F"), arg("count"), arg("t") = 0.5, arg("seed") = 0,
+        "Adds `count` exactly zero-area faces (t=0: coincident vertices, 0<t<1: collinear).");
   s.def("cup",
         [](int handles, int resolution, bool smooth) {
           TriMesh t;

@@ -116,13 +116,22 @@ TEST(Intake, BadIndicesNameFace) {
   EXPECT_CONTAINS(intake_error(s), "face 4 has only 2 vertices");
 }
 
-TEST(Intake, ZeroAreaFace) {
+TEST(Intake, ZeroAreaFacesAreAcceptedThroughMollification) {
+  // Issue 13: zero-area faces are no longer refused; the solvers mollify the
+  // edge lengths and intake says how many faces that touched.
   PolygonSoup s = octahedron();
-  s.V.row(4) = s.V.row(0);  // collapses faces 0 and 3
-  s.V(4, 0) = 1.0;
-  const std::string msg = intake_error(s);
-  EXPECT_CONTAINS(msg, "zero-area");
-  EXPECT_CONTAINS(msg, "face 0");
+  s.V.row(4) << 0.5, 0.5, 0.0;  // on edge (0, 2): faces 0 and 4 become flat
+  const MeshInfo info = inspect(s);
+  EXPECT_TRUE(info.valid);
+  EXPECT_EQ(info.zero_area_faces, 1);  // face 0 = (0, 2, 4): collinear
+  EXPECT_GE(info.mollified_faces, 1);
+  EXPECT_GT(info.mollify_epsilon, 0.0);
+  ASSERT_FALSE(info.notes.empty());
+  EXPECT_CONTAINS(info.notes.back(), "mollified: ");
+  EXPECT_CONTAINS(info.notes.back(), "1 face had zero area");
+  // A well-shaped mesh gets no note.
+  EXPECT_EQ(inspect(octahedron()).mollified_faces, 0);
+  EXPECT_TRUE(inspect(octahedron()).notes.empty());
 }
 
 TEST(Intake, BoundaryIsReportedAsOpenSurface) {

@@ -14,6 +14,7 @@ namespace {
 // Corners of a planar triangle with the given sides: c0 = 0, c1 on the x axis.
 Eigen::Matrix2d frame_from_sides(const Eigen::Vector3d& s) {
   const double a = s[0], b = s[1], c = s[2];  // |c0c1|, |c1c2|, |c2c0|
+  if (!(a > 0)) return Eigen::Matrix2d::Zero();  // coincident corners: degenerate (D' infinite)
   const double x = (a * a + c * c - b * b) / (2 * a);
   const double y = std::sqrt(std::max(c * c - x * x, 0.0));
   Eigen::Matrix2d E;  // columns: c1 - c0, c2 - c0
@@ -109,6 +110,13 @@ DistortionStats planar_distortion(const RowMatrixX3d& V, const RowMatrixX3i& F,
     const Eigen::Vector3d p0 = V.row(F(f, 0)), p1 = V.row(F(f, 1)), p2 = V.row(F(f, 2));
     const Eigen::Vector3d s(( p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm());
     const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+    // A zero-area source face (accepted through mollification, docs/
+    // robustness.md) has no defined D' and no weight in the mean: leave it
+    // out of mean and max like a degenerate image, and count it.
+    if (!(area > 1e-14 * std::max({s[0], s[1], s[2]}) * std::max({s[0], s[1], s[2]}))) {
+      ++out.degenerate_source;
+      continue;
+    }
     const std::complex<double> e1 = image(f, 1) - image(f, 0), e2 = image(f, 2) - image(f, 0);
     const double signed_area = 0.5 * (e1.real() * e2.imag() - e1.imag() * e2.real());
     const double scale2 = std::max({std::norm(e1), std::norm(e2), std::norm(image(f, 2) - image(f, 1))});

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <iomanip>
+#include <memory>
 #include <numeric>
 #include <sstream>
 #include <string>
@@ -10,6 +12,7 @@
 #include <Eigen/Geometry>
 
 #include "surfmap/error.h"
+#include "surfmap/geometry/mollify.h"
 #include "surfmap/mesh/connectivity.h"
 
 namespace surfmap {
@@ -36,6 +39,28 @@ struct Triangulation {
   std::vector<std::array<int, 3>> tris;
   std::vector<int> source_polygon;
 };
+
+// Mollifies the edge lengths of a valid closed mesh the way the solvers will
+// (same lengths, same margin) and records what it touched.
+void mollify_note(const RowMatrixX3d& V, const Connectivity& conn, const IntakeOptions& options, MeshInfo& info) {
+  Eigen::VectorXd lengths(conn.num_edges());
+  for (int e = 0; e < conn.num_edges(); ++e)
+    lengths[e] = (V.row(conn.edge_vertex(e, 0)) - V.row(conn.edge_vertex(e, 1))).norm();
+  if (!lengths.allFinite()) {
+    info.problems.push_back("edge lengths overflow (coordinates too large); rescale the mesh");
+    return;
+  }
+  const MollifyResult m = mollify_edge_lengths(lengths, conn, options.mollify_margin);
+  info.mollified_faces = m.faces_touched;
+  info.mollify_epsilon = m.epsilon;
+  if (m.faces_touched == 0) return;
+  std::ostringstream s;
+  s << "mollified: " << plural(m.faces_touched, "face") << ", ε = " << std::setprecision(3) << m.epsilon
+    << " (" << std::setprecision(3) << m.epsilon / lengths.mean() << " of the mean edge length) added to every "
+    << "edge length so every triangle is strictly valid";
+  if (info.zero_area_faces > 0) s << "; " << plural(info.zero_area_faces, "face") << " had zero area";
+  info.notes.push_back(s.str());
+}
 
 // The analysis shared by inspect() and intake(): every check, each problem
 // with its offending elements, in the order a user should fix them.
@@ -106,25 +131,24 @@ Analysis analyse(const PolygonSoup& soup, const IntakeOptions& options) {
   }
   const int nt = static_cast<int>(a.tri.tris.size());
 
-  // Degenerate faces, relative to the bounding box so the test is scale-free.
+  // Exactly zero-area faces, relative to the bounding box so the test is
+  // scale-free. They are accepted (mollified below, once the topology is
+  // known); only a mesh whose vertices all coincide has no geometry at all.
   const Eigen::Vector3d lo = soup.V.colwise().minCoeff(), hi = soup.V.colwise().maxCoeff();
-  const double diag2 = std::max((hi - lo).squaredNorm(), 1e-300);
-  {
-    std::vector<int> degenerate;
-    for (int t = 0; t < nt; ++t) {
-      const auto& f = a.tri.tris[t];
-      const Eigen::Vector3d e1 = soup.V.row(f[1]) - soup.V.row(f[0]);
-      const Eigen::Vector3d e2 = soup.V.row(f[2]) - soup.V.row(f[0]);
-      if (0.5 * e1.cross(e2).norm() <= options.area_tolerance * diag2) degenerate.push_back(a.tri.source_polygon[t]);
-    }
-    degenerate.erase(std::unique(degenerate.begin(), degenerate.end()), degenerate.end());
-    if (!degenerate.empty()) {
-      std::string list;
-      for (size_t i = 0; i < std::min<size_t>(degenerate.size(), 5); ++i)
-        list += (i ? ", " : "") + std::to_string(degenerate[i]);
-      problems.push_back(plural(degenerate.size(), "zero-area face") + " (face " + list +
-                         (degenerate.size() > 5 ? ", ..." : "") + ")");
-    }
+  const double diag2 = (hi - lo).squaredNorm();
+  if (!std::isfinite(diag2)) {
+    problems.push_back("the coordinates are too large (the bounding box diagonal overflows); rescale the mesh");
+    return a;
+  }
+  if (!(diag2 > 0)) {
+    problems.push_back("all " + plural(nv, "vertex") + " are at the same position (the mesh has no extent)");
+    return a;
+  }
+  for (int t = 0; t < nt; ++t) {
+    const auto& f = a.tri.tris[t];
+    const Eigen::Vector3d e1 = soup.V.row(f[1]) - soup.V.row(f[0]);
+    const Eigen::Vector3d e2 = soup.V.row(f[2]) - soup.V.row(f[0]);
+    if (0.5 * e1.cross(e2).norm() <= options.area_tolerance * diag2) ++info.zero_area_faces;
   }
 
   // Edges: group halfedges by their unordered vertex pair.
@@ -213,15 +237,13 @@ Analysis analyse(const PolygonSoup& soup, const IntakeOptions& options) {
   // Non-manifold vertices: with manifold edges, a vertex's faces must form one fan.
   RowMatrixX3i F(nt, 3);
   for (int t = 0; t < nt; ++t) F.row(t) << a.tri.tris[t][0], a.tri.tris[t][1], a.tri.tris[t][2];
-  if (std::find(used.begin(), used.end(), 0) == used.end()) {
-    try {
-      Connectivity conn(F, nv);
-      info.euler_characteristic = conn.euler_characteristic();
-    } catch (const InputError& e) {
-      problems.push_back(e.what());
-      return a;
-    }
-  } else {
+  if (std::find(used.begin(), used.end(), 0) != used.end()) return a;
+  std::unique_ptr<Connectivity> conn;
+  try {
+    conn = std::make_unique<Connectivity>(F, nv);
+    info.euler_characteristic = conn->euler_characteristic();
+  } catch (const InputError& e) {
+    problems.push_back(e.what());
     return a;
   }
   // Triangulated counts: the Euler characteristic is the same for polygons.
@@ -231,6 +253,8 @@ Analysis analyse(const PolygonSoup& soup, const IntakeOptions& options) {
       problems.push_back("Euler characteristic " + std::to_string(info.euler_characteristic) +
                          " is impossible for a closed orientable surface");
   }
+
+  mollify_note(soup.V, *conn, options, info);
 
   // Orientation: signed volume of the closed surface.
   double vol = 0.0;

@@ -1,6 +1,8 @@
 #include "surfmap/samples/shapes.h"
 
 #include <algorithm>
+#include <array>
+#include <numeric>
 #include <cmath>
 #include <map>
 #include <random>
@@ -430,6 +432,146 @@ TriMesh sphere(int subdivisions) {
     for (int c = 0; c < 3; ++c) m.F(static_cast<int>(f), c) = F[f][c];
   if (signed_volume(m) < 0) m.F.col(1).swap(m.F.col(2));
   return m;
+}
+
+TriMesh peanut(int resolution, bool smooth) {
+  Shape s;
+  s.f = [](const Vector3d& p) {
+    const double a = (p - Vector3d(-0.6, 0, 0)).norm() - 0.8, b = (p - Vector3d(0.6, 0.1, 0)).norm() - 0.7;
+    return smin(a, b, 0.4);
+  };
+  s.lo = Vector3d(-1.45, -0.85, -0.85);
+  s.hi = Vector3d(1.35, 0.85, 0.85);
+  s.genus = 0;
+  s.name = "peanut";
+  return mesh_shape(s, resolution, smooth);
+}
+
+namespace {
+
+// Builds faces of a polyhedral part with each face's required outward
+// direction, so every triangle is oriented by its own normal (CAD faces are
+// planar, never degenerate here).
+struct PartBuilder {
+  std::vector<Vector3d> V;
+  std::vector<Eigen::Vector3i> F;
+  int add(const Vector3d& p) {
+    V.push_back(p);
+    return static_cast<int>(V.size()) - 1;
+  }
+  void tri(int a, int b, int c, const Vector3d& outward) {
+    const Vector3d n = (V[b] - V[a]).cross(V[c] - V[a]);
+    if (n.dot(outward) >= 0)
+      F.emplace_back(a, b, c);
+    else
+      F.emplace_back(a, c, b);
+  }
+  TriMesh mesh() const {
+    TriMesh m;
+    m.V.resize(static_cast<int>(V.size()), 3);
+    m.F.resize(static_cast<int>(F.size()), 3);
+    for (size_t i = 0; i < V.size(); ++i) m.V.row(i) = V[i].transpose();
+    for (size_t i = 0; i < F.size(); ++i) m.F.row(i) = F[i].transpose();
+    return m;
+  }
+};
+
+}  // namespace
+
+TriMesh cad_plate(int holes, int segments, double thickness) {
+  if (holes < 1 || holes > 64) throw InputError("cad_plate: holes " + std::to_string(holes) + " is out of range (1..64)");
+  if (segments < 8 || segments % 4 != 0)
+    throw InputError("cad_plate: segments " + std::to_string(segments) + " must be a multiple of 4, >= 8");
+  if (!(thickness > 0)) throw InputError("cad_plate: thickness must be positive");
+  const double radius = 0.3;
+  PartBuilder b;
+  // corner[s][i][j]: layer s (0 bottom, 1 top), x = i, y = j.
+  std::array<std::vector<std::array<int, 2>>, 2> corner;
+  for (int s = 0; s < 2; ++s) {
+    corner[s].resize(holes + 1);
+    for (int i = 0; i <= holes; ++i)
+      for (int j = 0; j < 2; ++j) corner[s][i][j] = b.add(Vector3d(i, j, s * thickness));
+  }
+  const Vector3d up(0, 0, 1);
+  for (int h = 0; h < holes; ++h) {
+    const Vector3d centre(h + 0.5, 0.5, 0);
+    std::array<std::vector<int>, 2> rim;
+    for (int s = 0; s < 2; ++s)
+      for (int q = 0; q < segments; ++q) {
+        const double a = 2 * M_PI * q / segments;
+        rim[s].push_back(b.add(centre + Vector3d(radius * std::cos(a), radius * std::sin(a), s * thickness)));
+      }
+    for (int s = 0; s < 2; ++s) {
+      const Vector3d out = s ? up : Vector3d(-up);
+      // Corners at 45, 135, 225, 315 degrees around the hole's centre.
+      const int quad_corner[4] = {corner[s][h + 1][1], corner[s][h][1], corner[s][h][0], corner[s][h + 1][0]};
+      const int quarter = segments / 4;
+      for (int q = 0; q < segments; ++q)  // the fans: long thin triangles
+        b.tri(quad_corner[q / quarter], rim[s][q], rim[s][(q + 1) % segments], out);
+      for (int k = 0; k < 4; ++k)  // between two fans, at 90 k + 90 degrees
+        b.tri(quad_corner[k], quad_corner[(k + 1) % 4], rim[s][((k + 1) * quarter) % segments], out);
+    }
+    for (int q = 0; q < segments; ++q) {  // the hole's wall, facing its axis
+      const int q1 = (q + 1) % segments;
+      const Vector3d mid = 0.5 * (b.V[rim[0][q]] + b.V[rim[0][q1]]);
+      const Vector3d inward(centre.x() - mid.x(), centre.y() - mid.y(), 0);
+      b.tri(rim[0][q], rim[0][q1], rim[1][q1], inward);
+      b.tri(rim[0][q], rim[1][q1], rim[1][q], inward);
+    }
+  }
+  // Outer walls: one quad (two triangles) per side of each cell.
+  auto wall = [&](int i0, int j0, int i1, int j1, const Vector3d& out) {
+    b.tri(corner[0][i0][j0], corner[0][i1][j1], corner[1][i1][j1], out);
+    b.tri(corner[0][i0][j0], corner[1][i1][j1], corner[1][i0][j0], out);
+  };
+  for (int i = 0; i < holes; ++i) {
+    wall(i, 0, i + 1, 0, Vector3d(0, -1, 0));
+    wall(i, 1, i + 1, 1, Vector3d(0, 1, 0));
+  }
+  wall(0, 0, 0, 1, Vector3d(-1, 0, 0));
+  wall(holes, 0, holes, 1, Vector3d(1, 0, 0));
+  TriMesh m = b.mesh();
+  detail::check_closed_surface(m, holes, "cad_plate");
+  return m;
+}
+
+TriMesh insert_degenerate_faces(const TriMesh& mesh, int count, double t, unsigned seed) {
+  if (!(t >= 0 && t < 1)) throw InputError("insert_degenerate_faces: t must be in [0, 1)");
+  const int nf = mesh.num_faces();
+  if (count < 0 || count > nf / 8)
+    throw InputError("insert_degenerate_faces: count " + std::to_string(count) + " is out of range (0.." +
+                     std::to_string(nf / 8) + ")");
+  const Connectivity conn(mesh.F, mesh.num_vertices());
+  std::vector<char> used(nf, 0);
+  std::vector<int> halfedges(3 * nf);
+  std::iota(halfedges.begin(), halfedges.end(), 0);
+  std::shuffle(halfedges.begin(), halfedges.end(), std::mt19937(seed));
+  TriMesh out;
+  std::vector<Vector3d> V;
+  for (int v = 0; v < mesh.num_vertices(); ++v) V.push_back(mesh.V.row(v).transpose());
+  std::vector<Eigen::Vector3i> F;
+  for (int f = 0; f < nf; ++f) F.push_back(mesh.F.row(f).transpose());
+  int done = 0;
+  for (int h : halfedges) {
+    if (done == count) break;
+    const int f0 = h / 3, f1 = conn.twin(h) / 3;
+    if (used[f0] || used[f1]) continue;
+    used[f0] = used[f1] = 1;
+    const int a = conn.tail(h), bv = conn.head(h), c = conn.opposite_vertex(h);
+    const int m = static_cast<int>(V.size());
+    V.push_back(V[a] + t * (V[bv] - V[a]));
+    F[f0] = Eigen::Vector3i(a, m, c);
+    F.emplace_back(m, bv, c);
+    F.emplace_back(m, a, bv);  // zero area: m lies on the segment a-b
+    ++done;
+  }
+  if (done < count)
+    throw InputError("insert_degenerate_faces: found only " + std::to_string(done) + " separate edges");
+  out.V.resize(static_cast<int>(V.size()), 3);
+  out.F.resize(static_cast<int>(F.size()), 3);
+  for (size_t i = 0; i < V.size(); ++i) out.V.row(i) = V[i].transpose();
+  for (size_t i = 0; i < F.size(); ++i) out.F.row(i) = F[i].transpose();
+  return out;
 }
 
 }  // namespace surfmap::samples

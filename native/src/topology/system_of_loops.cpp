@@ -404,12 +404,27 @@ void triangulate_face(Refiner& R, int f, std::vector<std::array<int, 3>>& out) {
     out.push_back({boundary[0], boundary[1], boundary[2]});
     return;
   }
-  // Isometric 2D copy of the face.
+  // Isometric 2D copy of the face; a (nearly) degenerate face (accepted by
+  // intake through mollification, docs/robustness.md) is laid out from its
+  // side lengths mollified the same way, or its pieces have no room.
   Eigen::Vector3d P[3];
   for (int k = 0; k < 3; ++k) P[k] = R.mesh.V.row(R.mesh.F(f, k)).transpose();
-  const double l01 = (P[1] - P[0]).norm();
-  const Eigen::Vector3d u = (P[1] - P[0]) / l01;
-  const Eigen::Vector2d c2((P[2] - P[0]).dot(u), ((P[2] - P[0]) - (P[2] - P[0]).dot(u) * u).norm());
+  double l01 = (P[1] - P[0]).norm();
+  Eigen::Vector2d c2;
+  {
+    double a = l01, b = (P[2] - P[1]).norm(), c = (P[0] - P[2]).norm();
+    const double rel = 1e-4, margin = std::min({a + b - c, b + c - a, c + a - b});
+    if (margin < rel * (a + b + c) / 3) {
+      const double eps = a + b + c > 0 ? (rel * (a + b + c) / 3 - margin) / (1 - rel) * (1 + 1e-9) : 1.0;
+      a += eps, b += eps, c += eps;
+      const double x = (a * a + c * c - b * b) / (2 * a);
+      l01 = a;
+      c2 = Eigen::Vector2d(x, std::sqrt(std::max(c * c - x * x, 0.0)));
+    } else {
+      const Eigen::Vector3d u = (P[1] - P[0]) / l01;
+      c2 = Eigen::Vector2d((P[2] - P[0]).dot(u), ((P[2] - P[0]) - (P[2] - P[0]).dot(u) * u).norm());
+    }
+  }
   const Eigen::Vector2d C[3] = {Eigen::Vector2d(0, 0), Eigen::Vector2d(l01, 0), c2};
   const double eps = 1e-13 * std::max({l01 * l01, c2.squaredNorm(), (C[1] - c2).squaredNorm()});
   auto pos = [&](int id) {

@@ -25,6 +25,7 @@
 
 #include "ricci_core.h"
 #include "surfmap/error.h"
+#include "surfmap/geometry/mollify.h"
 
 namespace surfmap {
 namespace detail {
@@ -768,7 +769,7 @@ Eigen::VectorXd edge_lengths(const TriMesh& mesh, const Connectivity& conn) {
   Eigen::VectorXd l(conn.num_edges());
   for (int e = 0; e < conn.num_edges(); ++e)
     l[e] = (mesh.V.row(conn.edge_vertex(e, 0)) - mesh.V.row(conn.edge_vertex(e, 1))).norm();
-  return l;
+  return mollify_edge_lengths(l, conn).lengths;
 }
 
 }  // namespace surfmap

@@ -86,3 +86,42 @@ def test_cli_info_exit_status(tmp_path, cli):
     assert r.returncode == 1 and "does not exist" in r.stderr
     r = cli("info", "--json", good)
     assert '"genus": 0' in r.stdout
+
+
+def test_zero_area_faces_are_mollified_with_a_note():
+    # Issue 13: a vertex placed exactly on edge (0, 2) makes face (0, 2, 4)
+    # flat; intake accepts it and reports the intrinsic mollification.
+    V = OCTA_V.copy()
+    V[4] = [0.5, 0.5, 0.0]
+    info = surfmap.inspect(V, OCTA_F)
+    assert info["valid"], info["problems"]
+    assert info["zero_area_faces"] == 1
+    assert info["mollified_faces"] >= 1 and info["mollify_epsilon"] > 0
+    assert info["notes"][-1].startswith("mollified: ")
+    r = surfmap.intake(V, OCTA_F)
+    assert r["info"]["mollified_faces"] == info["mollified_faces"]
+    clean = surfmap.inspect(OCTA_V, OCTA_F)
+    assert clean["mollified_faces"] == 0 and clean["mollify_epsilon"] == 0 and clean["notes"] == []
+
+
+def test_generated_degenerate_and_cad_meshes_are_accepted():
+    V, F = surfmap._core.shapes.cad_plate(2, 32, 1.0)
+    assert surfmap.inspect(V, F)["genus"] == 2
+    V, F = surfmap._core.shapes.torus_of_revolution(1.0, 0.4, 16, 8)
+    V2, F2 = surfmap._core.shapes.insert_degenerate_faces(V, F, 4, 0.0, 1)
+    info = surfmap.inspect(V2, F2)
+    assert info["valid"] and info["genus"] == 1 and info["zero_area_faces"] >= 4
+
+
+@pytest.mark.parametrize("name,text", [
+    ("huge.off", "OFF\n2000000000 2000000000 0\n0 0 0\n"),
+    ("face.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n999999999 0 1 2\n"),
+    ("header.ply", "ply\nformat ascii 1.0\nelement ve"),
+    ("face.obj", "v 0 0 0\nv 1 0 0\nf\nf 1 2 x\n"),
+])
+def test_corrupt_files_give_one_line_input_errors(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(surfmap.InputError) as e:
+        surfmap.load_mesh(str(path))
+    assert "\n" not in str(e.value) and name in str(e.value)

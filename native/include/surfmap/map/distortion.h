@@ -48,6 +48,9 @@ struct DistortionStats {
   double max = 0;
   int flipped = 0;     ///< image triangles with negative orientation
   int degenerate = 0;  ///< image triangles with (near) zero area
+  /// Source triangles of (near) zero area (D' undefined: infinite, left out
+  /// of mean and max, which they would not weigh in anyway).
+  int degenerate_source = 0;
 };
 
 /// The figures of hyperbolic image triangles of the source's faces (paper

@@ -1,6 +1,8 @@
 #pragma once
-// Mesh intake and validation (DESIGN.md §2.1): counts, genus, and every
+// Mesh intake and validation (docs/robustness.md): counts, genus, and every
 // problem that stops the pipeline, each naming the offending element.
+// (Nearly) degenerate faces are accepted: the solvers mollify the intrinsic
+// edge lengths (geometry/mollify.h), and intake reports what that touches.
 #include <string>
 #include <vector>
 
@@ -23,12 +25,24 @@ struct MeshInfo {
   std::vector<std::string> notes;
   /// Signed volume of the input as given (negative: inward normals).
   double signed_volume = 0.0;
+  /// Intrinsic mollification of the edge lengths (geometry/mollify.h): faces
+  /// that were (nearly) degenerate and the epsilon added to every edge.
+  /// Both 0 for a well-shaped mesh; reported in `notes` when nonzero.
+  int mollified_faces = 0;
+  double mollify_epsilon = 0.0;
+  /// Faces of zero area (below area_tolerance) in the input, accepted
+  /// through mollification.
+  int zero_area_faces = 0;
 };
 
 struct IntakeOptions {
   /// Faces whose area is below area_tolerance * (bounding-box diagonal)^2
-  /// count as zero-area. Default 1e-14.
+  /// count as zero-area (reported in the mollification note). Default 1e-14.
   double area_tolerance = 1e-14;
+  /// Margin of the intrinsic mollification, relative to the mean edge length
+  /// (the default of mollify_edge_lengths, which the solvers use too, so the
+  /// note reports what they do). Default 1e-4.
+  double mollify_margin = 1e-4;
   /// Orient the surface outward (signed volume > 0), flipping all faces.
   bool orient_outward = true;
   /// Accept boundary loops (open surfaces; default false: refused). The

@@ -1,7 +1,9 @@
 #pragma once
-// Mesh files in and out. Reading goes through OpenMesh's readers (OBJ, OFF,
-// PLY, STL) into a raw polygon soup, so that intake can report problems with
-// the file's own indices instead of the reader silently dropping faces.
+// Mesh files in and out. OBJ, OFF and PLY are parsed here (every count
+// bounded by the file's actual contents; see docs/robustness.md), STL by
+// OpenMesh's reader (which welds its corners), into a raw polygon soup, so
+// that intake can report problems with the file's own indices instead of the
+// reader silently dropping faces.
 #include <string>
 #include <vector>
 

@@ -4,7 +4,8 @@
 // (vase, amphora, cup, polycube, n-hole torus), meshed by marching
 // tetrahedra. Every generator returns a closed, manifold, one-component,
 // outward-oriented (signed volume > 0) triangle mesh of the stated genus with
-// no zero-area faces; tests and benchmarks build their inputs from these.
+// no zero-area faces (except insert_degenerate_faces, which adds them on
+// purpose); tests and benchmarks build their inputs from these.
 #include <Eigen/Core>
 
 #include "surfmap/mesh/tri_mesh.h"
@@ -63,5 +64,32 @@ TriMesh sphere_inversion(const TriMesh& mesh, const Eigen::Vector3d& c, double r
 /// Genus-0 unit sphere: an icosahedron subdivided `subdivisions` times
 /// (10*4^s + 2 vertices), vertices projected onto the sphere.
 TriMesh sphere(int subdivisions = 3);
+
+/// Genus-0 implicit "peanut" (two overlapping spheres blended smoothly),
+/// meshed like the shapes above; smooth=false keeps the raw marching-tets
+/// slivers. Gives the robustness benchmark a genus-0 raw mesh.
+TriMesh peanut(int resolution = 64, bool smooth = true);
+
+/// CAD-like part: a rectangular plate (x in [0, holes], y in [0, 1], z in
+/// [0, thickness]) with `holes` round through-holes of radius 0.3, one per
+/// unit cell, tessellated the way CAD exporters do: each planar face as long
+/// fans of thin triangles from the cell corners to `segments` points on each
+/// hole's rim, each wall (hole and outer) as one strip of two triangles per
+/// segment. Genus = holes; 4 (holes + 1) + 2 holes segments vertices.
+/// thickness 0.1 gives a plate, 1 or more a block with long thin hole walls.
+/// Throws InputError on holes < 1, segments < 8 or not a multiple of 4,
+/// thickness <= 0.
+TriMesh cad_plate(int holes = 2, int segments = 64, double thickness = 0.1);
+
+/// Inserts `count` exactly degenerate faces: for each of `count` edges (a, b)
+/// (seeded choice, no two in the same face), a new vertex m at a + t (b - a)
+/// splits one face (a, b, c) into (a, m, c), (m, b, c) and the zero-area
+/// face (m, a, b) closes the gap to the other face at (a, b). t = 0 puts m
+/// exactly on a (a zero-length edge, two faces of exactly zero area);
+/// 0 < t < 1 makes m collinear with a and b (angles of 0 and 180 degrees).
+/// The result is still closed, manifold and of the same genus; intake accepts
+/// it through intrinsic mollification. Requires 0 <= t < 1 and
+/// count <= #F / 8.
+TriMesh insert_degenerate_faces(const TriMesh& mesh, int count, double t, unsigned seed);
 
 }  // namespace surfmap::samples

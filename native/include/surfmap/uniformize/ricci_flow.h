@@ -151,7 +151,10 @@ RicciLinearization ricci_linearization(const Connectivity& mesh,
                                        Background background, RicciScheme scheme,
                                        const Eigen::VectorXd& u);
 
-/// 3D edge lengths of `mesh`, #E in the edge order of `conn`.
+/// 3D edge lengths of `mesh`, #E in the edge order of `conn`, intrinsically
+/// mollified (geometry/mollify.h, default margin): identical to the Euclidean
+/// lengths unless some face is (nearly) degenerate, which then gets a strict
+/// triangle inequality (intake reports it as a note).
 Eigen::VectorXd edge_lengths(const TriMesh& mesh, const Connectivity& conn);
 
 }  // namespace surfmap
