@@ -91,7 +91,7 @@ int main(int argc, char** argv) {
     double e_ref = -1;
     for (const std::string& method : methods) {
       SurfaceMapOptions o;
-      o.homotopy = c.homotopy;
+      o.homotopy.class_index = c.homotopy;
       o.initial_map = parse_enum<InitialMapMethod>(method, "--methods");
       const auto t0 = std::chrono::steady_clock::now();
       SurfaceMapResult m;

@@ -104,19 +104,19 @@ void register_map(CLI::App& app) {
     const IntakeResult src = load_mesh(a->src), dst = load_mesh(a->dst);
     check_same_genus(src.info, dst.info);
     SurfaceMapOptions opt;
-    opt.homotopy = a->homotopy;
+    opt.homotopy.class_index = a->homotopy;
     opt.source_base_vertex = a->base_vertex;
     opt.target_base_vertex = a->target_base_vertex;
-    opt.method = parse_enum<MapMethod>(a->method, "--method");
+    opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
     opt.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
-    opt.tolerance = a->tolerance;
-    opt.max_iterations = a->max_iterations;
-    opt.homotopy_candidates = a->homotopy_candidates;
-    opt.homotopy_full_solves = a->homotopy_full_solves;
+    opt.solve.tolerance = a->tolerance;
+    opt.solve.max_iterations = a->max_iterations;
+    opt.homotopy.candidates = a->homotopy_candidates;
+    opt.homotopy.full_solves = a->homotopy_full_solves;
     opt.initial_map = parse_enum<InitialMapMethod>(a->initial, "--initial-map");
-    opt.homotopy_extra_cuts = a->homotopy_extra_cuts;
-    opt.homotopy_search = !a->no_homotopy_search;
-    opt.homotopy_search_evaluations = a->homotopy_search_evaluations;
+    opt.homotopy.extra_cuts = a->homotopy_extra_cuts;
+    opt.homotopy.search.enabled = !a->no_homotopy_search;
+    opt.homotopy.search.evaluations = a->homotopy_search_evaluations;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     // One line per stage and percent (the relaxation reports every few sweeps).
     std::string last_line;

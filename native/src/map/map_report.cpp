@@ -103,7 +103,7 @@ json to_json(const SurfaceMapResult& r, const SurfaceMapOptions& options) {
   json report = {{"genus", r.genus},
                  {"converged", r.converged},
                  {"iterations", r.iterations},
-                 {"method", enum_name(options.method)},
+                 {"method", enum_name(options.solve.method)},
                  {"initial_map", initial_map_json(r)},
                  {"homotopy", homotopy_json(r)},
                  {"target_lattice",
