@@ -105,8 +105,8 @@ void register_map(CLI::App& app) {
     check_same_genus(src.info, dst.info);
     SurfaceMapOptions opt;
     opt.homotopy.class_index = a->homotopy;
-    opt.source_base_vertex = a->base_vertex;
-    opt.target_base_vertex = a->target_base_vertex;
+    opt.loops.source_base_vertex = a->base_vertex;
+    opt.loops.target_base_vertex = a->target_base_vertex;
     opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
     opt.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
     opt.solve.tolerance = a->tolerance;

@@ -76,8 +76,8 @@ void bind_map(py::module_& m) {
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         SurfaceMapOptions opt;
         opt.homotopy.class_index = homotopy;
-        opt.source_base_vertex = source_base_vertex;
-        opt.target_base_vertex = target_base_vertex;
+        opt.loops.source_base_vertex = source_base_vertex;
+        opt.loops.target_base_vertex = target_base_vertex;
         opt.solve.method = parse_enum<MapMethod>(method, "method");
         if (!(tolerance > 0)) throw InputError("tolerance must be positive");
         if (max_iterations < 1) throw InputError("max_iterations must be at least 1");
@@ -163,9 +163,9 @@ void bind_map(py::module_& m) {
       },
       py::arg("source_V"), py::arg("source_F"), py::arg("target_V"), py::arg("target_F"), py::arg("homotopy") = -1,
       py::arg("source_base_vertex") = -1, py::arg("target_base_vertex") = -1, py::arg("progress") = py::none(),
-      py::arg("landmarks") = py::none(), py::arg("method") = "newton", py::arg("tolerance") = 1e-10,
+      py::arg("landmarks") = py::none(), py::arg("method") = enum_name(MapMethod::Newton), py::arg("tolerance") = 1e-10,
       py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
-      py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = "auto",
+      py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = enum_name(SourceWeights::Automatic),
       py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "

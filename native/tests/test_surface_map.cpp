@@ -598,7 +598,7 @@ TEST(SurfaceMapHighGenus, GenusSixSliverSourceGetsTheSameOptimumFromTwoTargetCut
   const TriMesh b = samples::jitter(samples::n_hole_torus(6, 26, true), 0.1, 6);
   const SurfaceMapResult m1 = surface_map(a, b);
   SurfaceMapOptions o;
-  o.target_base_vertex = 1500;
+  o.loops.target_base_vertex = 1500;
   const SurfaceMapResult m2 = surface_map(a, b, o);
   for (const SurfaceMapResult* m : {&m1, &m2}) {
     expect_valid_map(*m, a, b);

@@ -184,14 +184,21 @@ struct SolveOptions {
   unsigned start_seed = 0;
 };
 
+/// The systems of loops (topology/system_of_loops.h) on both surfaces
+/// (SurfaceMapOptions::loops).
+struct LoopOptions {
+  /// Base vertices of the systems of loops (default -1: automatic).
+  int source_base_vertex = -1, target_base_vertex = -1;
+};
+
 /// Options of surface_map, nested by concern: `homotopy` (classes listed,
-/// ranked, searched), `solve` (the harmonic solve), then the initial map,
+/// ranked, searched), `solve` (the harmonic solve), `loops` (their base
+/// vertices), then the initial map,
 /// the weights, the landmarks, threads and callbacks.
 struct SurfaceMapOptions {
   HomotopyOptions homotopy;
   SolveOptions solve;
-  /// Base vertices of the systems of loops (-1: automatic).
-  int source_base_vertex = -1, target_base_vertex = -1;
+  LoopOptions loops;
   /// Genus >= 2: how the initial map is built (default CutGraph, with the
   /// polygon and the uniform-weight map as fallbacks).
   InitialMapMethod initial_map = InitialMapMethod::CutGraph;

@@ -34,7 +34,7 @@ CutPrep SourceCuts::build(int base) const {
   CutPrep cp;
   const int n2 = 2 * genus_;
   SurfaceMapOptions o2 = options_;
-  o2.source_base_vertex = base;
+  o2.loops.source_base_vertex = base;
   SystemOfLoops sl2;
   try {
     sl2 = source_loops(source_, o2);
