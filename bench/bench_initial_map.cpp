@@ -7,7 +7,7 @@
 // pipeline's stage time hides it), the initial and final energies, and the
 // final map's flips. Not a test: a table.
 //
-//   build/bin/bench_initial_map [--sizes 50000] [--no-slivers] [--methods cut-graph,polygon,uniform]
+//   build/bin/bench_initial_map [--sizes 50000] [--no-slivers] [--methods cut_graph,polygon,uniform]
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "surfmap/error.h"
+#include "surfmap/map/map_option_names.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/samples/shapes.h"
 
@@ -42,7 +43,7 @@ std::vector<std::string> split(const std::string& s) {
 int main(int argc, char** argv) {
   std::vector<int> sizes;
   bool slivers = true;
-  std::vector<std::string> methods{"cut-graph", "polygon"};
+  std::vector<std::string> methods{"cut_graph", "polygon"};
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--sizes" && i + 1 < argc) {
@@ -51,8 +52,16 @@ int main(int argc, char** argv) {
       slivers = false;
     } else if (a == "--methods" && i + 1 < argc) {
       methods = split(argv[++i]);
+      for (const std::string& m : methods) {
+        try {
+          parse_enum<InitialMapMethod>(m, "--methods");
+        } catch (const InputError& e) {
+          std::fprintf(stderr, "%s\n", e.what());
+          return 2;
+        }
+      }
     } else {
-      std::fprintf(stderr, "usage: %s [--sizes a,b] [--no-slivers] [--methods cut-graph,polygon,uniform]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--sizes a,b] [--no-slivers] [--methods cut_graph,polygon,uniform]\n", argv[0]);
       return 2;
     }
   }
@@ -82,10 +91,8 @@ int main(int argc, char** argv) {
     double e_ref = -1;
     for (const std::string& method : methods) {
       SurfaceMapOptions o;
-      o.homotopy = c.homotopy;
-      o.initial_map = method == "uniform"   ? InitialMapMethod::UniformHarmonic
-                      : method == "polygon" ? InitialMapMethod::Polygon
-                                            : InitialMapMethod::CutGraph;
+      o.homotopy.class_index = c.homotopy;
+      o.initial_map = parse_enum<InitialMapMethod>(method, "--methods");
       const auto t0 = std::chrono::steady_clock::now();
       SurfaceMapResult m;
       try {
@@ -106,7 +113,7 @@ int main(int argc, char** argv) {
                   c.a.num_vertices(), method.c_str(), im.construction.substr(0, 36).c_str(), cgf.c_str(), pf.c_str(),
                   im.polygon_repaired_vertices, im.time_s, flat, m.initial_energy, m.final_energy, m.flipped_triangles,
                   total, std::abs(m.final_energy - e_ref) > 1e-8 * e_ref ? "  (E differs!)" : "");
-      if (im.construction != "cut-graph polygon" && method == "cut-graph")
+      if (im.construction != "cut-graph polygon" && method == "cut_graph")
         std::printf("%-36s %6s %-10s   cut graph: %s\n", "", "", "", im.cut_graph_status.c_str());
       std::fflush(stdout);
     }

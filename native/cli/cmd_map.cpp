@@ -14,6 +14,8 @@
 #include "commands.h"
 #include "map_open.h"  // open surfaces (issue 16)
 #include "surfmap/error.h"
+#include "surfmap/map/map_option_names.h"
+#include "surfmap/map/map_report.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/intake.h"
 #include "surfmap/mesh/mesh_io.h"
@@ -51,8 +53,8 @@ std::vector<std::pair<int, int>> read_landmarks(const std::string& path) {
 void register_map(CLI::App& app) {
   auto* cmd = app.add_subcommand("map", "Globally optimal map from SRC onto DST (same genus)");
   struct Args {
-    std::string src, dst, out, report, correspondence, method = "newton", landmarks, initial = "cut-graph", initial_out,
-        source_weights = "auto";
+    std::string src, dst, out, report, correspondence, method = enum_name(MapMethod::Newton), landmarks,
+        initial = enum_name(InitialMapMethod::CutGraph), initial_out, source_weights = enum_name(SourceWeights::Automatic);
     int homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
     double tolerance = 1e-10;
@@ -70,11 +72,11 @@ void register_map(CLI::App& app) {
   cmd->add_option("--base-vertex", a->base_vertex, "Base vertex of the source's system of loops");
   cmd->add_option("--target-base-vertex", a->target_base_vertex, "Base vertex of the target's system of loops");
   cmd->add_option("--method", a->method, "Optimiser of the harmonic energy (genus >= 2)")
-      ->check(CLI::IsMember({"newton", "relaxation"}));
+      ->check(CLI::IsMember(enum_name_list<MapMethod>()));
   cmd->add_option("--source-weights", a->source_weights,
                   "Genus >= 1: energy weights on the source: auto (intrinsic Delaunay cotangents, positive weights on the "
                   "source's own edges if its faces' images fold), intrinsic, own")
-      ->check(CLI::IsMember({"auto", "intrinsic", "own"}));
+      ->check(CLI::IsMember(enum_name_list<SourceWeights>()));
   cmd->add_option("--landmarks", a->landmarks,
                   "PAIRS.txt: one 'source_vertex target_vertex' pair per line (# starts a comment), held fixed");
   cmd->add_option("--tolerance", a->tolerance, "Relative gradient tolerance of the harmonic solve")
@@ -86,10 +88,10 @@ void register_map(CLI::App& app) {
   cmd->add_option("--homotopy-full-solves", a->homotopy_full_solves,
                   "Genus >= 2: most candidates solved at full resolution after ranking all on a coarse copy of the source (the best, plus runners-up within 10%)");
   cmd->add_option("--initial-map", a->initial,
-                  "Genus >= 2 initial map: cut-graph (source disk cut along its own edges onto the convex polygon of "
+                  "Genus >= 2 initial map: cut_graph (source disk cut along its own edges onto the convex polygon of "
                   "its cut graph's harmonic map; else as polygon), polygon (source disk onto the target's geodesic "
                   "polygon of the source's loops when convex, else uniform) or uniform (the uniform-weight harmonic map)")
-      ->check(CLI::IsMember({"cut-graph", "polygon", "uniform"}));
+      ->check(CLI::IsMember(enum_name_list<InitialMapMethod>()));
   cmd->add_option("--initial-out", a->initial_out,
                   "INITIAL.obj: the source's connectivity at the initial map's positions on the target (genus >= 1)");
   cmd->add_option("--homotopy-extra-cuts", a->homotopy_extra_cuts,
@@ -108,23 +110,19 @@ void register_map(CLI::App& app) {
     const IntakeResult src = load_mesh(a->src), dst = load_mesh(a->dst);
     check_same_genus(src.info, dst.info);
     SurfaceMapOptions opt;
-    opt.homotopy = a->homotopy;
-    opt.source_base_vertex = a->base_vertex;
-    opt.target_base_vertex = a->target_base_vertex;
-    opt.method = a->method == "relaxation" ? MapMethod::Relaxation : MapMethod::Newton;
-    opt.source_weights = a->source_weights == "own"         ? SourceWeights::OwnEdges
-                         : a->source_weights == "intrinsic" ? SourceWeights::IntrinsicDelaunay
-                                                            : SourceWeights::Automatic;
-    opt.tolerance = a->tolerance;
-    opt.max_iterations = a->max_iterations;
-    opt.homotopy_candidates = a->homotopy_candidates;
-    opt.homotopy_full_solves = a->homotopy_full_solves;
-    opt.initial_map = a->initial == "uniform"   ? InitialMapMethod::UniformHarmonic
-                      : a->initial == "polygon" ? InitialMapMethod::Polygon
-                                                : InitialMapMethod::CutGraph;
-    opt.homotopy_extra_cuts = a->homotopy_extra_cuts;
-    opt.homotopy_search = !a->no_homotopy_search;
-    opt.homotopy_search_evaluations = a->homotopy_search_evaluations;
+    opt.homotopy.class_index = a->homotopy;
+    opt.loops.source_base_vertex = a->base_vertex;
+    opt.loops.target_base_vertex = a->target_base_vertex;
+    opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
+    opt.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
+    opt.solve.tolerance = a->tolerance;
+    opt.solve.max_iterations = a->max_iterations;
+    opt.homotopy.candidates = a->homotopy_candidates;
+    opt.homotopy.full_solves = a->homotopy_full_solves;
+    opt.initial_map = parse_enum<InitialMapMethod>(a->initial, "--initial-map");
+    opt.homotopy.extra_cuts = a->homotopy_extra_cuts;
+    opt.homotopy.search.enabled = !a->no_homotopy_search;
+    opt.homotopy.search.evaluations = a->homotopy_search_evaluations;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     // One line per stage and percent (the relaxation reports every few sweeps).
     std::string last_line;
@@ -140,90 +138,15 @@ void register_map(CLI::App& app) {
 
     RowMatrixX3d morph(src.mesh.num_vertices(), 3);
     for (int i = 0; i < morph.rows(); ++i) morph.row(i) = m.forward[i].position.transpose();
-    nlohmann::json candidates = nlohmann::json::array();
-    for (size_t i = 0; i < m.candidates.size(); ++i)
-      candidates.push_back({{"index", i}, {"description", m.candidates[i].description}, {"energy", m.candidates[i].energy},
-                            {"solved", m.candidates[i].solved}, {"coarse_energy", m.candidates[i].coarse_energy},
-                            {"landmark_energy", m.candidates[i].landmark_energy},
-                            {"landmark_lower_bound", m.candidates[i].landmark_lower_bound},
-                            {"matrix", {m.candidates[i].matrix[0], m.candidates[i].matrix[1], m.candidates[i].matrix[2],
-                                        m.candidates[i].matrix[3]}}});
-    nlohmann::json times = nlohmann::json::object();
-    for (const auto& [stage, seconds] : m.stage_times) times[stage] = seconds;
-    times["total"] = m.total_time;
+    // The report: map/map_report.h (the same keys as the Python result),
+    // plus the file names and the intake notes of both meshes.
     nlohmann::json notes = nlohmann::json::array();
     for (const auto* r : {&src, &dst})
       for (const auto& n : r->info.notes) notes.push_back((r == &src ? "source: " : "target: ") + n);
-    const HomotopySearchInfo& hs = m.homotopy_search;
-    nlohmann::json evaluated = nlohmann::json::array();
-    for (size_t k = 0; k < hs.evaluated_moves.size(); ++k)
-      evaluated.push_back({{"step", hs.evaluated_step[k]},
-                           {"move", hs.evaluated_moves[k]},
-                           {"screen", hs.evaluated_screen[k]},
-                           {"energy", hs.evaluated_energy[k]}});
-    const nlohmann::json search = {{"run", hs.run},
-                                   {"start_candidate", hs.start_candidate},
-                                   {"start_energy", hs.start_energy},
-                                   {"energy", hs.energy},
-                                   {"moves", hs.moves},
-                                   {"energies", hs.energies},
-                                   {"evaluations", hs.evaluations},
-                                   {"screened", hs.screened},
-                                   {"stop_reason", hs.stop_reason},
-                                   {"time_s", hs.time_s},
-                                   {"found_candidate", hs.found_candidate},
-                                   {"cut_classes", hs.cut_classes},
-                                   {"cuts_time_s", hs.cuts_time_s},
-                                   {"evaluated", evaluated}};
-    const nlohmann::json report = {
-        {"source", a->src},
-        {"target", a->dst},
-        {"genus", m.genus},
-        {"converged", m.converged},
-        {"iterations", m.iterations},
-        {"energy", {{"initial", m.initial_energy}, {"final", m.final_energy}, {"history", m.energy_history}}},
-        {"distortion", {{"mean", m.mean_dilatation}, {"max", m.max_dilatation}}},
-        {"initial_distortion", {{"mean", m.initial_mean_dilatation}, {"max", m.initial_max_dilatation}}},
-        {"method", a->method},
-        {"landmarks", opt.landmarks.size()},
-        {"landmark_error", m.max_landmark_error},
-        {"landmark_rings", m.landmark_rings},
-        {"landmark_method", m.landmark_method},
-        {"landmark_solves", m.landmark_solves},
-        {"landmark_steps", m.landmark_steps},
-        {"landmark_held_vertices", m.landmark_held_vertices},
-        {"repaired_vertices", m.repaired_vertices},
-        {"flipped_triangles", m.flipped_triangles},
-        {"degenerate_triangles", m.degenerate_triangles},
-        {"intrinsic_flipped_triangles", m.intrinsic_flipped_triangles},
-        {"initial_flipped_triangles", m.initial_flipped_triangles},
-        {"initial_map",
-         {{"construction", m.initial_map.construction},
-          {"cut_graph", {{"status", m.initial_map.cut_graph_status},
-                         {"branch_vertices", m.initial_map.cut_graph_branch_vertices},
-                         {"sides", m.initial_map.cut_graph_sides},
-                         {"chords_rerouted", m.initial_map.cut_graph_chords_rerouted},
-                         {"min_turn", m.initial_map.cut_graph_min_turn},
-                         {"flipped", m.initial_map.cut_graph_flipped},
-                         {"degenerate", m.initial_map.cut_graph_degenerate},
-                         {"time_s", m.initial_map.cut_graph_time_s}}},
-          {"polygon", {{"status", m.initial_map.polygon_status},
-                       {"convex", m.initial_map.polygon_convex},
-                       {"min_turn", m.initial_map.polygon_min_turn},
-                       {"perimeter", m.initial_map.polygon_perimeter},
-                       {"chords_split", m.initial_map.polygon_chords_split},
-                       {"flipped", m.initial_map.polygon_flipped},
-                       {"repaired_vertices", m.initial_map.polygon_repaired_vertices},
-                       {"time_s", m.initial_map.polygon_time_s}}},
-          {"iterations", m.initial_map.iterations},
-          {"time_s", m.initial_map.time_s},
-          {"located", !m.initial_forward.empty()}}},
-        {"target_refinement_splits", m.target_refinement_splits},
-        {"source_weights", m.source_weights},
-        {"homotopy", {{"chosen", m.chosen_candidate}, {"candidates", candidates}, {"search", search}}},
-        {"target_lattice", {{m.target_omega1.real(), m.target_omega1.imag()}, {m.target_omega2.real(), m.target_omega2.imag()}}},
-        {"time_s", times},
-        {"notes", notes}};
+    nlohmann::json report = to_json(m, opt);
+    report["source"] = a->src;
+    report["target"] = a->dst;
+    report["notes"] = notes;
     // Everything is computed before anything is written, and each file is
     // written atomically: a failure leaves no half-written output.
     std::string corr;

@@ -5,6 +5,8 @@
 #include "bindings.h"
 #include "convert.h"
 #include "surfmap/error.h"
+#include "surfmap/map/map_option_names.h"
+#include "surfmap/map/map_report.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/intake.h"
 
@@ -28,6 +30,31 @@ py::dict points_to_dict(const std::vector<PointOnSurface>& pts) {
   return d;
 }
 
+// The report JSON (map/map_report.h) as Python objects: objects -> dict,
+// arrays -> list; numbers keep their value (nan and inf included, which a
+// round trip through json.dumps would turn into null).
+py::object json_to_python(const nlohmann::json& j) {
+  switch (j.type()) {
+    case nlohmann::json::value_t::null: return py::none();
+    case nlohmann::json::value_t::boolean: return py::bool_(j.get<bool>());
+    case nlohmann::json::value_t::number_integer: return py::int_(j.get<long long>());
+    case nlohmann::json::value_t::number_unsigned: return py::int_(j.get<unsigned long long>());
+    case nlohmann::json::value_t::number_float: return py::float_(j.get<double>());
+    case nlohmann::json::value_t::string: return py::str(j.get_ref<const std::string&>());
+    case nlohmann::json::value_t::array: {
+      py::list out;
+      for (const auto& item : j) out.append(json_to_python(item));
+      return std::move(out);
+    }
+    case nlohmann::json::value_t::object: {
+      py::dict out;
+      for (const auto& [key, item] : j.items()) out[py::str(key)] = json_to_python(item);
+      return std::move(out);
+    }
+    default: throw SolveError("report: a JSON value of unexpected type");
+  }
+}
+
 }  // namespace
 
 void bind_map(py::module_& m) {
@@ -48,31 +75,23 @@ void bind_map(py::module_& m) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         SurfaceMapOptions opt;
-        opt.homotopy = homotopy;
-        opt.source_base_vertex = source_base_vertex;
-        opt.target_base_vertex = target_base_vertex;
-        if (method == "newton") opt.method = MapMethod::Newton;
-        else if (method == "relaxation") opt.method = MapMethod::Relaxation;
-        else throw InputError("method must be 'newton' or 'relaxation', not '" + method + "'");
+        opt.homotopy.class_index = homotopy;
+        opt.loops.source_base_vertex = source_base_vertex;
+        opt.loops.target_base_vertex = target_base_vertex;
+        opt.solve.method = parse_enum<MapMethod>(method, "method");
         if (!(tolerance > 0)) throw InputError("tolerance must be positive");
         if (max_iterations < 1) throw InputError("max_iterations must be at least 1");
-        opt.tolerance = tolerance;
-        opt.max_iterations = max_iterations;
+        opt.solve.tolerance = tolerance;
+        opt.solve.max_iterations = max_iterations;
         if (homotopy_candidates < 1) throw InputError("homotopy_candidates must be at least 1");
         if (homotopy_full_solves < 1) throw InputError("homotopy_full_solves must be at least 1");
-        opt.homotopy_candidates = homotopy_candidates;
-        opt.homotopy_full_solves = homotopy_full_solves;
+        opt.homotopy.candidates = homotopy_candidates;
+        opt.homotopy.full_solves = homotopy_full_solves;
         if (homotopy_search_evaluations < 1) throw InputError("homotopy_search_evaluations must be at least 1");
-        opt.homotopy_search = homotopy_search;
-        opt.homotopy_search_evaluations = homotopy_search_evaluations;
-        if (initial_map == "cut_graph") opt.initial_map = InitialMapMethod::CutGraph;
-        else if (initial_map == "polygon") opt.initial_map = InitialMapMethod::Polygon;
-        else if (initial_map == "uniform") opt.initial_map = InitialMapMethod::UniformHarmonic;
-        else throw InputError("initial_map must be 'cut_graph', 'polygon' or 'uniform', not '" + initial_map + "'");
-        if (source_weights == "auto") opt.source_weights = SourceWeights::Automatic;
-        else if (source_weights == "intrinsic") opt.source_weights = SourceWeights::IntrinsicDelaunay;
-        else if (source_weights == "own") opt.source_weights = SourceWeights::OwnEdges;
-        else throw InputError("source_weights must be 'auto', 'intrinsic' or 'own', not '" + source_weights + "'");
+        opt.homotopy.search.enabled = homotopy_search;
+        opt.homotopy.search.evaluations = homotopy_search_evaluations;
+        opt.initial_map = parse_enum<InitialMapMethod>(initial_map, "initial_map");
+        opt.source_weights = parse_enum<SourceWeights>(source_weights, "source_weights");
         if (!landmarks.is_none()) {
           const auto pairs = py::cast<std::vector<std::vector<long long>>>(
               py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
@@ -127,87 +146,26 @@ void bind_map(py::module_& m) {
           if (callback_error) throw std::move(*callback_error);
           throw;
         }
-        py::dict d;
-        d["genus"] = r.genus;
-        d["converged"] = r.converged;
-        d["iterations"] = r.iterations;
-        d["energy"] = py::dict(py::arg("initial") = r.initial_energy, py::arg("final") = r.final_energy,
-                               py::arg("history") = r.energy_history);
-        d["distortion"] = py::dict(py::arg("mean") = r.mean_dilatation, py::arg("max") = r.max_dilatation,
-                                   py::arg("per_face") = to_numpy(r.dilatation));
-        d["initial_distortion"] =
-            py::dict(py::arg("mean") = r.initial_mean_dilatation, py::arg("max") = r.initial_max_dilatation,
-                     py::arg("per_face") = to_numpy(r.initial_dilatation));
-        d["flipped_triangles"] = r.flipped_triangles;
-        d["degenerate_triangles"] = r.degenerate_triangles;
-        d["initial_flipped_triangles"] = r.initial_flipped_triangles;
-        d["intrinsic_flipped_triangles"] = r.intrinsic_flipped_triangles;
-        d["target_refinement_splits"] = r.target_refinement_splits;
-        d["source_weights"] = r.source_weights;
-        d["landmark_error"] = r.max_landmark_error;
-        d["landmark_rings"] = r.landmark_rings;
-        d["landmark_method"] = r.landmark_method;
-        d["landmark_solves"] = r.landmark_solves;
-        d["landmark_steps"] = r.landmark_steps;
-        d["landmark_held_vertices"] = r.landmark_held_vertices;
-        d["repaired_vertices"] = r.repaired_vertices;
+        // The report's keys and values (map/map_report.h, as the CLI's
+        // --report file), plus the arrays as numpy arrays.
+        py::dict d = json_to_python(to_json(r, opt));
+        d["distortion"].cast<py::dict>()["per_face"] = to_numpy(r.dilatation);
+        d["initial_distortion"].cast<py::dict>()["per_face"] = to_numpy(r.initial_dilatation);
         d["forward"] = points_to_dict(r.forward);
         d["inverse"] = points_to_dict(r.inverse);
-        const InitialMapInfo& im = r.initial_map;
-        d["initial_map"] = py::dict(
-            py::arg("construction") = im.construction,
-            py::arg("cut_graph") = py::dict(py::arg("status") = im.cut_graph_status,
-                                            py::arg("branch_vertices") = im.cut_graph_branch_vertices,
-                                            py::arg("sides") = im.cut_graph_sides,
-                                            py::arg("chords_rerouted") = im.cut_graph_chords_rerouted,
-                                            py::arg("min_turn") = im.cut_graph_min_turn,
-                                            py::arg("flipped") = im.cut_graph_flipped,
-                                            py::arg("degenerate") = im.cut_graph_degenerate,
-                                            py::arg("time_s") = im.cut_graph_time_s),
-            py::arg("polygon") = py::dict(py::arg("status") = im.polygon_status, py::arg("convex") = im.polygon_convex,
-                                          py::arg("min_turn") = im.polygon_min_turn,
-                                          py::arg("perimeter") = im.polygon_perimeter,
-                                          py::arg("chords_split") = im.polygon_chords_split,
-                                          py::arg("flipped") = im.polygon_flipped,
-                                          py::arg("repaired_vertices") = im.polygon_repaired_vertices,
-                                          py::arg("time_s") = im.polygon_time_s),
-            py::arg("iterations") = im.iterations, py::arg("time_s") = im.time_s);
         // The initial map located on the target (None for genus 0 or when it
         // could not be located).
         d["initial_forward"] = r.initial_forward.empty() ? py::object(py::none()) : py::object(points_to_dict(r.initial_forward));
         d["initial_inverse"] = r.initial_inverse.empty() ? py::object(py::none()) : py::object(points_to_dict(r.initial_inverse));
-        py::list cands;
-        for (const auto& c : r.candidates)
-          cands.append(py::dict(py::arg("description") = c.description, py::arg("energy") = c.energy, py::arg("solved") = c.solved,
-                                py::arg("coarse_energy") = c.coarse_energy,
-                                py::arg("landmark_energy") = c.landmark_energy,
-                                py::arg("landmark_lower_bound") = c.landmark_lower_bound, py::arg("matrix") = std::vector<int>(c.matrix, c.matrix + 4)));
-        const HomotopySearchInfo& hs = r.homotopy_search;
-        py::dict search(py::arg("run") = hs.run, py::arg("start_candidate") = hs.start_candidate,
-                        py::arg("start_energy") = hs.start_energy, py::arg("energy") = hs.energy,
-                        py::arg("moves") = hs.moves, py::arg("energies") = hs.energies,
-                        py::arg("evaluations") = hs.evaluations, py::arg("screened") = hs.screened,
-                        py::arg("evaluated") = py::dict(py::arg("move") = hs.evaluated_moves, py::arg("step") = hs.evaluated_step,
-                                                        py::arg("screen") = hs.evaluated_screen,
-                                                        py::arg("energy") = hs.evaluated_energy),
-                        py::arg("stop_reason") = hs.stop_reason, py::arg("time_s") = hs.time_s,
-                        py::arg("found_candidate") = hs.found_candidate, py::arg("cut_classes") = hs.cut_classes,
-                        py::arg("cuts_time_s") = hs.cuts_time_s);
-        d["homotopy"] = py::dict(py::arg("chosen") = r.chosen_candidate, py::arg("candidates") = cands,
-                                 py::arg("search") = search);
-        py::dict times;
-        for (const auto& [stage, s] : r.stage_times) times[py::str(stage)] = s;
-        times["total"] = r.total_time;
-        d["time_s"] = times;
         d["source_flipped"] = src.flipped;
         d["target_flipped"] = dst.flipped;
         return d;
       },
       py::arg("source_V"), py::arg("source_F"), py::arg("target_V"), py::arg("target_F"), py::arg("homotopy") = -1,
       py::arg("source_base_vertex") = -1, py::arg("target_base_vertex") = -1, py::arg("progress") = py::none(),
-      py::arg("landmarks") = py::none(), py::arg("method") = "newton", py::arg("tolerance") = 1e-10,
+      py::arg("landmarks") = py::none(), py::arg("method") = enum_name(MapMethod::Newton), py::arg("tolerance") = 1e-10,
       py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
-      py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = "cut_graph", py::arg("source_weights") = "auto",
+      py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = enum_name(SourceWeights::Automatic),
       py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "

@@ -92,14 +92,14 @@ TEST(CoarseSource, TooSmallASourceIsRefusedWithAReason) {
 
 // The ranking on the coarse copy (map/hyperbolic_map.cpp) against the
 // exhaustive one: every usable class solved at full resolution
-// (homotopy_full_solves = 0). The default must pick the same class with the
+// (homotopy.full_solves = 0). The default must pick the same class with the
 // same optimum while solving at most two classes at full resolution, and the
 // coarse estimates must be close enough to the full-resolution energies for
 // the 10% margin to be a real safety factor (measured on the chosen classes:
 // within 4%).
 void expect_coarse_ranking_matches_exhaustive(const TriMesh& a, const TriMesh& b) {
   SurfaceMapOptions all;
-  all.homotopy_full_solves = 0;
+  all.homotopy.full_solves = 0;
   const SurfaceMapResult ex = surface_map(a, b, all);
   const SurfaceMapResult m = surface_map(a, b);
   ASSERT_EQ(m.candidates.size(), ex.candidates.size());

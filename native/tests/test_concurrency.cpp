@@ -100,7 +100,7 @@ TEST(SurfaceMapConcurrency, CancellingDuringParallelSectionsThrowsCancelled) {
   // solve, while the initial map is being built on the other thread.
   SurfaceMapOptions o2;
   o2.threads = 2;
-  o2.homotopy = 0;
+  o2.homotopy.class_index = 0;
   o2.solve_progress = [](int it, double, double) { return it < 1; };
   EXPECT_THROW(surface_map(p.a, p.b, o2), Cancelled);
 }

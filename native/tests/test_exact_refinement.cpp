@@ -155,7 +155,7 @@ TEST(ExactRefinement, MapOntoAnInfeasibleTargetStaysOnTheUsersMesh) {
   const TriMesh s = samples::n_hole_torus(3, 32, true);
   const TriMesh t = samples::n_hole_torus(3, 32, false);
   SurfaceMapOptions o;
-  o.homotopy_candidates = 1;  // the overlay class (more candidates cost minutes at genus 3 in the twist reduction)
+  o.homotopy.candidates = 1;  // the overlay class (more candidates cost minutes at genus 3 in the twist reduction)
   const SurfaceMapResult m = surface_map(s, t, o);
   EXPECT_GT(m.target_refinement_splits, 0);
   EXPECT_EQ(m.flipped_triangles, 0);
@@ -195,7 +195,7 @@ TEST(SourceWeights, FoldingSourceFallsBackToPositiveOwnEdgeWeights) {
   const TriMesh s = with_caps(samples::n_hole_torus(2, 32, true), 5, 0.002);
   const TriMesh t = samples::amphora(36, true);
   SurfaceMapOptions o;
-  o.homotopy_candidates = 1;
+  o.homotopy.candidates = 1;
   o.source_weights = SourceWeights::IntrinsicDelaunay;
   try {
     surface_map(s, t, o);
@@ -227,7 +227,7 @@ TEST(SourceWeights, CleanSourceKeepsIntrinsicDelaunayWeights) {
   const TriMesh s = samples::n_hole_torus(2, 32, true);
   const TriMesh t = samples::amphora(36, true);
   SurfaceMapOptions o;
-  o.homotopy_candidates = 1;
+  o.homotopy.candidates = 1;
   const SurfaceMapResult m = surface_map(s, t, o);
   EXPECT_EQ(m.source_weights, "intrinsic Delaunay cotangent");
   EXPECT_EQ(m.flipped_triangles, 0);

@@ -384,7 +384,7 @@ TEST(HyperbolicInitialMap, UniformWeightMapOfASliverSourceIsAnEmbedding) {
   const Connectivity c(a.F, a.num_vertices());
   int seen = 0;
   SurfaceMapOptions o;
-  o.homotopy = 0;
+  o.homotopy.class_index = 0;
   // Only the class data are needed: the pipeline is cancelled after the check.
   o.progress = [&](const std::string&, double) { return seen == 0; };
   testing::MapHooks hooks;
@@ -411,7 +411,7 @@ TEST(SurfaceMapInitialMap, GenusTwoBeforeFiguresAndRelaxationOnThePipelinesProbl
   const TriMesh a = samples::n_hole_torus(2, 32, true), b = samples::vase(34, true);
   HarmonicProblem p;
   SurfaceMapOptions o;
-  o.homotopy = 0;  // any class will do; skips the ranking's full solves
+  o.homotopy.class_index = 0;  // any class will do; skips the ranking's full solves
   testing::MapHooks hooks;
   hooks.inspect_problem = [&](const HarmonicProblem& q) { p = q; };
   const SurfaceMapResult m = surface_map(a, b, o, hooks);
@@ -453,9 +453,9 @@ TEST(SurfaceMapInitialMap, GenusTwoBeforeFiguresAndRelaxationOnThePipelinesProbl
   EXPECT_LT(r.energy - m.final_energy, 0.5 * (m.initial_energy - m.final_energy));
   // Relaxation through surface_map with too few sweeps is a failure, not a result.
   SurfaceMapOptions o2;
-  o2.homotopy = 0;
-  o2.method = MapMethod::Relaxation;
-  o2.max_iterations = 20;
+  o2.homotopy.class_index = 0;
+  o2.solve.method = MapMethod::Relaxation;
+  o2.solve.max_iterations = 20;
   try {
     surface_map(a, b, o2);
     ADD_FAILURE() << "20 relaxation sweeps cannot reach the tolerance";
@@ -467,7 +467,7 @@ TEST(SurfaceMapInitialMap, GenusTwoBeforeFiguresAndRelaxationOnThePipelinesProbl
 TEST(SurfaceMapInitialMap, SliverSourceInitialMapHasNoFlips) {
   const TriMesh a = samples::n_hole_torus(2, 40, false), b = samples::amphora(34, true);
   SurfaceMapOptions o;
-  o.homotopy = 0;
+  o.homotopy.class_index = 0;
   const SurfaceMapResult m = surface_map(a, b, o);
   EXPECT_EQ(m.initial_flipped_triangles, 0);
   EXPECT_EQ(static_cast<int>(m.initial_dilatation.size()), a.num_faces());
@@ -478,7 +478,7 @@ TEST(SurfaceMapInitialMap, GenusOneRelaxationOptionKeepsTheExactSolveAndTheIniti
   const TriMesh a = samples::torus_of_revolution(1.0, 0.5, 48, 24), b = samples::torus_of_revolution(1.5, 0.5, 60, 24, 1);
   SurfaceMapOptions o;
   const SurfaceMapResult newton = surface_map(a, b, o);
-  o.method = MapMethod::Relaxation;
+  o.solve.method = MapMethod::Relaxation;
   const SurfaceMapResult relax = surface_map(a, b, o);
   EXPECT_EQ(relax.final_energy, newton.final_energy);
   ASSERT_EQ(static_cast<int>(relax.initial_dilatation.size()), a.num_faces());

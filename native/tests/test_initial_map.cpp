@@ -35,7 +35,7 @@ struct Seen {
 
 SurfaceMapResult map_and_inspect(const TriMesh& a, const TriMesh& b, InitialMapMethod method, Seen* seen) {
   SurfaceMapOptions o;
-  o.homotopy = 0;  // the overlay class (identity of a remeshed copy): no ranking needed
+  o.homotopy.class_index = 0;  // the overlay class (identity of a remeshed copy): no ranking needed
   o.initial_map = method;
   testing::MapHooks hooks;
   hooks.inspect_initial_map = [&](const InitialMapInspection& in) {
@@ -143,7 +143,7 @@ TEST(PolygonInitialMap, IsometryInvariantFlatteningFlipsNoFaceWhereKleinTutteDoe
   int flips[2] = {-1, -1};
   PolygonInitialMapResult kept;
   SurfaceMapOptions o;
-  o.homotopy = 0;
+  o.homotopy.class_index = 0;
   o.initial_map = InitialMapMethod::Polygon;
   testing::MapHooks hooks;
   hooks.inspect_initial_map = [&](const InitialMapInspection& in) {
@@ -266,7 +266,7 @@ TEST(CutGraphInitialMap, ChordOfASideIsReroutedIntoTheCutGraph) {
   }
   int seen = 0;
   SurfaceMapOptions o;
-  o.homotopy = 0;
+  o.homotopy.class_index = 0;
   o.progress = [&](const std::string&, double) { return seen == 0; };
   testing::MapHooks hooks;
   hooks.inspect_initial_map = [&](const InitialMapInspection& in) {

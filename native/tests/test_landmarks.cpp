@@ -190,7 +190,7 @@ TEST(LandmarksHyperbolic, FarLandmarkStaysBijectiveByBarrierContinuation) {
   ASSERT_GT(path.size(), 21u);
   SurfaceMapOptions o;
   o.landmarks = {{s, path[20]}};
-  o.homotopy = free.chosen_candidate;
+  o.homotopy.class_index = free.chosen_candidate;
   EXPECT_GT((b.V.row(path[20]).transpose() - free.forward[s].position).norm(), 20 * mean_edge(b));
   const SurfaceMapResult m = surface_map(a, b, o);
   expect_landmarks_hit(m, a, b, o);
@@ -228,7 +228,7 @@ TEST(LandmarksHyperbolic, SwappedLandmarksAreHeldBijectively) {
   ASSERT_NE(t1, t2);
   SurfaceMapOptions o;
   o.landmarks = {{s, t2}, {s2, t1}};
-  o.homotopy = free.chosen_candidate;
+  o.homotopy.class_index = free.chosen_candidate;
   const SurfaceMapResult m = surface_map(a, b, o);
   expect_landmarks_hit(m, a, b, o);
   EXPECT_EQ(m.landmark_method, "barrier continuation");
@@ -313,9 +313,9 @@ TEST(LandmarksHyperbolic, RelaxationHoldsThemLikeNewton) {
     o.landmarks.emplace_back(p, nearest_vertex(b, free.forward[p].position));
   const SurfaceMapResult newton = surface_map(a, b, o);
   expect_landmarks_hit(newton, a, b, o);
-  o.method = MapMethod::Relaxation;
-  o.tolerance = 1e-7;
-  o.max_iterations = 100000;
+  o.solve.method = MapMethod::Relaxation;
+  o.solve.tolerance = 1e-7;
+  o.solve.max_iterations = 100000;
   const SurfaceMapResult relax = surface_map(a, b, o);
   expect_landmarks_hit(relax, a, b, o);
   EXPECT_TRUE(relax.converged);

@@ -44,10 +44,10 @@ int far_vertex(const TriMesh& mesh) {
 
 void expect_same_map_from_different_cuts(const TriMesh& a, const TriMesh& b) {
   SurfaceMapOptions o1, o2;
-  o1.source_base_vertex = 0;
-  o1.target_base_vertex = 0;
-  o2.source_base_vertex = far_vertex(a);
-  o2.target_base_vertex = far_vertex(b);
+  o1.loops.source_base_vertex = 0;
+  o1.loops.target_base_vertex = 0;
+  o2.loops.source_base_vertex = far_vertex(a);
+  o2.loops.target_base_vertex = far_vertex(b);
   const SurfaceMapResult m1 = surface_map(a, b, o1), m2 = surface_map(a, b, o2);
   ASSERT_TRUE(m1.converged);
   ASSERT_TRUE(m2.converged);

@@ -177,8 +177,8 @@ TEST(NewtonStarts, TwistedClassReachesTheSameOptimumFromEveryStart) {
   // every vertex at the origin (no coarse copy).
   const double tol = 1e-12;
   SurfaceMapOptions coarse, origin;
-  for (SurfaceMapOptions* o : {&coarse, &origin}) o->homotopy = k, o->tolerance = tol;
-  origin.homotopy_coarse_vertices = 0;
+  for (SurfaceMapOptions* o : {&coarse, &origin}) o->homotopy.class_index = k, o->solve.tolerance = tol;
+  origin.homotopy.coarse_vertices = 0;
   // The same class's problem (edges in the initial map's charts, as side
   // words) solved directly, inside the callback (its reduce_point is the
   // pipeline's, valid only there), from four starts: the initial map, every

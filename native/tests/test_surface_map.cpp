@@ -147,7 +147,7 @@ TEST(SurfaceMap, CappedTorusFallsBackToPositiveWeightsOnItsOwnEdges) {
   // The class chosen with the intrinsic weights stays (explicit own-edge
   // weights rank with those weights instead); in that class both agree.
   own.source_weights = SourceWeights::OwnEdges;
-  own.homotopy = m.chosen_candidate;
+  own.homotopy.class_index = m.chosen_candidate;
   const SurfaceMapResult mo = surface_map(a, b, own);
   EXPECT_EQ(mo.source_weights, m.source_weights);
   EXPECT_NEAR(mo.final_energy, m.final_energy, 1e-9 * m.final_energy);
@@ -189,7 +189,7 @@ TEST(SurfaceMap, RejectsGenusMismatchAndUnknownClass) {
     EXPECT_NE(std::string(e.what()).find("genus 0"), std::string::npos);
   }
   SurfaceMapOptions o;
-  o.homotopy = 999;
+  o.homotopy.class_index = 999;
   EXPECT_THROW(surface_map(a, a, o), InputError);
 }
 
@@ -222,7 +222,7 @@ TEST(SurfaceMapHyperbolic, ResultDoesNotDependOnTheStartPoint) {
   const TriMesh a = samples::n_hole_torus(2, 30, true);
   const TriMesh b = samples::vase(34, true);
   SurfaceMapOptions o1, o2;
-  o2.start_seed = 12345;
+  o2.solve.start_seed = 12345;
   const SurfaceMapResult m1 = surface_map(a, b, o1), m2 = surface_map(a, b, o2);
   expect_valid_map(m1, a, b);
   expect_valid_map(m2, a, b);
@@ -283,7 +283,7 @@ TEST(SurfaceMapHandles, ClassSearchUndoesKnownTwists) {
   const TriMesh a = samples::n_hole_torus(2, 30, true);
   const TriMesh b = samples::jitter(samples::n_hole_torus(2, 36, true), 0.2, 5);
   SurfaceMapOptions plain;
-  plain.homotopy_search = false;
+  plain.homotopy.search.enabled = false;
   const SurfaceMapResult m0 = surface_map(a, b, plain);
   const int identity = m0.chosen_candidate;
   ASSERT_NE(m0.candidates[identity].description.find("as the shapes overlap"), std::string::npos);
@@ -294,7 +294,7 @@ TEST(SurfaceMapHandles, ClassSearchUndoesKnownTwists) {
   testing::MapHooks hooks;
   hooks.homotopy_search_start = identity;
   hooks.homotopy_search_start_twists = {"T(a1)", "T(a1)", "T(b2)^-1"};
-  o.homotopy_search_evaluations = 40;
+  o.homotopy.search.evaluations = 40;
   const SurfaceMapResult m = surface_map(a, b, o, hooks);
   expect_valid_map(m, a, b);
   const HomotopySearchInfo& s = m.homotopy_search;
@@ -449,7 +449,7 @@ TEST(SurfaceMapHandles, GenusThreeClassSearchUndoesKnownTwists) {
   const TriMesh a = samples::n_hole_torus(3, 30, true);
   const TriMesh b = samples::polycube(3, 30, true);
   SurfaceMapOptions plain;
-  plain.homotopy_search = false;
+  plain.homotopy.search.enabled = false;
   const SurfaceMapResult m = surface_map(a, b, plain);
   ASSERT_LT(m.mean_dilatation, 2.2);
   const double coarse = m.candidates[m.chosen_candidate].coarse_energy;
@@ -458,7 +458,7 @@ TEST(SurfaceMapHandles, GenusThreeClassSearchUndoesKnownTwists) {
   testing::MapHooks hooks;
   hooks.homotopy_search_start = m.chosen_candidate;
   hooks.homotopy_search_start_twists = {"T(s2)^-1", "T(a1)", "T(b3)^-1"};
-  o.homotopy_search_evaluations = 40;
+  o.homotopy.search.evaluations = 40;
   const SurfaceMapResult t = surface_map(a, b, o, hooks);
   expect_valid_map(t, a, b);
   ASSERT_TRUE(t.homotopy_search.run);
@@ -469,7 +469,7 @@ TEST(SurfaceMapHandles, GenusThreeClassSearchUndoesKnownTwists) {
   EXPECT_LT(t.mean_dilatation, 2.2);
 }
 
-// The class search's stage 1 (SurfaceMapOptions::homotopy_search_cuts):
+// The class search's stage 1 (SurfaceMapOptions::homotopy.search.cuts):
 // n_hole_torus(2, 30) -> vase(30) gets its geometric class only from the
 // lifts of the late cuts. Without them the best class (the canonical one;
 // no twist neighbour is lower) has E 94.1 and mean D' 9.6; with them a class
@@ -479,8 +479,8 @@ TEST(SurfaceMapHandles, ClassSearchStageOneFindsTheGeometricClassFromLateCuts) {
   const TriMesh b = samples::vase(30, true);
   const double bound = 8 * M_PI;
   SurfaceMapOptions o;
-  o.homotopy_extra_cuts = 3;
-  o.homotopy_search_cuts = 12;
+  o.homotopy.extra_cuts = 3;
+  o.homotopy.search.cuts = 12;
   const SurfaceMapResult m = surface_map(a, b, o);
   expect_valid_map(m, a, b);
   EXPECT_GT(m.homotopy_search.cut_classes, 0);
@@ -495,11 +495,11 @@ TEST(SurfaceMapHandles, ClassSearchStageOneFindsTheGeometricClassFromLateCuts) {
   const int base = std::stoi(d.substr(at + tag.size()));
   const int nv = a.num_vertices();
   bool late = false, early = false;
-  for (int c = 1; c <= o.homotopy_search_cuts; ++c) late = late || base == static_cast<int>((static_cast<long long>(nv) * c) / (o.homotopy_search_cuts + 1));
-  for (int c = 1; c <= o.homotopy_extra_cuts; ++c) early = early || base == static_cast<int>((static_cast<long long>(nv) * c) / (o.homotopy_extra_cuts + 1));
+  for (int c = 1; c <= o.homotopy.search.cuts; ++c) late = late || base == static_cast<int>((static_cast<long long>(nv) * c) / (o.homotopy.search.cuts + 1));
+  for (int c = 1; c <= o.homotopy.extra_cuts; ++c) early = early || base == static_cast<int>((static_cast<long long>(nv) * c) / (o.homotopy.extra_cuts + 1));
   EXPECT_TRUE(late && !early) << d;
 
-  o.homotopy_search_cuts = 0;
+  o.homotopy.search.cuts = 0;
   const SurfaceMapResult m0 = surface_map(a, b, o);
   // This worse class (energy > 2x the bound, mean D' ~10) is unflipped in the
   // uniformization domain, but the chord triangles between its vertex images
@@ -514,7 +514,7 @@ TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) 
   const TriMesh a = samples::n_hole_torus(2, 30, false);  // slivers
   const TriMesh b = samples::jitter(samples::n_hole_torus(2, 34, true), 0.2, 9);
   SurfaceMapOptions o;
-  o.homotopy_full_solves = 0;  // solve all of them
+  o.homotopy.full_solves = 0;  // solve all of them
   // Every candidate's homotopy data passed the exact face checks (Dehn's
   // algorithm; a failure throws) for the map to be returned at all.
   const SurfaceMapResult m = surface_map(a, b, o);
@@ -553,7 +553,7 @@ TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) 
     if (k != m.chosen_candidate && m.candidates[k].solved) other = k;
   ASSERT_GE(other, 0);
   SurfaceMapOptions o2;
-  o2.homotopy = other;
+  o2.homotopy.class_index = other;
   const SurfaceMapResult m2 = surface_map(a, b, o2);
   expect_valid_map(m2, a, b, false);
   EXPECT_EQ(m2.chosen_candidate, other);
@@ -582,8 +582,8 @@ double diagonal(const TriMesh& m) { return (m.V.colwise().maxCoeff() - m.V.colwi
 void expect_near_identity_self_map(const TriMesh& m, SurfaceMapOptions o) {
   // One handle candidate besides the overlay and canonical classes: the
   // ranking is not what this is about (test_handle_basis, SurfaceMapHandles).
-  o.homotopy_candidates = 1;
-  o.homotopy_full_solves = 1;
+  o.homotopy.candidates = 1;
+  o.homotopy.full_solves = 1;
   const SurfaceMapResult r = surface_map(m, m, o);
   expect_valid_map(r, m, m);
   EXPECT_EQ(r.intrinsic_flipped_triangles, 0);
@@ -609,7 +609,7 @@ TEST(SurfaceMapHighGenus, GenusSixSliverSourceGetsTheSameOptimumFromTwoTargetCut
   const TriMesh b = samples::jitter(samples::n_hole_torus(6, 26, true), 0.1, 6);
   const SurfaceMapResult m1 = surface_map(a, b);
   SurfaceMapOptions o;
-  o.target_base_vertex = 1500;
+  o.loops.target_base_vertex = 1500;
   const SurfaceMapResult m2 = surface_map(a, b, o);
   for (const SurfaceMapResult* m : {&m1, &m2}) {
     expect_valid_map(*m, a, b);
@@ -652,7 +652,7 @@ TEST(SurfaceMapHighGenus, GenusSixSelfMapFromARandomStart) {
   // Used to fail in the inverse location; the random start also makes the
   // first iterations move every vertex across many tiles.
   SurfaceMapOptions o;
-  o.start_seed = 7;
+  o.solve.start_seed = 7;
   expect_near_identity_self_map(samples::n_hole_torus(6, 32, true), o);
 }
 

@@ -223,7 +223,7 @@ std::pair<std::vector<Complex>, std::vector<Complex>> class_translations(
 // landmarks in class k; the chosen class's held map goes to `chosen_hold`.
 int choose_flat_class(const SurfaceMapOptions& options, std::vector<HomotopyCandidate>& candidates,
                       const std::function<FlatHold(int k)>& hold, std::unique_ptr<FlatHold>* chosen_hold) {
-  int chosen = options.homotopy;
+  int chosen = options.homotopy.class_index;
   if (chosen < 0 && options.landmarks.empty()) {
     chosen = 0;
     for (size_t i = 1; i < candidates.size(); ++i)
@@ -242,7 +242,7 @@ int choose_flat_class(const SurfaceMapOptions& options, std::vector<HomotopyCand
     *chosen_hold = std::move(holds[best]);
     chosen = best;
   } else if (chosen >= static_cast<int>(candidates.size())) {
-    throw InputError("homotopy class " + std::to_string(options.homotopy) + " does not exist; there are " +
+    throw InputError("homotopy class " + std::to_string(options.homotopy.class_index) + " does not exist; there are " +
                      std::to_string(candidates.size()) + " candidates (0.." + std::to_string(candidates.size() - 1) + ")");
   }
   return chosen;
@@ -370,7 +370,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   if (landmarks) {
     // The ranking's held map of this class when it has one (first pass).
     const FlatHold h = chosen_hold ? std::move(*chosen_hold) : hold_landmarks(t_intrinsic, t_edges);
-    if (options.homotopy >= 0 && first_pass) out.candidates[out.chosen_candidate].landmark_energy = h.energy;
+    if (options.homotopy.class_index >= 0 && first_pass) out.candidates[out.chosen_candidate].landmark_energy = h.energy;
     z = h.z, energy = h.energy;
     out.landmark_method = h.method;
     out.landmark_rings = h.rings;

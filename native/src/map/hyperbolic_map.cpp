@@ -145,7 +145,7 @@ class HyperbolicPipeline {
 // The source's side of the homotopy data needs no target: built on the
 // second thread while the target is uniformized (concurrency.h; its errors
 // are rethrown after the target's). With one thread it is built later, in
-// order. The second thread then prepares the homotopy_extra_cuts' source
+// order. The second thread then prepares the homotopy.extra_cuts' source
 // parts (stages/source_cuts.h).
 void HyperbolicPipeline::start_source_side() {
   if (threads <= 1) return;
@@ -159,12 +159,12 @@ void HyperbolicPipeline::start_source_side() {
       return;
     }
     try {
-      // Only the homotopy_extra_cuts, which are always lifted: the
+      // Only the homotopy.extra_cuts, which are always lifted: the
       // machine's scheduler shares CPU between sessions, not threads
       // (autogroups), so under load speculative work on this thread slows
       // the other one down (10k genus 6, load 8, where stage 1 does not
       // run: 13-15 s with all 15 cuts prepared here against 9-10 s).
-      for (int k = 0; k < static_cast<int>(cuts.planned_bases().size()) && k < options.homotopy_extra_cuts; ++k) {
+      for (int k = 0; k < static_cast<int>(cuts.planned_bases().size()) && k < options.homotopy.extra_cuts; ++k) {
         if (cuts.stop) break;
         cuts.prepare_planned(k);
       }
@@ -201,12 +201,12 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   space = std::make_unique<ClassSpace>(out.genus, ss.sl, ss.scs, tcs, ut->layout, *deck_group);
   projector = std::make_unique<LoopProjector>(ut->loops, ut->layout.word);
   candidates = candidate_classes(*space, source, ss.sl, ss.shb, ut->loops, tcs, *projector, options, cuts);
-  if (options.homotopy_extra_cuts > 0 && !ss.cs.ok) cuts.stop = true;  // no coarse copy: no class search, no more cuts needed
+  if (options.homotopy.extra_cuts > 0 && !ss.cs.ok) cuts.stop = true;  // no coarse copy: no class search, no more cuts needed
   index_solver_edges(sc, ss.idt, solver_index);
   const std::vector<HomotopyClass>& classes = candidates.classes;
   ncand = static_cast<int>(classes.size());
-  if (options.homotopy >= ncand)
-    throw InputError("homotopy class " + std::to_string(options.homotopy) + " does not exist; there are " +
+  if (options.homotopy.class_index >= ncand)
+    throw InputError("homotopy class " + std::to_string(options.homotopy.class_index) + " does not exist; there are " +
                      std::to_string(ncand) + " candidates (0.." + std::to_string(ncand - 1) + ")");
   const double max_image_letters = space->max_image_letters();
   usable.assign(classes.size(), 1);
@@ -224,7 +224,7 @@ void HyperbolicPipeline::candidate_classes_and_data() {
       c.solved = false;
       c.description += "  [not solved: the images of the source's loops have " + std::to_string(static_cast<long>(letters)) +
                        " letters, too twisted for double-precision deck elements]";
-      if (options.homotopy == static_cast<int>(k))
+      if (options.homotopy.class_index == static_cast<int>(k))
         throw SolveError("homotopy class " + std::to_string(k) + " cannot be solved: the images of the source's loops have " +
                          std::to_string(static_cast<long>(letters)) + " letters in the target's group (at most " +
                          std::to_string(static_cast<long>(max_image_letters)) + " can be evaluated in double precision)");
@@ -257,7 +257,7 @@ bool HyperbolicPipeline::try_solve(int k, const std::function<HyperbolicHarmonic
   } catch (const SolveError& e) {
     why = e.what();
   }
-  const bool needed = options.homotopy == k || (options.homotopy < 0 && ncand == 1);
+  const bool needed = options.homotopy.class_index == k || (options.homotopy.class_index < 0 && ncand == 1);
   if (needed && coarse) {
     coarse_failed[k] = 1;
     return false;
@@ -273,7 +273,7 @@ bool HyperbolicPipeline::try_solve(int k, const std::function<HyperbolicHarmonic
 // The requested class's full-resolution solve reports to solve_progress live.
 HyperbolicHarmonicOptions HyperbolicPipeline::fine_options(int k) const {
   HyperbolicHarmonicOptions o = ho;
-  if (options.homotopy == k && options.solve_progress)
+  if (options.homotopy.class_index == k && options.solve_progress)
     o.progress = [this](int it, double E, double g) {
       return options.solve_progress(it, E, g) && (!options.progress || options.progress("harmonic solve", 0.43));
     };
@@ -286,7 +286,7 @@ HyperbolicHarmonicOptions HyperbolicPipeline::fine_options(int k) const {
 // stages/coarse_level.h; its vertices are fine vertices, its deck elements
 // products of the fine ones along paths, so a coarse solution is also a
 // start for the fine solve), and only the best by that estimate (and
-// whichever are within kCoarseMargin of it, up to `homotopy_full_solves`)
+// whichever are within kCoarseMargin of it, up to `homotopy.full_solves`)
 // are solved at full resolution, from their coarse solutions prolonged to
 // the fine vertices. The energy is geodesically convex, so that converged
 // solve is the class's optimum: the chosen class is not solved again.
@@ -294,8 +294,8 @@ HyperbolicHarmonicOptions HyperbolicPipeline::fine_options(int k) const {
 // by full-resolution solves of every class instead. Returns through the
 // members; false when there is no coarse copy.
 void HyperbolicPipeline::rank_on_coarse_copy() {
-  ho.tolerance = options.tolerance;
-  ho.max_iterations = options.max_iterations;
+  ho.tolerance = options.solve.tolerance;
+  ho.max_iterations = options.solve.max_iterations;
   ho.relator = deck_group->side_relator();
   ho.reduce_point = [this](Complex& z) { return polygon->reduce(z); };
   if (options.progress)
@@ -304,12 +304,12 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   CoarseSource& cs = ss.cs;
   if (cs.ok)
     level = coarse_level(cs, sc, ss.edge_word, ss.sl, data, usable, *deck_group,
-                         options.homotopy_search && options.homotopy < 0);
+                         options.homotopy.search.enabled && options.homotopy.class_index < 0);
   fine_result.resize(ncand);
   full.assign(ncand, 0);
   order.resize(ncand);
   for (int k = 0; k < ncand; ++k) order[k] = k;
-  full_solves = options.homotopy_full_solves <= 0 ? ncand : std::min(options.homotopy_full_solves, ncand);
+  full_solves = options.homotopy.full_solves <= 0 ? ncand : std::min(options.homotopy.full_solves, ncand);
   if (!cs.ok) return;
   const int ncv = cs.mesh.num_vertices();
   const std::vector<Complex> corigin(ncv, Complex(0.0));
@@ -360,13 +360,13 @@ int HyperbolicPipeline::append_class(HomotopyClass hc, ClassData cd, const Coars
 
 // The class search (stages/class_search.h), on the coarse copy: stage 1,
 // when the best class is far from the conformal bound 8 pi (g - 1), lifts
-// from homotopy_search_cuts more source cuts (the bench pair
+// from homotopy.search.cuts more source cuts (the bench pair
 // n_hole_torus(2) -> vase at 50k vertices gets its geometric class, E 25.96
 // and mean D' 1.36, only this way: the 3 default cuts give 66.8, D' 5.41,
 // and no twist neighbour of that class is lower); stage 2, the twist
 // search from the best class. Every map of degree 1 onto the hyperbolic
 // target has E >= 2 x its area = 8 pi (g - 1) (|df|^2 >= 2 J_f, equality
-// for conformal maps), so a start within homotopy_search_gap of that bound
+// for conformal maps), so a start within homotopy.search.gap of that bound
 // leaves nothing worth a search (the coarse energies of good classes sit
 // 0.3-4% above it: 75.8 vs 75.4 at genus 4, 26.0 vs 25.1 for the genus-2
 // demo pair).
@@ -389,8 +389,8 @@ void HyperbolicPipeline::search_classes() {
   };
   const bool searching = !level.source_word.empty();
   const double conformal_bound = 8 * M_PI * (out.genus - 1);
-  const double gap_bound = (1 + options.homotopy_search_gap) * conformal_bound;
-  if (searching && candidates.lifter && options.homotopy_search_cuts > 0 && hooks.homotopy_search_start < 0 &&
+  const double gap_bound = (1 + options.homotopy.search.gap) * conformal_bound;
+  if (searching && candidates.lifter && options.homotopy.search.cuts > 0 && hooks.homotopy_search_start < 0 &&
       usable[order[0]] && out.candidates[order[0]].energy > gap_bound)
     for (FoundClass& f : classes_from_more_cuts(*candidates.lifter, cuts, *space, nv, threads, conformal_bound,
                                                  [this](const GroupMap& theta) { return data_of(theta); }, solve_coarse,
@@ -403,7 +403,7 @@ void HyperbolicPipeline::search_classes() {
   const bool near_bound = hooks.homotopy_search_start_twists.empty() && out.candidates[search_start].energy <= gap_bound;
   if (searching && near_bound)
     out.homotopy_search.stop_reason = "not run: the best class is within " +
-                                      std::to_string(static_cast<int>(std::lround(100 * options.homotopy_search_gap))) +
+                                      std::to_string(static_cast<int>(std::lround(100 * options.homotopy.search.gap))) +
                                       "% of the conformal bound 8 pi (g - 1)";
   if (!searching || !usable[search_start] || near_bound ||
       !(std::isfinite(out.candidates[search_start].energy) || !hooks.homotopy_search_start_twists.empty()))
@@ -548,10 +548,10 @@ void HyperbolicPipeline::choose_with_landmarks() {
   if (out.chosen_candidate < 0) throw SolveError("the harmonic map solve failed in every candidate homotopy class");
   held_result.resize(ncand);
   held_record.resize(ncand);
-  if (!options.landmarks.empty() && options.homotopy < 0) {
+  if (!options.landmarks.empty() && options.homotopy.class_index < 0) {
     HyperbolicHarmonicOptions lo;
-    lo.tolerance = options.tolerance;
-    lo.max_iterations = options.max_iterations;
+    lo.tolerance = options.solve.tolerance;
+    lo.max_iterations = options.solve.max_iterations;
     lo.progress = [this](int, double, double) { return !options.progress || options.progress("landmarks", 0.44); };
     std::vector<int> lm_s, lm_t;
     std::vector<Complex> lm_p;
@@ -640,14 +640,14 @@ bool map_class(HyperbolicPipeline& p) {
   HyperbolicHarmonicResult& hr = solved.result;
   if (!options.landmarks.empty()) {
     HyperbolicHarmonicOptions lo;
-    lo.tolerance = options.tolerance;
-    lo.max_iterations = options.max_iterations;
+    lo.tolerance = options.solve.tolerance;
+    lo.max_iterations = options.solve.max_iterations;
     lo.progress = solve_progress;
     // The relaxation holds them too (its sweeps skip the held vertices).
-    const bool relax = options.method == MapMethod::Relaxation;
+    const bool relax = options.solve.method == MapMethod::Relaxation;
     HarmonicRelaxationOptions ro;
-    ro.tolerance = options.tolerance;
-    ro.max_iterations = options.max_iterations;
+    ro.tolerance = options.solve.tolerance;
+    ro.max_iterations = options.solve.max_iterations;
     ro.check_every = 10;
     ro.progress = solve_progress;
     LandmarkHold hold;
@@ -726,7 +726,7 @@ void map_with_fallback(HyperbolicPipeline& p) {
     const bool sx = out.candidates[x].solved, sy = out.candidates[y].solved;
     return sx != sy ? sx : out.candidates[x].energy < out.candidates[y].energy;
   });
-  if (p.options.homotopy >= 0) fallback.clear();
+  if (p.options.homotopy.class_index >= 0) fallback.clear();
   fallback.insert(fallback.begin(), out.chosen_candidate);
   const SurfaceMapResult before_attempts = out;
   auto reset_keeping_candidates = [&] {

@@ -75,7 +75,7 @@ PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, cons
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options) {
   UniformizedTarget t;
   SystemOfLoopsOptions lo;
-  lo.base_vertex = options.target_base_vertex;
+  lo.base_vertex = options.loops.target_base_vertex;
   t.loops = system_of_loops(target, lo);
   // Fixed connectivity first; when its metric does not exist (caps on CAD
   // meshes), the loops' mesh is refined exactly and the flow runs again
@@ -127,7 +127,7 @@ void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo
 
 SystemOfLoops source_loops(const TriMesh& source, const SurfaceMapOptions& options) {
   SystemOfLoopsOptions slo;
-  slo.base_vertex = options.source_base_vertex;
+  slo.base_vertex = options.loops.source_base_vertex;
   slo.refine = false;
   SystemOfLoops sl = system_of_loops(source, slo);
   if (sl.mesh.num_vertices() != source.num_vertices() || sl.mesh.F != source.F)

@@ -676,8 +676,8 @@ namespace detail {
 
 void map_spherical(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
                    const SurfaceMapOptions& options, SurfaceMapResult& out, const StageDone& stage_done) {
-  if (options.homotopy > 0)
-    throw InputError("homotopy class " + std::to_string(options.homotopy) +
+  if (options.homotopy.class_index > 0)
+    throw InputError("homotopy class " + std::to_string(options.homotopy.class_index) +
                      " does not exist; a genus-0 surface has one class (0)");
   SphericalUniformizationOptions uo;
   uo.flow.tolerance = options.uniformization_tolerance;

@@ -459,3 +459,68 @@ def test_genus2_classes_are_ranked_with_the_landmarks_held():
     k1 = g1["homotopy"]["chosen"]
     assert k1 == min(held1, key=held1.get) and g1["energy"]["final"] == held1[k1]
     assert all(c["landmark_lower_bound"] >= held1[k1] for i, c in enumerate(c1) if math.isnan(c["landmark_energy"]))
+
+
+# Keys only one side has: the arrays (Python: numpy) and the intake's flips; the file names and
+# intake notes (CLI). Everything else comes from one serializer (map/map_report.h).
+_PYTHON_ONLY = {"forward", "inverse", "initial_forward", "initial_inverse", "source_flipped", "target_flipped",
+                "per_face"}
+_CLI_ONLY = {"source", "target", "notes"}
+
+
+def _same_report(py, js, path="result"):
+    """Asserts the Python result `py` and the CLI's JSON report `js` agree key by key (times excepted;
+    the JSON writes nan and inf as null)."""
+    if isinstance(js, dict):
+        assert isinstance(py, dict), path
+        keys_py = {k for k in py if k not in _PYTHON_ONLY}
+        keys_js = {k for k in js if k not in _CLI_ONLY}
+        assert keys_py == keys_js, (path, keys_py ^ keys_js)
+        for k in keys_js:
+            if k != "time_s" and not k.endswith("_time_s"):
+                _same_report(py[k], js[k], f"{path}[{k!r}]")
+    elif isinstance(js, list):
+        assert isinstance(py, list) and len(py) == len(js), path
+        for i, (p, j) in enumerate(zip(py, js)):
+            _same_report(p, j, f"{path}[{i}]")
+    elif js is None:
+        assert isinstance(py, float) and not math.isfinite(py), (path, py)
+    elif isinstance(js, (bool, str)):
+        assert py == js and type(py) is type(js), (path, py, js)
+    else:
+        assert isinstance(py, (int, float)) and not isinstance(py, bool), (path, py)
+        assert abs(py - js) <= 1e-9 * max(1.0, abs(js)), (path, py, js)
+
+
+@pytest.mark.parametrize("genus", [1, 2])
+def test_python_result_and_cli_report_carry_the_same_keys_and_values(tmp_path, cli, genus):
+    if genus == 1:
+        a, b = torus(1.0, 0.5, 30, 15), torus(1.5, 0.5, 36, 15, 1)
+        landmarks, kwargs, flags = [(0, 0)], {"initial_map": "uniform"}, ["--initial-map", "uniform"]
+    else:
+        a, b = surfmap.shapes.n_hole_torus(2, 14, True), surfmap.shapes.vase(18, True)
+        landmarks, kwargs, flags = None, {"method": "newton", "source_weights": "intrinsic"}, [
+            "--method", "newton", "--source-weights", "intrinsic"]
+    src, dst, rep = tmp_path / "a.obj", tmp_path / "b.obj", tmp_path / "r.json"
+    surfmap.write_obj(str(src), *a)
+    surfmap.write_obj(str(dst), *b)
+    # Both sides map the meshes as read back (the OBJ rounds the coordinates).
+    a, b = [(m["V"], m["F"]) for m in (surfmap.load_mesh(str(src)), surfmap.load_mesh(str(dst)))]
+    r = surfmap.surface_map(*a, *b, landmarks=landmarks, **kwargs)
+    if landmarks:
+        (tmp_path / "l.txt").write_text("0 0\n")
+        flags += ["--landmarks", tmp_path / "l.txt"]
+    p = cli("map", src, dst, "--out", tmp_path / "m.obj", "--report", rep, "--quiet", *flags)
+    assert p.returncode == 0, p.stderr
+    report = json.loads(rep.read_text())
+    _same_report(r, report)
+    assert report["method"] == r["method"] == "newton" and r["landmarks"] == len(landmarks or [])
+    assert len(r["homotopy"]["candidates"]) > 1 and r["homotopy"]["candidates"][1]["index"] == 1
+    assert r["distortion"]["per_face"].shape == (len(a[1]),)
+    if genus == 1:
+        assert r["landmark_method"] != "" and r["landmark_error"] < 1e-6
+    # One spelling per enum: the CLI refuses the other one, Python names the allowed ones.
+    bad = cli("map", src, dst, "--out", tmp_path / "m.obj", "--report", rep, "--initial-map", "cut-graph")
+    assert bad.returncode != 0 and "cut_graph" in bad.stderr + bad.stdout
+    with pytest.raises(surfmap.InputError, match="'cut_graph', 'polygon' or 'uniform', not 'cut-graph'"):
+        surfmap.surface_map(*a, *b, initial_map="cut-graph")

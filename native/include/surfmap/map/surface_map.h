@@ -29,11 +29,11 @@
 // earlier one are dropped. When the best coarse energy is more than 10% above
 // the conformal bound 8 pi (g - 1), the class search adds lifted classes from
 // more cuts and then descends over Dehn twists (topology/mapping_class_search.h,
-// SurfaceMapOptions::homotopy_search). Ranking: every candidate is solved to convergence
+// SurfaceMapOptions::homotopy.search). Ranking: every candidate is solved to convergence
 // on a coarse copy of the source (map/coarse_source.h, 3000 vertices by
 // default; the class energy is a property of the surfaces, so this estimates
 // it, and is recorded as HomotopyCandidate::coarse_energy); the best by that
-// estimate, and up to `homotopy_full_solves` in all of those within 10% of
+// estimate, and up to `homotopy.full_solves` in all of those within 10% of
 // it, are solved at full resolution, starting from their coarse solutions
 // (sources under 2000 vertices: every class at full resolution). The lowest
 // full-resolution energy is the default (ties within 1e-4 relative, from
@@ -106,71 +106,70 @@ enum class SourceWeights {
   OwnEdges,
 };
 
-struct SurfaceMapOptions {
+/// Genus >= 2 class search in the mapping class group
+/// (SurfaceMapOptions::homotopy.search; topology/mapping_class_search.h).
+struct HomotopySearchOptions {
+  /// Default class only: a greedy search in the mapping class group from the
+  /// best candidate on the coarse copy: neighbours are the class composed
+  /// with Dehn twists along a_i, b_i, the chain curves and separating curves
+  /// (on either surface), screened by the target lengths of the source
+  /// loops' images and ranked by converged coarse solves; an improved class
+  /// is added as a candidate ("[class search ...]"). Default true.
+  bool enabled = true;
+  /// At most this many coarse solves (default 24).
+  int evaluations = 24;
+  /// Not run when the best candidate's coarse energy is within this fraction
+  /// (default 0.1) of the conformal lower bound 8 pi (g - 1) that every
+  /// degree-1 map's energy exceeds (nothing to gain; it costs 0.3-0.5 s per
+  /// coarse solve at genus 2-6).
+  double gap = 0.1;
+  /// Before the twists, under the same condition: lifted classes from this
+  /// many more source cuts (default 12, spread over the vertex list; at most
+  /// HomotopyOptions::extra_cut_classes of their new classes solved on the
+  /// coarse copy, lowest screen first, and added; the rest are dropped once
+  /// one comes within `gap` of the bound).
+  /// (Tests can start the search elsewhere: testing/map_hooks.h.)
+  int cuts = 12;
+};
+
+/// Which homotopy classes are listed, ranked and searched
+/// (SurfaceMapOptions::homotopy; the ranking: the header comment above).
+struct HomotopyOptions {
   /// Homotopy class to use: index into SurfaceMapResult::candidates, or -1
   /// (default) for the one of lowest energy.
-  int homotopy = -1;
+  int class_index = -1;
   /// Genus >= 2: how many handle correspondences (signed handle
   /// permutations, topology/handle_basis.h, ranked by how well the handle
-  /// positions match) are considered (default 8: all of them for genus 2),
-  /// and at most how many of those, ranked by their energy on the coarse
-  /// copy of the source, are solved at full resolution (default 2: the best
-  /// and the runner-up when within 10% of it; <= 0: all of them).
-  int homotopy_candidates = 8;
-  int homotopy_full_solves = 2;
+  /// positions match) are considered (default 8: all of them for genus 2).
+  int candidates = 8;
+  /// Genus >= 2: at most how many of the candidates, ranked by their energy
+  /// on the coarse copy of the source, are solved at full resolution
+  /// (default 2: the best and the runner-up when within 10% of it; <= 0:
+  /// all of them).
+  int full_solves = 2;
   /// Genus >= 2: vertices of the coarse copy of the source on which every
   /// candidate class is solved to rank them (map/coarse_source.h; default
   /// 3000, at most a quarter of the source's vertices; 0, or a source under
   /// 2000 vertices: every class is solved at full resolution instead).
-  int homotopy_coarse_vertices = 3000;
+  int coarse_vertices = 3000;
   /// Genus >= 2: lifted handle classes are also built from this many other
   /// systems of source loops (base vertices spread evenly over the vertex
   /// list), which give other Torelli representatives of the same signed
   /// handle permutations; only classes new by their fingerprint (target
   /// lengths of the generators' images) are added (default 3; 0: none).
-  int homotopy_extra_cuts = 3;
+  int extra_cuts = 3;
   /// Of the new lifted classes from the extra cuts, at most this many (the
   /// lowest by a screening score from the target lengths of the source
   /// loops' images, no solve) are kept and ranked (default 6).
-  int homotopy_extra_cut_classes = 6;
-  /// Genus >= 2, default class only: a greedy search in the mapping class
-  /// group from the best candidate on the coarse copy
-  /// (topology/mapping_class_search.h): neighbours are the class composed
-  /// with Dehn twists along a_i, b_i, the chain curves and separating curves
-  /// (on either surface), screened by the target lengths of the source
-  /// loops' images and ranked by converged coarse solves; an improved class
-  /// is added as a candidate ("[class search ...]"). At most
-  /// `homotopy_search_evaluations` coarse solves (default 24). Not run when
-  /// the best candidate's coarse energy is within `homotopy_search_gap`
-  /// (default 0.1) of the conformal lower bound 8 pi (g - 1) that every
-  /// degree-1 map's energy exceeds (nothing to gain; it costs 0.3-0.5 s per
-  /// coarse solve at genus 2-6).
-  /// Before the twists, under the same condition: lifted classes from
-  /// `homotopy_search_cuts` more source cuts (default 12, spread over the
-  /// vertex list; at most homotopy_extra_cut_classes of their new classes
-  /// solved on the coarse copy, lowest screen first, and added; the rest
-  /// are dropped once one comes within `homotopy_search_gap` of the bound).
-  /// (Tests can start the search elsewhere: testing/map_hooks.h.)
-  bool homotopy_search = true;
-  int homotopy_search_evaluations = 24;
-  double homotopy_search_gap = 0.1;
-  int homotopy_search_cuts = 12;
-  /// Base vertices of the systems of loops (-1: automatic).
-  int source_base_vertex = -1, target_base_vertex = -1;
-  /// Start of the hyperbolic solve: 0 (default) starts from the initial map
-  /// (map/initial_map.h, the uniform-weight Tutte-type map in the class);
-  /// another value draws random start points (seeded) in the disk of radius
-  /// 0.5. The energy is convex, so the result must not depend on it.
-  unsigned start_seed = 0;
-  /// Genus >= 2: how the initial map is built (default CutGraph, with the
-  /// polygon and the uniform-weight map as fallbacks).
-  InitialMapMethod initial_map = InitialMapMethod::CutGraph;
-  /// Curvature tolerance of the target's uniformization (default 1e-10).
-  double uniformization_tolerance = 1e-10;
+  int extra_cut_classes = 6;
+  /// Genus >= 2, default class only: the search in the mapping class group.
+  HomotopySearchOptions search;
+};
+
+/// The harmonic solve (SurfaceMapOptions::solve).
+struct SolveOptions {
   /// Optimiser of the harmonic energy (default Newton).
   MapMethod method = MapMethod::Newton;
-  /// Genus >= 1: weights of the energy on the source (default Automatic).
-  SourceWeights source_weights = SourceWeights::Automatic;
   /// Relative gradient tolerance of the harmonic solve (default 1e-10) and
   /// its iteration cap (default 300). For the relaxation an iteration is one
   /// sweep over all vertices, and it needs of the order of #V sweeps per
@@ -178,6 +177,35 @@ struct SurfaceMapOptions {
   /// method not reaching the tolerance within the cap is a SolveError.
   double tolerance = 1e-10;
   int max_iterations = 300;
+  /// Start of the hyperbolic solve: 0 (default) starts from the initial map
+  /// (map/initial_map.h, the uniform-weight Tutte-type map in the class);
+  /// another value draws random start points (seeded) in the disk of radius
+  /// 0.5. The energy is convex, so the result must not depend on it.
+  unsigned start_seed = 0;
+};
+
+/// The systems of loops (topology/system_of_loops.h) on both surfaces
+/// (SurfaceMapOptions::loops).
+struct LoopOptions {
+  /// Base vertices of the systems of loops (default -1: automatic).
+  int source_base_vertex = -1, target_base_vertex = -1;
+};
+
+/// Options of surface_map, nested by concern: `homotopy` (classes listed,
+/// ranked, searched), `solve` (the harmonic solve), `loops` (their base
+/// vertices), then the initial map,
+/// the weights, the landmarks, threads and callbacks.
+struct SurfaceMapOptions {
+  HomotopyOptions homotopy;
+  SolveOptions solve;
+  LoopOptions loops;
+  /// Genus >= 2: how the initial map is built (default CutGraph, with the
+  /// polygon and the uniform-weight map as fallbacks).
+  InitialMapMethod initial_map = InitialMapMethod::CutGraph;
+  /// Curvature tolerance of the target's uniformization (default 1e-10).
+  double uniformization_tolerance = 1e-10;
+  /// Genus >= 1: weights of the energy on the source (default Automatic).
+  SourceWeights source_weights = SourceWeights::Automatic;
   /// Threads the pipeline runs at once (genus >= 2: the coarse class solves
   /// of the ranking, and the initial map next to the full-resolution solves;
   /// src/map/concurrency.h). 0 (default): SURFMAP_THREADS when set, else 2
@@ -247,7 +275,7 @@ struct HomotopyCandidate {
   std::vector<int> homology;
 };
 
-/// Genus >= 2: the class search of SurfaceMapOptions::homotopy_search.
+/// Genus >= 2: the class search of SurfaceMapOptions::homotopy.search.
 struct HomotopySearchInfo {
   bool run = false;
   /// Candidate it started from, its coarse energy and the energy reached.
@@ -268,7 +296,7 @@ struct HomotopySearchInfo {
   int evaluations = 0, screened = 0;
   std::string stop_reason;
   double time_s = 0;
-  /// Stage 1 (homotopy_search_cuts): lifted classes from the late cuts that
+  /// Stage 1 (HomotopySearchOptions::cuts): lifted classes from the late cuts that
   /// were new and tried on the coarse copy, and its seconds.
   int cut_classes = 0;
   double cuts_time_s = 0;

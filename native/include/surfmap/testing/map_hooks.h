@@ -24,7 +24,7 @@ struct MapHooks {
   /// (map/initial_map.h, InitialMapInspection) once it is built.
   std::function<void(const InitialMapInspection&)> inspect_initial_map;
   /// Genus >= 2, default class: start the class search
-  /// (SurfaceMapOptions::homotopy_search) from this candidate (-1: the best
+  /// (SurfaceMapOptions::homotopy.search) from this candidate (-1: the best
   /// on the coarse copy) composed on the source side with the named moves
   /// of topology/mapping_class_search.h twist_moves, in order (e.g.
   /// {"T(a1)", "T(a1)"}; an unknown name is an InputError). A start given

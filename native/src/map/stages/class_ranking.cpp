@@ -15,9 +15,9 @@ FullSolvePick pick_full_solves(const std::vector<HomotopyCandidate>& candidates,
   FullSolvePick out;
   out.full.assign(candidates.size(), 0);
   const int ncand = static_cast<int>(candidates.size());
-  if (options.homotopy >= 0) {
-    out.full[options.homotopy] = usable[options.homotopy];
-    out.likely_class = options.homotopy;
+  if (options.homotopy.class_index >= 0) {
+    out.full[options.homotopy.class_index] = usable[options.homotopy.class_index];
+    out.likely_class = options.homotopy.class_index;
   } else {
     const double best = candidates[order[0]].energy;
     // Ties (symmetric shapes: equal energies to ~1e-7 on the coarse copy
@@ -25,7 +25,7 @@ FullSolvePick pick_full_solves(const std::vector<HomotopyCandidate>& candidates,
     // overlay class first, so the earliest of the tied goes first here.
     std::vector<int> pick;
     for (int q = 0; q < ncand; ++q)
-      if (usable[order[q]] && (q == 0 || options.homotopy_full_solves <= 0 ||
+      if (usable[order[q]] && (q == 0 || options.homotopy.full_solves <= 0 ||
                                candidates[order[q]].energy <= best * (1 + kCoarseMargin)))
         pick.push_back(order[q]);
     int leader = -1;
@@ -36,8 +36,8 @@ FullSolvePick pick_full_solves(const std::vector<HomotopyCandidate>& candidates,
     // same optimum up to a symmetry of the shapes (its full solve gave the
     // leader's energy to 1e-10 on the 50k bench pair): solving it again at
     // full resolution cannot change the choice, so it is not (unless every
-    // class is asked for: homotopy_full_solves <= 0).
-    if (!pick.empty() && options.homotopy_full_solves > 0) {
+    // class is asked for: homotopy.full_solves <= 0).
+    if (!pick.empty() && options.homotopy.full_solves > 0) {
       const double lead = candidates[pick[0]].energy;
       pick.erase(std::remove_if(pick.begin() + 1, pick.end(),
                                 [&](int k) { return std::abs(candidates[k].energy - lead) <= 1e-6 * lead; }),
@@ -55,11 +55,11 @@ int choose_class(const std::vector<HomotopyCandidate>& candidates, const Surface
   for (int k = 0; k < ncand; ++k)
     if (candidates[k].solved && (chosen < 0 || candidates[k].energy < candidates[chosen].energy))
       chosen = k;
-  if (options.homotopy >= 0) chosen = options.homotopy;
+  if (options.homotopy.class_index >= 0) chosen = options.homotopy.class_index;
   // Ties (symmetric shapes: a symmetry composed with the best class has the
   // same energy up to discretisation, ~1e-8..1e-5 relative) go to the
   // earliest candidate, the overlay class first.
-  if (options.homotopy < 0)
+  if (options.homotopy.class_index < 0)
     for (int k = 0; k < chosen; ++k)
       if (candidates[k].solved && candidates[k].energy <= candidates[chosen].energy * (1 + 1e-4)) {
         chosen = k;

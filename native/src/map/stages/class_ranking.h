@@ -11,7 +11,7 @@ namespace surfmap::detail {
 /// The coarse estimates (candidates[k].energy) may be within
 /// discretisation error of each other: every class within this relative
 /// margin of the best estimate is solved at full resolution (up to
-/// homotopy_full_solves).
+/// homotopy.full_solves).
 constexpr double kCoarseMargin = 0.1;
 
 struct FullSolvePick {
@@ -21,7 +21,7 @@ struct FullSolvePick {
 
 /// `order`: the classes by coarse energy (stable); `usable` (#classes):
 /// classes with homotopy data whose solves have not failed; `full_solves`:
-/// at most this many (homotopy_full_solves, or every class for <= 0, as
+/// at most this many (homotopy.full_solves, or every class for <= 0, as
 /// counted before the class search added any).
 FullSolvePick pick_full_solves(const std::vector<HomotopyCandidate>& candidates, const std::vector<int>& order,
                                const std::vector<char>& usable, int full_solves, const SurfaceMapOptions& options);
@@ -29,7 +29,7 @@ FullSolvePick pick_full_solves(const std::vector<HomotopyCandidate>& candidates,
 /// The default class among those solved at full resolution: the lowest
 /// energy, ties within 1e-4 relative (a symmetry of the shapes composed
 /// with the best class) going to the earliest candidate; the requested one
-/// when options.homotopy >= 0. -1 when none was solved.
+/// when options.homotopy.class_index >= 0. -1 when none was solved.
 int choose_class(const std::vector<HomotopyCandidate>& candidates, const SurfaceMapOptions& options);
 
 }  // namespace surfmap::detail

@@ -18,7 +18,7 @@ std::vector<FoundClass> classes_from_more_cuts(CutLifter& lifter, SourceCuts& cu
                                                HomotopySearchInfo& info) {
   const auto t_cuts = std::chrono::steady_clock::now();
   std::vector<FoundClass> found;
-  const std::vector<int> late = spread_bases(num_vertices, options.homotopy_search_cuts);
+  const std::vector<int> late = spread_bases(num_vertices, options.homotopy.search.cuts);
   // The late cuts' source-only parts, on both threads.
   parallel_for(threads, static_cast<int>(late.size()), [&](int k, const std::atomic<bool>*) {
     const auto& planned = cuts.planned_bases();
@@ -40,7 +40,7 @@ std::vector<FoundClass> classes_from_more_cuts(CutLifter& lifter, SourceCuts& cu
     found.push_back(std::move(f));
     // Within the gap of the bound: what the twist search would not run
     // for, so the rest (lowest screen first) are not solved either.
-    if (energy <= (1 + options.homotopy_search_gap) * conformal_bound) break;
+    if (energy <= (1 + options.homotopy.search.gap) * conformal_bound) break;
   }
   info.cuts_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cuts).count();
   return found;
@@ -72,7 +72,7 @@ std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, in
   };
   info.start_energy = start_twists.empty() ? start_energy : coarse_energy(search_from);
   TwistSearchOptions tso;
-  tso.max_evaluations = options.homotopy_search_evaluations;
+  tso.max_evaluations = options.homotopy.search.evaluations;
   const TwistSearchResult ts = twist_search(search_from, info.start_energy, space.genus(),
                                             [&](const GroupMap& theta) { return space.screen(theta); }, coarse_energy, tso);
   info.moves = ts.moves;

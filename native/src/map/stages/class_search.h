@@ -1,6 +1,6 @@
 #pragma once
 // The class search of the genus >= 2 ranking (SurfaceMapOptions::
-// homotopy_search; topology/mapping_class_search.h; docs/ method notes):
+// homotopy.search; topology/mapping_class_search.h; docs/ method notes):
 // when the best class on the coarse copy is far from the conformal bound
 // 8 pi (g - 1), (1) lifted classes from more source cuts, then (2) a greedy
 // descent over Dehn twists, every class evaluated by a converged solve on
@@ -35,11 +35,11 @@ struct FoundClass {
   CoarseEvaluation evaluation;
 };
 
-/// Stage 1: lifts from options.homotopy_search_cuts more cuts (`lifter`,
+/// Stage 1: lifts from options.homotopy.search.cuts more cuts (`lifter`,
 /// bases spread over the source's `num_vertices`; their source-only parts
 /// prepared first on `threads` threads), each new class's data built by
 /// `data_of` and solved on the coarse copy, lowest screen first, until one
-/// comes within homotopy_search_gap of `conformal_bound`. Counts the classes
+/// comes within homotopy.search.gap of `conformal_bound`. Counts the classes
 /// tried in info.cut_classes and the seconds in info.cuts_time_s.
 std::vector<FoundClass> classes_from_more_cuts(CutLifter& lifter, SourceCuts& cuts, const ClassSpace& space,
                                                int num_vertices, int threads, double conformal_bound,

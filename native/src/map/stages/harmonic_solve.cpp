@@ -22,8 +22,8 @@ SolveProgress chosen_solve_progress(const SurfaceMapOptions& options) {
     if (options.solve_progress && !options.solve_progress(it, E, g)) return false;
     if (*first_gradient < 0) *first_gradient = g;
     double done = std::min(1.0, it / 50.0);
-    if (options.method == MapMethod::Relaxation && *first_gradient > 0 && g > 0) {
-      const double decades = std::log(*first_gradient / std::max(options.tolerance, 1e-300));
+    if (options.solve.method == MapMethod::Relaxation && *first_gradient > 0 && g > 0) {
+      const double decades = std::log(*first_gradient / std::max(options.solve.tolerance, 1e-300));
       done = decades > 0 ? std::clamp(std::log(*first_gradient / g) / decades, 0.0, 1.0) : 1.0;
     }
     return !options.progress || options.progress("harmonic solve", 0.45 + 0.25 * done);
@@ -50,8 +50,8 @@ ChosenSolve solve_chosen_class(int num_vertices, const std::vector<WeightedEdge>
   std::vector<Mobius> start_deck = init.vertex_deck;
   std::vector<Word> start_deck_word = init.vertex_deck_word;
   solved.initial_energy = hyperbolic_energy(start_edges, start, std::vector<Mobius>(start.size()));
-  if (options.start_seed != 0) {
-    std::mt19937 rng(options.start_seed);
+  if (options.solve.start_seed != 0) {
+    std::mt19937 rng(options.solve.start_seed);
     std::uniform_real_distribution<double> U(-0.35, 0.35);
     for (Complex& z : start) z = Complex(U(rng), U(rng));
     start_edges = edges;
@@ -72,29 +72,29 @@ ChosenSolve solve_chosen_class(int num_vertices, const std::vector<WeightedEdge>
   // The class's full-resolution Newton solve from the ranking is its
   // optimum (convex energy): kept, unless another start or method is asked
   // for (uniqueness checks, the relaxation for comparison).
-  const bool reuse = ranked && options.method == MapMethod::Newton && options.start_seed == 0;
+  const bool reuse = ranked && options.solve.method == MapMethod::Newton && options.solve.start_seed == 0;
   solved.reused = reuse;
   if (reuse) {
     hr = std::move(*ranked);
     // solve_progress saw the requested class's solve live; otherwise (the
     // default class is known only after the ranking) its iterations are
     // reported now.
-    if (options.homotopy < 0 && options.solve_progress)
+    if (options.homotopy.class_index < 0 && options.solve_progress)
       for (size_t it = 0; it < hr.gradient_history.size(); ++it)
         if (!options.solve_progress(static_cast<int>(it), hr.energy_history[std::min(it, hr.energy_history.size() - 1)],
                                     hr.gradient_history[it]))
           throw Cancelled("harmonic map solve cancelled");
-  } else if (options.method == MapMethod::Relaxation) {
+  } else if (options.solve.method == MapMethod::Relaxation) {
     HarmonicRelaxationOptions ro;
-    ro.tolerance = options.tolerance;
-    ro.max_iterations = options.max_iterations;
+    ro.tolerance = options.solve.tolerance;
+    ro.max_iterations = options.solve.max_iterations;
     ro.check_every = 10;  // the evaluation pass costs about a sweep
     ro.progress = progress;
     hr = as_harmonic_result(harmonic_relaxation(num_vertices, start_edges, group.side_pairings(), start, ro));
   } else {
     HyperbolicHarmonicOptions ho;
-    ho.tolerance = options.tolerance;
-    ho.max_iterations = options.max_iterations;
+    ho.tolerance = options.solve.tolerance;
+    ho.max_iterations = options.solve.max_iterations;
     ho.progress = progress;
     ho.relator = group.side_relator();
     ho.reduce_point = [&](Complex& z) { return polygon.reduce(z); };
@@ -108,7 +108,7 @@ ChosenSolve solve_chosen_class(int num_vertices, const std::vector<WeightedEdge>
   }
   if (!hr.converged)
     throw SolveError(std::string("the harmonic map solve (") +
-                     (options.method == MapMethod::Relaxation ? "relaxation" : "Newton") + ") did not converge in " +
+                     (options.solve.method == MapMethod::Relaxation ? "relaxation" : "Newton") + ") did not converge in " +
                      std::to_string(hr.iterations) + " iterations (gradient " +
                      std::to_string(hr.gradient_history.back()) + "); raise max_iterations or the tolerance");
   return solved;

@@ -166,7 +166,7 @@ std::vector<HomotopyClass> CutLifter::lift(const std::vector<int>& cut_bases) {
                                            " carried to the nearest points" + (proj.ok ? "" : ", jumps joined")));
       }
     }
-    for (HomotopyClass hc : handle_candidates(cp.shb, thb_, options_.homotopy_candidates)) {
+    for (HomotopyClass hc : handle_candidates(cp.shb, thb_, options_.homotopy.candidates)) {
       if (total_letters(hc.map) > 4 * word_cap_) continue;  // composing would only make it longer
       GroupMap theta = compose(hc.map, cp.psi);
       space_.reduce(theta);
@@ -185,7 +185,7 @@ std::vector<HomotopyClass> CutLifter::lift(const std::vector<int>& cut_bases) {
   std::stable_sort(extra.begin(), extra.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
   // The overlay classes go first (few: most cuts' overlays coincide).
   std::vector<HomotopyClass> kept = std::move(overlaid);
-  for (size_t k = 0; k < extra.size() && static_cast<int>(k) < options_.homotopy_extra_cut_classes; ++k)
+  for (size_t k = 0; k < extra.size() && static_cast<int>(k) < options_.homotopy.extra_cut_classes; ++k)
     kept.push_back(std::move(extra[k].second));
   return kept;
 }
@@ -267,7 +267,7 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
   // canonical surface groups; of the Torelli-equivalent versions of each,
   // the one whose source loops have the shortest images (least twisted).
   std::vector<HomotopyClass>& classes = out.classes;
-  classes = handle_candidates(shb, thb, options.homotopy_candidates);
+  classes = handle_candidates(shb, thb, options.homotopy.candidates);
   auto loop_image_length = [&](const GroupMap& theta) { return space.loop_image_length(theta); };
   for (HomotopyClass& hc : classes)
     if (space.loop_image_length(hc.map) <= space.max_image_letters())
@@ -297,16 +297,16 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
   GroupMap canonical(n);
   for (int j = 0; j < n; ++j) canonical[j] = {j + 1};
   add_named(canonical, "a_i -> a'_i, b_i -> b'_i of the canonical polygon schemata", space.fingerprint(canonical));
-  // Source 4: lifted classes from homotopy_extra_cuts other source cuts
-  // (CutLifter), new by fingerprint, at most homotopy_extra_cut_classes,
+  // Source 4: lifted classes from homotopy.extra_cuts other source cuts
+  // (CutLifter), new by fingerprint, at most homotopy.extra_cut_classes,
   // lowest screen first. Base vertices spread over the vertex list
   // (deterministic); not the farthest points: those are the shape's
   // extremities, where the loops come out long and skewed (the demo pair:
   // no geometric class from the two farthest; from 3 of 7 spread ones).
-  if (options.homotopy_extra_cuts > 0) {
+  if (options.homotopy.extra_cuts > 0) {
     out.lifter = std::make_unique<CutLifter>(space, source, sl.base_vertex, shb, thb, projector, out.strict_overlay,
                                              options, cuts, classes);
-    for (HomotopyClass& hc : out.lifter->lift(spread_bases(source.num_vertices(), options.homotopy_extra_cuts)))
+    for (HomotopyClass& hc : out.lifter->lift(spread_bases(source.num_vertices(), options.homotopy.extra_cuts)))
       classes.push_back(std::move(hc));
   }
   // Further candidate sources append their classes here (each new by

@@ -108,7 +108,7 @@ class CutLifter {
             const HandleBasis& thb, const LoopProjector& projector, bool strict_overlay, const SurfaceMapOptions& options,
             SourceCuts& cuts, const std::vector<HomotopyClass>& classes);
   /// The new classes from the cuts at `cut_bases` not lifted from before:
-  /// overlay classes first, then at most homotopy_extra_cut_classes lifted
+  /// overlay classes first, then at most homotopy.extra_cut_classes lifted
   /// ones, lowest screen first.
   std::vector<HomotopyClass> lift(const std::vector<int>& cut_bases);
 
@@ -133,7 +133,7 @@ class CutLifter {
 /// remeshed copy), (1) a_i -> a'_i, b_i -> b'_i of the canonical polygon
 /// schemata, (2...) signed handle permutations lifted to isomorphisms and
 /// shortened over separating twists, then lifted classes from
-/// homotopy_extra_cuts other cuts. Classes with the homology of a named
+/// homotopy.extra_cuts other cuts. Classes with the homology of a named
 /// (overlay / canonical) class are dropped.
 struct CandidateClasses {
   std::vector<HomotopyClass> classes;
@@ -143,7 +143,7 @@ struct CandidateClasses {
   /// An overlay within the strict jump test exists (else jumps were joined).
   bool strict_overlay = false;
   /// Lifts from more cuts later (the class search); null when
-  /// homotopy_extra_cuts is 0.
+  /// homotopy.extra_cuts is 0.
   std::unique_ptr<CutLifter> lifter;
 };
 

@@ -17,10 +17,10 @@ std::vector<int> spread_bases(int num_vertices, int count) {
 SourceCuts::SourceCuts(const TriMesh& source, const SurfaceMapOptions& options, int genus)
     : source_(source), options_(options), genus_(genus) {
   const int nv = source.num_vertices();
-  if (options.homotopy_extra_cuts > 0) {
-    bases_ = spread_bases(nv, options.homotopy_extra_cuts);
-    if (options.homotopy_search && options.homotopy < 0)
-      for (int b : spread_bases(nv, options.homotopy_search_cuts)) bases_.push_back(b);
+  if (options.homotopy.extra_cuts > 0) {
+    bases_ = spread_bases(nv, options.homotopy.extra_cuts);
+    if (options.homotopy.search.enabled && options.homotopy.class_index < 0)
+      for (int b : spread_bases(nv, options.homotopy.search.cuts)) bases_.push_back(b);
   }
   slots_ = std::vector<Slot>(bases_.size());
 }
@@ -34,7 +34,7 @@ CutPrep SourceCuts::build(int base) const {
   CutPrep cp;
   const int n2 = 2 * genus_;
   SurfaceMapOptions o2 = options_;
-  o2.source_base_vertex = base;
+  o2.loops.source_base_vertex = base;
   SystemOfLoops sl2;
   try {
     sl2 = source_loops(source_, o2);

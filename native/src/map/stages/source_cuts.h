@@ -24,8 +24,8 @@ struct CutPrep {
 };
 
 /// The cuts the class search may ask for, in the order it asks: the
-/// options' homotopy_extra_cuts first, then (default class with the search
-/// on) homotopy_search_cuts, base vertices spread evenly over the vertex
+/// options' homotopy.extra_cuts first, then (default class with the search
+/// on) homotopy.search.cuts, base vertices spread evenly over the vertex
 /// list. Whichever thread prepares a cut, the result is the same; each
 /// planned cut is prepared once.
 class SourceCuts {

@@ -12,7 +12,7 @@ namespace surfmap::detail {
 SourceSide build_source_side(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options,
                              bool own_weights) {
   CoarseSourceOptions cso;
-  cso.target_vertices = std::min(options.homotopy_coarse_vertices, source.num_vertices() / 4);
+  cso.target_vertices = std::min(options.homotopy.coarse_vertices, source.num_vertices() / 4);
   SourceSide ss;
   ss.sl = source_loops(source, options);
   ss.scs = canonical_schema(ss.sl.word);
@@ -33,7 +33,7 @@ SourceSide build_source_side(const TriMesh& source, const Connectivity& sc, cons
   if (!ss.idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
   ss.shb = handle_basis(source, ss.sl.loops, ss.scs);
   // The ranking level (below): a coarse copy of the source.
-  if (options.homotopy_coarse_vertices > 0 && cso.target_vertices >= 500) ss.cs = coarse_source(source, sc, cso);
+  if (options.homotopy.coarse_vertices > 0 && cso.target_vertices >= 500) ss.cs = coarse_source(source, sc, cso);
   return ss;
 }
 

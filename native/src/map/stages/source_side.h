@@ -25,7 +25,7 @@ struct SourceSide {
 
 /// `own_weights`: positive weights on the source's own edges instead of
 /// intrinsic Delaunay cotangents (SourceWeights). The coarse copy is built
-/// when options.homotopy_coarse_vertices > 0 and min(that, #V / 4) >= 500.
+/// when options.homotopy.coarse_vertices > 0 and min(that, #V / 4) >= 500.
 /// Throws SolveError when the intrinsic Delaunay flips do not finish.
 SourceSide build_source_side(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options,
                              bool own_weights);

@@ -1,0 +1,43 @@
+#pragma once
+// The report of a surface map (SurfaceMapResult, map/surface_map.h) as JSON:
+// the one serializer behind the CLI's `surfmap map --report` file and the
+// Python result dict (the bindings convert this JSON and add the per-vertex
+// and per-face arrays as numpy arrays), so both carry the same keys, values
+// and enum spellings (map/map_option_names.h).
+//
+// Keys (every block is one function below, so a new block is one more
+// function and one line in to_json):
+//   genus, converged, iterations, method, landmarks (count),
+//   energy {initial, final, history}, distortion {mean, max},
+//   initial_distortion {mean, max}, flipped_triangles, degenerate_triangles,
+//   intrinsic_flipped_triangles, initial_flipped_triangles, repaired_vertices,
+//   landmark_error, landmark_rings, landmark_method, landmark_solves,
+//   landmark_steps, landmark_held_vertices,
+//   initial_map {construction, cut_graph {...}, polygon {...}, iterations, time_s, located},
+//   target_refinement_splits, source_weights,
+//   homotopy {chosen, candidates [{index, description, energy, solved, coarse_energy,
+//             landmark_energy, landmark_lower_bound, matrix}], search {..., evaluated
+//             [{step, move, screen, energy}]}},
+//   target_lattice [[re, im] of omega1, [re, im] of omega2], time_s {stage: seconds, total}.
+// Non-finite numbers are stored as such (the CLI's dump writes them as null;
+// the Python conversion keeps them as float nan / inf).
+#include <nlohmann/json.hpp>
+
+#include "surfmap/map/surface_map.h"
+
+namespace surfmap {
+
+/// The whole report of `result`, computed with `options` (echoed: the
+/// optimiser's name and the number of landmarks).
+nlohmann::json to_json(const SurfaceMapResult& result, const SurfaceMapOptions& options);
+
+/// The blocks of to_json, one per concern.
+nlohmann::json energy_json(const SurfaceMapResult& result);
+nlohmann::json landmark_json(const SurfaceMapResult& result, const SurfaceMapOptions& options);
+nlohmann::json initial_map_json(const SurfaceMapResult& result);
+nlohmann::json candidate_json(const HomotopyCandidate& candidate, size_t index);
+nlohmann::json homotopy_search_json(const HomotopySearchInfo& search);
+nlohmann::json homotopy_json(const SurfaceMapResult& result);
+nlohmann::json stage_times_json(const SurfaceMapResult& result);
+
+}  // namespace surfmap

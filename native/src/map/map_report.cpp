@@ -1,0 +1,117 @@
+// The one serializer of SurfaceMapResult (map/map_report.h).
+#include "surfmap/map/map_report.h"
+
+#include "surfmap/map/map_option_names.h"
+
+namespace surfmap {
+
+using nlohmann::json;
+
+json energy_json(const SurfaceMapResult& r) {
+  return {{"energy", {{"initial", r.initial_energy}, {"final", r.final_energy}, {"history", r.energy_history}}},
+          {"distortion", {{"mean", r.mean_dilatation}, {"max", r.max_dilatation}}},
+          {"initial_distortion", {{"mean", r.initial_mean_dilatation}, {"max", r.initial_max_dilatation}}},
+          {"flipped_triangles", r.flipped_triangles},
+          {"degenerate_triangles", r.degenerate_triangles},
+          {"intrinsic_flipped_triangles", r.intrinsic_flipped_triangles},
+          {"initial_flipped_triangles", r.initial_flipped_triangles},
+          {"repaired_vertices", r.repaired_vertices},
+          {"target_refinement_splits", r.target_refinement_splits},
+          {"source_weights", r.source_weights}};
+}
+
+json landmark_json(const SurfaceMapResult& r, const SurfaceMapOptions& options) {
+  return {{"landmarks", options.landmarks.size()},
+          {"landmark_error", r.max_landmark_error},
+          {"landmark_rings", r.landmark_rings},
+          {"landmark_method", r.landmark_method},
+          {"landmark_solves", r.landmark_solves},
+          {"landmark_steps", r.landmark_steps},
+          {"landmark_held_vertices", r.landmark_held_vertices}};
+}
+
+json initial_map_json(const SurfaceMapResult& r) {
+  const InitialMapInfo& im = r.initial_map;
+  const json cut_graph = {{"status", im.cut_graph_status},
+                          {"branch_vertices", im.cut_graph_branch_vertices},
+                          {"sides", im.cut_graph_sides},
+                          {"chords_rerouted", im.cut_graph_chords_rerouted},
+                          {"min_turn", im.cut_graph_min_turn},
+                          {"flipped", im.cut_graph_flipped},
+                          {"degenerate", im.cut_graph_degenerate},
+                          {"time_s", im.cut_graph_time_s}};
+  const json polygon = {{"status", im.polygon_status},
+                        {"convex", im.polygon_convex},
+                        {"min_turn", im.polygon_min_turn},
+                        {"perimeter", im.polygon_perimeter},
+                        {"chords_split", im.polygon_chords_split},
+                        {"flipped", im.polygon_flipped},
+                        {"repaired_vertices", im.polygon_repaired_vertices},
+                        {"time_s", im.polygon_time_s}};
+  return {{"construction", im.construction}, {"cut_graph", cut_graph},     {"polygon", polygon},
+          {"iterations", im.iterations},     {"time_s", im.time_s},         {"located", !r.initial_forward.empty()}};
+}
+
+json candidate_json(const HomotopyCandidate& c, size_t index) {
+  return {{"index", index},
+          {"description", c.description},
+          {"energy", c.energy},
+          {"solved", c.solved},
+          {"coarse_energy", c.coarse_energy},
+          {"landmark_energy", c.landmark_energy},
+          {"landmark_lower_bound", c.landmark_lower_bound},
+          {"matrix", {c.matrix[0], c.matrix[1], c.matrix[2], c.matrix[3]}}};
+}
+
+json homotopy_search_json(const HomotopySearchInfo& hs) {
+  json evaluated = json::array();
+  for (size_t k = 0; k < hs.evaluated_moves.size(); ++k)
+    evaluated.push_back({{"step", hs.evaluated_step[k]},
+                         {"move", hs.evaluated_moves[k]},
+                         {"screen", hs.evaluated_screen[k]},
+                         {"energy", hs.evaluated_energy[k]}});
+  return {{"run", hs.run},
+          {"start_candidate", hs.start_candidate},
+          {"start_energy", hs.start_energy},
+          {"energy", hs.energy},
+          {"moves", hs.moves},
+          {"energies", hs.energies},
+          {"evaluations", hs.evaluations},
+          {"screened", hs.screened},
+          {"stop_reason", hs.stop_reason},
+          {"time_s", hs.time_s},
+          {"found_candidate", hs.found_candidate},
+          {"cut_classes", hs.cut_classes},
+          {"cuts_time_s", hs.cuts_time_s},
+          {"evaluated", evaluated}};
+}
+
+json homotopy_json(const SurfaceMapResult& r) {
+  json candidates = json::array();
+  for (size_t i = 0; i < r.candidates.size(); ++i) candidates.push_back(candidate_json(r.candidates[i], i));
+  return {{"chosen", r.chosen_candidate}, {"candidates", candidates}, {"search", homotopy_search_json(r.homotopy_search)}};
+}
+
+json stage_times_json(const SurfaceMapResult& r) {
+  json times = json::object();
+  for (const auto& [stage, seconds] : r.stage_times) times[stage] = seconds;
+  times["total"] = r.total_time;
+  return times;
+}
+
+json to_json(const SurfaceMapResult& r, const SurfaceMapOptions& options) {
+  json report = {{"genus", r.genus},
+                 {"converged", r.converged},
+                 {"iterations", r.iterations},
+                 {"method", enum_name(options.solve.method)},
+                 {"initial_map", initial_map_json(r)},
+                 {"homotopy", homotopy_json(r)},
+                 {"target_lattice",
+                  {{r.target_omega1.real(), r.target_omega1.imag()}, {r.target_omega2.real(), r.target_omega2.imag()}}},
+                 {"time_s", stage_times_json(r)}};
+  report.update(energy_json(r));
+  report.update(landmark_json(r, options));
+  return report;
+}
+
+}  // namespace surfmap
