@@ -630,7 +630,7 @@ TEST(SurfaceMapHighGenus, TargetVerticesAtTheCornersOfALongThinPolygonAreLocated
   const TriMesh a = samples::n_hole_torus(6, 22, false);
   const TriMesh b = samples::jitter(samples::n_hole_torus(6, 26, true), 0.1, 6);
   SurfaceMapOptions o;
-  o.target_base_vertex = 700;
+  o.loops.target_base_vertex = 700;
   const SurfaceMapResult m = surface_map(a, b, o);
   expect_valid_map(m, a, b);
   // Strict: a composition error counts even where the target's normals
