@@ -362,9 +362,11 @@ class SURFMAP_OT_compare_selected(_Modal, bpy.types.Operator):
 
 def draw_rows(layout):
     """The two panel rows of these operators."""
-    row = layout.column(align=True)
-    row.operator(SURFMAP_OT_map_onto_selected.bl_idname, icon='MOD_UVPROJECT')
-    row.operator(SURFMAP_OT_compare_selected.bl_idname, icon='SORTSIZE')
+    col = layout.column(align=True)
+    col.label(text="Active and other selected:")
+    row = col.row(align=True)
+    row.operator(SURFMAP_OT_map_onto_selected.bl_idname, text="Map Onto", icon='MOD_UVPROJECT')
+    row.operator(SURFMAP_OT_compare_selected.bl_idname, text="Compare", icon='SORTSIZE')
 
 
 classes = (SURFMAP_OT_map_onto_selected, SURFMAP_OT_compare_selected)

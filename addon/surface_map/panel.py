@@ -217,8 +217,9 @@ def draw_outputs(layout, settings, context):
     row.operator("surfmap.transfer_uvs", text="UVs")
     row.operator("surfmap.create_morph", text="Morph")
     row.operator("surfmap.paint_distortion", text="Colours")
-    col.operator("surfmap.bake_textures", text="Bake Textures", icon='TEXTURE')
-    col.operator("surfmap.verify_map", text="Verify Map", icon='CHECKMARK')
+    row = col.row(align=True)
+    row.operator("surfmap.bake_textures", text="Bake Texture", icon='TEXTURE')
+    row.operator("surfmap.verify_map", text="Verify", icon='CHECKMARK')
     batch_operators.draw_rows(layout)   # many objects: map onto selected, compare selected
 
 
