@@ -19,7 +19,7 @@ piecewise-linear map exactly; elsewhere it differs from the solver's map (linear
 uniformization domain) by the change of metric between the domain and 3D within one
 sub-triangle.
 
-Conventions as in mapping.py: V (n,3) float64, F (m,3) int triangles; a point on a surface is
+Conventions as in uv_transfer.py: V (n,3) float64, F (m,3) int triangles; a point on a surface is
 (face, barycentrics (3,)). Images are (h, w, 4) float32 RGBA arrays with row 0 at v = 0 (the
 layout of Blender's Image.pixels); UV (0,0) is the lower-left corner of texel (0,0).
 """
@@ -644,14 +644,10 @@ def bake_error_at_nodes(image, F_src, F_tgt, target_corner_uv, forward, inverse,
 
 
 def seam_vertices(F, corner_uv, rings=1, seams=None):
-    """(n,) bool: vertices on a UV seam of the mesh and `rings` rings around them (mapping's
+    """(n,) bool: vertices on a UV seam of the mesh and `rings` rings around them (uv_transfer's
     uv_seams decides which edges are seams)."""
     F = np.asarray(F, dtype=np.int64)
     if seams is None:
-        try:
-            from .mapping import uv_seams
-        except ImportError:
-            uv_seams = uv_seams
         seams = uv_seams(F, corner_uv)
     n = int(F.max(initial=-1)) + 1
     on = np.zeros(n, dtype=bool)
