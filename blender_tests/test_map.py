@@ -149,7 +149,7 @@ def test_genus1_pair_writes_every_output():
     a.data.attributes["surfmap_dilatation_initial"].data.foreach_get("value", d0)
     # genus 1: several handle correspondences, the Fig. 9c pair's best is meridian to meridian
     assert len(bpy.context.scene.surfmap.candidates) > 1
-    # dilatation close to the extremal K of the two flat tori (DESIGN.md §3) on this coarse mesh
+    # dilatation close to the extremal K of the two flat tori (docs/method.md §3) on this coarse mesh
     d = np.empty(len(a.data.polygons))
     a.data.attributes["surfmap_dilatation"].data.foreach_get("value", d)
     assert 1.45 < float(np.median(d)) < 1.8, float(np.median(d))

@@ -99,7 +99,7 @@ def main():
              "| file | genus | V | F | shape | command |", "|---|---|---|---|---|---|"]
     for name, genus, nv, nf, what, cmd in rows:
         lines.append("| `%s` | %d | %d | %d | %s | `%s --out %s` |" % (name, genus, nv, nf, what, cmd, name))
-    lines += ["", "Pairs: the two tori are the paper's Fig. 9c pair (flat-torus ground truth, DESIGN.md §3);",
+    lines += ["", "Pairs: the two tori are the paper's Fig. 9c pair (flat-torus ground truth, docs/method.md §3);",
               "`vase_g2`/`double_torus_g2` and `polycube_g3`/`triple_torus_g3` are equal-genus pairs of",
               "different-looking shapes for the demo.", ""]
     with open(os.path.join(OUT, "README.md"), "w") as f:

@@ -1,5 +1,5 @@
 // surfmap uniformize MESH --report REPORT.json [--layout LAYOUT.obj]:
-// the uniformization metric (DESIGN.md §2.2-2.5) — sphere, flat torus
+// the uniformization metric (docs/method.md §2.2-2.5) — sphere, flat torus
 // (lattice, τ) or hyperbolic surface (Fuchsian generators) — with a JSON
 // report and optionally the laid-out cut disk (or the sphere) as OBJ.
 #include <cmath>

@@ -50,7 +50,7 @@ TEST(Hyperbolic, CentringChartSendsPointToOriginAndInverseIsMinusP) {
     EXPECT_LT(std::abs(Mobius::centring(p).apply(p)), 1e-12);
     const Complex tz = Mobius::centring(p).apply(z);
     EXPECT_LT(std::abs(Mobius::centring(-p).apply(tz) - z), 1e-10);
-    // Formula of DESIGN.md §7.
+    // Formula of docs/method.md §7.
     EXPECT_LT(std::abs(tz - (z - p) / (1.0 - std::conj(p) * z)), 1e-12);
   }
 }
@@ -62,7 +62,7 @@ TEST(Hyperbolic, DistanceIsInvariantUnderIsometries) {
     const Complex z = rng.point(0.98), w = rng.point(0.98);
     const double d = distance(z, w);
     EXPECT_NEAR(distance(m.apply(z), m.apply(w)), d, 1e-9 * (1 + d));
-    // Agrees with the artanh form of DESIGN.md §7.
+    // Agrees with the artanh form of docs/method.md §7.
     const double d2 = 2 * std::atanh(std::abs(z - w) / std::abs(1.0 - std::conj(w) * z));
     EXPECT_NEAR(d, d2, 1e-9 * (1 + d));
     EXPECT_NEAR(distance(z, w), distance(w, z), 1e-12);

@@ -1,5 +1,5 @@
 // The harmonic energy of a homotopy class is geodesically convex (genus >= 2,
-// positive weights, hyperbolic target: DESIGN.md §2.8), so Newton must reach
+// positive weights, hyperbolic target: docs/method.md §2.8), so Newton must reach
 // the same optimum from any start. Checked in a twisted (non-default) class,
 // where a start at the origin has edges tens of units long and deck elements
 // of size 1e8 and more: the case where the solver's in-place edge updates

@@ -22,7 +22,7 @@ namespace surfmap {
 namespace {
 
 // Conformal modulus of a torus of revolution: the flat torus is a 2π m by 2π
-// rectangle with m = r / sqrt(R^2 - r^2) (DESIGN.md §3).
+// rectangle with m = r / sqrt(R^2 - r^2) (docs/method.md §3).
 double modulus(double R, double r) { return r / std::sqrt(R * R - r * r); }
 
 // chord_folds: the share of source triangles whose chord images may fold
@@ -247,7 +247,7 @@ TEST(SurfaceMapHyperbolic, SliverSourceHasNoFlips) {
 namespace surfmap {
 namespace {
 
-// Handle correspondence (DESIGN §2.10, topology/handle_basis.h and
+// Handle correspondence (docs/method.md §2.10, topology/handle_basis.h and
 // topology/projected_loops.h): a genus-2 surface mapped to a remeshed,
 // jittered copy of itself is nearly the identity under the default class.
 TEST(SurfaceMapHandles, RemeshedJitteredCopyGivesNearlyTheIdentity) {
@@ -318,7 +318,7 @@ TEST(SurfaceMapHandles, ClassSearchUndoesKnownTwists) {
   EXPECT_THROW(surface_map(a, b, o, hooks), InputError);
 }
 
-// Shapes not posed alike (DESIGN §2.10, projected_loops.h
+// Shapes not posed alike (docs/method.md §2.10, projected_loops.h
 // rotation_overlay_poses): a surface mapped to a turned, remeshed and
 // jittered copy of itself must get the identity-like class, i.e. after
 // undoing the rotation the map is close to the identity and nearly

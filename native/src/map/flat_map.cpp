@@ -1,4 +1,4 @@
-// Genus 1: the flat-torus case of the optimal map (paper §VI; DESIGN.md §2.8).
+// Genus 1: the flat-torus case of the optimal map (paper §VI; docs/method.md §2.8).
 #include <algorithm>
 #include <array>
 #include <cmath>

@@ -477,7 +477,7 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
     return true;
   };
   for (int it = 0; it < options.max_iterations; ++it) {
-    // Riemannian Newton (DESIGN.md §7). Unknowns: a tangent vector per
+    // Riemannian Newton (docs/method.md §7). Unknowns: a tangent vector per
     // vertex in the orthonormal frame of its chart at 0 (2 reals). For the
     // term w d(x, y)^2 seen from x's chart, y = A_e(0) lies on the diameter
     // with direction u; the Hessian of ½d² is [1 -1; -1 1] along u and

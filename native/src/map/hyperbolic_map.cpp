@@ -280,7 +280,7 @@ HyperbolicHarmonicOptions HyperbolicPipeline::fine_options(int k) const {
   return o;
 }
 
-// Ranking (paper §V-B; docs/ method notes). The energy of a class is a
+// Ranking (paper §V-B; docs/method.md). The energy of a class is a
 // property of the two continuous surfaces, so every candidate is solved to
 // convergence on a coarse copy of the source (map/coarse_source.h,
 // stages/coarse_level.h; its vertices are fine vertices, its deck elements

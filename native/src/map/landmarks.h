@@ -1,5 +1,5 @@
 #pragma once
-// Landmarks for genus >= 1 (paper §VII-C; DESIGN.md §2.10): each landmark
+// Landmarks for genus >= 1 (paper §VII-C; docs/method.md §2.10): each landmark
 // source vertex s is held at a lift of its target vertex t's position in the
 // universal cover of the target. Not part of the public API.
 //

@@ -61,7 +61,7 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
 /// connectivity, and contracting its tree gives a one-vertex schema.
 SystemOfLoops source_loops(const TriMesh& source, const SurfaceMapOptions& options);
 
-/// Genus 1 (flat target): fills `out` (DESIGN.md §2.8, exact sparse solve).
+/// Genus 1 (flat target): fills `out` (docs/method.md §2.8, exact sparse solve).
 void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
               const SurfaceMapOptions& options, const testing::MapHooks& hooks, SurfaceMapResult& out,
               const StageDone& stage_done);
@@ -70,7 +70,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
 void map_spherical(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
                    const SurfaceMapOptions& options, SurfaceMapResult& out, const StageDone& stage_done);
 
-/// Genus >= 2 (hyperbolic target): fills `out` (Riemannian Newton, DESIGN.md §7).
+/// Genus >= 2 (hyperbolic target): fills `out` (Riemannian Newton, docs/method.md §7).
 void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
                     const SurfaceMapOptions& options, const testing::MapHooks& hooks, SurfaceMapResult& out,
                     const StageDone& stage_done);

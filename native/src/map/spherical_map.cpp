@@ -1,4 +1,4 @@
-// Genus 0: maps through the unit sphere (DESIGN.md §2.4, §2.10). See
+// Genus 0: maps through the unit sphere (docs/method.md §2.4, §2.10). See
 // map/spherical_map.h for the choice of the Möbius map.
 #include "surfmap/map/spherical_map.h"
 

@@ -1,4 +1,4 @@
-// Isometric disk layout and deck transformations (layout.h; DESIGN.md §2.5).
+// Isometric disk layout and deck transformations (layout.h; docs/method.md §2.5).
 #include "surfmap/uniformize/layout.h"
 
 #include <algorithm>
@@ -238,7 +238,7 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     if constexpr (std::is_same_v<G, Hyper>) {
       // Karcher mean of the corner positions: minimise ½Σ d(c, z)² by
       // Riemannian Newton steps c ← exp_c(H⁻¹ Σ log_c(z)), with H the exact
-      // Hessian (DESIGN.md §7: 1 along each geodesic, d coth d across it),
+      // Hessian (docs/method.md §7: 1 along each geodesic, d coth d across it),
       // and backtracking on the objective (it is geodesically convex).
       auto objective = [&](Complex c) {
         double sum = 0;

@@ -1,5 +1,5 @@
 #pragma once
-// Poincaré-disk helpers (DESIGN.md §7): orientation-preserving isometries of
+// Poincaré-disk helpers (docs/method.md §7): orientation-preserving isometries of
 // the disk as SU(1,1) matrices, distance, geodesic midpoint, exp/log maps,
 // Klein <-> Poincaré conversion and the hyperbolic law of cosines
 // (curvature −1). Used by the layout (uniformize/layout.h), the homotopy data

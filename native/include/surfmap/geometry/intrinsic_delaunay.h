@@ -1,6 +1,6 @@
 #pragma once
 // Intrinsic Delaunay triangulation by edge flips on edge lengths alone
-// (Bobenko–Springborn; DESIGN.md §2.8). Its cotangent weights are >= 0 and
+// (Bobenko–Springborn; docs/method.md §2.8). Its cotangent weights are >= 0 and
 // still reproduce affine functions exactly, which is what the harmonic-map
 // energy needs on irregular meshes (clamping negative cotangents does not).
 // The vertex set is unchanged; each intrinsic edge remembers the path of

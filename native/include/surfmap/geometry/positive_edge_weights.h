@@ -1,12 +1,12 @@
 #pragma once
-// Positive weights on a mesh's OWN edges (DESIGN.md §2.8), the fallback of
+// Positive weights on a mesh's OWN edges (docs/method.md §2.8), the fallback of
 // the genus >= 2 map when the straight images of the source's faces fold.
 // The harmonic map with the intrinsic Delaunay cotangent weights embeds the
 // intrinsic triangulation, but on meshes with slivers (g3_block) the
 // geodesic images of the user's own triangles can still overlap. With
 // positive weights on the mesh's own edges the discrete harmonic map into a
 // hyperbolic surface embeds the mesh itself (the Tutte-type theorem for
-// hyperbolic targets, Colin de Verdière 1991; DESIGN.md §2.8), whatever the
+// hyperbolic targets, Colin de Verdière 1991; docs/method.md §2.8), whatever the
 // weights; the price is that they no longer reproduce affine maps (higher
 // D' where the cotangents were negative).
 //

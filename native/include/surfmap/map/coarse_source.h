@@ -1,6 +1,6 @@
 #pragma once
 // A coarse copy of a source mesh for ranking homotopy classes cheaply
-// (DESIGN.md §2.10): the harmonic energy of a class is a property of the
+// (docs/method.md §2.10): the harmonic energy of a class is a property of the
 // continuous surfaces, so a converged solve on a few thousand vertices
 // estimates it, and the fine mesh is then solved only in the best classes.
 //

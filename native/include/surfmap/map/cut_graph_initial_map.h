@@ -1,6 +1,6 @@
 #pragma once
 // A genus >= 2 initial map that embeds the source by construction (paper
-// §IV-B in spirit; DESIGN.md §2.7): the source's disk cut along a cut graph
+// §IV-B in spirit; docs/method.md §2.7): the source's disk cut along a cut graph
 // of its own edges, flattened onto a convex geodesic polygon of the target.
 //
 //  1. Cut graph G: the union of the source's UNREFINED greedy loops

@@ -1,5 +1,5 @@
 #pragma once
-// Quality measures of a piecewise-linear map (paper §VII-A; DESIGN.md §2.11):
+// Quality measures of a piecewise-linear map (paper §VII-A; docs/method.md §2.11):
 // per-triangle dilatation D' = Γ/γ (ratio of the singular values of the
 // affine map from a source triangle to its image), its area-weighted mean and
 // max, and flipped / degenerate image triangles.

@@ -1,7 +1,7 @@
 #pragma once
 // The paper's relaxation for the discrete harmonic map into a hyperbolic
 // surface (paper §VI-B, "heat diffusion" in Möbius-centred local charts;
-// DESIGN.md §2.8), kept beside the Riemannian Newton solver
+// docs/method.md §2.8), kept beside the Riemannian Newton solver
 // (map/hyperbolic_harmonic.h) so the two can be compared on the same input.
 //
 // Same problem as hyperbolic_harmonic_map: minimise
@@ -16,7 +16,7 @@
 // would move z_i, and the paper moves half way:
 //     z_i <- exp_{z_i}(step · v_i),   step = ½.
 // Along that geodesic the vertex's own energy has slope −2 Σw |v_i|² and
-// curvature between 2 Σw |v_i|² and 2 Σw |v_i|² · max d coth d (DESIGN.md §7),
+// curvature between 2 Σw |v_i|² and 2 Σw |v_i|² · max d coth d (docs/method.md §7),
 // so step ½ decreases it whenever the incident image edges are shorter than
 // about 3.8; longer ones (far from the optimum, e.g. an all-at-origin start)
 // get a backtracking check on the vertex's energy, so E never increases.

@@ -1,11 +1,11 @@
 #pragma once
-// Discrete harmonic map into a hyperbolic surface (paper §VI-B; DESIGN.md
+// Discrete harmonic map into a hyperbolic surface (paper §VI-B; docs/method.md
 // §2.8 and §7): minimises E(z) = Σ_e w_e d(z_i, ρ_e z_j)² over one point z_i
 // per vertex in the Poincaré disk, with a deck element ρ_e per edge i->j and
 // weights w_e >= 0. E is geodesically convex (the disk is a Hadamard space),
 // so the minimiser in the homotopy class fixed by ρ is unique.
 //
-// Method: Riemannian Newton with the Hessian of DESIGN.md §7 (radial and
+// Method: Riemannian Newton with the Hessian of docs/method.md §7 (radial and
 // normal blocks, frame rotations), a Levenberg shift when the model is
 // indefinite, and a backtracking line search on E along the exponential map.
 // The solve runs in charts: every vertex has an isometry C_i with C_i(0) = z_i

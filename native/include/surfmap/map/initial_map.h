@@ -1,6 +1,6 @@
 #pragma once
 // The initial ("before") map of the hyperbolic case (genus >= 2; paper §IV-B,
-// DESIGN.md §2.7) and the quality of any map given by points and deck
+// docs/method.md §2.7) and the quality of any map given by points and deck
 // elements (paper §VII-A).
 //
 // What is built (hyperbolic_initial_map with the source mesh, the default):
@@ -54,7 +54,7 @@
 //     (every source edge weight 1) into the target's hyperbolic surface,
 //     i.e. each vertex at the hyperbolic barycentre of its neighbours'
 //     images; with positive weights an embedding (the hyperbolic Tutte
-//     theorem; DESIGN.md §2.8), the counterpart of the genus-1 initial map
+//     theorem; docs/method.md §2.8), the counterpart of the genus-1 initial map
 //     (flat_map.cpp: the uniform Tutte embedding of the flat torus). Cost: a
 //     Newton solve, about 6-7 iterations from the origin and 4 from a
 //     flattening with flips ("uniform harmonic (from the polygon)": the
@@ -74,11 +74,11 @@
 // polygon start costs the main Newton solve 0-1 extra iteration against the
 // uniform start; the fallback started from the flattening needs 3-5 Newton
 // steps instead of 5-8.
-// Where this differs from the paper (§IV-B; DESIGN.md §2.7): the paper cuts
+// Where this differs from the paper (§IV-B; docs/method.md §2.7): the paper cuts
 // BOTH surfaces along corresponding canonical loops, flattens both disks
 // onto the same canonical 4g-gon and composes the two maps. Here the
 // target is never cut along the source's loops (its canonical generators are
-// words in its own loops; the mesh is not re-cut, DESIGN.md §2.3) and
+// words in its own loops; the mesh is not re-cut, docs/method.md §2.3) and
 // the source is not cut along canonical loops: the source's disk goes
 // straight onto the target's geodesic polygon of the source's own loops,
 // which plays the role of the common polygon (no second flattening and no

@@ -1,5 +1,5 @@
 #pragma once
-// Genus-0 surface maps (DESIGN.md §2.4, §2.10; paper §V, §VII-C): the pieces
+// Genus-0 surface maps (docs/method.md §2.4, §2.10; paper §V, §VII-C): the pieces
 // of the spherical path of surface_map().
 //
 // For genus 0 every harmonic map between the uniformized surfaces is

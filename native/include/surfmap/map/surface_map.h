@@ -1,5 +1,5 @@
 #pragma once
-// The globally optimal surface map (paper §III–VII; DESIGN.md §2.3–2.11).
+// The globally optimal surface map (paper §III–VII; docs/method.md §2.3–2.11).
 //
 // Flat case (genus 1), implemented here: the target is uniformized to a flat
 // torus C / (ω1 Z + ω2 Z); the map is given by one point z_i per source
@@ -14,7 +14,7 @@
 // Hyperbolic case (genus >= 2): the energy Σ w_ij d(z_i, ρ_ij z_j)² in the
 // Poincaré disk is geodesically convex; Riemannian Newton with line search
 // (map/hyperbolic_harmonic.h) converges in a handful of iterations. The
-// candidate classes (DESIGN §2.10), in this order: (0) the class the two
+// candidate classes (docs/method.md §2.10), in this order: (0) the class the two
 // shapes induce when overlaid in normalised bounding boxes (the source's
 // loops carried to the nearest target points, topology/projected_loops.h:
 // the identity for a remeshed copy, handles to the handles they overlap for
@@ -68,7 +68,7 @@ namespace surfmap {
 /// Optimiser of the harmonic energy (genus >= 2; the flat case is one exact
 /// linear solve either way).
 enum class MapMethod {
-  Newton,      ///< Riemannian Newton with line search (DESIGN.md §7), the default
+  Newton,      ///< Riemannian Newton with line search (docs/method.md §7), the default
   /// the paper's per-vertex relaxation in Möbius-centred charts (§VI-B,
   /// map/harmonic_relaxation.h), for comparison; genus 1 keeps the exact solve
   Relaxation,
@@ -98,7 +98,7 @@ enum class SourceWeights {
   /// OwnEdges (the default).
   Automatic,
   /// Cotangent weights of the source's intrinsic Delaunay triangulation
-  /// only (DESIGN.md §2.8): reproduce affine maps, embed the intrinsic
+  /// only (docs/method.md §2.8): reproduce affine maps, embed the intrinsic
   /// triangulation; folds of the user's faces are a SolveError.
   IntrinsicDelaunay,
   /// Positive weights on the source's own edges

@@ -1,6 +1,6 @@
 #pragma once
 // Exact refinement of a triangle mesh for the uniformization metric
-// (DESIGN.md §2.4: the fixed-connectivity flow must converge on badly shaped
+// (docs/method.md §2.4: the fixed-connectivity flow must converge on badly shaped
 // CAD and scan meshes). With fixed connectivity, the vertex-scaling metric of
 // a mesh with caps (angles near 180°) often does not exist: the minimiser of
 // the extended energy has degenerate triangles. Splitting the edge opposite

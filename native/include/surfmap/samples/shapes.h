@@ -56,7 +56,7 @@ TriMesh jitter(const TriMesh& mesh, double amplitude, unsigned seed);
 
 /// Inversion in the sphere with centre c and radius rho:
 /// x -> c + rho^2 (x - c) / |x - c|^2, a conformal copy of the mesh
-/// (DESIGN.md section 3). c must lie outside the surface's vertices (throws
+/// (docs/method.md section 3). c must lie outside the surface's vertices (throws
 /// InputError if it coincides with one). Faces are reversed when c is outside
 /// the enclosed solid, so the result stays outward-oriented.
 TriMesh sphere_inversion(const TriMesh& mesh, const Eigen::Vector3d& c, double rho);

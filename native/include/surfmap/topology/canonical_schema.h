@@ -1,5 +1,5 @@
 #pragma once
-// Canonical polygon schema, computed algebraically (DESIGN.md §2.3 and §7;
+// Canonical polygon schema, computed algebraically (docs/method.md §2.3 and §7;
 // paper §IV-A). The cut along a system of loops gives a 4g-gon whose cyclic
 // boundary word W uses every loop letter once with each sign, but not in the
 // canonical order a1 b1 a1^-1 b1^-1 ... ag bg ag^-1 bg^-1. The classical
@@ -20,7 +20,7 @@ struct CanonicalSchema {
   /// The inverse substitution: each original loop letter k (index k-1) as a
   /// word in the new generators, whose letters are 1..2g for a1, b1, a2, ...
   /// Evaluating these in a group where the a_i, b_i are known gives the
-  /// image of every loop (DESIGN.md §2.6).
+  /// image of every loop (docs/method.md §2.6).
   std::vector<Word> letters;
   /// Number of cut-and-paste moves applied (one per handle).
   int moves = 0;

@@ -1,5 +1,5 @@
 #pragma once
-// Cutting a closed mesh open along a set of edges (DESIGN.md §2.3): every
+// Cutting a closed mesh open along a set of edges (docs/method.md §2.3): every
 // vertex on the cut is duplicated once per wedge of faces between consecutive
 // cut edges around it, so that cutting along a system of loops gives a
 // topological disk whose boundary is the 4g-gon of the polygon schema.

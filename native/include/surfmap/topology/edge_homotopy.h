@@ -1,5 +1,5 @@
 #pragma once
-// Homotopy data on a mesh's edges (DESIGN.md §2.6 and §7): every oriented
+// Homotopy data on a mesh's edges (docs/method.md §2.6 and §7): every oriented
 // edge i->j gets the group element of the loop path_T(x,i) + (i,j) +
 // path_T(j,x), where T is the shortest-path tree of a system of loops. Tree
 // edges get the identity, the generator edge of loop k gets loop k's value,

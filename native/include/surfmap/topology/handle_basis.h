@@ -1,6 +1,6 @@
 #pragma once
 // Handles of a closed surface in R^3 and the handle correspondences between
-// two surfaces of genus g >= 2 (DESIGN.md §2.10 and §7 "Meridians and
+// two surfaces of genus g >= 2 (docs/method.md §2.10 and §7 "Meridians and
 // longitudes"; paper §VII-B).
 //
 // Homotopy classes of maps S1 -> S2 are outer isomorphisms of the surface
@@ -13,7 +13,7 @@
 // on homology preserves the intersection form (symplectic, not
 // anti-symplectic).
 //
-// Geometry (DESIGN §7). For a cycle on a surface S embedded in R^3, bounding
+// Geometry (docs/method.md §7). For a cycle on a surface S embedded in R^3, bounding
 // the solid V, the Seifert-type form L(x, y) = lk(x^-, y) (x pushed slightly
 // into V, Gauss linking number with y) is well defined on H_1(S), and
 // L - L^T is the intersection form. Meridians (cycles bounding discs inside

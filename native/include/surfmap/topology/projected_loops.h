@@ -1,5 +1,5 @@
 #pragma once
-// The homotopy class "as the two shapes overlap" (DESIGN.md §2.10: handles go
+// The homotopy class "as the two shapes overlap" (docs/method.md §2.10: handles go
 // to the geometrically corresponding handles when two objects are posed
 // alike). Both shapes are normalised to the unit box (per-axis bounding-box
 // scaling about the box centre); every vertex of each source loop is sent to
@@ -108,7 +108,7 @@ class LoopProjector {
   std::unique_ptr<Impl> impl_;
 };
 
-/// Poses to try when the shapes are not posed alike (DESIGN §2.10): the 23
+/// Poses to try when the shapes are not posed alike (docs/method.md §2.10): the 23
 /// non-identity rotations of the cube group (signed permutation matrices of
 /// determinant +1; reflections would make the overlay orientation-reversing)
 /// acting on the world axes, for shapes posed along the axes but turned;

@@ -1,6 +1,6 @@
 #pragma once
 // Greedy system of loops (paper §IV-A; Erickson–Whittlesey greedy homotopy
-// basis; DESIGN.md §2.2) and the refinement that makes the 2g loops simple and
+// basis; docs/method.md §2.2) and the refinement that makes the 2g loops simple and
 // disjoint except at the base vertex.
 #include <string>
 #include <vector>

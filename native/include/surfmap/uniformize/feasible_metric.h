@@ -1,6 +1,6 @@
 #pragma once
 // The uniformization metric of a target whose fixed-connectivity flow has no
-// solution (DESIGN.md §2.4; CAD meshes with caps such as g3_block): the
+// solution (docs/method.md §2.4; CAD meshes with caps such as g3_block): the
 // loops' refined mesh is refined further, exactly (mesh/exact_refinement.h:
 // altitude-foot splits of the edges opposite large angles, on the mesh's own
 // edges in 3D), the loops follow the splits, and the flow runs again, with a

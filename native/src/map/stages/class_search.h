@@ -1,6 +1,6 @@
 #pragma once
 // The class search of the genus >= 2 ranking (SurfaceMapOptions::
-// homotopy.search; topology/mapping_class_search.h; docs/ method notes):
+// homotopy.search; topology/mapping_class_search.h; docs/method.md):
 // when the best class on the coarse copy is far from the conformal bound
 // 8 pi (g - 1), (1) lifted classes from more source cuts, then (2) a greedy
 // descent over Dehn twists, every class evaluated by a converged solve on

@@ -1,6 +1,6 @@
 #pragma once
 // The ranking level of the genus >= 2 class ranking (paper §V-B, ranking in
-// docs/ method notes): the coarse copy of the source (map/coarse_source.h)
+// docs/method.md): the coarse copy of the source (map/coarse_source.h)
 // with every candidate class's deck elements on its edges, products of the
 // fine ones along the fine paths. Internal to src/map/hyperbolic_map.cpp.
 #include <vector>

@@ -1,6 +1,6 @@
 #pragma once
 // Other systems of loops on the source ("cuts"), for lifting homotopy
-// classes from them (stages/homotopy_classes.h, paper §V with DESIGN notes
+// classes from them (stages/homotopy_classes.h, paper §V with docs/method.md notes
 // on Torelli representatives in docs/): the loops at another base vertex,
 // the default cut's canonical generators as words in that cut's, and its
 // handle basis. Source-only (~0.2 s per cut at 50k vertices), so prepared
