@@ -123,7 +123,8 @@ class HyperbolicPipeline {
   } raise_cut_prep_stop{cuts.stop};
   // The source's own uniformization for the class lower bounds
   // (class_bound_support.h), built next to the candidates and the ranking;
-  // declared last so it is waited for first on the way out.
+  // declared after everything its task reads (source, ss, options), so it is
+  // waited for before they are destroyed on the way out.
   std::future<SourceClassBounds> class_bounds_future;
   SourceClassBounds class_bounds;  ///< from the future, once needed
   bool have_class_bounds = false;
