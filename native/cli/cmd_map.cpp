@@ -1,6 +1,7 @@
 // surfmap map SRC DST: the globally optimal map from SRC onto DST (paper
 // §III–VII). Writes the morph (SRC's connectivity at the mapped positions),
 // a JSON report and optionally the per-vertex correspondence.
+#include <cmath>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
@@ -58,7 +59,7 @@ void register_map(CLI::App& app) {
     int homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
     double tolerance = 1e-10;
-    bool quiet = false, no_homotopy_search = false;
+    bool quiet = false, no_homotopy_search = false, no_two_way = false;
   };
   auto a = std::make_shared<Args>();
   cmd->add_option("SRC", a->src, "Source mesh")->required();
@@ -102,6 +103,8 @@ void register_map(CLI::App& app) {
   cmd->add_option("--homotopy-search-evaluations", a->homotopy_search_evaluations,
                   "Genus >= 2: most coarse solves of the class search (report: homotopy.search)")
       ->check(CLI::PositiveNumber);
+  cmd->add_flag("--no-two-way", a->no_two_way,
+                "Genus >= 2: do not map the other way when the energy is far above the conformal bound (report: quality)");
   cmd->add_flag("--quiet", a->quiet, "No progress lines on stderr");
   cmd->callback([a] {
     // Open surfaces (issue 16): map_open.h handles pairs with a boundary.
@@ -123,6 +126,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.extra_cuts = a->homotopy_extra_cuts;
     opt.homotopy.search.enabled = !a->no_homotopy_search;
     opt.homotopy.search.evaluations = a->homotopy_search_evaluations;
+    opt.homotopy.two_way = !a->no_two_way;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     // One line per stage and percent (the relaxation reports every few sweeps).
     std::string last_line;
@@ -169,7 +173,10 @@ void register_map(CLI::App& app) {
     if (!a->correspondence.empty()) write_text_file(a->correspondence, corr);
     if (!a->quiet) {
       std::cerr << "surfmap: mean dilatation " << m.mean_dilatation << ", max " << m.max_dilatation
-                << ", flipped triangles " << m.flipped_triangles << ", " << m.total_time << " s\n";
+                << ", flipped triangles " << m.flipped_triangles
+                << (std::isfinite(m.energy_ratio) ? ", energy / 8 pi (g - 1) " + std::to_string(m.energy_ratio) : std::string())
+                << ", " << m.total_time << " s\n";
+      if (!m.quality_warning.empty()) std::cerr << "surfmap: warning: " << m.quality_warning << "\n";
       if (!opt.landmarks.empty() && !m.landmark_method.empty())
         std::cerr << "surfmap: " << opt.landmarks.size() << " landmark(s) held by "
                   << (m.landmark_method == "pinned" ? std::string("plain pins") : m.landmark_method)

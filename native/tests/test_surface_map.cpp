@@ -500,6 +500,7 @@ TEST(SurfaceMapHandles, ClassSearchStageOneFindsTheGeometricClassFromLateCuts) {
   EXPECT_TRUE(late && !early) << d;
 
   o.homotopy.search.cuts = 0;
+  o.homotopy.two_way = false;  // (the two-way run finds it too: below)
   const SurfaceMapResult m0 = surface_map(a, b, o);
   // This worse class (energy > 2x the bound, mean D' ~10) is unflipped in the
   // uniformization domain, but the chord triangles between its vertex images
@@ -508,6 +509,79 @@ TEST(SurfaceMapHandles, ClassSearchStageOneFindsTheGeometricClassFromLateCuts) {
   expect_valid_map(m0, a, b, true, 0.03);
   EXPECT_EQ(m0.homotopy_search.cut_classes, 0);
   EXPECT_GT(m0.final_energy, 2 * bound);
+  // Issue 14: without the late cuts, mapping the other way and carrying the
+  // loops by that map's inverse gives the geometric class as well.
+  o.homotopy.two_way = true;
+  const SurfaceMapResult m2 = surface_map(a, b, o);
+  expect_valid_map(m2, a, b);
+  EXPECT_LT(m2.final_energy, 1.1 * bound) << m2.two_way_status;
+  EXPECT_NE(m2.two_way_status.find(": used"), std::string::npos) << m2.two_way_status;
+  EXPECT_LT(m2.energy_ratio, 1.1);
+  EXPECT_TRUE(m2.quality_warning.empty()) << m2.quality_warning;
+}
+
+// Issue 14 (docs/handle_classes.md): the quality signal is the chosen
+// class's free energy over 8 pi (g - 1), with a warning only far above it.
+TEST(SurfaceMapHandles, QualitySignalIsTheEnergyOverTheConformalBound) {
+  const TriMesh a = samples::n_hole_torus(2, 26, true);
+  {
+    const TriMesh b = samples::jitter(samples::n_hole_torus(2, 30, true), 0.2, 3);
+    SurfaceMapOptions o;
+    o.homotopy.two_way = false;
+    const SurfaceMapResult m = surface_map(a, b, o);
+    expect_valid_map(m, a, b);
+    EXPECT_NEAR(m.energy_ratio, m.candidates[m.chosen_candidate].energy / (8 * M_PI), 1e-12);
+    EXPECT_GE(m.energy_ratio, 1.0);  // every degree-1 map's energy is at least the bound
+    EXPECT_LT(m.energy_ratio, 1.2);  // a copy: nearly conformal
+    EXPECT_TRUE(m.quality_warning.empty()) << m.quality_warning;
+    EXPECT_NE(m.two_way_status.find("off"), std::string::npos) << m.two_way_status;
+  }
+  {  // a worse class requested: the warning names the ratio
+    const TriMesh b = samples::vase(30, true);
+    SurfaceMapOptions o;
+    o.homotopy.two_way = false;
+    o.homotopy.search.cuts = 0;
+    const SurfaceMapResult m = surface_map(a, b, o);
+    EXPECT_NEAR(m.energy_ratio, m.candidates[m.chosen_candidate].energy / (8 * M_PI), 1e-12);
+    EXPECT_EQ(m.quality_warning.empty(), m.energy_ratio < 3.0) << m.energy_ratio << " " << m.quality_warning;
+  }
+  // Genus 1: no ratio.
+  const TriMesh t = samples::torus_of_revolution(1.0, 0.4, 24, 12);
+  EXPECT_TRUE(std::isnan(surface_map(t, t).energy_ratio));
+}
+
+// The two-way run (forced with a ratio threshold of 0): the pair is mapped
+// the other way, the source's loops carried by that map's inverse give one
+// more candidate, and the result is no worse than the one-way map; it is a
+// valid map and says what it did. Below the threshold nothing runs.
+TEST(SurfaceMapHandles, TwoWayRunIsNoWorseAndListsTheOtherDirection) {
+  const TriMesh a = samples::n_hole_torus(2, 26, true);
+  const TriMesh b = samples::vase(30, true);
+  SurfaceMapOptions one;
+  one.homotopy.two_way = false;
+  const SurfaceMapResult m1 = surface_map(a, b, one);
+  SurfaceMapOptions two;
+  two.homotopy.two_way_ratio = 0;
+  const SurfaceMapResult m2 = surface_map(a, b, two);
+  expect_valid_map(m2, a, b);
+  EXPECT_LE(m2.energy_ratio, m1.energy_ratio * (1 + 1e-6));
+  EXPECT_NE(m2.two_way_status.find("target -> source energy ratio"), std::string::npos) << m2.two_way_status;
+  if (m2.two_way_status.find(": used") != std::string::npos) {
+    // The second run's report: the carried class is listed as one from the other direction.
+    ASSERT_EQ(m2.reverse_candidates.size(), 1u) << m2.reverse_status;
+    const HomotopyCandidate& c = m2.candidates[m2.reverse_candidates[0]];
+    EXPECT_NE(c.description.find("carried by the target -> source map"), std::string::npos) << c.description;
+    EXPECT_FALSE(m2.reverse_check.empty());
+  }
+  SurfaceMapOptions high;
+  high.homotopy.two_way_ratio = 1e9;
+  EXPECT_NE(surface_map(a, b, high).two_way_status.find("not run"), std::string::npos);
+  // Carried images of the wrong size are reported, not a crash.
+  SurfaceMapOptions bad;
+  bad.homotopy.source_images = Eigen::MatrixXd::Zero(3, 3);
+  const SurfaceMapResult mb = surface_map(a, b, bad);
+  EXPECT_TRUE(mb.reverse_candidates.empty());
+  EXPECT_NE(mb.reverse_status.find("#V x 3"), std::string::npos) << mb.reverse_status;
 }
 
 TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) {

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "class_bound_support.h"
 #include "concurrency.h"
 #include "landmarks.h"
 #include "map_support.h"
@@ -58,10 +59,12 @@ class HyperbolicPipeline {
 
   void start_source_side();
   void uniformize_target();
+  void start_class_bounds();
   void candidate_classes_and_data();
   void rank_on_coarse_copy();
   void search_classes();
   void solve_at_full_resolution(bool after_coarse);
+  void fill_class_bounds();
   void choose_with_landmarks();
   void map_in_chosen_class();
 
@@ -118,6 +121,15 @@ class HyperbolicPipeline {
     std::atomic<bool>& flag;
     ~RaiseOnExit() { flag = true; }
   } raise_cut_prep_stop{cuts.stop};
+  // The source's own uniformization for the class lower bounds
+  // (class_bound_support.h), built next to the candidates and the ranking;
+  // declared after everything its task reads (source, ss, options), so it is
+  // waited for before they are destroyed on the way out.
+  std::future<SourceClassBounds> class_bounds_future;
+  SourceClassBounds class_bounds;  ///< from the future, once needed
+  bool have_class_bounds = false;
+  std::unique_ptr<SurfaceGroupLengths> target_lengths;  ///< the target's, for the bounds
+  const SourceClassBounds& class_bounds_now();
 
   HyperbolicHarmonicResult hold_in_class(int k, const HyperbolicHarmonicResult& free_k, const HyperbolicHarmonicOptions& o,
                                          bool relax, const HarmonicRelaxationOptions& ro, LandmarkHold& hold) const;
@@ -194,6 +206,37 @@ void HyperbolicPipeline::uniformize_target() {
   }
 }
 
+// Issue 14 (docs/handle_classes.md): the source in its own uniformization
+// metric, for every candidate's energy lower bound from hyperbolic lengths
+// (map/class_lower_bound.h); on a thread of its own when there are two.
+void HyperbolicPipeline::start_class_bounds() {
+  class_bounds_future = std::async(threads > 1 ? std::launch::async : std::launch::deferred, [this] {
+    return source_class_bounds(source, ss.sl.loops, ss.scs.generators, out.genus, options);
+  });
+}
+
+// The source's side of the bounds (waits for it the first time) and the
+// target's lengths.
+const SourceClassBounds& HyperbolicPipeline::class_bounds_now() {
+  if (!have_class_bounds) {
+    class_bounds = class_bounds_future.get();
+    target_lengths = std::make_unique<SurfaceGroupLengths>(*deck_group, tcs.generators, ut->layout.word);
+    have_class_bounds = true;
+  }
+  return class_bounds;
+}
+
+// Every candidate's lower bound (HomotopyCandidate::class_lower_bound), and
+// why they are missing when the source's uniformization failed.
+void HyperbolicPipeline::fill_class_bounds() {
+  const SourceClassBounds& bounds = class_bounds_now();
+  std::vector<GroupMap> class_maps;
+  for (const HomotopyClass& hc : candidates.classes) class_maps.push_back(hc.map);
+  detail::fill_class_bounds(bounds, *target_lengths, class_maps, out.candidates);
+  out.class_bound_status = bounds.why;
+  out.class_bound_time_s = bounds.time_s;
+}
+
 // The candidate classes (stages/homotopy_classes.h) and each one's data
 // (stages/class_data.h); classes too twisted to evaluate in double
 // precision are listed as not solved.
@@ -202,6 +245,10 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   projector = std::make_unique<LoopProjector>(ut->loops, ut->layout.word);
   candidates = candidate_classes(*space, source, ss.sl, ss.shb, ut->loops, tcs, *projector, options, cuts);
   if (options.homotopy.extra_cuts > 0 && !ss.cs.ok) cuts.stop = true;  // no coarse copy: no class search, no more cuts needed
+  // The two-way run's class (issue 14): listed as one from the other direction.
+  if (candidates.carried_class >= 0) out.reverse_candidates.push_back(candidates.carried_class);
+  if (!candidates.carried_status.empty())
+    out.reverse_status = "the loops carried by the target -> source map: " + candidates.carried_status;
   index_solver_edges(sc, ss.idt, solver_index);
   const std::vector<HomotopyClass>& classes = candidates.classes;
   ncand = static_cast<int>(classes.size());
@@ -387,13 +434,30 @@ void HyperbolicPipeline::search_classes() {
       return false;
     }
   };
+  // Issue 14 (docs/handle_classes.md): a class whose curve lower bound
+  // (map/class_lower_bound.h) is above the lowest coarse energy held cannot
+  // win: not solved (counted in homotopy_search.pruned). With start twists
+  // (testing/map_hooks.h) the start is evaluated first, unpruned.
+  double best_held = hooks.homotopy_search_start_twists.empty() && usable[order[0]] ? out.candidates[order[0]].energy
+                                                                                      : std::numeric_limits<double>::infinity();
+  const CoarseSolve unpruned_solve = solve_coarse;
+  const CoarseSolve pruned_solve = [&](const GroupMap& theta, CoarseEvaluation* ev) {
+    const SourceClassBounds& bounds = class_bounds_now();  // (sets target_lengths)
+    if (class_curve_bound_of(bounds, *target_lengths, theta) > best_held) {
+      ++out.homotopy_search.pruned;
+      return false;
+    }
+    if (!unpruned_solve(theta, ev)) return false;
+    best_held = std::min(best_held, ev->result.energy);
+    return true;
+  };
   const bool searching = !level.source_word.empty();
   const double conformal_bound = 8 * M_PI * (out.genus - 1);
   const double gap_bound = (1 + options.homotopy.search.gap) * conformal_bound;
   if (searching && candidates.lifter && options.homotopy.search.cuts > 0 && hooks.homotopy_search_start < 0 &&
       usable[order[0]] && out.candidates[order[0]].energy > gap_bound)
     for (FoundClass& f : classes_from_more_cuts(*candidates.lifter, cuts, *space, nv, threads, conformal_bound,
-                                                 [this](const GroupMap& theta) { return data_of(theta); }, solve_coarse,
+                                                 [this](const GroupMap& theta) { return data_of(theta); }, pruned_solve,
                                                  options, out.homotopy_search))
       append_class(std::move(f.hc), std::move(f.data), f.evaluation);
   if (hooks.homotopy_search_start >= ncand)
@@ -411,7 +475,7 @@ void HyperbolicPipeline::search_classes() {
   HomotopySearchInfo& info = out.homotopy_search;
   std::optional<CoarseEvaluation> found =
       twist_class_search(candidates.classes[search_start].map, search_start, out.candidates[search_start].energy, *space,
-                         solve_coarse, hooks.homotopy_search_start_twists, options, info);
+                         pruned_solve, hooks.homotopy_search_start_twists, options, info);
   ClassData found_data;
   if (found && space->loop_image_length(found->theta) > space->max_image_letters()) found.reset();
   if (found) try {
@@ -761,10 +825,12 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   HyperbolicPipeline p(source, target, sc, tc, options, hooks, out, stage_done);
   p.start_source_side();           // §V-A on the second thread: loops, edge words, weights, coarse copy
   p.uniformize_target();           // §IV-C: hyperbolic metric, layout, deck group, polygon P
+  p.start_class_bounds();          // issue 14: the source's own uniformization, for class lower bounds
   p.candidate_classes_and_data();  // §V-B: candidate homotopy classes and their deck elements
   p.rank_on_coarse_copy();         // ranking: every class solved on the coarse copy
   if (p.ss.cs.ok) p.search_classes();  // more cuts, Dehn twists (mapping_class_search.h)
   p.solve_at_full_resolution(p.ss.cs.ok);  // §VI-B: the best classes at full resolution
+  p.fill_class_bounds();           // issue 14: every candidate's energy lower bound
   p.choose_with_landmarks();       // lowest energy; with landmarks, §VII-C branch and bound
   map_with_fallback(p);            // initial map, harmonic solve, landmarks, quality, location
 }

@@ -60,7 +60,10 @@ json candidate_json(const HomotopyCandidate& c, size_t index) {
           {"coarse_energy", c.coarse_energy},
           {"landmark_energy", c.landmark_energy},
           {"landmark_lower_bound", c.landmark_lower_bound},
-          {"matrix", {c.matrix[0], c.matrix[1], c.matrix[2], c.matrix[3]}}};
+          {"matrix", {c.matrix[0], c.matrix[1], c.matrix[2], c.matrix[3]}},
+          {"class_lower_bound", c.class_lower_bound},
+          {"class_curve_bound", c.class_curve_bound},
+          {"class_bound_curves", c.class_bound_curves}};
 }
 
 json homotopy_search_json(const HomotopySearchInfo& hs) {
@@ -83,6 +86,7 @@ json homotopy_search_json(const HomotopySearchInfo& hs) {
           {"found_candidate", hs.found_candidate},
           {"cut_classes", hs.cut_classes},
           {"cuts_time_s", hs.cuts_time_s},
+          {"pruned", hs.pruned},
           {"evaluated", evaluated}};
 }
 
@@ -99,6 +103,14 @@ json stage_times_json(const SurfaceMapResult& r) {
   return times;
 }
 
+json quality_json(const SurfaceMapResult& r) {
+  return {{"energy_ratio", r.energy_ratio},           {"warning", r.quality_warning},
+          {"reverse_candidates", r.reverse_candidates}, {"reverse_status", r.reverse_status},
+          {"reverse_check", r.reverse_check},           {"two_way_status", r.two_way_status},
+          {"two_way_time_s", r.two_way_time_s},         {"class_bound_status", r.class_bound_status},
+          {"class_bound_time_s", r.class_bound_time_s}};
+}
+
 json to_json(const SurfaceMapResult& r, const SurfaceMapOptions& options) {
   json report = {{"genus", r.genus},
                  {"converged", r.converged},
@@ -106,6 +118,7 @@ json to_json(const SurfaceMapResult& r, const SurfaceMapOptions& options) {
                  {"method", enum_name(options.solve.method)},
                  {"initial_map", initial_map_json(r)},
                  {"homotopy", homotopy_json(r)},
+                 {"quality", quality_json(r)},
                  {"target_lattice",
                   {{r.target_omega1.real(), r.target_omega1.imag()}, {r.target_omega2.real(), r.target_omega2.imag()}}},
                  {"time_s", stage_times_json(r)}};

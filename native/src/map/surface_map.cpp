@@ -7,6 +7,7 @@
 #include "map_support.h"
 #include "surfmap/error.h"
 #include "surfmap/mesh/connectivity.h"
+#include "two_way_run.h"
 
 namespace surfmap {
 
@@ -19,6 +20,10 @@ SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const
 SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                       const MapHooks& hooks) {
   SurfaceMapResult out;
+  // The two-way run's maps: the public surface_map (no hooks).
+  const detail::MapFunction map_of = [](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) {
+    return surface_map(s, t, o);
+  };
   const auto t_start = Clock::now();
   auto t_stage = t_start;
   auto stage_done = [&](const std::string& name, double fraction) {
@@ -54,7 +59,17 @@ SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& targ
   else if (out.genus == 1)
     detail::map_flat(source, target, sc, tc, options, hooks, out, stage_done);
   else
-    detail::map_hyperbolic(source, target, sc, tc, options, hooks, out, stage_done);
+    try {
+      detail::map_hyperbolic(source, target, sc, tc, options, hooks, out, stage_done);
+    } catch (const InputError& e) {
+      // Issue 14: a requested class index past the one-way candidates may be
+      // the two-way run's class (docs/handle_classes.md).
+      if (std::string(e.what()).find("does not exist") == std::string::npos ||
+          !detail::map_requested_two_way_class(source, target, options, out, map_of))
+        throw;
+      out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();
+      return out;
+    }
   // How far each landmark's source vertex was located from its target
   // vertex. Held landmarks (every genus but 0 with more than 3) sit on a lift
   // of the target vertex by construction, so what remains is the round-off
@@ -81,6 +96,8 @@ SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& targ
       out.inverse[t] = at_vertex(source, sface, s);
     }
   }
+  detail::assess_quality(out);  // issue 14: energy ratio and warning
+  detail::two_way_map(source, target, options, out, map_of);  // issue 14: the other direction when poor
   out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();
   return out;
 }

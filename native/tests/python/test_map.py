@@ -250,6 +250,27 @@ def test_genus2_candidates_are_described_and_the_overlay_class_wins():
     assert r["distortion"]["mean"] < 1.08
 
 
+def test_genus2_quality_signal_and_class_bounds_are_in_the_result():
+    # Issue 14: the energy over 8 pi (g - 1), a warning only when far above
+    # it, and what the two-way run did (not run: a copy is nearly conformal).
+    a = surfmap.shapes.n_hole_torus(2, 30, True)
+    b = surfmap.shapes.jitter(*surfmap.shapes.n_hole_torus(2, 34, True), 0.2, 4)
+    r = surfmap.surface_map(*a, *b)
+    q = r["quality"]
+    assert set(q) >= {"energy_ratio", "warning", "reverse_candidates", "reverse_status", "reverse_check",
+                      "two_way_status", "two_way_time_s"}
+    chosen = r["homotopy"]["candidates"][r["homotopy"]["chosen"]]
+    assert abs(q["energy_ratio"] - chosen["energy"] / (8 * np.pi)) < 1e-12
+    assert 1.0 <= q["energy_ratio"] < 1.1 and q["warning"] == ""
+    assert q["two_way_status"].startswith("not run")
+    # Per-candidate lower bounds (no solve) never exceed the solved energies.
+    assert q["class_bound_status"] == ""
+    for c in r["homotopy"]["candidates"]:
+        assert c["class_lower_bound"] >= 8 * np.pi - 1e-9
+        if c["solved"] and np.isfinite(c["energy"]):
+            assert c["class_curve_bound"] <= c["energy"]
+
+
 def test_genus2_class_search_is_reported_and_skipped_near_the_conformal_bound():
     a = surfmap.shapes.n_hole_torus(2, 30, True)
     b = surfmap.shapes.jitter(*surfmap.shapes.n_hole_torus(2, 34, True), 0.2, 4)

@@ -16,8 +16,11 @@
 //   initial_map {construction, cut_graph {...}, polygon {...}, iterations, time_s, located},
 //   target_refinement_splits, source_weights,
 //   homotopy {chosen, candidates [{index, description, energy, solved, coarse_energy,
-//             landmark_energy, landmark_lower_bound, matrix}], search {..., evaluated
+//             landmark_energy, landmark_lower_bound, matrix, class_lower_bound,
+//             class_curve_bound, class_bound_curves}], search {..., evaluated
 //             [{step, move, screen, energy}]}},
+//   quality {energy_ratio, warning, reverse_candidates, reverse_status, reverse_check,
+//            two_way_status, two_way_time_s, class_bound_status, class_bound_time_s},
 //   target_lattice [[re, im] of omega1, [re, im] of omega2], time_s {stage: seconds, total}.
 // Non-finite numbers are stored as such (the CLI's dump writes them as null;
 // the Python conversion keeps them as float nan / inf).
@@ -39,5 +42,7 @@ nlohmann::json candidate_json(const HomotopyCandidate& candidate, size_t index);
 nlohmann::json homotopy_search_json(const HomotopySearchInfo& search);
 nlohmann::json homotopy_json(const SurfaceMapResult& result);
 nlohmann::json stage_times_json(const SurfaceMapResult& result);
+/// Genus >= 2 quality signal and two-way run (issue 14; docs/handle_classes.md).
+nlohmann::json quality_json(const SurfaceMapResult& result);
 
 }  // namespace surfmap

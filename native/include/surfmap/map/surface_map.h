@@ -164,6 +164,23 @@ struct HomotopyOptions {
   int extra_cut_classes = 6;
   /// Genus >= 2, default class only: the search in the mapping class group.
   HomotopySearchOptions search;
+  /// Genus >= 2, default class only (issue 14; docs/handle_classes.md): when
+  /// the chosen class's energy is at least `two_way_ratio` (default 2) x the
+  /// conformal bound 8 pi (g - 1), the pair is also mapped the other way
+  /// (target -> source, same options, no landmarks); when that direction's
+  /// energy ratio is lower, the source's loops carried by its inverse give
+  /// one more candidate, the map is computed again, and the lower-energy
+  /// result is returned (SurfaceMapResult::two_way_status says what was
+  /// done). About 3x the time for such pairs; nothing for pairs below the
+  /// ratio. Default true.
+  bool two_way = true;
+  double two_way_ratio = 2.0;
+  /// Genus >= 2, set by the two-way run: per source vertex a point on the
+  /// target (#V_source x 3; empty, the default: none), where the inverse of
+  /// a target -> source map puts it. The source's loops carried to those
+  /// points give one more candidate ("[the source's loops carried by the
+  /// target -> source map]"), listed after the one-way candidates.
+  Eigen::MatrixXd source_images;
 };
 
 /// The harmonic solve (SurfaceMapOptions::solve).
@@ -273,6 +290,15 @@ struct HomotopyCandidate {
   /// Genus >= 2: the class's action on H_1, 2g x 2g row-major, in the
   /// canonical coordinates (a_1, b_1, ...) of both surfaces; empty for genus 1.
   std::vector<int> homology;
+  /// Genus >= 2 (issue 14; docs/handle_classes.md): lower bound of the
+  /// class's energy without a solve (map/class_lower_bound.h): max(8 pi
+  /// (g - 1), the collar bound over disjoint simple curves of the source);
+  /// `class_curve_bound` the latter alone and `class_bound_curves` its
+  /// family. NaN / empty when the source's own uniformization was not
+  /// available (SurfaceMapResult::class_bound_status says why).
+  double class_lower_bound = std::numeric_limits<double>::quiet_NaN();
+  double class_curve_bound = std::numeric_limits<double>::quiet_NaN();
+  std::string class_bound_curves;
 };
 
 /// Genus >= 2: the class search of SurfaceMapOptions::homotopy.search.
@@ -300,6 +326,11 @@ struct HomotopySearchInfo {
   /// were new and tried on the coarse copy, and its seconds.
   int cut_classes = 0;
   double cuts_time_s = 0;
+  /// Of the classes counted in cut_classes and `evaluations`, those not
+  /// solved because their curve lower bound (HomotopyCandidate::
+  /// class_curve_bound) was above the lowest coarse energy held: they cannot
+  /// win (issue 14; docs/handle_classes.md).
+  int pruned = 0;
   /// Candidate index of the class found (-1: no improvement, nothing added).
   int found_candidate = -1;
 };
@@ -433,6 +464,27 @@ struct SurfaceMapResult {
   /// Target lattice (flat case) and the source's image in the plane.
   std::complex<double> target_omega1, target_omega2;
   std::vector<std::complex<double>> source_image;  ///< #V_source z_i
+  // --- quality signal and two-way run (issue 14; docs/handle_classes.md) ---
+  /// Genus >= 2: the chosen class's free energy over the conformal bound
+  /// 8 pi (g - 1) (1 for a conformal map; NaN for genus < 2), and, when it
+  /// is 3 or more, a plain warning that the handle class may be twisted.
+  double energy_ratio = std::numeric_limits<double>::quiet_NaN();
+  std::string quality_warning;
+  /// Genus >= 2: candidate indices of the classes from the other direction
+  /// (the source's loops carried by a target -> source map), why such a
+  /// class is missing (empty when none was asked for), and the symmetry
+  /// check: whether the chosen class is one of them.
+  std::vector<int> reverse_candidates;
+  std::string reverse_status, reverse_check;
+  /// Genus >= 2 (HomotopyOptions::two_way): what the two-way run did ("not
+  /// run: ..."; the other direction's energy ratio; whether the carried
+  /// class was used) and its seconds.
+  std::string two_way_status;
+  double two_way_time_s = 0;
+  /// Genus >= 2: why the class lower bounds are missing (empty when they
+  /// were computed) and the seconds the source's uniformization for them took.
+  std::string class_bound_status;
+  double class_bound_time_s = 0;
   /// Seconds per stage, in order, and in total.
   std::vector<std::pair<std::string, double>> stage_times;
   double total_time = 0;

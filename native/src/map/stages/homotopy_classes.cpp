@@ -5,6 +5,7 @@
 #include <limits>
 #include <utility>
 
+#include "surfmap/error.h"
 #include "surfmap/geometry/hyperbolic.h"
 
 namespace surfmap::detail {
@@ -311,7 +312,54 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
   }
   // Further candidate sources append their classes here (each new by
   // fingerprint; the ranking solves whatever is listed).
+  // Source 5 (issue 14, the two-way run; docs/handle_classes.md): the
+  // source's loops carried by the inverse of a target -> source map. Listed
+  // even when its fingerprint is known: it must sit right after the one-way
+  // candidates (a requested class index there is this class).
+  if (options.homotopy.source_images.size() > 0) {
+    GroupMap theta;
+    if (carried_loops_class(space, source, sl, projector, options.homotopy.source_images, &theta, &out.carried_status)) {
+      out.carried_class = static_cast<int>(classes.size());
+      classes.push_back(described(theta, n, shb, thb, "the source's loops carried by the target -> source map"));
+    }
+  }
   return out;
+}
+
+bool carried_loops_class(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
+                         const LoopProjector& projector, const Eigen::MatrixXd& images, GroupMap* theta, std::string* why) {
+  if (images.rows() != source.num_vertices() || images.cols() != 3) {
+    *why = "homotopy.source_images must be #V x 3 (" + std::to_string(source.num_vertices()) + " rows), not " +
+           std::to_string(images.rows()) + " x " + std::to_string(images.cols());
+    return false;
+  }
+  try {
+    TriMesh moved = source;
+    moved.V = images;
+    // The images of consecutive loop vertices are the ends of an edge's
+    // image under a bijective map: however far apart a distorted map puts
+    // them, nothing lies between them but that image, so every gap is
+    // joined (by the target's shortest path; a wrong join gives a
+    // non-isomorphism, refused below, or a class ranked like the others).
+    ProjectedLoopsOptions plo;
+    plo.max_gap_factor = 1e6;
+    plo.max_jump_box = 2.0;
+    const ProjectedLoopsResult proj = projector.project(moved, sl.loops, plo);
+    if (!proj.ok_with_joins) {
+      *why = "the carried loops did not project onto the target: " + proj.message;
+      return false;
+    }
+    const GroupMap t = space.through_loop_images(space.source_generators(), proj.loop_images);
+    if (!space.is_isomorphism(t)) {
+      *why = "the carried loops do not give an isomorphism";
+      return false;
+    }
+    *theta = t;
+    return true;
+  } catch (const Error& e) {
+    *why = e.what();
+    return false;
+  }
 }
 
 }  // namespace surfmap::detail

@@ -145,6 +145,10 @@ struct CandidateClasses {
   /// Lifts from more cuts later (the class search); null when
   /// homotopy.extra_cuts is 0.
   std::unique_ptr<CutLifter> lifter;
+  /// With homotopy.source_images (the two-way run, issue 14): the index of
+  /// the carried loops' class (-1: none), or why there is none.
+  int carried_class = -1;
+  std::string carried_status;
 };
 
 /// `sl`/`shb`: the source's default loops and handle basis; `tl`: the
@@ -153,5 +157,16 @@ struct CandidateClasses {
 CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
                                    const HandleBasis& shb, const SystemOfLoops& tl, const CanonicalSchema& tcs,
                                    const LoopProjector& projector, const SurfaceMapOptions& options, SourceCuts& cuts);
+
+/// The class of the source's loops `sl` carried to `images` (per source
+/// vertex a point on the target, #V x 3: the inverse of a target -> source
+/// map from another run), as an overlay onto the target's loops
+/// (`projector`), every gap joined: the source's canonical generator ->
+/// target canonical word. False with `why` when the loops do not carry or
+/// the result is not an isomorphism. No inversion of words is needed: the
+/// other run's map is a bijection, so its inverse carries loops without
+/// jumps (docs/handle_classes.md).
+bool carried_loops_class(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
+                         const LoopProjector& projector, const Eigen::MatrixXd& images, GroupMap* theta, std::string* why);
 
 }  // namespace surfmap::detail

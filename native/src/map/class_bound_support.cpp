@@ -1,0 +1,69 @@
+// Class lower bounds in the genus >= 2 pipeline and the quality signal
+// (docs/handle_classes.md).
+#include "class_bound_support.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "map_support.h"
+#include "surfmap/error.h"
+#include "surfmap/topology/canonical_schema.h"
+#include "surfmap/topology/projected_loops.h"
+#include "surfmap/uniformize/deck_group.h"
+
+namespace surfmap::detail {
+
+SourceClassBounds source_class_bounds(const TriMesh& source, const std::vector<std::vector<int>>& loops,
+                                      const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  SourceClassBounds b;
+  try {
+    SurfaceMapOptions o = options;
+    o.loops.target_base_vertex = options.loops.source_base_vertex;
+    b.uniformized = uniformized_target(source, Background::Hyperbolic, o);
+    const UniformizedTarget& xu = b.uniformized;
+    b.schema = canonical_schema(xu.layout.word);
+    const CanonicalSchema& xcs = b.schema;
+    // The default cut's loops onto the uniformized copy's (the same surface:
+    // every loop vertex's nearest point is itself).
+    const ProjectedLoopsResult self = project_loops(source, loops, xu.loops, xu.layout.word);
+    if (!self.ok) throw SolveError("the source's loops did not carry onto its own uniformized copy: " + self.message);
+    const int n = 2 * genus;
+    const Word R = canonical_relator(genus);
+    GroupMap iota(n);
+    for (int j = 0; j < n; ++j) iota[j] = dehn_reduce(substitute(substitute(generators[j], self.loop_images), xcs.letters), R);
+    const IntMatrix M = homology_matrix(iota, n), J = symplectic_form(genus);
+    if (!(M.transpose() * J * M == J) || !dehn_reduce(substitute(R, iota), R).empty())
+      throw SolveError("the source's loops carried onto its uniformized copy do not give an isomorphism");
+    b.source = std::make_unique<SurfaceGroupLengths>(DeckGroup(xu.layout), xcs.generators, xu.layout.word, iota);
+    b.iota = iota;
+    b.evaluator = std::make_unique<ClassBoundEvaluator>(*b.source, disjoint_curve_families(genus));
+    b.ok = true;
+  } catch (const Error& e) {
+    b.ok = false;
+    b.why = e.what();
+  }
+  b.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return b;
+}
+
+void fill_class_bounds(const SourceClassBounds& bounds, const SurfaceGroupLengths& target,
+                       const std::vector<GroupMap>& classes, std::vector<HomotopyCandidate>& candidates) {
+  if (!bounds.ok) return;
+  for (size_t k = 0; k < candidates.size() && k < classes.size(); ++k) {
+    if (!std::isnan(candidates[k].class_lower_bound)) continue;
+    const ClassLowerBound lb = (*bounds.evaluator)(target, classes[k]);
+    candidates[k].class_lower_bound = lb.bound;
+    candidates[k].class_curve_bound = lb.curve_bound;
+    candidates[k].class_bound_curves = lb.family_name;
+  }
+}
+
+double class_curve_bound_of(const SourceClassBounds& bounds, const SurfaceGroupLengths& target, const GroupMap& theta) {
+  return bounds.ok ? (*bounds.evaluator)(target, theta).curve_bound : 0.0;
+}
+
+}  // namespace surfmap::detail

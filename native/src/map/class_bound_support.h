@@ -1,0 +1,52 @@
+#pragma once
+// Glue between the genus >= 2 pipeline (hyperbolic_map.cpp) and the class
+// lower bound of map/class_lower_bound.h: the source in its own
+// uniformization metric, the target's lengths, the per-candidate bounds and
+// (docs/handle_classes.md). Not public API.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "map_support.h"
+#include "surfmap/map/class_lower_bound.h"
+#include "surfmap/topology/canonical_schema.h"
+#include "surfmap/map/surface_map.h"
+#include "surfmap/mesh/tri_mesh.h"
+#include "surfmap/uniformize/layout.h"
+
+namespace surfmap::detail {
+
+/// The source's lengths for the class bounds: the source uniformized like a
+/// target (its own refined system of loops and hyperbolic layout), its
+/// default system of loops `loops` carried onto that one by the identity
+/// overlay (topology/projected_loops.h), so curves are words in the
+/// default cut's canonical letters (`generators`: CanonicalSchema::generators
+/// of `loops`). `ok` false (with `why`) when any step fails; the pipeline
+/// then reports no curve bounds.
+struct SourceClassBounds {
+  bool ok = false;
+  std::string why;
+  std::unique_ptr<SurfaceGroupLengths> source;
+  std::unique_ptr<ClassBoundEvaluator> evaluator;
+  /// The uniformized copy, its canonical schema, and the default cut's
+  /// canonical generators as words in that schema's letters.
+  UniformizedTarget uniformized;
+  CanonicalSchema schema;
+  GroupMap iota;
+  double time_s = 0;
+};
+SourceClassBounds source_class_bounds(const TriMesh& source, const std::vector<std::vector<int>>& loops,
+                                      const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options);
+
+/// Fills HomotopyCandidate::class_lower_bound, class_curve_bound and the
+/// family's name of every genus >= 2 candidate k that has none yet, from
+/// classes[k] (source canonical generator -> target canonical word); nothing
+/// when `bounds` is not ok.
+void fill_class_bounds(const SourceClassBounds& bounds, const SurfaceGroupLengths& target,
+                       const std::vector<GroupMap>& classes, std::vector<HomotopyCandidate>& candidates);
+
+/// The curve bound of class `theta` (ClassLowerBound::curve_bound), 0 when
+/// `bounds` is not ok (so it never prunes then).
+double class_curve_bound_of(const SourceClassBounds& bounds, const SurfaceGroupLengths& target, const GroupMap& theta);
+
+}  // namespace surfmap::detail

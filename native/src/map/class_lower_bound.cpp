@@ -1,0 +1,152 @@
+// Energy lower bound of a homotopy class from hyperbolic lengths
+// (docs/handle_classes.md).
+#include "surfmap/map/class_lower_bound.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "surfmap/error.h"
+#include "surfmap/topology/mapping_class_search.h"
+
+namespace surfmap {
+
+SurfaceGroupLengths::SurfaceGroupLengths(DeckGroup group, GroupMap canonical_to_loops, Word loop_relator,
+                                         GroupMap caller_to_canonical)
+    : group_(std::move(group)),
+      canonical_to_loops_(std::move(canonical_to_loops)),
+      caller_to_canonical_(std::move(caller_to_canonical)),
+      reduce_canonical_(canonical_relator(std::max<int>(1, static_cast<int>(canonical_to_loops_.size()) / 2))),
+      reduce_loops_(loop_relator),
+      genus_(static_cast<int>(canonical_to_loops_.size()) / 2) {
+  if (genus_ < 2 || canonical_to_loops_.size() % 2 != 0)
+    throw InputError("SurfaceGroupLengths: expected 2g >= 4 canonical generators, got " +
+                     std::to_string(canonical_to_loops_.size()));
+  if (!caller_to_canonical_.empty() && caller_to_canonical_.size() != canonical_to_loops_.size())
+    throw InputError("SurfaceGroupLengths: caller_to_canonical has " + std::to_string(caller_to_canonical_.size()) +
+                     " words, expected " + std::to_string(canonical_to_loops_.size()));
+}
+
+double SurfaceGroupLengths::length(const Word& w, size_t max_letters) const {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  Word canonical = caller_to_canonical_.empty() ? w : substitute(w, caller_to_canonical_);
+  canonical = reduce_canonical_(canonical);
+  if (canonical.empty()) return 0.0;
+  if (canonical.size() > max_letters) return nan;
+  const Word loops = reduce_loops_(substitute(canonical, canonical_to_loops_));
+  if (loops.empty()) return 0.0;
+  if (loops.size() > max_letters) return nan;
+  // The trace is a class function: the side word is cyclically reduced (and
+  // Dehn-reduced again) before it is multiplied out, so the matrix is that of
+  // a short conjugate, whose axis passes near the fundamental polygon. A
+  // far conjugate has entries of 1e8 and more for a translation length of 6
+  // (the determinant then comes out as -32 from round-off, though the
+  // trace is still right to 1e-7).
+  Word side = group_.side_word(loops);
+  for (int guard = 0; guard < 64; ++guard) {
+    Word next = group_.reduce(cyclic_reduce(side));
+    // (a relator piece across the word's ends: reduce a half-turned rotation too)
+    Word turned(next.begin() + static_cast<long>(next.size() / 2), next.end());
+    turned.insert(turned.end(), next.begin(), next.begin() + static_cast<long>(next.size() / 2));
+    turned = group_.reduce(cyclic_reduce(turned));
+    if (turned.size() < next.size()) next = std::move(turned);
+    if (next == side) break;
+    side = std::move(next);
+  }
+  if (side.empty()) return 0.0;
+  const hyperbolic::Mobius m = group_.evaluate_side_word(side);
+  // SU(1,1): tr = 2 Re(a); normalised by the determinant (1 up to round-off)
+  // only where that is meaningful.
+  const double det = m.determinant();
+  double half_trace = std::abs(m.a.real());
+  if (det > 0.5 && det < 2) half_trace /= std::sqrt(det);
+  if (!std::isfinite(half_trace) || std::abs(m.a) > 1e12) return nan;
+  return 2 * std::acosh(std::max(1.0, half_trace));
+}
+
+double collar_modulus(double length) {
+  if (!(length > 0)) return std::numeric_limits<double>::infinity();
+  return 2 * std::atan(1 / std::sinh(length / 2)) / length;
+}
+
+std::vector<CurveFamily> disjoint_curve_families(int genus, bool move_images) {
+  if (genus < 2) throw InputError("disjoint_curve_families: genus " + std::to_string(genus) + " < 2");
+  std::vector<Word> separating;
+  for (int j = 1; j < genus; ++j) {
+    std::vector<Word> handles;
+    for (int k = 1; k <= 2 * j; ++k) handles.push_back({k});
+    separating.push_back(commutator_product(handles));
+  }
+  auto family = [&](const std::string& name, auto handle_curve) {
+    CurveFamily f{name, {}};
+    for (int i = 0; i < genus; ++i) f.curves.push_back(handle_curve(2 * i + 1, 2 * i + 2));
+    for (const Word& s : separating) f.curves.push_back(s);
+    return f;
+  };
+  std::vector<CurveFamily> base{
+      family("a_i, s_j", [](int a, int) { return Word{a}; }),
+      family("b_i, s_j", [](int, int b) { return Word{b}; }),
+      family("a_i b_i, s_j", [](int a, int b) { return Word{a, b}; }),
+      family("a_i b_i^-1, s_j", [](int a, int b) { return Word{a, -b}; }),
+  };
+  std::vector<CurveFamily> out = base;
+  if (!move_images) return out;
+  const Word R = canonical_relator(genus);
+  for (const MappingClassMove& m : twist_moves(genus, false, false))
+    for (const CurveFamily& f : base) {
+      CurveFamily g{m.name + "(" + f.name + ")", {}};
+      for (const Word& c : f.curves) g.curves.push_back(dehn_reduce(substitute(c, m.automorphism.map), R));
+      out.push_back(std::move(g));
+    }
+  return out;
+}
+
+ClassBoundEvaluator::ClassBoundEvaluator(const SurfaceGroupLengths& source, std::vector<CurveFamily> families)
+    : families_(std::move(families)), genus_(source.genus()) {
+  std::map<Word, double> memo;
+  for (const CurveFamily& f : families_) {
+    std::vector<double> lengths;
+    for (const Word& c : f.curves) {
+      auto it = memo.find(c);
+      if (it == memo.end()) it = memo.emplace(c, source.length(c)).first;
+      lengths.push_back(it->second);
+    }
+    source_lengths_.push_back(std::move(lengths));
+  }
+}
+
+ClassLowerBound ClassBoundEvaluator::operator()(const SurfaceGroupLengths& target, const GroupMap& theta) const {
+  ClassLowerBound r;
+  r.conformal_bound = 8 * M_PI * (genus_ - 1);
+  if (target.genus() != genus_ || static_cast<int>(theta.size()) != 2 * genus_)
+    throw InputError("class_lower_bound: the class has " + std::to_string(theta.size()) + " generator images, the surfaces genus " +
+                     std::to_string(genus_) + " and " + std::to_string(target.genus()));
+  std::map<Word, double> memo;  // image lengths by source curve
+  for (size_t f = 0; f < families_.size(); ++f) {
+    double sum = 0;
+    std::vector<double> image_lengths;
+    for (size_t c = 0; c < families_[f].curves.size(); ++c) {
+      const Word& curve = families_[f].curves[c];
+      auto it = memo.find(curve);
+      if (it == memo.end()) it = memo.emplace(curve, target.length(substitute(curve, theta))).first;
+      image_lengths.push_back(it->second);
+      const double lx = source_lengths_[f][c], ly = it->second;
+      // Not evaluable (NaN) or degenerate: the curve's collar is left out,
+      // which keeps the sum a lower bound.
+      if (!std::isfinite(lx) || !(lx > 0) || !std::isfinite(ly)) continue;
+      sum += collar_modulus(lx) * ly * ly;
+    }
+    if (sum > r.curve_bound) {
+      r.curve_bound = sum;
+      r.family = static_cast<int>(f);
+      r.family_name = families_[f].name;
+      r.source_lengths = source_lengths_[f];
+      r.target_lengths = std::move(image_lengths);
+    }
+  }
+  r.bound = std::max(r.curve_bound, r.conformal_bound);
+  return r;
+}
+
+}  // namespace surfmap

@@ -1,0 +1,146 @@
+// The quality signal and the two-way run (docs/handle_classes.md, issue 14).
+#include "two_way_run.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+#include <utility>
+
+#include "surfmap/error.h"
+
+namespace surfmap::detail {
+
+namespace {
+
+std::string number(double x) {
+  char s[32];
+  std::snprintf(s, sizeof s, "%.4g", x);
+  return s;
+}
+
+/// SurfaceMapResult::reverse_check: whether the chosen class is (or ties
+/// with) one from the other direction.
+std::string symmetry_check(const SurfaceMapResult& r) {
+  const std::vector<int>& rc = r.reverse_candidates;
+  const int chosen = r.chosen_candidate;
+  const int n = static_cast<int>(r.candidates.size());
+  if (std::find(rc.begin(), rc.end(), chosen) != rc.end())
+    return "the chosen class is the one carried by the target -> source map (candidate " + std::to_string(chosen) + ")";
+  const double e = r.candidates[chosen].energy;
+  if (std::any_of(rc.begin(), rc.end(), [&](int k) { return k < n && std::abs(r.candidates[k].energy - e) <= 1e-4 * e; }))
+    return "the chosen class ties with the one carried by the target -> source map (the same energy to 1e-4: the same "
+           "class up to a symmetry of the shapes)";
+  if (!rc.empty()) {
+    std::string s = "the chosen class is not the one carried by the target -> source map (candidates";
+    for (int k : rc) s += " " + std::to_string(k);
+    return s + "), which has higher energy";
+  }
+  if (!r.reverse_status.empty()) return "no class from the other direction to compare with (" + r.reverse_status + ")";
+  return "";
+}
+
+/// Per source vertex, where `reverse` (a target -> source map) puts it: its
+/// inverse correspondence, #V_source x 3.
+Eigen::MatrixXd inverse_positions(const SurfaceMapResult& reverse) {
+  Eigen::MatrixXd images(static_cast<Eigen::Index>(reverse.inverse.size()), 3);
+  for (size_t v = 0; v < reverse.inverse.size(); ++v) images.row(static_cast<Eigen::Index>(v)) = reverse.inverse[v].position.transpose();
+  return images;
+}
+
+}  // namespace
+
+void assess_quality(SurfaceMapResult& result) {
+  result.energy_ratio = std::numeric_limits<double>::quiet_NaN();
+  result.quality_warning.clear();
+  if (result.genus < 2 || result.chosen_candidate < 0 || result.chosen_candidate >= static_cast<int>(result.candidates.size()))
+    return;
+  result.reverse_check = symmetry_check(result);
+  const HomotopyCandidate& c = result.candidates[result.chosen_candidate];
+  // The class's free optimum (landmarks raise the returned map's energy on
+  // purpose; that is not a sign of a twisted class).
+  const double energy = std::isfinite(c.energy) ? c.energy : result.final_energy;
+  result.energy_ratio = energy / (8 * M_PI * (result.genus - 1));
+  if (result.energy_ratio >= 3.0)
+    result.quality_warning = "energy " + number(result.energy_ratio) +
+                             " x the conformal bound 8 pi (g - 1): the handle class may be twisted; add landmarks or "
+                             "pick a candidate";
+}
+
+SurfaceMapOptions reverse_options(const SurfaceMapOptions& options) {
+  SurfaceMapOptions ro = options;
+  ro.homotopy.class_index = -1;
+  ro.homotopy.two_way = false;
+  ro.homotopy.source_images.resize(0, 0);
+  std::swap(ro.loops.source_base_vertex, ro.loops.target_base_vertex);
+  // The classes are ranked by their free energies (landmarks rank them
+  // separately afterwards), so the other direction is mapped without them:
+  // the same run whatever landmarks are given.
+  ro.landmarks.clear();
+  ro.solve_progress = nullptr;
+  return ro;
+}
+
+bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                 SurfaceMapResult& out, const MapFunction& map) {
+  if (options.homotopy.class_index < 0 || !options.homotopy.two_way || options.homotopy.source_images.size() > 0) return false;
+  const SurfaceMapResult reverse = map(target, source, reverse_options(options));
+  if (static_cast<int>(reverse.inverse.size()) != source.num_vertices()) return false;
+  SurfaceMapOptions fo = options;
+  fo.homotopy.two_way = false;
+  fo.homotopy.source_images = inverse_positions(reverse);
+  out = map(source, target, fo);
+  out.two_way_status = "the requested class is the two-way run's (the source's loops carried by the target -> source map)";
+  return true;
+}
+
+void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                 SurfaceMapResult& forward, const MapFunction& map) {
+  if (forward.genus < 2 || options.homotopy.class_index >= 0 || options.homotopy.source_images.size() > 0) return;
+  if (!options.homotopy.two_way) return void(forward.two_way_status = "not run (off)");
+  if (!(forward.energy_ratio >= options.homotopy.two_way_ratio)) {
+    forward.two_way_status = "not run: energy ratio below " + number(options.homotopy.two_way_ratio);
+    return;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  auto finish = [&](std::string status) {
+    forward.two_way_status = std::move(status);
+    forward.two_way_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  };
+  SurfaceMapResult reverse;
+  try {
+    reverse = map(target, source, reverse_options(options));
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    return finish(std::string("the other direction failed: ") + e.what());
+  }
+  if (static_cast<int>(reverse.inverse.size()) != source.num_vertices())
+    return finish("the other direction gave no inverse correspondence");
+  const std::string rev = "target -> source energy ratio " + number(reverse.energy_ratio) + " (mean D' " +
+                          number(reverse.mean_dilatation) + ")";
+  if (!(reverse.energy_ratio < forward.energy_ratio) || reverse.chosen_candidate < 0) return finish(rev + ", not lower: kept");
+  SurfaceMapOptions fo = options;
+  fo.homotopy.two_way = false;
+  fo.homotopy.source_images = inverse_positions(reverse);  // where its inverse puts each source vertex
+  SurfaceMapResult again;
+  try {
+    again = map(source, target, fo);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    return finish(rev + "; mapping again with that candidate failed: " + e.what());
+  }
+  const double before = forward.energy_ratio, after = again.energy_ratio;
+  const std::string again_status = again.reverse_status;
+  // Ties: the second run, whose report lists the other direction's class.
+  const bool better = after <= before * (1 + 1e-6);
+  if (better) forward = std::move(again);
+  finish(rev + "; with the source's loops carried by its inverse as a candidate: energy ratio " + number(after) +
+         " against " + number(before) + (better ? ": used" : ": kept the first") +
+         (again_status.empty() ? std::string() : " (" + again_status + ")"));
+}
+
+}  // namespace surfmap::detail

@@ -1,0 +1,42 @@
+#pragma once
+// The quality signal of a genus >= 2 result and the two-way run
+// (docs/handle_classes.md, issue 14): when the chosen class's energy is far
+// above the conformal bound 8 pi (g - 1), the pair is also mapped the other
+// way, and the source's loops carried by that map's inverse give one more
+// candidate class. Not public API (used by surface_map.cpp).
+#include <functional>
+
+#include "surfmap/map/surface_map.h"
+
+namespace surfmap::detail {
+
+/// The public surface_map (the two-way run calls it with two_way off).
+using MapFunction = std::function<SurfaceMapResult(const TriMesh&, const TriMesh&, const SurfaceMapOptions&)>;
+
+/// Genus >= 2: SurfaceMapResult::energy_ratio (the chosen class's free
+/// energy over 8 pi (g - 1)), quality_warning (plain words when the ratio is
+/// 3 or more: the class may be twisted) and reverse_check (whether the
+/// chosen class is one from the other direction). NaN / empty for genus < 2.
+void assess_quality(SurfaceMapResult& result);
+
+/// Genus >= 2, HomotopyOptions::two_way: maps the other way when `forward`
+/// is at least two_way_ratio x the conformal bound, and when that direction
+/// is better, maps again with the source's loops carried by its inverse as
+/// one more candidate; `forward` becomes the lower-energy result
+/// (two_way_status, two_way_time_s set). Nothing for a requested class.
+void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                 SurfaceMapResult& forward, const MapFunction& map);
+
+/// A requested class index (homotopy.class_index) beyond the one-way
+/// candidates: the two-way run's added class (its index in a default run's
+/// result). Maps the other way and then this way with that candidate, into
+/// `out`; false when the two-way run does not apply (the caller rethrows).
+bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                 SurfaceMapResult& out, const MapFunction& map);
+
+/// The options of the other direction's run: base vertices swapped, no
+/// landmarks (the classes are ranked by their free energies), no requested
+/// class, no two-way run, no solve-progress callback.
+SurfaceMapOptions reverse_options(const SurfaceMapOptions& options);
+
+}  // namespace surfmap::detail

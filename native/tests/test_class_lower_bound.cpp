@@ -1,0 +1,165 @@
+// The class lower bound from hyperbolic lengths (map/class_lower_bound.h,
+// docs/handle_classes.md): lengths obey identities of hyperbolic geometry,
+// and the bound never exceeds a solved energy.
+#include "surfmap/map/class_lower_bound.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "surfmap/error.h"
+#include "surfmap/map/surface_map.h"
+#include "surfmap/samples/shapes.h"
+#include "surfmap/topology/canonical_schema.h"
+#include "surfmap/topology/mapping_class_search.h"
+#include "surfmap/uniformize/uniformize.h"
+
+namespace surfmap {
+namespace {
+
+SurfaceGroupLengths lengths_of(const TriMesh& mesh) {
+  const UniformizeResult u = uniformize(mesh);
+  EXPECT_TRUE(u.converged);
+  const CanonicalSchema cs = canonical_schema(u.layout.word);
+  return SurfaceGroupLengths(DeckGroup(u.layout), cs.generators, u.layout.word);
+}
+
+double half_trace(double length) { return std::cosh(length / 2); }
+
+TEST(ClassLowerBound, LengthsObeyHyperbolicTraceIdentitiesAndTheCollarLemma) {
+  const SurfaceGroupLengths X = lengths_of(samples::n_hole_torus(2, 26, true));
+  ASSERT_EQ(X.genus(), 2);
+  for (int i = 0; i < 2; ++i) {
+    const int a = 2 * i + 1, b = 2 * i + 2;
+    const double la = X.length({a}), lb = X.length({b}), lab = X.length({a, b}), labi = X.length({a, -b});
+    ASSERT_GT(la, 0);
+    ASSERT_GT(lb, 0);
+    // Conjugation and inversion invariance (free homotopy classes).
+    EXPECT_NEAR(X.length({-b, a, b}), la, 1e-8 * la);
+    EXPECT_NEAR(X.length({-a}), la, 1e-8 * la);
+    EXPECT_NEAR(X.length({3 - 2 * i, -a, -(3 - 2 * i)}), la, 1e-8 * la);
+    // Two simple closed geodesics crossing once: sinh(la/2) sinh(lb/2) >= 1
+    // (their collars would overlap otherwise).
+    EXPECT_GE(std::sinh(la / 2) * std::sinh(lb / 2), 1.0 - 1e-9) << "handle " << i + 1;
+    // tr(AB) + tr(AB^-1) = tr A tr B for matrices of SL(2): with |tr| and
+    // an unknown sign of the lift, one of the sum or the difference of the
+    // half traces of AB, AB^-1 equals 2 (tr A / 2)(tr B / 2).
+    const double p = 2 * half_trace(la) * half_trace(lb), x = half_trace(lab), y = half_trace(labi);
+    EXPECT_LT(std::min(std::abs(x + y - p), std::abs(std::abs(x - y) - p)), 1e-6 * p) << "handle " << i + 1;
+  }
+  // The separating curve [a1,b1] is longer than the pair's collar allows a
+  // short curve to be: its length exceeds 2 arcsinh(1) (it meets no curve
+  // crossing it once, but cuts off a one-holed torus of area 2 pi whose
+  // boundary has length > 0; here simply: positive and finite).
+  const double ls = X.length(commutator_product({{1}, {2}}));
+  EXPECT_TRUE(std::isfinite(ls));
+  EXPECT_GT(ls, 0);
+  // The identity of the group is length 0; words too long to evaluate are NaN.
+  EXPECT_EQ(X.length(canonical_relator(2)), 0.0);
+  EXPECT_TRUE(std::isnan(X.length(std::vector<int>(50, 1), 10)));
+}
+
+TEST(ClassLowerBound, CollarModulusAndFamilies) {
+  // M(l) = 2 arctan(1/sinh(l/2)) / l: above Maskit's 2 e^{-l/2} / l, and the
+  // collar of a short curve is long (M ~ pi / l).
+  for (double l : {0.01, 0.1, 0.5, 1.0, 2.0, 5.0, 10.0, 30.0}) {
+    EXPECT_GE(collar_modulus(l), 2 * std::exp(-l / 2) / l) << l;
+    EXPECT_LE(collar_modulus(l), M_PI / l) << l;
+  }
+  EXPECT_NEAR(collar_modulus(1e-4) * 1e-4, M_PI, 1e-3);
+  for (int g = 2; g <= 4; ++g) {
+    const std::vector<CurveFamily> fam = disjoint_curve_families(g);
+    EXPECT_EQ(fam.size(), 4u * (1 + twist_moves(g, false, false).size()));
+    const IntMatrix J = symplectic_form(g);
+    for (const CurveFamily& f : fam) {
+      ASSERT_EQ(static_cast<int>(f.curves.size()), 2 * g - 1) << f.name;
+      // Disjoint curves have algebraic intersection 0 pairwise.
+      for (size_t i = 0; i < f.curves.size(); ++i)
+        for (size_t j = 0; j < f.curves.size(); ++j) {
+          const auto ci = abelianize(f.curves[i], 2 * g), cj = abelianize(f.curves[j], 2 * g);
+          EXPECT_EQ((ci.transpose() * J * cj)(0, 0), 0) << f.name;
+        }
+    }
+  }
+  EXPECT_THROW(disjoint_curve_families(1), InputError);
+}
+
+// The bound of a class X -> X twisted k times along a1 grows like k^2 (the
+// image of b1 winds k times around a1: its length grows like k l(a1)), and
+// the identity's stays below the energy of the isometry, 8 pi (g - 1).
+TEST(ClassLowerBound, TwistedSelfClassesOfASurface) {
+  const SurfaceGroupLengths X = lengths_of(samples::n_hole_torus(2, 26, true));
+  const ClassBoundEvaluator bound(X, disjoint_curve_families(2));
+  const double conformal = 8 * M_PI;
+  const ClassLowerBound id = bound(X, identity_map(4));
+  EXPECT_LE(id.curve_bound, conformal);
+  EXPECT_EQ(id.bound, conformal);
+  const MappingClassMove twist = twist_moves(2, false, false)[0];
+  ASSERT_EQ(twist.name, "T(a1)");
+  auto twisted = [&](int k) {
+    GroupMap theta = identity_map(4);
+    for (int q = 0; q < k; ++q) {
+      theta = compose(theta, twist.automorphism.map);
+      for (Word& w : theta) w = dehn_reduce(w, canonical_relator(2));
+    }
+    return bound(X, theta).curve_bound;
+  };
+  const double b5 = twisted(5), b10 = twisted(10), b20 = twisted(20), b40 = twisted(40);
+  EXPECT_GE(b5, id.curve_bound);
+  EXPECT_GT(b10, b5);
+  EXPECT_GT(b20, b10);
+  EXPECT_GT(b40, b20);
+  EXPECT_GT(b40, conformal);  // informative beyond the conformal bound
+  EXPECT_GT(b40 / b20, 2.5);  // -> 4 as k grows
+  EXPECT_LT(b40 / b20, 4.5);
+}
+
+// The bound against solved energies on generated pairs: every candidate of
+// a dissimilar pair (solved at full resolution) and the twisted classes the
+// search meets on a remeshed copy.
+void expect_bounds_below_energies(const SurfaceMapResult& m, int* informative) {
+  ASSERT_TRUE(m.class_bound_status.empty()) << m.class_bound_status;
+  for (const HomotopyCandidate& c : m.candidates) {
+    ASSERT_TRUE(std::isfinite(c.class_lower_bound)) << c.description;
+    EXPECT_GE(c.class_lower_bound, 8 * M_PI * (m.genus - 1));
+    EXPECT_LE(c.class_curve_bound, c.class_lower_bound);
+    if (!c.solved || !std::isfinite(c.energy)) continue;
+    EXPECT_LE(c.class_curve_bound, c.energy) << c.description << " (" << c.class_bound_curves << ")";
+    if (c.class_curve_bound > 8 * M_PI * (m.genus - 1)) ++*informative;
+  }
+}
+
+TEST(ClassLowerBound, NeverAboveTheSolvedEnergies) {
+  int informative = 0;
+  {
+    const TriMesh a = samples::n_hole_torus(2, 26, true);
+    const TriMesh b = samples::vase(30, true);
+    SurfaceMapOptions o;
+    o.homotopy.full_solves = 0;
+    o.homotopy.coarse_vertices = 0;
+    o.homotopy.two_way = false;  // (test_surface_map.cpp)
+    const SurfaceMapResult m = surface_map(a, b, o);
+    expect_bounds_below_energies(m, &informative);
+    EXPECT_TRUE(std::isfinite(m.energy_ratio));
+    EXPECT_NEAR(m.energy_ratio, m.candidates[m.chosen_candidate].energy / (8 * M_PI), 1e-12);
+  }
+  {
+    const TriMesh a = samples::n_hole_torus(2, 26, true);
+    const TriMesh b = samples::jitter(samples::n_hole_torus(2, 30, true), 0.2, 3);
+    SurfaceMapOptions o;
+    o.homotopy.full_solves = 0;
+    o.homotopy.coarse_vertices = 0;
+    o.homotopy.two_way = false;
+    const SurfaceMapResult m = surface_map(a, b, o);
+    expect_bounds_below_energies(m, &informative);
+    EXPECT_LT(m.energy_ratio, 1.2);  // a copy: nearly conformal
+    EXPECT_TRUE(m.quality_warning.empty()) << m.quality_warning;
+  }
+  // Some of the wrong classes are ruled out by the curves alone.
+  EXPECT_GT(informative, 0);
+}
+
+}  // namespace
+}  // namespace surfmap
