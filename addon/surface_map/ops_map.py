@@ -308,10 +308,12 @@ def summary_rows(res, times):
     quality = res.get("quality")
     if isinstance(quality, (int, float)):
         rows.append(("Quality", f"{quality:.4g}"))
-    elif isinstance(quality, dict):   # e.g. {'energy_ratio': ...}
-        for k, v in list(quality.items())[:3]:
-            if isinstance(v, (int, float)):
-                rows.append((k.replace("_", " ").capitalize()[:14], f"{v:.4g}"))
+    elif isinstance(quality, dict):   # genus >= 2: energy over the conformal bound 8 pi (g - 1)
+        ratio = quality.get("energy_ratio")
+        if isinstance(ratio, (int, float)) and ratio == ratio:
+            rows.append(("E / bound", f"{ratio:.3g}"))
+        if quality.get("warning"):
+            rows.append(("Warning", "twisted pairing?"))
     rows.append(("Iterations", f"{res.get('iterations', 0)}"
                  + ("" if res.get("converged", True) else " (not converged)")))
     total = sum(times.values())
