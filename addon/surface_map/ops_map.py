@@ -295,6 +295,13 @@ def _summary(res, elapsed):
         s += f", source weights: {res['source_weights']}"
     if not res.get("converged", True):
         s += " (NOT converged)"
+    quality = res.get("quality")
+    if isinstance(quality, dict):
+        ratio = quality.get("energy_ratio")
+        if isinstance(ratio, (int, float)) and ratio == ratio:
+            s += f", energy {ratio:.3g}x the conformal bound"
+        if quality.get("warning"):
+            s += f"; {quality['warning']}"
     return s
 
 
