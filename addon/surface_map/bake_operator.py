@@ -6,6 +6,7 @@ import bpy
 import numpy as np
 
 from . import texture_bake
+from .ops_common import object_mode
 from .ops_stored_map import stored_pair
 from .side import ObjectProblem
 
@@ -239,10 +240,7 @@ class SURFMAP_OT_bake_textures(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if context.mode != 'OBJECT':
-            cls.poll_message_set("Switch to Object Mode")
-            return False
-        return True
+        return object_mode(cls, context)
 
     def execute(self, context):
         t0 = time.time()

@@ -17,6 +17,12 @@ def native_and_object_mode(cls, context):
     if surfmap_module(context) is None:
         cls.poll_message_set("The surfmap native module is missing (see the Surface Map panel)")
         return False
+    return object_mode(cls, context)
+
+
+def object_mode(cls, context):
+    """The poll precondition of the operators that work from the stored map alone (no native
+    call): Blender is in Object Mode (otherwise the reason goes to poll_message_set)."""
     if context.mode != 'OBJECT':
         cls.poll_message_set("Switch to Object Mode")
         return False

@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 
 from . import blender_io, map_job
-from .ops_common import pick_objects
+from .ops_common import object_mode, pick_objects
 from .ops_map import read_side, write_outputs
 from .side import ObjectProblem
 
@@ -72,10 +72,7 @@ class _StoredMapOperator:
 
     @classmethod
     def poll(cls, context):
-        if context.mode != 'OBJECT':
-            cls.poll_message_set("Switch to Object Mode")
-            return False
-        return True
+        return object_mode(cls, context)
 
     def execute(self, context):
         settings = context.scene.surfmap

@@ -7,6 +7,7 @@ from bpy.props import EnumProperty, StringProperty
 import numpy as np
 
 from . import blender_io, colours, map_job
+from .ops_common import object_mode
 
 TEXTURE_MATERIAL = "surfmap texture"
 CHECKER_IMAGE = "surfmap checker"
@@ -171,10 +172,7 @@ class SURFMAP_OT_show_output(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if context.mode != 'OBJECT':
-            cls.poll_message_set("Switch to Object Mode")
-            return False
-        return True
+        return object_mode(cls, context)
 
     def execute(self, context):
         settings = context.scene.surfmap
