@@ -47,6 +47,18 @@ class _Modal:
     _end(context, k, result_or_exception)."""
     _timer = None
 
+    def execute(self, context):
+        if not self._setup(context):
+            return {'CANCELLED'}
+        return self._run_all(context)
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        if not self._setup(context):
+            return {'CANCELLED'}
+        return self._start(context)
+
     def _run_all(self, context):
         for k in range(self._count):
             call = self._begin(context, k)
@@ -205,18 +217,6 @@ class SURFMAP_OT_map_onto_selected(_Modal, bpy.types.Operator):
         self.report({'WARNING'} if cancelled or done < self._count else {'INFO'}, text)
         return {'FINISHED'} if done else {'CANCELLED'}
 
-    def execute(self, context):
-        if not self._setup(context):
-            return {'CANCELLED'}
-        return self._run_all(context)
-
-    def invoke(self, context, event):
-        if bpy.app.background or context.window is None:
-            return self.execute(context)
-        if not self._setup(context):
-            return {'CANCELLED'}
-        return self._start(context)
-
 
 def _object_mesh(context, ob):
     """(V (n,3) local coordinates, F (m,3)) of the evaluated mesh, triangulated."""
@@ -346,18 +346,6 @@ class SURFMAP_OT_compare_selected(_Modal, bpy.types.Operator):
                f"the text block '{COMPARE_TEXT}'")
         self.report({'WARNING'} if cancelled or self._errors else {'INFO'}, msg)
         return {'FINISHED'}
-
-    def execute(self, context):
-        if not self._setup(context):
-            return {'CANCELLED'}
-        return self._run_all(context)
-
-    def invoke(self, context, event):
-        if bpy.app.background or context.window is None:
-            return self.execute(context)
-        if not self._setup(context):
-            return {'CANCELLED'}
-        return self._start(context)
 
 
 def draw_rows(layout):
