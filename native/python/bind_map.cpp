@@ -130,16 +130,7 @@ void bind_map(py::module_& m) {
         IntakeResult src, dst;
         try {
           py::gil_scoped_release release;
-          try {
-            src = intake(vs, fs);
-          } catch (const InputError& e) {
-            throw InputError(std::string("source: ") + e.what());
-          }
-          try {
-            dst = intake(vt, ft);
-          } catch (const InputError& e) {
-            throw InputError(std::string("target: ") + e.what());
-          }
+          intake_source_and_target(vs, fs, vt, ft, src, dst);
           check_same_genus(src.info, dst.info);
           r = surface_map(src.mesh, dst.mesh, opt);
         } catch (const Cancelled&) {

@@ -61,16 +61,7 @@ void bind_verify(py::module_& m) {
         {
           py::gil_scoped_release release;
           IntakeResult src, dst;
-          try {
-            src = intake(vs, fs);
-          } catch (const InputError& e) {
-            throw InputError(std::string("source: ") + e.what());
-          }
-          try {
-            dst = intake(vt, ft);
-          } catch (const InputError& e) {
-            throw InputError(std::string("target: ") + e.what());
-          }
+          intake_source_and_target(vs, fs, vt, ft, src, dst);
           c = certify_map(src.mesh, dst.mesh, fw, iv, opt);
         }
         py::dict d;

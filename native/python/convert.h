@@ -9,6 +9,7 @@
 #include <string>
 
 #include "surfmap/error.h"
+#include "surfmap/mesh/intake.h"
 #include "surfmap/mesh/tri_mesh.h"
 
 namespace surfmap::python {
@@ -56,6 +57,22 @@ py::array_t<T> to_numpy(const std::vector<T>& v) {
   py::array_t<T> a(static_cast<py::ssize_t>(v.size()));
   std::copy(v.begin(), v.end(), a.mutable_data());
   return a;
+}
+
+/// Intake of a map's source and target (called with the GIL released); an InputError says which
+/// of the two it is about ("source: ..." / "target: ...").
+inline void intake_source_and_target(const RowMatrixX3d& vs, const RowMatrixX3i& fs, const RowMatrixX3d& vt,
+                                     const RowMatrixX3i& ft, IntakeResult& src, IntakeResult& dst) {
+  try {
+    src = intake(vs, fs);
+  } catch (const InputError& e) {
+    throw InputError(std::string("source: ") + e.what());
+  }
+  try {
+    dst = intake(vt, ft);
+  } catch (const InputError& e) {
+    throw InputError(std::string("target: ") + e.what());
+  }
 }
 
 }  // namespace surfmap::python
