@@ -15,6 +15,7 @@
 #include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/mapping_class_search.h"
 #include "surfmap/uniformize/uniformize.h"
+#include "../src/map/stages/homotopy_classes.h"
 
 namespace surfmap {
 namespace {
@@ -84,6 +85,71 @@ TEST(ClassLowerBound, CollarModulusAndFamilies) {
     }
   }
   EXPECT_THROW(disjoint_curve_families(1), InputError);
+}
+
+// The class fingerprint and screen of the pipeline (ClassSpace) use the one
+// length function: a translation length is the same for every conjugate and
+// every cyclic permutation of a word, and equals 2 arccosh(|tr|/2) of the
+// determinant-normalised matrix of a short word. (The fingerprint once
+// multiplied out far conjugates and divided the trace by a round-off
+// determinant: 697 where 6.41 was right.)
+TEST(ClassLowerBound, ClassSpaceLengthsAreConjugationInvariantTranslationLengths) {
+  const TriMesh mesh = samples::n_hole_torus(2, 26, true);
+  const UniformizeResult u = uniformize(mesh);
+  ASSERT_TRUE(u.converged);
+  const CanonicalSchema cs = canonical_schema(u.layout.word);
+  const DeckGroup group(u.layout);
+  const detail::ClassSpace space(2, u.loops, cs, cs, u.layout, group);
+  const DehnReducer reduce_loops(u.layout.word), reduce_canonical(canonical_relator(2));
+  // Short words: the normalised trace of the matrix itself.
+  for (const Word& w : std::vector<Word>{{1}, {2}, {3}, {4}, {1, 2}, {1, -3}, {2, 4}, {1, 2, -3, 4}}) {
+    const hyperbolic::Mobius m = group.evaluate(reduce_loops(substitute(w, cs.generators)));
+    const double half = std::abs(m.a.real()) / std::sqrt(m.determinant());
+    ASSERT_NEAR(m.determinant(), 1.0, 1e-6);
+    const double l = space.target_length(w);
+    EXPECT_NEAR(l, 2 * std::acosh(half), 1e-8 * std::max(1.0, l)) << "word of " << w.size() << " letters";
+    // every cyclic permutation and its inverse
+    for (size_t r = 1; r < w.size(); ++r) {
+      Word turned(w.begin() + static_cast<long>(r), w.end());
+      turned.insert(turned.end(), w.begin(), w.begin() + static_cast<long>(r));
+      EXPECT_NEAR(space.target_length(turned), l, 1e-8 * std::max(1.0, l)) << "word " << w.size() << " turned " << r;
+    }
+    EXPECT_NEAR(space.target_length(inverse(w)), l, 1e-8 * std::max(1.0, l));
+  }
+  // A long conjugator (its matrix has entries far beyond the determinant's
+  // precision): conjugates have the same lengths, and an inner automorphism
+  // of the identity class has the identity's fingerprint and screen.
+  Word c;
+  for (int k = 0; k < 6; ++k) c.insert(c.end(), {1, 2, -3, 4, 2});
+  c = reduce_canonical(c);
+  ASSERT_GT(c.size(), 20u);
+  for (const Word& w : std::vector<Word>{{1}, {2, 4}, {1, 2, -3, 4}}) {
+    Word conj = c;
+    conj.insert(conj.end(), w.begin(), w.end());
+    const Word ci = inverse(c);
+    conj.insert(conj.end(), ci.begin(), ci.end());
+    const double l = space.target_length(w);
+    EXPECT_NEAR(space.target_length(reduce_canonical(conj)), l, 1e-6 * std::max(1.0, l)) << "word of " << w.size() << " letters";
+  }
+  GroupMap inner(4);
+  for (int j = 0; j < 4; ++j) {
+    Word w = c;
+    w.push_back(j + 1);
+    const Word ci = inverse(c);
+    w.insert(w.end(), ci.begin(), ci.end());
+    inner[j] = reduce_canonical(w);
+  }
+  ASSERT_TRUE(space.is_isomorphism(inner));
+  const std::vector<double> fi = space.fingerprint(identity_map(4)), fc = space.fingerprint(inner);
+  ASSERT_EQ(fi.size(), fc.size());
+  for (size_t k = 0; k < fi.size(); ++k) {
+    EXPECT_TRUE(std::isfinite(fi[k]));
+    EXPECT_NEAR(fc[k], fi[k], 1e-6 * std::max(1.0, fi[k])) << "probe " << k;
+  }
+  EXPECT_TRUE(detail::ClassSpace::same_fingerprint(fi, fc));
+  const double si = space.screen(identity_map(4)), sc = space.screen(inner);
+  EXPECT_TRUE(std::isfinite(si));
+  EXPECT_NEAR(sc, si, 1e-6 * si);
 }
 
 // The bound of a class X -> X twisted k times along a1 grows like k^2 (the

@@ -15,7 +15,8 @@ using hyperbolic::Mobius;
 ClassSpace::ClassSpace(int genus, const SystemOfLoops& sl, const CanonicalSchema& scs, const CanonicalSchema& tcs,
                        const DiskLayout& layout, const DeckGroup& group)
     : genus_(genus), n_(2 * genus), scs_(scs), tcs_(tcs), group_(group), R_(canonical_relator(genus)),
-      J_(symplectic_form(genus)), reduce_canonical_(R_), reduce_target_loops_(layout.word) {
+      J_(symplectic_form(genus)), reduce_canonical_(R_), reduce_target_loops_(layout.word),
+      lengths_(group, tcs.generators, layout.word) {
   loop_length_.assign(sl.loops.size(), 0.0);
   for (size_t k = 0; k < sl.loops.size(); ++k)
     for (size_t q = 0; q + 1 < sl.loops[k].size(); ++q)
@@ -41,12 +42,12 @@ std::vector<double> ClassSpace::fingerprint(const GroupMap& theta) const {
     probes.push_back({i + 1});
     for (int j = i + 1; j < n_; ++j) probes.push_back({i + 1, j + 1}), probes.push_back({i + 1, -(j + 1)});
   }
+  // Lengths through the one length function (cyclic reduction first: the
+  // images are conjugates whose matrices, multiplied out, have entries far
+  // beyond the determinant's precision, and dividing the trace by a
+  // round-off determinant gave lengths of 697 for 6.41).
   std::vector<double> lengths;
-  for (const Word& w : probes) {
-    const Word image = reduce_target_loops_(substitute(reduce_canonical_(substitute(w, theta)), tcs_.generators));
-    const Mobius m = group_.evaluate(image);
-    lengths.push_back(2 * std::acosh(std::max(1.0, std::abs(m.a.real()) / std::sqrt(std::max(m.determinant(), 1e-300)))));
-  }
+  for (const Word& w : probes) lengths.push_back(target_length(reduce_canonical_(substitute(w, theta))));
   return lengths;
 }
 
@@ -58,15 +59,12 @@ bool ClassSpace::same_fingerprint(const std::vector<double>& x, const std::vecto
 }
 
 double ClassSpace::screen(const GroupMap& theta) const {
-  const std::vector<Word> images = loop_letter_images(theta);
-  double letters = 0, score = 0;
-  for (const Word& w : images) letters += static_cast<double>(w.size());
-  if (letters > max_image_letters()) return std::numeric_limits<double>::infinity();
-  for (size_t k = 0; k < images.size(); ++k) {
-    const Mobius m = group_.evaluate(images[k]);
-    const double t = std::abs(m.a.real()) / std::sqrt(std::max(m.determinant(), 1e-300));
-    if (!std::isfinite(t)) return std::numeric_limits<double>::infinity();  // beyond double range
-    const double l = 2 * std::acosh(std::max(1.0, t));
+  if (loop_image_length(theta) > max_image_letters()) return std::numeric_limits<double>::infinity();
+  double score = 0;
+  for (size_t k = 0; k < scs_.letters.size(); ++k) {
+    // source loop letter k -> target canonical word -> its geodesic length
+    const double l = target_length(reduce_canonical_(substitute(scs_.letters[k], theta)));
+    if (!std::isfinite(l)) return std::numeric_limits<double>::infinity();  // beyond double range
     score += l * l / std::max(loop_length_[k] * loop_length_[k], 1e-300);
   }
   return std::isfinite(score) ? score : std::numeric_limits<double>::infinity();

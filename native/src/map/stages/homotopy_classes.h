@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "source_cuts.h"
+#include "surfmap/map/class_lower_bound.h"
 #include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/handle_basis.h"
 #include "surfmap/topology/projected_loops.h"
@@ -55,6 +56,12 @@ class ClassSpace {
   /// solve refuses points beyond ~70 hyperbolic units); the classes that
   /// solve have a few hundred letters at most.
   double max_image_letters() const { return 500.0 * n_; }
+  /// Translation length in the target's metric of the closed geodesic
+  /// freely homotopic to `canonical_word` (target canonical letters): the
+  /// one length function of the pipeline (SurfaceGroupLengths::length:
+  /// cyclically reduced, 2 arccosh(|tr|/2) of the SU(1,1) matrix); NaN when
+  /// too long to evaluate.
+  double target_length(const Word& canonical_word) const { return lengths_.length(canonical_word); }
   /// Fingerprint: target lengths of the images of x_j and x_i x_j^±1
   /// (conjugation invariant, so equal for every representative of an outer
   /// class; Torelli-different classes differ here). Equal fingerprints: the
@@ -86,6 +93,7 @@ class ClassSpace {
   IntMatrix J_;
   DehnReducer reduce_canonical_, reduce_target_loops_;
   std::vector<double> loop_length_;  ///< #loops 3D length of the source's loops
+  SurfaceGroupLengths lengths_;      ///< the target's lengths (canonical letters)
 };
 
 /// Jumps of a projected loop up to this fraction of the unit box are
