@@ -1,0 +1,329 @@
+// Handle classes from short markings of the two surfaces' hyperbolic metrics
+// (map/geometric_classes.h; docs/handle_classes.md "Geometric candidates").
+#include "surfmap/map/geometric_classes.h"
+
+#include <algorithm>
+#include <array>
+#include <functional>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <utility>
+
+#include "surfmap/error.h"
+#include "surfmap/topology/mapping_class_search.h"
+
+namespace surfmap {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+void dehn_reduce_all(GroupMap& m, const DehnReducer& reduce) {
+  for (Word& w : m) w = reduce(w);
+}
+
+// Σ ℓ(marking(p)) over the probes; +inf when one is not evaluable.
+double total_probe_length(const SurfaceGroupLengths& lengths, const GroupMap& marking, const std::vector<Word>& probes,
+                          const DehnReducer& reduce) {
+  double total = 0;
+  for (const Word& p : probes) {
+    const double l = lengths.length(reduce(substitute(p, marking)));
+    if (!std::isfinite(l)) return kInf;
+    total += l;
+  }
+  return total;
+}
+
+// Per marking handle: ℓ(a), ℓ(b), ℓ(ab), ℓ(ab^-1).
+std::vector<std::array<double, 4>> handle_lengths(const SurfaceGroupLengths& lengths, const GroupMap& marking,
+                                                  const DehnReducer& reduce) {
+  std::vector<std::array<double, 4>> out;
+  for (int i = 0; i < lengths.genus(); ++i) {
+    const int a = 2 * i + 1, b = 2 * i + 2;
+    std::array<double, 4> h{};
+    const Word words[4] = {{a}, {b}, {a, b}, {a, -b}};
+    for (int k = 0; k < 4; ++k) h[k] = lengths.length(reduce(substitute(words[k], marking)));
+    out.push_back(h);
+  }
+  return out;
+}
+
+double log_gap(double x, double y) {
+  if (!(x > 0) || !(y > 0) || !std::isfinite(x) || !std::isfinite(y)) return 1e6;
+  const double d = std::log(x) - std::log(y);
+  return d * d;
+}
+
+// Symplectic homology matrix of the signed handle permutation: marking
+// handle i -> handle perm[i] turned by rot[i] quarter turns.
+IntMatrix pairing_homology(const std::vector<int>& perm, const std::vector<int>& rot) {
+  const int g = static_cast<int>(perm.size());
+  IntMatrix P = IntMatrix::Zero(2 * g, 2 * g);
+  for (int i = 0; i < g; ++i) {
+    const int ta = 2 * perm[i], tb = ta + 1;
+    switch (rot[i] % 4) {
+      case 0: P(ta, 2 * i) = 1, P(tb, 2 * i + 1) = 1; break;    // a -> a', b -> b'
+      case 1: P(tb, 2 * i) = 1, P(ta, 2 * i + 1) = -1; break;   // a -> b', b -> a'^-1
+      case 2: P(ta, 2 * i) = -1, P(tb, 2 * i + 1) = -1; break;  // a -> a'^-1, b -> b'^-1
+      default: P(tb, 2 * i) = -1, P(ta, 2 * i + 1) = 1; break;  // a -> b'^-1, b -> a'
+    }
+  }
+  return P;
+}
+
+std::string pairing_text(const std::vector<int>& perm, const std::vector<int>& rot) {
+  static const char* turn[4] = {"", " (quarter turn)", " (half turn)", " (three quarter turns)"};
+  std::string s = "marking handles ";
+  for (size_t i = 0; i < perm.size(); ++i)
+    s += (i ? ", " : "") + std::to_string(i + 1) + "->" + std::to_string(perm[i] + 1) + turn[rot[i] % 4];
+  return s;
+}
+
+}  // namespace
+
+std::vector<Word> marking_probes(int genus) {
+  const int n = 2 * genus;
+  std::vector<Word> probes;
+  for (int j = 1; j <= n; ++j) probes.push_back({j});
+  for (int i = 1; i <= n; ++i)
+    for (int j = i + 1; j <= n; ++j) probes.push_back({i, j}), probes.push_back({i, -j});
+  return probes;
+}
+
+namespace {
+
+// One move of a descent: moves[move] composed on the right (map ∘ m: a
+// change of the marking / of the source side) or on the left (m ∘ map: the
+// target side).
+struct DescentStep {
+  int move = -1;
+  bool left = false;
+};
+
+struct Descent {
+  GroupMap map;
+  double cost = 0;
+  std::vector<DescentStep> steps;
+  bool stalled = false;  ///< ended at a minimum of single moves and pairs
+};
+
+// Greedy descent of `cost` over the moves (right side, and the left side
+// when `left_too`): the best single move while one lowers the cost by more
+// than `tolerance` relative, else the best pair of moves (when `pairs` and
+// the pair neighbourhood has at most `max_pairs` members), at most
+// `max_steps` steps.
+Descent descend(GroupMap map, const std::function<double(const GroupMap&)>& cost,
+                const std::vector<MappingClassMove>& moves, bool left_too, int max_steps, bool pairs, size_t max_pairs,
+                double tolerance, const DehnReducer& reduce) {
+  Descent d;
+  d.map = std::move(map);
+  d.cost = cost(d.map);
+  if (!std::isfinite(d.cost)) return d;
+  std::vector<DescentStep> singles;
+  for (int k = 0; k < static_cast<int>(moves.size()); ++k) {
+    singles.push_back({k, false});
+    if (left_too) singles.push_back({k, true});
+  }
+  auto apply = [&](const GroupMap& m, const DescentStep& s) {
+    GroupMap next = s.left ? compose(moves[s.move].automorphism.map, m) : compose(m, moves[s.move].automorphism.map);
+    dehn_reduce_all(next, reduce);
+    return next;
+  };
+  pairs = pairs && singles.size() * singles.size() <= max_pairs;
+  for (int step = 0; step < max_steps; ++step) {
+    const double bar = d.cost * (1 - tolerance);
+    double best = bar;
+    std::vector<DescentStep> best_steps;
+    GroupMap best_map;
+    for (const DescentStep& s : singles) {
+      GroupMap next = apply(d.map, s);
+      const double c = cost(next);
+      if (c < best) best = c, best_steps = {s}, best_map = std::move(next);
+    }
+    // None: pairs of moves (a minimum of single moves often is not one of
+    // pairs: a twist that only pays together with another).
+    for (size_t i = 0; i < singles.size() && best_steps.empty() && pairs; ++i) {
+      const GroupMap first = apply(d.map, singles[i]);
+      for (const DescentStep& s : singles) {
+        if (s.left == singles[i].left && s.move == (singles[i].move ^ 1)) continue;  // (its inverse: back)
+        GroupMap next = apply(first, s);
+        const double c = cost(next);
+        if (c < best) best = c, best_steps = {singles[i], s}, best_map = std::move(next);
+      }
+      if (i + 1 == singles.size() && !best_steps.empty()) break;
+    }
+    if (best_steps.empty()) {
+      d.stalled = true;
+      break;
+    }
+    d.map = std::move(best_map);
+    d.cost = best;
+    d.steps.insert(d.steps.end(), best_steps.begin(), best_steps.end());
+  }
+  return d;
+}
+
+}  // namespace
+
+std::vector<Word> handle_probes(int genus) {
+  std::vector<Word> probes;
+  for (int i = 0; i < genus; ++i) {
+    const int a = 2 * i + 1, b = 2 * i + 2;
+    probes.insert(probes.end(), {{a}, {b}, {a, b}, {a, -b}});
+  }
+  return probes;
+}
+
+ShortMarking short_marking(const SurfaceGroupLengths& lengths, const ShortMarkingOptions& options) {
+  const int g = lengths.genus();
+  const DehnReducer reduce(canonical_relator(g));
+  const std::vector<Word> probes = handle_probes(g);
+  // Twists along each handle's own a_i, b_i: the moves a signed handle
+  // permutation maps to each other, so two isometric surfaces whose
+  // markings differ by one descend alike (the chain and separating twists,
+  // which mix handles, are left to the classes' own descent).
+  std::vector<MappingClassMove> moves;
+  for (MappingClassMove& m : twist_moves(g, false, false))
+    if (m.name.rfind("T(a", 0) == 0 || m.name.rfind("T(b", 0) == 0) moves.push_back(std::move(m));
+  ShortMarking out;
+  const GroupMap id = identity_map(2 * g);
+  out.start_total = total_probe_length(lengths, id, probes, reduce);
+  // (phi -> phi ∘ m changes the marking by the mapping class m; the inverse
+  // follows as m^-1 ∘ phi^-1.)
+  const Descent d = descend(
+      id, [&](const GroupMap& m) { return total_probe_length(lengths, m, probes, reduce); }, moves, false,
+      options.max_steps, options.pair_moves, options.max_pairs, options.tolerance, reduce);
+  out.marking.map = d.map;
+  out.marking.inverse = id;
+  for (const DescentStep& s : d.steps) {
+    out.marking.inverse = compose(moves[s.move].automorphism.inverse, out.marking.inverse);
+    dehn_reduce_all(out.marking.inverse, reduce);
+    out.moves.push_back(moves[s.move].name);
+  }
+  out.total = d.cost;
+  out.stop_reason = !std::isfinite(out.start_total) ? "not evaluable" : d.stalled ? "no shortening move" : "step budget";
+  for (int j = 1; j <= 2 * g; ++j) out.generator_lengths.push_back(lengths.length(out.marking.map[j - 1]));
+  return out;
+}
+
+std::vector<ShortGeodesic> short_geodesics(const SurfaceGroupLengths& lengths, const ShortMarking& marking,
+                                           int max_letters, int count) {
+  const int n = 2 * lengths.genus();
+  const DehnReducer reduce(canonical_relator(lengths.genus()));
+  max_letters = std::clamp(max_letters, 1, 3);
+  std::vector<Word> words;
+  std::vector<int> letters;
+  for (int k = 1; k <= n; ++k) letters.push_back(k), letters.push_back(-k);
+  // Cyclically reduced words of 1..max_letters letters.
+  std::vector<Word> frontier{{}};
+  for (int len = 1; len <= max_letters; ++len) {
+    std::vector<Word> next;
+    for (const Word& w : frontier)
+      for (int x : letters) {
+        if (!w.empty() && w.back() == -x) continue;
+        Word v = w;
+        v.push_back(x);
+        next.push_back(v);
+        if (v.front() != -v.back() || v.size() == 1) words.push_back(v);
+      }
+    frontier = std::move(next);
+  }
+  std::vector<ShortGeodesic> all;
+  for (const Word& w : words) {
+    const Word c = cyclic_reduce(reduce(substitute(w, marking.marking.map)));
+    if (c.empty()) continue;
+    const double l = lengths.length(c);
+    if (std::isfinite(l) && l > 0) all.push_back({c, l});
+  }
+  std::sort(all.begin(), all.end(), [](const ShortGeodesic& x, const ShortGeodesic& y) { return x.length < y.length; });
+  std::vector<ShortGeodesic> out;
+  for (ShortGeodesic& s : all) {
+    if (!out.empty() && std::abs(out.back().length - s.length) <= 1e-9 * s.length) continue;
+    out.push_back(std::move(s));
+    if (static_cast<int>(out.size()) >= count) break;
+  }
+  return out;
+}
+
+std::vector<GeometricClass> geometric_classes(const SurfaceGroupLengths& source, const ShortMarking& source_marking,
+                                              const SurfaceGroupLengths& target, const ShortMarking& target_marking,
+                                              const GeometricClassOptions& options) {
+  const int g = source.genus();
+  if (target.genus() != g)
+    throw InputError("geometric_classes: genus " + std::to_string(g) + " against " + std::to_string(target.genus()));
+  const DehnReducer reduce(canonical_relator(g));
+  const auto hx = handle_lengths(source, source_marking.marking.map, reduce);
+  const auto hy = handle_lengths(target, target_marking.marking.map, reduce);
+  // 1. Handle pairings (permutation, a/b swapped or not) by the handles' own
+  // lengths; a half turn does not change them.
+  struct Pairing {
+    double cost;
+    std::vector<int> perm, swap;
+  };
+  std::vector<Pairing> pairings;
+  std::vector<int> perm(g);
+  std::iota(perm.begin(), perm.end(), 0);
+  do {
+    for (int bits = 0; bits < (1 << g); ++bits) {
+      Pairing p{0, perm, std::vector<int>(g)};
+      for (int i = 0; i < g; ++i) {
+        const bool s = (bits >> i) & 1;
+        p.swap[i] = s;
+        const auto& x = hx[i];
+        const auto& y = hy[perm[i]];
+        p.cost += s ? log_gap(x[0], y[1]) + log_gap(x[1], y[0]) + log_gap(x[2], y[3]) + log_gap(x[3], y[2])
+                    : log_gap(x[0], y[0]) + log_gap(x[1], y[1]) + log_gap(x[2], y[2]) + log_gap(x[3], y[3]);
+      }
+      pairings.push_back(std::move(p));
+    }
+  } while (std::next_permutation(perm.begin(), perm.end()));
+  std::stable_sort(pairings.begin(), pairings.end(), [](const Pairing& x, const Pairing& y) { return x.cost < y.cost; });
+  pairings.resize(std::min<size_t>(pairings.size(), static_cast<size_t>(std::max(1, options.pairings))));
+  // 2. Every half-turn pattern of the kept pairings, lifted exactly and
+  // ranked by all probes.
+  const std::vector<Word> probes = marking_probes(g);
+  std::vector<Word> probe_words;  // probes in X's canonical letters
+  std::vector<double> probe_x;    // their lengths in X
+  for (const Word& p : probes) {
+    probe_words.push_back(reduce(substitute(p, source_marking.marking.map)));
+    probe_x.push_back(source.length(probe_words.back()));
+  }
+  auto mismatch = [&](const GroupMap& theta) {
+    double m = 0;
+    for (size_t k = 0; k < probes.size(); ++k) m += log_gap(probe_x[k], target.length(reduce(substitute(probe_words[k], theta))));
+    return m;
+  };
+  std::vector<GeometricClass> out;
+  for (const Pairing& p : pairings)
+    for (int half = 0; half < (1 << g); ++half) {
+      GeometricClass c;
+      c.permutation = p.perm;
+      for (int i = 0; i < g; ++i) c.rotation.push_back(p.swap[i] + 2 * ((half >> i) & 1));
+      const SurfaceAutomorphism P = lift_symplectic(pairing_homology(c.permutation, c.rotation));
+      c.theta = compose(target_marking.marking.map, compose(P.map, source_marking.marking.inverse));
+      dehn_reduce_all(c.theta, reduce);
+      c.mismatch = mismatch(c.theta);
+      c.description = pairing_text(c.permutation, c.rotation);
+      out.push_back(std::move(c));
+    }
+  std::stable_sort(out.begin(), out.end(), [](const GeometricClass& x, const GeometricClass& y) { return x.mismatch < y.mismatch; });
+  out.resize(std::min<size_t>(out.size(), static_cast<size_t>(std::max(1, options.max_classes))));
+  // 3. The markings are local minima, not always the same ones on two
+  // isometric surfaces, and the lift fixes each class only up to Torelli
+  // elements: each class descends on the mismatch itself, by moves on
+  // either side (singles, then pairs), towards a class under which every
+  // probe keeps its length.
+  const std::vector<MappingClassMove> moves = twist_moves(g, false, false);
+  for (GeometricClass& c : out) {
+    if (c.mismatch <= 1e-12) continue;
+    const Descent d = descend(c.theta, mismatch, moves, true, options.max_steps, true, options.max_pairs, 1e-9, reduce);
+    c.theta = d.map;
+    c.mismatch = d.cost;
+    if (!d.steps.empty()) c.description += ", then " + std::to_string(d.steps.size()) + " twists matching lengths";
+  }
+  std::stable_sort(out.begin(), out.end(), [](const GeometricClass& x, const GeometricClass& y) { return x.mismatch < y.mismatch; });
+  return out;
+}
+
+}  // namespace surfmap

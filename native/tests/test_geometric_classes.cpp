@@ -1,0 +1,151 @@
+// Handle classes from short markings of the hyperbolic metrics
+// (map/geometric_classes.h, docs/handle_classes.md "Geometric candidates").
+#include "surfmap/map/geometric_classes.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "surfmap/samples/shapes.h"
+#include "surfmap/topology/canonical_schema.h"
+#include "surfmap/topology/mapping_class_search.h"
+#include "surfmap/uniformize/uniformize.h"
+
+namespace surfmap {
+namespace {
+
+struct Uniformized {
+  UniformizeResult u;
+  CanonicalSchema cs;
+};
+
+Uniformized uniformized(const TriMesh& mesh) {
+  Uniformized x{uniformize(mesh), {}};
+  EXPECT_TRUE(x.u.converged);
+  x.cs = canonical_schema(x.u.layout.word);
+  return x;
+}
+
+// A smooth non-uniform stretch: no (near) isometries left, so the class of
+// the identity is the only one whose probes keep their lengths.
+TriMesh lopsided(TriMesh mesh) {
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    auto p = mesh.V.row(v);
+    const double x = p(0), y = p(1);
+    p(0) = x * (1.0 + 0.35 * x) + 0.1 * y * y;
+    p(1) = y * (1.0 + 0.25 * std::sin(2.0 * x));
+  }
+  return mesh;
+}
+
+// A known mapping class: a handle swap (lifted), composed with twists.
+SurfaceAutomorphism known_mapping_class(int genus) {
+  IntMatrix P = IntMatrix::Zero(2 * genus, 2 * genus);
+  for (int i = 0; i < genus; ++i) {
+    const int t = (i + 1) % genus;
+    P(2 * t + 1, 2 * i) = 1;   // a_i -> b_t (handle i to handle i+1, a quarter turn)
+    P(2 * t, 2 * i + 1) = -1;  // b_i -> a_t^-1
+  }
+  SurfaceAutomorphism psi = lift_symplectic(P);
+  const std::vector<MappingClassMove> moves = twist_moves(genus, false, false);
+  const DehnReducer reduce(canonical_relator(genus));
+  for (const char* name : {"T(a1)", "T(a1)", "T(b2)^-1", "T(s1)"}) {
+    auto m = std::find_if(moves.begin(), moves.end(), [&](const MappingClassMove& x) { return x.name == name; });
+    EXPECT_NE(m, moves.end()) << name;
+    if (m == moves.end()) break;
+    psi.map = compose(psi.map, m->automorphism.map);
+    psi.inverse = compose(m->automorphism.inverse, psi.inverse);
+    for (Word& w : psi.map) w = reduce(w);
+    for (Word& w : psi.inverse) w = reduce(w);
+  }
+  EXPECT_TRUE(is_surface_automorphism(psi, genus));
+  return psi;
+}
+
+TEST(GeometricClasses, ShortMarkingIsALocalMinimumAndShorterThanTheCanonicalBasis) {
+  const Uniformized x = uniformized(samples::jitter(samples::n_hole_torus(2, 26, true), 0.2, 5));
+  const SurfaceGroupLengths X(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word);
+  const ShortMarking m = short_marking(X);
+  ASSERT_EQ(m.stop_reason, "no shortening move");
+  EXPECT_LE(m.total, m.start_total);
+  EXPECT_TRUE(is_surface_automorphism(m.marking, 2));
+  // No twist along a handle's a_i or b_i shortens the handles' probes any
+  // more, and the total is what the probes measure.
+  const DehnReducer reduce(canonical_relator(2));
+  auto total_of = [&](const GroupMap& marking) {
+    double total = 0;
+    for (const Word& p : handle_probes(2)) total += X.length(reduce(substitute(p, marking)));
+    return total;
+  };
+  EXPECT_NEAR(total_of(m.marking.map), m.total, 1e-9 * m.total);
+  EXPECT_NEAR(total_of(identity_map(4)), m.start_total, 1e-9 * m.total);
+  int handle_moves = 0;
+  for (const MappingClassMove& mv : twist_moves(2, false, false)) {
+    if (mv.name.rfind("T(a", 0) != 0 && mv.name.rfind("T(b", 0) != 0) continue;
+    ++handle_moves;
+    EXPECT_GE(total_of(compose(m.marking.map, mv.automorphism.map)), m.total * (1 - 1e-9)) << mv.name;
+  }
+  EXPECT_EQ(handle_moves, 8);
+  // Short geodesics: ascending, positive, the shortest no longer than the
+  // shortest marking generator, and each at least the systole bound of the
+  // collar lemma with the marking's crossing pair (sinh(l/2) sinh(l'/2) >= 1
+  // for a1, b1).
+  const std::vector<ShortGeodesic> sg = short_geodesics(X, m, 3, 10);
+  ASSERT_GE(sg.size(), 4u);
+  for (size_t k = 1; k < sg.size(); ++k) EXPECT_GE(sg[k].length, sg[k - 1].length);
+  EXPECT_LE(sg[0].length, *std::min_element(m.generator_lengths.begin(), m.generator_lengths.end()) * (1 + 1e-9));
+  EXPECT_GE(std::sinh(m.generator_lengths[0] / 2) * std::sinh(m.generator_lengths[1] / 2), 1 - 1e-9);
+}
+
+// The same surface with its canonical letters relabelled by a known mapping
+// class psi (Y's letter j is psi(x_j) of X): the identity of the surface is
+// the class theta = psi^-1 in these letters, and a geometric candidate with
+// zero mismatch recovers it (same lengths of the images of every probe and
+// of longer curves, same action on homology up to the surface's isometries:
+// checked against the homology of psi^-1).
+TEST(GeometricClasses, RecoverAKnownMappingClass) {
+  const Uniformized x = uniformized(lopsided(samples::n_hole_torus(2, 26, true)));
+  const SurfaceGroupLengths X(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word);
+  const SurfaceAutomorphism psi = known_mapping_class(2);
+  const SurfaceGroupLengths Y(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word, psi.map);
+  const ShortMarking mx = short_marking(X), my = short_marking(Y);
+  EXPECT_NEAR(mx.total, my.total, 1e-6 * mx.total);  // the same surface
+  const std::vector<GeometricClass> classes = geometric_classes(X, mx, Y, my);
+  ASSERT_FALSE(classes.empty());
+  EXPECT_LT(classes[0].mismatch, 1e-8);
+  const DehnReducer reduce(canonical_relator(2));
+  const IntMatrix want = homology_matrix(psi.inverse, 4);
+  bool recovered = false;
+  for (const GeometricClass& c : classes) {
+    if (c.mismatch > 1e-8) continue;
+    // Every image has the length it has under psi^-1 (an isometry class).
+    double worst = 0;
+    for (const Word& w : marking_probes(2)) {
+      const Word longer = reduce(substitute(w, {{1, 2}, {2, -3}, {3, 4, 1}, {4}}));
+      for (const Word& v : {w, longer}) {
+        const double lt = Y.length(reduce(substitute(v, c.theta))), lw = Y.length(reduce(substitute(v, psi.inverse)));
+        worst = std::max(worst, std::abs(lt - lw) / std::max(1.0, lw));
+      }
+    }
+    if (worst < 1e-6 && homology_matrix(c.theta, 4) == want) recovered = true;
+  }
+  EXPECT_TRUE(recovered);
+}
+
+TEST(GeometricClasses, IdentityForTheSameSurface) {
+  const Uniformized x = uniformized(samples::jitter(samples::n_hole_torus(3, 30, true), 0.2, 7));
+  const SurfaceGroupLengths X(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word);
+  const ShortMarking m = short_marking(X);
+  const std::vector<GeometricClass> classes = geometric_classes(X, m, X, m);
+  ASSERT_FALSE(classes.empty());
+  EXPECT_LT(classes[0].mismatch, 1e-8);
+  bool identity = false;
+  for (const GeometricClass& c : classes)
+    identity = identity || (c.mismatch < 1e-8 && homology_matrix(c.theta, 6) == homology_matrix(identity_map(6), 6));
+  EXPECT_TRUE(identity);
+}
+
+}  // namespace
+}  // namespace surfmap
