@@ -64,14 +64,14 @@ void bind_map(py::module_& m) {
   m.attr("CAPABILITIES") = py::frozenset(py::make_tuple(
       "homotopy", "landmarks", "method", "tolerance", "max_iterations", "solve_progress", "homotopy_candidates",
       "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
-      "progress", "source_base_vertex", "target_base_vertex"));
+      "progress", "source_base_vertex", "target_base_vertex", "two_way"));
   m.def(
       "surface_map",
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
          int target_base_vertex, py::object progress, py::object landmarks, const std::string& method,
          double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
          int homotopy_full_solves, const std::string& initial_map, const std::string& source_weights,
-         bool homotopy_search, int homotopy_search_evaluations) {
+         bool homotopy_search, int homotopy_search_evaluations, bool two_way) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         SurfaceMapOptions opt;
@@ -90,6 +90,7 @@ void bind_map(py::module_& m) {
         if (homotopy_search_evaluations < 1) throw InputError("homotopy_search_evaluations must be at least 1");
         opt.homotopy.search.enabled = homotopy_search;
         opt.homotopy.search.evaluations = homotopy_search_evaluations;
+        opt.homotopy.two_way = two_way;  // (options.homotopy.two_way)
         opt.initial_map = parse_enum<InitialMapMethod>(initial_map, "initial_map");
         opt.source_weights = parse_enum<SourceWeights>(source_weights, "source_weights");
         if (!landmarks.is_none()) {
@@ -157,7 +158,7 @@ void bind_map(py::module_& m) {
       py::arg("landmarks") = py::none(), py::arg("method") = enum_name(MapMethod::Newton), py::arg("tolerance") = 1e-10,
       py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
       py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = enum_name(SourceWeights::Automatic),
-      py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
+      py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24, py::arg("two_way") = true,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
       "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "

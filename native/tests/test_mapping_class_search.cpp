@@ -113,6 +113,7 @@ TEST(MappingClassSearch, DescentUndoesKnownTwists) {
   o.max_steps = 20;
   o.evaluations_per_step = 200;
   o.screen_steps = 0;
+  o.pair_moves = false;  // (pairs: below)
   const TwistSearchResult r = twist_search(start, length(start), g, length, [&](const GroupMap& t) {
     ++evaluations;
     return length(t);
@@ -122,6 +123,17 @@ TEST(MappingClassSearch, DescentUndoesKnownTwists) {
   EXPECT_EQ(static_cast<int>(r.evaluations.size()), evaluations);
   EXPECT_LE(r.moves.size(), 4u);
   EXPECT_EQ(r.stop_reason, "no improving neighbour");
+  // With pairs of moves after the singles stall: the same optimum, no pair
+  // step needed, and the stop says the pairs were tried.
+  {
+    TwistSearchOptions po = o;
+    po.pair_moves = true;
+    po.max_evaluations = 2000;
+    const TwistSearchResult rp = twist_search(start, length(start), g, length, length, po);
+    EXPECT_EQ(rp.energy, 2.0 * g);
+    EXPECT_EQ(rp.pair_steps, 0);
+    EXPECT_EQ(rp.stop_reason, "no improving neighbour or pair");
+  }
   // The screening descent alone (no energy evaluations but its end point's).
   o.screen_steps = 20;
   evaluations = 0;

@@ -501,6 +501,15 @@ TEST(SurfaceMapHandles, ClassSearchStageOneFindsTheGeometricClassFromLateCuts) {
 
   o.homotopy.search.cuts = 0;
   o.homotopy.two_way = false;  // (the two-way run finds it too: below)
+  // Issue 14: the classes from short markings of the hyperbolic metrics and
+  // the search's restarts from them find it without the late cuts.
+  const SurfaceMapResult mg = surface_map(a, b, o);
+  expect_valid_map(mg, a, b);
+  EXPECT_GT(mg.homotopy_search.geometric_classes, 0);
+  EXPECT_LT(mg.final_energy, 1.1 * bound) << mg.candidates[mg.chosen_candidate].description;
+  // The rest: without them.
+  o.homotopy.search.geometric = 0;
+  o.homotopy.search.restart_ratio = 0;
   const SurfaceMapResult m0 = surface_map(a, b, o);
   // This worse class (energy > 2x the bound, mean D' ~10) is unflipped in the
   // uniformization domain, but the chord triangles between its vertex images

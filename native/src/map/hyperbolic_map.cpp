@@ -66,6 +66,7 @@ class HyperbolicPipeline {
   void solve_at_full_resolution(bool after_coarse);
   void fill_class_bounds();
   void choose_with_landmarks();
+  void compare_with_carried_class();
   void map_in_chosen_class();
 
   // Inputs.
@@ -151,6 +152,8 @@ class HyperbolicPipeline {
   bool try_solve(int k, const std::function<HyperbolicHarmonicResult()>& solve, HyperbolicHarmonicResult& r,
                  bool coarse = false);
   int append_class(HomotopyClass hc, ClassData cd, const CoarseEvaluation& ev);
+  void twist_search_from(int start, const std::vector<std::string>& start_twists, const CoarseSolve& solve,
+                         HomotopySearchInfo& info, const SurfaceMapOptions* opts = nullptr);
   HyperbolicHarmonicOptions fine_options(int k) const;
 };
 
@@ -424,6 +427,7 @@ void HyperbolicPipeline::search_classes() {
   // A converged coarse solve of class theta from the origin (false when it
   // fails or does not converge).
   const CoarseSolve solve_coarse = [&](const GroupMap& theta, CoarseEvaluation* ev) {
+    ++out.homotopy_search.coarse_solves;
     try {
       *ev = CoarseEvaluation{theta, level.edges_of(*space, theta, ut->layout, *deck_group), {}};
       ev->result = solve_from(ncv, ev->edges, corigin, no_decks, ho);
@@ -460,6 +464,27 @@ void HyperbolicPipeline::search_classes() {
                                                  [this](const GroupMap& theta) { return data_of(theta); }, pruned_solve,
                                                  options, out.homotopy_search))
       append_class(std::move(f.hc), std::move(f.data), f.evaluation);
+  // Issue 14 (docs/handle_classes.md "Geometric candidates"): classes from
+  // short markings of the two hyperbolic metrics, under the same condition.
+  std::vector<int> restart_from;
+  if (searching && options.homotopy.search.geometric > 0 && hooks.homotopy_search_start < 0 && usable[order[0]] &&
+      out.candidates[order[0]].energy > gap_bound) {
+    const SourceClassBounds& bounds = class_bounds_now();
+    if (bounds.ok && bounds.source) {
+      std::vector<GroupMap> known;
+      for (const HomotopyClass& hc : candidates.classes) known.push_back(hc.map);
+      for (FoundClass& f : geometric_candidate_classes(
+               *bounds.source, *target_lengths, *space, known,
+               [&](const GroupMap& theta) { return class_curve_bound_of(bounds, *target_lengths, theta); },
+               [this](const GroupMap& theta) { return data_of(theta); }, pruned_solve, options, out.homotopy_search)) {
+        std::string handles;
+        handle_correspondence_of(ss.shb, candidates.target_basis, homology_matrix(f.evaluation.theta, space->num_letters()),
+                                 &f.hc.permutation, &f.hc.sign, &handles);
+        f.hc.description = handles + "  " + f.hc.description;
+        restart_from.push_back(append_class(std::move(f.hc), std::move(f.data), f.evaluation));
+      }
+    }
+  }
   if (hooks.homotopy_search_start >= ncand)
     throw InputError("homotopy_search_start " + std::to_string(hooks.homotopy_search_start) + " does not exist; there are " +
                      std::to_string(ncand) + " candidates");
@@ -473,9 +498,54 @@ void HyperbolicPipeline::search_classes() {
       !(std::isfinite(out.candidates[search_start].energy) || !hooks.homotopy_search_start_twists.empty()))
     return;
   HomotopySearchInfo& info = out.homotopy_search;
+  twist_search_from(search_start, hooks.homotopy_search_start_twists, pruned_solve, info);
+  // Restarts (issue 14: a single descent stops at "no improving
+  // neighbour"): from each geometric class and the class carried from the
+  // other direction (two-way run) within restart_ratio of the best coarse
+  // energy, each with half the evaluations; the runs' figures are added up
+  // in `info`, the classes they find appended.
+  if (hooks.homotopy_search_start >= 0 || !hooks.homotopy_search_start_twists.empty()) return;
+  if (candidates.carried_class >= 0) restart_from.push_back(candidates.carried_class);
+  for (int k : restart_from) {
+    if (options.homotopy.search.restart_ratio <= 0) break;
+    const double best = out.candidates[order[0]].energy;
+    if (k == search_start || !usable[k] || !(out.candidates[k].energy <= options.homotopy.search.restart_ratio * best) ||
+        out.candidates[order[0]].energy <= gap_bound)
+      continue;
+    HomotopySearchInfo restart;
+    SurfaceMapOptions ro = options;
+    ro.homotopy.search.evaluations = std::max(1, options.homotopy.search.evaluations / 2);
+    twist_search_from(k, {}, pruned_solve, restart, &ro);
+    info.starts.push_back(k);
+    info.evaluations += restart.evaluations;
+    info.screened += restart.screened;
+    info.time_s += restart.time_s;
+    for (size_t q = 0; q < restart.evaluated_moves.size(); ++q) {
+      info.evaluated_moves.push_back("[from " + std::to_string(k) + "] " + restart.evaluated_moves[q]);
+      info.evaluated_step.push_back(restart.evaluated_step[q]);
+      info.evaluated_screen.push_back(restart.evaluated_screen[q]);
+      info.evaluated_energy.push_back(restart.evaluated_energy[q]);
+    }
+    if (restart.found_candidate >= 0 && out.candidates[restart.found_candidate].energy < info.energy) {
+      info.found_candidate = restart.found_candidate;
+      info.energy = out.candidates[restart.found_candidate].energy;
+      info.stop_reason += "; restart from candidate " + std::to_string(k) + " reached " +
+                          std::to_string(out.candidates[restart.found_candidate].energy);
+    }
+  }
+}
+
+// One twist search (stages/class_search.h) from candidate `start` (with
+// `start_twists`, testing hooks), the class reached appended when it
+// improved (info.found_candidate). `opts`: other options (restarts).
+void HyperbolicPipeline::twist_search_from(int start, const std::vector<std::string>& start_twists,
+                                           const CoarseSolve& solve, HomotopySearchInfo& info,
+                                           const SurfaceMapOptions* opts) {
+  const SurfaceMapOptions& o = opts ? *opts : options;
+  info.starts.push_back(start);
   std::optional<CoarseEvaluation> found =
-      twist_class_search(candidates.classes[search_start].map, search_start, out.candidates[search_start].energy, *space,
-                         pruned_solve, hooks.homotopy_search_start_twists, options, info);
+      twist_class_search(candidates.classes[start].map, start, out.candidates[start].energy, *space, solve, start_twists, o,
+                         info);
   ClassData found_data;
   if (found && space->loop_image_length(found->theta) > space->max_image_letters()) found.reset();
   if (found) try {
@@ -490,10 +560,51 @@ void HyperbolicPipeline::search_classes() {
   handle_correspondence_of(ss.shb, candidates.target_basis, hc.homology, &hc.permutation, &hc.sign, &handles);
   std::string path;
   for (const std::string& m : info.moves) path += (path.empty() ? "" : ", ") + m;
-  std::string from = std::to_string(search_start);
-  for (const std::string& m : hooks.homotopy_search_start_twists) from += " " + m;
+  std::string from = std::to_string(start);
+  for (const std::string& m : start_twists) from += " " + m;
   hc.description = handles + "  [class search from candidate " + from + ": " + path + "]";
   info.found_candidate = append_class(std::move(hc), std::move(found_data), *found);
+}
+
+// Issue 14 (docs/handle_classes.md "Both directions"): the class carried
+// from a target -> source map (two-way run) is that map's class inverted,
+// in this run's letters; whether the chosen class is the same outer class:
+// the same action on homology (exact) and the same target lengths of every
+// probe curve's image (ClassSpace::fingerprint; equal for one class, and
+// for classes differing by an isometry of the target).
+void HyperbolicPipeline::compare_with_carried_class() {
+  const int k = candidates.carried_class, c = out.chosen_candidate;
+  if (k < 0 || c < 0 || k >= ncand || c >= ncand) return;
+  const std::string ck = "candidate " + std::to_string(k), cc = "candidate " + std::to_string(c);
+  if (c == k) {
+    out.reverse_inverse = 1;
+    out.reverse_inverse_reason = "the chosen class is the other direction's class inverted (" + ck + ")";
+    return;
+  }
+  const GroupMap& a = candidates.classes[c].map;
+  const GroupMap& b = candidates.classes[k].map;
+  const int n = space->num_letters();
+  const bool same_homology = homology_matrix(a, n) == homology_matrix(b, n);
+  const bool evaluable = space->loop_image_length(a) <= space->max_image_letters() &&
+                         space->loop_image_length(b) <= space->max_image_letters();
+  const bool same_lengths = evaluable && ClassSpace::same_fingerprint(space->fingerprint(a), space->fingerprint(b));
+  char energies[128];
+  std::snprintf(energies, sizeof energies, " (energies %.6g and %.6g)", out.candidates[c].energy, out.candidates[k].energy);
+  if (same_homology && same_lengths) {
+    out.reverse_inverse = 1;
+    out.reverse_inverse_reason = "the chosen class (" + cc + ") and the other direction's class inverted (" + ck +
+                                 ") act alike on homology and give every probe curve's image the same length: the same "
+                                 "class" + energies;
+    return;
+  }
+  out.reverse_inverse = 0;
+  out.reverse_inverse_reason =
+      "the chosen class (" + cc + ") is not the other direction's class inverted (" + ck + "): " +
+      (!same_homology ? std::string("they pair the handles differently (different action on homology)")
+                      : !evaluable ? std::string("same action on homology; lengths not evaluable")
+                                   : std::string("same action on homology but different lengths of the probe curves' "
+                                                 "images (a Torelli twist apart)")) +
+      ", and the chosen one has the lower energy" + energies;
 }
 
 // Full-resolution solves: after the coarse ranking (`after_coarse`), the
@@ -832,6 +943,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   p.solve_at_full_resolution(p.ss.cs.ok);  // §VI-B: the best classes at full resolution
   p.fill_class_bounds();           // issue 14: every candidate's energy lower bound
   p.choose_with_landmarks();       // lowest energy; with landmarks, §VII-C branch and bound
+  p.compare_with_carried_class();  // issue 14: the two directions' classes inverse or not
   map_with_fallback(p);            // initial map, harmonic solve, landmarks, quality, location
 }
 

@@ -87,6 +87,12 @@ json homotopy_search_json(const HomotopySearchInfo& hs) {
           {"cut_classes", hs.cut_classes},
           {"cuts_time_s", hs.cuts_time_s},
           {"pruned", hs.pruned},
+          {"geometric_classes", hs.geometric_classes},
+          {"geometric_time_s", hs.geometric_time_s},
+          {"source_marking", hs.source_marking},
+          {"target_marking", hs.target_marking},
+          {"coarse_solves", hs.coarse_solves},
+          {"starts", hs.starts},
           {"evaluated", evaluated}};
 }
 
@@ -106,7 +112,8 @@ json stage_times_json(const SurfaceMapResult& r) {
 json quality_json(const SurfaceMapResult& r) {
   return {{"energy_ratio", r.energy_ratio},           {"warning", r.quality_warning},
           {"reverse_candidates", r.reverse_candidates}, {"reverse_status", r.reverse_status},
-          {"reverse_check", r.reverse_check},           {"two_way_status", r.two_way_status},
+          {"reverse_check", r.reverse_check}, {"reverse_inverse", r.reverse_inverse},
+          {"reverse_inverse_reason", r.reverse_inverse_reason},           {"two_way_status", r.two_way_status},
           {"two_way_time_s", r.two_way_time_s},         {"class_bound_status", r.class_bound_status},
           {"class_bound_time_s", r.class_bound_time_s}};
 }

@@ -102,11 +102,15 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
   if (!options.homotopy.two_way) return void(forward.two_way_status = "not run (off)");
   if (!(forward.energy_ratio >= options.homotopy.two_way_ratio)) {
     forward.two_way_status = "not run: energy ratio below " + number(options.homotopy.two_way_ratio);
+    forward.reverse_inverse_reason = "not compared: the two-way run did not run (energy ratio below " +
+                                     number(options.homotopy.two_way_ratio) + ")";
     return;
   }
   const auto t0 = std::chrono::steady_clock::now();
   auto finish = [&](std::string status) {
     forward.two_way_status = std::move(status);
+    if (forward.reverse_inverse < 0 && forward.reverse_inverse_reason.empty())
+      forward.reverse_inverse_reason = "not compared: " + forward.two_way_status;
     forward.two_way_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
   SurfaceMapResult reverse;
@@ -121,7 +125,11 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
     return finish("the other direction gave no inverse correspondence");
   const std::string rev = "target -> source energy ratio " + number(reverse.energy_ratio) + " (mean D' " +
                           number(reverse.mean_dilatation) + ")";
-  if (!(reverse.energy_ratio < forward.energy_ratio) || reverse.chosen_candidate < 0) return finish(rev + ", not lower: kept");
+  if (!(reverse.energy_ratio < forward.energy_ratio) || reverse.chosen_candidate < 0) {
+    forward.reverse_inverse_reason = "not compared: the other direction's energy ratio " + number(reverse.energy_ratio) +
+                                     " is not lower, its class was not carried";
+    return finish(rev + ", not lower: kept");
+  }
   SurfaceMapOptions fo = options;
   fo.homotopy.two_way = false;
   fo.homotopy.source_images = inverse_positions(reverse);  // where its inverse puts each source vertex
@@ -137,7 +145,18 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
   const std::string again_status = again.reverse_status;
   // Ties: the second run, whose report lists the other direction's class.
   const bool better = after <= before * (1 + 1e-6);
-  if (better) forward = std::move(again);
+  if (better) {
+    forward = std::move(again);
+  } else {
+    // The first run is kept: its class has lower energy than the other
+    // direction's class inverted, so they are not inverse unless the second
+    // run found them the same class.
+    forward.reverse_inverse = again.reverse_inverse == 1 ? 1 : 0;
+    forward.reverse_inverse_reason =
+        (again.reverse_inverse == 1 ? std::string("the same class: ") : std::string("not inverse: ")) +
+        "the other direction's class inverted has energy ratio " + number(after) + " against " + number(before) +
+        (again.reverse_inverse_reason.empty() ? std::string() : " (" + again.reverse_inverse_reason + ")");
+  }
   finish(rev + "; with the source's loops carried by its inverse as a candidate: energy ratio " + number(after) +
          " against " + number(before) + (better ? ": used" : ": kept the first") +
          (again_status.empty() ? std::string() : " (" + again_status + ")"));

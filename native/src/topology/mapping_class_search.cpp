@@ -219,6 +219,7 @@ TwistSearchResult twist_search(const GroupMap& start, double start_energy, int g
     int best = -1;
     double best_energy = res.energy * (1 - options.tolerance);
     const int k_max = std::min<int>(static_cast<int>(nb.size()), options.evaluations_per_step);
+    const size_t first_evaluation = res.evaluations.size();
     for (int k = 0; k < k_max && evaluations < options.max_evaluations; ++k) {
       // The moves are exact automorphisms; this guards the composition.
       const IntMatrix M = homology_matrix(nb[k].theta, n);
@@ -228,6 +229,40 @@ TwistSearchResult twist_search(const GroupMap& start, double start_energy, int g
       ++evaluations;
       res.evaluations.push_back({step, nb[k].move, nb[k].screen, std::isfinite(e) ? e : std::numeric_limits<double>::infinity()});
       if (std::isfinite(e) && e < best_energy) best_energy = e, best = k;
+    }
+    if (best < 0 && options.pair_moves && evaluations < options.max_evaluations) {
+      // No single move improves: pairs, from the step's lowest neighbours.
+      std::vector<int> firsts;
+      for (size_t k = first_evaluation; k < res.evaluations.size(); ++k) firsts.push_back(static_cast<int>(k - first_evaluation));
+      std::stable_sort(firsts.begin(), firsts.end(), [&](int x, int y) {
+        return res.evaluations[first_evaluation + x].energy < res.evaluations[first_evaluation + y].energy;
+      });
+      std::vector<Neighbour> pairs;
+      for (int f = 0; f < std::min<int>(options.pair_starts, static_cast<int>(firsts.size())); ++f)
+        for (Neighbour& x : neighbours(nb[firsts[f]].theta, true))
+          if (!is_seen(x.screen)) {
+            seen.push_back(x.screen);
+            x.move = nb[firsts[f]].move + ", " + x.move;
+            pairs.push_back(std::move(x));
+          }
+      std::stable_sort(pairs.begin(), pairs.end(), [](const Neighbour& x, const Neighbour& y) { return x.screen < y.screen; });
+      const int p_max = std::min<int>(static_cast<int>(pairs.size()), options.evaluations_per_step);
+      for (int k = 0; k < p_max && evaluations < options.max_evaluations; ++k) {
+        const IntMatrix M = homology_matrix(pairs[k].theta, n);
+        if (M.transpose() * J * M != J || !reduce(substitute(R, pairs[k].theta)).empty())
+          throw SolveError("twist_search: pair " + pairs[k].move + " is not an isomorphism");
+        const double e = energy(pairs[k].theta);
+        ++evaluations;
+        res.evaluations.push_back({step, pairs[k].move, pairs[k].screen, std::isfinite(e) ? e : std::numeric_limits<double>::infinity()});
+        if (std::isfinite(e) && e < best_energy) best_energy = e, best = k;
+      }
+      if (best >= 0) {
+        nb = std::move(pairs);
+        ++res.pair_steps;
+      } else if (evaluations < options.max_evaluations) {
+        res.stop_reason = "no improving neighbour or pair";
+        break;
+      }
     }
     if (best < 0) {
       res.stop_reason = evaluations >= options.max_evaluations ? "evaluation budget" : "no improving neighbour";

@@ -271,6 +271,24 @@ def test_genus2_quality_signal_and_class_bounds_are_in_the_result():
             assert c["class_curve_bound"] <= c["energy"]
 
 
+def test_two_way_keyword_and_the_directions_comparison_are_in_the_result():
+    # Issue 14: `two_way` (options.homotopy.two_way) turns the other direction
+    # off; the result says whether the two directions' classes were compared.
+    a = surfmap.shapes.n_hole_torus(2, 30, True)
+    b = surfmap.shapes.jitter(*surfmap.shapes.n_hole_torus(2, 34, True), 0.2, 4)
+    assert "two_way" in surfmap._core.CAPABILITIES
+    on = surfmap.surface_map(*a, *b)
+    off = surfmap.surface_map(*a, *b, two_way=False)
+    assert off["quality"]["two_way_status"] == "not run (off)"
+    assert on["quality"]["two_way_status"].startswith("not run: energy ratio below")
+    for r in (on, off):
+        assert r["quality"]["reverse_inverse"] == -1
+    assert on["quality"]["reverse_inverse_reason"].startswith("not compared")
+    assert abs(on["energy"]["final"] - off["energy"]["final"]) < 1e-9 * on["energy"]["final"]
+    s = on["homotopy"]["search"]
+    assert set(s) >= {"geometric_classes", "coarse_solves", "starts", "source_marking", "target_marking"}
+
+
 def test_genus2_class_search_is_reported_and_skipped_near_the_conformal_bound():
     a = surfmap.shapes.n_hole_torus(2, 30, True)
     b = surfmap.shapes.jitter(*surfmap.shapes.n_hole_torus(2, 34, True), 0.2, 4)

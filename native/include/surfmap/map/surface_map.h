@@ -130,6 +130,19 @@ struct HomotopySearchOptions {
   /// one comes within `gap` of the bound).
   /// (Tests can start the search elsewhere: testing/map_hooks.h.)
   int cuts = 12;
+  /// Then, under the same condition (issue 14; docs/handle_classes.md
+  /// "Geometric candidates"): at most this many classes from short markings
+  /// of the two surfaces' hyperbolic metrics (map/geometric_classes.h),
+  /// lowest curve lower bound first, solved on the coarse copy and added
+  /// (default 4; 0: none). Needs the source's own uniformization
+  /// (SurfaceMapResult::class_bound_status).
+  int geometric = 4;
+  /// The twist search restarts from each geometric class and from the class
+  /// carried from the other direction (two-way run) that is within this
+  /// factor of the best coarse energy (default 1.5; 0: one start only), and
+  /// tries pairs of twists when no single twist improves (default true).
+  double restart_ratio = 1.5;
+  bool pair_moves = true;
 };
 
 /// Which homotopy classes are listed, ranked and searched
@@ -331,6 +344,16 @@ struct HomotopySearchInfo {
   /// class_curve_bound) was above the lowest coarse energy held: they cannot
   /// win (issue 14; docs/handle_classes.md).
   int pruned = 0;
+  /// Geometric classes (HomotopySearchOptions::geometric) tried on the
+  /// coarse copy, their seconds (markings included), and the lengths of the
+  /// two short markings' generators a1 b1 a2 b2 ... ("" when not run).
+  int geometric_classes = 0;
+  double geometric_time_s = 0;
+  std::string source_marking, target_marking;
+  /// Every coarse solve of the search (stage 1, geometric classes, every
+  /// twist search start), and the starts of the twist search.
+  int coarse_solves = 0;
+  std::vector<int> starts;
   /// Candidate index of the class found (-1: no improvement, nothing added).
   int found_candidate = -1;
 };
@@ -476,6 +499,12 @@ struct SurfaceMapResult {
   /// check: whether the chosen class is one of them.
   std::vector<int> reverse_candidates;
   std::string reverse_status, reverse_check;
+  /// Genus >= 2, after a two-way run: whether the chosen class S -> T is
+  /// the inverse of the class chosen for T -> S (1), is not (0), or was not
+  /// compared (-1), and why (same homology action and same lengths of the
+  /// probe curves' images, or which of them differs; or why no comparison).
+  int reverse_inverse = -1;
+  std::string reverse_inverse_reason;
   /// Genus >= 2 (HomotopyOptions::two_way): what the two-way run did ("not
   /// run: ..."; the other direction's energy ratio; whether the carried
   /// class was used) and its seconds.

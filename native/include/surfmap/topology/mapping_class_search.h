@@ -91,6 +91,12 @@ struct TwistSearchOptions {
   /// Moves on the source side (theta ∘ phi) and on the target side
   /// (phi ∘ theta); both by default.
   bool source_side = true, target_side = true;
+  /// When no single move improves: pairs of moves, the best
+  /// `pair_starts` neighbours of that step (lowest energy) each composed
+  /// with every move again, screened, and up to evaluations_per_step of the
+  /// new ones evaluated, lowest screen first (default true, 3).
+  bool pair_moves = true;
+  int pair_starts = 3;
 };
 
 /// One evaluated neighbour of the search.
@@ -116,7 +122,10 @@ struct TwistSearchResult {
   /// The screening descent: moves taken and the score after each.
   std::vector<std::string> screen_moves;
   std::vector<double> screen_scores;
-  /// "no improving neighbour", "step budget", "evaluation budget".
+  /// Steps taken by a pair of moves (TwistSearchOptions::pair_moves).
+  int pair_steps = 0;
+  /// "no improving neighbour", "no improving neighbour or pair", "step
+  /// budget", "evaluation budget".
   std::string stop_reason;
 };
 

@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <limits>
 #include <string>
 
 #include "../concurrency.h"
 #include "surfmap/error.h"
+#include "surfmap/map/geometric_classes.h"
 #include "surfmap/topology/mapping_class_search.h"
 
 namespace surfmap::detail {
@@ -46,6 +48,69 @@ std::vector<FoundClass> classes_from_more_cuts(CutLifter& lifter, SourceCuts& cu
   return found;
 }
 
+namespace {
+
+std::string lengths_text(const std::vector<double>& l) {
+  std::string s;
+  char buf[32];
+  for (double x : l) std::snprintf(buf, sizeof buf, "%s%.3g", s.empty() ? "" : " ", x), s += buf;
+  return s;
+}
+
+}  // namespace
+
+std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& source, const SurfaceGroupLengths& target,
+                                                    const ClassSpace& space, const std::vector<GroupMap>& known,
+                                                    const std::function<double(const GroupMap&)>& bound_of,
+                                                    const std::function<ClassData(const GroupMap&)>& data_of,
+                                                    const CoarseSolve& solve_coarse, const SurfaceMapOptions& options,
+                                                    HomotopySearchInfo& info) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<FoundClass> found;
+  const ShortMarking mx = short_marking(source), my = short_marking(target);
+  info.source_marking = lengths_text(mx.generator_lengths);
+  info.target_marking = lengths_text(my.generator_lengths);
+  GeometricClassOptions go;
+  go.max_classes = std::max(8, 2 * options.homotopy.search.geometric);
+  std::vector<GeometricClass> classes = geometric_classes(source, mx, target, my, go);
+  std::vector<std::vector<double>> fingerprints;
+  for (const GroupMap& k : known)
+    fingerprints.push_back(space.loop_image_length(k) <= space.max_image_letters() ? space.fingerprint(k)
+                                                                                   : std::vector<double>{});
+  // Ranked by the curve lower bound first (the mismatch breaks ties).
+  std::vector<std::pair<double, size_t>> ranked;
+  for (size_t k = 0; k < classes.size(); ++k) {
+    GroupMap& theta = classes[k].theta;
+    space.reduce(theta);
+    if (!space.is_isomorphism(theta) || space.loop_image_length(theta) > space.max_image_letters()) continue;
+    ranked.push_back({bound_of(theta), k});
+  }
+  std::stable_sort(ranked.begin(), ranked.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  for (const auto& [bound, k] : ranked) {
+    if (info.geometric_classes >= options.homotopy.search.geometric) break;
+    const GeometricClass& gc = classes[k];
+    const std::vector<double> fp = space.fingerprint(gc.theta);
+    bool seen = false;
+    for (const auto& f : fingerprints) seen = seen || ClassSpace::same_fingerprint(f, fp);
+    if (seen) continue;
+    fingerprints.push_back(fp);
+    ++info.geometric_classes;
+    FoundClass f;
+    try {
+      f.data = data_of(gc.theta);
+    } catch (const SolveError&) {
+      continue;
+    }
+    if (!solve_coarse(gc.theta, &f.evaluation)) continue;
+    char buf[96];
+    std::snprintf(buf, sizeof buf, ", length mismatch %.3g, curve bound %.4g", gc.mismatch, bound);
+    f.hc.description = "[geometric: short markings, " + gc.description + buf + "]";
+    found.push_back(std::move(f));
+  }
+  info.geometric_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return found;
+}
+
 std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, int start_index, double start_energy,
                                                    const ClassSpace& space, const CoarseSolve& solve_coarse,
                                                    const std::vector<std::string>& start_twists,
@@ -73,6 +138,7 @@ std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, in
   info.start_energy = start_twists.empty() ? start_energy : coarse_energy(search_from);
   TwistSearchOptions tso;
   tso.max_evaluations = options.homotopy.search.evaluations;
+  tso.pair_moves = options.homotopy.search.pair_moves;
   const TwistSearchResult ts = twist_search(search_from, info.start_energy, space.genus(),
                                             [&](const GroupMap& theta) { return space.screen(theta); }, coarse_energy, tso);
   info.moves = ts.moves;

@@ -12,6 +12,7 @@
 
 #include "class_data.h"
 #include "homotopy_classes.h"
+#include "surfmap/map/class_lower_bound.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
 #include "surfmap/map/surface_map.h"
 
@@ -46,6 +47,20 @@ std::vector<FoundClass> classes_from_more_cuts(CutLifter& lifter, SourceCuts& cu
                                                const std::function<ClassData(const GroupMap&)>& data_of,
                                                const CoarseSolve& solve_coarse, const SurfaceMapOptions& options,
                                                HomotopySearchInfo& info);
+
+/// Stage 1b (issue 14; docs/handle_classes.md "Geometric candidates"):
+/// classes from short markings of the two surfaces' hyperbolic metrics
+/// (map/geometric_classes.h): `source`/`target` lengths in the default cut's
+/// canonical letters; the classes new by fingerprint against `known`, at
+/// most options.homotopy.search.geometric of them, lowest curve lower bound
+/// first (`bound_of`), each solved on the coarse copy by `solve_coarse`
+/// (which prunes by the bound). Fills info.geometric_* and the markings.
+std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& source, const SurfaceGroupLengths& target,
+                                                    const ClassSpace& space, const std::vector<GroupMap>& known,
+                                                    const std::function<double(const GroupMap&)>& bound_of,
+                                                    const std::function<ClassData(const GroupMap&)>& data_of,
+                                                    const CoarseSolve& solve_coarse, const SurfaceMapOptions& options,
+                                                    HomotopySearchInfo& info);
 
 /// Stage 2: the twist search from `start_map` (candidate `start_index`,
 /// composed with `start_twists`, testing/map_hooks.h; `start_energy` its
