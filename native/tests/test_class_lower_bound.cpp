@@ -223,6 +223,22 @@ TEST(ClassLowerBound, NeverAboveTheSolvedEnergies) {
     EXPECT_LT(m.energy_ratio, 1.2);  // a copy: nearly conformal
     EXPECT_TRUE(m.quality_warning.empty()) << m.quality_warning;
   }
+  {
+    // The geometric classes (short markings) and the classes the restarted
+    // search reaches, all solved at full resolution.
+    const TriMesh a = samples::n_hole_torus(2, 26, true);
+    const TriMesh b = samples::vase(30, true);
+    SurfaceMapOptions o;
+    o.homotopy.full_solves = 0;
+    o.homotopy.search.cuts = 0;
+    o.homotopy.two_way = false;
+    const SurfaceMapResult m = surface_map(a, b, o);
+    EXPECT_GT(m.homotopy_search.geometric_classes, 0);
+    int geometric = 0;
+    for (const HomotopyCandidate& c : m.candidates) geometric += c.description.find("[geometric") != std::string::npos;
+    EXPECT_GT(geometric, 0);
+    expect_bounds_below_energies(m, &informative);
+  }
   // Some of the wrong classes are ruled out by the curves alone.
   EXPECT_GT(informative, 0);
 }

@@ -581,7 +581,17 @@ TEST(SurfaceMapHandles, TwoWayRunIsNoWorseAndListsTheOtherDirection) {
     const HomotopyCandidate& c = m2.candidates[m2.reverse_candidates[0]];
     EXPECT_NE(c.description.find("carried by the target -> source map"), std::string::npos) << c.description;
     EXPECT_FALSE(m2.reverse_check.empty());
+    // Issue 14: the two directions compared: inverse exactly when the chosen
+    // class acts on homology like the other direction's class inverted.
+    ASSERT_NE(m2.reverse_inverse, -1) << m2.reverse_inverse_reason;
+    const bool same_homology = m2.candidates[m2.chosen_candidate].homology == c.homology;
+    if (m2.reverse_inverse == 1) EXPECT_TRUE(same_homology) << m2.reverse_inverse_reason;
+    if (!same_homology) EXPECT_EQ(m2.reverse_inverse, 0) << m2.reverse_inverse_reason;
   }
+  EXPECT_EQ(m1.reverse_inverse, -1);
+  EXPECT_FALSE(m2.reverse_inverse_reason.empty());
+  if (m2.two_way_status.find("not lower") == std::string::npos && m2.two_way_status.find("failed") == std::string::npos)
+    EXPECT_NE(m2.reverse_inverse, -1) << m2.two_way_status << " / " << m2.reverse_inverse_reason;
   SurfaceMapOptions high;
   high.homotopy.two_way_ratio = 1e9;
   EXPECT_NE(surface_map(a, b, high).two_way_status.find("not run"), std::string::npos);
