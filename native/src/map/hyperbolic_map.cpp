@@ -67,6 +67,7 @@ class HyperbolicPipeline {
   void fill_class_bounds();
   void choose_with_landmarks();
   void compare_with_carried_class();
+  void geometric_classes_at_full_resolution();
   void map_in_chosen_class();
 
   // Inputs.
@@ -566,6 +567,73 @@ void HyperbolicPipeline::twist_search_from(int start, const std::vector<std::str
   info.found_candidate = append_class(std::move(hc), std::move(found_data), *found);
 }
 
+// Issue 14 (docs/handle_classes.md "Geometric candidates"): a source too
+// small for a coarse copy has no class search, so its geometric classes are
+// solved at full resolution here, under the search's condition (the best
+// class more than `gap` above 8 pi (g - 1)) and pruned by their curve bound
+// against the best energy held.
+void HyperbolicPipeline::geometric_classes_at_full_resolution() {
+  if (!options.homotopy.search.enabled || options.homotopy.search.geometric <= 0 || options.homotopy.class_index >= 0 ||
+      hooks.homotopy_search_start >= 0)
+    return;
+  double best = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < ncand; ++k)
+    if (usable[k] && out.candidates[k].solved && std::isfinite(out.candidates[k].energy))
+      best = std::min(best, out.candidates[k].energy);
+  if (!std::isfinite(best) || best <= (1 + options.homotopy.search.gap) * 8 * M_PI * (out.genus - 1)) return;
+  const SourceClassBounds& bounds = class_bounds_now();
+  if (!bounds.ok || !bounds.source) return;
+  std::vector<GroupMap> known;
+  for (const HomotopyClass& hc : candidates.classes) known.push_back(hc.map);
+  const std::vector<Complex> origin(nv, Complex(0.0));
+  const std::vector<Word> no_decks(nv);
+  // (`data_of` runs once more inside the solve: CoarseEvaluation carries
+  // the edges, the rest is rebuilt for the appended class.)
+  const CoarseSolve solve_full = [&](const GroupMap& theta, CoarseEvaluation* ev) {
+    if (class_curve_bound_of(bounds, *target_lengths, theta) > best) {
+      ++out.homotopy_search.pruned;
+      return false;
+    }
+    try {
+      ev->theta = theta;
+      ev->edges = data_of(theta).edges;
+      ev->result = solve_from(nv, ev->edges, origin, no_decks, ho);
+    } catch (const SolveError&) {
+      return false;
+    }
+    bool finite = std::isfinite(ev->result.energy) && ev->result.converged;
+    for (size_t i = 0; i < ev->result.z.size() && finite; ++i) finite = std::isfinite(std::abs(ev->result.z[i]));
+    if (finite) best = std::min(best, ev->result.energy);
+    return finite;
+  };
+  for (FoundClass& f : geometric_candidate_classes(
+           *bounds.source, *target_lengths, *space, known,
+           [&](const GroupMap& theta) { return class_curve_bound_of(bounds, *target_lengths, theta); },
+           [this](const GroupMap& theta) { return data_of(theta); }, solve_full, options, out.homotopy_search)) {
+    HomotopyClass hc = std::move(f.hc);
+    hc.map = f.evaluation.theta;
+    hc.homology = homology_matrix(hc.map, space->num_letters());
+    std::string handles;
+    handle_correspondence_of(ss.shb, candidates.target_basis, hc.homology, &hc.permutation, &hc.sign, &handles);
+    hc.description = handles + "  " + hc.description + "  [solved at full resolution: no coarse copy]";
+    HomotopyCandidate c;
+    c.description = hc.description;
+    c.energy = f.evaluation.result.energy;
+    c.solved = true;
+    for (int r = 0; r < hc.homology.rows(); ++r)
+      for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
+    data.push_back(std::move(f.data));
+    candidates.classes.push_back(std::move(hc));
+    out.candidates.push_back(c);
+    usable.push_back(1);
+    coarse_failed.push_back(0);
+    fine_result.push_back(std::make_unique<HyperbolicHarmonicResult>(std::move(f.evaluation.result)));
+    full.push_back(1);
+    order.push_back(ncand);
+    ++ncand;
+  }
+}
+
 // Issue 14 (docs/handle_classes.md "Both directions"): the class carried
 // from a target -> source map (two-way run) is that map's class inverted,
 // in this run's letters; whether the chosen class is the same outer class:
@@ -941,6 +1009,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   p.rank_on_coarse_copy();         // ranking: every class solved on the coarse copy
   if (p.ss.cs.ok) p.search_classes();  // more cuts, Dehn twists (mapping_class_search.h)
   p.solve_at_full_resolution(p.ss.cs.ok);  // §VI-B: the best classes at full resolution
+  if (!p.ss.cs.ok) p.geometric_classes_at_full_resolution();  // issue 14: small sources (no coarse copy)
   p.fill_class_bounds();           // issue 14: every candidate's energy lower bound
   p.choose_with_landmarks();       // lowest energy; with landmarks, §VII-C branch and bound
   p.compare_with_carried_class();  // issue 14: the two directions' classes inverse or not

@@ -110,7 +110,8 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
   auto finish = [&](std::string status) {
     forward.two_way_status = std::move(status);
     if (forward.reverse_inverse < 0 && forward.reverse_inverse_reason.empty())
-      forward.reverse_inverse_reason = "not compared: " + forward.two_way_status;
+      forward.reverse_inverse_reason =
+          "not compared: " + (forward.reverse_status.empty() ? forward.two_way_status : forward.reverse_status);
     forward.two_way_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
   SurfaceMapResult reverse;
