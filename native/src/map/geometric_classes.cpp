@@ -289,7 +289,11 @@ std::vector<GeometricClass> geometric_classes(const SurfaceGroupLengths& source,
     probe_words.push_back(reduce(substitute(p, source_marking.marking.map)));
     probe_x.push_back(source.length(probe_words.back()));
   }
+  // Length evaluations spent (the descents stop at options.length_budget:
+  // genus 6 has 144 probes and 88 one-sided twists per step).
+  size_t spent = 0;
   auto mismatch = [&](const GroupMap& theta) {
+    spent += probes.size();
     double m = 0;
     for (size_t k = 0; k < probes.size(); ++k) m += log_gap(probe_x[k], target.length(reduce(substitute(probe_words[k], theta))));
     return m;
@@ -315,9 +319,14 @@ std::vector<GeometricClass> geometric_classes(const SurfaceGroupLengths& source,
   // either side (singles, then pairs), towards a class under which every
   // probe keeps its length.
   const std::vector<MappingClassMove> moves = twist_moves(g, false, false);
-  for (GeometricClass& c : out) {
+  for (size_t k = 0; k < out.size() && static_cast<int>(k) < options.descents; ++k) {
+    GeometricClass& c = out[k];
     if (c.mismatch <= 1e-12) continue;
-    const Descent d = descend(c.theta, mismatch, moves, true, options.max_steps, true, options.max_pairs, 1e-9, reduce);
+    if (spent >= options.length_budget) break;
+    // (A step costs about 2 #moves mismatches: the budget caps the steps.)
+    const size_t per_step = 2 * moves.size() * probes.size();
+    const int steps = static_cast<int>(std::min<size_t>(options.max_steps, (options.length_budget - spent) / per_step + 1));
+    const Descent d = descend(c.theta, mismatch, moves, true, steps, true, options.max_pairs, 1e-9, reduce);
     c.theta = d.map;
     c.mismatch = d.cost;
     if (!d.steps.empty()) c.description += ", then " + std::to_string(d.steps.size()) + " twists matching lengths";

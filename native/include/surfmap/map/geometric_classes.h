@@ -100,7 +100,13 @@ struct GeometricClassOptions {
   int max_classes = 8;
   /// Each class then descends on the mismatch by twists on either side
   /// (singles, then pairs while there are at most max_pairs): at most this
-  /// many steps (default 40); pairs only up to 600 pairs: genus 2.
+  /// many steps (default 40); pairs only up to 600 pairs: genus 2. Only
+  /// the `descents` lowest-mismatch classes descend (default 4: each
+  /// descent costs thousands of length evaluations).
+  int descents = 4;
+  /// Probe length evaluations after which no further descent step starts
+  /// (default 200000, about a second; genus 2-3 never reach it).
+  size_t length_budget = 200000;
   int max_steps = 40;
   size_t max_pairs = 600;
 };

@@ -71,7 +71,8 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
   info.source_marking = lengths_text(mx.generator_lengths);
   info.target_marking = lengths_text(my.generator_lengths);
   GeometricClassOptions go;
-  go.max_classes = std::max(8, 2 * options.homotopy.search.geometric);
+  go.max_classes = std::max(6, 2 * options.homotopy.search.geometric);
+  go.descents = std::max(4, options.homotopy.search.geometric);
   std::vector<GeometricClass> classes = geometric_classes(source, mx, target, my, go);
   std::vector<std::vector<double>> fingerprints;
   for (const GroupMap& k : known)
