@@ -506,6 +506,8 @@ TEST(SurfaceMapHandles, ClassSearchStageOneFindsTheGeometricClassFromLateCuts) {
   const SurfaceMapResult mg = surface_map(a, b, o);
   expect_valid_map(mg, a, b);
   EXPECT_GT(mg.homotopy_search.geometric_classes, 0);
+  EXPECT_FALSE(mg.homotopy_search.source_geodesics.empty());
+  EXPECT_FALSE(mg.homotopy_search.target_marking.empty());
   EXPECT_LT(mg.final_energy, 1.1 * bound) << mg.candidates[mg.chosen_candidate].description;
   // The rest: without them.
   o.homotopy.search.geometric = 0;

@@ -225,7 +225,8 @@ std::vector<ShortGeodesic> short_geodesics(const SurfaceGroupLengths& lengths, c
         Word v = w;
         v.push_back(x);
         next.push_back(v);
-        if (v.front() != -v.back() || v.size() == 1) words.push_back(v);
+        const bool power = std::all_of(v.begin(), v.end(), [&](int y) { return y == v.front(); }) && v.size() > 1;
+        if ((v.front() != -v.back() || v.size() == 1) && !power) words.push_back(v);  // (not x^k: not primitive)
       }
     frontier = std::move(next);
   }
@@ -239,7 +240,7 @@ std::vector<ShortGeodesic> short_geodesics(const SurfaceGroupLengths& lengths, c
   std::sort(all.begin(), all.end(), [](const ShortGeodesic& x, const ShortGeodesic& y) { return x.length < y.length; });
   std::vector<ShortGeodesic> out;
   for (ShortGeodesic& s : all) {
-    if (!out.empty() && std::abs(out.back().length - s.length) <= 1e-9 * s.length) continue;
+    if (!out.empty() && std::abs(out.back().length - s.length) <= 1e-6 * s.length) continue;
     out.push_back(std::move(s));
     if (static_cast<int>(out.size()) >= count) break;
   }

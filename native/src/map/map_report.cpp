@@ -91,6 +91,8 @@ json homotopy_search_json(const HomotopySearchInfo& hs) {
           {"geometric_time_s", hs.geometric_time_s},
           {"source_marking", hs.source_marking},
           {"target_marking", hs.target_marking},
+          {"source_geodesics", hs.source_geodesics},
+          {"target_geodesics", hs.target_geodesics},
           {"coarse_solves", hs.coarse_solves},
           {"starts", hs.starts},
           {"evaluated", evaluated}};

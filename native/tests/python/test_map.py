@@ -286,7 +286,8 @@ def test_two_way_keyword_and_the_directions_comparison_are_in_the_result():
     assert on["quality"]["reverse_inverse_reason"].startswith("not compared")
     assert abs(on["energy"]["final"] - off["energy"]["final"]) < 1e-9 * on["energy"]["final"]
     s = on["homotopy"]["search"]
-    assert set(s) >= {"geometric_classes", "coarse_solves", "starts", "source_marking", "target_marking"}
+    assert set(s) >= {"geometric_classes", "coarse_solves", "starts", "source_marking", "target_marking",
+                      "source_geodesics", "target_geodesics"}
 
 
 def test_genus2_class_search_is_reported_and_skipped_near_the_conformal_bound():

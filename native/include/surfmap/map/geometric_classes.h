@@ -85,9 +85,10 @@ struct ShortGeodesic {
 };
 
 /// The shortest closed geodesics freely homotopic to words of at most
-/// `max_letters` (<= 3) letters in the marking's generators, one per length
-/// (curves of equal length to 1e-9 relative, e.g. a word and its inverse
-/// or cyclic permutations, are listed once), the `count` shortest, ascending.
+/// `max_letters` (<= 3) letters in the marking's generators other than
+/// powers x^k, one per length (curves of equal length to 1e-6 relative, e.g.
+/// a word and its inverse or cyclic permutations, or curves exchanged by a
+/// symmetry, are listed once), the `count` shortest, ascending.
 std::vector<ShortGeodesic> short_geodesics(const SurfaceGroupLengths& lengths, const ShortMarking& marking,
                                            int max_letters = 3, int count = 12);
 

@@ -350,6 +350,9 @@ struct HomotopySearchInfo {
   int geometric_classes = 0;
   double geometric_time_s = 0;
   std::string source_marking, target_marking;
+  /// The 8 shortest closed geodesics' lengths of each surface, ascending
+  /// (map/geometric_classes.h short_geodesics).
+  std::string source_geodesics, target_geodesics;
   /// Every coarse solve of the search (stage 1, geometric classes, every
   /// twist search start), and the starts of the twist search.
   int coarse_solves = 0;

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 #include <string>
+#include <tuple>
 
 #include "../concurrency.h"
 #include "surfmap/error.h"
@@ -70,6 +71,15 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
   const ShortMarking mx = short_marking(source), my = short_marking(target);
   info.source_marking = lengths_text(mx.generator_lengths);
   info.target_marking = lengths_text(my.generator_lengths);
+  // The shortest closed geodesics of both (words of up to 3 letters of the
+  // markings, 2 from genus 5: 24^3 words would cost more than the rest).
+  const int letters = source.genus() <= 4 ? 3 : 2;
+  for (const auto& [lengths, marking, text] :
+       {std::tuple(&source, &mx, &info.source_geodesics), std::tuple(&target, &my, &info.target_geodesics)}) {
+    std::vector<double> l;
+    for (const ShortGeodesic& sg : short_geodesics(*lengths, *marking, letters, 8)) l.push_back(sg.length);
+    *text = lengths_text(l);
+  }
   GeometricClassOptions go;
   go.max_classes = std::max(6, 2 * options.homotopy.search.geometric);
   go.descents = go.max_classes;  // (all: with only 4, n_hole_torus(2) -> vase missed its geometric class)
