@@ -159,16 +159,24 @@ void check_direct_solves(const HarmonicProblem& problem, double tol) {
 TEST(NewtonStarts, TwistedClassReachesTheSameOptimumFromEveryStart) {
   // ~2.6k source vertices: enough for the coarse ranking copy (>= 2000).
   const TriMesh a = samples::n_hole_torus(2, 24, true), b = samples::vase(24, true);
-  const SurfaceMapResult best = surface_map(a, b);
+  // (Without the classes the search appends, geometric ones included: the
+  // class picked below must be one of the listed candidates that the runs
+  // with homotopy.class_index = k below see. With the corrected screen the
+  // extra cuts list another class at 5.3x, whose optimum squashes 394 faces:
+  // hence 3x, not 8x, below.)
+  SurfaceMapOptions listed;
+  listed.homotopy.search.geometric = 0;
+  listed.homotopy.search.restart_ratio = 0;
+  const SurfaceMapResult best = surface_map(a, b, listed);
   ASSERT_TRUE(best.converged);
-  // A twisted class: the costliest candidate within 8x of the best (far from
+  // A twisted class: the costliest candidate within 3x of the best (far from
   // the initial map's and the origin's layout, still an embedding at its
   // optimum; much costlier classes squash faces to needles whose orientation
   // is round-off).
   int k = -1;
   for (int c = 0; c < static_cast<int>(best.candidates.size()); ++c)
     if (c != best.chosen_candidate && std::isfinite(best.candidates[c].energy) &&
-        best.candidates[c].energy < 8 * best.final_energy && (k < 0 || best.candidates[c].energy > best.candidates[k].energy))
+        best.candidates[c].energy < 3 * best.final_energy && (k < 0 || best.candidates[c].energy > best.candidates[k].energy))
       k = c;
   ASSERT_GE(k, 0);
   ASSERT_GT(best.candidates[k].energy, 2 * best.final_energy);
