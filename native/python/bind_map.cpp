@@ -129,7 +129,10 @@ py::dict open_surface_map_dict(const RowMatrixX3d& vs, const RowMatrixX3i& fs, c
     try {
       check_same_open_topology(src.topology, dst.topology);
     } catch (const InputError& e) {
-      throw InputError(std::string(e.what()) + " (open surfaces: docs/open_surfaces.md)");
+      // A closed surface against an open one: say first which side is open.
+      const int bs = src.topology.num_boundary_loops(), bt = dst.topology.num_boundary_loops();
+      const std::string side = (bs == 0) != (bt == 0) ? (bs ? "source: open surface; " : "target: open surface; ") : "";
+      throw InputError(side + e.what() + " (open surfaces: docs/open_surfaces.md)");
     }
     r = open_surface_map(src.intake.mesh, src.topology, dst.intake.mesh, dst.topology, options);
   }
@@ -153,7 +156,7 @@ void bind_map(py::module_& m) {
   m.attr("CAPABILITIES") = py::frozenset(py::make_tuple(
       "homotopy", "landmarks", "method", "tolerance", "max_iterations", "solve_progress", "homotopy_candidates",
       "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
-      "progress", "source_base_vertex", "target_base_vertex", "open_surfaces", "boundary_pairing"));
+      "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing"));
   m.def(
       "surface_map",
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,

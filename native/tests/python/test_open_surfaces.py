@@ -232,3 +232,27 @@ def test_cli_boundary_swap_and_pairing(tmp_path, cli):
         assert np.allclose(morph[top, 2], 0.0, atol=1e-9)
     r = cli("map", *paths, "--out", out, "--report", rep, "--quiet", "--boundary-pairing", "1,1")
     assert r.returncode == 1 and "boundary pairing [1, 1]" in r.stderr
+
+
+def test_intake_allow_boundary_lists_the_loops():
+    V, F = frustum(1.0, 1.0, 1.5)
+    with pytest.raises(surfmap.InputError, match="open"):
+        surfmap.intake(V, F)
+    it = surfmap.intake(V, F, allow_boundary=True)
+    assert it["info"]["genus"] == 0 and it["info"]["num_boundary_loops"] == 2 and not it["flipped"]
+    loops = it["boundary_loops"]
+    assert [len(l) for l in loops] == [32, 32]
+    assert np.allclose(V[loops[0], 2], 1.0) and np.allclose(V[loops[1], 2], 0.0)  # longest first
+    # Every boundary edge (an edge of one face only) joins consecutive loop vertices.
+    edges = {}
+    for f in F:
+        for k in range(3):
+            e = tuple(sorted((f[k], f[(k + 1) % 3])))
+            edges[e] = edges.get(e, 0) + 1
+    boundary = {e for e, n in edges.items() if n == 1}
+    along = {tuple(sorted((l[i], l[(i + 1) % len(l)]))) for l in loops for i in range(len(l))}
+    assert boundary == along
+    octahedron = (np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float),
+                  np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]))
+    closed = surfmap.intake(*octahedron, allow_boundary=True)
+    assert closed["boundary_loops"] == [] and closed["info"]["genus"] == 0
