@@ -21,21 +21,23 @@ OUTPUT_FLAGS = (("write_uvs", "UV"), ("write_morph", "MORPH"), ("write_distortio
 
 # --- reading -----------------------------------------------------------------------------------
 
-def read_side(obj, depsgraph, sm=None, flipped=None):
+def read_side(obj, depsgraph, sm=None, flipped=None, allow_boundary=False):
     """One object's mesh as a MeshSide. With sm: validated by the native intake (raises
-    ObjectProblem naming the object), else re-oriented like a stored run (`flipped`)."""
+    ObjectProblem naming the object), else re-oriented like a stored run (`flipped`).
+    allow_boundary: accept an open mesh (side.boundary_loops; docs/open_surfaces.md)."""
     d = blender_io.read_map_mesh(obj, depsgraph)
     side = MeshSide.from_mesh_data(obj.name, blender_io.matrix_np(obj.matrix_world), d)
     if len(side.F) == 0:
         raise ObjectProblem(f"object '{obj.name}' has no faces")
     if sm is not None:
-        it = cut_loops.intake_object(sm, obj.name, side.V, side.F)
+        it = cut_loops.intake_object(sm, obj.name, side.V, side.F, allow_boundary)
         if it["F"].shape != side.F.shape:
             raise ObjectProblem(f"object '{obj.name}': the intake changed the number of "
                                 f"triangles ({len(side.F)} -> {len(it['F'])})")
         flipped = bool(it["flipped"])
         side.genus = int(it["info"]["genus"])
         side.notes = list(it["info"].get("notes", []))
+        side.boundary_loops = [np.asarray(l, dtype=np.int64) for l in it.get("boundary_loops", [])]
     return side.orient(bool(flipped))
 
 
@@ -101,9 +103,13 @@ def prepare_job(context, sm):
                             f"'{target.data.name}': the map's layers would overwrite each "
                             f"other (Object > Relations > Make Single User first)")
     depsgraph = context.evaluated_depsgraph_get()
-    src = _side(source, depsgraph, sm)
-    tgt = _side(target, depsgraph, sm)
-    if src.genus != tgt.genus:
+    # Open meshes (docs/open_surfaces.md) when this core maps them.
+    open_ok = map_job.core_supports(sm, "boundary_pairing")
+    src = _side(source, depsgraph, sm, allow_boundary=open_ok)
+    tgt = _side(target, depsgraph, sm, allow_boundary=open_ok)
+    if src.boundary_loops or tgt.boundary_loops:
+        check_open_pair(source.name, src, target.name, tgt, settings.landmark_mode)
+    elif src.genus != tgt.genus:
         raise ObjectProblem(f"source '{source.name}' has genus {src['genus']} but target "
                             f"'{target.name}' has genus {tgt['genus']}: a map needs equal "
                             f"genus")
@@ -141,6 +147,44 @@ def prepare_job(context, sm):
     if lm_desc:
         notes.append(lm_desc)
     return MapJob(sm, src, tgt, options), notes
+
+
+def describe_topology(side):
+    """'genus 0 with 2 boundary loops' / 'genus 1 (closed)' of a read side."""
+    b = len(side.boundary_loops)
+    return f"genus {side.genus} " + (f"with {b} boundary loop{'s' if b != 1 else ''}" if b else "(closed)")
+
+
+def check_open_pair(source_name, src, target_name, tgt, landmark_mode):
+    """An open pair: equal genus and number of boundary loops, no landmarks (not supported
+    for open surfaces yet). Raises ObjectProblem naming both."""
+    if (src.genus, len(src.boundary_loops)) != (tgt.genus, len(tgt.boundary_loops)):
+        raise ObjectProblem(f"source '{source_name}' has {describe_topology(src)} but target "
+                            f"'{target_name}' has {describe_topology(tgt)}: a map needs equal "
+                            f"genus and number of boundary loops")
+    if landmark_mode != 'NONE':
+        raise ObjectProblem(f"landmarks are not supported for open surfaces yet "
+                            f"('{source_name}', '{target_name}'): set Landmarks to None")
+
+
+def draw_boundary_loops(context, pairs):
+    """Open meshes: each boundary loop as a cyclic curve on its object, like the cut loops
+    (named '<object> boundary <k>', following the morph's shape keys). pairs: (object, side)."""
+    lines = []
+    bevel_scale = context.scene.surfmap.loop_bevel
+    for ob, side in pairs:
+        if not side.boundary_loops or len(side.V) != len(ob.data.vertices):
+            continue
+        V = np.asarray(side.V, dtype=np.float64)
+        curves = [(f"boundary {k + 1}", V[loop]) for k, loop in enumerate(side.boundary_loops)]
+        one = np.tile([1.0, 0.0, 0.0], (1, 1))
+        weights = [(np.repeat(loop[:, None], 3, axis=1), np.repeat(one, len(loop), axis=0))
+                   for loop in side.boundary_loops]
+        colours = [cut_loops.pair_colour(2 * k) for k in range(len(curves))]
+        bevel = bevel_scale * cut_loops.bounding_diagonal(V)
+        blender_io.add_loop_curves(context.scene, ob, curves, bevel, weights, colours)
+        lines.append(f"boundary loops of '{ob.name}' drawn as {len(curves)} curve(s)")
+    return lines
 
 
 # --- writing -----------------------------------------------------------------------------------
@@ -276,6 +320,8 @@ def write_outputs(context, source, target, src, tgt, out, res, which):
                 item.name, item.title, item.scale = name, title, scale
                 item["lo"], item["hi"] = out["ranges"][name]   # (no recolouring on the way in)
         settings.legend_pair = f"{s_obj.name}\t{t_obj.name}"
+    if src.boundary_loops or tgt.boundary_loops:
+        lines += draw_boundary_loops(context, ((s_obj, src), (t_obj, tgt)))
     for o in (s_obj, t_obj):
         o.data.update()
     return lines
@@ -288,6 +334,10 @@ def _summary(res, elapsed):
     s = (f"genus {res['genus']}, energy {e['initial']:.6g} -> {e['final']:.6g} in "
          f"{res['iterations']} iteration(s), mean D' {res['distortion']['mean']:.4g} (max "
          f"{res['distortion']['max']:.4g}), {res['flipped_triangles']} flipped, {elapsed:.1f}s")
+    if isinstance(res.get("open"), dict):
+        st = res.get("source_topology", {})
+        s += (f", open surfaces ({st.get('description', '')}): {res['open'].get('domain', '')}"
+              f", boundary loops {res['open'].get('boundary_pairing', [])}")
     how = res.get("initial_map", {}).get("construction")
     if how:
         s += f", initial map: {how}"
