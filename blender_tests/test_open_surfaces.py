@@ -106,3 +106,28 @@ def test_open_pairs_with_different_topology_are_refused_naming_both():
     select([a, c], c)
     res, err = run("compute_map")
     assert res != {'FINISHED'} and "genus 0 with 1 boundary loop" in err and "genus 1 (closed)" in err, err
+
+
+def test_open_annulus_pair_maps_loops_onto_loops():
+    V, F = tube(24, 6)
+    a = helpers.mesh_object("Short", V, F, (-3, 0, 0))
+    V2, F2 = tube(30, 10)
+    V2[:, 2] *= 2.0
+    b = helpers.mesh_object("Tall", V2, F2, (3, 0, 0))
+    helpers.set_loop_uvs(a, "Box", helpers.box_uvs(a))
+    select([a, b], b)
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    status = bpy.context.scene.surfmap.map_status
+    assert "genus 0 with 2 boundary loops): annulus" in status and " 0 flipped" in status, status
+    _check_outputs(a, b, 0, uv_names=("Box",))
+    # Each loop onto a loop: the morph keeps z = 0 and z = 1 on z = 0 and z = 2 (in some order).
+    key = a.data.shape_keys.key_blocks["surfmap to Tall"]
+    co = np.empty(len(a.data.vertices) * 3)
+    key.data.foreach_get("co", co)
+    z = co.reshape(-1, 3)[:, 2]
+    for level in (0.0, 1.0):
+        ring = np.abs(V[:, 2] - level) < 1e-9
+        assert np.ptp(z[ring]) < 1e-6 and min(abs(z[ring][0]), abs(z[ring][0] - 2.0)) < 1e-6
+    for ob in (a, b):
+        assert [c.name for c in helpers.loop_curves(ob)] == [f"{ob.name} boundary 1", f"{ob.name} boundary 2"]
