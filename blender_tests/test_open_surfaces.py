@@ -125,9 +125,23 @@ def test_open_annulus_pair_maps_loops_onto_loops():
     key = a.data.shape_keys.key_blocks["surfmap to Tall"]
     co = np.empty(len(a.data.vertices) * 3)
     key.data.foreach_get("co", co)
-    z = co.reshape(-1, 3)[:, 2]
+    z = co.reshape(-1, 3)[:, 2].copy()
     for level in (0.0, 1.0):
         ring = np.abs(V[:, 2] - level) < 1e-9
         assert np.ptp(z[ring]) < 1e-6 and min(abs(z[ring][0]), abs(z[ring][0] - 2.0)) < 1e-6
     for ob in (a, b):
         assert [c.name for c in helpers.loop_curves(ob)] == [f"{ob.name} boundary 1", f"{ob.name} boundary 2"]
+    # The panel's Boundary Loops '1 0' maps each loop onto the other one.
+    settings = bpy.context.scene.surfmap
+    settings.boundary_pairing = "1 0"
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    assert "boundary loops [1, 0]" in settings.map_status, settings.map_status
+    a.data.shape_keys.key_blocks["surfmap to Tall"].data.foreach_get("co", co)
+    z_swapped = co.reshape(-1, 3)[:, 2]
+    ring = np.abs(V[:, 2]) < 1e-9
+    assert abs(abs(z_swapped[ring][0] - z[ring][0]) - 2.0) < 1e-6, (z[ring][:3], z_swapped[ring][:3], [k.name for k in a.data.shape_keys.key_blocks])
+    for bad, words in (("0 0", "boundary pairing [0, 0]"), ("one", "Boundary Loops 'one'")):
+        settings.boundary_pairing = bad
+        res, err = run("compute_map")
+        assert res != {'FINISHED'} and words in (err or ""), (bad, err)

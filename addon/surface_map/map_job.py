@@ -51,6 +51,18 @@ def core_supports(sm, word):
     return word in (getattr(getattr(sm, "surface_map", None), "__doc__", None) or "")
 
 
+def parse_boundary_pairing(text):
+    """The panel's Boundary Loops text ('1 0', '1,0'; empty: None) as a list of loop indices;
+    raises ValueError naming the text."""
+    words = str(text or "").replace(",", " ").split()
+    if not words:
+        return None
+    try:
+        return [int(w) for w in words]
+    except ValueError:
+        raise ValueError(f"Boundary Loops '{text}': give loop indices such as '1 0'") from None
+
+
 @dataclass
 class MapOptions:
     """What the panel asks for, already in the core's spelling (see from_settings)."""
@@ -63,6 +75,7 @@ class MapOptions:
     uv_before: bool = False
     morph_space: str = "IN_PLACE"
     colour_percentile: float = 99.0
+    boundary_pairing: Optional[list] = None  # open meshes: target loop of each source loop
 
     @classmethod
     def from_settings(cls, settings, landmarks=None, outputs=None):
@@ -89,6 +102,8 @@ class MapOptions:
             kw["tolerance"] = float(self.tolerance)
         if self.source_weights != "auto":
             kw["source_weights"] = self.source_weights
+        if self.boundary_pairing is not None:
+            kw["boundary_pairing"] = list(self.boundary_pairing)
         return kw
 
     def unsupported(self, sm):

@@ -116,6 +116,12 @@ def prepare_job(context, sm):
     landmarks, lm_desc = _landmarks(settings, source, target, src, tgt)
     outputs = {flag for prop, flag in OUTPUT_FLAGS if getattr(settings, prop)}
     options = MapOptions.from_settings(settings, landmarks, outputs)
+    if src.boundary_loops:   # open pair: the panel's boundary loop correspondence, if any
+        try:
+            options.boundary_pairing = map_job.parse_boundary_pairing(
+                getattr(settings, "boundary_pairing", ""))
+        except ValueError as e:
+            raise ObjectProblem(str(e)) from None
     word = options.unsupported(sm)
     if word is not None:
         raise ObjectProblem(f"this build of the surfmap module does not support {word} yet "

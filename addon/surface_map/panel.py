@@ -149,6 +149,7 @@ def draw_map(layout, settings):
     col.prop(settings, "method")
     col.prop(settings, "source_weights")
     col.prop(settings, "tolerance_text")
+    col.prop(settings, "boundary_pairing")
     row = layout.row()
     row.scale_y = 1.4
     row.operator("surfmap.compute_map", icon='PLAY')
