@@ -71,3 +71,18 @@ def test_doubling_refuses_different_topology():
     keep = np.asarray(V)[F].mean(axis=1)[:, 2] < 0.8    # one cap removed: a disk
     with pytest.raises(surfmap.InputError, match="genus 0 with 3 .*genus 0 with 1"):
         open_double.map_by_doubling(Vs, Fs, *compact(V, F[keep]))
+
+
+def test_punctured_torus_and_posed_copy_map_near_the_identity():
+    """Genus 1 with one boundary loop (the double has genus 2)."""
+    V, F = surfmap.shapes.torus_of_revolution(1.0, 0.45, 48, 24)
+    V, F = np.asarray(V, float), np.asarray(F)
+    hole = np.linalg.norm(V[F].mean(axis=1) - np.array([1.0, 0, 0.45]), axis=1) < 0.3
+    Vs, Fs = compact(V, F[~hole])
+    Vt = Vs.copy()
+    Vt[:, 2] *= 1.1
+    r = open_double.map_by_doubling(Vs, Fs, Vt, Fs)
+    diag = np.linalg.norm(Vt.max(axis=0) - Vt.min(axis=0))
+    assert (r["genus"], r["boundary_loops"], r["double_genus"]) == (1, 1, 2)
+    assert r["symmetry_error"] < 0.02 and r["flipped_triangles"] == 0 and r["boundary_pairing"] == [0]
+    assert np.linalg.norm(r["forward"]["position"] - Vt, axis=1).mean() < 0.02 * diag
