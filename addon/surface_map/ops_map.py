@@ -453,7 +453,7 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
             t_in = time.time()
             getattr(job, "ticks", []).append(t_in)
             if job.done() and not job.cancel and job.error is None:
-                job.step_outputs(self.SLICE)    # one slice per tick: Blender keeps drawing
+                job.step_outputs(self.SLICE)    # no-op: the worker computed the outputs
             context.window_manager.progress_update(int(100 * job.fraction))
             self._status(context, job.status_text() if not job.cancel else
                          "Surface Map: cancelling...")
