@@ -220,7 +220,7 @@ def draw_outputs(layout, settings, context):
     row = col.row(align=True)
     row.operator("surfmap.bake_textures", text="Bake Texture", icon='TEXTURE')
     row.operator("surfmap.verify_map", text="Verify", icon='CHECKMARK')
-    col.operator("surfmap.cut_along_seams", text="Cut Along Seams", icon='MOD_EDGESPLIT')
+    col.operator("surfmap.cut_along_seams", text="Cut Seams", icon='MOD_EDGESPLIT')
     batch_operators.draw_rows(layout)   # many objects: map onto selected, compare selected
 
 
