@@ -191,7 +191,9 @@ class SURFMAP_OT_cut_along_seams(bpy.types.Operator):
                               f"'{uv_name}' ({cut.crossings} vertices on edges, "
                               f"{cut.junctions} at seam junctions)"
                     + (f"; {cut.unresolved} faces could not be cut and keep one "
-                       f"continued chart" if cut.unresolved else ""))
+                       f"continued chart (" + ", ".join(f"{n}: {w}" for w, n in
+                                                       sorted(cut.reasons.items())) + ")"
+                       if cut.unresolved else ""))
         return {'FINISHED'}
 
 

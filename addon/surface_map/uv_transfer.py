@@ -470,6 +470,7 @@ class SeamCut:
         src_scale = float(np.ptp(tr.uv.reshape(-1, 2), axis=0).max()) if len(tr.uv) else 1.0
         self.uv_tol = 1e-7 * (src_scale if src_scale > 0 else 1.0)
         self.cut = self.pieces = self.junctions = self.unresolved = self.crossings = 0
+        self.reasons = {}    # why polygons stayed unresolved: reason -> count
 
     # -- seam junctions ------------------------------------------------------------------------
 
@@ -606,7 +607,8 @@ class SeamCut:
         """Cuts every polygon; fills the result fields (see the class doc)."""
         nv0 = len(self.Vt)
         new_V = []
-        edge_x = {}    # (lo, hi) -> [(s from lo, uv lo side, uv hi side, isl lo, isl hi, vert)]
+        edge_x = self._edges_without_crossings()
+        # (lo, hi) -> [(s from lo, uv lo side, uv hi side, isl lo, isl hi, new vertex)]
         ls, lt, lvo, luv, origin = [], [], [], [], []
         fallback = []
         tr = self.tr
@@ -638,6 +640,8 @@ class SeamCut:
                 else:
                     ring += [[x[5], x[2], x[1], x[4], x[3], True] for x in reversed(xs)]
             pieces = self._pieces(p, ring, new_V, nv0) if ok else None
+            if not ok:
+                self._why("an edge could not be traced")
             if pieces is None:
                 self.unresolved += 1
                 fallback.append(p)
@@ -676,20 +680,48 @@ class SeamCut:
         self.polygon_origin = np.asarray(origin, dtype=np.int64)
         return self
 
+    def _edges_without_crossings(self, factor=1.5):
+        """{(lo, hi): []} for the target edges that need no trace: both ends' preimages in one
+        triangle, or in one island with a UV distance within `factor` times the larger
+        UV-per-length ratio of their two triangles times their 3D distance (a straight
+        segment inside the island is that short; one that jumps across a seam of the island
+        with itself is as long as the island)."""
+        tr = self.tr
+        nxt = np.arange(len(self.lv)) + 1
+        nxt[self.start + self.total - 1] = self.start
+        a, b = self.lv, self.lv[nxt]
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        f_lo, f_hi = self.inv_face[lo], self.inv_face[hi]
+        easy = f_lo == f_hi
+        if tr.V is not None:
+            ratio = uv_stretch(tr.uv, tr.V[tr.F])
+            P_lo = points_at(tr.V, tr.F, f_lo, self.inv_bary[lo])
+            P_hi = points_at(tr.V, tr.F, f_hi, self.inv_bary[hi])
+            naive = tr.naive(self.inv_face, self.inv_bary)
+            du = np.linalg.norm(naive[hi] - naive[lo], axis=1)
+            dx = np.linalg.norm(P_hi - P_lo, axis=1)
+            local = np.maximum(ratio[f_lo], ratio[f_hi])
+            easy |= (tr.island[f_lo] == tr.island[f_hi]) & (du <= factor * local * dx)
+        return {(int(x), int(y)): [] for x, y in zip(lo[easy], hi[easy])}
+
     def _pieces(self, p, ring, new_V, nv0):
         """The pieces [(vertex, uv)] of polygon p from its ring (corners and crossings in
         order); None when unresolved."""
         xs = [i for i, e in enumerate(ring) if e[5]]
         junction = self.junction_at.get(p, [])
         if len(junction) > 1:
-            return None
+            return self._why("several seam junctions in one face")
         if junction and xs:
             return self._star(ring, xs, junction[0], new_V, nv0)
         if not xs:
             return [[(e[0], e[2]) for e in ring]]
         if len(xs) % 2:
-            return None
+            return self._why("an odd number of crossings and no junction")
         return self._chords(ring)
+
+    def _why(self, reason):
+        self.reasons[reason] = self.reasons.get(reason, 0) + 1
+        return None
 
     @staticmethod
     def _arc(ring, i, j):
@@ -731,7 +763,7 @@ class SeamCut:
                 if best is None or mism < best[0]:
                     best = (mism, i, j)
             if best is None:
-                return None
+                return self._why("no consistent chord")
             _, i, j = best
             arc = self._arc(ring, i, j)
             if len(arc) >= 3:
@@ -758,7 +790,7 @@ class SeamCut:
             arc = self._arc(ring, i, j)
             uv_j = self._junction_uv(s, ring[i][4], arc[0][1])
             if uv_j is None:
-                return None
+                return self._why("a junction without a corner in the face's island")
             if len(xs) == 1 and len(arc) >= 4:
                 # one seam ending inside: split the arc (which goes all around) at a corner
                 m = len(arc) // 2
