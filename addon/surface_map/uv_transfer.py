@@ -93,10 +93,16 @@ def uv_islands(F, corner_uv, seams=None):
 def _affine_from(src, dst):
     """2x3 real A with A @ [x, y, 1] mapping the three points src (3,2) onto dst (3,2); None
     when src is degenerate."""
-    S = np.hstack([np.asarray(src, dtype=np.float64), np.ones((3, 1))])
-    if abs(np.linalg.det(S)) < 1e-300:
+    # closed form (a 2x2 inverse): LAPACK calls cost more than the arithmetic at this size
+    s = np.asarray(src, dtype=np.float64)
+    d = np.asarray(dst, dtype=np.float64)
+    E = np.array([s[1] - s[0], s[2] - s[0]]).T          # columns: the source's edges
+    det = E[0, 0] * E[1, 1] - E[0, 1] * E[1, 0]
+    if abs(det) < 1e-300:
         return None
-    return np.linalg.solve(S, np.asarray(dst, dtype=np.float64)).T
+    Einv = np.array([[E[1, 1], -E[0, 1]], [-E[1, 0], E[0, 0]]]) / det
+    M = np.array([d[1] - d[0], d[2] - d[0]]).T @ Einv
+    return np.hstack([M, (d[0] - M @ s[0])[:, None]])
 
 
 def _apply(A, uv):
@@ -429,7 +435,8 @@ def _bary2(C, X):
 
 def _invert(A):
     """The inverse of the 2x3 affine map A."""
-    M = np.linalg.inv(A[:, :2])
+    a, b, c, d = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
+    M = np.array([[d, -b], [-c, a]]) / (a * d - b * c)
     return np.hstack([M, (-M @ A[:, 2])[:, None]])
 
 
@@ -544,7 +551,16 @@ class SeamCut:
                 break
             out, T_end, h = got
             if tr.island[h] != tr.island[fb]:
-                break
+                # b's preimage lies just across a seam from where the straight trace ends
+                # (it is on or next to that seam): the crossing is at b itself
+                k = next((k for k in range(3) if tr.nf[h, k] == fb and tr.seam[h, k]), None)
+                if k is None:
+                    break
+                B = _apply(T_b, own_b[None])
+                out = out + [(1.0 - 1e-6, _apply(_invert(T_end), B)[0], own_b.copy(),
+                              int(tr.island[h]), int(tr.island[fb]))]
+                T_end = _compose(T_end, tr._seam_step(h, k))
+                h = fb
             miss = float(np.abs(_apply(_invert(T_end), _apply(T_b, own_b[None]))[0]
                                 - own_b).max())
             if best is None or miss < best[0]:
