@@ -216,14 +216,29 @@ class MapJob:
             self.error = ("internal", f"{type(e).__name__}: {e}")
         return None
 
+    # While the worker runs Python (the output slices), every Python call of Blender's main
+    # thread (timers, each line of a panel's draw) waits for the GIL up to the interpreter's
+    # switch interval (5 ms by default): a sidebar redraw of a few hundred calls then takes
+    # over a second. A short interval during the job keeps the UI's Python responsive.
+    SWITCH_INTERVAL = 0.0005
+
+    def _run_threaded(self):
+        import sys
+        before = sys.getswitchinterval()
+        sys.setswitchinterval(min(before, self.SWITCH_INTERVAL))
+        try:
+            self.run(with_outputs=True)
+        finally:
+            sys.setswitchinterval(before)
+
     def start(self):
         """The native solve AND the numpy outputs on a worker thread, so Blender's main thread
         only ticks the timer and then writes (docs/addon.md). Safe: the worker touches no bpy
         data (MeshSide and the result are plain arrays), and Blender releases Python's GIL
         while it draws; numpy's large array operations release it too."""
         self.t0 = time.time()
-        self.thread = threading.Thread(target=self.run, kwargs={"with_outputs": True},
-                                       name="surfmap solve", daemon=True)
+        self.thread = threading.Thread(target=self._run_threaded, name="surfmap solve",
+                                       daemon=True)
         self.thread.start()
 
     def done(self):
