@@ -87,8 +87,12 @@ def loop_material(name, rgba):
     if bsdf is not None:
         bsdf.inputs["Base Color"].default_value = rgba
         bsdf.inputs["Roughness"].default_value = 0.35
-        if "Emission" in bsdf.inputs:
-            bsdf.inputs["Emission"].default_value = rgba
+        # Blender 4.0 renamed the Principled BSDF's "Emission" input "Emission Color" (its
+        # default then white: left as it is, the curves would glow white, not in their colour)
+        for emission in ("Emission Color", "Emission"):
+            if emission in bsdf.inputs:
+                bsdf.inputs[emission].default_value = rgba
+                break
         if "Emission Strength" in bsdf.inputs:
             bsdf.inputs["Emission Strength"].default_value = 0.35
     return mat

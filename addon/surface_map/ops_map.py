@@ -509,11 +509,13 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
             t_in = time.time()
             getattr(job, "ticks", []).append(t_in)
             if job.done() and not job.cancel and job.error is None:
-                job.step_outputs(self.SLICE)    # one slice per tick: Blender keeps drawing
+                job.step_outputs(self.SLICE)    # no-op: the worker computed the outputs
             context.window_manager.progress_update(int(100 * job.fraction))
             self._status(context, job.status_text() if not job.cancel else
                          "Surface Map: cancelling...")
-            self._redraw(context, every=0.5)
+            # (each sidebar redraw costs the main thread ~0.5 s with software GL on a busy
+            # machine: every 0.5 s halved the UI's tick rate, docs/addon.md)
+            self._redraw(context, every=1.0)
             job.tick_work = getattr(job, "tick_work", []) + [(t_in, time.time() - t_in)]
         if job.done() and (job.cancel or job.error is not None or job.outputs is not None
                            or job.result is None):

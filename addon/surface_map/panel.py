@@ -219,8 +219,10 @@ def draw_outputs(layout, settings, context):
     row.operator("surfmap.create_morph", text="Morph")
     row.operator("surfmap.paint_distortion", text="Colours")
     row = col.row(align=True)
-    row.operator("surfmap.bake_textures", text="Bake Texture", icon='TEXTURE')
-    row.operator("surfmap.verify_map", text="Verify", icon='CHECKMARK')
+    # (half a default-width sidebar holds about 9 characters beside an icon)
+    row.operator("surfmap.bake_textures", text="Bake", icon='TEXTURE')
+    row.operator("surfmap.cut_along_seams", text="Cut Seams", icon='UV')
+    col.operator("surfmap.verify_map", text="Verify", icon='CHECKMARK')
     batch_operators.draw_rows(layout)   # many objects: map onto selected, compare selected
 
 
