@@ -450,7 +450,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   in.scs = canonical_schema(in.sl.word);
   in.first = loop_first_vertices(in.sl, sc);
   in.lengths = edge_lengths(source, sc);
-  bool own_weights = options.source_weights == SourceWeights::OwnEdges;
+  bool own_weights = options.solve.source_weights == SourceWeights::OwnEdges;
   for (bool first_pass = true; !flat_pass(in, own_weights, first_pass, out); first_pass = false) own_weights = true;
 }
 

@@ -56,7 +56,7 @@ class HyperbolicPipeline {
                      const StageDone& stage_done)
       : source(source), target(target), sc(sc), tc(tc), options(options), hooks(hooks), out(out),
         stage_done(stage_done), threads(pipeline_threads(options.threads)), nv(source.num_vertices()),
-        own_weights(options.source_weights == SourceWeights::OwnEdges), cuts(source, options, out.genus) {}
+        own_weights(options.solve.source_weights == SourceWeights::OwnEdges), cuts(source, options, out.genus) {}
 
   void start_source_side();
   void uniformize_target();

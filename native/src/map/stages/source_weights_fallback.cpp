@@ -25,7 +25,7 @@ void store_distortion(const DistortionStats& q, SurfaceMapResult& out) {
 
 bool retry_with_own_weights(const SurfaceMapOptions& options, bool own_weights, const SurfaceMapResult& out) {
   if (!out.flipped_triangles && !out.degenerate_triangles) return false;
-  if (!own_weights && options.source_weights == SourceWeights::Automatic) return true;
+  if (!own_weights && options.solve.source_weights == SourceWeights::Automatic) return true;
   throw SolveError("the optimised map has " + std::to_string(out.flipped_triangles) + " flipped and " +
                    std::to_string(out.degenerate_triangles) + " degenerate image triangles of the source's faces (" +
                    std::to_string(out.intrinsic_flipped_triangles) +
