@@ -91,11 +91,7 @@ std::vector<int> cut_degrees(const Connectivity& sc, const std::vector<char>& cu
   return degree;
 }
 
-// A step that cannot build the map: cut_graph_initial_map returns with
-// applied = false and this reason (the caller's fallbacks run).
-struct GiveUp {
-  std::string why;
-};
+using detail::GiveUp;
 
 // Step 1. The cut graph: the unrefined loops' edges (options.loops, or the
 // source's own system of loops), dangling edges pruned. One flag per edge.
@@ -399,15 +395,9 @@ CornerPolygon corner_polygon(const CutDisk& d, std::vector<Word>& c, const std::
     if (!(std::isfinite(kq[s].real()) && std::isfinite(kq[s].imag()) && std::abs(kq[s]) < 1 - 1e-12))
       throw GiveUp{"the polygon is too large for double precision (corner " + std::to_string(s) + ")"};
   }
-  double total_turn = 0;
-  out.min_turn = 10, out.max_turn = -10;
-  for (int s = 0; s < ns; ++s) {
-    const Complex e0 = kq[s] - kq[(s + ns - 1) % ns], e1 = kq[(s + 1) % ns] - kq[s];
-    const double turn = std::arg(e1 / e0);
-    total_turn += turn;
-    out.min_turn = std::min(out.min_turn, turn);
-    out.max_turn = std::max(out.max_turn, turn);
-  }
+  const detail::KleinTurns turns = detail::klein_turns(kq);
+  const double total_turn = turns.total;
+  out.min_turn = turns.min, out.max_turn = turns.max;
   out.convex = out.min_turn > options.min_turn && std::abs(total_turn - 2 * M_PI) < 1e-6;
   if (!out.convex)
     throw GiveUp{std::abs(total_turn - 2 * M_PI) < 1e-6
