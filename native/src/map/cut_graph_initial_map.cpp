@@ -501,14 +501,7 @@ CutGraphInitialMapResult cut_graph_initial_map(const TriMesh& source, const Conn
   const int nv = source.num_vertices(), nf = source.num_faces();
   if (static_cast<int>(halfedge_word.size()) != 3 * nf || sc.num_vertices() != nv || sc.num_faces() != nf)
     throw InputError("cut_graph_initial_map: one side word per source halfedge (3 x #F) needed");
-  try {
-    build_cut_graph_map(source, sc, halfedge_word, group, options, out);
-    out.applied = true;
-  } catch (const GiveUp& g) {
-    out.applied = false;
-    out.reason = g.why;
-    out.z.clear(), out.vertex_deck.clear(), out.vertex_deck_word.clear();
-  }
+  detail::build_or_give_up(out, [&](auto& o) { build_cut_graph_map(source, sc, halfedge_word, group, options, o); });
   out.time_s = seconds_since(t0);
   return out;
 }

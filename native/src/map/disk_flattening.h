@@ -60,6 +60,21 @@ struct GiveUp {
   std::string why;
 };
 
+/// Runs `build(out)` (the steps of a polygon initial map) and sets
+/// out.applied; a GiveUp turns into applied = false with its reason and no
+/// map (out.z, vertex_deck, vertex_deck_word cleared). Other errors pass.
+template <class Result, class Build>
+void build_or_give_up(Result& out, const Build& build) {
+  try {
+    build(out);
+    out.applied = true;
+  } catch (const GiveUp& g) {
+    out.applied = false;
+    out.reason = g.why;
+    out.z.clear(), out.vertex_deck.clear(), out.vertex_deck_word.clear();
+  }
+}
+
 /// Exterior angles (radians) of the polygon with Klein-model corners `kq`
 /// in order: their total (2π for a simple counter-clockwise polygon), the
 /// smallest and the largest (convex when the smallest is > 0 with total 2π).

@@ -360,14 +360,7 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
   const int n_in = source.num_vertices();
   if (static_cast<int>(halfedge_word.size()) != 3 * sc.num_faces() || sc.num_vertices() != n_in)
     throw InputError("polygon_initial_map: one side word per source halfedge (3 x #F) needed");
-  try {
-    build_polygon_map(source, halfedge_word, group, options, out);
-    out.applied = true;
-  } catch (const GiveUp& g) {
-    out.applied = false;
-    out.reason = g.why;
-    out.z.clear(), out.vertex_deck.clear(), out.vertex_deck_word.clear();
-  }
+  detail::build_or_give_up(out, [&](auto& o) { build_polygon_map(source, halfedge_word, group, options, o); });
   out.time_s = seconds_since(t0);
   return out;
 }
