@@ -11,7 +11,7 @@ import numpy as np
 
 from . import blender_io, cut_loops, landmarks as landmark_pairs_mod, map_job, uv_transfer
 from .map_job import MapJob, MapOptions
-from .ops_common import native_and_object_mode, pick_objects, surfmap_module
+from .ops_common import errors_reported, native_and_object_mode, pick_objects, surfmap_module
 from .side import MeshSide, ObjectProblem
 
 GENERATED_UV = "surfmap box projection"
@@ -433,13 +433,9 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
     def _prepare(self, context):
         self._t_click = time.time()
         sm = surfmap_module(context)
-        try:
+        with errors_reported(self, sm) as r:
             job, notes = prepare_job(context, sm)
-        except ObjectProblem as e:
-            self.report({'ERROR'}, str(e))
-            return None
-        except sm.Error as e:
-            self.report({'ERROR'}, f"surfmap: {e}")
+        if r.failed:
             return None
         self._notes = notes
         job.times["read"] = time.time() - self._t_click

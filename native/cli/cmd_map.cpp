@@ -128,12 +128,12 @@ void register_map(CLI::App& app) {
     opt.loops.source_base_vertex = a->base_vertex;
     opt.loops.target_base_vertex = a->target_base_vertex;
     opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
-    opt.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
+    opt.solve.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
     opt.solve.tolerance = a->tolerance;
     opt.solve.max_iterations = a->max_iterations;
     opt.homotopy.candidates = a->homotopy_candidates;
     opt.homotopy.full_solves = a->homotopy_full_solves;
-    opt.initial_map = parse_enum<InitialMapMethod>(a->initial, "--initial-map");
+    opt.initial.method = parse_enum<InitialMapMethod>(a->initial, "--initial-map");
     opt.homotopy.extra_cuts = a->homotopy_extra_cuts;
     opt.homotopy.search.enabled = !a->no_homotopy_search;
     opt.homotopy.search.evaluations = a->homotopy_search_evaluations;

@@ -190,8 +190,8 @@ void bind_map(py::module_& m) {
         if (homotopy_search_evaluations < 1) throw InputError("homotopy_search_evaluations must be at least 1");
         opt.homotopy.search.enabled = homotopy_search;
         opt.homotopy.search.evaluations = homotopy_search_evaluations;
-        opt.initial_map = parse_enum<InitialMapMethod>(initial_map, "initial_map");
-        opt.source_weights = parse_enum<SourceWeights>(source_weights, "source_weights");
+        opt.initial.method = parse_enum<InitialMapMethod>(initial_map, "initial_map");
+        opt.solve.source_weights = parse_enum<SourceWeights>(source_weights, "source_weights");
         if (!landmarks.is_none()) {
           const auto pairs = py::cast<std::vector<std::vector<long long>>>(
               py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
