@@ -92,7 +92,7 @@ int main(int argc, char** argv) {
     for (const std::string& method : methods) {
       SurfaceMapOptions o;
       o.homotopy.class_index = c.homotopy;
-      o.initial_map = parse_enum<InitialMapMethod>(method, "--methods");
+      o.initial.method = parse_enum<InitialMapMethod>(method, "--methods");
       const auto t0 = std::chrono::steady_clock::now();
       SurfaceMapResult m;
       try {

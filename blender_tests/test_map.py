@@ -411,16 +411,24 @@ def test_worker_thread_cancel_leaves_no_result():
     job.start()
     job.thread.join(60)
     assert job.done() and job.error == ("cancelled", "cancelled") and job.outputs is None
-    # and a normal threaded run: the worker does the native solve only (no Python work runs
-    # beside Blender's main thread), the outputs are computed afterwards on the main thread
+    # and a normal threaded run: the worker does the native solve AND the numpy outputs (the
+    # main thread only writes them), equal to the outputs computed inline
     job2, _ = ops_map.prepare_job(bpy.context, sm)
     job2.start()
     job2.thread.join(120)
     assert job2.error is None and job2.result is not None, job2.error
-    assert job2.outputs is None
-    job2.compute_outputs()
-    assert job2.error is None and job2.outputs is not None, job2.error
-    assert job2.stage == "writing outputs"
+    assert job2.outputs is not None and job2.stage == "writing outputs"
+    assert "outputs" in job2.times and "solve" in job2.times
+    assert job2.step_outputs() is False          # nothing left for the main thread
+    job3, _ = ops_map.prepare_job(bpy.context, sm)
+    job3.result = job2.result
+    job3.compute_outputs()
+    assert job3.error is None, job3.error
+    for key in ("morph_source", "morph_target"):
+        if key in job3.outputs:
+            assert np.allclose(job2.outputs[key], job3.outputs[key])
+    for name, uv in job3.outputs["uv"].items():
+        assert np.allclose(job2.outputs["uv"][name], uv)
     assert isinstance(map_job.MapJob, type)
 
 

@@ -213,20 +213,12 @@ def show_only(objs, curves=False):
 
 
 def checker_material(name, uv_map):
-    """Checker on the named UV map (two warm/cool tones and a fine grid of lines)."""
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
-    nt = mat.node_tree
-    bsdf = nt.nodes["Principled BSDF"]
-    uv = nt.nodes.new("ShaderNodeUVMap")
-    uv.uv_map = uv_map
-    chk = nt.nodes.new("ShaderNodeTexChecker")
-    chk.inputs["Scale"].default_value = 16.0
-    chk.inputs["Color1"].default_value = (0.85, 0.55, 0.12, 1.0)
-    chk.inputs["Color2"].default_value = (0.08, 0.25, 0.55, 1.0)
-    nt.links.new(uv.outputs["UV"], chk.inputs["Vector"])
-    nt.links.new(chk.outputs["Color"], bsdf.inputs["Base Color"])
-    bsdf.inputs["Roughness"].default_value = 0.55
+    """Checker on the named UV map (two warm/cool tones, demo_bake.CHECKER_*: the image the
+    bake reads has the same pattern)."""
+    mat, chk = demo_bake.uv_texture_material(name, uv_map, "ShaderNodeTexChecker")
+    chk.inputs["Scale"].default_value = demo_bake.CHECKER_SCALE
+    chk.inputs["Color1"].default_value = demo_bake.CHECKER_COLOURS[0]
+    chk.inputs["Color2"].default_value = demo_bake.CHECKER_COLOURS[1]
     return mat
 
 
@@ -300,6 +292,20 @@ def torus_uvs(ob, R):
     layer.data.foreach_set("uv", np.stack([u, v], axis=1).astype(np.float32).ravel())
 
 
+def emission_material(name, colour):
+    """The named material (made once) emitting `colour` only: unlit text and plates."""
+    mat = bpy.data.materials.get(name) or bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nodes = mat.node_tree.nodes
+    for n in list(nodes):
+        nodes.remove(n)
+    em = nodes.new("ShaderNodeEmission")
+    em.inputs["Color"].default_value = colour
+    outn = nodes.new("ShaderNodeOutputMaterial")
+    mat.node_tree.links.new(em.outputs["Emission"], outn.inputs["Surface"])
+    return mat
+
+
 def caption(cam, text):
     """A line of white text at the bottom of the camera's view (parented to the camera)."""
     cu = bpy.data.curves.new("caption", 'FONT')
@@ -311,16 +317,7 @@ def caption(cam, text):
     cu.size = 0.017 * depth
     ob = bpy.data.objects.new("caption", cu)
     bpy.context.scene.collection.objects.link(ob)
-    mat = bpy.data.materials.get("SurfMap caption") or bpy.data.materials.new("SurfMap caption")
-    mat.use_nodes = True
-    nodes = mat.node_tree.nodes
-    for n in list(nodes):
-        nodes.remove(n)
-    em = nodes.new("ShaderNodeEmission")
-    em.inputs["Color"].default_value = (1, 1, 1, 1)
-    outn = nodes.new("ShaderNodeOutputMaterial")
-    mat.node_tree.links.new(em.outputs["Emission"], outn.inputs["Surface"])
-    cu.materials.append(mat)
+    cu.materials.append(emission_material("SurfMap caption", (1, 1, 1, 1)))
     ob.parent = cam
     ob.location = (0.0, -0.245 * depth, -depth)   # camera space, near the bottom edge
     ob.hide_render = False
@@ -332,16 +329,7 @@ def caption(cam, text):
                     (-0.52 * w, 1.0 * h, 0)], [], [(0, 1, 2, 3)])
     plate = bpy.data.objects.new("caption plate", pm)
     bpy.context.scene.collection.objects.link(plate)
-    pmat = bpy.data.materials.get("SurfMap caption plate") or bpy.data.materials.new("SurfMap caption plate")
-    pmat.use_nodes = True
-    pn = pmat.node_tree.nodes
-    for n in list(pn):
-        pn.remove(n)
-    pe = pn.new("ShaderNodeEmission")
-    pe.inputs["Color"].default_value = (0.05, 0.05, 0.06, 1)
-    po = pn.new("ShaderNodeOutputMaterial")
-    pmat.node_tree.links.new(pe.outputs["Emission"], po.inputs["Surface"])
-    pm.materials.append(pmat)
+    pm.materials.append(emission_material("SurfMap caption plate", (0.05, 0.05, 0.06, 1)))
     plate.parent = ob
     plate.location = (0.0, 0.0, -0.002 * depth)
     plate.hide_render = False

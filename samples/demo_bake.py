@@ -43,19 +43,27 @@ def checker_image(name, size=1024):
     return img
 
 
-def image_material(name, image, uv_map):
+def uv_texture_material(name, uv_map, texture_node):
+    """A new material whose Base Color is a texture node of type `texture_node` read on the
+    named UV map (roughness 0.55): (material, texture node); the demo's checker and image
+    materials."""
     mat = bpy.data.materials.new(name)
     mat.use_nodes = True
     nt = mat.node_tree
     bsdf = nt.nodes["Principled BSDF"]
     uv = nt.nodes.new("ShaderNodeUVMap")
     uv.uv_map = uv_map
-    tex = nt.nodes.new("ShaderNodeTexImage")
-    tex.image = image
+    tex = nt.nodes.new(texture_node)
     nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
     nt.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
     bsdf.inputs["Roughness"].default_value = 0.55
-    nt.nodes.active = tex
+    return mat, tex
+
+
+def image_material(name, image, uv_map):
+    mat, tex = uv_texture_material(name, uv_map, "ShaderNodeTexImage")
+    tex.image = image
+    mat.node_tree.nodes.active = tex
     return mat
 
 

@@ -1,9 +1,12 @@
 """Drives the Surface Map sidebar in a real Blender window and takes screenshots (a manual UI
 check, not a test): the sample pair double_torus_g2 -> vase_g2, Compute Map as the button runs
 it (modal, worker thread, outputs in timer slices) while an app timer measures how often the UI
-ticks, Ctrl+Z / Ctrl+Shift+Z on the outputs, then each Show button.
+ticks, Ctrl+Z / Ctrl+Shift+Z on the outputs, then each Show button and Cut Seams.
 
-  Xvfb :99 -screen 0 1600x1200x24 &  DISPLAY=:99 twm &   (a window manager: focus)
+  Xvfb :99 -screen 0 1600x1200x24 &  DISPLAY=:99 twm -f RC &   (a window manager: focus)
+  with RC a file holding 'RandomPlacement' and 'UsePPosition "on"': twm's default asks the
+  user to place each new window and grabs the X server meanwhile (Blender and every X client
+  then hang)
   blender -b --factory-startup --python-expr \
       "import bpy; bpy.ops.wm.save_as_mainfile(filepath='/tmp/empty.blend')"
   DISPLAY=:99 SURFMAP_PYTHONPATH=build/python blender --factory-startup \
@@ -290,6 +293,21 @@ def step():
         src.data.shape_keys.key_blocks["surfmap to vase_g2"].value = 1.0
     elif s == 16:
         shot("11_loops_follow_morph.png")
+        src = bpy.data.objects.get("double_torus_g2")
+        src.data.shape_keys.key_blocks["surfmap to vase_g2"].value = 0.0
+        call(bpy.ops.surfmap.show_output, what='TEXTURE')
+        t = time.time()
+        r = call(bpy.ops.surfmap.cut_along_seams)
+        log("cut along seams ->", r, f"{time.time() - t:.1f}s")
+        cut = bpy.data.objects.get("vase_g2 cut along seams")
+        target = bpy.data.objects.get("vase_g2")
+        if cut is not None:     # the copy shows the texture the Texture button put on the target
+            cut.data.materials.clear()
+            for slot in target.material_slots:
+                cut.data.materials.append(slot.material)
+            target.hide_set(True)
+    elif s == 17:
+        shot("12_cut_along_seams.png")
     elif s == 99:
         shot("00_quick.png")
         STATE["step"] = 100

@@ -16,7 +16,7 @@ import numpy as np
 
 from . import colours, ops_map
 from .side import ObjectProblem
-from .ops_common import native_and_object_mode, surfmap_module
+from .ops_common import errors_reported, native_and_object_mode, surfmap_module
 
 COMPARE_TEXT = "surfmap comparison"
 DILATATION_KEY = "surfmap_mean_dilatation_to_active"
@@ -253,7 +253,7 @@ class SURFMAP_OT_compare_selected(_Modal, bpy.types.Operator):
         import importlib
         self._C = importlib.import_module(sm.__name__ + ".compare")
         self._mapcall = importlib.import_module(sm.__name__ + ".mapcall")
-        try:
+        with errors_reported(self, sm) as r:
             act, others = _selected_meshes(context)
             self._objects = [act] + others
             self._meshes = []
@@ -262,11 +262,7 @@ class SURFMAP_OT_compare_selected(_Modal, bpy.types.Operator):
                 d = sm.intake(V, F)
                 self._meshes.append((np.asarray(d["V"]), np.asarray(d["F"], dtype=np.int64),
                                      int(d["info"]["genus"])))
-        except ObjectProblem as e:
-            self.report({'ERROR'}, str(e))
-            return False
-        except sm.Error as e:
-            self.report({'ERROR'}, f"surfmap: {e}")
+        if r.failed:
             return False
         genera = {g for _, _, g in self._meshes}
         if len(genera) != 1:

@@ -87,8 +87,12 @@ def loop_material(name, rgba):
     if bsdf is not None:
         bsdf.inputs["Base Color"].default_value = rgba
         bsdf.inputs["Roughness"].default_value = 0.35
-        if "Emission" in bsdf.inputs:
-            bsdf.inputs["Emission"].default_value = rgba
+        # Blender 4.0 renamed the Principled BSDF's "Emission" input "Emission Color" (its
+        # default then white: left as it is, the curves would glow white, not in their colour)
+        for emission in ("Emission Color", "Emission"):
+            if emission in bsdf.inputs:
+                bsdf.inputs[emission].default_value = rgba
+                break
         if "Emission Strength" in bsdf.inputs:
             bsdf.inputs["Emission Strength"].default_value = 0.35
     return mat
@@ -123,11 +127,12 @@ LOOP_BARY_KEY = "surfmap_loop_weights"    # ... and their barycentric weights
 LOOP_SIG_KEY = "surfmap_loop_shape"       # the owner's shape-key values the points follow
 
 
-def add_loop_curves(scene, obj, curves, bevel, weights=None):
+def add_loop_curves(scene, obj, curves, bevel, weights=None, colours=None):
     """One cyclic poly curve object per loop, named '<object> a1', ..., points in the
     object's local space and parented to it (so they follow its transform). weights: per
     curve, (vertices (k,3), barycentrics (k,3)) of its points on the mesh, kept on the curve
-    so follow_shape_keys can move the points with the mesh's shape keys (the morph)."""
+    so follow_shape_keys can move the points with the mesh's shape keys (the morph).
+    colours: per curve RGBA (default: by the loop pair of names 'a<k>' / 'b<k>')."""
     remove_loop_curves(obj.name)
     coll = loops_collection(scene, obj)
     made = []
@@ -143,8 +148,11 @@ def add_loop_curves(scene, obj, curves, bevel, weights=None):
         co[:, :3] = pts
         sp.points.foreach_set("co", co.ravel())
         sp.use_cyclic_u = True
-        k = int(name[1:]) * 2 - 2 + (0 if name[0] == "a" else 1)
-        cu.materials.append(loop_material(name, cut_loops.pair_colour(k)))
+        if colours is not None:
+            rgba = colours[c]
+        else:
+            rgba = cut_loops.pair_colour(int(name[1:]) * 2 - 2 + (0 if name[0] == "a" else 1))
+        cu.materials.append(loop_material(name, rgba))
         ob = bpy.data.objects.new(f"{obj.name} {name}", cu)
         ob[OWNER_KEY] = obj.name
         if weights is not None:

@@ -150,11 +150,13 @@ from .side import ObjectProblem  # noqa: E402,F401
 
 # --- one object through the native pipeline ---------------------------------------------------
 
-def intake_object(sm, name, V, F):
-    """Validates one triangulated mesh. Returns the intake dict; raises ObjectProblem."""
+def intake_object(sm, name, V, F, allow_boundary=False):
+    """Validates one triangulated mesh. Returns the intake dict; raises ObjectProblem.
+    allow_boundary: accept open meshes (the dict then lists 'boundary_loops')."""
+    kw = {"allow_boundary": True} if allow_boundary else {}
     try:
         res = sm.intake(np.ascontiguousarray(V, dtype=np.float64),
-                        np.ascontiguousarray(F, dtype=np.int32))
+                        np.ascontiguousarray(F, dtype=np.int32), **kw)
     except sm.InputError as e:
         raise ObjectProblem(f"object '{name}': {e}") from None
     return res

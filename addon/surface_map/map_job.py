@@ -1,6 +1,6 @@
 """One map computation as plain data (no bpy): the options as the core spells them, the native
-solve (on a worker thread in the UI, inline in background mode), and every output computed with
-numpy in short slices (so a UI timer keeps running between them), ready for the bpy side
+solve and every output computed with numpy (on a worker thread in the UI, inline in background
+mode; in slices, so progress and Esc are seen between them), ready for the bpy side
 (ops_map.write_outputs) to write. Data flow: docs/addon.md.
 """
 from dataclasses import dataclass, field
@@ -51,6 +51,18 @@ def core_supports(sm, word):
     return word in (getattr(getattr(sm, "surface_map", None), "__doc__", None) or "")
 
 
+def parse_boundary_pairing(text):
+    """The panel's Boundary Loops text ('1 0', '1,0'; empty: None) as a list of loop indices;
+    raises ValueError naming the text."""
+    words = str(text or "").replace(",", " ").split()
+    if not words:
+        return None
+    try:
+        return [int(w) for w in words]
+    except ValueError:
+        raise ValueError(f"Boundary Loops '{text}': give loop indices such as '1 0'") from None
+
+
 @dataclass
 class MapOptions:
     """What the panel asks for, already in the core's spelling (see from_settings)."""
@@ -63,6 +75,7 @@ class MapOptions:
     uv_before: bool = False
     morph_space: str = "IN_PLACE"
     colour_percentile: float = 99.0
+    boundary_pairing: Optional[list] = None  # open meshes: target loop of each source loop
 
     @classmethod
     def from_settings(cls, settings, landmarks=None, outputs=None):
@@ -89,6 +102,8 @@ class MapOptions:
             kw["tolerance"] = float(self.tolerance)
         if self.source_weights != "auto":
             kw["source_weights"] = self.source_weights
+        if self.boundary_pairing is not None:
+            kw["boundary_pairing"] = list(self.boundary_pairing)
         return kw
 
     def unsupported(self, sm):
@@ -163,8 +178,7 @@ class MapJob:
 
     def step_outputs(self, budget=0.05):
         """Runs output slices for about `budget` seconds (None: to the end) on the calling
-        thread (Blender's main thread in the UI: the worker thread runs only the native solve,
-        which holds no Python state). Returns True while slices remain."""
+        thread (the worker thread in the UI, see start). Returns True while slices remain."""
         if self.error is not None or self.result is None or self.outputs is not None:
             return False
         if self._slices is None:
@@ -217,11 +231,29 @@ class MapJob:
             self.error = ("internal", f"{type(e).__name__}: {e}")
         return None
 
+    # While the worker runs Python (the output slices), every Python call of Blender's main
+    # thread (timers, each line of a panel's draw) waits for the GIL up to the interpreter's
+    # switch interval (5 ms by default): a sidebar redraw of a few hundred calls then takes
+    # over a second. A short interval during the job keeps the UI's Python responsive.
+    SWITCH_INTERVAL = 0.0005
+
+    def _run_threaded(self):
+        import sys
+        before = sys.getswitchinterval()
+        sys.setswitchinterval(min(before, self.SWITCH_INTERVAL))
+        try:
+            self.run(with_outputs=True)
+        finally:
+            sys.setswitchinterval(before)
+
     def start(self):
-        """The native solve on a worker thread (outputs: step_outputs on the main thread)."""
+        """The native solve AND the numpy outputs on a worker thread, so Blender's main thread
+        only ticks the timer and then writes (docs/addon.md). Safe: the worker touches no bpy
+        data (MeshSide and the result are plain arrays), and Blender releases Python's GIL
+        while it draws; numpy's large array operations release it too."""
         self.t0 = time.time()
-        self.thread = threading.Thread(target=self.run, kwargs={"with_outputs": False},
-                                       name="surfmap solve", daemon=True)
+        self.thread = threading.Thread(target=self._run_threaded, name="surfmap solve",
+                                       daemon=True)
         self.thread.start()
 
     def done(self):

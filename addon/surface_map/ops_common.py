@@ -11,6 +11,32 @@ def surfmap_module(context):
     return native.load(extra_dirs=extra_module_dirs(context))
 
 
+class errors_reported:
+    """`with errors_reported(operator, sm) as r:` around a step that reads the scene and calls
+    the core: an ObjectProblem (its message) or a surfmap error (`sm.Error`, "surfmap: ...")
+    raised inside goes to operator.report as an ERROR and sets r.failed; other exceptions
+    pass."""
+
+    def __init__(self, operator, sm=None):
+        self.operator, self.sm, self.failed = operator, sm, False
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, error, traceback):
+        if kind is None:
+            return False
+        if issubclass(kind, ObjectProblem):
+            message = str(error)
+        elif self.sm is not None and issubclass(kind, self.sm.Error):
+            message = f"surfmap: {error}"
+        else:
+            return False
+        self.operator.report({'ERROR'}, message)
+        self.failed = True
+        return True
+
+
 def native_and_object_mode(cls, context):
     """The poll precondition every Surface Map operator shares: the native module is there
     and Blender is in Object Mode (otherwise the reason goes to poll_message_set)."""

@@ -3,7 +3,7 @@ and marked as seams. The maths is in cut_loops.py."""
 import bpy
 
 from . import blender_io, cut_loops, native
-from .ops_common import native_and_object_mode, pick_objects, surfmap_module
+from .ops_common import errors_reported, native_and_object_mode, pick_objects, surfmap_module
 
 
 class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
@@ -29,7 +29,7 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
             self.report({'ERROR'}, f"the surfmap module at {native.origin()} is too old: it has "
                                    f"no system_of_loops (rebuild it)")
             return {'CANCELLED'}
-        try:
+        with errors_reported(self, sm) as r:
             source, target = pick_objects(context)
             depsgraph = context.evaluated_depsgraph_get()
             objs = [o for o in (source, target) if o is not None]
@@ -50,11 +50,7 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
                 it = intakes[o.name]
                 base = settings.target_base_vertex if o == target else settings.source_base_vertex
                 results[o.name] = cut_loops.loops_of_object(sm, o.name, it["V"], it["F"], base)
-        except cut_loops.ObjectProblem as e:
-            self.report({'ERROR'}, str(e))
-            return {'CANCELLED'}
-        except sm.Error as e:
-            self.report({'ERROR'}, f"surfmap: {e}")
+        if r.failed:
             return {'CANCELLED'}
 
         # 2. Write: seams (on the original mesh only), loop curves, materials.

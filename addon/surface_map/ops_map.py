@@ -11,7 +11,7 @@ import numpy as np
 
 from . import blender_io, cut_loops, landmarks as landmark_pairs_mod, map_job, uv_transfer
 from .map_job import MapJob, MapOptions
-from .ops_common import native_and_object_mode, pick_objects, surfmap_module
+from .ops_common import errors_reported, native_and_object_mode, pick_objects, surfmap_module
 from .side import MeshSide, ObjectProblem
 
 GENERATED_UV = "surfmap box projection"
@@ -21,21 +21,23 @@ OUTPUT_FLAGS = (("write_uvs", "UV"), ("write_morph", "MORPH"), ("write_distortio
 
 # --- reading -----------------------------------------------------------------------------------
 
-def read_side(obj, depsgraph, sm=None, flipped=None):
+def read_side(obj, depsgraph, sm=None, flipped=None, allow_boundary=False):
     """One object's mesh as a MeshSide. With sm: validated by the native intake (raises
-    ObjectProblem naming the object), else re-oriented like a stored run (`flipped`)."""
+    ObjectProblem naming the object), else re-oriented like a stored run (`flipped`).
+    allow_boundary: accept an open mesh (side.boundary_loops; docs/open_surfaces.md)."""
     d = blender_io.read_map_mesh(obj, depsgraph)
     side = MeshSide.from_mesh_data(obj.name, blender_io.matrix_np(obj.matrix_world), d)
     if len(side.F) == 0:
         raise ObjectProblem(f"object '{obj.name}' has no faces")
     if sm is not None:
-        it = cut_loops.intake_object(sm, obj.name, side.V, side.F)
+        it = cut_loops.intake_object(sm, obj.name, side.V, side.F, allow_boundary)
         if it["F"].shape != side.F.shape:
             raise ObjectProblem(f"object '{obj.name}': the intake changed the number of "
                                 f"triangles ({len(side.F)} -> {len(it['F'])})")
         flipped = bool(it["flipped"])
         side.genus = int(it["info"]["genus"])
         side.notes = list(it["info"].get("notes", []))
+        side.boundary_loops = [np.asarray(l, dtype=np.int64) for l in it.get("boundary_loops", [])]
     return side.orient(bool(flipped))
 
 
@@ -101,15 +103,25 @@ def prepare_job(context, sm):
                             f"'{target.data.name}': the map's layers would overwrite each "
                             f"other (Object > Relations > Make Single User first)")
     depsgraph = context.evaluated_depsgraph_get()
-    src = _side(source, depsgraph, sm)
-    tgt = _side(target, depsgraph, sm)
-    if src.genus != tgt.genus:
+    # Open meshes (docs/open_surfaces.md) when this core maps them.
+    open_ok = map_job.core_supports(sm, "boundary_pairing")
+    src = _side(source, depsgraph, sm, allow_boundary=open_ok)
+    tgt = _side(target, depsgraph, sm, allow_boundary=open_ok)
+    if src.boundary_loops or tgt.boundary_loops:
+        check_open_pair(source.name, src, target.name, tgt, settings.landmark_mode)
+    elif src.genus != tgt.genus:
         raise ObjectProblem(f"source '{source.name}' has genus {src['genus']} but target "
                             f"'{target.name}' has genus {tgt['genus']}: a map needs equal "
                             f"genus")
     landmarks, lm_desc = _landmarks(settings, source, target, src, tgt)
     outputs = {flag for prop, flag in OUTPUT_FLAGS if getattr(settings, prop)}
     options = MapOptions.from_settings(settings, landmarks, outputs)
+    if src.boundary_loops:   # open pair: the panel's boundary loop correspondence, if any
+        try:
+            options.boundary_pairing = map_job.parse_boundary_pairing(
+                getattr(settings, "boundary_pairing", ""))
+        except ValueError as e:
+            raise ObjectProblem(str(e)) from None
     word = options.unsupported(sm)
     if word is not None:
         raise ObjectProblem(f"this build of the surfmap module does not support {word} yet "
@@ -141,6 +153,44 @@ def prepare_job(context, sm):
     if lm_desc:
         notes.append(lm_desc)
     return MapJob(sm, src, tgt, options), notes
+
+
+def describe_topology(side):
+    """'genus 0 with 2 boundary loops' / 'genus 1 (closed)' of a read side."""
+    b = len(side.boundary_loops)
+    return f"genus {side.genus} " + (f"with {b} boundary loop{'s' if b != 1 else ''}" if b else "(closed)")
+
+
+def check_open_pair(source_name, src, target_name, tgt, landmark_mode):
+    """An open pair: equal genus and number of boundary loops, no landmarks (not supported
+    for open surfaces yet). Raises ObjectProblem naming both."""
+    if (src.genus, len(src.boundary_loops)) != (tgt.genus, len(tgt.boundary_loops)):
+        raise ObjectProblem(f"source '{source_name}' has {describe_topology(src)} but target "
+                            f"'{target_name}' has {describe_topology(tgt)}: a map needs equal "
+                            f"genus and number of boundary loops")
+    if landmark_mode != 'NONE':
+        raise ObjectProblem(f"landmarks are not supported for open surfaces yet "
+                            f"('{source_name}', '{target_name}'): set Landmarks to None")
+
+
+def draw_boundary_loops(context, pairs):
+    """Open meshes: each boundary loop as a cyclic curve on its object, like the cut loops
+    (named '<object> boundary <k>', following the morph's shape keys). pairs: (object, side)."""
+    lines = []
+    bevel_scale = context.scene.surfmap.loop_bevel
+    for ob, side in pairs:
+        if not side.boundary_loops or len(side.V) != len(ob.data.vertices):
+            continue
+        V = np.asarray(side.V, dtype=np.float64)
+        curves = [(f"boundary {k + 1}", V[loop]) for k, loop in enumerate(side.boundary_loops)]
+        one = np.tile([1.0, 0.0, 0.0], (1, 1))
+        weights = [(np.repeat(loop[:, None], 3, axis=1), np.repeat(one, len(loop), axis=0))
+                   for loop in side.boundary_loops]
+        colours = [cut_loops.pair_colour(2 * k) for k in range(len(curves))]
+        bevel = bevel_scale * cut_loops.bounding_diagonal(V)
+        blender_io.add_loop_curves(context.scene, ob, curves, bevel, weights, colours)
+        lines.append(f"boundary loops of '{ob.name}' drawn as {len(curves)} curve(s)")
+    return lines
 
 
 # --- writing -----------------------------------------------------------------------------------
@@ -276,6 +326,8 @@ def write_outputs(context, source, target, src, tgt, out, res, which):
                 item.name, item.title, item.scale = name, title, scale
                 item["lo"], item["hi"] = out["ranges"][name]   # (no recolouring on the way in)
         settings.legend_pair = f"{s_obj.name}\t{t_obj.name}"
+    if src.boundary_loops or tgt.boundary_loops:
+        lines += draw_boundary_loops(context, ((s_obj, src), (t_obj, tgt)))
     for o in (s_obj, t_obj):
         o.data.update()
     return lines
@@ -288,6 +340,10 @@ def _summary(res, elapsed):
     s = (f"genus {res['genus']}, energy {e['initial']:.6g} -> {e['final']:.6g} in "
          f"{res['iterations']} iteration(s), mean D' {res['distortion']['mean']:.4g} (max "
          f"{res['distortion']['max']:.4g}), {res['flipped_triangles']} flipped, {elapsed:.1f}s")
+    if isinstance(res.get("open"), dict):
+        st = res.get("source_topology", {})
+        s += (f", open surfaces ({st.get('description', '')}): {res['open'].get('domain', '')}"
+              f", boundary loops {res['open'].get('boundary_pairing', [])}")
     how = res.get("initial_map", {}).get("construction")
     if how:
         s += f", initial map: {how}"
@@ -377,13 +433,9 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
     def _prepare(self, context):
         self._t_click = time.time()
         sm = surfmap_module(context)
-        try:
+        with errors_reported(self, sm) as r:
             job, notes = prepare_job(context, sm)
-        except ObjectProblem as e:
-            self.report({'ERROR'}, str(e))
-            return None
-        except sm.Error as e:
-            self.report({'ERROR'}, f"surfmap: {e}")
+        if r.failed:
             return None
         self._notes = notes
         job.times["read"] = time.time() - self._t_click
@@ -453,11 +505,13 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
             t_in = time.time()
             getattr(job, "ticks", []).append(t_in)
             if job.done() and not job.cancel and job.error is None:
-                job.step_outputs(self.SLICE)    # one slice per tick: Blender keeps drawing
+                job.step_outputs(self.SLICE)    # no-op: the worker computed the outputs
             context.window_manager.progress_update(int(100 * job.fraction))
             self._status(context, job.status_text() if not job.cancel else
                          "Surface Map: cancelling...")
-            self._redraw(context, every=0.5)
+            # (each sidebar redraw costs the main thread ~0.5 s with software GL on a busy
+            # machine: every 0.5 s halved the UI's tick rate, docs/addon.md)
+            self._redraw(context, every=1.0)
             job.tick_work = getattr(job, "tick_work", []) + [(t_in, time.time() - t_in)]
         if job.done() and (job.cancel or job.error is not None or job.outputs is not None
                            or job.result is None):

@@ -1,10 +1,12 @@
 """The re-runs from the stored correspondence (bpy): surfmap.transfer_uvs, surfmap.create_morph
 and surfmap.paint_distortion write one output again without a solve, from the map stored on
-both objects by compute_map (checked against the meshes' fingerprints)."""
+both objects by compute_map (checked against the meshes' fingerprints);
+surfmap.cut_along_seams makes a copy of the target cut along the images of the source's UV
+seams (uv_transfer.SeamCut) carrying the source's UV map without any face across a seam."""
 import bpy
 import numpy as np
 
-from . import blender_io, map_job
+from . import blender_io, map_job, uv_transfer
 from .ops_common import object_mode, pick_objects
 from .ops_map import read_side, write_outputs
 from .side import ObjectProblem
@@ -128,7 +130,74 @@ class SURFMAP_OT_paint_distortion(_StoredMapOperator, bpy.types.Operator):
     output = "DISTORTION"
 
 
+def cut_along_seams(src, tgt, res, uv_name):
+    """uv_transfer.SeamCut of the target's polygons along the seams of the source's UV map
+    `uv_name`, from the stored map res (forward: per source vertex, inverse: per target
+    vertex)."""
+    tr = uv_transfer.UVTransfer(src.F, src.corner_uvs(src.uv_layers[uv_name]), src.V)
+    inv, fw = res["inverse"], res["forward"]
+    return uv_transfer.SeamCut(tr, tgt.V, tgt.loop_start, tgt.loop_total, tgt.loop_vertex,
+                               inv["face"], inv["barycentric"], fw["face"], fw["barycentric"],
+                               tgt.F, tgt.tri_polygon).run()
+
+
+def cut_object(context, target, cut, name, uv_name):
+    """A new object (the target's transform, materials and collections) with the cut mesh and
+    the UV map `uv_name`; returns it."""
+    me = bpy.data.meshes.new(name)
+    starts, totals = cut.loop_start.tolist(), cut.loop_total.tolist()
+    lv = cut.loop_vertex.tolist()
+    me.from_pydata(cut.V.tolist(), [], [lv[s:s + n] for s, n in zip(starts, totals)])
+    layer = me.uv_layers.new(name=uv_name)
+    layer.data.foreach_set("uv", np.asarray(cut.loop_uv, dtype=np.float32).ravel())
+    me.polygons.foreach_set("use_smooth", [True] * len(me.polygons))
+    for mat in target.data.materials:
+        me.materials.append(mat)
+    me.update()
+    ob = bpy.data.objects.new(name, me)
+    ob.matrix_world = target.matrix_world.copy()
+    for coll in target.users_collection or (context.scene.collection,):
+        coll.objects.link(ob)
+    return ob
+
+
+class SURFMAP_OT_cut_along_seams(bpy.types.Operator):
+    """A copy of the target cut along the images of the source's UV seams, with the source's
+    UV map on it: every face lies in one UV island, so textures show no saw-tooth at seams
+    (new topology; the target itself is unchanged)"""
+    bl_idname = "surfmap.cut_along_seams"
+    bl_label = "Cut Target Along Seams"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        return object_mode(cls, context)
+
+    def execute(self, context):
+        try:
+            source, target, src, tgt, res = stored_pair(context)
+            if not src.uv_layers:
+                raise ObjectProblem(f"the source '{source.name}' has no UV map to cut along")
+            active = source.data.uv_layers.active
+            uv_name = active.name if active is not None and active.name in src.uv_layers \
+                else next(iter(src.uv_layers))
+            cut = cut_along_seams(src, tgt, res, uv_name)
+        except ObjectProblem as e:
+            self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
+        ob = cut_object(context, target, cut, f"{target.name} cut along seams", uv_name)
+        self.report({'INFO'}, f"'{ob.name}': {cut.cut} of {len(tgt.loop_start)} faces of "
+                              f"'{target.name}' cut along the seams of '{source.name}' / "
+                              f"'{uv_name}' ({cut.crossings} vertices on edges, "
+                              f"{cut.junctions} at seam junctions)"
+                    + (f"; {cut.unresolved} faces could not be cut and keep one "
+                       f"continued chart (" + ", ".join(f"{n}: {w}" for w, n in
+                                                       sorted(cut.reasons.items())) + ")"
+                       if cut.unresolved else ""))
+        return {'FINISHED'}
+
+
 classes = (SURFMAP_OT_transfer_uvs, SURFMAP_OT_create_morph,
-           SURFMAP_OT_paint_distortion)
+           SURFMAP_OT_paint_distortion, SURFMAP_OT_cut_along_seams)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

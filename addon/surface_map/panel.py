@@ -149,6 +149,7 @@ def draw_map(layout, settings):
     col.prop(settings, "method")
     col.prop(settings, "source_weights")
     col.prop(settings, "tolerance_text")
+    col.prop(settings, "boundary_pairing")
     row = layout.row()
     row.scale_y = 1.4
     row.operator("surfmap.compute_map", icon='PLAY')
@@ -218,8 +219,10 @@ def draw_outputs(layout, settings, context):
     row.operator("surfmap.create_morph", text="Morph")
     row.operator("surfmap.paint_distortion", text="Colours")
     row = col.row(align=True)
-    row.operator("surfmap.bake_textures", text="Bake Texture", icon='TEXTURE')
-    row.operator("surfmap.verify_map", text="Verify", icon='CHECKMARK')
+    # (half a default-width sidebar holds about 9 characters beside an icon)
+    row.operator("surfmap.bake_textures", text="Bake", icon='TEXTURE')
+    row.operator("surfmap.cut_along_seams", text="Cut Seams", icon='UV')
+    col.operator("surfmap.verify_map", text="Verify", icon='CHECKMARK')
     batch_operators.draw_rows(layout)   # many objects: map onto selected, compare selected
 
 

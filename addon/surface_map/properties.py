@@ -138,6 +138,11 @@ class SURFMAP_PG_settings(bpy.types.PropertyGroup):
                ('OWN', "Own Edges", "The source's own edges (never folds; a little more "
                 "stretch)")),
         description="How the source's edges are weighted in the energy")
+    boundary_pairing: StringProperty(
+        name="Boundary Loops", default="",
+        description="Open meshes: the target boundary loop of each source boundary loop, by "
+                    "index, loops longest first (e.g. '1 0' maps an annulus's loops crosswise); "
+                    "empty: loop i onto loop i")
     write_uvs: BoolProperty(name="UVs", default=True,
                             description="Copy every UV map of the source onto the target")
     write_uvs_before: BoolProperty(

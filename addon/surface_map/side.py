@@ -49,6 +49,7 @@ class MeshSide:
     vertex_groups: Dict[str, Tuple[List[int], List[float]]] = field(default_factory=dict)
     flipped: bool = False                    # the intake reversed the triangles (inward mesh)
     genus: Optional[int] = None
+    boundary_loops: List[np.ndarray] = field(default_factory=list)  # open meshes: vertex loops
     notes: List[str] = field(default_factory=list)
     fingerprint: str = ""
     has_ngons: bool = False

@@ -93,10 +93,16 @@ def uv_islands(F, corner_uv, seams=None):
 def _affine_from(src, dst):
     """2x3 real A with A @ [x, y, 1] mapping the three points src (3,2) onto dst (3,2); None
     when src is degenerate."""
-    S = np.hstack([np.asarray(src, dtype=np.float64), np.ones((3, 1))])
-    if abs(np.linalg.det(S)) < 1e-300:
+    # closed form (a 2x2 inverse): LAPACK calls cost more than the arithmetic at this size
+    s = np.asarray(src, dtype=np.float64)
+    d = np.asarray(dst, dtype=np.float64)
+    E = np.array([s[1] - s[0], s[2] - s[0]]).T          # columns: the source's edges
+    det = E[0, 0] * E[1, 1] - E[0, 1] * E[1, 0]
+    if abs(det) < 1e-300:
         return None
-    return np.linalg.solve(S, np.asarray(dst, dtype=np.float64)).T
+    Einv = np.array([[E[1, 1], -E[0, 1]], [-E[1, 0], E[0, 0]]]) / det
+    M = np.array([d[1] - d[0], d[2] - d[0]]).T @ Einv
+    return np.hstack([M, (d[0] - M @ s[0])[:, None]])
 
 
 def _apply(A, uv):
@@ -412,3 +418,401 @@ def box_projection(V, loop_vertex, loop_start, loop_total):
     cell = a * 2 + (s < 0)
     return np.stack([((cell % 3) + 0.05 + 0.9 * u) / 3.0,
                      ((cell // 3) + 0.05 + 0.9 * v) / 2.0], axis=1)
+
+
+# --- cutting the target along the images of the source's seams ---------------------------------
+
+def _bary2(C, X):
+    """Barycentric coordinates (3,) of the 2D point X in the 2D triangle C (3,2); None when the
+    triangle is degenerate."""
+    d = (C[1, 0] - C[0, 0]) * (C[2, 1] - C[0, 1]) - (C[2, 0] - C[0, 0]) * (C[1, 1] - C[0, 1])
+    if abs(d) < 1e-300:
+        return None
+    l1 = ((X[0] - C[0, 0]) * (C[2, 1] - C[0, 1]) - (C[2, 0] - C[0, 0]) * (X[1] - C[0, 1])) / d
+    l2 = ((C[1, 0] - C[0, 0]) * (X[1] - C[0, 1]) - (X[0] - C[0, 0]) * (C[1, 1] - C[0, 1])) / d
+    return np.array([1.0 - l1 - l2, l1, l2])
+
+
+def _invert(A):
+    """The inverse of the 2x3 affine map A."""
+    a, b, c, d = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
+    M = np.array([[d, -b], [-c, a]]) / (a * d - b * c)
+    return np.hstack([M, (-M @ A[:, 2])[:, None]])
+
+
+class SeamCut:
+    """The target cut along the images of the source's UV seams, so that every piece lies in ONE
+    chart of the source's UV map and the transferred UVs need no continuation (no saw-teeth,
+    no UV polygon reaching into the padding): a new polygon mesh (new topology).
+
+    How: every target edge whose ends' preimages lie in different source triangles is traced
+    on the source as the straight segment between them in the UV chart (continued across seams
+    by UVTransfer's unfolding, docs/addon.md); each seam it crosses becomes a new vertex on the
+    edge (shared by both polygons of the edge), carrying the UVs of both sides. A polygon with
+    crossings on its boundary is split into pieces: by straight chords pairing its crossings
+    (one seam curve through it: two pieces), or, when the image of a seam junction (a source
+    vertex where three or more seams meet, or where one ends) lies in it, into a star around
+    that image. Polygons neither rule resolves keep one chart per polygon (UVTransfer) and are
+    counted in `unresolved`.
+
+    Inputs: tr (UVTransfer of the source map to cut along); V_t (n,3), loop_start/loop_total (P,),
+    loop_vertex (L,): the target's polygons; inv_face (n,), inv_bary (n,3): the preimage of each
+    target vertex; optional fw_face (ns,), fw_bary (ns,3), F_t (mt,3), tri_polygon (mt,): the
+    image of each source vertex on the target's triangles (to place seam junctions).
+    Result (after run()): V (n',3) = V_t followed by the new vertices, loop_start/loop_total/
+    loop_vertex/loop_uv of the new polygons, polygon_origin (P',) the target polygon each piece
+    came from, and counts (cut, pieces, junctions, unresolved, crossings).
+    """
+
+    def __init__(self, tr, V_t, loop_start, loop_total, loop_vertex, inv_face, inv_bary,
+                 fw_face=None, fw_bary=None, F_t=None, tri_polygon=None):
+        self.tr = tr
+        self.Vt = np.asarray(V_t, dtype=np.float64)
+        self.start = np.asarray(loop_start, dtype=np.int64)
+        self.total = np.asarray(loop_total, dtype=np.int64)
+        self.lv = np.asarray(loop_vertex, dtype=np.int64)
+        self.inv_face = np.asarray(inv_face, dtype=np.int64)
+        self.inv_bary = np.asarray(inv_bary, dtype=np.float64)
+        self.junction_at = self._junction_images(fw_face, fw_bary, F_t, tri_polygon)
+        src_scale = float(np.ptp(tr.uv.reshape(-1, 2), axis=0).max()) if len(tr.uv) else 1.0
+        self.uv_tol = 1e-7 * (src_scale if src_scale > 0 else 1.0)
+        self.cut = self.pieces = self.junctions = self.unresolved = self.crossings = 0
+        self.reasons = {}    # why polygons stayed unresolved: reason -> count
+
+    # -- seam junctions ------------------------------------------------------------------------
+
+    def _junction_images(self, fw_face, fw_bary, F_t, tri_polygon):
+        """{target polygon: [(source vertex, 3D image)]} for the source vertices where the
+        seam graph (mesh boundary edges excluded) does not simply pass through: 1 or >= 3
+        seam edges meet there."""
+        if fw_face is None or F_t is None or tri_polygon is None:
+            return {}
+        tr = self.tr
+        F = tr.F
+        fs, ks = np.nonzero(tr.seam & (tr.nf >= 0))
+        a, b = F[fs, ks], F[fs, (ks + 1) % 3]
+        key = np.unique(np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1), axis=0)
+        valence = np.bincount(key.reshape(-1), minlength=int(F.max(initial=-1)) + 1)
+        where = {}
+        F_t = np.asarray(F_t, dtype=np.int64)
+        tri_polygon = np.asarray(tri_polygon, dtype=np.int64)
+        fw_face = np.asarray(fw_face, dtype=np.int64)
+        fw_bary = np.asarray(fw_bary, dtype=np.float64)
+        for s in np.nonzero((valence == 1) | (valence >= 3))[0].tolist():
+            t = int(fw_face[s])
+            if t < 0:
+                continue
+            X = fw_bary[s] @ self.Vt[F_t[t]]
+            where.setdefault(int(tri_polygon[t]), []).append((s, X))
+        return where
+
+    def _junction_uv(self, s, island, near):
+        """UV of source vertex s in the given island, the corner nearest `near` (an island can
+        meet itself at s across a seam)."""
+        tr = self.tr
+        fs, cs = np.nonzero(tr.F == s)
+        best = None
+        for f, c in zip(fs.tolist(), cs.tolist()):
+            if int(tr.island[f]) != island:
+                continue
+            uv = tr.uv[f, c]
+            d = float(np.linalg.norm(uv - near))
+            if best is None or d < best[0]:
+                best = (d, uv)
+        return None if best is None else best[1].copy()
+
+    # -- tracing one target edge on the source -------------------------------------------------
+
+    def trace(self, a, b, max_steps=2000):
+        """Seams crossed by the target edge a -> b (target vertices): a list of
+        (s in (0,1) along the edge, UV on a's side, UV on b's side, island on a's side, island
+        on b's side), or None when the edge cannot be traced (no short path on the source, a
+        mesh boundary in the way, or the trace ends away from b's preimage)."""
+        tr = self.tr
+        uv, nf, ne, seam = tr.uv, tr.nf, tr.ne, tr.seam
+        fa, fb = int(self.inv_face[a]), int(self.inv_face[b])
+        if fa == fb:
+            return []
+        T_b = tr._continue(fa, {fb}).get(fb)
+        # On a curved surface the unfolding depends on the path: the straight segment may
+        # cross other seam edges than the shortest chain did, so b lands a little off its own
+        # UV. Then b is placed by the trace's own chart and traced again (this converges at
+        # once when both cross the same edges; near a seam junction the two sides of the
+        # junction differ by the curvature there, and a trace ending in b's island within
+        # about a triangle of b is taken).
+        own_b = self.inv_bary[b] @ tr.uv[fb]
+        size = float(np.ptp(tr.uv[fb], axis=0).max())
+        best = None
+        for _ in range(4):
+            if T_b is None:
+                break
+            got = self._trace_once(fa, fb, T_b, a, b, max_steps)
+            if got is None:
+                break
+            out, T_end, h = got
+            if tr.island[h] != tr.island[fb]:
+                # b's preimage lies just across a seam from where the straight trace ends
+                # (it is on or next to that seam): the crossing is at b itself
+                k = next((k for k in range(3) if tr.nf[h, k] == fb and tr.seam[h, k]), None)
+                if k is None:
+                    break
+                B = _apply(T_b, own_b[None])
+                out = out + [(1.0 - 1e-6, _apply(_invert(T_end), B)[0], own_b.copy(),
+                              int(tr.island[h]), int(tr.island[fb]))]
+                T_end = _compose(T_end, tr._seam_step(h, k))
+                h = fb
+            miss = float(np.abs(_apply(_invert(T_end), _apply(T_b, own_b[None]))[0]
+                                - own_b).max())
+            if best is None or miss < best[0]:
+                best = (miss, out)
+            if miss <= 1e-12:
+                break
+            T_b = T_end
+        if best is None or best[0] > 2 * size:
+            return None
+        return best[1]
+
+    def _trace_once(self, fa, fb, T_b, a, b, max_steps):
+        """One straight trace from a's preimage to b's placed by the chart transform T_b:
+        (crossings, chart transform of the triangle it ends in, that triangle) or None."""
+        tr = self.tr
+        uv, nf, ne, seam = tr.uv, tr.nf, tr.ne, tr.seam
+        ba, bb = self.inv_bary[a], self.inv_bary[b]
+        A = ba @ uv[fa]
+        B = _apply(T_b, (bb @ uv[fb])[None])[0]
+        h, T_h, s, came = fa, IDENTITY, 0.0, -1
+        out = []
+        for _ in range(max_steps):
+            C = _apply(T_h, uv[h])
+            la, lb = _bary2(C, A), _bary2(C, B)
+            if la is None:
+                return None
+            if np.all(lb >= -1e-12):
+                break
+            # leave h where a barycentric coordinate falls to zero (edge k = corner k+1 -> k+2
+            # is opposite corner k+2 ... so corner i's coordinate vanishes on edge (i+1) % 3)
+            exit_s, exit_k = None, None
+            for i in range(3):
+                k = (i + 1) % 3
+                if k == came or lb[i] >= la[i] or lb[i] >= 0:
+                    continue
+                si = la[i] / (la[i] - lb[i])
+                if si >= s - 1e-12 and (exit_s is None or si < exit_s):
+                    exit_s, exit_k = si, k
+            if exit_k is None:
+                return None
+            g = int(nf[h, exit_k])
+            if g < 0:
+                return None
+            if seam[h, exit_k]:
+                T_g = _compose(T_h, tr._seam_step(h, exit_k))
+                X = A + exit_s * (B - A)
+                out.append((float(min(max(exit_s, 1e-9), 1 - 1e-9)),
+                            _apply(_invert(T_h), X[None])[0], _apply(_invert(T_g), X[None])[0],
+                            int(tr.island[h]), int(tr.island[g])))
+                T_h = T_g
+            came = int(ne[h, exit_k])
+            h, s = g, exit_s
+        else:
+            return None
+        return out, T_h, h
+
+    # -- cutting -------------------------------------------------------------------------------
+
+    def run(self):
+        """Cuts every polygon; fills the result fields (see the class doc)."""
+        nv0 = len(self.Vt)
+        new_V = []
+        edge_x = self._edges_without_crossings()
+        # (lo, hi) -> [(s from lo, uv lo side, uv hi side, isl lo, isl hi, new vertex)]
+        ls, lt, lvo, luv, origin = [], [], [], [], []
+        fallback = []
+        tr = self.tr
+        naive = tr.naive(self.inv_face, self.inv_bary)    # per target vertex, its own chart
+        for p in range(len(self.start)):
+            s0, n = int(self.start[p]), int(self.total[p])
+            verts = self.lv[s0:s0 + n].tolist()
+            ring = []      # entries: [vertex, uv_in, uv_out, island_in, island_out, crossing]
+            ok = True
+            for c in range(n):
+                a, b = verts[c], verts[(c + 1) % n]
+                isl = int(tr.island[self.inv_face[a]])
+                ring.append([a, naive[a], naive[a], isl, isl, False])
+                key = (min(a, b), max(a, b))
+                if key not in edge_x:
+                    xs = self.trace(*key)
+                    if xs is not None:
+                        P0, P1 = self.Vt[key[0]], self.Vt[key[1]]
+                        xs = [x + (nv0 + len(new_V) + i,) for i, x in enumerate(xs)]
+                        new_V += [P0 + x[0] * (P1 - P0) for x in xs]
+                        self.crossings += len(xs)
+                    edge_x[key] = xs
+                xs = edge_x[key]
+                if xs is None:
+                    ok = False
+                    break
+                if a < b:
+                    ring += [[x[5], x[1], x[2], x[3], x[4], True] for x in xs]
+                else:
+                    ring += [[x[5], x[2], x[1], x[4], x[3], True] for x in reversed(xs)]
+            pieces = self._pieces(p, ring, new_V, nv0) if ok else None
+            if not ok:
+                self._why("an edge could not be traced")
+            if pieces is None:
+                self.unresolved += 1
+                fallback.append(p)
+                pieces = [None]
+            elif len(pieces) > 1:
+                self.cut += 1
+            for piece in pieces:
+                ls.append(len(lvo))
+                origin.append(p)
+                if piece is None:
+                    lt.append(n)
+                    lvo += verts
+                    luv += [None] * n          # filled from UVTransfer below
+                    continue
+                lt.append(len(piece))
+                lvo += [v for v, _ in piece]
+                luv += [uv for _, uv in piece]
+                self.pieces += 1
+        if fallback:
+            lf = self.inv_face[self.lv]
+            lb = self.inv_bary[self.lv]
+            idx = np.concatenate([np.arange(self.start[p], self.start[p] + self.total[p])
+                                  for p in fallback])
+            sub_start = np.concatenate([[0], np.cumsum(self.total[fallback])[:-1]])
+            uv_fb, _ = tr.polygon_uvs(lf[idx], lb[idx], sub_start, self.total[fallback])
+            k = 0
+            for i, u in enumerate(luv):
+                if u is None:
+                    luv[i] = uv_fb[k]
+                    k += 1
+        self.V = np.vstack([self.Vt] + ([np.asarray(new_V)] if new_V else []))
+        self.loop_start = np.asarray(ls, dtype=np.int64)
+        self.loop_total = np.asarray(lt, dtype=np.int64)
+        self.loop_vertex = np.asarray(lvo, dtype=np.int64)
+        self.loop_uv = np.asarray(luv, dtype=np.float64).reshape(-1, 2)
+        self.polygon_origin = np.asarray(origin, dtype=np.int64)
+        return self
+
+    def _edges_without_crossings(self, factor=1.5):
+        """{(lo, hi): []} for the target edges that need no trace: both ends' preimages in one
+        triangle, or in one island with a UV distance within `factor` times the larger
+        UV-per-length ratio of their two triangles times their 3D distance (a straight
+        segment inside the island is that short; one that jumps across a seam of the island
+        with itself is as long as the island)."""
+        tr = self.tr
+        nxt = np.arange(len(self.lv)) + 1
+        nxt[self.start + self.total - 1] = self.start
+        a, b = self.lv, self.lv[nxt]
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        f_lo, f_hi = self.inv_face[lo], self.inv_face[hi]
+        easy = f_lo == f_hi
+        if tr.V is not None:
+            ratio = uv_stretch(tr.uv, tr.V[tr.F])
+            P_lo = points_at(tr.V, tr.F, f_lo, self.inv_bary[lo])
+            P_hi = points_at(tr.V, tr.F, f_hi, self.inv_bary[hi])
+            naive = tr.naive(self.inv_face, self.inv_bary)
+            du = np.linalg.norm(naive[hi] - naive[lo], axis=1)
+            dx = np.linalg.norm(P_hi - P_lo, axis=1)
+            local = np.maximum(ratio[f_lo], ratio[f_hi])
+            easy |= (tr.island[f_lo] == tr.island[f_hi]) & (du <= factor * local * dx)
+        return {(int(x), int(y)): [] for x, y in zip(lo[easy], hi[easy])}
+
+    def _pieces(self, p, ring, new_V, nv0):
+        """The pieces [(vertex, uv)] of polygon p from its ring (corners and crossings in
+        order); None when unresolved."""
+        xs = [i for i, e in enumerate(ring) if e[5]]
+        junction = self.junction_at.get(p, [])
+        if len(junction) > 1:
+            return self._why("several seam junctions in one face")
+        if junction and xs:
+            return self._star(ring, xs, junction[0], new_V, nv0)
+        if not xs:
+            return [[(e[0], e[2]) for e in ring]]
+        if len(xs) % 2:
+            return self._why("an odd number of crossings and no junction")
+        return self._chords(ring)
+
+    def _why(self, reason):
+        self.reasons[reason] = self.reasons.get(reason, 0) + 1
+        return None
+
+    @staticmethod
+    def _arc(ring, i, j):
+        """Ring entries from crossing i to crossing j (cyclic) as (vertex, uv): i's uv_out,
+        the entries between with their one UV, j's uv_in."""
+        n = len(ring)
+        out = [(ring[i][0], ring[i][2])]
+        k = (i + 1) % n
+        while k != j:
+            out.append((ring[k][0], ring[k][2]))
+            k = (k + 1) % n
+        out.append((ring[j][0], ring[j][1]))
+        return out
+
+    def _chords(self, ring):
+        """Peels pieces bounded by one arc and one chord between consecutive crossings, the
+        chord whose two crossings see the same region outside it and the same seam (the UV
+        jump across the chord agrees at both ends), until two crossings remain."""
+        ring = [list(e) for e in ring]
+        pieces = []
+        while True:
+            xs = [i for i, e in enumerate(ring) if e[5]]
+            if len(xs) == 2:
+                i, j = xs
+                for a, b in ((i, j), (j, i)):
+                    arc = self._arc(ring, a, b)
+                    if len(arc) >= 3:
+                        pieces.append(arc)
+                return pieces
+            best = None
+            for t in range(len(xs)):
+                i, j = xs[t], xs[(t + 1) % len(xs)]
+                if ring[i][3] != ring[j][4]:
+                    continue
+                # the UV jump across the chord, arc side -> outside: in - out at i, out - in
+                # at j (equal when the seam's identification is a translation)
+                mism = float(np.linalg.norm((ring[i][1] - ring[i][2])
+                                            - (ring[j][2] - ring[j][1])))
+                if best is None or mism < best[0]:
+                    best = (mism, i, j)
+            if best is None:
+                return self._why("no consistent chord")
+            _, i, j = best
+            arc = self._arc(ring, i, j)
+            if len(arc) >= 3:
+                pieces.append(arc)
+            # the remainder: i and j become plain points seen from outside the chord
+            ring[i] = [ring[i][0], ring[i][1], ring[i][1], ring[i][3], ring[i][3], False]
+            ring[j] = [ring[j][0], ring[j][2], ring[j][2], ring[j][4], ring[j][4], False]
+            n = len(ring)
+            drop = set()
+            k = (i + 1) % n
+            while k != j:
+                drop.add(k)
+                k = (k + 1) % n
+            ring = [e for k, e in enumerate(ring) if k not in drop]
+
+    def _star(self, ring, xs, junction, new_V, nv0):
+        """Pieces around the image J of a seam junction: one per arc between consecutive
+        crossings, closed through J (with J's UV in that arc's island)."""
+        s, X = junction
+        jv = nv0 + len(new_V)
+        pieces = []
+        for t in range(len(xs)):
+            i, j = xs[t], xs[(t + 1) % len(xs)]
+            arc = self._arc(ring, i, j)
+            uv_j = self._junction_uv(s, ring[i][4], arc[0][1])
+            if uv_j is None:
+                return self._why("a junction without a corner in the face's island")
+            if len(xs) == 1 and len(arc) >= 4:
+                # one seam ending inside: split the arc (which goes all around) at a corner
+                m = len(arc) // 2
+                pieces += [arc[:m + 1] + [(jv, uv_j)], arc[m:] + [(jv, uv_j)]]
+            else:
+                pieces.append(arc + [(jv, uv_j)])
+        new_V.append(np.asarray(X, dtype=np.float64))
+        self.junctions += 1
+        return pieces

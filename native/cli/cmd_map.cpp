@@ -60,6 +60,8 @@ void register_map(CLI::App& app) {
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
     double tolerance = 1e-10;
     bool quiet = false, no_homotopy_search = false, no_two_way = false;
+    bool boundary_swap = false;          // open surfaces (map_open.h)
+    std::vector<int> boundary_pairing;  // open surfaces (map_open.h)
   };
   auto a = std::make_shared<Args>();
   cmd->add_option("SRC", a->src, "Source mesh")->required();
@@ -105,11 +107,20 @@ void register_map(CLI::App& app) {
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--no-two-way", a->no_two_way,
                 "Genus >= 2: do not map the other way when the energy is far above the conformal bound (report: quality)");
+  cmd->add_flag("--boundary-swap", a->boundary_swap,
+               "Open annuli: map the source's boundary loop 0 (the longer) onto the target's loop 1 (docs/open_surfaces.md)");
+  cmd->add_option("--boundary-pairing", a->boundary_pairing,
+                  "Open surfaces: the target boundary loop of each source loop, by index (loops longest first; "
+                  "e.g. '1 0' or '1,0'; default: loop i -> loop i)")
+      ->delimiter(',');
   cmd->add_flag("--quiet", a->quiet, "No progress lines on stderr");
   cmd->callback([a] {
     // Open surfaces (issue 16): map_open.h handles pairs with a boundary.
-    if (map_open_pair({a->src, a->dst, a->out, a->report, a->correspondence, a->initial_out, a->quiet, !a->landmarks.empty()}))
+    if (map_open_pair({a->src, a->dst, a->out, a->report, a->correspondence, a->initial_out, a->quiet,
+                       !a->landmarks.empty(), a->boundary_swap, a->boundary_pairing}))
       return;
+    if (a->boundary_swap || !a->boundary_pairing.empty())
+      throw InputError("--boundary-swap / --boundary-pairing: only for open surfaces (meshes with boundary loops)");
     const IntakeResult src = load_mesh(a->src), dst = load_mesh(a->dst);
     check_same_genus(src.info, dst.info);
     SurfaceMapOptions opt;
@@ -117,12 +128,12 @@ void register_map(CLI::App& app) {
     opt.loops.source_base_vertex = a->base_vertex;
     opt.loops.target_base_vertex = a->target_base_vertex;
     opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
-    opt.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
+    opt.solve.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
     opt.solve.tolerance = a->tolerance;
     opt.solve.max_iterations = a->max_iterations;
     opt.homotopy.candidates = a->homotopy_candidates;
     opt.homotopy.full_solves = a->homotopy_full_solves;
-    opt.initial_map = parse_enum<InitialMapMethod>(a->initial, "--initial-map");
+    opt.initial.method = parse_enum<InitialMapMethod>(a->initial, "--initial-map");
     opt.homotopy.extra_cuts = a->homotopy_extra_cuts;
     opt.homotopy.search.enabled = !a->no_homotopy_search;
     opt.homotopy.search.evaluations = a->homotopy_search_evaluations;

@@ -33,7 +33,15 @@ bool map_open_pair(const OpenMapCliArgs& a) {
   if (a.landmarks) throw InputError("--landmarks: not supported for open surfaces yet");
   if (!a.initial_out.empty()) throw InputError("--initial-out: open surfaces have no initial map");
   if (!a.quiet) std::cerr << "surfmap: open surfaces, " << src.topology.describe() << "\n";
-  const OpenMapResult r = open_surface_map(src.intake.mesh, src.topology, dst.intake.mesh, dst.topology);
+  OpenMapOptions options;
+  if (a.boundary_swap && !a.boundary_pairing.empty())
+    throw InputError("--boundary-swap and --boundary-pairing: give one of them");
+  options.swap_annulus_loops = a.boundary_swap;
+  if (a.boundary_swap && src.topology.num_boundary_loops() != 2)
+    throw InputError("--boundary-swap: only for annuli (2 boundary loops); the surfaces have " +
+                     src.topology.describe() + "; use --boundary-pairing");
+  options.boundary_pairing = a.boundary_pairing;
+  const OpenMapResult r = open_surface_map(src.intake.mesh, src.topology, dst.intake.mesh, dst.topology, options);
   const SurfaceMapResult& m = r.map;
 
   RowMatrixX3d morph(src.intake.mesh.num_vertices(), 3);
@@ -41,33 +49,11 @@ bool map_open_pair(const OpenMapCliArgs& a) {
   nlohmann::json notes = nlohmann::json::array();
   for (const auto* x : {&src, &dst})
     for (const auto& n : x->intake.info.notes) notes.push_back((x == &src ? "source: " : "target: ") + n);
-  auto domain_json = [](const OpenConformalResult& d) {
-    return nlohmann::json{{"modulus", d.modulus},          {"modulus_from_u", d.modulus_from_u},
-                          {"modulus_from_theta", d.modulus_from_theta}, {"pole", d.pole},
-                          {"centring_iterations", d.centring_iterations}, {"flipped_faces", d.flipped_faces},
-                          {"degenerate_faces", d.degenerate_faces}};
-  };
-  const nlohmann::json report = {
-      {"source", a.src},
-      {"target", a.dst},
-      {"genus", src.topology.genus},
-      {"boundary_loops", src.topology.num_boundary_loops()},
-      {"open",
-       {{"domain", r.domain},
-        {"rotation", r.rotation},
-        {"extremal_dilatation", r.extremal_dilatation},
-        {"ear_triangles", r.ear_triangles},
-        {"ear_triangles_degenerate", r.ear_triangles_degenerate},
-        {"source", domain_json(r.source_domain)},
-        {"target", domain_json(r.target_domain)},
-        {"description", m.candidates.empty() ? std::string() : m.candidates[0].description}}},
-      {"converged", m.converged},
-      {"energy", {{"final", m.final_energy}}},
-      {"distortion", {{"mean", m.mean_dilatation}, {"max", m.max_dilatation}}},
-      {"flipped_triangles", m.flipped_triangles},
-      {"degenerate_triangles", m.degenerate_triangles},
-      {"time_s", {{"total", m.total_time}}},
-      {"notes", notes}};
+  // The one serializer (map/open_map.h), plus the files and intake notes.
+  nlohmann::json report = to_json(r, options);
+  report["source"] = a.src;
+  report["target"] = a.dst;
+  report["notes"] = notes;
   std::string corr;
   if (!a.correspondence.empty()) {
     std::ostringstream s;

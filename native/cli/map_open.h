@@ -2,12 +2,17 @@
 // `surfmap map` for open surfaces (issue 16, docs/open_surfaces.md): called
 // first by cmd_map.cpp; closed pairs return false and take the usual path.
 #include <string>
+#include <vector>
 
 namespace surfmap::cli {
 
 struct OpenMapCliArgs {
   std::string src, dst, out, report, correspondence, initial_out;
   bool quiet = false, landmarks = false;
+  /// --boundary-swap (annuli: source loop 0 -> target loop 1) and
+  /// --boundary-pairing (target loop of each source loop, by index).
+  bool boundary_swap = false;
+  std::vector<int> boundary_pairing;
 };
 
 /// When either mesh has a boundary: validates both (same genus and number of

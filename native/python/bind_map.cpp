@@ -7,8 +7,10 @@
 #include "surfmap/error.h"
 #include "surfmap/map/map_option_names.h"
 #include "surfmap/map/map_report.h"
+#include "surfmap/map/open_map.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/intake.h"
+#include "surfmap/mesh/open_surface.h"
 
 namespace py = pybind11;
 
@@ -55,6 +57,96 @@ py::object json_to_python(const nlohmann::json& j) {
   }
 }
 
+PolygonSoup to_soup(const RowMatrixX3d& V, const RowMatrixX3i& F) {
+  PolygonSoup soup;
+  soup.V = V;
+  soup.polygons.resize(F.rows());
+  for (int f = 0; f < F.rows(); ++f) soup.polygons[f] = {F(f, 0), F(f, 1), F(f, 2)};
+  return soup;
+}
+
+// The result dict of a map (both closed and open pairs): the report JSON plus
+// the per-vertex and per-face arrays as numpy arrays.
+py::dict result_dict(const nlohmann::json& report, const SurfaceMapResult& r) {
+  py::dict d = json_to_python(report);
+  d["distortion"].cast<py::dict>()["per_face"] = to_numpy(r.dilatation);
+  d["initial_distortion"].cast<py::dict>()["per_face"] = to_numpy(r.initial_dilatation);
+  d["forward"] = points_to_dict(r.forward);
+  d["inverse"] = points_to_dict(r.inverse);
+  // The initial map located on the target (None for genus 0, open surfaces
+  // or when it could not be located).
+  d["initial_forward"] = r.initial_forward.empty() ? py::object(py::none()) : py::object(points_to_dict(r.initial_forward));
+  d["initial_inverse"] = r.initial_inverse.empty() ? py::object(py::none()) : py::object(points_to_dict(r.initial_inverse));
+  return d;
+}
+
+// `boundary_pairing` of surface_map: None (loop i -> loop i), "swap" (annuli:
+// loop 0 <-> loop 1) or the target loop of each source loop by index.
+void parse_boundary_pairing(const py::object& pairing, OpenMapOptions& options) {
+  if (pairing.is_none()) return;
+  if (py::isinstance<py::str>(pairing)) {
+    if (pairing.cast<std::string>() != "swap")
+      throw InputError("boundary_pairing must be None, 'swap' or a list of target loop indices, not '" +
+                       pairing.cast<std::string>() + "'");
+    options.swap_annulus_loops = true;
+    return;
+  }
+  try {
+    options.boundary_pairing = py::cast<std::vector<int>>(
+        py::module_::import("numpy").attr("asarray")(pairing, "int64").attr("reshape")(-1).attr("tolist")());
+  } catch (const py::cast_error&) {
+    throw InputError("boundary_pairing must be None, 'swap' or a list of target loop indices");
+  }
+}
+
+// surface_map for a pair with boundary (docs/open_surfaces.md): disks and
+// annuli through map/open_map.h. Runs with the GIL held except the solve.
+py::dict open_surface_map_dict(const RowMatrixX3d& vs, const RowMatrixX3i& fs, const RowMatrixX3d& vt,
+                               const RowMatrixX3i& ft, const py::object& boundary_pairing,
+                               const py::object& landmarks, const py::object& progress) {
+  if (!landmarks.is_none()) throw InputError("landmarks: not supported for open surfaces yet");
+  OpenMapOptions options;
+  parse_boundary_pairing(boundary_pairing, options);
+  // Progress: one call before and one after (the open map is two sparse
+  // solves per side); False cancels like the closed map.
+  auto report_progress = [&](double fraction) {
+    if (progress.is_none()) return;
+    const py::object r = progress("open surface map", fraction);
+    if (!(r.is_none() || r.cast<bool>())) throw Cancelled("cancelled by the progress callback");
+  };
+  report_progress(0.0);
+  OpenMapResult r;
+  {
+    py::gil_scoped_release release;
+    auto load = [](const RowMatrixX3d& V, const RowMatrixX3i& F, const char* side) {
+      try {
+        return intake_open(to_soup(V, F));
+      } catch (const InputError& e) {
+        throw InputError(std::string(side) + ": " + e.what());
+      }
+    };
+    const OpenIntakeResult src = load(vs, fs, "source"), dst = load(vt, ft, "target");
+    try {
+      check_same_open_topology(src.topology, dst.topology);
+    } catch (const InputError& e) {
+      // A closed surface against an open one: say first which side is open.
+      const int bs = src.topology.num_boundary_loops(), bt = dst.topology.num_boundary_loops();
+      const std::string side = (bs == 0) != (bt == 0) ? (bs ? "source: open surface; " : "target: open surface; ") : "";
+      throw InputError(side + e.what() + " (open surfaces: docs/open_surfaces.md)");
+    }
+    r = open_surface_map(src.intake.mesh, src.topology, dst.intake.mesh, dst.topology, options);
+  }
+  report_progress(1.0);
+  py::dict d = result_dict(to_json(r, options), r.map);
+  d["source_flipped"] = false;  // open meshes are never reoriented
+  d["target_flipped"] = false;
+  return d;
+}
+
+bool has_boundary(const RowMatrixX3d& V, const RowMatrixX3i& F) {
+  return inspect(to_soup(V, F)).num_boundary_loops > 0;
+}
+
 }  // namespace
 
 void bind_map(py::module_& m) {
@@ -64,16 +156,24 @@ void bind_map(py::module_& m) {
   m.attr("CAPABILITIES") = py::frozenset(py::make_tuple(
       "homotopy", "landmarks", "method", "tolerance", "max_iterations", "solve_progress", "homotopy_candidates",
       "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
-      "progress", "source_base_vertex", "target_base_vertex", "two_way"));
+      "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way"));
   m.def(
       "surface_map",
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
          int target_base_vertex, py::object progress, py::object landmarks, const std::string& method,
          double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
          int homotopy_full_solves, const std::string& initial_map, const std::string& source_weights,
-         bool homotopy_search, int homotopy_search_evaluations, bool two_way) {
+         bool homotopy_search, int homotopy_search_evaluations, py::object boundary_pairing, bool two_way) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
+        // Open surfaces (issue 16): either side with a boundary.
+        bool open = false;
+        {
+          py::gil_scoped_release release;
+          open = has_boundary(vs, fs) || has_boundary(vt, ft);
+        }
+        if (open) return open_surface_map_dict(vs, fs, vt, ft, boundary_pairing, landmarks, progress);
+        if (!boundary_pairing.is_none()) throw InputError("boundary_pairing: only for open surfaces (meshes with boundary loops)");
         SurfaceMapOptions opt;
         opt.homotopy.class_index = homotopy;
         opt.loops.source_base_vertex = source_base_vertex;
@@ -91,8 +191,8 @@ void bind_map(py::module_& m) {
         opt.homotopy.search.enabled = homotopy_search;
         opt.homotopy.search.evaluations = homotopy_search_evaluations;
         opt.homotopy.two_way = two_way;  // (options.homotopy.two_way)
-        opt.initial_map = parse_enum<InitialMapMethod>(initial_map, "initial_map");
-        opt.source_weights = parse_enum<SourceWeights>(source_weights, "source_weights");
+        opt.initial.method = parse_enum<InitialMapMethod>(initial_map, "initial_map");
+        opt.solve.source_weights = parse_enum<SourceWeights>(source_weights, "source_weights");
         if (!landmarks.is_none()) {
           const auto pairs = py::cast<std::vector<std::vector<long long>>>(
               py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
@@ -140,15 +240,7 @@ void bind_map(py::module_& m) {
         }
         // The report's keys and values (map/map_report.h, as the CLI's
         // --report file), plus the arrays as numpy arrays.
-        py::dict d = json_to_python(to_json(r, opt));
-        d["distortion"].cast<py::dict>()["per_face"] = to_numpy(r.dilatation);
-        d["initial_distortion"].cast<py::dict>()["per_face"] = to_numpy(r.initial_dilatation);
-        d["forward"] = points_to_dict(r.forward);
-        d["inverse"] = points_to_dict(r.inverse);
-        // The initial map located on the target (None for genus 0 or when it
-        // could not be located).
-        d["initial_forward"] = r.initial_forward.empty() ? py::object(py::none()) : py::object(points_to_dict(r.initial_forward));
-        d["initial_inverse"] = r.initial_inverse.empty() ? py::object(py::none()) : py::object(points_to_dict(r.initial_inverse));
+        py::dict d = result_dict(to_json(r, opt), r);
         d["source_flipped"] = src.flipped;
         d["target_flipped"] = dst.flipped;
         return d;
@@ -158,8 +250,15 @@ void bind_map(py::module_& m) {
       py::arg("landmarks") = py::none(), py::arg("method") = enum_name(MapMethod::Newton), py::arg("tolerance") = 1e-10,
       py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
       py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = enum_name(SourceWeights::Automatic),
-      py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24, py::arg("two_way") = true,
-      "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Returns a dict "
+      py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
+      py::arg("boundary_pairing") = py::none(), py::arg("two_way") = true,
+      "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
+      "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
+      "boundary loops (else InputError naming both); disks (0, 1) and annuli (0, 2) are mapped boundary onto boundary "
+      "with the same result dict plus 'source_topology' / 'target_topology' ({genus, boundary_loops, description}) and "
+      "'open' (domain, rotation, moduli, extremal_dilatation, boundary_pairing); `boundary_pairing`: None (loop i -> "
+      "loop i, loops longest first), 'swap' (annuli) or the target loop of each source loop; the closed-map options "
+      "(homotopy, method, ...) do not apply, landmarks are refused. Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
       "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "
       "(source vertex, target vertex) pairs held fixed; `method`: 'newton' or 'relaxation'; "

@@ -3,6 +3,7 @@
 
 #include "surfmap/mesh/intake.h"
 #include "surfmap/mesh/mesh_io.h"
+#include "surfmap/mesh/open_surface.h"
 
 namespace py = pybind11;
 
@@ -62,6 +63,26 @@ py::dict intake_to_dict(const IntakeResult& r) {
   return d;
 }
 
+// intake(..., allow_boundary=True): closed meshes as intake(); open ones
+// through intake_open (never flipped), with the genus of the open surface
+// and its boundary loops (mesh/open_surface.h).
+py::dict intake_maybe_open(const PolygonSoup& soup) {
+  if (inspect(soup).num_boundary_loops == 0) {
+    py::dict d = intake_to_dict(intake(soup));
+    d["boundary_loops"] = py::list();
+    return d;
+  }
+  const OpenIntakeResult r = intake_open(soup);
+  py::dict d = intake_to_dict(r.intake);
+  d["info"]["genus"] = r.topology.genus;
+  d["info"]["num_boundary_loops"] = r.topology.num_boundary_loops();
+  d["info"]["topology"] = r.topology.describe();
+  py::list loops;
+  for (const auto& loop : r.topology.boundary_loops) loops.append(to_numpy(loop));
+  d["boundary_loops"] = loops;
+  return d;
+}
+
 }  // namespace
 
 void bind_mesh(py::module_& m) {
@@ -70,9 +91,16 @@ void bind_mesh(py::module_& m) {
       py::arg("V"), py::arg("faces"),
       "Counts, genus and problems of a mesh; never raises for bad topology.");
   m.def(
-      "intake", [](py::handle V, py::handle faces) { return intake_to_dict(intake(to_soup(V, faces))); },
-      py::arg("V"), py::arg("faces"),
-      "Validates, triangulates and orients a mesh outward; raises InputError naming the problem.");
+      "intake",
+      [](py::handle V, py::handle faces, bool allow_boundary) {
+        const PolygonSoup soup = to_soup(V, faces);
+        return allow_boundary ? intake_maybe_open(soup) : intake_to_dict(intake(soup));
+      },
+      py::arg("V"), py::arg("faces"), py::arg("allow_boundary") = false,
+      "Validates, triangulates and orients a mesh outward; raises InputError naming the problem. "
+      "allow_boundary=True accepts open surfaces (docs/open_surfaces.md): never flipped, info['genus'] is g of "
+      "chi = 2 - 2g - b, and 'boundary_loops' lists each loop's vertex indices (longest first, surface on the "
+      "left; empty for a closed mesh).");
   m.def(
       "load_mesh", [](const std::string& path) { return intake_to_dict(load_mesh(path)); }, py::arg("path"),
       "Reads (OBJ/OFF/PLY/STL) and validates a mesh file.");

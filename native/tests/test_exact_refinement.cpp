@@ -196,14 +196,14 @@ TEST(SourceWeights, FoldingSourceFallsBackToPositiveOwnEdgeWeights) {
   const TriMesh t = samples::amphora(36, true);
   SurfaceMapOptions o;
   o.homotopy.candidates = 1;
-  o.source_weights = SourceWeights::IntrinsicDelaunay;
+  o.solve.source_weights = SourceWeights::IntrinsicDelaunay;
   try {
     surface_map(s, t, o);
     ADD_FAILURE() << "the fixture should fold with the intrinsic weights";
   } catch (const SolveError& e) {
     EXPECT_NE(std::string(e.what()).find("flipped"), std::string::npos) << e.what();
   }
-  o.source_weights = SourceWeights::Automatic;
+  o.solve.source_weights = SourceWeights::Automatic;
   const SurfaceMapResult m = surface_map(s, t, o);
   EXPECT_EQ(m.source_weights, "positive on the source's own edges");
   EXPECT_EQ(m.flipped_triangles, 0);
@@ -214,7 +214,7 @@ TEST(SourceWeights, FoldingSourceFallsBackToPositiveOwnEdgeWeights) {
   ASSERT_EQ(static_cast<int>(m.forward.size()), s.num_vertices());
   for (double d : m.dilatation) EXPECT_TRUE(std::isfinite(d));
   // The same as asking for the own-edge weights directly.
-  o.source_weights = SourceWeights::OwnEdges;
+  o.solve.source_weights = SourceWeights::OwnEdges;
   const SurfaceMapResult m2 = surface_map(s, t, o);
   // Same weights, same convex problem: equal optima to the solve tolerance
   // (other weights differ by percents).

@@ -36,7 +36,7 @@ struct Seen {
 SurfaceMapResult map_and_inspect(const TriMesh& a, const TriMesh& b, InitialMapMethod method, Seen* seen) {
   SurfaceMapOptions o;
   o.homotopy.class_index = 0;  // the overlay class (identity of a remeshed copy): no ranking needed
-  o.initial_map = method;
+  o.initial.method = method;
   testing::MapHooks hooks;
   hooks.inspect_initial_map = [&](const InitialMapInspection& in) {
     seen->rho = *in.halfedge_rho;
@@ -144,7 +144,7 @@ TEST(PolygonInitialMap, IsometryInvariantFlatteningFlipsNoFaceWhereKleinTutteDoe
   PolygonInitialMapResult kept;
   SurfaceMapOptions o;
   o.homotopy.class_index = 0;
-  o.initial_map = InitialMapMethod::Polygon;
+  o.initial.method = InitialMapMethod::Polygon;
   testing::MapHooks hooks;
   hooks.inspect_initial_map = [&](const InitialMapInspection& in) {
     for (int rounds : {0, 3}) {

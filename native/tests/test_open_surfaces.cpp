@@ -329,5 +329,37 @@ TEST(OpenSurfaces, EarTrianglesAreDegenerateNotFlipped) {
   EXPECT_NEAR(r.map.mean_dilatation / r.extremal_dilatation, 1.0, 0.01);
 }
 
+TEST(OpenSurfaces, BoundaryPairingByIndexIsTheSwapAndTheReportNamesBothSides) {
+  const TriMesh s = tube(40, 10, 1.0), t = tube(36, 16, 2.0);
+  const OpenSurfaceTopology ts = open_surface_topology(s), tt = open_surface_topology(t);
+  OpenMapOptions swap, by_index;
+  swap.swap_annulus_loops = true;
+  by_index.boundary_pairing = {1, 0};
+  const OpenMapResult a = open_surface_map(s, ts, t, tt, swap), b = open_surface_map(s, ts, t, tt, by_index);
+  EXPECT_EQ(a.boundary_pairing, (std::vector<int>{1, 0}));
+  EXPECT_EQ(b.boundary_pairing, (std::vector<int>{1, 0}));
+  for (int v = 0; v < s.num_vertices(); ++v)
+    EXPECT_LT((a.map.forward[v].position - b.map.forward[v].position).norm(), 1e-12);
+  const nlohmann::json report = to_json(b, by_index);
+  EXPECT_EQ(report["source_topology"]["genus"], 0);
+  EXPECT_EQ(report["source_topology"]["boundary_loops"], 2);
+  EXPECT_EQ(report["target_topology"]["boundary_loops"], 2);
+  EXPECT_EQ(report["open"]["boundary_pairing"], nlohmann::json::array({1, 0}));
+  EXPECT_EQ(report["method"], "open");
+  EXPECT_EQ(report["flipped_triangles"], b.map.flipped_triangles);
+  EXPECT_DOUBLE_EQ(report["distortion"]["mean"].get<double>(), b.map.mean_dilatation);
+  // Not a permutation: one line naming the pairing.
+  for (const std::vector<int>& bad : {std::vector<int>{0, 0}, std::vector<int>{0}, std::vector<int>{0, 2}}) {
+    OpenMapOptions o;
+    o.boundary_pairing = bad;
+    try {
+      open_surface_map(s, ts, t, tt, o);
+      ADD_FAILURE() << "accepted a bad pairing";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("boundary pairing ["), std::string::npos) << e.what();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace surfmap

@@ -134,7 +134,7 @@ TEST(SurfaceMap, CappedTorusFallsBackToPositiveWeightsOnItsOwnEdges) {
   const Connectivity ac(a.F, a.num_vertices());
   ASSERT_EQ(ac.genus(), 1);
   SurfaceMapOptions intrinsic;
-  intrinsic.source_weights = SourceWeights::IntrinsicDelaunay;
+  intrinsic.solve.source_weights = SourceWeights::IntrinsicDelaunay;
   EXPECT_THROW(surface_map(a, b, intrinsic), SolveError);
   HarmonicProblem p;
   SurfaceMapOptions automatic, own;
@@ -146,7 +146,7 @@ TEST(SurfaceMap, CappedTorusFallsBackToPositiveWeightsOnItsOwnEdges) {
   EXPECT_EQ(m.intrinsic_flipped_triangles, 0);
   // The class chosen with the intrinsic weights stays (explicit own-edge
   // weights rank with those weights instead); in that class both agree.
-  own.source_weights = SourceWeights::OwnEdges;
+  own.solve.source_weights = SourceWeights::OwnEdges;
   own.homotopy.class_index = m.chosen_candidate;
   const SurfaceMapResult mo = surface_map(a, b, own);
   EXPECT_EQ(mo.source_weights, m.source_weights);

@@ -37,6 +37,19 @@ std::unordered_map<long long, DiskEdge> mean_value_disk_edges(const TriMesh& dis
   return edges;
 }
 
+KleinTurns klein_turns(const std::vector<std::complex<double>>& kq) {
+  const int ns = static_cast<int>(kq.size());
+  KleinTurns t;
+  for (int s = 0; s < ns; ++s) {
+    const std::complex<double> e0 = kq[s] - kq[(s + ns - 1) % ns], e1 = kq[(s + 1) % ns] - kq[s];
+    const double turn = std::arg(e1 / e0);
+    t.total += turn;
+    t.min = std::min(t.min, turn);
+    t.max = std::max(t.max, turn);
+  }
+  return t;
+}
+
 bool flatten_in_klein(const std::vector<FlatteningEdge>& graph, const std::vector<char>& fixed, int hyperboloid_rounds,
                       std::vector<Complex>& k, std::string* why) {
   const int nn = static_cast<int>(k.size());

@@ -53,6 +53,36 @@ struct FlatteningEdge {
 bool flatten_in_klein(const std::vector<FlatteningEdge>& graph, const std::vector<char>& fixed, int hyperboloid_rounds,
                       std::vector<std::complex<double>>& k, std::string* why);
 
+/// A step of a polygon initial map that cannot build the map: the map's
+/// function returns with applied = false and this reason (the caller's
+/// fallbacks run).
+struct GiveUp {
+  std::string why;
+};
+
+/// Runs `build(out)` (the steps of a polygon initial map) and sets
+/// out.applied; a GiveUp turns into applied = false with its reason and no
+/// map (out.z, vertex_deck, vertex_deck_word cleared). Other errors pass.
+template <class Result, class Build>
+void build_or_give_up(Result& out, const Build& build) {
+  try {
+    build(out);
+    out.applied = true;
+  } catch (const GiveUp& g) {
+    out.applied = false;
+    out.reason = g.why;
+    out.z.clear(), out.vertex_deck.clear(), out.vertex_deck_word.clear();
+  }
+}
+
+/// Exterior angles (radians) of the polygon with Klein-model corners `kq`
+/// in order: their total (2π for a simple counter-clockwise polygon), the
+/// smallest and the largest (convex when the smallest is > 0 with total 2π).
+struct KleinTurns {
+  double total = 0, min = 10, max = -10;
+};
+KleinTurns klein_turns(const std::vector<std::complex<double>>& kq);
+
 /// The development of a cut disk, breadth first from face 0 across the
 /// edges not cut (cut[conn.edge(h)] == 0; `conn`: the connectivity whose
 /// faces are the disk's faces): per face f its frame word b_f (b_0 = 1) and

@@ -17,6 +17,7 @@
 #include "stages/flat_landmarks.h"
 #include "stages/flat_location.h"
 #include "stages/landmark_ranking.h"
+#include "stages/source_weights_fallback.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/geometry/positive_edge_weights.h"
@@ -248,54 +249,87 @@ int choose_flat_class(const SurfaceMapOptions& options, std::vector<HomotopyCand
   return chosen;
 }
 
-}  // namespace
+// What every pass of map_flat (one per choice of source weights) shares:
+// the inputs, the target's flat uniformization and the source's homotopy data.
+struct FlatInputs {
+  const TriMesh& source;
+  const TriMesh& target;
+  const Connectivity& sc;
+  const Connectivity& tc;
+  const SurfaceMapOptions& options;
+  const testing::MapHooks& hooks;
+  const StageDone& stage_done;
+  FlatTarget tgt;
+  SystemOfLoops sl;
+  CanonicalSchema scs;
+  std::vector<int> first;
+  Eigen::VectorXd lengths;  ///< #E source edge lengths
+};
 
-// Genus 1 (paper §VI, flat case): one exact sparse solve per class. Longer
-// than a page because one loop, a pass per choice of source weights (the
-// automatic fallback to the source's own edges), runs the whole pipeline;
-// its steps are the helpers above and stages/flat_landmarks.h,
-// stages/landmark_ranking.h, stages/flat_location.h.
-void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
-              const SurfaceMapOptions& options, const testing::MapHooks& hooks, SurfaceMapResult& out,
-              const StageDone& stage_done) {
-  // Target: flat uniformization and canonical lattice basis.
-  const FlatTarget tgt = flat_target(target, options);
-  out.target_refinement_splits = tgt.refinement_splits;
-  stage_done("target uniformization", 0.3);
+// The chosen class's optimum `z` (#V), its initial map `z_init` (#V),
+// recorded in `out` with their energies, D' and the located
+// correspondences; the translations of the intrinsic edges `t_intrinsic`
+// and of the source's edges `t_edges`. False when its source faces fold and
+// the automatic fallback switches the weights (source_weights_fallback.h).
+bool record_flat_map(const FlatInputs& in, const IntrinsicDelaunayResult& idt, const std::vector<Complex>& t_intrinsic,
+                     const std::vector<Complex>& t_edges, const std::vector<Complex>& z,
+                     const std::vector<Complex>& z_init, double energy, bool own_weights, SurfaceMapResult& out) {
+  if (in.hooks.inspect_problem) in.hooks.inspect_problem(flat_problem(idt, t_intrinsic, z_init));
+  double e_init = 0;
+  for (size_t e = 0; e < idt.edges.size(); ++e) {
+    const auto& ie = idt.edges[e];
+    e_init += ie.cot_weight * std::norm(z_init[ie.j] + t_intrinsic[e] - z_init[ie.i]);
+  }
+  out.initial_energy = e_init;
+  out.final_energy = energy;
+  out.energy_history.assign({e_init, static_cast<double>(energy)});
+  out.iterations = 1;
+  out.converged = true;
+  out.source_image = z;
+  out.target_omega1 = in.tgt.A;
+  out.target_omega2 = in.tgt.B;
+  in.stage_done("harmonic solve", 0.7);
 
-  // Source: homotopy data.
-  const SystemOfLoops sl = source_loops(source, options);
-  const CanonicalSchema scs = canonical_schema(sl.word);
-  const std::vector<int> first = loop_first_vertices(sl, sc);
+  // Quality on the source's own triangles.
+  auto image_corners = [&](const std::vector<Complex>& zz) { return flat_image_corners(in.source, in.sc, t_edges, zz); };
+  const auto img = image_corners(z);
+  store_distortion(planar_distortion(in.source.V, in.source.F, img), out);
+  store_initial_distortion(planar_distortion(in.source.V, in.source.F, image_corners(z_init)), out);
+  // The energy lives on the intrinsic triangulation, where positive weights
+  // guarantee an embedding; count its image triangles too.
+  out.intrinsic_flipped_triangles = flat_intrinsic_flipped(idt, z, t_intrinsic);
+  if (retry_with_own_weights(in.options, own_weights, out)) return false;
+  in.stage_done("quality", 0.75);
 
-  // Source weights: intrinsic Delaunay cotangents of its 3D metric, or
-  // positive weights on the source's own edges (options.source_weights),
-  // as for genus >= 2. The automatic fallback below switches to the latter
-  // when the straight images of the user's own faces fold (caps: a vertex
-  // just off the opposite edge): the intrinsic triangulation's image is an
-  // embedding, but not those faces'; with positive weights on the mesh's own
-  // edges the harmonic map into the flat torus embeds the mesh itself (the
-  // Tutte-type theorem on the torus, Gortler-Gotsman-Thurston 2006). The
-  // class chosen with the intrinsic weights stays.
-  const Eigen::VectorXd lengths = edge_lengths(source, sc);
-  bool own_weights = options.source_weights == SourceWeights::OwnEdges;
-  // The body of this loop (one pass per choice of weights) is the rest of
-  // the pipeline, left unindented.
-  for (bool first_pass = true;; first_pass = false) {
-  const IntrinsicDelaunayResult idt = own_weights ? positive_edge_weights(sc, lengths) : intrinsic_delaunay(sc, lengths);
+  // Location (stages/flat_location.h); the initial map is the uniform Tutte one.
+  out.initial_map.construction = "uniform Tutte";
+  FlatLocationResult located = locate_flat_map(in.source, in.target, in.tc, in.tgt.loops, in.tgt.layout, in.tgt.A,
+                                               in.tgt.B, z, z_init, img, image_corners(z_init), in.stage_done);
+  out.forward = std::move(located.forward);
+  out.inverse = std::move(located.inverse);
+  out.initial_forward = std::move(located.initial_forward);
+  out.initial_inverse = std::move(located.initial_inverse);
+  in.stage_done("inverse location", 1.0);
+  return true;
+}
+
+// One pass of map_flat with the source weights `own_weights`: weights,
+// solvers, (first pass) every candidate class's energy and the choice of
+// class, the chosen class's optimum (with the landmarks held), then
+// record_flat_map. False when the weights must switch.
+bool flat_pass(const FlatInputs& in, bool own_weights, bool first_pass, SurfaceMapResult& out) {
+  const SurfaceMapOptions& options = in.options;
+  const FlatTarget& tgt = in.tgt;
+  const IntrinsicDelaunayResult idt =
+      own_weights ? positive_edge_weights(in.sc, in.lengths) : intrinsic_delaunay(in.sc, in.lengths);
   if (!idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
-  out.source_weights = own_weights ? "positive on the source's own edges" : "intrinsic Delaunay cotangent";
-  stage_done("source homotopy data and weights", 0.4);
+  out.source_weights = source_weights_name(own_weights);
+  in.stage_done("source homotopy data and weights", 0.4);
 
   // Laplacian with vertex 0 pinned (the optimum is unique up to
   // translation), cotangent and uniform (FlatSolver above).
-  const int n = source.num_vertices();
+  const int n = in.source.num_vertices();
   const FlatSolver solver(n, idt, false), tutte(n, idt, true);
-
-  // Translation of each intrinsic edge for a given homotopy class.
-  auto intrinsic_translations = [&](const Complex a_img, const Complex b_img) {
-    return class_translations(source, sc, sl, scs, first, idt, a_img, b_img);
-  };
 
   // Landmarks (landmarks.h): each source vertex held at the lift of its
   // target vertex nearest to where the unconstrained optimum puts it; the
@@ -315,17 +349,15 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     const std::vector<Complex> lifts = flat_landmark_lifts(free, lm_source, lm_target, tgt.A, tgt.B);
     return std::make_pair(pinned_cot->solve(t, lifts), lifts);
   };
-
-  auto image_corners_of = [&](const std::vector<Complex>& te, const std::vector<Complex>& zz) {
-    return flat_image_corners(source, sc, te, zz);
-  };
   // The landmarks held in one class (stages/flat_landmarks.h).
   FlatLandmarkProblem lm_problem;
-  lm_problem.source = &source, lm_problem.idt = &idt, lm_problem.landmarks = &options.landmarks;
+  lm_problem.source = &in.source, lm_problem.idt = &idt, lm_problem.landmarks = &options.landmarks;
   lm_problem.lm_source = lm_source, lm_problem.lm_target = lm_target, lm_problem.w1 = tgt.A, lm_problem.w2 = tgt.B;
   lm_problem.free_optimum = [&](const std::vector<Complex>& t) { return solver.solve(t).first; };
   lm_problem.pinned = pinned_cot.get();
-  lm_problem.image_corners = image_corners_of;
+  lm_problem.image_corners = [&](const std::vector<Complex>& te, const std::vector<Complex>& zz) {
+    return flat_image_corners(in.source, in.sc, te, zz);
+  };
   auto hold_landmarks = [&](const std::vector<Complex>& t, const std::vector<Complex>& te) {
     return hold_flat_landmarks(lm_problem, t, te);
   };
@@ -335,7 +367,8 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   // which gives the same energy (the hyperelliptic involution).
   const std::vector<std::array<int, 4>> mats = candidate_matrices();
   auto translations_of = [&](const int* m) {
-    return intrinsic_translations(double(m[0]) * tgt.A + double(m[1]) * tgt.B, double(m[2]) * tgt.A + double(m[3]) * tgt.B);
+    return class_translations(in.source, in.sc, in.sl, in.scs, in.first, idt,
+                              double(m[0]) * tgt.A + double(m[1]) * tgt.B, double(m[2]) * tgt.A + double(m[3]) * tgt.B);
   };
   // (Ranked once: on the pass with own-edge weights the class chosen with
   // the intrinsic weights stays, and so do the candidates' energies.)
@@ -360,11 +393,10 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
       const auto tr = translations_of(out.candidates[k].matrix);
       return hold_landmarks(tr.first, tr.second);
     }, &chosen_hold);
-  stage_done("homotopy candidates", 0.6);
+  in.stage_done("homotopy candidates", 0.6);
 
   const int* M = out.candidates[out.chosen_candidate].matrix;
   const auto [t_intrinsic, t_edges] = translations_of(M);
-  auto image_corners = [&](const std::vector<Complex>& zz) { return image_corners_of(t_edges, zz); };
   std::vector<Complex> z, z_init;
   double energy = 0;
   if (landmarks) {
@@ -385,66 +417,41 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
     // The optimum is unique up to a translation of the torus; put the source's
     // base vertex where the target's base vertex lies (both are central
     // vertices of their shapes), a reproducible and usually natural choice.
-    const Complex shift = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z[sl.base_vertex];
+    const Complex shift = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z[in.sl.base_vertex];
     for (Complex& zi : z) zi += shift;
     // The initial map likewise (it is located below for the "before" morph).
-    const Complex shift0 = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z_init[sl.base_vertex];
+    const Complex shift0 = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z_init[in.sl.base_vertex];
     for (Complex& zi : z_init) zi += shift0;
   }
-  if (hooks.inspect_problem) hooks.inspect_problem(flat_problem(idt, t_intrinsic, z_init));
-  double e_init = 0;
-  for (size_t e = 0; e < idt.edges.size(); ++e) {
-    const auto& ie = idt.edges[e];
-    e_init += ie.cot_weight * std::norm(z_init[ie.j] + t_intrinsic[e] - z_init[ie.i]);
-  }
-  out.initial_energy = e_init;
-  out.final_energy = energy;
-  out.energy_history.assign({e_init, static_cast<double>(energy)});
-  out.iterations = 1;
-  out.converged = true;
-  out.source_image = z;
-  out.target_omega1 = tgt.A;
-  out.target_omega2 = tgt.B;
-  stage_done("harmonic solve", 0.7);
+  return record_flat_map(in, idt, t_intrinsic, t_edges, z, z_init, energy, own_weights, out);
+}
 
-  // Quality on the source's own triangles.
-  const auto img = image_corners(z);
-  const DistortionStats q = planar_distortion(source.V, source.F, img);
-  const DistortionStats q0 = planar_distortion(source.V, source.F, image_corners(z_init));
-  out.dilatation = q.per_face;
-  out.mean_dilatation = q.mean;
-  out.max_dilatation = q.max;
-  out.flipped_triangles = q.flipped;
-  out.degenerate_triangles = q.degenerate;
-  out.initial_dilatation = q0.per_face;
-  out.initial_mean_dilatation = q0.mean;
-  out.initial_max_dilatation = q0.max;
-  out.initial_flipped_triangles = q0.flipped;
-  // The energy lives on the intrinsic triangulation, where positive weights
-  // guarantee an embedding; count its image triangles too.
-  const int intrinsic_flipped = flat_intrinsic_flipped(idt, z, t_intrinsic);
-  out.intrinsic_flipped_triangles = intrinsic_flipped;
-  if ((q.flipped || q.degenerate) && !own_weights && options.source_weights == SourceWeights::Automatic) {
-    own_weights = true;
-    continue;
-  }
-  if (q.flipped || q.degenerate)
-    throw SolveError("the optimised map has " + std::to_string(q.flipped) + " flipped and " +
-                     std::to_string(q.degenerate) + " degenerate image triangles (" +
-                     std::to_string(intrinsic_flipped) + " in the intrinsic triangulation); it is not returned");
-  stage_done("quality", 0.75);
+}  // namespace
 
-  // Location (stages/flat_location.h); the initial map is the uniform Tutte one.
-  out.initial_map.construction = "uniform Tutte";
-  FlatLocationResult located = locate_flat_map(source, target, tc, tgt.loops, tgt.layout, tgt.A, tgt.B, z, z_init, img,
-                                               image_corners(z_init), stage_done);
-  out.forward = std::move(located.forward);
-  out.inverse = std::move(located.inverse);
-  out.initial_forward = std::move(located.initial_forward);
-  out.initial_inverse = std::move(located.initial_inverse);
-  stage_done("inverse location", 1.0);
-  return;
-  }
+// Genus 1 (paper §VI, flat case): one exact sparse solve per class, in
+// passes (flat_pass), one per choice of source weights: the automatic
+// fallback (stages/source_weights_fallback.h) maps the chosen class again
+// with positive weights on the source's own edges when the straight images
+// of the user's faces fold with the intrinsic Delaunay cotangents (caps: a
+// vertex just off the opposite edge; with positive weights on the mesh's own
+// edges the harmonic map into the flat torus embeds the mesh itself, the
+// Tutte-type theorem on the torus, Gortler-Gotsman-Thurston 2006). The
+// class chosen with the intrinsic weights stays.
+void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
+              const SurfaceMapOptions& options, const testing::MapHooks& hooks, SurfaceMapResult& out,
+              const StageDone& stage_done) {
+  // Target: flat uniformization and canonical lattice basis.
+  FlatInputs in{source, target, sc, tc, options, hooks, stage_done, flat_target(target, options), {}, {}, {}, {}};
+  out.target_refinement_splits = in.tgt.refinement_splits;
+  stage_done("target uniformization", 0.3);
+
+  // Source: homotopy data and edge lengths.
+  in.sl = source_loops(source, options);
+  in.scs = canonical_schema(in.sl.word);
+  in.first = loop_first_vertices(in.sl, sc);
+  in.lengths = edge_lengths(source, sc);
+  bool own_weights = options.solve.source_weights == SourceWeights::OwnEdges;
+  for (bool first_pass = true; !flat_pass(in, own_weights, first_pass, out); first_pass = false) own_weights = true;
 }
 
 }  // namespace surfmap::detail

@@ -266,19 +266,16 @@ double hyperbolic_energy(const std::vector<WeightedEdge>& edges, const std::vect
 
 namespace {
 
-// The Newton solve; the pattern's analysis is `shared` when given (the
-// caller checked that `edges` have its pattern), else built at the first
-// iteration that needs it.
-HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& generators,
-                                      std::vector<Complex> z0, const HyperbolicHarmonicOptions& options,
-                                      const HessianAnalysis* shared) {
+// The checks of newton_solve's input: one start point per vertex inside the
+// disk, a full fixed mask when any, edge ends in range and finite weights
+// that are not clearly negative (InputError naming the vertex or edge).
+void check_newton_input(int n, const std::vector<WeightedEdge>& edges, const std::vector<Complex>& z0,
+                        const HyperbolicHarmonicOptions& options) {
   if (static_cast<int>(z0.size()) != n) throw InputError("hyperbolic_harmonic_map: one start point per vertex needed");
   for (int i = 0; i < n; ++i)
     if (!(std::abs(z0[i]) < 1)) throw InputError("hyperbolic_harmonic_map: start point of vertex " + std::to_string(i) + " is outside the disk");
   if (!options.fixed.empty() && static_cast<int>(options.fixed.size()) != n)
     throw InputError("hyperbolic_harmonic_map: the fixed mask needs one entry per vertex");
-  std::vector<Mobius> moves;
-  for (const auto& g : generators) moves.push_back(g), moves.push_back(g.inverse());
   double largest_w = 0;
   for (const auto& ed : edges) largest_w = std::max(largest_w, std::abs(ed.w));
   for (size_t e = 0; e < edges.size(); ++e) {
@@ -293,143 +290,265 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
       throw InputError("hyperbolic_harmonic_map: edge " + std::to_string(e) + " has weight " + std::to_string(ed.w) +
                        " (weights must be finite and >= 0)");
   }
+}
 
-  // The solve runs in charts (paper §VI-A, done algebraically): vertex i has
-  // a chart C_i (an isometry with C_i(0) = z_i, its frame parallel-transported
-  // along the steps), and every edge its element in the charts of its ends,
-  // A_e = C_i^-1 ρ'_e C_j, so that the image of the edge runs from 0 to A_e(0)
-  // in i's chart; ρ'_e = deck_i ρ_e deck_j^-1 is the edge's effective element
-  // after the chart moves. Energies, gradients and Hessians are read off A_e
-  // alone: d = 2 asinh|b|, direction b/ā, frame rotation arg A_e'(0) = 2 arg a.
-  // A step ξ takes C_i to C_i τ(ξ_i) with the exact translations τ, and the
-  // line search's trial elements are τ(ξ_i)^-1 A_e τ(ξ_j).
-  //
-  // The state carried from one iteration to the next is only the charts
-  // (small: every vertex is brought back to the fundamental domain) and the
-  // effective elements (as reduced words when a relator is given, so short
-  // once the edge is short); A_e is derived from them afresh after every
-  // step. Updating A_e in place instead (A_e ← τ^-1 A_e τ at every step)
-  // accumulates the absolute round-off of its largest size: a twisted class
-  // seen from an all-at-origin start has edges of size 1e8..1e14, whose
-  // in-place updates had drifted by up to 0.75 in length by the end, so the
-  // solve converged (to its own, wrong, A_e) at a folded point of higher
-  // energy than the true optimum of the class (n_hole_torus(2,40) -> vase:
-  // 439.89 where the class's optimum is 443.21 from the coarse start; the
-  // positions' true energy was 456.41).
-  HyperbolicHarmonicResult r;
-  std::vector<Mobius> chart(n);
-  for (int i = 0; i < n; ++i) chart[i] = Mobius::translation_to(z0[i]);
-  const bool words = !options.relator.empty();
-  if (words)
-    for (size_t e = 0; e < edges.size(); ++e)
-      if (edges[e].rho_word.empty() && hyperbolic::distance_from_identity(edges[e].rho) > 1e-12)
-        throw InputError("hyperbolic_harmonic_map: edge " + std::to_string(e) +
-                         " has no rho_word although a relator was given");
-  const DehnReducer reduce_word(words ? options.relator : Word{});
-  // Incident edges of every vertex (CSR), for the conjugations of the chart moves.
-  std::vector<int> inc_start(n + 1, 0), inc_edge;
-  for (const auto& ed : edges) {
-    ++inc_start[ed.i + 1];
-    if (ed.j != ed.i) ++inc_start[ed.j + 1];
-  }
-  for (int v = 0; v < n; ++v) inc_start[v + 1] += inc_start[v];
-  inc_edge.resize(inc_start[n]);
-  {
-    std::vector<int> fill(inc_start.begin(), inc_start.end() - 1);
+// The solve runs in charts (paper §VI-A, done algebraically): vertex i has
+// a chart C_i (an isometry with C_i(0) = z_i, its frame parallel-transported
+// along the steps), and every edge its element in the charts of its ends,
+// A_e = C_i^-1 ρ'_e C_j, so that the image of the edge runs from 0 to A_e(0)
+// in i's chart; ρ'_e = deck_i ρ_e deck_j^-1 is the edge's effective element
+// after the chart moves. Energies, gradients and Hessians are read off A_e
+// alone: d = 2 asinh|b|, direction b/ā, frame rotation arg A_e'(0) = 2 arg a.
+// A step ξ takes C_i to C_i τ(ξ_i) with the exact translations τ, and the
+// line search's trial elements are τ(ξ_i)^-1 A_e τ(ξ_j).
+//
+// The state carried from one iteration to the next is only the charts
+// (small: every vertex is brought back to the fundamental domain) and the
+// effective elements (as reduced words when a relator is given, so short
+// once the edge is short); A_e is derived from them afresh after every
+// step. Updating A_e in place instead (A_e ← τ^-1 A_e τ at every step)
+// accumulates the absolute round-off of its largest size: a twisted class
+// seen from an all-at-origin start has edges of size 1e8..1e14, whose
+// in-place updates had drifted by up to 0.75 in length by the end, so the
+// solve converged (to its own, wrong, A_e) at a folded point of higher
+// energy than the true optimum of the class (n_hole_torus(2,40) -> vase:
+// 439.89 where the class's optimum is 443.21 from the coarse start; the
+// positions' true energy was 456.41).
+class ChartState {
+ public:
+  std::vector<Mobius> chart;  ///< #V chart C_i
+  std::vector<LongMobius> eff;  ///< #edges effective element ρ'_e
+  std::vector<Mobius> A;  ///< #edges A_e, derived by derive_edges()
+
+  // Charts at the start points, every vertex moved to the sheet of the
+  // target's domain (r.vertex_deck / vertex_deck_word record the moves).
+  ChartState(int n, const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& generators,
+             const std::vector<Complex>& z0, const HyperbolicHarmonicOptions& options, HyperbolicHarmonicResult& r)
+      : edges_(edges), generators_(generators), options_(options), r_(r), words_(!options.relator.empty()),
+        reduce_word_(words_ ? options.relator : Word{}) {
+    for (const auto& g : generators) moves_.push_back(g), moves_.push_back(g.inverse());
+    chart.resize(n);
+    for (int i = 0; i < n; ++i) chart[i] = Mobius::translation_to(z0[i]);
+    if (words_)
+      for (size_t e = 0; e < edges.size(); ++e)
+        if (edges[e].rho_word.empty() && hyperbolic::distance_from_identity(edges[e].rho) > 1e-12)
+          throw InputError("hyperbolic_harmonic_map: edge " + std::to_string(e) +
+                           " has no rho_word although a relator was given");
+    // Incident edges of every vertex (CSR), for the conjugations of the chart moves.
+    inc_start_.assign(n + 1, 0);
+    for (const auto& ed : edges) {
+      ++inc_start_[ed.i + 1];
+      if (ed.j != ed.i) ++inc_start_[ed.j + 1];
+    }
+    for (int v = 0; v < n; ++v) inc_start_[v + 1] += inc_start_[v];
+    inc_edge_.resize(inc_start_[n]);
+    {
+      std::vector<int> fill(inc_start_.begin(), inc_start_.end() - 1);
+      for (size_t e = 0; e < edges.size(); ++e) {
+        inc_edge_[fill[edges[e].i]++] = static_cast<int>(e);
+        if (edges[e].j != edges[e].i) inc_edge_[fill[edges[e].j]++] = static_cast<int>(e);
+      }
+    }
+    // Effective elements: with words, evaluated from the reduced word (in
+    // long double) whenever it changes; without, conjugated as matrices.
+    eff_word_.resize(words_ ? edges.size() : 0);
+    eff.resize(edges.size());
     for (size_t e = 0; e < edges.size(); ++e) {
-      inc_edge[fill[edges[e].i]++] = static_cast<int>(e);
-      if (edges[e].j != edges[e].i) inc_edge[fill[edges[e].j]++] = static_cast<int>(e);
+      if (words_) {
+        eff_word_[e] = reduce_word_(edges[e].rho_word);
+        eff[e] = evaluate_long(eff_word_[e]);
+      } else {
+        eff[e] = LongMobius::from(edges[e].rho);
+      }
+    }
+    A.resize(edges.size());
+    derive_edges();
+    // Edges longer than ~70 units at the start (entries beyond 1e15; a class
+    // twisted by dozens of tiles, seen from a start at the origin) would take
+    // the solve hundreds of capped steps (minutes at genus 5 when the class
+    // ranking tries such classes), and no map with such an edge is an
+    // embedding of a mesh of this size: refused at once.
+    for (size_t e = 0; e < edges.size(); ++e)
+      if (!(A[e].size() < 1e15))
+        throw SolveError("hyperbolic harmonic map: edge " + std::to_string(e) + " starts " +
+                         std::to_string(A[e].displacement_of_origin()) +
+                         " units long (deck element beyond double range for this solve)");
+    r.vertex_deck.assign(n, Mobius());
+    r.vertex_deck_word.assign(n, Word{});
+    for (int i = 0; i < n; ++i) move_vertex(i);
+    derive_edges();
+  }
+
+  // Every A_e afresh from the charts and effective elements.
+  void derive_edges() {
+    for (size_t e = 0; e < edges_.size(); ++e) {
+      const LongMobius ci = LongMobius::from(chart[edges_[e].i]), cj = LongMobius::from(chart[edges_[e].j]);
+      A[e] = (ci.inverse() * eff[e] * cj).normalized().to_double().normalized();
     }
   }
-  // Effective elements: with words, evaluated from the reduced word (in long
-  // double) whenever it changes; without, conjugated as matrices.
-  auto evaluate_long = [&](const Word& w) {
+
+  // Dynamic charts: vertex v to the sheet options.reduce_point names, or
+  // greedily towards the origin by the generators.
+  void move_vertex(int v) {
+    if (options_.reduce_point) {
+      Complex z = chart[v].apply(Complex(0.0));
+      const Word w = options_.reduce_point(z);
+      if (!w.empty()) change_sheet(v, w, evaluate_long(w).to_double().normalized());
+      return;
+    }
+    for (int m : reduce_towards_origin(chart[v], moves_)) change_sheet(v, Word{move_letter(m)}, moves_[m]);
+  }
+
+ private:
+  LongMobius evaluate_long(const Word& w) const {
     LongMobius m;
     for (int x : w) {
       const int k = std::abs(x) - 1;
-      if (k < 0 || k >= static_cast<int>(generators.size()))
+      if (k < 0 || k >= static_cast<int>(generators_.size()))
         throw InputError("hyperbolic_harmonic_map: letter " + std::to_string(x) + " names no generator");
-      m = (m * LongMobius::from(moves[x > 0 ? 2 * k : 2 * k + 1])).normalized();
+      m = (m * LongMobius::from(moves_[x > 0 ? 2 * k : 2 * k + 1])).normalized();
     }
     return m;
-  };
-  std::vector<Word> eff_word(words ? edges.size() : 0);
-  std::vector<LongMobius> eff(edges.size());
-  for (size_t e = 0; e < edges.size(); ++e) {
-    if (words) {
-      eff_word[e] = reduce_word(edges[e].rho_word);
-      eff[e] = evaluate_long(eff_word[e]);
-    } else {
-      eff[e] = LongMobius::from(edges[e].rho);
-    }
   }
-  std::vector<Mobius> A(edges.size());
-  auto derive_edges = [&] {
-    for (size_t e = 0; e < edges.size(); ++e) {
-      const LongMobius ci = LongMobius::from(chart[edges[e].i]), cj = LongMobius::from(chart[edges[e].j]);
-      A[e] = (ci.inverse() * eff[e] * cj).normalized().to_double().normalized();
-    }
-  };
-  derive_edges();
-  // Edges longer than ~70 units at the start (entries beyond 1e15; a class
-  // twisted by dozens of tiles, seen from a start at the origin) would take
-  // the solve hundreds of capped steps (minutes at genus 5 when the class
-  // ranking tries such classes), and no map with such an edge is an
-  // embedding of a mesh of this size: refused at once.
-  for (size_t e = 0; e < edges.size(); ++e)
-    if (!(A[e].size() < 1e15))
-      throw SolveError("hyperbolic harmonic map: edge " + std::to_string(e) + " starts " +
-                       std::to_string(A[e].displacement_of_origin()) +
-                       " units long (deck element beyond double range for this solve)");
-  r.vertex_deck.assign(n, Mobius());
-  r.vertex_deck_word.assign(n, Word{});
+
   // Vertex v to another sheet by γ (word w when words are kept): C_v ← γ C_v,
   // and its edges conjugated, ρ'_e ← γ ρ'_e where v is the tail and
   // ρ'_e ← ρ'_e γ^-1 where it is the head, so that A_e is unchanged.
-  auto change_sheet = [&](int v, const Word& w, const Mobius& gamma) {
+  void change_sheet(int v, const Word& w, const Mobius& gamma) {
     chart[v] = (gamma * chart[v]).normalized();
-    r.vertex_deck[v] = (gamma * r.vertex_deck[v]).normalized();
-    r.vertex_deck_word[v] = concat(w, r.vertex_deck_word[v]);
+    r_.vertex_deck[v] = (gamma * r_.vertex_deck[v]).normalized();
+    r_.vertex_deck_word[v] = concat(w, r_.vertex_deck_word[v]);
     const LongMobius g = LongMobius::from(gamma);
-    for (int k = inc_start[v]; k < inc_start[v + 1]; ++k) {
-      const int e = inc_edge[k];
-      const WeightedEdge& ed = edges[e];
-      if (words) {
-        Word x = eff_word[e];
+    for (int k = inc_start_[v]; k < inc_start_[v + 1]; ++k) {
+      const int e = inc_edge_[k];
+      const WeightedEdge& ed = edges_[e];
+      if (words_) {
+        Word x = eff_word_[e];
         if (ed.i == v) x = concat(w, x);
         if (ed.j == v) x = concat(x, inverse(w));
-        eff_word[e] = reduce_word(x);
-        eff[e] = evaluate_long(eff_word[e]);
+        eff_word_[e] = reduce_word_(x);
+        eff[e] = evaluate_long(eff_word_[e]);
       } else {
         if (ed.i == v) eff[e] = (g * eff[e]).normalized();
         if (ed.j == v) eff[e] = (eff[e] * g.inverse()).normalized();
       }
     }
-  };
-  auto move_vertex = [&](int v) {
-    if (options.reduce_point) {
-      Complex z = chart[v].apply(Complex(0.0));
-      const Word w = options.reduce_point(z);
-      if (!w.empty()) change_sheet(v, w, evaluate_long(w).to_double().normalized());
-      return;
+  }
+
+  const std::vector<WeightedEdge>& edges_;
+  const std::vector<Mobius>& generators_;
+  const HyperbolicHarmonicOptions& options_;
+  HyperbolicHarmonicResult& r_;
+  const bool words_;
+  const DehnReducer reduce_word_;
+  std::vector<Mobius> moves_;  // generator k at 2k, its inverse at 2k+1
+  std::vector<int> inc_start_, inc_edge_;
+  std::vector<Word> eff_word_;
+};
+
+// The energy Σ w d² for edge elements `a` (one per edge).
+double chart_energy(const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& a) {
+  double E = 0;
+  for (size_t e = 0; e < edges.size(); ++e) {
+    if (edges[e].w <= 0) continue;
+    const double d = a[e].displacement_of_origin();
+    E += edges[e].w * d * d;
+  }
+  return E;
+}
+
+// Largest per-vertex gradient length for edge elements `a` (free vertices);
+// `grad_buf`: #V scratch.
+double chart_gradient_norm(const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& a,
+                           const std::vector<char>& fixed, std::vector<Complex>& grad_buf) {
+  const int n = static_cast<int>(grad_buf.size());
+  std::fill(grad_buf.begin(), grad_buf.end(), Complex(0.0));
+  for (size_t e = 0; e < edges.size(); ++e) {
+    if (edges[e].w <= 0) continue;
+    const Mobius& M = a[e];
+    const double d = M.displacement_of_origin(), bn = std::abs(M.b);
+    if (!(bn > 0)) continue;
+    grad_buf[edges[e].i] -= 2 * edges[e].w * d * (M.b / std::conj(M.a)) * (std::abs(M.a) / bn);
+    grad_buf[edges[e].j] -= 2 * edges[e].w * d * (-M.b / M.a) * (std::abs(M.a) / bn);
+  }
+  double gn = 0;
+  for (int i = 0; i < n; ++i)
+    if (fixed.empty() || !fixed[i]) gn = std::max(gn, std::abs(grad_buf[i]));
+  return gn;
+}
+
+// Riemannian Newton system (docs/method.md §7) at the edge elements A:
+// unknowns are a tangent vector per vertex in the orthonormal frame of its
+// chart at 0 (2 reals). For the term w d(x, y)^2 seen from x's chart,
+// y = A_e(0) lies on the diameter with direction u; the Hessian of ½d² is
+// [1 -1; -1 1] along u and [a -b; -b a] across it (a = d coth d,
+// b = d / sinh d), and y's own frame is rotated by theta = arg A_e'(0).
+// Held vertices (`fixed`, landmarks): no gradient and identity rows and
+// columns (scaled by max_w), so their Newton step is 0 and the other
+// vertices see them as fixed. Fills H and g (2 #V).
+void assemble_newton_system(const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& A,
+                            const std::vector<char>& fixed, double max_w, BlockHessian& H, Eigen::VectorXd& g) {
+  const int n = static_cast<int>(g.size() / 2);
+  H.clear();
+  const bool any_fixed = !fixed.empty();
+  auto is_free = [&](int v) { return !any_fixed || !fixed[v]; };
+  g.setZero();
+  for (size_t ei = 0; ei < edges.size(); ++ei) {
+    const WeightedEdge& e = edges[ei];
+    if (e.w <= 0) continue;
+    const Mobius& M = A[ei];
+    const double d = M.displacement_of_origin();
+    const double bn = std::abs(M.b);
+    // log_0(A(0)) = d · (b/ā)/|b| in i's chart; log_0(A^-1(0)) = d · (−b/a)/|b| in j's.
+    const Complex u = bn > 0 ? (M.b / std::conj(M.a)) * (std::abs(M.a) / bn) : Complex(1.0, 0.0);
+    const Complex uj = bn > 0 ? (-M.b / M.a) * (std::abs(M.a) / bn) : Complex(1.0, 0.0);
+    const Complex li = d * u, lj = d * uj;
+    g[2 * e.i] -= 2 * e.w * li.real(), g[2 * e.i + 1] -= 2 * e.w * li.imag();
+    g[2 * e.j] -= 2 * e.w * lj.real(), g[2 * e.j + 1] -= 2 * e.w * lj.imag();
+    const double a = d > 1e-8 ? d / std::tanh(d) : 1 + d * d / 3;
+    const double b = d > 1e-8 ? d / std::sinh(d) : 1 - d * d / 6;
+    Eigen::Vector2d uu(u.real(), u.imag()), un(-u.imag(), u.real());
+    const Eigen::Matrix2d P = uu * uu.transpose() + a * un * un.transpose();
+    const Eigen::Matrix2d Q = uu * uu.transpose() + b * un * un.transpose();
+    const double th = 2.0 * std::arg(M.a);  // arg A'(0) = arg 1/ā²
+    Eigen::Matrix2d R;
+    R << std::cos(th), -std::sin(th), std::sin(th), std::cos(th);
+    const Eigen::Matrix2d Hii = 2 * e.w * P, Hjj = 2 * e.w * R.transpose() * P * R, Hij = -2 * e.w * Q * R;
+    // Held vertices: their rows and columns are left out.
+    if (e.i == e.j) {
+      if (is_free(e.i)) H.add_diagonal(e.i, Hii + Hjj + Hij + Hij.transpose());
+      continue;
     }
-    for (int m : reduce_towards_origin(chart[v], moves)) change_sheet(v, Word{move_letter(m)}, moves[m]);
-  };
-  for (int i = 0; i < n; ++i) move_vertex(i);
-  derive_edges();
+    if (is_free(e.i)) H.add_diagonal(e.i, Hii);
+    if (is_free(e.j)) H.add_diagonal(e.j, Hjj);
+    if (is_free(e.i) && is_free(e.j)) H.add_offdiagonal(ei, e.i, e.j, Hij);
+  }
+  if (any_fixed)
+    for (int i = 0; i < n; ++i)
+      if (fixed[i]) {
+        g[2 * i] = g[2 * i + 1] = 0;
+        H.add_diagonal(i, max_w * Eigen::Matrix2d::Identity());
+      }
+}
+
+// The Newton solve; the pattern's analysis is `shared` when given (the
+// caller checked that `edges` have its pattern), else built at the first
+// iteration that needs it. Its steps are the helpers above; the iteration
+// itself (factorisation reuse, line search, the fallbacks near round-off)
+// stays in one loop because its state (shift, chord steps, the last full
+// step) runs through all of it.
+HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& generators,
+                                      std::vector<Complex> z0, const HyperbolicHarmonicOptions& options,
+                                      const HessianAnalysis* shared) {
+  check_newton_input(n, edges, z0, options);
+  HyperbolicHarmonicResult r;
+  ChartState state(n, edges, generators, z0, options, r);
+  std::vector<Mobius>& A = state.A;
+  std::vector<Mobius>& chart = state.chart;
 
   double max_w = 0;
   for (const auto& e : edges) max_w = std::max(max_w, e.w);
-  auto energy_of = [&](const std::vector<Mobius>& a) {
-    double E = 0;
-    for (size_t e = 0; e < edges.size(); ++e) {
-      if (edges[e].w <= 0) continue;
-      const double d = a[e].displacement_of_origin();
-      E += edges[e].w * d * d;
-    }
-    return E;
-  };
-  double E = energy_of(A);
+  double E = chart_energy(edges, A);
   r.energy_history.push_back(E);
   std::unique_ptr<HessianAnalysis> own_analysis;
   std::unique_ptr<BlockHessian> hessian;  // built at the first iteration that needs it
@@ -448,41 +567,20 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
     for (int i = 0; i < n; ++i) chart[i] = (chart[i] * step_map[i]).normalized();
     E = Et;
   };
-  // Largest per-vertex gradient length for edge elements `a` (free vertices).
   std::vector<Complex> grad_buf(n);
-  auto gradient_norm = [&](const std::vector<Mobius>& a) {
-    std::fill(grad_buf.begin(), grad_buf.end(), Complex(0.0));
-    for (size_t e = 0; e < edges.size(); ++e) {
-      if (edges[e].w <= 0) continue;
-      const Mobius& M = a[e];
-      const double d = M.displacement_of_origin(), bn = std::abs(M.b);
-      if (!(bn > 0)) continue;
-      grad_buf[edges[e].i] -= 2 * edges[e].w * d * (M.b / std::conj(M.a)) * (std::abs(M.a) / bn);
-      grad_buf[edges[e].j] -= 2 * edges[e].w * d * (-M.b / M.a) * (std::abs(M.a) / bn);
-    }
-    double gn = 0;
-    for (int i = 0; i < n; ++i)
-      if (options.fixed.empty() || !options.fixed[i]) gn = std::max(gn, std::abs(grad_buf[i]));
-    return gn;
-  };
   // The full Newton step where E cannot resolve its decrease: taken when it
   // at least halves the gradient (quadratic convergence near the optimum
   // does far better), otherwise the gradient is at its round-off floor.
   auto gradient_step = [&](const Eigen::VectorXd& step, double gnorm) {
     trial_edges(step, 1.0);
     ++r.energy_evaluations;
-    if (!(gradient_norm(trial_A) <= 0.5 * gnorm)) return false;
-    accept(energy_of(trial_A));
+    if (!(chart_gradient_norm(edges, trial_A, options.fixed, grad_buf) <= 0.5 * gnorm)) return false;
+    accept(chart_energy(edges, trial_A));
     last_full_step = true;
     return true;
   };
+  Eigen::VectorXd g(2 * n);
   for (int it = 0; it < options.max_iterations; ++it) {
-    // Riemannian Newton (docs/method.md §7). Unknowns: a tangent vector per
-    // vertex in the orthonormal frame of its chart at 0 (2 reals). For the
-    // term w d(x, y)^2 seen from x's chart, y = A_e(0) lies on the diameter
-    // with direction u; the Hessian of ½d² is [1 -1; -1 1] along u and
-    // [a -b; -b a] across it (a = d coth d, b = d / sinh d), and y's own
-    // frame is rotated by theta = arg A_e'(0).
     using Clock = std::chrono::steady_clock;
     auto seconds_since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
     if (!hessian) {
@@ -492,48 +590,7 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
       r.analysis_seconds += seconds_since(t0);
     }
     BlockHessian& H = *hessian;
-    H.clear();
-    const bool any_fixed = !options.fixed.empty();
-    auto is_free = [&](int v) { return !any_fixed || !options.fixed[v]; };
-    Eigen::VectorXd g = Eigen::VectorXd::Zero(2 * n);
-    for (size_t ei = 0; ei < edges.size(); ++ei) {
-      const WeightedEdge& e = edges[ei];
-      if (e.w <= 0) continue;
-      const Mobius& M = A[ei];
-      const double d = M.displacement_of_origin();
-      const double bn = std::abs(M.b);
-      // log_0(A(0)) = d · (b/ā)/|b| in i's chart; log_0(A^-1(0)) = d · (−b/a)/|b| in j's.
-      const Complex u = bn > 0 ? (M.b / std::conj(M.a)) * (std::abs(M.a) / bn) : Complex(1.0, 0.0);
-      const Complex uj = bn > 0 ? (-M.b / M.a) * (std::abs(M.a) / bn) : Complex(1.0, 0.0);
-      const Complex li = d * u, lj = d * uj;
-      g[2 * e.i] -= 2 * e.w * li.real(), g[2 * e.i + 1] -= 2 * e.w * li.imag();
-      g[2 * e.j] -= 2 * e.w * lj.real(), g[2 * e.j + 1] -= 2 * e.w * lj.imag();
-      const double a = d > 1e-8 ? d / std::tanh(d) : 1 + d * d / 3;
-      const double b = d > 1e-8 ? d / std::sinh(d) : 1 - d * d / 6;
-      Eigen::Vector2d uu(u.real(), u.imag()), un(-u.imag(), u.real());
-      const Eigen::Matrix2d P = uu * uu.transpose() + a * un * un.transpose();
-      const Eigen::Matrix2d Q = uu * uu.transpose() + b * un * un.transpose();
-      const double th = 2.0 * std::arg(M.a);  // arg A'(0) = arg 1/ā²
-      Eigen::Matrix2d R;
-      R << std::cos(th), -std::sin(th), std::sin(th), std::cos(th);
-      const Eigen::Matrix2d Hii = 2 * e.w * P, Hjj = 2 * e.w * R.transpose() * P * R, Hij = -2 * e.w * Q * R;
-      // Held vertices (landmarks, below): their rows and columns are left out.
-      if (e.i == e.j) {
-        if (is_free(e.i)) H.add_diagonal(e.i, Hii + Hjj + Hij + Hij.transpose());
-        continue;
-      }
-      if (is_free(e.i)) H.add_diagonal(e.i, Hii);
-      if (is_free(e.j)) H.add_diagonal(e.j, Hjj);
-      if (is_free(e.i) && is_free(e.j)) H.add_offdiagonal(ei, e.i, e.j, Hij);
-    }
-    // Held vertices (landmarks): no gradient and identity rows/columns, so
-    // their Newton step is 0 and the other vertices see them as fixed.
-    if (any_fixed)
-      for (int i = 0; i < n; ++i)
-        if (options.fixed[i]) {
-          g[2 * i] = g[2 * i + 1] = 0;
-          H.add_diagonal(i, max_w * Eigen::Matrix2d::Identity());
-        }
+    assemble_newton_system(edges, A, options.fixed, max_w, H, g);
     if (!g.allFinite() || !std::isfinite(E))
       throw SolveError("hyperbolic harmonic map: non-finite energy or gradient at iteration " + std::to_string(it));
     double gnorm = 0;
@@ -601,7 +658,7 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
     }
     for (int ls = 0; ls < 40 && !accepted; ++ls) {
       trial_edges(step, alpha);
-      const double Et = energy_of(trial_A);
+      const double Et = chart_energy(edges, trial_A);
       ++r.energy_evaluations;
       if (Et < E && (Et <= E + 1e-4 * alpha * slope || alpha < 1e-3)) {
         accept(Et);
@@ -627,7 +684,7 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
       for (int i = 0; i < n; ++i) gl = std::max(gl, std::hypot(gs[2 * i], gs[2 * i + 1]));
       for (double beta = gl > kMaxStep ? kMaxStep / gl : 1.0; beta > 1e-8 && !accepted; beta *= 0.25) {
         trial_edges(gs, beta);
-        const double Et = energy_of(trial_A);
+        const double Et = chart_energy(edges, trial_A);
         ++r.energy_evaluations;
         if (Et < E) accept(Et), accepted = true;
       }
@@ -643,11 +700,11 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
     }
     // Dynamic charts: bring far-out vertices back towards the origin.
     for (int i = 0; i < n; ++i)
-      if (options.reduce_point || std::abs(chart[i].b) > 0.75) move_vertex(i);  // greedy: |C_i(0)| > 0.6
-    // The new charts and sheets: every A_e afresh (file comment above), and
+      if (options.reduce_point || std::abs(chart[i].b) > 0.75) state.move_vertex(i);  // greedy: |C_i(0)| > 0.6
+    // The new charts and sheets: every A_e afresh (ChartState above), and
     // the energy the next iteration starts from.
-    derive_edges();
-    E = energy_of(A);
+    state.derive_edges();
+    E = chart_energy(edges, A);
     r.energy_history.push_back(E);
   }
   r.energy = E;
@@ -655,7 +712,7 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
   for (int i = 0; i < n; ++i) r.z[i] = chart[i].apply(Complex(0.0));
   r.edge_local = A;
   r.edge_effective.resize(edges.size());
-  for (size_t e = 0; e < edges.size(); ++e) r.edge_effective[e] = eff[e].to_double().normalized();
+  for (size_t e = 0; e < edges.size(); ++e) r.edge_effective[e] = state.eff[e].to_double().normalized();
   return r;
 }
 

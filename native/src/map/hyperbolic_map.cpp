@@ -30,6 +30,7 @@
 #include "stages/landmark_ranking.h"
 #include "stages/source_cuts.h"
 #include "stages/source_side.h"
+#include "stages/source_weights_fallback.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/positive_edge_weights.h"
 #include "surfmap/map/fundamental_polygon.h"
@@ -55,7 +56,7 @@ class HyperbolicPipeline {
                      const StageDone& stage_done)
       : source(source), target(target), sc(sc), tc(tc), options(options), hooks(hooks), out(out),
         stage_done(stage_done), threads(pipeline_threads(options.threads)), nv(source.num_vertices()),
-        own_weights(options.source_weights == SourceWeights::OwnEdges), cuts(source, options, out.genus) {}
+        own_weights(options.solve.source_weights == SourceWeights::OwnEdges), cuts(source, options, out.genus) {}
 
   void start_source_side();
   void uniformize_target();
@@ -135,7 +136,7 @@ class HyperbolicPipeline {
 
   HyperbolicHarmonicResult hold_in_class(int k, const HyperbolicHarmonicResult& free_k, const HyperbolicHarmonicOptions& o,
                                          bool relax, const HarmonicRelaxationOptions& ro, LandmarkHold& hold) const;
-  bool retry_with_own_weights();
+  void switch_to_own_weights();
 
  private:
   ClassData data_of(const GroupMap& theta) const {
@@ -824,20 +825,16 @@ void HyperbolicPipeline::choose_with_landmarks() {
   stage_done("full-resolution solve", 0.44);
 }
 
-// The automatic source weights' fallback: the intrinsic triangulation is
-// embedded but straight images of the user's own faces fold (slivers):
-// positive weights on the own edges embed those faces (Tutte-type
-// theorem); the class stays, the energy and so the map change. Every
-// class's data follows the new weights. False when it does not apply.
-bool HyperbolicPipeline::retry_with_own_weights() {
-  if (own_weights || options.source_weights != SourceWeights::Automatic) return false;
+// The automatic source weights' fallback (stages/source_weights_fallback.h):
+// the class stays, the energy and so the map change. Every class's data
+// follows the new weights.
+void HyperbolicPipeline::switch_to_own_weights() {
   own_weights = true;
   ss.idt = positive_edge_weights(sc, edge_lengths(source, sc));
   index_solver_edges(sc, ss.idt, solver_index);
   fine_solver.reset();  // (another pattern)
   for (int k = 0; k < ncand; ++k)
     if (!data[k].edges.empty()) data[k] = data_of(candidates.classes[k].map);  // empty: never evaluable
-  return true;
 }
 
 // The single-class pipeline for the chosen class (out.chosen_candidate):
@@ -846,7 +843,7 @@ bool HyperbolicPipeline::retry_with_own_weights() {
 // solve (stages/harmonic_solve.h), landmarks (hold_in_class; the ranking's
 // held map when it was this class's), quality (stages/hyperbolic_quality.h)
 // and location (stages/hyperbolic_location.h). False when the source
-// weights were switched (retry_with_own_weights) and the class must be
+// weights were switched (switch_to_own_weights) and the class must be
 // mapped again; SolveError when the class cannot be used.
 bool map_class(HyperbolicPipeline& p);
 
@@ -854,7 +851,7 @@ bool map_class(HyperbolicPipeline& p) {
   const SurfaceMapOptions& options = p.options;
   SurfaceMapResult& out = p.out;
   const int k = out.chosen_candidate;
-  out.source_weights = p.own_weights ? "positive on the source's own edges" : "intrinsic Delaunay cotangent";
+  out.source_weights = source_weights_name(p.own_weights);
   const ClassData& cd = p.data[k];
 
   ClassInitialMap initial;
@@ -869,10 +866,7 @@ bool map_class(HyperbolicPipeline& p) {
   if (p.hooks.inspect_initial_map)
     p.hooks.inspect_initial_map({&initial.halfedge_rho, &initial.halfedge_word, p.deck_group.get(), &init});
   const DistortionStats q0 = initial_map_distortion(p.source, *p.deck_group, initial);
-  out.initial_dilatation = q0.per_face;
-  out.initial_mean_dilatation = q0.mean;
-  out.initial_max_dilatation = q0.max;
-  out.initial_flipped_triangles = q0.flipped;
+  store_initial_distortion(q0, out);
   p.stage_done("initial map", 0.45);
 
   const SolveProgress solve_progress = chosen_solve_progress(options);
@@ -926,18 +920,12 @@ bool map_class(HyperbolicPipeline& p) {
   const MapInPolygon placed = place_in_polygon(p.source, p.sc, *p.polygon, *p.deck_group, cd.side_word_edge, cd.rho_edge,
                                                p.solver_index, static_cast<int>(cd.edges.size()), hr);
   const DistortionStats quality = chart_distortion(p.source, p.sc, hr.edge_local, p.solver_index);
-  out.dilatation = quality.per_face;
-  out.mean_dilatation = quality.mean;
-  out.max_dilatation = quality.max;
-  out.flipped_triangles = quality.flipped;
-  out.degenerate_triangles = quality.degenerate;
+  store_distortion(quality, out);
   out.intrinsic_flipped_triangles = intrinsic_flipped_triangles(p.ss.idt, hr.edge_local);
-  if ((out.flipped_triangles || out.degenerate_triangles) && p.retry_with_own_weights()) return false;
-  if (out.flipped_triangles || out.degenerate_triangles)
-    throw SolveError("the optimised map has " + std::to_string(out.flipped_triangles) + " flipped and " +
-                     std::to_string(out.degenerate_triangles) + " degenerate image triangles of the source's faces (" +
-                     std::to_string(out.intrinsic_flipped_triangles) +
-                     " flipped on its intrinsic Delaunay triangulation, where the energy lives); it is not returned");
+  if (retry_with_own_weights(options, p.own_weights, out)) {
+    p.switch_to_own_weights();
+    return false;
+  }
   out.source_image = placed.zp;
   p.stage_done("quality", 0.75);
 

@@ -68,58 +68,18 @@ Complex minimise_displacement(const std::vector<Mobius>& A, Complex p0, int iter
   return p;
 }
 
-}  // namespace
+using detail::GiveUp;
 
-PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connectivity& sc,
-                                            const std::vector<Word>& halfedge_word, const DeckGroup& group,
-                                            const PolygonInitialMapOptions& options) {
-  const auto t0 = std::chrono::steady_clock::now();
-  PolygonInitialMapResult out;
-  const int n_in = source.num_vertices();
-  if (static_cast<int>(halfedge_word.size()) != 3 * sc.num_faces() || sc.num_vertices() != n_in)
-    throw InputError("polygon_initial_map: one side word per source halfedge (3 x #F) needed");
-  auto give_up = [&](const std::string& why) {
-    out.applied = false;
-    out.reason = why;
-    out.z.clear(), out.vertex_deck.clear(), out.vertex_deck_word.clear();
-    out.time_s = seconds_since(t0);
-    return out;
-  };
-  // Refined loops: simple, meeting only at x, so the cut is a 4g-gon. The
-  // refined mesh keeps the input vertices first (system_of_loops.h).
-  SystemOfLoopsOptions lo;
-  lo.base_vertex = options.base_vertex;
-  lo.refine = true;
-  SystemOfLoops rs;
-  try {
-    rs = system_of_loops(source, lo);
-  } catch (const SolveError& e) {
-    return give_up(std::string("refined loops: ") + e.what());
-  }
+// The class's flat connection carried to the refined mesh `rs`: every
+// refined vertex u gets a home frame (an input vertex its own lift; a split
+// or bend point the frame of its origin face, i.e. that face developed with
+// corner 0 at its lift), and psi(f', k) is the element taking corner k of
+// refined face f' from its home frame into the frame of the input face F
+// holding f': the position of u in F's frame is psi * lift(u). 3 x #F'.
+std::vector<Word> refined_corner_words(const TriMesh& source, const SystemOfLoops& rs,
+                                       const std::vector<Word>& halfedge_word, const DeckGroup& group) {
   const TriMesh& rm = rs.mesh;
-
-  const int x = rs.base_vertex, nrv = rm.num_vertices(), nrf = rm.num_faces();
-  out.refined_vertices = nrv;
-  if (static_cast<int>(rs.face_origin.size()) != nrf) return give_up("refined mesh without face origins");
-  const Connectivity rc(rm.F, nrv);
-  std::vector<char> cut(rc.num_edges(), 0);
-  for (const auto& loop : rs.loops)
-    for (size_t q = 0; q + 1 < loop.size(); ++q) {
-      const int h = rc.find_halfedge(loop[q], loop[q + 1]);
-      if (h < 0) return give_up("refined loop is not an edge path");
-      cut[rc.edge(h)] = 1;
-    }
-  const CutMesh cm = cut_mesh_along_edges(rm, rc, cut);
-  if (cm.euler_characteristic != 1 || cm.boundary_loops.size() != 1) return give_up("the refined cut is not a disk");
-  const int nd = static_cast<int>(cm.original_vertex.size());
-  out.disk_vertices = nd;
-
-  // The class's flat connection carried to the refined mesh: every refined
-  // vertex u gets a home frame (an input vertex its own lift; a split or
-  // bend point the frame of its origin face, i.e. that face developed with
-  // corner 0 at its lift), and psi(f', k) is the element taking corner k of
-  // refined face f' from its home frame into the frame of the input face
-  // F holding f': the position of u in F's frame is psi * lift(u).
+  const int n_in = source.num_vertices(), nrf = rm.num_faces();
   auto phi = [&](int F, int k) -> Word {
     return k == 0 ? Word{} : k == 1 ? halfedge_word[3 * F] : inverse(halfedge_word[3 * F + 2]);
   };
@@ -135,7 +95,7 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
       const int u = rm.F(f, k);
       if (u < n_in) {
         const int ku = corner_of(F, u);
-        if (ku < 0) return give_up("refined face " + std::to_string(f) + " has a corner outside its input face");
+        if (ku < 0) throw GiveUp{"refined face " + std::to_string(f) + " has a corner outside its input face"};
         psi[3 * f + k] = phi(F, ku);
         continue;
       }
@@ -147,40 +107,45 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
       for (int j = 0; j < 3 && kf < 0; ++j)
         if (rs.origin_barycentric(u, j) > 0) kh = j, kf = corner_of(F, source.F(H, j));
       if (kf < 0 || rs.origin_barycentric.row(u).minCoeff() > 0)
-        return give_up("refined vertex " + std::to_string(u) + " is not on its face's input face");
+        throw GiveUp{"refined vertex " + std::to_string(u) + " is not on its face's input face"};
       psi[3 * f + k] = group.reduce(concat(phi(F, kf), inverse(phi(H, kh))));
     }
   }
+  return psi;
+}
 
-  // Develop the disk: per face the frame element b_f of its input face,
-  // per disk vertex c_d = b_f psi (the deck element of that copy: its point
-  // in the development is c_d(lift)). Neighbours across uncut edges share
-  // the copy of their common vertex.
-  const detail::DiskDevelopment dev =
-      detail::develop_disk(cm.mesh, rc, cut, group, [&](int f, int k) { return psi[3 * f + k]; });
-  const std::vector<Word>& c = dev.c;
-  if (dev.faces_reached != nrf) return give_up("the refined cut disk is not connected");
-  if (dev.mismatch > 1e-6) return give_up("the class's deck elements are not flat on the refined mesh (" + std::to_string(dev.mismatch) + ")");
+// The boundary of the refined cut disk: 4g sides between the copies of the
+// base vertex x, counter-clockwise, `bl` rotated to start at a corner and
+// closed, corner_pos[ns] = #boundary, side_of: the side of each non-corner
+// boundary copy (-1 elsewhere). Fills out.corner_word, side_partner and
+// side_pairing_word from the development's deck words `c`.
+struct PolygonSides {
+  std::vector<int> bl, corner_pos, side_of;
+};
 
-  // Boundary: 4g sides between the copies of x, counter-clockwise.
-  std::vector<int> bl = cm.boundary_loops[0];
-  std::vector<int> corner_pos;
+PolygonSides polygon_sides(const CutMesh& cm, const SystemOfLoops& rs, const std::vector<Word>& c,
+                           const DeckGroup& group, PolygonInitialMapResult& out) {
+  const int x = rs.base_vertex, nd = static_cast<int>(cm.original_vertex.size());
+  PolygonSides ps;
+  std::vector<int>& bl = ps.bl;
+  std::vector<int>& corner_pos = ps.corner_pos;
+  bl = cm.boundary_loops[0];
   for (int i = 0; i < static_cast<int>(bl.size()); ++i)
     if (cm.original_vertex[bl[i]] == x) corner_pos.push_back(i);
   const int ns = static_cast<int>(corner_pos.size());
-  if (ns != 4 * rs.genus || ns < 8) return give_up("the refined cut has " + std::to_string(ns) + " corners, not 4g");
+  if (ns != 4 * rs.genus || ns < 8) throw GiveUp{"the refined cut has " + std::to_string(ns) + " corners, not 4g"};
   std::rotate(bl.begin(), bl.begin() + corner_pos[0], bl.end());
   for (int& i : corner_pos) i -= corner_pos[0];
   corner_pos.push_back(static_cast<int>(bl.size()));
   bl.push_back(bl[0]);
-  std::vector<int> side_of(nd, -1);  // non-corner boundary copies
-  std::vector<std::vector<int>> sides_of_refined(nrv);
+  ps.side_of.assign(nd, -1);  // non-corner boundary copies
+  std::vector<std::vector<int>> sides_of_refined(rs.mesh.num_vertices());
   for (int s = 0; s < ns; ++s) {
     for (int i = corner_pos[s] + 1; i < corner_pos[s + 1]; ++i) {
-      side_of[bl[i]] = s;
+      ps.side_of[bl[i]] = s;
       sides_of_refined[cm.original_vertex[bl[i]]].push_back(s);
     }
-    if (corner_pos[s + 1] - corner_pos[s] < 2) return give_up("side " + std::to_string(s) + " has no inner vertex");
+    if (corner_pos[s + 1] - corner_pos[s] < 2) throw GiveUp{"side " + std::to_string(s) + " has no inner vertex"};
   }
   out.corner_word.resize(ns);
   for (int s = 0; s < ns; ++s) out.corner_word[s] = c[bl[corner_pos[s]]];
@@ -189,7 +154,7 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
   for (int s = 0; s < ns; ++s) {
     const int d = bl[corner_pos[s] + 1];
     const auto& ss = sides_of_refined[cm.original_vertex[d]];
-    if (ss.size() != 2) return give_up("a loop vertex is not on two sides");
+    if (ss.size() != 2) throw GiveUp{"a loop vertex is not on two sides"};
     const int partner = ss[0] == s ? ss[1] : ss[0];
     out.side_partner[s] = partner;
     int d2 = -1;
@@ -197,10 +162,23 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
       if (cm.original_vertex[bl[i]] == cm.original_vertex[d]) d2 = bl[i];
     out.side_pairing_word[s] = group.reduce(concat(c[d], inverse(c[d2])));
   }
+  return ps;
+}
 
-  // Base point p (the lift of x): minimiser of the perimeter Σ_s d(p, A_s p),
-  // A_s = C_s^-1 C_s+1 (the side elements), which makes the sides short and
-  // balanced; the start is the target domain's centre.
+// The polygon: base point p (the lift of x) minimising the perimeter
+// Σ_s d(p, A_s p), A_s = C_s^-1 C_s+1 (the side elements), which makes the
+// sides short and balanced (start: the target domain's centre); its
+// corners in the chart centred at their Klein centroid (qc: Poincaré, kq:
+// Klein); out.base_point, perimeter, corners, turns and convexity. GiveUp
+// when the polygon has no digits left or is not strictly convex.
+struct ChartedPolygon {
+  Mobius chart;
+  std::vector<Complex> qc, kq;
+};
+
+ChartedPolygon charted_polygon(const DeckGroup& group, const PolygonInitialMapOptions& options,
+                               PolygonInitialMapResult& out) {
+  const int ns = static_cast<int>(out.corner_word.size());
   std::vector<Mobius> A(ns);
   for (int s = 0; s < ns; ++s)
     A[s] = group.evaluate_side_word(group.reduce(concat(inverse(out.corner_word[s]), out.corner_word[(s + 1) % ns])));
@@ -214,44 +192,54 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
     out.corners[s] = C[s].apply(p);
   }
   // The chart: centred at the (Klein) centroid of the corners.
-  Mobius chart = Mobius::centring(p);
+  ChartedPolygon poly;
+  Mobius& chart = poly.chart;
+  chart = Mobius::centring(p);
   for (int it = 0; it < 3; ++it) {
     Complex m(0.0);
     for (int s = 0; s < ns; ++s) m += hyperbolic::poincare_to_klein((chart * C[s]).normalized().apply(p));
     chart = (Mobius::centring(hyperbolic::klein_to_poincare(m / double(ns))) * chart).normalized();
   }
-  std::vector<Complex> qc(ns), kq(ns);
+  poly.qc.resize(ns), poly.kq.resize(ns);
   for (int s = 0; s < ns; ++s) {
-    qc[s] = (chart * C[s]).normalized().apply(p);
-    kq[s] = hyperbolic::poincare_to_klein(qc[s]);
+    poly.qc[s] = (chart * C[s]).normalized().apply(p);
+    poly.kq[s] = hyperbolic::poincare_to_klein(poly.qc[s]);
   }
+  const std::vector<Complex>& kq = poly.kq;
   // A polygon reaching |k| ~ 1 in its own centred chart (very twisted
   // classes: corners tens of units apart) has no digits left for positions.
   for (int s = 0; s < ns; ++s)
     if (!(std::isfinite(kq[s].real()) && std::isfinite(kq[s].imag()) && std::abs(kq[s]) < 1 - 1e-9))
-      return give_up("the polygon is too large for double precision (corner " + std::to_string(s) + ")");
+      throw GiveUp{"the polygon is too large for double precision (corner " + std::to_string(s) + ")"};
   // Convexity in the Klein model: every exterior angle in (0, π), total 2π.
-  double total_turn = 0;
-  out.min_turn = 10, out.max_turn = -10;
-  for (int s = 0; s < ns; ++s) {
-    const Complex e0 = kq[s] - kq[(s + ns - 1) % ns], e1 = kq[(s + 1) % ns] - kq[s];
-    const double turn = std::arg(e1 / e0);
-    total_turn += turn;
-    out.min_turn = std::min(out.min_turn, turn);
-    out.max_turn = std::max(out.max_turn, turn);
-  }
+  const detail::KleinTurns turns = detail::klein_turns(kq);
+  const double total_turn = turns.total;
+  out.min_turn = turns.min, out.max_turn = turns.max;
   out.convex = out.min_turn > options.min_turn && std::abs(total_turn - 2 * M_PI) < 1e-6;
   if (!out.convex) {
     const bool clockwise = std::abs(total_turn + 2 * M_PI) < 1e-6;
-    return give_up(clockwise ? "the polygon is negatively oriented"
-                   : std::abs(total_turn - 2 * M_PI) < 1e-6
-                       ? "the polygon is simple but not convex (smallest turn " + std::to_string(out.min_turn) + ")"
-                       : "the polygon is not simple (total turn " + std::to_string(total_turn / (2 * M_PI)) + " x 2pi)");
+    throw GiveUp{clockwise ? "the polygon is negatively oriented"
+                 : std::abs(total_turn - 2 * M_PI) < 1e-6
+                     ? "the polygon is simple but not convex (smallest turn " + std::to_string(out.min_turn) + ")"
+                     : "the polygon is not simple (total turn " + std::to_string(total_turn / (2 * M_PI)) + " x 2pi)"};
   }
+  return poly;
+}
 
-  // Disk positions (Klein model of the chart). Boundary: on side s at the
-  // fraction of the loop's 3D length, the same on both copies of a loop, so
-  // that the side pairing carries one copy onto the other.
+// Disk positions (Klein model of the polygon's chart), #disk vertices.
+// Boundary: on side s at the fraction of the loop's 3D length, the same on
+// both copies of a loop, so that the side pairing carries one copy onto the
+// other. Interior: symmetrised mean-value weights (Floater) from the 3D
+// geometry, positive on any triangle, so the flattening onto a convex
+// polygon is an embedding; chords (interior edges joining two boundary
+// copies of one side, whose faces would degenerate) are split at a free
+// midpoint (counted in out.chords_split).
+std::vector<Complex> flatten_refined_disk(const CutMesh& cm, const PolygonSides& ps, const ChartedPolygon& poly,
+                                          int hyperboloid_rounds, PolygonInitialMapResult& out) {
+  const std::vector<int>& bl = ps.bl;
+  const std::vector<int>& corner_pos = ps.corner_pos;
+  const std::vector<int>& side_of = ps.side_of;
+  const int nd = static_cast<int>(cm.original_vertex.size()), ns = static_cast<int>(corner_pos.size()) - 1;
   std::vector<Complex> k(nd, Complex(0.0));
   std::vector<char> on_boundary(nd, 0);
   for (int s = 0; s < ns; ++s) {
@@ -260,16 +248,12 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
       cum.push_back(cum.back() + (cm.mesh.V.row(bl[i + 1]) - cm.mesh.V.row(bl[i])).norm());
     for (int i = corner_pos[s]; i < corner_pos[s + 1]; ++i) {
       const double t = cum[i - corner_pos[s]] / cum.back();
-      k[bl[i]] = hyperbolic::poincare_to_klein(hyperbolic::geodesic_point(qc[s], qc[(s + 1) % ns], t));
+      k[bl[i]] = hyperbolic::poincare_to_klein(hyperbolic::geodesic_point(poly.qc[s], poly.qc[(s + 1) % ns], t));
       on_boundary[bl[i]] = 1;
     }
-    k[bl[corner_pos[s]]] = kq[s];
+    k[bl[corner_pos[s]]] = poly.kq[s];
   }
-  // Symmetrised mean-value weights (Floater) from the 3D geometry: positive
-  // on any triangle, so the flattening onto a convex polygon is an embedding.
   const auto dedges = detail::mean_value_disk_edges(cm.mesh);
-  // Unknowns: interior copies, plus midpoints of the chords (interior edges
-  // joining two boundary copies of one side, whose faces would degenerate).
   auto shares_side = [&](int a, int bb) {
     auto sides = [&](int d, int* s2) {
       if (side_of[d] >= 0) return *s2 = side_of[d], side_of[d];
@@ -285,7 +269,7 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
   for (const auto& [kk, de] : dedges) {
     const int i = static_cast<int>(kk / nd), j = static_cast<int>(kk % nd);
     if (de.faces != 2) {
-      if (de.faces != 1 || !on_boundary[i] || !on_boundary[j]) return give_up("the refined cut disk is not a manifold disk");
+      if (de.faces != 1 || !on_boundary[i] || !on_boundary[j]) throw GiveUp{"the refined cut disk is not a manifold disk"};
       continue;  // boundary edge: both ends fixed
     }
     if (on_boundary[i] && on_boundary[j] && shares_side(i, j)) {
@@ -304,16 +288,79 @@ PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connect
   std::vector<char> fixed(on_boundary);
   fixed.resize(nd + out.chords_split, 0);
   std::string why;
-  if (!detail::flatten_in_klein(graph, fixed, options.hyperboloid_rounds, kn, &why)) return give_up(why);
+  if (!detail::flatten_in_klein(graph, fixed, hyperboloid_rounds, kn, &why)) throw GiveUp{why};
   for (int d = 0; d < nd; ++d) k[d] = kn[d];
+  return k;
+}
+
+// The steps of the header's comment in order: refined loops and their cut,
+// the class's connection on the refined mesh, the development, the sides,
+// the polygon, the flattening and the input vertices read off it.
+void build_polygon_map(const TriMesh& source, const std::vector<Word>& halfedge_word, const DeckGroup& group,
+                       const PolygonInitialMapOptions& options, PolygonInitialMapResult& out) {
+  const int n_in = source.num_vertices();
+  // Refined loops: simple, meeting only at x, so the cut is a 4g-gon. The
+  // refined mesh keeps the input vertices first (system_of_loops.h).
+  SystemOfLoopsOptions lo;
+  lo.base_vertex = options.base_vertex;
+  lo.refine = true;
+  SystemOfLoops rs;
+  try {
+    rs = system_of_loops(source, lo);
+  } catch (const SolveError& e) {
+    throw GiveUp{std::string("refined loops: ") + e.what()};
+  }
+  const TriMesh& rm = rs.mesh;
+  const int nrv = rm.num_vertices(), nrf = rm.num_faces();
+  out.refined_vertices = nrv;
+  if (static_cast<int>(rs.face_origin.size()) != nrf) throw GiveUp{"refined mesh without face origins"};
+  const Connectivity rc(rm.F, nrv);
+  std::vector<char> cut(rc.num_edges(), 0);
+  for (const auto& loop : rs.loops)
+    for (size_t q = 0; q + 1 < loop.size(); ++q) {
+      const int h = rc.find_halfedge(loop[q], loop[q + 1]);
+      if (h < 0) throw GiveUp{"refined loop is not an edge path"};
+      cut[rc.edge(h)] = 1;
+    }
+  const CutMesh cm = cut_mesh_along_edges(rm, rc, cut);
+  if (cm.euler_characteristic != 1 || cm.boundary_loops.size() != 1) throw GiveUp{"the refined cut is not a disk"};
+  out.disk_vertices = static_cast<int>(cm.original_vertex.size());
+
+  const std::vector<Word> psi = refined_corner_words(source, rs, halfedge_word, group);
+  // Develop the disk: per face the frame element b_f of its input face,
+  // per disk vertex c_d = b_f psi (the deck element of that copy: its point
+  // in the development is c_d(lift)). Neighbours across uncut edges share
+  // the copy of their common vertex.
+  const detail::DiskDevelopment dev =
+      detail::develop_disk(cm.mesh, rc, cut, group, [&](int f, int k) { return psi[3 * f + k]; });
+  const std::vector<Word>& c = dev.c;
+  if (dev.faces_reached != nrf) throw GiveUp{"the refined cut disk is not connected"};
+  if (dev.mismatch > 1e-6)
+    throw GiveUp{"the class's deck elements are not flat on the refined mesh (" + std::to_string(dev.mismatch) + ")"};
+
+  const PolygonSides ps = polygon_sides(cm, rs, c, group, out);
+  const ChartedPolygon poly = charted_polygon(group, options, out);
+  const std::vector<Complex> k = flatten_refined_disk(cm, ps, poly, options.hyperboloid_rounds, out);
 
   // The input vertices: one copy's point (global frame) and its deck word,
   // then moved into the target's domain.
-  const std::string unread = detail::read_disk_vertices(cm.original_vertex, n_in, k, c, chart, options.reduce_point, group,
-                                                        "input vertex", "the refined mesh", out.z, out.vertex_deck,
-                                                        out.vertex_deck_word);
-  if (!unread.empty()) return give_up(unread);
-  out.applied = true;
+  const std::string unread = detail::read_disk_vertices(cm.original_vertex, n_in, k, c, poly.chart,
+                                                        options.reduce_point, group, "input vertex", "the refined mesh",
+                                                        out.z, out.vertex_deck, out.vertex_deck_word);
+  if (!unread.empty()) throw GiveUp{unread};
+}
+
+}  // namespace
+
+PolygonInitialMapResult polygon_initial_map(const TriMesh& source, const Connectivity& sc,
+                                            const std::vector<Word>& halfedge_word, const DeckGroup& group,
+                                            const PolygonInitialMapOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PolygonInitialMapResult out;
+  const int n_in = source.num_vertices();
+  if (static_cast<int>(halfedge_word.size()) != 3 * sc.num_faces() || sc.num_vertices() != n_in)
+    throw InputError("polygon_initial_map: one side word per source halfedge (3 x #F) needed");
+  detail::build_or_give_up(out, [&](auto& o) { build_polygon_map(source, halfedge_word, group, options, o); });
   out.time_s = seconds_since(t0);
   return out;
 }

@@ -139,6 +139,66 @@ std::string landmark_name(const std::vector<std::pair<int, int>>& landmarks, int
          std::to_string(landmarks[a].second) + ")";
 }
 
+// The barrier continuations' shared pieces (flat_barrier_landmarks,
+// hyperbolic_barrier_landmarks; landmarks.h).
+
+// Free unknowns: every vertex but the held landmarks `source`, numbered in
+// order (index[v] = -1 for held vertices); returns their count.
+int number_free_vertices(int n, const std::vector<int>& source, std::vector<int>& index) {
+  index.assign(n, -1);
+  std::vector<char> held(n, 0);
+  for (int s : source) held[s] = 1;
+  int m = 0;
+  for (int v = 0; v < n; ++v)
+    if (!held[v]) index[v] = m++;
+  return m;
+}
+
+// Reference areas c_f = A_f(free) / 4 of the `nf` faces (area(f): the free
+// map's face area); false when the free map itself is not embedded (nothing
+// to continue from).
+template <class Area>
+bool barrier_reference_areas(int nf, const Area& area, std::vector<double>& c) {
+  c.assign(nf, 0.0);
+  for (int f = 0; f < nf; ++f) {
+    c[f] = 0.25 * area(f);
+    if (!(c[f] > 0)) return false;
+  }
+  return true;
+}
+
+// Σ_f φ(A_f / c_f), φ(x) = x − 1 − log x below 1 (C¹, convex), for the
+// face areas area(f); +inf when a face is not positively oriented.
+template <class Area>
+double face_barrier(const std::vector<double>& c, const Area& area) {
+  double B = 0;
+  for (size_t f = 0; f < c.size(); ++f) {
+    const double x = area(static_cast<int>(f)) / c[f];
+    if (!(x > 0)) return std::numeric_limits<double>::infinity();
+    if (x < 1) B += x - 1 - std::log(x);
+  }
+  return B;
+}
+
+// Fixed sparsity of the continuation's Hessian in the free unknowns (x, y
+// of each, `index` from number_free_vertices): Laplacian couplings of
+// `edges` and every face's corners; zero-valued triplets.
+template <class Edge>
+std::vector<Eigen::Triplet<double>> barrier_hessian_pattern(const std::vector<Edge>& edges, const RowMatrixX3i& F,
+                                                            const std::vector<int>& index) {
+  std::vector<Eigen::Triplet<double>> pattern;
+  auto couple = [&](int a, int b) {
+    if (index[a] < 0 || index[b] < 0) return;
+    for (int u = 0; u < 2; ++u)
+      for (int w = 0; w < 2; ++w) pattern.emplace_back(2 * index[a] + u, 2 * index[b] + w, 0.0);
+  };
+  for (const auto& e : edges) couple(e.i, e.i), couple(e.j, e.j), couple(e.i, e.j), couple(e.j, e.i);
+  for (int f = 0; f < static_cast<int>(F.rows()); ++f)
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) couple(F(f, a), F(f, b));
+  return pattern;
+}
+
 }  // namespace
 
 LandmarkPatchSearch grow_landmark_patches(
@@ -245,12 +305,8 @@ FlatBarrierResult flat_barrier_landmarks(int n, const std::vector<IntrinsicEdge>
   FlatBarrierResult out;
   const int nf = static_cast<int>(F.rows());
   // Free unknowns: every vertex but the landmarks, x and y interleaved.
-  std::vector<int> index(n, -1);
-  std::vector<char> held(n, 0);
-  for (int s : source) held[s] = 1;
-  int m = 0;
-  for (int v = 0; v < n; ++v)
-    if (!held[v]) index[v] = m++;
+  std::vector<int> index;
+  const int m = number_free_vertices(n, source, index);
   auto area = [&](const std::vector<Complex>& z, int f) {
     const Complex p0 = z[F(f, 0)] + off(f, 0), p1 = z[F(f, 1)] + off(f, 1), p2 = z[F(f, 2)] + off(f, 2);
     const Complex e1 = p1 - p0, e2 = p2 - p0;
@@ -261,33 +317,16 @@ FlatBarrierResult flat_barrier_landmarks(int n, const std::vector<IntrinsicEdge>
     for (size_t e = 0; e < edges.size(); ++e) E += edges[e].cot_weight * std::norm(z[edges[e].j] + t[e] - z[edges[e].i]);
     return E;
   };
-  std::vector<double> c(nf);
-  for (int f = 0; f < nf; ++f) {
-    c[f] = 0.25 * area(free, f);
-    if (!(c[f] > 0)) return out;  // the free map itself is not embedded: nothing to continue from
-  }
+  std::vector<double> c;
+  if (!barrier_reference_areas(nf, [&](int f) { return area(free, f); }, c)) return out;
   const double mu = dirichlet(free) / nf;
   // F(z) = E + μ Σ φ(A/c); +inf when a face is not positively oriented.
   auto objective = [&](const std::vector<Complex>& z) {
-    double B = 0;
-    for (int f = 0; f < nf; ++f) {
-      const double x = area(z, f) / c[f];
-      if (!(x > 0)) return std::numeric_limits<double>::infinity();
-      if (x < 1) B += x - 1 - std::log(x);
-    }
+    const double B = face_barrier(c, [&](int f) { return area(z, f); });
+    if (!(B < std::numeric_limits<double>::infinity())) return B;
     return dirichlet(z) + mu * B;
   };
-  // Fixed sparsity: Laplacian couplings and every face's corners.
-  std::vector<Eigen::Triplet<double>> pattern;
-  auto couple = [&](int a, int b) {
-    if (index[a] < 0 || index[b] < 0) return;
-    for (int u = 0; u < 2; ++u)
-      for (int w = 0; w < 2; ++w) pattern.emplace_back(2 * index[a] + u, 2 * index[b] + w, 0.0);
-  };
-  for (const auto& e : edges) couple(e.i, e.i), couple(e.j, e.j), couple(e.i, e.j), couple(e.j, e.i);
-  for (int f = 0; f < nf; ++f)
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) couple(F(f, a), F(f, b));
+  const std::vector<Eigen::Triplet<double>> pattern = barrier_hessian_pattern(edges, F, index);
   Eigen::SparseMatrix<double> H(2 * m, 2 * m);
   H.setFromTriplets(pattern.begin(), pattern.end());
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
@@ -597,12 +636,8 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
   const int nf = static_cast<int>(F.rows());
   if (static_cast<int>(face_elements.size()) != 3 * nf || static_cast<int>(free.size()) != n)
     throw InputError("hyperbolic_barrier_landmarks: face_elements needs 3 x #F entries and free #V");
-  std::vector<int> index(n, -1);
-  std::vector<char> held(n, 0);
-  for (int s : source) held[s] = 1;
-  int m = 0;
-  for (int v = 0; v < n; ++v)
-    if (!held[v]) index[v] = m++;
+  std::vector<int> index;
+  const int m = number_free_vertices(n, source, index);
   // Corner 1 and 2 of face f into corner 0's chart.
   auto A1 = [&](int f) { return face_elements[3 * f]; };
   auto A2 = [&](int f) { return face_elements[3 * f + 2].inverse(); };
@@ -614,35 +649,19 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
     for (const auto& e : edges) E += edge_value(z[e.i], z[e.j], e.rho, e.w);
     return E;
   };
-  std::vector<double> c(nf);
-  for (int f = 0; f < nf; ++f) {
-    c[f] = 0.25 * area(free, f);
-    if (!(c[f] > 0)) return out;  // the free map itself is not embedded: nothing to continue from
-  }
+  std::vector<double> c;
+  if (!barrier_reference_areas(nf, [&](int f) { return area(free, f); }, c)) return out;
   const double mu = dirichlet(free) / nf;
-  // F(z) = E + μ Σ φ(A/c), φ(x) = x − 1 − log x below 1 (C¹, convex);
-  // +inf when a face is not positively oriented or a point left the disk.
+  // F(z) = E + μ Σ φ(A/c) (face_barrier); +inf when a face is not
+  // positively oriented or a point left the disk.
   auto objective = [&](const std::vector<Complex>& z) {
     for (int v = 0; v < n; ++v)
       if (!(std::abs(z[v]) < 1)) return std::numeric_limits<double>::infinity();
-    double B = 0;
-    for (int f = 0; f < nf; ++f) {
-      const double x = area(z, f) / c[f];
-      if (!(x > 0)) return std::numeric_limits<double>::infinity();
-      if (x < 1) B += x - 1 - std::log(x);
-    }
+    const double B = face_barrier(c, [&](int f) { return area(z, f); });
+    if (!(B < std::numeric_limits<double>::infinity())) return B;
     return dirichlet(z) + mu * B;
   };
-  std::vector<Eigen::Triplet<double>> pattern;
-  auto couple = [&](int a, int b) {
-    if (index[a] < 0 || index[b] < 0) return;
-    for (int u = 0; u < 2; ++u)
-      for (int w = 0; w < 2; ++w) pattern.emplace_back(2 * index[a] + u, 2 * index[b] + w, 0.0);
-  };
-  for (const auto& e : edges) couple(e.i, e.i), couple(e.j, e.j), couple(e.i, e.j), couple(e.j, e.i);
-  for (int f = 0; f < nf; ++f)
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) couple(F(f, a), F(f, b));
+  const std::vector<Eigen::Triplet<double>> pattern = barrier_hessian_pattern(edges, F, index);
   Eigen::SparseMatrix<double> H(2 * m, 2 * m);
   H.setFromTriplets(pattern.begin(), pattern.end());
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;

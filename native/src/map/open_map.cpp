@@ -9,6 +9,7 @@
 
 #include "surfmap/error.h"
 #include "surfmap/map/distortion.h"
+#include "surfmap/map/map_report.h"
 
 namespace surfmap {
 namespace {
@@ -198,6 +199,18 @@ double align(const TriMesh& source, const TriMesh& target, const OpenConformalRe
   return r >= period ? r - period : r;  // round-off of a tiny negative r
 }
 
+/// Throws InputError unless `pairing` is a permutation of 0..b-1.
+void check_boundary_pairing(const std::vector<int>& pairing, int b) {
+  std::string text;
+  for (int t : pairing) text += (text.empty() ? "" : ", ") + std::to_string(t);
+  std::vector<char> seen(b, 0);
+  bool ok = static_cast<int>(pairing.size()) == b;
+  for (int t : pairing) ok = ok && t >= 0 && t < b && !seen[t]++;
+  if (!ok)
+    throw InputError("boundary pairing [" + text + "]: must give each of the " + std::to_string(b) +
+                     " source boundary loops a different target loop 0.." + std::to_string(b - 1));
+}
+
 }  // namespace
 
 OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology& source_topology,
@@ -222,7 +235,13 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
                          : annulus_conformal_map(target, target_topology, options.conformal);
   DomainMap m;
   m.cylinder = !disk;
-  m.swap = !disk && options.swap_annulus_loops;
+  r.boundary_pairing = options.boundary_pairing;
+  if (r.boundary_pairing.empty()) {
+    for (int i = 0; i < b; ++i) r.boundary_pairing.push_back(i);
+    if (!disk && options.swap_annulus_loops) std::swap(r.boundary_pairing[0], r.boundary_pairing[1]);
+  }
+  check_boundary_pairing(r.boundary_pairing, b);
+  m.swap = !disk && r.boundary_pairing[0] == 1;
   if (!disk) {
     m.stretch = r.target_domain.modulus / r.source_domain.modulus;
     m.target_height = r.target_domain.modulus;
@@ -309,6 +328,38 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
   out.candidates.back().energy = energy;
   out.chosen_candidate = 0;
   return r;
+}
+
+nlohmann::json to_json(const OpenMapResult& r, const OpenMapOptions& options) {
+  auto domain_json = [](const OpenConformalResult& d) {
+    return nlohmann::json{{"modulus", d.modulus},
+                          {"modulus_from_u", d.modulus_from_u},
+                          {"modulus_from_theta", d.modulus_from_theta},
+                          {"pole", d.pole},
+                          {"centring_iterations", d.centring_iterations},
+                          {"flipped_faces", d.flipped_faces},
+                          {"degenerate_faces", d.degenerate_faces}};
+  };
+  auto topology_json = [](const OpenSurfaceTopology& t) {
+    return nlohmann::json{{"genus", t.genus}, {"boundary_loops", t.num_boundary_loops()}, {"description", t.describe()},
+                          {"boundary_lengths", t.boundary_lengths}};
+  };
+  nlohmann::json report = to_json(r.map, SurfaceMapOptions{});
+  report["method"] = "open";
+  report["boundary_loops"] = r.source_topology.num_boundary_loops();
+  report["source_topology"] = topology_json(r.source_topology);
+  report["target_topology"] = topology_json(r.target_topology);
+  report["open"] = {{"domain", r.domain},
+                    {"rotation", r.rotation},
+                    {"rotation_requested", !std::isnan(options.rotation)},
+                    {"extremal_dilatation", r.extremal_dilatation},
+                    {"boundary_pairing", r.boundary_pairing},
+                    {"ear_triangles", r.ear_triangles},
+                    {"ear_triangles_degenerate", r.ear_triangles_degenerate},
+                    {"source", domain_json(r.source_domain)},
+                    {"target", domain_json(r.target_domain)},
+                    {"description", r.map.candidates.empty() ? std::string() : r.map.candidates[0].description}};
+  return report;
 }
 
 }  // namespace surfmap

@@ -101,17 +101,12 @@ int tree_bfs(const std::vector<std::vector<int>>& adj, int start, std::vector<in
   return last;
 }
 
+/// Canonical triangle of every face: corner 0 at 0, corner 1 on the positive
+/// real axis, corner 2 above it (counter-clockwise). InputError on a face
+/// whose lengths are not a triangle.
 template <class G>
-void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const SystemOfLoops& loops,
-                 const LayoutOptions& options, DiskLayout& out) {
-  using Chart = typename G::Chart;
-  const int nF = conn.num_faces(), nE = conn.num_edges(), nV = conn.num_vertices();
-  const RowMatrixX3i& F = conn.faces();
-  const int genus = conn.genus();
-  out.genus = genus;
-
-  // Canonical triangle of every face: corner 0 at 0, corner 1 on the positive
-  // real axis, corner 2 above it (counter-clockwise).
+std::vector<std::array<Complex, 3>> canonical_triangles(const Connectivity& conn, const Eigen::VectorXd& L) {
+  const int nF = conn.num_faces();
   std::vector<std::array<Complex, 3>> canon(nF);
   for (int f = 0; f < nF; ++f) {
     const double l0 = L[conn.edge(3 * f)], l1 = L[conn.edge(3 * f + 1)], l2 = L[conn.edge(3 * f + 2)];
@@ -123,25 +118,48 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     const double alpha0 = G::angle(l0, l2, l1);
     canon[f] = {Complex(0.0), Complex(G::coord(l0), 0.0), std::polar(G::coord(l2), alpha0)};
   }
-  // Frame of each halfedge inside its face's canonical triangle.
-  auto frame = [&](int h) {
+  return canon;
+}
+
+/// The gluing of neighbouring canonical triangles.
+template <class G>
+struct Gluing {
+  using Chart = typename G::Chart;
+  const Connectivity& conn;
+  const Eigen::VectorXd& L;
+  const std::vector<std::array<Complex, 3>>& canon;
+  /// Frame of halfedge h inside its face's canonical triangle.
+  Chart frame(int h) const {
     const int f = h / 3, k = h % 3;
     if (k == 0) return Chart{};
     return G::frame(canon[f][k], canon[f][(k + 1) % 3]);
-  };
-  // Transition across halfedge h: maps the canonical coordinates of
-  // face(twin(h)) to those of face(h), gluing the two copies of the edge.
-  auto transition = [&](int h) {
+  }
+  /// Transition across halfedge h: maps the canonical coordinates of
+  /// face(twin(h)) to those of face(h), gluing the two copies of the edge.
+  Chart transition(int h) const {
     const int t = conn.twin(h);
     return (frame(h) * G::flip(L[conn.edge(h)]) * frame(t).inverse()).normalized();
-  };
+  }
+};
 
-  // Loop membership of every edge, with the halfedge running along the loop;
-  // the cut edges are exactly the loop edges.
+/// Loop membership of every edge (-1 off the loops) with the halfedge
+/// running along the loop; the cut edges are exactly the loop edges.
+struct LoopEdges {
+  std::vector<int> loop, forward;
+};
+
+/// The loop edges of `loops` (SolveError when they are not 2g closed loops
+/// through the base vertex on distinct edges), and out.cut_edge; checks that
+/// the cut tree T* never crosses a loop (a wrong system of loops would
+/// otherwise be laid out silently wrong).
+LoopEdges loop_edges(const Connectivity& conn, const SystemOfLoops& loops, DiskLayout& out) {
+  const int nF = conn.num_faces(), nE = conn.num_edges(), nV = conn.num_vertices();
+  const int genus = conn.genus();
   const int nloops = static_cast<int>(loops.loops.size());
   if (nloops != 2 * genus)
     throw SolveError("layout: " + std::to_string(nloops) + " loops for genus " + std::to_string(genus));
-  std::vector<int> edge_loop(nE, -1), edge_forward(nE, -1);
+  LoopEdges le;
+  le.loop.assign(nE, -1), le.forward.assign(nE, -1);
   for (int k = 0; k < nloops; ++k) {
     const auto& path = loops.loops[k];
     if (path.size() < 2 || path.front() != loops.base_vertex || path.back() != loops.base_vertex)
@@ -154,17 +172,15 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
         throw SolveError("layout: loop " + std::to_string(k) + " steps between non-adjacent vertices " +
                          std::to_string(path[i]) + " and " + std::to_string(path[i + 1]));
       const int e = conn.edge(h);
-      if (edge_loop[e] >= 0)
-        throw SolveError("layout: edge " + std::to_string(e) + " lies on loops " +
-                         std::to_string(edge_loop[e]) + " and " + std::to_string(k));
-      edge_loop[e] = k;
-      edge_forward[e] = h;
+      if (le.loop[e] >= 0)
+        throw SolveError("layout: edge " + std::to_string(e) + " lies on loops " + std::to_string(le.loop[e]) +
+                         " and " + std::to_string(k));
+      le.loop[e] = k;
+      le.forward[e] = h;
     }
   }
   out.cut_edge.assign(nE, false);
-  for (int e = 0; e < nE; ++e) out.cut_edge[e] = edge_loop[e] >= 0;
-  // The cut tree T* never crosses a loop (checked: a wrong system of loops
-  // would otherwise be laid out silently wrong).
+  for (int e = 0; e < nE; ++e) out.cut_edge[e] = le.loop[e] >= 0;
   if (static_cast<int>(loops.dual_tree_parent_halfedge.size()) != nF)
     throw InputError("layout: dual_tree_parent_halfedge has " +
                      std::to_string(loops.dual_tree_parent_halfedge.size()) + " entries for " +
@@ -175,142 +191,169 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     if (h >= 3 * nF || Connectivity::face(h) != f)
       throw InputError("layout: dual tree parent halfedge of face " + std::to_string(f) + " is not in that face");
     if (out.cut_edge[conn.edge(h)])
-      throw SolveError("layout: the cut tree crosses loop " + std::to_string(edge_loop[conn.edge(h)]) +
-                       " at edge " + std::to_string(conn.edge(h)));
+      throw SolveError("layout: the cut tree crosses loop " + std::to_string(le.loop[conn.edge(h)]) + " at edge " +
+                       std::to_string(conn.edge(h)));
   }
-  // Faces of the disk are adjacent across every uncut edge. The layout walks
-  // this graph breadth-first (a spanning tree of it, like T*, but of the
-  // least depth from the root, so that the fewest chart products pile up).
-  std::vector<std::vector<int>> adj(nF);
-  std::vector<std::vector<int>> adj_halfedge(nF);
+  return le;
+}
+
+/// Faces of the disk adjacent across every uncut edge (with the halfedge
+/// crossed). The layout walks this graph breadth-first (a spanning tree of
+/// it, like T*, but of the least depth from the root, so that the fewest
+/// chart products pile up).
+struct DiskAdjacency {
+  std::vector<std::vector<int>> face, halfedge;
+};
+
+DiskAdjacency disk_adjacency(const Connectivity& conn, const std::vector<bool>& cut_edge) {
+  const int nF = conn.num_faces();
+  DiskAdjacency adj;
+  adj.face.resize(nF), adj.halfedge.resize(nF);
   for (int h = 0; h < 3 * nF; ++h) {
-    if (out.cut_edge[conn.edge(h)]) continue;
-    adj[Connectivity::face(h)].push_back(Connectivity::face(conn.twin(h)));
-    adj_halfedge[Connectivity::face(h)].push_back(h);
+    if (cut_edge[conn.edge(h)]) continue;
+    adj.face[Connectivity::face(h)].push_back(Connectivity::face(conn.twin(h)));
+    adj.halfedge[Connectivity::face(h)].push_back(h);
   }
+  return adj;
+}
+
+/// The root face: `requested` when >= 0, else the tree centre (middle of a
+/// longest path, two sweeps). SolveError when the loops disconnect the disk.
+int root_face(const DiskAdjacency& adj, int requested) {
+  const int nF = static_cast<int>(adj.face.size());
   std::vector<int> parent, order;
-  // The tree centre: middle of a longest path (two sweeps).
-  int root = options.root_face;
-  {
-    const int a = tree_bfs(adj, 0, parent, order);
-    if (static_cast<int>(order.size()) != nF)
-      throw SolveError("layout: the cut tree reaches " + std::to_string(order.size()) + " of " +
-                       std::to_string(nF) + " faces; the loops disconnect the surface");
-    const int b = tree_bfs(adj, a, parent, order);
-    std::vector<int> path;
-    for (int f = b; f != -1; f = parent[f]) path.push_back(f);
-    if (root < 0) root = path[path.size() / 2];
-    if (root >= nF) throw InputError("layout: root face " + std::to_string(root) + " out of range");
-  }
-  out.root_face = root;
+  int root = requested;
+  const int a = tree_bfs(adj.face, 0, parent, order);
+  if (static_cast<int>(order.size()) != nF)
+    throw SolveError("layout: the cut tree reaches " + std::to_string(order.size()) + " of " + std::to_string(nF) +
+                     " faces; the loops disconnect the surface");
+  const int b = tree_bfs(adj.face, a, parent, order);
+  std::vector<int> path;
+  for (int f = b; f != -1; f = parent[f]) path.push_back(f);
+  if (root < 0) root = path[path.size() / 2];
+  if (root >= nF) throw InputError("layout: root face " + std::to_string(root) + " out of range");
+  return root;
+}
 
-  // Charts in breadth-first order from the root.
-  std::vector<Chart> chart(nF);
+/// Charts of every face in breadth-first order from the root (`bfs`: that
+/// order).
+template <class G>
+std::vector<typename G::Chart> face_charts(const Gluing<G>& glue, const DiskAdjacency& adj, int root,
+                                           std::vector<int>& bfs) {
+  const int nF = static_cast<int>(adj.face.size());
+  std::vector<typename G::Chart> chart(nF);
   std::vector<char> done(nF, 0);
-  std::vector<int> bfs;
+  bfs.clear();
   bfs.reserve(nF);
-  {
-    std::queue<int> q;
-    q.push(root);
-    done[root] = 1;
-    while (!q.empty()) {
-      const int f = q.front();
-      q.pop();
-      bfs.push_back(f);
-      for (size_t i = 0; i < adj[f].size(); ++i) {
-        const int g = adj[f][i];
-        if (done[g]) continue;
-        done[g] = 1;
-        chart[g] = (chart[f] * transition(adj_halfedge[f][i])).normalized();
-        q.push(g);
-      }
+  std::queue<int> q;
+  q.push(root);
+  done[root] = 1;
+  while (!q.empty()) {
+    const int f = q.front();
+    q.pop();
+    bfs.push_back(f);
+    for (size_t i = 0; i < adj.face[f].size(); ++i) {
+      const int g = adj.face[f][i];
+      if (done[g]) continue;
+      done[g] = 1;
+      chart[g] = (chart[f] * glue.transition(adj.halfedge[f][i])).normalized();
+      q.push(g);
     }
   }
-  auto compute_corners = [&]() {
-    out.corners.resize(nF, 3);
+  return chart;
+}
+
+/// out.corners from the charts and canonical triangles.
+template <class Chart>
+void compute_corners(const std::vector<Chart>& chart, const std::vector<std::array<Complex, 3>>& canon,
+                     DiskLayout& out) {
+  const int nF = static_cast<int>(chart.size());
+  out.corners.resize(nF, 3);
+  for (int f = 0; f < nF; ++f)
+    for (int k = 0; k < 3; ++k) out.corners(f, k) = chart[f].apply(canon[f][k]);
+}
+
+/// Karcher mean of the corner positions: minimise ½Σ d(c, z)² by Riemannian
+/// Newton steps c ← exp_c(H⁻¹ Σ log_c(z)), with H the exact Hessian
+/// (docs/method.md §7: 1 along each geodesic, d coth d across it), and
+/// backtracking on the objective (it is geodesically convex).
+Complex karcher_mean_of_corners(const DiskLayout& out) {
+  const int nF = static_cast<int>(out.corners.rows());
+  auto objective = [&](Complex c) {
+    double sum = 0;
     for (int f = 0; f < nF; ++f)
-      for (int k = 0; k < 3; ++k) out.corners(f, k) = chart[f].apply(canon[f][k]);
+      for (int k = 0; k < 3; ++k) sum += std::pow(hyperbolic::distance(c, out.corners(f, k)), 2);
+    return sum;
   };
-  compute_corners();
-
-  // Re-centre.
-  if (options.recentre) {
-    if constexpr (std::is_same_v<G, Hyper>) {
-      // Karcher mean of the corner positions: minimise ½Σ d(c, z)² by
-      // Riemannian Newton steps c ← exp_c(H⁻¹ Σ log_c(z)), with H the exact
-      // Hessian (docs/method.md §7: 1 along each geodesic, d coth d across it),
-      // and backtracking on the objective (it is geodesically convex).
-      auto objective = [&](Complex c) {
-        double sum = 0;
-        for (int f = 0; f < nF; ++f)
-          for (int k = 0; k < 3; ++k) sum += std::pow(hyperbolic::distance(c, out.corners(f, k)), 2);
-        return sum;
-      };
-      Complex c(0.0);
-      double fc = objective(c);
-      for (int it = 0; it < 100; ++it) {
-        Complex g(0.0);
-        double hxx = 0, hxy = 0, hyy = 0;
-        for (int f = 0; f < nF; ++f)
-          for (int k = 0; k < 3; ++k) {
-            const Complex l = hyperbolic::log_map(c, out.corners(f, k));
-            g += l;
-            const double d = std::abs(l);
-            const double normal = d > 1e-8 ? d / std::tanh(d) : 1.0;
-            const Complex u = d > 1e-8 ? l / d : Complex(1.0, 0.0);
-            // H = u uᵀ + normal (I − u uᵀ)
-            hxx += normal + (1 - normal) * u.real() * u.real();
-            hxy += (1 - normal) * u.real() * u.imag();
-            hyy += normal + (1 - normal) * u.imag() * u.imag();
-          }
-        if (std::abs(g) < 1e-10 * 3.0 * nF) break;  // far below any use of the centre
-        const double det = hxx * hyy - hxy * hxy;
-        const Complex step((hyy * g.real() - hxy * g.imag()) / det, (hxx * g.imag() - hxy * g.real()) / det);
-        bool moved = false;
-        for (double t = 1.0; t > 1e-6; t *= 0.5) {
-          const Complex cn = hyperbolic::exp_map(c, t * step);
-          const double fn = objective(cn);
-          if (fn < fc) {
-            c = cn, fc = fn, moved = true;
-            break;
-          }
-        }
-        if (!moved) break;
+  Complex c(0.0);
+  double fc = objective(c);
+  for (int it = 0; it < 100; ++it) {
+    Complex g(0.0);
+    double hxx = 0, hxy = 0, hyy = 0;
+    for (int f = 0; f < nF; ++f)
+      for (int k = 0; k < 3; ++k) {
+        const Complex l = hyperbolic::log_map(c, out.corners(f, k));
+        g += l;
+        const double d = std::abs(l);
+        const double normal = d > 1e-8 ? d / std::tanh(d) : 1.0;
+        const Complex u = d > 1e-8 ? l / d : Complex(1.0, 0.0);
+        // H = u uᵀ + normal (I − u uᵀ)
+        hxx += normal + (1 - normal) * u.real() * u.real();
+        hxy += (1 - normal) * u.real() * u.imag();
+        hyy += normal + (1 - normal) * u.imag() * u.imag();
       }
-      const Mobius tc = Mobius::centring(c);
-      for (int f = 0; f < nF; ++f) chart[f] = (tc * chart[f]).normalized();
-    } else {
-      Complex c(0.0);
-      double total = 0;
-      for (int f = 0; f < nF; ++f) {
-        const Complex a = out.corners(f, 0), b = out.corners(f, 1), d = out.corners(f, 2);
-        const double w = 0.5 * std::imag(std::conj(b - a) * (d - a));
-        c += w * (a + b + d) / 3.0;
-        total += w;
+    if (std::abs(g) < 1e-10 * 3.0 * nF) break;  // far below any use of the centre
+    const double det = hxx * hyy - hxy * hxy;
+    const Complex step((hyy * g.real() - hxy * g.imag()) / det, (hxx * g.imag() - hxy * g.real()) / det);
+    bool moved = false;
+    for (double t = 1.0; t > 1e-6; t *= 0.5) {
+      const Complex cn = hyperbolic::exp_map(c, t * step);
+      const double fn = objective(cn);
+      if (fn < fc) {
+        c = cn, fc = fn, moved = true;
+        break;
       }
-      c /= total;
-      for (int f = 0; f < nF; ++f) chart[f].t -= c;
     }
-    compute_corners();
+    if (!moved) break;
   }
+  return c;
+}
+
+/// Re-centres the charts (hyperbolic: on the Karcher mean of the corners;
+/// flat: on their area-weighted centroid) and recomputes the corners.
+template <class G>
+void recentre(std::vector<typename G::Chart>& chart, const std::vector<std::array<Complex, 3>>& canon,
+              DiskLayout& out) {
+  const int nF = static_cast<int>(chart.size());
   if constexpr (std::is_same_v<G, Hyper>) {
-    out.face_charts = chart;
+    const Mobius tc = Mobius::centring(karcher_mean_of_corners(out));
+    for (int f = 0; f < nF; ++f) chart[f] = (tc * chart[f]).normalized();
   } else {
-    out.face_rotation.resize(nF);
-    out.face_translation.resize(nF);
+    Complex c(0.0);
+    double total = 0;
     for (int f = 0; f < nF; ++f) {
-      out.face_rotation[f] = chart[f].r;
-      out.face_translation[f] = chart[f].t;
+      const Complex a = out.corners(f, 0), b = out.corners(f, 1), d = out.corners(f, 2);
+      const double w = 0.5 * std::imag(std::conj(b - a) * (d - a));
+      c += w * (a + b + d) / 3.0;
+      total += w;
     }
+    c /= total;
+    for (int f = 0; f < nF; ++f) chart[f].t -= c;
   }
+  compute_corners(chart, canon, out);
+}
 
-  // Round-off of the coordinates in the metric: ε times the metric's scale
-  // factor at a corner (hyperbolic 2/(1−|z|²), which reaches 10¹² on long
-  // fundamental domains; flat |z|). Gluing checks are judged against its
-  // maximum (uniformize.cpp); a triangle whose sides are all below 100 times
-  // the round-off at its corners cannot be resolved by the coordinates at
-  // all (flat metrics of long thin limbs shrink triangles to 1e-13 at
-  // |z| = 5000): it is counted as unresolved, not as flipped.
+/// Round-off of the coordinates in the metric: ε times the metric's scale
+/// factor at a corner (hyperbolic 2/(1−|z|²), which reaches 10¹² on long
+/// fundamental domains; flat |z|). Gluing checks are judged against its
+/// maximum (uniformize.cpp); a triangle whose sides are all below 100 times
+/// the round-off at its corners cannot be resolved by the coordinates at
+/// all (flat metrics of long thin limbs shrink triangles to 1e-13 at
+/// |z| = 5000): it is counted as unresolved, not as flipped. Fills
+/// out.coordinate_roundoff, num_flipped, num_unresolved and area.
+template <class G>
+void count_flipped_faces(const Connectivity& conn, const Eigen::VectorXd& L, DiskLayout& out) {
+  const int nF = conn.num_faces();
   auto roundoff_at = [&](Complex z) {
     const double factor = std::is_same_v<G, Hyper> ? 2.0 / std::max(1e-300, 1.0 - std::norm(z)) : std::abs(z);
     return std::numeric_limits<double>::epsilon() * std::max(factor, 1.0);
@@ -332,8 +375,20 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
       ++out.num_flipped;
     out.area += G::area(L[conn.edge(3 * f)], L[conn.edge(3 * f + 1)], L[conn.edge(3 * f + 2)]);
   }
+}
 
-  // Interior edges: the two copies of each endpoint coincide.
+/// Deck map of every cut edge (identity elsewhere): the copy of face g glued
+/// to face f along e is chart[f] ∘ E, and the deck map carries it onto the
+/// laid-out copy chart[g]. Interior edges: the two copies of each endpoint
+/// must coincide (out.max_interior_mismatch). Also fills the flat or
+/// hyperbolic edge deck fields and the flat holonomy check.
+template <class G>
+std::vector<typename G::Chart> edge_decks(const Gluing<G>& glue, const std::vector<typename G::Chart>& chart,
+                                          DiskLayout& out) {
+  using Chart = typename G::Chart;
+  const Connectivity& conn = glue.conn;
+  const RowMatrixX3i& F = conn.faces();
+  const int nE = conn.num_edges();
   auto corner_of = [&](int f, int v) {
     for (int k = 0; k < 3; ++k)
       if (F(f, k) == v) return out.corners(f, k);
@@ -346,16 +401,11 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     const int f = Connectivity::face(h), g = Connectivity::face(t);
     if (!out.cut_edge[e]) {
       for (int v : {conn.tail(h), conn.head(h)})
-        out.max_interior_mismatch =
-            std::max(out.max_interior_mismatch, G::distance(corner_of(f, v), corner_of(g, v)));
+        out.max_interior_mismatch = std::max(out.max_interior_mismatch, G::distance(corner_of(f, v), corner_of(g, v)));
       continue;
     }
-    // The copy of face g glued to face f along e is chart[f] ∘ E; the deck map
-    // carries it onto the laid-out copy chart[g].
-    deck[e] = (chart[g] * (chart[f] * transition(h)).inverse()).normalized();
+    deck[e] = (chart[g] * (chart[f] * glue.transition(h)).inverse()).normalized();
   }
-
-  // Edge deck maps, and the holonomy check in the flat case.
   out.max_holonomy_rotation = 0;
   if constexpr (std::is_same_v<G, Hyper>) {
     out.edge_deck_mobius = deck;
@@ -366,10 +416,23 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
       out.max_holonomy_rotation = std::max(out.max_holonomy_rotation, std::abs(deck[e].r - 1.0));
     }
   }
+  return deck;
+}
 
-  // Boundary of the disk, counter-clockwise (disk on the left of each
-  // halfedge): after h, turn clockwise around head(h) inside the disk until
-  // the next cut edge.
+/// The sides of the cut disk: its boundary walked counter-clockwise (disk on
+/// the left of each halfedge: after h, turn clockwise around head(h) inside
+/// the disk until the next cut edge), split into maximal runs between copies
+/// of the base vertex, each labelled with its loop letter; rotated so that
+/// the word starts with +1 (loop 0 forward). Fills out.word, side_start and
+/// boundary_halfedges; plus_side[k] / minus_side[k] are the sides of +k / −k.
+struct DiskSides {
+  std::vector<int> plus_side, minus_side;
+};
+
+DiskSides disk_sides(const Connectivity& conn, const SystemOfLoops& loops, const LoopEdges& le, DiskLayout& out) {
+  const int nF = conn.num_faces(), nE = conn.num_edges(), nV = conn.num_vertices();
+  const int genus = conn.genus();
+  const int nloops = static_cast<int>(loops.loops.size());
   const int x = loops.base_vertex;
   if (x < 0 || x >= nV) throw InputError("layout: base vertex " + std::to_string(x) + " out of range");
   int num_cut = 0;
@@ -394,23 +457,23 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     if (h == start) break;
   }
   if (static_cast<int>(boundary.size()) != 2 * num_cut)
-    throw SolveError("layout: the cut disk boundary has " + std::to_string(boundary.size()) +
-                     " halfedges, expected " + std::to_string(2 * num_cut) + " (the cut is not a disk)");
+    throw SolveError("layout: the cut disk boundary has " + std::to_string(boundary.size()) + " halfedges, expected " +
+                     std::to_string(2 * num_cut) + " (the cut is not a disk)");
   // Sides: maximal runs between copies of x.
   std::vector<int> starts;
   for (int i = 0; i < static_cast<int>(boundary.size()); ++i)
     if (conn.tail(boundary[i]) == x) starts.push_back(i);
   const int n = static_cast<int>(starts.size());
   if (n != 4 * genus)
-    throw SolveError("layout: the disk boundary passes the base vertex " + std::to_string(n) +
-                     " times, expected " + std::to_string(4 * genus));
+    throw SolveError("layout: the disk boundary passes the base vertex " + std::to_string(n) + " times, expected " +
+                     std::to_string(4 * genus));
   std::vector<int> letters(n);
   for (int s = 0; s < n; ++s) {
     const int b = starts[s], e_ = (s + 1 < n) ? starts[s + 1] : static_cast<int>(boundary.size());
     int letter = 0;
     for (int i = b; i < e_; ++i) {
       const int h = boundary[i], e = conn.edge(h);
-      const int l = (edge_forward[e] == h) ? edge_loop[e] + 1 : -(edge_loop[e] + 1);
+      const int l = (le.forward[e] == h) ? le.loop[e] + 1 : -(le.loop[e] + 1);
       if (i == b) letter = l;
       if (l != letter)
         throw SolveError("layout: a side of the cut disk switches from loop letter " + std::to_string(letter) +
@@ -434,31 +497,46 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
   for (size_t i = 0; i < boundary.size(); ++i) out.boundary_halfedges[i] = boundary[(i + off) % boundary.size()];
   for (int s = 0; s < n; ++s) {
     out.word[s] = letters[(s + rot) % n];
-    out.side_start[s] = (starts[(s + rot) % n] - off + static_cast<int>(boundary.size())) %
-                        static_cast<int>(boundary.size());
+    out.side_start[s] =
+        (starts[(s + rot) % n] - off + static_cast<int>(boundary.size())) % static_cast<int>(boundary.size());
   }
-  std::vector<int> plus_side(nloops, -1), minus_side(nloops, -1);
+  DiskSides sides;
+  sides.plus_side.assign(nloops, -1), sides.minus_side.assign(nloops, -1);
   for (int s = 0; s < n; ++s) {
     const int k = std::abs(out.word[s]) - 1;
-    int& slot = out.word[s] > 0 ? plus_side[k] : minus_side[k];
+    int& slot = out.word[s] > 0 ? sides.plus_side[k] : sides.minus_side[k];
     if (slot >= 0) throw SolveError("layout: loop letter " + std::to_string(out.word[s]) + " occurs twice");
     slot = s;
   }
+  return sides;
+}
 
-  // Side pairings D_k: deck maps of the loop's edges oriented along the loop.
+/// Side pairings D_k: deck maps of the loop's edges oriented along the loop,
+/// read off the loop's longest edge: the refined loops fan out of the base
+/// vertex through tiny edges, and a deck map read off a tiny edge has a
+/// rotation error of (round-off / edge length), which the far end of a long
+/// loop multiplies (1e-4 gaps on raw genus-8 meshes). Every loop edge's left
+/// copy must land on its right copy under the one side pairing of its loop:
+/// out.max_deck_inconsistency, measured as a distance between points (in the
+/// metric), not between matrices: hyperbolic deck matrices of a long
+/// fundamental domain have large entries whose rounding is no error.
+template <class G>
+std::vector<typename G::Chart> side_pairings(const Connectivity& conn, const Eigen::VectorXd& L,
+                                             const std::vector<typename G::Chart>& deck, const LoopEdges& le,
+                                             const DiskSides& sides, DiskLayout& out) {
+  using Chart = typename G::Chart;
+  const int nE = conn.num_edges();
+  const int nloops = static_cast<int>(sides.plus_side.size());
+  const int n = static_cast<int>(out.word.size());
   auto oriented_deck = [&](int h) {
     const int e = conn.edge(h);
     return conn.edge_halfedge(e) == h ? deck[e] : deck[e].inverse();
   };
   std::vector<Chart> D(nloops);
-  // Side pairing of loop k from its longest edge: the refined loops fan out
-  // of the base vertex through tiny edges, and a deck map read off a tiny
-  // edge has a rotation error of (round-off / edge length), which the far
-  // end of a long loop multiplies (1e-4 gaps on raw genus-8 meshes).
   const int nb = static_cast<int>(out.boundary_halfedges.size());
   for (int k = 0; k < nloops; ++k) {
-    const int s0 = out.side_start[plus_side[k]];
-    const int s1 = out.side_start[(plus_side[k] + 1) % n];
+    const int s0 = out.side_start[sides.plus_side[k]];
+    const int s1 = out.side_start[(sides.plus_side[k] + 1) % n];
     int best = out.boundary_halfedges[s0];
     for (int i = s0; i != s1; i = (i + 1) % nb) {
       const int h = out.boundary_halfedges[i];
@@ -466,27 +544,32 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     }
     D[k] = oriented_deck(best);
   }
-  // Every loop edge's left copy must land on its right copy under the one
-  // side pairing of its loop. Measured as a distance between points (in the
-  // metric), not between matrices: hyperbolic deck matrices of a long
-  // fundamental domain have large entries whose rounding is no error.
   out.max_deck_inconsistency = 0;
   for (int e = 0; e < nE; ++e) {
-    if (edge_loop[e] < 0) continue;
-    const int hf = edge_forward[e], t = conn.twin(hf);
-    const Chart& Dk = D[edge_loop[e]];
+    if (le.loop[e] < 0) continue;
+    const int hf = le.forward[e], t = conn.twin(hf);
+    const Chart& Dk = D[le.loop[e]];
     const int f = Connectivity::face(hf), g = Connectivity::face(t);
     const double d0 = G::distance(Dk.apply(out.corners(f, hf % 3)), out.corners(g, (t % 3 + 1) % 3));
     const double d1 = G::distance(Dk.apply(out.corners(f, (hf % 3 + 1) % 3)), out.corners(g, t % 3));
     out.max_deck_inconsistency = std::max({out.max_deck_inconsistency, d0, d1});
   }
+  return D;
+}
 
-  // Corner elements Ψ_m (c_m = Ψ_m(c_0)) through the vertex cycle:
-  // D_k Ψ_i = Ψ_{j+1} and D_k Ψ_{i+1} = Ψ_j for sides i = +k, j = −k.
+/// Corner elements Ψ_m (c_m = Ψ_m(c_0)) through the vertex cycle:
+/// D_k Ψ_i = Ψ_{j+1} and D_k Ψ_{i+1} = Ψ_j for sides i = +k, j = −k; from
+/// them the vertex-cycle relator (out.side_relator), the generators as side
+/// words and as charts, the corner check and the product relation's error.
+template <class G>
+void corner_elements(const std::vector<typename G::Chart>& D, const DiskSides& sides, DiskLayout& out) {
+  using Chart = typename G::Chart;
+  const int nloops = static_cast<int>(D.size());
+  const int n = static_cast<int>(out.word.size());
   struct Rel { int from, to, k; };
   std::vector<Rel> rels;
   for (int k = 0; k < nloops; ++k) {
-    const int i = plus_side[k], j = minus_side[k];
+    const int i = sides.plus_side[k], j = sides.minus_side[k];
     rels.push_back({i, (j + 1) % n, k});
     rels.push_back({(i + 1) % n, j, k});
   }
@@ -536,7 +619,7 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
   }
   out.generator_side_words.assign(nloops, Word{});
   for (int k = 0; k < nloops; ++k) {
-    const int i = plus_side[k];
+    const int i = sides.plus_side[k];
     out.generator_side_words[k] = dehn_reduce(concat(inverse(psi_word[i]), psi_word[(i + 1) % n]), out.side_relator);
   }
   const Complex c0 = out.corners(Connectivity::face(out.boundary_halfedges[0]), out.boundary_halfedges[0] % 3);
@@ -556,7 +639,7 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
   }
   std::vector<Chart> gen(nloops);
   for (int k = 0; k < nloops; ++k) {
-    const int i = plus_side[k];
+    const int i = sides.plus_side[k];
     gen[k] = (psi[i].inverse() * psi[(i + 1) % n]).normalized();
   }
   // The word relation, multiplied out in the chart centring the base corner
@@ -588,8 +671,15 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     }
     out.product_relation_error = std::max(std::abs(prod.r - 1.0), std::abs(prod.t) / scale);
   }
+}
 
-  // Copies of vertices: wedges around each vertex separated by cut edges.
+/// Copies of vertices on the disk: wedges around each vertex separated by
+/// cut edges (out.disk_faces, disk_positions, disk_vertex_origin,
+/// vertex_copies), and each vertex's position from the first face of the
+/// breadth-first order that holds it (out.vertex_positions).
+void vertex_copies(const Connectivity& conn, const std::vector<int>& bfs, DiskLayout& out) {
+  const int nF = conn.num_faces(), nV = conn.num_vertices();
+  const RowMatrixX3i& F = conn.faces();
   out.disk_faces.resize(nF, 3);
   out.disk_positions.clear();
   out.disk_vertex_origin.clear();
@@ -624,6 +714,45 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
         placed[F(f, k)] = 1;
         out.vertex_positions[F(f, k)] = out.corners(f, k);
       }
+}
+
+/// The layout in its steps (docs/method.md §2.5): canonical triangles, the
+/// cut along the loops, face charts breadth-first from the tree centre,
+/// re-centring, checks, deck maps, the disk's sides, side pairings, corner
+/// elements and relation, vertex copies.
+template <class G>
+void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const SystemOfLoops& loops,
+                 const LayoutOptions& options, DiskLayout& out) {
+  out.genus = conn.genus();
+  const std::vector<std::array<Complex, 3>> canon = canonical_triangles<G>(conn, L);
+  const Gluing<G> glue{conn, L, canon};
+  const LoopEdges le = loop_edges(conn, loops, out);
+  const DiskAdjacency adj = disk_adjacency(conn, out.cut_edge);
+  const int root = root_face(adj, options.root_face);
+  out.root_face = root;
+
+  std::vector<int> bfs;
+  std::vector<typename G::Chart> chart = face_charts(glue, adj, root, bfs);
+  compute_corners(chart, canon, out);
+  if (options.recentre) recentre<G>(chart, canon, out);
+  if constexpr (std::is_same_v<G, Hyper>) {
+    out.face_charts = chart;
+  } else {
+    const int nF = conn.num_faces();
+    out.face_rotation.resize(nF);
+    out.face_translation.resize(nF);
+    for (int f = 0; f < nF; ++f) {
+      out.face_rotation[f] = chart[f].r;
+      out.face_translation[f] = chart[f].t;
+    }
+  }
+  count_flipped_faces<G>(conn, L, out);
+
+  const std::vector<typename G::Chart> deck = edge_decks(glue, chart, out);
+  const DiskSides sides = disk_sides(conn, loops, le, out);
+  const std::vector<typename G::Chart> D = side_pairings<G>(conn, L, deck, le, sides, out);
+  corner_elements<G>(D, sides, out);
+  vertex_copies(conn, bfs, out);
 }
 
 }  // namespace

@@ -27,8 +27,144 @@ Eigen::Vector3d mobius(const Eigen::Vector3d& c, const Eigen::Vector3d& x) {
   return ((1.0 - c2) * d - d.squaredNorm() * c) / (1.0 - 2.0 * c.dot(x) + c2 * x2);
 }
 
+/// The punctured disk laid out in the plane: breadth first over the faces
+/// `FL` (edges `FEL`) of the (possibly flipped) triangulation the flat
+/// metric `lengths` lives on; boundary edges never flip. #V' x 2.
+Eigen::MatrixX2d lay_out_flat_disk(const RowMatrixX3i& FL, const RowMatrixX3i& FEL, const Eigen::VectorXd& lengths,
+                                   int n2, int num_edges) {
+  const int nf2 = static_cast<int>(FL.rows());
+  std::vector<std::vector<int>> faces_of_edge(num_edges);
+  for (int f = 0; f < nf2; ++f)
+    for (int k = 0; k < 3; ++k) faces_of_edge[FEL(f, k)].push_back(f);
+  Eigen::MatrixX2d P(n2, 2);
+  std::vector<char> placed(n2, 0), done(nf2, 0);
+  auto side = [&](int f, int k) { return lengths[FEL(f, k)]; };  // opposite corner k
+  auto place_third = [&](int f, int k) {  // corner k from corners k+1, k+2 (ccw)
+    const int s = FL(f, (k + 1) % 3), t = FL(f, (k + 2) % 3), r = FL(f, k);
+    const Eigen::Vector2d ps = P.row(s).transpose(), pt = P.row(t).transpose();
+    const double d = (pt - ps).norm(), a = side(f, (k + 2) % 3), b = side(f, (k + 1) % 3);
+    const double x = (a * a - b * b + d * d) / (2.0 * d), y = std::sqrt(std::max(0.0, a * a - x * x));
+    const Eigen::Vector2d e = (pt - ps) / d, nrm(-e.y(), e.x());
+    P.row(r) = (ps + x * e + y * nrm).transpose();
+    placed[r] = 1;
+  };
+  P.row(FL(0, 0)) << 0, 0;
+  P.row(FL(0, 1)) << side(0, 2), 0;
+  placed[FL(0, 0)] = placed[FL(0, 1)] = 1;
+  place_third(0, 2);
+  done[0] = 1;
+  std::deque<int> queue{0};
+  while (!queue.empty()) {
+    const int f = queue.front();
+    queue.pop_front();
+    for (int k = 0; k < 3; ++k)
+      for (int g : faces_of_edge[FEL(f, k)]) {
+        if (done[g]) continue;
+        done[g] = 1;
+        for (int q = 0; q < 3; ++q)
+          if (!placed[FL(g, q)]) place_third(g, q);
+        queue.push_back(g);
+      }
+  }
+  return P;
+}
+
+/// The planar disk `P` (faces FL, boundary `ring`) onto the unit sphere:
+/// normalised (area centroid at 0, unit mean radius of the ring; the
+/// Möbius centring removes what is left of this choice), then the inverse
+/// stereographic projection from the north pole, where v0 goes; y is
+/// mirrored because a counter-clockwise layout seen from +z would face
+/// inward on the southern hemisphere. `old_id`: input vertex of each disk vertex.
+RowMatrixX3d project_to_sphere(const Eigen::MatrixX2d& P, const RowMatrixX3i& FL, const std::vector<int>& ring,
+                               const std::vector<int>& old_id, int v0, int nv) {
+  const int nf2 = static_cast<int>(FL.rows()), nb = static_cast<int>(ring.size()), n2 = static_cast<int>(P.rows());
+  Eigen::Vector2d centre(0, 0);
+  double area_sum = 0;
+  for (int f = 0; f < nf2; ++f) {
+    const Eigen::Vector2d a = P.row(FL(f, 0)).transpose(), b = P.row(FL(f, 1)).transpose(),
+                          c = P.row(FL(f, 2)).transpose();
+    const double A = 0.5 * std::abs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
+    centre += A * (a + b + c) / 3.0;
+    area_sum += A;
+  }
+  centre /= std::max(area_sum, 1e-300);
+  double radius = 0;
+  for (int i = 0; i < nb; ++i) radius += (P.row(ring[i]).transpose() - centre).norm() / nb;
+  radius = std::max(radius, 1e-300);
+  RowMatrixX3d positions(nv, 3);
+  for (int i = 0; i < n2; ++i) {
+    const double x = (P(i, 0) - centre.x()) / radius, y = -(P(i, 1) - centre.y()) / radius;
+    const double q = x * x + y * y;
+    positions.row(old_id[i]) << 2 * x / (q + 1), 2 * y / (q + 1), (q - 1) / (q + 1);
+  }
+  positions.row(v0) << 0, 0, 1;
+  return positions;
+}
+
+/// Möbius centring of `positions` with the input's vertex areas as
+/// weights (backtracking ball automorphisms); returns |centre of mass|.
+double mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& options, RowMatrixX3d& positions) {
+  const int nv = mesh.num_vertices();
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(nv);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose(),
+                          b = mesh.V.row(mesh.F(f, 1)).transpose(),
+                          c = mesh.V.row(mesh.F(f, 2)).transpose();
+    const double area = 0.5 * (b - a).cross(c - a).norm();
+    for (int k = 0; k < 3; ++k) w[mesh.F(f, k)] += area / 3.0;
+  }
+  w /= w.sum();
+  auto centre_of = [&](const RowMatrixX3d& X) {
+    return Eigen::Vector3d((w.transpose() * X).transpose());
+  };
+  Eigen::Vector3d cm = centre_of(positions);
+  for (int it = 0; it < options.max_centring_iterations && cm.norm() > options.centring_tolerance;
+       ++it) {
+    bool improved = false;
+    for (double t = 1.0; t > 1e-4 && !improved; t *= 0.5) {
+      const Eigen::Vector3d c = t * cm;
+      RowMatrixX3d X(nv, 3);
+      for (int v = 0; v < nv; ++v)
+        X.row(v) = mobius(c, positions.row(v).transpose()).normalized().transpose();
+      const Eigen::Vector3d cn = centre_of(X);
+      if (cn.norm() < cm.norm()) {
+        positions = X;
+        cm = cn;
+        improved = true;
+      }
+    }
+    if (!improved) break;
+  }
+  return cm.norm();
+}
+
+/// Orientation check on the sphere: out.flipped_faces, and out.message
+/// naming the first flipped face (or non-finite positions) unless an
+/// earlier step already failed.
+void check_sphere_orientation(const TriMesh& mesh, SphericalUniformization& out) {
+  int first_flipped = -1;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = out.positions.row(mesh.F(f, 0)).transpose(),
+                          b = out.positions.row(mesh.F(f, 1)).transpose(),
+                          c = out.positions.row(mesh.F(f, 2)).transpose();
+    if (!((b - a).cross(c - a).dot(a + b + c) > 0.0)) {
+      ++out.flipped_faces;
+      if (first_flipped < 0) first_flipped = f;
+    }
+  }
+  if (!out.positions.allFinite()) {
+    out.message = "non-finite positions on the sphere";
+  } else if (out.flipped_faces > 0 && out.message.empty()) {
+    out.message = "face " + std::to_string(first_flipped) + " is flipped on the sphere (" +
+                  std::to_string(out.flipped_faces) + " flipped faces)";
+  }
+}
+
 }  // namespace
 
+/// One attempt with v0 removed (spherical.h): the punctured disk flattened
+/// with v0 at infinity, laid out, projected to the sphere, Möbius-centred
+/// and checked.
 static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& conn, int v0,
                                        const SphericalUniformizationOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -81,7 +217,6 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   RicciFlowOptions fo = options.flow;
   fo.intrinsic_delaunay = options.intrinsic_delaunay;
   const RicciFlowResult flat = detail::ricci_solve(dom, l0, Background::Euclidean, fo, target, &u, &fixed);
-  const Eigen::VectorXd& lengths = flat.edge_lengths;
   out.edge_flips = flat.flips;
   out.flow_iterations = flat.iterations;
   out.circle_error = 0.0;
@@ -89,126 +224,13 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   out.stopped_at_floor = flat.stopped_at_floor;
   if (!flat.converged) out.message = "flattening the punctured disk failed: " + flat.message;
 
-  // Lay the disk out in the plane, breadth first over the faces of the
-  // (possibly flipped) triangulation the flat metric lives on. Boundary
-  // edges never flip.
-  const RowMatrixX3i& FL = flat.faces;
-  const RowMatrixX3i& FEL = flat.face_edges;
-  const int nf2 = static_cast<int>(FL.rows());
-  std::vector<std::vector<int>> faces_of_edge(dom.EV.rows());
-  for (int f = 0; f < nf2; ++f)
-    for (int k = 0; k < 3; ++k) faces_of_edge[FEL(f, k)].push_back(f);
-  Eigen::MatrixX2d P(n2, 2);
-  std::vector<char> placed(n2, 0), done(nf2, 0);
-  auto side = [&](int f, int k) { return lengths[FEL(f, k)]; };  // opposite corner k
-  auto place_third = [&](int f, int k) {  // corner k from corners k+1, k+2 (ccw)
-    const int s = FL(f, (k + 1) % 3), t = FL(f, (k + 2) % 3), r = FL(f, k);
-    const Eigen::Vector2d ps = P.row(s).transpose(), pt = P.row(t).transpose();
-    const double d = (pt - ps).norm(), a = side(f, (k + 2) % 3), b = side(f, (k + 1) % 3);
-    const double x = (a * a - b * b + d * d) / (2.0 * d), y = std::sqrt(std::max(0.0, a * a - x * x));
-    const Eigen::Vector2d e = (pt - ps) / d, nrm(-e.y(), e.x());
-    P.row(r) = (ps + x * e + y * nrm).transpose();
-    placed[r] = 1;
-  };
-  {
-    P.row(FL(0, 0)) << 0, 0;
-    P.row(FL(0, 1)) << side(0, 2), 0;
-    placed[FL(0, 0)] = placed[FL(0, 1)] = 1;
-    place_third(0, 2);
-    done[0] = 1;
-    std::deque<int> queue{0};
-    while (!queue.empty()) {
-      const int f = queue.front();
-      queue.pop_front();
-      for (int k = 0; k < 3; ++k)
-        for (int g : faces_of_edge[FEL(f, k)]) {
-          if (done[g]) continue;
-          done[g] = 1;
-          for (int q = 0; q < 3; ++q)
-            if (!placed[FL(g, q)]) place_third(g, q);
-          queue.push_back(g);
-        }
-    }
-  }
-  // Normalise: area centroid at 0 and unit mean radius of the ring (the
-  // Möbius centring below removes what is left of this choice).
-  Eigen::Vector2d centre(0, 0);
-  double area_sum = 0;
-  for (int f = 0; f < nf2; ++f) {
-    const Eigen::Vector2d a = P.row(FL(f, 0)).transpose(), b = P.row(FL(f, 1)).transpose(),
-                          c = P.row(FL(f, 2)).transpose();
-    const double A = 0.5 * std::abs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
-    centre += A * (a + b + c) / 3.0;
-    area_sum += A;
-  }
-  centre /= std::max(area_sum, 1e-300);
-  double radius = 0;
-  for (int i = 0; i < nb; ++i) radius += (P.row(ring[i]).transpose() - centre).norm() / nb;
-  radius = std::max(radius, 1e-300);
-
-  // Inverse stereographic projection from the north pole; y is mirrored
-  // because a counter-clockwise layout seen from +z would face inward on the
-  // southern hemisphere.
-  out.positions.resize(nv, 3);
-  for (int i = 0; i < n2; ++i) {
-    const double x = (P(i, 0) - centre.x()) / radius, y = -(P(i, 1) - centre.y()) / radius;
-    const double q = x * x + y * y;
-    out.positions.row(old_id[i]) << 2 * x / (q + 1), 2 * y / (q + 1), (q - 1) / (q + 1);
-  }
-  out.positions.row(v0) << 0, 0, 1;
-
-  // Möbius centring with the input's vertex areas as weights.
-  Eigen::VectorXd w = Eigen::VectorXd::Zero(nv);
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose(),
-                          b = mesh.V.row(mesh.F(f, 1)).transpose(),
-                          c = mesh.V.row(mesh.F(f, 2)).transpose();
-    const double area = 0.5 * (b - a).cross(c - a).norm();
-    for (int k = 0; k < 3; ++k) w[mesh.F(f, k)] += area / 3.0;
-  }
-  w /= w.sum();
-  auto centre_of = [&](const RowMatrixX3d& X) {
-    return Eigen::Vector3d((w.transpose() * X).transpose());
-  };
-  Eigen::Vector3d cm = centre_of(out.positions);
-  for (int it = 0; it < options.max_centring_iterations && cm.norm() > options.centring_tolerance;
-       ++it) {
-    bool improved = false;
-    for (double t = 1.0; t > 1e-4 && !improved; t *= 0.5) {
-      const Eigen::Vector3d c = t * cm;
-      RowMatrixX3d X(nv, 3);
-      for (int v = 0; v < nv; ++v)
-        X.row(v) = mobius(c, out.positions.row(v).transpose()).normalized().transpose();
-      const Eigen::Vector3d cn = centre_of(X);
-      if (cn.norm() < cm.norm()) {
-        out.positions = X;
-        cm = cn;
-        improved = true;
-      }
-    }
-    if (!improved) break;
-  }
-  out.centre_of_mass_norm = cm.norm();
+  const Eigen::MatrixX2d P =
+      lay_out_flat_disk(flat.faces, flat.face_edges, flat.edge_lengths, n2, static_cast<int>(dom.EV.rows()));
+  out.positions = project_to_sphere(P, flat.faces, ring, old_id, v0, nv);
+  out.centre_of_mass_norm = mobius_centre(mesh, options, out.positions);
   if (out.message.empty() && !(out.centre_of_mass_norm <= options.centring_tolerance))
     out.message = "Möbius centring stalled at |centre| = " + detail::fmt(out.centre_of_mass_norm);
-
-  // Orientation check on the sphere.
-  int first_flipped = -1;
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const Eigen::Vector3d a = out.positions.row(mesh.F(f, 0)).transpose(),
-                          b = out.positions.row(mesh.F(f, 1)).transpose(),
-                          c = out.positions.row(mesh.F(f, 2)).transpose();
-    if (!((b - a).cross(c - a).dot(a + b + c) > 0.0)) {
-      ++out.flipped_faces;
-      if (first_flipped < 0) first_flipped = f;
-    }
-  }
-  if (!out.positions.allFinite()) {
-    out.message = "non-finite positions on the sphere";
-  } else if (out.flipped_faces > 0 && out.message.empty()) {
-    out.message = "face " + std::to_string(first_flipped) + " is flipped on the sphere (" +
-                  std::to_string(out.flipped_faces) + " flipped faces)";
-  }
+  check_sphere_orientation(mesh, out);
   out.converged = out.message.empty();
   out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;

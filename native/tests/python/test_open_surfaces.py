@@ -4,6 +4,7 @@ open/closed pairs are refused with one line naming (g, b) of both."""
 import json
 
 import numpy as np
+import pytest
 
 import surfmap
 
@@ -119,3 +120,139 @@ def test_bowtie_boundary_vertex_refused_by_name(tmp_path, cli):
     r, _, _, _ = run_map(cli, tmp_path, (V, F), (V, F))
     assert r.returncode == 1
     assert "vertex 4" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+# ---- surfmap.surface_map on open surfaces (the Python entry point) ----
+
+def frustum(height, r0, r1, around=32, rows=8):
+    """Open truncated cone: radius r0 at z = 0, r1 at z = height (loops of different length)."""
+    V, F = tube(height, around, rows)
+    t = V[:, 2] / height
+    V = V.copy()
+    V[:, :2] *= (r0 + (r1 - r0) * t)[:, None]
+    return V, F
+
+
+def signed_areas_xy(P, F):
+    a, b, c = P[F[:, 0]], P[F[:, 1]], P[F[:, 2]]
+    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+
+
+def test_python_hemisphere_to_square_disk():
+    Vs, Fs = cap(10)  # hemisphere: rim at z = 0
+    Vt, Ft = grid(20, 20, lambda s, t: (2 * s - 1, 2 * t - 1, 0.0))
+    r = surfmap.surface_map(Vs, Fs, Vt, Ft)
+    assert r["genus"] == 0 and r["boundary_loops"] == 1 and r["open"]["domain"] == "disk"
+    for side in ("source_topology", "target_topology"):
+        assert (r[side]["genus"], r[side]["boundary_loops"]) == (0, 1)
+    assert r["flipped_triangles"] == 0
+    assert 1.0 <= r["distortion"]["mean"] < 1.15
+    assert r["distortion"]["per_face"].shape == (len(Fs),)
+    pos = r["forward"]["position"]
+    assert pos.shape == (len(Vs), 3) and r["inverse"]["position"].shape == (len(Vt), 3)
+    # Flips counted independently: the morph's triangles on the flat square
+    # all turn the way the square's own faces do.
+    target_sign = np.sign(signed_areas_xy(Vt, Ft))
+    assert abs(target_sign.sum()) == len(Ft)
+    assert np.all(signed_areas_xy(pos, Fs) * target_sign[0] > 0)
+    # Boundary onto boundary, interior into the interior, both directions.
+    rim = np.abs(Vs[:, 2]) < 1e-9
+    on_square_boundary = lambda P: np.abs(np.max(np.abs(P[:, :2]), axis=1) - 1) < 1e-9
+    assert np.all(on_square_boundary(pos[rim])) and not np.any(on_square_boundary(pos[~rim]))
+    square_rim = np.max(np.abs(Vt[:, :2]), axis=1) > 1 - 1e-12
+    inv = r["inverse"]["position"]
+    assert np.all(np.abs(inv[square_rim, 2]) < 1e-9) and np.all(inv[~square_rim, 2] > 1e-9)
+    # The report is JSON-able like the closed map's (nan/inf aside).
+    json.dumps({k: v for k, v in r.items() if k in ("open", "source_topology", "target_topology", "energy")})
+
+
+def test_python_annuli_dilatation_is_the_ratio_of_moduli():
+    # Tubes of radius 1, heights 1 and 2: moduli h / 2π, analytic ratio 2.
+    r = surfmap.surface_map(*tube(1.0), *tube(2.0, around=28, rows=12))
+    assert r["open"]["domain"] == "annulus" and r["flipped_triangles"] == 0
+    assert (r["target_topology"]["genus"], r["target_topology"]["boundary_loops"]) == (0, 2)
+    assert abs(r["distortion"]["mean"] / 2.0 - 1) < 0.01
+    assert abs(r["open"]["extremal_dilatation"] / 2.0 - 1) < 0.01
+    assert r["open"]["boundary_pairing"] == [0, 1]
+
+
+def test_python_annulus_boundary_pairing_swaps_the_loops():
+    # Loop 0 is the longer loop: the top (radius 1.5 at z = h) on both.
+    src, dst = frustum(1.0, 1.0, 1.5), frustum(2.0, 1.0, 1.5, around=28, rows=12)
+    plain = surfmap.surface_map(*src, *dst)
+    top = np.abs(src[0][:, 2] - 1.0) < 1e-12
+    bottom = np.abs(src[0][:, 2]) < 1e-12
+    assert np.allclose(plain["forward"]["position"][top, 2], 2.0, atol=1e-9)
+    assert np.allclose(plain["forward"]["position"][bottom, 2], 0.0, atol=1e-9)
+    for pairing in ("swap", [1, 0]):
+        r = surfmap.surface_map(*src, *dst, boundary_pairing=pairing)
+        assert r["open"]["boundary_pairing"] == [1, 0]
+        assert r["flipped_triangles"] == 0
+        pos = r["forward"]["position"]
+        assert np.allclose(pos[top, 2], 0.0, atol=1e-9) and np.allclose(pos[bottom, 2], 2.0, atol=1e-9)
+        assert np.all((pos[~(top | bottom), 2] > 1e-9) & (pos[~(top | bottom), 2] < 2 - 1e-9))
+    for bad in ([0, 0], [0, 1, 2], [2, 0], "reverse"):
+        with pytest.raises(surfmap.InputError, match="boundary_pairing|boundary pairing"):
+            surfmap.surface_map(*src, *dst, boundary_pairing=bad)
+    octahedron = (np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float),
+                  np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]))
+    with pytest.raises(surfmap.InputError, match="only for open surfaces"):
+        surfmap.surface_map(*octahedron, *octahedron, boundary_pairing="swap")
+
+
+def test_python_mismatched_open_topology_is_one_line_naming_both():
+    square = grid(6, 6, lambda s, t: (s, t, 0.0))
+    with pytest.raises(surfmap.InputError) as e:
+        surfmap.surface_map(*square, *tube(1.0))
+    msg = str(e.value)
+    assert "genus 0 with 1 boundary loop" in msg and "genus 0 with 2 boundary loops" in msg and "\n" not in msg
+    octahedron = (np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float),
+                  np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]))
+    with pytest.raises(surfmap.InputError, match=r"genus 0 \(closed\)"):
+        surfmap.surface_map(*square, *octahedron)
+    with pytest.raises(surfmap.InputError, match="landmarks"):
+        surfmap.surface_map(*square, *square, landmarks=[[0, 0]])
+
+
+def test_cli_boundary_swap_and_pairing(tmp_path, cli):
+    src, dst = frustum(1.0, 1.0, 1.5), frustum(2.0, 1.0, 1.5, around=28, rows=12)
+    top = np.abs(src[0][:, 2] - 1.0) < 1e-12
+    for flag in (("--boundary-swap",), ("--boundary-pairing", "1,0")):
+        paths = []
+        for name, (V, F) in (("src.obj", src), ("dst.obj", dst)):
+            surfmap.write_obj(str(tmp_path / name), V, F)
+            paths.append(tmp_path / name)
+        out, rep = tmp_path / "morph.obj", tmp_path / "report.json"
+        r = cli("map", *paths, "--out", out, "--report", rep, "--quiet", *flag)
+        assert r.returncode == 0, r.stderr
+        report = json.loads(rep.read_text())
+        assert report["open"]["boundary_pairing"] == [1, 0] and report["flipped_triangles"] == 0
+        assert report["source_topology"]["boundary_loops"] == report["target_topology"]["boundary_loops"] == 2
+        morph = np.array([[float(x) for x in l.split()[1:4]] for l in out.read_text().splitlines() if l.startswith("v ")])
+        assert np.allclose(morph[top, 2], 0.0, atol=1e-9)
+    r = cli("map", *paths, "--out", out, "--report", rep, "--quiet", "--boundary-pairing", "1,1")
+    assert r.returncode == 1 and "boundary pairing [1, 1]" in r.stderr
+
+
+def test_intake_allow_boundary_lists_the_loops():
+    V, F = frustum(1.0, 1.0, 1.5)
+    with pytest.raises(surfmap.InputError, match="open"):
+        surfmap.intake(V, F)
+    it = surfmap.intake(V, F, allow_boundary=True)
+    assert it["info"]["genus"] == 0 and it["info"]["num_boundary_loops"] == 2 and not it["flipped"]
+    loops = it["boundary_loops"]
+    assert [len(l) for l in loops] == [32, 32]
+    assert np.allclose(V[loops[0], 2], 1.0) and np.allclose(V[loops[1], 2], 0.0)  # longest first
+    # Every boundary edge (an edge of one face only) joins consecutive loop vertices.
+    edges = {}
+    for f in F:
+        for k in range(3):
+            e = tuple(sorted((f[k], f[(k + 1) % 3])))
+            edges[e] = edges.get(e, 0) + 1
+    boundary = {e for e, n in edges.items() if n == 1}
+    along = {tuple(sorted((l[i], l[(i + 1) % len(l)]))) for l in loops for i in range(len(l))}
+    assert boundary == along
+    octahedron = (np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float),
+                  np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]))
+    closed = surfmap.intake(*octahedron, allow_boundary=True)
+    assert closed["boundary_loops"] == [] and closed["info"]["genus"] == 0

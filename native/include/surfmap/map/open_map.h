@@ -14,6 +14,9 @@
 //    dilatation max(m_t/m_s, m_s/m_t), the shift c chosen by the alignment.
 #include <limits>
 #include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "surfmap/map/open_conformal.h"
 #include "surfmap/map/surface_map.h"
@@ -25,6 +28,12 @@ struct OpenMapOptions {
   /// Annuli: map the source's loop 0 (the longer) onto the target's loop 1
   /// instead of loop 0 (default false).
   bool swap_annulus_loops = false;
+  /// Boundary loop correspondence by index: boundary_pairing[i] is the
+  /// target loop (index into the target topology's boundary_loops) that the
+  /// source's loop i maps onto; a permutation of 0..b-1. Empty (default):
+  /// loop i -> loop i (longest onto longest), or as swap_annulus_loops.
+  /// Annuli: {1, 0} is the swap (orientation kept).
+  std::vector<int> boundary_pairing;
   /// Rotation (disk, radians) or shift (cylinder, in [0, 1)) of the map
   /// between the canonical domains; NaN (default): chosen by aligning the
   /// shapes (least squares between the source's vertices and their images,
@@ -50,6 +59,8 @@ struct OpenMapResult {
   std::string domain;
   double rotation = 0;
   double extremal_dilatation = 1;
+  /// The target loop of each source loop (as OpenMapOptions::boundary_pairing).
+  std::vector<int> boundary_pairing;
   /// Source faces with all three corners on the boundary ("ears"): their
   /// image is fixed by the boundary correspondence alone (annulus: three
   /// points on a straight boundary line of the cylinder, degenerate). Their
@@ -65,5 +76,13 @@ struct OpenMapResult {
 OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology& source_topology,
                                const TriMesh& target, const OpenSurfaceTopology& target_topology,
                                const OpenMapOptions& options = {});
+
+/// The report of an open map: the closed map's report (map/map_report.h,
+/// to_json of result.map, with "method" "open") plus "boundary_loops", the
+/// (g, b) of both sides ("source_topology" / "target_topology": {genus,
+/// boundary_loops, description}) and an "open" block (domain, rotation,
+/// extremal_dilatation, boundary_pairing, ears, both canonical domains).
+/// The CLI's --report and the Python result dict are this JSON.
+nlohmann::json to_json(const OpenMapResult& result, const OpenMapOptions& options);
 
 }  // namespace surfmap

@@ -212,6 +212,15 @@ struct SolveOptions {
   /// another value draws random start points (seeded) in the disk of radius
   /// 0.5. The energy is convex, so the result must not depend on it.
   unsigned start_seed = 0;
+  /// Genus >= 1: weights of the energy on the source (default Automatic).
+  SourceWeights source_weights = SourceWeights::Automatic;
+};
+
+/// The initial ("before") map (SurfaceMapOptions::initial).
+struct InitialMapOptions {
+  /// Genus >= 2: how it is built (default CutGraph, with the polygon and
+  /// the uniform-weight map as fallbacks).
+  InitialMapMethod method = InitialMapMethod::CutGraph;
 };
 
 /// The systems of loops (topology/system_of_loops.h) on both surfaces
@@ -222,20 +231,16 @@ struct LoopOptions {
 };
 
 /// Options of surface_map, nested by concern: `homotopy` (classes listed,
-/// ranked, searched), `solve` (the harmonic solve), `loops` (their base
-/// vertices), then the initial map,
-/// the weights, the landmarks, threads and callbacks.
+/// ranked, searched), `solve` (the harmonic solve and the source's weights),
+/// `loops` (their base vertices), `initial` (the initial map), then the
+/// uniformization tolerance, threads, the landmarks and callbacks.
 struct SurfaceMapOptions {
   HomotopyOptions homotopy;
   SolveOptions solve;
   LoopOptions loops;
-  /// Genus >= 2: how the initial map is built (default CutGraph, with the
-  /// polygon and the uniform-weight map as fallbacks).
-  InitialMapMethod initial_map = InitialMapMethod::CutGraph;
+  InitialMapOptions initial;
   /// Curvature tolerance of the target's uniformization (default 1e-10).
   double uniformization_tolerance = 1e-10;
-  /// Genus >= 1: weights of the energy on the source (default Automatic).
-  SourceWeights source_weights = SourceWeights::Automatic;
   /// Threads the pipeline runs at once (genus >= 2: the coarse class solves
   /// of the ranking, and the initial map next to the full-resolution solves;
   /// src/map/concurrency.h). 0 (default): SURFMAP_THREADS when set, else 2

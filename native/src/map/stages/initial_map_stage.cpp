@@ -15,8 +15,8 @@ ClassInitialMap class_initial_map(const ClassData& cd, const TriMesh& source, co
   r.halfedge_word = cd.halfedge_words(sc);
   try {
     HyperbolicInitialMapOptions io;
-    io.cut_graph = options.initial_map == InitialMapMethod::CutGraph;
-    io.polygon = options.initial_map != InitialMapMethod::UniformHarmonic;
+    io.cut_graph = options.initial.method == InitialMapMethod::CutGraph;
+    io.polygon = options.initial.method != InitialMapMethod::UniformHarmonic;
     io.base_vertex = sl.base_vertex;
     io.source_loops = &sl.loops;
     io.reduce_point = [&](Complex& z) { return polygon.reduce(z); };

@@ -20,7 +20,7 @@ struct ClassInitialMap {
 };
 
 /// The initial map of the class with data `cd` (map/initial_map.h, by
-/// options.initial_map: the cut-graph polygon, the loops' polygon, the
+/// options.initial.method: the cut-graph polygon, the loops' polygon, the
 /// uniform-weight map; `start_z`/`start_word` (#V, or empty): the
 /// uniform-weight solve's start). When every construction fails, every
 /// vertex at the origin (its degenerate triangles are then reported).

@@ -26,7 +26,7 @@ SourceSide build_source_side(const TriMesh& source, const Connectivity& sc, cons
   ss.edge_word = edge_group_elements(sc, ss.sl.tree_parent_halfedge, ss.sl.dual_tree_parent_halfedge,
                                      ss.sl.generator_edges, loop_first_vertices(ss.sl, sc), src_letters, free_group);
   // The energy's triangulation and weights: intrinsic Delaunay, or positive
-  // weights on the source's own edges (options.source_weights; the automatic
+  // weights on the source's own edges (options.solve.source_weights; the automatic
   // fallback below switches when the user's faces fold).
   ss.idt = own_weights ? positive_edge_weights(sc, edge_lengths(source, sc))
                        : intrinsic_delaunay(sc, edge_lengths(source, sc));

@@ -1,0 +1,147 @@
+"""Compute Map on open meshes (docs/open_surfaces.md): a disk pair writes the closed maps'
+outputs and draws the boundary loops as curves; mismatched (g, b) is refused naming both."""
+import bpy
+import numpy as np
+
+import helpers
+from helpers import run, select
+from test_map import _check_outputs, _check_uvs, _mapping
+
+
+def cap(n, bump=0.0):
+    """A spherical cap (hemisphere, rim at z = 0) as a polar grid with a centre vertex; `bump`
+    adds an asymmetric bulge so the shape has one best rotation."""
+    V = [[0.0, 0.0, 1.0]]
+    F = []
+    for k in range(1, n + 1):
+        phi = 0.5 * np.pi * k / n
+        for j in range(6 * n):
+            t = 2 * np.pi * j / (6 * n)
+            V.append([np.sin(phi) * np.cos(t), np.sin(phi) * np.sin(t), np.cos(phi)])
+    ring = lambda k, j: 1 + (k - 1) * 6 * n + j % (6 * n)
+    for j in range(6 * n):
+        F.append([0, ring(1, j), ring(1, j + 1)])
+    for k in range(1, n):
+        for j in range(6 * n):
+            F += [[ring(k, j), ring(k + 1, j), ring(k + 1, j + 1)],
+                  [ring(k, j), ring(k + 1, j + 1), ring(k, j + 1)]]
+    V = np.array(V)
+    V[:, 2] += bump * V[:, 0] * V[:, 2]
+    return V, np.array(F)
+
+
+def tube(around=24, rows=6):
+    V = [[np.cos(2 * np.pi * j / around), np.sin(2 * np.pi * j / around), i / rows]
+         for i in range(rows + 1) for j in range(around)]
+    F = []
+    for i in range(rows):
+        for j in range(around):
+            a, b = i * around + j, i * around + (j + 1) % around
+            F += [[a, b, b + around], [a, b + around, a + around]]
+    return np.array(V, float), np.array(F)
+
+
+def _disk_pair():
+    a = helpers.mesh_object("Dome", *cap(8, bump=0.3), (-3, 0, 0))
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=20, y_subdivisions=20, size=2, location=(3, 0, 0))
+    b = bpy.context.active_object                    # quads
+    b.name = "Square"
+    helpers.set_loop_uvs(a, "Box", helpers.box_uvs(a))
+    select([a, b], b)
+    return a, b
+
+
+def test_open_disk_pair_writes_every_output_and_draws_the_boundary():
+    a, b = _disk_pair()
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    status = bpy.context.scene.surfmap.map_status
+    assert "open surfaces (genus 0 with 1 boundary loop): disk" in status, status
+    _check_outputs(a, b, 0, uv_names=())
+    # UVs: no transferred triangle turns over. The square's corner "ears" (triangles with
+    # all three corners on the boundary) map onto three points of the dome's rim, which the
+    # box projection sends onto one line: zero area, allowed there only.
+    Ft, Lt = helpers.triangles_of(b)
+    sq = helpers.coords(b)
+    on_edge = np.abs(np.max(np.abs(sq[:, :2]), axis=1) - 1) < 1e-6
+    ears = np.all(on_edge[Ft], axis=1)
+    A = _mapping().signed_uv_areas(helpers.loop_uv_array(b, "surfmap Box")[Lt])
+    assert np.all(A > 0) or (np.all(A[A <= 0] > -1e-12) and np.all(ears[A <= 0])), A[A <= 0]
+    _check_uvs(a, b, "Box", max_flipped=ears.sum() / len(Ft))
+    # Boundary onto boundary: the morph puts the dome's rim on the square's edge and no
+    # interior vertex there; the square's edge goes onto the rim (z = 0 of the dome).
+    rim = np.abs(helpers.coords(a)[:, 2]) < 1e-9
+    key = a.data.shape_keys.key_blocks["surfmap to Square"]
+    co = np.empty(len(a.data.vertices) * 3)
+    key.data.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    edge = lambda P: np.abs(np.max(np.abs(P[:, :2]), axis=1) - 1) < 1e-6
+    assert np.all(edge(co[rim])) and not np.any(edge(co[~rim]))
+    key = b.data.shape_keys.key_blocks["surfmap to Dome"]
+    co = np.empty(len(b.data.vertices) * 3)
+    key.data.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    assert np.all(np.abs(co[edge(sq), 2]) < 1e-6) and np.all(co[~edge(sq), 2] > 1e-6)
+    # The boundary loops as curves, one per object, through the boundary vertices.
+    for ob, ring in ((a, rim), (b, edge(sq))):
+        curves = helpers.loop_curves(ob)
+        assert [c.name for c in curves] == [f"{ob.name} boundary 1"], [c.name for c in curves]
+        pts = np.array([p.co[:3] for p in curves[0].data.splines[0].points])
+        assert len(pts) == int(ring.sum()) and curves[0].data.splines[0].use_cyclic_u
+        V = helpers.coords(ob)
+        d = np.linalg.norm(pts[:, None, :] - V[ring][None, :, :], axis=2).min(axis=1)
+        assert d.max() < 1e-6
+
+
+def test_open_pairs_with_different_topology_are_refused_naming_both():
+    a = helpers.mesh_object("Dome", *cap(6), (-3, 0, 0))
+    b = helpers.mesh_object("Tube", *tube(), (3, 0, 0))
+    select([a, b], b)
+    before = helpers.scene_snapshot()
+    res, err = run("compute_map")
+    assert res != {'FINISHED'}
+    assert "'Dome' has genus 0 with 1 boundary loop" in err and "'Tube' has genus 0 with 2 boundary loops" in err, err
+    assert helpers.scene_snapshot() == before
+    c = helpers.torus("Ring", 1.0, 0.4, (0, 3, 0))
+    select([a, c], c)
+    res, err = run("compute_map")
+    assert res != {'FINISHED'} and "genus 0 with 1 boundary loop" in err and "genus 1 (closed)" in err, err
+
+
+def test_open_annulus_pair_maps_loops_onto_loops():
+    V, F = tube(24, 6)
+    a = helpers.mesh_object("Short", V, F, (-3, 0, 0))
+    V2, F2 = tube(30, 10)
+    V2[:, 2] *= 2.0
+    b = helpers.mesh_object("Tall", V2, F2, (3, 0, 0))
+    helpers.set_loop_uvs(a, "Box", helpers.box_uvs(a))
+    select([a, b], b)
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    status = bpy.context.scene.surfmap.map_status
+    assert "genus 0 with 2 boundary loops): annulus" in status and " 0 flipped" in status, status
+    _check_outputs(a, b, 0, uv_names=("Box",))
+    # Each loop onto a loop: the morph keeps z = 0 and z = 1 on z = 0 and z = 2 (in some order).
+    key = a.data.shape_keys.key_blocks["surfmap to Tall"]
+    co = np.empty(len(a.data.vertices) * 3)
+    key.data.foreach_get("co", co)
+    z = co.reshape(-1, 3)[:, 2].copy()
+    for level in (0.0, 1.0):
+        ring = np.abs(V[:, 2] - level) < 1e-9
+        assert np.ptp(z[ring]) < 1e-6 and min(abs(z[ring][0]), abs(z[ring][0] - 2.0)) < 1e-6
+    for ob in (a, b):
+        assert [c.name for c in helpers.loop_curves(ob)] == [f"{ob.name} boundary 1", f"{ob.name} boundary 2"]
+    # The panel's Boundary Loops '1 0' maps each loop onto the other one.
+    settings = bpy.context.scene.surfmap
+    settings.boundary_pairing = "1 0"
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    assert "boundary loops [1, 0]" in settings.map_status, settings.map_status
+    a.data.shape_keys.key_blocks["surfmap to Tall"].data.foreach_get("co", co)
+    z_swapped = co.reshape(-1, 3)[:, 2]
+    ring = np.abs(V[:, 2]) < 1e-9
+    assert abs(abs(z_swapped[ring][0] - z[ring][0]) - 2.0) < 1e-6, (z[ring][:3], z_swapped[ring][:3], [k.name for k in a.data.shape_keys.key_blocks])
+    for bad, words in (("0 0", "boundary pairing [0, 0]"), ("one", "Boundary Loops 'one'")):
+        settings.boundary_pairing = bad
+        res, err = run("compute_map")
+        assert res != {'FINISHED'} and words in (err or ""), (bad, err)

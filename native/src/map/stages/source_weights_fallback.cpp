@@ -1,0 +1,35 @@
+#include "source_weights_fallback.h"
+
+#include "surfmap/error.h"
+
+namespace surfmap::detail {
+
+std::string source_weights_name(bool own_weights) {
+  return own_weights ? "positive on the source's own edges" : "intrinsic Delaunay cotangent";
+}
+
+void store_initial_distortion(const DistortionStats& q0, SurfaceMapResult& out) {
+  out.initial_dilatation = q0.per_face;
+  out.initial_mean_dilatation = q0.mean;
+  out.initial_max_dilatation = q0.max;
+  out.initial_flipped_triangles = q0.flipped;
+}
+
+void store_distortion(const DistortionStats& q, SurfaceMapResult& out) {
+  out.dilatation = q.per_face;
+  out.mean_dilatation = q.mean;
+  out.max_dilatation = q.max;
+  out.flipped_triangles = q.flipped;
+  out.degenerate_triangles = q.degenerate;
+}
+
+bool retry_with_own_weights(const SurfaceMapOptions& options, bool own_weights, const SurfaceMapResult& out) {
+  if (!out.flipped_triangles && !out.degenerate_triangles) return false;
+  if (!own_weights && options.solve.source_weights == SourceWeights::Automatic) return true;
+  throw SolveError("the optimised map has " + std::to_string(out.flipped_triangles) + " flipped and " +
+                   std::to_string(out.degenerate_triangles) + " degenerate image triangles of the source's faces (" +
+                   std::to_string(out.intrinsic_flipped_triangles) +
+                   " flipped on its intrinsic Delaunay triangulation, where the energy lives); it is not returned");
+}
+
+}  // namespace surfmap::detail
