@@ -18,6 +18,7 @@
 #include "stages/flat_location.h"
 #include "stages/landmark_ranking.h"
 #include "surfmap/error.h"
+#include "surfmap/work_counters.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/geometry/positive_edge_weights.h"
 #include "surfmap/map/distortion.h"
@@ -79,6 +80,7 @@ class FlatSolver {
     L.setFromTriplets(trip.begin(), trip.end());
     factorisation_ = std::make_unique<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>>();
     factorisation_->compute(L);
+    ++work::analyses, ++work::factorisations;
     if (factorisation_->info() != Eigen::Success)
       throw SolveError("the source Laplacian could not be factorised (weights disconnect the mesh?)");
   }
