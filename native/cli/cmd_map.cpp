@@ -3,6 +3,7 @@
 // a JSON report and optionally the per-vertex correspondence.
 #include <cmath>
 #include <fstream>
+#include <future>
 #include <iomanip>
 #include <iostream>
 #include <cstdint>
@@ -56,10 +57,10 @@ void register_map(CLI::App& app) {
   struct Args {
     std::string src, dst, out, report, correspondence, method = enum_name(MapMethod::Newton), landmarks,
         initial = enum_name(InitialMapMethod::CutGraph), initial_out, source_weights = enum_name(SourceWeights::Automatic);
-    int homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
+    int threads = 0, homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
     double tolerance = 1e-10;
-    bool quiet = false, no_homotopy_search = false, no_two_way = false;
+    bool quiet = false, timings = false, no_homotopy_search = false, no_two_way = false;
     bool boundary_swap = false;          // open surfaces (map_open.h)
     std::vector<int> boundary_pairing;  // open surfaces (map_open.h)
   };
@@ -114,6 +115,12 @@ void register_map(CLI::App& app) {
                   "e.g. '1 0' or '1,0'; default: loop i -> loop i)")
       ->delimiter(',');
   cmd->add_flag("--quiet", a->quiet, "No progress lines on stderr");
+  cmd->add_flag("--timings", a->timings,
+                "Print the stage table on stderr: per stage seconds, factorisations, Newton iterations, peak memory");
+  cmd->add_option("--threads", a->threads,
+                  "Threads the pipeline runs at once (0: SURFMAP_THREADS, else 2 with two cores; 1: in order); "
+                  "the result does not depend on it")
+      ->check(CLI::Range(0, 64));
   cmd->callback([a] {
     // Open surfaces (issue 16): map_open.h handles pairs with a boundary.
     if (map_open_pair({a->src, a->dst, a->out, a->report, a->correspondence, a->initial_out, a->quiet,
@@ -121,7 +128,11 @@ void register_map(CLI::App& app) {
       return;
     if (a->boundary_swap || !a->boundary_pairing.empty())
       throw InputError("--boundary-swap / --boundary-pairing: only for open surfaces (meshes with boundary loops)");
-    const IntakeResult src = load_mesh(a->src), dst = load_mesh(a->dst);
+    // Both meshes read and checked at once (independent work; issue 19),
+    // unless --threads 1; a bad source is reported first, as in order.
+    auto load_target = std::async(a->threads == 1 ? std::launch::deferred : std::launch::async,
+                                  [a] { return load_mesh(a->dst); });
+    const IntakeResult src = load_mesh(a->src), dst = load_target.get();
     check_same_genus(src.info, dst.info);
     SurfaceMapOptions opt;
     opt.homotopy.class_index = a->homotopy;
@@ -138,6 +149,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.search.enabled = !a->no_homotopy_search;
     opt.homotopy.search.evaluations = a->homotopy_search_evaluations;
     opt.homotopy.two_way = !a->no_two_way;
+    opt.threads = a->threads;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     // One line per stage and percent (the relaxation reports every few sweeps).
     std::string last_line;
@@ -182,6 +194,7 @@ void register_map(CLI::App& app) {
     }
     write_text_file(a->report, report.dump(2) + "\n");
     if (!a->correspondence.empty()) write_text_file(a->correspondence, corr);
+    if (a->timings) std::cerr << stage_table(m);
     if (!a->quiet) {
       std::cerr << "surfmap: mean dilatation " << m.mean_dilatation << ", max " << m.max_dilatation
                 << ", flipped triangles " << m.flipped_triangles

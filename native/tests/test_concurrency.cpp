@@ -85,6 +85,34 @@ TEST(SurfaceMapConcurrency, TwoThreadsGiveTheMapOfOneAndCallBackOnTheCallingThre
   EXPECT_FALSE(m2.initial_forward.empty());
   EXPECT_LT(worst, 1e-6);
   EXPECT_LT(worst0, 1e-6);
+  // The stage table (issue 19) of either run: the stages of stage_times,
+  // counts that add up to at most the total, a total that holds the final
+  // solve's Newton iterations and the uniformization's factorisation, and
+  // peaks of at most the run's peak.
+  for (const SurfaceMapResult* m : {&m1, &m2}) {
+    ASSERT_EQ(m->stages.size(), m->stage_times.size());
+    long long analyses = 0, factorisations = 0, newton = 0;
+    for (size_t k = 0; k < m->stages.size(); ++k) {
+      const StageRecord& s = m->stages[k];
+      EXPECT_EQ(s.name, m->stage_times[k].first);
+      EXPECT_EQ(s.seconds, m->stage_times[k].second);
+      EXPECT_GE(s.analyses, 0);
+      EXPECT_GE(s.factorisations, 0);
+      EXPECT_GE(s.newton_iterations, 0);
+      EXPECT_GT(s.peak_memory_bytes, 0) << s.name;
+      EXPECT_LE(s.peak_memory_bytes, m->stage_total.peak_memory_bytes) << s.name;
+      analyses += s.analyses, factorisations += s.factorisations, newton += s.newton_iterations;
+    }
+    EXPECT_EQ(m->stage_total.name, "total");
+    EXPECT_EQ(m->stage_total.seconds, m->total_time);
+    EXPECT_LE(analyses, m->stage_total.analyses);
+    EXPECT_LE(factorisations, m->stage_total.factorisations);
+    EXPECT_LE(newton, m->stage_total.newton_iterations);
+    EXPECT_GE(m->stage_total.newton_iterations, m->iterations);
+    EXPECT_GE(m->stage_total.factorisations, 2);  // the target's metric and the harmonic map at least
+    EXPECT_GE(m->stage_total.analyses, 2);
+    EXPECT_GE(m->stages.front().factorisations, 1);  // "target uniformization": its Newton steps' factor
+  }
 }
 
 TEST(SurfaceMapConcurrency, CancellingDuringParallelSectionsThrowsCancelled) {

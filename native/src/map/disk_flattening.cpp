@@ -10,6 +10,7 @@
 #include <Eigen/Sparse>
 
 #include "concurrency.h"
+#include "surfmap/work_counters.h"
 
 namespace surfmap::detail {
 
@@ -86,8 +87,10 @@ bool flatten_in_klein(const std::vector<FlatteningEdge>& graph, const std::vecto
     if (round == 0) {
       std::lock_guard<std::mutex> lock(ordering_mutex());  // CHOLMOD may try METIS
       llt.analyzePattern(L);
+      ++work::analyses;
     }
     llt.factorize(L);
+    ++work::factorisations;
 
     if (llt.info() != Eigen::Success) {
       if (why) *why = "the flattening's Laplacian could not be factorised";

@@ -19,6 +19,7 @@
 #include "stages/landmark_ranking.h"
 #include "stages/source_weights_fallback.h"
 #include "surfmap/error.h"
+#include "surfmap/work_counters.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/geometry/positive_edge_weights.h"
 #include "surfmap/map/distortion.h"
@@ -80,6 +81,7 @@ class FlatSolver {
     L.setFromTriplets(trip.begin(), trip.end());
     factorisation_ = std::make_unique<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>>();
     factorisation_->compute(L);
+    ++work::analyses, ++work::factorisations;
     if (factorisation_->info() != Eigen::Success)
       throw SolveError("the source Laplacian could not be factorised (weights disconnect the mesh?)");
   }

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "surfmap/error.h"
+#include "surfmap/work_counters.h"
 #include "surfmap/geometry/hyperbolic.h"
 
 namespace surfmap::detail {
@@ -77,6 +78,7 @@ PinnedFlatHarmonic::PinnedFlatHarmonic(int num_vertices, const std::vector<Intri
   coupling_.setFromTriplets(fp.begin(), fp.end());
   llt_ = std::make_unique<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>>();
   llt_->compute(L);
+  ++work::analyses, ++work::factorisations;
   if (llt_->info() != Eigen::Success)
     throw SolveError("the source Laplacian with the landmarks pinned could not be factorised");
 }
@@ -331,6 +333,7 @@ FlatBarrierResult flat_barrier_landmarks(int n, const std::vector<IntrinsicEdge>
   H.setFromTriplets(pattern.begin(), pattern.end());
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
   llt.analyzePattern(H);
+  ++work::analyses;
   // Gradient of the objective in the free unknowns at z and (with
   // `hessian`) its Hessian in H (the barrier's per-face blocks projected).
   auto assemble = [&](const std::vector<Complex>& z, Eigen::VectorXd& g, bool hessian) {
@@ -401,6 +404,7 @@ FlatBarrierResult flat_barrier_landmarks(int n, const std::vector<IntrinsicEdge>
       double gmax = g.lpNorm<Eigen::Infinity>();
       if (gmax <= 1e-10 * std::max(1.0, mu / std::max(wmax, 1e-300)) * wmax) return true;
       llt.factorize(H);
+      ++work::factorisations;
       if (llt.info() != Eigen::Success) return false;
       const Eigen::VectorXd step = llt.solve(-g);
       const double slope = g.dot(step);
@@ -428,6 +432,7 @@ FlatBarrierResult flat_barrier_landmarks(int n, const std::vector<IntrinsicEdge>
       Eigen::VectorXd g0, g1;
       assemble(z, g0, true);
       llt.factorize(H);
+      ++work::factorisations;
       std::vector<Complex> zh = z;
       const double h = 1e-6;
       for (size_t a = 0; a < source.size(); ++a) zh[source[a]] += h * move[a];
@@ -667,6 +672,7 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
   llt.cholmod().print = 0;  // an indefinite exact Hessian is expected (then projected), not worth a warning
   llt.analyzePattern(H);
+  ++work::analyses;
   // Gradient in the free unknowns (x, y of each point) and, with
   // `hessian`, the Hessian in H: exact, or with every edge's and face's
   // block projected onto PSD (`project`; a descent direction always).
@@ -725,6 +731,7 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
     for (int project = 0; project < 2; ++project) {
       assemble(z, g, true, project);
       llt.factorize(H);
+      ++work::factorisations;
       if (llt.info() == Eigen::Success) return true;
     }
     return false;
@@ -742,6 +749,7 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
       if (!(slope < 0)) {  // the exact model was not a descent direction
         assemble(z, g, true, true);
         llt.factorize(H);
+        ++work::factorisations;
         if (llt.info() != Eigen::Success) return false;
         step = llt.solve(-g), slope = g.dot(step);
       }

@@ -1,6 +1,9 @@
 // The one serializer of SurfaceMapResult (map/map_report.h).
 #include "surfmap/map/map_report.h"
 
+#include <algorithm>
+#include <cstdio>
+
 #include "surfmap/map/map_option_names.h"
 
 namespace surfmap {
@@ -111,6 +114,47 @@ json stage_times_json(const SurfaceMapResult& r) {
   return times;
 }
 
+json stage_json(const StageRecord& s) {
+  return {{"name", s.name},
+          {"time_s", s.seconds},
+          {"analyses", s.analyses},
+          {"factorisations", s.factorisations},
+          {"newton_iterations", s.newton_iterations},
+          {"peak_memory_mb", static_cast<double>(s.peak_memory_bytes) / (1024.0 * 1024.0)}};
+}
+
+json stages_json(const SurfaceMapResult& r) {
+  json rows = json::array();
+  for (const StageRecord& s : r.stages) rows.push_back(stage_json(s));
+  rows.push_back(stage_json(r.stage_total));
+  return rows;
+}
+
+std::string stage_table(const SurfaceMapResult& r) {
+  size_t width = 5;
+  for (const StageRecord& s : r.stages) width = std::max(width, s.name.size());
+  auto row = [&](const std::string& name, const std::string& seconds, const std::string& analyses,
+                 const std::string& factorisations, const std::string& newton, const std::string& peak) {
+    char line[512];
+    std::snprintf(line, sizeof line, "%-*s %9s %9s %15s %7s %12s\n", static_cast<int>(width), name.c_str(),
+                  seconds.c_str(), analyses.c_str(), factorisations.c_str(), newton.c_str(), peak.c_str());
+    return std::string(line);
+  };
+  auto fixed = [](double v, int digits) {
+    char s[64];
+    std::snprintf(s, sizeof s, "%.*f", digits, v);
+    return std::string(s);
+  };
+  auto line_of = [&](const StageRecord& s) {
+    return row(s.name, fixed(s.seconds, 3), std::to_string(s.analyses), std::to_string(s.factorisations),
+               std::to_string(s.newton_iterations), fixed(static_cast<double>(s.peak_memory_bytes) / (1024.0 * 1024.0), 1));
+  };
+  std::string text = row("stage", "time_s", "analyses", "factorisations", "newton",
+                         r.peak_memory_per_stage ? "peak_MiB" : "peak_so_far");
+  for (const StageRecord& s : r.stages) text += line_of(s);
+  return text + line_of(r.stage_total);
+}
+
 json quality_json(const SurfaceMapResult& r) {
   return {{"energy_ratio", r.energy_ratio},           {"warning", r.quality_warning},
           {"reverse_candidates", r.reverse_candidates}, {"reverse_status", r.reverse_status},
@@ -130,7 +174,9 @@ json to_json(const SurfaceMapResult& r, const SurfaceMapOptions& options) {
                  {"quality", quality_json(r)},
                  {"target_lattice",
                   {{r.target_omega1.real(), r.target_omega1.imag()}, {r.target_omega2.real(), r.target_omega2.imag()}}},
-                 {"time_s", stage_times_json(r)}};
+                 {"time_s", stage_times_json(r)},
+                 {"stages", stages_json(r)},
+                 {"peak_memory_per_stage", r.peak_memory_per_stage}};
   report.update(energy_json(r));
   report.update(landmark_json(r, options));
   return report;

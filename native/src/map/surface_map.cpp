@@ -7,11 +7,23 @@
 #include "map_support.h"
 #include "surfmap/error.h"
 #include "surfmap/mesh/connectivity.h"
+#include "surfmap/work_counters.h"
 #include "two_way_run.h"
 
 namespace surfmap {
 
 using Clock = std::chrono::steady_clock;
+
+namespace {
+
+// The total row of the stage table: `total` with the peak over every stage
+// (the high-water mark was reset at each boundary).
+void finish_stage_table(SurfaceMapResult& out, StageRecord total) {
+  for (const StageRecord& s : out.stages) total.peak_memory_bytes = std::max(total.peak_memory_bytes, s.peak_memory_bytes);
+  out.stage_total = total;
+}
+
+}  // namespace
 
 SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options) {
   return testing::surface_map(source, target, options, testing::MapHooks{});
@@ -26,9 +38,27 @@ SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& targ
   };
   const auto t_start = Clock::now();
   auto t_stage = t_start;
+  // The stage table (issue 19): counters and the peak memory at every
+  // stage boundary (surfmap/work_counters.h).
+  out.peak_memory_per_stage = work::reset_peak_memory();
+  const work::Counts counts_start = work::counts();
+  work::Counts counts_stage = counts_start;
+  auto record = [](const std::string& name, double seconds, const work::Counts& from, const work::Counts& to) {
+    StageRecord s;
+    s.name = name, s.seconds = seconds;
+    s.analyses = to.analyses - from.analyses, s.factorisations = to.factorisations - from.factorisations;
+    s.newton_iterations = to.newton_iterations - from.newton_iterations;
+    s.peak_memory_bytes = work::peak_memory_bytes();
+    return s;
+  };
   auto stage_done = [&](const std::string& name, double fraction) {
     const auto now = Clock::now();
-    out.stage_times.emplace_back(name, std::chrono::duration<double>(now - t_stage).count());
+    const double seconds = std::chrono::duration<double>(now - t_stage).count();
+    out.stage_times.emplace_back(name, seconds);
+    const work::Counts counts_now = work::counts();
+    out.stages.push_back(record(name, seconds, counts_stage, counts_now));
+    if (out.peak_memory_per_stage) work::reset_peak_memory();
+    counts_stage = counts_now;
     t_stage = now;
     if (options.progress && !options.progress(name, fraction)) throw Cancelled("cancelled after stage " + name);
   };
@@ -68,6 +98,7 @@ SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& targ
           !detail::map_requested_two_way_class(source, target, options, out, map_of))
         throw;
       out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();
+      finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));
       return out;
     }
   // How far each landmark's source vertex was located from its target
@@ -99,6 +130,7 @@ SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& targ
   detail::assess_quality(out);  // issue 14: energy ratio and warning
   detail::two_way_map(source, target, options, out, map_of);  // issue 14: the other direction when poor
   out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();
+  finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));
   return out;
 }
 

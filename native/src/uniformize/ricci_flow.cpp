@@ -25,6 +25,7 @@
 
 #include "ricci_core.h"
 #include "surfmap/error.h"
+#include "surfmap/work_counters.h"
 #include "surfmap/geometry/mollify.h"
 
 namespace surfmap {
@@ -582,6 +583,7 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
       res.residual_history.push_back(err);
       continue;
     }
+    ++work::newton_iterations;
     // Newton: H δ = −g, gauge fixed by pinning vertex 0 (adding e0 e0ᵀ makes H
     // definite; since Σg = 0 the solution then has δ_0 = 0 and solves H δ = −g).
     if (any_fixed) {
@@ -645,10 +647,12 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
           for (int v = 0; v < nv; ++v) A.coeffRef(v, v) += mu;
         if (!analyzed || analyzed_version != flip_ctx.version) {
           llt.analyzePattern(A);  // again when flips changed the sparsity pattern
+          ++work::analyses;
           analyzed = true;
           analyzed_version = flip_ctx.version;
         }
         llt.factorize(A);
+        ++work::factorisations;
         factor_valid = llt.info() == Eigen::Success && mu == 0.0;
         if (llt.info() == Eigen::Success) delta = llt.solve(rhs);
         if (llt.info() != Eigen::Success || !delta.allFinite()) {

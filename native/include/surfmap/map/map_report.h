@@ -21,9 +21,14 @@
 //             [{step, move, screen, energy}]}},
 //   quality {energy_ratio, warning, reverse_candidates, reverse_status, reverse_check,
 //            two_way_status, two_way_time_s, class_bound_status, class_bound_time_s},
-//   target_lattice [[re, im] of omega1, [re, im] of omega2], time_s {stage: seconds, total}.
+//   target_lattice [[re, im] of omega1, [re, im] of omega2], time_s {stage: seconds, total},
+//   stages [{name, time_s, analyses, factorisations, newton_iterations, peak_memory_mb}]
+//   (the stage table, issue 19: one row per stage of time_s, in order, then the row
+//   named "total"), peak_memory_per_stage.
 // Non-finite numbers are stored as such (the CLI's dump writes them as null;
 // the Python conversion keeps them as float nan / inf).
+#include <string>
+
 #include <nlohmann/json.hpp>
 
 #include "surfmap/map/surface_map.h"
@@ -42,6 +47,14 @@ nlohmann::json candidate_json(const HomotopyCandidate& candidate, size_t index);
 nlohmann::json homotopy_search_json(const HomotopySearchInfo& search);
 nlohmann::json homotopy_json(const SurfaceMapResult& result);
 nlohmann::json stage_times_json(const SurfaceMapResult& result);
+/// The stage table (SurfaceMapResult::stages, then stage_total) and one row of it.
+nlohmann::json stages_json(const SurfaceMapResult& result);
+nlohmann::json stage_json(const StageRecord& stage);
+
+/// The stage table as aligned text, one line per stage and the total line
+/// (the CLI's `surfmap map --timings`; columns: stage, time_s, analyses,
+/// factorisations, newton, peak_MiB), each line ending in a newline.
+std::string stage_table(const SurfaceMapResult& result);
 /// Genus >= 2 quality signal and two-way run (issue 14; docs/handle_classes.md).
 nlohmann::json quality_json(const SurfaceMapResult& result);
 

@@ -412,6 +412,24 @@ struct InitialMapInfo {
   double time_s = 0, polygon_time_s = 0;
 };
 
+/// One row of the stage table (issue 19; docs/cli.md, `surfmap map
+/// --timings`): what one stage of the pipeline cost. The counts are those of
+/// the process-wide counters (surfmap/work_counters.h) over the stage's wall
+/// time, so work of the pipeline's second thread counts towards the stage
+/// during which it ran.
+struct StageRecord {
+  std::string name;
+  double seconds = 0;
+  /// Sparse Cholesky symbolic analyses and numeric factorisations (CHOLMOD).
+  long long analyses = 0, factorisations = 0;
+  /// Newton iterations (the harmonic solve's and the uniformization's).
+  long long newton_iterations = 0;
+  /// Peak resident memory of the process during the stage, in bytes (Linux
+  /// VmHWM; when its high-water mark cannot be reset, the peak so far:
+  /// SurfaceMapResult::peak_memory_per_stage is then false); 0 where unknown.
+  long long peak_memory_bytes = 0;
+};
+
 struct SurfaceMapResult {
   int genus = 0;
   bool converged = false;
@@ -525,6 +543,14 @@ struct SurfaceMapResult {
   /// Seconds per stage, in order, and in total.
   std::vector<std::pair<std::string, double>> stage_times;
   double total_time = 0;
+  /// The stage table (the stages of stage_times, in order, with their
+  /// factorisations, Newton iterations and peak memory) and its total row
+  /// (the whole map: total_time, every count, the peak over the run).
+  std::vector<StageRecord> stages;
+  StageRecord stage_total;
+  /// Whether each stage's peak memory is its own (the kernel's high-water
+  /// mark was reset at every stage boundary) rather than the peak so far.
+  bool peak_memory_per_stage = false;
 };
 
 /// Maps `source` onto `target` (both closed, manifold, outward oriented, of

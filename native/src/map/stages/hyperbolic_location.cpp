@@ -16,6 +16,24 @@ namespace {
 
 using hyperbolic::Mobius;
 
+// Per target vertex its neighbours (CSR: neighbours of v at
+// index[v]..index[v+1]).
+struct VertexNeighbours {
+  std::vector<int> index, list;
+  explicit VertexNeighbours(const TriMesh& mesh) : index(mesh.num_vertices() + 1, 0) {
+    for (int f = 0; f < mesh.num_faces(); ++f)
+      for (int k = 0; k < 3; ++k) index[mesh.F(f, k) + 1] += 2;
+    for (int v = 0; v < mesh.num_vertices(); ++v) index[v + 1] += index[v];
+    list.resize(index.back());
+    std::vector<int> fill(index.begin(), index.end() - 1);
+    for (int f = 0; f < mesh.num_faces(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        const int v = mesh.F(f, k);
+        list[fill[v]++] = mesh.F(f, (k + 1) % 3), list[fill[v]++] = mesh.F(f, (k + 2) % 3);
+      }
+  }
+};
+
 // The target's laid-out faces (the refined mesh of its system of loops) as
 // a triangulation of the universal cover: a straight walk over them, from
 // the face found for the previous vertex, crossing a cut edge by its deck
@@ -27,10 +45,12 @@ struct TargetCover {
   const Connectivity tconn;
   PlaneTriangles tpoints, ttris;  ///< #F refined target: Poincaré corners, Klein corners
   std::unique_ptr<TriangleGrid> grid;
+  const VertexNeighbours neighbours;  ///< of the input target's vertices (the inverse's walks)
 
   explicit TargetCover(const HyperbolicLocationInput& input)
       : in(input), ntf(in.target_loops->mesh.num_faces()),
-        tconn(in.target_loops->mesh.F, in.target_loops->mesh.num_vertices()), tpoints(ntf), ttris(ntf) {
+        tconn(in.target_loops->mesh.F, in.target_loops->mesh.num_vertices()), tpoints(ntf), ttris(ntf),
+        neighbours(*in.target) {
     for (int f = 0; f < ntf; ++f)
       for (int k = 0; k < 3; ++k) {
         tpoints[f][k] = in.layout->corners(f, k);
@@ -71,44 +91,80 @@ std::vector<std::vector<Complex>> target_vertex_copies(const DiskLayout& layout,
   return copies;
 }
 
-// The inverse of a map, target vertex v: the source face whose image, in
+// (cosh d - 1) / 2 = |c - p|^2 / ((1 - |c|^2)(1 - |p|^2)): monotone in the
+// hyperbolic distance d and free of transcendentals.
+double distance_key(Complex c, Complex p) { return std::norm(c - p) / ((1.0 - std::norm(c)) * (1.0 - std::norm(p))); }
+
+// The inverse of a map: per target vertex v the source face whose image, in
 // its own frame (corner 0 in P), contains one of v's copies in the cut disk
-// (no chart change needed); when none does, the straight walk towards the
-// nearest copy from the face whose corner 0 is nearest to it, then the walk
-// from `last_face` towards v's reduced position, then locate_in_cover.
-// Why not simply walk from the previous vertex's face: while the query is
-// far from the walk's current face, the chart changes (deck elements, with
-// entries of 1e3 and more at a corner of a long, thin P where the 4g copies
-// of the base vertex meet) send it to within 1e-10 of |z| = 1, where their
-// round-off moves it by ~0.4 (hyperbolic): the walk then ends up to three
-// triangles from the preimage (docs/verification.md). A walk that starts
-// next to the query keeps it near the current face, where the chart
-// changes are accurate.
+// (no chart change needed; first pass, every vertex on its own). For the
+// vertices left over (second pass, in index order), the straight walk
+// towards v's copy nearest to a located neighbour's face, from that face
+// (issue 19: the located neighbour is a start next to the query, found
+// without a search); then from the face whose corner 0 is nearest to a copy,
+// over all faces; then the walk from the last located vertex's face towards
+// v's reduced position, then locate_in_cover. The result depends on nothing
+// but the input (not on threads). Returns per vertex the face or -1, with
+// the barycentrics in `bary`.
+// Why walks start next to the query: while the query is far from the walk's
+// current face, the chart changes (deck elements, with entries of 1e3 and
+// more at a corner of a long, thin P where the 4g copies of the base vertex
+// meet) send it to within 1e-10 of |z| = 1, where their round-off moves it by
+// ~0.4 (hyperbolic): the walk then ends up to three triangles from the
+// preimage (docs/verification.md). A walk that starts next to the query
+// keeps it near the current face, where the chart changes are accurate.
+// `stop`: give up (return what is located) when raised.
 template <class Corners, class Cross>
-int locate_target_vertex(const std::vector<Complex>& copies, Complex position, const FundamentalPolygon& polygon,
-                         const TriangleGrid& grid, const PlaneTriangles& points, int last_face, const Corners& corners,
-                         const Cross& cross, int max_steps, Eigen::Vector3d* b) {
-  int f = locate_copies_in_frame(grid, points, copies, b);
-  if (f >= 0) return f;
-  // Nearest by |c - p|^2 / ((1 - |c|^2)(1 - |p|^2)) = (cosh d - 1) / 2,
-  // monotone in the hyperbolic distance d and free of transcendentals.
-  double nearest = std::numeric_limits<double>::infinity();
-  int start = -1;
-  Complex target_copy;
-  for (const Complex& c : copies) {
-    const double wc = 1.0 / (1.0 - std::norm(c));
-    for (int g = 0; g < static_cast<int>(points.size()); ++g) {
-      const double d = std::norm(c - points[g][0]) * wc / (1.0 - std::norm(points[g][0]));
-      if (d < nearest) nearest = d, start = g, target_copy = c;
+std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>& copies, const DiskLayout& layout,
+                                        const VertexNeighbours& neighbours, const FundamentalPolygon& polygon,
+                                        const TriangleGrid& grid, const PlaneTriangles& points, const Corners& corners,
+                                        const Cross& cross, int max_steps, std::vector<Eigen::Vector3d>& bary,
+                                        const std::atomic<bool>* stop) {
+  const int nv = static_cast<int>(copies.size());
+  std::vector<int> face(nv, -1);
+  bary.assign(nv, Eigen::Vector3d::Zero());
+  for (int v = 0; v < nv; ++v) face[v] = locate_copies_in_frame(grid, points, copies[v], &bary[v]);
+  int last_face = 0;
+  for (int v = 0; v < nv; ++v) {
+    if (stop && *stop) break;
+    if (face[v] >= 0) {
+      last_face = face[v];
+      continue;
     }
+    Eigen::Vector3d& b = bary[v];
+    int f = -1;
+    // From the located neighbour's face nearest to one of v's copies.
+    double nearest = std::numeric_limits<double>::infinity();
+    int start = -1;
+    Complex towards;
+    for (int k = neighbours.index[v]; k < neighbours.index[v + 1]; ++k) {
+      const int u = neighbours.list[k];
+      if (face[u] < 0) continue;
+      for (const Complex& c : copies[v]) {
+        const double d = distance_key(c, points[face[u]][0]);
+        if (d < nearest) nearest = d, start = face[u], towards = c;
+      }
+    }
+    if (start >= 0) f = straight_walk(start, towards, corners, cross, max_steps, kInsideTolerance, &b);
+    if (f < 0) {  // from the face whose corner 0 is nearest to a copy
+      nearest = std::numeric_limits<double>::infinity(), start = -1;
+      for (const Complex& c : copies[v])
+        for (int g = 0; g < static_cast<int>(points.size()); ++g) {
+          const double d = distance_key(c, points[g][0]);
+          if (d < nearest) nearest = d, start = g, towards = c;
+        }
+      if (start >= 0) f = straight_walk(start, towards, corners, cross, max_steps, kInsideTolerance, &b);
+    }
+    if (f < 0) {
+      Complex q = layout.vertex_positions[v];
+      polygon.reduce(q);
+      f = straight_walk(last_face, q, corners, cross, max_steps, kInsideTolerance, &b);
+    }
+    if (f < 0) f = locate_in_cover(grid, points, polygon, layout.vertex_positions[v], &b);
+    if (f < 0) break;  // the caller reports v
+    face[v] = last_face = f;
   }
-  if (start >= 0) f = straight_walk(start, target_copy, corners, cross, max_steps, kInsideTolerance, b);
-  if (f >= 0) return f;
-  Complex q = position;
-  polygon.reduce(q);
-  f = straight_walk(last_face, q, corners, cross, max_steps, kInsideTolerance, b);
-  if (f < 0) f = locate_in_cover(grid, points, polygon, position, b);
-  return f;
+  return face;
 }
 
 // The initial map located like the optimum (its "before" morph and UVs); a
@@ -168,19 +224,17 @@ void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover,
   };
   const TriangleGrid igrid(itris, 1e-12);
   const std::vector<std::vector<Complex>> copies = target_vertex_copies(layout, in.target->num_vertices());
+  std::vector<Eigen::Vector3d> bary;
+  const std::vector<int> face = locate_target_vertices(copies, layout, cover.neighbours, polygon, igrid, ipoints,
+                                                       init_corners, init_cross, 4 * source.num_faces() + 100, bary, stop);
+  if (*stop) return;
   out.initial_inverse.resize(in.target->num_vertices());
-  int last_face0 = 0;
   for (int v = 0; v < in.target->num_vertices(); ++v) {
-    if (*stop) return;
-    Eigen::Vector3d b;
-    const int f = locate_target_vertex(copies[v], layout.vertex_positions[v], polygon, igrid, ipoints, last_face0,
-                                       init_corners, init_cross, 4 * source.num_faces() + 100, &b);
-    if (f < 0) {
+    if (face[v] < 0) {
       out.initial_inverse.clear();
       break;
     }
-    last_face0 = f;
-    out.initial_inverse[v] = point_in_face(source, f, b);
+    out.initial_inverse[v] = point_in_face(source, face[v], bary[v]);
   }
 }
 
@@ -242,15 +296,14 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
       return g;
     };
     const std::vector<std::vector<Complex>> copies = target_vertex_copies(layout, in.target->num_vertices());
+    std::vector<Eigen::Vector3d> bary;
+    const std::vector<int> face = locate_target_vertices(copies, layout, cover.neighbours, polygon, sgrid, spoints,
+                                                         source_corners, source_cross, 4 * source.num_faces() + 100,
+                                                         bary, nullptr);
     out.inverse.resize(in.target->num_vertices());
-    int last_source_face = 0;
     for (int v = 0; v < in.target->num_vertices(); ++v) {
-      Eigen::Vector3d b;
-      const int f = locate_target_vertex(copies[v], layout.vertex_positions[v], polygon, sgrid, spoints,
-                                         last_source_face, source_corners, source_cross, 4 * source.num_faces() + 100, &b);
-      if (f < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
-      last_source_face = f;
-      out.inverse[v] = point_in_face(source, f, b);
+      if (face[v] < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
+      out.inverse[v] = point_in_face(source, face[v], bary[v]);
     }
   });
   return out;

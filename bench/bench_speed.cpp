@@ -1,0 +1,337 @@
+// Speed benchmark of the genus-2 pipeline in solve units (issue 19; not a
+// test). One run prints:
+//   1. per pair size (default 50k and 200k source vertices): SU samples
+//      interleaved with the map runs, so that the machine's load shows (SU =
+//      one CHOLMOD analyse + factorise + solve of the larger mesh's cotangent
+//      Laplacian, vertex 0 pinned, one BLAS thread, timed in this process),
+//      their median, then every stage of the report's stage table (medians
+//      over --repeat runs) in seconds and in SU, with factorisations, Newton
+//      iterations and peak memory, and end to end;
+//   2. the scaling rows: pair size, end-to-end seconds and SU, peak memory,
+//      converged, flipped triangles;
+//   3. the Newton / relaxation ratio at the same energy on a small genus-2
+//      pair (--small, default 3500 source vertices): the pipeline with
+//      solve.method = relaxation, its harmonic solve cancelled when its
+//      energy reaches the Newton run's final energy (within 1e-6 relative).
+//      Solve ratio: relaxation seconds to that energy / Newton's solve
+//      stages ("full-resolution solve" + "harmonic solve"); end-to-end ratio:
+//      (relaxation run's seconds until it reached that energy + the Newton
+//      run's stages after the solve, which are the same work) / Newton's end
+//      to end. With --relax-budget S the relaxation gives up after S seconds
+//      of solve (ratio then marked ">").
+// Each map runs in a forked child, so that its peak memory is its own.
+//
+//   build/bin/bench_speed [--sizes 50000,200000] [--repeat 3] [--threads 0] [--small 3500]
+//                         [--relax-budget 300] [--no-ratio] [--progress]
+// A 1M row: --sizes 1000000 (the pair alone needs many minutes and GBs).
+#include <dlfcn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <sstream>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include <Eigen/CholmodSupport>
+#include <Eigen/Geometry>
+#include <Eigen/SparseCore>
+#include <nlohmann/json.hpp>
+
+#include "surfmap/error.h"
+#include "surfmap/map/map_report.h"
+#include "surfmap/map/surface_map.h"
+#include "surfmap/samples/shapes.h"
+
+using namespace surfmap;
+using Clock = std::chrono::steady_clock;
+using nlohmann::json;
+
+namespace {
+
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+double median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// The pair of bench_map's genus-2 rows: an n-hole torus onto a vase, at the
+// resolution giving about `v` source vertices (implicit shapes grow like res²).
+int resolution_for(int v) {
+  const int r0 = 40;
+  const double v0 = samples::n_hole_torus(2, r0, true).num_vertices();
+  return std::max(32, static_cast<int>(std::lround(r0 * std::sqrt(v / v0))));
+}
+
+struct Pair {
+  TriMesh a, b;
+};
+Pair make_pair_of(int v) {
+  const int res = resolution_for(v);
+  return {samples::n_hole_torus(2, res, true), samples::vase(res, true)};
+}
+
+// One BLAS thread and no CHOLMOD OpenMP teams, as the pipeline runs them
+// (src/map/concurrency.h), for the SU and every run.
+void single_threaded_blas() {
+  if (auto set = reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) set(1);
+  if (auto set = reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"))) set(0);
+}
+
+// The cotangent Laplacian of `m` without vertex 0's row and column (definite).
+Eigen::SparseMatrix<double> pinned_cotangent_laplacian(const TriMesh& m) {
+  std::vector<Eigen::Triplet<double>> t;
+  for (int f = 0; f < m.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int i = m.F(f, k), j = m.F(f, (k + 1) % 3), o = m.F(f, (k + 2) % 3);
+      const Eigen::Vector3d a = m.V.row(i) - m.V.row(o), b = m.V.row(j) - m.V.row(o);
+      const double w = 0.5 * a.dot(b) / std::max(a.cross(b).norm(), 1e-300);
+      for (auto [r, c, s] : {std::tuple{i, i, w}, std::tuple{j, j, w}, std::tuple{i, j, -w}, std::tuple{j, i, -w}})
+        if (r > 0 && c > 0) t.emplace_back(r - 1, c - 1, s);
+    }
+  Eigen::SparseMatrix<double> L(m.num_vertices() - 1, m.num_vertices() - 1);
+  L.setFromTriplets(t.begin(), t.end());
+  return L;
+}
+
+// One solve unit: analyse + factorise + solve, seconds.
+double solve_unit(const Eigen::SparseMatrix<double>& L) {
+  const Eigen::VectorXd b = Eigen::VectorXd::Ones(L.rows());
+  const auto t0 = Clock::now();
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
+  llt.analyzePattern(L);
+  llt.factorize(L);
+  const Eigen::VectorXd x = llt.solve(b);
+  const double s = since(t0);
+  if (llt.info() != Eigen::Success || !x.allFinite()) std::fprintf(stderr, "bench_speed: SU solve failed\n");
+  return s;
+}
+
+// Runs `body` (returning JSON) in a forked child and returns its JSON, or
+// {"error": ...}.
+template <class Body>
+json in_child(Body body) {
+  int fd[2];
+  if (pipe(fd) != 0) return {{"error", "pipe failed"}};
+  const pid_t pid = fork();
+  if (pid == 0) {
+    close(fd[0]);
+    std::string text;
+    try {
+      text = body().dump();
+    } catch (const std::exception& e) {
+      text = json{{"error", e.what()}}.dump();
+    }
+    size_t off = 0;
+    while (off < text.size()) {
+      const ssize_t w = write(fd[1], text.data() + off, text.size() - off);
+      if (w <= 0) break;
+      off += static_cast<size_t>(w);
+    }
+    close(fd[1]);
+    _exit(0);
+  }
+  close(fd[1]);
+  std::string text;
+  char buf[65536];
+  for (ssize_t r; (r = read(fd[0], buf, sizeof buf)) > 0;) text.append(buf, static_cast<size_t>(r));
+  close(fd[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  if (text.empty()) return {{"error", "the run died (status " + std::to_string(status) + ")"}};
+  return json::parse(text);
+}
+
+bool g_progress = false;  // --progress: every stage's end on stderr, as it happens
+
+// One map of the pair: the report's stage table and figures.
+json map_run(const Pair& p, int threads) {
+  SurfaceMapOptions opt;
+  opt.threads = threads;
+  const auto t0 = Clock::now();
+  if (g_progress)
+    opt.progress = [t0](const std::string& stage, double fraction) {
+      std::fprintf(stderr, "bench_speed: %8.1f s %3d%% %s\n", since(t0), static_cast<int>(100 * fraction), stage.c_str());
+      return true;
+    };
+  const SurfaceMapResult m = surface_map(p.a, p.b, opt);
+  const json report = to_json(m, opt);
+  return {{"stages", report["stages"]},
+          {"converged", m.converged},
+          {"flipped", m.flipped_triangles},
+          {"energy", m.final_energy},
+          {"total", m.total_time}};
+}
+
+struct StageRow {
+  std::vector<double> seconds, factorisations, newton, peak;
+};
+
+void size_rows(int v, int repeat, int threads, std::vector<std::string>& scaling) {
+  const auto tg = Clock::now();
+  const Pair p = make_pair_of(v);
+  const int larger = std::max(p.a.num_vertices(), p.b.num_vertices());
+  std::printf("\n== pair %d / %d vertices (generated in %.1f s)\n", p.a.num_vertices(), p.b.num_vertices(), since(tg));
+  const Eigen::SparseMatrix<double> L = pinned_cotangent_laplacian(larger == p.a.num_vertices() ? p.a : p.b);
+  std::vector<double> su, totals, peaks;
+  std::vector<std::string> order;
+  std::map<std::string, StageRow> rows;
+  int converged = 0, flips = 0;
+  su.push_back(solve_unit(L));
+  for (int r = 0; r < repeat; ++r) {
+    const json run = in_child([&] { return map_run(p, threads); });
+    if (run.contains("error")) {
+      std::printf("run %d failed: %s\n", r, run["error"].get<std::string>().c_str());
+      su.push_back(solve_unit(L));
+      continue;
+    }
+    for (const json& s : run["stages"]) {
+      const std::string name = s["name"];
+      if (!rows.count(name)) order.push_back(name);
+      StageRow& row = rows[name];
+      row.seconds.push_back(s["time_s"]);
+      row.factorisations.push_back(s["factorisations"]);
+      row.newton.push_back(s["newton_iterations"]);
+      row.peak.push_back(s["peak_memory_mb"]);
+    }
+    totals.push_back(run["total"]);
+    converged += run["converged"].get<bool>();
+    flips = std::max(flips, run["flipped"].get<int>());
+    su.push_back(solve_unit(L));
+    std::printf("  run %d: %.3f s; SU samples so far:", r, totals.back());
+    for (double s : su) std::printf(" %.3f", s);
+    std::printf("\n");
+  }
+  const double SU = median(su);
+  std::printf("SU (median of %zu samples, %d-vertex cotangent Laplacian): %.3f s\n", su.size(), larger, SU);
+  std::printf("%-34s %9s %8s %8s %7s %10s\n", "stage (medians)", "time_s", "SU", "factor.", "newton", "peak_MiB");
+  for (const std::string& name : order) {
+    const StageRow& row = rows[name];
+    const double s = median(row.seconds);
+    std::printf("%-34s %9.3f %8.2f %8.0f %7.0f %10.1f\n", name.c_str(), s, s / SU, median(row.factorisations),
+                median(row.newton), median(row.peak));
+  }
+  const double total = median(totals);
+  const double peak = rows.count("total") ? median(rows["total"].peak) : NAN;
+  char line[256];
+  std::snprintf(line, sizeof line, "%8d %8d %10.2f %8.3f %9.1f %10.0f %6d/%d %6d", p.a.num_vertices(),
+                p.b.num_vertices(), total, SU, total / SU, peak, converged, repeat, flips);
+  scaling.push_back(line);
+}
+
+// The relaxation run: seconds from the start to the solve's start and to
+// the energy `target` (NaN when not reached within `budget`).
+json relaxation_run(const Pair& p, double target, double budget, int threads) {
+  SurfaceMapOptions opt;
+  opt.threads = threads;
+  opt.solve.method = MapMethod::Relaxation;
+  opt.solve.max_iterations = 100000000;
+  const auto t0 = Clock::now();
+  double solve_start = NAN, reached = NAN, last_energy = NAN;
+  opt.progress = [&](const std::string& stage, double) {
+    if (stage == "initial map") solve_start = since(t0);
+    return true;
+  };
+  opt.solve_progress = [&](int, double E, double) {
+    last_energy = E;
+    if (E <= target * (1 + 1e-6)) {
+      reached = since(t0);
+      return false;
+    }
+    return !(std::isfinite(solve_start) && since(t0) - solve_start > budget);
+  };
+  try {
+    surface_map(p.a, p.b, opt);
+  } catch (const Cancelled&) {
+  }
+  return {{"solve_start", solve_start}, {"reached", reached}, {"energy", last_energy}};
+}
+
+void ratio_rows(int v, int repeat, double budget, int threads) {
+  const Pair p = make_pair_of(v);
+  std::printf("\n== Newton / relaxation at the same energy, pair %d / %d vertices\n", p.a.num_vertices(),
+              p.b.num_vertices());
+  std::vector<double> solve, total, after, energy;
+  for (int r = 0; r < repeat; ++r) {
+    const json run = in_child([&] { return map_run(p, threads); });
+    if (run.contains("error")) continue;
+    double s = 0, post = 0;
+    bool past = false;
+    for (const json& st : run["stages"]) {
+      const std::string name = st["name"];
+      if (name == "full-resolution solve" || name == "harmonic solve") s += st["time_s"].get<double>();
+      if (past && name != "total") post += st["time_s"].get<double>();
+      if (name == "harmonic solve") past = true;
+    }
+    solve.push_back(s), total.push_back(run["total"]), after.push_back(post), energy.push_back(run["energy"]);
+  }
+  if (energy.empty()) return void(std::printf("the Newton runs failed\n"));
+  const double target = median(energy);
+  const json relax = in_child([&] { return relaxation_run(p, target, budget, threads); });
+  if (relax.contains("error")) return void(std::printf("the relaxation run failed: %s\n", relax["error"].get<std::string>().c_str()));
+  const double start = relax["solve_start"].is_number() ? relax["solve_start"].get<double>() : NAN;
+  const double reached = relax["reached"].is_number() ? relax["reached"].get<double>() : NAN;
+  const bool got = std::isfinite(reached);
+  const double relax_solve = got ? reached - start : budget;
+  const double relax_total = (got ? reached : start + budget) + median(after);
+  std::printf("Newton: solve stages %.3f s, end to end %.3f s, energy %.10g (medians of %zu)\n", median(solve),
+              median(total), target, energy.size());
+  std::printf("relaxation: %s %.3f s of solve, end to end %.3f s (reached at %.3f s + Newton's %.3f s of later stages)\n",
+              got ? "reached it after" : "NOT reached within the budget,", relax_solve, relax_total,
+              got ? reached : start + budget, median(after));
+  std::printf("ratio relaxation/Newton: solve %s%.1fx, end to end %s%.1fx\n", got ? "" : ">", relax_solve / median(solve),
+              got ? "" : ">", relax_total / median(total));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<int> sizes{50000, 200000};
+  int repeat = 3, threads = 0, small = 3500;
+  double budget = 300;
+  bool ratio = true;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "bench_speed: %s needs a value\n", a.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--sizes") {
+      sizes.clear();
+      std::stringstream s(next());
+      for (std::string t; std::getline(s, t, ',');) sizes.push_back(std::stoi(t));
+    } else if (a == "--repeat") repeat = std::max(1, std::stoi(next()));
+    else if (a == "--threads") threads = std::stoi(next());
+    else if (a == "--small") small = std::stoi(next());
+    else if (a == "--relax-budget") budget = std::stod(next());
+    else if (a == "--no-ratio") ratio = false;
+    else if (a == "--progress") g_progress = true;
+    else {
+      std::fprintf(stderr, "usage: bench_speed [--sizes 50000,200000] [--repeat 3] [--threads 0] [--small 3500] "
+                           "[--relax-budget 300] [--no-ratio] [--progress]\n");
+      return 2;
+    }
+  }
+  single_threaded_blas();
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
+  std::vector<std::string> scaling;
+  for (int v : sizes) size_rows(v, repeat, threads, scaling);
+  std::printf("\n== scaling (medians)\n%8s %8s %10s %8s %9s %10s %8s %6s\n", "Vs", "Vt", "total_s", "SU_s", "total_SU",
+              "peak_MiB", "conv", "flips");
+  for (const std::string& line : scaling) std::printf("%s\n", line.c_str());
+  if (ratio) ratio_rows(small, repeat, budget, threads);
+  return 0;
+}
