@@ -45,6 +45,9 @@ struct FlatTarget {
   DiskLayout layout;
   Complex A, B;  // translations of the canonical generators a', b'
   int refinement_splits = 0;  // exact splits that made the metric exist
+  std::string metric;         // UniformizedTarget::metric
+  int flips = 0;
+  std::shared_ptr<const TargetIntrinsic> intrinsic;  // the flip path's way back to the input faces
   std::vector<int> refined_to_input_face;
 };
 
@@ -53,6 +56,9 @@ FlatTarget flat_target(const TriMesh& target, const SurfaceMapOptions& options) 
   UniformizedTarget u = uniformized_target(target, Background::Euclidean, options);
   t.loops = std::move(u.loops);
   t.refinement_splits = u.refinement_splits;
+  t.metric = u.metric;
+  t.flips = u.flips;
+  t.intrinsic = u.intrinsic;
   t.layout = std::move(u.layout);
   const CanonicalSchema cs = canonical_schema(t.layout.word);
   t.A = evaluate(cs.generators[0], t.layout.generator_translations);
@@ -261,6 +267,8 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   // Target: flat uniformization and canonical lattice basis.
   const FlatTarget tgt = flat_target(target, options);
   out.target_refinement_splits = tgt.refinement_splits;
+  out.target_metric = tgt.metric;
+  out.target_flips = tgt.flips;
   stage_done("target uniformization", 0.3);
 
   // Source: homotopy data.
@@ -436,7 +444,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
 
   // Location (stages/flat_location.h); the initial map is the uniform Tutte one.
   out.initial_map.construction = "uniform Tutte";
-  FlatLocationResult located = locate_flat_map(source, target, tc, tgt.loops, tgt.layout, tgt.A, tgt.B, z, z_init, img,
+  FlatLocationResult located = locate_flat_map(source, target, tc, tgt.loops, tgt.intrinsic.get(), tgt.layout, tgt.A, tgt.B, z, z_init, img,
                                                image_corners(z_init), stage_done);
   out.forward = std::move(located.forward);
   out.inverse = std::move(located.inverse);

@@ -17,6 +17,8 @@ json energy_json(const SurfaceMapResult& r) {
           {"initial_flipped_triangles", r.initial_flipped_triangles},
           {"repaired_vertices", r.repaired_vertices},
           {"target_refinement_splits", r.target_refinement_splits},
+          {"target_metric", r.target_metric},
+          {"target_flips", r.target_flips},
           {"source_weights", r.source_weights}};
 }
 

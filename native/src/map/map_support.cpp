@@ -7,6 +7,7 @@
 #include "surfmap/map/initial_map.h"
 #include "surfmap/mesh/exact_refinement.h"
 #include "surfmap/uniformize/feasible_metric.h"
+#include "surfmap/uniformize/intrinsic_loops.h"
 
 namespace surfmap::detail {
 namespace {
@@ -60,8 +61,20 @@ PointOnSurface point_in_face(const TriMesh& m, int f, Eigen::Vector3d b) {
   return ps;
 }
 
+TargetIntrinsic::TargetIntrinsic(const RicciFlowResult& flow, int nv)
+    : faces(flow.faces), conn(flow.faces, nv), correspondence(flow), num_input_vertices(nv) {}
+
 PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, const SystemOfLoops& s,
-                              std::vector<int>& cache, int rf, const Eigen::Vector3d& b) {
+                              const TargetIntrinsic* intrinsic, std::vector<int>& cache, int rf,
+                              const Eigen::Vector3d& b) {
+  if (intrinsic) {
+    Eigen::Vector3d w = b.cwiseMax(0.0);
+    w /= w.sum();
+    const FacePoint on_t = intrinsic_face_point(s, intrinsic->faces, intrinsic->conn,
+                                                intrinsic->num_input_vertices, rf, w);
+    const FacePoint on_input = intrinsic->correspondence.to_input(on_t.face, on_t.barycentric);
+    return point_in_face(input, on_input.face, on_input.barycentric);
+  }
   PointOnSurface ps = point_in_face(s.mesh, rf, b);
   if (cache[rf] < 0) {
     Eigen::Vector3d unused;
@@ -72,12 +85,50 @@ PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, cons
   return ps;
 }
 
-UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options) {
+namespace {
+
+/// The flip-based path of uniformized_target: Newton with intrinsic Delaunay
+/// flips on the user's target, loops on T' (uniformize/intrinsic_loops.h),
+/// disk layout. Throws SolveError when any step fails.
+UniformizedTarget intrinsic_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
+                                   const SystemOfLoopsOptions& lo) {
   UniformizedTarget t;
+  const Connectivity tc(target.F, target.num_vertices());
+  RicciFlowOptions fo;
+  fo.tolerance = options.uniformization_tolerance;
+  fo.intrinsic_delaunay = true;
+  const RicciFlowResult flow = ricci_flow(tc, edge_lengths(target, tc), background, fo);
+  if (!flow.converged) throw SolveError("the flow did not converge: " + flow.message);
+  IntrinsicLoops il = intrinsic_loops(target, flow, background, lo);
+  t.loops = std::move(il.loops);
+  const Connectivity conn(t.loops.mesh.F, t.loops.mesh.num_vertices());
+  t.layout = layout_disk(conn, il.lengths, background, t.loops);
+  if (t.layout.num_flipped > 0)
+    throw SolveError("the layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
+  t.intrinsic = std::make_shared<const TargetIntrinsic>(flow, target.num_vertices());
+  t.flips = flow.flips;
+  t.metric = "intrinsic Delaunay";
+  return t;
+}
+
+}  // namespace
+
+UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options) {
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.loops.target_base_vertex;
+  std::string flip_failure;
+  if (options.target_metric == UniformizationMetric::IntrinsicDelaunay) {
+    try {
+      return intrinsic_target(target, background, options, lo);
+    } catch (const SolveError& e) {
+      flip_failure = e.what();  // the fixed-connectivity path below, said in the report
+    }
+  }
+  UniformizedTarget t;
+  t.metric = flip_failure.empty() ? "fixed connectivity"
+                                  : "fixed connectivity (intrinsic Delaunay failed: " + flip_failure + ")";
   t.loops = system_of_loops(target, lo);
-  // Fixed connectivity first; when its metric does not exist (caps on CAD
+  // Fixed connectivity; when its metric does not exist (caps on CAD
   // meshes), the loops' mesh is refined exactly and the flow runs again
   // (uniformize/feasible_metric.h); the layout and location below only see a
   // refined system of loops with origins on the user's target.
@@ -90,7 +141,8 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
                      (fm.refinement_splits > 0 ? " (after refining the target exactly: " +
                                                      std::to_string(fm.refinement_splits) + " splits; unrefined: " +
                                                      fm.unrefined_failure + ")"
-                                               : std::string()));
+                                               : std::string()) +
+                     (flip_failure.empty() ? std::string() : "; intrinsic Delaunay path: " + flip_failure));
   t.loops = std::move(fm.loops);
   t.refinement_splits = fm.refinement_splits;
   t.refinement_max_angle = fm.refinement_max_angle;

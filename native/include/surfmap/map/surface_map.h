@@ -62,6 +62,7 @@
 
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/mesh/tri_mesh.h"
+#include "surfmap/uniformize/uniformize.h"
 
 namespace surfmap {
 
@@ -221,6 +222,14 @@ struct SurfaceMapOptions {
   InitialMapMethod initial_map = InitialMapMethod::CutGraph;
   /// Curvature tolerance of the target's uniformization (default 1e-10).
   double uniformization_tolerance = 1e-10;
+  /// Genus >= 1: the target's uniformization metric. IntrinsicDelaunay
+  /// (default): Newton with Ptolemy flips on the user's target (a metric
+  /// always exists), results carried back through the flips exactly
+  /// (uniformize/intrinsic_correspondence.h); if that path throws, the
+  /// fixed-connectivity one runs and SurfaceMapResult::target_metric says
+  /// why. FixedConnectivity: the metric on the target's own edges, refined
+  /// exactly (altitude-foot splits) when it does not exist.
+  UniformizationMetric target_metric = UniformizationMetric::IntrinsicDelaunay;
   /// Genus >= 1: weights of the energy on the source (default Automatic).
   SourceWeights source_weights = SourceWeights::Automatic;
   /// Threads the pipeline runs at once (genus >= 2: the coarse class solves
@@ -453,6 +462,11 @@ struct SurfaceMapResult {
   /// when the fixed-connectivity metric existed). Outputs stay on the
   /// user's target either way.
   int target_refinement_splits = 0;
+  /// Genus >= 1: the target's metric ("intrinsic Delaunay", "fixed
+  /// connectivity", or "fixed connectivity (intrinsic Delaunay failed: ...)"
+  /// after the automatic fallback) and its flow's edge flips (0 when fixed).
+  std::string target_metric;
+  int target_flips = 0;
   /// Genus >= 1: the weights the returned map was solved with:
   /// "intrinsic Delaunay cotangent" or "positive on the source's own edges"
   /// (SourceWeights; after the automatic fallback the candidates' energies

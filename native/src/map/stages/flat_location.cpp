@@ -9,7 +9,8 @@
 namespace surfmap::detail {
 
 FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target, const Connectivity& tc,
-                                   const SystemOfLoops& target_loops, const DiskLayout& layout, Complex w1, Complex w2,
+                                   const SystemOfLoops& target_loops, const TargetIntrinsic* target_intrinsic,
+                                   const DiskLayout& layout, Complex w1, Complex w2,
                                    const std::vector<Complex>& z, const std::vector<Complex>& z_init,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& image,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& initial_image,
@@ -32,7 +33,7 @@ FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target,
     Eigen::Vector3d b;
     const int rf = locate_periodic(tgrid, z[i], centre, w1, w2, &b);
     if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
-    out.forward[i] = point_on_input(target, tc, target_loops, refined_face_origin, rf, b);
+    out.forward[i] = point_on_input(target, tc, target_loops, target_intrinsic, refined_face_origin, rf, b);
   }
   // The initial (uniform Tutte) map located the same way ("before" morph).
   out.initial_forward.resize(n);
@@ -43,7 +44,7 @@ FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target,
       out.initial_forward.clear();  // left unlocated, not an error
       break;
     }
-    out.initial_forward[i] = point_on_input(target, tc, target_loops, refined_face_origin, rf, b);
+    out.initial_forward[i] = point_on_input(target, tc, target_loops, target_intrinsic, refined_face_origin, rf, b);
   }
   stage_done("forward location", 0.85);
 
