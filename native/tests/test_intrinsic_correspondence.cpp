@@ -61,6 +61,69 @@ TEST(IntrinsicCorrespondence, IdentityWithoutFlips) {
   }
 }
 
+// One flip of a quad of explicit vectors in R^{2,1} (slots k, s, m, t =
+// vertices 0..3): null vectors for a Ptolemy flip, hyperboloid points for an
+// exact hyperbolic flip. A point of a new triangle, taken at the final
+// metric's scale u (vectors e^{u_i} v_i, the vertex scaling
+// l = e^{(u_i+u_j)/2} l⁰), must come back as old-triangle weights c with
+// Σ c_i v_i on the same ray, c >= 0.
+double minkowski(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return -a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+void expect_rays_kept(bool hyperboloid, const Eigen::Vector4d& u) {
+  const double theta[4] = {0.3, 1.9, 2.6, 4.4}, r[4] = {0.7, 1.3, 0.4, 2.1};
+  Eigen::Vector3d v[4];
+  for (int i = 0; i < 4; ++i)
+    v[i] = hyperboloid ? Eigen::Vector3d(std::cosh(r[i]), std::sinh(r[i]) * std::cos(theta[i]), std::sinh(r[i]) * std::sin(theta[i]))
+                       : Eigen::Vector3d(r[i], r[i] * std::cos(theta[i]), r[i] * std::sin(theta[i]));
+  auto chord = [&](int i, int j) { return std::sqrt(minkowski(v[i] - v[j], v[i] - v[j])); };
+  RicciFlowResult fr;
+  fr.background = hyperboloid ? Background::Hyperbolic : Background::Euclidean;
+  fr.faces.resize(2, 3);
+  fr.faces << 0, 1, 2, 2, 3, 0;  // after: (k, s, m), (m, t, k)
+  fr.u = u;
+  EdgeFlip fl;
+  fl.face0 = 0, fl.face1 = 1, fl.corner0 = 1, fl.corner1 = 2;  // before: rows (t, k, s), (t, s, m)
+  fl.base_lengths = {chord(0, 1), chord(1, 2), chord(2, 3), chord(3, 0), chord(1, 3), chord(0, 2)};
+  fl.exact = hyperboloid;
+  fr.flip_history = {fl};
+  fr.flips = 1;
+  if (!hyperboloid)  // Ptolemy: the new diagonal of four null vectors
+    EXPECT_NEAR(fl.base_lengths[5] * fl.base_lengths[4],
+                fl.base_lengths[0] * fl.base_lengths[2] + fl.base_lengths[1] * fl.base_lengths[3], 1e-12);
+  const int old_rows[2][3] = {{3, 0, 1}, {3, 1, 2}};
+  const IntrinsicCorrespondence corr(fr);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  int in_old[2] = {0, 0};
+  for (int trial = 0; trial < 200; ++trial) {
+    const int f = trial % 2;
+    Eigen::Vector3d b(U(rng), U(rng), U(rng));
+    b /= b.sum();
+    Eigen::Vector3d ray = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) {
+      const int i = fr.faces(f, k);
+      ray += b[k] * (hyperboloid ? v[i] : Eigen::Vector3d(std::exp(u[i]) * v[i]));
+    }
+    const FacePoint p = corr.to_input(f, b);
+    ASSERT_TRUE(p.face == 0 || p.face == 1);
+    ++in_old[p.face];
+    Eigen::Vector3d back = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) back += p.barycentric[k] * v[old_rows[p.face][k]];
+    EXPECT_LT((back / back[0] - ray / ray[0]).norm(), 1e-12) << "trial " << trial;
+  }
+  EXPECT_GT(in_old[0], 0);  // both old triangles are reached
+  EXPECT_GT(in_old[1], 0);
+}
+
+TEST(IntrinsicCorrespondence, PtolemyFlipKeepsRaysOfNullVectors) {
+  expect_rays_kept(false, Eigen::Vector4d::Zero());
+  expect_rays_kept(false, Eigen::Vector4d(0.4, -1.2, 2.0, 0.3));
+}
+
+TEST(IntrinsicCorrespondence, ExactHyperbolicFlipKeepsPointsOfTheHyperboloid) {
+  expect_rays_kept(true, Eigen::Vector4d::Zero());
+}
+
 // Exact flips on the planar fans of a CAD plate: an intrinsic triangle whose
 // corners lie on one face plane of the plate, with its 3D chords as its
 // lengths, is that 3D triangle, so a point of it must come back to the same
