@@ -64,14 +64,14 @@ void bind_map(py::module_& m) {
   m.attr("CAPABILITIES") = py::frozenset(py::make_tuple(
       "homotopy", "landmarks", "method", "tolerance", "max_iterations", "solve_progress", "homotopy_candidates",
       "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
-      "progress", "source_base_vertex", "target_base_vertex"));
+      "progress", "source_base_vertex", "target_base_vertex", "target_metric"));
   m.def(
       "surface_map",
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
          int target_base_vertex, py::object progress, py::object landmarks, const std::string& method,
          double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
          int homotopy_full_solves, const std::string& initial_map, const std::string& source_weights,
-         bool homotopy_search, int homotopy_search_evaluations) {
+         bool homotopy_search, int homotopy_search_evaluations, const std::string& target_metric) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         SurfaceMapOptions opt;
@@ -92,6 +92,10 @@ void bind_map(py::module_& m) {
         opt.homotopy.search.evaluations = homotopy_search_evaluations;
         opt.initial_map = parse_enum<InitialMapMethod>(initial_map, "initial_map");
         opt.source_weights = parse_enum<SourceWeights>(source_weights, "source_weights");
+        if (target_metric != "flips" && target_metric != "fixed")
+          throw InputError("target_metric must be 'flips' or 'fixed', not '" + target_metric + "'");
+        opt.target_metric =
+            target_metric == "fixed" ? UniformizationMetric::FixedConnectivity : UniformizationMetric::IntrinsicDelaunay;
         if (!landmarks.is_none()) {
           const auto pairs = py::cast<std::vector<std::vector<long long>>>(
               py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
@@ -157,7 +161,7 @@ void bind_map(py::module_& m) {
       py::arg("landmarks") = py::none(), py::arg("method") = enum_name(MapMethod::Newton), py::arg("tolerance") = 1e-10,
       py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
       py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = enum_name(SourceWeights::Automatic),
-      py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
+      py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24, py::arg("target_metric") = "flips",
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
       "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "
@@ -173,7 +177,9 @@ void bind_map(py::module_& m) {
       "('initial_map' in the result says which was used; 'initial_forward': the initial map located on the target, "
       "'initial_inverse': each target vertex located on the source through the initial map); `source_weights`: 'auto' "
       "(intrinsic Delaunay cotangents, the source's own edges when their images fold), 'intrinsic' or 'own' "
-      "('source_weights' in the result says which were used). `progress(stage, fraction)` "
+      "('source_weights' in the result says which were used); `target_metric`: 'flips' (genus >= 1 default: the "
+      "target's flip-based metric, results carried back to its own faces) or 'fixed' (its own edges, refined when "
+      "needed; 'target_metric', 'target_flips', 'target_refinement_splits' in the result). `progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
 }
 
