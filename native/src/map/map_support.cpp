@@ -106,6 +106,14 @@ UniformizedTarget intrinsic_target(const TriMesh& target, Background background,
   if (t.layout.num_flipped > 0)
     throw SolveError("the layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
   t.intrinsic = std::make_shared<const TargetIntrinsic>(flow, target.num_vertices());
+  // The refined vertices at their points of the user's target (intrinsic_loops
+  // interpolates them on T' chords, off the surface): the handle-class
+  // machinery reads the loops' mesh in 3D (nearest vertices, handle positions).
+  SystemOfLoops& s = t.loops;
+  for (int v = target.num_vertices(); v < s.mesh.num_vertices(); ++v) {
+    const FacePoint p = t.intrinsic->correspondence.to_input(s.origin_face[v], s.origin_barycentric.row(v).transpose());
+    s.mesh.V.row(v) = point_in_face(target, p.face, p.barycentric).position.transpose();
+  }
   t.flips = flow.flips;
   t.metric = "intrinsic Delaunay";
   return t;
