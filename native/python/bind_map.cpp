@@ -92,10 +92,11 @@ void bind_map(py::module_& m) {
         opt.homotopy.search.evaluations = homotopy_search_evaluations;
         opt.initial_map = parse_enum<InitialMapMethod>(initial_map, "initial_map");
         opt.source_weights = parse_enum<SourceWeights>(source_weights, "source_weights");
-        if (target_metric != "flips" && target_metric != "fixed")
-          throw InputError("target_metric must be 'flips' or 'fixed', not '" + target_metric + "'");
-        opt.target_metric =
-            target_metric == "fixed" ? UniformizationMetric::FixedConnectivity : UniformizationMetric::IntrinsicDelaunay;
+        if (target_metric != "auto" && target_metric != "flips" && target_metric != "fixed")
+          throw InputError("target_metric must be 'auto', 'flips' or 'fixed', not '" + target_metric + "'");
+        opt.target_metric = target_metric == "fixed"   ? UniformizationMetric::FixedConnectivity
+                            : target_metric == "flips" ? UniformizationMetric::IntrinsicDelaunay
+                                                       : UniformizationMetric::Automatic;
         if (!landmarks.is_none()) {
           const auto pairs = py::cast<std::vector<std::vector<long long>>>(
               py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
@@ -161,7 +162,7 @@ void bind_map(py::module_& m) {
       py::arg("landmarks") = py::none(), py::arg("method") = enum_name(MapMethod::Newton), py::arg("tolerance") = 1e-10,
       py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
       py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = enum_name(SourceWeights::Automatic),
-      py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24, py::arg("target_metric") = "flips",
+      py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24, py::arg("target_metric") = "auto",
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
       "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "
@@ -177,9 +178,10 @@ void bind_map(py::module_& m) {
       "('initial_map' in the result says which was used; 'initial_forward': the initial map located on the target, "
       "'initial_inverse': each target vertex located on the source through the initial map); `source_weights`: 'auto' "
       "(intrinsic Delaunay cotangents, the source's own edges when their images fold), 'intrinsic' or 'own' "
-      "('source_weights' in the result says which were used); `target_metric`: 'flips' (genus >= 1 default: the "
-      "target's flip-based metric, results carried back to its own faces) or 'fixed' (its own edges, refined when "
-      "needed; 'target_metric', 'target_flips', 'target_refinement_splits' in the result). `progress(stage, fraction)` "
+      "('source_weights' in the result says which were used); `target_metric`: 'auto' (genus >= 1 default: "
+      "'fixed' when that metric exists, else 'flips'), 'flips' (the target's flip-based metric, "
+      "results carried back to its own faces) or 'fixed' (its own edges, refined when needed; 'target_metric', "
+      "'target_metric_choice', 'target_flips', 'target_refinement_splits' in the result). `progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
 }
 

@@ -228,17 +228,19 @@ void expect_on_users_mesh(const TriMesh& t, const std::vector<PointOnSurface>& p
 }
 
 // A genus-3 target with flat caps whose fixed-connectivity metric does not
-// exist (it needs exact refinement: test_exact_refinement.cpp) maps by
-// default through the flip-based metric: no refinement, flips counted, a
-// certified bijection on the user's own faces.
+// exist (it needs exact refinement: test_exact_refinement.cpp) maps through
+// the flip-based metric: no refinement, flips counted, a certified bijection
+// on the user's own faces.
 TEST(IntrinsicTargetMap, TargetWithoutFixedMetricMapsOnItsOwnFaces) {
   const TriMesh s = samples::n_hole_torus(3, 32, true);
   const TriMesh t = samples::n_hole_torus(3, 32, false);
   SurfaceMapOptions o;
   o.homotopy.candidates = 1;  // the overlay class (more candidates cost minutes at genus 3)
+  o.target_metric = UniformizationMetric::IntrinsicDelaunay;
   const SurfaceMapResult m = surface_map(s, t, o);
   EXPECT_TRUE(m.converged);
   EXPECT_EQ(m.target_metric, "intrinsic Delaunay");
+  EXPECT_EQ(m.target_metric_choice, "requested");
   EXPECT_GT(m.target_flips, 0);
   EXPECT_EQ(m.target_refinement_splits, 0);
   EXPECT_EQ(m.flipped_triangles, 0);
@@ -253,7 +255,9 @@ TEST(IntrinsicTargetMap, TargetWithoutFixedMetricMapsOnItsOwnFaces) {
 TEST(IntrinsicTargetMap, FlatCadTargetMapsOnItsOwnFaces) {
   const TriMesh s = samples::torus_of_revolution(2.0, 0.8, 40, 20);
   const TriMesh t = samples::cad_plate(1, 32, 0.5);
-  const SurfaceMapResult m = surface_map(s, t, SurfaceMapOptions{});
+  SurfaceMapOptions o;
+  o.target_metric = UniformizationMetric::IntrinsicDelaunay;  // the flip path, requested
+  const SurfaceMapResult m = surface_map(s, t, o);
   EXPECT_TRUE(m.converged);
   EXPECT_EQ(m.target_metric, "intrinsic Delaunay");
   EXPECT_GT(m.target_flips, 0);

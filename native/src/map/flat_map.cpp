@@ -46,6 +46,7 @@ struct FlatTarget {
   Complex A, B;  // translations of the canonical generators a', b'
   int refinement_splits = 0;  // exact splits that made the metric exist
   std::string metric;         // UniformizedTarget::metric
+  std::string metric_choice;  // UniformizedTarget::metric_choice
   int flips = 0;
   std::shared_ptr<const TargetIntrinsic> intrinsic;  // the flip path's way back to the input faces
   std::vector<int> refined_to_input_face;
@@ -57,6 +58,7 @@ FlatTarget flat_target(const TriMesh& target, const SurfaceMapOptions& options) 
   t.loops = std::move(u.loops);
   t.refinement_splits = u.refinement_splits;
   t.metric = u.metric;
+  t.metric_choice = u.metric_choice;
   t.flips = u.flips;
   t.intrinsic = u.intrinsic;
   t.layout = std::move(u.layout);
@@ -269,6 +271,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   out.target_refinement_splits = tgt.refinement_splits;
   out.target_metric = tgt.metric;
   out.target_flips = tgt.flips;
+  out.target_metric_choice = tgt.metric_choice;
   stage_done("target uniformization", 0.3);
 
   // Source: homotopy data.

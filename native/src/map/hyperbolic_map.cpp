@@ -196,6 +196,7 @@ void HyperbolicPipeline::uniformize_target() {
   out.target_refinement_splits = ut->refinement_splits;
   out.target_metric = ut->metric;
   out.target_flips = ut->flips;
+  out.target_metric_choice = ut->metric_choice;
   tcs = canonical_schema(ut->layout.word);
   deck_group = std::make_unique<DeckGroup>(ut->layout);
   polygon = std::make_unique<FundamentalPolygon>(ut->layout, *deck_group);

@@ -19,6 +19,7 @@ json energy_json(const SurfaceMapResult& r) {
           {"target_refinement_splits", r.target_refinement_splits},
           {"target_metric", r.target_metric},
           {"target_flips", r.target_flips},
+          {"target_metric_choice", r.target_metric_choice},
           {"source_weights", r.source_weights}};
 }
 

@@ -119,29 +119,21 @@ UniformizedTarget intrinsic_target(const TriMesh& target, Background background,
   return t;
 }
 
-}  // namespace
-
-UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options) {
-  SystemOfLoopsOptions lo;
-  lo.base_vertex = options.loops.target_base_vertex;
-  std::string flip_failure;
-  if (options.target_metric == UniformizationMetric::IntrinsicDelaunay) {
-    try {
-      return intrinsic_target(target, background, options, lo);
-    } catch (const SolveError& e) {
-      flip_failure = e.what();  // the fixed-connectivity path below, said in the report
-    }
-  }
+/// The fixed-connectivity path of uniformized_target: the metric on the
+/// target's own (loops-refined) edges, refined exactly when it does not exist
+/// and `refine` is set (uniformize/feasible_metric.h); the layout and location
+/// only see a refined system of loops with origins on the user's target.
+/// Throws SolveError when the flow does not converge or the layout flips;
+/// `flip_failure` (non-empty: the flip path failed first) goes in both.
+UniformizedTarget fixed_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
+                               const SystemOfLoopsOptions& lo, bool refine, const std::string& flip_failure) {
   UniformizedTarget t;
   t.metric = flip_failure.empty() ? "fixed connectivity"
                                   : "fixed connectivity (intrinsic Delaunay failed: " + flip_failure + ")";
   t.loops = system_of_loops(target, lo);
-  // Fixed connectivity; when its metric does not exist (caps on CAD
-  // meshes), the loops' mesh is refined exactly and the flow runs again
-  // (uniformize/feasible_metric.h); the layout and location below only see a
-  // refined system of loops with origins on the user's target.
   FeasibleMetricOptions fo;
   fo.flow.tolerance = options.uniformization_tolerance;
+  if (!refine) fo.refine_max_angles.clear();
   FeasibleMetricResult fm = feasible_metric(target, t.loops, background, fo);
   const RicciFlowResult& flow = fm.flow;
   if (!flow.converged)
@@ -159,6 +151,53 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
   if (t.layout.num_flipped > 0)
     throw SolveError("target layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
   return t;
+}
+
+}  // namespace
+
+UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options) {
+  SystemOfLoopsOptions lo;
+  lo.base_vertex = options.loops.target_base_vertex;
+  switch (options.target_metric) {
+    case UniformizationMetric::FixedConnectivity: {
+      UniformizedTarget t = fixed_target(target, background, options, lo, true, "");
+      t.metric_choice = "requested";
+      return t;
+    }
+    case UniformizationMetric::IntrinsicDelaunay: {
+      std::string flip_failure;
+      try {
+        UniformizedTarget t = intrinsic_target(target, background, options, lo);
+        t.metric_choice = "requested";
+        return t;
+      } catch (const SolveError& e) {
+        flip_failure = e.what();
+      }
+      UniformizedTarget t = fixed_target(target, background, options, lo, true, flip_failure);
+      t.metric_choice = "fallback: the flip path failed";
+      return t;
+    }
+    case UniformizationMetric::Automatic: break;
+  }
+  // Automatic: the fixed-connectivity metric (exactly refined when needed)
+  // whenever it exists, the flip path only when it does not: the handle-class
+  // machinery picks worse classes on T' (docs/uniformization.md "Which target
+  // metric runs"), so a working fixed case is never made worse.
+  std::string fixed_failure;
+  try {
+    UniformizedTarget t = fixed_target(target, background, options, lo, true, "");
+    t.metric_choice = "automatic: the fixed-connectivity metric exists";
+    return t;
+  } catch (const SolveError& e) {
+    fixed_failure = e.what();
+  }
+  try {
+    UniformizedTarget t = intrinsic_target(target, background, options, lo);
+    t.metric_choice = "automatic: no fixed-connectivity metric (" + fixed_failure + ")";
+    return t;
+  } catch (const SolveError& e) {
+    throw SolveError(fixed_failure + "; intrinsic Delaunay path: " + e.what());
+  }
 }
 
 void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo& info) {

@@ -61,16 +61,18 @@ PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, cons
                               const Eigen::Vector3d& b);
 
 /// The target laid out in its uniformization metric: system of loops (refined,
-/// as the layout needs simple loops), Ricci flow, disk layout. By default
-/// (SurfaceMapOptions::target_metric) the flip-based metric on T' with the
-/// loops of uniformize/intrinsic_loops.h; the fixed-connectivity metric with
-/// exact refinement when asked for, or when the flip path throws.
+/// as the layout needs simple loops), Ricci flow, disk layout, with the metric
+/// of SurfaceMapOptions::target_metric: the fixed-connectivity one (refined
+/// exactly only when asked for, or when the flip path throws) or the
+/// flip-based metric on T' with the loops of uniformize/intrinsic_loops.h.
 struct UniformizedTarget {
   SystemOfLoops loops;
   DiskLayout layout;
   /// "intrinsic Delaunay" or "fixed connectivity" (with the flip path's
   /// error in parentheses when it was the automatic fallback).
   std::string metric;
+  /// Why that metric ran (SurfaceMapResult::target_metric_choice).
+  std::string metric_choice;
   /// Edge flips of the flip-based flow (0 on the fixed path).
   int flips = 0;
   /// Set on the flip path: T' and the way back to the input faces.
