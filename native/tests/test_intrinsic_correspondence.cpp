@@ -251,6 +251,34 @@ TEST(IntrinsicTargetMap, TargetWithoutFixedMetricMapsOnItsOwnFaces) {
   EXPECT_CERTIFIED_MAP(s, t, m);
 }
 
+// The default (automatic) target metric: the same target has a
+// fixed-connectivity metric once refined exactly, so that path runs, with
+// results identical to requesting it (the default of before the flip path;
+// the flip path's handle classes are worse on CAD targets:
+// docs/uniformization.md "Which target metric runs").
+TEST(IntrinsicTargetMap, AutomaticMetricKeepsAnExistingFixedMetric) {
+  const TriMesh s = samples::n_hole_torus(3, 32, true);
+  const TriMesh t = samples::n_hole_torus(3, 32, false);
+  SurfaceMapOptions o;
+  o.homotopy.candidates = 1;
+  ASSERT_EQ(o.target_metric, UniformizationMetric::Automatic);
+  const SurfaceMapResult automatic = surface_map(s, t, o);
+  o.target_metric = UniformizationMetric::FixedConnectivity;
+  const SurfaceMapResult fixed = surface_map(s, t, o);
+  EXPECT_EQ(automatic.target_metric, "fixed connectivity");
+  EXPECT_EQ(automatic.target_metric_choice, "automatic: the fixed-connectivity metric exists");
+  EXPECT_EQ(fixed.target_metric_choice, "requested");
+  EXPECT_EQ(automatic.target_flips, 0);
+  EXPECT_GT(automatic.target_refinement_splits, 0);
+  EXPECT_EQ(automatic.target_refinement_splits, fixed.target_refinement_splits);
+  EXPECT_EQ(automatic.final_energy, fixed.final_energy);
+  ASSERT_EQ(automatic.forward.size(), fixed.forward.size());
+  for (size_t v = 0; v < fixed.forward.size(); ++v) {
+    EXPECT_EQ(automatic.forward[v].face, fixed.forward[v].face);
+    EXPECT_EQ(automatic.forward[v].position, fixed.forward[v].position);
+  }
+}
+
 // Genus 1: a CAD block with one hole (long fans of slivers) as the target.
 TEST(IntrinsicTargetMap, FlatCadTargetMapsOnItsOwnFaces) {
   const TriMesh s = samples::torus_of_revolution(2.0, 0.8, 40, 20);
