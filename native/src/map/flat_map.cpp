@@ -47,6 +47,10 @@ struct FlatTarget {
   DiskLayout layout;
   Complex A, B;  // translations of the canonical generators a', b'
   int refinement_splits = 0;  // exact splits that made the metric exist
+  std::string metric;         // UniformizedTarget::metric
+  std::string metric_choice;  // UniformizedTarget::metric_choice
+  int flips = 0;
+  std::shared_ptr<const TargetIntrinsic> intrinsic;  // the flip path's way back to the input faces
   std::vector<int> refined_to_input_face;
 };
 
@@ -55,6 +59,10 @@ FlatTarget flat_target(const TriMesh& target, const SurfaceMapOptions& options) 
   UniformizedTarget u = uniformized_target(target, Background::Euclidean, options);
   t.loops = std::move(u.loops);
   t.refinement_splits = u.refinement_splits;
+  t.metric = u.metric;
+  t.metric_choice = u.metric_choice;
+  t.flips = u.flips;
+  t.intrinsic = u.intrinsic;
   t.layout = std::move(u.layout);
   const CanonicalSchema cs = canonical_schema(t.layout.word);
   t.A = evaluate(cs.generators[0], t.layout.generator_translations);
@@ -305,7 +313,7 @@ bool record_flat_map(const FlatInputs& in, const IntrinsicDelaunayResult& idt, c
 
   // Location (stages/flat_location.h); the initial map is the uniform Tutte one.
   out.initial_map.construction = "uniform Tutte";
-  FlatLocationResult located = locate_flat_map(in.source, in.target, in.tc, in.tgt.loops, in.tgt.layout, in.tgt.A,
+  FlatLocationResult located = locate_flat_map(in.source, in.target, in.tc, in.tgt.loops, in.tgt.intrinsic.get(), in.tgt.layout, in.tgt.A,
                                                in.tgt.B, z, z_init, img, image_corners(z_init), in.stage_done);
   out.forward = std::move(located.forward);
   out.inverse = std::move(located.inverse);
@@ -445,6 +453,9 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
   // Target: flat uniformization and canonical lattice basis.
   FlatInputs in{source, target, sc, tc, options, hooks, stage_done, flat_target(target, options), {}, {}, {}, {}};
   out.target_refinement_splits = in.tgt.refinement_splits;
+  out.target_metric = in.tgt.metric;
+  out.target_flips = in.tgt.flips;
+  out.target_metric_choice = in.tgt.metric_choice;
   stage_done("target uniformization", 0.3);
 
   // Source: homotopy data and edge lengths.

@@ -199,6 +199,9 @@ void HyperbolicPipeline::start_source_side() {
 void HyperbolicPipeline::uniformize_target() {
   ut = std::make_unique<UniformizedTarget>(uniformized_target(target, Background::Hyperbolic, options));
   out.target_refinement_splits = ut->refinement_splits;
+  out.target_metric = ut->metric;
+  out.target_flips = ut->flips;
+  out.target_metric_choice = ut->metric_choice;
   tcs = canonical_schema(ut->layout.word);
   deck_group = std::make_unique<DeckGroup>(ut->layout);
   polygon = std::make_unique<FundamentalPolygon>(ut->layout, *deck_group);
@@ -931,7 +934,7 @@ bool map_class(HyperbolicPipeline& p) {
 
   HyperbolicLocationInput li;
   li.source = &p.source, li.target = &p.target, li.sc = &p.sc, li.tc = &p.tc;
-  li.target_loops = &p.ut->loops, li.layout = &p.ut->layout, li.polygon = p.polygon.get(), li.group = p.deck_group.get();
+  li.target_loops = &p.ut->loops, li.target_intrinsic = p.ut->intrinsic.get(), li.layout = &p.ut->layout, li.polygon = p.polygon.get(), li.group = p.deck_group.get();
   li.zp = &placed.zp, li.eff_edge = &placed.eff_edge, li.image = &placed.image;
   li.init = &init, li.halfedge_rho = &initial.halfedge_rho, li.halfedge_word = &initial.halfedge_word;
   li.threads = p.threads;

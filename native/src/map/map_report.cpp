@@ -20,6 +20,9 @@ json energy_json(const SurfaceMapResult& r) {
           {"initial_flipped_triangles", r.initial_flipped_triangles},
           {"repaired_vertices", r.repaired_vertices},
           {"target_refinement_splits", r.target_refinement_splits},
+          {"target_metric", r.target_metric},
+          {"target_flips", r.target_flips},
+          {"target_metric_choice", r.target_metric_choice},
           {"source_weights", r.source_weights}};
 }
 

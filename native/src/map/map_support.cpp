@@ -7,6 +7,7 @@
 #include "surfmap/map/initial_map.h"
 #include "surfmap/mesh/exact_refinement.h"
 #include "surfmap/uniformize/feasible_metric.h"
+#include "surfmap/uniformize/intrinsic_loops.h"
 
 namespace surfmap::detail {
 namespace {
@@ -60,8 +61,20 @@ PointOnSurface point_in_face(const TriMesh& m, int f, Eigen::Vector3d b) {
   return ps;
 }
 
+TargetIntrinsic::TargetIntrinsic(const RicciFlowResult& flow, int nv)
+    : faces(flow.faces), conn(flow.faces, nv), correspondence(flow), num_input_vertices(nv) {}
+
 PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, const SystemOfLoops& s,
-                              std::vector<int>& cache, int rf, const Eigen::Vector3d& b) {
+                              const TargetIntrinsic* intrinsic, std::vector<int>& cache, int rf,
+                              const Eigen::Vector3d& b) {
+  if (intrinsic) {
+    Eigen::Vector3d w = b.cwiseMax(0.0);
+    w /= w.sum();
+    const FacePoint on_t = intrinsic_face_point(s, intrinsic->faces, intrinsic->conn,
+                                                intrinsic->num_input_vertices, rf, w);
+    const FacePoint on_input = intrinsic->correspondence.to_input(on_t.face, on_t.barycentric);
+    return point_in_face(input, on_input.face, on_input.barycentric);
+  }
   PointOnSurface ps = point_in_face(s.mesh, rf, b);
   if (cache[rf] < 0) {
     Eigen::Vector3d unused;
@@ -72,17 +85,55 @@ PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, cons
   return ps;
 }
 
-UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options) {
+namespace {
+
+/// The flip-based path of uniformized_target: Newton with intrinsic Delaunay
+/// flips on the user's target, loops on T' (uniformize/intrinsic_loops.h),
+/// disk layout. Throws SolveError when any step fails.
+UniformizedTarget intrinsic_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
+                                   const SystemOfLoopsOptions& lo) {
   UniformizedTarget t;
-  SystemOfLoopsOptions lo;
-  lo.base_vertex = options.loops.target_base_vertex;
+  const Connectivity tc(target.F, target.num_vertices());
+  RicciFlowOptions fo;
+  fo.tolerance = options.uniformization_tolerance;
+  fo.intrinsic_delaunay = true;
+  const RicciFlowResult flow = ricci_flow(tc, edge_lengths(target, tc), background, fo);
+  if (!flow.converged) throw SolveError("the flow did not converge: " + flow.message);
+  IntrinsicLoops il = intrinsic_loops(target, flow, background, lo);
+  t.loops = std::move(il.loops);
+  const Connectivity conn(t.loops.mesh.F, t.loops.mesh.num_vertices());
+  t.layout = layout_disk(conn, il.lengths, background, t.loops);
+  if (t.layout.num_flipped > 0)
+    throw SolveError("the layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
+  t.intrinsic = std::make_shared<const TargetIntrinsic>(flow, target.num_vertices());
+  // The refined vertices at their points of the user's target (intrinsic_loops
+  // interpolates them on T' chords, off the surface): the handle-class
+  // machinery reads the loops' mesh in 3D (nearest vertices, handle positions).
+  SystemOfLoops& s = t.loops;
+  for (int v = target.num_vertices(); v < s.mesh.num_vertices(); ++v) {
+    const FacePoint p = t.intrinsic->correspondence.to_input(s.origin_face[v], s.origin_barycentric.row(v).transpose());
+    s.mesh.V.row(v) = point_in_face(target, p.face, p.barycentric).position.transpose();
+  }
+  t.flips = flow.flips;
+  t.metric = "intrinsic Delaunay";
+  return t;
+}
+
+/// The fixed-connectivity path of uniformized_target: the metric on the
+/// target's own (loops-refined) edges, refined exactly when it does not exist
+/// and `refine` is set (uniformize/feasible_metric.h); the layout and location
+/// only see a refined system of loops with origins on the user's target.
+/// Throws SolveError when the flow does not converge or the layout flips;
+/// `flip_failure` (non-empty: the flip path failed first) goes in both.
+UniformizedTarget fixed_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
+                               const SystemOfLoopsOptions& lo, bool refine, const std::string& flip_failure) {
+  UniformizedTarget t;
+  t.metric = flip_failure.empty() ? "fixed connectivity"
+                                  : "fixed connectivity (intrinsic Delaunay failed: " + flip_failure + ")";
   t.loops = system_of_loops(target, lo);
-  // Fixed connectivity first; when its metric does not exist (caps on CAD
-  // meshes), the loops' mesh is refined exactly and the flow runs again
-  // (uniformize/feasible_metric.h); the layout and location below only see a
-  // refined system of loops with origins on the user's target.
   FeasibleMetricOptions fo;
   fo.flow.tolerance = options.uniformization_tolerance;
+  if (!refine) fo.refine_max_angles.clear();
   FeasibleMetricResult fm = feasible_metric(target, t.loops, background, fo);
   const RicciFlowResult& flow = fm.flow;
   if (!flow.converged)
@@ -90,7 +141,8 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
                      (fm.refinement_splits > 0 ? " (after refining the target exactly: " +
                                                      std::to_string(fm.refinement_splits) + " splits; unrefined: " +
                                                      fm.unrefined_failure + ")"
-                                               : std::string()));
+                                               : std::string()) +
+                     (flip_failure.empty() ? std::string() : "; intrinsic Delaunay path: " + flip_failure));
   t.loops = std::move(fm.loops);
   t.refinement_splits = fm.refinement_splits;
   t.refinement_max_angle = fm.refinement_max_angle;
@@ -99,6 +151,53 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
   if (t.layout.num_flipped > 0)
     throw SolveError("target layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
   return t;
+}
+
+}  // namespace
+
+UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options) {
+  SystemOfLoopsOptions lo;
+  lo.base_vertex = options.loops.target_base_vertex;
+  switch (options.target_metric) {
+    case UniformizationMetric::FixedConnectivity: {
+      UniformizedTarget t = fixed_target(target, background, options, lo, true, "");
+      t.metric_choice = "requested";
+      return t;
+    }
+    case UniformizationMetric::IntrinsicDelaunay: {
+      std::string flip_failure;
+      try {
+        UniformizedTarget t = intrinsic_target(target, background, options, lo);
+        t.metric_choice = "requested";
+        return t;
+      } catch (const SolveError& e) {
+        flip_failure = e.what();
+      }
+      UniformizedTarget t = fixed_target(target, background, options, lo, true, flip_failure);
+      t.metric_choice = "fallback: the flip path failed";
+      return t;
+    }
+    case UniformizationMetric::Automatic: break;
+  }
+  // Automatic: the fixed-connectivity metric (exactly refined when needed)
+  // whenever it exists, the flip path only when it does not: the handle-class
+  // machinery picks worse classes on T' (docs/uniformization.md "Which target
+  // metric runs"), so a working fixed case is never made worse.
+  std::string fixed_failure;
+  try {
+    UniformizedTarget t = fixed_target(target, background, options, lo, true, "");
+    t.metric_choice = "automatic: the fixed-connectivity metric exists";
+    return t;
+  } catch (const SolveError& e) {
+    fixed_failure = e.what();
+  }
+  try {
+    UniformizedTarget t = intrinsic_target(target, background, options, lo);
+    t.metric_choice = "automatic: no fixed-connectivity metric (" + fixed_failure + ")";
+    return t;
+  } catch (const SolveError& e) {
+    throw SolveError(fixed_failure + "; intrinsic Delaunay path: " + e.what());
+  }
 }
 
 void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo& info) {

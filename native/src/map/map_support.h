@@ -8,6 +8,7 @@
 #include <array>
 #include <complex>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,7 @@
 #include "surfmap/testing/map_hooks.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/topology/system_of_loops.h"
+#include "surfmap/uniformize/intrinsic_correspondence.h"
 #include "surfmap/uniformize/layout.h"
 #include "surfmap/uniformize/ricci_flow.h"
 
@@ -38,17 +40,43 @@ using StageDone = std::function<void(const std::string&, double)>;
 /// The point with (clamped, renormalised) barycentrics b in face f of m.
 PointOnSurface point_in_face(const TriMesh& m, int f, Eigen::Vector3d b);
 
+/// The flip-based metric's triangulation T' of the target and the way back
+/// from it to the user's faces (uniformize/intrinsic_correspondence.h).
+struct TargetIntrinsic {
+  explicit TargetIntrinsic(const RicciFlowResult& flow, int num_input_vertices);
+  RowMatrixX3i faces;  ///< T' (#F x 3, the input's vertices)
+  Connectivity conn;   ///< of faces
+  IntrinsicCorrespondence correspondence;
+  int num_input_vertices = 0;
+};
+
 /// A point given in face rf of the refined mesh s.mesh, expressed on the input
-/// mesh (face + barycentrics). `cache` (#F refined, initially -1) remembers the
-/// input face of each refined face.
+/// mesh (face + barycentrics). intrinsic == null: s is the fixed-connectivity
+/// target's refined mesh (origins on input faces), located by a 3D
+/// containment test, `cache` (#F refined, initially -1) remembering the input
+/// face of each refined face. Otherwise s is the refined T' and the point is
+/// carried back through the flips exactly (cache unused).
 PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, const SystemOfLoops& s,
-                              std::vector<int>& cache, int rf, const Eigen::Vector3d& b);
+                              const TargetIntrinsic* intrinsic, std::vector<int>& cache, int rf,
+                              const Eigen::Vector3d& b);
 
 /// The target laid out in its uniformization metric: system of loops (refined,
-/// as the layout needs simple loops), Ricci flow, disk layout.
+/// as the layout needs simple loops), Ricci flow, disk layout, with the metric
+/// of SurfaceMapOptions::target_metric: the fixed-connectivity one (refined
+/// exactly only when asked for, or when the flip path throws) or the
+/// flip-based metric on T' with the loops of uniformize/intrinsic_loops.h.
 struct UniformizedTarget {
   SystemOfLoops loops;
   DiskLayout layout;
+  /// "intrinsic Delaunay" or "fixed connectivity" (with the flip path's
+  /// error in parentheses when it was the automatic fallback).
+  std::string metric;
+  /// Why that metric ran (SurfaceMapResult::target_metric_choice).
+  std::string metric_choice;
+  /// Edge flips of the flip-based flow (0 on the fixed path).
+  int flips = 0;
+  /// Set on the flip path: T' and the way back to the input faces.
+  std::shared_ptr<const TargetIntrinsic> intrinsic;
   /// Exact splits added so that the metric exists (0: none were needed) and
   /// the max-angle bound used (uniformize/feasible_metric.h).
   int refinement_splits = 0;

@@ -103,7 +103,54 @@ double distance(const Eigen::Vector3d& p, const Eigen::Vector3d& q, Background b
   return 2.0 * std::asinh(0.5 * std::sqrt(s2));
 }
 
+Support support_of_vertex(const SystemOfLoops& loops, const RowMatrixX3i& F, int num_input_vertices, int v) {
+  Support s;
+  if (v < num_input_vertices) {
+    s.count = 1;
+    s.vertex[0] = v;
+    s.weight[0] = 1;
+    s.face = loops.origin_face[v];
+  } else {
+    s = support_of(F, loops.origin_face[v], loops.origin_barycentric.row(v), 1e-15);
+  }
+  return s;
+}
+
 }  // namespace
+
+FacePoint intrinsic_face_point(const SystemOfLoops& loops, const RowMatrixX3i& F, const Connectivity& tc,
+                               int num_input_vertices, int rf, const Eigen::Vector3d& b) {
+  std::array<Support, 3> sup;
+  std::vector<int> common;
+  for (int k = 0; k < 3; ++k) {
+    sup[k] = support_of_vertex(loops, F, num_input_vertices, loops.mesh.F(rf, k));
+    std::vector<int> faces = faces_containing(sup[k], tc);
+    if (k == 0) {
+      common = std::move(faces);
+    } else {
+      std::vector<int> kept;
+      for (int g : common)
+        if (std::find(faces.begin(), faces.end(), g) != faces.end()) kept.push_back(g);
+      common = std::move(kept);
+    }
+  }
+  FacePoint p;
+  for (int g : common) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    bool ok = true;
+    for (int k = 0; k < 3 && ok; ++k) {
+      double w[3];
+      ok = weights_in(sup[k], F, g, w);
+      for (int q = 0; q < 3; ++q) sum[q] += b[k] * w[q];
+    }
+    if (ok) {
+      p.face = g;
+      p.barycentric = sum;
+      return p;
+    }
+  }
+  throw SolveError("refined face " + std::to_string(rf) + " lies in no single face of the intrinsic triangulation");
+}
 
 IntrinsicLoops intrinsic_loops(const TriMesh& input, const RicciFlowResult& flow, Background background,
                                const SystemOfLoopsOptions& options) {
@@ -126,16 +173,7 @@ IntrinsicLoops intrinsic_loops(const TriMesh& input, const RicciFlowResult& flow
   if (static_cast<int>(out.loops.origin_face.size()) != nv)
     throw SolveError("intrinsic_loops: the loops' mesh has no origins");
   std::vector<Support> sup(nv);
-  for (int v = 0; v < nv; ++v) {
-    if (v < input.num_vertices()) {
-      sup[v].count = 1;
-      sup[v].vertex[0] = v;
-      sup[v].weight[0] = 1;
-      sup[v].face = out.loops.origin_face[v];
-    } else {
-      sup[v] = support_of(F, out.loops.origin_face[v], out.loops.origin_barycentric.row(v), 1e-15);
-    }
-  }
+  for (int v = 0; v < nv; ++v) sup[v] = support_of_vertex(out.loops, F, input.num_vertices(), v);
   const Connectivity rc(R.F, nv);
   out.lengths.resize(rc.num_edges());
   for (int e = 0; e < rc.num_edges(); ++e) {

@@ -197,6 +197,7 @@ struct FlipContext {
   long long version = 0;
   long long max_flips = 0;
   Background bg = Background::Euclidean;
+  std::vector<EdgeFlip> history;  // every flip made, in order (RicciFlowResult::flip_history)
 
   void init(RicciDomain& d, Eigen::VectorXd& p, Background background) {
     bg = background;
@@ -281,6 +282,11 @@ struct FlipContext {
         lnew = (P[e_tk] * P[e_sm] + P[e_ks] * P[e_mt]) / P[e];
       }
       if (!(lnew > 0.0) || !std::isfinite(lnew)) continue;
+      EdgeFlip rec;
+      rec.face0 = f0, rec.face1 = f1, rec.corner0 = a0, rec.corner1 = a1;
+      rec.base_lengths = {P[e_ks], P[e_sm], P[e_mt], P[e_tk], P[e], lnew};
+      rec.exact = !u;
+      history.push_back(rec);
       P[e] = lnew;
       d.F.row(f0) << vk, s, vm;
       d.FE.row(f0) << e_sm, e, e_ks;
@@ -712,6 +718,7 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
   evaluate(dom, metric, background, res.u, false, ev, flips);
   res.edge_lengths = ev.l;
   res.flips = static_cast<int>(flip_ctx.flips);
+  res.flip_history = std::move(flip_ctx.history);
 
   res.faces = dom.F;
   res.face_edges = dom.FE;

@@ -95,7 +95,7 @@ UniformizeResult uniformize(const TriMesh& mesh, const UniformizeOptions& option
   const Background bg = r.genus == 1 ? Background::Euclidean : Background::Hyperbolic;
   r.kind = r.genus == 1 ? "flat" : "hyperbolic";
   Eigen::VectorXd lengths;  // the metric on r.loops.mesh, edge order of its Connectivity
-  const bool flips = options.metric == UniformizationMetric::IntrinsicDelaunay &&
+  const bool flips = options.metric != UniformizationMetric::FixedConnectivity &&
                      options.scheme == RicciScheme::VertexScaling && options.method == RicciMethod::Newton;
   if (flips) {
     // Default: Newton with Ptolemy flips on the input's vertices (a metric

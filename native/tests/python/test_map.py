@@ -40,6 +40,32 @@ def test_extremal_map_between_tori(pair):
     assert min(c["energy"] for c in cands) == cands[r["homotopy"]["chosen"]]["energy"]
 
 
+def test_target_metric_automatic_by_default_flips_and_fixed_on_request():
+    # Genus 1: the target's flip-based metric on request (flips counted, no
+    # refinement), the fixed-connectivity one on request and by default when
+    # it exists unrefined (a torus of revolution); all certified.
+    Vs, Fs = torus(1.0, 0.5, 40, 20)
+    Vt, Ft = torus(1.5, 0.5, 50, 20, 1)
+    auto = surfmap.surface_map(Vs, Fs, Vt, Ft)
+    flips = surfmap.surface_map(Vs, Fs, Vt, Ft, target_metric="flips")
+    fixed = surfmap.surface_map(Vs, Fs, Vt, Ft, target_metric="fixed")
+    assert flips["target_metric"] == "intrinsic Delaunay" and flips["target_refinement_splits"] == 0
+    assert flips["target_metric_choice"] == "requested"
+    assert fixed["target_metric"] == "fixed connectivity" and fixed["target_flips"] == 0
+    assert fixed["target_metric_choice"] == "requested"
+    assert auto["target_metric"] == "fixed connectivity" and auto["target_flips"] == 0
+    assert auto["target_refinement_splits"] == 0 and auto["target_metric_choice"].startswith("automatic")
+    # The automatic choice is the fixed path itself: the same map.
+    assert np.array_equal(np.asarray(auto["forward"]["position"]), np.asarray(fixed["forward"]["position"]))
+    for r in (flips, fixed):
+        assert r["converged"] and r["flipped_triangles"] == 0
+        assert surfmap.verify(Vs, Fs, Vt, Ft, r)["certified"]
+    # The same conformal structure computed two ways: the same extremal map.
+    assert abs(flips["distortion"]["mean"] / fixed["distortion"]["mean"] - 1) < 1e-3
+    with pytest.raises(surfmap.InputError):
+        surfmap.surface_map(Vs, Fs, Vt, Ft, target_metric="nope")
+
+
 def test_capabilities_name_keywords_surface_map_accepts():
     # The add-on tests membership here (no docstring search): every name
     # must be a keyword argument of surface_map, and the ones the add-on

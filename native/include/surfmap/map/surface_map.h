@@ -62,6 +62,7 @@
 
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/mesh/tri_mesh.h"
+#include "surfmap/uniformize/uniformize.h"
 
 namespace surfmap {
 
@@ -241,6 +242,17 @@ struct SurfaceMapOptions {
   InitialMapOptions initial;
   /// Curvature tolerance of the target's uniformization (default 1e-10).
   double uniformization_tolerance = 1e-10;
+  /// Genus >= 1: the target's uniformization metric. Automatic (default):
+  /// the fixed-connectivity metric (exactly refined when needed) when it
+  /// exists, else the intrinsic Delaunay one (the handle-class search picks
+  /// worse classes on T': docs/uniformization.md "Which target metric runs"). IntrinsicDelaunay: Newton with Ptolemy flips on the
+  /// user's target (a metric always exists), results carried back through
+  /// the flips exactly (uniformize/intrinsic_correspondence.h).
+  /// FixedConnectivity: the metric on the target's own edges, refined exactly
+  /// (altitude-foot splits) when it does not exist. When the flip path
+  /// throws, the refined fixed-connectivity one runs and
+  /// SurfaceMapResult::target_metric says why.
+  UniformizationMetric target_metric = UniformizationMetric::Automatic;
   /// Threads the pipeline runs at once (genus >= 2: the coarse class solves
   /// of the ranking, and the initial map next to the full-resolution solves;
   /// src/map/concurrency.h). 0 (default): SURFMAP_THREADS when set, else 2
@@ -502,6 +514,15 @@ struct SurfaceMapResult {
   /// when the fixed-connectivity metric existed). Outputs stay on the
   /// user's target either way.
   int target_refinement_splits = 0;
+  /// Genus >= 1: the target's metric ("intrinsic Delaunay", "fixed
+  /// connectivity", or "fixed connectivity (intrinsic Delaunay failed: ...)"
+  /// after the automatic fallback) and its flow's edge flips (0 when fixed).
+  std::string target_metric;
+  int target_flips = 0;
+  /// Genus >= 1: why that metric ran: "requested", "automatic: ..." (with
+  /// the fixed-connectivity flow's failure when flips ran) or "fallback: the
+  /// flip path failed" (flips requested).
+  std::string target_metric_choice;
   /// Genus >= 1: the weights the returned map was solved with:
   /// "intrinsic Delaunay cotangent" or "positive on the source's own edges"
   /// (SourceWeights; after the automatic fallback the candidates' energies

@@ -21,6 +21,7 @@
 
 #include <Eigen/Core>
 
+#include "surfmap/mesh/connectivity.h"
 #include "surfmap/mesh/tri_mesh.h"
 #include "surfmap/topology/system_of_loops.h"
 #include "surfmap/uniformize/ricci_flow.h"
@@ -37,6 +38,23 @@ struct IntrinsicLoops {
   /// Connectivity(loops.mesh.F).
   Eigen::VectorXd lengths;
 };
+
+/// A point of a face of T' (flow.faces): face and barycentric weights in the
+/// face's corner order.
+struct FacePoint {
+  int face = -1;
+  Eigen::Vector3d barycentric = Eigen::Vector3d::Zero();
+};
+
+/// The point with weights b on the corners of face rf of loops.mesh (an
+/// IntrinsicLoops' refined T'), as a point of a face of T': the face of T'
+/// holding all three corners (T' faces: F, their Connectivity tc) and the
+/// b-weighted sum of the corners' weights there (exact for a flat metric; for
+/// a hyperbolic one, a continuous reparametrisation inside the refined face).
+/// num_input_vertices: T' vertices come first in loops.mesh. Throws
+/// SolveError when no face of T' holds the refined face.
+FacePoint intrinsic_face_point(const SystemOfLoops& loops, const RowMatrixX3i& F, const Connectivity& tc,
+                               int num_input_vertices, int rf, const Eigen::Vector3d& b);
 
 /// input: the mesh the flow ran on (vertex positions); flow: a converged
 /// RicciFlowResult (faces, face_edges, edge_lengths). Throws SolveError when

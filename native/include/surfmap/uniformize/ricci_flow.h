@@ -41,6 +41,7 @@
 // edge order) as the intrinsic metric to lay out. Errors in the inputs
 // (wrong sizes, non-positive lengths, targets violating Gauss–Bonnet) throw
 // InputError; a progress callback returning false throws Cancelled.
+#include <array>
 #include <functional>
 #include <string>
 #include <vector>
@@ -90,6 +91,26 @@ struct RicciFlowOptions {
   std::function<bool(int iteration, double residual)> progress;
 };
 
+/// One edge flip of the intrinsic Delaunay flow (RicciFlowOptions::intrinsic_delaunay),
+/// enough to carry points back through it (uniformize/intrinsic_correspondence.h).
+/// The quad's corners are slots 0..3 = (k, s, m, t), counter-clockwise; the
+/// diagonal s–t becomes k–m. Before: face0's row holds k, s, t from column
+/// corner0 on (F(face0, corner0) = k, next s, next t), face1's row m, t, s
+/// from column corner1 on. After: face0 = (k, s, m), face1 = (m, t, k). Slots,
+/// not vertex ids: after flips a vertex may be two corners of one quad.
+struct EdgeFlip {
+  int face0 = -1, face1 = -1;
+  int corner0 = 0, corner1 = 0;
+  /// Base (Penner) lengths l⁰ = the lengths in the u = 0 frame of the sides
+  /// k–s, s–m, m–t, t–k, the old diagonal s–t and the new one k–m
+  /// (hyperbolic: the chords 2 sinh(l/2)).
+  std::array<double, 6> base_lengths{};
+  /// True for the metric-preserving flips of the input metric before the
+  /// solve (Euclidean: planar unfolding; hyperbolic: hyperbolic unfolding);
+  /// false for the Ptolemy flips during the solve.
+  bool exact = false;
+};
+
 struct RicciFlowResult {
   bool converged = false;
   int iterations = 0;
@@ -121,6 +142,8 @@ struct RicciFlowResult {
   /// flips == 0 these are the input faces and Connectivity's edges, and
   /// edge_lengths is indexed like edge_vertices either way.
   int flips = 0;
+  /// The flips, in the order they were made (flips entries).
+  std::vector<EdgeFlip> flip_history;
   RowMatrixX3i faces;
   RowMatrixX3i face_edges;
   Eigen::Matrix<int, Eigen::Dynamic, 2, Eigen::RowMajor> edge_vertices;

@@ -26,7 +26,11 @@ namespace surfmap {
 ///    another scheme or method the fixed-connectivity path runs.
 ///  * FixedConnectivity: the metric on the loops' mesh itself, refined by
 ///    altitude-foot splits when it does not exist (fixed_connectivity_refinement).
-enum class UniformizationMetric { IntrinsicDelaunay, FixedConnectivity };
+///  * Automatic (SurfaceMapOptions::target_metric's default): the
+///    fixed-connectivity metric (exactly refined when needed) when it exists,
+///    else the intrinsic Delaunay one. uniformize() treats it as
+///    IntrinsicDelaunay.
+enum class UniformizationMetric { IntrinsicDelaunay, FixedConnectivity, Automatic };
 
 struct UniformizeOptions {
   UniformizationMetric metric = UniformizationMetric::IntrinsicDelaunay;

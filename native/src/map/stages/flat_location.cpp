@@ -1,15 +1,51 @@
 #include "flat_location.h"
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <string>
 
 #include "surfmap/error.h"
 #include "surfmap/map/point_location.h"
 
 namespace surfmap::detail {
+namespace {
+
+// A point that locate_periodic misses because it lies in a crack between
+// glued copies of the disk: the layout's round-off (~1e-10) at a corner of
+// the tiny refined triangles where the loops fan out of their base vertex,
+// where 1e-10 is more than the barycentric tolerance. The triangle of the
+// lattice copies nearest to it (clamped barycentrics) when it is within
+// 1e-8 of the lattice's scale; otherwise -1.
+int locate_in_crack(const TriangleGrid& grid, const std::vector<std::array<Complex, 3>>& ttris, Complex p,
+                    Complex centre, Complex w1, Complex w2, Eigen::Vector3d* bary) {
+  const double det = w1.real() * w2.imag() - w1.imag() * w2.real();
+  const Complex d = p - centre;
+  const double alpha = (d.real() * w2.imag() - d.imag() * w2.real()) / det;
+  const double beta = (w1.real() * d.imag() - w1.imag() * d.real()) / det;
+  const Complex q0 = p - std::round(alpha) * w1 - std::round(beta) * w2;
+  const double accept = 1e-8 * std::max(std::abs(w1), std::abs(w2));
+  double best = accept;
+  int best_f = -1;
+  for (int m = -3; m <= 3; ++m)
+    for (int n = -3; n <= 3; ++n) {
+      const Complex q = q0 + double(m) * w1 + double(n) * w2;
+      for (int f : grid.candidates(q)) {
+        Eigen::Vector3d b = TriangleGrid::barycentric(ttris[f], q).cwiseMax(0.0);
+        if (!(b.sum() > 0)) continue;
+        b /= b.sum();
+        const double dist = std::abs(b[0] * ttris[f][0] + b[1] * ttris[f][1] + b[2] * ttris[f][2] - q);
+        if (dist <= best) best = dist, best_f = f, *bary = b;
+      }
+    }
+  return best_f;
+}
+
+}  // namespace
 
 FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target, const Connectivity& tc,
-                                   const SystemOfLoops& target_loops, const DiskLayout& layout, Complex w1, Complex w2,
+                                   const SystemOfLoops& target_loops, const TargetIntrinsic* target_intrinsic,
+                                   const DiskLayout& layout, Complex w1, Complex w2,
                                    const std::vector<Complex>& z, const std::vector<Complex>& z_init,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& image,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& initial_image,
@@ -30,20 +66,22 @@ FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target,
   out.forward.resize(n);
   for (int i = 0; i < n; ++i) {
     Eigen::Vector3d b;
-    const int rf = locate_periodic(tgrid, z[i], centre, w1, w2, &b);
+    int rf = locate_periodic(tgrid, z[i], centre, w1, w2, &b);
+    if (rf < 0) rf = locate_in_crack(tgrid, ttris, z[i], centre, w1, w2, &b);
     if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
-    out.forward[i] = point_on_input(target, tc, target_loops, refined_face_origin, rf, b);
+    out.forward[i] = point_on_input(target, tc, target_loops, target_intrinsic, refined_face_origin, rf, b);
   }
   // The initial (uniform Tutte) map located the same way ("before" morph).
   out.initial_forward.resize(n);
   for (int i = 0; i < n; ++i) {
     Eigen::Vector3d b;
-    const int rf = locate_periodic(tgrid, z_init[i], centre, w1, w2, &b);
+    int rf = locate_periodic(tgrid, z_init[i], centre, w1, w2, &b);
+    if (rf < 0) rf = locate_in_crack(tgrid, ttris, z_init[i], centre, w1, w2, &b);
     if (rf < 0) {
       out.initial_forward.clear();  // left unlocated, not an error
       break;
     }
-    out.initial_forward[i] = point_on_input(target, tc, target_loops, refined_face_origin, rf, b);
+    out.initial_forward[i] = point_on_input(target, tc, target_loops, target_intrinsic, refined_face_origin, rf, b);
   }
   stage_done("forward location", 0.85);
 

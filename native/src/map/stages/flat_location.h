@@ -15,14 +15,16 @@ struct FlatLocationResult {
   std::vector<PointOnSurface> initial_forward, initial_inverse;  ///< the same for the initial map, or empty
 };
 
-/// `target_loops`/`layout`: the target's refined mesh laid out in the plane,
+/// `target_loops`/`layout`: the target's refined mesh laid out in the plane
+/// (`target_intrinsic`: its T' on the flip path, else null),
 /// lattice (w1, w2); `z`/`z_init` (#V source): the optimum and the initial
 /// map; `image`/`initial_image` (#F x 3): their image triangles. Reports
 /// "forward location" to stage_done between the two directions. A vertex
 /// of the optimum that cannot be located is a SolveError; of the initial
 /// map, it leaves that output empty.
 FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target, const Connectivity& tc,
-                                   const SystemOfLoops& target_loops, const DiskLayout& layout, Complex w1, Complex w2,
+                                   const SystemOfLoops& target_loops, const TargetIntrinsic* target_intrinsic,
+                                   const DiskLayout& layout, Complex w1, Complex w2,
                                    const std::vector<Complex>& z, const std::vector<Complex>& z_init,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& image,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& initial_image,

@@ -191,7 +191,7 @@ void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover,
       break;
     }
     last_face = rf;
-    out.initial_forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, initial_face_origin, rf, b);
+    out.initial_forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, in.target_intrinsic, initial_face_origin, rf, b);
   }
   // The initial map's inverse (the "before" UV transfer): its image
   // triangles from its own chart elements, each moved into P by the
@@ -267,7 +267,7 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
       const int rf = cover.locate(last_face, zp[i], &b);
       if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
       last_face = rf;
-      out.forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, refined_face_origin, rf, b);
+      out.forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, in.target_intrinsic, refined_face_origin, rf, b);
     }
     stage_done("forward location", 0.85);
     PlaneTriangles spoints(source.num_faces()), stris(source.num_faces());

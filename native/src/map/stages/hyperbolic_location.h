@@ -22,6 +22,7 @@ struct HyperbolicLocationInput {
   const Connectivity* sc = nullptr;
   const Connectivity* tc = nullptr;
   const SystemOfLoops* target_loops = nullptr;  ///< the target's refined mesh (the layout's faces)
+  const TargetIntrinsic* target_intrinsic = nullptr;  ///< its T' on the flip path (null: fixed connectivity)
   const DiskLayout* layout = nullptr;
   const FundamentalPolygon* polygon = nullptr;
   const DeckGroup* group = nullptr;
