@@ -106,8 +106,8 @@ double distance_key(Complex c, Complex p) { return std::norm(c - p) / ((1.0 - st
 // left-over vertices with no located neighbour, or a failed walk) falls
 // back, in index order: the walk from the grid candidate (of a copy's cell)
 // whose corner 0 is nearest to a copy; then from the face whose corner 0 is
-// nearest to a copy, over all faces (before issue 19 every vertex whose
-// neighbours came later in index order reached this scan: quadratic); then
+// nearest to a copy, over all faces (O(#F); before issue 19 every vertex
+// whose neighbours came later in index order reached it); then
 // the walk from the last located vertex's face towards v's reduced
 // position, then locate_in_cover; a vertex so located seeds waves again.
 // The result depends on nothing but the input (not on threads). Returns per
