@@ -234,6 +234,44 @@ TEST(SurfaceMapHyperbolic, ResultDoesNotDependOnTheStartPoint) {
   EXPECT_LT(worst, tol);
 }
 
+// Issue 19: the inverse location's waves (left-over target vertices walked
+// to from located neighbours' faces) find the same points as the reference
+// search (each from the nearest corner 0 over all source faces).
+TEST(SurfaceMapHyperbolic, InverseLocationWavesMatchTheFullSearch) {
+  const TriMesh a = samples::n_hole_torus(2, 30, true);
+  const TriMesh b = samples::vase(34, true);
+  std::array<int, 4> waves{}, full{};
+  testing::MapHooks hw, hf;
+  hw.inverse_location_counts = [&](int i, int n, int g, int s) { waves = {i, n, g, s}; };
+  hf.inverse_location_counts = [&](int i, int n, int g, int s) { full = {i, n, g, s}; };
+  hf.inverse_full_search = true;
+  const SurfaceMapResult mw = testing::surface_map(a, b, SurfaceMapOptions{}, hw);
+  const SurfaceMapResult mf = testing::surface_map(a, b, SurfaceMapOptions{}, hf);
+  expect_valid_map(mw, a, b);
+  ASSERT_EQ(mw.inverse.size(), mf.inverse.size());
+  // Every target vertex counted once; the reference uses neither waves nor grid starts.
+  EXPECT_EQ(waves[0] + waves[1] + waves[2] + waves[3], b.num_vertices());
+  EXPECT_EQ(full[0] + full[1] + full[2] + full[3], b.num_vertices());
+  EXPECT_EQ(full[1] + full[2], 0);
+  EXPECT_EQ(waves[0], full[0]);
+  // The pair has left-over vertices (else this compares nothing), and the
+  // waves take them off the scan over all faces.
+  EXPECT_GT(full[3], 0);
+  EXPECT_LT(waves[3], full[3]);
+  EXPECT_GT(waves[1], 0);
+  const double tol = 1e-9 * bbox_diagonal(a);
+  int same_face = 0;
+  for (size_t v = 0; v < mw.inverse.size(); ++v) {
+    EXPECT_LT((mw.inverse[v].position - mf.inverse[v].position).norm(), tol) << "target vertex " << v;
+    if (mw.inverse[v].face == mf.inverse[v].face) {
+      ++same_face;
+      EXPECT_LT((mw.inverse[v].barycentric - mf.inverse[v].barycentric).norm(), 1e-9) << "target vertex " << v;
+    }
+  }
+  // A different face only for a point on a shared edge or vertex (round-off).
+  EXPECT_GE(same_face, static_cast<int>(0.99 * mw.inverse.size()));
+}
+
 TEST(SurfaceMapHyperbolic, SliverSourceHasNoFlips) {
   const TriMesh a = samples::n_hole_torus(2, 40, false);  // raw marching tetrahedra
   const TriMesh b = samples::amphora(36, true);

@@ -938,7 +938,12 @@ bool map_class(HyperbolicPipeline& p) {
   li.zp = &placed.zp, li.eff_edge = &placed.eff_edge, li.image = &placed.image;
   li.init = &init, li.halfedge_rho = &initial.halfedge_rho, li.halfedge_word = &initial.halfedge_word;
   li.threads = p.threads;
+  li.inverse_full_search = p.hooks.inverse_full_search;
   HyperbolicLocationResult located = locate_hyperbolic_map(li, p.stage_done);
+  if (p.hooks.inverse_location_counts) {
+    const InverseLocationCounts& c = located.inverse_counts;
+    p.hooks.inverse_location_counts(c.in_frame, c.from_neighbour, c.from_grid, c.full_scan);
+  }
   out.forward = std::move(located.forward);
   out.inverse = std::move(located.inverse);
   out.initial_forward = std::move(located.initial_forward);

@@ -30,6 +30,14 @@ struct MapHooks {
   /// {"T(a1)", "T(a1)"}; an unknown name is an InputError). A start given
   /// here skips stage 1 (more cuts) of the search.
   int homotopy_search_start = -1;
+  /// Genus >= 2: locate the optimum's inverse without the waves (issue 19):
+  /// every target vertex with no copy inside an image triangle by the walk
+  /// from the nearest corner 0 over all source faces (the reference search).
+  bool inverse_full_search = false;
+  /// Genus >= 2: called with how the optimum's inverse location found the
+  /// target vertices: by the grid alone, by a walk from a located
+  /// neighbour (waves), from a grid candidate, after the scan over all faces.
+  std::function<void(int in_frame, int from_neighbour, int from_grid, int full_scan)> inverse_location_counts;
   std::vector<std::string> homotopy_search_start_twists;
 };
 

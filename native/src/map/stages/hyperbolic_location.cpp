@@ -97,15 +97,21 @@ double distance_key(Complex c, Complex p) { return std::norm(c - p) / ((1.0 - st
 
 // The inverse of a map: per target vertex v the source face whose image, in
 // its own frame (corner 0 in P), contains one of v's copies in the cut disk
-// (no chart change needed; first pass, every vertex on its own). For the
-// vertices left over (second pass, in index order), the straight walk
-// towards v's copy nearest to a located neighbour's face, from that face
-// (issue 19: the located neighbour is a start next to the query, found
-// without a search); then from the face whose corner 0 is nearest to a copy,
-// over all faces; then the walk from the last located vertex's face towards
-// v's reduced position, then locate_in_cover. The result depends on nothing
-// but the input (not on threads). Returns per vertex the face or -1, with
-// the barycentrics in `bary`.
+// (no chart change needed; first pass, every vertex on its own). The
+// vertices left over are located in waves outward from the located ones
+// (issue 19): a vertex with a located neighbour walks towards its copy
+// nearest to that neighbour's face, from that face (a start next to the
+// query, found without a search), and once located puts its unlocated
+// neighbours in the queue. Only a vertex no wave reaches (a component of
+// left-over vertices with no located neighbour, or a failed walk) falls
+// back, in index order: the walk from the grid candidate (of a copy's cell)
+// whose corner 0 is nearest to a copy; then from the face whose corner 0 is
+// nearest to a copy, over all faces (O(#F); before issue 19 every vertex
+// whose neighbours came later in index order reached it); then
+// the walk from the last located vertex's face towards v's reduced
+// position, then locate_in_cover; a vertex so located seeds waves again.
+// The result depends on nothing but the input (not on threads). Returns per
+// vertex the face or -1, with the barycentrics in `bary`.
 // Why walks start next to the query: while the query is far from the walk's
 // current face, the chart changes (deck elements, with entries of 1e3 and
 // more at a corner of a long, thin P where the 4g copies of the base vertex
@@ -113,17 +119,67 @@ double distance_key(Complex c, Complex p) { return std::norm(c - p) / ((1.0 - st
 // ~0.4 (hyperbolic): the walk then ends up to three triangles from the
 // preimage (docs/verification.md). A walk that starts next to the query
 // keeps it near the current face, where the chart changes are accurate.
-// `stop`: give up (return what is located) when raised.
+// `stop`: give up (return what is located) when raised. `full_search`: no
+// waves and no grid start, every left-over vertex from the scan over all
+// faces (the reference, testing/map_hooks.h).
 template <class Corners, class Cross>
 std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>& copies, const DiskLayout& layout,
                                         const VertexNeighbours& neighbours, const FundamentalPolygon& polygon,
                                         const TriangleGrid& grid, const PlaneTriangles& points, const Corners& corners,
                                         const Cross& cross, int max_steps, std::vector<Eigen::Vector3d>& bary,
-                                        const std::atomic<bool>* stop) {
+                                        const std::atomic<bool>* stop, InverseLocationCounts* counts = nullptr,
+                                        bool full_search = false) {
   const int nv = static_cast<int>(copies.size());
+  InverseLocationCounts local;
+  InverseLocationCounts& count = counts ? *counts : local;
   std::vector<int> face(nv, -1);
   bary.assign(nv, Eigen::Vector3d::Zero());
   for (int v = 0; v < nv; ++v) face[v] = locate_copies_in_frame(grid, points, copies[v], &bary[v]);
+  for (int v = 0; v < nv; ++v) count.in_frame += face[v] >= 0;
+  // Walk from the start face (among `starts`) whose corner 0 is nearest to
+  // one of v's copies, towards that copy; -1 when there is no start or the
+  // walk fails.
+  auto walk_from_nearest = [&](int v, auto&& for_each_start) {
+    double nearest = std::numeric_limits<double>::infinity();
+    int start = -1;
+    Complex towards;
+    for_each_start([&](int g) {
+      for (const Complex& c : copies[v]) {
+        const double d = distance_key(c, points[g][0]);
+        if (d < nearest) nearest = d, start = g, towards = c;
+      }
+    });
+    return start >= 0 ? straight_walk(start, towards, corners, cross, max_steps, kInsideTolerance, &bary[v]) : -1;
+  };
+  auto from_neighbours = [&](int v) {
+    return walk_from_nearest(v, [&](auto&& visit) {
+      for (int k = neighbours.index[v]; k < neighbours.index[v + 1]; ++k)
+        if (face[neighbours.list[k]] >= 0) visit(face[neighbours.list[k]]);
+    });
+  };
+  // Waves: a FIFO of unlocated vertices with a located neighbour.
+  std::vector<char> queued(nv, 0);
+  std::vector<int> queue;
+  size_t head = 0;
+  auto enqueue_neighbours = [&](int v) {
+    for (int k = neighbours.index[v]; k < neighbours.index[v + 1]; ++k) {
+      const int u = neighbours.list[k];
+      if (face[u] < 0 && !queued[u]) queued[u] = 1, queue.push_back(u);
+    }
+  };
+  for (int v = 0; v < nv && !full_search; ++v)
+    if (face[v] >= 0) enqueue_neighbours(v);
+  auto run_waves = [&] {
+    for (; head < queue.size(); ++head) {
+      if (stop && *stop) return;
+      const int v = queue[head];
+      const int f = from_neighbours(v);
+      if (f < 0) continue;  // left to the fallbacks below
+      face[v] = f, ++count.from_neighbour;
+      enqueue_neighbours(v);
+    }
+  };
+  run_waves();
   int last_face = 0;
   for (int v = 0; v < nv; ++v) {
     if (stop && *stop) break;
@@ -132,28 +188,17 @@ std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>&
       continue;
     }
     Eigen::Vector3d& b = bary[v];
-    int f = -1;
-    // From the located neighbour's face nearest to one of v's copies.
-    double nearest = std::numeric_limits<double>::infinity();
-    int start = -1;
-    Complex towards;
-    for (int k = neighbours.index[v]; k < neighbours.index[v + 1]; ++k) {
-      const int u = neighbours.list[k];
-      if (face[u] < 0) continue;
-      for (const Complex& c : copies[v]) {
-        const double d = distance_key(c, points[face[u]][0]);
-        if (d < nearest) nearest = d, start = face[u], towards = c;
-      }
-    }
-    if (start >= 0) f = straight_walk(start, towards, corners, cross, max_steps, kInsideTolerance, &b);
-    if (f < 0) {  // from the face whose corner 0 is nearest to a copy
-      nearest = std::numeric_limits<double>::infinity(), start = -1;
+    // From the grid candidate (of a copy's cell) nearest to a copy.
+    int f = full_search ? -1 : walk_from_nearest(v, [&](auto&& visit) {
       for (const Complex& c : copies[v])
-        for (int g = 0; g < static_cast<int>(points.size()); ++g) {
-          const double d = distance_key(c, points[g][0]);
-          if (d < nearest) nearest = d, start = g, towards = c;
-        }
-      if (start >= 0) f = straight_walk(start, towards, corners, cross, max_steps, kInsideTolerance, &b);
+        for (int g : grid.candidates(hyperbolic::poincare_to_klein(c))) visit(g);
+    });
+    if (f >= 0) ++count.from_grid;
+    if (f < 0) {  // from the face whose corner 0 is nearest to a copy, over all faces
+      ++count.full_scan;
+      f = walk_from_nearest(v, [&](auto&& visit) {
+        for (int g = 0; g < static_cast<int>(points.size()); ++g) visit(g);
+      });
     }
     if (f < 0) {
       Complex q = layout.vertex_positions[v];
@@ -163,6 +208,9 @@ std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>&
     if (f < 0) f = locate_in_cover(grid, points, polygon, layout.vertex_positions[v], &b);
     if (f < 0) break;  // the caller reports v
     face[v] = last_face = f;
+    if (full_search) continue;
+    enqueue_neighbours(v);
+    run_waves();
   }
   return face;
 }
@@ -299,7 +347,8 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
     std::vector<Eigen::Vector3d> bary;
     const std::vector<int> face = locate_target_vertices(copies, layout, cover.neighbours, polygon, sgrid, spoints,
                                                          source_corners, source_cross, 4 * source.num_faces() + 100,
-                                                         bary, nullptr);
+                                                         bary, nullptr, &out.inverse_counts,
+                                                         in.inverse_full_search);
     out.inverse.resize(in.target->num_vertices());
     for (int v = 0; v < in.target->num_vertices(); ++v) {
       if (face[v] < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");

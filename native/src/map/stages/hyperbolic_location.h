@@ -39,13 +39,23 @@ struct HyperbolicLocationInput {
   const std::vector<hyperbolic::Mobius>* halfedge_rho = nullptr;
   const std::vector<Word>* halfedge_word = nullptr;
   int threads = 1;
+  /// The optimum's inverse without the waves (testing/map_hooks.h).
+  bool inverse_full_search = false;
 };
 
+/// How the optimum's inverse location found the target vertices (issue 19).
+struct InverseLocationCounts {
+  int in_frame = 0;        ///< a copy inside an image triangle (grid, no walk)
+  int from_neighbour = 0;  ///< waves: walk from a located neighbour's face
+  int from_grid = 0;       ///< walk from a grid candidate near a copy
+  int full_scan = 0;       ///< reached the scan over all source faces (or the later fallbacks)
+};
 struct HyperbolicLocationResult {
   std::vector<PointOnSurface> forward;          ///< #V source
   std::vector<PointOnSurface> inverse;          ///< #V target
   std::vector<PointOnSurface> initial_forward;  ///< #V source, or empty when a vertex could not be located
   std::vector<PointOnSurface> initial_inverse;  ///< #V target, or empty likewise
+  InverseLocationCounts inverse_counts;         ///< of `inverse`
 };
 
 /// Locates the optimum (forward then inverse, reporting "forward location"
