@@ -464,6 +464,7 @@ def _modal_operator(job, notes):
     class Driven:
         modal, _finish, _cleanup, _status = Op.modal, Op._finish, Op._cleanup, Op._status
         _redraw, SLICE, TICK = Op._redraw, Op.SLICE, Op.TICK
+        _show_progress, UI_UPDATE = Op._show_progress, Op.UI_UPDATE
 
         def __init__(self):
             self._job, self._timer, self._notes, self.reports = job, object(), notes, []

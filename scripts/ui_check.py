@@ -36,9 +36,16 @@ def log(*a):
     sys.stdout.flush()
 
 
-def shot(name):
+def shot(name, wait=True):
+    """A screenshot of the X screen. wait=False during the compute: `import` takes seconds on
+    a busy machine and waiting for it blocks Blender's main thread (this script's own 3-6 s
+    "UI stall" before docs/addon.md's fix: the main thread sat in waitpid)."""
     path = os.path.join(OUT, name)
-    subprocess.run(["import", "-window", "root", path], check=False)
+    cmd = ["import", "-window", "root", path]
+    if wait:
+        subprocess.run(cmd, check=False)
+    else:
+        STATE.setdefault("shots", []).append(subprocess.Popen(cmd))
     log("screenshot", path)
 
 
@@ -139,8 +146,20 @@ def open_tab():
 
 
 # Compute Map's button, pixels below the sidebar's top at the default layout (Cut Loops closed)
-COMPUTE_BUTTON_Y = 296
+COMPUTE_BUTTON_Y = 345
 STATE = {"step": 0, "ticks": [], "t_start": None, "progress_shot": False}
+
+
+def record_progress_calls():
+    """Wraps MapJob._progress (the core's callback, on the worker thread) to log each stage's
+    time, so the UI's pauses can be placed among the core's stages."""
+    from surface_map import map_job
+    original = map_job.MapJob._progress
+
+    def logged(job, stage, fraction, *extra):
+        STATE.setdefault("progress_calls", []).append((time.time(), str(stage)))
+        return original(job, stage, fraction, *extra)
+    map_job.MapJob._progress = logged
 
 
 def count_draw():
@@ -177,7 +196,13 @@ def tick_report():
     st = STATE.get("stages", [])
     for k in range(1, len(t)):
         if t0 <= t[k] <= t1 and t[k] - t[k - 1] > 0.45:
-            log(f"  gap {t[k] - t[k - 1]:.2f}s between stages '{st[k - 1]}' and '{st[k]}'")
+            log(f"  gap {t[k] - t[k - 1]:.2f}s between stages '{st[k - 1]}' and '{st[k]}' "
+                f"({t[k - 1] - t0:.2f}s to {t[k] - t0:.2f}s after the click)")
+    last = None
+    for when, stage in STATE.get("progress_calls", []):
+        if stage != last:
+            log(f"  core stage '{stage}' reported at {when - t0:.2f}s (abs {when:.3f})")
+            last = stage
     dr = [x for x in STATE.get("draws", []) if t0 <= x <= t1]
     log("  3D view draws during the compute:", len(dr), "at (s after start)",
         [round(x - t0, 1) for x in dr][:40])
@@ -221,9 +246,11 @@ def step():
             return 3.0
         shot("01_panel_before.png")
         bpy.app.timers.register(ticker, first_interval=0.1)
+        record_progress_calls()
         bpy.types.SpaceView3D.draw_handler_add(count_draw, (), 'WINDOW', 'POST_PIXEL')
         bpy.types.SpaceView3D.draw_handler_add(count_ui_draw, (), 'UI', 'POST_PIXEL')
         STATE["t_start"] = time.time()
+        log(f"compute starts at abs {STATE['t_start']:.3f}")
         if os.environ.get("UI_CHECK_INVOKE"):
             r = call(bpy.ops.surfmap.compute_map, 'INVOKE_DEFAULT')
             log("compute_map invoke ->", r)
@@ -243,7 +270,7 @@ def step():
         if job is not None:
             STATE["seen_job"] = True
             if job.fraction > 0.3 and not STATE["progress_shot"]:
-                shot("02_progress.png")
+                shot("02_progress.png", wait=False)
                 STATE["progress_shot"] = True
             return 0.2     # stay on this step
         STATE["t_end"] = time.time()
@@ -314,6 +341,8 @@ def step():
         return 0.1
     else:
         bpy.app.timers.unregister(ticker) if bpy.app.timers.is_registered(ticker) else None
+        for p in STATE.get("shots", []):
+            p.wait(timeout=60)
         log("done")
         call(bpy.ops.wm.quit_blender)
         return None

@@ -4,6 +4,8 @@ mode; in slices, so progress and Esc are seen between them), ready for the bpy s
 (ops_map.write_outputs) to write. Data flow: docs/addon.md.
 """
 from dataclasses import dataclass, field
+import os
+import sys
 import threading
 import time
 from typing import Optional, Set
@@ -138,6 +140,7 @@ class MapJob:
         self.elapsed = 0.0
         self.times = {}          # wall seconds per stage: solve, outputs (+ write, by the op)
         self._slices = None
+        self.niceness = 0        # how much lower the worker thread's priority was set
 
     # -- the solve ----------------------------------------------------------------------------
 
@@ -237,8 +240,34 @@ class MapJob:
     # over a second. A short interval during the job keeps the UI's Python responsive.
     SWITCH_INTERVAL = 0.0005
 
+    # The worker (and the core's threads, which inherit it) runs this much nicer than Blender's
+    # main thread, so drawing (software OpenGL's rasterizer threads too) gets the CPU first
+    # when the machine is busy; the solve takes what remains (docs/addon.md, "UI ticks").
+    WORKER_NICENESS = 10
+
+    @classmethod
+    def lower_thread_priority(cls):
+        """Lowers the calling thread's scheduling priority (only this thread and the threads
+        it starts later: Linux's nice is per thread; Windows: below normal). Returns the
+        niceness step applied (0 where not supported). Never raises."""
+        try:
+            if sys.platform.startswith("linux"):
+                tid = threading.get_native_id()
+                now = os.getpriority(os.PRIO_PROCESS, tid)
+                os.setpriority(os.PRIO_PROCESS, tid, min(now + cls.WORKER_NICENESS, 19))
+                return os.getpriority(os.PRIO_PROCESS, tid) - now
+            if sys.platform == "win32":
+                import ctypes
+                k32 = ctypes.windll.kernel32
+                below_normal = -1   # THREAD_PRIORITY_BELOW_NORMAL
+                return cls.WORKER_NICENESS if k32.SetThreadPriority(k32.GetCurrentThread(),
+                                                                    below_normal) else 0
+        except (AttributeError, OSError):
+            pass
+        return 0
+
     def _run_threaded(self):
-        import sys
+        self.niceness = self.lower_thread_priority()
         before = sys.getswitchinterval()
         sys.setswitchinterval(min(before, self.SWITCH_INTERVAL))
         try:
@@ -266,8 +295,8 @@ class MapJob:
         s = f"Surface Map: {self.stage_text()} ({100 * self.fraction:.0f}%)"
         if self.energy is not None:
             s += f", energy {self.energy:.6g}"
-        if self.t0 is not None:
-            s += f", {time.time() - self.t0:.1f}s"
+        if self.t0 is not None:   # whole seconds: the text (a status bar redraw) changes at
+            s += f", {time.time() - self.t0:.0f}s"   # most once a second from the clock
         return s + " — Esc to cancel"
 
 

@@ -422,6 +422,7 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
     _timer = None
     TICK = 0.1        # seconds between the modal timer's ticks
     SLICE = 0.05      # seconds of output work per tick (keeps the UI drawing)
+    UI_UPDATE = 1.0   # seconds between visible progress updates (see _show_progress)
 
     @classmethod
     def poll(cls, context):
@@ -497,6 +498,31 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
             map_job.ACTIVE["job"] = None
         self._redraw(context)
 
+    def _show_progress(self, context, job):
+        """The progress cursor, the status bar and the sidebar's progress bar, all changed in
+        the same tick and at most every UI_UPDATE seconds (Esc's "cancelling" at once): each
+        visible change makes Blender composite the window again, ~0.5 s of the main thread
+        with software OpenGL on a busy machine, and changes made in one tick share one
+        composite (docs/addon.md, "UI ticks during the compute")."""
+        now = time.time()
+        if job.cancel:
+            text = "Surface Map: cancelling..."
+        elif now - getattr(self, "_t_shown", 0.0) < self.UI_UPDATE:
+            return
+        else:
+            text = job.status_text()
+        self._t_shown = now
+        percent = int(100 * job.fraction)
+        if percent != getattr(self, "_percent_shown", None):
+            context.window_manager.progress_update(percent)
+        if text != getattr(self, "_status_shown", None):
+            self._status(context, text)
+            self._status_shown = text
+        if (percent, job.stage) != (getattr(self, "_percent_shown", None),
+                                    getattr(self, "_stage_shown", None)):
+            self._redraw(context)
+        self._percent_shown, self._stage_shown = percent, job.stage
+
     def modal(self, context, event):
         job = self._job
         if event.type == 'ESC' and event.value == 'PRESS':
@@ -506,12 +532,7 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
             getattr(job, "ticks", []).append(t_in)
             if job.done() and not job.cancel and job.error is None:
                 job.step_outputs(self.SLICE)    # no-op: the worker computed the outputs
-            context.window_manager.progress_update(int(100 * job.fraction))
-            self._status(context, job.status_text() if not job.cancel else
-                         "Surface Map: cancelling...")
-            # (each sidebar redraw costs the main thread ~0.5 s with software GL on a busy
-            # machine: every 0.5 s halved the UI's tick rate, docs/addon.md)
-            self._redraw(context, every=1.0)
+            self._show_progress(context, job)
             job.tick_work = getattr(job, "tick_work", []) + [(t_in, time.time() - t_in)]
         if job.done() and (job.cancel or job.error is not None or job.outputs is not None
                            or job.result is None):
