@@ -214,6 +214,9 @@ def tick_report():
             "longest gap between ticks %.3fs" % max(b[0] - a[0] for a, b in zip(tw, tw[1:])))
     slow = sorted(STATE.get("slices", []), key=lambda x: -x[1])[:5]
     log("  slowest output slices:", [(a, round(b, 3)) for a, b in slow])
+    if "window_redraw" in STATE:
+        log(f"  pauses longer than 1.5 window redraws ({1.5 * STATE['window_redraw']:.2f}s): "
+            f"{sum(1 for g in gaps if g > 1.5 * STATE['window_redraw'])}")
     log(f"compute wall {t1 - t0:.1f}s, timer ticks {len(inside)}, longest gap "
         f"{max(gaps) if gaps else float('nan'):.3f}s, lowest ticks in any 1 s window "
         f"{worst_rate}")
@@ -245,6 +248,13 @@ def step():
             open_tab()
             return 3.0
         shot("01_panel_before.png")
+        # What one redraw of the whole window costs Blender now (software OpenGL, this load):
+        # no timer can tick while Blender draws, so this bounds the UI's pauses from below.
+        t = time.time()
+        call(bpy.ops.wm.redraw_timer, type='DRAW_WIN_SWAP', iterations=3)
+        STATE["window_redraw"] = (time.time() - t) / 3
+        log(f"one window redraw (DRAW_WIN_SWAP) takes {STATE['window_redraw']:.3f}s, load "
+            f"average {os.getloadavg()[0]:.1f}")
         bpy.app.timers.register(ticker, first_interval=0.1)
         record_progress_calls()
         bpy.types.SpaceView3D.draw_handler_add(count_draw, (), 'WINDOW', 'POST_PIXEL')
