@@ -1,10 +1,12 @@
 """Blender-side measurement of surfmap.bake_textures against the transferred UVs and Blender's
 own Selected-to-Active bake, on the shipped genus-2 sample pair and on real genus-2 meshes.
 
-  blender -b --factory-startup --python bench/bench_bake.py -- [MESH_DIR] [--resolution N] [--no-cycles]
+  blender -b --factory-startup --python bench/bench_bake.py -- [MESH_DIR] [--resolution N]
+      [--no-cycles] [--only LABEL]
 
 MESH_DIR: the real meshes (default shared/meshes beside the repository); the pairs are
-samples/meshes double_torus_g2 -> vase_g2 and MESH_DIR g2_double-torus_gpjs -> g2_eight_summer.
+samples/meshes double_torus_g2 -> vase_g2 and triple_torus_g3 -> polycube_g3, and MESH_DIR
+g2_double-torus_gpjs -> g2_eight_summer (--only: the pairs whose label contains LABEL).
 The source gets a cube-projection UV map (six islands: many seams) and a checker image (16 x 16
 squares of two colours). Per pair it prints:
   fill      fraction of the target's island texels the bake filled
@@ -18,6 +20,9 @@ squares of two colours). Per pair it prints:
             layout (samples/demo_bake.py: Cycles, or the same rays through mathutils.bvhtree
             when Cycles bakes black); 'seams' = points whose preimage is within one ring of a source seam;
             'wrong' = fraction of points with error > 0.25 (the other square's colour)
+  bands     the same errors by how many rings the preimage's source triangle is from a source
+            UV seam (on a seam, 1-3 rings, 4+ rings = away) and each band's mean over the
+            away mean: saw-teeth along the seams' images show as band means well above away
 """
 import os
 import sys
@@ -42,12 +47,15 @@ from surface_map import texture_bake as TB  # noqa: E402
 
 def args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-    opts = {"dir": None, "resolution": 1024, "cycles": True, "points": 20000}
+    opts = {"dir": None, "resolution": 1024, "cycles": True, "points": 20000, "only": None}
     i = 0
     while i < len(argv):
         a = argv[i]
         if a == "--resolution":
             opts["resolution"] = int(argv[i + 1])
+            i += 1
+        elif a == "--only":
+            opts["only"] = argv[i + 1]
             i += 1
         elif a == "--no-cycles":
             opts["cycles"] = False
@@ -192,13 +200,51 @@ def run_pair(label, src_path, tgt_path, opts):
     for k, e in err.items():
         print(f"random {k:26s} all:   {stats(e)}")
         print(f"random {k:26s} seams: {stats(e[seam_faces])}")
+    print_bands(err, seam_ring_of_faces(Fs, suv)[pf])
+
+
+def seam_ring_of_faces(Fs, suv, most=4):
+    """(m,) per source triangle: 0 when a corner is on a UV seam, k when the nearest seam
+    vertex is k rings away, `most` for `most` rings or more."""
+    ring = np.full(len(Fs), most, dtype=np.int64)
+    for k in range(most - 1, -1, -1):
+        ring[TB.seam_vertices(Fs, suv, rings=k)[Fs].any(axis=1)] = k
+    return ring
+
+
+BANDS = (("band: on a seam", (0, 0)), ("band: 1-3 rings", (1, 3)), ("away: 4+ rings", (4, 99)))
+
+
+def print_bands(err, ring):
+    """The colour error in bands along the images of the source's seams against away from
+    them (ring of the preimage's source triangle): a saw-tooth shows as a band error well
+    above the away error. The ratio compares the means."""
+    print("bands (preimage's rings from a source seam): mean error, wrong %, n; ratio = "
+          "band mean / away mean")
+    for k, e in err.items():
+        away = e[ring >= 4]
+        cells = []
+        for name, (lo, hi) in BANDS:
+            sel = e[(ring >= lo) & (ring <= hi)]
+            if len(sel) == 0:
+                cells.append(f"{name}: -")
+                continue
+            ratio = sel.mean() / away.mean() if len(away) and away.mean() > 0 else float("nan")
+            cells.append(f"{name}: {sel.mean():.4f} / {100 * np.mean(sel > 0.25):.2f}% / "
+                         f"{len(sel)} (x{ratio:.2f})")
+        print(f"  {k:26s} " + "; ".join(cells))
 
 
 def main():
     opts = args()
-    pairs = [("sample g2", os.path.join(REPO, "samples", "meshes", "double_torus_g2.obj"),
-              os.path.join(REPO, "samples", "meshes", "vase_g2.obj"))]
-    if opts["dir"]:
+    samples = os.path.join(REPO, "samples", "meshes")
+    pairs = [("sample g2", os.path.join(samples, "double_torus_g2.obj"),
+              os.path.join(samples, "vase_g2.obj")),
+             ("sample g3", os.path.join(samples, "triple_torus_g3.obj"),
+              os.path.join(samples, "polycube_g3.obj"))]
+    if opts["only"]:
+        pairs = [p for p in pairs if opts["only"] in p[0]]
+    if opts["dir"] and not opts["only"]:
         pairs.append(("real g2", os.path.join(opts["dir"], "g2_double-torus_gpjs.obj"),
                       os.path.join(opts["dir"], "g2_eight_summer.off")))
     for p in pairs:

@@ -186,6 +186,9 @@ def tick_report():
     from surface_map import map_job  # noqa: F401
     t = STATE["ticks"]
     t0, t1 = STATE["t_start"], STATE["t_end"]
+    # (from the job's start: before it, this script's own click, with its sleeps and xdotool
+    # calls, holds the main thread)
+    t0 = max(t0, STATE.get("job_t0") or t0)
     inside = [x for x in t if t0 <= x <= t1]
     gaps = [b - a for a, b in zip(inside, inside[1:])]
     worst_rate = None
@@ -193,11 +196,13 @@ def tick_report():
         rates = [sum(1 for x in inside if s <= x < s + 1.0) for s in
                  [t0 + 0.5 * k for k in range(int((t1 - t0 - 1.0) / 0.5) + 1)]]
         worst_rate = min(rates)
+        log(f"  1 s windows (every 0.5 s from the job's start) with fewer than 2 ticks: "
+            f"{sum(1 for r in rates if r < 2)} of {len(rates)}")
     st = STATE.get("stages", [])
     for k in range(1, len(t)):
         if t0 <= t[k] <= t1 and t[k] - t[k - 1] > 0.45:
             log(f"  gap {t[k] - t[k - 1]:.2f}s between stages '{st[k - 1]}' and '{st[k]}' "
-                f"({t[k - 1] - t0:.2f}s to {t[k] - t0:.2f}s after the click)")
+                f"({t[k - 1] - t0:.2f}s to {t[k] - t0:.2f}s after the job's start)")
     last = None
     for when, stage in STATE.get("progress_calls", []):
         if stage != last:
@@ -279,6 +284,7 @@ def step():
             return 0.2     # the click is not processed yet
         if job is not None:
             STATE["seen_job"] = True
+            STATE["job_t0"] = job.t0
             if job.fraction > 0.3 and not STATE["progress_shot"]:
                 shot("02_progress.png", wait=False)
                 STATE["progress_shot"] = True
