@@ -82,6 +82,7 @@ class _FakeLayout:
 
     def prop(self, data, name, **kw):
         self.log.append(("prop", name))
+        self.log.append(("prop_options", name, kw))   # (text=, toggle=, ...: test_panel)
 
     def operator(self, idname, **kw):
         self.log.append(("operator", idname))

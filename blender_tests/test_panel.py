@@ -36,6 +36,20 @@ def test_labels_are_short_and_tooltips_plain():
     for name in drawn:
         label = rna[name].name
         assert len(label) <= MAX_SPLIT_LABEL, (name, label)
+    # In pixels: the label a property shows in the left column (its text= or its name), at
+    # the UI font's size, against the widest text seen whole there (ui_check at the default
+    # width: "Boundary Loops" (79 px) was cut to "Boundary…" (58 px), "Landmarks" (55 px) fits)
+    import blf
+    blf.size(0, 11, 72) if bpy.app.version < (4, 0) else blf.size(0, 11)
+    fits = blf.dimensions(0, "Boundary…")[0]
+    for x in log:
+        if x[0] != "prop_options" or x[1] not in rna.keys():
+            continue
+        kw = x[2]
+        if kw.get("toggle") or kw.get("text") == "" or rna[x[1]].type == 'BOOLEAN':
+            continue   # buttons and check boxes carry their text beside them, not split
+        label = kw.get("text", rna[x[1]].name)
+        assert blf.dimensions(0, label)[0] <= fits, (x[1], label, blf.dimensions(0, label), fits)
     for x in log:
         if x[0] == "label":
             assert len(x[1]) <= 40, x[1]

@@ -147,6 +147,7 @@ def open_tab():
 
 # Compute Map's button, pixels below the sidebar's top at the default layout (Cut Loops closed)
 COMPUTE_BUTTON_Y = 345
+CUT_LOOPS_HEADER_Y = 153
 STATE = {"step": 0, "ticks": [], "t_start": None, "progress_shot": False}
 
 
@@ -244,8 +245,8 @@ def step():
     from surface_map import map_job
     if s == 1:
         open_tab()
-        if os.environ.get("UI_CHECK_QUICK"):
-            STATE["step"] = 99
+        if os.environ.get("UI_CHECK_QUICK"):   # the panel with Cut Loops opened, one shot
+            STATE["step"] = 98
             return 3.0
     elif s == 2:
         if not STATE.get("tab_again"):      # (the first click may come before focus)
@@ -351,6 +352,14 @@ def step():
             target.hide_set(True)
     elif s == 17:
         shot("12_cut_along_seams.png")
+    elif s == 98:
+        win, area, _ = view3d()
+        ui = next(r for r in area.regions if r.type == 'UI')
+        y = win.height - (ui.y + ui.height) + CUT_LOOPS_HEADER_Y
+        xdo("mousemove", str(ui.x + ui.width // 2), str(y))
+        time.sleep(0.2)
+        xdo("click", "1")
+        log("clicked the Cut Loops header at", ui.x + ui.width // 2, y)
     elif s == 99:
         shot("00_quick.png")
         STATE["step"] = 100

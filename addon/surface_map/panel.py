@@ -120,8 +120,9 @@ class SURFMAP_PT_loops(_SubPanel, bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         col = layout.column(align=True)
-        col.prop(settings, "source_base_vertex")
-        col.prop(settings, "target_base_vertex")
+        col.label(text="Base vertex (-1: automatic)")
+        col.prop(settings, "source_base_vertex", text="Source")
+        col.prop(settings, "target_base_vertex", text="Target")
         col.prop(settings, "loop_bevel")
         col.prop(settings, "mark_seams")
         layout.operator("surfmap.show_cut_loops", icon='MOD_CURVE')
@@ -149,7 +150,7 @@ def draw_map(layout, settings):
     col.prop(settings, "method")
     col.prop(settings, "source_weights")
     col.prop(settings, "tolerance_text")
-    col.prop(settings, "boundary_pairing")
+    col.prop(settings, "boundary_pairing", text="Boundary")   # ("Boundary Loops" is cut)
     row = layout.row()
     row.scale_y = 1.4
     row.operator("surfmap.compute_map", icon='PLAY')
