@@ -474,8 +474,10 @@ class OutputComputation:
         Dpt = distortion.per_polygon(Dt, target["tri_polygon"], target["num_polygons"],
                                      geometry.face_areas(Vt, Ft))
         yield "distortion D'"
-        both = [Dp, Dpt] + ([] if Dp_init is None else [Dp_init])
-        lo, hi = colours.robust_range(np.concatenate(both), hi_q=q, floor=1.0)
+        # The range from the final map on both objects: the initial map's D' (often far
+        # larger) would push the top up and leave the final map almost one colour (issue
+        # 15); its colours use the same range, saturated (yellow) where above it.
+        lo, hi = colours.robust_range(np.concatenate([Dp, Dpt]), hi_q=q, floor=1.0)
         out["dilatation"] = Dp
         out["dilatation_initial"] = Dp_init
         out["dilatation_target"] = Dpt

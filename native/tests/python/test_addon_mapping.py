@@ -289,6 +289,14 @@ def test_sliced_outputs_equal_the_whole_and_colour_both_sides(tori):
     # D' is the same stretch seen from either side (up to the piecewise-linear inverse)
     Ds, Dt = out["raw"][M.DILATATION_COLOURS], out["target_raw"][M.DILATATION_COLOURS]
     assert np.all(Dt[np.isfinite(Dt)] >= 1 - 1e-9)
+    # the colour range is the final map's (both objects): its top is their 99th percentile,
+    # not pulled up by the initial map's larger D' (the mesh would be almost one colour)
+    both = np.concatenate([Ds, Dt])
+    both = both[np.isfinite(both)]
+    lo, hi = out["ranges"][M.DILATATION_COLOURS]
+    assert lo == 1.0 and hi == pytest.approx(np.quantile(both, 0.99), rel=1e-12)
+    D0 = out["dilatation_initial"]   # (genus 1: the initial map is located too)
+    assert np.quantile(D0[np.isfinite(D0)], 0.99) > hi   # (the old range, with it, was wider)
     assert abs(np.median(Ds) - np.median(Dt)) < 0.05 * np.median(Ds)
     # the area ratio on the target (through the inverse map, same sign convention) agrees
     # with the source's at each target vertex's preimage
