@@ -551,7 +551,7 @@ def test_modal_compute_keeps_the_main_thread_ticking():
     sample pair, every pause between two ticks below 0.5 s (or 4x the longest pause of a plain
     Python thread measured just before, when the machine is that loaded). A worker that held
     Python's GIL or a main-thread wait in the modal (the write excluded: it is the last
-    tick) would show here as a pause of seconds. The worker runs niced (map_job)."""
+    tick) would show here as a pause of seconds. The solve's thread runs niced (map_job)."""
     import time
     from surface_map import map_job, ops_map
     sm = helpers.sm()
@@ -567,9 +567,11 @@ def test_modal_compute_keeps_the_main_thread_ticking():
     while r in ({'RUNNING_MODAL'}, {'PASS_THROUGH'}):
         ticks.append(time.time())
         stages.append(job.stage)
-        if worker_nice is None and hasattr(os, "getpriority") and job.thread.is_alive():
+        solver = job.solve_thread
+        if worker_nice is None and hasattr(os, "getpriority") and solver is not None \
+                and solver.is_alive() and job.niceness:
             try:
-                worker_nice = os.getpriority(os.PRIO_PROCESS, job.thread.native_id)
+                worker_nice = os.getpriority(os.PRIO_PROCESS, solver.native_id)
             except (OSError, AttributeError):
                 pass
         r = op.modal(ctx, _Event('TIMER'))

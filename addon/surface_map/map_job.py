@@ -140,7 +140,8 @@ class MapJob:
         self.elapsed = 0.0
         self.times = {}          # wall seconds per stage: solve, outputs (+ write, by the op)
         self._slices = None
-        self.niceness = 0        # how much lower the worker thread's priority was set
+        self.niceness = 0        # how much lower the solve thread's priority was set
+        self.solve_thread = None
 
     # -- the solve ----------------------------------------------------------------------------
 
@@ -240,9 +241,10 @@ class MapJob:
     # over a second. A short interval during the job keeps the UI's Python responsive.
     SWITCH_INTERVAL = 0.0005
 
-    # The worker (and the core's threads, which inherit it) runs this much nicer than Blender's
-    # main thread, so drawing (software OpenGL's rasterizer threads too) gets the CPU first
-    # when the machine is busy; the solve takes what remains (docs/addon.md, "UI ticks").
+    # The solve's thread (and the core's threads, which inherit it) runs this much nicer than
+    # Blender's main thread, so drawing (software OpenGL's rasterizer threads too) gets the
+    # CPU first when the machine is busy; the solve takes what remains (docs/addon.md, "UI
+    # ticks during the compute").
     WORKER_NICENESS = 10
 
     @classmethod
@@ -266,12 +268,27 @@ class MapJob:
             pass
         return 0
 
-    def _run_threaded(self):
+    def _solve_niced(self):
         self.niceness = self.lower_thread_priority()
+        self._guarded(self._solve)
+
+    def _run_threaded(self):
+        """The solve on a thread of its own at lower priority (the core's threads inherit
+        it; the GIL is released there), then the outputs on this thread at Blender's
+        priority: they run Python holding the GIL, and a niced thread preempted while
+        holding it would make the main thread wait (a priority inversion: pauses of 0.5 s
+        at load 23 in test_map's tick test)."""
         before = sys.getswitchinterval()
         sys.setswitchinterval(min(before, self.SWITCH_INTERVAL))
         try:
-            self.run(with_outputs=True)
+            if self.t0 is None:
+                self.t0 = time.time()
+            self.solve_thread = threading.Thread(target=self._solve_niced, daemon=True,
+                                                 name="surfmap solve (niced)")
+            self.solve_thread.start()
+            self.solve_thread.join()
+            self.compute_outputs()
+            self.elapsed = time.time() - self.t0
         finally:
             sys.setswitchinterval(before)
 
