@@ -14,7 +14,10 @@ ticks, Ctrl+Z / Ctrl+Shift+Z on the outputs, then each Show button and Cut Seams
 (opening a file skips the splash screen)
 
 Screenshots (ImageMagick's `import -window root`) go to DIR (default /tmp/surfmap_ui); the
-measurements are printed as lines starting with 'UI-CHECK'.
+measurements are printed as lines starting with 'UI-CHECK': one window redraw's cost before the
+run, the core's stage times, every pause > 0.45 s of the 0.1 s timer with its stages, the
+one-second windows with fewer than 2 ticks (from the job's start). UI_CHECK_QUICK=1: only the
+panel with Cut Loops opened; UI_CHECK_INVOKE=1: Compute Map by INVOKE_DEFAULT, not a click.
 """
 import os
 import subprocess
