@@ -523,6 +523,10 @@ struct SurfaceMapResult {
   /// the fixed-connectivity flow's failure when flips ran) or "fallback: the
   /// flip path failed" (flips requested).
   std::string target_metric_choice;
+  /// Genus >= 2 on the flip path: which loops the handle classes read ("the
+  /// target's own loops, carried through N of the flips", or the loops of T'
+  /// and why; docs/uniformization.md). Empty otherwise.
+  std::string target_class_loops;
   /// Genus >= 1: the weights the returned map was solved with:
   /// "intrinsic Delaunay cotangent" or "positive on the source's own edges"
   /// (SourceWeights; after the automatic fallback the candidates' energies
