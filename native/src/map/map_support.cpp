@@ -221,25 +221,22 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
     }
     case UniformizationMetric::Automatic: break;
   }
-  // Automatic: the fixed-connectivity metric (exactly refined when needed)
-  // whenever it exists, the flip path only when it does not: the handle-class
-  // machinery picks worse classes on T' (docs/uniformization.md "Which target
-  // metric runs"), so a working fixed case is never made worse.
-  std::string fixed_failure;
-  try {
-    UniformizedTarget t = fixed_target(target, background, options, lo, true, "");
-    t.metric_choice = "automatic: the fixed-connectivity metric exists";
-    return t;
-  } catch (const SolveError& e) {
-    fixed_failure = e.what();
-  }
+  // Automatic: the flip path, whose metric exists on every closed mesh
+  // (Gu-Luo-Sun-Wu 2018; docs/uniformization.md "Which target metric runs");
+  // the handle classes read the target's own loops on both paths, so they
+  // are the same objects. The fixed-connectivity metric (exactly refined
+  // when needed) only when the flip path throws.
+  std::string flip_failure;
   try {
     UniformizedTarget t = intrinsic_target(target, background, options, lo);
-    t.metric_choice = "automatic: no fixed-connectivity metric (" + fixed_failure + ")";
+    t.metric_choice = "automatic: the flip-based metric";
     return t;
   } catch (const SolveError& e) {
-    throw SolveError(fixed_failure + "; intrinsic Delaunay path: " + e.what());
+    flip_failure = e.what();
   }
+  UniformizedTarget t = fixed_target(target, background, options, lo, true, flip_failure);
+  t.metric_choice = "automatic: the flip path failed, fixed connectivity";
+  return t;
 }
 
 void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo& info) {

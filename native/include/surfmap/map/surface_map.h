@@ -243,9 +243,9 @@ struct SurfaceMapOptions {
   /// Curvature tolerance of the target's uniformization (default 1e-10).
   double uniformization_tolerance = 1e-10;
   /// Genus >= 1: the target's uniformization metric. Automatic (default):
-  /// the fixed-connectivity metric (exactly refined when needed) when it
-  /// exists, else the intrinsic Delaunay one (the handle-class search picks
-  /// worse classes on T': docs/uniformization.md "Which target metric runs"). IntrinsicDelaunay: Newton with Ptolemy flips on the
+  /// the intrinsic Delaunay one, the refined fixed-connectivity one only when
+  /// the flip path throws (docs/uniformization.md "Which target metric
+  /// runs"). IntrinsicDelaunay: Newton with Ptolemy flips on the
   /// user's target (a metric always exists), results carried back through
   /// the flips exactly (uniformize/intrinsic_correspondence.h).
   /// FixedConnectivity: the metric on the target's own edges, refined exactly
