@@ -116,8 +116,8 @@ void register_map(CLI::App& app) {
                   "e.g. '1 0' or '1,0'; default: loop i -> loop i)")
       ->delimiter(',');
   cmd->add_option("--target-metric", a->target_metric,
-                  "Genus >= 1: the target's uniformization metric: auto (default: fixed when that metric exists, "
-                  "else flips; report: target_metric_choice), flips (Newton with intrinsic "
+                  "Genus >= 1: the target's uniformization metric: auto (default: flips, fixed only when the flip "
+                  "path fails; report: target_metric_choice), flips (Newton with intrinsic "
                   "Delaunay / Ptolemy flips, results carried back to the target's own faces) or fixed (the target's "
                   "own edges, refined by altitude-foot splits when that metric does not exist)")
       ->check(CLI::IsMember({"auto", "flips", "fixed"}));

@@ -284,7 +284,7 @@ void bind_map(py::module_& m) {
       "SURFMAP_THREADS, else 2 on two cores; 1: in order; the result does not depend on it); 'stages' in the result: "
       "the stage table (per stage time_s, analyses, factorisations, newton_iterations, peak_memory_mb; last row "
       "'total'); `target_metric`: 'auto' (genus >= 1 default: "
-      "'fixed' when that metric exists, else 'flips'), 'flips' (the target's flip-based metric, "
+      "'flips', 'fixed' only when the flip path fails), 'flips' (the target's flip-based metric, "
       "results carried back to its own faces) or 'fixed' (its own edges, refined when needed; 'target_metric', "
       "'target_metric_choice', 'target_flips', 'target_refinement_splits' in the result). `progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");

@@ -156,7 +156,7 @@ TEST(ExactRefinement, MapOntoAnInfeasibleTargetStaysOnTheUsersMesh) {
   const TriMesh t = samples::n_hole_torus(3, 32, false);
   SurfaceMapOptions o;
   o.homotopy.candidates = 1;  // the overlay class (more candidates cost minutes at genus 3 in the twist reduction)
-  o.target_metric = UniformizationMetric::FixedConnectivity;  // the refinement path (also the automatic default's)
+  o.target_metric = UniformizationMetric::FixedConnectivity;  // the refinement path (an option; the default runs flips)
   const SurfaceMapResult m = surface_map(s, t, o);
   EXPECT_EQ(m.target_metric, "fixed connectivity");
   EXPECT_EQ(m.target_flips, 0);

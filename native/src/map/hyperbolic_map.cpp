@@ -202,7 +202,15 @@ void HyperbolicPipeline::uniformize_target() {
   out.target_metric = ut->metric;
   out.target_flips = ut->flips;
   out.target_metric_choice = ut->metric_choice;
+  out.target_class_loops = ut->class_loops_status;
   tcs = canonical_schema(ut->layout.word);
+  if (ut->class_loops) {
+    // Flip path: the canonical generators of the target's own loops, on T'
+    // (map_support.h ClassLoops); the loop letters the classes read are
+    // those of the target's own loops (candidate_classes_and_data).
+    tcs.generators = ut->class_loops->generators_in_layout_letters;
+    tcs.letters = ut->class_loops->schema.letters;
+  }
   deck_group = std::make_unique<DeckGroup>(ut->layout);
   polygon = std::make_unique<FundamentalPolygon>(ut->layout, *deck_group);
   stage_done("target uniformization", 0.3);
@@ -250,8 +258,10 @@ void HyperbolicPipeline::fill_class_bounds() {
 // precision are listed as not solved.
 void HyperbolicPipeline::candidate_classes_and_data() {
   space = std::make_unique<ClassSpace>(out.genus, ss.sl, ss.scs, tcs, ut->layout, *deck_group);
-  projector = std::make_unique<LoopProjector>(ut->loops, ut->layout.word);
-  candidates = candidate_classes(*space, source, ss.sl, ss.shb, ut->loops, tcs, *projector, options, cuts);
+  const ClassLoops* cl = ut->class_loops.get();
+  projector = std::make_unique<LoopProjector>(cl ? cl->loops : ut->loops, cl ? cl->word : ut->layout.word);
+  candidates = candidate_classes(*space, source, ss.sl, ss.shb, cl ? cl->loops : ut->loops, cl ? cl->schema : tcs,
+                                 *projector, options, cuts);
   if (options.homotopy.extra_cuts > 0 && !ss.cs.ok) cuts.stop = true;  // no coarse copy: no class search, no more cuts needed
   // The two-way run's class (issue 14): listed as one from the other direction.
   if (candidates.carried_class >= 0) out.reverse_candidates.push_back(candidates.carried_class);

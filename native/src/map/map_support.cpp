@@ -1,5 +1,6 @@
 #include "map_support.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -7,6 +8,8 @@
 #include "surfmap/map/initial_map.h"
 #include "surfmap/mesh/exact_refinement.h"
 #include "surfmap/uniformize/feasible_metric.h"
+#include "surfmap/topology/handle_basis.h"
+#include "surfmap/uniformize/carried_loops.h"
 #include "surfmap/uniformize/intrinsic_loops.h"
 
 namespace surfmap::detail {
@@ -87,6 +90,33 @@ PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, cons
 
 namespace {
 
+/// The target's loops on its own connectivity, carried onto T' (ClassLoops).
+/// Throws SolveError when the carried generators do not present the group of
+/// T' (the canonical relation, unimodular homology): that would be a bug.
+std::shared_ptr<const ClassLoops> class_loops_on_input(const TriMesh& target, const RicciFlowResult& flow,
+                                                       const SystemOfLoops& tprime_loops, const DiskLayout& layout,
+                                                       const SystemOfLoopsOptions& lo) {
+  auto cl = std::make_shared<ClassLoops>();
+  cl->loops = system_of_loops(target, lo);
+  cl->word = cl->loops.word;
+  const auto first = std::find(cl->word.begin(), cl->word.end(), 1);
+  if (first == cl->word.end()) throw SolveError("the target's loops have no letter 1 in their word");
+  std::rotate(cl->word.begin(), first, cl->word.end());
+  cl->schema = canonical_schema(cl->word);
+  const CarriedLoops carried = carry_loops_through_flips(target, cl->loops, flow, tprime_loops);
+  cl->flips_on_loops = carried.flips_on_loops;
+  cl->longest_edge_path = carried.longest_edge_path;
+  const DehnReducer reduce(layout.word);
+  const int n = static_cast<int>(carried.words.size());
+  for (const Word& g : cl->schema.generators) cl->generators_in_layout_letters.push_back(reduce(substitute(g, carried.words)));
+  if (!reduce(commutator_product(cl->generators_in_layout_letters)).empty())
+    throw SolveError("the carried loops break the canonical relation on T'");
+  const double det = homology_matrix(cl->generators_in_layout_letters, n).cast<double>().determinant();
+  if (std::abs(std::abs(det) - 1.0) > 1e-9)
+    throw SolveError("the carried loops' homology has determinant " + std::to_string(det) + ", not +-1");
+  return cl;
+}
+
 /// The flip-based path of uniformized_target: Newton with intrinsic Delaunay
 /// flips on the user's target, loops on T' (uniformize/intrinsic_loops.h),
 /// disk layout. Throws SolveError when any step fails.
@@ -113,6 +143,18 @@ UniformizedTarget intrinsic_target(const TriMesh& target, Background background,
   for (int v = target.num_vertices(); v < s.mesh.num_vertices(); ++v) {
     const FacePoint p = t.intrinsic->correspondence.to_input(s.origin_face[v], s.origin_barycentric.row(v).transpose());
     s.mesh.V.row(v) = point_in_face(target, p.face, p.barycentric).position.transpose();
+  }
+  // The handle classes read the loops of the user's own connectivity, as on
+  // the fixed path (docs/uniformization.md "Handle classes on the flip
+  // path"); when carrying them fails the classes read the loops of T'.
+  if (background == Background::Hyperbolic) {
+    try {
+      t.class_loops = class_loops_on_input(target, flow, t.loops, t.layout, lo);
+      t.class_loops_status = "the target's own loops, carried through " + std::to_string(t.class_loops->flips_on_loops) +
+                             " of the flips";
+    } catch (const Error& e) {
+      t.class_loops_status = std::string("the loops of T' (carrying the target's own loops failed: ") + e.what() + ")";
+    }
   }
   t.flips = flow.flips;
   t.metric = "intrinsic Delaunay";
@@ -179,25 +221,22 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
     }
     case UniformizationMetric::Automatic: break;
   }
-  // Automatic: the fixed-connectivity metric (exactly refined when needed)
-  // whenever it exists, the flip path only when it does not: the handle-class
-  // machinery picks worse classes on T' (docs/uniformization.md "Which target
-  // metric runs"), so a working fixed case is never made worse.
-  std::string fixed_failure;
-  try {
-    UniformizedTarget t = fixed_target(target, background, options, lo, true, "");
-    t.metric_choice = "automatic: the fixed-connectivity metric exists";
-    return t;
-  } catch (const SolveError& e) {
-    fixed_failure = e.what();
-  }
+  // Automatic: the flip path, whose metric exists on every closed mesh
+  // (Gu-Luo-Sun-Wu 2018; docs/uniformization.md "Which target metric runs");
+  // the handle classes read the target's own loops on both paths, so they
+  // are the same objects. The fixed-connectivity metric (exactly refined
+  // when needed) only when the flip path throws.
+  std::string flip_failure;
   try {
     UniformizedTarget t = intrinsic_target(target, background, options, lo);
-    t.metric_choice = "automatic: no fixed-connectivity metric (" + fixed_failure + ")";
+    t.metric_choice = "automatic: the flip-based metric";
     return t;
   } catch (const SolveError& e) {
-    throw SolveError(fixed_failure + "; intrinsic Delaunay path: " + e.what());
+    flip_failure = e.what();
   }
+  UniformizedTarget t = fixed_target(target, background, options, lo, true, flip_failure);
+  t.metric_choice = "automatic: the flip path failed, fixed connectivity";
+  return t;
 }
 
 void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo& info) {

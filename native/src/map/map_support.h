@@ -19,6 +19,7 @@
 #include "surfmap/map/surface_map.h"
 #include "surfmap/testing/map_hooks.h"
 #include "surfmap/mesh/connectivity.h"
+#include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/system_of_loops.h"
 #include "surfmap/uniformize/intrinsic_correspondence.h"
 #include "surfmap/uniformize/layout.h"
@@ -60,6 +61,25 @@ PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, cons
                               const TargetIntrinsic* intrinsic, std::vector<int>& cache, int rf,
                               const Eigen::Vector3d& b);
 
+/// The target's system of loops on the user's own connectivity (as on the
+/// fixed path; loops are combinatorial), for the handle classes of a target
+/// uniformized on the flipped triangulation T': candidates, handle basis and
+/// overlays are computed on these loops, and evaluated with the deck group
+/// of T' through `generators_in_layout_letters` (uniformize/carried_loops.h).
+struct ClassLoops {
+  SystemOfLoops loops;
+  /// loops.word rotated to start with +1 (as DiskLayout::word) and its schema
+  /// (generators and letters in the letters of `loops`).
+  Word word;
+  CanonicalSchema schema;
+  /// schema.generators as words in the letters of the layout of T' (2g,
+  /// Dehn-reduced): the same canonical generators, on T'.
+  std::vector<Word> generators_in_layout_letters;
+  /// Flips of the flow that rewrote a loop, and the longest carried loop on T'.
+  int flips_on_loops = 0;
+  int longest_edge_path = 0;
+};
+
 /// The target laid out in its uniformization metric: system of loops (refined,
 /// as the layout needs simple loops), Ricci flow, disk layout, with the metric
 /// of SurfaceMapOptions::target_metric: the fixed-connectivity one (refined
@@ -77,6 +97,11 @@ struct UniformizedTarget {
   int flips = 0;
   /// Set on the flip path: T' and the way back to the input faces.
   std::shared_ptr<const TargetIntrinsic> intrinsic;
+  /// Set on the flip path of a hyperbolic target: the loops the handle-class
+  /// machinery reads (docs/uniformization.md "Handle classes on the flip
+  /// path"). Null otherwise, or when carrying them failed (status says why).
+  std::shared_ptr<const ClassLoops> class_loops;
+  std::string class_loops_status;
   /// Exact splits added so that the metric exists (0: none were needed) and
   /// the max-angle bound used (uniformize/feasible_metric.h).
   int refinement_splits = 0;

@@ -41,9 +41,9 @@ def test_extremal_map_between_tori(pair):
 
 
 def test_target_metric_automatic_by_default_flips_and_fixed_on_request():
-    # Genus 1: the target's flip-based metric on request (flips counted, no
-    # refinement), the fixed-connectivity one on request and by default when
-    # it exists unrefined (a torus of revolution); all certified.
+    # Genus 1: the target's flip-based metric by default and on request
+    # (flips counted, no refinement), the fixed-connectivity one on request
+    # (a torus of revolution, where it exists unrefined); all certified.
     Vs, Fs = torus(1.0, 0.5, 40, 20)
     Vt, Ft = torus(1.5, 0.5, 50, 20, 1)
     auto = surfmap.surface_map(Vs, Fs, Vt, Ft)
@@ -53,10 +53,10 @@ def test_target_metric_automatic_by_default_flips_and_fixed_on_request():
     assert flips["target_metric_choice"] == "requested"
     assert fixed["target_metric"] == "fixed connectivity" and fixed["target_flips"] == 0
     assert fixed["target_metric_choice"] == "requested"
-    assert auto["target_metric"] == "fixed connectivity" and auto["target_flips"] == 0
+    assert auto["target_metric"] == "intrinsic Delaunay" and auto["target_flips"] == flips["target_flips"]
     assert auto["target_refinement_splits"] == 0 and auto["target_metric_choice"].startswith("automatic")
-    # The automatic choice is the fixed path itself: the same map.
-    assert np.array_equal(np.asarray(auto["forward"]["position"]), np.asarray(fixed["forward"]["position"]))
+    # The automatic choice is the flip path itself: the same map.
+    assert np.array_equal(np.asarray(auto["forward"]["position"]), np.asarray(flips["forward"]["position"]))
     for r in (flips, fixed):
         assert r["converged"] and r["flipped_triangles"] == 0
         assert surfmap.verify(Vs, Fs, Vt, Ft, r)["certified"]

@@ -243,9 +243,9 @@ struct SurfaceMapOptions {
   /// Curvature tolerance of the target's uniformization (default 1e-10).
   double uniformization_tolerance = 1e-10;
   /// Genus >= 1: the target's uniformization metric. Automatic (default):
-  /// the fixed-connectivity metric (exactly refined when needed) when it
-  /// exists, else the intrinsic Delaunay one (the handle-class search picks
-  /// worse classes on T': docs/uniformization.md "Which target metric runs"). IntrinsicDelaunay: Newton with Ptolemy flips on the
+  /// the intrinsic Delaunay one, the refined fixed-connectivity one only when
+  /// the flip path throws (docs/uniformization.md "Which target metric
+  /// runs"). IntrinsicDelaunay: Newton with Ptolemy flips on the
   /// user's target (a metric always exists), results carried back through
   /// the flips exactly (uniformize/intrinsic_correspondence.h).
   /// FixedConnectivity: the metric on the target's own edges, refined exactly
@@ -523,6 +523,10 @@ struct SurfaceMapResult {
   /// the fixed-connectivity flow's failure when flips ran) or "fallback: the
   /// flip path failed" (flips requested).
   std::string target_metric_choice;
+  /// Genus >= 2 on the flip path: which loops the handle classes read ("the
+  /// target's own loops, carried through N of the flips", or the loops of T'
+  /// and why; docs/uniformization.md). Empty otherwise.
+  std::string target_class_loops;
   /// Genus >= 1: the weights the returned map was solved with:
   /// "intrinsic Delaunay cotangent" or "positive on the source's own edges"
   /// (SourceWeights; after the automatic fallback the candidates' energies

@@ -27,8 +27,8 @@ namespace surfmap {
 ///  * FixedConnectivity: the metric on the loops' mesh itself, refined by
 ///    altitude-foot splits when it does not exist (fixed_connectivity_refinement).
 ///  * Automatic (SurfaceMapOptions::target_metric's default): the
-///    fixed-connectivity metric (exactly refined when needed) when it exists,
-///    else the intrinsic Delaunay one. uniformize() treats it as
+///    intrinsic Delaunay metric; the fixed-connectivity one (exactly refined
+///    when needed) only when the flip path throws. uniformize() treats it as
 ///    IntrinsicDelaunay.
 enum class UniformizationMetric { IntrinsicDelaunay, FixedConnectivity, Automatic };
 

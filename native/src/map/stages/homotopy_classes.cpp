@@ -267,6 +267,22 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
   // the one whose source loops have the shortest images (least twisted).
   std::vector<HomotopyClass>& classes = out.classes;
   classes = handle_candidates(shb, thb, options.homotopy.candidates);
+  // A meridian basis none of whose candidates can be evaluated (every one's
+  // source-loop images beyond max_image_letters) is replaced by the
+  // canonical handles, as when its lift is refused: its classes could
+  // neither be solved nor seed the lifted and searched classes (g3_3holes ->
+  // g3_block on the target's unrefined loops: 4855-9654 letters;
+  // docs/uniformization.md "Handle classes on the flip path").
+  if (!have_overlay && thb.geometric &&
+      std::none_of(classes.begin(), classes.end(),
+                   [&](const HomotopyClass& hc) { return space.loop_image_length(hc.map) <= space.max_image_letters(); })) {
+    thb.geometric = false;
+    thb.message = "meridian basis not used: none of its candidates' source-loop images is within " +
+                  std::to_string(static_cast<int>(space.max_image_letters())) + " letters";
+    thb.P = IntMatrix::Identity(n, n);
+    thb.to_canonical = lift_symplectic(thb.P);
+    classes = handle_candidates(shb, thb, options.homotopy.candidates);
+  }
   auto loop_image_length = [&](const GroupMap& theta) { return space.loop_image_length(theta); };
   for (HomotopyClass& hc : classes)
     if (space.loop_image_length(hc.map) <= space.max_image_letters())

@@ -34,7 +34,10 @@ class ClassSpace {
  public:
   /// `sl`/`scs`: the source's system of loops and canonical schema;
   /// `tcs`/`layout`/`group`: the target's canonical schema, disk layout and
-  /// deck group. All must outlive the ClassSpace.
+  /// deck group. tcs.generators are words in the letters of layout.word;
+  /// tcs.letters are in the letters of the loops the projector reads (the
+  /// layout's own loops, or on the flip path the target's own loops:
+  /// map_support.h ClassLoops). All must outlive the ClassSpace.
   ClassSpace(int genus, const SystemOfLoops& sl, const CanonicalSchema& scs, const CanonicalSchema& tcs,
              const DiskLayout& layout, const DeckGroup& group);
 
