@@ -1,6 +1,7 @@
 // Map layer bindings: the globally optimal surface map (paper §III–VII).
 #include <cstdint>
 #include <optional>
+#include <string>
 
 #include "bindings.h"
 #include "convert.h"
@@ -99,6 +100,14 @@ void parse_boundary_pairing(const py::object& pairing, OpenMapOptions& options) 
   }
 }
 
+// The package this module belongs to ("surfmap", or the add-on's vendored
+// "<add-on>.surfmap"), so that its Python modules are imported from the
+// same copy; set by bind_map.
+std::string& package_name() {
+  static std::string name = "surfmap";
+  return name;
+}
+
 // surface_map for a pair with boundary (docs/open_surfaces.md): disks and
 // annuli through map/open_map.h. Runs with the GIL held except the solve.
 py::dict open_surface_map_dict(const RowMatrixX3d& vs, const RowMatrixX3i& fs, const RowMatrixX3d& vt,
@@ -141,7 +150,7 @@ py::dict open_surface_map_dict(const RowMatrixX3d& vs, const RowMatrixX3i& fs, c
   const int g = src->topology.genus, b = src->topology.num_boundary_loops();
   if (!(g == 0 && (b == 1 || b == 2))) {
     py::object pairing = boundary_pairing;
-    return py::module_::import("surfmap.open_double")
+    return py::module_::import((package_name() + ".open_double").c_str())
         .attr("surface_map_open")(to_numpy(vs), to_numpy(fs), to_numpy(vt), to_numpy(ft), py::arg("boundary_pairing") = pairing,
                                   py::arg("progress") = progress)
         .cast<py::dict>();
@@ -165,6 +174,11 @@ bool has_boundary(const RowMatrixX3d& V, const RowMatrixX3i& F) {
 }  // namespace
 
 void bind_map(py::module_& m) {
+  {
+    const std::string name = py::str(m.attr("__name__"));
+    const size_t dot = name.rfind('.');
+    if (dot != std::string::npos) package_name() = name.substr(0, dot);
+  }
   // What this build's surface_map accepts beyond the meshes, by keyword
   // argument name, for callers that must work with older builds (the
   // add-on): read this set instead of searching docstrings.
@@ -289,8 +303,10 @@ void bind_map(py::module_& m) {
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
       "boundary loops (else InputError naming both); disks (0, 1) and annuli (0, 2) are mapped boundary onto boundary "
       "with the same result dict plus 'source_topology' / 'target_topology' ({genus, boundary_loops, description}) and "
-      "'open' (domain, rotation, moduli, extremal_dilatation, boundary_pairing); `boundary_pairing`: None (loop i -> "
-      "loop i, loops longest first), 'swap' (annuli) or the target loop of each source loop; the closed-map options "
+      "'open' (domain, rotation, moduli, extremal_dilatation, boundary_pairing), every other (g, b) through the doubles "
+      "(surfmap.open_double.surface_map_open; 'open' domain 'double'); `boundary_pairing`: None (disks, annuli: loop "
+      "i -> loop i, loops longest first; doubles: ranked by energy), 'swap' (two loops) or the target loop of each "
+      "source loop; the closed-map options "
       "(homotopy, method, ...) do not apply, landmarks are refused. Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
       "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "
