@@ -149,11 +149,13 @@ def test_open_annulus_pair_maps_loops_onto_loops():
 
 def _pants(subdivisions=3, squash=1.0):
     """An icosphere with three caps of different sizes removed (genus 0, 3 boundary loops)."""
-    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=subdivisions, radius=1.0)
-    ob = bpy.context.active_object
-    V = helpers.coords(ob)
-    F = np.array([list(p.vertices) for p in ob.data.polygons])
-    bpy.data.objects.remove(ob)
+    import bmesh
+    bm = bmesh.new()
+    bmesh.ops.create_icosphere(bm, subdivisions=subdivisions, radius=1.0)
+    V = np.array([v.co[:] for v in bm.verts])
+    bm.verts.index_update()
+    F = np.array([[v.index for v in f.verts] for f in bm.faces])
+    bm.free()
     dirs = np.array([[1, 0, 0.3], [-0.5, 0.866, -0.2], [-0.4, -0.8, 0.5]])
     dirs /= np.linalg.norm(dirs, axis=1)[:, None]
     c = V[F].mean(axis=1)
