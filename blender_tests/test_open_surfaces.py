@@ -145,3 +145,60 @@ def test_open_annulus_pair_maps_loops_onto_loops():
         settings.boundary_pairing = bad
         res, err = run("compute_map")
         assert res != {'FINISHED'} and words in (err or ""), (bad, err)
+
+
+def _pants(subdivisions=3, squash=1.0):
+    """An icosphere with three caps of different sizes removed (genus 0, 3 boundary loops)."""
+    import bmesh
+    bm = bmesh.new()
+    bmesh.ops.create_icosphere(bm, subdivisions=subdivisions, radius=1.0)
+    V = np.array([v.co[:] for v in bm.verts])
+    bm.verts.index_update()
+    F = np.array([[v.index for v in f.verts] for f in bm.faces])
+    bm.free()
+    dirs = np.array([[1, 0, 0.3], [-0.5, 0.866, -0.2], [-0.4, -0.8, 0.5]])
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    c = V[F].mean(axis=1)
+    c /= np.linalg.norm(c, axis=1)[:, None]
+    F = F[np.all(c @ dirs.T < np.array([0.8, 0.85, 0.75]), axis=1)]
+    used = np.unique(F)
+    remap = -np.ones(len(V), int)
+    remap[used] = np.arange(len(used))
+    V = V[used]
+    V[:, 0] += squash * 0.3 * V[:, 1] ** 2    # a bend
+    return V, remap[F]
+
+
+def test_open_pants_pair_maps_through_the_doubles():
+    """(0, 3): Compute Map goes through the doubles (docs/open_surfaces.md "Doubling"), with the
+    panel's Boundary Loops as the pairing; every output is written, loops onto loops."""
+    Vs, Fs = _pants(squash=0.0)
+    Vt, Ft = _pants(squash=1.0)
+    a = helpers.mesh_object("Pants", Vs, Fs, (-3, 0, 0))
+    b = helpers.mesh_object("Bent", Vt, Ft, (3, 0, 0))
+    helpers.set_loop_uvs(a, "Box", helpers.box_uvs(a))
+    select([a, b], b)
+    settings = bpy.context.scene.surfmap
+    settings.boundary_pairing = "0 1 2"
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    status = settings.map_status
+    assert "genus 0 with 3 boundary loops): double" in status and " 0 flipped" in status, status
+    assert "boundary loops [0, 1, 2] (preserving, given)" in status, status
+    _check_outputs(a, b, 0, uv_names=("Box",))
+    for ob in (a, b):
+        assert [c.name for c in helpers.loop_curves(ob)] == [f"{ob.name} boundary {k}" for k in (1, 2, 3)]
+    # The morph puts each boundary vertex of the pants on the bent copy's boundary.
+    key = a.data.shape_keys.key_blocks["surfmap to Bent"]
+    co = np.empty(len(a.data.vertices) * 3)
+    key.data.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    def boundary_edges(F):
+        e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+        u, n = np.unique(e, axis=0, return_counts=True)
+        return u[n == 1]
+    Es, Et = boundary_edges(Fs), boundary_edges(Ft)
+    A, B = Vt[Et[:, 0]], Vt[Et[:, 1]]
+    P = co[np.unique(Es)]
+    t = np.clip(np.einsum("pij,ij->pi", P[:, None] - A[None], B - A) / np.einsum("ij,ij->i", B - A, B - A), 0, 1)
+    assert np.linalg.norm(A[None] + t[..., None] * (B - A)[None] - P[:, None], axis=2).min(axis=1).max() < 1e-6

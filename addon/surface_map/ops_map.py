@@ -344,6 +344,8 @@ def _summary(res, elapsed):
         st = res.get("source_topology", {})
         s += (f", open surfaces ({st.get('description', '')}): {res['open'].get('domain', '')}"
               f", boundary loops {res['open'].get('boundary_pairing', [])}")
+        if res['open'].get('orientation'):   # through the doubles: which orientation, pairing how
+            s += f" ({res['open']['orientation']}, {res['open'].get('pairing_choice', '')})"
     how = res.get("initial_map", {}).get("construction")
     if how:
         s += f", initial map: {how}"

@@ -1,16 +1,16 @@
 // `surfmap map` for open pairs (see map_open.h).
-#include <iomanip>
 #include <iostream>
-#include <sstream>
 
 #include <nlohmann/json.hpp>
 
+#include "commands.h"
 #include "map_open.h"
 #include "surfmap/error.h"
 #include "surfmap/map/open_map.h"
 #include "surfmap/mesh/intake.h"
 #include "surfmap/mesh/mesh_io.h"
 #include "surfmap/mesh/open_surface.h"
+#include "surfmap/verify/correspondence_file.h"
 
 namespace surfmap::cli {
 
@@ -36,6 +36,24 @@ bool map_open_pair(const OpenMapCliArgs& a) {
   OpenMapOptions options;
   if (a.boundary_swap && !a.boundary_pairing.empty())
     throw InputError("--boundary-swap and --boundary-pairing: give one of them");
+  // Beyond disks and annuli: through the doubles, in Python
+  // (surfmap/open_double.py; docs/open_surfaces.md "Doubling"), which
+  // writes the same files.
+  const int g = src.topology.genus, b = src.topology.num_boundary_loops();
+  if (!(g == 0 && (b == 1 || b == 2))) {
+    std::vector<std::string> args = {a.src, a.dst, "--out", a.out, "--report", a.report};
+    if (!a.correspondence.empty()) args.insert(args.end(), {"--correspondence", a.correspondence});
+    if (a.quiet) args.push_back("--quiet");
+    if (a.boundary_swap) args.push_back("--boundary-swap");
+    if (!a.boundary_pairing.empty()) {
+      std::string p;
+      for (int k : a.boundary_pairing) p += (p.empty() ? "" : ",") + std::to_string(k);
+      args.insert(args.end(), {"--boundary-pairing", p});
+    }
+    std::cout.flush();
+    std::cerr.flush();
+    exec_python_module("open_double", args);
+  }
   options.swap_annulus_loops = a.boundary_swap;
   if (a.boundary_swap && src.topology.num_boundary_loops() != 2)
     throw InputError("--boundary-swap: only for annuli (2 boundary loops); the surfaces have " +
@@ -56,11 +74,12 @@ bool map_open_pair(const OpenMapCliArgs& a) {
   report["notes"] = notes;
   std::string corr;
   if (!a.correspondence.empty()) {
-    std::ostringstream s;
-    s << std::setprecision(17);
-    for (const auto& p : m.forward)
-      s << p.face << ' ' << p.barycentric[0] << ' ' << p.barycentric[1] << ' ' << p.barycentric[2] << '\n';
-    corr = s.str();
+    // Forward lines, then the inverse section, as the closed maps write it
+    // (verify/correspondence_file.h), so `surfmap verify` checks both ways.
+    std::vector<SurfacePoint> forward, inverse;
+    for (const auto& p : m.forward) forward.push_back({p.face, p.barycentric});
+    for (const auto& p : m.inverse) inverse.push_back({p.face, p.barycentric});
+    corr = correspondence_text(forward, inverse);
   }
   write_obj(a.out, morph, src.intake.mesh.F);
   write_text_file(a.report, report.dump(2) + "\n");

@@ -42,6 +42,16 @@ std::string python_package_dir() {
   throw InputError("cannot find the surfmap Python package (set SURFMAP_PYTHONPATH to the folder holding surfmap/)");
 }
 
+void register_python_command(CLI::App& app, const std::string& name, const std::string& help) {
+  auto* cmd = app.add_subcommand(name, help + " (Python: surfmap." + name + "; --help there)");
+  cmd->prefix_command();
+  cmd->allow_extras();
+  cmd->set_help_flag();
+  cmd->callback([cmd, name] { exec_python_module(name, cmd->remaining()); });
+}
+
+}  // namespace
+
 [[noreturn]] void exec_python_module(const std::string& module, const std::vector<std::string>& args) {
   const std::string dir = python_package_dir();
   const char* old = std::getenv("PYTHONPATH");
@@ -57,16 +67,6 @@ std::string python_package_dir() {
   execvp(python, argv.data());
   throw Error(std::string("cannot run ") + python + ": " + std::strerror(errno));
 }
-
-void register_python_command(CLI::App& app, const std::string& name, const std::string& help) {
-  auto* cmd = app.add_subcommand(name, help + " (Python: surfmap." + name + "; --help there)");
-  cmd->prefix_command();
-  cmd->allow_extras();
-  cmd->set_help_flag();
-  cmd->callback([cmd, name] { exec_python_module(name, cmd->remaining()); });
-}
-
-}  // namespace
 
 void register_python_commands(CLI::App& app) {
   register_python_command(app, "compare", "Distance table of shapes through a common domain or pairwise maps");

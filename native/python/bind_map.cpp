@@ -1,6 +1,7 @@
 // Map layer bindings: the globally optimal surface map (paper §III–VII).
 #include <cstdint>
 #include <optional>
+#include <string>
 
 #include "bindings.h"
 #include "convert.h"
@@ -99,6 +100,14 @@ void parse_boundary_pairing(const py::object& pairing, OpenMapOptions& options) 
   }
 }
 
+// The package this module belongs to ("surfmap", or the add-on's vendored
+// "<add-on>.surfmap"), so that its Python modules are imported from the
+// same copy; set by bind_map.
+std::string& package_name() {
+  static std::string name = "surfmap";
+  return name;
+}
+
 // surface_map for a pair with boundary (docs/open_surfaces.md): disks and
 // annuli through map/open_map.h. Runs with the GIL held except the solve.
 py::dict open_surface_map_dict(const RowMatrixX3d& vs, const RowMatrixX3i& fs, const RowMatrixX3d& vt,
@@ -114,27 +123,42 @@ py::dict open_surface_map_dict(const RowMatrixX3d& vs, const RowMatrixX3i& fs, c
     const py::object r = progress("open surface map", fraction);
     if (!(r.is_none() || r.cast<bool>())) throw Cancelled("cancelled by the progress callback");
   };
-  report_progress(0.0);
   OpenMapResult r;
+  auto load = [](const RowMatrixX3d& V, const RowMatrixX3i& F, const char* side) {
+    try {
+      return intake_open(to_soup(V, F));
+    } catch (const InputError& e) {
+      throw InputError(std::string(side) + ": " + e.what());
+    }
+  };
+  std::optional<OpenIntakeResult> src, dst;
   {
     py::gil_scoped_release release;
-    auto load = [](const RowMatrixX3d& V, const RowMatrixX3i& F, const char* side) {
-      try {
-        return intake_open(to_soup(V, F));
-      } catch (const InputError& e) {
-        throw InputError(std::string(side) + ": " + e.what());
-      }
-    };
-    const OpenIntakeResult src = load(vs, fs, "source"), dst = load(vt, ft, "target");
+    src.emplace(load(vs, fs, "source"));
+    dst.emplace(load(vt, ft, "target"));
     try {
-      check_same_open_topology(src.topology, dst.topology);
+      check_same_open_topology(src->topology, dst->topology);
     } catch (const InputError& e) {
       // A closed surface against an open one: say first which side is open.
-      const int bs = src.topology.num_boundary_loops(), bt = dst.topology.num_boundary_loops();
+      const int bs = src->topology.num_boundary_loops(), bt = dst->topology.num_boundary_loops();
       const std::string side = (bs == 0) != (bt == 0) ? (bs ? "source: open surface; " : "target: open surface; ") : "";
       throw InputError(side + e.what() + " (open surfaces: docs/open_surfaces.md)");
     }
-    r = open_surface_map(src.intake.mesh, src.topology, dst.intake.mesh, dst.topology, options);
+  }
+  // Beyond disks and annuli: through the doubles (surfmap/open_double.py;
+  // docs/open_surfaces.md "Doubling"), which returns the same dict.
+  const int g = src->topology.genus, b = src->topology.num_boundary_loops();
+  if (!(g == 0 && (b == 1 || b == 2))) {
+    py::object pairing = boundary_pairing;
+    return py::module_::import((package_name() + ".open_double").c_str())
+        .attr("surface_map_open")(to_numpy(vs), to_numpy(fs), to_numpy(vt), to_numpy(ft), py::arg("boundary_pairing") = pairing,
+                                  py::arg("progress") = progress)
+        .cast<py::dict>();
+  }
+  report_progress(0.0);
+  {
+    py::gil_scoped_release release;
+    r = open_surface_map(src->intake.mesh, src->topology, dst->intake.mesh, dst->topology, options);
   }
   report_progress(1.0);
   py::dict d = result_dict(to_json(r, options), r.map);
@@ -150,20 +174,26 @@ bool has_boundary(const RowMatrixX3d& V, const RowMatrixX3i& F) {
 }  // namespace
 
 void bind_map(py::module_& m) {
+  {
+    const std::string name = py::str(m.attr("__name__"));
+    const size_t dot = name.rfind('.');
+    if (dot != std::string::npos) package_name() = name.substr(0, dot);
+  }
   // What this build's surface_map accepts beyond the meshes, by keyword
   // argument name, for callers that must work with older builds (the
   // add-on): read this set instead of searching docstrings.
   m.attr("CAPABILITIES") = py::frozenset(py::make_tuple(
       "homotopy", "landmarks", "method", "tolerance", "max_iterations", "solve_progress", "homotopy_candidates",
       "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
-      "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric"));
+      "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric", "homotopy_images"));
   m.def(
       "surface_map",
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
          int target_base_vertex, py::object progress, py::object landmarks, const std::string& method,
          double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
          int homotopy_full_solves, const std::string& initial_map, const std::string& source_weights,
-         bool homotopy_search, int homotopy_search_evaluations, py::object boundary_pairing, bool two_way, int threads, const std::string& target_metric) {
+         bool homotopy_search, int homotopy_search_evaluations, py::object boundary_pairing, bool two_way, int threads, const std::string& target_metric,
+         py::object homotopy_images) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         // Open surfaces (issue 16): either side with a boundary.
@@ -191,6 +221,15 @@ void bind_map(py::module_& m) {
         opt.homotopy.search.enabled = homotopy_search;
         opt.homotopy.search.evaluations = homotopy_search_evaluations;
         opt.homotopy.two_way = two_way;  // (options.homotopy.two_way)
+        if (!homotopy_images.is_none()) {
+          // (options.homotopy.source_images with images_only: that class alone)
+          const RowMatrixX3d images = to_vertices(homotopy_images, "homotopy_images");
+          if (images.rows() != vs.rows())
+            throw InputError("homotopy_images must have one row per source vertex (" + std::to_string(vs.rows()) +
+                             "), not " + std::to_string(images.rows()));
+          opt.homotopy.source_images = images;
+          opt.homotopy.images_only = true;
+        }
         opt.initial.method = parse_enum<InitialMapMethod>(initial_map, "initial_map");
         opt.solve.source_weights = parse_enum<SourceWeights>(source_weights, "source_weights");
         if (threads < 0) throw InputError("threads must be 0 (automatic) or at least 1");
@@ -259,12 +298,15 @@ void bind_map(py::module_& m) {
       py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = enum_name(SourceWeights::Automatic),
       py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
       py::arg("boundary_pairing") = py::none(), py::arg("two_way") = true, py::arg("threads") = 0, py::arg("target_metric") = "auto",
+      py::arg("homotopy_images") = py::none(),
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
       "boundary loops (else InputError naming both); disks (0, 1) and annuli (0, 2) are mapped boundary onto boundary "
       "with the same result dict plus 'source_topology' / 'target_topology' ({genus, boundary_loops, description}) and "
-      "'open' (domain, rotation, moduli, extremal_dilatation, boundary_pairing); `boundary_pairing`: None (loop i -> "
-      "loop i, loops longest first), 'swap' (annuli) or the target loop of each source loop; the closed-map options "
+      "'open' (domain, rotation, moduli, extremal_dilatation, boundary_pairing), every other (g, b) through the doubles "
+      "(surfmap.open_double.surface_map_open; 'open' domain 'double'); `boundary_pairing`: None (disks, annuli: loop "
+      "i -> loop i, loops longest first; doubles: ranked by energy), 'swap' (two loops) or the target loop of each "
+      "source loop; the closed-map options "
       "(homotopy, method, ...) do not apply, landmarks are refused. Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
       "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "
@@ -286,7 +328,9 @@ void bind_map(py::module_& m) {
       "'total'); `target_metric`: 'auto' (genus >= 1 default: "
       "'flips', 'fixed' only when the flip path fails), 'flips' (the target's flip-based metric, "
       "results carried back to its own faces) or 'fixed' (its own edges, refined when needed; 'target_metric', "
-      "'target_metric_choice', 'target_flips', 'target_refinement_splits' in the result). `progress(stage, fraction)` "
+      "'target_metric_choice', 'target_flips', 'target_refinement_splits' in the result). `homotopy_images`: (#V_source, 3) "
+      "a point on the target per source vertex (genus >= 2): the class of the source's loops carried there is the only "
+      "candidate (no ranking, search or two-way run; SolveError when they do not carry). `progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
 }
 

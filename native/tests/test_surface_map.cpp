@@ -643,6 +643,32 @@ TEST(SurfaceMapHandles, TwoWayRunIsNoWorseAndListsTheOtherDirection) {
   EXPECT_NE(mb.reverse_status.find("#V x 3"), std::string::npos) << mb.reverse_status;
 }
 
+// homotopy.images_only (the doubles of open surfaces, docs/open_surfaces.md):
+// the class of the source's loops carried to the given points is the only
+// candidate. Carried by the default map's own images it is that map's class:
+// the same energy, nothing else listed or searched.
+TEST(SurfaceMapHandles, ImagesOnlySolvesTheCarriedClassAlone) {
+  const TriMesh a = samples::n_hole_torus(2, 30, true);
+  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 34, true), 0.2, 9);
+  const SurfaceMapResult free_map = surface_map(a, b);
+  SurfaceMapOptions o;
+  o.homotopy.source_images.resize(a.num_vertices(), 3);
+  for (int i = 0; i < a.num_vertices(); ++i) o.homotopy.source_images.row(i) = free_map.forward[i].position.transpose();
+  o.homotopy.images_only = true;
+  const SurfaceMapResult m = surface_map(a, b, o);
+  expect_valid_map(m, a, b);
+  ASSERT_EQ(m.candidates.size(), 1u);
+  EXPECT_EQ(m.chosen_candidate, 0);
+  EXPECT_NE(m.candidates[0].description.find("carried to the given images"), std::string::npos) << m.candidates[0].description;
+  EXPECT_NEAR(m.candidates[0].energy, free_map.candidates[free_map.chosen_candidate].energy,
+              1e-6 * free_map.candidates[free_map.chosen_candidate].energy);
+  EXPECT_FALSE(m.homotopy_search.run);
+  // Without images: a one-line input error.
+  SurfaceMapOptions none;
+  none.homotopy.images_only = true;
+  EXPECT_THROW(surface_map(a, b, none), InputError);
+}
+
 TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) {
   const TriMesh a = samples::n_hole_torus(2, 30, false);  // slivers
   const TriMesh b = samples::jitter(samples::n_hole_torus(2, 34, true), 0.2, 9);

@@ -1,26 +1,41 @@
-"""EXPERIMENTAL: open surfaces of any (g, b) through their doubles (issue 16; docs/open_surfaces.md,
-"Doubling"). Not reliable yet: the closed genus >= 2 pipeline sometimes fails on the thin
-double (its Ricci flow on the coincident sheets) or misses the identity class when the pose is
-strong; use it for experiments only.
+"""Open surfaces of any genus g with b boundary loops through their doubles (issue 16;
+docs/open_surfaces.md, "Doubling"). `surfmap.surface_map` (and so the CLI's `surfmap map` and the
+add-on's Compute Map) calls `surface_map_open` for open pairs that are neither disks nor annuli.
 
-A surface M of genus g with b >= 1 boundary loops is doubled along its boundary: a mirror copy
-with reversed faces glued to M along the boundary vertices is a closed surface of genus
-2g + b - 1 with the orientation-reversing reflection sigma (swap the copies, fix the boundary).
-Two open surfaces of equal (g, b) are mapped through their doubles with the closed pipeline
-(surfmap.surface_map); the unique harmonic map in a class that commutes with the reflections is
-symmetric, f(sigma_S x) = sigma_T f(x), and maps the boundary onto the boundary. A class is
-accepted when the map is symmetric within `symmetry_tolerance` and maps the source's half onto
-the target's half (the other symmetric classes send it onto the mirror half: orientation
-reversing on the halves); candidates are tried in energy order. One half is kept.
+A surface M of genus g with b >= 1 boundary loops is doubled along its boundary: a mirror copy with
+reversed faces glued to M along the boundary vertices is a closed surface of genus 2g + b - 1 with
+the orientation-reversing reflection sigma (swap the copies, fix the boundary). The harmonic map
+between two doubles in a homotopy class that commutes with the reflections is symmetric,
+f(sigma_S x) = sigma_T f(x) (sigma_T f sigma_S is harmonic in the same class, and the harmonic map of
+a class is unique), so it maps the fixed curves, the boundary, onto the boundary and each half onto
+one half: restricted to M it is the free-boundary harmonic map (the boundary slides along the
+target's boundary).
 
-Before doubling, every interior edge joining two boundary vertices is split at its midpoint
-(the double would otherwise have edges with four faces); the mirror sheet is moved inward by
-1e-6 of the bounding diagonal along the vertex normals so that the double has positive volume
-(the intake orients closed surfaces by the sign of their volume).
+The class is built BEFORE solving, symmetric by construction: both surfaces are capped (a fan over
+each boundary loop: closed, genus g), the capped source is mapped onto the capped target by the
+closed pipeline with the caps' centres as landmarks (source loop i's centre onto target loop
+pairing[i]'s), and that map, moved onto the target's vertices (boundary vertices onto the paired
+target loop) and mirrored on the mirror sheet, carries the double's loops: the closed pipeline then
+solves that class alone (`homotopy_images`). The orientation-reversing version puts the images on
+the target's mirror sheet instead. When no pairing is given and b >= 2, every pairing (b! of them,
+at most `max_pairings`) is tried in both orientations and the lowest energy is kept; all energies
+are reported.
+
+Before doubling, every interior edge joining two boundary vertices is split at its midpoint (the
+double would otherwise have edges with four faces); the mirror sheet is moved inward by 1e-6 of the
+bounding diagonal along the vertex normals so that the double has positive volume (the intake
+orients closed surfaces by the sign of their volume).
 """
+import itertools
+import json
+import sys
+
 import numpy as np
 
 from . import _core
+
+#: (g, b) the conformal path of map/open_map.h maps (disk, annulus); every other open pair here.
+CONFORMAL_TOPOLOGIES = {(0, 1), (0, 2)}
 
 
 def boundary_loops(V, F):
@@ -28,30 +43,32 @@ def boundary_loops(V, F):
     return [np.asarray(l, dtype=np.int64) for l in _core.intake(V, F, allow_boundary=True)["boundary_loops"]]
 
 
-def split_boundary_chords(V, F):
+def split_boundary_chords(V, F, loops=None):
     """Splits every interior edge whose two ends lie on the boundary at its midpoint.
 
-    V (n,3), F (m,3). Returns (V2 (n+k,3), F2 (m+2k,3), parent (m+2k,) the input face each new face
-    lies in). The first n vertices are the input's."""
+    V (n,3), F (m,3). Returns (V2 (n+k,3), F2 (m',3), parent (m',) the input face each new face lies
+    in, midpoint_of (k,2) the input edge each new vertex halves). The first n vertices are the
+    input's."""
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     on_b = np.zeros(len(V), dtype=bool)
     bedges = set()
-    for loop in boundary_loops(V, F):
+    for loop in (boundary_loops(V, F) if loops is None else loops):
         on_b[loop] = True
         for i in range(len(loop)):
             bedges.add((min(loop[i], loop[(i + 1) % len(loop)]), max(loop[i], loop[(i + 1) % len(loop)])))
     faces = [(list(f), i) for i, f in enumerate(F)]
     verts = list(V)
     midpoint = {}
-    # Repeat until no chord is left (a face may have two chords: split one per pass).
+    # Repeat until no chord is left (a face may have two chords: split one per pass). Each chord
+    # is an edge of the input, so every new vertex halves an input edge.
     while True:
         out, changed = [], False
         for f, parent in faces:
             for k in range(3):
                 u, w = f[k], f[(k + 1) % 3]
                 e = (min(u, w), max(u, w))
-                if e in bedges or not (on_b[u] and on_b[w]) and e not in midpoint:
+                if e in bedges or not (u < len(on_b) and w < len(on_b) and on_b[u] and on_b[w]):
                     continue
                 if e not in midpoint:
                     midpoint[e] = len(verts)
@@ -63,22 +80,25 @@ def split_boundary_chords(V, F):
             else:
                 out.append((f, parent))
         faces = out
-        on_b = np.concatenate([on_b, np.zeros(len(verts) - len(on_b), dtype=bool)])
         if not changed:
             break
+    mid_of = np.zeros((len(verts) - len(V), 2), dtype=np.int64)
+    for e, m in midpoint.items():
+        mid_of[m - len(V)] = e
     return (np.array(verts), np.array([f for f, _ in faces], dtype=np.int64),
-            np.array([p for _, p in faces], dtype=np.int64))
+            np.array([p for _, p in faces], dtype=np.int64), mid_of)
 
 
-def double_surface(V, F):
+def double_surface(V, F, loops=None):
     """The double of an open mesh without boundary chords (split_boundary_chords first).
 
     Returns a dict: V (n+i,3), F (2m,3) (faces m.. are the mirror copies of faces 0.., corners
     reversed), sigma (n+i,) the reflection as a vertex permutation (fixing the boundary),
+    mirror (n,) the mirror vertex of each vertex of the half (itself on the boundary),
     boundary_loops, half_faces m."""
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
-    loops = boundary_loops(V, F)
+    loops = boundary_loops(V, F) if loops is None else loops
     on_b = np.zeros(len(V), dtype=bool)
     for loop in loops:
         on_b[loop] = True
@@ -95,137 +115,627 @@ def double_surface(V, F):
     F2 = np.vstack([F, mirror[F][:, ::-1]])
     sigma = np.arange(len(V2))
     sigma[interior], sigma[mirror[interior]] = mirror[interior], interior
-    return {"V": V2, "F": F2, "sigma": sigma, "boundary_loops": loops, "half_faces": len(F)}
+    return {"V": V2, "F": F2, "sigma": sigma, "mirror": mirror, "boundary_loops": loops, "half_faces": len(F),
+            "on_boundary": on_b}
 
 
-def _to_half(face, bary, half_faces):
-    """Points on a double (face, bary) reflected onto the first copy."""
-    face = np.asarray(face, dtype=np.int64).copy()
-    bary = np.asarray(bary, dtype=np.float64).copy()
-    m = face >= half_faces
-    face[m] -= half_faces
-    bary[m] = bary[m][:, ::-1]   # the mirror face lists the corners in reverse order
-    return face, bary
+def cap_holes(V, F, loops):
+    """The closed surface of genus g: a fan over each loop from an apex beside its centroid.
+
+    The apex is moved off the loop's plane by a quarter of its mean radius along the cap's
+    outward side (opposite the loop's vector area, the loop running with the surface on its
+    left), so each cap adds positive volume: a flat sheet with holes is capped into a solid the
+    intake keeps as oriented, like the other side of the pair.
+    Returns (V (n+b,3), F (m+sum|loop|,3), centres (b,) the new vertices)."""
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    extra_v, extra_f, centres = [], [], []
+    for loop in loops:
+        c = len(V) + len(extra_v)
+        centres.append(c)
+        P = V[loop]
+        centroid = P.mean(axis=0)
+        area = 0.5 * np.cross(P - centroid, np.roll(P, -1, axis=0) - centroid).sum(axis=0)
+        radius = np.linalg.norm(P - centroid, axis=1).mean()
+        extra_v.append(centroid - 0.25 * radius * area / max(np.linalg.norm(area), 1e-300))
+        # The loop runs with the surface on its left: the cap's faces turn the other way.
+        extra_f += [[loop[(i + 1) % len(loop)], loop[i], c] for i in range(len(loop))]
+    return np.vstack([V, extra_v]), np.vstack([F, np.array(extra_f, dtype=np.int64)]), np.array(centres)
 
 
-def _symmetry(res, Ds, n_half_vertices):
-    """(max symmetry error over the diagonal, fraction of interior source vertices whose image
-    lies on the target's first copy) of a map between doubles."""
+def _nearest(points, candidates_xyz, chunk=1024):
+    """Index into candidates_xyz of the nearest candidate of each point (brute force in chunks)."""
+    out = np.empty(len(points), dtype=np.int64)
+    c2 = np.einsum("ij,ij->i", candidates_xyz, candidates_xyz)
+    for s in range(0, len(points), chunk):
+        p = points[s:s + chunk]
+        d = c2[None, :] - 2 * p @ candidates_xyz.T
+        out[s:s + chunk] = np.argmin(d, axis=1)
+    return out
+
+
+class _Side:
+    """One open surface: intake, chords split, the double, the capped surface."""
+
+    def __init__(self, V, F, name):
+        self.name = name
+        try:
+            it = _core.intake(V, F, allow_boundary=True)
+        except _core.InputError as e:
+            raise _core.InputError(f"{name}: {e}") from None
+        self.V = np.asarray(it["V"], dtype=np.float64)
+        self.F = np.asarray(it["F"], dtype=np.int64)
+        self.genus = int(it["info"]["genus"])
+        self.loops = [np.asarray(l, dtype=np.int64) for l in it["boundary_loops"]]
+        self.b = len(self.loops)
+        self.describe = it["info"].get("topology", f"genus {self.genus} with {self.b} boundary loops")
+        if self.b == 0:
+            return
+        self.V2, self.F2, self.parent, self.mid_of = split_boundary_chords(self.V, self.F, self.loops)
+        self.D = double_surface(self.V2, self.F2, self.loops)
+        self.n, self.n2 = len(self.V), len(self.V2)
+        self.diag = float(np.linalg.norm(self.V.max(axis=0) - self.V.min(axis=0)))
+        # Each split face's corners as barycentrics of its parent (input) face.
+        self.corner_in_parent = np.zeros((len(self.F2), 3, 3))
+        for k in range(3):
+            v = self.F2[:, k]
+            pf = self.F[self.parent]
+            orig = v < self.n
+            for j in range(3):
+                self.corner_in_parent[orig, k, j] = (pf[orig, j] == v[orig])
+                if np.any(~orig):
+                    ends = self.mid_of[v[~orig] - self.n]
+                    self.corner_in_parent[~orig, k, j] = 0.5 * ((pf[~orig, j] == ends[:, 0]) + (pf[~orig, j] == ends[:, 1]))
+
+    def to_input_faces(self, face2, bary2):
+        """Points on the split half (face of F2, barycentrics) on the input faces."""
+        bary = np.einsum("ik,ikj->ij", bary2, self.corner_in_parent[face2])
+        return self.parent[face2], bary
+
+    def half_points(self, face, bary):
+        """Points on the double (face, barycentrics) reflected onto the half; also whether each
+        was on the mirror sheet."""
+        face = np.asarray(face, dtype=np.int64).copy()
+        bary = np.asarray(bary, dtype=np.float64).copy()
+        m = face >= self.D["half_faces"]
+        face[m] -= self.D["half_faces"]
+        bary[m] = bary[m][:, ::-1]  # the mirror face lists the corners in reverse order
+        return face, bary, m
+
+    def snap_to_loops(self, P, loop_of_point):
+        """Nearest point of the given boundary loop (polyline) of each point: (face, bary, position)
+        on the input faces."""
+        edge_face = {}
+        for f, tri in enumerate(self.F):
+            for k in range(3):
+                edge_face[(tri[k], tri[(k + 1) % 3])] = f
+        out_f = np.empty(len(P), dtype=np.int64)
+        out_b = np.zeros((len(P), 3))
+        out_p = np.empty((len(P), 3))
+        for li, loop in enumerate(self.loops):
+            sel = np.flatnonzero(loop_of_point == li)
+            if len(sel) == 0:
+                continue
+            A, B = self.V[loop], self.V[np.roll(loop, -1)]
+            d = B - A
+            dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+            for p in sel:
+                t = np.clip(np.einsum("ij,ij->i", P[p] - A, d) / dd, 0, 1)
+                q = A + t[:, None] * d
+                j = int(np.argmin(np.linalg.norm(q - P[p], axis=1)))
+                u, w = loop[j], loop[(j + 1) % len(loop)]
+                f = edge_face[(u, w)] if (u, w) in edge_face else edge_face[(w, u)]
+                tri = list(self.F[f])
+                out_b[p, tri.index(u)] += 1 - t[j]
+                out_b[p, tri.index(w)] += t[j]
+                out_f[p], out_p[p] = f, q[j]
+        return out_f, out_b, out_p
+
+    def loop_of_vertex(self):
+        lo = -np.ones(self.n2, dtype=np.int64)
+        for i, loop in enumerate(self.loops):
+            lo[loop] = i
+        return lo
+
+
+def _capped_map(S, T, pairing, options, mirrored=False):
+    """The capped source onto the capped target (closed, genus g) with loop i's centre held on
+    target loop pairing[i]'s: per split-source vertex its image (position) on the capped target,
+    the capped target face it lies in, and the target's split vertices in the frame of those
+    positions. `mirrored`: onto the target's mirror image (x -> -x, faces reversed), i.e. an
+    orientation-reversing map onto the target."""
+    Vs, Fs, cs = cap_holes(S.V2, S.F2, S.loops)
+    Vt, Ft, ct = cap_holes(T.V2, T.F2, T.loops)
+    if mirrored:
+        Vt = Vt * np.array([-1.0, 1.0, 1.0])
+        Ft = Ft[:, ::-1]
+    landmarks = np.array([[cs[i], ct[pairing[i]]] for i in range(S.b)], dtype=np.int64)
+    kw = {k: v for k, v in options.items() if k in ("threads", "tolerance", "max_iterations")}
+    r = _core.surface_map(Vs, Fs, Vt, Ft, landmarks=landmarks, two_way=False, **kw)
+    if bool(r["source_flipped"]) != bool(r["target_flipped"]):
+        raise _core.SolveError("the capped surfaces came out oriented differently (the source's faces "
+                               f"{'reversed' if r['source_flipped'] else 'kept'}, the target's "
+                               f"{'reversed' if r['target_flipped'] else 'kept'}): the open meshes' orientations differ")
+    fw = r["forward"]
+    return np.asarray(fw["position"])[:S.n2], np.asarray(fw["face"])[:S.n2], Vt[:T.n2]
+
+
+def _capped_sphere(side, options):
+    """Genus 0: the capped surface conformally on the unit sphere (uniformize/spherical.h), in the
+    input's orientation: (positions (n2+b, 3), centres (b,)). Cached on the side."""
+    if getattr(side, "sphere", None) is None:
+        V, F, centres = cap_holes(side.V2, side.F2, side.loops)
+        kw = {k: v for k, v in options.items() if k in ("tolerance",)}
+        u = _core.uniformize(V, F, **kw)
+        P = np.asarray(u["sphere_positions"], dtype=np.float64)
+        if u["flipped_on_input"]:
+            P = P * np.array([1.0, 1.0, -1.0])  # the intake turned the faces: turn the sphere back
+        side.sphere = (P, centres)
+    return side.sphere
+
+
+def _to_homogeneous(P):
+    """Unit-sphere points as homogeneous stereographic coordinates [u : v] (z = u / v), from
+    whichever chart is better conditioned at each point."""
+    z = P[:, 0] + 1j * P[:, 1]
+    north = P[:, 2] > 0
+    u = np.where(north, 1 + P[:, 2], z)
+    v = np.where(north, np.conj(z), 1 - P[:, 2])
+    return u, v
+
+
+def _from_homogeneous(u, v):
+    n = np.abs(u) ** 2 + np.abs(v) ** 2
+    w = u * np.conj(v)
+    return np.stack([2 * w.real / n, 2 * w.imag / n, (np.abs(u) ** 2 - np.abs(v) ** 2) / n], axis=1)
+
+
+def _three_point_matrix(z):
+    """2x2 matrix of the Möbius map sending the homogeneous points z[0], z[1], z[2] to 0, 1, inf."""
+    (u1, v1), (u2, v2), (u3, v3) = z
+    # w = (z - z1)(z2 - z3) / ((z - z3)(z2 - z1)) in homogeneous form
+    a = (u2 * v3 - u3 * v2)
+    b = (u2 * v1 - u1 * v2)
+    return np.array([[a * v1, -a * u1], [b * v3, -b * u3]])
+
+
+def _sphere_rough_map(S, T, pairing, options, mirrored=False):
+    """Genus 0: the Möbius map of the capped spheres sending source cap centre i onto target cap
+    centre pairing[i] (exact for the first three loops, the longest; with mirrored, composed with
+    a reflection of the sphere: orientation reversing). A homeomorphism of the spheres whatever
+    it stretches, which is all the class needs (the closed pipeline's genus-0 map refuses
+    stretched Möbius maps by their flipped triangles). Returns (images on the target sphere,
+    None, the target's split vertices on its sphere)."""
+    Ps, cs = _capped_sphere(S, options)
+    Pt, ct = _capped_sphere(T, options)
+    if mirrored:
+        Ps = Ps * np.array([1.0, -1.0, 1.0])
+    k = min(3, S.b)
+    src = [_to_homogeneous(Ps[[cs[i]]]) for i in range(k)]
+    dst = [_to_homogeneous(Pt[[ct[pairing[i]]]]) for i in range(k)]
+    if k < 3:
+        raise _core.SolveError("the sphere map needs three boundary loops")
+    A = _three_point_matrix([(u[0], v[0]) for u, v in src])
+    B = _three_point_matrix([(u[0], v[0]) for u, v in dst])
+    M = np.linalg.inv(B) @ A
+    u, v = _to_homogeneous(Ps[:S.n2])
+    images = _from_homogeneous(M[0, 0] * u + M[0, 1] * v, M[1, 0] * u + M[1, 1] * v)
+    return images, None, Pt[:T.n2]
+
+
+def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz):
+    """Per vertex of the source's double a target double vertex position: the capped map's image
+    moved onto the nearest target vertex (source boundary vertices onto the nearest vertex of
+    the paired target loop; images inside a target cap onto that cap's loop), the mirror
+    vertices onto the mirror of their twin's image. Exact target vertex positions, so the
+    pipeline's loop projection (ProjectedLoopsOptions::source_on_target) lands on them.
+    reversed_orientation: the capped map was onto the target's mirror image (orientation
+    reversing); its double composed with the target's reflection (the source's half onto the
+    target's mirror sheet) preserves the doubles' orientation, as the closed pipeline needs.
+    pos, face: the capped map's images; target_xyz: the target's split vertices in their frame."""
+    n_target_half_faces = len(T.F2)
+    DT = T.D
+    target_vertex = np.empty(S.n2, dtype=np.int64)
+    s_loop = S.loop_of_vertex()
+    t_on_b = DT["on_boundary"]
+    t_interior_or_b = np.arange(T.n2)
+    # Which target cap a capped-target face belongs to (-1: the half).
+    cap_of_face = -np.ones(n_target_half_faces + sum(len(l) for l in T.loops), dtype=np.int64)
+    start = n_target_half_faces
+    for i, loop in enumerate(T.loops):
+        cap_of_face[start:start + len(loop)] = i
+        start += len(loop)
+    cap = cap_of_face[face] if face is not None else np.full(S.n2, -1)
+    free = (s_loop < 0) & (cap < 0)
+    target_vertex[free] = t_interior_or_b[_nearest(pos[free], target_xyz)]
+    for i, loop in enumerate(T.loops):
+        # Source boundary vertices of the loop paired with i, and images inside cap i.
+        src_loop = [k for k in range(S.b) if pairing[k] == i]
+        sel = np.flatnonzero(np.isin(s_loop, src_loop) | ((s_loop < 0) & (cap == i)))
+        if len(sel):
+            target_vertex[sel] = loop[_nearest(pos[sel], target_xyz[loop])]
+    sheet1 = DT["V"][target_vertex]
+    sheet2 = DT["V"][DT["mirror"][target_vertex]]
+    if reversed_orientation:
+        sheet1, sheet2 = sheet2, sheet1
+    images = np.empty((len(S.D["V"]), 3))
+    images[:S.n2] = sheet1
+    interior = np.flatnonzero(~S.D["on_boundary"])
+    images[S.D["mirror"][interior]] = sheet2[interior]
+    return images
+
+
+def _double_map(S, T, images, options):
+    kw = {k: v for k, v in options.items() if k in ("threads", "tolerance", "max_iterations", "method",
+                                                    "source_weights", "progress", "solve_progress")}
+    return _core.surface_map(S.D["V"], S.D["F"], T.D["V"], T.D["F"], homotopy_images=images, two_way=False,
+                             homotopy_search=False, **kw)
+
+
+def _symmetry(res, S, T, reversed_orientation):
+    """(largest |f(sigma x) - sigma f(x)| over the diagonal, fraction of interior source vertices
+    whose image lies on the expected sheet) of a map between doubles."""
     pos = np.asarray(res["forward"]["position"])
     face = np.asarray(res["forward"]["face"])
-    sig = Ds["sigma"]
-    diag = np.linalg.norm(pos.max(axis=0) - pos.min(axis=0))
-    err = np.linalg.norm(pos[sig] - pos, axis=1).max() / diag   # sigma_T moves points by ~1e-6 only
-    interior = np.flatnonzero(sig[:n_half_vertices] != np.arange(n_half_vertices))
-    return float(err), float(np.mean(face[interior] < Ds.get("target_half_faces", Ds["half_faces"])))
+    sig = S.D["sigma"]
+    err = float(np.linalg.norm(pos[sig] - pos, axis=1).max()) / T.diag  # sigma_T moves points by 1e-6 only
+    interior = np.flatnonzero(~S.D["on_boundary"])
+    on_first = face[interior] < T.D["half_faces"]
+    return err, float(np.mean(~on_first if reversed_orientation else on_first))
 
 
-def _snap_to_boundary(P, Vt, Ft, loops):
-    """(face, bary, position, loop index) of the nearest point of the boundary polylines."""
-    edge_face = {}
-    for f, tri in enumerate(Ft):
-        for k in range(3):
-            edge_face[(tri[k], tri[(k + 1) % 3])] = (f, k)
-    segs = [(loop[i], loop[(i + 1) % len(loop)], li) for li, loop in enumerate(loops) for i in range(len(loop))]
-    A = Vt[[s[0] for s in segs]]
-    B = Vt[[s[1] for s in segs]]
-    out_f, out_b, out_p, out_l = [], [], [], []
-    for p in P:
-        d = B - A
-        t = np.clip(np.einsum("ij,ij->i", p - A, d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-300), 0, 1)
-        q = A + t[:, None] * d
-        j = int(np.argmin(np.linalg.norm(q - p, axis=1)))
-        u, w, li = segs[j]
-        f, k = edge_face.get((u, w)) or edge_face[(w, u)]
-        bary = np.zeros(3)
-        tri = list(Ft[f])
-        bary[tri.index(u)] += 1 - t[j]
-        bary[tri.index(w)] += t[j]
-        out_f.append(f), out_b.append(bary), out_p.append(q[j]), out_l.append(li)
-    return np.array(out_f), np.array(out_b), np.array(out_p), np.array(out_l)
+def _dilatation(P, Q, F):
+    """D' (ratio of singular values) of the affine maps taking triangles P[F] onto Q[F] (3D)."""
+    def frame(X):
+        e1 = X[:, 1] - X[:, 0]
+        e2 = X[:, 2] - X[:, 0]
+        l1 = np.linalg.norm(e1, axis=1)
+        x = e1 / np.maximum(l1, 1e-300)[:, None]
+        n = np.cross(e1, e2)
+        y = np.cross(n, e1)
+        y /= np.maximum(np.linalg.norm(y, axis=1), 1e-300)[:, None]
+        J = np.zeros((len(X), 2, 2))
+        J[:, 0, 0] = l1
+        J[:, 0, 1] = np.einsum("ij,ij->i", e2, x)
+        J[:, 1, 1] = np.einsum("ij,ij->i", e2, y)
+        return J
+    Js, Jt = frame(P[F]), frame(Q[F])
+    det_s = Js[:, 0, 0] * Js[:, 1, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = np.zeros_like(Js)
+        inv[:, 0, 0] = Js[:, 1, 1] / det_s
+        inv[:, 0, 1] = -Js[:, 0, 1] / det_s
+        inv[:, 1, 1] = Js[:, 0, 0] / det_s
+        A = Jt @ inv
+        det = np.abs(A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0])
+        s = np.einsum("ijk,ijk->i", A, A) / det  # D' + 1/D'
+        d = 0.5 * (s + np.sqrt(np.maximum(s * s - 4, 0)))
+    d[~np.isfinite(d)] = np.inf
+    return d
 
 
-def map_by_doubling(Vs, Fs, Vt, Ft, symmetry_tolerance=0.02, same_sheet=0.9, max_classes=4, **options):
-    """EXPERIMENTAL map between two open surfaces of equal (g, b) through their doubles.
+def _half_correspondence(res_map, S, T, reversed_orientation):
+    """From the doubles' map: per input source vertex (face, bary, position) on the target's input
+    faces, boundary vertices snapped onto their paired target loop; per input target vertex the
+    same on the source. Returns (forward, inverse, pairing, snap_distance)."""
+    def one_way(A, B, points, rev):
+        n = A.n
+        f2, b2, _ = B.half_points(np.asarray(points["face"])[:n], np.asarray(points["barycentric"])[:n])
+        face, bary = B.to_input_faces(f2, b2)
+        pos = np.einsum("ij,ijk->ik", bary, B.V[B.F[face]])
+        on_b = np.concatenate(A.loops)
+        # Which B loop each A loop lands on: the loop nearest to most of its vertices.
+        loop_of = np.empty(len(on_b), dtype=np.int64)
+        pairing, start = [], 0
+        b_loop_vertices = np.concatenate(B.loops)
+        b_loop_index = np.concatenate([np.full(len(l), i) for i, l in enumerate(B.loops)])
+        nearest_loop = b_loop_index[_nearest(pos[on_b], B.V[b_loop_vertices])]
+        for li, l in enumerate(A.loops):
+            votes = nearest_loop[start:start + len(l)]
+            pairing.append(int(np.bincount(votes, minlength=B.b).argmax()))
+            loop_of[start:start + len(l)] = pairing[-1]
+            start += len(l)
+        sf, sb, sp = B.snap_to_loops(pos[on_b], loop_of)
+        snap = float(np.linalg.norm(sp - pos[on_b], axis=1).max()) if len(on_b) else 0.0
+        face[on_b], bary[on_b], pos[on_b] = sf, sb, sp
+        return {"face": face, "barycentric": bary, "position": pos}, pairing, snap
+    fw, pairing, snap = one_way(S, T, res_map["forward"], reversed_orientation)
+    inv, back_pairing, snap_back = one_way(T, S, res_map["inverse"], reversed_orientation)
+    return fw, inv, pairing, back_pairing, max(snap, snap_back)
 
-    Returns a dict: forward {face, barycentric, position} per source vertex on the target's input
-    faces (boundary vertices on the target's boundary), boundary_pairing (target loop of each source
-    loop), symmetry_error, same_sheet, chosen (handle class index of the doubles' map), tried
-    [(class, energy, symmetry_error, same_sheet)], double_genus, flipped_triangles (source faces,
-    ears excepted, whose image turns against the target's normal), ear_triangles (faces with all
-    corners on the boundary), ear_triangles_turned, snap_distance (largest move of a boundary
-    vertex's image onto the target's boundary), the doubles' result under 'double'.
-    Raises InputError for different (g, b), SolveError when no tried class is symmetric."""
-    Vs, Vt = np.asarray(Vs, dtype=np.float64), np.asarray(Vt, dtype=np.float64)
-    Fs, Ft = np.asarray(Fs, dtype=np.int64), np.asarray(Ft, dtype=np.int64)
-    src_it = _core.intake(Vs, Fs, allow_boundary=True)
-    tgt_it = _core.intake(Vt, Ft, allow_boundary=True)
-    gs, bs = src_it["info"]["genus"], len(src_it["boundary_loops"])
-    gt, bt = tgt_it["info"]["genus"], len(tgt_it["boundary_loops"])
-    if (gs, bs) != (gt, bt) or bs == 0:
-        raise _core.InputError(f"doubling: the source has genus {gs} with {bs} boundary loop(s) but the "
-                               f"target has genus {gt} with {bt}; both must be open with the same (g, b)")
-    Vs2, Fs2, _ = split_boundary_chords(Vs, Fs)
-    Vt2, Ft2, t_parent = split_boundary_chords(Vt, Ft)
-    Ds, Dt = double_surface(Vs2, Fs2), double_surface(Vt2, Ft2)
-    Ds["target_half_faces"] = Dt["half_faces"]
-    res = _core.surface_map(Ds["V"], Ds["F"], Dt["V"], Dt["F"], **options)
-    energies = [(c["energy"] if c["solved"] else np.inf, i) for i, c in enumerate(res["homotopy"]["candidates"])]
-    order = [res["homotopy"]["chosen"]] + [i for _, i in sorted(energies) if i != res["homotopy"]["chosen"]]
-    tried, chosen = [], None
-    for i in order[:max_classes]:
-        r = res if i == res["homotopy"]["chosen"] else _core.surface_map(Ds["V"], Ds["F"], Dt["V"], Dt["F"],
-                                                                         homotopy=i, **options)
-        err, sheet = _symmetry(r, Ds, len(Vs2))
-        tried.append((i, float(r["energy"]["final"]), err, sheet))
-        if err <= symmetry_tolerance and sheet >= same_sheet:
-            chosen, res = i, r
-            break
-    if chosen is None:
-        raise _core.SolveError("doubling: no symmetric, half-preserving class among the "
-                               + ", ".join(f"{i} (E {e:.4g}, symmetry {s:.3g}, same half {h:.2f})" for i, e, s, h in tried))
-    n = len(Vs)
-    face, bary = _to_half(res["forward"]["face"][:n], res["forward"]["barycentric"][:n], Dt["half_faces"])
-    # On the split target: positions, then the input face each lies in.
-    pos = np.einsum("ij,ijk->ik", bary, Vt2[Ft2[face]])
-    face_in = t_parent[face]
-    # Boundary vertices onto the target's boundary (the symmetric map puts them there up to the
-    # tolerance; snapping makes it exact).
-    s_loops = src_it["boundary_loops"]
-    t_loops = tgt_it["boundary_loops"]
-    on_b = np.concatenate([np.asarray(l) for l in s_loops])
-    sf, sb, sp, sl = _snap_to_boundary(pos[on_b], Vt, Ft, t_loops)
-    snap_distance = float(np.linalg.norm(sp - pos[on_b], axis=1).max())
-    pos[on_b] = sp
-    # Barycentrics in the input faces (planar sub-triangles: exact up to round-off).
-    out_b = np.empty((n, 3))
-    for v in range(n):
-        a, b, c = Vt[Ft[face_in[v]]]
-        M = np.stack([b - a, c - a], axis=1)
-        st = np.linalg.lstsq(M, pos[v] - a, rcond=None)[0]
-        out_b[v] = np.clip([1 - st.sum(), st[0], st[1]], 0, 1)
-        out_b[v] /= out_b[v].sum()
-    face_in[on_b], out_b[on_b] = sf, sb
-    pairing = []
-    start = 0
-    for l in s_loops:
-        votes = sl[start:start + len(l)]
-        start += len(l)
-        pairing.append(int(np.bincount(votes).argmax()))
-    # Flips: the image triangle against the target's normal at its first corner. Ears (source
-    # faces with all three corners on the boundary) take three points of the target's boundary
-    # (their inner edge was split in the double): counted apart, as in map/open_map.h.
+
+def _flips(S, T, fw, reversing=False):
+    """Source faces (ears apart) whose image turns against the target's normal (with
+    `reversing`, an orientation-reversing map: whose image does not); ears (faces with three
+    boundary corners, fixed by their boundary points alone) and how many of them turn."""
+    Vt, Ft = T.V, T.F
     nt = np.cross(Vt[Ft[:, 1]] - Vt[Ft[:, 0]], Vt[Ft[:, 2]] - Vt[Ft[:, 0]])
-    q = pos[Fs]
+    q = fw["position"][S.F]
     img_n = np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0])
-    turned = np.einsum("ij,ij->i", img_n, nt[face_in[Fs[:, 0]]]) < 0
-    src_on_b = np.zeros(n, dtype=bool)
-    src_on_b[on_b] = True
-    ear = np.all(src_on_b[Fs], axis=1)
-    flipped = int(np.sum(turned & ~ear))
-    return {"forward": {"face": face_in, "barycentric": out_b, "position": pos},
-            "boundary_pairing": pairing, "symmetry_error": tried[-1][2], "same_sheet": tried[-1][3],
-            "snap_distance": snap_distance, "chosen": chosen, "tried": tried,
-            "double_genus": int(res["genus"]), "flipped_triangles": flipped, "double": res,
-            "ear_triangles": int(ear.sum()), "ear_triangles_turned": int(np.sum(turned & ear)),
-            "genus": gs, "boundary_loops": bs}
+    # The target's normal at the face holding each corner's image, summed over the corners.
+    normal = sum(nt[fw["face"][S.F[:, k]]] for k in range(3))
+    turned = (-1 if reversing else 1) * np.einsum("ij,ij->i", img_n, normal) <= 0
+    on_b = np.zeros(S.n, dtype=bool)
+    on_b[np.concatenate(S.loops)] = True
+    ear = np.all(on_b[S.F], axis=1)
+    return int(np.sum(turned & ~ear)), int(ear.sum()), int(np.sum(turned & ear)), ear
+
+
+def _alignment(S, T, images):
+    """Mean squared distance between the source's vertices and their images, both shapes moved
+    to centroid 0 and scaled to unit area (the disk map's alignment measure, map/open_map.h)."""
+    def frame(V, F):
+        a = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+        c = (a[:, None] * V[F].mean(axis=1)).sum(axis=0) / a.sum()
+        return c, np.sqrt(a.sum())
+    cs, ss = frame(S.V, S.F)
+    ct, st = frame(T.V, T.F)
+    return float(np.mean(np.sum(((S.V - cs) / ss - (images - ct) / st) ** 2, axis=1)))
+
+
+def _has_arrays(x):
+    if isinstance(x, np.ndarray):
+        return x.ndim > 0
+    if isinstance(x, dict):
+        return any(_has_arrays(v) for v in x.values())
+    return False
+
+
+def _pairings(b, boundary_pairing, max_pairings):
+    if boundary_pairing is not None:
+        p = [int(x) for x in boundary_pairing]
+        if sorted(p) != list(range(b)):
+            raise _core.InputError(f"boundary_pairing {p}: must be a permutation of 0..{b - 1} (the target loop "
+                                   f"of each source loop)")
+        return [tuple(p)], "given"
+    perms = list(itertools.permutations(range(b)))
+    if len(perms) > max_pairings:
+        return [tuple(range(b))], f"loop i -> loop i only ({len(perms)} pairings > max_pairings {max_pairings})"
+    return perms, "ranked by energy"
+
+
+def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),
+                     max_pairings=6, symmetry_tolerance=0.02, tie_tolerance=1e-6, progress=None, **options):
+    """Map between two open surfaces of equal (g, b) through their doubles (module docstring).
+
+    Vs (n_s,3), Fs (m_s,3), Vt, Ft: the meshes (input faces are triangles). boundary_pairing: None
+    (b >= 2: every pairing tried, at most `max_pairings` of them, else loop i -> loop i) or the
+    target loop of each source loop; 'swap' for two loops. orientations: which of 'preserving'
+    (the halves onto the halves) and 'reversing' (the source's half onto the target's mirror
+    half: an orientation-reversing map of the open surfaces) are tried. The lowest energy wins;
+    candidates within `tie_tolerance` (relative) of it are told apart by the alignment of the
+    shapes (`alignment`: mean squared distance of the vertices to their images, both shapes at
+    centroid 0 and unit area). options: threads,
+    tolerance, max_iterations, method, source_weights, solve_progress (the doubles' solves).
+
+    Returns the result dict of surfmap.surface_map with 'forward' / 'inverse' (per input vertex
+    face, barycentric, position on the other input mesh; boundary onto boundary), 'genus' g,
+    'boundary_loops' b, 'source_topology' / 'target_topology', 'flipped_triangles',
+    'distortion' {mean, max, per_face} of the morph (ears left out of mean and max), 'energy'
+    {'final': the half's energy}, and 'open' {domain 'double', method, boundary_pairing,
+    orientation, pairing_choice, candidates [{pairing, orientation, energy, symmetry_error,
+    same_sheet, alignment, status, chosen}], tied_candidates, symmetry_error, same_sheet,
+    snap_distance, double_genus, ear_triangles, ear_triangles_turned}.
+    Raises InputError for different (g, b) or a bad pairing, SolveError when no candidate
+    maps."""
+    S = _Side(Vs, Fs, "source")
+    T = _Side(Vt, Ft, "target")
+    if (S.genus, S.b) != (T.genus, T.b) or S.b == 0:
+        raise _core.InputError(f"the source has {S.describe} but the target has {T.describe}; both must be open "
+                               f"with the same genus and number of boundary loops (docs/open_surfaces.md)")
+    if isinstance(boundary_pairing, str):
+        if boundary_pairing != "swap" or S.b != 2:
+            raise _core.InputError(f"boundary_pairing '{boundary_pairing}': 'swap' is for two boundary loops only")
+        boundary_pairing = [1, 0]
+    orientations = tuple(orientations)
+    if not orientations or any(o not in ("preserving", "reversing") for o in orientations):
+        raise _core.InputError(f"orientations {orientations}: give 'preserving' and/or 'reversing'")
+    pairings, choice = _pairings(S.b, boundary_pairing, max_pairings)
+
+    def report(stage, fraction):
+        if progress is not None:
+            r = progress(stage, fraction)
+            if r is not None and not r:
+                raise _core.Cancelled("cancelled by the progress callback")
+
+    candidates, solved = [], []
+    total = len(pairings) * len(orientations)
+    for pi, pairing in enumerate(pairings):
+        for oi, o in enumerate(orientations):
+            report(f"doubles: pairing {list(pairing)}, {o}", (pi * len(orientations) + oi) / max(total, 1))
+            rev = o == "reversing"
+            cand = {"pairing": list(pairing), "orientation": o}
+            try:
+                try:
+                    rough = _sphere_rough_map if S.genus == 0 else _capped_map
+                    pos, face, target_xyz = rough(S, T, pairing, options, mirrored=rev)
+                except _core.Cancelled:
+                    raise
+                except _core.Error as e:
+                    raise _core.SolveError(f"the capped map: {e}") from None
+                images = _symmetric_images(S, T, pairing, rev, pos, face, target_xyz)
+                r = _double_map(S, T, images, options)
+                err, sheet = _symmetry(r, S, T, rev)
+                cand.update(energy=float(r["energy"]["final"]) / 2, symmetry_error=err, same_sheet=sheet,
+                            status="ok" if err <= symmetry_tolerance and sheet >= 0.9 else
+                            f"not symmetric (error {err:.3g} of the diagonal, {sheet:.2f} on the expected half)")
+                cand["alignment"] = _alignment(S, T, np.asarray(r["forward"]["position"])[:S.n])
+                if cand["status"] == "ok":
+                    solved.append((cand, r, rev))
+            except _core.Cancelled:
+                raise
+            except _core.Error as e:
+                cand.update(energy=float("inf"), status=f"failed: {e}")
+            candidates.append(cand)
+    if not solved:
+        raise _core.SolveError("open surfaces through their doubles: no candidate mapped: " + "; ".join(
+            f"pairing {c['pairing']} {c['orientation']}: {c['status']}" for c in candidates))
+    # Lowest energy; ties (within tie_tolerance, relative) by the alignment of the shapes: every
+    # pair of pants has an anticonformal involution (the reflection swapping its two hexagons),
+    # so for (0, 3) each pairing's preserving and reversing maps have the same energy, as the
+    # disk's rotations do (map/open_map.h).
+    lowest = min(c["energy"] for c, _, _ in solved)
+    tied = [x for x in solved if x[0]["energy"] <= lowest * (1 + tie_tolerance)]
+    cand, r, rev = min(tied, key=lambda x: x[0]["alignment"])
+    for c in candidates:
+        c["chosen"] = c is cand
+    report("doubles: the half", 0.95)
+    fw, inv, pairing, back_pairing, snap = _half_correspondence(r, S, T, rev)
+    flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
+    weights_fallback = ""
+    if flipped and "source_weights" not in options:
+        # As the closed pipeline's automatic weights (SourceWeights::Automatic): the intrinsic
+        # Delaunay weights' straight images of the user's faces fold (here next to the boundary,
+        # where the half is cut out of a map symmetric only up to the discretization), so the
+        # chosen class is solved again with positive weights on the source's own edges.
+        images = _symmetric_images(S, T, cand["pairing"], rev, *((_sphere_rough_map if S.genus == 0 else _capped_map)(
+            S, T, cand["pairing"], options, mirrored=rev)))
+        r2 = _double_map(S, T, images, dict(options, source_weights="own"))
+        fw2, inv2, pairing2, back2, snap2 = _half_correspondence(r2, S, T, rev)
+        flipped2, ears, ears_turned, ear = _flips(S, T, fw2, rev)
+        weights_fallback = (f"{flipped} flipped with the intrinsic Delaunay weights; solved again on the source's "
+                            f"own edges: {flipped2} flipped")
+        if flipped2 < flipped:
+            r, fw, inv, pairing, back_pairing, snap, flipped = r2, fw2, inv2, pairing2, back2, snap2, flipped2
+            cand = dict(cand, energy=float(r2["energy"]["final"]) / 2)
+            cand["symmetry_error"], cand["same_sheet"] = _symmetry(r2, S, T, rev)
+        else:
+            flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
+    dil = _dilatation(S.V, fw["position"], S.F)
+    finite = dil[~ear & np.isfinite(dil)]
+    # The doubles' report, less what is per vertex or per face of the doubles (the initial map,
+    # landmarks, per-polygon figures): the half's arrays replace them.
+    out = {k: v for k, v in r.items() if not _has_arrays(v)}
+    out["forward"], out["inverse"] = fw, inv
+    out["genus"] = S.genus
+    out["boundary_loops"] = S.b
+    for key, side in (("source_topology", S), ("target_topology", T)):
+        out[key] = {"genus": side.genus, "boundary_loops": side.b, "description": side.describe}
+    out["flipped_triangles"] = flipped
+    out["distortion"] = {"mean": float(finite.mean()) if len(finite) else float("nan"),
+                         "max": float(finite.max()) if len(finite) else float("nan"), "per_face": dil}
+    out["mean_dilatation"], out["max_dilatation"] = out["distortion"]["mean"], out["distortion"]["max"]
+    # The half's energies: half the doubles' (the map is symmetric).
+    out["energy"] = {k: (v / 2 if isinstance(v, (int, float)) and not isinstance(v, bool) else v)
+                     for k, v in r["energy"].items() if not _has_arrays(v)}
+    out["source_flipped"] = out["target_flipped"] = False
+    out["open"] = {"domain": "double", "method": "doubling (symmetric class from the capped map)",
+                   "boundary_pairing": pairing, "requested_pairing": cand["pairing"],
+                   "inverse_pairing": back_pairing, "orientation": cand["orientation"], "pairing_choice": choice,
+                   "candidates": candidates, "tied_candidates": len(tied), "symmetry_error": cand["symmetry_error"],
+                   "same_sheet": cand["same_sheet"], "snap_distance": snap, "double_genus": int(r["genus"]),
+                   "ear_triangles": ears, "ear_triangles_turned": ears_turned,
+                   "source_weights_fallback": weights_fallback}
+    return out
+
+
+def map_by_doubling(Vs, Fs, Vt, Ft, **kw):
+    """Earlier name of surface_map_open (kept for scripts)."""
+    return surface_map_open(Vs, Fs, Vt, Ft, **kw)
+
+
+# -- `surfmap map` for open pairs beyond disks and annuli (cli/cmd_map_open.cpp runs this module) --
+
+INVERSE_SECTION_MARKER = "# inverse: one line per target vertex, 'source_face b0 b1 b2'"  # verify/correspondence_file.h
+
+
+def correspondence_text(forward, inverse):
+    """The correspondence file of `surfmap map --correspondence` (verify/correspondence_file.h):
+    one 'face b0 b1 b2' line per source vertex, the inverse section's marker, one per target vertex."""
+    lines = []
+    for pts in (forward, inverse):
+        for f, b in zip(pts["face"], pts["barycentric"]):
+            lines.append(f"{int(f)} {b[0]:.17g} {b[1]:.17g} {b[2]:.17g}")
+        if pts is forward:
+            lines.append(INVERSE_SECTION_MARKER)
+    return "\n".join(lines) + "\n"
+
+
+def report_json(r):
+    """The --report of an open map through the doubles: the closed report's main keys plus the
+    open block (JSON-ready; per-face and per-vertex arrays left out)."""
+    def clean(x):
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items() if not isinstance(v, np.ndarray)}
+        if isinstance(x, (list, tuple)):
+            return [clean(v) for v in x]
+        if isinstance(x, (np.integer,)):
+            return int(x)
+        if isinstance(x, (np.floating, float)):
+            return float(x) if np.isfinite(x) else None
+        return x
+    keys = ("genus", "boundary_loops", "source_topology", "target_topology", "flipped_triangles", "open")
+    out = {"method": "open", **{k: clean(r[k]) for k in keys}}
+    out["distortion"] = {"mean": clean(r["distortion"]["mean"]), "max": clean(r["distortion"]["max"])}
+    out["energy"] = {"final": clean(r["energy"]["final"])}
+    out["double"] = {k: clean(r[k]) for k in ("homotopy", "two_way_status", "energy_ratio") if k in r}
+    return out
+
+
+def _atomic_write(path, text):
+    import os
+    tmp = f"{path}.tmp{os.getpid()}"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def main(argv=None):
+    import argparse
+    ap = argparse.ArgumentParser(prog="surfmap map", description="Open surfaces through their doubles "
+                                 "(docs/open_surfaces.md); run by `surfmap map` for open pairs beyond disks and annuli")
+    ap.add_argument("src")
+    ap.add_argument("dst")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--report", required=True)
+    ap.add_argument("--correspondence", default="")
+    ap.add_argument("--boundary-pairing", default="")
+    ap.add_argument("--boundary-swap", action="store_true")
+    ap.add_argument("--quiet", action="store_true")
+    a = ap.parse_args(argv)
+    try:
+        meshes = []
+        for path in (a.src, a.dst):
+            V, polys = _core.read_polygon_soup(path)
+            try:
+                it = _core.intake(V, polys, allow_boundary=True)
+            except _core.InputError as e:
+                raise _core.InputError(f"'{path}': {e}") from None
+            meshes.append((np.asarray(it["V"]), np.asarray(it["F"])))
+        pairing = None
+        if a.boundary_swap:
+            pairing = "swap"
+        elif a.boundary_pairing:
+            try:
+                pairing = [int(x) for x in a.boundary_pairing.replace(",", " ").split()]
+            except ValueError:
+                raise _core.InputError(f"--boundary-pairing '{a.boundary_pairing}': give loop indices such as 1,0,2") from None
+        progress = None
+        if not a.quiet:
+            def progress(stage, fraction):
+                print(f"surfmap: {stage}", file=sys.stderr, flush=True)
+        r = surface_map_open(*meshes[0], *meshes[1], boundary_pairing=pairing, progress=progress)
+        rep = report_json(r)
+        rep["source"], rep["target"] = a.src, a.dst
+        text = {a.report: json.dumps(rep, indent=2) + "\n"}
+        if a.correspondence:
+            text[a.correspondence] = correspondence_text(r["forward"], r["inverse"])
+        _core.write_obj(a.out, r["forward"]["position"], meshes[0][1])
+        for path, t in text.items():
+            _atomic_write(path, t)
+    except _core.Cancelled as e:
+        print(f"surfmap: cancelled: {e}", file=sys.stderr)
+        return 1
+    except _core.Error as e:
+        print(f"surfmap: error: {e}", file=sys.stderr)
+        return 1
+    if not a.quiet:
+        o = r["open"]
+        print(f"surfmap: through the doubles (genus {o['double_genus']}), boundary loops {o['boundary_pairing']} "
+              f"({o['orientation']}, {o['pairing_choice']}), mean dilatation {r['distortion']['mean']:.6g}, "
+              f"max {r['distortion']['max']:.6g}, flipped triangles {r['flipped_triangles']}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

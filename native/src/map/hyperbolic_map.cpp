@@ -369,7 +369,8 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   CoarseSource& cs = ss.cs;
   if (cs.ok)
     level = coarse_level(cs, sc, ss.edge_word, ss.sl, data, usable, *deck_group,
-                         options.homotopy.search.enabled && options.homotopy.class_index < 0);
+                         options.homotopy.search.enabled && !options.homotopy.images_only &&
+                             options.homotopy.class_index < 0);
   fine_result.resize(ncand);
   full.assign(ncand, 0);
   order.resize(ncand);
@@ -587,7 +588,8 @@ void HyperbolicPipeline::twist_search_from(int start, const std::vector<std::str
 // class more than `gap` above 8 pi (g - 1)) and pruned by their curve bound
 // against the best energy held.
 void HyperbolicPipeline::geometric_classes_at_full_resolution() {
-  if (!options.homotopy.search.enabled || options.homotopy.search.geometric <= 0 || options.homotopy.class_index >= 0 ||
+  if (!options.homotopy.search.enabled || options.homotopy.images_only || options.homotopy.search.geometric <= 0 ||
+      options.homotopy.class_index >= 0 ||
       hooks.homotopy_search_start >= 0)
     return;
   double best = std::numeric_limits<double>::infinity();
@@ -1013,7 +1015,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   p.start_class_bounds();          // issue 14: the source's own uniformization, for class lower bounds
   p.candidate_classes_and_data();  // §V-B: candidate homotopy classes and their deck elements
   p.rank_on_coarse_copy();         // ranking: every class solved on the coarse copy
-  if (p.ss.cs.ok) p.search_classes();  // more cuts, Dehn twists (mapping_class_search.h)
+  if (p.ss.cs.ok && !options.homotopy.images_only) p.search_classes();  // more cuts, Dehn twists (mapping_class_search.h)
   p.solve_at_full_resolution(p.ss.cs.ok);  // §VI-B: the best classes at full resolution
   if (!p.ss.cs.ok) p.geometric_classes_at_full_resolution();  // issue 14: small sources (no coarse copy)
   p.fill_class_bounds();           // issue 14: every candidate's energy lower bound

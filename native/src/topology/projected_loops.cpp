@@ -117,7 +117,8 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
                                   const ProjectedLoopsOptions& options) {
   ProjectedLoopsResult out;
   const TriMesh& tm = target.mesh;
-  const BoxFrame sf(source.V, options.source_transform);
+  const BoxFrame sf = options.source_on_target ? BoxFrame(tm.V, frame.transform)
+                                                : BoxFrame(source.V, options.source_transform);
   const std::vector<Eigen::Vector3d>& tp = frame.tp;
   const double s_edge = mean_edge_length(source, sf), t_edge = frame.t_edge;
   const VertexGrid& grid = *frame.grid;

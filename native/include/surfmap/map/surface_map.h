@@ -195,6 +195,13 @@ struct HomotopyOptions {
   /// points give one more candidate ("[the source's loops carried by the
   /// target -> source map]"), listed after the one-way candidates.
   Eigen::MatrixXd source_images;
+  /// With source_images: the class of the source's loops carried to them is
+  /// the only candidate (no overlays, schemata, handle permutations, extra
+  /// cuts, class search, geometric classes or two-way run; a SolveError
+  /// when the loops do not carry). For callers that know the class, e.g.
+  /// the doubles of open surfaces, whose class must commute with the
+  /// reflections (docs/open_surfaces.md "Doubling"). Default false.
+  bool images_only = false;
 };
 
 /// The harmonic solve (SurfaceMapOptions::solve).

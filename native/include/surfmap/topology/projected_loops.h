@@ -48,6 +48,12 @@ struct ProjectedLoopsOptions {
   /// principal axes.
   Eigen::Matrix3d source_transform = Eigen::Matrix3d::Identity();
   Eigen::Matrix3d target_transform = Eigen::Matrix3d::Identity();
+  /// The source's vertices are already points of the target (a map's
+  /// images): they are put in the target's box frame instead of their own,
+  /// so a vertex placed exactly on a target vertex lands on it (default
+  /// false). The doubles of open surfaces need it: their two sheets are
+  /// 1e-6 of the diagonal apart (docs/open_surfaces.md "Doubling").
+  bool source_on_target = false;
 };
 
 struct ProjectedLoopsResult {

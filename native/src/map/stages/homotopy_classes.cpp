@@ -196,6 +196,18 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
   CandidateClasses out;
   HandleBasis& thb = out.target_basis;
   thb = handle_basis(tl.mesh, tl.loops, tcs);
+  // A caller that knows the class (homotopy.images_only): it alone.
+  if (options.homotopy.images_only) {
+    if (options.homotopy.source_images.size() == 0)
+      throw InputError("homotopy.images_only needs homotopy.source_images (a point on the target per source vertex)");
+    GroupMap theta;
+    if (!carried_loops_class(space, source, sl, projector, options.homotopy.source_images, &theta, &out.carried_status,
+                             true))
+      throw SolveError("the class given by homotopy.source_images: " + out.carried_status);
+    out.carried_class = 0;
+    out.classes.push_back(described(theta, n, shb, thb, "the source's loops carried to the given images"));
+    return out;
+  }
   // Source 1: the classes induced by overlaying the two shapes
   // (topology/projected_loops.h): as posed, then after the rigid alignments
   // of rotation_overlay_poses for shapes not posed alike. For a remeshed
@@ -341,7 +353,8 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
 }
 
 bool carried_loops_class(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
-                         const LoopProjector& projector, const Eigen::MatrixXd& images, GroupMap* theta, std::string* why) {
+                         const LoopProjector& projector, const Eigen::MatrixXd& images, GroupMap* theta, std::string* why,
+                         bool on_target) {
   if (images.rows() != source.num_vertices() || images.cols() != 3) {
     *why = "homotopy.source_images must be #V x 3 (" + std::to_string(source.num_vertices()) + " rows), not " +
            std::to_string(images.rows()) + " x " + std::to_string(images.cols());
@@ -358,6 +371,7 @@ bool carried_loops_class(const ClassSpace& space, const TriMesh& source, const S
     ProjectedLoopsOptions plo;
     plo.max_gap_factor = 1e6;
     plo.max_jump_box = 2.0;
+    plo.source_on_target = on_target;
     const ProjectedLoopsResult proj = projector.project(moved, sl.loops, plo);
     if (!proj.ok_with_joins) {
       *why = "the carried loops did not project onto the target: " + proj.message;

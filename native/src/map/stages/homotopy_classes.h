@@ -176,8 +176,11 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
 /// target canonical word. False with `why` when the loops do not carry or
 /// the result is not an isomorphism. No inversion of words is needed: the
 /// other run's map is a bijection, so its inverse carries loops without
-/// jumps (docs/handle_classes.md).
+/// jumps (docs/handle_classes.md). `on_target`: the images are exact
+/// points of the target, projected in its own box frame
+/// (ProjectedLoopsOptions::source_on_target; homotopy.images_only).
 bool carried_loops_class(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
-                         const LoopProjector& projector, const Eigen::MatrixXd& images, GroupMap* theta, std::string* why);
+                         const LoopProjector& projector, const Eigen::MatrixXd& images, GroupMap* theta, std::string* why,
+                         bool on_target = false);
 
 }  // namespace surfmap::detail
