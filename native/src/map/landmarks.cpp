@@ -201,6 +201,126 @@ std::vector<Eigen::Triplet<double>> barrier_hessian_pattern(const std::vector<Ed
   return pattern;
 }
 
+// The continuation in s shared by both barrier solves: from the free map
+// (s = 0, in z) towards the landmarks on their lifts (s = 1). Each step
+// predicts the free points at s + ds (predict(z, s, next) returns the
+// trial), puts the landmarks at `next` (place(trial, next)) and corrects
+// by Newton at fixed landmarks (newton(trial, max_it): 8 iterations, 60 at
+// s = 1); a step whose prediction is infeasible or whose correction stalls
+// is halved, success doubles the next. Returns the s reached (z the map
+// there); `steps` counts the steps taken.
+template <class Predict, class Place, class Objective, class Newton>
+double barrier_continuation(std::vector<Complex>& z, const Predict& predict, const Place& place,
+                            const Objective& objective, const Newton& newton, int& steps) {
+  double s = 0, ds = 1;
+  while (s < 1 && ds > 1e-3) {
+    const double next = std::min(1.0, s + ds);
+    std::vector<Complex> trial = predict(z, s, next);
+    place(trial, next);
+    const bool good = std::isfinite(objective(trial)) && newton(trial, next < 1 ? 8 : 60);
+    if (good) {
+      z.swap(trial), s = next, ++steps;
+      ds *= 2;
+    } else {
+      ds *= 0.5;
+    }
+  }
+  return s;
+}
+
+using CornerOffsets = Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+// flat_barrier_landmarks' objective at fixed landmark positions,
+// F(z) = E(z) + μ Σ_f φ(A_f(z) / c_f) (E: the cotangent Dirichlet energy
+// of `edges` with translations t; A_f: the signed area of face f's image,
+// corners z[F(f,k)] + off(f,k); c from barrier_reference_areas, μ set by
+// the caller), and its derivatives in the free unknowns.
+struct FlatBarrierProblem {
+  const std::vector<IntrinsicEdge>& edges;
+  const std::vector<Complex>& t;
+  const RowMatrixX3i& F;
+  const CornerOffsets& off;
+  const std::vector<int>& index;  // number_free_vertices
+  int m = 0;                      // free unknowns
+  std::vector<double> c;
+  double mu = 0;
+
+  double area(const std::vector<Complex>& z, int f) const {
+    const Complex p0 = z[F(f, 0)] + off(f, 0), p1 = z[F(f, 1)] + off(f, 1), p2 = z[F(f, 2)] + off(f, 2);
+    const Complex e1 = p1 - p0, e2 = p2 - p0;
+    return 0.5 * (e1.real() * e2.imag() - e1.imag() * e2.real());
+  }
+  double dirichlet(const std::vector<Complex>& z) const {
+    double E = 0;
+    for (size_t e = 0; e < edges.size(); ++e) E += edges[e].cot_weight * std::norm(z[edges[e].j] + t[e] - z[edges[e].i]);
+    return E;
+  }
+  // F(z); +inf when a face is not positively oriented.
+  double objective(const std::vector<Complex>& z) const {
+    const double B = face_barrier(c, [&](int f) { return area(z, f); });
+    if (!(B < std::numeric_limits<double>::infinity())) return B;
+    return dirichlet(z) + mu * B;
+  }
+  // Gradient g (2m) at z and, with H, the Hessian (sparsity `pattern`) with
+  // each face's barrier block projected onto PSD.
+  void assemble(const std::vector<Complex>& z, Eigen::VectorXd& g, const std::vector<Eigen::Triplet<double>>& pattern,
+                Eigen::SparseMatrix<double>* H) const {
+    const int nf = static_cast<int>(F.rows());
+    std::vector<Eigen::Triplet<double>> trip;
+    trip.reserve(pattern.size());
+    for (const auto& p : pattern) trip.emplace_back(p.row(), p.col(), 0.0);
+    g = Eigen::VectorXd::Zero(2 * m);
+    auto add = [&](int a, int b, double hxx, double hxy, double hyx, double hyy) {
+      if (index[a] < 0 || index[b] < 0) return;
+      trip.emplace_back(2 * index[a], 2 * index[b], hxx), trip.emplace_back(2 * index[a], 2 * index[b] + 1, hxy);
+      trip.emplace_back(2 * index[a] + 1, 2 * index[b], hyx), trip.emplace_back(2 * index[a] + 1, 2 * index[b] + 1, hyy);
+    };
+    for (size_t e = 0; e < edges.size(); ++e) {
+      const int i = edges[e].i, j = edges[e].j;
+      const double w = edges[e].cot_weight;
+      if (i == j) continue;
+      const Complex d = z[j] + t[e] - z[i];
+      if (index[i] >= 0) g[2 * index[i]] -= 2 * w * d.real(), g[2 * index[i] + 1] -= 2 * w * d.imag();
+      if (index[j] >= 0) g[2 * index[j]] += 2 * w * d.real(), g[2 * index[j] + 1] += 2 * w * d.imag();
+      add(i, i, 2 * w, 0, 0, 2 * w), add(j, j, 2 * w, 0, 0, 2 * w);
+      add(i, j, -2 * w, 0, 0, -2 * w), add(j, i, -2 * w, 0, 0, -2 * w);
+    }
+    for (int f = 0; f < nf; ++f) {
+      const double x = area(z, f) / c[f];
+      if (x >= 1) continue;
+      Complex p[3];
+      for (int k = 0; k < 3; ++k) p[k] = z[F(f, k)] + off(f, k);
+      // ∂A/∂(x_k, y_k) = ½ (y_{k+1} − y_{k+2}, x_{k+2} − x_{k+1}).
+      double gA[3][2];
+      for (int k = 0; k < 3; ++k) {
+        const Complex a = p[(k + 1) % 3], b = p[(k + 2) % 3];
+        gA[k][0] = 0.5 * (a.imag() - b.imag()), gA[k][1] = 0.5 * (b.real() - a.real());
+      }
+      const double d1 = mu * (1 - 1 / x) / c[f], d2 = mu / (x * x * c[f] * c[f]);
+      // Face Hessian d2 ∇A∇Aᵀ + d1 ∇²A (∇²A: the shoelace's constant
+      // ∂²A/∂x_a∂y_b = ½(δ_{b,a+1} − δ_{b,a+2})), projected onto PSD.
+      Eigen::Matrix<double, 6, 1> ga;
+      Eigen::Matrix<double, 6, 6> K = Eigen::Matrix<double, 6, 6>::Zero();
+      for (int a = 0; a < 3; ++a) ga[2 * a] = gA[a][0], ga[2 * a + 1] = gA[a][1];
+      for (int a = 0; a < 3; ++a) {
+        K(2 * a, 2 * ((a + 1) % 3) + 1) += 0.5 * d1, K(2 * ((a + 1) % 3) + 1, 2 * a) += 0.5 * d1;
+        K(2 * a, 2 * ((a + 2) % 3) + 1) -= 0.5 * d1, K(2 * ((a + 2) % 3) + 1, 2 * a) -= 0.5 * d1;
+      }
+      K += d2 * ga * ga.transpose();
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> es(K);
+      const Eigen::Matrix<double, 6, 1> lam = es.eigenvalues().cwiseMax(0.0);
+      K = es.eigenvectors() * lam.asDiagonal() * es.eigenvectors().transpose();
+      for (int a = 0; a < 3; ++a) {
+        const int va = F(f, a);
+        if (index[va] >= 0) g[2 * index[va]] += d1 * gA[a][0], g[2 * index[va] + 1] += d1 * gA[a][1];
+        for (int b = 0; b < 3; ++b)
+          add(va, F(f, b), K(2 * a, 2 * b), K(2 * a, 2 * b + 1), K(2 * a + 1, 2 * b), K(2 * a + 1, 2 * b + 1));
+      }
+    }
+    if (H) H->setFromTriplets(trip.begin(), trip.end());
+  }
+};
+
 }  // namespace
 
 LandmarkPatchSearch grow_landmark_patches(
@@ -309,25 +429,10 @@ FlatBarrierResult flat_barrier_landmarks(int n, const std::vector<IntrinsicEdge>
   // Free unknowns: every vertex but the landmarks, x and y interleaved.
   std::vector<int> index;
   const int m = number_free_vertices(n, source, index);
-  auto area = [&](const std::vector<Complex>& z, int f) {
-    const Complex p0 = z[F(f, 0)] + off(f, 0), p1 = z[F(f, 1)] + off(f, 1), p2 = z[F(f, 2)] + off(f, 2);
-    const Complex e1 = p1 - p0, e2 = p2 - p0;
-    return 0.5 * (e1.real() * e2.imag() - e1.imag() * e2.real());
-  };
-  auto dirichlet = [&](const std::vector<Complex>& z) {
-    double E = 0;
-    for (size_t e = 0; e < edges.size(); ++e) E += edges[e].cot_weight * std::norm(z[edges[e].j] + t[e] - z[edges[e].i]);
-    return E;
-  };
-  std::vector<double> c;
-  if (!barrier_reference_areas(nf, [&](int f) { return area(free, f); }, c)) return out;
-  const double mu = dirichlet(free) / nf;
-  // F(z) = E + μ Σ φ(A/c); +inf when a face is not positively oriented.
-  auto objective = [&](const std::vector<Complex>& z) {
-    const double B = face_barrier(c, [&](int f) { return area(z, f); });
-    if (!(B < std::numeric_limits<double>::infinity())) return B;
-    return dirichlet(z) + mu * B;
-  };
+  FlatBarrierProblem problem{edges, t, F, off, index, m, {}, 0.0};
+  if (!barrier_reference_areas(nf, [&](int f) { return problem.area(free, f); }, problem.c)) return out;
+  const double mu = problem.mu = problem.dirichlet(free) / nf;
+  auto objective = [&](const std::vector<Complex>& z) { return problem.objective(z); };
   const std::vector<Eigen::Triplet<double>> pattern = barrier_hessian_pattern(edges, F, index);
   Eigen::SparseMatrix<double> H(2 * m, 2 * m);
   H.setFromTriplets(pattern.begin(), pattern.end());
@@ -337,60 +442,7 @@ FlatBarrierResult flat_barrier_landmarks(int n, const std::vector<IntrinsicEdge>
   // Gradient of the objective in the free unknowns at z and (with
   // `hessian`) its Hessian in H (the barrier's per-face blocks projected).
   auto assemble = [&](const std::vector<Complex>& z, Eigen::VectorXd& g, bool hessian) {
-    {
-      std::vector<Eigen::Triplet<double>> trip;
-      trip.reserve(pattern.size());
-      for (const auto& p : pattern) trip.emplace_back(p.row(), p.col(), 0.0);
-      g = Eigen::VectorXd::Zero(2 * m);
-      auto add = [&](int a, int b, double hxx, double hxy, double hyx, double hyy) {
-        if (index[a] < 0 || index[b] < 0) return;
-        trip.emplace_back(2 * index[a], 2 * index[b], hxx), trip.emplace_back(2 * index[a], 2 * index[b] + 1, hxy);
-        trip.emplace_back(2 * index[a] + 1, 2 * index[b], hyx), trip.emplace_back(2 * index[a] + 1, 2 * index[b] + 1, hyy);
-      };
-      for (size_t e = 0; e < edges.size(); ++e) {
-        const int i = edges[e].i, j = edges[e].j;
-        const double w = edges[e].cot_weight;
-        if (i == j) continue;
-        const Complex d = z[j] + t[e] - z[i];
-        if (index[i] >= 0) g[2 * index[i]] -= 2 * w * d.real(), g[2 * index[i] + 1] -= 2 * w * d.imag();
-        if (index[j] >= 0) g[2 * index[j]] += 2 * w * d.real(), g[2 * index[j] + 1] += 2 * w * d.imag();
-        add(i, i, 2 * w, 0, 0, 2 * w), add(j, j, 2 * w, 0, 0, 2 * w);
-        add(i, j, -2 * w, 0, 0, -2 * w), add(j, i, -2 * w, 0, 0, -2 * w);
-      }
-      for (int f = 0; f < nf; ++f) {
-        const double x = area(z, f) / c[f];
-        if (x >= 1) continue;
-        Complex p[3];
-        for (int k = 0; k < 3; ++k) p[k] = z[F(f, k)] + off(f, k);
-        // ∂A/∂(x_k, y_k) = ½ (y_{k+1} − y_{k+2}, x_{k+2} − x_{k+1}).
-        double gA[3][2];
-        for (int k = 0; k < 3; ++k) {
-          const Complex a = p[(k + 1) % 3], b = p[(k + 2) % 3];
-          gA[k][0] = 0.5 * (a.imag() - b.imag()), gA[k][1] = 0.5 * (b.real() - a.real());
-        }
-        const double d1 = mu * (1 - 1 / x) / c[f], d2 = mu / (x * x * c[f] * c[f]);
-        // Face Hessian d2 ∇A∇Aᵀ + d1 ∇²A (∇²A: the shoelace's constant
-        // ∂²A/∂x_a∂y_b = ½(δ_{b,a+1} − δ_{b,a+2})), projected onto PSD.
-        Eigen::Matrix<double, 6, 1> ga;
-        Eigen::Matrix<double, 6, 6> K = Eigen::Matrix<double, 6, 6>::Zero();
-        for (int a = 0; a < 3; ++a) ga[2 * a] = gA[a][0], ga[2 * a + 1] = gA[a][1];
-        for (int a = 0; a < 3; ++a) {
-          K(2 * a, 2 * ((a + 1) % 3) + 1) += 0.5 * d1, K(2 * ((a + 1) % 3) + 1, 2 * a) += 0.5 * d1;
-          K(2 * a, 2 * ((a + 2) % 3) + 1) -= 0.5 * d1, K(2 * ((a + 2) % 3) + 1, 2 * a) -= 0.5 * d1;
-        }
-        K += d2 * ga * ga.transpose();
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> es(K);
-        const Eigen::Matrix<double, 6, 1> lam = es.eigenvalues().cwiseMax(0.0);
-        K = es.eigenvectors() * lam.asDiagonal() * es.eigenvectors().transpose();
-        for (int a = 0; a < 3; ++a) {
-          const int va = F(f, a);
-          if (index[va] >= 0) g[2 * index[va]] += d1 * gA[a][0], g[2 * index[va] + 1] += d1 * gA[a][1];
-          for (int b = 0; b < 3; ++b)
-            add(va, F(f, b), K(2 * a, 2 * b), K(2 * a, 2 * b + 1), K(2 * a + 1, 2 * b), K(2 * a + 1, 2 * b + 1));
-        }
-      }
-      if (hessian) H.setFromTriplets(trip.begin(), trip.end());
-    }
+    problem.assemble(z, g, pattern, hessian ? &H : nullptr);
   };
   double wmax = 0;
   for (const auto& e : edges) wmax = std::max(wmax, e.cot_weight);
@@ -420,13 +472,10 @@ FlatBarrierResult flat_barrier_landmarks(int n, const std::vector<IntrinsicEdge>
   for (size_t a = 0; a < source.size(); ++a) move[a] = lifts[a] - free[source[a]];
   const std::vector<Complex> zero_t(edges.size(), Complex(0.0));
   const std::vector<Complex> direction = PinnedFlatHarmonic(n, edges, source, false).solve(zero_t, move).first;
-  std::vector<Complex> z = free;
-  double s = 0, ds = 1;
-  while (s < 1 && ds > 1e-3) {
-    const double next = std::min(1.0, s + ds);
-    // Euler predictor along the path of optima: the free unknowns' response
-    // −H⁻¹ ∂g/∂s to the landmarks' move (∂g/∂s by a difference); the
-    // harmonic extension of the move from the free map at the start.
+  // Euler predictor along the path of optima: the free unknowns' response
+  // −H⁻¹ ∂g/∂s to the landmarks' move (∂g/∂s by a difference); the
+  // harmonic extension of the move from the free map at the start.
+  auto predict = [&](const std::vector<Complex>& z, double s, double next) {
     std::vector<Complex> dir = direction;
     if (s > 0) {
       Eigen::VectorXd g0, g1;
@@ -445,22 +494,20 @@ FlatBarrierResult flat_barrier_landmarks(int n, const std::vector<IntrinsicEdge>
     }
     std::vector<Complex> trial = z;
     for (int v = 0; v < n; ++v) trial[v] += (next - s) * dir[v];
-    for (size_t a = 0; a < source.size(); ++a) trial[source[a]] = free[source[a]] + next * move[a];
-    bool good = std::isfinite(objective(trial)) && newton(trial, next < 1 ? 8 : 60);
-    if (good) {
-      z.swap(trial), s = next, ++out.steps;
-      ds *= 2;
-    } else {
-      ds *= 0.5;
-    }
-  }
+    return trial;
+  };
+  auto place = [&](std::vector<Complex>& z, double s) {
+    for (size_t a = 0; a < source.size(); ++a) z[source[a]] = free[source[a]] + s * move[a];
+  };
+  std::vector<Complex> z = free;
+  const double s = barrier_continuation(z, predict, place, objective, newton, out.steps);
   out.reached = s;
   if (s < 1) return out;
   // Polish at the final positions (the landmarks exactly on their lifts).
   for (size_t a = 0; a < source.size(); ++a) z[source[a]] = lifts[a];
   newton(z, 40);
   out.ok = true;
-  out.energy = dirichlet(z);
+  out.energy = problem.dirichlet(z);
   out.z = std::move(z);
   return out;
 }
@@ -628,55 +675,48 @@ Eigen::Matrix<double, N, N> psd(const Eigen::Matrix<double, N, N>& K) {
   return es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).asDiagonal() * es.eigenvectors().transpose();
 }
 
-}  // namespace
+// hyperbolic_barrier_landmarks' objective at fixed landmark positions,
+// F(z) = E(z) + μ Σ_f φ(A_f(z) / c_f) (E = Σ w d(z_i, ρ z_j)²; A_f: the
+// Klein area of face f's image with corners 1 and 2 brought into corner
+// 0's chart by face_elements; c from barrier_reference_areas, μ set by the
+// caller), and its derivatives in the free unknowns.
+struct HyperbolicBarrierProblem {
+  int n = 0;
+  const std::vector<WeightedEdge>& edges;
+  const RowMatrixX3i& F;
+  const std::vector<hyperbolic::Mobius>& face_elements;  // 3 x #F
+  const std::vector<int>& index;                         // number_free_vertices
+  int m = 0;                                             // free unknowns
+  std::vector<double> c;
+  double mu = 0;
 
-HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<WeightedEdge>& edges,
-                                                     const RowMatrixX3i& F,
-                                                     const std::vector<hyperbolic::Mobius>& face_elements,
-                                                     const std::vector<Complex>& free, const std::vector<int>& source,
-                                                     const std::vector<Complex>& lifts,
-                                                     const std::function<bool(int, double, double)>& progress) {
-  using hyperbolic::Mobius;
-  HyperbolicBarrierResult out;
-  const int nf = static_cast<int>(F.rows());
-  if (static_cast<int>(face_elements.size()) != 3 * nf || static_cast<int>(free.size()) != n)
-    throw InputError("hyperbolic_barrier_landmarks: face_elements needs 3 x #F entries and free #V");
-  std::vector<int> index;
-  const int m = number_free_vertices(n, source, index);
   // Corner 1 and 2 of face f into corner 0's chart.
-  auto A1 = [&](int f) { return face_elements[3 * f]; };
-  auto A2 = [&](int f) { return face_elements[3 * f + 2].inverse(); };
-  auto area = [&](const std::vector<Complex>& z, int f) {
+  hyperbolic::Mobius A1(int f) const { return face_elements[3 * f]; }
+  hyperbolic::Mobius A2(int f) const { return face_elements[3 * f + 2].inverse(); }
+  double area(const std::vector<Complex>& z, int f) const {
     return klein_area(z[F(f, 0)], A1(f).apply(z[F(f, 1)]), A2(f).apply(z[F(f, 2)]));
-  };
-  auto dirichlet = [&](const std::vector<Complex>& z) {
+  }
+  double dirichlet(const std::vector<Complex>& z) const {
     double E = 0;
     for (const auto& e : edges) E += edge_value(z[e.i], z[e.j], e.rho, e.w);
     return E;
-  };
-  std::vector<double> c;
-  if (!barrier_reference_areas(nf, [&](int f) { return area(free, f); }, c)) return out;
-  const double mu = dirichlet(free) / nf;
-  // F(z) = E + μ Σ φ(A/c) (face_barrier); +inf when a face is not
-  // positively oriented or a point left the disk.
-  auto objective = [&](const std::vector<Complex>& z) {
+  }
+  // F(z) (face_barrier); +inf when a face is not positively oriented or a
+  // point left the disk.
+  double objective(const std::vector<Complex>& z) const {
     for (int v = 0; v < n; ++v)
       if (!(std::abs(z[v]) < 1)) return std::numeric_limits<double>::infinity();
     const double B = face_barrier(c, [&](int f) { return area(z, f); });
     if (!(B < std::numeric_limits<double>::infinity())) return B;
     return dirichlet(z) + mu * B;
-  };
-  const std::vector<Eigen::Triplet<double>> pattern = barrier_hessian_pattern(edges, F, index);
-  Eigen::SparseMatrix<double> H(2 * m, 2 * m);
-  H.setFromTriplets(pattern.begin(), pattern.end());
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
-  llt.cholmod().print = 0;  // an indefinite exact Hessian is expected (then projected), not worth a warning
-  llt.analyzePattern(H);
-  ++work::analyses;
-  // Gradient in the free unknowns (x, y of each point) and, with
-  // `hessian`, the Hessian in H: exact, or with every edge's and face's
-  // block projected onto PSD (`project`; a descent direction always).
-  auto assemble = [&](const std::vector<Complex>& z, Eigen::VectorXd& g, bool hessian, bool project) {
+  }
+  // Gradient g (2m: x, y of each free point) and, with H, the Hessian
+  // (sparsity `pattern`): exact, or with every edge's and face's block
+  // projected onto PSD (`project`; a descent direction always).
+  void assemble(const std::vector<Complex>& z, Eigen::VectorXd& g, const std::vector<Eigen::Triplet<double>>& pattern,
+                Eigen::SparseMatrix<double>* H, bool project) const {
+    const bool hessian = H != nullptr;
+    const int nf = static_cast<int>(F.rows());
     std::vector<Eigen::Triplet<double>> trip;
     if (hessian) {
       trip.reserve(2 * pattern.size());
@@ -712,7 +752,65 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
       const int vert[3] = {F(f, 0), F(f, 1), F(f, 2)};
       scatter(vert, 3, B);
     }
-    if (hessian) H.setFromTriplets(trip.begin(), trip.end());
+    if (hessian) H->setFromTriplets(trip.begin(), trip.end());
+  }
+};
+
+// The landmarks' paths: each walks the geodesic from its free image to its
+// lift; place(z, s) puts them at fraction s of the way (exactly on the
+// lifts at s >= 1).
+struct LandmarkGeodesics {
+  const std::vector<Complex>& free;
+  const std::vector<int>& source;
+  const std::vector<Complex>& lifts;
+  std::vector<hyperbolic::Mobius> back;
+  std::vector<Complex> far;
+
+  LandmarkGeodesics(const std::vector<Complex>& free_points, const std::vector<int>& landmarks,
+                    const std::vector<Complex>& lift_points)
+      : free(free_points), source(landmarks), lifts(lift_points), back(landmarks.size()), far(landmarks.size()) {
+    for (size_t a = 0; a < source.size(); ++a) {
+      const hyperbolic::Mobius C = hyperbolic::Mobius::centring(free[source[a]]);
+      back[a] = C.inverse(), far[a] = C.apply(lifts[a]);
+    }
+  }
+  void place(std::vector<Complex>& z, double s) const {
+    for (size_t a = 0; a < source.size(); ++a) {
+      const double r = std::abs(far[a]);
+      z[source[a]] = s >= 1 ? lifts[a]
+                     : r == 0 ? free[source[a]]
+                              : back[a].apply(std::tanh(s * std::atanh(r)) * (far[a] / r));
+    }
+  }
+};
+
+}  // namespace
+
+HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<WeightedEdge>& edges,
+                                                     const RowMatrixX3i& F,
+                                                     const std::vector<hyperbolic::Mobius>& face_elements,
+                                                     const std::vector<Complex>& free, const std::vector<int>& source,
+                                                     const std::vector<Complex>& lifts,
+                                                     const std::function<bool(int, double, double)>& progress) {
+  HyperbolicBarrierResult out;
+  const int nf = static_cast<int>(F.rows());
+  if (static_cast<int>(face_elements.size()) != 3 * nf || static_cast<int>(free.size()) != n)
+    throw InputError("hyperbolic_barrier_landmarks: face_elements needs 3 x #F entries and free #V");
+  std::vector<int> index;
+  const int m = number_free_vertices(n, source, index);
+  HyperbolicBarrierProblem problem{n, edges, F, face_elements, index, m, {}, 0.0};
+  if (!barrier_reference_areas(nf, [&](int f) { return problem.area(free, f); }, problem.c)) return out;
+  problem.mu = problem.dirichlet(free) / nf;
+  auto objective = [&](const std::vector<Complex>& z) { return problem.objective(z); };
+  const std::vector<Eigen::Triplet<double>> pattern = barrier_hessian_pattern(edges, F, index);
+  Eigen::SparseMatrix<double> H(2 * m, 2 * m);
+  H.setFromTriplets(pattern.begin(), pattern.end());
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
+  llt.cholmod().print = 0;  // an indefinite exact Hessian is expected (then projected), not worth a warning
+  llt.analyzePattern(H);
+  ++work::analyses;
+  auto assemble = [&](const std::vector<Complex>& z, Eigen::VectorXd& g, bool hessian, bool project) {
+    problem.assemble(z, g, pattern, hessian ? &H : nullptr, project);
   };
   // Convergence: the largest per-vertex gradient in the metric (Euclidean
   // gradient times (1 − |z|²)/2) against the free map's largest w d.
@@ -760,126 +858,89 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
     }
     return true;
   };
-  // Each landmark walks the geodesic from its free image to its lift.
-  std::vector<Mobius> back(source.size());
-  std::vector<Complex> far(source.size());
-  for (size_t a = 0; a < source.size(); ++a) {
-    const Mobius C = Mobius::centring(free[source[a]]);
-    back[a] = C.inverse(), far[a] = C.apply(lifts[a]);
-  }
-  auto place = [&](std::vector<Complex>& z, double s) {
-    for (size_t a = 0; a < source.size(); ++a) {
-      const double r = std::abs(far[a]);
-      z[source[a]] = s >= 1 ? lifts[a]
-                     : r == 0 ? free[source[a]]
-                              : back[a].apply(std::tanh(s * std::atanh(r)) * (far[a] / r));
+  const LandmarkGeodesics paths(free, source, lifts);
+  auto place = [&](std::vector<Complex>& z, double s) { paths.place(z, s); };
+  // Euler predictor along the path of optima: the free unknowns' response
+  // −H⁻¹ ∂g/∂s to the landmarks' move (∂g/∂s by a difference).
+  auto predict = [&](const std::vector<Complex>& z, double s, double next) {
+    std::vector<Complex> trial = z;
+    const double h = 1e-6;
+    Eigen::VectorXd g0, g1;
+    std::vector<Complex> zh = z;
+    place(zh, s + h);
+    assemble(zh, g1, false, false);
+    if (factorise_at(z, g0)) {
+      const Eigen::VectorXd d = llt.solve(-(g1 - g0) / h);
+      for (int v = 0; v < n; ++v)
+        if (index[v] >= 0) trial[v] += (next - s) * Complex(d[2 * index[v]], d[2 * index[v] + 1]);
     }
+    return trial;
   };
   std::vector<Complex> z = free;
-  double s = 0, ds = 1;
-  while (s < 1 && ds > 1e-3) {
-    const double next = std::min(1.0, s + ds);
-    // Euler predictor along the path of optima: the free unknowns' response
-    // −H⁻¹ ∂g/∂s to the landmarks' move (∂g/∂s by a difference).
-    std::vector<Complex> trial = z;
-    {
-      const double h = 1e-6;
-      Eigen::VectorXd g0, g1;
-      std::vector<Complex> zh = z;
-      place(zh, s + h);
-      assemble(zh, g1, false, false);
-      if (factorise_at(z, g0)) {
-        const Eigen::VectorXd d = llt.solve(-(g1 - g0) / h);
-        for (int v = 0; v < n; ++v)
-          if (index[v] >= 0) trial[v] += (next - s) * Complex(d[2 * index[v]], d[2 * index[v] + 1]);
-      }
-    }
-    place(trial, next);
-    const bool good = std::isfinite(objective(trial)) && newton(trial, next < 1 ? 8 : 60);
-    if (good) {
-      z.swap(trial), s = next, ++out.steps;
-      ds *= 2;
-    } else {
-      ds *= 0.5;
-    }
-  }
+  const double s = barrier_continuation(z, predict, place, objective, newton, out.steps);
   out.reached = s;
   if (s < 1) return out;
   place(z, 1.0);
   newton(z, 40);
   if (!std::isfinite(objective(z))) return out;
   out.ok = true;
-  out.energy = dirichlet(z);
+  out.energy = problem.dirichlet(z);
   out.z = std::move(z);
   return out;
 }
 
-HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<WeightedEdge>& edges,
-                                                   const std::vector<hyperbolic::Mobius>& generators,
-                                                   const std::vector<hyperbolic::Mobius>& side_pairings,
-                                                   const HyperbolicHarmonicResult& free, const std::vector<int>& source,
-                                                   const std::vector<Complex>& target_position,
-                                                   const std::vector<int>& target_vertex,
-                                                   HyperbolicHarmonicOptions options, bool relaxation,
-                                                   HarmonicRelaxationOptions relaxation_options,
-                                                   const RowMatrixX3i* faces,
-                                                   const std::function<std::vector<int>(const HyperbolicHarmonicResult&)>&
-                                                       bad_faces,
-                                                   LandmarkHold* hold, const std::vector<hyperbolic::Mobius>* face_elements) {
-  using hyperbolic::Mobius;
-  // Side pairings move the layout's cut disk to its neighbours (short
-  // translations); the loop generators can be long (entries ~1e5 seen in
-  // the layout frame), and words that come back near z would be pruned.
-  std::vector<Mobius> moves;
-  for (const auto& g : side_pairings) moves.push_back(g), moves.push_back(g.inverse());
-  // The solve runs in the free optimum's charts: effective edge elements and
-  // its points (all near the origin) as the start.
-  std::vector<WeightedEdge> held_edges = edges;
-  // (The free solve's own effective elements when it has them: well
-  // conditioned, unlike products of its vertex decks.)
-  const bool have_effective = free.edge_effective.size() == edges.size();
-  for (size_t k = 0; k < held_edges.size(); ++k) {
-    auto& e = held_edges[k];
-    e.rho = have_effective ? free.edge_effective[k]
-                           : (free.vertex_deck[e.i] * e.rho * free.vertex_deck[e.j].inverse()).normalized();
-    e.rho_word.clear();  // the held solve runs without words (no relator)
+namespace {
+
+// The deck image of `target` nearest to z in hyperbolic distance: breadth
+// first over deck images of the target point under words in `moves`,
+// keeping only those that stay within reach of z (around a corner of the
+// domain the nearest lift can need a word of length ~4g).
+Complex nearest_deck_image(Complex z, Complex target, const std::vector<hyperbolic::Mobius>& moves) {
+  Complex best = target;
+  double best_d = hyperbolic::distance(z, best);
+  const double reach = std::max(best_d, 1.0) + 4.0;
+  std::set<std::pair<long long, long long>> seen;
+  auto key = [](Complex w) { return std::make_pair(std::llround(w.real() * 1e9), std::llround(w.imag() * 1e9)); };
+  std::vector<Complex> frontier{best};
+  seen.insert(key(best));
+  for (int depth = 1; depth <= 2 * static_cast<int>(moves.size()) + 2 && !frontier.empty(); ++depth) {
+    std::vector<Complex> next;
+    for (const Complex& q : frontier)
+      for (const auto& m : moves) {
+        const Complex w = m.apply(q);
+        const double d = hyperbolic::distance(z, w);
+        if (d > reach || !seen.insert(key(w)).second) continue;
+        if (d < best_d) best_d = d, best = w;
+        next.push_back(w);
+      }
+    if (seen.size() > 200000) break;
+    frontier.swap(next);
   }
-  options.relator.clear();
-  std::vector<Complex> lift(source.size());
-  for (size_t k = 0; k < source.size(); ++k) {
-    const Complex z = free.z[source[k]];
-    // Breadth first over deck images of the target point, keeping only those
-    // that stay within reach of z (around a corner of the domain the nearest
-    // lift can need a word of length ~4g).
-    Complex best = target_position[k];
-    double best_d = hyperbolic::distance(z, best);
-    const double reach = std::max(best_d, 1.0) + 4.0;
-    std::set<std::pair<long long, long long>> seen;
-    auto key = [](Complex w) { return std::make_pair(std::llround(w.real() * 1e9), std::llround(w.imag() * 1e9)); };
-    std::vector<Complex> frontier{best};
-    seen.insert(key(best));
-    for (int depth = 1; depth <= 2 * static_cast<int>(moves.size()) + 2 && !frontier.empty(); ++depth) {
-      std::vector<Complex> next;
-      for (const Complex& q : frontier)
-        for (const auto& m : moves) {
-          const Complex w = m.apply(q);
-          const double d = hyperbolic::distance(z, w);
-          if (d > reach || !seen.insert(key(w)).second) continue;
-          if (d < best_d) best_d = d, best = w;
-          next.push_back(w);
-        }
-      if (seen.size() > 200000) break;
-      frontier.swap(next);
-    }
-    lift[k] = best;
-  }
+  return best;
+}
+
+// hold_hyperbolic_landmarks' held solves, all in the free optimum's charts
+// (`held_edges`: the edges with the free solve's effective elements).
+struct HeldLandmarkSolve {
+  int n = 0;
+  const std::vector<WeightedEdge>& held_edges;
+  const std::vector<hyperbolic::Mobius>& generators;
+  const HyperbolicHarmonicResult& free;
+  const std::vector<int>& source;
+  const std::vector<Complex>& lift;  // per landmark, its target point's nearest deck image
+  const HyperbolicHarmonicOptions& options;
+  bool relaxation = false;
+  const HarmonicRelaxationOptions& relaxation_options;
+
   // One held solve with the landmarks' neighbourhoods (patches; vertex 0
   // the landmark) held: each patch vertex at the image of its free point
   // under the isometry moving the landmark's free image to its lift along
   // the geodesic (conjugated into the vertex's own chart by the edge
   // elements along the patch's tree), every other vertex starting at its
-  // free point (the free optimum's charts).
-  auto held_solve = [&](const std::vector<LandmarkPatch>& patches) {
+  // free point (the free optimum's charts). The vertex decks returned are
+  // relative to the original edges (the free decks composed back).
+  HyperbolicHarmonicResult operator()(const std::vector<LandmarkPatch>& patches) const {
+    using hyperbolic::Mobius;
     std::vector<Complex> z0 = free.z;
     HyperbolicHarmonicOptions ho = options;
     ho.fixed.assign(n, 0);
@@ -913,7 +974,60 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<Weig
     else
       held.vertex_deck_word.clear();
     return held;
-  };
+  }
+};
+
+// The barrier continuation's result as a held harmonic map: the free
+// optimum's charts and decks with the continuation's points.
+HyperbolicHarmonicResult barrier_as_held(const HyperbolicHarmonicResult& free, const HyperbolicBarrierResult& br) {
+  HyperbolicHarmonicResult held = free;  // same charts and decks, new points
+  held.z = br.z;
+  held.energy = br.energy;
+  held.iterations = br.newton_iterations;
+  held.energy_history = {br.energy};
+  held.gradient_history.clear();
+  held.edge_local.clear();  // not kept by the continuation (rebuilt from the points)
+  held.converged = true;
+  return held;
+}
+
+}  // namespace
+
+HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<WeightedEdge>& edges,
+                                                   const std::vector<hyperbolic::Mobius>& generators,
+                                                   const std::vector<hyperbolic::Mobius>& side_pairings,
+                                                   const HyperbolicHarmonicResult& free, const std::vector<int>& source,
+                                                   const std::vector<Complex>& target_position,
+                                                   const std::vector<int>& target_vertex,
+                                                   HyperbolicHarmonicOptions options, bool relaxation,
+                                                   HarmonicRelaxationOptions relaxation_options,
+                                                   const RowMatrixX3i* faces,
+                                                   const std::function<std::vector<int>(const HyperbolicHarmonicResult&)>&
+                                                       bad_faces,
+                                                   LandmarkHold* hold, const std::vector<hyperbolic::Mobius>* face_elements) {
+  using hyperbolic::Mobius;
+  // Side pairings move the layout's cut disk to its neighbours (short
+  // translations); the loop generators can be long (entries ~1e5 seen in
+  // the layout frame), and words that come back near z would be pruned.
+  std::vector<Mobius> moves;
+  for (const auto& g : side_pairings) moves.push_back(g), moves.push_back(g.inverse());
+  // The solve runs in the free optimum's charts: effective edge elements and
+  // its points (all near the origin) as the start.
+  std::vector<WeightedEdge> held_edges = edges;
+  // (The free solve's own effective elements when it has them: well
+  // conditioned, unlike products of its vertex decks.)
+  const bool have_effective = free.edge_effective.size() == edges.size();
+  for (size_t k = 0; k < held_edges.size(); ++k) {
+    auto& e = held_edges[k];
+    e.rho = have_effective ? free.edge_effective[k]
+                           : (free.vertex_deck[e.i] * e.rho * free.vertex_deck[e.j].inverse()).normalized();
+    e.rho_word.clear();  // the held solve runs without words (no relator)
+  }
+  options.relator.clear();
+  std::vector<Complex> lift(source.size());
+  for (size_t k = 0; k < source.size(); ++k) lift[k] = nearest_deck_image(free.z[source[k]], target_position[k], moves);
+  const HeldLandmarkSolve held_solve{n,    held_edges, generators, free, source, lift, options,
+                                     relaxation, relaxation_options};
   std::vector<LandmarkPatch> pins(source.size());
   for (size_t a = 0; a < source.size(); ++a)
     pins[a].vertex = {source[a]}, pins[a].parent = {-1}, pins[a].edge = {-1}, pins[a].head = {0};
@@ -939,14 +1053,7 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<Weig
     record.barrier_reached = br.reached;
     record.solves += br.steps;
     if (br.ok) {
-      HyperbolicHarmonicResult held = free;  // same charts and decks, new points
-      held.z = br.z;
-      held.energy = br.energy;
-      held.iterations = br.newton_iterations;
-      held.energy_history = {br.energy};
-      held.gradient_history.clear();
-      held.edge_local.clear();  // not kept by the continuation (rebuilt from the points)
-      held.converged = true;
+      HyperbolicHarmonicResult held = barrier_as_held(free, br);
       if (bad_faces(held).empty()) {
         record.method = "barrier continuation";
         if (hold) *hold = record;
