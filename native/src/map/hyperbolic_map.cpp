@@ -198,10 +198,7 @@ void HyperbolicPipeline::start_source_side() {
 // side (from the second thread, or built now).
 void HyperbolicPipeline::uniformize_target() {
   ut = std::make_unique<UniformizedTarget>(uniformized_target(target, Background::Hyperbolic, options));
-  out.target_refinement_splits = ut->refinement_splits;
-  out.target_metric = ut->metric;
-  out.target_flips = ut->flips;
-  out.target_metric_choice = ut->metric_choice;
+  record_target_metric(*ut, out);
   tcs = canonical_schema(ut->layout.word);
   deck_group = std::make_unique<DeckGroup>(ut->layout);
   polygon = std::make_unique<FundamentalPolygon>(ut->layout, *deck_group);
