@@ -10,24 +10,8 @@ from test_map import _check_outputs, _check_uvs, _mapping
 
 def cap(n, bump=0.0):
     """A spherical cap (hemisphere, rim at z = 0) as a polar grid with a centre vertex; `bump`
-    adds an asymmetric bulge so the shape has one best rotation."""
-    V = [[0.0, 0.0, 1.0]]
-    F = []
-    for k in range(1, n + 1):
-        phi = 0.5 * np.pi * k / n
-        for j in range(6 * n):
-            t = 2 * np.pi * j / (6 * n)
-            V.append([np.sin(phi) * np.cos(t), np.sin(phi) * np.sin(t), np.cos(phi)])
-    ring = lambda k, j: 1 + (k - 1) * 6 * n + j % (6 * n)
-    for j in range(6 * n):
-        F.append([0, ring(1, j), ring(1, j + 1)])
-    for k in range(1, n):
-        for j in range(6 * n):
-            F += [[ring(k, j), ring(k + 1, j), ring(k + 1, j + 1)],
-                  [ring(k, j), ring(k + 1, j + 1), ring(k, j + 1)]]
-    V = np.array(V)
-    V[:, 2] += bump * V[:, 0] * V[:, 2]
-    return V, np.array(F)
+    adds an asymmetric bulge so the shape has one best rotation (samples/shapes.h spherical_cap)."""
+    return helpers.sm().shapes.spherical_cap(n, bump)
 
 
 def tube(around=24, rows=6):

@@ -124,10 +124,10 @@ class SURFMAP_PG_settings(bpy.types.PropertyGroup):
         description="How the smoothest map is found")
     tolerance: FloatProperty(
         name="Tolerance", default=0.0, min=0.0, precision=10, step=0.0001,
-        description="When the solve stops: the change in energy it accepts (0: the default)")
+        description="When the solve stops: its relative gradient tolerance (0: the default)")
     tolerance_text: StringProperty(
         name="Tolerance", get=_tolerance_text_get, set=_tolerance_text_set,
-        description="When the solve stops: the change in energy it accepts, e.g. 1e-10 "
+        description="When the solve stops: its relative gradient tolerance, e.g. 1e-10 "
                     "('default': the solver's own)")
     source_weights: EnumProperty(
         name="Weights", default='AUTO',

@@ -52,6 +52,10 @@ std::vector<std::pair<int, int>> read_landmarks(const std::string& path) {
 
 }  // namespace
 
+// Long on purpose: one flat list of the subcommand's flags (each one
+// add_option/add_flag with its help text) and the one callback that fills
+// SurfaceMapOptions from them and runs the map; split, a flag and where it
+// is read would sit apart.
 void register_map(CLI::App& app) {
   auto* cmd = app.add_subcommand("map", "Globally optimal map from SRC onto DST (same genus)");
   struct Args {

@@ -130,6 +130,10 @@ void bind_samples(py::module_& m) {
         "Canonical genus-g domain (samples/canonical_domain.h): (V, F, quality dict).");
   s.def("sphere", [](int subdivisions) { return out(samples::sphere(subdivisions)); }, arg("subdivisions") = 3,
         "Subdivided icosahedron on the unit sphere (genus 0).");
+  s.def("spherical_cap", [](int rings, double bump) { return out(samples::spherical_cap(rings, bump)); },
+        arg("rings"), arg("bump") = 0.0,
+        "Open disk: the hemisphere z >= 0 as a polar grid (centre vertex, `rings` rings of 6 x rings vertices); "
+        "`bump` adds the asymmetric bulge z += bump x z.");
 }
 
 }  // namespace surfmap::python

@@ -126,6 +126,8 @@ py::dict layout_dict(const DiskLayout& L) {
 
 }  // namespace
 
+// Long on purpose: one m.def per uniformization function with its keyword
+// list and docstring, read like a table of the module's entry points.
 void bind_uniformize(py::module_& m) {
   m.def(
       "uniformize",

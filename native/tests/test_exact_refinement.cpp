@@ -6,6 +6,8 @@
 
 #include <cmath>
 
+#include <Eigen/Geometry>
+
 #include "surfmap/error.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/connectivity.h"

@@ -19,6 +19,7 @@
 
 #include "surfmap/error.h"
 #include "surfmap/mesh/connectivity.h"
+#include "surfmap/mesh/open_surface.h"
 
 namespace surfmap::samples {
 namespace {
@@ -95,6 +96,34 @@ TEST(Shapes, SphereIsSubdividedIcosahedronOnUnitSphere) {
   }
   // Volume tends to 4/3 pi.
   EXPECT_NEAR(signed_volume(sphere(5)), 4.0 / 3.0 * M_PI, 0.01);
+}
+
+TEST(Shapes, SphericalCapIsAHemisphereDiskRimAtZeroHeight) {
+  for (int rings : {1, 3, 8}) {
+    const TriMesh m = spherical_cap(rings);
+    const OpenSurfaceTopology t = open_surface_topology(m);
+    EXPECT_EQ(t.genus, 0);
+    ASSERT_EQ(t.num_boundary_loops(), 1);
+    EXPECT_EQ(static_cast<int>(t.boundary_loops[0].size()), 6 * rings);
+    EXPECT_EQ(m.num_vertices(), 1 + 6 * rings * rings);
+    for (int v = 0; v < m.num_vertices(); ++v) {
+      EXPECT_NEAR(m.V.row(v).norm(), 1.0, 1e-12);
+      EXPECT_GE(m.V(v, 2), -1e-15);
+    }
+    for (int v : t.boundary_loops[0]) EXPECT_NEAR(m.V(v, 2), 0.0, 1e-15);
+    // Outward (away from the sphere's centre): every face normal has a
+    // positive component along its centroid.
+    for (int f = 0; f < m.num_faces(); ++f) {
+      const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
+      EXPECT_GT((b - a).cross(c - a).dot(a + b + c), 0.0) << "face " << f;
+    }
+  }
+  // The bump moves z by bump x z and keeps the rim at z = 0.
+  const TriMesh plain = spherical_cap(4), bumped = spherical_cap(4, 0.3);
+  for (int v = 0; v < plain.num_vertices(); ++v) {
+    EXPECT_NEAR(bumped.V(v, 2), plain.V(v, 2) * (1 + 0.3 * plain.V(v, 0)), 1e-15);
+  }
+  EXPECT_THROW(spherical_cap(0), InputError);
 }
 
 TEST(Shapes, TorusOfRevolutionLiesOnTheTorusInEveryVariant) {

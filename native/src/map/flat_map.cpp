@@ -40,36 +40,21 @@ Complex evaluate(const Word& w, const std::vector<Complex>& values) {
   return s;
 }
 
-// Everything about the target that the solve needs: its flat layout (on the
-// refined mesh of its system of loops) and the canonical lattice basis.
-struct FlatTarget {
-  SystemOfLoops loops;
-  DiskLayout layout;
+// Everything about the target that the solve needs: its flat uniformization
+// (layout on the refined mesh of its system of loops, the metric's account)
+// and the canonical lattice basis.
+struct FlatTarget : UniformizedTarget {
   Complex A, B;  // translations of the canonical generators a', b'
-  int refinement_splits = 0;  // exact splits that made the metric exist
-  std::string metric;         // UniformizedTarget::metric
-  std::string metric_choice;  // UniformizedTarget::metric_choice
-  int flips = 0;
-  std::shared_ptr<const TargetIntrinsic> intrinsic;  // the flip path's way back to the input faces
-  std::vector<int> refined_to_input_face;
 };
 
 FlatTarget flat_target(const TriMesh& target, const SurfaceMapOptions& options) {
   FlatTarget t;
-  UniformizedTarget u = uniformized_target(target, Background::Euclidean, options);
-  t.loops = std::move(u.loops);
-  t.refinement_splits = u.refinement_splits;
-  t.metric = u.metric;
-  t.metric_choice = u.metric_choice;
-  t.flips = u.flips;
-  t.intrinsic = u.intrinsic;
-  t.layout = std::move(u.layout);
+  static_cast<UniformizedTarget&>(t) = uniformized_target(target, Background::Euclidean, options);
   const CanonicalSchema cs = canonical_schema(t.layout.word);
   t.A = evaluate(cs.generators[0], t.layout.generator_translations);
   t.B = evaluate(cs.generators[1], t.layout.generator_translations);
   return t;
 }
-
 
 // The source's Laplacian (cotangent weights of `idt`, or uniform ones for
 // the Tutte-type initial map) with vertex 0 pinned, factorised once and
@@ -452,10 +437,7 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
               const StageDone& stage_done) {
   // Target: flat uniformization and canonical lattice basis.
   FlatInputs in{source, target, sc, tc, options, hooks, stage_done, flat_target(target, options), {}, {}, {}, {}};
-  out.target_refinement_splits = in.tgt.refinement_splits;
-  out.target_metric = in.tgt.metric;
-  out.target_flips = in.tgt.flips;
-  out.target_metric_choice = in.tgt.metric_choice;
+  record_target_metric(in.tgt, out);
   stage_done("target uniformization", 0.3);
 
   // Source: homotopy data and edge lengths.

@@ -198,11 +198,7 @@ void HyperbolicPipeline::start_source_side() {
 // side (from the second thread, or built now).
 void HyperbolicPipeline::uniformize_target() {
   ut = std::make_unique<UniformizedTarget>(uniformized_target(target, Background::Hyperbolic, options));
-  out.target_refinement_splits = ut->refinement_splits;
-  out.target_metric = ut->metric;
-  out.target_flips = ut->flips;
-  out.target_metric_choice = ut->metric_choice;
-  out.target_class_loops = ut->class_loops_status;
+  record_target_metric(*ut, out);
   tcs = canonical_schema(ut->layout.word);
   if (ut->class_loops) {
     // Flip path: the canonical generators of the target's own loops, on T'

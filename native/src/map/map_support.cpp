@@ -125,7 +125,7 @@ UniformizedTarget intrinsic_target(const TriMesh& target, Background background,
   UniformizedTarget t;
   const Connectivity tc(target.F, target.num_vertices());
   RicciFlowOptions fo;
-  fo.tolerance = options.uniformization_tolerance;
+  fo.tolerance = options.uniformization.tolerance;
   fo.intrinsic_delaunay = true;
   const RicciFlowResult flow = ricci_flow(tc, edge_lengths(target, tc), background, fo);
   if (!flow.converged) throw SolveError("the flow did not converge: " + flow.message);
@@ -174,7 +174,7 @@ UniformizedTarget fixed_target(const TriMesh& target, Background background, con
                                   : "fixed connectivity (intrinsic Delaunay failed: " + flip_failure + ")";
   t.loops = system_of_loops(target, lo);
   FeasibleMetricOptions fo;
-  fo.flow.tolerance = options.uniformization_tolerance;
+  fo.flow.tolerance = options.uniformization.tolerance;
   if (!refine) fo.refine_max_angles.clear();
   FeasibleMetricResult fm = feasible_metric(target, t.loops, background, fo);
   const RicciFlowResult& flow = fm.flow;
@@ -237,6 +237,14 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
   UniformizedTarget t = fixed_target(target, background, options, lo, true, flip_failure);
   t.metric_choice = "automatic: the flip path failed, fixed connectivity";
   return t;
+}
+
+void record_target_metric(const UniformizedTarget& target, SurfaceMapResult& out) {
+  out.target_refinement_splits = target.refinement_splits;
+  out.target_metric = target.metric;
+  out.target_flips = target.flips;
+  out.target_metric_choice = target.metric_choice;
+  out.target_class_loops = target.class_loops_status;
 }
 
 void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo& info) {

@@ -110,6 +110,11 @@ struct UniformizedTarget {
 
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options);
 
+/// The target metric's account (which metric, why, its flips and exact
+/// splits) recorded in the result's target_* fields; one place for every
+/// genus that uniformizes the target through uniformized_target.
+void record_target_metric(const UniformizedTarget& target, SurfaceMapResult& out);
+
 /// The source's unrefined system of loops: it keeps the source's own
 /// connectivity, and contracting its tree gives a one-vertex schema.
 SystemOfLoops source_loops(const TriMesh& source, const SurfaceMapOptions& options);

@@ -680,7 +680,7 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
     throw InputError("homotopy class " + std::to_string(options.homotopy.class_index) +
                      " does not exist; a genus-0 surface has one class (0)");
   SphericalUniformizationOptions uo;
-  uo.flow.tolerance = options.uniformization_tolerance;
+  uo.flow.tolerance = options.uniformization.tolerance;
   int repaired_t = 0, repaired_s = 0;
   const SphericalUniformization ut = usable_sphere(target, uo, "target", &repaired_t);
   stage_done("target uniformization", 0.3);

@@ -70,31 +70,24 @@ struct Analysis {
   bool usable_topology = false;  // triangles well-formed, closed, manifold, oriented
 };
 
-Analysis analyse(const PolygonSoup& soup, const IntakeOptions& options) {
-  Analysis a;
-  MeshInfo& info = a.info;
-  const int nv = static_cast<int>(soup.V.rows());
-  info.num_vertices = nv;
-  auto& problems = info.problems;
-
-  if (nv == 0 || soup.polygons.empty()) {
-    problems.push_back("the mesh is empty (" + plural(nv, "vertex") + ", " +
-                       plural(soup.polygons.size(), "face") + ")");
-    return a;
-  }
-
-  // Coordinates.
-  for (int v = 0; v < nv; ++v) {
+// Step 1: every coordinate finite. False (the problem recorded) when not:
+// nothing geometric can be trusted after that.
+bool check_coordinates(const PolygonSoup& soup, std::vector<std::string>& problems) {
+  for (int v = 0; v < static_cast<int>(soup.V.rows()); ++v) {
     if (!soup.V.row(v).allFinite()) {
       std::ostringstream s;
       s << "vertex " << v << " has a non-finite coordinate (" << soup.V(v, 0) << ", " << soup.V(v, 1)
         << ", " << soup.V(v, 2) << ")";
       problems.push_back(s.str());
-      return a;  // nothing geometric can be trusted after this
+      return false;
     }
   }
+  return true;
+}
 
-  // Face indices.
+// Step 2: every polygon has >= 3 distinct in-range vertex indices. Records
+// each offending face; true when all are well-formed.
+bool check_face_indices(const PolygonSoup& soup, int nv, std::vector<std::string>& problems) {
   bool indices_ok = true;
   for (size_t p = 0; p < soup.polygons.size(); ++p) {
     const auto& poly = soup.polygons[p];
@@ -119,132 +112,161 @@ Analysis analyse(const PolygonSoup& soup, const IntakeOptions& options) {
       indices_ok = false;
     }
   }
-  info.num_faces = static_cast<int>(soup.polygons.size());
-  if (!indices_ok) return a;
+  return indices_ok;
+}
 
+// Fan triangulation of well-formed polygons (step 2 passed).
+Triangulation fan_triangulate(const PolygonSoup& soup) {
+  Triangulation tri;
   for (size_t p = 0; p < soup.polygons.size(); ++p) {
     const auto& poly = soup.polygons[p];
     for (size_t k = 1; k + 1 < poly.size(); ++k) {
-      a.tri.tris.push_back({poly[0], poly[k], poly[k + 1]});
-      a.tri.source_polygon.push_back(static_cast<int>(p));
+      tri.tris.push_back({poly[0], poly[k], poly[k + 1]});
+      tri.source_polygon.push_back(static_cast<int>(p));
     }
   }
-  const int nt = static_cast<int>(a.tri.tris.size());
+  return tri;
+}
 
-  // Exactly zero-area faces, relative to the bounding box so the test is
-  // scale-free. They are accepted (mollified below, once the topology is
-  // known); only a mesh whose vertices all coincide has no geometry at all.
+// Step 3: the mesh has a finite, non-zero extent; counts the exactly
+// zero-area triangles relative to the bounding box so the test is
+// scale-free. They are accepted (mollified in step 6, once the topology is
+// known); only a mesh whose vertices all coincide has no geometry at all.
+// False (the problem recorded) when there is no usable extent.
+bool check_extent(const PolygonSoup& soup, const Triangulation& tri, const IntakeOptions& options,
+                  MeshInfo& info) {
   const Eigen::Vector3d lo = soup.V.colwise().minCoeff(), hi = soup.V.colwise().maxCoeff();
   const double diag2 = (hi - lo).squaredNorm();
   if (!std::isfinite(diag2)) {
-    problems.push_back("the coordinates are too large (the bounding box diagonal overflows); rescale the mesh");
-    return a;
+    info.problems.push_back("the coordinates are too large (the bounding box diagonal overflows); rescale the mesh");
+    return false;
   }
   if (!(diag2 > 0)) {
-    problems.push_back("all " + plural(nv, "vertex") + " are at the same position (the mesh has no extent)");
-    return a;
+    info.problems.push_back("all " + plural(info.num_vertices, "vertex") +
+                            " are at the same position (the mesh has no extent)");
+    return false;
   }
-  for (int t = 0; t < nt; ++t) {
-    const auto& f = a.tri.tris[t];
+  for (const auto& f : tri.tris) {
     const Eigen::Vector3d e1 = soup.V.row(f[1]) - soup.V.row(f[0]);
     const Eigen::Vector3d e2 = soup.V.row(f[2]) - soup.V.row(f[0]);
     if (0.5 * e1.cross(e2).norm() <= options.area_tolerance * diag2) ++info.zero_area_faces;
   }
+  return true;
+}
 
-  // Edges: group halfedges by their unordered vertex pair.
+// What step 4 found on the edges; vertices_uf joins the vertices of each
+// edge (the components of step 5).
+struct EdgeCheck {
+  int nonmanifold = 0, boundary = 0, misoriented = 0;
+  UnionFind vertices_uf;
+  explicit EdgeCheck(int nv) : vertices_uf(nv) {}
+};
+
+// Step 4: edges grouped by their unordered vertex pair: non-manifold edges
+// (> 2 faces), boundary edges and their loops, inconsistently oriented
+// pairs; each kind recorded with its first offender.
+EdgeCheck check_edges(const Triangulation& tri, const IntakeOptions& options, MeshInfo& info) {
+  const int nv = info.num_vertices;
+  const int nt = static_cast<int>(tri.tris.size());
+  auto& problems = info.problems;
   std::vector<std::pair<long long, int>> keys(3 * nt);
   for (int h = 0; h < 3 * nt; ++h) {
-    const int u = a.tri.tris[h / 3][h % 3], w = a.tri.tris[h / 3][(h % 3 + 1) % 3];
+    const int u = tri.tris[h / 3][h % 3], w = tri.tris[h / 3][(h % 3 + 1) % 3];
     keys[h] = {static_cast<long long>(std::min(u, w)) * nv + std::max(u, w), h};
   }
   std::sort(keys.begin(), keys.end());
-  int num_edges = 0, nonmanifold = 0, boundary = 0, misoriented = 0;
+  EdgeCheck c(nv);
+  int num_edges = 0;
   std::string first_nonmanifold, first_boundary, first_misoriented;
-  UnionFind vertices_uf(nv), boundary_uf(nv);
+  UnionFind boundary_uf(nv);
   std::vector<char> on_boundary(nv, 0);
   for (size_t i = 0; i < keys.size();) {
     size_t j = i;
     while (j < keys.size() && keys[j].first == keys[i].first) ++j;
     ++num_edges;
     const int h0 = keys[i].second;
-    const int u = a.tri.tris[h0 / 3][h0 % 3], w = a.tri.tris[h0 / 3][(h0 % 3 + 1) % 3];
+    const int u = tri.tris[h0 / 3][h0 % 3], w = tri.tris[h0 / 3][(h0 % 3 + 1) % 3];
     const std::string name = "(" + std::to_string(std::min(u, w)) + ", " + std::to_string(std::max(u, w)) + ")";
-    auto face_of = [&](size_t k) { return std::to_string(a.tri.source_polygon[keys[k].second / 3]); };
-    vertices_uf.unite(u, w);
+    auto face_of = [&](size_t k) { return std::to_string(tri.source_polygon[keys[k].second / 3]); };
+    c.vertices_uf.unite(u, w);
     if (j - i == 1) {
-      if (boundary++ == 0) first_boundary = name + " of face " + face_of(i);
+      if (c.boundary++ == 0) first_boundary = name + " of face " + face_of(i);
       on_boundary[u] = on_boundary[w] = 1;
       boundary_uf.unite(u, w);
     } else if (j - i > 2) {
-      if (nonmanifold++ == 0) {
+      if (c.nonmanifold++ == 0) {
         first_nonmanifold = name + ", shared by faces ";
         for (size_t k = i; k < j; ++k) first_nonmanifold += (k > i ? ", " : "") + face_of(k);
       }
     } else {
       const int h1 = keys[i + 1].second;
-      if (a.tri.tris[h1 / 3][h1 % 3] == u) {
-        if (misoriented++ == 0)
+      if (tri.tris[h1 / 3][h1 % 3] == u) {
+        if (c.misoriented++ == 0)
           first_misoriented = "faces " + face_of(i) + " and " + face_of(i + 1) + " across edge " + name;
       }
     }
     i = j;
   }
   info.num_edges = num_edges;
-  if (nonmanifold)
-    problems.push_back(plural(nonmanifold, "non-manifold edge") + " (more than two faces), first: edge " +
+  if (c.nonmanifold)
+    problems.push_back(plural(c.nonmanifold, "non-manifold edge") + " (more than two faces), first: edge " +
                        first_nonmanifold);
-  if (boundary) {
+  if (c.boundary) {
     int loops = 0;
     for (int v = 0; v < nv; ++v)
       if (on_boundary[v] && boundary_uf.find(v) == v) ++loops;
     info.num_boundary_loops = loops;
     if (!options.allow_boundary)  // open surfaces: mesh/open_surface.h
-      problems.push_back("the surface is open: " + plural(boundary, "boundary edge") + " in " +
+      problems.push_back("the surface is open: " + plural(c.boundary, "boundary edge") + " in " +
                        plural(loops, "boundary loop") + ", first: edge " + first_boundary +
                        "; open surfaces are not supported yet (close the holes first)");
   }
-  if (misoriented)
-    problems.push_back(plural(misoriented, "edge") + " with inconsistently oriented faces, first: " +
+  if (c.misoriented)
+    problems.push_back(plural(c.misoriented, "edge") + " with inconsistently oriented faces, first: " +
                        first_misoriented);
+  return c;
+}
 
-  // Components (faces sharing a vertex belong together, so two surfaces
-  // touching at a vertex are one component with a non-manifold vertex).
+// Step 5: components (faces sharing a vertex belong together, so two
+// surfaces touching at a vertex are one component with a non-manifold
+// vertex) and loose vertices. Returns which vertices some face uses.
+std::vector<char> check_components(const Triangulation& tri, UnionFind& vertices_uf, MeshInfo& info) {
+  const int nv = info.num_vertices;
   std::vector<char> used(nv, 0);
-  for (const auto& f : a.tri.tris) used[f[0]] = used[f[1]] = used[f[2]] = 1;
-  {
-    int comps = 0;
-    for (int v = 0; v < nv; ++v)
-      if (used[v] && vertices_uf.find(v) == v) ++comps;
-    info.num_components = comps;
-    if (comps > 1)
-      problems.push_back("the mesh has " + std::to_string(comps) +
-                         " separate components; map one connected surface at a time");
-    const auto unused = std::find(used.begin(), used.end(), 0);
-    if (unused != used.end())
-      problems.push_back("vertex " + std::to_string(unused - used.begin()) +
-                         " is not used by any face (loose vertex)");
-  }
-  info.euler_characteristic = info.num_vertices - num_edges + info.num_faces;
+  for (const auto& f : tri.tris) used[f[0]] = used[f[1]] = used[f[2]] = 1;
+  int comps = 0;
+  for (int v = 0; v < nv; ++v)
+    if (used[v] && vertices_uf.find(v) == v) ++comps;
+  info.num_components = comps;
+  if (comps > 1)
+    info.problems.push_back("the mesh has " + std::to_string(comps) +
+                            " separate components; map one connected surface at a time");
+  const auto unused = std::find(used.begin(), used.end(), 0);
+  if (unused != used.end())
+    info.problems.push_back("vertex " + std::to_string(unused - used.begin()) +
+                            " is not used by any face (loose vertex)");
+  return used;
+}
 
-  if (nonmanifold || (boundary && !options.allow_boundary) || misoriented) return a;
-  if (boundary) {  // open surface accepted (allow_boundary): mesh/open_surface.h checks the rest
-    info.genus = (2 - info.euler_characteristic - info.num_boundary_loops) / 2;
-    a.usable_topology = info.num_components == 1;
-    info.valid = problems.empty();
-    return a;
-  }
-
-  // Non-manifold vertices: with manifold edges, a vertex's faces must form one fan.
+// Step 6, closed manifold-edged surfaces: non-manifold vertices (with
+// manifold edges, a vertex's faces must form one fan: Connectivity checks),
+// genus, mollification and orientation (signed volume).
+void check_closed_surface(const PolygonSoup& soup, const IntakeOptions& options, const std::vector<char>& used,
+                          Analysis& a) {
+  MeshInfo& info = a.info;
+  auto& problems = info.problems;
+  const int nv = info.num_vertices;
+  const int nt = static_cast<int>(a.tri.tris.size());
   RowMatrixX3i F(nt, 3);
   for (int t = 0; t < nt; ++t) F.row(t) << a.tri.tris[t][0], a.tri.tris[t][1], a.tri.tris[t][2];
-  if (std::find(used.begin(), used.end(), 0) != used.end()) return a;
+  if (std::find(used.begin(), used.end(), 0) != used.end()) return;
   std::unique_ptr<Connectivity> conn;
   try {
     conn = std::make_unique<Connectivity>(F, nv);
     info.euler_characteristic = conn->euler_characteristic();
   } catch (const InputError& e) {
     problems.push_back(e.what());
-    return a;
+    return;
   }
   // Triangulated counts: the Euler characteristic is the same for polygons.
   if (info.num_components == 1) {
@@ -266,6 +288,41 @@ Analysis analyse(const PolygonSoup& soup, const IntakeOptions& options) {
                          "); all faces flipped to orient the surface outward");
   a.usable_topology = true;
   info.valid = problems.empty();
+}
+
+// The checks in order (steps 1-6 above); each returns early where later
+// ones could not be trusted.
+Analysis analyse(const PolygonSoup& soup, const IntakeOptions& options) {
+  Analysis a;
+  MeshInfo& info = a.info;
+  const int nv = static_cast<int>(soup.V.rows());
+  info.num_vertices = nv;
+  auto& problems = info.problems;
+
+  if (nv == 0 || soup.polygons.empty()) {
+    problems.push_back("the mesh is empty (" + plural(nv, "vertex") + ", " +
+                       plural(soup.polygons.size(), "face") + ")");
+    return a;
+  }
+  if (!check_coordinates(soup, problems)) return a;
+  const bool indices_ok = check_face_indices(soup, nv, problems);
+  info.num_faces = static_cast<int>(soup.polygons.size());
+  if (!indices_ok) return a;
+  a.tri = fan_triangulate(soup);
+  if (!check_extent(soup, a.tri, options, info)) return a;
+
+  EdgeCheck edges = check_edges(a.tri, options, info);
+  const std::vector<char> used = check_components(a.tri, edges.vertices_uf, info);
+  info.euler_characteristic = info.num_vertices - info.num_edges + info.num_faces;
+
+  if (edges.nonmanifold || (edges.boundary && !options.allow_boundary) || edges.misoriented) return a;
+  if (edges.boundary) {  // open surface accepted (allow_boundary): mesh/open_surface.h checks the rest
+    info.genus = (2 - info.euler_characteristic - info.num_boundary_loops) / 2;
+    a.usable_topology = info.num_components == 1;
+    info.valid = problems.empty();
+    return a;
+  }
+  check_closed_surface(soup, options, used, a);
   return a;
 }
 

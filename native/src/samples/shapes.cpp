@@ -434,6 +434,33 @@ TriMesh sphere(int subdivisions) {
   return m;
 }
 
+TriMesh spherical_cap(int rings, double bump) {
+  if (rings < 1 || rings > 1000)
+    throw InputError("spherical_cap: rings " + std::to_string(rings) + " out of range (1..1000)");
+  const int around = 6 * rings;
+  TriMesh m;
+  m.V.resize(1 + rings * around, 3);
+  m.V.row(0) << 0.0, 0.0, 1.0;
+  for (int k = 1; k <= rings; ++k) {
+    const double phi = 0.5 * M_PI * k / rings;
+    for (int j = 0; j < around; ++j) {
+      const double t = 2 * M_PI * j / around;
+      m.V.row(1 + (k - 1) * around + j) << std::sin(phi) * std::cos(t), std::sin(phi) * std::sin(t), std::cos(phi);
+    }
+  }
+  m.V.col(2) += bump * m.V.col(0).cwiseProduct(m.V.col(2));
+  auto ring = [&](int k, int j) { return 1 + (k - 1) * around + j % around; };
+  m.F.resize(around * (2 * rings - 1), 3);
+  int f = 0;
+  for (int j = 0; j < around; ++j) m.F.row(f++) << 0, ring(1, j), ring(1, j + 1);
+  for (int k = 1; k < rings; ++k)
+    for (int j = 0; j < around; ++j) {
+      m.F.row(f++) << ring(k, j), ring(k + 1, j), ring(k + 1, j + 1);
+      m.F.row(f++) << ring(k, j), ring(k + 1, j + 1), ring(k, j + 1);
+    }
+  return m;
+}
+
 TriMesh peanut(int resolution, bool smooth) {
   Shape s;
   s.f = [](const Vector3d& p) {

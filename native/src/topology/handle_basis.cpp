@@ -351,21 +351,21 @@ double linking_number(const std::vector<Eigen::Vector3d>& a, const std::vector<E
   return total / (4.0 * M_PI);
 }
 
-HandleBasis handle_basis(const TriMesh& mesh, const std::vector<std::vector<int>>& loops,
-                         const CanonicalSchema& schema) {
-  const int g = schema.genus, n = 2 * g;
-  if (static_cast<int>(loops.size()) != n || static_cast<int>(schema.letters.size()) != n)
-    throw InputError("handle_basis: need 2g loops and the canonical schema of their word");
-  HandleBasis hb;
-  hb.genus = g;
-  const IntMatrix J = symplectic_form(g);
-  // Loop k's class in canonical coordinates (H, columns) and canonical
-  // generators in loop coordinates (Ginv = H^-1).
-  IntMatrix H(n, n), Ginv(n, n);
-  for (int k = 0; k < n; ++k) H.col(k) = abelianize(schema.letters[k], n);
-  for (int j = 0; j < n; ++j) Ginv.col(j) = abelianize(schema.generators[j], n);
-  if (H * Ginv != IntMatrix::Identity(n, n)) throw SolveError("handle_basis: schema substitutions are not inverse in homology");
+namespace {
 
+// handle_basis' loops as 3D polygons in a frame centred on the mesh and
+// scaled by its bounding box diagonal: `on` the surface, `inside` pushed
+// along the vertex normals by 0.2 x the shortest incident edge (the
+// linking numbers pair one with the other), with each loop's centroid,
+// vector area and length.
+struct LoopGeometry {
+  std::vector<std::vector<Eigen::Vector3d>> on, inside;
+  std::vector<Eigen::Vector3d> centroid, area;
+  std::vector<double> length;
+};
+
+LoopGeometry loop_geometry(const TriMesh& mesh, const std::vector<std::vector<int>>& loops) {
+  const int n = static_cast<int>(loops.size());
   // Normal frame: vertex normals, push distance 0.2 x shortest incident edge.
   const int nv = mesh.num_vertices();
   std::vector<Eigen::Vector3d> normal(nv, Eigen::Vector3d::Zero());
@@ -384,9 +384,11 @@ HandleBasis handle_basis(const TriMesh& mesh, const std::vector<std::vector<int>
   const Eigen::Vector3d lo = mesh.V.colwise().minCoeff(), hi = mesh.V.colwise().maxCoeff();
   const double diag = (hi - lo).norm();
   const Eigen::Vector3d centre = mesh.V.colwise().mean();
-  std::vector<std::vector<Eigen::Vector3d>> on(n), inside(n);
-  std::vector<Eigen::Vector3d> loop_centroid(n), loop_area(n);
-  std::vector<double> loop_length(n, 0);
+  LoopGeometry lg;
+  auto& on = lg.on;
+  auto& inside = lg.inside;
+  on.resize(n), inside.resize(n), lg.centroid.resize(n), lg.area.resize(n);
+  lg.length.assign(n, 0);
   for (int k = 0; k < n; ++k) {
     const auto& path = loops[k];
     const size_t m = path.size() >= 2 && path.front() == path.back() ? path.size() - 1 : path.size();
@@ -403,26 +405,27 @@ HandleBasis handle_basis(const TriMesh& mesh, const std::vector<std::vector<int>
       const Eigen::Vector3d &p = on[k][i], &q = on[k][(i + 1) % m];
       const double l = (q - p).norm();
       c += 0.5 * l * (p + q);
-      loop_length[k] += l;
+      lg.length[k] += l;
       area += 0.5 * p.cross(q);
     }
-    loop_centroid[k] = loop_length[k] > 0 ? Eigen::Vector3d(c / loop_length[k]) : on[k].front();
-    loop_area[k] = area;
+    lg.centroid[k] = lg.length[k] > 0 ? Eigen::Vector3d(c / lg.length[k]) : on[k].front();
+    lg.area[k] = area;
   }
-  hb.loop_linking = IntMatrix::Zero(n, n);
-  for (int k = 0; k < n; ++k)
-    for (int l = 0; l < n; ++l) {
-      const double lk = linking_number(inside[k], on[l]);
-      const double r = std::round(lk);
-      hb.linking_roundoff = std::max(hb.linking_roundoff, std::abs(lk - r));
-      hb.loop_linking(k, l) = static_cast<long long>(r);
-    }
+  return lg;
+}
+
+// Meridians M and dual longitudes Lg (canonical coordinates, n x g each;
+// m_i . l_j = δ_ij) from the loops' linking matrix hb.loop_linking (H: loop
+// classes in canonical coordinates, Ginv its inverse). Sets hb.geometric,
+// hb.message and hb.meridian_loops; when the linking numbers do not give a
+// geometric basis, the canonical handles (a_i, b_i).
+void meridians_and_longitudes(const IntMatrix& H, const IntMatrix& Ginv, HandleBasis& hb, IntMatrix& M,
+                              IntMatrix& Lg) {
+  const int g = hb.genus, n = 2 * g;
+  const IntMatrix J = symplectic_form(g);
   const IntMatrix Lc = Ginv.transpose() * hb.loop_linking * Ginv;
   const IntMatrix anti = Lc - Lc.transpose();
-
-  // Handles: meridian m_i (canonical coordinates), its loop-coordinate
-  // vector, and the dual longitude l_i.
-  IntMatrix M(n, g), Lg(n, g);
+  M.resize(n, g), Lg.resize(n, g);
   hb.geometric = hb.linking_roundoff < 0.2 && (anti == J || anti == -J);
   if (!hb.geometric) {
     hb.message = hb.linking_roundoff >= 0.2 ? "linking numbers are not integral (round-off " +
@@ -459,11 +462,22 @@ HandleBasis handle_basis(const TriMesh& mesh, const std::vector<std::vector<int>
   if (!hb.geometric) {
     for (int i = 0; i < g; ++i) M.col(i) = IntMatrix::Identity(n, n).col(2 * i), Lg.col(i) = IntMatrix::Identity(n, n).col(2 * i + 1);
   }
-  // Per handle: position (centroid of its meridian's loops) and vector areas.
-  struct Handle {
-    IntVector m, l;
-    Eigen::Vector3d pos, am, al;
-  };
+}
+
+// One handle: meridian and longitude (canonical coordinates), position
+// (where its longitude's loops lie) and the vector areas of both.
+struct Handle {
+  IntVector m, l;
+  Eigen::Vector3d pos, am, al;
+};
+
+// The g handles, ordered along the longest axis of the mesh's bounding box
+// (ties: the others), each oriented so that its longitude turns positively
+// about the shortest axis (the normal of a flat shape's plane; next axis
+// when nearly perpendicular): "half turn" then means something geometric.
+std::vector<Handle> ordered_handles(const TriMesh& mesh, const LoopGeometry& lg, const IntMatrix& Ginv,
+                                    const IntMatrix& M, const IntMatrix& Lg) {
+  const int g = static_cast<int>(M.cols()), n = 2 * g;
   std::vector<Handle> handles(g);
   for (int i = 0; i < g; ++i) {
     Handle& h = handles[i];
@@ -476,17 +490,14 @@ HandleBasis handle_basis(const TriMesh& mesh, const std::vector<std::vector<int>
     // are less telling (the meridian lattice of a double torus holds both
     // outer arms and the middle bar).
     for (int k = 0; k < n; ++k) {
-      const double w = std::abs(static_cast<double>(ul[k])) * loop_length[k];
-      c += w * loop_centroid[k], wsum += w;
-      h.am += static_cast<double>(um[k]) * loop_area[k];
-      h.al += static_cast<double>(ul[k]) * loop_area[k];
+      const double w = std::abs(static_cast<double>(ul[k])) * lg.length[k];
+      c += w * lg.centroid[k], wsum += w;
+      h.am += static_cast<double>(um[k]) * lg.area[k];
+      h.al += static_cast<double>(ul[k]) * lg.area[k];
     }
     h.pos = wsum > 0 ? Eigen::Vector3d(c / wsum) : Eigen::Vector3d::Zero();
   }
-  // Order handles along the longest axis of the bounding box (ties: the
-  // others), and orient each so that its longitude turns positively about
-  // the shortest axis (the normal of a flat shape's plane; next axis when
-  // nearly perpendicular): "half turn" then means something geometric.
+  const Eigen::Vector3d lo = mesh.V.colwise().minCoeff(), hi = mesh.V.colwise().maxCoeff();
   int axis = 0, thin = 0;
   for (int d = 1; d < 3; ++d) {
     if (hi[d] - lo[d] > hi[axis] - lo[axis]) axis = d;
@@ -505,6 +516,41 @@ HandleBasis handle_basis(const TriMesh& mesh, const std::vector<std::vector<int>
     }
     return false;
   });
+  return handles;
+}
+
+}  // namespace
+
+HandleBasis handle_basis(const TriMesh& mesh, const std::vector<std::vector<int>>& loops,
+                         const CanonicalSchema& schema) {
+  const int g = schema.genus, n = 2 * g;
+  if (static_cast<int>(loops.size()) != n || static_cast<int>(schema.letters.size()) != n)
+    throw InputError("handle_basis: need 2g loops and the canonical schema of their word");
+  HandleBasis hb;
+  hb.genus = g;
+  const IntMatrix J = symplectic_form(g);
+  // Loop k's class in canonical coordinates (H, columns) and canonical
+  // generators in loop coordinates (Ginv = H^-1).
+  IntMatrix H(n, n), Ginv(n, n);
+  for (int k = 0; k < n; ++k) H.col(k) = abelianize(schema.letters[k], n);
+  for (int j = 0; j < n; ++j) Ginv.col(j) = abelianize(schema.generators[j], n);
+  if (H * Ginv != IntMatrix::Identity(n, n)) throw SolveError("handle_basis: schema substitutions are not inverse in homology");
+
+  const LoopGeometry lg = loop_geometry(mesh, loops);
+  hb.loop_linking = IntMatrix::Zero(n, n);
+  for (int k = 0; k < n; ++k)
+    for (int l = 0; l < n; ++l) {
+      const double lk = linking_number(lg.inside[k], lg.on[l]);
+      const double r = std::round(lk);
+      hb.linking_roundoff = std::max(hb.linking_roundoff, std::abs(lk - r));
+      hb.loop_linking(k, l) = static_cast<long long>(r);
+    }
+
+  // Handles: meridian m_i (canonical coordinates), its loop-coordinate
+  // vector, and the dual longitude l_i; positioned, oriented and ordered.
+  IntMatrix M, Lg;
+  meridians_and_longitudes(H, Ginv, hb, M, Lg);
+  const std::vector<Handle> handles = ordered_handles(mesh, lg, Ginv, M, Lg);
   hb.P.resize(n, n);
   for (int i = 0; i < g; ++i) {
     hb.P.col(2 * i) = handles[i].m;

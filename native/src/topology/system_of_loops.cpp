@@ -379,14 +379,9 @@ double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::V
   return (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
 }
 
-// Triangulates input face f with its split points and chords; appends
-// triangles (counter-clockwise, like the face) to `out`. The pieces are
-// found combinatorially (chords split the boundary cycle), triangulated
-// without ever joining two points of one side of the face, and the interior
-// (bend and centre) points are placed by a Tutte embedding if the first
-// guess folds a triangle: with the face boundary convex and no such
-// "dividing" edge, Tutte/Floater guarantees an embedding.
-void triangulate_face(Refiner& R, int f, std::vector<std::array<int, 3>>& out) {
+// Boundary cycle of input face f: its corners with the split points of its
+// sides in between, counter-clockwise like the face.
+std::vector<int> face_boundary_cycle(const Refiner& R, int f) {
   const Connectivity& conn = R.conn;
   std::vector<int> boundary;
   for (int k = 0; k < 3; ++k) {
@@ -399,51 +394,71 @@ void triangulate_face(Refiner& R, int f, std::vector<std::array<int, 3>>& out) {
     if (!forward) std::reverse(pts.begin(), pts.end());
     for (const auto& pt : pts) boundary.push_back(pt.second);
   }
-  const auto& chords = R.face_chords[f];
-  if (boundary.size() == 3 && chords.empty()) {
-    out.push_back({boundary[0], boundary[1], boundary[2]});
-    return;
-  }
-  // Isometric 2D copy of the face; a (nearly) degenerate face (accepted by
-  // intake through mollification, docs/robustness.md) is laid out from its
-  // side lengths mollified the same way, or its pieces have no room.
-  Eigen::Vector3d P[3];
-  for (int k = 0; k < 3; ++k) P[k] = R.mesh.V.row(R.mesh.F(f, k)).transpose();
-  double l01 = (P[1] - P[0]).norm();
-  Eigen::Vector2d c2;
-  {
-    double a = l01, b = (P[2] - P[1]).norm(), c = (P[0] - P[2]).norm();
-    const double rel = 1e-4, margin = std::min({a + b - c, b + c - a, c + a - b});
-    if (margin < rel * (a + b + c) / 3) {
-      const double eps = a + b + c > 0 ? (rel * (a + b + c) / 3 - margin) / (1 - rel) * (1 + 1e-9) : 1.0;
-      a += eps, b += eps, c += eps;
-      const double x = (a * a + c * c - b * b) / (2 * a);
-      l01 = a;
-      c2 = Eigen::Vector2d(x, std::sqrt(std::max(c * c - x * x, 0.0)));
-    } else {
-      const Eigen::Vector3d u = (P[1] - P[0]) / l01;
-      c2 = Eigen::Vector2d((P[2] - P[0]).dot(u), ((P[2] - P[0]) - (P[2] - P[0]).dot(u) * u).norm());
+  return boundary;
+}
+
+// Isometric 2D copy of input face f (corner 0 at the origin, corner 1 on
+// the x axis); a (nearly) degenerate face (accepted by intake through
+// mollification, docs/robustness.md) is laid out from its side lengths
+// mollified the same way, or its pieces have no room. pos() places a point
+// of the face by its barycentric coordinates, sides() says on which sides
+// it lies.
+struct FaceChart {
+  Refiner& R;
+  int f;
+  Eigen::Vector2d C[3];
+  double eps;  // area tolerance of a folded triangle
+
+  FaceChart(Refiner& refiner, int face) : R(refiner), f(face) {
+    Eigen::Vector3d P[3];
+    for (int k = 0; k < 3; ++k) P[k] = R.mesh.V.row(R.mesh.F(f, k)).transpose();
+    double l01 = (P[1] - P[0]).norm();
+    Eigen::Vector2d c2;
+    {
+      double a = l01, b = (P[2] - P[1]).norm(), c = (P[0] - P[2]).norm();
+      const double rel = 1e-4, margin = std::min({a + b - c, b + c - a, c + a - b});
+      if (margin < rel * (a + b + c) / 3) {
+        const double eps = a + b + c > 0 ? (rel * (a + b + c) / 3 - margin) / (1 - rel) * (1 + 1e-9) : 1.0;
+        a += eps, b += eps, c += eps;
+        const double x = (a * a + c * c - b * b) / (2 * a);
+        l01 = a;
+        c2 = Eigen::Vector2d(x, std::sqrt(std::max(c * c - x * x, 0.0)));
+      } else {
+        const Eigen::Vector3d u = (P[1] - P[0]) / l01;
+        c2 = Eigen::Vector2d((P[2] - P[0]).dot(u), ((P[2] - P[0]) - (P[2] - P[0]).dot(u) * u).norm());
+      }
     }
+    C[0] = Eigen::Vector2d(0, 0);
+    C[1] = Eigen::Vector2d(l01, 0);
+    C[2] = c2;
+    eps = 1e-13 * std::max({l01 * l01, c2.squaredNorm(), (C[1] - c2).squaredNorm()});
   }
-  const Eigen::Vector2d C[3] = {Eigen::Vector2d(0, 0), Eigen::Vector2d(l01, 0), c2};
-  const double eps = 1e-13 * std::max({l01 * l01, c2.squaredNorm(), (C[1] - c2).squaredNorm()});
-  auto pos = [&](int id) {
+  Eigen::Vector2d pos(int id) const {
     const Eigen::Vector3d b = R.local_bc(f, id);
     return Eigen::Vector2d(b[0] * C[0] + b[1] * C[1] + b[2] * C[2]);
-  };
-  auto sides = [&](int id) {  // bit k: on side k (corner k -> corner k+1)
+  }
+  int sides(int id) const {  // bit k: on side k (corner k -> corner k+1)
     const Eigen::Vector3d b = R.local_bc(f, id);
     int m = 0;
     for (int k = 0; k < 3; ++k)
       if (b[(k + 2) % 3] == 0) m |= 1 << k;
     return m;
-  };
-  std::set<std::pair<int, int>> edges;
-  auto key = [](int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); };
-  for (size_t i = 0; i < boundary.size(); ++i) edges.insert(key(boundary[i], boundary[(i + 1) % boundary.size()]));
-  for (const auto& ch : chords)
-    for (size_t i = 0; i + 1 < ch.size(); ++i) edges.insert(key(ch[i], ch[i + 1]));
-  // Split the boundary cycle along the chords.
+  }
+  // True when a triangle of out[first_tri..] is folded (or flat).
+  bool folded(const std::vector<std::array<int, 3>>& out, size_t first_tri) const {
+    for (size_t t = first_tri; t < out.size(); ++t)
+      if (cross2(pos(out[t][0]), pos(out[t][1]), pos(out[t][2])) <= eps) return true;
+    return false;
+  }
+};
+
+using EdgeSet = std::set<std::pair<int, int>>;
+std::pair<int, int> edge_key(int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); }
+
+// Splits the boundary cycle of face f into the pieces its chords cut out
+// (each piece a cycle of point ids).
+std::vector<std::vector<int>> split_along_chords(const std::vector<int>& boundary,
+                                                 const std::vector<std::vector<int>>& chords, int f) {
   std::vector<std::vector<int>> regions{boundary};
   for (const auto& ch : chords) {
     const int A = ch.front(), B = ch.back();
@@ -468,23 +483,12 @@ void triangulate_face(Refiner& R, int f, std::vector<std::array<int, 3>>& out) {
       throw SolveError("system of loops: refinement chord " + std::to_string(A) + " -> " + std::to_string(B) +
                        " crosses another one in face " + std::to_string(f));
   }
-  // Triangulate every piece: ears that are geometrically good under the
-  // current guess first, any combinatorially valid ear next, a centre point
-  // as the last resort. If a triangle folds, flatten the tents and retry.
-  const size_t first_tri = out.size(), nv0 = R.nv.size(), ni0 = R.face_interior[f].size();
-  auto folded = [&]() {
-    for (size_t t = first_tri; t < out.size(); ++t)
-      if (cross2(pos(out[t][0]), pos(out[t][1]), pos(out[t][2])) <= eps) return true;
-    return false;
-  };
-  const std::set<std::pair<int, int>> edges0 = edges;
-  for (int attempt = 0; attempt < 30; ++attempt) {
-  edges = edges0;
-  out.resize(first_tri);
-  R.nv.resize(nv0);
-  R.face_interior[f].resize(ni0);
-  // Tent slopes by rank of span on their side (even angles between the
-  // nested tents), halved on every retry.
+  return regions;
+}
+
+// Tent slopes of face f's bend points by rank of span on their side (even
+// angles between the nested tents), halved on every retry.
+void place_tents(Refiner& R, int f, int attempt) {
   for (int side = 0; side < 3; ++side) {
     std::vector<std::pair<double, int>> tents;
     for (int id : R.face_interior[f])
@@ -496,52 +500,64 @@ void triangulate_face(Refiner& R, int f, std::vector<std::array<int, 3>>& out) {
       p.bc = bend_bc(side, p.bend_mid, p.bend_span, slope);
     }
   }
-  for (auto poly : regions) {
-    while (poly.size() > 3) {
-      const size_t n = poly.size();
-      double best_q = -std::numeric_limits<double>::infinity();
-      size_t best = n;
-      for (size_t i = 0; i < n; ++i) {
-        const int a = poly[(i + n - 1) % n], b = poly[i], c = poly[(i + 1) % n];
-        if (sides(a) & sides(b) & sides(c)) continue;  // three points of one side
-        if (sides(a) & sides(c)) continue;             // dividing diagonal
-        if (edges.count(key(a, c))) continue;          // would double an edge
-        const Eigen::Vector2d pa = pos(a), pb = pos(b), pc = pos(c);
-        const double area2 = cross2(pa, pb, pc);
-        double q = -1;
-        if (area2 > eps) {
-          bool empty = true;
-          for (size_t j = 0; j < n && empty; ++j) {
-            if (j == i || j == (i + 1) % n || j == (i + n - 1) % n) continue;
-            const Eigen::Vector2d p = pos(poly[j]);
-            if (cross2(pa, pb, p) >= -eps && cross2(pb, pc, p) >= -eps && cross2(pc, pa, p) >= -eps) empty = false;
-          }
-          if (empty) q = area2 / ((pa - pb).squaredNorm() + (pb - pc).squaredNorm() + (pc - pa).squaredNorm());
+}
+
+// Ear clipping of one piece: ears that are geometrically good under the
+// current guess first, any combinatorially valid ear next (never three
+// points of one side, never a dividing diagonal, never a doubled edge), a
+// centre point as the last resort. Appends the triangles to `out`.
+void triangulate_piece(const FaceChart& chart, std::vector<int> poly, EdgeSet& edges,
+                       std::vector<std::array<int, 3>>& out) {
+  Refiner& R = chart.R;
+  const double eps = chart.eps;
+  while (poly.size() > 3) {
+    const size_t n = poly.size();
+    double best_q = -std::numeric_limits<double>::infinity();
+    size_t best = n;
+    for (size_t i = 0; i < n; ++i) {
+      const int a = poly[(i + n - 1) % n], b = poly[i], c = poly[(i + 1) % n];
+      if (chart.sides(a) & chart.sides(b) & chart.sides(c)) continue;  // three points of one side
+      if (chart.sides(a) & chart.sides(c)) continue;                   // dividing diagonal
+      if (edges.count(edge_key(a, c))) continue;                       // would double an edge
+      const Eigen::Vector2d pa = chart.pos(a), pb = chart.pos(b), pc = chart.pos(c);
+      const double area2 = cross2(pa, pb, pc);
+      double q = -1;
+      if (area2 > eps) {
+        bool empty = true;
+        for (size_t j = 0; j < n && empty; ++j) {
+          if (j == i || j == (i + 1) % n || j == (i + n - 1) % n) continue;
+          const Eigen::Vector2d p = chart.pos(poly[j]);
+          if (cross2(pa, pb, p) >= -eps && cross2(pb, pc, p) >= -eps && cross2(pc, pa, p) >= -eps) empty = false;
         }
-        if (q > best_q) {
-          best_q = q;
-          best = i;
-        }
+        if (empty) q = area2 / ((pa - pb).squaredNorm() + (pb - pc).squaredNorm() + (pc - pa).squaredNorm());
       }
-      if (best == n) {
-        Eigen::Vector3d bc = Eigen::Vector3d::Zero();
-        for (int id : poly) bc += R.local_bc(f, id);
-        const int c = R.add_interior(f, bc / static_cast<double>(poly.size()));
-        for (size_t i = 0; i < n; ++i) out.push_back({poly[i], poly[(i + 1) % n], c});
-        poly.clear();
-        break;
+      if (q > best_q) {
+        best_q = q;
+        best = i;
       }
-      const int a = poly[(best + n - 1) % n], c = poly[(best + 1) % n];
-      out.push_back({a, poly[best], c});
-      edges.insert(key(a, c));
-      poly.erase(poly.begin() + best);
     }
-    if (poly.size() == 3) out.push_back({poly[0], poly[1], poly[2]});
+    if (best == n) {
+      Eigen::Vector3d bc = Eigen::Vector3d::Zero();
+      for (int id : poly) bc += R.local_bc(chart.f, id);
+      const int c = R.add_interior(chart.f, bc / static_cast<double>(poly.size()));
+      for (size_t i = 0; i < n; ++i) out.push_back({poly[i], poly[(i + 1) % n], c});
+      poly.clear();
+      break;
+    }
+    const int a = poly[(best + n - 1) % n], c = poly[(best + 1) % n];
+    out.push_back({a, poly[best], c});
+    edges.insert(edge_key(a, c));
+    poly.erase(poly.begin() + best);
   }
-  if (!folded()) return;
-  }
-  // Tutte embedding of the interior points (uniform weights).
-  const auto& inner = R.face_interior[f];
+  if (poly.size() == 3) out.push_back({poly[0], poly[1], poly[2]});
+}
+
+// Places face f's interior (bend and centre) points by a Tutte embedding
+// (uniform weights) of the triangles out[first_tri..], the face boundary
+// fixed.
+void tutte_embed_interior(const FaceChart& chart, const std::vector<std::array<int, 3>>& out, size_t first_tri) {
+  Refiner& R = chart.R;
+  const auto& inner = R.face_interior[chart.f];
   const int m = static_cast<int>(inner.size());
   std::vector<std::pair<int, int>> local;
   for (int i = 0; i < m; ++i) local.push_back({inner[i], i});
@@ -550,9 +566,9 @@ void triangulate_face(Refiner& R, int f, std::vector<std::array<int, 3>>& out) {
     auto it = std::lower_bound(local.begin(), local.end(), std::make_pair(id, -1));
     return (it != local.end() && it->first == id) ? it->second : -1;
   };
-  std::set<std::pair<int, int>> tri_edges;
+  EdgeSet tri_edges;
   for (size_t t = first_tri; t < out.size(); ++t)
-    for (int k = 0; k < 3; ++k) tri_edges.insert(key(out[t][k], out[t][(k + 1) % 3]));
+    for (int k = 0; k < 3; ++k) tri_edges.insert(edge_key(out[t][k], out[t][(k + 1) % 3]));
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
   Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(m, 2);
   for (const auto& [a, b] : tri_edges) {
@@ -564,10 +580,11 @@ void triangulate_face(Refiner& R, int f, std::vector<std::array<int, 3>>& out) {
       if (j >= 0)
         A(i, j) -= 1;
       else
-        rhs.row(i) += pos(other).transpose();
+        rhs.row(i) += chart.pos(other).transpose();
     }
   }
   const Eigen::MatrixXd X = A.partialPivLu().solve(rhs);
+  const Eigen::Vector2d* C = chart.C;
   Eigen::Matrix2d T;
   T.col(0) = C[1] - C[0];
   T.col(1) = C[2] - C[0];
@@ -575,7 +592,42 @@ void triangulate_face(Refiner& R, int f, std::vector<std::array<int, 3>>& out) {
     const Eigen::Vector2d l = T.inverse() * (X.row(i).transpose() - C[0]);
     R.nv[inner[i] - R.n_in].bc = Eigen::Vector3d(1 - l[0] - l[1], l[0], l[1]);
   }
-  if (folded())
+}
+
+// Triangulates input face f with its split points and chords; appends
+// triangles (counter-clockwise, like the face) to `out`. The pieces are
+// found combinatorially (chords split the boundary cycle), triangulated
+// without ever joining two points of one side of the face, and the interior
+// (bend and centre) points are placed by a Tutte embedding if the first
+// guess folds a triangle: with the face boundary convex and no such
+// "dividing" edge, Tutte/Floater guarantees an embedding.
+void triangulate_face(Refiner& R, int f, std::vector<std::array<int, 3>>& out) {
+  const std::vector<int> boundary = face_boundary_cycle(R, f);
+  const auto& chords = R.face_chords[f];
+  if (boundary.size() == 3 && chords.empty()) {
+    out.push_back({boundary[0], boundary[1], boundary[2]});
+    return;
+  }
+  const FaceChart chart(R, f);
+  EdgeSet edges;
+  for (size_t i = 0; i < boundary.size(); ++i) edges.insert(edge_key(boundary[i], boundary[(i + 1) % boundary.size()]));
+  for (const auto& ch : chords)
+    for (size_t i = 0; i + 1 < ch.size(); ++i) edges.insert(edge_key(ch[i], ch[i + 1]));
+  const std::vector<std::vector<int>> regions = split_along_chords(boundary, chords, f);
+  // Triangulate every piece; if a triangle folds, flatten the tents and retry.
+  const size_t first_tri = out.size(), nv0 = R.nv.size(), ni0 = R.face_interior[f].size();
+  const EdgeSet edges0 = edges;
+  for (int attempt = 0; attempt < 30; ++attempt) {
+    edges = edges0;
+    out.resize(first_tri);
+    R.nv.resize(nv0);
+    R.face_interior[f].resize(ni0);
+    place_tents(R, f, attempt);
+    for (const auto& poly : regions) triangulate_piece(chart, poly, edges, out);
+    if (!chart.folded(out, first_tri)) return;
+  }
+  tutte_embed_interior(chart, out, first_tri);
+  if (chart.folded(out, first_tri))
     throw SolveError("system of loops: could not embed the refined pieces of face " + std::to_string(f));
 }
 
@@ -587,133 +639,51 @@ struct Refined {
   std::vector<std::vector<int>> loops;
 };
 
-// shortcut=true: arcs that pass a whole branch of T' cross its root edge
-// instead of travelling around it (short loops, few split points);
-// shortcut=false: every arc follows the Euler tour (kept as a fallback).
-Refined refine(const TriMesh& mesh, const Connectivity& conn, const Greedy& g, int x, bool shortcut) {
-  const int ne = conn.num_edges();
-  const int ng = static_cast<int>(g.generators.size());
-  // T': tree edges on the paths from x to the generator endpoints.
-  std::vector<char> tp(ne, 0);
-  std::vector<int> gen_of_edge(ne, -1);
-  for (int k = 0; k < ng; ++k) {
-    gen_of_edge[g.generators[k]] = k;
-    const int h = g.gen_halfedge[k];
-    for (int v : {conn.tail(h), conn.head(h)})
-      for (; v != x && !tp[conn.edge(g.parent_he[v])]; v = conn.tail(g.parent_he[v]))
-        tp[conn.edge(g.parent_he[v])] = 1;
-  }
-  // Start corner: the corner of x (after arriving along a T' edge) with the
-  // most edges in it, so the arcs fan out where x has room.
-  int h_last = -1, best_spokes = -1;
-  for (int t : conn.outgoing(x)) {
-    if (!tp[conn.edge(t)]) continue;
-    const int h_in = conn.twin(t);
-    int spokes = 0;
-    for (int o = Connectivity::next(h_in); !tp[conn.edge(o)]; o = Connectivity::next(conn.twin(o))) ++spokes;
-    if (spokes > best_spokes) {
-      best_spokes = spokes;
-      h_last = h_in;
-    }
-  }
-  if (h_last < 0) throw SolveError("system of loops: the base vertex has no tree edge to the generators");
-  // Euler tour around T' from the start corner until the last arc has left:
-  // slots (non-T' halfedges leaving T' vertices) and T' traversals.
-  enum { SLOT, DOWN, UP };
-  struct Event {
-    int type, h, lo = 0, hi = -1;
-  };
-  const int n_arcs = 2 * ng;
-  std::vector<Event> events;
-  {
-    int exits = 0, guard = 0;
-    int o = Connectivity::next(h_last);
-    std::vector<size_t> open;
-    while (exits < n_arcs) {
-      if (++guard > 4 * conn.num_halfedges()) throw SolveError("system of loops: Euler tour did not close");
-      if (tp[conn.edge(o)]) {
-        const bool down = g.parent_he[conn.head(o)] == o;
-        events.push_back({down ? DOWN : UP, o, exits, -1});
-        if (down) {
-          open.push_back(events.size() - 1);
-        } else {
-          if (open.empty()) throw SolveError("system of loops: internal error in the Euler tour");
-          events[open.back()].hi = exits - 1;  // exits inside that branch
-          open.pop_back();
-        }
-        o = Connectivity::next(o);
-        continue;
-      }
-      events.push_back({SLOT, o, exits, exits});
-      if (gen_of_edge[conn.edge(o)] >= 0) ++exits;
-      o = Connectivity::next(conn.twin(o));
-    }
-    for (size_t i : open) events[i].hi = n_arcs - 1;
-  }
-  Refiner R(mesh, conn);
-  std::vector<std::vector<int>> arc(n_arcs, std::vector<int>{x});
-  std::vector<int> cur(n_arcs, x);  // current end point of every arc
-  // exit_arc[k][0]: arc ending near the tail of gen_halfedge[k]; [1]: near its head.
-  std::vector<std::array<int, 2>> exit_arc(ng, {-1, -1});
-  const double Lambda = 0.4;
-  int lo = 0, hi = n_arcs - 1;  // arcs present: lo..hi (hi runs innermost)
-  struct Parked {
-    int lo, hi;
-  };
-  std::vector<Parked> parked;
-  // Points for arcs lo..hi on edge e near vertex v, hi closest to v; chords
-  // from the arcs' current ends inside face f.
-  auto advance = [&](int e, int v, int f, int a, int b) {
-    const int n = b - a + 1;
-    for (int k = a; k <= b; ++k) {
-      const double lambda = Lambda * (b - k + 1) / n;
-      const int p = R.add_edge_point(e, v == conn.edge_vertex(e, 0) ? lambda : 1 - lambda);
-      const std::vector<int> app = R.add_chord(f, cur[k], p);
-      arc[k].insert(arc[k].end(), app.begin(), app.end());
-      cur[k] = p;
-    }
-  };
-  // The arcs leave x one group per face of the start corner (outermost
-  // first) instead of all through its first face, so no single face of x
-  // has to hold all 4g bends.
-  int leading = 0;
-  while (leading < static_cast<int>(events.size()) && events[leading].type == SLOT) ++leading;
-  int departed = 0;  // arcs < departed have left x
-  for (size_t i = 0; i < events.size(); ++i) {
-    const Event& ev = events[i];
-    const int o = ev.h, v = conn.tail(o), e = conn.edge(o), f = Connectivity::face(o);
-    if (ev.type == SLOT) {
-      if (lo > hi) continue;
-      if (static_cast<int>(i) < leading) {
-        const int share = (n_arcs * (static_cast<int>(i) + 1) + leading - 1) / leading;
-        departed = std::min(hi + 1, std::max({departed, share, lo + 1}));
+// One step of the Euler tour around T' (refine): a slot (a non-T'
+// halfedge leaving a T' vertex; lo = hi = the exits so far) or a T'
+// traversal down into a branch (lo..hi: the exits inside it) or back up.
+enum TourEventType { SLOT, DOWN, UP };
+struct TourEvent {
+  int type, h, lo = 0, hi = -1;
+};
+
+// The Euler tour around T' (tp: its edges) from the corner after h_last
+// until all n_arcs arcs have left through generator edges (gen_of_edge >= 0).
+std::vector<TourEvent> euler_tour(const Connectivity& conn, const Greedy& g, const std::vector<char>& tp,
+                                  const std::vector<int>& gen_of_edge, int h_last, int n_arcs) {
+  std::vector<TourEvent> events;
+  int exits = 0, guard = 0;
+  int o = Connectivity::next(h_last);
+  std::vector<size_t> open;
+  while (exits < n_arcs) {
+    if (++guard > 4 * conn.num_halfedges()) throw SolveError("system of loops: Euler tour did not close");
+    if (tp[conn.edge(o)]) {
+      const bool down = g.parent_he[conn.head(o)] == o;
+      events.push_back({down ? DOWN : UP, o, exits, -1});
+      if (down) {
+        open.push_back(events.size() - 1);
       } else {
-        departed = hi + 1;
+        if (open.empty()) throw SolveError("system of loops: internal error in the Euler tour");
+        events[open.back()].hi = exits - 1;  // exits inside that branch
+        open.pop_back();
       }
-      advance(e, v, f, lo, std::min(hi, departed - 1));
-      const int k = gen_of_edge[e];
-      if (k >= 0) {
-        if (ev.lo != lo) throw SolveError("system of loops: internal error, arcs leave out of order");
-        exit_arc[k][conn.tail(g.gen_halfedge[k]) == v ? 0 : 1] = lo;
-        ++lo;  // the outermost arc leaves here
-      }
-    } else if (shortcut && ev.type == DOWN) {
-      if (ev.lo != lo || ev.hi < lo || ev.hi > hi)
-        throw SolveError("system of loops: internal error, branch arcs out of order");
-      // Arcs that pass this whole branch cross its root edge near v.
-      if (ev.hi < hi) advance(e, v, f, ev.hi + 1, hi);
-      parked.push_back({ev.hi + 1, hi});
-      hi = ev.hi;
-    } else if (shortcut && ev.type == UP) {
-      if (lo <= hi || parked.empty()) throw SolveError("system of loops: internal error, arcs left in a branch");
-      lo = parked.back().lo;
-      hi = parked.back().hi;
-      parked.pop_back();
+      o = Connectivity::next(o);
+      continue;
     }
+    events.push_back({SLOT, o, exits, exits});
+    if (gen_of_edge[conn.edge(o)] >= 0) ++exits;
+    o = Connectivity::next(conn.twin(o));
   }
-  for (int k = 0; k < ng; ++k)
-    if (exit_arc[k][0] < 0 || exit_arc[k][1] < 0)
-      throw SolveError("system of loops: internal error, generator " + std::to_string(k) + " not reached");
+  for (size_t i : open) events[i].hi = n_arcs - 1;
+  return events;
+}
+
+// The refined mesh (every input face triangulated with its split points and
+// chords), each vertex's origin on the input mesh, and the loops: generator
+// k's two arcs (exit_arc[k]) joined.
+Refined assemble_refined(Refiner& R, const TriMesh& mesh, const Connectivity& conn,
+                         const std::vector<std::vector<int>>& arc, const std::vector<std::array<int, 2>>& exit_arc) {
+  const int ng = static_cast<int>(exit_arc.size());
   // Refined faces.
   std::vector<std::array<int, 3>> tris;
   tris.reserve(conn.num_faces() + 4 * R.nv.size());
@@ -752,6 +722,105 @@ Refined refine(const TriMesh& mesh, const Connectivity& conn, const Greedy& g, i
     out.loops.push_back(std::move(loop));
   }
   return out;
+}
+
+// shortcut=true: arcs that pass a whole branch of T' cross its root edge
+// instead of travelling around it (short loops, few split points);
+// shortcut=false: every arc follows the Euler tour (kept as a fallback).
+Refined refine(const TriMesh& mesh, const Connectivity& conn, const Greedy& g, int x, bool shortcut) {
+  const int ne = conn.num_edges();
+  const int ng = static_cast<int>(g.generators.size());
+  // T': tree edges on the paths from x to the generator endpoints.
+  std::vector<char> tp(ne, 0);
+  std::vector<int> gen_of_edge(ne, -1);
+  for (int k = 0; k < ng; ++k) {
+    gen_of_edge[g.generators[k]] = k;
+    const int h = g.gen_halfedge[k];
+    for (int v : {conn.tail(h), conn.head(h)})
+      for (; v != x && !tp[conn.edge(g.parent_he[v])]; v = conn.tail(g.parent_he[v]))
+        tp[conn.edge(g.parent_he[v])] = 1;
+  }
+  // Start corner: the corner of x (after arriving along a T' edge) with the
+  // most edges in it, so the arcs fan out where x has room.
+  int h_last = -1, best_spokes = -1;
+  for (int t : conn.outgoing(x)) {
+    if (!tp[conn.edge(t)]) continue;
+    const int h_in = conn.twin(t);
+    int spokes = 0;
+    for (int o = Connectivity::next(h_in); !tp[conn.edge(o)]; o = Connectivity::next(conn.twin(o))) ++spokes;
+    if (spokes > best_spokes) {
+      best_spokes = spokes;
+      h_last = h_in;
+    }
+  }
+  if (h_last < 0) throw SolveError("system of loops: the base vertex has no tree edge to the generators");
+  const int n_arcs = 2 * ng;
+  const std::vector<TourEvent> events = euler_tour(conn, g, tp, gen_of_edge, h_last, n_arcs);
+  Refiner R(mesh, conn);
+  std::vector<std::vector<int>> arc(n_arcs, std::vector<int>{x});
+  std::vector<int> cur(n_arcs, x);  // current end point of every arc
+  // exit_arc[k][0]: arc ending near the tail of gen_halfedge[k]; [1]: near its head.
+  std::vector<std::array<int, 2>> exit_arc(ng, {-1, -1});
+  const double Lambda = 0.4;
+  int lo = 0, hi = n_arcs - 1;  // arcs present: lo..hi (hi runs innermost)
+  struct Parked {
+    int lo, hi;
+  };
+  std::vector<Parked> parked;
+  // Points for arcs lo..hi on edge e near vertex v, hi closest to v; chords
+  // from the arcs' current ends inside face f.
+  auto advance = [&](int e, int v, int f, int a, int b) {
+    const int n = b - a + 1;
+    for (int k = a; k <= b; ++k) {
+      const double lambda = Lambda * (b - k + 1) / n;
+      const int p = R.add_edge_point(e, v == conn.edge_vertex(e, 0) ? lambda : 1 - lambda);
+      const std::vector<int> app = R.add_chord(f, cur[k], p);
+      arc[k].insert(arc[k].end(), app.begin(), app.end());
+      cur[k] = p;
+    }
+  };
+  // The arcs leave x one group per face of the start corner (outermost
+  // first) instead of all through its first face, so no single face of x
+  // has to hold all 4g bends.
+  int leading = 0;
+  while (leading < static_cast<int>(events.size()) && events[leading].type == SLOT) ++leading;
+  int departed = 0;  // arcs < departed have left x
+  for (size_t i = 0; i < events.size(); ++i) {
+    const TourEvent& ev = events[i];
+    const int o = ev.h, v = conn.tail(o), e = conn.edge(o), f = Connectivity::face(o);
+    if (ev.type == SLOT) {
+      if (lo > hi) continue;
+      if (static_cast<int>(i) < leading) {
+        const int share = (n_arcs * (static_cast<int>(i) + 1) + leading - 1) / leading;
+        departed = std::min(hi + 1, std::max({departed, share, lo + 1}));
+      } else {
+        departed = hi + 1;
+      }
+      advance(e, v, f, lo, std::min(hi, departed - 1));
+      const int k = gen_of_edge[e];
+      if (k >= 0) {
+        if (ev.lo != lo) throw SolveError("system of loops: internal error, arcs leave out of order");
+        exit_arc[k][conn.tail(g.gen_halfedge[k]) == v ? 0 : 1] = lo;
+        ++lo;  // the outermost arc leaves here
+      }
+    } else if (shortcut && ev.type == DOWN) {
+      if (ev.lo != lo || ev.hi < lo || ev.hi > hi)
+        throw SolveError("system of loops: internal error, branch arcs out of order");
+      // Arcs that pass this whole branch cross its root edge near v.
+      if (ev.hi < hi) advance(e, v, f, ev.hi + 1, hi);
+      parked.push_back({ev.hi + 1, hi});
+      hi = ev.hi;
+    } else if (shortcut && ev.type == UP) {
+      if (lo <= hi || parked.empty()) throw SolveError("system of loops: internal error, arcs left in a branch");
+      lo = parked.back().lo;
+      hi = parked.back().hi;
+      parked.pop_back();
+    }
+  }
+  for (int k = 0; k < ng; ++k)
+    if (exit_arc[k][0] < 0 || exit_arc[k][1] < 0)
+      throw SolveError("system of loops: internal error, generator " + std::to_string(k) + " not reached");
+  return assemble_refined(R, mesh, conn, arc, exit_arc);
 }
 
 // Tree, cut tree, generators and word of a system of simple loops meeting

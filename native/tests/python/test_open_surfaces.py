@@ -25,21 +25,9 @@ def grid(n, m, x_of, holes=()):
 
 
 def cap(n):
-    """A spherical cap (disk) as a polar grid with a centre vertex."""
-    V = [[0.0, 0.0, 1.0]]
-    F = []
-    for k in range(1, n + 1):
-        phi = 0.5 * np.pi * k / n
-        for j in range(6 * n):
-            t = 2 * np.pi * j / (6 * n)
-            V.append([np.sin(phi) * np.cos(t), np.sin(phi) * np.sin(t), np.cos(phi)])
-    ring = lambda k, j: 1 + (k - 1) * 6 * n + j % (6 * n)
-    for j in range(6 * n):
-        F.append([0, ring(1, j), ring(1, j + 1)])
-    for k in range(1, n):
-        for j in range(6 * n):
-            F += [[ring(k, j), ring(k + 1, j), ring(k + 1, j + 1)], [ring(k, j), ring(k + 1, j + 1), ring(k, j + 1)]]
-    return np.array(V), np.array(F, int)
+    """A spherical cap (hemisphere, rim at z = 0) as a polar grid with a centre vertex
+    (samples/shapes.h spherical_cap)."""
+    return surfmap.shapes.spherical_cap(n)
 
 
 def tube(height, around=32, rows=8):

@@ -238,17 +238,24 @@ struct LoopOptions {
   int source_base_vertex = -1, target_base_vertex = -1;
 };
 
+/// The uniformization of the target (and, for genus 0, of both surfaces)
+/// (SurfaceMapOptions::uniformization).
+struct UniformizationOptions {
+  /// Curvature tolerance of the Ricci flow (default 1e-10).
+  double tolerance = 1e-10;
+};
+
 /// Options of surface_map, nested by concern: `homotopy` (classes listed,
 /// ranked, searched), `solve` (the harmonic solve and the source's weights),
-/// `loops` (their base vertices), `initial` (the initial map), then the
-/// uniformization tolerance, threads, the landmarks and callbacks.
+/// `loops` (their base vertices), `initial` (the initial map),
+/// `uniformization` (its tolerance), then the target metric, threads, the
+/// landmarks and callbacks.
 struct SurfaceMapOptions {
   HomotopyOptions homotopy;
   SolveOptions solve;
   LoopOptions loops;
   InitialMapOptions initial;
-  /// Curvature tolerance of the target's uniformization (default 1e-10).
-  double uniformization_tolerance = 1e-10;
+  UniformizationOptions uniformization;
   /// Genus >= 1: the target's uniformization metric. Automatic (default):
   /// the intrinsic Delaunay one, the refined fixed-connectivity one only when
   /// the flip path throws (docs/uniformization.md "Which target metric

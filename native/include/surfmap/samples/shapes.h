@@ -65,6 +65,13 @@ TriMesh sphere_inversion(const TriMesh& mesh, const Eigen::Vector3d& c, double r
 /// (10*4^s + 2 vertices), vertices projected onto the sphere.
 TriMesh sphere(int subdivisions = 3);
 
+/// Open disk: the spherical cap z >= 0 of the unit sphere (a hemisphere,
+/// rim at z = 0) as a polar grid, a centre vertex and `rings` rings of
+/// 6 x rings vertices each (1 + 6 rings² vertices); `bump` lifts z by
+/// bump * x * z, an asymmetric bulge so the shape has one best rotation.
+/// Throws InputError on rings outside 1..1000.
+TriMesh spherical_cap(int rings, double bump = 0.0);
+
 /// Genus-0 implicit "peanut" (two overlapping spheres blended smoothly),
 /// meshed like the shapes above; smooth=false keeps the raw marching-tets
 /// slivers. Gives the robustness benchmark a genus-0 raw mesh.
