@@ -366,7 +366,9 @@ SphericalUniformization usable_sphere(const TriMesh& mesh, const SphericalUnifor
       first_message += (first_message.empty() ? "" : "; ") + std::to_string(v0) + ": " + e.what();
       continue;
     }
-    if (a.converged || usable(a)) return a;
+    // Converged means the intrinsic triangulation embeds; the map draws the
+    // input faces as chords, which may still need the local untangling.
+    if ((a.converged && a.input_flipped_faces == 0) || usable(a)) return a;
     first_message += (first_message.empty() ? "" : "; ") + std::to_string(v0) + ": " + a.message;
   }
   throw SolveError(which + " spherical uniformization failed: " + first_message);

@@ -3,7 +3,10 @@
 #include "surfmap/uniformize/spherical.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <deque>
 #include <limits>
@@ -138,33 +141,111 @@ double mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& 
   return cm.norm();
 }
 
-/// Orientation check on the sphere: out.flipped_faces, and out.message
-/// naming the first flipped face (or non-finite positions) unless an
-/// earlier step already failed.
+int count_inward_faces(const RowMatrixX3d& X, const RowMatrixX3i& F, int* first);
+
+/// Orientation checks on the sphere: out.flipped_faces counts the inward
+/// chordal triangles of the intrinsic triangulation (the embedding; any ->
+/// failure, naming the first, unless an earlier step already failed),
+/// out.input_flipped_faces those of the input faces drawn as chords between
+/// their vertices' images (information: with flips the input faces are
+/// images of unions of pieces of intrinsic triangles, not chords).
 void check_sphere_orientation(const TriMesh& mesh, SphericalUniformization& out) {
-  int first_flipped = -1;
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const Eigen::Vector3d a = out.positions.row(mesh.F(f, 0)).transpose(),
-                          b = out.positions.row(mesh.F(f, 1)).transpose(),
-                          c = out.positions.row(mesh.F(f, 2)).transpose();
-    if (!((b - a).cross(c - a).dot(a + b + c) > 0.0)) {
-      ++out.flipped_faces;
-      if (first_flipped < 0) first_flipped = f;
-    }
-  }
+  int first_flipped = -1, first_input = -1;
+  out.flipped_faces = count_inward_faces(out.positions, out.intrinsic_faces, &first_flipped);
+  out.input_flipped_faces = count_inward_faces(out.positions, mesh.F, &first_input);
   if (!out.positions.allFinite()) {
     out.message = "non-finite positions on the sphere";
   } else if (out.flipped_faces > 0 && out.message.empty()) {
-    out.message = "face " + std::to_string(first_flipped) + " is flipped on the sphere (" +
+    out.message = "intrinsic face (" + std::to_string(out.intrinsic_faces(first_flipped, 0)) + ", " +
+                  std::to_string(out.intrinsic_faces(first_flipped, 1)) + ", " +
+                  std::to_string(out.intrinsic_faces(first_flipped, 2)) + ") is flipped on the sphere (" +
                   std::to_string(out.flipped_faces) + " flipped faces)";
   }
 }
 
 }  // namespace
 
+namespace {
+
+/// The punctured sphere during the flattening, in disk vertex ids (the
+/// input's vertices without v0, renumbered; v0 itself is `pole` = #V − 1):
+/// the intrinsic disk faces and the star of v0 (rows (pole, a, b)).
+struct PuncturedTriangulation {
+  int pole = 0;
+  RowMatrixX3i disk;
+  std::vector<std::array<int, 3>> star;
+  /// Ring vertices' length to v0 in the current frame, scaled by the
+  /// vertex-at-infinity limit (1 at the start of every round; a ring flip
+  /// gives the new ring vertex its Ptolemy value).
+  std::unordered_map<int, double> ring_y;
+};
+
+/// Ring flips of the degenerate disk triangles of `flat` that lean on the
+/// ring (docs/uniformization.md, "Genus 0"): triangle (c, s1, s2) with ring
+/// edge s1–s2 opposite an interior vertex c whose angle at c reached π.
+/// Flipping s1–s2 in the quad (c, s1, v0, s2) gives the edge v0–c, i.e. the
+/// triangle joins the star and c the ring, with the Ptolemy length
+/// y_c = (l_cs1 y_s2 + l_cs2 y_s1) / l_s1s2 (the limit of the Ptolemy flip
+/// with v0 at infinity; Ptolemy commutes with vertex scaling, so this is a
+/// flip of the conformal class, as in the rest of the flow). Updates `pt`
+/// (disk := the remaining faces of flat.faces) and returns the number of
+/// flips; 0 when a degenerate triangle cannot be flipped this way.
+int flip_ring_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std::vector<int>& disk_face_kept) {
+  const int nf = static_cast<int>(flat.faces.rows()), ne = static_cast<int>(flat.edge_vertices.rows());
+  std::vector<int> faces_on_edge(ne, 0);
+  for (int f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) ++faces_on_edge[flat.face_edges(f, k)];
+  std::vector<char> removed(nf, 0);
+  int count = 0;
+  for (int f = 0; f < nf; ++f) {
+    double l[3];
+    for (int k = 0; k < 3; ++k) l[k] = flat.edge_lengths[flat.face_edges(f, k)];
+    const int k = static_cast<int>(std::max_element(l, l + 3) - l);
+    if (l[k] < l[(k + 1) % 3] + l[(k + 2) % 3]) continue;  // not degenerate
+    const int c = flat.faces(f, k), s1 = flat.faces(f, (k + 1) % 3), s2 = flat.faces(f, (k + 2) % 3);
+    if (faces_on_edge[flat.face_edges(f, k)] != 1 || pt.ring_y.count(c) || !pt.ring_y.count(s1) ||
+        !pt.ring_y.count(s2))
+      continue;
+    auto it = std::find(pt.star.begin(), pt.star.end(), std::array<int, 3>{pt.pole, s2, s1});
+    if (it == pt.star.end()) continue;
+    // Sides: l[(k+2)%3] joins c–s1, l[(k+1)%3] joins s2–c.
+    pt.ring_y[c] = (l[(k + 2) % 3] * pt.ring_y[s2] + l[(k + 1) % 3] * pt.ring_y[s1]) / l[k];
+    *it = {pt.pole, c, s1};
+    pt.star.push_back({pt.pole, s2, c});
+    removed[f] = 1;
+    for (int q = 0; q < 3; ++q) --faces_on_edge[flat.face_edges(f, q)];
+    ++count;
+  }
+  disk_face_kept.clear();
+  for (int f = 0; f < nf; ++f)
+    if (!removed[f]) disk_face_kept.push_back(f);
+  pt.disk.resize(static_cast<int>(disk_face_kept.size()), 3);
+  for (int i = 0; i < static_cast<int>(disk_face_kept.size()); ++i) pt.disk.row(i) = flat.faces.row(disk_face_kept[i]);
+  return count;
+}
+
+/// Orientation of the chordal triangles `F` (vertex ids of `X`) on the
+/// sphere: number of faces whose normal does not point away from the origin;
+/// `first` receives the first one (-1 if none).
+int count_inward_faces(const RowMatrixX3d& X, const RowMatrixX3i& F, int* first) {
+  int n = 0;
+  *first = -1;
+  for (int f = 0; f < F.rows(); ++f) {
+    const Eigen::Vector3d a = X.row(F(f, 0)).transpose(), b = X.row(F(f, 1)).transpose(),
+                          c = X.row(F(f, 2)).transpose();
+    if (!((b - a).cross(c - a).dot(a + b + c) > 0.0)) {
+      ++n;
+      if (*first < 0) *first = f;
+    }
+  }
+  return n;
+}
+
+}  // namespace
+
 /// One attempt with v0 removed (spherical.h): the punctured disk flattened
-/// with v0 at infinity, laid out, projected to the sphere, Möbius-centred
-/// and checked.
+/// with v0 at infinity (rounds of the Dirichlet flow, ring flips between
+/// them), laid out, projected to the sphere, Möbius-centred and checked.
 static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& conn, int v0,
                                        const SphericalUniformizationOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -172,32 +253,30 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   SphericalUniformization out;
   out.removed_vertex = v0;
 
-  // Punctured disk, vertices renumbered without v0.
+  // Punctured disk, vertices renumbered without v0 (v0 itself: n2).
   std::vector<int> new_id(nv, -1), old_id;
   for (int v = 0; v < nv; ++v)
     if (v != v0) {
       new_id[v] = static_cast<int>(old_id.size());
       old_id.push_back(v);
     }
-  RowMatrixX3i F2(conn.num_faces() - conn.valence(v0), 3);
-  for (int f = 0, r = 0; f < conn.num_faces(); ++f) {
-    if (mesh.F(f, 0) == v0 || mesh.F(f, 1) == v0 || mesh.F(f, 2) == v0) continue;
-    for (int k = 0; k < 3; ++k) F2(r, k) = new_id[mesh.F(f, k)];
-    ++r;
-  }
   const int n2 = nv - 1;
-  const detail::RicciDomain dom = detail::domain_from_faces(n2, F2);
-  std::vector<int> ring;  // boundary = link of v0, in order
-  for (int h : conn.outgoing(v0)) ring.push_back(new_id[conn.head(h)]);
-  const int nb = static_cast<int>(ring.size());
-  int boundary_count = 0;
-  for (int v = 0; v < n2; ++v) boundary_count += dom.full_angle[v] < 4.0;
-  if (boundary_count != nb)
-    throw InputError("the link of vertex " + std::to_string(v0) +
-                     " is not a simple cycle; choose another removed_vertex");
-  Eigen::VectorXd l0(dom.EV.rows());
-  for (int e = 0; e < dom.EV.rows(); ++e)
-    l0[e] = (mesh.V.row(old_id[dom.EV(e, 0)]) - mesh.V.row(old_id[dom.EV(e, 1)])).norm();
+  PuncturedTriangulation pt;
+  pt.pole = n2;
+  pt.disk.resize(conn.num_faces() - conn.valence(v0), 3);
+  for (int f = 0, r = 0; f < conn.num_faces(); ++f) {
+    int row[3], at = -1;
+    for (int k = 0; k < 3; ++k) {
+      row[k] = mesh.F(f, k) == v0 ? n2 : new_id[mesh.F(f, k)];
+      if (mesh.F(f, k) == v0) at = k;
+    }
+    if (at < 0) {
+      pt.disk.row(r++) << row[0], row[1], row[2];
+    } else {
+      pt.star.push_back({n2, row[(at + 1) % 3], row[(at + 2) % 3]});
+      pt.ring_y[row[(at + 1) % 3]] = 1.0;
+    }
+  }
 
   // Flatten with v0 at infinity. Sending v0 to ∞ keeps the length cross
   // ratios only if l̃(v0, j) / l̃(v0, k) -> 1 for all ring vertices, i.e.
@@ -210,26 +289,99 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   // the inversion in the unit sphere around v0 — so the initial metric is the
   // (valid, 3D) edge lengths of the inverted mesh, already satisfying the
   // ring condition; the flow then only has to flatten it.
-  Eigen::VectorXd u(n2), target = Eigen::VectorXd::Zero(n2);
-  for (int i = 0; i < n2; ++i) u[i] = -2.0 * std::log((mesh.V.row(old_id[i]) - mesh.V.row(v0)).norm());
-  std::vector<char> fixed(n2, 0);
-  for (int h : conn.outgoing(v0)) fixed[new_id[conn.head(h)]] = 1;
+  // The ring's edges are the disk's boundary and cannot flip inside the
+  // flow; when a disk triangle against the ring degenerates, the ring edge
+  // is flipped (flip_ring_edges) and the flow runs again from the metric it
+  // reached (the next round's input lengths), with the ring's Dirichlet
+  // values given by the flipped lengths to v0.
   RicciFlowOptions fo = options.flow;
   fo.intrinsic_delaunay = options.intrinsic_delaunay;
-  const RicciFlowResult flat = detail::ricci_solve(dom, l0, Background::Euclidean, fo, target, &u, &fixed);
-  out.edge_flips = flat.flips;
-  out.flow_iterations = flat.iterations;
-  out.circle_error = 0.0;
+  const int max_rounds = options.intrinsic_delaunay ? options.max_ring_flip_rounds : 1;
+  RicciFlowResult flat;
+  detail::RicciDomain dom;
+  Eigen::VectorXd lengths, u(n2);
+  for (int i = 0; i < n2; ++i) u[i] = -2.0 * std::log((mesh.V.row(old_id[i]) - mesh.V.row(v0)).norm());
+  // One round: the Dirichlet flow on the current disk (throws InputError
+  // when v0's link is not a simple cycle).
+  auto solve_round = [&](int round) {
+    dom = detail::domain_from_faces(n2, pt.disk);
+    int boundary_count = 0;
+    for (int v = 0; v < n2; ++v) boundary_count += dom.full_angle[v] < 4.0;
+    if (boundary_count != static_cast<int>(pt.star.size()))
+      throw InputError("the link of vertex " + std::to_string(v0) +
+                       " is not a simple cycle; choose another removed_vertex");
+    if (round == 0) {
+      lengths.resize(dom.EV.rows());
+      for (int e = 0; e < dom.EV.rows(); ++e)
+        lengths[e] = (mesh.V.row(old_id[dom.EV(e, 0)]) - mesh.V.row(old_id[dom.EV(e, 1)])).norm();
+    }
+    std::vector<char> fixed(n2, 0);
+    for (auto& [v, y] : pt.ring_y) {
+      fixed[v] = 1;
+      if (round > 0) u[v] = -2.0 * std::log(y);
+      y = 1.0;  // the solve keeps every ring vertex at y = 1 in its final frame
+    }
+    flat = detail::ricci_solve(dom, lengths, Background::Euclidean, fo, Eigen::VectorXd::Zero(n2), &u, &fixed);
+    out.edge_flips += flat.flips;
+    out.flow_iterations += flat.iterations;
+  };
+  for (int round = 0; round < max_rounds; ++round) {
+    if (round == 0) {
+      solve_round(round);
+    } else {
+      try {
+        solve_round(round);
+      } catch (const Error& e) {  // e.g. the ring flips pinched the disk
+        out.message = "flattening the punctured disk failed after " + std::to_string(out.ring_flips) +
+                      " ring flips: " + e.what();
+        break;
+      }
+    }
+    if (std::getenv("SURFMAP_DEBUG_SPHERE"))
+      std::fprintf(stderr, "round %d: converged %d, %s; ring %zu, u range %g..%g\n", round, flat.converged,
+                   flat.message.c_str(), pt.star.size(), flat.u.minCoeff(), flat.u.maxCoeff());
+    if (flat.converged || round + 1 == max_rounds) break;
+    std::vector<int> kept;
+    const int flipped = flip_ring_edges(flat, pt, kept);
+    if (flipped == 0) break;
+    out.ring_flips += flipped;
+    // Next round: the metric reached is the input (u = 0), except at the
+    // new ring vertices, whose y is not 1.
+    detail::RicciDomain nd;
+    try {
+      nd = detail::domain_from_faces(n2, pt.disk);
+    } catch (const Error& e) {  // a non-simplicial disk after the flips
+      out.message = "ring flips left an invalid disk: " + std::string(e.what());
+      break;
+    }
+    Eigen::VectorXd next(nd.EV.rows());
+    for (int i = 0; i < static_cast<int>(kept.size()); ++i)
+      for (int k = 0; k < 3; ++k) next[nd.FE(i, k)] = flat.edge_lengths[flat.face_edges(kept[i], k)];
+    lengths = next;
+    u.setZero();
+  }
   out.max_curvature_error = flat.max_curvature_error;
   out.stopped_at_floor = flat.stopped_at_floor;
-  if (!flat.converged) out.message = "flattening the punctured disk failed: " + flat.message;
+  out.circle_error = 0.0;
+  if (!flat.converged && out.message.empty()) out.message = "flattening the punctured disk failed: " + flat.message;
 
+  std::vector<int> ring;
+  for (const auto& s : pt.star) ring.push_back(s[1]);
   const Eigen::MatrixX2d P =
       lay_out_flat_disk(flat.faces, flat.face_edges, flat.edge_lengths, n2, static_cast<int>(dom.EV.rows()));
   out.positions = project_to_sphere(P, flat.faces, ring, old_id, v0, nv);
   out.centre_of_mass_norm = mobius_centre(mesh, options, out.positions);
   if (out.message.empty() && !(out.centre_of_mass_norm <= options.centring_tolerance))
     out.message = "Möbius centring stalled at |centre| = " + detail::fmt(out.centre_of_mass_norm);
+
+  // The spherical embedding: the intrinsic triangulation (disk faces of the
+  // flow and the star of v0) in input vertex ids.
+  out.intrinsic_faces.resize(flat.faces.rows() + static_cast<int>(pt.star.size()), 3);
+  auto input_id = [&](int v) { return v == n2 ? v0 : old_id[v]; };
+  for (int f = 0; f < flat.faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) out.intrinsic_faces(f, k) = input_id(flat.faces(f, k));
+  for (size_t i = 0; i < pt.star.size(); ++i)
+    for (int k = 0; k < 3; ++k) out.intrinsic_faces(flat.faces.rows() + static_cast<int>(i), k) = input_id(pt.star[i][k]);
   check_sphere_orientation(mesh, out);
   out.converged = out.message.empty();
   out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
