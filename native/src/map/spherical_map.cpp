@@ -338,7 +338,7 @@ SphericalUniformization usable_sphere(const TriMesh& mesh, const SphericalUnifor
   const int nv = mesh.num_vertices();
   const int limit = std::max(200, nv / 20);
   auto usable = [&](SphericalUniformization& u) {
-    if (!u.positions.allFinite() || !(u.max_curvature_error <= std::max(1e3 * uo.flow.tolerance, 1e-8)) ||
+    if (u.positions.rows() != nv || !u.positions.allFinite() || !(u.max_curvature_error <= std::max(1e3 * uo.flow.tolerance, 1e-8)) ||
         !(u.centre_of_mass_norm <= 1e-6))
       return false;
     const int moved = untangle_sphere_image(u.positions, mesh.V, mesh.F, limit);

@@ -17,6 +17,7 @@
 
 #include "ricci_core.h"
 #include "surfmap/error.h"
+#include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/mesh/connectivity.h"
 
 namespace surfmap {
@@ -224,6 +225,66 @@ int flip_ring_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std
   return count;
 }
 
+/// Star flips at the reflex ring vertices of a converged flattening
+/// (docs/uniformization.md, "Genus 0"): with v0 at infinity the edge v0–a
+/// is Delaunay iff the disk's angle at the ring vertex a is at most π (the
+/// two star triangles at a are the half-planes beyond the ring edges; a
+/// reflex corner puts a neighbour beyond the other's line, and the star's
+/// chordal triangles fold on the sphere). Flipping v0–a in the quad
+/// (v0, p, a, q) gives the disk triangle (p, a, q) and the ring edge p–q of
+/// Ptolemy length (l_pa y_q + l_aq y_p) / y_a = l_pa + l_aq (all y = 1 after
+/// a solve): a degenerate triangle, so the next round's input frame scales
+/// a's edges by vertex_scale[a] > 1 (a vertex scaling: the same conformal
+/// class) to give it a strict triangle inequality. a becomes interior. Appends
+/// the new faces to pt.disk and their p–q lengths to `new_sides`; returns the
+/// number of flips.
+int flip_star_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std::vector<double>& vertex_scale,
+                    std::vector<double>& new_sides) {
+  const int nf = static_cast<int>(flat.faces.rows());
+  std::vector<double> angle(pt.pole, 0.0), slack(pt.pole, 1.0);
+  std::unordered_map<long long, double> length_of;
+  auto key = [&](int a, int b) { return static_cast<long long>(std::min(a, b)) * pt.pole + std::max(a, b); };
+  for (int f = 0; f < nf; ++f) {
+    double l[3];
+    for (int k = 0; k < 3; ++k) l[k] = flat.edge_lengths[flat.face_edges(f, k)];
+    for (int k = 0; k < 3; ++k) {
+      const double a = l[k], b = l[(k + 1) % 3], c = l[(k + 2) % 3];
+      angle[flat.faces(f, k)] += std::acos(std::clamp((b * b + c * c - a * a) / (2 * b * c), -1.0, 1.0));
+      const double rel = (b + c - a) / a;  // this corner's edges may grow by half of it
+      slack[flat.faces(f, k)] = std::min(slack[flat.faces(f, k)], rel);
+      length_of[key(flat.faces(f, (k + 1) % 3), flat.faces(f, (k + 2) % 3))] = a;
+    }
+  }
+  std::vector<char> touched(pt.pole, 0);
+  std::vector<std::array<int, 3>> added;
+  int count = 0;
+  for (auto it = pt.star.begin(); it != pt.star.end(); ++it) {
+    const int p = (*it)[1], a = (*it)[2];  // star row (pole, p, a)
+    if (!(angle[a] > detail::kPi + 1e-9) || touched[a] || touched[p]) continue;
+    auto next = std::find_if(pt.star.begin(), pt.star.end(), [&](const auto& r) { return r[1] == a; });
+    if (next == pt.star.end()) continue;
+    const int q = (*next)[2];
+    if (q == p || touched[q] || length_of.count(key(p, q)) || !length_of.count(key(p, a)) ||
+        !length_of.count(key(a, q)))
+      continue;
+    const double s = 1.0 + std::min(1e-2, 0.25 * slack[a]);
+    if (!(s > 1.0)) continue;
+    vertex_scale[a] = s;
+    new_sides.push_back(length_of[key(p, a)] + length_of[key(a, q)]);
+    added.push_back({p, a, q});
+    touched[a] = touched[p] = touched[q] = 1;
+    *it = {pt.pole, p, q};
+    pt.star.erase(next);
+    pt.ring_y.erase(a);
+    it = pt.star.begin();  // erase invalidated the iterators; touched[] keeps each vertex to one flip
+    ++count;
+  }
+  const int old_rows = static_cast<int>(pt.disk.rows());
+  pt.disk.conservativeResize(old_rows + static_cast<int>(added.size()), 3);
+  for (size_t i = 0; i < added.size(); ++i) pt.disk.row(old_rows + static_cast<int>(i)) << added[i][0], added[i][1], added[i][2];
+  return count;
+}
+
 /// Orientation of the chordal triangles `F` (vertex ids of `X`) on the
 /// sphere: number of faces whose normal does not point away from the origin;
 /// `first` receives the first one (-1 if none).
@@ -263,20 +324,49 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   const int n2 = nv - 1;
   PuncturedTriangulation pt;
   pt.pole = n2;
-  pt.disk.resize(conn.num_faces() - conn.valence(v0), 3);
-  for (int f = 0, r = 0; f < conn.num_faces(); ++f) {
-    int row[3], at = -1;
+  // The input's lengths, mollified like every other path (intake notes the
+  // faces touched; nearly degenerate faces get a strict triangle inequality).
+  // With flips, the start is the intrinsic Delaunay triangulation of the
+  // input metric on the whole sphere (exact flips, the pole's star
+  // included): it fixes the discrete conformal class independently of the
+  // removed vertex, so that every pole gives the same sphere up to Möbius
+  // maps (the disk flow could not flip the star's edges exactly).
+  const Eigen::VectorXd input_lengths = edge_lengths(mesh, conn);
+  RowMatrixX3i start_faces = mesh.F;
+  RowMatrixX3d start_sides(conn.num_faces(), 3);  // side opposite corner k
+  for (int f = 0; f < conn.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) start_sides(f, k) = input_lengths[conn.edge(3 * f + (k + 1) % 3)];
+  if (options.intrinsic_delaunay) {
+    const IntrinsicDelaunayResult idt = intrinsic_delaunay(conn, input_lengths);
+    start_faces = idt.F;
+    for (int f = 0; f < idt.F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) start_sides(f, k) = idt.edges[idt.face_edges(f, (k + 1) % 3)].length;
+    out.edge_flips += idt.flips;
+  }
+  Eigen::VectorXd u(n2);
+  for (int i = 0; i < n2; ++i) u[i] = -2.0 * std::log((mesh.V.row(old_id[i]) - mesh.V.row(v0)).norm());
+  std::vector<std::array<double, 3>> disk_sides;
+  std::vector<std::array<int, 3>> disk_rows;
+  for (int f = 0; f < start_faces.rows(); ++f) {
+    int row[3], at = -1, count = 0;
     for (int k = 0; k < 3; ++k) {
-      row[k] = mesh.F(f, k) == v0 ? n2 : new_id[mesh.F(f, k)];
-      if (mesh.F(f, k) == v0) at = k;
+      row[k] = start_faces(f, k) == v0 ? n2 : new_id[start_faces(f, k)];
+      if (start_faces(f, k) == v0) at = k, ++count;
     }
+    if (count > 1)
+      throw InputError("the link of vertex " + std::to_string(v0) +
+                       " is not a simple cycle; choose another removed_vertex");
     if (at < 0) {
-      pt.disk.row(r++) << row[0], row[1], row[2];
+      disk_rows.push_back({row[0], row[1], row[2]});
+      disk_sides.push_back({start_sides(f, 0), start_sides(f, 1), start_sides(f, 2)});
     } else {
       pt.star.push_back({n2, row[(at + 1) % 3], row[(at + 2) % 3]});
       pt.ring_y[row[(at + 1) % 3]] = 1.0;
+      u[row[(at + 1) % 3]] = -2.0 * std::log(start_sides(f, (at + 2) % 3));  // side v0–row[at+1]
     }
   }
+  pt.disk.resize(static_cast<int>(disk_rows.size()), 3);
+  for (int r = 0; r < pt.disk.rows(); ++r) pt.disk.row(r) << disk_rows[r][0], disk_rows[r][1], disk_rows[r][2];
 
   // Flatten with v0 at infinity. Sending v0 to ∞ keeps the length cross
   // ratios only if l̃(v0, j) / l̃(v0, k) -> 1 for all ring vertices, i.e.
@@ -299,8 +389,7 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   const int max_rounds = options.intrinsic_delaunay ? options.max_ring_flip_rounds : 1;
   RicciFlowResult flat;
   detail::RicciDomain dom;
-  Eigen::VectorXd lengths, u(n2);
-  for (int i = 0; i < n2; ++i) u[i] = -2.0 * std::log((mesh.V.row(old_id[i]) - mesh.V.row(v0)).norm());
+  Eigen::VectorXd lengths;
   // One round: the Dirichlet flow on the current disk (throws InputError
   // when v0's link is not a simple cycle).
   auto solve_round = [&](int round) {
@@ -312,8 +401,8 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
                        " is not a simple cycle; choose another removed_vertex");
     if (round == 0) {
       lengths.resize(dom.EV.rows());
-      for (int e = 0; e < dom.EV.rows(); ++e)
-        lengths[e] = (mesh.V.row(old_id[dom.EV(e, 0)]) - mesh.V.row(old_id[dom.EV(e, 1)])).norm();
+      for (int f = 0; f < dom.F.rows(); ++f)
+        for (int k = 0; k < 3; ++k) lengths[dom.FE(f, k)] = disk_sides[f][k];
     }
     std::vector<char> fixed(n2, 0);
     for (auto& [v, y] : pt.ring_y) {
@@ -340,11 +429,20 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
     if (std::getenv("SURFMAP_DEBUG_SPHERE"))
       std::fprintf(stderr, "round %d: converged %d, %s; ring %zu, u range %g..%g\n", round, flat.converged,
                    flat.message.c_str(), pt.star.size(), flat.u.minCoeff(), flat.u.maxCoeff());
-    if (flat.converged || round + 1 == max_rounds) break;
+    if (round + 1 == max_rounds) break;
     std::vector<int> kept;
-    const int flipped = flip_ring_edges(flat, pt, kept);
-    if (flipped == 0) break;
-    out.ring_flips += flipped;
+    std::vector<double> vertex_scale(n2, 1.0), new_sides;
+    if (flat.converged) {
+      for (int f = 0; f < flat.faces.rows(); ++f) kept.push_back(f);
+      pt.disk = flat.faces;
+      const int flipped = flip_star_edges(flat, pt, vertex_scale, new_sides);
+      if (flipped == 0) break;
+      out.ring_flips += flipped;
+    } else {
+      const int flipped = flip_ring_edges(flat, pt, kept);
+      if (flipped == 0) break;
+      out.ring_flips += flipped;
+    }
     // Next round: the metric reached is the input (u = 0), except at the
     // new ring vertices, whose y is not 1.
     detail::RicciDomain nd;
@@ -357,6 +455,9 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
     Eigen::VectorXd next(nd.EV.rows());
     for (int i = 0; i < static_cast<int>(kept.size()); ++i)
       for (int k = 0; k < 3; ++k) next[nd.FE(i, k)] = flat.edge_lengths[flat.face_edges(kept[i], k)];
+    for (size_t i = 0; i < new_sides.size(); ++i)  // star flips: the new ring edge, opposite corner 1
+      next[nd.FE(static_cast<int>(kept.size() + i), 1)] = new_sides[i];
+    for (int e = 0; e < nd.EV.rows(); ++e) next[e] *= vertex_scale[nd.EV(e, 0)] * vertex_scale[nd.EV(e, 1)];
     lengths = next;
     u.setZero();
   }
@@ -368,7 +469,7 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   std::vector<int> ring;
   for (const auto& s : pt.star) ring.push_back(s[1]);
   const Eigen::MatrixX2d P =
-      lay_out_flat_disk(flat.faces, flat.face_edges, flat.edge_lengths, n2, static_cast<int>(dom.EV.rows()));
+      lay_out_flat_disk(flat.faces, flat.face_edges, flat.edge_lengths, n2, static_cast<int>(flat.edge_vertices.rows()));
   out.positions = project_to_sphere(P, flat.faces, ring, old_id, v0, nv);
   out.centre_of_mass_norm = mobius_centre(mesh, options, out.positions);
   if (out.message.empty() && !(out.centre_of_mass_norm <= options.centring_tolerance))
@@ -439,7 +540,13 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
   bool have = false;
   std::string tried;
   for (int v0 : candidates) {
-    SphericalUniformization r = attempt(mesh, conn, v0, options);
+    SphericalUniformization r;
+    try {
+      r = attempt(mesh, conn, v0, options);
+    } catch (const InputError& e) {  // e.g. a link that is not a simple cycle: try the next vertex
+      tried += (tried.empty() ? "" : "; ") + std::to_string(v0) + ": " + e.what();
+      continue;
+    }
     if (r.converged) {
       r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       return r;
