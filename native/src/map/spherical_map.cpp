@@ -758,6 +758,10 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
     double mean = 0, max = 0;
     int degenerate = 0;
   };
+  // The source's side of D' uses its mollified lengths (the metric both
+  // uniformizations run on): an exactly zero-area input face then has a
+  // finite D' instead of an infinite one that would refuse the whole map.
+  const Eigen::VectorXd source_lengths = edge_lengths(source, sc);
   auto quality = [&](const std::vector<PointOnSurface>& fw) {
     Quality q;
     q.per_face.assign(source.num_faces(), std::numeric_limits<double>::infinity());
@@ -767,7 +771,8 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
                             p2 = source.V.row(source.F(f, 2));
       const Eigen::Vector3d i0 = fw[source.F(f, 0)].position, i1 = fw[source.F(f, 1)].position,
                             i2 = fw[source.F(f, 2)].position;
-      const double d = triangle_dilatation(Eigen::Vector3d((p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()),
+      const double d = triangle_dilatation(Eigen::Vector3d(source_lengths[sc.edge(3 * f)], source_lengths[sc.edge(3 * f + 1)],
+                                                           source_lengths[sc.edge(3 * f + 2)]),
                                            Eigen::Vector3d((i1 - i0).norm(), (i2 - i1).norm(), (i0 - i2).norm()));
       if (!std::isfinite(d)) {
         ++q.degenerate;
