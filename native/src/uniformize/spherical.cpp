@@ -5,8 +5,6 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <deque>
 #include <limits>
@@ -426,9 +424,6 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
         break;
       }
     }
-    if (std::getenv("SURFMAP_DEBUG_SPHERE"))
-      std::fprintf(stderr, "round %d: converged %d, %s; ring %zu, u range %g..%g\n", round, flat.converged,
-                   flat.message.c_str(), pt.star.size(), flat.u.minCoeff(), flat.u.maxCoeff());
     if (round + 1 == max_rounds) break;
     std::vector<int> kept;
     std::vector<double> vertex_scale(n2, 1.0), new_sides;
