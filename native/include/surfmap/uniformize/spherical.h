@@ -12,7 +12,12 @@
 // sphere are then again a vertex scaling of the input lengths, i.e. the
 // result is a discrete conformal map onto a polyhedron inscribed in the unit
 // sphere (Springborn–Schröder–Pinkall 2008; Bobenko–Pinkall–Springborn
-// 2015). Finally Möbius-centre: repeatedly apply the ball automorphism that
+// 2015). With flips (default) the start is the intrinsic Delaunay
+// triangulation of the whole sphere, and the removed vertex's ring and star
+// edges flip between rounds of the flow (ring flips at degenerate
+// triangles, star flips at reflex ring vertices; docs/uniformization.md
+// "Genus 0"), so the chordal polyhedron of `intrinsic_faces` is convex: an
+// embedding. Finally Möbius-centre: repeatedly apply the ball automorphism that
 // moves the area-weighted centre of mass (vertex areas of the input mesh)
 // to the origin.
 #include <string>
