@@ -79,6 +79,8 @@ void run(const Args& a) {
   if (r.genus == 0) {
     j["removed_vertex"] = r.sphere.removed_vertex;
     j["flipped_faces"] = r.sphere.flipped_faces;
+    j["input_flipped_faces"] = r.sphere.input_flipped_faces;
+    j["ring_flips"] = r.sphere.ring_flips;
     j["centre_of_mass_norm"] = r.sphere.centre_of_mass_norm;
     j["circle_error"] = r.sphere.circle_error;
   } else {

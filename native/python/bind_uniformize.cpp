@@ -174,6 +174,8 @@ void bind_uniformize(py::module_& m) {
           d["sphere_positions"] = to_numpy(r.sphere.positions);
           d["removed_vertex"] = r.sphere.removed_vertex;
           d["flipped_faces"] = r.sphere.flipped_faces;
+          d["input_flipped_faces"] = r.sphere.input_flipped_faces;
+          d["ring_flips"] = r.sphere.ring_flips;
           return d;
         }
         d["refined_V"] = to_numpy(r.loops.mesh.V);

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cmath>
+#include <complex>
 #include <map>
 #include <random>
 #include <vector>
@@ -14,6 +15,7 @@
 
 #include "surfmap/error.h"
 #include "surfmap/mesh/connectivity.h"
+#include "surfmap/samples/shapes.h"
 
 namespace surfmap {
 namespace {
@@ -171,6 +173,121 @@ TEST(Spherical, RejectsHigherGenus) {
     t.F.row(2 * i + 1) << i, (i + 3) % 7, (i + 2) % 7;
   }
   EXPECT_THROW(spherical_uniformization(t), InputError);
+}
+
+}  // namespace
+}  // namespace surfmap
+
+namespace surfmap {
+namespace {
+
+// A UV sphere (rings x segments, pole fans) stretched `stretch`:1 along z:
+// long slivers with angles near 1 degree at 50:1.
+TriMesh stretched_uv_sphere(int rings, int segments, double stretch) {
+  TriMesh m;
+  const int nv = 2 + (rings - 1) * segments;
+  m.V.resize(nv, 3);
+  m.V.row(0) << 0, 0, stretch;
+  for (int i = 1; i < rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const double th = kPi * i / rings, ph = 2 * kPi * j / segments;
+      m.V.row(1 + (i - 1) * segments + j) << std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph),
+          stretch * std::cos(th);
+    }
+  m.V.row(nv - 1) << 0, 0, -stretch;
+  auto id = [&](int i, int j) { return 1 + (i - 1) * segments + (j % segments); };
+  std::vector<std::array<int, 3>> F;
+  for (int j = 0; j < segments; ++j) F.push_back({0, id(1, j), id(1, j + 1)});
+  for (int i = 1; i < rings - 1; ++i)
+    for (int j = 0; j < segments; ++j) {
+      F.push_back({id(i, j), id(i + 1, j), id(i, j + 1)});
+      F.push_back({id(i, j + 1), id(i + 1, j), id(i + 1, j + 1)});
+    }
+  for (int j = 0; j < segments; ++j) F.push_back({nv - 1, id(rings - 1, j + 1), id(rings - 1, j)});
+  m.F.resize(static_cast<int>(F.size()), 3);
+  for (size_t f = 0; f < F.size(); ++f) m.F.row(static_cast<int>(f)) << F[f][0], F[f][1], F[f][2];
+  return m;
+}
+
+// Signed area of the spherical triangle (a, b, c) (Van Oosterom–Strackee).
+double solid_angle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  return 2.0 * std::atan2(a.dot(b.cross(c)), 1.0 + a.dot(b) + b.dot(c) + c.dot(a));
+}
+
+// The intrinsic triangulation is an embedding of the sphere: a closed
+// manifold triangulation of the input's vertices (Euler characteristic 2),
+// every chordal triangle outward, and the spherical triangles tile the
+// sphere exactly once (Gauss–Bonnet: their areas sum to 4π; an overlap or a
+// fold would add area, a hole would remove some).
+void expect_embedding(const TriMesh& m, const SphericalUniformization& s) {
+  ASSERT_TRUE(s.converged) << s.message;
+  ASSERT_EQ(s.intrinsic_faces.rows(), m.F.rows());
+  const Connectivity c(s.intrinsic_faces, m.num_vertices());  // throws on a non-manifold edge
+  EXPECT_EQ(c.euler_characteristic(), 2);
+  double area = 0;
+  int inward = 0;
+  for (int f = 0; f < s.intrinsic_faces.rows(); ++f) {
+    const Eigen::Vector3d a = s.positions.row(s.intrinsic_faces(f, 0)).transpose(),
+                          b = s.positions.row(s.intrinsic_faces(f, 1)).transpose(),
+                          d = s.positions.row(s.intrinsic_faces(f, 2)).transpose();
+    inward += !((b - a).cross(d - a).dot(a + b + d) > 0);
+    area += std::abs(solid_angle(a, b, d));
+  }
+  EXPECT_EQ(inward, 0);
+  EXPECT_EQ(s.flipped_faces, 0);
+  EXPECT_NEAR(area, 4 * kPi, 1e-8);
+}
+
+TEST(SphericalFlips, SliverSphereThatTheFixedPathRefusesUniformizes) {
+  // 300 exactly collinear (zero-area, mollified) faces on a 2562-vertex
+  // sphere: no fixed-connectivity flat metric exists for any removed vertex.
+  const TriMesh m = samples::insert_degenerate_faces(samples::sphere(4), 300, 0.5, 2);
+  SphericalUniformizationOptions fixed_connectivity;
+  fixed_connectivity.intrinsic_delaunay = false;
+  for (int v0 : {0, 1000, 2000}) {
+    fixed_connectivity.removed_vertex = v0;
+    EXPECT_FALSE(spherical_uniformization(m, fixed_connectivity).converged) << v0;
+  }
+  const SphericalUniformization s = spherical_uniformization(m);
+  expect_embedding(m, s);
+  EXPECT_GT(s.edge_flips, 0);
+  EXPECT_LE(s.max_curvature_error, 1e-9);
+}
+
+TEST(SphericalFlips, StretchedUvSphereUniformizes) {
+  // Pole fans and slivers of 2-3 degrees (UV sphere stretched 8:1).
+  const TriMesh m = stretched_uv_sphere(30, 60, 8.0);
+  expect_embedding(m, spherical_uniformization(m));
+}
+
+TEST(SphericalFlips, UniformizationIsUniqueUpToMobius) {
+  // Discrete uniformization is unique up to Möbius maps (Springborn 2020):
+  // two different vertices at infinity must give sphere images that differ
+  // by a Möbius map, vertex by vertex. The Möbius map through three
+  // vertices is exact; the other vertices then test it.
+  const TriMesh m = samples::insert_degenerate_faces(samples::sphere(3), 100, 0.5, 5);
+  SphericalUniformizationOptions a, b;
+  a.removed_vertex = 0;
+  b.removed_vertex = 300;
+  const SphericalUniformization sa = spherical_uniformization(m, a), sb = spherical_uniformization(m, b);
+  expect_embedding(m, sa);
+  expect_embedding(m, sb);
+  // Cross ratios of four points on the Riemann sphere are Möbius invariant.
+  auto to_c = [](const Eigen::Vector3d& p) { return std::complex<double>(p.x(), p.y()) / (1.0 - p.z()); };
+  auto cross_ratio = [&](const SphericalUniformization& s, int i, int j, int k, int l) {
+    const auto zi = to_c(s.positions.row(i)), zj = to_c(s.positions.row(j)), zk = to_c(s.positions.row(k)),
+               zl = to_c(s.positions.row(l));
+    return (zi - zk) * (zj - zl) / ((zi - zl) * (zj - zk));
+  };
+  const int nv = m.num_vertices();
+  double worst = 0;
+  for (int t = 0; t < 200; ++t) {
+    const int i = (7 * t + 1) % nv, j = (13 * t + 5) % nv, k = (29 * t + 11) % nv, l = (31 * t + 17) % nv;
+    if (i == j || i == k || i == l || j == k || j == l || k == l) continue;
+    const auto ca = cross_ratio(sa, i, j, k, l), cb = cross_ratio(sb, i, j, k, l);
+    worst = std::max(worst, std::abs(ca - cb) / std::max(1.0, std::abs(ca)));
+  }
+  EXPECT_LT(worst, 1e-6);
 }
 
 }  // namespace

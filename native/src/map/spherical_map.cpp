@@ -338,7 +338,7 @@ SphericalUniformization usable_sphere(const TriMesh& mesh, const SphericalUnifor
   const int nv = mesh.num_vertices();
   const int limit = std::max(200, nv / 20);
   auto usable = [&](SphericalUniformization& u) {
-    if (!u.positions.allFinite() || !(u.max_curvature_error <= std::max(1e3 * uo.flow.tolerance, 1e-8)) ||
+    if (u.positions.rows() != nv || !u.positions.allFinite() || !(u.max_curvature_error <= std::max(1e3 * uo.flow.tolerance, 1e-8)) ||
         !(u.centre_of_mass_norm <= 1e-6))
       return false;
     const int moved = untangle_sphere_image(u.positions, mesh.V, mesh.F, limit);
@@ -366,7 +366,9 @@ SphericalUniformization usable_sphere(const TriMesh& mesh, const SphericalUnifor
       first_message += (first_message.empty() ? "" : "; ") + std::to_string(v0) + ": " + e.what();
       continue;
     }
-    if (a.converged || usable(a)) return a;
+    // Converged means the intrinsic triangulation embeds; the map draws the
+    // input faces as chords, which may still need the local untangling.
+    if ((a.converged && a.input_flipped_faces == 0) || usable(a)) return a;
     first_message += (first_message.empty() ? "" : "; ") + std::to_string(v0) + ": " + a.message;
   }
   throw SolveError(which + " spherical uniformization failed: " + first_message);
@@ -756,6 +758,10 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
     double mean = 0, max = 0;
     int degenerate = 0;
   };
+  // The source's side of D' uses its mollified lengths (the metric both
+  // uniformizations run on): an exactly zero-area input face then has a
+  // finite D' instead of an infinite one that would refuse the whole map.
+  const Eigen::VectorXd source_lengths = edge_lengths(source, sc);
   auto quality = [&](const std::vector<PointOnSurface>& fw) {
     Quality q;
     q.per_face.assign(source.num_faces(), std::numeric_limits<double>::infinity());
@@ -765,7 +771,8 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
                             p2 = source.V.row(source.F(f, 2));
       const Eigen::Vector3d i0 = fw[source.F(f, 0)].position, i1 = fw[source.F(f, 1)].position,
                             i2 = fw[source.F(f, 2)].position;
-      const double d = triangle_dilatation(Eigen::Vector3d((p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()),
+      const double d = triangle_dilatation(Eigen::Vector3d(source_lengths[sc.edge(3 * f)], source_lengths[sc.edge(3 * f + 1)],
+                                                           source_lengths[sc.edge(3 * f + 2)]),
                                            Eigen::Vector3d((i1 - i0).norm(), (i2 - i1).norm(), (i0 - i2).norm()));
       if (!std::isfinite(d)) {
         ++q.degenerate;

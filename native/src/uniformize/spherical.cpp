@@ -3,6 +3,7 @@
 #include "surfmap/uniformize/spherical.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <deque>
@@ -14,6 +15,7 @@
 
 #include "ricci_core.h"
 #include "surfmap/error.h"
+#include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/mesh/connectivity.h"
 
 namespace surfmap {
@@ -138,33 +140,171 @@ double mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& 
   return cm.norm();
 }
 
-/// Orientation check on the sphere: out.flipped_faces, and out.message
-/// naming the first flipped face (or non-finite positions) unless an
-/// earlier step already failed.
+int count_inward_faces(const RowMatrixX3d& X, const RowMatrixX3i& F, int* first);
+
+/// Orientation checks on the sphere: out.flipped_faces counts the inward
+/// chordal triangles of the intrinsic triangulation (the embedding; any ->
+/// failure, naming the first, unless an earlier step already failed),
+/// out.input_flipped_faces those of the input faces drawn as chords between
+/// their vertices' images (information: with flips the input faces are
+/// images of unions of pieces of intrinsic triangles, not chords).
 void check_sphere_orientation(const TriMesh& mesh, SphericalUniformization& out) {
-  int first_flipped = -1;
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const Eigen::Vector3d a = out.positions.row(mesh.F(f, 0)).transpose(),
-                          b = out.positions.row(mesh.F(f, 1)).transpose(),
-                          c = out.positions.row(mesh.F(f, 2)).transpose();
-    if (!((b - a).cross(c - a).dot(a + b + c) > 0.0)) {
-      ++out.flipped_faces;
-      if (first_flipped < 0) first_flipped = f;
-    }
-  }
+  int first_flipped = -1, first_input = -1;
+  out.flipped_faces = count_inward_faces(out.positions, out.intrinsic_faces, &first_flipped);
+  out.input_flipped_faces = count_inward_faces(out.positions, mesh.F, &first_input);
   if (!out.positions.allFinite()) {
     out.message = "non-finite positions on the sphere";
   } else if (out.flipped_faces > 0 && out.message.empty()) {
-    out.message = "face " + std::to_string(first_flipped) + " is flipped on the sphere (" +
+    out.message = "intrinsic face (" + std::to_string(out.intrinsic_faces(first_flipped, 0)) + ", " +
+                  std::to_string(out.intrinsic_faces(first_flipped, 1)) + ", " +
+                  std::to_string(out.intrinsic_faces(first_flipped, 2)) + ") is flipped on the sphere (" +
                   std::to_string(out.flipped_faces) + " flipped faces)";
   }
 }
 
 }  // namespace
 
+namespace {
+
+/// The punctured sphere during the flattening, in disk vertex ids (the
+/// input's vertices without v0, renumbered; v0 itself is `pole` = #V − 1):
+/// the intrinsic disk faces and the star of v0 (rows (pole, a, b)).
+struct PuncturedTriangulation {
+  int pole = 0;
+  RowMatrixX3i disk;
+  std::vector<std::array<int, 3>> star;
+  /// Ring vertices' length to v0 in the current frame, scaled by the
+  /// vertex-at-infinity limit (1 at the start of every round; a ring flip
+  /// gives the new ring vertex its Ptolemy value).
+  std::unordered_map<int, double> ring_y;
+};
+
+/// Ring flips of the degenerate disk triangles of `flat` that lean on the
+/// ring (docs/uniformization.md, "Genus 0"): triangle (c, s1, s2) with ring
+/// edge s1–s2 opposite an interior vertex c whose angle at c reached π.
+/// Flipping s1–s2 in the quad (c, s1, v0, s2) gives the edge v0–c, i.e. the
+/// triangle joins the star and c the ring, with the Ptolemy length
+/// y_c = (l_cs1 y_s2 + l_cs2 y_s1) / l_s1s2 (the limit of the Ptolemy flip
+/// with v0 at infinity; Ptolemy commutes with vertex scaling, so this is a
+/// flip of the conformal class, as in the rest of the flow). Updates `pt`
+/// (disk := the remaining faces of flat.faces) and returns the number of
+/// flips; 0 when a degenerate triangle cannot be flipped this way.
+int flip_ring_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std::vector<int>& disk_face_kept) {
+  const int nf = static_cast<int>(flat.faces.rows()), ne = static_cast<int>(flat.edge_vertices.rows());
+  std::vector<int> faces_on_edge(ne, 0);
+  for (int f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) ++faces_on_edge[flat.face_edges(f, k)];
+  std::vector<char> removed(nf, 0);
+  int count = 0;
+  for (int f = 0; f < nf; ++f) {
+    double l[3];
+    for (int k = 0; k < 3; ++k) l[k] = flat.edge_lengths[flat.face_edges(f, k)];
+    const int k = static_cast<int>(std::max_element(l, l + 3) - l);
+    if (l[k] < l[(k + 1) % 3] + l[(k + 2) % 3]) continue;  // not degenerate
+    const int c = flat.faces(f, k), s1 = flat.faces(f, (k + 1) % 3), s2 = flat.faces(f, (k + 2) % 3);
+    if (faces_on_edge[flat.face_edges(f, k)] != 1 || pt.ring_y.count(c) || !pt.ring_y.count(s1) ||
+        !pt.ring_y.count(s2))
+      continue;
+    auto it = std::find(pt.star.begin(), pt.star.end(), std::array<int, 3>{pt.pole, s2, s1});
+    if (it == pt.star.end()) continue;
+    // Sides: l[(k+2)%3] joins c–s1, l[(k+1)%3] joins s2–c.
+    pt.ring_y[c] = (l[(k + 2) % 3] * pt.ring_y[s2] + l[(k + 1) % 3] * pt.ring_y[s1]) / l[k];
+    *it = {pt.pole, c, s1};
+    pt.star.push_back({pt.pole, s2, c});
+    removed[f] = 1;
+    for (int q = 0; q < 3; ++q) --faces_on_edge[flat.face_edges(f, q)];
+    ++count;
+  }
+  disk_face_kept.clear();
+  for (int f = 0; f < nf; ++f)
+    if (!removed[f]) disk_face_kept.push_back(f);
+  pt.disk.resize(static_cast<int>(disk_face_kept.size()), 3);
+  for (int i = 0; i < static_cast<int>(disk_face_kept.size()); ++i) pt.disk.row(i) = flat.faces.row(disk_face_kept[i]);
+  return count;
+}
+
+/// Star flips at the reflex ring vertices of a converged flattening
+/// (docs/uniformization.md, "Genus 0"): with v0 at infinity the edge v0–a
+/// is Delaunay iff the disk's angle at the ring vertex a is at most π (the
+/// two star triangles at a are the half-planes beyond the ring edges; a
+/// reflex corner puts a neighbour beyond the other's line, and the star's
+/// chordal triangles fold on the sphere). Flipping v0–a in the quad
+/// (v0, p, a, q) gives the disk triangle (p, a, q) and the ring edge p–q of
+/// Ptolemy length (l_pa y_q + l_aq y_p) / y_a = l_pa + l_aq (all y = 1 after
+/// a solve): a degenerate triangle, so the next round's input frame scales
+/// a's edges by vertex_scale[a] > 1 (a vertex scaling: the same conformal
+/// class) to give it a strict triangle inequality. a becomes interior. Appends
+/// the new faces to pt.disk and their p–q lengths to `new_sides`; returns the
+/// number of flips.
+int flip_star_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std::vector<double>& vertex_scale,
+                    std::vector<double>& new_sides) {
+  const int nf = static_cast<int>(flat.faces.rows());
+  std::vector<double> angle(pt.pole, 0.0), slack(pt.pole, 1.0);
+  std::unordered_map<long long, double> length_of;
+  auto key = [&](int a, int b) { return static_cast<long long>(std::min(a, b)) * pt.pole + std::max(a, b); };
+  for (int f = 0; f < nf; ++f) {
+    double l[3];
+    for (int k = 0; k < 3; ++k) l[k] = flat.edge_lengths[flat.face_edges(f, k)];
+    for (int k = 0; k < 3; ++k) {
+      const double a = l[k], b = l[(k + 1) % 3], c = l[(k + 2) % 3];
+      angle[flat.faces(f, k)] += std::acos(std::clamp((b * b + c * c - a * a) / (2 * b * c), -1.0, 1.0));
+      const double rel = (b + c - a) / a;  // this corner's edges may grow by half of it
+      slack[flat.faces(f, k)] = std::min(slack[flat.faces(f, k)], rel);
+      length_of[key(flat.faces(f, (k + 1) % 3), flat.faces(f, (k + 2) % 3))] = a;
+    }
+  }
+  std::vector<char> touched(pt.pole, 0);
+  std::vector<std::array<int, 3>> added;
+  int count = 0;
+  for (auto it = pt.star.begin(); it != pt.star.end(); ++it) {
+    const int p = (*it)[1], a = (*it)[2];  // star row (pole, p, a)
+    if (!(angle[a] > detail::kPi + 1e-9) || touched[a] || touched[p]) continue;
+    auto next = std::find_if(pt.star.begin(), pt.star.end(), [&](const auto& r) { return r[1] == a; });
+    if (next == pt.star.end()) continue;
+    const int q = (*next)[2];
+    if (q == p || touched[q] || length_of.count(key(p, q)) || !length_of.count(key(p, a)) ||
+        !length_of.count(key(a, q)))
+      continue;
+    const double s = 1.0 + std::min(1e-2, 0.25 * slack[a]);
+    if (!(s > 1.0)) continue;
+    vertex_scale[a] = s;
+    new_sides.push_back(length_of[key(p, a)] + length_of[key(a, q)]);
+    added.push_back({p, a, q});
+    touched[a] = touched[p] = touched[q] = 1;
+    *it = {pt.pole, p, q};
+    pt.star.erase(next);
+    pt.ring_y.erase(a);
+    it = pt.star.begin();  // erase invalidated the iterators; touched[] keeps each vertex to one flip
+    ++count;
+  }
+  const int old_rows = static_cast<int>(pt.disk.rows());
+  pt.disk.conservativeResize(old_rows + static_cast<int>(added.size()), 3);
+  for (size_t i = 0; i < added.size(); ++i) pt.disk.row(old_rows + static_cast<int>(i)) << added[i][0], added[i][1], added[i][2];
+  return count;
+}
+
+/// Orientation of the chordal triangles `F` (vertex ids of `X`) on the
+/// sphere: number of faces whose normal does not point away from the origin;
+/// `first` receives the first one (-1 if none).
+int count_inward_faces(const RowMatrixX3d& X, const RowMatrixX3i& F, int* first) {
+  int n = 0;
+  *first = -1;
+  for (int f = 0; f < F.rows(); ++f) {
+    const Eigen::Vector3d a = X.row(F(f, 0)).transpose(), b = X.row(F(f, 1)).transpose(),
+                          c = X.row(F(f, 2)).transpose();
+    if (!((b - a).cross(c - a).dot(a + b + c) > 0.0)) {
+      ++n;
+      if (*first < 0) *first = f;
+    }
+  }
+  return n;
+}
+
+}  // namespace
+
 /// One attempt with v0 removed (spherical.h): the punctured disk flattened
-/// with v0 at infinity, laid out, projected to the sphere, Möbius-centred
-/// and checked.
+/// with v0 at infinity (rounds of the Dirichlet flow, ring flips between
+/// them), laid out, projected to the sphere, Möbius-centred and checked.
 static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& conn, int v0,
                                        const SphericalUniformizationOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -172,32 +312,59 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   SphericalUniformization out;
   out.removed_vertex = v0;
 
-  // Punctured disk, vertices renumbered without v0.
+  // Punctured disk, vertices renumbered without v0 (v0 itself: n2).
   std::vector<int> new_id(nv, -1), old_id;
   for (int v = 0; v < nv; ++v)
     if (v != v0) {
       new_id[v] = static_cast<int>(old_id.size());
       old_id.push_back(v);
     }
-  RowMatrixX3i F2(conn.num_faces() - conn.valence(v0), 3);
-  for (int f = 0, r = 0; f < conn.num_faces(); ++f) {
-    if (mesh.F(f, 0) == v0 || mesh.F(f, 1) == v0 || mesh.F(f, 2) == v0) continue;
-    for (int k = 0; k < 3; ++k) F2(r, k) = new_id[mesh.F(f, k)];
-    ++r;
-  }
   const int n2 = nv - 1;
-  const detail::RicciDomain dom = detail::domain_from_faces(n2, F2);
-  std::vector<int> ring;  // boundary = link of v0, in order
-  for (int h : conn.outgoing(v0)) ring.push_back(new_id[conn.head(h)]);
-  const int nb = static_cast<int>(ring.size());
-  int boundary_count = 0;
-  for (int v = 0; v < n2; ++v) boundary_count += dom.full_angle[v] < 4.0;
-  if (boundary_count != nb)
-    throw InputError("the link of vertex " + std::to_string(v0) +
-                     " is not a simple cycle; choose another removed_vertex");
-  Eigen::VectorXd l0(dom.EV.rows());
-  for (int e = 0; e < dom.EV.rows(); ++e)
-    l0[e] = (mesh.V.row(old_id[dom.EV(e, 0)]) - mesh.V.row(old_id[dom.EV(e, 1)])).norm();
+  PuncturedTriangulation pt;
+  pt.pole = n2;
+  // The input's lengths, mollified like every other path (intake notes the
+  // faces touched; nearly degenerate faces get a strict triangle inequality).
+  // With flips, the start is the intrinsic Delaunay triangulation of the
+  // input metric on the whole sphere (exact flips, the pole's star
+  // included): it fixes the discrete conformal class independently of the
+  // removed vertex, so that every pole gives the same sphere up to Möbius
+  // maps (the disk flow could not flip the star's edges exactly).
+  const Eigen::VectorXd input_lengths = edge_lengths(mesh, conn);
+  RowMatrixX3i start_faces = mesh.F;
+  RowMatrixX3d start_sides(conn.num_faces(), 3);  // side opposite corner k
+  for (int f = 0; f < conn.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) start_sides(f, k) = input_lengths[conn.edge(3 * f + (k + 1) % 3)];
+  if (options.intrinsic_delaunay) {
+    const IntrinsicDelaunayResult idt = intrinsic_delaunay(conn, input_lengths);
+    start_faces = idt.F;
+    for (int f = 0; f < idt.F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) start_sides(f, k) = idt.edges[idt.face_edges(f, (k + 1) % 3)].length;
+    out.edge_flips += idt.flips;
+  }
+  Eigen::VectorXd u(n2);
+  for (int i = 0; i < n2; ++i) u[i] = -2.0 * std::log((mesh.V.row(old_id[i]) - mesh.V.row(v0)).norm());
+  std::vector<std::array<double, 3>> disk_sides;
+  std::vector<std::array<int, 3>> disk_rows;
+  for (int f = 0; f < start_faces.rows(); ++f) {
+    int row[3], at = -1, count = 0;
+    for (int k = 0; k < 3; ++k) {
+      row[k] = start_faces(f, k) == v0 ? n2 : new_id[start_faces(f, k)];
+      if (start_faces(f, k) == v0) at = k, ++count;
+    }
+    if (count > 1)
+      throw InputError("the link of vertex " + std::to_string(v0) +
+                       " is not a simple cycle; choose another removed_vertex");
+    if (at < 0) {
+      disk_rows.push_back({row[0], row[1], row[2]});
+      disk_sides.push_back({start_sides(f, 0), start_sides(f, 1), start_sides(f, 2)});
+    } else {
+      pt.star.push_back({n2, row[(at + 1) % 3], row[(at + 2) % 3]});
+      pt.ring_y[row[(at + 1) % 3]] = 1.0;
+      u[row[(at + 1) % 3]] = -2.0 * std::log(start_sides(f, (at + 2) % 3));  // side v0–row[at+1]
+    }
+  }
+  pt.disk.resize(static_cast<int>(disk_rows.size()), 3);
+  for (int r = 0; r < pt.disk.rows(); ++r) pt.disk.row(r) << disk_rows[r][0], disk_rows[r][1], disk_rows[r][2];
 
   // Flatten with v0 at infinity. Sending v0 to ∞ keeps the length cross
   // ratios only if l̃(v0, j) / l̃(v0, k) -> 1 for all ring vertices, i.e.
@@ -210,26 +377,107 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   // the inversion in the unit sphere around v0 — so the initial metric is the
   // (valid, 3D) edge lengths of the inverted mesh, already satisfying the
   // ring condition; the flow then only has to flatten it.
-  Eigen::VectorXd u(n2), target = Eigen::VectorXd::Zero(n2);
-  for (int i = 0; i < n2; ++i) u[i] = -2.0 * std::log((mesh.V.row(old_id[i]) - mesh.V.row(v0)).norm());
-  std::vector<char> fixed(n2, 0);
-  for (int h : conn.outgoing(v0)) fixed[new_id[conn.head(h)]] = 1;
+  // The ring's edges are the disk's boundary and cannot flip inside the
+  // flow; when a disk triangle against the ring degenerates, the ring edge
+  // is flipped (flip_ring_edges) and the flow runs again from the metric it
+  // reached (the next round's input lengths), with the ring's Dirichlet
+  // values given by the flipped lengths to v0.
   RicciFlowOptions fo = options.flow;
   fo.intrinsic_delaunay = options.intrinsic_delaunay;
-  const RicciFlowResult flat = detail::ricci_solve(dom, l0, Background::Euclidean, fo, target, &u, &fixed);
-  out.edge_flips = flat.flips;
-  out.flow_iterations = flat.iterations;
-  out.circle_error = 0.0;
+  const int max_rounds = options.intrinsic_delaunay ? options.max_ring_flip_rounds : 1;
+  RicciFlowResult flat;
+  detail::RicciDomain dom;
+  Eigen::VectorXd lengths;
+  // One round: the Dirichlet flow on the current disk (throws InputError
+  // when v0's link is not a simple cycle).
+  auto solve_round = [&](int round) {
+    dom = detail::domain_from_faces(n2, pt.disk);
+    int boundary_count = 0;
+    for (int v = 0; v < n2; ++v) boundary_count += dom.full_angle[v] < 4.0;
+    if (boundary_count != static_cast<int>(pt.star.size()))
+      throw InputError("the link of vertex " + std::to_string(v0) +
+                       " is not a simple cycle; choose another removed_vertex");
+    if (round == 0) {
+      lengths.resize(dom.EV.rows());
+      for (int f = 0; f < dom.F.rows(); ++f)
+        for (int k = 0; k < 3; ++k) lengths[dom.FE(f, k)] = disk_sides[f][k];
+    }
+    std::vector<char> fixed(n2, 0);
+    for (auto& [v, y] : pt.ring_y) {
+      fixed[v] = 1;
+      if (round > 0) u[v] = -2.0 * std::log(y);
+      y = 1.0;  // the solve keeps every ring vertex at y = 1 in its final frame
+    }
+    flat = detail::ricci_solve(dom, lengths, Background::Euclidean, fo, Eigen::VectorXd::Zero(n2), &u, &fixed);
+    out.edge_flips += flat.flips;
+    out.flow_iterations += flat.iterations;
+  };
+  for (int round = 0; round < max_rounds; ++round) {
+    if (round == 0) {
+      solve_round(round);
+    } else {
+      try {
+        solve_round(round);
+      } catch (const Error& e) {  // e.g. the ring flips pinched the disk
+        out.message = "flattening the punctured disk failed after " + std::to_string(out.ring_flips) +
+                      " ring flips: " + e.what();
+        break;
+      }
+    }
+    if (round + 1 == max_rounds) break;
+    std::vector<int> kept;
+    std::vector<double> vertex_scale(n2, 1.0), new_sides;
+    if (flat.converged) {
+      for (int f = 0; f < flat.faces.rows(); ++f) kept.push_back(f);
+      pt.disk = flat.faces;
+      const int flipped = flip_star_edges(flat, pt, vertex_scale, new_sides);
+      if (flipped == 0) break;
+      out.ring_flips += flipped;
+    } else {
+      const int flipped = flip_ring_edges(flat, pt, kept);
+      if (flipped == 0) break;
+      out.ring_flips += flipped;
+    }
+    // Next round: the metric reached is the input (u = 0), except at the
+    // new ring vertices, whose y is not 1.
+    detail::RicciDomain nd;
+    try {
+      nd = detail::domain_from_faces(n2, pt.disk);
+    } catch (const Error& e) {  // a non-simplicial disk after the flips
+      out.message = "ring flips left an invalid disk: " + std::string(e.what());
+      break;
+    }
+    Eigen::VectorXd next(nd.EV.rows());
+    for (int i = 0; i < static_cast<int>(kept.size()); ++i)
+      for (int k = 0; k < 3; ++k) next[nd.FE(i, k)] = flat.edge_lengths[flat.face_edges(kept[i], k)];
+    for (size_t i = 0; i < new_sides.size(); ++i)  // star flips: the new ring edge, opposite corner 1
+      next[nd.FE(static_cast<int>(kept.size() + i), 1)] = new_sides[i];
+    for (int e = 0; e < nd.EV.rows(); ++e) next[e] *= vertex_scale[nd.EV(e, 0)] * vertex_scale[nd.EV(e, 1)];
+    lengths = next;
+    u.setZero();
+  }
   out.max_curvature_error = flat.max_curvature_error;
   out.stopped_at_floor = flat.stopped_at_floor;
-  if (!flat.converged) out.message = "flattening the punctured disk failed: " + flat.message;
+  out.circle_error = 0.0;
+  if (!flat.converged && out.message.empty()) out.message = "flattening the punctured disk failed: " + flat.message;
 
+  std::vector<int> ring;
+  for (const auto& s : pt.star) ring.push_back(s[1]);
   const Eigen::MatrixX2d P =
-      lay_out_flat_disk(flat.faces, flat.face_edges, flat.edge_lengths, n2, static_cast<int>(dom.EV.rows()));
+      lay_out_flat_disk(flat.faces, flat.face_edges, flat.edge_lengths, n2, static_cast<int>(flat.edge_vertices.rows()));
   out.positions = project_to_sphere(P, flat.faces, ring, old_id, v0, nv);
   out.centre_of_mass_norm = mobius_centre(mesh, options, out.positions);
   if (out.message.empty() && !(out.centre_of_mass_norm <= options.centring_tolerance))
     out.message = "Möbius centring stalled at |centre| = " + detail::fmt(out.centre_of_mass_norm);
+
+  // The spherical embedding: the intrinsic triangulation (disk faces of the
+  // flow and the star of v0) in input vertex ids.
+  out.intrinsic_faces.resize(flat.faces.rows() + static_cast<int>(pt.star.size()), 3);
+  auto input_id = [&](int v) { return v == n2 ? v0 : old_id[v]; };
+  for (int f = 0; f < flat.faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) out.intrinsic_faces(f, k) = input_id(flat.faces(f, k));
+  for (size_t i = 0; i < pt.star.size(); ++i)
+    for (int k = 0; k < 3; ++k) out.intrinsic_faces(flat.faces.rows() + static_cast<int>(i), k) = input_id(pt.star[i][k]);
   check_sphere_orientation(mesh, out);
   out.converged = out.message.empty();
   out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -287,7 +535,13 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
   bool have = false;
   std::string tried;
   for (int v0 : candidates) {
-    SphericalUniformization r = attempt(mesh, conn, v0, options);
+    SphericalUniformization r;
+    try {
+      r = attempt(mesh, conn, v0, options);
+    } catch (const InputError& e) {  // e.g. a link that is not a simple cycle: try the next vertex
+      tried += (tried.empty() ? "" : "; ") + std::to_string(v0) + ": " + e.what();
+      continue;
+    }
     if (r.converged) {
       r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       return r;

@@ -77,6 +77,7 @@ UniformizeResult uniformize(const TriMesh& mesh, const UniformizeOptions& option
     SphericalUniformizationOptions so;
     so.removed_vertex = options.base_vertex;
     so.flow = flow;
+    so.intrinsic_delaunay = options.metric != UniformizationMetric::FixedConnectivity;
     r.sphere = spherical_uniformization(mesh, so);
     if (!r.sphere.converged)
       throw SolveError("uniformize: spherical uniformization failed: " +
@@ -85,6 +86,7 @@ UniformizeResult uniformize(const TriMesh& mesh, const UniformizeOptions& option
     r.iterations = r.sphere.flow_iterations;
     r.max_curvature_error = r.sphere.max_curvature_error;
     r.stopped_at_floor = r.sphere.stopped_at_floor;
+    r.edge_flips = r.sphere.edge_flips + r.sphere.ring_flips;
     r.area = 4 * M_PI;
     r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return r;

@@ -12,7 +12,12 @@
 // sphere are then again a vertex scaling of the input lengths, i.e. the
 // result is a discrete conformal map onto a polyhedron inscribed in the unit
 // sphere (Springborn–Schröder–Pinkall 2008; Bobenko–Pinkall–Springborn
-// 2015). Finally Möbius-centre: repeatedly apply the ball automorphism that
+// 2015). With flips (default) the start is the intrinsic Delaunay
+// triangulation of the whole sphere, and the removed vertex's ring and star
+// edges flip between rounds of the flow (ring flips at degenerate
+// triangles, star flips at reflex ring vertices; docs/uniformization.md
+// "Genus 0"), so the chordal polyhedron of `intrinsic_faces` is convex: an
+// embedding. Finally Möbius-centre: repeatedly apply the ball automorphism that
 // moves the area-weighted centre of mass (vertex areas of the input mesh)
 // to the origin.
 #include <string>
@@ -31,9 +36,13 @@ struct SphericalUniformizationOptions {
   RicciFlowOptions flow;
   /// Overrides flow.intrinsic_delaunay (default true): flatten with Ptolemy
   /// flips so that badly shaped meshes have a solution; the flattened
-  /// intrinsic triangulation is laid out, and the input faces are then
-  /// checked on the sphere (flipped_faces; any flipped face -> not converged).
+  /// intrinsic triangulation is laid out, and its faces (intrinsic_faces)
+  /// are then checked on the sphere (flipped_faces; any -> not converged).
   bool intrinsic_delaunay = true;
+  /// Rounds of the flattening with ring flips between them (intrinsic
+  /// Delaunay only): a disk triangle degenerating against the removed
+  /// vertex's ring flips that ring edge and the flow runs again (default 64).
+  int max_ring_flip_rounds = 64;
   /// Stop centring when |centre of mass| <= centring_tolerance.
   double centring_tolerance = 1e-10;
   int max_centring_iterations = 500;
@@ -54,8 +63,20 @@ struct SphericalUniformization {
   /// exact vertex-at-infinity condition (field kept for the CLI's JSON).
   double circle_error = 0;
   double centre_of_mass_norm = 0;      ///< after centring
-  int flipped_faces = 0;               ///< faces whose normal points inward on the sphere
-  int edge_flips = 0;                  ///< intrinsic flips in the last flattening
+  /// Intrinsic faces (intrinsic_faces) whose chordal triangle points inward
+  /// on the sphere: 0 when converged.
+  int flipped_faces = 0;
+  /// Input faces whose chordal triangle (between their vertices' images)
+  /// points inward. Not a failure: with flips the image of an input face is
+  /// a union of pieces of intrinsic triangles; equal to flipped_faces when
+  /// no edge flipped.
+  int input_flipped_faces = 0;
+  /// The triangulation whose chordal triangles embed in the sphere (#F' x 3,
+  /// input vertex ids; #F' = #F): the flow's intrinsic Delaunay faces of the
+  /// punctured disk and the star of removed_vertex. The input faces without flips.
+  RowMatrixX3i intrinsic_faces;
+  int ring_flips = 0;                  ///< flips of the removed vertex's ring edges
+  int edge_flips = 0;                  ///< intrinsic flips of the flattening (all rounds)
   double time_s = 0;
   std::string message;                 ///< why it failed (names the element), empty on success
 };
