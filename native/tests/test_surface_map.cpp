@@ -3,10 +3,7 @@
 
 #include <gtest/gtest.h>
 
-#include <algorithm>
 #include <array>
-#include <numeric>
-#include <random>
 #include <cmath>
 #include <complex>
 #include <limits>
@@ -273,46 +270,6 @@ TEST(SurfaceMapHyperbolic, InverseLocationWavesMatchTheFullSearch) {
   }
   // A different face only for a point on a shared edge or vertex (round-off).
   EXPECT_GE(same_face, static_cast<int>(0.99 * mw.inverse.size()));
-}
-
-// Issue 19: the forward locations (optimum and initial map) in breadth-first
-// order, each walk from a located neighbour's face, find the same points as
-// the walks in index order from the previous vertex's face (the reference).
-// The source's indices are scrambled so that consecutive indices lie far
-// apart, the case the index order walked across the whole target for.
-// `m` with its vertices renumbered by a seeded random permutation.
-TriMesh shuffled_vertices(const TriMesh& m, unsigned seed) {
-  std::vector<int> new_index(m.num_vertices());
-  std::iota(new_index.begin(), new_index.end(), 0);
-  std::shuffle(new_index.begin(), new_index.end(), std::mt19937(seed));
-  TriMesh out = m;
-  for (int v = 0; v < m.num_vertices(); ++v) out.V.row(new_index[v]) = m.V.row(v);
-  for (int f = 0; f < m.num_faces(); ++f)
-    for (int k = 0; k < 3; ++k) out.F(f, k) = new_index[m.F(f, k)];
-  return out;
-}
-
-TEST(SurfaceMapHyperbolic, ForwardLocationInBreadthFirstOrderMatchesIndexOrder) {
-  const TriMesh a = shuffled_vertices(samples::n_hole_torus(2, 30, true), 11);
-  const TriMesh b = samples::vase(34, true);
-  testing::MapHooks reference;
-  reference.forward_index_order = true;
-  const SurfaceMapResult mb = testing::surface_map(a, b, SurfaceMapOptions{}, testing::MapHooks{});
-  const SurfaceMapResult mi = testing::surface_map(a, b, SurfaceMapOptions{}, reference);
-  expect_valid_map(mb, a, b);
-  ASSERT_EQ(mb.forward.size(), mi.forward.size());
-  ASSERT_EQ(mb.initial_forward.size(), mi.initial_forward.size());
-  ASSERT_EQ(mb.initial_forward.size(), static_cast<size_t>(a.num_vertices()));
-  EXPECT_EQ(mb.final_energy, mi.final_energy);  // the location comes after the solve
-  const double tol = 1e-9 * bbox_diagonal(b);
-  int same_face = 0;
-  for (size_t i = 0; i < mb.forward.size(); ++i) {
-    EXPECT_LT((mb.forward[i].position - mi.forward[i].position).norm(), tol) << "source vertex " << i;
-    EXPECT_LT((mb.initial_forward[i].position - mi.initial_forward[i].position).norm(), tol) << "source vertex " << i;
-    same_face += mb.forward[i].face == mi.forward[i].face;
-  }
-  // A different face only for a point on a shared edge or vertex (round-off).
-  EXPECT_GE(same_face, static_cast<int>(0.99 * mb.forward.size()));
 }
 
 TEST(SurfaceMapHyperbolic, SliverSourceHasNoFlips) {

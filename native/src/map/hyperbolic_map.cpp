@@ -939,7 +939,6 @@ bool map_class(HyperbolicPipeline& p) {
   li.init = &init, li.halfedge_rho = &initial.halfedge_rho, li.halfedge_word = &initial.halfedge_word;
   li.threads = p.threads;
   li.inverse_full_search = p.hooks.inverse_full_search;
-  li.forward_index_order = p.hooks.forward_index_order;
   HyperbolicLocationResult located = locate_hyperbolic_map(li, p.stage_done);
   if (p.hooks.inverse_location_counts) {
     const InverseLocationCounts& c = located.inverse_counts;

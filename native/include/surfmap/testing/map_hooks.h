@@ -34,11 +34,6 @@ struct MapHooks {
   /// every target vertex with no copy inside an image triangle by the walk
   /// from the nearest corner 0 over all source faces (the reference search).
   bool inverse_full_search = false;
-  /// Genus >= 2: locate the optimum's and the initial map's forward images in
-  /// source vertex index order, each walk starting at the previous index's
-  /// face (the order before issue 19; the reference for the breadth-first
-  /// order, whose walks start at a neighbour's face).
-  bool forward_index_order = false;
   /// Genus >= 2: called with how the optimum's inverse location found the
   /// target vertices: by the grid alone, by a walk from a located
   /// neighbour (waves), from a grid candidate, after the scan over all faces.

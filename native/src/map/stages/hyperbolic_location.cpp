@@ -79,43 +79,6 @@ struct TargetCover {
   }
 };
 
-// The order the forward location visits the source's vertices (issue 19):
-// breadth first over the source's edges, each vertex after the neighbour it
-// was reached from (`from`, -1 for the first vertex of a component), so that
-// every walk starts at the face found for a neighbour, a few faces from its
-// goal. In index order (the reference, testing/map_hooks.h) each walk started
-// at the previous index's face, which on a mesh whose index order jumps
-// (scan lines of a mesher, any order an editor leaves) is O(sqrt(#F)) faces
-// away: O(#V^1.5) steps in all.
-struct ForwardOrder {
-  std::vector<int> order, from;  ///< #V each: vertices in visiting order; per vertex its predecessor or -1
-};
-ForwardOrder forward_order(const TriMesh& source, bool index_order) {
-  const int nv = source.num_vertices();
-  ForwardOrder out;
-  out.order.reserve(nv);
-  out.from.assign(nv, -1);
-  if (index_order) {
-    for (int v = 0; v < nv; ++v) out.order.push_back(v);
-    return out;
-  }
-  const VertexNeighbours neighbours(source);
-  std::vector<char> seen(nv, 0);
-  for (int root = 0; root < nv; ++root) {
-    if (seen[root]) continue;
-    seen[root] = 1;
-    out.order.push_back(root);
-    for (size_t head = out.order.size() - 1; head < out.order.size(); ++head) {
-      const int v = out.order[head];
-      for (int k = neighbours.index[v]; k < neighbours.index[v + 1]; ++k) {
-        const int u = neighbours.list[k];
-        if (!seen[u]) seen[u] = 1, out.from[u] = v, out.order.push_back(u);
-      }
-    }
-  }
-  return out;
-}
-
 // Per target vertex (#V of the input target, whose indices the refined mesh
 // keeps) its copies in the cut disk: 1 inside, 2 on a loop, 4g at the base
 // vertex (the corners of P).
@@ -265,19 +228,17 @@ void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover,
   std::vector<int> initial_face_origin(cover.ntf, -1);
   out.initial_forward.resize(source.num_vertices());
   int last_face = layout.root_face >= 0 ? layout.root_face : 0;
-  const ForwardOrder walk = forward_order(source, in.forward_index_order);
-  std::vector<int> located(source.num_vertices(), -1);
-  for (const int i : walk.order) {
+  for (int i = 0; i < source.num_vertices(); ++i) {
     if (*stop) return;
     Eigen::Vector3d b;
     Complex q = init.z[i];
     polygon.reduce(q);
-    const int rf = cover.locate(walk.from[i] >= 0 ? located[walk.from[i]] : last_face, q, &b);
+    const int rf = cover.locate(last_face, q, &b);
     if (rf < 0) {
       out.initial_forward.clear();
       break;
     }
-    located[i] = last_face = rf;
+    last_face = rf;
     out.initial_forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, in.target_intrinsic, initial_face_origin, rf, b);
   }
   // The initial map's inverse (the "before" UV transfer): its image
@@ -349,13 +310,11 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
     std::vector<int> refined_face_origin(cover.ntf, -1);
     out.forward.resize(source.num_vertices());
     int last_face = layout.root_face >= 0 ? layout.root_face : 0;
-    const ForwardOrder walk = forward_order(source, in.forward_index_order);
-    std::vector<int> located(source.num_vertices(), -1);
-    for (const int i : walk.order) {
+    for (int i = 0; i < source.num_vertices(); ++i) {
       Eigen::Vector3d b;
-      const int rf = cover.locate(walk.from[i] >= 0 ? located[walk.from[i]] : last_face, zp[i], &b);
+      const int rf = cover.locate(last_face, zp[i], &b);
       if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
-      located[i] = last_face = rf;
+      last_face = rf;
       out.forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, in.target_intrinsic, refined_face_origin, rf, b);
     }
     stage_done("forward location", 0.85);

@@ -41,9 +41,6 @@ struct HyperbolicLocationInput {
   int threads = 1;
   /// The optimum's inverse without the waves (testing/map_hooks.h).
   bool inverse_full_search = false;
-  /// Both forward locations in vertex index order, each walk from the
-  /// previous vertex's face (the reference, testing/map_hooks.h).
-  bool forward_index_order = false;
 };
 
 /// How the optimum's inverse location found the target vertices (issue 19).
