@@ -9,6 +9,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "surfmap/geometry/nearest_point.h"
 #include "surfmap/topology/edge_homotopy.h"
 
 namespace surfmap {
@@ -36,49 +37,6 @@ double mean_edge_length(const TriMesh& m, const BoxFrame& frame) {
   return s / std::max(1, 3 * m.num_faces());
 }
 
-// Nearest vertex by a uniform grid.
-class VertexGrid {
- public:
-  VertexGrid(std::vector<Eigen::Vector3d> p, double cell) : p_(std::move(p)), cell_(cell) {
-    for (int i = 0; i < static_cast<int>(p_.size()); ++i) cells_[key(cellof(p_[i]))].push_back(i);
-  }
-  int nearest(const Eigen::Vector3d& q) const {
-    const Eigen::Vector3i c = cellof(q);
-    int best = -1;
-    double bd = std::numeric_limits<double>::infinity();
-    for (int r = 0; r < 64; ++r) {
-      for (int x = -r; x <= r; ++x)
-        for (int y = -r; y <= r; ++y)
-          for (int z = -r; z <= r; ++z) {
-            if (std::max({std::abs(x), std::abs(y), std::abs(z)}) != r) continue;
-            auto it = cells_.find(key(c + Eigen::Vector3i(x, y, z)));
-            if (it == cells_.end()) continue;
-            for (int i : it->second) {
-              const double d = (p_[i] - q).squaredNorm();
-              if (d < bd) bd = d, best = i;
-            }
-          }
-      // Everything within r cells is seen; a closer point outside would be
-      // at least r * cell away.
-      if (best >= 0 && std::sqrt(bd) <= r * cell_) break;
-    }
-    return best;
-  }
-
- private:
-  Eigen::Vector3i cellof(const Eigen::Vector3d& q) const {
-    return Eigen::Vector3i(static_cast<int>(std::floor(q[0] / cell_)), static_cast<int>(std::floor(q[1] / cell_)),
-                           static_cast<int>(std::floor(q[2] / cell_)));
-  }
-  static long long key(const Eigen::Vector3i& c) {
-    return ((static_cast<long long>(c[0]) + 1048576) << 42) ^ ((static_cast<long long>(c[1]) + 1048576) << 21) ^
-           (static_cast<long long>(c[2]) + 1048576);
-  }
-  std::vector<Eigen::Vector3d> p_;
-  double cell_;
-  std::unordered_map<long long, std::vector<int>> cells_;
-};
-
 }  // namespace
 
 namespace {
@@ -93,21 +51,24 @@ std::vector<Word> target_edge_words(const SystemOfLoops& target, const Connectiv
                              target.generator_edges, loop_first_vertices(target, conn), letters, free_group);
 }
 
-// The target in one box frame: its points, mean edge length and grid. All
-// the world-axis poses share the target's frame (identity), so one is built
-// for them all (28 grids of a 73k-vertex target were most of the overlays'
-// 0.73 s CPU on the 50k genus-2 bench pair).
+// The target in one box frame: its points, mean edge length and nearest-
+// vertex index. All the world-axis poses share the target's frame
+// (identity), so one is built for them all (28 grids of a 73k-vertex target
+// were most of the overlays' 0.73 s CPU on the 50k genus-2 bench pair). The
+// index is a k-d tree (geometry/nearest_point.h): the uniform grid it
+// replaced searched (distance / cell)^3 cells for a loop vertex off the
+// target, which made this overlay grow like V^2 (issue 19, docs/benchmarks.md).
 struct TargetFrame {
   Eigen::Matrix3d transform;
   std::vector<Eigen::Vector3d> tp;
   double t_edge = 0;
-  std::unique_ptr<VertexGrid> grid;
+  std::unique_ptr<NearestPointIndex> nearest_vertex;
   TargetFrame(const TriMesh& tm, const Eigen::Matrix3d& transform) : transform(transform) {
     const BoxFrame tf(tm.V, transform);
     t_edge = mean_edge_length(tm, tf);
     tp.resize(tm.num_vertices());
     for (int v = 0; v < tm.num_vertices(); ++v) tp[v] = tf(tm.V.row(v).transpose());
-    grid = std::make_unique<VertexGrid>(tp, 2.0 * t_edge);
+    nearest_vertex = std::make_unique<NearestPointIndex>(tp);
   }
 };
 
@@ -121,7 +82,7 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
                                                 : BoxFrame(source.V, options.source_transform);
   const std::vector<Eigen::Vector3d>& tp = frame.tp;
   const double s_edge = mean_edge_length(source, sf), t_edge = frame.t_edge;
-  const VertexGrid& grid = *frame.grid;
+  const NearestPointIndex& nearest_vertex = *frame.nearest_vertex;
   const int max_gap = static_cast<int>(std::ceil(options.max_gap_factor * std::max(1.0, s_edge / t_edge)));
 
   // Halfedge from a to b, or -1.
@@ -131,7 +92,7 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
   for (const auto& loop : source_loops) {
     const size_t m = loop.size() >= 2 && loop.front() == loop.back() ? loop.size() - 1 : loop.size();
     std::vector<int> img(m);
-    for (size_t i = 0; i < m; ++i) img[i] = grid.nearest(sf(source.V.row(loop[i]).transpose()));
+    for (size_t i = 0; i < m; ++i) img[i] = nearest_vertex.nearest(sf(source.V.row(loop[i]).transpose()));
     Word w;
     for (size_t i = 0; i < m; ++i) {
       const int a = img[i], b = img[(i + 1) % m];
