@@ -663,19 +663,31 @@ int HyperbolicPipeline::append_full_class(HomotopyClass hc, ClassData cd, Coarse
 // search runs on full-resolution solves, from the best solved class and
 // restarted from the next best distinct ones within restart_ratio.
 void HyperbolicPipeline::twist_search_at_full_resolution() {
-  if (!options.homotopy.search.enabled || options.homotopy.class_index >= 0 || hooks.homotopy_search_start >= 0) return;
-  const double gap_bound = (1 + options.homotopy.search.gap) * 8 * M_PI * (out.genus - 1);
+  if (!options.homotopy.search.enabled || options.homotopy.class_index >= 0) return;
+  // (With the testing hooks' start, one run from there, whatever its energy.)
+  const bool hooked = hooks.homotopy_search_start >= 0;
+  if (hooks.homotopy_search_start >= ncand)
+    throw InputError("homotopy_search_start " + std::to_string(hooks.homotopy_search_start) + " does not exist; there are " +
+                     std::to_string(ncand) + " candidates");
+  const double gap_bound = hooked ? 0.0 : (1 + options.homotopy.search.gap) * 8 * M_PI * (out.genus - 1);
   std::vector<int> solved;
   for (int k = 0; k < ncand; ++k)
     if (usable[k] && out.candidates[k].solved && std::isfinite(out.candidates[k].energy) &&
-        space->loop_image_length(candidates.classes[k].map) <= space->max_image_letters())
+        space->loop_image_length(candidates.classes[k].map) <= space->max_image_letters() &&
+        (!hooked || k == hooks.homotopy_search_start))
       solved.push_back(k);
   std::stable_sort(solved.begin(), solved.end(),
                    [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
   if (solved.empty() || out.candidates[solved[0]].energy <= gap_bound) return;
-  double best = out.candidates[solved[0]].energy;
+  double best = hooked && !hooks.homotopy_search_start_twists.empty() ? std::numeric_limits<double>::infinity()
+                                                                       : out.candidates[solved[0]].energy;
   const CoarseSolve solve_full = full_resolution_solve(best);
   HomotopySearchInfo& info = out.homotopy_search;
+  // A solve here costs about a coarse solve scaled by nv / coarse_vertices,
+  // so the evaluation budget is scaled the other way (at most 4x: 96 solves
+  // of a 532-vertex source took 20 s on a loaded machine).
+  const double evaluation_scale =
+      std::clamp(static_cast<double>(std::max(options.homotopy.coarse_vertices, 1)) / std::max(nv, 1), 1.0, 4.0);
   std::vector<double> start_energies;  // (equal energies: the same class up to a symmetry, searched once)
   for (int start : solved) {
     const double e0 = out.candidates[start].energy;
@@ -687,9 +699,11 @@ void HyperbolicPipeline::twist_search_at_full_resolution() {
     start_energies.push_back(e0);
     HomotopySearchInfo run;
     SurfaceMapOptions ro = options;
-    if (info.run) ro.homotopy.search.evaluations = std::max(1, options.homotopy.search.evaluations / 2);
+    ro.homotopy.search.evaluations = std::max(1, static_cast<int>(std::lround(evaluation_scale * options.homotopy.search.evaluations)));
+    if (info.run) ro.homotopy.search.evaluations = std::max(1, ro.homotopy.search.evaluations / 2);
     std::optional<CoarseEvaluation> found =
-        twist_class_search(candidates.classes[start].map, start, e0, *space, solve_full, {}, ro, run);
+        twist_class_search(candidates.classes[start].map, start, e0, *space, solve_full,
+                           hooked ? hooks.homotopy_search_start_twists : std::vector<std::string>{}, ro, run);
     const bool first = !info.run;
     if (first) {
       // (The search's own figures; the geometric classes' and the solve
@@ -723,7 +737,10 @@ void HyperbolicPipeline::twist_search_at_full_resolution() {
     HomotopyClass hc;
     std::string path;
     for (const std::string& m : run.moves) path += (path.empty() ? "" : ", ") + m;
-    hc.description = "[class search from candidate " + std::to_string(start) + ": " + path +
+    std::string from = std::to_string(start);
+    if (hooked)
+      for (const std::string& m : hooks.homotopy_search_start_twists) from += " " + m;
+    hc.description = "[class search from candidate " + from + ": " + path +
                      "]  [solved at full resolution: no coarse copy]";
     const double e = found->result.energy;
     const int k = append_full_class(std::move(hc), std::move(cd), *found);
