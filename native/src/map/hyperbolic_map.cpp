@@ -119,6 +119,10 @@ class HyperbolicPipeline {
   // full-resolution solves.
   int likely_class = -1;
   std::unique_ptr<ClassInitialMap> likely_init;
+  // Per class, its free energy at full resolution with the intrinsic
+  // Delaunay weights, kept when the weights fall back to the source's own
+  // edges (SurfaceMapResult::intrinsic_class_energy); NaN: none.
+  std::vector<double> intrinsic_energy;
 
   // The second thread (joined on the way out, after the flag is raised:
   // members are destroyed in reverse order).
@@ -991,6 +995,7 @@ bool map_class(HyperbolicPipeline& p) {
                                           p.hooks.inspect_problem);
   out.initial_energy = solved.initial_energy;
   HyperbolicHarmonicResult& hr = solved.result;
+  const double free_energy = hr.energy;
   if (!options.landmarks.empty()) {
     HyperbolicHarmonicOptions lo;
     lo.tolerance = options.solve.tolerance;
@@ -1039,6 +1044,11 @@ bool map_class(HyperbolicPipeline& p) {
   store_distortion(quality, out);
   out.intrinsic_flipped_triangles = intrinsic_flipped_triangles(p.ss.idt, hr.edge_local);
   if (retry_with_own_weights(options, p.own_weights, out)) {
+    // The classes' energies so far are the intrinsic ones (solved classes).
+    p.intrinsic_energy.assign(p.ncand, std::numeric_limits<double>::quiet_NaN());
+    for (int q = 0; q < p.ncand; ++q)
+      if (out.candidates[q].solved) p.intrinsic_energy[q] = out.candidates[q].energy;
+    p.intrinsic_energy[k] = free_energy;
     p.switch_to_own_weights();
     return false;
   }
@@ -1090,7 +1100,11 @@ void map_with_fallback(HyperbolicPipeline& p) {
     try {
       if (attempt > 0) reset_keeping_candidates();
       out.chosen_candidate = fallback[attempt];
-      if (map_class(p)) return;
+      if (map_class(p)) {
+        const int k = out.chosen_candidate;
+        if (p.own_weights && k < static_cast<int>(p.intrinsic_energy.size())) out.intrinsic_class_energy = p.intrinsic_energy[k];
+        return;
+      }
       reset_keeping_candidates();  // the source weights changed: the same class again
       --attempt;
     } catch (const SolveError& e) {
