@@ -65,7 +65,7 @@ void register_map(CLI::App& app) {
     int threads = 0, homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
     double tolerance = 1e-10;
-    bool quiet = false, timings = false, no_homotopy_search = false, no_two_way = false;
+    bool quiet = false, timings = false, no_homotopy_search = false, no_two_way = false, compare_directions = false;
     bool boundary_swap = false;          // open surfaces (map_open.h)
     std::vector<int> boundary_pairing;  // open surfaces (map_open.h)
   };
@@ -113,6 +113,9 @@ void register_map(CLI::App& app) {
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--no-two-way", a->no_two_way,
                 "Genus >= 2: do not map the other way when the energy is far above the conformal bound (report: quality)");
+  cmd->add_flag("--compare-directions", a->compare_directions,
+                "Genus >= 2: always map the other way too and say whether the two directions' classes are inverse "
+                "(report: quality.reverse_inverse; about 3x the time)");
   cmd->add_flag("--boundary-swap", a->boundary_swap,
                "Open annuli: map the source's boundary loop 0 (the longer) onto the target's loop 1 (docs/open_surfaces.md)");
   cmd->add_option("--boundary-pairing", a->boundary_pairing,
@@ -163,6 +166,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.search.enabled = !a->no_homotopy_search;
     opt.homotopy.search.evaluations = a->homotopy_search_evaluations;
     opt.homotopy.two_way = !a->no_two_way;
+    opt.homotopy.compare_directions = a->compare_directions;
     opt.threads = a->threads;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     // One line per stage and percent (the relaxation reports every few sweeps).

@@ -16,6 +16,7 @@
 #include "surfmap/topology/mapping_class_search.h"
 #include "surfmap/uniformize/uniformize.h"
 #include "../src/map/stages/homotopy_classes.h"
+#include "../src/map/two_way_run.h"
 
 namespace surfmap {
 namespace {
@@ -241,6 +242,35 @@ TEST(ClassLowerBound, NeverAboveTheSolvedEnergies) {
   }
   // Some of the wrong classes are ruled out by the curves alone.
   EXPECT_GT(informative, 0);
+}
+
+// The quality signal (docs/handle_classes.md "Quality signal"): the ratio is
+// the chosen class's free energy over 8 pi (g - 1); after the fallback to
+// positive weights on the source's own edges it is the class's energy with
+// the intrinsic Delaunay cotangent weights (what the bound refers to), the
+// own-edge energy's ratio reported beside it, and the warning follows the
+// ratio used.
+TEST(ClassLowerBound, QualityRatioUsesTheIntrinsicEnergyAfterTheOwnEdgeFallback) {
+  const double bound = 8 * M_PI * 2;  // genus 3
+  SurfaceMapResult r;
+  r.genus = 3;
+  r.candidates.resize(2);
+  r.candidates[0].energy = 5.0 * bound;
+  r.candidates[1].energy = 3.5 * bound;  // the chosen class, own-edge weights
+  r.chosen_candidate = 1;
+  detail::assess_quality(r);
+  EXPECT_NEAR(r.energy_ratio, 3.5, 1e-12);
+  EXPECT_TRUE(std::isnan(r.energy_ratio_own_edges));
+  EXPECT_NE(r.quality_warning.find("may be twisted"), std::string::npos);
+  r.intrinsic_class_energy = 1.4 * bound;
+  detail::assess_quality(r);
+  EXPECT_NEAR(r.energy_ratio, 1.4, 1e-12);
+  EXPECT_NEAR(r.energy_ratio_own_edges, 3.5, 1e-12);
+  EXPECT_EQ(r.quality_warning, "");
+  r.intrinsic_class_energy = 3.2 * bound;  // twisted either way: still warned
+  detail::assess_quality(r);
+  EXPECT_NEAR(r.energy_ratio, 3.2, 1e-12);
+  EXPECT_NE(r.quality_warning.find("may be twisted"), std::string::npos);
 }
 
 }  // namespace

@@ -356,6 +356,44 @@ TEST(SurfaceMapHandles, ClassSearchUndoesKnownTwists) {
   EXPECT_THROW(surface_map(a, b, o, hooks), InputError);
 }
 
+// The same for a source too small for a coarse copy (under 2000 vertices:
+// every class is solved at full resolution, and so is the search; issue 14,
+// docs/handle_classes.md): before, such sources had no twist search at all.
+TEST(SurfaceMapHandles, ClassSearchAtFullResolutionUndoesKnownTwists) {
+  const TriMesh a = samples::n_hole_torus(2, 18, true);
+  ASSERT_LT(a.num_vertices(), 2000);
+  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  SurfaceMapOptions plain;
+  plain.homotopy.search.enabled = false;
+  plain.homotopy.two_way = false;
+  const SurfaceMapResult m0 = surface_map(a, b, plain);
+  const int identity = m0.chosen_candidate;
+  ASSERT_NE(m0.candidates[identity].description.find("as the shapes overlap"), std::string::npos);
+  ASSERT_TRUE(m0.candidates[identity].solved);  // (no coarse copy: solved at full resolution)
+  const double e0 = m0.candidates[identity].energy;
+  ASSERT_TRUE(std::isfinite(e0));
+
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  testing::MapHooks hooks;
+  hooks.homotopy_search_start = identity;
+  hooks.homotopy_search_start_twists = {"T(a1)", "T(a1)", "T(b2)^-1"};
+  const SurfaceMapResult m = surface_map(a, b, o, hooks);
+  expect_valid_map(m, a, b);
+  const HomotopySearchInfo& s = m.homotopy_search;
+  ASSERT_TRUE(s.run);
+  EXPECT_GT(s.start_energy, 1.05 * e0);  // the twisted start is worse
+  EXPECT_NEAR(s.energy, e0, 1e-4 * e0);  // back to the identity class's optimum (convex per class)
+  EXPECT_GE(s.moves.size(), 1u);
+  EXPECT_EQ(s.coarse_solves + s.pruned, s.evaluations + 1);  // the twisted start and each neighbour, solved or pruned
+  ASSERT_GE(s.found_candidate, 0);
+  EXPECT_NE(m.candidates[s.found_candidate].description.find("solved at full resolution"), std::string::npos);
+  EXPECT_NEAR(m.final_energy, m0.final_energy, 1e-5 * m0.final_energy);
+  EXPECT_LT(m.mean_dilatation, 1.1);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_CERTIFIED_MAP(a, b, m);
+}
+
 // Shapes not posed alike (docs/method.md §2.10, projected_loops.h
 // rotation_overlay_poses): a surface mapped to a turned, remeshed and
 // jittered copy of itself must get the identity-like class, i.e. after

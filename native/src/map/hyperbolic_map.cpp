@@ -69,6 +69,9 @@ class HyperbolicPipeline {
   void choose_with_landmarks();
   void compare_with_carried_class();
   void geometric_classes_at_full_resolution();
+  void twist_search_at_full_resolution();
+  CoarseSolve full_resolution_solve(double& best);
+  int append_full_class(HomotopyClass hc, ClassData cd, CoarseEvaluation& ev);
   void map_in_chosen_class();
 
   // Inputs.
@@ -116,6 +119,10 @@ class HyperbolicPipeline {
   // full-resolution solves.
   int likely_class = -1;
   std::unique_ptr<ClassInitialMap> likely_init;
+  // Per class, its free energy at full resolution with the intrinsic
+  // Delaunay weights, kept when the weights fall back to the source's own
+  // edges (SurfaceMapResult::intrinsic_class_energy); NaN: none.
+  std::vector<double> intrinsic_energy;
 
   // The second thread (joined on the way out, after the flag is raised:
   // members are destroyed in reverse order).
@@ -597,15 +604,30 @@ void HyperbolicPipeline::geometric_classes_at_full_resolution() {
   if (!bounds.ok || !bounds.source) return;
   std::vector<GroupMap> known;
   for (const HomotopyClass& hc : candidates.classes) known.push_back(hc.map);
-  const std::vector<Complex> origin(nv, Complex(0.0));
-  const std::vector<Word> no_decks(nv);
-  // (`data_of` runs once more inside the solve: CoarseEvaluation carries
-  // the edges, the rest is rebuilt for the appended class.)
-  const CoarseSolve solve_full = [&](const GroupMap& theta, CoarseEvaluation* ev) {
-    if (class_curve_bound_of(bounds, *target_lengths, theta) > best) {
+  const CoarseSolve solve_full = full_resolution_solve(best);
+  for (FoundClass& f : geometric_candidate_classes(
+           *bounds.source, *target_lengths, *space, known,
+           [&](const GroupMap& theta) { return class_curve_bound_of(bounds, *target_lengths, theta); },
+           [this](const GroupMap& theta) { return data_of(theta); }, solve_full, options, out.homotopy_search)) {
+    f.hc.description += "  [solved at full resolution: no coarse copy]";
+    append_full_class(std::move(f.hc), std::move(f.data), f.evaluation);
+  }
+}
+
+// A converged solve of class theta at full resolution from the origin
+// (false when it fails, does not converge or is pruned: its curve bound,
+// when the source's bounds exist, above `best`, which each success lowers).
+// Sources too small for a coarse copy (under 2000 vertices) only.
+CoarseSolve HyperbolicPipeline::full_resolution_solve(double& best) {
+  return [this, &best](const GroupMap& theta, CoarseEvaluation* ev) {
+    const SourceClassBounds& bounds = class_bounds_now();  // (sets target_lengths)
+    if (bounds.ok && class_curve_bound_of(bounds, *target_lengths, theta) > best) {
       ++out.homotopy_search.pruned;
       return false;
     }
+    ++out.homotopy_search.coarse_solves;  // (no coarse copy: the search's solves are these)
+    const std::vector<Complex> origin(nv, Complex(0.0));
+    const std::vector<Word> no_decks(nv);
     try {
       ev->theta = theta;
       ev->edges = data_of(theta).edges;
@@ -618,31 +640,126 @@ void HyperbolicPipeline::geometric_classes_at_full_resolution() {
     if (finite) best = std::min(best, ev->result.energy);
     return finite;
   };
-  for (FoundClass& f : geometric_candidate_classes(
-           *bounds.source, *target_lengths, *space, known,
-           [&](const GroupMap& theta) { return class_curve_bound_of(bounds, *target_lengths, theta); },
-           [this](const GroupMap& theta) { return data_of(theta); }, solve_full, options, out.homotopy_search)) {
-    HomotopyClass hc = std::move(f.hc);
-    hc.map = f.evaluation.theta;
-    hc.homology = homology_matrix(hc.map, space->num_letters());
-    std::string handles;
-    handle_correspondence_of(ss.shb, candidates.target_basis, hc.homology, &hc.permutation, &hc.sign, &handles);
-    hc.description = handles + "  " + hc.description + "  [solved at full resolution: no coarse copy]";
-    HomotopyCandidate c;
-    c.description = hc.description;
-    c.energy = f.evaluation.result.energy;
-    c.solved = true;
-    for (int r = 0; r < hc.homology.rows(); ++r)
-      for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
-    data.push_back(std::move(f.data));
-    candidates.classes.push_back(std::move(hc));
-    out.candidates.push_back(c);
-    usable.push_back(1);
-    coarse_failed.push_back(0);
-    fine_result.push_back(std::make_unique<HyperbolicHarmonicResult>(std::move(f.evaluation.result)));
-    full.push_back(1);
-    order.push_back(ncand);
-    ++ncand;
+}
+
+// Appends a class solved at full resolution (no coarse copy) as a solved
+// candidate; returns its index. (`data_of` runs once more for `cd` at the
+// caller: the evaluation carries only the edges.)
+int HyperbolicPipeline::append_full_class(HomotopyClass hc, ClassData cd, CoarseEvaluation& ev) {
+  hc.map = ev.theta;
+  hc.homology = homology_matrix(hc.map, space->num_letters());
+  std::string handles;
+  handle_correspondence_of(ss.shb, candidates.target_basis, hc.homology, &hc.permutation, &hc.sign, &handles);
+  hc.description = handles + "  " + hc.description;
+  HomotopyCandidate c;
+  c.description = hc.description;
+  c.energy = ev.result.energy;
+  c.solved = true;
+  for (int r = 0; r < hc.homology.rows(); ++r)
+    for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
+  data.push_back(std::move(cd));
+  candidates.classes.push_back(std::move(hc));
+  out.candidates.push_back(c);
+  usable.push_back(1);
+  coarse_failed.push_back(0);
+  fine_result.push_back(std::make_unique<HyperbolicHarmonicResult>(std::move(ev.result)));
+  full.push_back(1);
+  order.push_back(ncand);
+  return ncand++;
+}
+
+// Issue 14 (docs/handle_classes.md "The search, restarted"): a source too
+// small for a coarse copy had no twist search (cadplate g4 -> fertility:
+// the canonical schemata's class at 195 x 8 pi (g - 1), nothing searched).
+// Its solves are cheap (a few hundred to 2000 vertices), so the same twist
+// search runs on full-resolution solves, from the best solved class and
+// restarted from the next best distinct ones within restart_ratio.
+void HyperbolicPipeline::twist_search_at_full_resolution() {
+  if (!options.homotopy.search.enabled || options.homotopy.class_index >= 0) return;
+  // (With the testing hooks' start, one run from there, whatever its energy.)
+  const bool hooked = hooks.homotopy_search_start >= 0;
+  if (hooks.homotopy_search_start >= ncand)
+    throw InputError("homotopy_search_start " + std::to_string(hooks.homotopy_search_start) + " does not exist; there are " +
+                     std::to_string(ncand) + " candidates");
+  const double gap_bound = hooked ? 0.0 : (1 + options.homotopy.search.gap) * 8 * M_PI * (out.genus - 1);
+  std::vector<int> solved;
+  for (int k = 0; k < ncand; ++k)
+    if (usable[k] && out.candidates[k].solved && std::isfinite(out.candidates[k].energy) &&
+        space->loop_image_length(candidates.classes[k].map) <= space->max_image_letters() &&
+        (!hooked || k == hooks.homotopy_search_start))
+      solved.push_back(k);
+  std::stable_sort(solved.begin(), solved.end(),
+                   [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
+  if (solved.empty() || out.candidates[solved[0]].energy <= gap_bound) return;
+  double best = hooked && !hooks.homotopy_search_start_twists.empty() ? std::numeric_limits<double>::infinity()
+                                                                       : out.candidates[solved[0]].energy;
+  const CoarseSolve solve_full = full_resolution_solve(best);
+  HomotopySearchInfo& info = out.homotopy_search;
+  // A solve here costs about a coarse solve scaled by nv / coarse_vertices,
+  // so the evaluation budget is scaled the other way (at most 4x: 96 solves
+  // of a 532-vertex source took 20 s on a loaded machine).
+  const double evaluation_scale =
+      std::clamp(static_cast<double>(std::max(options.homotopy.coarse_vertices, 1)) / std::max(nv, 1), 1.0, 4.0);
+  std::vector<double> start_energies;  // (equal energies: the same class up to a symmetry, searched once)
+  for (int start : solved) {
+    const double e0 = out.candidates[start].energy;
+    if (info.run && !(e0 <= options.homotopy.search.restart_ratio * best)) break;
+    if (best <= gap_bound) break;
+    bool same = false;
+    for (double e : start_energies) same = same || std::abs(e - e0) <= 1e-6 * e;
+    if (same) continue;
+    start_energies.push_back(e0);
+    HomotopySearchInfo run;
+    SurfaceMapOptions ro = options;
+    ro.homotopy.search.evaluations = std::max(1, static_cast<int>(std::lround(evaluation_scale * options.homotopy.search.evaluations)));
+    if (info.run) ro.homotopy.search.evaluations = std::max(1, ro.homotopy.search.evaluations / 2);
+    std::optional<CoarseEvaluation> found =
+        twist_class_search(candidates.classes[start].map, start, e0, *space, solve_full,
+                           hooked ? hooks.homotopy_search_start_twists : std::vector<std::string>{}, ro, run);
+    const bool first = !info.run;
+    if (first) {
+      // (The search's own figures; the geometric classes' and the solve
+      // counts, filled before, are kept.)
+      info.run = true;
+      info.start_candidate = run.start_candidate, info.start_energy = run.start_energy, info.energy = run.energy;
+      info.moves = run.moves, info.energies = run.energies, info.evaluations = run.evaluations;
+      info.evaluated_moves = run.evaluated_moves, info.evaluated_step = run.evaluated_step;
+      info.evaluated_screen = run.evaluated_screen, info.evaluated_energy = run.evaluated_energy;
+      info.screened = run.screened, info.stop_reason = run.stop_reason, info.time_s = run.time_s;
+      info.starts.assign(1, start);
+    } else {
+      info.starts.push_back(start);
+      info.evaluations += run.evaluations;
+      info.screened += run.screened;
+      info.time_s += run.time_s;
+      for (size_t q = 0; q < run.evaluated_moves.size(); ++q) {
+        info.evaluated_moves.push_back("[from " + std::to_string(start) + "] " + run.evaluated_moves[q]);
+        info.evaluated_step.push_back(run.evaluated_step[q]);
+        info.evaluated_screen.push_back(run.evaluated_screen[q]);
+        info.evaluated_energy.push_back(run.evaluated_energy[q]);
+      }
+    }
+    if (!found || space->loop_image_length(found->theta) > space->max_image_letters()) continue;
+    ClassData cd;
+    try {
+      cd = data_of(found->theta);
+    } catch (const SolveError&) {
+      continue;
+    }
+    HomotopyClass hc;
+    std::string path;
+    for (const std::string& m : run.moves) path += (path.empty() ? "" : ", ") + m;
+    std::string from = std::to_string(start);
+    if (hooked)
+      for (const std::string& m : hooks.homotopy_search_start_twists) from += " " + m;
+    hc.description = "[class search from candidate " + from + ": " + path +
+                     "]  [solved at full resolution: no coarse copy]";
+    const double e = found->result.energy;
+    const int k = append_full_class(std::move(hc), std::move(cd), *found);
+    if (first || e < info.energy) {
+      if (!first) info.stop_reason += "; restart from candidate " + std::to_string(start) + " reached " + std::to_string(e);
+      info.found_candidate = k, info.energy = e;
+    }
   }
 }
 
@@ -886,6 +1003,7 @@ bool map_class(HyperbolicPipeline& p) {
                                           p.hooks.inspect_problem);
   out.initial_energy = solved.initial_energy;
   HyperbolicHarmonicResult& hr = solved.result;
+  const double free_energy = hr.energy;
   if (!options.landmarks.empty()) {
     HyperbolicHarmonicOptions lo;
     lo.tolerance = options.solve.tolerance;
@@ -934,6 +1052,11 @@ bool map_class(HyperbolicPipeline& p) {
   store_distortion(quality, out);
   out.intrinsic_flipped_triangles = intrinsic_flipped_triangles(p.ss.idt, hr.edge_local);
   if (retry_with_own_weights(options, p.own_weights, out)) {
+    // The classes' energies so far are the intrinsic ones (solved classes).
+    p.intrinsic_energy.assign(p.ncand, std::numeric_limits<double>::quiet_NaN());
+    for (int q = 0; q < p.ncand; ++q)
+      if (out.candidates[q].solved) p.intrinsic_energy[q] = out.candidates[q].energy;
+    p.intrinsic_energy[k] = free_energy;
     p.switch_to_own_weights();
     return false;
   }
@@ -985,7 +1108,11 @@ void map_with_fallback(HyperbolicPipeline& p) {
     try {
       if (attempt > 0) reset_keeping_candidates();
       out.chosen_candidate = fallback[attempt];
-      if (map_class(p)) return;
+      if (map_class(p)) {
+        const int k = out.chosen_candidate;
+        if (p.own_weights && k < static_cast<int>(p.intrinsic_energy.size())) out.intrinsic_class_energy = p.intrinsic_energy[k];
+        return;
+      }
       reset_keeping_candidates();  // the source weights changed: the same class again
       --attempt;
     } catch (const SolveError& e) {
@@ -1014,6 +1141,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   if (p.ss.cs.ok && !options.homotopy.images_only) p.search_classes();  // more cuts, Dehn twists (mapping_class_search.h)
   p.solve_at_full_resolution(p.ss.cs.ok);  // §VI-B: the best classes at full resolution
   if (!p.ss.cs.ok) p.geometric_classes_at_full_resolution();  // issue 14: small sources (no coarse copy)
+  if (!p.ss.cs.ok) p.twist_search_at_full_resolution();  // issue 14: the twist search there too
   p.fill_class_bounds();           // issue 14: every candidate's energy lower bound
   p.choose_with_landmarks();       // lowest energy; with landmarks, §VII-C branch and bound
   p.compare_with_carried_class();  // issue 14: the two directions' classes inverse or not

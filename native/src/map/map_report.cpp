@@ -161,6 +161,7 @@ std::string stage_table(const SurfaceMapResult& r) {
 
 json quality_json(const SurfaceMapResult& r) {
   return {{"energy_ratio", r.energy_ratio},           {"warning", r.quality_warning},
+          {"intrinsic_class_energy", r.intrinsic_class_energy}, {"energy_ratio_own_edges", r.energy_ratio_own_edges},
           {"reverse_candidates", r.reverse_candidates}, {"reverse_status", r.reverse_status},
           {"reverse_check", r.reverse_check}, {"reverse_inverse", r.reverse_inverse},
           {"reverse_inverse_reason", r.reverse_inverse_reason},           {"two_way_status", r.two_way_status},

@@ -61,7 +61,13 @@ void assess_quality(SurfaceMapResult& result) {
   const HomotopyCandidate& c = result.candidates[result.chosen_candidate];
   // The class's free optimum (landmarks raise the returned map's energy on
   // purpose; that is not a sign of a twisted class).
-  const double energy = std::isfinite(c.energy) ? c.energy : result.final_energy;
+  double energy = std::isfinite(c.energy) ? c.energy : result.final_energy;
+  result.energy_ratio_own_edges = std::numeric_limits<double>::quiet_NaN();
+  if (std::isfinite(result.intrinsic_class_energy)) {
+    // (The own-edge fallback's energy is kept beside it.)
+    result.energy_ratio_own_edges = energy / (8 * M_PI * (result.genus - 1));
+    energy = result.intrinsic_class_energy;
+  }
   result.energy_ratio = energy / (8 * M_PI * (result.genus - 1));
   if (result.energy_ratio >= 3.0)
     result.quality_warning = "energy " + number(result.energy_ratio) +
@@ -100,7 +106,8 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
                  SurfaceMapResult& forward, const MapFunction& map) {
   if (forward.genus < 2 || options.homotopy.class_index >= 0 || options.homotopy.source_images.size() > 0) return;
   if (!options.homotopy.two_way) return void(forward.two_way_status = "not run (off)");
-  if (!(forward.energy_ratio >= options.homotopy.two_way_ratio)) {
+  const bool compare = options.homotopy.compare_directions;
+  if (!compare && !(forward.energy_ratio >= options.homotopy.two_way_ratio)) {
     forward.two_way_status = "not run: energy ratio below " + number(options.homotopy.two_way_ratio);
     forward.reverse_inverse_reason = "not compared: the two-way run did not run (energy ratio below " +
                                      number(options.homotopy.two_way_ratio) + ")";
@@ -126,7 +133,7 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
     return finish("the other direction gave no inverse correspondence");
   const std::string rev = "target -> source energy ratio " + number(reverse.energy_ratio) + " (mean D' " +
                           number(reverse.mean_dilatation) + ")";
-  if (!(reverse.energy_ratio < forward.energy_ratio) || reverse.chosen_candidate < 0) {
+  if ((!compare && !(reverse.energy_ratio < forward.energy_ratio)) || reverse.chosen_candidate < 0) {
     forward.reverse_inverse_reason = "not compared: the other direction's energy ratio " + number(reverse.energy_ratio) +
                                      " is not lower, its class was not carried";
     return finish(rev + ", not lower: kept");

@@ -189,6 +189,13 @@ struct HomotopyOptions {
   /// ratio. Default true.
   bool two_way = true;
   double two_way_ratio = 2.0;
+  /// Genus >= 2, default class, with two_way: map the other way for every
+  /// pair, whatever the energy ratio, and carry that direction's class here
+  /// as a candidate even when its ratio is not lower, so that
+  /// SurfaceMapResult::reverse_inverse always compares the two directions
+  /// (a diagnostic: about 3x the time; default false; CLI
+  /// --compare-directions).
+  bool compare_directions = false;
   /// Genus >= 2, set by the two-way run: per source vertex a point on the
   /// target (#V_source x 3; empty, the default: none), where the inverse of
   /// a target -> source map puts it. The source's loops carried to those
@@ -558,6 +565,18 @@ struct SurfaceMapResult {
   /// is 3 or more, a plain warning that the handle class may be twisted.
   double energy_ratio = std::numeric_limits<double>::quiet_NaN();
   std::string quality_warning;
+  /// Genus >= 2, when the source weights fell back to positive weights on
+  /// the source's own edges (SourceWeights::Automatic): the chosen class's
+  /// free energy with the intrinsic Delaunay cotangent weights (the energy
+  /// the classes were ranked by; NaN when the class was not solved with
+  /// them), and the ratio of its energy with the own-edge weights. The
+  /// own-edge weights are a fallback for embedding the user's faces, not a
+  /// discretisation of the Dirichlet energy the bound 8 pi (g - 1) refers
+  /// to (on slivers they are far above the cotangent weights), so
+  /// energy_ratio uses the intrinsic energy when there is one
+  /// (docs/handle_classes.md "Quality signal").
+  double intrinsic_class_energy = std::numeric_limits<double>::quiet_NaN();
+  double energy_ratio_own_edges = std::numeric_limits<double>::quiet_NaN();
   /// Genus >= 2: candidate indices of the classes from the other direction
   /// (the source's loops carried by a target -> source map), why such a
   /// class is missing (empty when none was asked for), and the symmetry
