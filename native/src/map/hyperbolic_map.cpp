@@ -408,11 +408,13 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
 // Issue 19: the class the ranking solves alone first (the earliest usable
 // candidate: the overlay class when the shapes overlap, else the canonical
 // one), or -1 when every class is solved (homotopy.ranking_gap < 0, every
-// class asked for by homotopy.full_solves <= 0, a requested class, a test's
-// search start, or at most two candidates).
+// class asked for by homotopy.full_solves <= 0, a requested class,
+// landmarks: their ranking is by the energy with the landmarks held, which
+// the free energy's bounds do not bound; a test's search start, or at most
+// two candidates).
 int HyperbolicPipeline::early_ranked_class() const {
   if (options.homotopy.ranking_gap < 0 || options.homotopy.full_solves <= 0 || options.homotopy.class_index >= 0 ||
-      hooks.homotopy_search_start >= 0 || ncand <= 2)
+      !options.landmarks.empty() || hooks.homotopy_search_start >= 0 || ncand <= 2)
     return -1;
   for (int k = 0; k < ncand; ++k)
     if (usable[k]) return k;
@@ -459,8 +461,10 @@ std::vector<int> HyperbolicPipeline::classes_that_can_win(int first) {
       rest.push_back(k);
     }
   }
-  out.ranking_status = "pruned by the curve lower bounds: " + std::to_string(out.ranking_skipped) + " of " +
-                       std::to_string(ncand) + " classes not solved";
+  out.ranking_status = out.ranking_skipped > 0 ? "pruned by the curve lower bounds: " + std::to_string(out.ranking_skipped) +
+                                                     " of " + std::to_string(ncand) + " classes not solved"
+                                               : std::string(bounds && bounds->ok ? "no class ruled out by its curve lower bound"
+                                                                                  : "no curve lower bounds: every class solved");
   return rest;
 }
 
