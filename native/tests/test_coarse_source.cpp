@@ -107,11 +107,22 @@ void expect_coarse_ranking_matches_exhaustive(const TriMesh& a, const TriMesh& b
   EXPECT_NEAR(m.final_energy, ex.final_energy, 1e-6 * ex.final_energy);
   EXPECT_EQ(m.flipped_triangles, 0);
   EXPECT_CERTIFIED_MAP(a, b, m);
-  int solved = 0, compared = 0;
+  int solved = 0, compared = 0, skipped = 0;
   for (size_t k = 0; k < m.candidates.size(); ++k) {
     const HomotopyCandidate &c = m.candidates[k], &e = ex.candidates[k];
     solved += c.solved;
     if (!e.solved) continue;
+    if (c.description.find("[not ranked:") != std::string::npos) {
+      // Issue 19 (HomotopyOptions::ranking_gap): not solved on the coarse
+      // copy because it could not win. Its exhaustive optimum is indeed above
+      // the chosen class's, and its curve bound below that optimum.
+      EXPECT_FALSE(c.solved);
+      EXPECT_TRUE(std::isinf(c.energy)) << c.description;
+      EXPECT_GT(e.energy, ex.final_energy * (1 + 1e-4)) << c.description;
+      EXPECT_LE(c.class_curve_bound, e.energy) << c.description;
+      ++skipped;
+      continue;
+    }
     ASSERT_TRUE(std::isfinite(c.coarse_energy)) << c.description;
     // The chosen class's estimate is close; other classes' estimates may be
     // too high (a Newton solve from the all-at-origin start of a twisted
@@ -124,7 +135,9 @@ void expect_coarse_ranking_matches_exhaustive(const TriMesh& a, const TriMesh& b
     else EXPECT_DOUBLE_EQ(c.energy, c.coarse_energy);  // an unsolved class shows its estimate
     ++compared;
   }
-  EXPECT_GE(compared, 2);
+  EXPECT_GE(compared, 1);
+  EXPECT_GE(compared + skipped, 2);
+  EXPECT_LE(skipped, m.ranking_skipped);
   EXPECT_LE(solved, 2);
   EXPECT_GE(solved, 1);
 }

@@ -106,6 +106,7 @@ class HyperbolicPipeline {
   SolverEdgeIndex solver_index;
   std::vector<ClassData> data;
   std::vector<char> usable, coarse_failed, full;
+  std::vector<char> not_ranked;  ///< classes the ranking did not solve (issue 19; still fallbacks)
   std::vector<int> order;  ///< classes by coarse energy
   int ncand = 0, full_solves = 0;
   HyperbolicHarmonicOptions ho;  ///< the ranking's solves
@@ -161,6 +162,8 @@ class HyperbolicPipeline {
   bool try_solve(int k, const std::function<HyperbolicHarmonicResult()>& solve, HyperbolicHarmonicResult& r,
                  bool coarse = false);
   int append_class(HomotopyClass hc, ClassData cd, const CoarseEvaluation& ev);
+  int early_ranked_class() const;
+  std::vector<int> classes_that_can_win(int first);
   void twist_search_from(int start, const std::vector<std::string>& start_twists, const CoarseSolve& solve,
                          HomotopySearchInfo& info, const SurfaceMapOptions* opts = nullptr);
   HyperbolicHarmonicOptions fine_options(int k) const;
@@ -369,6 +372,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   if (options.progress)
     ho.progress = [this](int, double, double) { return options.progress("homotopy candidates", 0.4); };
   coarse_failed.assign(ncand, 0);
+  not_ranked.assign(ncand, 0);
   CoarseSource& cs = ss.cs;
   if (cs.ok)
     level = coarse_level(cs, sc, ss.edge_word, ss.sl, data, usable, *deck_group,
@@ -385,10 +389,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   const std::vector<Word> no_decks(ncv);
   coarse_result.resize(ncand);
   cuts.stop = true;  // the second thread is needed here
-  // Independent solves, on two threads (concurrency.h: only this thread
-  // calls the progress callback, the other one sees a stop flag).
-  parallel_for(threads, ncand, [&](int k, const std::atomic<bool>* stop) {
-    if (!usable[k]) return;
+  auto coarse_solve = [&](int k, const std::atomic<bool>* stop) {
     HyperbolicHarmonicOptions o = ho;
     if (stop) o.progress = [stop](int, double, double) { return !*stop; };
     if (!try_solve(k, [&] { return solve_from(ncv, level.class_edges[k], corigin, no_decks, o); }, coarse_result[k], true))
@@ -396,9 +397,89 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
     out.candidates[k].coarse_energy = coarse_result[k].energy;
     out.candidates[k].energy = coarse_result[k].energy;
     out.candidates[k].solved = false;
-  });
+  };
+  // Issue 19: the first candidate alone, then only the classes that can
+  // still win (early_ranked_class, skip_classes_that_cannot_win).
+  std::vector<int> rest;
+  const int first = early_ranked_class();
+  if (first >= 0) {
+    coarse_solve(first, nullptr);
+    ++out.ranking_coarse_solves;
+    rest = classes_that_can_win(first);
+  } else {
+    for (int k = 0; k < ncand; ++k)
+      if (usable[k]) rest.push_back(k);
+  }
+  out.ranking_coarse_solves += static_cast<int>(rest.size());
+  // Independent solves, on two threads (concurrency.h: only this thread
+  // calls the progress callback, the other one sees a stop flag).
+  parallel_for(threads, static_cast<int>(rest.size()),
+               [&](int q, const std::atomic<bool>* stop) { coarse_solve(rest[q], stop); });
   std::stable_sort(order.begin(), order.end(),
                    [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
+}
+
+// Issue 19: the class the ranking solves alone first (the earliest usable
+// candidate: the overlay class when the shapes overlap, else the canonical
+// one), or -1 when every class is solved (homotopy.ranking_gap < 0, every
+// class asked for by homotopy.full_solves <= 0, a requested class,
+// landmarks: their ranking is by the energy with the landmarks held, which
+// the free energy's bounds do not bound; a test's search start, or at most
+// two candidates).
+int HyperbolicPipeline::early_ranked_class() const {
+  if (options.homotopy.ranking_gap < 0 || options.homotopy.full_solves <= 0 || options.homotopy.class_index >= 0 ||
+      !options.landmarks.empty() || hooks.homotopy_search_start >= 0 || ncand <= 2)
+    return -1;
+  for (int k = 0; k < ncand; ++k)
+    if (usable[k]) return k;
+  return -1;
+}
+
+// Issue 19: after the coarse solve of `first`, the classes still worth a
+// coarse solve. Every degree-1 map's energy is at least 8 pi (g - 1), so
+// when `first` is within homotopy.ranking_gap of that bound no other class
+// can be lower by more than the gap: none is solved. Otherwise a class whose
+// curve lower bound (map/class_lower_bound.h) is above `first`'s coarse
+// energy cannot win (the search's pruning rule): not solved either. The
+// classes not solved keep an infinite energy, say why in their description
+// and stay fallbacks (map_with_fallback).
+std::vector<int> HyperbolicPipeline::classes_that_can_win(int first) {
+  const double conformal = 8 * M_PI * (out.genus - 1);
+  const double e = out.candidates[first].energy;
+  char why[200];
+  std::vector<int> rest;
+  auto skip = [&](int k, const std::string& reason) {
+    not_ranked[k] = 1;
+    ++out.ranking_skipped;
+    out.candidates[k].energy = std::numeric_limits<double>::infinity();
+    out.candidates[k].solved = false;
+    out.candidates[k].description += "  [not ranked: " + reason + "]";
+  };
+  if (usable[first] && !coarse_failed[first] && e <= (1 + options.homotopy.ranking_gap) * conformal) {
+    std::snprintf(why, sizeof why, "candidate %d's coarse energy %.6g is within %g%% of the conformal bound 8 pi (g - 1)",
+                  first, e, 100 * options.homotopy.ranking_gap);
+    out.ranking_status = std::string("stopped: ") + why;
+    for (int k = 0; k < ncand; ++k)
+      if (k != first && usable[k]) skip(k, why);
+    return rest;
+  }
+  const bool finite = usable[first] && !coarse_failed[first] && std::isfinite(e);
+  const SourceClassBounds* bounds = finite ? &class_bounds_now() : nullptr;
+  for (int k = 0; k < ncand; ++k) {
+    if (k == first || !usable[k]) continue;
+    const double b = bounds ? class_curve_bound_of(*bounds, *target_lengths, candidates.classes[k].map) : 0.0;
+    if (b > e) {
+      std::snprintf(why, sizeof why, "its curve lower bound %.6g is above candidate %d's coarse energy %.6g", b, first, e);
+      skip(k, why);
+    } else {
+      rest.push_back(k);
+    }
+  }
+  out.ranking_status = out.ranking_skipped > 0 ? "pruned by the curve lower bounds: " + std::to_string(out.ranking_skipped) +
+                                                     " of " + std::to_string(ncand) + " classes not solved"
+                                               : std::string(bounds && bounds->ok ? "no class ruled out by its curve lower bound"
+                                                                                  : "no curve lower bounds: every class solved");
+  return rest;
 }
 
 // Appends a class found after the ranking, with its coarse solve.
@@ -416,6 +497,7 @@ int HyperbolicPipeline::append_class(HomotopyClass hc, ClassData cd, const Coars
   out.candidates.push_back(c);
   usable.push_back(1);
   coarse_failed.push_back(0);
+  not_ranked.push_back(0);
   level.class_edges.push_back(ev.edges);
   coarse_result.push_back(ev.result);
   fine_result.emplace_back();
@@ -486,8 +568,11 @@ void HyperbolicPipeline::search_classes() {
   // Issue 14 (docs/handle_classes.md "Geometric candidates"): classes from
   // short markings of the two hyperbolic metrics, under the same condition.
   std::vector<int> restart_from;
+  // Issue 19: only when the best class so far is at least geometric_ratio x
+  // the bound (they cost 1-6 s on genus-2 pairs and never won below it).
   if (searching && options.homotopy.search.geometric > 0 && hooks.homotopy_search_start < 0 && usable[order[0]] &&
-      out.candidates[order[0]].energy > gap_bound) {
+      out.candidates[order[0]].energy > gap_bound &&
+      out.candidates[order[0]].energy >= options.homotopy.search.geometric_ratio * conformal_bound) {
     const SourceClassBounds& bounds = class_bounds_now();
     if (bounds.ok && bounds.source) {
       std::vector<GroupMap> known;
@@ -599,7 +684,10 @@ void HyperbolicPipeline::geometric_classes_at_full_resolution() {
   for (int k = 0; k < ncand; ++k)
     if (usable[k] && out.candidates[k].solved && std::isfinite(out.candidates[k].energy))
       best = std::min(best, out.candidates[k].energy);
-  if (!std::isfinite(best) || best <= (1 + options.homotopy.search.gap) * 8 * M_PI * (out.genus - 1)) return;
+  const double conformal = 8 * M_PI * (out.genus - 1);
+  if (!std::isfinite(best) || best <= (1 + options.homotopy.search.gap) * conformal ||
+      best < options.homotopy.search.geometric_ratio * conformal)
+    return;
   const SourceClassBounds& bounds = class_bounds_now();
   if (!bounds.ok || !bounds.source) return;
   std::vector<GroupMap> known;
@@ -662,6 +750,7 @@ int HyperbolicPipeline::append_full_class(HomotopyClass hc, ClassData cd, Coarse
   out.candidates.push_back(c);
   usable.push_back(1);
   coarse_failed.push_back(0);
+  not_ranked.push_back(0);
   fine_result.push_back(std::make_unique<HyperbolicHarmonicResult>(std::move(ev.result)));
   full.push_back(1);
   order.push_back(ncand);
@@ -1091,7 +1180,9 @@ void map_with_fallback(HyperbolicPipeline& p) {
   SurfaceMapResult& out = p.out;
   std::vector<int> fallback;
   for (int k = 0; k < p.ncand; ++k)
-    if (k != out.chosen_candidate && p.usable[k] && std::isfinite(out.candidates[k].energy)) fallback.push_back(k);
+    if (k != out.chosen_candidate && p.usable[k] &&
+        (std::isfinite(out.candidates[k].energy) || (k < static_cast<int>(p.not_ranked.size()) && p.not_ranked[k])))
+      fallback.push_back(k);
   std::stable_sort(fallback.begin(), fallback.end(), [&](int x, int y) {
     const bool sx = out.candidates[x].solved, sy = out.candidates[y].solved;
     return sx != sy ? sx : out.candidates[x].energy < out.candidates[y].energy;

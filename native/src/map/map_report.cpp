@@ -108,7 +108,10 @@ json homotopy_search_json(const HomotopySearchInfo& hs) {
 json homotopy_json(const SurfaceMapResult& r) {
   json candidates = json::array();
   for (size_t i = 0; i < r.candidates.size(); ++i) candidates.push_back(candidate_json(r.candidates[i], i));
-  return {{"chosen", r.chosen_candidate}, {"candidates", candidates}, {"search", homotopy_search_json(r.homotopy_search)}};
+  return {{"chosen", r.chosen_candidate},
+          {"candidates", candidates},
+          {"ranking", {{"coarse_solves", r.ranking_coarse_solves}, {"skipped", r.ranking_skipped}, {"status", r.ranking_status}}},
+          {"search", homotopy_search_json(r.homotopy_search)}};
 }
 
 json stage_times_json(const SurfaceMapResult& r) {

@@ -161,13 +161,20 @@ bool triangle_angles(const double l[3], Background bg, double theta[3], double D
     fs = std::sinh(s);
     twice = 2.0 * std::sqrt(fs * f[0] * f[1] * f[2]);  // = sinh l_j sinh l_k sin θ_i
   }
-  for (int k = 0; k < 3; ++k)
-    theta[k] = 2.0 * std::atan2(std::sqrt(f[(k + 1) % 3] * f[(k + 2) % 3]), std::sqrt(fs * f[k]));
+  // θ_k = 2 atan2(√y, √x) with x = fs f_k, y = f_{k+1} f_{k+2}, so
+  // cos θ_k = (x − y) / (x + y) without a cosine (issue 19: the Jacobian
+  // is assembled at every Newton step; 6 cosines per face were a fifth of it).
+  double cos_theta[3];
+  for (int k = 0; k < 3; ++k) {
+    const double x = fs * f[k], y = f[(k + 1) % 3] * f[(k + 2) % 3];
+    theta[k] = 2.0 * std::atan2(std::sqrt(y), std::sqrt(x));
+    cos_theta[k] = (x - y) / (x + y);
+  }
   for (int i = 0; i < 3; ++i) {
     const double dii = (bg == Background::Euclidean ? l[i] : std::sinh(l[i])) / twice;
     D[i][i] = dii;
     for (int m = 0; m < 3; ++m)
-      if (m != i) D[i][m] = -dii * std::cos(theta[3 - i - m]);
+      if (m != i) D[i][m] = -dii * cos_theta[3 - i - m];
   }
   return true;
 }
@@ -559,6 +566,29 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
 // thread: 0.32 s against 0.9 s), for preconditioner solves ~30% slower.
 #define SURFMAP_RICCI_SOLVER Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower>
 #endif
+  // Issue 19: the Jacobian's triplets come in the same order at every
+  // iteration while the triangulation is unchanged (flips change it), so
+  // after one setFromTriplets their slots in H are known and later
+  // iterations only add the values (in the same order: the same sums).
+  std::vector<int> slot;
+  long long slot_version = -1;
+  auto assemble = [&](const std::vector<Eigen::Triplet<double>>& t, long long version, Eigen::SparseMatrix<double>& M) {
+    if (slot_version != version || slot.size() != t.size()) {
+      M.setFromTriplets(t.begin(), t.end());
+      slot.resize(t.size());
+      for (size_t q = 0; q < t.size(); ++q) {
+        const int c = t[q].col();
+        const int* begin = M.innerIndexPtr() + M.outerIndexPtr()[c];
+        const int* end = M.innerIndexPtr() + M.outerIndexPtr()[c + 1];
+        slot[q] = static_cast<int>(std::lower_bound(begin, end, t[q].row()) - M.innerIndexPtr());
+      }
+      slot_version = version;
+      return;
+    }
+    double* v = M.valuePtr();
+    std::fill(v, v + M.nonZeros(), 0.0);
+    for (size_t q = 0; q < t.size(); ++q) v[slot[q]] += t[q].value();
+  };
   SURFMAP_RICCI_SOLVER llt;
   bool analyzed = false, factor_valid = false;
   long long analyzed_version = 0;
@@ -602,7 +632,7 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
         if ((*fixed_in)[v]) kept.emplace_back(v, v, 1.0);
       H.setFromTriplets(kept.begin(), kept.end());
     } else {
-      H.setFromTriplets(ev.triplets.begin(), ev.triplets.end());
+      assemble(ev.triplets, flip_ctx.version, H);
       if (flat) H.coeffRef(0, 0) += 1.0;
     }
     const double g2 = g.squaredNorm();

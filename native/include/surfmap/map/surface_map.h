@@ -138,6 +138,11 @@ struct HomotopySearchOptions {
   /// (default 4; 0: none). Needs the source's own uniformization
   /// (SurfaceMapResult::class_bound_status).
   int geometric = 4;
+  /// Issue 19: the geometric classes only when the best class so far has at
+  /// least this many times the conformal bound 8 pi (g - 1) (default 2; they
+  /// cost 1-6 s on genus-2 pairs and never won below that; 0: whenever the
+  /// search runs).
+  double geometric_ratio = 2.0;
   /// The twist search restarts from each geometric class and from the class
   /// carried from the other direction (two-way run) that is within this
   /// factor of the best coarse energy (default 1.5; 0: one start only), and
@@ -161,6 +166,15 @@ struct HomotopyOptions {
   /// (default 2: the best and the runner-up when within 10% of it; <= 0:
   /// all of them).
   int full_solves = 2;
+  /// Genus >= 2, default class, coarse copy (issue 19): the first candidate
+  /// (the overlay class when the shapes overlap) is solved alone first; when
+  /// its coarse energy is within this fraction (default 0.02) of the
+  /// conformal bound 8 pi (g - 1), below which no class's energy lies, the
+  /// other classes are not solved ("[not ranked: ...]"); otherwise those
+  /// whose curve lower bound (map/class_lower_bound.h) is above that energy
+  /// are not solved. < 0: every class is solved (also when full_solves <= 0).
+  /// SurfaceMapResult::ranking_coarse_solves counts the solves.
+  double ranking_gap = 0.02;
   /// Genus >= 2: vertices of the coarse copy of the source on which every
   /// candidate class is solved to rank them (map/coarse_source.h; default
   /// 3000, at most a quarter of the source's vertices; 0, or a source under
@@ -555,6 +569,12 @@ struct SurfaceMapResult {
   std::string source_weights;
   std::vector<HomotopyCandidate> candidates;
   int chosen_candidate = -1;
+  /// Genus >= 2 (issue 19; HomotopyOptions::ranking_gap): coarse solves the
+  /// ranking ran (the class search's are in homotopy_search.coarse_solves),
+  /// the classes it did not solve, and why ("" when every class was solved).
+  int ranking_coarse_solves = 0;
+  int ranking_skipped = 0;
+  std::string ranking_status;
   HomotopySearchInfo homotopy_search;
   /// Target lattice (flat case) and the source's image in the plane.
   std::complex<double> target_omega1, target_omega2;
