@@ -250,8 +250,9 @@ def _capped_map(S, T, pairing, options, mirrored=False):
         Vt = Vt * np.array([-1.0, 1.0, 1.0])
         Ft = Ft[:, ::-1]
     landmarks = np.array([[cs[i], ct[pairing[i]]] for i in range(S.b)], dtype=np.int64)
-    kw = {k: v for k, v in options.items() if k in ("threads", "tolerance", "max_iterations")}
-    r = _core.surface_map(Vs, Fs, Vt, Ft, landmarks=landmarks, two_way=False, **kw)
+    kw = {k: v for k, v in options.items() if k in ("threads", "tolerance", "max_iterations", "target_metric")}
+    r = _with_target_metric(lambda **extra: _core.surface_map(Vs, Fs, Vt, Ft, landmarks=landmarks, two_way=False,
+                                                             **kw, **extra), kw)
     if bool(r["source_flipped"]) != bool(r["target_flipped"]):
         raise _core.SolveError("the capped surfaces came out oriented differently (the source's faces "
                                f"{'reversed' if r['source_flipped'] else 'kept'}, the target's "
@@ -365,11 +366,34 @@ def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz
     return images
 
 
+def _with_target_metric(solve, kw):
+    """solve(**extra) with the user's target metric if given, else the fixed-connectivity metric first
+    and the flip-based one when the fixed one does not exist. Why: with the flip-based metric (the
+    core's default, piecewise projective on the target's faces) a punctured torus onto its bend-0.5
+    copy ended at the same energy (12.7908 vs 12.7907) but moved the half by 31% of the diagonal,
+    against 5.6% with the fixed metric. The difference comes from the capped surfaces' rough map
+    (the fixed metric there alone restores 5.6%); why is not found yet (docs/open_surfaces.md). The
+    doubling was built and measured on the fixed metric (as the add-on's outputs are)."""
+    if "target_metric" in kw:
+        return solve()
+    try:
+        return solve(target_metric="fixed")
+    except _core.SolveError as e:
+        if not str(e).startswith(("target uniformization", "target layout")):
+            raise
+        return solve(target_metric="flips")
+
+
 def _double_map(S, T, images, options):
     kw = {k: v for k, v in options.items() if k in ("threads", "tolerance", "max_iterations", "method",
-                                                    "source_weights", "progress", "solve_progress")}
-    return _core.surface_map(S.D["V"], S.D["F"], T.D["V"], T.D["F"], homotopy_images=images, two_way=False,
-                             homotopy_search=False, **kw)
+                                                    "source_weights", "progress", "solve_progress",
+                                                    "target_metric")}
+
+    def solve(**extra):
+        return _core.surface_map(S.D["V"], S.D["F"], T.D["V"], T.D["F"], homotopy_images=images,
+                                 two_way=False, homotopy_search=False, **kw, **extra)
+
+    return _with_target_metric(solve, kw)
 
 
 def _symmetry(res, S, T, reversed_orientation):

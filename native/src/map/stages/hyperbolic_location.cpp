@@ -151,6 +151,38 @@ std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>&
     });
     return start >= 0 ? straight_walk(start, towards, corners, cross, max_steps, kInsideTolerance, &bary[v]) : -1;
   };
+  // Whether face f at barycentrics b holds a copy of v: the point within
+  // half of f's longest side of one of v's copies in the cut disk, or of
+  // one reduced into P when the point is too. A walk
+  // whose chart changes lost their digits near a corner of P can end in a
+  // face whose image holds the moved query, not v (one target vertex of a
+  // genus-6 pair, 7.8 triangles away, certificate's inverse check); such a
+  // result is dropped and the next fallback runs. Hyperboloid barycentrics
+  // (hyperbolic::triangle_barycentric): the point is Σ b_k X_k normalised.
+  auto holds_copy = [&](int v, int f, const Eigen::Vector3d& b) {
+    if (f < 0) return false;
+    Eigen::Vector3d X = Eigen::Vector3d::Zero();
+    double longest = 0;
+    for (int k = 0; k < 3; ++k) {
+      const Complex z = points[f][k];
+      const double n = std::norm(z);
+      X += b[k] * Eigen::Vector3d(2 * z.real(), 2 * z.imag(), 1 + n) / (1 - n);
+      longest = std::max(longest, hyperbolic::distance(z, points[f][(k + 1) % 3]));
+    }
+    const double q = X[2] * X[2] - X[0] * X[0] - X[1] * X[1];
+    if (!(q > 0) || !(X[2] > 0)) return false;
+    X /= std::sqrt(q);
+    const Complex p(X[0] / (1 + X[2]), X[1] / (1 + X[2]));
+    Complex pr = p;
+    polygon.reduce(pr);
+    const double tol = std::max(1e-6, 0.5 * longest);
+    for (Complex c : copies[v]) {  // (copies in the cut disk: reduced into P like the point)
+      if (hyperbolic::distance(p, c) <= tol) return true;
+      polygon.reduce(c);
+      if (hyperbolic::distance(pr, c) <= tol) return true;
+    }
+    return false;
+  };
   auto from_neighbours = [&](int v) {
     return walk_from_nearest(v, [&](auto&& visit) {
       for (int k = neighbours.index[v]; k < neighbours.index[v + 1]; ++k)
@@ -174,7 +206,7 @@ std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>&
       if (stop && *stop) return;
       const int v = queue[head];
       const int f = from_neighbours(v);
-      if (f < 0) continue;  // left to the fallbacks below
+      if (!holds_copy(v, f, bary[v])) continue;  // left to the fallbacks below
       face[v] = f, ++count.from_neighbour;
       enqueue_neighbours(v);
     }
@@ -193,6 +225,7 @@ std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>&
       for (const Complex& c : copies[v])
         for (int g : grid.candidates(hyperbolic::poincare_to_klein(c))) visit(g);
     });
+    if (f >= 0 && !holds_copy(v, f, b)) f = -1;
     if (f >= 0) ++count.from_grid;
     if (f < 0) {  // from the face whose corner 0 is nearest to a copy, over all faces
       ++count.full_scan;
