@@ -338,8 +338,6 @@ def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz
     DT = T.D
     target_vertex = np.empty(S.n2, dtype=np.int64)
     s_loop = S.loop_of_vertex()
-    t_on_b = DT["on_boundary"]
-    t_interior_or_b = np.arange(T.n2)
     # Which target cap a capped-target face belongs to (-1: the half).
     cap_of_face = -np.ones(n_target_half_faces + sum(len(l) for l in T.loops), dtype=np.int64)
     start = n_target_half_faces
@@ -348,7 +346,7 @@ def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz
         start += len(loop)
     cap = cap_of_face[face] if face is not None else np.full(S.n2, -1)
     free = (s_loop < 0) & (cap < 0)
-    target_vertex[free] = t_interior_or_b[_nearest(pos[free], target_xyz)]
+    target_vertex[free] = _nearest(pos[free], target_xyz)
     for i, loop in enumerate(T.loops):
         # Source boundary vertices of the loop paired with i, and images inside cap i.
         src_loop = [k for k in range(S.b) if pairing[k] == i]
@@ -386,7 +384,7 @@ def _with_target_metric(solve, kw):
 
 def _double_map(S, T, images, options):
     kw = {k: v for k, v in options.items() if k in ("threads", "tolerance", "max_iterations", "method",
-                                                    "source_weights", "progress", "solve_progress",
+                                                    "source_weights", "solve_progress",
                                                     "target_metric")}
 
     def solve(**extra):
@@ -438,11 +436,11 @@ def _dilatation(P, Q, F):
     return d
 
 
-def _half_correspondence(res_map, S, T, reversed_orientation):
+def _half_correspondence(res_map, S, T):
     """From the doubles' map: per input source vertex (face, bary, position) on the target's input
     faces, boundary vertices snapped onto their paired target loop; per input target vertex the
-    same on the source. Returns (forward, inverse, pairing, snap_distance)."""
-    def one_way(A, B, points, rev):
+    same on the source. Returns (forward, inverse, pairing, back_pairing, snap_distance)."""
+    def one_way(A, B, points):
         n = A.n
         f2, b2, _ = B.half_points(np.asarray(points["face"])[:n], np.asarray(points["barycentric"])[:n])
         face, bary = B.to_input_faces(f2, b2)
@@ -463,8 +461,8 @@ def _half_correspondence(res_map, S, T, reversed_orientation):
         snap = float(np.linalg.norm(sp - pos[on_b], axis=1).max()) if len(on_b) else 0.0
         face[on_b], bary[on_b], pos[on_b] = sf, sb, sp
         return {"face": face, "barycentric": bary, "position": pos}, pairing, snap
-    fw, pairing, snap = one_way(S, T, res_map["forward"], reversed_orientation)
-    inv, back_pairing, snap_back = one_way(T, S, res_map["inverse"], reversed_orientation)
+    fw, pairing, snap = one_way(S, T, res_map["forward"])
+    inv, back_pairing, snap_back = one_way(T, S, res_map["inverse"])
     return fw, inv, pairing, back_pairing, max(snap, snap_back)
 
 
@@ -604,7 +602,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     for c in candidates:
         c["chosen"] = c is cand
     report("doubles: the half", 0.95)
-    fw, inv, pairing, back_pairing, snap = _half_correspondence(r, S, T, rev)
+    fw, inv, pairing, back_pairing, snap = _half_correspondence(r, S, T)
     flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
     weights_fallback = ""
     if flipped and "source_weights" not in options:
@@ -615,7 +613,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         images = _symmetric_images(S, T, cand["pairing"], rev, *((_sphere_rough_map if S.genus == 0 else _capped_map)(
             S, T, cand["pairing"], options, mirrored=rev)))
         r2 = _double_map(S, T, images, dict(options, source_weights="own"))
-        fw2, inv2, pairing2, back2, snap2 = _half_correspondence(r2, S, T, rev)
+        fw2, inv2, pairing2, back2, snap2 = _half_correspondence(r2, S, T)
         flipped2, ears, ears_turned, ear = _flips(S, T, fw2, rev)
         weights_fallback = (f"{flipped} flipped with the intrinsic Delaunay weights; solved again on the source's "
                             f"own edges: {flipped2} flipped")

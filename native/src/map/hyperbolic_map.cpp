@@ -440,7 +440,9 @@ int HyperbolicPipeline::early_ranked_class() const {
 // when `first` is within homotopy.ranking_gap of that bound no other class
 // can be lower by more than the gap: none is solved. Otherwise a class whose
 // curve lower bound (map/class_lower_bound.h) is above `first`'s coarse
-// energy cannot win (the search's pruning rule): not solved either. The
+// energy cannot win (the search's pruning rule): not solved either. Both
+// tests read `first`'s coarse energy, not its full-resolution one, so they
+// hold up to the coarse copy's discretisation error (a heuristic there). The
 // classes not solved keep an infinite energy, say why in their description
 // and stay fallbacks (map_with_fallback).
 std::vector<int> HyperbolicPipeline::classes_that_can_win(int first) {

@@ -223,8 +223,9 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
   }
   // Automatic: the flip path, whose metric exists on every closed mesh
   // (Gu-Luo-Sun-Wu 2018; docs/uniformization.md "Which target metric runs");
-  // the handle classes read the target's own loops on both paths, so they
-  // are the same objects. The fixed-connectivity metric (exactly refined
+  // the handle classes read the target's own loops on both paths (carried
+  // onto T'; when carrying fails, the loops of T', as `target_class_loops`
+  // says), so they are the same objects. The fixed-connectivity metric (exactly refined
   // when needed) only when the flip path throws.
   std::string flip_failure;
   try {

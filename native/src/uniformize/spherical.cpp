@@ -248,8 +248,10 @@ int flip_star_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std
     for (int k = 0; k < 3; ++k) {
       const double a = l[k], b = l[(k + 1) % 3], c = l[(k + 2) % 3];
       angle[flat.faces(f, k)] += std::acos(std::clamp((b * b + c * c - a * a) / (2 * b * c), -1.0, 1.0));
-      const double rel = (b + c - a) / a;  // this corner's edges may grow by half of it
-      slack[flat.faces(f, k)] = std::min(slack[flat.faces(f, k)], rel);
+      // Scaling this corner's edges b, c by s keeps b + c > a; what it can
+      // break is s |b - c| < a, so the relative room is (a - |b - c|) / |b - c|.
+      const double spread = std::abs(b - c);
+      if (spread > 0) slack[flat.faces(f, k)] = std::min(slack[flat.faces(f, k)], (a - spread) / spread);
       length_of[key(flat.faces(f, (k + 1) % 3), flat.faces(f, (k + 2) % 3))] = a;
     }
   }

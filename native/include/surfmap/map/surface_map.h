@@ -571,7 +571,9 @@ struct SurfaceMapResult {
   int chosen_candidate = -1;
   /// Genus >= 2 (issue 19; HomotopyOptions::ranking_gap): coarse solves the
   /// ranking ran (the class search's are in homotopy_search.coarse_solves),
-  /// the classes it did not solve, and why ("" when every class was solved).
+  /// the classes it did not solve, and why ("" when the ranking solved every
+  /// class by rule; else "stopped: ...", "pruned by the curve lower bounds:
+  /// ...", or why nothing was pruned).
   int ranking_coarse_solves = 0;
   int ranking_skipped = 0;
   std::string ranking_status;

@@ -75,8 +75,8 @@ struct SphericalUniformization {
   /// input vertex ids; #F' = #F): the flow's intrinsic Delaunay faces of the
   /// punctured disk and the star of removed_vertex. The input faces without flips.
   RowMatrixX3i intrinsic_faces;
-  int ring_flips = 0;                  ///< flips of the removed vertex's ring edges
-  int edge_flips = 0;                  ///< intrinsic flips of the flattening (all rounds)
+  int ring_flips = 0;                  ///< flips of the removed vertex's ring edges and of its star edges (star flips)
+  int edge_flips = 0;                  ///< intrinsic flips: the whole sphere's Delaunay start and the flattening (all rounds)
   double time_s = 0;
   std::string message;                 ///< why it failed (names the element), empty on success
 };

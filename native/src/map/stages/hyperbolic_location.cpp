@@ -157,7 +157,10 @@ std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>&
   // whose chart changes lost their digits near a corner of P can end in a
   // face whose image holds the moved query, not v (one target vertex of a
   // genus-6 pair, 7.8 triangles away, certificate's inverse check); such a
-  // result is dropped and the next fallback runs. Hyperboloid barycentrics
+  // result of the waves or of the grid start is dropped and the next fallback
+  // runs. The later fallbacks (the scan from the nearest corner, the reference
+  // of MapHooks::inverse_full_search, then the last face's walk and
+  // locate_in_cover) are taken as they come: nothing is left after them. Hyperboloid barycentrics
   // (hyperbolic::triangle_barycentric): the point is Σ b_k X_k normalised.
   auto holds_copy = [&](int v, int f, const Eigen::Vector3d& b) {
     if (f < 0) return false;
