@@ -117,34 +117,6 @@ std::string map_row(const TriMesh& a, const TriMesh& b) {
   return line;
 }
 
-// A UV sphere (rings x segments, pole fans) stretched `stretch`:1 along z;
-// 30 x 200 at 10:1 has corner angles down to 1 degree.
-TriMesh stretched_uv_sphere(int rings, int segments, double stretch) {
-  TriMesh m;
-  const int nv = 2 + (rings - 1) * segments;
-  m.V.resize(nv, 3);
-  m.V.row(0) << 0, 0, stretch;
-  for (int i = 1; i < rings; ++i)
-    for (int j = 0; j < segments; ++j) {
-      const double th = M_PI * i / rings, ph = 2 * M_PI * j / segments;
-      m.V.row(1 + (i - 1) * segments + j) << std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph),
-          stretch * std::cos(th);
-    }
-  m.V.row(nv - 1) << 0, 0, -stretch;
-  auto id = [&](int i, int j) { return 1 + (i - 1) * segments + (j % segments); };
-  std::vector<std::array<int, 3>> F;
-  for (int j = 0; j < segments; ++j) F.push_back({0, id(1, j), id(1, j + 1)});
-  for (int i = 1; i < rings - 1; ++i)
-    for (int j = 0; j < segments; ++j) {
-      F.push_back({id(i, j), id(i + 1, j), id(i, j + 1)});
-      F.push_back({id(i, j + 1), id(i + 1, j), id(i + 1, j + 1)});
-    }
-  for (int j = 0; j < segments; ++j) F.push_back({nv - 1, id(rings - 1, j + 1), id(rings - 1, j)});
-  m.F.resize(static_cast<int>(F.size()), 3);
-  for (size_t f = 0; f < F.size(); ++f) m.F.row(static_cast<int>(f)) << F[f][0], F[f][1], F[f][2];
-  return m;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -165,7 +137,7 @@ int main(int argc, char** argv) {
       {"raw peanut g0 r32", [] { return s::peanut(32, false); }},
       {"raw peanut g0 r64", [] { return s::peanut(64, false); }},
       {"coarse jittered sphere g0", [] { return s::jitter(s::sphere(3), 0.29, 7); }},
-      {"UV sphere g0 10:1 (1 deg)", [] { return stretched_uv_sphere(30, 200, 10.0); }},
+      {"UV sphere g0 10:1 (1 deg)", [] { return samples::stretched_uv_sphere(30, 200, 10.0); }},
       {"zero-area g0 (300 collinear)", [] { return s::insert_degenerate_faces(s::sphere(4), 300, 0.5, 2); }},
       {"raw torus g1 r32", [] { return s::n_hole_torus(1, 32, false); }},
       {"raw torus g1 r64", [] { return s::n_hole_torus(1, 64, false); }},
@@ -206,7 +178,7 @@ int main(int argc, char** argv) {
   const std::vector<Pair> map_pairs = {
       {"raw g0 r32 -> raw g0 r48", [] { return s::peanut(32, false); }, [] { return s::peanut(48, false); }},
       {"raw g0 r64 -> its remesh r48", [] { return s::peanut(64, false); }, [] { return s::peanut(48, true); }},
-      {"UV g0 10:1 -> raw g0 r32", [] { return stretched_uv_sphere(30, 200, 10.0); },
+      {"UV g0 10:1 -> raw g0 r32", [] { return samples::stretched_uv_sphere(30, 200, 10.0); },
        [] { return s::peanut(32, false); }},
       {"zero-area g0 -> coarse g0", [] { return s::insert_degenerate_faces(s::sphere(4), 300, 0.5, 2); },
        [] { return s::jitter(s::sphere(3), 0.29, 7); }},

@@ -298,5 +298,25 @@ TEST(Shapes, SphereInversionIsAConformalOutwardCopy) {
   EXPECT_THROW(sphere_inversion(m, m.V.row(0).transpose(), 1.0), InputError);
 }
 
+TEST(Shapes, StretchedUvSphereIsAClosedOutwardSphereWithSlivers) {
+  const TriMesh m = stretched_uv_sphere(30, 200, 10.0);
+  EXPECT_EQ(m.num_vertices(), 2 + 29 * 200);
+  // Closed genus 0: V - E + F = 2 with E = 3F / 2.
+  ASSERT_EQ(m.num_faces() % 2, 0);
+  EXPECT_EQ(m.num_vertices() - 3 * m.num_faces() / 2 + m.num_faces(), 2);
+  double smallest = 180.0;
+  for (int f = 0; f < m.num_faces(); ++f) {
+    const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
+    EXPECT_GT((b - a).cross(c - a).dot(a + b + c), 0.0) << "face " << f;  // outward
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d p = m.V.row(m.F(f, k)), q = m.V.row(m.F(f, (k + 1) % 3)), r = m.V.row(m.F(f, (k + 2) % 3));
+      smallest = std::min(smallest, std::acos((q - p).normalized().dot((r - p).normalized())) * 180.0 / M_PI);
+    }
+  }
+  EXPECT_LT(smallest, 1.5);  // the slivers the robustness checks want
+  EXPECT_THROW(stretched_uv_sphere(1, 200, 10.0), InputError);
+  EXPECT_THROW(stretched_uv_sphere(30, 200, 0.0), InputError);
+}
+
 }  // namespace
 }  // namespace surfmap::samples

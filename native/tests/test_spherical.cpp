@@ -181,34 +181,6 @@ TEST(Spherical, RejectsHigherGenus) {
 namespace surfmap {
 namespace {
 
-// A UV sphere (rings x segments, pole fans) stretched `stretch`:1 along z:
-// long slivers with angles near 1 degree at 50:1.
-TriMesh stretched_uv_sphere(int rings, int segments, double stretch) {
-  TriMesh m;
-  const int nv = 2 + (rings - 1) * segments;
-  m.V.resize(nv, 3);
-  m.V.row(0) << 0, 0, stretch;
-  for (int i = 1; i < rings; ++i)
-    for (int j = 0; j < segments; ++j) {
-      const double th = kPi * i / rings, ph = 2 * kPi * j / segments;
-      m.V.row(1 + (i - 1) * segments + j) << std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph),
-          stretch * std::cos(th);
-    }
-  m.V.row(nv - 1) << 0, 0, -stretch;
-  auto id = [&](int i, int j) { return 1 + (i - 1) * segments + (j % segments); };
-  std::vector<std::array<int, 3>> F;
-  for (int j = 0; j < segments; ++j) F.push_back({0, id(1, j), id(1, j + 1)});
-  for (int i = 1; i < rings - 1; ++i)
-    for (int j = 0; j < segments; ++j) {
-      F.push_back({id(i, j), id(i + 1, j), id(i, j + 1)});
-      F.push_back({id(i, j + 1), id(i + 1, j), id(i + 1, j + 1)});
-    }
-  for (int j = 0; j < segments; ++j) F.push_back({nv - 1, id(rings - 1, j + 1), id(rings - 1, j)});
-  m.F.resize(static_cast<int>(F.size()), 3);
-  for (size_t f = 0; f < F.size(); ++f) m.F.row(static_cast<int>(f)) << F[f][0], F[f][1], F[f][2];
-  return m;
-}
-
 // Signed area of the spherical triangle (a, b, c) (Van Oosterom–Strackee).
 double solid_angle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
   return 2.0 * std::atan2(a.dot(b.cross(c)), 1.0 + a.dot(b) + b.dot(c) + c.dot(a));
@@ -256,7 +228,7 @@ TEST(SphericalFlips, SliverSphereThatTheFixedPathRefusesUniformizes) {
 
 TEST(SphericalFlips, StretchedUvSphereUniformizes) {
   // Pole fans and slivers of 2-3 degrees (UV sphere stretched 8:1).
-  const TriMesh m = stretched_uv_sphere(30, 60, 8.0);
+  const TriMesh m = samples::stretched_uv_sphere(30, 60, 8.0);
   expect_embedding(m, spherical_uniformization(m));
 }
 

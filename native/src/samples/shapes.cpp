@@ -461,6 +461,35 @@ TriMesh spherical_cap(int rings, double bump) {
   return m;
 }
 
+TriMesh stretched_uv_sphere(int rings, int segments, double stretch) {
+  if (rings < 2 || segments < 3 || !(stretch > 0))
+    throw InputError("stretched_uv_sphere: needs rings >= 2, segments >= 3 and stretch > 0 (got " +
+                     std::to_string(rings) + ", " + std::to_string(segments) + ", " + std::to_string(stretch) + ")");
+  TriMesh m;
+  const int nv = 2 + (rings - 1) * segments;
+  m.V.resize(nv, 3);
+  m.V.row(0) << 0, 0, stretch;
+  for (int i = 1; i < rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const double th = M_PI * i / rings, ph = 2 * M_PI * j / segments;
+      m.V.row(1 + (i - 1) * segments + j) << std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph),
+          stretch * std::cos(th);
+    }
+  m.V.row(nv - 1) << 0, 0, -stretch;
+  auto id = [&](int i, int j) { return 1 + (i - 1) * segments + (j % segments); };
+  std::vector<std::array<int, 3>> F;
+  for (int j = 0; j < segments; ++j) F.push_back({0, id(1, j), id(1, j + 1)});
+  for (int i = 1; i < rings - 1; ++i)
+    for (int j = 0; j < segments; ++j) {
+      F.push_back({id(i, j), id(i + 1, j), id(i, j + 1)});
+      F.push_back({id(i, j + 1), id(i + 1, j), id(i + 1, j + 1)});
+    }
+  for (int j = 0; j < segments; ++j) F.push_back({nv - 1, id(rings - 1, j + 1), id(rings - 1, j)});
+  m.F.resize(static_cast<int>(F.size()), 3);
+  for (size_t f = 0; f < F.size(); ++f) m.F.row(static_cast<int>(f)) << F[f][0], F[f][1], F[f][2];
+  return m;
+}
+
 TriMesh peanut(int resolution, bool smooth) {
   Shape s;
   s.f = [](const Vector3d& p) {
