@@ -46,6 +46,22 @@ namespace {
 
 using hyperbolic::Mobius;
 
+// Adds a restarted twist search's figures to the search's account `info`:
+// the start, the evaluation and screening counts, the time, and the moves
+// it evaluated (tagged with the candidate it started from).
+void add_restart_figures(HomotopySearchInfo& info, const HomotopySearchInfo& run, int start) {
+  info.starts.push_back(start);
+  info.evaluations += run.evaluations;
+  info.screened += run.screened;
+  info.time_s += run.time_s;
+  for (size_t q = 0; q < run.evaluated_moves.size(); ++q) {
+    info.evaluated_moves.push_back("[from " + std::to_string(start) + "] " + run.evaluated_moves[q]);
+    info.evaluated_step.push_back(run.evaluated_step[q]);
+    info.evaluated_screen.push_back(run.evaluated_screen[q]);
+    info.evaluated_energy.push_back(run.evaluated_energy[q]);
+  }
+}
+
 // What the stages of one genus >= 2 map hand each other. The members are
 // filled in the order of the methods; each method is one step of the
 // driver (map_hyperbolic, below) and calls the stage functions of stages/.
@@ -162,6 +178,7 @@ class HyperbolicPipeline {
   bool try_solve(int k, const std::function<HyperbolicHarmonicResult()>& solve, HyperbolicHarmonicResult& r,
                  bool coarse = false);
   int append_class(HomotopyClass hc, ClassData cd, const CoarseEvaluation& ev);
+  int push_candidate(HomotopyClass hc, ClassData cd, HomotopyCandidate c);
   int early_ranked_class() const;
   std::vector<int> classes_that_can_win(int first);
   void twist_search_from(int start, const std::vector<std::string>& start_twists, const CoarseSolve& solve,
@@ -484,31 +501,38 @@ std::vector<int> HyperbolicPipeline::classes_that_can_win(int first) {
   return rest;
 }
 
+// The per-candidate lists every appended class extends alike (its
+// description and homology copied into `c`); the caller adds the solve's
+// own lists (coarse or full resolution). Returns the new index.
+int HyperbolicPipeline::push_candidate(HomotopyClass hc, ClassData cd, HomotopyCandidate c) {
+  c.description = hc.description;
+  for (int r = 0; r < hc.homology.rows(); ++r)
+    for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
+  data.push_back(std::move(cd));
+  candidates.classes.push_back(std::move(hc));
+  out.candidates.push_back(std::move(c));
+  usable.push_back(1);
+  coarse_failed.push_back(0);
+  not_ranked.push_back(0);
+  order.push_back(ncand);
+  return ncand++;
+}
+
 // Appends a class found after the ranking, with its coarse solve.
 int HyperbolicPipeline::append_class(HomotopyClass hc, ClassData cd, const CoarseEvaluation& ev) {
   hc.map = ev.theta;
   hc.homology = homology_matrix(hc.map, space->num_letters());
   HomotopyCandidate c;
-  c.description = hc.description;
   c.coarse_energy = c.energy = ev.result.energy;
   c.solved = false;
-  for (int r = 0; r < hc.homology.rows(); ++r)
-    for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
-  data.push_back(std::move(cd));
-  candidates.classes.push_back(std::move(hc));
-  out.candidates.push_back(c);
-  usable.push_back(1);
-  coarse_failed.push_back(0);
-  not_ranked.push_back(0);
   level.class_edges.push_back(ev.edges);
   coarse_result.push_back(ev.result);
   fine_result.emplace_back();
   full.push_back(0);
-  order.push_back(ncand);
-  ++ncand;
+  const int k = push_candidate(std::move(hc), std::move(cd), std::move(c));
   std::stable_sort(order.begin(), order.end(),
                    [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
-  return ncand - 1;
+  return k;
 }
 
 // The class search (stages/class_search.h), on the coarse copy: stage 1,
@@ -622,16 +646,7 @@ void HyperbolicPipeline::search_classes() {
     SurfaceMapOptions ro = options;
     ro.homotopy.search.evaluations = std::max(1, options.homotopy.search.evaluations / 2);
     twist_search_from(k, {}, pruned_solve, restart, &ro);
-    info.starts.push_back(k);
-    info.evaluations += restart.evaluations;
-    info.screened += restart.screened;
-    info.time_s += restart.time_s;
-    for (size_t q = 0; q < restart.evaluated_moves.size(); ++q) {
-      info.evaluated_moves.push_back("[from " + std::to_string(k) + "] " + restart.evaluated_moves[q]);
-      info.evaluated_step.push_back(restart.evaluated_step[q]);
-      info.evaluated_screen.push_back(restart.evaluated_screen[q]);
-      info.evaluated_energy.push_back(restart.evaluated_energy[q]);
-    }
+    add_restart_figures(info, restart, k);
     if (restart.found_candidate >= 0 && out.candidates[restart.found_candidate].energy < info.energy) {
       info.found_candidate = restart.found_candidate;
       info.energy = out.candidates[restart.found_candidate].energy;
@@ -742,21 +757,11 @@ int HyperbolicPipeline::append_full_class(HomotopyClass hc, ClassData cd, Coarse
   handle_correspondence_of(ss.shb, candidates.target_basis, hc.homology, &hc.permutation, &hc.sign, &handles);
   hc.description = handles + "  " + hc.description;
   HomotopyCandidate c;
-  c.description = hc.description;
   c.energy = ev.result.energy;
   c.solved = true;
-  for (int r = 0; r < hc.homology.rows(); ++r)
-    for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
-  data.push_back(std::move(cd));
-  candidates.classes.push_back(std::move(hc));
-  out.candidates.push_back(c);
-  usable.push_back(1);
-  coarse_failed.push_back(0);
-  not_ranked.push_back(0);
   fine_result.push_back(std::make_unique<HyperbolicHarmonicResult>(std::move(ev.result)));
   full.push_back(1);
-  order.push_back(ncand);
-  return ncand++;
+  return push_candidate(std::move(hc), std::move(cd), std::move(c));
 }
 
 // Issue 14 (docs/handle_classes.md "The search, restarted"): a source too
@@ -819,16 +824,7 @@ void HyperbolicPipeline::twist_search_at_full_resolution() {
       info.screened = run.screened, info.stop_reason = run.stop_reason, info.time_s = run.time_s;
       info.starts.assign(1, start);
     } else {
-      info.starts.push_back(start);
-      info.evaluations += run.evaluations;
-      info.screened += run.screened;
-      info.time_s += run.time_s;
-      for (size_t q = 0; q < run.evaluated_moves.size(); ++q) {
-        info.evaluated_moves.push_back("[from " + std::to_string(start) + "] " + run.evaluated_moves[q]);
-        info.evaluated_step.push_back(run.evaluated_step[q]);
-        info.evaluated_screen.push_back(run.evaluated_screen[q]);
-        info.evaluated_energy.push_back(run.evaluated_energy[q]);
-      }
+      add_restart_figures(info, run, start);
     }
     if (!found || space->loop_image_length(found->theta) > space->max_image_letters()) continue;
     ClassData cd;

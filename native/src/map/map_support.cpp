@@ -200,43 +200,29 @@ UniformizedTarget fixed_target(const TriMesh& target, Background background, con
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options) {
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.loops.target_base_vertex;
-  switch (options.target_metric) {
-    case UniformizationMetric::FixedConnectivity: {
-      UniformizedTarget t = fixed_target(target, background, options, lo, true, "");
-      t.metric_choice = "requested";
-      return t;
-    }
-    case UniformizationMetric::IntrinsicDelaunay: {
-      std::string flip_failure;
-      try {
-        UniformizedTarget t = intrinsic_target(target, background, options, lo);
-        t.metric_choice = "requested";
-        return t;
-      } catch (const SolveError& e) {
-        flip_failure = e.what();
-      }
-      UniformizedTarget t = fixed_target(target, background, options, lo, true, flip_failure);
-      t.metric_choice = "fallback: the flip path failed";
-      return t;
-    }
-    case UniformizationMetric::Automatic: break;
+  if (options.target_metric == UniformizationMetric::FixedConnectivity) {
+    UniformizedTarget t = fixed_target(target, background, options, lo, true, "");
+    t.metric_choice = "requested";
+    return t;
   }
-  // Automatic: the flip path, whose metric exists on every closed mesh
-  // (Gu-Luo-Sun-Wu 2018; docs/uniformization.md "Which target metric runs");
-  // the handle classes read the target's own loops on both paths (carried
-  // onto T'; when carrying fails, the loops of T', as `target_class_loops`
-  // says), so they are the same objects. The fixed-connectivity metric (exactly refined
-  // when needed) only when the flip path throws.
+  // Flips (requested) or automatic: the flip path, whose metric exists on
+  // every closed mesh (Gu-Luo-Sun-Wu 2018; docs/uniformization.md "Which
+  // target metric runs"); the handle classes read the target's own loops on
+  // both paths (carried onto T'; when carrying fails, the loops of T', as
+  // `target_class_loops` says), so they are the same objects. The
+  // fixed-connectivity metric (exactly refined when needed) only when the
+  // flip path throws. The two differ only in how the choice is reported.
+  const bool requested = options.target_metric == UniformizationMetric::IntrinsicDelaunay;
   std::string flip_failure;
   try {
     UniformizedTarget t = intrinsic_target(target, background, options, lo);
-    t.metric_choice = "automatic: the flip-based metric";
+    t.metric_choice = requested ? "requested" : "automatic: the flip-based metric";
     return t;
   } catch (const SolveError& e) {
     flip_failure = e.what();
   }
   UniformizedTarget t = fixed_target(target, background, options, lo, true, flip_failure);
-  t.metric_choice = "automatic: the flip path failed, fixed connectivity";
+  t.metric_choice = requested ? "fallback: the flip path failed" : "automatic: the flip path failed, fixed connectivity";
   return t;
 }
 
