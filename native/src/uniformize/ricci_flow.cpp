@@ -473,12 +473,25 @@ RicciLinearization ricci_linearize(const RicciDomain& dom, const Eigen::VectorXd
   return out;
 }
 
-RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& lengths,
-                            Background background, const RicciFlowOptions& options,
-                            const Eigen::VectorXd& target_in, const Eigen::VectorXd* u_start,
-                            const std::vector<char>* fixed_in) {
-  const auto t0 = std::chrono::steady_clock::now();
-  RicciDomain dom = dom_in;  // mutable: edge flips change it
+namespace {
+
+#ifndef SURFMAP_RICCI_SOLVER
+// CHOLMOD picks AMD or METIS by fill; Eigen's AMD-only SimplicialLLT fills in
+// badly beyond ~200k vertices (16 s vs 4 s per factorization at 250k).
+// Supernodal: with an optimised BLAS (scripts/bootstrap.sh) its factorisation
+// takes a third of the simplicial one's time (72848-vertex vase, one BLAS
+// thread: 0.32 s against 0.9 s), for preconditioner solves ~30% slower.
+#define SURFMAP_RICCI_SOLVER Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower>
+#endif
+
+/// Checks ricci_solve's inputs (one InputError naming the edge, face or
+/// count at fault): #E finite positive lengths satisfying the triangle
+/// inequality, a #V target (empty: zeros) and a #V fixed mask, and
+/// Gauss–Bonnet for the target unless a fixed vertex absorbs the balance.
+/// Returns the #V target; *has_fixed tells whether any vertex is fixed.
+Eigen::VectorXd checked_target(const RicciDomain& dom, const Eigen::VectorXd& lengths,
+                               Background background, const Eigen::VectorXd& target_in,
+                               const std::vector<char>* fixed_in, bool* has_fixed_out) {
   const int nv = dom.num_vertices, ne = static_cast<int>(dom.EV.rows()),
             nf = static_cast<int>(dom.F.rows());
   if (lengths.size() != ne)
@@ -521,58 +534,125 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
     throw InputError("ricci_flow: hyperbolic target curvatures sum to " + fmt(target.sum()) +
                      ", which leaves no positive area (need more than 2π χ = " + fmt(gb) + ")");
   }
+  *has_fixed_out = has_fixed;
+  return target;
+}
 
+/// One run of ricci_solve after its input checks, one method a phase: the
+/// flip pass of the input, an explicit flow step, a Newton step (Hessian
+/// assembly, step solve, line search), the stopping test at the
+/// floating-point floor, and the result assembly. Holds pointers into
+/// itself (metric, flip_ctx): not copyable.
+struct RicciRun {
+  const RicciFlowOptions& options;
+  const Background background;
+  const Eigen::VectorXd target;
+  const std::vector<char>* fixed_in;
   // Dirichlet vertices keep their start u; their curvature is not a target.
-  const bool any_fixed = has_fixed;
-  auto residual = [&](const Eigen::VectorXd& K) {
+  const bool any_fixed;
+  const bool newton, flat;
+  RicciDomain dom;       // mutable: edge flips change it
+  const int nv;
+  Eigen::VectorXd base;  // Penner coordinates of the current edges
+  SchemeMetric metric;
+  FlipContext flip_ctx;
+  FlipContext* flips = nullptr;
+
+  RicciFlowResult res;
+  Evaluation ev, trial;
+  Eigen::VectorXd g;
+  double err = 0.0;
+
+  Eigen::SparseMatrix<double> H;
+  std::vector<int> slot;
+  long long slot_version = -1;
+  SURFMAP_RICCI_SOLVER llt;
+  bool analyzed = false, factor_valid = false;
+  long long analyzed_version = 0;
+  double mu = 0.0;  // Levenberg shift, only used when a plain Newton step fails
+  std::string failure;
+  // Residuals in (tolerance, floor_tol] where Newton can make no progress are
+  // the floating-point floor of this mesh: success (RicciFlowOptions).
+  const double floor_tol;
+  bool at_floor = false;
+
+  RicciRun(const RicciDomain& dom_in, const Eigen::VectorXd& lengths, Background background_in,
+           const RicciFlowOptions& options_in, Eigen::VectorXd target_checked,
+           const std::vector<char>* fixed, bool has_fixed)
+      : options(options_in),
+        background(background_in),
+        target(std::move(target_checked)),
+        fixed_in(fixed),
+        any_fixed(has_fixed),
+        newton(options_in.method == RicciMethod::Newton),
+        flat(background_in == Background::Euclidean),
+        dom(dom_in),
+        nv(dom_in.num_vertices),
+        base(lengths),
+        metric(dom, base, background_in, options_in.scheme),
+        H(dom_in.num_vertices, dom_in.num_vertices),
+        floor_tol(std::max(options_in.tolerance, options_in.floor_tolerance)) {}
+  RicciRun(const RicciRun&) = delete;
+  RicciRun& operator=(const RicciRun&) = delete;
+
+  Eigen::VectorXd residual(const Eigen::VectorXd& K) const {
     Eigen::VectorXd r = K - target;
     if (any_fixed)
       for (int v = 0; v < nv; ++v)
         if ((*fixed_in)[v]) r[v] = 0.0;
     return r;
-  };
-  const bool newton = options.method == RicciMethod::Newton;
-  const int max_it = options.max_iterations > 0 ? options.max_iterations : (newton ? 100 : 200000);
-  const bool flat = background == Background::Euclidean;
-  Eigen::VectorXd base = lengths;  // Penner coordinates of the current edges
-  SchemeMetric metric(dom, base, background, options.scheme);
-  FlipContext flip_ctx;
-  FlipContext* flips = nullptr;
-  if (options.intrinsic_delaunay && options.scheme == RicciScheme::VertexScaling) {
-    flip_ctx.init(dom, base, background);
-    if (!flip_ctx.make_delaunay(nullptr))
-      throw SolveError("ricci_flow: intrinsic Delaunay flips of the input did not terminate");
-    flips = &flip_ctx;
   }
 
-  RicciFlowResult res;
-  res.background = background;
-  res.u = u_start ? *u_start : Eigen::VectorXd::Zero(nv);
-  Evaluation ev, trial;
-  evaluate(dom, metric, background, res.u, newton, ev, flips);
-  if (ev.bad_edge >= 0)
-    throw InputError("ricci_flow: edge " + std::to_string(ev.bad_edge) +
-                     " has no valid length in the initial metric");
-  Eigen::VectorXd g = residual(ev.K);
-  double err = g.cwiseAbs().maxCoeff();
-  res.residual_history.push_back(err);
+  /// Flip pass: the input metric made intrinsically Delaunay by exact flips
+  /// (vertex scaling with options.intrinsic_delaunay only).
+  void flip_input_to_delaunay() {
+    if (options.intrinsic_delaunay && options.scheme == RicciScheme::VertexScaling) {
+      flip_ctx.init(dom, base, background);
+      if (!flip_ctx.make_delaunay(nullptr))
+        throw SolveError("ricci_flow: intrinsic Delaunay flips of the input did not terminate");
+      flips = &flip_ctx;
+    }
+  }
 
-  Eigen::SparseMatrix<double> H(nv, nv);
-#ifndef SURFMAP_RICCI_SOLVER
-// CHOLMOD picks AMD or METIS by fill; Eigen's AMD-only SimplicialLLT fills in
-// badly beyond ~200k vertices (16 s vs 4 s per factorization at 250k).
-// Supernodal: with an optimised BLAS (scripts/bootstrap.sh) its factorisation
-// takes a third of the simplicial one's time (72848-vertex vase, one BLAS
-// thread: 0.32 s against 0.9 s), for preconditioner solves ~30% slower.
-#define SURFMAP_RICCI_SOLVER Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower>
-#endif
+  /// The metric at the start u (u_start or zero), its residual and the
+  /// first residual_history entry.
+  void evaluate_start(const Eigen::VectorXd* u_start) {
+    res.background = background;
+    res.u = u_start ? *u_start : Eigen::VectorXd::Zero(nv);
+    evaluate(dom, metric, background, res.u, newton, ev, flips);
+    if (ev.bad_edge >= 0)
+      throw InputError("ricci_flow: edge " + std::to_string(ev.bad_edge) +
+                       " has no valid length in the initial metric");
+    g = residual(ev.K);
+    err = g.cwiseAbs().maxCoeff();
+    res.residual_history.push_back(err);
+  }
+
+  /// One step of the explicit flow (RicciMethod::Flow). False (with
+  /// `failure` set) when the flow broke down.
+  bool flow_step() {
+    res.u -= options.flow_step * g;
+    evaluate(dom, metric, background, res.u, false, ev, flips);
+    if (ev.bad_edge >= 0) {
+      failure = "the flow produced an invalid length at edge " + std::to_string(ev.bad_edge) +
+                " (step too large?)";
+      return false;
+    }
+    g = residual(ev.K);
+    err = g.cwiseAbs().maxCoeff();
+    if (!std::isfinite(err)) {
+      failure = "the flow diverged (non-finite curvature)";
+      return false;
+    }
+    res.residual_history.push_back(err);
+    return true;
+  }
+
   // Issue 19: the Jacobian's triplets come in the same order at every
   // iteration while the triangulation is unchanged (flips change it), so
   // after one setFromTriplets their slots in H are known and later
   // iterations only add the values (in the same order: the same sums).
-  std::vector<int> slot;
-  long long slot_version = -1;
-  auto assemble = [&](const std::vector<Eigen::Triplet<double>>& t, long long version, Eigen::SparseMatrix<double>& M) {
+  void assemble(const std::vector<Eigen::Triplet<double>>& t, long long version, Eigen::SparseMatrix<double>& M) {
     if (slot_version != version || slot.size() != t.size()) {
       M.setFromTriplets(t.begin(), t.end());
       slot.resize(t.size());
@@ -588,40 +668,12 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
     double* v = M.valuePtr();
     std::fill(v, v + M.nonZeros(), 0.0);
     for (size_t q = 0; q < t.size(); ++q) v[slot[q]] += t[q].value();
-  };
-  SURFMAP_RICCI_SOLVER llt;
-  bool analyzed = false, factor_valid = false;
-  long long analyzed_version = 0;
-  double mu = 0.0;  // Levenberg shift, only used when a plain Newton step fails
-  std::string failure;
-  // Residuals in (tolerance, floor_tol] where Newton can make no progress are
-  // the floating-point floor of this mesh: success (RicciFlowOptions).
-  const double floor_tol = std::max(options.tolerance, options.floor_tolerance);
-  bool at_floor = false;
-  int it = 0;
-  for (; it < max_it && err > options.tolerance; ++it) {
-    if (options.progress && !options.progress(it, err))
-      throw Cancelled("ricci_flow cancelled at iteration " + std::to_string(it));
-    if (!newton) {
-      res.u -= options.flow_step * g;
-      evaluate(dom, metric, background, res.u, false, ev, flips);
-      if (ev.bad_edge >= 0) {
-        failure = "the flow produced an invalid length at edge " + std::to_string(ev.bad_edge) +
-                  " (step too large?)";
-        break;
-      }
-      g = residual(ev.K);
-      err = g.cwiseAbs().maxCoeff();
-      if (!std::isfinite(err)) {
-        failure = "the flow diverged (non-finite curvature)";
-        break;
-      }
-      res.residual_history.push_back(err);
-      continue;
-    }
-    ++work::newton_iterations;
-    // Newton: H δ = −g, gauge fixed by pinning vertex 0 (adding e0 e0ᵀ makes H
-    // definite; since Σg = 0 the solution then has δ_0 = 0 and solves H δ = −g).
+  }
+
+  /// H from the Jacobian of the current evaluation. Newton: H δ = −g, gauge
+  /// fixed by pinning vertex 0 (adding e0 e0ᵀ makes H definite; since Σg = 0
+  /// the solution then has δ_0 = 0 and solves H δ = −g).
+  void assemble_hessian() {
     if (any_fixed) {
       // Identity rows/columns for the fixed vertices (their step is 0).
       std::vector<Eigen::Triplet<double>> kept;
@@ -635,6 +687,94 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
       assemble(ev.triplets, flip_ctx.version, H);
       if (flat) H.coeffRef(0, 0) += 1.0;
     }
+  }
+
+  /// Cheap path: the factor of an earlier Hessian as a preconditioner for
+  /// conjugate gradients on the current one (H changes little between
+  /// Newton steps); empty when that does not converge quickly (the caller
+  /// then refactorizes).
+  /// Inexact Newton: the step is solved to a relative residual of the
+  /// current curvature error (at most 1e-3), which keeps the convergence
+  /// superlinear; solving every step to 1e-12 took twice the iterations
+  /// for the same Newton steps and final error (72848-vertex vase: 43
+  /// against 88 preconditioned iterations over 5 steps, 0.4 s of 1.9 s).
+  Eigen::VectorXd preconditioned_step(const Eigen::VectorXd& rhs) const {
+    Eigen::VectorXd delta = Eigen::VectorXd::Zero(nv);
+    Eigen::VectorXd r = rhs, z = llt.solve(r), p = z;
+    double rz = r.dot(z);
+    const double stop = std::max(1e-12, std::min(1e-3, err)) * rhs.norm();
+    bool ok = false;
+    for (int k = 0; k < 40; ++k) {
+      const Eigen::VectorXd Hp = H * p;
+      const double pHp = p.dot(Hp);
+      if (!(pHp > 0.0)) break;
+      const double a = rz / pHp;
+      delta += a * p;
+      r -= a * Hp;
+      if (r.norm() <= stop) {
+        ok = true;
+        break;
+      }
+      z = llt.solve(r);
+      const double rz_new = r.dot(z);
+      p = z + (rz_new / rz) * p;
+      rz = rz_new;
+    }
+    if (!ok || !delta.allFinite()) delta.resize(0);
+    return delta;
+  }
+
+  /// The step from a fresh factorization of H + mu I (the pattern analysed
+  /// again when flips changed it). False, with mu raised, when the
+  /// factorization or solve failed.
+  bool factorized_step(const Eigen::VectorXd& rhs, Eigen::VectorXd& delta) {
+    Eigen::SparseMatrix<double> A = H;
+    if (mu > 0.0)
+      for (int v = 0; v < nv; ++v) A.coeffRef(v, v) += mu;
+    if (!analyzed || analyzed_version != flip_ctx.version) {
+      llt.analyzePattern(A);  // again when flips changed the sparsity pattern
+      ++work::analyses;
+      analyzed = true;
+      analyzed_version = flip_ctx.version;
+    }
+    llt.factorize(A);
+    ++work::factorisations;
+    factor_valid = llt.info() == Eigen::Success && mu == 0.0;
+    if (llt.info() == Eigen::Success) delta = llt.solve(rhs);
+    if (llt.info() != Eigen::Success || !delta.allFinite()) {
+      mu = std::max(mu * 10.0, 1e-10 * (1.0 + H.diagonal().cwiseAbs().maxCoeff()));
+      return false;
+    }
+    return true;
+  }
+
+  /// Backtracking on the residual norm (the Newton direction decreases
+  /// |g|² at rate −2|g|²); K is continuous across degenerate triangles
+  /// thanks to the extended angles. On success u, ev and g move to the
+  /// accepted point.
+  bool line_search(const Eigen::VectorXd& delta, double g2) {
+    for (double t = 1.0; t > 1e-6; t *= 0.5) {
+      Eigen::VectorXd ut = res.u + t * delta;
+      if (flat && !any_fixed) ut.array() -= ut[0];
+      evaluate(dom, metric, background, ut, true, trial, flips);
+      if (trial.bad_edge >= 0) continue;
+      const Eigen::VectorXd gt = residual(trial.K);
+      if (gt.allFinite() && gt.squaredNorm() <= (1.0 - 1e-4 * t) * g2) {
+        res.u = ut;
+        std::swap(ev, trial);
+        g = gt;
+        return true;
+      }
+    }
+    return false;
+  }
+
+  /// One Newton iteration: up to 12 attempts (step solve, line search),
+  /// raising the Levenberg shift mu after each failure. False (with
+  /// `failure` and at_floor set) when no attempt decreased the residual.
+  bool newton_step() {
+    ++work::newton_iterations;
+    assemble_hessian();
     const double g2 = g.squaredNorm();
     bool accepted = false;
     // Flat, no Dirichlet vertex: the constant part of g cannot be removed by
@@ -645,74 +785,9 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
     if (flat && !any_fixed) rhs.array() += g.mean();
     for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
       Eigen::VectorXd delta;
-      // Cheap path: the factor of an earlier Hessian as a preconditioner for
-      // conjugate gradients on the current one (H changes little between
-      // Newton steps); refactorize when that does not converge quickly.
-      // Inexact Newton: the step is solved to a relative residual of the
-      // current curvature error (at most 1e-3), which keeps the convergence
-      // superlinear; solving every step to 1e-12 took twice the iterations
-      // for the same Newton steps and final error (72848-vertex vase: 43
-      // against 88 preconditioned iterations over 5 steps, 0.4 s of 1.9 s).
-      if (factor_valid && mu == 0.0) {
-        delta = Eigen::VectorXd::Zero(nv);
-        Eigen::VectorXd r = rhs, z = llt.solve(r), p = z;
-        double rz = r.dot(z);
-        const double stop = std::max(1e-12, std::min(1e-3, err)) * rhs.norm();
-        bool ok = false;
-        for (int k = 0; k < 40; ++k) {
-          const Eigen::VectorXd Hp = H * p;
-          const double pHp = p.dot(Hp);
-          if (!(pHp > 0.0)) break;
-          const double a = rz / pHp;
-          delta += a * p;
-          r -= a * Hp;
-          if (r.norm() <= stop) {
-            ok = true;
-            break;
-          }
-          z = llt.solve(r);
-          const double rz_new = r.dot(z);
-          p = z + (rz_new / rz) * p;
-          rz = rz_new;
-        }
-        if (!ok || !delta.allFinite()) delta.resize(0);
-      }
-      if (delta.size() == 0) {
-        Eigen::SparseMatrix<double> A = H;
-        if (mu > 0.0)
-          for (int v = 0; v < nv; ++v) A.coeffRef(v, v) += mu;
-        if (!analyzed || analyzed_version != flip_ctx.version) {
-          llt.analyzePattern(A);  // again when flips changed the sparsity pattern
-          ++work::analyses;
-          analyzed = true;
-          analyzed_version = flip_ctx.version;
-        }
-        llt.factorize(A);
-        ++work::factorisations;
-        factor_valid = llt.info() == Eigen::Success && mu == 0.0;
-        if (llt.info() == Eigen::Success) delta = llt.solve(rhs);
-        if (llt.info() != Eigen::Success || !delta.allFinite()) {
-          mu = std::max(mu * 10.0, 1e-10 * (1.0 + H.diagonal().cwiseAbs().maxCoeff()));
-          continue;
-        }
-      }
-      // Backtracking on the residual norm (the Newton direction decreases
-      // |g|² at rate −2|g|²); K is continuous across degenerate triangles
-      // thanks to the extended angles.
-      for (double t = 1.0; t > 1e-6; t *= 0.5) {
-        Eigen::VectorXd ut = res.u + t * delta;
-        if (flat && !any_fixed) ut.array() -= ut[0];
-        evaluate(dom, metric, background, ut, true, trial, flips);
-        if (trial.bad_edge >= 0) continue;
-        const Eigen::VectorXd gt = residual(trial.K);
-        if (gt.allFinite() && gt.squaredNorm() <= (1.0 - 1e-4 * t) * g2) {
-          res.u = ut;
-          std::swap(ev, trial);
-          g = gt;
-          accepted = true;
-          break;
-        }
-      }
+      if (factor_valid && mu == 0.0) delta = preconditioned_step(rhs);
+      if (delta.size() == 0 && !factorized_step(rhs, delta)) continue;
+      accepted = line_search(delta, g2);
       if (accepted) {
         mu *= 0.1;
         if (mu < 1e-14) mu = 0.0;
@@ -725,66 +800,109 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
       failure = err < std::max(1e3 * options.tolerance, floor_tol)
                     ? "Newton stalled at the floating-point floor of the angle sums"
                     : "Newton line search failed to decrease the curvature residual";
-      break;
+      return false;
     }
     err = g.cwiseAbs().maxCoeff();
     res.residual_history.push_back(err);
+    return true;
+  }
+
+  /// Stopping test: eight iterations without 10% progress just above the
+  /// tolerance are the floating-point floor of this mesh (seen at 500k
+  /// vertices, ~1.2e-10). True (with `failure` and at_floor set) to stop.
+  bool stalled_at_floor() {
     const size_t nh = res.residual_history.size();
-    // Eight iterations without 10% progress just above the tolerance: the
-    // floating-point floor of this mesh (seen at 500k vertices, ~1.2e-10).
     if (nh >= 9 && err > options.tolerance && err < std::max(1e3 * options.tolerance, floor_tol) &&
         err > 0.9 * res.residual_history[nh - 9]) {
       at_floor = err <= floor_tol;
       failure = "Newton stalled at the floating-point floor of the angle sums";
+      return true;
+    }
+    return false;
+  }
+
+  /// Result assembly after `it` iterations: the final metric validated
+  /// again (never report success with an invalid metric), the final
+  /// triangulation, and converged / stopped_at_floor / message.
+  void assemble_result(int it, int max_it) {
+    res.iterations = it;
+    // Newton out of iterations within the floor band: also the floor.
+    if (newton && it >= max_it && err > options.tolerance && err <= floor_tol) at_floor = true;
+
+    // Final validation: never report success with an invalid metric.
+    evaluate(dom, metric, background, res.u, false, ev, flips);
+    res.edge_lengths = ev.l;
+    res.flips = static_cast<int>(flip_ctx.flips);
+    res.flip_history = std::move(flip_ctx.history);
+
+    res.faces = dom.F;
+    res.face_edges = dom.FE;
+    res.edge_vertices = dom.EV;
+    if (ev.bad_edge >= 0) {
+      res.converged = false;
+      res.message = "edge " + std::to_string(ev.bad_edge) + " has no valid length in the final metric";
+      res.max_curvature_error = std::numeric_limits<double>::infinity();
+    } else {
+      g = residual(ev.K);
+      res.max_curvature_error = g.cwiseAbs().maxCoeff();
+      res.floor_estimate = angle_sum_roundoff(dom, ev.l, background);
+      const int worst = argmax_abs(g);
+      if (ev.degenerate > 0) {
+        res.converged = false;
+        res.message = "face " + std::to_string(ev.first_degenerate) +
+                      " violates the triangle inequality in the final metric (" +
+                      std::to_string(ev.degenerate) + " degenerate faces)";
+      } else if (ev.min_slack < 1e-13) {
+        res.converged = false;
+        res.message = "face " + std::to_string(ev.min_slack_face) +
+                      " is numerically degenerate in the final metric";
+      } else if (at_floor && res.max_curvature_error <= floor_tol) {
+        res.converged = true;
+        res.stopped_at_floor = true;
+      } else if (!(res.max_curvature_error <= options.tolerance)) {
+        res.converged = false;
+        res.message = (failure.empty() ? std::string("did not reach the tolerance") : failure) +
+                      " after " + std::to_string(it) + " iterations: max curvature error " +
+                      fmt(res.max_curvature_error) + " at vertex " + std::to_string(worst);
+      } else {
+        res.converged = true;
+      }
+    }
+  }
+};
+
+}  // namespace
+
+RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& lengths,
+                            Background background, const RicciFlowOptions& options,
+                            const Eigen::VectorXd& target_in, const Eigen::VectorXd* u_start,
+                            const std::vector<char>* fixed_in) {
+  const auto t0 = std::chrono::steady_clock::now();
+  bool has_fixed = false;
+  Eigen::VectorXd target =
+      checked_target(dom_in, lengths, background, target_in, fixed_in, &has_fixed);
+  RicciRun run(dom_in, lengths, background, options, std::move(target), fixed_in, has_fixed);
+  run.flip_input_to_delaunay();
+  run.evaluate_start(u_start);
+  const int max_it =
+      options.max_iterations > 0 ? options.max_iterations : (run.newton ? 100 : 200000);
+  int it = 0;
+  for (; it < max_it && run.err > options.tolerance; ++it) {
+    if (options.progress && !options.progress(it, run.err))
+      throw Cancelled("ricci_flow cancelled at iteration " + std::to_string(it));
+    if (!run.newton) {
+      if (!run.flow_step()) break;
+      continue;
+    }
+    if (!run.newton_step()) break;
+    if (run.stalled_at_floor()) {
       ++it;
       break;
     }
   }
-  res.iterations = it;
-  // Newton out of iterations within the floor band: also the floor.
-  if (newton && it >= max_it && err > options.tolerance && err <= floor_tol) at_floor = true;
-
-  // Final validation: never report success with an invalid metric.
-  evaluate(dom, metric, background, res.u, false, ev, flips);
-  res.edge_lengths = ev.l;
-  res.flips = static_cast<int>(flip_ctx.flips);
-  res.flip_history = std::move(flip_ctx.history);
-
-  res.faces = dom.F;
-  res.face_edges = dom.FE;
-  res.edge_vertices = dom.EV;
-  if (ev.bad_edge >= 0) {
-    res.converged = false;
-    res.message = "edge " + std::to_string(ev.bad_edge) + " has no valid length in the final metric";
-    res.max_curvature_error = std::numeric_limits<double>::infinity();
-  } else {
-    g = residual(ev.K);
-    res.max_curvature_error = g.cwiseAbs().maxCoeff();
-    res.floor_estimate = angle_sum_roundoff(dom, ev.l, background);
-    const int worst = argmax_abs(g);
-    if (ev.degenerate > 0) {
-      res.converged = false;
-      res.message = "face " + std::to_string(ev.first_degenerate) +
-                    " violates the triangle inequality in the final metric (" +
-                    std::to_string(ev.degenerate) + " degenerate faces)";
-    } else if (ev.min_slack < 1e-13) {
-      res.converged = false;
-      res.message = "face " + std::to_string(ev.min_slack_face) +
-                    " is numerically degenerate in the final metric";
-    } else if (at_floor && res.max_curvature_error <= floor_tol) {
-      res.converged = true;
-      res.stopped_at_floor = true;
-    } else if (!(res.max_curvature_error <= options.tolerance)) {
-      res.converged = false;
-      res.message = (failure.empty() ? std::string("did not reach the tolerance") : failure) +
-                    " after " + std::to_string(it) + " iterations: max curvature error " +
-                    fmt(res.max_curvature_error) + " at vertex " + std::to_string(worst);
-    } else {
-      res.converged = true;
-    }
-  }
-  res.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return res;
+  run.assemble_result(it, max_it);
+  run.res.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return std::move(run.res);
 }
 
 }  // namespace detail
