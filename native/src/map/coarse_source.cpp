@@ -19,32 +19,35 @@ std::vector<int> path_from_region_centre(const CoarseSource& cs, const Connectiv
   return path;
 }
 
-CoarseSource coarse_source(const TriMesh& fine, const Connectivity& fc, const CoarseSourceOptions& options) {
-  const auto t0 = std::chrono::steady_clock::now();
-  CoarseSource cs;
-  const int nv = fine.num_vertices();
-  const int goal = std::max(options.target_vertices, 4);
-  if (nv <= goal) {
-    cs.why = "the source has no more vertices than the coarse copy would";
-    return cs;
-  }
+namespace {
 
-  // Seeds by farthest-point sampling over the fine edges' lengths (each new
-  // seed's Dijkstra only visits the vertices it is now closest to), then the
-  // dual of their geodesic Voronoi regions: a coarse face for every fine
-  // triangle whose corners lie in three different regions. For a sampling
-  // dense against the surface's features the regions are disks meeting like
-  // a triangulation's dual, and the dual is a closed manifold of the same
-  // genus; that is checked, never assumed (and a denser sampling tried once).
-  // (OpenMesh's Decimater was the first choice: 3.2 s to go from 50k to 3k
-  // vertices, 26 s from 174k; this costs a few Dijkstra passes.)
-  auto length = [&](int h) { return (fine.V.row(fc.head(h)) - fine.V.row(fc.tail(h))).norm(); };
-  std::vector<double> dist(nv, std::numeric_limits<double>::infinity());
-  std::vector<int> region(nv, -1), parent(nv, -1);
-  using Item = std::pair<double, int>;
+using Item = std::pair<double, int>;
+
+/// Geodesic Voronoi regions of farthest-point samples (Dijkstra over the
+/// fine edges' lengths): per fine vertex (#V) the distance to, the region of
+/// and the tree parent halfedge from its nearest seed.
+struct VoronoiSampling {
+  const TriMesh& fine;
+  const Connectivity& fc;
+  const int nv;
+  std::vector<double> dist;
+  std::vector<int> region, parent;
   std::vector<int> seeds;
   std::vector<int> taken;  // the vertices the last grow() took
-  auto grow = [&](int seed) {
+
+  VoronoiSampling(const TriMesh& fine_mesh, const Connectivity& fine_conn)
+      : fine(fine_mesh),
+        fc(fine_conn),
+        nv(fine_mesh.num_vertices()),
+        dist(nv, std::numeric_limits<double>::infinity()),
+        region(nv, -1),
+        parent(nv, -1) {}
+
+  double length(int h) const { return (fine.V.row(fc.head(h)) - fine.V.row(fc.tail(h))).norm(); }
+
+  /// A new seed and its region: the vertices now closer to it than to the
+  /// earlier seeds (listed in `taken`).
+  void grow(int seed) {
     taken.clear();
     std::priority_queue<Item, std::vector<Item>, std::greater<Item>> pq;
     const int c = static_cast<int>(seeds.size());
@@ -65,14 +68,10 @@ CoarseSource coarse_source(const TriMesh& fine, const Connectivity& fc, const Co
         }
       }
     }
-  };
-  std::unique_ptr<Connectivity> cc;
-  std::vector<std::array<int, 3>> faces;
-  for (int want = goal, round = 0;; want *= 2, ++round) {
-    if (want * 2 > nv) {
-      cs.why = "no valid coarse copy below half the source's vertices";
-      return cs;
-    }
+  }
+
+  /// Seeds added farthest point first until there are `want`.
+  void sample_up_to(int want) {
     if (seeds.empty()) grow(0);
     // Farthest point first: a max-heap of (distance, vertex), stale entries skipped.
     std::priority_queue<Item> far;
@@ -91,62 +90,101 @@ CoarseSource coarse_source(const TriMesh& fine, const Connectivity& fc, const Co
         for (int u : taken) far.push({dist[u], u});
       }
     }
-    // Dual faces (one per distinct triple; a triple seen twice with the same
-    // orientation is the same face).
-    faces.clear();
-    std::unordered_map<long long, int> seen;
-    const long long ns = static_cast<long long>(seeds.size());
-    bool bad = false;
-    for (int f = 0; f < fine.num_faces() && !bad; ++f) {
-      std::array<int, 3> t{region[fine.F(f, 0)], region[fine.F(f, 1)], region[fine.F(f, 2)]};
-      if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
-      const int m = static_cast<int>(std::min_element(t.begin(), t.end()) - t.begin());
-      std::rotate(t.begin(), t.begin() + m, t.end());  // smallest first, orientation kept
-      const long long key = (t[0] * ns + t[1]) * ns + t[2];
-      const long long flipped = (t[0] * ns + t[2]) * ns + t[1];
-      if (seen.count(flipped)) bad = true;
-      if (seen.emplace(key, f).second) faces.push_back(t);
+  }
+};
+
+/// Dual faces of the regions (one per distinct triple; a triple seen twice
+/// with the same orientation is the same face). False when a triple is also
+/// seen with the other orientation: the dual is then no oriented surface.
+bool voronoi_dual_faces(const TriMesh& fine, const VoronoiSampling& vs,
+                        std::vector<std::array<int, 3>>& faces) {
+  const std::vector<int>& region = vs.region;
+  faces.clear();
+  std::unordered_map<long long, int> seen;
+  const long long ns = static_cast<long long>(vs.seeds.size());
+  bool bad = false;
+  for (int f = 0; f < fine.num_faces() && !bad; ++f) {
+    std::array<int, 3> t{region[fine.F(f, 0)], region[fine.F(f, 1)], region[fine.F(f, 2)]};
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
+    const int m = static_cast<int>(std::min_element(t.begin(), t.end()) - t.begin());
+    std::rotate(t.begin(), t.begin() + m, t.end());  // smallest first, orientation kept
+    const long long key = (t[0] * ns + t[1]) * ns + t[2];
+    const long long flipped = (t[0] * ns + t[2]) * ns + t[1];
+    if (seen.count(flipped)) bad = true;
+    if (seen.emplace(key, f).second) faces.push_back(t);
+  }
+  return !bad;
+}
+
+/// The dual's connectivity over `num_seeds` vertices; null unless it is a
+/// closed manifold with the Euler characteristic of fc.
+std::unique_ptr<Connectivity> dual_surface(const std::vector<std::array<int, 3>>& faces, int num_seeds,
+                                           const Connectivity& fc) {
+  std::unique_ptr<Connectivity> cc;
+  RowMatrixX3i F(static_cast<int>(faces.size()), 3);
+  for (size_t f = 0; f < faces.size(); ++f)
+    for (int k = 0; k < 3; ++k) F(static_cast<int>(f), k) = faces[f][k];
+  try {
+    cc = std::make_unique<Connectivity>(F, num_seeds);
+    if (cc->euler_characteristic() != fc.euler_characteristic()) cc.reset();
+  } catch (const std::exception&) {
+    cc.reset();
+  }
+  return cc;
+}
+
+/// Regions not adjacent (rare): the shortest fine path from vertex s to t
+/// (halfedges in order, appended to `path`) by a Dijkstra search of at most
+/// ~20000 vertices. False when t was not reached.
+bool shortest_fine_path(const VoronoiSampling& vs, int s, int t, std::vector<int>& path) {
+  const Connectivity& fc = vs.fc;
+  std::unordered_map<int, double> dd{{s, 0.0}};
+  std::unordered_map<int, int> via;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> q;
+  q.push({0.0, s});
+  bool found = false;
+  while (!q.empty()) {
+    const auto [d, v] = q.top();
+    q.pop();
+    if (d > dd[v]) continue;
+    if (v == t) {
+      found = true;
+      break;
     }
-    if (!bad) {
-      RowMatrixX3i F(static_cast<int>(faces.size()), 3);
-      for (size_t f = 0; f < faces.size(); ++f)
-        for (int k = 0; k < 3; ++k) F(static_cast<int>(f), k) = faces[f][k];
-      try {
-        cc = std::make_unique<Connectivity>(F, static_cast<int>(seeds.size()));
-        if (cc->euler_characteristic() != fc.euler_characteristic()) cc.reset();
-      } catch (const std::exception&) {
-        cc.reset();
-      }
-    }
-    if (cc) break;
-    if (round >= 1) {
-      cs.why = "the Voronoi dual of " + std::to_string(seeds.size()) + " samples is not a surface of the source's genus";
-      return cs;
+    if (dd.size() > 20000) break;
+    for (int g : fc.outgoing(v)) {
+      const int w = fc.head(g);
+      const double dw = d + vs.length(g);
+      auto f = dd.find(w);
+      if (f == dd.end() || dw < f->second) dd[w] = dw, via[w] = g, q.push({dw, w});
     }
   }
-  const int nc = static_cast<int>(seeds.size());
-  cs.fine_vertex = seeds;
-  cs.mesh.V.resize(nc, 3);
-  for (int c = 0; c < nc; ++c) cs.mesh.V.row(c) = fine.V.row(seeds[c]);
-  cs.mesh.F = cc->faces();
-  cs.region = region;
-  cs.parent_halfedge = parent;
+  if (!found) return false;
+  for (int v = t; v != s; v = fc.tail(via[v])) path.push_back(via[v]);
+  std::reverse(path.begin(), path.end());
+  return true;
+}
 
-  // Paths of the coarse edges: through the shortest fine edge joining the
-  // two regions (tree path, edge, tree path), else a Dijkstra search.
+/// cs.edge_path for the coarse connectivity cc: through the shortest fine
+/// edge joining the two regions (tree path, edge, tree path), else a
+/// Dijkstra search. False (cs.why set) when that search fails.
+bool coarse_edge_paths(const VoronoiSampling& vs, const Connectivity& cc, CoarseSource& cs) {
+  const Connectivity& fc = vs.fc;
+  const std::vector<double>& dist = vs.dist;
+  const int nc = static_cast<int>(vs.seeds.size());
   std::unordered_map<long long, std::pair<double, int>> bridge;  // (region a, region b) -> (cost, fine halfedge a->b)
   for (int h = 0; h < fc.num_halfedges(); ++h) {
     const int a = cs.region[fc.tail(h)], b = cs.region[fc.head(h)];
     if (a == b) continue;
-    const double cost = dist[fc.tail(h)] + length(h) + dist[fc.head(h)];
+    const double cost = dist[fc.tail(h)] + vs.length(h) + dist[fc.head(h)];
     const long long key = static_cast<long long>(a) * nc + b;
     auto it = bridge.find(key);
     if (it == bridge.end() || cost < it->second.first) bridge[key] = {cost, h};
   }
-  cs.edge_path.resize(cc->num_edges());
-  for (int e = 0; e < cc->num_edges(); ++e) {
-    const int h = cc->edge_halfedge(e);
-    const int a = cc->tail(h), b = cc->head(h);
+  cs.edge_path.resize(cc.num_edges());
+  for (int e = 0; e < cc.num_edges(); ++e) {
+    const int h = cc.edge_halfedge(e);
+    const int a = cc.tail(h), b = cc.head(h);
     auto it = bridge.find(static_cast<long long>(a) * nc + b);
     std::vector<int>& path = cs.edge_path[e];
     if (it != bridge.end()) {
@@ -157,36 +195,61 @@ CoarseSource coarse_source(const TriMesh& fine, const Connectivity& fc, const Co
       for (auto r = back.rbegin(); r != back.rend(); ++r) path.push_back(fc.twin(*r));
       continue;
     }
-    // Regions not adjacent (rare): shortest fine path between the two vertices.
-    const int s = cs.fine_vertex[a], t = cs.fine_vertex[b];
-    std::unordered_map<int, double> dd{{s, 0.0}};
-    std::unordered_map<int, int> via;
-    std::priority_queue<Item, std::vector<Item>, std::greater<Item>> q;
-    q.push({0.0, s});
-    bool found = false;
-    while (!q.empty()) {
-      const auto [d, v] = q.top();
-      q.pop();
-      if (d > dd[v]) continue;
-      if (v == t) {
-        found = true;
-        break;
-      }
-      if (dd.size() > 20000) break;
-      for (int g : fc.outgoing(v)) {
-        const int w = fc.head(g);
-        const double dw = d + length(g);
-        auto f = dd.find(w);
-        if (f == dd.end() || dw < f->second) dd[w] = dw, via[w] = g, q.push({dw, w});
-      }
-    }
-    if (!found) {
+    if (!shortest_fine_path(vs, cs.fine_vertex[a], cs.fine_vertex[b], path)) {
       cs.why = "no fine path found for coarse edge " + std::to_string(e);
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+CoarseSource coarse_source(const TriMesh& fine, const Connectivity& fc, const CoarseSourceOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CoarseSource cs;
+  const int nv = fine.num_vertices();
+  const int goal = std::max(options.target_vertices, 4);
+  if (nv <= goal) {
+    cs.why = "the source has no more vertices than the coarse copy would";
+    return cs;
+  }
+
+  // Seeds by farthest-point sampling over the fine edges' lengths (each new
+  // seed's Dijkstra only visits the vertices it is now closest to), then the
+  // dual of their geodesic Voronoi regions: a coarse face for every fine
+  // triangle whose corners lie in three different regions. For a sampling
+  // dense against the surface's features the regions are disks meeting like
+  // a triangulation's dual, and the dual is a closed manifold of the same
+  // genus; that is checked, never assumed (and a denser sampling tried once).
+  // (OpenMesh's Decimater was the first choice: 3.2 s to go from 50k to 3k
+  // vertices, 26 s from 174k; this costs a few Dijkstra passes.)
+  VoronoiSampling vs(fine, fc);
+  std::unique_ptr<Connectivity> cc;
+  std::vector<std::array<int, 3>> faces;
+  for (int want = goal, round = 0;; want *= 2, ++round) {
+    if (want * 2 > nv) {
+      cs.why = "no valid coarse copy below half the source's vertices";
       return cs;
     }
-    for (int v = t; v != s; v = fc.tail(via[v])) path.push_back(via[v]);
-    std::reverse(path.begin(), path.end());
+    vs.sample_up_to(want);
+    if (voronoi_dual_faces(fine, vs, faces))
+      cc = dual_surface(faces, static_cast<int>(vs.seeds.size()), fc);
+    if (cc) break;
+    if (round >= 1) {
+      cs.why = "the Voronoi dual of " + std::to_string(vs.seeds.size()) + " samples is not a surface of the source's genus";
+      return cs;
+    }
   }
+  const int nc = static_cast<int>(vs.seeds.size());
+  cs.fine_vertex = vs.seeds;
+  cs.mesh.V.resize(nc, 3);
+  for (int c = 0; c < nc; ++c) cs.mesh.V.row(c) = fine.V.row(vs.seeds[c]);
+  cs.mesh.F = cc->faces();
+  cs.region = vs.region;
+  cs.parent_halfedge = vs.parent;
+
+  if (!coarse_edge_paths(vs, *cc, cs)) return cs;
   cs.ok = true;
   cs.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return cs;
