@@ -675,25 +675,20 @@ SphereMobius refine_two_landmark_mobius(const SphereMobius& M, const Eigen::Vect
 // The genus-0 path of surface_map()
 
 namespace detail {
+namespace {
 
-void map_spherical(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
-                   const SurfaceMapOptions& options, SurfaceMapResult& out, const StageDone& stage_done) {
-  if (options.homotopy.class_index > 0)
-    throw InputError("homotopy class " + std::to_string(options.homotopy.class_index) +
-                     " does not exist; a genus-0 surface has one class (0)");
-  SphericalUniformizationOptions uo;
-  uo.flow.tolerance = options.uniformization.tolerance;
-  int repaired_t = 0, repaired_s = 0;
-  const SphericalUniformization ut = usable_sphere(target, uo, "target", &repaired_t);
-  stage_done("target uniformization", 0.3);
-  const SphericalUniformization us = usable_sphere(source, uo, "source", &repaired_s);
-  out.repaired_vertices = repaired_s + repaired_t;
-  stage_done("source uniformization", 0.45);
-
-  const SphereLocator tloc(ut.positions, target.F);
+/// The source's sphere positions (#Vs x 3) aligned to the target's
+/// (ut.positions): the best rotation of us.positions, then with landmarks
+/// the Möbius map fitting them (over the two-parameter family of maps
+/// keeping two pairs, refined on the shapes' mismatch). Adds the mismatch
+/// evaluations to out.iterations.
+RowMatrixX3d aligned_source_sphere(const TriMesh& source, const TriMesh& target,
+                                   const SphericalUniformization& us, const SphericalUniformization& ut,
+                                   const SphereLocator& tloc, const SurfaceMapOptions& options,
+                                   SurfaceMapResult& out) {
   const SphereAlignmentResult al =
       align_sphere_rotation(source.V, source.F, us.positions, target.V, target.F, ut.positions, tloc);
-  const int ns = source.num_vertices(), nt = target.num_vertices();
+  const int ns = source.num_vertices();
   RowMatrixX3d X(ns, 3);
   for (int i = 0; i < ns; ++i) X.row(i) = (al.rotation * us.positions.row(i).transpose()).transpose();
   if (!options.landmarks.empty()) {
@@ -714,12 +709,14 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
       for (const auto& [s, t] : options.landmarks) X.row(s) = ut.positions.row(t);
   }
   out.iterations += al.evaluations;
-  out.converged = true;
-  stage_done("alignment", 0.55);
+  return X;
+}
 
-  // Orientation of every image triangle on the sphere: a Möbius map keeps
-  // small triangles positive, but one whose circle it turns inside out would
-  // wrap the sphere.
+/// Orientation of every image triangle on the sphere: a Möbius map keeps
+/// small triangles positive, but one whose circle it turns inside out would
+/// wrap the sphere. Counts them in out and throws SolveError if any.
+void check_sphere_image_orientation(const TriMesh& source, const RowMatrixX3d& X,
+                                    const SurfaceMapOptions& options, SurfaceMapResult& out) {
   int first_bad = -1;
   for (int f = 0; f < source.num_faces(); ++f) {
     const Eigen::Vector3d a = X.row(source.F(f, 0)), b = X.row(source.F(f, 1)), c = X.row(source.F(f, 2));
@@ -739,55 +736,72 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
                                                 : std::string("; the Möbius map fixed by the landmarks stretches the sphere "
                                                               "too much for this mesh: check the landmark pairs")) +
                      "; it is not returned");
+}
 
-  // Forward map; D' of each source triangle onto the triangle of its corners'
-  // 3D images on the target (the morph's triangles: what the user sees, and
-  // it carries the discretisation error of both uniformizations).
-  auto forward_of = [&](const RowMatrixX3d& Y) {
-    std::vector<PointOnSurface> fw(ns);
-    int hint = -1;
-    for (int i = 0; i < ns; ++i) {
-      Eigen::Vector3d b;
-      hint = tloc.locate(Y.row(i).transpose(), &b, hint);
-      fw[i] = point_in_face(target, hint, b);
+/// The target point (face, barycentrics) of every row of Y (#Vs x 3 on the
+/// target's sphere).
+std::vector<PointOnSurface> located_on_target(const TriMesh& target, const SphereLocator& tloc,
+                                              const RowMatrixX3d& Y) {
+  const int ns = static_cast<int>(Y.rows());
+  std::vector<PointOnSurface> fw(ns);
+  int hint = -1;
+  for (int i = 0; i < ns; ++i) {
+    Eigen::Vector3d b;
+    hint = tloc.locate(Y.row(i).transpose(), &b, hint);
+    fw[i] = point_in_face(target, hint, b);
+  }
+  return fw;
+}
+
+struct SphereMapQuality {
+  std::vector<double> per_face;
+  double mean = 0, max = 0;
+  int degenerate = 0;
+};
+
+/// D' of each source triangle onto the triangle of its corners' 3D images
+/// fw on the target (the morph's triangles: what the user sees, and it
+/// carries the discretisation error of both uniformizations): per face
+/// (#Fs, infinite where degenerate), area-weighted mean and max.
+SphereMapQuality sphere_map_quality(const TriMesh& source, const Connectivity& sc,
+                                    const Eigen::VectorXd& source_lengths,
+                                    const std::vector<PointOnSurface>& fw) {
+  SphereMapQuality q;
+  q.per_face.assign(source.num_faces(), std::numeric_limits<double>::infinity());
+  double weighted = 0, total = 0;
+  for (int f = 0; f < source.num_faces(); ++f) {
+    const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
+                          p2 = source.V.row(source.F(f, 2));
+    const Eigen::Vector3d i0 = fw[source.F(f, 0)].position, i1 = fw[source.F(f, 1)].position,
+                          i2 = fw[source.F(f, 2)].position;
+    const double d = triangle_dilatation(Eigen::Vector3d(source_lengths[sc.edge(3 * f)], source_lengths[sc.edge(3 * f + 1)],
+                                                         source_lengths[sc.edge(3 * f + 2)]),
+                                         Eigen::Vector3d((i1 - i0).norm(), (i2 - i1).norm(), (i0 - i2).norm()));
+    if (!std::isfinite(d)) {
+      ++q.degenerate;
+      continue;
     }
-    return fw;
-  };
-  struct Quality {
-    std::vector<double> per_face;
-    double mean = 0, max = 0;
-    int degenerate = 0;
-  };
+    q.per_face[f] = d;
+    const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+    weighted += area * d, total += area;
+    q.max = std::max(q.max, d);
+  }
+  q.mean = weighted / std::max(total, 1e-300);
+  return q;
+}
+
+/// The forward map of X (aligned source sphere) and its quality, and the
+/// quality of the "initial" map (both centred images, no alignment and no
+/// landmarks). Throws SolveError when an image triangle is degenerate.
+void forward_map_and_quality(const TriMesh& source, const TriMesh& target, const Connectivity& sc,
+                             const SphericalUniformization& us, const SphereLocator& tloc,
+                             const RowMatrixX3d& X, SurfaceMapResult& out) {
   // The source's side of D' uses its mollified lengths (the metric both
   // uniformizations run on): an exactly zero-area input face then has a
   // finite D' instead of an infinite one that would refuse the whole map.
   const Eigen::VectorXd source_lengths = edge_lengths(source, sc);
-  auto quality = [&](const std::vector<PointOnSurface>& fw) {
-    Quality q;
-    q.per_face.assign(source.num_faces(), std::numeric_limits<double>::infinity());
-    double weighted = 0, total = 0;
-    for (int f = 0; f < source.num_faces(); ++f) {
-      const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
-                            p2 = source.V.row(source.F(f, 2));
-      const Eigen::Vector3d i0 = fw[source.F(f, 0)].position, i1 = fw[source.F(f, 1)].position,
-                            i2 = fw[source.F(f, 2)].position;
-      const double d = triangle_dilatation(Eigen::Vector3d(source_lengths[sc.edge(3 * f)], source_lengths[sc.edge(3 * f + 1)],
-                                                           source_lengths[sc.edge(3 * f + 2)]),
-                                           Eigen::Vector3d((i1 - i0).norm(), (i2 - i1).norm(), (i0 - i2).norm()));
-      if (!std::isfinite(d)) {
-        ++q.degenerate;
-        continue;
-      }
-      q.per_face[f] = d;
-      const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
-      weighted += area * d, total += area;
-      q.max = std::max(q.max, d);
-    }
-    q.mean = weighted / std::max(total, 1e-300);
-    return q;
-  };
-  out.forward = forward_of(X);
-  const Quality q = quality(out.forward);
+  out.forward = located_on_target(target, tloc, X);
+  const SphereMapQuality q = sphere_map_quality(source, sc, source_lengths, out.forward);
   out.dilatation = q.per_face;
   out.mean_dilatation = q.mean;
   out.max_dilatation = q.max;
@@ -795,12 +809,37 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
   if (q.degenerate)
     throw SolveError("the genus-0 map has " + std::to_string(q.degenerate) +
                      " source triangles whose image on the target is degenerate; it is not returned");
-  // The "initial" map: both centred images, no alignment and no landmarks.
-  const Quality q0 = quality(forward_of(us.positions));
+  const SphereMapQuality q0 = sphere_map_quality(source, sc, source_lengths, located_on_target(target, tloc, us.positions));
   out.initial_dilatation = q0.per_face;
   out.initial_mean_dilatation = q0.mean;
   out.initial_max_dilatation = q0.max;
   out.initial_flipped_triangles = 0;  // Möbius-centred uniformizations are checked for flips
+}
+
+}  // namespace
+
+void map_spherical(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
+                   const SurfaceMapOptions& options, SurfaceMapResult& out, const StageDone& stage_done) {
+  if (options.homotopy.class_index > 0)
+    throw InputError("homotopy class " + std::to_string(options.homotopy.class_index) +
+                     " does not exist; a genus-0 surface has one class (0)");
+  SphericalUniformizationOptions uo;
+  uo.flow.tolerance = options.uniformization.tolerance;
+  int repaired_t = 0, repaired_s = 0;
+  const SphericalUniformization ut = usable_sphere(target, uo, "target", &repaired_t);
+  stage_done("target uniformization", 0.3);
+  const SphericalUniformization us = usable_sphere(source, uo, "source", &repaired_s);
+  out.repaired_vertices = repaired_s + repaired_t;
+  stage_done("source uniformization", 0.45);
+
+  const SphereLocator tloc(ut.positions, target.F);
+  const RowMatrixX3d X = aligned_source_sphere(source, target, us, ut, tloc, options, out);
+  const int nt = target.num_vertices();
+  out.converged = true;
+  stage_done("alignment", 0.55);
+
+  check_sphere_image_orientation(source, X, options, out);
+  forward_map_and_quality(source, target, sc, us, tloc, X, out);
   stage_done("forward location", 0.75);
 
   // Harmonic energy of the sphere-valued map, Σ w_ij |X_i − X_j|² with the
