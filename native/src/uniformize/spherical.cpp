@@ -304,25 +304,40 @@ int count_inward_faces(const RowMatrixX3d& X, const RowMatrixX3i& F, int* first)
 
 }  // namespace
 
-/// One attempt with v0 removed (spherical.h): the punctured disk flattened
-/// with v0 at infinity (rounds of the Dirichlet flow, ring flips between
-/// them), laid out, projected to the sphere, Möbius-centred and checked.
-static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& conn, int v0,
-                                       const SphericalUniformizationOptions& options) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const int nv = conn.num_vertices();
-  SphericalUniformization out;
-  out.removed_vertex = v0;
+namespace {
 
+/// The sphere with v0 removed: the punctured disk pt (vertices renumbered
+/// without v0, which becomes the pole n2 = #V - 1), the sides of its faces
+/// (disk_sides, per pt.disk row, side opposite corner k) and the start u
+/// (#V - 1) of the Dirichlet flow.
+struct PuncturedDisk {
+  int v0 = 0, n2 = 0;
+  std::vector<int> new_id, old_id;  // input id -> disk id (-1 at v0), disk id -> input id
+  PuncturedTriangulation pt;
+  std::vector<std::array<double, 3>> disk_sides;
+  Eigen::VectorXd u;
+};
+
+/// The punctured disk of `mesh` without v0, on the input's lengths (with
+/// options.intrinsic_delaunay, on their intrinsic Delaunay triangulation;
+/// its flips are added to out.edge_flips). Throws InputError when v0's link
+/// is not a simple cycle.
+PuncturedDisk punctured_disk(const TriMesh& mesh, const Connectivity& conn, int v0,
+                             const SphericalUniformizationOptions& options, SphericalUniformization& out) {
+  const int nv = conn.num_vertices();
+  PuncturedDisk d;
+  d.v0 = v0;
+  std::vector<int>& new_id = d.new_id;
+  std::vector<int>& old_id = d.old_id;
+  PuncturedTriangulation& pt = d.pt;
   // Punctured disk, vertices renumbered without v0 (v0 itself: n2).
-  std::vector<int> new_id(nv, -1), old_id;
+  new_id.assign(nv, -1);
   for (int v = 0; v < nv; ++v)
     if (v != v0) {
       new_id[v] = static_cast<int>(old_id.size());
       old_id.push_back(v);
     }
-  const int n2 = nv - 1;
-  PuncturedTriangulation pt;
+  const int n2 = d.n2 = nv - 1;
   pt.pole = n2;
   // The input's lengths, mollified like every other path (intake notes the
   // faces touched; nearly degenerate faces get a strict triangle inequality).
@@ -343,9 +358,9 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
       for (int k = 0; k < 3; ++k) start_sides(f, k) = idt.edges[idt.face_edges(f, (k + 1) % 3)].length;
     out.edge_flips += idt.flips;
   }
-  Eigen::VectorXd u(n2);
+  Eigen::VectorXd& u = d.u;
+  u.resize(n2);
   for (int i = 0; i < n2; ++i) u[i] = -2.0 * std::log((mesh.V.row(old_id[i]) - mesh.V.row(v0)).norm());
-  std::vector<std::array<double, 3>> disk_sides;
   std::vector<std::array<int, 3>> disk_rows;
   for (int f = 0; f < start_faces.rows(); ++f) {
     int row[3], at = -1, count = 0;
@@ -358,7 +373,7 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
                        " is not a simple cycle; choose another removed_vertex");
     if (at < 0) {
       disk_rows.push_back({row[0], row[1], row[2]});
-      disk_sides.push_back({start_sides(f, 0), start_sides(f, 1), start_sides(f, 2)});
+      d.disk_sides.push_back({start_sides(f, 0), start_sides(f, 1), start_sides(f, 2)});
     } else {
       pt.star.push_back({n2, row[(at + 1) % 3], row[(at + 2) % 3]});
       pt.ring_y[row[(at + 1) % 3]] = 1.0;
@@ -367,42 +382,35 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   }
   pt.disk.resize(static_cast<int>(disk_rows.size()), 3);
   for (int r = 0; r < pt.disk.rows(); ++r) pt.disk.row(r) << disk_rows[r][0], disk_rows[r][1], disk_rows[r][2];
+  return d;
+}
 
-  // Flatten with v0 at infinity. Sending v0 to ∞ keeps the length cross
-  // ratios only if l̃(v0, j) / l̃(v0, k) -> 1 for all ring vertices, i.e.
-  // e^{u_j/2} l(v0, j) is the same for all j: a Dirichlet condition
-  // u_j = −2 log l(v0, j) on the ring, with K = 0 at the interior vertices.
-  // Projecting the planar layout stereographically then gives chord lengths
-  // that are a vertex scaling of the input lengths, edges to v0 included: a
-  // discrete conformal map onto an inscribed polyhedron.
-  // Start: u_i = −2 log |x_i − x_{v0}| everywhere, the conformal factor of
-  // the inversion in the unit sphere around v0 — so the initial metric is the
-  // (valid, 3D) edge lengths of the inverted mesh, already satisfying the
-  // ring condition; the flow then only has to flatten it.
-  // The ring's edges are the disk's boundary and cannot flip inside the
-  // flow; when a disk triangle against the ring degenerates, the ring edge
-  // is flipped (flip_ring_edges) and the flow runs again from the metric it
-  // reached (the next round's input lengths), with the ring's Dirichlet
-  // values given by the flipped lengths to v0.
-  RicciFlowOptions fo = options.flow;
-  fo.intrinsic_delaunay = options.intrinsic_delaunay;
-  const int max_rounds = options.intrinsic_delaunay ? options.max_ring_flip_rounds : 1;
+/// The rounds of flatten_punctured_disk: the current disk's domain and
+/// lengths, and the flow result of the last round.
+struct DiskFlow {
+  PuncturedDisk& d;
+  const RicciFlowOptions fo;
+  SphericalUniformization& out;
   RicciFlowResult flat;
   detail::RicciDomain dom;
   Eigen::VectorXd lengths;
+
   // One round: the Dirichlet flow on the current disk (throws InputError
   // when v0's link is not a simple cycle).
-  auto solve_round = [&](int round) {
+  void solve_round(int round) {
+    const int n2 = d.n2;
+    PuncturedTriangulation& pt = d.pt;
+    Eigen::VectorXd& u = d.u;
     dom = detail::domain_from_faces(n2, pt.disk);
     int boundary_count = 0;
     for (int v = 0; v < n2; ++v) boundary_count += dom.full_angle[v] < 4.0;
     if (boundary_count != static_cast<int>(pt.star.size()))
-      throw InputError("the link of vertex " + std::to_string(v0) +
+      throw InputError("the link of vertex " + std::to_string(d.v0) +
                        " is not a simple cycle; choose another removed_vertex");
     if (round == 0) {
       lengths.resize(dom.EV.rows());
       for (int f = 0; f < dom.F.rows(); ++f)
-        for (int k = 0; k < 3; ++k) lengths[dom.FE(f, k)] = disk_sides[f][k];
+        for (int k = 0; k < 3; ++k) lengths[dom.FE(f, k)] = d.disk_sides[f][k];
     }
     std::vector<char> fixed(n2, 0);
     for (auto& [v, y] : pt.ring_y) {
@@ -413,41 +421,34 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
     flat = detail::ricci_solve(dom, lengths, Background::Euclidean, fo, Eigen::VectorXd::Zero(n2), &u, &fixed);
     out.edge_flips += flat.flips;
     out.flow_iterations += flat.iterations;
-  };
-  for (int round = 0; round < max_rounds; ++round) {
-    if (round == 0) {
-      solve_round(round);
-    } else {
-      try {
-        solve_round(round);
-      } catch (const Error& e) {  // e.g. the ring flips pinched the disk
-        out.message = "flattening the punctured disk failed after " + std::to_string(out.ring_flips) +
-                      " ring flips: " + e.what();
-        break;
-      }
-    }
-    if (round + 1 == max_rounds) break;
+  }
+
+  /// Ring or star flips after a round, and the next round's input: the
+  /// metric reached (u = 0), except at the new ring vertices, whose y is not
+  /// 1. False when there is nothing to flip or the flips left no valid disk
+  /// (out.message says which).
+  bool prepare_next_round() {
+    const int n2 = d.n2;
+    PuncturedTriangulation& pt = d.pt;
     std::vector<int> kept;
     std::vector<double> vertex_scale(n2, 1.0), new_sides;
     if (flat.converged) {
       for (int f = 0; f < flat.faces.rows(); ++f) kept.push_back(f);
       pt.disk = flat.faces;
       const int flipped = flip_star_edges(flat, pt, vertex_scale, new_sides);
-      if (flipped == 0) break;
+      if (flipped == 0) return false;
       out.ring_flips += flipped;
     } else {
       const int flipped = flip_ring_edges(flat, pt, kept);
-      if (flipped == 0) break;
+      if (flipped == 0) return false;
       out.ring_flips += flipped;
     }
-    // Next round: the metric reached is the input (u = 0), except at the
-    // new ring vertices, whose y is not 1.
     detail::RicciDomain nd;
     try {
       nd = detail::domain_from_faces(n2, pt.disk);
     } catch (const Error& e) {  // a non-simplicial disk after the flips
       out.message = "ring flips left an invalid disk: " + std::string(e.what());
-      break;
+      return false;
     }
     Eigen::VectorXd next(nd.EV.rows());
     for (int i = 0; i < static_cast<int>(kept.size()); ++i)
@@ -456,8 +457,68 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
       next[nd.FE(static_cast<int>(kept.size() + i), 1)] = new_sides[i];
     for (int e = 0; e < nd.EV.rows(); ++e) next[e] *= vertex_scale[nd.EV(e, 0)] * vertex_scale[nd.EV(e, 1)];
     lengths = next;
-    u.setZero();
+    d.u.setZero();
+    return true;
   }
+};
+
+/// Flatten with v0 at infinity. Sending v0 to ∞ keeps the length cross
+/// ratios only if l̃(v0, j) / l̃(v0, k) -> 1 for all ring vertices, i.e.
+/// e^{u_j/2} l(v0, j) is the same for all j: a Dirichlet condition
+/// u_j = −2 log l(v0, j) on the ring, with K = 0 at the interior vertices.
+/// Projecting the planar layout stereographically then gives chord lengths
+/// that are a vertex scaling of the input lengths, edges to v0 included: a
+/// discrete conformal map onto an inscribed polyhedron.
+/// Start: u_i = −2 log |x_i − x_{v0}| everywhere, the conformal factor of
+/// the inversion in the unit sphere around v0 — so the initial metric is the
+/// (valid, 3D) edge lengths of the inverted mesh, already satisfying the
+/// ring condition; the flow then only has to flatten it.
+/// The ring's edges are the disk's boundary and cannot flip inside the
+/// flow; when a disk triangle against the ring degenerates, the ring edge
+/// is flipped (flip_ring_edges) and the flow runs again from the metric it
+/// reached (the next round's input lengths), with the ring's Dirichlet
+/// values given by the flipped lengths to v0.
+/// Returns the last round's flow result (d.pt: the final star and ring).
+RicciFlowResult flatten_punctured_disk(PuncturedDisk& d, const SphericalUniformizationOptions& options,
+                                       SphericalUniformization& out) {
+  RicciFlowOptions fo = options.flow;
+  fo.intrinsic_delaunay = options.intrinsic_delaunay;
+  const int max_rounds = options.intrinsic_delaunay ? options.max_ring_flip_rounds : 1;
+  DiskFlow flow{d, fo, out, {}, {}, {}};
+  for (int round = 0; round < max_rounds; ++round) {
+    if (round == 0) {
+      flow.solve_round(round);
+    } else {
+      try {
+        flow.solve_round(round);
+      } catch (const Error& e) {  // e.g. the ring flips pinched the disk
+        out.message = "flattening the punctured disk failed after " + std::to_string(out.ring_flips) +
+                      " ring flips: " + e.what();
+        break;
+      }
+    }
+    if (round + 1 == max_rounds) break;
+    if (!flow.prepare_next_round()) break;
+  }
+  return std::move(flow.flat);
+}
+
+}  // namespace
+
+/// One attempt with v0 removed (spherical.h): the punctured disk flattened
+/// with v0 at infinity (rounds of the Dirichlet flow, ring flips between
+/// them), laid out, projected to the sphere, Möbius-centred and checked.
+static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& conn, int v0,
+                                       const SphericalUniformizationOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const int nv = conn.num_vertices();
+  SphericalUniformization out;
+  out.removed_vertex = v0;
+  PuncturedDisk d = punctured_disk(mesh, conn, v0, options, out);
+  const RicciFlowResult flat = flatten_punctured_disk(d, options, out);
+  const int n2 = d.n2;
+  const PuncturedTriangulation& pt = d.pt;
+  const std::vector<int>& old_id = d.old_id;
   out.max_curvature_error = flat.max_curvature_error;
   out.stopped_at_floor = flat.stopped_at_floor;
   out.circle_error = 0.0;
