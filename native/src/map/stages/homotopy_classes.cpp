@@ -189,46 +189,44 @@ std::vector<HomotopyClass> CutLifter::lift(const std::vector<int>& cut_bases) {
   return kept;
 }
 
-CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
-                                   const HandleBasis& shb, const SystemOfLoops& tl, const CanonicalSchema& tcs,
-                                   const LoopProjector& projector, const SurfaceMapOptions& options, SourceCuts& cuts) {
+namespace {
+
+/// A candidate class with its description and ClassSpace::fingerprint.
+struct NamedClass {
+  GroupMap theta;
+  std::string tag;
+  std::vector<double> fingerprint;
+};
+
+/// Source 1 of candidate_classes: the overlay classes, new by fingerprint.
+struct OverlayClasses {
+  std::vector<NamedClass> classes;
+  GroupMap as_posed;           // the overlay class as posed, when have_as_posed
+  bool have_as_posed = false;
+  bool strict = false;         // some pose overlaps within the strict gap test
+};
+
+/// The classes induced by overlaying the two shapes
+/// (topology/projected_loops.h): as posed, then after the rigid alignments
+/// of rotation_overlay_poses for shapes not posed alike. For a remeshed
+/// copy, as posed or turned, one of them is the identity; for shapes posed
+/// alike up to a rotation they send handles to the handles they overlap.
+/// Each must be an isomorphism; poses whose images jump are refused by
+/// project_loops (but see the joined jumps below).
+OverlayClasses overlay_classes(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
+                               const TriMesh& target, const LoopProjector& projector) {
   const int n = space.num_letters();
-  CandidateClasses out;
-  HandleBasis& thb = out.target_basis;
-  thb = handle_basis(tl.mesh, tl.loops, tcs);
-  // A caller that knows the class (homotopy.images_only): it alone.
-  if (options.homotopy.images_only) {
-    if (options.homotopy.source_images.size() == 0)
-      throw InputError("homotopy.images_only needs homotopy.source_images (a point on the target per source vertex)");
-    GroupMap theta;
-    if (!carried_loops_class(space, source, sl, projector, options.homotopy.source_images, &theta, &out.carried_status,
-                             true))
-      throw SolveError("the class given by homotopy.source_images: " + out.carried_status);
-    out.carried_class = 0;
-    out.classes.push_back(described(theta, n, shb, thb, "the source's loops carried to the given images"));
-    return out;
-  }
-  // Source 1: the classes induced by overlaying the two shapes
-  // (topology/projected_loops.h): as posed, then after the rigid alignments
-  // of rotation_overlay_poses for shapes not posed alike. For a remeshed
-  // copy, as posed or turned, one of them is the identity; for shapes posed
-  // alike up to a rotation they send handles to the handles they overlap.
-  // Each must be an isomorphism; poses whose images jump are refused by
-  // project_loops (but see the joined jumps below).
+  OverlayClasses out;
   std::vector<OverlayPose> poses{{Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity(), "as posed"}};
-  for (OverlayPose& p : rotation_overlay_poses(source, tl.mesh)) poses.push_back(std::move(p));
+  for (OverlayPose& p : rotation_overlay_poses(source, target)) poses.push_back(std::move(p));
   // (Jumps are joined in the same pass, for the fallback below.)
   ProjectedLoopsOptions plo;
   plo.max_jump_box = kOverlayJumpBox;
   const std::vector<ProjectedLoopsResult> projections = projector.project(source, sl.loops, poses, plo);
-  struct NamedClass {
-    GroupMap theta;
-    std::string tag;
-    std::vector<double> fingerprint;
-  };
-  std::vector<NamedClass> overlays;
-  GroupMap overlay(n);
-  bool have_overlay = false;  // the overlay class as posed exists
+  std::vector<NamedClass>& overlays = out.classes;
+  GroupMap& overlay = out.as_posed;
+  overlay = GroupMap(n);
+  bool& have_overlay = out.have_as_posed;
   auto collect_overlays = [&](bool joined) {
     for (size_t p = 0; p < projections.size(); ++p) {
       const ProjectedLoopsResult& proj = projections[p];
@@ -258,16 +256,45 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
   // are then joined by the target's shortest path between the two images; a
   // wrong join gives a non-isomorphism (refused) or one more candidate,
   // ranked by its energy like the others.
-  out.strict_overlay = !overlays.empty();
-  if (!out.strict_overlay) collect_overlays(true);
+  out.strict = !overlays.empty();
+  if (!out.strict) collect_overlays(true);
+  return out;
+}
+
+}  // namespace
+
+CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
+                                   const HandleBasis& shb, const SystemOfLoops& tl, const CanonicalSchema& tcs,
+                                   const LoopProjector& projector, const SurfaceMapOptions& options, SourceCuts& cuts) {
+  const int n = space.num_letters();
+  CandidateClasses out;
+  HandleBasis& thb = out.target_basis;
+  thb = handle_basis(tl.mesh, tl.loops, tcs);
+  // A caller that knows the class (homotopy.images_only): it alone.
+  if (options.homotopy.images_only) {
+    if (options.homotopy.source_images.size() == 0)
+      throw InputError("homotopy.images_only needs homotopy.source_images (a point on the target per source vertex)");
+    GroupMap theta;
+    if (!carried_loops_class(space, source, sl, projector, options.homotopy.source_images, &theta, &out.carried_status,
+                             true))
+      throw SolveError("the class given by homotopy.source_images: " + out.carried_status);
+    out.carried_class = 0;
+    out.classes.push_back(described(theta, n, shb, thb, "the source's loops carried to the given images"));
+    return out;
+  }
+  // Source 1: the classes induced by overlaying the two shapes (overlay_classes).
+  const OverlayClasses ov = overlay_classes(space, source, sl, tl.mesh, projector);
+  const std::vector<NamedClass>& overlays = ov.classes;
+  const bool have_overlay = ov.have_as_posed;
+  out.strict_overlay = ov.strict;
   if (have_overlay) {
     // The target's handles are then the overlay's images of the source's:
     // the other candidates are the overlay composed with a signed handle
     // permutation of the source (no lift on the target side, so no Torelli
     // ambiguity there), and descriptions are consistent with it.
     HandleBasis moved = shb;
-    moved.P = homology_matrix(overlay, n) * shb.P;
-    moved.to_canonical.map = compose(overlay, shb.to_canonical.map);
+    moved.P = homology_matrix(ov.as_posed, n) * shb.P;
+    moved.to_canonical.map = compose(ov.as_posed, shb.to_canonical.map);
     for (Word& w : moved.to_canonical.map) w = dehn_reduce(w, space.relator());
     moved.to_canonical.inverse.clear();  // not needed for a target basis
     thb = std::move(moved);
