@@ -534,58 +534,87 @@ void assemble_newton_system(const std::vector<WeightedEdge>& edges, const std::v
       }
 }
 
-// The Newton solve; the pattern's analysis is `shared` when given (the
-// caller checked that `edges` have its pattern), else built at the first
-// iteration that needs it. Its steps are the helpers above; the iteration
-// itself (factorisation reuse, line search, the fallbacks near round-off)
-// stays in one loop because its state (shift, chord steps, the last full
-// step) runs through all of it.
-HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& generators,
-                                      std::vector<Complex> z0, const HyperbolicHarmonicOptions& options,
-                                      const HessianAnalysis* shared) {
-  check_newton_input(n, edges, z0, options);
-  HyperbolicHarmonicResult r;
-  ChartState state(n, edges, generators, z0, options, r);
-  std::vector<Mobius>& A = state.A;
-  std::vector<Mobius>& chart = state.chart;
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
+// The first line-search trial moves no vertex by more than this (a bad
+// start can ask for steps of 30 units, whose translations have entries
+// e^15), which only rescales the Newton step.
+constexpr double kMaxStep = 4.0;
+
+/// One newton_solve run: the chart state, the factorisation kept across
+/// iterations (chord steps), the Levenberg shift and the last step's
+/// bookkeeping, which run through every phase of an iteration; one method a
+/// phase (the Newton system, the direction, the step with its line search
+/// and fallbacks near round-off, the new charts). Holds references into
+/// itself (state -> r): not copyable.
+struct HarmonicNewton {
+  const int n;
+  const std::vector<WeightedEdge>& edges;
+  const HyperbolicHarmonicOptions& options;
+  const HessianAnalysis* shared;  // the pattern's analysis when given, else built at first use
+  HyperbolicHarmonicResult r;
+  ChartState state;
+  std::vector<Mobius>& A;
+  std::vector<Mobius>& chart;
   double max_w = 0;
-  for (const auto& e : edges) max_w = std::max(max_w, e.w);
-  double E = chart_energy(edges, A);
-  r.energy_history.push_back(E);
+  double E = 0;
   std::unique_ptr<HessianAnalysis> own_analysis;
   std::unique_ptr<BlockHessian> hessian;  // built at the first iteration that needs it
   // Factorisation state kept across iterations (chord steps, below).
   double shift = 0, last_gnorm = std::numeric_limits<double>::infinity();
   bool factored = false, last_full_step = false;
-  std::vector<Mobius> trial_A(edges.size()), step_map(n);
+  std::vector<Mobius> trial_A, step_map;
+  std::vector<Complex> grad_buf;
+  Eigen::VectorXd g;
+
+  HarmonicNewton(int num_vertices, const std::vector<WeightedEdge>& edge_list, const std::vector<Mobius>& generators,
+                 const std::vector<Complex>& z0, const HyperbolicHarmonicOptions& opts, const HessianAnalysis* analysis)
+      : n(num_vertices),
+        edges(edge_list),
+        options(opts),
+        shared(analysis),
+        state(num_vertices, edge_list, generators, z0, opts, r),
+        A(state.A),
+        chart(state.chart),
+        trial_A(edge_list.size()),
+        step_map(num_vertices),
+        grad_buf(num_vertices),
+        g(2 * num_vertices) {
+    for (const auto& e : edges) max_w = std::max(max_w, e.w);
+    E = chart_energy(edges, A);
+    r.energy_history.push_back(E);
+  }
+  HarmonicNewton(const HarmonicNewton&) = delete;
+  HarmonicNewton& operator=(const HarmonicNewton&) = delete;
+
   // Trial edge elements for the step alpha * xi (all vertices at once).
-  auto trial_edges = [&](const Eigen::VectorXd& xi, double alpha) {
+  void trial_edges(const Eigen::VectorXd& xi, double alpha) {
     for (int i = 0; i < n; ++i) step_map[i] = Mobius::translation(alpha * Complex(xi[2 * i], xi[2 * i + 1]));
     for (size_t e = 0; e < edges.size(); ++e)
       trial_A[e] = (step_map[edges[e].i].inverse() * A[e] * step_map[edges[e].j]).normalized();
-  };
-  auto accept = [&](double Et) {
+  }
+  void accept(double Et) {
     A.swap(trial_A);
     for (int i = 0; i < n; ++i) chart[i] = (chart[i] * step_map[i]).normalized();
     E = Et;
-  };
-  std::vector<Complex> grad_buf(n);
+  }
   // The full Newton step where E cannot resolve its decrease: taken when it
   // at least halves the gradient (quadratic convergence near the optimum
   // does far better), otherwise the gradient is at its round-off floor.
-  auto gradient_step = [&](const Eigen::VectorXd& step, double gnorm) {
+  bool gradient_step(const Eigen::VectorXd& step, double gnorm) {
     trial_edges(step, 1.0);
     ++r.energy_evaluations;
     if (!(chart_gradient_norm(edges, trial_A, options.fixed, grad_buf) <= 0.5 * gnorm)) return false;
     accept(chart_energy(edges, trial_A));
     last_full_step = true;
     return true;
-  };
-  Eigen::VectorXd g(2 * n);
-  for (int it = 0; it < options.max_iterations; ++it) {
-    using Clock = std::chrono::steady_clock;
-    auto seconds_since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
+  }
+
+  /// The Newton system (H, g) at the current charts; returns the largest
+  /// per-vertex gradient, recorded in r.gradient_history. Throws SolveError
+  /// on a non-finite energy or gradient, Cancelled from options.progress.
+  double newton_system(int it) {
     if (!hessian) {
       const auto t0 = Clock::now();
       if (!shared) own_analysis = std::make_unique<HessianAnalysis>(n, edges);
@@ -600,24 +629,30 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
     for (int i = 0; i < n; ++i) gnorm = std::max(gnorm, std::hypot(g[2 * i], g[2 * i + 1]));
     r.gradient_history.push_back(gnorm);
     if (options.progress && !options.progress(it, E, gnorm)) throw Cancelled("harmonic map solve cancelled");
-    if (gnorm <= options.tolerance * std::max(max_w, 1e-300)) {
-      r.converged = true;
-      r.iterations = it;
-      break;
+    return gnorm;
+  }
+
+  // A Levenberg shift keeps the factorisation definite: tiny where the
+  // model is exact (the normal surplus d coth d − 1 is O(d²)), raised when
+  // far from the optimum the frame bookkeeping leaves it indefinite.
+  void factorize() {
+    BlockHessian& H = *hessian;
+    for (shift = 1e-9 * max_w;; shift *= 100) {
+      const auto t0 = Clock::now();
+      const bool ok = H.factorize(shift);
+      r.factorization_seconds += seconds_since(t0);
+      ++r.factorizations;
+      if (ok) break;
+      if (shift > 1e6 * max_w) throw SolveError("hyperbolic harmonic map: Hessian factorisation failed");
     }
-    // A Levenberg shift keeps the factorisation definite: tiny where the
-    // model is exact (the normal surplus d coth d − 1 is O(d²)), raised when
-    // far from the optimum the frame bookkeeping leaves it indefinite.
-    auto factorize = [&] {
-      for (shift = 1e-9 * max_w;; shift *= 100) {
-        const auto t0 = Clock::now();
-        const bool ok = H.factorize(shift);
-        r.factorization_seconds += seconds_since(t0);
-        ++r.factorizations;
-        if (ok) break;
-        if (shift > 1e6 * max_w) throw SolveError("hyperbolic harmonic map: Hessian factorisation failed");
-      }
-    };
+  }
+  double diag(int k) const { return hessian->diagonal(k) + shift; }
+
+  /// The step of this iteration: Newton (a chord step with the kept
+  /// factorisation when *chord is set on return), else the diagonally
+  /// scaled gradient.
+  Eigen::VectorXd direction(double gnorm, bool* chord_out) {
+    BlockHessian& H = *hessian;
     // Chord steps: near the optimum the Hessian hardly changes between
     // iterations (on a fine mesh the edges are short, d coth d ≈ 1, and the
     // frames turn little), so the last factorisation is kept while it still
@@ -625,9 +660,9 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
     // factorisation costs ~30 solves with it (2·10^5 unknowns: 0.7 s against
     // 0.02 s).
     const bool chord = factored && last_full_step && gnorm <= 0.25 * last_gnorm;
+    *chord_out = chord;
     ++work::newton_iterations;
     if (!chord) factorize(), factored = true;
-    auto diag = [&](int k) { return H.diagonal(k) + shift; };
     Eigen::VectorXd step = H.solve(-g);
     if (chord && (!(g.dot(step) < 0) || !step.allFinite())) factorize(), step = H.solve(-g);
     last_gnorm = gnorm;
@@ -637,10 +672,16 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
     if (!(g.dot(step) < 0) || !step.allFinite()) {
       for (int k = 0; k < 2 * n; ++k) step[k] = -g[k] / std::max(diag(k), 1e-300);
     }
-    // Backtracking line search on E. The first trial moves no vertex by more
-    // than kMaxStep (a bad start can ask for steps of 30 units, whose
-    // translations have entries e^15), which only rescales the Newton step.
-    constexpr double kMaxStep = 4.0;
+    return step;
+  }
+
+  enum class Outcome { kMoved, kRetry, kStop };
+
+  /// Backtracking line search on E along `step`, with the fallbacks near
+  /// round-off: kMoved (charts to update), kRetry (the kept factorisation
+  /// gave no decrease: refactorise from the same point) or kStop (with
+  /// r.converged set).
+  Outcome take_step(int it, const Eigen::VectorXd& step, double gnorm, bool chord) {
     double longest = 0;
     for (int i = 0; i < n; ++i) longest = std::max(longest, std::hypot(step[2 * i], step[2 * i + 1]));
     double alpha = longest > kMaxStep ? kMaxStep / longest : 1.0;
@@ -656,7 +697,7 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
       r.iterations = it;
       if (!gradient_step(step, gnorm)) {
         r.converged = true;
-        break;
+        return Outcome::kStop;
       }
       accepted = true;
     }
@@ -677,7 +718,7 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
       // The kept factorisation gave no decrease: the next iteration
       // factorises afresh (last_full_step is false) from the same point.
       last_gnorm = std::numeric_limits<double>::infinity();
-      continue;
+      return Outcome::kRetry;
     }
     if (!accepted) {
       // No decrease along the Newton direction. Try the scaled gradient once
@@ -699,9 +740,14 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
         // Converged if the gradient is tiny, or if the decrease Newton still
         // predicts is below what E can resolve in floating point.
         r.converged = gnorm <= 1e4 * options.tolerance * std::max(max_w, 1e-300) || -0.5 * slope <= 1e-9 * E;
-        break;
+        return Outcome::kStop;
       }
     }
+    return Outcome::kMoved;
+  }
+
+  /// After a step: the new charts and sheets.
+  void recentre_charts() {
     // Dynamic charts: bring far-out vertices back towards the origin.
     for (int i = 0; i < n; ++i)
       if (options.reduce_point || std::abs(chart[i].b) > 0.75) state.move_vertex(i);  // greedy: |C_i(0)| > 0.6
@@ -711,13 +757,45 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
     E = chart_energy(edges, A);
     r.energy_history.push_back(E);
   }
-  r.energy = E;
-  r.z.resize(n);
-  for (int i = 0; i < n; ++i) r.z[i] = chart[i].apply(Complex(0.0));
-  r.edge_local = A;
-  r.edge_effective.resize(edges.size());
-  for (size_t e = 0; e < edges.size(); ++e) r.edge_effective[e] = state.eff[e].to_double().normalized();
-  return r;
+
+  /// The result: energy, positions z (#V), edge elements.
+  void finish() {
+    r.energy = E;
+    r.z.resize(n);
+    for (int i = 0; i < n; ++i) r.z[i] = chart[i].apply(Complex(0.0));
+    r.edge_local = A;
+    r.edge_effective.resize(edges.size());
+    for (size_t e = 0; e < edges.size(); ++e) r.edge_effective[e] = state.eff[e].to_double().normalized();
+  }
+};
+
+// The Newton solve; the pattern's analysis is `shared` when given (the
+// caller checked that `edges` have its pattern), else built at the first
+// iteration that needs it. Its steps are the helpers above; the state that
+// runs through an iteration (shift, chord steps, the last full step) is
+// HarmonicNewton's.
+HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& generators,
+                                      std::vector<Complex> z0, const HyperbolicHarmonicOptions& options,
+                                      const HessianAnalysis* shared) {
+  check_newton_input(n, edges, z0, options);
+  HarmonicNewton run(n, edges, generators, z0, options, shared);
+  HyperbolicHarmonicResult& r = run.r;
+  for (int it = 0; it < options.max_iterations; ++it) {
+    const double gnorm = run.newton_system(it);
+    if (gnorm <= options.tolerance * std::max(run.max_w, 1e-300)) {
+      r.converged = true;
+      r.iterations = it;
+      break;
+    }
+    bool chord = false;
+    const Eigen::VectorXd step = run.direction(gnorm, &chord);
+    const HarmonicNewton::Outcome outcome = run.take_step(it, step, gnorm, chord);
+    if (outcome == HarmonicNewton::Outcome::kStop) break;
+    if (outcome == HarmonicNewton::Outcome::kRetry) continue;
+    run.recentre_charts();
+  }
+  run.finish();
+  return std::move(run.r);
 }
 
 }  // namespace
