@@ -93,9 +93,21 @@ def test_progress_bar_reads_the_running_job():
         log = draw_all_panels()
         assert ("prop", "progress") in log and ("label", "Harmonic solve") in log
         assert not bpy.ops.surfmap.compute_map.poll()      # one run at a time
+        # while it runs the sidebar holds the main panel only (each progress update redraws
+        # the whole sidebar): no sub-panel's options, buttons or list
+        assert ("operator", "surfmap.compute_map") not in log
+        assert ("prop", "homotopy") not in log and ("prop", "write_uvs") not in log
+        assert all(not cls.poll(bpy.context) for cls in _sub_panels())
     finally:
         map_job.ACTIVE["job"] = None
-    assert ("prop", "progress") not in draw_all_panels()
+    log = draw_all_panels()
+    assert ("prop", "progress") not in log
+    assert ("operator", "surfmap.compute_map") in log and ("prop", "write_uvs") in log
+
+
+def _sub_panels():
+    from surface_map import panel
+    return [c for c in panel.classes if getattr(c, "bl_parent_id", "") == "SURFMAP_PT_main"]
 
 
 def test_pairings_list_sorted_by_energy_with_estimates():

@@ -55,11 +55,24 @@ class SURFMAP_UL_candidates(bpy.types.UIList):
         return [], new_order
 
 
+def computing():
+    """True while Compute Map runs: the sub-panels are then hidden, the main panel shows the
+    progress bar alone. Their buttons take no clicks meanwhile (the modal operator holds the
+    events), and every progress update redraws the whole sidebar: with software OpenGL its
+    widgets are about half of what one update costs Blender's main thread (docs/addon.md,
+    "UI ticks during the compute")."""
+    return map_job.ACTIVE.get("job") is not None
+
+
 class _SubPanel:
     bl_space_type = 'VIEW_3D'
     bl_region_type = 'UI'
     bl_category = "Surface Map"
     bl_parent_id = "SURFMAP_PT_main"
+
+    @classmethod
+    def poll(cls, context):
+        return not computing()
 
 
 def _lines(layout, text, limit, icon='NONE'):
@@ -101,7 +114,7 @@ class SURFMAP_PT_main(bpy.types.Panel):
 
 def draw_progress(layout, settings):
     """The running job's progress bar and stage (nothing when idle)."""
-    if map_job.ACTIVE.get("job") is None:
+    if not computing():
         return
     col = layout.column(align=True)
     col.label(text=settings.progress_stage or "Working", icon='SORTTIME')
@@ -234,7 +247,7 @@ class SURFMAP_PT_result(_SubPanel, bpy.types.Panel):
     @classmethod
     def poll(cls, context):
         s = context.scene.surfmap
-        return bool(s.map_status or len(s.summary_rows))
+        return not computing() and bool(s.map_status or len(s.summary_rows))
 
     def draw(self, context):
         draw_result(self.layout, context.scene.surfmap)
