@@ -149,6 +149,17 @@ def test_a_run_fills_the_list_summary_and_colours_both_objects():
     assert "→" in rows["Energy"] and all(len(v) <= 22 for v in rows.values()), rows
     e0, e1 = (float(x) for x in rows["Energy"].split("→"))
     assert e1 <= e0
+    # the Result panel: fewer lines than rows, the time right under the energy, every
+    # value and the stage split drawn, each line within the default width
+    from surface_map import panel
+    lines = panel.result_lines((r.name, r.value) for r in settings.summary_rows)
+    assert len(lines) < len(settings.summary_rows), lines
+    assert lines[0][0] == "Energy" and lines[1] == ("Time", rows["Time"]), lines
+    text = " ".join(f"{n} {v}" for n, v in lines)
+    assert rows["Mean D'"] in text and rows["Max D'"] in text and "solve " in text, text
+    assert all(len(n) <= MAX_SPLIT_LABEL and len(v) <= panel.WRAP for n, v in lines), lines
+    log = draw_all_panels()
+    assert all(("label", v) in log for _, v in lines), lines
     # colours on the target too (through the inverse map), D' >= 1 there as on the source
     for ob in (a, b):
         for name in ("surfmap dilatation", "surfmap conformal factor",

@@ -253,12 +253,43 @@ class SURFMAP_PT_result(_SubPanel, bpy.types.Panel):
         draw_result(self.layout, context.scene.surfmap)
 
 
+def result_lines(rows):
+    """The Result panel's lines from the run's (label, value) rows (ops_map.summary_rows):
+    "Time" with the stage split ('  solve', ... as one wrapped text) right under "Energy",
+    "Mean D'" and "Max D'" on one line, the other rows as they are. After a run the panel
+    sits under Outputs at the sidebar's bottom edge: the fewer lines, the more of it shows."""
+    rows = [(name, value) for name, value in rows]
+    d = dict(rows)
+    max_d = d.get("Max D'")
+    stages = [f"{name.strip()} {value.replace(' s', '')}" for name, value in rows
+              if name.startswith("  ") and value != "0.0 s"]   # (under 0.05 s: left out)
+    timing = []
+    if "Time" in d:
+        timing.append(("Time", d["Time"]))
+        if stages:
+            timing += [("", line) for line in _wrap(", ".join(stages) + " s", WRAP)]
+    out = []
+    for name, value in rows:
+        if name.startswith("  ") or name == "Time" or (name == "Max D'" and "Mean D'" in d):
+            continue
+        if name == "Mean D'" and max_d is not None:
+            name, value = "D' mean/max", f"{value} / {max_d}"
+        out.append((name, value))
+        if name == "Energy":
+            out += timing
+            timing = []
+    return out + timing
+
+
 def draw_result(layout, settings):
     col = layout.column(align=True)
-    for row in settings.summary_rows:
+    for name, value in result_lines((r.name, r.value) for r in settings.summary_rows):
+        if not name:
+            col.label(text=value)
+            continue
         split = col.split(factor=0.45, align=True)
-        split.label(text=row.name)
-        split.label(text=row.value)
+        split.label(text=name)
+        split.label(text=value)
     if settings.map_status and not len(settings.summary_rows):
         _lines(col, settings.map_status, 8)
     if settings.landmark_status:
