@@ -225,6 +225,15 @@ def record_progress_calls():
         STATE.setdefault("progress_calls", []).append((time.time(), str(stage)))
         return original(job, stage, fraction, *extra)
     map_job.MapJob._progress = logged
+    # the moment the modal operator sees the job done (then it writes the outputs and the
+    # 3D view redraws with them: the result appearing, after the compute)
+    from surface_map import ops_map
+    cleanup = ops_map.SURFMAP_OT_compute_map._cleanup
+
+    def logged_cleanup(op, context):
+        STATE["t_done"] = time.time()
+        return cleanup(op, context)
+    ops_map.SURFMAP_OT_compute_map._cleanup = logged_cleanup
 
 
 def count_draw():
@@ -265,10 +274,12 @@ def rate_distribution(rates):
 def tick_report():
     from surface_map import map_job  # noqa: F401
     t = STATE["ticks"]
-    t0, t1 = STATE["t_start"], STATE["t_end"]
+    t0, t_end = STATE["t_start"], STATE["t_end"]
     # (from the job's start: before it, this script's own click, with its sleeps and xdotool
-    # calls, holds the main thread)
+    # calls, holds the main thread; to the moment the operator saw the job done: then it
+    # writes the outputs and the 3D view redraws with them)
     t0 = max(t0, STATE.get("job_t0") or t0)
+    t1 = min(t_end, STATE.get("t_done") or t_end)
     inside = [x for x in t if t0 <= x <= t1]
     gaps = [b - a for a, b in zip(inside, inside[1:])]
     worst_rate = None
@@ -277,7 +288,10 @@ def tick_report():
     if rates:
         worst_rate = min(rates)
         log(f"  1 s windows (every 0.5 s from the job's start) with fewer than 2 ticks: "
-            f"{sum(1 for r in rates if r < 2)} of {len(rates)}")
+            f"{sum(1 for r in rates if r < 2)} of {len(rates)}, starting at (s after the "
+            f"start) {[0.5 * k for k, r in enumerate(rates) if r < 2]}")
+    if inside:
+        log(f"  last tick {t1 - inside[-1]:.2f}s before the job was seen done")
     st = STATE.get("stages", [])
     for k in range(1, len(t)):
         if t0 <= t[k] <= t1 and t[k] - t[k - 1] > 0.45:
@@ -389,6 +403,11 @@ def step():
             f"{rate_distribution(STATE['all_rates'])}, load average "
             f"{' '.join(f'{x:.1f}' for x in os.getloadavg())}")
     elif s == 4:
+        if STATE.get("t_done"):   # the outputs written and the 3D view redrawn with them
+            after = [x for x in STATE["ticks"] if x > STATE["t_done"]]
+            log(f"  the first tick after the job was seen done came "
+                f"{after[0] - STATE['t_done'] if after else float('nan'):.2f}s later (writing "
+                f"the outputs, the 3D view redrawn with them)")
         open_tab()
     elif s == 5:
         shot("03_result_panel.png")
