@@ -368,7 +368,7 @@ def step():
             r = call(bpy.ops.surfmap.compute_map, 'INVOKE_DEFAULT')
             log("compute_map invoke ->", r)
         else:   # a click on the panel's Compute Map button, as a user does
-            if STATE.get("runs"):
+            if STATE.get("runs") and not os.environ.get("UI_CHECK_NO_PRESHOT"):
                 shot(f"01_panel_before_run{STATE['runs'] + 1}.png")
                 log("Compute Map's poll before this run:", call(bpy.ops.surfmap.compute_map.poll))
             click_compute()
