@@ -19,7 +19,10 @@ run, the core's stage times, every pause > 0.45 s of the 0.1 s timer with its st
 one-second windows with fewer than 2 ticks (from the job's start). UI_CHECK_QUICK=1: only the
 panel with Cut Loops opened; UI_CHECK_INVOKE=1: Compute Map by INVOKE_DEFAULT, not a click;
 UI_CHECK_RUNS=k: Compute Map k times in a row (more one-second windows; one line 'UI-CHECK
-ticks per 1 s window' with their distribution over all runs).
+ticks per 1 s window' with their distribution over all runs; the first click after a run is
+often lost on a loaded machine, before the operator's invoke: clicked again after 8 s).
+UI_CHECK_NO_PRESHOT=1: no screenshot before a repeated run's click; UI_CHECK_LEAVE_REGION=1:
+the pointer over the 3D view before it moves onto the button.
 
 UI_CHECK_IDLE=S: no compute; the same timer counts ticks for S seconds of a Blender that only
 waits (the machine's load and llvmpipe alone), and with UI_CHECK_IDLE_REDRAW=1 the sidebar and
@@ -181,6 +184,9 @@ def click_compute():
     ui = next(r for r in area.regions if r.type == 'UI')
     x, y = ui.x + ui.width // 2, win.height - (ui.y + ui.height) + COMPUTE_BUTTON_Y
     focus_blender()
+    if os.environ.get("UI_CHECK_LEAVE_REGION"):   # the pointer over the 3D view first
+        xdo("mousemove", str(area.x + area.width // 3), str(y))
+        time.sleep(0.5)
     xdo("mousemove", str(x - 20), str(y - 2))
     time.sleep(0.3)
     xdo("mousemove", str(x), str(y))
@@ -234,6 +240,13 @@ def record_progress_calls():
         STATE["t_done"] = time.time()
         return cleanup(op, context)
     ops_map.SURFMAP_OT_compute_map._cleanup = logged_cleanup
+    invoke = ops_map.SURFMAP_OT_compute_map.invoke
+
+    def logged_invoke(op, context, event):
+        r = invoke(op, context, event)
+        log(f"Compute Map invoked ({event.type} {event.value}) -> {r}")
+        return r
+    ops_map.SURFMAP_OT_compute_map.invoke = logged_invoke
 
 
 def count_draw():
