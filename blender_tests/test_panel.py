@@ -93,9 +93,21 @@ def test_progress_bar_reads_the_running_job():
         log = draw_all_panels()
         assert ("prop", "progress") in log and ("label", "Harmonic solve") in log
         assert not bpy.ops.surfmap.compute_map.poll()      # one run at a time
+        # while it runs the sidebar holds the main panel only (each progress update redraws
+        # the whole sidebar): no sub-panel's options, buttons or list
+        assert ("operator", "surfmap.compute_map") not in log
+        assert ("prop", "homotopy") not in log and ("prop", "write_uvs") not in log
+        assert all(not cls.poll(bpy.context) for cls in _sub_panels())
     finally:
         map_job.ACTIVE["job"] = None
-    assert ("prop", "progress") not in draw_all_panels()
+    log = draw_all_panels()
+    assert ("prop", "progress") not in log
+    assert ("operator", "surfmap.compute_map") in log and ("prop", "write_uvs") in log
+
+
+def _sub_panels():
+    from surface_map import panel
+    return [c for c in panel.classes if getattr(c, "bl_parent_id", "") == "SURFMAP_PT_main"]
 
 
 def test_pairings_list_sorted_by_energy_with_estimates():
@@ -137,6 +149,20 @@ def test_a_run_fills_the_list_summary_and_colours_both_objects():
     assert "→" in rows["Energy"] and all(len(v) <= 22 for v in rows.values()), rows
     e0, e1 = (float(x) for x in rows["Energy"].split("→"))
     assert e1 <= e0
+    # the Result panel: fewer lines than rows, the time right under the energy, every
+    # value and the stage split drawn, each line within the default width
+    from surface_map import panel
+    lines = panel.result_lines((r.name, r.value) for r in settings.summary_rows)
+    assert len(lines) < len(settings.summary_rows), lines
+    assert lines[0][0] == "Energy" and lines[1] == ("Time", rows["Time"]), lines
+    text = " ".join(f"{n} {v}" for n, v in lines)
+    assert rows["Mean D'"] in text and rows["Max D'"] in text, text
+    for name, value in rows.items():   # each stage that took 0.05 s or more, in the split
+        if name.startswith("  ") and value != "0.0 s":
+            assert f"{name.strip()} {value[:-2]}" in text, (name, text)
+    assert all(len(n) <= MAX_SPLIT_LABEL and len(v) <= panel.WRAP for n, v in lines), lines
+    log = draw_all_panels()
+    assert all(("label", v) in log for _, v in lines), lines
     # colours on the target too (through the inverse map), D' >= 1 there as on the source
     for ob in (a, b):
         for name in ("surfmap dilatation", "surfmap conformal factor",

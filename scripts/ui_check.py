@@ -17,7 +17,18 @@ Screenshots (ImageMagick's `import -window root`) go to DIR (default /tmp/surfma
 measurements are printed as lines starting with 'UI-CHECK': one window redraw's cost before the
 run, the core's stage times, every pause > 0.45 s of the 0.1 s timer with its stages, the
 one-second windows with fewer than 2 ticks (from the job's start). UI_CHECK_QUICK=1: only the
-panel with Cut Loops opened; UI_CHECK_INVOKE=1: Compute Map by INVOKE_DEFAULT, not a click.
+panel with Cut Loops opened; UI_CHECK_INVOKE=1: Compute Map by INVOKE_DEFAULT, not a click;
+UI_CHECK_RUNS=k: Compute Map k times in a row (more one-second windows; one line 'UI-CHECK
+ticks per 1 s window' with their distribution over all runs; the first click after a run is
+often lost on a loaded machine, before the operator's invoke: clicked again after 8 s).
+UI_CHECK_NO_PRESHOT=1: no screenshot before a repeated run's click; UI_CHECK_LEAVE_REGION=1:
+the pointer over the 3D view before it moves onto the button.
+
+UI_CHECK_IDLE=S: no compute; the same timer counts ticks for S seconds of a Blender that only
+waits (the machine's load and llvmpipe alone), and with UI_CHECK_IDLE_REDRAW=1 the sidebar and
+the status bar are changed once a second (=sidebar, =status: only that one) as Compute Map's progress does (what drawing that
+progress costs without the compute), so a run's tick rate can be compared with Blender's own
+under the same load.
 """
 import os
 import subprocess
@@ -148,6 +159,62 @@ def open_tab():
     call(bpy.ops.view3d.view_selected)
 
 
+def measure_redraws():
+    """What redraws cost Blender now (software OpenGL, this load): the whole window, and the
+    sidebar region alone with the window composited and swapped (what one progress update
+    costs). No timer can tick while Blender draws, so these bound the UI's pauses from below."""
+    t = time.time()
+    call(bpy.ops.wm.redraw_timer, type='DRAW_WIN_SWAP', iterations=3)
+    STATE["window_redraw"] = (time.time() - t) / 3
+    win, area, _ = view3d()
+    ui = next(r for r in area.regions if r.type == 'UI')
+    t = time.time()
+    with bpy.context.temp_override(window=win, area=area, region=ui):
+        bpy.ops.wm.redraw_timer(type='DRAW_SWAP', iterations=3)
+    STATE["sidebar_redraw"] = (time.time() - t) / 3
+    # (type='DRAW', without the swap, crashes Blender 3.4 in a window: not measured)
+    log(f"one window redraw (DRAW_WIN_SWAP) takes {STATE['window_redraw']:.3f}s, the sidebar "
+        f"with the window's swap (DRAW_SWAP) {STATE['sidebar_redraw']:.3f}s, load average {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
+
+
+def click_compute():
+    """A click on the panel's Compute Map button, as a user does: the pointer moved onto it in
+    two steps (Blender highlights a button on a motion event over it), pressed and released."""
+    win, area, _ = view3d()
+    ui = next(r for r in area.regions if r.type == 'UI')
+    x, y = ui.x + ui.width // 2, win.height - (ui.y + ui.height) + COMPUTE_BUTTON_Y
+    focus_blender()
+    if os.environ.get("UI_CHECK_LEAVE_REGION"):   # the pointer over the 3D view first
+        xdo("mousemove", str(area.x + area.width // 3), str(y))
+        time.sleep(0.5)
+    xdo("mousemove", str(x - 20), str(y - 2))
+    time.sleep(0.3)
+    xdo("mousemove", str(x), str(y))
+    time.sleep(0.3)
+    xdo("mousedown", "1")
+    time.sleep(0.15)
+    xdo("mouseup", "1")
+    STATE["t_click"] = time.time()
+    STATE["clicks"] = STATE.get("clicks", 0) + 1
+    log("clicked Compute Map at", x, y)
+
+
+def idle_progress():
+    """UI_CHECK_IDLE_REDRAW: what Compute Map's progress display does once a second (a new
+    status bar text, the sidebar region tagged), without any compute."""
+    STATE["idle_n"] = STATE.get("idle_n", 0) + 1
+    what = os.environ.get("UI_CHECK_IDLE_REDRAW")
+    if what in ("1", "status"):
+        ws = bpy.context.window_manager.windows[0].workspace
+        ws.status_text_set(f"Surface Map: idle check ({STATE['idle_n']}s) — Esc to cancel")
+    if what in ("1", "sidebar"):
+        _, area, _ = view3d()
+        for r in area.regions:
+            if r.type == 'UI':
+                r.tag_redraw()
+    return 1.0
+
+
 # Compute Map's button, pixels below the sidebar's top at the default layout (Cut Loops closed)
 COMPUTE_BUTTON_Y = 345
 CUT_LOOPS_HEADER_Y = 153
@@ -164,6 +231,22 @@ def record_progress_calls():
         STATE.setdefault("progress_calls", []).append((time.time(), str(stage)))
         return original(job, stage, fraction, *extra)
     map_job.MapJob._progress = logged
+    # the moment the modal operator sees the job done (then it writes the outputs and the
+    # 3D view redraws with them: the result appearing, after the compute)
+    from surface_map import ops_map
+    cleanup = ops_map.SURFMAP_OT_compute_map._cleanup
+
+    def logged_cleanup(op, context):
+        STATE["t_done"] = time.time()
+        return cleanup(op, context)
+    ops_map.SURFMAP_OT_compute_map._cleanup = logged_cleanup
+    invoke = ops_map.SURFMAP_OT_compute_map.invoke
+
+    def logged_invoke(op, context, event):
+        r = invoke(op, context, event)
+        log(f"Compute Map invoked ({event.type} {event.value}) -> {r}")
+        return r
+    ops_map.SURFMAP_OT_compute_map.invoke = logged_invoke
 
 
 def count_draw():
@@ -186,22 +269,42 @@ def ticker():
     return 0.1
 
 
+def window_rates(ticks, t0, t1):
+    """Ticks in each one-second window [s, s + 1) for s = t0, t0 + 0.5, ... up to t1 - 1."""
+    return [sum(1 for x in ticks if s <= x < s + 1.0) for s in
+            [t0 + 0.5 * k for k in range(int((t1 - t0 - 1.0) / 0.5) + 1)]] if t1 - t0 >= 1.0 else []
+
+
+def rate_distribution(rates):
+    """'min m, windows < 2: a of n, histogram {ticks: windows}' of window_rates' counts."""
+    if not rates:
+        return "no whole one-second window"
+    hist = {r: rates.count(r) for r in sorted(set(rates))}
+    return (f"min {min(rates)}, median {sorted(rates)[len(rates) // 2]}, windows < 2: "
+            f"{sum(1 for r in rates if r < 2)} of {len(rates)}, histogram {hist}")
+
+
 def tick_report():
     from surface_map import map_job  # noqa: F401
     t = STATE["ticks"]
-    t0, t1 = STATE["t_start"], STATE["t_end"]
+    t0, t_end = STATE["t_start"], STATE["t_end"]
     # (from the job's start: before it, this script's own click, with its sleeps and xdotool
-    # calls, holds the main thread)
+    # calls, holds the main thread; to the moment the operator saw the job done: then it
+    # writes the outputs and the 3D view redraws with them)
     t0 = max(t0, STATE.get("job_t0") or t0)
+    t1 = min(t_end, STATE.get("t_done") or t_end)
     inside = [x for x in t if t0 <= x <= t1]
     gaps = [b - a for a, b in zip(inside, inside[1:])]
     worst_rate = None
-    if t1 - t0 >= 1.0:
-        rates = [sum(1 for x in inside if s <= x < s + 1.0) for s in
-                 [t0 + 0.5 * k for k in range(int((t1 - t0 - 1.0) / 0.5) + 1)]]
+    rates = window_rates(inside, t0, t1)
+    STATE.setdefault("all_rates", []).extend(rates)
+    if rates:
         worst_rate = min(rates)
         log(f"  1 s windows (every 0.5 s from the job's start) with fewer than 2 ticks: "
-            f"{sum(1 for r in rates if r < 2)} of {len(rates)}")
+            f"{sum(1 for r in rates if r < 2)} of {len(rates)}, starting at (s after the "
+            f"start) {[0.5 * k for k, r in enumerate(rates) if r < 2]}")
+    if inside:
+        log(f"  last tick {t1 - inside[-1]:.2f}s before the job was seen done")
     st = STATE.get("stages", [])
     for k in range(1, len(t)):
         if t0 <= t[k] <= t1 and t[k] - t[k - 1] > 0.45:
@@ -256,35 +359,42 @@ def step():
             STATE["tab_again"] = True
             open_tab()
             return 3.0
-        shot("01_panel_before.png")
-        # What one redraw of the whole window costs Blender now (software OpenGL, this load):
-        # no timer can tick while Blender draws, so this bounds the UI's pauses from below.
-        t = time.time()
-        call(bpy.ops.wm.redraw_timer, type='DRAW_WIN_SWAP', iterations=3)
-        STATE["window_redraw"] = (time.time() - t) / 3
-        log(f"one window redraw (DRAW_WIN_SWAP) takes {STATE['window_redraw']:.3f}s, load "
-            f"average {os.getloadavg()[0]:.1f}")
-        bpy.app.timers.register(ticker, first_interval=0.1)
-        record_progress_calls()
-        bpy.types.SpaceView3D.draw_handler_add(count_draw, (), 'WINDOW', 'POST_PIXEL')
-        bpy.types.SpaceView3D.draw_handler_add(count_ui_draw, (), 'UI', 'POST_PIXEL')
+        if not STATE.get("measuring"):
+            STATE["measuring"] = True
+            shot("01_panel_before.png")
+            measure_redraws()
+            bpy.app.timers.register(ticker, first_interval=0.1)
+            record_progress_calls()
+            bpy.types.SpaceView3D.draw_handler_add(count_draw, (), 'WINDOW', 'POST_PIXEL')
+            bpy.types.SpaceView3D.draw_handler_add(count_ui_draw, (), 'UI', 'POST_PIXEL')
         STATE["t_start"] = time.time()
+        STATE["job_t0"], STATE["seen_job"], STATE["clicks"] = None, False, 0
+        if os.environ.get("UI_CHECK_IDLE"):
+            STATE["step"] = 50
+            if os.environ.get("UI_CHECK_IDLE_REDRAW"):
+                bpy.app.timers.register(idle_progress, first_interval=1.0)
+            log(f"idle for {os.environ['UI_CHECK_IDLE']}s, sidebar and status bar changed once "
+                f"a second: {bool(os.environ.get('UI_CHECK_IDLE_REDRAW'))}")
+            return float(os.environ["UI_CHECK_IDLE"])
         log(f"compute starts at abs {STATE['t_start']:.3f}")
         if os.environ.get("UI_CHECK_INVOKE"):
             r = call(bpy.ops.surfmap.compute_map, 'INVOKE_DEFAULT')
             log("compute_map invoke ->", r)
         else:   # a click on the panel's Compute Map button, as a user does
-            win, area, _ = view3d()
-            ui = next(r for r in area.regions if r.type == 'UI')
-            x, y = ui.x + ui.width // 2, win.height - (ui.y + ui.height) + COMPUTE_BUTTON_Y
-            focus_blender()
-            xdo("mousemove", str(x), str(y))
-            time.sleep(0.2)
-            xdo("click", "1")
-            log("clicked Compute Map at", x, y)
+            if STATE.get("runs") and not os.environ.get("UI_CHECK_NO_PRESHOT"):
+                shot(f"01_panel_before_run{STATE['runs'] + 1}.png")
+                log("Compute Map's poll before this run:", call(bpy.ops.surfmap.compute_map.poll))
+            click_compute()
+
     elif s == 3:
         job = map_job.ACTIVE.get("job")
-        if job is None and not STATE.get("seen_job") and time.time() - STATE["t_start"] < 20:
+        if job is None and not STATE.get("seen_job") and time.time() - STATE["t_start"] < 30:
+            if time.time() - STATE["t_click"] > 8 and STATE["clicks"] < 3:
+                # on a loaded machine a click is sometimes lost (seen 3 times at load 13-15)
+                log("no job 8 s after the click: clicking again")
+                shot(f"lost_click_{STATE.get('runs', 0) + 1}_{STATE['clicks']}.png")
+                STATE["t_start"] = time.time()
+                click_compute()
             return 0.2     # the click is not processed yet
         if job is not None:
             STATE["seen_job"] = True
@@ -297,7 +407,20 @@ def step():
         tick_report()
         log("summary:", [(r.name, r.value) for r in settings.summary_rows])
         log("max tick gap seen by the operator", settings.max_tick_gap)
+        STATE["runs"] = STATE.get("runs", 0) + 1
+        if STATE["runs"] < int(os.environ.get("UI_CHECK_RUNS", "1")):
+            STATE["step"] = 2       # Compute Map again (its outputs replace the last run's)
+            redraw_all()            # (a button drawn disabled was seen once: redrawn first)
+            return 3.0
+        log(f"ticks per 1 s window over {STATE['runs']} run(s): "
+            f"{rate_distribution(STATE['all_rates'])}, load average "
+            f"{' '.join(f'{x:.1f}' for x in os.getloadavg())}")
     elif s == 4:
+        if STATE.get("t_done"):   # the outputs written and the 3D view redrawn with them
+            after = [x for x in STATE["ticks"] if x > STATE["t_done"]]
+            log(f"  the first tick after the job was seen done came "
+                f"{after[0] - STATE['t_done'] if after else float('nan'):.2f}s later (writing "
+                f"the outputs, the 3D view redrawn with them)")
         open_tab()
     elif s == 5:
         shot("03_result_panel.png")
@@ -306,13 +429,15 @@ def step():
         cx, cy = area.x + area.width // 3, win.height - (area.y + area.height // 2)
         xdo("mousemove", str(cx), str(cy))
         focus_blender()
-        xdo("key", "ctrl+z")
+        for _ in range(STATE.get("runs", 1)):   # (each run is one undo step)
+            xdo("key", "ctrl+z")
     elif s == 7:
         log("after Ctrl+Z (xdotool) the outputs are gone:", outputs_gone())
     elif s == 8:
         shot("04_after_undo.png")
         focus_blender()
-        xdo("key", "ctrl+shift+z")
+        for _ in range(STATE.get("runs", 1)):
+            xdo("key", "ctrl+shift+z")
     elif s == 9:
         log("after Ctrl+Shift+Z the outputs are there:", not outputs_gone())
         r = call(bpy.ops.surfmap.show_output, what='COLOURS',
@@ -355,6 +480,22 @@ def step():
             target.hide_set(True)
     elif s == 17:
         shot("12_cut_along_seams.png")
+    elif s == 50:   # UI_CHECK_IDLE: the end of the idle stretch
+        if bpy.app.timers.is_registered(idle_progress):
+            bpy.app.timers.unregister(idle_progress)
+        t0, t1 = STATE["t_start"], time.time()
+        inside = [x for x in STATE["ticks"] if t0 <= x <= t1]
+        rates = window_rates(inside, t0, t1)
+        gaps = [b - a for a, b in zip(inside, inside[1:])]
+        dr = [x for x in STATE.get("draws", []) if t0 <= x <= t1]
+        ud = [x for x in STATE.get("ui_draws", []) if t0 <= x <= t1]
+        log(f"idle {t1 - t0:.1f}s: {len(inside)} ticks, longest gap "
+            f"{max(gaps) if gaps else float('nan'):.3f}s, 3D view draws {len(dr)}, sidebar "
+            f"draws {len(ud)}")
+        log(f"ticks per 1 s window (idle): {rate_distribution(rates)}, load average "
+            f"{' '.join(f'{x:.1f}' for x in os.getloadavg())}")
+        STATE["step"] = 100
+        return 0.1
     elif s == 98:
         win, area, _ = view3d()
         ui = next(r for r in area.regions if r.type == 'UI')
@@ -375,7 +516,8 @@ def step():
         call(bpy.ops.wm.quit_blender)
         return None
     STATE["step"] = s + 1
-    redraw_all()
+    if s != 2:   # (not after the Compute click: a redraw of every area is no part of the run)
+        redraw_all()
     return 4.0
 
 

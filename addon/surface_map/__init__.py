@@ -8,8 +8,8 @@ Module layout (like the glTF add-on; the data flow file by file is in docs/addon
     cut_loops.py    the system of loops of one object
     map_job.py      MapOptions (the panel's choices in the core's spelling), MapJob (the solve
                     on a worker thread, the outputs in slices)
-    geometry.py, distortion.py, colours.py, uv_transfer.py, landmarks.py, morph.py
-                    the maths of the outputs
+    geometry.py, distortion.py, colours.py, uv_transfer.py, texture_bake.py, landmarks.py,
+    morph.py        the maths of the outputs
   bpy:
     properties.py   the scene's PropertyGroup (scene.surfmap) and the add-on preferences
     blender_io.py   reading meshes, writing attributes, UVs, shape keys, curves
@@ -37,7 +37,7 @@ _BPY_MODULES = ("properties", "blender_io", "ops_common", "ops_cut_loops", "ops_
                 "ops_stored_map", "ops_view", "verify_operator", "batch_operators", "bake_operator", "panel",
                 "legend")
 _PLAIN_MODULES = ("native", "side", "geometry", "distortion", "colours", "uv_transfer",
-                  "landmarks", "morph", "cut_loops", "map_job")
+                  "texture_bake", "landmarks", "morph", "cut_loops", "map_job")
 
 if bpy is not None:
     import importlib

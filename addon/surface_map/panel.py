@@ -55,11 +55,24 @@ class SURFMAP_UL_candidates(bpy.types.UIList):
         return [], new_order
 
 
+def computing():
+    """True while Compute Map runs: the sub-panels are then hidden, the main panel shows the
+    progress bar alone. Their buttons take no clicks meanwhile (the modal operator holds the
+    events), and every progress update redraws the whole sidebar: with software OpenGL its
+    widgets are about half of what one update costs Blender's main thread (docs/addon.md,
+    "UI ticks during the compute")."""
+    return map_job.ACTIVE.get("job") is not None
+
+
 class _SubPanel:
     bl_space_type = 'VIEW_3D'
     bl_region_type = 'UI'
     bl_category = "Surface Map"
     bl_parent_id = "SURFMAP_PT_main"
+
+    @classmethod
+    def poll(cls, context):
+        return not computing()
 
 
 def _lines(layout, text, limit, icon='NONE'):
@@ -101,7 +114,7 @@ class SURFMAP_PT_main(bpy.types.Panel):
 
 def draw_progress(layout, settings):
     """The running job's progress bar and stage (nothing when idle)."""
-    if map_job.ACTIVE.get("job") is None:
+    if not computing():
         return
     col = layout.column(align=True)
     col.label(text=settings.progress_stage or "Working", icon='SORTTIME')
@@ -234,18 +247,49 @@ class SURFMAP_PT_result(_SubPanel, bpy.types.Panel):
     @classmethod
     def poll(cls, context):
         s = context.scene.surfmap
-        return bool(s.map_status or len(s.summary_rows))
+        return not computing() and bool(s.map_status or len(s.summary_rows))
 
     def draw(self, context):
         draw_result(self.layout, context.scene.surfmap)
 
 
+def result_lines(rows):
+    """The Result panel's lines from the run's (label, value) rows (ops_map.summary_rows):
+    "Time" with the stage split ('  solve', ... as one wrapped text) right under "Energy",
+    "Mean D'" and "Max D'" on one line, the other rows as they are. After a run the panel
+    sits under Outputs at the sidebar's bottom edge: the fewer lines, the more of it shows."""
+    rows = [(name, value) for name, value in rows]
+    d = dict(rows)
+    max_d = d.get("Max D'")
+    stages = [f"{name.strip()} {value.replace(' s', '')}" for name, value in rows
+              if name.startswith("  ") and value != "0.0 s"]   # (under 0.05 s: left out)
+    timing = []
+    if "Time" in d:
+        timing.append(("Time", d["Time"]))
+        if stages:
+            timing += [("", line) for line in _wrap(", ".join(stages) + " s", WRAP)]
+    out = []
+    for name, value in rows:
+        if name.startswith("  ") or name == "Time" or (name == "Max D'" and "Mean D'" in d):
+            continue
+        if name == "Mean D'" and max_d is not None:
+            name, value = "D' mean/max", f"{value} / {max_d}"
+        out.append((name, value))
+        if name == "Energy":
+            out += timing
+            timing = []
+    return out + timing
+
+
 def draw_result(layout, settings):
     col = layout.column(align=True)
-    for row in settings.summary_rows:
+    for name, value in result_lines((r.name, r.value) for r in settings.summary_rows):
+        if not name:
+            col.label(text=value)
+            continue
         split = col.split(factor=0.45, align=True)
-        split.label(text=row.name)
-        split.label(text=row.value)
+        split.label(text=name)
+        split.label(text=value)
     if settings.map_status and not len(settings.summary_rows):
         _lines(col, settings.map_status, 8)
     if settings.landmark_status:
