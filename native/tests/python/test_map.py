@@ -252,12 +252,13 @@ def test_cli_target_metric_has_the_python_spelling(tmp_path, cli):
     surfmap.write_obj(str(src), Vs, Fs)
     surfmap.write_obj(str(dst), Vt, Ft)
     rep = tmp_path / "report.json"
-    r = cli("map", src, dst, "--report", rep, "--quiet", "--target-metric", "fixed-first")
+    r = cli("map", src, dst, "--out", tmp_path / "m.obj", "--report", rep, "--quiet",
+            "--target-metric", "fixed-first")
     assert r.returncode == 0, r.stderr
     report = json.loads(rep.read_text())
     assert report["target_metric_requested"] == "fixed-first"
     assert report["target_metric_choice"] == "fixed first: the fixed-connectivity metric"
-    bad = cli("map", src, dst, "--report", tmp_path / "no.json", "--target-metric", "fixed_first")
+    bad = cli("map", src, dst, "--out", tmp_path / "n.obj", "--target-metric", "fixed_first")
     assert bad.returncode != 0 and "fixed-first" in bad.stderr + bad.stdout
 
 
