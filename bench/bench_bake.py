@@ -2,11 +2,13 @@
 own Selected-to-Active bake, on the shipped genus-2 sample pair and on real genus-2 meshes.
 
   blender -b --factory-startup --python bench/bench_bake.py -- [MESH_DIR] [--resolution N]
-      [--no-cycles] [--only LABEL]
+      [--no-cycles] [--only LABEL] [--target-metric auto|flips|fixed|fixed-first]
 
 MESH_DIR: the real meshes (default shared/meshes beside the repository); the pairs are
 samples/meshes double_torus_g2 -> vase_g2 and triple_torus_g3 -> polycube_g3, and MESH_DIR
 g2_double-torus_gpjs -> g2_eight_summer (--only: the pairs whose label contains LABEL).
+--target-metric: the map's target metric (default: the add-on's, the core's default; to compare
+the flip-based metric with the fixed connectivity, docs/baking.md).
 The source gets a cube-projection UV map (six islands: many seams) and a checker image (16 x 16
 squares of two colours). Per pair it prints:
   fill      fraction of the target's island texels the bake filled
@@ -47,7 +49,8 @@ from surface_map import texture_bake as TB  # noqa: E402
 
 def args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-    opts = {"dir": None, "resolution": 1024, "cycles": True, "points": 20000, "only": None}
+    opts = {"dir": None, "resolution": 1024, "cycles": True, "points": 20000, "only": None,
+            "target_metric": None}
     i = 0
     while i < len(argv):
         a = argv[i]
@@ -56,6 +59,9 @@ def args():
             i += 1
         elif a == "--only":
             opts["only"] = argv[i + 1]
+            i += 1
+        elif a == "--target-metric":
+            opts["target_metric"] = argv[i + 1]
             i += 1
         elif a == "--no-cycles":
             opts["cycles"] = False
@@ -235,8 +241,22 @@ def print_bands(err, ring):
         print(f"  {k:26s} " + "; ".join(cells))
 
 
+def with_target_metric(name):
+    """Makes the add-on's map job ask the native module for the target metric `name`."""
+    mod = helpers.sm()
+    solve = mod.surface_map
+
+    def surface_map(*a, **kw):
+        kw.setdefault("target_metric", name)
+        return solve(*a, **kw)
+    mod.surface_map = surface_map
+
+
 def main():
     opts = args()
+    if opts["target_metric"]:
+        with_target_metric(opts["target_metric"])
+        print(f"target metric: {opts['target_metric']}")
     samples = os.path.join(REPO, "samples", "meshes")
     pairs = [("sample g2", os.path.join(samples, "double_torus_g2.obj"),
               os.path.join(samples, "vase_g2.obj")),

@@ -211,23 +211,13 @@ class MapJob:
         t = time.time()
         kw = self.native_kwargs()   # prepare_job checked the core accepts them
 
-        def solve(**extra):
-            return self.sm.surface_map(self.source.V, self.source.F, self.target.V, self.target.F,
-                                       progress=self._progress, **kw, **extra)
-
-        if core_supports(self.sm, "target_metric"):
-            # The seam cut and the texture bake read the map as piecewise linear on the target's
-            # faces, which the fixed-connectivity target metric gives and the core's default (the
-            # flip-based metric: piecewise projective, docs/uniformization.md "Not done") does
-            # not: the fixed metric first, the flip-based one when the fixed one does not exist.
-            try:
-                self.result = solve(target_metric="fixed")
-            except self.sm.SolveError as e:
-                if self.cancel or not str(e).startswith(("target uniformization", "target layout")):
-                    raise
-                self.result = solve(target_metric="flips")
-        else:
-            self.result = solve()
+        # The core's default target metric (the flip-based one, docs/uniformization.md "Which
+        # target metric runs"): every output reads the map only at the per-vertex images
+        # (forward: source vertices on the target's faces, inverse: target vertices on the
+        # source's), which it delivers on the user's own faces for either metric
+        # (docs/addon.md "Outputs on the flip-based metric").
+        self.result = self.sm.surface_map(self.source.V, self.source.F, self.target.V,
+                                          self.target.F, progress=self._progress, **kw)
         self.times["solve"] = time.time() - t
         if self.cancel:
             raise self.sm.Cancelled("cancelled")

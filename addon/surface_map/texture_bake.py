@@ -152,15 +152,20 @@ EQUILATERAL = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, math.sqrt(3) / 2]])
 
 
 class SplitTarget:
-    """The target's triangles split at the images of the source's vertices that lie strictly
-    inside them (forward map; Delaunay in each triangle's plane, from V_tgt (n_t,3) when given,
-    else an equilateral triangle), so that the map is known exactly at every node.
+    """The target's triangles split at the images of the source's vertices that lie inside
+    them or on their edges (forward map; Delaunay in each triangle's plane, from V_tgt (n_t,3)
+    when given, else an equilateral triangle), so that the map is known exactly at every node.
+    A point on a target edge (one barycentric within `eps` of 0: symmetric meshes put source
+    vertices exactly on target edges, e.g. the flat torus's translation that puts base vertex
+    on base vertex) splits the edge and is a node of the triangles on both sides (no
+    T-junction); left out, the sub-triangles around it would interpolate across its source
+    vertex, whose unfolded charts have a slit there (docs/baking.md "What is exact").
 
     parent (E,): the target triangle of each sub-triangle; node_bary (E,3,3): its corners'
     barycentrics in the parent; node_face (E,3), node_src_bary (E,3,3): the corners' preimages
     on the source (target vertices: the stored inverse; inserted points: their source vertex);
-    inserted: how many source vertices became nodes (the others lie on target edges or
-    vertices, within `eps` in barycentrics)."""
+    inserted: how many source vertices became nodes (the others lie on target vertices, two
+    barycentrics within `eps` of 0)."""
 
     def __init__(self, F_src, F_tgt, forward_face, forward_bary, inverse_face, inverse_bary,
                  eps=1e-6, insert=True, V_tgt=None):
@@ -181,22 +186,19 @@ class SplitTarget:
         nsb = [inv_b[F_tgt]]
         self.inserted = 0
         if insert and len(forward_face):
-            fw_f = np.asarray(forward_face, dtype=np.int64)
-            fw_b = np.asarray(forward_bary, dtype=np.float64)
-            inside = fw_b.min(axis=1) > eps
-            verts = np.nonzero(inside)[0]
-            order = np.argsort(fw_f[verts], kind="stable")
-            verts = verts[order]
+            fw_t, fw_w, verts = self._points_per_triangle(F_tgt, forward_face, forward_bary, eps)
+            self.inserted = len(np.unique(verts))
+            order = np.argsort(fw_t, kind="stable")
+            fw_t, fw_w, verts = fw_t[order], fw_w[order], verts[order]
             keep = np.ones(mt, dtype=bool)
             frames = None if V_tgt is None else face_frames(V_tgt, F_tgt)
             sub_p, sub_b, sub_f, sub_s = [], [], [], []
-            bounds = np.flatnonzero(np.diff(fw_f[verts])) + 1
-            for group in np.split(verts, bounds) if len(verts) else []:
-                t = int(fw_f[group[0]])
+            bounds = np.flatnonzero(np.diff(fw_t)) + 1
+            for rows in np.split(np.arange(len(verts)), bounds) if len(verts) else []:
+                t = int(fw_t[rows[0]])
                 keep[t] = False
-                tris = self._split_one(t, group, fw_b, F_tgt, inv_f, inv_b, vf, vk, eps,
+                tris = self._split_one(t, verts[rows], fw_w[rows], F_tgt, inv_f, inv_b, vf, vk,
                                        frames[t] if frames is not None else EQUILATERAL)
-                self.inserted += (len(tris) - 1) // 2     # k points: 2k + 1 triangles
                 for bary, faces, sb in tris:
                     sub_p.append(t)
                     sub_b.append(bary)
@@ -212,21 +214,51 @@ class SplitTarget:
         self.node_src_bary = np.concatenate(nsb)
 
     @staticmethod
-    def _split_one(t, group, fw_b, F_tgt, inv_f, inv_b, vf, vk, eps, corners2d):
-        """The sub-triangles of target triangle t with the source vertices `group` inserted:
-        the Delaunay triangulation of its corners and those points (Bowyer-Watson, in the
-        triangle's own plane `corners2d` (3,2); its edges stay edges since every point is
-        strictly inside), so that the sub-triangles are as round as the points allow and
-        their corners close on the source. Returns [(node bary in t (3,3), source faces (3,),
-        source barys (3,3))]."""
+    def _points_per_triangle(F_tgt, forward_face, forward_bary, eps):
+        """The source vertices to insert, as rows (target triangle (k,), barycentrics there
+        (k,3), source vertex (k,)): each image strictly inside its triangle once, each image on
+        a target edge (one barycentric <= eps, set to 0) once for each triangle of the edge."""
+        fw_f = np.asarray(forward_face, dtype=np.int64)
+        fw_b = np.asarray(forward_bary, dtype=np.float64)
+        low = (fw_b <= eps).sum(axis=1)
+        ok = fw_f >= 0
+        inner = np.nonzero(ok & (low == 0))[0]
+        edge = np.nonzero(ok & (low == 1))[0]
+        t_in, w_in = fw_f[inner], fw_b[inner]
+        k0 = np.argmin(fw_b[edge], axis=1)               # the corner off the edge
+        w_e = fw_b[edge].copy()
+        w_e[np.arange(len(edge)), k0] = 0.0
+        w_e /= w_e.sum(axis=1, keepdims=True)
+        t_e = fw_f[edge]
+        # the same point in the triangle across the edge (corner k0+1 -> k0+2 is edge k of t,
+        # uv_transfer.face_adjacency's numbering; the neighbour runs it reversed as its edge j)
+        nf, ne = face_adjacency(F_tgt)
+        k = (k0 + 1) % 3
+        t2, j = nf[t_e, k], ne[t_e, k]
+        has = t2 >= 0
+        r = np.nonzero(has)[0]
+        w2 = np.zeros((len(r), 3))
+        w2[np.arange(len(r)), j[r]] = w_e[r, (k[r] + 1) % 3]
+        w2[np.arange(len(r)), (j[r] + 1) % 3] = w_e[r, k[r]]
+        return (np.concatenate([t_in, t_e, t2[r]]), np.concatenate([w_in, w_e, w2]),
+                np.concatenate([inner, edge, edge[r]]))
+
+    @staticmethod
+    def _split_one(t, group, weights, F_tgt, inv_f, inv_b, vf, vk, corners2d):
+        """The sub-triangles of target triangle t with the source vertices `group` inserted
+        at barycentrics `weights` (k,3): the Delaunay triangulation of its corners and those
+        points (Bowyer-Watson, in the triangle's own plane `corners2d` (3,2); a point on an
+        edge of t splits it, the zero-area triangle it would close with that edge dropped),
+        so that the sub-triangles are as round as the points allow and their corners close
+        on the source. Returns [(node bary in t (3,3), source faces (3,), source barys
+        (3,3))]."""
         pts = [np.eye(3)[k] for k in range(3)]
         xy = [corners2d[k] for k in range(3)]
         faces = [int(inv_f[F_tgt[t, k]]) for k in range(3)]
         sbs = [inv_b[F_tgt[t, k]] for k in range(3)]
         tris = [(0, 1, 2)]
         scale = float(np.abs(corners2d).max()) or 1.0
-        for v in group:
-            p = fw_b[v]
+        for v, p in zip(group, weights):
             q = p @ corners2d
             if min(float(np.linalg.norm(q - x)) for x in xy) <= 1e-9 * scale:
                 continue
@@ -249,9 +281,14 @@ class SplitTarget:
                 for e in ((a, b), (b, c), (c, a)):
                     count[e] = count.get(e, 0) + 1
             rim = [e for e in count if (e[1], e[0]) not in count]
-            tris = keep + [(a, b, i) for a, b in rim]
+            tris = keep + [(a, b, i) for a, b in rim
+                           if abs(_cross2(xy[b] - xy[a], q - xy[a])) > 1e-12 * scale * scale]
         return [(np.array([pts[a], pts[b], pts[c]]), [faces[a], faces[b], faces[c]],
                  np.array([sbs[a], sbs[b], sbs[c]])) for a, b, c in tris]
+
+
+def _cross2(u, v):
+    return float(u[0] * v[1] - u[1] * v[0])
 
 
 def _in_circumcircle(a, b, c, p):

@@ -317,6 +317,15 @@ class UVTransfer:
         self.result = (out, straddling)
 
 
+def _winding(P, X):
+    """Winding number of the closed polygon P (k,2) around the point X (2,)."""
+    d = P - X
+    a = np.arctan2(d[:, 1], d[:, 0])
+    turn = np.diff(np.append(a, a[0]))
+    turn = (turn + np.pi) % (2 * np.pi) - np.pi
+    return int(round(turn.sum() / (2 * np.pi)))
+
+
 def _polygon_area(uv):
     """Twice the signed area of a UV polygon (k,2) (shoelace)."""
     x, y = uv[:, 0], uv[:, 1]
@@ -455,6 +464,19 @@ class SeamCut:
     that image. Polygons neither rule resolves keep one chart per polygon (UVTransfer) and are
     counted in `unresolved`.
 
+    Degenerate positions: a map can put a target vertex exactly on a source edge, vertex or seam,
+    or a seam junction exactly on a target vertex or edge (symmetric meshes, e.g. a torus onto a
+    torus with the translation that puts base vertex on base vertex; docs/addon.md "Outputs on
+    the flip-based metric"). Then a target edge may run along a seam and a straight trace has no
+    well-defined side. The cut works on a consistent infinitesimal perturbation instead: every
+    target vertex's preimage moved a fraction INWARD (1e-6) of the way to its source triangle's
+    centroid (one position per vertex, shared by all its edges; 1e-6 of a triangle is far below
+    what a texture shows). A junction goes to the polygon whose preimage (its corners' perturbed
+    preimages joined by the straight sides the traces draw, in one chart) winds around it, so
+    that the crossings on that polygon's edges and the junction agree also where the trace and
+    the forward map differ slightly (a junction next to a target edge, or on a target vertex or
+    edge); its vertex is the forward image, moved just inside that polygon when it lies outside.
+
     Inputs: tr (UVTransfer of the source map to cut along); V_t (n,3), loop_start/loop_total (P,),
     loop_vertex (L,): the target's polygons; inv_face (n,), inv_bary (n,3): the preimage of each
     target vertex; optional fw_face (ns,), fw_bary (ns,3), F_t (mt,3), tri_polygon (mt,): the
@@ -472,12 +494,17 @@ class SeamCut:
         self.total = np.asarray(loop_total, dtype=np.int64)
         self.lv = np.asarray(loop_vertex, dtype=np.int64)
         self.inv_face = np.asarray(inv_face, dtype=np.int64)
-        self.inv_bary = np.asarray(inv_bary, dtype=np.float64)
+        b = np.clip(np.asarray(inv_bary, dtype=np.float64), 0.0, None)   # a stored map is float32:
+        b /= np.maximum(b.sum(axis=1, keepdims=True), 1e-300)              # weights summing to 1
+        self.inv_bary = b                   # the corners' UVs: the map itself
+        self.trace_bary = (1.0 - self.INWARD) * b + self.INWARD / 3.0    # the traces (class doc)
         self.junction_at = self._junction_images(fw_face, fw_bary, F_t, tri_polygon)
         src_scale = float(np.ptp(tr.uv.reshape(-1, 2), axis=0).max()) if len(tr.uv) else 1.0
         self.uv_tol = 1e-7 * (src_scale if src_scale > 0 else 1.0)
         self.cut = self.pieces = self.junctions = self.unresolved = self.crossings = 0
         self.reasons = {}    # why polygons stayed unresolved: reason -> count
+
+    INWARD = 1e-6   # the perturbation of the target vertices' preimages (class doc)
 
     # -- seam junctions ------------------------------------------------------------------------
 
@@ -498,13 +525,68 @@ class SeamCut:
         tri_polygon = np.asarray(tri_polygon, dtype=np.int64)
         fw_face = np.asarray(fw_face, dtype=np.int64)
         fw_bary = np.asarray(fw_bary, dtype=np.float64)
+        corners_of = None
         for s in np.nonzero((valence == 1) | (valence >= 3))[0].tolist():
             t = int(fw_face[s])
             if t < 0:
                 continue
             X = fw_bary[s] @ self.Vt[F_t[t]]
-            where.setdefault(int(tri_polygon[t]), []).append((s, X))
+            p = int(tri_polygon[t])
+            # the polygon whose traced preimage holds the junction (class doc), among those
+            # around the forward image's triangle
+            if corners_of is None:
+                corners_of = self._polygons_at_vertices()
+            near = {q for k in range(3) for q in corners_of.get(int(F_t[t, k]), ())}
+            q = self._polygon_holding(s, sorted(near), p)
+            if q != p:
+                X = self._just_inside(q, X)
+            where.setdefault(q, []).append((s, X))
         return where
+
+    def _just_inside(self, q, X):
+        """A point of polygon q near X: the nearest point of its boundary, a tenth of the
+        way to its centroid."""
+        verts = self.lv[self.start[q]:self.start[q] + self.total[q]]
+        P = self.Vt[verts]
+        best = None
+        for a, b in zip(P, np.roll(P, -1, axis=0)):
+            e = b - a
+            t = float(np.clip((X - a) @ e / max(float(e @ e), 1e-300), 0.0, 1.0))
+            Y = a + t * e
+            if best is None or np.linalg.norm(X - Y) < np.linalg.norm(X - best):
+                best = Y
+        return best + 0.1 * (P.mean(axis=0) - best)
+
+    def _polygons_at_vertices(self):
+        """{target vertex: [polygons with it as a corner]}."""
+        out = {}
+        poly = np.repeat(np.arange(len(self.start)), self.total)
+        for v, q in zip(self.lv.tolist(), poly.tolist()):
+            out.setdefault(v, []).append(q)
+        return out
+
+    def _polygon_holding(self, s, candidates, default):
+        """The polygon among `candidates` whose perturbed preimage (corners' preimages in one
+        chart continued from a source triangle at vertex s, straight sides as the trace draws
+        them) winds around source vertex s; `default` when none or several do."""
+        tr = self.tr
+        fs, cs = np.nonzero(tr.F == s)
+        if not len(fs):
+            return default
+        f0, c0 = int(fs[0]), int(cs[0])
+        J = tr.uv[f0, c0]
+        holding = []
+        for q in candidates:
+            verts = self.lv[self.start[q]:self.start[q] + self.total[q]]
+            faces = self.inv_face[verts].tolist()
+            T = tr._continue(f0, set(faces))
+            if any(f not in T for f in faces):
+                continue
+            P = np.array([_apply(T[f], (self.trace_bary[v] @ tr.uv[f])[None])[0]
+                          for v, f in zip(verts.tolist(), faces)])
+            if _winding(P, J) != 0:
+                holding.append(q)
+        return holding[0] if len(holding) == 1 else default
 
     def _junction_uv(self, s, island, near):
         """UV of source vertex s in the given island, the corner nearest `near` (an island can
@@ -540,7 +622,7 @@ class SeamCut:
         # once when both cross the same edges; near a seam junction the two sides of the
         # junction differ by the curvature there, and a trace ending in b's island within
         # about a triangle of b is taken).
-        own_b = self.inv_bary[b] @ tr.uv[fb]
+        own_b = self.trace_bary[b] @ tr.uv[fb]
         size = float(np.ptp(tr.uv[fb], axis=0).max())
         best = None
         for _ in range(4):
@@ -577,7 +659,7 @@ class SeamCut:
         (crossings, chart transform of the triangle it ends in, that triangle) or None."""
         tr = self.tr
         uv, nf, ne, seam = tr.uv, tr.nf, tr.ne, tr.seam
-        ba, bb = self.inv_bary[a], self.inv_bary[b]
+        ba, bb = self.trace_bary[a], self.trace_bary[b]
         A = ba @ uv[fa]
         B = _apply(T_b, (bb @ uv[fb])[None])[0]
         h, T_h, s, came = fa, IDENTITY, 0.0, -1

@@ -61,7 +61,7 @@ void register_map(CLI::App& app) {
   struct Args {
     std::string src, dst, out, report, correspondence, method = enum_name(MapMethod::Newton), landmarks,
         initial = enum_name(InitialMapMethod::CutGraph), initial_out, source_weights = enum_name(SourceWeights::Automatic),
-        target_metric = "auto";
+        target_metric = enum_name(UniformizationMetric::Automatic);
     int threads = 0, homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
     double tolerance = 1e-10;
@@ -125,9 +125,10 @@ void register_map(CLI::App& app) {
   cmd->add_option("--target-metric", a->target_metric,
                   "Genus >= 1: the target's uniformization metric: auto (default: flips, fixed only when the flip "
                   "path fails; report: target_metric_choice), flips (Newton with intrinsic "
-                  "Delaunay / Ptolemy flips, results carried back to the target's own faces) or fixed (the target's "
-                  "own edges, refined by altitude-foot splits when that metric does not exist)")
-      ->check(CLI::IsMember({"auto", "flips", "fixed"}));
+                  "Delaunay / Ptolemy flips, results carried back to the target's own faces), fixed (the target's "
+                  "own edges, refined by altitude-foot splits when that metric does not exist) or fixed-first "
+                  "(fixed, and flips only when the fixed metric cannot be delivered)")
+      ->check(CLI::IsMember(enum_name_list<UniformizationMetric>()));
   cmd->add_flag("--quiet", a->quiet, "No progress lines on stderr");
   cmd->add_flag("--timings", a->timings,
                 "Print the stage table on stderr: per stage seconds, factorisations, Newton iterations, peak memory");
@@ -159,9 +160,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.candidates = a->homotopy_candidates;
     opt.homotopy.full_solves = a->homotopy_full_solves;
     opt.initial.method = parse_enum<InitialMapMethod>(a->initial, "--initial-map");
-    opt.target_metric = a->target_metric == "fixed"   ? UniformizationMetric::FixedConnectivity
-                        : a->target_metric == "flips" ? UniformizationMetric::IntrinsicDelaunay
-                                                      : UniformizationMetric::Automatic;
+    opt.uniformization.target_metric = parse_enum<UniformizationMetric>(a->target_metric, "--target-metric");
     opt.homotopy.extra_cuts = a->homotopy_extra_cuts;
     opt.homotopy.search.enabled = !a->no_homotopy_search;
     opt.homotopy.search.evaluations = a->homotopy_search_evaluations;

@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "surfmap/error.h"
 #include "surfmap/mesh/intake.h"
+#include "surfmap/map/map_option_names.h"
 #include "surfmap/mesh/mesh_io.h"
 #include "surfmap/uniformize/uniformize.h"
 
@@ -37,7 +38,7 @@ void run(const Args& a) {
   opt.scheme = a.scheme == "inversive" ? RicciScheme::InversiveDistance : RicciScheme::VertexScaling;
   opt.method = a.method == "flow" ? RicciMethod::GradientFlow : RicciMethod::Newton;
   opt.tolerance = a.tolerance;
-  opt.metric = a.metric == "fixed" ? UniformizationMetric::FixedConnectivity : UniformizationMetric::IntrinsicDelaunay;
+  opt.metric = parse_enum<UniformizationMetric>(a.metric, "--metric");
   // The altitude-foot refinement of the fixed-connectivity path is opt-in.
   opt.fixed_connectivity_refinement = a.refine;
   opt.floor_tolerance = a.floor_tolerance;
@@ -158,9 +159,10 @@ void register_uniformize(CLI::App& app) {
   cmd->add_option("--method", a->method, "newton (default) or flow (the paper's explicit flow)")
       ->check(CLI::IsMember({"newton", "flow"}));
   cmd->add_option("--metric", a->metric,
-                  "flips (default: Newton with intrinsic Delaunay / Ptolemy flips; a metric always exists) or "
-                  "fixed (the input connectivity, which can fail on slivers)")
-      ->check(CLI::IsMember({"flips", "fixed"}));
+                  "flips (default: Newton with intrinsic Delaunay / Ptolemy flips; a metric always exists; auto "
+                  "is the same), fixed (the input connectivity, which can fail on slivers) or fixed-first (fixed, "
+                  "flips when it fails; report: metric)")
+      ->check(CLI::IsMember(enum_name_list<UniformizationMetric>()));
   cmd->add_flag("--refine", a->refine,
                 "With --metric fixed: refine exactly (altitude-foot splits) when the metric does not exist");
   cmd->add_option("--base-vertex", a->base_vertex, "Base vertex of the loops (default: automatic)");

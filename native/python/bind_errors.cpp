@@ -1,5 +1,6 @@
 // One exception hierarchy seen from Python: surfmap.Error is the base;
-// InputError is also a ValueError, SolveError also a RuntimeError.
+// InputError is also a ValueError, SolveError also a RuntimeError,
+// UniformizationError a SolveError.
 #include "bindings.h"
 #include "surfmap/error.h"
 
@@ -16,17 +17,25 @@ void bind_errors(py::module_& m) {
   static py::handle solve_error = PyErr_NewExceptionWithDoc(
       "surfmap.SolveError", "A numerical solve did not converge or produced an invalid result.",
       py::make_tuple(error, py::handle(PyExc_RuntimeError)).release().ptr(), nullptr);
+  static py::handle uniformization_error = PyErr_NewExceptionWithDoc(
+      "surfmap.UniformizationError",
+      "A uniformization metric could not be delivered (the flow did not converge, the metric does not exist on the "
+      "fixed connectivity, or its layout is inconsistent); a SolveError.",
+      solve_error.ptr(), nullptr);
   static py::handle cancelled = PyErr_NewExceptionWithDoc(
       "surfmap.Cancelled", "The progress callback asked to stop.", error.ptr(), nullptr);
   m.attr("Error") = error;
   m.attr("InputError") = input_error;
   m.attr("SolveError") = solve_error;
+  m.attr("UniformizationError") = uniformization_error;
   m.attr("Cancelled") = cancelled;
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const InputError& e) {
       PyErr_SetString(input_error.ptr(), e.what());
+    } catch (const UniformizationError& e) {
+      PyErr_SetString(uniformization_error.ptr(), e.what());
     } catch (const SolveError& e) {
       PyErr_SetString(solve_error.ptr(), e.what());
     } catch (const Cancelled& e) {

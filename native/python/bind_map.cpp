@@ -234,11 +234,8 @@ void bind_map(py::module_& m) {
         opt.solve.source_weights = parse_enum<SourceWeights>(source_weights, "source_weights");
         if (threads < 0) throw InputError("threads must be 0 (automatic) or at least 1");
         opt.threads = threads;
-        if (target_metric != "auto" && target_metric != "flips" && target_metric != "fixed")
-          throw InputError("target_metric must be 'auto', 'flips' or 'fixed', not '" + target_metric + "'");
-        opt.target_metric = target_metric == "fixed"   ? UniformizationMetric::FixedConnectivity
-                            : target_metric == "flips" ? UniformizationMetric::IntrinsicDelaunay
-                                                       : UniformizationMetric::Automatic;
+        // (options.uniformization.target_metric)
+        opt.uniformization.target_metric = parse_enum<UniformizationMetric>(target_metric, "target_metric");
         if (!landmarks.is_none()) {
           const auto pairs = py::cast<std::vector<std::vector<long long>>>(
               py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
@@ -297,7 +294,7 @@ void bind_map(py::module_& m) {
       py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
       py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = enum_name(SourceWeights::Automatic),
       py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
-      py::arg("boundary_pairing") = py::none(), py::arg("two_way") = true, py::arg("threads") = 0, py::arg("target_metric") = "auto",
+      py::arg("boundary_pairing") = py::none(), py::arg("two_way") = true, py::arg("threads") = 0, py::arg("target_metric") = enum_name(UniformizationMetric::Automatic),
       py::arg("homotopy_images") = py::none(),
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
@@ -327,8 +324,10 @@ void bind_map(py::module_& m) {
       "the stage table (per stage time_s, analyses, factorisations, newton_iterations, peak_memory_mb; last row "
       "'total'); `target_metric`: 'auto' (genus >= 1 default: "
       "'flips', 'fixed' only when the flip path fails), 'flips' (the target's flip-based metric, "
-      "results carried back to its own faces) or 'fixed' (its own edges, refined when needed; 'target_metric', "
-      "'target_metric_choice', 'target_flips', 'target_refinement_splits' in the result). `homotopy_images`: (#V_source, 3) "
+      "results carried back to its own faces), 'fixed' (its own edges, refined when needed) or 'fixed-first' ('fixed', "
+      "'flips' only when the fixed metric cannot be delivered); 'target_metric_requested', 'target_metric', "
+      "'target_metric_choice', 'target_flips', 'target_refinement_splits' in the result; when no allowed metric can "
+      "be delivered, surfmap.UniformizationError (a SolveError). `homotopy_images`: (#V_source, 3) "
       "a point on the target per source vertex (genus >= 2): the class of the source's loops carried there is the only "
       "candidate (no ranking, search or two-way run; SolveError when they do not carry). `progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");

@@ -8,6 +8,7 @@
 #include "convert.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/hyperbolic.h"
+#include "surfmap/map/map_option_names.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/mesh/intake.h"
 #include "surfmap/uniformize/uniformize.h"
@@ -140,9 +141,7 @@ void bind_uniformize(py::module_& m) {
         opt.method = parse_method(method);
         opt.tolerance = tolerance;
         opt.floor_tolerance = floor_tolerance;
-        if (metric != "flips" && metric != "fixed")
-          throw InputError("metric must be 'flips' or 'fixed', got '" + metric + "'");
-        opt.metric = metric == "fixed" ? UniformizationMetric::FixedConnectivity : UniformizationMetric::IntrinsicDelaunay;
+        opt.metric = parse_enum<UniformizationMetric>(metric, "metric");
         opt.base_vertex = base_vertex;
         Progress p{progress, {}};
         opt.progress = p.make();
@@ -209,9 +208,11 @@ void bind_uniformize(py::module_& m) {
       "hyperbolic ('generators' as (2g,4) [a.re,a.im,b.re,b.im] of z -> (az+b)/(conj(b)z+conj(a))). "
       "'layout' holds the cut disk (complex 'corners' per face of 'refined_F', 'disk_positions', 'disk_F'). "
       "progress(iteration, residual) may return False to cancel (raises surfmap.Cancelled). Raises "
-      "surfmap.SolveError if the metric does not converge (a residual above `tolerance` at the floating-point "
-      "floor but within `floor_tolerance` is converged, 'stopped_at_floor'). metric: 'flips' (default; Ptolemy "
-      "flips, loops on the intrinsic triangulation) or 'fixed' (the input connectivity). The GIL is released during the solve.");
+      "surfmap.UniformizationError (a SolveError) if the metric does not converge or its layout is inconsistent (a "
+      "residual above `tolerance` at the floating-point floor but within `floor_tolerance` is converged, "
+      "'stopped_at_floor'). metric: 'flips' (default; Ptolemy flips, loops on the intrinsic triangulation; 'auto' is "
+      "the same), 'fixed' (the input connectivity) or 'fixed-first' ('fixed', 'flips' when it fails; 'metric' in the "
+      "result says). The GIL is released during the solve.");
 
   m.def(
       "ricci_flow",

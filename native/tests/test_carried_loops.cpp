@@ -35,9 +35,9 @@ std::vector<Word> probes(int genus) {
 
 double max_relative_length_difference(const TriMesh& t, int* flips_on_loops) {
   SurfaceMapOptions o;
-  o.target_metric = UniformizationMetric::IntrinsicDelaunay;
+  o.uniformization.target_metric = UniformizationMetric::IntrinsicDelaunay;
   const detail::UniformizedTarget flip = detail::uniformized_target(t, Background::Hyperbolic, o);
-  o.target_metric = UniformizationMetric::FixedConnectivity;
+  o.uniformization.target_metric = UniformizationMetric::FixedConnectivity;
   const detail::UniformizedTarget fixed = detail::uniformized_target(t, Background::Hyperbolic, o);
   EXPECT_EQ(flip.metric, "intrinsic Delaunay");
   EXPECT_EQ(fixed.refinement_splits, 0);

@@ -151,6 +151,30 @@ TEST(ExactRefinement, InfeasibleSliverTargetGetsAHyperbolicMetric) {
   EXPECT_NEAR(u.area, 4 * M_PI * 2, 1e-6);  // 4π(g − 1)
 }
 
+// The failure of a metric is a type, not a message: on that target the
+// fixed-connectivity metric without refinement throws UniformizationError
+// (which callers catch to try another metric); fixed-first then runs the
+// flip path and says so, with the flip path's own area 4π(g − 1).
+TEST(ExactRefinement, MissingFixedMetricIsAUniformizationErrorAndFixedFirstRunsFlips) {
+  const TriMesh m = samples::n_hole_torus(3, 32, false);
+  UniformizeOptions fixed;
+  fixed.metric = UniformizationMetric::FixedConnectivity;
+  EXPECT_THROW(uniformize(m, fixed), UniformizationError);
+  try {
+    uniformize(m, fixed);
+  } catch (const SolveError& e) {  // still a SolveError for callers that catch that
+    EXPECT_NE(dynamic_cast<const UniformizationError*>(&e), nullptr);
+  }
+  UniformizeOptions fixed_first;
+  fixed_first.metric = UniformizationMetric::FixedFirst;
+  const UniformizeResult u = uniformize(m, fixed_first);
+  EXPECT_TRUE(u.converged);
+  EXPECT_EQ(u.metric.rfind("intrinsic Delaunay (fixed connectivity failed: uniformize: Ricci flow", 0), 0u) << u.metric;
+  EXPECT_GT(u.edge_flips, 0);
+  EXPECT_EQ(u.refinement_splits, 0);
+  EXPECT_NEAR(u.area, 4 * M_PI * 2, 1e-6);
+}
+
 // A map onto that target: no flips, and every forward point is on the
 // user's (unrefined) target: face index and barycentrics of its own faces.
 TEST(ExactRefinement, MapOntoAnInfeasibleTargetStaysOnTheUsersMesh) {
@@ -158,7 +182,7 @@ TEST(ExactRefinement, MapOntoAnInfeasibleTargetStaysOnTheUsersMesh) {
   const TriMesh t = samples::n_hole_torus(3, 32, false);
   SurfaceMapOptions o;
   o.homotopy.candidates = 1;  // the overlay class (more candidates cost minutes at genus 3 in the twist reduction)
-  o.target_metric = UniformizationMetric::FixedConnectivity;  // the refinement path (an option; the default runs flips)
+  o.uniformization.target_metric = UniformizationMetric::FixedConnectivity;  // the refinement path (an option; the default runs flips)
   const SurfaceMapResult m = surface_map(s, t, o);
   EXPECT_EQ(m.target_metric, "fixed connectivity");
   EXPECT_EQ(m.target_flips, 0);

@@ -38,7 +38,7 @@ SurfaceMapResult map_and_inspect(const TriMesh& a, const TriMesh& b, InitialMapM
   SurfaceMapOptions o;
   o.homotopy.class_index = 0;  // the overlay class (identity of a remeshed copy): no ranking needed
   o.initial.method = method;
-  o.target_metric = target_metric;
+  o.uniformization.target_metric = target_metric;
   testing::MapHooks hooks;
   hooks.inspect_initial_map = [&](const InitialMapInspection& in) {
     seen->rho = *in.halfedge_rho;

@@ -236,7 +236,7 @@ TEST(IntrinsicTargetMap, TargetWithoutFixedMetricMapsOnItsOwnFaces) {
   const TriMesh t = samples::n_hole_torus(3, 32, false);
   SurfaceMapOptions o;
   o.homotopy.candidates = 1;  // the overlay class (more candidates cost minutes at genus 3)
-  o.target_metric = UniformizationMetric::IntrinsicDelaunay;
+  o.uniformization.target_metric = UniformizationMetric::IntrinsicDelaunay;
   const SurfaceMapResult m = surface_map(s, t, o);
   EXPECT_TRUE(m.converged);
   EXPECT_EQ(m.target_metric, "intrinsic Delaunay");
@@ -260,11 +260,11 @@ TEST(IntrinsicTargetMap, AutomaticMetricIsTheFlipPath) {
   const TriMesh t = samples::n_hole_torus(3, 32, false);
   SurfaceMapOptions o;
   o.homotopy.candidates = 1;
-  ASSERT_EQ(o.target_metric, UniformizationMetric::Automatic);
+  ASSERT_EQ(o.uniformization.target_metric, UniformizationMetric::Automatic);
   const SurfaceMapResult automatic = surface_map(s, t, o);
-  o.target_metric = UniformizationMetric::IntrinsicDelaunay;
+  o.uniformization.target_metric = UniformizationMetric::IntrinsicDelaunay;
   const SurfaceMapResult flips = surface_map(s, t, o);
-  o.target_metric = UniformizationMetric::FixedConnectivity;
+  o.uniformization.target_metric = UniformizationMetric::FixedConnectivity;
   const SurfaceMapResult fixed = surface_map(s, t, o);
   EXPECT_EQ(automatic.target_metric, "intrinsic Delaunay");
   EXPECT_EQ(automatic.target_metric_choice, "automatic: the flip-based metric");
@@ -294,7 +294,7 @@ TEST(IntrinsicTargetMap, FlatCadTargetMapsOnItsOwnFaces) {
   const TriMesh s = samples::torus_of_revolution(2.0, 0.8, 40, 20);
   const TriMesh t = samples::cad_plate(1, 32, 0.5);
   SurfaceMapOptions o;
-  o.target_metric = UniformizationMetric::IntrinsicDelaunay;  // the flip path, requested
+  o.uniformization.target_metric = UniformizationMetric::IntrinsicDelaunay;  // the flip path, requested
   const SurfaceMapResult m = surface_map(s, t, o);
   EXPECT_TRUE(m.converged);
   EXPECT_EQ(m.target_metric, "intrinsic Delaunay");
@@ -303,6 +303,25 @@ TEST(IntrinsicTargetMap, FlatCadTargetMapsOnItsOwnFaces) {
   EXPECT_EQ(m.flipped_triangles, 0);
   expect_on_users_mesh(t, m.forward);
   EXPECT_CERTIFIED_MAP(s, t, m);
+}
+
+// The named policy for callers measured on the fixed metric: fixed-first
+// runs the fixed connectivity whenever it can be delivered (here it exists),
+// giving exactly the requested fixed path's map, reported as such.
+TEST(IntrinsicTargetMap, FixedFirstIsTheFixedPathWhenItExists) {
+  const TriMesh s = samples::torus_of_revolution(2.0, 0.8, 32, 16);
+  const TriMesh t = samples::torus_of_revolution(3.0, 1.0, 28, 14);
+  SurfaceMapOptions o;
+  o.uniformization.target_metric = UniformizationMetric::FixedConnectivity;
+  const SurfaceMapResult fixed = surface_map(s, t, o);
+  o.uniformization.target_metric = UniformizationMetric::FixedFirst;
+  const SurfaceMapResult first = surface_map(s, t, o);
+  EXPECT_EQ(first.target_metric, "fixed connectivity");
+  EXPECT_EQ(first.target_metric_choice, "fixed first: the fixed-connectivity metric");
+  EXPECT_EQ(first.target_flips, 0);
+  EXPECT_EQ(first.final_energy, fixed.final_energy);
+  ASSERT_EQ(first.forward.size(), fixed.forward.size());
+  for (size_t v = 0; v < first.forward.size(); ++v) EXPECT_EQ(first.forward[v].position, fixed.forward[v].position);
 }
 
 }  // namespace

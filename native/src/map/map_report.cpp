@@ -177,6 +177,7 @@ json to_json(const SurfaceMapResult& r, const SurfaceMapOptions& options) {
                  {"converged", r.converged},
                  {"iterations", r.iterations},
                  {"method", enum_name(options.solve.method)},
+                 {"target_metric_requested", enum_name(options.uniformization.target_metric)},
                  {"initial_map", initial_map_json(r)},
                  {"homotopy", homotopy_json(r)},
                  {"quality", quality_json(r)},

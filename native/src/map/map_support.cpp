@@ -119,7 +119,8 @@ std::shared_ptr<const ClassLoops> class_loops_on_input(const TriMesh& target, co
 
 /// The flip-based path of uniformized_target: Newton with intrinsic Delaunay
 /// flips on the user's target, loops on T' (uniformize/intrinsic_loops.h),
-/// disk layout. Throws SolveError when any step fails.
+/// disk layout. Throws SolveError when any step fails (typed_target makes it
+/// a UniformizationError).
 UniformizedTarget intrinsic_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
                                    const SystemOfLoopsOptions& lo) {
   UniformizedTarget t;
@@ -165,8 +166,9 @@ UniformizedTarget intrinsic_target(const TriMesh& target, Background background,
 /// target's own (loops-refined) edges, refined exactly when it does not exist
 /// and `refine` is set (uniformize/feasible_metric.h); the layout and location
 /// only see a refined system of loops with origins on the user's target.
-/// Throws SolveError when the flow does not converge or the layout flips;
-/// `flip_failure` (non-empty: the flip path failed first) goes in both.
+/// Throws SolveError when the flow does not converge or the layout flips
+/// (typed_target makes it a UniformizationError); `flip_failure` (non-empty:
+/// the flip path failed first) goes in both.
 UniformizedTarget fixed_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
                                const SystemOfLoopsOptions& lo, bool refine, const std::string& flip_failure) {
   UniformizedTarget t;
@@ -195,14 +197,49 @@ UniformizedTarget fixed_target(const TriMesh& target, Background background, con
   return t;
 }
 
+/// One path of uniformized_target with its failures typed: every step of
+/// either chain (flow, loops, layout) throws SolveError, and any of them
+/// means this metric was not delivered: UniformizationError, message kept.
+template <class Path>
+UniformizedTarget typed_target(const Path& path) {
+  try {
+    return path();
+  } catch (const UniformizationError&) {
+    throw;
+  } catch (const SolveError& e) {
+    throw UniformizationError(e.what());
+  }
+}
+
 }  // namespace
 
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options) {
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.loops.target_base_vertex;
-  if (options.target_metric == UniformizationMetric::FixedConnectivity) {
-    UniformizedTarget t = fixed_target(target, background, options, lo, true, "");
+  const UniformizationMetric policy = options.uniformization.target_metric;
+  auto flips = [&] { return typed_target([&] { return intrinsic_target(target, background, options, lo); }); };
+  auto fixed = [&](const std::string& flip_failure) {
+    return typed_target([&] { return fixed_target(target, background, options, lo, true, flip_failure); });
+  };
+  if (policy == UniformizationMetric::FixedConnectivity) {
+    UniformizedTarget t = fixed("");
     t.metric_choice = "requested";
+    return t;
+  }
+  if (policy == UniformizationMetric::FixedFirst) {
+    // The fixed-connectivity metric (exactly refined when needed) when it
+    // can be delivered, the flip path only when it throws.
+    std::string fixed_failure;
+    try {
+      UniformizedTarget t = fixed("");
+      t.metric_choice = "fixed first: the fixed-connectivity metric";
+      return t;
+    } catch (const UniformizationError& e) {
+      fixed_failure = e.what();
+    }
+    UniformizedTarget t = flips();
+    t.metric = "intrinsic Delaunay (fixed connectivity failed: " + fixed_failure + ")";
+    t.metric_choice = "fixed first: the fixed connectivity failed, flips";
     return t;
   }
   // Flips (requested) or automatic: the flip path, whose metric exists on
@@ -212,16 +249,16 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
   // `target_class_loops` says), so they are the same objects. The
   // fixed-connectivity metric (exactly refined when needed) only when the
   // flip path throws. The two differ only in how the choice is reported.
-  const bool requested = options.target_metric == UniformizationMetric::IntrinsicDelaunay;
+  const bool requested = policy == UniformizationMetric::IntrinsicDelaunay;
   std::string flip_failure;
   try {
-    UniformizedTarget t = intrinsic_target(target, background, options, lo);
+    UniformizedTarget t = flips();
     t.metric_choice = requested ? "requested" : "automatic: the flip-based metric";
     return t;
-  } catch (const SolveError& e) {
+  } catch (const UniformizationError& e) {
     flip_failure = e.what();
   }
-  UniformizedTarget t = fixed_target(target, background, options, lo, true, flip_failure);
+  UniformizedTarget t = fixed(flip_failure);
   t.metric_choice = requested ? "fallback: the flip path failed" : "automatic: the flip path failed, fixed connectivity";
   return t;
 }

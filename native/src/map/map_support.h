@@ -82,14 +82,15 @@ struct ClassLoops {
 
 /// The target laid out in its uniformization metric: system of loops (refined,
 /// as the layout needs simple loops), Ricci flow, disk layout, with the metric
-/// of SurfaceMapOptions::target_metric: the fixed-connectivity one (refined
+/// of SurfaceMapOptions::uniformization.target_metric: the fixed-connectivity one (refined
 /// exactly only when asked for, or when the flip path throws) or the
 /// flip-based metric on T' with the loops of uniformize/intrinsic_loops.h.
 struct UniformizedTarget {
   SystemOfLoops loops;
   DiskLayout layout;
   /// "intrinsic Delaunay" or "fixed connectivity" (with the flip path's
-  /// error in parentheses when it was the automatic fallback).
+  /// error in parentheses when it was the automatic fallback; with
+  /// FixedFirst, "intrinsic Delaunay (fixed connectivity failed: ...)").
   std::string metric;
   /// Why that metric ran (SurfaceMapResult::target_metric_choice).
   std::string metric_choice;

@@ -371,7 +371,7 @@ SphericalUniformization usable_sphere(const TriMesh& mesh, const SphericalUnifor
     if ((a.converged && a.input_flipped_faces == 0) || usable(a)) return a;
     first_message += (first_message.empty() ? "" : "; ") + std::to_string(v0) + ": " + a.message;
   }
-  throw SolveError(which + " spherical uniformization failed: " + first_message);
+  throw UniformizationError(which + " spherical uniformization failed: " + first_message);
 }
 
 }  // namespace

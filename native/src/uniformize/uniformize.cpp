@@ -57,9 +57,9 @@ void check_layout(const DiskLayout& L, double residual) {
                      fmt(L.product_relation_error) + ", condition " + fmt(L.relation_condition) + ")");
 }
 
-}  // namespace
-
-UniformizeResult uniformize(const TriMesh& mesh, const UniformizeOptions& options) {
+/// uniformize() for one metric (options.metric: IntrinsicDelaunay, or
+/// Automatic read as it, or FixedConnectivity); any failure is a SolveError.
+UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   UniformizeResult r;
   Connectivity input_conn(mesh.F, mesh.num_vertices());
@@ -159,6 +159,40 @@ UniformizeResult uniformize(const TriMesh& mesh, const UniformizeOptions& option
   }
   r.converged = true;
   r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+/// uniformize_one_metric with its failures as UniformizationError (the
+/// message unchanged): every step of the chain (flow, loops, layout, checks)
+/// throws SolveError, and all of them mean that no metric was delivered.
+UniformizeResult uniformize_typed(const TriMesh& mesh, const UniformizeOptions& options) {
+  try {
+    return uniformize_one_metric(mesh, options);
+  } catch (const UniformizationError&) {
+    throw;
+  } catch (const SolveError& e) {
+    throw UniformizationError(e.what());
+  }
+}
+
+}  // namespace
+
+UniformizeResult uniformize(const TriMesh& mesh, const UniformizeOptions& options) {
+  if (options.metric != UniformizationMetric::FixedFirst) return uniformize_typed(mesh, options);
+  // Fixed connectivity first; the flip-based metric only when that one
+  // throws (docs/uniformization.md "Which target metric runs").
+  UniformizeOptions fixed = options;
+  fixed.metric = UniformizationMetric::FixedConnectivity;
+  std::string fixed_failure;
+  try {
+    return uniformize_typed(mesh, fixed);
+  } catch (const UniformizationError& e) {
+    fixed_failure = e.what();
+  }
+  UniformizeOptions flips = options;
+  flips.metric = UniformizationMetric::IntrinsicDelaunay;
+  UniformizeResult r = uniformize_typed(mesh, flips);
+  r.metric += " (fixed connectivity failed: " + fixed_failure + ")";
   return r;
 }
 

@@ -37,11 +37,15 @@ def torus_corner_uv(V, F, R):
     return np.stack([u, v], -1)
 
 
-@pytest.fixture(scope="module")
-def tori():
+@pytest.fixture(scope="module", params=["auto", "fixed"])
+def tori(request):
+    """The pair on the default target metric (the flip-based one: the map is piecewise
+    projective on the target's faces) and on the fixed connectivity (piecewise linear): the
+    add-on's outputs read the map only at the per-vertex images, which both deliver on the
+    user's own faces (docs/addon.md "Outputs on the flip-based metric")."""
     Vs, Fs = torus(1.0, 0.5, 48, 24)
     Vt, Ft = torus(1.5, 0.5, 40, 20)
-    m = surfmap.surface_map(Vs, Fs, Vt, Ft)
+    m = surfmap.surface_map(Vs, Fs, Vt, Ft, target_metric=request.param)
     return Vs, Fs, Vt, Ft, m
 
 
@@ -306,3 +310,32 @@ def test_sliced_outputs_equal_the_whole_and_colour_both_sides(tori):
     r = np.corrcoef(lam_s_at, lam_t)[0, 1]
     assert r > 0.9, r
     assert np.abs(lam_s_at - lam_t).mean() < 0.2 * np.abs(lam_s).max()
+
+
+def test_outputs_read_the_map_at_the_vertices(tori):
+    """On either target metric the per-vertex images are points of the user's own faces (the
+    positions are the barycentric combinations of the face's corners), and the outputs use
+    exactly those: the morph puts each source vertex at its image, and the target's UVs are
+    the source's UVs at the target vertices' preimages wherever no seam is crossed."""
+    Vs, Fs, Vt, Ft, m = tori
+    for side, (V, F) in (("forward", (Vt, Ft)), ("inverse", (Vs, Fs))):
+        f, b = m[side]["face"], m[side]["barycentric"]
+        assert np.all(b >= 0) and np.allclose(b.sum(axis=1), 1.0)
+        assert np.abs(M.points_at(V, F, f, b) - m[side]["position"]).max() < 1e-12
+    L = len(Fs) * 3
+    src = M.MeshSide.from_mesh_data("s", np.eye(4), dict(
+        V=Vs, F=Fs, tri_loops=np.arange(L).reshape(-1, 3), tri_polygon=np.arange(len(Fs)),
+        num_polygons=len(Fs), loop_start=np.arange(0, L, 3), loop_total=np.full(len(Fs), 3),
+        loop_vertex=np.asarray(Fs).reshape(-1))).orient(False)
+    src.uv_layers["uv"] = torus_corner_uv(Vs, Fs, 1.0).reshape(-1, 2)
+    Lt = len(Ft) * 3
+    tgt = M.MeshSide.from_mesh_data("t", np.eye(4), dict(
+        V=Vt, F=Ft, tri_loops=np.arange(Lt).reshape(-1, 3), tri_polygon=np.arange(len(Ft)),
+        num_polygons=len(Ft), loop_start=np.arange(0, Lt, 3), loop_total=np.full(len(Ft), 3),
+        loop_vertex=np.asarray(Ft).reshape(-1))).orient(False)
+    out = M.compute_outputs(src, tgt, m, M.MapOptions(outputs={"UV", "MORPH"}))
+    assert np.abs(out["image_of_source"] - m["forward"]["position"]).max() < 1e-12
+    uv = out["uv"]["uv"].reshape(-1, 3, 2)
+    _, _, naive, strad, _ = _transfer(Vs, Fs, Ft, m, torus_corner_uv(Vs, Fs, 1.0))
+    assert np.sum(M.signed_uv_areas(uv) <= 0) == 0
+    assert np.allclose(uv[~strad], naive[~strad], rtol=0, atol=1e-6)   # (float32 UVs)

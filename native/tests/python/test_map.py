@@ -62,8 +62,42 @@ def test_target_metric_automatic_by_default_flips_and_fixed_on_request():
         assert surfmap.verify(Vs, Fs, Vt, Ft, r)["certified"]
     # The same conformal structure computed two ways: the same extremal map.
     assert abs(flips["distortion"]["mean"] / fixed["distortion"]["mean"] - 1) < 1e-3
-    with pytest.raises(surfmap.InputError):
+    with pytest.raises(surfmap.InputError, match="'auto', 'flips', 'fixed' or 'fixed-first'"):
         surfmap.surface_map(Vs, Fs, Vt, Ft, target_metric="nope")
+    # The report repeats the option in the same spelling.
+    assert [r["target_metric_requested"] for r in (auto, flips, fixed)] == ["auto", "flips", "fixed"]
+    # fixed-first: the fixed metric exists here, so it is the fixed path's map.
+    first = surfmap.surface_map(Vs, Fs, Vt, Ft, target_metric="fixed-first")
+    assert first["target_metric_requested"] == "fixed-first"
+    assert first["target_metric"] == "fixed connectivity" and first["target_flips"] == 0
+    assert first["target_metric_choice"] == "fixed first: the fixed-connectivity metric"
+    assert np.array_equal(np.asarray(first["forward"]["position"]), np.asarray(fixed["forward"]["position"]))
+
+
+def test_a_missing_metric_is_a_uniformization_error():
+    # One exception hierarchy: a metric that cannot be delivered is a type (a
+    # SolveError, so older callers still catch it), never a message to match.
+    assert issubclass(surfmap.UniformizationError, surfmap.SolveError)
+    assert issubclass(surfmap.UniformizationError, RuntimeError)
+    # A torus whose fixed-connectivity flat metric does not exist unrefined: every
+    # 4th face split at a point just above an edge's midpoint (an angle near 180
+    # degrees); the flip path and fixed-first deliver one.
+    V, F = torus(1.0, 0.5, 24, 12)
+    V, F = list(map(list, V)), [list(f) for f in F]
+    for i in range(0, len(F), 4):
+        a, b, c = F[i]
+        p = [(V[a][k] + V[b][k]) / 2 + 1e-4 * (V[c][k] - (V[a][k] + V[b][k]) / 2) for k in range(3)]
+        V.append(p)
+        m = len(V) - 1
+        F[i] = [a, b, m]
+        F += [[b, c, m], [c, a, m]]
+    V, F = np.asarray(V), np.asarray(F)
+    with pytest.raises(surfmap.UniformizationError):
+        surfmap.uniformize(V, F, metric="fixed")
+    u = surfmap.uniformize(V, F, metric="fixed-first")
+    assert u["metric"].startswith("intrinsic Delaunay (fixed connectivity failed: uniformize:")
+    flips = surfmap.uniformize(V, F)
+    assert abs(u["tau_reduced"] - flips["tau_reduced"]) < 1e-9
 
 
 def test_capabilities_name_keywords_surface_map_accepts():
@@ -207,6 +241,25 @@ def test_cli_map_says_how_landmarks_were_held(tmp_path, cli):
     assert report["landmark_solves"] == 1 + report["landmark_steps"] and report["flipped_triangles"] == 0
     assert (f"2 landmark(s) held by barrier continuation ({report['landmark_steps']} continuation steps)"
             in r.stderr), r.stderr
+
+
+def test_cli_target_metric_has_the_python_spelling(tmp_path, cli):
+    # One spelling: --target-metric takes the names of target_metric=, the report repeats it,
+    # and anything else is refused with the list.
+    Vs, Fs = torus(1.0, 0.5, 24, 12)
+    Vt, Ft = torus(1.5, 0.5, 20, 10, 1)
+    src, dst = tmp_path / "a.obj", tmp_path / "b.obj"
+    surfmap.write_obj(str(src), Vs, Fs)
+    surfmap.write_obj(str(dst), Vt, Ft)
+    rep = tmp_path / "report.json"
+    r = cli("map", src, dst, "--out", tmp_path / "m.obj", "--report", rep, "--quiet",
+            "--target-metric", "fixed-first")
+    assert r.returncode == 0, r.stderr
+    report = json.loads(rep.read_text())
+    assert report["target_metric_requested"] == "fixed-first"
+    assert report["target_metric_choice"] == "fixed first: the fixed-connectivity metric"
+    bad = cli("map", src, dst, "--out", tmp_path / "n.obj", "--target-metric", "fixed_first")
+    assert bad.returncode != 0 and "fixed-first" in bad.stderr + bad.stdout
 
 
 def test_cli_map_bad_input_writes_nothing(tmp_path, cli):

@@ -74,6 +74,20 @@ def locate(n1, n2, xy):
 
 @pytest.fixture(scope="module")
 def pair():
+    return make_pair(0.013, 0.021)
+
+
+@pytest.fixture(scope="module")
+def aligned_pair():
+    """The same pair with the target's vertex 0 exactly on the source's vertex 0, where the
+    wrap-around seams cross (a seam junction), and the target's row j = 0 exactly along the
+    seam y = 0: target vertices on source vertices and seam edges, target edges along a seam,
+    a junction on a target vertex, as symmetric meshes give (a torus onto a torus with base
+    vertex on base vertex)."""
+    return make_pair(0.0, 0.0)
+
+
+def make_pair(dx, dy):
     n1, n2 = 20, 20
     Ps, Fs, Q = source_grid(n1, n2)
     isl = island_of(Q.mean(axis=1))
@@ -83,7 +97,7 @@ def pair():
     # the target: a sheared 7 x 9 quad grid (its parameter wraps consistently)
     m1, m2 = 7, 9
     i, j = np.meshgrid(np.arange(m1), np.arange(m2), indexing="ij")
-    Pt = np.stack([i.ravel() / m1 + j.ravel() / m2 + 0.013, j.ravel() / m2 + 0.021], 1) % 1.0
+    Pt = np.stack([i.ravel() / m1 + j.ravel() / m2 + dx, j.ravel() / m2 + dy], 1) % 1.0
     vid = lambda a, b: (a % m1) * m2 + (b % m2)
     quads = [[vid(a, b), vid(a + 1, b), vid(a + 1, b + 1), vid(a, b + 1)]
              for a in range(m1) for b in range(m2)]
@@ -93,8 +107,8 @@ def pair():
     tri_poly = np.concatenate([np.arange(len(quads))] * 2)
     inv_f, inv_b = locate(n1, n2, Pt)
     # forward: source vertices in the target's triangles (located in the sheared grid)
-    u = Ps[:, 1] * m2 - 0.021 * m2
-    v = (Ps[:, 0] - 0.013 - (Ps[:, 1] - 0.021)) * m1
+    u = Ps[:, 1] * m2 - dy * m2
+    v = (Ps[:, 0] - dx - (Ps[:, 1] - dy)) * m1
     lt = np.stack([np.mod(v, m1), np.mod(u, m2)], 1)   # (i, j) continuous target grid coords
     a, b = np.floor(lt[:, 0]).astype(int), np.floor(lt[:, 1]).astype(int)
     fx, fy = lt[:, 0] - a, lt[:, 1] - b
@@ -265,3 +279,29 @@ def test_without_forward_map_junction_polygons_are_counted(pair):
     assert cut.junctions == 0 and cut.unresolved >= 3 and cut.cut >= 10
     mixed = mixed_polygons(d, cut.loop_start, cut.loop_total, cut.loop_uv)
     assert mixed <= cut.unresolved
+
+
+def test_aligned_pair_is_degenerate(aligned_pair):
+    """The aligned fixture really has the degenerate positions (so the test below can fail):
+    target vertices exactly on source edges, and a source vertex image on a target vertex."""
+    d = aligned_pair
+    assert np.sum(d["inv"][1].min(axis=1) <= 1e-12) >= 7
+    assert np.sum(d["fw"][1].max(axis=1) >= 1 - 1e-12) >= 1
+
+
+def test_cut_of_the_aligned_pair_is_resolved_and_continuous(aligned_pair):
+    """Degenerate positions (target vertices on seam edges and on a seam junction, target edges
+    along a seam; the stored map's float32 weights) are cut like generic ones: nothing
+    unresolved, no polygon across charts, UVs continuous across the cut."""
+    d = dict(aligned_pair)
+    d["inv"] = (d["inv"][0], d["inv"][1].astype(np.float32))     # as read back from Blender
+    _, cut = make_cut(d)
+    assert cut.unresolved == 0 and cut.cut >= 15 and cut.junctions >= 3, cut.reasons
+    assert mixed_polygons(d, cut.loop_start, cut.loop_total, cut.loop_uv) == 0
+    param, _ = uv_to_param(d, cut.loop_uv)
+    assert np.all(np.isfinite(param))
+    worst = 0.0
+    for v in np.unique(cut.loop_vertex):
+        at = np.nonzero(cut.loop_vertex == v)[0]
+        worst = max(worst, float(param_dist(param[at], param[at[:1]]).max()))
+    assert worst < 1e-5, worst

@@ -130,11 +130,10 @@ def test_identity_map_bakes_the_source_exactly():
 def tori():
     Vs, Fs = torus(1.0, 0.5, 48, 24)
     Vt, Ft = torus(1.5, 0.5, 40, 20)
-    # The fixed-connectivity target: its map is piecewise linear on the target's faces, as
-    # the bake's chart check below (clamped < 1e-3) assumes. The default flip-based target
-    # gives a piecewise projective map there (docs/uniformization.md): 883 of 671580
-    # samples clamped (1.3e-3) on this pair.
-    m = surfmap.surface_map(Vs, Fs, Vt, Ft, target_metric="fixed")
+    # The default target metric (the flip-based one). Its map puts 272 of the source's
+    # vertices exactly on target edges here (base vertex on base vertex of two symmetric
+    # tori); the split inserts them on both sides of their edge (docs/baking.md).
+    m = surfmap.surface_map(Vs, Fs, Vt, Ft)
     fw = (m["forward"]["face"], m["forward"]["barycentric"])
     iv = (m["inverse"]["face"], m["inverse"]["barycentric"])
     return Vs, Fs, Vt, Ft, fw, iv
@@ -174,6 +173,40 @@ def test_split_target_nodes_are_the_map_itself(tori):
     p1 = np.einsum("ij,ijk->ik", b1, Vs[Fs[f1]])
     step = np.linalg.norm(np.einsum("ij,ijk->ik", nudge - bary, Vt[Ft[face]]), axis=1)
     assert np.percentile(np.linalg.norm(p1 - p0, axis=1) / step, 99) < 10
+
+
+def test_split_target_inserts_images_on_edges_into_both_triangles():
+    """A source vertex whose image lies exactly on a target edge becomes a node of both
+    triangles of that edge, at the same point (no T-junction); one on a target vertex is
+    that vertex's node already; one inside a triangle splits it alone."""
+    Vt = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    Ft = np.array([[0, 1, 2], [0, 2, 3]])                  # edge 0-2 shared
+    Fs = np.array([[0, 1, 2], [0, 2, 3], [1, 4, 2]])
+    fw_face = np.array([0, 1, 0, 0, 1])
+    fw_bary = np.array([[0.5, 0.0, 0.5],                   # on edge 0-2 (in triangle 0)
+                        [0.0, 1.0, 0.0],                   # on target vertex 2
+                        [0.2, 0.5, 0.3],                   # inside triangle 0
+                        [0.7, 0.3, 0.0],                   # on the boundary edge 0-1 (no twin)
+                        [0.3, 0.3, 0.4]])                  # inside triangle 1
+    inv_face = np.array([0, 0, 1, 2])                      # target vertices inside source faces
+    inv_bary = np.array([[0.6, 0.2, 0.2], [0.2, 0.6, 0.2], [0.2, 0.2, 0.6], [0.3, 0.3, 0.4]])
+    st = TB.SplitTarget(Fs, Ft, fw_face, fw_bary, inv_face, inv_bary, V_tgt=Vt)
+    assert st.inserted == 4                                # all but the one on a vertex
+    # each point inside or on a shared edge adds two triangles, on a boundary edge one
+    assert len(st.parent) == len(Ft) + 2 * 3 + 1
+    T = st.node_bary[..., 1:]
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    assert det.min() > 1e-9                                # no zero-area sliver on an edge
+    assert np.allclose(np.bincount(st.parent, weights=det, minlength=2), 1.0)
+    # source vertex 0 (node: its triangle with a unit weight) is a node of both parents, at
+    # the midpoint of the diagonal in 3D from either side
+    at = []
+    for e, c in zip(*np.nonzero(st.node_src_bary.max(axis=2) == 1.0)):
+        if Fs[st.node_face[e, c], np.argmax(st.node_src_bary[e, c])] == 0:
+            at.append((st.parent[e], st.node_bary[e, c] @ Vt[Ft[st.parent[e]]]))
+    assert {p for p, _ in at} == {0, 1}
+    assert all(np.allclose(X, [0.5, 0.5, 0.0]) for _, X in at)
 
 
 def test_bake_through_a_map_fills_islands_and_matches_the_source(tori):

@@ -29,11 +29,18 @@ inline constexpr EnumNames<SourceWeights, 3> kSourceWeightsNames{{
     {SourceWeights::IntrinsicDelaunay, "intrinsic"},
     {SourceWeights::OwnEdges, "own"},
 }};
+inline constexpr EnumNames<UniformizationMetric, 4> kUniformizationMetricNames{{
+    {UniformizationMetric::Automatic, "auto"},
+    {UniformizationMetric::IntrinsicDelaunay, "flips"},
+    {UniformizationMetric::FixedConnectivity, "fixed"},
+    {UniformizationMetric::FixedFirst, "fixed-first"},
+}};
 
 /// The table of an enum, so the functions below need only the value type.
 inline constexpr const auto& enum_names(MapMethod) { return kMapMethodNames; }
 inline constexpr const auto& enum_names(InitialMapMethod) { return kInitialMapMethodNames; }
 inline constexpr const auto& enum_names(SourceWeights) { return kSourceWeightsNames; }
+inline constexpr const auto& enum_names(UniformizationMetric) { return kUniformizationMetricNames; }
 
 /// The name of `value` in its table.
 template <class E>

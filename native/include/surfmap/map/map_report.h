@@ -7,7 +7,8 @@
 //
 // Keys (every block is one function below, so a new block is one more
 // function and one line in to_json):
-//   genus, converged, iterations, method, landmarks (count),
+//   genus, converged, iterations, method, target_metric_requested (the option:
+//   auto, flips, fixed or fixed-first), landmarks (count),
 //   energy {initial, final, history}, distortion {mean, max},
 //   initial_distortion {mean, max}, flipped_triangles, degenerate_triangles,
 //   intrinsic_flipped_triangles, initial_flipped_triangles, repaired_vertices,

@@ -264,30 +264,36 @@ struct LoopOptions {
 struct UniformizationOptions {
   /// Curvature tolerance of the Ricci flow (default 1e-10).
   double tolerance = 1e-10;
+  /// Genus >= 1: which metric the target is uniformized with, and in which
+  /// order (docs/uniformization.md "Which target metric runs"; spelled
+  /// "auto", "flips", "fixed", "fixed-first" in the CLI's --target-metric,
+  /// Python's target_metric= and the report's target_metric_requested):
+  ///  * Automatic (default): the flip-based metric (Newton with Ptolemy
+  ///    flips on the user's target; it exists on every closed mesh), results
+  ///    carried back through the flips (uniformize/intrinsic_correspondence.h);
+  ///    the fixed-connectivity one (exactly refined) only when the flip path
+  ///    throws UniformizationError.
+  ///  * IntrinsicDelaunay: the same order, reported as requested / fallback.
+  ///  * FixedConnectivity: the metric on the target's own edges alone,
+  ///    refined exactly (altitude-foot splits) when it does not exist.
+  ///  * FixedFirst: FixedConnectivity when it can be delivered, the flip path
+  ///    only when that throws UniformizationError.
+  /// SurfaceMapResult::target_metric / target_metric_choice say which ran
+  /// and why; when every allowed metric fails, UniformizationError.
+  UniformizationMetric target_metric = UniformizationMetric::Automatic;
 };
 
 /// Options of surface_map, nested by concern: `homotopy` (classes listed,
 /// ranked, searched), `solve` (the harmonic solve and the source's weights),
 /// `loops` (their base vertices), `initial` (the initial map),
-/// `uniformization` (its tolerance), then the target metric, threads, the
-/// landmarks and callbacks.
+/// `uniformization` (its tolerance and the target's metric), then threads,
+/// the landmarks and callbacks.
 struct SurfaceMapOptions {
   HomotopyOptions homotopy;
   SolveOptions solve;
   LoopOptions loops;
   InitialMapOptions initial;
   UniformizationOptions uniformization;
-  /// Genus >= 1: the target's uniformization metric. Automatic (default):
-  /// the intrinsic Delaunay one, the refined fixed-connectivity one only when
-  /// the flip path throws (docs/uniformization.md "Which target metric
-  /// runs"). IntrinsicDelaunay: Newton with Ptolemy flips on the
-  /// user's target (a metric always exists), results carried back through
-  /// the flips exactly (uniformize/intrinsic_correspondence.h).
-  /// FixedConnectivity: the metric on the target's own edges, refined exactly
-  /// (altitude-foot splits) when it does not exist. When the flip path
-  /// throws, the refined fixed-connectivity one runs and
-  /// SurfaceMapResult::target_metric says why.
-  UniformizationMetric target_metric = UniformizationMetric::Automatic;
   /// Threads the pipeline runs at once (genus >= 2: the coarse class solves
   /// of the ranking, and the initial map next to the full-resolution solves;
   /// src/map/concurrency.h). 0 (default): SURFMAP_THREADS when set, else 2
@@ -551,12 +557,14 @@ struct SurfaceMapResult {
   int target_refinement_splits = 0;
   /// Genus >= 1: the target's metric ("intrinsic Delaunay", "fixed
   /// connectivity", or "fixed connectivity (intrinsic Delaunay failed: ...)"
-  /// after the automatic fallback) and its flow's edge flips (0 when fixed).
+  /// after the automatic fallback, "intrinsic Delaunay (fixed connectivity
+  /// failed: ...)" after FixedFirst's) and its flow's edge flips (0 when fixed).
   std::string target_metric;
   int target_flips = 0;
   /// Genus >= 1: why that metric ran: "requested", "automatic: ..." (with
-  /// the fixed-connectivity flow's failure when flips ran) or "fallback: the
-  /// flip path failed" (flips requested).
+  /// the fixed-connectivity flow's failure when flips ran), "fallback: the
+  /// flip path failed" (flips requested) or "fixed first: ..." (FixedFirst).
+  /// The report also has the option itself as target_metric_requested.
   std::string target_metric_choice;
   /// Genus >= 2 on the flip path: which loops the handle classes read ("the
   /// target's own loops, carried through N of the flips", or the loops of T'

@@ -26,11 +26,18 @@ namespace surfmap {
 ///    another scheme or method the fixed-connectivity path runs.
 ///  * FixedConnectivity: the metric on the loops' mesh itself, refined by
 ///    altitude-foot splits when it does not exist (fixed_connectivity_refinement).
-///  * Automatic (SurfaceMapOptions::target_metric's default): the
-///    intrinsic Delaunay metric; the fixed-connectivity one (exactly refined
-///    when needed) only when the flip path throws. uniformize() treats it as
-///    IntrinsicDelaunay.
-enum class UniformizationMetric { IntrinsicDelaunay, FixedConnectivity, Automatic };
+///  * Automatic (SurfaceMapOptions::uniformization.target_metric's
+///    default): the intrinsic Delaunay metric; the fixed-connectivity one
+///    (exactly refined when needed) only when the flip path throws.
+///    uniformize() treats it as IntrinsicDelaunay (which already falls back
+///    to the fixed connectivity when the loops of T' fail).
+///  * FixedFirst: the fixed-connectivity metric (surface_map: refined exactly
+///    when needed) when it can be delivered, the flip-based one only when
+///    that throws UniformizationError; the order `auto` had before the flip
+///    path became the default, kept for callers measured on the fixed metric.
+/// Names (CLI, Python, reports): "flips", "fixed", "auto", "fixed-first"
+/// (map/map_option_names.h; docs/uniformization.md "Which target metric runs").
+enum class UniformizationMetric { IntrinsicDelaunay, FixedConnectivity, Automatic, FixedFirst };
 
 struct UniformizeOptions {
   UniformizationMetric metric = UniformizationMetric::IntrinsicDelaunay;
@@ -112,9 +119,10 @@ struct UniformizeResult {
 double gluing_tolerance(const DiskLayout& layout, double residual);
 
 /// mesh: closed, manifold, outward-oriented (after intake). Throws
-/// SolveError (with the solver's message) when the metric does not converge
-/// or the layout is inconsistent; never reports an unconverged result as a
-/// success.
+/// UniformizationError (a SolveError, with the solver's message) when the
+/// metric does not converge or the layout is inconsistent; never reports an
+/// unconverged result as a success. With FixedFirst, `metric` in the result
+/// says when the fixed connectivity failed first.
 UniformizeResult uniformize(const TriMesh& mesh, const UniformizeOptions& options = {});
 
 }  // namespace surfmap
