@@ -358,6 +358,26 @@ def _sphere_rough_map(S, T, pairing, options, mirrored=False, landmarks=None):
     return [(images, None, Pt[:T.n2], "")]
 
 
+def _rough_maps(S, T, pairing, options, mirrored, landmarks):
+    """The rough maps of the halves for one pairing and orientation (_capped_map's form). Genus 0
+    with at most three loops: the Möbius map of the capped spheres (_sphere_rough_map; exact at the
+    three cap centres). Genus 0 with four or more loops: the Möbius map holds only three cap
+    centres, and the others' boundary vertices, moved onto their paired loops, can carry loops
+    that are not an isomorphism (the poncho, b = 4, onto its bend 0.3: every candidate failed), so
+    the closed pipeline's map of the capped spheres holding every cap centre comes first, the
+    Möbius map when it fails. Genus >= 1: _capped_map."""
+    if S.genus >= 1:
+        return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks)
+    if S.b <= 3:
+        return _sphere_rough_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks)
+    try:
+        return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks)
+    except _core.Cancelled:
+        raise
+    except _core.Error:
+        return _sphere_rough_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks)
+
+
 def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz, landmarks=None):
     """Per vertex of the source's double a target double vertex position: the capped map's image
     moved onto the nearest target vertex (source boundary vertices onto the nearest vertex of
@@ -402,10 +422,21 @@ def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz
 
 def _solve_closed(solve, kw):
     """solve(**extra): one call of the closed pipeline (the capped map, the doubles' map) with the
-    core's default target metric unless the caller gave one. The one place where the doubles choose
+    core's default target metric unless the caller gave one; when that fails (a SolveError, or
+    std::bad_alloc, measured: the flip-based metric on the artery's 1-to-4 subdivided double,
+    46,506 vertices, two sheets 1e-6 of the diagonal apart), once more with the fixed-connectivity
+    metric; the result's 'target_metric_fallback' says why. The one place where the doubles choose
     the metric (earlier: the fixed-connectivity metric first, because of the capped map's tie of M
-    and -M, _capped_map)."""
-    return solve()
+    and -M, _capped_map; docs/open_surfaces.md)."""
+    if "target_metric" in kw:
+        return solve()
+    try:
+        return solve()
+    except (MemoryError, _core.SolveError) as e:
+        first = f"{type(e).__name__}: {e}"
+    r = solve(target_metric="fixed")
+    r["target_metric_fallback"] = f"the default target metric failed ({first}); fixed connectivity"
+    return r
 
 
 def _check_landmarks(S, T, landmarks):
@@ -683,8 +714,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         report(f"doubles: pairing {list(pairing)}, {o}", ti / max(len(tasks), 1))
         rev = o == "reversing"
         try:
-            rough = _sphere_rough_map if S.genus == 0 else _capped_map
-            roughs = rough(S, T, pairing, options, mirrored=rev, landmarks=lm)
+            roughs = _rough_maps(S, T, pairing, options, rev, lm)
         except _core.Cancelled:
             raise
         except _core.Error as e:
@@ -813,7 +843,8 @@ def report_json(r):
     out = {"method": "open", **{k: clean(r[k]) for k in keys}}
     out["distortion"] = {"mean": clean(r["distortion"]["mean"]), "max": clean(r["distortion"]["max"])}
     out["energy"] = {"final": clean(r["energy"]["final"])}
-    out["double"] = {k: clean(r[k]) for k in ("homotopy", "two_way_status", "energy_ratio") if k in r}
+    out["double"] = {k: clean(r[k]) for k in ("homotopy", "two_way_status", "energy_ratio", "target_metric",
+                                              "target_metric_fallback") if k in r}
     return out
 
 
