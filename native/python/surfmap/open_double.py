@@ -659,7 +659,7 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
 
 
 def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),
-                     max_pairings=6, symmetry_tolerance=0.02, tie_tolerance=1e-6, progress=None, landmarks=None,
+                     max_pairings=6, symmetry_tolerance=0.05, tie_tolerance=1e-6, progress=None, landmarks=None,
                      **options):
     """Map between two open surfaces of equal (g, b) through their doubles (module docstring).
 
@@ -671,7 +671,10 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     half: an orientation-reversing map of the open surfaces) are tried. The lowest energy wins;
     candidates within `tie_tolerance` (relative) of it are told apart by the alignment of the
     shapes (`alignment`: mean squared distance of the vertices to their images, both shapes at
-    centroid 0 and unit area). options: threads,
+    centroid 0 and unit area). A candidate counts when its largest |f(sigma x) - sigma f(x)| is
+    at most `symmetry_tolerance` of the target's diagonal (default 0.05: the artery's correct
+    maps measured 0.033-0.040; the test shapes 0.002-0.006) and 90% of its interior lies on the
+    expected half. options: threads,
     tolerance, max_iterations, method, source_weights, solve_progress (the doubles' solves).
     landmarks: (k, 2) (source vertex, target vertex) pairs of the input meshes, held by the
     capped map and, each with its mirror pair, by the doubles' map (_landmark_pairs); a boundary
