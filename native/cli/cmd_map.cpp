@@ -24,10 +24,9 @@
 #include "surfmap/verify/correspondence_file.h"
 
 namespace surfmap::cli {
-namespace {
 
 // Landmark pairs, one 'source_vertex target_vertex' per line; blank lines and
-// '#' comments are skipped. Errors name the file and line.
+// '#' comments are skipped. Errors name the file and line (map_open.h).
 std::vector<std::pair<int, int>> read_landmarks(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw InputError("cannot read landmarks file " + path);
@@ -49,8 +48,6 @@ std::vector<std::pair<int, int>> read_landmarks(const std::string& path) {
   }
   return pairs;
 }
-
-}  // namespace
 
 // Long on purpose: one flat list of the subcommand's flags (each one
 // add_option/add_flag with its help text) and the one callback that fills
@@ -139,7 +136,7 @@ void register_map(CLI::App& app) {
   cmd->callback([a] {
     // Open surfaces (issue 16): map_open.h handles pairs with a boundary.
     if (map_open_pair({a->src, a->dst, a->out, a->report, a->correspondence, a->initial_out, a->quiet,
-                       !a->landmarks.empty(), a->boundary_swap, a->boundary_pairing}))
+                       a->landmarks, a->boundary_swap, a->boundary_pairing}))
       return;
     if (a->boundary_swap || !a->boundary_pairing.empty())
       throw InputError("--boundary-swap / --boundary-pairing: only for open surfaces (meshes with boundary loops)");

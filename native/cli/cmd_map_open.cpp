@@ -30,7 +30,6 @@ bool map_open_pair(const OpenMapCliArgs& a) {
   } catch (const InputError& e) {
     throw InputError("'" + a.src + "' onto '" + a.dst + "': " + e.what() + " (open surfaces: docs/open_surfaces.md)");
   }
-  if (a.landmarks) throw InputError("--landmarks: not supported for open surfaces yet");
   if (!a.initial_out.empty()) throw InputError("--initial-out: open surfaces have no initial map");
   if (!a.quiet) std::cerr << "surfmap: open surfaces, " << src.topology.describe() << "\n";
   OpenMapOptions options;
@@ -45,6 +44,10 @@ bool map_open_pair(const OpenMapCliArgs& a) {
     if (!a.correspondence.empty()) args.insert(args.end(), {"--correspondence", a.correspondence});
     if (a.quiet) args.push_back("--quiet");
     if (a.boundary_swap) args.push_back("--boundary-swap");
+    if (!a.landmarks.empty()) {
+      read_landmarks(a.landmarks);  // the file's errors as for the other pairs
+      args.insert(args.end(), {"--landmarks", a.landmarks});
+    }
     if (!a.boundary_pairing.empty()) {
       std::string p;
       for (int k : a.boundary_pairing) p += (p.empty() ? "" : ",") + std::to_string(k);
@@ -59,6 +62,7 @@ bool map_open_pair(const OpenMapCliArgs& a) {
     throw InputError("--boundary-swap: only for annuli (2 boundary loops); the surfaces have " +
                      src.topology.describe() + "; use --boundary-pairing");
   options.boundary_pairing = a.boundary_pairing;
+  if (!a.landmarks.empty()) options.landmarks = read_landmarks(a.landmarks);
   const OpenMapResult r = open_surface_map(src.intake.mesh, src.topology, dst.intake.mesh, dst.topology, options);
   const SurfaceMapResult& m = r.map;
 

@@ -2,18 +2,25 @@
 // `surfmap map` for open surfaces (issue 16, docs/open_surfaces.md): called
 // first by cmd_map.cpp; closed pairs return false and take the usual path.
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace surfmap::cli {
 
 struct OpenMapCliArgs {
   std::string src, dst, out, report, correspondence, initial_out;
-  bool quiet = false, landmarks = false;
+  bool quiet = false;
+  /// --landmarks file (empty: none): 'source_vertex target_vertex' lines.
+  std::string landmarks;
   /// --boundary-swap (annuli: source loop 0 -> target loop 1) and
   /// --boundary-pairing (target loop of each source loop, by index).
   bool boundary_swap = false;
   std::vector<int> boundary_pairing;
 };
+
+/// Landmark pairs, one 'source_vertex target_vertex' per line; blank lines
+/// and '#' comments are skipped. Errors name the file and line (cmd_map.cpp).
+std::vector<std::pair<int, int>> read_landmarks(const std::string& path);
 
 /// When either mesh has a boundary: validates both (same genus and number of
 /// boundary loops, else an InputError naming both), maps disks and annuli

@@ -113,9 +113,17 @@ std::string& package_name() {
 py::dict open_surface_map_dict(const RowMatrixX3d& vs, const RowMatrixX3i& fs, const RowMatrixX3d& vt,
                                const RowMatrixX3i& ft, const py::object& boundary_pairing,
                                const py::object& landmarks, const py::object& progress) {
-  if (!landmarks.is_none()) throw InputError("landmarks: not supported for open surfaces yet");
   OpenMapOptions options;
   parse_boundary_pairing(boundary_pairing, options);
+  if (!landmarks.is_none()) {
+    const auto pairs = py::cast<std::vector<std::vector<long long>>>(
+        py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
+    for (const auto& p : pairs) {
+      if (p[0] < 0 || p[1] < 0 || p[0] > INT32_MAX || p[1] > INT32_MAX)
+        throw InputError("landmark (" + std::to_string(p[0]) + ", " + std::to_string(p[1]) + ") has a negative or too large index");
+      options.landmarks.emplace_back(static_cast<int>(p[0]), static_cast<int>(p[1]));
+    }
+  }
   // Progress: one call before and one after (the open map is two sparse
   // solves per side); False cancels like the closed map.
   auto report_progress = [&](double fraction) {
@@ -152,7 +160,7 @@ py::dict open_surface_map_dict(const RowMatrixX3d& vs, const RowMatrixX3i& fs, c
     py::object pairing = boundary_pairing;
     return py::module_::import((package_name() + ".open_double").c_str())
         .attr("surface_map_open")(to_numpy(vs), to_numpy(fs), to_numpy(vt), to_numpy(ft), py::arg("boundary_pairing") = pairing,
-                                  py::arg("progress") = progress)
+                                  py::arg("progress") = progress, py::arg("landmarks") = landmarks)
         .cast<py::dict>();
   }
   report_progress(0.0);
@@ -185,7 +193,8 @@ void bind_map(py::module_& m) {
   m.attr("CAPABILITIES") = py::frozenset(py::make_tuple(
       "homotopy", "landmarks", "method", "tolerance", "max_iterations", "solve_progress", "homotopy_candidates",
       "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
-      "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric", "homotopy_images"));
+      "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric", "homotopy_images",
+      "homotopy_both_signs"));
   m.def(
       "surface_map",
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
@@ -193,7 +202,7 @@ void bind_map(py::module_& m) {
          double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
          int homotopy_full_solves, const std::string& initial_map, const std::string& source_weights,
          bool homotopy_search, int homotopy_search_evaluations, py::object boundary_pairing, bool two_way, int threads, const std::string& target_metric,
-         py::object homotopy_images) {
+         py::object homotopy_images, bool homotopy_both_signs) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         // Open surfaces (issue 16): either side with a boundary.
@@ -221,6 +230,7 @@ void bind_map(py::module_& m) {
         opt.homotopy.search.enabled = homotopy_search;
         opt.homotopy.search.evaluations = homotopy_search_evaluations;
         opt.homotopy.two_way = two_way;  // (options.homotopy.two_way)
+        opt.homotopy.flat_both_signs = homotopy_both_signs;
         if (!homotopy_images.is_none()) {
           // (options.homotopy.source_images with images_only: that class alone)
           const RowMatrixX3d images = to_vertices(homotopy_images, "homotopy_images");
@@ -295,7 +305,7 @@ void bind_map(py::module_& m) {
       py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = enum_name(SourceWeights::Automatic),
       py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
       py::arg("boundary_pairing") = py::none(), py::arg("two_way") = true, py::arg("threads") = 0, py::arg("target_metric") = enum_name(UniformizationMetric::Automatic),
-      py::arg("homotopy_images") = py::none(),
+      py::arg("homotopy_images") = py::none(), py::arg("homotopy_both_signs") = false,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
       "boundary loops (else InputError naming both); disks (0, 1) and annuli (0, 2) are mapped boundary onto boundary "
@@ -304,7 +314,9 @@ void bind_map(py::module_& m) {
       "(surfmap.open_double.surface_map_open; 'open' domain 'double'); `boundary_pairing`: None (disks, annuli: loop "
       "i -> loop i, loops longest first; doubles: ranked by energy), 'swap' (two loops) or the target loop of each "
       "source loop; the closed-map options "
-      "(homotopy, method, ...) do not apply, landmarks are refused. Returns a dict "
+      "(homotopy, method, ...) do not apply; `landmarks` (source vertex, target vertex) pairs are held as "
+      "docs/open_surfaces.md 'Landmarks' says (disk: up to 3 boundary points or 1 interior + 1 boundary; annulus: the "
+      "shift; doubles: each with its mirror image). Returns a dict "
       "with 'forward' (per source vertex: target 'face', 'barycentric', 'position'), 'inverse' (per target "
       "vertex, on the source), energies, distortion and the homotopy candidates. `landmarks`: (k, 2) "
       "(source vertex, target vertex) pairs held fixed; `method`: 'newton' or 'relaxation'; "

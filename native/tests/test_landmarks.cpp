@@ -175,6 +175,38 @@ TEST(LandmarksFlat, FarLandmarksStayBijectiveByInteriorPointContinuation) {
   EXPECT_GT(m.final_energy, free.final_energy * 1.01);
 }
 
+TEST(LandmarksFlat, BothSignsAddTheHalfTurnsAndHoldTheLandmarksNoWorse) {
+  // HomotopyOptions::flat_both_signs: each class M also as -M (the half turn
+  // of the flat torus). Two landmarks: the two signs hold them with different
+  // energies, and the ranking over both can only do better than over the
+  // canonical signs alone (docs/open_surfaces.md, the capped tori).
+  const TriMesh a = samples::torus_of_revolution(1.0, 0.45, 48, 24);
+  const TriMesh b = samples::torus_of_revolution(1.4, 0.5, 48, 24, 2);
+  SurfaceMapOptions o;
+  o.landmarks = {{0, 0}, {24 * 20 + 5, 24 * 30 + 17}};
+  const SurfaceMapResult one = surface_map(a, b, o);
+  o.homotopy.flat_both_signs = true;
+  const SurfaceMapResult both = surface_map(a, b, o);
+  expect_landmarks_hit(both, a, b, o);
+  EXPECT_EQ(both.flipped_triangles, 0);
+  ASSERT_EQ(both.candidates.size(), 2 * one.candidates.size());
+  for (const auto& c : one.candidates) {
+    int found = 0;
+    for (const auto& d : both.candidates)
+      found += (d.matrix[0] == -c.matrix[0] && d.matrix[1] == -c.matrix[1] && d.matrix[2] == -c.matrix[2] &&
+                d.matrix[3] == -c.matrix[3]);
+    EXPECT_EQ(found, 1) << c.description;
+  }
+  EXPECT_LE(both.final_energy, one.final_energy * (1 + 1e-9));
+  // The held energies of M and -M differ: the landmarks are not both fixed
+  // by one half turn.
+  const auto& m = both.candidates[both.chosen_candidate];
+  for (const auto& d : both.candidates)
+    if (d.matrix[0] == -m.matrix[0] && d.matrix[1] == -m.matrix[1] && d.matrix[2] == -m.matrix[2] &&
+        d.matrix[3] == -m.matrix[3])
+      EXPECT_GT(d.landmark_lower_bound, m.landmark_lower_bound * (1 + 1e-6));
+}
+
 TEST(LandmarksHyperbolic, FarLandmarkStaysBijectiveByBarrierContinuation) {
   // Genus 2: a landmark 20 edges (22 mean edge lengths, 0.36 of the
   // diagonal) from its free image. Its plain pin folds the map, and

@@ -19,7 +19,9 @@ target loop) and mirrored on the mirror sheet, carries the double's loops: the c
 solves that class alone (`homotopy_images`). The orientation-reversing version puts the images on
 the target's mirror sheet instead. When no pairing is given and b >= 2, every pairing (b! of them,
 at most `max_pairings`) is tried in both orientations and the lowest energy is kept; all energies
-are reported.
+are reported. Beyond `max_pairings` pairings (b >= 4) the pairings and orientations are ranked by a
+cheap score (loop lengths; genus 0: the cap centres under the capped spheres' Möbius map) and the
+best `max_pairings` of them are solved.
 
 Before doubling, every interior edge joining two boundary vertices is split at its midpoint (the
 double would otherwise have edges with four faces); the mirror sheet is moved inward by 1e-6 of the
@@ -238,27 +240,58 @@ class _Side:
         return lo
 
 
-def _capped_map(S, T, pairing, options, mirrored=False):
+def _capped_map(S, T, pairing, options, mirrored=False, tie_tolerance=1e-6, landmarks=None):
     """The capped source onto the capped target (closed, genus g) with loop i's centre held on
-    target loop pairing[i]'s: per split-source vertex its image (position) on the capped target,
-    the capped target face it lies in, and the target's split vertices in the frame of those
-    positions. `mirrored`: onto the target's mirror image (x -> -x, faces reversed), i.e. an
-    orientation-reversing map onto the target."""
+    target loop pairing[i]'s: a list of rough maps, each (per split-source vertex its image
+    (position) on the capped target, the capped target face it lies in, the target's split
+    vertices in the frame of those positions, the capped map's class description). `mirrored`:
+    onto the target's mirror image (x -> -x, faces reversed), i.e. an orientation-reversing map
+    onto the target.
+
+    Genus 1: the flat torus's classes M and -M are both candidates (`homotopy_both_signs`;
+    with the canonical sign alone, the closed pipeline's default, holding two or more cap
+    centres forced a twisted class: a torus with two holes onto its bend 0.3 swapped the holes).
+    Usually one map. More when the capped map's classes tie: genus 1 with one hole has one
+    landmark, and the half turn about it (the hyperelliptic involution z -> 2 z_c - z of the
+    flat torus) holds it as well, so the classes M and -M hold it with the same energy and the
+    capped map cannot tell them apart (one of them maps the half onto itself rotated by 180°:
+    the punctured torus onto its bend-0.5 copy moved by 31% of the diagonal). Each class within
+    `tie_tolerance` (relative) of the chosen one's held energy is returned; the doubles' energy
+    (the hole is not exactly symmetric) or the alignment then chooses (surface_map_open)."""
     Vs, Fs, cs = cap_holes(S.V2, S.F2, S.loops)
     Vt, Ft, ct = cap_holes(T.V2, T.F2, T.loops)
     if mirrored:
         Vt = Vt * np.array([-1.0, 1.0, 1.0])
         Ft = Ft[:, ::-1]
-    landmarks = np.array([[cs[i], ct[pairing[i]]] for i in range(S.b)], dtype=np.int64)
+    # The cap centres, then the user's landmarks (input vertices keep their indices).
+    landmarks = np.vstack([np.array([[cs[i], ct[pairing[i]]] for i in range(S.b)], dtype=np.int64),
+                           np.zeros((0, 2), dtype=np.int64) if landmarks is None else landmarks])
     kw = {k: v for k, v in options.items() if k in ("threads", "tolerance", "max_iterations", "target_metric")}
-    r = _with_target_metric(lambda **extra: _core.surface_map(Vs, Fs, Vt, Ft, landmarks=landmarks, two_way=False,
-                                                             **kw, **extra), kw)
-    if bool(r["source_flipped"]) != bool(r["target_flipped"]):
-        raise _core.SolveError("the capped surfaces came out oriented differently (the source's faces "
-                               f"{'reversed' if r['source_flipped'] else 'kept'}, the target's "
-                               f"{'reversed' if r['target_flipped'] else 'kept'}): the open meshes' orientations differ")
-    fw = r["forward"]
-    return np.asarray(fw["position"])[:S.n2], np.asarray(fw["face"])[:S.n2], Vt[:T.n2]
+
+    def solve(**extra):
+        r = _solve_closed(lambda **metric: _core.surface_map(Vs, Fs, Vt, Ft, landmarks=landmarks, two_way=False,
+                                                             homotopy_both_signs=True, **kw, **extra, **metric), kw)
+        if bool(r["source_flipped"]) != bool(r["target_flipped"]):
+            raise _core.SolveError("the capped surfaces came out oriented differently (the source's faces "
+                                   f"{'reversed' if r['source_flipped'] else 'kept'}, the target's "
+                                   f"{'reversed' if r['target_flipped'] else 'kept'}): the open meshes' orientations "
+                                   "differ")
+        fw = r["forward"]
+        hom = r.get("homotopy", {})
+        cands = hom.get("candidates", [])
+        chosen = int(hom.get("chosen", -1))
+        desc = cands[chosen].get("description", "") if 0 <= chosen < len(cands) else ""
+        return (np.asarray(fw["position"])[:S.n2], np.asarray(fw["face"])[:S.n2], Vt[:T.n2], desc), cands, chosen
+
+    first, cands, chosen = solve()
+    out = [first]
+    if 0 <= chosen < len(cands):
+        held = cands[chosen].get("landmark_energy", float("nan"))
+        for k, c in enumerate(cands):
+            bound = c.get("landmark_lower_bound", float("nan"))
+            if k != chosen and np.isfinite(held) and np.isfinite(bound) and bound <= held * (1 + tie_tolerance):
+                out.append(solve(homotopy=k)[0])
+    return out
 
 
 def _capped_sphere(side, options):
@@ -300,13 +333,14 @@ def _three_point_matrix(z):
     return np.array([[a * v1, -a * u1], [b * v3, -b * u3]])
 
 
-def _sphere_rough_map(S, T, pairing, options, mirrored=False):
+def _sphere_rough_map(S, T, pairing, options, mirrored=False, landmarks=None):
     """Genus 0: the Möbius map of the capped spheres sending source cap centre i onto target cap
     centre pairing[i] (exact for the first three loops, the longest; with mirrored, composed with
     a reflection of the sphere: orientation reversing). A homeomorphism of the spheres whatever
     it stretches, which is all the class needs (the closed pipeline's genus-0 map refuses
-    stretched Möbius maps by their flipped triangles). Returns (images on the target sphere,
-    None, the target's split vertices on its sphere)."""
+    stretched Möbius maps by their flipped triangles). Landmarks are not used here (the images
+    of landmark vertices are set by _symmetric_images). Returns [(images on the target sphere,
+    None, the target's split vertices on its sphere, '')] (the form of _capped_map)."""
     Ps, cs = _capped_sphere(S, options)
     Pt, ct = _capped_sphere(T, options)
     if mirrored:
@@ -321,10 +355,30 @@ def _sphere_rough_map(S, T, pairing, options, mirrored=False):
     M = np.linalg.inv(B) @ A
     u, v = _to_homogeneous(Ps[:S.n2])
     images = _from_homogeneous(M[0, 0] * u + M[0, 1] * v, M[1, 0] * u + M[1, 1] * v)
-    return images, None, Pt[:T.n2]
+    return [(images, None, Pt[:T.n2], "")]
 
 
-def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz):
+def _rough_maps(S, T, pairing, options, mirrored, landmarks):
+    """The rough maps of the halves for one pairing and orientation (_capped_map's form). Genus 0
+    with at most three loops: the Möbius map of the capped spheres (_sphere_rough_map; exact at the
+    three cap centres). Genus 0 with four or more loops: the Möbius map holds only three cap
+    centres, and the others' boundary vertices, moved onto their paired loops, can carry loops
+    that are not an isomorphism (the poncho, b = 4, onto its bend 0.3: every candidate failed), so
+    the closed pipeline's map of the capped spheres holding every cap centre comes first, the
+    Möbius map when it fails. Genus >= 1: _capped_map."""
+    if S.genus >= 1:
+        return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks)
+    if S.b <= 3:
+        return _sphere_rough_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks)
+    try:
+        return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks)
+    except _core.Cancelled:
+        raise
+    except _core.Error:
+        return _sphere_rough_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks)
+
+
+def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz, landmarks=None):
     """Per vertex of the source's double a target double vertex position: the capped map's image
     moved onto the nearest target vertex (source boundary vertices onto the nearest vertex of
     the paired target loop; images inside a target cap onto that cap's loop), the mirror
@@ -353,6 +407,8 @@ def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz
         sel = np.flatnonzero(np.isin(s_loop, src_loop) | ((s_loop < 0) & (cap == i)))
         if len(sel):
             target_vertex[sel] = loop[_nearest(pos[sel], target_xyz[loop])]
+    if landmarks is not None and len(landmarks):
+        target_vertex[landmarks[:, 0]] = landmarks[:, 1]   # landmarks onto their target vertices
     sheet1 = DT["V"][target_vertex]
     sheet2 = DT["V"][DT["mirror"][target_vertex]]
     if reversed_orientation:
@@ -364,28 +420,69 @@ def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz
     return images
 
 
-def _with_target_metric(solve, kw):
-    """solve(**extra) with the user's target metric if given, else the fixed-connectivity metric first
-    and the flip-based one when the fixed one does not exist. Why: with the flip-based metric (the
-    core's default, piecewise projective on the target's faces) a punctured torus onto its bend-0.5
-    copy ended at the same energy (12.7908 vs 12.7907) but moved the half by 31% of the diagonal,
-    against 5.6% with the fixed metric. The difference comes from the capped surfaces' rough map
-    (the fixed metric there alone restores 5.6%); why is not found yet (docs/open_surfaces.md). The
-    doubling was built and measured on the fixed metric. The core's 'fixed-first' policy is that
-    order (docs/uniformization.md "Which target metric runs")."""
+def _solve_closed(solve, kw):
+    """solve(**extra): one call of the closed pipeline (the capped map, the doubles' map) with the
+    caller's target metric if given, else the core's 'fixed-first' policy (the fixed-connectivity
+    metric, the flip-based one only when that does not exist: docs/uniformization.md). Why not the
+    core's default (flips first): a double's two sheets lie 1e-6 of the diagonal apart, and the
+    flip-based metric on the artery's 1-to-4 subdivided double (46,506 vertices) grew past 10 GB and
+    ended in std::bad_alloc before any fallback could run. The one place where the doubles choose
+    the metric. (The 31% displacement once blamed on the flip-based metric was the capped torus's
+    tie of M and -M, _capped_map; docs/open_surfaces.md.)"""
     return solve() if "target_metric" in kw else solve(target_metric="fixed-first")
 
 
-def _double_map(S, T, images, options):
+def _check_landmarks(S, T, landmarks):
+    """Landmarks as a (k, 2) int array of input vertex pairs; InputError naming the bad one."""
+    if landmarks is None:
+        return np.zeros((0, 2), dtype=np.int64)
+    lm = np.asarray(landmarks, dtype=np.int64).reshape(-1, 2)
+    s_on, t_on = S.loop_of_vertex(), T.loop_of_vertex()
+    for k, (p, q) in enumerate(lm):
+        name = f"landmark {k} ({p} {q})"
+        if not 0 <= p < S.n:
+            raise _core.InputError(f"{name}: source vertex out of range ({S.n} vertices)")
+        if not 0 <= q < T.n:
+            raise _core.InputError(f"{name}: target vertex out of range ({T.n} vertices)")
+        if (s_on[p] < 0) != (t_on[q] < 0):
+            which = ("source", "target") if s_on[p] >= 0 else ("target", "source")
+            raise _core.InputError(f"{name}: the {which[0]} vertex is on the boundary but the {which[1]} vertex is "
+                                   f"not (boundary maps onto boundary)")
+    return lm
+
+
+def _landmarks_allow(S, T, lm, pairing):
+    """Whether each boundary landmark's source loop is paired with its target vertex's loop."""
+    s_on, t_on = S.loop_of_vertex(), T.loop_of_vertex()
+    return all(s_on[p] < 0 or pairing[s_on[p]] == t_on[q] for p, q in lm)
+
+
+def _landmark_pairs(S, T, lm, reversed_orientation):
+    """The doubles' landmarks: each (p, q) with its mirror pair (sigma_S p, sigma_T q); orientation
+    reversing: p onto the target's mirror sheet (sigma_T q) and its mirror onto q. Boundary
+    vertices are their own mirrors (one pair)."""
+    if len(lm) == 0:
+        return None
+    ms, mt = S.D["mirror"], T.D["mirror"]
+    out = []
+    for p, q in lm:
+        a, b = (q, mt[q]) if not reversed_orientation else (mt[q], q)
+        out.append((p, a))
+        if ms[p] != p:
+            out.append((ms[p], b))
+    return np.array(out, dtype=np.int64)
+
+
+def _double_map(S, T, images, options, landmarks=None):
     kw = {k: v for k, v in options.items() if k in ("threads", "tolerance", "max_iterations", "method",
                                                     "source_weights", "solve_progress",
                                                     "target_metric")}
 
     def solve(**extra):
         return _core.surface_map(S.D["V"], S.D["F"], T.D["V"], T.D["F"], homotopy_images=images,
-                                 two_way=False, homotopy_search=False, **kw, **extra)
+                                 two_way=False, homotopy_search=False, landmarks=landmarks, **kw, **extra)
 
-    return _with_target_metric(solve, kw)
+    return _solve_closed(solve, kw)
 
 
 def _symmetry(res, S, T, reversed_orientation):
@@ -497,32 +594,84 @@ def _has_arrays(x):
     return False
 
 
-def _pairings(b, boundary_pairing, max_pairings):
+def _loop_lengths(side):
+    return np.array([np.linalg.norm(side.V[l] - side.V[np.roll(l, -1)], axis=1).sum() for l in side.loops])
+
+
+def _pairing_score(S, T, pairing, mirrored, options):
+    """A cheap measure of how well source loop i matches target loop pairing[i] (smaller is
+    better), for ranking the b! pairings when there are too many to solve (b >= 4): the squared
+    differences of the loops' log relative lengths, plus for genus 0 the squared chordal distances
+    between the target's cap centres 3.. and the images of the source's under the Möbius map of the
+    capped spheres that sends the first three onto theirs exactly (_sphere_rough_map)."""
+    ls, lt = _loop_lengths(S), _loop_lengths(T)
+    score = float(np.sum((np.log(ls / ls.sum()) - np.log(lt[list(pairing)] / lt.sum())) ** 2))
+    if S.genus == 0 and S.b > 3:
+        Ps, cs = _capped_sphere(S, options)
+        Pt, ct = _capped_sphere(T, options)
+        if mirrored:
+            Ps = Ps * np.array([1.0, -1.0, 1.0])
+        src = [_to_homogeneous(Ps[[cs[i]]]) for i in range(3)]
+        dst = [_to_homogeneous(Pt[[ct[pairing[i]]]]) for i in range(3)]
+        M = np.linalg.inv(_three_point_matrix([(u[0], v[0]) for u, v in dst])) @ \
+            _three_point_matrix([(u[0], v[0]) for u, v in src])
+        u, v = _to_homogeneous(Ps[cs[3:]])
+        images = _from_homogeneous(M[0, 0] * u + M[0, 1] * v, M[1, 0] * u + M[1, 1] * v)
+        score += float(np.sum((images - Pt[ct[list(pairing[3:])]]) ** 2))
+    return score
+
+
+def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options, allow=lambda p: True):
+    """The (pairing, orientation) pairs to solve and how they were chosen. A given pairing: it, in
+    each orientation. Else every pairing in each orientation when there are at most max_pairings
+    pairings (b <= 3), else the max_pairings (pairing, orientation) pairs of lowest
+    _pairing_score (the b! scores cost one uniformization per side) with the scores. Only pairings
+    `allow` accepts (the boundary landmarks' loops)."""
+    b = S.b
     if boundary_pairing is not None:
         p = [int(x) for x in boundary_pairing]
         if sorted(p) != list(range(b)):
             raise _core.InputError(f"boundary_pairing {p}: must be a permutation of 0..{b - 1} (the target loop "
                                    f"of each source loop)")
-        return [tuple(p)], "given"
-    perms = list(itertools.permutations(range(b)))
-    if len(perms) > max_pairings:
-        return [tuple(range(b))], f"loop i -> loop i only ({len(perms)} pairings > max_pairings {max_pairings})"
-    return perms, "ranked by energy"
+        if not allow(p):
+            raise _core.InputError(f"boundary_pairing {p}: a landmark on a source boundary loop names a vertex of "
+                                   f"another target loop")
+        return [(tuple(p), o, None) for o in orientations], "given"
+    perms = [p for p in itertools.permutations(range(b)) if allow(p)]
+    if not perms:
+        raise _core.InputError("landmarks: the boundary landmarks pair one source loop with two target loops")
+    if len(perms) <= max_pairings:
+        return [(p, o, None) for p in perms for o in orientations], "ranked by energy"
+    if len(perms) > 40320:
+        raise _core.InputError(f"{b} boundary loops: too many pairings ({len(perms)}) to rank; give boundary_pairing")
+    scored = sorted(((_pairing_score(S, T, p, o == "reversing", options), p, o) for p in perms for o in orientations),
+                    key=lambda x: x[0])
+    return [(p, o, sc) for sc, p, o in scored[:max_pairings]], (
+        f"ranked by energy among the {max_pairings} of {len(scored)} pairings and orientations of best loop "
+        f"lengths{' and cap centres' if S.genus == 0 else ''}")
 
 
 def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),
-                     max_pairings=6, symmetry_tolerance=0.02, tie_tolerance=1e-6, progress=None, **options):
+                     max_pairings=6, symmetry_tolerance=0.05, tie_tolerance=1e-6, progress=None, landmarks=None,
+                     **options):
     """Map between two open surfaces of equal (g, b) through their doubles (module docstring).
 
     Vs (n_s,3), Fs (m_s,3), Vt, Ft: the meshes (input faces are triangles). boundary_pairing: None
-    (b >= 2: every pairing tried, at most `max_pairings` of them, else loop i -> loop i) or the
+    (b >= 2: every pairing tried when there are at most `max_pairings`, else the `max_pairings`
+    (pairing, orientation) pairs of best _pairing_score) or the
     target loop of each source loop; 'swap' for two loops. orientations: which of 'preserving'
     (the halves onto the halves) and 'reversing' (the source's half onto the target's mirror
     half: an orientation-reversing map of the open surfaces) are tried. The lowest energy wins;
     candidates within `tie_tolerance` (relative) of it are told apart by the alignment of the
     shapes (`alignment`: mean squared distance of the vertices to their images, both shapes at
-    centroid 0 and unit area). options: threads,
+    centroid 0 and unit area). A candidate counts when its largest |f(sigma x) - sigma f(x)| is
+    at most `symmetry_tolerance` of the target's diagonal (default 0.05: the artery's correct
+    maps measured 0.033-0.040; the test shapes 0.002-0.006) and 90% of its interior lies on the
+    expected half. options: threads,
     tolerance, max_iterations, method, source_weights, solve_progress (the doubles' solves).
+    landmarks: (k, 2) (source vertex, target vertex) pairs of the input meshes, held by the
+    capped map and, each with its mirror pair, by the doubles' map (_landmark_pairs); a boundary
+    vertex only onto a boundary vertex. 'open' then has 'landmarks' and 'landmark_error'.
 
     Returns the result dict of surfmap.surface_map with 'forward' / 'inverse' (per input vertex
     face, barycentric, position on the other input mesh; boundary onto boundary), 'genus' g,
@@ -546,7 +695,9 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     orientations = tuple(orientations)
     if not orientations or any(o not in ("preserving", "reversing") for o in orientations):
         raise _core.InputError(f"orientations {orientations}: give 'preserving' and/or 'reversing'")
-    pairings, choice = _pairings(S.b, boundary_pairing, max_pairings)
+    lm = _check_landmarks(S, T, landmarks)
+    tasks, choice = _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options,
+                                     allow=lambda p: _landmarks_allow(S, T, lm, p))
 
     def report(stage, fraction):
         if progress is not None:
@@ -555,29 +706,33 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                 raise _core.Cancelled("cancelled by the progress callback")
 
     candidates, solved = [], []
-    total = len(pairings) * len(orientations)
-    for pi, pairing in enumerate(pairings):
-        for oi, o in enumerate(orientations):
-            report(f"doubles: pairing {list(pairing)}, {o}", (pi * len(orientations) + oi) / max(total, 1))
-            rev = o == "reversing"
+    for ti, (pairing, o, score) in enumerate(tasks):
+        report(f"doubles: pairing {list(pairing)}, {o}", ti / max(len(tasks), 1))
+        rev = o == "reversing"
+        try:
+            roughs = _rough_maps(S, T, pairing, options, rev, lm)
+        except _core.Cancelled:
+            raise
+        except _core.Error as e:
+            candidates.append({"pairing": list(pairing), "orientation": o, "energy": float("inf"),
+                               "status": f"failed: the capped map: {e}"})
+            continue
+        for pos, face, target_xyz, capped_class in roughs:
             cand = {"pairing": list(pairing), "orientation": o}
+            if score is not None:
+                cand["pairing_score"] = score
+            if capped_class:
+                cand["capped_class"] = capped_class
             try:
-                try:
-                    rough = _sphere_rough_map if S.genus == 0 else _capped_map
-                    pos, face, target_xyz = rough(S, T, pairing, options, mirrored=rev)
-                except _core.Cancelled:
-                    raise
-                except _core.Error as e:
-                    raise _core.SolveError(f"the capped map: {e}") from None
-                images = _symmetric_images(S, T, pairing, rev, pos, face, target_xyz)
-                r = _double_map(S, T, images, options)
+                images = _symmetric_images(S, T, pairing, rev, pos, face, target_xyz, landmarks=lm)
+                r = _double_map(S, T, images, options, _landmark_pairs(S, T, lm, rev))
                 err, sheet = _symmetry(r, S, T, rev)
                 cand.update(energy=float(r["energy"]["final"]) / 2, symmetry_error=err, same_sheet=sheet,
                             status="ok" if err <= symmetry_tolerance and sheet >= 0.9 else
                             f"not symmetric (error {err:.3g} of the diagonal, {sheet:.2f} on the expected half)")
                 cand["alignment"] = _alignment(S, T, np.asarray(r["forward"]["position"])[:S.n])
                 if cand["status"] == "ok":
-                    solved.append((cand, r, rev))
+                    solved.append((cand, r, rev, images))
             except _core.Cancelled:
                 raise
             except _core.Error as e:
@@ -590,9 +745,9 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     # pair of pants has an anticonformal involution (the reflection swapping its two hexagons),
     # so for (0, 3) each pairing's preserving and reversing maps have the same energy, as the
     # disk's rotations do (map/open_map.h).
-    lowest = min(c["energy"] for c, _, _ in solved)
+    lowest = min(x[0]["energy"] for x in solved)
     tied = [x for x in solved if x[0]["energy"] <= lowest * (1 + tie_tolerance)]
-    cand, r, rev = min(tied, key=lambda x: x[0]["alignment"])
+    cand, r, rev, chosen_images = min(tied, key=lambda x: x[0]["alignment"])
     for c in candidates:
         c["chosen"] = c is cand
     report("doubles: the half", 0.95)
@@ -604,9 +759,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         # Delaunay weights' straight images of the user's faces fold (here next to the boundary,
         # where the half is cut out of a map symmetric only up to the discretization), so the
         # chosen class is solved again with positive weights on the source's own edges.
-        images = _symmetric_images(S, T, cand["pairing"], rev, *((_sphere_rough_map if S.genus == 0 else _capped_map)(
-            S, T, cand["pairing"], options, mirrored=rev)))
-        r2 = _double_map(S, T, images, dict(options, source_weights="own"))
+        r2 = _double_map(S, T, chosen_images, dict(options, source_weights="own"), _landmark_pairs(S, T, lm, rev))
         fw2, inv2, pairing2, back2, snap2 = _half_correspondence(r2, S, T)
         flipped2, ears, ears_turned, ear = _flips(S, T, fw2, rev)
         weights_fallback = (f"{flipped} flipped with the intrinsic Delaunay weights; solved again on the source's "
@@ -641,7 +794,9 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "candidates": candidates, "tied_candidates": len(tied), "symmetry_error": cand["symmetry_error"],
                    "same_sheet": cand["same_sheet"], "snap_distance": snap, "double_genus": int(r["genus"]),
                    "ear_triangles": ears, "ear_triangles_turned": ears_turned,
-                   "source_weights_fallback": weights_fallback}
+                   "source_weights_fallback": weights_fallback, "landmarks": len(lm),
+                   "landmark_error": float(np.max(np.linalg.norm(fw["position"][lm[:, 0]] - T.V[lm[:, 1]], axis=1),
+                                                  initial=0.0))}
     return out
 
 
@@ -684,7 +839,8 @@ def report_json(r):
     out = {"method": "open", **{k: clean(r[k]) for k in keys}}
     out["distortion"] = {"mean": clean(r["distortion"]["mean"]), "max": clean(r["distortion"]["max"])}
     out["energy"] = {"final": clean(r["energy"]["final"])}
-    out["double"] = {k: clean(r[k]) for k in ("homotopy", "two_way_status", "energy_ratio") if k in r}
+    out["double"] = {k: clean(r[k]) for k in ("homotopy", "two_way_status", "energy_ratio", "target_metric",
+                                              "target_metric_choice") if k in r}
     return out
 
 
@@ -694,6 +850,23 @@ def _atomic_write(path, text):
     with open(tmp, "w") as f:
         f.write(text)
     os.replace(tmp, path)
+
+
+def _read_landmarks(path):
+    """The --landmarks file (the closed maps' format): (k, 2) source / target vertex pairs."""
+    pairs = []
+    try:
+        lines = open(path).read().splitlines()
+    except OSError:
+        raise _core.InputError(f"cannot read landmarks file {path}") from None
+    for number, line in enumerate(lines, 1):
+        words = line.split("#")[0].split()
+        if not words:
+            continue
+        if len(words) != 2 or not all(w.isdigit() for w in words):
+            raise _core.InputError(f"{path}:{number}: expected two vertex indices, got '{line}'")
+        pairs.append([int(words[0]), int(words[1])])
+    return np.array(pairs, dtype=np.int64).reshape(-1, 2)
 
 
 def main(argv=None):
@@ -707,6 +880,7 @@ def main(argv=None):
     ap.add_argument("--correspondence", default="")
     ap.add_argument("--boundary-pairing", default="")
     ap.add_argument("--boundary-swap", action="store_true")
+    ap.add_argument("--landmarks", default="", help="'source_vertex target_vertex' lines ('#' comments)")
     ap.add_argument("--quiet", action="store_true")
     a = ap.parse_args(argv)
     try:
@@ -730,7 +904,8 @@ def main(argv=None):
         if not a.quiet:
             def progress(stage, fraction):
                 print(f"surfmap: {stage}", file=sys.stderr, flush=True)
-        r = surface_map_open(*meshes[0], *meshes[1], boundary_pairing=pairing, progress=progress)
+        landmarks = _read_landmarks(a.landmarks) if a.landmarks else None
+        r = surface_map_open(*meshes[0], *meshes[1], boundary_pairing=pairing, progress=progress, landmarks=landmarks)
         rep = report_json(r)
         rep["source"], rep["target"] = a.src, a.dst
         text = {a.report: json.dumps(rep, indent=2) + "\n"}

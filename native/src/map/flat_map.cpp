@@ -1,5 +1,6 @@
 // Genus 1: the flat-torus case of the optimal map (paper §VI; docs/method.md §2.8).
 #include <algorithm>
+#include <utility>
 #include <array>
 #include <cmath>
 #include <functional>
@@ -127,9 +128,14 @@ Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> flat_image_corners(co
 }
 
 // Candidate classes: a -> p A + q B, b -> r A + s B for small SL(2,Z)
-// matrices (the handle correspondences of a torus), up to the sign ±I,
-// which gives the same energy (the hyperelliptic involution); simplest first.
-std::vector<std::array<int, 4>> candidate_matrices() {
+// matrices (the handle correspondences of a torus), simplest first. Without
+// landmarks up to the sign ±I, which gives the same energy (the hyperelliptic
+// involution). With landmarks and HomotopyOptions::flat_both_signs both
+// signs: M and -M hold the landmarks with different energies (with two or
+// more landmarks the half turn z -> -z moves them apart), so the ranking
+// needs both (docs/open_surfaces.md: the capped tori of a torus with holes,
+// one landmark per hole).
+std::vector<std::array<int, 4>> candidate_matrices(bool both_signs) {
   std::vector<std::array<int, 4>> mats;
   for (int p = -1; p <= 1; ++p)
     for (int q = -1; q <= 1; ++q)
@@ -137,11 +143,14 @@ std::vector<std::array<int, 4>> candidate_matrices() {
         for (int s2 = -1; s2 <= 1; ++s2) {
           if (p * s2 - q * r != 1) continue;
           const bool canonical_sign = p > 0 || (p == 0 && q > 0);
-          if (canonical_sign) mats.push_back({p, q, r, s2});
+          if (canonical_sign || both_signs) mats.push_back({p, q, r, s2});
         }
-  std::sort(mats.begin(), mats.end(), [](const auto& m1, const auto& m2) {
+  // Simplest first; of M and -M the canonical sign first (the order without
+  // landmarks unchanged).
+  std::stable_sort(mats.begin(), mats.end(), [](const auto& m1, const auto& m2) {
     auto cost = [](const auto& m) { return std::abs(m[0]) + std::abs(m[1]) + std::abs(m[2]) + std::abs(m[3]); };
-    return cost(m1) < cost(m2);
+    auto negative = [](const auto& m) { return m[0] < 0 || (m[0] == 0 && m[1] < 0); };
+    return std::make_pair(cost(m1), negative(m1)) < std::make_pair(cost(m2), negative(m2));
   });
   return mats;
 }
@@ -359,8 +368,10 @@ bool flat_pass(const FlatInputs& in, bool own_weights, bool first_pass, SurfaceM
 
   // Candidate classes: a -> p A + q B, b -> r A + s B for small SL(2,Z)
   // matrices (the handle correspondences of a torus), up to the sign ±I,
-  // which gives the same energy (the hyperelliptic involution).
-  const std::vector<std::array<int, 4>> mats = candidate_matrices();
+  // which gives the same energy (the hyperelliptic involution); both signs
+  // with landmarks when asked.
+  const std::vector<std::array<int, 4>> mats =
+      candidate_matrices(landmarks && in.options.homotopy.flat_both_signs);
   auto translations_of = [&](const int* m) {
     return class_translations(in.source, in.sc, in.sl, in.scs, in.first, idt,
                               double(m[0]) * tgt.A + double(m[1]) * tgt.B, double(m[2]) * tgt.A + double(m[3]) * tgt.B);

@@ -2,6 +2,7 @@
 #include "surfmap/map/open_map.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 
@@ -118,17 +119,33 @@ class DomainLocator {
   std::vector<std::vector<int>> cells_;
 };
 
-// The map between the canonical domains and its inverse.
+// A Möbius map (a z + b) / (c z + d) as its matrix {a, b, c, d}.
+using Mobius = std::array<cd, 4>;
+constexpr Mobius kIdentity{cd(1), cd(0), cd(0), cd(1)};
+cd mobius_apply(const Mobius& m, cd z) { return (m[0] * z + m[1]) / (m[2] * z + m[3]); }
+Mobius inverse_of(const Mobius& m) { return {m[3], -m[1], -m[2], m[0]}; }
+Mobius compose(const Mobius& f, const Mobius& g) {  // f ∘ g
+  return {f[0] * g[0] + f[1] * g[2], f[0] * g[1] + f[1] * g[3], f[2] * g[0] + f[3] * g[2], f[2] * g[1] + f[3] * g[3]};
+}
+// The disk automorphism z -> (z - a) / (1 - conj(a) z), sending a to 0.
+Mobius to_origin(cd a) { return {cd(1), -a, -std::conj(a), cd(1)}; }
+// The Möbius map sending z1, z2, z3 to 0, 1, infinity.
+Mobius three_points(cd z1, cd z2, cd z3) { return {z2 - z3, -z1 * (z2 - z3), z2 - z1, -z3 * (z2 - z1)}; }
+
+// The map between the canonical domains and its inverse. Disk:
+// post(e^{i rotation} pre(z)), pre and post disk automorphisms (identity
+// unless landmarks are held, hold_landmarks).
 struct DomainMap {
   bool cylinder = false, swap = false;
   double rotation = 0, stretch = 1, target_height = 0;
+  Mobius pre = kIdentity, post = kIdentity;
   cd forward(cd z) const {
-    if (!cylinder) return z * std::polar(1.0, rotation);
+    if (!cylinder) return mobius_apply(post, mobius_apply(pre, z) * std::polar(1.0, rotation));
     if (!swap) return cd(z.real() + rotation, z.imag() * stretch);
     return cd(rotation - z.real(), target_height - z.imag() * stretch);
   }
   cd inverse(cd w) const {
-    if (!cylinder) return w * std::polar(1.0, -rotation);
+    if (!cylinder) return mobius_apply(inverse_of(pre), mobius_apply(inverse_of(post), w) * std::polar(1.0, -rotation));
     if (!swap) return cd(w.real() - rotation, w.imag() / stretch);
     return cd(rotation - w.real(), (target_height - w.imag()) / stretch);
   }
@@ -199,6 +216,85 @@ double align(const TriMesh& source, const TriMesh& target, const OpenConformalRe
   return r >= period ? r - period : r;  // round-off of a tiny negative r
 }
 
+/// Landmarks of a disk or annulus pair (docs/open_surfaces.md, "Landmarks"):
+/// sets the parts of `m` they pin and returns true when they pin the
+/// rotation / shift too (no alignment then). Disk (the 3-parameter Möbius
+/// group, exactly): one interior point (pre/post send it to the centre, the
+/// rotation still aligns the shapes), one interior and one boundary point, or
+/// up to three boundary points (two: the third is the midpoint of the arc
+/// from the first to the second on each side). Annulus: the shift, the
+/// circular mean over the landmarks (exact for one; heights follow the
+/// stretch). Boundary landmarks must lie on the paired target loop.
+bool hold_landmarks(const std::vector<std::pair<int, int>>& landmarks, const OpenMapResult& r,
+                    const TriMesh& source, const TriMesh& target, DomainMap& m) {
+  if (landmarks.empty()) return false;
+  std::vector<int> s_loop(source.num_vertices(), -1), t_loop(target.num_vertices(), -1);
+  for (size_t i = 0; i < r.source_topology.boundary_loops.size(); ++i)
+    for (int v : r.source_topology.boundary_loops[i]) s_loop[v] = static_cast<int>(i);
+  for (size_t i = 0; i < r.target_topology.boundary_loops.size(); ++i)
+    for (int v : r.target_topology.boundary_loops[i]) t_loop[v] = static_cast<int>(i);
+  std::vector<cd> zs, zt;
+  std::vector<char> rim;
+  for (size_t k = 0; k < landmarks.size(); ++k) {
+    const auto [p, q] = landmarks[k];
+    const std::string name = "landmark " + std::to_string(k) + " (" + std::to_string(p) + " " + std::to_string(q) + ")";
+    if (p < 0 || p >= source.num_vertices())
+      throw InputError(name + ": source vertex out of range (" + std::to_string(source.num_vertices()) + " vertices)");
+    if (q < 0 || q >= target.num_vertices())
+      throw InputError(name + ": target vertex out of range (" + std::to_string(target.num_vertices()) + " vertices)");
+    if ((s_loop[p] < 0) != (t_loop[q] < 0))
+      throw InputError(name + ": the " + (s_loop[p] < 0 ? "target" : "source") + " vertex is on the boundary but the " +
+                       (s_loop[p] < 0 ? "source" : "target") + " vertex is not (boundary maps onto boundary)");
+    if (s_loop[p] >= 0 && r.boundary_pairing[s_loop[p]] != t_loop[q])
+      throw InputError(name + ": source loop " + std::to_string(s_loop[p]) + " maps onto target loop " +
+                       std::to_string(r.boundary_pairing[s_loop[p]]) + ", not loop " + std::to_string(t_loop[q]));
+    zs.push_back(r.source_domain.uv[p]), zt.push_back(r.target_domain.uv[q]), rim.push_back(s_loop[p] >= 0);
+  }
+  const int n = static_cast<int>(landmarks.size());
+  if (m.cylinder) {
+    cd mean = 0;  // the shift on the circle R/Z
+    for (int k = 0; k < n; ++k) {
+      m.rotation = 0;
+      mean += std::polar(1.0, 2 * M_PI * (zt[k].real() - m.forward(zs[k]).real()));
+    }
+    m.rotation = std::arg(mean) / (2 * M_PI);
+    m.rotation -= std::floor(m.rotation);
+    return true;
+  }
+  const int interior = static_cast<int>(std::count(rim.begin(), rim.end(), 0));
+  const std::string refuse = "disk landmarks: give up to 3 boundary points, or 1 interior point and at most 1 "
+                             "boundary point (the disk's Möbius group has 3 parameters); got " +
+                             std::to_string(interior) + " interior and " + std::to_string(n - interior) + " boundary";
+  if (n > 3 || interior > 1 || (interior == 1 && n > 2)) throw InputError(refuse);
+  if (interior == 1) {
+    const int k = rim[0] ? 1 : 0;
+    m.pre = to_origin(zs[k]), m.post = inverse_of(to_origin(zt[k]));
+    if (n == 1) return false;  // the rotation aligns the shapes
+    const int j = 1 - k;
+    m.rotation = std::arg(mobius_apply(to_origin(zt[k]), zt[j]) / mobius_apply(m.pre, zs[j]));
+    return true;
+  }
+  if (n == 1) {
+    m.rotation = std::arg(zt[0] / zs[0]);
+    return true;
+  }
+  if (n == 2) {  // the midpoint of the arc from the first to the second point
+    auto mid = [](cd a, cd b) {
+      double t = std::arg(b / a);
+      if (t < 0) t += 2 * M_PI;
+      return a * std::polar(1.0, t / 2);
+    };
+    zs.push_back(mid(zs[0], zs[1])), zt.push_back(mid(zt[0], zt[1]));
+  }
+  // Three boundary points in the same cyclic order on both circles.
+  auto turn = [](cd a, cd b, cd c) { return std::imag(std::conj(b - a) * (c - a)) > 0; };
+  if (turn(zs[0], zs[1], zs[2]) != turn(zt[0], zt[1], zt[2]))
+    throw InputError("disk landmarks: the boundary points run in opposite cyclic orders on the source and the target");
+  m.pre = compose(inverse_of(three_points(zt[0], zt[1], zt[2])), three_points(zs[0], zs[1], zs[2]));
+  m.rotation = 0;
+  return true;
+}
+
 /// Throws InputError unless `pairing` is a permutation of 0..b-1.
 void check_boundary_pairing(const std::vector<int>& pairing, int b) {
   std::string text;
@@ -248,8 +344,10 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
     r.extremal_dilatation = std::max(m.stretch, 1.0 / m.stretch);
   }
   const DomainLocator tloc(target, r.target_domain), sloc(source, r.source_domain);
-  m.rotation = std::isnan(options.rotation) ? align(source, target, r.source_domain, tloc, m, options.alignment_samples)
-                                            : options.rotation;
+  const bool pinned = hold_landmarks(options.landmarks, r, source, target, m);
+  if (!pinned)
+    m.rotation = std::isnan(options.rotation) ? align(source, target, r.source_domain, tloc, m, options.alignment_samples)
+                                              : options.rotation;
   r.rotation = m.rotation;
 
   SurfaceMapResult& out = r.map;
@@ -318,6 +416,8 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
     out.max_dilatation = std::max(out.max_dilatation, d);
   }
   out.mean_dilatation = weighted / std::max(total, 1e-300);
+  for (const auto& [p, q] : options.landmarks)
+    r.landmark_error = std::max(r.landmark_error, (out.forward[p].position - target.V.row(q).transpose()).norm());
   out.final_energy = out.initial_energy = energy;
   out.initial_mean_dilatation = out.mean_dilatation, out.initial_max_dilatation = out.max_dilatation;
   out.total_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -354,6 +454,8 @@ nlohmann::json to_json(const OpenMapResult& r, const OpenMapOptions& options) {
                     {"rotation_requested", !std::isnan(options.rotation)},
                     {"extremal_dilatation", r.extremal_dilatation},
                     {"boundary_pairing", r.boundary_pairing},
+                    {"landmarks", options.landmarks.size()},
+                    {"landmark_error", r.landmark_error},
                     {"ear_triangles", r.ear_triangles},
                     {"ear_triangles_degenerate", r.ear_triangles_degenerate},
                     {"source", domain_json(r.source_domain)},

@@ -201,8 +201,10 @@ def test_python_mismatched_open_topology_is_one_line_naming_both():
                   np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]))
     with pytest.raises(surfmap.InputError, match=r"genus 0 \(closed\)"):
         surfmap.surface_map(*square, *octahedron)
-    with pytest.raises(surfmap.InputError, match="landmarks"):
-        surfmap.surface_map(*square, *square, landmarks=[[0, 0]])
+    # Landmarks are held on open pairs (test_open_landmarks.py); a corner (boundary) onto the
+    # centre (interior) is refused naming the landmark.
+    with pytest.raises(surfmap.InputError, match="landmark 0 .*boundary"):
+        surfmap.surface_map(*square, *square, landmarks=[[0, 3 * 7 + 3]])
 
 
 def test_cli_boundary_swap_and_pairing(tmp_path, cli):

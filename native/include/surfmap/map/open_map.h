@@ -14,6 +14,7 @@
 //    dilatation max(m_t/m_s, m_s/m_t), the shift c chosen by the alignment.
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -42,6 +43,13 @@ struct OpenMapOptions {
   double rotation = std::numeric_limits<double>::quiet_NaN();
   /// Source vertices used for the alignment (default 400, spread evenly).
   int alignment_samples = 400;
+  /// Landmarks (source vertex, target vertex), held exactly where the
+  /// canonical map's group allows (docs/open_surfaces.md, "Landmarks"):
+  /// disk, up to 3 boundary points or 1 interior and at most 1 boundary
+  /// point (else InputError); annulus, the shift (exact for one landmark;
+  /// its height follows the stretch). They replace the alignment of what
+  /// they pin; boundary landmarks must lie on the paired loops.
+  std::vector<std::pair<int, int>> landmarks;
   OpenConformalOptions conformal;
 };
 
@@ -61,6 +69,8 @@ struct OpenMapResult {
   double extremal_dilatation = 1;
   /// The target loop of each source loop (as OpenMapOptions::boundary_pairing).
   std::vector<int> boundary_pairing;
+  /// Largest 3D distance between a landmark's image and its target vertex.
+  double landmark_error = 0;
   /// Source faces with all three corners on the boundary ("ears"): their
   /// image is fixed by the boundary correspondence alone (annulus: three
   /// points on a straight boundary line of the cylinder, degenerate). Their
