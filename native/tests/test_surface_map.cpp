@@ -13,6 +13,8 @@
 #include <set>
 
 #include "surfmap/error.h"
+#include "surfmap/geometry/intrinsic_delaunay.h"
+#include "surfmap/uniformize/ricci_flow.h"
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
@@ -176,6 +178,39 @@ TEST(SurfaceMap, CappedTorusFallsBackToPositiveWeightsOnItsOwnEdges) {
   const SurfaceMapResult mr = surface_map(raw, b);
   expect_valid_map(mr, raw, b);
   EXPECT_EQ(mr.source_weights, "intrinsic Delaunay cotangent");
+}
+
+TEST(SurfaceMap, NeedleTipSourceMaps) {
+  // g1_twirl as the source failed with "the source's intrinsic Delaunay
+  // flips did not finish": Delaunay wanted its tips (cone angle < pi) to
+  // keep a single edge. The energy now keeps every vertex's fan (>= 3
+  // edges) and gives the few edges left non-Delaunay a positive floor.
+  const TriMesh a = samples::needle(samples::torus_of_revolution(1.0, 0.35, 48, 16), 0, 0.8, 0.2);
+  const TriMesh b = samples::torus_of_revolution(1.5, 0.5, 60, 24);
+  SurfaceMapOptions intrinsic;
+  intrinsic.solve.source_weights = SourceWeights::IntrinsicDelaunay;
+  const SurfaceMapResult m = surface_map(a, b, intrinsic);
+  expect_valid_map(m, a, b);
+  EXPECT_NE(m.source_weights.find("tips of cone angle < pi"), std::string::npos) << m.source_weights;
+  EXPECT_EQ(m.intrinsic_flipped_triangles, 0);
+  // Genus 2 (the hyperbolic pipeline's source side): the energy's
+  // triangulation embeds; the needle's own long faces may still fold, which
+  // the automatic fallback to positive own-edge weights repairs.
+  const TriMesh a2 = samples::needle(samples::n_hole_torus(2, 36, true), 5, 0.6, 0.2);
+  const TriMesh b2 = samples::vase(40, true);
+  for (const TriMesh* m : {&a, &a2}) {  // both sources have such a tip (the old error)
+    const Connectivity c(m->F, m->num_vertices());
+    EXPECT_GE(intrinsic_delaunay(c, edge_lengths(*m, c)).degree_limited, 1);
+  }
+  try {
+    const SurfaceMapResult m2 = surface_map(a2, b2, intrinsic);
+    expect_valid_map(m2, a2, b2);
+    EXPECT_NE(m2.source_weights.find("tips of cone angle < pi"), std::string::npos) << m2.source_weights;
+  } catch (const SolveError& e) {
+    EXPECT_NE(std::string(e.what()).find("(0 flipped on its intrinsic Delaunay triangulation"), std::string::npos)
+        << e.what();
+  }
+  expect_valid_map(surface_map(a2, b2), a2, b2);
 }
 
 TEST(SurfaceMap, RejectsGenusMismatchAndUnknownClass) {

@@ -158,7 +158,7 @@ int flat_intrinsic_flipped(const IntrinsicDelaunayResult& idt, const std::vector
     for (int k = 1; k < 3; ++k) {
       const int e = idt.face_edges(f, k - 1);  // side from corner k-1 to corner k
       const auto& ie = idt.edges[e];
-      const bool along = ie.i == idt.F(f, k - 1) && ie.j == idt.F(f, k);
+      const bool along = idt.face_edge_forward(f, k - 1) != 0;
       c[k] = c[k - 1] + (along ? (z[ie.j] + t_intrinsic[e] - z[ie.i]) : -(z[ie.j] + t_intrinsic[e] - z[ie.i]));
     }
     const Complex e1 = c[1] - c[0], e2 = c[2] - c[0];
@@ -316,9 +316,9 @@ bool flat_pass(const FlatInputs& in, bool own_weights, bool first_pass, SurfaceM
   const SurfaceMapOptions& options = in.options;
   const FlatTarget& tgt = in.tgt;
   const IntrinsicDelaunayResult idt =
-      own_weights ? positive_edge_weights(in.sc, in.lengths) : intrinsic_delaunay(in.sc, in.lengths);
+      own_weights ? positive_edge_weights(in.sc, in.lengths) : delaunay_energy_weights(in.sc, in.lengths);
   if (!idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
-  out.source_weights = source_weights_name(own_weights);
+  out.source_weights = source_weights_name(own_weights, idt.raised_weights);
   in.stage_done("source homotopy data and weights", 0.4);
 
   // Laplacian with vertex 0 pinned (the optimum is unique up to
