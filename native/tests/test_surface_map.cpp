@@ -297,6 +297,23 @@ TEST(SurfaceMapHyperbolic, GenusTwoPairConvergesByNewtonWithoutFlips) {
   EXPECT_GE(m.mean_dilatation, 1.0);
 }
 
+TEST(SurfaceMapHyperbolic, ZeroAreaSourceFacesHaveNoDPrime) {
+  // 60 exactly collinear faces (accepted through mollification): their D'
+  // is undefined and was a NaN in the mean (bench_robustness "zero-area g2").
+  const TriMesh a = samples::insert_degenerate_faces(samples::n_hole_torus(2, 32), 60, 0.5, 2);
+  const TriMesh b = samples::n_hole_torus(2, 40, false);
+  const SurfaceMapResult m = surface_map(a, b);
+  EXPECT_TRUE(m.converged);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.degenerate_triangles, 0);
+  EXPECT_TRUE(std::isfinite(m.mean_dilatation));
+  EXPECT_TRUE(std::isfinite(m.max_dilatation));
+  EXPECT_GE(m.mean_dilatation, 1.0);
+  int undefined = 0;
+  for (double d : m.dilatation) undefined += !std::isfinite(d);
+  EXPECT_EQ(undefined, 60);  // exactly the zero-area faces
+}
+
 TEST(SurfaceMapHyperbolic, ResultDoesNotDependOnTheStartPoint) {
   // Paper §VII-D: the energy is convex, so different initial maps give the
   // same optimum.
