@@ -232,6 +232,28 @@ TEST(SphericalFlips, StretchedUvSphereUniformizes) {
   expect_embedding(m, spherical_uniformization(m));
 }
 
+TEST(SphericalFlips, SpheresStretched20And40To1Uniformize) {
+  // The round sphere crowds the ends of a long shape by a conformal factor
+  // of about e^-(2 stretch): the ends' chords here are ~1e-13 (20:1) and
+  // ~1e-20 (40:1), below the spacing of unit vectors near a general point.
+  // The layout grows from the far end and the axial centring is an exact
+  // dilation of the plane, so the ends sit at the poles where the tangential
+  // coordinates keep their relative precision: an exact discrete conformal
+  // map (no flip needed), every length cross ratio kept.
+  for (double stretch : {20.0, 40.0}) {
+    const TriMesh m = samples::stretched_uv_sphere(30, 200, stretch);
+    const SphericalUniformization s = spherical_uniformization(m);
+    SCOPED_TRACE(stretch);
+    expect_embedding(m, s);
+    expect_valid(m, s, s.edge_flips == 0);
+    double shortest = 1;
+    for (int f = 0; f < m.num_faces(); ++f)
+      for (int k = 0; k < 3; ++k)
+        shortest = std::min(shortest, (s.positions.row(m.F(f, k)) - s.positions.row(m.F(f, (k + 1) % 3))).norm());
+    EXPECT_LT(shortest, stretch > 30 ? 1e-16 : 1e-11);  // the crowding is real: these are the hard cases
+  }
+}
+
 TEST(SphericalFlips, UniformizationIsUniqueUpToMobius) {
   // Discrete uniformization is unique up to Möbius maps (Springborn 2020):
   // two different vertices at infinity must give sphere images that differ

@@ -10,9 +10,13 @@
 #include <vector>
 
 #include <Eigen/Geometry>
+#include <Eigen/SparseLU>
+#include <tuple>
 #include <set>
 
 #include "surfmap/error.h"
+#include "surfmap/geometry/intrinsic_delaunay.h"
+#include "surfmap/uniformize/ricci_flow.h"
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
@@ -178,6 +182,83 @@ TEST(SurfaceMap, CappedTorusFallsBackToPositiveWeightsOnItsOwnEdges) {
   EXPECT_EQ(mr.source_weights, "intrinsic Delaunay cotangent");
 }
 
+TEST(SurfaceMap, NeedleTipSourceMaps) {
+  // g1_twirl as the source failed with "the source's intrinsic Delaunay
+  // flips did not finish": Delaunay wanted its tips (cone angle < pi) to
+  // keep a single edge. The energy now keeps every vertex's fan (>= 3
+  // edges) and gives the few edges left non-Delaunay a positive floor.
+  const TriMesh a = samples::needle(samples::torus_of_revolution(1.0, 0.35, 48, 16), 0, 0.8, 0.2);
+  const TriMesh b = samples::torus_of_revolution(1.5, 0.5, 60, 24);
+  SurfaceMapOptions intrinsic;
+  intrinsic.solve.source_weights = SourceWeights::IntrinsicDelaunay;
+  const SurfaceMapResult m = surface_map(a, b, intrinsic);
+  expect_valid_map(m, a, b);
+  EXPECT_NE(m.source_weights.find("tips of cone angle < pi"), std::string::npos) << m.source_weights;
+  EXPECT_EQ(m.intrinsic_flipped_triangles, 0);
+  // Genus 2 (the hyperbolic pipeline's source side): the energy's
+  // triangulation embeds; the needle's own long faces may still fold, which
+  // the automatic fallback to positive own-edge weights repairs.
+  const TriMesh a2 = samples::needle(samples::n_hole_torus(2, 36, true), 5, 0.6, 0.2);
+  const TriMesh b2 = samples::vase(40, true);
+  for (const TriMesh* m : {&a, &a2}) {  // both sources have such a tip (the old error)
+    const Connectivity c(m->F, m->num_vertices());
+    EXPECT_GE(intrinsic_delaunay(c, edge_lengths(*m, c)).degree_limited, 1);
+  }
+  try {
+    const SurfaceMapResult m2 = surface_map(a2, b2, intrinsic);
+    expect_valid_map(m2, a2, b2);
+    EXPECT_NE(m2.source_weights.find("tips of cone angle < pi"), std::string::npos) << m2.source_weights;
+  } catch (const SolveError& e) {
+    EXPECT_NE(std::string(e.what()).find("(0 flipped on its intrinsic Delaunay triangulation"), std::string::npos)
+        << e.what();
+  }
+  expect_valid_map(surface_map(a2, b2), a2, b2);
+}
+
+TEST(SurfaceMap, FlatImageIsSolvedToTheRoundingOfItsCoordinates) {
+  // The harmonic map crowds long protrusions into image triangles of 1e-14
+  // of the torus (g1_camel's legs), whose orientation needs the solution to
+  // the rounding of its coordinates, not to cond(L) times it: the solve
+  // refines its residual in long double. Reference: the same problem solved
+  // by LU in long double.
+  const TriMesh a = samples::needle(samples::torus_of_revolution(1.0, 0.35, 48, 16), 0, 0.8, 0.2);
+  const TriMesh b = samples::torus_of_revolution(1.5, 0.5, 60, 24);
+  HarmonicProblem p;
+  testing::MapHooks hooks;
+  hooks.inspect_problem = [&](const HarmonicProblem& q) { p = q; };
+  SurfaceMapOptions intrinsic;
+  intrinsic.solve.source_weights = SourceWeights::IntrinsicDelaunay;
+  const SurfaceMapResult m = surface_map(a, b, intrinsic, hooks);
+  ASSERT_TRUE(p.flat);
+  const int n = a.num_vertices();
+  using LD = long double;
+  std::vector<Eigen::Triplet<LD>> trip;
+  Eigen::Matrix<LD, Eigen::Dynamic, 2> rhs = Eigen::Matrix<LD, Eigen::Dynamic, 2>::Zero(n - 1, 2);
+  for (size_t e = 0; e < p.flat_i.size(); ++e) {
+    const int i = p.flat_i[e], j = p.flat_j[e];
+    const LD w = p.flat_weight[e];
+    for (auto [r, c, v] : {std::tuple{i, i, w}, std::tuple{j, j, w}, std::tuple{i, j, -w}, std::tuple{j, i, -w}})
+      if (r > 0 && c > 0) trip.emplace_back(r - 1, c - 1, v);
+    const LD tx = p.flat_translation[e].real(), ty = p.flat_translation[e].imag();
+    if (i > 0) rhs(i - 1, 0) += w * tx, rhs(i - 1, 1) += w * ty;
+    if (j > 0) rhs(j - 1, 0) -= w * tx, rhs(j - 1, 1) -= w * ty;
+  }
+  Eigen::SparseMatrix<LD> L(n - 1, n - 1);
+  L.setFromTriplets(trip.begin(), trip.end());
+  Eigen::SparseLU<Eigen::SparseMatrix<LD>> lu;
+  lu.compute(L);
+  ASSERT_EQ(lu.info(), Eigen::Success);
+  const Eigen::Matrix<LD, Eigen::Dynamic, 2> ref = lu.solve(rhs);
+  double scale = 0, worst = 0;
+  const auto& z = m.source_image;
+  for (int i = 1; i < n; ++i) {
+    const std::complex<double> r(static_cast<double>(ref(i - 1, 0)), static_cast<double>(ref(i - 1, 1)));
+    scale = std::max(scale, std::abs(r));
+    worst = std::max(worst, std::abs((z[i] - z[0]) - r));
+  }
+  EXPECT_LT(worst, 8 * std::numeric_limits<double>::epsilon() * scale) << worst / scale;
+}
+
 TEST(SurfaceMap, RejectsGenusMismatchAndUnknownClass) {
   const TriMesh a = samples::torus_of_revolution(1.0, 0.5, 30, 15);
   const TriMesh s = samples::sphere(2);
@@ -214,6 +295,23 @@ TEST(SurfaceMapHyperbolic, GenusTwoPairConvergesByNewtonWithoutFlips) {
     EXPECT_LE(m.energy_history[k], m.energy_history[k - 1] * (1 + 1e-13));
   EXPECT_TRUE(std::isfinite(m.mean_dilatation));
   EXPECT_GE(m.mean_dilatation, 1.0);
+}
+
+TEST(SurfaceMapHyperbolic, ZeroAreaSourceFacesHaveNoDPrime) {
+  // 60 exactly collinear faces (accepted through mollification): their D'
+  // is undefined and was a NaN in the mean (bench_robustness "zero-area g2").
+  const TriMesh a = samples::insert_degenerate_faces(samples::n_hole_torus(2, 32), 60, 0.5, 2);
+  const TriMesh b = samples::n_hole_torus(2, 40, false);
+  const SurfaceMapResult m = surface_map(a, b);
+  EXPECT_TRUE(m.converged);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.degenerate_triangles, 0);
+  EXPECT_TRUE(std::isfinite(m.mean_dilatation));
+  EXPECT_TRUE(std::isfinite(m.max_dilatation));
+  EXPECT_GE(m.mean_dilatation, 1.0);
+  int undefined = 0;
+  for (double d : m.dilatation) undefined += !std::isfinite(d);
+  EXPECT_EQ(undefined, 60);  // exactly the zero-area faces
 }
 
 TEST(SurfaceMapHyperbolic, ResultDoesNotDependOnTheStartPoint) {

@@ -88,6 +88,9 @@ IntrinsicDelaunayResult intrinsic_delaunay(const Connectivity& conn, const Eigen
       throw InputError("intrinsic_delaunay: face " + std::to_string(f) + " violates the triangle inequality");
   }
 
+  if (options.min_degree < 1) throw InputError("intrinsic_delaunay: min_degree must be at least 1");
+  std::vector<int> degree(conn.num_vertices(), 0);  // edge ends
+  for (int h = 0; h < nh; ++h) ++degree[m.tail(h)];
   const int max_flips = options.max_flips > 0 ? options.max_flips : 100 * ne;
   std::deque<int> queue;
   std::vector<char> queued(ne, 1);
@@ -104,6 +107,8 @@ IntrinsicDelaunayResult intrinsic_delaunay(const Connectivity& conn, const Eigen
     if (f0 == f1) continue;  // an edge inside one face cannot be flipped
     const int hn = Mesh::next(h), hp = Mesh::prev(h), tn = Mesh::next(t), tp = Mesh::prev(t);
     const int i = m.tail(h), j = m.head(h), k = m.head(hn), l = m.head(tn);
+    // i == j (a loop) loses two ends at one vertex.
+    if (degree[i] - 1 - (i == j) < options.min_degree || degree[j] - 1 - (i == j) < options.min_degree) continue;
     // New length of k-l: unfold the two triangles around vertex i.
     const double a_i = angle_opposite(m.len(hn), m.len(h), m.len(hp)) +
                        angle_opposite(m.len(tp), m.len(t), m.len(tn));
@@ -118,13 +123,16 @@ IntrinsicDelaunayResult intrinsic_delaunay(const Connectivity& conn, const Eigen
     // j->k to f1's sides 0 and 1.
     const int inner_old[4] = {hp, tn, tp, hn};
     const int inner_new[4] = {3 * f0 + 0, 3 * f0 + 1, 3 * f1 + 0, 3 * f1 + 1};
+    // A side's twin may itself be a side of the quad (i or j of degree 2:
+    // the quad is folded, and the flip leaves that vertex of degree 1 inside
+    // a face whose two sides are one edge; Bobenko–Springborn's flip
+    // algorithm needs these). Such a twin moves with the relabelling.
     int outer[4], edges[4];
-    bool owns[4], folded = false;
-    for (int q = 0; q < 4; ++q)
-      for (int r = 0; r < 4; ++r) folded |= m.twin[inner_old[q]] == inner_old[r];
-    if (folded) continue;  // a vertex of degree 1 inside the quad: no flip possible
+    bool owns[4];
     for (int q = 0; q < 4; ++q) {
       outer[q] = m.twin[inner_old[q]];
+      for (int r = 0; r < 4; ++r)
+        if (outer[q] == inner_old[r]) outer[q] = inner_new[r];
       edges[q] = m.edge_of[inner_old[q]];
       owns[q] = m.edge_he[edges[q]] == inner_old[q];
     }
@@ -143,6 +151,7 @@ IntrinsicDelaunayResult intrinsic_delaunay(const Connectivity& conn, const Eigen
     m.path[e] = std::move(new_path);
     m.length[e] = new_len;
     out.flips++;
+    --degree[i], --degree[j], ++degree[k], ++degree[l];
     for (int q = 0; q < 4; ++q)
       if (!queued[edges[q]]) queued[edges[q]] = 1, queue.push_back(edges[q]);
   }
@@ -151,11 +160,19 @@ IntrinsicDelaunayResult intrinsic_delaunay(const Connectivity& conn, const Eigen
   for (int e = 0; e < ne; ++e) {
     const double w = m.weight(e);
     out.min_cot_weight = std::min(out.min_cot_weight, w);
-    if (w < -options.tolerance) out.delaunay = false;
+    if (w >= -options.tolerance) continue;
+    out.delaunay = false;
+    const int h = m.edge_he[e], i = m.tail(h), j = m.head(h);
+    if (degree[i] - 1 - (i == j) < options.min_degree || degree[j] - 1 - (i == j) < options.min_degree)
+      ++out.degree_limited;
   }
   out.F = m.F;
   out.face_edges.resize(m.F.rows(), 3);
-  for (int h = 0; h < nh; ++h) out.face_edges(h / 3, h % 3) = m.edge_of[h];
+  out.face_edge_forward.resize(m.F.rows(), 3);
+  for (int h = 0; h < nh; ++h) {
+    out.face_edges(h / 3, h % 3) = m.edge_of[h];
+    out.face_edge_forward(h / 3, h % 3) = m.edge_he[m.edge_of[h]] == h;
+  }
   out.edges.resize(ne);
   for (int e = 0; e < ne; ++e) {
     const int h = m.edge_he[e];

@@ -77,6 +77,17 @@ DistortionStats hyperbolic_image_distortion(
   out.per_face.assign(nf, std::numeric_limits<double>::infinity());
   double weighted = 0, total_area = 0;
   for (int f = 0; f < nf; ++f) {
+    // A zero-area source face (accepted through mollification) has no D':
+    // left out of mean and max and counted, as in planar_distortion.
+    {
+      const Eigen::Vector3d q0 = source.V.row(source.F(f, 0)), q1 = source.V.row(source.F(f, 1)),
+                            q2 = source.V.row(source.F(f, 2));
+      const double longest = std::max({(q1 - q0).norm(), (q2 - q1).norm(), (q0 - q2).norm()});
+      if (!(0.5 * (q1 - q0).cross(q2 - q0).norm() > 1e-14 * longest * longest)) {
+        ++out.degenerate_source;
+        continue;
+      }
+    }
     const auto [b, c] = image_in_chart(f);
     const int orientation = image_orientation(b, c);
     if (orientation == 0) {

@@ -94,8 +94,11 @@ class FlatSolver {
       bx[ie.j] -= w * t[e].real(), by[ie.j] -= w * t[e].imag();
     }
     const Eigen::VectorXd x = factorisation_->solve(bx.tail(n - 1)), y = factorisation_->solve(by.tail(n - 1));
+    std::vector<std::complex<long double>> zl(n, 0.0L);
+    for (int i = 1; i < n; ++i) zl[i] = {x[i - 1], y[i - 1]};
+    refine(t, zl);
     std::vector<Complex> z(n, 0.0);
-    for (int i = 1; i < n; ++i) z[i] = Complex(x[i - 1], y[i - 1]);
+    for (int i = 1; i < n; ++i) z[i] = Complex(static_cast<double>(zl[i].real()), static_cast<double>(zl[i].imag()));
     double energy = 0;
     for (size_t e = 0; e < idt.edges.size(); ++e) {
       const auto& ie = idt.edges[e];
@@ -105,6 +108,35 @@ class FlatSolver {
   }
 
  private:
+  // Mixed-precision iterative refinement (residual in long double, the
+  // correction from the same factorisation): the solution to the rounding
+  // of its own coordinates, not to cond(L) times it. Long protrusions
+  // (g1_camel's legs) are crowded by the harmonic map into image triangles
+  // of 1e-14 of the torus, whose orientation a plain solve gets wrong.
+  void refine(const std::vector<Complex>& t, std::vector<std::complex<long double>>& zl) const {
+    const int n = n_;
+    for (int round = 0; round < 3; ++round) {
+      std::vector<std::complex<long double>> r(n, 0.0L);
+      for (size_t e = 0; e < idt_.edges.size(); ++e) {
+        const auto& ie = idt_.edges[e];
+        const long double w = uniform_ ? 1.0L : static_cast<long double>(ie.cot_weight);
+        const std::complex<long double> d = zl[ie.j] + std::complex<long double>(t[e]) - zl[ie.i];
+        r[ie.i] += w * d, r[ie.j] -= w * d;
+      }
+      Eigen::VectorXd rx(n - 1), ry(n - 1);
+      for (int i = 1; i < n; ++i) rx[i - 1] = static_cast<double>(r[i].real()), ry[i - 1] = static_cast<double>(r[i].imag());
+      const Eigen::VectorXd dx = factorisation_->solve(rx), dy = factorisation_->solve(ry);
+      bool changed = false;
+      for (int i = 1; i < n; ++i) {
+        const std::complex<long double> before = zl[i];
+        zl[i] += std::complex<long double>(dx[i - 1], dy[i - 1]);
+        changed |= static_cast<double>(zl[i].real()) != static_cast<double>(before.real()) ||
+                   static_cast<double>(zl[i].imag()) != static_cast<double>(before.imag());
+      }
+      if (!changed) break;
+    }
+  }
+
   int n_;
   const IntrinsicDelaunayResult& idt_;
   bool uniform_;
@@ -167,7 +199,7 @@ int flat_intrinsic_flipped(const IntrinsicDelaunayResult& idt, const std::vector
     for (int k = 1; k < 3; ++k) {
       const int e = idt.face_edges(f, k - 1);  // side from corner k-1 to corner k
       const auto& ie = idt.edges[e];
-      const bool along = ie.i == idt.F(f, k - 1) && ie.j == idt.F(f, k);
+      const bool along = idt.face_edge_forward(f, k - 1) != 0;
       c[k] = c[k - 1] + (along ? (z[ie.j] + t_intrinsic[e] - z[ie.i]) : -(z[ie.j] + t_intrinsic[e] - z[ie.i]));
     }
     const Complex e1 = c[1] - c[0], e2 = c[2] - c[0];
@@ -325,9 +357,9 @@ bool flat_pass(const FlatInputs& in, bool own_weights, bool first_pass, SurfaceM
   const SurfaceMapOptions& options = in.options;
   const FlatTarget& tgt = in.tgt;
   const IntrinsicDelaunayResult idt =
-      own_weights ? positive_edge_weights(in.sc, in.lengths) : intrinsic_delaunay(in.sc, in.lengths);
+      own_weights ? positive_edge_weights(in.sc, in.lengths) : delaunay_energy_weights(in.sc, in.lengths);
   if (!idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
-  out.source_weights = source_weights_name(own_weights);
+  out.source_weights = source_weights_name(own_weights, idt.raised_weights);
   in.stage_done("source homotopy data and weights", 0.4);
 
   // Laplacian with vertex 0 pinned (the optimum is unique up to

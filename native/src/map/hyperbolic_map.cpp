@@ -1066,7 +1066,7 @@ bool map_class(HyperbolicPipeline& p) {
   const SurfaceMapOptions& options = p.options;
   SurfaceMapResult& out = p.out;
   const int k = out.chosen_candidate;
-  out.source_weights = source_weights_name(p.own_weights);
+  out.source_weights = source_weights_name(p.own_weights, p.ss.idt.raised_weights);
   const ClassData& cd = p.data[k];
 
   ClassInitialMap initial;

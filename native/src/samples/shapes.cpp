@@ -327,6 +327,27 @@ TriMesh polycube(int holes, int resolution, bool smooth) {
   return mesh_shape(polycube_shape(holes), resolution, smooth);
 }
 
+TriMesh needle(const TriMesh& mesh, int v, double height, double gap) {
+  if (v < 0 || v >= mesh.num_vertices()) throw InputError("needle: vertex " + std::to_string(v) + " does not exist");
+  if (!(height > 0)) throw InputError("needle: height must be positive");
+  if (!(gap > 0 && gap < 1)) throw InputError("needle: gap must lie in (0, 1)");
+  TriMesh out = mesh;
+  Vector3d normal = Vector3d::Zero();
+  int n = -1;
+  for (int t = 0; t < mesh.num_faces(); ++t)
+    for (int c = 0; c < 3; ++c) {
+      if (mesh.F(t, c) != v) continue;
+      const Vector3d a = mesh.V.row(v), b = mesh.V.row(mesh.F(t, (c + 1) % 3)), d = mesh.V.row(mesh.F(t, (c + 2) % 3));
+      normal += (b - a).cross(d - a);
+      for (int w : {mesh.F(t, (c + 1) % 3), mesh.F(t, (c + 2) % 3)}) n = n < 0 ? w : std::min(n, w);
+    }
+  if (n < 0 || !(normal.norm() > 0)) throw InputError("needle: vertex " + std::to_string(v) + " has no faces");
+  const Vector3d tip = mesh.V.row(v).transpose() + height * normal.normalized();
+  out.V.row(v) = tip;
+  out.V.row(n) = tip + gap * (mesh.V.row(n).transpose() - tip);
+  return out;
+}
+
 TriMesh jitter(const TriMesh& mesh, double amplitude, unsigned seed) {
   if (!(amplitude >= 0 && amplitude < 0.3))
     throw InputError("jitter: amplitude " + std::to_string(amplitude) + " is out of range [0, 0.3)");

@@ -31,9 +31,13 @@ Eigen::Vector3d mobius(const Eigen::Vector3d& c, const Eigen::Vector3d& x) {
 
 /// The punctured disk laid out in the plane: breadth first over the faces
 /// `FL` (edges `FEL`) of the (possibly flipped) triangulation the flat
-/// metric `lengths` lives on; boundary edges never flip. #V' x 2.
+/// metric `lengths` lives on; boundary edges never flip. #V' x 2. The
+/// vertex `origin` is placed at exactly 0 and the layout grows outward from
+/// it, so each vertex's rounding error stays relative to its distance from
+/// the origin: the far end of a long shape, crowded towards 0 by a conformal
+/// factor of e^-40 (a sphere stretched 20:1), keeps its shape.
 Eigen::MatrixX2d lay_out_flat_disk(const RowMatrixX3i& FL, const RowMatrixX3i& FEL, const Eigen::VectorXd& lengths,
-                                   int n2, int num_edges) {
+                                   int n2, int num_edges, int origin) {
   const int nf2 = static_cast<int>(FL.rows());
   std::vector<std::vector<int>> faces_of_edge(num_edges);
   for (int f = 0; f < nf2; ++f)
@@ -50,12 +54,16 @@ Eigen::MatrixX2d lay_out_flat_disk(const RowMatrixX3i& FL, const RowMatrixX3i& F
     P.row(r) = (ps + x * e + y * nrm).transpose();
     placed[r] = 1;
   };
-  P.row(FL(0, 0)) << 0, 0;
-  P.row(FL(0, 1)) << side(0, 2), 0;
-  placed[FL(0, 0)] = placed[FL(0, 1)] = 1;
-  place_third(0, 2);
-  done[0] = 1;
-  std::deque<int> queue{0};
+  int f0 = 0, k0 = 0;  // a face at the origin, its corner there
+  for (int f = 0; f < nf2 && FL(f0, k0) != origin; ++f)
+    for (int k = 0; k < 3; ++k)
+      if (FL(f, k) == origin) f0 = f, k0 = k;
+  P.row(FL(f0, k0)) << 0, 0;
+  P.row(FL(f0, (k0 + 1) % 3)) << side(f0, (k0 + 2) % 3), 0;
+  placed[FL(f0, k0)] = placed[FL(f0, (k0 + 1) % 3)] = 1;
+  place_third(f0, (k0 + 2) % 3);
+  done[f0] = 1;
+  std::deque<int> queue{f0};
   while (!queue.empty()) {
     const int f = queue.front();
     queue.pop_front();
@@ -71,43 +79,30 @@ Eigen::MatrixX2d lay_out_flat_disk(const RowMatrixX3i& FL, const RowMatrixX3i& F
   return P;
 }
 
-/// The planar disk `P` (faces FL, boundary `ring`) onto the unit sphere:
-/// normalised (area centroid at 0, unit mean radius of the ring; the
-/// Möbius centring removes what is left of this choice), then the inverse
-/// stereographic projection from the north pole, where v0 goes; y is
-/// mirrored because a counter-clockwise layout seen from +z would face
-/// inward on the southern hemisphere. `old_id`: input vertex of each disk vertex.
-RowMatrixX3d project_to_sphere(const Eigen::MatrixX2d& P, const RowMatrixX3i& FL, const std::vector<int>& ring,
-                               const std::vector<int>& old_id, int v0, int nv) {
-  const int nf2 = static_cast<int>(FL.rows()), nb = static_cast<int>(ring.size()), n2 = static_cast<int>(P.rows());
-  Eigen::Vector2d centre(0, 0);
-  double area_sum = 0;
-  for (int f = 0; f < nf2; ++f) {
-    const Eigen::Vector2d a = P.row(FL(f, 0)).transpose(), b = P.row(FL(f, 1)).transpose(),
-                          c = P.row(FL(f, 2)).transpose();
-    const double A = 0.5 * std::abs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
-    centre += A * (a + b + c) / 3.0;
-    area_sum += A;
-  }
-  centre /= std::max(area_sum, 1e-300);
-  double radius = 0;
-  for (int i = 0; i < nb; ++i) radius += (P.row(ring[i]).transpose() - centre).norm() / nb;
-  radius = std::max(radius, 1e-300);
+/// The planar disk `P` (its layout origin at 0) onto the unit sphere: the
+/// inverse stereographic projection of P / radius from the north pole,
+/// where v0 goes; y is mirrored because a counter-clockwise layout seen
+/// from +z would face inward on the southern hemisphere. `old_id`: input
+/// vertex of each disk vertex.
+RowMatrixX3d project_to_sphere(const Eigen::MatrixX2d& P, double radius, const std::vector<int>& old_id, int v0,
+                               int nv) {
+  const int n2 = static_cast<int>(P.rows());
   RowMatrixX3d positions(nv, 3);
   for (int i = 0; i < n2; ++i) {
-    const double x = (P(i, 0) - centre.x()) / radius, y = -(P(i, 1) - centre.y()) / radius;
+    const double x = P(i, 0) / radius, y = -P(i, 1) / radius;
     const double q = x * x + y * y;
-    positions.row(old_id[i]) << 2 * x / (q + 1), 2 * y / (q + 1), (q - 1) / (q + 1);
+    // 2x / (q + 1) and 2 / (q + 1) keep their relative precision for tiny
+    // and huge |x| alike (q - 1 would not, near the south pole).
+    if (q > 1) positions.row(old_id[i]) << 2 * x / (q + 1), 2 * y / (q + 1), 1 - 2 / (q + 1);
+    else positions.row(old_id[i]) << 2 * x / (q + 1), 2 * y / (q + 1), (q - 1) / (q + 1);
   }
   positions.row(v0) << 0, 0, 1;
   return positions;
 }
 
-/// Möbius centring of `positions` with the input's vertex areas as
-/// weights (backtracking ball automorphisms); returns |centre of mass|.
-double mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& options, RowMatrixX3d& positions) {
-  const int nv = mesh.num_vertices();
-  Eigen::VectorXd w = Eigen::VectorXd::Zero(nv);
+/// Input vertex areas, normalised to sum 1: the weights of the centre of mass.
+Eigen::VectorXd vertex_area_weights(const TriMesh& mesh) {
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(mesh.num_vertices());
   for (int f = 0; f < mesh.num_faces(); ++f) {
     const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose(),
                           b = mesh.V.row(mesh.F(f, 1)).transpose(),
@@ -115,7 +110,43 @@ double mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& 
     const double area = 0.5 * (b - a).cross(c - a).norm();
     for (int k = 0; k < 3; ++k) w[mesh.F(f, k)] += area / 3.0;
   }
-  w /= w.sum();
+  return w / w.sum();
+}
+
+/// The scale of the planar layout (origin at 0) whose projection has its
+/// weighted centre of mass on the equator's plane (z = 0): the axial part of
+/// the Möbius centring done as an exact dilation of the plane (bisection on
+/// log radius; z of the centre falls monotonically from +1 to -1 as the
+/// radius grows). Then only the small remaining Möbius step moves points
+/// by arithmetic on unit vectors, which would round away the crowded ends
+/// of a long shape (docs/robustness.md, "Genus 0").
+double axial_centring_radius(const Eigen::MatrixX2d& P, const std::vector<int>& old_id, int v0,
+                             const Eigen::VectorXd& w) {
+  auto centre_z = [&](double log_r) {
+    const double r2 = std::exp(2 * log_r);
+    double z = w[v0];
+    for (int i = 0; i < static_cast<int>(P.rows()); ++i) {
+      const double q = P.row(i).squaredNorm();
+      z += w[old_id[i]] * (q - r2) / (q + r2);
+    }
+    return z;
+  };
+  double lo = std::log(std::numeric_limits<double>::min()) / 2, hi = std::log(std::numeric_limits<double>::max()) / 2;
+  double rmax = 0;
+  for (int i = 0; i < static_cast<int>(P.rows()); ++i) rmax = std::max(rmax, P.row(i).norm());
+  if (rmax > 0) lo = std::max(lo, std::log(rmax) - 300), hi = std::min(hi, std::log(rmax) + 300);
+  for (int it = 0; it < 200 && hi - lo > 1e-14 * std::max(1.0, std::abs(lo)); ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (centre_z(mid) > 0 ? lo : hi) = mid;
+  }
+  return std::exp(0.5 * (lo + hi));
+}
+
+/// Möbius centring of `positions` with the input's vertex areas as
+/// weights (backtracking ball automorphisms); returns |centre of mass|.
+double mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& options, RowMatrixX3d& positions) {
+  const int nv = mesh.num_vertices();
+  const Eigen::VectorXd w = vertex_area_weights(mesh);
   auto centre_of = [&](const RowMatrixX3d& X) {
     return Eigen::Vector3d((w.transpose() * X).transpose());
   };
@@ -283,6 +314,25 @@ int flip_star_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std
   pt.disk.conservativeResize(old_rows + static_cast<int>(added.size()), 3);
   for (size_t i = 0; i < added.size(); ++i) pt.disk.row(old_rows + static_cast<int>(i)) << added[i][0], added[i][1], added[i][2];
   return count;
+}
+
+/// The disk vertex (of `faces`, #V' = n2) farthest from v0's ring in
+/// edges: where the planar layout should start (lay_out_flat_disk).
+int farthest_from_ring(const RowMatrixX3i& faces, const PuncturedTriangulation& pt, int n2) {
+  std::vector<std::vector<int>> nbr(n2);
+  for (int f = 0; f < faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) nbr[faces(f, k)].push_back(faces(f, (k + 1) % 3));
+  std::vector<int> dist(n2, -1);
+  std::deque<int> queue;
+  for (const auto& [v, y] : pt.ring_y) dist[v] = 0, queue.push_back(v);
+  int last = queue.empty() ? 0 : queue.front();
+  while (!queue.empty()) {
+    last = queue.front();
+    queue.pop_front();
+    for (int u : nbr[last])
+      if (dist[u] < 0) dist[u] = dist[last] + 1, queue.push_back(u);
+  }
+  return last;
 }
 
 /// Orientation of the chordal triangles `F` (vertex ids of `X`) on the
@@ -524,11 +574,12 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   out.circle_error = 0.0;
   if (!flat.converged && out.message.empty()) out.message = "flattening the punctured disk failed: " + flat.message;
 
-  std::vector<int> ring;
-  for (const auto& s : pt.star) ring.push_back(s[1]);
-  const Eigen::MatrixX2d P =
-      lay_out_flat_disk(flat.faces, flat.face_edges, flat.edge_lengths, n2, static_cast<int>(flat.edge_vertices.rows()));
-  out.positions = project_to_sphere(P, flat.faces, ring, old_id, v0, nv);
+  // The layout grows from the disk vertex farthest from the ring (in edges):
+  // the far end of the shape, which the projection crowds towards the south pole.
+  const Eigen::MatrixX2d P = lay_out_flat_disk(flat.faces, flat.face_edges, flat.edge_lengths, n2,
+                                               static_cast<int>(flat.edge_vertices.rows()),
+                                               farthest_from_ring(flat.faces, pt, n2));
+  out.positions = project_to_sphere(P, axial_centring_radius(P, old_id, v0, vertex_area_weights(mesh)), old_id, v0, nv);
   out.centre_of_mass_norm = mobius_centre(mesh, options, out.positions);
   if (out.message.empty() && !(out.centre_of_mass_norm <= options.centring_tolerance))
     out.message = "Möbius centring stalled at |centre| = " + detail::fmt(out.centre_of_mass_norm);

@@ -20,6 +20,13 @@ struct IntrinsicDelaunayOptions {
   /// Stop after this many flips (0: 100 x #E). Reaching it leaves
   /// `delaunay` false.
   int max_flips = 0;
+  /// No flip leaves a vertex with fewer than this many edge ends (a loop
+  /// counts twice). 1 is Bobenko–Springborn's algorithm, which always ends
+  /// Delaunay but may leave a vertex of cone angle < pi with one edge inside
+  /// a face whose two sides are one edge; with 2 (the default) such an edge
+  /// stays unflipped, and with 3 every vertex keeps a fan of >= 3 triangles.
+  /// Edges left non-Delaunay for this reason are counted in `degree_limited`.
+  int min_degree = 2;
 };
 
 /// One edge of the intrinsic triangulation, from vertex i to vertex j.
@@ -41,7 +48,16 @@ struct IntrinsicDelaunayResult {
   std::vector<IntrinsicEdge> edges;
   /// For each face, the edge index of its corner-k side (from F(f,k) to F(f,k+1)).
   RowMatrixX3i face_edges;
+  /// #F x 3: 1 when face f's corner-k side runs along edges[face_edges(f, k)]
+  /// (from i to j), 0 when against it. Needed for loop edges (i == j),
+  /// whose direction the vertex numbers do not tell.
+  RowMatrixX3i face_edge_forward;
   int flips = 0;
+  /// Non-Delaunay edges left unflipped because of `min_degree` at the end.
+  int degree_limited = 0;
+  /// Edges whose weight was raised to a positive floor afterwards
+  /// (delaunay_energy_weights); 0 from intrinsic_delaunay itself.
+  int raised_weights = 0;
   bool delaunay = false;
   /// Smallest cot_weight after flipping (>= -tolerance when delaunay).
   double min_cot_weight = 0.0;

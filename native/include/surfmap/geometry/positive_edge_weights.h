@@ -33,4 +33,18 @@ struct PositiveEdgeWeightsOptions {
 IntrinsicDelaunayResult positive_edge_weights(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
                                               const PositiveEdgeWeightsOptions& options = {}, int* raised = nullptr);
 
+/// The source's harmonic-energy triangulation (docs/robustness.md, "Tips"):
+/// the intrinsic Delaunay triangulation (intrinsic_delaunay, default
+/// options) when its flips finish. They stop short when Delaunay needs a
+/// vertex with a single edge: a tip whose cone angle is below pi (g1_twirl
+/// has two). There the harmonic map would put that vertex onto its only
+/// neighbour and fold the user's faces around it, so instead the flips run
+/// with min_degree = 3 and the few edges they leave non-Delaunay get the
+/// floor weight of positive_edge_weights (`raised_weights` counts them,
+/// `degree_limited` the edges left unflipped; `delaunay` is true when the
+/// result has only positive or Delaunay weights). Every other edge keeps its
+/// intrinsic Delaunay cotangent weight.
+IntrinsicDelaunayResult delaunay_energy_weights(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
+                                                const PositiveEdgeWeightsOptions& options = {});
+
 }  // namespace surfmap

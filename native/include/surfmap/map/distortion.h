@@ -59,7 +59,8 @@ struct DistortionStats {
 /// side lengths (asked for positively oriented images only); D' per face by
 /// hyperbolic_face_dilatation, the area-weighted (3D areas) mean and the
 /// max over the faces with a D', flipped and degenerate counts as in
-/// image_orientation. The one loop behind every hyperbolic D' figure
+/// image_orientation; zero-area source faces are left out and counted in
+/// degenerate_source (as planar_distortion does). The one loop behind every hyperbolic D' figure
 /// (initial map, optimum, landmark folds).
 DistortionStats hyperbolic_image_distortion(
     const TriMesh& source,

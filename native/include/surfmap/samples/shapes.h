@@ -105,4 +105,13 @@ TriMesh cad_plate(int holes = 2, int segments = 64, double thickness = 0.1);
 /// count <= #F / 8.
 TriMesh insert_degenerate_faces(const TriMesh& mesh, int count, double t, unsigned seed);
 
+/// A needle tip like those of g1_twirl: vertex `v` is raised by `height`
+/// along its area-weighted normal, and its lowest-numbered neighbour n moves
+/// up to `gap` of the way back from the tip (n = tip + gap (n - tip)), so the
+/// tip has a small cone angle and one neighbour much closer than the rest.
+/// Intrinsic Delaunay then wants the tip to keep a single edge (to n; see
+/// geometry/intrinsic_delaunay.h, min_degree). Same connectivity as `mesh`.
+/// Throws InputError on a bad vertex, height <= 0 or gap outside (0, 1).
+TriMesh needle(const TriMesh& mesh, int v, double height, double gap);
+
 }  // namespace surfmap::samples

@@ -95,11 +95,9 @@ int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::v
       bool known = true;
       for (int k = 0; k < 3; ++k) {
         const int e = idt.face_edges(f, k);
-        const auto& ie = idt.edges[e];
-        const int a = idt.F(f, k), b = idt.F(f, (k + 1) % 3);
-        if (ie.i == a && ie.j == b && a != b) side[k] = edge_local[e];
-        else if (ie.i == b && ie.j == a && a != b) side[k] = edge_local[e].inverse();
-        else known = false;  // a loop edge: orientation not recorded
+        if (idt.face_edge_forward.rows() != idt.F.rows()) known = false;  // orientation not recorded
+        else if (idt.face_edge_forward(f, k)) side[k] = edge_local[e];
+        else side[k] = edge_local[e].inverse();
       }
       if (!known) continue;
       const Complex p1 = side[0].apply(Complex(0.0)), p2 = side[2].inverse().apply(Complex(0.0));

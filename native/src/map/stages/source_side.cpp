@@ -29,7 +29,7 @@ SourceSide build_source_side(const TriMesh& source, const Connectivity& sc, cons
   // weights on the source's own edges (options.solve.source_weights; the automatic
   // fallback below switches when the user's faces fold).
   ss.idt = own_weights ? positive_edge_weights(sc, edge_lengths(source, sc))
-                       : intrinsic_delaunay(sc, edge_lengths(source, sc));
+                       : delaunay_energy_weights(sc, edge_lengths(source, sc));
   if (!ss.idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
   ss.shb = handle_basis(source, ss.sl.loops, ss.scs);
   // The ranking level (below): a coarse copy of the source.

@@ -4,8 +4,11 @@
 
 namespace surfmap::detail {
 
-std::string source_weights_name(bool own_weights) {
-  return own_weights ? "positive on the source's own edges" : "intrinsic Delaunay cotangent";
+std::string source_weights_name(bool own_weights, int raised) {
+  if (own_weights) return "positive on the source's own edges";
+  if (raised == 0) return "intrinsic Delaunay cotangent";
+  return "intrinsic Delaunay cotangent, except " + std::to_string(raised) +
+         " edge(s) at tips of cone angle < pi kept unflipped with a positive floor weight";
 }
 
 void store_initial_distortion(const DistortionStats& q0, SurfaceMapResult& out) {

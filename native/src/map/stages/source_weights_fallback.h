@@ -15,7 +15,9 @@
 namespace surfmap::detail {
 
 /// The report's name of the weights in use (SurfaceMapResult::source_weights).
-std::string source_weights_name(bool own_weights);
+/// `raised`: edges of the intrinsic triangulation whose weight was raised
+/// (delaunay_energy_weights, tips of cone angle < pi).
+std::string source_weights_name(bool own_weights, int raised = 0);
 
 /// D' of the initial map (`q0`, per source face) into out.initial_*.
 void store_initial_distortion(const DistortionStats& q0, SurfaceMapResult& out);
