@@ -1,0 +1,222 @@
+// Exact algebra of outer automorphisms of surface groups
+// (topology/outer_automorphisms.h; docs/handle_classes.md "Both directions").
+#include "surfmap/topology/outer_automorphisms.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <limits>
+
+#include "surfmap/error.h"
+#include "surfmap/topology/mapping_class_search.h"
+
+namespace surfmap {
+
+namespace {
+
+Word rotated(const Word& u, size_t r) {
+  Word v(u.begin() + static_cast<long>(r), u.end());
+  v.insert(v.end(), u.begin(), u.begin() + static_cast<long>(r));
+  return v;
+}
+
+// The rotations worth trying on a Dehn-reduced word of length n whose
+// relator has at most m letters: every one for short words; for long ones a
+// half turn brings every junction-spanning piece (at most m letters) inside.
+std::vector<size_t> rotations(size_t n, size_t m) {
+  std::vector<size_t> r;
+  if (n < 2) return r;
+  if (n <= 2 * m + 2) {
+    for (size_t k = 1; k < n; ++k) r.push_back(k);
+  } else {
+    r.push_back(n / 2);
+  }
+  return r;
+}
+
+size_t total_letters(const GroupMap& m) {
+  size_t s = 0;
+  for (const Word& w : m) s += w.size();
+  return s;
+}
+
+void check_map(const GroupMap& phi, int genus, const char* who) {
+  if (genus < 2) throw InputError(std::string(who) + ": genus must be at least 2");
+  if (static_cast<int>(phi.size()) != 2 * genus)
+    throw InputError(std::string(who) + ": " + std::to_string(phi.size()) + " generator images, expected " +
+                     std::to_string(2 * genus));
+  for (const Word& w : phi)
+    for (int x : w)
+      if (x == 0 || std::abs(x) > 2 * genus)
+        throw InputError(std::string(who) + ": letter " + std::to_string(x) + " out of range");
+}
+
+// Probe curves for the descent: x_i, then x_i x_j and x_i x_j^-1 (i < j).
+std::vector<Word> probe_words(int genus) {
+  const int n = 2 * genus;
+  std::vector<Word> p;
+  for (int i = 1; i <= n; ++i) p.push_back({i});
+  for (int i = 1; i <= n; ++i)
+    for (int j = i + 1; j <= n; ++j) {
+      p.push_back({i, j});
+      p.push_back({i, -j});
+    }
+  return p;
+}
+
+// Total cyclically reduced length of the probes' images: conjugation
+// invariant, least (one letter per generator) for inner automorphisms.
+size_t probe_cost(const GroupMap& tau, const std::vector<Word>& probes, const DehnReducer& reduce) {
+  size_t c = 0;
+  for (const Word& p : probes) c += cyclic_dehn_reduce(substitute(p, tau), reduce).size();
+  return c;
+}
+
+}  // namespace
+
+Word cyclic_dehn_reduce(const Word& w, const DehnReducer& reduce) {
+  Word u = cyclic_reduce(reduce(w));
+  for (bool shorter = true; shorter;) {
+    shorter = false;
+    for (size_t r : rotations(u.size(), 64)  /* relators up to genus 16 */) {
+      Word d = cyclic_reduce(reduce(rotated(u, r)));
+      if (d.size() < u.size()) {
+        u = std::move(d);
+        shorter = true;
+        break;
+      }
+    }
+  }
+  return u;
+}
+
+InnerTest inner_automorphism_test(const GroupMap& phi, int genus) {
+  check_map(phi, genus, "inner_automorphism_test");
+  InnerTest t;
+  const int n = 2 * genus;
+  if (homology_matrix(phi, n) != IntMatrix::Identity(n, n)) {
+    t.why = "it acts on homology as a non-identity matrix";
+    return t;
+  }
+  const DehnReducer reduce(canonical_relator(genus));
+  // Peel phi(a1) = w u w^-1 down to u = a1 (file comment).
+  Word w, u = reduce(phi[0]);
+  for (int guard = 0; guard < 100000 && !(u.size() == 1 && u[0] == 1); ++guard) {
+    if (u.size() >= 2 && u.front() == -u.back()) {
+      w.push_back(u.front());
+      u = Word(u.begin() + 1, u.end() - 1);
+      continue;
+    }
+    bool shorter = false;
+    for (size_t r = 1; r < u.size() && !shorter; ++r) {
+      Word d = reduce(rotated(u, r));
+      if (d.size() < u.size()) {
+        w = reduce(concat(w, Word(u.begin(), u.begin() + static_cast<long>(r))));
+        u = std::move(d);
+        shorter = true;
+      }
+    }
+    if (!shorter) break;
+  }
+  if (!(u.size() == 1 && u[0] == 1)) {
+    t.why = "the image of a1 is not conjugate to a1";
+    return t;
+  }
+  w = reduce(w);
+  // w is determined up to powers of a1 (its centralizer): fix them with b1.
+  const Word v = reduce(concat({inverse(w), phi[1], w}));
+  const long range = static_cast<long>(v.size()) + 1;
+  bool found = false;
+  for (long k = 0; k <= range && !found; ++k)
+    for (long s : {k, -k}) {
+      const Word ak(static_cast<size_t>(std::abs(s)), s >= 0 ? 1 : -1);
+      if (reduce(concat({inverse(ak), v, ak})) == Word{2}) {
+        w = reduce(concat(w, ak));
+        found = true;
+        break;
+      }
+    }
+  if (!found) {
+    t.why = "the images of a1 and b1 are not conjugate to a1, b1 by one element";
+    return t;
+  }
+  for (int x = 1; x <= n; ++x)
+    if (!reduce(concat({inverse(w), phi[x - 1], w, Word{-x}})).empty()) {
+      t.why = "no single conjugation gives every generator's image (generator " + std::to_string(x) + ")";
+      return t;
+    }
+  t.inner = true;
+  t.conjugator = w;
+  return t;
+}
+
+AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const AutomorphismInverseOptions& options) {
+  check_map(phi, genus, "invert_automorphism");
+  AutomorphismInverse out;
+  const int n = 2 * genus;
+  const IntMatrix P = homology_matrix(phi, n), J = symplectic_form(genus);
+  if (P.transpose() * J * P != J) {
+    out.why = "its homology matrix is not symplectic";
+    return out;
+  }
+  const DehnReducer reduce(canonical_relator(genus));
+  auto dehn = [&](GroupMap m) {
+    for (Word& w : m) w = reduce(w);
+    return m;
+  };
+  // tau = phi ∘ M; once it is inner, phi^-1 = M (up to inner).
+  GroupMap tau = dehn(phi), M = identity_map(n);
+  const std::vector<MappingClassMove> moves = twist_moves(genus);
+  const std::vector<Word> probes = probe_words(genus);
+  size_t cost = probe_cost(tau, probes, reduce);
+  for (int step = 0;; ++step) {
+    if (inner_automorphism_test(tau, genus).inner) break;
+    if (step >= options.max_steps) {
+      out.why = "the descent used its " + std::to_string(options.max_steps) + " moves before reaching an inner automorphism";
+      return out;
+    }
+    // The best single move, else the best pair starting with one of the
+    // `pair_starts` best single moves.
+    size_t best = std::numeric_limits<size_t>::max();
+    GroupMap best_tau, best_m;
+    std::vector<std::pair<size_t, size_t>> singles;  // (cost, move)
+    const size_t letter_cap = std::max(options.max_letters, 2 * total_letters(tau));
+    auto consider = [&](const GroupMap& m, size_t* cost_out) {
+      GroupMap cand = dehn(compose(tau, m));
+      if (total_letters(cand) > letter_cap) return;
+      const size_t c = probe_cost(cand, probes, reduce);
+      if (cost_out) *cost_out = c;
+      if (c < best) best = c, best_tau = std::move(cand), best_m = m;
+    };
+    for (size_t k = 0; k < moves.size(); ++k) {
+      size_t c = std::numeric_limits<size_t>::max();
+      consider(moves[k].automorphism.map, &c);
+      singles.emplace_back(c, k);
+    }
+    if (!(best < cost) && options.pair_moves) {
+      std::sort(singles.begin(), singles.end());
+      for (size_t q = 0; q < singles.size() && q < static_cast<size_t>(options.pair_starts); ++q)
+        for (const MappingClassMove& m2 : moves)
+          consider(dehn(compose(moves[singles[q].second].automorphism.map, m2.automorphism.map)), nullptr);
+    }
+    if (!(best < cost)) {
+      out.why = "no move or pair of moves shortens the probe curves' images (stopped after " + std::to_string(step) +
+                " moves, not inner)";
+      return out;
+    }
+    tau = std::move(best_tau);
+    M = dehn(compose(M, best_m));
+    cost = best;
+    ++out.moves;
+  }
+  GroupMap inv = std::move(M);
+  if (!inner_automorphism_test(dehn(compose(phi, inv)), genus).inner ||
+      !inner_automorphism_test(dehn(compose(inv, phi)), genus).inner) {
+    out.why = "the composite with the computed inverse is not inner (a bug)";
+    return out;
+  }
+  out.ok = true;
+  out.inverse = std::move(inv);
+  return out;
+}
+
+}  // namespace surfmap
