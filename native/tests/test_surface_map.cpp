@@ -664,19 +664,29 @@ TEST(SurfaceMapHandles, BothDirectionsGiveInverseClassesAlgebraically) {
   // psi in the forward run's letters (target -> source), then psi ∘ theta.
   const GroupMap psi = compose(f.source_as_target_inverse, compose(r.chosen_class_words, r.source_as_target_inverse));
   const GroupMap theta = f.chosen_class_words;
-  const InnerTest t = inner_automorphism_test(compose(psi, theta), 2);
-  EXPECT_TRUE(t.inner) << t.why << " (forward ratio " << f.energy_ratio << ", reverse " << r.energy_ratio << ")";
+  // Genus 2: every surface has the hyperelliptic involution h as an
+  // isometry, so theta and h ∘ theta tie exactly in energy and either may be
+  // chosen: inverse, or inverse up to h.
+  const GroupMap h = hyperelliptic_involution();
+  auto inverse_up_to_h = [&](const GroupMap& phi) {
+    return inner_automorphism_test(phi, 2).inner || inner_automorphism_test(compose(phi, h), 2).inner;
+  };
+  EXPECT_TRUE(inverse_up_to_h(compose(psi, theta)))
+      << inner_automorphism_test(compose(psi, theta), 2).why << " (forward ratio " << f.energy_ratio << ", reverse "
+      << r.energy_ratio << ")";
   for (const char* twist : {"T(a1)", "T(b2)^-1", "T(s1)"}) {
     const std::vector<MappingClassMove> moves = twist_moves(2);
     const auto m = std::find_if(moves.begin(), moves.end(), [&](const MappingClassMove& x) { return x.name == twist; });
     ASSERT_NE(m, moves.end());
-    EXPECT_FALSE(inner_automorphism_test(compose(psi, compose(theta, m->automorphism.map)), 2).inner) << twist;
+    EXPECT_FALSE(inverse_up_to_h(compose(psi, compose(theta, m->automorphism.map)))) << twist;
   }
   // The pipeline's own comparison (two-way run forced for every pair).
   SurfaceMapOptions both;
   both.homotopy.compare_directions = true;
   const SurfaceMapResult c = surface_map(a, b, both);
-  EXPECT_EQ(c.directions.outcome, "inverse") << c.directions.reason << " / " << c.two_way_status;
+  EXPECT_TRUE(c.directions.outcome == "inverse" || (c.directions.outcome == "symmetric: both optimal" &&
+                                                     c.directions.reason.find("hyperelliptic") != std::string::npos))
+      << c.directions.outcome << ": " << c.directions.reason << " / " << c.two_way_status;
   EXPECT_GE(c.directions.inverted_candidate, 0) << c.directions.reason;
 }
 

@@ -941,7 +941,7 @@ void HyperbolicPipeline::compare_with_carried_class() {
 // phi = psi ∘ theta is a mapping class of the source; inner means the two
 // classes are inverse (exact). Otherwise the two classes theta and
 // theta' = psi^-1 differ by phi on the source (theta' = theta ∘ phi^-1) and
-// by theta' ∘ theta^-1 on the target; either one preserving the lengths of
+// by theta' ∘ theta^-1 = (theta ∘ psi)^-1 on the target; either one preserving the lengths of
 // every probe curve (within the tolerance) is an isometry of that surface's
 // hyperbolic metric, under which the harmonic energy is invariant: both
 // classes are optimal. Else the lower energy was kept (the ranking).
@@ -980,16 +980,29 @@ void HyperbolicPipeline::compare_directions() {
                std::to_string(inner.conjugator.size()) + " letters; exact, Dehn's algorithm)";
     return;
   }
+  if (g == 2 && inner_automorphism_test(compose(phi, hyperelliptic_involution()), 2).inner) {
+    // (Every genus-2 surface has it as an isometry, so the two classes'
+    // discrete energies tie exactly and the ranking picks either.)
+    d.outcome = "symmetric: both optimal";
+    d.reason = "inverse up to the hyperelliptic involution (exact: the composite times it is inner): an isometry of "
+               "every genus-2 surface, so both classes have the same energy (" +
+               energy_text(out.candidates[c], unranked(c)) + (k >= 0 ? " and " + energy_text(out.candidates[k], unranked(k)) : std::string()) +
+               "); the maps differ by that half turn of the target";
+    return;
+  }
   const std::vector<Word> probes = marking_probes(g);
   if (bounds.ok && bounds.source)
     d.source_length_change = largest_length_change(
         probes, [&](const Word& p) { return bounds.source->length(substitute(p, phi)); },
         [&](const Word& p) { return bounds.source->length(p); });
-  if (k >= 0 && k < ncand && target_lengths) {
-    const GroupMap& other = candidates.classes[k].map;
+  if (target_lengths) {
+    // theta' ∘ theta^-1 = (theta ∘ psi)^-1: an isometry of the target
+    // exactly when theta ∘ psi is (no inverse needed).
+    GroupMap chi = compose(theta, psi);
+    for (Word& w : chi) w = reduce(w);
     d.target_length_change = largest_length_change(
-        probes, [&](const Word& p) { return target_lengths->length(substitute(p, other)); },
-        [&](const Word& p) { return target_lengths->length(substitute(p, theta)); });
+        probes, [&](const Word& p) { return target_lengths->length(substitute(p, chi)); },
+        [&](const Word& p) { return target_lengths->length(p); });
   }
   const bool source_isometry = d.source_length_change <= d.length_tolerance;
   const bool target_isometry = d.target_length_change <= d.length_tolerance;

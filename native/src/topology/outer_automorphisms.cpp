@@ -65,9 +65,14 @@ std::vector<Word> probe_words(int genus) {
 
 // Total cyclically reduced length of the probes' images: conjugation
 // invariant, least (one letter per generator) for inner automorphisms.
-size_t probe_cost(const GroupMap& tau, const std::vector<Word>& probes, const DehnReducer& reduce) {
+// Stops at `limit` (the caller only needs to know that it is not lower).
+size_t probe_cost(const GroupMap& tau, const std::vector<Word>& probes, const DehnReducer& reduce,
+                  size_t limit = std::numeric_limits<size_t>::max()) {
   size_t c = 0;
-  for (const Word& p : probes) c += cyclic_dehn_reduce(substitute(p, tau), reduce).size();
+  for (const Word& p : probes) {
+    c += cyclic_dehn_reduce(substitute(p, tau), reduce).size();
+    if (c >= limit) return c;
+  }
   return c;
 }
 
@@ -149,6 +154,31 @@ InnerTest inner_automorphism_test(const GroupMap& phi, int genus) {
   return t;
 }
 
+GroupMap hyperelliptic_involution() {
+  const int g = 2;
+  const DehnReducer reduce(canonical_relator(g));
+  GroupMap h(4);
+  for (int i = 0; i < g; ++i) {
+    const int a = 2 * i + 1, b = 2 * i + 2;
+    h[a - 1] = reduce({a, b, -a, -b, -a});  // (ab) a^-1 (ab)^-1
+    h[b - 1] = reduce({a, -b, -a});         // (ab) b^-1 (ab)^-1
+  }
+  const std::vector<MappingClassMove> moves = twist_moves(g, false, false);
+  const auto s1 = std::find_if(moves.begin(), moves.end(), [](const MappingClassMove& m) { return m.name == "T(s1)"; });
+  if (s1 == moves.end()) throw SolveError("hyperelliptic_involution: no twist T(s1)");
+  auto dehn = [&](GroupMap m) {
+    for (Word& w : m) w = reduce(w);
+    return m;
+  };
+  for (int k = 0; k <= 2; ++k)
+    for (int sign : {1, -1}) {
+      GroupMap c = h;
+      for (int q = 0; q < k; ++q) c = dehn(compose(c, sign > 0 ? s1->automorphism.map : s1->automorphism.inverse));
+      if (inner_automorphism_test(dehn(compose(c, c)), g).inner) return c;
+    }
+  throw SolveError("hyperelliptic_involution: no involution among the half turns and separating twists (a bug)");
+}
+
 AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const AutomorphismInverseOptions& options) {
   check_map(phi, genus, "invert_automorphism");
   AutomorphismInverse out;
@@ -163,51 +193,73 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
     for (Word& w : m) w = reduce(w);
     return m;
   };
-  // tau = phi ∘ M; once it is inner, phi^-1 = M (up to inner).
-  GroupMap tau = dehn(phi), M = identity_map(n);
+  // States tau = L ∘ phi ∘ R; once tau is inner, phi^-1 = R ∘ L (up to
+  // inner). A beam of the `beam` lowest-cost states, each step moving every
+  // state by one move on either side (or, when none shortens, by a pair on
+  // the right) to a strictly lower cost.
+  struct State {
+    GroupMap tau, left, right;
+    size_t cost = 0;
+  };
   const std::vector<MappingClassMove> moves = twist_moves(genus);
   const std::vector<Word> probes = probe_words(genus);
-  size_t cost = probe_cost(tau, probes, reduce);
+  std::vector<State> beam{{dehn(phi), identity_map(n), identity_map(n), probe_cost(dehn(phi), probes, reduce)}};
+  const State* done = nullptr;
   for (int step = 0;; ++step) {
-    if (inner_automorphism_test(tau, genus).inner) break;
+    for (const State& st : beam)
+      if (inner_automorphism_test(st.tau, genus).inner) {
+        done = &st;
+        break;
+      }
+    if (done) break;
     if (step >= options.max_steps) {
       out.why = "the descent used its " + std::to_string(options.max_steps) + " moves before reaching an inner automorphism";
       return out;
     }
-    // The best single move, else the best pair starting with one of the
-    // `pair_starts` best single moves.
-    size_t best = std::numeric_limits<size_t>::max();
-    GroupMap best_tau, best_m;
-    std::vector<std::pair<size_t, size_t>> singles;  // (cost, move)
-    const size_t letter_cap = std::max(options.max_letters, 2 * total_letters(tau));
-    auto consider = [&](const GroupMap& m, size_t* cost_out) {
-      GroupMap cand = dehn(compose(tau, m));
-      if (total_letters(cand) > letter_cap) return;
-      const size_t c = probe_cost(cand, probes, reduce);
-      if (cost_out) *cost_out = c;
-      if (c < best) best = c, best_tau = std::move(cand), best_m = m;
-    };
-    for (size_t k = 0; k < moves.size(); ++k) {
-      size_t c = std::numeric_limits<size_t>::max();
-      consider(moves[k].automorphism.map, &c);
-      singles.emplace_back(c, k);
+    std::vector<State> next;
+    for (const State& st : beam) {
+      const size_t letter_cap = std::max(options.max_letters, 2 * total_letters(st.tau));
+      std::vector<std::pair<size_t, size_t>> singles;  // (cost, right move)
+      auto consider = [&](const GroupMap& m, bool right, size_t* cost_out) {
+        GroupMap cand = dehn(right ? compose(st.tau, m) : compose(m, st.tau));
+        if (total_letters(cand) > letter_cap) return false;
+        const size_t c = probe_cost(cand, probes, reduce, cost_out ? std::numeric_limits<size_t>::max() : st.cost);
+        if (cost_out) *cost_out = c;
+        if (!(c < st.cost)) return false;
+        next.push_back({std::move(cand), right ? st.left : dehn(compose(m, st.left)),
+                        right ? dehn(compose(st.right, m)) : st.right, c});
+        return true;
+      };
+      bool any = false;
+      for (size_t k = 0; k < moves.size(); ++k) {
+        size_t c = std::numeric_limits<size_t>::max();
+        any = consider(moves[k].automorphism.map, true, &c) || any;
+        singles.emplace_back(c, k);
+        any = consider(moves[k].automorphism.map, false, nullptr) || any;
+      }
+      if (!any && options.pair_moves) {
+        std::sort(singles.begin(), singles.end());
+        for (size_t q = 0; q < singles.size() && q < static_cast<size_t>(options.pair_starts); ++q)
+          for (const MappingClassMove& m2 : moves)
+            consider(dehn(compose(moves[singles[q].second].automorphism.map, m2.automorphism.map)), true, nullptr);
+      }
     }
-    if (!(best < cost) && options.pair_moves) {
-      std::sort(singles.begin(), singles.end());
-      for (size_t q = 0; q < singles.size() && q < static_cast<size_t>(options.pair_starts); ++q)
-        for (const MappingClassMove& m2 : moves)
-          consider(dehn(compose(moves[singles[q].second].automorphism.map, m2.automorphism.map)), nullptr);
-    }
-    if (!(best < cost)) {
+    if (next.empty()) {
       out.why = "no move or pair of moves shortens the probe curves' images (stopped after " + std::to_string(step) +
                 " moves, not inner)";
       return out;
     }
-    tau = std::move(best_tau);
-    M = dehn(compose(M, best_m));
-    cost = best;
+    std::stable_sort(next.begin(), next.end(), [](const State& a, const State& b) { return a.cost < b.cost; });
+    beam.clear();
+    for (State& st : next) {
+      if (static_cast<int>(beam.size()) >= std::max(1, options.beam)) break;
+      bool seen = false;
+      for (const State& b : beam) seen = seen || (b.cost == st.cost && b.tau == st.tau);
+      if (!seen) beam.push_back(std::move(st));
+    }
     ++out.moves;
   }
+  GroupMap M = dehn(compose(done->right, done->left));
   GroupMap inv = std::move(M);
   if (!inner_automorphism_test(dehn(compose(phi, inv)), genus).inner ||
       !inner_automorphism_test(dehn(compose(inv, phi)), genus).inner) {

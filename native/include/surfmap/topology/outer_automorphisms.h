@@ -20,14 +20,15 @@
 // centralizer), fixed by phi(b_1); then every generator is checked:
 // w^-1 phi(x) w x^-1 reduces to the empty word.
 //
-// invert_automorphism: phi^-1 = M, a product of the moves of
+// invert_automorphism: phi^-1 = R ∘ L, products of the moves of
 // topology/mapping_class_search.h (Dehn twists along a_i, b_i, chain and
-// separating curves, bounding pairs) with phi ∘ M inner, found by a greedy
-// descent (single moves, else pairs) on the total cyclically Dehn-reduced
+// separating curves, bounding pairs) with L ∘ phi ∘ R inner, found by a
+// beam descent (single moves on either side, else pairs) on the total cyclically Dehn-reduced
 // length of the images of the probe curves x_i, x_i x_j^±1 (conjugation
 // invariant; least exactly for inner automorphisms). The descent is a
-// heuristic: it may stop before phi ∘ M is inner (`ok` false says so); a
-// returned inverse is checked exactly (phi ∘ M and M ∘ phi inner).
+// heuristic: it may stop before L ∘ phi ∘ R is inner (`ok` false says so);
+// a returned inverse is checked exactly (phi ∘ inverse and inverse ∘ phi
+// inner).
 #include <string>
 #include <vector>
 
@@ -56,6 +57,15 @@ struct InnerTest {
 /// Throws InputError when phi does not have 2g images or a letter is out of range.
 InnerTest inner_automorphism_test(const GroupMap& phi, int genus);
 
+/// Genus 2: the hyperelliptic involution (2g = 4 generator images, exact,
+/// Dehn-reduced): the half turns of both handles, a -> (ab) a^-1 (ab)^-1,
+/// b -> (ab) b^-1 (ab)^-1 (each fixes its commutator exactly), times the
+/// power of the twist along the separating curve that makes it an
+/// involution. It acts on homology as -I, is central in the mapping class
+/// group and is an isometry of every hyperbolic metric of genus 2: two
+/// classes differing by it have the same harmonic energy.
+GroupMap hyperelliptic_involution();
+
 struct AutomorphismInverseOptions {
   /// Most descent moves (default 60); when no single move shortens, pairs
   /// of moves (default true) whose first move is one of the `pair_starts`
@@ -63,6 +73,9 @@ struct AutomorphismInverseOptions {
   int max_steps = 60;
   bool pair_moves = true;
   int pair_starts = 6;
+  /// States kept per step (default 3: the greedy descent alone stalls on
+  /// about one in ten products of two moves in genus 3).
+  int beam = 3;
   /// Neighbours whose words (letters, summed over the 2g images) exceed this
   /// and twice the current class's are skipped (default 20000).
   size_t max_letters = 20000;
