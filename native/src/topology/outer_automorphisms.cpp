@@ -204,10 +204,39 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
   const std::vector<MappingClassMove> moves = twist_moves(genus);
   const std::vector<Word> probes = probe_words(genus);
   std::vector<State> beam{{dehn(phi), identity_map(n), identity_map(n), probe_cost(dehn(phi), probes, reduce)}};
+  // A second start: the exact lift sigma of the inverse homology on the
+  // right (lift_symplectic), leaving a Torelli element to descend.
+  if (P != IntMatrix::Identity(n, n)) try {
+      const SurfaceAutomorphism sigma = lift_symplectic(-J * P.transpose() * J);  // P^-1
+      GroupMap tau = dehn(compose(phi, sigma.map));
+      const size_t c = probe_cost(tau, probes, reduce);
+      beam.push_back({std::move(tau), identity_map(n), dehn(sigma.map), c});
+    } catch (const Error&) {
+      // (entries too large to lift: the first start alone)
+    }
+  // A state is done when tau is inner, or when tau ∘ sigma is for the exact
+  // lift sigma of tau's inverse homology: signed handle permutations (handle
+  // swaps, half and quarter turns) keep every probe's cyclic length, so the
+  // descent cannot see them, and their lifts are short.
+  auto finished = [&](State& st) {
+    if (inner_automorphism_test(st.tau, genus).inner) return true;
+    const IntMatrix H = homology_matrix(st.tau, n);
+    if (H == IntMatrix::Identity(n, n)) return false;
+    try {
+      const SurfaceAutomorphism sigma = lift_symplectic(-J * H.transpose() * J);
+      GroupMap t = dehn(compose(st.tau, sigma.map));
+      if (!inner_automorphism_test(t, genus).inner) return false;
+      st.tau = std::move(t);
+      st.right = dehn(compose(st.right, sigma.map));
+      return true;
+    } catch (const Error&) {
+      return false;
+    }
+  };
   const State* done = nullptr;
   for (int step = 0;; ++step) {
-    for (const State& st : beam)
-      if (inner_automorphism_test(st.tau, genus).inner) {
+    for (State& st : beam)
+      if (finished(st)) {
         done = &st;
         break;
       }
