@@ -136,6 +136,24 @@ TEST(OuterAutomorphisms, HyperellipticInvolutionIsACentralInvolution) {
   }
 }
 
+// Signed handle permutations keep every probe's cyclic length (the
+// descent cannot see them): a handle swap with a half turn, twisted, and the
+// hyperelliptic involution are inverted all the same, exactly.
+TEST(OuterAutomorphisms, InverseOfHandlePermutationsAndTheHyperellipticInvolution) {
+  const int g = 2;
+  IntMatrix P = IntMatrix::Zero(4, 4);
+  P(2, 0) = -1, P(3, 1) = -1, P(0, 2) = 1, P(1, 3) = 1;  // handle 1 -> 2 turned by a half turn, 2 -> 1
+  const GroupMap swap = lift_symplectic(P).map;
+  const std::vector<MappingClassMove> moves = twist_moves(g);
+  const GroupMap twisted = compose(swap, move_named(moves, "T(b1)").automorphism.map);
+  for (const GroupMap& phi : {swap, twisted, hyperelliptic_involution(), compose(hyperelliptic_involution(), twisted)}) {
+    const AutomorphismInverse inv = invert_automorphism(phi, g);
+    ASSERT_TRUE(inv.ok) << inv.why;
+    EXPECT_TRUE(inner_automorphism_test(compose(phi, inv.inverse), g).inner);
+    EXPECT_TRUE(inner_automorphism_test(compose(inv.inverse, phi), g).inner);
+  }
+}
+
 TEST(OuterAutomorphisms, CyclicDehnReductionIsConjugationInvariant) {
   std::mt19937 rng(3);
   const int g = 2;
