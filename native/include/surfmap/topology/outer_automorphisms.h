@@ -22,10 +22,13 @@
 //
 // invert_automorphism: phi^-1 = R ∘ L, products of the moves of
 // topology/mapping_class_search.h (Dehn twists along a_i, b_i, chain and
-// separating curves, bounding pairs) with L ∘ phi ∘ R inner, found by a
-// beam descent (single moves on either side, else pairs) on the total cyclically Dehn-reduced
-// length of the images of the probe curves x_i, x_i x_j^±1 (conjugation
-// invariant; least exactly for inner automorphisms). The descent is a
+// separating curves, bounding pairs) and of exact lifts of symplectic
+// matrices (lift_symplectic) with L ∘ phi ∘ R inner, found by a beam
+// descent (single moves on either side, else pairs) on the total cyclically
+// Dehn-reduced length of the images of the probe curves x_i, x_i x_j^±1
+// (conjugation invariant). Signed handle permutations keep that length, so
+// a state also ends when its composite with the lift of its inverse
+// homology is inner, and a second start is phi ∘ lift(P^-1). The descent is a
 // heuristic: it may stop before L ∘ phi ∘ R is inner (`ok` false says so);
 // a returned inverse is checked exactly (phi ∘ inverse and inverse ∘ phi
 // inner).
