@@ -215,6 +215,10 @@ void register_map(CLI::App& app) {
                 << (std::isfinite(m.energy_ratio) ? ", energy / 8 pi (g - 1) " + std::to_string(m.energy_ratio) : std::string())
                 << ", " << m.total_time << " s\n";
       if (!m.quality_warning.empty()) std::cerr << "surfmap: warning: " << m.quality_warning << "\n";
+      if (!m.directions.outcome.empty())
+        std::cerr << "surfmap: both directions: " << m.directions.outcome << " (" << m.directions.reason << ")\n";
+      else if (opt.homotopy.compare_directions && !m.directions.reason.empty())
+        std::cerr << "surfmap: both directions: " << m.directions.reason << "\n";
       if (!opt.landmarks.empty() && !m.landmark_method.empty())
         std::cerr << "surfmap: " << opt.landmarks.size() << " landmark(s) held by "
                   << (m.landmark_method == "pinned" ? std::string("plain pins") : m.landmark_method)

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <complex>
@@ -20,6 +21,8 @@
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
+#include "surfmap/topology/mapping_class_search.h"
+#include "surfmap/topology/outer_automorphisms.h"
 #include "certify_helpers.h"
 
 namespace surfmap {
@@ -733,6 +736,56 @@ TEST(SurfaceMapHandles, QualitySignalIsTheEnergyOverTheConformalBound) {
   // Genus 1: no ratio.
   const TriMesh t = samples::torus_of_revolution(1.0, 0.4, 24, 12);
   EXPECT_TRUE(std::isnan(surface_map(t, t).energy_ratio));
+}
+
+// Issue 14, both directions (docs/handle_classes.md "Both directions"): a
+// genus-2 pair of dissimilar shapes mapped both ways (each one-way) gives
+// classes whose composite, carried into one letter system through each
+// surface's identity overlay (source_as_target), is inner: exact, by words.
+// The same forward class composed with a Dehn twist (or a separating twist,
+// invisible in homology) is detected as not inverse. With
+// compare_directions the pipeline reaches the same verdict itself.
+TEST(SurfaceMapHandles, BothDirectionsGiveInverseClassesAlgebraically) {
+  const TriMesh a = samples::n_hole_torus(2, 26, true);
+  const TriMesh b = samples::vase(30, true);
+  SurfaceMapOptions one;
+  one.homotopy.two_way = false;
+  const SurfaceMapResult f = surface_map(a, b, one);
+  const SurfaceMapResult r = surface_map(b, a, one);
+  ASSERT_EQ(f.chosen_class_words.size(), 4u);
+  ASSERT_EQ(r.chosen_class_words.size(), 4u);
+  ASSERT_EQ(f.source_as_target_inverse.size(), 4u) << f.source_as_target_status;
+  ASSERT_EQ(r.source_as_target_inverse.size(), 4u) << r.source_as_target_status;
+  // The identity overlays are inverted exactly.
+  for (const SurfaceMapResult* m : {&f, &r})
+    EXPECT_TRUE(inner_automorphism_test(compose(m->source_as_target, m->source_as_target_inverse), 2).inner);
+  // psi in the forward run's letters (target -> source), then psi ∘ theta.
+  const GroupMap psi = compose(f.source_as_target_inverse, compose(r.chosen_class_words, r.source_as_target_inverse));
+  const GroupMap theta = f.chosen_class_words;
+  // Genus 2: every surface has the hyperelliptic involution h as an
+  // isometry, so theta and h ∘ theta tie exactly in energy and either may be
+  // chosen: inverse, or inverse up to h.
+  const GroupMap h = hyperelliptic_involution();
+  auto inverse_up_to_h = [&](const GroupMap& phi) {
+    return inner_automorphism_test(phi, 2).inner || inner_automorphism_test(compose(phi, h), 2).inner;
+  };
+  EXPECT_TRUE(inverse_up_to_h(compose(psi, theta)))
+      << inner_automorphism_test(compose(psi, theta), 2).why << " (forward ratio " << f.energy_ratio << ", reverse "
+      << r.energy_ratio << ")";
+  for (const char* twist : {"T(a1)", "T(b2)^-1", "T(s1)"}) {
+    const std::vector<MappingClassMove> moves = twist_moves(2);
+    const auto m = std::find_if(moves.begin(), moves.end(), [&](const MappingClassMove& x) { return x.name == twist; });
+    ASSERT_NE(m, moves.end());
+    EXPECT_FALSE(inverse_up_to_h(compose(psi, compose(theta, m->automorphism.map)))) << twist;
+  }
+  // The pipeline's own comparison (two-way run forced for every pair).
+  SurfaceMapOptions both;
+  both.homotopy.compare_directions = true;
+  const SurfaceMapResult c = surface_map(a, b, both);
+  EXPECT_TRUE(c.directions.outcome == "inverse" || (c.directions.outcome == "symmetric: both optimal" &&
+                                                     c.directions.reason.find("hyperelliptic") != std::string::npos))
+      << c.directions.outcome << ": " << c.directions.reason << " / " << c.two_way_status;
+  EXPECT_GE(c.directions.inverted_candidate, 0) << c.directions.reason;
 }
 
 // The two-way run (forced with a ratio threshold of 0): the pair is mapped

@@ -11,10 +11,47 @@
 #include "map_support.h"
 #include "surfmap/error.h"
 #include "surfmap/topology/canonical_schema.h"
+#include "surfmap/topology/outer_automorphisms.h"
 #include "surfmap/topology/projected_loops.h"
 #include "surfmap/uniformize/deck_group.h"
 
 namespace surfmap::detail {
+
+namespace {
+
+/// SourceClassBounds::as_target: on the flip path the pipeline reads a
+/// target's classes in its own loops' canonical letters (map_support.h
+/// ClassLoops), so the default cut is carried onto those loops as well (the
+/// identity overlay); on the fixed path they are the layout's, `iota`.
+void as_target_letters(const TriMesh& source, const std::vector<std::vector<int>>& loops,
+                       const std::vector<Word>& generators, int genus, const UniformizedTarget& xu, const GroupMap& iota,
+                       SourceClassBounds& b) {
+  const int n = 2 * genus;
+  const Word R = canonical_relator(genus);
+  GroupMap m = iota;
+  if (const ClassLoops* cl = xu.class_loops.get()) {
+    const ProjectedLoopsResult self = project_loops(source, loops, cl->loops, cl->word);
+    if (!self.ok) {
+      b.as_target_status = "the source's loops did not carry onto its own class loops: " + self.message;
+      return;
+    }
+    for (int j = 0; j < n; ++j) m[j] = dehn_reduce(substitute(substitute(generators[j], self.loop_images), cl->schema.letters), R);
+    const IntMatrix M = homology_matrix(m, n), J = symplectic_form(genus);
+    if (!(M.transpose() * J * M == J) || !dehn_reduce(substitute(R, m), R).empty()) {
+      b.as_target_status = "the source's loops carried onto its own class loops do not give an isomorphism";
+      return;
+    }
+  }
+  const AutomorphismInverse inv = invert_automorphism(m, genus);
+  if (!inv.ok) {
+    b.as_target_status = "the source's letters as a target could not be inverted: " + inv.why;
+    return;
+  }
+  b.as_target = std::move(m);
+  b.as_target_inverse = inv.inverse;
+}
+
+}  // namespace
 
 SourceClassBounds source_class_bounds(const TriMesh& source, const std::vector<std::vector<int>>& loops,
                                       const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options) {
@@ -40,6 +77,7 @@ SourceClassBounds source_class_bounds(const TriMesh& source, const std::vector<s
       throw SolveError("the source's loops carried onto its uniformized copy do not give an isomorphism");
     b.source = std::make_unique<SurfaceGroupLengths>(DeckGroup(xu.layout), xcs.generators, xu.layout.word, iota);
     b.iota = iota;
+    as_target_letters(source, loops, generators, genus, xu, iota, b);
     b.evaluator = std::make_unique<ClassBoundEvaluator>(*b.source, disjoint_curve_families(genus));
     b.ok = true;
   } catch (const Error& e) {

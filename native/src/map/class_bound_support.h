@@ -33,6 +33,13 @@ struct SourceClassBounds {
   UniformizedTarget uniformized;
   CanonicalSchema schema;
   GroupMap iota;
+  /// The default cut's canonical generators as words in the canonical
+  /// letters the pipeline reads when this surface is the target (the class
+  /// loops' schema on the flip path, else the layout's), its inverse (up to
+  /// inner automorphisms; topology/outer_automorphisms.h), and why they are
+  /// missing (SurfaceMapResult::source_as_target).
+  GroupMap as_target, as_target_inverse;
+  std::string as_target_status;
   double time_s = 0;
 };
 SourceClassBounds source_class_bounds(const TriMesh& source, const std::vector<std::vector<int>>& loops,

@@ -34,10 +34,12 @@
 #include "surfmap/error.h"
 #include "surfmap/geometry/positive_edge_weights.h"
 #include "surfmap/map/fundamental_polygon.h"
+#include "surfmap/map/geometric_classes.h"
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
 #include "surfmap/map/initial_map.h"
 #include "surfmap/topology/canonical_schema.h"
+#include "surfmap/topology/outer_automorphisms.h"
 #include "surfmap/topology/projected_loops.h"
 #include "surfmap/uniformize/deck_group.h"
 
@@ -84,6 +86,7 @@ class HyperbolicPipeline {
   void fill_class_bounds();
   void choose_with_landmarks();
   void compare_with_carried_class();
+  void compare_directions();
   void geometric_classes_at_full_resolution();
   void twist_search_at_full_resolution();
   CoarseSolve full_resolution_solve(double& best);
@@ -178,8 +181,16 @@ class HyperbolicPipeline {
   bool try_solve(int k, const std::function<HyperbolicHarmonicResult()>& solve, HyperbolicHarmonicResult& r,
                  bool coarse = false);
   int append_class(HomotopyClass hc, ClassData cd, const CoarseEvaluation& ev);
+  struct FoundSearchClass {
+    HomotopyClass hc;
+    ClassData data;
+  };
+  std::optional<FoundSearchClass> found_search_class(const std::optional<CoarseEvaluation>& found, int start,
+                                                     const std::vector<std::string>& start_twists,
+                                                     const std::vector<std::string>& moves) const;
   int push_candidate(HomotopyClass hc, ClassData cd, HomotopyCandidate c);
   int early_ranked_class() const;
+  bool unranked(int k) const { return k >= 0 && k < static_cast<int>(not_ranked.size()) && not_ranked[k]; }
   std::vector<int> classes_that_can_win(int first);
   void twist_search_from(int start, const std::vector<std::string>& start_twists, const CoarseSolve& solve,
                          HomotopySearchInfo& info, const SurfaceMapOptions* opts = nullptr);
@@ -667,24 +678,35 @@ void HyperbolicPipeline::twist_search_from(int start, const std::vector<std::str
   std::optional<CoarseEvaluation> found =
       twist_class_search(candidates.classes[start].map, start, out.candidates[start].energy, *space, solve, start_twists, o,
                          info);
-  ClassData found_data;
-  if (found && space->loop_image_length(found->theta) > space->max_image_letters()) found.reset();
-  if (found) try {
-      found_data = data_of(found->theta);
-    } catch (const SolveError&) {
-      found.reset();  // (cannot happen for an exact automorphism; then the search found nothing usable)
-    }
-  if (!found) return;
-  HomotopyClass hc;
-  hc.homology = homology_matrix(found->theta, space->num_letters());
+  std::optional<FoundSearchClass> f = found_search_class(found, start, start_twists, info.moves);
+  if (!f) return;
+  f->hc.homology = homology_matrix(found->theta, space->num_letters());
   std::string handles;
-  handle_correspondence_of(ss.shb, candidates.target_basis, hc.homology, &hc.permutation, &hc.sign, &handles);
+  handle_correspondence_of(ss.shb, candidates.target_basis, f->hc.homology, &f->hc.permutation, &f->hc.sign, &handles);
+  f->hc.description = handles + "  " + f->hc.description;
+  info.found_candidate = append_class(std::move(f->hc), std::move(f->data), *found);
+}
+
+// The class a twist search found, ready to append: its description ("[class
+// search from candidate <start> <start twists>: <moves>]") and data;
+// nullopt when it found none, or its loops' images are too long for
+// double-precision deck elements, or its data cannot be built.
+std::optional<HyperbolicPipeline::FoundSearchClass> HyperbolicPipeline::found_search_class(
+    const std::optional<CoarseEvaluation>& found, int start, const std::vector<std::string>& start_twists,
+    const std::vector<std::string>& moves) const {
+  if (!found || space->loop_image_length(found->theta) > space->max_image_letters()) return std::nullopt;
+  FoundSearchClass f;
+  try {
+    f.data = data_of(found->theta);
+  } catch (const SolveError&) {
+    return std::nullopt;  // (cannot happen for an exact automorphism; then the search found nothing usable)
+  }
   std::string path;
-  for (const std::string& m : info.moves) path += (path.empty() ? "" : ", ") + m;
+  for (const std::string& m : moves) path += (path.empty() ? "" : ", ") + m;
   std::string from = std::to_string(start);
   for (const std::string& m : start_twists) from += " " + m;
-  hc.description = handles + "  [class search from candidate " + from + ": " + path + "]";
-  info.found_candidate = append_class(std::move(hc), std::move(found_data), *found);
+  f.hc.description = "[class search from candidate " + from + ": " + path + "]";
+  return f;
 }
 
 // Issue 14 (docs/handle_classes.md "Geometric candidates"): a source too
@@ -826,29 +848,49 @@ void HyperbolicPipeline::twist_search_at_full_resolution() {
     } else {
       add_restart_figures(info, run, start);
     }
-    if (!found || space->loop_image_length(found->theta) > space->max_image_letters()) continue;
-    ClassData cd;
-    try {
-      cd = data_of(found->theta);
-    } catch (const SolveError&) {
-      continue;
-    }
-    HomotopyClass hc;
-    std::string path;
-    for (const std::string& m : run.moves) path += (path.empty() ? "" : ", ") + m;
-    std::string from = std::to_string(start);
-    if (hooked)
-      for (const std::string& m : hooks.homotopy_search_start_twists) from += " " + m;
-    hc.description = "[class search from candidate " + from + ": " + path +
-                     "]  [solved at full resolution: no coarse copy]";
+    std::optional<FoundSearchClass> f = found_search_class(
+        found, start, hooked ? hooks.homotopy_search_start_twists : std::vector<std::string>{}, run.moves);
+    if (!f) continue;
+    f->hc.description += "  [solved at full resolution: no coarse copy]";
     const double e = found->result.energy;
-    const int k = append_full_class(std::move(hc), std::move(cd), *found);
+    const int k = append_full_class(std::move(f->hc), std::move(f->data), *found);
     if (first || e < info.energy) {
       if (!first) info.stop_reason += "; restart from candidate " + std::to_string(start) + " reached " + std::to_string(e);
       info.found_candidate = k, info.energy = e;
     }
   }
 }
+
+namespace {
+
+// Largest relative change |l(a_p) - l(b_p)| / l(b_p) over the probes p
+// (NaN when a length cannot be evaluated).
+double largest_length_change(const std::vector<Word>& probes, const std::function<double(const Word&)>& a,
+                             const std::function<double(const Word&)>& b) {
+  double worst = 0;
+  for (const Word& p : probes) {
+    const double la = a(p), lb = b(p);
+    if (!std::isfinite(la) || !std::isfinite(lb) || lb <= 0) return std::numeric_limits<double>::quiet_NaN();
+    worst = std::max(worst, std::abs(la - lb) / lb);
+  }
+  return worst;
+}
+
+std::string number_text(double e, const char* nan_text) {
+  char s[32];
+  std::snprintf(s, sizeof s, "%.6g", e);
+  return std::isfinite(e) ? std::string(s) : std::isnan(e) ? std::string(nan_text) : std::string("not solved");
+}
+
+// A candidate's energy in words: its value (full resolution, or the coarse
+// estimate), or why there is none (a class the ranking did not solve keeps
+// an infinite energy: "not ranked").
+std::string energy_text(const HomotopyCandidate& c, bool not_ranked) {
+  if (not_ranked && !std::isfinite(c.energy)) return "not ranked";
+  return number_text(c.energy, "not ranked") + (std::isfinite(c.energy) && !c.solved ? " (coarse estimate)" : "");
+}
+
+}  // namespace
 
 // Issue 14 (docs/handle_classes.md "Both directions"): the class carried
 // from a target -> source map (two-way run) is that map's class inverted,
@@ -872,8 +914,8 @@ void HyperbolicPipeline::compare_with_carried_class() {
   const bool evaluable = space->loop_image_length(a) <= space->max_image_letters() &&
                          space->loop_image_length(b) <= space->max_image_letters();
   const bool same_lengths = evaluable && ClassSpace::same_fingerprint(space->fingerprint(a), space->fingerprint(b));
-  char energies[128];
-  std::snprintf(energies, sizeof energies, " (energies %.6g and %.6g)", out.candidates[c].energy, out.candidates[k].energy);
+  const std::string energies = " (energies " + energy_text(out.candidates[c], unranked(c)) + " and " +
+                               energy_text(out.candidates[k], unranked(k)) + ")";
   if (same_homology && same_lengths) {
     out.reverse_inverse = 1;
     out.reverse_inverse_reason = "the chosen class (" + cc + ") and the other direction's class inverted (" + ck +
@@ -889,6 +931,97 @@ void HyperbolicPipeline::compare_with_carried_class() {
                                    : std::string("same action on homology but different lengths of the probe curves' "
                                                  "images (a Torelli twist apart)")) +
       ", and the chosen one has the lower energy" + energies;
+}
+
+
+// Issue 14 (docs/handle_classes.md "Both directions"): the chosen class's
+// words and the source's letters as a target (for the two-way run to
+// compose), and, with homotopy.reverse_class (the other direction's class
+// psi in this run's letters, target -> source), the algebraic comparison:
+// phi = psi ∘ theta is a mapping class of the source; inner means the two
+// classes are inverse (exact). Otherwise the two classes theta and
+// theta' = psi^-1 differ by phi on the source (theta' = theta ∘ phi^-1) and
+// by theta' ∘ theta^-1 = (theta ∘ psi)^-1 on the target; either one preserving the lengths of
+// every probe curve (within the tolerance) is an isometry of that surface's
+// hyperbolic metric, under which the harmonic energy is invariant: both
+// classes are optimal. Else the lower energy was kept (the ranking).
+void HyperbolicPipeline::compare_directions() {
+  const int c = out.chosen_candidate;
+  if (c < 0 || c >= ncand) return;
+  const int g = out.genus, n = 2 * g;
+  const GroupMap& theta = candidates.classes[c].map;
+  out.chosen_class_words = theta;
+  const SourceClassBounds& bounds = class_bounds_now();
+  out.source_as_target = bounds.as_target;
+  out.source_as_target_inverse = bounds.as_target_inverse;
+  out.source_as_target_status = !bounds.ok ? "the source's own uniformization failed: " + bounds.why : bounds.as_target_status;
+  const GroupMap& psi = options.homotopy.reverse_class;
+  if (psi.empty()) return;
+  SurfaceMapResult::DirectionCheck& d = out.directions;
+  if (static_cast<int>(psi.size()) != n) return void(d.reason = candidates.inverted_status);
+  for (const Word& w : psi)
+    for (int x : w)
+      if (x == 0 || std::abs(x) > n) return void(d.reason = candidates.inverted_status);
+  const DehnReducer reduce(canonical_relator(g));
+  GroupMap phi = compose(psi, theta);
+  for (Word& w : phi) w = reduce(w);
+  std::vector<std::string> names;
+  for (int i = 1; i <= g; ++i) names.push_back("a" + std::to_string(i)), names.push_back("b" + std::to_string(i));
+  d.difference.clear();
+  for (int j = 0; j < n; ++j) d.difference += (j ? ", " : "") + names[j] + " -> " + to_text(phi[j], names);
+  d.energy = out.candidates[c].energy;
+  const int k = candidates.inverted_class;
+  d.inverted_candidate = k;
+  if (k >= 0 && k < ncand) d.inverted_energy = out.candidates[k].energy;
+  const InnerTest inner = inner_automorphism_test(phi, g);
+  if (inner.inner) {
+    d.outcome = "inverse";
+    d.reason = "the composite of the two classes is inner (conjugation by a word of " +
+               std::to_string(inner.conjugator.size()) + " letters; exact, Dehn's algorithm)";
+    return;
+  }
+  if (g == 2 && inner_automorphism_test(compose(phi, hyperelliptic_involution()), 2).inner) {
+    // (Every genus-2 surface has it as an isometry, so the two classes'
+    // discrete energies tie exactly and the ranking picks either.)
+    d.outcome = "symmetric: both optimal";
+    d.reason = "inverse up to the hyperelliptic involution (exact: the composite times it is inner): an isometry of "
+               "every genus-2 surface, so both classes have the same energy (" +
+               energy_text(out.candidates[c], unranked(c)) + (k >= 0 ? " and " + energy_text(out.candidates[k], unranked(k)) : std::string()) +
+               "); the maps differ by that half turn of the target";
+    return;
+  }
+  const std::vector<Word> probes = marking_probes(g);
+  if (bounds.ok && bounds.source)
+    d.source_length_change = largest_length_change(
+        probes, [&](const Word& p) { return bounds.source->length(substitute(p, phi)); },
+        [&](const Word& p) { return bounds.source->length(p); });
+  if (target_lengths) {
+    // theta' ∘ theta^-1 = (theta ∘ psi)^-1: an isometry of the target
+    // exactly when theta ∘ psi is (no inverse needed).
+    GroupMap chi = compose(theta, psi);
+    for (Word& w : chi) w = reduce(w);
+    d.target_length_change = largest_length_change(
+        probes, [&](const Word& p) { return target_lengths->length(substitute(p, chi)); },
+        [&](const Word& p) { return target_lengths->length(p); });
+  }
+  const bool source_isometry = d.source_length_change <= d.length_tolerance;
+  const bool target_isometry = d.target_length_change <= d.length_tolerance;
+  const std::string energies = "energy " + energy_text(out.candidates[c], unranked(c)) + " here, the other direction's class inverted " +
+                               (k >= 0 ? energy_text(out.candidates[k], unranked(k)) + " (candidate " + std::to_string(k) + ")"
+                                       : "not listed (" + candidates.inverted_status + ")");
+  const std::string why_not = "not inverse (" + inner.why + ")";
+  if (source_isometry || target_isometry) {
+    d.outcome = "symmetric: both optimal";
+    d.reason = why_not + ", but they differ by a mapping class preserving every probe curve's length on the " +
+               (source_isometry ? std::string("source") : std::string("target")) +
+               " (an isometry of its hyperbolic metric, so the same energy); " + energies;
+  } else {
+    d.outcome = "different";
+    d.reason = why_not + " and not by an isometry (probe lengths change by up to " +
+               number_text(d.source_length_change, "?") + " on the source, " + number_text(d.target_length_change, "?") +
+               " on the target, relative); kept the lower energy: " +
+               energies;
+  }
 }
 
 // Full-resolution solves: after the coarse ranking (`after_coarse`), the
@@ -1235,6 +1368,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   p.choose_with_landmarks();       // lowest energy; with landmarks, §VII-C branch and bound
   p.compare_with_carried_class();  // issue 14: the two directions' classes inverse or not
   map_with_fallback(p);            // initial map, harmonic solve, landmarks, quality, location
+  p.compare_directions();          // issue 14: the class's words; both directions compared algebraically
 }
 
 }  // namespace surfmap::detail

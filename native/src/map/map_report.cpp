@@ -162,12 +162,28 @@ std::string stage_table(const SurfaceMapResult& r) {
   return text + line_of(r.stage_total);
 }
 
+json directions_json(const SurfaceMapResult& r) {
+  const SurfaceMapResult::DirectionCheck& d = r.directions;
+  return {{"outcome", d.outcome},
+          {"reason", d.reason},
+          {"inverted_candidate", d.inverted_candidate},
+          {"energy", d.energy},
+          {"inverted_energy", d.inverted_energy},
+          {"source_length_change", d.source_length_change},
+          {"target_length_change", d.target_length_change},
+          {"length_tolerance", d.length_tolerance},
+          {"difference", d.difference},
+          {"chosen_class_words", r.chosen_class_words},
+          {"source_as_target", r.source_as_target},
+          {"source_as_target_status", r.source_as_target_status}};
+}
+
 json quality_json(const SurfaceMapResult& r) {
   return {{"energy_ratio", r.energy_ratio},           {"warning", r.quality_warning},
           {"intrinsic_class_energy", r.intrinsic_class_energy}, {"energy_ratio_own_edges", r.energy_ratio_own_edges},
           {"reverse_candidates", r.reverse_candidates}, {"reverse_status", r.reverse_status},
           {"reverse_check", r.reverse_check}, {"reverse_inverse", r.reverse_inverse},
-          {"reverse_inverse_reason", r.reverse_inverse_reason},           {"two_way_status", r.two_way_status},
+          {"reverse_inverse_reason", r.reverse_inverse_reason},   {"directions", directions_json(r)},           {"two_way_status", r.two_way_status},
           {"two_way_time_s", r.two_way_time_s},         {"class_bound_status", r.class_bound_status},
           {"class_bound_time_s", r.class_bound_time_s}};
 }

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "surfmap/error.h"
+#include "surfmap/topology/handle_basis.h"
 
 namespace surfmap::detail {
 
@@ -48,6 +49,23 @@ Eigen::MatrixXd inverse_positions(const SurfaceMapResult& reverse) {
   Eigen::MatrixXd images(static_cast<Eigen::Index>(reverse.inverse.size()), 3);
   for (size_t v = 0; v < reverse.inverse.size(); ++v) images.row(static_cast<Eigen::Index>(v)) = reverse.inverse[v].position.transpose();
   return images;
+}
+
+/// The class chosen for target -> source (`reverse`), written in the
+/// letters of a source -> target run (`forward`): ι_S^-1 ∘ ψ ∘ ι_T^-1 with ψ
+/// the reverse's chosen class (its source's cut letters -> its target's
+/// letters) and ι the identity overlays of each surface's cut letters onto
+/// its letters as a target (SurfaceMapResult::source_as_target). Empty, with
+/// `why`, when a piece is missing.
+std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward, const SurfaceMapResult& reverse,
+                                                 std::string& why) {
+  if (reverse.chosen_class_words.empty()) why = "the other direction reported no class words";
+  else if (forward.source_as_target_inverse.empty())
+    why = "this source's letters as a target are missing (" + forward.source_as_target_status + ")";
+  else if (reverse.source_as_target_inverse.empty())
+    why = "the target's letters as a source are missing (" + reverse.source_as_target_status + ")";
+  if (!why.empty()) return {};
+  return compose(forward.source_as_target_inverse, compose(reverse.chosen_class_words, reverse.source_as_target_inverse));
 }
 
 }  // namespace
@@ -111,6 +129,7 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
     forward.two_way_status = "not run: energy ratio below " + number(options.homotopy.two_way_ratio);
     forward.reverse_inverse_reason = "not compared: the two-way run did not run (energy ratio below " +
                                      number(options.homotopy.two_way_ratio) + ")";
+    forward.directions.reason = forward.reverse_inverse_reason;
     return;
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -119,6 +138,8 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
     if (forward.reverse_inverse < 0 && forward.reverse_inverse_reason.empty())
       forward.reverse_inverse_reason =
           "not compared: " + (forward.reverse_status.empty() ? forward.two_way_status : forward.reverse_status);
+    if (forward.directions.outcome.empty() && forward.directions.reason.empty())
+      forward.directions.reason = "not compared: " + forward.two_way_status;
     forward.two_way_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
   SurfaceMapResult reverse;
@@ -141,6 +162,8 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
   SurfaceMapOptions fo = options;
   fo.homotopy.two_way = false;
   fo.homotopy.source_images = inverse_positions(reverse);  // where its inverse puts each source vertex
+  std::string no_reverse_class;
+  fo.homotopy.reverse_class = reverse_class_here(forward, reverse, no_reverse_class);  // its class, inverted there
   SurfaceMapResult again;
   try {
     again = map(source, target, fo);
@@ -153,9 +176,12 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
   const std::string again_status = again.reverse_status;
   // Ties: the second run, whose report lists the other direction's class.
   const bool better = after <= before * (1 + 1e-6);
+  if (fo.homotopy.reverse_class.empty()) again.directions.reason = "not compared: " + no_reverse_class;
   if (better) {
     forward = std::move(again);
   } else {
+    // (The second run's comparison is of its own chosen class.)
+    forward.directions = again.directions;
     // The first run is kept: its class has lower energy than the other
     // direction's class inverted, so they are not inverse unless the second
     // run found them the same class.

@@ -398,6 +398,12 @@ def test_two_way_keyword_and_the_directions_comparison_are_in_the_result():
     for r in (on, off):
         assert r["quality"]["reverse_inverse"] == -1
     assert on["quality"]["reverse_inverse_reason"].startswith("not compared")
+    # The algebraic comparison (quality.directions): not run below the ratio,
+    # but the chosen class's words (2g) and the source's letters as a target
+    # are reported for callers that compose two directions themselves.
+    d = on["quality"]["directions"]
+    assert d["outcome"] == "" and d["reason"].startswith("not compared")
+    assert len(d["chosen_class_words"]) == 4 and len(d["source_as_target"]) == 4, d["source_as_target_status"]
     assert abs(on["energy"]["final"] - off["energy"]["final"]) < 1e-9 * on["energy"]["final"]
     s = on["homotopy"]["search"]
     assert set(s) >= {"geometric_classes", "coarse_solves", "starts", "source_marking", "target_marking",

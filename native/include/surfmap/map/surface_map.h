@@ -224,6 +224,14 @@ struct HomotopyOptions {
   /// points give one more candidate ("[the source's loops carried by the
   /// target -> source map]"), listed after the one-way candidates.
   Eigen::MatrixXd source_images;
+  /// Genus >= 2, set by the two-way run (issue 14; docs/handle_classes.md
+  /// "Both directions"): the class chosen for target -> source, written in
+  /// this run's letters (2g words: target canonical generator j+1 -> word in
+  /// the source's canonical letters; empty, the default: none). Its inverse
+  /// (topology/outer_automorphisms.h invert_automorphism) is listed as a
+  /// candidate ("[the other direction's class, inverted algebraically]") and
+  /// SurfaceMapResult::directions compares the chosen class with it.
+  std::vector<std::vector<int>> reverse_class;
   /// With source_images: the class of the source's loops carried to them is
   /// the only candidate (no overlays, schemata, handle permutations, extra
   /// cuts, class search, geometric classes or two-way run; a SolveError
@@ -627,6 +635,38 @@ struct SurfaceMapResult {
   /// probe curves' images, or which of them differs; or why no comparison).
   int reverse_inverse = -1;
   std::string reverse_inverse_reason;
+  /// Genus >= 2: the chosen class as words (2g: source canonical generator
+  /// j+1 -> word in the target's canonical letters), and the source's
+  /// canonical generators as words in the canonical letters a map with the
+  /// source as its target reads (the same surface's other system of loops:
+  /// HomotopyOptions::loops swapped; identity overlay), with that map's
+  /// inverse (up to inner automorphisms); empty when not available
+  /// (source_as_target_status says why). The two-way run composes them
+  /// (docs/handle_classes.md "Both directions").
+  std::vector<std::vector<int>> chosen_class_words, source_as_target, source_as_target_inverse;
+  std::string source_as_target_status;
+  /// Genus >= 2, when the two directions were compared algebraically (issue
+  /// 14; HomotopyOptions::reverse_class): `outcome` "inverse" (the composite
+  /// of the two classes is inner: exact, Dehn's algorithm), "symmetric: both
+  /// optimal" (they differ by a mapping class that preserves the lengths of
+  /// every probe curve within `length_tolerance`: an isometry of one
+  /// surface), "different" (the lower-energy class is kept), or "" when not
+  /// compared (`reason` says why). Energies: the chosen class's and the other
+  /// direction's class inverted (HomotopyCandidate::energy of
+  /// `inverted_candidate`; NaN when not solved). Largest relative change of
+  /// a probe curve's length under the difference, measured on the source and
+  /// on the target (NaN when not evaluable).
+  struct DirectionCheck {
+    std::string outcome, reason;
+    int inverted_candidate = -1;
+    double energy = std::numeric_limits<double>::quiet_NaN();
+    double inverted_energy = std::numeric_limits<double>::quiet_NaN();
+    double source_length_change = std::numeric_limits<double>::quiet_NaN();
+    double target_length_change = std::numeric_limits<double>::quiet_NaN();
+    double length_tolerance = 0.02;
+    /// The difference mapping class (source canonical letter -> word) as text.
+    std::string difference;
+  } directions;
   /// Genus >= 2 (HomotopyOptions::two_way): what the two-way run did ("not
   /// run: ..."; the other direction's energy ratio; whether the carried
   /// class was used) and its seconds.

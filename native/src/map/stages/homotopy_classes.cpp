@@ -7,6 +7,7 @@
 
 #include "surfmap/error.h"
 #include "surfmap/geometry/hyperbolic.h"
+#include "surfmap/topology/outer_automorphisms.h"
 
 namespace surfmap::detail {
 
@@ -374,6 +375,26 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
     if (carried_loops_class(space, source, sl, projector, options.homotopy.source_images, &theta, &out.carried_status)) {
       out.carried_class = static_cast<int>(classes.size());
       classes.push_back(described(theta, n, shb, thb, "the source's loops carried by the target -> source map"));
+    }
+  }
+  // Source 6 (issue 14; docs/handle_classes.md "Both directions"): the
+  // other direction's chosen class inverted algebraically (no map to carry
+  // loops through: it works where the reverse map is too distorted).
+  if (!options.homotopy.reverse_class.empty()) {
+    const GroupMap& psi = options.homotopy.reverse_class;
+    bool well_formed = static_cast<int>(psi.size()) == n;
+    for (const Word& w : psi)
+      for (int x : w) well_formed = well_formed && x != 0 && std::abs(x) <= n;
+    if (!well_formed) {
+      out.inverted_status = "homotopy.reverse_class must be " + std::to_string(n) + " words in letters +-1..+-" + std::to_string(n);
+    } else {
+      const AutomorphismInverse inv = invert_automorphism(psi, n / 2);
+      if (!inv.ok) {
+        out.inverted_status = "not inverted: " + inv.why;
+      } else {
+        out.inverted_class = static_cast<int>(classes.size());
+        classes.push_back(described(inv.inverse, n, shb, thb, "the other direction's class, inverted algebraically"));
+      }
     }
   }
   return out;

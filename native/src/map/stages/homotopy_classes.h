@@ -160,6 +160,10 @@ struct CandidateClasses {
   /// the carried loops' class (-1: none), or why there is none.
   int carried_class = -1;
   std::string carried_status;
+  /// With homotopy.reverse_class (issue 14): the index of its algebraic
+  /// inverse (-1: none), or why there is none.
+  int inverted_class = -1;
+  std::string inverted_status;
 };
 
 /// `sl`/`shb`: the source's default loops and handle basis; `tl`: the

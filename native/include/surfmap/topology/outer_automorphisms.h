@@ -1,0 +1,102 @@
+#pragma once
+// Exact algebra of homotopy classes of maps between closed surfaces of genus
+// g >= 2, on words (docs/handle_classes.md "Both directions"; issue 14).
+//
+// A class S -> T is an isomorphism of the canonical surface groups
+//     pi_1 = < x_1 .. x_2g | R >,   R = [x_1, x_2] ... [x_2g-1, x_2g]
+// given by generator images (topology/handle_basis.h GroupMap), defined only
+// up to an inner automorphism (the base point's path). Two classes are the
+// same when they differ by an inner automorphism; a class T -> S is the
+// inverse of a class S -> T when their composite is inner.
+//
+// inner_automorphism_test: exact, by Dehn's algorithm (words.h; the
+// presentation is C'(1/6) for g >= 2). The conjugator w of phi(x) = w x w^-1
+// is read off phi(a_1): its Dehn-reduced word is peeled, cyclically, down
+// to a single letter (u = y u' y^-1 -> w y, u'; or a rotation p^-1 u p that
+// Dehn's algorithm shortens -> w p): a cyclically Dehn-reduced word
+// conjugate to a single letter is that letter (small cancellation: an
+// annular diagram around a word of length 1 puts more than half a relator on
+// the other boundary). w is determined up to powers of a_1 (its
+// centralizer), fixed by phi(b_1); then every generator is checked:
+// w^-1 phi(x) w x^-1 reduces to the empty word.
+//
+// invert_automorphism: phi^-1 = R ∘ L, products of the moves of
+// topology/mapping_class_search.h (Dehn twists along a_i, b_i, chain and
+// separating curves, bounding pairs) and of exact lifts of symplectic
+// matrices (lift_symplectic) with L ∘ phi ∘ R inner, found by a beam
+// descent (single moves on either side, else pairs) on the total cyclically
+// Dehn-reduced length of the images of the probe curves x_i, x_i x_j^±1
+// (conjugation invariant). Signed handle permutations keep that length, so
+// a state also ends when its composite with the lift of its inverse
+// homology is inner, and a second start is phi ∘ lift(P^-1). The descent is a
+// heuristic: it may stop before L ∘ phi ∘ R is inner (`ok` false says so);
+// a returned inverse is checked exactly (phi ∘ inverse and inverse ∘ phi
+// inner).
+#include <string>
+#include <vector>
+
+#include "surfmap/topology/handle_basis.h"
+#include "surfmap/topology/words.h"
+
+namespace surfmap {
+
+/// Cyclically Dehn-reduced form of w in the surface group of relator R: a
+/// shortest cyclic word reachable by free cyclic reduction and Dehn's
+/// algorithm on its rotations (conjugation invariant up to rotation; its
+/// length is what the descent of invert_automorphism lowers).
+Word cyclic_dehn_reduce(const Word& w, const DehnReducer& reduce);
+
+struct InnerTest {
+  bool inner = false;
+  /// When inner: w with phi(x) = w x w^-1 for every generator x (Dehn-reduced).
+  Word conjugator;
+  /// Why not (e.g. "acts on homology as a non-identity matrix", "phi(a1) is
+  /// not conjugate to a1"), or "" when inner.
+  std::string why;
+};
+
+/// Whether `phi` (2g generator images, letters ±1..±2g, canonical relator of
+/// genus g >= 2) is an inner automorphism (see the file comment). Exact.
+/// Throws InputError when phi does not have 2g images or a letter is out of range.
+InnerTest inner_automorphism_test(const GroupMap& phi, int genus);
+
+/// Genus 2: the hyperelliptic involution (2g = 4 generator images, exact,
+/// Dehn-reduced): the half turns of both handles, a -> (ab) a^-1 (ab)^-1,
+/// b -> (ab) b^-1 (ab)^-1 (each fixes its commutator exactly), times the
+/// power of the twist along the separating curve that makes it an
+/// involution. It acts on homology as -I, is central in the mapping class
+/// group and is an isometry of every hyperbolic metric of genus 2: two
+/// classes differing by it have the same harmonic energy.
+GroupMap hyperelliptic_involution();
+
+struct AutomorphismInverseOptions {
+  /// Most descent moves (default 60); when no single move shortens, pairs
+  /// of moves (default true) whose first move is one of the `pair_starts`
+  /// best single moves (default 6).
+  int max_steps = 60;
+  bool pair_moves = true;
+  int pair_starts = 6;
+  /// States kept per step (default 3: the greedy descent alone stalls on
+  /// about one in ten products of two moves in genus 3).
+  int beam = 3;
+  /// Neighbours whose words (letters, summed over the 2g images) exceed this
+  /// and twice the current class's are skipped (default 20000).
+  size_t max_letters = 20000;
+};
+
+struct AutomorphismInverse {
+  bool ok = false;
+  /// When ok: psi with phi ∘ psi and psi ∘ phi inner (Dehn-reduced words).
+  GroupMap inverse;
+  /// Moves of the descent and why it failed.
+  int moves = 0;
+  std::string why;
+};
+
+/// The inverse of the automorphism `phi` of the canonical surface group of
+/// genus g >= 2, up to an inner automorphism (see the file comment). `ok`
+/// false (with `why`) when phi's homology is not symplectic, or the descent
+/// stops before reaching an inner automorphism.
+AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const AutomorphismInverseOptions& options = {});
+
+}  // namespace surfmap

@@ -1,0 +1,303 @@
+// Exact algebra of outer automorphisms of surface groups
+// (topology/outer_automorphisms.h; docs/handle_classes.md "Both directions").
+#include "surfmap/topology/outer_automorphisms.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <limits>
+
+#include "surfmap/error.h"
+#include "surfmap/topology/mapping_class_search.h"
+
+namespace surfmap {
+
+namespace {
+
+Word rotated(const Word& u, size_t r) {
+  Word v(u.begin() + static_cast<long>(r), u.end());
+  v.insert(v.end(), u.begin(), u.begin() + static_cast<long>(r));
+  return v;
+}
+
+// The rotations worth trying on a Dehn-reduced word of length n whose
+// relator has at most m letters: every one for short words; for long ones a
+// half turn brings every junction-spanning piece (at most m letters) inside.
+std::vector<size_t> rotations(size_t n, size_t m) {
+  std::vector<size_t> r;
+  if (n < 2) return r;
+  if (n <= 2 * m + 2) {
+    for (size_t k = 1; k < n; ++k) r.push_back(k);
+  } else {
+    r.push_back(n / 2);
+  }
+  return r;
+}
+
+size_t total_letters(const GroupMap& m) {
+  size_t s = 0;
+  for (const Word& w : m) s += w.size();
+  return s;
+}
+
+void check_map(const GroupMap& phi, int genus, const char* who) {
+  if (genus < 2) throw InputError(std::string(who) + ": genus must be at least 2");
+  if (static_cast<int>(phi.size()) != 2 * genus)
+    throw InputError(std::string(who) + ": " + std::to_string(phi.size()) + " generator images, expected " +
+                     std::to_string(2 * genus));
+  for (const Word& w : phi)
+    for (int x : w)
+      if (x == 0 || std::abs(x) > 2 * genus)
+        throw InputError(std::string(who) + ": letter " + std::to_string(x) + " out of range");
+}
+
+// Probe curves for the descent: x_i, then x_i x_j and x_i x_j^-1 (i < j).
+std::vector<Word> probe_words(int genus) {
+  const int n = 2 * genus;
+  std::vector<Word> p;
+  for (int i = 1; i <= n; ++i) p.push_back({i});
+  for (int i = 1; i <= n; ++i)
+    for (int j = i + 1; j <= n; ++j) {
+      p.push_back({i, j});
+      p.push_back({i, -j});
+    }
+  return p;
+}
+
+// Total cyclically reduced length of the probes' images: conjugation
+// invariant, least (one letter per generator) for inner automorphisms.
+// Stops at `limit` (the caller only needs to know that it is not lower).
+size_t probe_cost(const GroupMap& tau, const std::vector<Word>& probes, const DehnReducer& reduce,
+                  size_t limit = std::numeric_limits<size_t>::max()) {
+  size_t c = 0;
+  for (const Word& p : probes) {
+    c += cyclic_dehn_reduce(substitute(p, tau), reduce).size();
+    if (c >= limit) return c;
+  }
+  return c;
+}
+
+}  // namespace
+
+Word cyclic_dehn_reduce(const Word& w, const DehnReducer& reduce) {
+  Word u = cyclic_reduce(reduce(w));
+  for (bool shorter = true; shorter;) {
+    shorter = false;
+    for (size_t r : rotations(u.size(), 64)  /* relators up to genus 16 */) {
+      Word d = cyclic_reduce(reduce(rotated(u, r)));
+      if (d.size() < u.size()) {
+        u = std::move(d);
+        shorter = true;
+        break;
+      }
+    }
+  }
+  return u;
+}
+
+InnerTest inner_automorphism_test(const GroupMap& phi, int genus) {
+  check_map(phi, genus, "inner_automorphism_test");
+  InnerTest t;
+  const int n = 2 * genus;
+  if (homology_matrix(phi, n) != IntMatrix::Identity(n, n)) {
+    t.why = "it acts on homology as a non-identity matrix";
+    return t;
+  }
+  const DehnReducer reduce(canonical_relator(genus));
+  // Peel phi(a1) = w u w^-1 down to u = a1 (file comment).
+  Word w, u = reduce(phi[0]);
+  for (int guard = 0; guard < 100000 && !(u.size() == 1 && u[0] == 1); ++guard) {
+    if (u.size() >= 2 && u.front() == -u.back()) {
+      w.push_back(u.front());
+      u = Word(u.begin() + 1, u.end() - 1);
+      continue;
+    }
+    bool shorter = false;
+    for (size_t r = 1; r < u.size() && !shorter; ++r) {
+      Word d = reduce(rotated(u, r));
+      if (d.size() < u.size()) {
+        w = reduce(concat(w, Word(u.begin(), u.begin() + static_cast<long>(r))));
+        u = std::move(d);
+        shorter = true;
+      }
+    }
+    if (!shorter) break;
+  }
+  if (!(u.size() == 1 && u[0] == 1)) {
+    t.why = "the image of a1 is not conjugate to a1";
+    return t;
+  }
+  w = reduce(w);
+  // w is determined up to powers of a1 (its centralizer): fix them with b1.
+  const Word v = reduce(concat({inverse(w), phi[1], w}));
+  const long range = static_cast<long>(v.size()) + 1;
+  bool found = false;
+  for (long k = 0; k <= range && !found; ++k)
+    for (long s : {k, -k}) {
+      const Word ak(static_cast<size_t>(std::abs(s)), s >= 0 ? 1 : -1);
+      if (reduce(concat({inverse(ak), v, ak})) == Word{2}) {
+        w = reduce(concat(w, ak));
+        found = true;
+        break;
+      }
+    }
+  if (!found) {
+    t.why = "the images of a1 and b1 are not conjugate to a1, b1 by one element";
+    return t;
+  }
+  for (int x = 1; x <= n; ++x)
+    if (!reduce(concat({inverse(w), phi[x - 1], w, Word{-x}})).empty()) {
+      t.why = "no single conjugation gives every generator's image (generator " + std::to_string(x) + ")";
+      return t;
+    }
+  t.inner = true;
+  t.conjugator = w;
+  return t;
+}
+
+GroupMap hyperelliptic_involution() {
+  const int g = 2;
+  const DehnReducer reduce(canonical_relator(g));
+  GroupMap h(4);
+  for (int i = 0; i < g; ++i) {
+    const int a = 2 * i + 1, b = 2 * i + 2;
+    h[a - 1] = reduce({a, b, -a, -b, -a});  // (ab) a^-1 (ab)^-1
+    h[b - 1] = reduce({a, -b, -a});         // (ab) b^-1 (ab)^-1
+  }
+  const std::vector<MappingClassMove> moves = twist_moves(g, false, false);
+  const auto s1 = std::find_if(moves.begin(), moves.end(), [](const MappingClassMove& m) { return m.name == "T(s1)"; });
+  if (s1 == moves.end()) throw SolveError("hyperelliptic_involution: no twist T(s1)");
+  auto dehn = [&](GroupMap m) {
+    for (Word& w : m) w = reduce(w);
+    return m;
+  };
+  for (int k = 0; k <= 2; ++k)
+    for (int sign : {1, -1}) {
+      GroupMap c = h;
+      for (int q = 0; q < k; ++q) c = dehn(compose(c, sign > 0 ? s1->automorphism.map : s1->automorphism.inverse));
+      if (inner_automorphism_test(dehn(compose(c, c)), g).inner) return c;
+    }
+  throw SolveError("hyperelliptic_involution: no involution among the half turns and separating twists (a bug)");
+}
+
+AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const AutomorphismInverseOptions& options) {
+  check_map(phi, genus, "invert_automorphism");
+  AutomorphismInverse out;
+  const int n = 2 * genus;
+  const IntMatrix P = homology_matrix(phi, n), J = symplectic_form(genus);
+  if (P.transpose() * J * P != J) {
+    out.why = "its homology matrix is not symplectic";
+    return out;
+  }
+  const DehnReducer reduce(canonical_relator(genus));
+  auto dehn = [&](GroupMap m) {
+    for (Word& w : m) w = reduce(w);
+    return m;
+  };
+  // States tau = L ∘ phi ∘ R; once tau is inner, phi^-1 = R ∘ L (up to
+  // inner). A beam of the `beam` lowest-cost states, each step moving every
+  // state by one move on either side (or, when none shortens, by a pair on
+  // the right) to a strictly lower cost.
+  struct State {
+    GroupMap tau, left, right;
+    size_t cost = 0;
+  };
+  const std::vector<MappingClassMove> moves = twist_moves(genus);
+  const std::vector<Word> probes = probe_words(genus);
+  std::vector<State> beam{{dehn(phi), identity_map(n), identity_map(n), probe_cost(dehn(phi), probes, reduce)}};
+  // A second start: the exact lift sigma of the inverse homology on the
+  // right (lift_symplectic), leaving a Torelli element to descend.
+  if (P != IntMatrix::Identity(n, n)) try {
+      const SurfaceAutomorphism sigma = lift_symplectic(-J * P.transpose() * J);  // P^-1
+      GroupMap tau = dehn(compose(phi, sigma.map));
+      const size_t c = probe_cost(tau, probes, reduce);
+      beam.push_back({std::move(tau), identity_map(n), dehn(sigma.map), c});
+    } catch (const Error&) {
+      // (entries too large to lift: the first start alone)
+    }
+  // A state is done when tau is inner, or when tau ∘ sigma is for the exact
+  // lift sigma of tau's inverse homology: signed handle permutations (handle
+  // swaps, half and quarter turns) keep every probe's cyclic length, so the
+  // descent cannot see them, and their lifts are short.
+  auto finished = [&](State& st) {
+    if (inner_automorphism_test(st.tau, genus).inner) return true;
+    const IntMatrix H = homology_matrix(st.tau, n);
+    if (H == IntMatrix::Identity(n, n)) return false;
+    try {
+      const SurfaceAutomorphism sigma = lift_symplectic(-J * H.transpose() * J);
+      GroupMap t = dehn(compose(st.tau, sigma.map));
+      if (!inner_automorphism_test(t, genus).inner) return false;
+      st.tau = std::move(t);
+      st.right = dehn(compose(st.right, sigma.map));
+      return true;
+    } catch (const Error&) {
+      return false;
+    }
+  };
+  const State* done = nullptr;
+  for (int step = 0;; ++step) {
+    for (State& st : beam)
+      if (finished(st)) {
+        done = &st;
+        break;
+      }
+    if (done) break;
+    if (step >= options.max_steps) {
+      out.why = "the descent used its " + std::to_string(options.max_steps) + " moves before reaching an inner automorphism";
+      return out;
+    }
+    std::vector<State> next;
+    for (const State& st : beam) {
+      const size_t letter_cap = std::max(options.max_letters, 2 * total_letters(st.tau));
+      std::vector<std::pair<size_t, size_t>> singles;  // (cost, right move)
+      auto consider = [&](const GroupMap& m, bool right, size_t* cost_out) {
+        GroupMap cand = dehn(right ? compose(st.tau, m) : compose(m, st.tau));
+        if (total_letters(cand) > letter_cap) return false;
+        const size_t c = probe_cost(cand, probes, reduce, cost_out ? std::numeric_limits<size_t>::max() : st.cost);
+        if (cost_out) *cost_out = c;
+        if (!(c < st.cost)) return false;
+        next.push_back({std::move(cand), right ? st.left : dehn(compose(m, st.left)),
+                        right ? dehn(compose(st.right, m)) : st.right, c});
+        return true;
+      };
+      bool any = false;
+      for (size_t k = 0; k < moves.size(); ++k) {
+        size_t c = std::numeric_limits<size_t>::max();
+        any = consider(moves[k].automorphism.map, true, &c) || any;
+        singles.emplace_back(c, k);
+        any = consider(moves[k].automorphism.map, false, nullptr) || any;
+      }
+      if (!any && options.pair_moves) {
+        std::sort(singles.begin(), singles.end());
+        for (size_t q = 0; q < singles.size() && q < static_cast<size_t>(options.pair_starts); ++q)
+          for (const MappingClassMove& m2 : moves)
+            consider(dehn(compose(moves[singles[q].second].automorphism.map, m2.automorphism.map)), true, nullptr);
+      }
+    }
+    if (next.empty()) {
+      out.why = "no move or pair of moves shortens the probe curves' images (stopped after " + std::to_string(step) +
+                " moves, not inner)";
+      return out;
+    }
+    std::stable_sort(next.begin(), next.end(), [](const State& a, const State& b) { return a.cost < b.cost; });
+    beam.clear();
+    for (State& st : next) {
+      if (static_cast<int>(beam.size()) >= std::max(1, options.beam)) break;
+      bool seen = false;
+      for (const State& b : beam) seen = seen || (b.cost == st.cost && b.tau == st.tau);
+      if (!seen) beam.push_back(std::move(st));
+    }
+    ++out.moves;
+  }
+  GroupMap M = dehn(compose(done->right, done->left));
+  GroupMap inv = std::move(M);
+  if (!inner_automorphism_test(dehn(compose(phi, inv)), genus).inner ||
+      !inner_automorphism_test(dehn(compose(inv, phi)), genus).inner) {
+    out.why = "the composite with the computed inverse is not inner (a bug)";
+    return out;
+  }
+  out.ok = true;
+  out.inverse = std::move(inv);
+  return out;
+}
+
+}  // namespace surfmap

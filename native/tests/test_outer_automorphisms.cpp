@@ -1,0 +1,178 @@
+#include "surfmap/topology/outer_automorphisms.h"
+
+#include <random>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "surfmap/error.h"
+#include "surfmap/topology/mapping_class_search.h"
+
+namespace surfmap {
+namespace {
+
+const MappingClassMove& move_named(const std::vector<MappingClassMove>& moves, const std::string& name) {
+  for (const MappingClassMove& m : moves)
+    if (m.name == name) return m;
+  throw std::runtime_error("no move " + name);
+}
+
+GroupMap conjugated(const GroupMap& phi, const Word& w) {
+  GroupMap m(phi.size());
+  for (size_t j = 0; j < phi.size(); ++j) m[j] = concat({w, phi[j], inverse(w)});
+  return m;
+}
+
+Word random_word(std::mt19937& rng, int n, int length) {
+  std::uniform_int_distribution<int> letter(1, n), sign(0, 1);
+  Word w;
+  for (int k = 0; k < length; ++k) w.push_back(sign(rng) ? letter(rng) : -letter(rng));
+  return reduce(w);
+}
+
+// A random mapping class: a product of `count` moves of twist_moves.
+GroupMap random_class(std::mt19937& rng, int g, int count, std::vector<std::string>* names = nullptr) {
+  const std::vector<MappingClassMove> moves = twist_moves(g);
+  std::uniform_int_distribution<size_t> pick(0, moves.size() - 1);
+  const DehnReducer reduce(canonical_relator(g));
+  GroupMap m = identity_map(2 * g);
+  for (int k = 0; k < count; ++k) {
+    const MappingClassMove& mv = moves[pick(rng)];
+    if (names) names->push_back(mv.name);
+    m = compose(m, mv.automorphism.map);
+    for (Word& w : m) w = reduce(w);
+  }
+  return m;
+}
+
+TEST(OuterAutomorphisms, ConjugationsAreInnerWithTheirConjugatorRecovered) {
+  std::mt19937 rng(7);
+  for (int g = 2; g <= 4; ++g) {
+    const int n = 2 * g;
+    const DehnReducer reduce(canonical_relator(g));
+    EXPECT_TRUE(inner_automorphism_test(identity_map(n), g).inner);
+    for (int trial = 0; trial < 20; ++trial) {
+      const Word w = random_word(rng, n, 3 + trial);
+      const GroupMap phi = conjugated(identity_map(n), w);
+      const InnerTest t = inner_automorphism_test(phi, g);
+      ASSERT_TRUE(t.inner) << "genus " << g << " trial " << trial << ": " << t.why;
+      // The conjugator is the group element w (times a1^k only if w's
+      // class were ambiguous, which it is not: the centralizer of all
+      // generators is trivial).
+      EXPECT_TRUE(reduce(concat(inverse(t.conjugator), w)).empty()) << "genus " << g << " trial " << trial;
+    }
+  }
+}
+
+TEST(OuterAutomorphisms, TwistsAndTorelliElementsAreNotInner) {
+  for (int g = 2; g <= 3; ++g) {
+    const std::vector<MappingClassMove> moves = twist_moves(g);
+    for (const MappingClassMove& m : moves) {
+      const InnerTest t = inner_automorphism_test(m.automorphism.map, g);
+      EXPECT_FALSE(t.inner) << "genus " << g << " move " << m.name;
+      // Conjugating a non-inner class does not make it inner.
+      EXPECT_FALSE(inner_automorphism_test(conjugated(m.automorphism.map, {1, 2, -3}), g).inner)
+          << "genus " << g << " move " << m.name;
+    }
+    // The separating twist acts trivially on homology: only the words decide.
+    const MappingClassMove& s1 = move_named(moves, "T(s1)");
+    EXPECT_EQ(homology_matrix(s1.automorphism.map, 2 * g), IntMatrix::Identity(2 * g, 2 * g));
+    const InnerTest t = inner_automorphism_test(s1.automorphism.map, g);
+    EXPECT_FALSE(t.inner);
+    EXPECT_NE(t.why.find("conjugat"), std::string::npos) << t.why;
+    // A move composed with its inverse is the identity.
+    const DehnReducer reduce(canonical_relator(g));
+    GroupMap id = compose(s1.automorphism.map, s1.automorphism.inverse);
+    for (Word& w : id) w = reduce(w);
+    EXPECT_TRUE(inner_automorphism_test(id, g).inner);
+  }
+}
+
+TEST(OuterAutomorphisms, InverseOfProductsOfMovesComposesToAnInnerAutomorphism) {
+  std::mt19937 rng(11);
+  int inverted = 0, tried = 0;
+  for (int g = 2; g <= 3; ++g)
+    for (int trial = 0; trial < (g == 2 ? 8 : 3); ++trial) {
+      // Products of one or two moves, conjugated: the descent is a
+      // heuristic, meant for classes a few twists apart.
+      std::vector<std::string> names;
+      const GroupMap phi = conjugated(random_class(rng, g, 1 + trial % 2, &names), random_word(rng, 2 * g, 4));
+      std::string path;
+      for (const std::string& s : names) path += s + " ";
+      ++tried;
+      const AutomorphismInverse inv = invert_automorphism(phi, g);
+      if (!inv.ok) {
+        ADD_FAILURE() << "genus " << g << " moves " << path << ": " << inv.why;
+        continue;
+      }
+      ++inverted;
+      const DehnReducer reduce(canonical_relator(g));
+      GroupMap a = compose(phi, inv.inverse), b = compose(inv.inverse, phi);
+      for (Word& w : a) w = reduce(w);
+      for (Word& w : b) w = reduce(w);
+      EXPECT_TRUE(inner_automorphism_test(a, g).inner) << path;
+      EXPECT_TRUE(inner_automorphism_test(b, g).inner) << path;
+      // One more twist breaks it: phi ∘ T ∘ phi^-1 is not inner.
+      const GroupMap twisted = compose(compose(phi, move_named(twist_moves(g), "T(a1)").automorphism.map), inv.inverse);
+      EXPECT_FALSE(inner_automorphism_test(twisted, g).inner) << path;
+    }
+  EXPECT_EQ(inverted, tried);
+}
+
+// The hyperelliptic involution of genus 2: homology -I, an involution (its
+// square inner, itself not), and central: it commutes with every twist move
+// up to an inner automorphism.
+TEST(OuterAutomorphisms, HyperellipticInvolutionIsACentralInvolution) {
+  const GroupMap h = hyperelliptic_involution();
+  EXPECT_EQ(homology_matrix(h, 4), IntMatrix(-IntMatrix::Identity(4, 4)));
+  const DehnReducer reduce(canonical_relator(2));
+  EXPECT_TRUE(reduce(substitute(canonical_relator(2), h)).empty());  // a homomorphism of the surface group
+  EXPECT_FALSE(inner_automorphism_test(h, 2).inner);
+  EXPECT_TRUE(inner_automorphism_test(compose(h, h), 2).inner);
+  for (const MappingClassMove& m : twist_moves(2)) {
+    const GroupMap hm = compose(h, m.automorphism.map);
+    EXPECT_TRUE(inner_automorphism_test(compose(hm, compose(h, m.automorphism.inverse)), 2).inner) << m.name;
+    EXPECT_FALSE(inner_automorphism_test(compose(hm, m.automorphism.inverse), 2).inner) << m.name;
+  }
+}
+
+// Signed handle permutations keep every probe's cyclic length (the
+// descent cannot see them): a handle swap with a half turn, twisted, and the
+// hyperelliptic involution are inverted all the same, exactly.
+TEST(OuterAutomorphisms, InverseOfHandlePermutationsAndTheHyperellipticInvolution) {
+  const int g = 2;
+  IntMatrix P = IntMatrix::Zero(4, 4);
+  P(2, 0) = -1, P(3, 1) = -1, P(0, 2) = 1, P(1, 3) = 1;  // handle 1 -> 2 turned by a half turn, 2 -> 1
+  const GroupMap swap = lift_symplectic(P).map;
+  const std::vector<MappingClassMove> moves = twist_moves(g);
+  const GroupMap twisted = compose(swap, move_named(moves, "T(b1)").automorphism.map);
+  for (const GroupMap& phi : {swap, twisted, hyperelliptic_involution(), compose(hyperelliptic_involution(), twisted)}) {
+    const AutomorphismInverse inv = invert_automorphism(phi, g);
+    ASSERT_TRUE(inv.ok) << inv.why;
+    EXPECT_TRUE(inner_automorphism_test(compose(phi, inv.inverse), g).inner);
+    EXPECT_TRUE(inner_automorphism_test(compose(inv.inverse, phi), g).inner);
+  }
+}
+
+TEST(OuterAutomorphisms, CyclicDehnReductionIsConjugationInvariant) {
+  std::mt19937 rng(3);
+  const int g = 2;
+  const DehnReducer reduce(canonical_relator(g));
+  for (int trial = 0; trial < 30; ++trial) {
+    const Word x = random_word(rng, 2 * g, 6);
+    const Word c = random_word(rng, 2 * g, 5);
+    EXPECT_EQ(cyclic_dehn_reduce(x, reduce).size(), cyclic_dehn_reduce(concat({c, x, inverse(c)}), reduce).size())
+        << "trial " << trial;
+  }
+  // The relator itself and its conjugates are trivial.
+  EXPECT_TRUE(cyclic_dehn_reduce(concat({Word{3}, canonical_relator(g), Word{-3}}), reduce).empty());
+}
+
+TEST(OuterAutomorphisms, BadInputIsAnInputError) {
+  EXPECT_THROW(inner_automorphism_test(identity_map(3), 2), InputError);
+  EXPECT_THROW(inner_automorphism_test({{1}, {2}, {3}, {9}}, 2), InputError);
+  EXPECT_THROW(invert_automorphism(identity_map(2), 1), InputError);
+}
+
+}  // namespace
+}  // namespace surfmap
