@@ -59,13 +59,15 @@ struct TargetCover {
       }
     grid = std::make_unique<TriangleGrid>(ttris, 1e-12);
   }
-  /// Refined target face containing q (in P) with barycentrics, or -1.
-  int locate(int start_face, Complex q, Eigen::Vector3d* b) const {
+  /// Refined target face containing q (in P) with barycentrics, or -1;
+  /// adds the faces the walk crossed to `steps`.
+  int locate(int start_face, Complex q, Eigen::Vector3d* b, long* steps) const {
     const DiskLayout& layout = *in.layout;
     auto corners = [&](int f) {
       return std::array<Complex, 3>{layout.corners(f, 0), layout.corners(f, 1), layout.corners(f, 2)};
     };
     auto cross = [&](int f, int s, Complex& c, Complex& p, int* entry) {
+      ++*steps;
       const int h = 3 * f + s, e = tconn.edge(h), t = tconn.twin(h);
       if (layout.cut_edge[e]) {
         const Mobius D = tconn.edge_halfedge(e) == h ? layout.edge_deck_mobius[e] : layout.edge_deck_mobius[e].inverse();
@@ -321,7 +323,8 @@ void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover,
     Complex q = init.z[i];
     polygon.reduce(q);
     const int start = forward_walk_start(layout, polygon, cover.source_neighbours, found, i, last_face, q, lifts);
-    const int rf = cover.locate(start, q, &b);
+    long steps = 0;
+    const int rf = cover.locate(start, q, &b, &steps);
     if (rf < 0) {
       out.initial_forward.clear();
       break;
@@ -403,8 +406,10 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
     for (int i = 0; i < source.num_vertices(); ++i) {
       Eigen::Vector3d b;
       Complex q = zp[i];
-      const int start = forward_walk_start(layout, polygon, cover.source_neighbours, found, i, last_face, q, lifts);
-      const int rf = cover.locate(start, q, &b);
+      const int start = in.forward_index_order
+                            ? last_face
+                            : forward_walk_start(layout, polygon, cover.source_neighbours, found, i, last_face, q, lifts);
+      const int rf = cover.locate(start, q, &b, &out.forward_walk_steps);
       if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
       last_face = found[i] = rf;
       out.forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, in.target_intrinsic, refined_face_origin, rf, b);
@@ -427,6 +432,7 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
     };
     auto source_corners = [&](int f) { return std::array<Complex, 3>{img(f, 0), img(f, 1), img(f, 2)}; };
     auto source_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
+      ++out.inverse_walk_steps;
       const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
       // Shared vertex u = tail(h) = corner s of f = corner (t+1)%3 of g.
       const int cg = (t % 3 + 1) % 3;
