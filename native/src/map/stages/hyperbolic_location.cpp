@@ -140,8 +140,9 @@ int forward_walk_start(const DiskLayout& layout, const FundamentalPolygon& polyg
 // its own frame (corner 0 in P), contains one of v's copies in the cut disk
 // (no chart change needed; first pass, every vertex on its own). The
 // vertices left over are located in waves outward from the located ones
-// (issue 19): a vertex with a located neighbour walks towards its copy
-// nearest to that neighbour's face, from that face (a start next to the
+// (issue 19): a vertex with a located neighbour walks towards its copy, or
+// a copy's image under a side map of P, nearest to that neighbour's face,
+// from that face (a start next to the
 // query, found without a search), and once located puts its unlocated
 // neighbours in the queue. Only a vertex no wave reaches (a component of
 // left-over vertices with no located neighbour, or a failed walk) falls
@@ -178,8 +179,8 @@ std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>&
   for (int v = 0; v < nv; ++v) face[v] = locate_copies_in_frame(grid, points, copies[v], &bary[v]);
   for (int v = 0; v < nv; ++v) count.in_frame += face[v] >= 0;
   // Walk from the start face (among `starts`) whose corner 0 is nearest to
-  // one of v's copies, towards that copy; -1 when there is no start or the
-  // walk fails.
+  // one of `targets` (v's copies, or also their side-map images), towards
+  // that point; -1 when there is no start or the walk fails.
   auto walk_from_nearest_of = [&](int v, const std::vector<Complex>& targets, auto&& for_each_start) {
     double nearest = std::numeric_limits<double>::infinity();
     int start = -1;
