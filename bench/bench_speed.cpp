@@ -52,6 +52,7 @@
 #include "surfmap/error.h"
 #include "surfmap/map/map_report.h"
 #include "surfmap/map/surface_map.h"
+#include "surfmap/testing/map_hooks.h"
 #include "surfmap/samples/shapes.h"
 
 using namespace surfmap;
@@ -188,11 +189,16 @@ json map_run(const Pair& p, int threads) {
       std::fprintf(stderr, "bench_speed: %8.1f s %3d%% %s\n", since(t0), static_cast<int>(100 * fraction), stage.c_str());
       return true;
     };
+  // Faces crossed by the location walks: their cost whatever the load.
+  testing::MapHooks hooks;
+  long forward_steps = -1, inverse_steps = -1;
+  hooks.location_walk_steps = [&](long f, long i) { forward_steps = f, inverse_steps = i; };
   const double c0 = cpu_seconds();
-  const SurfaceMapResult m = surface_map(p.a, p.b, opt);
+  const SurfaceMapResult m = testing::surface_map(p.a, p.b, opt, hooks);
   const double cpu = cpu_seconds() - c0;
   const json report = to_json(m, opt);
   return {{"stages", report["stages"]},
+          {"walk_steps", {forward_steps, inverse_steps}},
           {"ranking", report["homotopy"].value("ranking", json::object())},
           {"converged", m.converged},
           {"flipped", m.flipped_triangles},
@@ -243,6 +249,11 @@ void size_rows(int v, int repeat, int threads, std::vector<std::string>& scaling
     std::printf("  run %d: %.3f s; SU samples so far:", r, totals.back());
     for (double s : su) std::printf(" %.3f", s);
     std::printf("\n");
+    if (run.contains("walk_steps") && run["walk_steps"][0].get<long>() >= 0)
+      std::printf("  run %d location walks: forward %ld faces (%.2f per source vertex), inverse %ld\n", r,
+                  run["walk_steps"][0].get<long>(), run["walk_steps"][0].get<double>() / p.a.num_vertices(),
+                  run["walk_steps"][1].get<long>());
+    std::fflush(stdout);
   }
   const double SU = median(su);
   const std::vector<double> su_cpu(g_su_cpu.end() - static_cast<long>(su.size()), g_su_cpu.end());
@@ -267,6 +278,7 @@ void size_rows(int v, int repeat, int threads, std::vector<std::string>& scaling
   std::snprintf(line, sizeof line, "%8d %8d %10.2f %8.3f %9.1f %10.0f %6d/%d %6d", p.a.num_vertices(),
                 p.b.num_vertices(), total, SU, total / SU, peak, converged, repeat, flips);
   scaling.push_back(line);
+  std::fflush(stdout);
 }
 
 // The relaxation run: seconds from the start to the solve's start and to

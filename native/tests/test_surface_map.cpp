@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <complex>
+#include <cstdio>
 #include <limits>
 #include <vector>
 
@@ -371,6 +372,42 @@ TEST(SurfaceMapHyperbolic, InverseLocationWavesMatchTheFullSearch) {
   }
   // A different face only for a point on a shared edge or vertex (round-off).
   EXPECT_GE(same_face, static_cast<int>(0.99 * mw.inverse.size()));
+}
+
+// Issue 19: the forward location's walks start from the previous vertex's
+// or a located neighbour's face, towards the point or its image under a side
+// map, whichever pair is nearest; they find the same points as the walks
+// from the previous vertex's face towards the point (the start before), and
+// cross fewer faces. The inverse's walks (waves towards the copies and their
+// side-map images) take a few faces per vertex walked to.
+TEST(SurfaceMapHyperbolic, ForwardLocationFromNearStartsMatchesTheIndexOrderWalks) {
+  const TriMesh a = samples::n_hole_torus(2, 30, true);
+  const TriMesh b = samples::vase(34, true);
+  std::array<long, 2> near_steps{}, index_steps{};
+  std::array<int, 4> waves{};
+  testing::MapHooks hn, hi;
+  hn.location_walk_steps = [&](long f, long i) { near_steps = {f, i}; };
+  hn.inverse_location_counts = [&](int i, int n, int g, int s) { waves = {i, n, g, s}; };
+  hi.location_walk_steps = [&](long f, long i) { index_steps = {f, i}; };
+  hi.forward_index_order = true;
+  const SurfaceMapResult mn = testing::surface_map(a, b, SurfaceMapOptions{}, hn);
+  const SurfaceMapResult mi = testing::surface_map(a, b, SurfaceMapOptions{}, hi);
+  expect_valid_map(mn, a, b);
+  ASSERT_EQ(mn.forward.size(), mi.forward.size());
+  const double tol = 1e-9 * bbox_diagonal(b);
+  int same_face = 0;
+  for (size_t v = 0; v < mn.forward.size(); ++v) {
+    EXPECT_LT((mn.forward[v].position - mi.forward[v].position).norm(), tol) << "source vertex " << v;
+    same_face += mn.forward[v].face == mi.forward[v].face;
+  }
+  // A different face only for a point on a shared edge or vertex (round-off).
+  EXPECT_GE(same_face, static_cast<int>(0.99 * mn.forward.size()));
+  std::printf("forward walk steps: near starts %ld, index order %ld; inverse %ld for %d walked vertices\n",
+              near_steps[0], index_steps[0], near_steps[1], waves[1] + waves[2] + waves[3]);
+  EXPECT_GT(index_steps[0], 0);
+  EXPECT_LT(2 * near_steps[0], index_steps[0]);
+  EXPECT_GT(waves[1], 0);
+  EXPECT_LT(near_steps[1], 10L * (waves[1] + waves[2] + waves[3]));
 }
 
 TEST(SurfaceMapHyperbolic, SliverSourceHasNoFlips) {

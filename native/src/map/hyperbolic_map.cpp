@@ -1290,7 +1290,9 @@ bool map_class(HyperbolicPipeline& p) {
   li.init = &init, li.halfedge_rho = &initial.halfedge_rho, li.halfedge_word = &initial.halfedge_word;
   li.threads = p.threads;
   li.inverse_full_search = p.hooks.inverse_full_search;
+  li.forward_index_order = p.hooks.forward_index_order;
   HyperbolicLocationResult located = locate_hyperbolic_map(li, p.stage_done);
+  if (p.hooks.location_walk_steps) p.hooks.location_walk_steps(located.forward_walk_steps, located.inverse_walk_steps);
   if (p.hooks.inverse_location_counts) {
     const InverseLocationCounts& c = located.inverse_counts;
     p.hooks.inverse_location_counts(c.in_frame, c.from_neighbour, c.from_grid, c.full_scan);

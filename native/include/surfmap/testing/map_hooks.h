@@ -38,6 +38,13 @@ struct MapHooks {
   /// target vertices: by the grid alone, by a walk from a located
   /// neighbour (waves), from a grid candidate, after the scan over all faces.
   std::function<void(int in_frame, int from_neighbour, int from_grid, int full_scan)> inverse_location_counts;
+  /// Genus >= 2: walk the optimum's forward location from the previous
+  /// source vertex's face towards the point itself (the start before issue
+  /// 19's neighbour starts and side-map lifts; the reference of a test).
+  bool forward_index_order = false;
+  /// Genus >= 2: called with the faces crossed by the optimum's forward and
+  /// inverse location walks (issue 19: their cost, independent of load).
+  std::function<void(long forward_steps, long inverse_steps)> location_walk_steps;
   std::vector<std::string> homotopy_search_start_twists;
 };
 

@@ -46,11 +46,12 @@ struct TargetCover {
   PlaneTriangles tpoints, ttris;  ///< #F refined target: Poincaré corners, Klein corners
   std::unique_ptr<TriangleGrid> grid;
   const VertexNeighbours neighbours;  ///< of the input target's vertices (the inverse's walks)
+  const VertexNeighbours source_neighbours;  ///< of the source's vertices (the forward walks' starts)
 
   explicit TargetCover(const HyperbolicLocationInput& input)
       : in(input), ntf(in.target_loops->mesh.num_faces()),
         tconn(in.target_loops->mesh.F, in.target_loops->mesh.num_vertices()), tpoints(ntf), ttris(ntf),
-        neighbours(*in.target) {
+        neighbours(*in.target), source_neighbours(*in.source) {
     for (int f = 0; f < ntf; ++f)
       for (int k = 0; k < 3; ++k) {
         tpoints[f][k] = in.layout->corners(f, k);
@@ -58,13 +59,15 @@ struct TargetCover {
       }
     grid = std::make_unique<TriangleGrid>(ttris, 1e-12);
   }
-  /// Refined target face containing q (in P) with barycentrics, or -1.
-  int locate(int start_face, Complex q, Eigen::Vector3d* b) const {
+  /// Refined target face containing q (in P) with barycentrics, or -1;
+  /// adds the faces the walk crossed to `steps`.
+  int locate(int start_face, Complex q, Eigen::Vector3d* b, long* steps) const {
     const DiskLayout& layout = *in.layout;
     auto corners = [&](int f) {
       return std::array<Complex, 3>{layout.corners(f, 0), layout.corners(f, 1), layout.corners(f, 2)};
     };
     auto cross = [&](int f, int s, Complex& c, Complex& p, int* entry) {
+      ++*steps;
       const int h = 3 * f + s, e = tconn.edge(h), t = tconn.twin(h);
       if (layout.cut_edge[e]) {
         const Mobius D = tconn.edge_halfedge(e) == h ? layout.edge_deck_mobius[e] : layout.edge_deck_mobius[e].inverse();
@@ -95,12 +98,63 @@ std::vector<std::vector<Complex>> target_vertex_copies(const DiskLayout& layout,
 // hyperbolic distance d and free of transcendentals.
 double distance_key(Complex c, Complex p) { return std::norm(c - p) / ((1.0 - std::norm(c)) * (1.0 - std::norm(p))); }
 
+// The start of source vertex i's forward walk (issue 19) and the lift of its
+// point q to walk to: of the face found for the previous vertex
+// (`last_face`) and the faces found for i's located neighbours (`found`, -1
+// when not located yet), and of q and its images under P's side maps, the
+// pair with the face's corner 0 nearest to the lift in the layout's frame
+// (ties: the earlier face, q before its images). Why: a walk from the
+// previous index's face crosses O(sqrt #F) faces wherever the index order
+// jumps (10% of a marching-cubes mesh's vertices), and one towards q itself
+// crosses the whole disk when q lies in a part of P that the cut disk holds
+// across a side (another 10%): 70 steps a vertex on average at 50k. A walk
+// from next to the lift takes a step or two, and starting next to the query
+// changes no chart (the reason the inverse's waves start next to theirs). A
+// neighbour's face across a side of P is far from q in this frame and is
+// not chosen, unlike a plain breadth-first start. When the best of these
+// is still more than ~4 of its face's sides from its lift (1.6% of the
+// walks at 50k crossed 32-2000 faces: next to a corner of P, where the lift
+// needs a product of side maps, or after a jump with no located
+// neighbour), the faces `grid` (over the layout's faces, Klein model)
+// proposes at each lift are considered too.
+int forward_walk_start(const DiskLayout& layout, const FundamentalPolygon& polygon, const TriangleGrid& grid,
+                       const VertexNeighbours& neighbours, const std::vector<int>& found, int i, int last_face,
+                       Complex& q, std::vector<Complex>& lifts) {
+  lifts.assign(1, q);  // (scratch kept by the caller: no allocation per query)
+  for (const hyperbolic::Mobius& S : polygon.side_maps()) lifts.push_back(S.apply(q));
+  const int num_lifts = static_cast<int>(lifts.size());
+  int start = -1, lift = 0;
+  double nearest = std::numeric_limits<double>::infinity();
+  auto consider = [&](int f) {
+    const Complex c = layout.corners(f, 0);
+    for (int l = 0; l < num_lifts; ++l) {
+      const double d = distance_key(c, lifts[l]);
+      if (d < nearest) nearest = d, start = f, lift = l;
+    }
+  };
+  consider(last_face);
+  for (int k = neighbours.index[i]; k < neighbours.index[i + 1]; ++k) {
+    const int f = found[neighbours.list[k]];
+    if (f >= 0 && f != start) consider(f);
+  }
+  // (cosh d - 1) / 2 grows like d^2 / 4: 16 x the key of a side is ~4 sides.
+  if (nearest > 16 * distance_key(layout.corners(start, 0), layout.corners(start, 1)))
+    for (int l = 0; l < num_lifts; ++l)
+      for (int f : grid.candidates(hyperbolic::poincare_to_klein(lifts[l]))) {
+        const double d = distance_key(layout.corners(f, 0), lifts[l]);
+        if (d < nearest) nearest = d, start = f, lift = l;
+      }
+  q = lifts[lift];
+  return start;
+}
+
 // The inverse of a map: per target vertex v the source face whose image, in
 // its own frame (corner 0 in P), contains one of v's copies in the cut disk
 // (no chart change needed; first pass, every vertex on its own). The
 // vertices left over are located in waves outward from the located ones
-// (issue 19): a vertex with a located neighbour walks towards its copy
-// nearest to that neighbour's face, from that face (a start next to the
+// (issue 19): a vertex with a located neighbour walks towards its copy, or
+// a copy's image under a side map of P, nearest to that neighbour's face,
+// from that face (a start next to the
 // query, found without a search), and once located puts its unlocated
 // neighbours in the queue. Only a vertex no wave reaches (a component of
 // left-over vertices with no located neighbour, or a failed walk) falls
@@ -137,20 +191,21 @@ std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>&
   for (int v = 0; v < nv; ++v) face[v] = locate_copies_in_frame(grid, points, copies[v], &bary[v]);
   for (int v = 0; v < nv; ++v) count.in_frame += face[v] >= 0;
   // Walk from the start face (among `starts`) whose corner 0 is nearest to
-  // one of v's copies, towards that copy; -1 when there is no start or the
-  // walk fails.
-  auto walk_from_nearest = [&](int v, auto&& for_each_start) {
+  // one of `targets` (v's copies, or also their side-map images), towards
+  // that point; -1 when there is no start or the walk fails.
+  auto walk_from_nearest_of = [&](int v, const std::vector<Complex>& targets, auto&& for_each_start) {
     double nearest = std::numeric_limits<double>::infinity();
     int start = -1;
     Complex towards;
     for_each_start([&](int g) {
-      for (const Complex& c : copies[v]) {
+      for (const Complex& c : targets) {
         const double d = distance_key(c, points[g][0]);
         if (d < nearest) nearest = d, start = g, towards = c;
       }
     });
     return start >= 0 ? straight_walk(start, towards, corners, cross, max_steps, kInsideTolerance, &bary[v]) : -1;
   };
+  auto walk_from_nearest = [&](int v, auto&& for_each_start) { return walk_from_nearest_of(v, copies[v], for_each_start); };
   // Whether face f at barycentrics b holds a copy of v: the point within
   // half of f's longest side of one of v's copies in the cut disk, or of
   // one reduced into P when the point is too. A walk
@@ -186,8 +241,17 @@ std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>&
     }
     return false;
   };
+  // The waves walk towards v's copies and their images under P's side maps
+  // (issue 19): a left-over vertex lies next to a side of the cut disk, and
+  // the copy next to its located neighbour is often the one across that
+  // side, not a copy in the disk (whose walk crossed the whole disk: ~500
+  // faces for each of the 6% left-over vertices at 50k).
+  std::vector<Complex> lifts;
   auto from_neighbours = [&](int v) {
-    return walk_from_nearest(v, [&](auto&& visit) {
+    lifts = copies[v];
+    for (const Complex& c : copies[v])
+      for (const hyperbolic::Mobius& S : polygon.side_maps()) lifts.push_back(S.apply(c));
+    return walk_from_nearest_of(v, lifts, [&](auto&& visit) {
       for (int k = neighbours.index[v]; k < neighbours.index[v + 1]; ++k)
         if (face[neighbours.list[k]] >= 0) visit(face[neighbours.list[k]]);
     });
@@ -264,17 +328,21 @@ void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover,
   std::vector<int> initial_face_origin(cover.ntf, -1);
   out.initial_forward.resize(source.num_vertices());
   int last_face = layout.root_face >= 0 ? layout.root_face : 0;
+  std::vector<int> found(source.num_vertices(), -1);
+  std::vector<Complex> lifts;
   for (int i = 0; i < source.num_vertices(); ++i) {
     if (*stop) return;
     Eigen::Vector3d b;
     Complex q = init.z[i];
     polygon.reduce(q);
-    const int rf = cover.locate(last_face, q, &b);
+    const int start = forward_walk_start(layout, polygon, *cover.grid, cover.source_neighbours, found, i, last_face, q, lifts);
+    long steps = 0;
+    const int rf = cover.locate(start, q, &b, &steps);
     if (rf < 0) {
       out.initial_forward.clear();
       break;
     }
-    last_face = rf;
+    last_face = found[i] = rf;
     out.initial_forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, in.target_intrinsic, initial_face_origin, rf, b);
   }
   // The initial map's inverse (the "before" UV transfer): its image
@@ -346,11 +414,17 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
     std::vector<int> refined_face_origin(cover.ntf, -1);
     out.forward.resize(source.num_vertices());
     int last_face = layout.root_face >= 0 ? layout.root_face : 0;
+    std::vector<int> found(source.num_vertices(), -1);
+    std::vector<Complex> lifts;
     for (int i = 0; i < source.num_vertices(); ++i) {
       Eigen::Vector3d b;
-      const int rf = cover.locate(last_face, zp[i], &b);
+      Complex q = zp[i];
+      const int start = in.forward_index_order
+                            ? last_face
+                            : forward_walk_start(layout, polygon, *cover.grid, cover.source_neighbours, found, i, last_face, q, lifts);
+      const int rf = cover.locate(start, q, &b, &out.forward_walk_steps);
       if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
-      last_face = rf;
+      last_face = found[i] = rf;
       out.forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, in.target_intrinsic, refined_face_origin, rf, b);
     }
     stage_done("forward location", 0.85);
@@ -371,6 +445,7 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
     };
     auto source_corners = [&](int f) { return std::array<Complex, 3>{img(f, 0), img(f, 1), img(f, 2)}; };
     auto source_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
+      ++out.inverse_walk_steps;
       const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
       // Shared vertex u = tail(h) = corner s of f = corner (t+1)%3 of g.
       const int cg = (t % 3 + 1) % 3;

@@ -41,6 +41,9 @@ struct HyperbolicLocationInput {
   int threads = 1;
   /// The optimum's inverse without the waves (testing/map_hooks.h).
   bool inverse_full_search = false;
+  /// The optimum's forward walks from the previous vertex's face towards
+  /// the point itself, as before issue 19 (testing/map_hooks.h).
+  bool forward_index_order = false;
 };
 
 /// How the optimum's inverse location found the target vertices (issue 19).
@@ -56,6 +59,8 @@ struct HyperbolicLocationResult {
   std::vector<PointOnSurface> initial_forward;  ///< #V source, or empty when a vertex could not be located
   std::vector<PointOnSurface> initial_inverse;  ///< #V target, or empty likewise
   InverseLocationCounts inverse_counts;         ///< of `inverse`
+  long forward_walk_steps = 0;                  ///< faces crossed by the optimum's forward walks
+  long inverse_walk_steps = 0;                  ///< faces crossed by the optimum's inverse walks
 };
 
 /// Locates the optimum (forward then inverse, reporting "forward location"
