@@ -303,33 +303,39 @@ PantsDecomposition descend_pants(const SurfaceGroupLengths& lengths, const Surfa
   // Descent: the best single twist (right side: a change of marking) while
   // it shortens the curves.
   const std::vector<MappingClassMove> moves = twist_moves(g, false, false);
-  // (Depth d: every sequence of d moves without a move followed by its
-  // inverse, tried when no shorter sequence shortens; the deepest is limited
-  // by options.max_neighbourhood sequences.)
-  int max_depth = 1;
-  for (double n = moves.size() * double(moves.size()); max_depth < options.max_depth && n <= options.max_neighbourhood;
-       n *= moves.size())
-    ++max_depth;
+  // (Depth d: sequences of d moves without a move followed by its inverse,
+  // tried when no shorter sequence shortens: every sequence while there are
+  // at most options.max_neighbourhood, else the `beam` lowest sequences of
+  // depth d − 1 extended by every move.)
+  struct Sequence {
+    std::vector<int> moves;
+    GroupMap map;
+    double total;
+  };
   for (int step = 0; step < options.max_steps; ++step) {
     double best = out.total * (1 - options.tolerance);
-    std::vector<int> best_seq, seq;
+    std::vector<int> best_seq;
     GroupMap best_map;
-    std::function<void(const GroupMap&, int)> search = [&](const GroupMap& m, int left) {
-      for (size_t k = 0; k < moves.size(); ++k) {
-        if (!seq.empty() && static_cast<int>(k) == (seq.back() ^ 1)) continue;  // (back)
-        GroupMap next = compose(m, moves[k].automorphism.map);
-        reduce_all(next, reduce);
-        seq.push_back(static_cast<int>(k));
-        if (left == 1) {
-          const double c = total_of(next);
-          if (c < best) best = c, best_seq = seq, best_map = std::move(next);
-        } else {
-          search(next, left - 1);
-        }
-        seq.pop_back();
+    std::vector<Sequence> level{{{}, out.marking.map, out.total}};
+    for (int depth = 1; depth <= options.max_depth && best_seq.empty(); ++depth) {
+      if (level.size() * moves.size() > options.max_neighbourhood) {
+        std::partial_sort(level.begin(), level.begin() + std::min<size_t>(level.size(), options.beam), level.end(),
+                          [](const Sequence& x, const Sequence& y) { return x.total < y.total; });
+        level.resize(std::min<size_t>(level.size(), options.beam));
       }
-    };
-    for (int depth = 1; depth <= max_depth && best_seq.empty(); ++depth) search(out.marking.map, depth);
+      std::vector<Sequence> next_level;
+      for (const Sequence& q : level)
+        for (size_t k = 0; k < moves.size(); ++k) {
+          if (!q.moves.empty() && static_cast<int>(k) == (q.moves.back() ^ 1)) continue;  // (back)
+          Sequence n{q.moves, compose(q.map, moves[k].automorphism.map), 0};
+          reduce_all(n.map, reduce);
+          n.moves.push_back(static_cast<int>(k));
+          n.total = total_of(n.map);
+          if (n.total < best) best = n.total, best_seq = n.moves, best_map = n.map;
+          next_level.push_back(std::move(n));
+        }
+      level = std::move(next_level);
+    }
     if (best_seq.empty()) {
       out.stop_reason = "no shortening move";
       break;

@@ -93,12 +93,15 @@ struct PantsDecompositionOptions {
   /// (default 1e-9: round-off).
   double tolerance = 1e-9;
   /// When no single move shortens: the best sequence of 2, then 3, ...
-  /// moves, up to `max_depth` (default 4) and while the sequences of that
-  /// depth number at most `max_neighbourhood` (default 25000: depth 4 in
-  /// genus 2, 3 in genus 3 and 4). (A genus-2 surface relabelled by a few
-  /// twists stalled at total 16.4 with depth 3 and reached 6.85 with 4.)
+  /// moves, up to `max_depth` (default 4): all sequences of a depth while
+  /// they number at most `max_neighbourhood` (default 20000: depth 4 in
+  /// genus 2, 3 in genus 3, 2 in genus 4), beyond that the `beam` (default 48) lowest of the previous
+  /// depth extended by every move. (A genus-2 surface relabelled by a few
+  /// twists stalled at total 16.4 with depth 3 and reached 6.85 with 4;
+  /// all depth-3 sequences of genus 4 cost minutes.)
   int max_depth = 4;
-  double max_neighbourhood = 25000;
+  size_t max_neighbourhood = 20000;
+  size_t beam = 48;
   /// Starts that descend (default 4): the lowest totals among the short
   /// marking with each handle's pants curve chosen among a, b, ab, ab^-1
   /// (4^g choices up to genus 4; from genus 5 the short marking only).
