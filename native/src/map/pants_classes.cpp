@@ -8,8 +8,6 @@
 #include <functional>
 #include <limits>
 #include <map>
-#include <numeric>
-#include <set>
 #include <utility>
 
 #include "surfmap/error.h"

@@ -61,7 +61,9 @@ struct StandardPantsCurve {
   std::string name;  ///< "a1", "s1", "k2", ...
   Word curve, side1, side2;
   /// The Dehn twist along the curve (an exact automorphism fixing the
-  /// relator), conjugating side1's pants side by the curve.
+  /// relator: b_j -> b_j a_j for a_j; for s_j and k_j the handles on one
+  /// side conjugated by the curve). It moves one seam word along the curve's
+  /// axis and so shifts the twist coordinate by ±ℓ.
   SurfaceAutomorphism twist;
 };
 
