@@ -65,6 +65,60 @@ double SurfaceGroupLengths::length(const Word& w, size_t max_letters) const {
   return 2 * std::acosh(std::max(1.0, half_trace));
 }
 
+bool SurfaceGroupLengths::element(const Word& w, hyperbolic::Mobius* m, size_t max_letters) const {
+  Word canonical = caller_to_canonical_.empty() ? w : substitute(w, caller_to_canonical_);
+  canonical = reduce_canonical_(canonical);
+  if (canonical.size() > max_letters) return false;
+  const Word loops = reduce_loops_(substitute(canonical, canonical_to_loops_));
+  if (loops.size() > max_letters) return false;
+  *m = group_.evaluate(loops);
+  return std::isfinite(std::abs(m->a)) && std::isfinite(std::abs(m->b)) && std::abs(m->a) < 1e12;
+}
+
+bool SurfaceGroupLengths::elements_in_frame_of_first(const std::vector<Word>& words,
+                                                     std::vector<hyperbolic::Mobius>* out, size_t max_letters) const {
+  std::vector<Word> side;
+  for (const Word& w : words) {
+    Word canonical = caller_to_canonical_.empty() ? w : substitute(w, caller_to_canonical_);
+    canonical = reduce_canonical_(canonical);
+    if (canonical.size() > max_letters) return false;
+    const Word loops = reduce_loops_(substitute(canonical, canonical_to_loops_));
+    if (loops.size() > max_letters) return false;
+    side.push_back(group_.reduce(group_.side_word(loops)));
+  }
+  if (side.empty()) return false;
+  // first = u w u^-1: strip conjugating letters and half-turn rotations
+  // (as in length()), keeping u.
+  Word u, w = side[0];
+  for (int guard = 0; guard < 64; ++guard) {
+    const Word before = w;
+    while (w.size() >= 2 && w.front() == -w.back()) {
+      u.push_back(w.front());
+      w = Word(w.begin() + 1, w.end() - 1);
+    }
+    w = group_.reduce(w);
+    const size_t h = w.size() / 2;
+    Word turned(w.begin() + static_cast<long>(h), w.end());
+    turned.insert(turned.end(), w.begin(), w.begin() + static_cast<long>(h));
+    turned = group_.reduce(cyclic_reduce(turned));
+    if (turned.size() < w.size()) {  // w = half turned half^-1
+      u.insert(u.end(), w.begin(), w.begin() + static_cast<long>(h));
+      u = surfmap::reduce(u);
+      w = std::move(turned);
+    }
+    if (w == before) break;
+  }
+  out->clear();
+  const Word ui = inverse(u);
+  for (const Word& sw : side) {
+    const Word v = group_.reduce(concat({ui, sw, u}));
+    if (v.size() > max_letters) return false;
+    out->push_back(group_.evaluate_side_word(v));
+    if (!std::isfinite(std::abs(out->back().a)) || std::abs(out->back().a) > 1e12) return false;
+  }
+  return true;
+}
+
 double collar_modulus(double length) {
   if (!(length > 0)) return std::numeric_limits<double>::infinity();
   return 2 * std::atan(1 / std::sinh(length / 2)) / length;

@@ -52,6 +52,20 @@ class SurfaceGroupLengths {
   /// the word reduces to more than `max_letters` loop letters or its matrix
   /// leaves double range (too long to evaluate: callers must then not use it).
   double length(const Word& w, size_t max_letters = 4000) const;
+  /// The deck element of `w` itself (caller's canonical letters), not a
+  /// conjugate: for geometry that relates several elements (the axes of a
+  /// pants curve and of its neighbours, map/pants_classes.h). False when the
+  /// word reduces to more than `max_letters` loop letters or its matrix
+  /// leaves double range.
+  bool element(const Word& w, hyperbolic::Mobius* m, size_t max_letters = 4000) const;
+  /// The deck elements of `words` (caller's canonical letters) all
+  /// conjugated by one element u chosen so that the first one's side word
+  /// is cyclically (and Dehn-) reduced: its axis then passes near the
+  /// fundamental polygon and the matrices stay small (far conjugates have
+  /// entries of 1e6 and more, and axis endpoints that round-off moves).
+  /// Simultaneous conjugation keeps every relative position of the axes.
+  bool elements_in_frame_of_first(const std::vector<Word>& words, std::vector<hyperbolic::Mobius>* out,
+                                  size_t max_letters = 4000) const;
 
  private:
   DeckGroup group_;

@@ -135,7 +135,9 @@ struct HomotopySearchOptions {
   /// "Geometric candidates"): at most this many classes from short markings
   /// of the two surfaces' hyperbolic metrics (map/geometric_classes.h),
   /// lowest curve lower bound first, solved on the coarse copy and added
-  /// (default 4; 0: none). Needs the source's own uniformization
+  /// (default 4; 0: none), and as many again from short pants
+  /// decompositions with Fenchel–Nielsen twists (map/pants_classes.h).
+  /// Needs the source's own uniformization
   /// (SurfaceMapResult::class_bound_status).
   int geometric = 4;
   /// Issue 19: the geometric classes only when the best class so far has at

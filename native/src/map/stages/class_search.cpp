@@ -10,6 +10,7 @@
 #include "../concurrency.h"
 #include "surfmap/error.h"
 #include "surfmap/map/geometric_classes.h"
+#include "surfmap/map/pants_classes.h"
 #include "surfmap/topology/mapping_class_search.h"
 
 namespace surfmap::detail {
@@ -84,6 +85,28 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
   go.max_classes = std::max(6, 2 * options.homotopy.search.geometric);
   go.descents = go.max_classes;  // (all: with only 4, n_hole_torus(2) -> vase missed its geometric class)
   std::vector<GeometricClass> classes = geometric_classes(source, mx, target, my, go);
+  // Classes from short pants decompositions with Fenchel–Nielsen twists
+  // (map/pants_classes.h), listed after the markings' and solved within a
+  // budget of their own (the same count).
+  const size_t marking_classes = classes.size();
+  {
+    const PantsDecomposition px = short_pants_decomposition(source, mx), py = short_pants_decomposition(target, my);
+    std::vector<double> lx, ly;
+    for (const PantsCurve& c : px.curves) lx.push_back(c.length);
+    for (const PantsCurve& c : py.curves) ly.push_back(c.length);
+    const std::string pants_lengths = "pants lengths " + lengths_text(lx) + " -> " + lengths_text(ly);
+    PantsClassOptions po;
+    po.max_classes = go.max_classes;
+    for (PantsClass& pc : pants_classes(source, px, target, py, po)) {
+      GeometricClass gc;
+      gc.theta = std::move(pc.theta);
+      gc.permutation = pc.symmetry.permutation;
+      for (int h : pc.symmetry.half_turn) gc.rotation.push_back(2 * h);
+      gc.mismatch = pc.mismatch;
+      gc.description = pc.description + " (" + pants_lengths + ")";
+      classes.push_back(std::move(gc));
+    }
+  }
   std::vector<std::vector<double>> fingerprints;
   for (const GroupMap& k : known)
     fingerprints.push_back(space.loop_image_length(k) <= space.max_image_letters() ? space.fingerprint(k)
@@ -97,8 +120,13 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
     ranked.push_back({bound_of(theta), k});
   }
   std::stable_sort(ranked.begin(), ranked.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  // The markings' classes, then the pants classes, each list within the
+  // budget `geometric` (lowest bound first).
+  std::stable_partition(ranked.begin(), ranked.end(), [&](const auto& r) { return r.second < marking_classes; });
+  int solved_of_list[2] = {0, 0};
   for (const auto& [bound, k] : ranked) {
-    if (info.geometric_classes >= options.homotopy.search.geometric) break;
+    const int list = k < marking_classes ? 0 : 1;
+    if (solved_of_list[list] >= options.homotopy.search.geometric) continue;
     const GeometricClass& gc = classes[k];
     const std::vector<double> fp = space.fingerprint(gc.theta);
     bool seen = false;
@@ -106,6 +134,7 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
     if (seen) continue;
     fingerprints.push_back(fp);
     ++info.geometric_classes;
+    ++solved_of_list[list];
     FoundClass f;
     try {
       f.data = data_of(gc.theta);
@@ -115,7 +144,7 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
     if (!solve_coarse(gc.theta, &f.evaluation)) continue;
     char buf[96];
     std::snprintf(buf, sizeof buf, ", length mismatch %.3g, curve bound %.4g", gc.mismatch, bound);
-    f.hc.description = "[geometric: short markings, " + gc.description + buf + "]";
+    f.hc.description = std::string(list == 0 ? "[geometric: short markings, " : "[geometric: ") + gc.description + buf + "]";
     found.push_back(std::move(f));
   }
   info.geometric_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

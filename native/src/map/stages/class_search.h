@@ -50,11 +50,13 @@ std::vector<FoundClass> classes_from_more_cuts(CutLifter& lifter, SourceCuts& cu
 
 /// Stage 1b (issue 14; docs/handle_classes.md "Geometric candidates"):
 /// classes from short markings of the two surfaces' hyperbolic metrics
-/// (map/geometric_classes.h): `source`/`target` lengths in the default cut's
-/// canonical letters; the classes new by fingerprint against `known`, at
-/// most options.homotopy.search.geometric of them, lowest curve lower bound
-/// first (`bound_of`), each solved on the coarse copy by `solve_coarse`
-/// (which prunes by the bound). Fills info.geometric_* and the markings.
+/// (map/geometric_classes.h) and from short pants decompositions with
+/// Fenchel–Nielsen twists (map/pants_classes.h): `source`/`target` lengths
+/// in the default cut's canonical letters; the classes new by fingerprint
+/// against `known`, at most options.homotopy.search.geometric of each kind,
+/// lowest curve lower bound first (`bound_of`), each solved on the coarse
+/// copy by `solve_coarse` (which prunes by the bound). Fills
+/// info.geometric_* (both kinds) and the markings.
 std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& source, const SurfaceGroupLengths& target,
                                                     const ClassSpace& space, const std::vector<GroupMap>& known,
                                                     const std::function<double(const GroupMap&)>& bound_of,

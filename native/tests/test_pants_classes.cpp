@@ -1,0 +1,259 @@
+// Handle classes from short pants decompositions with Fenchel–Nielsen
+// coordinates (map/pants_classes.h, docs/handle_classes.md "Pants
+// decompositions").
+#include "surfmap/map/pants_classes.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "surfmap/samples/shapes.h"
+#include "surfmap/topology/canonical_schema.h"
+#include "surfmap/topology/mapping_class_search.h"
+#include "surfmap/uniformize/uniformize.h"
+
+namespace surfmap {
+namespace {
+
+struct Uniformized {
+  UniformizeResult u;
+  CanonicalSchema cs;
+};
+
+Uniformized uniformized(const TriMesh& mesh) {
+  Uniformized x{uniformize(mesh), {}};
+  EXPECT_TRUE(x.u.converged);
+  x.cs = canonical_schema(x.u.layout.word);
+  return x;
+}
+
+// A smooth non-uniform stretch: no isometries but the hyperelliptic one.
+TriMesh lopsided(TriMesh mesh) {
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    auto p = mesh.V.row(v);
+    const double x = p(0), y = p(1);
+    p(0) = x * (1.0 + 0.35 * x) + 0.1 * y * y;
+    p(1) = y * (1.0 + 0.25 * std::sin(2.0 * x));
+  }
+  return mesh;
+}
+
+// The same surface with its vertices and faces numbered in reverse: another
+// cut, other canonical letters, the same metric.
+TriMesh renumbered(const TriMesh& mesh) {
+  TriMesh out = mesh;
+  const int n = mesh.num_vertices(), m = static_cast<int>(mesh.F.rows());
+  for (int v = 0; v < n; ++v) out.V.row(n - 1 - v) = mesh.V.row(v);
+  for (int f = 0; f < m; ++f)
+    for (int k = 0; k < 3; ++k) out.F(m - 1 - f, k) = n - 1 - mesh.F(f, k);
+  return out;
+}
+
+SurfaceAutomorphism named_moves(int genus, const std::vector<std::string>& names) {
+  const std::vector<MappingClassMove> moves = twist_moves(genus, false, false);
+  const DehnReducer reduce(canonical_relator(genus));
+  SurfaceAutomorphism psi{identity_map(2 * genus), identity_map(2 * genus), 0};
+  for (const std::string& name : names) {
+    auto m = std::find_if(moves.begin(), moves.end(), [&](const MappingClassMove& x) { return x.name == name; });
+    EXPECT_NE(m, moves.end()) << name;
+    if (m == moves.end()) break;
+    psi.map = compose(psi.map, m->automorphism.map);
+    psi.inverse = compose(m->automorphism.inverse, psi.inverse);
+    for (Word& w : psi.map) w = reduce(w);
+    for (Word& w : psi.inverse) w = reduce(w);
+  }
+  return psi;
+}
+
+// Whether the axes of two hyperbolic elements cross (endpoints linked on
+// the circle at infinity); false for the same axis.
+bool axes_cross(hyperbolic::Mobius p, hyperbolic::Mobius q) {
+  auto ends = [](hyperbolic::Mobius m, double* u, double* v) {
+    const double det = m.determinant();
+    if (det > 0.5 && det < 2) m.a /= std::sqrt(det), m.b /= std::sqrt(det);
+    const double im = m.a.imag(), root = std::sqrt(std::max(0.0, m.a.real() * m.a.real() - 1));
+    const Complex bb = std::conj(m.b);
+    *u = std::arg((Complex(0, im) + root) / bb), *v = std::arg((Complex(0, im) - root) / bb);
+  };
+  double p1, p2, q1, q2;
+  ends(p, &p1, &p2), ends(q, &q1, &q2);
+  auto close = [](double x, double y) { return std::abs(std::remainder(x - y, 2 * M_PI)) < 1e-7; };
+  if ((close(p1, q1) && close(p2, q2)) || (close(p1, q2) && close(p2, q1))) return false;
+  auto inside = [&](double x) {  // x strictly on the ccw arc from p1 to p2
+    const double span = std::fmod(p2 - p1 + 4 * M_PI, 2 * M_PI), at = std::fmod(x - p1 + 4 * M_PI, 2 * M_PI);
+    return at > 1e-9 && at < span - 1e-9;
+  };
+  return inside(q1) != inside(q2);
+}
+
+// Conjugators: every reduced word of up to `radius` letters.
+std::vector<Word> ball(int genus, int radius) {
+  std::vector<Word> out{{}}, frontier{{}};
+  for (int r = 0; r < radius; ++r) {
+    std::vector<Word> next;
+    for (const Word& w : frontier)
+      for (int x = -2 * genus; x <= 2 * genus; ++x) {
+        if (x == 0 || (!w.empty() && w.back() == -x)) continue;
+        Word v = w;
+        v.push_back(x);
+        next.push_back(v);
+      }
+    out.insert(out.end(), next.begin(), next.end());
+    frontier = std::move(next);
+  }
+  return out;
+}
+
+TEST(PantsClasses, StandardTwistsAreAutomorphismsAndSymmetriesPreserveTheCurves) {
+  for (int g = 2; g <= 4; ++g) {
+    const std::vector<StandardPantsCurve> curves = standard_pants_curves(g);
+    ASSERT_EQ(static_cast<int>(curves.size()), 3 * g - 3);
+    for (const StandardPantsCurve& c : curves) EXPECT_TRUE(is_surface_automorphism(c.twist, g)) << c.name;
+    const std::vector<PantsSymmetry> sym = pants_symmetries(g);
+    const size_t perms = g == 2 ? 2 : g == 3 ? 6 : 8;
+    EXPECT_EQ(sym.size(), perms << g);
+    const IntMatrix J = symplectic_form(g);
+    const DehnReducer reduce(canonical_relator(g));
+    for (const PantsSymmetry& s : sym) {
+      const IntMatrix H = homology_matrix(s.map, 2 * g);
+      EXPECT_EQ(H.transpose() * J * H, J);
+      // A homomorphism of the surface group: the relator's image is trivial.
+      EXPECT_TRUE(reduce(substitute(canonical_relator(g), s.map)).empty()) << g;
+    }
+  }
+}
+
+// Lengths and twist coordinates are conjugation invariant; one Dehn twist
+// along a pants curve shifts its twist coordinate by its length; the pants
+// curves' lifts never cross (while a1's and b1's do).
+TEST(PantsClasses, CoordinatesAreInvariantAndTheCurvesDisjointAndSimple) {
+  const Uniformized x = uniformized(lopsided(samples::n_hole_torus(2, 26, true)));
+  const SurfaceGroupLengths X(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word);
+  const PantsDecomposition p = short_pants_decomposition(X, short_marking(X));
+  ASSERT_EQ(p.curves.size(), 3u);
+  EXPECT_EQ(p.stop_reason, "no shortening move");
+  EXPECT_LE(p.total, p.start_total + 1e-9);
+  EXPECT_TRUE(is_surface_automorphism(p.marking, 2));
+  const DehnReducer reduce(canonical_relator(2));
+  const std::vector<StandardPantsCurve> standard = standard_pants_curves(2);
+  for (size_t c = 0; c < 3; ++c) {
+    const PantsCurve& pc = p.curves[c];
+    ASSERT_TRUE(std::isfinite(pc.length) && std::isfinite(pc.twist)) << pc.name;
+    EXPECT_LE(std::abs(pc.twist), 0.5 * pc.length + 1e-6) << pc.name;  // normalised
+    const Word e1 = reduce(substitute(standard[c].side1, p.marking.map));
+    const Word e2 = reduce(substitute(standard[c].side2, p.marking.map));
+    for (const Word& h : {Word{1}, Word{-2, 3}, Word{4, 4, -1}}) {
+      auto cj = [&](const Word& w) { return reduce(concat({h, w, inverse(h)})); };
+      EXPECT_NEAR(X.length(cj(pc.word)), pc.length, 1e-8 * pc.length);
+      EXPECT_NEAR(twist_coordinate(X, cj(pc.word), cj(e1), cj(e2)), pc.twist, 1e-6) << pc.name;
+    }
+    // One twist: a shift by ±ℓ.
+    GroupMap twisted = compose(p.marking.map, standard[c].twist.map);
+    for (Word& w : twisted) w = reduce(w);
+    const double t1 = pants_coordinates(X, twisted)[c].twist;
+    EXPECT_NEAR(std::abs(t1 - pc.twist), pc.length, 1e-6 * pc.length) << pc.name;
+  }
+  // Simple and disjoint: no lift of a pants curve crosses another's axis.
+  const std::vector<Word> conjugators = ball(2, 3);
+  auto crossings = [&](const Word& u, const Word& v) {
+    std::vector<hyperbolic::Mobius> m;
+    int n = 0;
+    for (const Word& h : conjugators)
+      if (X.elements_in_frame_of_first({u, reduce(concat({h, v, inverse(h)}))}, &m) && axes_cross(m[0], m[1])) ++n;
+    return n;
+  };
+  for (size_t c = 0; c < 3; ++c)
+    for (size_t d = c; d < 3; ++d) EXPECT_EQ(crossings(p.curves[c].word, p.curves[d].word), 0) << c << " " << d;
+  // (The check can fail: a1 and b1 of the marking cross.)
+  EXPECT_GT(crossings(p.marking.map[0], p.marking.map[1]), 0);
+}
+
+// The same surface against itself and against a renumbered copy (another
+// cut): the same pants lengths, and a class of zero mismatch; against
+// itself that class is the identity.
+TEST(PantsClasses, IdentityForTheSameSurfaceAndIsometryForACopy) {
+  const Uniformized x = uniformized(lopsided(samples::n_hole_torus(2, 26, true)));
+  const Uniformized y = uniformized(renumbered(lopsided(samples::n_hole_torus(2, 26, true))));
+  const SurfaceGroupLengths X(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word);
+  const SurfaceGroupLengths Y(DeckGroup(y.u.layout), y.cs.generators, y.u.layout.word);
+  const PantsDecomposition px = short_pants_decomposition(X, short_marking(X));
+  const PantsDecomposition py = short_pants_decomposition(Y, short_marking(Y));
+  std::vector<double> lx, ly;
+  for (const PantsCurve& c : px.curves) lx.push_back(c.length);
+  for (const PantsCurve& c : py.curves) ly.push_back(c.length);
+  std::sort(lx.begin(), lx.end()), std::sort(ly.begin(), ly.end());
+  for (size_t k = 0; k < lx.size(); ++k) EXPECT_NEAR(lx[k], ly[k], 1e-5 * lx[k]);
+  const std::vector<PantsClass> self = pants_classes(X, px, X, px);
+  ASSERT_FALSE(self.empty());
+  EXPECT_LT(self[0].mismatch, 1e-8);
+  bool identity = false;
+  for (const PantsClass& c : self)
+    identity = identity || (c.mismatch < 1e-8 && homology_matrix(c.theta, 4) == homology_matrix(identity_map(4), 4));
+  EXPECT_TRUE(identity);
+  const std::vector<PantsClass> copy = pants_classes(X, px, Y, py);
+  ASSERT_FALSE(copy.empty());
+  EXPECT_LT(copy[0].mismatch, 1e-6) << copy[0].description;
+  EXPECT_LT(copy[0].twist_mismatch, 1e-6);
+}
+
+// A known twist applied to one marking (T(a1)^2 T(s1)^-1 on the decomposition
+// of the same surface) is undone by the twist matching: the class found is
+// the identity, with twists -2 / +1 (or the reverse, by the twists' sign).
+TEST(PantsClasses, AKnownDehnTwistIsUndone) {
+  const Uniformized x = uniformized(lopsided(samples::n_hole_torus(2, 26, true)));
+  const SurfaceGroupLengths X(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word);
+  const PantsDecomposition px = short_pants_decomposition(X, short_marking(X));
+  const std::vector<StandardPantsCurve> standard = standard_pants_curves(2);
+  const DehnReducer reduce(canonical_relator(2));
+  PantsDecomposition twisted = px;
+  for (const SurfaceAutomorphism* t : {&standard[0].twist, &standard[0].twist}) {
+    twisted.marking.map = compose(twisted.marking.map, t->map);
+    twisted.marking.inverse = compose(t->inverse, twisted.marking.inverse);
+  }
+  twisted.marking.map = compose(twisted.marking.map, standard[2].twist.inverse);  // s1 is the third curve
+  twisted.marking.inverse = compose(standard[2].twist.map, twisted.marking.inverse);
+  for (Word& w : twisted.marking.map) w = reduce(w);
+  for (Word& w : twisted.marking.inverse) w = reduce(w);
+  ASSERT_EQ(standard[2].name, "s1");
+  twisted.curves = pants_coordinates(X, twisted.marking.map);
+  const std::vector<PantsClass> classes = pants_classes(X, px, X, twisted);
+  ASSERT_FALSE(classes.empty());
+  bool undone = false;
+  for (const PantsClass& c : classes)
+    if (c.mismatch < 1e-8 && homology_matrix(c.theta, 4) == homology_matrix(identity_map(4), 4)) {
+      undone = true;
+      EXPECT_EQ(std::abs(c.twists[0]), 2) << c.description;
+      EXPECT_EQ(std::abs(c.twists[2]), 1) << c.description;
+    }
+  EXPECT_TRUE(undone);
+  // The same surface relabelled by a known mapping class: its inverse is
+  // recovered with zero mismatch.
+  const SurfaceAutomorphism psi = named_moves(2, {"T(a1)", "T(a1)", "T(b2)^-1", "T(s1)"});
+  const SurfaceGroupLengths Y(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word, psi.map);
+  const PantsDecomposition py = short_pants_decomposition(Y, short_marking(Y));
+  const std::vector<PantsClass> found = pants_classes(X, px, Y, py);
+  bool recovered = false;
+  for (const PantsClass& c : found)
+    recovered = recovered || (c.mismatch < 1e-8 && homology_matrix(c.theta, 4) == homology_matrix(psi.inverse, 4));
+  EXPECT_TRUE(recovered);
+}
+
+TEST(PantsClasses, Genus3IdentityForTheSameSurface) {
+  const Uniformized x = uniformized(samples::jitter(samples::n_hole_torus(3, 30, true), 0.2, 7));
+  const SurfaceGroupLengths X(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word);
+  const PantsDecomposition p = short_pants_decomposition(X, short_marking(X));
+  ASSERT_EQ(p.curves.size(), 6u);
+  for (const PantsCurve& c : p.curves) EXPECT_TRUE(std::isfinite(c.length) && std::isfinite(c.twist)) << c.name;
+  const std::vector<PantsClass> classes = pants_classes(X, p, X, p);
+  ASSERT_FALSE(classes.empty());
+  EXPECT_LT(classes[0].mismatch, 1e-8);
+  bool identity = false;
+  for (const PantsClass& c : classes)
+    identity = identity || (c.mismatch < 1e-8 && homology_matrix(c.theta, 6) == homology_matrix(identity_map(6), 6));
+  EXPECT_TRUE(identity);
+}
+
+}  // namespace
+}  // namespace surfmap
