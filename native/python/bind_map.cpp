@@ -181,6 +181,9 @@ bool has_boundary(const RowMatrixX3d& V, const RowMatrixX3i& F) {
 
 }  // namespace
 
+// Long on purpose: the map's entry points, each one m.def with its keyword list (one py::arg per
+// option, in the options struct's order) and docstring, read like a table; split, a keyword and
+// its documentation would sit apart.
 void bind_map(py::module_& m) {
   {
     const std::string name = py::str(m.attr("__name__"));
