@@ -4,10 +4,12 @@
 // triangulation) on meshes where the fixed-connectivity metric does not exist.
 #include <cmath>
 #include <complex>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "surfmap/error.h"
 #include "surfmap/geometry/hyperbolic.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
@@ -84,6 +86,40 @@ TEST(IntrinsicUniformization, InfeasibleFixedMetricConvergesWithFlips) {
   EXPECT_NEAR(area, 4 * kPi * 2, 1e-6);
   // The loops live on a triangulation of the input's vertices.
   ASSERT_GE(u.loops.mesh.num_vertices(), m.num_vertices());
+  EXPECT_EQ(static_cast<int>(u.loops.generator_edges.size()), 6);
+}
+
+// Issue 13: the genus-3 CAD plate (128 points per rim). The flip-based
+// metric converges, but its Delaunay triangulation has two edges between one
+// pair of vertices, so the loops cannot be cut on it and uniformize falls
+// back to the fixed connectivity, whose unrefined metric has degenerate
+// faces. The fallback must refine (it used to refuse the mesh).
+TEST(IntrinsicUniformization, NonSimplicialFlippedTriangulationFallsBackRefined) {
+  const TriMesh m = samples::cad_plate(3, 128, 0.1);
+  RicciFlowOptions flips;
+  flips.intrinsic_delaunay = true;
+  const Connectivity conn(m.F, m.num_vertices());
+  const RicciFlowResult flow = ricci_flow(conn, edge_lengths(m, conn), Background::Hyperbolic, flips);
+  ASSERT_TRUE(flow.converged) << flow.message;
+  // What sends it to the fallback: T' is not simplicial.
+  EXPECT_THROW(intrinsic_loops(m, flow, Background::Hyperbolic), SolveError);
+  {
+    const SystemOfLoops loops = system_of_loops(m);
+    FeasibleMetricOptions plain;
+    plain.refine_max_angles.clear();
+    ASSERT_FALSE(feasible_metric(m, loops, Background::Hyperbolic, plain).flow.converged);
+  }
+  const UniformizeResult u = uniformize(m);
+  EXPECT_TRUE(u.converged);
+  EXPECT_NE(u.metric.find("intrinsic loops failed"), std::string::npos) << u.metric;
+  EXPECT_GT(u.refinement_splits, 0);
+  EXPECT_LE(u.max_curvature_error, 1e-10);
+  EXPECT_EQ(u.layout.num_flipped, 0);
+  EXPECT_NEAR(u.area, 4 * kPi * 2, 1e-6);
+  double area = 0;
+  for (int f = 0; f < u.layout.corners.rows(); ++f)
+    area += hyperbolic::triangle_area(u.layout.corners(f, 0), u.layout.corners(f, 1), u.layout.corners(f, 2));
+  EXPECT_NEAR(area, 4 * kPi * 2, 1e-6);
   EXPECT_EQ(static_cast<int>(u.loops.generator_edges.size()), 6);
 }
 

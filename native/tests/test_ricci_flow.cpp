@@ -18,6 +18,7 @@
 #include <limits>
 
 #include "surfmap/error.h"
+#include "surfmap/samples/shapes.h"
 #include "surfmap/mesh/connectivity.h"
 
 namespace surfmap {
@@ -526,4 +527,30 @@ TEST(RicciFlow, IntrinsicDelaunayFlipsHyperbolicSliverMesh) {
 }
 
 }  // namespace
+}  // namespace surfmap
+
+namespace surfmap {
+// Issue 13: extreme hyperbolic targets (cone angle 1e-3 at every vertex of a
+// genus-2 mesh) drive the conformal factors past 100, where the flip pass
+// used to run on (Delaunay tests of overflowed Penner coordinates are NaN,
+// and a NaN test flipped) and the flip history grew without bound. The run
+// must end within the flip budget: converged with the Gauss–Bonnet area, or
+// a SolveError naming the flips, never exhausted memory.
+TEST(RicciFlow, FlipPassesStayWithinTheirBudgetAtExtremeTargets) {
+  const TriMesh m = samples::n_hole_torus(2, 16, false);
+  const Connectivity conn(m.F, m.num_vertices());
+  for (double cone : {1e-1, 1e-3}) {
+    const Eigen::VectorXd target = Eigen::VectorXd::Constant(m.num_vertices(), 2 * M_PI - cone);
+    RicciFlowOptions o;
+    o.intrinsic_delaunay = true;
+    try {
+      const RicciFlowResult r = ricci_flow(conn, edge_lengths(m, conn), Background::Hyperbolic, o, target);
+      EXPECT_LE(r.flips, 50 * (conn.num_edges() + 10)) << "cone " << cone;
+      EXPECT_LE(static_cast<long long>(r.flip_history.size()), 50LL * (conn.num_edges() + 10));
+      if (r.converged) EXPECT_LE(r.max_curvature_error, 1e-7);
+    } catch (const SolveError& e) {
+      EXPECT_NE(std::string(e.what()).find("flips did not terminate"), std::string::npos) << e.what();
+    }
+  }
+}
 }  // namespace surfmap

@@ -216,7 +216,11 @@ struct FlipContext {
         const int e = d.FE(f, k);
         EF(e, EF(e, 0) < 0 ? 0 : 1) = f;
       }
-    max_flips = 1000LL * (d.EV.rows() + 10);
+    // The whole run's budget (every flip is kept in `history`, 72 bytes
+    // each): the flips of real meshes stay near #E in all (genus-3 CAD
+    // plate: 2,010 for 2,364 edges), and the old 1000 #E per pass let a
+    // cycling pass on the artery's double grow past 10 GB (issue 13).
+    max_flips = 50LL * (d.EV.rows() + 10);
   }
 
   /// Flips towards the Delaunay triangulation of the metric at u (u == null:
@@ -235,7 +239,6 @@ struct FlipContext {
     std::vector<int> stack(ne);
     std::vector<char> queued(ne, 1);
     for (int e = 0; e < ne; ++e) stack[e] = ne - 1 - e;
-    long long local = 0;
     while (!stack.empty()) {
       const int e = stack.back();
       stack.pop_back();
@@ -256,12 +259,27 @@ struct FlipContext {
       // inequality, where an angle test with extended angles (π, 0, 0) ties
       // and leaves degenerate pairs unflipped. A Delaunay triangulation in
       // Penner coordinates satisfies the triangle inequality.
+      //
+      // Both sides are homogeneous of degree −1 in x, so the coordinates are
+      // taken relative to the quad's largest conformal factor: a trial u of
+      // a Newton step may be large enough for e^{u/2} to overflow, and the
+      // NaN tests of infinite coordinates used to flip two edges of a quad
+      // back and forth until the history exhausted memory (issue 13, the
+      // artery's double). A test that is not a number flips nothing.
       {
-        const double xe = pen(e), xks = pen(d.FE(f0, (a0 + 2) % 3)), xkt = pen(d.FE(f0, (a0 + 1) % 3)),
-                     xms = pen(d.FE(f1, (a1 + 1) % 3)), xmt = pen(d.FE(f1, (a1 + 2) % 3));
+        double shift = 0.0;
+        if (u) {
+          shift = -std::numeric_limits<double>::infinity();
+          for (int v : {d.F(f0, 0), d.F(f0, 1), d.F(f0, 2), d.F(f1, a1)}) shift = std::max(shift, (*u)[v]);
+        }
+        auto x = [&](int edge) {
+          return u ? std::exp(0.5 * ((*u)[d.EV(edge, 0)] + (*u)[d.EV(edge, 1)]) - shift) * P[edge] : P[edge];
+        };
+        const double xe = x(e), xks = x(d.FE(f0, (a0 + 2) % 3)), xkt = x(d.FE(f0, (a0 + 1) % 3)),
+                     xms = x(d.FE(f1, (a1 + 1) % 3)), xmt = x(d.FE(f1, (a1 + 2) % 3));
         const double opposite = xe / (xks * xkt) + xe / (xms * xmt);
         const double at_ends = (xkt / xks + xmt / xms + xks / xkt + xms / xmt) / xe;
-        if (opposite <= at_ends * (1.0 + 1e-12)) continue;
+        if (!(opposite > at_ends * (1.0 + 1e-12))) continue;
       }
       // Quad v_k, s, v_m, t (counter-clockwise); e = s–t becomes v_k–v_m.
       const int vk = d.F(f0, a0), s = d.F(f0, (a0 + 1) % 3), t = d.F(f0, (a0 + 2) % 3);
@@ -315,7 +333,7 @@ struct FlipContext {
         }
       ++flips;
       ++version;
-      if (++local > max_flips) return false;
+      if (flips > max_flips) return false;
       for (int x : {e_tk, e_ks, e_sm, e_mt})
         if (!queued[x]) {
           queued[x] = 1;
@@ -339,7 +357,12 @@ struct Evaluation {
 void evaluate(const RicciDomain& dom, const SchemeMetric& metric, Background bg,
               const Eigen::VectorXd& u, bool jacobian, Evaluation& ev,
               FlipContext* flips = nullptr) {
-  if (flips) flips->make_delaunay(&u);
+  // A pass that runs out of its flip budget is cycling: a clear error in
+  // bounded memory (the flip history grows with every flip) instead of
+  // carrying on with a non-Delaunay triangulation.
+  if (flips && !flips->make_delaunay(&u))
+    throw SolveError("ricci_flow: the intrinsic Delaunay flips did not terminate (" +
+                     std::to_string(flips->flips) + " flips, the budget of 50 per edge)");
   Eigen::MatrixX2d dldu;
   ev.bad_edge = metric.lengths(u, ev.l, jacobian ? &dldu : nullptr);
   ev.K = dom.full_angle;

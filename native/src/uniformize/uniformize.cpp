@@ -97,6 +97,7 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
   const Background bg = r.genus == 1 ? Background::Euclidean : Background::Hyperbolic;
   r.kind = r.genus == 1 ? "flat" : "hyperbolic";
   Eigen::VectorXd lengths;  // the metric on r.loops.mesh, edge order of its Connectivity
+  bool intrinsic_loops_failed = false;
   const bool flips = options.metric != UniformizationMetric::FixedConnectivity &&
                      options.scheme == RicciScheme::VertexScaling && options.method == RicciMethod::Newton;
   if (flips) {
@@ -115,6 +116,7 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
       } catch (const SolveError& e) {
         // T' not simplicial (rare): the fixed-connectivity path below.
         r.metric = std::string("fixed connectivity (intrinsic loops failed: ") + e.what() + ")";
+        intrinsic_loops_failed = true;
         r.edge_flips = 0;  // the metric laid out is the fixed one
       }
     }
@@ -127,7 +129,11 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
     FeasibleMetricOptions fo;
     fo.flow = flow;
     fo.flow.intrinsic_delaunay = false;
-    if (!options.fixed_connectivity_refinement) fo.refine_max_angles.clear();
+    // The fallback after the flip path's loops failed is refined whenever
+    // the fixed metric does not exist: that is why the flips were needed
+    // (issue 13: the genus-3 CAD plate's flipped triangulation has a double
+    // edge, and its unrefined fixed metric has 12 degenerate faces).
+    if (!options.fixed_connectivity_refinement && !intrinsic_loops_failed) fo.refine_max_angles.clear();
     FeasibleMetricResult fm = feasible_metric(mesh, r.loops, bg, fo);
     r.loops = std::move(fm.loops);
     r.ricci = std::move(fm.flow);

@@ -30,7 +30,8 @@ namespace surfmap {
 ///    default): the intrinsic Delaunay metric; the fixed-connectivity one
 ///    (exactly refined when needed) only when the flip path throws.
 ///    uniformize() treats it as IntrinsicDelaunay (which already falls back
-///    to the fixed connectivity when the loops of T' fail).
+///    to the fixed connectivity, exactly refined when needed, when the loops
+///    of T' fail: T' with two edges between one pair of vertices).
 ///  * FixedFirst: the fixed-connectivity metric (surface_map: refined exactly
 ///    when needed) when it can be delivered, the flip-based one only when
 ///    that throws UniformizationError; the order `auto` had before the flip
