@@ -77,6 +77,28 @@ def test_open_disk_pair_writes_every_output_and_draws_the_boundary():
         assert d.max() < 1e-6
 
 
+def test_open_disk_pair_holds_an_interior_landmark():
+    """One interior landmark on a disk pair (the core pins the disk's Moebius group with it):
+    the source vertex's stored image is the target vertex."""
+    a, b = _disk_pair()
+    Va, Vb = helpers.coords(a), helpers.coords(b)
+    p = int(np.argmin(np.linalg.norm(Va[:, :2] - [0.3, 0.2], axis=1)))
+    q = int(np.argmin(np.linalg.norm(Vb[:, :2] - [0.4, -0.3], axis=1)))
+    bpy.context.scene.surfmap.landmark_mode = 'GROUPS'
+    a.vertex_groups.new(name="lm_spot").add([p], 1.0, 'REPLACE')
+    b.vertex_groups.new(name="lm_spot").add([q], 1.0, 'REPLACE')
+    try:
+        res, err = run("compute_map")
+    finally:
+        bpy.context.scene.surfmap.landmark_mode = 'NONE'
+    assert res == {'FINISHED'}, err
+    assert "lm_spot" in bpy.context.scene.surfmap.map_status
+    face = a.data.attributes["surfmap_map_face"].data[p].value
+    bary = np.array(a.data.attributes["surfmap_map_bary"].data[p].vector)
+    at = _mapping().points_at(Vb, helpers.triangles_of(b)[0], [face], [bary])[0]
+    assert np.linalg.norm(at - Vb[q]) < 1e-5, (at, Vb[q])
+
+
 def test_open_pairs_with_different_topology_are_refused_naming_both():
     a = helpers.mesh_object("Dome", *cap(6), (-3, 0, 0))
     b = helpers.mesh_object("Tube", *tube(), (3, 0, 0))

@@ -33,6 +33,15 @@ METHODS = {"NEWTON": "newton", "RELAXATION": "relaxation"}
 SOURCE_WEIGHTS = {"AUTO": "auto", "INTRINSIC": "intrinsic", "OWN": "own"}
 
 
+def core_has_feature(sm, name):
+    """Whether the native module names `name` in its FEATURES (what it does beyond its
+    keywords, e.g. "open_landmarks"); False for builds without the attribute."""
+    feats = getattr(sm, "FEATURES", None)
+    if feats is None:
+        feats = getattr(getattr(sm, "_core", None), "FEATURES", ())
+    return name in feats
+
+
 def core_supports(sm, word):
     """Whether the native module takes the surface_map keyword `word`: from its explicit
     CAPABILITIES attribute when it has one (a set/list of names or a dict of flags, on the

@@ -108,7 +108,8 @@ def prepare_job(context, sm):
     src = _side(source, depsgraph, sm, allow_boundary=open_ok)
     tgt = _side(target, depsgraph, sm, allow_boundary=open_ok)
     if src.boundary_loops or tgt.boundary_loops:
-        check_open_pair(source.name, src, target.name, tgt, settings.landmark_mode)
+        check_open_pair(source.name, src, target.name, tgt, settings.landmark_mode,
+                        map_job.core_has_feature(sm, "open_landmarks"))
     elif src.genus != tgt.genus:
         raise ObjectProblem(f"source '{source.name}' has genus {src['genus']} but target "
                             f"'{target.name}' has genus {tgt['genus']}: a map needs equal "
@@ -161,15 +162,16 @@ def describe_topology(side):
     return f"genus {side.genus} " + (f"with {b} boundary loop{'s' if b != 1 else ''}" if b else "(closed)")
 
 
-def check_open_pair(source_name, src, target_name, tgt, landmark_mode):
-    """An open pair: equal genus and number of boundary loops, no landmarks (not supported
-    for open surfaces yet). Raises ObjectProblem naming both."""
+def check_open_pair(source_name, src, target_name, tgt, landmark_mode, open_landmarks=False):
+    """An open pair: equal genus and number of boundary loops; landmarks only when the core
+    holds them on open pairs (`open_landmarks`; its rules, e.g. boundary onto boundary, are
+    checked there and come back as a one-line error). Raises ObjectProblem naming both."""
     if (src.genus, len(src.boundary_loops)) != (tgt.genus, len(tgt.boundary_loops)):
         raise ObjectProblem(f"source '{source_name}' has {describe_topology(src)} but target "
                             f"'{target_name}' has {describe_topology(tgt)}: a map needs equal "
                             f"genus and number of boundary loops")
-    if landmark_mode != 'NONE':
-        raise ObjectProblem(f"landmarks are not supported for open surfaces yet "
+    if landmark_mode != 'NONE' and not open_landmarks:
+        raise ObjectProblem(f"landmarks are not supported for open surfaces by this build "
                             f"('{source_name}', '{target_name}'): set Landmarks to None")
 
 

@@ -108,6 +108,22 @@ std::string& package_name() {
   return name;
 }
 
+// The `landmarks` keyword, (k, 2) source/target vertex indices, as pairs (None: none); an
+// index that is negative or beyond int32 is an InputError naming the pair (the range against
+// each mesh is checked by the solver).
+std::vector<std::pair<int, int>> landmark_pairs(const py::object& landmarks) {
+  std::vector<std::pair<int, int>> out;
+  if (landmarks.is_none()) return out;
+  const auto pairs = py::cast<std::vector<std::vector<long long>>>(
+      py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
+  for (const auto& p : pairs) {
+    if (p[0] < 0 || p[1] < 0 || p[0] > INT32_MAX || p[1] > INT32_MAX)
+      throw InputError("landmark (" + std::to_string(p[0]) + ", " + std::to_string(p[1]) + ") has a negative or too large index");
+    out.emplace_back(static_cast<int>(p[0]), static_cast<int>(p[1]));
+  }
+  return out;
+}
+
 // surface_map for a pair with boundary (docs/open_surfaces.md): disks and
 // annuli through map/open_map.h. Runs with the GIL held except the solve.
 py::dict open_surface_map_dict(const RowMatrixX3d& vs, const RowMatrixX3i& fs, const RowMatrixX3d& vt,
@@ -115,15 +131,7 @@ py::dict open_surface_map_dict(const RowMatrixX3d& vs, const RowMatrixX3i& fs, c
                                const py::object& landmarks, const py::object& progress) {
   OpenMapOptions options;
   parse_boundary_pairing(boundary_pairing, options);
-  if (!landmarks.is_none()) {
-    const auto pairs = py::cast<std::vector<std::vector<long long>>>(
-        py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
-    for (const auto& p : pairs) {
-      if (p[0] < 0 || p[1] < 0 || p[0] > INT32_MAX || p[1] > INT32_MAX)
-        throw InputError("landmark (" + std::to_string(p[0]) + ", " + std::to_string(p[1]) + ") has a negative or too large index");
-      options.landmarks.emplace_back(static_cast<int>(p[0]), static_cast<int>(p[1]));
-    }
-  }
+  options.landmarks = landmark_pairs(landmarks);
   // Progress: one call before and one after (the open map is two sparse
   // solves per side); False cancels like the closed map.
   auto report_progress = [&](double fraction) {
@@ -198,6 +206,9 @@ void bind_map(py::module_& m) {
       "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
       "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric", "homotopy_images",
       "homotopy_both_signs"));
+  // What the module does beyond its keywords, for callers built against older modules (the
+  // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
+  m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
   m.def(
       "surface_map",
       [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
@@ -249,15 +260,7 @@ void bind_map(py::module_& m) {
         opt.threads = threads;
         // (options.uniformization.target_metric)
         opt.uniformization.target_metric = parse_enum<UniformizationMetric>(target_metric, "target_metric");
-        if (!landmarks.is_none()) {
-          const auto pairs = py::cast<std::vector<std::vector<long long>>>(
-              py::module_::import("numpy").attr("asarray")(landmarks, "int64").attr("reshape")(-1, 2).attr("tolist")());
-          for (const auto& p : pairs) {
-            if (p[0] < 0 || p[1] < 0 || p[0] > INT32_MAX || p[1] > INT32_MAX)
-              throw InputError("landmark (" + std::to_string(p[0]) + ", " + std::to_string(p[1]) + ") has a negative or too large index");
-            opt.landmarks.emplace_back(static_cast<int>(p[0]), static_cast<int>(p[1]));
-          }
-        }
+        opt.landmarks = landmark_pairs(landmarks);
         // The callback runs on this thread with the GIL re-acquired; a Python
         // exception inside it stops the solve and is re-raised as is.
         std::optional<py::error_already_set> callback_error;

@@ -12,33 +12,14 @@
 #include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/mapping_class_search.h"
 #include "surfmap/uniformize/uniformize.h"
+#include "uniformized_shapes.h"
 
 namespace surfmap {
 namespace {
 
-struct Uniformized {
-  UniformizeResult u;
-  CanonicalSchema cs;
-};
-
-Uniformized uniformized(const TriMesh& mesh) {
-  Uniformized x{uniformize(mesh), {}};
-  EXPECT_TRUE(x.u.converged);
-  x.cs = canonical_schema(x.u.layout.word);
-  return x;
-}
-
-// A smooth non-uniform stretch: no (near) isometries left, so the class of
-// the identity is the only one whose probes keep their lengths.
-TriMesh lopsided(TriMesh mesh) {
-  for (int v = 0; v < mesh.num_vertices(); ++v) {
-    auto p = mesh.V.row(v);
-    const double x = p(0), y = p(1);
-    p(0) = x * (1.0 + 0.35 * x) + 0.1 * y * y;
-    p(1) = y * (1.0 + 0.25 * std::sin(2.0 * x));
-  }
-  return mesh;
-}
+using testing_support::lopsided;
+using testing_support::Uniformized;
+using testing_support::uniformized;
 
 // A known mapping class: a handle swap (lifted), composed with twists.
 SurfaceAutomorphism known_mapping_class(int genus) {

@@ -17,6 +17,7 @@ __version__ = "0.1.0"
 #: names, e.g. "landmarks", "solve_progress"): test membership here rather
 #: than searching docstrings.
 capabilities = _core.CAPABILITIES
+features = _core.FEATURES
 
 
 def system_of_loops(V, F, base_vertex=-1, refine=True):

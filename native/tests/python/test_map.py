@@ -115,6 +115,12 @@ def test_capabilities_name_keywords_surface_map_accepts():
         surfmap.surface_map(Vs, Fs, Vs, Fs, no_such_keyword=1)
 
 
+def test_features_name_what_the_module_does_beyond_keywords():
+    # The add-on allows landmarks on open pairs only when "open_landmarks" is listed.
+    assert surfmap.features is surfmap._core.FEATURES and "open_landmarks" in surfmap.features
+    assert not (surfmap.features & surfmap.capabilities)
+
+
 def test_progress_cancel_and_callback_errors(pair):
     (Vs, Fs), (Vt, Ft) = pair
     stages = []
