@@ -426,8 +426,10 @@ def _solve_closed(solve, kw):
     metric, the flip-based one only when that does not exist: docs/uniformization.md). Why not the
     core's default (flips first): a double's two sheets lie 1e-6 of the diagonal apart, and the
     flip-based metric on the artery's 1-to-4 subdivided double (46,506 vertices) grew past 10 GB and
-    ended in std::bad_alloc before any fallback could run. The one place where the doubles choose
-    the metric. (The 31% displacement once blamed on the flip-based metric was the capped torus's
+    ended in std::bad_alloc before any fallback could run (flip cycling on overflowed Penner
+    coordinates, since fixed: that double now uniformizes with flips in 101 MB, but the doubles'
+    maps were measured on this policy and not again on flips). The one place where the doubles
+    choose the metric. (The 31% displacement once blamed on the flip-based metric was the capped torus's
     tie of M and -M, _capped_map; docs/open_surfaces.md.)"""
     return solve() if "target_metric" in kw else solve(target_metric="fixed-first")
 
