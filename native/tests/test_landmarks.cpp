@@ -65,7 +65,15 @@ TEST(LandmarksFlat, OneLandmarkIsATranslation) {
     expect_landmarks_hit(m, a, b, o);
     EXPECT_NEAR(m.final_energy, free.final_energy, 1e-9 * free.final_energy);
     EXPECT_NEAR(m.mean_dilatation, free.mean_dilatation, 1e-6);
-    EXPECT_EQ(m.chosen_candidate, free.chosen_candidate);
+    // The free map's class up to the sign: with landmarks both signs are
+    // listed (HomotopyOptions::flat_both_signs), and with one landmark M and
+    // -M tie exactly (the half turn about it), so round-off picks the sign.
+    // (The indices differ: the free list has the canonical signs only.)
+    const int* c = m.candidates[m.chosen_candidate].matrix;
+    const int* f = free.candidates[free.chosen_candidate].matrix;
+    const int sign = c[0] == f[0] && c[1] == f[1] ? 1 : -1;
+    for (int k = 0; k < 4; ++k) EXPECT_EQ(c[k], sign * f[k]) << k;
+    EXPECT_EQ(m.candidates.size(), 2 * free.candidates.size());
   }
 }
 
@@ -152,6 +160,11 @@ TEST(LandmarksFlat, FarLandmarksStayBijectiveByInteriorPointContinuation) {
   EXPECT_GT((b.V.row(t).transpose() - free.forward[s].position).norm(), 15 * mean_edge(b));
   SurfaceMapOptions o;
   o.landmarks = {{0, nearest_vertex(b, free.forward[0].position)}, {s, t}};
+  // The landmark is far in the free map's class M, the canonical sign; in
+  // -M it is near (the torus of revolution's half turn (u, v) -> (-u, -v)
+  // carries it close: 114.05 held vs 113.03 free), so the continuation is
+  // tested with the canonical signs only; both signs below.
+  o.homotopy.flat_both_signs = false;
   HarmonicProblem problem;
   testing::MapHooks hooks;
   hooks.inspect_problem = [&](const HarmonicProblem& p) { problem = p; };
@@ -173,10 +186,18 @@ TEST(LandmarksFlat, FarLandmarksStayBijectiveByInteriorPointContinuation) {
   EXPECT_GT(m.final_energy, pinned * (1 + 1e-6));
   EXPECT_LT(m.final_energy, 1.15 * pinned);
   EXPECT_GT(m.final_energy, free.final_energy * 1.01);
+  // Both signs (the default): held too, 0 flips, no higher than the
+  // canonical sign's held map, and no lower than the free optimum.
+  o.homotopy.flat_both_signs = true;
+  const SurfaceMapResult both = surface_map(a, b, o);
+  expect_landmarks_hit(both, a, b, o);
+  EXPECT_EQ(both.candidates.size(), 2 * m.candidates.size());
+  EXPECT_LE(both.final_energy, m.final_energy * (1 + 1e-9));
+  EXPECT_GE(both.final_energy, free.final_energy * (1 - 1e-12));
 }
 
 TEST(LandmarksFlat, BothSignsAddTheHalfTurnsAndHoldTheLandmarksNoWorse) {
-  // HomotopyOptions::flat_both_signs: each class M also as -M (the half turn
+  // HomotopyOptions::flat_both_signs (default with landmarks): each class M also as -M (the half turn
   // of the flat torus). Two landmarks: the two signs hold them with different
   // energies, and the ranking over both can only do better than over the
   // canonical signs alone (docs/open_surfaces.md, the capped tori).
@@ -184,8 +205,10 @@ TEST(LandmarksFlat, BothSignsAddTheHalfTurnsAndHoldTheLandmarksNoWorse) {
   const TriMesh b = samples::torus_of_revolution(1.4, 0.5, 48, 24, 2);
   SurfaceMapOptions o;
   o.landmarks = {{0, 0}, {24 * 20 + 5, 24 * 30 + 17}};
+  o.homotopy.flat_both_signs = false;  // the canonical signs only
   const SurfaceMapResult one = surface_map(a, b, o);
-  o.homotopy.flat_both_signs = true;
+  expect_landmarks_hit(one, a, b, o);
+  o.homotopy.flat_both_signs = true;  // the default
   const SurfaceMapResult both = surface_map(a, b, o);
   expect_landmarks_hit(both, a, b, o);
   EXPECT_EQ(both.flipped_triangles, 0);

@@ -248,8 +248,8 @@ def _capped_map(S, T, pairing, options, mirrored=False, tie_tolerance=1e-6, land
     onto the target's mirror image (x -> -x, faces reversed), i.e. an orientation-reversing map
     onto the target.
 
-    Genus 1: the flat torus's classes M and -M are both candidates (`homotopy_both_signs`;
-    with the canonical sign alone, the closed pipeline's default, holding two or more cap
+    Genus 1: the flat torus's classes M and -M are both candidates (`homotopy_both_signs`, the
+    closed pipeline's default with landmarks; with the canonical sign alone, holding two or more cap
     centres forced a twisted class: a torus with two holes onto its bend 0.3 swapped the holes).
     Usually one map. More when the capped map's classes tie: genus 1 with one hole has one
     landmark, and the half turn about it (the hyperelliptic involution z -> 2 z_c - z of the

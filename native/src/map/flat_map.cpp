@@ -162,11 +162,10 @@ Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> flat_image_corners(co
 // Candidate classes: a -> p A + q B, b -> r A + s B for small SL(2,Z)
 // matrices (the handle correspondences of a torus), simplest first. Without
 // landmarks up to the sign ±I, which gives the same energy (the hyperelliptic
-// involution). With landmarks and HomotopyOptions::flat_both_signs both
-// signs: M and -M hold the landmarks with different energies (with two or
-// more landmarks the half turn z -> -z moves them apart), so the ranking
-// needs both (docs/open_surfaces.md: the capped tori of a torus with holes,
-// one landmark per hole).
+// involution). With landmarks (HomotopyOptions::flat_both_signs, default
+// on) both signs: M and -M hold the landmarks with different energies (with
+// two or more landmarks the half turn z -> -z moves them apart), so the
+// ranking needs both (docs/handle_classes.md, "Genus 1: the two signs").
 std::vector<std::array<int, 4>> candidate_matrices(bool both_signs) {
   std::vector<std::array<int, 4>> mats;
   for (int p = -1; p <= 1; ++p)
@@ -401,7 +400,7 @@ bool flat_pass(const FlatInputs& in, bool own_weights, bool first_pass, SurfaceM
   // Candidate classes: a -> p A + q B, b -> r A + s B for small SL(2,Z)
   // matrices (the handle correspondences of a torus), up to the sign ±I,
   // which gives the same energy (the hyperelliptic involution); both signs
-  // with landmarks when asked.
+  // with landmarks (unless HomotopyOptions::flat_both_signs is off).
   const std::vector<std::array<int, 4>> mats =
       candidate_matrices(landmarks && in.options.homotopy.flat_both_signs);
   auto translations_of = [&](const int* m) {

@@ -249,6 +249,26 @@ def test_cli_map_says_how_landmarks_were_held(tmp_path, cli):
             in r.stderr), r.stderr
 
 
+def test_genus1_landmarks_rank_both_signs_by_default():
+    # Two landmarks on a torus pair (HomotopyOptions::flat_both_signs, default on): every
+    # class M is listed with -M; the held map is no worse than with the canonical signs
+    # alone (homotopy_both_signs=False), holds both pairs exactly and has no flips.
+    (Vs, Fs), (Vt, Ft) = torus(1.0, 0.45, 48, 24), torus(1.4, 0.5, 48, 24, 2)
+    pairs = [(0, 0), (24 * 20 + 5, 24 * 30 + 17)]
+    one = surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=pairs, homotopy_both_signs=False)
+    both = surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=pairs)
+    signed = lambda r: {tuple(c["matrix"]) for c in r["homotopy"]["candidates"]}
+    assert signed(both) == signed(one) | {tuple(-k for k in m) for m in signed(one)}
+    assert len(signed(both)) == 2 * len(signed(one))
+    assert both["energy"]["final"] <= one["energy"]["final"] * (1 + 1e-9)
+    assert both["flipped_triangles"] == 0 and both["landmark_error"] < 1e-9
+    for s, t in pairs:
+        assert np.linalg.norm(both["forward"]["position"][s] - Vt[t]) < 1e-12
+    # Without landmarks the list stays up to the sign (M and -M: the same energy).
+    free = surfmap.surface_map(Vs, Fs, Vt, Ft)
+    assert signed(free) == signed(one)
+
+
 def test_cli_target_metric_has_the_python_spelling(tmp_path, cli):
     # One spelling: --target-metric takes the names of target_metric=, the report repeats it,
     # and anything else is refused with the list.

@@ -160,13 +160,15 @@ struct HomotopyOptions {
   /// (default) for the one of lowest energy.
   int class_index = -1;
   /// Genus 1 with landmarks: list each class M of the flat torus with both
-  /// signs, M and -M (default false: up to the sign, as without landmarks,
-  /// where the half turn z -> -z gives the same energy). With two or more
-  /// landmarks the two signs hold them with different energies, and the
-  /// canonical sign alone can force a twisted class (docs/open_surfaces.md,
-  /// "Target metric of the doubles": the capped tori of surfmap/open_double.py
-  /// set it); with one landmark they tie exactly (the half turn about it).
-  bool flat_both_signs = false;
+  /// signs, M and -M (default true; false: up to the sign, the canonical
+  /// sign only, as before issue 16). Without landmarks the list is always up
+  /// to the sign: the half turn z -> -z gives the same energy. With two or
+  /// more landmarks the two signs hold them with different energies, and the
+  /// canonical sign alone can force a twisted class (docs/handle_classes.md,
+  /// "Genus 1: the two signs"); with one landmark they tie exactly (the half
+  /// turn about it; round-off picks the sign). The candidates' indices
+  /// (class_index) then count both signs.
+  bool flat_both_signs = true;
   /// Genus >= 2: how many handle correspondences (signed handle
   /// permutations, topology/handle_basis.h, ranked by how well the handle
   /// positions match) are considered (default 8: all of them for genus 2).
