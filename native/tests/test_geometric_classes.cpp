@@ -17,6 +17,7 @@
 namespace surfmap {
 namespace {
 
+using testing_support::has_identity_class;
 using testing_support::lopsided;
 using testing_support::Uniformized;
 using testing_support::uniformized;
@@ -122,10 +123,7 @@ TEST(GeometricClasses, IdentityForTheSameSurface) {
   const std::vector<GeometricClass> classes = geometric_classes(X, m, X, m);
   ASSERT_FALSE(classes.empty());
   EXPECT_LT(classes[0].mismatch, 1e-8);
-  bool identity = false;
-  for (const GeometricClass& c : classes)
-    identity = identity || (c.mismatch < 1e-8 && homology_matrix(c.theta, 6) == homology_matrix(identity_map(6), 6));
-  EXPECT_TRUE(identity);
+  EXPECT_TRUE(has_identity_class(classes, 6));
 }
 
 }  // namespace

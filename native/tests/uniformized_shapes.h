@@ -1,14 +1,16 @@
 #pragma once
 // Shared by the handle-class tests (test_geometric_classes.cpp,
 // test_pants_classes.cpp): a surface uniformized with its canonical schema,
-// and a smooth stretch that leaves a genus-2 surface no isometries but the
-// hyperelliptic one.
+// a smooth stretch that leaves a genus-2 surface no isometries but the
+// hyperelliptic one, and the identity test of a surface's self-classes.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 #include "surfmap/mesh/tri_mesh.h"
 #include "surfmap/topology/canonical_schema.h"
+#include "surfmap/topology/handle_basis.h"
 #include "surfmap/uniformize/uniformize.h"
 
 namespace surfmap::testing_support {
@@ -36,6 +38,16 @@ inline TriMesh lopsided(TriMesh mesh) {
     p(1) = y * (1.0 + 0.25 * std::sin(2.0 * x));
   }
   return mesh;
+}
+
+// Whether a zero-mismatch class acting as the identity on homology is among
+// `classes` (GeometricClass, PantsClass: fields `mismatch`, `theta`) of a
+// surface mapped onto itself; n = 2g generators.
+template <class Class>
+bool has_identity_class(const std::vector<Class>& classes, int n) {
+  for (const Class& c : classes)
+    if (c.mismatch < 1e-8 && homology_matrix(c.theta, n) == homology_matrix(identity_map(n), n)) return true;
+  return false;
 }
 
 }  // namespace surfmap::testing_support
