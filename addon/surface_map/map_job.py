@@ -33,22 +33,23 @@ METHODS = {"NEWTON": "newton", "RELAXATION": "relaxation"}
 SOURCE_WEIGHTS = {"AUTO": "auto", "INTRINSIC": "intrinsic", "OWN": "own"}
 
 
+def _module_attribute(sm, name):
+    """The native module's attribute `name`, on the package or its _core; None when absent."""
+    value = getattr(sm, name, None)
+    return value if value is not None else getattr(getattr(sm, "_core", None), name, None)
+
+
 def core_has_feature(sm, name):
     """Whether the native module names `name` in its FEATURES (what it does beyond its
     keywords, e.g. "open_landmarks"); False for builds without the attribute."""
-    feats = getattr(sm, "FEATURES", None)
-    if feats is None:
-        feats = getattr(getattr(sm, "_core", None), "FEATURES", ())
-    return name in feats
+    return name in (_module_attribute(sm, "FEATURES") or ())
 
 
 def core_supports(sm, word):
     """Whether the native module takes the surface_map keyword `word`: from its explicit
     CAPABILITIES attribute when it has one (a set/list of names or a dict of flags, on the
     package or its _core), else from the function's docstring (older builds)."""
-    caps = getattr(sm, "CAPABILITIES", None)
-    if caps is None:
-        caps = getattr(getattr(sm, "_core", None), "CAPABILITIES", None)
+    caps = _module_attribute(sm, "CAPABILITIES")
     if caps is not None:
         try:
             if isinstance(caps, dict):
