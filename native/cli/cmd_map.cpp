@@ -63,6 +63,7 @@ void register_map(CLI::App& app) {
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
     double tolerance = 1e-10;
     bool quiet = false, timings = false, no_homotopy_search = false, no_two_way = false, compare_directions = false;
+    bool homotopy_both_signs = true;     // HomotopyOptions::flat_both_signs
     bool boundary_swap = false;          // open surfaces (map_open.h)
     std::vector<int> boundary_pairing;  // open surfaces (map_open.h)
   };
@@ -108,6 +109,9 @@ void register_map(CLI::App& app) {
   cmd->add_option("--homotopy-search-evaluations", a->homotopy_search_evaluations,
                   "Genus >= 2: most coarse solves of the class search (report: homotopy.search)")
       ->check(CLI::PositiveNumber);
+  cmd->add_flag("--homotopy-both-signs,!--no-homotopy-both-signs", a->homotopy_both_signs,
+                "Genus 1 with landmarks: rank each flat class with both signs, M and -M (default on; "
+                "--no-homotopy-both-signs: the canonical signs only; docs/handle_classes.md)");
   cmd->add_flag("--no-two-way", a->no_two_way,
                 "Genus >= 2: do not map the other way when the energy is far above the conformal bound (report: quality)");
   cmd->add_flag("--compare-directions", a->compare_directions,
@@ -162,6 +166,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.search.enabled = !a->no_homotopy_search;
     opt.homotopy.search.evaluations = a->homotopy_search_evaluations;
     opt.homotopy.two_way = !a->no_two_way;
+    opt.homotopy.flat_both_signs = a->homotopy_both_signs;
     opt.homotopy.compare_directions = a->compare_directions;
     opt.threads = a->threads;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);

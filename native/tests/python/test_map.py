@@ -269,6 +269,32 @@ def test_genus1_landmarks_rank_both_signs_by_default():
     assert signed(free) == signed(one)
 
 
+def test_cli_homotopy_both_signs_mirrors_python(tmp_path, cli):
+    # --homotopy-both-signs (the default) / --no-homotopy-both-signs are Python's
+    # homotopy_both_signs=True / False: the report lists each flat class M with -M, or the
+    # canonical signs alone, and the two lists differ exactly by the sign.
+    (Vs, Fs), (Vt, Ft) = torus(1.0, 0.45, 24, 12), torus(1.4, 0.5, 24, 12, 2)
+    src, dst, lm = tmp_path / "a.obj", tmp_path / "b.obj", tmp_path / "pairs.txt"
+    surfmap.write_obj(str(src), Vs, Fs)
+    surfmap.write_obj(str(dst), Vt, Ft)
+    pairs = [(0, 0), (12 * 10 + 3, 12 * 15 + 8)]
+    lm.write_text("".join(f"{s} {t}\n" for s, t in pairs))
+    signed = {}
+    for flag in ("", "--homotopy-both-signs", "--no-homotopy-both-signs"):
+        rep = tmp_path / f"report{len(signed)}.json"
+        r = cli("map", src, dst, "--out", tmp_path / "m.obj", "--report", rep, "--quiet", "--landmarks", lm,
+                *([flag] if flag else []))
+        assert r.returncode == 0, r.stderr
+        report = json.loads(rep.read_text())
+        signed[flag] = {tuple(c["matrix"]) for c in report["homotopy"]["candidates"]}
+        assert report["flipped_triangles"] == 0
+    one = signed["--no-homotopy-both-signs"]
+    assert signed[""] == signed["--homotopy-both-signs"]
+    assert signed[""] == one | {tuple(-k for k in m) for m in one} and len(signed[""]) == 2 * len(one)
+    py = surfmap.surface_map(Vs, Fs, Vt, Ft, landmarks=pairs, homotopy_both_signs=False)
+    assert {tuple(c["matrix"]) for c in py["homotopy"]["candidates"]} == one
+
+
 def test_cli_target_metric_has_the_python_spelling(tmp_path, cli):
     # One spelling: --target-metric takes the names of target_metric=, the report repeats it,
     # and anything else is refused with the list.
