@@ -559,17 +559,116 @@ def _half_correspondence(res_map, S, T):
     return fw, inv, pairing, back_pairing, max(snap, snap_back)
 
 
-def _flips(S, T, fw, reversing=False):
-    """Source faces (ears apart) whose image turns against the target's normal (with
-    `reversing`, an orientation-reversing map: whose image does not); ears (faces with three
-    boundary corners, fixed by their boundary points alone) and how many of them turn."""
+def _face_neighbours(F):
+    """Per face the faces across its three edges (-1 on the boundary): (m, 3), column k across the
+    edge from corner k to corner k + 1."""
+    F = np.asarray(F, dtype=np.int64)
+    m = len(F)
+    a, b = F.reshape(-1), np.roll(F, -1, axis=1).reshape(-1)
+    key = {(int(u), int(w)): i for i, (u, w) in enumerate(zip(a, b))}
+    out = -np.ones(3 * m, dtype=np.int64)
+    for i, (u, w) in enumerate(zip(a, b)):
+        j = key.get((int(w), int(u)))
+        if j is not None:
+            out[i] = j // 3
+    return out.reshape(m, 3)
+
+
+def _unfolded_signed_area(V, F, neighbours, faces, bary, max_faces=400):
+    """Signed area of the triangle of three points on a triangle mesh (faces (3,), bary (3,3)),
+    measured intrinsically: the faces of a breadth-first tree from faces[0] reaching the other two
+    are unfolded isometrically into the plane of faces[0] (its own orientation counter-clockwise),
+    and the points' planar positions give the area. None when the faces are more than max_faces
+    apart. This is what the chord triangle in a tangent plane cannot tell where the surface folds
+    sharply between the corners' faces (a garment's crease: adjacent faces turned by 90° or more)."""
+    root = int(faces[0])
+    P0 = V[F[root]]
+    e1 = P0[1] - P0[0]
+    x = e1 / np.linalg.norm(e1)
+    nrm = np.cross(e1, P0[2] - P0[0])
+    y = np.cross(nrm / np.linalg.norm(nrm), x)
+    planar = {root: np.array([[0.0, 0.0], [np.linalg.norm(e1), 0.0], [(P0[2] - P0[0]) @ x, (P0[2] - P0[0]) @ y]])}
+    wanted = {int(f) for f in faces} - {root}
+    queue, head = [root], 0
+    while wanted and head < len(queue) and len(queue) <= max_faces:
+        f = queue[head]
+        head += 1
+        for k in range(3):
+            g = int(neighbours[f, k])
+            if g < 0 or g in planar:
+                continue
+            # The shared edge (u, w) runs u -> w in f and w -> u in g; g's third corner lies on the
+            # other side of it from f's, at its 3D distances from u and w.
+            u, w = F[f, k], F[f, (k + 1) % 3]
+            pu, pw = planar[f][k], planar[f][(k + 1) % 3]
+            kg = list(F[g]).index(w)   # g lists w, u, c
+            c = F[g, (kg + 2) % 3]
+            d = pw - pu
+            L = np.linalg.norm(d)
+            ru, rw = np.linalg.norm(V[c] - V[u]), np.linalg.norm(V[c] - V[w])
+            t = (ru * ru - rw * rw + L * L) / (2 * L)
+            h = np.sqrt(max(ru * ru - t * t, 0.0))
+            ex = d / L
+            ey = np.array([-ex[1], ex[0]])          # left of u -> w: f's side
+            pc = pu + t * ex - h * ey
+            q = np.empty((3, 2))
+            q[kg], q[(kg + 1) % 3], q[(kg + 2) % 3] = pw, pu, pc
+            planar[g] = q
+            queue.append(g)
+            wanted.discard(g)
+    if wanted:
+        return None
+    pts = [bary[k] @ planar[int(faces[k])] for k in range(3)]
+    a, b = pts[1] - pts[0], pts[2] - pts[0]
+    perimeter = sum(np.linalg.norm(pts[k] - pts[(k + 1) % 3]) for k in range(3))
+    return 0.5 * (a[0] * b[1] - a[1] * b[0]), perimeter
+
+
+def _flips(S, T, fw, reversing=False, resolved_angle=np.pi / 3):
+    """Source faces (ears apart) whose image turns against the target (with `reversing`, an
+    orientation-reversing map: whose image does not); ears (faces with three boundary corners,
+    fixed by their boundary points alone) and how many of them turn.
+
+    Where the target's normals at the corners' faces agree (pairwise within `resolved_angle`, the
+    certificate's resolved images, verify/map_certificate.h), the chord triangle of the images
+    against the sum of those normals decides; elsewhere the chord triangle means nothing (a
+    correct near-identity image of a face next to a sharp crease of the poncho tested 'turned'
+    against faces folded by 100°+, docs/open_surfaces.md) and the triangle is measured in the
+    target's faces unfolded into one plane (_unfolded_signed_area)."""
     Vt, Ft = T.V, T.F
     nt = np.cross(Vt[Ft[:, 1]] - Vt[Ft[:, 0]], Vt[Ft[:, 2]] - Vt[Ft[:, 0]])
     q = fw["position"][S.F]
     img_n = np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0])
+    corner_faces = np.asarray(fw["face"])[S.F]
     # The target's normal at the face holding each corner's image, summed over the corners.
-    normal = sum(nt[fw["face"][S.F[:, k]]] for k in range(3))
-    turned = (-1 if reversing else 1) * np.einsum("ij,ij->i", img_n, normal) <= 0
+    normal = sum(nt[corner_faces[:, k]] for k in range(3))
+    sign = -1 if reversing else 1
+    turned = sign * np.einsum("ij,ij->i", img_n, normal) <= 0
+    unit = nt / np.maximum(np.linalg.norm(nt, axis=1), 1e-300)[:, None]
+    cos_min = np.min([np.einsum("ij,ij->i", unit[corner_faces[:, a]], unit[corner_faces[:, b]])
+                      for a, b in ((0, 1), (1, 2), (0, 2))], axis=0)
+    unresolved = cos_min < np.cos(resolved_angle)
+    if np.any(unresolved):
+        if getattr(T, "face_neighbours", None) is None:
+            T.face_neighbours = _face_neighbours(Ft)
+        bary = np.asarray(fw["barycentric"])
+        for f in np.flatnonzero(unresolved):
+            # Unfolded from each corner's face; an unfolding is a chart of the surface along the
+            # triangle's sides only if its perimeter is at least the 3D chords' (paths on the surface
+            # are no shorter; a strip unfolded around a saddle vertex, angle sum > 2 pi, overlaps
+            # itself and its straight sides cut across nothing: measured on the poncho, a face whose
+            # image keeps its shape came out negative that way from one corner and positive from the
+            # other two). The shortest valid one (nearest the geodesic triangle) decides; none: the
+            # chord test stays.
+            chord = np.linalg.norm(q[f] - np.roll(q[f], -1, axis=0), axis=1).sum()
+            best = None
+            for r in range(3):
+                order = [r, (r + 1) % 3, (r + 2) % 3]
+                got = _unfolded_signed_area(Vt, Ft, T.face_neighbours, corner_faces[f][order], bary[S.F[f]][order])
+                if got is not None and got[1] >= chord * (1 - 1e-9) and (best is None or got[1] < best[1]):
+                    best = got
+            if best is not None:
+                turned[f] = sign * best[0] <= 0
     on_b = np.zeros(S.n, dtype=bool)
     on_b[np.concatenate(S.loops)] = True
     ear = np.all(on_b[S.F], axis=1)

@@ -276,6 +276,68 @@ def test_four_holes_pairing_recovered_from_the_ranking():
     assert np.linalg.norm(r["forward"]["position"] - Vt[perm], axis=1).mean() < 0.05 * diag
 
 
+def folded_sheet(n=10, angle_deg=150.0):
+    """A square sheet [-1, 1]^2 (n x n squares, two triangles each) folded along x = 0: the x > 0
+    half turned by angle_deg about the y axis (adjacent faces across the crease turn by that much,
+    as at a garment's crease). Returns (V, F, U): U the unfolded (flat) positions."""
+    t = np.linspace(-1, 1, n + 1)
+    X, Y = np.meshgrid(t, t, indexing="ij")
+    U = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], axis=1)
+    F = []
+    for i in range(n):
+        for j in range(n):
+            a, b, c, d = i * (n + 1) + j, (i + 1) * (n + 1) + j, (i + 1) * (n + 1) + j + 1, i * (n + 1) + j + 1
+            F += [[a, b, c], [a, c, d]]
+    th = np.radians(angle_deg)
+    V = U.copy()
+    right = U[:, 0] > 0
+    V[right, 0], V[right, 2] = U[right, 0] * np.cos(th), U[right, 0] * np.sin(th)
+    return V, np.array(F), U
+
+
+def test_flip_count_is_intrinsic_across_a_sharp_crease():
+    """The poncho's 1 / 3 'flipped' faces onto and from its remeshed copy were faces next to sharp
+    creases of the garment whose images keep their shape: corners' images a little across the
+    crease sit on faces turned by 100° or more, and the chord triangle tested against the sum of
+    those normals came out turned. _flips measures such (unresolved) images in the target's faces
+    unfolded into a plane: a tiny move across the crease is not a flip, a swapped pair is."""
+    Vs, Fs, Us = folded_sheet()
+    Vt, Ft = subdivide(Vs, Fs)
+    Ut, _ = subdivide(Us, Fs)
+    S, T = open_double._Side(Vs, Fs, "source"), open_double._Side(Vt, Ft, "target")
+    crease = np.flatnonzero(np.abs(Us[:, 0]) < 1e-12)
+    inner = crease[np.abs(Us[crease, 1]) < 0.99]          # crease vertices off the boundary
+    # Each source vertex onto itself (target vertex i); inner crease vertices moved 1% of an edge
+    # across the crease, onto the turned half, located there in the unfolded target.
+    target = Ut.copy()[:len(Us)]
+    target[inner, 0] += 0.002
+    face = np.empty(len(Us), int)
+    bary = np.zeros((len(Us), 3))
+    A = Ut[Ft][:, :, :2]
+    for v in range(len(Us)):
+        p = target[v, :2]
+        M = np.stack([A[:, 1] - A[:, 0], A[:, 2] - A[:, 0]], axis=2)
+        lam = np.linalg.solve(M, (p - A[:, 0])[..., None])[..., 0]
+        b = np.column_stack([1 - lam.sum(axis=1), lam])
+        f = int(np.argmax(b.min(axis=1)))
+        face[v], bary[v] = f, b[f]
+    pos = np.einsum("ij,ijk->ik", bary, Vt[Ft[face]])
+    fw = {"position": pos, "face": face, "barycentric": bary}
+    # The chord test alone turns the faces left of the crease with two corners across it.
+    nt = np.cross(Vt[Ft[:, 1]] - Vt[Ft[:, 0]], Vt[Ft[:, 2]] - Vt[Ft[:, 0]])
+    q = pos[Fs]
+    chord_turned = np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]), nt[face[Fs]].sum(axis=1)) <= 0
+    assert chord_turned.sum() >= 5
+    assert open_double._flips(S, T, fw)[0] == 0
+    # A real fold: two corners of a face by the crease swap their images.
+    f = int(np.flatnonzero(chord_turned)[0])
+    a, b = Fs[f][:2]
+    for key in fw:
+        fw[key] = fw[key].copy()
+        fw[key][[a, b]] = fw[key][[b, a]]
+    assert open_double._flips(S, T, fw)[0] >= 1
+
+
 def test_doubling_refuses_different_topology_and_bad_pairings():
     Vs, Fs = pants(3)
     V, F = surfmap.shapes.sphere(3)
