@@ -34,7 +34,7 @@ import sys
 
 import numpy as np
 
-from . import _core
+from . import _core, open_cut_disk
 
 #: (g, b) the conformal path of map/open_map.h maps (disk, annulus); every other open pair here.
 CONFORMAL_TOPOLOGIES = {(0, 1), (0, 2)}
@@ -359,23 +359,34 @@ def _sphere_rough_map(S, T, pairing, options, mirrored=False, landmarks=None):
 
 
 def _rough_maps(S, T, pairing, options, mirrored, landmarks):
-    """The rough maps of the halves for one pairing and orientation (_capped_map's form). Genus 0
-    with at most three loops: the Möbius map of the capped spheres (_sphere_rough_map; exact at the
-    three cap centres). Genus 0 with four or more loops: the Möbius map holds only three cap
-    centres, and the others' boundary vertices, moved onto their paired loops, can carry loops
-    that are not an isomorphism (the poncho, b = 4, onto its bend 0.3: every candidate failed), so
-    the closed pipeline's map of the capped spheres holding every cap centre comes first, the
-    Möbius map when it fails. Genus >= 1: _capped_map."""
+    """The rough maps of the halves for one pairing and orientation (_capped_map's form). Genus 0:
+    the homeomorphism of the halves cut into disks along chains of shortest paths between the
+    paired loops (open_cut_disk: the class from the pairing and the orientation alone, exact
+    target vertices). Only when a half cannot be cut so: with at most three loops the Möbius map of
+    the capped spheres (_sphere_rough_map; exact at the three cap centres), with four or more the
+    closed pipeline's map of the capped spheres holding every cap centre, then the Möbius map (both
+    rough geometric maps whose images, moved onto the target's vertices, carried loops that were not
+    an isomorphism on the poncho onto its bend 0.3 and the artery onto its bend 0.2). Genus >= 1:
+    _capped_map. Returns (the rough maps, how they were made: the candidates' 'rough_map')."""
     if S.genus >= 1:
-        return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks)
+        return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks), "capped map"
+    cut_failed = ""
+    if S.b >= 2:
+        try:
+            target_vertex = open_cut_disk.cut_disk_class_images(S, T, pairing, mirrored=mirrored)
+            return [(T.V2[target_vertex], None, T.V2, "")], "cut disks"
+        except _core.SolveError as e:
+            cut_failed = f" (cut disks: {e})"
     if S.b <= 3:
-        return _sphere_rough_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks)
+        return (_sphere_rough_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks),
+                "Möbius map of the capped spheres" + cut_failed)
     try:
-        return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks)
+        return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks), "capped map" + cut_failed
     except _core.Cancelled:
         raise
     except _core.Error:
-        return _sphere_rough_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks)
+        return (_sphere_rough_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks),
+                "Möbius map of the capped spheres" + cut_failed)
 
 
 def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz, landmarks=None):
@@ -708,8 +719,13 @@ def _pairing_score(S, T, pairing, mirrored, options):
     ls, lt = _loop_lengths(S), _loop_lengths(T)
     score = float(np.sum((np.log(ls / ls.sum()) - np.log(lt[list(pairing)] / lt.sum())) ** 2))
     if S.genus == 0 and S.b > 3:
-        Ps, cs = _capped_sphere(S, options)
-        Pt, ct = _capped_sphere(T, options)
+        try:
+            Ps, cs = _capped_sphere(S, options)
+            Pt, ct = _capped_sphere(T, options)
+        except _core.SolveError:
+            # A capped long thin tube need not uniformize (docs/open_surfaces.md: the artery's bent
+            # copy); the loop lengths alone rank the pairings then.
+            return score
         if mirrored:
             Ps = Ps * np.array([1.0, -1.0, 1.0])
         src = [_to_homogeneous(Ps[[cs[i]]]) for i in range(3)]
@@ -811,7 +827,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         report(f"doubles: pairing {list(pairing)}, {o}", ti / max(len(tasks), 1))
         rev = o == "reversing"
         try:
-            roughs = _rough_maps(S, T, pairing, options, rev, lm)
+            roughs, rough_method = _rough_maps(S, T, pairing, options, rev, lm)
         except _core.Cancelled:
             raise
         except _core.Error as e:
@@ -819,7 +835,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                                "status": f"failed: the capped map: {e}"})
             continue
         for pos, face, target_xyz, capped_class in roughs:
-            cand = {"pairing": list(pairing), "orientation": o}
+            cand = {"pairing": list(pairing), "orientation": o, "rough_map": rough_method}
             if score is not None:
                 cand["pairing_score"] = score
             if capped_class:
@@ -889,7 +905,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     out["energy"] = {k: (v / 2 if isinstance(v, (int, float)) and not isinstance(v, bool) else v)
                      for k, v in r["energy"].items() if not _has_arrays(v)}
     out["source_flipped"] = out["target_flipped"] = False
-    out["open"] = {"domain": "double", "method": "doubling (symmetric class from the capped map)",
+    out["open"] = {"domain": "double", "method": f"doubling (symmetric class from the {cand.get('rough_map', 'capped map')})",
                    "boundary_pairing": pairing, "requested_pairing": cand["pairing"],
                    "inverse_pairing": back_pairing, "orientation": cand["orientation"], "pairing_choice": choice,
                    "candidates": candidates, "tied_candidates": len(tied), "symmetry_error": cand["symmetry_error"],
