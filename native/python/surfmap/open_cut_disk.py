@@ -19,8 +19,6 @@ the caps, and a map of the capped spheres holding every centre folds once the ho
 onto the target's vertices, their images carried loops that were not an isomorphism (the poncho onto
 its bend 0.3, the artery onto its bend 0.2).
 """
-import heapq
-
 import numpy as np
 
 from . import _core
@@ -32,63 +30,41 @@ def _edges(F):
     return np.unique(E, axis=0)
 
 
-def _shortest_path(n, adjacency, lengths, sources, targets, allowed):
-    """Dijkstra from any of `sources` to the nearest of `targets` through `allowed` vertices only
-    (sources and targets themselves need not be allowed), never along an edge between two
-    non-allowed vertices. Returns the vertex path (source first) or None."""
-    dist = np.full(n, np.inf)
-    prev = -np.ones(n, dtype=np.int64)
-    is_target = np.zeros(n, dtype=bool)
-    is_target[targets] = True
-    heap = []
-    for s in sources:
-        dist[s] = 0.0
-        heap.append((0.0, int(s)))
-    heapq.heapify(heap)
-    while heap:
-        d, v = heapq.heappop(heap)
-        if d > dist[v]:
-            continue
-        if is_target[v]:
-            path = [v]
-            while prev[path[-1]] >= 0:
-                path.append(int(prev[path[-1]]))
-            return path[::-1]
-        for w, length in zip(adjacency[v], lengths[v]):
-            if not (allowed[w] or is_target[w]) or not (allowed[v] or allowed[w]):
-                continue
-            if d + length < dist[w]:
-                dist[w] = d + length
-                prev[w] = v
-                heapq.heappush(heap, (d + length, w))
-    return None
-
-
 def _chain_paths(V, F, loops, chain):
     """b - 1 vertex-disjoint shortest paths, path k from loop chain[k] to loop chain[k + 1], through
     interior vertices; a path leaves loop chain[k] at another vertex than the previous path reached
     it. Raises SolveError when a path does not exist."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import dijkstra
     n = len(V)
     E = _edges(F)
     L = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
-    adjacency = [[] for _ in range(n)]
-    lengths = [[] for _ in range(n)]
-    for (a, b), length in zip(E, L):
-        adjacency[a].append(b)
-        adjacency[b].append(a)
-        lengths[a].append(length)
-        lengths[b].append(length)
-    allowed = np.ones(n, dtype=bool)
+    free = np.ones(n, dtype=bool)          # interior vertices no path uses yet
     for loop in loops:
-        allowed[loop] = False
+        free[loop] = False
     paths, arrived = [], -1
     for k in range(len(chain) - 1):
-        sources = [v for v in loops[chain[k]] if v != arrived]
-        path = _shortest_path(n, adjacency, lengths, sources, loops[chain[k + 1]], allowed)
-        if path is None or len(path) < 3:
+        sources = np.array([v for v in loops[chain[k]] if v != arrived], dtype=np.int64)
+        targets = np.asarray(loops[chain[k + 1]], dtype=np.int64)
+        # Edges with one free end (or two), the other free, a source or a target: never along a
+        # loop, never through another loop or an earlier path.
+        ends = free.copy()
+        ends[sources] = True
+        ends[targets] = True
+        use = ends[E[:, 0]] & ends[E[:, 1]] & (free[E[:, 0]] | free[E[:, 1]])
+        G = sp.coo_matrix((L[use], (E[use, 0], E[use, 1])), shape=(n, n)).tocsr()
+        dist, prev, _ = dijkstra(G, directed=False, indices=sources, min_only=True, return_predecessors=True)
+        end = int(targets[np.argmin(dist[targets])])
+        if not np.isfinite(dist[end]):
             raise _core.SolveError(f"cut into a disk: no path from boundary loop {chain[k]} to loop {chain[k + 1]} "
                                    f"through interior vertices")
-        allowed[path] = False
+        path = [end]
+        while prev[path[-1]] >= 0:
+            path.append(int(prev[path[-1]]))
+        path = path[::-1]
+        if len(path) < 3:
+            raise _core.SolveError(f"cut into a disk: loops {chain[k]} and {chain[k + 1]} share an edge")
+        free[path] = False
         arrived = path[-1]
         paths.append(path)
     return paths
@@ -96,34 +72,30 @@ def _chain_paths(V, F, loops, chain):
 
 def _cut(F, n, cut_edges):
     """The mesh cut open along `cut_edges` (a set of sorted vertex pairs): each vertex split into one
-    copy per wedge of its faces between cut or boundary edges. Returns (faces of the copies (m,3),
-    original vertex of each copy)."""
+    copy per wedge of its faces between cut or boundary edges (the corners joined across every other
+    edge). Returns (faces of the copies (m,3), original vertex of each copy)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
     m = len(F)
-    parent = np.arange(3 * m)
-
-    def find(x):
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
-    halfedge = {}
-    for f in range(m):
-        for k in range(3):
-            halfedge[(int(F[f, k]), int(F[f, (k + 1) % 3]))] = (f, k)
-    for (u, w), (f, k) in halfedge.items():
-        if u > w or (u, w) in cut_edges:
-            continue
-        other = halfedge.get((w, u))
-        if other is None:
-            continue
-        g, j = other  # g runs w -> u: its corner j is w, j + 1 is u
-        for a, b in (((f, k), (g, (j + 1) % 3)), ((f, (k + 1) % 3), (g, j))):
-            ra, rb = find(3 * a[0] + a[1]), find(3 * b[0] + b[1])
-            if ra != rb:
-                parent[ra] = rb
-    roots = np.array([find(x) for x in range(3 * m)])
-    _, copy = np.unique(roots, return_inverse=True)
+    # Half-edge 3 f + k runs F[f, k] -> F[f, k + 1]; its twin runs back in the neighbouring face.
+    a, b = F.reshape(-1), np.roll(F, -1, axis=1).reshape(-1)
+    key = a * n + b
+    order = np.argsort(key)
+    sorted_key = key[order]
+    twin_key = b * n + a
+    at = np.minimum(np.searchsorted(sorted_key, twin_key), len(key) - 1)
+    has_twin = sorted_key[at] == twin_key
+    twin = np.where(has_twin, order[at], -1)
+    cut_key = np.array(sorted(u * n + w for u, w in cut_edges), dtype=np.int64)
+    is_cut = np.isin(np.minimum(a, b) * n + np.maximum(a, b), cut_key)
+    h = np.flatnonzero(has_twin & ~is_cut & (a < b))
+    g = twin[h]
+    f_h, k_h, f_g, k_g = h // 3, h % 3, g // 3, g % 3
+    # u = corner k of f = corner k + 1 of g; w = corner k + 1 of f = corner k of g.
+    rows = np.r_[3 * f_h + k_h, 3 * f_h + (k_h + 1) % 3]
+    cols = np.r_[3 * f_g + (k_g + 1) % 3, 3 * f_g + k_g]
+    A = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * m, 3 * m))
+    _, copy = connected_components(A, directed=False)
     copies = copy.reshape(m, 3)
     original = np.empty(copy.max() + 1, dtype=np.int64)
     original[copies.reshape(-1)] = F.reshape(-1)
@@ -132,23 +104,19 @@ def _cut(F, n, cut_edges):
 
 def _boundary_walk(Fc):
     """The boundary of a disk (faces Fc) as a vertex cycle, surface on the left."""
-    nxt = {}
-    inner = set()
-    for f in Fc:
-        for k in range(3):
-            inner.add((int(f[k]), int(f[(k + 1) % 3])))
-    for (u, w) in inner:
-        if (w, u) not in inner:
-            if u in nxt:
-                raise _core.SolveError("cut into a disk: the cut mesh's boundary is not one simple loop")
-            nxt[u] = w
-    start = min(nxt)
+    n = int(Fc.max()) + 1
+    a, b = Fc.reshape(-1), np.roll(Fc, -1, axis=1).reshape(-1)
+    on_boundary = ~np.isin(a * n + b, b * n + a)
+    u, w = a[on_boundary], b[on_boundary]
+    if len(np.unique(u)) != len(u):
+        raise _core.SolveError("cut into a disk: the cut mesh's boundary is not one simple loop")
+    nxt = -np.ones(n, dtype=np.int64)
+    nxt[u] = w
+    start = int(u.min())
     walk = [start]
-    while nxt[walk[-1]] != start:
-        walk.append(nxt[walk[-1]])
-        if len(walk) > len(nxt):
-            break
-    if len(walk) != len(nxt):
+    while int(nxt[walk[-1]]) != start and len(walk) <= len(u):
+        walk.append(int(nxt[walk[-1]]))
+    if len(walk) != len(u):
         raise _core.SolveError("cut into a disk: the cut mesh has more than one boundary loop")
     return walk
 
@@ -191,9 +159,15 @@ def _tutte(Fc, n_copies, boundary, boundary_xy):
     free = np.flatnonzero(~fixed)
     if len(free):
         rhs = -Lap[free][:, np.flatnonzero(fixed)] @ X[fixed]
-        solve = spla.factorized(Lap[free][:, free].tocsc())
-        X[free, 0] = solve(np.ascontiguousarray(rhs[:, 0]))
-        X[free, 1] = solve(np.ascontiguousarray(rhs[:, 1]))
+        K = Lap[free][:, free].tocsr()
+        for c in range(2):
+            # Symmetric positive definite (every free vertex connects to the fixed boundary):
+            # conjugate gradients from the boundary's centre, far cheaper than a factorization here.
+            try:
+                x, info = spla.cg(K, rhs[:, c], rtol=1e-10, atol=0.0, maxiter=20 * len(free))
+            except TypeError:  # scipy < 1.12 names it tol
+                x, info = spla.cg(K, rhs[:, c], tol=1e-10, atol=0.0, maxiter=20 * len(free))
+            X[free, c] = x if info == 0 else spla.spsolve(K.tocsc(), rhs[:, c])
     return X
 
 

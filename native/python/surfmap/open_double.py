@@ -366,18 +366,28 @@ def _rough_maps(S, T, pairing, options, mirrored, landmarks):
     the capped spheres (_sphere_rough_map; exact at the three cap centres), with four or more the
     closed pipeline's map of the capped spheres holding every cap centre, then the Möbius map (both
     rough geometric maps whose images, moved onto the target's vertices, carried loops that were not
-    an isomorphism on the poncho onto its bend 0.3 and the artery onto its bend 0.2). Genus >= 1:
-    _capped_map. Returns (the rough maps, how they were made: the candidates' 'rough_map')."""
+    an isomorphism on the poncho onto its bend 0.3 and the artery onto its bend 0.2). With four or
+    more loops and landmarks, the capped map holding them comes first (the landmarks choose among
+    the pairing's classes). Genus >= 1: _capped_map. Returns (the rough maps, how they were made: the candidates' 'rough_map')."""
     if S.genus >= 1:
         return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks), "capped map"
     cut_failed = ""
+    if S.b >= 4 and landmarks is not None and len(landmarks):
+        # With four or more loops the pairing leaves infinitely many classes, and landmarks pick
+        # one: the capped map that holds them first, as before the cut disks.
+        try:
+            return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks), "capped map"
+        except _core.Cancelled:
+            raise
+        except _core.Error as e:
+            cut_failed = f" (capped map: {e})"
     if S.b >= 2:
         try:
             target_vertex = open_cut_disk.cut_disk_class_images(S, T, pairing, mirrored=mirrored)
             return [(T.V2[target_vertex], None, T.V2, "")], "cut disks"
         except _core.SolveError as e:
-            cut_failed = f" (cut disks: {e})"
-    if S.b <= 3:
+            cut_failed += f" (cut disks: {e})"
+    if S.b <= 3 or cut_failed.startswith(" (capped map"):
         return (_sphere_rough_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks),
                 "Möbius map of the capped spheres" + cut_failed)
     try:
