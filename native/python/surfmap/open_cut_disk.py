@@ -224,6 +224,10 @@ def cut_disk_class_images(S, T, pairing, mirrored=False):
     loop pairing[i]; `mirrored`: orientation reversing (the target's half with its faces reversed).
     S, T: open_double._Side of genus 0. Raises SolveError when a half cannot be cut or the disks'
     runs do not correspond."""
+    try:
+        import scipy.sparse  # noqa: F401  (sparse graphs and solves; Blender's own Python may lack it)
+    except ImportError:
+        raise _core.SolveError("cut into a disk: scipy is not available") from None
     chain_s = list(range(S.b))
     chain_t = [int(pairing[i]) for i in chain_s]
     Ft = T.F2[:, ::-1] if mirrored else T.F2
