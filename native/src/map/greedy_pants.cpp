@@ -224,6 +224,24 @@ CurveIntersection curve_intersection(const SurfaceGroupLengths& lengths, const S
   return out;
 }
 
+/// Curves of equal length (1e-7 relative) that no lift shows to be one: the
+/// same curve when they also meet every marking generator equally often. A
+/// word of the marking and the caterpillar's word for one curve can be far
+/// conjugates whose lifts the conjugator ball does not bring together; two
+/// curves exchanged by a symmetry (the fertility's two handles of length
+/// 1.04) meet the generators differently.
+bool same_by_length_and_generators(const SurfaceGroupLengths& lengths, const SurfaceAutomorphism& marking,
+                                   const GreedyPantsCurve& x, const GreedyPantsCurve& y,
+                                   const CurveIntersectionOptions& options) {
+  if (!(std::abs(x.length - y.length) <= 1e-7 * y.length)) return false;
+  for (int j = 1; j <= 2 * lengths.genus(); ++j) {
+    const int ix = curve_intersection(lengths, marking, {j}, x.marking_word, options).crossings;
+    const int iy = curve_intersection(lengths, marking, {j}, y.marking_word, options).crossings;
+    if (ix < 0 || ix != iy) return false;
+  }
+  return true;
+}
+
 GreedyPantsDecomposition greedy_pants_decomposition(const SurfaceGroupLengths& lengths, const ShortMarking& marking,
                                                     const std::vector<Word>& extra_curves,
                                                     const GreedyPantsOptions& options) {
@@ -263,20 +281,8 @@ GreedyPantsDecomposition greedy_pants_decomposition(const SurfaceGroupLengths& l
     for (const GreedyPantsCurve& s : out.curves) {
       const CurveIntersection x = curve_intersection(lengths, marking.marking, s.marking_word, c.marking_word,
                                                      options.intersection);
-      // Curves of equal length that no lift shows to be one: the same curve
-      // when they also meet every marking generator equally often (a word of
-      // the marking and the caterpillar's word for one curve can be far
-      // conjugates; two curves exchanged by a symmetry, like the fertility's
-      // two handles of length 1.04, meet the generators differently).
-      bool same = x.same_curve;
-      if (!same && x.crossings == 0 && std::abs(s.length - c.length) <= 1e-7 * c.length) {
-        same = true;
-        for (int j = 1; j <= 2 * genus && same; ++j) {
-          const int is = curve_intersection(lengths, marking.marking, {j}, s.marking_word, options.intersection).crossings;
-          const int ic = curve_intersection(lengths, marking.marking, {j}, c.marking_word, options.intersection).crossings;
-          same = is >= 0 && is == ic;
-        }
-      }
+      const bool same = x.same_curve || (x.crossings == 0 && same_by_length_and_generators(lengths, marking.marking, s, c,
+                                                                                             options.intersection));
       if (same) {
         ++out.duplicates, ok = false;
       } else if (x.crossings != 0) {
@@ -298,13 +304,11 @@ int shared_pants_curves(const SurfaceGroupLengths& lengths, const ShortMarking& 
   const DehnReducer reduce(canonical_relator(lengths.genus()));
   int shared = 0;
   for (const Word& c : curves) {
-    const Word w = cyclic_dehn_reduce(substitute(c, marking.marking.inverse), reduce);
-    const double l = lengths.length(c);
+    GreedyPantsCurve x{cyclic_dehn_reduce(substitute(c, marking.marking.inverse), reduce), c, lengths.length(c)};
     for (const GreedyPantsCurve& g : greedy.curves) {
-      if (!(std::abs(g.length - l) <= 1e-6 * l)) continue;
-      CurveIntersectionOptions io;
-      io.radius = 3;
-      if (curve_intersection(lengths, marking.marking, g.marking_word, w, io).same_curve) {
+      if (!(std::abs(g.length - x.length) <= 1e-7 * x.length)) continue;
+      if (curve_intersection(lengths, marking.marking, g.marking_word, x.marking_word).same_curve ||
+          same_by_length_and_generators(lengths, marking.marking, g, x, {})) {
         ++shared;
         break;
       }

@@ -93,7 +93,8 @@ GreedyPantsDecomposition greedy_pants_decomposition(const SurfaceGroupLengths& l
 
 /// How many of `curves` (caller's canonical letters) are curves of the
 /// greedy decomposition `greedy` (the same closed geodesic up to
-/// orientation, by curve_intersection): 3g − 3 when the two decompositions
+/// orientation: a lift on its axis, or the same length and the same
+/// intersection numbers with the marking's generators): 3g − 3 when the two decompositions
 /// are the same.
 int shared_pants_curves(const SurfaceGroupLengths& lengths, const ShortMarking& marking,
                         const GreedyPantsDecomposition& greedy, const std::vector<Word>& curves);
