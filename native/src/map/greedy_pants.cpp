@@ -41,14 +41,6 @@ std::vector<Word> word_ball(int genus, int radius) {
   return out;
 }
 
-/// The element of a word in the frame's generators (`gens[k]` for letter
-/// k+1), renormalised as it goes.
-Mobius product(const Word& w, const std::vector<Mobius>& gens) {
-  Mobius m;
-  for (int x : w) m = (m * (x > 0 ? gens[x - 1] : gens[-x - 1].inverse())).normalized();
-  return m;
-}
-
 /// The two fixed points on the unit circle of a hyperbolic element; false
 /// when it is not hyperbolic (|Re a| <= 1 after normalisation).
 bool axis_ends(Mobius m, Complex* e1, Complex* e2) {
