@@ -318,3 +318,23 @@ def test_loop_curves_follow_the_morph():
     bpy.context.view_layer.update()                   # the depsgraph handler runs
     for ob, p0 in zip(curves, before):
         assert np.abs(points(ob) - p0).max() < 1e-5
+
+
+def test_the_result_shows_the_quality_signal_of_a_genus_2_run():
+    # Issue 14: the energy over 8 pi (g - 1) beside the result, and the core's warning (at
+    # 3 x or more) in the Result panel and in full on the status line; none below it.
+    from surface_map import ops_map, panel
+    res = {"genus": 4, "energy": {"initial": 2642.5, "final": 628.67}, "iterations": 7,
+           "distortion": {"mean": 800.7, "max": 27607.5}, "flipped_triangles": 0, "converged": True,
+           "quality": {"energy_ratio": 8.338, "warning": "energy 8.338 x the conformal bound 8 pi "
+                       "(g - 1): the handle class may be twisted; add landmarks or pick a candidate"}}
+    rows = dict(ops_map.summary_rows(res, {"solve": 1.0}))
+    assert rows["E / bound"] == "8.34" and "Warning" in rows, rows
+    text = " ".join(f"{n} {v}" for n, v in panel.result_lines(ops_map.summary_rows(res, {"solve": 1.0})))
+    assert "E / bound 8.34" in text and "Warning" in text, text
+    status = ops_map._summary(res, 1.0)
+    assert "energy 8.34x the conformal bound" in status and "may be twisted" in status, status
+    res["quality"] = {"energy_ratio": 1.002, "warning": ""}
+    rows = dict(ops_map.summary_rows(res, {"solve": 1.0}))
+    assert rows["E / bound"] == "1" and "Warning" not in rows, rows
+    assert "twisted" not in ops_map._summary(res, 1.0)

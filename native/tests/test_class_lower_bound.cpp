@@ -17,6 +17,8 @@
 #include "surfmap/uniformize/uniformize.h"
 #include "../src/map/stages/homotopy_classes.h"
 #include "../src/map/two_way_run.h"
+#include "../src/map/class_bound_support.h"
+#include "surfmap/topology/projected_loops.h"
 
 namespace surfmap {
 namespace {
@@ -271,6 +273,42 @@ TEST(ClassLowerBound, QualityRatioUsesTheIntrinsicEnergyAfterTheOwnEdgeFallback)
   detail::assess_quality(r);
   EXPECT_NEAR(r.energy_ratio, 3.2, 1e-12);
   EXPECT_NE(r.quality_warning.find("may be twisted"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace surfmap
+
+namespace surfmap {
+namespace {
+
+// The generated genus-4 CAD plate (the development pair's plate,
+// docs/handle_classes.md) as a source: its default loops carried onto its
+// own uniformized copy (fixed metric, thousands of exact splits on long
+// fan edges) give an isomorphism, so the plate has lengths, bounds and
+// letters as a target. Joined by the fewest edges instead, a split edge was
+// bypassed around a hole and one loop came out contractible.
+TEST(ClassLowerBound, CadPlateSourceCarriesOntoItsOwnUniformizedCopy) {
+  const TriMesh m = samples::cad_plate(4, 64, 0.3);
+  SurfaceMapOptions options;
+  const SystemOfLoops sl = detail::source_loops(m, options);
+  const CanonicalSchema cs = canonical_schema(sl.word);
+  const detail::SourceClassBounds b = detail::source_class_bounds(m, sl.loops, cs.generators, 4, options);
+  ASSERT_TRUE(b.ok) << b.why;
+  ASSERT_GT(b.uniformized.refinement_splits, 0);  // the case in question: a refined copy
+  EXPECT_EQ(b.as_target.size(), 8u) << b.as_target_status;
+  // Every canonical generator is an essential curve: positive length.
+  for (int j = 1; j <= 8; ++j) EXPECT_GT(b.source->length({j}), 0.05) << j;
+  // The fewest-edge join (the overlay's default) is what failed here.
+  const ProjectedLoopsResult fewest = project_loops(m, sl.loops, b.uniformized.loops, b.uniformized.layout.word);
+  bool fewest_ok = fewest.ok;
+  if (fewest_ok) {
+    GroupMap iota(8);
+    for (int j = 0; j < 8; ++j)
+      iota[j] = dehn_reduce(substitute(substitute(cs.generators[j], fewest.loop_images), b.schema.letters),
+                            canonical_relator(4));
+    fewest_ok = homology_matrix(iota, 8).transpose() * symplectic_form(4) * homology_matrix(iota, 8) == symplectic_form(4);
+  }
+  EXPECT_FALSE(fewest_ok) << "the fewest-edge join now carries the plate: this test no longer covers the fix";
 }
 
 }  // namespace

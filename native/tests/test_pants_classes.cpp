@@ -18,6 +18,8 @@
 namespace surfmap {
 namespace {
 
+using testing_support::axes_cross;
+using testing_support::ball;
 using testing_support::has_identity_class;
 using testing_support::lopsided;
 using testing_support::Uniformized;
@@ -48,45 +50,6 @@ SurfaceAutomorphism named_moves(int genus, const std::vector<std::string>& names
     for (Word& w : psi.inverse) w = reduce(w);
   }
   return psi;
-}
-
-// Whether the axes of two hyperbolic elements cross (endpoints linked on
-// the circle at infinity); false for the same axis.
-bool axes_cross(hyperbolic::Mobius p, hyperbolic::Mobius q) {
-  auto ends = [](hyperbolic::Mobius m, double* u, double* v) {
-    const double det = m.determinant();
-    if (det > 0.5 && det < 2) m.a /= std::sqrt(det), m.b /= std::sqrt(det);
-    const double im = m.a.imag(), root = std::sqrt(std::max(0.0, m.a.real() * m.a.real() - 1));
-    const Complex bb = std::conj(m.b);
-    *u = std::arg((Complex(0, im) + root) / bb), *v = std::arg((Complex(0, im) - root) / bb);
-  };
-  double p1, p2, q1, q2;
-  ends(p, &p1, &p2), ends(q, &q1, &q2);
-  auto close = [](double x, double y) { return std::abs(std::remainder(x - y, 2 * M_PI)) < 1e-7; };
-  if ((close(p1, q1) && close(p2, q2)) || (close(p1, q2) && close(p2, q1))) return false;
-  auto inside = [&](double x) {  // x strictly on the ccw arc from p1 to p2
-    const double span = std::fmod(p2 - p1 + 4 * M_PI, 2 * M_PI), at = std::fmod(x - p1 + 4 * M_PI, 2 * M_PI);
-    return at > 1e-9 && at < span - 1e-9;
-  };
-  return inside(q1) != inside(q2);
-}
-
-// Conjugators: every reduced word of up to `radius` letters.
-std::vector<Word> ball(int genus, int radius) {
-  std::vector<Word> out{{}}, frontier{{}};
-  for (int r = 0; r < radius; ++r) {
-    std::vector<Word> next;
-    for (const Word& w : frontier)
-      for (int x = -2 * genus; x <= 2 * genus; ++x) {
-        if (x == 0 || (!w.empty() && w.back() == -x)) continue;
-        Word v = w;
-        v.push_back(x);
-        next.push_back(v);
-      }
-    out.insert(out.end(), next.begin(), next.end());
-    frontier = std::move(next);
-  }
-  return out;
 }
 
 TEST(PantsClasses, StandardTwistsAreAutomorphismsAndSymmetriesPreserveTheCurves) {

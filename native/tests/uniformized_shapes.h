@@ -5,9 +5,11 @@
 // hyperelliptic one, and the identity test of a surface's self-classes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
+#include "surfmap/geometry/hyperbolic.h"
 #include "surfmap/mesh/tri_mesh.h"
 #include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/handle_basis.h"
@@ -48,6 +50,46 @@ bool has_identity_class(const std::vector<Class>& classes, int n) {
   for (const Class& c : classes)
     if (c.mismatch < 1e-8 && homology_matrix(c.theta, n) == homology_matrix(identity_map(n), n)) return true;
   return false;
+}
+
+// (Also used by test_greedy_pants.cpp as an independent crossing check.)
+// Whether the axes of two hyperbolic elements cross (endpoints linked on
+// the circle at infinity); false for the same axis.
+inline bool axes_cross(hyperbolic::Mobius p, hyperbolic::Mobius q) {
+  auto ends = [](hyperbolic::Mobius m, double* u, double* v) {
+    const double det = m.determinant();
+    if (det > 0.5 && det < 2) m.a /= std::sqrt(det), m.b /= std::sqrt(det);
+    const double im = m.a.imag(), root = std::sqrt(std::max(0.0, m.a.real() * m.a.real() - 1));
+    const Complex bb = std::conj(m.b);
+    *u = std::arg((Complex(0, im) + root) / bb), *v = std::arg((Complex(0, im) - root) / bb);
+  };
+  double p1, p2, q1, q2;
+  ends(p, &p1, &p2), ends(q, &q1, &q2);
+  auto close = [](double x, double y) { return std::abs(std::remainder(x - y, 2 * M_PI)) < 1e-7; };
+  if ((close(p1, q1) && close(p2, q2)) || (close(p1, q2) && close(p2, q1))) return false;
+  auto inside = [&](double x) {  // x strictly on the ccw arc from p1 to p2
+    const double span = std::fmod(p2 - p1 + 4 * M_PI, 2 * M_PI), at = std::fmod(x - p1 + 4 * M_PI, 2 * M_PI);
+    return at > 1e-9 && at < span - 1e-9;
+  };
+  return inside(q1) != inside(q2);
+}
+
+// Conjugators: every reduced word of up to `radius` letters.
+inline std::vector<Word> ball(int genus, int radius) {
+  std::vector<Word> out{{}}, frontier{{}};
+  for (int r = 0; r < radius; ++r) {
+    std::vector<Word> next;
+    for (const Word& w : frontier)
+      for (int x = -2 * genus; x <= 2 * genus; ++x) {
+        if (x == 0 || (!w.empty() && w.back() == -x)) continue;
+        Word v = w;
+        v.push_back(x);
+        next.push_back(v);
+      }
+    out.insert(out.end(), next.begin(), next.end());
+    frontier = std::move(next);
+  }
+  return out;
 }
 
 }  // namespace surfmap::testing_support

@@ -19,6 +19,15 @@ namespace surfmap::detail {
 
 namespace {
 
+/// The source carried onto a copy of itself whose mesh refines its own (the
+/// same vertices first, edges split by the metric's and the loops'
+/// refinements): joins by length follow the split edges exactly.
+ProjectedLoopsOptions self_carry_options() {
+  ProjectedLoopsOptions o;
+  o.join_by_length = true;
+  return o;
+}
+
 /// SourceClassBounds::as_target: on the flip path the pipeline reads a
 /// target's classes in its own loops' canonical letters (map_support.h
 /// ClassLoops), so the default cut is carried onto those loops as well (the
@@ -30,7 +39,7 @@ void as_target_letters(const TriMesh& source, const std::vector<std::vector<int>
   const Word R = canonical_relator(genus);
   GroupMap m = iota;
   if (const ClassLoops* cl = xu.class_loops.get()) {
-    const ProjectedLoopsResult self = project_loops(source, loops, cl->loops, cl->word);
+    const ProjectedLoopsResult self = project_loops(source, loops, cl->loops, cl->word, self_carry_options());
     if (!self.ok) {
       b.as_target_status = "the source's loops did not carry onto its own class loops: " + self.message;
       return;
@@ -66,7 +75,7 @@ SourceClassBounds source_class_bounds(const TriMesh& source, const std::vector<s
     const CanonicalSchema& xcs = b.schema;
     // The default cut's loops onto the uniformized copy's (the same surface:
     // every loop vertex's nearest point is itself).
-    const ProjectedLoopsResult self = project_loops(source, loops, xu.loops, xu.layout.word);
+    const ProjectedLoopsResult self = project_loops(source, loops, xu.loops, xu.layout.word, self_carry_options());
     if (!self.ok) throw SolveError("the source's loops did not carry onto its own uniformized copy: " + self.message);
     const int n = 2 * genus;
     const Word R = canonical_relator(genus);

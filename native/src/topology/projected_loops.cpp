@@ -103,7 +103,7 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
       stamp[a] = search;
       parent_h[a] = -1;
       bool found = false;
-      for (int depth = 0; depth < max_gap && !found && !frontier.empty(); ++depth) {
+      for (int depth = 0; depth < max_gap && !found && !frontier.empty() && !options.join_by_length; ++depth) {
         next.clear();
         for (int v : frontier) {
           for (int h : conn.outgoing(v)) {
@@ -125,8 +125,10 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
       // A jump the options accept: the shortest path by length in the box
       // (A* with the straight-line bound, so only a band around the segment
       // is explored), at most twice the jump plus the ordinary gap.
+      // With join_by_length every gap takes this path (the shortest by
+      // length, not by edge count).
       const double jump = (tp[a] - tp[b]).norm();
-      if (!found && options.max_jump_box > 0 && jump <= options.max_jump_box) {
+      if (!found && (options.join_by_length || (options.max_jump_box > 0 && jump <= options.max_jump_box))) {
         ++search;
         const double limit = 2 * jump + max_gap * t_edge;
         using Item = std::pair<double, int>;  // (length so far + straight line to b, vertex)
@@ -150,7 +152,12 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
             open.push({d + (tp[u] - tp[b]).norm(), u});
           }
         }
-        if (found) ++out.joined_jumps;
+        if (found && !options.join_by_length) ++out.joined_jumps;
+        if (found && options.join_by_length) {
+          int edges = 0;
+          for (int v = b; v != a; v = conn.tail(parent_h[v])) ++edges;
+          out.longest_gap = std::max(out.longest_gap, edges);
+        }
       }
       if (!found) {
         out.message = "the shapes do not overlap: consecutive loop vertices land more than " + std::to_string(max_gap) +

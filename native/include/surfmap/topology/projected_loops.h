@@ -54,6 +54,15 @@ struct ProjectedLoopsOptions {
   /// false). The doubles of open surfaces need it: their two sheets are
   /// 1e-6 of the diagonal apart (docs/open_surfaces.md "Doubling").
   bool source_on_target = false;
+  /// Join consecutive images by the shortest path by length in the box
+  /// frame (A*, within 2 x the straight line plus the ordinary gap) instead
+  /// of the fewest edges (default false). For a surface carried onto a
+  /// refinement of itself (the same vertices first, its edges split: the
+  /// source's own uniformized copy, map/class_bound_support.h): a split edge
+  /// is the shortest path between its ends, while the fewest edges can run
+  /// around a hole of a CAD part (the genus-4 plate's loop came out
+  /// contractible).
+  bool join_by_length = false;
 };
 
 struct ProjectedLoopsResult {

@@ -1,0 +1,102 @@
+#pragma once
+// The greedy short pants decomposition of a closed hyperbolic surface
+// (issue 14; docs/handle_classes.md "Greedy pants decomposition"): the
+// shortest simple closed geodesic, then the shortest one disjoint from it
+// and not homotopic to it, and so on until 3g − 3 curves (a maximal family
+// of disjoint, pairwise non-homotopic essential simple closed curves is a
+// pants decomposition). Unlike map/pants_classes.h's decomposition (a
+// caterpillar reached by twists from a marking), it has whatever
+// combinatorial type the surface's short curves give (e.g. three
+// non-separating curves in genus 2).
+//
+// Candidates: the cyclically reduced words of up to `max_letters` letters in
+// a short marking's generators (map/geometric_classes.h), proper powers,
+// cyclic permutations and inverses left out, plus any curves the caller
+// adds (e.g. the caterpillar decomposition's), by length 2 arccosh(|tr|/2).
+//
+// Simplicity and disjointness from the lifts' axes: two closed geodesics u,
+// v cross exactly where a lift of v crosses the axis of a lift of u (the
+// universal cover's geodesics). In the frame of u (its axis through the
+// fundamental polygon: SurfaceGroupLengths::elements_in_frame_of_first, each
+// lift evaluated as a word of its own) the lifts C v C^-1 tried are C = Q h P: Q a prefix of u's word (lifts along
+// one period of u's axis), h every reduced word of up to `radius` marking
+// letters, P a prefix of v's word (v's own cyclic permutations); a lift
+// crossing the axis of U is counted once per crossing point modulo the
+// translation by U. The count is the geometric intersection number i(u, v)
+// (for u = v twice the self-intersections) as far as these conjugators
+// reach: a lift that needs a longer conjugator is missed, so a "simple"
+// or "disjoint" verdict is a heuristic for long words (tests check known
+// intersection numbers); a lift with the axis of U is "the same curve".
+#include <string>
+#include <vector>
+
+#include "surfmap/map/class_lower_bound.h"
+#include "surfmap/map/geometric_classes.h"
+
+namespace surfmap {
+
+struct CurveIntersectionOptions {
+  /// Conjugators h: reduced words of up to this many marking letters
+  /// (default 1), lowered while |u| · |v| · #ball exceeds `max_lifts`
+  /// (default 20000; each lift is a Dehn reduction and a side-word product).
+  int radius = 1;
+  size_t max_lifts = 20000;
+};
+
+struct CurveIntersection {
+  /// Crossing points found (file comment): i(u, v) for u ≠ v, twice the
+  /// self-intersections for u = v. -1 when the curves could not be
+  /// evaluated (a word too long, or not hyperbolic).
+  int crossings = -1;
+  /// A lift of v has the axis of u (u ≠ v only): the same closed geodesic
+  /// (or a power of it).
+  bool same_curve = false;
+};
+
+/// Intersections of the closed geodesics of `u` and `v`, words in the
+/// marking's letters (`marking`: ShortMarking::marking of `lengths`).
+CurveIntersection curve_intersection(const SurfaceGroupLengths& lengths, const SurfaceAutomorphism& marking,
+                                     const Word& u, const Word& v, const CurveIntersectionOptions& options = {});
+
+struct GreedyPantsOptions {
+  /// Candidate words of up to this many marking letters (default 0: 4 in
+  /// genus 2, 3 in genus 3-4, 2 from genus 5).
+  int max_letters = 0;
+  /// Candidates examined at most (default 4000), shortest first.
+  size_t max_examined = 4000;
+  CurveIntersectionOptions intersection;
+};
+
+struct GreedyPantsCurve {
+  Word marking_word;  ///< in the marking's letters
+  Word word;          ///< in the caller's canonical letters (Dehn-reduced)
+  double length = 0;
+};
+
+struct GreedyPantsDecomposition {
+  /// Up to 3g − 3 curves, in the order chosen (ascending length).
+  std::vector<GreedyPantsCurve> curves;
+  bool complete = false;  ///< 3g − 3 curves were found
+  double total = 0;       ///< Σ lengths
+  /// Candidates listed and examined; rejected as self-crossing, as crossing
+  /// a chosen curve, as a chosen curve again; not evaluable.
+  size_t candidates = 0, examined = 0, self_crossing = 0, crossing = 0, duplicates = 0, not_evaluable = 0;
+  double time_s = 0;
+};
+
+/// The greedy decomposition (file comment). `marking`: a short marking of
+/// `lengths` (short_marking()); `extra_curves`: more candidates, words in
+/// the caller's canonical letters (e.g. PantsDecomposition::curves' words).
+GreedyPantsDecomposition greedy_pants_decomposition(const SurfaceGroupLengths& lengths, const ShortMarking& marking,
+                                                    const std::vector<Word>& extra_curves = {},
+                                                    const GreedyPantsOptions& options = {});
+
+/// How many of `curves` (caller's canonical letters) are curves of the
+/// greedy decomposition `greedy` (the same closed geodesic up to
+/// orientation: a lift on its axis, or the same length and the same
+/// intersection numbers with the marking's generators): 3g − 3 when the two decompositions
+/// are the same.
+int shared_pants_curves(const SurfaceGroupLengths& lengths, const ShortMarking& marking,
+                        const GreedyPantsDecomposition& greedy, const std::vector<Word>& curves);
+
+}  // namespace surfmap
