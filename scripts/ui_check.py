@@ -57,7 +57,9 @@ def shot(name, wait=True):
     path = os.path.join(OUT, name)
     cmd = ["import", "-window", "root", path]
     if wait:
+        t = time.time()
         subprocess.run(cmd, check=False)
+        log(f"screenshot took {time.time() - t:.2f}s")
     else:
         STATE.setdefault("shots", []).append(subprocess.Popen(cmd))
     log("screenshot", path)
@@ -89,6 +91,7 @@ def redraw_all():
         a.tag_redraw()
     ui = next(r for r in area.regions if r.type == 'UI')
     xdo("mousemove", str(ui.x + ui.width // 2), str(win.height - (ui.y + ui.height // 2)))
+    log("pointer parked at", pointer())
 
 
 def focus_blender():
@@ -179,24 +182,91 @@ def measure_redraws():
 
 def click_compute():
     """A click on the panel's Compute Map button, as a user does: the pointer moved onto it in
-    two steps (Blender highlights a button on a motion event over it), pressed and released."""
+    two steps (Blender highlights a button on a motion event over it), pressed and released.
+
+    The xdotool sequence runs in a background process while this timer callback returns, so
+    Blender's event loop takes each motion, the press and the release as they come, as with a
+    user's hand. UI_CHECK_CLICK=batched: the old way, the sequence run (with its sleeps) inside
+    this callback: Blender then reads every event of it in one go after the callback returns,
+    its motion events merged into one; when the pointer was parked over another button (the
+    sidebar's middle, redraw_all(), is over the pairings list after a run), that one motion only
+    un-highlights the parked button and the press finds no highlighted button: the click is lost
+    (docs/addon.md, "The lost first click")."""
     win, area, _ = view3d()
     ui = next(r for r in area.regions if r.type == 'UI')
     x, y = ui.x + ui.width // 2, win.height - (ui.y + ui.height) + COMPUTE_BUTTON_Y
     focus_blender()
+    log("pointer before the click at", pointer())
+    moves = []
     if os.environ.get("UI_CHECK_LEAVE_REGION"):   # the pointer over the 3D view first
-        xdo("mousemove", str(area.x + area.width // 3), str(y))
-        time.sleep(0.5)
-    xdo("mousemove", str(x - 20), str(y - 2))
-    time.sleep(0.3)
-    xdo("mousemove", str(x), str(y))
-    time.sleep(0.3)
-    xdo("mousedown", "1")
-    time.sleep(0.15)
-    xdo("mouseup", "1")
+        moves.append((area.x + area.width // 3, y, 0.5))
+    moves += [(x - 20, y - 2, 0.3), (x, y, 0.3)]
+    if os.environ.get("UI_CHECK_CLICK") == "batched":
+        for mx, my, pause in moves:
+            xdo("mousemove", str(mx), str(my))
+            time.sleep(pause)
+        xdo("mousedown", "1")
+        time.sleep(0.15)
+        xdo("mouseup", "1")
+    else:
+        stamp = "echo UI-CHECK xdotool $(date +%s.%N)"
+        script = "".join(f"xdotool mousemove {mx} {my}; {stamp} moved {mx} {my}; sleep {pause}; "
+                         for mx, my, pause in moves)
+        script += (f"xdotool mousedown 1; {stamp} pressed; sleep 0.15; xdotool mouseup 1; "
+                   f"{stamp} released")
+        STATE.setdefault("clickers", []).append(subprocess.Popen(["sh", "-c", script]))
     STATE["t_click"] = time.time()
     STATE["clicks"] = STATE.get("clicks", 0) + 1
-    log("clicked Compute Map at", x, y)
+    log("clicked Compute Map at", x, y, "(%s)" % (os.environ.get("UI_CHECK_CLICK") or "live"))
+
+
+SETTLE = 4.0   # seconds without a 3D view draw before a repeated run's click
+
+
+def view_settling():
+    """Seconds to wait before a repeated run's click (None: click now): until the 3D view has not
+    been drawn for SETTLE s (at most 60 s), as an artist clicks once the result is on screen.
+    After a run Blender redraws the view once per sample of its progressive viewport
+    anti-aliasing (Preferences > Viewport > Anti-Aliasing, 8 samples by default), each one 2-3 s
+    of the main thread with software OpenGL at load 15; a click made meanwhile reaches Blender
+    as one batch of events, its motions merged, and is lost (click_compute). UI_CHECK_NO_SETTLE=1
+    clicks 3 s after the run, as before."""
+    now = time.time()
+    t0 = STATE.setdefault("t_settle0", now)
+    last = max(STATE.get("draws", []) + [0.0])
+    if now - last < SETTLE and now - t0 < 60:
+        return 0.5
+    done = STATE.get("t_done") or t0
+    log(f"the 3D view settled: {sum(1 for x in STATE.get('draws', []) if x > done)} draws since "
+        f"the run, the last {now - last:.1f}s ago; waited {now - t0:.1f}s")
+    del STATE["t_settle0"]
+    return None
+
+
+def pointer():
+    """xdotool getmouselocation: 'x:.. y:..'."""
+    out = subprocess.run(["xdotool", "getmouselocation"], capture_output=True, text=True).stdout
+    return " ".join(out.split()[:2])
+
+
+class UICHECK_OT_event_log(bpy.types.Operator):
+    """UI_CHECK_EVENT_LOG=1: logs every mouse event Blender's window manager hands out (a
+    window-level modal handler that passes everything through) from just before a click until
+    the job starts: which motions Blender saw, merged or not, and when."""
+    bl_idname = "wm.ui_check_event_log"
+    bl_label = "ui_check event log"
+
+    def invoke(self, context, event):
+        context.window_manager.modal_handler_add(self)
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context, event):
+        if STATE.get("stop_event_log"):
+            return {'FINISHED', 'PASS_THROUGH'}
+        if not event.type.startswith('TIMER'):
+            log(f"event {event.type} {event.value} at {event.mouse_x},{event.mouse_y} "
+                f"{time.time():.3f}")
+        return {'PASS_THROUGH'}
 
 
 def idle_progress():
@@ -367,6 +437,11 @@ def step():
             record_progress_calls()
             bpy.types.SpaceView3D.draw_handler_add(count_draw, (), 'WINDOW', 'POST_PIXEL')
             bpy.types.SpaceView3D.draw_handler_add(count_ui_draw, (), 'UI', 'POST_PIXEL')
+        if STATE.get("runs") and not (os.environ.get("UI_CHECK_NO_SETTLE")
+                                      or os.environ.get("UI_CHECK_INVOKE")):
+            wait = view_settling()
+            if wait:
+                return wait
         STATE["t_start"] = time.time()
         STATE["job_t0"], STATE["seen_job"], STATE["clicks"] = None, False, 0
         if os.environ.get("UI_CHECK_IDLE"):
@@ -381,9 +456,21 @@ def step():
             r = call(bpy.ops.surfmap.compute_map, 'INVOKE_DEFAULT')
             log("compute_map invoke ->", r)
         else:   # a click on the panel's Compute Map button, as a user does
+            if STATE.get("runs") and STATE.get("t_done"):   # has the sidebar settled?
+                since = STATE["t_done"]
+                log("since the last job was seen done (s): sidebar draws",
+                    [round(x - since, 2) for x in STATE.get("ui_draws", []) if x > since],
+                    "3D view draws", [round(x - since, 2) for x in STATE.get("draws", [])
+                                      if x > since], "now", round(time.time() - since, 2))
             if STATE.get("runs") and not os.environ.get("UI_CHECK_NO_PRESHOT"):
                 shot(f"01_panel_before_run{STATE['runs'] + 1}.png")
                 log("Compute Map's poll before this run:", call(bpy.ops.surfmap.compute_map.poll))
+            if os.environ.get("UI_CHECK_DEBUG_EVENTS"):
+                bpy.app.debug_events = bpy.app.debug_handlers = True
+                log("debug events on at abs %.3f" % time.time())
+            if os.environ.get("UI_CHECK_EVENT_LOG"):
+                STATE["stop_event_log"] = False
+                call(bpy.ops.wm.ui_check_event_log, 'INVOKE_DEFAULT')
             click_compute()
 
     elif s == 3:
@@ -391,12 +478,24 @@ def step():
         if job is None and not STATE.get("seen_job") and time.time() - STATE["t_start"] < 30:
             if time.time() - STATE["t_click"] > 8 and STATE["clicks"] < 3:
                 # on a loaded machine a click is sometimes lost (seen 3 times at load 13-15)
-                log("no job 8 s after the click: clicking again")
+                log("no job 8 s after the click: clicking again; timer ticks around the click "
+                    "(s after it):", [round(x - STATE["t_click"], 2) for x in STATE["ticks"]
+                                      if -1 < x - STATE["t_click"] < 4],
+                    "3D view draws", [round(x - STATE["t_click"], 2) for x in STATE.get("draws", [])
+                                      if -3 < x - STATE["t_click"] < 4],
+                    "sidebar draws", [round(x - STATE["t_click"], 2) for x in
+                                      STATE.get("ui_draws", []) if -3 < x - STATE["t_click"] < 4])
                 shot(f"lost_click_{STATE.get('runs', 0) + 1}_{STATE['clicks']}.png")
                 STATE["t_start"] = time.time()
                 click_compute()
             return 0.2     # the click is not processed yet
         if job is not None:
+            if bpy.app.debug_events:
+                bpy.app.debug_events = bpy.app.debug_handlers = False
+            STATE["stop_event_log"] = True
+            if not STATE["seen_job"] and not os.environ.get("UI_CHECK_INVOKE"):
+                STATE.setdefault("clicks_needed", []).append(STATE["clicks"])
+                log(f"the job started after {STATE['clicks']} click(s)")
             STATE["seen_job"] = True
             STATE["job_t0"] = job.t0
             if job.fraction > 0.3 and not STATE["progress_shot"]:
@@ -412,6 +511,9 @@ def step():
             STATE["step"] = 2       # Compute Map again (its outputs replace the last run's)
             redraw_all()            # (a button drawn disabled was seen once: redrawn first)
             return 3.0
+        needed = STATE.get("clicks_needed", [])
+        log(f"runs started by their first click: {needed.count(1)} of {len(needed)} "
+            f"(clicks per run {needed})")
         log(f"ticks per 1 s window over {STATE['runs']} run(s): "
             f"{rate_distribution(STATE['all_rates'])}, load average "
             f"{' '.join(f'{x:.1f}' for x in os.getloadavg())}")
@@ -510,7 +612,7 @@ def step():
         return 0.1
     else:
         bpy.app.timers.unregister(ticker) if bpy.app.timers.is_registered(ticker) else None
-        for p in STATE.get("shots", []):
+        for p in STATE.get("shots", []) + STATE.get("clickers", []):
             p.wait(timeout=60)
         log("done")
         call(bpy.ops.wm.quit_blender)
@@ -532,4 +634,5 @@ def guarded_step():
         return None
 
 
+bpy.utils.register_class(UICHECK_OT_event_log)
 bpy.app.timers.register(guarded_step, first_interval=2.0)
