@@ -20,9 +20,13 @@ one-second windows with fewer than 2 ticks (from the job's start). UI_CHECK_QUIC
 panel with Cut Loops opened; UI_CHECK_INVOKE=1: Compute Map by INVOKE_DEFAULT, not a click;
 UI_CHECK_RUNS=k: Compute Map k times in a row (more one-second windows; one line 'UI-CHECK
 ticks per 1 s window' with their distribution over all runs; the first click after a run is
-often lost on a loaded machine, before the operator's invoke: clicked again after 8 s).
+lost while Blender redraws the 3D view: repeated runs click once the view has not been drawn
+for 4 s; a click still lost is repeated after 8 s).
 UI_CHECK_NO_PRESHOT=1: no screenshot before a repeated run's click; UI_CHECK_LEAVE_REGION=1:
-the pointer over the 3D view before it moves onto the button.
+the pointer over the 3D view before it moves onto the button; UI_CHECK_CLICK=batched and
+UI_CHECK_NO_SETTLE=1: the old click (sent from inside the script's callback; 3 s after the
+run); UI_CHECK_EVENT_LOG=1: every event Blender hands out around each click, logged;
+UI_CHECK_DEBUG_EVENTS=1: Blender's own event/handler debug output around each click.
 
 UI_CHECK_IDLE=S: no compute; the same timer counts ticks for S seconds of a Blender that only
 waits (the machine's load and llvmpipe alone), and with UI_CHECK_IDLE_REDRAW=1 the sidebar and
@@ -186,12 +190,13 @@ def click_compute():
 
     The xdotool sequence runs in a background process while this timer callback returns, so
     Blender's event loop takes each motion, the press and the release as they come, as with a
-    user's hand. UI_CHECK_CLICK=batched: the old way, the sequence run (with its sleeps) inside
-    this callback: Blender then reads every event of it in one go after the callback returns,
-    its motion events merged into one; when the pointer was parked over another button (the
-    sidebar's middle, redraw_all(), is over the pairings list after a run), that one motion only
-    un-highlights the parked button and the press finds no highlighted button: the click is lost
-    (docs/addon.md, "The lost first click")."""
+    user's hand (UI_CHECK_CLICK=batched: the old way, the sequence with its sleeps run inside
+    this callback, Blender blocked meanwhile). Either way, when Blender's main thread is busy
+    (a 3D view draw: view_settling) it reads the whole click in one batch with its motions
+    merged into one; if the pointer was parked over another button (the sidebar's middle,
+    redraw_all(), is on the pairings list after a run) that one motion only un-highlights it
+    and the press finds no highlighted button: the click is lost (docs/addon.md, "The lost
+    first click after a run")."""
     win, area, _ = view3d()
     ui = next(r for r in area.regions if r.type == 'UI')
     x, y = ui.x + ui.width // 2, win.height - (ui.y + ui.height) + COMPUTE_BUTTON_Y
@@ -223,23 +228,29 @@ def click_compute():
 SETTLE = 4.0   # seconds without a 3D view draw before a repeated run's click
 
 
-def view_settling():
+def view_settling(kinds=("draws",)):
     """Seconds to wait before a repeated run's click (None: click now): until the 3D view has not
-    been drawn for SETTLE s (at most 60 s), as an artist clicks once the result is on screen.
-    After a run Blender redraws the view once per sample of its progressive viewport
-    anti-aliasing (Preferences > Viewport > Anti-Aliasing, 8 samples by default), each one 2-3 s
-    of the main thread with software OpenGL at load 15; a click made meanwhile reaches Blender
-    as one batch of events, its motions merged, and is lost (click_compute). UI_CHECK_NO_SETTLE=1
-    clicks 3 s after the run, as before."""
+    been drawn for SETTLE s, as an artist clicks once the result is on screen (given up after
+    120 polls, 60 s of waiting seen by this timer: a redraw that never ends is then clicked
+    through and logged). After a run Blender redraws the view once per sample of its
+    progressive viewport anti-aliasing (Preferences > Viewport > Anti-Aliasing, 8 samples by
+    default), each one 2-3.5 s of the main thread with software OpenGL at load 15; a click
+    made meanwhile reaches Blender as one batch of events, its motions merged, and is lost
+    (click_compute). UI_CHECK_NO_SETTLE=1 clicks 3 s after the run, as before. kinds: which
+    draw times count (STATE["draws"]: the 3D view, "ui_draws": the sidebar; the screenshots
+    wait for both: a shot taken while the sidebar's panels still slide into place shows the
+    Result panel over the Outputs buttons)."""
     now = time.time()
     t0 = STATE.setdefault("t_settle0", now)
-    last = max(STATE.get("draws", []) + [0.0])
-    if now - last < SETTLE and now - t0 < 60:
+    STATE["settle_polls"] = STATE.get("settle_polls", 0) + 1
+    last = max([x for kind in kinds for x in STATE.get(kind, [])] + [0.0])
+    if now - last < SETTLE and STATE["settle_polls"] <= 120:
         return 0.5
     done = STATE.get("t_done") or t0
-    log(f"the 3D view settled: {sum(1 for x in STATE.get('draws', []) if x > done)} draws since "
-        f"the run, the last {now - last:.1f}s ago; waited {now - t0:.1f}s")
-    del STATE["t_settle0"]
+    log(f"the view {'settled' if now - last >= SETTLE else 'still drawing (gave up)'}: "
+        f"{sum(1 for x in STATE.get('draws', []) if x > done)} draws since the run, the last "
+        f"{now - last:.1f}s ago; waited {now - t0:.1f}s")
+    del STATE["t_settle0"], STATE["settle_polls"]
     return None
 
 
@@ -382,7 +393,7 @@ def tick_report():
                 f"({t[k - 1] - t0:.2f}s to {t[k] - t0:.2f}s after the job's start)")
     last = None
     for when, stage in STATE.get("progress_calls", []):
-        if stage != last:
+        if stage != last and when >= t0 - 1.0:   # (this run's stages only)
             log(f"  core stage '{stage}' reported at {when - t0:.2f}s (abs {when:.3f})")
             last = stage
     dr = [x for x in STATE.get("draws", []) if t0 <= x <= t1]
@@ -411,8 +422,15 @@ def outputs_gone():
         and not any(u.name.startswith("surfmap ") for u in t.data.uv_layers)
 
 
+SHOT_STEPS = {5, 8, 10, 11, 12, 13, 14, 15, 16, 17}   # steps that begin with a screenshot
+
+
 def step():
     s = STATE["step"]
+    if s in SHOT_STEPS and "draws" in STATE and not os.environ.get("UI_CHECK_NO_SETTLE"):
+        wait = view_settling(("draws", "ui_draws"))
+        if wait:
+            return wait
     if s == 0:
         setup()
         STATE["step"] = 1
