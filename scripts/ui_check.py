@@ -1,5 +1,6 @@
 """Drives the Surface Map sidebar in a real Blender window and takes screenshots (a manual UI
-check, not a test): the sample pair double_torus_g2 -> vase_g2, Compute Map as the button runs
+check, not a test): the sample pair double_torus_g2 -> vase_g2 (UI_CHECK_PAIR=SOURCE,TARGET:
+another pair of samples/meshes, e.g. triple_torus_g3,polycube_g3), Compute Map as the button runs
 it (modal, worker thread, outputs in timer slices) while an app timer measures how often the UI
 ticks, Ctrl+Z / Ctrl+Shift+Z on the outputs, then each Show button and Cut Seams.
 
@@ -47,6 +48,9 @@ sys.path.insert(0, os.path.join(REPO, "addon"))
 argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = argv[argv.index("--out") + 1] if "--out" in argv else "/tmp/surfmap_ui"
 os.makedirs(OUT, exist_ok=True)
+
+
+SOURCE, TARGET = os.environ.get("UI_CHECK_PAIR", "double_torus_g2,vase_g2").split(",")
 
 
 def log(*a):
@@ -115,7 +119,7 @@ def setup():
         bpy.data.objects.remove(ob, do_unlink=True)
     import numpy as np
     obs = []
-    for name, x in (("double_torus_g2", -1.6), ("vase_g2", 1.6)):
+    for name, x in ((SOURCE, -1.6), (TARGET, 1.6)):
         V, polys = sm.read_polygon_soup(os.path.join(REPO, "samples", "meshes", name + ".obj"))
         V = np.asarray(V, dtype=float)
         V = (V - V.mean(axis=0)) / np.ptp(V, axis=0).max() * 2.4
@@ -125,7 +129,7 @@ def setup():
         me.update()
         ob = bpy.data.objects.new(name, me)
         ob.location.x = x
-        if name.startswith("double"):
+        if "_torus_g" in name:   # the n-hole tori lie flat: stood up facing the view
             ob.rotation_euler.x = 1.5708
         bpy.context.scene.collection.objects.link(ob)
         obs.append(ob)
@@ -416,7 +420,7 @@ def tick_report():
 
 
 def outputs_gone():
-    t = bpy.data.objects.get("vase_g2")
+    t = bpy.data.objects.get(TARGET)
     return t is not None and t.data.attributes.get("surfmap_map_face") is None \
         and t.data.color_attributes.get("surfmap dilatation") is None \
         and not any(u.name.startswith("surfmap ") for u in t.data.uv_layers)
@@ -581,18 +585,18 @@ def step():
     elif s == 15:
         shot("10_cut_loops.png")
         call(bpy.ops.surfmap.show_output, what='MORPH')
-        src = bpy.data.objects.get("double_torus_g2")
-        src.data.shape_keys.key_blocks["surfmap to vase_g2"].value = 1.0
+        src = bpy.data.objects.get(SOURCE)
+        src.data.shape_keys.key_blocks[f"surfmap to {TARGET}"].value = 1.0
     elif s == 16:
         shot("11_loops_follow_morph.png")
-        src = bpy.data.objects.get("double_torus_g2")
-        src.data.shape_keys.key_blocks["surfmap to vase_g2"].value = 0.0
+        src = bpy.data.objects.get(SOURCE)
+        src.data.shape_keys.key_blocks[f"surfmap to {TARGET}"].value = 0.0
         call(bpy.ops.surfmap.show_output, what='TEXTURE')
         t = time.time()
         r = call(bpy.ops.surfmap.cut_along_seams)
         log("cut along seams ->", r, f"{time.time() - t:.1f}s")
-        cut = bpy.data.objects.get("vase_g2 cut along seams")
-        target = bpy.data.objects.get("vase_g2")
+        cut = bpy.data.objects.get(f"{TARGET} cut along seams")
+        target = bpy.data.objects.get(TARGET)
         if cut is not None:     # the copy shows the texture the Texture button put on the target
             cut.data.materials.clear()
             for slot in target.material_slots:
