@@ -527,6 +527,40 @@ def test_modal_operator_progress_and_esc():
     assert bpy.ops.surfmap.compute_map('INVOKE_DEFAULT') == {'FINISHED'}
 
 
+def test_modal_run_leaves_no_timer_handler_or_job():
+    """Issue 15, "the lost first click": what a finished or cancelled modal Compute Map leaves
+    behind. Its last modal() returns FINISHED / CANCELLED (never RUNNING_MODAL or PASS_THROUGH:
+    the window manager then drops its handler, which would otherwise take the next click), its
+    event timer is removed exactly once (the timer it added, so no TIMER events keep coming),
+    the progress cursor and status text are reset, no job is left active (Compute Map's poll
+    passes and the sub-panels are drawn again), and a second run can start. The click lost in
+    ui_check.py came from Blender's own redraws, not from any of these (docs/addon.md)."""
+    from surface_map import map_job, ops_map, panel
+    sm = helpers.sm()
+    _torus_pair()
+    for cancel in (False, True):
+        job, notes = ops_map.prepare_job(bpy.context, sm)
+        op, ctx = _modal_operator(job, notes), _Context()
+        timer = op._timer
+        map_job.ACTIVE["job"] = job          # as invoke() does
+        assert panel.computing() and not bpy.ops.surfmap.compute_map.poll()
+        job.start()
+        r = _drive(op, ctx, _Event('ESC', 'PRESS') if cancel else None)
+        assert r == ({'CANCELLED'} if cancel else {'FINISHED'}), (r, op.reports)
+        removed = [c for c in ctx.window_manager.calls if c[0] == "event_timer_remove"]
+        assert removed == [("event_timer_remove", timer)], ctx.window_manager.calls
+        assert op._timer is None
+        names = [c[0] for c in ctx.window_manager.calls]
+        assert names.count("progress_end") == 1, names
+        assert ctx.workspace.calls[-1] == ("status_text_set", None)
+        assert map_job.ACTIVE.get("job") is None
+        assert not panel.computing()
+        assert bpy.ops.surfmap.compute_map.poll()
+        job.thread.join(60)
+        assert not job.thread.is_alive()     # the worker is gone too
+    assert run("compute_map")[0] == {'FINISHED'}   # and the next run starts
+
+
 def _plain_thread_gaps(seconds=1.0, period=0.02):
     """Longest pause of a plain Python thread that sleeps `period` in a loop for `seconds`: the
     machine's scheduling latency under its current load, the reference for the UI's gaps."""

@@ -182,6 +182,23 @@ def test_a_run_fills_the_list_summary_and_colours_both_objects():
     assert ("prop", "progress") not in log
 
 
+def test_result_time_split_keeps_each_stage_whole():
+    """The Result panel's stage split wraps between stages, never inside one: seen under
+    Xvfb on the triple torus -> polycube pair ('read 0.1, solve 15.0, outputs 2.9' and the
+    unit 's' alone on the next line)."""
+    from surface_map import panel
+    for times in (("0.1 s", "15.0 s", "2.9 s", "0.0 s"), ("0.2 s", "7.7 s", "3.1 s", "0.0 s"),
+                  ("10.1 s", "123.4 s", "45.6 s", "1.2 s"), ("0.1 s", "0.0 s", "0.0 s", "0.0 s")):
+        rows = [("Energy", "80.09 → 57"), ("Time", "18.1 s")] + [
+            (f"  {stage}", t) for stage, t in zip(("read", "solve", "outputs", "write"), times)]
+        split = [v for n, v in panel.result_lines(rows) if not n]
+        kept = [f"{n.strip()} {t[:-2]}" for n, t in rows if n.startswith("  ") and t != "0.0 s"]
+        assert all(len(v) <= panel.WRAP for v in split), split
+        pieces = [p.strip() for line in split for p in line.rstrip(",").split(",")]
+        assert pieces[:-1] == kept[:-1] and pieces[-1] == kept[-1] + " s", (pieces, kept)
+        assert all(any(ch.isdigit() for ch in line) for line in split), split
+
+
 def test_show_buttons_colours_legend_texture_morph_and_back():
     a, b = _torus_pair()
     res, err = run("compute_map")

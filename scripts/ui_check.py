@@ -1,5 +1,6 @@
 """Drives the Surface Map sidebar in a real Blender window and takes screenshots (a manual UI
-check, not a test): the sample pair double_torus_g2 -> vase_g2, Compute Map as the button runs
+check, not a test): the sample pair double_torus_g2 -> vase_g2 (UI_CHECK_PAIR=SOURCE,TARGET:
+another pair of samples/meshes, e.g. triple_torus_g3,polycube_g3), Compute Map as the button runs
 it (modal, worker thread, outputs in timer slices) while an app timer measures how often the UI
 ticks, Ctrl+Z / Ctrl+Shift+Z on the outputs, then each Show button and Cut Seams.
 
@@ -20,9 +21,13 @@ one-second windows with fewer than 2 ticks (from the job's start). UI_CHECK_QUIC
 panel with Cut Loops opened; UI_CHECK_INVOKE=1: Compute Map by INVOKE_DEFAULT, not a click;
 UI_CHECK_RUNS=k: Compute Map k times in a row (more one-second windows; one line 'UI-CHECK
 ticks per 1 s window' with their distribution over all runs; the first click after a run is
-often lost on a loaded machine, before the operator's invoke: clicked again after 8 s).
+lost while Blender redraws the 3D view: repeated runs click once the view has not been drawn
+for 4 s; a click still lost is repeated after 8 s).
 UI_CHECK_NO_PRESHOT=1: no screenshot before a repeated run's click; UI_CHECK_LEAVE_REGION=1:
-the pointer over the 3D view before it moves onto the button.
+the pointer over the 3D view before it moves onto the button; UI_CHECK_CLICK=batched and
+UI_CHECK_NO_SETTLE=1: the old click (sent from inside the script's callback; 3 s after the
+run); UI_CHECK_EVENT_LOG=1: every event Blender hands out around each click, logged;
+UI_CHECK_DEBUG_EVENTS=1: Blender's own event/handler debug output around each click.
 
 UI_CHECK_IDLE=S: no compute; the same timer counts ticks for S seconds of a Blender that only
 waits (the machine's load and llvmpipe alone), and with UI_CHECK_IDLE_REDRAW=1 the sidebar and
@@ -45,6 +50,9 @@ OUT = argv[argv.index("--out") + 1] if "--out" in argv else "/tmp/surfmap_ui"
 os.makedirs(OUT, exist_ok=True)
 
 
+SOURCE, TARGET = os.environ.get("UI_CHECK_PAIR", "double_torus_g2,vase_g2").split(",")
+
+
 def log(*a):
     print("UI-CHECK", *a)
     sys.stdout.flush()
@@ -57,7 +65,9 @@ def shot(name, wait=True):
     path = os.path.join(OUT, name)
     cmd = ["import", "-window", "root", path]
     if wait:
+        t = time.time()
         subprocess.run(cmd, check=False)
+        log(f"screenshot took {time.time() - t:.2f}s")
     else:
         STATE.setdefault("shots", []).append(subprocess.Popen(cmd))
     log("screenshot", path)
@@ -89,6 +99,7 @@ def redraw_all():
         a.tag_redraw()
     ui = next(r for r in area.regions if r.type == 'UI')
     xdo("mousemove", str(ui.x + ui.width // 2), str(win.height - (ui.y + ui.height // 2)))
+    log("pointer parked at", pointer())
 
 
 def focus_blender():
@@ -108,7 +119,7 @@ def setup():
         bpy.data.objects.remove(ob, do_unlink=True)
     import numpy as np
     obs = []
-    for name, x in (("double_torus_g2", -1.6), ("vase_g2", 1.6)):
+    for name, x in ((SOURCE, -1.6), (TARGET, 1.6)):
         V, polys = sm.read_polygon_soup(os.path.join(REPO, "samples", "meshes", name + ".obj"))
         V = np.asarray(V, dtype=float)
         V = (V - V.mean(axis=0)) / np.ptp(V, axis=0).max() * 2.4
@@ -118,7 +129,7 @@ def setup():
         me.update()
         ob = bpy.data.objects.new(name, me)
         ob.location.x = x
-        if name.startswith("double"):
+        if "_torus_g" in name:   # the n-hole tori lie flat: stood up facing the view
             ob.rotation_euler.x = 1.5708
         bpy.context.scene.collection.objects.link(ob)
         obs.append(ob)
@@ -179,24 +190,98 @@ def measure_redraws():
 
 def click_compute():
     """A click on the panel's Compute Map button, as a user does: the pointer moved onto it in
-    two steps (Blender highlights a button on a motion event over it), pressed and released."""
+    two steps (Blender highlights a button on a motion event over it), pressed and released.
+
+    The xdotool sequence runs in a background process while this timer callback returns, so
+    Blender's event loop takes each motion, the press and the release as they come, as with a
+    user's hand (UI_CHECK_CLICK=batched: the old way, the sequence with its sleeps run inside
+    this callback, Blender blocked meanwhile). Either way, when Blender's main thread is busy
+    (a 3D view draw: view_settling) it reads the whole click in one batch with its motions
+    merged into one; if the pointer was parked over another button (the sidebar's middle,
+    redraw_all(), is on the pairings list after a run) that one motion only un-highlights it
+    and the press finds no highlighted button: the click is lost (docs/addon.md, "The lost
+    first click after a run")."""
     win, area, _ = view3d()
     ui = next(r for r in area.regions if r.type == 'UI')
     x, y = ui.x + ui.width // 2, win.height - (ui.y + ui.height) + COMPUTE_BUTTON_Y
     focus_blender()
+    log("pointer before the click at", pointer())
+    moves = []
     if os.environ.get("UI_CHECK_LEAVE_REGION"):   # the pointer over the 3D view first
-        xdo("mousemove", str(area.x + area.width // 3), str(y))
-        time.sleep(0.5)
-    xdo("mousemove", str(x - 20), str(y - 2))
-    time.sleep(0.3)
-    xdo("mousemove", str(x), str(y))
-    time.sleep(0.3)
-    xdo("mousedown", "1")
-    time.sleep(0.15)
-    xdo("mouseup", "1")
+        moves.append((area.x + area.width // 3, y, 0.5))
+    moves += [(x - 20, y - 2, 0.3), (x, y, 0.3)]
+    if os.environ.get("UI_CHECK_CLICK") == "batched":
+        for mx, my, pause in moves:
+            xdo("mousemove", str(mx), str(my))
+            time.sleep(pause)
+        xdo("mousedown", "1")
+        time.sleep(0.15)
+        xdo("mouseup", "1")
+    else:
+        stamp = "echo UI-CHECK xdotool $(date +%s.%N)"
+        script = "".join(f"xdotool mousemove {mx} {my}; {stamp} moved {mx} {my}; sleep {pause}; "
+                         for mx, my, pause in moves)
+        script += (f"xdotool mousedown 1; {stamp} pressed; sleep 0.15; xdotool mouseup 1; "
+                   f"{stamp} released")
+        STATE.setdefault("clickers", []).append(subprocess.Popen(["sh", "-c", script]))
     STATE["t_click"] = time.time()
     STATE["clicks"] = STATE.get("clicks", 0) + 1
-    log("clicked Compute Map at", x, y)
+    log("clicked Compute Map at", x, y, "(%s)" % (os.environ.get("UI_CHECK_CLICK") or "live"))
+
+
+SETTLE = 4.0   # seconds without a 3D view draw before a repeated run's click
+
+
+def view_settling(kinds=("draws",)):
+    """Seconds to wait before a repeated run's click (None: click now): until the 3D view has not
+    been drawn for SETTLE s, as an artist clicks once the result is on screen (given up after
+    120 polls, 60 s of waiting seen by this timer: a redraw that never ends is then clicked
+    through and logged). After a run Blender redraws the view once per sample of its
+    progressive viewport anti-aliasing (Preferences > Viewport > Anti-Aliasing, 8 samples by
+    default), each one 2-3.5 s of the main thread with software OpenGL at load 15; a click
+    made meanwhile reaches Blender as one batch of events, its motions merged, and is lost
+    (click_compute). UI_CHECK_NO_SETTLE=1 clicks 3 s after the run, as before. kinds: which
+    draw times count (STATE["draws"]: the 3D view, "ui_draws": the sidebar; the screenshots
+    wait for both: a shot taken while the sidebar's panels still slide into place shows the
+    Result panel over the Outputs buttons)."""
+    now = time.time()
+    t0 = STATE.setdefault("t_settle0", now)
+    STATE["settle_polls"] = STATE.get("settle_polls", 0) + 1
+    last = max([x for kind in kinds for x in STATE.get(kind, [])] + [0.0])
+    if now - last < SETTLE and STATE["settle_polls"] <= 120:
+        return 0.5
+    done = STATE.get("t_done") or t0
+    log(f"the view {'settled' if now - last >= SETTLE else 'still drawing (gave up)'}: "
+        f"{sum(1 for x in STATE.get('draws', []) if x > done)} draws since the run, the last "
+        f"{now - last:.1f}s ago; waited {now - t0:.1f}s")
+    del STATE["t_settle0"], STATE["settle_polls"]
+    return None
+
+
+def pointer():
+    """xdotool getmouselocation: 'x:.. y:..'."""
+    out = subprocess.run(["xdotool", "getmouselocation"], capture_output=True, text=True).stdout
+    return " ".join(out.split()[:2])
+
+
+class UICHECK_OT_event_log(bpy.types.Operator):
+    """UI_CHECK_EVENT_LOG=1: logs every mouse event Blender's window manager hands out (a
+    window-level modal handler that passes everything through) from just before a click until
+    the job starts: which motions Blender saw, merged or not, and when."""
+    bl_idname = "wm.ui_check_event_log"
+    bl_label = "ui_check event log"
+
+    def invoke(self, context, event):
+        context.window_manager.modal_handler_add(self)
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context, event):
+        if STATE.get("stop_event_log"):
+            return {'FINISHED', 'PASS_THROUGH'}
+        if not event.type.startswith('TIMER'):
+            log(f"event {event.type} {event.value} at {event.mouse_x},{event.mouse_y} "
+                f"{time.time():.3f}")
+        return {'PASS_THROUGH'}
 
 
 def idle_progress():
@@ -312,7 +397,7 @@ def tick_report():
                 f"({t[k - 1] - t0:.2f}s to {t[k] - t0:.2f}s after the job's start)")
     last = None
     for when, stage in STATE.get("progress_calls", []):
-        if stage != last:
+        if stage != last and when >= t0 - 1.0:   # (this run's stages only)
             log(f"  core stage '{stage}' reported at {when - t0:.2f}s (abs {when:.3f})")
             last = stage
     dr = [x for x in STATE.get("draws", []) if t0 <= x <= t1]
@@ -335,14 +420,21 @@ def tick_report():
 
 
 def outputs_gone():
-    t = bpy.data.objects.get("vase_g2")
+    t = bpy.data.objects.get(TARGET)
     return t is not None and t.data.attributes.get("surfmap_map_face") is None \
         and t.data.color_attributes.get("surfmap dilatation") is None \
         and not any(u.name.startswith("surfmap ") for u in t.data.uv_layers)
 
 
+SHOT_STEPS = {5, 8, 10, 11, 12, 13, 14, 15, 16, 17}   # steps that begin with a screenshot
+
+
 def step():
     s = STATE["step"]
+    if s in SHOT_STEPS and "draws" in STATE and not os.environ.get("UI_CHECK_NO_SETTLE"):
+        wait = view_settling(("draws", "ui_draws"))
+        if wait:
+            return wait
     if s == 0:
         setup()
         STATE["step"] = 1
@@ -367,6 +459,11 @@ def step():
             record_progress_calls()
             bpy.types.SpaceView3D.draw_handler_add(count_draw, (), 'WINDOW', 'POST_PIXEL')
             bpy.types.SpaceView3D.draw_handler_add(count_ui_draw, (), 'UI', 'POST_PIXEL')
+        if STATE.get("runs") and not (os.environ.get("UI_CHECK_NO_SETTLE")
+                                      or os.environ.get("UI_CHECK_INVOKE")):
+            wait = view_settling()
+            if wait:
+                return wait
         STATE["t_start"] = time.time()
         STATE["job_t0"], STATE["seen_job"], STATE["clicks"] = None, False, 0
         if os.environ.get("UI_CHECK_IDLE"):
@@ -381,9 +478,21 @@ def step():
             r = call(bpy.ops.surfmap.compute_map, 'INVOKE_DEFAULT')
             log("compute_map invoke ->", r)
         else:   # a click on the panel's Compute Map button, as a user does
+            if STATE.get("runs") and STATE.get("t_done"):   # has the sidebar settled?
+                since = STATE["t_done"]
+                log("since the last job was seen done (s): sidebar draws",
+                    [round(x - since, 2) for x in STATE.get("ui_draws", []) if x > since],
+                    "3D view draws", [round(x - since, 2) for x in STATE.get("draws", [])
+                                      if x > since], "now", round(time.time() - since, 2))
             if STATE.get("runs") and not os.environ.get("UI_CHECK_NO_PRESHOT"):
                 shot(f"01_panel_before_run{STATE['runs'] + 1}.png")
                 log("Compute Map's poll before this run:", call(bpy.ops.surfmap.compute_map.poll))
+            if os.environ.get("UI_CHECK_DEBUG_EVENTS"):
+                bpy.app.debug_events = bpy.app.debug_handlers = True
+                log("debug events on at abs %.3f" % time.time())
+            if os.environ.get("UI_CHECK_EVENT_LOG"):
+                STATE["stop_event_log"] = False
+                call(bpy.ops.wm.ui_check_event_log, 'INVOKE_DEFAULT')
             click_compute()
 
     elif s == 3:
@@ -391,12 +500,24 @@ def step():
         if job is None and not STATE.get("seen_job") and time.time() - STATE["t_start"] < 30:
             if time.time() - STATE["t_click"] > 8 and STATE["clicks"] < 3:
                 # on a loaded machine a click is sometimes lost (seen 3 times at load 13-15)
-                log("no job 8 s after the click: clicking again")
+                log("no job 8 s after the click: clicking again; timer ticks around the click "
+                    "(s after it):", [round(x - STATE["t_click"], 2) for x in STATE["ticks"]
+                                      if -1 < x - STATE["t_click"] < 4],
+                    "3D view draws", [round(x - STATE["t_click"], 2) for x in STATE.get("draws", [])
+                                      if -3 < x - STATE["t_click"] < 4],
+                    "sidebar draws", [round(x - STATE["t_click"], 2) for x in
+                                      STATE.get("ui_draws", []) if -3 < x - STATE["t_click"] < 4])
                 shot(f"lost_click_{STATE.get('runs', 0) + 1}_{STATE['clicks']}.png")
                 STATE["t_start"] = time.time()
                 click_compute()
             return 0.2     # the click is not processed yet
         if job is not None:
+            if bpy.app.debug_events:
+                bpy.app.debug_events = bpy.app.debug_handlers = False
+            STATE["stop_event_log"] = True
+            if not STATE["seen_job"] and not os.environ.get("UI_CHECK_INVOKE"):
+                STATE.setdefault("clicks_needed", []).append(STATE["clicks"])
+                log(f"the job started after {STATE['clicks']} click(s)")
             STATE["seen_job"] = True
             STATE["job_t0"] = job.t0
             if job.fraction > 0.3 and not STATE["progress_shot"]:
@@ -412,6 +533,9 @@ def step():
             STATE["step"] = 2       # Compute Map again (its outputs replace the last run's)
             redraw_all()            # (a button drawn disabled was seen once: redrawn first)
             return 3.0
+        needed = STATE.get("clicks_needed", [])
+        log(f"runs started by their first click: {needed.count(1)} of {len(needed)} "
+            f"(clicks per run {needed})")
         log(f"ticks per 1 s window over {STATE['runs']} run(s): "
             f"{rate_distribution(STATE['all_rates'])}, load average "
             f"{' '.join(f'{x:.1f}' for x in os.getloadavg())}")
@@ -461,18 +585,18 @@ def step():
     elif s == 15:
         shot("10_cut_loops.png")
         call(bpy.ops.surfmap.show_output, what='MORPH')
-        src = bpy.data.objects.get("double_torus_g2")
-        src.data.shape_keys.key_blocks["surfmap to vase_g2"].value = 1.0
+        src = bpy.data.objects.get(SOURCE)
+        src.data.shape_keys.key_blocks[f"surfmap to {TARGET}"].value = 1.0
     elif s == 16:
         shot("11_loops_follow_morph.png")
-        src = bpy.data.objects.get("double_torus_g2")
-        src.data.shape_keys.key_blocks["surfmap to vase_g2"].value = 0.0
+        src = bpy.data.objects.get(SOURCE)
+        src.data.shape_keys.key_blocks[f"surfmap to {TARGET}"].value = 0.0
         call(bpy.ops.surfmap.show_output, what='TEXTURE')
         t = time.time()
         r = call(bpy.ops.surfmap.cut_along_seams)
         log("cut along seams ->", r, f"{time.time() - t:.1f}s")
-        cut = bpy.data.objects.get("vase_g2 cut along seams")
-        target = bpy.data.objects.get("vase_g2")
+        cut = bpy.data.objects.get(f"{TARGET} cut along seams")
+        target = bpy.data.objects.get(TARGET)
         if cut is not None:     # the copy shows the texture the Texture button put on the target
             cut.data.materials.clear()
             for slot in target.material_slots:
@@ -510,7 +634,7 @@ def step():
         return 0.1
     else:
         bpy.app.timers.unregister(ticker) if bpy.app.timers.is_registered(ticker) else None
-        for p in STATE.get("shots", []):
+        for p in STATE.get("shots", []) + STATE.get("clickers", []):
             p.wait(timeout=60)
         log("done")
         call(bpy.ops.wm.quit_blender)
@@ -532,4 +656,5 @@ def guarded_step():
         return None
 
 
+bpy.utils.register_class(UICHECK_OT_event_log)
 bpy.app.timers.register(guarded_step, first_interval=2.0)

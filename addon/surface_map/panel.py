@@ -267,7 +267,8 @@ def result_lines(rows):
     if "Time" in d:
         timing.append(("Time", d["Time"]))
         if stages:
-            timing += [("", line) for line in _wrap(", ".join(stages) + " s", WRAP)]
+            timing += [("", line) for line in _wrap_items(stages[:-1] + [stages[-1] + " s"],
+                                                         WRAP)]
     out = []
     for name, value in rows:
         if name.startswith("  ") or name == "Time" or (name == "Max D'" and "Mean D'" in d):
@@ -279,6 +280,19 @@ def result_lines(rows):
             out += timing
             timing = []
     return out + timing
+
+
+def _wrap_items(items, width):
+    """items joined by ', ' into lines of at most `width` characters, an item never split
+    across lines (the stage split wrapped by words left its unit 's' alone on a line)."""
+    lines, cur = [], ""
+    for item in items:
+        if cur and len(cur) + len(", ") + len(item) > width - 1:   # (room for the comma)
+            lines.append(cur + ",")
+            cur = item
+        else:
+            cur = f"{cur}, {item}" if cur else item
+    return lines + ([cur] if cur else [])
 
 
 def draw_result(layout, settings):
