@@ -167,6 +167,31 @@ TEST(IntrinsicUniformization, NonSimplicialFlippedTriangulationIsMadeSimplicialB
       EXPECT_EQ(m.F(p.face, corner), flow.faces(f, k)) << "face " << f << " corner " << k;
       EXPECT_NEAR(p.barycentric[corner], 1.0, 1e-9);
     }
+  // Continuous across every edge of T' (the final-frame flips' diagonals
+  // included): an edge's midpoint carried back from either face is one
+  // point of the input.
+  auto on_input = [&](int f, const Eigen::Vector3d& b) {
+    const FacePoint p = corr.to_input(f, b);
+    Eigen::Vector3d x = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) x += p.barycentric[k] * m.V.row(m.F(p.face, k)).transpose();
+    return x;
+  };
+  const double diagonal = (m.V.colwise().maxCoeff() - m.V.colwise().minCoeff()).norm();
+  std::vector<std::vector<std::pair<int, int>>> sides(flow.edge_vertices.rows());  // (face, corner opposite)
+  for (int f = 0; f < flow.faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) sides[flow.face_edges(f, k)].emplace_back(f, k);
+  double worst = 0;
+  for (const auto& sd : sides) {
+    ASSERT_EQ(sd.size(), 2u);
+    Eigen::Vector3d x[2];
+    for (int j = 0; j < 2; ++j) {
+      Eigen::Vector3d b = Eigen::Vector3d::Constant(0.5);
+      b[sd[j].second] = 0;
+      x[j] = on_input(sd[j].first, b);
+    }
+    worst = std::max(worst, (x[0] - x[1]).norm());
+  }
+  EXPECT_LT(worst, 1e-9 * diagonal);
 }
 
 // Coarse, very anisotropic, jittered tori (6 segments around the major
