@@ -15,7 +15,9 @@
 #include "surfmap/samples/shapes.h"
 #include "surfmap/topology/system_of_loops.h"
 #include "surfmap/uniformize/feasible_metric.h"
+#include "surfmap/uniformize/intrinsic_correspondence.h"
 #include "surfmap/uniformize/intrinsic_loops.h"
+#include "surfmap/uniformize/simplicial_flips.h"
 #include "surfmap/uniformize/ricci_flow.h"
 #include "surfmap/uniformize/uniformize.h"
 
@@ -98,28 +100,98 @@ TEST(IntrinsicUniformization, InfeasibleFixedMetricConvergesWithFlips) {
 // pair of vertices, so the loops cannot be cut on it and uniformize falls
 // back to the fixed connectivity, whose unrefined metric has degenerate
 // faces. The fallback must refine (it used to refuse the mesh).
-TEST(IntrinsicUniformization, NonSimplicialFlippedTriangulationFallsBackRefined) {
+TEST(IntrinsicUniformization, NonSimplicialFlippedTriangulationIsMadeSimplicialByExactFlips) {
+  // The 128-segment CAD plate: after the Ptolemy flips T' has loop or
+  // double edges. It went to the refined fixed-connectivity metric; now
+  // exact flips of the final metric make T' simplicial and the flip path
+  // delivers it (uniformize/simplicial_flips.h).
   const TriMesh m = samples::cad_plate(3, 128, 0.1);
   RicciFlowOptions flips;
   flips.intrinsic_delaunay = true;
   const Connectivity conn(m.F, m.num_vertices());
-  const RicciFlowResult flow = ricci_flow(conn, edge_lengths(m, conn), Background::Hyperbolic, flips);
+  RicciFlowResult flow = ricci_flow(conn, edge_lengths(m, conn), Background::Hyperbolic, flips);
   ASSERT_TRUE(flow.converged) << flow.message;
-  // What sends it to the fallback: T' is not simplicial.
+  // What sent it to the fallback: T' is not simplicial.
+  ASSERT_FALSE(is_simplicial(flow));
   EXPECT_THROW(intrinsic_loops(m, flow, Background::Hyperbolic), SolveError);
   ASSERT_FALSE(unrefined_fixed_metric_converges(m));
+  const int solve_flips = flow.flips;
+  const SimplicialFlipsResult sf = make_simplicial(flow);
+  EXPECT_TRUE(sf.simplicial);
+  EXPECT_GT(sf.loop_edges + sf.multiple_edges, 0);
+  EXPECT_EQ(flow.flips, solve_flips + sf.flips);
+  EXPECT_EQ(static_cast<int>(flow.flip_history.size()), flow.flips);
+  EXPECT_TRUE(is_simplicial(flow));
+  // The metric is unchanged: still curvature 0 at every vertex (angle sums
+  // recomputed here with the half-angle formula on the flipped faces).
+  std::vector<double> angle_sum(m.num_vertices(), 0.0);
+  for (int f = 0; f < flow.faces.rows(); ++f) {
+    double l[3];
+    for (int k = 0; k < 3; ++k) l[k] = flow.edge_lengths[flow.face_edges(f, k)];
+    const double s = 0.5 * (l[0] + l[1] + l[2]);
+    for (int k = 0; k < 3; ++k) {
+      const double a = l[k], b = l[(k + 1) % 3], c = l[(k + 2) % 3];
+      ASSERT_GT(s - a, 0) << "face " << f;
+      angle_sum[flow.faces(f, k)] +=
+          2 * std::atan(std::sqrt(std::sinh(s - b) * std::sinh(s - c) / (std::sinh(s) * std::sinh(s - a))));
+    }
+  }
+  for (int v = 0; v < m.num_vertices(); ++v) EXPECT_NEAR(angle_sum[v], 2 * kPi, 1e-9) << "vertex " << v;
+  EXPECT_NO_THROW(intrinsic_loops(m, flow, Background::Hyperbolic));
+  // The default path: the flip-based metric, unrefined.
   const UniformizeResult u = uniformize(m);
   EXPECT_TRUE(u.converged);
-  EXPECT_NE(u.metric.find("intrinsic loops failed"), std::string::npos) << u.metric;
-  EXPECT_GT(u.refinement_splits, 0);
+  EXPECT_EQ(u.metric.find("fixed connectivity"), std::string::npos) << u.metric;
+  EXPECT_NE(u.metric.find("exact flips of the final metric"), std::string::npos) << u.metric;
+  EXPECT_EQ(u.refinement_splits, 0);
   EXPECT_LE(u.max_curvature_error, 1e-10);
   EXPECT_EQ(u.layout.num_flipped, 0);
+  EXPECT_LT(u.layout.max_deck_inconsistency, 1e-6);
   EXPECT_NEAR(u.area, 4 * kPi * 2, 1e-6);
   double area = 0;
   for (int f = 0; f < u.layout.corners.rows(); ++f)
     area += hyperbolic::triangle_area(u.layout.corners(f, 0), u.layout.corners(f, 1), u.layout.corners(f, 2));
   EXPECT_NEAR(area, 4 * kPi * 2, 1e-6);
   EXPECT_EQ(static_cast<int>(u.loops.generator_edges.size()), 6);
+  // Points of T' carried back through the final-frame flips and the solve's
+  // flips: every vertex of T' is its own input vertex.
+  const IntrinsicCorrespondence corr(flow);
+  for (int f = 0; f < flow.faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Vector3d b = Eigen::Vector3d::Zero();
+      b[k] = 1;
+      const FacePoint p = corr.to_input(f, b);
+      ASSERT_GE(p.face, 0);
+      int corner = 0;
+      p.barycentric.maxCoeff(&corner);
+      EXPECT_EQ(m.F(p.face, corner), flow.faces(f, k)) << "face " << f << " corner " << k;
+      EXPECT_NEAR(p.barycentric[corner], 1.0, 1e-9);
+    }
+  // Continuous across every edge of T' (the final-frame flips' diagonals
+  // included): an edge's midpoint carried back from either face is one
+  // point of the input.
+  auto on_input = [&](int f, const Eigen::Vector3d& b) {
+    const FacePoint p = corr.to_input(f, b);
+    Eigen::Vector3d x = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) x += p.barycentric[k] * m.V.row(m.F(p.face, k)).transpose();
+    return x;
+  };
+  const double diagonal = (m.V.colwise().maxCoeff() - m.V.colwise().minCoeff()).norm();
+  std::vector<std::vector<std::pair<int, int>>> sides(flow.edge_vertices.rows());  // (face, corner opposite)
+  for (int f = 0; f < flow.faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) sides[flow.face_edges(f, k)].emplace_back(f, k);
+  double worst = 0;
+  for (const auto& sd : sides) {
+    ASSERT_EQ(sd.size(), 2u);
+    Eigen::Vector3d x[2];
+    for (int j = 0; j < 2; ++j) {
+      Eigen::Vector3d b = Eigen::Vector3d::Constant(0.5);
+      b[sd[j].second] = 0;
+      x[j] = on_input(sd[j].first, b);
+    }
+    worst = std::max(worst, (x[0] - x[1]).norm());
+  }
+  EXPECT_LT(worst, 1e-9 * diagonal);
 }
 
 // Coarse, very anisotropic, jittered tori (6 segments around the major

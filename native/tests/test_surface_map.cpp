@@ -263,6 +263,51 @@ TEST(SurfaceMap, FlatImageIsSolvedToTheRoundingOfItsCoordinates) {
   EXPECT_LT(worst, 8 * std::numeric_limits<double>::epsilon() * scale) << worst / scale;
 }
 
+TEST(SurfaceMap, CrowdedFingerImagesKeepTheirOrientation) {
+  // g1_camel's legs: the harmonic map into the flat torus squeezes a long
+  // tube by about exp(-2 pi length / circumference), here into image
+  // triangles below the ulps of their double coordinates (several tip
+  // vertices round to the same double point). Rounded to double the tips'
+  // images come out degenerate or flipped; solved and measured as long
+  // double offsets they are all positive, and the forward barycentrics
+  // computed from them keep the certificate's 3D orientations
+  // (docs/robustness.md, "Crowded images").
+  TriMesh a = samples::torus_of_revolution(1.0, 0.35, 48, 16);
+  const double outer = 1.35 - 1e-9;
+  std::vector<int> tips;
+  for (const double angle : {0.0, 0.5 * M_PI, M_PI, 1.5 * M_PI}) {
+    int best = -1;
+    double best_gap = 1e9;
+    for (int v = 0; v < a.num_vertices(); ++v) {
+      if (std::hypot(a.V(v, 0), a.V(v, 1)) < outer) continue;
+      const double gap = std::abs(std::remainder(std::atan2(a.V(v, 1), a.V(v, 0)) - angle, 2 * M_PI));
+      if (gap < best_gap) best_gap = gap, best = v;
+    }
+    ASSERT_GE(best, 0);
+    tips.push_back(best);
+  }
+  // Length 6 (5.6 link circumferences of 1.08), 40 rings: before the long
+  // double image the map failed with 83 degenerate image triangles; at 6.2
+  // the certificate's double 3D points no longer resolve the tips (limit
+  // in docs/robustness.md), at 7 neither does long double.
+  for (int v : tips) a = samples::finger(a, v, 6.0, 40);
+  const TriMesh b = samples::torus_of_revolution(1.5, 0.5, 60, 24);
+  HarmonicProblem p;
+  testing::MapHooks hooks;
+  hooks.inspect_problem = [&](const HarmonicProblem& q) { p = q; };
+  const SurfaceMapResult m = surface_map(a, b, {}, hooks);
+  expect_valid_map(m, a, b);
+  // The regime: the smallest image edge of the rounded (double) image,
+  // relative to the lattice, is below 1e-13 (fewer than ~1000 ulps).
+  ASSERT_TRUE(p.flat);
+  double smallest = std::numeric_limits<double>::infinity();
+  for (size_t e = 0; e < p.flat_i.size(); ++e)
+    smallest = std::min(smallest, std::abs(m.source_image[p.flat_j[e]] + p.flat_translation[e] - m.source_image[p.flat_i[e]]));
+  const double lattice = std::min(std::abs(m.target_omega1), std::abs(m.target_omega2));
+  std::printf("smallest image edge / lattice: %g\n", smallest / lattice);
+  EXPECT_LT(smallest, 1e-13 * lattice);
+}
+
 TEST(SurfaceMap, RejectsGenusMismatchAndUnknownClass) {
   const TriMesh a = samples::torus_of_revolution(1.0, 0.5, 30, 15);
   const TriMesh s = samples::sphere(2);

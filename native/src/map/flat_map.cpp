@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -30,6 +31,14 @@
 
 namespace surfmap::detail {
 namespace {
+
+using ComplexL = std::complex<long double>;
+
+std::vector<Complex> rounded(const std::vector<ComplexL>& zl) {
+  std::vector<Complex> z(zl.size());
+  for (size_t i = 0; i < zl.size(); ++i) z[i] = Complex(static_cast<double>(zl[i].real()), static_cast<double>(zl[i].imag()));
+  return z;
+}
 
 const GroupOps<Complex> kTranslations{Complex(0.0), [](const Complex& a, const Complex& b) { return a + b; },
                                       [](const Complex& a) { return -a; }};
@@ -84,6 +93,13 @@ class FlatSolver {
   // gradient in z_i is 2w (z_i - z_j - t)); returns z and the cotangent
   // energy.
   std::pair<std::vector<Complex>, double> solve(const std::vector<Complex>& t) const {
+    const std::vector<ComplexL> zl = solve_extended(t);
+    return std::make_pair(rounded(zl), energy_of(zl, t));
+  }
+  // The same solution in long double (extended_solve below): where the
+  // harmonic map crowds triangles to ~1e-14 of the torus, their shapes are
+  // only known to long double's 64-bit mantissa (docs/robustness.md).
+  std::vector<ComplexL> solve_extended(const std::vector<Complex>& t) const {
     const int n = n_;
     const IntrinsicDelaunayResult& idt = idt_;
     Eigen::VectorXd bx = Eigen::VectorXd::Zero(n), by = Eigen::VectorXd::Zero(n);
@@ -94,17 +110,19 @@ class FlatSolver {
       bx[ie.j] -= w * t[e].real(), by[ie.j] -= w * t[e].imag();
     }
     const Eigen::VectorXd x = factorisation_->solve(bx.tail(n - 1)), y = factorisation_->solve(by.tail(n - 1));
-    std::vector<std::complex<long double>> zl(n, 0.0L);
+    std::vector<ComplexL> zl(n, 0.0L);
     for (int i = 1; i < n; ++i) zl[i] = {x[i - 1], y[i - 1]};
     refine(t, zl);
-    std::vector<Complex> z(n, 0.0);
-    for (int i = 1; i < n; ++i) z[i] = Complex(static_cast<double>(zl[i].real()), static_cast<double>(zl[i].imag()));
-    double energy = 0;
-    for (size_t e = 0; e < idt.edges.size(); ++e) {
-      const auto& ie = idt.edges[e];
-      energy += ie.cot_weight * std::norm(z[ie.j] + t[e] - z[ie.i]);
+    return zl;
+  }
+  // The cotangent energy of points zl (#V) with translations t (#idt edges).
+  double energy_of(const std::vector<ComplexL>& zl, const std::vector<Complex>& t) const {
+    long double energy = 0;
+    for (size_t e = 0; e < idt_.edges.size(); ++e) {
+      const auto& ie = idt_.edges[e];
+      energy += static_cast<long double>(ie.cot_weight) * std::norm(zl[ie.j] + ComplexL(t[e]) - zl[ie.i]);
     }
-    return std::make_pair(z, energy);
+    return static_cast<double>(energy);
   }
 
  private:
@@ -113,27 +131,28 @@ class FlatSolver {
   // of its own coordinates, not to cond(L) times it. Long protrusions
   // (g1_camel's legs) are crowded by the harmonic map into image triangles
   // of 1e-14 of the torus, whose orientation a plain solve gets wrong.
-  void refine(const std::vector<Complex>& t, std::vector<std::complex<long double>>& zl) const {
+  // Rounds until the correction is below long double's rounding of the
+  // largest coordinate (or 12 rounds; each gains ~-log10(cond(L) eps) digits).
+  void refine(const std::vector<Complex>& t, std::vector<ComplexL>& zl) const {
     const int n = n_;
-    for (int round = 0; round < 3; ++round) {
-      std::vector<std::complex<long double>> r(n, 0.0L);
+    for (int round = 0; round < 12; ++round) {
+      std::vector<ComplexL> r(n, 0.0L);
       for (size_t e = 0; e < idt_.edges.size(); ++e) {
         const auto& ie = idt_.edges[e];
         const long double w = uniform_ ? 1.0L : static_cast<long double>(ie.cot_weight);
-        const std::complex<long double> d = zl[ie.j] + std::complex<long double>(t[e]) - zl[ie.i];
+        const ComplexL d = zl[ie.j] + ComplexL(t[e]) - zl[ie.i];
         r[ie.i] += w * d, r[ie.j] -= w * d;
       }
       Eigen::VectorXd rx(n - 1), ry(n - 1);
       for (int i = 1; i < n; ++i) rx[i - 1] = static_cast<double>(r[i].real()), ry[i - 1] = static_cast<double>(r[i].imag());
       const Eigen::VectorXd dx = factorisation_->solve(rx), dy = factorisation_->solve(ry);
-      bool changed = false;
+      long double largest = 0, step = 0;
       for (int i = 1; i < n; ++i) {
-        const std::complex<long double> before = zl[i];
-        zl[i] += std::complex<long double>(dx[i - 1], dy[i - 1]);
-        changed |= static_cast<double>(zl[i].real()) != static_cast<double>(before.real()) ||
-                   static_cast<double>(zl[i].imag()) != static_cast<double>(before.imag());
+        zl[i] += ComplexL(dx[i - 1], dy[i - 1]);
+        largest = std::max(largest, std::abs(zl[i]));
+        step = std::max(step, std::abs(ComplexL(dx[i - 1], dy[i - 1])));
       }
-      if (!changed) break;
+      if (!(step > 4 * std::numeric_limits<long double>::epsilon() * largest)) break;
     }
   }
 
@@ -155,6 +174,26 @@ Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> flat_image_corners(co
     img(f, 0) = zz[source.F(f, 0)];
     img(f, 1) = zz[source.F(f, 1)] + of(3 * f);
     img(f, 2) = zz[source.F(f, 2)] - of(3 * f + 2);
+  }
+  return img;
+}
+
+// The image triangles as in flat_image_corners, from points `zl` (#V) in
+// long double, each translated so that its corner 0 is at the origin:
+// the shapes of triangles crowded to ~1e-14 of the torus keep long
+// double's relative precision (in absolute coordinates of size 1 they
+// would have a few ulps per side), for orientation counts and D'.
+Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> flat_image_shapes(const TriMesh& source, const Connectivity& sc,
+                                                                            const std::vector<Complex>& te,
+                                                                            const std::vector<ComplexL>& zl) {
+  Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> img(source.num_faces(), 3);
+  auto of = [&](int h) { return sc.edge_halfedge(sc.edge(h)) == h ? te[sc.edge(h)] : -te[sc.edge(h)]; };
+  auto to_double = [](const ComplexL& c) { return Complex(static_cast<double>(c.real()), static_cast<double>(c.imag())); };
+  for (int f = 0; f < source.num_faces(); ++f) {
+    const ComplexL c0 = zl[source.F(f, 0)];
+    img(f, 0) = 0;
+    img(f, 1) = to_double(zl[source.F(f, 1)] + ComplexL(of(3 * f)) - c0);
+    img(f, 2) = to_double(zl[source.F(f, 2)] - ComplexL(of(3 * f + 2)) - c0);
   }
   return img;
 }
@@ -189,19 +228,22 @@ std::vector<std::array<int, 4>> candidate_matrices(bool both_signs) {
 // Flipped images among the triangles of the intrinsic triangulation (the
 // energy lives there, where positive weights guarantee an embedding), for
 // points z and translations t (#idt edges).
-int flat_intrinsic_flipped(const IntrinsicDelaunayResult& idt, const std::vector<Complex>& z,
+template <class Scalar>
+int flat_intrinsic_flipped(const IntrinsicDelaunayResult& idt, const std::vector<std::complex<Scalar>>& z,
                            const std::vector<Complex>& t_intrinsic) {
+  using C = std::complex<Scalar>;
   int intrinsic_flipped = 0;
   for (int f = 0; f < idt.F.rows(); ++f) {
-    Complex c[3];
-    c[0] = z[idt.F(f, 0)];
+    C c[3];
+    c[0] = 0;  // relative to corner 0 (only the shape counts)
     for (int k = 1; k < 3; ++k) {
       const int e = idt.face_edges(f, k - 1);  // side from corner k-1 to corner k
       const auto& ie = idt.edges[e];
       const bool along = idt.face_edge_forward(f, k - 1) != 0;
-      c[k] = c[k - 1] + (along ? (z[ie.j] + t_intrinsic[e] - z[ie.i]) : -(z[ie.j] + t_intrinsic[e] - z[ie.i]));
+      const C side = z[ie.j] + C(t_intrinsic[e]) - z[ie.i];
+      c[k] = c[k - 1] + (along ? side : -side);
     }
-    const Complex e1 = c[1] - c[0], e2 = c[2] - c[0];
+    const C e1 = c[1] - c[0], e2 = c[2] - c[0];
     if (e1.real() * e2.imag() - e1.imag() * e2.real() <= 0) ++intrinsic_flipped;
   }
   return intrinsic_flipped;
@@ -308,7 +350,8 @@ struct FlatInputs {
 // the automatic fallback switches the weights (source_weights_fallback.h).
 bool record_flat_map(const FlatInputs& in, const IntrinsicDelaunayResult& idt, const std::vector<Complex>& t_intrinsic,
                      const std::vector<Complex>& t_edges, const std::vector<Complex>& z,
-                     const std::vector<Complex>& z_init, double energy, bool own_weights, SurfaceMapResult& out) {
+                     const std::vector<Complex>& z_init, const std::vector<ComplexL>* z_extended, double energy,
+                     bool own_weights, SurfaceMapResult& out) {
   if (in.hooks.inspect_problem) in.hooks.inspect_problem(flat_problem(idt, t_intrinsic, z_init));
   double e_init = 0;
   for (size_t e = 0; e < idt.edges.size(); ++e) {
@@ -328,18 +371,19 @@ bool record_flat_map(const FlatInputs& in, const IntrinsicDelaunayResult& idt, c
   // Quality on the source's own triangles.
   auto image_corners = [&](const std::vector<Complex>& zz) { return flat_image_corners(in.source, in.sc, t_edges, zz); };
   const auto img = image_corners(z);
-  store_distortion(planar_distortion(in.source.V, in.source.F, img), out);
+  store_distortion(planar_distortion(in.source.V, in.source.F, z_extended ? flat_image_shapes(in.source, in.sc, t_edges, *z_extended) : img), out);
   store_initial_distortion(planar_distortion(in.source.V, in.source.F, image_corners(z_init)), out);
   // The energy lives on the intrinsic triangulation, where positive weights
   // guarantee an embedding; count its image triangles too.
-  out.intrinsic_flipped_triangles = flat_intrinsic_flipped(idt, z, t_intrinsic);
+  out.intrinsic_flipped_triangles =
+      z_extended ? flat_intrinsic_flipped(idt, *z_extended, t_intrinsic) : flat_intrinsic_flipped(idt, z, t_intrinsic);
   if (retry_with_own_weights(in.options, own_weights, out)) return false;
   in.stage_done("quality", 0.75);
 
   // Location (stages/flat_location.h); the initial map is the uniform Tutte one.
   out.initial_map.construction = "uniform Tutte";
   FlatLocationResult located = locate_flat_map(in.source, in.target, in.tc, in.tgt.loops, in.tgt.intrinsic.get(), in.tgt.layout, in.tgt.A,
-                                               in.tgt.B, z, z_init, img, image_corners(z_init), in.stage_done);
+                                               in.tgt.B, z, z_extended, z_init, img, image_corners(z_init), in.stage_done);
   out.forward = std::move(located.forward);
   out.inverse = std::move(located.inverse);
   out.initial_forward = std::move(located.initial_forward);
@@ -435,6 +479,7 @@ bool flat_pass(const FlatInputs& in, bool own_weights, bool first_pass, SurfaceM
   const int* M = out.candidates[out.chosen_candidate].matrix;
   const auto [t_intrinsic, t_edges] = translations_of(M);
   std::vector<Complex> z, z_init;
+  std::vector<ComplexL> zl;  // without landmarks: the optimum in long double
   double energy = 0;
   if (landmarks) {
     // The ranking's held map of this class when it has one (first pass).
@@ -450,17 +495,20 @@ bool flat_pass(const FlatInputs& in, bool own_weights, bool first_pass, SurfaceM
     z_init = PinnedFlatHarmonic(n, idt.edges, h.held, true).solve(t_intrinsic, h.values).first;
   } else {
     z_init = tutte.solve(t_intrinsic).first;
-    std::tie(z, energy) = solver.solve(t_intrinsic);
+    zl = solver.solve_extended(t_intrinsic);
+    energy = solver.energy_of(zl, t_intrinsic);
     // The optimum is unique up to a translation of the torus; put the source's
     // base vertex where the target's base vertex lies (both are central
     // vertices of their shapes), a reproducible and usually natural choice.
-    const Complex shift = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z[in.sl.base_vertex];
-    for (Complex& zi : z) zi += shift;
+    const Complex shift = tgt.layout.vertex_positions[tgt.loops.base_vertex] - rounded(zl)[in.sl.base_vertex];
+    for (ComplexL& zi : zl) zi += ComplexL(shift);
+    z = rounded(zl);
     // The initial map likewise (it is located below for the "before" morph).
     const Complex shift0 = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z_init[in.sl.base_vertex];
     for (Complex& zi : z_init) zi += shift0;
   }
-  return record_flat_map(in, idt, t_intrinsic, t_edges, z, z_init, energy, own_weights, out);
+  return record_flat_map(in, idt, t_intrinsic, t_edges, z, z_init, landmarks ? nullptr : &zl, energy, own_weights,
+                         out);
 }
 
 }  // namespace

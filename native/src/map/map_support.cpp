@@ -11,6 +11,7 @@
 #include "surfmap/topology/handle_basis.h"
 #include "surfmap/uniformize/carried_loops.h"
 #include "surfmap/uniformize/intrinsic_loops.h"
+#include "surfmap/uniformize/simplicial_flips.h"
 
 namespace surfmap::detail {
 namespace {
@@ -128,8 +129,11 @@ UniformizedTarget intrinsic_target(const TriMesh& target, Background background,
   RicciFlowOptions fo;
   fo.tolerance = options.uniformization.tolerance;
   fo.intrinsic_delaunay = true;
-  const RicciFlowResult flow = ricci_flow(tc, edge_lengths(target, tc), background, fo);
+  RicciFlowResult flow = ricci_flow(tc, edge_lengths(target, tc), background, fo);
   if (!flow.converged) throw SolveError("the flow did not converge: " + flow.message);
+  // A Δ-complex T' (loop or double edges) made simplicial by exact flips of
+  // the final metric, as in uniformize (uniformize/simplicial_flips.h).
+  if (!is_simplicial(flow)) make_simplicial(flow);
   IntrinsicLoops il = intrinsic_loops(target, flow, background, lo);
   t.loops = std::move(il.loops);
   const Connectivity conn(t.loops.mesh.F, t.loops.mesh.num_vertices());

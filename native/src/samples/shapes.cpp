@@ -348,6 +348,60 @@ TriMesh needle(const TriMesh& mesh, int v, double height, double gap) {
   return out;
 }
 
+TriMesh finger(const TriMesh& mesh, int v, double length, int segments) {
+  if (v < 0 || v >= mesh.num_vertices()) throw InputError("finger: vertex " + std::to_string(v) + " does not exist");
+  if (!(length > 0)) throw InputError("finger: length must be positive");
+  if (segments < 1) throw InputError("finger: segments must be at least 1");
+  // v's link in face order: next[a] = b for every face (v, a, b).
+  std::map<int, int> next;
+  Vector3d normal = Vector3d::Zero();
+  for (int t = 0; t < mesh.num_faces(); ++t)
+    for (int c = 0; c < 3; ++c) {
+      if (mesh.F(t, c) != v) continue;
+      const int a = mesh.F(t, (c + 1) % 3), b = mesh.F(t, (c + 2) % 3);
+      next[a] = b;
+      normal += (mesh.V.row(a) - mesh.V.row(v)).cross(mesh.V.row(b) - mesh.V.row(v)).transpose();
+    }
+  if (next.size() < 3 || !(normal.norm() > 0)) throw InputError("finger: vertex " + std::to_string(v) + " has no proper star");
+  std::vector<int> link{next.begin()->first};
+  while (static_cast<int>(link.size()) <= static_cast<int>(next.size())) {
+    const auto it = next.find(link.back());
+    if (it == next.end()) throw InputError("finger: the link of vertex " + std::to_string(v) + " is not a cycle");
+    if (it->second == link.front()) break;
+    link.push_back(it->second);
+  }
+  const int m = static_cast<int>(link.size());
+  if (m != static_cast<int>(next.size())) throw InputError("finger: the link of vertex " + std::to_string(v) + " is not one cycle");
+  normal.normalize();
+  Vector3d centre = Vector3d::Zero();
+  for (int a : link) centre += mesh.V.row(a).transpose();
+  centre /= m;
+  double radius = 0;
+  for (int a : link) radius += (mesh.V.row(a).transpose() - centre).norm() / m;
+  const int nv = mesh.num_vertices();
+  TriMesh out;
+  out.V.resize(nv + segments * m, 3);
+  out.V.topRows(nv) = mesh.V;
+  // ring[k][i]: the k-th copy of link vertex i (ring 0: the link itself).
+  auto ring = [&](int k, int i) { return k == 0 ? link[i % m] : nv + (k - 1) * m + i % m; };
+  for (int k = 1; k <= segments; ++k)
+    for (int i = 0; i < m; ++i)
+      out.V.row(ring(k, i)) = mesh.V.row(link[i]) + (length * k / segments) * normal.transpose();
+  out.V.row(v) = (centre + (length + 0.5 * radius) * normal).transpose();
+  std::vector<Eigen::Vector3i> faces;
+  for (int t = 0; t < mesh.num_faces(); ++t)
+    if (mesh.F(t, 0) != v && mesh.F(t, 1) != v && mesh.F(t, 2) != v) faces.emplace_back(mesh.F.row(t).transpose());
+  for (int k = 0; k < segments; ++k)
+    for (int i = 0; i < m; ++i) {
+      faces.emplace_back(ring(k, i), ring(k, i + 1), ring(k + 1, i + 1));
+      faces.emplace_back(ring(k, i), ring(k + 1, i + 1), ring(k + 1, i));
+    }
+  for (int i = 0; i < m; ++i) faces.emplace_back(v, ring(segments, i), ring(segments, i + 1));
+  out.F.resize(static_cast<int>(faces.size()), 3);
+  for (size_t f = 0; f < faces.size(); ++f) out.F.row(static_cast<int>(f)) = faces[f].transpose();
+  return out;
+}
+
 TriMesh jitter(const TriMesh& mesh, double amplitude, unsigned seed) {
   if (!(amplitude >= 0 && amplitude < 0.3))
     throw InputError("jitter: amplitude " + std::to_string(amplitude) + " is out of range [0, 0.3)");

@@ -89,26 +89,47 @@ IntrinsicCorrespondence::IntrinsicCorrespondence(const RicciFlowResult& flow)
     flips_of_face_[fl.face0].push_back(j);
     flips_of_face_[fl.face1].push_back(j);
   }
+  // The final-frame flips come last; the faces before them, by undoing
+  // their rows (after: face0 = (k, s, m), face1 = (m, t, k)).
+  solve_flips_ = static_cast<int>(flips_.size());
+  while (solve_flips_ > 0 && flips_[solve_flips_ - 1].final_frame) --solve_flips_;
+  for (int j = 0; j < solve_flips_; ++j)
+    if (flips_[j].final_frame)
+      throw InputError("intrinsic correspondence: final-frame flip " + std::to_string(j) + " before a flip of the solve");
+  solve_faces_ = faces_;
+  for (int j = static_cast<int>(flips_.size()) - 1; j >= solve_flips_; --j) {
+    const EdgeFlip& fl = flips_[j];
+    const int k = solve_faces_(fl.face0, 0), s = solve_faces_(fl.face0, 1), m = solve_faces_(fl.face0, 2),
+              t = solve_faces_(fl.face1, 1);
+    solve_faces_(fl.face0, fl.corner0) = k, solve_faces_(fl.face0, (fl.corner0 + 1) % 3) = s,
+                               solve_faces_(fl.face0, (fl.corner0 + 2) % 3) = t;
+    solve_faces_(fl.face1, fl.corner1) = m, solve_faces_(fl.face1, (fl.corner1 + 1) % 3) = t,
+                               solve_faces_(fl.face1, (fl.corner1 + 2) % 3) = s;
+  }
 }
 
 FacePoint IntrinsicCorrespondence::to_input(int f, const Eigen::Vector3d& b) const {
   if (f < 0 || f >= faces_.rows()) throw InputError("intrinsic correspondence: face " + std::to_string(f) + " out of range");
+  // The final-frame flips, in the final metric.
+  const FacePoint q = undo_range(FacePoint{f, clamped(b)}, solve_flips_, static_cast<int>(flips_.size()));
   // b⁰_i ∝ b_i e^{u_i}, scaled by the largest factor of the face against overflow.
   double umax = -INFINITY;
-  for (int k = 0; k < 3; ++k) umax = std::max(umax, u_[faces_(f, k)]);
+  for (int k = 0; k < 3; ++k) umax = std::max(umax, u_[solve_faces_(q.face, k)]);
   Eigen::Vector3d b0;
-  for (int k = 0; k < 3; ++k) b0[k] = std::max(0.0, b[k]) * std::exp(u_[faces_(f, k)] - umax);
-  return undo_flips(f, clamped(b0));
+  for (int k = 0; k < 3; ++k) b0[k] = std::max(0.0, q.barycentric[k]) * std::exp(u_[solve_faces_(q.face, k)] - umax);
+  return undo_flips(q.face, clamped(b0));
 }
 
 FacePoint IntrinsicCorrespondence::undo_flips(int f, const Eigen::Vector3d& b) const {
   if (f < 0 || f >= faces_.rows()) throw InputError("intrinsic correspondence: face " + std::to_string(f) + " out of range");
-  FacePoint p{f, clamped(b)};
-  int time = static_cast<int>(flips_.size());  // flips before `time` are still to undo
+  return undo_range(FacePoint{f, clamped(b)}, 0, solve_flips_);
+}
+
+FacePoint IntrinsicCorrespondence::undo_range(FacePoint p, int stop, int time) const {
   for (;;) {
     const std::vector<int>& list = flips_of_face_[p.face];
     const auto it = std::lower_bound(list.begin(), list.end(), time);
-    if (it == list.begin()) break;
+    if (it == list.begin() || *(it - 1) < stop) break;
     const int j = *(it - 1);
     const EdgeFlip& fl = flips_[j];
     // The point's weights on the quad's slots (it is in one of the new faces).

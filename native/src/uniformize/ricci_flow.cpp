@@ -131,6 +131,45 @@ class SchemeMetric {
   Eigen::VectorXd r0_, inv_, tanh_half_r0_;
 };
 
+/// Half-perimeter above which the hyperbolic half-angle formulas use
+/// logarithms: sinh(s) sinh(s_k) overflows near s = 355, and the quotients
+/// then gave NaN angles (extreme cone targets, e.g. every vertex a cone of
+/// angle 0.1, whose Newton steps pass through triangles of sides ~10^3).
+constexpr double kLongTriangle = 200.0;
+
+/// Largest change of any u_i in one hyperbolic Newton step (newton_step).
+constexpr double kMaxHyperbolicStep = 10.0;
+
+/// log sinh(a) for a > 0 without overflow, accurate also for small a.
+double log_sinh(double a) { return a - std::log(2.0) + std::log(-std::expm1(-2.0 * a)); }
+
+/// The hyperbolic branch of triangle_angles for long triangles (s >
+/// kLongTriangle): the same half-angle formulas with every sinh product
+/// taken through its logarithm; tan²(θ_k/2) = sinh s_{k+1} sinh s_{k+2} /
+/// (sinh s sinh s_k), and dθ_i/dl_i = sinh l_i / (2 sqrt(sinh s Π sinh s_k)).
+/// s_k: the three slacks (all > 0).
+void hyperbolic_angles_of_long_triangle(const double l[3], double s, const double sk[3], double theta[3],
+                                        double D[3][3]) {
+  const double log_fs = log_sinh(s);
+  double log_f[3];
+  for (int k = 0; k < 3; ++k) log_f[k] = log_sinh(sk[k]);
+  double cos_theta[3];
+  for (int k = 0; k < 3; ++k) {
+    const double log_x = log_fs + log_f[k], log_y = log_f[(k + 1) % 3] + log_f[(k + 2) % 3];
+    const double top = std::max(log_x, log_y);
+    const double x = std::exp(log_x - top), y = std::exp(log_y - top);
+    theta[k] = 2.0 * std::atan2(std::sqrt(y), std::sqrt(x));
+    cos_theta[k] = (x - y) / (x + y);
+  }
+  const double log_twice = std::log(2.0) + 0.5 * (log_fs + log_f[0] + log_f[1] + log_f[2]);
+  for (int i = 0; i < 3; ++i) {
+    const double dii = std::exp(log_sinh(l[i]) - log_twice);
+    D[i][i] = dii;
+    for (int m = 0; m < 3; ++m)
+      if (m != i) D[i][m] = -dii * cos_theta[3 - i - m];
+  }
+}
+
 /// Angles of a triangle with sides l[k] opposite corner k, and D(i,m) =
 /// dθ_i/dl_m. Returns false (angles π,0,0 opposite the too-long side, D = 0)
 /// when the triangle inequality fails: the extended convex energy of
@@ -150,6 +189,10 @@ bool triangle_angles(const double l[3], Background bg, double theta[3], double D
       for (int m = 0; m < 3; ++m) D[k][m] = 0.0;
     }
     return false;
+  }
+  if (bg == Background::Hyperbolic && s > kLongTriangle) {
+    hyperbolic_angles_of_long_triangle(l, s, sk, theta, D);
+    return true;
   }
   double f[3], fs, twice;  // "half-perimeter" quantities of the half-angle formulas
   if (bg == Background::Euclidean) {
@@ -810,6 +853,15 @@ struct RicciRun {
       Eigen::VectorXd delta;
       if (factor_valid && mu == 0.0) delta = preconditioned_step(rhs);
       if (delta.size() == 0 && !factorized_step(rhs, delta)) continue;
+      // Hyperbolic: at most kMaxHyperbolicStep in any u per step. Why: far
+      // out every angle underflows to 0, where the residual is the target's
+      // cone angles, small for near-cusp targets (all cones 0.1 or 1e-3), so
+      // a residual line search accepted a first step into that region, whose
+      // Hessian is 0, and stalled there.
+      if (!flat) {
+        const double largest = delta.cwiseAbs().maxCoeff();
+        if (largest > kMaxHyperbolicStep) delta *= kMaxHyperbolicStep / largest;
+      }
       accepted = line_search(delta, g2);
       if (accepted) {
         mu *= 0.1;

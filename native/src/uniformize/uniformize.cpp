@@ -9,6 +9,7 @@
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/uniformize/feasible_metric.h"
 #include "surfmap/uniformize/intrinsic_loops.h"
+#include "surfmap/uniformize/simplicial_flips.h"
 
 namespace surfmap {
 namespace {
@@ -108,6 +109,16 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
     flow.intrinsic_delaunay = true;
     r.ricci = ricci_flow(input_conn, edge_lengths(mesh, input_conn), bg, flow);
     r.edge_flips = r.ricci.flips;
+    if (r.ricci.converged && !is_simplicial(r.ricci)) {
+      // T' is a Δ-complex (loops or double edges after Ptolemy flips): exact
+      // flips of the final metric make it simplicial without changing the
+      // metric (uniformize/simplicial_flips.h).
+      const SimplicialFlipsResult sf = make_simplicial(r.ricci);
+      r.edge_flips = r.ricci.flips;
+      r.metric += " (" + std::to_string(sf.loop_edges) + " loop and " + std::to_string(sf.multiple_edges) +
+                  " multiple edges of T' removed by " + std::to_string(sf.flips) + " exact flips of the final metric" +
+                  (sf.simplicial ? "" : ", not all") + ")";
+    }
     if (r.ricci.converged) {
       try {
         IntrinsicLoops il = intrinsic_loops(mesh, r.ricci, bg, lo);

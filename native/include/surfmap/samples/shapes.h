@@ -114,4 +114,14 @@ TriMesh insert_degenerate_faces(const TriMesh& mesh, int count, double t, unsign
 /// Throws InputError on a bad vertex, height <= 0 or gap outside (0, 1).
 TriMesh needle(const TriMesh& mesh, int v, double height, double gap);
 
+/// A long finger like the legs of g1_camel: the star of vertex `v` extruded
+/// along its area-weighted normal into a tube of `segments` rings of v's link
+/// (each a copy of the link moved by length / segments), capped by v's star
+/// with v at `length` plus half the link's mean radius. A harmonic map into a
+/// flat torus squeezes such a tube by about exp(-2 pi length / circumference)
+/// (docs/robustness.md, "Crowded images"). Same genus; adds
+/// segments x #link vertices. Throws InputError on a bad vertex, length <= 0
+/// or segments < 1.
+TriMesh finger(const TriMesh& mesh, int v, double length, int segments);
+
 }  // namespace surfmap::samples

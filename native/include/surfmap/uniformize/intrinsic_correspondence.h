@@ -21,6 +21,9 @@
 //     vectors (Ptolemy flips: null vectors, G_ij = −x⁰_ij²/2; exact
 //     hyperbolic flips: hyperboloid points, G_ij = −1 − x⁰_ij²/2, G_ii = −1;
 //     exact Euclidean flips: the quad unfolded in the plane).
+// Flips made after the solve in the final metric (EdgeFlip::final_frame,
+// uniformize/simplicial_flips.h) come last and are undone first, before
+// the frame change, as exact flips of the final metric.
 // The flips a point passes through are found per face id (flips reuse the
 // ids of the two faces they replace), so carrying a point costs the flips
 // it crosses, not the length of the history.
@@ -48,14 +51,20 @@ class IntrinsicCorrespondence {
   /// faces. Weights are clamped to >= 0 and sum to 1.
   FacePoint to_input(int f, const Eigen::Vector3d& barycentric) const;
 
-  /// The same for a point given in the u = 0 frame of face f (no frame
-  /// change): only the flips are undone.
+  /// The same for a point given in the u = 0 frame of face f of the
+  /// solve's final triangulation (before any final-frame flip; no frame
+  /// change): only the solve's flips are undone.
   FacePoint undo_flips(int f, const Eigen::Vector3d& barycentric) const;
 
   int num_flips() const { return static_cast<int>(flips_.size()); }
 
  private:
+  /// Undoes the flips with index in [stop, time) that the point crosses.
+  FacePoint undo_range(FacePoint p, int stop, int time) const;
+
   std::vector<EdgeFlip> flips_;
+  int solve_flips_ = 0;     // flips_[solve_flips_..] are final-frame flips
+  RowMatrixX3i solve_faces_;  // the faces before the final-frame flips
   std::vector<std::vector<int>> flips_of_face_;  // per face id: flips that rewrote it, ascending
   RowMatrixX3i faces_;
   Eigen::VectorXd u_;

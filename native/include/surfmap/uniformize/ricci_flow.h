@@ -109,6 +109,11 @@ struct EdgeFlip {
   /// solve (Euclidean: planar unfolding; hyperbolic: hyperbolic unfolding);
   /// false for the Ptolemy flips during the solve.
   bool exact = false;
+  /// True for the exact flips of the FINAL metric made after the solve to
+  /// make the triangulation simplicial (uniformize/simplicial_flips.h); they
+  /// come last in the history, and base_lengths then hold the final metric's
+  /// chords (Euclidean lengths; hyperbolic 2 sinh(l/2)).
+  bool final_frame = false;
 };
 
 struct RicciFlowResult {

@@ -41,12 +41,39 @@ int locate_in_crack(const TriangleGrid& grid, const std::vector<std::array<Compl
   return best_f;
 }
 
+// The barycentrics of the long double point `pl` (whose rounding `p` was
+// located in triangle `tri` with barycentrics `b`), on the same lattice
+// translate, computed in long double. Why: source triangles crowded to
+// ~1e-14 of the torus have images of a few ulps of the double coordinates;
+// barycentrics from the extended point keep their shapes to the rounding of
+// the barycentrics themselves (docs/robustness.md, "Crowded images").
+Eigen::Vector3d extended_barycentric(const std::array<Complex, 3>& tri, const Eigen::Vector3d& b, Complex p,
+                                     const std::complex<long double>& pl, Complex w1, Complex w2) {
+  using LD = long double;
+  using CL = std::complex<LD>;
+  const Complex s = b[0] * tri[0] + b[1] * tri[1] + b[2] * tri[2] - p;  // ~ the lattice vector moved by
+  const double det = w1.real() * w2.imag() - w1.imag() * w2.real();
+  const double m = std::round((s.real() * w2.imag() - s.imag() * w2.real()) / det);
+  const double n = std::round((w1.real() * s.imag() - w1.imag() * s.real()) / det);
+  const CL q = pl + LD(m) * CL(w1) + LD(n) * CL(w2);
+  auto cross = [](const CL& a, const CL& c) { return a.real() * c.imag() - a.imag() * c.real(); };
+  const CL t0(tri[0]), t1(tri[1]), t2(tri[2]);
+  const LD area = cross(t1 - t0, t2 - t0);
+  const Eigen::Vector3d bl(static_cast<double>(cross(t1 - q, t2 - q) / area),
+                           static_cast<double>(cross(t2 - q, t0 - q) / area),
+                           static_cast<double>(cross(t0 - q, t1 - q) / area));
+  // Only a refinement of the double location: same triangle, same sign pattern within rounding.
+  if (!bl.allFinite() || (bl - b).cwiseAbs().maxCoeff() > 1e-6) return b;
+  return bl;
+}
+
 }  // namespace
 
 FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target, const Connectivity& tc,
                                    const SystemOfLoops& target_loops, const TargetIntrinsic* target_intrinsic,
                                    const DiskLayout& layout, Complex w1, Complex w2,
-                                   const std::vector<Complex>& z, const std::vector<Complex>& z_init,
+                                   const std::vector<Complex>& z, const std::vector<std::complex<long double>>* z_extended,
+                                   const std::vector<Complex>& z_init,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& image,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& initial_image,
                                    const StageDone& stage_done) {
@@ -67,6 +94,7 @@ FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target,
   for (int i = 0; i < n; ++i) {
     Eigen::Vector3d b;
     int rf = locate_periodic(tgrid, z[i], centre, w1, w2, &b);
+    if (rf >= 0 && z_extended) b = extended_barycentric(ttris[rf], b, z[i], (*z_extended)[i], w1, w2);
     if (rf < 0) rf = locate_in_crack(tgrid, ttris, z[i], centre, w1, w2, &b);
     if (rf < 0) throw SolveError("source vertex " + std::to_string(i) + " could not be located on the target");
     out.forward[i] = point_on_input(target, tc, target_loops, target_intrinsic, refined_face_origin, rf, b);

@@ -18,14 +18,16 @@ struct FlatLocationResult {
 /// `target_loops`/`layout`: the target's refined mesh laid out in the plane
 /// (`target_intrinsic`: its T' on the flip path, else null),
 /// lattice (w1, w2); `z`/`z_init` (#V source): the optimum and the initial
-/// map; `image`/`initial_image` (#F x 3): their image triangles. Reports
+/// map; `z_extended` (#V source, optional): the optimum in long double, whose
+/// rounding is `z` (the forward barycentrics are then computed from it); `image`/`initial_image` (#F x 3): their image triangles. Reports
 /// "forward location" to stage_done between the two directions. A vertex
 /// of the optimum that cannot be located is a SolveError; of the initial
 /// map, it leaves that output empty.
 FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target, const Connectivity& tc,
                                    const SystemOfLoops& target_loops, const TargetIntrinsic* target_intrinsic,
                                    const DiskLayout& layout, Complex w1, Complex w2,
-                                   const std::vector<Complex>& z, const std::vector<Complex>& z_init,
+                                   const std::vector<Complex>& z, const std::vector<std::complex<long double>>* z_extended,
+                                   const std::vector<Complex>& z_init,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& image,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& initial_image,
                                    const StageDone& stage_done);
