@@ -262,24 +262,33 @@ int flip_ring_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std
     for (int k = 0; k < 3; ++k) ++faces_on_edge[flat.face_edges(f, k)];
   std::vector<char> removed(nf, 0);
   int count = 0;
-  for (int f = 0; f < nf; ++f) {
-    double l[3];
-    for (int k = 0; k < 3; ++k) l[k] = flat.edge_lengths[flat.face_edges(f, k)];
-    const int k = static_cast<int>(std::max_element(l, l + 3) - l);
-    if (l[k] < l[(k + 1) % 3] + l[(k + 2) % 3]) continue;  // not degenerate
-    const int c = flat.faces(f, k), s1 = flat.faces(f, (k + 1) % 3), s2 = flat.faces(f, (k + 2) % 3);
-    if (faces_on_edge[flat.face_edges(f, k)] != 1 || pt.ring_y.count(c) || !pt.ring_y.count(s1) ||
-        !pt.ring_y.count(s2))
-      continue;
-    auto it = std::find(pt.star.begin(), pt.star.end(), std::array<int, 3>{pt.pole, s2, s1});
-    if (it == pt.star.end()) continue;
-    // Sides: l[(k+2)%3] joins c–s1, l[(k+1)%3] joins s2–c.
-    pt.ring_y[c] = (l[(k + 2) % 3] * pt.ring_y[s2] + l[(k + 1) % 3] * pt.ring_y[s1]) / l[k];
-    *it = {pt.pole, c, s1};
-    pt.star.push_back({pt.pole, s2, c});
-    removed[f] = 1;
-    for (int q = 0; q < 3; ++q) --faces_on_edge[flat.face_edges(f, q)];
-    ++count;
+  // Sweeps until nothing flips: a flip makes the triangle's other two edges
+  // ring edges, so a degenerate neighbour behind one of them (a chain of
+  // degenerate triangles reaching into the disk, as at the capped artery's
+  // apex) becomes flippable in the next sweep; a single sweep left such
+  // chains degenerate in the next round's input lengths.
+  for (int sweep_count = -1; sweep_count != count;) {
+    sweep_count = count;
+    for (int f = 0; f < nf; ++f) {
+      if (removed[f]) continue;
+      double l[3];
+      for (int k = 0; k < 3; ++k) l[k] = flat.edge_lengths[flat.face_edges(f, k)];
+      const int k = static_cast<int>(std::max_element(l, l + 3) - l);
+      if (l[k] < l[(k + 1) % 3] + l[(k + 2) % 3]) continue;  // not degenerate
+      const int c = flat.faces(f, k), s1 = flat.faces(f, (k + 1) % 3), s2 = flat.faces(f, (k + 2) % 3);
+      if (faces_on_edge[flat.face_edges(f, k)] != 1 || pt.ring_y.count(c) || !pt.ring_y.count(s1) ||
+          !pt.ring_y.count(s2))
+        continue;
+      auto it = std::find(pt.star.begin(), pt.star.end(), std::array<int, 3>{pt.pole, s2, s1});
+      if (it == pt.star.end()) continue;
+      // Sides: l[(k+2)%3] joins c–s1, l[(k+1)%3] joins s2–c.
+      pt.ring_y[c] = (l[(k + 2) % 3] * pt.ring_y[s2] + l[(k + 1) % 3] * pt.ring_y[s1]) / l[k];
+      *it = {pt.pole, c, s1};
+      pt.star.push_back({pt.pole, s2, c});
+      removed[f] = 1;
+      for (int q = 0; q < 3; ++q) --faces_on_edge[flat.face_edges(f, q)];
+      ++count;
+    }
   }
   disk_face_kept.clear();
   for (int f = 0; f < nf; ++f)
