@@ -550,6 +550,24 @@ struct DiskFlow {
     for (size_t i = 0; i < new_sides.size(); ++i)  // star flips: the new ring edge, opposite corner 1
       next[nd.FE(static_cast<int>(kept.size() + i), 1)] = new_sides[i];
     for (int e = 0; e < nd.EV.rows(); ++e) next[e] *= vertex_scale[nd.EV(e, 0)] * vertex_scale[nd.EV(e, 1)];
+    // Degenerate triangles the ring flips could not reach (their angle π is
+    // at a ring vertex, or behind an edge that never reached the ring): the
+    // next round has no valid start; say so instead of failing in its input
+    // check. Star flips' new triangles start strict (vertex_scale).
+    int degenerate = 0, first = -1;
+    for (int f = 0; f < nd.F.rows(); ++f) {
+      const double a = next[nd.FE(f, 0)], b = next[nd.FE(f, 1)], c = next[nd.FE(f, 2)];
+      if (!(a < b + c && b < c + a && c < a + b)) {
+        if (first < 0) first = f;
+        ++degenerate;
+      }
+    }
+    if (degenerate > 0) {
+      out.message = "ring flips left " + std::to_string(degenerate) + " degenerate disk triangles (first: (" +
+                    std::to_string(d.old_id[nd.F(first, 0)]) + ", " + std::to_string(d.old_id[nd.F(first, 1)]) + ", " +
+                    std::to_string(d.old_id[nd.F(first, 2)]) + "), input vertex ids)";
+      return false;
+    }
     lengths = next;
     d.u.setZero();
     return true;
