@@ -284,14 +284,16 @@ TEST(SphericalFlips, UniformizationIsUniqueUpToMobius) {
   EXPECT_LT(worst, 1e-6);
 }
 
-// A thin tube of radius 1 along y with a hole in its side (genus 0, three
+// A thin tube of radius 1 along y with a hole in its side (faces whose
+// centroid is within hole_radius of (1, 0.6 length, 0); genus 0, three
 // boundary loops, like an artery's branches), bent by x += bend y² in
 // coordinates divided by the bounding-box diagonal, each loop closed by a
 // fan to an apex beside its centroid (moved off the loop's plane by a
 // quarter of its mean radius): apexes of valence `segments` with long
 // slivers, the shape the open-surface path caps (docs/open_surfaces.md).
 // `apexes` receives the three apex ids.
-TriMesh capped_bent_tube(double length, int rings, int segments, double bend, std::vector<int>& apexes) {
+TriMesh capped_bent_tube(double length, int rings, int segments, double bend, double hole_radius,
+                         std::vector<int>& apexes) {
   std::vector<Eigen::Vector3d> V;
   for (int i = 0; i <= rings; ++i)
     for (int j = 0; j < segments; ++j) {
@@ -301,7 +303,7 @@ TriMesh capped_bent_tube(double length, int rings, int segments, double bend, st
   std::vector<std::array<int, 3>> F;
   const Eigen::Vector3d hole_centre(1.0, 0.6 * length, 0.0);
   auto add = [&](int a, int b, int c) {
-    if (((V[a] + V[b] + V[c]) / 3 - hole_centre).norm() > 0.6) F.push_back({a, b, c});
+    if (((V[a] + V[b] + V[c]) / 3 - hole_centre).norm() > hole_radius) F.push_back({a, b, c});
   };
   for (int i = 0; i < rings; ++i)
     for (int j = 0; j < segments; ++j) {
@@ -368,7 +370,7 @@ TEST(SphericalCentring, CappedBentTubeUniformizesFromEveryApex) {
   // centred to the tolerance by a few Newton steps (the fixed-point step
   // needed ~80 here), and the same sphere up to a Möbius map.
   std::vector<int> apexes;
-  const TriMesh m = capped_bent_tube(16.0, 128, 32, 0.3, apexes);
+  const TriMesh m = capped_bent_tube(16.0, 128, 32, 0.3, 0.6, apexes);
   ASSERT_EQ(apexes.size(), 3u);
   Connectivity conn(m.F);
   std::vector<int> removed{-1};
