@@ -414,5 +414,30 @@ TEST(SphericalCentring, CappedBentTubeUniformizesFromEveryApex) {
   EXPECT_LT(worst, 1e-6);
 }
 
+TEST(SphericalCentring, ToleranceBelowTheFloorStopsAtTheFloor) {
+  // Issue 13 item 4: a centring tolerance double precision cannot reach is
+  // not a failure. Tolerance 0: the centring stops at its rounding floor
+  // (reported), or stalls above it within centring_floor_tolerance and says
+  // so; demanding the floor strictly (floor tolerance 0) still succeeds only
+  // when the floor itself was reached.
+  std::vector<int> apexes;
+  const TriMesh m = capped_bent_tube(16.0, 128, 32, 0.3, 0.6, apexes);
+  SphericalUniformizationOptions o;
+  o.centring_tolerance = 0;
+  const SphericalUniformization s = spherical_uniformization(m, o);
+  expect_embedding(m, s);
+  EXPECT_GT(s.centring_floor, 0);
+  if (s.centring_stopped_at_floor) {
+    EXPECT_GT(s.centre_of_mass_norm, s.centring_floor);
+    EXPECT_LE(s.centre_of_mass_norm, o.centring_floor_tolerance);
+  } else {
+    EXPECT_LE(s.centre_of_mass_norm, s.centring_floor);
+  }
+  o.centring_floor_tolerance = 0;
+  const SphericalUniformization strict = spherical_uniformization(m, o);
+  EXPECT_FALSE(strict.centring_stopped_at_floor);
+  if (strict.converged) EXPECT_LE(strict.centre_of_mass_norm, strict.centring_floor);
+}
+
 }  // namespace
 }  // namespace surfmap
