@@ -83,6 +83,9 @@ void run(const Args& a) {
     j["input_flipped_faces"] = r.sphere.input_flipped_faces;
     j["ring_flips"] = r.sphere.ring_flips;
     j["centre_of_mass_norm"] = r.sphere.centre_of_mass_norm;
+    j["centring_floor"] = r.sphere.centring_floor;
+    j["centring_iterations"] = r.sphere.centring_iterations;
+    j["centring_stopped_at_floor"] = r.sphere.centring_stopped_at_floor;
     j["circle_error"] = r.sphere.circle_error;
   } else {
     const DiskLayout& L = r.layout;

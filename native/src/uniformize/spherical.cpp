@@ -142,20 +142,48 @@ double axial_centring_radius(const Eigen::MatrixX2d& P, const std::vector<int>& 
   return std::exp(0.5 * (lo + hi));
 }
 
-/// Möbius centring of `positions` with the input's vertex areas as
-/// weights (backtracking ball automorphisms); returns |centre of mass|.
-double mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& options, RowMatrixX3d& positions) {
+/// Möbius centring of `positions` with the input's vertex areas w as
+/// weights: Newton on the centre of mass m(c) of the points moved by the
+/// ball automorphism sending c to 0. At c = 0 a unit point x moves by
+/// −2 (I − x xᵀ) c, so dm/dc = −2 A with A = Σ_v w_v (I − x_v x_vᵀ) and the
+/// step is c = A⁻¹ m / 2 (backtracking, |c| <= 1/2). The former fixed-point
+/// step c = m assumed A = I/2: where the mass sits in two nearly antipodal
+/// clusters (thin tubes crowded towards points of the sphere), A's smallest
+/// eigenvalue is ~0.03 and that step gained only 3.5% per iteration, so
+/// 500 iterations stopped at |m| ~ 1e-10 far above the rounding floor.
+/// Fills out.centre_of_mass_norm, centring_iterations, centring_floor and
+/// centring_stopped_at_floor; returns true when |m| reached
+/// max(centring_tolerance, centring_floor), or stalled (no step decreases
+/// it) below centring_floor_tolerance.
+bool mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& options, RowMatrixX3d& positions,
+                   SphericalUniformization& out) {
   const int nv = mesh.num_vertices();
   const Eigen::VectorXd w = vertex_area_weights(mesh);
   auto centre_of = [&](const RowMatrixX3d& X) {
     return Eigen::Vector3d((w.transpose() * X).transpose());
   };
+  // The rounding floor of |m|: every coordinate of a normalised unit vector
+  // carries ~2ε (after a Möbius step, ~4ε), and the weighted sum of #V terms
+  // adds up to ~ε log2(#V) (Eigen's blocked reduction), times √3 for the
+  // norm of three coordinates.
+  constexpr double eps = std::numeric_limits<double>::epsilon();
+  out.centring_floor = std::sqrt(3.0) * eps * (4.0 + std::log2(std::max(2, nv)));
+  const double stop = std::max(options.centring_tolerance, out.centring_floor);
   Eigen::Vector3d cm = centre_of(positions);
-  for (int it = 0; it < options.max_centring_iterations && cm.norm() > options.centring_tolerance;
-       ++it) {
+  int it = 0;
+  bool stalled = false;
+  for (; it < options.max_centring_iterations && cm.norm() > stop; ++it) {
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    for (int v = 0; v < nv; ++v) {
+      const Eigen::Vector3d x = positions.row(v).transpose();
+      A += w[v] * (Eigen::Matrix3d::Identity() - x * x.transpose());
+    }
+    Eigen::Vector3d step = 0.5 * A.ldlt().solve(cm);
+    if (!step.allFinite()) step = cm;  // A singular (all mass at one point): the plain step
+    if (step.norm() > 0.5) step *= 0.5 / step.norm();
     bool improved = false;
     for (double t = 1.0; t > 1e-4 && !improved; t *= 0.5) {
-      const Eigen::Vector3d c = t * cm;
+      const Eigen::Vector3d c = t * step;
       RowMatrixX3d X(nv, 3);
       for (int v = 0; v < nv; ++v)
         X.row(v) = mobius(c, positions.row(v).transpose()).normalized().transpose();
@@ -166,9 +194,16 @@ double mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& 
         improved = true;
       }
     }
-    if (!improved) break;
+    if (!improved) {
+      stalled = true;
+      break;
+    }
   }
-  return cm.norm();
+  out.centring_iterations = it;
+  out.centre_of_mass_norm = cm.norm();
+  if (out.centre_of_mass_norm <= stop) return true;
+  out.centring_stopped_at_floor = stalled && out.centre_of_mass_norm <= options.centring_floor_tolerance;
+  return out.centring_stopped_at_floor;
 }
 
 int count_inward_faces(const RowMatrixX3d& X, const RowMatrixX3i& F, int* first);
@@ -227,24 +262,33 @@ int flip_ring_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std
     for (int k = 0; k < 3; ++k) ++faces_on_edge[flat.face_edges(f, k)];
   std::vector<char> removed(nf, 0);
   int count = 0;
-  for (int f = 0; f < nf; ++f) {
-    double l[3];
-    for (int k = 0; k < 3; ++k) l[k] = flat.edge_lengths[flat.face_edges(f, k)];
-    const int k = static_cast<int>(std::max_element(l, l + 3) - l);
-    if (l[k] < l[(k + 1) % 3] + l[(k + 2) % 3]) continue;  // not degenerate
-    const int c = flat.faces(f, k), s1 = flat.faces(f, (k + 1) % 3), s2 = flat.faces(f, (k + 2) % 3);
-    if (faces_on_edge[flat.face_edges(f, k)] != 1 || pt.ring_y.count(c) || !pt.ring_y.count(s1) ||
-        !pt.ring_y.count(s2))
-      continue;
-    auto it = std::find(pt.star.begin(), pt.star.end(), std::array<int, 3>{pt.pole, s2, s1});
-    if (it == pt.star.end()) continue;
-    // Sides: l[(k+2)%3] joins c–s1, l[(k+1)%3] joins s2–c.
-    pt.ring_y[c] = (l[(k + 2) % 3] * pt.ring_y[s2] + l[(k + 1) % 3] * pt.ring_y[s1]) / l[k];
-    *it = {pt.pole, c, s1};
-    pt.star.push_back({pt.pole, s2, c});
-    removed[f] = 1;
-    for (int q = 0; q < 3; ++q) --faces_on_edge[flat.face_edges(f, q)];
-    ++count;
+  // Sweeps until nothing flips: a flip makes the triangle's other two edges
+  // ring edges, so a degenerate neighbour behind one of them (a chain of
+  // degenerate triangles reaching into the disk, as at the capped artery's
+  // apex) becomes flippable in the next sweep; a single sweep left such
+  // chains degenerate in the next round's input lengths.
+  for (int sweep_count = -1; sweep_count != count;) {
+    sweep_count = count;
+    for (int f = 0; f < nf; ++f) {
+      if (removed[f]) continue;
+      double l[3];
+      for (int k = 0; k < 3; ++k) l[k] = flat.edge_lengths[flat.face_edges(f, k)];
+      const int k = static_cast<int>(std::max_element(l, l + 3) - l);
+      if (l[k] < l[(k + 1) % 3] + l[(k + 2) % 3]) continue;  // not degenerate
+      const int c = flat.faces(f, k), s1 = flat.faces(f, (k + 1) % 3), s2 = flat.faces(f, (k + 2) % 3);
+      if (faces_on_edge[flat.face_edges(f, k)] != 1 || pt.ring_y.count(c) || !pt.ring_y.count(s1) ||
+          !pt.ring_y.count(s2))
+        continue;
+      auto it = std::find(pt.star.begin(), pt.star.end(), std::array<int, 3>{pt.pole, s2, s1});
+      if (it == pt.star.end()) continue;
+      // Sides: l[(k+2)%3] joins c–s1, l[(k+1)%3] joins s2–c.
+      pt.ring_y[c] = (l[(k + 2) % 3] * pt.ring_y[s2] + l[(k + 1) % 3] * pt.ring_y[s1]) / l[k];
+      *it = {pt.pole, c, s1};
+      pt.star.push_back({pt.pole, s2, c});
+      removed[f] = 1;
+      for (int q = 0; q < 3; ++q) --faces_on_edge[flat.face_edges(f, q)];
+      ++count;
+    }
   }
   disk_face_kept.clear();
   for (int f = 0; f < nf; ++f)
@@ -506,6 +550,24 @@ struct DiskFlow {
     for (size_t i = 0; i < new_sides.size(); ++i)  // star flips: the new ring edge, opposite corner 1
       next[nd.FE(static_cast<int>(kept.size() + i), 1)] = new_sides[i];
     for (int e = 0; e < nd.EV.rows(); ++e) next[e] *= vertex_scale[nd.EV(e, 0)] * vertex_scale[nd.EV(e, 1)];
+    // Degenerate triangles the ring flips could not reach (their angle π is
+    // at a ring vertex, or behind an edge that never reached the ring): the
+    // next round has no valid start; say so instead of failing in its input
+    // check. Star flips' new triangles start strict (vertex_scale).
+    int degenerate = 0, first = -1;
+    for (int f = 0; f < nd.F.rows(); ++f) {
+      const double a = next[nd.FE(f, 0)], b = next[nd.FE(f, 1)], c = next[nd.FE(f, 2)];
+      if (!(a < b + c && b < c + a && c < a + b)) {
+        if (first < 0) first = f;
+        ++degenerate;
+      }
+    }
+    if (degenerate > 0) {
+      out.message = "ring flips left " + std::to_string(degenerate) + " degenerate disk triangles (first: (" +
+                    std::to_string(d.old_id[nd.F(first, 0)]) + ", " + std::to_string(d.old_id[nd.F(first, 1)]) + ", " +
+                    std::to_string(d.old_id[nd.F(first, 2)]) + "), input vertex ids)";
+      return false;
+    }
     lengths = next;
     d.u.setZero();
     return true;
@@ -580,9 +642,11 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
                                                static_cast<int>(flat.edge_vertices.rows()),
                                                farthest_from_ring(flat.faces, pt, n2));
   out.positions = project_to_sphere(P, axial_centring_radius(P, old_id, v0, vertex_area_weights(mesh)), old_id, v0, nv);
-  out.centre_of_mass_norm = mobius_centre(mesh, options, out.positions);
-  if (out.message.empty() && !(out.centre_of_mass_norm <= options.centring_tolerance))
-    out.message = "Möbius centring stalled at |centre| = " + detail::fmt(out.centre_of_mass_norm);
+  if (!mobius_centre(mesh, options, out.positions, out) && out.message.empty())
+    out.message = "Möbius centring stalled at |centre| = " + detail::fmt(out.centre_of_mass_norm) + " after " +
+                  std::to_string(out.centring_iterations) + " iterations (tolerance " +
+                  detail::fmt(std::max(options.centring_tolerance, out.centring_floor)) + ", floor " +
+                  detail::fmt(out.centring_floor) + ")";
 
   // The spherical embedding: the intrinsic triangulation (disk faces of the
   // flow and the star of v0) in input vertex ids.

@@ -17,9 +17,9 @@
 // edges flip between rounds of the flow (ring flips at degenerate
 // triangles, star flips at reflex ring vertices; docs/uniformization.md
 // "Genus 0"), so the chordal polyhedron of `intrinsic_faces` is convex: an
-// embedding. Finally Möbius-centre: repeatedly apply the ball automorphism that
-// moves the area-weighted centre of mass (vertex areas of the input mesh)
-// to the origin.
+// embedding. Finally Möbius-centre: Newton steps of the ball automorphism
+// that moves the area-weighted centre of mass (vertex areas of the input
+// mesh) to the origin.
 #include <string>
 
 #include "surfmap/mesh/tri_mesh.h"
@@ -43,8 +43,14 @@ struct SphericalUniformizationOptions {
   /// Delaunay only): a disk triangle degenerating against the removed
   /// vertex's ring flips that ring edge and the flow runs again (default 64).
   int max_ring_flip_rounds = 64;
-  /// Stop centring when |centre of mass| <= centring_tolerance.
+  /// Stop centring (Newton on the Möbius parameter) when |centre of mass|
+  /// <= max(centring_tolerance, the rounding floor centring_floor).
   double centring_tolerance = 1e-10;
+  /// When no Möbius step decreases |centre of mass| any more, a residual
+  /// at or below this is the floating-point floor of this mesh: success,
+  /// with centring_stopped_at_floor set (issue 13 item 4). Set it <=
+  /// centring_tolerance to demand the tolerance strictly.
+  double centring_floor_tolerance = 1e-7;
   int max_centring_iterations = 500;
 };
 
@@ -52,7 +58,7 @@ struct SphericalUniformization {
   /// #V positions on the unit sphere (same vertex order as the input).
   RowMatrixX3d positions;
   /// True when the flow converged, the centre of mass reached the tolerance
-  /// and no input triangle is flipped on the sphere.
+  /// (or its floor) and no intrinsic triangle is flipped on the sphere.
   bool converged = false;
   int removed_vertex = -1;
   int flow_iterations = 0;             ///< Newton iterations of the flattening
@@ -62,7 +68,14 @@ struct SphericalUniformization {
   /// Always 0: the former circular-boundary iteration was replaced by the
   /// exact vertex-at-infinity condition (field kept for the CLI's JSON).
   double circle_error = 0;
-  double centre_of_mass_norm = 0;      ///< after centring
+  double centre_of_mass_norm = 0;      ///< after centring (the achieved residual)
+  /// Rounding floor of |centre of mass| (≈ ε (4 + log2 #V) √3): the
+  /// centring stops at max(centring_tolerance, centring_floor).
+  double centring_floor = 0;
+  int centring_iterations = 0;         ///< Newton steps of the Möbius centring
+  /// The centring stalled above the tolerance but within
+  /// options.centring_floor_tolerance: converged, at the floor.
+  bool centring_stopped_at_floor = false;
   /// Intrinsic faces (intrinsic_faces) whose chordal triangle points inward
   /// on the sphere: 0 when converged.
   int flipped_faces = 0;
