@@ -110,6 +110,9 @@ class HyperbolicPipeline {
   SourceCuts cuts;
   std::promise<SourceSide> source_promise;
   std::future<SourceSide> source_future = source_promise.get_future();
+  // With two threads, the class bounds' source uniformization runs on the
+  // second thread right after the source side (next to the target's).
+  std::promise<SourceClassBounds> class_bounds_promise;
   SourceSide ss;
   // The target: uniformization, canonical schema, deck group, polygon P.
   std::unique_ptr<UniformizedTarget> ut;
@@ -204,22 +207,40 @@ class HyperbolicPipeline {
 // parts (stages/source_cuts.h).
 void HyperbolicPipeline::start_source_side() {
   if (threads <= 1) return;
-  side_thread = std::async(std::launch::async, [this] {
+  side_thread = std::async(std::launch::async, [this, genus = out.genus] {
+    std::vector<std::vector<int>> loops;
+    std::vector<Word> generators;
     try {
       SourceSide side = build_source_side(source, sc, options, own_weights);
       cuts.set_default(side.sl.loops, side.scs.generators);
+      loops = side.sl.loops;
+      generators = side.scs.generators;
       source_promise.set_value(std::move(side));
     } catch (...) {
       source_promise.set_exception(std::current_exception());
       return;
     }
+    // Issue 19: the source's own uniformization (class bounds) is
+    // independent of the target's, so the two run at once; it used to start
+    // after the target's and then ran against the full-resolution solves.
+    if (cuts.stop) return;  // the calling thread is on its way out
     try {
-      // Only the homotopy.extra_cuts, which are always lifted: the
-      // machine's scheduler shares CPU between sessions, not threads
-      // (autogroups), so under load speculative work on this thread slows
-      // the other one down (10k genus 6, load 8, where stage 1 does not
-      // run: 13-15 s with all 15 cuts prepared here against 9-10 s).
-      for (int k = 0; k < static_cast<int>(cuts.planned_bases().size()) && k < options.homotopy.extra_cuts; ++k) {
+      class_bounds_promise.set_value(source_class_bounds(source, loops, generators, genus, options));
+    } catch (...) {
+      class_bounds_promise.set_exception(std::current_exception());
+      return;
+    }
+    try {
+      // Then the homotopy.extra_cuts, which are always lifted, last first:
+      // the calling thread prepares them first first when it gets there
+      // (stages/source_cuts.h: each once, whichever thread). Nothing else
+      // speculative here: the machine's scheduler shares CPU between
+      // sessions, not threads (autogroups), so under load speculative work
+      // on this thread slows the other one down (10k genus 6, load 8, where
+      // stage 1 does not run: 13-15 s with all 15 cuts prepared here
+      // against 9-10 s).
+      const int n = std::min(static_cast<int>(cuts.planned_bases().size()), options.homotopy.extra_cuts);
+      for (int k = n - 1; k >= 0; --k) {
         if (cuts.stop) break;
         cuts.prepare_planned(k);
       }
@@ -260,7 +281,11 @@ void HyperbolicPipeline::uniformize_target() {
 // metric, for every candidate's energy lower bound from hyperbolic lengths
 // (map/class_lower_bound.h); on a thread of its own when there are two.
 void HyperbolicPipeline::start_class_bounds() {
-  class_bounds_future = std::async(threads > 1 ? std::launch::async : std::launch::deferred, [this] {
+  if (threads > 1) {
+    class_bounds_future = class_bounds_promise.get_future();  // (start_source_side)
+    return;
+  }
+  class_bounds_future = std::async(std::launch::deferred, [this] {
     return source_class_bounds(source, ss.sl.loops, ss.scs.generators, out.genus, options);
   });
 }
