@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <exception>
 #include <future>
 #include <limits>
 #include <memory>
@@ -333,6 +334,21 @@ void HyperbolicPipeline::candidate_classes_and_data() {
     throw InputError("homotopy class " + std::to_string(options.homotopy.class_index) + " does not exist; there are " +
                      std::to_string(ncand) + " candidates (0.." + std::to_string(ncand - 1) + ")");
   const double max_image_letters = space->max_image_letters();
+  // The classes' data are independent: computed on both threads (issue 19),
+  // then taken in order below, a class's error where it was thrown in order.
+  std::vector<int> evaluable;
+  for (int k = 0; k < ncand; ++k)
+    if (space->loop_image_length(classes[k].map) <= max_image_letters) evaluable.push_back(k);
+  std::vector<ClassData> computed(ncand);
+  std::vector<std::exception_ptr> failed(ncand);
+  parallel_for(threads, static_cast<int>(evaluable.size()), [&](int i, const std::atomic<bool>*) {
+    const int k = evaluable[i];
+    try {
+      computed[k] = data_of(classes[k].map);
+    } catch (...) {
+      failed[k] = std::current_exception();
+    }
+  });
   usable.assign(classes.size(), 1);
   for (size_t k = 0; k < classes.size(); ++k) {
     const HomotopyClass& hc = classes[k];
@@ -340,7 +356,8 @@ void HyperbolicPipeline::candidate_classes_and_data() {
     HomotopyCandidate c;
     c.description = hc.description;
     if (letters <= max_image_letters) {
-      data.push_back(data_of(hc.map));
+      if (failed[k]) std::rethrow_exception(failed[k]);
+      data.push_back(std::move(computed[k]));
     } else {
       data.emplace_back();
       usable[k] = 0;
