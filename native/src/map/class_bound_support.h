@@ -42,7 +42,7 @@ struct SourceClassBounds {
   std::string as_target_status;
   double time_s = 0;
 };
-SourceClassBounds source_class_bounds(const TriMesh& source, const std::vector<std::vector<int>>& loops,
+SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity& sc, const std::vector<std::vector<int>>& loops,
                                       const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options);
 
 /// Fills HomotopyCandidate::class_lower_bound, class_curve_bound and the

@@ -75,7 +75,7 @@ class HyperbolicPipeline {
                      const StageDone& stage_done)
       : source(source), target(target), sc(sc), tc(tc), options(options), hooks(hooks), out(out),
         stage_done(stage_done), threads(pipeline_threads(options.threads)), nv(source.num_vertices()),
-        own_weights(options.solve.source_weights == SourceWeights::OwnEdges), cuts(source, options, out.genus) {}
+        own_weights(options.solve.source_weights == SourceWeights::OwnEdges), cuts(source, sc, options, out.genus) {}
 
   void start_source_side();
   void uniformize_target();
@@ -226,7 +226,7 @@ void HyperbolicPipeline::start_source_side() {
     // after the target's and then ran against the full-resolution solves.
     if (cuts.stop) return;  // the calling thread is on its way out
     try {
-      class_bounds_promise.set_value(source_class_bounds(source, loops, generators, genus, options));
+      class_bounds_promise.set_value(source_class_bounds(source, sc, loops, generators, genus, options));
     } catch (...) {
       class_bounds_promise.set_exception(std::current_exception());
       return;
@@ -257,7 +257,7 @@ void HyperbolicPipeline::start_source_side() {
 // the fundamental polygon P (map/fundamental_polygon.h). Then the source
 // side (from the second thread, or built now).
 void HyperbolicPipeline::uniformize_target() {
-  ut = std::make_unique<UniformizedTarget>(uniformized_target(target, Background::Hyperbolic, options));
+  ut = std::make_unique<UniformizedTarget>(uniformized_target(target, Background::Hyperbolic, options, &tc));
   record_target_metric(*ut, out);
   tcs = canonical_schema(ut->layout.word);
   if (ut->class_loops) {
@@ -287,7 +287,7 @@ void HyperbolicPipeline::start_class_bounds() {
     return;
   }
   class_bounds_future = std::async(std::launch::deferred, [this] {
-    return source_class_bounds(source, ss.sl.loops, ss.scs.generators, out.genus, options);
+    return source_class_bounds(source, sc, ss.sl.loops, ss.scs.generators, out.genus, options);
   });
 }
 
