@@ -148,13 +148,18 @@ class HyperbolicPipeline {
   // edges (SurfaceMapResult::intrinsic_class_energy); NaN: none.
   std::vector<double> intrinsic_energy;
 
-  // The second thread (joined on the way out, after the flag is raised:
+  // Raised on the way out (declared before the second thread, so it outlives
+  // it): the source's own uniformization there then stops at its next Newton
+  // step instead of finishing first.
+  std::atomic<bool> leaving{false};
+  // The second thread (joined on the way out, after the flags are raised:
   // members are destroyed in reverse order).
   std::future<void> side_thread;
   struct RaiseOnExit {
     std::atomic<bool>& flag;
     ~RaiseOnExit() { flag = true; }
   } raise_cut_prep_stop{cuts.stop};
+  RaiseOnExit raise_leaving{leaving};
   // The source's own uniformization for the class lower bounds
   // (class_bound_support.h), built next to the candidates and the ranking;
   // declared after everything its task reads (source, ss, options), so it is
@@ -224,9 +229,9 @@ void HyperbolicPipeline::start_source_side() {
     // Issue 19: the source's own uniformization (class bounds) is
     // independent of the target's, so the two run at once; it used to start
     // after the target's and then ran against the full-resolution solves.
-    if (cuts.stop) return;  // the calling thread is on its way out
+    if (leaving) return;
     try {
-      class_bounds_promise.set_value(source_class_bounds(source, sc, loops, generators, genus, options));
+      class_bounds_promise.set_value(source_class_bounds(source, sc, loops, generators, genus, options, &leaving));
     } catch (...) {
       class_bounds_promise.set_exception(std::current_exception());
       return;

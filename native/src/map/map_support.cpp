@@ -122,11 +122,13 @@ std::shared_ptr<const ClassLoops> class_loops_on_input(const TriMesh& target, co
 /// disk layout. Throws SolveError when any step fails (typed_target makes it
 /// a UniformizationError).
 UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc, Background background,
-                                   const SurfaceMapOptions& options, const SystemOfLoopsOptions& lo) {
+                                   const SurfaceMapOptions& options, const SystemOfLoopsOptions& lo,
+                                   const std::atomic<bool>* stop) {
   UniformizedTarget t;
   RicciFlowOptions fo;
   fo.tolerance = options.uniformization.tolerance;
   fo.intrinsic_delaunay = true;
+  if (stop) fo.progress = [stop](int, double) { return !stop->load(); };
   const RicciFlowResult flow = ricci_flow(tc, edge_lengths(target, tc), background, fo);
   if (!flow.converged) throw SolveError("the flow did not converge: " + flow.message);
   IntrinsicLoops il = intrinsic_loops(target, flow, background, lo);
@@ -213,14 +215,14 @@ UniformizedTarget typed_target(const Path& path) {
 }  // namespace
 
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
-                                     const Connectivity* conn) {
+                                     const Connectivity* conn, const std::atomic<bool>* stop) {
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.loops.target_base_vertex;
   const UniformizationMetric policy = options.uniformization.target_metric;
   auto flips = [&] {
     return typed_target([&] {
-      if (conn) return intrinsic_target(target, *conn, background, options, lo);
-      return intrinsic_target(target, Connectivity(target.F, target.num_vertices()), background, options, lo);
+      if (conn) return intrinsic_target(target, *conn, background, options, lo, stop);
+      return intrinsic_target(target, Connectivity(target.F, target.num_vertices()), background, options, lo, stop);
     });
   };
   auto fixed = [&](const std::string& flip_failure) {

@@ -4,6 +4,7 @@
 // point location in laid-out triangles and points expressed on the input
 // meshes (point location itself: map/point_location.h). Not part of the
 // public API.
+#include <atomic>
 #include <algorithm>
 #include <array>
 #include <complex>
@@ -110,9 +111,12 @@ struct UniformizedTarget {
 };
 
 /// `conn`: Connectivity(target.F) when the caller has it (built once per
-/// mesh per run, issue 19), else nullptr.
+/// mesh per run, issue 19), else nullptr. `stop` (nullptr: none): when it
+/// is raised, the flip path's flow throws Cancelled at its next iteration
+/// (the pipeline leaving while the source's own uniformization runs on the
+/// second thread).
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
-                                     const Connectivity* conn = nullptr);
+                                     const Connectivity* conn = nullptr, const std::atomic<bool>* stop = nullptr);
 
 /// The target metric's account (which metric, why, its flips and exact
 /// splits) recorded in the result's target_* fields; one place for every
