@@ -3,6 +3,7 @@
 // lower bound of map/class_lower_bound.h: the source in its own
 // uniformization metric, the target's lengths, the per-candidate bounds and
 // (docs/handle_classes.md). Not public API.
+#include <atomic>
 #include <memory>
 #include <string>
 #include <vector>
@@ -42,8 +43,9 @@ struct SourceClassBounds {
   std::string as_target_status;
   double time_s = 0;
 };
-SourceClassBounds source_class_bounds(const TriMesh& source, const std::vector<std::vector<int>>& loops,
-                                      const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options);
+SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity& sc, const std::vector<std::vector<int>>& loops,
+                                      const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options,
+                                      const std::atomic<bool>* stop = nullptr);
 
 /// Fills HomotopyCandidate::class_lower_bound, class_curve_bound and the
 /// family's name of every genus >= 2 candidate k that has none yet, from

@@ -57,9 +57,9 @@ struct FlatTarget : UniformizedTarget {
   Complex A, B;  // translations of the canonical generators a', b'
 };
 
-FlatTarget flat_target(const TriMesh& target, const SurfaceMapOptions& options) {
+FlatTarget flat_target(const TriMesh& target, const Connectivity& tc, const SurfaceMapOptions& options) {
   FlatTarget t;
-  static_cast<UniformizedTarget&>(t) = uniformized_target(target, Background::Euclidean, options);
+  static_cast<UniformizedTarget&>(t) = uniformized_target(target, Background::Euclidean, options, &tc);
   const CanonicalSchema cs = canonical_schema(t.layout.word);
   t.A = evaluate(cs.generators[0], t.layout.generator_translations);
   t.B = evaluate(cs.generators[1], t.layout.generator_translations);
@@ -526,12 +526,12 @@ void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& 
               const SurfaceMapOptions& options, const testing::MapHooks& hooks, SurfaceMapResult& out,
               const StageDone& stage_done) {
   // Target: flat uniformization and canonical lattice basis.
-  FlatInputs in{source, target, sc, tc, options, hooks, stage_done, flat_target(target, options), {}, {}, {}, {}};
+  FlatInputs in{source, target, sc, tc, options, hooks, stage_done, flat_target(target, tc, options), {}, {}, {}, {}};
   record_target_metric(in.tgt, out);
   stage_done("target uniformization", 0.3);
 
   // Source: homotopy data and edge lengths.
-  in.sl = source_loops(source, options);
+  in.sl = source_loops(source, sc, options);
   in.scs = canonical_schema(in.sl.word);
   in.first = loop_first_vertices(in.sl, sc);
   in.lengths = edge_lengths(source, sc);

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <exception>
 #include <future>
 #include <limits>
 #include <memory>
@@ -74,7 +75,7 @@ class HyperbolicPipeline {
                      const StageDone& stage_done)
       : source(source), target(target), sc(sc), tc(tc), options(options), hooks(hooks), out(out),
         stage_done(stage_done), threads(pipeline_threads(options.threads)), nv(source.num_vertices()),
-        own_weights(options.solve.source_weights == SourceWeights::OwnEdges), cuts(source, options, out.genus) {}
+        own_weights(options.solve.source_weights == SourceWeights::OwnEdges), cuts(source, sc, options, out.genus) {}
 
   void start_source_side();
   void uniformize_target();
@@ -110,6 +111,9 @@ class HyperbolicPipeline {
   SourceCuts cuts;
   std::promise<SourceSide> source_promise;
   std::future<SourceSide> source_future = source_promise.get_future();
+  // With two threads, the class bounds' source uniformization runs on the
+  // second thread right after the source side (next to the target's).
+  std::promise<SourceClassBounds> class_bounds_promise;
   SourceSide ss;
   // The target: uniformization, canonical schema, deck group, polygon P.
   std::unique_ptr<UniformizedTarget> ut;
@@ -144,13 +148,18 @@ class HyperbolicPipeline {
   // edges (SurfaceMapResult::intrinsic_class_energy); NaN: none.
   std::vector<double> intrinsic_energy;
 
-  // The second thread (joined on the way out, after the flag is raised:
+  // Raised on the way out (declared before the second thread, so it outlives
+  // it): the source's own uniformization there then stops at its next Newton
+  // step instead of finishing first.
+  std::atomic<bool> leaving{false};
+  // The second thread (joined on the way out, after the flags are raised:
   // members are destroyed in reverse order).
   std::future<void> side_thread;
   struct RaiseOnExit {
     std::atomic<bool>& flag;
     ~RaiseOnExit() { flag = true; }
   } raise_cut_prep_stop{cuts.stop};
+  RaiseOnExit raise_leaving{leaving};
   // The source's own uniformization for the class lower bounds
   // (class_bound_support.h), built next to the candidates and the ranking;
   // declared after everything its task reads (source, ss, options), so it is
@@ -204,22 +213,40 @@ class HyperbolicPipeline {
 // parts (stages/source_cuts.h).
 void HyperbolicPipeline::start_source_side() {
   if (threads <= 1) return;
-  side_thread = std::async(std::launch::async, [this] {
+  side_thread = std::async(std::launch::async, [this, genus = out.genus] {
+    std::vector<std::vector<int>> loops;
+    std::vector<Word> generators;
     try {
       SourceSide side = build_source_side(source, sc, options, own_weights);
       cuts.set_default(side.sl.loops, side.scs.generators);
+      loops = side.sl.loops;
+      generators = side.scs.generators;
       source_promise.set_value(std::move(side));
     } catch (...) {
       source_promise.set_exception(std::current_exception());
       return;
     }
+    // Issue 19: the source's own uniformization (class bounds) is
+    // independent of the target's, so the two run at once; it used to start
+    // after the target's and then ran against the full-resolution solves.
+    if (leaving) return;
     try {
-      // Only the homotopy.extra_cuts, which are always lifted: the
-      // machine's scheduler shares CPU between sessions, not threads
-      // (autogroups), so under load speculative work on this thread slows
-      // the other one down (10k genus 6, load 8, where stage 1 does not
-      // run: 13-15 s with all 15 cuts prepared here against 9-10 s).
-      for (int k = 0; k < static_cast<int>(cuts.planned_bases().size()) && k < options.homotopy.extra_cuts; ++k) {
+      class_bounds_promise.set_value(source_class_bounds(source, sc, loops, generators, genus, options, &leaving));
+    } catch (...) {
+      class_bounds_promise.set_exception(std::current_exception());
+      return;
+    }
+    try {
+      // Then the homotopy.extra_cuts, which are always lifted, last first:
+      // the calling thread prepares them first first when it gets there
+      // (stages/source_cuts.h: each once, whichever thread). Nothing else
+      // speculative here: the machine's scheduler shares CPU between
+      // sessions, not threads (autogroups), so under load speculative work
+      // on this thread slows the other one down (10k genus 6, load 8, where
+      // stage 1 does not run: 13-15 s with all 15 cuts prepared here
+      // against 9-10 s).
+      const int n = std::min(static_cast<int>(cuts.planned_bases().size()), options.homotopy.extra_cuts);
+      for (int k = n - 1; k >= 0; --k) {
         if (cuts.stop) break;
         cuts.prepare_planned(k);
       }
@@ -235,7 +262,7 @@ void HyperbolicPipeline::start_source_side() {
 // the fundamental polygon P (map/fundamental_polygon.h). Then the source
 // side (from the second thread, or built now).
 void HyperbolicPipeline::uniformize_target() {
-  ut = std::make_unique<UniformizedTarget>(uniformized_target(target, Background::Hyperbolic, options));
+  ut = std::make_unique<UniformizedTarget>(uniformized_target(target, Background::Hyperbolic, options, &tc));
   record_target_metric(*ut, out);
   tcs = canonical_schema(ut->layout.word);
   if (ut->class_loops) {
@@ -260,8 +287,12 @@ void HyperbolicPipeline::uniformize_target() {
 // metric, for every candidate's energy lower bound from hyperbolic lengths
 // (map/class_lower_bound.h); on a thread of its own when there are two.
 void HyperbolicPipeline::start_class_bounds() {
-  class_bounds_future = std::async(threads > 1 ? std::launch::async : std::launch::deferred, [this] {
-    return source_class_bounds(source, ss.sl.loops, ss.scs.generators, out.genus, options);
+  if (threads > 1) {
+    class_bounds_future = class_bounds_promise.get_future();  // (start_source_side)
+    return;
+  }
+  class_bounds_future = std::async(std::launch::deferred, [this] {
+    return source_class_bounds(source, sc, ss.sl.loops, ss.scs.generators, out.genus, options);
   });
 }
 
@@ -308,6 +339,21 @@ void HyperbolicPipeline::candidate_classes_and_data() {
     throw InputError("homotopy class " + std::to_string(options.homotopy.class_index) + " does not exist; there are " +
                      std::to_string(ncand) + " candidates (0.." + std::to_string(ncand - 1) + ")");
   const double max_image_letters = space->max_image_letters();
+  // The classes' data are independent: computed on both threads (issue 19),
+  // then taken in order below, a class's error where it was thrown in order.
+  std::vector<int> evaluable;
+  for (int k = 0; k < ncand; ++k)
+    if (space->loop_image_length(classes[k].map) <= max_image_letters) evaluable.push_back(k);
+  std::vector<ClassData> computed(ncand);
+  std::vector<std::exception_ptr> failed(ncand);
+  parallel_for(threads, static_cast<int>(evaluable.size()), [&](int i, const std::atomic<bool>*) {
+    const int k = evaluable[i];
+    try {
+      computed[k] = data_of(classes[k].map);
+    } catch (...) {
+      failed[k] = std::current_exception();
+    }
+  });
   usable.assign(classes.size(), 1);
   for (size_t k = 0; k < classes.size(); ++k) {
     const HomotopyClass& hc = classes[k];
@@ -315,7 +361,8 @@ void HyperbolicPipeline::candidate_classes_and_data() {
     HomotopyCandidate c;
     c.description = hc.description;
     if (letters <= max_image_letters) {
-      data.push_back(data_of(hc.map));
+      if (failed[k]) std::rethrow_exception(failed[k]);
+      data.push_back(std::move(computed[k]));
     } else {
       data.emplace_back();
       usable[k] = 0;

@@ -94,11 +94,11 @@ namespace {
 /// The target's loops on its own connectivity, carried onto T' (ClassLoops).
 /// Throws SolveError when the carried generators do not present the group of
 /// T' (the canonical relation, unimodular homology): that would be a bug.
-std::shared_ptr<const ClassLoops> class_loops_on_input(const TriMesh& target, const RicciFlowResult& flow,
-                                                       const SystemOfLoops& tprime_loops, const DiskLayout& layout,
-                                                       const SystemOfLoopsOptions& lo) {
+std::shared_ptr<const ClassLoops> class_loops_on_input(const TriMesh& target, const Connectivity& tc,
+                                                       const RicciFlowResult& flow, const SystemOfLoops& tprime_loops,
+                                                       const DiskLayout& layout, const SystemOfLoopsOptions& lo) {
   auto cl = std::make_shared<ClassLoops>();
-  cl->loops = system_of_loops(target, lo);
+  cl->loops = system_of_loops(target, tc, lo);
   cl->word = cl->loops.word;
   const auto first = std::find(cl->word.begin(), cl->word.end(), 1);
   if (first == cl->word.end()) throw SolveError("the target's loops have no letter 1 in their word");
@@ -122,13 +122,14 @@ std::shared_ptr<const ClassLoops> class_loops_on_input(const TriMesh& target, co
 /// flips on the user's target, loops on T' (uniformize/intrinsic_loops.h),
 /// disk layout. Throws SolveError when any step fails (typed_target makes it
 /// a UniformizationError).
-UniformizedTarget intrinsic_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
-                                   const SystemOfLoopsOptions& lo) {
+UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc, Background background,
+                                   const SurfaceMapOptions& options, const SystemOfLoopsOptions& lo,
+                                   const std::atomic<bool>* stop) {
   UniformizedTarget t;
-  const Connectivity tc(target.F, target.num_vertices());
   RicciFlowOptions fo;
   fo.tolerance = options.uniformization.tolerance;
   fo.intrinsic_delaunay = true;
+  if (stop) fo.progress = [stop](int, double) { return !stop->load(); };
   RicciFlowResult flow = ricci_flow(tc, edge_lengths(target, tc), background, fo);
   if (!flow.converged) throw SolveError("the flow did not converge: " + flow.message);
   // A Δ-complex T' (loop or double edges) made simplicial by exact flips of
@@ -154,7 +155,7 @@ UniformizedTarget intrinsic_target(const TriMesh& target, Background background,
   // path"); when carrying them fails the classes read the loops of T'.
   if (background == Background::Hyperbolic) {
     try {
-      t.class_loops = class_loops_on_input(target, flow, t.loops, t.layout, lo);
+      t.class_loops = class_loops_on_input(target, tc, flow, t.loops, t.layout, lo);
       t.class_loops_status = "the target's own loops, carried through " + std::to_string(t.class_loops->flips_on_loops) +
                              " of the flips";
     } catch (const Error& e) {
@@ -217,11 +218,17 @@ UniformizedTarget typed_target(const Path& path) {
 
 }  // namespace
 
-UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options) {
+UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
+                                     const Connectivity* conn, const std::atomic<bool>* stop) {
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.loops.target_base_vertex;
   const UniformizationMetric policy = options.uniformization.target_metric;
-  auto flips = [&] { return typed_target([&] { return intrinsic_target(target, background, options, lo); }); };
+  auto flips = [&] {
+    return typed_target([&] {
+      if (conn) return intrinsic_target(target, *conn, background, options, lo, stop);
+      return intrinsic_target(target, Connectivity(target.F, target.num_vertices()), background, options, lo, stop);
+    });
+  };
   auto fixed = [&](const std::string& flip_failure) {
     return typed_target([&] { return fixed_target(target, background, options, lo, true, flip_failure); });
   };
@@ -300,10 +307,14 @@ void set_initial_map_info(const HyperbolicInitialMapResult& init, InitialMapInfo
 }
 
 SystemOfLoops source_loops(const TriMesh& source, const SurfaceMapOptions& options) {
+  return source_loops(source, Connectivity(source.F, source.num_vertices()), options);
+}
+
+SystemOfLoops source_loops(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options) {
   SystemOfLoopsOptions slo;
   slo.base_vertex = options.loops.source_base_vertex;
   slo.refine = false;
-  SystemOfLoops sl = system_of_loops(source, slo);
+  SystemOfLoops sl = system_of_loops(source, sc, slo);
   if (sl.mesh.num_vertices() != source.num_vertices() || sl.mesh.F != source.F)
     throw SolveError("the unrefined system of loops changed the source mesh");
   return sl;

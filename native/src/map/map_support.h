@@ -4,6 +4,7 @@
 // point location in laid-out triangles and points expressed on the input
 // meshes (point location itself: map/point_location.h). Not part of the
 // public API.
+#include <atomic>
 #include <algorithm>
 #include <array>
 #include <complex>
@@ -109,7 +110,13 @@ struct UniformizedTarget {
   double refinement_max_angle = 0;
 };
 
-UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options);
+/// `conn`: Connectivity(target.F) when the caller has it (built once per
+/// mesh per run, issue 19), else nullptr. `stop` (nullptr: none): when it
+/// is raised, the flip path's flow throws Cancelled at its next iteration
+/// (the pipeline leaving while the source's own uniformization runs on the
+/// second thread).
+UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
+                                     const Connectivity* conn = nullptr, const std::atomic<bool>* stop = nullptr);
 
 /// The target metric's account (which metric, why, its flips and exact
 /// splits) recorded in the result's target_* fields; one place for every
@@ -119,6 +126,8 @@ void record_target_metric(const UniformizedTarget& target, SurfaceMapResult& out
 /// The source's unrefined system of loops: it keeps the source's own
 /// connectivity, and contracting its tree gives a one-vertex schema.
 SystemOfLoops source_loops(const TriMesh& source, const SurfaceMapOptions& options);
+/// The same with `sc` = Connectivity(source.F).
+SystemOfLoops source_loops(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options);
 
 /// Genus 1 (flat target): fills `out` (docs/method.md §2.8, exact sparse solve).
 void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,

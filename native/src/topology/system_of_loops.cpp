@@ -906,7 +906,10 @@ void finish_from_simple_loops(SystemOfLoops& s) {
 void rebuild_system_of_loops(SystemOfLoops& s) { finish_from_simple_loops(s); }
 
 SystemOfLoops system_of_loops(const TriMesh& mesh, const SystemOfLoopsOptions& options) {
-  const Connectivity conn(mesh.F, mesh.num_vertices());
+  return system_of_loops(mesh, Connectivity(mesh.F, mesh.num_vertices()), options);
+}
+
+SystemOfLoops system_of_loops(const TriMesh& mesh, const Connectivity& conn, const SystemOfLoopsOptions& options) {
   const int genus = conn.genus();
   if (conn.euler_characteristic() > 0 || genus < 1)
     throw InputError("system of loops: the surface has genus 0 (Euler characteristic " +

@@ -273,44 +273,58 @@ void compute_corners(const std::vector<Chart>& chart, const std::vector<std::arr
     for (int k = 0; k < 3; ++k) out.corners(f, k) = chart[f].apply(canon[f][k]);
 }
 
+/// The Karcher objective ½Σ d(c, z)² (times 2) over the corners, with its
+/// gradient Σ log_c(z) and exact Hessian (docs/method.md §7: 1 along each
+/// geodesic, d coth d across it), from one pass of logarithms: d(c, z) is
+/// |log_c(z)|, so the line search's objective needs no pass of its own
+/// (issue 19: the recentring was a third of a 50k layout).
+struct KarcherTerms {
+  double objective = 0;
+  Complex g{0.0};
+  double hxx = 0, hxy = 0, hyy = 0;
+};
+KarcherTerms karcher_terms(const DiskLayout& out, Complex c) {
+  const int nF = static_cast<int>(out.corners.rows());
+  const Mobius centring = Mobius::centring(c);
+  KarcherTerms r;
+  for (int f = 0; f < nF; ++f)
+    for (int k = 0; k < 3; ++k) {
+      // hyperbolic::log_map(c, z) with the centring made once.
+      const Complex t = centring.apply(out.corners(f, k));
+      const double tn = std::abs(t);
+      const Complex l = tn == 0.0 ? Complex(0.0) : 2.0 * std::atanh(tn) * (t / tn);
+      r.g += l;
+      const double d = std::abs(l);
+      r.objective += d * d;
+      const double normal = d > 1e-8 ? d / std::tanh(d) : 1.0;
+      const Complex u = d > 1e-8 ? l / d : Complex(1.0, 0.0);
+      // H = u uᵀ + normal (I − u uᵀ)
+      r.hxx += normal + (1 - normal) * u.real() * u.real();
+      r.hxy += (1 - normal) * u.real() * u.imag();
+      r.hyy += normal + (1 - normal) * u.imag() * u.imag();
+    }
+  return r;
+}
+
 /// Karcher mean of the corner positions: minimise ½Σ d(c, z)² by Riemannian
-/// Newton steps c ← exp_c(H⁻¹ Σ log_c(z)), with H the exact Hessian
-/// (docs/method.md §7: 1 along each geodesic, d coth d across it), and
-/// backtracking on the objective (it is geodesically convex).
+/// Newton steps c ← exp_c(H⁻¹ Σ log_c(z)), and backtracking on the
+/// objective (it is geodesically convex). The terms at an accepted trial
+/// point are the next step's.
 Complex karcher_mean_of_corners(const DiskLayout& out) {
   const int nF = static_cast<int>(out.corners.rows());
-  auto objective = [&](Complex c) {
-    double sum = 0;
-    for (int f = 0; f < nF; ++f)
-      for (int k = 0; k < 3; ++k) sum += std::pow(hyperbolic::distance(c, out.corners(f, k)), 2);
-    return sum;
-  };
   Complex c(0.0);
-  double fc = objective(c);
+  KarcherTerms at = karcher_terms(out, c);
   for (int it = 0; it < 100; ++it) {
-    Complex g(0.0);
-    double hxx = 0, hxy = 0, hyy = 0;
-    for (int f = 0; f < nF; ++f)
-      for (int k = 0; k < 3; ++k) {
-        const Complex l = hyperbolic::log_map(c, out.corners(f, k));
-        g += l;
-        const double d = std::abs(l);
-        const double normal = d > 1e-8 ? d / std::tanh(d) : 1.0;
-        const Complex u = d > 1e-8 ? l / d : Complex(1.0, 0.0);
-        // H = u uᵀ + normal (I − u uᵀ)
-        hxx += normal + (1 - normal) * u.real() * u.real();
-        hxy += (1 - normal) * u.real() * u.imag();
-        hyy += normal + (1 - normal) * u.imag() * u.imag();
-      }
+    const Complex g = at.g;
     if (std::abs(g) < 1e-10 * 3.0 * nF) break;  // far below any use of the centre
-    const double det = hxx * hyy - hxy * hxy;
-    const Complex step((hyy * g.real() - hxy * g.imag()) / det, (hxx * g.imag() - hxy * g.real()) / det);
+    const double det = at.hxx * at.hyy - at.hxy * at.hxy;
+    const Complex step((at.hyy * g.real() - at.hxy * g.imag()) / det, (at.hxx * g.imag() - at.hxy * g.real()) / det);
     bool moved = false;
     for (double t = 1.0; t > 1e-6; t *= 0.5) {
       const Complex cn = hyperbolic::exp_map(c, t * step);
-      const double fn = objective(cn);
-      if (fn < fc) {
-        c = cn, fc = fn, moved = true;
+      KarcherTerms trial = karcher_terms(out, cn);
+      if (trial.objective < at.objective) {
+        c = cn, at = trial, moved = true;
         break;
       }
     }

@@ -84,6 +84,9 @@ struct SystemOfLoops {
 /// trees); a failed verification throws SolveError. O(n log n) plus the
 /// number of split points.
 SystemOfLoops system_of_loops(const TriMesh& mesh, const SystemOfLoopsOptions& options = {});
+/// The same with the caller's `conn`, which must be Connectivity(mesh.F)
+/// (built once per mesh per run: issue 19).
+SystemOfLoops system_of_loops(const TriMesh& mesh, const Connectivity& conn, const SystemOfLoopsOptions& options = {});
 
 /// After s.mesh was refined further and s.loops updated to match (simple,
 /// disjoint except at s.base_vertex, edge paths of s.mesh): recomputes the

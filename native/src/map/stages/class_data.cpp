@@ -56,7 +56,12 @@ ClassData class_data(const ClassSpace& space, const GroupMap& theta, const TriMe
     if (it == memo.end()) it = memo.emplace(w, dehn_reduce(w, layout.word)).first;
     return it->second;
   };
-  for (size_t e = 0; e < edge_word.size(); ++e) target_word[e] = reduced(substitute(edge_word[e], letter_image));
+  // Most edges cross no loop: their word is empty, and so is its image
+  // (issue 19: one reduction, side word and matrix for all of them instead
+  // of a memo lookup each; the same values).
+  const Word reduced_empty = reduced(Word{});
+  for (size_t e = 0; e < edge_word.size(); ++e)
+    target_word[e] = edge_word[e].empty() ? reduced_empty : reduced(substitute(edge_word[e], letter_image));
   auto word_of = [&](int h) {
     const int e = sc.edge(h);
     return sc.edge_halfedge(e) == h ? target_word[e] : inverse(target_word[e]);
@@ -64,6 +69,9 @@ ClassData class_data(const ClassSpace& space, const GroupMap& theta, const TriMe
   // Exact check (Dehn's algorithm solves the word problem of the surface
   // group): the product around every source face is the identity.
   for (int f = 0; f < source.num_faces(); ++f) {
+    if (reduced_empty.empty() && target_word[sc.edge(3 * f)].empty() && target_word[sc.edge(3 * f + 1)].empty() &&
+        target_word[sc.edge(3 * f + 2)].empty())
+      continue;  // the empty product
     const Word around = concat({word_of(3 * f), word_of(3 * f + 1), word_of(3 * f + 2)});
     if (!reduced(around).empty())
       throw SolveError("homotopy data inconsistent around source face " + std::to_string(f));
@@ -77,9 +85,12 @@ ClassData class_data(const ClassSpace& space, const GroupMap& theta, const TriMe
     if (it == side_memo.end()) it = side_memo.emplace(w, group.side_word(w)).first;
     return it->second;
   };
+  const Word empty_side = side_word(reduced_empty);
+  const Mobius empty_rho = group.evaluate_side_word(empty_side);
   for (size_t e = 0; e < edge_word.size(); ++e) {
-    cd.side_word_edge[e] = side_word(target_word[e]);
-    cd.rho_edge[e] = group.evaluate_side_word(cd.side_word_edge[e]);
+    const bool empty = target_word[e].empty();
+    cd.side_word_edge[e] = empty ? empty_side : side_word(target_word[e]);
+    cd.rho_edge[e] = empty ? empty_rho : group.evaluate_side_word(cd.side_word_edge[e]);
   }
   cd.edges.resize(idt.edges.size());
   for (size_t e = 0; e < idt.edges.size(); ++e) {
@@ -87,6 +98,13 @@ ClassData class_data(const ClassSpace& space, const GroupMap& theta, const TriMe
     cd.edges[e].i = ie.i;
     cd.edges[e].j = ie.j;
     cd.edges[e].w = ie.cot_weight;
+    bool empty = true;
+    for (int h : ie.path) empty = empty && target_word[sc.edge(h)].empty();
+    if (empty) {
+      cd.edges[e].rho_word = empty_side;
+      cd.edges[e].rho = empty_rho;
+      continue;
+    }
     Word w;
     for (int h : ie.path) w = concat(w, word_of(h));
     cd.edges[e].rho_word = side_word(reduced(w));

@@ -14,8 +14,8 @@ std::vector<int> spread_bases(int num_vertices, int count) {
   return bases;
 }
 
-SourceCuts::SourceCuts(const TriMesh& source, const SurfaceMapOptions& options, int genus)
-    : source_(source), options_(options), genus_(genus) {
+SourceCuts::SourceCuts(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options, int genus)
+    : source_(source), sc_(sc), options_(options), genus_(genus) {
   const int nv = source.num_vertices();
   if (options.homotopy.extra_cuts > 0) {
     bases_ = spread_bases(nv, options.homotopy.extra_cuts);
@@ -37,7 +37,7 @@ CutPrep SourceCuts::build(int base) const {
   o2.loops.source_base_vertex = base;
   SystemOfLoops sl2;
   try {
-    sl2 = source_loops(source_, o2);
+    sl2 = source_loops(source_, sc_, o2);
   } catch (const Error&) {
     return cp;  // no system of loops at that vertex: the default one is enough
   }

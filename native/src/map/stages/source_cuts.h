@@ -30,7 +30,8 @@ struct CutPrep {
 /// planned cut is prepared once.
 class SourceCuts {
  public:
-  SourceCuts(const TriMesh& source, const SurfaceMapOptions& options, int genus);
+  /// `sc`: Connectivity(source.F).
+  SourceCuts(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options, int genus);
   /// The default cut's loops and canonical generators: set once, before
   /// any cut is prepared.
   void set_default(const std::vector<std::vector<int>>& loops, const std::vector<Word>& generators);
@@ -52,6 +53,7 @@ class SourceCuts {
     CutPrep prep;
   };
   const TriMesh& source_;
+  const Connectivity& sc_;
   const SurfaceMapOptions& options_;
   int genus_;
   std::vector<int> bases_;
