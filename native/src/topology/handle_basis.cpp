@@ -602,6 +602,7 @@ GroupMap reduce_separating_twists(const GroupMap& map, int genus, const std::fun
         for (int x : {A(i), B(i)}) t[x - 1] = concat({C, {x}, inverse(C)});
       twists.push_back(t);
     }
+  const DehnReducer dehn(R);  // one set of rotations for the 4 (g − 1) 2g reductions per step
   GroupMap cur = map;
   double best = cost(cur);
   for (int step = 0; step < max_steps; ++step) {
@@ -610,7 +611,7 @@ GroupMap reduce_separating_twists(const GroupMap& map, int genus, const std::fun
     for (const GroupMap& t : twists)
       for (const GroupMap& cand : {compose(cur, t), compose(t, cur)}) {
         GroupMap c = cand;
-        for (Word& w : c) w = dehn_reduce(w, R);
+        for (Word& w : c) w = dehn(w);
         const double v = cost(c);
         if (v < next_cost) next_cost = v, next = std::move(c);
       }
