@@ -164,6 +164,19 @@ int main(int argc, char** argv) {
        [] { return s::insert_degenerate_faces(s::n_hole_torus(3, 32, false), 100, 0.0, 3); }},
       {"noisy g2 (jitter 0.29)", [] { return s::jitter(s::n_hole_torus(2, 32, false), 0.29, 5); }},
       {"noisy torus g1 (jitter 0.29)", [] { return s::jitter(s::torus_of_revolution(1, 0.3, 96, 24), 0.29, 6); }},
+      // High genus (issue 13's held-out set reaches 24): CAD fans around 11
+      // and 24 holes, raw wheels with 11, 12 and 24 spokes (zero-area faces
+      // on the genus-12 ones), and a raw genus-8 wheel of 109k faces.
+      {"CAD plate g11 (64 seg fans)", [] { return s::cad_plate(11, 64, 0.1); }},
+      {"CAD block g11 (64 seg, thick)", [] { return s::cad_plate(11, 64, 1.5); }},
+      {"CAD plate g24 (64 seg fans)", [] { return s::cad_plate(24, 64, 0.1); }},
+      {"raw wheel g11 r32", [] { return s::wheel(11, 32, false); }},
+      {"raw wheel g11 r64", [] { return s::wheel(11, 64, false); }},
+      {"zero-area raw wheel g12 r48", [] { return s::insert_degenerate_faces(s::wheel(12, 48, false), 40, 0.5, 3); }},
+      {"zero-area raw wheel g12 r64 (t=0)",
+       [] { return s::insert_degenerate_faces(s::wheel(12, 64, false), 40, 0.0, 3); }},
+      {"raw wheel g8 r90 (109k faces)", [] { return s::n_hole_torus(8, 90, false); }},
+      {"raw wheel g24 r100 (105k faces)", [] { return s::wheel(24, 100, false); }},
   };
   if (large) meshes.push_back({"raw 2-torus g2 1M faces", [] { return s::n_hole_torus(2, 280, false); }});
 
@@ -209,6 +222,9 @@ int main(int argc, char** argv) {
        [] { return s::n_hole_torus(2, 32, false); }},
       {"noisy g2 -> raw vase g2 r40", [] { return s::jitter(s::n_hole_torus(2, 32, false), 0.29, 5); },
        [] { return s::vase(40, false); }},
+      {"raw wheel g11 r32 -> r40", [] { return s::wheel(11, 32, false); }, [] { return s::wheel(11, 40, false); }},
+      {"CAD block g11 -> raw wheel g11", [] { return s::cad_plate(11, 64, 1.5); },
+       [] { return s::wheel(11, 32, false); }},
   };
   std::printf("\nRobustness: surface_map (default options) per pair\n");
   std::printf("%-30s %3s %7s %7s %5s %7s %8s %9s %8s %8s\n", "pair", "g", "#F src", "#F dst", "conv", "flipped",

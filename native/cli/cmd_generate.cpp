@@ -25,10 +25,10 @@ void register_generate(CLI::App& app) {
   };
   auto a = std::make_shared<Args>();
   auto* cmd = app.add_subcommand("generate", "Write a procedural sample surface as OBJ");
-  cmd->add_option("SHAPE", a->shape, "torus | n-hole-torus | vase | amphora | cup | polycube | sphere | peanut | cad-plate")
+  cmd->add_option("SHAPE", a->shape, "torus | n-hole-torus | wheel | vase | amphora | cup | polycube | sphere | peanut | cad-plate")
       ->required()
       ->check(CLI::IsMember(
-          {"torus", "n-hole-torus", "vase", "amphora", "cup", "polycube", "sphere", "peanut", "cad-plate"}));
+          {"torus", "n-hole-torus", "wheel", "vase", "amphora", "cup", "polycube", "sphere", "peanut", "cad-plate"}));
   cmd->add_option("--out,-o", a->out, "Output .obj file (written atomically)")->required();
   cmd->add_option("--R", a->R, "torus: major radius")->capture_default_str();
   cmd->add_option("--r", a->r, "torus: minor radius")->capture_default_str();
@@ -36,7 +36,7 @@ void register_generate(CLI::App& app) {
   cmd->add_option("--n-minor", a->n_minor, "torus: vertices around the minor circle")->capture_default_str();
   cmd->add_option("--variant", a->variant, "torus: connectivity variant (0, 1, 2, other = random)")
       ->capture_default_str();
-  cmd->add_option("--genus", a->genus, "n-hole-torus: holes; cup: handles; polycube, cad-plate: holes (1..8)")
+  cmd->add_option("--genus", a->genus, "n-hole-torus: holes; cup: handles; polycube: holes (1..8); wheel: spokes (3..32); cad-plate: holes (1..64)")
       ->capture_default_str();
   cmd->add_option("--resolution", a->resolution, "implicit shapes: grid cells along the longest axis (>= 32)")
       ->capture_default_str();
@@ -65,6 +65,8 @@ void register_generate(CLI::App& app) {
       genus = 1;
     } else if (a->shape == "n-hole-torus") {
       m = s::n_hole_torus(a->genus, a->resolution, smooth);
+    } else if (a->shape == "wheel") {
+      m = s::wheel(a->genus, a->resolution, smooth);
     } else if (a->shape == "vase") {
       m = s::vase(a->resolution, smooth);
       genus = 2;

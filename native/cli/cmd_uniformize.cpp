@@ -99,6 +99,8 @@ void run(const Args& a) {
     j["num_unresolved"] = L.num_unresolved;
     j["max_interior_mismatch"] = L.max_interior_mismatch;
     j["max_deck_inconsistency"] = L.max_deck_inconsistency;
+    j["deck_roundoff"] = L.deck_roundoff;
+    j["max_deck_excess"] = L.max_deck_excess;
     j["coordinate_roundoff"] = L.coordinate_roundoff;
     j["max_corner_inconsistency"] = L.max_corner_inconsistency;
     j["corner_condition"] = L.corner_condition;

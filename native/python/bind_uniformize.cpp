@@ -108,6 +108,8 @@ py::dict layout_dict(const DiskLayout& L) {
   d["coordinate_roundoff"] = L.coordinate_roundoff;
   d["max_interior_mismatch"] = L.max_interior_mismatch;
   d["max_deck_inconsistency"] = L.max_deck_inconsistency;
+  d["deck_roundoff"] = L.deck_roundoff;
+  d["max_deck_excess"] = L.max_deck_excess;
   d["max_corner_inconsistency"] = L.max_corner_inconsistency;
   d["corner_condition"] = L.corner_condition;
   d["max_holonomy_rotation"] = L.max_holonomy_rotation;

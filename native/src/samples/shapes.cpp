@@ -128,6 +128,34 @@ void check_genus_arg(int g, const std::string& what) {
     throw InputError(what + ": genus " + std::to_string(g) + " is out of range (1..8)");
 }
 
+/// A wheel: a rim and n spokes of radius 0.3 meeting at the hub; each sector
+/// is one hole (genus n). The rim has radius 3 up to 8 spokes and grows like
+/// 3 n / 8 beyond, so every sector keeps a hole of about the same width; from
+/// 9 spokes on, a flat hub of radius n / (2 pi) fills the centre, where the
+/// spokes would otherwise come closer than the grid resolves (spurious holes).
+Shape wheel_shape(int n) {
+  Shape s;
+  s.genus = n;
+  s.name = "wheel(" + std::to_string(n) + ")";
+  const double Rw = 3.0 * std::max(1.0, n / 8.0), r = 0.3;
+  const double hub = n > 8 ? n / (2 * M_PI) : 0.0;
+  std::vector<Vector3d> rim_points;
+  for (int i = 0; i < n; ++i) {
+    const double a = 2 * M_PI * i / n + 0.3;
+    rim_points.emplace_back(Rw * std::cos(a), Rw * std::sin(a), 0);
+  }
+  s.f = [=](const Vector3d& p) {
+    double d = circle_distance(p, Vector3d::Zero(), Vector3d::UnitZ(), Rw);
+    for (const Vector3d& e : rim_points) d = smin(d, segment_distance(p, Vector3d::Zero(), e), 0.25);
+    if (hub > 0) d = smin(d, std::hypot(std::max(std::hypot(p.x(), p.y()) - hub, 0.0), p.z()), 0.25);
+    return d - r;
+  };
+  const double m = r + 0.05;
+  s.lo = Vector3d(-Rw - m, -Rw - m, -m);
+  s.hi = Vector3d(Rw + m, Rw + m, m);
+  return s;
+}
+
 Shape n_hole_torus_shape(int n) {
   Shape s;
   s.genus = n;
@@ -152,19 +180,8 @@ Shape n_hole_torus_shape(int n) {
     s.lo = Vector3d(x0 - Rc - m, -Rc - m, -m);
     s.hi = Vector3d(-x0 + Rc + m, Rc + m, m);
   } else {
-    // A wheel: rim of radius 3 and n spokes; each sector is one hole.
-    const double Rw = 3.0, r = 0.3;
-    s.f = [=](const Vector3d& p) {
-      double d = circle_distance(p, Vector3d::Zero(), Vector3d::UnitZ(), Rw);
-      for (int i = 0; i < n; ++i) {
-        const double a = 2 * M_PI * i / n + 0.3;
-        d = smin(d, segment_distance(p, Vector3d::Zero(), Vector3d(Rw * std::cos(a), Rw * std::sin(a), 0)), 0.25);
-      }
-      return d - r;
-    };
-    const double m = r + 0.05;
-    s.lo = Vector3d(-Rw - m, -Rw - m, -m);
-    s.hi = Vector3d(Rw + m, Rw + m, m);
+    s = wheel_shape(n);
+    s.name = "n_hole_torus(" + std::to_string(n) + ")";
   }
   return s;
 }
@@ -315,6 +332,11 @@ TriMesh torus_of_revolution(double R, double r, int n_major, int n_minor, int co
 TriMesh n_hole_torus(int n, int resolution, bool smooth) {
   check_genus_arg(n, "n_hole_torus");
   return mesh_shape(n_hole_torus_shape(n), resolution, smooth);
+}
+TriMesh wheel(int spokes, int resolution, bool smooth) {
+  if (spokes < 3 || spokes > 32)
+    throw InputError("wheel: spokes " + std::to_string(spokes) + " is out of range (3..32)");
+  return mesh_shape(wheel_shape(spokes), resolution, smooth);
 }
 TriMesh vase(int resolution, bool smooth) { return mesh_shape(vase_shape(), resolution, smooth); }
 TriMesh amphora(int resolution, bool smooth) { return mesh_shape(amphora_shape(), resolution, smooth); }

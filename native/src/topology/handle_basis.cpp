@@ -5,6 +5,8 @@
 #include <cstdlib>
 #include <limits>
 #include <numeric>
+#include <queue>
+#include <array>
 #include <string>
 
 #include <Eigen/Geometry>
@@ -600,6 +602,7 @@ GroupMap reduce_separating_twists(const GroupMap& map, int genus, const std::fun
         for (int x : {A(i), B(i)}) t[x - 1] = concat({C, {x}, inverse(C)});
       twists.push_back(t);
     }
+  const DehnReducer dehn(R);  // one set of rotations for the 4 (g − 1) 2g reductions per step
   GroupMap cur = map;
   double best = cost(cur);
   for (int step = 0; step < max_steps; ++step) {
@@ -608,7 +611,7 @@ GroupMap reduce_separating_twists(const GroupMap& map, int genus, const std::fun
     for (const GroupMap& t : twists)
       for (const GroupMap& cand : {compose(cur, t), compose(t, cur)}) {
         GroupMap c = cand;
-        for (Word& w : c) w = dehn_reduce(w, R);
+        for (Word& w : c) w = dehn(w);
         const double v = cost(c);
         if (v < next_cost) next_cost = v, next = std::move(c);
       }
@@ -642,6 +645,189 @@ bool handle_correspondence_of(const HandleBasis& source, const HandleBasis& targ
   return ok;
 }
 
+namespace {
+
+using Choice = SignedPermutation;
+
+/// Up to this genus every signed permutation is scored (7! 2^7 = 645,120);
+/// beyond, the g! 2^g grow past memory (genus 8: 1e7, genus 11: 8e10), and
+/// the best ones are searched for instead (best_signed_permutations).
+constexpr int kEnumeratedGenus = 7;
+/// max_candidates <= 0 asks for all; above kEnumeratedGenus, for this many.
+constexpr int kUnboundedCandidateCap = 1000;
+
+/// All g! 2^g signed permutations ranked by score (stable: ties keep the
+/// order permutations-then-sign-masks), the first max_candidates (> 0) kept.
+std::vector<Choice> all_choices_ranked(int g, const std::vector<std::array<double, 2>>& pair_score,
+                                       int max_candidates) {
+  std::vector<Choice> choices;
+  std::vector<int> perm(g);
+  std::iota(perm.begin(), perm.end(), 0);
+  do {
+    for (int mask = 0; mask < (1 << g); ++mask) {
+      Choice c{perm, std::vector<int>(g, 1), 0.0};
+      for (int i = 0; i < g; ++i) {
+        if (mask & (1 << i)) c.sign[i] = -1;
+        c.score += pair_score[i * g + perm[i]][c.sign[i] > 0 ? 0 : 1];
+      }
+      choices.push_back(c);
+    }
+  } while (std::next_permutation(perm.begin(), perm.end()));
+  std::stable_sort(choices.begin(), choices.end(), [](const Choice& x, const Choice& y) { return x.score < y.score; });
+  if (max_candidates > 0 && static_cast<int>(choices.size()) > max_candidates) choices.resize(max_candidates);
+  return choices;
+}
+
+/// Minimum-cost assignment of rows to columns of the n x n matrix `cost`
+/// (entries >= kForbidden are not allowed): the Hungarian method with
+/// potentials, O(n³). Returns the column of every row, empty when no
+/// allowed assignment exists.
+constexpr double kForbidden = 1e300;
+std::vector<int> min_cost_assignment(const std::vector<double>& cost, int n) {
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<double> u(n + 1, 0.0), v(n + 1, 0.0);
+  std::vector<int> p(n + 1, 0), way(n + 1, 0);  // p[col] = row (1-based), 0 = free
+  for (int i = 1; i <= n; ++i) {
+    p[0] = i;
+    int j0 = 0;
+    std::vector<double> minv(n + 1, inf);
+    std::vector<char> used(n + 1, 0);
+    do {
+      used[j0] = 1;
+      const int i0 = p[j0];
+      double delta = inf;
+      int j1 = -1;
+      for (int j = 1; j <= n; ++j) {
+        if (used[j]) continue;
+        const double c = cost[(i0 - 1) * n + (j - 1)];
+        const double cur = c >= kForbidden ? inf : c - u[i0] - v[j];
+        if (cur < minv[j]) {
+          minv[j] = cur;
+          way[j] = j0;
+        }
+        if (minv[j] < delta) {
+          delta = minv[j];
+          j1 = j;
+        }
+      }
+      if (j1 < 0 || delta == inf) return {};
+      for (int j = 0; j <= n; ++j) {
+        if (used[j]) {
+          u[p[j]] += delta;
+          v[j] -= delta;
+        } else {
+          minv[j] -= delta;
+        }
+      }
+      j0 = j1;
+    } while (p[j0] != 0);
+    do {
+      const int j1 = way[j0];
+      p[j0] = p[j1];
+      j0 = j1;
+    } while (j0);
+  }
+  std::vector<int> col(n);
+  for (int j = 1; j <= n; ++j) col[p[j] - 1] = j - 1;
+  return col;
+}
+
+}  // namespace
+
+std::vector<SignedPermutation> best_signed_permutations(int g, const std::vector<std::array<double, 2>>& pair_score,
+                                                        int count) {
+  if (g < 1 || g > 64 || static_cast<int>(pair_score.size()) != g * g)
+    throw InputError("best_signed_permutations: need 1 <= g <= 64 and g² pair scores");
+  std::vector<double> base(static_cast<size_t>(g) * g);
+  for (int k = 0; k < g * g; ++k) base[k] = std::min(pair_score[k][0], pair_score[k][1]);
+  auto total = [&](const std::vector<double>& cost, const std::vector<int>& col) {
+    double t = 0;
+    for (int i = 0; i < g; ++i) t += cost[i * g + col[i]];
+    return t;
+  };
+  // Murty: each subproblem is the base matrix with some pairs forced (their
+  // row and column closed to everything else) and some forbidden.
+  struct Sub {
+    double score;
+    long long order;
+    std::vector<double> cost;
+    std::vector<int> col;
+    int fixed_rows;  // rows 0..fixed_rows-1 are forced to col[]
+  };
+  auto worse = [](const Sub& x, const Sub& y) { return x.score != y.score ? x.score > y.score : x.order > y.order; };
+  std::priority_queue<Sub, std::vector<Sub>, decltype(worse)> queue(worse);
+  long long order = 0;
+  {
+    std::vector<int> col = min_cost_assignment(base, g);
+    if (!col.empty()) queue.push({total(base, col), order++, base, col, 0});
+  }
+  std::vector<std::vector<int>> perms;
+  while (!queue.empty() && static_cast<int>(perms.size()) < count) {
+    Sub best = queue.top();
+    queue.pop();
+    perms.push_back(best.col);
+    std::vector<double> cost = best.cost;
+    for (int r = best.fixed_rows; r < g; ++r) {
+      // Partition r: rows before r keep best's columns, row r avoids its own.
+      std::vector<double> child = cost;
+      child[r * g + best.col[r]] = kForbidden;
+      std::vector<int> col = min_cost_assignment(child, g);
+      if (!col.empty()) queue.push({total(base, col), order++, child, col, r});
+      // Force (r, best.col[r]) for the next partitions.
+      for (int j = 0; j < g; ++j)
+        if (j != best.col[r]) cost[r * g + j] = kForbidden;
+      for (int i = 0; i < g; ++i)
+        if (i != r) cost[i * g + best.col[r]] = kForbidden;
+    }
+  }
+  std::vector<Choice> out;
+  for (const std::vector<int>& perm : perms) {
+    // Sign patterns: penalties of leaving each pair's best sign, flipped in
+    // sets of increasing sum (each set grown by its next penalty, or its
+    // last penalty swapped for the next one).
+    std::vector<int> best_sign(g), by_penalty(g);
+    std::vector<double> penalty(g);
+    for (int i = 0; i < g; ++i) {
+      const auto& ps = pair_score[i * g + perm[i]];
+      best_sign[i] = ps[0] <= ps[1] ? 1 : -1;
+      penalty[i] = std::abs(ps[0] - ps[1]);
+    }
+    std::iota(by_penalty.begin(), by_penalty.end(), 0);
+    std::stable_sort(by_penalty.begin(), by_penalty.end(), [&](int a, int b) { return penalty[a] < penalty[b]; });
+    struct Flips {
+      double extra;
+      std::vector<int> set;  // indices into by_penalty, increasing
+    };
+    auto more = [](const Flips& x, const Flips& y) { return x.extra > y.extra; };
+    std::priority_queue<Flips, std::vector<Flips>, decltype(more)> flips(more);
+    flips.push({0.0, {}});
+    for (int made = 0; made < count && !flips.empty(); ++made) {
+      const Flips f = flips.top();
+      flips.pop();
+      Choice c{perm, best_sign, 0.0};
+      for (int q : f.set) c.sign[by_penalty[q]] = -c.sign[by_penalty[q]];
+      for (int i = 0; i < g; ++i) c.score += pair_score[i * g + perm[i]][c.sign[i] > 0 ? 0 : 1];
+      out.push_back(std::move(c));
+      const int last = f.set.empty() ? -1 : f.set.back();
+      if (last + 1 < g) {
+        Flips grown = f;
+        grown.set.push_back(last + 1);
+        grown.extra += penalty[by_penalty[last + 1]];
+        flips.push(grown);
+        if (last >= 0) {
+          Flips swapped = f;
+          swapped.set.back() = last + 1;
+          swapped.extra += penalty[by_penalty[last + 1]] - penalty[by_penalty[last]];
+          flips.push(swapped);
+        }
+      }
+    }
+  }
+  std::stable_sort(out.begin(), out.end(), [](const Choice& x, const Choice& y) { return x.score < y.score; });
+  if (static_cast<int>(out.size()) > count) out.resize(count);
+  return out;
+}
+
 std::vector<HandleCandidate> handle_candidates(const HandleBasis& source, const HandleBasis& target,
                                                int max_candidates) {
   constexpr size_t kMaxCandidateLetters = 200000;
@@ -653,28 +839,18 @@ std::vector<HandleCandidate> handle_candidates(const HandleBasis& source, const 
     const double l = v.norm();
     return l > 1e-12 ? Eigen::Vector3d(v / l) : Eigen::Vector3d::Zero();
   };
-  struct Choice {
-    std::vector<int> perm, sign;
-    double score;
-  };
-  std::vector<Choice> choices;
-  std::vector<int> perm(g);
-  std::iota(perm.begin(), perm.end(), 0);
-  do {
-    for (int mask = 0; mask < (1 << g); ++mask) {
-      Choice c{perm, std::vector<int>(g, 1), 0.0};
-      for (int i = 0; i < g; ++i) {
-        if (mask & (1 << i)) c.sign[i] = -1;
-        const int j = perm[i];
-        const double d = 0.5 * (unit(source.meridian_area[i]).dot(unit(target.meridian_area[j])) +
-                                unit(source.longitude_area[i]).dot(unit(target.longitude_area[j])));
-        c.score += (source.position[i] - target.position[j]).squaredNorm() + 0.05 * (1.0 - c.sign[i] * d);
-      }
-      choices.push_back(c);
+  // Score of source handle i on target handle j with sign s (index 0: +1, 1: −1).
+  std::vector<std::array<double, 2>> pair_score(static_cast<size_t>(g) * g);
+  for (int i = 0; i < g; ++i)
+    for (int j = 0; j < g; ++j) {
+      const double d = 0.5 * (unit(source.meridian_area[i]).dot(unit(target.meridian_area[j])) +
+                              unit(source.longitude_area[i]).dot(unit(target.longitude_area[j])));
+      const double dist2 = (source.position[i] - target.position[j]).squaredNorm();
+      pair_score[i * g + j] = {dist2 + 0.05 * (1.0 - d), dist2 + 0.05 * (1.0 + d)};
     }
-  } while (std::next_permutation(perm.begin(), perm.end()));
-  std::stable_sort(choices.begin(), choices.end(), [](const Choice& x, const Choice& y) { return x.score < y.score; });
-  if (max_candidates > 0 && static_cast<int>(choices.size()) > max_candidates) choices.resize(max_candidates);
+  std::vector<Choice> choices = g <= kEnumeratedGenus ? all_choices_ranked(g, pair_score, max_candidates)
+                                                      : best_signed_permutations(g, pair_score, max_candidates > 0 ? max_candidates
+                                                                                                       : kUnboundedCandidateCap);
 
   const IntMatrix Ps_inv = integer_inverse(source.P);
   const DehnReducer dehn(R);

@@ -75,6 +75,10 @@ DehnReducer::DehnReducer(const Word& relator) {
       rot.insert(rot.end(), r.begin(), r.begin() + s);
       rotations_.push_back(std::move(rot));
     }
+  for (int x : relator) max_letter_ = std::max(max_letter_, std::abs(x));
+  by_first_letter_.assign(2 * max_letter_ + 1, {});
+  for (size_t q = 0; q < rotations_.size(); ++q)
+    by_first_letter_[rotations_[q].front() + max_letter_].push_back(static_cast<int>(q));
 }
 
 Word DehnReducer::operator()(const Word& w) const {
@@ -104,7 +108,9 @@ Word DehnReducer::operator()(const Word& w) const {
     out.push_back(x);
     if (out.size() < m) continue;
     const int* top = out.data() + out.size() - m;
-    for (const Word& r : rotations_) {
+    if (std::abs(top[0]) > max_letter_) continue;
+    for (int q : by_first_letter_[top[0] + max_letter_]) {
+      const Word& r = rotations_[q];
       if (!std::equal(r.begin(), r.begin() + m, top)) continue;
       out.resize(out.size() - m);
       // (r[m..n))^-1, first letter last on the input stack.

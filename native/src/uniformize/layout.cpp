@@ -33,8 +33,12 @@ struct Flat {
   static double coord(double l) { return l; }
   static double angle(double a, double b, double c) { return hyperbolic::euclidean_angle(a, b, c); }
   static double distance(Complex z, Complex w) { return std::abs(z - w); }
-  /// Coordinates in which geodesics are straight (for orientation tests).
-  static Complex straight(Complex z) { return z; }
+  /// Round-off bound (in the metric) of chart.apply(z) in double precision.
+  static double apply_roundoff(const Chart& m, Complex z) {
+    return std::numeric_limits<double>::epsilon() * (std::abs(z) + std::abs(m.t) + std::abs(m.apply(z)));
+  }
+  /// Twice the signed area of the triangle a, b, d (positive: counter-clockwise).
+  static double orientation(Complex a, Complex b, Complex d) { return std::imag(std::conj(b - a) * (d - a)); }
   /// The chart taking 0 to p and the positive real axis towards q.
   static Chart frame(Complex p, Complex q) {
     const Complex d = q - p;
@@ -61,6 +65,29 @@ struct Hyper {
   /// product is the orientation of the geodesic triangle (in the Poincaré
   /// model three nearly collinear points lie on a circular arc instead).
   static Complex straight(Complex z) { return hyperbolic::poincare_to_klein(z); }
+  /// Round-off bound (in the metric) of m.apply(z) = (a z + b) / (b̄ z + ā)
+  /// in double precision, entries rounded too: first-order error of the
+  /// quotient, ε (|a||z| + |b| + |w| (|b||z| + |a|)) / |b̄ z + ā|, times the
+  /// metric's scale 2 / (1 − |w|²) at the image w. A side pairing of a long
+  /// fundamental domain (|a| ~ 1e5) applied to a point at 1 − |z| ~ 1e-7
+  /// gives 1e-4: the gaps of the genus-11 wheel's deck maps were exactly this.
+  static double apply_roundoff(const Chart& m, Complex z) {
+    const Complex w = m.apply(z);
+    const double az = std::abs(m.a) * std::abs(z), bz = std::abs(m.b) * std::abs(z);
+    const double den = std::abs(std::conj(m.b) * z + std::conj(m.a));
+    const double dw = std::numeric_limits<double>::epsilon() * (az + std::abs(m.b) + std::abs(w) * (bz + std::abs(m.a))) / den;
+    return 2.0 * dw / std::max(1e-300, hyperbolic::conformal_denominator(w));
+  }
+  /// Sign of the geodesic triangle a, b, d (positive: counter-clockwise),
+  /// tested in the Klein model of the chart centring a. In the layout's own
+  /// Klein coordinates a triangle near |z| = 1 is squeezed radially by
+  /// 1 − |k|² (1e-12 at |z| = 1 − 2e-6), so their round-off alone turned a
+  /// sliver of the genus-11 CAD block (height 2.6e-5 in the metric, corner
+  /// round-off 1e-10) over; centred, the corners keep their digits.
+  static double orientation(Complex a, Complex b, Complex d) {
+    const Complex kb = straight(hyperbolic::centred(a, b)), kd = straight(hyperbolic::centred(a, d));
+    return std::imag(std::conj(kb) * kd);
+  }
   static Chart frame(Complex p, Complex q) {
     const Mobius tp = Mobius::centring(p);
     return tp.inverse() * Mobius::rotation(std::arg(tp.apply(q)));
@@ -381,11 +408,9 @@ void count_flipped_faces(const Connectivity& conn, const Eigen::VectorXd& L, Dis
     for (int k = 0; k < 3; ++k) rho = std::max(rho, roundoff_at(out.corners(f, k)));
     out.coordinate_roundoff = std::max(out.coordinate_roundoff, rho);
     const double lmax = std::max({L[conn.edge(3 * f)], L[conn.edge(3 * f + 1)], L[conn.edge(3 * f + 2)]});
-    const Complex a = G::straight(out.corners(f, 0)), b = G::straight(out.corners(f, 1)),
-                  d = G::straight(out.corners(f, 2));
     if (lmax < 100 * rho)
       ++out.num_unresolved;
-    else if (!(std::imag(std::conj(b - a) * (d - a)) > 0))
+    else if (!(G::orientation(out.corners(f, 0), out.corners(f, 1), out.corners(f, 2)) > 0))
       ++out.num_flipped;
     out.area += G::area(L[conn.edge(3 * f)], L[conn.edge(3 * f + 1)], L[conn.edge(3 * f + 2)]);
   }
@@ -534,6 +559,10 @@ DiskSides disk_sides(const Connectivity& conn, const SystemOfLoops& loops, const
 /// out.max_deck_inconsistency, measured as a distance between points (in the
 /// metric), not between matrices: hyperbolic deck matrices of a long
 /// fundamental domain have large entries whose rounding is no error.
+/// A deck gap up to this many times its evaluation round-off
+/// (G::apply_roundoff) is rounding, not a gluing error.
+constexpr double kDeckRoundoffFactor = 10.0;
+
 template <class G>
 std::vector<typename G::Chart> side_pairings(const Connectivity& conn, const Eigen::VectorXd& L,
                                              const std::vector<typename G::Chart>& deck, const LoopEdges& le,
@@ -559,14 +588,20 @@ std::vector<typename G::Chart> side_pairings(const Connectivity& conn, const Eig
     D[k] = oriented_deck(best);
   }
   out.max_deck_inconsistency = 0;
+  out.deck_roundoff = 0;
+  out.max_deck_excess = 0;
   for (int e = 0; e < nE; ++e) {
     if (le.loop[e] < 0) continue;
     const int hf = le.forward[e], t = conn.twin(hf);
     const Chart& Dk = D[le.loop[e]];
     const int f = Connectivity::face(hf), g = Connectivity::face(t);
-    const double d0 = G::distance(Dk.apply(out.corners(f, hf % 3)), out.corners(g, (t % 3 + 1) % 3));
-    const double d1 = G::distance(Dk.apply(out.corners(f, (hf % 3 + 1) % 3)), out.corners(g, t % 3));
-    out.max_deck_inconsistency = std::max({out.max_deck_inconsistency, d0, d1});
+    for (const auto& [from, to] : {std::pair{out.corners(f, hf % 3), out.corners(g, (t % 3 + 1) % 3)},
+                                   std::pair{out.corners(f, (hf % 3 + 1) % 3), out.corners(g, t % 3)}}) {
+      const double d = G::distance(Dk.apply(from), to), rounding = G::apply_roundoff(Dk, from);
+      out.max_deck_inconsistency = std::max(out.max_deck_inconsistency, d);
+      out.deck_roundoff = std::max(out.deck_roundoff, rounding);
+      out.max_deck_excess = std::max(out.max_deck_excess, d - kDeckRoundoffFactor * rounding);
+    }
   }
   return D;
 }

@@ -36,6 +36,14 @@ TriMesh torus_of_revolution(double R, double r, int n_major, int n_minor,
 /// one component, genus and orientation of what it returns).
 TriMesh n_hole_torus(int n, int resolution = 64, bool smooth = true);
 
+/// Wheel with `spokes` spokes (genus = spokes, 3..32): a rim and spokes of
+/// radius 0.3 meeting at the hub, meshed like n_hole_torus (which uses the
+/// same wheel for n >= 5). The rim radius is 3 up to 8 spokes and 3 spokes/8
+/// beyond, so resolution must grow with the spokes to resolve them
+/// (about 12 cells per unit length: 64 at 11 spokes, 96 at 24). Throws
+/// InputError outside 3..32, Error when the grid does not resolve it.
+TriMesh wheel(int spokes, int resolution = 64, bool smooth = true);
+
 /// Vase with two handles (genus 2).
 TriMesh vase(int resolution = 64, bool smooth = true);
 /// Amphora: tall neck, pointed foot, two handles from neck to shoulder

@@ -48,6 +48,7 @@
 // enumerated: the lift picks one, which reduce_separating_twists() can
 // shorten; the geometric class for shapes posed alike comes from
 // topology/projected_loops.h instead.
+#include <array>
 #include <functional>
 #include <string>
 #include <vector>
@@ -177,8 +178,31 @@ bool handle_correspondence_of(const HandleBasis& source, const HandleBasis& targ
 GroupMap reduce_separating_twists(const GroupMap& map, int genus, const std::function<double(const GroupMap&)>& cost,
                                   int max_steps = 40);
 
-/// All signed handle permutations (g! 2^g), ranked by geometric score, the
-/// first `max_candidates` kept. Each is checked exactly (Dehn's algorithm on
+/// A signed handle permutation: source handle i onto target handle perm[i]
+/// with orientation sign[i] (+1 / −1), and its score (lower is better).
+struct SignedPermutation {
+  std::vector<int> perm, sign;
+  double score = 0;
+};
+
+/// The `count` signed permutations of lowest total score Σ_i
+/// pair_score[i g + perm[i]][sign[i] > 0 ? 0 : 1], in increasing score
+/// (pair_score: g² entries, {score with sign +1, with sign −1}), without
+/// enumerating the g! 2^g: the best sign of every pair gives each
+/// permutation a base score; Murty's ranking of assignments (Hungarian
+/// method per subproblem, O(count g⁴)) gives the `count` best permutations,
+/// and each of them its `count` best sign patterns. Any signed permutation
+/// among the `count` best has its permutation among the `count` best by
+/// base score, so merging these is exact (ties in any order). Throws
+/// InputError unless 1 <= g <= 64 and pair_score has g² entries.
+std::vector<SignedPermutation> best_signed_permutations(int g, const std::vector<std::array<double, 2>>& pair_score,
+                                                        int count);
+
+/// Signed handle permutations ranked by geometric score, the first
+/// `max_candidates` kept: up to genus 7 all g! 2^g are scored and ranked
+/// (stable), beyond with best_signed_permutations (genus 11 had asked for
+/// 8e10 of them, 20 GB before the map was killed); max_candidates <= 0 asks
+/// for all up to genus 7 and for 1000 beyond. Each is checked exactly (Dehn's algorithm on
 /// the relator's image, symplectic homology). A class whose words would
 /// exceed 2e5 letters is left out (its deck elements could not be evaluated
 /// in double precision), so fewer may come back, even none. Throws

@@ -39,6 +39,12 @@ class DehnReducer {
 
  private:
   std::vector<Word> rotations_;
+  /// Indices into rotations_ (in their order) by first letter x, at
+  /// x + max_letter_: only these can match a window starting with x (genus
+  /// 11: 2 of the 88 rotations, which Dehn's algorithm otherwise compares
+  /// at every letter).
+  std::vector<std::vector<int>> by_first_letter_;
+  int max_letter_ = 0;
 };
 /// Text form: letters named by `names` (index k-1 for letter k), inverses
 /// written with "^-1", separated by spaces.

@@ -128,6 +128,14 @@ struct DiskLayout {
   /// max |rotation part − 1| of the deck maps (holonomy; 0 for a flat torus).
   double max_interior_mismatch = 0;
   double max_deck_inconsistency = 0;
+  /// The largest round-off bound of the side pairing's evaluations in that
+  /// check (hyperbolic: ε |a| / ((1 − |z|²)(1 − |w|²))^½ roughly, 1e-4 for
+  /// a pairing with |a| ~ 1e5 between points 1e-7 from |z| = 1 on the
+  /// long fundamental domains of genus 11 and up), and the largest gap
+  /// beyond 10 times its own evaluation's bound: the gluing error that is
+  /// not rounding (uniformize checks this one against its tolerance).
+  double deck_roundoff = 0;
+  double max_deck_excess = 0;
   /// The corners of the 4g-gon against their images c_m = Ψ_m(c_0) under
   /// the products Ψ_m of side pairings (distance in the metric), and that
   /// check's condition: 4g × max (|a| + |b|)² of the Ψ_m (1 for flat), the
