@@ -290,6 +290,10 @@ namespace {
 TEST(ClassLowerBound, CadPlateSourceCarriesOntoItsOwnUniformizedCopy) {
   const TriMesh m = samples::cad_plate(4, 64, 0.3);
   SurfaceMapOptions options;
+  // The refined copy is the case in question; the flip path's T' is made
+  // simplicial by exact flips now (uniformize/simplicial_flips.h), so it
+  // no longer falls back to it by itself.
+  options.uniformization.target_metric = UniformizationMetric::FixedConnectivity;
   const SystemOfLoops sl = detail::source_loops(m, options);
   const CanonicalSchema cs = canonical_schema(sl.word);
   const Connectivity conn(m.F, m.num_vertices());
