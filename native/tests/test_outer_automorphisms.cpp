@@ -1,5 +1,6 @@
 #include "surfmap/topology/outer_automorphisms.h"
 
+#include <algorithm>
 #include <random>
 #include <string>
 
@@ -22,6 +23,8 @@ GroupMap conjugated(const GroupMap& phi, const Word& w) {
   for (size_t j = 0; j < phi.size(); ++j) m[j] = concat({w, phi[j], inverse(w)});
   return m;
 }
+
+Word reduce_word_freely(const Word& w) { return reduce(w); }
 
 Word random_word(std::mt19937& rng, int n, int length) {
   std::uniform_int_distribution<int> letter(1, n), sign(0, 1);
@@ -166,6 +169,165 @@ TEST(OuterAutomorphisms, CyclicDehnReductionIsConjugationInvariant) {
   }
   // The relator itself and its conjugates are trivial.
   EXPECT_TRUE(cyclic_dehn_reduce(concat({Word{3}, canonical_relator(g), Word{-3}}), reduce).empty());
+}
+
+// Dehn's algorithm as it was written first (every rotation of R^±1 tested
+// at every letter, the whole word pushed), the reference for the indexed
+// and junction-only forms.
+Word reference_dehn_reduce(const Word& w, const Word& relator) {
+  std::vector<Word> rotations;
+  const size_t n = relator.size(), m = n / 2 + 1;
+  for (const Word& r : {relator, inverse(relator)})
+    for (size_t s = 0; s < n; ++s) {
+      Word rot(r.begin() + static_cast<long>(s), r.end());
+      rot.insert(rot.end(), r.begin(), r.begin() + static_cast<long>(s));
+      rotations.push_back(rot);
+    }
+  Word out, input(w.rbegin(), w.rend());
+  while (!input.empty()) {
+    const int x = input.back();
+    input.pop_back();
+    if (!out.empty() && out.back() == -x) {
+      out.pop_back();
+      continue;
+    }
+    out.push_back(x);
+    if (out.size() < m) continue;
+    for (const Word& r : rotations)
+      if (std::equal(r.begin(), r.begin() + static_cast<long>(m), out.end() - static_cast<long>(m))) {
+        out.resize(out.size() - m);
+        for (size_t q = m; q < n; ++q) input.push_back(-r[q]);
+        break;
+      }
+  }
+  return out;
+}
+
+Word rotated_word(const Word& u, size_t r) {
+  Word v(u.begin() + static_cast<long>(r), u.end());
+  v.insert(v.end(), u.begin(), u.begin() + static_cast<long>(r));
+  return v;
+}
+
+// cyclic_dehn_reduce as it was written first: every rotation reduced in full.
+Word reference_cyclic_dehn_reduce(const Word& w, const Word& relator) {
+  Word u = cyclic_reduce(reference_dehn_reduce(w, relator));
+  for (bool shorter = true; shorter;) {
+    shorter = false;
+    std::vector<size_t> rs;
+    if (u.size() >= 2) {
+      if (u.size() <= 2 * 64 + 2)
+        for (size_t k = 1; k < u.size(); ++k) rs.push_back(k);
+      else
+        rs.push_back(u.size() / 2);
+    }
+    for (size_t r : rs) {
+      Word d = cyclic_reduce(reference_dehn_reduce(rotated_word(u, r), relator));
+      if (d.size() < u.size()) {
+        u = std::move(d);
+        shorter = true;
+        break;
+      }
+    }
+  }
+  return u;
+}
+
+// Random words made of random letters and pieces of rotations of R^±1 (so
+// that Dehn's algorithm has windows to replace, cascades included).
+Word word_with_relator_pieces(std::mt19937& rng, const Word& relator, int pieces) {
+  const int letters = *std::max_element(relator.begin(), relator.end());
+  const Word rinv = inverse(relator);
+  std::uniform_int_distribution<int> coin(0, 2), letter(1, letters);
+  std::uniform_int_distribution<size_t> start(0, relator.size() - 1), length(1, relator.size());
+  Word w;
+  for (int k = 0; k < pieces; ++k) {
+    if (coin(rng) == 0) {
+      w.push_back(coin(rng) == 0 ? -letter(rng) : letter(rng));
+      continue;
+    }
+    const Word& r = coin(rng) == 0 ? rinv : relator;
+    const size_t s = start(rng), l = length(rng);
+    for (size_t q = 0; q < l; ++q) w.push_back(r[(s + q) % r.size()]);
+  }
+  return w;
+}
+
+// The indexed Dehn reduction and the junction-only reduction of rotations
+// give the reference algorithm's words letter for letter, on the canonical
+// relators and on a relator of another letter order.
+TEST(OuterAutomorphisms, DehnReductionOfWordsAndRotationsEqualsTheDirectAlgorithm) {
+  std::mt19937 rng(19);
+  std::vector<Word> relators{canonical_relator(2), canonical_relator(3), canonical_relator(4),
+                             {1, 2, 3, -1, 4, -3, -2, -4}};
+  size_t changed = 0;
+  for (const Word& R : relators) {
+    const DehnReducer reduce(R);
+    for (int trial = 0; trial < 150; ++trial) {
+      const Word w = word_with_relator_pieces(rng, R, 2 + trial % 40);
+      const Word d = reduce(w);
+      ASSERT_EQ(d, reference_dehn_reduce(w, R)) << "trial " << trial;
+      changed += d != reduce_word_freely(w);
+      for (size_t r = 0; r <= d.size(); ++r)
+        ASSERT_EQ(reduce.reduce_rotation(d, r), reference_dehn_reduce(rotated_word(d, r), R))
+            << "trial " << trial << " rotation " << r;
+      // A subword of a reduced word is reduced too.
+      if (d.size() > 4) {
+        const Word sub(d.begin() + 1, d.end() - 2);
+        for (size_t r = 0; r <= sub.size(); ++r)
+          ASSERT_EQ(reduce.reduce_rotation(sub, r), reference_dehn_reduce(rotated_word(sub, r), R));
+      }
+      EXPECT_EQ(cyclic_dehn_reduce(w, reduce), reference_cyclic_dehn_reduce(w, R)) << "trial " << trial;
+    }
+  }
+  EXPECT_GT(changed, 100u);  // Dehn's replacements did happen
+  EXPECT_THROW(DehnReducer(canonical_relator(2)).reduce_rotation({1, 2}, 3), InputError);
+  // The windows across a word's ends: 5 of the 8 letters of a rotation of
+  // R = a1 b1 a1^-1 b1^-1 a2 b2 a2^-1 b2^-1, split over the ends, and 4 of them.
+  const DehnReducer genus2(canonical_relator(2));
+  EXPECT_EQ(genus2.window(), 5u);
+  EXPECT_TRUE(genus2.holds_more_than_half({-2, 3, 1, 2, -1}, 2));
+  EXPECT_FALSE(genus2.holds_more_than_half({-2, 3, 1, 2, -3}, 2));
+  EXPECT_THROW(genus2.holds_more_than_half({1, 2}, 0), InputError);
+}
+
+// The descent's cost with the memo of cyclic lengths equals the direct sum
+// over the probe curves (fresh reductions by the reference algorithm), for
+// random classes met repeatedly, with and without a limit.
+TEST(OuterAutomorphisms, ProbeCostWithTheMemoEqualsTheDirectComputation) {
+  std::mt19937 rng(23);
+  for (int g = 2; g <= 3; ++g) {
+    const int n = 2 * g;
+    const Word R = canonical_relator(g);
+    const DehnReducer reduce(R);
+    CyclicLengthMemo memo(reduce, 4000);  // small: the memo also starts afresh
+    std::vector<GroupMap> classes;
+    for (int trial = 0; trial < 12; ++trial) {
+      GroupMap tau = conjugated(random_class(rng, g, 1 + trial % 4), random_word(rng, n, trial % 5));
+      for (Word& w : tau) w = reduce(w);
+      classes.push_back(tau);
+    }
+    for (int round = 0; round < 2; ++round)
+      for (const GroupMap& tau : classes) {
+        size_t direct = 0;
+        for (int i = 1; i <= n; ++i) {
+          direct += reference_cyclic_dehn_reduce(substitute({i}, tau), R).size();
+        }
+        for (int i = 1; i <= n; ++i)
+          for (int j = i + 1; j <= n; ++j) {
+            direct += reference_cyclic_dehn_reduce(substitute({i, j}, tau), R).size();
+            direct += reference_cyclic_dehn_reduce(substitute({i, -j}, tau), R).size();
+          }
+        EXPECT_EQ(probe_curve_cost(tau, g), direct);
+        EXPECT_EQ(probe_curve_cost(tau, g, &memo), direct);
+        const size_t limited = probe_curve_cost(tau, g, &memo, direct / 2);
+        EXPECT_GE(limited, direct / 2);
+        EXPECT_LE(limited, direct);
+        EXPECT_EQ(probe_curve_cost(tau, g, &memo, direct + 1), direct);
+      }
+    EXPECT_GT(memo.hits(), 0u);
+    EXPECT_GT(memo.misses(), 0u);
+  }
 }
 
 TEST(OuterAutomorphisms, BadInputIsAnInputError) {

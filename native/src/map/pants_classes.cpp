@@ -8,6 +8,7 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <unordered_map>
 #include <utility>
 
 #include "surfmap/error.h"
@@ -373,10 +374,25 @@ PantsDecomposition short_pants_decomposition(const SurfaceGroupLengths& lengths,
   const int g = lengths.genus();
   const DehnReducer reduce(canonical_relator(g));
   const std::vector<StandardPantsCurve> standard = standard_pants_curves(g);
+  // Curve lengths remembered by word (exact: the length computed for that
+  // very word). A twist leaves the curves without its letters alone, and the
+  // descent's sequences and starts share most curves; at most 2^22 letters
+  // of keys are kept (then it starts afresh).
+  std::unordered_map<Word, double, WordHash> length_of;
+  size_t memo_letters = 0;
+  auto curve_length = [&](const Word& w) {
+    const auto it = length_of.find(w);
+    if (it != length_of.end()) return it->second;
+    const double l = lengths.length(w);
+    if (memo_letters + w.size() > (size_t{1} << 22)) length_of.clear(), memo_letters = 0;
+    length_of.emplace(w, l);
+    memo_letters += w.size();
+    return l;
+  };
   auto total_of = [&](const GroupMap& m) {
     double total = 0;
     for (const StandardPantsCurve& s : standard) {
-      const double l = lengths.length(reduce(substitute(s.curve, m)));
+      const double l = curve_length(reduce(substitute(s.curve, m)));
       if (!std::isfinite(l)) return std::numeric_limits<double>::infinity();
       total += l;
     }

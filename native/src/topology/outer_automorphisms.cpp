@@ -63,14 +63,13 @@ std::vector<Word> probe_words(int genus) {
   return p;
 }
 
-// Total cyclically reduced length of the probes' images: conjugation
-// invariant, least (one letter per generator) for inner automorphisms.
-// Stops at `limit` (the caller only needs to know that it is not lower).
-size_t probe_cost(const GroupMap& tau, const std::vector<Word>& probes, const DehnReducer& reduce,
+// probe_curve_cost (header) with the probe words and the memo prepared
+// once per descent.
+size_t probe_cost(const GroupMap& tau, const std::vector<Word>& probes, CyclicLengthMemo& memo,
                   size_t limit = std::numeric_limits<size_t>::max()) {
   size_t c = 0;
   for (const Word& p : probes) {
-    c += cyclic_dehn_reduce(substitute(p, tau), reduce).size();
+    c += memo(substitute(p, tau));
     if (c >= limit) return c;
   }
   return c;
@@ -79,19 +78,65 @@ size_t probe_cost(const GroupMap& tau, const std::vector<Word>& probes, const De
 }  // namespace
 
 Word cyclic_dehn_reduce(const Word& w, const DehnReducer& reduce) {
+  // u is Dehn-reduced and cyclically freely reduced, so reducing a rotation
+  // u[r..) u[..r) changes it only where a window of m letters spanning u's
+  // ends (starting at s in [L - m + 1, L - 1], cyclically) holds more than
+  // half a relator and lies inside that rotation (s + m - L <= r <= s);
+  // every change shortens it. So the first rotation tried that shortens is
+  // the first one holding such a window, found without reducing the others
+  // (the same word as reducing every rotation in turn).
+  const size_t m = reduce.window();
   Word u = cyclic_reduce(reduce(w));
-  for (bool shorter = true; shorter;) {
-    shorter = false;
-    for (size_t r : rotations(u.size(), 64)  /* relators up to genus 16 */) {
-      Word d = cyclic_reduce(reduce(rotated(u, r)));
-      if (d.size() < u.size()) {
-        u = std::move(d);
-        shorter = true;
-        break;
-      }
+  for (;;) {
+    const size_t L = u.size();
+    if (m == 0 || L < m) return u;
+    std::vector<size_t> spanning;  // starts s of the windows across the ends that hold more than half
+    for (size_t s = L - m + 1; s < L; ++s)
+      if (reduce.holds_more_than_half(u, s)) spanning.push_back(s);
+    if (spanning.empty()) return u;
+    size_t chosen = 0;
+    for (size_t r : rotations(L, 64) /* relators up to genus 16 */) {
+      for (size_t s : spanning)
+        if (s + m - L <= r && r <= s) chosen = r;
+      if (chosen) break;
     }
+    if (!chosen) return u;
+    u = cyclic_reduce(reduce.reduce_rotation(u, chosen));
   }
-  return u;
+}
+
+CyclicLengthMemo::CyclicLengthMemo(const DehnReducer& reduce, size_t max_letters)
+    : reduce_(reduce), max_letters_(max_letters) {}
+
+size_t CyclicLengthMemo::operator()(const Word& w) {
+  const auto it = lengths_.find(w);
+  if (it != lengths_.end()) {
+    ++hits_;
+    return it->second;
+  }
+  ++misses_;
+  const size_t length = cyclic_dehn_reduce(w, reduce_).size();
+  if (letters_ + w.size() > max_letters_) {
+    lengths_.clear();
+    letters_ = 0;
+  }
+  if (w.size() <= max_letters_) {
+    lengths_.emplace(w, length);
+    letters_ += w.size();
+  }
+  return length;
+}
+
+size_t probe_curve_cost(const GroupMap& tau, int genus, CyclicLengthMemo* memo, size_t limit) {
+  check_map(tau, genus, "probe_curve_cost");
+  const DehnReducer reduce(canonical_relator(genus));
+  size_t c = 0;
+  for (const Word& p : probe_words(genus)) {
+    const Word image = substitute(p, tau);
+    c += memo ? (*memo)(image) : cyclic_dehn_reduce(image, reduce).size();
+    if (c >= limit) return c;
+  }
+  return c;
 }
 
 InnerTest inner_automorphism_test(const GroupMap& phi, int genus) {
@@ -203,13 +248,14 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
   };
   const std::vector<MappingClassMove> moves = twist_moves(genus);
   const std::vector<Word> probes = probe_words(genus);
-  std::vector<State> beam{{dehn(phi), identity_map(n), identity_map(n), probe_cost(dehn(phi), probes, reduce)}};
+  CyclicLengthMemo memo(reduce);
+  std::vector<State> beam{{dehn(phi), identity_map(n), identity_map(n), probe_cost(dehn(phi), probes, memo)}};
   // A second start: the exact lift sigma of the inverse homology on the
   // right (lift_symplectic), leaving a Torelli element to descend.
   if (P != IntMatrix::Identity(n, n)) try {
       const SurfaceAutomorphism sigma = lift_symplectic(-J * P.transpose() * J);  // P^-1
       GroupMap tau = dehn(compose(phi, sigma.map));
-      const size_t c = probe_cost(tau, probes, reduce);
+      const size_t c = probe_cost(tau, probes, memo);
       beam.push_back({std::move(tau), identity_map(n), dehn(sigma.map), c});
     } catch (const Error&) {
       // (entries too large to lift: the first start alone)
@@ -252,7 +298,7 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
       auto consider = [&](const GroupMap& m, bool right, size_t* cost_out) {
         GroupMap cand = dehn(right ? compose(st.tau, m) : compose(m, st.tau));
         if (total_letters(cand) > letter_cap) return false;
-        const size_t c = probe_cost(cand, probes, reduce, cost_out ? std::numeric_limits<size_t>::max() : st.cost);
+        const size_t c = probe_cost(cand, probes, memo, cost_out ? std::numeric_limits<size_t>::max() : st.cost);
         if (cost_out) *cost_out = c;
         if (!(c < st.cost)) return false;
         next.push_back({std::move(cand), right ? st.left : dehn(compose(m, st.left)),

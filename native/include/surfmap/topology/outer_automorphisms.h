@@ -32,7 +32,9 @@
 // heuristic: it may stop before L ∘ phi ∘ R is inner (`ok` false says so);
 // a returned inverse is checked exactly (phi ∘ inverse and inverse ∘ phi
 // inner).
+#include <limits>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "surfmap/topology/handle_basis.h"
@@ -45,6 +47,37 @@ namespace surfmap {
 /// algorithm on its rotations (conjugation invariant up to rotation; its
 /// length is what the descent of invert_automorphism lowers).
 Word cyclic_dehn_reduce(const Word& w, const DehnReducer& reduce);
+
+/// cyclic_dehn_reduce's length, remembered by word: the descent of
+/// invert_automorphism meets the same probe images again and again (a move
+/// leaves the probes without its letters alone; neighbouring states share
+/// most neighbours). Exact: a remembered length is the one computed for that
+/// very word. Holds at most `max_letters` letters of keys (default 2^23,
+/// 32 MB), then starts afresh. `reduce` (the canonical relator's reducer for
+/// probe_curve_cost) must outlive the memo.
+class CyclicLengthMemo {
+ public:
+  explicit CyclicLengthMemo(const DehnReducer& reduce, size_t max_letters = size_t{1} << 23);
+  /// cyclic_dehn_reduce(w, reduce).size().
+  size_t operator()(const Word& w);
+  size_t hits() const { return hits_; }
+  size_t misses() const { return misses_; }
+
+ private:
+  const DehnReducer& reduce_;
+  size_t max_letters_, letters_ = 0, hits_ = 0, misses_ = 0;
+  std::unordered_map<Word, size_t, WordHash> lengths_;
+};
+
+/// The descent's cost of invert_automorphism: the total cyclically
+/// Dehn-reduced length of the images under `tau` (2g Dehn-reduced images,
+/// canonical relator of genus g) of the probe curves x_i, then x_i x_j and
+/// x_i x_j^-1 (i < j), in that order; conjugation invariant, least (one
+/// letter per generator) for inner automorphisms. Stops as soon as the sum
+/// reaches `limit` (returning that partial sum). With `memo` the lengths are
+/// looked up (same result).
+size_t probe_curve_cost(const GroupMap& tau, int genus, CyclicLengthMemo* memo = nullptr,
+                        size_t limit = std::numeric_limits<size_t>::max());
 
 struct InnerTest {
   bool inner = false;
