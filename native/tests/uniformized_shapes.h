@@ -75,21 +75,6 @@ inline bool axes_cross(hyperbolic::Mobius p, hyperbolic::Mobius q) {
 }
 
 // Conjugators: every reduced word of up to `radius` letters.
-inline std::vector<Word> ball(int genus, int radius) {
-  std::vector<Word> out{{}}, frontier{{}};
-  for (int r = 0; r < radius; ++r) {
-    std::vector<Word> next;
-    for (const Word& w : frontier)
-      for (int x = -2 * genus; x <= 2 * genus; ++x) {
-        if (x == 0 || (!w.empty() && w.back() == -x)) continue;
-        Word v = w;
-        v.push_back(x);
-        next.push_back(v);
-      }
-    out.insert(out.end(), next.begin(), next.end());
-    frontier = std::move(next);
-  }
-  return out;
-}
+inline std::vector<Word> ball(int genus, int radius) { return reduced_words_up_to(genus, radius); }
 
 }  // namespace surfmap::testing_support

@@ -22,25 +22,6 @@ using hyperbolic::Mobius;
 /// along it, where a U-translate of a nearer lift is counted instead.
 constexpr double kEndTolerance = 1e-6;
 
-/// Every reduced word of up to `radius` letters in 2g letters (the empty
-/// word first).
-std::vector<Word> word_ball(int genus, int radius) {
-  std::vector<Word> out{{}}, frontier{{}};
-  for (int r = 0; r < radius; ++r) {
-    std::vector<Word> next;
-    for (const Word& w : frontier)
-      for (int x = -2 * genus; x <= 2 * genus; ++x) {
-        if (x == 0 || (!w.empty() && w.back() == -x)) continue;
-        Word v = w;
-        v.push_back(x);
-        next.push_back(std::move(v));
-      }
-    out.insert(out.end(), next.begin(), next.end());
-    frontier = std::move(next);
-  }
-  return out;
-}
-
 /// The two fixed points on the unit circle of a hyperbolic element; false
 /// when it is not hyperbolic (|Re a| <= 1 after normalisation).
 bool axis_ends(Mobius m, Complex* e1, Complex* e2) {
@@ -174,8 +155,8 @@ CurveIntersection curve_intersection(const SurfaceGroupLengths& lengths, const S
   if (!(ell > 1e-9)) return out;
   const Mobius K = axis_chart(r, t);
   int radius = options.radius;
-  while (radius > 0 && u.size() * v.size() * word_ball(genus, radius).size() > options.max_lifts) --radius;
-  const std::vector<Word> ball = word_ball(genus, radius);
+  while (radius > 0 && u.size() * v.size() * reduced_words_up_to(genus, radius).size() > options.max_lifts) --radius;
+  const std::vector<Word> ball = reduced_words_up_to(genus, radius);
   const bool self = u == v;
   std::set<Word> seen;
   std::vector<double> points;

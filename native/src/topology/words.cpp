@@ -67,6 +67,23 @@ Word commutator_product(const std::vector<Word>& generators) {
   return w;
 }
 
+std::vector<Word> reduced_words_up_to(int genus, int radius) {
+  std::vector<Word> out{{}}, frontier{{}};
+  for (int r = 0; r < radius; ++r) {
+    std::vector<Word> next;
+    for (const Word& w : frontier)
+      for (int x = -2 * genus; x <= 2 * genus; ++x) {
+        if (x == 0 || (!w.empty() && w.back() == -x)) continue;
+        Word v = w;
+        v.push_back(x);
+        next.push_back(std::move(v));
+      }
+    out.insert(out.end(), next.begin(), next.end());
+    frontier = std::move(next);
+  }
+  return out;
+}
+
 size_t WordHash::operator()(const Word& w) const {
   // 64-bit FNV-1a over the letters, then a final mix.
   uint64_t h = 1469598103934665603ull ^ w.size();

@@ -23,6 +23,10 @@ bool conjugate(const Word& u, const Word& v);
 /// Product of commutators a1 b1 a1^-1 b1^-1 ... for generators given as
 /// words [a1, b1, a2, b2, ...].
 Word commutator_product(const std::vector<Word>& generators);
+/// Every freely reduced word of at most `radius` letters in the 2g letters
+/// ±1..±2g, the empty word first, then by length (conjugators and lifts
+/// searched by enumeration).
+std::vector<Word> reduced_words_up_to(int genus, int radius);
 /// Hash of a word's letters (for memos keyed by words).
 struct WordHash {
   size_t operator()(const Word& w) const;
