@@ -642,15 +642,18 @@ std::vector<typename G::Chart> side_pairings(const Connectivity& conn, const Eig
       const int h = out.boundary_halfedges[i];
       if (L[conn.edge(h)] > L[conn.edge(best)]) best = h;
     }
-    // A pairing read off one edge is off by that edge's chart round-off,
-    // which grows like cosh of the distance along the loop (genus 11: 1e-9
-    // at the edge, 3 at the loop's far end); the edge whose pairing glues
-    // the whole loop best is used instead when it does better.
-    double best_gap = largest_gap(oriented_deck(best), copies[k]);
-    for (int i = s0; i != s1; i = (i + 1) % nb) {
-      const int h = out.boundary_halfedges[i];
-      const double gap = largest_gap(oriented_deck(h), copies[k]);
-      if (gap < best_gap) best = h, best_gap = gap;
+    // Hyperbolic: a pairing read off one edge is off by that edge's chart
+    // round-off, which grows like cosh of the distance along the loop
+    // (genus 11: 1e-9 at the edge, 3 at the loop's far end); the edge whose
+    // pairing glues the whole loop best is used instead when it does better.
+    // (Flat round-off grows only linearly along the loop: longest edge.)
+    if constexpr (std::is_same_v<G, Hyper>) {
+      double best_gap = largest_gap(oriented_deck(best), copies[k]);
+      for (int i = s0; i != s1; i = (i + 1) % nb) {
+        const int h = out.boundary_halfedges[i];
+        const double gap = largest_gap(oriented_deck(h), copies[k]);
+        if (gap < best_gap) best = h, best_gap = gap;
+      }
     }
     D[k] = oriented_deck(best);
   }
