@@ -98,6 +98,8 @@ void run(const Args& a) {
     j["num_flipped"] = L.num_flipped;
     j["num_unresolved"] = L.num_unresolved;
     j["max_interior_mismatch"] = L.max_interior_mismatch;
+    j["interior_roundoff"] = L.interior_roundoff;
+    j["max_interior_excess"] = L.max_interior_excess;
     j["max_deck_inconsistency"] = L.max_deck_inconsistency;
     j["deck_roundoff"] = L.deck_roundoff;
     j["max_deck_excess"] = L.max_deck_excess;

@@ -107,6 +107,8 @@ py::dict layout_dict(const DiskLayout& L) {
   d["num_unresolved"] = L.num_unresolved;
   d["coordinate_roundoff"] = L.coordinate_roundoff;
   d["max_interior_mismatch"] = L.max_interior_mismatch;
+  d["interior_roundoff"] = L.interior_roundoff;
+  d["max_interior_excess"] = L.max_interior_excess;
   d["max_deck_inconsistency"] = L.max_deck_inconsistency;
   d["deck_roundoff"] = L.deck_roundoff;
   d["max_deck_excess"] = L.max_deck_excess;

@@ -77,6 +77,34 @@ TEST(HighGenus, GeneratedGenus11And12MeshesUniformizeWithoutFlips) {
   }
 }
 
+// The CAD plates of `surfmap generate cad-plate` (64 rim points, thickness
+// 0.1) of genus 9 .. 11. Genus 11 lays points out 1e-11 from |z| = 1: the
+// two copies of an interior edge's endpoints differ there by 0.02 in the
+// metric, the round-off of charts built by hundreds of Möbius products
+// (issue 13, "the layout does not close up"). Each must uniformize; the gaps
+// must stay within 10 times their round-off bound, and both gaps and bound
+// far below anything a wrong gluing gives (a misplaced triangle is off by
+// its own size, ~0.1 .. 1), so the bound cannot hide one.
+TEST(HighGenus, GeneratedCadPlatesOfGenus9To11CloseUp) {
+  for (int genus : {9, 10, 11}) {
+    SCOPED_TRACE("cad plate, genus " + std::to_string(genus));
+    const TriMesh plate = samples::cad_plate(genus, 64, 0.1);
+    const IntakeResult in = intake(plate.V, plate.F);
+    ASSERT_EQ(in.info.genus, genus);
+    const UniformizeResult r = uniformize(in.mesh);
+    EXPECT_TRUE(r.converged);
+    EXPECT_LE(r.max_curvature_error, 1e-7);
+    EXPECT_NEAR(r.area, 4 * kPi * (genus - 1), 1e-6);
+    EXPECT_EQ(r.layout.num_unresolved, 0);
+    EXPECT_EQ(count_flipped_layout_triangles(r.layout), 0);
+    EXPECT_EQ(r.layout.num_flipped, 0);
+    EXPECT_LE(r.layout.max_interior_excess, r.gluing_tolerance);
+    EXPECT_LE(r.layout.max_deck_excess, r.gluing_tolerance);
+    EXPECT_LT(r.layout.max_interior_mismatch, 0.1);
+    EXPECT_LT(r.layout.interior_roundoff, 0.05);
+  }
+}
+
 // Handle correspondences of genus >= 8 are ranked without enumerating the
 // g! 2^g signed permutations (genus 11: 8e10, 20 GB before the map was
 // killed). The ranking must equal the full enumeration's (written out here)

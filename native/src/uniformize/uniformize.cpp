@@ -40,9 +40,12 @@ void check_layout(const DiskLayout& L, double residual) {
   const double tol = gluing_tolerance(L, residual);
   if (L.num_flipped > 0)
     throw SolveError("uniformize: " + std::to_string(L.num_flipped) + " triangles are flipped in the layout");
-  if (L.max_interior_mismatch > tol)
+  // Interior gaps, like deck gaps, are judged beyond the round-off of the
+  // charts that place the two copies (DiskLayout::max_interior_excess).
+  if (L.max_interior_excess > tol)
     throw SolveError("uniformize: the layout does not close up (interior edge mismatch " +
-                     fmt(L.max_interior_mismatch) + ", tolerance " + fmt(tol) + ")");
+                     fmt(L.max_interior_mismatch) + ", tolerance " + fmt(tol) + " plus chart round-off up to " +
+                     fmt(L.interior_roundoff) + ")");
   // Deck gaps are judged beyond the round-off of evaluating the side
   // pairing at each point (DiskLayout::max_deck_excess): near |z| = 1 that
   // round-off alone exceeds any fixed tolerance (genus 11: 2e-4).

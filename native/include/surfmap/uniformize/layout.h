@@ -128,6 +128,15 @@ struct DiskLayout {
   /// max |rotation part − 1| of the deck maps (holonomy; 0 for a flat torus).
   double max_interior_mismatch = 0;
   double max_deck_inconsistency = 0;
+  /// The largest round-off bound of the two copies in the interior check:
+  /// each copy's chart evaluation (apply_roundoff) times the number of
+  /// rounded chart products behind that chart (its breadth-first depth + 1);
+  /// and the largest interior gap beyond 10 times its own bound: the part
+  /// that is not rounding (uniformize checks this one against its
+  /// tolerance; genus 11 and up lay points out 1e-11 from |z| = 1, where
+  /// the rounding alone is 1e-2, issue 13).
+  double interior_roundoff = 0;
+  double max_interior_excess = 0;
   /// The largest round-off bound of the side pairing's evaluations in that
   /// check (hyperbolic: ε |a| / ((1 − |z|²)(1 − |w|²))^½ roughly, 1e-4 for
   /// a pairing with |a| ~ 1e5 between points 1e-7 from |z| = 1 on the
