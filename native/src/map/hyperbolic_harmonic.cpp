@@ -769,6 +769,29 @@ struct HarmonicNewton {
   }
 };
 
+// Issue 13: a solve whose gradient has reached the round-off floor of its
+// charts (a genus-11 coarse copy: E = 257.4074879 +- 4e-8, about #E ulps of
+// E, gradient 3e-8 .. 1e-7 against a tolerance of 1e-8) still finds steps
+// that "decrease" E by noise, so take_step never stops it and it used to
+// run out of iterations and be reported as not converged. It is converged
+// when, for kWindow iterations, neither E has dropped by more than its
+// round-off (1e-12 E relative, several ulps of a sum of #E terms) nor the
+// gradient halved, and the gradient is within the floor take_step's own
+// round-off stop accepts (1e4 times the tolerance).
+struct RoundoffPlateau {
+  static constexpr int kWindow = 30;
+  double best_E = std::numeric_limits<double>::infinity();
+  double best_g = std::numeric_limits<double>::infinity();
+  int since_progress = 0;
+  bool reached(double E, double gnorm, double floor) {
+    const bool progress = E < best_E - 1e-12 * std::abs(best_E) || gnorm < 0.5 * best_g;
+    best_E = std::min(best_E, E);
+    best_g = std::min(best_g, gnorm);
+    since_progress = progress ? 0 : since_progress + 1;
+    return since_progress >= kWindow && gnorm <= floor;
+  }
+};
+
 // The Newton solve; the pattern's analysis is `shared` when given (the
 // caller checked that `edges` have its pattern), else built at the first
 // iteration that needs it. Its steps are the helpers above; the state that
@@ -780,9 +803,15 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
   check_newton_input(n, edges, z0, options);
   HarmonicNewton run(n, edges, generators, z0, options, shared);
   HyperbolicHarmonicResult& r = run.r;
+  RoundoffPlateau plateau;
   for (int it = 0; it < options.max_iterations; ++it) {
     const double gnorm = run.newton_system(it);
     if (gnorm <= options.tolerance * std::max(run.max_w, 1e-300)) {
+      r.converged = true;
+      r.iterations = it;
+      break;
+    }
+    if (plateau.reached(run.E, gnorm, 1e4 * options.tolerance * std::max(run.max_w, 1e-300))) {
       r.converged = true;
       r.iterations = it;
       break;
