@@ -181,6 +181,17 @@ TEST(Spherical, RejectsHigherGenus) {
 namespace surfmap {
 namespace {
 
+// Cross ratio of vertices i, j, k, l of a spherical uniformization, through
+// the stereographic projection from the north pole (Möbius invariant).
+std::complex<double> cross_ratio(const SphericalUniformization& s, int i, int j, int k, int l) {
+  auto to_c = [&](int v) {
+    const Eigen::Vector3d p = s.positions.row(v).transpose();
+    return std::complex<double>(p.x(), p.y()) / (1.0 - p.z());
+  };
+  const std::complex<double> zi = to_c(i), zj = to_c(j), zk = to_c(k), zl = to_c(l);
+  return (zi - zk) * (zj - zl) / ((zi - zl) * (zj - zk));
+}
+
 // Signed area of the spherical triangle (a, b, c) (Van Oosterom–Strackee).
 double solid_angle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
   return 2.0 * std::atan2(a.dot(b.cross(c)), 1.0 + a.dot(b) + b.dot(c) + c.dot(a));
@@ -267,12 +278,6 @@ TEST(SphericalFlips, UniformizationIsUniqueUpToMobius) {
   expect_embedding(m, sa);
   expect_embedding(m, sb);
   // Cross ratios of four points on the Riemann sphere are Möbius invariant.
-  auto to_c = [](const Eigen::Vector3d& p) { return std::complex<double>(p.x(), p.y()) / (1.0 - p.z()); };
-  auto cross_ratio = [&](const SphericalUniformization& s, int i, int j, int k, int l) {
-    const auto zi = to_c(s.positions.row(i)), zj = to_c(s.positions.row(j)), zk = to_c(s.positions.row(k)),
-               zl = to_c(s.positions.row(l));
-    return (zi - zk) * (zj - zl) / ((zi - zl) * (zj - zk));
-  };
   const int nv = m.num_vertices();
   double worst = 0;
   for (int t = 0; t < 200; ++t) {
@@ -396,12 +401,6 @@ TEST(SphericalCentring, CappedBentTubeUniformizesFromEveryApex) {
     results.push_back(s);
   }
   // Möbius-invariant cross ratios of four vertices agree between poles.
-  auto to_c = [](const Eigen::Vector3d& p) { return std::complex<double>(p.x(), p.y()) / (1.0 - p.z()); };
-  auto cross_ratio = [&](const SphericalUniformization& s, int i, int j, int k, int l) {
-    const auto zi = to_c(s.positions.row(i)), zj = to_c(s.positions.row(j)), zk = to_c(s.positions.row(k)),
-               zl = to_c(s.positions.row(l));
-    return (zi - zk) * (zj - zl) / ((zi - zl) * (zj - zk));
-  };
   const int nv = m.num_vertices();
   double worst = 0;
   for (size_t r = 1; r < results.size(); ++r)

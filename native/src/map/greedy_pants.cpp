@@ -96,19 +96,8 @@ Word cyclic_name(const Word& w) {
 /// cyclic word, no proper powers.
 std::vector<Word> candidate_words(int genus, int max_letters) {
   std::set<Word> names;
-  std::vector<Word> frontier{{}};
-  for (int len = 1; len <= max_letters; ++len) {
-    std::vector<Word> next;
-    for (const Word& w : frontier)
-      for (int x = -2 * genus; x <= 2 * genus; ++x) {
-        if (x == 0 || (!w.empty() && w.back() == -x)) continue;
-        Word v = w;
-        v.push_back(x);
-        if (v.front() != -v.back() && !is_proper_power(v)) names.insert(cyclic_name(v));
-        next.push_back(std::move(v));
-      }
-    frontier = std::move(next);
-  }
+  for (const Word& v : reduced_words_up_to(genus, max_letters))
+    if (!v.empty() && v.front() != -v.back() && !is_proper_power(v)) names.insert(cyclic_name(v));
   return {names.begin(), names.end()};
 }
 
