@@ -20,15 +20,16 @@ void register_generate(CLI::App& app) {
     int genus = 2, resolution = 64, subdivisions = 3;
     bool raw = false;
     double jitter = 0.0, thickness = 0.1, degenerate_t = 0.5;
-    int segments = 64, degenerate = 0;
+    int segments = 64, degenerate = 0, rings = 30;
+    double stretch = 10.0, bend = 0.3;
     unsigned seed = 0;
   };
   auto a = std::make_shared<Args>();
   auto* cmd = app.add_subcommand("generate", "Write a procedural sample surface as OBJ");
-  cmd->add_option("SHAPE", a->shape, "torus | n-hole-torus | wheel | vase | amphora | cup | polycube | sphere | peanut | cad-plate")
+  cmd->add_option("SHAPE", a->shape, "torus | n-hole-torus | wheel | vase | amphora | cup | polycube | sphere | bent-sphere | peanut | cad-plate")
       ->required()
       ->check(CLI::IsMember(
-          {"torus", "n-hole-torus", "wheel", "vase", "amphora", "cup", "polycube", "sphere", "peanut", "cad-plate"}));
+          {"torus", "n-hole-torus", "wheel", "vase", "amphora", "cup", "polycube", "sphere", "bent-sphere", "peanut", "cad-plate"}));
   cmd->add_option("--out,-o", a->out, "Output .obj file (written atomically)")->required();
   cmd->add_option("--R", a->R, "torus: major radius")->capture_default_str();
   cmd->add_option("--r", a->r, "torus: minor radius")->capture_default_str();
@@ -45,8 +46,11 @@ void register_generate(CLI::App& app) {
   cmd->add_option("--jitter", a->jitter, "random tangential vertex offset, x local mean edge length (< 0.3)")
       ->capture_default_str();
   cmd->add_option("--seed", a->seed, "seed for --jitter and --degenerate")->capture_default_str();
-  cmd->add_option("--segments", a->segments, "cad-plate: points on each hole's rim (multiple of 4)")
+  cmd->add_option("--segments", a->segments, "cad-plate: points on each hole's rim (multiple of 4); bent-sphere: vertices around")
       ->capture_default_str();
+  cmd->add_option("--rings", a->rings, "bent-sphere: rings of the UV sphere")->capture_default_str();
+  cmd->add_option("--stretch", a->stretch, "bent-sphere: length to width (>= 1)")->capture_default_str();
+  cmd->add_option("--bend", a->bend, "bent-sphere: x += bend z^2 / stretch (0..1)")->capture_default_str();
   cmd->add_option("--thickness", a->thickness, "cad-plate: thickness (0.1 a plate, >= 1 a block)")
       ->capture_default_str();
   cmd->add_option("--degenerate", a->degenerate,
@@ -79,6 +83,9 @@ void register_generate(CLI::App& app) {
       m = s::polycube(a->genus, a->resolution, smooth);
     } else if (a->shape == "peanut") {
       m = s::peanut(a->resolution, smooth);
+      genus = 0;
+    } else if (a->shape == "bent-sphere") {
+      m = s::bent_tapered_sphere(a->rings, a->segments, a->stretch, a->bend);
       genus = 0;
     } else if (a->shape == "cad-plate") {
       m = s::cad_plate(a->genus, a->segments, a->thickness);

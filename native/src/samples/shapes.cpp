@@ -587,6 +587,20 @@ TriMesh stretched_uv_sphere(int rings, int segments, double stretch) {
   return m;
 }
 
+TriMesh bent_tapered_sphere(int rings, int segments, double stretch, double bend) {
+  if (rings < 2 || segments < 3 || !(stretch >= 1) || !(bend >= 0 && bend <= 1))
+    throw InputError("bent_tapered_sphere: needs rings >= 2, segments >= 3, stretch >= 1 and bend in [0, 1] (got " +
+                     std::to_string(rings) + ", " + std::to_string(segments) + ", " + std::to_string(stretch) + ", " +
+                     std::to_string(bend) + ")");
+  TriMesh m = stretched_uv_sphere(rings, segments, stretch);
+  for (int v = 0; v < m.num_vertices(); ++v) {
+    const double z = m.V(v, 2);
+    m.V(v, 0) += bend * z * z / stretch;
+    m.V(v, 1) *= 1.0 + z / (2.0 * stretch);  // in [0.5, 1.5]: never pinches
+  }
+  return m;
+}
+
 TriMesh peanut(int resolution, bool smooth) {
   Shape s;
   s.f = [](const Vector3d& p) {

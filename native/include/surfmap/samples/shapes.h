@@ -86,6 +86,16 @@ TriMesh spherical_cap(int rings, double bump = 0.0);
 /// rings < 2, segments < 3 or stretch <= 0.
 TriMesh stretched_uv_sphere(int rings, int segments, double stretch);
 
+/// Closed sphere, long, bent and tapered (issue 13 item 5): the UV sphere of
+/// stretched_uv_sphere (`rings` x `segments`, stretched `stretch`:1 along z,
+/// z in [-stretch, stretch]), then bent, x += bend z² / stretch, and
+/// tapered, y scaled by 1 + z / (2 stretch) (half as thick at the bottom as
+/// at the equator, 1.5 times at the top). The crowded ends of its conformal
+/// sphere are not antipodal, and 30 x 200 at 10:1 has corner angles of about
+/// 1 degree. Throws InputError on rings < 2, segments < 3, stretch < 1 or a
+/// bend outside [0, 1].
+TriMesh bent_tapered_sphere(int rings, int segments, double stretch, double bend = 0.3);
+
 /// Genus-0 implicit "peanut" (two overlapping spheres blended smoothly),
 /// meshed like the shapes above; smooth=false keeps the raw marching-tets
 /// slivers. Gives the robustness benchmark a genus-0 raw mesh.
