@@ -318,5 +318,34 @@ TEST(Shapes, StretchedUvSphereIsAClosedOutwardSphereWithSlivers) {
   EXPECT_THROW(stretched_uv_sphere(30, 200, 0.0), InputError);
 }
 
+TEST(Shapes, BentTaperedSphereIsBentAndTaperedAndClosed) {
+  const double stretch = 10.0, bend = 0.3;
+  const TriMesh m = bent_tapered_sphere(30, 200, stretch, bend), straight = stretched_uv_sphere(30, 200, stretch);
+  ASSERT_EQ(m.num_vertices(), straight.num_vertices());
+  ASSERT_EQ(m.F, straight.F);  // same connectivity: closed genus 0
+  for (int v = 0; v < m.num_vertices(); ++v) {
+    const double z = straight.V(v, 2);
+    EXPECT_EQ(m.V(v, 2), z);
+    EXPECT_NEAR(m.V(v, 0) - straight.V(v, 0), bend * z * z / stretch, 1e-12);  // bent: the ends move by 3
+    EXPECT_NEAR(m.V(v, 1), straight.V(v, 1) * (1 + z / (2 * stretch)), 1e-12);  // tapered
+  }
+  double smallest = 180.0, volume = 0;
+  for (int f = 0; f < m.num_faces(); ++f) {
+    const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
+    volume += a.dot(b.cross(c)) / 6;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d p = m.V.row(m.F(f, k)), q = m.V.row(m.F(f, (k + 1) % 3)), r = m.V.row(m.F(f, (k + 2) % 3));
+      smallest = std::min(smallest, std::acos((q - p).normalized().dot((r - p).normalized())) * 180.0 / M_PI);
+    }
+  }
+  // Outward and not pinched: the volume of the tapered tube, about
+  // (4/3) pi stretch (a bend shears cross-sections, which keeps volume).
+  EXPECT_NEAR(volume, 4.0 / 3.0 * M_PI * stretch, 0.05 * 4.0 / 3.0 * M_PI * stretch);
+  EXPECT_LT(smallest, 1.5);
+  EXPECT_THROW(bent_tapered_sphere(30, 200, 0.5), InputError);
+  EXPECT_THROW(bent_tapered_sphere(30, 200, 10.0, 1.5), InputError);
+  EXPECT_THROW(bent_tapered_sphere(1, 200, 10.0), InputError);
+}
+
 }  // namespace
 }  // namespace surfmap::samples

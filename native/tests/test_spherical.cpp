@@ -265,6 +265,26 @@ TEST(SphericalFlips, SpheresStretched20And40To1Uniformize) {
   }
 }
 
+TEST(SphericalFlips, BentTaperedSpheresUniformize) {
+  // Long, bent and tapered (samples::bent_tapered_sphere; issue 13 item 5):
+  // the flat punctured disk's crowded end has edges of 1e-15 of the disk's
+  // size and chains of 179.9-degree intrinsic triangles. A breadth-first
+  // layout multiplied the rounding error along those chains and laid out
+  // hundreds of disk faces inverted at 10:1 (every removed vertex failed)
+  // and did not finish at 20:1; the layout placing each vertex from its
+  // best-conditioned face does not. Checked: an embedding of the sphere
+  // (Gauss–Bonnet), every input face outward too, Möbius-centred.
+  for (double stretch : {10.0, 20.0}) {
+    SCOPED_TRACE(stretch);
+    const TriMesh m = samples::bent_tapered_sphere(30, 200, stretch);
+    const SphericalUniformization s = spherical_uniformization(m);
+    expect_embedding(m, s);
+    expect_valid(m, s);
+    EXPECT_EQ(s.input_flipped_faces, 0);
+    EXPECT_LE(s.centre_of_mass_norm, 1e-10);
+  }
+}
+
 TEST(SphericalFlips, UniformizationIsUniqueUpToMobius) {
   // Discrete uniformization is unique up to Möbius maps (Springborn 2020):
   // two different vertices at infinity must give sphere images that differ

@@ -228,6 +228,32 @@ TEST(SphericalMap, SliversGiveNoFlips) {
   expect_valid_genus0_map(back, b, a);
 }
 
+TEST(SphericalMap, BentTaperedSpheresMapWithoutRepairs) {
+  // Two meshings of the long, bent, tapered 10:1 sphere (issue 13 item 5;
+  // before the layout fix the finer one's uniformization failed for every
+  // removed vertex at 30 x 200): converged, no flipped or degenerate image
+  // triangle, no vertex re-placed on the sphere, certified a bijection, and
+  // close to the identity (a mirrored or turned map would be off by the
+  // tube's length). Then a raw marching-tetrahedra peanut (slivers) onto it.
+  const TriMesh a = samples::bent_tapered_sphere(20, 80, 10.0), b = samples::bent_tapered_sphere(24, 120, 10.0);
+  const SurfaceMapResult m = surface_map(a, b);
+  EXPECT_TRUE(m.converged);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.degenerate_triangles, 0);
+  EXPECT_EQ(m.repaired_vertices, 0);
+  EXPECT_CERTIFIED_MAP(a, b, m);
+  double mean_offset = 0;
+  for (int i = 0; i < a.num_vertices(); ++i) mean_offset += (m.forward[i].position - a.V.row(i).transpose()).norm();
+  mean_offset /= a.num_vertices();
+  EXPECT_LT(mean_offset, 0.05 * bbox_diagonal(b));  // 0.44 of 20.5: the two meshings' conformal moduli differ
+  const TriMesh c = samples::peanut(24, false);
+  const SurfaceMapResult n = surface_map(c, b);
+  EXPECT_TRUE(n.converged);
+  EXPECT_EQ(n.flipped_triangles, 0);
+  EXPECT_EQ(n.degenerate_triangles, 0);
+  EXPECT_EQ(n.repaired_vertices, 0);
+}
+
 TEST(SphericalMap, LandmarksAreHitExactly) {
   const TriMesh a = blob_mesh(3);
   const TriMesh b = samples::jitter(samples::sphere(3), 0.2, 2);

@@ -72,3 +72,23 @@ def test_cli_generate_writes_a_valid_obj(cli, tmp_path):
     assert bad.returncode == 1 and "resolution" in bad.stderr
     assert not (tmp_path / "bad.obj").exists()
     assert cli("generate", "teapot", "--out", out).returncode == 2
+
+
+def test_cli_generate_bent_sphere_then_uniformize(cli, tmp_path):
+    """`surfmap generate bent-sphere` (samples::bent_tapered_sphere) and the genus-0 CLI path on it:
+    a closed genus-0 mesh whose spherical uniformization embeds (no flipped intrinsic or input
+    face) and is Moebius-centred."""
+    import json
+    out = tmp_path / "bent.obj"
+    r = cli("generate", "bent-sphere", "--rings", "20", "--segments", "80", "--stretch", "10", "--out", out)
+    assert r.returncode == 0, r.stderr
+    assert "genus 0, 1522 vertices" in r.stdout
+    report = tmp_path / "u.json"
+    u = cli("uniformize", out, "--report", report, "--quiet")
+    assert u.returncode == 0, u.stderr
+    j = json.loads(report.read_text())
+    assert j["genus"] == 0 and j["converged"]
+    assert j["flipped_faces"] == 0 and j["input_flipped_faces"] == 0
+    assert j["centre_of_mass_norm"] <= 1e-10
+    bad = cli("generate", "bent-sphere", "--stretch", "0.5", "--out", tmp_path / "bad.obj")
+    assert bad.returncode == 1 and "stretch" in bad.stderr
