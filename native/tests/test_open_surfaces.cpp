@@ -215,6 +215,59 @@ TEST(OpenSurfaces, CylinderModulusWithinHalfPercent) {
             << r.modulus_from_u << ", " << r.modulus_from_theta << "]\n";
 }
 
+// W x H rectangle as an n x m grid (alternating diagonals); corners are
+// vertices 0 (0, 0), m (W, 0), (n + 1)(m + 1) - 1 (W, H), n (m + 1) (0, H).
+TriMesh rectangle(int n, int m, double W, double H) {
+  TriMesh r;
+  r.V.resize((n + 1) * (m + 1), 3);
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= m; ++j) r.V.row(i * (m + 1) + j) << W * j / m, H * i / n, 0;
+  r.F.resize(2 * n * m, 3);
+  int f = 0;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < m; ++j) {
+      const int a = i * (m + 1) + j, b = a + 1, c = a + m + 1, d = c + 1;
+      if ((i + j) % 2) {
+        r.F.row(f++) << a, b, d;
+        r.F.row(f++) << a, d, c;
+      } else {
+        r.F.row(f++) << a, b, c;
+        r.F.row(f++) << b, d, c;
+      }
+    }
+  return r;
+}
+
+TEST(OpenSurfaces, RectangleConformalModulusWithinHalfPercent) {
+  // The disk map is the free-boundary Riemann map, so the four corners of a
+  // W x H rectangle land on the circle with the cross ratio of the
+  // rectangle's conformal modulus W / H (Schwarz-Christoffel: corners at
+  // -1/k, -1, 1, 1/k of the half plane, width 2K(k), height K(k'), cross
+  // ratio ((1 - k) / (1 + k))^2). Nothing here is the solver's: the modulus
+  // comes from the corners' images alone.
+  auto modulus_of_corners = [](std::complex<double> tl, std::complex<double> bl, std::complex<double> br,
+                               std::complex<double> tr) {
+    const double lambda = std::abs((bl - tl) * (tr - br) / ((br - tl) * (tr - bl)));
+    const double k = (1 - std::sqrt(lambda)) / (1 + std::sqrt(lambda));
+    return 2 * std::comp_ellint_1(k) / std::comp_ellint_1(std::sqrt(1 - k * k));
+  };
+  for (const auto& [W, H, n] : {std::tuple{1.0, 1.0, 24}, std::tuple{2.0, 1.0, 24}, std::tuple{3.0, 1.0, 20}}) {
+    const int m = static_cast<int>(std::lround(n * W / H));
+    const TriMesh rect = rectangle(n, m, W, H);
+    const OpenConformalResult r = disk_conformal_map(rect, open_surface_topology(rect));
+    EXPECT_EQ(r.flipped_faces, 0);
+    const int bl = 0, br = m, tr = (n + 1) * (m + 1) - 1, tl = n * (m + 1);
+    for (int c : {bl, br, tr, tl}) EXPECT_NEAR(std::abs(r.uv[c]), 1.0, 1e-12);
+    const double modulus = modulus_of_corners(r.uv[tl], r.uv[bl], r.uv[br], r.uv[tr]);
+    EXPECT_NEAR(modulus / (W / H), 1.0, 0.005) << W << " x " << H;
+    // The other pair of sides: the reciprocal modulus.
+    const double other = modulus_of_corners(r.uv[bl], r.uv[br], r.uv[tr], r.uv[tl]);
+    EXPECT_NEAR(other * (W / H), 1.0, 0.005) << W << " x " << H;
+    std::cout << "  rectangle " << W << " x " << H << " (" << m << " x " << n << " grid): conformal modulus " << modulus
+              << " vs " << W / H << " (" << 100 * (modulus / (W / H) - 1) << "%), reciprocal " << other << "\n";
+  }
+}
+
 TEST(OpenSurfaces, DiskConformalMapIsCentredAndEmbedded) {
   const TriMesh m = hemisphere(16);
   const OpenConformalResult r = disk_conformal_map(m, open_surface_topology(m));

@@ -20,8 +20,8 @@ solves that class alone (`homotopy_images`). The orientation-reversing version p
 the target's mirror sheet instead. When no pairing is given and b >= 2, every pairing (b! of them,
 at most `max_pairings`) is tried in both orientations and the lowest energy is kept; all energies
 are reported. Beyond `max_pairings` pairings (b >= 4) the pairings and orientations are ranked by a
-cheap score (loop lengths; genus 0: the cap centres under the capped spheres' Möbius map) and the
-best `max_pairings` of them are solved.
+cheap score (loop lengths, distances between the loops along the surface; genus 0: the cap centres
+under the capped spheres' Möbius map) and the best `max_pairings` of them are solved.
 
 Before doubling, every interior edge joining two boundary vertices is split at its midpoint (the
 double would otherwise have edges with four faces); the mirror sheet is moved inward by 1e-6 of the
@@ -720,14 +720,43 @@ def _loop_lengths(side):
     return np.array([np.linalg.norm(side.V[l] - side.V[np.roll(l, -1)], axis=1).sum() for l in side.loops])
 
 
+def _loop_distances(side):
+    """(b, b) shortest distances along the input's edges between the boundary loops (0 on the
+    diagonal), over the square root of the surface's area: unchanged by bending (an isometry) and
+    by remeshing up to the edge paths' discretization, whatever the genus. Cached on the side."""
+    if getattr(side, "loop_distances", None) is None:
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import dijkstra
+        E = np.concatenate([side.F[:, [0, 1]], side.F[:, [1, 2]], side.F[:, [2, 0]]])
+        w = np.linalg.norm(side.V[E[:, 0]] - side.V[E[:, 1]], axis=1)
+        G = coo_matrix((w, (E[:, 0], E[:, 1])), shape=(side.n, side.n)).tocsr()
+        area = 0.5 * np.linalg.norm(np.cross(side.V[side.F[:, 1]] - side.V[side.F[:, 0]],
+                                             side.V[side.F[:, 2]] - side.V[side.F[:, 0]]), axis=1).sum()
+        D = np.zeros((side.b, side.b))
+        for i, loop in enumerate(side.loops):
+            d = dijkstra(G, directed=False, indices=loop, min_only=True)
+            D[i] = [d[l].min() for l in side.loops]
+        side.loop_distances = 0.5 * (D + D.T) / np.sqrt(area)
+    return side.loop_distances
+
+
 def _pairing_score(S, T, pairing, mirrored, options):
     """A cheap measure of how well source loop i matches target loop pairing[i] (smaller is
     better), for ranking the b! pairings when there are too many to solve (b >= 4): the squared
-    differences of the loops' log relative lengths, plus for genus 0 the squared chordal distances
-    between the target's cap centres 3.. and the images of the source's under the Möbius map of the
-    capped spheres that sends the first three onto theirs exactly (_sphere_rough_map)."""
+    differences of the loops' log relative lengths; the squared differences of the distances
+    between the loops (_loop_distances: loop i to loop j against pairing[i] to pairing[j], each
+    pair once; without scipy left out); plus for genus 0 the squared chordal distances between
+    the target's cap centres 3.. and the images of the source's under the Möbius map of the
+    capped spheres that sends the first three onto theirs exactly (_sphere_rough_map). Lengths
+    and distances do not see the orientation: for genus >= 1 both orientations of a pairing tie."""
     ls, lt = _loop_lengths(S), _loop_lengths(T)
-    score = float(np.sum((np.log(ls / ls.sum()) - np.log(lt[list(pairing)] / lt.sum())) ** 2))
+    p = list(pairing)
+    score = float(np.sum((np.log(ls / ls.sum()) - np.log(lt[p] / lt.sum())) ** 2))
+    try:
+        Ds, Dt = _loop_distances(S), _loop_distances(T)
+        score += float(np.sum(np.triu(Ds - Dt[np.ix_(p, p)], 1) ** 2))
+    except ImportError:     # scipy missing: lengths (and for genus 0 the cap centres) alone
+        pass
     if S.genus == 0 and S.b > 3:
         try:
             Ps, cs = _capped_sphere(S, options)
@@ -775,7 +804,7 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
                     key=lambda x: x[0])
     return [(p, o, sc) for sc, p, o in scored[:max_pairings]], (
         f"ranked by energy among the {max_pairings} of {len(scored)} pairings and orientations of best loop "
-        f"lengths{' and cap centres' if S.genus == 0 else ''}")
+        f"lengths, distances{' and cap centres' if S.genus == 0 else ''}")
 
 
 def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),
