@@ -2,6 +2,7 @@
 // boundary, conformal disk and annulus maps, maps between open surfaces.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <iostream>
 
 #include <cmath>
@@ -380,6 +381,53 @@ TEST(OpenSurfaces, EarTrianglesAreDegenerateNotFlipped) {
   EXPECT_EQ(r.source_domain.flipped_faces, 0);
   EXPECT_EQ(r.map.flipped_triangles, 0);
   EXPECT_NEAR(r.map.mean_dilatation / r.extremal_dilatation, 1.0, 0.01);
+}
+
+TEST(OpenSurfaces, BoundaryOntoTheTargetsBoundaryPastItsEars) {
+  // Ears glued onto every other edge of a tube's top loop: each ear's inner
+  // edge (a chord of the loop) lies on the cylinder's boundary line as well,
+  // and a boundary point located on a chord landed there in 3D, off the
+  // target's boundary (a holed sphere: 1.8% of the diagonal). Every boundary
+  // vertex of the source must land on the paired loop's polyline, and each
+  // target boundary vertex on the source's, both directions.
+  TriMesh eared = tube(40, 10, 1.0);
+  {
+    const OpenSurfaceTopology t0 = open_surface_topology(eared);
+    const auto& top = eared.V(t0.boundary_loops[0][0], 2) > 0.5 ? t0.boundary_loops[0] : t0.boundary_loops[1];
+    const int nv = eared.num_vertices(), nf = eared.num_faces(), n = static_cast<int>(top.size());
+    eared.V.conservativeResize(nv + n / 2, 3);
+    eared.F.conservativeResize(nf + n / 2, 3);
+    for (int k = 0; k < n / 2; ++k) {
+      const int a = top[2 * k], b = top[(2 * k + 1) % n];
+      eared.V.row(nv + k) = (0.5 * (eared.V.row(a) + eared.V.row(b)) + Eigen::RowVector3d(0, 0, 0.05));
+      eared.F.row(nf + k) << b, a, nv + k;
+    }
+  }
+  const TriMesh plain = tube(36, 16, 2.0);
+  auto distance_to_loop = [](const TriMesh& m, const std::vector<int>& loop, const Eigen::Vector3d& p) {
+    double best = 1e300;
+    for (size_t i = 0; i < loop.size(); ++i) {
+      const Eigen::Vector3d a = m.V.row(loop[i]), b = m.V.row(loop[(i + 1) % loop.size()]);
+      const double t = std::clamp((p - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+      best = std::min(best, (a + t * (b - a) - p).norm());
+    }
+    return best;
+  };
+  for (const auto& [s, t] : {std::pair<const TriMesh*, const TriMesh*>{&plain, &eared}, {&eared, &plain}}) {
+    const OpenSurfaceTopology ts = open_surface_topology(*s), tt = open_surface_topology(*t);
+    ASSERT_EQ(tt.num_boundary_loops(), 2);
+    const OpenMapResult r = open_surface_map(*s, ts, *t, tt);
+    double worst = 0, worst_back = 0;
+    for (int i = 0; i < 2; ++i) {
+      for (int v : ts.boundary_loops[i])
+        worst = std::max(worst, distance_to_loop(*t, tt.boundary_loops[r.boundary_pairing[i]], r.map.forward[v].position));
+      for (int v : tt.boundary_loops[r.boundary_pairing[i]])
+        worst_back = std::max(worst_back, distance_to_loop(*s, ts.boundary_loops[i], r.map.inverse[v].position));
+    }
+    EXPECT_LT(worst, 1e-12);
+    EXPECT_LT(worst_back, 1e-12);
+    EXPECT_EQ(r.map.flipped_triangles, 0);
+  }
 }
 
 TEST(OpenSurfaces, BoundaryPairingByIndexIsTheSwapAndTheReportNamesBothSides) {
