@@ -139,7 +139,7 @@ def shapes(quick):
                     lambda: holed_sphere(lv, [(0, 0, 1), (0.3, 0.2, -1)], [0.5, 0.7])),
         "pants": ((0, 3), lambda: holed_sphere(lv, [(1, 0, 0.3), (-0.5, 0.866, -0.2), (-0.4, -0.8, 0.5)],
                                                 [0.55, 0.6, 0.7]),
-                  lambda: holed_sphere(lv, [(0, 0, 1), (0.5, 0, -1), (-0.5, 0, -1)], [0.9, 0.5, 0.55],
+                  lambda: holed_sphere(lv, [(0, 0, 1), (0.8, 0, -1), (-0.8, 0, -1)], [0.9, 0.5, 0.55],
                                        stretch=(1.2, 0.8, 1.6))),
         "shirt": ((0, 4), lambda: holed_sphere(lv, shirt_dirs, [0.45, 0.9, 0.35, 0.4], stretch=(1.3, 0.6, 1.6)),
                   lambda: holed_sphere(lv, [(1, 0, 0.3), (-0.5, 0.866, -0.2), (-0.4, -0.8, 0.5), (0.3, -0.2, -1)],
