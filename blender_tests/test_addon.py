@@ -125,7 +125,7 @@ def test_panel_shows_module_status_settings_and_button():
     assert ("operator", "surfmap.show_cut_loops") in p.log
     for op in ("compute_map", "transfer_uvs", "create_morph", "paint_distortion"):
         assert ("operator", "surfmap." + op) in p.log, op
-    for name in ("homotopy", "landmark_mode", "method", "tolerance_text", "write_uvs", "write_morph",
+    for name in ("homotopy_auto", "boundary_pairing_auto", "landmark_mode", "method", "tolerance_text", "write_uvs", "write_morph",
                  "write_distortion", "morph_space"):
         assert ("prop", name) in p.log, name
     for name in ("source_base_vertex", "target_base_vertex", "loop_bevel", "mark_seams"):

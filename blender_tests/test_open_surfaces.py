@@ -151,6 +151,38 @@ def test_open_annulus_pair_maps_loops_onto_loops():
         settings.boundary_pairing = bad
         res, err = run("compute_map")
         assert res != {'FINISHED'} and words in (err or ""), (bad, err)
+    # Auto ticked again: the text is kept but not used (loop i onto loop i).
+    settings.boundary_pairing_auto = True
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    assert "boundary loops [0, 1]" in settings.map_status and settings.boundary_pairing == "one"
+
+
+def test_panel_shows_auto_for_the_pairings_not_minus_one():
+    """Automatic handle and boundary pairings are 'Auto' check boxes (the -1 / empty text they
+    stand for is not drawn); unticked, the number or the loops are drawn beside them."""
+    from test_addon import draw_all_panels
+    settings = bpy.context.scene.surfmap
+    assert settings.homotopy == -1 and settings.homotopy_auto and settings.boundary_pairing_auto
+    log = draw_all_panels()
+    drawn = [x[1] for x in log if x[0] == "prop"]
+    assert "homotopy_auto" in drawn and "boundary_pairing_auto" in drawn
+    assert "homotopy" not in drawn and "boundary_pairing" not in drawn
+    rna = settings.bl_rna.properties
+    assert rna["homotopy_auto"].name == rna["boundary_pairing_auto"].name == "Auto"
+    # Unticked: the last run's chosen pairing to start with, drawn beside the box.
+    settings.chosen_candidate = 3
+    settings.homotopy_auto = False
+    assert settings.homotopy == 3 and not settings.homotopy_auto
+    settings.boundary_pairing = "1 0"          # typing loops unticks Auto
+    assert not settings.boundary_pairing_auto
+    drawn = [x[1] for x in draw_all_panels() if x[0] == "prop"]
+    assert "homotopy" in drawn and "boundary_pairing" in drawn
+    settings.homotopy_auto = True
+    assert settings.homotopy == -1
+    settings.boundary_pairing = ""             # cleared: automatic again
+    assert settings.boundary_pairing_auto
+    settings.chosen_candidate = -1
 
 
 def _pants(subdivisions=3, squash=1.0):

@@ -96,7 +96,7 @@ def test_progress_bar_reads_the_running_job():
         # while it runs the sidebar holds the main panel only (each progress update redraws
         # the whole sidebar): no sub-panel's options, buttons or list
         assert ("operator", "surfmap.compute_map") not in log
-        assert ("prop", "homotopy") not in log and ("prop", "write_uvs") not in log
+        assert ("prop", "homotopy_auto") not in log and ("prop", "write_uvs") not in log
         assert all(not cls.poll(bpy.context) for cls in _sub_panels())
     finally:
         map_job.ACTIVE["job"] = None

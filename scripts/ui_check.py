@@ -23,6 +23,9 @@ UI_CHECK_RUNS=k: Compute Map k times in a row (more one-second windows; one line
 ticks per 1 s window' with their distribution over all runs; the first click after a run is
 lost while Blender redraws the 3D view: repeated runs click once the view has not been drawn
 for 4 s; a click still lost is repeated after 8 s).
+UI_CHECK_PAIR may name mesh files by path (an open pair, e.g. two meshes written by
+bench/bench_open_surfaces.py's shapes). UI_CHECK_PAIRINGS_GIVEN='1 0 2' (with UI_CHECK_QUICK): a
+second screenshot with both pairings' Auto boxes unticked and these boundary loops typed in.
 UI_CHECK_NO_PRESHOT=1: no screenshot before a repeated run's click; UI_CHECK_LEAVE_REGION=1:
 the pointer over the 3D view before it moves onto the button; UI_CHECK_CLICK=batched and
 UI_CHECK_NO_SETTLE=1: the old click (sent from inside the script's callback; 3 s after the
@@ -120,7 +123,10 @@ def setup():
     import numpy as np
     obs = []
     for name, x in ((SOURCE, -1.6), (TARGET, 1.6)):
-        V, polys = sm.read_polygon_soup(os.path.join(REPO, "samples", "meshes", name + ".obj"))
+        # a path (open meshes generated elsewhere) or the name of a sample
+        path = name if os.sep in name else os.path.join(REPO, "samples", "meshes", name + ".obj")
+        name = os.path.splitext(os.path.basename(name))[0]
+        V, polys = sm.read_polygon_soup(path)
         V = np.asarray(V, dtype=float)
         V = (V - V.mean(axis=0)) / np.ptp(V, axis=0).max() * 2.4
         me = bpy.data.meshes.new(name)
@@ -630,6 +636,16 @@ def step():
         log("clicked the Cut Loops header at", ui.x + ui.width // 2, y)
     elif s == 99:
         shot("00_quick.png")
+        if os.environ.get("UI_CHECK_PAIRINGS_GIVEN"):   # the Auto boxes unticked: the fields beside
+            settings.homotopy_auto = False               # them, with a pairing and loops typed in
+            settings.boundary_pairing = os.environ["UI_CHECK_PAIRINGS_GIVEN"]
+            redraw_all()
+            STATE["step"] = 110
+            return 3.0
+        STATE["step"] = 100
+        return 0.1
+    elif s == 110:
+        shot("00_quick_given.png")
         STATE["step"] = 100
         return 0.1
     else:

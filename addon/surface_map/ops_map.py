@@ -117,7 +117,8 @@ def prepare_job(context, sm):
     landmarks, lm_desc = _landmarks(settings, source, target, src, tgt)
     outputs = {flag for prop, flag in OUTPUT_FLAGS if getattr(settings, prop)}
     options = MapOptions.from_settings(settings, landmarks, outputs)
-    if src.boundary_loops:   # open pair: the panel's boundary loop correspondence, if any
+    if src.boundary_loops and not getattr(settings, "boundary_pairing_auto", False):
+        # open pair with Auto unticked: the panel's boundary loop correspondence
         try:
             options.boundary_pairing = map_job.parse_boundary_pairing(
                 getattr(settings, "boundary_pairing", ""))

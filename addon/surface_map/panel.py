@@ -156,14 +156,22 @@ def draw_map(layout, settings):
     layout.use_property_split = True
     layout.use_property_decorate = False
     col = layout.column(align=True)
-    col.prop(settings, "homotopy")
+    # Automatic (the lowest energy) is a check box, not the number -1; the number beside it
+    # only when unticked.
+    row = col.row(heading="Pairing", align=True)
+    row.prop(settings, "homotopy_auto")
+    if not settings.homotopy_auto:
+        row.prop(settings, "homotopy", text="")
     col.prop(settings, "landmark_mode")
     if settings.landmark_status:
         _lines(col, settings.landmark_status, 4, icon='PINNED')
     col.prop(settings, "method")
     col.prop(settings, "source_weights")
     col.prop(settings, "tolerance_text")
-    col.prop(settings, "boundary_pairing", text="Boundary")   # ("Boundary Loops" is cut)
+    row = col.row(heading="Boundary", align=True)   # ("Boundary Loops" is cut)
+    row.prop(settings, "boundary_pairing_auto")
+    if not settings.boundary_pairing_auto:
+        row.prop(settings, "boundary_pairing", text="")
     row = layout.row()
     row.scale_y = 1.4
     row.operator("surfmap.compute_map", icon='PLAY')

@@ -49,6 +49,22 @@ def _tolerance_text_set(self, text):
         self.tolerance = value
 
 
+def _homotopy_auto_get(self):
+    return self.homotopy < 0
+
+
+def _homotopy_auto_set(self, value):
+    if value:
+        self.homotopy = -1
+    elif self.homotopy < 0:
+        self.homotopy = max(self.chosen_candidate, 0)
+
+
+def _boundary_pairing_update(self, context):
+    # Typing loops means giving them; clearing the text goes back to automatic.
+    self.boundary_pairing_auto = not self.boundary_pairing.strip()
+
+
 class SURFMAP_PG_candidate(bpy.types.PropertyGroup):
     """One way of pairing the handles of the source with those of the target (a homotopy class
     of maps), with its energy."""
@@ -103,6 +119,12 @@ class SURFMAP_PG_settings(bpy.types.PropertyGroup):
         name="Pairing", default=-1, min=-1,
         description="Which handle of the source goes to which handle of the target: a number "
                     "from the list shown after a run (-1: the pairing with the lowest energy)")
+    # The panel shows Auto (a check box) rather than the -1 above: ticked, the pairing of lowest
+    # energy; unticked, the number beside it (the chosen one of the last run to start with).
+    homotopy_auto: BoolProperty(
+        name="Auto", get=_homotopy_auto_get, set=_homotopy_auto_set,
+        description="Pair the handles automatically: the pairing with the lowest energy (untick "
+                    "to give a number from the list shown after a run)")
     candidates: CollectionProperty(type=SURFMAP_PG_candidate)
     candidate_index: IntProperty(name="Picked Pairing", default=-1,
                                  description="The pairing picked in the list")
@@ -139,10 +161,14 @@ class SURFMAP_PG_settings(bpy.types.PropertyGroup):
                 "stretch)")),
         description="How the source's edges are weighted in the energy")
     boundary_pairing: StringProperty(
-        name="Boundary Loops", default="",
-        description="Open meshes: the target boundary loop of each source boundary loop, by "
-                    "index, loops longest first (e.g. '1 0' maps an annulus's loops crosswise); "
-                    "empty: loop i onto loop i")
+        name="Boundary Loops", default="", update=_boundary_pairing_update,
+        description="Open meshes: the target boundary loop of each source boundary loop, loops "
+                    "numbered longest first (e.g. '1 0' maps an annulus's loops crosswise)")
+    boundary_pairing_auto: BoolProperty(
+        name="Auto", default=True,
+        description="Open meshes: pair the boundary loops automatically (disks and annuli: loop "
+                    "i onto loop i, longest first; otherwise the pairing of lowest energy). "
+                    "Untick to give the target loop of each source loop")
     write_uvs: BoolProperty(name="UVs", default=True,
                             description="Copy every UV map of the source onto the target")
     write_uvs_before: BoolProperty(

@@ -2,6 +2,7 @@
 // boundary, conformal disk and annulus maps, maps between open surfaces.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <iostream>
 
 #include <cmath>
@@ -215,6 +216,59 @@ TEST(OpenSurfaces, CylinderModulusWithinHalfPercent) {
             << r.modulus_from_u << ", " << r.modulus_from_theta << "]\n";
 }
 
+// W x H rectangle as an n x m grid (alternating diagonals); corners are
+// vertices 0 (0, 0), m (W, 0), (n + 1)(m + 1) - 1 (W, H), n (m + 1) (0, H).
+TriMesh rectangle(int n, int m, double W, double H) {
+  TriMesh r;
+  r.V.resize((n + 1) * (m + 1), 3);
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= m; ++j) r.V.row(i * (m + 1) + j) << W * j / m, H * i / n, 0;
+  r.F.resize(2 * n * m, 3);
+  int f = 0;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < m; ++j) {
+      const int a = i * (m + 1) + j, b = a + 1, c = a + m + 1, d = c + 1;
+      if ((i + j) % 2) {
+        r.F.row(f++) << a, b, d;
+        r.F.row(f++) << a, d, c;
+      } else {
+        r.F.row(f++) << a, b, c;
+        r.F.row(f++) << b, d, c;
+      }
+    }
+  return r;
+}
+
+TEST(OpenSurfaces, RectangleConformalModulusWithinHalfPercent) {
+  // The disk map is the free-boundary Riemann map, so the four corners of a
+  // W x H rectangle land on the circle with the cross ratio of the
+  // rectangle's conformal modulus W / H (Schwarz-Christoffel: corners at
+  // -1/k, -1, 1, 1/k of the half plane, width 2K(k), height K(k'), cross
+  // ratio ((1 - k) / (1 + k))^2). Nothing here is the solver's: the modulus
+  // comes from the corners' images alone.
+  auto modulus_of_corners = [](std::complex<double> tl, std::complex<double> bl, std::complex<double> br,
+                               std::complex<double> tr) {
+    const double lambda = std::abs((bl - tl) * (tr - br) / ((br - tl) * (tr - bl)));
+    const double k = (1 - std::sqrt(lambda)) / (1 + std::sqrt(lambda));
+    return 2 * std::comp_ellint_1(k) / std::comp_ellint_1(std::sqrt(1 - k * k));
+  };
+  for (const auto& [W, H, n] : {std::tuple{1.0, 1.0, 24}, std::tuple{2.0, 1.0, 24}, std::tuple{3.0, 1.0, 20}}) {
+    const int m = static_cast<int>(std::lround(n * W / H));
+    const TriMesh rect = rectangle(n, m, W, H);
+    const OpenConformalResult r = disk_conformal_map(rect, open_surface_topology(rect));
+    EXPECT_EQ(r.flipped_faces, 0);
+    const int bl = 0, br = m, tr = (n + 1) * (m + 1) - 1, tl = n * (m + 1);
+    for (int c : {bl, br, tr, tl}) EXPECT_NEAR(std::abs(r.uv[c]), 1.0, 1e-12);
+    const double modulus = modulus_of_corners(r.uv[tl], r.uv[bl], r.uv[br], r.uv[tr]);
+    EXPECT_NEAR(modulus / (W / H), 1.0, 0.005) << W << " x " << H;
+    // The other pair of sides: the reciprocal modulus.
+    const double other = modulus_of_corners(r.uv[bl], r.uv[br], r.uv[tr], r.uv[tl]);
+    EXPECT_NEAR(other * (W / H), 1.0, 0.005) << W << " x " << H;
+    std::cout << "  rectangle " << W << " x " << H << " (" << m << " x " << n << " grid): conformal modulus " << modulus
+              << " vs " << W / H << " (" << 100 * (modulus / (W / H) - 1) << "%), reciprocal " << other << "\n";
+  }
+}
+
 TEST(OpenSurfaces, DiskConformalMapIsCentredAndEmbedded) {
   const TriMesh m = hemisphere(16);
   const OpenConformalResult r = disk_conformal_map(m, open_surface_topology(m));
@@ -327,6 +381,53 @@ TEST(OpenSurfaces, EarTrianglesAreDegenerateNotFlipped) {
   EXPECT_EQ(r.source_domain.flipped_faces, 0);
   EXPECT_EQ(r.map.flipped_triangles, 0);
   EXPECT_NEAR(r.map.mean_dilatation / r.extremal_dilatation, 1.0, 0.01);
+}
+
+TEST(OpenSurfaces, BoundaryOntoTheTargetsBoundaryPastItsEars) {
+  // Ears glued onto every other edge of a tube's top loop: each ear's inner
+  // edge (a chord of the loop) lies on the cylinder's boundary line as well,
+  // and a boundary point located on a chord landed there in 3D, off the
+  // target's boundary (a holed sphere: 1.8% of the diagonal). Every boundary
+  // vertex of the source must land on the paired loop's polyline, and each
+  // target boundary vertex on the source's, both directions.
+  TriMesh eared = tube(40, 10, 1.0);
+  {
+    const OpenSurfaceTopology t0 = open_surface_topology(eared);
+    const auto& top = eared.V(t0.boundary_loops[0][0], 2) > 0.5 ? t0.boundary_loops[0] : t0.boundary_loops[1];
+    const int nv = eared.num_vertices(), nf = eared.num_faces(), n = static_cast<int>(top.size());
+    eared.V.conservativeResize(nv + n / 2, 3);
+    eared.F.conservativeResize(nf + n / 2, 3);
+    for (int k = 0; k < n / 2; ++k) {
+      const int a = top[2 * k], b = top[(2 * k + 1) % n];
+      eared.V.row(nv + k) = (0.5 * (eared.V.row(a) + eared.V.row(b)) + Eigen::RowVector3d(0, 0, 0.05));
+      eared.F.row(nf + k) << b, a, nv + k;
+    }
+  }
+  const TriMesh plain = tube(36, 16, 2.0);
+  auto distance_to_loop = [](const TriMesh& m, const std::vector<int>& loop, const Eigen::Vector3d& p) {
+    double best = 1e300;
+    for (size_t i = 0; i < loop.size(); ++i) {
+      const Eigen::Vector3d a = m.V.row(loop[i]), b = m.V.row(loop[(i + 1) % loop.size()]);
+      const double t = std::clamp((p - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+      best = std::min(best, (a + t * (b - a) - p).norm());
+    }
+    return best;
+  };
+  for (const auto& [s, t] : {std::pair<const TriMesh*, const TriMesh*>{&plain, &eared}, {&eared, &plain}}) {
+    const OpenSurfaceTopology ts = open_surface_topology(*s), tt = open_surface_topology(*t);
+    ASSERT_EQ(tt.num_boundary_loops(), 2);
+    const OpenMapResult r = open_surface_map(*s, ts, *t, tt);
+    double worst = 0, worst_back = 0;
+    for (int i = 0; i < 2; ++i) {
+      for (int v : ts.boundary_loops[i])
+        worst = std::max(worst, distance_to_loop(*t, tt.boundary_loops[r.boundary_pairing[i]], r.map.forward[v].position));
+      for (int v : tt.boundary_loops[r.boundary_pairing[i]])
+        worst_back = std::max(worst_back, distance_to_loop(*s, ts.boundary_loops[i], r.map.inverse[v].position));
+    }
+    EXPECT_LT(worst, 1e-12);
+    EXPECT_LT(worst_back, 1e-12);
+    EXPECT_EQ(r.map.flipped_triangles, 0);
+  }
 }
 
 TEST(OpenSurfaces, BoundaryPairingByIndexIsTheSwapAndTheReportNamesBothSides) {

@@ -20,16 +20,18 @@ solves that class alone (`homotopy_images`). The orientation-reversing version p
 the target's mirror sheet instead. When no pairing is given and b >= 2, every pairing (b! of them,
 at most `max_pairings`) is tried in both orientations and the lowest energy is kept; all energies
 are reported. Beyond `max_pairings` pairings (b >= 4) the pairings and orientations are ranked by a
-cheap score (loop lengths; genus 0: the cap centres under the capped spheres' Möbius map) and the
-best `max_pairings` of them are solved.
+cheap score (loop lengths, distances between the loops along the surface; genus 0: the cap centres
+under the capped spheres' Möbius map) and the best `max_pairings` of them are solved.
 
 Before doubling, every interior edge joining two boundary vertices is split at its midpoint (the
 double would otherwise have edges with four faces); the mirror sheet is moved inward by 1e-6 of the
 bounding diagonal along the vertex normals so that the double has positive volume (the intake
 orients closed surfaces by the sign of their volume).
 """
+import heapq
 import itertools
 import json
+import math
 import sys
 
 import numpy as np
@@ -720,40 +722,122 @@ def _loop_lengths(side):
     return np.array([np.linalg.norm(side.V[l] - side.V[np.roll(l, -1)], axis=1).sum() for l in side.loops])
 
 
-def _pairing_score(S, T, pairing, mirrored, options):
+def _loop_distances(side):
+    """(b, b) shortest distances along the input's edges between the boundary loops (0 on the
+    diagonal), over the square root of the surface's area: unchanged by bending (an isometry) and
+    by remeshing up to the edge paths' discretization, whatever the genus. Cached on the side."""
+    if getattr(side, "loop_distances", None) is None:
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import dijkstra
+        E = np.concatenate([side.F[:, [0, 1]], side.F[:, [1, 2]], side.F[:, [2, 0]]])
+        w = np.linalg.norm(side.V[E[:, 0]] - side.V[E[:, 1]], axis=1)
+        G = coo_matrix((w, (E[:, 0], E[:, 1])), shape=(side.n, side.n)).tocsr()
+        area = 0.5 * np.linalg.norm(np.cross(side.V[side.F[:, 1]] - side.V[side.F[:, 0]],
+                                             side.V[side.F[:, 2]] - side.V[side.F[:, 0]]), axis=1).sum()
+        D = np.zeros((side.b, side.b))
+        for i, loop in enumerate(side.loops):
+            d = dijkstra(G, directed=False, indices=loop, min_only=True)
+            D[i] = [d[l].min() for l in side.loops]
+        side.loop_distances = 0.5 * (D + D.T) / np.sqrt(area)
+    return side.loop_distances
+
+
+class _PairingScore:
     """A cheap measure of how well source loop i matches target loop pairing[i] (smaller is
-    better), for ranking the b! pairings when there are too many to solve (b >= 4): the squared
-    differences of the loops' log relative lengths, plus for genus 0 the squared chordal distances
-    between the target's cap centres 3.. and the images of the source's under the Möbius map of the
-    capped spheres that sends the first three onto theirs exactly (_sphere_rough_map)."""
-    ls, lt = _loop_lengths(S), _loop_lengths(T)
-    score = float(np.sum((np.log(ls / ls.sum()) - np.log(lt[list(pairing)] / lt.sum())) ** 2))
-    if S.genus == 0 and S.b > 3:
+    better), for ranking the b! pairings when there are too many to solve (b >= 4), as a sum of
+    non-negative terms each known once loops 0..m are paired (`step`), so that a best-first search
+    finds the best pairings without listing all b! (_best_pairings). The terms: the squared
+    differences of the loops' log relative lengths; the squared differences of the distances
+    between the loops (_loop_distances: loop i to loop j against pairing[i] to pairing[j], each
+    pair once; without scipy left out); for genus 0 the squared chordal distances between the
+    target's cap centres 3.. and the images of the source's under the Möbius map of the capped
+    spheres that sends the first three onto theirs exactly (_sphere_rough_map). Lengths and
+    distances do not see the orientation: for genus >= 1 both orientations of a pairing tie."""
+
+    def __init__(self, S, T, options):
+        ls, lt = _loop_lengths(S), _loop_lengths(T)
+        self.length = (np.log(ls / ls.sum())[:, None] - np.log(lt / lt.sum())[None, :]) ** 2   # (b, b)
         try:
-            Ps, cs = _capped_sphere(S, options)
-            Pt, ct = _capped_sphere(T, options)
-        except _core.SolveError:
-            # A capped long thin tube need not uniformize (docs/open_surfaces.md: the artery's bent
-            # copy); the loop lengths alone rank the pairings then.
-            return score
-        if mirrored:
-            Ps = Ps * np.array([1.0, -1.0, 1.0])
-        src = [_to_homogeneous(Ps[[cs[i]]]) for i in range(3)]
-        dst = [_to_homogeneous(Pt[[ct[pairing[i]]]]) for i in range(3)]
-        M = np.linalg.inv(_three_point_matrix([(u[0], v[0]) for u, v in dst])) @ \
-            _three_point_matrix([(u[0], v[0]) for u, v in src])
-        u, v = _to_homogeneous(Ps[cs[3:]])
-        images = _from_homogeneous(M[0, 0] * u + M[0, 1] * v, M[1, 0] * u + M[1, 1] * v)
-        score += float(np.sum((images - Pt[ct[list(pairing[3:])]]) ** 2))
-    return score
+            self.Ds, self.Dt = _loop_distances(S), _loop_distances(T)
+        except ImportError:     # scipy missing: lengths (and for genus 0 the cap centres) alone
+            self.Ds = self.Dt = None
+        self.spheres = None
+        if S.genus == 0 and S.b > 3:
+            try:
+                self.spheres = (_capped_sphere(S, options), _capped_sphere(T, options))
+            except _core.SolveError:
+                # A capped long thin tube need not uniformize (docs/open_surfaces.md: the artery's
+                # bent copy); lengths and distances alone rank the pairings then.
+                pass
+        self._images = {}
+
+    def _cap_images(self, triple, mirrored):
+        """The source cap centres 3.. under the Möbius map sending source centres 0, 1, 2 onto the
+        target centres `triple` (on the mirrored source sphere when mirrored); cached."""
+        key = (triple, mirrored)
+        if key not in self._images:
+            (Ps, cs), (Pt, ct) = self.spheres
+            if mirrored:
+                Ps = Ps * np.array([1.0, -1.0, 1.0])
+            src = [_to_homogeneous(Ps[[cs[i]]]) for i in range(3)]
+            dst = [_to_homogeneous(Pt[[ct[triple[i]]]]) for i in range(3)]
+            M = np.linalg.inv(_three_point_matrix([(u[0], v[0]) for u, v in dst])) @ \
+                _three_point_matrix([(u[0], v[0]) for u, v in src])
+            u, v = _to_homogeneous(Ps[cs[3:]])
+            self._images[key] = _from_homogeneous(M[0, 0] * u + M[0, 1] * v, M[1, 0] * u + M[1, 1] * v)
+        return self._images[key]
+
+    def step(self, partial, j, mirrored):
+        """The terms added when loop m = len(partial) goes onto target loop j, loops 0..m-1 onto
+        `partial`."""
+        m = len(partial)
+        c = float(self.length[m, j])
+        if self.Ds is not None and m:
+            c += float(np.sum((self.Ds[:m, m] - self.Dt[list(partial), j]) ** 2))
+        if self.spheres is not None and m >= 3:
+            (_, _), (Pt, ct) = self.spheres
+            c += float(np.sum((self._cap_images(tuple(partial[:3]), mirrored)[m - 3] - Pt[ct[j]]) ** 2))
+        return c
+
+    def score(self, pairing, mirrored):
+        return sum(self.step(tuple(pairing[:m]), pairing[m], mirrored) for m in range(len(pairing)))
+
+
+def _pairing_score(S, T, pairing, mirrored, options):
+    """_PairingScore of one pairing."""
+    return _PairingScore(S, T, options).score(list(pairing), mirrored)
+
+
+def _best_pairings(terms, b, orientations, count, allow=lambda p: True, max_expansions=200000):
+    """The `count` (pairing, orientation, score) of lowest terms.score, best first: a best-first
+    search over partial pairings (loops 0..m paired), each scored by the sum of its terms so far;
+    the terms are non-negative, so a complete pairing popped from the queue scores no more than
+    any not yet popped (exact, without listing the b! pairings). Only pairings `allow` accepts.
+    Stops after max_expansions partial pairings (then fewer may come back)."""
+    heap = [(0.0, o, ()) for o in orientations]
+    out, expanded = [], 0
+    while heap and len(out) < count:
+        score, o, partial = heapq.heappop(heap)
+        if len(partial) == b:
+            if allow(list(partial)):
+                out.append((partial, o, score))
+            continue
+        expanded += 1
+        if expanded > max_expansions:
+            break
+        for j in range(b):
+            if j not in partial:
+                heapq.heappush(heap, (score + terms.step(partial, j, o == "reversing"), o, partial + (j,)))
+    return out
 
 
 def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options, allow=lambda p: True):
     """The (pairing, orientation) pairs to solve and how they were chosen. A given pairing: it, in
     each orientation. Else every pairing in each orientation when there are at most max_pairings
     pairings (b <= 3), else the max_pairings (pairing, orientation) pairs of lowest
-    _pairing_score (the b! scores cost one uniformization per side) with the scores. Only pairings
-    `allow` accepts (the boundary landmarks' loops)."""
+    _PairingScore (one uniformization per side for genus 0, a shortest-path search per loop;
+    _best_pairings finds them without scoring all b!) with the scores. Only pairings `allow`
+    accepts (the boundary landmarks' loops)."""
     b = S.b
     if boundary_pairing is not None:
         p = [int(x) for x in boundary_pairing]
@@ -764,18 +848,17 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
             raise _core.InputError(f"boundary_pairing {p}: a landmark on a source boundary loop names a vertex of "
                                    f"another target loop")
         return [(tuple(p), o, None) for o in orientations], "given"
-    perms = [p for p in itertools.permutations(range(b)) if allow(p)]
-    if not perms:
-        raise _core.InputError("landmarks: the boundary landmarks pair one source loop with two target loops")
-    if len(perms) <= max_pairings:
+    if math.factorial(b) <= max_pairings:
+        perms = [p for p in itertools.permutations(range(b)) if allow(p)]
+        if not perms:
+            raise _core.InputError("landmarks: the boundary landmarks pair one source loop with two target loops")
         return [(p, o, None) for p in perms for o in orientations], "ranked by energy"
-    if len(perms) > 40320:
-        raise _core.InputError(f"{b} boundary loops: too many pairings ({len(perms)}) to rank; give boundary_pairing")
-    scored = sorted(((_pairing_score(S, T, p, o == "reversing", options), p, o) for p in perms for o in orientations),
-                    key=lambda x: x[0])
-    return [(p, o, sc) for sc, p, o in scored[:max_pairings]], (
-        f"ranked by energy among the {max_pairings} of {len(scored)} pairings and orientations of best loop "
-        f"lengths{' and cap centres' if S.genus == 0 else ''}")
+    best = _best_pairings(_PairingScore(S, T, options), b, orientations, max_pairings, allow)
+    if not best:
+        raise _core.InputError("landmarks: the boundary landmarks pair one source loop with two target loops")
+    return [(p, o, sc) for p, o, sc in best], (
+        f"ranked by energy among the {len(best)} of {math.factorial(b) * len(orientations)} pairings and "
+        f"orientations of best loop lengths, distances{' and cap centres' if S.genus == 0 else ''}")
 
 
 def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),

@@ -276,6 +276,53 @@ def test_four_holes_pairing_recovered_from_the_ranking():
     assert np.linalg.norm(r["forward"]["position"] - Vt[perm], axis=1).mean() < 0.05 * diag
 
 
+def sphere_with_holes(dirs, radii_cos, level=3):
+    V, F = surfmap.shapes.sphere(level)
+    V, F = np.asarray(V, float), np.asarray(F)
+    dirs = np.asarray(dirs, float)
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    c = V[F].mean(axis=1)
+    c /= np.linalg.norm(c, axis=1)[:, None]
+    return compact(V, F[np.all(c @ dirs.T < np.asarray(radii_cos), axis=1)]), dirs
+
+
+def renumbered_posed_copy(Vs, Fs, dirs, scales, seed):
+    """The source with the holes' surroundings scaled (so the longest-first numbering changes),
+    bent, and its vertices renumbered; returns (Vt, Ft, perm) with target vertex perm[i] =
+    source vertex i."""
+    c = Vs / np.linalg.norm(Vs, axis=1)[:, None]
+    W = Vs * (1 + sum(s * np.exp(-np.sum((c - d) ** 2, axis=1)) for d, s in zip(dirs, scales)))[:, None]
+    W = bend(W, 0.2)
+    perm = np.random.default_rng(seed).permutation(len(Vs))
+    Vt = np.empty_like(W)
+    Vt[perm] = W
+    return Vt, perm[Fs], perm
+
+
+@pytest.mark.parametrize("b", [5, 6])
+def test_five_and_six_holes_pairing_recovered_from_the_ranking(b):
+    """b = 5, 6: 120 / 720 pairings in two orientations; all are scored cheaply (loop lengths,
+    distances between the loops, cap centres under the capped spheres' Möbius map) and only the
+    6 best solved. On a posed, renumbered copy whose holes' sizes are changed so the longest-first
+    numbering differs, the known pairing must come out, with 0 flips, near the pose."""
+    dirs = [[1, 0, 0.3], [-0.5, 0.866, -0.2], [-0.4, -0.8, 0.5], [0.3, -0.2, -1.0], [0.1, 0.3, 1.0],
+            [-0.9, -0.2, -0.5]][:b]
+    (Vs, Fs), dirs = sphere_with_holes(dirs, [0.93, 0.92, 0.91, 0.9, 0.89, 0.88][:b])
+    Vt, Ft, perm = renumbered_posed_copy(Vs, Fs, dirs, [0.15, -0.15, 0.1, -0.1, 0.05, -0.05][:b], seed=b)
+    s_loops, t_loops = open_double.boundary_loops(Vs, Fs), open_double.boundary_loops(Vt, Ft)
+    assert len(s_loops) == b
+    known = [next(j for j, t in enumerate(t_loops) if set(t) == set(perm[s])) for s in s_loops]
+    assert known != list(range(b))         # the numbering differs: the test means something
+    r = surfmap.surface_map(Vs, Fs, Vt, Ft)
+    cands = r["open"]["candidates"]
+    assert len(cands) <= 6 and all("pairing_score" in c for c in cands)
+    assert f"of {2 * np.prod(range(1, b + 1))} pairings" in r["open"]["pairing_choice"]
+    assert r["open"]["boundary_pairing"] == known and r["open"]["orientation"] == "preserving"
+    assert check_map(r, Vs, Fs, Vt, Ft) == 0 and r["flipped_triangles"] == 0
+    diag = np.linalg.norm(Vt.max(axis=0) - Vt.min(axis=0))
+    assert np.linalg.norm(r["forward"]["position"] - Vt[perm], axis=1).mean() < 0.05 * diag
+
+
 def folded_sheet(n=10, angle_deg=150.0):
     """A square sheet [-1, 1]^2 (n x n squares, two triangles each) folded along x = 0: the x > 0
     half turned by angle_deg about the y axis (adjacent faces across the crease turn by that much,
