@@ -68,6 +68,87 @@ std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward
   return compose(forward.source_as_target_inverse, compose(reverse.chosen_class_words, reverse.source_as_target_inverse));
 }
 
+/// The chosen class's energy as the ranking compared it: the intrinsic
+/// Delaunay one when the map itself fell back to own-edge weights (the
+/// other candidates' energies are intrinsic).
+double chosen_energy(const SurfaceMapResult& r) {
+  return std::isfinite(r.intrinsic_class_energy) ? r.intrinsic_class_energy : r.directions.energy;
+}
+
+/// Issue 14, both directions agree (docs/handle_classes.md "Both directions
+/// agree"): `forward` (mapped with `fo`, whose reverse_class is the other
+/// direction's class ψ) chose θ, not ψ^-1, and θ, ψ^-1 are not isometric
+/// ("different"). The other direction is mapped again with θ as its
+/// reverse_class, so that it lists θ^-1 as a candidate and ranks it. When it
+/// then chooses θ^-1, the two directions agree. Otherwise each direction
+/// prefers its own class, and the pair of inverse classes with the lower
+/// total energy ratio, E(θ) + E'(θ^-1) against E(ψ^-1) + E'(ψ) (the same
+/// figure from either direction, so separate runs of S -> T and T -> S pick
+/// the same pair), is kept in both: `forward` is mapped again in ψ^-1
+/// (requested class) when that pair is lower. Returns a status for
+/// two_way_status; `forward.directions` says "inverse" when they agree.
+std::string agree_directions(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& fo,
+                             const SurfaceMapResult& reverse, SurfaceMapResult& forward, const MapFunction& map) {
+  std::string why;
+  SurfaceMapOptions ro = reverse_options(fo);
+  ro.homotopy.reverse_class = reverse_class_here(reverse, forward, why);  // θ in the other direction's letters
+  if (ro.homotopy.reverse_class.empty()) return "directions not agreed: " + why;
+  SurfaceMapResult back;
+  try {
+    back = map(target, source, ro);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    return std::string("directions not agreed: the other direction with this class inverted failed: ") + e.what();
+  }
+  const double bound = 8 * M_PI * (forward.genus - 1);
+  const SurfaceMapResult::DirectionCheck& b = back.directions;
+  const std::string back_text = "the other direction, given this class inverted (" +
+                                (b.inverted_candidate >= 0 ? "ratio " + number(b.inverted_energy / bound)
+                                                           : std::string("not listed")) +
+                                "), " + (b.outcome.empty() ? std::string("not compared: ") + b.reason : b.outcome);
+  if (b.outcome == "inverse" || b.outcome == "symmetric: both optimal") {
+    SurfaceMapResult::DirectionCheck& d = forward.directions;
+    d.outcome = b.outcome;
+    d.reason = "this direction chose its own class over the other direction's inverted (ratios " +
+               number(chosen_energy(forward) / bound) + " and " + number(d.inverted_energy / bound) +
+               "); the other direction, given this class inverted, chose it (or an isometric class): " + b.reason;
+    return back_text;
+  }
+  if (b.outcome != "different") return "directions not agreed: " + back_text;
+  // Both prefer their own class: the pair of lower total energy, in both.
+  // (Energies the ranking did not compute count as infinite.)
+  auto finite = [](double e) { return std::isfinite(e) ? e : std::numeric_limits<double>::infinity(); };
+  const double own_pair = finite(chosen_energy(forward)) + finite(b.inverted_energy);
+  const double other_pair = finite(forward.directions.inverted_energy) + finite(chosen_energy(back));
+  const std::string pairs = "pair totals (ratio here + ratio there): this class " + number(own_pair / bound) +
+                            ", the other direction's " + number(other_pair / bound);
+  const int k = forward.directions.inverted_candidate;
+  if (!(other_pair < own_pair) || k < 0) {
+    SurfaceMapResult::DirectionCheck& d = forward.directions;
+    d.outcome = "inverse";
+    d.reason = "inverse by agreement: each direction alone prefers its own class; the pair of inverse classes "
+               "with the lower total energy is this one (" + pairs + "), so the other direction takes this class "
+               "inverted too (" + back_text + ")";
+    return "directions agreed on this class: " + pairs;
+  }
+  SurfaceMapOptions requested = fo;
+  requested.homotopy.class_index = k;
+  SurfaceMapResult again;
+  try {
+    again = map(source, target, requested);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    return "directions not agreed: mapping again in the other direction's class inverted failed: " + std::string(e.what());
+  }
+  again.directions.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is the other "
+                            "direction's (" + pairs + "), so this direction takes that class inverted (candidate " +
+                            std::to_string(k) + "): " + again.directions.reason;
+  forward = std::move(again);
+  return "directions agreed on the other direction's class: " + pairs;
+}
+
 }  // namespace
 
 void assess_quality(SurfaceMapResult& result) {
@@ -191,9 +272,12 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
         "the other direction's class inverted has energy ratio " + number(after) + " against " + number(before) +
         (again.reverse_inverse_reason.empty() ? std::string() : " (" + again.reverse_inverse_reason + ")");
   }
+  std::string agreement;
+  if (forward.directions.outcome == "different")
+    agreement = "; " + agree_directions(source, target, fo, reverse, forward, map);
   finish(rev + "; with the source's loops carried by its inverse as a candidate: energy ratio " + number(after) +
          " against " + number(before) + (better ? ": used" : ": kept the first") +
-         (again_status.empty() ? std::string() : " (" + again_status + ")"));
+         (again_status.empty() ? std::string() : " (" + again_status + ")") + agreement);
 }
 
 }  // namespace surfmap::detail
