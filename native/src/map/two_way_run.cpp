@@ -72,68 +72,112 @@ std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward
 /// Delaunay one when the map itself fell back to own-edge weights (the
 /// other candidates' energies are intrinsic).
 double chosen_energy(const SurfaceMapResult& r) {
-  return std::isfinite(r.intrinsic_class_energy) ? r.intrinsic_class_energy : r.directions.energy;
+  if (std::isfinite(r.intrinsic_class_energy)) return r.intrinsic_class_energy;
+  const int c = r.chosen_candidate;
+  return c >= 0 && c < static_cast<int>(r.candidates.size()) ? r.candidates[c].energy
+                                                              : std::numeric_limits<double>::quiet_NaN();
+}
+
+/// In a run given the other direction's class (reverse_class and/or the
+/// source_images of its map's inverse): that class inverted as a candidate
+/// of this run, algebraically (directions.inverted_candidate) or else
+/// carried by the other map (reverse_candidates), its energy (ranked:
+/// full-resolution or coarse estimate; infinite when not ranked) and
+/// whether this run chose it (or an isometric class).
+struct OtherClassHere {
+  int index = -1;
+  double energy = std::numeric_limits<double>::infinity();
+  bool chosen = false;
+  std::string how;
+};
+
+OtherClassHere other_class_here(const SurfaceMapResult& r) {
+  OtherClassHere o;
+  const SurfaceMapResult::DirectionCheck& d = r.directions;
+  const bool isometric = d.outcome == "inverse" || d.outcome == "symmetric: both optimal";
+  if (d.inverted_candidate >= 0 && d.inverted_candidate < static_cast<int>(r.candidates.size())) {
+    o.index = d.inverted_candidate;
+    o.how = "inverted algebraically";
+    o.chosen = isometric;
+  } else if (!r.reverse_candidates.empty() && r.reverse_candidates[0] < static_cast<int>(r.candidates.size())) {
+    o.index = r.reverse_candidates[0];
+    o.how = "carried by the other direction's map";
+    o.chosen = isometric || r.reverse_inverse == 1;
+  } else {
+    o.how = "not listed (" + (d.reason.empty() ? r.reverse_status : d.reason) + ")";
+    o.chosen = isometric;
+    return o;
+  }
+  o.energy = o.index == r.chosen_candidate ? chosen_energy(r) : r.candidates[o.index].energy;
+  if (!std::isfinite(o.energy)) o.energy = std::numeric_limits<double>::infinity();
+  return o;
 }
 
 /// Issue 14, both directions agree (docs/handle_classes.md "Both directions
-/// agree"): `forward` (mapped with `fo`, whose reverse_class is the other
-/// direction's class ψ) chose θ, not ψ^-1, and θ, ψ^-1 are not isometric
-/// ("different"). The other direction is mapped again with θ as its
-/// reverse_class, so that it lists θ^-1 as a candidate and ranks it. When it
-/// then chooses θ^-1, the two directions agree. Otherwise each direction
-/// prefers its own class, and the pair of inverse classes with the lower
-/// total energy ratio, E(θ) + E'(θ^-1) against E(ψ^-1) + E'(ψ) (the same
-/// figure from either direction, so separate runs of S -> T and T -> S pick
-/// the same pair), is kept in both: `forward` is mapped again in ψ^-1
-/// (requested class) when that pair is lower. Returns a status for
-/// two_way_status; `forward.directions` says "inverse" when they agree.
+/// agree"): `forward` (mapped with `fo`, given the other direction's class
+/// ψ from `reverse`) chose θ, not ψ^-1, and θ, ψ^-1 are not isometric
+/// ("different"). The other direction is mapped again given θ (its words
+/// as reverse_class, and the source_images of `forward`'s inverse, so θ^-1
+/// is listed there algebraically or carried when the inversion stalls) and
+/// ranks it. When it then chooses θ^-1, the two directions agree.
+/// Otherwise each direction prefers its own class, and the pair of inverse
+/// classes with the lower total energy, E(θ) + E'(θ^-1) against
+/// E(ψ^-1) + E'(ψ) (the same figures from either direction, so separate
+/// runs of S -> T and T -> S pick the same pair), is kept in both:
+/// `forward` is mapped again in ψ^-1 (requested class) when that pair is
+/// lower. Returns a status for two_way_status; `forward.directions` says
+/// "inverse" when they agree.
 std::string agree_directions(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& fo,
                              const SurfaceMapResult& reverse, SurfaceMapResult& forward, const MapFunction& map) {
   std::string why;
   SurfaceMapOptions ro = reverse_options(fo);
   ro.homotopy.reverse_class = reverse_class_here(reverse, forward, why);  // θ in the other direction's letters
-  if (ro.homotopy.reverse_class.empty()) return "directions not agreed: " + why;
+  if (static_cast<int>(forward.inverse.size()) == target.num_vertices())
+    ro.homotopy.source_images = inverse_positions(forward);  // θ^-1 carried, when the inversion stalls
+  if (ro.homotopy.reverse_class.empty() && ro.homotopy.source_images.size() == 0)
+    return "directions not agreed: " + why;
   SurfaceMapResult back;
   try {
     back = map(target, source, ro);
   } catch (const Cancelled&) {
     throw;
   } catch (const Error& e) {
-    return std::string("directions not agreed: the other direction with this class inverted failed: ") + e.what();
+    return std::string("directions not agreed: the other direction given this class failed: ") + e.what();
   }
   const double bound = 8 * M_PI * (forward.genus - 1);
-  const SurfaceMapResult::DirectionCheck& b = back.directions;
-  const std::string back_text = "the other direction, given this class inverted (" +
-                                (b.inverted_candidate >= 0 ? "ratio " + number(b.inverted_energy / bound)
-                                                           : std::string("not listed")) +
-                                "), " + (b.outcome.empty() ? std::string("not compared: ") + b.reason : b.outcome);
-  if (b.outcome == "inverse" || b.outcome == "symmetric: both optimal") {
-    SurfaceMapResult::DirectionCheck& d = forward.directions;
-    d.outcome = b.outcome;
-    d.reason = "this direction chose its own class over the other direction's inverted (ratios " +
-               number(chosen_energy(forward) / bound) + " and " + number(d.inverted_energy / bound) +
-               "); the other direction, given this class inverted, chose it (or an isometric class): " + b.reason;
-    return back_text;
+  const OtherClassHere there = other_class_here(back), here = other_class_here(forward);
+  const std::string there_text = "the other direction, given this class (" + there.how +
+                                 (there.index >= 0 ? ", ratio " + number(there.energy / bound) : std::string()) +
+                                 "), chose " + (there.chosen ? std::string("it") : std::string("its own (ratio ") +
+                                 number(chosen_energy(back) / bound) + ")");
+  SurfaceMapResult::DirectionCheck& d = forward.directions;
+  if (there.chosen) {
+    d.outcome = back.directions.outcome == "symmetric: both optimal" ? back.directions.outcome : "inverse";
+    d.reason = "this direction chose its own class (ratio " + number(chosen_energy(forward) / bound) +
+               ") over the other direction's inverted (" + here.how +
+               (here.index >= 0 ? ", ratio " + number(here.energy / bound) : std::string()) + "); " + there_text +
+               (back.directions.reason.empty() ? std::string() : ": " + back.directions.reason);
+    return "directions agreed: " + there_text;
   }
-  if (b.outcome != "different") return "directions not agreed: " + back_text;
+  if (there.index < 0) return "directions not agreed: " + there_text;
+  if (back.chosen_class_words != reverse.chosen_class_words)
+    return "directions not agreed: " + there_text + ", a third class";
   // Both prefer their own class: the pair of lower total energy, in both.
-  // (Energies the ranking did not compute count as infinite.)
-  auto finite = [](double e) { return std::isfinite(e) ? e : std::numeric_limits<double>::infinity(); };
-  const double own_pair = finite(chosen_energy(forward)) + finite(b.inverted_energy);
-  const double other_pair = finite(forward.directions.inverted_energy) + finite(chosen_energy(back));
+  const double own_pair = chosen_energy(forward) + there.energy;
+  const double other_pair = here.energy + chosen_energy(back);
   const std::string pairs = "pair totals (ratio here + ratio there): this class " + number(own_pair / bound) +
                             ", the other direction's " + number(other_pair / bound);
-  const int k = forward.directions.inverted_candidate;
-  if (!(other_pair < own_pair) || k < 0) {
-    SurfaceMapResult::DirectionCheck& d = forward.directions;
+  if (!std::isfinite(own_pair) && !std::isfinite(other_pair))
+    return "directions not agreed: neither pair's energies are known (" + there_text + "; here " + here.how + ")";
+  if (!(other_pair < own_pair)) {
     d.outcome = "inverse";
     d.reason = "inverse by agreement: each direction alone prefers its own class; the pair of inverse classes "
-               "with the lower total energy is this one (" + pairs + "), so the other direction takes this class "
-               "inverted too (" + back_text + ")";
+               "with the lower total energy is this one (" + pairs + "), which the other direction, given this "
+               "class, takes by the same rule (" + there_text + ")";
     return "directions agreed on this class: " + pairs;
   }
   SurfaceMapOptions requested = fo;
-  requested.homotopy.class_index = k;
+  requested.homotopy.class_index = here.index;
   SurfaceMapResult again;
   try {
     again = map(source, target, requested);
@@ -142,9 +186,10 @@ std::string agree_directions(const TriMesh& source, const TriMesh& target, const
   } catch (const Error& e) {
     return "directions not agreed: mapping again in the other direction's class inverted failed: " + std::string(e.what());
   }
+  again.directions.outcome = "inverse";
   again.directions.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is the other "
                             "direction's (" + pairs + "), so this direction takes that class inverted (candidate " +
-                            std::to_string(k) + "): " + again.directions.reason;
+                            std::to_string(here.index) + ", " + here.how + ")";
   forward = std::move(again);
   return "directions agreed on the other direction's class: " + pairs;
 }
