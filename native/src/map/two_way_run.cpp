@@ -186,10 +186,16 @@ std::string agree_directions(const TriMesh& source, const TriMesh& target, const
   } catch (const Error& e) {
     return "directions not agreed: mapping again in the other direction's class inverted failed: " + std::string(e.what());
   }
-  again.directions.outcome = "inverse";
-  again.directions.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is the other "
-                            "direction's (" + pairs + "), so this direction takes that class inverted (candidate " +
-                            std::to_string(here.index) + ", " + here.how + ")";
+  // (Inverted algebraically, the run's own comparison finds the composite
+  // inner; carried, the carried-class check compares homology and probe
+  // lengths.)
+  const bool inverse = again.directions.outcome == "inverse" || again.reverse_inverse == 1;
+  if (inverse) again.directions.outcome = "inverse";
+  again.directions.reason = std::string(inverse ? "inverse by agreement" : "not confirmed inverse") +
+                            ": the pair of inverse classes with the lower total energy is the other direction's (" +
+                            pairs + "), so this direction takes that class inverted (candidate " +
+                            std::to_string(here.index) + ", " + here.how + ")" +
+                            (again.directions.reason.empty() ? std::string() : "; " + again.directions.reason);
   forward = std::move(again);
   return "directions agreed on the other direction's class: " + pairs;
 }
