@@ -157,6 +157,34 @@ TEST(OuterAutomorphisms, InverseOfHandlePermutationsAndTheHyperellipticInvolutio
   }
 }
 
+// Periodic classes (rotations of symmetric polygons) shorten under no move,
+// so the descent stalls on them; their order is at most 4g + 2, and the
+// inverse is a power. The class the pipeline chose for g2_teapot ->
+// g2_double-torus (issue 14) is one (order 10 as an automorphism); with
+// twists on either side, the descent reaches a periodic state and is
+// inverted through it. Every inverse is checked exactly here.
+TEST(OuterAutomorphisms, InverseOfPeriodicClassesAndTheirConjugatesByTwists) {
+  const int g = 2;
+  const GroupMap order10 = {{3, 4, -3, 2, -4, -3}, {3, -4, -3}, {2, 1, 3, -4, -3}, {3, 4, -3, 2, -1, -2}};
+  const DehnReducer reduce(canonical_relator(g));
+  // Its order really is 10: the 10th power is inner, no lower power is.
+  GroupMap power = order10;
+  for (int m = 2; m <= 10; ++m) {
+    power = compose(power, order10);
+    for (Word& w : power) w = reduce(w);
+    EXPECT_EQ(inner_automorphism_test(power, g).inner, m == 10) << m;
+  }
+  const std::vector<MappingClassMove> moves = twist_moves(g);
+  const GroupMap t = move_named(moves, "T(a1)").automorphism.map;
+  const GroupMap conjugate = compose(t, compose(order10, invert_automorphism(t, g).inverse));
+  for (const GroupMap& phi : {order10, compose(order10, order10), conjugate}) {
+    const AutomorphismInverse inv = invert_automorphism(phi, g);
+    ASSERT_TRUE(inv.ok) << inv.why;
+    EXPECT_TRUE(inner_automorphism_test(compose(phi, inv.inverse), g).inner);
+    EXPECT_TRUE(inner_automorphism_test(compose(inv.inverse, phi), g).inner);
+  }
+}
+
 TEST(OuterAutomorphisms, CyclicDehnReductionIsConjugationInvariant) {
   std::mt19937 rng(3);
   const int g = 2;

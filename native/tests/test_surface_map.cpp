@@ -870,6 +870,48 @@ TEST(SurfaceMapHandles, BothDirectionsGiveInverseClassesAlgebraically) {
   EXPECT_GE(c.directions.inverted_candidate, 0) << c.directions.reason;
 }
 
+// Issue 14, both directions agree (docs/handle_classes.md "Both directions
+// agree"): a generated dissimilar pair mapped each way with
+// compare_directions, as two separate runs. Each run's final class and the
+// other run's final class, carried into one letter system through each
+// surface's identity overlay, are inverse (the composite is inner, exact),
+// or (genus 2) inverse up to the hyperelliptic involution, an isometry of
+// both; each report says so. The rule that settles a disagreement (the pair
+// of inverse classes with the lower total energy) is the same from either
+// side, so the separate runs cannot end on classes that are not inverse.
+TEST(SurfaceMapHandles, SeparateRunsOfBothDirectionsEndOnInverseClasses) {
+  // (A CAD plate, 140 vertices of long thin fans, against a smooth double
+  // torus: far from isometric.)
+  const TriMesh a = samples::cad_plate(2, 32, 0.3);
+  const TriMesh b = samples::n_hole_torus(2, 26, true);
+  SurfaceMapOptions both;
+  both.homotopy.compare_directions = true;
+  const SurfaceMapResult f = surface_map(a, b, both);
+  const SurfaceMapResult r = surface_map(b, a, both);
+  for (const SurfaceMapResult* m : {&f, &r}) {
+    // (Converged and unflipped; the 140-vertex plate is too coarse for the
+    // chord certificate against a 3180-vertex target: its image corners do
+    // not pin the map down in R^3.)
+    EXPECT_TRUE(m->converged);
+    EXPECT_EQ(m->flipped_triangles, 0);
+    EXPECT_TRUE(m->directions.outcome == "inverse" ||
+                (m->directions.outcome == "symmetric: both optimal" &&
+                 m->directions.reason.find("hyperelliptic") != std::string::npos))
+        << m->directions.outcome << ": " << m->directions.reason << " / " << m->two_way_status;
+    ASSERT_EQ(m->chosen_class_words.size(), 4u);
+    ASSERT_EQ(m->source_as_target_inverse.size(), 4u) << m->source_as_target_status;
+  }
+  // The reverse run's class in the forward run's letters, composed with the
+  // forward run's class: a mapping class of the source, inner when inverse.
+  const GroupMap psi = compose(f.source_as_target_inverse, compose(r.chosen_class_words, r.source_as_target_inverse));
+  const GroupMap phi = compose(psi, f.chosen_class_words);
+  const bool inverse = inner_automorphism_test(phi, 2).inner;
+  const bool inverse_up_to_h = inner_automorphism_test(compose(phi, hyperelliptic_involution()), 2).inner;
+  EXPECT_TRUE(inverse || inverse_up_to_h) << inner_automorphism_test(phi, 2).why << " (ratios " << f.energy_ratio
+                                          << " and " << r.energy_ratio << "; " << f.two_way_status << " / "
+                                          << r.two_way_status << ")";
+}
+
 // The two-way run (forced with a ratio threshold of 0): the pair is mapped
 // the other way, the source's loops carried by that map's inverse give one
 // more candidate, and the result is no worse than the one-way map; it is a

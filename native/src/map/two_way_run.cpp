@@ -68,6 +68,138 @@ std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward
   return compose(forward.source_as_target_inverse, compose(reverse.chosen_class_words, reverse.source_as_target_inverse));
 }
 
+/// The chosen class's energy as the ranking compared it: the intrinsic
+/// Delaunay one when the map itself fell back to own-edge weights (the
+/// other candidates' energies are intrinsic).
+double chosen_energy(const SurfaceMapResult& r) {
+  if (std::isfinite(r.intrinsic_class_energy)) return r.intrinsic_class_energy;
+  const int c = r.chosen_candidate;
+  return c >= 0 && c < static_cast<int>(r.candidates.size()) ? r.candidates[c].energy
+                                                              : std::numeric_limits<double>::quiet_NaN();
+}
+
+/// In a run given the other direction's class (reverse_class and/or the
+/// source_images of its map's inverse): that class inverted as a candidate
+/// of this run, algebraically (directions.inverted_candidate) or else
+/// carried by the other map (reverse_candidates), its energy (ranked:
+/// full-resolution or coarse estimate; infinite when not ranked) and
+/// whether this run chose it (or an isometric class).
+struct OtherClassHere {
+  int index = -1;
+  double energy = std::numeric_limits<double>::infinity();
+  bool chosen = false;
+  std::string how;
+};
+
+OtherClassHere other_class_here(const SurfaceMapResult& r) {
+  OtherClassHere o;
+  const SurfaceMapResult::DirectionCheck& d = r.directions;
+  const bool isometric = d.outcome == "inverse" || d.outcome == "symmetric: both optimal";
+  if (d.inverted_candidate >= 0 && d.inverted_candidate < static_cast<int>(r.candidates.size())) {
+    o.index = d.inverted_candidate;
+    o.how = "inverted algebraically";
+    o.chosen = isometric;
+  } else if (!r.reverse_candidates.empty() && r.reverse_candidates[0] < static_cast<int>(r.candidates.size())) {
+    o.index = r.reverse_candidates[0];
+    o.how = "carried by the other direction's map";
+    o.chosen = isometric || r.reverse_inverse == 1;
+  } else {
+    o.how = "not listed (" + (d.reason.empty() ? r.reverse_status : d.reason) + ")";
+    o.chosen = isometric;
+    return o;
+  }
+  o.energy = o.index == r.chosen_candidate ? chosen_energy(r) : r.candidates[o.index].energy;
+  if (!std::isfinite(o.energy)) o.energy = std::numeric_limits<double>::infinity();
+  return o;
+}
+
+/// Issue 14, both directions agree (docs/handle_classes.md "Both directions
+/// agree"): `forward` (mapped with `fo`, given the other direction's class
+/// ψ from `reverse`) chose θ, not ψ^-1, and θ, ψ^-1 are not isometric
+/// ("different"). The other direction is mapped again given θ (its words
+/// as reverse_class, and the source_images of `forward`'s inverse, so θ^-1
+/// is listed there algebraically or carried when the inversion stalls) and
+/// ranks it. When it then chooses θ^-1, the two directions agree.
+/// Otherwise each direction prefers its own class, and the pair of inverse
+/// classes with the lower total energy, E(θ) + E'(θ^-1) against
+/// E(ψ^-1) + E'(ψ) (the same figures from either direction, so separate
+/// runs of S -> T and T -> S pick the same pair), is kept in both:
+/// `forward` is mapped again in ψ^-1 (requested class) when that pair is
+/// lower. Returns a status for two_way_status; `forward.directions` says
+/// "inverse" when they agree.
+std::string agree_directions(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& fo,
+                             const SurfaceMapResult& reverse, SurfaceMapResult& forward, const MapFunction& map) {
+  std::string why;
+  SurfaceMapOptions ro = reverse_options(fo);
+  ro.homotopy.reverse_class = reverse_class_here(reverse, forward, why);  // θ in the other direction's letters
+  if (static_cast<int>(forward.inverse.size()) == target.num_vertices())
+    ro.homotopy.source_images = inverse_positions(forward);  // θ^-1 carried, when the inversion stalls
+  if (ro.homotopy.reverse_class.empty() && ro.homotopy.source_images.size() == 0)
+    return "directions not agreed: " + why;
+  SurfaceMapResult back;
+  try {
+    back = map(target, source, ro);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    return std::string("directions not agreed: the other direction given this class failed: ") + e.what();
+  }
+  const double bound = 8 * M_PI * (forward.genus - 1);
+  const OtherClassHere there = other_class_here(back), here = other_class_here(forward);
+  const std::string there_text = "the other direction, given this class (" + there.how +
+                                 (there.index >= 0 ? ", ratio " + number(there.energy / bound) : std::string()) +
+                                 "), chose " + (there.chosen ? std::string("it") : std::string("its own (ratio ") +
+                                 number(chosen_energy(back) / bound) + ")");
+  SurfaceMapResult::DirectionCheck& d = forward.directions;
+  if (there.chosen) {
+    d.outcome = back.directions.outcome == "symmetric: both optimal" ? back.directions.outcome : "inverse";
+    d.reason = "this direction chose its own class (ratio " + number(chosen_energy(forward) / bound) +
+               ") over the other direction's inverted (" + here.how +
+               (here.index >= 0 ? ", ratio " + number(here.energy / bound) : std::string()) + "); " + there_text +
+               (back.directions.reason.empty() ? std::string() : ": " + back.directions.reason);
+    return "directions agreed: " + there_text;
+  }
+  if (there.index < 0) return "directions not agreed: " + there_text;
+  if (back.chosen_class_words != reverse.chosen_class_words)
+    return "directions not agreed: " + there_text + ", a third class";
+  // Both prefer their own class: the pair of lower total energy, in both.
+  const double own_pair = chosen_energy(forward) + there.energy;
+  const double other_pair = here.energy + chosen_energy(back);
+  const std::string pairs = "pair totals (ratio here + ratio there): this class " + number(own_pair / bound) +
+                            ", the other direction's " + number(other_pair / bound);
+  if (!std::isfinite(own_pair) && !std::isfinite(other_pair))
+    return "directions not agreed: neither pair's energies are known (" + there_text + "; here " + here.how + ")";
+  if (!(other_pair < own_pair)) {
+    d.outcome = "inverse";
+    d.reason = "inverse by agreement: each direction alone prefers its own class; the pair of inverse classes "
+               "with the lower total energy is this one (" + pairs + "), which the other direction, given this "
+               "class, takes by the same rule (" + there_text + ")";
+    return "directions agreed on this class: " + pairs;
+  }
+  SurfaceMapOptions requested = fo;
+  requested.homotopy.class_index = here.index;
+  SurfaceMapResult again;
+  try {
+    again = map(source, target, requested);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    return "directions not agreed: mapping again in the other direction's class inverted failed: " + std::string(e.what());
+  }
+  // (Inverted algebraically, the run's own comparison finds the composite
+  // inner; carried, the carried-class check compares homology and probe
+  // lengths.)
+  const bool inverse = again.directions.outcome == "inverse" || again.reverse_inverse == 1;
+  if (inverse) again.directions.outcome = "inverse";
+  again.directions.reason = std::string(inverse ? "inverse by agreement" : "not confirmed inverse") +
+                            ": the pair of inverse classes with the lower total energy is the other direction's (" +
+                            pairs + "), so this direction takes that class inverted (candidate " +
+                            std::to_string(here.index) + ", " + here.how + ")" +
+                            (again.directions.reason.empty() ? std::string() : "; " + again.directions.reason);
+  forward = std::move(again);
+  return "directions agreed on the other direction's class: " + pairs;
+}
+
 }  // namespace
 
 void assess_quality(SurfaceMapResult& result) {
@@ -191,9 +323,12 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
         "the other direction's class inverted has energy ratio " + number(after) + " against " + number(before) +
         (again.reverse_inverse_reason.empty() ? std::string() : " (" + again.reverse_inverse_reason + ")");
   }
+  std::string agreement;
+  if (forward.directions.outcome == "different")
+    agreement = "; " + agree_directions(source, target, fo, reverse, forward, map);
   finish(rev + "; with the source's loops carried by its inverse as a candidate: energy ratio " + number(after) +
          " against " + number(before) + (better ? ": used" : ": kept the first") +
-         (again_status.empty() ? std::string() : " (" + again_status + ")"));
+         (again_status.empty() ? std::string() : " (" + again_status + ")") + agreement);
 }
 
 }  // namespace surfmap::detail

@@ -23,7 +23,12 @@ void assess_quality(SurfaceMapResult& result);
 /// is at least two_way_ratio x the conformal bound, and when that direction
 /// is better, maps again with the source's loops carried by its inverse as
 /// one more candidate; `forward` becomes the lower-energy result
-/// (two_way_status, two_way_time_s set). Nothing for a requested class.
+/// (two_way_status, two_way_time_s set). When that result's class and the
+/// other direction's are not inverse ("different"), the other direction is
+/// mapped once more given this class, and the pair of inverse classes of
+/// lower total energy is kept in both (docs/handle_classes.md "Both
+/// directions agree"; `forward` is mapped again in the other direction's
+/// class inverted when that pair is lower). Nothing for a requested class.
 void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                  SurfaceMapResult& forward, const MapFunction& map);
 

@@ -279,6 +279,25 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
       return false;
     }
   };
+  // A stalled state may be periodic (a rotation of a symmetric polygon
+  // shortens under no move; the teapot -> double torus class has order 10
+  // as an automorphism). The order of a periodic class of genus g is at
+  // most 4g + 2 (Wiman), so tau^m inner for some m <= 4g + 2 gives
+  // tau^-1 = tau^(m-1) exactly: then phi^-1 = R ∘ tau^(m-1) ∘ L.
+  auto periodic = [&](State& st) {
+    GroupMap power = st.tau;  // tau^m
+    for (int m = 2; m <= 4 * genus + 2; ++m) {
+      GroupMap previous = power;  // tau^(m-1)
+      power = dehn(compose(power, st.tau));
+      if (total_letters(power) > std::max(options.max_letters, 2 * total_letters(st.tau))) return false;
+      if (!inner_automorphism_test(power, genus).inner) continue;
+      st.right = dehn(compose(st.right, previous));
+      st.tau = std::move(power);
+      return true;
+    }
+    return false;
+  };
+  std::vector<State> starts = beam;  // (tried for periodicity too when the descent stalls)
   const State* done = nullptr;
   for (int step = 0;; ++step) {
     for (State& st : beam)
@@ -320,8 +339,17 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
       }
     }
     if (next.empty()) {
+      for (std::vector<State>* states : {&beam, &starts}) {
+        for (State& st : *states)
+          if (periodic(st)) {
+            done = &st;
+            break;
+          }
+        if (done) break;
+      }
+      if (done) break;
       out.why = "no move or pair of moves shortens the probe curves' images (stopped after " + std::to_string(step) +
-                " moves, not inner)";
+                " moves, not inner, not periodic)";
       return out;
     }
     std::stable_sort(next.begin(), next.end(), [](const State& a, const State& b) { return a.cost < b.cost; });

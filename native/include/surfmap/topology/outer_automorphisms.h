@@ -28,7 +28,12 @@
 // Dehn-reduced length of the images of the probe curves x_i, x_i x_j^±1
 // (conjugation invariant). Signed handle permutations keep that length, so
 // a state also ends when its composite with the lift of its inverse
-// homology is inner, and a second start is phi ∘ lift(P^-1). The descent is a
+// homology is inner, and a second start is phi ∘ lift(P^-1). When no move
+// or pair shortens any state, the states and the starts are tested for
+// periodicity: a periodic mapping class (a rotation of a symmetric polygon,
+// as invisible to the word lengths as the permutations) has order
+// m <= 4g + 2 (Wiman), so tau^m is inner and tau^-1 = tau^(m-1) exactly.
+// The descent is a
 // heuristic: it may stop before L ∘ phi ∘ R is inner (`ok` false says so);
 // a returned inverse is checked exactly (phi ∘ inverse and inverse ∘ phi
 // inner).
