@@ -312,6 +312,38 @@ TEST(HyperbolicHarmonicSolver, OneAnalysisServesEveryProblemOfThePatternBitForBi
   EXPECT_THROW(solver.solve(S.edges, S.generators, std::vector<Complex>(S.n + 1, 0.0), no), InputError);
 }
 
+TEST(HyperbolicHarmonicSolver, PreconditionedStepsOnALargeSurfaceReachTheUniqueOptimum) {
+  // Issue 19: from 10k vertices on, the Newton steps after the first
+  // factorisation are conjugate gradients preconditioned by it. The energy
+  // is geodesically convex, so two different starts must reach the same
+  // optimum, with the gradient test (on the true gradient) passed and the
+  // energy recomputed independently from the returned points.
+  const OctagonSurface S = weighted_octagon(52, 5);
+  ASSERT_GE(S.n, 10000);
+  HyperbolicHarmonicOptions no;
+  no.tolerance = 1e-11;
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> U(-0.02, 0.02);
+  std::vector<Complex> shaken = S.z;
+  for (Complex& z : shaken) z += Complex(U(rng), U(rng));
+  const HyperbolicHarmonicSolver solver(S.n, S.edges);
+  const HyperbolicHarmonicResult a = solver.solve(S.edges, S.generators, S.z, no);
+  const HyperbolicHarmonicResult b = solver.solve(S.edges, S.generators, shaken, no);
+  for (const HyperbolicHarmonicResult* r : {&a, &b}) {
+    ASSERT_TRUE(r->converged);
+    EXPECT_GT(r->preconditioned_steps, 0);
+    EXPECT_LT(r->factorizations, r->iterations);  // not one factorisation per step
+    EXPECT_NEAR(hyperbolic_energy(S.edges, r->z, r->vertex_deck), r->energy, 1e-12 * r->energy);
+  }
+  EXPECT_NEAR(a.energy, b.energy, 1e-10 * a.energy);
+  double worst = 0;
+  for (int i = 0; i < S.n; ++i)
+    worst = std::max(worst, hyperbolic::distance(lifted(a.z, a.vertex_deck, i), lifted(b.z, b.vertex_deck, i)));
+  EXPECT_LT(worst, 1e-6);
+  std::printf("%d vertices: %d and %d iterations, %d and %d factorisations, %d and %d CG iterations\n", S.n, a.iterations,
+              b.iterations, a.factorizations, b.factorizations, a.cg_iterations, b.cg_iterations);
+}
+
 TEST(HarmonicRelaxation, TimeBudgetAndBadInput) {
   const OctagonSurface S = weighted_octagon(5, 1);
   HarmonicRelaxationOptions ro;

@@ -172,7 +172,8 @@ namespace {
 class BlockHessian {
  public:
   explicit BlockHessian(const HessianAnalysis& analysis)
-      : n_(analysis.n), colptr_(analysis.colptr), pair_(analysis.pair), lower_size_(analysis.lower_size) {
+      : n_(analysis.n), colptr_(analysis.colptr), rows_(analysis.rows), pair_(analysis.pair),
+        lower_size_(analysis.lower_size) {
     cholmod_start(&c_);
     c_.print = 0;  // indefinite tries are expected and handled by the caller
     const int nnz = colptr_[2 * n_];
@@ -227,6 +228,27 @@ class BlockHessian {
     ++work::factorisations;
     return c_.status == CHOLMOD_OK && L_->minor == L_->n;
   }
+  // (assembled matrix + shift·I) x, from the upper triangle it stores (the
+  // matrix assembled last, whatever the factor holds).
+  Eigen::VectorXd multiply(const Eigen::VectorXd& x, double shift) const {
+    Eigen::VectorXd y = shift * x;
+    for (int c = 0; c < 2 * n_; ++c) {
+      const double xc = x[c];
+      double yc = 0;
+      for (int p = colptr_[c]; p < colptr_[c + 1]; ++p) {
+        const int r = rows_[p];
+        const double v = values_[p];
+        if (r == c) {
+          yc += v * xc;
+        } else {
+          y[r] += v * xc;
+          yc += v * x[r];
+        }
+      }
+      y[c] += yc;
+    }
+    return y;
+  }
   Eigen::VectorXd solve(const Eigen::VectorXd& b) {
     cholmod_dense B;
     B.nrow = B.d = static_cast<size_t>(b.size());
@@ -250,6 +272,7 @@ class BlockHessian {
   cholmod_sparse* A_ = nullptr;
   cholmod_factor* L_ = nullptr;
   const std::vector<int>& colptr_;
+  const std::vector<int>& rows_;
   const std::vector<int>& pair_;
   const std::vector<int>& lower_size_;
   std::vector<double> values_;
@@ -542,6 +565,15 @@ double seconds_since(Clock::time_point t) { return std::chrono::duration<double>
 // e^15), which only rescales the Newton step.
 constexpr double kMaxStep = 4.0;
 
+// Issue 19: from this many vertices on, the Newton steps after the first
+// factorisation are CG on the current Hessian preconditioned by the kept
+// factor (HarmonicNewton::preconditioned_step); below it (the ranking's
+// coarse copies, ~3000 vertices, where a factorisation costs a few solves)
+// the chord steps. kMaxCgIterations: CG gives up after this many (about
+// half a factorisation's worth of solves at 10^5 unknowns).
+constexpr int kPreconditionedVertices = 10000;
+constexpr int kMaxCgIterations = 15;
+
 /// One newton_solve run: the chart state, the factorisation kept across
 /// iterations (chord steps), the Levenberg shift and the last step's
 /// bookkeeping, which run through every phase of an iteration; one method a
@@ -561,9 +593,10 @@ struct HarmonicNewton {
   double E = 0;
   std::unique_ptr<HessianAnalysis> own_analysis;
   std::unique_ptr<BlockHessian> hessian;  // built at the first iteration that needs it
-  // Factorisation state kept across iterations (chord steps, below).
+  // Factorisation state kept across iterations (chord and preconditioned
+  // steps, below).
   double shift = 0, last_gnorm = std::numeric_limits<double>::infinity();
-  bool factored = false, last_full_step = false;
+  bool factored = false, last_full_step = false, refactor = false;
   std::vector<Mobius> trial_A, step_map;
   std::vector<Complex> grad_buf;
   Eigen::VectorXd g;
@@ -648,23 +681,78 @@ struct HarmonicNewton {
   }
   double diag(int k) const { return hessian->diagonal(k) + shift; }
 
-  /// The step of this iteration: Newton (a chord step with the kept
-  /// factorisation when *chord is set on return), else the diagonally
-  /// scaled gradient.
+  /// Issue 19: the Newton step on the current Hessian by conjugate gradients
+  /// preconditioned with the kept factorisation (of an earlier iteration's
+  /// Hessian), on sources of kPreconditionedVertices or more. Inexact
+  /// Newton: the linear residual |(H + shift_min) x + g| is brought below
+  /// eta |g| with eta = min(1e-2, sqrt(|g|_max / max w)) (superlinear
+  /// convergence, as the Ricci flow's preconditioned steps), or only below a
+  /// tenth of the stopping tolerance when that is looser (the last step).
+  /// The outer loop's stopping test (the gradient against the tolerance) is
+  /// unchanged, so the optimum is the same to tolerance. Empty when CG meets
+  /// non-positive curvature or does not converge in kMaxCgIterations (the
+  /// caller then factorises afresh).
+  Eigen::VectorXd preconditioned_step(double gnorm) {
+    BlockHessian& H = *hessian;
+    const double min_shift = 1e-9 * max_w;
+    const double g2 = g.norm();
+    const double superlinear = std::min(1e-2, std::sqrt(gnorm / std::max(max_w, 1e-300)));
+    const double enough = 0.1 * options.tolerance * std::max(max_w, 1e-300) / std::max(g2, 1e-300);
+    const double stop = std::min(0.5, std::max(superlinear, enough)) * g2;
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(2 * n), res = -g;
+    Eigen::VectorXd z = H.solve(res), p = z;
+    double rz = res.dot(z);
+    for (int k = 0; k < kMaxCgIterations; ++k) {
+      const Eigen::VectorXd Hp = H.multiply(p, min_shift);
+      const double pHp = p.dot(Hp);
+      ++r.cg_iterations;
+      if (!(pHp > 0) || !(rz > 0)) break;
+      const double a = rz / pHp;
+      x += a * p;
+      res -= a * Hp;
+      if (res.norm() <= stop) {
+        if (!x.allFinite()) break;
+        ++r.preconditioned_steps;
+        return x;
+      }
+      z = H.solve(res);
+      const double rz_new = res.dot(z);
+      p = z + (rz_new / rz) * p;
+      rz = rz_new;
+    }
+    return {};
+  }
+
+  /// The step of this iteration: Newton (from the kept factorisation when
+  /// *chord is set on return: a chord step on small sources, a
+  /// preconditioned CG step on large ones), else the diagonally scaled
+  /// gradient.
   Eigen::VectorXd direction(double gnorm, bool* chord_out) {
     BlockHessian& H = *hessian;
-    // Chord steps: near the optimum the Hessian hardly changes between
-    // iterations (on a fine mesh the edges are short, d coth d ≈ 1, and the
-    // frames turn little), so the last factorisation is kept while it still
-    // gives full steps that cut the gradient at least fourfold; a
-    // factorisation costs ~30 solves with it (2·10^5 unknowns: 0.7 s against
-    // 0.02 s).
-    const bool chord = factored && last_full_step && gnorm <= 0.25 * last_gnorm;
-    *chord_out = chord;
     ++work::newton_iterations;
-    if (!chord) factorize(), factored = true;
-    Eigen::VectorXd step = H.solve(-g);
-    if (chord && (!(g.dot(step) < 0) || !step.allFinite())) factorize(), step = H.solve(-g);
+    Eigen::VectorXd step;
+    bool chord = false;
+    if (n >= kPreconditionedVertices) {
+      // A factorisation of the block Hessian costs ~30 solves with it
+      // (2·10^5 unknowns: 0.7 s against 0.02 s), and from the prolonged
+      // coarse solution the Hessian changes little between iterations: CG
+      // on the current Hessian with the first factor as preconditioner
+      // takes a handful of solves.
+      if (factored && !refactor) step = preconditioned_step(gnorm);
+      chord = step.size() > 0;
+      refactor = false;
+      if (!chord) factorize(), factored = true, step = H.solve(-g);
+    } else {
+      // Chord steps: near the optimum the Hessian hardly changes between
+      // iterations (on a fine mesh the edges are short, d coth d ≈ 1, and the
+      // frames turn little), so the last factorisation is kept while it still
+      // gives full steps that cut the gradient at least fourfold.
+      chord = factored && last_full_step && gnorm <= 0.25 * last_gnorm;
+      if (!chord) factorize(), factored = true;
+      step = H.solve(-g);
+      if (chord && (!(g.dot(step) < 0) || !step.allFinite())) factorize(), step = H.solve(-g);
+    }
+    *chord_out = chord;
     last_gnorm = gnorm;
     // Far from the optimum the frame bookkeeping makes the model Hessian
     // inexact; fall back to the diagonally scaled gradient when the Newton
@@ -718,6 +806,7 @@ struct HarmonicNewton {
       // The kept factorisation gave no decrease: the next iteration
       // factorises afresh (last_full_step is false) from the same point.
       last_gnorm = std::numeric_limits<double>::infinity();
+      refactor = true;
       return Outcome::kRetry;
     }
     if (!accepted) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <queue>
 #include <unordered_map>
 
@@ -74,15 +75,17 @@ struct TargetFrame {
 
 ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
                                   const SystemOfLoops& target, const Word& target_word, const Connectivity& conn,
-                                  const std::vector<Word>& edge_word, const TargetFrame& frame,
+                                  const std::vector<Word>& edge_word, const TargetFrame* frame,
                                   const ProjectedLoopsOptions& options) {
   ProjectedLoopsResult out;
   const TriMesh& tm = target.mesh;
-  const BoxFrame sf = options.source_on_target ? BoxFrame(tm.V, frame.transform)
-                                                : BoxFrame(source.V, options.source_transform);
-  const std::vector<Eigen::Vector3d>& tp = frame.tp;
-  const double s_edge = mean_edge_length(source, sf), t_edge = frame.t_edge;
-  const NearestPointIndex& nearest_vertex = *frame.nearest_vertex;
+  // Without a frame (LoopProjector::project with options.own_mesh): the
+  // source is the target's mesh, every loop vertex its own image, and the
+  // mean edge lengths are equal.
+  std::optional<BoxFrame> sf;
+  if (frame)
+    sf.emplace(options.source_on_target ? BoxFrame(tm.V, frame->transform) : BoxFrame(source.V, options.source_transform));
+  const double s_edge = frame ? mean_edge_length(source, *sf) : 1.0, t_edge = frame ? frame->t_edge : 1.0;
   const int max_gap = static_cast<int>(std::ceil(options.max_gap_factor * std::max(1.0, s_edge / t_edge)));
 
   // Halfedge from a to b, or -1.
@@ -92,7 +95,8 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
   for (const auto& loop : source_loops) {
     const size_t m = loop.size() >= 2 && loop.front() == loop.back() ? loop.size() - 1 : loop.size();
     std::vector<int> img(m);
-    for (size_t i = 0; i < m; ++i) img[i] = nearest_vertex.nearest(sf(source.V.row(loop[i]).transpose()));
+    for (size_t i = 0; i < m; ++i)
+      img[i] = frame ? frame->nearest_vertex->nearest((*sf)(source.V.row(loop[i]).transpose())) : loop[i];
     Word w;
     for (size_t i = 0; i < m; ++i) {
       const int a = img[i], b = img[(i + 1) % m];
@@ -127,8 +131,9 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
       // is explored), at most twice the jump plus the ordinary gap.
       // With join_by_length every gap takes this path (the shortest by
       // length, not by edge count).
-      const double jump = (tp[a] - tp[b]).norm();
-      if (!found && (options.join_by_length || (options.max_jump_box > 0 && jump <= options.max_jump_box))) {
+      const double jump = frame ? (frame->tp[a] - frame->tp[b]).norm() : 0.0;
+      if (!found && frame && (options.join_by_length || (options.max_jump_box > 0 && jump <= options.max_jump_box))) {
+        const std::vector<Eigen::Vector3d>& tp = frame->tp;
         ++search;
         const double limit = 2 * jump + max_gap * t_edge;
         using Item = std::pair<double, int>;  // (length so far + straight line to b, vertex)
@@ -229,24 +234,32 @@ bool is_signed_permutation(const Eigen::Matrix3d& M, double tol) {
 struct LoopProjector::Impl {
   const SystemOfLoops& target;
   Word target_word;
-  Connectivity conn;
+  std::optional<Connectivity> own_conn;  // built here unless the caller's was given
+  const Connectivity& conn;
   std::vector<Word> edge_word;
   std::unique_ptr<TargetFrame> frame;  // the last target frame used
-  Impl(const SystemOfLoops& t, const Word& w) : target(t), target_word(w), conn(t.mesh.F, t.mesh.num_vertices()) {
+  Impl(const SystemOfLoops& t, const Word& w, const Connectivity* c)
+      : target(t), target_word(w), own_conn(c ? std::nullopt : std::make_optional<Connectivity>(t.mesh.F, t.mesh.num_vertices())),
+        conn(c ? *c : *own_conn) {
     edge_word = target_edge_words(target, conn);
   }
 };
 
-LoopProjector::LoopProjector(const SystemOfLoops& target, const Word& target_word)
-    : impl_(std::make_unique<Impl>(target, target_word)) {}
+LoopProjector::LoopProjector(const SystemOfLoops& target, const Word& target_word, const Connectivity* target_conn)
+    : impl_(std::make_unique<Impl>(target, target_word, target_conn)) {}
 LoopProjector::~LoopProjector() = default;
 
 ProjectedLoopsResult LoopProjector::project(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
                                             const ProjectedLoopsOptions& options) const {
   Impl& m = *impl_;
+  // The source is the target's own mesh: no frame, every loop vertex is its
+  // own nearest vertex (ProjectedLoopsOptions::own_mesh).
+  if (options.own_mesh && !options.join_by_length && !(options.max_jump_box > 0) && !options.source_on_target &&
+      source.F.rows() == m.target.mesh.F.rows() && source.V == m.target.mesh.V)
+    return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, nullptr, options);
   if (!m.frame || m.frame->transform != options.target_transform)
     m.frame = std::make_unique<TargetFrame>(m.target.mesh, options.target_transform);
-  return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, *m.frame, options);
+  return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, m.frame.get(), options);
 }
 
 std::vector<ProjectedLoopsResult> LoopProjector::project(const TriMesh& source,
@@ -265,8 +278,8 @@ std::vector<ProjectedLoopsResult> LoopProjector::project(const TriMesh& source,
 
 ProjectedLoopsResult project_loops(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
                                    const SystemOfLoops& target, const Word& target_word,
-                                   const ProjectedLoopsOptions& options) {
-  return LoopProjector(target, target_word).project(source, source_loops, options);
+                                   const ProjectedLoopsOptions& options, const Connectivity* target_conn) {
+  return LoopProjector(target, target_word, target_conn).project(source, source_loops, options);
 }
 
 std::vector<ProjectedLoopsResult> project_loops(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,

@@ -93,6 +93,10 @@ struct HyperbolicHarmonicResult {
   /// seconds spent in the symbolic analysis (once per solve) and in the
   /// numeric factorisations.
   int factorizations = 0, energy_evaluations = 0;
+  /// Newton steps solved by conjugate gradients preconditioned with an
+  /// earlier iteration's factorisation (large sources, issue 19), and the CG
+  /// iterations spent (one solve with the factor each, failed tries included).
+  int preconditioned_steps = 0, cg_iterations = 0;
   double analysis_seconds = 0, factorization_seconds = 0;
 };
 

@@ -63,6 +63,14 @@ struct ProjectedLoopsOptions {
   /// around a hole of a CAD part (the genus-4 plate's loop came out
   /// contractible).
   bool join_by_length = false;
+  /// The source is the target's own mesh (the same vertices at the same
+  /// positions: another system of loops on one surface, e.g. the map's other
+  /// cuts of the source): every loop vertex is its own image, with no box
+  /// frame or nearest-vertex search (issue 19: those were most of a
+  /// self-projection's cost). Checked (same vertex positions and face
+  /// count) and used only with join_by_length, max_jump_box and
+  /// source_on_target off; otherwise ignored. Default false.
+  bool own_mesh = false;
 };
 
 struct ProjectedLoopsResult {
@@ -86,9 +94,11 @@ struct ProjectedLoopsResult {
 /// `source`: the mesh of `source_loops` (closed vertex paths); `target`: the
 /// target's system of loops (its refined mesh carries the loops);
 /// `target_word`: the boundary word used as the target's relator.
+/// `target_conn` (optional): Connectivity(target.mesh.F), when the caller has
+/// it (otherwise built here).
 ProjectedLoopsResult project_loops(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
                                    const SystemOfLoops& target, const Word& target_word,
-                                   const ProjectedLoopsOptions& options = {});
+                                   const ProjectedLoopsOptions& options = {}, const Connectivity* target_conn = nullptr);
 
 /// One rigid pose of the source relative to the target for project_loops.
 struct OverlayPose {
@@ -110,7 +120,9 @@ std::vector<ProjectedLoopsResult> project_loops(const TriMesh& source, const std
 /// target share everything). `target` must outlive it.
 class LoopProjector {
  public:
-  LoopProjector(const SystemOfLoops& target, const Word& target_word);
+  /// `target_conn` (optional, must outlive it): Connectivity(target.mesh.F)
+  /// when the caller has it (otherwise built here).
+  LoopProjector(const SystemOfLoops& target, const Word& target_word, const Connectivity* target_conn = nullptr);
   ~LoopProjector();
   ProjectedLoopsResult project(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
                                const ProjectedLoopsOptions& options = {}) const;

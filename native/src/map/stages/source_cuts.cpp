@@ -42,7 +42,12 @@ CutPrep SourceCuts::build(int base) const {
     return cp;  // no system of loops at that vertex: the default one is enough
   }
   const CanonicalSchema scs2 = canonical_schema(sl2.word);
-  const ProjectedLoopsResult self = project_loops(source_, default_loops_, sl2, sl2.word);
+  // The default loops onto this cut's: the same mesh (source_loops does not
+  // refine), so each loop vertex is its own image and sc_ is the cut's
+  // connectivity (issue 19: no box frame, k-d tree or Connectivity per cut).
+  ProjectedLoopsOptions self_options;
+  self_options.own_mesh = true;
+  const ProjectedLoopsResult self = project_loops(source_, default_loops_, sl2, sl2.word, self_options, &sc_);
   if (self.ok) {
     const Word R2 = canonical_relator(genus_);
     const IntMatrix J2 = symplectic_form(genus_);
