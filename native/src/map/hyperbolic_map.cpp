@@ -49,6 +49,18 @@ namespace {
 
 using hyperbolic::Mobius;
 
+// Issue 19: the ranking's coarse solves stop at this gradient tolerance
+// (HyperbolicHarmonicOptions::tolerance), or at the solve's own when that is
+// looser. Their energies are the ranking's estimates (the coarse copy's
+// discretisation moves them by ~0.3%, the ranking's ties are judged to
+// 1e-6) and their solutions only start the full-resolution solves, which
+// converge to solve.tolerance from wherever they start. Newton's energy
+// error goes like the gradient squared (~1e-14 here), while the last
+// decades of gradient cost 1-4 of the 11-19 steps of a solve from the
+// origin (their tails converge linearly, 5-20x per step, on the 5k bench
+// pair).
+constexpr double kRankingTolerance = 1e-7;
+
 // Adds a restarted twist search's figures to the search's account `info`:
 // the start, the evaluation and screening counts, the time, and the moves
 // it evaluated (tagged with the candidate it started from).
@@ -93,6 +105,8 @@ class HyperbolicPipeline {
   CoarseSolve full_resolution_solve(double& best);
   int append_full_class(HomotopyClass hc, ClassData cd, CoarseEvaluation& ev);
   void map_in_chosen_class();
+  void release_unsolved_class_data();
+  const ClassData& data_for(int k);
 
   // Inputs.
   const TriMesh& source;
@@ -127,7 +141,11 @@ class HyperbolicPipeline {
   std::unique_ptr<LoopProjector> projector;
   CandidateClasses candidates;
   SolverEdgeIndex solver_index;
-  std::vector<ClassData> data;
+  std::vector<ClassData> data;  ///< per class; released ones (data_released) are empty until data_for
+  /// Issue 19 (memory): classes whose data were released before the
+  /// full-resolution solves (release_unsolved_class_data); data_for builds
+  /// them again (a fallback). Shorter than data: the rest are not released.
+  std::vector<char> data_released;
   std::vector<char> usable, coarse_failed, full;
   std::vector<char> not_ranked;  ///< classes the ranking did not solve (issue 19; still fallbacks)
   std::vector<int> order;  ///< classes by coarse energy
@@ -201,6 +219,7 @@ class HyperbolicPipeline {
   int early_ranked_class() const;
   bool unranked(int k) const { return k >= 0 && k < static_cast<int>(not_ranked.size()) && not_ranked[k]; }
   std::vector<int> classes_that_can_win(int first);
+  int skip_isometric_twins(int first, std::vector<int>& rest, const std::function<void(int, const std::string&)>& skip);
   void twist_search_from(int start, const std::vector<std::string>& start_twists, const CoarseSolve& solve,
                          HomotopySearchInfo& info, const SurfaceMapOptions* opts = nullptr);
   HyperbolicHarmonicOptions fine_options(int k) const;
@@ -466,6 +485,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   cuts.stop = true;  // the second thread is needed here
   auto coarse_solve = [&](int k, const std::atomic<bool>* stop) {
     HyperbolicHarmonicOptions o = ho;
+    o.tolerance = std::max(ho.tolerance, kRankingTolerance);
     if (stop) o.progress = [stop](int, double, double) { return !*stop; };
     if (!try_solve(k, [&] { return solve_from(ncv, level.class_edges[k], corigin, no_decks, o); }, coarse_result[k], true))
       return;
@@ -542,21 +562,74 @@ std::vector<int> HyperbolicPipeline::classes_that_can_win(int first) {
   }
   const bool finite = usable[first] && !coarse_failed[first] && std::isfinite(e);
   const SourceClassBounds* bounds = finite ? &class_bounds_now() : nullptr;
+  int pruned = 0;
   for (int k = 0; k < ncand; ++k) {
     if (k == first || !usable[k]) continue;
     const double b = bounds ? class_curve_bound_of(*bounds, *target_lengths, candidates.classes[k].map) : 0.0;
     if (b > e) {
       std::snprintf(why, sizeof why, "its curve lower bound %.6g is above candidate %d's coarse energy %.6g", b, first, e);
       skip(k, why);
+      ++pruned;
     } else {
       rest.push_back(k);
     }
   }
-  out.ranking_status = out.ranking_skipped > 0 ? "pruned by the curve lower bounds: " + std::to_string(out.ranking_skipped) +
-                                                     " of " + std::to_string(ncand) + " classes not solved"
-                                               : std::string(bounds && bounds->ok ? "no class ruled out by its curve lower bound"
-                                                                                  : "no curve lower bounds: every class solved");
+  const int twins = skip_isometric_twins(first, rest, skip);
+  out.ranking_status = pruned > 0 ? "pruned by the curve lower bounds: " + std::to_string(pruned) + " of " +
+                                        std::to_string(ncand) + " classes not solved"
+                                  : std::string(bounds && bounds->ok ? "no class ruled out by its curve lower bound"
+                                                                     : "no curve lower bounds: every class solved");
+  if (twins > 0)
+    out.ranking_status += "; " + std::to_string(twins) + (twins == 1 ? " class" : " classes") +
+                          " not solved as the same class as an earlier one up to an isometry of the target";
   return rest;
+}
+
+// Issue 19: drops from `rest` (increasing indices, all after `first`) every
+// class whose fingerprint (ClassSpace::fingerprint: the target lengths of
+// the images of the probe curves x_j, x_i x_j^±1) is that of `first` or of
+// an earlier class kept in `rest`: the same class up to an isometry of the
+// target (the criterion by which the candidate list drops lifted classes
+// already known). An isometry of the target maps the class's harmonic maps
+// onto the other's with the same energy, and energy ties go to the earlier
+// candidate (choose_class, pick_full_solves), so the later one cannot be
+// chosen: its coarse solve is not run (`skip` marks it "[not ranked: ...]";
+// it stays a fallback). In genus 2 every class has such a twin, its
+// composite with the hyperelliptic involution (an isometry of every genus-2
+// surface): on the 5k bench pair candidates 4 and 7 ("handle 1 -> handle 1,
+// handle 2 -> handle 2" with and without both half turns), coarse energies
+// equal to 1e-15, the later one's solve 19 Newton steps. Returns how many
+// were dropped.
+int HyperbolicPipeline::skip_isometric_twins(int first, std::vector<int>& rest,
+                                             const std::function<void(int, const std::string&)>& skip) {
+  auto fingerprint_of = [&](int k) {
+    return space->loop_image_length(candidates.classes[k].map) <= space->max_image_letters()
+               ? space->fingerprint(candidates.classes[k].map)
+               : std::vector<double>{};  // (not evaluable: same_fingerprint is false for it)
+  };
+  std::vector<std::pair<int, std::vector<double>>> kept{{first, fingerprint_of(first)}};
+  std::vector<int> solved;
+  int twins = 0;
+  for (int k : rest) {
+    std::vector<double> fp = fingerprint_of(k);
+    int twin = -1;
+    for (const auto& [j, fj] : kept)
+      if (ClassSpace::same_fingerprint(fj, fp)) {
+        twin = j;
+        break;
+      }
+    if (twin >= 0) {
+      skip(k, "the same class as candidate " + std::to_string(twin) +
+                  " up to an isometry of the target (every probe curve's image has the same length), so the same "
+                  "energy; ties go to the earlier candidate");
+      ++twins;
+      continue;
+    }
+    kept.push_back({k, std::move(fp)});
+    solved.push_back(k);
+  }
+  rest = std::move(solved);
+  return twins;
 }
 
 // The per-candidate lists every appended class extends alike (its
@@ -1096,6 +1169,7 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   FullSolvePick picked = pick_full_solves(out.candidates, order, usable, full_solves, options);
   full = std::move(picked.full);
   likely_class = picked.likely_class;
+  release_unsolved_class_data();
   stage_done("homotopy candidates", 0.42);
   const CoarseSource& cs = ss.cs;
   const std::vector<int> settle = prolongation_order(cs, sc);
@@ -1142,6 +1216,32 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
     fine_result[k] = std::move(r);
   });
   if (init_error) likely_init.reset();
+}
+
+// Issue 19 (memory): every candidate's homotopy data (a deck element and
+// side word per source edge, the solver's edges: ~130 bytes per source
+// edge, ~0.4 GB per class at 1M source vertices, with 10-15 candidates) were
+// held through the full-resolution solves, whose factorisations came on top
+// (the 1M bench pair's peak, 11.9 GB, was there). Only the classes solved at full
+// resolution and the likely class's initial map need them now; the others
+// are fallbacks, whose data data_for builds again (the same function of the
+// same inputs, so the same data) if one is ever used.
+void HyperbolicPipeline::release_unsolved_class_data() {
+  data_released.assign(ncand, 0);
+  for (int k = 0; k < ncand; ++k)
+    if (!full[k] && k != likely_class && !data[k].edges.empty()) {
+      data[k] = ClassData{};
+      data_released[k] = 1;
+    }
+}
+
+// Class k's data, built again when it was released.
+const ClassData& HyperbolicPipeline::data_for(int k) {
+  if (k < static_cast<int>(data_released.size()) && data_released[k]) {
+    data[k] = data_of(candidates.classes[k].map);
+    data_released[k] = 0;
+  }
+  return data[k];
 }
 
 // Landmarks in class k from its free optimum `free_k` (landmarks.h): plain
@@ -1228,8 +1328,10 @@ void HyperbolicPipeline::switch_to_own_weights() {
   ss.idt = positive_edge_weights(sc, edge_lengths(source, sc));
   index_solver_edges(sc, ss.idt, solver_index);
   fine_solver.reset();  // (another pattern)
+  // (empty: never evaluable, or released: data_for builds it with the new
+  // weights when needed)
   for (int k = 0; k < ncand; ++k)
-    if (!data[k].edges.empty()) data[k] = data_of(candidates.classes[k].map);  // empty: never evaluable
+    if (!data[k].edges.empty()) data[k] = data_of(candidates.classes[k].map);
 }
 
 // The single-class pipeline for the chosen class (out.chosen_candidate):
@@ -1247,7 +1349,7 @@ bool map_class(HyperbolicPipeline& p) {
   SurfaceMapResult& out = p.out;
   const int k = out.chosen_candidate;
   out.source_weights = source_weights_name(p.own_weights, p.ss.idt.raised_weights);
-  const ClassData& cd = p.data[k];
+  const ClassData& cd = p.data_for(k);
 
   ClassInitialMap initial;
   if (p.likely_init && p.likely_class == k) {

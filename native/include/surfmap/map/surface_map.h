@@ -184,8 +184,11 @@ struct HomotopyOptions {
   /// conformal bound 8 pi (g - 1), below which no class's energy lies, the
   /// other classes are not solved ("[not ranked: ...]"); otherwise those
   /// whose curve lower bound (map/class_lower_bound.h) is above that energy
-  /// are not solved. < 0: every class is solved (also when full_solves <= 0).
-  /// SurfaceMapResult::ranking_coarse_solves counts the solves.
+  /// are not solved, nor those with an earlier candidate's fingerprint (the
+  /// same class up to an isometry of the target, so the same energy; ties go
+  /// to the earlier candidate). < 0: every class is solved (also when
+  /// full_solves <= 0). SurfaceMapResult::ranking_coarse_solves counts the
+  /// solves.
   double ranking_gap = 0.02;
   /// Genus >= 2: vertices of the coarse copy of the source on which every
   /// candidate class is solved to rank them (map/coarse_source.h; default
@@ -601,7 +604,8 @@ struct SurfaceMapResult {
   /// ranking ran (the class search's are in homotopy_search.coarse_solves),
   /// the classes it did not solve, and why ("" when the ranking solved every
   /// class by rule; else "stopped: ...", "pruned by the curve lower bounds:
-  /// ...", or why nothing was pruned).
+  /// ...", or why nothing was pruned; then how many were not solved as an
+  /// earlier candidate's class up to an isometry of the target).
   int ranking_coarse_solves = 0;
   int ranking_skipped = 0;
   std::string ranking_status;
