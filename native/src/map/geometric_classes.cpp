@@ -263,24 +263,41 @@ std::vector<GeometricClass> geometric_classes(const SurfaceGroupLengths& source,
     std::vector<int> perm, swap;
   };
   std::vector<Pairing> pairings;
-  std::vector<int> perm(g);
-  std::iota(perm.begin(), perm.end(), 0);
-  do {
-    for (int bits = 0; bits < (1 << g); ++bits) {
-      Pairing p{0, perm, std::vector<int>(g)};
-      for (int i = 0; i < g; ++i) {
-        const bool s = (bits >> i) & 1;
-        p.swap[i] = s;
-        const auto& x = hx[i];
-        const auto& y = hy[perm[i]];
-        p.cost += s ? log_gap(x[0], y[1]) + log_gap(x[1], y[0]) + log_gap(x[2], y[3]) + log_gap(x[3], y[2])
-                    : log_gap(x[0], y[0]) + log_gap(x[1], y[1]) + log_gap(x[2], y[2]) + log_gap(x[3], y[3]);
-      }
+  const int keep = std::max(1, options.pairings);
+  auto pair_cost = [&](int i, int j, bool s) {
+    const auto& x = hx[i];
+    const auto& y = hy[j];
+    return s ? log_gap(x[0], y[1]) + log_gap(x[1], y[0]) + log_gap(x[2], y[3]) + log_gap(x[3], y[2])
+             : log_gap(x[0], y[0]) + log_gap(x[1], y[1]) + log_gap(x[2], y[2]) + log_gap(x[3], y[3]);
+  };
+  if (g > options.enumerated_genus) {
+    // Issue 13: all g! 2^g pairings are 8e10 at genus 11 (16 GB before the
+    // map was stopped); the `keep` best come from Murty's k-best
+    // assignments instead (exact, ties in another order).
+    std::vector<std::array<double, 2>> score(static_cast<size_t>(g) * g);
+    for (int i = 0; i < g; ++i)
+      for (int j = 0; j < g; ++j) score[i * g + j] = {pair_cost(i, j, false), pair_cost(i, j, true)};
+    for (const SignedPermutation& sp : best_signed_permutations(g, score, keep)) {
+      Pairing p{sp.score, sp.perm, std::vector<int>(g)};
+      for (int i = 0; i < g; ++i) p.swap[i] = sp.sign[i] < 0;
       pairings.push_back(std::move(p));
     }
-  } while (std::next_permutation(perm.begin(), perm.end()));
+  } else {
+    std::vector<int> perm(g);
+    std::iota(perm.begin(), perm.end(), 0);
+    do {
+      for (int bits = 0; bits < (1 << g); ++bits) {
+        Pairing p{0, perm, std::vector<int>(g)};
+        for (int i = 0; i < g; ++i) {
+          p.swap[i] = (bits >> i) & 1;
+          p.cost += pair_cost(i, perm[i], p.swap[i]);
+        }
+        pairings.push_back(std::move(p));
+      }
+    } while (std::next_permutation(perm.begin(), perm.end()));
+  }
   std::stable_sort(pairings.begin(), pairings.end(), [](const Pairing& x, const Pairing& y) { return x.cost < y.cost; });
-  pairings.resize(std::min<size_t>(pairings.size(), static_cast<size_t>(std::max(1, options.pairings))));
+  pairings.resize(std::min<size_t>(pairings.size(), static_cast<size_t>(keep)));
   // 2. Every half-turn pattern of the kept pairings, lifted exactly and
   // ranked by all probes.
   const std::vector<Word> probes = marking_probes(g);
@@ -300,18 +317,42 @@ std::vector<GeometricClass> geometric_classes(const SurfaceGroupLengths& source,
     return m;
   };
   std::vector<GeometricClass> out;
-  for (const Pairing& p : pairings)
-    for (int half = 0; half < (1 << g); ++half) {
-      GeometricClass c;
-      c.permutation = p.perm;
-      for (int i = 0; i < g; ++i) c.rotation.push_back(p.swap[i] + 2 * ((half >> i) & 1));
-      const SurfaceAutomorphism P = lift_symplectic(pairing_homology(c.permutation, c.rotation));
-      c.theta = compose(target_marking.marking.map, compose(P.map, source_marking.marking.inverse));
-      dehn_reduce_all(c.theta, reduce);
-      c.mismatch = mismatch(c.theta);
-      c.description = pairing_text(c.permutation, c.rotation);
-      out.push_back(std::move(c));
+  auto class_of = [&](const Pairing& p, const std::vector<int>& half) {
+    GeometricClass c;
+    c.permutation = p.perm;
+    for (int i = 0; i < g; ++i) c.rotation.push_back(p.swap[i] + 2 * half[i]);
+    const SurfaceAutomorphism P = lift_symplectic(pairing_homology(c.permutation, c.rotation));
+    c.theta = compose(target_marking.marking.map, compose(P.map, source_marking.marking.inverse));
+    dehn_reduce_all(c.theta, reduce);
+    c.mismatch = mismatch(c.theta);
+    c.description = pairing_text(c.permutation, c.rotation);
+    return c;
+  };
+  for (const Pairing& p : pairings) {
+    if (g <= options.enumerated_genus) {
+      for (int bits = 0; bits < (1 << g); ++bits) {
+        std::vector<int> half(g);
+        for (int i = 0; i < g; ++i) half[i] = (bits >> i) & 1;
+        out.push_back(class_of(p, half));
+      }
+      continue;
     }
+    // Issue 13: 2^g patterns per pairing (2048 at genus 11, each lifted and
+    // measured on 2g(2g-1) + 2g probes) are too many: one handle's half turn
+    // at a time while it lowers the mismatch (rounds over the handles).
+    std::vector<int> half(g, 0);
+    GeometricClass best = class_of(p, half);
+    for (bool improved = true; improved;) {
+      improved = false;
+      for (int i = 0; i < g; ++i) {
+        half[i] ^= 1;
+        GeometricClass c = class_of(p, half);
+        if (c.mismatch < best.mismatch - 1e-12) best = std::move(c), improved = true;
+        else half[i] ^= 1;
+      }
+    }
+    out.push_back(std::move(best));
+  }
   std::stable_sort(out.begin(), out.end(), [](const GeometricClass& x, const GeometricClass& y) { return x.mismatch < y.mismatch; });
   out.resize(std::min<size_t>(out.size(), static_cast<size_t>(std::max(1, options.max_classes))));
   // 3. The markings are local minima, not always the same ones on two

@@ -716,8 +716,9 @@ void HyperbolicPipeline::search_classes() {
   const bool searching = !level.source_word.empty();
   const double conformal_bound = 8 * M_PI * (out.genus - 1);
   const double gap_bound = (1 + options.homotopy.search.gap) * conformal_bound;
+  // (order[0] not usable: every candidate failed, energy +inf; issue 13.)
   if (searching && candidates.lifter && options.homotopy.search.cuts > 0 && hooks.homotopy_search_start < 0 &&
-      usable[order[0]] && out.candidates[order[0]].energy > gap_bound)
+      out.candidates[order[0]].energy > gap_bound)
     for (FoundClass& f : classes_from_more_cuts(*candidates.lifter, cuts, *space, nv, threads, conformal_bound,
                                                  [this](const GroupMap& theta) { return data_of(theta); }, pruned_solve,
                                                  options, out.homotopy_search))
@@ -727,7 +728,7 @@ void HyperbolicPipeline::search_classes() {
   std::vector<int> restart_from;
   // Issue 19: only when the best class so far is at least geometric_ratio x
   // the bound (they cost 1-6 s on genus-2 pairs and never won below it).
-  if (searching && options.homotopy.search.geometric > 0 && hooks.homotopy_search_start < 0 && usable[order[0]] &&
+  if (searching && options.homotopy.search.geometric > 0 && hooks.homotopy_search_start < 0 &&
       out.candidates[order[0]].energy > gap_bound &&
       out.candidates[order[0]].energy >= options.homotopy.search.geometric_ratio * conformal_bound) {
     const SourceClassBounds& bounds = class_bounds_now();
@@ -843,9 +844,11 @@ void HyperbolicPipeline::geometric_classes_at_full_resolution() {
   for (int k = 0; k < ncand; ++k)
     if (usable[k] && out.candidates[k].solved && std::isfinite(out.candidates[k].energy))
       best = std::min(best, out.candidates[k].energy);
+  // Issue 13: when every candidate failed (best infinite: the genus-11
+  // plate -> wheel, whose combinatorial classes are all twisted far beyond
+  // double range) the geometric classes are the only ones left.
   const double conformal = 8 * M_PI * (out.genus - 1);
-  if (!std::isfinite(best) || best <= (1 + options.homotopy.search.gap) * conformal ||
-      best < options.homotopy.search.geometric_ratio * conformal)
+  if (best <= (1 + options.homotopy.search.gap) * conformal || best < options.homotopy.search.geometric_ratio * conformal)
     return;
   const SourceClassBounds& bounds = class_bounds_now();
   if (!bounds.ok || !bounds.source) return;
@@ -1284,7 +1287,18 @@ HyperbolicHarmonicResult HyperbolicPipeline::hold_in_class(int k, const Hyperbol
 // free estimate is not comparable).
 void HyperbolicPipeline::choose_with_landmarks() {
   out.chosen_candidate = choose_class(out.candidates, options);
-  if (out.chosen_candidate < 0) throw SolveError("the harmonic map solve failed in every candidate homotopy class");
+  if (out.chosen_candidate < 0) {
+    // Each class's own reason (its description's bracketed note), so the
+    // one-line error says which stage failed where.
+    std::string why;
+    for (size_t k = 0; k < out.candidates.size() && k < 4; ++k) {
+      const std::string& d = out.candidates[k].description;
+      const size_t at = d.rfind("  [");
+      why += (k ? "; " : ": ") + std::string("class ") + std::to_string(k) + (at == std::string::npos ? std::string(" not solved") : d.substr(at + 2));
+    }
+    if (out.candidates.size() > 4) why += "; ... (" + std::to_string(out.candidates.size()) + " classes)";
+    throw SolveError("the harmonic map solve failed in every candidate homotopy class" + why);
+  }
   held_result.resize(ncand);
   held_record.resize(ncand);
   if (!options.landmarks.empty() && options.homotopy.class_index < 0) {

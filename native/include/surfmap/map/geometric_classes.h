@@ -97,6 +97,13 @@ struct GeometricClassOptions {
   /// the handle-level length comparison (default 6); each is tried with
   /// every half-turn pattern, ranked by all probes.
   int pairings = 6;
+  /// Up to this genus (default 7: 7! 2^7 pairings, 2^7 half-turn patterns
+  /// each) every handle pairing and every half-turn pattern is scored.
+  /// Beyond, the `pairings` best come from Murty's k-best assignments
+  /// (best_signed_permutations, exact) and each pairing's half turns from a
+  /// descent, one handle at a time while the mismatch drops (issue 13: at
+  /// genus 11 the enumeration, 8e10 pairings, took 16 GB).
+  int enumerated_genus = 7;
   /// Classes returned (default 8), lowest mismatch first.
   int max_classes = 8;
   /// Each class then descends on the mismatch by twists on either side

@@ -89,7 +89,10 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
   // (map/pants_classes.h), listed after the markings' and solved within a
   // budget of their own (the same count).
   const size_t marking_classes = classes.size();
-  {
+  // (Not beyond genus go.enumerated_genus: pants_symmetries lists 2^g half
+  // turns per handle permutation, and the genus-11 plate -> wheel spent
+  // over 20 minutes in pants_classes without finishing; issue 13.)
+  if (source.genus() <= go.enumerated_genus) {
     const PantsDecomposition px = short_pants_decomposition(source, mx), py = short_pants_decomposition(target, my);
     std::vector<double> lx, ly;
     for (const PantsCurve& c : px.curves) lx.push_back(c.length);
