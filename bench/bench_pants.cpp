@@ -7,9 +7,12 @@
 // their curve lengths printed. With two meshes of equal genus, the greedy
 // pants classes X -> Y are listed with their costs.
 //
-// Usage: bench_pants [MESH ...]     (default: generated genus-2..4 shapes)
-//        bench_pants --cad-plate G  (adds `surfmap generate cad-plate --genus G --thickness 0.3`)
+// Usage: bench_pants [--full-counts] [--cad-plate G] [MESH ...]
+//   (default: generated genus-2..4 shapes; --cad-plate G adds `surfmap
+//   generate cad-plate --genus G --thickness 0.3`; --full-counts: the greedy
+//   decomposition counts every crossing, GreedyPantsOptions::shortcuts off)
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
@@ -66,10 +69,13 @@ void print_lengths(const char* what, const std::vector<double>& l, double total)
 
 int main(int argc, char** argv) {
   std::vector<std::pair<std::string, TriMesh>> meshes;
+  GreedyPantsOptions greedy_options;
   try {
     for (int k = 1; k < argc; ++k) {
       const std::string arg = argv[k];
-      if (arg == "--cad-plate" && k + 1 < argc) {
+      if (arg == "--full-counts") {
+        greedy_options.shortcuts = false;
+      } else if (arg == "--cad-plate" && k + 1 < argc) {
         const int g = std::atoi(argv[++k]);
         meshes.emplace_back("cad_plate(" + std::to_string(g) + ")", samples::cad_plate(g, 64, 0.3));
       } else {
@@ -107,7 +113,7 @@ int main(int argc, char** argv) {
     for (const PantsCurve& c : s.caterpillar.curves) l.push_back(c.length), extra.push_back(c.word);
     print_lengths("caterpillar", l, s.caterpillar.total);
     std::printf("  caterpillar  %.2f s\n", t_cat);
-    s.greedy = greedy_pants_decomposition(*s.lengths, s.marking, extra);
+    s.greedy = greedy_pants_decomposition(*s.lengths, s.marking, extra, greedy_options);
     l.clear();
     for (const GreedyPantsCurve& c : s.greedy.curves) l.push_back(c.length);
     print_lengths(s.greedy.complete ? "greedy" : "greedy (inc.)", l, s.greedy.total);
@@ -119,6 +125,19 @@ int main(int argc, char** argv) {
                 shared_pants_curves(*s.lengths, s.marking, s.greedy, extra), extra.size());
     std::fflush(stdout);
     surfaces.push_back(std::move(s));
+  }
+  // Greedy pants classes between consecutive surfaces of equal genus.
+  for (size_t k = 0; k + 1 < surfaces.size(); ++k) {
+    const Surface &x = surfaces[k], &y = surfaces[k + 1];
+    if (x.lengths->genus() != y.lengths->genus()) continue;
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::vector<GreedyPantsClass> classes =
+        greedy_pants_classes(*x.lengths, x.marking, x.greedy, *y.lengths, y.marking, y.greedy);
+    std::printf("%s -> %s: greedy pants classes %.2f s\n", x.name.c_str(), y.name.c_str(), seconds_since(t0));
+    for (const GreedyPantsClass& c : classes)
+      std::printf("  cost %.4g (pants %.4g, twists %.4g), greedy collar bound %.4g (8 pi (g-1) = %.4g): %s\n", c.cost,
+                  c.pants_mismatch, c.twist_mismatch, c.collar_bound, 8 * M_PI * (x.lengths->genus() - 1),
+                  c.description.c_str());
   }
   return 0;
 }

@@ -222,41 +222,6 @@ TEST(GreedyPantsClasses, IdentityForTheSameSurfaceAndTheCollarBoundBelowItsEnerg
   expect_exact_inverses(classes, 3);
 }
 
-// The same surface relabelled by a known mapping class ψ: a class of cost 0
-// acting on homology as ψ^-1 (the isometry), and every class's inverse
-// exact.
-TEST(GreedyPantsClasses, RecoverAKnownMappingClass) {
-  const Uniformized x = uniformized(lopsided(samples::n_hole_torus(2, 26, true)));
-  const SurfaceGroupLengths X(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word);
-  const std::vector<MappingClassMove> moves = twist_moves(2, false, false);
-  SurfaceAutomorphism psi{identity_map(4), identity_map(4), 0};
-  const DehnReducer reduce(canonical_relator(2));
-  for (const char* name : {"T(a1)", "T(a1)", "T(b2)^-1", "T(s1)"}) {
-    auto mv = std::find_if(moves.begin(), moves.end(), [&](const MappingClassMove& mm) { return mm.name == name; });
-    ASSERT_NE(mv, moves.end()) << name;
-    psi.map = compose(psi.map, mv->automorphism.map);
-    psi.inverse = compose(mv->automorphism.inverse, psi.inverse);
-    for (Word& w : psi.map) w = reduce(w);
-    for (Word& w : psi.inverse) w = reduce(w);
-  }
-  const SurfaceGroupLengths Y(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word, psi.map);
-  auto decomposition = [](const SurfaceGroupLengths& L, const ShortMarking& m) {
-    std::vector<Word> extra;
-    for (const PantsCurve& c : short_pants_decomposition(L, m).curves) extra.push_back(c.word);
-    return greedy_pants_decomposition(L, m, extra);
-  };
-  const ShortMarking mx = short_marking(X), my = short_marking(Y);
-  const GreedyPantsDecomposition gx = decomposition(X, mx), gy = decomposition(Y, my);
-  ASSERT_TRUE(gx.complete && gy.complete);
-  const std::vector<GreedyPantsClass> classes = greedy_pants_classes(X, mx, gx, Y, my, gy);
-  ASSERT_FALSE(classes.empty());
-  bool recovered = false;
-  for (const GreedyPantsClass& c : classes)
-    recovered = recovered || (c.cost < 1e-8 && homology_matrix(c.theta, 4) == homology_matrix(psi.inverse, 4));
-  EXPECT_TRUE(recovered) << classes[0].description << " cost " << classes[0].cost;
-  expect_exact_inverses(classes, 2);
-}
-
 // Two different surfaces (decompositions of different lengths): the classes
 // come with exact inverses, the pants term pairs each surface's shortest
 // curve with a curve of the other no longer than its longest greedy curve.

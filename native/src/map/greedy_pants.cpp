@@ -111,7 +111,7 @@ Word prefix(const Word& w, size_t k) { return Word(w.begin(), w.begin() + k); }
 /// SurfaceGroupLengths does for side words), so that a curve given by a far
 /// conjugate (the caterpillar's words in the marking's letters) gets a word
 /// whose lifts the conjugator ball reaches.
-Word cyclic_dehn_reduce(Word w, const DehnReducer& reduce) {
+Word short_cyclic_word(Word w, const DehnReducer& reduce) {
   w = cyclic_reduce(reduce(w));
   for (int guard = 0; guard < 64 && w.size() >= 2; ++guard) {
     const size_t h = w.size() / 2;
@@ -267,7 +267,7 @@ GreedyPantsDecomposition greedy_pants_decomposition(const SurfaceGroupLengths& l
   const DehnReducer& reduce = count.reduce();
   std::vector<Word> words = candidate_words(genus, letters);
   for (const Word& c : extra_curves) {
-    const Word w = cyclic_dehn_reduce(substitute(c, marking.marking.inverse), reduce);
+    const Word w = short_cyclic_word(substitute(c, marking.marking.inverse), reduce);
     if (!w.empty()) words.push_back(w);
   }
   std::vector<GreedyPantsCurve> listed;
@@ -416,6 +416,15 @@ std::vector<GreedyPantsClass> greedy_pants_classes(const SurfaceGroupLengths& so
   // inverse m^-1 ∘ θ^-1) or m ∘ θ (Y side, inverse θ^-1 ∘ m^-1).
   const std::vector<MappingClassMove> moves = twist_moves(g, false, false);
   auto spent = [&] { return length_x.evaluations + length_y.evaluations; };
+  auto apply = [&](const ClassState& s, const MappingClassMove& m, bool left) {
+    ClassState n;
+    n.theta = left ? compose(m.automorphism.map, s.theta) : compose(s.theta, m.automorphism.map);
+    n.inverse = left ? compose(s.inverse, m.automorphism.inverse) : compose(m.automorphism.inverse, s.inverse);
+    dehn_reduce_all(n.theta, reduce);
+    dehn_reduce_all(n.inverse, reduce);
+    evaluate(n);
+    return n;
+  };
   // (The budget is shared out equally: every start descends.)
   const size_t per_start = options.length_budget / std::max<size_t>(1, starts.size());
   for (auto& [state, text] : starts) {
@@ -428,14 +437,19 @@ std::vector<GreedyPantsClass> greedy_pants_classes(const SurfaceGroupLengths& so
       bool found = false;
       for (const MappingClassMove& m : moves)
         for (bool left : {false, true}) {
-          ClassState n;
-          n.theta = left ? compose(m.automorphism.map, s.theta) : compose(s.theta, m.automorphism.map);
-          n.inverse = left ? compose(s.inverse, m.automorphism.inverse) : compose(m.automorphism.inverse, s.inverse);
-          dehn_reduce_all(n.theta, reduce);
-          dehn_reduce_all(n.inverse, reduce);
-          evaluate(n);
+          ClassState n = apply(s, m, left);
           if (n.cost < best.cost) best = std::move(n), found = true;
         }
+      // None: pairs of moves, when there are at most max_pairs (a twist
+      // that pays only together with another; genus 2).
+      const size_t singles = 2 * moves.size();
+      for (size_t i = 0; i < singles && !found && singles * singles <= options.max_pairs; ++i) {
+        const ClassState first = apply(s, moves[i / 2], i % 2);
+        for (size_t j = 0; j < singles; ++j) {
+          ClassState n = apply(first, moves[j / 2], j % 2);
+          if (n.cost < best.cost) best = std::move(n), found = true;
+        }
+      }
       if (!found) break;
       s = std::move(best);
     }
@@ -467,7 +481,7 @@ int shared_pants_curves(const SurfaceGroupLengths& lengths, const ShortMarking& 
   const DehnReducer& reduce = count.reduce();
   int shared = 0;
   for (const Word& c : curves) {
-    GreedyPantsCurve x{cyclic_dehn_reduce(substitute(c, marking.marking.inverse), reduce), c, lengths.length(c)};
+    GreedyPantsCurve x{short_cyclic_word(substitute(c, marking.marking.inverse), reduce), c, lengths.length(c)};
     for (const GreedyPantsCurve& g : greedy.curves) {
       if (!(std::abs(g.length - x.length) <= 1e-7 * x.length)) continue;
       if (count(g.marking_word, x.marking_word, {}).same_curve ||

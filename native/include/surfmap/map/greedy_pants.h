@@ -120,6 +120,10 @@ struct GreedyPantsClassOptions {
   /// seconds in genus 4).
   int max_steps = 30;
   size_t length_budget = 400000;
+  /// When no single move lowers the cost: the best pair of moves, if there
+  /// are at most this many pairs (default 1000: genus 2, 28 one-sided moves
+  /// on either side, 784 pairs).
+  size_t max_pairs = 1000;
   /// Weight of the twist term against the pants term (default 0.25).
   double twist_weight = 0.25;
   /// Classes returned (default 4), lowest cost first, distinct maps.
