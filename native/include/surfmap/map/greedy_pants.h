@@ -7,7 +7,9 @@
 // pants decomposition). Unlike map/pants_classes.h's decomposition (a
 // caterpillar reached by twists from a marking), it has whatever
 // combinatorial type the surface's short curves give (e.g. three
-// non-separating curves in genus 2).
+// non-separating curves in genus 2). greedy_pants_classes() pairs two
+// surfaces' greedy decompositions (below; in the class search's geometric
+// stage).
 //
 // Candidates: the cyclically reduced words of up to `max_letters` letters in
 // a short marking's generators (map/geometric_classes.h), proper powers,
