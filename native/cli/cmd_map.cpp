@@ -64,6 +64,7 @@ void register_map(CLI::App& app) {
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
     double tolerance = 1e-10;
     bool quiet = false, timings = false, no_homotopy_search = false, no_two_way = false, compare_directions = false;
+    bool no_greedy_pants = false;  // HomotopySearchOptions::greedy_pants
     bool homotopy_both_signs = true;     // HomotopyOptions::flat_both_signs
     bool boundary_swap = false;          // open surfaces (map_open.h)
     std::vector<int> boundary_pairing;  // open surfaces (map_open.h)
@@ -115,6 +116,9 @@ void register_map(CLI::App& app) {
                 "--no-homotopy-both-signs: the canonical signs only; docs/handle_classes.md)");
   cmd->add_flag("--no-two-way", a->no_two_way,
                 "Genus >= 2: do not map the other way when the energy is far above the conformal bound (report: quality)");
+  cmd->add_flag("--no-greedy-pants", a->no_greedy_pants,
+                "Genus >= 2: no classes from the greedy short pants decompositions in the geometric stage "
+                "(docs/handle_classes.md \"Greedy pants classes\")");
   cmd->add_flag("--compare-directions", a->compare_directions,
                 "Genus >= 2: always map the other way too and say whether the two directions' classes are inverse "
                 "(report: quality.reverse_inverse; about 3x the time)");
@@ -182,6 +186,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.search.enabled = !a->no_homotopy_search;
     opt.homotopy.search.evaluations = a->homotopy_search_evaluations;
     opt.homotopy.two_way = !a->no_two_way;
+    opt.homotopy.search.greedy_pants = !a->no_greedy_pants;
     opt.homotopy.flat_both_signs = a->homotopy_both_signs;
     opt.homotopy.compare_directions = a->compare_directions;
     opt.threads = a->threads;

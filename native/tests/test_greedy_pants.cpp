@@ -15,6 +15,7 @@
 #include "surfmap/map/pants_classes.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/topology/mapping_class_search.h"
+#include "surfmap/topology/outer_automorphisms.h"
 #include "uniformized_shapes.h"
 
 namespace surfmap {
@@ -22,6 +23,7 @@ namespace {
 
 using testing_support::axes_cross;
 using testing_support::ball;
+using testing_support::has_identity_class;
 using testing_support::lopsided;
 using testing_support::Uniformized;
 using testing_support::uniformized;
@@ -145,6 +147,100 @@ TEST(GreedyPants, Genus3CompleteAndTheCaterpillarsCurvesSimpleAndDisjoint) {
       EXPECT_EQ(curve_intersection(X, mx.marking, u, v).crossings, 0) << caterpillar.curves[c].name << " "
                                                                         << caterpillar.curves[e].name;
     }
+}
+
+// The verdicts without counting (the collar lemma, Yamada's bound on the
+// shortest non-simple geodesic, the first crossing point) choose the same
+// curves as counting every crossing, with fewer intersection tests; the
+// first crossing point says "crossing" exactly when the count is positive.
+TEST(GreedyPants, ShortcutsChooseTheSameCurvesAsFullCounts) {
+  for (int genus : {2, 3}) {
+    const Uniformized x = uniformized(genus == 2 ? lopsided(samples::n_hole_torus(2, 26, true))
+                                                 : samples::jitter(samples::n_hole_torus(3, 30, true), 0.2, 7));
+    const SurfaceGroupLengths X(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word);
+    const ShortMarking mx = short_marking(X);
+    std::vector<Word> extra;
+    for (const PantsCurve& c : short_pants_decomposition(X, mx).curves) extra.push_back(c.word);
+    GreedyPantsOptions full;
+    full.shortcuts = false;
+    const GreedyPantsDecomposition fast = greedy_pants_decomposition(X, mx, extra);
+    const GreedyPantsDecomposition slow = greedy_pants_decomposition(X, mx, extra, full);
+    ASSERT_EQ(fast.curves.size(), slow.curves.size()) << genus << ": " << counts(fast) << " / " << counts(slow);
+    for (size_t k = 0; k < fast.curves.size(); ++k) EXPECT_EQ(fast.curves[k].marking_word, slow.curves[k].marking_word);
+    EXPECT_EQ(fast.complete, slow.complete);
+    EXPECT_EQ(fast.examined, slow.examined);
+    EXPECT_LT(fast.intersection_tests, slow.intersection_tests);
+    // Verdicts of the first crossing point against the counts, on short
+    // words of the marking (simple, crossing and self-crossing pairs).
+    CurveIntersectionOptions first;
+    first.stop_at_first_crossing = true;
+    const std::vector<Word> words = {{1}, {2}, {3}, {1, 2}, {1, -2}, {1, 3}, {2, 4}, {1, 1, 2, 2}, {1, 2, -1, -2}};
+    int crossing_pairs = 0;
+    for (const Word& u : words)
+      for (const Word& v : words) {
+        const CurveIntersection count = curve_intersection(X, mx.marking, u, v);
+        const CurveIntersection verdict = curve_intersection(X, mx.marking, u, v, first);
+        ASSERT_GE(count.crossings, 0);
+        EXPECT_EQ(verdict.crossings > 0, count.crossings > 0);
+        crossing_pairs += count.crossings > 0;
+      }
+    EXPECT_GT(crossing_pairs, 0);
+  }
+}
+
+void expect_exact_inverses(const std::vector<GreedyPantsClass>& classes, int genus) {
+  for (const GreedyPantsClass& c : classes) {
+    EXPECT_TRUE(inner_automorphism_test(compose(c.inverse, c.theta), genus).inner) << c.description;
+    EXPECT_TRUE(inner_automorphism_test(compose(c.theta, c.inverse), genus).inner) << c.description;
+  }
+}
+
+// A surface against itself: the identity class, with cost 0; the collar
+// bound over the greedy curves of the identity (a conformal map, energy
+// 8π(g−1)) cannot exceed 8π(g−1).
+TEST(GreedyPantsClasses, IdentityForTheSameSurfaceAndTheCollarBoundBelowItsEnergy) {
+  const Uniformized x = uniformized(samples::jitter(samples::n_hole_torus(3, 30, true), 0.2, 7));
+  const SurfaceGroupLengths X(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word);
+  const ShortMarking mx = short_marking(X);
+  std::vector<Word> extra;
+  for (const PantsCurve& c : short_pants_decomposition(X, mx).curves) extra.push_back(c.word);
+  const GreedyPantsDecomposition g = greedy_pants_decomposition(X, mx, extra);
+  ASSERT_GE(g.curves.size(), 3u) << counts(g);
+  const std::vector<GreedyPantsClass> classes = greedy_pants_classes(X, mx, g, X, mx, g);
+  ASSERT_FALSE(classes.empty());
+  EXPECT_LT(classes[0].cost, 1e-8);
+  struct Named {  // (has_identity_class reads `theta` and `mismatch`)
+    GroupMap theta;
+    double mismatch;
+  };
+  std::vector<Named> named;
+  for (const GreedyPantsClass& c : classes) named.push_back({c.theta, c.cost});
+  EXPECT_TRUE(has_identity_class(named, 6));
+  const double conformal = 8 * M_PI * 2;
+  for (const GreedyPantsClass& c : classes)
+    if (c.cost < 1e-8) EXPECT_LE(c.collar_bound, conformal * (1 + 1e-9)) << c.description;
+  expect_exact_inverses(classes, 3);
+}
+
+// Two different surfaces (decompositions of different lengths): the classes
+// come with exact inverses, the pants term pairs each surface's shortest
+// curve with a curve of the other no longer than its longest greedy curve.
+TEST(GreedyPantsClasses, DifferentSurfacesGetExactInversesAndShortCurvesPaired) {
+  const Uniformized x = uniformized(lopsided(samples::n_hole_torus(2, 26, true)));
+  const Uniformized y = uniformized(samples::jitter(samples::n_hole_torus(2, 30, true), 0.25, 3));
+  const SurfaceGroupLengths X(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word);
+  const SurfaceGroupLengths Y(DeckGroup(y.u.layout), y.cs.generators, y.u.layout.word);
+  const ShortMarking mx = short_marking(X), my = short_marking(Y);
+  const GreedyPantsDecomposition gx = greedy_pants_decomposition(X, mx), gy = greedy_pants_decomposition(Y, my);
+  ASSERT_FALSE(gx.curves.empty() || gy.curves.empty());
+  const std::vector<GreedyPantsClass> classes = greedy_pants_classes(X, mx, gx, Y, my, gy);
+  ASSERT_FALSE(classes.empty());
+  expect_exact_inverses(classes, 2);
+  const DehnReducer reduce(canonical_relator(2));
+  const GreedyPantsClass& best = classes[0];
+  EXPECT_LE(Y.length(reduce(substitute(gx.curves[0].word, best.theta))), gy.curves.back().length * (1 + 1e-9));
+  EXPECT_LE(X.length(reduce(substitute(gy.curves[0].word, best.inverse))), gx.curves.back().length * (1 + 1e-9));
+  for (size_t k = 1; k < classes.size(); ++k) EXPECT_GE(classes[k].cost, classes[k - 1].cost);
 }
 
 }  // namespace

@@ -55,8 +55,8 @@ double log_gap(double x, double y) {
   return d * d;
 }
 
-// Symplectic homology matrix of the signed handle permutation: marking
-// handle i -> handle perm[i] turned by rot[i] quarter turns.
+}  // namespace
+
 IntMatrix pairing_homology(const std::vector<int>& perm, const std::vector<int>& rot) {
   const int g = static_cast<int>(perm.size());
   IntMatrix P = IntMatrix::Zero(2 * g, 2 * g);
@@ -79,8 +79,6 @@ std::string pairing_text(const std::vector<int>& perm, const std::vector<int>& r
     s += (i ? ", " : "") + std::to_string(i + 1) + "->" + std::to_string(perm[i] + 1) + turn[rot[i] % 4];
   return s;
 }
-
-}  // namespace
 
 std::vector<Word> marking_probes(int genus) {
   const int n = 2 * genus;

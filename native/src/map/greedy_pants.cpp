@@ -5,10 +5,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <set>
+#include <unordered_map>
 #include <utility>
 
 #include "surfmap/error.h"
+#include "surfmap/topology/mapping_class_search.h"
 
 namespace surfmap {
 
@@ -108,7 +111,7 @@ Word prefix(const Word& w, size_t k) { return Word(w.begin(), w.begin() + k); }
 /// SurfaceGroupLengths does for side words), so that a curve given by a far
 /// conjugate (the caterpillar's words in the marking's letters) gets a word
 /// whose lifts the conjugator ball reaches.
-Word cyclic_dehn_reduce(Word w, const DehnReducer& reduce) {
+Word short_cyclic_word(Word w, const DehnReducer& reduce) {
   w = cyclic_reduce(reduce(w));
   for (int guard = 0; guard < 64 && w.size() >= 2; ++guard) {
     const size_t h = w.size() / 2;
@@ -123,68 +126,103 @@ Word cyclic_dehn_reduce(Word w, const DehnReducer& reduce) {
 
 }  // namespace
 
+namespace {
+
+/// curve_intersection with what every call of one surface and marking
+/// shares made once: the relator's reducer and the conjugator balls.
+class IntersectionCounter {
+ public:
+  IntersectionCounter(const SurfaceGroupLengths& lengths, const SurfaceAutomorphism& marking)
+      : lengths_(lengths), marking_(marking), reduce_(canonical_relator(lengths.genus())) {}
+
+  const DehnReducer& reduce() const { return reduce_; }
+
+  CurveIntersection operator()(const Word& u, const Word& v, const CurveIntersectionOptions& options) {
+    CurveIntersection out;
+    if (u.empty() || v.empty()) return out;
+    auto caller = [&](const Word& w) { return reduce_(substitute(w, marking_.map)); };
+    // Every lift is a word of its own, evaluated with U in the frame of u
+    // (SurfaceGroupLengths::elements_in_frame_of_first): products of the
+    // marking's generators as matrices lose every digit (the handles'
+    // generators are loops at one base joined by tails of 15 units and more).
+    const Word uc = caller(u), vc = caller(v);
+    std::vector<Mobius> m;
+    if (!lengths_.elements_in_frame_of_first({uc}, &m)) return out;
+    const Mobius U = m[0];
+    Complex r, t;
+    if (!axis_ends(U, &r, &t)) return out;
+    const double ell = 2 * std::acosh(std::abs(U.a.real()) / std::sqrt(U.determinant()));
+    if (!(ell > 1e-9)) return out;
+    const Mobius K = axis_chart(r, t);
+    int radius = options.radius;
+    while (radius > 0 && u.size() * v.size() * ball(radius).size() > options.max_lifts) --radius;
+    const std::vector<Word>& conjugators = ball(radius);
+    const bool self = u == v;
+    std::set<Word> seen;
+    std::vector<double> points;
+    for (size_t i = 0; i < u.size(); ++i)
+      for (const Word& h : conjugators)
+        for (size_t k = 0; k < v.size(); ++k) {
+          const Word c = caller(concat({prefix(u, i), h, prefix(v, k)}));
+          const Word lift = reduce_(concat({c, vc, inverse(c)}));
+          if (!seen.insert(lift).second) continue;
+          if (!lengths_.elements_in_frame_of_first({uc, lift}, &m)) continue;
+          Complex e1, e2;
+          if (!axis_ends(m[1], &e1, &e2)) continue;
+          e1 = K(e1), e2 = K(e2);
+          // The axis of U itself (ends ±1, to round-off: a lift there with
+          // ends off by round-off would otherwise count as crossing).
+          const bool on_axis = std::abs(e1.imag()) < kEndTolerance && std::abs(e2.imag()) < kEndTolerance &&
+                               e1.real() * e2.real() < 0;
+          if (on_axis) {
+            if (!self) out.same_curve = true;
+            continue;
+          }
+          double tau;
+          if (!crossing_on_diameter(e1, e2, &tau)) continue;
+          if (options.stop_at_first_crossing) {
+            out.crossings = 1;
+            return out;
+          }
+          double s = std::fmod(tau, ell);
+          if (s < 0) s += ell;
+          points.push_back(s);
+        }
+    // Crossing points modulo U: the same point reached by several lifts
+    // comes out within round-off, so points are merged within 1e-5 of the
+    // period (at least 1e-5), across the period's end too.
+    std::sort(points.begin(), points.end());
+    const double tol = 1e-5 * std::max(1.0, ell);
+    int clusters = 0;
+    for (size_t k = 0; k < points.size(); ++k)
+      if (k == 0 || points[k] - points[k - 1] > tol) ++clusters;
+    if (clusters > 1 && points.back() - points.front() > ell - tol) --clusters;
+    out.crossings = clusters;
+    return out;
+  }
+
+ private:
+  const std::vector<Word>& ball(int radius) {
+    if (static_cast<int>(balls_.size()) <= radius) balls_.resize(radius + 1);
+    if (balls_[radius].empty()) balls_[radius] = reduced_words_up_to(lengths_.genus(), radius);
+    return balls_[radius];
+  }
+
+  const SurfaceGroupLengths& lengths_;
+  const SurfaceAutomorphism& marking_;
+  DehnReducer reduce_;
+  std::vector<std::vector<Word>> balls_;
+};
+
+}  // namespace
+
 CurveIntersection curve_intersection(const SurfaceGroupLengths& lengths, const SurfaceAutomorphism& marking,
                                      const Word& u, const Word& v, const CurveIntersectionOptions& options) {
-  CurveIntersection out;
-  const int genus = lengths.genus();
-  if (u.empty() || v.empty()) return out;
-  const DehnReducer reduce(canonical_relator(genus));
-  auto caller = [&](const Word& w) { return reduce(substitute(w, marking.map)); };
-  // Every lift is a word of its own, evaluated with U in the frame of u
-  // (SurfaceGroupLengths::elements_in_frame_of_first): products of the
-  // marking's generators as matrices lose every digit (the handles'
-  // generators are loops at one base joined by tails of 15 units and more).
-  const Word uc = caller(u), vc = caller(v);
-  std::vector<Mobius> m;
-  if (!lengths.elements_in_frame_of_first({uc}, &m)) return out;
-  const Mobius U = m[0];
-  Complex r, t;
-  if (!axis_ends(U, &r, &t)) return out;
-  const double ell = 2 * std::acosh(std::abs(U.a.real()) / std::sqrt(U.determinant()));
-  if (!(ell > 1e-9)) return out;
-  const Mobius K = axis_chart(r, t);
-  int radius = options.radius;
-  while (radius > 0 && u.size() * v.size() * reduced_words_up_to(genus, radius).size() > options.max_lifts) --radius;
-  const std::vector<Word> ball = reduced_words_up_to(genus, radius);
-  const bool self = u == v;
-  std::set<Word> seen;
-  std::vector<double> points;
-  for (size_t i = 0; i < u.size(); ++i)
-    for (const Word& h : ball)
-      for (size_t k = 0; k < v.size(); ++k) {
-        const Word c = caller(concat({prefix(u, i), h, prefix(v, k)}));
-        const Word lift = reduce(concat({c, vc, inverse(c)}));
-        if (!seen.insert(lift).second) continue;
-        if (!lengths.elements_in_frame_of_first({uc, lift}, &m)) continue;
-        Complex e1, e2;
-        if (!axis_ends(m[1], &e1, &e2)) continue;
-        e1 = K(e1), e2 = K(e2);
-        // The axis of U itself (ends ±1, to round-off: a lift there with
-        // ends off by round-off would otherwise count as crossing).
-        const bool on_axis = std::abs(e1.imag()) < kEndTolerance && std::abs(e2.imag()) < kEndTolerance &&
-                             e1.real() * e2.real() < 0;
-        if (on_axis) {
-          if (!self) out.same_curve = true;
-          continue;
-        }
-        double tau;
-        if (!crossing_on_diameter(e1, e2, &tau)) continue;
-        double s = std::fmod(tau, ell);
-        if (s < 0) s += ell;
-        points.push_back(s);
-      }
-  // Crossing points modulo U: the same point reached by several lifts
-  // comes out within round-off, so points are merged within 1e-5 of the
-  // period (at least 1e-5), across the period's end too.
-  std::sort(points.begin(), points.end());
-  const double tol = 1e-5 * std::max(1.0, ell);
-  int clusters = 0;
-  for (size_t k = 0; k < points.size(); ++k)
-    if (k == 0 || points[k] - points[k - 1] > tol) ++clusters;
-  if (clusters > 1 && points.back() - points.front() > ell - tol) --clusters;
-  out.crossings = clusters;
-  return out;
+  IntersectionCounter count(lengths, marking);
+  return count(u, v, options);
 }
+
+namespace {
 
 /// Curves of equal length (1e-7 relative) that no lift shows to be one: the
 /// same curve when they also meet every marking generator equally often. A
@@ -192,17 +230,30 @@ CurveIntersection curve_intersection(const SurfaceGroupLengths& lengths, const S
 /// conjugates whose lifts the conjugator ball does not bring together; two
 /// curves exchanged by a symmetry (the fertility's two handles of length
 /// 1.04) meet the generators differently.
-bool same_by_length_and_generators(const SurfaceGroupLengths& lengths, const SurfaceAutomorphism& marking,
-                                   const GreedyPantsCurve& x, const GreedyPantsCurve& y,
-                                   const CurveIntersectionOptions& options) {
+bool same_by_length_and_generators(IntersectionCounter& count, int genus, const GreedyPantsCurve& x,
+                                   const GreedyPantsCurve& y, CurveIntersectionOptions options) {
   if (!(std::abs(x.length - y.length) <= 1e-7 * y.length)) return false;
-  for (int j = 1; j <= 2 * lengths.genus(); ++j) {
-    const int ix = curve_intersection(lengths, marking, {j}, x.marking_word, options).crossings;
-    const int iy = curve_intersection(lengths, marking, {j}, y.marking_word, options).crossings;
+  options.stop_at_first_crossing = false;  // (counts compared, not verdicts)
+  for (int j = 1; j <= 2 * genus; ++j) {
+    const int ix = count({j}, x.marking_word, options).crossings;
+    const int iy = count({j}, y.marking_word, options).crossings;
     if (ix < 0 || ix != iy) return false;
   }
   return true;
 }
+
+/// Every closed geodesic shorter than 4 arcsinh(1) = 2 log(3 + 2√2) ≈ 3.5255
+/// on a hyperbolic surface is simple (the shortest closed geodesic with a
+/// self-intersection is at least that long: Yamada 1982; the bound is the
+/// figure eight of the thrice-punctured sphere).
+const double kShortestNonSimple = 4 * std::asinh(1.0);
+
+/// Collar lemma: two crossing simple closed geodesics of lengths ℓ1, ℓ2 each
+/// cross the other's collar, so sinh(ℓ1/2) sinh(ℓ2/2) >= 1; below that
+/// they are disjoint.
+bool disjoint_by_collar_lemma(double l1, double l2) { return std::sinh(l1 / 2) * std::sinh(l2 / 2) < 1 - 1e-9; }
+
+}  // namespace
 
 GreedyPantsDecomposition greedy_pants_decomposition(const SurfaceGroupLengths& lengths, const ShortMarking& marking,
                                                     const std::vector<Word>& extra_curves,
@@ -212,10 +263,11 @@ GreedyPantsDecomposition greedy_pants_decomposition(const SurfaceGroupLengths& l
   const int genus = lengths.genus(), wanted = 3 * genus - 3;
   if (genus < 2) throw InputError("greedy_pants_decomposition: genus " + std::to_string(genus) + " < 2");
   const int letters = options.max_letters > 0 ? options.max_letters : genus == 2 ? 4 : genus <= 4 ? 3 : 2;
-  const DehnReducer reduce(canonical_relator(genus));
+  IntersectionCounter count(lengths, marking.marking);
+  const DehnReducer& reduce = count.reduce();
   std::vector<Word> words = candidate_words(genus, letters);
   for (const Word& c : extra_curves) {
-    const Word w = cyclic_dehn_reduce(substitute(c, marking.marking.inverse), reduce);
+    const Word w = short_cyclic_word(substitute(c, marking.marking.inverse), reduce);
     if (!w.empty()) words.push_back(w);
   }
   std::vector<GreedyPantsCurve> listed;
@@ -231,20 +283,21 @@ GreedyPantsDecomposition greedy_pants_decomposition(const SurfaceGroupLengths& l
   std::stable_sort(listed.begin(), listed.end(),
                    [](const GreedyPantsCurve& x, const GreedyPantsCurve& y) { return x.length < y.length; });
   out.candidates = listed.size();
+  CurveIntersectionOptions verdict = options.intersection;
+  verdict.stop_at_first_crossing = verdict.stop_at_first_crossing || options.shortcuts;
   for (const GreedyPantsCurve& c : listed) {
     if (static_cast<int>(out.curves.size()) == wanted || out.examined == options.max_examined) break;
     ++out.examined;
-    const CurveIntersection self = curve_intersection(lengths, marking.marking, c.marking_word, c.marking_word, options.intersection);
-    if (self.crossings != 0) {
-      ++(self.crossings < 0 ? out.not_evaluable : out.self_crossing);
-      continue;
-    }
+    // Against the chosen curves first (short words: cheaper than the
+    // candidate against itself, and most candidates fail here).
     bool ok = true;
     for (const GreedyPantsCurve& s : out.curves) {
-      const CurveIntersection x = curve_intersection(lengths, marking.marking, s.marking_word, c.marking_word,
-                                                     options.intersection);
-      const bool same = x.same_curve || (x.crossings == 0 && same_by_length_and_generators(lengths, marking.marking, s, c,
-                                                                                             options.intersection));
+      const bool may_be_same = std::abs(s.length - c.length) <= 1e-7 * c.length;
+      if (options.shortcuts && !may_be_same && disjoint_by_collar_lemma(s.length, c.length)) continue;
+      ++out.intersection_tests;
+      const CurveIntersection x = count(s.marking_word, c.marking_word, verdict);
+      const bool same =
+          x.same_curve || (x.crossings == 0 && may_be_same && same_by_length_and_generators(count, genus, s, c, verdict));
       if (same) {
         ++out.duplicates, ok = false;
       } else if (x.crossings != 0) {
@@ -253,6 +306,14 @@ GreedyPantsDecomposition greedy_pants_decomposition(const SurfaceGroupLengths& l
       if (!ok) break;
     }
     if (!ok) continue;
+    if (!(options.shortcuts && c.length < kShortestNonSimple)) {
+      ++out.intersection_tests;
+      const CurveIntersection self = count(c.marking_word, c.marking_word, verdict);
+      if (self.crossings != 0) {
+        ++(self.crossings < 0 ? out.not_evaluable : out.self_crossing);
+        continue;
+      }
+    }
     out.curves.push_back(c);
     out.total += c.length;
   }
@@ -261,16 +322,170 @@ GreedyPantsDecomposition greedy_pants_decomposition(const SurfaceGroupLengths& l
   return out;
 }
 
+namespace {
+
+double squared_log_gap(double x, double y) {
+  if (!(x > 0) || !(y > 0) || !std::isfinite(x) || !std::isfinite(y)) return 1e6;
+  const double d = std::log(x) - std::log(y);
+  return d * d;
+}
+
+void dehn_reduce_all(GroupMap& m, const DehnReducer& reduce) {
+  for (Word& w : m) w = reduce(w);
+}
+
+/// A surface's lengths remembered by word (the descent meets the same
+/// images again and again), with the count of evaluations for the budget.
+class LengthMemo {
+ public:
+  explicit LengthMemo(const SurfaceGroupLengths& lengths) : lengths_(lengths) {}
+  double operator()(const Word& w) {
+    auto it = memo_.find(w);
+    if (it != memo_.end()) return it->second;
+    ++evaluations;
+    const double l = lengths_.length(w);
+    if (memo_.size() > 2000000) memo_.clear();
+    return memo_.emplace(w, l).first->second;
+  }
+  size_t evaluations = 0;
+
+ private:
+  const SurfaceGroupLengths& lengths_;
+  std::unordered_map<Word, double, WordHash> memo_;
+};
+
+struct ClassState {
+  GroupMap theta, inverse;
+  double pants = 0, twist = 0, cost = 0;
+};
+
+}  // namespace
+
+std::vector<GreedyPantsClass> greedy_pants_classes(const SurfaceGroupLengths& source, const ShortMarking& source_marking,
+                                                   const GreedyPantsDecomposition& source_pants,
+                                                   const SurfaceGroupLengths& target, const ShortMarking& target_marking,
+                                                   const GreedyPantsDecomposition& target_pants,
+                                                   const GreedyPantsClassOptions& options) {
+  const int g = source.genus();
+  if (target.genus() != g)
+    throw InputError("greedy_pants_classes: genus " + std::to_string(g) + " against " + std::to_string(target.genus()));
+  std::vector<GreedyPantsClass> out;
+  if (source_pants.curves.empty() && target_pants.curves.empty()) return out;
+  const DehnReducer reduce(canonical_relator(g));
+  LengthMemo length_x(source), length_y(target);
+  // The twist term's probes, in X's canonical letters, and their lengths.
+  std::vector<Word> probes;
+  std::vector<double> probe_x;
+  for (const Word& p : marking_probes(g)) {
+    probes.push_back(reduce(substitute(p, source_marking.marking.map)));
+    probe_x.push_back(length_x(probes.back()));
+  }
+  const double curves = static_cast<double>(source_pants.curves.size() + target_pants.curves.size());
+  auto evaluate = [&](ClassState& s) {
+    double pants = 0;
+    for (const GreedyPantsCurve& c : source_pants.curves)
+      pants += squared_log_gap(c.length, length_y(reduce(substitute(c.word, s.theta))));
+    for (const GreedyPantsCurve& d : target_pants.curves)
+      pants += squared_log_gap(d.length, length_x(reduce(substitute(d.word, s.inverse))));
+    double twist = 0;
+    for (size_t k = 0; k < probes.size(); ++k)
+      twist += squared_log_gap(probe_x[k], length_y(reduce(substitute(probes[k], s.theta))));
+    s.pants = curves > 0 ? pants / curves : 0;
+    s.twist = twist / static_cast<double>(probes.size());
+    s.cost = s.pants + options.twist_weight * s.twist;
+  };
+  // 1. Starts: the signed handle pairings of the markings, lifted exactly,
+  // θ0 = M_Y ∘ P ∘ M_X^-1 and θ0^-1 = M_X ∘ P^-1 ∘ M_Y^-1.
+  GeometricClassOptions go;
+  go.descents = 0;
+  go.max_classes = 1 << 30;
+  std::vector<std::pair<ClassState, std::string>> starts;
+  for (const GeometricClass& gc : geometric_classes(source, source_marking, target, target_marking, go)) {
+    const SurfaceAutomorphism P = lift_symplectic(pairing_homology(gc.permutation, gc.rotation));
+    ClassState s;
+    s.theta = compose(target_marking.marking.map, compose(P.map, source_marking.marking.inverse));
+    s.inverse = compose(source_marking.marking.map, compose(P.inverse, target_marking.marking.inverse));
+    dehn_reduce_all(s.theta, reduce);
+    dehn_reduce_all(s.inverse, reduce);
+    evaluate(s);
+    starts.emplace_back(std::move(s), gc.description);
+  }
+  std::stable_sort(starts.begin(), starts.end(), [](const auto& x, const auto& y) { return x.first.cost < y.first.cost; });
+  starts.resize(std::min<size_t>(starts.size(), static_cast<size_t>(std::max(1, options.starts))));
+  // 2. Each start descends by single twists on either side: θ ∘ m (X side,
+  // inverse m^-1 ∘ θ^-1) or m ∘ θ (Y side, inverse θ^-1 ∘ m^-1).
+  const std::vector<MappingClassMove> moves = twist_moves(g, false, false);
+  auto spent = [&] { return length_x.evaluations + length_y.evaluations; };
+  auto apply = [&](const ClassState& s, const MappingClassMove& m, bool left) {
+    ClassState n;
+    n.theta = left ? compose(m.automorphism.map, s.theta) : compose(s.theta, m.automorphism.map);
+    n.inverse = left ? compose(s.inverse, m.automorphism.inverse) : compose(m.automorphism.inverse, s.inverse);
+    dehn_reduce_all(n.theta, reduce);
+    dehn_reduce_all(n.inverse, reduce);
+    evaluate(n);
+    return n;
+  };
+  // (The budget is shared out equally: every start descends.)
+  const size_t per_start = options.length_budget / std::max<size_t>(1, starts.size());
+  for (auto& [state, text] : starts) {
+    ClassState s = state;
+    int steps = 0;
+    const size_t stop_at = spent() + per_start;
+    for (; steps < options.max_steps && spent() < stop_at; ++steps) {
+      ClassState best;
+      best.cost = s.cost * (1 - 1e-9);
+      bool found = false;
+      for (const MappingClassMove& m : moves)
+        for (bool left : {false, true}) {
+          ClassState n = apply(s, m, left);
+          if (n.cost < best.cost) best = std::move(n), found = true;
+        }
+      // None: pairs of moves, when there are at most max_pairs (a twist
+      // that pays only together with another; genus 2).
+      const size_t singles = 2 * moves.size();
+      for (size_t i = 0; i < singles && !found && singles * singles <= options.max_pairs; ++i) {
+        const ClassState first = apply(s, moves[i / 2], i % 2);
+        for (size_t j = 0; j < singles; ++j) {
+          ClassState n = apply(first, moves[j / 2], j % 2);
+          if (n.cost < best.cost) best = std::move(n), found = true;
+        }
+      }
+      if (!found) break;
+      s = std::move(best);
+    }
+    GreedyPantsClass c;
+    c.theta = std::move(s.theta);
+    c.inverse = std::move(s.inverse);
+    c.pants_mismatch = s.pants, c.twist_mismatch = s.twist, c.cost = s.cost;
+    for (const GreedyPantsCurve& x : source_pants.curves) {
+      const double ly = length_y(reduce(substitute(x.word, c.theta)));
+      if (std::isfinite(ly)) c.collar_bound += collar_modulus(x.length) * ly * ly;
+    }
+    c.description = "greedy pants from " + text + (steps ? ", then " + std::to_string(steps) + " twists" : "");
+    out.push_back(std::move(c));
+  }
+  std::stable_sort(out.begin(), out.end(), [](const GreedyPantsClass& x, const GreedyPantsClass& y) { return x.cost < y.cost; });
+  std::vector<GreedyPantsClass> distinct;
+  for (GreedyPantsClass& c : out) {
+    bool seen = false;
+    for (const GreedyPantsClass& d : distinct) seen = seen || d.theta == c.theta;
+    if (!seen) distinct.push_back(std::move(c));
+    if (static_cast<int>(distinct.size()) >= options.max_classes) break;
+  }
+  return distinct;
+}
+
 int shared_pants_curves(const SurfaceGroupLengths& lengths, const ShortMarking& marking,
                         const GreedyPantsDecomposition& greedy, const std::vector<Word>& curves) {
-  const DehnReducer reduce(canonical_relator(lengths.genus()));
+  IntersectionCounter count(lengths, marking.marking);
+  const DehnReducer& reduce = count.reduce();
   int shared = 0;
   for (const Word& c : curves) {
-    GreedyPantsCurve x{cyclic_dehn_reduce(substitute(c, marking.marking.inverse), reduce), c, lengths.length(c)};
+    GreedyPantsCurve x{short_cyclic_word(substitute(c, marking.marking.inverse), reduce), c, lengths.length(c)};
     for (const GreedyPantsCurve& g : greedy.curves) {
       if (!(std::abs(g.length - x.length) <= 1e-7 * x.length)) continue;
-      if (curve_intersection(lengths, marking.marking, g.marking_word, x.marking_word).same_curve ||
-          same_by_length_and_generators(lengths, marking.marking, g, x, {})) {
+      if (count(g.marking_word, x.marking_word, {}).same_curve ||
+          same_by_length_and_generators(count, lengths.genus(), g, x, {})) {
         ++shared;
         break;
       }

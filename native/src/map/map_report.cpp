@@ -100,6 +100,9 @@ json homotopy_search_json(const HomotopySearchInfo& hs) {
           {"target_marking", hs.target_marking},
           {"source_geodesics", hs.source_geodesics},
           {"target_geodesics", hs.target_geodesics},
+          {"source_greedy_pants", hs.source_greedy_pants},
+          {"target_greedy_pants", hs.target_greedy_pants},
+          {"greedy_pants_time_s", hs.greedy_pants_time_s},
           {"coarse_solves", hs.coarse_solves},
           {"starts", hs.starts},
           {"evaluated", evaluated}};

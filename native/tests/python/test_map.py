@@ -459,7 +459,10 @@ def test_two_way_keyword_and_the_directions_comparison_are_in_the_result():
     assert abs(on["energy"]["final"] - off["energy"]["final"]) < 1e-9 * on["energy"]["final"]
     s = on["homotopy"]["search"]
     assert set(s) >= {"geometric_classes", "coarse_solves", "starts", "source_marking", "target_marking",
-                      "source_geodesics", "target_geodesics"}
+                      "source_geodesics", "target_geodesics", "source_greedy_pants", "target_greedy_pants",
+                      "greedy_pants_time_s"}
+    # Below the ratio the geometric stage (and with it the greedy pants) does not run.
+    assert s["source_greedy_pants"] == "" and s["greedy_pants_time_s"] == 0
 
 
 def test_genus2_class_search_is_reported_and_skipped_near_the_conformal_bound():

@@ -62,6 +62,14 @@ struct ShortMarking {
   std::string stop_reason;
 };
 
+/// Symplectic homology matrix (2g x 2g, columns: images of a_1, b_1, ...)
+/// of the signed handle pairing: marking handle i -> handle perm[i] turned by
+/// rot[i] quarter turns ((a, b) -> (a, b), (b, a^-1), (a^-1, b^-1), (b^-1, a));
+/// lift it with lift_symplectic. pairing_text: "marking handles 1->2
+/// (quarter turn), 2->1".
+IntMatrix pairing_homology(const std::vector<int>& perm, const std::vector<int>& rot);
+std::string pairing_text(const std::vector<int>& perm, const std::vector<int>& rot);
+
 /// The probe curves of a marking of genus g: x_j (2g) then x_i x_j and
 /// x_i x_j^-1 for i < j (2g(2g-1)), as words in the marking's letters.
 std::vector<Word> marking_probes(int genus);

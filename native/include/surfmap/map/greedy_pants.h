@@ -7,7 +7,9 @@
 // pants decomposition). Unlike map/pants_classes.h's decomposition (a
 // caterpillar reached by twists from a marking), it has whatever
 // combinatorial type the surface's short curves give (e.g. three
-// non-separating curves in genus 2).
+// non-separating curves in genus 2). greedy_pants_classes() pairs two
+// surfaces' greedy decompositions (below; in the class search's geometric
+// stage).
 //
 // Candidates: the cyclically reduced words of up to `max_letters` letters in
 // a short marking's generators (map/geometric_classes.h), proper powers,
@@ -41,6 +43,11 @@ struct CurveIntersectionOptions {
   /// (default 20000; each lift is a Dehn reduction and a side-word product).
   int radius = 1;
   size_t max_lifts = 20000;
+  /// Only whether the curves cross (default false: count every crossing
+  /// point): stop at the first crossing point found, `crossings` is then 1
+  /// for any positive count and `same_curve` is only set if a lift on the
+  /// axis came first. The greedy decomposition needs no more than that.
+  bool stop_at_first_crossing = false;
 };
 
 struct CurveIntersection {
@@ -65,6 +72,14 @@ struct GreedyPantsOptions {
   /// Candidates examined at most (default 4000), shortest first.
   size_t max_examined = 4000;
   CurveIntersectionOptions intersection;
+  /// Verdicts without counting (default true; false: every test counts all
+  /// crossing points, as before; the same curves come out, slower): a curve
+  /// shorter than 4 arcsinh(1) ≈ 3.53 is simple (the shortest closed
+  /// geodesic with a self-intersection is that long, Yamada); two curves of
+  /// different lengths with sinh(ℓ1/2) sinh(ℓ2/2) < 1 are disjoint (collar
+  /// lemma); a crossing test stops at the first crossing point
+  /// (CurveIntersectionOptions::stop_at_first_crossing).
+  bool shortcuts = true;
 };
 
 struct GreedyPantsCurve {
@@ -81,6 +96,9 @@ struct GreedyPantsDecomposition {
   /// Candidates listed and examined; rejected as self-crossing, as crossing
   /// a chosen curve, as a chosen curve again; not evaluable.
   size_t candidates = 0, examined = 0, self_crossing = 0, crossing = 0, duplicates = 0, not_evaluable = 0;
+  /// Calls of curve_intersection made (the cost: each tries up to
+  /// |u| · |ball| · |v| lifts).
+  size_t intersection_tests = 0;
   double time_s = 0;
 };
 
@@ -90,6 +108,64 @@ struct GreedyPantsDecomposition {
 GreedyPantsDecomposition greedy_pants_decomposition(const SurfaceGroupLengths& lengths, const ShortMarking& marking,
                                                     const std::vector<Word>& extra_curves = {},
                                                     const GreedyPantsOptions& options = {});
+
+struct GreedyPantsClassOptions {
+  /// Starts: the signed handle pairings of the two short markings
+  /// (geometric_classes() without its descent, its `pairings` and every
+  /// half turn), the `starts` (default 8) lowest by the cost below descend.
+  int starts = 8;
+  /// Descent: single twist moves (topology/mapping_class_search.h,
+  /// Lickorish, chain and separating twists) on either side, the best while
+  /// it lowers the cost by more than 1e-9 relative, at most `max_steps`
+  /// (default 30) steps; no step starts after a start's share of
+  /// `length_budget` (default 400000 new length evaluations in all, a few
+  /// seconds in genus 4).
+  int max_steps = 30;
+  size_t length_budget = 400000;
+  /// When no single move lowers the cost: the best pair of moves, if there
+  /// are at most this many pairs (default 1000: genus 2, 28 one-sided moves
+  /// on either side, 784 pairs).
+  size_t max_pairs = 1000;
+  /// Weight of the twist term against the pants term (default 0.25).
+  double twist_weight = 0.25;
+  /// Classes returned (default 4), lowest cost first, distinct maps.
+  int max_classes = 4;
+};
+
+struct GreedyPantsClass {
+  GroupMap theta;    ///< X canonical letter -> word in Y's canonical letters
+  GroupMap inverse;  ///< Y canonical letter -> word in X's (θ^-1, exact)
+  /// Pants term: the mean of (log ℓ_X(c) − log ℓ_Y(θ c))² over X's greedy
+  /// curves c and of (log ℓ_Y(d) − log ℓ_X(θ^-1 d))² over Y's greedy curves
+  /// d (0 when θ maps one decomposition onto the other with equal lengths).
+  double pants_mismatch = 0;
+  /// Twist term: the mean of (log ℓ_X(p) − log ℓ_Y(θ p))² over X's marking
+  /// probes x_j, x_i x_j^±1 (marking_probes): the curves that cross the
+  /// pants curves, which Dehn twists along them lengthen.
+  double twist_mismatch = 0;
+  double cost = 0;  ///< pants_mismatch + twist_weight · twist_mismatch
+  /// Σ_c collar_modulus(ℓ_X(c)) ℓ_Y(θ c)² over X's greedy curves: a lower
+  /// bound of the class's energy (disjoint simple curves have disjoint
+  /// collars; docs/handle_classes.md "The lower bound"), as far as the
+  /// curves' simplicity and disjointness verdicts hold.
+  double collar_bound = 0;
+  std::string description;  ///< e.g. "greedy pants from marking handles 1->2, 2->1, then 5 twists"
+};
+
+/// Classes X -> Y that pair the two greedy decompositions' curves by length
+/// and match the twists (docs/handle_classes.md "Greedy pants classes"):
+/// from the signed handle pairings of the two short markings, a descent by
+/// twists on either side on pants_mismatch + twist_weight · twist_mismatch,
+/// carrying θ^-1 along (each move's exact inverse). Unlike pants_classes()
+/// the two decompositions need not be of one combinatorial type (nor
+/// complete): when they are not, the pants term is the best compromise
+/// between mapping X's short curves to short curves of Y and back. Throws
+/// InputError on unequal genus.
+std::vector<GreedyPantsClass> greedy_pants_classes(const SurfaceGroupLengths& source, const ShortMarking& source_marking,
+                                                   const GreedyPantsDecomposition& source_pants,
+                                                   const SurfaceGroupLengths& target, const ShortMarking& target_marking,
+                                                   const GreedyPantsDecomposition& target_pants,
+                                                   const GreedyPantsClassOptions& options = {});
 
 /// How many of `curves` (caller's canonical letters) are curves of the
 /// greedy decomposition `greedy` (the same closed geodesic up to

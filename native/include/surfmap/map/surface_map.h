@@ -145,6 +145,11 @@ struct HomotopySearchOptions {
   /// cost 1-6 s on genus-2 pairs and never won below that; 0: whenever the
   /// search runs).
   double geometric_ratio = 2.0;
+  /// With the geometric classes: as many again (`geometric`) from the two
+  /// surfaces' greedy short pants decompositions, pairing their curves by
+  /// length with the twists matched (map/greedy_pants.h
+  /// greedy_pants_classes; default true; CLI --no-greedy-pants).
+  bool greedy_pants = true;
   /// The twist search restarts from each geometric class and from the class
   /// carried from the other direction (two-way run) that is within this
   /// factor of the best coarse energy (default 1.5; 0: one start only), and
@@ -434,6 +439,11 @@ struct HomotopySearchInfo {
   /// The 8 shortest closed geodesics' lengths of each surface, ascending
   /// (map/geometric_classes.h short_geodesics).
   std::string source_geodesics, target_geodesics;
+  /// The greedy short pants decompositions' curve lengths of each surface
+  /// (map/greedy_pants.h; "" when not run), and their seconds with the
+  /// greedy pants classes'.
+  std::string source_greedy_pants, target_greedy_pants;
+  double greedy_pants_time_s = 0;
   /// Every coarse solve of the search (stage 1, geometric classes, every
   /// twist search start), and the starts of the twist search.
   int coarse_solves = 0;

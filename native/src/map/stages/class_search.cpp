@@ -10,6 +10,7 @@
 #include "../concurrency.h"
 #include "surfmap/error.h"
 #include "surfmap/map/geometric_classes.h"
+#include "surfmap/map/greedy_pants.h"
 #include "surfmap/map/pants_classes.h"
 #include "surfmap/topology/mapping_class_search.h"
 
@@ -87,8 +88,11 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
   std::vector<GeometricClass> classes = geometric_classes(source, mx, target, my, go);
   // Classes from short pants decompositions with Fenchel–Nielsen twists
   // (map/pants_classes.h), listed after the markings' and solved within a
-  // budget of their own (the same count).
+  // budget of their own (the same count); then those pairing the greedy
+  // short pants decompositions (map/greedy_pants.h), a third list with the
+  // same budget.
   const size_t marking_classes = classes.size();
+  size_t caterpillar_end = classes.size();
   // (Not beyond genus go.enumerated_genus: pants_symmetries lists 2^g half
   // turns per handle permutation, and the genus-11 plate -> wheel spent
   // over 20 minutes in pants_classes without finishing; issue 13.)
@@ -109,7 +113,37 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
       gc.description = pc.description + " (" + pants_lengths + ")";
       classes.push_back(std::move(gc));
     }
+    caterpillar_end = classes.size();
+    if (options.homotopy.search.greedy_pants) {
+      const auto t_greedy = std::chrono::steady_clock::now();
+      // (The caterpillar's curves join the candidates: a short marking's
+      // short words can miss one.)
+      std::vector<Word> extra_x, extra_y;
+      for (const PantsCurve& c : px.curves) extra_x.push_back(c.word);
+      for (const PantsCurve& c : py.curves) extra_y.push_back(c.word);
+      const GreedyPantsDecomposition gx = greedy_pants_decomposition(source, mx, extra_x);
+      const GreedyPantsDecomposition gy = greedy_pants_decomposition(target, my, extra_y);
+      std::vector<double> glx, gly;
+      for (const GreedyPantsCurve& c : gx.curves) glx.push_back(c.length);
+      for (const GreedyPantsCurve& c : gy.curves) gly.push_back(c.length);
+      info.source_greedy_pants = lengths_text(glx) + (gx.complete ? "" : " (incomplete)");
+      info.target_greedy_pants = lengths_text(gly) + (gy.complete ? "" : " (incomplete)");
+      GreedyPantsClassOptions gpo;
+      gpo.max_classes = go.max_classes;
+      for (GreedyPantsClass& c : greedy_pants_classes(source, mx, gx, target, my, gy, gpo)) {
+        GeometricClass gc;
+        gc.theta = std::move(c.theta);
+        gc.mismatch = c.cost;
+        char buf[64];
+        std::snprintf(buf, sizeof buf, "; greedy collar bound %.4g", c.collar_bound);
+        gc.description = c.description + buf + " (greedy lengths " + info.source_greedy_pants + " -> " +
+                         info.target_greedy_pants + ")";
+        classes.push_back(std::move(gc));
+      }
+      info.greedy_pants_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_greedy).count();
+    }
   }
+  auto list_of = [&](size_t k) { return k < marking_classes ? 0 : k < caterpillar_end ? 1 : 2; };
   std::vector<std::vector<double>> fingerprints;
   for (const GroupMap& k : known)
     fingerprints.push_back(space.loop_image_length(k) <= space.max_image_letters() ? space.fingerprint(k)
@@ -123,12 +157,14 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
     ranked.push_back({bound_of(theta), k});
   }
   std::stable_sort(ranked.begin(), ranked.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
-  // The markings' classes, then the pants classes, each list within the
-  // budget `geometric` (lowest bound first).
-  std::stable_partition(ranked.begin(), ranked.end(), [&](const auto& r) { return r.second < marking_classes; });
-  int solved_of_list[2] = {0, 0};
+  // The markings' classes, then the caterpillar pants classes, then the
+  // greedy pants classes, each list within the budget `geometric` (lowest
+  // bound first).
+  std::stable_sort(ranked.begin(), ranked.end(),
+                   [&](const auto& x, const auto& y) { return list_of(x.second) < list_of(y.second); });
+  int solved_of_list[3] = {0, 0, 0};
   for (const auto& [bound, k] : ranked) {
-    const int list = k < marking_classes ? 0 : 1;
+    const int list = list_of(k);
     if (solved_of_list[list] >= options.homotopy.search.geometric) continue;
     const GeometricClass& gc = classes[k];
     const std::vector<double> fp = space.fingerprint(gc.theta);

@@ -50,8 +50,11 @@ std::vector<FoundClass> classes_from_more_cuts(CutLifter& lifter, SourceCuts& cu
 
 /// Stage 1b (issue 14; docs/handle_classes.md "Geometric candidates"):
 /// classes from short markings of the two surfaces' hyperbolic metrics
-/// (map/geometric_classes.h) and from short pants decompositions with
-/// Fenchel–Nielsen twists (map/pants_classes.h): `source`/`target` lengths
+/// (map/geometric_classes.h), from short pants decompositions with
+/// Fenchel–Nielsen twists (map/pants_classes.h) and, with
+/// options.homotopy.search.greedy_pants, from the greedy short pants
+/// decompositions (map/greedy_pants.h greedy_pants_classes; info's
+/// greedy_pants fields): `source`/`target` lengths
 /// in the default cut's canonical letters; the classes new by fingerprint
 /// against `known`, at most options.homotopy.search.geometric of each kind,
 /// lowest curve lower bound first (`bound_of`), each solved on the coarse
