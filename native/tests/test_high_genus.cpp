@@ -107,6 +107,74 @@ TEST(HighGenus, GeneratedCadPlatesOfGenus9To11CloseUp) {
   }
 }
 
+// Every loop edge's two copies glued by its loop's side pairing, written out
+// here from the boundary word rather than read from the layout's own deck
+// checks: side s of the disk (boundary_halfedges from side_start[s] to
+// side_start[s + 1], letter word[s]) is loop |word[s]| − 1 with the disk on
+// its left when word[s] > 0, and D_k takes that copy of each of its edges
+// onto the copy with the disk on the right (layout.h). Returns the largest
+// distance, in the metric, between an endpoint's image and its other copy.
+double largest_side_pairing_gap(const DiskLayout& L, const RowMatrixX3i& F) {
+  const Connectivity conn(F, static_cast<int>(F.maxCoeff()) + 1);
+  const int n = static_cast<int>(L.word.size()), nb = static_cast<int>(L.boundary_halfedges.size());
+  auto corner = [&](int f, int v) {
+    for (int k = 0; k < 3; ++k)
+      if (F(f, k) == v) return L.corners(f, k);
+    return std::complex<double>(NAN, NAN);
+  };
+  double gap = 0;
+  int edges = 0;
+  for (int s = 0; s < n; ++s) {
+    if (L.word[s] < 0) continue;
+    const hyperbolic::Mobius& D = L.side_pairings[L.word[s] - 1];
+    const int end = s + 1 < n ? L.side_start[s + 1] : nb;
+    for (int i = L.side_start[s]; i < end; ++i) {
+      const int h = L.boundary_halfedges[i], t = conn.twin(h);
+      for (int v : {conn.tail(h), conn.head(h)}) {
+        const double d = hyperbolic::distance(D.apply(corner(h / 3, v)), corner(t / 3, v));
+        gap = std::isnan(d) ? INFINITY : std::max(gap, d);
+      }
+      ++edges;
+    }
+  }
+  // Every cut edge lies on exactly one +side.
+  int cut = 0;
+  for (bool c : L.cut_edge) cut += c;
+  return edges == cut ? gap : INFINITY;
+}
+
+// Issue 13 beyond genus 12: CAD plates of genus 13 .. 24 (one hole per unit
+// cell in a row, 64 rim points, thickness 0.1; `surfmap generate cad-plate`)
+// put corners on |z| = 1 in double (genus 13) or flipped a triangle (16, 24)
+// when the loops were the shortest in 3D: their fundamental domain reached
+// 32 and more from the centre. Loops shortest in the uniformization metric,
+// from its centre (LoopMetric::Metric, chosen by Automatic when the 3D
+// loops' layout fails or crowds |z| = 1), cut a compact domain. Each must
+// deliver area 4π(g − 1), no flipped triangle (counted here), every loop
+// edge glued by its side pairing, and the boundary-word relation.
+TEST(HighGenus, CadPlatesOfGenus13To24UniformizeOnLoopsShortestInTheMetric) {
+  for (int genus : {13, 16, 24}) {
+    SCOPED_TRACE("cad plate, genus " + std::to_string(genus));
+    const TriMesh plate = samples::cad_plate(genus, 64, 0.1);
+    const IntakeResult in = intake(plate.V, plate.F);
+    ASSERT_EQ(in.info.genus, genus);
+    const UniformizeResult r = uniformize(in.mesh);
+    EXPECT_TRUE(r.converged);
+    EXPECT_LE(r.max_curvature_error, 1e-7);
+    EXPECT_NEAR(r.area, 4 * kPi * (genus - 1), 1e-6);
+    EXPECT_EQ(r.layout.num_unresolved, 0);
+    EXPECT_EQ(count_flipped_layout_triangles(r.layout), 0);
+    EXPECT_EQ(r.layout.num_flipped, 0);
+    for (int f = 0; f < r.layout.corners.rows(); ++f)
+      for (int k = 0; k < 3; ++k) ASSERT_LT(std::abs(r.layout.corners(f, k)), 1.0 - 1e-12) << "face " << f;
+    EXPECT_LT(largest_side_pairing_gap(r.layout, r.loops.mesh.F), 1e-3);
+    EXPECT_LE(r.layout.max_interior_excess, r.gluing_tolerance);
+    EXPECT_LE(r.layout.max_deck_excess, r.gluing_tolerance);
+    EXPECT_LE(r.product_relation_error, 1e-6);
+    EXPECT_EQ(r.loop_metric.rfind("metric", 0), 0u) << r.loop_metric;
+  }
+}
+
 // Handle correspondences of genus >= 8 are ranked without enumerating the
 // g! 2^g signed permutations (genus 11: 8e10, 20 GB before the map was
 // killed). The ranking must equal the full enumeration's (written out here)
