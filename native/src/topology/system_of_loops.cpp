@@ -147,9 +147,79 @@ struct Greedy {
   std::vector<std::vector<int>> loops;
 };
 
-/// `weights`: SystemOfLoopsOptions::edge_weights (empty: 3D lengths).
+/// Dijkstra over the faces, crossing only edges with `crossable[e]`, each
+/// step weighted by `step[e]`; returns distances (infinity: not reached) and
+/// fills parent (the edge crossed last, -1 at the start and unreached).
+std::vector<double> dual_dijkstra(const Connectivity& conn, const std::vector<char>& crossable,
+                                  const std::vector<double>& step, int start, std::vector<int>& parent) {
+  const int nf = conn.num_faces();
+  std::vector<double> dist(nf, std::numeric_limits<double>::infinity());
+  parent.assign(nf, -1);
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> pq;
+  dist[start] = 0;
+  pq.push({0.0, start});
+  while (!pq.empty()) {
+    const auto [d, f] = pq.top();
+    pq.pop();
+    if (d > dist[f]) continue;
+    for (int k = 0; k < 3; ++k) {
+      const int e = conn.edge(3 * f + k);
+      if (!crossable[e]) continue;
+      const int g = Connectivity::face(conn.twin(3 * f + k));
+      if (d + step[e] < dist[g]) {
+        dist[g] = d + step[e];
+        parent[g] = e;
+        pq.push({dist[g], g});
+      }
+    }
+  }
+  return dist;
+}
+
+/// The shallow cut tree (SystemOfLoopsOptions::edge_weights given): the dual
+/// edges not crossing T, as a shortest-path tree from the centre face of that
+/// dual graph (double sweep), steps weighted by the mean perimeter of the two
+/// faces / 3. Marks in_dual; the rest of the non-tree edges are generators.
+void shallow_cut_tree(const Connectivity& conn, const std::vector<double>& len, const std::vector<char>& in_tree,
+                      std::vector<char>& in_dual) {
+  const int nf = conn.num_faces(), ne = conn.num_edges();
+  std::vector<char> crossable(ne, 0);
+  std::vector<double> perimeter(nf, 0.0), step(ne, 0.0);
+  for (int f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) perimeter[f] += len[conn.edge(3 * f + k)];
+  for (int e = 0; e < ne; ++e) {
+    crossable[e] = !in_tree[e];
+    const int h = conn.edge_halfedge(e);
+    step[e] = (perimeter[Connectivity::face(h)] + perimeter[Connectivity::face(conn.twin(h))]) / 6.0;
+  }
+  std::vector<int> parent;
+  auto farthest = [](const std::vector<double>& d) {
+    int best = 0;
+    for (int f = 0; f < static_cast<int>(d.size()); ++f)
+      if (std::isfinite(d[f]) && d[f] > d[best]) best = f;
+    return best;
+  };
+  const int a = farthest(dual_dijkstra(conn, crossable, step, 0, parent));
+  const std::vector<double> da = dual_dijkstra(conn, crossable, step, a, parent);
+  const int b = farthest(da);
+  // The face of the a-b path nearest its middle.
+  int root = b;
+  for (int f = b; f != a && parent[f] >= 0;) {
+    if (std::abs(da[f] - 0.5 * da[b]) < std::abs(da[root] - 0.5 * da[b])) root = f;
+    const int h = conn.edge_halfedge(parent[f]);
+    f = Connectivity::face(h) == f ? Connectivity::face(conn.twin(h)) : Connectivity::face(h);
+  }
+  dual_dijkstra(conn, crossable, step, root, parent);
+  in_dual.assign(ne, 0);
+  for (int f = 0; f < nf; ++f)
+    if (parent[f] >= 0) in_dual[parent[f]] = 1;
+}
+
+/// `weights`: SystemOfLoopsOptions::edge_weights (empty: 3D lengths);
+/// `shallow`: the dual shortest-path T* (with edge weights).
 Greedy greedy_basis(const TriMesh& mesh, const Connectivity& conn, int x, int genus,
-                    const std::vector<double>& weights) {
+                    const std::vector<double>& weights, bool shallow) {
   const int nv = conn.num_vertices(), nf = conn.num_faces(), ne = conn.num_edges();
   const std::vector<double> len = weights.empty() ? edge_lengths(mesh, conn) : weights;
   Greedy g;
@@ -195,12 +265,18 @@ Greedy greedy_basis(const TriMesh& mesh, const Connectivity& conn, int x, int ge
   UnionFind uf(nf);
   std::vector<char> in_dual(ne, 0);
   std::vector<std::pair<double, int>> gens;
-  for (const auto& [w, e] : order) {
-    const int h = conn.edge_halfedge(e);
-    if (uf.unite(Connectivity::face(h), Connectivity::face(conn.twin(h))))
-      in_dual[e] = 1;
-    else
-      gens.push_back({w, e});
+  if (shallow) {
+    shallow_cut_tree(conn, len, g.in_tree, in_dual);
+    for (const auto& [w, e] : order)
+      if (!in_dual[e]) gens.push_back({w, e});
+  } else {
+    for (const auto& [w, e] : order) {
+      const int h = conn.edge_halfedge(e);
+      if (uf.unite(Connectivity::face(h), Connectivity::face(conn.twin(h))))
+        in_dual[e] = 1;
+      else
+        gens.push_back({w, e});
+    }
   }
   if (static_cast<int>(gens.size()) != 2 * genus)
     throw SolveError("system of loops: found " + std::to_string(gens.size()) +
@@ -997,7 +1073,7 @@ SystemOfLoops system_of_loops(const TriMesh& mesh, const Connectivity& conn, con
   else if (x >= mesh.num_vertices())
     throw InputError("system of loops: base vertex " + std::to_string(x) + " is out of range (the mesh has " +
                      std::to_string(mesh.num_vertices()) + " vertices)");
-  const Greedy g = greedy_basis(mesh, conn, x, genus, weights);
+  const Greedy g = greedy_basis(mesh, conn, x, genus, weights, !weights.empty());
   SystemOfLoops s;
   s.genus = genus;
   s.base_vertex = x;

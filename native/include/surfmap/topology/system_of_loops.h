@@ -21,14 +21,14 @@ struct SystemOfLoopsOptions {
   /// shorter loops and fewer split points). false: every arc follows the
   /// full Euler tour of the tree (also the automatic fallback).
   bool shortcut_branches = true;
-  /// Edge weights of the shortest-path tree T and of the loop lengths that
-  /// order the generators (#E, edge order of Connectivity(mesh.F)); empty
-  /// (default): the 3D edge lengths. Given a surface's uniformization metric
-  /// the loops are the shortest ones *in that metric*, so the fundamental
-  /// domain they cut is compact in the hyperbolic plane (issue 13: loops
-  /// short in 3D are 30 long in the metric of a genus-13 CAD plate, whose
-  /// domain then reaches |z| = 1 in double precision). With base_vertex = -1
-  /// the base vertex is then the metric's centre (metric_centre_vertex).
+  /// Edge weights (#E, edge order of Connectivity(mesh.F)); empty (default):
+  /// 3D lengths, greedy loops (T* Erickson–Whittlesey's maximum spanning
+  /// tree). Given the uniformization metric: T is its shortest-path tree from
+  /// its centre (metric_centre_vertex unless base_vertex is set) and T* a
+  /// shortest-path tree of the dual (edges not in T) from its centre face:
+  /// the disk is the faces glued along T*, so a shallow T* keeps the domain
+  /// compact (issue 13: the genus-24 wheel's domain reached 32 from the centre
+  /// with loops of 15 on the maximum T*; 14 on this one, loops still ~15).
   std::vector<double> edge_weights;
 };
 
