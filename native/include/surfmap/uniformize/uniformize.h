@@ -43,11 +43,11 @@ enum class UniformizationMetric { IntrinsicDelaunay, FixedConnectivity, Automati
 /// Which lengths the loops of the flip path (intrinsic_loops) are shortest in.
 ///  * Embedding: the 3D lengths (the input's geometry), base vertex near the
 ///    centroid.
-///  * Metric: the uniformization metric itself, base vertex its centre
-///    (SystemOfLoopsOptions::edge_weights): the fundamental domain is
-///    compact in the hyperbolic plane (issue 13: on a genus-13 CAD plate the
-///    3D-short loops cut a domain reaching 32 from the centre, 1 − |z| below
-///    double precision; loops short in the metric keep it within ~10).
+///  * Metric: the uniformization metric itself, base vertex its centre,
+///    shallow cut tree (SystemOfLoopsOptions::edge_weights): a compact
+///    domain (issue 13: the raw genus-24 wheel's 3D loops cut a domain
+///    reaching 32 from the centre, 1 − |z| ~ 1e-14; the metric's 14). CAD
+///    plates of genus 13+ are too long in their metric for either.
 ///  * Automatic (default): Embedding; for genus >= 2, Metric when that layout
 ///    fails its checks or crowds |z| = 1 (coordinate_roundoff above
 ///    UniformizeOptions::crowded_roundoff), kept when it passes the checks and
