@@ -2,6 +2,7 @@
 // the uniformization metric (docs/method.md §2.2-2.5) — sphere, flat torus
 // (lattice, τ) or hyperbolic surface (Fuchsian generators) — with a JSON
 // report and optionally the laid-out cut disk (or the sphere) as OBJ.
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <memory>
@@ -25,7 +26,7 @@ nlohmann::json mobius(const hyperbolic::Mobius& m) {
 }
 
 struct Args {
-  std::string mesh, report, layout, scheme = "yamabe", method = "newton", metric = "flips";
+  std::string mesh, report, layout, scheme = "yamabe", method = "newton", metric = "flips", loops = "auto";
   bool refine = false;
   int base_vertex = -1;
   double tolerance = 1e-10, floor_tolerance = 1e-7;
@@ -39,6 +40,7 @@ void run(const Args& a) {
   opt.method = a.method == "flow" ? RicciMethod::GradientFlow : RicciMethod::Newton;
   opt.tolerance = a.tolerance;
   opt.metric = parse_enum<UniformizationMetric>(a.metric, "--metric");
+  opt.loops = parse_enum<LoopMetric>(a.loops, "--loops");
   // The altitude-foot refinement of the fixed-connectivity path is opt-in.
   opt.fixed_connectivity_refinement = a.refine;
   opt.floor_tolerance = a.floor_tolerance;
@@ -90,6 +92,7 @@ void run(const Args& a) {
   } else {
     const DiskLayout& L = r.layout;
     j["base_vertex"] = r.loops.base_vertex;
+    j["loop_metric"] = r.loop_metric;
     j["refined_vertices"] = r.loops.mesh.num_vertices();
     j["refined_faces"] = r.loops.mesh.num_faces();
     j["word"] = L.word;
@@ -104,6 +107,19 @@ void run(const Args& a) {
     j["deck_roundoff"] = L.deck_roundoff;
     j["max_deck_excess"] = L.max_deck_excess;
     j["coordinate_roundoff"] = L.coordinate_roundoff;
+    {
+      // How far out the layout reaches: the largest hyperbolic distance of a
+      // corner from 0 (flat: |z|) and the smallest 1 − |z| (hyperbolic).
+      double reach = 0, margin = 1;
+      for (int f = 0; f < L.corners.rows(); ++f)
+        for (int k = 0; k < 3; ++k) {
+          const double n = std::abs(L.corners(f, k));
+          reach = std::max(reach, r.genus >= 2 ? 2.0 * std::atanh(std::min(n, 1.0)) : n);
+          margin = std::min(margin, 1.0 - n);
+        }
+      j["layout_radius"] = reach;
+      if (r.genus >= 2) j["min_distance_to_unit_circle"] = margin;
+    }
     j["max_corner_inconsistency"] = L.max_corner_inconsistency;
     j["corner_condition"] = L.corner_condition;
     j["gluing_tolerance"] = r.gluing_tolerance;
@@ -172,6 +188,10 @@ void register_uniformize(CLI::App& app) {
       ->check(CLI::IsMember(enum_name_list<UniformizationMetric>()));
   cmd->add_flag("--refine", a->refine,
                 "With --metric fixed: refine exactly (altitude-foot splits) when the metric does not exist");
+  cmd->add_option("--loops", a->loops,
+                  "Lengths the loops are shortest in (flip path, genus >= 2): auto (default: 3D, the metric when that "
+                  "layout fails or crowds |z| = 1), embedding (3D) or metric (report: loop_metric)")
+      ->check(CLI::IsMember(enum_name_list<LoopMetric>()));
   cmd->add_option("--base-vertex", a->base_vertex, "Base vertex of the loops (default: automatic)");
   cmd->add_option("--tolerance", a->tolerance, "Max curvature error (default 1e-10)");
   cmd->add_option("--floor-tolerance", a->floor_tolerance,

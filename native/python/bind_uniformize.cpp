@@ -137,7 +137,7 @@ void bind_uniformize(py::module_& m) {
   m.def(
       "uniformize",
       [](py::handle Vh, py::handle Fh, const std::string& scheme, const std::string& method, double tolerance,
-         int base_vertex, py::object progress, double floor_tolerance, const std::string& metric) {
+         int base_vertex, py::object progress, double floor_tolerance, const std::string& metric, const std::string& loop_metric) {
         const RowMatrixX3d V = to_vertices(Vh, "V");
         const RowMatrixX3i F = to_triangles(Fh, "F");
         UniformizeOptions opt;
@@ -146,6 +146,7 @@ void bind_uniformize(py::module_& m) {
         opt.tolerance = tolerance;
         opt.floor_tolerance = floor_tolerance;
         opt.metric = parse_enum<UniformizationMetric>(metric, "metric");
+        opt.loops = parse_enum<LoopMetric>(loop_metric, "loops");
         opt.base_vertex = base_vertex;
         Progress p{progress, {}};
         opt.progress = p.make();
@@ -194,6 +195,7 @@ void bind_uniformize(py::module_& m) {
         d["u"] = eigen_vector(r.ricci.u);
         d["edge_lengths"] = eigen_vector(r.edge_lengths);  // on refined_F's edges
         d["metric"] = r.metric;
+        d["loop_metric"] = r.loop_metric;
         d["edge_flips"] = r.edge_flips;
         d["refinement_splits"] = r.refinement_splits;
         d["layout"] = layout_dict(r.layout);
@@ -210,7 +212,7 @@ void bind_uniformize(py::module_& m) {
       },
       py::arg("V"), py::arg("F"), py::arg("scheme") = "yamabe", py::arg("method") = "newton",
       py::arg("tolerance") = 1e-10, py::arg("base_vertex") = -1, py::arg("progress") = py::none(),
-      py::arg("floor_tolerance") = 1e-7, py::arg("metric") = "flips",
+      py::arg("floor_tolerance") = 1e-7, py::arg("metric") = "flips", py::arg("loops") = "auto",
       "Uniformization of a closed mesh (V: (n,3) float, F: (m,3) int): genus 0 -> unit sphere "
       "('sphere_positions'), genus 1 -> flat torus ('tau', 'tau_reduced', 'lattice'), genus >= 2 -> "
       "hyperbolic ('generators' as (2g,4) [a.re,a.im,b.re,b.im] of z -> (az+b)/(conj(b)z+conj(a))). "
@@ -220,7 +222,9 @@ void bind_uniformize(py::module_& m) {
       "residual above `tolerance` at the floating-point floor but within `floor_tolerance` is converged, "
       "'stopped_at_floor'). metric: 'flips' (default; Ptolemy flips, loops on the intrinsic triangulation; 'auto' is "
       "the same), 'fixed' (the input connectivity) or 'fixed-first' ('fixed', 'flips' when it fails; 'metric' in the "
-      "result says). The GIL is released during the solve.");
+      "result says). loops: 'auto' (default), 'embedding' or 'metric': the lengths the loops are shortest in "
+      "(genus >= 2, flip path; 'auto': 3D, the metric's when that layout fails or crowds |z| = 1; 'loop_metric' "
+      "says). The GIL is released during the solve.");
 
   m.def(
       "ricci_flow",

@@ -107,6 +107,89 @@ TEST(HighGenus, GeneratedCadPlatesOfGenus9To11CloseUp) {
   }
 }
 
+// Every loop edge's two copies glued by its loop's side pairing, written out
+// here from the boundary word rather than read from the layout's own deck
+// checks: side s of the disk (boundary_halfedges from side_start[s] to
+// side_start[s + 1], letter word[s]) is loop |word[s]| − 1 with the disk on
+// its left when word[s] > 0, and D_k takes that copy of each of its edges
+// onto the copy with the disk on the right (layout.h). Returns the largest
+// distance, in the metric, between an endpoint's image and its other copy.
+double largest_side_pairing_gap(const DiskLayout& L, const RowMatrixX3i& F) {
+  const Connectivity conn(F, static_cast<int>(F.maxCoeff()) + 1);
+  const int n = static_cast<int>(L.word.size()), nb = static_cast<int>(L.boundary_halfedges.size());
+  auto corner = [&](int f, int v) {
+    for (int k = 0; k < 3; ++k)
+      if (F(f, k) == v) return L.corners(f, k);
+    return std::complex<double>(NAN, NAN);
+  };
+  double gap = 0;
+  int edges = 0;
+  for (int s = 0; s < n; ++s) {
+    if (L.word[s] < 0) continue;
+    const hyperbolic::Mobius& D = L.side_pairings[L.word[s] - 1];
+    const int end = s + 1 < n ? L.side_start[s + 1] : nb;
+    for (int i = L.side_start[s]; i < end; ++i) {
+      const int h = L.boundary_halfedges[i], t = conn.twin(h);
+      for (int v : {conn.tail(h), conn.head(h)}) {
+        const double d = hyperbolic::distance(D.apply(corner(h / 3, v)), corner(t / 3, v));
+        gap = std::isnan(d) ? INFINITY : std::max(gap, d);
+      }
+      ++edges;
+    }
+  }
+  // Every cut edge lies on exactly one +side.
+  int cut = 0;
+  for (bool c : L.cut_edge) cut += c;
+  return edges == cut ? gap : INFINITY;
+}
+
+// Issue 13 beyond genus 12: the raw wheels' one-vertex 4g-gon, cut along
+// loops shortest in 3D with Erickson–Whittlesey's maximum cut tree T*,
+// reaches 18.6 from the centre at genus 13 (23 at 16, 32 and 2 flipped
+// triangles at 24): the disk is the faces glued along T*, and that tree is a
+// long path. Automatic loops lay it out again on loops shortest in the
+// metric with a shortest-path T* (LoopMetric, SystemOfLoopsOptions::
+// edge_weights): 10.8 from the centre. The result must deliver area
+// 4π(g − 1), no flipped triangle (counted here), every loop edge glued by
+// its side pairing (checked here from the boundary word), the word relation,
+// and the compact domain (a regression to the 3D loops fails the reach).
+TEST(HighGenus, RawGenus13WheelUniformizesOnLoopsShortestInTheMetric) {
+  const int genus = 13;
+  const TriMesh wheel = samples::wheel(genus, 60, false);
+  const IntakeResult in = intake(wheel.V, wheel.F);
+  ASSERT_EQ(in.info.genus, genus);
+  const UniformizeResult r = uniformize(in.mesh);
+  EXPECT_TRUE(r.converged);
+  EXPECT_EQ(r.loop_metric.rfind("metric", 0), 0u) << r.loop_metric;
+  EXPECT_LE(r.max_curvature_error, 1e-7);
+  EXPECT_NEAR(r.area, 4 * kPi * (genus - 1), 1e-6);
+  EXPECT_EQ(r.layout.num_unresolved, 0);
+  EXPECT_EQ(count_flipped_layout_triangles(r.layout), 0);
+  EXPECT_EQ(r.layout.num_flipped, 0);
+  double reach = 0;
+  for (int f = 0; f < r.layout.corners.rows(); ++f)
+    for (int k = 0; k < 3; ++k) reach = std::max(reach, hyperbolic::distance_from_origin(r.layout.corners(f, k)));
+  EXPECT_LT(reach, 14.0);
+  EXPECT_LT(largest_side_pairing_gap(r.layout, r.loops.mesh.F), 1e-6);
+  EXPECT_LE(r.layout.max_interior_excess, r.gluing_tolerance);
+  EXPECT_LE(r.layout.max_deck_excess, r.gluing_tolerance);
+  // The vertex-cycle relation of the side pairings (Poincaré's theorem),
+  // multiplied out: on a compact domain its partial products (the corner
+  // elements, entries up to e^{radius}) keep the product's round-off to
+  // about 1e-4 at the centre, growing like e^d at distance d (1.7e-3 at the
+  // rim, 5 from 0). A wrong pairing moves points by a loop's length (~10),
+  // and the 3D loops' domain (radius 18.6) by far more than these bounds.
+  hyperbolic::Mobius relator;
+  for (int x : r.layout.side_relator) {
+    const hyperbolic::Mobius& D = r.layout.side_pairings[std::abs(x) - 1];
+    relator = relator * (x > 0 ? D : D.inverse());
+  }
+  ASSERT_EQ(r.layout.side_relator.size(), 4u * genus);
+  EXPECT_LT(hyperbolic::distance(relator.apply(0.0), 0.0), 1e-3);
+  for (std::complex<double> z : {r.layout.corners(0, 0), r.layout.corners(0, 1)})
+    EXPECT_LT(hyperbolic::distance(relator.apply(z), z), 2e-2) << z;
+}
+
 // Handle correspondences of genus >= 8 are ranked without enumerating the
 // g! 2^g signed permutations (genus 11: 8e10, 20 GB before the map was
 // killed). The ranking must equal the full enumeration's (written out here)

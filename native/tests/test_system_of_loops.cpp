@@ -306,6 +306,47 @@ TEST(SystemOfLoops, CoarsestToriFromEveryBaseVertex) {
     }
 }
 
+// Loops in given edge weights (SystemOfLoopsOptions::edge_weights: the
+// uniformization metric in uniformize): the base vertex is the weights'
+// centre and T* a shortest-path tree of the dual. On a plate of 5 holes in a
+// row (x in [0, 5]) weighted by 3D length the centre lies near x = 2.5; the
+// loops must pass the same checks as the greedy ones (simple, disjoint, one
+// disk with a 4g-gon word, T and T* spanning trees), and weights of the
+// wrong size or non-positive are InputErrors.
+TEST(SystemOfLoops, LoopsInGivenEdgeWeightsFromTheirCentre) {
+  const TriMesh plate = samples::cad_plate(5, 16, 0.5);
+  const Connectivity conn(plate.F, plate.num_vertices());
+  std::vector<double> w(conn.num_edges());
+  for (int e = 0; e < conn.num_edges(); ++e)
+    w[e] = (plate.V.row(conn.edge_vertex(e, 0)) - plate.V.row(conn.edge_vertex(e, 1))).norm();
+  const int centre = metric_centre_vertex(conn, w);
+  EXPECT_NEAR(plate.V(centre, 0), 2.5, 0.75);
+  // Weights stretching x by 10 beyond x = 4 move the centre right.
+  std::vector<double> stretched = w;
+  for (int e = 0; e < conn.num_edges(); ++e)
+    if (plate.V(conn.edge_vertex(e, 0), 0) > 4 && plate.V(conn.edge_vertex(e, 1), 0) > 4) stretched[e] *= 10;
+  EXPECT_GT(plate.V(metric_centre_vertex(conn, stretched), 0), 3.0);
+  SystemOfLoopsOptions opt;
+  opt.edge_weights = w;
+  const SystemOfLoops s = system_of_loops(plate, opt);
+  EXPECT_EQ(s.genus, 5);
+  EXPECT_EQ(s.base_vertex, centre);
+  check_refined(plate, s);
+  opt.refine = false;
+  const SystemOfLoops u = system_of_loops(plate, opt);
+  const Connectivity uc(u.mesh.F, u.mesh.num_vertices());
+  std::vector<char> loop_edge(uc.num_edges(), 0);
+  for (const auto& L : u.loops)
+    for (size_t i = 0; i + 1 < L.size(); ++i) loop_edge[uc.edge(uc.find_halfedge(L[i], L[i + 1]))] = 1;
+  check_word_letters(u.word, 5);
+  check_trees(u, uc, loop_edge);
+  opt.edge_weights.pop_back();
+  EXPECT_THROW(system_of_loops(plate, opt), InputError);
+  opt.edge_weights = w;
+  opt.edge_weights[3] = 0;
+  EXPECT_THROW(system_of_loops(plate, opt), InputError);
+}
+
 TEST(SystemOfLoops, GenusZeroAndBadBaseVertexAreInputErrors) {
   EXPECT_THROW(system_of_loops(samples::sphere(2)), InputError);
   SystemOfLoopsOptions opt;

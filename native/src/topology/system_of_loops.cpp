@@ -89,6 +89,33 @@ std::vector<double> edge_lengths(const TriMesh& mesh, const Connectivity& conn) 
   return len;
 }
 
+/// Dijkstra distances from x by edge weights `len` (#E).
+std::vector<double> dijkstra_distances(const Connectivity& conn, const std::vector<double>& len, int x) {
+  const int nv = conn.num_vertices();
+  std::vector<double> dist(nv, std::numeric_limits<double>::infinity());
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> pq;
+  dist[x] = 0;
+  pq.push({0.0, x});
+  while (!pq.empty()) {
+    const auto [d, v] = pq.top();
+    pq.pop();
+    if (d > dist[v]) continue;
+    const int start = conn.vertex_halfedge(v);
+    int h = start;
+    do {
+      const int w = conn.head(h);
+      const double nd = d + len[conn.edge(h)];
+      if (nd < dist[w]) {
+        dist[w] = nd;
+        pq.push({nd, w});
+      }
+      h = conn.rotate_ccw(h);
+    } while (h != start);
+  }
+  return dist;
+}
+
 int default_base_vertex(const TriMesh& mesh, const Connectivity& conn) {
   // Among the vertices nearest the centroid, the one of highest valence: a
   // central base point keeps the loops short, and a high valence gives the
@@ -120,9 +147,81 @@ struct Greedy {
   std::vector<std::vector<int>> loops;
 };
 
-Greedy greedy_basis(const TriMesh& mesh, const Connectivity& conn, int x, int genus) {
+/// Dijkstra over the faces, crossing only edges with `crossable[e]`, each
+/// step weighted by `step[e]`; returns distances (infinity: not reached) and
+/// fills parent (the edge crossed last, -1 at the start and unreached).
+std::vector<double> dual_dijkstra(const Connectivity& conn, const std::vector<char>& crossable,
+                                  const std::vector<double>& step, int start, std::vector<int>& parent) {
+  const int nf = conn.num_faces();
+  std::vector<double> dist(nf, std::numeric_limits<double>::infinity());
+  parent.assign(nf, -1);
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> pq;
+  dist[start] = 0;
+  pq.push({0.0, start});
+  while (!pq.empty()) {
+    const auto [d, f] = pq.top();
+    pq.pop();
+    if (d > dist[f]) continue;
+    for (int k = 0; k < 3; ++k) {
+      const int e = conn.edge(3 * f + k);
+      if (!crossable[e]) continue;
+      const int g = Connectivity::face(conn.twin(3 * f + k));
+      if (d + step[e] < dist[g]) {
+        dist[g] = d + step[e];
+        parent[g] = e;
+        pq.push({dist[g], g});
+      }
+    }
+  }
+  return dist;
+}
+
+/// The shallow cut tree (SystemOfLoopsOptions::edge_weights given): the dual
+/// edges not crossing T, as a shortest-path tree from the centre face of that
+/// dual graph (double sweep), steps weighted by the mean perimeter of the two
+/// faces / 3. Marks in_dual; the rest of the non-tree edges are generators.
+void shallow_cut_tree(const Connectivity& conn, const std::vector<double>& len, const std::vector<char>& in_tree,
+                      std::vector<char>& in_dual) {
+  const int nf = conn.num_faces(), ne = conn.num_edges();
+  std::vector<char> crossable(ne, 0);
+  std::vector<double> perimeter(nf, 0.0), step(ne, 0.0);
+  for (int f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) perimeter[f] += len[conn.edge(3 * f + k)];
+  for (int e = 0; e < ne; ++e) {
+    crossable[e] = !in_tree[e];
+    const int h = conn.edge_halfedge(e);
+    step[e] = (perimeter[Connectivity::face(h)] + perimeter[Connectivity::face(conn.twin(h))]) / 6.0;
+  }
+  std::vector<int> parent;
+  auto farthest = [](const std::vector<double>& d) {
+    int best = 0;
+    for (int f = 0; f < static_cast<int>(d.size()); ++f)
+      if (std::isfinite(d[f]) && d[f] > d[best]) best = f;
+    return best;
+  };
+  const int a = farthest(dual_dijkstra(conn, crossable, step, 0, parent));
+  const std::vector<double> da = dual_dijkstra(conn, crossable, step, a, parent);
+  const int b = farthest(da);
+  // The face of the a-b path nearest its middle.
+  int root = b;
+  for (int f = b; f != a && parent[f] >= 0;) {
+    if (std::abs(da[f] - 0.5 * da[b]) < std::abs(da[root] - 0.5 * da[b])) root = f;
+    const int h = conn.edge_halfedge(parent[f]);
+    f = Connectivity::face(h) == f ? Connectivity::face(conn.twin(h)) : Connectivity::face(h);
+  }
+  dual_dijkstra(conn, crossable, step, root, parent);
+  in_dual.assign(ne, 0);
+  for (int f = 0; f < nf; ++f)
+    if (parent[f] >= 0) in_dual[parent[f]] = 1;
+}
+
+/// `weights`: SystemOfLoopsOptions::edge_weights (empty: 3D lengths);
+/// `shallow`: the dual shortest-path T* (with edge weights).
+Greedy greedy_basis(const TriMesh& mesh, const Connectivity& conn, int x, int genus,
+                    const std::vector<double>& weights, bool shallow) {
   const int nv = conn.num_vertices(), nf = conn.num_faces(), ne = conn.num_edges();
-  const std::vector<double> len = edge_lengths(mesh, conn);
+  const std::vector<double> len = weights.empty() ? edge_lengths(mesh, conn) : weights;
   Greedy g;
   // Dijkstra shortest-path tree T from x.
   std::vector<double> dist(nv, std::numeric_limits<double>::infinity());
@@ -166,12 +265,18 @@ Greedy greedy_basis(const TriMesh& mesh, const Connectivity& conn, int x, int ge
   UnionFind uf(nf);
   std::vector<char> in_dual(ne, 0);
   std::vector<std::pair<double, int>> gens;
-  for (const auto& [w, e] : order) {
-    const int h = conn.edge_halfedge(e);
-    if (uf.unite(Connectivity::face(h), Connectivity::face(conn.twin(h))))
-      in_dual[e] = 1;
-    else
-      gens.push_back({w, e});
+  if (shallow) {
+    shallow_cut_tree(conn, len, g.in_tree, in_dual);
+    for (const auto& [w, e] : order)
+      if (!in_dual[e]) gens.push_back({w, e});
+  } else {
+    for (const auto& [w, e] : order) {
+      const int h = conn.edge_halfedge(e);
+      if (uf.unite(Connectivity::face(h), Connectivity::face(conn.twin(h))))
+        in_dual[e] = 1;
+      else
+        gens.push_back({w, e});
+    }
   }
   if (static_cast<int>(gens.size()) != 2 * genus)
     throw SolveError("system of loops: found " + std::to_string(gens.size()) +
@@ -905,6 +1010,45 @@ void finish_from_simple_loops(SystemOfLoops& s) {
 
 void rebuild_system_of_loops(SystemOfLoops& s) { finish_from_simple_loops(s); }
 
+int metric_centre_vertex(const Connectivity& conn, const std::vector<double>& edge_weights, int samples) {
+  const int nv = conn.num_vertices();
+  if (static_cast<int>(edge_weights.size()) != conn.num_edges())
+    throw InputError("metric_centre_vertex: " + std::to_string(edge_weights.size()) + " edge weights for " +
+                     std::to_string(conn.num_edges()) + " edges");
+  for (int e = 0; e < conn.num_edges(); ++e)
+    if (!(edge_weights[e] > 0) || !std::isfinite(edge_weights[e]))
+      throw InputError("metric_centre_vertex: edge " + std::to_string(e) + " has weight " +
+                       std::to_string(edge_weights[e]));
+  // Farthest-point sampling: lower[v] = max over the sampled points p of
+  // d(p, v) <= eccentricity(v); the next sample is the farthest vertex from
+  // the current best centre, which raises the bound where it was too low.
+  std::vector<double> lower(nv, 0.0);
+  auto farthest = [&](const std::vector<double>& d) {
+    return static_cast<int>(std::max_element(d.begin(), d.end()) - d.begin());
+  };
+  int p = farthest(dijkstra_distances(conn, edge_weights, 0));
+  for (int s = 0; s < std::max(2, samples); ++s) {
+    const std::vector<double> d = dijkstra_distances(conn, edge_weights, p);
+    for (int v = 0; v < nv; ++v) {
+      if (!std::isfinite(d[v])) throw InputError("metric_centre_vertex: vertex " + std::to_string(v) + " is unreachable");
+      lower[v] = std::max(lower[v], d[v]);
+    }
+    const int centre = static_cast<int>(std::min_element(lower.begin(), lower.end()) - lower.begin());
+    p = farthest(dijkstra_distances(conn, edge_weights, centre));
+  }
+  std::vector<std::pair<double, int>> order(nv);
+  for (int v = 0; v < nv; ++v) order[v] = {lower[v], v};
+  const int k = std::min(nv, 64);
+  std::partial_sort(order.begin(), order.begin() + k, order.end());
+  int best = order[0].second, best_val = -1;
+  for (int i = 0; i < k; ++i)
+    if (conn.valence(order[i].second) > best_val) {
+      best_val = conn.valence(order[i].second);
+      best = order[i].second;
+    }
+  return best;
+}
+
 SystemOfLoops system_of_loops(const TriMesh& mesh, const SystemOfLoopsOptions& options) {
   return system_of_loops(mesh, Connectivity(mesh.F, mesh.num_vertices()), options);
 }
@@ -914,13 +1058,22 @@ SystemOfLoops system_of_loops(const TriMesh& mesh, const Connectivity& conn, con
   if (conn.euler_characteristic() > 0 || genus < 1)
     throw InputError("system of loops: the surface has genus 0 (Euler characteristic " +
                      std::to_string(conn.euler_characteristic()) + "); there are no loops to cut");
+  const std::vector<double>& weights = options.edge_weights;
+  if (!weights.empty()) {
+    if (static_cast<int>(weights.size()) != conn.num_edges())
+      throw InputError("system of loops: " + std::to_string(weights.size()) + " edge weights for " +
+                       std::to_string(conn.num_edges()) + " edges");
+    for (int e = 0; e < conn.num_edges(); ++e)
+      if (!(weights[e] > 0) || !std::isfinite(weights[e]))
+        throw InputError("system of loops: edge " + std::to_string(e) + " has weight " + std::to_string(weights[e]));
+  }
   int x = options.base_vertex;
   if (x < 0)
-    x = default_base_vertex(mesh, conn);
+    x = weights.empty() ? default_base_vertex(mesh, conn) : metric_centre_vertex(conn, weights);
   else if (x >= mesh.num_vertices())
     throw InputError("system of loops: base vertex " + std::to_string(x) + " is out of range (the mesh has " +
                      std::to_string(mesh.num_vertices()) + " vertices)");
-  const Greedy g = greedy_basis(mesh, conn, x, genus);
+  const Greedy g = greedy_basis(mesh, conn, x, genus, weights, !weights.empty());
   SystemOfLoops s;
   s.genus = genus;
   s.base_vertex = x;

@@ -152,8 +152,17 @@ FacePoint intrinsic_face_point(const SystemOfLoops& loops, const RowMatrixX3i& F
   throw SolveError("refined face " + std::to_string(rf) + " lies in no single face of the intrinsic triangulation");
 }
 
+std::vector<double> metric_edge_weights(const RicciFlowResult& flow, const Connectivity& tc) {
+  // Halfedge 3f + k runs from corner k to corner k + 1: the side opposite
+  // corner k + 2 (flow.face_edges(f, k) is the side opposite corner k).
+  std::vector<double> w(tc.num_edges(), 0.0);
+  for (int f = 0; f < flow.faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) w[tc.edge(3 * f + k)] = flow.edge_lengths[flow.face_edges(f, (k + 2) % 3)];
+  return w;
+}
+
 IntrinsicLoops intrinsic_loops(const TriMesh& input, const RicciFlowResult& flow, Background background,
-                               const SystemOfLoopsOptions& options) {
+                               const SystemOfLoopsOptions& options_in, bool loops_in_metric) {
   const RowMatrixX3i& F = flow.faces;
   if (F.rows() == 0 || flow.face_edges.rows() != F.rows())
     throw InputError("intrinsic_loops: the flow result has no triangulation");
@@ -166,8 +175,10 @@ IntrinsicLoops intrinsic_loops(const TriMesh& input, const RicciFlowResult& flow
   } catch (const InputError& e) {
     throw SolveError(std::string("the intrinsic triangulation is not simplicial (") + e.what() + ")");
   }
+  SystemOfLoopsOptions options = options_in;
+  if (loops_in_metric) options.edge_weights = metric_edge_weights(flow, *ct);
   IntrinsicLoops out;
-  out.loops = system_of_loops(tm, options);
+  out.loops = system_of_loops(tm, *ct, options);
   const TriMesh& R = out.loops.mesh;
   const int nv = R.num_vertices();
   if (static_cast<int>(out.loops.origin_face.size()) != nv)

@@ -127,7 +127,9 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
     }
     if (r.ricci.converged) {
       try {
-        IntrinsicLoops il = intrinsic_loops(mesh, r.ricci, bg, lo);
+        const bool in_metric = options.loops == LoopMetric::Metric && r.genus >= 2;
+        IntrinsicLoops il = intrinsic_loops(mesh, r.ricci, bg, lo, in_metric);
+        r.loop_metric = in_metric ? "metric" : "embedding";
         r.loops = std::move(il.loops);
         lengths = std::move(il.lengths);
       } catch (const SolveError& e) {
@@ -156,8 +158,8 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
     r.ricci = std::move(fm.flow);
     r.refinement_splits = fm.refinement_splits;
     lengths = r.ricci.edge_lengths;
+    r.loop_metric = "embedding";
   }
-  const Connectivity conn(r.loops.mesh.F, r.loops.mesh.num_vertices());
   r.iterations = r.ricci.iterations;
   r.max_curvature_error = r.ricci.max_curvature_error;
   r.stopped_at_floor = r.ricci.stopped_at_floor;
@@ -167,9 +169,41 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
     throw SolveError("uniformize: Ricci flow did not converge after " + std::to_string(r.ricci.iterations) +
                      " iterations (max curvature error " + fmt(r.ricci.max_curvature_error) + ")" +
                      (r.ricci.message.empty() ? std::string() : ": " + r.ricci.message));
-  r.layout = layout_disk(conn, lengths, bg, r.loops, options.layout);
+  // The layout on the loops found above; Automatic, genus >= 2, flip path:
+  // again on loops shortest in the metric when it fails or crowds |z| = 1.
+  const bool may_switch = options.loops == LoopMetric::Automatic && r.genus >= 2 && r.loop_metric == "embedding" &&
+                          flips && !intrinsic_loops_failed;
+  std::string embedding_failure;
+  try {
+    const Connectivity conn(r.loops.mesh.F, r.loops.mesh.num_vertices());
+    r.layout = layout_disk(conn, lengths, bg, r.loops, options.layout);
+    check_layout(r.layout, r.max_curvature_error);
+    if (may_switch && r.layout.coordinate_roundoff > options.crowded_roundoff)
+      embedding_failure = "coordinate round-off " + fmt(r.layout.coordinate_roundoff);
+  } catch (const SolveError& e) {
+    if (!may_switch) throw;
+    embedding_failure = e.what();
+    r.layout = DiskLayout{};
+  }
+  if (!embedding_failure.empty()) {
+    const bool embedding_ok = r.layout.genus > 0;
+    try {
+      IntrinsicLoops il = intrinsic_loops(mesh, r.ricci, bg, lo, true);
+      const Connectivity conn(il.loops.mesh.F, il.loops.mesh.num_vertices());
+      DiskLayout layout = layout_disk(conn, il.lengths, bg, il.loops, options.layout);
+      check_layout(layout, r.max_curvature_error);
+      if (!embedding_ok || layout.coordinate_roundoff < r.layout.coordinate_roundoff) {
+        r.layout = std::move(layout);
+        r.loops = std::move(il.loops);
+        lengths = std::move(il.lengths);
+        r.loop_metric = "metric (embedding loops: " + embedding_failure + ")";
+      }
+    } catch (const SolveError& e) {
+      if (!embedding_ok)
+        throw SolveError(embedding_failure + "; on loops shortest in the metric: " + e.what());
+    }
+  }
   r.edge_lengths = lengths;
-  check_layout(r.layout, r.max_curvature_error);
   r.gluing_tolerance = gluing_tolerance(r.layout, r.max_curvature_error);
   r.area = r.layout.area;
   r.product_relation_error = r.layout.product_relation_error;

@@ -35,12 +35,18 @@ inline constexpr EnumNames<UniformizationMetric, 4> kUniformizationMetricNames{{
     {UniformizationMetric::FixedConnectivity, "fixed"},
     {UniformizationMetric::FixedFirst, "fixed-first"},
 }};
+inline constexpr EnumNames<LoopMetric, 3> kLoopMetricNames{{
+    {LoopMetric::Automatic, "auto"},
+    {LoopMetric::Embedding, "embedding"},
+    {LoopMetric::Metric, "metric"},
+}};
 
 /// The table of an enum, so the functions below need only the value type.
 inline constexpr const auto& enum_names(MapMethod) { return kMapMethodNames; }
 inline constexpr const auto& enum_names(InitialMapMethod) { return kInitialMapMethodNames; }
 inline constexpr const auto& enum_names(SourceWeights) { return kSourceWeightsNames; }
 inline constexpr const auto& enum_names(UniformizationMetric) { return kUniformizationMetricNames; }
+inline constexpr const auto& enum_names(LoopMetric) { return kLoopMetricNames; }
 
 /// The name of `value` in its table.
 template <class E>

@@ -21,6 +21,15 @@ struct SystemOfLoopsOptions {
   /// shorter loops and fewer split points). false: every arc follows the
   /// full Euler tour of the tree (also the automatic fallback).
   bool shortcut_branches = true;
+  /// Edge weights (#E, edge order of Connectivity(mesh.F)); empty (default):
+  /// 3D lengths, greedy loops (T* Erickson–Whittlesey's maximum spanning
+  /// tree). Given the uniformization metric: T is its shortest-path tree from
+  /// its centre (metric_centre_vertex unless base_vertex is set) and T* a
+  /// shortest-path tree of the dual (edges not in T) from its centre face:
+  /// the disk is the faces glued along T*, so a shallow T* keeps the domain
+  /// compact (issue 13: the genus-24 wheel's domain reached 32 from the centre
+  /// with loops of 15 on the maximum T*; 14 on this one, loops still ~15).
+  std::vector<double> edge_weights;
 };
 
 /// Everything refers to `mesh` (the refined mesh when refinement ran).
@@ -87,6 +96,15 @@ SystemOfLoops system_of_loops(const TriMesh& mesh, const SystemOfLoopsOptions& o
 /// The same with the caller's `conn`, which must be Connectivity(mesh.F)
 /// (built once per mesh per run: issue 19).
 SystemOfLoops system_of_loops(const TriMesh& mesh, const Connectivity& conn, const SystemOfLoopsOptions& options = {});
+
+/// A central vertex of the metric `edge_weights` (#E, edge order of conn):
+/// the vertex of least eccentricity estimated by farthest-point sampling
+/// (`samples` Dijkstra sweeps; the eccentricity max_v d(x, v) is bounded
+/// below by the distance to the sampled far points), the one of highest
+/// valence among the 64 best (room for the 4g arcs to fan out, as
+/// default). O(samples · n log n). InputError on a size mismatch or a
+/// non-positive weight.
+int metric_centre_vertex(const Connectivity& conn, const std::vector<double>& edge_weights, int samples = 6);
 
 /// After s.mesh was refined further and s.loops updated to match (simple,
 /// disjoint except at s.base_vertex, edge paths of s.mesh): recomputes the

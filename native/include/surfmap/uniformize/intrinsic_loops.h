@@ -18,6 +18,7 @@
 // faces; in the Klein model it is a projective image of the barycentric
 // triangle, so refined faces keep their orientation).
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -60,7 +61,15 @@ FacePoint intrinsic_face_point(const SystemOfLoops& loops, const RowMatrixX3i& F
 /// RicciFlowResult (faces, face_edges, edge_lengths). Throws SolveError when
 /// T' is not a simplicial surface (two edges with the same ends, or a loop
 /// edge: Connectivity cannot represent it) or the loops fail their checks.
+/// loops_in_metric (default false): the loops are the shortest ones in the
+/// flow's metric (SystemOfLoopsOptions::edge_weights = flow.edge_lengths,
+/// base vertex the metric's centre unless options.base_vertex is set), not
+/// in 3D: a compact fundamental domain for high genus (issue 13).
 IntrinsicLoops intrinsic_loops(const TriMesh& input, const RicciFlowResult& flow, Background background,
-                               const SystemOfLoopsOptions& options = {});
+                               const SystemOfLoopsOptions& options = {}, bool loops_in_metric = false);
+
+/// The flow's edge lengths (flow.edge_lengths) in the edge order of tc =
+/// Connectivity(flow.faces): #E(tc).
+std::vector<double> metric_edge_weights(const RicciFlowResult& flow, const Connectivity& tc);
 
 }  // namespace surfmap

@@ -40,6 +40,22 @@ namespace surfmap {
 /// (map/map_option_names.h; docs/uniformization.md "Which target metric runs").
 enum class UniformizationMetric { IntrinsicDelaunay, FixedConnectivity, Automatic, FixedFirst };
 
+/// Which lengths the loops of the flip path (intrinsic_loops) are shortest in.
+///  * Embedding: the 3D lengths (the input's geometry), base vertex near the
+///    centroid.
+///  * Metric: the uniformization metric itself, base vertex its centre,
+///    shallow cut tree (SystemOfLoopsOptions::edge_weights): a compact
+///    domain (issue 13: the raw genus-24 wheel's 3D loops cut a domain
+///    reaching 32 from the centre, 1 − |z| ~ 1e-14; the metric's 14). CAD
+///    plates of genus 13+ are too long in their metric for either.
+///  * Automatic (default): Embedding; for genus >= 2, Metric when that layout
+///    fails its checks or crowds |z| = 1 (coordinate_roundoff above
+///    UniformizeOptions::crowded_roundoff), kept when it passes the checks and
+///    is more compact. Genus 1 and the fixed-connectivity path (loops before
+///    the metric) always use Embedding.
+/// Names (CLI): "embedding", "metric", "auto".
+enum class LoopMetric { Embedding, Metric, Automatic };
+
 struct UniformizeOptions {
   UniformizationMetric metric = UniformizationMetric::IntrinsicDelaunay;
   /// FixedConnectivity only: refine exactly when the metric does not exist
@@ -64,6 +80,13 @@ struct UniformizeOptions {
   /// cancel (throws Cancelled).
   std::function<bool(int iteration, double residual)> progress;
   LayoutOptions layout;
+  /// Lengths the loops are shortest in (LoopMetric; default Automatic).
+  LoopMetric loops = LoopMetric::Automatic;
+  /// Automatic: a layout whose coordinate round-off (DiskLayout::
+  /// coordinate_roundoff, ε · 2/(1 − |z|²) at the farthest corner) exceeds
+  /// this is laid out again on loops in the metric (default 1e-9: corners
+  /// within 5e-7 of |z| = 1, about 15 from the centre).
+  double crowded_roundoff = 1e-9;
 };
 
 struct UniformizeResult {
@@ -99,6 +122,9 @@ struct UniformizeResult {
   /// intrinsic path fell back), and the Ptolemy flips of the metric.
   std::string metric;
   int edge_flips = 0;
+  /// Which loops were laid out (LoopMetric): "embedding", "metric", or
+  /// "metric (embedding loops: <why not>)" when Automatic switched.
+  std::string loop_metric;
   /// The metric laid out: #E lengths of Connectivity(loops.mesh.F) (with the
   /// fixed connectivity equal to ricci.edge_lengths; intrinsic: the flow's
   /// metric restricted to the loops' refinement of the flipped triangulation).
