@@ -84,6 +84,7 @@ void run(const Args& a) {
     j["flipped_faces"] = r.sphere.flipped_faces;
     j["input_flipped_faces"] = r.sphere.input_flipped_faces;
     j["ring_flips"] = r.sphere.ring_flips;
+    j["simplicial_flips"] = r.sphere.simplicial_flips;
     j["centre_of_mass_norm"] = r.sphere.centre_of_mass_norm;
     j["centring_floor"] = r.sphere.centring_floor;
     j["centring_iterations"] = r.sphere.centring_iterations;

@@ -180,6 +180,7 @@ void bind_uniformize(py::module_& m) {
           d["flipped_faces"] = r.sphere.flipped_faces;
           d["input_flipped_faces"] = r.sphere.input_flipped_faces;
           d["ring_flips"] = r.sphere.ring_flips;
+          d["simplicial_flips"] = r.sphere.simplicial_flips;
           d["centre_of_mass_norm"] = r.sphere.centre_of_mass_norm;
           d["centring_floor"] = r.sphere.centring_floor;
           d["centring_iterations"] = r.sphere.centring_iterations;

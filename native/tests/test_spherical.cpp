@@ -285,6 +285,24 @@ TEST(SphericalFlips, BentTaperedSpheresUniformize) {
   }
 }
 
+TEST(SphericalFlips, NonSimplicialDelaunayStartIsFlippedSimplicial) {
+  // At 40:1 (20 x 60) the whole sphere's intrinsic Delaunay triangulation (the flow's
+  // start) has two edges joining the same two vertices; the disk's domain
+  // cannot name such edges and every removed vertex failed ("non-manifold
+  // edge in face F"). Exact flips in the same metric make the start
+  // simplicial (uniformize/simplicial_flips.h). Checked: the case is
+  // exercised (simplicial_flips > 0), an embedding of the sphere with every
+  // input face outward, Möbius-centred.
+  // (12 x 40 and 30 x 200 at 40:1 still fail: robustness.md, "Genus 0".)
+  const TriMesh m = samples::bent_tapered_sphere(20, 60, 40.0);
+  const SphericalUniformization s = spherical_uniformization(m);
+  EXPECT_GT(s.simplicial_flips, 0);
+  expect_embedding(m, s);
+  expect_valid(m, s);
+  EXPECT_EQ(s.input_flipped_faces, 0);
+  EXPECT_LE(s.centre_of_mass_norm, 1e-10);
+}
+
 TEST(SphericalFlips, UniformizationIsUniqueUpToMobius) {
   // Discrete uniformization is unique up to Möbius maps (Springborn 2020):
   // two different vertices at infinity must give sphere images that differ

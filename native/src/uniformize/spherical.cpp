@@ -20,6 +20,7 @@
 #include "surfmap/error.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/mesh/connectivity.h"
+#include "surfmap/uniformize/simplicial_flips.h"
 
 namespace surfmap {
 namespace {
@@ -481,10 +482,41 @@ PuncturedDisk punctured_disk(const TriMesh& mesh, const Connectivity& conn, int 
     for (int k = 0; k < 3; ++k) start_sides(f, k) = input_lengths[conn.edge(3 * f + (k + 1) % 3)];
   if (options.intrinsic_delaunay) {
     const IntrinsicDelaunayResult idt = intrinsic_delaunay(conn, input_lengths);
-    start_faces = idt.F;
-    for (int f = 0; f < idt.F.rows(); ++f)
-      for (int k = 0; k < 3; ++k) start_sides(f, k) = idt.edges[idt.face_edges(f, (k + 1) % 3)].length;
     out.edge_flips += idt.flips;
+    // The intrinsic Delaunay triangulation is a Δ-complex: on a long, thin
+    // shape (a bent, tapered 40:1 sphere) two of its edges can join the same
+    // two vertices, which the disk's domain cannot name ("non-manifold
+    // edge"). Exact flips in the same metric make it simplicial
+    // (uniformize/simplicial_flips.h, as for the hyperbolic T'): the metric
+    // and so the conformal class are unchanged, only a few edges stop being
+    // Delaunay, and this happens before v0 is chosen, so every pole still
+    // starts from the same triangulation.
+    RicciFlowResult start;
+    start.background = Background::Euclidean;
+    start.faces = idt.F;
+    start.face_edges.resize(idt.F.rows(), 3);
+    for (int f = 0; f < idt.F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) start.face_edges(f, k) = idt.face_edges(f, (k + 1) % 3);  // side opposite corner k
+    start.edge_vertices.resize(static_cast<int>(idt.edges.size()), 2);
+    start.edge_lengths.resize(static_cast<int>(idt.edges.size()));
+    for (size_t e = 0; e < idt.edges.size(); ++e) {
+      start.edge_vertices(static_cast<int>(e), 0) = std::min(idt.edges[e].i, idt.edges[e].j);
+      start.edge_vertices(static_cast<int>(e), 1) = std::max(idt.edges[e].i, idt.edges[e].j);
+      start.edge_lengths[static_cast<int>(e)] = idt.edges[e].length;
+    }
+    if (!is_simplicial(start)) {
+      const SimplicialFlipsResult sf = make_simplicial(start);
+      out.edge_flips += sf.flips;
+      out.simplicial_flips += sf.flips;
+      if (!sf.simplicial)
+        throw SolveError("the whole sphere's intrinsic Delaunay triangulation has " +
+                         std::to_string(sf.loop_edges) + " loop and " + std::to_string(sf.multiple_edges) +
+                         " multiple edges, and " + std::to_string(sf.flips) +
+                         " exact flips did not make it simplicial");
+    }
+    start_faces = start.faces;
+    for (int f = 0; f < start.faces.rows(); ++f)
+      for (int k = 0; k < 3; ++k) start_sides(f, k) = start.edge_lengths[start.face_edges(f, k)];
   }
   Eigen::VectorXd& u = d.u;
   u.resize(n2);

@@ -90,6 +90,7 @@ struct SphericalUniformization {
   RowMatrixX3i intrinsic_faces;
   int ring_flips = 0;                  ///< flips of the removed vertex's ring edges and of its star edges (star flips)
   int edge_flips = 0;                  ///< intrinsic flips: the whole sphere's Delaunay start and the flattening (all rounds)
+  int simplicial_flips = 0;            ///< of edge_flips: exact flips making the Delaunay start simplicial (no two edges with the same ends)
   double time_s = 0;
   std::string message;                 ///< why it failed (names the element), empty on success
 };
