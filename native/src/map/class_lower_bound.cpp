@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <limits>
 #include <utility>
 
@@ -11,6 +12,12 @@
 #include "surfmap/topology/mapping_class_search.h"
 
 namespace surfmap {
+
+namespace {
+// Relative agreement of the double and extended-precision half traces for a
+// word whose matrix entries exceed 1e12 (length error about twice that).
+constexpr long double kTraceAgreement = 1e-9L;
+}  // namespace
 
 SurfaceGroupLengths::SurfaceGroupLengths(DeckGroup group, GroupMap canonical_to_loops, Word loop_relator,
                                          GroupMap caller_to_canonical)
@@ -61,8 +68,38 @@ double SurfaceGroupLengths::length(const Word& w, size_t max_letters) const {
   const double det = m.determinant();
   double half_trace = std::abs(m.a.real());
   if (det > 0.5 && det < 2) half_trace /= std::sqrt(det);
-  if (!std::isfinite(half_trace) || std::abs(m.a) > 1e12) return nan;
+  if (!std::isfinite(half_trace)) return nan;
+  if (std::abs(m.a) > 1e12) {
+    // Entries this large come from long curves (ℓ of 50 and more: the
+    // entries of even the shortest conjugate are about e^{ℓ/2}), not only
+    // from far conjugates. The determinant is then round-off, but the trace
+    // usually keeps a relative error of a few round-offs per letter. That is
+    // checked, not assumed: the same product in extended precision must give
+    // the same half trace, else the length is not evaluable. (A bare cap on
+    // the entries made such curves NaN on one machine and finite on another,
+    // a probe of the same surface then looked like a mismatch.)
+    const long double ld_half_trace = half_trace_extended(side);
+    if (!std::isfinite(ld_half_trace) ||
+        std::abs(static_cast<long double>(half_trace) - ld_half_trace) > kTraceAgreement * ld_half_trace)
+      return nan;
+    half_trace = static_cast<double>(ld_half_trace);
+  }
   return 2 * std::acosh(std::max(1.0, half_trace));
+}
+
+long double SurfaceGroupLengths::half_trace_extended(const Word& side) const {
+  using ComplexL = std::complex<long double>;
+  ComplexL a(1), b(0);
+  for (int x : side) {
+    const hyperbolic::Mobius f = group_.evaluate_side_word(Word{x});
+    const ComplexL fa(f.a.real(), f.a.imag()), fb(f.b.real(), f.b.imag());
+    const ComplexL na = a * fa + b * std::conj(fb), nb = a * fb + b * std::conj(fa);
+    a = na, b = nb;
+  }
+  const long double det = std::norm(a) - std::norm(b);
+  long double h = std::abs(a.real());
+  if (det > 0.5L && det < 2.0L) h /= std::sqrt(det);
+  return h;
 }
 
 bool SurfaceGroupLengths::element(const Word& w, hyperbolic::Mobius* m, size_t max_letters) const {

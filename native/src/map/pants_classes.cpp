@@ -135,6 +135,49 @@ GroupMap power(const SurfaceAutomorphism& t, int n, const DehnReducer& reduce) {
   return m;
 }
 
+// Height of the foot of e's axis on the axis r -> t (signed distance along
+// it up to a constant: log|z - r| - log|z - t| at the midpoint of the
+// endpoints' heights); NaN when e is not hyperbolic.
+double axis_foot(Complex r, Complex t, const hyperbolic::Mobius& e) {
+  Complex p, q;
+  if (!axis_endpoints(e, &p, &q)) return kNaN;
+  auto height = [&](Complex z) { return std::log(std::abs(z - r)) - std::log(std::abs(z - t)); };
+  return 0.5 * (height(p) + height(q));
+}
+
+// Foot of `side`'s axis on `curve`'s axis (twist_coordinate's frame of the
+// curve), measured on c^n side c^-n for the first n of 0, ±1, ..., ±8 whose
+// matrix there has the trace of side's short conjugate (within 1e-6
+// relative: its entries are accurate), and moved back by n ℓ
+// (c^n translates its own axis by n ℓ towards the attracting end, where the
+// height grows, so foot(side) = foot(c^n side c^-n) - n ℓ exactly); NaN
+// when none does.
+double side_foot(const SurfaceGroupLengths& lengths, const Word& curve, const Word& side) {
+  const double ell = lengths.length(curve);
+  if (!std::isfinite(ell) || !(ell > 0)) return kNaN;
+  const double side_length = lengths.length(side);
+  if (!std::isfinite(side_length) || !(side_length > 0)) return kNaN;
+  const double side_half_trace = std::cosh(side_length / 2);
+  const DehnReducer reduce(canonical_relator(lengths.genus()));
+  for (int k = 0; k <= 16; ++k) {
+    const int n = (k % 2 == 1) ? (k + 1) / 2 : -(k / 2);
+    Word cn;
+    for (int i = 0; i < std::abs(n); ++i) cn.insert(cn.end(), curve.begin(), curve.end());
+    if (n < 0) cn = inverse(cn);
+    const Word w = reduce(conjugated(cn, side));
+    std::vector<hyperbolic::Mobius> m;
+    if (!lengths.elements_in_frame_of_first({curve, w}, &m)) continue;
+    // (The determinant is round-off for entries beyond 1e8; the trace,
+    // compared with the short conjugate's, tells a usable matrix.)
+    if (!(std::abs(std::abs(m[1].a.real()) - side_half_trace) <= 1e-6 * side_half_trace)) continue;
+    Complex r, t;
+    if (!axis_endpoints(m[0], &r, &t)) return kNaN;
+    const double foot = axis_foot(r, t, m[1]);
+    if (std::isfinite(foot)) return foot - n * ell;
+  }
+  return kNaN;
+}
+
 }  // namespace
 
 std::vector<StandardPantsCurve> standard_pants_curves(int genus) {
@@ -216,17 +259,18 @@ std::vector<PantsSymmetry> pants_symmetries(int genus) {
 
 double twist_coordinate(const SurfaceGroupLengths& lengths, const Word& curve, const Word& side1, const Word& side2) {
   std::vector<hyperbolic::Mobius> m;
-  if (!lengths.elements_in_frame_of_first({curve, side1, side2}, &m)) return kNaN;
+  if (!lengths.elements_in_frame_of_first({curve, side1, side2}, &m)) {
+    // A side element whose axis lies far along the curve's axis (its word a
+    // long conjugate) has entries beyond double precision in the curve's
+    // frame. The feet are then measured per side (the frame depends on the
+    // curve alone, so it is the same), through conjugates by curve powers.
+    const double f1 = side_foot(lengths, curve, side1), f2 = side_foot(lengths, curve, side2);
+    return f2 - f1;
+  }
   const hyperbolic::Mobius &c = m[0], &e1 = m[1], &e2 = m[2];
   Complex r, t;
   if (!axis_endpoints(c, &r, &t)) return kNaN;
-  auto foot = [&](const hyperbolic::Mobius& e) {
-    Complex p, q;
-    if (!axis_endpoints(e, &p, &q)) return kNaN;
-    auto height = [&](Complex z) { return std::log(std::abs(z - r)) - std::log(std::abs(z - t)); };
-    return 0.5 * (height(p) + height(q));
-  };
-  return foot(e2) - foot(e1);
+  return axis_foot(r, t, e2) - axis_foot(r, t, e1);
 }
 
 std::vector<PantsCurve> pants_coordinates(const SurfaceGroupLengths& lengths, const GroupMap& marking) {
@@ -449,12 +493,17 @@ std::vector<PantsClass> pants_classes(const SurfaceGroupLengths& source, const P
   }
   std::stable_sort(ranked.begin(), ranked.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
   ranked.resize(std::min<size_t>(ranked.size(), static_cast<size_t>(std::max(1, options.permutations))));
-  // Probes of the source decomposition's marking, for the final ranking.
+  // Probes of the source decomposition's marking, for the final ranking. A
+  // probe whose length in X is not evaluable would add the same 1e6 to every
+  // class: it says nothing about the class, so it is left out.
   std::vector<Word> probe_words;
   std::vector<double> probe_x;
   for (const Word& p : marking_probes(g)) {
-    probe_words.push_back(reduce(substitute(p, mx)));
-    probe_x.push_back(source.length(probe_words.back()));
+    Word w = reduce(substitute(p, mx));
+    const double x = source.length(w);
+    if (!std::isfinite(x) || !(x > 0)) continue;
+    probe_words.push_back(std::move(w));
+    probe_x.push_back(x);
   }
   std::vector<PantsClass> out;
   for (const auto& [score, perm] : ranked)

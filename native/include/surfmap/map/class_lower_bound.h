@@ -49,8 +49,10 @@ class SurfaceGroupLengths {
   int genus() const { return genus_; }
   /// Length of the closed geodesic freely homotopic to `w` (caller's
   /// canonical letters): 2 arccosh(|tr| / 2); 0 for the identity; NaN when
-  /// the word reduces to more than `max_letters` loop letters or its matrix
-  /// leaves double range (too long to evaluate: callers must then not use it).
+  /// the word reduces to more than `max_letters` loop letters or its trace
+  /// cannot be trusted (leaves double range, or, for matrix entries beyond
+  /// 1e12, disagrees with the extended-precision product by more than 1e-9
+  /// relative): too long to evaluate, callers must then not use it.
   double length(const Word& w, size_t max_letters = 4000) const;
   /// The deck element of `w` itself (caller's canonical letters), not a
   /// conjugate: for geometry that relates several elements (the axes of a
@@ -68,6 +70,8 @@ class SurfaceGroupLengths {
                                   size_t max_letters = 4000) const;
 
  private:
+  // |tr| / 2 of a side word's matrix multiplied out in long double.
+  long double half_trace_extended(const Word& side) const;
   DeckGroup group_;
   GroupMap canonical_to_loops_, caller_to_canonical_;
   DehnReducer reduce_canonical_, reduce_loops_;

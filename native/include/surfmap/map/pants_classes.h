@@ -86,6 +86,9 @@ std::vector<PantsSymmetry> pants_symmetries(int genus);
 /// Twist coordinate (file comment) of the curve `curve` with seams towards
 /// `side1` and `side2` (caller's canonical letters), in the metric of
 /// `lengths`; NaN when an element cannot be evaluated or is not hyperbolic.
+/// A side element too far out in the curve's frame for double precision is
+/// measured through a conjugate by a power c^n of the curve, whose foot is
+/// n ℓ(c) further along the axis (the shift is taken off again).
 double twist_coordinate(const SurfaceGroupLengths& lengths, const Word& curve, const Word& side1, const Word& side2);
 
 struct PantsDecompositionOptions {
@@ -150,7 +153,8 @@ struct PantsClass {
   std::vector<int> twists;  ///< n_c per standard curve
   double length_mismatch = 0;  ///< Σ_c (log ℓ_X(c) − log ℓ_Y(θ c))² over the pants curves
   double twist_mismatch = 0;   ///< Σ_c ((τ_X(c) − τ_Y(θ c)) / ℓ_X(c))² after the twists
-  double mismatch = 0;         ///< Σ over marking_probes of M_X (geometric_classes.h's measure)
+  double mismatch = 0;         ///< Σ over marking_probes of M_X (geometric_classes.h's measure); probes whose
+                               ///< length in X is not evaluable are left out (they would count alike for every class)
   std::string description;     ///< e.g. "pants handles 1->2 (half turn), 2->1; twists a1 -1, s1 +2"
 };
 
