@@ -595,6 +595,10 @@ struct SurfaceMapResult {
   /// (SourceWeights; after the automatic fallback the candidates' energies
   /// and the ranking are those of the intrinsic weights). Empty for genus 0.
   std::string source_weights;
+  /// Genus >= 2, after the automatic fallback to own-edge weights: why (the
+  /// intrinsic map's counts of folded and flattened source faces). Empty
+  /// otherwise.
+  std::string source_weights_reason;
   std::vector<HomotopyCandidate> candidates;
   int chosen_candidate = -1;
   /// Genus >= 2 (issue 19; HomotopyOptions::ranking_gap): coarse solves the
