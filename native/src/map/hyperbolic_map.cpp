@@ -1228,7 +1228,7 @@ void HyperbolicPipeline::choose_with_landmarks() {
 // follows the new weights.
 void HyperbolicPipeline::switch_to_own_weights() {
   own_weights = true;
-  ss.idt = positive_edge_weights(sc, edge_lengths(source, sc));
+  ss.idt = positive_edge_weights(sc, edge_lengths(source, sc), {options.solve.own_weights_floor});
   index_solver_edges(sc, ss.idt, solver_index);
   fine_solver.reset();  // (another pattern)
   for (int k = 0; k < ncand; ++k)
