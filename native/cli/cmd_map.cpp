@@ -62,7 +62,7 @@ void register_map(CLI::App& app) {
         target_metric = enum_name(UniformizationMetric::Automatic);
     int threads = 0, homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
-    double tolerance = 1e-10;
+    double tolerance = 1e-10, own_weights_floor = 0.1;
     bool quiet = false, timings = false, no_homotopy_search = false, no_two_way = false, compare_directions = false;
     bool no_greedy_pants = false;  // HomotopySearchOptions::greedy_pants
     bool homotopy_both_signs = true;     // HomotopyOptions::flat_both_signs
@@ -86,6 +86,9 @@ void register_map(CLI::App& app) {
                   "Genus >= 1: energy weights on the source: auto (intrinsic Delaunay cotangents, positive weights on the "
                   "source's own edges if its faces' images fold), intrinsic, own")
       ->check(CLI::IsMember(enum_name_list<SourceWeights>()));
+  cmd->add_option("--own-weights-floor", a->own_weights_floor,
+                  "Genus >= 1, own-edge weights: least weight, times the mean positive cotangent weight (default 0.1)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--landmarks", a->landmarks,
                   "PAIRS.txt: one 'source_vertex target_vertex' pair per line (# starts a comment), held fixed");
   cmd->add_option("--tolerance", a->tolerance, "Relative gradient tolerance of the harmonic solve")
@@ -177,6 +180,7 @@ void register_map(CLI::App& app) {
     opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
     opt.solve.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
     opt.solve.tolerance = a->tolerance;
+    opt.solve.own_weights_floor = a->own_weights_floor;
     opt.solve.max_iterations = a->max_iterations;
     opt.homotopy.candidates = a->homotopy_candidates;
     opt.homotopy.full_solves = a->homotopy_full_solves;

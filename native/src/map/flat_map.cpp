@@ -400,7 +400,7 @@ bool flat_pass(const FlatInputs& in, bool own_weights, bool first_pass, SurfaceM
   const SurfaceMapOptions& options = in.options;
   const FlatTarget& tgt = in.tgt;
   const IntrinsicDelaunayResult idt =
-      own_weights ? positive_edge_weights(in.sc, in.lengths) : delaunay_energy_weights(in.sc, in.lengths);
+      own_weights ? positive_edge_weights(in.sc, in.lengths, {options.solve.own_weights_floor}) : delaunay_energy_weights(in.sc, in.lengths);
   if (!idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
   out.source_weights = source_weights_name(own_weights, idt.raised_weights);
   in.stage_done("source homotopy data and weights", 0.4);

@@ -165,6 +165,9 @@ class HyperbolicPipeline {
   // Delaunay weights, kept when the weights fall back to the source's own
   // edges (SurfaceMapResult::intrinsic_class_energy); NaN: none.
   std::vector<double> intrinsic_energy;
+  /// Why the automatic weights fell back to the source's own edges (the
+  /// intrinsic map's fold counts), a note of the result; empty otherwise.
+  std::string own_weights_reason;
 
   // Raised on the way out (declared before the second thread, so it outlives
   // it): the source's own uniformization there then stops at its next Newton
@@ -1339,7 +1342,7 @@ void HyperbolicPipeline::choose_with_landmarks() {
 // follows the new weights.
 void HyperbolicPipeline::switch_to_own_weights() {
   own_weights = true;
-  ss.idt = positive_edge_weights(sc, edge_lengths(source, sc));
+  ss.idt = positive_edge_weights(sc, edge_lengths(source, sc), {options.solve.own_weights_floor});
   index_solver_edges(sc, ss.idt, solver_index);
   fine_solver.reset();  // (another pattern)
   // (empty: never evaluable, or released: data_for builds it with the new
@@ -1440,6 +1443,11 @@ bool map_class(HyperbolicPipeline& p) {
     for (int q = 0; q < p.ncand; ++q)
       if (out.candidates[q].solved) p.intrinsic_energy[q] = out.candidates[q].energy;
     p.intrinsic_energy[k] = free_energy;
+    p.own_weights_reason = "the intrinsic Delaunay map of class " + std::to_string(k) + " folds " +
+                           std::to_string(out.flipped_triangles) + " and flattens " +
+                           std::to_string(out.degenerate_triangles) + " of the source's faces (" +
+                           std::to_string(out.intrinsic_flipped_triangles) +
+                           " intrinsic triangles flipped): mapped again with positive weights on its own edges";
     p.switch_to_own_weights();
     return false;
   }
@@ -1498,6 +1506,7 @@ void map_with_fallback(HyperbolicPipeline& p) {
       if (map_class(p)) {
         const int k = out.chosen_candidate;
         if (p.own_weights && k < static_cast<int>(p.intrinsic_energy.size())) out.intrinsic_class_energy = p.intrinsic_energy[k];
+        out.source_weights_reason = p.own_weights_reason;
         return;
       }
       reset_keeping_candidates();  // the source weights changed: the same class again

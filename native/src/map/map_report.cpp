@@ -24,7 +24,8 @@ json energy_json(const SurfaceMapResult& r) {
           {"target_flips", r.target_flips},
           {"target_metric_choice", r.target_metric_choice},
           {"target_class_loops", r.target_class_loops},
-          {"source_weights", r.source_weights}};
+          {"source_weights", r.source_weights},
+          {"source_weights_reason", r.source_weights_reason}};
 }
 
 json landmark_json(const SurfaceMapResult& r, const SurfaceMapOptions& options) {

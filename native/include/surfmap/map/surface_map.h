@@ -271,6 +271,13 @@ struct SolveOptions {
   unsigned start_seed = 0;
   /// Genus >= 1: weights of the energy on the source (default Automatic).
   SourceWeights source_weights = SourceWeights::Automatic;
+  /// Genus >= 1, own-edge weights (OwnEdges, or the Automatic fallback):
+  /// every weight is at least this times the mean positive cotangent weight
+  /// (PositiveEdgeWeightsOptions::floor; default 0.1, must be > 0). Any
+  /// positive floor embeds the user's faces; a lower one stays closer to the
+  /// cotangents (lower D' where they were negative), see
+  /// docs/handle_classes.md "Own-edge weights' floor".
+  double own_weights_floor = 0.1;
 };
 
 /// The initial ("before") map (SurfaceMapOptions::initial).
@@ -608,6 +615,10 @@ struct SurfaceMapResult {
   /// (SourceWeights; after the automatic fallback the candidates' energies
   /// and the ranking are those of the intrinsic weights). Empty for genus 0.
   std::string source_weights;
+  /// Genus >= 2, after the automatic fallback to own-edge weights: why (the
+  /// intrinsic map's counts of folded and flattened source faces). Empty
+  /// otherwise.
+  std::string source_weights_reason;
   std::vector<HomotopyCandidate> candidates;
   int chosen_candidate = -1;
   /// Genus >= 2 (issue 19; HomotopyOptions::ranking_gap): coarse solves the

@@ -28,7 +28,7 @@ SourceSide build_source_side(const TriMesh& source, const Connectivity& sc, cons
   // The energy's triangulation and weights: intrinsic Delaunay, or positive
   // weights on the source's own edges (options.solve.source_weights; the automatic
   // fallback below switches when the user's faces fold).
-  ss.idt = own_weights ? positive_edge_weights(sc, edge_lengths(source, sc))
+  ss.idt = own_weights ? positive_edge_weights(sc, edge_lengths(source, sc), {options.solve.own_weights_floor})
                        : delaunay_energy_weights(sc, edge_lengths(source, sc));
   if (!ss.idt.delaunay) throw SolveError("the source's intrinsic Delaunay flips did not finish");
   ss.shb = handle_basis(source, ss.sl.loops, ss.scs);
