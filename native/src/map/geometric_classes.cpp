@@ -298,20 +298,27 @@ std::vector<GeometricClass> geometric_classes(const SurfaceGroupLengths& source,
   pairings.resize(std::min<size_t>(pairings.size(), static_cast<size_t>(keep)));
   // 2. Every half-turn pattern of the kept pairings, lifted exactly and
   // ranked by all probes.
+  // A probe whose length in X is not evaluable would add the same 1e6 to
+  // every class's mismatch: it says nothing about the class (and hides the
+  // identity's 0), so it is left out. A probe not evaluable in Y under one
+  // class still penalises that class (log_gap).
   const std::vector<Word> probes = marking_probes(g);
-  std::vector<Word> probe_words;  // probes in X's canonical letters
+  std::vector<Word> probe_words;  // evaluable probes in X's canonical letters
   std::vector<double> probe_x;    // their lengths in X
   for (const Word& p : probes) {
-    probe_words.push_back(reduce(substitute(p, source_marking.marking.map)));
-    probe_x.push_back(source.length(probe_words.back()));
+    Word w = reduce(substitute(p, source_marking.marking.map));
+    const double x = source.length(w);
+    if (!std::isfinite(x) || !(x > 0)) continue;
+    probe_words.push_back(std::move(w));
+    probe_x.push_back(x);
   }
   // Length evaluations spent (the descents stop at options.length_budget:
   // genus 6 has 144 probes and 88 one-sided twists per step).
   size_t spent = 0;
   auto mismatch = [&](const GroupMap& theta) {
-    spent += probes.size();
+    spent += probe_words.size();
     double m = 0;
-    for (size_t k = 0; k < probes.size(); ++k) m += log_gap(probe_x[k], target.length(reduce(substitute(probe_words[k], theta))));
+    for (size_t k = 0; k < probe_words.size(); ++k) m += log_gap(probe_x[k], target.length(reduce(substitute(probe_words[k], theta))));
     return m;
   };
   std::vector<GeometricClass> out;
@@ -364,7 +371,7 @@ std::vector<GeometricClass> geometric_classes(const SurfaceGroupLengths& source,
     if (c.mismatch <= 1e-12) continue;
     if (spent >= options.length_budget) break;
     // (A step costs about 2 #moves mismatches: the budget caps the steps.)
-    const size_t per_step = 2 * moves.size() * probes.size();
+    const size_t per_step = 2 * moves.size() * std::max<size_t>(1, probe_words.size());
     const int steps = static_cast<int>(std::min<size_t>(options.max_steps, (options.length_budget - spent) / per_step + 1));
     const Descent d = descend(c.theta, mismatch, moves, true, steps, true, options.max_pairs, 1e-9, reduce);
     c.theta = d.map;

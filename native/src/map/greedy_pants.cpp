@@ -374,11 +374,18 @@ std::vector<GreedyPantsClass> greedy_pants_classes(const SurfaceGroupLengths& so
   const DehnReducer reduce(canonical_relator(g));
   LengthMemo length_x(source), length_y(target);
   // The twist term's probes, in X's canonical letters, and their lengths.
+  // A probe whose length in X is not evaluable would add the same 1e6 to
+  // every class's twist term: it says nothing about the class, so it is left
+  // out. A probe not evaluable in Y under one class still penalises that
+  // class (squared_log_gap).
   std::vector<Word> probes;
   std::vector<double> probe_x;
   for (const Word& p : marking_probes(g)) {
-    probes.push_back(reduce(substitute(p, source_marking.marking.map)));
-    probe_x.push_back(length_x(probes.back()));
+    Word w = reduce(substitute(p, source_marking.marking.map));
+    const double x = length_x(w);
+    if (!std::isfinite(x) || !(x > 0)) continue;
+    probes.push_back(std::move(w));
+    probe_x.push_back(x);
   }
   const double curves = static_cast<double>(source_pants.curves.size() + target_pants.curves.size());
   auto evaluate = [&](ClassState& s) {
@@ -391,7 +398,7 @@ std::vector<GreedyPantsClass> greedy_pants_classes(const SurfaceGroupLengths& so
     for (size_t k = 0; k < probes.size(); ++k)
       twist += squared_log_gap(probe_x[k], length_y(reduce(substitute(probes[k], s.theta))));
     s.pants = curves > 0 ? pants / curves : 0;
-    s.twist = twist / static_cast<double>(probes.size());
+    s.twist = probes.empty() ? 0 : twist / static_cast<double>(probes.size());
     s.cost = s.pants + options.twist_weight * s.twist;
   };
   // 1. Starts: the signed handle pairings of the markings, lifted exactly,

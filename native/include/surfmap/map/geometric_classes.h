@@ -131,7 +131,9 @@ struct GeometricClass {
   GroupMap theta;                ///< X canonical letter -> word in Y's canonical letters
   std::vector<int> permutation;  ///< marking handle i of X -> marking handle permutation[i] of Y
   std::vector<int> rotation;     ///< quarter turns 0..3 of each handle
-  double mismatch = 0;           ///< Σ over probes (log ℓ_X(p) − log ℓ_Y(θ p))²
+  double mismatch = 0;           ///< Σ over probes (log ℓ_X(p) − log ℓ_Y(θ p))²; probes whose length in X
+                                 ///< is not evaluable are left out (they would count alike for every class),
+                                 ///< one not evaluable in Y adds 1e6
   std::string description;       ///< e.g. "marking handles 1->2 (quarter turn), 2->1"
 };
 

@@ -141,7 +141,9 @@ struct GreedyPantsClass {
   double pants_mismatch = 0;
   /// Twist term: the mean of (log ℓ_X(p) − log ℓ_Y(θ p))² over X's marking
   /// probes x_j, x_i x_j^±1 (marking_probes): the curves that cross the
-  /// pants curves, which Dehn twists along them lengthen.
+  /// pants curves, which Dehn twists along them lengthen. Probes whose
+  /// length in X is not evaluable are left out (they would count alike for
+  /// every class); one not evaluable in Y under θ adds 1e6.
   double twist_mismatch = 0;
   double cost = 0;  ///< pants_mismatch + twist_weight · twist_mismatch
   /// Σ_c collar_modulus(ℓ_X(c)) ℓ_Y(θ c)² over X's greedy curves: a lower
