@@ -180,7 +180,8 @@ TEST(Spherical, RejectsHigherGenus) {
 // callback throws SolveError, as the flow does when its Ptolemy flips cycle)
 // is that pole's failure: the next pole is tried and gives a valid map.
 TEST(Spherical, SolveErrorOfOnePoleTriesTheNextPole) {
-  const TriMesh m = icosphere(2);
+  TriMesh m = icosphere(2);
+  m.V.col(0) *= 2.0;  // an ellipsoid: the inverted start is not flat, so the flow iterates
   const SphericalUniformization plain = spherical_uniformization(m);
   ASSERT_TRUE(plain.converged) << plain.message;
   int calls = 0;
@@ -198,7 +199,8 @@ TEST(Spherical, SolveErrorOfOnePoleTriesTheNextPole) {
 // and its message names each pole tried with its reason; cancellation is
 // no pole's failure and still ends the run at once.
 TEST(Spherical, SolveErrorsOfEveryPoleAreListedAndCancelStops) {
-  const TriMesh m = icosphere(1);
+  TriMesh m = icosphere(1);
+  m.V.col(0) *= 2.0;
   SphericalUniformizationOptions options;
   options.flow.progress = [](int, double) -> bool { throw SolveError("forced pole failure"); };
   SphericalUniformization s;
