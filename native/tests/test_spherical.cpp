@@ -8,6 +8,7 @@
 #include <complex>
 #include <map>
 #include <random>
+#include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -173,6 +174,52 @@ TEST(Spherical, RejectsHigherGenus) {
     t.F.row(2 * i + 1) << i, (i + 3) % 7, (i + 2) % 7;
   }
   EXPECT_THROW(spherical_uniformization(t), InputError);
+}
+
+// A solver failure of one pole's attempt (here forced: the flow's progress
+// callback throws SolveError, as the flow does when its Ptolemy flips cycle)
+// is that pole's failure: the next pole is tried and gives a valid map.
+TEST(Spherical, SolveErrorOfOnePoleTriesTheNextPole) {
+  TriMesh m = icosphere(2);
+  m.V.col(0) *= 2.0;  // an ellipsoid: the inverted start is not flat, so the flow iterates
+  const SphericalUniformization plain = spherical_uniformization(m);
+  ASSERT_TRUE(plain.converged) << plain.message;
+  int calls = 0;
+  SphericalUniformizationOptions options;
+  options.flow.progress = [&](int, double) {
+    if (calls++ == 0) throw SolveError("forced failure of the first pole");
+    return true;
+  };
+  const SphericalUniformization s = spherical_uniformization(m, options);
+  expect_valid(m, s);
+  EXPECT_NE(s.removed_vertex, plain.removed_vertex);  // the first pole failed, another one gave the map
+}
+
+// When every pole's attempt throws SolveError the result is not converged
+// and its message names each pole tried with its reason; cancellation is
+// no pole's failure and still ends the run at once.
+TEST(Spherical, SolveErrorsOfEveryPoleAreListedAndCancelStops) {
+  TriMesh m = icosphere(1);
+  m.V.col(0) *= 2.0;
+  SphericalUniformizationOptions options;
+  options.flow.progress = [](int, double) -> bool { throw SolveError("forced pole failure"); };
+  SphericalUniformization s;
+  ASSERT_NO_THROW(s = spherical_uniformization(m, options));
+  EXPECT_FALSE(s.converged);
+  EXPECT_NE(s.message.find("no removed vertex gave a valid map"), std::string::npos) << s.message;
+  int reasons = 0;
+  for (size_t at = s.message.find("forced pole failure"); at != std::string::npos;
+       at = s.message.find("forced pole failure", at + 1))
+    ++reasons;
+  EXPECT_GE(reasons, 2) << s.message;  // more than one pole was tried
+
+  int calls = 0;
+  SphericalUniformizationOptions cancel;
+  cancel.flow.progress = [&](int, double) { return ++calls > 1 ? false : true; };
+  EXPECT_THROW(spherical_uniformization(m, cancel), Cancelled);
+  // With a given pole its own solver failure is the caller's to see.
+  options.removed_vertex = 0;
+  EXPECT_THROW(spherical_uniformization(m, options), SolveError);
 }
 
 }  // namespace

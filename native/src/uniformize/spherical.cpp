@@ -447,27 +447,21 @@ struct PuncturedDisk {
   Eigen::VectorXd u;
 };
 
-/// The punctured disk of `mesh` without v0, on the input's lengths (with
-/// options.intrinsic_delaunay, on their intrinsic Delaunay triangulation;
-/// its flips are added to out.edge_flips). Throws InputError when v0's link
-/// is not a simple cycle.
-PuncturedDisk punctured_disk(const TriMesh& mesh, const Connectivity& conn, int v0,
-                             const SphericalUniformizationOptions& options, SphericalUniformization& out) {
-  const int nv = conn.num_vertices();
-  PuncturedDisk d;
-  d.v0 = v0;
-  std::vector<int>& new_id = d.new_id;
-  std::vector<int>& old_id = d.old_id;
-  PuncturedTriangulation& pt = d.pt;
-  // Punctured disk, vertices renumbered without v0 (v0 itself: n2).
-  new_id.assign(nv, -1);
-  for (int v = 0; v < nv; ++v)
-    if (v != v0) {
-      new_id[v] = static_cast<int>(old_id.size());
-      old_id.push_back(v);
-    }
-  const int n2 = d.n2 = nv - 1;
-  pt.pole = n2;
+/// The triangulation every pole starts from (#F faces, input vertex ids,
+/// sides opposite corner k): the input's, or with options.intrinsic_delaunay
+/// its intrinsic Delaunay triangulation made simplicial. It does not depend
+/// on the removed vertex, so it is built once, before the poles are tried,
+/// and its failure (a SolveError) is the whole mesh's, not one pole's.
+struct SphereStart {
+  RowMatrixX3i faces;
+  RowMatrixX3d sides;
+  int edge_flips = 0, simplicial_flips = 0;
+};
+
+SphereStart sphere_start(const TriMesh& mesh, const Connectivity& conn, const SphericalUniformizationOptions& options) {
+  SphereStart st;
+  RowMatrixX3i& start_faces = st.faces;
+  RowMatrixX3d& start_sides = st.sides;
   // The input's lengths, mollified like every other path (intake notes the
   // faces touched; nearly degenerate faces get a strict triangle inequality).
   // With flips, the start is the intrinsic Delaunay triangulation of the
@@ -476,13 +470,13 @@ PuncturedDisk punctured_disk(const TriMesh& mesh, const Connectivity& conn, int 
   // removed vertex, so that every pole gives the same sphere up to Möbius
   // maps (the disk flow could not flip the star's edges exactly).
   const Eigen::VectorXd input_lengths = edge_lengths(mesh, conn);
-  RowMatrixX3i start_faces = mesh.F;
-  RowMatrixX3d start_sides(conn.num_faces(), 3);  // side opposite corner k
+  start_faces = mesh.F;
+  start_sides.resize(conn.num_faces(), 3);  // side opposite corner k
   for (int f = 0; f < conn.num_faces(); ++f)
     for (int k = 0; k < 3; ++k) start_sides(f, k) = input_lengths[conn.edge(3 * f + (k + 1) % 3)];
   if (options.intrinsic_delaunay) {
     const IntrinsicDelaunayResult idt = intrinsic_delaunay(conn, input_lengths);
-    out.edge_flips += idt.flips;
+    st.edge_flips += idt.flips;
     // The intrinsic Delaunay triangulation is a Δ-complex: on a long, thin
     // shape (a bent, tapered 40:1 sphere) two of its edges can join the same
     // two vertices, which the disk's domain cannot name ("non-manifold
@@ -506,8 +500,8 @@ PuncturedDisk punctured_disk(const TriMesh& mesh, const Connectivity& conn, int 
     }
     if (!is_simplicial(start)) {
       const SimplicialFlipsResult sf = make_simplicial(start);
-      out.edge_flips += sf.flips;
-      out.simplicial_flips += sf.flips;
+      st.edge_flips += sf.flips;
+      st.simplicial_flips += sf.flips;
       if (!sf.simplicial)
         throw SolveError("the whole sphere's intrinsic Delaunay triangulation has " +
                          std::to_string(sf.loop_edges) + " loop and " + std::to_string(sf.multiple_edges) +
@@ -518,6 +512,35 @@ PuncturedDisk punctured_disk(const TriMesh& mesh, const Connectivity& conn, int 
     for (int f = 0; f < start.faces.rows(); ++f)
       for (int k = 0; k < 3; ++k) start_sides(f, k) = start.edge_lengths[start.face_edges(f, k)];
   }
+  return st;
+}
+
+/// The punctured disk of `mesh` without v0, on the input's lengths (with
+/// options.intrinsic_delaunay, on their intrinsic Delaunay triangulation;
+/// its flips are added to out.edge_flips). Throws InputError when v0's link
+/// is not a simple cycle.
+PuncturedDisk punctured_disk(const TriMesh& mesh, const Connectivity& conn, int v0, const SphereStart& start,
+                             SphericalUniformization& out) {
+  const int nv = conn.num_vertices();
+  PuncturedDisk d;
+  d.v0 = v0;
+  std::vector<int>& new_id = d.new_id;
+  std::vector<int>& old_id = d.old_id;
+  PuncturedTriangulation& pt = d.pt;
+  // Punctured disk, vertices renumbered without v0 (v0 itself: n2).
+  new_id.assign(nv, -1);
+  for (int v = 0; v < nv; ++v)
+    if (v != v0) {
+      new_id[v] = static_cast<int>(old_id.size());
+      old_id.push_back(v);
+    }
+  const int n2 = d.n2 = nv - 1;
+  pt.pole = n2;
+  // The start triangulation (sphere_start), shared by every pole.
+  const RowMatrixX3i& start_faces = start.faces;
+  const RowMatrixX3d& start_sides = start.sides;
+  out.edge_flips += start.edge_flips;
+  out.simplicial_flips += start.simplicial_flips;
   Eigen::VectorXd& u = d.u;
   u.resize(n2);
   for (int i = 0; i < n2; ++i) u[i] = -2.0 * std::log((mesh.V.row(old_id[i]) - mesh.V.row(v0)).norm());
@@ -687,12 +710,12 @@ RicciFlowResult flatten_punctured_disk(PuncturedDisk& d, const SphericalUniformi
 /// with v0 at infinity (rounds of the Dirichlet flow, ring flips between
 /// them), laid out, projected to the sphere, Möbius-centred and checked.
 static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& conn, int v0,
-                                       const SphericalUniformizationOptions& options) {
+                                       const SphereStart& start, const SphericalUniformizationOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   const int nv = conn.num_vertices();
   SphericalUniformization out;
   out.removed_vertex = v0;
-  PuncturedDisk d = punctured_disk(mesh, conn, v0, options, out);
+  PuncturedDisk d = punctured_disk(mesh, conn, v0, start, out);
   const RicciFlowResult flat = flatten_punctured_disk(d, options, out);
   const int n2 = d.n2;
   const PuncturedTriangulation& pt = d.pt;
@@ -738,7 +761,8 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
   if (nv < 4) throw InputError("spherical_uniformization needs at least 4 vertices");
   if (options.removed_vertex >= nv)
     throw InputError("removed_vertex " + std::to_string(options.removed_vertex) + " is out of range");
-  if (options.removed_vertex >= 0) return attempt(mesh, conn, options.removed_vertex, options);
+  const SphereStart start = sphere_start(mesh, conn, options);  // the whole mesh's: a failure here is final
+  if (options.removed_vertex >= 0) return attempt(mesh, conn, options.removed_vertex, start, options);
   // Default: the highest-valence vertex; when that fails (the flat metric of
   // the punctured disk can degenerate next to the fixed boundary), a few more
   // candidates spread over the vertex order, keeping the best result.
@@ -780,8 +804,15 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
   for (int v0 : candidates) {
     SphericalUniformization r;
     try {
-      r = attempt(mesh, conn, v0, options);
+      r = attempt(mesh, conn, v0, start, options);
     } catch (const InputError& e) {  // e.g. a link that is not a simple cycle: try the next vertex
+      tried += (tried.empty() ? "" : "; ") + std::to_string(v0) + ": " + e.what();
+      continue;
+    } catch (const SolveError& e) {
+      // This pole's flow failed (e.g. its Ptolemy flips cycled on a long
+      // 40:1 shape): another pole gives another disk and may well succeed.
+      // The whole mesh's checks and start (sphere_start) ran before the
+      // loop; Cancelled is no SolveError and still ends the run at once.
       tried += (tried.empty() ? "" : "; ") + std::to_string(v0) + ": " + e.what();
       continue;
     }

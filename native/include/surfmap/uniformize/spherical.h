@@ -31,6 +31,11 @@ struct SphericalUniformizationOptions {
   /// Vertex sent to the pole before centring; -1 (default): the vertex of
   /// highest valence, then a few others spread over the vertex order and the
   /// 12 vertices with the best-shaped neighbourhoods if that one fails.
+  /// A pole fails by a non-converged result or by an InputError or
+  /// SolveError of its own attempt (e.g. its flow's Ptolemy flips cycle):
+  /// the next pole is tried, and when all fail the result is not converged
+  /// and its message lists every pole's reason. Cancelled, and errors of the
+  /// whole mesh (genus, the whole sphere's Delaunay start), end the run.
   int removed_vertex = -1;
   /// Options of the inner Euclidean flow (scheme/method/tolerance/progress).
   RicciFlowOptions flow;
@@ -96,6 +101,9 @@ struct SphericalUniformization {
 };
 
 /// mesh: closed, manifold, oriented outward, genus 0 (InputError otherwise).
+/// Throws SolveError when the whole sphere's intrinsic Delaunay start cannot
+/// be made simplicial, Cancelled when options.flow.progress asks to stop;
+/// with a given removed_vertex, that pole's InputError / SolveError too.
 SphericalUniformization spherical_uniformization(const TriMesh& mesh,
                                                  const SphericalUniformizationOptions& options = {});
 
