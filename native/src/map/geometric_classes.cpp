@@ -89,6 +89,19 @@ std::vector<Word> marking_probes(int genus) {
   return probes;
 }
 
+EvaluableProbes evaluable_probes(const GroupMap& marking_map, const DehnReducer& reduce,
+                                 const std::function<double(const Word&)>& length_in_x) {
+  EvaluableProbes out;
+  for (const Word& p : marking_probes(static_cast<int>(marking_map.size()) / 2)) {
+    Word w = reduce(substitute(p, marking_map));
+    const double x = length_in_x(w);
+    if (!std::isfinite(x) || !(x > 0)) continue;
+    out.words.push_back(std::move(w));
+    out.lengths.push_back(x);
+  }
+  return out;
+}
+
 namespace {
 
 // One move of a descent: moves[move] composed on the right (map ∘ m: a
@@ -298,20 +311,11 @@ std::vector<GeometricClass> geometric_classes(const SurfaceGroupLengths& source,
   pairings.resize(std::min<size_t>(pairings.size(), static_cast<size_t>(keep)));
   // 2. Every half-turn pattern of the kept pairings, lifted exactly and
   // ranked by all probes.
-  // A probe whose length in X is not evaluable would add the same 1e6 to
-  // every class's mismatch: it says nothing about the class (and hides the
-  // identity's 0), so it is left out. A probe not evaluable in Y under one
-  // class still penalises that class (log_gap).
-  const std::vector<Word> probes = marking_probes(g);
-  std::vector<Word> probe_words;  // evaluable probes in X's canonical letters
-  std::vector<double> probe_x;    // their lengths in X
-  for (const Word& p : probes) {
-    Word w = reduce(substitute(p, source_marking.marking.map));
-    const double x = source.length(w);
-    if (!std::isfinite(x) || !(x > 0)) continue;
-    probe_words.push_back(std::move(w));
-    probe_x.push_back(x);
-  }
+  // (Probes not evaluable in X are left out: evaluable_probes.)
+  const EvaluableProbes probes =
+      evaluable_probes(source_marking.marking.map, reduce, [&](const Word& w) { return source.length(w); });
+  const std::vector<Word>& probe_words = probes.words;
+  const std::vector<double>& probe_x = probes.lengths;
   // Length evaluations spent (the descents stop at options.length_budget:
   // genus 6 has 144 probes and 88 one-sided twists per step).
   size_t spent = 0;

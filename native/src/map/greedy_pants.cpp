@@ -373,20 +373,13 @@ std::vector<GreedyPantsClass> greedy_pants_classes(const SurfaceGroupLengths& so
   if (source_pants.curves.empty() && target_pants.curves.empty()) return out;
   const DehnReducer reduce(canonical_relator(g));
   LengthMemo length_x(source), length_y(target);
-  // The twist term's probes, in X's canonical letters, and their lengths.
-  // A probe whose length in X is not evaluable would add the same 1e6 to
-  // every class's twist term: it says nothing about the class, so it is left
-  // out. A probe not evaluable in Y under one class still penalises that
-  // class (squared_log_gap).
-  std::vector<Word> probes;
-  std::vector<double> probe_x;
-  for (const Word& p : marking_probes(g)) {
-    Word w = reduce(substitute(p, source_marking.marking.map));
-    const double x = length_x(w);
-    if (!std::isfinite(x) || !(x > 0)) continue;
-    probes.push_back(std::move(w));
-    probe_x.push_back(x);
-  }
+  // The twist term's probes, in X's canonical letters, and their lengths
+  // (those not evaluable in X left out: evaluable_probes; one not evaluable
+  // in Y under a class still penalises it, squared_log_gap).
+  const EvaluableProbes source_probes =
+      evaluable_probes(source_marking.marking.map, reduce, [&](const Word& w) { return length_x(w); });
+  const std::vector<Word>& probes = source_probes.words;
+  const std::vector<double>& probe_x = source_probes.lengths;
   const double curves = static_cast<double>(source_pants.curves.size() + target_pants.curves.size());
   auto evaluate = [&](ClassState& s) {
     double pants = 0;

@@ -493,18 +493,11 @@ std::vector<PantsClass> pants_classes(const SurfaceGroupLengths& source, const P
   }
   std::stable_sort(ranked.begin(), ranked.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
   ranked.resize(std::min<size_t>(ranked.size(), static_cast<size_t>(std::max(1, options.permutations))));
-  // Probes of the source decomposition's marking, for the final ranking. A
-  // probe whose length in X is not evaluable would add the same 1e6 to every
-  // class: it says nothing about the class, so it is left out.
-  std::vector<Word> probe_words;
-  std::vector<double> probe_x;
-  for (const Word& p : marking_probes(g)) {
-    Word w = reduce(substitute(p, mx));
-    const double x = source.length(w);
-    if (!std::isfinite(x) || !(x > 0)) continue;
-    probe_words.push_back(std::move(w));
-    probe_x.push_back(x);
-  }
+  // Probes of the source decomposition's marking, for the final ranking
+  // (those not evaluable in X left out: evaluable_probes).
+  const EvaluableProbes probes = evaluable_probes(mx, reduce, [&](const Word& w) { return source.length(w); });
+  const std::vector<Word>& probe_words = probes.words;
+  const std::vector<double>& probe_x = probes.lengths;
   std::vector<PantsClass> out;
   for (const auto& [score, perm] : ranked)
     for (const PantsSymmetry& s : symmetries) {

@@ -28,6 +28,7 @@
 // mixing and the Torelli part the lift leaves open. For an isometry X -> Y
 // whose markings differ by a signed handle permutation, its class comes out
 // with mismatch 0 (test_geometric_classes.cpp).
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,20 @@ std::string pairing_text(const std::vector<int>& perm, const std::vector<int>& r
 /// The probe curves of a marking of genus g: x_j (2g) then x_i x_j and
 /// x_i x_j^-1 for i < j (2g(2g-1)), as words in the marking's letters.
 std::vector<Word> marking_probes(int genus);
+
+/// The marking probes of a marking (marking_map: 2g words in X's canonical
+/// letters) whose length in X is evaluable, with those lengths: the probes
+/// every ranking by probes (geometric, pants and greedy pants classes)
+/// compares. A probe whose length in X is not evaluable (NaN, infinite or
+/// not positive) would add the same penalty to every class: it says nothing
+/// about a class and hides the identity's 0, so it is left out; a probe not
+/// evaluable in Y under one class still penalises that class.
+struct EvaluableProbes {
+  std::vector<Word> words;      ///< probes in X's canonical letters, Dehn-reduced
+  std::vector<double> lengths;  ///< their lengths in X (finite, > 0), one per word
+};
+EvaluableProbes evaluable_probes(const GroupMap& marking_map, const DehnReducer& reduce,
+                                 const std::function<double(const Word&)>& length_in_x);
 
 /// The probes of a marking's handles: a_i, b_i, a_i b_i, a_i b_i^-1 per
 /// handle (4g words): the length short_marking() lowers. (Handle-local: a
