@@ -278,6 +278,14 @@ struct SolveOptions {
   /// cotangents (lower D' where they were negative), see
   /// docs/handle_classes.md "Own-edge weights' floor".
   double own_weights_floor = 0.1;
+  /// Genus >= 2, SourceWeights::Automatic: when straight images of some of
+  /// the source's faces fold under the intrinsic map, first re-solve only
+  /// the vertices within a few rings of them with positive own-edge
+  /// weights, every other vertex held (SurfaceMapResult::fold_repair;
+  /// docs/handle_classes.md "Local fold repair"); the whole map is solved
+  /// again with own-edge weights only when that does not unfold them.
+  /// Default true; false is the global fallback alone.
+  bool local_fold_repair = true;
 };
 
 /// The initial ("before") map (SurfaceMapOptions::initial).
@@ -619,6 +627,22 @@ struct SurfaceMapResult {
   /// intrinsic map's counts of folded and flattened source faces). Empty
   /// otherwise.
   std::string source_weights_reason;
+  /// Genus >= 2, the local fold repair (SolveOptions::local_fold_repair):
+  /// `status` "" (not run: nothing folded, or not asked), "repaired", or
+  /// "not repaired: ..." (then the global own-edge fallback ran); `method`
+  /// "projection" (folded faces' corners moved into their neighbours'
+  /// kernel) or "held re-solve" (the vertices within `rings` rings solved
+  /// again with own-edge weights). The intrinsic map's folded and flat
+  /// source faces, the held re-solves tried, and for a repair the vertices
+  /// moved or re-solved and the faces with such a corner (the only faces
+  /// whose image changed); the energy with the intrinsic weights before
+  /// (the class's optimum) and after the repair.
+  struct FoldRepair {
+    std::string status, method;
+    int folded_faces = 0, tries = 0, rings = 0, free_vertices = 0, changed_faces = 0;
+    double energy_before = std::numeric_limits<double>::quiet_NaN();
+    double energy_after = std::numeric_limits<double>::quiet_NaN();
+  } fold_repair;
   std::vector<HomotopyCandidate> candidates;
   int chosen_candidate = -1;
   /// Genus >= 2 (issue 19; HomotopyOptions::ranking_gap): coarse solves the
