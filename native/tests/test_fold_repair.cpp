@@ -67,18 +67,21 @@ TEST(FoldRepair, FewSliversAreRepairedLocallyInTheSameClass) {
   EXPECT_EQ(m.degenerate_triangles, 0);
   EXPECT_CERTIFIED_MAP_UP_TO_CHORD_FOLDS(s, t, m, 0.01);
   for (double d : m.dilatation) EXPECT_TRUE(std::isfinite(d));
-  EXPECT_NE(m.source_weights.find("intrinsic Delaunay cotangent, positive on the source's own edges at"),
-            std::string::npos)
-      << m.source_weights;
+  // Each sliver's apex folds alone here: moving it into its neighbours'
+  // kernel suffices (the first stage; no held re-solve tried).
+  EXPECT_EQ(r.method, "projection");
+  EXPECT_EQ(r.tries, 0);
+  EXPECT_EQ(r.rings, 0);
+  EXPECT_EQ(m.source_weights, "intrinsic Delaunay cotangent; " + std::to_string(r.free_vertices) +
+                                  " vertices around the folds moved (projection)");
   EXPECT_NE(m.source_weights_reason.find("repaired locally"), std::string::npos) << m.source_weights_reason;
   // Local: a few faces folded, and only faces near them changed.
   EXPECT_GT(r.folded_faces, 0);
-  EXPECT_GE(r.tries, 1);
-  EXPECT_GE(r.rings, 2);
   EXPECT_GT(r.free_vertices, 0);
-  EXPECT_LT(r.free_vertices, s.num_vertices() / 10);
+  EXPECT_LE(r.free_vertices, 3 * r.folded_faces);
+  EXPECT_LT(r.free_vertices, s.num_vertices() / 50);
   EXPECT_GE(r.changed_faces, r.folded_faces);
-  EXPECT_LT(r.changed_faces, s.num_faces() / 10);
+  EXPECT_LT(r.changed_faces, s.num_faces() / 20);
   // The intrinsic optimum is the least intrinsic energy of any map in the
   // class, so the repaired map's is above it, and barely (few vertices moved).
   EXPECT_GE(r.energy_after, r.energy_before * (1 - 1e-9));

@@ -1,8 +1,6 @@
 #include "fold_repair.h"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -208,11 +206,6 @@ std::vector<int> project_folds(const TriMesh& source, const Connectivity& sc, co
         continue;
       }
       if (!moved[v]) moved[v] = 1, moved_list.push_back(v);
-    }
-    if (std::getenv("FOLDS_DEBUG")) {
-      int neg = 0;
-      for (int f = 0; f < source.num_faces(); ++f) neg += !kp.positive(f);
-      std::fprintf(stderr, "round %d: negative faces now %d, stuck %d, moved %zu\n", round, neg, (int)stuck, moved_list.size());
     }
     if (!any) {
       z = kp.points();
