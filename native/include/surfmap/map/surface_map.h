@@ -95,8 +95,9 @@ enum class InitialMapMethod {
 /// Weights of the harmonic energy on the source (genus >= 1).
 enum class SourceWeights {
   /// Intrinsic Delaunay cotangent weights; if the straight images of the
-  /// source's own faces then fold, the chosen class is solved again with
-  /// OwnEdges (the default).
+  /// source's own faces then fold, genus >= 2 first repairs them locally
+  /// (SolveOptions::local_fold_repair), and otherwise the chosen class is
+  /// solved again with OwnEdges (the default).
   Automatic,
   /// Cotangent weights of the source's intrinsic Delaunay triangulation
   /// only (docs/method.md §2.8): reproduce affine maps, embed the intrinsic
@@ -619,13 +620,14 @@ struct SurfaceMapResult {
   /// and why; docs/uniformization.md). Empty otherwise.
   std::string target_class_loops;
   /// Genus >= 1: the weights the returned map was solved with:
-  /// "intrinsic Delaunay cotangent" or "positive on the source's own edges"
-  /// (SourceWeights; after the automatic fallback the candidates' energies
+  /// "intrinsic Delaunay cotangent" (after a local fold repair followed by
+  /// "; N vertices around the folds moved (method)") or "positive on the
+  /// source's own edges" (SourceWeights; after the automatic fallback the candidates' energies
   /// and the ranking are those of the intrinsic weights). Empty for genus 0.
   std::string source_weights;
-  /// Genus >= 2, after the automatic fallback to own-edge weights: why (the
-  /// intrinsic map's counts of folded and flattened source faces). Empty
-  /// otherwise.
+  /// Genus >= 2, after the automatic fallback to own-edge weights or a local
+  /// fold repair: why (the intrinsic map's counts of folded and flattened
+  /// source faces, and what repaired them). Empty otherwise.
   std::string source_weights_reason;
   /// Genus >= 2, the local fold repair (SolveOptions::local_fold_repair):
   /// `status` "" (not run: nothing folded, or not asked), "repaired", or
