@@ -64,6 +64,7 @@ void register_map(CLI::App& app) {
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
     double tolerance = 1e-10, own_weights_floor = 0.1;
     bool quiet = false, timings = false, no_homotopy_search = false, no_two_way = false, compare_directions = false;
+    bool no_local_fold_repair = false;
     bool no_greedy_pants = false;  // HomotopySearchOptions::greedy_pants
     bool homotopy_both_signs = true;     // HomotopyOptions::flat_both_signs
     bool boundary_swap = false;          // open surfaces (map_open.h)
@@ -86,6 +87,9 @@ void register_map(CLI::App& app) {
                   "Genus >= 1: energy weights on the source: auto (intrinsic Delaunay cotangents, positive weights on the "
                   "source's own edges if its faces' images fold), intrinsic, own")
       ->check(CLI::IsMember(enum_name_list<SourceWeights>()));
+  cmd->add_flag("--no-local-fold-repair", a->no_local_fold_repair,
+                "Genus >= 2, auto weights: when the intrinsic map folds some faces, solve the whole map again with "
+                "own-edge weights instead of first re-solving only the vertices around the folds");
   cmd->add_option("--own-weights-floor", a->own_weights_floor,
                   "Genus >= 1, own-edge weights: least weight, times the mean positive cotangent weight (default 0.1)")
       ->check(CLI::PositiveNumber);
@@ -181,6 +185,7 @@ void register_map(CLI::App& app) {
     opt.solve.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
     opt.solve.tolerance = a->tolerance;
     opt.solve.own_weights_floor = a->own_weights_floor;
+    opt.solve.local_fold_repair = !a->no_local_fold_repair;
     opt.solve.max_iterations = a->max_iterations;
     opt.homotopy.candidates = a->homotopy_candidates;
     opt.homotopy.full_solves = a->homotopy_full_solves;

@@ -233,6 +233,8 @@ TEST(SourceWeights, FoldingSourceFallsBackToPositiveOwnEdgeWeights) {
     EXPECT_NE(std::string(e.what()).find("flipped"), std::string::npos) << e.what();
   }
   o.solve.source_weights = SourceWeights::Automatic;
+  // The global fallback itself (the local repair first is FoldRepair.*).
+  o.solve.local_fold_repair = false;
   const SurfaceMapResult m = surface_map(s, t, o);
   EXPECT_EQ(m.source_weights, "positive on the source's own edges");
   EXPECT_EQ(m.flipped_triangles, 0);

@@ -26,6 +26,7 @@
 #include "stages/harmonic_solve.h"
 #include "stages/homotopy_classes.h"
 #include "stages/hyperbolic_location.h"
+#include "stages/fold_repair.h"
 #include "stages/hyperbolic_quality.h"
 #include "stages/initial_map_stage.h"
 #include "stages/landmark_ranking.h"
@@ -168,6 +169,9 @@ class HyperbolicPipeline {
   /// Why the automatic weights fell back to the source's own edges (the
   /// intrinsic map's fold counts), a note of the result; empty otherwise.
   std::string own_weights_reason;
+  /// The local fold repair's record (stages/fold_repair.h), kept across the
+  /// global fallback's second pass (SurfaceMapResult::fold_repair).
+  SurfaceMapResult::FoldRepair fold_repair;
 
   // Raised on the way out (declared before the second thread, so it outlives
   // it): the source's own uniformization there then stops at its next Newton
@@ -1366,6 +1370,7 @@ bool map_class(HyperbolicPipeline& p) {
   SurfaceMapResult& out = p.out;
   const int k = out.chosen_candidate;
   out.source_weights = source_weights_name(p.own_weights, p.ss.idt.raised_weights);
+  if (!p.own_weights) p.own_weights_reason.clear(), p.fold_repair = {};  // (an earlier class's)
   const ClassData& cd = p.data_for(k);
 
   ClassInitialMap initial;
@@ -1432,22 +1437,57 @@ bool map_class(HyperbolicPipeline& p) {
   out.candidates[k].solved = true;
   p.stage_done("harmonic solve", 0.7);
 
-  const MapInPolygon placed = place_in_polygon(p.source, p.sc, *p.polygon, *p.deck_group, cd.side_word_edge, cd.rho_edge,
-                                               p.solver_index, static_cast<int>(cd.edges.size()), hr);
+  MapInPolygon placed = place_in_polygon(p.source, p.sc, *p.polygon, *p.deck_group, cd.side_word_edge, cd.rho_edge,
+                                         p.solver_index, static_cast<int>(cd.edges.size()), hr);
   const DistortionStats quality = chart_distortion(p.source, p.sc, hr.edge_local, p.solver_index);
   store_distortion(quality, out);
   out.intrinsic_flipped_triangles = intrinsic_flipped_triangles(p.ss.idt, hr.edge_local);
+  const std::string folds = "the intrinsic Delaunay map of class " + std::to_string(k) + " folds " +
+                            std::to_string(out.flipped_triangles) + " and flattens " +
+                            std::to_string(out.degenerate_triangles) + " of the source's faces (" +
+                            std::to_string(out.intrinsic_flipped_triangles) + " intrinsic triangles flipped)";
+  if ((out.flipped_triangles || out.degenerate_triangles) && !p.own_weights &&
+      options.solve.source_weights == SourceWeights::Automatic && options.solve.local_fold_repair) {
+    // Issue 14: repair the few folded faces where they are (stages/
+    // fold_repair.h) instead of giving every face the own-edge weights.
+    FoldRepairOptions fo;
+    fo.tolerance = options.solve.tolerance;
+    fo.max_iterations = options.solve.max_iterations;
+    std::vector<char> held;
+    if (!options.landmarks.empty()) {
+      held.assign(p.nv, 0);
+      for (const auto& [s, t] : options.landmarks) held[s] = 1;
+    }
+    const IntrinsicDelaunayResult own =
+        positive_edge_weights(p.sc, edge_lengths(p.source, p.sc), {options.solve.own_weights_floor});
+    FoldRepairResult fr = repair_folds_locally(p.source, p.sc, cd.edges, p.solver_index, own, hr, quality.per_face,
+                                               held, *p.deck_group, *p.polygon, fo, solve_progress);
+    p.fold_repair = fr.info;
+    if (fr.map) {
+      hr = std::move(*fr.map);
+      placed = place_in_polygon(p.source, p.sc, *p.polygon, *p.deck_group, cd.side_word_edge, cd.rho_edge,
+                                p.solver_index, static_cast<int>(cd.edges.size()), hr);
+      store_distortion(chart_distortion(p.source, p.sc, hr.edge_local, p.solver_index), out);
+      out.intrinsic_flipped_triangles = intrinsic_flipped_triangles(p.ss.idt, hr.edge_local);
+      // The returned map's energy with the intrinsic weights; the class's
+      // (candidates[k].energy, energy_ratio) stays its optimum.
+      out.final_energy = hr.energy;
+      // ("projection": corners moved into their neighbours' kernel; "held
+      // re-solve of R rings": own-edge weights there; stages/fold_repair.h)
+      const std::string moved = std::to_string(fr.info.free_vertices) + " vertices around the folds moved (" +
+                                fr.info.method + ")";
+      out.source_weights += "; " + moved;
+      p.own_weights_reason = folds + ": repaired locally, " + moved + ", the rest held";
+    }
+  }
   if (retry_with_own_weights(options, p.own_weights, out)) {
     // The classes' energies so far are the intrinsic ones (solved classes).
     p.intrinsic_energy.assign(p.ncand, std::numeric_limits<double>::quiet_NaN());
     for (int q = 0; q < p.ncand; ++q)
       if (out.candidates[q].solved) p.intrinsic_energy[q] = out.candidates[q].energy;
     p.intrinsic_energy[k] = free_energy;
-    p.own_weights_reason = "the intrinsic Delaunay map of class " + std::to_string(k) + " folds " +
-                           std::to_string(out.flipped_triangles) + " and flattens " +
-                           std::to_string(out.degenerate_triangles) + " of the source's faces (" +
-                           std::to_string(out.intrinsic_flipped_triangles) +
-                           " intrinsic triangles flipped): mapped again with positive weights on its own edges";
+    p.own_weights_reason = folds + ": mapped again with positive weights on its own edges" +
+                           (p.fold_repair.status.empty() ? std::string() : " (local repair " + p.fold_repair.status + ")");
     p.switch_to_own_weights();
     return false;
   }
@@ -1507,6 +1547,7 @@ void map_with_fallback(HyperbolicPipeline& p) {
         const int k = out.chosen_candidate;
         if (p.own_weights && k < static_cast<int>(p.intrinsic_energy.size())) out.intrinsic_class_energy = p.intrinsic_energy[k];
         out.source_weights_reason = p.own_weights_reason;
+        out.fold_repair = p.fold_repair;
         return;
       }
       reset_keeping_candidates();  // the source weights changed: the same class again

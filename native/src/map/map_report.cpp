@@ -25,7 +25,17 @@ json energy_json(const SurfaceMapResult& r) {
           {"target_metric_choice", r.target_metric_choice},
           {"target_class_loops", r.target_class_loops},
           {"source_weights", r.source_weights},
-          {"source_weights_reason", r.source_weights_reason}};
+          {"source_weights_reason", r.source_weights_reason},
+          {"fold_repair",
+           {{"status", r.fold_repair.status},
+            {"method", r.fold_repair.method},
+            {"folded_faces", r.fold_repair.folded_faces},
+            {"tries", r.fold_repair.tries},
+            {"rings", r.fold_repair.rings},
+            {"free_vertices", r.fold_repair.free_vertices},
+            {"changed_faces", r.fold_repair.changed_faces},
+            {"energy_before", r.fold_repair.energy_before},
+            {"energy_after", r.fold_repair.energy_after}}}};
 }
 
 json landmark_json(const SurfaceMapResult& r, const SurfaceMapOptions& options) {

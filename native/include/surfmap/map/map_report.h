@@ -16,6 +16,8 @@
 //   landmark_steps, landmark_held_vertices,
 //   initial_map {construction, cut_graph {...}, polygon {...}, iterations, time_s, located},
 //   target_refinement_splits, target_metric, target_flips, target_metric_choice, target_class_loops, source_weights,
+//   source_weights_reason, fold_repair {status, folded_faces, tries, rings, free_vertices, changed_faces,
+//   energy_before, energy_after},
 //   homotopy {chosen, candidates [{index, description, energy, solved, coarse_energy,
 //             landmark_energy, landmark_lower_bound, matrix, class_lower_bound,
 //             class_curve_bound, class_bound_curves}], search {..., evaluated

@@ -95,8 +95,9 @@ enum class InitialMapMethod {
 /// Weights of the harmonic energy on the source (genus >= 1).
 enum class SourceWeights {
   /// Intrinsic Delaunay cotangent weights; if the straight images of the
-  /// source's own faces then fold, the chosen class is solved again with
-  /// OwnEdges (the default).
+  /// source's own faces then fold, genus >= 2 first repairs them locally
+  /// (SolveOptions::local_fold_repair), and otherwise the chosen class is
+  /// solved again with OwnEdges (the default).
   Automatic,
   /// Cotangent weights of the source's intrinsic Delaunay triangulation
   /// only (docs/method.md §2.8): reproduce affine maps, embed the intrinsic
@@ -278,6 +279,14 @@ struct SolveOptions {
   /// cotangents (lower D' where they were negative), see
   /// docs/handle_classes.md "Own-edge weights' floor".
   double own_weights_floor = 0.1;
+  /// Genus >= 2, SourceWeights::Automatic: when straight images of some of
+  /// the source's faces fold under the intrinsic map, first re-solve only
+  /// the vertices within a few rings of them with positive own-edge
+  /// weights, every other vertex held (SurfaceMapResult::fold_repair;
+  /// docs/handle_classes.md "Local fold repair"); the whole map is solved
+  /// again with own-edge weights only when that does not unfold them.
+  /// Default true; false is the global fallback alone.
+  bool local_fold_repair = true;
 };
 
 /// The initial ("before") map (SurfaceMapOptions::initial).
@@ -611,14 +620,31 @@ struct SurfaceMapResult {
   /// and why; docs/uniformization.md). Empty otherwise.
   std::string target_class_loops;
   /// Genus >= 1: the weights the returned map was solved with:
-  /// "intrinsic Delaunay cotangent" or "positive on the source's own edges"
-  /// (SourceWeights; after the automatic fallback the candidates' energies
+  /// "intrinsic Delaunay cotangent" (after a local fold repair followed by
+  /// "; N vertices around the folds moved (method)") or "positive on the
+  /// source's own edges" (SourceWeights; after the automatic fallback the candidates' energies
   /// and the ranking are those of the intrinsic weights). Empty for genus 0.
   std::string source_weights;
-  /// Genus >= 2, after the automatic fallback to own-edge weights: why (the
-  /// intrinsic map's counts of folded and flattened source faces). Empty
-  /// otherwise.
+  /// Genus >= 2, after the automatic fallback to own-edge weights or a local
+  /// fold repair: why (the intrinsic map's counts of folded and flattened
+  /// source faces, and what repaired them). Empty otherwise.
   std::string source_weights_reason;
+  /// Genus >= 2, the local fold repair (SolveOptions::local_fold_repair):
+  /// `status` "" (not run: nothing folded, or not asked), "repaired", or
+  /// "not repaired: ..." (then the global own-edge fallback ran); `method`
+  /// "projection" (folded faces' corners moved into their neighbours'
+  /// kernel) or "held re-solve" (the vertices within `rings` rings solved
+  /// again with own-edge weights). The intrinsic map's folded and flat
+  /// source faces, the held re-solves tried, and for a repair the vertices
+  /// moved or re-solved and the faces with such a corner (the only faces
+  /// whose image changed); the energy with the intrinsic weights before
+  /// (the class's optimum) and after the repair.
+  struct FoldRepair {
+    std::string status, method;
+    int folded_faces = 0, tries = 0, rings = 0, free_vertices = 0, changed_faces = 0;
+    double energy_before = std::numeric_limits<double>::quiet_NaN();
+    double energy_after = std::numeric_limits<double>::quiet_NaN();
+  } fold_repair;
   std::vector<HomotopyCandidate> candidates;
   int chosen_candidate = -1;
   /// Genus >= 2 (issue 19; HomotopyOptions::ranking_gap): coarse solves the

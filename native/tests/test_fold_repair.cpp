@@ -1,0 +1,120 @@
+// The local repair of folded faces (src/map/stages/fold_repair.h; issue 14,
+// docs/handle_classes.md "Local fold repair"): a generated genus-2 source
+// with a few slivers folds under the intrinsic Delaunay map; only the
+// vertices around the folds are solved again, and the map keeps the
+// intrinsic weights everywhere else.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "surfmap/error.h"
+#include "surfmap/map/surface_map.h"
+#include "surfmap/mesh/connectivity.h"
+#include "surfmap/samples/shapes.h"
+#include "certify_helpers.h"
+
+namespace surfmap {
+namespace {
+
+// Slivers (CAD-like caps): every `stride`-th face (a, b, c) is split at a
+// point p just above the midpoint of ab (eps of the way to c), leaving the
+// sliver (a, b, p) with an angle near 180 degrees at p. Same surface, same genus.
+TriMesh with_slivers(const TriMesh& m, int stride, double eps) {
+  std::vector<Eigen::RowVector3d> V;
+  for (int i = 0; i < m.num_vertices(); ++i) V.push_back(m.V.row(i));
+  std::vector<Eigen::RowVector3i> F;
+  for (int f = 0; f < m.num_faces(); ++f) {
+    const Eigen::RowVector3i t = m.F.row(f);
+    if (f % stride) {
+      F.push_back(t);
+      continue;
+    }
+    const Eigen::RowVector3d mid = 0.5 * (V[t[0]] + V[t[1]]);
+    const int p = static_cast<int>(V.size());
+    V.push_back(mid + eps * (V[t[2]] - mid));
+    F.push_back({t[0], t[1], p});
+    F.push_back({t[1], t[2], p});
+    F.push_back({t[2], t[0], p});
+  }
+  TriMesh r;
+  r.V.resize(static_cast<int>(V.size()), 3);
+  for (size_t i = 0; i < V.size(); ++i) r.V.row(static_cast<int>(i)) = V[i];
+  r.F.resize(static_cast<int>(F.size()), 3);
+  for (size_t i = 0; i < F.size(); ++i) r.F.row(static_cast<int>(i)) = F[i];
+  return r;
+}
+
+TEST(FoldRepair, FewSliversAreRepairedLocallyInTheSameClass) {
+  const TriMesh s = with_slivers(samples::n_hole_torus(2, 32, true), 37, 0.002);
+  const TriMesh t = samples::amphora(36, true);
+  ASSERT_EQ(Connectivity(s.F, s.num_vertices()).genus(), 2);
+  SurfaceMapOptions o;
+  o.homotopy.candidates = 1;
+  o.homotopy.two_way = false;
+  // The fixture folds with the intrinsic weights alone.
+  o.solve.source_weights = SourceWeights::IntrinsicDelaunay;
+  EXPECT_THROW(surface_map(s, t, o), SolveError);
+  o.solve.source_weights = SourceWeights::Automatic;
+  const SurfaceMapResult m = surface_map(s, t, o);
+  const SurfaceMapResult::FoldRepair& r = m.fold_repair;
+  ASSERT_EQ(r.status, "repaired") << m.source_weights_reason;
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.degenerate_triangles, 0);
+  EXPECT_CERTIFIED_MAP_UP_TO_CHORD_FOLDS(s, t, m, 0.01);
+  for (double d : m.dilatation) EXPECT_TRUE(std::isfinite(d));
+  // Each sliver's apex folds alone here: moving it into its neighbours'
+  // kernel suffices (the first stage; no held re-solve tried).
+  EXPECT_EQ(r.method, "projection");
+  EXPECT_EQ(r.tries, 0);
+  EXPECT_EQ(r.rings, 0);
+  EXPECT_EQ(m.source_weights, "intrinsic Delaunay cotangent; " + std::to_string(r.free_vertices) +
+                                  " vertices around the folds moved (projection)");
+  EXPECT_NE(m.source_weights_reason.find("repaired locally"), std::string::npos) << m.source_weights_reason;
+  // Local: a few faces folded, and only faces near them changed.
+  EXPECT_GT(r.folded_faces, 0);
+  EXPECT_GT(r.free_vertices, 0);
+  EXPECT_LE(r.free_vertices, 3 * r.folded_faces);
+  EXPECT_LT(r.free_vertices, s.num_vertices() / 50);
+  EXPECT_GE(r.changed_faces, r.folded_faces);
+  EXPECT_LT(r.changed_faces, s.num_faces() / 20);
+  // The intrinsic optimum is the least intrinsic energy of any map in the
+  // class, so the repaired map's is above it, and barely (few vertices moved).
+  EXPECT_GE(r.energy_after, r.energy_before * (1 - 1e-9));
+  EXPECT_LT(r.energy_after, r.energy_before * 1.05);
+  EXPECT_NEAR(m.final_energy, r.energy_after, 1e-12 * r.energy_after);
+  EXPECT_NEAR(m.candidates[m.chosen_candidate].energy, r.energy_before, 1e-9 * r.energy_before);
+
+  // The global fallback alone (the behaviour before): same class, whose
+  // intrinsic optimum is the one the repair started from, but every face gets
+  // the own-edge weights and the mean D' is higher.
+  SurfaceMapOptions g = o;
+  g.solve.local_fold_repair = false;
+  const SurfaceMapResult mg = surface_map(s, t, g);
+  EXPECT_EQ(mg.source_weights, "positive on the source's own edges");
+  EXPECT_EQ(mg.fold_repair.status, "");
+  EXPECT_EQ(mg.flipped_triangles, 0);
+  EXPECT_EQ(mg.chosen_candidate, m.chosen_candidate);
+  EXPECT_NEAR(mg.intrinsic_class_energy, r.energy_before, 1e-7 * r.energy_before);
+  EXPECT_LT(m.mean_dilatation, mg.mean_dilatation);
+}
+
+// Clean sources never run it.
+TEST(FoldRepair, CleanSourceDoesNotRunIt) {
+  const TriMesh s = samples::n_hole_torus(2, 32, true);
+  const TriMesh t = samples::amphora(36, true);
+  SurfaceMapOptions o;
+  o.homotopy.candidates = 1;
+  o.homotopy.two_way = false;
+  const SurfaceMapResult m = surface_map(s, t, o);
+  EXPECT_EQ(m.source_weights, "intrinsic Delaunay cotangent");
+  EXPECT_EQ(m.fold_repair.status, "");
+  EXPECT_EQ(m.fold_repair.folded_faces, 0);
+}
+
+}  // namespace
+}  // namespace surfmap
