@@ -1,4 +1,5 @@
 #include "surfmap/topology/edge_homotopy.h"
+#include "surfmap/topology/edge_words.h"
 
 #include <gtest/gtest.h>
 
@@ -53,6 +54,48 @@ TEST(EdgeHomotopy, FreeGroupElementsSatisfyFaceRelations) {
   check_free_group_elements(g2, true, 5);
   const TriMesh g3 = samples::n_hole_torus(3, 40, false);  // raw marching tets, slivers
   check_free_group_elements(g3, false, 11);
+}
+
+// CutDiskEdgeWords (issue 19) reads single edges' words from the cut disk's
+// boundary: every edge's word must be edge_group_elements' word, on greedy
+// and refined systems of loops, at other base vertices, and asked for in
+// any order (memoized).
+void check_cut_disk_words(const TriMesh& mesh, bool refine, int base_vertex) {
+  SystemOfLoopsOptions opt;
+  opt.refine = refine;
+  opt.base_vertex = base_vertex;
+  const SystemOfLoops s = system_of_loops(mesh, opt);
+  const Connectivity c(s.mesh.F, s.mesh.num_vertices());
+  std::vector<Word> letters;
+  for (size_t k = 0; k < s.loops.size(); ++k) letters.push_back({static_cast<int>(k) + 1});
+  const auto value = edge_group_elements(c, s.tree_parent_halfedge, s.dual_tree_parent_halfedge,
+                                         s.generator_edges, loop_first_vertices(s, c), letters, kFreeGroup);
+  const CutDiskEdgeWords words(s, c);
+  int nonempty = 0, mismatches = 0;
+  for (int e = c.num_edges() - 1; e >= 0; e -= 2) mismatches += words(e) != value[e];
+  for (int e = 0; e < c.num_edges(); ++e) {
+    if (words(e) != value[e]) {
+      ++mismatches;
+      ADD_FAILURE() << "edge " << e << ": " << to_text(words(e), {}) << " vs " << to_text(value[e], {});
+      if (mismatches > 5) break;
+    }
+    nonempty += !value[e].empty();
+  }
+  EXPECT_EQ(mismatches, 0);
+  EXPECT_GT(nonempty, 60);  // (not only tree edges and the 2g letters)
+}
+
+TEST(EdgeHomotopy, CutDiskWordsEqualThePeeledWords) {
+  const TriMesh torus = samples::torus_of_revolution(1.0, 0.4, 24, 12);
+  check_cut_disk_words(torus, false, -1);
+  check_cut_disk_words(torus, true, 17);
+  const TriMesh g2 = samples::n_hole_torus(2, 40, true);
+  check_cut_disk_words(g2, false, -1);
+  check_cut_disk_words(g2, false, g2.num_vertices() / 3);
+  check_cut_disk_words(g2, true, 5);
+  const TriMesh g3 = samples::n_hole_torus(3, 40, false);  // raw marching tets, slivers
+  check_cut_disk_words(g3, false, 11);
+  check_cut_disk_words(g3, true, 11);
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <random>
 #include <set>
 
+#include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <gtest/gtest.h>
 
@@ -85,6 +86,56 @@ TEST(HandleBasis, LinkingNumbersOfPolygons) {
   EXPECT_NEAR(linking_number(a, apart), 0.0, 1e-9);
   std::vector<Eigen::Vector3d> rev(hopf.rbegin(), hopf.rend());
   EXPECT_NEAR(linking_number(a, rev), -linking_number(a, hopf), 1e-9);
+}
+
+// Issue 19: linking_number sums its 2 atan2 terms per segment pair as the
+// argument of their complex numbers' product plus its whole turns. Against
+// the term-by-term sum: a curve winding w times around a circle's core
+// (linking number w, so the product turns many times), and random polygons.
+TEST(HandleBasis, LinkingNumberMatchesTheTermByTermSum) {
+  auto term_by_term = [](const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
+    double total = 0;
+    auto solid = [](const Eigen::Vector3d& x, const Eigen::Vector3d& y, const Eigen::Vector3d& z) {
+      const double lx = x.norm(), ly = y.norm(), lz = z.norm(), num = x.dot(y.cross(z));
+      return num == 0 ? 0.0 : 2 * std::atan2(num, lx * ly * lz + x.dot(y) * lz + x.dot(z) * ly + y.dot(z) * lx);
+    };
+    for (size_t i = 0; i < a.size(); ++i)
+      for (size_t j = 0; j < b.size(); ++j) {
+        const Eigen::Vector3d& p1 = a[i];
+        const Eigen::Vector3d& p2 = a[(i + 1) % a.size()];
+        const Eigen::Vector3d& p3 = b[j];
+        const Eigen::Vector3d& p4 = b[(j + 1) % b.size()];
+        const Eigen::Vector3d r13 = p3 - p1, r14 = p4 - p1, r23 = p3 - p2, r24 = p4 - p2;
+        if (!(r13.norm() * r14.norm() * r23.norm() * r24.norm() > 0)) continue;
+        total -= solid(r13, r14, r24) + solid(r13, r24, r23);
+      }
+    return total / (4 * M_PI);
+  };
+  std::vector<Eigen::Vector3d> core;
+  for (int k = 0; k < 40; ++k) core.push_back({std::cos(2 * M_PI * k / 40), std::sin(2 * M_PI * k / 40), 0.0});
+  for (int w = -3; w <= 5; ++w) {
+    std::vector<Eigen::Vector3d> coil;  // w turns around the core, 200 vertices
+    for (int k = 0; k < 200; ++k) {
+      const double t = 2 * M_PI * k / 200, s = w * t;
+      coil.push_back({(1 + 0.3 * std::cos(s)) * std::cos(t), (1 + 0.3 * std::cos(s)) * std::sin(t), 0.3 * std::sin(s)});
+    }
+    const double lk = linking_number(core, coil);
+    EXPECT_NEAR(std::abs(lk), std::abs(w), 1e-9) << "w = " << w;
+    EXPECT_NEAR(lk, term_by_term(core, coil), 1e-9) << "w = " << w;
+    EXPECT_NEAR(linking_number(coil, core), lk, 1e-9);
+  }
+  std::srand(7);
+  auto random_polygon = [](int n) {
+    std::vector<Eigen::Vector3d> p;
+    for (int k = 0; k < n; ++k) p.push_back(Eigen::Vector3d::Random());
+    return p;
+  };
+  for (int trial = 0; trial < 20; ++trial) {
+    const auto a = random_polygon(7 + trial), b = random_polygon(11 + trial);
+    const double lk = linking_number(a, b);
+    EXPECT_NEAR(lk, term_by_term(a, b), 1e-9);
+    EXPECT_NEAR(lk, std::round(lk), 1e-9);  // closed polygons: an integer
+  }
 }
 
 HandleBasis basis_of(const TriMesh& m) {

@@ -137,8 +137,7 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   if (!is_simplicial(flow)) make_simplicial(flow);
   IntrinsicLoops il = intrinsic_loops(target, flow, background, lo);
   t.loops = std::move(il.loops);
-  const Connectivity conn(t.loops.mesh.F, t.loops.mesh.num_vertices());
-  t.layout = layout_disk(conn, il.lengths, background, t.loops);
+  t.layout = layout_disk(*il.conn, il.lengths, background, t.loops);
   if (t.layout.num_flipped > 0)
     throw SolveError("the layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
   t.intrinsic = std::make_shared<const TargetIntrinsic>(flow, target.num_vertices());

@@ -12,6 +12,7 @@
 
 #include "surfmap/geometry/nearest_point.h"
 #include "surfmap/topology/edge_homotopy.h"
+#include "surfmap/topology/edge_words.h"
 
 namespace surfmap {
 namespace {
@@ -73,9 +74,18 @@ struct TargetFrame {
   }
 };
 
+// The target's edge words: read one edge at a time from the cut disk's
+// boundary (topology/edge_words.h: the projections read ~1% of the edges),
+// or every edge's by edge_group_elements when that reading failed.
+struct EdgeWordSource {
+  const CutDiskEdgeWords* lazy = nullptr;
+  const std::vector<Word>* all = nullptr;
+  const Word& operator()(int e) const { return lazy ? (*lazy)(e) : (*all)[e]; }
+};
+
 ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
                                   const SystemOfLoops& target, const Word& target_word, const Connectivity& conn,
-                                  const std::vector<Word>& edge_word, const TargetFrame* frame,
+                                  const EdgeWordSource& edge_word, const TargetFrame* frame,
                                   const ProjectedLoopsOptions& options) {
   ProjectedLoopsResult out;
   const TriMesh& tm = target.mesh;
@@ -174,7 +184,7 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
       for (int v = b; v != a;) {
         const int h = parent_h[v];
         const int e = conn.edge(h);
-        seg = concat(conn.edge_halfedge(e) == h ? edge_word[e] : inverse(edge_word[e]), seg);
+        seg = concat(conn.edge_halfedge(e) == h ? edge_word(e) : inverse(edge_word(e)), seg);
         v = conn.tail(h);
       }
       w = concat(w, seg);
@@ -236,12 +246,22 @@ struct LoopProjector::Impl {
   Word target_word;
   std::optional<Connectivity> own_conn;  // built here unless the caller's was given
   const Connectivity& conn;
-  std::vector<Word> edge_word;
+  std::unique_ptr<CutDiskEdgeWords> lazy_words;
+  std::vector<Word> all_words;  // (only when lazy_words could not be built)
+  EdgeWordSource edge_word;
   std::unique_ptr<TargetFrame> frame;  // the last target frame used
   Impl(const SystemOfLoops& t, const Word& w, const Connectivity* c)
       : target(t), target_word(w), own_conn(c ? std::nullopt : std::make_optional<Connectivity>(t.mesh.F, t.mesh.num_vertices())),
         conn(c ? *c : *own_conn) {
-    edge_word = target_edge_words(target, conn);
+    // Issue 19: the edge words on demand (the same words; a cut of the
+    // source spent a third of its time peeling every edge's word).
+    try {
+      lazy_words = std::make_unique<CutDiskEdgeWords>(target, conn);
+      edge_word.lazy = lazy_words.get();
+    } catch (const SolveError&) {
+      all_words = target_edge_words(target, conn);  // (reports the inconsistency)
+      edge_word.all = &all_words;
+    }
   }
 };
 

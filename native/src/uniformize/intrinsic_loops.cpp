@@ -185,7 +185,8 @@ IntrinsicLoops intrinsic_loops(const TriMesh& input, const RicciFlowResult& flow
     throw SolveError("intrinsic_loops: the loops' mesh has no origins");
   std::vector<Support> sup(nv);
   for (int v = 0; v < nv; ++v) sup[v] = support_of_vertex(out.loops, F, input.num_vertices(), v);
-  const Connectivity rc(R.F, nv);
+  out.conn = std::make_shared<const Connectivity>(R.F, nv);
+  const Connectivity& rc = *out.conn;
   out.lengths.resize(rc.num_edges());
   for (int e = 0; e < rc.num_edges(); ++e) {
     const int a = rc.edge_vertex(e, 0), b = rc.edge_vertex(e, 1);

@@ -189,8 +189,7 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
     const bool embedding_ok = r.layout.genus > 0;
     try {
       IntrinsicLoops il = intrinsic_loops(mesh, r.ricci, bg, lo, true);
-      const Connectivity conn(il.loops.mesh.F, il.loops.mesh.num_vertices());
-      DiskLayout layout = layout_disk(conn, il.lengths, bg, il.loops, options.layout);
+      DiskLayout layout = layout_disk(*il.conn, il.lengths, bg, il.loops, options.layout);
       check_layout(layout, r.max_curvature_error);
       if (!embedding_ok || layout.coordinate_roundoff < r.layout.coordinate_roundoff) {
         r.layout = std::move(layout);

@@ -17,6 +17,7 @@
 // under isometries, so a point on an edge is the same point seen from both
 // faces; in the Klein model it is a projective image of the barycentric
 // triangle, so refined faces keep their orientation).
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,9 @@ struct IntrinsicLoops {
   /// #E(loops.mesh) lengths of the flow's metric, edge order of
   /// Connectivity(loops.mesh.F).
   Eigen::VectorXd lengths;
+  /// Connectivity(loops.mesh.F), built here for the lengths: the layout
+  /// reads the same (issue 19: not built again).
+  std::shared_ptr<const Connectivity> conn;
 };
 
 /// A point of a face of T' (flow.faces): face and barycentric weights in the
