@@ -101,6 +101,12 @@ void run(const Args& a) {
     for (const auto& l : r.loops.loops) j["loop_edges"].push_back(static_cast<int>(l.size()) - 1);
     j["num_flipped"] = L.num_flipped;
     j["num_unresolved"] = L.num_unresolved;
+    j["num_flipped_above_roundoff"] = L.num_flipped_above_roundoff;
+    j["num_flipped_local"] = L.num_flipped_local;
+    j["max_vertex_holonomy"] = L.max_vertex_holonomy;
+    j["vertex_holonomy_tolerance"] = vertex_holonomy_tolerance(r.max_curvature_error);
+    j["single_chart"] = r.single_chart;
+    j["layout_checks"] = r.layout_checks;
     j["max_interior_mismatch"] = L.max_interior_mismatch;
     j["interior_roundoff"] = L.interior_roundoff;
     j["max_interior_excess"] = L.max_interior_excess;
@@ -110,15 +116,13 @@ void run(const Args& a) {
     j["coordinate_roundoff"] = L.coordinate_roundoff;
     {
       // How far out the layout reaches: the largest hyperbolic distance of a
-      // corner from 0 (flat: |z|) and the smallest 1 − |z| (hyperbolic).
-      double reach = 0, margin = 1;
+      // corner from 0 (flat: |z|), read off the face charts (DiskLayout::
+      // layout_radius; the coordinates saturate at |z| = 1 beyond about 37),
+      // and the smallest 1 − |z| of the coordinates (hyperbolic).
+      double margin = 1;
       for (int f = 0; f < L.corners.rows(); ++f)
-        for (int k = 0; k < 3; ++k) {
-          const double n = std::abs(L.corners(f, k));
-          reach = std::max(reach, r.genus >= 2 ? 2.0 * std::atanh(std::min(n, 1.0)) : n);
-          margin = std::min(margin, 1.0 - n);
-        }
-      j["layout_radius"] = reach;
+        for (int k = 0; k < 3; ++k) margin = std::min(margin, 1.0 - std::abs(L.corners(f, k)));
+      j["layout_radius"] = L.layout_radius;
       if (r.genus >= 2) j["min_distance_to_unit_circle"] = margin;
     }
     j["max_corner_inconsistency"] = L.max_corner_inconsistency;
@@ -148,6 +152,12 @@ void run(const Args& a) {
       write_obj(a.layout, r.sphere.positions, in.mesh.F);
     } else {
       const DiskLayout& L = r.layout;
+      // The cut disk is written in the one Poincaré chart; a layout checked
+      // in per-face charts only has corners there without digits.
+      if (!r.single_chart)
+        throw InputError("--layout: the cut disk reaches " + std::to_string(L.layout_radius) +
+                         " from the centre, beyond what double coordinates resolve (" + r.layout_checks +
+                         "); the report is written, the layout is not");
       RowMatrixX3d V(static_cast<int>(L.disk_positions.size()), 3);
       for (int i = 0; i < V.rows(); ++i) V.row(i) << L.disk_positions[i].real(), L.disk_positions[i].imag(), 0.0;
       write_obj(a.layout, V, L.disk_faces);

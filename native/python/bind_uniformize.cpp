@@ -105,6 +105,10 @@ py::dict layout_dict(const DiskLayout& L) {
   if (h0 >= 0) d["base_corner"] = L.corners(h0 / 3, h0 % 3);
   d["num_flipped"] = L.num_flipped;
   d["num_unresolved"] = L.num_unresolved;
+  d["num_flipped_above_roundoff"] = L.num_flipped_above_roundoff;
+  d["num_flipped_local"] = L.num_flipped_local;
+  d["max_vertex_holonomy"] = L.max_vertex_holonomy;
+  d["layout_radius"] = L.layout_radius;
   d["coordinate_roundoff"] = L.coordinate_roundoff;
   d["max_interior_mismatch"] = L.max_interior_mismatch;
   d["interior_roundoff"] = L.interior_roundoff;
@@ -197,6 +201,8 @@ void bind_uniformize(py::module_& m) {
         d["edge_lengths"] = eigen_vector(r.edge_lengths);  // on refined_F's edges
         d["metric"] = r.metric;
         d["loop_metric"] = r.loop_metric;
+        d["single_chart"] = r.single_chart;
+        d["layout_checks"] = r.layout_checks;
         d["edge_flips"] = r.edge_flips;
         d["refinement_splits"] = r.refinement_splits;
         d["layout"] = layout_dict(r.layout);

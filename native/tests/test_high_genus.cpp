@@ -26,6 +26,7 @@
 #include "surfmap/mesh/intake.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/topology/handle_basis.h"
+#include "surfmap/uniformize/layout.h"
 #include "surfmap/uniformize/uniformize.h"
 
 namespace surfmap {
@@ -188,6 +189,63 @@ TEST(HighGenus, RawGenus13WheelUniformizesOnLoopsShortestInTheMetric) {
   EXPECT_LT(hyperbolic::distance(relator.apply(0.0), 0.0), 1e-3);
   for (std::complex<double> z : {r.layout.corners(0, 0), r.layout.corners(0, 1)})
     EXPECT_LT(hyperbolic::distance(relator.apply(z), z), 2e-2) << z;
+}
+
+// Issue 13, CAD plates of genus 13 .. 24 (`surfmap generate cad-plate`, 64
+// rim points, thickness 0.1): the plate is long in its hyperbolic metric,
+// and its one-vertex 4g-gon reaches 37 from the centre at genus 13 (73 at
+// 24), where 1 − |z| ~ 2e^-37 is below double resolution: the single chart
+// cannot close up ("the layout does not close up", 2 flipped slivers). The
+// layout is checked in per-face charts instead (transitions between
+// neighbouring canonical triangles): trivial holonomy around every vertex
+// (interior, loop and base vertices: the interior gluing, the deck maps
+// along each loop, the corner cycle) and no face flipped or folded in a
+// neighbour's chart. The result must say that only the per-face charts
+// hold, deliver area 4π(g − 1), and the angle sums of the laid-out metric
+// (summed here from its lengths) must be 2π; a metric with one edge 0.1%
+// too long must fail the holonomy check by far, so the check is no formality.
+TEST(HighGenus, Genus13CadPlateUniformizesInPerFaceCharts) {
+  const int genus = 13;
+  const TriMesh plate = samples::cad_plate(genus, 64, 0.1);
+  const IntakeResult in = intake(plate.V, plate.F);
+  ASSERT_EQ(in.info.genus, genus);
+  const UniformizeResult r = uniformize(in.mesh);
+  EXPECT_TRUE(r.converged);
+  EXPECT_LE(r.max_curvature_error, 1e-7);
+  EXPECT_NEAR(r.area, 4 * kPi * (genus - 1), 1e-6);
+  // Beyond the single chart, and saying so.
+  EXPECT_GT(r.layout.layout_radius, 30.0);
+  EXPECT_GT(r.layout.num_unresolved, 0);
+  EXPECT_FALSE(r.single_chart);
+  EXPECT_EQ(r.layout_checks.rfind("per-face charts", 0), 0u) << r.layout_checks;
+  // The per-face checks.
+  EXPECT_EQ(r.layout.num_flipped_local, 0);
+  EXPECT_EQ(r.layout.num_flipped_above_roundoff, 0);
+  EXPECT_LE(r.layout.max_vertex_holonomy, vertex_holonomy_tolerance(r.max_curvature_error));
+  EXPECT_LT(r.layout.max_vertex_holonomy, 1e-9);
+  // The laid-out metric (the loops' refinement of T'), angle sums 2π.
+  const Connectivity conn(r.loops.mesh.F, r.loops.mesh.num_vertices());
+  ASSERT_EQ(r.edge_lengths.size(), conn.num_edges());
+  std::vector<double> angle_sum(conn.num_vertices(), 0.0);
+  for (int f = 0; f < conn.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      // Angle at corner k, between its two edges (halfedges 3f + k and the
+      // previous one), opposite the edge 3f + (k + 1) % 3.
+      const double a = r.edge_lengths[conn.edge(3 * f + k)], b = r.edge_lengths[conn.edge(3 * f + (k + 2) % 3)];
+      const double c = r.edge_lengths[conn.edge(3 * f + (k + 1) % 3)];
+      angle_sum[r.loops.mesh.F(f, k)] += hyperbolic::law_of_cosines_angle(a, b, c);
+    }
+  double worst = 0;
+  for (double s : angle_sum) worst = std::max(worst, std::abs(s - 2 * kPi));
+  EXPECT_LT(worst, 1e-7);
+  // A wrong metric fails: the longest edge 0.1% too long.
+  Eigen::VectorXd wrong = r.edge_lengths;
+  int longest = 0;
+  for (int e = 0; e < wrong.size(); ++e)
+    if (wrong[e] > wrong[longest]) longest = e;
+  wrong[longest] *= 1.001;
+  const DiskLayout bad = layout_disk(conn, wrong, Background::Hyperbolic, r.loops);
+  EXPECT_GT(bad.max_vertex_holonomy, 100 * vertex_holonomy_tolerance(r.max_curvature_error));
 }
 
 // Handle correspondences of genus >= 8 are ranked without enumerating the

@@ -91,6 +91,20 @@ PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, cons
 
 namespace {
 
+/// The location and the harmonic map read the target's layout in its one
+/// Poincaré chart (corners, deck elements as matrices); a domain reaching
+/// farther than double coordinates resolve (issue 13: CAD plates of genus
+/// 13 .. 24, 37 .. 73 from the centre) would be read as garbage, so it is
+/// refused here, naming why (uniformize itself checks such layouts in
+/// per-face charts: UniformizeResult::single_chart).
+void require_single_chart(const DiskLayout& layout, Background background) {
+  if (background != Background::Hyperbolic || layout.num_unresolved == 0) return;
+  throw SolveError("the target's fundamental domain reaches " + std::to_string(layout.layout_radius) +
+                   " from the centre of the Poincare disk, where " + std::to_string(layout.num_unresolved) +
+                   " of its triangles are below the round-off of double coordinates; mapping needs the layout in one "
+                   "chart (per-face charts are not implemented in the location and the harmonic map)");
+}
+
 /// The target's loops on its own connectivity, carried onto T' (ClassLoops).
 /// Throws SolveError when the carried generators do not present the group of
 /// T' (the canonical relation, unimodular homology): that would be a bug.
@@ -138,6 +152,7 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   IntrinsicLoops il = intrinsic_loops(target, flow, background, lo);
   t.loops = std::move(il.loops);
   t.layout = layout_disk(*il.conn, il.lengths, background, t.loops);
+  require_single_chart(t.layout, background);
   if (t.layout.num_flipped > 0)
     throw SolveError("the layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
   t.intrinsic = std::make_shared<const TargetIntrinsic>(flow, target.num_vertices());
@@ -196,6 +211,7 @@ UniformizedTarget fixed_target(const TriMesh& target, Background background, con
   t.refinement_max_angle = fm.refinement_max_angle;
   const Connectivity conn(t.loops.mesh.F, t.loops.mesh.num_vertices());
   t.layout = layout_disk(conn, flow.edge_lengths, background, t.loops);
+  require_single_chart(t.layout, background);
   if (t.layout.num_flipped > 0)
     throw SolveError("target layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
   return t;

@@ -28,7 +28,22 @@ double gluing_tolerance(const DiskLayout& L, double residual) {
   return std::max(1e-6, 1e4 * residual) * scale + 1e3 * L.coordinate_roundoff;
 }
 
+double vertex_holonomy_tolerance(double residual) { return 1e-8 + 1e2 * residual; }
+
 namespace {
+
+/// The checks in per-face charts (DiskLayout::max_vertex_holonomy,
+/// num_flipped_local), which hold for every layout of a converged metric,
+/// wherever its faces lie.
+void check_local(const DiskLayout& L, double residual) {
+  if (L.num_flipped_local > 0)
+    throw SolveError("uniformize: " + std::to_string(L.num_flipped_local) +
+                     " triangles are flipped or folded over a neighbour in their per-face charts");
+  const double tol = vertex_holonomy_tolerance(residual);
+  if (!(L.max_vertex_holonomy <= tol))
+    throw SolveError("uniformize: the transitions around a vertex do not close up (holonomy " +
+                     fmt(L.max_vertex_holonomy) + ", tolerance " + fmt(tol) + ")");
+}
 
 /// The layout must glue back together; anything else is a failed solve.
 /// Gluing gaps are judged relative to the layout's scale (DiskLayout::
@@ -36,7 +51,7 @@ namespace {
 /// ε times the domain size, and coordinates far out in the Poincaré disk
 /// carry round-off of coordinate_roundoff. A flipped triangle is always a
 /// failure (a converged metric never has one).
-void check_layout(const DiskLayout& L, double residual) {
+void check_single_chart(const DiskLayout& L, double residual) {
   const double tol = gluing_tolerance(L, residual);
   if (L.num_flipped > 0)
     throw SolveError("uniformize: " + std::to_string(L.num_flipped) + " triangles are flipped in the layout");
@@ -62,6 +77,30 @@ void check_layout(const DiskLayout& L, double residual) {
   if (L.product_relation_error > tol * L.relation_condition)
     throw SolveError("uniformize: the generators violate the boundary-word relation (" +
                      fmt(L.product_relation_error) + ", condition " + fmt(L.relation_condition) + ")");
+}
+
+/// All checks of a layout (docs/robustness.md "CAD plates of genus 13 ..
+/// 24"). The per-face checks always; then the single chart's. When the
+/// single chart fails them and has faces its coordinates cannot resolve
+/// (DiskLayout::num_unresolved: a domain reaching 37 .. 73 from the centre
+/// puts corners where 1 − |z| is below double resolution), its failure is
+/// the coordinates', not the metric's: the per-face checks decide, provided
+/// no triangle taller than its corners' round-off is flipped. Returns true
+/// when the single chart passed (UniformizeResult::single_chart), false
+/// with `why` set to its failure otherwise.
+bool check_layout(const DiskLayout& L, double residual, std::string* why = nullptr) {
+  check_local(L, residual);
+  try {
+    check_single_chart(L, residual);
+    return true;
+  } catch (const SolveError& e) {
+    if (L.background != Background::Hyperbolic || L.num_unresolved == 0) throw;
+    if (L.num_flipped_above_roundoff > 0)
+      throw SolveError("uniformize: " + std::to_string(L.num_flipped_above_roundoff) +
+                       " triangles taller than their coordinates' round-off are flipped in the layout");
+    if (why) *why = e.what();
+    return false;
+  }
 }
 
 /// uniformize() for one metric (options.metric: IntrinsicDelaunay, or
@@ -173,12 +212,14 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
   // again on loops shortest in the metric when it fails or crowds |z| = 1.
   const bool may_switch = options.loops == LoopMetric::Automatic && r.genus >= 2 && r.loop_metric == "embedding" &&
                           flips && !intrinsic_loops_failed;
-  std::string embedding_failure;
+  std::string embedding_failure, single_chart_failure;
   try {
     const Connectivity conn(r.loops.mesh.F, r.loops.mesh.num_vertices());
     r.layout = layout_disk(conn, lengths, bg, r.loops, options.layout);
-    check_layout(r.layout, r.max_curvature_error);
-    if (may_switch && r.layout.coordinate_roundoff > options.crowded_roundoff)
+    r.single_chart = check_layout(r.layout, r.max_curvature_error, &single_chart_failure);
+    if (may_switch && !r.single_chart)
+      embedding_failure = "checked in per-face charts only (" + single_chart_failure + ")";
+    else if (may_switch && r.layout.coordinate_roundoff > options.crowded_roundoff)
       embedding_failure = "coordinate round-off " + fmt(r.layout.coordinate_roundoff);
   } catch (const SolveError& e) {
     if (!may_switch) throw;
@@ -190,18 +231,29 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
     try {
       IntrinsicLoops il = intrinsic_loops(mesh, r.ricci, bg, lo, true);
       DiskLayout layout = layout_disk(*il.conn, il.lengths, bg, il.loops, options.layout);
-      check_layout(layout, r.max_curvature_error);
-      if (!embedding_ok || layout.coordinate_roundoff < r.layout.coordinate_roundoff) {
+      std::string why;
+      const bool single = check_layout(layout, r.max_curvature_error, &why);
+      // A layout the single chart holds beats one it does not; then the
+      // more compact one (coordinate round-off grows like e^radius).
+      const bool better = single != r.single_chart ? single
+                                                   : layout.coordinate_roundoff < r.layout.coordinate_roundoff;
+      if (!embedding_ok || better) {
         r.layout = std::move(layout);
         r.loops = std::move(il.loops);
         lengths = std::move(il.lengths);
         r.loop_metric = "metric (embedding loops: " + embedding_failure + ")";
+        r.single_chart = single;
+        single_chart_failure = why;
       }
     } catch (const SolveError& e) {
       if (!embedding_ok)
         throw SolveError(embedding_failure + "; on loops shortest in the metric: " + e.what());
     }
   }
+  r.layout_checks = r.single_chart ? "single chart"
+                                   : "per-face charts (the single chart's coordinates cannot resolve " +
+                                         std::to_string(r.layout.num_unresolved) + " triangles at up to " +
+                                         fmt(r.layout.layout_radius) + " from the centre: " + single_chart_failure + ")";
   r.edge_lengths = lengths;
   r.gluing_tolerance = gluing_tolerance(r.layout, r.max_curvature_error);
   r.area = r.layout.area;

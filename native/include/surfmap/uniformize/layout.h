@@ -153,7 +153,8 @@ struct DiskLayout {
   double corner_condition = 1;
   /// Round-off of the corner coordinates expressed in the metric: machine ε
   /// times the largest scale factor of the model at a corner (hyperbolic
-  /// 2/(1−|z|²), flat max(|z|, 1)). Mismatches of a few hundred times this are
+  /// 2/(1−|z|²) = 1 + cosh d at distance d from 0, with d read off the
+  /// chart; flat max(|z|, 1)). Mismatches of a few hundred times this are
   /// rounding, not a gluing error (long hyperbolic domains: 1e-4).
   double coordinate_roundoff = 0;
   double max_holonomy_rotation = 0;
@@ -161,11 +162,34 @@ struct DiskLayout {
   /// tested in the Klein model, where the triangle sides are straight),
   /// among the resolvable ones.
   int num_flipped = 0;
+  /// Of those, the ones whose height (2 area / longest side) is at least 100
+  /// times the coordinate round-off at their corners: flipped for real, not
+  /// slivers turned over by rounding (the per-face layout accepts the
+  /// latter, uniformize.cpp check_layout).
+  int num_flipped_above_roundoff = 0;
   /// Triangles whose sides are all shorter than 100 times the coordinate
   /// round-off at their corners (flat metrics of long thin parts: sides of
   /// 1e-13 at |z| ~ 5000): double precision cannot place them, so their
   /// orientation is not tested. Reported, not hidden.
   int num_unresolved = 0;
+  /// Largest distance of a corner from 0 in the metric (hyperbolic), read off
+  /// the face charts (exact where the coordinates round to |z| = 1); flat:
+  /// the largest |z|. The coordinate round-off and num_unresolved use each
+  /// corner's distance read the same way.
+  double layout_radius = 0;
+  /// The checks in per-face charts, which need no position in the layout's
+  /// frame (issue 13: CAD plates of genus 13 .. 24 reach 37 .. 73 from the
+  /// centre, where double coordinates have no digits left): the largest
+  /// distance from the identity of the product of the transitions between
+  /// neighbouring canonical triangles around a vertex's star (every vertex
+  /// of the surface; hyperbolic: SU(1,1) entries, about half the angle
+  /// defect; flat: max(|rotation − 1|, |translation| / longest star edge)),
+  /// and the faces that, carried into a neighbour's chart by their
+  /// transition, are not counter-clockwise or fold over the common edge.
+  /// Trivial holonomy at every vertex is what the single chart's interior,
+  /// deck and corner checks test (layout.cpp, local_checks).
+  double max_vertex_holonomy = 0;
+  int num_flipped_local = 0;
   /// Sum of the triangle areas of the metric (hyperbolic: 4π(g−1) when the
   /// metric has zero curvature at every vertex).
   double area = 0;

@@ -118,6 +118,20 @@ struct UniformizeResult {
   std::vector<hyperbolic::Mobius> generators;
   double product_relation_error = 0;
   DiskLayout layout;
+  /// Whether the layout's coordinates in the one Poincaré chart passed the
+  /// gluing checks (interior, deck, corner, relation; uniformize.cpp
+  /// check_layout). False when only the per-face checks hold (DiskLayout::
+  /// max_vertex_holonomy, num_flipped_local) because the domain reaches
+  /// beyond what double coordinates resolve (CAD plates of genus 13 .. 24,
+  /// 37 .. 73 from the centre): the metric, the area, the cut and the
+  /// per-face charts are valid, the corners, side pairings and generators
+  /// in the layout frame are not to the coordinates' digits, and everything
+  /// that reads them (surface_map's location and harmonic map, `uniformize
+  /// --layout`) refuses such a layout with an error naming it.
+  bool single_chart = true;
+  /// "single chart", or "per-face charts (...)" with the single chart's
+  /// failure.
+  std::string layout_checks;
   /// "intrinsic Delaunay" or "fixed connectivity" (with the reason when the
   /// intrinsic path fell back), and the Ptolemy flips of the metric.
   std::string metric;
@@ -144,6 +158,12 @@ struct UniformizeResult {
 /// metric with max curvature error `residual`: max(1e-6, 1e4 residual) ×
 /// sqrt(area) (relative to the layout's scale) + 1e3 × coordinate_roundoff.
 double gluing_tolerance(const DiskLayout& layout, double residual);
+
+/// The largest holonomy of the transitions around a vertex (DiskLayout::
+/// max_vertex_holonomy) accepted for a metric with max curvature error
+/// `residual`: 1e-8 + 1e2 residual (an angle defect θ gives about θ / 2;
+/// the products' rounding reaches 3e-11 on the genus-24 plate).
+double vertex_holonomy_tolerance(double residual);
 
 /// mesh: closed, manifold, outward-oriented (after intake). Throws
 /// UniformizationError (a SolveError, with the solver's message) when the
