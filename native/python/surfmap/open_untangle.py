@@ -236,9 +236,10 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
         # From the kernel's deepest point, the position of least distortion of the star (the sum of
         # the squared D', infinite at the kernel's shrunk sides): the harmonic position itself has
         # folded, and the least move out of the fold leaves a sliver (D' 20-45 measured).
-        best = minimize(worst, centre, method="Nelder-Mead",
-                        options={"initial_simplex": [centre, centre + [0.5 * depth, 0], centre + [0, 0.5 * depth]],
-                                 "xatol": 1e-3 * depth, "fatol": 1e-6, "maxiter": 400})
+        with np.errstate(invalid="ignore"):     # inf - inf where the simplex leaves the kernel
+            best = minimize(worst, centre, method="Nelder-Mead",
+                            options={"initial_simplex": [centre, centre + [0.5 * depth, 0], centre + [0, 0.5 * depth]],
+                                     "xatol": 1e-3 * depth, "fatol": 1e-6, "maxiter": 400})
         if improve:
             Q = np.zeros((len(ab), 3, 3))
             Q[:, 1, :2], Q[:, 2, :2] = a, b
@@ -247,8 +248,11 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
                 return False
         for p in ((best.x if np.isfinite(best.fun) else centre),) + (() if improve else (centre,)):
             got = place(o + p)
-            if got is None or boundary_distance(got[2]) < 0.5 * boundary_distance(fw["position"][v]):
-                continue    # an interior vertex stays as far inside as half its distance to the boundary
+            # An interior vertex stays inside: a fold's corner at least a tenth of its distance to the
+            # boundary away from it (the shirt's collar apex has to go nearer), an unfolded one at
+            # least half (else the least distorted point can be on the boundary itself).
+            if got is None or boundary_distance(got[2]) < (0.5 if improve else 0.1) * boundary_distance(fw["position"][v]):
+                continue
             old = (fw["face"][v], fw["barycentric"][v].copy(), fw["position"][v].copy())
             fw["face"][v], fw["barycentric"][v], fw["position"][v] = got
             if not np.any(turned_of(star) & ~ear[star]):
@@ -271,6 +275,7 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
         if len(bad) == 0:
             break
         corners = np.unique(S.F[bad])
+        saved = ({k: np.array(fw[k], copy=True) for k in ("face", "barycentric", "position")}, len(moved))
         if rings:
             for v in within(corners, rings):
                 if not on_b[v] and try_move(int(v), improve=True):
@@ -280,9 +285,14 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
                 moved.append(int(v))
         now = np.flatnonzero(turned_of(np.arange(len(S.F))) & ~ear)
         if len(now) >= len(bad):
+            # Nothing gained: the pass is undone (no vertex moves without unfolding something).
+            for k, x in saved[0].items():
+                fw[k][...] = x
+            del moved[saved[1]:]
             rings += 1
             if rings > max_rings:
                 break
+            continue
         bad = now
     # The moved vertices' stars were made unfolded by the least distorted point of each star given
     # its neighbours, one vertex at a time, so a star next to a moved one can be left far more
