@@ -4,24 +4,27 @@ different shapes").
 Why: the doubles' harmonic map is computed in the target's uniformized metric, where the image of
 every source face is positively oriented (`intrinsic_flipped_triangles` 0). The output, though, is
 the chord triangle of the three corners' images on the target's own faces. Where the map compresses
-strongly (a garment's collar squeezed ~4.5x normal to its loop, a double torus's hole onto a far
-smaller one: D' 8-10 on those faces) an image triangle is a sliver whose apex lies within a few
-percent of an edge from the line of its base, and the piecewise linear change from the uniformized
-metric to the target's 3D faces (different per target face: the conformal factor varies) moves the
-apex across that line. Measured on the generated shirt A -> B: the two folded faces fold the same way
-on the doubles' raw images (before the half is cut out and its boundary snapped) and in the target's
-faces unfolded into a plane; they are folds of the output, not of the test.
+strongly (a garment's collar squeezed ~4.5x normal to its loop; on a double torus next to its thin
+tube: D' 8-16 on those faces) an image triangle is a sliver whose third corner lies within a few
+percent of an edge from the line through the other two, and the piecewise linear change from the
+uniformized metric to the target's 3D faces (another affine map per target face: the conformal
+factor varies) carries it across that line. Measured on the generated shirt A -> B: the two folded
+faces fold the same way on the doubles' raw images (before the half is cut out and its boundary
+snapped) and in the target's faces unfolded into a plane; they are folds of the output, not of the
+test.
 
 What: each interior corner of a folded face is moved, within a planar chart of the target around its
-image, to the point nearest its image from which every face of its star is positively oriented with a
-margin: the kernel of the star polygon shrunk by that margin. The deepest point of the kernel (its
-Chebyshev centre) comes from a small linear program; the new point is the first one on the segment
-from the old image to that centre that meets every face's margin (the constraints are linear along
-the segment), then it is put back on the nearest target face. A vertex whose kernel is empty (its
-neighbours' images alone already fold the star), or whose target neighbourhood is creased (normals
-more than `crease_angle` apart: no planar chart), is left as it was. Boundary vertices never move
-(boundary stays on boundary). Each move is kept only if it leaves no face of the star turned by the
-pipeline's own test (open_double._turned), so the count can only go down.
+image (the tangent plane; where the normals turn more than `crease_angle`, the target's faces
+unfolded along a breadth-first tree), to the least distorted point (the sum of its star's squared D')
+inside the kernel of its star polygon shrunk by 5% of the kernel's depth. The kernel's deepest point
+(its Chebyshev centre, a small linear program) starts a Nelder-Mead search; the point is put back on
+the target face holding it. A move is kept only if it leaves no face of the star turned by the
+pipeline's own test (open_double._turned), keeps the vertex inside the target (at least 1/10 of its
+distance to the boundary), so the count can only go down; boundary vertices never move. A pass that
+unfolds nothing is undone and retried after relaxing the interior vertices within 1, 2, 3 rings
+(each to its own star's least distorted point, kept only where that lowers the distortion), which
+widens the folded corners' kernels; the moved vertices and their neighbours are relaxed the same way
+at the end. A vertex whose kernel stays empty is left as it was (its faces stay counted).
 """
 import numpy as np
 
@@ -148,9 +151,10 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
     """Moves interior source vertices of folded faces (module docstring). S, T: open_double._Side;
     fw: the half's forward map {face, barycentric, position} on T's input faces (changed in place);
     turned_of(faces) -> bool array: the pipeline's test of those source faces (open_double._turned);
-    ear: faces never counted. margin: the fraction of the star's deepest kernel point's distance kept
-    from every side (0 < margin <= 1; the rest of the move is the least that reaches it).
-    Returns the list of moved vertices (each once)."""
+    reversing: an orientation-reversing map (the charts' y axis turned). Ears (three boundary
+    corners) are never counted. crease_angle: beyond it the unfolded chart; max_passes, max_rings,
+    relax_sweeps: the passes, the rings relaxed around corners that cannot move, the final sweeps.
+    Returns the moved vertices (sorted, each once)."""
     from scipy.optimize import linprog, minimize
 
     from .open_double import _dilatation as dilatation
