@@ -11,7 +11,9 @@ flipped faces (the pipeline's count / counted here: the chord triangle of each f
 against the target's normals at its corners' faces, ears left out), boundary: the largest
 distance of a boundary vertex's image to its paired target loop and the smallest of an interior
 vertex's image to any target loop (over the diagonal), identity: the mean distance of each input
-vertex's image to itself over the diagonal (remeshed copies only), mean D', seconds.
+vertex's image to itself over the diagonal (remeshed copies only), untangled: how many vertices
+the untangling of folded faces moved (open.untangled_vertices), mean / max D' (ears left out),
+seconds.
 
   SURFMAP_PYTHONPATH=build/python nice python3 bench/bench_open_surfaces.py [--only SUBSTRING]
       [--real DIR] [--quick]
@@ -202,16 +204,18 @@ def run(name, gb, Vs, Fs, Vt, Ft, identity):
         r = surfmap.surface_map(Vs, Fs, Vt, Ft)
     except Exception as e:   # a row says what failed; the table goes on
         print(f"| {name} | ({gb[0]}, {gb[1]}) | {len(Vs)} → {len(Vt)} | **failed**: {str(e)[:200]} |"
-              f" | | | | | {time.time() - t0:.0f} |", flush=True)
+              f" | | | | | | {time.time() - t0:.0f} |", flush=True)
         return None
     dt = time.time() - t0
     off, inside, flips_here, ident = measure(r, Vs, Fs, Vt, Ft, identity)
     o = r["open"]
     path = o["domain"] + (f", {o.get('orientation', '')}" if o["domain"] == "double" else "")
     conv = r.get("converged", True)
+    moved = o.get("untangled_vertices", 0)
     print(f"| {name} | ({gb[0]}, {gb[1]}) | {len(Vs)} → {len(Vt)} | {path} | {o['boundary_pairing']} | {conv} | "
-          f"{r['flipped_triangles']} ({flips_here}) | {off:.1e} / {inside:.1e} | "
-          f"{'' if np.isnan(ident) else f'{100 * ident:.3f}%'} | {r['distortion']['mean']:.3f} | {dt:.0f} |", flush=True)
+          f"{r['flipped_triangles']} ({flips_here}) | {moved if moved else ''} | {off:.1e} / {inside:.1e} | "
+          f"{'' if np.isnan(ident) else f'{100 * ident:.3f}%'} | {r['distortion']['mean']:.3f} / "
+          f"{r['distortion']['max']:.1f} | {dt:.0f} |", flush=True)
     return r
 
 
@@ -223,9 +227,9 @@ def main():
     ap.add_argument("--no-remeshed", action="store_true")
     ap.add_argument("--no-pairs", action="store_true")
     args = ap.parse_args()
-    print("| shape | (g, b) | V | path | pairing | converged | flipped (here) | boundary off / interior to loops |"
-          " identity | mean D' | s |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| shape | (g, b) | V | path | pairing | converged | flipped (here) | untangled | boundary off / interior to "
+          "loops | identity | mean / max D' | s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name, (gb, make_a, make_b) in shapes(args.quick).items():
         if args.only and args.only not in name:
             continue
@@ -234,7 +238,7 @@ def main():
             info = surfmap.intake(V, F, allow_boundary=True)["info"]
             got = (info["genus"], info["num_boundary_loops"])
             if got != gb:
-                print(f"| {name} {label} | generated {got}, wanted {gb} | | | | | | | | | |", flush=True)
+                print(f"| {name} {label} | generated {got}, wanted {gb} | | | | | | | | | | |", flush=True)
                 break
         else:
             if not args.no_pairs:

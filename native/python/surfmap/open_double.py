@@ -36,7 +36,7 @@ import sys
 
 import numpy as np
 
-from . import _core, open_cut_disk
+from . import _core, open_cut_disk, open_untangle
 
 #: (g, b) the conformal path of map/open_map.h maps (disk, annulus); every other open pair here.
 CONFORMAL_TOPOLOGIES = {(0, 1), (0, 2)}
@@ -597,21 +597,19 @@ def _face_neighbours(F):
     return out.reshape(m, 3)
 
 
-def _unfolded_signed_area(V, F, neighbours, faces, bary, max_faces=400):
-    """Signed area of the triangle of three points on a triangle mesh (faces (3,), bary (3,3)),
-    measured intrinsically: the faces of a breadth-first tree from faces[0] reaching the other two
-    are unfolded isometrically into the plane of faces[0] (its own orientation counter-clockwise),
-    and the points' planar positions give the area. None when the faces are more than max_faces
-    apart. This is what the chord triangle in a tangent plane cannot tell where the surface folds
-    sharply between the corners' faces (a garment's crease: adjacent faces turned by 90° or more)."""
-    root = int(faces[0])
+def _unfold(V, F, neighbours, root, wanted, max_faces=400):
+    """The faces of a breadth-first tree from face `root` until every face of `wanted` is reached,
+    unfolded isometrically into the plane of `root` (its own orientation counter-clockwise): a dict
+    face -> (3, 2) planar corners, in the order the faces were reached. None when some wanted face
+    is more than max_faces away."""
+    root = int(root)
     P0 = V[F[root]]
     e1 = P0[1] - P0[0]
     x = e1 / np.linalg.norm(e1)
     nrm = np.cross(e1, P0[2] - P0[0])
     y = np.cross(nrm / np.linalg.norm(nrm), x)
     planar = {root: np.array([[0.0, 0.0], [np.linalg.norm(e1), 0.0], [(P0[2] - P0[0]) @ x, (P0[2] - P0[0]) @ y]])}
-    wanted = {int(f) for f in faces} - {root}
+    wanted = {int(f) for f in wanted} - {root}
     queue, head = [root], 0
     while wanted and head < len(queue) and len(queue) <= max_faces:
         f = queue[head]
@@ -639,7 +637,19 @@ def _unfolded_signed_area(V, F, neighbours, faces, bary, max_faces=400):
             planar[g] = q
             queue.append(g)
             wanted.discard(g)
-    if wanted:
+    return None if wanted else planar
+
+
+def _unfolded_signed_area(V, F, neighbours, faces, bary, max_faces=400):
+    """Signed area of the triangle of three points on a triangle mesh (faces (3,), bary (3,3)),
+    measured intrinsically: the faces of a breadth-first tree from faces[0] reaching the other two
+    are unfolded isometrically into the plane of faces[0] (_unfold), and the points' planar
+    positions give the area; also the planar triangle's perimeter. None when the faces are more
+    than max_faces apart. This is what the chord triangle in a tangent plane cannot tell where the
+    surface folds sharply between the corners' faces (a garment's crease: adjacent faces turned by
+    90° or more)."""
+    planar = _unfold(V, F, neighbours, faces[0], faces[1:], max_faces)
+    if planar is None:
         return None
     pts = [bary[k] @ planar[int(faces[k])] for k in range(3)]
     a, b = pts[1] - pts[0], pts[2] - pts[0]
@@ -650,7 +660,18 @@ def _unfolded_signed_area(V, F, neighbours, faces, bary, max_faces=400):
 def _flips(S, T, fw, reversing=False, resolved_angle=np.pi / 3):
     """Source faces (ears apart) whose image turns against the target (with `reversing`, an
     orientation-reversing map: whose image does not); ears (faces with three boundary corners,
-    fixed by their boundary points alone) and how many of them turn.
+    fixed by their boundary points alone) and how many of them turn: (flipped, ears, ears turned,
+    ear mask). The test of each face: _turned."""
+    turned = _turned(S, T, fw, reversing, resolved_angle=resolved_angle)
+    on_b = np.zeros(S.n, dtype=bool)
+    on_b[np.concatenate(S.loops)] = True
+    ear = np.all(on_b[S.F], axis=1)
+    return int(np.sum(turned & ~ear)), int(ear.sum()), int(np.sum(turned & ear)), ear
+
+
+def _turned(S, T, fw, reversing=False, faces=None, resolved_angle=np.pi / 3):
+    """Per source face (or per face of `faces`, an index array), whether its image turns against
+    the target (with `reversing`: does not).
 
     Where the target's normals at the corners' faces agree (pairwise within `resolved_angle`, the
     certificate's resolved images, verify/map_certificate.h), the chord triangle of the images
@@ -659,10 +680,13 @@ def _flips(S, T, fw, reversing=False, resolved_angle=np.pi / 3):
     against faces folded by 100°+, docs/open_surfaces.md) and the triangle is measured in the
     target's faces unfolded into one plane (_unfolded_signed_area)."""
     Vt, Ft = T.V, T.F
-    nt = np.cross(Vt[Ft[:, 1]] - Vt[Ft[:, 0]], Vt[Ft[:, 2]] - Vt[Ft[:, 0]])
-    q = fw["position"][S.F]
+    if getattr(T, "face_normals", None) is None:
+        T.face_normals = np.cross(Vt[Ft[:, 1]] - Vt[Ft[:, 0]], Vt[Ft[:, 2]] - Vt[Ft[:, 0]])
+    nt = T.face_normals
+    SF = S.F if faces is None else S.F[np.asarray(faces, dtype=np.int64)]
+    q = fw["position"][SF]
     img_n = np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0])
-    corner_faces = np.asarray(fw["face"])[S.F]
+    corner_faces = np.asarray(fw["face"])[SF]
     # The target's normal at the face holding each corner's image, summed over the corners.
     normal = sum(nt[corner_faces[:, k]] for k in range(3))
     sign = -1 if reversing else 1
@@ -687,15 +711,12 @@ def _flips(S, T, fw, reversing=False, resolved_angle=np.pi / 3):
             best = None
             for r in range(3):
                 order = [r, (r + 1) % 3, (r + 2) % 3]
-                got = _unfolded_signed_area(Vt, Ft, T.face_neighbours, corner_faces[f][order], bary[S.F[f]][order])
+                got = _unfolded_signed_area(Vt, Ft, T.face_neighbours, corner_faces[f][order], bary[SF[f]][order])
                 if got is not None and got[1] >= chord * (1 - 1e-9) and (best is None or got[1] < best[1]):
                     best = got
             if best is not None:
                 turned[f] = sign * best[0] <= 0
-    on_b = np.zeros(S.n, dtype=bool)
-    on_b[np.concatenate(S.loops)] = True
-    ear = np.all(on_b[S.F], axis=1)
-    return int(np.sum(turned & ~ear)), int(ear.sum()), int(np.sum(turned & ear)), ear
+    return turned
 
 
 def _alignment(S, T, images):
@@ -863,7 +884,7 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
 
 def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),
                      max_pairings=6, symmetry_tolerance=0.05, tie_tolerance=1e-6, progress=None, landmarks=None,
-                     **options):
+                     untangle=True, **options):
     """Map between two open surfaces of equal (g, b) through their doubles (module docstring).
 
     Vs (n_s,3), Fs (m_s,3), Vt, Ft: the meshes (input faces are triangles). boundary_pairing: None
@@ -890,7 +911,11 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     {'final': the half's energy}, and 'open' {domain 'double', method, boundary_pairing,
     orientation, pairing_choice, candidates [{pairing, orientation, energy, symmetry_error,
     same_sheet, alignment, status, chosen}], tied_candidates, symmetry_error, same_sheet,
-    snap_distance, double_genus, ear_triangles, ear_triangles_turned}.
+    snap_distance, double_genus, ear_triangles, ear_triangles_turned, source_weights_fallback,
+    untangled_vertices, untangled}. untangle (default True): the interior corners of the half's folded
+    faces are moved within their stars (open_untangle.untangle_half) before the own-edge weights'
+    solve is tried; 'untangled' says how many faces were folded and how many vertices moved (the
+    forward map only; the inverse is the doubles' own).
     Raises InputError for different (g, b) or a bad pairing, SolveError when no candidate
     maps."""
     S = _Side(Vs, Fs, "source")
@@ -963,7 +988,12 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     report("doubles: the half", 0.95)
     fw, inv, pairing, back_pairing, snap = _half_correspondence(r, S, T)
     flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
-    weights_fallback = ""
+    weights_fallback, untangled, flipped_before_untangling = "", [], flipped
+    if flipped and untangle:
+        # The few folds of strongly compressed faces (open_untangle): their interior corners moved
+        # within their stars, before the costlier solve on the source's own edges below.
+        untangled = open_untangle.untangle_half(S, T, fw, lambda f: _turned(S, T, fw, rev, faces=f), rev)
+        flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
     if flipped and "source_weights" not in options:
         # As the closed pipeline's automatic weights (SourceWeights::Automatic): the intrinsic
         # Delaunay weights' straight images of the user's faces fold (here next to the boundary,
@@ -971,11 +1001,16 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         # chosen class is solved again with positive weights on the source's own edges.
         r2 = _double_map(S, T, chosen_images, dict(options, source_weights="own"), _landmark_pairs(S, T, lm, rev))
         fw2, inv2, pairing2, back2, snap2 = _half_correspondence(r2, S, T)
+        before2 = _flips(S, T, fw2, rev)[0]
+        untangled2 = open_untangle.untangle_half(S, T, fw2, lambda f: _turned(S, T, fw2, rev, faces=f), rev) \
+            if untangle and before2 else []
         flipped2, ears, ears_turned, ear = _flips(S, T, fw2, rev)
-        weights_fallback = (f"{flipped} flipped with the intrinsic Delaunay weights; solved again on the source's "
-                            f"own edges: {flipped2} flipped")
+        weights_fallback = (f"{flipped} flipped with the intrinsic Delaunay weights"
+                            f"{' after untangling' if untangled else ''}; solved again on the source's own edges: "
+                            f"{flipped2} flipped{' after untangling' if untangled2 else ''}")
         if flipped2 < flipped:
             r, fw, inv, pairing, back_pairing, snap, flipped = r2, fw2, inv2, pairing2, back2, snap2, flipped2
+            untangled, flipped_before_untangling = untangled2, before2
             cand = dict(cand, energy=float(r2["energy"]["final"]) / 2)
             cand["symmetry_error"], cand["same_sheet"] = _symmetry(r2, S, T, rev)
         else:
@@ -1004,7 +1039,10 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "candidates": candidates, "tied_candidates": len(tied), "symmetry_error": cand["symmetry_error"],
                    "same_sheet": cand["same_sheet"], "snap_distance": snap, "double_genus": int(r["genus"]),
                    "ear_triangles": ears, "ear_triangles_turned": ears_turned,
-                   "source_weights_fallback": weights_fallback, "landmarks": len(lm),
+                   "source_weights_fallback": weights_fallback, "untangled_vertices": len(untangled),
+                   "untangled": (f"{flipped_before_untangling} folded faces; {len(untangled)} interior vertices moved "
+                                 f"within their stars, {flipped} folded left" if untangled else ""),
+                   "landmarks": len(lm),
                    "landmark_error": float(np.max(np.linalg.norm(fw["position"][lm[:, 0]] - T.V[lm[:, 1]], axis=1),
                                                   initial=0.0))}
     return out

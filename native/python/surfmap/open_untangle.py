@@ -1,0 +1,312 @@
+"""Untangling the half's few folded faces (issue 16; docs/open_surfaces.md, "Folds between strongly
+different shapes").
+
+Why: the doubles' harmonic map is computed in the target's uniformized metric, where the image of
+every source face is positively oriented (`intrinsic_flipped_triangles` 0). The output, though, is
+the chord triangle of the three corners' images on the target's own faces. Where the map compresses
+strongly (a garment's collar squeezed ~4.5x normal to its loop; on a double torus next to its thin
+tube: D' 8-16 on those faces) an image triangle is a sliver whose third corner lies within a few
+percent of an edge from the line through the other two, and the piecewise linear change from the
+uniformized metric to the target's 3D faces (another affine map per target face: the conformal
+factor varies) carries it across that line. Measured on the generated shirt A -> B: the two folded
+faces fold the same way on the doubles' raw images (before the half is cut out and its boundary
+snapped) and in the target's faces unfolded into a plane; they are folds of the output, not of the
+test.
+
+What: each interior corner of a folded face is moved, within a planar chart of the target around its
+image (the tangent plane; where the normals turn more than `crease_angle`, the target's faces
+unfolded along a breadth-first tree), to the least distorted point (the sum of its star's squared D')
+inside the kernel of its star polygon shrunk by 5% of the kernel's depth. The kernel's deepest point
+(its Chebyshev centre, a small linear program) starts a Nelder-Mead search; the point is put back on
+the target face holding it. A move is kept only if it leaves no face of the star turned by the
+pipeline's own test (open_double._turned), keeps the vertex inside the target (at least 1/10 of its
+distance to the boundary), so the count can only go down; boundary vertices never move. A pass that
+unfolds nothing is undone and retried after relaxing the interior vertices within 1, 2, 3 rings
+(each to its own star's least distorted point, kept only where that lowers the distortion), which
+widens the folded corners' kernels; the moved vertices and their neighbours are relaxed the same way
+at the end. A vertex whose kernel stays empty is left as it was (its faces stay counted).
+"""
+import numpy as np
+
+
+def _closest_on_triangles(p, A, B, C):
+    """Closest point to p on each triangle (A[i], B[i], C[i]): (points (k,3), barycentrics (k,3))."""
+    def seg(P, Q):
+        d = Q - P
+        t = np.clip(np.einsum("ij,ij->i", p - P, d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-300), 0, 1)
+        return P + t[:, None] * d, t
+    n = np.cross(B - A, C - A)
+    nn = np.maximum(np.einsum("ij,ij->i", n, n), 1e-300)
+    # Barycentrics of p's projection onto each plane.
+    w = p - A
+    bb = np.einsum("ij,ij->i", np.cross(w, C - A), n) / nn
+    bc = np.einsum("ij,ij->i", np.cross(B - A, w), n) / nn
+    bary = np.stack([1 - bb - bc, bb, bc], axis=1)
+    pts = A + bb[:, None] * (B - A) + bc[:, None] * (C - A)
+    outside = np.any(bary < 0, axis=1)
+    if np.any(outside):
+        cands = []
+        for (P, Q, i, j) in ((A, B, 0, 1), (B, C, 1, 2), (C, A, 2, 0)):
+            q, t = seg(P[outside], Q[outside])
+            b = np.zeros((int(outside.sum()), 3))
+            b[:, i], b[:, j] = 1 - t, t
+            cands.append((q, b))
+        dist = np.stack([np.linalg.norm(q - p, axis=1) for q, _ in cands], axis=1)
+        best = np.argmin(dist, axis=1)
+        rows = np.arange(len(best))
+        pts[outside] = np.stack([c[0] for c in cands], axis=1)[rows, best]
+        bary[outside] = np.stack([c[1] for c in cands], axis=1)[rows, best]
+    return pts, bary
+
+
+def _tangent_chart(T, tf, origin, normal, held, sign):
+    """A chart of the target around smooth ground: the plane through `origin` normal to `normal`
+    (y turned by `sign`: an orientation-reversing map's images counter-clockwise too). Returns
+    (plane(face, bary, position) -> (k, 2), place(point) -> (face, bary, position) on the nearest of
+    the target faces within two rings of `held`)."""
+    ex = np.cross(normal, [1.0, 0.0, 0.0])
+    if np.linalg.norm(ex) < 0.5:
+        ex = np.cross(normal, [0.0, 1.0, 0.0])
+    ex /= np.linalg.norm(ex)
+    ey = np.cross(normal, ex) * sign
+    near = tf.around(held, 2)
+
+    def plane(face, bary, position):
+        return np.stack([(position - origin) @ ex, (position - origin) @ ey], axis=-1)
+
+    def place(p):
+        Y = origin + p[0] * ex + p[1] * ey
+        pts, bary = _closest_on_triangles(Y, T.V[T.F[near, 0]], T.V[T.F[near, 1]], T.V[T.F[near, 2]])
+        k = int(np.argmin(np.linalg.norm(pts - Y, axis=1)))
+        if _on_boundary_edge(T, near[k], bary[k]):
+            return None     # beyond the target's boundary: an interior vertex stays inside
+        return near[k], bary[k], pts[k]
+    return plane, place
+
+
+def _on_boundary_edge(T, face, bary):
+    """Whether the point (face, bary) of T lies on one of T's boundary edges."""
+    if getattr(T, "boundary_edges", None) is None:
+        T.boundary_edges = {(int(min(u, w)), int(max(u, w))) for loop in T.loops
+                            for u, w in zip(loop, np.roll(loop, -1))}
+    tri = T.F[face]
+    for k in range(3):
+        if bary[k] <= 0 and (int(min(tri[(k + 1) % 3], tri[(k + 2) % 3])),
+                             int(max(tri[(k + 1) % 3], tri[(k + 2) % 3]))) in T.boundary_edges:
+            return True
+    return False
+
+
+def _unfolded_chart(T, root, held, sign):
+    """A chart of the target where its normals turn too much for a plane (a thin tube, a crease):
+    its faces unfolded isometrically along a breadth-first tree from `root` to every face of `held`
+    (open_double._unfold). place: the first unfolded face (in the tree's order) holding the point,
+    else the nearest. None when `held` is too far apart."""
+    from .open_double import _face_neighbours, _unfold
+    if getattr(T, "face_neighbours", None) is None:
+        T.face_neighbours = _face_neighbours(T.F)
+    planar = _unfold(T.V, T.F, T.face_neighbours, root, held)
+    if planar is None:
+        return None
+    faces = np.array(list(planar.keys()))
+    corners = np.array([planar[int(f)] for f in faces]) * np.array([1.0, sign])
+
+    def plane(face, bary, position):
+        return np.einsum("ij,ijk->ik", bary, np.array([planar[int(f)] for f in face])) * np.array([1.0, sign])
+
+    def place(p):
+        A, B, C = corners[:, 0], corners[:, 1], corners[:, 2]
+        det = (B[:, 0] - A[:, 0]) * (C[:, 1] - A[:, 1]) - (B[:, 1] - A[:, 1]) * (C[:, 0] - A[:, 0])
+        l1 = ((p[0] - A[:, 0]) * (C[:, 1] - A[:, 1]) - (p[1] - A[:, 1]) * (C[:, 0] - A[:, 0])) / det
+        l2 = ((B[:, 0] - A[:, 0]) * (p[1] - A[:, 1]) - (B[:, 1] - A[:, 1]) * (p[0] - A[:, 0])) / det
+        bary = np.stack([1 - l1 - l2, l1, l2], axis=1)
+        inside = np.flatnonzero(bary.min(axis=1) > 0)
+        if len(inside) == 0:
+            return None     # outside the unfolded faces (beyond the boundary, or past the tree)
+        k = int(inside[0])
+        f = int(faces[k])
+        return f, bary[k], bary[k] @ T.V[T.F[f]]
+    return plane, place
+
+
+class _TargetFaces:
+    """The target's faces around a set of faces (rings of faces sharing a vertex)."""
+
+    def __init__(self, F, n):
+        order = np.argsort(F.reshape(-1), kind="stable")
+        self.F = F
+        self.vf_face = order // 3
+        self.vf_start = np.searchsorted(F.reshape(-1)[order], np.arange(n + 1))
+
+    def around(self, faces, rings):
+        faces = np.unique(faces)
+        for _ in range(rings):
+            verts = np.unique(self.F[faces])
+            faces = np.unique(np.concatenate([self.vf_face[self.vf_start[v]:self.vf_start[v + 1]] for v in verts]))
+        return faces
+
+
+def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, max_passes=4, max_rings=3,
+                  relax_sweeps=2):
+    """Moves interior source vertices of folded faces (module docstring). S, T: open_double._Side;
+    fw: the half's forward map {face, barycentric, position} on T's input faces (changed in place);
+    turned_of(faces) -> bool array: the pipeline's test of those source faces (open_double._turned);
+    reversing: an orientation-reversing map (the charts' y axis turned). Ears (three boundary
+    corners) are never counted. crease_angle: beyond it the unfolded chart; max_passes, max_rings,
+    relax_sweeps: the passes, the rings relaxed around corners that cannot move, the final sweeps.
+    Returns the moved vertices (sorted, each once)."""
+    from scipy.optimize import linprog, minimize
+
+    from .open_double import _dilatation as dilatation
+
+    on_b = np.zeros(S.n, dtype=bool)
+    on_b[np.concatenate(S.loops)] = True
+    ear = np.all(on_b[S.F], axis=1)
+    order = np.argsort(S.F.reshape(-1), kind="stable")
+    s_face = order // 3
+    s_start = np.searchsorted(S.F.reshape(-1)[order], np.arange(S.n + 1))
+    if getattr(T, "face_normals", None) is None:
+        T.face_normals = np.cross(T.V[T.F[:, 1]] - T.V[T.F[:, 0]], T.V[T.F[:, 2]] - T.V[T.F[:, 0]])
+    unit = T.face_normals / np.maximum(np.linalg.norm(T.face_normals, axis=1), 1e-300)[:, None]
+    tf = _TargetFaces(T.F, len(T.V))
+    sign = -1.0 if reversing else 1.0
+    moved = []
+
+    seg_a = np.concatenate([T.V[loop] for loop in T.loops])
+    seg_d = np.concatenate([T.V[np.roll(loop, -1)] for loop in T.loops]) - seg_a
+    seg_dd = np.maximum(np.einsum("ij,ij->i", seg_d, seg_d), 1e-300)
+
+    def boundary_distance(x):
+        t = np.clip(np.einsum("ij,ij->i", x - seg_a, seg_d) / seg_dd, 0, 1)
+        return float(np.min(np.linalg.norm(seg_a + t[:, None] * seg_d - x, axis=1)))
+
+    def star_of(v):
+        return s_face[s_start[v]:s_start[v + 1]]
+
+    def try_move(v, improve=False):
+        """Moves v to the least distorted point of its star's shrunk kernel; improve: only when its
+        star is not folded now, and only if that lowers the star's distortion."""
+        star = star_of(v)
+        if improve and np.any(turned_of(star)):
+            return False
+        # Each star face as (v, a, b) in the source's order: counter-clockwise around v.
+        ab = []
+        for f in star:
+            k = list(S.F[f]).index(v)
+            ab.append((S.F[f][(k + 1) % 3], S.F[f][(k + 2) % 3]))
+        ab = np.array(ab)
+        ring = np.unique(ab)
+        held = np.concatenate([[fw["face"][v]], fw["face"][ring]])
+        nrm = unit[held].sum(axis=0)
+        if np.linalg.norm(nrm) > 1e-12 and np.min(unit[held] @ (nrm / np.linalg.norm(nrm))) >= np.cos(crease_angle):
+            plane, place = _tangent_chart(T, tf, fw["position"][v], nrm / np.linalg.norm(nrm), held, sign)
+        else:
+            chart = _unfolded_chart(T, fw["face"][v], held, sign)
+            if chart is None:
+                return False
+            plane, place = chart
+
+        def at(x):
+            return plane(fw["face"][x], fw["barycentric"][x], fw["position"][x])
+        o = at(np.array([v]))[0]
+        a, b = at(ab[:, 0]) - o, at(ab[:, 1]) - o
+        d = a - b
+        length = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+        # Signed distance of p to the line a -> b (positive on its left, where v belongs):
+        # (a x b + p x (a - b)) / |a - b|, linear in p.
+        axb = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+
+        def dist(p):
+            return (axb + p[0] * d[:, 1] - p[1] * d[:, 0]) / length
+        # max t subject to dist_k(p) >= t: -(d_y px - d_x py)/|d| + t <= axb/|d|.
+        A_ub = np.stack([-d[:, 1] / length, d[:, 0] / length, np.ones(len(d))], axis=1)
+        scale = float(length.max())
+        res = linprog([0, 0, -1], A_ub=A_ub, b_ub=axb / length, bounds=[(-10 * scale, 10 * scale)] * 2 + [(None, scale)],
+                      method="highs")
+        if res.status != 0 or res.x[2] <= 1e-12 * scale:
+            return False
+        centre, depth = res.x[:2], res.x[2]
+        # The star's source triangles in their own planes, for D' of each image (open_double's
+        # _dilatation, here in the chart).
+        src = S.V[np.stack([np.full(len(ab), v), ab[:, 0], ab[:, 1]], axis=1)]
+
+        def worst(p):
+            if np.min(dist(p)) <= 0.05 * depth:
+                return np.inf
+            Q = np.zeros((len(ab), 3, 3))
+            Q[:, 0, :2], Q[:, 1, :2], Q[:, 2, :2] = p, a, b
+            return float(np.sum(dilatation(src.reshape(-1, 3), Q.reshape(-1, 3), tri) ** 2))
+        tri = np.arange(3 * len(ab)).reshape(-1, 3)
+        # From the kernel's deepest point, the position of least distortion of the star (the sum of
+        # the squared D', infinite at the kernel's shrunk sides): the harmonic position itself has
+        # folded, and the least move out of the fold leaves a sliver (D' 20-45 measured).
+        with np.errstate(invalid="ignore"):     # inf - inf where the simplex leaves the kernel
+            best = minimize(worst, centre, method="Nelder-Mead",
+                            options={"initial_simplex": [centre, centre + [0.5 * depth, 0], centre + [0, 0.5 * depth]],
+                                     "xatol": 1e-3 * depth, "fatol": 1e-6, "maxiter": 400})
+        if improve:
+            Q = np.zeros((len(ab), 3, 3))
+            Q[:, 1, :2], Q[:, 2, :2] = a, b
+            now = float(np.sum(dilatation(src.reshape(-1, 3), Q.reshape(-1, 3), tri) ** 2))
+            if not (np.isfinite(best.fun) and best.fun < 0.99 * now):
+                return False
+        for p in ((best.x if np.isfinite(best.fun) else centre),) + (() if improve else (centre,)):
+            got = place(o + p)
+            # An interior vertex stays inside: a fold's corner at least a tenth of its distance to the
+            # boundary away from it (the shirt's collar apex has to go nearer), an unfolded one at
+            # least half (else the least distorted point can be on the boundary itself).
+            if got is None or boundary_distance(got[2]) < (0.5 if improve else 0.1) * boundary_distance(fw["position"][v]):
+                continue
+            old = (fw["face"][v], fw["barycentric"][v].copy(), fw["position"][v].copy())
+            fw["face"][v], fw["barycentric"][v], fw["position"][v] = got
+            if not np.any(turned_of(star) & ~ear[star]):
+                return True
+            fw["face"][v], fw["barycentric"][v], fw["position"][v] = old
+        return False
+
+    def within(verts, rings):
+        for _ in range(rings):
+            verts = np.unique(S.F[np.concatenate([star_of(v) for v in verts])])
+        return verts
+
+    # Each pass moves the interior corners of the folded faces; when a pass leaves as many folded
+    # faces as before (a corner's kernel is empty: its neighbours' images are cramped too), the
+    # interior vertices within one more ring of them are first moved to their stars' least
+    # distorted points (unfolded stars only, and only where that lowers the distortion), which
+    # widens the folded corners' kernels, up to `max_rings` rings.
+    rings, bad = 0, np.flatnonzero(turned_of(np.arange(len(S.F))) & ~ear)
+    for _ in range(max_passes + max_rings):
+        if len(bad) == 0:
+            break
+        corners = np.unique(S.F[bad])
+        saved = ({k: np.array(fw[k], copy=True) for k in ("face", "barycentric", "position")}, len(moved))
+        if rings:
+            for v in within(corners, rings):
+                if not on_b[v] and try_move(int(v), improve=True):
+                    moved.append(int(v))
+        for v in corners:
+            if not on_b[v] and try_move(int(v)):
+                moved.append(int(v))
+        now = np.flatnonzero(turned_of(np.arange(len(S.F))) & ~ear)
+        if len(now) >= len(bad):
+            # Nothing gained: the pass is undone (no vertex moves without unfolding something).
+            for k, x in saved[0].items():
+                fw[k][...] = x
+            del moved[saved[1]:]
+            rings += 1
+            if rings > max_rings:
+                break
+            continue
+        bad = now
+    # The moved vertices' stars were made unfolded by the least distorted point of each star given
+    # its neighbours, one vertex at a time, so a star next to a moved one can be left far more
+    # distorted than before (a valence-4 corner's faces at D' 22-29 on the double torus, from
+    # 10-16): `relax_sweeps` sweeps of the same least-distortion move over the moved vertices and
+    # their neighbours, each kept only where it lowers its star's distortion and folds nothing.
+    if moved:
+        patch = within(np.unique(moved), 1)
+        for _ in range(relax_sweeps):
+            for v in patch:
+                if not on_b[v] and try_move(int(v), improve=True):
+                    moved.append(int(v))
+    return sorted(set(moved))

@@ -1,0 +1,138 @@
+"""The half's folded faces untangled (surfmap.open_untangle; docs/open_surfaces.md, "Folds between
+strongly different shapes"): a vertex's image pushed across its neighbours on a flat, a curved and
+a creased sheet is moved back so that no face folds, nothing else moves, boundary stays on the
+boundary; and the generated shirt pair whose map through the doubles folded 2 faces maps with none,
+counted independently."""
+import numpy as np
+import pytest
+
+import surfmap
+from surfmap import open_double, open_untangle
+from test_open_double import check_map, compact
+
+
+def sheet(n=10):
+    """A square grid [-1, 1]^2 (z = 0), n x n squares, alternating diagonals."""
+    t = np.linspace(-1, 1, n + 1)
+    X, Y = np.meshgrid(t, t, indexing="ij")
+    V = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], 1)
+    F = []
+    for i in range(n):
+        for j in range(n):
+            a, b, c, d = i * (n + 1) + j, (i + 1) * (n + 1) + j, (i + 1) * (n + 1) + j + 1, i * (n + 1) + j + 1
+            F += [[a, b, c], [a, c, d]] if (i + j) % 2 else [[a, b, d], [b, c, d]]
+    return V, np.array(F)
+
+
+def shaped(V, kind):
+    """The target's vertices: the sheet itself, mirrored (x -> -x; with the faces reversed the
+    identity is orientation reversing), bent into a cylinder, or creased by 100 degrees along x = 0."""
+    W = V.copy()
+    if kind == "mirrored":
+        W[:, 0] *= -1
+    elif kind == "curved":
+        W[:, 0], W[:, 2] = np.sin(V[:, 0]), 1 - np.cos(V[:, 0])
+    elif kind == "creased":
+        bend = np.radians(100)
+        right = V[:, 0] > 0
+        W[right, 0], W[right, 2] = V[right, 0] * np.cos(bend), V[right, 0] * np.sin(bend)
+    return W
+
+
+def locate(T, V):
+    """(face, barycentric, position) on T's input faces of points that are vertices of T."""
+    face = np.empty(len(V), dtype=np.int64)
+    bary = np.zeros((len(V), 3))
+    for v in range(len(V)):
+        f = int(np.flatnonzero((T.F == v).any(axis=1))[0])
+        face[v] = f
+        bary[v, list(T.F[f]).index(v)] = 1.0
+    return {"face": face, "barycentric": bary, "position": np.einsum("ij,ijk->ik", bary, T.V[T.F[face]])}
+
+
+@pytest.mark.parametrize("kind", ["flat", "mirrored", "curved", "creased"])
+def test_a_pushed_vertex_is_moved_back_into_its_star(kind):
+    V, F = sheet()
+    S = open_double._Side(V, F, "source")
+    T = open_double._Side(shaped(V, kind), F[:, ::-1] if kind == "mirrored" else F, "target")
+    reversing = kind == "mirrored"
+    fw = locate(T, S.V)
+    # Push the image of an interior vertex next to the crease line past its neighbour across x:
+    # on the grid (spacing 0.2) the vertex at (-0.2, 0.2) goes to the image of (0.2, 0.2).
+    v = int(np.argmin(np.linalg.norm(S.V - [-0.2, 0.2, 0], axis=1)))
+    w = int(np.argmin(np.linalg.norm(S.V - [0.2, 0.2, 0], axis=1)))
+    start = {k: np.array(x, copy=True) for k, x in fw.items()}
+    for k in fw:
+        fw[k][v] = fw[k][w]
+    fw["face"][v] = fw["face"][w]
+    before = open_double._flips(S, T, fw, reversing)[0]
+    assert before >= 2   # the pushed vertex's star folds
+    moved = open_untangle.untangle_half(S, T, fw, lambda f: open_double._turned(S, T, fw, reversing, faces=f),
+                                        reversing)
+    assert open_double._flips(S, T, fw, reversing)[0] == 0
+    assert v in moved
+    # Only the pushed vertex and its neighbours move; boundary vertices never.
+    ring = np.unique(S.F[(S.F == v).any(axis=1)])
+    assert set(moved) <= set(int(x) for x in np.unique(S.F[np.isin(S.F, ring).any(axis=1)]))
+    still = np.setdiff1d(np.arange(S.n), moved)
+    assert np.allclose(fw["position"][still], start["position"][still])
+    on_b = np.concatenate(S.loops)
+    assert not set(moved) & set(int(x) for x in on_b)
+    # The moved vertex is back inside its star: near where it belongs, far from where it was pushed.
+    home, pushed = start["position"][v], start["position"][w]
+    assert np.linalg.norm(fw["position"][v] - home) < 0.5 * np.linalg.norm(pushed - home)
+    # Its images are on the target's faces, and the star's distortion is moderate.
+    assert np.allclose(np.einsum("ij,ijk->ik", fw["barycentric"], T.V[T.F[fw["face"]]]), fw["position"], atol=1e-12)
+    star = np.flatnonzero((S.F == v).any(axis=1))
+    assert open_double._dilatation(S.V, fw["position"], S.F)[star].max() < 4
+
+
+def test_a_fold_no_single_vertex_can_undo_is_left_as_it_was():
+    """The ring of a vertex collapsed onto its image: every face around it is degenerate, and every
+    kernel (of the vertex, of each ring vertex: two of its neighbours coincide) is empty, so no
+    single move unfolds anything. The map is left exactly as it was (moves that unfold nothing are
+    undone) and the faces stay counted."""
+    V, F = sheet(6)
+    S = open_double._Side(V, F, "source")
+    T = open_double._Side(V, F, "target")
+    fw = locate(T, S.V)
+    v = int(np.argmin(np.linalg.norm(S.V - [0, 0, 0], axis=1)))
+    ring = np.setdiff1d(np.unique(S.F[(S.F == v).any(axis=1)]), [v])
+    for k in ("face", "barycentric", "position"):
+        fw[k][ring] = fw[k][v]
+    start = {k: np.array(x, copy=True) for k, x in fw.items()}
+    before = open_double._flips(S, T, fw)[0]
+    assert before == int(np.sum((S.F == v).any(axis=1) | np.isin(S.F, ring).sum(axis=1) >= 2))
+    moved = open_untangle.untangle_half(S, T, fw, lambda f: open_double._turned(S, T, fw, False, faces=f))
+    assert moved == []
+    assert all(np.array_equal(fw[k], start[k]) for k in fw)
+    assert open_double._flips(S, T, fw)[0] == before
+
+
+def holed_sphere(level, dirs, sizes, stretch):
+    """The bench's generated garment-like shapes (bench/bench_open_surfaces.py): a stretched sphere
+    with a hole around the surface point farthest along each direction."""
+    V, F = surfmap.shapes.sphere(level)
+    V, F = np.asarray(V, float) * np.asarray(stretch, float), np.asarray(F)
+    c = V[F].mean(axis=1)
+    keep = np.ones(len(F), bool)
+    for d, r in zip(dirs, sizes):
+        d = np.asarray(d, float)
+        p = V[np.argmax(V @ (d / np.linalg.norm(d)))]
+        keep &= np.linalg.norm(c - p, axis=1) >= r
+    return compact(V, F[keep])
+
+
+def test_shirt_pair_through_the_doubles_has_no_folded_face():
+    """The bench's shirt A -> B (0, 4), 512 -> 514 vertices: a stretched ellipsoid with neck, waist
+    and sleeves onto a sphere with four holes; its map (loops 0,1,2,3, reversing: the energy's choice)
+    compresses the collar ~4.5x and folded 2 faces before the untangling."""
+    A = holed_sphere(3, [(0, 0, 1), (0, 0, -1), (1, 0, 0.15), (-1, 0, 0.15)], [0.45, 0.9, 0.35, 0.4], (1.3, 0.6, 1.6))
+    B = holed_sphere(3, [(1, 0, 0.3), (-0.5, 0.866, -0.2), (-0.4, -0.8, 0.5), (0.3, -0.2, -1)],
+                     [0.6, 0.55, 0.5, 0.45], (1, 1, 1))
+    r = open_double.surface_map_open(*A, *B, boundary_pairing=[0, 1, 2, 3], orientations=("reversing",))
+    o = r["open"]
+    assert o["untangled_vertices"] >= 1 and o["untangled"].startswith("2 folded faces")
+    assert r["flipped_triangles"] == 0 and o["source_weights_fallback"] == ""
+    assert check_map(r, *A, *B) == 0        # counted here: boundary onto boundary, nothing turned
+    assert np.isfinite(r["distortion"]["mean"]) and r["distortion"]["mean"] < 2.5
