@@ -14,8 +14,10 @@
 #include <complex>
 #include <cstdio>
 #include <random>
+#include <string>
 #include <vector>
 
+#include "surfmap/error.h"
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
 #include "surfmap/map/initial_map.h"
@@ -220,6 +222,85 @@ TEST(NewtonStarts, TwistedClassReachesTheSameOptimumFromEveryStart) {
                 m->final_energy, m->iterations, worst / diag);
   }
   EXPECT_NEAR(direct_energy, mc.final_energy, 1e-9 * mc.final_energy);
+}
+
+// Issue 14 (docs/handle_classes.md "Why the geometric classes failed"): on
+// the fertility -> genus-4 plate pair every marking and greedy pants class
+// was refused by its coarse solve ("edge 11 starts 77.9 units long (deck
+// element beyond double range for this solve)"): the images of the source's
+// loops under those classes are 25-100 units long in the target, so a start
+// with every vertex at the origin has edges that long, whatever the
+// conjugate. The refusal (HyperbolicHarmonicOptions::max_start_edge_size,
+// 1e15 by default) is a cost guard, not a precision limit (the elements are
+// words multiplied out in long double): with it raised, as the geometric
+// classes' solves now do, such a start reaches the class's optimum. Here the
+// same failure on generated shapes: a class's problem with every vertex put
+// in a far sheet (its edges conjugated by long side words, > 70 units), every
+// vertex at the origin.
+TEST(NewtonStarts, StartEdgesBeyondSeventyUnitsAreRefusedByDefaultAndReachTheOptimumWhenAllowed) {
+  const TriMesh a = samples::n_hole_torus(2, 12, true), b = samples::vase(12, true);
+  SurfaceMapOptions o;
+  o.homotopy.coarse_vertices = 0;
+  o.homotopy.search.enabled = false;
+  o.solve.tolerance = 1e-12;
+  int inspected = 0;
+  testing::MapHooks hooks;
+  hooks.inspect_problem = [&](const HarmonicProblem& p) {
+    ++inspected;
+    HyperbolicHarmonicOptions ho;
+    ho.tolerance = 1e-12;
+    ho.relator = p.relator;
+    ho.reduce_point = p.reduce_point;
+    const HyperbolicHarmonicResult direct = hyperbolic_harmonic_map(p.num_vertices, p.edges, p.generators, p.start, ho);
+    ASSERT_TRUE(direct.converged);
+    // Every vertex in its own far sheet: edges conjugated by side words of
+    // 16 letters, so the longest start edge is beyond 70 units.
+    const DehnReducer reduce(p.relator);
+    std::mt19937 rng(11);
+    std::uniform_int_distribution<int> letter(1, static_cast<int>(p.generators.size()));
+    std::bernoulli_distribution sign(0.5);
+    std::vector<Word> sheet(p.num_vertices);
+    for (Word& w : sheet) {
+      while (w.size() < 16) {
+        const int x = sign(rng) ? letter(rng) : -letter(rng);
+        if (w.empty() || x != -w.back()) w.push_back(x);
+        w = reduce(w);
+      }
+    }
+    HarmonicProblem far = p;
+    double longest = 0;
+    for (WeightedEdge& e : far.edges) {
+      e.rho_word = reduce(concat({sheet[e.i], e.rho_word, inverse(sheet[e.j])}));
+      const Element m = evaluate(e.rho_word, far.generators);
+      e.rho = hyperbolic::Mobius{Complex(static_cast<double>(m.a.real()), static_cast<double>(m.a.imag())),
+                                 Complex(static_cast<double>(m.b.real()), static_cast<double>(m.b.imag()))};
+      longest = std::max(longest, 2.0 * static_cast<double>(std::asinh(std::abs(m.b))));
+    }
+    ASSERT_GT(longest, 75.0);
+    const std::vector<Complex> at_origin(p.num_vertices, 0.0);
+    // The default guard refuses it, naming the edge and its length.
+    try {
+      hyperbolic_harmonic_map(p.num_vertices, far.edges, far.generators, at_origin, ho);
+      ADD_FAILURE() << "a start edge of " << longest << " units was not refused";
+    } catch (const SolveError& e) {
+      EXPECT_NE(std::string(e.what()).find("units long"), std::string::npos) << e.what();
+    }
+    // Allowed (the geometric classes' setting), it reaches the same optimum.
+    HyperbolicHarmonicOptions allowed = ho;
+    allowed.max_start_edge_size = SurfaceMapOptions().homotopy.search.geometric_start_edge_size;
+    allowed.max_iterations = 1000;
+    HyperbolicHarmonicResult r = hyperbolic_harmonic_map(p.num_vertices, far.edges, far.generators, at_origin, allowed);
+    ASSERT_TRUE(r.converged);
+    for (int i = 0; i < p.num_vertices; ++i) r.vertex_deck_word[i] = concat(r.vertex_deck_word[i], sheet[i]);
+    const Check c = recompute(p, p.relator, r.z, r.vertex_deck_word);
+    EXPECT_NEAR(c.energy, direct.energy, 1e-9 * direct.energy);
+    EXPECT_LT(worst_distance(p, p.relator, r, direct), 1e-7);
+    std::printf("longest start edge %.1f units: %d iterations, E %.12g (from the initial map: %.12g, %d iterations)\n",
+                longest, r.iterations, c.energy, direct.energy, direct.iterations);
+  };
+  const SurfaceMapResult m = surface_map(a, b, o, hooks);
+  EXPECT_TRUE(m.converged);
+  EXPECT_EQ(inspected, 1);
 }
 
 }  // namespace

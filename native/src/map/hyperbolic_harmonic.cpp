@@ -395,7 +395,7 @@ class ChartState {
     // ranking tries such classes), and no map with such an edge is an
     // embedding of a mesh of this size: refused at once.
     for (size_t e = 0; e < edges.size(); ++e)
-      if (!(A[e].size() < 1e15))
+      if (!(A[e].size() < options_.max_start_edge_size))
         throw SolveError("hyperbolic harmonic map: edge " + std::to_string(e) + " starts " +
                          std::to_string(A[e].displacement_of_origin()) +
                          " units long (deck element beyond double range for this solve)");

@@ -62,6 +62,18 @@ using hyperbolic::Mobius;
 // pair).
 constexpr double kRankingTolerance = 1e-7;
 
+// Why a solve of the class search is not usable ("" when it is): not
+// converged (its steps and last gradient) or not finite.
+std::string solve_failure(const HyperbolicHarmonicResult& r) {
+  bool finite = std::isfinite(r.energy);
+  for (size_t i = 0; i < r.z.size() && finite; ++i) finite = std::isfinite(std::abs(r.z[i]));
+  if (!finite) return "non-finite energy or positions";
+  if (r.converged) return "";
+  return "not converged after " + std::to_string(r.iterations) + " iterations (energy " + std::to_string(r.energy) +
+         ", last gradient " + (r.gradient_history.empty() ? std::string("?") : std::to_string(r.gradient_history.back())) +
+         ")";
+}
+
 // Adds a restarted twist search's figures to the search's account `info`:
 // the start, the evaluation and screening counts, the time, and the moves
 // it evaluated (tagged with the candidate it started from).
@@ -103,7 +115,7 @@ class HyperbolicPipeline {
   void compare_directions();
   void geometric_classes_at_full_resolution();
   void twist_search_at_full_resolution();
-  CoarseSolve full_resolution_solve(double& best);
+  CoarseSolve full_resolution_solve(double& best, double max_start_edge_size = 0);
   int append_full_class(HomotopyClass hc, ClassData cd, CoarseEvaluation& ev);
   void map_in_chosen_class();
   void release_unsolved_class_data();
@@ -690,36 +702,51 @@ void HyperbolicPipeline::search_classes() {
   const std::vector<Complex> corigin(ncv, Complex(0.0));
   const std::vector<Word> no_decks(ncv);
   // A converged coarse solve of class theta from the origin (false when it
-  // fails or does not converge).
-  const CoarseSolve solve_coarse = [&](const GroupMap& theta, CoarseEvaluation* ev) {
+  // fails or does not converge; ev->failure says why), with solve options `o`.
+  const auto solve_coarse_with = [&](const HyperbolicHarmonicOptions& o) -> CoarseSolve {
+   return [&, o](const GroupMap& theta, CoarseEvaluation* ev) {
     ++out.homotopy_search.coarse_solves;
     try {
-      *ev = CoarseEvaluation{theta, level.edges_of(*space, theta, ut->layout, *deck_group), {}};
-      ev->result = solve_from(ncv, ev->edges, corigin, no_decks, ho);
-      bool finite = std::isfinite(ev->result.energy) && ev->result.converged;
-      for (size_t i = 0; i < ev->result.z.size() && finite; ++i) finite = std::isfinite(std::abs(ev->result.z[i]));
-      return finite;
-    } catch (const SolveError&) {
+      *ev = CoarseEvaluation{theta, level.edges_of(*space, theta, ut->layout, *deck_group), {}, {}};
+      ev->result = solve_from(ncv, ev->edges, corigin, no_decks, o);
+      ev->failure = solve_failure(ev->result);
+      return ev->failure.empty();
+    } catch (const SolveError& e) {
+      ev->theta = theta;
+      ev->failure = e.what();
       return false;
     }
+   };
   };
+  const CoarseSolve solve_coarse = solve_coarse_with(ho);
   // Issue 14 (docs/handle_classes.md): a class whose curve lower bound
   // (map/class_lower_bound.h) is above the lowest coarse energy held cannot
   // win: not solved (counted in homotopy_search.pruned). With start twists
   // (testing/map_hooks.h) the start is evaluated first, unpruned.
   double best_held = hooks.homotopy_search_start_twists.empty() && usable[order[0]] ? out.candidates[order[0]].energy
                                                                                       : std::numeric_limits<double>::infinity();
-  const CoarseSolve unpruned_solve = solve_coarse;
-  const CoarseSolve pruned_solve = [&](const GroupMap& theta, CoarseEvaluation* ev) {
+  // (The geometric classes' solves accept longer start edges: their loops'
+  // images can be 25-100 units long untwisted; HomotopySearchOptions::
+  // geometric_start_edge_size.)
+  HyperbolicHarmonicOptions geometric_ho = ho;
+  geometric_ho.max_start_edge_size = std::max(ho.max_start_edge_size, options.homotopy.search.geometric_start_edge_size);
+  const auto pruned_with = [&](const CoarseSolve& unpruned_solve) -> CoarseSolve {
+   return [&, unpruned_solve](const GroupMap& theta, CoarseEvaluation* ev) {
     const SourceClassBounds& bounds = class_bounds_now();  // (sets target_lengths)
-    if (class_curve_bound_of(bounds, *target_lengths, theta) > best_held) {
+    const double curve_bound = class_curve_bound_of(bounds, *target_lengths, theta);
+    if (curve_bound > best_held) {
       ++out.homotopy_search.pruned;
+      ev->failure = "pruned: curve bound " + std::to_string(curve_bound) + " above the best coarse energy " +
+                    std::to_string(best_held);
       return false;
     }
     if (!unpruned_solve(theta, ev)) return false;
     best_held = std::min(best_held, ev->result.energy);
     return true;
+   };
   };
+  const CoarseSolve pruned_solve = pruned_with(solve_coarse);
+  const CoarseSolve geometric_solve = pruned_with(solve_coarse_with(geometric_ho));
   const bool searching = !level.source_word.empty();
   const double conformal_bound = 8 * M_PI * (out.genus - 1);
   const double gap_bound = (1 + options.homotopy.search.gap) * conformal_bound;
@@ -745,7 +772,7 @@ void HyperbolicPipeline::search_classes() {
       for (FoundClass& f : geometric_candidate_classes(
                *bounds.source, *target_lengths, *space, known,
                [&](const GroupMap& theta) { return class_curve_bound_of(bounds, *target_lengths, theta); },
-               [this](const GroupMap& theta) { return data_of(theta); }, pruned_solve, options, out.homotopy_search)) {
+               [this](const GroupMap& theta) { return data_of(theta); }, geometric_solve, options, out.homotopy_search)) {
         std::string handles;
         handle_correspondence_of(ss.shb, candidates.target_basis, homology_matrix(f.evaluation.theta, space->num_letters()),
                                  &f.hc.permutation, &f.hc.sign, &handles);
@@ -861,7 +888,7 @@ void HyperbolicPipeline::geometric_classes_at_full_resolution() {
   if (!bounds.ok || !bounds.source) return;
   std::vector<GroupMap> known;
   for (const HomotopyClass& hc : candidates.classes) known.push_back(hc.map);
-  const CoarseSolve solve_full = full_resolution_solve(best);
+  const CoarseSolve solve_full = full_resolution_solve(best, options.homotopy.search.geometric_start_edge_size);
   for (FoundClass& f : geometric_candidate_classes(
            *bounds.source, *target_lengths, *space, known,
            [&](const GroupMap& theta) { return class_curve_bound_of(bounds, *target_lengths, theta); },
@@ -874,12 +901,17 @@ void HyperbolicPipeline::geometric_classes_at_full_resolution() {
 // A converged solve of class theta at full resolution from the origin
 // (false when it fails, does not converge or is pruned: its curve bound,
 // when the source's bounds exist, above `best`, which each success lowers).
-// Sources too small for a coarse copy (under 2000 vertices) only.
-CoarseSolve HyperbolicPipeline::full_resolution_solve(double& best) {
-  return [this, &best](const GroupMap& theta, CoarseEvaluation* ev) {
+// Sources too small for a coarse copy (under 2000 vertices) only. Start
+// edges up to max(the solve's, `max_start_edge_size`) are accepted.
+CoarseSolve HyperbolicPipeline::full_resolution_solve(double& best, double max_start_edge_size) {
+  HyperbolicHarmonicOptions o = ho;
+  o.max_start_edge_size = std::max(o.max_start_edge_size, max_start_edge_size);
+  return [this, &best, o](const GroupMap& theta, CoarseEvaluation* ev) {
     const SourceClassBounds& bounds = class_bounds_now();  // (sets target_lengths)
-    if (bounds.ok && class_curve_bound_of(bounds, *target_lengths, theta) > best) {
+    const double curve_bound = bounds.ok ? class_curve_bound_of(bounds, *target_lengths, theta) : 0.0;
+    if (curve_bound > best) {
       ++out.homotopy_search.pruned;
+      ev->failure = "pruned: curve bound " + std::to_string(curve_bound) + " above the best energy " + std::to_string(best);
       return false;
     }
     ++out.homotopy_search.coarse_solves;  // (no coarse copy: the search's solves are these)
@@ -888,14 +920,15 @@ CoarseSolve HyperbolicPipeline::full_resolution_solve(double& best) {
     try {
       ev->theta = theta;
       ev->edges = data_of(theta).edges;
-      ev->result = solve_from(nv, ev->edges, origin, no_decks, ho);
-    } catch (const SolveError&) {
+      ev->result = solve_from(nv, ev->edges, origin, no_decks, o);
+    } catch (const SolveError& e) {
+      ev->failure = e.what();
       return false;
     }
-    bool finite = std::isfinite(ev->result.energy) && ev->result.converged;
-    for (size_t i = 0; i < ev->result.z.size() && finite; ++i) finite = std::isfinite(std::abs(ev->result.z[i]));
-    if (finite) best = std::min(best, ev->result.energy);
-    return finite;
+    ev->failure = solve_failure(ev->result);
+    if (!ev->failure.empty()) return false;
+    best = std::min(best, ev->result.energy);
+    return true;
   };
 }
 

@@ -107,6 +107,7 @@ json homotopy_search_json(const HomotopySearchInfo& hs) {
           {"pruned", hs.pruned},
           {"geometric_classes", hs.geometric_classes},
           {"geometric_time_s", hs.geometric_time_s},
+          {"geometric_failures", hs.geometric_failures},
           {"source_marking", hs.source_marking},
           {"target_marking", hs.target_marking},
           {"source_geodesics", hs.source_geodesics},

@@ -29,6 +29,16 @@ struct HyperbolicHarmonicOptions {
   /// the largest weight-scaled edge length (default 1e-10).
   double tolerance = 1e-10;
   int max_iterations = 300;
+  /// A start whose edge element has |a| + |b| beyond this (default 1e15:
+  /// about 70 hyperbolic units) is refused with a SolveError: from a start
+  /// with every vertex at the origin such an edge is a class twisted by
+  /// dozens of tiles, which costs hundreds of capped steps. The geometric
+  /// classes raise it (HomotopySearchOptions::geometric_start_edge_size):
+  /// their source loops' images are that long without any twist (the
+  /// fertility -> genus-4 plate pair: 25-100 units). The elements are kept
+  /// as words and multiplied out in long double, so the size is not a
+  /// precision limit up to ~1e150.
+  double max_start_edge_size = 1e15;
   /// Called every iteration with (iteration, energy, gradient norm); return
   /// false to cancel (throws Cancelled).
   std::function<bool(int, double, double)> progress;

@@ -146,6 +146,13 @@ struct HomotopySearchOptions {
   /// cost 1-6 s on genus-2 pairs and never won below that; 0: whenever the
   /// search runs).
   double geometric_ratio = 2.0;
+  /// The geometric classes' solves accept start edges up to this size
+  /// (HyperbolicHarmonicOptions::max_start_edge_size; default 1e60, about
+  /// 276 units, where the other classes' solves refuse 1e15, about 70): the
+  /// images of the source's loops under a geometric class can be 25-100
+  /// units long in the target without any twist (every geometric class of
+  /// the fertility -> genus-4 plate pair was refused before: issue 14).
+  double geometric_start_edge_size = 1e60;
   /// With the geometric classes: as many again (`geometric`) from the two
   /// surfaces' greedy short pants decompositions, pairing their curves by
   /// length with the twists matched (map/greedy_pants.h
@@ -451,6 +458,10 @@ struct HomotopySearchInfo {
   /// two short markings' generators a1 b1 a2 b2 ... ("" when not run).
   int geometric_classes = 0;
   double geometric_time_s = 0;
+  /// One line per geometric class tried whose solve failed: its list
+  /// (markings / caterpillar pants / greedy pants), curve bound and the
+  /// solve's reason (the SolveError's text, "not converged", "pruned").
+  std::vector<std::string> geometric_failures;
   std::string source_marking, target_marking;
   /// The 8 shortest closed geodesics' lengths of each surface, ascending
   /// (map/geometric_classes.h short_geodesics).

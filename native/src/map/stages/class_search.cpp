@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <limits>
 #include <string>
@@ -175,12 +176,29 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
     ++info.geometric_classes;
     ++solved_of_list[list];
     FoundClass f;
+    static const char* const list_name[3] = {"marking", "caterpillar pants", "greedy pants"};
+    auto failed = [&](const std::string& why) {
+      char head[96];
+      std::snprintf(head, sizeof head, "%s class %d (curve bound %.4g): ", list_name[list], solved_of_list[list], bound);
+      info.geometric_failures.push_back(head + why);
+    };
     try {
       f.data = data_of(gc.theta);
-    } catch (const SolveError&) {
+    } catch (const SolveError& e) {
+      failed(std::string("no class data: ") + e.what());
       continue;
     }
-    if (!solve_coarse(gc.theta, &f.evaluation)) continue;
+    if (!solve_coarse(gc.theta, &f.evaluation)) {
+      // (The longest loop image says whether a start at the origin could
+      // hold the class at all: see geometric_start_edge_size.)
+      double longest = 0;
+      for (double l : space.loop_image_lengths(gc.theta)) longest = std::isfinite(l) ? std::max(longest, l) : longest;
+      char lbuf[64];
+      std::snprintf(lbuf, sizeof lbuf, " (longest loop image %.3g units)", longest);
+      f.evaluation.failure += lbuf;
+      failed(f.evaluation.failure);
+      continue;
+    }
     char buf[96];
     std::snprintf(buf, sizeof buf, ", length mismatch %.3g, curve bound %.4g", gc.mismatch, bound);
     f.hc.description = std::string(list == 0 ? "[geometric: short markings, " : "[geometric: ") + gc.description + buf + "]";

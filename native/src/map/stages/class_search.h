@@ -23,10 +23,13 @@ struct CoarseEvaluation {
   GroupMap theta;
   std::vector<WeightedEdge> edges;
   HyperbolicHarmonicResult result;
+  /// Why the solve returned false ("" when it succeeded): the SolveError's
+  /// text, "not converged ...", "non-finite ..." or "pruned: curve bound ...".
+  std::string failure;
 };
 
 /// Solves class theta on the coarse copy from the origin; false when the
-/// solve fails, does not converge or is not finite.
+/// solve fails, does not converge or is not finite (ev->failure says which).
 using CoarseSolve = std::function<bool(const GroupMap& theta, CoarseEvaluation* ev)>;
 
 /// A class found by the search, ready to be appended to the candidates.

@@ -86,6 +86,13 @@ void ClassSpace::reduce(GroupMap& theta) const {
   for (Word& w : theta) w = dehn_reduce(w, R_);
 }
 
+std::vector<double> ClassSpace::loop_image_lengths(const GroupMap& theta) const {
+  std::vector<double> l;
+  for (const Word& w : scs_.letters) l.push_back(target_length(reduce_canonical_(substitute(w, theta))));
+  return l;
+}
+
+
 namespace {
 
 size_t total_letters(const GroupMap& theta) {

@@ -86,6 +86,12 @@ class ClassSpace {
   bool is_isomorphism(const GroupMap& theta) const;
   /// Dehn-reduces every word of theta (canonical relator).
   void reduce(GroupMap& theta) const;
+  /// Translation lengths (target metric) of the images of the source's loop
+  /// letters: a lower bound, over all conjugates of theta, of how far the
+  /// deck elements of the edges crossing the cut move the origin (a solve
+  /// from the origin refuses them beyond HyperbolicHarmonicOptions::
+  /// max_start_edge_size).
+  std::vector<double> loop_image_lengths(const GroupMap& theta) const;
 
  private:
   int genus_, n_;
