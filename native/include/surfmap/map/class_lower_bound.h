@@ -51,8 +51,9 @@ class SurfaceGroupLengths {
   /// canonical letters): 2 arccosh(|tr| / 2); 0 for the identity; NaN when
   /// the word reduces to more than `max_letters` loop letters or its trace
   /// cannot be trusted (leaves double range, or, for matrix entries beyond
-  /// 1e12, disagrees with the extended-precision product by more than 1e-9
-  /// relative): too long to evaluate, callers must then not use it.
+  /// 1e12, the length from the double product disagrees with that from the
+  /// extended-precision product by more than 1e-6 relative; the extended
+  /// one is returned): too long to evaluate, callers must then not use it.
   double length(const Word& w, size_t max_letters = 4000) const;
   /// The deck element of `w` itself (caller's canonical letters), not a
   /// conjugate: for geometry that relates several elements (the axes of a
