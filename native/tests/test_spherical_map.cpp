@@ -433,5 +433,28 @@ TEST(SphericalMap, TargetWithInvertedInputChordsMapsWithoutRepairs) {
   EXPECT_GT(spherical_uniformization(b).input_flipped_faces, 0);  // what needed the re-placement before
 }
 
+TEST(SphericalMap, CoarseJitteredSphereOntoNeedleSphereWithoutRepairs) {
+  // Coarse, low-quality genus-0 pairs generated in code (issue 13 item 5):
+  // a 162-vertex sphere jittered by 0.29 of the edge length and a sphere
+  // with a needle tip (small cone angle, one neighbour 20 times closer than
+  // the rest) both ways: converged, no flipped or degenerate triangle, no
+  // vertex re-placed, every point on the other side's faces.
+  const TriMesh a = samples::jitter(samples::sphere(2), 0.29, 3);
+  const TriMesh b = samples::needle(samples::sphere(2), 0, 2.0, 0.05);
+  for (const auto& [s, t] : {std::pair{&a, &b}, std::pair{&b, &a}}) {
+    const SurfaceMapResult m = surface_map(*s, *t);
+    EXPECT_TRUE(m.converged);
+    EXPECT_EQ(m.flipped_triangles, 0);
+    EXPECT_EQ(m.degenerate_triangles, 0);
+    EXPECT_EQ(m.repaired_vertices, 0);
+    ASSERT_EQ(static_cast<int>(m.forward.size()), s->num_vertices());
+    for (const auto& p : m.forward) {
+      ASSERT_GE(p.face, 0);
+      ASSERT_LT(p.face, t->num_faces());
+      EXPECT_NEAR(p.barycentric.sum(), 1.0, 1e-9);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace surfmap
