@@ -136,6 +136,14 @@ IntrinsicDelaunayResult intrinsic_delaunay(const Connectivity& conn, const Eigen
       edges[q] = m.edge_of[inner_old[q]];
       owns[q] = m.edge_he[edges[q]] == inner_old[q];
     }
+    if (options.record_flips) {
+      IntrinsicFlip rec;
+      rec.face0 = f0, rec.face1 = f1, rec.column0 = h % 3, rec.column1 = t % 3;
+      rec.i = i, rec.j = j, rec.k = k, rec.l = l;
+      const double L[6] = {m.len(hp), m.len(tn), m.len(tp), m.len(hn), m.len(h), new_len};
+      std::copy(L, L + 6, rec.lengths);
+      out.flip_history.push_back(rec);
+    }
     m.F.row(f0) << k, i, l;
     m.F.row(f1) << l, j, k;
     for (int q = 0; q < 4; ++q) {

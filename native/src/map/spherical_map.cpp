@@ -6,6 +6,7 @@
 #include <cmath>
 #include <complex>
 #include <limits>
+#include <memory>
 #include <string>
 
 #include <Eigen/Dense>
@@ -19,6 +20,7 @@
 #include "surfmap/map/distortion.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/uniformize/spherical.h"
+#include "surfmap/uniformize/spherical_correspondence.h"
 
 namespace surfmap {
 namespace {
@@ -225,13 +227,14 @@ bool bad_face(const RowMatrixX3d& P, const RowMatrixX3i& F, int f) {
 
 }  // namespace
 
-int untangle_sphere_image(RowMatrixX3d& P, const RowMatrixX3d& V, const RowMatrixX3i& F, int max_vertices) {
+namespace {
+
+/// untangle_sphere_image on one cluster of bad faces: the patch around
+/// `bad`, grown ring by ring, re-placed until its own faces are clean.
+/// Returns the moved vertices, or -1 with P unchanged.
+int untangle_patch(RowMatrixX3d& P, const RowMatrixX3d& V, const RowMatrixX3i& F, const Connectivity& conn,
+                   const std::vector<int>& bad, int max_vertices) {
   const int nv = static_cast<int>(P.rows()), nf = static_cast<int>(F.rows());
-  const Connectivity conn(F, nv);
-  std::vector<int> bad;
-  for (int f = 0; f < nf; ++f)
-    if (bad_face(P, F, f)) bad.push_back(f);
-  if (bad.empty()) return 0;
   std::vector<char> in(nv, 0);
   std::vector<int> region;
   auto add = [&](int v) {
@@ -313,17 +316,59 @@ int untangle_sphere_image(RowMatrixX3d& P, const RowMatrixX3d& V, const RowMatri
     for (int v : interior)
       P.row(v) = (n + X(index[v], 0) * e1 + X(index[v], 1) * e2).normalized().transpose();
     bool clean = true;
+    // This patch's faces: those with a moved vertex, and its bad faces (other
+    // clusters' bad faces may touch its fixed ring; they get their own patch).
     for (int f = 0; f < nf && clean; ++f)
-      if ((index[F(f, 0)] >= 0 || index[F(f, 1)] >= 0 || index[F(f, 2)] >= 0 || in[F(f, 0)]) && bad_face(P, F, f))
-        clean = false;
-    if (clean) {
-      for (int f = 0; f < nf; ++f)
-        if (bad_face(P, F, f)) clean = false;
-      if (clean) return ni;
-    }
+      if ((index[F(f, 0)] >= 0 || index[F(f, 1)] >= 0 || index[F(f, 2)] >= 0) && bad_face(P, F, f)) clean = false;
+    for (int f : bad) clean = clean && !bad_face(P, F, f);
+    if (clean) return ni;
   }
   P = original;
   return -1;
+}
+
+}  // namespace
+
+int untangle_sphere_image(RowMatrixX3d& P, const RowMatrixX3d& V, const RowMatrixX3i& F, int max_vertices) {
+  const int nv = static_cast<int>(P.rows()), nf = static_cast<int>(F.rows());
+  const Connectivity conn(F, nv);
+  std::vector<int> bad;
+  for (int f = 0; f < nf; ++f)
+    if (bad_face(P, F, f)) bad.push_back(f);
+  if (bad.empty()) return 0;
+  // Clusters of bad faces (sharing a vertex) are re-placed one patch each:
+  // one patch over bad faces on opposite sides of the sphere has no
+  // gnomonic chart (its mean direction is meaningless), which refused
+  // OpenMesh-decimated 500-vertex bunnies with 4 inverted faces apart.
+  std::vector<int> cluster_of(nv, -1);
+  std::vector<std::vector<int>> clusters;
+  for (int f : bad) {
+    int c = -1;
+    for (int k = 0; k < 3 && c < 0; ++k) c = cluster_of[F(f, k)];
+    if (c < 0) c = static_cast<int>(clusters.size()), clusters.emplace_back();
+    clusters[c].push_back(f);
+    for (int k = 0; k < 3; ++k) cluster_of[F(f, k)] = c;
+  }
+  const RowMatrixX3d original = P;
+  int moved = 0;
+  for (const std::vector<int>& cluster : clusters) {
+    std::vector<int> still;
+    for (int f : cluster)
+      if (bad_face(P, F, f)) still.push_back(f);
+    if (still.empty()) continue;
+    const int m = untangle_patch(P, V, F, conn, still, max_vertices);
+    if (m < 0) {
+      P = original;
+      return -1;
+    }
+    moved += m;
+  }
+  for (int f = 0; f < nf; ++f)
+    if (bad_face(P, F, f)) {
+      P = original;
+      return -1;
+    }
+  return moved;
 }
 
 namespace {
@@ -366,9 +411,11 @@ SphericalUniformization usable_sphere(const TriMesh& mesh, const SphericalUnifor
       first_message += (first_message.empty() ? "" : "; ") + std::to_string(v0) + ": " + e.what();
       continue;
     }
-    // Converged means the intrinsic triangulation embeds; the map draws the
-    // input faces as chords, which may still need the local untangling.
-    if ((a.converged && a.input_flipped_faces == 0) || usable(a)) return a;
+    // Converged means the intrinsic triangulation embeds. With its flip log
+    // the map locates points in it and carries them back to the input faces
+    // (SphereSide); without one (no flips) the input faces are the chords,
+    // which may need the local untangling.
+    if ((a.converged && (a.input_flipped_faces == 0 || !a.frame_log.empty())) || usable(a)) return a;
     first_message += (first_message.empty() ? "" : "; ") + std::to_string(v0) + ": " + a.message;
   }
   throw UniformizationError(which + " spherical uniformization failed: " + first_message);
@@ -677,6 +724,28 @@ SphereMobius refine_two_landmark_mobius(const SphereMobius& M, const Eigen::Vect
 namespace detail {
 namespace {
 
+/// One side's sphere as the map reads it: the triangulation that embeds
+/// (the intrinsic faces when the uniformization's flip log carries points
+/// back to the input faces, else the input faces) and the way back.
+struct SphereSide {
+  const TriMesh& mesh;
+  const SphericalUniformization& u;
+  RowMatrixX3i faces;
+  std::unique_ptr<SphericalCorrespondence> carry;
+
+  SphereSide(const TriMesh& m, const SphericalUniformization& s) : mesh(m), u(s), faces(m.F) {
+    if (s.frame_log.empty()) return;
+    carry = std::make_unique<SphericalCorrespondence>(s, m.F);  // throws on a log that does not match
+    faces = s.intrinsic_faces;
+  }
+  /// The point with barycentrics b (central projection) in face f of `faces`.
+  PointOnSurface point(int f, const Eigen::Vector3d& b) const {
+    if (!carry) return point_in_face(mesh, f, b);
+    const FacePoint q = carry->to_input(f, b);
+    return point_in_face(mesh, q.face, q.barycentric);
+  }
+};
+
 /// The source's sphere positions (#Vs x 3) aligned to the target's
 /// (ut.positions): the best rotation of us.positions, then with landmarks
 /// the Möbius map fitting them (over the two-parameter family of maps
@@ -740,7 +809,7 @@ void check_sphere_image_orientation(const TriMesh& source, const RowMatrixX3d& X
 
 /// The target point (face, barycentrics) of every row of Y (#Vs x 3 on the
 /// target's sphere).
-std::vector<PointOnSurface> located_on_target(const TriMesh& target, const SphereLocator& tloc,
+std::vector<PointOnSurface> located_on_target(const SphereSide& target, const SphereLocator& tloc,
                                               const RowMatrixX3d& Y) {
   const int ns = static_cast<int>(Y.rows());
   std::vector<PointOnSurface> fw(ns);
@@ -748,7 +817,7 @@ std::vector<PointOnSurface> located_on_target(const TriMesh& target, const Spher
   for (int i = 0; i < ns; ++i) {
     Eigen::Vector3d b;
     hint = tloc.locate(Y.row(i).transpose(), &b, hint);
-    fw[i] = point_in_face(target, hint, b);
+    fw[i] = target.point(hint, b);
   }
   return fw;
 }
@@ -793,7 +862,7 @@ SphereMapQuality sphere_map_quality(const TriMesh& source, const Connectivity& s
 /// The forward map of X (aligned source sphere) and its quality, and the
 /// quality of the "initial" map (both centred images, no alignment and no
 /// landmarks). Throws SolveError when an image triangle is degenerate.
-void forward_map_and_quality(const TriMesh& source, const TriMesh& target, const Connectivity& sc,
+void forward_map_and_quality(const TriMesh& source, const SphereSide& target, const Connectivity& sc,
                              const SphericalUniformization& us, const SphereLocator& tloc,
                              const RowMatrixX3d& X, SurfaceMapResult& out) {
   // The source's side of D' uses its mollified lengths (the metric both
@@ -829,17 +898,34 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
   const SphericalUniformization ut = usable_sphere(target, uo, "target", &repaired_t);
   stage_done("target uniformization", 0.3);
   const SphericalUniformization us = usable_sphere(source, uo, "source", &repaired_s);
-  out.repaired_vertices = repaired_s + repaired_t;
   stage_done("source uniformization", 0.45);
 
-  const SphereLocator tloc(ut.positions, target.F);
-  const RowMatrixX3d X = aligned_source_sphere(source, target, us, ut, tloc, options, out);
+  // Points on the target's sphere are located in the triangulation that
+  // embeds there and carried back to the target's faces (SphereSide): no
+  // target vertex is re-placed.
+  const SphereSide tside(target, ut), sside(source, us);
+  const SphereLocator tloc(ut.positions, tside.faces);
+  TriMesh target_as_located = target;
+  target_as_located.F = tside.faces;  // the alignment's mismatch interpolates over the located faces
+  const RowMatrixX3d X = aligned_source_sphere(source, target_as_located, us, ut, tloc, options, out);
   const int nt = target.num_vertices();
   out.converged = true;
   stage_done("alignment", 0.55);
 
-  check_sphere_image_orientation(source, X, options, out);
-  forward_map_and_quality(source, target, sc, us, tloc, X, out);
+  // The forward map is linear over the source's own faces between its
+  // vertices' images, so a source face whose chord triangle is inverted on
+  // the sphere (its image under the discrete conformal map is a curved
+  // union of pieces of intrinsic triangles) would be a flipped triangle of
+  // the map: only those vertices are still re-placed (untangle_sphere_image),
+  // counted in repaired_vertices.
+  RowMatrixX3d Xf = X;
+  if (sside.carry) {
+    const int moved = untangle_sphere_image(Xf, source.V, source.F, std::max(200, source.num_vertices() / 20));
+    if (moved > 0) repaired_s += moved;
+  }
+  out.repaired_vertices = repaired_s + repaired_t;
+  check_sphere_image_orientation(source, Xf, options, out);
+  forward_map_and_quality(source, tside, sc, us, tloc, Xf, out);
   stage_done("forward location", 0.75);
 
   // Harmonic energy of the sphere-valued map, Σ w_ij |X_i − X_j|² with the
@@ -852,7 +938,7 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
     return e;
   };
   out.initial_energy = energy(us.positions);
-  out.final_energy = energy(X);
+  out.final_energy = energy(Xf);
   out.energy_history = {out.initial_energy, out.final_energy};
   HomotopyCandidate c;
   c.description = "genus 0: the only class (the sphere is simply connected)";
@@ -861,14 +947,15 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
   out.chosen_candidate = 0;
   stage_done("energy", 0.8);
 
-  // Inverse map: every target vertex located in the source's aligned image.
-  const SphereLocator sloc(X, source.F);
+  // Inverse map: every target vertex located in the source's aligned image
+  // (its embedded triangulation, carried back to the source's faces).
+  const SphereLocator sloc(sside.carry ? X : Xf, sside.faces);
   out.inverse.resize(nt);
   int hint = -1;
   for (int v = 0; v < nt; ++v) {
     Eigen::Vector3d b;
     hint = sloc.locate(ut.positions.row(v).transpose(), &b, hint);
-    out.inverse[v] = point_in_face(source, hint, b);
+    out.inverse[v] = sside.point(hint, b);
   }
   stage_done("inverse location", 1.0);
 }

@@ -76,6 +76,12 @@ Eigen::Vector3d clamped(Eigen::Vector3d b) {
 
 }  // namespace
 
+namespace detail {
+Eigen::Vector3d old_triangle_weights(const EdgeFlip& fl, bool plane, int side, const Eigen::Vector4d& w) {
+  return plane ? weights_in_plane(fl, kOld[side], w) : weights_by_gram(gram(fl, fl.exact), kOld[side], w);
+}
+}  // namespace detail
+
 IntrinsicCorrespondence::IntrinsicCorrespondence(const RicciFlowResult& flow)
     : flips_(flow.flip_history), faces_(flow.faces), u_(flow.u), background_(flow.background) {
   if (static_cast<int>(flips_.size()) != flow.flips)

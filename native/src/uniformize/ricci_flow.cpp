@@ -246,6 +246,11 @@ struct FlipContext {
   long long flips = 0;
   long long version = 0;
   long long max_flips = 0;
+  /// Flips allowed in one make_delaunay pass (0: no limit but max_flips).
+  /// Set for the Newton line search's trial points (RicciRun::line_search),
+  /// which roll a pass that hits it back (pass_exhausted).
+  long long pass_limit = 0;
+  bool pass_exhausted = false;
   Background bg = Background::Euclidean;
   std::vector<EdgeFlip> history;  // every flip made, in order (RicciFlowResult::flip_history)
 
@@ -279,6 +284,8 @@ struct FlipContext {
       return bg == Background::Euclidean ? x : 2.0 * std::asinh(0.5 * x);
     };
     const int ne = static_cast<int>(d.EV.rows());
+    const long long flips_at_start = flips;
+    pass_exhausted = false;
     std::vector<int> stack(ne);
     std::vector<char> queued(ne, 1);
     for (int e = 0; e < ne; ++e) stack[e] = ne - 1 - e;
@@ -376,6 +383,10 @@ struct FlipContext {
         }
       ++flips;
       ++version;
+      if (pass_limit > 0 && flips - flips_at_start > pass_limit) {
+        pass_exhausted = true;
+        return false;
+      }
       if (flips > max_flips) return false;
       for (int x : {e_tk, e_ks, e_sm, e_mt})
         if (!queued[x]) {
@@ -385,11 +396,48 @@ struct FlipContext {
     }
     return true;
   }
+
+  /// Undoes the newest flips until `keep` are left (the inverse of the flip
+  /// above, read off its history record): the triangulation, its base
+  /// lengths and edge-face table return to their state after flip keep − 1.
+  void roll_back(long long keep) {
+    RicciDomain& d = *dom;
+    Eigen::VectorXd& P = *pen;
+    while (static_cast<long long>(history.size()) > keep) {
+      const EdgeFlip rec = history.back();
+      history.pop_back();
+      const int f0 = rec.face0, f1 = rec.face1, a0 = rec.corner0, a1 = rec.corner1;
+      // After the flip: F(f0) = (k, s, m), FE(f0) = (e_sm, e, e_ks);
+      // F(f1) = (m, t, k), FE(f1) = (e_tk, e, e_mt).
+      const int vk = d.F(f0, 0), s = d.F(f0, 1), vm = d.F(f0, 2), t = d.F(f1, 1);
+      const int e_sm = d.FE(f0, 0), e = d.FE(f0, 1), e_ks = d.FE(f0, 2), e_tk = d.FE(f1, 0), e_mt = d.FE(f1, 2);
+      d.F(f0, a0) = vk, d.F(f0, (a0 + 1) % 3) = s, d.F(f0, (a0 + 2) % 3) = t;
+      d.FE(f0, a0) = e, d.FE(f0, (a0 + 1) % 3) = e_tk, d.FE(f0, (a0 + 2) % 3) = e_ks;
+      d.F(f1, a1) = vm, d.F(f1, (a1 + 1) % 3) = t, d.F(f1, (a1 + 2) % 3) = s;
+      d.FE(f1, a1) = e, d.FE(f1, (a1 + 1) % 3) = e_sm, d.FE(f1, (a1 + 2) % 3) = e_mt;
+      d.EV(e, 0) = std::min(s, t);
+      d.EV(e, 1) = std::max(s, t);
+      P[e] = rec.base_lengths[4];
+      for (int x : {e, e_tk, e_ks, e_sm, e_mt})
+        for (int q = 0; q < 2; ++q)
+          if (EF(x, q) == f0 || EF(x, q) == f1) EF(x, q) = -2;
+      for (int f : {f0, f1})
+        for (int q = 0; q < 3; ++q) {
+          const int x = d.FE(f, q);
+          EF(x, EF(x, 0) == -2 ? 0 : 1) = f;
+        }
+      --flips;
+      ++version;
+    }
+  }
 };
 
 struct Evaluation {
   Eigen::VectorXd l, K;
   int bad_edge = -1;
+  /// The flips of this evaluation ran past FlipContext::pass_limit (a line
+  /// search trial): nothing else was evaluated.
+  bool flips_exhausted = false;
   int first_degenerate = -1;
   int degenerate = 0;
   double min_slack = 1.0;
@@ -405,7 +453,12 @@ void evaluate(const RicciDomain& dom, const SchemeMetric& metric, Background bg,
   // A pass that runs out of its flip budget is cycling: a clear error in
   // bounded memory (the flip history grows with every flip) instead of
   // carrying on with a non-Delaunay triangulation.
-  if (flips && !flips->make_delaunay(&u))
+  ev.flips_exhausted = false;
+  if (flips && !flips->make_delaunay(&u) && flips->pass_exhausted) {
+    ev.flips_exhausted = true;
+    return;
+  }
+  if (flips && flips->flips > flips->max_flips)
     throw SolveError("ricci_flow: the intrinsic Delaunay flips did not terminate (" +
                      std::to_string(flips->flips) + " flips, the budget of 50 per edge)");
   ev.version = flips ? flips->version : 0;
@@ -626,6 +679,7 @@ struct RicciRun {
   SchemeMetric metric;
   FlipContext flip_ctx;
   FlipContext* flips = nullptr;
+  int rolled_back_trials = 0;  // RicciFlowResult::rolled_back_trials
 
   RicciFlowResult res;
   Evaluation ev, trial;
@@ -825,7 +879,24 @@ struct RicciRun {
     for (double t = 1.0; t > 1e-6; t *= 0.5) {
       Eigen::VectorXd ut = res.u + t * delta;
       if (flat && !any_fixed) ut.array() -= ut[0];
+      // A trial point far from u (a full Newton step on a long, tapered
+      // shape: conformal factors e^-70 at one end) can be a metric whose
+      // Delaunay triangulation is reached only after a huge number of
+      // Ptolemy flips: edges wind around a vertex whose cone angle the step
+      // made enormous, their base lengths grow geometrically (1e13 after
+      // 65000 flips on a 480-vertex bent 40:1 sphere) and the whole run's
+      // flip budget was spent on one rejected trial. Such a trial is
+      // rejected like an invalid one: its flips are rolled back and the
+      // step halved (issue 13 item 5).
+      const long long mark = flips ? static_cast<long long>(flip_ctx.history.size()) : 0;
+      if (flips) flip_ctx.pass_limit = 2LL * static_cast<long long>(dom.EV.rows()) + 100;
       evaluate(dom, metric, background, ut, true, trial, flips);
+      if (flips) flip_ctx.pass_limit = 0;
+      if (trial.flips_exhausted) {
+        flip_ctx.roll_back(mark);
+        ++rolled_back_trials;
+        continue;
+      }
       if (trial.bad_edge >= 0) continue;
       const Eigen::VectorXd gt = residual(trial.K);
       if (gt.allFinite() && gt.squaredNorm() <= (1.0 - 1e-4 * t) * g2) {
@@ -918,6 +989,7 @@ struct RicciRun {
     res.edge_lengths = ev.l;
     res.flips = static_cast<int>(flip_ctx.flips);
     res.flip_history = std::move(flip_ctx.history);
+    res.rolled_back_trials = rolled_back_trials;
 
     res.faces = dom.F;
     res.face_edges = dom.FE;

@@ -191,7 +191,7 @@ double axial_centring_radius(const Eigen::MatrixX2d& P, const std::vector<int>& 
 /// max(centring_tolerance, centring_floor), or stalled (no step decreases
 /// it) below centring_floor_tolerance.
 bool mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& options, RowMatrixX3d& positions,
-                   SphericalUniformization& out) {
+                   SphericalUniformization& out, Eigen::VectorXd* log_scale = nullptr) {
   const int nv = mesh.num_vertices();
   const Eigen::VectorXd w = vertex_area_weights(mesh);
   auto centre_of = [&](const RowMatrixX3d& X) {
@@ -224,6 +224,11 @@ bool mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& op
         X.row(v) = mobius(c, positions.row(v).transpose()).normalized().transpose();
       const Eigen::Vector3d cn = centre_of(X);
       if (cn.norm() < cm.norm()) {
+        // The ball automorphism scales chords by sqrt(λ_x λ_y), λ_x =
+        // (1 − |c|²) / |x − c|²: a frame change of the light-cone picture.
+        if (log_scale)
+          for (int v = 0; v < nv; ++v)
+            (*log_scale)[v] += std::log1p(-c.squaredNorm()) - std::log((positions.row(v).transpose() - c).squaredNorm());
         positions = X;
         cm = cn;
         improved = true;
@@ -278,7 +283,43 @@ struct PuncturedTriangulation {
   /// vertex-at-infinity limit (1 at the start of every round; a ring flip
   /// gives the new ring vertex its Ptolemy value).
   std::unordered_map<int, double> ring_y;
+  /// Global face id (SphereFlip) of every disk row and star entry, and the
+  /// input vertex id of every disk vertex (the pole: v0).
+  std::vector<int> disk_gid, star_gid, input_id;
+  std::vector<SphereFlip>* log = nullptr;
 };
+
+/// Appends a flip of the punctured sphere (disk ids) to pt.log: quad
+/// (k, s, m, t), the rows of g0 and g1 before and after as slots.
+void log_flip(PuncturedTriangulation& pt, int g0, int g1, std::array<int, 4> quad, std::array<int, 3> before0,
+              std::array<int, 3> before1, std::array<int, 3> after0, std::array<int, 3> after1,
+              const std::array<double, 6>& lengths, bool exact) {
+  if (!pt.log) return;
+  SphereFlip fl;
+  fl.face0 = g0, fl.face1 = g1;
+  for (int q = 0; q < 4; ++q) fl.quad[q] = pt.input_id[quad[q]];
+  fl.before0 = before0, fl.before1 = before1, fl.after0 = after0, fl.after1 = after1;
+  fl.lengths = lengths;
+  fl.exact = exact;
+  pt.log->push_back(fl);
+}
+
+/// The flips of one flow result (EdgeFlip: rows of `rows`, face ids mapped
+/// by gid, vertex ids by pt.input_id) appended to pt.log; `rows` is replayed.
+void log_edge_flips(PuncturedTriangulation& pt, const std::vector<EdgeFlip>& history, RowMatrixX3i rows,
+                    const std::vector<int>& gid) {
+  for (const EdgeFlip& rec : history) {
+    const int f0 = rec.face0, f1 = rec.face1, a0 = rec.corner0, a1 = rec.corner1;
+    const int k = rows(f0, a0), s = rows(f0, (a0 + 1) % 3), t = rows(f0, (a0 + 2) % 3), m = rows(f1, a1);
+    std::array<int, 3> b0{}, b1{};
+    b0[a0] = 0, b0[(a0 + 1) % 3] = 1, b0[(a0 + 2) % 3] = 3;
+    b1[a1] = 2, b1[(a1 + 1) % 3] = 3, b1[(a1 + 2) % 3] = 1;
+    log_flip(pt, gid[f0], gid[f1], {k, s, m, t}, b0, b1, {0, 1, 2}, {2, 3, 0}, rec.base_lengths,
+             rec.exact || rec.final_frame);
+    rows.row(f0) << k, s, m;
+    rows.row(f1) << m, t, k;
+  }
+}
 
 /// Ring flips of the degenerate disk triangles of `flat` that lean on the
 /// ring (docs/uniformization.md, "Genus 0"): triangle (c, s1, s2) with ring
@@ -317,9 +358,20 @@ int flip_ring_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std
       auto it = std::find(pt.star.begin(), pt.star.end(), std::array<int, 3>{pt.pole, s2, s1});
       if (it == pt.star.end()) continue;
       // Sides: l[(k+2)%3] joins c–s1, l[(k+1)%3] joins s2–c.
-      pt.ring_y[c] = (l[(k + 2) % 3] * pt.ring_y[s2] + l[(k + 1) % 3] * pt.ring_y[s1]) / l[k];
+      const double ys1 = pt.ring_y[s1], ys2 = pt.ring_y[s2];
+      pt.ring_y[c] = (l[(k + 2) % 3] * ys2 + l[(k + 1) % 3] * ys1) / l[k];
+      // The log: quad (c, s1, v0, s2); the disk face's id goes to the new
+      // star row (v0, s2, c), the old star row's to (v0, c, s1).
+      const size_t star_index = static_cast<size_t>(it - pt.star.begin());
+      {
+        std::array<int, 3> b0{};
+        b0[k] = 0, b0[(k + 1) % 3] = 1, b0[(k + 2) % 3] = 3;
+        log_flip(pt, pt.disk_gid[f], pt.star_gid[star_index], {c, s1, pt.pole, s2}, b0, {2, 3, 1}, {2, 3, 0},
+                 {2, 0, 1}, {l[(k + 2) % 3], ys1, ys2, l[(k + 1) % 3], l[k], pt.ring_y[c]}, false);
+      }
       *it = {pt.pole, c, s1};
       pt.star.push_back({pt.pole, s2, c});
+      pt.star_gid.push_back(pt.disk_gid[f]);
       removed[f] = 1;
       for (int q = 0; q < 3; ++q) --faces_on_edge[flat.face_edges(f, q)];
       ++count;
@@ -328,6 +380,9 @@ int flip_ring_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std
   disk_face_kept.clear();
   for (int f = 0; f < nf; ++f)
     if (!removed[f]) disk_face_kept.push_back(f);
+  std::vector<int> kept_gid;
+  for (int f : disk_face_kept) kept_gid.push_back(pt.disk_gid[f]);
+  pt.disk_gid = kept_gid;
   pt.disk.resize(static_cast<int>(disk_face_kept.size()), 3);
   for (int i = 0; i < static_cast<int>(disk_face_kept.size()); ++i) pt.disk.row(i) = flat.faces.row(disk_face_kept[i]);
   return count;
@@ -367,6 +422,7 @@ int flip_star_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std
   }
   std::vector<char> touched(pt.pole, 0);
   std::vector<std::array<int, 3>> added;
+  std::vector<int> added_gid;
   int count = 0;
   for (auto it = pt.star.begin(); it != pt.star.end(); ++it) {
     const int p = (*it)[1], a = (*it)[2];  // star row (pole, p, a)
@@ -383,8 +439,18 @@ int flip_star_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std
     new_sides.push_back(length_of[key(p, a)] + length_of[key(a, q)]);
     added.push_back({p, a, q});
     touched[a] = touched[p] = touched[q] = 1;
+    // The log: quad (p, a, q, v0), old triangles (p, a, v0) and (q, v0, a);
+    // the erased star row's id goes to the new disk face (p, a, q), the
+    // kept one's to (v0, p, q). All y are 1 after a solve.
+    const size_t it_index = static_cast<size_t>(it - pt.star.begin()),
+                 next_index = static_cast<size_t>(next - pt.star.begin());
+    const int g_it = pt.star_gid[it_index], g_next = pt.star_gid[next_index];
+    log_flip(pt, g_it, g_next, {p, a, q, pt.pole}, {3, 0, 1}, {3, 1, 2}, {3, 0, 2}, {0, 1, 2},
+             {length_of[key(p, a)], length_of[key(a, q)], 1.0, 1.0, 1.0, new_sides.back()}, false);
+    added_gid.push_back(g_next);
     *it = {pt.pole, p, q};
     pt.star.erase(next);
+    pt.star_gid.erase(pt.star_gid.begin() + static_cast<std::ptrdiff_t>(next_index));
     pt.ring_y.erase(a);
     it = pt.star.begin();  // erase invalidated the iterators; touched[] keeps each vertex to one flip
     ++count;
@@ -392,6 +458,7 @@ int flip_star_edges(const RicciFlowResult& flat, PuncturedTriangulation& pt, std
   const int old_rows = static_cast<int>(pt.disk.rows());
   pt.disk.conservativeResize(old_rows + static_cast<int>(added.size()), 3);
   for (size_t i = 0; i < added.size(); ++i) pt.disk.row(old_rows + static_cast<int>(i)) << added[i][0], added[i][1], added[i][2];
+  pt.disk_gid.insert(pt.disk_gid.end(), added_gid.begin(), added_gid.end());
   return count;
 }
 
@@ -445,6 +512,7 @@ struct PuncturedDisk {
   PuncturedTriangulation pt;
   std::vector<std::array<double, 3>> disk_sides;
   Eigen::VectorXd u;
+  const std::vector<SphereFlip>* start_log = nullptr;
 };
 
 /// The triangulation every pole starts from (#F faces, input vertex ids,
@@ -456,6 +524,8 @@ struct SphereStart {
   RowMatrixX3i faces;
   RowMatrixX3d sides;
   int edge_flips = 0, simplicial_flips = 0;
+  /// Its flips from the input faces (global face id = input face id).
+  std::vector<SphereFlip> log;
 };
 
 SphereStart sphere_start(const TriMesh& mesh, const Connectivity& conn, const SphericalUniformizationOptions& options) {
@@ -475,7 +545,23 @@ SphereStart sphere_start(const TriMesh& mesh, const Connectivity& conn, const Sp
   for (int f = 0; f < conn.num_faces(); ++f)
     for (int k = 0; k < 3; ++k) start_sides(f, k) = input_lengths[conn.edge(3 * f + (k + 1) % 3)];
   if (options.intrinsic_delaunay) {
-    const IntrinsicDelaunayResult idt = intrinsic_delaunay(conn, input_lengths);
+    IntrinsicDelaunayOptions ido;
+    ido.record_flips = true;
+    const IntrinsicDelaunayResult idt = intrinsic_delaunay(conn, input_lengths, ido);
+    for (const IntrinsicFlip& r : idt.flip_history) {
+      // Quad (k, i, l, j): slots k, s, m, t; before face0 = (i, j, k) from
+      // column0, face1 = (j, i, l) from column1.
+      SphereFlip fl;
+      fl.face0 = r.face0, fl.face1 = r.face1;
+      fl.quad = {r.k, r.i, r.l, r.j};
+      fl.before0[r.column0] = 1, fl.before0[(r.column0 + 1) % 3] = 3, fl.before0[(r.column0 + 2) % 3] = 0;
+      fl.before1[r.column1] = 3, fl.before1[(r.column1 + 1) % 3] = 1, fl.before1[(r.column1 + 2) % 3] = 2;
+      fl.after0 = {0, 1, 2};
+      fl.after1 = {2, 3, 0};
+      std::copy(r.lengths, r.lengths + 6, fl.lengths.begin());
+      fl.exact = true;
+      st.log.push_back(fl);
+    }
     st.edge_flips += idt.flips;
     // The intrinsic Delaunay triangulation is a Δ-complex: on a long, thin
     // shape (a bent, tapered 40:1 sphere) two of its edges can join the same
@@ -500,6 +586,15 @@ SphereStart sphere_start(const TriMesh& mesh, const Connectivity& conn, const Sp
     }
     if (!is_simplicial(start)) {
       const SimplicialFlipsResult sf = make_simplicial(start);
+      {  // its exact flips into the log (vertex and face ids are the input's)
+        PuncturedTriangulation ids;
+        ids.input_id.resize(conn.num_vertices());
+        for (int v = 0; v < conn.num_vertices(); ++v) ids.input_id[v] = v;
+        ids.log = &st.log;
+        std::vector<int> gid(idt.F.rows());
+        for (int f = 0; f < idt.F.rows(); ++f) gid[f] = f;
+        log_edge_flips(ids, start.flip_history, idt.F, gid);
+      }
       st.edge_flips += sf.flips;
       st.simplicial_flips += sf.flips;
       if (!sf.simplicial)
@@ -556,15 +651,22 @@ PuncturedDisk punctured_disk(const TriMesh& mesh, const Connectivity& conn, int 
                        " is not a simple cycle; choose another removed_vertex");
     if (at < 0) {
       disk_rows.push_back({row[0], row[1], row[2]});
+      pt.disk_gid.push_back(f);
       d.disk_sides.push_back({start_sides(f, 0), start_sides(f, 1), start_sides(f, 2)});
     } else {
       pt.star.push_back({n2, row[(at + 1) % 3], row[(at + 2) % 3]});
+      pt.star_gid.push_back(f);
       pt.ring_y[row[(at + 1) % 3]] = 1.0;
       u[row[(at + 1) % 3]] = -2.0 * std::log(start_sides(f, (at + 2) % 3));  // side v0–row[at+1]
     }
   }
   pt.disk.resize(static_cast<int>(disk_rows.size()), 3);
   for (int r = 0; r < pt.disk.rows(); ++r) pt.disk.row(r) << disk_rows[r][0], disk_rows[r][1], disk_rows[r][2];
+  pt.input_id = old_id;
+  pt.input_id.push_back(v0);
+  out.flip_log = start.log;  // the sphere's Delaunay start, then this pole's flips
+  pt.log = &out.flip_log;
+  d.start_log = &start.log;
   return d;
 }
 
@@ -602,6 +704,14 @@ struct DiskFlow {
       y = 1.0;  // the solve keeps every ring vertex at y = 1 in its final frame
     }
     flat = detail::ricci_solve(dom, lengths, Background::Euclidean, fo, Eigen::VectorXd::Zero(n2), &u, &fixed);
+    // The log: this round's flips in its base frame, then its conformal
+    // factors (v0 keeps its frame: the ring's lengths to it are 1 after).
+    log_edge_flips(pt, flat.flip_history, dom.F, pt.disk_gid);
+    SphereFrameChange frame;
+    frame.time = static_cast<int>(out.flip_log.size());
+    frame.log_scale.setZero(static_cast<int>(d.new_id.size()));
+    for (int i = 0; i < n2; ++i) frame.log_scale[d.old_id[i]] = flat.u[i];
+    out.frame_log.push_back(std::move(frame));
     out.edge_flips += flat.flips;
     out.flow_iterations += flat.iterations;
   }
@@ -639,6 +749,14 @@ struct DiskFlow {
     for (size_t i = 0; i < new_sides.size(); ++i)  // star flips: the new ring edge, opposite corner 1
       next[nd.FE(static_cast<int>(kept.size() + i), 1)] = new_sides[i];
     for (int e = 0; e < nd.EV.rows(); ++e) next[e] *= vertex_scale[nd.EV(e, 0)] * vertex_scale[nd.EV(e, 1)];
+    // The log: scaling a's edges by s is the frame change g_a = 2 log s.
+    if (std::any_of(vertex_scale.begin(), vertex_scale.end(), [](double x) { return x != 1.0; })) {
+      SphereFrameChange frame;
+      frame.time = static_cast<int>(out.flip_log.size());
+      frame.log_scale.setZero(static_cast<int>(d.new_id.size()));
+      for (int i = 0; i < n2; ++i) frame.log_scale[d.old_id[i]] = 2.0 * std::log(vertex_scale[i]);
+      out.frame_log.push_back(std::move(frame));
+    }
     // Degenerate triangles the ring flips could not reach (their angle π is
     // at a ring vertex, or behind an edge that never reached the ring): the
     // next round has no valid start; say so instead of failing in its input
@@ -729,8 +847,21 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   // the far end of the shape, which the projection crowds towards the south pole.
   const Eigen::MatrixX2d P =
       lay_out_flat_disk(flat.faces, flat.face_edges, flat.edge_lengths, n2, farthest_from_ring(flat.faces, pt, n2));
-  out.positions = project_to_sphere(P, axial_centring_radius(P, old_id, v0, vertex_area_weights(mesh)), old_id, v0, nv);
-  if (!mobius_centre(mesh, options, out.positions, out) && out.message.empty())
+  const double radius = axial_centring_radius(P, old_id, v0, vertex_area_weights(mesh));
+  out.positions = project_to_sphere(P, radius, old_id, v0, nv);
+  // The last frame change of the log: the inverse stereographic projection
+  // of P / radius scales the flat lengths to chords by e^{(g_i + g_j)/2}
+  // with e^{g_i} = 2 radius / (radius² + |P_i|²), and v0's (its flat
+  // lengths to the ring are 1) by e^{g_v0} = 2 radius; the Möbius centring
+  // adds its own factors.
+  SphereFrameChange to_sphere;
+  to_sphere.time = static_cast<int>(out.flip_log.size());
+  to_sphere.log_scale.setZero(nv);
+  const double log_r = std::log(radius);
+  for (int i = 0; i < n2; ++i)
+    to_sphere.log_scale[old_id[i]] = std::log(2.0) - log_r - std::log1p(P.row(i).squaredNorm() / (radius * radius));
+  to_sphere.log_scale[v0] = std::log(2.0) + log_r;
+  if (!mobius_centre(mesh, options, out.positions, out, &to_sphere.log_scale) && out.message.empty())
     out.message = "Möbius centring stalled at |centre| = " + detail::fmt(out.centre_of_mass_norm) + " after " +
                   std::to_string(out.centring_iterations) + " iterations (tolerance " +
                   detail::fmt(std::max(options.centring_tolerance, out.centring_floor)) + ", floor " +
@@ -738,13 +869,32 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
 
   // The spherical embedding: the intrinsic triangulation (disk faces of the
   // flow and the star of v0) in input vertex ids.
-  out.intrinsic_faces.resize(flat.faces.rows() + static_cast<int>(pt.star.size()), 3);
+  // Row g is the face of global id g (the flip log's), when the ids of the
+  // last round's disk and the star are a permutation; otherwise (an attempt
+  // that failed between rounds) disk rows first, then the star, and no log.
+  const int nrows = static_cast<int>(flat.faces.rows()) + static_cast<int>(pt.star.size());
+  out.intrinsic_faces.resize(nrows, 3);
   auto input_id = [&](int v) { return v == n2 ? v0 : old_id[v]; };
-  for (int f = 0; f < flat.faces.rows(); ++f)
-    for (int k = 0; k < 3; ++k) out.intrinsic_faces(f, k) = input_id(flat.faces(f, k));
-  for (size_t i = 0; i < pt.star.size(); ++i)
-    for (int k = 0; k < 3; ++k) out.intrinsic_faces(flat.faces.rows() + static_cast<int>(i), k) = input_id(pt.star[i][k]);
+  std::vector<int> row_of(nrows);
+  bool by_gid = static_cast<int>(pt.disk_gid.size()) == flat.faces.rows() && pt.star_gid.size() == pt.star.size() &&
+                options.intrinsic_delaunay;
+  {
+    std::vector<char> used(nrows, 0);
+    for (int f = 0; f < nrows; ++f) {
+      const int g = !by_gid ? f : f < flat.faces.rows() ? pt.disk_gid[f] : pt.star_gid[f - flat.faces.rows()];
+      if (g < 0 || g >= nrows || used[g]) by_gid = false;
+      else used[g] = 1, row_of[f] = g;
+    }
+  }
+  for (int f = 0; f < nrows; ++f) {
+    const int g = by_gid ? row_of[f] : f;
+    for (int k = 0; k < 3; ++k)
+      out.intrinsic_faces(g, k) =
+          input_id(f < flat.faces.rows() ? flat.faces(f, k) : pt.star[f - flat.faces.rows()][k]);
+  }
+  out.frame_log.push_back(std::move(to_sphere));
   check_sphere_orientation(mesh, out);
+  if (!by_gid || !out.message.empty()) out.flip_log.clear(), out.frame_log.clear();
   out.converged = out.message.empty();
   out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;

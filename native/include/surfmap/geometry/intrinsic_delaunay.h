@@ -27,6 +27,20 @@ struct IntrinsicDelaunayOptions {
   /// stays unflipped, and with 3 every vertex keeps a fan of >= 3 triangles.
   /// Edges left non-Delaunay for this reason are counted in `degree_limited`.
   int min_degree = 2;
+  /// Keep every flip in IntrinsicDelaunayResult::flip_history (default
+  /// false): the genus-0 uniformization carries points back through them.
+  bool record_flips = false;
+};
+
+/// One flip of intrinsic_delaunay (options.record_flips): the quad
+/// (k, i, l, j) counter-clockwise, diagonal i–j replaced by k–l. Before:
+/// face0 = (i, j, k) with i in column column0, face1 = (j, i, l) with j in
+/// column column1; after: face0 = (k, i, l), face1 = (l, j, k).
+struct IntrinsicFlip {
+  int face0 = -1, face1 = -1, column0 = 0, column1 = 0;
+  int i = -1, j = -1, k = -1, l = -1;
+  /// Lengths of k–i, i–l, l–j, j–k, the old diagonal i–j, the new k–l.
+  double lengths[6] = {};
 };
 
 /// One edge of the intrinsic triangulation, from vertex i to vertex j.
@@ -53,6 +67,8 @@ struct IntrinsicDelaunayResult {
   /// whose direction the vertex numbers do not tell.
   RowMatrixX3i face_edge_forward;
   int flips = 0;
+  /// With options.record_flips: the flips in the order made.
+  std::vector<IntrinsicFlip> flip_history;
   /// Non-Delaunay edges left unflipped because of `min_degree` at the end.
   int degree_limited = 0;
   /// Edges whose weight was raised to a positive floor afterwards

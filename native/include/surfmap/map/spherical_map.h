@@ -39,14 +39,18 @@
 // Robustness: on real meshes the discrete conformal metric often exists only
 // on the intrinsic Delaunay triangulation (uniformize/spherical.h), so a few
 // input faces, drawn as chords between their vertices' sphere points, can
-// come out flipped (g0_bunny: one face for every removed vertex tried). Such
-// a sphere image is used when its angle sums converged: the flipped faces'
-// vertices and a few rings around them are re-placed by a Tutte-type
-// embedding with mean value weights in the gnomonic chart of that patch
-// (untangle_sphere_image; Floater's theorem makes it flip-free once the patch
-// boundary is convex, and the patch grows until it is). The map is then bijective but only approximately conformal
-// on that patch; SurfaceMapResult::repaired_vertices counts the moved
-// vertices.
+// come out flipped (g0_bunny: one face). Points on either sphere are
+// therefore located in that side's intrinsic triangulation, which embeds,
+// and carried back to its input faces through the uniformization's flip log
+// (uniformize/spherical_correspondence.h): no target vertex is moved. The
+// forward map is linear over the source's own faces, so a source face whose
+// chord triangle is flipped still has its vertices and a few rings around
+// them re-placed by a Tutte-type embedding with mean value weights in the
+// gnomonic chart of that patch (untangle_sphere_image, one patch per
+// cluster; Floater's theorem makes it flip-free once the patch boundary is
+// convex, and the patch grows until it is). The map is then bijective but
+// only approximately conformal on that patch;
+// SurfaceMapResult::repaired_vertices counts the moved vertices.
 #include <array>
 #include <vector>
 

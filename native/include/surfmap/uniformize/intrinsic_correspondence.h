@@ -37,6 +37,16 @@
 
 namespace surfmap {
 
+namespace detail {
+/// One flip undone for a point: slot weights w (k, s, m, t) of a point of
+/// the flip's quad written as barycentrics of its old triangle `side`
+/// (0: (k, s, t), 1: (m, t, s); slot order), summing to 1 (negative outside
+/// it). plane: exact Euclidean flip (the quad unfolded in the plane);
+/// otherwise the Gram matrix of the corner vectors (fl.exact: hyperboloid
+/// points, else null vectors of a Ptolemy flip).
+Eigen::Vector3d old_triangle_weights(const EdgeFlip& fl, bool plane, int side, const Eigen::Vector4d& w);
+}  // namespace detail
+
 class IntrinsicCorrespondence {
  public:
   /// flow: a result of ricci_flow with intrinsic_delaunay (its faces, u,

@@ -149,6 +149,10 @@ struct RicciFlowResult {
   int flips = 0;
   /// The flips, in the order they were made (flips entries).
   std::vector<EdgeFlip> flip_history;
+  /// Newton line-search trial points whose Delaunay flips ran past the
+  /// per-pass limit (2 #E + 100): their flips were undone (not in flips or
+  /// flip_history) and the step halved, as for an invalid trial metric.
+  int rolled_back_trials = 0;
   RowMatrixX3i faces;
   RowMatrixX3i face_edges;
   Eigen::Matrix<int, Eigen::Dynamic, 2, Eigen::RowMajor> edge_vertices;

@@ -20,7 +20,9 @@
 // embedding. Finally Möbius-centre: Newton steps of the ball automorphism
 // that moves the area-weighted centre of mass (vertex areas of the input
 // mesh) to the origin.
+#include <array>
 #include <string>
+#include <vector>
 
 #include "surfmap/mesh/tri_mesh.h"
 #include "surfmap/uniformize/ricci_flow.h"
@@ -59,6 +61,31 @@ struct SphericalUniformizationOptions {
   int max_centring_iterations = 500;
 };
 
+/// One edge flip of the genus-0 uniformization in the global face ids (a
+/// face keeps the id of the input face it replaced; flips reuse their two
+/// ids), enough to carry points back through it
+/// (uniformize/spherical_correspondence.h). Slots 0..3 = k, s, m, t as in
+/// EdgeFlip; the rows of face0 and face1 before and after are given as the
+/// slot of each column.
+struct SphereFlip {
+  int face0 = -1, face1 = -1;
+  std::array<int, 4> quad{};  ///< input vertex ids of the slots k, s, m, t
+  std::array<int, 3> before0{}, before1{}, after0{}, after1{};
+  /// Lengths (EdgeFlip::base_lengths order) in the frame current at the
+  /// flip; exact: a metric-preserving Euclidean flip (planar unfolding),
+  /// otherwise a Ptolemy flip (light-cone Gram matrix).
+  std::array<double, 6> lengths{};
+  bool exact = false;
+};
+
+/// A change of frame between flips: every vertex's vector in the light-cone
+/// picture is multiplied by e^{log_scale[v]} (a vertex scaling of all
+/// lengths by e^{(g_i + g_j)/2}); `time`: the number of flips before it.
+struct SphereFrameChange {
+  int time = 0;
+  Eigen::VectorXd log_scale;  ///< #V, input vertex ids
+};
+
 struct SphericalUniformization {
   /// #V positions on the unit sphere (same vertex order as the input).
   RowMatrixX3d positions;
@@ -91,8 +118,18 @@ struct SphericalUniformization {
   int input_flipped_faces = 0;
   /// The triangulation whose chordal triangles embed in the sphere (#F' x 3,
   /// input vertex ids; #F' = #F): the flow's intrinsic Delaunay faces of the
-  /// punctured disk and the star of removed_vertex. The input faces without flips.
+  /// punctured disk and the star of removed_vertex, row f taking the place
+  /// of input face f through the flips (flip_log). The input faces without flips.
   RowMatrixX3i intrinsic_faces;
+  /// The whole way from the input faces to intrinsic_faces (with flips,
+  /// when converged): the flips of the sphere's Delaunay start, of every
+  /// round of the flattening, the ring and star flips, and the frame
+  /// changes between them (the rounds' conformal factors, star flips'
+  /// vertex scalings, and last the projection to the sphere with the
+  /// Möbius centring). Row f of intrinsic_faces is global face f.
+  /// Empty without flips. See uniformize/spherical_correspondence.h.
+  std::vector<SphereFlip> flip_log;
+  std::vector<SphereFrameChange> frame_log;
   int ring_flips = 0;                  ///< flips of the removed vertex's ring edges and of its star edges (star flips)
   int edge_flips = 0;                  ///< intrinsic flips: the whole sphere's Delaunay start and the flattening (all rounds)
   int simplicial_flips = 0;            ///< of edge_flips: exact flips making the Delaunay start simplicial (no two edges with the same ends)
