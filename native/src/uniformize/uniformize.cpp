@@ -28,8 +28,6 @@ double gluing_tolerance(const DiskLayout& L, double residual) {
   return std::max(1e-6, 1e4 * residual) * scale + 1e3 * L.coordinate_roundoff;
 }
 
-namespace {
-
 /// The layout must glue back together; anything else is a failed solve.
 /// Gluing gaps are judged relative to the layout's scale (DiskLayout::
 /// gluing_tolerance): a metric with curvature error ε shifts copies by about
@@ -63,6 +61,48 @@ void check_layout(const DiskLayout& L, double residual) {
     throw SolveError("uniformize: the generators violate the boundary-word relation (" +
                      fmt(L.product_relation_error) + ", condition " + fmt(L.relation_condition) + ")");
 }
+
+LoopsLayout lay_out_loops(const TriMesh& mesh, const RicciFlowResult& flow, Background background,
+                          const SystemOfLoopsOptions& loop_options, SystemOfLoops loops, Eigen::VectorXd lengths,
+                          std::string loop_metric, bool may_switch, const LayoutOptions& layout_options,
+                          double crowded_roundoff) {
+  const double residual = flow.max_curvature_error;
+  LoopsLayout r;
+  r.loops = std::move(loops);
+  r.lengths = std::move(lengths);
+  r.loop_metric = std::move(loop_metric);
+  std::string embedding_failure;
+  try {
+    const Connectivity conn(r.loops.mesh.F, r.loops.mesh.num_vertices());
+    r.layout = layout_disk(conn, r.lengths, background, r.loops, layout_options);
+    check_layout(r.layout, residual);
+    if (may_switch && r.layout.coordinate_roundoff > crowded_roundoff)
+      embedding_failure = "coordinate round-off " + fmt(r.layout.coordinate_roundoff);
+  } catch (const SolveError& e) {
+    if (!may_switch) throw;
+    embedding_failure = e.what();
+    r.layout = DiskLayout{};
+  }
+  if (embedding_failure.empty()) return r;
+  const bool embedding_ok = r.layout.genus > 0;
+  try {
+    IntrinsicLoops il = intrinsic_loops(mesh, flow, background, loop_options, true);
+    const Connectivity conn(il.loops.mesh.F, il.loops.mesh.num_vertices());
+    DiskLayout layout = layout_disk(conn, il.lengths, background, il.loops, layout_options);
+    check_layout(layout, residual);
+    if (!embedding_ok || layout.coordinate_roundoff < r.layout.coordinate_roundoff) {
+      r.layout = std::move(layout);
+      r.loops = std::move(il.loops);
+      r.lengths = std::move(il.lengths);
+      r.loop_metric = "metric (embedding loops: " + embedding_failure + ")";
+    }
+  } catch (const SolveError& e) {
+    if (!embedding_ok) throw SolveError(embedding_failure + "; on loops shortest in the metric: " + e.what());
+  }
+  return r;
+}
+
+namespace {
 
 /// uniformize() for one metric (options.metric: IntrinsicDelaunay, or
 /// Automatic read as it, or FixedConnectivity); any failure is a SolveError.
@@ -173,36 +213,12 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
   // again on loops shortest in the metric when it fails or crowds |z| = 1.
   const bool may_switch = options.loops == LoopMetric::Automatic && r.genus >= 2 && r.loop_metric == "embedding" &&
                           flips && !intrinsic_loops_failed;
-  std::string embedding_failure;
-  try {
-    const Connectivity conn(r.loops.mesh.F, r.loops.mesh.num_vertices());
-    r.layout = layout_disk(conn, lengths, bg, r.loops, options.layout);
-    check_layout(r.layout, r.max_curvature_error);
-    if (may_switch && r.layout.coordinate_roundoff > options.crowded_roundoff)
-      embedding_failure = "coordinate round-off " + fmt(r.layout.coordinate_roundoff);
-  } catch (const SolveError& e) {
-    if (!may_switch) throw;
-    embedding_failure = e.what();
-    r.layout = DiskLayout{};
-  }
-  if (!embedding_failure.empty()) {
-    const bool embedding_ok = r.layout.genus > 0;
-    try {
-      IntrinsicLoops il = intrinsic_loops(mesh, r.ricci, bg, lo, true);
-      const Connectivity conn(il.loops.mesh.F, il.loops.mesh.num_vertices());
-      DiskLayout layout = layout_disk(conn, il.lengths, bg, il.loops, options.layout);
-      check_layout(layout, r.max_curvature_error);
-      if (!embedding_ok || layout.coordinate_roundoff < r.layout.coordinate_roundoff) {
-        r.layout = std::move(layout);
-        r.loops = std::move(il.loops);
-        lengths = std::move(il.lengths);
-        r.loop_metric = "metric (embedding loops: " + embedding_failure + ")";
-      }
-    } catch (const SolveError& e) {
-      if (!embedding_ok)
-        throw SolveError(embedding_failure + "; on loops shortest in the metric: " + e.what());
-    }
-  }
+  LoopsLayout laid = lay_out_loops(mesh, r.ricci, bg, lo, std::move(r.loops), std::move(lengths),
+                                   std::move(r.loop_metric), may_switch, options.layout, options.crowded_roundoff);
+  r.loops = std::move(laid.loops);
+  lengths = std::move(laid.lengths);
+  r.layout = std::move(laid.layout);
+  r.loop_metric = std::move(laid.loop_metric);
   r.edge_lengths = lengths;
   r.gluing_tolerance = gluing_tolerance(r.layout, r.max_curvature_error);
   r.area = r.layout.area;

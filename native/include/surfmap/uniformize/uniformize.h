@@ -145,6 +145,33 @@ struct UniformizeResult {
 /// sqrt(area) (relative to the layout's scale) + 1e3 × coordinate_roundoff.
 double gluing_tolerance(const DiskLayout& layout, double residual);
 
+/// The checks every delivered layout passes (a SolveError naming the first
+/// that fails): no flipped triangle, interior and deck gaps and the base
+/// corner within gluing_tolerance beyond their round-off, the boundary-word
+/// relation within its condition. `residual`: the metric's max curvature error.
+void check_layout(const DiskLayout& layout, double residual);
+
+/// The flip path's loops with their layout (uniformize, and the map's target
+/// in map/map_support.cpp, so both lay out the same domain).
+struct LoopsLayout {
+  SystemOfLoops loops;
+  Eigen::VectorXd lengths;  ///< the metric on Connectivity(loops.mesh.F)
+  DiskLayout layout;
+  std::string loop_metric;  ///< as UniformizeResult::loop_metric
+};
+
+/// Lays out `loops` (the metric `lengths` on them; `loop_metric` names them)
+/// and checks the layout (check_layout). `may_switch` (LoopMetric::Automatic,
+/// genus >= 2, loops shortest in 3D): when that layout fails its checks or
+/// its coordinate_roundoff exceeds `crowded_roundoff`, lays out again on the
+/// loops shortest in the metric (intrinsic_loops(mesh, flow, ..., true)) and
+/// keeps those when they pass and (if the first passed) are more compact.
+/// Throws SolveError when the kept layout fails its checks.
+LoopsLayout lay_out_loops(const TriMesh& mesh, const RicciFlowResult& flow, Background background,
+                          const SystemOfLoopsOptions& loop_options, SystemOfLoops loops, Eigen::VectorXd lengths,
+                          std::string loop_metric, bool may_switch, const LayoutOptions& layout_options,
+                          double crowded_roundoff);
+
 /// mesh: closed, manifold, outward-oriented (after intake). Throws
 /// UniformizationError (a SolveError, with the solver's message) when the
 /// metric does not converge or the layout is inconsistent; never reports an
