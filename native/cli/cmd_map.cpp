@@ -59,7 +59,7 @@ void register_map(CLI::App& app) {
   struct Args {
     std::string src, dst, out, report, correspondence, method = enum_name(MapMethod::Newton), landmarks,
         initial = enum_name(InitialMapMethod::CutGraph), initial_out, source_weights = enum_name(SourceWeights::Automatic),
-        target_metric = enum_name(UniformizationMetric::Automatic);
+        target_metric = enum_name(UniformizationMetric::Automatic), target_loops = enum_name(LoopMetric::Automatic);
     int threads = 0, homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
     double tolerance = 1e-10, own_weights_floor = 0.1;
@@ -142,6 +142,11 @@ void register_map(CLI::App& app) {
                   "own edges, refined by altitude-foot splits when that metric does not exist) or fixed-first "
                   "(fixed, and flips only when the fixed metric cannot be delivered)")
       ->check(CLI::IsMember(enum_name_list<UniformizationMetric>()));
+  cmd->add_option("--target-loops", a->target_loops,
+                  "Flip path: lengths the target's loops are shortest in, as uniformize --loops: auto (default: 3D, "
+                  "for genus >= 2 the metric when that layout fails or crowds |z| = 1), embedding or metric "
+                  "(report: target_loop_metric)")
+      ->check(CLI::IsMember(enum_name_list<LoopMetric>()));
   cmd->add_flag("--quiet", a->quiet, "No progress lines on stderr");
   cmd->add_flag("--timings", a->timings,
                 "Print the stage table on stderr: per stage seconds, factorisations, Newton iterations, peak memory");
@@ -191,6 +196,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.full_solves = a->homotopy_full_solves;
     opt.initial.method = parse_enum<InitialMapMethod>(a->initial, "--initial-map");
     opt.uniformization.target_metric = parse_enum<UniformizationMetric>(a->target_metric, "--target-metric");
+    opt.uniformization.loops = parse_enum<LoopMetric>(a->target_loops, "--target-loops");
     opt.homotopy.extra_cuts = a->homotopy_extra_cuts;
     opt.homotopy.search.enabled = !a->no_homotopy_search;
     opt.homotopy.search.evaluations = a->homotopy_search_evaluations;

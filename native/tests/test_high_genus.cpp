@@ -325,6 +325,52 @@ TEST(HighGenus, RawGenus10WheelMapsOntoItselfInTheIdentityClass) {
   EXPECT_CERTIFIED_MAP_UP_TO_CHORD_FOLDS(wheel, wheel, m, 0.01);
 }
 
+// Largest distance of a source vertex's forward image from the vertex
+// itself, relative to the bounding-box diagonal (a mesh mapped onto itself).
+double max_identity_distance(const TriMesh& m, const SurfaceMapResult& r) {
+  const double diagonal = (m.V.colwise().maxCoeff() - m.V.colwise().minCoeff()).norm();
+  double worst = 0;
+  for (int i = 0; i < m.num_vertices(); ++i)
+    worst = std::max(worst, (r.forward[i].position - m.V.row(i).transpose()).norm() / diagonal);
+  return worst;
+}
+
+// Issue 13: the raw genus-11 wheel (r32) onto itself reported "1 intrinsic
+// flipped triangle" and put 178 source vertices up to 34% of the diagonal
+// from themselves (the certificate failed), with the harmonic map itself
+// within 0.004 (hyperbolic) of the identity. The map's target was laid out
+// on the loops shortest in 3D, whose domain reaches 1 - |z| = 5e-8; the map
+// now chooses the loops as uniformize does (UniformizationOptions::loops,
+// Automatic): on the metric's loops, 0 intrinsic flips and every vertex
+// next to itself.
+TEST(HighGenus, RawGenus11WheelMapsOntoItselfOnTheMetricsLoops) {
+  const TriMesh wheel = samples::wheel(11, 32, false);
+  const SurfaceMapResult m = surface_map(wheel, wheel, SurfaceMapOptions{});
+  ASSERT_EQ(m.genus, 11);
+  EXPECT_TRUE(m.converged);
+  EXPECT_EQ(m.target_loop_metric.rfind("metric", 0), 0u) << m.target_loop_metric;
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.intrinsic_flipped_triangles, 0);
+  EXPECT_LT(max_identity_distance(wheel, m), 0.005);
+  EXPECT_CERTIFIED_MAP_UP_TO_CHORD_FOLDS(wheel, wheel, m, 0.01);
+}
+
+// The same wheel on the 3D loops (forced): the forward location chose, for
+// those 178 vertices, a lift of the image under a side map of P that
+// round-off had put 3e-16 outside the unit disk; its distance key came out
+// negative and won, and the walk and locate_in_cover then found faces far
+// away. Every vertex must now be located next to itself on either loops.
+TEST(HighGenus, RawGenus11WheelOnIts3DLoopsLocatesEveryVertexNearItself) {
+  const TriMesh wheel = samples::wheel(11, 32, false);
+  SurfaceMapOptions options;
+  options.uniformization.loops = LoopMetric::Embedding;
+  const SurfaceMapResult m = surface_map(wheel, wheel, options);
+  EXPECT_TRUE(m.converged);
+  EXPECT_EQ(m.target_loop_metric, "embedding");
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_LT(max_identity_distance(wheel, m), 0.01);
+}
+
 TEST(HighGenus, WheelHasOneHolePerSpoke) {
   for (int spokes : {9, 16}) {
     const TriMesh m = samples::wheel(spokes, 40 + 2 * spokes, false);

@@ -149,12 +149,21 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   // A Δ-complex T' (loop or double edges) made simplicial by exact flips of
   // the final metric, as in uniformize (uniformize/simplicial_flips.h).
   if (!is_simplicial(flow)) make_simplicial(flow);
-  IntrinsicLoops il = intrinsic_loops(target, flow, background, lo);
-  t.loops = std::move(il.loops);
-  t.layout = layout_disk(*il.conn, il.lengths, background, t.loops);
+  // The loops and layout chosen as uniformize chooses them (lay_out_loops:
+  // checked like uniformize's; for genus >= 2 by default again on loops
+  // shortest in the metric when the 3D loops' layout fails or crowds
+  // |z| = 1, where the forward location misplaced whole regions).
+  const LoopMetric which = options.uniformization.loops;
+  const bool hyperbolic = background == Background::Hyperbolic;
+  const bool in_metric = hyperbolic && which == LoopMetric::Metric;
+  IntrinsicLoops il = intrinsic_loops(target, flow, background, lo, in_metric);
+  LoopsLayout laid = lay_out_loops(target, flow, background, lo, std::move(il.loops), std::move(il.lengths),
+                                   in_metric ? "metric" : "embedding", hyperbolic && which == LoopMetric::Automatic,
+                                   LayoutOptions{}, UniformizeOptions{}.crowded_roundoff);
+  t.loops = std::move(laid.loops);
+  t.layout = std::move(laid.layout);
+  t.loop_metric = std::move(laid.loop_metric);
   require_single_chart(t.layout, background);
-  if (t.layout.num_flipped > 0)
-    throw SolveError("the layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
   t.intrinsic = std::make_shared<const TargetIntrinsic>(flow, target.num_vertices());
   // The refined vertices at their points of the user's target (intrinsic_loops
   // interpolates them on T' chords, off the surface): the handle-class
@@ -294,6 +303,7 @@ void record_target_metric(const UniformizedTarget& target, SurfaceMapResult& out
   out.target_metric = target.metric;
   out.target_flips = target.flips;
   out.target_metric_choice = target.metric_choice;
+  out.target_loop_metric = target.loop_metric;
   out.target_class_loops = target.class_loops_status;
 }
 

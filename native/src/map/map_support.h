@@ -95,6 +95,8 @@ struct UniformizedTarget {
   std::string metric;
   /// Why that metric ran (SurfaceMapResult::target_metric_choice).
   std::string metric_choice;
+  /// Flip path: which loops were laid out (LoopsLayout::loop_metric).
+  std::string loop_metric;
   /// Edge flips of the flip-based flow (0 on the fixed path).
   int flips = 0;
   /// Set on the flip path: T' and the way back to the input faces.

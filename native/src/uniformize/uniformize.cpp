@@ -79,6 +79,8 @@ void check_single_chart(const DiskLayout& L, double residual) {
                      fmt(L.product_relation_error) + ", condition " + fmt(L.relation_condition) + ")");
 }
 
+}  // namespace
+
 /// All checks of a layout (docs/robustness.md "CAD plates of genus 13 ..
 /// 24"). The per-face checks always; then the single chart's. When the
 /// single chart fails them and has faces its coordinates cannot resolve
@@ -88,7 +90,7 @@ void check_single_chart(const DiskLayout& L, double residual) {
 /// no triangle taller than its corners' round-off is flipped. Returns true
 /// when the single chart passed (UniformizeResult::single_chart), false
 /// with `why` set to its failure otherwise.
-bool check_layout(const DiskLayout& L, double residual, std::string* why = nullptr) {
+bool check_layout(const DiskLayout& L, double residual, std::string* why) {
   check_local(L, residual);
   try {
     check_single_chart(L, residual);
@@ -102,6 +104,56 @@ bool check_layout(const DiskLayout& L, double residual, std::string* why = nullp
     return false;
   }
 }
+
+LoopsLayout lay_out_loops(const TriMesh& mesh, const RicciFlowResult& flow, Background background,
+                          const SystemOfLoopsOptions& loop_options, SystemOfLoops loops, Eigen::VectorXd lengths,
+                          std::string loop_metric, bool may_switch, const LayoutOptions& layout_options,
+                          double crowded_roundoff) {
+  const double residual = flow.max_curvature_error;
+  LoopsLayout r;
+  r.loops = std::move(loops);
+  r.lengths = std::move(lengths);
+  r.loop_metric = std::move(loop_metric);
+  std::string embedding_failure;
+  try {
+    const Connectivity conn(r.loops.mesh.F, r.loops.mesh.num_vertices());
+    r.layout = layout_disk(conn, r.lengths, background, r.loops, layout_options);
+    r.single_chart = check_layout(r.layout, residual, &r.single_chart_failure);
+    if (may_switch && !r.single_chart)
+      embedding_failure = "checked in per-face charts only (" + r.single_chart_failure + ")";
+    else if (may_switch && r.layout.coordinate_roundoff > crowded_roundoff)
+      embedding_failure = "coordinate round-off " + fmt(r.layout.coordinate_roundoff);
+  } catch (const SolveError& e) {
+    if (!may_switch) throw;
+    embedding_failure = e.what();
+    r.layout = DiskLayout{};
+  }
+  if (embedding_failure.empty()) return r;
+  const bool embedding_ok = r.layout.genus > 0;
+  try {
+    IntrinsicLoops il = intrinsic_loops(mesh, flow, background, loop_options, true);
+    DiskLayout layout = layout_disk(*il.conn, il.lengths, background, il.loops, layout_options);
+    std::string why;
+    const bool single = check_layout(layout, residual, &why);
+    // A layout the single chart holds beats one it does not; then the
+    // more compact one (coordinate round-off grows like e^radius).
+    const bool better = single != r.single_chart ? single
+                                                 : layout.coordinate_roundoff < r.layout.coordinate_roundoff;
+    if (!embedding_ok || better) {
+      r.layout = std::move(layout);
+      r.loops = std::move(il.loops);
+      r.lengths = std::move(il.lengths);
+      r.loop_metric = "metric (embedding loops: " + embedding_failure + ")";
+      r.single_chart = single;
+      r.single_chart_failure = why;
+    }
+  } catch (const SolveError& e) {
+    if (!embedding_ok) throw SolveError(embedding_failure + "; on loops shortest in the metric: " + e.what());
+  }
+  return r;
+}
+
+namespace {
 
 /// uniformize() for one metric (options.metric: IntrinsicDelaunay, or
 /// Automatic read as it, or FixedConnectivity); any failure is a SolveError.
@@ -212,48 +264,18 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
   // again on loops shortest in the metric when it fails or crowds |z| = 1.
   const bool may_switch = options.loops == LoopMetric::Automatic && r.genus >= 2 && r.loop_metric == "embedding" &&
                           flips && !intrinsic_loops_failed;
-  std::string embedding_failure, single_chart_failure;
-  try {
-    const Connectivity conn(r.loops.mesh.F, r.loops.mesh.num_vertices());
-    r.layout = layout_disk(conn, lengths, bg, r.loops, options.layout);
-    r.single_chart = check_layout(r.layout, r.max_curvature_error, &single_chart_failure);
-    if (may_switch && !r.single_chart)
-      embedding_failure = "checked in per-face charts only (" + single_chart_failure + ")";
-    else if (may_switch && r.layout.coordinate_roundoff > options.crowded_roundoff)
-      embedding_failure = "coordinate round-off " + fmt(r.layout.coordinate_roundoff);
-  } catch (const SolveError& e) {
-    if (!may_switch) throw;
-    embedding_failure = e.what();
-    r.layout = DiskLayout{};
-  }
-  if (!embedding_failure.empty()) {
-    const bool embedding_ok = r.layout.genus > 0;
-    try {
-      IntrinsicLoops il = intrinsic_loops(mesh, r.ricci, bg, lo, true);
-      DiskLayout layout = layout_disk(*il.conn, il.lengths, bg, il.loops, options.layout);
-      std::string why;
-      const bool single = check_layout(layout, r.max_curvature_error, &why);
-      // A layout the single chart holds beats one it does not; then the
-      // more compact one (coordinate round-off grows like e^radius).
-      const bool better = single != r.single_chart ? single
-                                                   : layout.coordinate_roundoff < r.layout.coordinate_roundoff;
-      if (!embedding_ok || better) {
-        r.layout = std::move(layout);
-        r.loops = std::move(il.loops);
-        lengths = std::move(il.lengths);
-        r.loop_metric = "metric (embedding loops: " + embedding_failure + ")";
-        r.single_chart = single;
-        single_chart_failure = why;
-      }
-    } catch (const SolveError& e) {
-      if (!embedding_ok)
-        throw SolveError(embedding_failure + "; on loops shortest in the metric: " + e.what());
-    }
-  }
+  LoopsLayout laid = lay_out_loops(mesh, r.ricci, bg, lo, std::move(r.loops), std::move(lengths),
+                                   std::move(r.loop_metric), may_switch, options.layout, options.crowded_roundoff);
+  r.loops = std::move(laid.loops);
+  lengths = std::move(laid.lengths);
+  r.layout = std::move(laid.layout);
+  r.loop_metric = std::move(laid.loop_metric);
+  r.single_chart = laid.single_chart;
   r.layout_checks = r.single_chart ? "single chart"
                                    : "per-face charts (the single chart's coordinates cannot resolve " +
                                          std::to_string(r.layout.num_unresolved) + " triangles at up to " +
-                                         fmt(r.layout.layout_radius) + " from the centre: " + single_chart_failure + ")";
+                                         fmt(r.layout.layout_radius) + " from the centre: " +
+                                         laid.single_chart_failure + ")";
   r.edge_lengths = lengths;
   r.gluing_tolerance = gluing_tolerance(r.layout, r.max_curvature_error);
   r.area = r.layout.area;

@@ -332,6 +332,14 @@ struct UniformizationOptions {
   /// SurfaceMapResult::target_metric / target_metric_choice say which ran
   /// and why; when every allowed metric fails, UniformizationError.
   UniformizationMetric target_metric = UniformizationMetric::Automatic;
+  /// Flip path: the lengths the target's loops are shortest in, as for
+  /// uniformize (LoopMetric; default Automatic: 3D, and for genus >= 2 the
+  /// metric's own when the 3D loops' layout fails its checks or crowds
+  /// |z| = 1). Why: a crowded layout misplaces the forward location (issue
+  /// 13: the raw genus-11 wheel r32 onto itself put 178 source vertices
+  /// up to 34% of the diagonal away, with "1 intrinsic flipped triangle").
+  /// SurfaceMapResult::target_loop_metric says which ran.
+  LoopMetric loops = LoopMetric::Automatic;
 };
 
 /// Options of surface_map, nested by concern: `homotopy` (classes listed,
@@ -626,6 +634,10 @@ struct SurfaceMapResult {
   /// flip path failed" (flips requested) or "fixed first: ..." (FixedFirst).
   /// The report also has the option itself as target_metric_requested.
   std::string target_metric_choice;
+  /// Genus >= 1 on the flip path: the target's loops laid out
+  /// (UniformizeResult::loop_metric: "embedding", "metric", or "metric
+  /// (embedding loops: <why not>)"); empty on the fixed path.
+  std::string target_loop_metric;
   /// Genus >= 2 on the flip path: which loops the handle classes read ("the
   /// target's own loops, carried through N of the flips", or the loops of T'
   /// and why; docs/uniformization.md). Empty otherwise.

@@ -165,6 +165,43 @@ double gluing_tolerance(const DiskLayout& layout, double residual);
 /// the products' rounding reaches 3e-11 on the genus-24 plate).
 double vertex_holonomy_tolerance(double residual);
 
+/// The checks every delivered layout passes (a SolveError naming the first
+/// that fails). Always the per-face charts' checks (DiskLayout::
+/// num_flipped_local, max_vertex_holonomy within vertex_holonomy_tolerance);
+/// then the single chart's: no flipped triangle, interior and deck gaps and
+/// the base corner within gluing_tolerance beyond their round-off, the
+/// boundary-word relation within its condition. A hyperbolic layout whose
+/// single chart fails them with faces its coordinates cannot resolve
+/// (DiskLayout::num_unresolved) and no flipped triangle taller than its
+/// round-off passes on the per-face checks: returns false with `why` set to
+/// the single chart's failure; true when the single chart passed.
+/// `residual`: the metric's max curvature error.
+bool check_layout(const DiskLayout& layout, double residual, std::string* why = nullptr);
+
+/// The flip path's loops with their layout (uniformize, and the map's target
+/// in map/map_support.cpp, so both lay out the same domain).
+struct LoopsLayout {
+  SystemOfLoops loops;
+  Eigen::VectorXd lengths;  ///< the metric on Connectivity(loops.mesh.F)
+  DiskLayout layout;
+  std::string loop_metric;  ///< as UniformizeResult::loop_metric
+  bool single_chart = true;          ///< as UniformizeResult::single_chart
+  std::string single_chart_failure;  ///< the single chart's failure when !single_chart
+};
+
+/// Lays out `loops` (the metric `lengths` on them; `loop_metric` names them)
+/// and checks the layout (check_layout). `may_switch` (LoopMetric::Automatic,
+/// genus >= 2, loops shortest in 3D): when that layout fails its checks, is
+/// checked in per-face charts only, or its coordinate_roundoff exceeds
+/// `crowded_roundoff`, lays out again on the loops shortest in the metric
+/// (intrinsic_loops(mesh, flow, ..., true)) and keeps those when they pass
+/// and are better (held by the single chart first, then more compact).
+/// Throws SolveError when the kept layout fails its checks.
+LoopsLayout lay_out_loops(const TriMesh& mesh, const RicciFlowResult& flow, Background background,
+                          const SystemOfLoopsOptions& loop_options, SystemOfLoops loops, Eigen::VectorXd lengths,
+                          std::string loop_metric, bool may_switch, const LayoutOptions& layout_options,
+                          double crowded_roundoff);
+
 /// mesh: closed, manifold, outward-oriented (after intake). Throws
 /// UniformizationError (a SolveError, with the solver's message) when the
 /// metric does not converge or the layout is inconsistent; never reports an

@@ -95,8 +95,17 @@ std::vector<std::vector<Complex>> target_vertex_copies(const DiskLayout& layout,
 }
 
 // (cosh d - 1) / 2 = |c - p|^2 / ((1 - |c|^2)(1 - |p|^2)): monotone in the
-// hyperbolic distance d and free of transcendentals.
-double distance_key(Complex c, Complex p) { return std::norm(c - p) / ((1.0 - std::norm(c)) * (1.0 - std::norm(p))); }
+// hyperbolic distance d and free of transcendentals. A point that round-off
+// put on or beyond |z| = 1 is infinitely far: a side map with entries of
+// 1e4 applied to a point 1e-6 from |z| = 1 can land 3e-16 outside the disk,
+// where the key came out negative and won every comparison (issue 13: the
+// raw genus-11 wheel onto itself, 178 source vertices walked from that lift
+// and located up to a third of the diagonal away).
+double distance_key(Complex c, Complex p) {
+  const double gc = 1.0 - std::norm(c), gp = 1.0 - std::norm(p);
+  if (!(gc > 0) || !(gp > 0)) return std::numeric_limits<double>::infinity();
+  return std::norm(c - p) / (gc * gp);
+}
 
 // The start of source vertex i's forward walk (issue 19) and the lift of its
 // point q to walk to: of the face found for the previous vertex
@@ -133,6 +142,7 @@ int forward_walk_start(const DiskLayout& layout, const FundamentalPolygon& polyg
     }
   };
   consider(last_face);
+  if (start < 0) start = last_face;  // (q itself on |z| = 1: the walk and its fallback decide)
   for (int k = neighbours.index[i]; k < neighbours.index[i + 1]; ++k) {
     const int f = found[neighbours.list[k]];
     if (f >= 0 && f != start) consider(f);
