@@ -25,9 +25,9 @@
 namespace surfmap {
 
 enum class OpenConformalWeights {
-  /// intrinsic; where the mesh's own faces fold under it, those faces and
-  /// their neighbours keep their own edges (negative weights raised to the
-  /// floor) and the solve is repeated; then positive_own if faces still
+  /// intrinsic; where the mesh's own faces fold under it, those faces
+  /// (from the second round their neighbours too) keep their own edges
+  /// (negative weights raised to the floor) and the solve is repeated; then positive_own if faces still
   /// fold, keeping the map with fewer flipped faces.
   automatic,
   /// Cotangent weights of the intrinsic Delaunay triangulation: the mesh's
