@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <iostream>
 
 #include <cmath>
@@ -459,6 +460,100 @@ TEST(OpenSurfaces, BoundaryPairingByIndexIsTheSwapAndTheReportNamesBothSides) {
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find("boundary pairing ["), std::string::npos) << e.what();
     }
+  }
+}
+
+
+// Rows of isosceles triangles with apex angle 2 atan(aspect / 2) (152 deg
+// for aspect 8): row i shifted by half a cell when odd, so every triangle
+// has its apex on the next row. `around` > 0 wraps the rows into a tube of
+// that many cells (an annulus); otherwise a strip of `cells` cells (a disk),
+// bent (z = sin(pi x) / 10) so the surface is not planar.
+TriMesh obtuse_rows(int cells, int rows, double aspect, bool tube_shape) {
+  const double w = 1.0 / cells, h = w / aspect;
+  // Row i's x coordinates: tube: j w (+ w / 2 when odd); strip: the same
+  // plus, on odd rows, the ends 0 and 1 so the strip has straight sides.
+  std::vector<std::vector<double>> xs(rows + 1);
+  for (int i = 0; i <= rows; ++i) {
+    if (!tube_shape && i % 2) xs[i].push_back(0.0);
+    for (int j = 0; j < cells + (tube_shape || i % 2 ? 0 : 1); ++j) xs[i].push_back((j + 0.5 * (i % 2)) * w);
+    if (!tube_shape && i % 2) xs[i].push_back(1.0);
+  }
+  std::vector<int> first(rows + 2, 0);
+  for (int i = 0; i <= rows; ++i) first[i + 1] = first[i] + static_cast<int>(xs[i].size());
+  TriMesh m;
+  m.V.resize(first[rows + 1], 3);
+  for (int i = 0; i <= rows; ++i)
+    for (size_t j = 0; j < xs[i].size(); ++j) {
+      const double x = xs[i][j], y = i * h;
+      if (tube_shape)
+        m.V.row(first[i] + j) << std::cos(2 * M_PI * x) / (2 * M_PI), std::sin(2 * M_PI * x) / (2 * M_PI), y;
+      else
+        m.V.row(first[i] + j) << x, y, 0.1 * std::sin(M_PI * x);
+    }
+  std::vector<std::array<int, 3>> faces;
+  for (int i = 0; i < rows; ++i) {
+    const std::vector<double>&lower = xs[i], &upper = xs[i + 1];
+    const int nl = static_cast<int>(lower.size()), nu = static_cast<int>(upper.size());
+    auto L = [&](int p) { return first[i] + p % nl; };
+    auto U = [&](int q) { return first[i + 1] + q % nu; };
+    // Zip the two rows from left to right (the tube's rows wrap around: one
+    // more step on each, back to the first vertex).
+    const int end_l = tube_shape ? nl : nl - 1, end_u = tube_shape ? nu : nu - 1;
+    auto x_of = [&](const std::vector<double>& row, int p) { return p < static_cast<int>(row.size()) ? row[p] : 1.0 + row[0]; };
+    int p = 0, q = 0;
+    while (p < end_l || q < end_u) {
+      if (q == end_u || (p < end_l && x_of(lower, p + 1) <= x_of(upper, q + 1)))
+        faces.push_back({L(p), L(p + 1), U(q)}), ++p;
+      else
+        faces.push_back({L(p), U(q + 1), U(q)}), ++q;
+    }
+  }
+  m.F.resize(static_cast<int>(faces.size()), 3);
+  for (size_t f = 0; f < faces.size(); ++f) m.F.row(static_cast<int>(f)) << faces[f][0], faces[f][1], faces[f][2];
+  return m;
+}
+
+double largest_angle_degrees(const TriMesh& m, int f) {
+  double best = 0;
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d c = m.V.row(m.F(f, k)), a = m.V.row(m.F(f, (k + 1) % 3)), b = m.V.row(m.F(f, (k + 2) % 3));
+    best = std::max(best, std::acos(std::clamp((a - c).normalized().dot((b - c).normalized()), -1.0, 1.0)));
+  }
+  return best * 180 / M_PI;
+}
+
+TEST(OpenSurfaces, ObtuseTrianglesMapWithIntrinsicDelaunayWeights) {
+  // Every triangle has an angle above 150 degrees, so the mesh's own
+  // cotangent weights are negative across most interior edges; the
+  // intrinsic Delaunay weights are not, and the maps have no flipped face.
+  for (const bool tube_shape : {false, true}) {
+    const TriMesh m = obtuse_rows(tube_shape ? 40 : 24, tube_shape ? 60 : 40, 8.0, tube_shape);
+    const OpenSurfaceTopology t = open_surface_topology(m);
+    ASSERT_EQ(t.genus, 0);
+    ASSERT_EQ(t.num_boundary_loops(), tube_shape ? 2 : 1);
+    int obtuse = 0;
+    for (int f = 0; f < m.num_faces(); ++f) obtuse += largest_angle_degrees(m, f) > 150;
+    EXPECT_GT(obtuse, m.num_faces() / 2);
+    const OpenConformalResult r = tube_shape ? annulus_conformal_map(m, t) : disk_conformal_map(m, t);
+    OpenConformalOptions own_options;
+    own_options.weights = OpenConformalWeights::own;
+    const OpenConformalResult own = tube_shape ? annulus_conformal_map(m, t, own_options) : disk_conformal_map(m, t, own_options);
+    EXPECT_GT(r.own_negative_weights, m.num_faces() / 4);  // the test is meaningful: own weights are negative
+    EXPECT_EQ(own.negative_weights, own.own_negative_weights);
+    if (!tube_shape) EXPECT_GT(own.flipped_faces, 0);  // and they fold the disk's map
+    EXPECT_GT(r.intrinsic_flips, 0);
+    EXPECT_EQ(r.weights, OpenConformalWeights::intrinsic);
+    EXPECT_EQ(r.flipped_faces, 0);
+    EXPECT_EQ(r.degenerate_faces, 0);
+    for (const auto& z : r.uv) EXPECT_TRUE(std::isfinite(z.real()) && std::isfinite(z.imag()));
+    std::cout << "  " << (tube_shape ? "annulus" : "disk") << " " << m.num_faces() << " faces, " << obtuse
+              << " with an angle > 150 deg: own weights " << r.own_negative_weights << " negative, "
+              << own.flipped_faces << " flipped; intrinsic " << r.intrinsic_flips << " flips, " << r.negative_weights
+              << " negative, " << r.flipped_faces << " flipped (first " << r.intrinsic_flipped_faces << ", kept "
+              << r.kept_faces << ")";
+    if (tube_shape) std::cout << ", modulus " << r.modulus << " (own " << own.modulus << ")";
+    std::cout << "\n";
   }
 }
 

@@ -476,7 +476,14 @@ nlohmann::json to_json(const OpenMapResult& r, const OpenMapOptions& options) {
                           {"pole", d.pole},
                           {"centring_iterations", d.centring_iterations},
                           {"flipped_faces", d.flipped_faces},
-                          {"degenerate_faces", d.degenerate_faces}};
+                          {"degenerate_faces", d.degenerate_faces},
+                          {"weights", open_conformal_weights_name(d.weights)},
+                          {"intrinsic_flips", d.intrinsic_flips},
+                          {"intrinsic_flipped_faces", d.intrinsic_flipped_faces},
+                          {"kept_rounds", d.kept_rounds},
+                          {"kept_faces", d.kept_faces},
+                          {"own_negative_weights", d.own_negative_weights},
+                          {"negative_weights", d.negative_weights}};
   };
   auto topology_json = [](const OpenSurfaceTopology& t) {
     return nlohmann::json{{"genus", t.genus}, {"boundary_loops", t.num_boundary_loops()}, {"description", t.describe()},
