@@ -216,7 +216,15 @@ void register_map(CLI::App& app) {
         last_line = line.str();
         return true;
       };
-    const SurfaceMapResult m = surface_map(src.mesh, dst.mesh, opt);
+    // A layout out of the one chart's reach (SingleChartError) is named by
+    // its file, as input errors are.
+    const SurfaceMapResult m = [&] {
+      try {
+        return surface_map(src.mesh, dst.mesh, opt);
+      } catch (const SingleChartError& e) {
+        throw SingleChartError("'" + (e.mesh == "source" ? a->src : a->dst) + "': " + e.what(), e.mesh, e.layout_radius);
+      }
+    }();
 
     RowMatrixX3d morph(src.mesh.num_vertices(), 3);
     for (int i = 0; i < morph.rows(); ++i) morph.row(i) = m.forward[i].position.transpose();

@@ -1,6 +1,6 @@
 // One exception hierarchy seen from Python: surfmap.Error is the base;
 // InputError is also a ValueError, SolveError also a RuntimeError,
-// UniformizationError a SolveError.
+// UniformizationError and SingleChartError SolveErrors.
 #include "bindings.h"
 #include "surfmap/error.h"
 
@@ -22,12 +22,18 @@ void bind_errors(py::module_& m) {
       "A uniformization metric could not be delivered (the flow did not converge, the metric does not exist on the "
       "fixed connectivity, or its layout is inconsistent); a SolveError.",
       solve_error.ptr(), nullptr);
+  static py::handle single_chart_error = PyErr_NewExceptionWithDoc(
+      "surfmap.SingleChartError",
+      "The hyperbolic layout is valid but reaches too far from the centre of the Poincare disk for the one chart "
+      "the map reads (surfaces this long in their metric need per-face charts, not yet supported); a SolveError.",
+      solve_error.ptr(), nullptr);
   static py::handle cancelled = PyErr_NewExceptionWithDoc(
       "surfmap.Cancelled", "The progress callback asked to stop.", error.ptr(), nullptr);
   m.attr("Error") = error;
   m.attr("InputError") = input_error;
   m.attr("SolveError") = solve_error;
   m.attr("UniformizationError") = uniformization_error;
+  m.attr("SingleChartError") = single_chart_error;
   m.attr("Cancelled") = cancelled;
   py::register_exception_translator([](std::exception_ptr p) {
     try {
@@ -36,6 +42,8 @@ void bind_errors(py::module_& m) {
       PyErr_SetString(input_error.ptr(), e.what());
     } catch (const UniformizationError& e) {
       PyErr_SetString(uniformization_error.ptr(), e.what());
+    } catch (const SingleChartError& e) {
+      PyErr_SetString(single_chart_error.ptr(), e.what());
     } catch (const SolveError& e) {
       PyErr_SetString(solve_error.ptr(), e.what());
     } catch (const Cancelled& e) {

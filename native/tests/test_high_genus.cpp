@@ -248,6 +248,35 @@ TEST(HighGenus, Genus13CadPlateUniformizesInPerFaceCharts) {
   EXPECT_GT(bad.max_vertex_holonomy, 100 * vertex_holonomy_tolerance(r.max_curvature_error));
 }
 
+// The map reads the target's layout in one Poincare chart, which the
+// genus-13 plate's domain (37 from the centre) outruns. That refusal must end
+// the map (SingleChartError, naming the mesh and its layout radius), not
+// count as a failed flip path: the fixed-connectivity fallback then refined
+// the plate for more than 300 s only to reach the same limit. The error must
+// not be a UniformizationError (which callers choosing between metrics
+// catch) and must carry the layout's radius.
+TEST(HighGenus, Genus13CadPlateMapStopsAtTheSingleChart) {
+  const int genus = 13;
+  const TriMesh plate = samples::cad_plate(genus, 64, 0.1);
+  const IntakeResult in = intake(plate.V, plate.F);
+  ASSERT_EQ(in.info.genus, genus);
+  SurfaceMapOptions o;
+  o.threads = 1;
+  try {
+    surface_map(in.mesh, in.mesh, o);
+    FAIL() << "the genus-13 plate was mapped through a single chart its layout outruns";
+  } catch (const UniformizationError& e) {
+    FAIL() << "a metric failure instead of the single chart's: " << e.what();
+  } catch (const SingleChartError& e) {
+    EXPECT_EQ(e.mesh, "target");
+    EXPECT_GT(e.layout_radius, 30.0);
+    const std::string what = e.what();
+    EXPECT_NE(what.find("the target mesh's hyperbolic layout reaches"), std::string::npos) << what;
+    EXPECT_NE(what.find("need per-face charts, not yet supported"), std::string::npos) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
+}
+
 // Handle correspondences of genus >= 8 are ranked without enumerating the
 // g! 2^g signed permutations (genus 11: 8e10, 20 GB before the map was
 // killed). The ranking must equal the full enumeration's (written out here)

@@ -2,9 +2,11 @@
 // One exception hierarchy for the whole core. Python sees InputError as
 // surfmap.InputError (a ValueError), SolveError as surfmap.SolveError (a
 // RuntimeError), UniformizationError as surfmap.UniformizationError (a
-// SolveError), Cancelled as surfmap.Cancelled; all derive from surfmap.Error.
+// SolveError), SingleChartError as surfmap.SingleChartError (a SolveError),
+// Cancelled as surfmap.Cancelled; all derive from surfmap.Error.
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace surfmap {
 
@@ -33,6 +35,23 @@ struct SolveError : Error {
 /// this type instead of reading messages.
 struct UniformizationError : SolveError {
   using SolveError::SolveError;
+};
+
+/// A hyperbolic metric exists and its layout is valid (checked in per-face
+/// charts), but the fundamental domain reaches so far from the centre of
+/// the Poincare disk that double coordinates in the one chart the map reads
+/// (location, harmonic map) cannot resolve its triangles: CAD plates of
+/// genus 13 .. 24 (docs/robustness.md). The distance is a property of the
+/// surface's metric, so no other metric path helps: the map stops here
+/// instead of falling back (a SolveError, not a UniformizationError, so
+/// that callers choosing between metrics do not catch it). `mesh`: "source"
+/// or "target"; `layout_radius`: the domain's hyperbolic distance from the
+/// centre.
+struct SingleChartError : SolveError {
+  SingleChartError(const std::string& message, std::string which, double radius)
+      : SolveError(message), mesh(std::move(which)), layout_radius(radius) {}
+  std::string mesh;
+  double layout_radius = 0;
 };
 
 /// The user's progress callback asked to stop.

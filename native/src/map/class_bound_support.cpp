@@ -70,7 +70,7 @@ SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity&
   try {
     SurfaceMapOptions o = options;
     o.loops.target_base_vertex = options.loops.source_base_vertex;
-    b.uniformized = uniformized_target(source, Background::Hyperbolic, o, &sc, stop);
+    b.uniformized = uniformized_target(source, Background::Hyperbolic, o, &sc, stop, "source");
     const UniformizedTarget& xu = b.uniformized;
     b.schema = canonical_schema(xu.layout.word);
     const CanonicalSchema& xcs = b.schema;

@@ -95,14 +95,27 @@ namespace {
 /// Poincaré chart (corners, deck elements as matrices); a domain reaching
 /// farther than double coordinates resolve (issue 13: CAD plates of genus
 /// 13 .. 24, 37 .. 73 from the centre) would be read as garbage, so it is
-/// refused here, naming why (uniformize itself checks such layouts in
-/// per-face charts: UniformizeResult::single_chart).
-void require_single_chart(const DiskLayout& layout, Background background) {
+/// refused here (uniformize itself checks such layouts in per-face charts:
+/// UniformizeResult::single_chart). When the per-face checks hold (no face
+/// flipped in its neighbours' charts, none taller than its corners' round-off
+/// flipped in the chart) the layout is valid and its reach is the surface's
+/// metric, not this path's: SingleChartError, which no metric fallback
+/// catches (the fixed-connectivity path, exactly refined, would lay out the
+/// same surface as far out, after minutes of refinement: genus-13 plate,
+/// more than 300 s). Otherwise the layout is broken, a SolveError like any
+/// other, so the other metric path is tried. `mesh`: "source" or "target".
+void require_single_chart(const DiskLayout& layout, Background background, const std::string& mesh) {
   if (background != Background::Hyperbolic || layout.num_unresolved == 0) return;
-  throw SolveError("the target's fundamental domain reaches " + std::to_string(layout.layout_radius) +
-                   " from the centre of the Poincare disk, where " + std::to_string(layout.num_unresolved) +
-                   " of its triangles are below the round-off of double coordinates; mapping needs the layout in one "
-                   "chart (per-face charts are not implemented in the location and the harmonic map)");
+  const std::string where = "the " + mesh + " mesh's hyperbolic layout reaches " + std::to_string(layout.layout_radius) +
+                            " from the centre of the Poincare disk (layout radius), where " +
+                            std::to_string(layout.num_unresolved) +
+                            " of its triangles are below the round-off of double coordinates";
+  if (layout.num_flipped_local == 0 && layout.num_flipped_above_roundoff == 0)
+    throw SingleChartError(where + ": maps of surfaces this long in their metric need per-face charts, not yet "
+                                   "supported (the layout itself is valid in per-face charts)",
+                           mesh, layout.layout_radius);
+  throw SolveError(where + ", and " + std::to_string(layout.num_flipped_local) + " flipped in per-face charts, " +
+                   std::to_string(layout.num_flipped_above_roundoff) + " taller than their round-off flipped");
 }
 
 /// The target's loops on its own connectivity, carried onto T' (ClassLoops).
@@ -138,7 +151,7 @@ std::shared_ptr<const ClassLoops> class_loops_on_input(const TriMesh& target, co
 /// a UniformizationError).
 UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc, Background background,
                                    const SurfaceMapOptions& options, const SystemOfLoopsOptions& lo,
-                                   const std::atomic<bool>* stop) {
+                                   const std::atomic<bool>* stop, const std::string& mesh) {
   UniformizedTarget t;
   RicciFlowOptions fo;
   fo.tolerance = options.uniformization.tolerance;
@@ -163,7 +176,7 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   t.loops = std::move(laid.loops);
   t.layout = std::move(laid.layout);
   t.loop_metric = std::move(laid.loop_metric);
-  require_single_chart(t.layout, background);
+  require_single_chart(t.layout, background, mesh);
   t.intrinsic = std::make_shared<const TargetIntrinsic>(flow, target.num_vertices());
   // The refined vertices at their points of the user's target (intrinsic_loops
   // interpolates them on T' chords, off the surface): the handle-class
@@ -198,7 +211,8 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
 /// (typed_target makes it a UniformizationError); `flip_failure` (non-empty:
 /// the flip path failed first) goes in both.
 UniformizedTarget fixed_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
-                               const SystemOfLoopsOptions& lo, bool refine, const std::string& flip_failure) {
+                               const SystemOfLoopsOptions& lo, bool refine, const std::string& flip_failure,
+                               const std::string& mesh) {
   UniformizedTarget t;
   t.metric = flip_failure.empty() ? "fixed connectivity"
                                   : "fixed connectivity (intrinsic Delaunay failed: " + flip_failure + ")";
@@ -220,7 +234,7 @@ UniformizedTarget fixed_target(const TriMesh& target, Background background, con
   t.refinement_max_angle = fm.refinement_max_angle;
   const Connectivity conn(t.loops.mesh.F, t.loops.mesh.num_vertices());
   t.layout = layout_disk(conn, flow.edge_lengths, background, t.loops);
-  require_single_chart(t.layout, background);
+  require_single_chart(t.layout, background, mesh);
   if (t.layout.num_flipped > 0)
     throw SolveError("target layout has " + std::to_string(t.layout.num_flipped) + " flipped triangles");
   return t;
@@ -235,6 +249,8 @@ UniformizedTarget typed_target(const Path& path) {
     return path();
   } catch (const UniformizationError&) {
     throw;
+  } catch (const SingleChartError&) {
+    throw;  // a valid layout out of the chart's reach: no other metric helps
   } catch (const SolveError& e) {
     throw UniformizationError(e.what());
   }
@@ -243,18 +259,20 @@ UniformizedTarget typed_target(const Path& path) {
 }  // namespace
 
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
-                                     const Connectivity* conn, const std::atomic<bool>* stop) {
+                                     const Connectivity* conn, const std::atomic<bool>* stop,
+                                     const std::string& mesh) {
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.loops.target_base_vertex;
   const UniformizationMetric policy = options.uniformization.target_metric;
   auto flips = [&] {
     return typed_target([&] {
-      if (conn) return intrinsic_target(target, *conn, background, options, lo, stop);
-      return intrinsic_target(target, Connectivity(target.F, target.num_vertices()), background, options, lo, stop);
+      if (conn) return intrinsic_target(target, *conn, background, options, lo, stop, mesh);
+      return intrinsic_target(target, Connectivity(target.F, target.num_vertices()), background, options, lo, stop,
+                              mesh);
     });
   };
   auto fixed = [&](const std::string& flip_failure) {
-    return typed_target([&] { return fixed_target(target, background, options, lo, true, flip_failure); });
+    return typed_target([&] { return fixed_target(target, background, options, lo, true, flip_failure, mesh); });
   };
   if (policy == UniformizationMetric::FixedConnectivity) {
     UniformizedTarget t = fixed("");

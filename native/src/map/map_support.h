@@ -116,9 +116,13 @@ struct UniformizedTarget {
 /// mesh per run, issue 19), else nullptr. `stop` (nullptr: none): when it
 /// is raised, the flip path's flow throws Cancelled at its next iteration
 /// (the pipeline leaving while the source's own uniformization runs on the
-/// second thread).
+/// second thread). `mesh` ("target", or "source" when the source is
+/// uniformized for its class bounds) names it in a SingleChartError: a
+/// hyperbolic layout that is valid but reaches too far for the one chart
+/// the map reads ends the run there, without trying the other metric.
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
-                                     const Connectivity* conn = nullptr, const std::atomic<bool>* stop = nullptr);
+                                     const Connectivity* conn = nullptr, const std::atomic<bool>* stop = nullptr,
+                                     const std::string& mesh = "target");
 
 /// The target metric's account (which metric, why, its flips and exact
 /// splits) recorded in the result's target_* fields; one place for every
