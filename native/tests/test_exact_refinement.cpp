@@ -16,37 +16,10 @@
 #include "surfmap/uniformize/feasible_metric.h"
 #include "surfmap/uniformize/uniformize.h"
 #include "certify_helpers.h"
+#include "sliver_caps.h"
 
 namespace surfmap {
 namespace {
-
-// CAD-like caps: every `stride`-th face (a, b, c) is split at a point just
-// inside it above the midpoint of ab (height eps of the way to c), which
-// leaves the cap (a, b, p) with an angle near 180° at p. Same surface.
-TriMesh with_caps(const TriMesh& m, int stride, double eps) {
-  std::vector<Eigen::RowVector3d> V;
-  for (int i = 0; i < m.num_vertices(); ++i) V.push_back(m.V.row(i));
-  std::vector<Eigen::RowVector3i> F;
-  for (int f = 0; f < m.num_faces(); ++f) {
-    const Eigen::RowVector3i t = m.F.row(f);
-    if (f % stride) {
-      F.push_back(t);
-      continue;
-    }
-    const Eigen::RowVector3d mid = 0.5 * (V[t[0]] + V[t[1]]);
-    const int p = static_cast<int>(V.size());
-    V.push_back(mid + eps * (V[t[2]] - mid));
-    F.push_back({t[0], t[1], p});
-    F.push_back({t[1], t[2], p});
-    F.push_back({t[2], t[0], p});
-  }
-  TriMesh r;
-  r.V.resize(static_cast<int>(V.size()), 3);
-  for (size_t i = 0; i < V.size(); ++i) r.V.row(static_cast<int>(i)) = V[i];
-  r.F.resize(static_cast<int>(F.size()), 3);
-  for (size_t i = 0; i < F.size(); ++i) r.F.row(static_cast<int>(i)) = F[i];
-  return r;
-}
 
 double face_area(const TriMesh& m, int f) {
   const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
@@ -64,7 +37,7 @@ double max_angle_deg(const TriMesh& m) {
 }
 
 TEST(ExactRefinement, RefinedMeshIsTheSameSurfaceFaceByFace) {
-  const TriMesh in = with_caps(samples::n_hole_torus(2, 32, true), 7, 0.01);
+  const TriMesh in = testing_support::with_caps(samples::n_hole_torus(2, 32, true), 7, 0.01);
   ASSERT_GT(max_angle_deg(in), 170);
   ExactRefinementOptions o;
   o.max_angle_deg = 150;
@@ -221,7 +194,7 @@ namespace {
 // automatic fallback solves with positive weights on its own edges, which
 // embed the user's faces (Tutte-type theorem).
 TEST(SourceWeights, FoldingSourceFallsBackToPositiveOwnEdgeWeights) {
-  const TriMesh s = with_caps(samples::n_hole_torus(2, 32, true), 5, 0.002);
+  const TriMesh s = testing_support::with_caps(samples::n_hole_torus(2, 32, true), 5, 0.002);
   const TriMesh t = samples::amphora(36, true);
   SurfaceMapOptions o;
   o.homotopy.candidates = 1;

@@ -17,40 +17,13 @@
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
 #include "certify_helpers.h"
+#include "sliver_caps.h"
 
 namespace surfmap {
 namespace {
 
-// Slivers (CAD-like caps): every `stride`-th face (a, b, c) is split at a
-// point p just above the midpoint of ab (eps of the way to c), leaving the
-// sliver (a, b, p) with an angle near 180 degrees at p. Same surface, same genus.
-TriMesh with_slivers(const TriMesh& m, int stride, double eps) {
-  std::vector<Eigen::RowVector3d> V;
-  for (int i = 0; i < m.num_vertices(); ++i) V.push_back(m.V.row(i));
-  std::vector<Eigen::RowVector3i> F;
-  for (int f = 0; f < m.num_faces(); ++f) {
-    const Eigen::RowVector3i t = m.F.row(f);
-    if (f % stride) {
-      F.push_back(t);
-      continue;
-    }
-    const Eigen::RowVector3d mid = 0.5 * (V[t[0]] + V[t[1]]);
-    const int p = static_cast<int>(V.size());
-    V.push_back(mid + eps * (V[t[2]] - mid));
-    F.push_back({t[0], t[1], p});
-    F.push_back({t[1], t[2], p});
-    F.push_back({t[2], t[0], p});
-  }
-  TriMesh r;
-  r.V.resize(static_cast<int>(V.size()), 3);
-  for (size_t i = 0; i < V.size(); ++i) r.V.row(static_cast<int>(i)) = V[i];
-  r.F.resize(static_cast<int>(F.size()), 3);
-  for (size_t i = 0; i < F.size(); ++i) r.F.row(static_cast<int>(i)) = F[i];
-  return r;
-}
-
 TEST(FoldRepair, FewSliversAreRepairedLocallyInTheSameClass) {
-  const TriMesh s = with_slivers(samples::n_hole_torus(2, 32, true), 37, 0.002);
+  const TriMesh s = testing_support::with_caps(samples::n_hole_torus(2, 32, true), 37, 0.002);
   const TriMesh t = samples::amphora(36, true);
   ASSERT_EQ(Connectivity(s.F, s.num_vertices()).genus(), 2);
   SurfaceMapOptions o;
