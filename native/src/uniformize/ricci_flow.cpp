@@ -15,6 +15,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <sstream>
 #include <string>
@@ -369,18 +370,7 @@ struct FlipContext {
       d.FE.row(f1) << e_tk, e, e_mt;
       d.EV(e, 0) = std::min(vk, vm);
       d.EV(e, 1) = std::max(vk, vm);
-      // Faces of the quad's edges, recomputed from the two new faces: after
-      // earlier flips the triangulation need not be simplicial (a vertex
-      // may be both ends of the quad, an edge may be two of its sides), and
-      // an in-place swap of face ids gets those cases wrong.
-      for (int x : {e, e_tk, e_ks, e_sm, e_mt})
-        for (int q = 0; q < 2; ++q)
-          if (EF(x, q) == f0 || EF(x, q) == f1) EF(x, q) = -2;
-      for (int f : {f0, f1})
-        for (int q = 0; q < 3; ++q) {
-          const int x = d.FE(f, q);
-          EF(x, EF(x, 0) == -2 ? 0 : 1) = f;
-        }
+      refresh_edge_faces(f0, f1, {e, e_tk, e_ks, e_sm, e_mt});
       ++flips;
       ++version;
       if (pass_limit > 0 && flips - flips_at_start > pass_limit) {
@@ -395,6 +385,23 @@ struct FlipContext {
         }
     }
     return true;
+  }
+
+  /// Faces of the quad's edges `quad` (the flipped edge and its four
+  /// sides), recomputed from the two faces f0, f1 as they are now (after a
+  /// flip or its undoing): after earlier flips the triangulation need not be
+  /// simplicial (a vertex may be both ends of the quad, an edge may be two of
+  /// its sides), and an in-place swap of face ids gets those cases wrong.
+  void refresh_edge_faces(int f0, int f1, std::initializer_list<int> quad) {
+    const RicciDomain& d = *dom;
+    for (int x : quad)
+      for (int q = 0; q < 2; ++q)
+        if (EF(x, q) == f0 || EF(x, q) == f1) EF(x, q) = -2;
+    for (int f : {f0, f1})
+      for (int q = 0; q < 3; ++q) {
+        const int x = d.FE(f, q);
+        EF(x, EF(x, 0) == -2 ? 0 : 1) = f;
+      }
   }
 
   /// Undoes the newest flips until `keep` are left (the inverse of the flip
@@ -418,14 +425,7 @@ struct FlipContext {
       d.EV(e, 0) = std::min(s, t);
       d.EV(e, 1) = std::max(s, t);
       P[e] = rec.base_lengths[4];
-      for (int x : {e, e_tk, e_ks, e_sm, e_mt})
-        for (int q = 0; q < 2; ++q)
-          if (EF(x, q) == f0 || EF(x, q) == f1) EF(x, q) = -2;
-      for (int f : {f0, f1})
-        for (int q = 0; q < 3; ++q) {
-          const int x = d.FE(f, q);
-          EF(x, EF(x, 0) == -2 ? 0 : 1) = f;
-        }
+      refresh_edge_faces(f0, f1, {e, e_tk, e_ks, e_sm, e_mt});
       --flips;
       ++version;
     }
