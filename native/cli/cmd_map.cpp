@@ -64,6 +64,7 @@ void register_map(CLI::App& app) {
     int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
     double tolerance = 1e-10, own_weights_floor = 0.1;
     bool quiet = false, timings = false, no_homotopy_search = false, no_two_way = false, compare_directions = false;
+    bool no_cheap_direction_check = false;
     bool no_local_fold_repair = false;
     bool no_greedy_pants = false;  // HomotopySearchOptions::greedy_pants
     bool homotopy_both_signs = true;     // HomotopyOptions::flat_both_signs
@@ -123,6 +124,9 @@ void register_map(CLI::App& app) {
                 "--no-homotopy-both-signs: the canonical signs only; docs/handle_classes.md)");
   cmd->add_flag("--no-two-way", a->no_two_way,
                 "Genus >= 2: do not map the other way when the energy is far above the conformal bound (report: quality)");
+  cmd->add_flag("--no-cheap-direction-check", a->no_cheap_direction_check,
+                "Genus >= 2: when the other direction's ratio is not lower, keep this class without solving the other "
+                "direction's class inverted here and this one there (docs/handle_classes.md \"Both directions, cheaply\")");
   cmd->add_flag("--no-greedy-pants", a->no_greedy_pants,
                 "Genus >= 2: no classes from the greedy short pants decompositions in the geometric stage "
                 "(docs/handle_classes.md \"Greedy pants classes\")");
@@ -204,6 +208,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.search.greedy_pants = !a->no_greedy_pants;
     opt.homotopy.flat_both_signs = a->homotopy_both_signs;
     opt.homotopy.compare_directions = a->compare_directions;
+    opt.homotopy.cheap_direction_check = !a->no_cheap_direction_check;
     opt.threads = a->threads;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     // One line per stage and percent (the relaxation reports every few sweeps).

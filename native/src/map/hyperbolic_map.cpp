@@ -242,6 +242,15 @@ class HyperbolicPipeline {
   void twist_search_from(int start, const std::vector<std::string>& start_twists, const CoarseSolve& solve,
                          HomotopySearchInfo& info, const SurfaceMapOptions* opts = nullptr);
   HyperbolicHarmonicOptions fine_options(int k) const;
+  // The other direction's class (inverted algebraically or carried) is
+  // solved like a geometric class: its loops' images can be as long
+  // untwisted (fertility -> genus-4 plate: the plate's class inverted had a
+  // start edge of 80.5 units and was refused, so the two directions were
+  // never compared; docs/handle_classes.md "Both directions, cheaply").
+  void allow_long_start_edges(int k, HyperbolicHarmonicOptions& o) const {
+    if (k >= 0 && (k == candidates.inverted_class || k == candidates.carried_class))
+      o.max_start_edge_size = std::max(o.max_start_edge_size, options.homotopy.search.geometric_start_edge_size);
+  }
 };
 
 // The source's side of the homotopy data needs no target: built on the
@@ -457,6 +466,7 @@ bool HyperbolicPipeline::try_solve(int k, const std::function<HyperbolicHarmonic
 // The requested class's full-resolution solve reports to solve_progress live.
 HyperbolicHarmonicOptions HyperbolicPipeline::fine_options(int k) const {
   HyperbolicHarmonicOptions o = ho;
+  allow_long_start_edges(k, o);
   if (options.homotopy.class_index == k && options.solve_progress)
     o.progress = [this](int it, double E, double g) {
       return options.solve_progress(it, E, g) && (!options.progress || options.progress("harmonic solve", 0.43));
@@ -505,6 +515,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   auto coarse_solve = [&](int k, const std::atomic<bool>* stop) {
     HyperbolicHarmonicOptions o = ho;
     o.tolerance = std::max(ho.tolerance, kRankingTolerance);
+    allow_long_start_edges(k, o);
     if (stop) o.progress = [stop](int, double, double) { return !*stop; };
     if (!try_solve(k, [&] { return solve_from(ncv, level.class_edges[k], corigin, no_decks, o); }, coarse_result[k], true))
       return;
@@ -870,7 +881,8 @@ std::optional<HyperbolicPipeline::FoundSearchClass> HyperbolicPipeline::found_se
 // class more than `gap` above 8 pi (g - 1)) and pruned by their curve bound
 // against the best energy held.
 void HyperbolicPipeline::geometric_classes_at_full_resolution() {
-  if (!options.homotopy.search.enabled || options.homotopy.images_only || options.homotopy.search.geometric <= 0 ||
+  if (!options.homotopy.search.enabled || options.homotopy.images_only || options.homotopy.reverse_class_only ||
+      options.homotopy.search.geometric <= 0 ||
       options.homotopy.class_index >= 0 ||
       hooks.homotopy_search_start >= 0)
     return;
@@ -956,7 +968,7 @@ int HyperbolicPipeline::append_full_class(HomotopyClass hc, ClassData cd, Coarse
 // search runs on full-resolution solves, from the best solved class and
 // restarted from the next best distinct ones within restart_ratio.
 void HyperbolicPipeline::twist_search_at_full_resolution() {
-  if (!options.homotopy.search.enabled || options.homotopy.class_index >= 0) return;
+  if (!options.homotopy.search.enabled || options.homotopy.class_index >= 0 || options.homotopy.reverse_class_only) return;
   // (With the testing hooks' start, one run from there, whatever its energy.)
   const bool hooked = hooks.homotopy_search_start >= 0;
   if (hooks.homotopy_search_start >= ncand)
@@ -1608,7 +1620,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   p.start_class_bounds();          // issue 14: the source's own uniformization, for class lower bounds
   p.candidate_classes_and_data();  // §V-B: candidate homotopy classes and their deck elements
   p.rank_on_coarse_copy();         // ranking: every class solved on the coarse copy
-  if (p.ss.cs.ok && !options.homotopy.images_only) p.search_classes();  // more cuts, Dehn twists (mapping_class_search.h)
+  if (p.ss.cs.ok && !options.homotopy.images_only && !options.homotopy.reverse_class_only) p.search_classes();  // more cuts, Dehn twists (mapping_class_search.h)
   p.solve_at_full_resolution(p.ss.cs.ok);  // §VI-B: the best classes at full resolution
   if (!p.ss.cs.ok) p.geometric_classes_at_full_resolution();  // issue 14: small sources (no coarse copy)
   if (!p.ss.cs.ok) p.twist_search_at_full_resolution();  // issue 14: the twist search there too

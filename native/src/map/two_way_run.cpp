@@ -11,6 +11,7 @@
 
 #include "surfmap/error.h"
 #include "surfmap/topology/handle_basis.h"
+#include "surfmap/topology/outer_automorphisms.h"
 
 namespace surfmap::detail {
 
@@ -200,6 +201,111 @@ std::string agree_directions(const TriMesh& source, const TriMesh& target, const
   return "directions agreed on the other direction's class: " + pairs;
 }
 
+/// Issue 14 (docs/handle_classes.md "Both directions, cheaply"): the
+/// two-way run found the other direction (class ψ, in `reverse`) no better
+/// by its ratio, which says nothing about ψ^-1 here (the harmonic energy is
+/// not symmetric). So, unless θ (this run's class) and ψ are already
+/// inverse: ψ^-1 is solved here alone (homotopy.reverse_class_only: one
+/// class, no search) and adopted when its energy is lower; else θ^-1 is
+/// solved alone the other way, and when it is lower there than ψ, the
+/// other direction's run adopts θ^-1 by the same rule (agreement); else
+/// each prefers its own, and the pair of inverse classes of lower total
+/// energy, E(θ) + E'(θ^-1) against E(ψ^-1) + E'(ψ), is kept (the rule of
+/// agree_directions). Two single-class runs instead of the three whole runs
+/// of the comparison. Returns a status for two_way_status.
+std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                  const SurfaceMapResult& reverse, SurfaceMapResult& forward, const MapFunction& map) {
+  std::string why;
+  const std::vector<std::vector<int>> psi = reverse_class_here(forward, reverse, why);
+  SurfaceMapResult::DirectionCheck& d = forward.directions;
+  if (psi.empty()) return "directions not compared: " + why;
+  const int g = forward.genus;
+  const DehnReducer reduce(canonical_relator(g));
+  std::vector<std::vector<int>> phi = compose(psi, forward.chosen_class_words);
+  for (auto& w : phi) w = reduce(w);
+  if (inner_automorphism_test(phi, g).inner) {
+    d.outcome = "inverse";
+    d.reason = "the two directions chose inverse classes (the composite is inner; exact, Dehn's algorithm)";
+    return "directions inverse";
+  }
+  if (g == 2 && inner_automorphism_test(compose(phi, hyperelliptic_involution()), 2).inner) {
+    d.outcome = "symmetric: both optimal";
+    d.reason = "inverse up to the hyperelliptic involution (exact), an isometry of every genus-2 surface";
+    return "directions inverse up to the hyperelliptic involution";
+  }
+  const double bound = 8 * M_PI * (g - 1);
+  const double own = chosen_energy(forward), own_there = chosen_energy(reverse);
+  SurfaceMapOptions fo = options;
+  fo.homotopy.two_way = false;
+  fo.homotopy.compare_directions = false;
+  fo.homotopy.reverse_class = psi;
+  fo.homotopy.reverse_class_only = true;
+  SurfaceMapResult here;
+  try {
+    here = map(source, target, fo);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    d.reason = std::string("not compared: the other direction's class inverted could not be solved here: ") + e.what();
+    return "directions not compared: the other direction's class inverted not solved here (" + std::string(e.what()) + ")";
+  }
+  const double alt = chosen_energy(here);
+  const std::string here_text = "the other direction's class inverted here: ratio " + number(alt / bound) +
+                                " against this class's " + number(own / bound);
+  auto adopt = [&](const std::string& why_adopted) {
+    const std::string kept_reason = here.directions.reason;
+    forward = std::move(here);
+    forward.directions.outcome = "inverse";
+    forward.directions.reason = why_adopted + (kept_reason.empty() ? std::string() : "; " + kept_reason);
+  };
+  if (alt < own) {
+    adopt("adopted the other direction's class inverted (" + here_text + ")");
+    return "directions agreed: adopted the other direction's class inverted (" + here_text + ")";
+  }
+  // Vice versa: θ^-1 solved alone the other way.
+  SurfaceMapOptions ro = reverse_options(options);
+  ro.homotopy.compare_directions = false;
+  ro.homotopy.reverse_class = reverse_class_here(reverse, forward, why);
+  ro.homotopy.reverse_class_only = true;
+  double alt_there = std::numeric_limits<double>::infinity();
+  std::string there_text;
+  if (ro.homotopy.reverse_class.empty()) {
+    there_text = "this class not written in the other direction's letters (" + why + ")";
+  } else {
+    try {
+      alt_there = chosen_energy(map(target, source, ro));
+      there_text = "this class inverted there: ratio " + number(alt_there / bound) + " against its own " +
+                   number(own_there / bound);
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const Error& e) {
+      there_text = std::string("this class inverted could not be solved there: ") + e.what();
+    }
+  }
+  if (alt_there < own_there) {
+    d.outcome = "inverse";
+    d.reason = "inverse by agreement: the other direction takes this class inverted (" + there_text + "; " + here_text + ")";
+    return "directions agreed: the other direction takes this class inverted (" + there_text + ")";
+  }
+  if (!std::isfinite(alt_there)) {
+    d.outcome = "different";
+    d.reason = "each direction keeps its own class: " + here_text + "; " + there_text;
+    return "directions not agreed: " + there_text;
+  }
+  const double own_pair = own + alt_there, other_pair = alt + own_there;
+  const std::string pairs = "pair totals (ratio here + ratio there): this class " + number(own_pair / bound) +
+                            ", the other direction's " + number(other_pair / bound);
+  if (other_pair < own_pair) {
+    adopt("inverse by agreement: each direction alone prefers its own class; the pair of inverse classes with the "
+          "lower total energy is the other direction's (" + pairs + ")");
+    return "directions agreed on the other direction's class: " + pairs;
+  }
+  d.outcome = "inverse";
+  d.reason = "inverse by agreement: each direction alone prefers its own class; the pair of inverse classes with the "
+             "lower total energy is this one (" + pairs + ")";
+  return "directions agreed on this class: " + pairs;
+}
+
 }  // namespace
 
 void assess_quality(SurfaceMapResult& result) {
@@ -254,7 +360,9 @@ bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, c
 
 void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                  SurfaceMapResult& forward, const MapFunction& map) {
-  if (forward.genus < 2 || options.homotopy.class_index >= 0 || options.homotopy.source_images.size() > 0) return;
+  if (forward.genus < 2 || options.homotopy.class_index >= 0 || options.homotopy.source_images.size() > 0 ||
+      options.homotopy.reverse_class_only)
+    return;
   if (!options.homotopy.two_way) return void(forward.two_way_status = "not run (off)");
   const bool compare = options.homotopy.compare_directions;
   if (!compare && !(forward.energy_ratio >= options.homotopy.two_way_ratio)) {
@@ -289,7 +397,10 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
   if ((!compare && !(reverse.energy_ratio < forward.energy_ratio)) || reverse.chosen_candidate < 0) {
     forward.reverse_inverse_reason = "not compared: the other direction's energy ratio " + number(reverse.energy_ratio) +
                                      " is not lower, its class was not carried";
-    return finish(rev + ", not lower: kept");
+    if (reverse.chosen_candidate < 0 || !options.homotopy.cheap_direction_check) return finish(rev + ", not lower: kept");
+    // (The ratios of the two directions are not comparable energies.)
+    const std::string check = cheap_direction_check(source, target, options, reverse, forward, map);
+    return finish(rev + ", not lower; " + check);
   }
   SurfaceMapOptions fo = options;
   fo.homotopy.two_way = false;

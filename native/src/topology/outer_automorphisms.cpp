@@ -224,6 +224,92 @@ GroupMap hyperelliptic_involution() {
   throw SolveError("hyperelliptic_involution: no involution among the half turns and separating twists (a bug)");
 }
 
+namespace {
+
+Word inverse_word(const Word& w) {
+  Word r(w.rbegin(), w.rend());
+  for (int& x : r) x = -x;
+  return r;
+}
+
+Word concatenated(const Word& a, const Word& b) {
+  Word r = a;
+  r.insert(r.end(), b.begin(), b.end());
+  return r;
+}
+
+}  // namespace
+
+GroupMap nielsen_inverse(const GroupMap& phi, int genus, size_t max_letters) {
+  const int n = 2 * genus;
+  if (static_cast<int>(phi.size()) != n) return {};
+  const DehnReducer reduce(canonical_relator(genus));
+  // t_i = phi(u_i) throughout: t starts as the images of the generators,
+  // u as the generators; a Nielsen move t_i <- t_i t_j^e (or t_j^e t_i), or
+  // the conjugation of every other t_i by t_j^e, is matched on u. Greedy:
+  // the move that shortens the total Dehn-reduced length of t most; each
+  // step shortens it, so at most that many steps.
+  std::vector<Word> t(n), u(n);
+  size_t total = 0;
+  for (int i = 0; i < n; ++i) {
+    t[i] = reduce(phi[i]);
+    u[i] = {i + 1};
+    total += t[i].size();
+  }
+  for (;;) {
+    size_t best = total;
+    int bi = -1, bj = -1, be = 0, kind = 0;  // kind 0: right factor, 1: left factor, 2: conjugation of all
+    Word bt;
+    for (int j = 0; j < n; ++j)
+      for (int e : {1, -1}) {
+        const Word tj = e > 0 ? t[j] : inverse_word(t[j]), tj_inv = inverse_word(tj);
+        size_t conjugated = total;
+        for (int i = 0; i < n; ++i) {
+          if (i == j) continue;
+          for (int k : {0, 1}) {
+            Word c = reduce(k == 0 ? concatenated(t[i], tj) : concatenated(tj, t[i]));
+            const size_t candidate = total - t[i].size() + c.size();
+            if (candidate < best) best = candidate, bi = i, bj = j, be = e, kind = k, bt = std::move(c);
+          }
+          conjugated += reduce(concatenated(concatenated(tj, t[i]), tj_inv)).size();
+          conjugated -= t[i].size();
+        }
+        if (conjugated < best) best = conjugated, bi = -1, bj = j, be = e, kind = 2;
+      }
+    if (best >= total) break;
+    const Word uj = be > 0 ? u[bj] : inverse_word(u[bj]);
+    if (kind == 2) {
+      const Word tj = be > 0 ? t[bj] : inverse_word(t[bj]), tj_inv = inverse_word(tj), uj_inv = inverse_word(uj);
+      for (int i = 0; i < n; ++i) {
+        if (i == bj) continue;
+        t[i] = reduce(concatenated(concatenated(tj, t[i]), tj_inv));
+        u[i] = reduce(concatenated(concatenated(uj, u[i]), uj_inv));
+        if (u[i].size() > max_letters) return {};
+      }
+    } else {
+      u[bi] = reduce(kind == 0 ? concatenated(u[bi], uj) : concatenated(uj, u[bi]));
+      if (u[bi].size() > max_letters) return {};
+      t[bi] = std::move(bt);
+    }
+    total = best;
+  }
+  // Every t_i conjugate to a single letter y^±1 (by a common conjugator when
+  // the inverse exists): u_i^±1 is a preimage of y up to that conjugation,
+  // so the map y -> u_i^±1 is phi^-1 up to an inner automorphism; the caller
+  // checks that exactly.
+  GroupMap inverse(n);
+  std::vector<bool> seen(n, false);
+  for (int i = 0; i < n; ++i) {
+    const Word c = cyclic_dehn_reduce(t[i], reduce);
+    if (c.size() != 1) return {};
+    const int y = c[0], k = std::abs(y) - 1;
+    if (seen[k]) return {};
+    seen[k] = true;
+    inverse[k] = y > 0 ? u[i] : inverse_word(u[i]);
+  }
+  return inverse;
+}
+
 AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const AutomorphismInverseOptions& options) {
   check_map(phi, genus, "invert_automorphism");
   AutomorphismInverse out;
@@ -237,6 +323,26 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
   auto dehn = [&](GroupMap m) {
     for (Word& w : m) w = reduce(w);
     return m;
+  };
+  // When the descent stalls: Nielsen reduction of phi's generator images
+  // (nielsen_inverse), checked exactly like the descent's inverse.
+  auto nielsen_fallback = [&](AutomorphismInverse& failed) {
+    if (!options.nielsen) return failed;
+    GroupMap inv = nielsen_inverse(phi, genus, options.max_letters);
+    if (inv.empty()) {
+      failed.why += "; Nielsen reduction of the generator images stalled";
+      return failed;
+    }
+    inv = dehn(inv);
+    if (!inner_automorphism_test(dehn(compose(phi, inv)), genus).inner ||
+        !inner_automorphism_test(dehn(compose(inv, phi)), genus).inner) {
+      failed.why += "; Nielsen reduction's inverse is not one (a bug)";
+      return failed;
+    }
+    failed.ok = true;
+    failed.inverse = std::move(inv);
+    failed.why = "inverted by Nielsen reduction after the descent: " + failed.why;
+    return failed;
   };
   // States tau = L ∘ phi ∘ R; once tau is inner, phi^-1 = R ∘ L (up to
   // inner). A beam of the `beam` lowest-cost states, each step moving every
@@ -308,7 +414,7 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
     if (done) break;
     if (step >= options.max_steps) {
       out.why = "the descent used its " + std::to_string(options.max_steps) + " moves before reaching an inner automorphism";
-      return out;
+      return nielsen_fallback(out);
     }
     std::vector<State> next;
     for (const State& st : beam) {
@@ -350,7 +456,7 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
       if (done) break;
       out.why = "no move or pair of moves shortens the probe curves' images (stopped after " + std::to_string(step) +
                 " moves, not inner, not periodic)";
-      return out;
+      return nielsen_fallback(out);
     }
     std::stable_sort(next.begin(), next.end(), [](const State& a, const State& b) { return a.cost < b.cost; });
     beam.clear();

@@ -231,6 +231,14 @@ struct HomotopyOptions {
   /// ratio. Default true.
   bool two_way = true;
   double two_way_ratio = 2.0;
+  /// With two_way, when the other direction's ratio is not lower (issue 14;
+  /// docs/handle_classes.md "Both directions, cheaply"): its class inverted
+  /// is solved here alone and adopted when lower; else this class inverted
+  /// is solved alone the other way, and the pair of inverse classes of
+  /// lower total energy is kept, so the two directions' classes are
+  /// inverse or SurfaceMapResult::directions says why not. Two single-class
+  /// runs; default true (false: the class is kept unchecked, as before).
+  bool cheap_direction_check = true;
   /// Genus >= 2, default class, with two_way: map the other way for every
   /// pair, whatever the energy ratio, and carry that direction's class here
   /// as a candidate even when its ratio is not lower, so that
@@ -259,6 +267,13 @@ struct HomotopyOptions {
   /// the doubles of open surfaces, whose class must commute with the
   /// reflections (docs/open_surfaces.md "Doubling"). Default false.
   bool images_only = false;
+  /// With reverse_class: its inverse (inverted algebraically) is the only
+  /// candidate, solved at full resolution, no class search, no geometric
+  /// classes, no two-way run (a SolveError when it cannot be inverted). The
+  /// two-way run's cheap check uses it (docs/handle_classes.md "Both
+  /// directions, cheaply"): one solve of the other direction's class in this
+  /// direction instead of a whole run. Default false.
+  bool reverse_class_only = false;
 };
 
 /// The harmonic solve (SurfaceMapOptions::solve).

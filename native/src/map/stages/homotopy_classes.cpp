@@ -290,6 +290,22 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
     out.classes.push_back(described(theta, n, shb, thb, "the source's loops carried to the given images"));
     return out;
   }
+  // The other direction's class alone (homotopy.reverse_class_only: the
+  // two-way run's cheap check), inverted algebraically.
+  if (options.homotopy.reverse_class_only) {
+    const GroupMap& psi = options.homotopy.reverse_class;
+    bool well_formed = static_cast<int>(psi.size()) == n;
+    for (const Word& w : psi)
+      for (int x : w) well_formed = well_formed && x != 0 && std::abs(x) <= n;
+    if (!well_formed)
+      throw InputError("homotopy.reverse_class_only needs homotopy.reverse_class: " + std::to_string(n) +
+                       " words in letters +-1..+-" + std::to_string(n));
+    const AutomorphismInverse inv = invert_automorphism(psi, n / 2);
+    if (!inv.ok) throw SolveError("the other direction's class (homotopy.reverse_class) could not be inverted: " + inv.why);
+    out.inverted_class = 0;
+    out.classes.push_back(described(inv.inverse, n, shb, thb, "the other direction's class, inverted algebraically"));
+    return out;
+  }
   // Source 1: the classes induced by overlaying the two shapes (overlay_classes).
   const OverlayClasses ov = overlay_classes(space, source, sl, tl.mesh, projector);
   const std::vector<NamedClass>& overlays = ov.classes;
