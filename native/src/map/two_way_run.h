@@ -28,7 +28,11 @@ void assess_quality(SurfaceMapResult& result);
 /// mapped once more given this class, and the pair of inverse classes of
 /// lower total energy is kept in both (docs/handle_classes.md "Both
 /// directions agree"; `forward` is mapped again in the other direction's
-/// class inverted when that pair is lower). Nothing for a requested class.
+/// class inverted when that pair is lower). When the other direction's
+/// ratio is not lower (HomotopyOptions::cheap_direction_check), its class
+/// inverted is solved here alone and this class inverted there alone, with
+/// the same rules ("Both directions, cheaply"). Nothing for a requested
+/// class.
 void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                  SurfaceMapResult& forward, const MapFunction& map);
 
