@@ -719,6 +719,18 @@ def _turned(S, T, fw, reversing=False, faces=None, resolved_angle=np.pi / 3):
     return turned
 
 
+def _slide_ears(A, B, points, reversing, keep):
+    """_core.slide_ear_images on a half's map of A onto B ({face, barycentric, position}, changed in
+    place), the vertices `keep` (landmarks) left where they are. Returns its counts."""
+    got = _core.slide_ear_images(A.V, A.F, B.V, B.F, np.asarray(points["face"]), np.asarray(points["barycentric"]),
+                                 reversing=reversing)
+    change = np.ones(A.n, dtype=bool)
+    change[np.asarray(keep, dtype=np.int64)] = False
+    for k in ("face", "barycentric", "position"):
+        points[k][change] = np.asarray(got[k])[change]
+    return {k: int(got[k]) for k in ("ears", "turned", "moved", "turned_after")}
+
+
 def _alignment(S, T, images):
     """Mean squared distance between the source's vertices and their images, both shapes moved
     to centroid 0 and scaled to unit area (the disk map's alignment measure, map/open_map.h)."""
@@ -912,10 +924,13 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     orientation, pairing_choice, candidates [{pairing, orientation, energy, symmetry_error,
     same_sheet, alignment, status, chosen}], tied_candidates, symmetry_error, same_sheet,
     snap_distance, double_genus, ear_triangles, ear_triangles_turned, source_weights_fallback,
-    untangled_vertices, untangled}. untangle (default True): the interior corners of the half's folded
-    faces are moved within their stars (open_untangle.untangle_half) before the own-edge weights'
-    solve is tried; 'untangled' says how many faces were folded and how many vertices moved (the
-    forward map only; the inverse is the doubles' own).
+    untangled_vertices, untangled, inverse_flipped_triangles, inverse_ear_triangles,
+    inverse_ear_triangles_turned, inverse_untangled_vertices, inverse_untangled}. untangle (default
+    True): the interior corners of the half's folded faces are moved within their stars
+    (open_untangle.untangle_half) before the own-edge weights' solve is tried; 'untangled' says how
+    many faces were folded and how many vertices moved. The inverse (per target vertex a point of
+    the source: what the add-on's UVs and colours read) is counted and untangled the same way with
+    the sides swapped ('inverse_*': target faces, target vertices moved).
     Raises InputError for different (g, b) or a bad pairing, SolveError when no candidate
     maps."""
     S = _Side(Vs, Fs, "source")
@@ -1015,6 +1030,21 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
             cand["symmetry_error"], cand["same_sheet"] = _symmetry(r2, S, T, rev)
         else:
             flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
+    # Ears whose chord images turn over (three points of a concave or jagged stretch of the other
+    # boundary): the middle corner's image slid along the other boundary (map/ear_images.h), both
+    # directions; landmarks keep their images.
+    ears_fw = _slide_ears(S, T, fw, rev, lm[:, 0])
+    ears_inv = _slide_ears(T, S, inv, rev, lm[:, 1])
+    flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
+    # The inverse (per target vertex a point of the source's faces): the UVs, colours and bakes the
+    # add-on transfers onto the target read it, so a fold there is a flipped transferred UV
+    # triangle. It is the doubles' own inverse, with the same kind of folds where the inverse map
+    # compresses; the same untangling, the sides swapped (T's vertices moved within S's faces).
+    inv_flipped, inv_ears, inv_ears_turned, _ = _flips(T, S, inv, rev)
+    inv_untangled, inv_flipped_before = [], inv_flipped
+    if inv_flipped and untangle:
+        inv_untangled = open_untangle.untangle_half(T, S, inv, lambda f: _turned(T, S, inv, rev, faces=f), rev)
+        inv_flipped, inv_ears, inv_ears_turned, _ = _flips(T, S, inv, rev)
     dil = _dilatation(S.V, fw["position"], S.F)
     finite = dil[~ear & np.isfinite(dil)]
     # The doubles' report, less what is per vertex or per face of the doubles (the initial map,
@@ -1042,6 +1072,13 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "source_weights_fallback": weights_fallback, "untangled_vertices": len(untangled),
                    "untangled": (f"{flipped_before_untangling} folded faces; {len(untangled)} interior vertices moved "
                                  f"within their stars, {flipped} folded left" if untangled else ""),
+                   "ears_turned": ears_fw["turned"], "ears_slid": ears_fw["moved"],
+                   "inverse_ears_turned": ears_inv["turned"], "inverse_ears_slid": ears_inv["moved"],
+                   "inverse_flipped_triangles": inv_flipped, "inverse_ear_triangles": inv_ears,
+                   "inverse_ear_triangles_turned": inv_ears_turned, "inverse_untangled_vertices": len(inv_untangled),
+                   "inverse_untangled": (f"{inv_flipped_before} folded faces; {len(inv_untangled)} interior target "
+                                         f"vertices moved within their stars, {inv_flipped} folded left"
+                                         if inv_untangled else ""),
                    "landmarks": len(lm),
                    "landmark_error": float(np.max(np.linalg.norm(fw["position"][lm[:, 0]] - T.V[lm[:, 1]], axis=1),
                                                   initial=0.0))}

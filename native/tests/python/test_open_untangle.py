@@ -136,3 +136,49 @@ def test_shirt_pair_through_the_doubles_has_no_folded_face():
     assert r["flipped_triangles"] == 0 and o["source_weights_fallback"] == ""
     assert check_map(r, *A, *B) == 0        # counted here: boundary onto boundary, nothing turned
     assert np.isfinite(r["distortion"]["mean"]) and r["distortion"]["mean"] < 2.5
+
+
+def test_a_fold_of_the_inverse_is_untangled_too(monkeypatch):
+    """The inverse (per target vertex a point of the source: what the add-on's transferred UVs,
+    colours and bakes read) is untangled like the forward map. A pants (487 V) onto its bend 0.3,
+    the inverse's image of one interior target vertex pushed onto that of a vertex two rings
+    away (its star folds on the source): surface_map_open moves it back, nothing turned is left
+    by the independent count, boundary stays on boundary. Before, only the forward map was
+    untangled and the inverse kept the fold."""
+    from test_open_double import bend, pants
+    Vs, Fs = pants(3)
+    Vt, Ft = bend(Vs, 0.3), Fs
+    real = open_double._half_correspondence
+    pushed = {}
+
+    def pushing(res_map, S, T):
+        fw, inv, pairing, back, snap = real(res_map, S, T)
+        on_b = np.zeros(T.n, bool)
+        on_b[np.concatenate(T.loops)] = True
+        # The interior vertex farthest from the boundary, and one two rings from it.
+        d = np.min(np.linalg.norm(T.V[:, None] - T.V[on_b][None], axis=2), axis=1)
+        v = int(np.argmax(d))
+        ring1 = np.setdiff1d(np.unique(T.F[(T.F == v).any(axis=1)]), [v])
+        ring2 = np.setdiff1d(np.unique(T.F[np.isin(T.F, ring1).any(axis=1)]), np.append(ring1, v))
+        w = int(ring2[0])
+        pushed.update(v=v, home=inv["position"][v].copy(), to=inv["position"][w].copy())
+        for k in ("face", "barycentric", "position"):
+            inv[k][v] = inv[k][w]
+        pushed["folded"] = open_double._flips(T, S, inv)[0]
+        return fw, inv, pairing, back, snap
+
+    monkeypatch.setattr(open_double, "_half_correspondence", pushing)
+    r = open_double.surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=[0, 1, 2], orientations=("preserving",))
+    o = r["open"]
+    assert pushed["folded"] >= 2
+    assert o["inverse_untangled"].startswith(f"{pushed['folded']} folded faces")
+    assert o["inverse_flipped_triangles"] == 0 and o["inverse_untangled_vertices"] >= 1
+    # Counted independently, the inverse as a map of the target onto the source.
+    swapped = {"forward": r["inverse"], "open": {"boundary_pairing": o["inverse_pairing"],
+                                                 "orientation": o["orientation"]}}
+    assert check_map(swapped, Vt, Ft, Vs, Fs) == 0
+    v = pushed["v"]
+    home, to = pushed["home"], pushed["to"]
+    assert np.linalg.norm(r["inverse"]["position"][v] - home) < 0.5 * np.linalg.norm(to - home)
+    # The forward map was not touched by the inverse's untangling.
+    assert o["untangled_vertices"] == 0 and r["flipped_triangles"] == 0
