@@ -104,7 +104,7 @@ EarImagesResult slide_ear_images(const TriMesh& mesh, const OpenSurfaceTopology&
   auto right_ear = [&](int b, int w) {
     const auto& own = mesh_topology.boundary_loops[loop_of[b]];
     const int m = static_cast<int>(own.size());
-    if (2 * w + 3 > m) return false;
+    if (2 * w + 3 > m) return false;  // the window would wrap around the loop
     std::vector<int> corner;
     for (int k = -w; k <= w; ++k) corner.push_back(own[((place[b] + k) % m + m) % m]);
     const int before = own[((place[b] - w - 1) % m + m) % m], after = own[(place[b] + w + 1) % m];
@@ -186,16 +186,15 @@ EarImagesResult slide_ear_images(const TriMesh& mesh, const OpenSurfaceTopology&
   for (int f : ears) {
     if (!turned(f)) continue;
     ++r.turned;
-    // The middle corner: between the ear's two boundary edges. Its image
-    // alone first, with the ear's other corners, then two more on each side.
+    // The middle corner (between the ear's two boundary edges) alone:
+    // sliding the ear's other corners or their neighbours too (right_ear's
+    // w >= 1) rights more ears on dense jagged rims but changes their
+    // interior neighbours' images (the generated shirt's mean D' 2.35 ->
+    // 2.52), so it is not done.
     for (int j = 0; j < 3; ++j) {
       const int a = mesh.F(f, (j + 2) % 3), b = mesh.F(f, j), c = mesh.F(f, (j + 1) % 3);
       if (boundary_edge(a, b) && boundary_edge(b, c)) {
-        for (int w = 1; w <= 3; ++w)
-          if (right_ear(b, w)) {
-            ++r.moved;
-            break;
-          }
+        r.moved += right_ear(b, 0);
         break;
       }
     }

@@ -11,16 +11,17 @@
 //
 // A boundary vertex's image can slide along the other boundary between the
 // images of its two neighbours on its own loop, and the map still sends
-// boundary onto boundary in the same order. So the images of the ear's
-// three corners are slid within the arc of the other boundary from the
-// image of the vertex before the ear to that of the vertex after it, each
-// kept or put on a vertex of that arc, all in the same order: the choice
-// where every face of their stars is positively oriented and the largest D'
-// among them (distortion.h) is least. Usually the middle corner alone moves
-// (it lies on no other face; the arc holds a convex vertex of the other
-// boundary). Where it does not (a dense ear on a coarser jagged loop: the
-// arc spans a notch only), one, then two more vertices on each side of the
-// ear slide with it. Nothing else moves, no face is turned that was not.
+// boundary onto boundary in the same order. So the image of the ear's middle
+// corner (between its two boundary edges) is slid within the arc of the
+// other boundary between the images of the ear's other two corners, to the
+// vertex of that arc where every face of its star (usually the ear alone) is
+// positively oriented and the largest D' among them (distortion.h) is least.
+// Nothing else moves, and no face is turned that was not. An ear whose arc
+// holds no convex vertex of the other boundary (a fine ear on one straight
+// edge: degenerate; a dense rim on a coarser jagged loop) stays as it was,
+// counted: righting it would move its neighbours' images too (the add-on
+// rights the transferred UVs of such ears in the UV chart instead,
+// uv_transfer.right_ear_uvs).
 #include <vector>
 
 #include <Eigen/Core>
@@ -34,7 +35,7 @@ namespace surfmap {
 struct EarImagesResult {
   int ears = 0;          ///< faces of `mesh` with three boundary corners
   int turned = 0;        ///< of them, images turned (or degenerate) before
-  int moved = 0;         ///< of them, ears righted by sliding their corners' images
+  int moved = 0;         ///< of them, righted by sliding the middle corner's image
   int turned_after = 0;  ///< images still turned or degenerate afterwards
 };
 
