@@ -125,6 +125,7 @@ def count(ob, layer, src, src_layer):
 
 def label(text, location, size):
     cu = bpy.data.curves.new(text[:20], 'FONT')
+    cu.align_y = 'TOP'
     cu.body = text
     cu.size = size
     cu.align_x = 'CENTER'
@@ -176,6 +177,7 @@ def setup():
     head.select_set(True)
     mask.select_set(True)
     bpy.context.view_layer.objects.active = mask
+    bpy.context.scene.surfmap.loop_bevel = 0.012     # the boundary curves thick enough to see
     t = time.time()
     res = bpy.ops.surfmap.compute_map()
     log(f"Compute Map {res} in {time.time() - t:.1f}s: {bpy.context.scene.surfmap.map_status}")
@@ -217,11 +219,11 @@ def setup():
         ob.data.uv_layers.active = ob.data.uv_layers[layer]
         ob.data.materials.clear()
         ob.data.materials.append(grid_material(layer))
-    z = float(V[:, 2].min()) - 0.15 * width
-    size = 0.11 * width
-    label(f"{name}: UVs 'Box'", (-gap, 0, z), size)
-    label(f"Compute Map: {ours[0]} flipped, {ours[1]} straddling", (0, 0, z), size)
-    label(f"Data Transfer: {c[0]} flipped, {c[1]} straddling", (gap, 0, z), size)
+    z = float(min(V[:, 2].min(), Vm[:, 2].min())) - 0.1 * width
+    size = 0.09 * width
+    label(f"{name[:24]}\nUVs 'Box'", (-gap, 0, z), size)
+    label(f"Compute Map\n{ours[0]} flipped, {ours[1]} straddling", (0, 0, z), size)
+    label(f"Data Transfer\n{c[0]} flipped, {c[1]} straddling", (gap, 0, z), size)
     return head, mask, dt
 
 
@@ -281,9 +283,11 @@ def window_steps(head, mask, dt):
         time.sleep(0.3)
         xdo("mousemove", str(x + 1), str(y_top + 196))
         time.sleep(0.3)
-        xdo("mousedown", "1")
-        time.sleep(0.15)
-        xdo("mouseup", "1")
+        for _ in range(2):   # the first click can go to focusing the window
+            xdo("mousedown", "1")
+            time.sleep(0.15)
+            xdo("mouseup", "1")
+            time.sleep(0.5)
         for ob in bpy.data.objects:
             ob.select_set(ob.type == 'MESH' or ob.name.startswith("label"))
         call(bpy.ops.view3d.view_axis, type='FRONT')
@@ -291,7 +295,7 @@ def window_steps(head, mask, dt):
         for ob in bpy.data.objects:
             ob.select_set(ob in (head, mask))
         bpy.context.view_layer.objects.active = mask
-        return 6.0
+        return 8.0
 
     def front():
         shot("open_head_mask_front.png")
@@ -300,9 +304,17 @@ def window_steps(head, mask, dt):
 
     def turned():
         shot("open_head_mask_turned.png")
-        # The boundary curves alone with the meshes in plain solid (the loops like the cut loops).
+        # The boundary curves with the meshes in plain solid, drawn again by the Cut Loops panel's
+        # Show Cut Loops (an open mesh: its boundary, like the cut loops), nothing selected.
         win, area, region = view3d()
         area.spaces.active.shading.color_type = 'MATERIAL'
+        for ob in bpy.data.objects:
+            ob.select_set(ob in (head, mask))
+        bpy.context.view_layer.objects.active = mask
+        call(bpy.ops.surfmap.show_cut_loops)
+        log("Show Cut Loops:", bpy.context.scene.surfmap.status)
+        for ob in bpy.data.objects:
+            ob.select_set(False)
         call(bpy.ops.view3d.view_axis, type='FRONT')
         return 6.0
 

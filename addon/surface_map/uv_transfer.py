@@ -920,6 +920,15 @@ def boundary_loops(F):
     return loops
 
 
+def _kept_positive(uv3, want):
+    """Whether a UV triangle (3,2) has the orientation `want` (+1 / -1) with room to spare for
+    Blender's float32 UVs (coordinates off by up to ~6e-8 each: twice the area off by up to
+    ~2.4e-7 times the longest side): twice its area above 1e-6 times its longest side and 1e-6
+    times that side squared."""
+    longest = max(float(np.linalg.norm(uv3[i] - uv3[(i + 1) % 3])) for i in range(3))
+    return signed_uv_areas(uv3[None])[0] * want > 1e-6 * longest * max(longest, 1.0)
+
+
 def right_ear_uvs(tr, uv, V_t, loop_start, loop_total, loop_vertex, loop_face, loop_bary):
     """Ears of an open target whose transferred UVs turn over, righted in UV (docs/open_surfaces.md
     "Ears"). An ear is a triangle with all three corners on the boundary: its corners' preimages
@@ -975,6 +984,8 @@ def right_ear_uvs(tr, uv, V_t, loop_start, loop_total, loop_vertex, loop_face, l
         tri = F[face]
         order = np.argsort(-bary)
         u, w = int(tri[order[0]]), int(tri[order[1]])
+        if u in place and bary[order[0]] > 1 - 1e-9:
+            return place[u][0], float(place[u][1])     # on a boundary vertex
         if u not in place or w not in place or place[u][0] != place[w][0]:
             return None
         li = place[u][0]
@@ -996,8 +1007,7 @@ def right_ear_uvs(tr, uv, V_t, loop_start, loop_total, loop_vertex, loop_face, l
     for p in tri.tolist():
         s = int(start[p])
         vs = lv[s:s + 3].tolist()
-        area = signed_uv_areas(uv[s:s + 3][None])[0] * want
-        if area > 0:
+        if _kept_positive(uv[s:s + 3], want):
             continue
         # The middle corner k: edges (k-1 -> k) and (k -> k+1) on the boundary.
         k = next((k for k in range(3) if (vs[k - 1], vs[k]) in directed and (vs[k], vs[(k + 1) % 3]) in directed),
@@ -1033,7 +1043,7 @@ def right_ear_uvs(tr, uv, V_t, loop_start, loop_total, loop_vertex, loop_face, l
                     continue
                 cand = uv[s:s + 3].copy()
                 cand[k] = tr.uv[f, kk]
-                if signed_uv_areas(cand[None])[0] * want > 0:
+                if _kept_positive(cand, want):
                     d = float(np.linalg.norm(Vs[w] - here))
                     if best is None or d < best[0]:
                         best = (d, tr.uv[f, kk])
@@ -1058,7 +1068,7 @@ def right_ear_uvs(tr, uv, V_t, loop_start, loop_total, loop_vertex, loop_face, l
         rot = np.array([[math.cos(ang), -math.sin(ang)], [math.sin(ang), math.cos(ang)]])
         cand = uv[s:s + 3].copy()
         cand[k] = uv[ia] + rho * (rot @ e)
-        if signed_uv_areas(cand[None])[0] * want > 0:
+        if _kept_positive(cand, want):
             uv[s + k] = cand[k]
             shaped += 1
     return turned, righted, shaped

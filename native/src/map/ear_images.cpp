@@ -130,9 +130,10 @@ EarImagesResult slide_ear_images(const TriMesh& mesh, const OpenSurfaceTopology&
     std::vector<Option> vertices;
     for (int step = 1; step <= max_arc + 1; ++step) {
       const int j = forward ? (lp.edge + step) % n : ((lp.edge + (lp.t > 0 ? 1 : 0) - step) % n + n) % n;
+      // Not onto (or within 1e-6 of an edge from) the images the arc runs between.
       const double sj = along(OnLoop{lp.loop, j, 0.0});
-      if (sj >= end) break;
-      if (sj <= 0) continue;
+      if (sj >= end - 1e-6) break;
+      if (sj <= 1e-6) continue;
       const auto it = halfedge_face.find(loop[j] * no + loop[(j + 1) % n]);
       if (it == halfedge_face.end()) continue;
       PointOnSurface q;
