@@ -182,3 +182,27 @@ def test_a_fold_of_the_inverse_is_untangled_too(monkeypatch):
     assert np.linalg.norm(r["inverse"]["position"][v] - home) < 0.5 * np.linalg.norm(to - home)
     # The forward map was not touched by the inverse's untangling.
     assert o["untangled_vertices"] == 0 and r["flipped_triangles"] == 0
+
+
+def test_several_classes_per_pairing_at_four_loops():
+    """b = 4, genus 0: a pairing leaves infinitely many classes (twists about curves around two
+    loops), and the cut disks along the chain 0-1-2-3 give one of them; other chains of the loops
+    give others (docs/open_surfaces.md "Several classes per pairing"). On the bench's shirt A -> B
+    with loops 0,1,2,3 preserving, the default chain's class has E 125.9 while other chains reach
+    34.9 (the reversing orientation's energy): with one class per pairing the preserving map was
+    the bad one. Every candidate is solved and counted; the lowest energy is chosen."""
+    A = holed_sphere(3, [(0, 0, 1), (0, 0, -1), (1, 0, 0.15), (-1, 0, 0.15)], [0.45, 0.9, 0.35, 0.4], (1.3, 0.6, 1.6))
+    B = holed_sphere(3, [(1, 0, 0.3), (-0.5, 0.866, -0.2), (-0.4, -0.8, 0.5), (0.3, -0.2, -1)],
+                     [0.6, 0.55, 0.5, 0.45], (1, 1, 1))
+    one = open_double.surface_map_open(*A, *B, boundary_pairing=[0, 1, 2, 3], orientations=("preserving",),
+                                       classes_per_pairing=1)
+    several = open_double.surface_map_open(*A, *B, boundary_pairing=[0, 1, 2, 3], orientations=("preserving",),
+                                           classes_per_pairing=3)
+    cands = several["open"]["candidates"]
+    assert len(one["open"]["candidates"]) == 1 and len(cands) == 3
+    assert [c["chain"] for c in cands][0] == "chain 0-1-2-3" and len({c["chain"] for c in cands}) == 3
+    assert all(c["status"] == "ok" for c in cands)
+    assert one["energy"]["final"] > 2 * several["energy"]["final"]
+    assert several["energy"]["final"] == min(c["energy"] for c in cands)
+    assert several["flipped_triangles"] == 0 and several["open"]["inverse_flipped_triangles"] == 0
+    assert check_map(several, *A, *B) == 0
