@@ -449,8 +449,9 @@ TEST(OpenSurfaces, TurnedEarsImageSlidAlongTheOtherBoundary) {
     const Eigen::Vector3d expected = bump ? Eigen::Vector3d(0.7, -0.3, 0) : Eigen::Vector3d(0.3, 0.15, 0);
     EXPECT_LT((c.images[5].position - expected).norm(), 1e-15);
     const PointOnSurface& q = c.images[5];
-    EXPECT_LT((q.barycentric[0] * c.other.V.row(c.other.F(q.face, 0)) + q.barycentric[1] * c.other.V.row(c.other.F(q.face, 1)) +
-               q.barycentric[2] * c.other.V.row(c.other.F(q.face, 2)) - q.position.transpose()).norm(), 1e-15);
+    Eigen::RowVector3d at = Eigen::RowVector3d::Zero();
+    for (int k = 0; k < 3; ++k) at += q.barycentric[k] * c.other.V.row(c.other.F(q.face, k));
+    EXPECT_LT((at - q.position.transpose()).norm(), 1e-15);
   }
 }
 

@@ -64,7 +64,8 @@ EarImagesResult slide_ear_images(const TriMesh& mesh, const OpenSurfaceTopology&
   for (int f = 0; f < other.num_faces(); ++f)
     for (int k = 0; k < 3; ++k) halfedge_face[other.F(f, k) * no + other.F(f, (k + 1) % 3)] = f;
   auto normal = [&](int f) -> Eigen::Vector3d {
-    const Eigen::Vector3d a = other.V.row(other.F(f, 0)), b = other.V.row(other.F(f, 1)), c = other.V.row(other.F(f, 2));
+    const Eigen::Vector3d a = other.V.row(other.F(f, 0)), b = other.V.row(other.F(f, 1)),
+                          c = other.V.row(other.F(f, 2));
     return (b - a).cross(c - a);
   };
   const double sign = reversing ? -1.0 : 1.0;
@@ -90,7 +91,8 @@ EarImagesResult slide_ear_images(const TriMesh& mesh, const OpenSurfaceTopology&
   auto turned = [&](int f) { return face_orientation(f) <= 1e-12; };
   auto sides_of = [&](int f, bool image) {
     Eigen::Vector3d p[3];
-    for (int k = 0; k < 3; ++k) p[k] = image ? images[mesh.F(f, k)].position : Eigen::Vector3d(mesh.V.row(mesh.F(f, k)));
+    for (int k = 0; k < 3; ++k)
+      p[k] = image ? images[mesh.F(f, k)].position : Eigen::Vector3d(mesh.V.row(mesh.F(f, k)));
     return Eigen::Vector3d((p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm());
   };
   // Rights the ear whose middle corner is b by sliding the images of the
