@@ -287,3 +287,48 @@ def coords(ob):
     co = np.empty(len(me.vertices) * 3)
     me.vertices.foreach_get("co", co)
     return co.reshape(-1, 3)
+
+
+def _compact(V, F):
+    used = np.unique(F)
+    remap = -np.ones(len(V), dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    return V[used], remap[F]
+
+
+def _gauss(x, z, x0, z0, sx, sz):
+    return np.exp(-((x - x0) / sx) ** 2 - ((z - z0) / sz) ** 2)
+
+
+def open_head(subdivisions=4):
+    """An open head (genus 0, one boundary loop: the neck), facing -y, z up: an icosphere made
+    an ellipsoid (0.78 wide, 0.92 deep, 1.1 high) with a nose, brows and a chin pushed out of its
+    front, the faces below the jaw removed. For the open head / mask checks (docs/open_surfaces.md
+    "In Blender: an open head and a mask")."""
+    V, F = sm().shapes.sphere(subdivisions)
+    V, F = np.asarray(V, dtype=float), np.asarray(F, dtype=np.int64)
+    x, y, z = V.T
+    front = np.clip(-y, 0, None) ** 2
+    out = (0.30 * _gauss(x, z, 0, -0.05, 0.13, 0.22) + 0.10 * _gauss(np.abs(x), z, 0.3, 0.32, 0.18, 0.08)
+           + 0.12 * _gauss(x, z, 0, -0.62, 0.28, 0.14)) * front
+    W = np.stack([0.78 * x, 0.92 * y - out, 1.1 * z], axis=1)
+    c = V[F].mean(axis=1)
+    return _compact(W, F[c[:, 2] > -0.72])
+
+
+def open_mask(subdivisions=4, centre=(0.0, 0.0, 0.0), size=(1.0, 1.0, 1.0)):
+    """An open face mask (genus 0, one boundary loop), facing -y: the front of a flatter
+    ellipsoid than open_head's, with a longer nose and no chin, inside an oval outline from the
+    brows to the mouth; `size` scales it (x, y, z) and `centre` moves it, so that it can be fitted
+    over another face (the same frame as open_head at the defaults)."""
+    V, F = sm().shapes.sphere(subdivisions)
+    V, F = np.asarray(V, dtype=float), np.asarray(F, dtype=np.int64)
+    x, y, z = V.T
+    front = np.clip(-y, 0, None) ** 2
+    out = (0.38 * _gauss(x, z, 0, 0.0, 0.11, 0.28) + 0.06 * _gauss(np.abs(x), z, 0.32, 0.3, 0.2, 0.1)) * front
+    W = np.stack([0.8 * x, 0.75 * y - 0.2 - out, 1.0 * z + 0.1], axis=1)
+    W = W * np.asarray(size, dtype=float) + np.asarray(centre, dtype=float)
+    c = V[F].mean(axis=1)
+    c /= np.linalg.norm(c, axis=1)[:, None]
+    keep = (c[:, 1] < -0.2) & ((c[:, 0] / 0.85) ** 2 + ((c[:, 2] + 0.05) / 0.75) ** 2 < 1)
+    return _compact(W, F[keep])

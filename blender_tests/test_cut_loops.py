@@ -156,7 +156,9 @@ def _expect_error(objs, active, *words):
     return err
 
 
-def test_open_mesh_cancels():
+def test_open_mesh_draws_its_boundary():
+    """An open mesh has no cut loops: its boundary loop is drawn instead, as Compute Map draws
+    it (docs/open_surfaces.md; before, the boundary was refused)."""
     bpy.ops.mesh.primitive_cube_add()
     cube = bpy.context.active_object
     cube.name = "OpenBox"
@@ -165,7 +167,13 @@ def test_open_mesh_cancels():
     polys = [tuple(p.vertices) for p in me.polygons][1:]  # one face deleted
     ob = helpers.mesh_object("OpenBox2", V, [list(p) for p in polys])
     bpy.data.objects.remove(cube, do_unlink=True)
-    _expect_error([ob], ob, "'OpenBox2'", "boundary")
+    select([ob], ob)
+    res, err = helpers.run("show_cut_loops")
+    assert res == {'FINISHED'}, err
+    assert "'OpenBox2': genus 0 with 1 boundary loop, drawn as 1 curve" in bpy.context.scene.surfmap.status
+    curves = helpers.loop_curves(ob)
+    assert [c.name for c in curves] == ["OpenBox2 boundary 1"]
+    assert len(curves[0].data.splines[0].points) == 4     # the deleted face's four corners
 
 
 def test_non_manifold_cancels():

@@ -240,3 +240,94 @@ def test_open_pants_pair_maps_through_the_doubles():
     P = co[np.unique(Es)]
     t = np.clip(np.einsum("pij,ij->pi", P[:, None] - A[None], B - A) / np.einsum("ij,ij->i", B - A, B - A), 0, 1)
     assert np.linalg.norm(A[None] + t[..., None] * (B - A)[None] - P[:, None], axis=2).min(axis=1).max() < 1e-6
+
+
+def test_open_head_and_mask_uvs_without_flips():
+    """An open head (genus 0, the neck open) and an open face mask (docs/open_surfaces.md "In
+    Blender: an open head and a mask"): the mask's box UVs transferred onto the head by Compute
+    Map with no flipped triangle, ears included, and none straddling a seam but ears given their
+    own shape; both boundaries drawn as curves. The head's ears (faces with three corners on its neck loop) take three
+    points of the mask's rim: before their images were slid along the rim (map/ear_images.h), 8
+    of the 24 turned over and their transferred UVs flipped. Blender's Data Transfer on the same
+    pair (Nearest Face Interpolated) is counted beside it, for the record."""
+    Vm, Fm = helpers.open_mask(5)
+    Vh, Fh = helpers.open_head(4)
+    mask = helpers.mesh_object("Mask", Vm, Fm, (-2.5, 0, 0))
+    head = helpers.mesh_object("Head", Vh, Fh, (0, 0, 0))
+    helpers.set_loop_uvs(mask, "Box", helpers.box_uvs(mask))
+    select([mask, head], head)
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    status = bpy.context.scene.surfmap.map_status
+    assert "open surfaces (genus 0 with 1 boundary loop): disk" in status, status
+    Ft, Lt = helpers.triangles_of(head)
+    A = _mapping().signed_uv_areas(helpers.loop_uv_array(head, "surfmap Box")[Lt])
+    edges = np.sort(np.concatenate([Ft[:, [0, 1]], Ft[:, [1, 2]], Ft[:, [2, 0]]]), axis=1)
+    e, n = np.unique(edges, axis=0, return_counts=True)
+    on_b = np.zeros(len(Vh), bool)
+    on_b[e[n == 1].ravel()] = True
+    ears = np.all(on_b[Ft], axis=1)
+    assert ears.sum() >= 20                      # the check has ears to get wrong
+    assert np.all(A > 0), f"{int(np.sum(A <= 0))} flipped UV triangles ({int(np.sum((A <= 0) & ears))} ears)"
+    # Straddling (a UV edge far longer than its preimages are apart): only ears whose UVs were
+    # given their own shape (no point of the mask's rim in the chart rights them) can be.
+    flipped, straddling, _ = _check_uvs(mask, head, "Box", max_straddling=ears.sum() / len(Ft))
+    assert flipped == 0
+    for ob in (head, mask):
+        assert [c.name for c in helpers.loop_curves(ob)] == [f"{ob.name} boundary 1"]
+    # Data Transfer on a copy of the head: the same layer from the same mask.
+    dt = head.copy()
+    dt.data = head.data.copy()
+    bpy.context.scene.collection.objects.link(dt)
+    mod = dt.modifiers.new("DataTransfer", 'DATA_TRANSFER')
+    mod.object = mask
+    mod.use_object_transform = False
+    mod.use_loop_data = True
+    mod.data_types_loops = {'UV'}
+    mod.loop_mapping = 'POLYINTERP_NEAREST'
+    mod.layers_uv_select_src = 'ALL'
+    mod.layers_uv_select_dst = 'NAME'
+    dt.data.uv_layers["surfmap Box"].data.foreach_set("uv", np.zeros(2 * len(dt.data.loops), np.float32))
+    dt.data.uv_layers["surfmap Box"].name = "Box"
+    dg = bpy.context.evaluated_depsgraph_get()
+    me = dt.evaluated_get(dg).to_mesh()
+    uv = np.empty(2 * len(me.loops))
+    me.uv_layers["Box"].data.foreach_get("uv", uv)
+    dt.evaluated_get(dg).to_mesh_clear()
+    theirs = int(np.sum(_mapping().signed_uv_areas(uv.reshape(-1, 2)[Lt]) <= 0))
+    print(f"    mask -> head UVs: Compute Map 0 flipped, Data Transfer {theirs} flipped of {len(Ft)}")
+
+
+def test_show_cut_loops_draws_an_open_pairs_boundary():
+    """Show Cut Loops (the Cut Loops panel) on an open pair draws each object's boundary loops as
+    curves, as Compute Map does ('<object> boundary k', through the boundary vertices, cyclic),
+    and says so in the panel's status; before, the intake refused the boundary ("boundary
+    loops") and nothing was drawn. A closed object beside an open one keeps its cut loops."""
+    Vs, Fs = _pants(squash=0.0)
+    Vt, Ft = _pants(squash=1.0)
+    a = helpers.mesh_object("Pants", Vs, Fs, (-3, 0, 0))
+    b = helpers.mesh_object("Bent", Vt, Ft, (3, 0, 0))
+    select([a, b], b)
+    res, err = run("show_cut_loops")
+    assert res == {'FINISHED'}, err
+    status = bpy.context.scene.surfmap.status
+    for ob, V, F in ((a, Vs, Fs), (b, Vt, Ft)):
+        assert f"'{ob.name}': genus 0 with 3 boundary loops, drawn as 3 curves" in status, status
+        curves = helpers.loop_curves(ob)
+        assert [c.name for c in curves] == [f"{ob.name} boundary {k}" for k in (1, 2, 3)]
+        e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+        u, n = np.unique(e, axis=0, return_counts=True)
+        ring = np.unique(u[n == 1])
+        pts = np.concatenate([np.array([p.co[:3] for p in c.data.splines[0].points]) for c in curves])
+        assert all(c.data.splines[0].use_cyclic_u for c in curves)
+        assert len(pts) == len(ring)
+        assert np.linalg.norm(pts[:, None] - V[ring][None], axis=2).min(axis=1).max() < 1e-6
+    # A closed torus beside an open mesh: its cut loops as before.
+    helpers.reset_scene()
+    t = helpers.torus("Torus", location=(3, 0, 0))
+    c = helpers.mesh_object("Pants", Vs, Fs, (-3, 0, 0))
+    select([c, t], t)
+    res, err = run("show_cut_loops")
+    assert res == {'FINISHED'}, err
+    assert sorted(x.name for x in helpers.loop_curves(t)) == ["Torus a1", "Torus b1"]
+    assert [x.name for x in helpers.loop_curves(c)] == [f"Pants boundary {k}" for k in (1, 2, 3)]

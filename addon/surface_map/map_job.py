@@ -446,6 +446,14 @@ class OutputComputation:
                                          target["loop_total"]):
                 yield f"UV map {name}"
             uv, straddling = tr.result
+            if source.get("boundary_loops"):
+                # An open pair: ears whose chord UVs turn over, righted in the UV chart.
+                ears, righted, shaped = uv_transfer.right_ear_uvs(
+                    tr, uv, target["V"], target["loop_start"], target["loop_total"], lv, iv_f[lv], iv_b[lv])
+                if ears:
+                    out["report"].append(f"UV map '{name}': {ears} ear triangle(s) (three boundary corners) "
+                                         f"turned over: {righted} righted along the source's boundary, "
+                                         f"{shaped} given their own shape")
             out["uv"][name] = uv
             total_straddling += int(straddling.sum())
             names.append(name)

@@ -1,14 +1,19 @@
 """surfmap.show_cut_loops (bpy): the system of loops of the selected mesh(es), drawn as curves
 and marked as seams. The maths is in cut_loops.py."""
+from types import SimpleNamespace
+
 import bpy
+import numpy as np
 
 from . import blender_io, cut_loops, native
 from .ops_common import errors_reported, native_and_object_mode, pick_objects, surfmap_module
+from .ops_map import draw_boundary_loops
 
 
 class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
     """Compute the system of cut loops (2g loops through one base vertex that cut the surface
-    into a disk) of the selected mesh(es); draw them as curves and mark them as seams"""
+    into a disk) of the selected mesh(es); draw them as curves and mark them as seams. An open
+    mesh's boundary loops are drawn instead"""
     bl_idname = "surfmap.show_cut_loops"
     bl_label = "Show Cut Loops"
     bl_options = {'REGISTER', 'UNDO'}
@@ -41,12 +46,19 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
                 if len(d["F"]) == 0:
                     raise cut_loops.ObjectProblem(f"object '{o.name}' has no faces")
                 data[o.name] = d
-                intakes[o.name] = cut_loops.intake_object(sm, o.name, d["V"], d["F"])
-            cut_loops.check_genus(source.name if source else None,
-                             intakes[source.name]["info"]["genus"] if source else None,
-                             target.name, intakes[target.name]["info"]["genus"])
+                intakes[o.name] = cut_loops.intake_object(sm, o.name, d["V"], d["F"], allow_boundary=True)
+            # Open meshes (docs/open_surfaces.md): their boundary loops are drawn instead, as
+            # Compute Map draws them; the cut loops are a closed surface's.
+            closed = [o for o in objs if not intakes[o.name].get("boundary_loops")]
+            if len(closed) == len(objs):
+                cut_loops.check_genus(source.name if source else None,
+                                      intakes[source.name]["info"]["genus"] if source else None,
+                                      target.name, intakes[target.name]["info"]["genus"])
+            else:
+                for o in closed:
+                    cut_loops.check_genus(None, None, o.name, intakes[o.name]["info"]["genus"])
             results = {}
-            for o in objs:
+            for o in closed:
                 it = intakes[o.name]
                 base = settings.target_base_vertex if o == target else settings.source_base_vertex
                 results[o.name] = cut_loops.loops_of_object(sm, o.name, it["V"], it["F"], base)
@@ -54,9 +66,20 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
             return {'CANCELLED'}
 
         # 2. Write: seams (on the original mesh only), loop curves, materials.
-        notes = []
+        notes, parts = [], []
         for o in objs:
-            r, d, it = results[o.name], data[o.name], intakes[o.name]
+            it = intakes[o.name]
+            if o.name not in results:
+                side = SimpleNamespace(V=np.asarray(it["V"], dtype=np.float64),
+                                       boundary_loops=[np.asarray(l, dtype=np.int64) for l in it["boundary_loops"]])
+                drawn = draw_boundary_loops(context, [(o, side)])
+                b = len(side.boundary_loops)
+                parts.append(f"'{o.name}': genus {it['info']['genus']} with {b} boundary loop{'s' if b != 1 else ''}, "
+                             + (f"drawn as {b} curve{'s' if b != 1 else ''} (no cut loops: open surfaces map "
+                                f"through their boundary)" if drawn else
+                                "boundary not drawn (the object's mesh has modifiers applied)"))
+                continue
+            r, d = results[o.name], data[o.name]
             bevel = settings.loop_bevel * cut_loops.bounding_diagonal(it["V"])
             own = not d["evaluated"] and len(it["V"]) == len(o.data.vertices)
             blender_io.add_loop_curves(context.scene, o, r["curves"], bevel,
@@ -72,9 +95,9 @@ class SURFMAP_OT_show_cut_loops(bpy.types.Operator):
                                  f"triangulation diagonals) and are not marked as seams")
             for note in it["info"].get("notes", []):
                 notes.append(f"'{o.name}': {note}")
-        parts = [f"'{o.name}': genus {results[o.name]['genus']}, base vertex "
-                 f"{results[o.name]['base_vertex']}, word {results[o.name]['word_text']}"
-                 for o in objs]
+        parts += [f"'{o.name}': genus {results[o.name]['genus']}, base vertex "
+                  f"{results[o.name]['base_vertex']}, word {results[o.name]['word_text']}"
+                  for o in objs if o.name in results]
         msg = "; ".join(parts)
         settings.status = "; ".join([msg] + notes)
         for note in notes:

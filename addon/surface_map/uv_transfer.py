@@ -898,3 +898,177 @@ class SeamCut:
         new_V.append(np.asarray(X, dtype=np.float64))
         self.junctions += 1
         return pieces
+
+
+def boundary_loops(F):
+    """Boundary loops of a triangle mesh F (m,3): vertex arrays, each in the direction of its
+    faces' boundary halfedges (the surface on the left). [] for a closed mesh."""
+    F = np.asarray(F, dtype=np.int64)
+    a, b = F.reshape(-1), F[:, [1, 2, 0]].reshape(-1)
+    inner = set(zip(a.tolist(), b.tolist()))
+    nxt = {u: w for u, w in zip(a.tolist(), b.tolist()) if (w, u) not in inner}
+    loops, seen = [], set()
+    for u in nxt:
+        if u in seen:
+            continue
+        loop = [u]
+        seen.add(u)
+        while nxt[loop[-1]] not in seen:
+            loop.append(nxt[loop[-1]])
+            seen.add(loop[-1])
+        loops.append(np.array(loop, dtype=np.int64))
+    return loops
+
+
+def _kept_positive(uv3, want):
+    """Whether a UV triangle (3,2) has the orientation `want` (+1 / -1) with room to spare for
+    Blender's float32 UVs (coordinates off by up to ~6e-8 each: twice the area off by up to
+    ~2.4e-7 times the longest side): twice its area above 1e-6 times its longest side and 1e-6
+    times that side squared."""
+    longest = max(float(np.linalg.norm(uv3[i] - uv3[(i + 1) % 3])) for i in range(3))
+    return signed_uv_areas(uv3[None])[0] * want > 1e-6 * longest * max(longest, 1.0)
+
+
+def right_ear_uvs(tr, uv, V_t, loop_start, loop_total, loop_vertex, loop_face, loop_bary):
+    """Ears of an open target whose transferred UVs turn over, righted in UV (docs/open_surfaces.md
+    "Ears"). An ear is a triangle with all three corners on the boundary: its corners' preimages
+    lie on the source's boundary, so its UVs are the chord of three points of the source's
+    boundary in the UV chart, which turns over wherever that boundary curve turns the wrong way
+    between them (a jagged rim; a steep rim seen by a box projection). When the middle corner
+    (between the ear's two boundary edges) is on no other polygon, its UV belongs to the ear
+    alone: it is moved to the UV of the source boundary vertex, on the arc between the other two
+    corners' preimages, nearest (in 3D) to its own preimage among those that make the ear
+    positive in the same island's chart; when none does (the source's boundary runs concave in
+    the chart all along the arc), to the UV that makes the ear's UV triangle similar to the ear
+    (just past the island's border). tr: the UVTransfer (its F, uv, island, V); uv (L,2) the
+    target's corner UVs (changed in place); loop_face / loop_bary: the preimage of each corner's
+    vertex. Returns (ears turned, righted along the boundary, given their own shape)."""
+    start = np.asarray(loop_start, dtype=np.int64)
+    total = np.asarray(loop_total, dtype=np.int64)
+    lv = np.asarray(loop_vertex, dtype=np.int64)
+    n_t = len(V_t)
+    # The target's boundary: polygon edges used once, with their direction in the polygon.
+    count = {}
+    for p in range(len(start)):
+        vs = lv[start[p]:start[p] + total[p]].tolist()
+        for k in range(len(vs)):
+            e = (vs[k], vs[(k + 1) % len(vs)])
+            count[(min(e), max(e))] = count.get((min(e), max(e)), 0) + 1
+    directed = set()
+    polygons_at = np.zeros(n_t, dtype=np.int64)
+    for p in range(len(start)):
+        vs = lv[start[p]:start[p] + total[p]].tolist()
+        for k in range(len(vs)):
+            polygons_at[vs[k]] += 1
+            e = (vs[k], vs[(k + 1) % len(vs)])
+            if count[(min(e), max(e))] == 1:
+                directed.add(e)
+    if not directed:
+        return 0, 0, 0
+    # The source's boundary loops, and each boundary vertex's place and a face holding it.
+    F = tr.F
+    src_loops = boundary_loops(F)
+    place = {}
+    for li, loop in enumerate(src_loops):
+        for i, v in enumerate(loop.tolist()):
+            place[v] = (li, i)
+    face_of_corner = {}
+    for f in range(len(F)):
+        for k in range(3):
+            face_of_corner.setdefault(int(F[f, k]), []).append((f, k))
+    Vs = tr.V
+
+    def on_loop(face, bary):
+        """(loop, position along it) of a point of the source's boundary: its two heaviest
+        corners are consecutive boundary vertices."""
+        tri = F[face]
+        order = np.argsort(-bary)
+        u, w = int(tri[order[0]]), int(tri[order[1]])
+        if u in place and bary[order[0]] > 1 - 1e-9:
+            return place[u][0], float(place[u][1])     # on a boundary vertex
+        if u not in place or w not in place or place[u][0] != place[w][0]:
+            return None
+        li = place[u][0]
+        n = len(src_loops[li])
+        iu, iw = place[u][1], place[w][1]
+        t = bary[order[1]] / max(bary[order[0]] + bary[order[1]], 1e-300)
+        if (iu + 1) % n == iw:
+            return li, iu + t
+        if (iw + 1) % n == iu:
+            return li, iw + (1 - t)
+        return li, float(iu)
+
+    # The orientation the transfer keeps: the sign most triangles have (an orientation-reversing
+    # map turns them all).
+    tri = np.flatnonzero(total == 3)
+    signs = np.sign(signed_uv_areas(uv[start[tri][:, None] + np.arange(3)[None]])) if len(tri) else np.zeros(0)
+    want = 1.0 if np.sum(signs > 0) >= np.sum(signs < 0) else -1.0
+    turned = righted = shaped = 0
+    for p in tri.tolist():
+        s = int(start[p])
+        vs = lv[s:s + 3].tolist()
+        if _kept_positive(uv[s:s + 3], want):
+            continue
+        # The middle corner k: edges (k-1 -> k) and (k -> k+1) on the boundary.
+        k = next((k for k in range(3) if (vs[k - 1], vs[k]) in directed and (vs[k], vs[(k + 1) % 3]) in directed),
+                 None)
+        if k is None:
+            continue
+        turned += 1
+        if polygons_at[vs[k]] != 1:
+            continue
+        ia, ic = s + (k - 1) % 3, s + (k + 1) % 3
+        la = on_loop(int(loop_face[ia]), np.asarray(loop_bary[ia]))
+        lc = on_loop(int(loop_face[ic]), np.asarray(loop_bary[ic]))
+        lb = on_loop(int(loop_face[s + k]), np.asarray(loop_bary[s + k]))
+        if la is None or lc is None or lb is None or not la[0] == lb[0] == lc[0]:
+            continue
+        n = len(src_loops[la[0]])
+        ahead = lambda x, y: (y - x) % n       # noqa: E731
+        forward = ahead(la[1], lb[1]) <= ahead(la[1], lc[1])
+        span = ahead(la[1], lc[1]) if forward else ahead(lc[1], la[1])
+        if span > n / 2:
+            continue
+        here = points_at(Vs, F, np.array([int(loop_face[s + k])]), np.asarray(loop_bary[s + k])[None])[0]
+        islands = {int(tr.island[int(loop_face[ia])]), int(tr.island[int(loop_face[ic])])}
+        best = None
+        for step in range(1, int(span) + 2):
+            pos = (math.floor(la[1]) + step) if forward else (math.ceil(la[1]) - step)
+            along = ahead(la[1], pos) if forward else ahead(pos, la[1])
+            if along <= 0 or along >= span:
+                continue
+            w = int(src_loops[la[0]][int(pos) % n])
+            for f, kk in face_of_corner.get(w, []):
+                if int(tr.island[f]) not in islands:
+                    continue
+                cand = uv[s:s + 3].copy()
+                cand[k] = tr.uv[f, kk]
+                if _kept_positive(cand, want):
+                    d = float(np.linalg.norm(Vs[w] - here))
+                    if best is None or d < best[0]:
+                        best = (d, tr.uv[f, kk])
+        if best is not None:
+            uv[s + k] = best[1]
+            righted += 1
+            continue
+        # No boundary vertex will do: the source's boundary runs concave in the chart all along
+        # the arc (a box projection's steep rim), so every three points of it turn. The middle
+        # corner's UV then makes the ear's UV triangle similar to the ear itself (its angle at
+        # the first corner, its sides' ratio), on the side that keeps the orientation: just past
+        # the island's border, as the continued charts run into the texture's padding.
+        A_, B_, C_ = (np.asarray(V_t[vs[(k + j) % 3]], dtype=np.float64) for j in (-1, 0, 1))
+        ab, ac = B_ - A_, C_ - A_
+        lac = float(np.linalg.norm(ac))
+        if lac <= 0:
+            continue
+        alpha = math.atan2(float(np.linalg.norm(np.cross(ab, ac))), float(ab @ ac))
+        rho = float(np.linalg.norm(ab)) / lac
+        e = uv[ic] - uv[ia]
+        ang = -alpha * want
+        rot = np.array([[math.cos(ang), -math.sin(ang)], [math.sin(ang), math.cos(ang)]])
+        cand = uv[s:s + 3].copy()
+        cand[k] = uv[ia] + rho * (rot @ e)
+        if _kept_positive(cand, want):
+            uv[s + k] = cand[k]
+            shaped += 1
+    return turned, righted, shaped

@@ -6,6 +6,7 @@
 #include "bindings.h"
 #include "convert.h"
 #include "surfmap/error.h"
+#include "surfmap/map/ear_images.h"
 #include "surfmap/map/map_option_names.h"
 #include "surfmap/map/map_report.h"
 #include "surfmap/map/open_map.h"
@@ -349,6 +350,43 @@ void bind_map(py::module_& m) {
       "a point on the target per source vertex (genus >= 2): the class of the source's loops carried there is the only "
       "candidate (no ranking, search or two-way run; SolveError when they do not carry). `progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
+  m.def(
+      "slide_ear_images",
+      [](py::handle V, py::handle F, py::handle Vo, py::handle Fo, py::handle face, py::handle barycentric,
+         bool reversing) {
+        TriMesh mesh{to_vertices(V, "V"), to_triangles(F, "F")}, other{to_vertices(Vo, "other V"), to_triangles(Fo, "other F")};
+        const OpenSurfaceTopology mt = open_surface_topology(mesh), ot = open_surface_topology(other);
+        auto faces = py::array_t<long long, py::array::c_style | py::array::forcecast>::ensure(face);
+        const RowMatrixX3d bary = to_vertices(barycentric, "barycentric");
+        if (!faces || faces.ndim() != 1 || faces.shape(0) != mesh.num_vertices() || bary.rows() != mesh.num_vertices())
+          throw InputError("slide_ear_images: 'face' and 'barycentric' need one row per vertex of the mesh");
+        std::vector<PointOnSurface> images(mesh.num_vertices());
+        for (int i = 0; i < mesh.num_vertices(); ++i) {
+          const long long f = faces.data()[i];
+          if (f < 0 || f >= other.num_faces())
+            throw InputError("slide_ear_images: vertex " + std::to_string(i) + " has face " + std::to_string(f) +
+                             ", out of range");
+          images[i].face = static_cast<int>(f);
+          images[i].barycentric = bary.row(i).transpose();
+          images[i].position = bary(i, 0) * other.V.row(other.F(f, 0)).transpose() +
+                               bary(i, 1) * other.V.row(other.F(f, 1)).transpose() +
+                               bary(i, 2) * other.V.row(other.F(f, 2)).transpose();
+        }
+        const EarImagesResult r = slide_ear_images(mesh, mt, other, ot, images, reversing);
+        py::dict d = points_to_dict(images);
+        d["ears"] = r.ears;
+        d["turned"] = r.turned;
+        d["moved"] = r.moved;
+        d["turned_after"] = r.turned_after;
+        return d;
+      },
+      py::arg("V"), py::arg("F"), py::arg("other_V"), py::arg("other_F"), py::arg("face"), py::arg("barycentric"),
+      py::arg("reversing") = false,
+      "Ears (faces with three boundary corners) of the open mesh (V, F) whose images on the open mesh (other_V, "
+      "other_F) turn over: the middle corner's image slid along the other boundary between its neighbours' images, "
+      "to the vertex where the ear's image is least distorted among the positively oriented ones (map/ear_images.h; "
+      "docs/open_surfaces.md 'Ears'). face, barycentric: per vertex its image on the other mesh. Returns {face, "
+      "barycentric, position, ears, turned, moved, turned_after}.");
 }
 
 }  // namespace surfmap::python

@@ -10,7 +10,10 @@
 #include <functional>
 #include <tuple>
 
+#include <Eigen/Geometry>
+
 #include "surfmap/error.h"
+#include "surfmap/map/ear_images.h"
 #include "surfmap/map/open_conformal.h"
 #include "surfmap/map/open_map.h"
 #include "surfmap/mesh/open_surface.h"
@@ -382,6 +385,112 @@ TEST(OpenSurfaces, EarTrianglesAreDegenerateNotFlipped) {
   EXPECT_EQ(r.source_domain.flipped_faces, 0);
   EXPECT_EQ(r.map.flipped_triangles, 0);
   EXPECT_NEAR(r.map.mean_dilatation / r.extremal_dilatation, 1.0, 0.01);
+}
+
+// A quad fan around o with an ear (p0, q, p1) below its edge p0 p1, mapped
+// by the identity onto the same fan whose boundary between p0 and p1 runs
+// through a notch u2 (inside the chord) and, when `bump`, a bump u1
+// (outside): q's image on the notch turns the ear over.
+struct EarCase {
+  TriMesh mesh, other;
+  std::vector<PointOnSurface> images;
+};
+
+EarCase ear_case(bool bump) {
+  EarCase c;
+  c.mesh.V.resize(6, 3);
+  c.mesh.V << 0, 0, 0, 1, 0, 0, 1, 1.5, 0, 0, 1.5, 0, 0.5, 0.75, 0, 0.5, -0.3, 0;  // p0 p1 p2 p3 o q
+  c.mesh.F.resize(5, 3);
+  c.mesh.F << 4, 0, 1, 4, 1, 2, 4, 2, 3, 4, 3, 0, 0, 5, 1;
+  c.other.V.resize(bump ? 7 : 6, 3);
+  c.other.V.topRows(5) = c.mesh.V.topRows(5);
+  c.other.V.row(5) << 0.3, 0.15, 0;  // u2: the notch
+  if (bump) c.other.V.row(6) << 0.7, -0.3, 0;  // u1: the bump
+  if (bump) {
+    c.other.F.resize(6, 3);
+    c.other.F << 4, 0, 5, 4, 5, 6, 4, 6, 1, 4, 1, 2, 4, 2, 3, 4, 3, 0;
+  } else {
+    c.other.F.resize(5, 3);
+    c.other.F << 4, 0, 5, 4, 5, 1, 4, 1, 2, 4, 2, 3, 4, 3, 0;
+  }
+  // Each vertex onto the same vertex of `other`, q onto the notch.
+  for (int v = 0; v < 6; ++v) {
+    const int w = v == 5 ? 5 : v;
+    PointOnSurface p;
+    for (int f = 0; f < c.other.num_faces() && p.face < 0; ++f)
+      for (int k = 0; k < 3; ++k)
+        if (c.other.F(f, k) == w) p.face = f, p.barycentric = Eigen::Vector3d::Unit(k);
+    p.position = c.other.V.row(w);
+    c.images.push_back(p);
+  }
+  return c;
+}
+
+TEST(OpenSurfaces, TurnedEarsImageSlidAlongTheOtherBoundary) {
+  // The ear's middle corner q goes from the notch to the bump, the one vertex
+  // of the arc between p0's and p1's images where the ear's image is
+  // positively oriented; nothing else moves. Without the bump no vertex of
+  // any corner's arc will do: the map is left as it was, the ear counted.
+  for (const bool bump : {true, false}) {
+    EarCase c = ear_case(bump);
+    for (int f = 0; f < c.other.num_faces(); ++f) {
+      const Eigen::Vector3d a = c.other.V.row(c.other.F(f, 0)), b = c.other.V.row(c.other.F(f, 1)),
+                            d = c.other.V.row(c.other.F(f, 2));
+      ASSERT_GT((b - a).cross(d - a).z(), 0) << "face " << f;
+    }
+    const std::vector<PointOnSurface> before = c.images;
+    const EarImagesResult r = slide_ear_images(c.mesh, open_surface_topology(c.mesh), c.other,
+                                               open_surface_topology(c.other), c.images);
+    EXPECT_EQ(r.ears, 1);
+    EXPECT_EQ(r.turned, 1);
+    EXPECT_EQ(r.moved, bump ? 1 : 0);
+    EXPECT_EQ(r.turned_after, bump ? 0 : 1);
+    for (int v = 0; v < 5; ++v) EXPECT_LT((c.images[v].position - before[v].position).norm(), 1e-15) << v;
+    const Eigen::Vector3d expected = bump ? Eigen::Vector3d(0.7, -0.3, 0) : Eigen::Vector3d(0.3, 0.15, 0);
+    EXPECT_LT((c.images[5].position - expected).norm(), 1e-15);
+    const PointOnSurface& q = c.images[5];
+    Eigen::RowVector3d at = Eigen::RowVector3d::Zero();
+    for (int k = 0; k < 3; ++k) at += q.barycentric[k] * c.other.V.row(c.other.F(q.face, k));
+    EXPECT_LT((at - q.position.transpose()).norm(), 1e-15);
+  }
+}
+
+TEST(OpenSurfaces, EarsOfACoarseMaskOnAJaggedLoopAreRighted) {
+  // A coarse disk (a square grid: its corners are ears) onto a finer disk
+  // whose rim zigzags (every other rim vertex pulled in): many ears' chord
+  // images span a notch of the rim. Both directions, after the slide no ear
+  // image turns over in 3D, boundary stays on boundary.
+  const TriMesh sq = square(6);
+  const TriMesh jag = disk(10, [](double r, double t) {
+    const int k = static_cast<int>(std::lround(t / (2 * M_PI) * 60));
+    const double rim = r >= 1.0 - 1e-12 && k % 2 ? 0.93 : 1.0;
+    return Eigen::Vector3d(r * rim * std::cos(t), r * rim * std::sin(t), 0.0);
+  });
+  int turned_before = 0;
+  for (const auto& [s, t] : {std::pair<const TriMesh*, const TriMesh*>{&sq, &jag}, {&jag, &sq}}) {
+    const OpenSurfaceTopology ts = open_surface_topology(*s), tt = open_surface_topology(*t);
+    const OpenMapResult r = open_surface_map(*s, ts, *t, tt);
+    std::cout << "  ears: forward " << r.forward_ears.ears << " (" << r.forward_ears.turned << " turned, "
+              << r.forward_ears.moved << " righted, " << r.forward_ears.turned_after << " left); inverse "
+              << r.inverse_ears.ears << " (" << r.inverse_ears.turned << " turned, " << r.inverse_ears.moved
+              << " righted, " << r.inverse_ears.turned_after << " left)\n";
+    turned_before += r.forward_ears.turned + r.inverse_ears.turned;
+    EXPECT_EQ(r.forward_ears.turned_after + r.inverse_ears.turned_after, 0);
+    EXPECT_EQ(r.map.flipped_triangles, 0);
+    // Counted here: every source face's image (3D chord) against +z.
+    for (const auto& [m, o, pts] : {std::tuple<const TriMesh*, const TriMesh*, const std::vector<PointOnSurface>*>{
+                                        s, t, &r.map.forward},
+                                    {t, s, &r.map.inverse}}) {
+      int turned = 0;
+      for (int f = 0; f < m->num_faces(); ++f) {
+        const Eigen::Vector3d a = (*pts)[m->F(f, 0)].position, b = (*pts)[m->F(f, 1)].position,
+                              c = (*pts)[m->F(f, 2)].position;
+        turned += (b - a).cross(c - a).z() <= 1e-12 * std::max((b - a).squaredNorm(), (c - a).squaredNorm());
+      }
+      EXPECT_EQ(turned, 0);
+    }
+  }
+  EXPECT_GT(turned_before, 0);  // the chord images did turn over
 }
 
 TEST(OpenSurfaces, BoundaryOntoTheTargetsBoundaryPastItsEars) {

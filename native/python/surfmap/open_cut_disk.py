@@ -218,17 +218,19 @@ class _CutDisk:
         return self.X
 
 
-def cut_disk_class_images(S, T, pairing, mirrored=False):
+def cut_disk_class_images(S, T, pairing, mirrored=False, chain=None):
     """Per vertex of the source's split half (S.V2, n2 of them) a vertex of the target's split half
     (T.V2) under the homeomorphism of the cut disks (module docstring): source loop i onto target
-    loop pairing[i]; `mirrored`: orientation reversing (the target's half with its faces reversed).
-    S, T: open_double._Side of genus 0. Raises SolveError when a half cannot be cut or the disks'
-    runs do not correspond."""
+    loop pairing[i]; `mirrored`: orientation reversing (the target's half with its faces reversed);
+    `chain`: the order in which the source's loops are chained (default 0, 1, ..., b - 1; the
+    target's follows through the pairing). For b >= 4 another chain can give another class of the
+    same pairing (its shortest arcs correspond instead). S, T: open_double._Side of genus 0. Raises
+    SolveError when a half cannot be cut or the disks' runs do not correspond."""
     try:
         import scipy.sparse  # noqa: F401  (sparse graphs and solves; Blender's own Python may lack it)
     except ImportError:
         raise _core.SolveError("cut into a disk: scipy is not available") from None
-    chain_s = list(range(S.b))
+    chain_s = list(range(S.b)) if chain is None else [int(c) for c in chain]
     chain_t = [int(pairing[i]) for i in chain_s]
     Ft = T.F2[:, ::-1] if mirrored else T.F2
     ds = _CutDisk(S.V2, S.F2, S.loops, chain_s)

@@ -360,7 +360,28 @@ def _sphere_rough_map(S, T, pairing, options, mirrored=False, landmarks=None):
     return [(images, None, Pt[:T.n2], "")]
 
 
-def _rough_maps(S, T, pairing, options, mirrored, landmarks):
+def _chains(S, T, pairing, count):
+    """The orders in which to chain the loops for the cut disks (open_cut_disk): 0, 1, ..., b - 1
+    first, then the `count` - 1 other chains (a chain and its reverse cut alike) of shortest
+    total length, source and target together (_loop_distances: the paths' lengths; with b >= 4
+    another chain can give another class of the same pairing). Chains are listed for b <= 7 only."""
+    default = list(range(S.b))
+    if count <= 1 or S.b > 7:
+        return [default]
+    try:
+        Ds, Dt = _loop_distances(S), _loop_distances(T)
+    except ImportError:
+        return [default]
+    p = list(pairing)
+
+    def length(c):
+        return sum(Ds[c[k], c[k + 1]] + Dt[p[c[k]], p[c[k + 1]]] for k in range(len(c) - 1))
+    others = sorted((c for c in itertools.permutations(range(S.b)) if c[0] < c[-1] and list(c) != default),
+                    key=length)
+    return [default] + [list(c) for c in others[:count - 1]]
+
+
+def _rough_maps(S, T, pairing, options, mirrored, landmarks, classes_per_pairing=1):
     """The rough maps of the halves for one pairing and orientation (_capped_map's form). Genus 0:
     the homeomorphism of the halves cut into disks along chains of shortest paths between the
     paired loops (open_cut_disk: the class from the pairing and the orientation alone, exact
@@ -384,11 +405,18 @@ def _rough_maps(S, T, pairing, options, mirrored, landmarks):
         except _core.Error as e:
             cut_failed = f" (capped map: {e})"
     if S.b >= 2:
-        try:
-            target_vertex = open_cut_disk.cut_disk_class_images(S, T, pairing, mirrored=mirrored)
-            return [(T.V2[target_vertex], None, T.V2, "")], "cut disks"
-        except _core.SolveError as e:
-            cut_failed += f" (cut disks: {e})"
+        chains = _chains(S, T, pairing, classes_per_pairing if S.b >= 4 else 1)
+        roughs, failed = [], []
+        for chain in chains:
+            try:
+                target_vertex = open_cut_disk.cut_disk_class_images(S, T, pairing, mirrored=mirrored, chain=chain)
+                roughs.append((T.V2[target_vertex], None, T.V2, f"chain {'-'.join(map(str, chain))}"
+                               if len(chains) > 1 else ""))
+            except _core.SolveError as e:
+                failed.append(str(e))
+        if roughs:
+            return roughs, "cut disks"
+        cut_failed += f" (cut disks: {failed[0]})"
     if S.b <= 3 or cut_failed.startswith(" (capped map"):
         return (_sphere_rough_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks),
                 "Möbius map of the capped spheres" + cut_failed)
@@ -719,6 +747,18 @@ def _turned(S, T, fw, reversing=False, faces=None, resolved_angle=np.pi / 3):
     return turned
 
 
+def _slide_ears(A, B, points, reversing, keep):
+    """_core.slide_ear_images on a half's map of A onto B ({face, barycentric, position}, changed in
+    place), the vertices `keep` (landmarks) left where they are. Returns its counts."""
+    got = _core.slide_ear_images(A.V, A.F, B.V, B.F, np.asarray(points["face"]), np.asarray(points["barycentric"]),
+                                 reversing=reversing)
+    change = np.ones(A.n, dtype=bool)
+    change[np.asarray(keep, dtype=np.int64)] = False
+    for k in ("face", "barycentric", "position"):
+        points[k][change] = np.asarray(got[k])[change]
+    return {k: int(got[k]) for k in ("ears", "turned", "moved", "turned_after")}
+
+
 def _alignment(S, T, images):
     """Mean squared distance between the source's vertices and their images, both shapes moved
     to centroid 0 and scaled to unit area (the disk map's alignment measure, map/open_map.h)."""
@@ -884,6 +924,7 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
 
 def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),
                      max_pairings=6, symmetry_tolerance=0.05, tie_tolerance=1e-6, progress=None, landmarks=None,
+                     classes_per_pairing=2,
                      untangle=True, **options):
     """Map between two open surfaces of equal (g, b) through their doubles (module docstring).
 
@@ -898,7 +939,11 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     centroid 0 and unit area). A candidate counts when its largest |f(sigma x) - sigma f(x)| is
     at most `symmetry_tolerance` of the target's diagonal (default 0.05: the artery's correct
     maps measured 0.033-0.040; the test shapes 0.002-0.006) and 90% of its interior lies on the
-    expected half. options: threads,
+    expected half. classes_per_pairing (default 2; genus 0 with b >= 4, the cut disks): the
+    classes solved per (pairing, orientation): the cut disks along the chain 0, 1, ..., b - 1 and
+    along the other chains of shortest total length (_chains); each is its own candidate
+    ('chain' in the candidates), the energy ranks them all (the generated shirt A -> B, loops
+    0,1,2,3 preserving: chain 0-1-2-3 E 125.92, chains 0-3-1-2, 1-3-0-2, 0-2-1-3 34.895). options: threads,
     tolerance, max_iterations, method, source_weights, solve_progress (the doubles' solves).
     landmarks: (k, 2) (source vertex, target vertex) pairs of the input meshes, held by the
     capped map and, each with its mirror pair, by the doubles' map (_landmark_pairs); a boundary
@@ -912,10 +957,13 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     orientation, pairing_choice, candidates [{pairing, orientation, energy, symmetry_error,
     same_sheet, alignment, status, chosen}], tied_candidates, symmetry_error, same_sheet,
     snap_distance, double_genus, ear_triangles, ear_triangles_turned, source_weights_fallback,
-    untangled_vertices, untangled}. untangle (default True): the interior corners of the half's folded
-    faces are moved within their stars (open_untangle.untangle_half) before the own-edge weights'
-    solve is tried; 'untangled' says how many faces were folded and how many vertices moved (the
-    forward map only; the inverse is the doubles' own).
+    untangled_vertices, untangled, inverse_flipped_triangles, inverse_ear_triangles,
+    inverse_ear_triangles_turned, inverse_untangled_vertices, inverse_untangled}. untangle (default
+    True): the interior corners of the half's folded faces are moved within their stars
+    (open_untangle.untangle_half) before the own-edge weights' solve is tried; 'untangled' says how
+    many faces were folded and how many vertices moved. The inverse (per target vertex a point of
+    the source: what the add-on's UVs and colours read) is counted and untangled the same way with
+    the sides swapped ('inverse_*': target faces, target vertices moved).
     Raises InputError for different (g, b) or a bad pairing, SolveError when no candidate
     maps."""
     S = _Side(Vs, Fs, "source")
@@ -945,7 +993,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         report(f"doubles: pairing {list(pairing)}, {o}", ti / max(len(tasks), 1))
         rev = o == "reversing"
         try:
-            roughs, rough_method = _rough_maps(S, T, pairing, options, rev, lm)
+            roughs, rough_method = _rough_maps(S, T, pairing, options, rev, lm, classes_per_pairing)
         except _core.Cancelled:
             raise
         except _core.Error as e:
@@ -957,7 +1005,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
             if score is not None:
                 cand["pairing_score"] = score
             if capped_class:
-                cand["capped_class"] = capped_class
+                cand["chain" if rough_method == "cut disks" else "capped_class"] = capped_class
             try:
                 images = _symmetric_images(S, T, pairing, rev, pos, face, target_xyz, landmarks=lm)
                 r = _double_map(S, T, images, options, _landmark_pairs(S, T, lm, rev))
@@ -1015,6 +1063,21 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
             cand["symmetry_error"], cand["same_sheet"] = _symmetry(r2, S, T, rev)
         else:
             flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
+    # Ears whose chord images turn over (three points of a concave or jagged stretch of the other
+    # boundary): the middle corner's image slid along the other boundary (map/ear_images.h), both
+    # directions; landmarks keep their images.
+    ears_fw = _slide_ears(S, T, fw, rev, lm[:, 0])
+    ears_inv = _slide_ears(T, S, inv, rev, lm[:, 1])
+    flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
+    # The inverse (per target vertex a point of the source's faces): the UVs, colours and bakes the
+    # add-on transfers onto the target read it, so a fold there is a flipped transferred UV
+    # triangle. It is the doubles' own inverse, with the same kind of folds where the inverse map
+    # compresses; the same untangling, the sides swapped (T's vertices moved within S's faces).
+    inv_flipped, inv_ears, inv_ears_turned, _ = _flips(T, S, inv, rev)
+    inv_untangled, inv_flipped_before = [], inv_flipped
+    if inv_flipped and untangle:
+        inv_untangled = open_untangle.untangle_half(T, S, inv, lambda f: _turned(T, S, inv, rev, faces=f), rev)
+        inv_flipped, inv_ears, inv_ears_turned, _ = _flips(T, S, inv, rev)
     dil = _dilatation(S.V, fw["position"], S.F)
     finite = dil[~ear & np.isfinite(dil)]
     # The doubles' report, less what is per vertex or per face of the doubles (the initial map,
@@ -1042,6 +1105,13 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "source_weights_fallback": weights_fallback, "untangled_vertices": len(untangled),
                    "untangled": (f"{flipped_before_untangling} folded faces; {len(untangled)} interior vertices moved "
                                  f"within their stars, {flipped} folded left" if untangled else ""),
+                   "ears_turned": ears_fw["turned"], "ears_slid": ears_fw["moved"],
+                   "inverse_ears_turned": ears_inv["turned"], "inverse_ears_slid": ears_inv["moved"],
+                   "inverse_flipped_triangles": inv_flipped, "inverse_ear_triangles": inv_ears,
+                   "inverse_ear_triangles_turned": inv_ears_turned, "inverse_untangled_vertices": len(inv_untangled),
+                   "inverse_untangled": (f"{inv_flipped_before} folded faces; {len(inv_untangled)} interior target "
+                                         f"vertices moved within their stars, {inv_flipped} folded left"
+                                         if inv_untangled else ""),
                    "landmarks": len(lm),
                    "landmark_error": float(np.max(np.linalg.norm(fw["position"][lm[:, 0]] - T.V[lm[:, 1]], axis=1),
                                                   initial=0.0))}

@@ -11,6 +11,7 @@
 
 #include "surfmap/error.h"
 #include "surfmap/map/distortion.h"
+#include "surfmap/map/ear_images.h"
 #include "surfmap/map/map_report.h"
 
 namespace surfmap {
@@ -403,6 +404,17 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
     const int f = sloc.locate(m.inverse(r.target_domain.uv[j]), &bary);
     out.inverse[j] = point_in_face(source, f, bary);
   }
+  // Ears whose chord image turns over (three points of a concave or jagged
+  // stretch of the other boundary): the middle corner's image slid along the
+  // other boundary (map/ear_images.h), both directions; landmarks keep theirs.
+  {
+    std::vector<PointOnSurface> held_fw, held_inv;
+    for (const auto& [p, q] : options.landmarks) held_fw.push_back(out.forward[p]), held_inv.push_back(out.inverse[q]);
+    r.forward_ears = slide_ear_images(source, source_topology, target, target_topology, out.forward);
+    r.inverse_ears = slide_ear_images(target, target_topology, source, source_topology, out.inverse);
+    for (std::size_t k = 0; k < options.landmarks.size(); ++k)
+      out.forward[options.landmarks[k].first] = held_fw[k], out.inverse[options.landmarks[k].second] = held_inv[k];
+  }
   // Ears: source faces with all three corners on the boundary. Their image
   // is fixed by the boundary correspondence alone: on the annulus's straight
   // boundary lines a degenerate triangle by construction, on a disk the
@@ -503,6 +515,13 @@ nlohmann::json to_json(const OpenMapResult& r, const OpenMapOptions& options) {
                     {"landmark_error", r.landmark_error},
                     {"ear_triangles", r.ear_triangles},
                     {"ear_triangles_degenerate", r.ear_triangles_degenerate},
+                    {"ears_turned", r.forward_ears.turned},
+                    {"ears_slid", r.forward_ears.moved},
+                    {"ears_turned_after", r.forward_ears.turned_after},
+                    {"inverse_ear_triangles", r.inverse_ears.ears},
+                    {"inverse_ears_turned", r.inverse_ears.turned},
+                    {"inverse_ears_slid", r.inverse_ears.moved},
+                    {"inverse_ears_turned_after", r.inverse_ears.turned_after},
                     {"source", domain_json(r.source_domain)},
                     {"target", domain_json(r.target_domain)},
                     {"description", r.map.candidates.empty() ? std::string() : r.map.candidates[0].description}};

@@ -136,3 +136,73 @@ def test_shirt_pair_through_the_doubles_has_no_folded_face():
     assert r["flipped_triangles"] == 0 and o["source_weights_fallback"] == ""
     assert check_map(r, *A, *B) == 0        # counted here: boundary onto boundary, nothing turned
     assert np.isfinite(r["distortion"]["mean"]) and r["distortion"]["mean"] < 2.5
+
+
+def test_a_fold_of_the_inverse_is_untangled_too(monkeypatch):
+    """The inverse (per target vertex a point of the source: what the add-on's transferred UVs,
+    colours and bakes read) is untangled like the forward map. A pants (487 V) onto its bend 0.3,
+    the inverse's image of one interior target vertex pushed onto that of a vertex two rings
+    away (its star folds on the source): surface_map_open moves it back, nothing turned is left
+    by the independent count, boundary stays on boundary. Before, only the forward map was
+    untangled and the inverse kept the fold."""
+    from test_open_double import bend, pants
+    Vs, Fs = pants(3)
+    Vt, Ft = bend(Vs, 0.3), Fs
+    real = open_double._half_correspondence
+    pushed = {}
+
+    def pushing(res_map, S, T):
+        fw, inv, pairing, back, snap = real(res_map, S, T)
+        on_b = np.zeros(T.n, bool)
+        on_b[np.concatenate(T.loops)] = True
+        # The interior vertex farthest from the boundary, and one two rings from it.
+        d = np.min(np.linalg.norm(T.V[:, None] - T.V[on_b][None], axis=2), axis=1)
+        v = int(np.argmax(d))
+        ring1 = np.setdiff1d(np.unique(T.F[(T.F == v).any(axis=1)]), [v])
+        ring2 = np.setdiff1d(np.unique(T.F[np.isin(T.F, ring1).any(axis=1)]), np.append(ring1, v))
+        w = int(ring2[0])
+        pushed.update(v=v, home=inv["position"][v].copy(), to=inv["position"][w].copy())
+        for k in ("face", "barycentric", "position"):
+            inv[k][v] = inv[k][w]
+        pushed["folded"] = open_double._flips(T, S, inv)[0]
+        return fw, inv, pairing, back, snap
+
+    monkeypatch.setattr(open_double, "_half_correspondence", pushing)
+    r = open_double.surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=[0, 1, 2], orientations=("preserving",))
+    o = r["open"]
+    assert pushed["folded"] >= 2
+    assert o["inverse_untangled"].startswith(f"{pushed['folded']} folded faces")
+    assert o["inverse_flipped_triangles"] == 0 and o["inverse_untangled_vertices"] >= 1
+    # Counted independently, the inverse as a map of the target onto the source.
+    swapped = {"forward": r["inverse"], "open": {"boundary_pairing": o["inverse_pairing"],
+                                                 "orientation": o["orientation"]}}
+    assert check_map(swapped, Vt, Ft, Vs, Fs) == 0
+    v = pushed["v"]
+    home, to = pushed["home"], pushed["to"]
+    assert np.linalg.norm(r["inverse"]["position"][v] - home) < 0.5 * np.linalg.norm(to - home)
+    # The forward map was not touched by the inverse's untangling.
+    assert o["untangled_vertices"] == 0 and r["flipped_triangles"] == 0
+
+
+def test_several_classes_per_pairing_at_four_loops():
+    """b = 4, genus 0: a pairing leaves infinitely many classes (twists about curves around two
+    loops), and the cut disks along the chain 0-1-2-3 give one of them; other chains of the loops
+    give others (docs/open_surfaces.md "Several classes per pairing"). On the bench's shirt A -> B
+    with loops 0,1,2,3 preserving, the default chain's class has E 125.9 while other chains reach
+    34.9 (the reversing orientation's energy): with one class per pairing the preserving map was
+    the bad one. Every candidate is solved and counted; the lowest energy is chosen."""
+    A = holed_sphere(3, [(0, 0, 1), (0, 0, -1), (1, 0, 0.15), (-1, 0, 0.15)], [0.45, 0.9, 0.35, 0.4], (1.3, 0.6, 1.6))
+    B = holed_sphere(3, [(1, 0, 0.3), (-0.5, 0.866, -0.2), (-0.4, -0.8, 0.5), (0.3, -0.2, -1)],
+                     [0.6, 0.55, 0.5, 0.45], (1, 1, 1))
+    one = open_double.surface_map_open(*A, *B, boundary_pairing=[0, 1, 2, 3], orientations=("preserving",),
+                                       classes_per_pairing=1)
+    several = open_double.surface_map_open(*A, *B, boundary_pairing=[0, 1, 2, 3], orientations=("preserving",),
+                                           classes_per_pairing=3)
+    cands = several["open"]["candidates"]
+    assert len(one["open"]["candidates"]) == 1 and len(cands) == 3
+    assert [c["chain"] for c in cands][0] == "chain 0-1-2-3" and len({c["chain"] for c in cands}) == 3
+    assert all(c["status"] == "ok" for c in cands)
+    assert one["energy"]["final"] > 2 * several["energy"]["final"]
+    assert several["energy"]["final"] == min(c["energy"] for c in cands)
+    assert several["flipped_triangles"] == 0 and several["open"]["inverse_flipped_triangles"] == 0
+    assert check_map(several, *A, *B) == 0

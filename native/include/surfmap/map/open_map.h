@@ -19,6 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "surfmap/map/ear_images.h"
 #include "surfmap/map/open_conformal.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/open_surface.h"
@@ -78,6 +79,10 @@ struct OpenMapResult {
   /// `ear_triangles_degenerate` of them have a zero-area image in the
   /// target's domain (not counted as flipped).
   int ear_triangles = 0, ear_triangles_degenerate = 0;
+  /// Ears of the source (forward map) and of the target (inverse map) whose
+  /// chord images turned over, and how many of them had their middle
+  /// corner's image slid along the other boundary (map/ear_images.h).
+  EarImagesResult forward_ears, inverse_ears;
 };
 
 /// Maps `source` onto `target` (both passed through load_open_mesh or
