@@ -322,8 +322,10 @@ TEST(NewtonStarts, EveryCandidateRefusedAtTheOriginIsSolvedAgainAcceptingLongSta
     o.homotopy.coarse_vertices = coarse ? 600 : 0;
     o.homotopy.search.enabled = false;
     o.homotopy.two_way = false;
+    o.homotopy.ranking_gap = -1;  // (every class ranked in both runs: the same choice)
     const SurfaceMapResult reference = surface_map(a, b, o);
     ASSERT_TRUE(reference.converged);
+    EXPECT_EQ(reference.ranking_coarse_solves > 0, coarse);
     EXPECT_TRUE(reference.long_starts.empty()) << reference.long_starts;
 
     SurfaceMapOptions refused = o;
