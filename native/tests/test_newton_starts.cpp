@@ -303,5 +303,58 @@ TEST(NewtonStarts, StartEdgesBeyondSeventyUnitsAreRefusedByDefaultAndReachTheOpt
   EXPECT_EQ(inspected, 1);
 }
 
+// Issue 13 (HomotopySearchOptions::start_edge_size): the genus-9 and 11
+// plate -> wheel pairs failed with "the harmonic map solve failed in every
+// candidate homotopy class: class 0 [... edge 117 starts 85.08 units long
+// ...]": every candidate's start from the origin was refused at the
+// start-edge limit, and nothing was left. The same situation on a small
+// generated pair, every start refused by a limit below every nontrivial deck
+// element (1.5: an edge with no deck element has size 1): with no higher
+// limit to fall back to (geometric_start_edge_size as low) the map fails as
+// those did; with the default fallback the refused classes are solved again
+// accepting long starts and the map is the default one (the same class and
+// optimum, 0 flipped triangles). Both with and without a coarse copy.
+TEST(NewtonStarts, EveryCandidateRefusedAtTheOriginIsSolvedAgainAcceptingLongStarts) {
+  for (const bool coarse : {false, true}) {
+    SCOPED_TRACE(coarse ? "coarse copy" : "no coarse copy");
+    const TriMesh a = samples::n_hole_torus(2, coarse ? 24 : 12, true), b = samples::vase(12, true);
+    SurfaceMapOptions o;
+    o.homotopy.coarse_vertices = coarse ? 600 : 0;
+    o.homotopy.search.enabled = false;
+    o.homotopy.two_way = false;
+    o.homotopy.ranking_gap = -1;  // (every class ranked in both runs: the same choice)
+    const SurfaceMapResult reference = surface_map(a, b, o);
+    ASSERT_TRUE(reference.converged);
+    EXPECT_EQ(reference.ranking_coarse_solves > 0, coarse);
+    EXPECT_TRUE(reference.long_starts.empty()) << reference.long_starts;
+
+    SurfaceMapOptions refused = o;
+    refused.homotopy.search.start_edge_size = 1.5;
+    refused.homotopy.search.geometric_start_edge_size = 1.5;
+    try {
+      surface_map(a, b, refused);
+      ADD_FAILURE() << "every start refused, but the map succeeded";
+    } catch (const SolveError& e) {
+      EXPECT_NE(std::string(e.what()).find("units long"), std::string::npos) << e.what();
+    }
+
+    SurfaceMapOptions fallback = o;
+    fallback.homotopy.search.start_edge_size = 1.5;
+    const SurfaceMapResult m = surface_map(a, b, fallback);
+    ASSERT_TRUE(m.converged);
+    EXPECT_FALSE(m.long_starts.empty());
+    EXPECT_EQ(m.flipped_triangles, 0);
+    EXPECT_EQ(m.degenerate_triangles, 0);
+    EXPECT_EQ(m.chosen_candidate, reference.chosen_candidate);
+    EXPECT_NEAR(m.final_energy, reference.final_energy, 1e-6 * reference.final_energy);
+    int again = 0;
+    for (const HomotopyCandidate& c : m.candidates)
+      again += c.description.find("[solved again accepting long start edges]") != std::string::npos;
+    EXPECT_GT(again, 0);
+    std::printf("%s: %s; E %.9g (default %.9g), %d candidates solved again\n", coarse ? "coarse" : "fine",
+                m.long_starts.c_str(), m.final_energy, reference.final_energy, again);
+  }
+}
+
 }  // namespace
 }  // namespace surfmap

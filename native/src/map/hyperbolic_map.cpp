@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <exception>
 #include <future>
 #include <limits>
@@ -119,6 +120,7 @@ class HyperbolicPipeline {
   int append_full_class(HomotopyClass hc, ClassData cd, CoarseEvaluation& ev);
   void map_in_chosen_class();
   void release_unsolved_class_data();
+  std::vector<int> accept_long_starts(bool coarse);
   const ClassData& data_for(int k);
 
   // Inputs.
@@ -184,6 +186,14 @@ class HyperbolicPipeline {
   /// The local fold repair's record (stages/fold_repair.h), kept across the
   /// global fallback's second pass (SurfaceMapResult::fold_repair).
   SurfaceMapResult::FoldRepair fold_repair;
+  /// Issue 13: the intrinsic-weight optimum of the class that fell back to
+  /// the own-edge weights (retry_class), the start of its second solve.
+  std::unique_ptr<HyperbolicHarmonicResult> retry_start;
+  int retry_class = -1;
+  /// Issue 13: set when every candidate's start was refused at the start-edge
+  /// limit (accept_long_starts); the pipeline's later solves accept start
+  /// edges up to geometric_start_edge_size.
+  bool long_starts = false;
 
   // Raised on the way out (declared before the second thread, so it outlives
   // it): the source's own uniformization there then stops at its next Newton
@@ -492,6 +502,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   ho.max_iterations = options.solve.max_iterations;
   ho.relator = deck_group->side_relator();
   ho.reduce_point = [this](Complex& z) { return polygon->reduce(z); };
+  ho.max_start_edge_size = options.homotopy.search.start_edge_size;
   if (options.progress)
     ho.progress = [this](int, double, double) { return options.progress("homotopy candidates", 0.4); };
   coarse_failed.assign(ncand, 0);
@@ -540,6 +551,10 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   // calls the progress callback, the other one sees a stop flag).
   parallel_for(threads, static_cast<int>(rest.size()),
                [&](int q, const std::atomic<bool>* stop) { coarse_solve(rest[q], stop); });
+  const std::vector<int> again = accept_long_starts(true);
+  out.ranking_coarse_solves += static_cast<int>(again.size());
+  parallel_for(threads, static_cast<int>(again.size()),
+               [&](int q, const std::atomic<bool>* stop) { coarse_solve(again[q], stop); });
   std::stable_sort(order.begin(), order.end(),
                    [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
 }
@@ -1209,15 +1224,17 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   if (!after_coarse) {
     const std::vector<Complex> origin(nv, Complex(0.0));
     const std::vector<Word> no_decks(nv);
-    for (int k = 0; k < ncand; ++k) {
-      if (!usable[k]) continue;
+    auto solve_class = [&](int k) {
       auto r = std::make_unique<HyperbolicHarmonicResult>();
-      if (!try_solve(k, [&] { return solve_from(nv, data[k].edges, origin, no_decks, fine_options(k)); }, *r)) continue;
+      if (!try_solve(k, [&] { return solve_from(nv, data[k].edges, origin, no_decks, fine_options(k)); }, *r)) return;
       out.candidates[k].energy = r->energy;
       out.candidates[k].solved = true;
       full[k] = 1;
       fine_result[k] = std::move(r);
-    }
+    };
+    for (int k = 0; k < ncand; ++k)
+      if (usable[k]) solve_class(k);
+    for (int k : accept_long_starts(false)) solve_class(k);
     stage_done("homotopy candidates", 0.42);
     return;
   }
@@ -1271,6 +1288,58 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
     fine_result[k] = std::move(r);
   });
   if (init_error) likely_init.reset();
+}
+
+// Issue 13 (HomotopySearchOptions::start_edge_size): when no candidate has
+// an energy after the ranking's solves (on the coarse copy: `coarse`, else
+// at full resolution), the classes whose start from the origin has an edge
+// beyond the start-edge limit (every vertex at the origin, one sheet: an
+// edge starts as long as its deck element moves the origin) were refused
+// only for that. Their loops' images are that long in the target (85-300
+// units for the combinatorial classes of the genus-9 plate -> wheel), and
+// no start with short edges is at hand for them: the initial maps develop
+// the source in one Poincare chart, which holds polygons of a few units
+// only (tried: every such class's initial map fell back to the origin).
+// So the limit is raised to geometric_start_edge_size, as for the geometric
+// classes, for these classes and every later solve of the map (class
+// search, fallbacks): Newton from the origin then converges (7 of the 8
+// classes of that pair). Returns the classes to solve again (empty when
+// some class has an energy or none was refused), marked usable again.
+std::vector<int> HyperbolicPipeline::accept_long_starts(bool coarse) {
+  std::vector<int> again;
+  for (int k = 0; k < ncand; ++k)
+    if (usable[k] && std::isfinite(out.candidates[k].energy)) return again;
+  const double raised = std::max(ho.max_start_edge_size, options.homotopy.search.geometric_start_edge_size);
+  if (!(raised > ho.max_start_edge_size)) return again;
+  double longest = 0;
+  for (int k = 0; k < ncand; ++k) {
+    const std::vector<WeightedEdge>& edges = coarse ? level.class_edges[k] : data[k].edges;
+    if (edges.empty() || (coarse && !coarse_failed[k] && usable[k])) continue;
+    bool refused = false;
+    for (const WeightedEdge& e : edges) {
+      const double size = e.rho.size();
+      if (!(size < ho.max_start_edge_size) && size < raised) {
+        refused = true;
+        longest = std::max(longest, e.rho.displacement_of_origin());
+      }
+    }
+    if (refused) again.push_back(k);
+  }
+  if (again.empty()) return again;
+  long_starts = true;
+  ho.max_start_edge_size = raised;
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "every candidate's start from the origin was refused; %d solved again accepting start edges up to "
+                "%.3g (the longest %.1f units)",
+                static_cast<int>(again.size()), raised, longest);
+  out.long_starts = text;
+  for (int k : again) {
+    usable[k] = 1;
+    if (coarse) coarse_failed[k] = 0;
+    out.candidates[k].description += "  [solved again accepting long start edges]";
+  }
+  return again;
 }
 
 // Issue 19 (memory): every candidate's homotopy data (a deck element and
@@ -1434,9 +1503,23 @@ bool map_class(HyperbolicPipeline& p) {
   p.stage_done("initial map", 0.45);
 
   const SolveProgress solve_progress = chosen_solve_progress(options);
+  // Issue 13: the second solve of a class after the own-edge weights
+  // fallback starts from its first optimum (the same class and vertices,
+  // other weights), not from the initial map, which for a class whose loop
+  // images are longer than one Poincare chart holds is every vertex at the
+  // origin (plate -> wheel genus 9: "edge 192 starts 83.2 units long").
+  HyperbolicInitialMapResult first_optimum;
+  const bool from_first = p.retry_start && p.retry_class == k && p.own_weights;
+  if (from_first) {
+    first_optimum.z = p.retry_start->z;
+    first_optimum.vertex_deck = p.retry_start->vertex_deck;
+    first_optimum.vertex_deck_word = p.retry_start->vertex_deck_word;
+  }
+  p.retry_start.reset();
   ChosenSolve solved = solve_chosen_class(p.nv, cd.edges, init, *p.deck_group, *p.polygon, options,
                                           std::move(p.fine_result[k]), solve_progress, &p.fine_solver,
-                                          p.hooks.inspect_problem);
+                                          p.hooks.inspect_problem, from_first ? &first_optimum : nullptr,
+                                          p.ho.max_start_edge_size);
   out.initial_energy = solved.initial_energy;
   HyperbolicHarmonicResult& hr = solved.result;
   const double free_energy = hr.energy;
@@ -1533,6 +1616,10 @@ bool map_class(HyperbolicPipeline& p) {
     p.intrinsic_energy[k] = free_energy;
     p.own_weights_reason = folds + ": mapped again with positive weights on its own edges" +
                            (p.fold_repair.status.empty() ? std::string() : " (local repair " + p.fold_repair.status + ")");
+    if (hr.vertex_deck_word.size() == hr.z.size()) {
+      p.retry_start = std::make_unique<HyperbolicHarmonicResult>(hr);
+      p.retry_class = k;
+    }
     p.switch_to_own_weights();
     return false;
   }
@@ -1598,7 +1685,21 @@ void map_with_fallback(HyperbolicPipeline& p) {
       reset_keeping_candidates();  // the source weights changed: the same class again
       --attempt;
     } catch (const SolveError& e) {
-      if (attempt + 1 >= fallback.size()) throw;
+      if (attempt + 1 >= fallback.size() && attempt == 0) throw;
+      if (attempt + 1 >= fallback.size()) {
+        // Issue 13: the last fallback's reason alone hid the chosen class's
+        // (plate -> wheel genus 9: the chosen class, 147 x the bound, came
+        // out with 3 folds, the last fallback with 415).
+        const int c = fallback[0];
+        char head[160];
+        std::snprintf(head, sizeof head, "no candidate class gave a bijective map (%d tried); the chosen class %d (energy %.6g, %.3g x 8 pi (g - 1)): ",
+                      static_cast<int>(fallback.size()), c, out.candidates[c].energy,
+                      out.candidates[c].energy / (8 * M_PI * (out.genus - 1)));
+        const std::string& d = out.candidates[c].description;
+        const size_t at = d.rfind("  [not used: ");
+        throw SolveError(head + (at == std::string::npos ? std::string("?") : d.substr(at + 13, d.size() - at - 14)) +
+                         "; the last, class " + std::to_string(fallback[attempt]) + ": " + e.what());
+      }
       out.candidates[fallback[attempt]].description += std::string("  [not used: ") + e.what() + "]";
     }
   }

@@ -126,7 +126,7 @@ json homotopy_json(const SurfaceMapResult& r) {
   for (size_t i = 0; i < r.candidates.size(); ++i) candidates.push_back(candidate_json(r.candidates[i], i));
   return {{"chosen", r.chosen_candidate},
           {"candidates", candidates},
-          {"ranking", {{"coarse_solves", r.ranking_coarse_solves}, {"skipped", r.ranking_skipped}, {"status", r.ranking_status}}},
+          {"ranking", {{"coarse_solves", r.ranking_coarse_solves}, {"skipped", r.ranking_skipped}, {"status", r.ranking_status}, {"long_starts", r.long_starts}}},
           {"search", homotopy_search_json(r.homotopy_search)}};
 }
 

@@ -153,6 +153,16 @@ struct HomotopySearchOptions {
   /// units long in the target without any twist (every geometric class of
   /// the fertility -> genus-4 plate pair was refused before: issue 14).
   double geometric_start_edge_size = 1e60;
+  /// The other candidates' solves refuse start edges beyond this size
+  /// (default 1e15, about 70 units: HyperbolicHarmonicOptions'
+  /// max_start_edge_size). Issue 13: when that refused every candidate
+  /// (from the origin, an edge starts as long as its deck element: the
+  /// genus-9 and 11 plate <-> wheel pairs' combinatorial classes, 85-300
+  /// units), the refused ones are solved again accepting start edges up to
+  /// geometric_start_edge_size, and so are the pipeline's later solves (the
+  /// class search's, the fallbacks'): a refusal is no answer when nothing
+  /// else is left. SurfaceMapResult::long_starts says when.
+  double start_edge_size = 1e15;
   /// With the geometric classes: as many again (`geometric`) from the two
   /// surfaces' greedy short pants decompositions, pairing their curves by
   /// length with the twists matched (map/greedy_pants.h
@@ -694,6 +704,10 @@ struct SurfaceMapResult {
   int ranking_coarse_solves = 0;
   int ranking_skipped = 0;
   std::string ranking_status;
+  /// Issue 13 (HomotopySearchOptions::start_edge_size): "" unless every
+  /// candidate's solve was refused at the start-edge limit; then how many
+  /// were solved again accepting long start edges, and the longest.
+  std::string long_starts;
   HomotopySearchInfo homotopy_search;
   /// Target lattice (flat case) and the source's image in the plane.
   std::complex<double> target_omega1, target_omega2;

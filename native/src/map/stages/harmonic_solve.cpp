@@ -34,7 +34,8 @@ ChosenSolve solve_chosen_class(int num_vertices, const std::vector<WeightedEdge>
                                const HyperbolicInitialMapResult& init, const DeckGroup& group,
                                const FundamentalPolygon& polygon, const SurfaceMapOptions& options,
                                std::unique_ptr<HyperbolicHarmonicResult> ranked, const SolveProgress& progress,
-                               PatternSolver* solver, const std::function<void(const HarmonicProblem&)>& inspect_problem) {
+                               PatternSolver* solver, const std::function<void(const HarmonicProblem&)>& inspect_problem,
+                               const HyperbolicInitialMapResult* start_map, double max_start_edge_size) {
   ChosenSolve solved;
   // The solve runs on the edges expressed in the initial map's charts
   // (effective elements), its vertex decks are composed back afterwards.
@@ -50,6 +51,18 @@ ChosenSolve solve_chosen_class(int num_vertices, const std::vector<WeightedEdge>
   std::vector<Mobius> start_deck = init.vertex_deck;
   std::vector<Word> start_deck_word = init.vertex_deck_word;
   solved.initial_energy = hyperbolic_energy(start_edges, start, std::vector<Mobius>(start.size()));
+  if (start_map) {
+    // (The same conjugation, by the given start's decks.)
+    start_edges = edges;
+    for (auto& e : start_edges) {
+      e.rho_word = group.reduce(
+          concat({start_map->vertex_deck_word[e.i], e.rho_word, inverse(start_map->vertex_deck_word[e.j])}));
+      e.rho = group.evaluate_side_word(e.rho_word);
+    }
+    start = start_map->z;
+    start_deck = start_map->vertex_deck;
+    start_deck_word = start_map->vertex_deck_word;
+  }
   if (options.solve.start_seed != 0) {
     std::mt19937 rng(options.solve.start_seed);
     std::uniform_real_distribution<double> U(-0.35, 0.35);
@@ -98,6 +111,7 @@ ChosenSolve solve_chosen_class(int num_vertices, const std::vector<WeightedEdge>
     ho.progress = progress;
     ho.relator = group.side_relator();
     ho.reduce_point = [&](Complex& z) { return polygon.reduce(z); };
+    ho.max_start_edge_size = max_start_edge_size;
     hr = solver->solve(num_vertices, start_edges, group.side_pairings(), start, ho);
   }
   if (!reuse) {

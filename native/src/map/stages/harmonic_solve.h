@@ -42,7 +42,12 @@ struct ChosenSolve {
 /// full-resolution solve from the ranking (may be null); its optimum
 /// (convex energy) is kept unless another start (start_seed) or method is
 /// asked for. Calls `inspect_problem` (testing/map_hooks.h) with the
-/// problem as solved.
+/// problem as solved. `start` (may be null; #V z and decks as words): where
+/// the solve starts instead of the initial map (issue 13: the class's
+/// optimum with the other source weights); initial_energy stays the
+/// initial map's. `max_start_edge_size`: the Newton solve's
+/// (HyperbolicHarmonicOptions::max_start_edge_size; the pipeline raises it
+/// when every candidate's start was refused).
 /// Newton solves run on `solver` (the class level's pattern). Throws
 /// SolveError when the solve does not converge, Cancelled.
 ChosenSolve solve_chosen_class(int num_vertices, const std::vector<WeightedEdge>& edges,
@@ -50,6 +55,8 @@ ChosenSolve solve_chosen_class(int num_vertices, const std::vector<WeightedEdge>
                                const FundamentalPolygon& polygon, const SurfaceMapOptions& options,
                                std::unique_ptr<HyperbolicHarmonicResult> ranked, const SolveProgress& progress,
                                PatternSolver* solver,
-                               const std::function<void(const HarmonicProblem&)>& inspect_problem = {});
+                               const std::function<void(const HarmonicProblem&)>& inspect_problem = {},
+                               const HyperbolicInitialMapResult* start = nullptr,
+                               double max_start_edge_size = HyperbolicHarmonicOptions().max_start_edge_size);
 
 }  // namespace surfmap::detail
