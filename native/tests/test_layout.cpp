@@ -377,5 +377,37 @@ TEST(Layout, HyperbolicOnUglyMeshes) {
   }
 }
 
+// LayoutOptions::minimax_centre moves the domain's 1-centre to 0 instead
+// of the Karcher mean: the same layout up to one isometry (every corner
+// pair at the same distance, the same per-face checks and area), never
+// farther out than the Karcher-centred one, and no farther than a little
+// above half the domain's diameter (a lower bound on any centre's radius).
+TEST(Layout, MinimaxCentreIsAnIsometryOfTheKarcherLayout) {
+  const TriMesh mesh = samples::n_hole_torus(3, 24, true);
+  const Pipeline p = run(mesh, Background::Hyperbolic);
+  const Connectivity conn(p.loops.mesh.F);
+  LayoutOptions lo;
+  lo.minimax_centre = true;
+  const DiskLayout m = layout_disk(conn, p.flow.edge_lengths, Background::Hyperbolic, p.loops, lo);
+  const DiskLayout& k = p.layout;
+  EXPECT_EQ(m.num_flipped, 0);
+  EXPECT_EQ(m.num_flipped_local, 0);
+  EXPECT_NEAR(m.area, k.area, 1e-9);
+  EXPECT_NEAR(m.max_vertex_holonomy, k.max_vertex_holonomy, 1e-12);
+  EXPECT_LE(m.layout_radius, k.layout_radius + 1e-9);
+  const int nF = conn.num_faces();
+  double worst = 0, diameter = 0;
+  for (int f = 0; f < nF; f += 7)
+    for (int g = 0; g < nF; g += 11) {
+      const double dm = hyperbolic::distance(m.corners(f, 0), m.corners(g, 1));
+      worst = std::max(worst, std::abs(dm - hyperbolic::distance(k.corners(f, 0), k.corners(g, 1))));
+    }
+  for (int f = 0; f < nF; ++f)
+    for (int g = f + 1; g < nF; ++g) diameter = std::max(diameter, hyperbolic::distance(m.corners(f, 0), m.corners(g, 0)));
+  EXPECT_LT(worst, 1e-8);
+  EXPECT_GE(m.layout_radius, diameter / 2 - 1e-9);
+  EXPECT_LE(m.layout_radius, 1.05 * diameter / 2 + 0.1);
+}
+
 }  // namespace
 }  // namespace surfmap

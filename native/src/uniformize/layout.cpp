@@ -378,15 +378,52 @@ Complex karcher_mean_of_corners(const DiskLayout& out) {
   return c;
 }
 
-/// Re-centres the charts (hyperbolic: on the Karcher mean of the corners;
-/// flat: on their area-weighted centroid) and recomputes the corners.
+/// The isometry T (T(0) = c) whose centre c approximately minimises the
+/// largest distance to a corner (the domain's 1-centre), by Bădoiu–Clarkson
+/// steps: move c towards the farthest corner by 1/(i + 2) of its distance
+/// (the farthest corner's distance converges to the least radius; the
+/// method needs only a geodesically convex distance, which the disk's is).
+/// Every distance and direction is read off the matrix T⁻¹ ∘ chart[f] ∘
+/// T_{−p} (2 asinh|b|, the direction of b/ā), never off the corners'
+/// coordinates, which round to |z| = 1 beyond about 37 from 0 (issue 13:
+/// the long CAD plates, whose Karcher mean sits far from the middle of the
+/// domain).
+Mobius minimax_centre(const std::vector<Mobius>& chart, const std::vector<std::array<Complex, 3>>& canon,
+                      int iterations) {
+  const int nF = static_cast<int>(chart.size());
+  std::vector<Mobius> corner(3 * nF);  // chart[f] ∘ T_{−p}: takes 0 to the corner
+  for (int f = 0; f < nF; ++f)
+    for (int k = 0; k < 3; ++k) corner[3 * f + k] = chart[f] * Mobius::translation_to(canon[f][k]);
+  Mobius T;
+  for (int it = 0; it < iterations; ++it) {
+    const Mobius Ti = T.inverse();
+    double far = -1;
+    Complex towards(0.0);
+    for (const Mobius& c : corner) {
+      const Mobius m = Ti * c;
+      const double d = m.displacement_of_origin();
+      if (d > far) far = d, towards = m.b / std::conj(m.a);
+    }
+    if (far <= 0 || std::abs(towards) == 0.0) break;
+    T = (T * Mobius::translation(far / (it + 2) * towards / std::abs(towards))).normalized();
+  }
+  return T;
+}
+
+/// Re-centres the charts (hyperbolic: on the Karcher mean of the corners,
+/// then when `minimax` on the domain's 1-centre (minimax_centre); flat: on
+/// their area-weighted centroid) and recomputes the corners.
 template <class G>
 void recentre(std::vector<typename G::Chart>& chart, const std::vector<std::array<Complex, 3>>& canon,
-              DiskLayout& out) {
+              DiskLayout& out, bool minimax) {
   const int nF = static_cast<int>(chart.size());
   if constexpr (std::is_same_v<G, Hyper>) {
     const Mobius tc = Mobius::centring(karcher_mean_of_corners(out));
     for (int f = 0; f < nF; ++f) chart[f] = (tc * chart[f]).normalized();
+    if (minimax) {
+      const Mobius ti = minimax_centre(chart, canon, 400).inverse();
+      for (int f = 0; f < nF; ++f) chart[f] = (ti * chart[f]).normalized();
+    }
   } else {
     Complex c(0.0);
     double total = 0;
@@ -953,8 +990,8 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
   std::vector<typename G::Chart> chart = face_charts(glue, adj, root, bfs, products);
   compute_corners(chart, canon, out);
   if (options.recentre) {
-    recentre<G>(chart, canon, out);
-    for (int& p : products) ++p;
+    recentre<G>(chart, canon, out, options.minimax_centre);
+    for (int& p : products) p += options.minimax_centre ? 2 : 1;
   }
   const std::vector<std::array<double, 3>> rounding = corner_roundoffs<G>(chart, canon, products);
   if constexpr (std::is_same_v<G, Hyper>) {
