@@ -1486,7 +1486,6 @@ bool map_class(HyperbolicPipeline& p) {
     FoldRepairOptions fo;
     fo.tolerance = options.solve.tolerance;
     fo.max_iterations = options.solve.max_iterations;
-    if (!options.solve.fold_repair_clusters) fo.cluster_max_rings = 0;
     std::vector<char> held;
     if (!options.landmarks.empty()) {
       held.assign(p.nv, 0);

@@ -294,10 +294,6 @@ struct SolveOptions {
   /// again with own-edge weights only when that does not unfold them.
   /// Default true; false is the global fallback alone.
   bool local_fold_repair = true;
-  /// Within the local repair, the joint untangling of clusters of folded
-  /// faces no single corner can unfold (default true; false skips that
-  /// stage: the projection, then the held re-solves, as before).
-  bool fold_repair_clusters = true;
 };
 
 /// The initial ("before") map (SurfaceMapOptions::initial).

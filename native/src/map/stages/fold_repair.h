@@ -12,15 +12,7 @@
 //     neighbours' polygon (every face of its star positive; Klein model,
 //     where that kernel is an intersection of half-planes), as little as
 //     it must; a few Gauss-Seidel rounds;
-//  2. if folds stay (clusters of slivers: no corner's kernel is open), the
-//     free vertices within 1, 2, 3, 4, 6, 9, 13 rings of the folds left are
-//     moved jointly, each connected region in one flat chart of the target
-//     (Klein model): Levenberg-Marquardt on a hinge penalty asking every
-//     face of the region to be positive, the rim held, from where the points
-//     are and else from Tutte's embedding; then back towards the intrinsic
-//     map as far as no face flattens; kept only when the mean D' stays
-//     within 25% of the unchanged faces';
-//  3. if folds stay: the vertices within 2, 4, 8, 16 rings of the folded
+//  2. if folds stay: the vertices within 2, 4, 8, 16 rings of the folded
 //     faces' corners are solved again with positive own-edge weights
 //     (positive_edge_weights), the others held, until no face folds or the
 //     region stops being local; the region is closed over slivers (its rim
@@ -42,28 +34,6 @@ namespace surfmap::detail {
 struct FoldRepairOptions {
   /// Rounds of the projection over the folded faces (default 8).
   int projection_rounds = 8;
-  /// The joint untangling of fold clusters (second stage): the largest ring
-  /// count of its regions (default 16; 0 skips the stage). Its tries free
-  /// 1, 2, 3, 4, 6, 9, 13 rings around the folds still left.
-  int cluster_max_rings = 16;
-  /// Levenberg-Marquardt iterations per start (default 200).
-  int cluster_iterations = 200;
-  /// The least area asked of a face, as a fraction of its source shape
-  /// (default 0.02: small, so that folds cost far more than thin faces).
-  double cluster_floor = 0.02;
-  /// Weight of keeping the intrinsic map's edges (default 1e-3).
-  double cluster_spring = 1e-3;
-  /// After the untangling each vertex walks back towards the intrinsic map
-  /// for this many Gauss-Seidel rounds (default 30) ...
-  int cluster_relax_rounds = 30;
-  /// ... as far as no face of its star gets flatter (twice the area over the
-  /// longest side squared, in the chart) than this fraction of its source
-  /// shape or than it already is (default 0.5).
-  double cluster_shape_fraction = 0.5;
-  /// The untangled map is kept only when its area-weighted mean D' is at
-  /// most this much above the unchanged faces' (default 0.25): an unfolded
-  /// but crushed cluster of large slivers is worse than the global fallback.
-  double cluster_max_mean_rise = 0.25;
   /// Rings of vertices around the folded faces' corners re-solved in the
   /// first try (default 2); each further try doubles them.
   int first_rings = 2;
