@@ -270,6 +270,7 @@ void HyperbolicPipeline::start_source_side() {
     if (leaving) return;
     try {
       class_bounds_promise.set_value(source_class_bounds(source, sc, loops, generators, genus, options, &leaving));
+      loops = SystemOfLoops{};  // (the copy is not needed by the cuts below)
     } catch (...) {
       class_bounds_promise.set_exception(std::current_exception());
       return;
