@@ -297,7 +297,7 @@ TEST(ClassLowerBound, CadPlateSourceCarriesOntoItsOwnUniformizedCopy) {
   const SystemOfLoops sl = detail::source_loops(m, options);
   const CanonicalSchema cs = canonical_schema(sl.word);
   const Connectivity conn(m.F, m.num_vertices());
-  const detail::SourceClassBounds b = detail::source_class_bounds(m, conn, sl.loops, cs.generators, 4, options);
+  const detail::SourceClassBounds b = detail::source_class_bounds(m, conn, sl, cs.generators, 4, options);
   ASSERT_TRUE(b.ok) << b.why;
   ASSERT_GT(b.uniformized.refinement_splits, 0);  // the case in question: a refined copy
   EXPECT_EQ(b.as_target.size(), 8u) << b.as_target_status;

@@ -288,6 +288,91 @@ TEST(SystemOfLoops, UnrefinedGreedyLoopsCutToADiskAndGiveTheSameWord) {
   }
 }
 
+// Issue 19: refine_system_of_loops reads the greedy basis off an unrefined
+// system instead of computing it again; the refined system must be the one
+// system_of_loops(refine = true) builds at that base vertex, field by field
+// (both constructions, with the shortcut and without), and loops of another
+// mesh or a refined system are refused.
+TEST(SystemOfLoops, RefiningUnrefinedLoopsEqualsRefiningFromScratch) {
+  for (const Case& c : shapes()) {
+    SCOPED_TRACE(c.name + std::string(" genus ") + std::to_string(c.genus));
+    const Connectivity conn(c.mesh.F, c.mesh.num_vertices());
+    for (int base : {-1, 3, (c.mesh.num_vertices() * 7) / 13}) {
+      for (bool shortcut : {true, false}) {
+        SCOPED_TRACE("base " + std::to_string(base) + (shortcut ? " shortcut" : " full"));
+        SystemOfLoopsOptions opt;
+        opt.base_vertex = base;
+        opt.shortcut_branches = shortcut;
+        opt.refine = false;
+        const SystemOfLoops u = system_of_loops(c.mesh, conn, opt);
+        opt.refine = true;
+        const SystemOfLoops fresh = system_of_loops(c.mesh, conn, opt);
+        SystemOfLoopsOptions other = opt;
+        other.base_vertex = -1;  // not read: the base vertex is u's
+        const SystemOfLoops r = refine_system_of_loops(c.mesh, conn, u, other);
+        EXPECT_EQ(r.base_vertex, fresh.base_vertex);
+        EXPECT_EQ(r.mesh.V, fresh.mesh.V);
+        EXPECT_EQ(r.mesh.F, fresh.mesh.F);
+        EXPECT_EQ(r.origin_face, fresh.origin_face);
+        EXPECT_EQ(r.origin_barycentric, fresh.origin_barycentric);
+        EXPECT_EQ(r.face_origin, fresh.face_origin);
+        EXPECT_EQ(r.tree_parent_halfedge, fresh.tree_parent_halfedge);
+        EXPECT_EQ(r.dual_tree_parent_halfedge, fresh.dual_tree_parent_halfedge);
+        EXPECT_EQ(r.generator_edges, fresh.generator_edges);
+        EXPECT_EQ(r.loops, fresh.loops);
+        EXPECT_EQ(r.word, fresh.word);
+        EXPECT_EQ(r.shortcut_used, fresh.shortcut_used);
+        check_refined(c.mesh, r);
+        if (::testing::Test::HasFailure()) return;
+      }
+    }
+  }
+  const TriMesh t = samples::torus_of_revolution(2.0, 0.5, 12, 8);
+  const Connectivity tc(t.F, t.num_vertices());
+  const SystemOfLoops refined = system_of_loops(t, tc);
+  EXPECT_THROW(refine_system_of_loops(t, tc, refined), InputError);
+  SystemOfLoopsOptions opt;
+  opt.refine = false;
+  const TriMesh g2 = samples::n_hole_torus(2, 28, true);
+  EXPECT_THROW(refine_system_of_loops(t, tc, system_of_loops(g2, opt)), InputError);
+}
+
+// Issue 19: one GreedyGraph per mesh, shared by the systems of loops at
+// many base vertices (the pipeline's source cuts), gives the loops each
+// call builds on its own, refined or not; a graph of another mesh is an
+// InputError.
+TEST(SystemOfLoops, SharedGreedyGraphGivesTheSameLoops) {
+  for (const Case& c : shapes()) {
+    SCOPED_TRACE(c.name + std::string(" genus ") + std::to_string(c.genus));
+    const Connectivity conn(c.mesh.F, c.mesh.num_vertices());
+    const GreedyGraph graph(c.mesh, conn);
+    const int nv = c.mesh.num_vertices();
+    for (int base : {-1, 0, nv / 3, nv / 2, nv - 1})
+      for (bool refine : {false, true}) {
+        SCOPED_TRACE("base " + std::to_string(base) + (refine ? " refined" : " unrefined"));
+        SystemOfLoopsOptions opt;
+        opt.base_vertex = base;
+        opt.refine = refine;
+        const SystemOfLoops own = system_of_loops(c.mesh, conn, opt);
+        const SystemOfLoops shared = system_of_loops(c.mesh, conn, opt, &graph);
+        EXPECT_EQ(shared.base_vertex, own.base_vertex);
+        EXPECT_EQ(shared.tree_parent_halfedge, own.tree_parent_halfedge);
+        EXPECT_EQ(shared.dual_tree_parent_halfedge, own.dual_tree_parent_halfedge);
+        EXPECT_EQ(shared.generator_edges, own.generator_edges);
+        EXPECT_EQ(shared.loops, own.loops);
+        EXPECT_EQ(shared.word, own.word);
+        EXPECT_EQ(shared.mesh.V, own.mesh.V);
+        if (::testing::Test::HasFailure()) return;
+      }
+  }
+  const TriMesh t = samples::torus_of_revolution(2.0, 0.5, 12, 8);
+  const TriMesh g2 = samples::n_hole_torus(2, 28, true);
+  const Connectivity tc(t.F, t.num_vertices()), gc(g2.F, g2.num_vertices());
+  const GreedyGraph other(g2, gc);
+  EXPECT_THROW(system_of_loops(t, tc, {}, &other), InputError);
+  EXPECT_THROW(GreedyGraph(tc, std::vector<double>(3, 1.0)), InputError);
+}
+
 TEST(SystemOfLoops, CoarsestToriFromEveryBaseVertex) {
   // 9 to 16 vertices: every face near x carries several arcs, bends and
   // crossings at once.

@@ -62,15 +62,16 @@ void as_target_letters(const TriMesh& source, const std::vector<std::vector<int>
 
 }  // namespace
 
-SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity& sc, const std::vector<std::vector<int>>& loops,
+SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity& sc, const SystemOfLoops& sl,
                                       const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options,
                                       const std::atomic<bool>* stop) {
   const auto t0 = std::chrono::steady_clock::now();
   SourceClassBounds b;
+  const std::vector<std::vector<int>>& loops = sl.loops;
   try {
     SurfaceMapOptions o = options;
     o.loops.target_base_vertex = options.loops.source_base_vertex;
-    b.uniformized = uniformized_target(source, Background::Hyperbolic, o, &sc, stop, "source");
+    b.uniformized = uniformized_target(source, Background::Hyperbolic, o, &sc, stop, "source", &sl);
     const UniformizedTarget& xu = b.uniformized;
     b.schema = canonical_schema(xu.layout.word);
     const CanonicalSchema& xcs = b.schema;

@@ -22,7 +22,7 @@ namespace surfmap::detail {
 /// default system of loops `loops` carried onto that one by the identity
 /// overlay (topology/projected_loops.h), so curves are words in the
 /// default cut's canonical letters (`generators`: CanonicalSchema::generators
-/// of `loops`). `ok` false (with `why`) when any step fails; the pipeline
+/// of the default loops `sl.loops`). `ok` false (with `why`) when any step fails; the pipeline
 /// then reports no curve bounds.
 struct SourceClassBounds {
   bool ok = false;
@@ -43,7 +43,10 @@ struct SourceClassBounds {
   std::string as_target_status;
   double time_s = 0;
 };
-SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity& sc, const std::vector<std::vector<int>>& loops,
+/// `sl`: the pipeline's default (unrefined) source loops, source_loops of
+/// `source`; their greedy basis is refined for the uniformized copy's class
+/// loops rather than computed again (issue 19).
+SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity& sc, const SystemOfLoops& sl,
                                       const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options,
                                       const std::atomic<bool>* stop = nullptr);
 

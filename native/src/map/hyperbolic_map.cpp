@@ -271,12 +271,12 @@ class HyperbolicPipeline {
 void HyperbolicPipeline::start_source_side() {
   if (threads <= 1) return;
   side_thread = std::async(std::launch::async, [this, genus = out.genus] {
-    std::vector<std::vector<int>> loops;
+    SystemOfLoops loops;  // the default source loops (unrefined)
     std::vector<Word> generators;
     try {
-      SourceSide side = build_source_side(source, sc, options, own_weights);
+      SourceSide side = build_source_side(source, sc, options, own_weights, cuts.graph());
       cuts.set_default(side.sl.loops, side.scs.generators);
-      loops = side.sl.loops;
+      loops = side.sl;
       generators = side.scs.generators;
       source_promise.set_value(std::move(side));
     } catch (...) {
@@ -289,6 +289,7 @@ void HyperbolicPipeline::start_source_side() {
     if (leaving) return;
     try {
       class_bounds_promise.set_value(source_class_bounds(source, sc, loops, generators, genus, options, &leaving));
+      loops = SystemOfLoops{};  // (the copy is not needed by the cuts below)
     } catch (...) {
       class_bounds_promise.set_exception(std::current_exception());
       return;
@@ -335,7 +336,7 @@ void HyperbolicPipeline::uniformize_target() {
   if (threads > 1) {
     ss = source_future.get();
   } else {
-    ss = build_source_side(source, sc, options, own_weights);
+    ss = build_source_side(source, sc, options, own_weights, cuts.graph());
     cuts.set_default(ss.sl.loops, ss.scs.generators);
   }
 }
@@ -349,7 +350,7 @@ void HyperbolicPipeline::start_class_bounds() {
     return;
   }
   class_bounds_future = std::async(std::launch::deferred, [this] {
-    return source_class_bounds(source, sc, ss.sl.loops, ss.scs.generators, out.genus, options);
+    return source_class_bounds(source, sc, ss.sl, ss.scs.generators, out.genus, options);
   });
 }
 

@@ -123,9 +123,13 @@ void require_single_chart(const DiskLayout& layout, Background background, const
 /// T' (the canonical relation, unimodular homology): that would be a bug.
 std::shared_ptr<const ClassLoops> class_loops_on_input(const TriMesh& target, const Connectivity& tc,
                                                        const RicciFlowResult& flow, const SystemOfLoops& tprime_loops,
-                                                       const DiskLayout& layout, const SystemOfLoopsOptions& lo) {
+                                                       const DiskLayout& layout, const SystemOfLoopsOptions& lo,
+                                                       const SystemOfLoops* own_loops) {
   auto cl = std::make_shared<ClassLoops>();
-  cl->loops = system_of_loops(target, tc, lo);
+  // The greedy basis once per mesh and base vertex (issue 19): the caller's
+  // unrefined loops of this mesh, refined, are these loops.
+  const bool reuse = own_loops && (lo.base_vertex < 0 || lo.base_vertex == own_loops->base_vertex);
+  cl->loops = reuse ? refine_system_of_loops(target, tc, *own_loops, lo) : system_of_loops(target, tc, lo);
   cl->word = cl->loops.word;
   const auto first = std::find(cl->word.begin(), cl->word.end(), 1);
   if (first == cl->word.end()) throw SolveError("the target's loops have no letter 1 in their word");
@@ -151,7 +155,8 @@ std::shared_ptr<const ClassLoops> class_loops_on_input(const TriMesh& target, co
 /// a UniformizationError).
 UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc, Background background,
                                    const SurfaceMapOptions& options, const SystemOfLoopsOptions& lo,
-                                   const std::atomic<bool>* stop, const std::string& mesh) {
+                                   const std::atomic<bool>* stop, const std::string& mesh,
+                                   const SystemOfLoops* own_loops) {
   UniformizedTarget t;
   RicciFlowOptions fo;
   fo.tolerance = options.uniformization.tolerance;
@@ -191,7 +196,7 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   // path"); when carrying them fails the classes read the loops of T'.
   if (background == Background::Hyperbolic) {
     try {
-      t.class_loops = class_loops_on_input(target, tc, flow, t.loops, t.layout, lo);
+      t.class_loops = class_loops_on_input(target, tc, flow, t.loops, t.layout, lo, own_loops);
       t.class_loops_status = "the target's own loops, carried through " + std::to_string(t.class_loops->flips_on_loops) +
                              " of the flips";
     } catch (const Error& e) {
@@ -260,15 +265,15 @@ UniformizedTarget typed_target(const Path& path) {
 
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
                                      const Connectivity* conn, const std::atomic<bool>* stop,
-                                     const std::string& mesh) {
+                                     const std::string& mesh, const SystemOfLoops* own_loops) {
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.loops.target_base_vertex;
   const UniformizationMetric policy = options.uniformization.target_metric;
   auto flips = [&] {
     return typed_target([&] {
-      if (conn) return intrinsic_target(target, *conn, background, options, lo, stop, mesh);
+      if (conn) return intrinsic_target(target, *conn, background, options, lo, stop, mesh, own_loops);
       return intrinsic_target(target, Connectivity(target.F, target.num_vertices()), background, options, lo, stop,
-                              mesh);
+                              mesh, own_loops);
     });
   };
   auto fixed = [&](const std::string& flip_failure) {
@@ -353,11 +358,12 @@ SystemOfLoops source_loops(const TriMesh& source, const SurfaceMapOptions& optio
   return source_loops(source, Connectivity(source.F, source.num_vertices()), options);
 }
 
-SystemOfLoops source_loops(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options) {
+SystemOfLoops source_loops(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options,
+                           const GreedyGraph* graph) {
   SystemOfLoopsOptions slo;
   slo.base_vertex = options.loops.source_base_vertex;
   slo.refine = false;
-  SystemOfLoops sl = system_of_loops(source, sc, slo);
+  SystemOfLoops sl = system_of_loops(source, sc, slo, graph);
   if (sl.mesh.num_vertices() != source.num_vertices() || sl.mesh.F != source.F)
     throw SolveError("the unrefined system of loops changed the source mesh");
   return sl;

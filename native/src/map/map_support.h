@@ -120,9 +120,14 @@ struct UniformizedTarget {
 /// uniformized for its class bounds) names it in a SingleChartError: a
 /// hyperbolic layout that is valid but reaches too far for the one chart
 /// the map reads ends the run there, without trying the other metric.
+/// `own_loops` (nullptr: none): the unrefined system of loops of `target`
+/// at the base vertex options.loops.target_base_vertex chooses (the
+/// pipeline's source loops when the source is uniformized), whose greedy
+/// basis the flip path's class loops then refine instead of computing it
+/// again (issue 19; the same loops).
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
                                      const Connectivity* conn = nullptr, const std::atomic<bool>* stop = nullptr,
-                                     const std::string& mesh = "target");
+                                     const std::string& mesh = "target", const SystemOfLoops* own_loops = nullptr);
 
 /// The target metric's account (which metric, why, its flips and exact
 /// splits) recorded in the result's target_* fields; one place for every
@@ -132,8 +137,10 @@ void record_target_metric(const UniformizedTarget& target, SurfaceMapResult& out
 /// The source's unrefined system of loops: it keeps the source's own
 /// connectivity, and contracting its tree gives a one-vertex schema.
 SystemOfLoops source_loops(const TriMesh& source, const SurfaceMapOptions& options);
-/// The same with `sc` = Connectivity(source.F).
-SystemOfLoops source_loops(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options);
+/// The same with `sc` = Connectivity(source.F) and the source's greedy
+/// graph when the caller has one (nullptr: built for this call).
+SystemOfLoops source_loops(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options,
+                           const GreedyGraph* graph = nullptr);
 
 /// Genus 1 (flat target): fills `out` (docs/method.md §2.8, exact sparse solve).
 void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,

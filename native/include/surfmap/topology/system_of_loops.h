@@ -77,6 +77,27 @@ struct SystemOfLoops {
   bool shortcut_used = false;
 };
 
+/// The per-mesh part of the greedy basis (issue 19): every vertex's
+/// neighbours in the order of its rotation (Connectivity::rotate_ccw from
+/// vertex_halfedge) with the lengths of the edges to them, and the two faces
+/// of every edge. The pipeline computes systems of loops of the source at
+/// 16 base vertices (its default cut and the class search's cuts); this is
+/// built once and shared by all of them, and the loops are the same as
+/// without it.
+struct GreedyGraph {
+  /// 3D edge lengths of `mesh`; `conn` must be Connectivity(mesh.F).
+  GreedyGraph(const TriMesh& mesh, const Connectivity& conn);
+  /// Given lengths (#E, edge order of conn); InputError on a size mismatch.
+  GreedyGraph(const Connectivity& conn, std::vector<double> lengths);
+  int num_vertices = 0, num_edges = 0;
+  std::vector<double> length;  ///< #E
+  /// Neighbours of v: entries first_out[v] .. first_out[v + 1] - 1 of
+  /// out_head (the neighbour), out_halfedge (v -> it) and out_length.
+  std::vector<int> first_out, out_head, out_halfedge;
+  std::vector<double> out_length;
+  std::vector<int> edge_faces;  ///< #2E: face(edge_halfedge(e)), face(twin)
+};
+
 /// Computes the system of loops of a closed, manifold, oriented mesh of genus
 /// g >= 1 (throws InputError for genus 0: there are no loops to cut, or for a
 /// base vertex out of range).
@@ -95,7 +116,22 @@ struct SystemOfLoops {
 SystemOfLoops system_of_loops(const TriMesh& mesh, const SystemOfLoopsOptions& options = {});
 /// The same with the caller's `conn`, which must be Connectivity(mesh.F)
 /// (built once per mesh per run: issue 19).
-SystemOfLoops system_of_loops(const TriMesh& mesh, const Connectivity& conn, const SystemOfLoopsOptions& options = {});
+/// `graph` (nullptr: built here): GreedyGraph(mesh, conn), shared by calls
+/// on the same mesh; not read when options.edge_weights are given.
+SystemOfLoops system_of_loops(const TriMesh& mesh, const Connectivity& conn, const SystemOfLoopsOptions& options = {},
+                              const GreedyGraph* graph = nullptr);
+
+/// The refined system of loops of `unrefined`, a system_of_loops of this
+/// mesh with refine = false: the same result as system_of_loops(mesh, conn,
+/// options) with refine = true, the same base vertex and the same edge
+/// weights (the greedy basis is read off `unrefined`'s trees and generators
+/// instead of being computed again; issue 19: the map's source loops are
+/// built unrefined, and the source's own uniformization wants them refined).
+/// `conn` must be Connectivity(mesh.F); options.base_vertex and
+/// edge_weights are not read (they made `unrefined`). InputError when
+/// `unrefined` is not an unrefined system of loops of `mesh`.
+SystemOfLoops refine_system_of_loops(const TriMesh& mesh, const Connectivity& conn, const SystemOfLoops& unrefined,
+                                     const SystemOfLoopsOptions& options = {});
 
 /// A central vertex of the metric `edge_weights` (#E, edge order of conn):
 /// the vertex of least eccentricity estimated by farthest-point sampling

@@ -22,6 +22,7 @@ SourceCuts::SourceCuts(const TriMesh& source, const Connectivity& sc, const Surf
     if (options.homotopy.search.enabled && options.homotopy.class_index < 0)
       for (int b : spread_bases(nv, options.homotopy.search.cuts)) bases_.push_back(b);
   }
+  if (!bases_.empty()) graph_ = std::make_unique<const GreedyGraph>(source, sc);
   slots_ = std::vector<Slot>(bases_.size());
 }
 
@@ -37,7 +38,7 @@ CutPrep SourceCuts::build(int base) const {
   o2.loops.source_base_vertex = base;
   SystemOfLoops sl2;
   try {
-    sl2 = source_loops(source_, sc_, o2);
+    sl2 = source_loops(source_, sc_, o2, graph_.get());
   } catch (const Error&) {
     return cp;  // no system of loops at that vertex: the default one is enough
   }

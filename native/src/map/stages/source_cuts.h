@@ -6,11 +6,13 @@
 // handle basis. Source-only (~0.2 s per cut at 50k vertices), so prepared
 // on the second thread while the target is uniformized. Internal.
 #include <atomic>
+#include <memory>
 #include <mutex>
 #include <vector>
 
 #include "surfmap/map/surface_map.h"
 #include "surfmap/topology/handle_basis.h"
+#include "surfmap/topology/system_of_loops.h"
 
 namespace surfmap::detail {
 
@@ -42,6 +44,10 @@ class SourceCuts {
   /// Prepares the cut at `base`: the first planned cut there, else an
   /// unplanned one prepared afresh into `scratch`.
   const CutPrep& prepare(int base, CutPrep& scratch);
+  /// The source's greedy graph (topology/system_of_loops.h), built once
+  /// when cuts are planned (issue 19: shared by every cut's loops and the
+  /// default loops); nullptr otherwise.
+  const GreedyGraph* graph() const { return graph_.get(); }
   /// Raised when no more speculative preparation is wanted (the second
   /// thread stops preparing ahead).
   std::atomic<bool> stop{false};
@@ -57,6 +63,7 @@ class SourceCuts {
   const SurfaceMapOptions& options_;
   int genus_;
   std::vector<int> bases_;
+  std::unique_ptr<const GreedyGraph> graph_;
   std::vector<Slot> slots_;
   std::vector<std::vector<int>> default_loops_;
   std::vector<Word> default_generators_;

@@ -10,11 +10,11 @@
 namespace surfmap::detail {
 
 SourceSide build_source_side(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options,
-                             bool own_weights) {
+                             bool own_weights, const GreedyGraph* graph) {
   CoarseSourceOptions cso;
   cso.target_vertices = std::min(options.homotopy.coarse_vertices, source.num_vertices() / 4);
   SourceSide ss;
-  ss.sl = source_loops(source, sc, options);
+  ss.sl = source_loops(source, sc, options, graph);
   ss.scs = canonical_schema(ss.sl.word);
   // Deck elements are computed as words first and multiplied out only when
   // reduced: products like g g^-1 of large SU(1,1) matrices lose digits, and

@@ -27,7 +27,8 @@ struct SourceSide {
 /// intrinsic Delaunay cotangents (SourceWeights). The coarse copy is built
 /// when options.homotopy.coarse_vertices > 0 and min(that, #V / 4) >= 500.
 /// Throws SolveError when the intrinsic Delaunay flips do not finish.
+/// `graph`: the source's greedy graph when the caller has one (SourceCuts).
 SourceSide build_source_side(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options,
-                             bool own_weights);
+                             bool own_weights, const GreedyGraph* graph = nullptr);
 
 }  // namespace surfmap::detail
