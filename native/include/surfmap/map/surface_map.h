@@ -682,6 +682,14 @@ struct SurfaceMapResult {
   HomotopySearchInfo homotopy_search;
   /// Target lattice (flat case) and the source's image in the plane.
   std::complex<double> target_omega1, target_omega2;
+  /// Genus 1 without landmarks: how the flat map's translation (unique only
+  /// up to the torus's translations) and, among classes of equal energy
+  /// (M and -M, symmetric lattices), the class were chosen: by the 3D
+  /// overlay of the shapes (stages/flat_overlay.h: its pose and mean
+  /// residual) or, when the shapes do not overlap, the source's base vertex
+  /// onto the target's (docs/handle_classes.md "Genus 1: placement by the
+  /// overlay"). Empty otherwise.
+  std::string flat_placement;
   std::vector<std::complex<double>> source_image;  ///< #V_source z_i
   // --- quality signal and two-way run (issue 14; docs/handle_classes.md) ---
   /// Genus >= 2: the chosen class's free energy over the conformal bound
