@@ -511,28 +511,28 @@ constexpr double kFlatEnergyTie = 1e-4;
         std::vector<Complex> zs = zk;
         for (Complex& zi : zs) zi *= sign;  // the class -M: translations and optimum negated
         const FlatOverlayFit f = overlay->fit(zs);
-        // The energy's choice stays unless another tied class overlaps better.
-        const bool better = k == by_energy && sign > 0 ? f.residual < best_fit.residual
-                                                        : f.overlaps && f.residual < best_fit.residual;
+        // The energy's choice stays unless another tied class overlaps
+        // better; an overlay as posed beats one after a rotation.
+        auto rank = [](const FlatOverlayFit& g) { return std::make_pair(g.as_posed ? 0 : g.overlaps ? 1 : 2, g.residual); };
+        const bool better = k == by_energy && sign > 0 ? rank(f) < rank(best_fit) : f.overlaps && rank(f) < rank(best_fit);
         if (better) best_k = k, best_sign = sign, best_fit = f;
       }
     }
+    // The list keeps one sign per class: the class listed becomes -M, the
+    // sign the overlay picks (the same energy; a requested class index then
+    // gives this map again).
+    out.chosen_candidate = best_k;
     if (best_sign < 0) {
-      HomotopyCandidate c = out.candidates[best_k];
+      HomotopyCandidate& c = out.candidates[best_k];
       for (int& x : c.matrix) x = -x;
       const int* m = c.matrix;
       c.description = "a -> " + std::to_string(m[0]) + " a' + " + std::to_string(m[1]) + " b',  b -> " +
-                      std::to_string(m[2]) + " a' + " + std::to_string(m[3]) + " b'  [-M of candidate " +
-                      std::to_string(best_k) + ": the same energy, the sign the 3D overlay picks]";
-      out.candidates.push_back(c);
-      out.chosen_candidate = static_cast<int>(out.candidates.size()) - 1;
-    } else {
-      out.chosen_candidate = best_k;
+                      std::to_string(m[2]) + " a' + " + std::to_string(m[3]) + " b'  [the sign -M: the same energy, the 3D overlay's]";
     }
     if (out.chosen_candidate != by_energy)
       placement_class_note = "; class " + std::to_string(out.chosen_candidate) + " instead of " +
-                             std::to_string(by_energy) + " (energies within " + std::to_string(kFlatEnergyTie) +
-                             ", the overlay's)";
+                             std::to_string(by_energy) + " (their energies tie to 1e-4)";
+    if (best_sign < 0) placement_class_note += "; the class's sign -M";
   }
   in.stage_done("homotopy candidates", 0.6);
 

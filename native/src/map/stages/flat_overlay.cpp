@@ -103,8 +103,14 @@ FlatOverlayFit FlatOverlay::fit(const std::vector<Complex>& z) const {
     for (const Complex& di : d) residual += std::abs(wrapped(di - shift));
     residual /= double(d.size()) * std::sqrt(std::abs(det));
     if (residual < best.residual) best.residual = residual, best.shift = shift, best.pose = pose.description;
+    // As posed first: a rotation is tried only when the shapes do not
+    // overlap as posed. (A symmetric shape overlaps itself after some
+    // rotations too, a torus of revolution after a half turn about a
+    // horizontal axis, within the same noise: the map would be the symmetry.)
+    if (&pose == &poses_.front() && residual <= options_.max_residual) break;
   }
   best.overlaps = best.residual <= options_.max_residual;
+  best.as_posed = best.overlaps && best.pose == poses_.front().description;
   return best;
 }
 

@@ -40,6 +40,8 @@ struct FlatOverlayFit {
   double residual = 0;
   /// "as posed" or the pose's description (rotation_overlay_poses).
   std::string pose;
+  /// The shapes overlap as posed (then no rotation was tried).
+  bool as_posed = false;
 };
 
 /// The 3D overlay of a pair, for fitting the flat images of several classes:
@@ -51,7 +53,9 @@ class FlatOverlay {
   /// target entries are used), on the torus of lattice (w1, w2).
   FlatOverlay(const TriMesh& source, const TriMesh& target, const std::vector<std::complex<double>>& target_flat,
               std::complex<double> w1, std::complex<double> w2, const FlatOverlayOptions& options = {});
-  /// The best pose's translation of the flat images `z` (#V source).
+  /// The translation of the flat images `z` (#V source) by the overlay as
+  /// posed when it fits within FlatOverlayOptions::max_residual, else by the
+  /// best-fitting rotation.
   FlatOverlayFit fit(const std::vector<std::complex<double>>& z) const;
 
  private:
