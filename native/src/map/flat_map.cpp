@@ -492,7 +492,7 @@ constexpr double kFlatEnergyTie = 1e-4;
   // choice between M and -M (the half turn z -> -z) or between classes
   // whose energies tie (a symmetric lattice): the 3D overlay decides
   // (stages/flat_overlay.h), so that a remeshed or posed copy maps to itself.
-  const bool place_by_overlay = !landmarks;
+  const bool place_by_overlay = !landmarks && options.homotopy.flat_overlay;
   std::unique_ptr<FlatOverlay> overlay;
   if (place_by_overlay)
     overlay = std::make_unique<FlatOverlay>(in.source, in.target, tgt.layout.vertex_positions, tgt.A, tgt.B);
@@ -562,17 +562,20 @@ constexpr double kFlatEnergyTie = 1e-4;
     // else, when the shapes do not overlap, the source's base vertex onto
     // the target's base vertex (both are central vertices of their shapes),
     // a reproducible choice.
-    const FlatOverlayFit fit = overlay->fit(rounded(zl));
+    FlatOverlayFit fit;  // (overlaps false: the base vertex rule)
+    if (overlay) fit = overlay->fit(rounded(zl));
     const Complex shift = fit.overlaps ? fit.shift : tgt.layout.vertex_positions[tgt.loops.base_vertex] - rounded(zl)[in.sl.base_vertex];
     for (ComplexL& zi : zl) zi += ComplexL(shift);
     z = rounded(zl);
     char residual[32];
     std::snprintf(residual, sizeof residual, "%.3g", fit.residual);
-    out.flat_placement = fit.overlaps ? "3D overlay (" + fit.pose + "): mean residual " + residual + " of the torus's scale" + placement_class_note
-                                      : "base vertex onto the target's base vertex (the shapes do not overlap: best overlay residual " +
-                                            std::string(residual) + ")" + placement_class_note;
+    out.flat_placement = !overlay      ? "base vertex onto the target's base vertex (homotopy.flat_overlay off)"
+                         : fit.overlaps ? "3D overlay (" + fit.pose + "): mean residual " + residual + " of the torus's scale" + placement_class_note
+                                        : "base vertex onto the target's base vertex (the shapes do not overlap: best overlay residual " +
+                                              std::string(residual) + ")" + placement_class_note;
     // The initial map likewise (it is located below for the "before" morph).
-    const FlatOverlayFit fit0 = overlay->fit(z_init);
+    FlatOverlayFit fit0;
+    if (overlay) fit0 = overlay->fit(z_init);
     const Complex shift0 = fit0.overlaps ? fit0.shift : tgt.layout.vertex_positions[tgt.loops.base_vertex] - z_init[in.sl.base_vertex];
     for (Complex& zi : z_init) zi += shift0;
   }

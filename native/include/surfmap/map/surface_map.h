@@ -182,6 +182,15 @@ struct HomotopyOptions {
   /// turn about it; round-off picks the sign). The candidates' indices
   /// (class_index) then count both signs.
   bool flat_both_signs = true;
+  /// Genus 1 without landmarks: choose the flat map's translation, and among
+  /// classes of tied energy the class and its sign, by the 3D overlay of the
+  /// shapes (default true; stages/flat_overlay.h, docs/handle_classes.md
+  /// "Genus 1: placement by the overlay"), so that a copy maps onto itself.
+  /// false: the source's base vertex onto the target's, the lowest energy's
+  /// class and the canonical sign, as before; a placement that does not
+  /// depend on how the shapes are posed (surfmap.compare maps every shape
+  /// onto one domain so).
+  bool flat_overlay = true;
   /// Genus >= 2: how many handle correspondences (signed handle
   /// permutations, topology/handle_basis.h, ranked by how well the handle
   /// positions match) are considered (default 8: all of them for genus 2).
