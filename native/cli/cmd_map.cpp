@@ -68,6 +68,7 @@ void register_map(CLI::App& app) {
     bool no_local_fold_repair = false;
     bool no_greedy_pants = false;  // HomotopySearchOptions::greedy_pants
     bool homotopy_both_signs = true;     // HomotopyOptions::flat_both_signs
+    bool no_flat_overlay = false;        // HomotopyOptions::flat_overlay off
     bool boundary_swap = false;          // open surfaces (map_open.h)
     std::vector<int> boundary_pairing;  // open surfaces (map_open.h)
   };
@@ -122,6 +123,9 @@ void register_map(CLI::App& app) {
   cmd->add_flag("--homotopy-both-signs,!--no-homotopy-both-signs", a->homotopy_both_signs,
                 "Genus 1 with landmarks: rank each flat class with both signs, M and -M (default on; "
                 "--no-homotopy-both-signs: the canonical signs only; docs/handle_classes.md)");
+  cmd->add_flag("--no-flat-overlay", a->no_flat_overlay,
+                "Genus 1 without landmarks: place the map by the base vertices, not by the 3D overlay of the shapes "
+                "(report: flat_placement; docs/handle_classes.md)");
   cmd->add_flag("--no-two-way", a->no_two_way,
                 "Genus >= 2: do not map the other way when the energy is far above the conformal bound (report: quality)");
   cmd->add_flag("--no-cheap-direction-check", a->no_cheap_direction_check,
@@ -207,6 +211,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.two_way = !a->no_two_way;
     opt.homotopy.search.greedy_pants = !a->no_greedy_pants;
     opt.homotopy.flat_both_signs = a->homotopy_both_signs;
+    opt.homotopy.flat_overlay = !a->no_flat_overlay;
     opt.homotopy.compare_directions = a->compare_directions;
     opt.homotopy.cheap_direction_check = !a->no_cheap_direction_check;
     opt.threads = a->threads;

@@ -206,7 +206,7 @@ void bind_map(py::module_& m) {
       "homotopy", "landmarks", "method", "tolerance", "max_iterations", "solve_progress", "homotopy_candidates",
       "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
       "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric", "homotopy_images",
-      "homotopy_both_signs"));
+      "homotopy_both_signs", "flat_overlay"));
   // What the module does beyond its keywords, for callers built against older modules (the
   // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
   m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
@@ -217,7 +217,7 @@ void bind_map(py::module_& m) {
          double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
          int homotopy_full_solves, const std::string& initial_map, const std::string& source_weights,
          bool homotopy_search, int homotopy_search_evaluations, py::object boundary_pairing, bool two_way, int threads, const std::string& target_metric,
-         py::object homotopy_images, bool homotopy_both_signs) {
+         py::object homotopy_images, bool homotopy_both_signs, bool flat_overlay) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         // Open surfaces (issue 16): either side with a boundary.
@@ -246,6 +246,7 @@ void bind_map(py::module_& m) {
         opt.homotopy.search.evaluations = homotopy_search_evaluations;
         opt.homotopy.two_way = two_way;  // (options.homotopy.two_way)
         opt.homotopy.flat_both_signs = homotopy_both_signs;
+        opt.homotopy.flat_overlay = flat_overlay;  // (options.homotopy.flat_overlay)
         if (!homotopy_images.is_none()) {
           // (options.homotopy.source_images with images_only: that class alone)
           const RowMatrixX3d images = to_vertices(homotopy_images, "homotopy_images");
@@ -312,7 +313,7 @@ void bind_map(py::module_& m) {
       py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = enum_name(SourceWeights::Automatic),
       py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
       py::arg("boundary_pairing") = py::none(), py::arg("two_way") = true, py::arg("threads") = 0, py::arg("target_metric") = enum_name(UniformizationMetric::Automatic),
-      py::arg("homotopy_images") = py::none(), py::arg("homotopy_both_signs") = true,
+      py::arg("homotopy_images") = py::none(), py::arg("homotopy_both_signs") = true, py::arg("flat_overlay") = true,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
       "boundary loops (else InputError naming both); disks (0, 1) and annuli (0, 2) are mapped boundary onto boundary "

@@ -304,5 +304,27 @@ TEST(ProjectedLoops, ClusteredRawVerticesAreNotAJump) {
   EXPECT_EQ(std::llabs(std::llround(H.cast<double>().determinant())), 1);
 }
 
+// A jittered raw genus-4 plate (9.7 x 2.8 x 0.9) onto a coarser clean copy:
+// in the per-axis unit box (the thickness stretched to the length) a loop
+// vertex on a hole's inner wall has its nearest target vertex on the plate's
+// end wall, 0.76 away, and the overlay as posed is refused; with the boxes in
+// proportion (uniform_box) every gap passes and the images give an
+// isomorphism (the identity class: SurfaceMap.JitteredGenus4PlateMapsNearTheIdentityBothWays).
+TEST(ProjectedLoops, FlatPlateOverlaysWithTheBoxesInProportion) {
+  const TriMesh src = samples::jitter(samples::n_hole_torus(4, 40, false), 0.29, 3);
+  const TriMesh dst = samples::n_hole_torus(4, 32, false);
+  const SystemOfLoops s = system_of_loops(src, {-1, false});
+  const SystemOfLoops t = system_of_loops(dst);
+  const ProjectedLoopsResult per_axis = project_loops(src, s.loops, t, t.word);
+  EXPECT_FALSE(per_axis.ok);
+  ProjectedLoopsOptions o;
+  o.uniform_box = true;
+  const ProjectedLoopsResult p = project_loops(src, s.loops, t, t.word, o);
+  ASSERT_TRUE(p.ok) << p.message;
+  EXPECT_EQ(p.joined_jumps, 0);
+  EXPECT_TRUE(dehn_reduce(substitute(s.word, p.loop_images), t.word).empty());
+  const IntMatrix H = homology_matrix(p.loop_images, 8);
+  EXPECT_EQ(std::llabs(std::llround(H.cast<double>().determinant())), 1);
+}
 }  // namespace
 }  // namespace surfmap

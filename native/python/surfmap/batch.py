@@ -309,6 +309,8 @@ def main(argv=None):
         if a.workers < 1:
             raise _core.InputError("--workers must be at least 1")
         opts = parse_map_options(a.map_option)
+        if a.mode == "domain":  # as surfmap.compare's domain maps: genus 1 placed independent of pose
+            opts = {"flat_overlay": False, **(opts or {})}
         results = run_jobs(jobs, a.out, opts, scheduler=a.scheduler, workers=a.workers,
                            threads_per_worker=a.threads_per_worker, quiet=a.quiet)
         rows = write_summary(a.out, jobs, results)

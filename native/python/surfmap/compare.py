@@ -130,6 +130,9 @@ def domain_fields(shape, domain, map_options=None, progress=None):
     {"lambda": (nd,), "H": (nd,), "report": map_report}."""
     Vs, Fs = load_shape(shape)
     Vd, Fd = load_shape(domain)
+    # Genus 1: every shape placed on the domain by the base vertices, not by the 3D overlay,
+    # whose placement depends on each shape's pose (docs/handle_classes.md).
+    map_options = {"flat_overlay": False, **(map_options or {})}
     m = map_normalised(Vs, Fs, Vd, Fd, map_options, progress=progress)
     face, bary, pos = inverse_points(m)
     lam, H = pulled_back_fields(Vs, Fs, Vd, Fd, face, bary, pos)

@@ -14,7 +14,7 @@ from . import _core
 MAP_OPTION_NAMES = (
     "homotopy", "method", "tolerance", "max_iterations", "homotopy_candidates",
     "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search",
-    "homotopy_search_evaluations", "two_way",
+    "homotopy_search_evaluations", "two_way", "flat_overlay",
 )
 
 

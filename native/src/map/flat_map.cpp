@@ -3,6 +3,7 @@
 #include <utility>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -18,6 +19,7 @@
 #include "map_support.h"
 #include "stages/flat_landmarks.h"
 #include "stages/flat_location.h"
+#include "stages/flat_overlay.h"
 #include "stages/landmark_ranking.h"
 #include "stages/source_weights_fallback.h"
 #include "surfmap/error.h"
@@ -197,6 +199,12 @@ Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor> flat_image_shapes(con
   }
   return img;
 }
+
+// Classes whose free energies agree to this relative tolerance are the same
+// optimum up to a symmetry of the shapes (M and -M exactly; a square or
+// hexagonal lattice's rotations up to discretisation): the 3D overlay
+// chooses among them (stages/flat_overlay.h).
+constexpr double kFlatEnergyTie = 1e-4;
 
 // Candidate classes: a -> p A + q B, b -> r A + s B for small SL(2,Z)
 // matrices (the handle correspondences of a torus), simplest first. Without
@@ -441,7 +449,13 @@ bool flat_pass(const FlatInputs& in, bool own_weights, bool first_pass, SurfaceM
     return hold_flat_landmarks(lm_problem, t, te);
   };
 
-  // Candidate classes: a -> p A + q B, b -> r A + s B for small SL(2,Z)
+  // Classes whose free energies agree to this relative tolerance are the same
+// optimum up to a symmetry of the shapes (M and -M exactly; a square or
+// hexagonal lattice's rotations up to discretisation): the 3D overlay
+// chooses among them (stages/flat_overlay.h).
+constexpr double kFlatEnergyTie = 1e-4;
+
+// Candidate classes: a -> p A + q B, b -> r A + s B for small SL(2,Z)
   // matrices (the handle correspondences of a torus), up to the sign ±I,
   // which gives the same energy (the hyperelliptic involution); both signs
   // with landmarks (unless HomotopyOptions::flat_both_signs is off).
@@ -474,6 +488,52 @@ bool flat_pass(const FlatInputs& in, bool own_weights, bool first_pass, SurfaceM
       const auto tr = translations_of(out.candidates[k].matrix);
       return hold_landmarks(tr.first, tr.second);
     }, &chosen_hold);
+  // Without landmarks nothing in the energy fixes the translation, nor the
+  // choice between M and -M (the half turn z -> -z) or between classes
+  // whose energies tie (a symmetric lattice): the 3D overlay decides
+  // (stages/flat_overlay.h), so that a remeshed or posed copy maps to itself.
+  const bool place_by_overlay = !landmarks && options.homotopy.flat_overlay;
+  std::unique_ptr<FlatOverlay> overlay;
+  if (place_by_overlay)
+    overlay = std::make_unique<FlatOverlay>(in.source, in.target, tgt.layout.vertex_positions, tgt.A, tgt.B);
+  std::string placement_class_note;
+  if (place_by_overlay && first_pass && options.homotopy.class_index < 0) {
+    const int by_energy = out.chosen_candidate;
+    const double lowest = out.candidates[by_energy].energy;
+    int best_k = by_energy;
+    double best_sign = 1;
+    FlatOverlayFit best_fit;
+    best_fit.residual = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < static_cast<int>(out.candidates.size()); ++k) {
+      if (!(out.candidates[k].energy <= lowest * (1 + kFlatEnergyTie))) continue;
+      const std::vector<Complex> zk = solver.solve(translations_of(out.candidates[k].matrix).first).first;
+      for (const double sign : {1.0, -1.0}) {
+        std::vector<Complex> zs = zk;
+        for (Complex& zi : zs) zi *= sign;  // the class -M: translations and optimum negated
+        const FlatOverlayFit f = overlay->fit(zs);
+        // The energy's choice stays unless another tied class overlaps
+        // better; an overlay as posed beats one after a rotation.
+        auto rank = [](const FlatOverlayFit& g) { return std::make_pair(g.as_posed ? 0 : g.overlaps ? 1 : 2, g.residual); };
+        const bool better = k == by_energy && sign > 0 ? rank(f) < rank(best_fit) : f.overlaps && rank(f) < rank(best_fit);
+        if (better) best_k = k, best_sign = sign, best_fit = f;
+      }
+    }
+    // The list keeps one sign per class: the class listed becomes -M, the
+    // sign the overlay picks (the same energy; a requested class index then
+    // gives this map again).
+    out.chosen_candidate = best_k;
+    if (best_sign < 0) {
+      HomotopyCandidate& c = out.candidates[best_k];
+      for (int& x : c.matrix) x = -x;
+      const int* m = c.matrix;
+      c.description = "a -> " + std::to_string(m[0]) + " a' + " + std::to_string(m[1]) + " b',  b -> " +
+                      std::to_string(m[2]) + " a' + " + std::to_string(m[3]) + " b'  [the sign -M: the same energy, the 3D overlay's]";
+    }
+    if (out.chosen_candidate != by_energy)
+      placement_class_note = "; class " + std::to_string(out.chosen_candidate) + " instead of " +
+                             std::to_string(by_energy) + " (their energies tie to 1e-4)";
+    if (best_sign < 0) placement_class_note += "; the class's sign -M";
+  }
   in.stage_done("homotopy candidates", 0.6);
 
   const int* M = out.candidates[out.chosen_candidate].matrix;
@@ -497,14 +557,26 @@ bool flat_pass(const FlatInputs& in, bool own_weights, bool first_pass, SurfaceM
     z_init = tutte.solve(t_intrinsic).first;
     zl = solver.solve_extended(t_intrinsic);
     energy = solver.energy_of(zl, t_intrinsic);
-    // The optimum is unique up to a translation of the torus; put the source's
-    // base vertex where the target's base vertex lies (both are central
-    // vertices of their shapes), a reproducible and usually natural choice.
-    const Complex shift = tgt.layout.vertex_positions[tgt.loops.base_vertex] - rounded(zl)[in.sl.base_vertex];
+    // The optimum is unique up to a translation of the torus: the one that
+    // carries it onto the 3D overlay of the shapes (a copy onto itself),
+    // else, when the shapes do not overlap, the source's base vertex onto
+    // the target's base vertex (both are central vertices of their shapes),
+    // a reproducible choice.
+    FlatOverlayFit fit;  // (overlaps false: the base vertex rule)
+    if (overlay) fit = overlay->fit(rounded(zl));
+    const Complex shift = fit.overlaps ? fit.shift : tgt.layout.vertex_positions[tgt.loops.base_vertex] - rounded(zl)[in.sl.base_vertex];
     for (ComplexL& zi : zl) zi += ComplexL(shift);
     z = rounded(zl);
+    char residual[32];
+    std::snprintf(residual, sizeof residual, "%.3g", fit.residual);
+    out.flat_placement = !overlay      ? "base vertex onto the target's base vertex (homotopy.flat_overlay off)"
+                         : fit.overlaps ? "3D overlay (" + fit.pose + "): mean residual " + residual + " of the torus's scale" + placement_class_note
+                                        : "base vertex onto the target's base vertex (the shapes do not overlap: best overlay residual " +
+                                              std::string(residual) + ")" + placement_class_note;
     // The initial map likewise (it is located below for the "before" morph).
-    const Complex shift0 = tgt.layout.vertex_positions[tgt.loops.base_vertex] - z_init[in.sl.base_vertex];
+    FlatOverlayFit fit0;
+    if (overlay) fit0 = overlay->fit(z_init);
+    const Complex shift0 = fit0.overlaps ? fit0.shift : tgt.layout.vertex_positions[tgt.loops.base_vertex] - z_init[in.sl.base_vertex];
     for (Complex& zi : z_init) zi += shift0;
   }
   return record_flat_map(in, idt, t_intrinsic, t_edges, z, z_init, landmarks ? nullptr : &zl, energy, own_weights,

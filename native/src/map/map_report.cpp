@@ -218,6 +218,7 @@ json to_json(const SurfaceMapResult& r, const SurfaceMapOptions& options) {
                  {"time_s", stage_times_json(r)},
                  {"stages", stages_json(r)},
                  {"peak_memory_per_stage", r.peak_memory_per_stage}};
+  if (!r.flat_placement.empty()) report["flat_placement"] = r.flat_placement;
   report.update(energy_json(r));
   report.update(landmark_json(r, options));
   return report;

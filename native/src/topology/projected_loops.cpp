@@ -17,16 +17,18 @@
 namespace surfmap {
 namespace {
 
-// Linear map T, then per-axis bounding-box normalisation to [-1/2, 1/2]^3.
+// Linear map T, then per-axis bounding-box normalisation to [-1/2, 1/2]^3,
+// or (`uniform`) the box centred and divided by its longest side, keeping the
+// shape's proportions (ProjectedLoopsOptions::uniform_box).
 struct BoxFrame {
   Eigen::Matrix3d T;
   Eigen::Vector3d centre, scale;
-  BoxFrame(const RowMatrixX3d& V, const Eigen::Matrix3d& transform) : T(transform) {
+  BoxFrame(const RowMatrixX3d& V, const Eigen::Matrix3d& transform, bool uniform = false) : T(transform) {
     const RowMatrixX3d W = V * T.transpose();
     const Eigen::Vector3d lo = W.colwise().minCoeff(), hi = W.colwise().maxCoeff();
     centre = 0.5 * (lo + hi);
     const double longest = (hi - lo).maxCoeff();
-    for (int d = 0; d < 3; ++d) scale[d] = 1.0 / std::max(hi[d] - lo[d], 1e-3 * longest);
+    for (int d = 0; d < 3; ++d) scale[d] = 1.0 / std::max(uniform ? longest : hi[d] - lo[d], 1e-3 * longest);
   }
   Eigen::Vector3d operator()(const Eigen::Vector3d& p) const { return (T * p - centre).cwiseProduct(scale); }
 };
@@ -62,11 +64,12 @@ std::vector<Word> target_edge_words(const SystemOfLoops& target, const Connectiv
 // target, which made this overlay grow like V^2 (issue 19, docs/benchmarks.md).
 struct TargetFrame {
   Eigen::Matrix3d transform;
+  bool uniform = false;
   std::vector<Eigen::Vector3d> tp;
   double t_edge = 0;
   std::unique_ptr<NearestPointIndex> nearest_vertex;
-  TargetFrame(const TriMesh& tm, const Eigen::Matrix3d& transform) : transform(transform) {
-    const BoxFrame tf(tm.V, transform);
+  TargetFrame(const TriMesh& tm, const Eigen::Matrix3d& transform, bool uniform) : transform(transform), uniform(uniform) {
+    const BoxFrame tf(tm.V, transform, uniform);
     t_edge = mean_edge_length(tm, tf);
     tp.resize(tm.num_vertices());
     for (int v = 0; v < tm.num_vertices(); ++v) tp[v] = tf(tm.V.row(v).transpose());
@@ -94,7 +97,8 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
   // mean edge lengths are equal.
   std::optional<BoxFrame> sf;
   if (frame)
-    sf.emplace(options.source_on_target ? BoxFrame(tm.V, frame->transform) : BoxFrame(source.V, options.source_transform));
+    sf.emplace(options.source_on_target ? BoxFrame(tm.V, frame->transform, frame->uniform)
+                                        : BoxFrame(source.V, options.source_transform, options.uniform_box));
   const double s_edge = frame ? mean_edge_length(source, *sf) : 1.0, t_edge = frame ? frame->t_edge : 1.0;
   const int max_gap = static_cast<int>(std::ceil(options.max_gap_factor * std::max(1.0, s_edge / t_edge)));
 
@@ -294,8 +298,8 @@ ProjectedLoopsResult LoopProjector::project(const TriMesh& source, const std::ve
   if (options.own_mesh && !options.join_by_length && !(options.max_jump_box > 0) && !options.source_on_target &&
       source.F.rows() == m.target.mesh.F.rows() && source.V == m.target.mesh.V)
     return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, nullptr, options);
-  if (!m.frame || m.frame->transform != options.target_transform)
-    m.frame = std::make_unique<TargetFrame>(m.target.mesh, options.target_transform);
+  if (!m.frame || m.frame->transform != options.target_transform || m.frame->uniform != options.uniform_box)
+    m.frame = std::make_unique<TargetFrame>(m.target.mesh, options.target_transform, options.uniform_box);
   return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, m.frame.get(), options);
 }
 
@@ -308,6 +312,7 @@ std::vector<ProjectedLoopsResult> LoopProjector::project(const TriMesh& source,
     ProjectedLoopsOptions o = options;
     o.source_transform = pose.source_transform;
     o.target_transform = pose.target_transform;
+    o.uniform_box = pose.uniform_box;
     out.push_back(project(source, source_loops, o));
   }
   return out;

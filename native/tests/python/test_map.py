@@ -741,3 +741,32 @@ def test_python_result_and_cli_report_carry_the_same_keys_and_values(tmp_path, c
     assert bad.returncode != 0 and "cut_graph" in bad.stderr + bad.stdout
     with pytest.raises(surfmap.InputError, match="'cut_graph', 'polygon' or 'uniform', not 'cut-graph'"):
         surfmap.surface_map(*a, *b, initial_map="cut-graph")
+
+
+def test_flat_map_of_a_turned_remeshed_torus_is_placed_by_the_overlay(tmp_path, cli):
+    # Genus 1 (docs/handle_classes.md "Genus 1: placement by the overlay"): a torus of
+    # revolution onto a remeshing of itself turned 0.7 rad about its axis (the same surface).
+    # The flat map is unique only up to the torus's translations; the 3D overlay places it so
+    # that every vertex lands next to itself (before: by the base vertices, half the diagonal
+    # off). flat_overlay=False (CLI --no-flat-overlay) keeps the base vertex rule.
+    Vs, Fs = torus(1.2, 0.4, 60, 24)
+    Vt, Ft = torus(1.2, 0.4, 50, 28, 1)
+    c, s = math.cos(0.7), math.sin(0.7)
+    Vt = Vt @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).T
+    diagonal = np.linalg.norm(Vs.max(0) - Vs.min(0))
+    r = surfmap.surface_map(Vs, Fs, Vt, Ft)
+    assert r["converged"] and r["flipped_triangles"] == 0
+    assert r["flat_placement"].startswith("3D overlay (as posed)")
+    d = np.linalg.norm(np.asarray(r["forward"]["position"]) - Vs, axis=1) / diagonal
+    assert d.mean() < 0.005 and d.max() < 0.02
+    off = surfmap.surface_map(Vs, Fs, Vt, Ft, flat_overlay=False)
+    assert off["flat_placement"].startswith("base vertex")
+    assert off["energy"]["final"] == pytest.approx(r["energy"]["final"], rel=1e-9)
+    # The CLI: the same placement and the flag.
+    surfmap.write_obj(str(tmp_path / "s.obj"), Vs, Fs)
+    surfmap.write_obj(str(tmp_path / "t.obj"), Vt, Ft)
+    for flag, start in (([], "3D overlay (as posed)"), (["--no-flat-overlay"], "base vertex")):
+        p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--report",
+                tmp_path / "r.json", "--quiet", *flag)
+        assert p.returncode == 0, p.stderr
+        assert json.loads((tmp_path / "r.json").read_text())["flat_placement"].startswith(start)

@@ -192,6 +192,15 @@ struct HomotopyOptions {
   /// turn about it; round-off picks the sign). The candidates' indices
   /// (class_index) then count both signs.
   bool flat_both_signs = true;
+  /// Genus 1 without landmarks: choose the flat map's translation, and among
+  /// classes of tied energy the class and its sign, by the 3D overlay of the
+  /// shapes (default true; stages/flat_overlay.h, docs/handle_classes.md
+  /// "Genus 1: placement by the overlay"), so that a copy maps onto itself.
+  /// false: the source's base vertex onto the target's, the lowest energy's
+  /// class and the canonical sign, as before; a placement that does not
+  /// depend on how the shapes are posed (surfmap.compare maps every shape
+  /// onto one domain so).
+  bool flat_overlay = true;
   /// Genus >= 2: how many handle correspondences (signed handle
   /// permutations, topology/handle_basis.h, ranked by how well the handle
   /// positions match) are considered (default 8: all of them for genus 2).
@@ -711,6 +720,14 @@ struct SurfaceMapResult {
   HomotopySearchInfo homotopy_search;
   /// Target lattice (flat case) and the source's image in the plane.
   std::complex<double> target_omega1, target_omega2;
+  /// Genus 1 without landmarks: how the flat map's translation (unique only
+  /// up to the torus's translations) and, among classes of equal energy
+  /// (M and -M, symmetric lattices), the class were chosen: by the 3D
+  /// overlay of the shapes (stages/flat_overlay.h: its pose and mean
+  /// residual) or, when the shapes do not overlap, the source's base vertex
+  /// onto the target's (docs/handle_classes.md "Genus 1: placement by the
+  /// overlay"). Empty otherwise.
+  std::string flat_placement;
   std::vector<std::complex<double>> source_image;  ///< #V_source z_i
   // --- quality signal and two-way run (issue 14; docs/handle_classes.md) ---
   /// Genus >= 2: the chosen class's free energy over the conformal bound

@@ -48,6 +48,15 @@ struct ProjectedLoopsOptions {
   /// principal axes.
   Eigen::Matrix3d source_transform = Eigen::Matrix3d::Identity();
   Eigen::Matrix3d target_transform = Eigen::Matrix3d::Identity();
+  /// Normalise both boxes by their longest side instead of per axis (default
+  /// false), keeping each shape's proportions. The per-axis box stretches a
+  /// flat shape's thickness to its length: on a genus-4 plate (9.7 x 2.8 x
+  /// 0.9) a hole's inner wall and the plate's end wall, 0.76 apart, became
+  /// one target edge apart, while the coarse target's vertices were a third
+  /// of the box apart across the thickness, so a jittered loop vertex's
+  /// nearest target vertex crossed the wall and the overlay as posed was
+  /// refused (docs/handle_classes.md "Overlay in proportion").
+  bool uniform_box = false;
   /// The source's vertices are already points of the target (a map's
   /// images): they are put in the target's box frame instead of their own,
   /// so a vertex placed exactly on a target vertex lands on it (default
@@ -104,6 +113,7 @@ ProjectedLoopsResult project_loops(const TriMesh& source, const std::vector<std:
 struct OverlayPose {
   Eigen::Matrix3d source_transform, target_transform;
   std::string description;  ///< e.g. "principal axes, rotation 5 of 24"
+  bool uniform_box = false;  ///< ProjectedLoopsOptions::uniform_box for this pose
 };
 
 /// project_loops for several poses (options.source_transform and

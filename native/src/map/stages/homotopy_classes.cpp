@@ -225,7 +225,13 @@ OverlayClasses overlay_classes(const ClassSpace& space, const TriMesh& source, c
                                const TriMesh& target, const LoopProjector& projector) {
   const int n = space.num_letters();
   OverlayClasses out;
-  std::vector<OverlayPose> poses{{Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity(), "as posed"}};
+  // As posed twice: in the per-axis unit box, then with the boxes in
+  // proportion (ProjectedLoopsOptions::uniform_box: a jittered copy of a
+  // flat genus-4 plate was refused in the per-axis box and mapped by the
+  // overlay of a rotation, its symmetry, 48% of the diagonal from itself).
+  std::vector<OverlayPose> poses{{Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity(), "as posed"},
+                                 {Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity(), "as posed, boxes in proportion", true}};
+  const size_t as_posed_poses = poses.size();
   for (OverlayPose& p : rotation_overlay_poses(source, target)) poses.push_back(std::move(p));
   // (Jumps are joined in the same pass, for the fallback below.)
   ProjectedLoopsOptions plo;
@@ -241,10 +247,11 @@ OverlayClasses overlay_classes(const ClassSpace& space, const TriMesh& source, c
       if (!(joined ? proj.ok_with_joins && !proj.ok : proj.ok)) continue;
       const GroupMap theta = space.through_loop_images(space.source_generators(), proj.loop_images);
       if (!space.is_isomorphism(theta)) continue;
-      if (p == 0) have_overlay = true, overlay = theta;
+      if (p < as_posed_poses && !have_overlay) have_overlay = true, overlay = theta;
       NamedClass c{theta,
-                   (p == 0 ? "as the shapes overlap: loops carried to the nearest points"
-                           : "as the shapes overlap after a rotation (" + poses[p].description + ")") +
+                   (p == 0   ? "as the shapes overlap: loops carried to the nearest points"
+                    : p == 1 ? "as the shapes overlap: loops carried to the nearest points, boxes in proportion"
+                             : "as the shapes overlap after a rotation (" + poses[p].description + ")") +
                        (joined ? ", jumps joined" : ""),
                    space.fingerprint(theta)};
       bool seen = false;
