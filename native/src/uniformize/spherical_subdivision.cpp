@@ -264,6 +264,7 @@ SphericalSubdivision spherical_common_subdivision(const SphericalUniformization&
       c.A = sg.A, c.B = sg.B;
       c.t = (1 - lambda) * t_of(sg, 0) + lambda * t_of(sg, 1);
       c.a = q[0], c.b = q[2];
+      c.flip = j;
       c.wa = std::max(wk, 0.0), c.wb = std::max(wm, 0.0);
       if (!(c.wa + c.wb > 0) || !std::isfinite(c.wa + c.wb))
         throw SolveError("common subdivision: flip " + std::to_string(j) + " gives a crossing without weight");

@@ -45,6 +45,7 @@ struct SubdivisionCrossing {
   double t = 0;
   int a = -1, b = -1;
   double wa = 0, wb = 0;
+  int flip = -1;  ///< the flip of the log that made it (diagnostics)
 };
 
 /// One end of a piece of an input edge inside an intrinsic face: an input
