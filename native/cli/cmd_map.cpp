@@ -236,8 +236,15 @@ void register_map(CLI::App& app) {
       }
     }();
 
-    RowMatrixX3d morph(src.mesh.num_vertices(), 3);
-    for (int i = 0; i < morph.rows(); ++i) morph.row(i) = m.forward[i].position.transpose();
+    // Genus 0 with source faces delivered piecewise (SurfaceMapResult::
+    // SourceSubdivision): the morph is the source's vertices at their images,
+    // then the subdivision's new vertices, over the subdivision's triangles.
+    const auto& pieces = m.source_subdivision;
+    const int extra = pieces.faces.rows() ? static_cast<int>(pieces.forward.size()) : 0;
+    RowMatrixX3d morph(src.mesh.num_vertices() + extra, 3);
+    for (int i = 0; i < src.mesh.num_vertices(); ++i) morph.row(i) = m.forward[i].position.transpose();
+    for (int k = 0; k < extra; ++k) morph.row(src.mesh.num_vertices() + k) = pieces.forward[k].position.transpose();
+    const RowMatrixX3i& morph_faces = pieces.faces.rows() ? pieces.faces : src.mesh.F;
     // The report: map/map_report.h (the same keys as the Python result),
     // plus the file names and the intake notes of both meshes.
     nlohmann::json notes = nlohmann::json::array();
@@ -259,7 +266,7 @@ void register_map(CLI::App& app) {
     }
     if (!a->initial_out.empty() && m.initial_forward.empty())
       throw InputError("--initial-out: this map has no located initial map (genus 0)");
-    write_obj(a->out, morph, src.mesh.F);
+    write_obj(a->out, morph, morph_faces);
     if (!a->initial_out.empty()) {
       RowMatrixX3d before(src.mesh.num_vertices(), 3);
       for (int i = 0; i < before.rows(); ++i) before.row(i) = m.initial_forward[i].position.transpose();

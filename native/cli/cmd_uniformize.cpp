@@ -89,6 +89,7 @@ void run(const Args& a) {
     j["centring_floor"] = r.sphere.centring_floor;
     j["centring_iterations"] = r.sphere.centring_iterations;
     j["centring_stopped_at_floor"] = r.sphere.centring_stopped_at_floor;
+    j["centring_axial_only"] = r.sphere.centring_axial_only;
     j["circle_error"] = r.sphere.circle_error;
   } else {
     const DiskLayout& L = r.layout;

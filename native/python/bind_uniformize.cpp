@@ -189,6 +189,7 @@ void bind_uniformize(py::module_& m) {
           d["centring_floor"] = r.sphere.centring_floor;
           d["centring_iterations"] = r.sphere.centring_iterations;
           d["centring_stopped_at_floor"] = r.sphere.centring_stopped_at_floor;
+          d["centring_axial_only"] = r.sphere.centring_axial_only;
           return d;
         }
         d["refined_V"] = to_numpy(r.loops.mesh.V);

@@ -21,6 +21,7 @@
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/uniformize/spherical.h"
 #include "surfmap/uniformize/spherical_correspondence.h"
+#include "surfmap/uniformize/spherical_subdivision.h"
 
 namespace surfmap {
 namespace {
@@ -751,15 +752,28 @@ struct SphereSide {
 /// the Möbius map fitting them (over the two-parameter family of maps
 /// keeping two pairs, refined on the shapes' mismatch). Adds the mismatch
 /// evaluations to out.iterations.
+/// The alignment as a map of the source's sphere: the rotation, then the
+/// landmarks' Möbius map when there is one.
+struct SourceAlignment {
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  bool has_mobius = false;
+  SphereMobius mobius;
+  Eigen::Vector3d operator()(const Eigen::Vector3d& p) const {
+    const Eigen::Vector3d r = rotation * p;
+    return has_mobius ? mobius.apply(r) : r;
+  }
+};
+
 RowMatrixX3d aligned_source_sphere(const TriMesh& source, const TriMesh& target,
                                    const SphericalUniformization& us, const SphericalUniformization& ut,
                                    const SphereLocator& tloc, const SurfaceMapOptions& options,
-                                   SurfaceMapResult& out) {
+                                   SurfaceMapResult& out, SourceAlignment* alignment) {
   const SphereAlignmentResult al =
       align_sphere_rotation(source.V, source.F, us.positions, target.V, target.F, ut.positions, tloc);
   const int ns = source.num_vertices();
   RowMatrixX3d X(ns, 3);
   for (int i = 0; i < ns; ++i) X.row(i) = (al.rotation * us.positions.row(i).transpose()).transpose();
+  alignment->rotation = al.rotation;
   if (!options.landmarks.empty()) {
     std::vector<Eigen::Vector3d> from, to;
     for (const auto& [s, t] : options.landmarks)
@@ -772,6 +786,7 @@ RowMatrixX3d aligned_source_sphere(const TriMesh& source, const TriMesh& target,
       out.iterations += evaluations;
     }
     for (int i = 0; i < ns; ++i) X.row(i) = M.apply(X.row(i).transpose()).transpose();
+    alignment->has_mobius = true, alignment->mobius = M;
     // Exact fits (<= 3 landmarks) hit their targets to round-off; put them
     // exactly there so the forward point is the target vertex itself.
     if (options.landmarks.size() <= 3)
@@ -784,18 +799,19 @@ RowMatrixX3d aligned_source_sphere(const TriMesh& source, const TriMesh& target,
 /// Orientation of every image triangle on the sphere: a Möbius map keeps
 /// small triangles positive, but one whose circle it turns inside out would
 /// wrap the sphere. Counts them in out and throws SolveError if any.
-void check_sphere_image_orientation(const TriMesh& source, const RowMatrixX3d& X,
+void check_sphere_image_orientation(const RowMatrixX3i& F, const RowMatrixX3d& X, const std::vector<int>* origin,
                                     const SurfaceMapOptions& options, SurfaceMapResult& out) {
   int first_bad = -1;
-  for (int f = 0; f < source.num_faces(); ++f) {
-    const Eigen::Vector3d a = X.row(source.F(f, 0)), b = X.row(source.F(f, 1)), c = X.row(source.F(f, 2));
+  for (int f = 0; f < F.rows(); ++f) {
+    const Eigen::Vector3d a = X.row(F(f, 0)), b = X.row(F(f, 1)), c = X.row(F(f, 2));
     const Eigen::Vector3d n = (b - a).cross(c - a);
     const double scale = std::max({(b - a).squaredNorm(), (c - a).squaredNorm(), (c - b).squaredNorm()});
     const double vol = n.dot(a + b + c);
+    const int named = origin ? (*origin)[f] : f;
     if (std::abs(vol) <= 1e-12 * scale)
-      ++out.degenerate_triangles, first_bad = first_bad < 0 ? f : first_bad;
+      ++out.degenerate_triangles, first_bad = first_bad < 0 ? named : first_bad;
     else if (vol < 0)
-      ++out.flipped_triangles, first_bad = first_bad < 0 ? f : first_bad;
+      ++out.flipped_triangles, first_bad = first_bad < 0 ? named : first_bad;
   }
   if (out.flipped_triangles || out.degenerate_triangles)
     throw SolveError("the genus-0 map has " + std::to_string(out.flipped_triangles) + " flipped and " +
@@ -885,6 +901,155 @@ void forward_map_and_quality(const TriMesh& source, const SphereSide& target, co
   out.initial_flipped_triangles = 0;  // Möbius-centred uniformizations are checked for flips
 }
 
+/// The map on the common subdivision over the source faces whose chord
+/// triangle is inverted (SurfaceMapResult::SourceSubdivision).
+struct PiecewiseSource {
+  RowMatrixX3i faces;           ///< over source vertices, then the new ones
+  std::vector<int> origin;      ///< source face of each row
+  RowMatrixX3d sphere;          ///< aligned sphere point of every vertex
+  std::vector<PointOnSurface> source_points;  ///< the new vertices on the source
+  std::vector<char> replaced;   ///< per source face: delivered piecewise
+  double cover = 0;             ///< Σ spherical areas / 4π
+};
+
+/// Builds it: the inverted faces, grown across every input edge that an
+/// intrinsic edge crosses (so the region's boundary edges are intrinsic
+/// edges and the faces outside keep their chord triangles), replaced by
+/// their pieces; checks that every triangle is positive on the sphere and
+/// that together they cover it once. Throws SolveError otherwise.
+PiecewiseSource piecewise_source(const TriMesh& source, const Connectivity& sc, const SphericalUniformization& us,
+                                 const SourceAlignment& alignment, const RowMatrixX3d& X,
+                                 const std::vector<int>& inverted) {
+  const int nv = source.num_vertices(), nf = source.num_faces();
+  const SphericalSubdivision sub = spherical_common_subdivision(us, source.F);
+  PiecewiseSource pw;
+  pw.replaced.assign(nf, 0);
+  std::vector<int> queue;
+  for (int f : inverted) pw.replaced[f] = 1, queue.push_back(f);
+  while (!queue.empty()) {
+    const int f = queue.back();
+    queue.pop_back();
+    for (int k = 0; k < 3; ++k) {
+      const int h = 3 * f + k;
+      if (sub.crossings_of_edge[sc.edge(h)].empty()) continue;
+      const int g = Connectivity::face(sc.twin(h));
+      if (!pw.replaced[g]) pw.replaced[g] = 1, queue.push_back(g);
+    }
+  }
+  const std::vector<SubdivisionPiece> pieces = subdivision_pieces(sub, us.intrinsic_faces, source.F, nv);
+  std::vector<int> new_id(sub.crossings.size(), -1);
+  std::vector<std::array<int, 3>> tris;
+  for (int f = 0; f < nf; ++f)
+    if (!pw.replaced[f]) tris.push_back({source.F(f, 0), source.F(f, 1), source.F(f, 2)}), pw.origin.push_back(f);
+  std::vector<int> crossing_of_new;
+  auto id_of = [&](const SubdivisionEnd& e) {
+    if (e.vertex >= 0) return e.vertex;
+    if (new_id[e.crossing] < 0) new_id[e.crossing] = nv + static_cast<int>(crossing_of_new.size()), crossing_of_new.push_back(e.crossing);
+    return new_id[e.crossing];
+  };
+  std::vector<int> pieces_of(nf, 0);
+  for (const SubdivisionPiece& p : pieces) {
+    if (!pw.replaced[p.input_face]) continue;
+    ++pieces_of[p.input_face];
+    const int m = static_cast<int>(p.corners.size());
+    const int c0 = id_of(p.corners[0]);
+    for (int i = 1; i + 1 < m; ++i) {
+      tris.push_back({c0, id_of(p.corners[i]), id_of(p.corners[i + 1])});
+      pw.origin.push_back(p.input_face);
+    }
+  }
+  for (int f = 0; f < nf; ++f)
+    if (pw.replaced[f] && pieces_of[f] == 0)
+      throw SolveError("common subdivision: source face " + std::to_string(f) + " has no pieces");
+  const int nn = static_cast<int>(crossing_of_new.size());
+  pw.faces.resize(static_cast<int>(tris.size()), 3);
+  for (int i = 0; i < static_cast<int>(tris.size()); ++i)
+    for (int k = 0; k < 3; ++k) pw.faces(i, k) = tris[i][k];
+  pw.sphere.resize(nv + nn, 3);
+  pw.sphere.topRows(nv) = X;
+  for (int k = 0; k < nn; ++k) {
+    const SubdivisionCrossing& c = sub.crossings[crossing_of_new[k]];
+    // The ray w_a x_a + w_b x_b on the uniformization's own sphere, then
+    // the alignment (a rotation and the landmarks' Möbius map).
+    const Eigen::Vector3d chord = c.wa * us.positions.row(c.a).transpose() + c.wb * us.positions.row(c.b).transpose();
+    pw.sphere.row(nv + k) = alignment(chord.normalized()).transpose();
+    const int h = sc.find_halfedge(c.A, c.B);
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    b[h % 3] = 1 - c.t, b[(h % 3 + 1) % 3] = c.t;
+    pw.source_points.push_back(point_in_face(source, Connectivity::face(h), b));
+  }
+  // Positive triangles covering the sphere once: Σ spherical areas = 4π.
+  double area = 0;
+  int bad = 0, first_bad = -1;
+  for (int i = 0; i < pw.faces.rows(); ++i) {
+    const Eigen::Vector3d a = pw.sphere.row(pw.faces(i, 0)), b = pw.sphere.row(pw.faces(i, 1)), c = pw.sphere.row(pw.faces(i, 2));
+    const double det = a.dot(b.cross(c));
+    if (!(det > 0)) ++bad, first_bad = first_bad < 0 ? pw.origin[i] : first_bad;
+    area += 2 * std::atan2(det, 1 + a.dot(b) + b.dot(c) + c.dot(a));
+  }
+  if (bad)
+    throw SolveError("the common subdivision has " + std::to_string(bad) +
+                     " triangles not positive on the sphere (first in source face " + std::to_string(first_bad) + ")");
+  const double cover = area / (4 * M_PI);
+  pw.cover = cover;
+  if (!(std::abs(cover - 1) <= 1e-6))
+    throw SolveError("the common subdivision covers the sphere " + std::to_string(cover) + " times");
+  return pw;
+}
+
+/// The new vertices located on the target, the subdivision stored in
+/// out.source_subdivision, and D' of the replaced source faces over their
+/// pieces (max per face; the mean area-weighted over the pieces).
+void piecewise_quality(const TriMesh& source, const SphereSide& target, const SphereLocator& tloc,
+                       const PiecewiseSource& pw, SurfaceMapResult& out) {
+  const int nv = source.num_vertices();
+  auto& sub = out.source_subdivision;
+  sub.faces = pw.faces;
+  sub.face_origin = pw.origin;
+  sub.source_points = pw.source_points;
+  sub.forward = located_on_target(target, tloc, pw.sphere.bottomRows(pw.sphere.rows() - nv));
+  sub.subdivided_faces = static_cast<int>(std::count(pw.replaced.begin(), pw.replaced.end(), 1));
+  sub.sphere_cover = pw.cover;
+  auto src = [&](int v) -> Eigen::Vector3d { return v < nv ? Eigen::Vector3d(source.V.row(v)) : sub.source_points[v - nv].position; };
+  auto img = [&](int v) -> Eigen::Vector3d { return v < nv ? out.forward[v].position : sub.forward[v - nv].position; };
+  auto area_of = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+    return 0.5 * (b - a).cross(c - a).norm();
+  };
+  double weighted = 0, total = 0, mx = 0;
+  std::vector<double> piece_max(source.num_faces(), 0);
+  for (int f = 0; f < source.num_faces(); ++f) {
+    if (pw.replaced[f]) continue;
+    const double a = area_of(source.V.row(source.F(f, 0)), source.V.row(source.F(f, 1)), source.V.row(source.F(f, 2)));
+    if (std::isfinite(out.dilatation[f])) weighted += a * out.dilatation[f], total += a, mx = std::max(mx, out.dilatation[f]);
+  }
+  for (int i = 0; i < pw.faces.rows(); ++i) {
+    const int f = pw.origin[i];
+    if (!pw.replaced[f]) continue;
+    const Eigen::Vector3d p0 = src(pw.faces(i, 0)), p1 = src(pw.faces(i, 1)), p2 = src(pw.faces(i, 2));
+    const Eigen::Vector3d i0 = img(pw.faces(i, 0)), i1 = img(pw.faces(i, 1)), i2 = img(pw.faces(i, 2));
+    const double a = area_of(p0, p1, p2);
+    // Slivers of the fan (a crossing next to a corner) carry no area; their
+    // D' says nothing about the map.
+    const double face_area = area_of(source.V.row(source.F(f, 0)), source.V.row(source.F(f, 1)), source.V.row(source.F(f, 2)));
+    if (!(a > 1e-9 * face_area)) continue;
+    const double d = triangle_dilatation(Eigen::Vector3d((p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()),
+                                         Eigen::Vector3d((i1 - i0).norm(), (i2 - i1).norm(), (i0 - i2).norm()));
+    if (!std::isfinite(d)) {
+      ++out.degenerate_triangles;
+      continue;
+    }
+    piece_max[f] = std::max(piece_max[f], d);
+    weighted += a * d, total += a, mx = std::max(mx, d);
+  }
+  for (int f = 0; f < source.num_faces(); ++f)
+    if (pw.replaced[f]) out.dilatation[f] = piece_max[f];
+  out.mean_dilatation = weighted / std::max(total, 1e-300);
+  out.max_dilatation = mx;
+  if (out.degenerate_triangles)
+    throw SolveError("the genus-0 map has " + std::to_string(out.degenerate_triangles) +
+                     " pieces of source triangles whose image on the target is degenerate; it is not returned");
+}
+
 }  // namespace
 
 void map_spherical(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
@@ -907,7 +1072,8 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
   const SphereLocator tloc(ut.positions, tside.faces);
   TriMesh target_as_located = target;
   target_as_located.F = tside.faces;  // the alignment's mismatch interpolates over the located faces
-  const RowMatrixX3d X = aligned_source_sphere(source, target_as_located, us, ut, tloc, options, out);
+  SourceAlignment alignment;
+  const RowMatrixX3d X = aligned_source_sphere(source, target_as_located, us, ut, tloc, options, out, &alignment);
   const int nt = target.num_vertices();
   out.converged = true;
   stage_done("alignment", 0.55);
@@ -919,13 +1085,35 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
   // the map: only those vertices are still re-placed (untangle_sphere_image),
   // counted in repaired_vertices.
   RowMatrixX3d Xf = X;
+  PiecewiseSource pw;
+  bool piecewise = false;
   if (sside.carry) {
-    const int moved = untangle_sphere_image(Xf, source.V, source.F, std::max(200, source.num_vertices() / 20));
-    if (moved > 0) repaired_s += moved;
+    std::vector<int> inverted;
+    for (int f = 0; f < source.num_faces(); ++f)
+      if (bad_face(X, source.F, f)) inverted.push_back(f);
+    if (!inverted.empty()) {
+      try {
+        pw = piecewise_source(source, sc, us, alignment, X, inverted);
+        piecewise = true;
+        out.source_subdivision.status = "common subdivision";
+      } catch (const SolveError& e) {
+        out.source_subdivision.status = std::string("not built: ") + e.what();
+      }
+      out.source_subdivision.inverted_faces = static_cast<int>(inverted.size());
+    }
+    if (!piecewise) {
+      const int moved = untangle_sphere_image(Xf, source.V, source.F, std::max(200, source.num_vertices() / 20));
+      if (moved > 0) repaired_s += moved;
+    }
   }
   out.repaired_vertices = repaired_s + repaired_t;
-  check_sphere_image_orientation(source, Xf, options, out);
+  if (piecewise) {
+    check_sphere_image_orientation(pw.faces, pw.sphere, &pw.origin, options, out);
+  } else {
+    check_sphere_image_orientation(source.F, Xf, nullptr, options, out);
+  }
   forward_map_and_quality(source, tside, sc, us, tloc, Xf, out);
+  if (piecewise) piecewise_quality(source, tside, tloc, pw, out);
   stage_done("forward location", 0.75);
 
   // Harmonic energy of the sphere-valued map, Σ w_ij |X_i − X_j|² with the

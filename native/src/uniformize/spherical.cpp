@@ -190,8 +190,19 @@ double axial_centring_radius(const Eigen::MatrixX2d& P, const std::vector<int>& 
 /// centring_stopped_at_floor; returns true when |m| reached
 /// max(centring_tolerance, centring_floor), or stalled (no step decreases
 /// it) below centring_floor_tolerance.
+int count_inward_faces(const RowMatrixX3d& X, const RowMatrixX3i& F, int* first);
+
+/// axial_only: c on the z axis only (it keeps the tangential coordinates'
+/// relative precision at both poles); converged when the axial component
+/// of the centre of mass reaches the stop, centre_of_mass_norm keeps the
+/// whole residual (out.centring_axial_only). attempt() uses it when the
+/// full centring inverted faces: a long shape's ends, crowded at the poles
+/// to chords far below the spacing of unit vectors at a general point of
+/// the sphere (e^-80 at 40:1), are rounded away by a step off the axis
+/// (docs/robustness.md, "Genus 0").
 bool mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& options, RowMatrixX3d& positions,
-                   SphericalUniformization& out, Eigen::VectorXd* log_scale = nullptr) {
+                   SphericalUniformization& out, Eigen::VectorXd* log_scale = nullptr,
+                   bool axial_only = false) {
   const int nv = mesh.num_vertices();
   const Eigen::VectorXd w = vertex_area_weights(mesh);
   auto centre_of = [&](const RowMatrixX3d& X) {
@@ -207,7 +218,10 @@ bool mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& op
   Eigen::Vector3d cm = centre_of(positions);
   int it = 0;
   bool stalled = false;
-  for (; it < options.max_centring_iterations && cm.norm() > stop; ++it) {
+  const bool axial = axial_only;
+  out.centring_axial_only = axial_only;
+  auto residual = [&](const Eigen::Vector3d& m) { return axial ? std::abs(m.z()) : m.norm(); };
+  for (; it < options.max_centring_iterations && residual(cm) > stop; ++it) {
     Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
     for (int v = 0; v < nv; ++v) {
       const Eigen::Vector3d x = positions.row(v).transpose();
@@ -215,6 +229,7 @@ bool mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& op
     }
     Eigen::Vector3d step = 0.5 * A.ldlt().solve(cm);
     if (!step.allFinite()) step = cm;  // A singular (all mass at one point): the plain step
+    if (axial) step = Eigen::Vector3d(0, 0, A(2, 2) > 0 ? 0.5 * cm.z() / A(2, 2) : cm.z());
     if (step.norm() > 0.5) step *= 0.5 / step.norm();
     bool improved = false;
     for (double t = 1.0; t > 1e-4 && !improved; t *= 0.5) {
@@ -223,7 +238,7 @@ bool mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& op
       for (int v = 0; v < nv; ++v)
         X.row(v) = mobius(c, positions.row(v).transpose()).normalized().transpose();
       const Eigen::Vector3d cn = centre_of(X);
-      if (cn.norm() < cm.norm()) {
+      if (residual(cn) < residual(cm)) {
         // The ball automorphism scales chords by sqrt(λ_x λ_y), λ_x =
         // (1 − |c|²) / |x − c|²: a frame change of the light-cone picture.
         if (log_scale)
@@ -238,11 +253,12 @@ bool mobius_centre(const TriMesh& mesh, const SphericalUniformizationOptions& op
       stalled = true;
       break;
     }
+    stalled = false;
   }
   out.centring_iterations = it;
   out.centre_of_mass_norm = cm.norm();
-  if (out.centre_of_mass_norm <= stop) return true;
-  out.centring_stopped_at_floor = stalled && out.centre_of_mass_norm <= options.centring_floor_tolerance;
+  if (residual(cm) <= stop) return true;
+  out.centring_stopped_at_floor = stalled && residual(cm) <= options.centring_floor_tolerance;
   return out.centring_stopped_at_floor;
 }
 
@@ -861,7 +877,20 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   for (int i = 0; i < n2; ++i)
     to_sphere.log_scale[old_id[i]] = std::log(2.0) - log_r - std::log1p(P.row(i).squaredNorm() / (radius * radius));
   to_sphere.log_scale[v0] = std::log(2.0) + log_r;
-  if (!mobius_centre(mesh, options, out.positions, out, &to_sphere.log_scale) && out.message.empty())
+  RowMatrixX3i disk_faces(flat.faces.rows(), 3);
+  for (int f = 0; f < flat.faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) disk_faces(f, k) = old_id[flat.faces(f, k)];
+  int unused = -1;
+  const int inward_before = count_inward_faces(out.positions, disk_faces, &unused);
+  const RowMatrixX3d projected = out.positions;
+  const Eigen::VectorXd projected_scale = to_sphere.log_scale;
+  bool centred = mobius_centre(mesh, options, out.positions, out, &to_sphere.log_scale);
+  if (count_inward_faces(out.positions, disk_faces, &unused) > inward_before) {
+    out.positions = projected;
+    to_sphere.log_scale = projected_scale;
+    centred = mobius_centre(mesh, options, out.positions, out, &to_sphere.log_scale, true);
+  }
+  if (!centred && out.message.empty())
     out.message = "Möbius centring stalled at |centre| = " + detail::fmt(out.centre_of_mass_norm) + " after " +
                   std::to_string(out.centring_iterations) + " iterations (tolerance " +
                   detail::fmt(std::max(options.centring_tolerance, out.centring_floor)) + ", floor " +
@@ -949,7 +978,8 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
         candidates.push_back(score[i].second);
   }
   SphericalUniformization best;
-  bool have = false;
+  bool have = false, have_axial = false;
+  SphericalUniformization axial;
   std::string tried;
   for (int v0 : candidates) {
     SphericalUniformization r;
@@ -966,6 +996,12 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
       tried += (tried.empty() ? "" : "; ") + std::to_string(v0) + ": " + e.what();
       continue;
     }
+    if (r.converged && r.centring_axial_only) {
+      // Embedded but centred along the axis only: kept as a last resort, a
+      // pole that centres fully is preferred.
+      if (!have_axial) axial = std::move(r), have_axial = true;
+      continue;
+    }
     if (r.converged) {
       r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       return r;
@@ -975,6 +1011,10 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
       best = r;
       have = true;
     }
+  }
+  if (have_axial) {
+    axial.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return axial;
   }
   best.message = "no removed vertex gave a valid map (" + tried + ")";
   best.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -44,12 +44,16 @@
 // and carried back to its input faces through the uniformization's flip log
 // (uniformize/spherical_correspondence.h): no target vertex is moved. The
 // forward map is linear over the source's own faces, so a source face whose
-// chord triangle is flipped still has its vertices and a few rings around
-// them re-placed by a Tutte-type embedding with mean value weights in the
-// gnomonic chart of that patch (untangle_sphere_image, one patch per
-// cluster; Floater's theorem makes it flip-free once the patch boundary is
-// convex, and the patch grows until it is). The map is then bijective but
-// only approximately conformal on that patch;
+// chord triangle is inverted cannot be one triangle of the map: those faces
+// (grown until their region's boundary edges are intrinsic edges too) are
+// delivered on their pieces of the common subdivision with the intrinsic
+// triangulation (uniformize/spherical_subdivision.h;
+// SurfaceMapResult::source_subdivision), every source vertex keeping its
+// harmonic image; every triangle positive on the sphere and their spherical
+// areas summing to 4π certify the bijection. Only when that subdivision
+// cannot be built (a Δ-complex quad in the log) are vertices re-placed as
+// before, by a Tutte-type embedding with mean value weights in the gnomonic
+// chart of a patch (untangle_sphere_image; Floater's theorem);
 // SurfaceMapResult::repaired_vertices counts the moved vertices.
 #include <array>
 #include <vector>

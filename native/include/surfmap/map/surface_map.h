@@ -641,7 +641,37 @@ struct SurfaceMapResult {
   int landmark_held_vertices = 0;
   /// Genus 0: vertices whose sphere image was re-placed to untangle input
   /// faces flipped by the uniformization (map/spherical_map.h); 0 otherwise.
+  /// On the source side only when its common subdivision could not be built
+  /// (source_subdivision.status).
   int repaired_vertices = 0;
+  /// Genus 0: the source faces whose chord triangle is inverted on the
+  /// sphere, delivered piecewise (docs/uniformization.md "Genus 0", "The
+  /// map on the common subdivision"). The conformal map sends such a face
+  /// to a curved union of pieces of intrinsic triangles, which no triangle
+  /// between its vertices' images can be; those faces, grown to a region
+  /// whose boundary edges are intrinsic edges too, are replaced by their
+  /// pieces of the common subdivision, fanned into triangles. Every source
+  /// vertex keeps its harmonic image (forward); the new vertices are the
+  /// crossings of the region's input edges with intrinsic edges.
+  struct SourceSubdivision {
+    /// "" (nothing inverted: the map is linear over the source's faces),
+    /// "common subdivision", or "not built: <why>" (then the old local
+    /// untangling moved vertices: repaired_vertices).
+    std::string status;
+    /// The map's triangles over the source: vertex ids < #V_source are the
+    /// source's vertices, #V_source + k is source_points[k]. Empty unless
+    /// status is "common subdivision".
+    RowMatrixX3i faces;
+    std::vector<int> face_origin;               ///< per row of faces: its source face
+    std::vector<PointOnSurface> source_points;  ///< the new vertices on the source (on its edges)
+    std::vector<PointOnSurface> forward;        ///< their images on the target
+    int subdivided_faces = 0;                   ///< source faces replaced by pieces
+    int inverted_faces = 0;                     ///< of them, faces whose chord triangle was inverted
+    /// Σ of the spherical areas of the map's triangles on the sphere / 4π:
+    /// 1 (with every triangle positive) certifies that they tile the sphere
+    /// once, i.e. the map is bijective.
+    double sphere_cover = 0;
+  } source_subdivision;
   int initial_flipped_triangles = 0;
   InitialMapInfo initial_map;
   /// Per source vertex: the initial map's image on the target (face,

@@ -108,6 +108,12 @@ struct SphericalUniformization {
   /// The centring stalled above the tolerance but within
   /// options.centring_floor_tolerance: converged, at the floor.
   bool centring_stopped_at_floor = false;
+  /// A Möbius step off the axis would have inverted faces (a long shape's
+  /// ends crowded at the poles below double precision, e.g. a bent 40:1
+  /// sphere): the centring went on along the axis only and converged when
+  /// the axial component of the centre of mass reached the stop;
+  /// centre_of_mass_norm is then the whole (tangential) residual.
+  bool centring_axial_only = false;
   /// Intrinsic faces (intrinsic_faces) whose chordal triangle points inward
   /// on the sphere: 0 when converged.
   int flipped_faces = 0;
