@@ -226,18 +226,6 @@ GroupMap hyperelliptic_involution() {
 
 namespace {
 
-Word inverse_word(const Word& w) {
-  Word r(w.rbegin(), w.rend());
-  for (int& x : r) x = -x;
-  return r;
-}
-
-Word concatenated(const Word& a, const Word& b) {
-  Word r = a;
-  r.insert(r.end(), b.begin(), b.end());
-  return r;
-}
-
 }  // namespace
 
 GroupMap nielsen_inverse(const GroupMap& phi, int genus, size_t max_letters) {
@@ -262,32 +250,32 @@ GroupMap nielsen_inverse(const GroupMap& phi, int genus, size_t max_letters) {
     Word bt;
     for (int j = 0; j < n; ++j)
       for (int e : {1, -1}) {
-        const Word tj = e > 0 ? t[j] : inverse_word(t[j]), tj_inv = inverse_word(tj);
+        const Word tj = e > 0 ? t[j] : inverse(t[j]), tj_inv = inverse(tj);
         size_t conjugated = total;
         for (int i = 0; i < n; ++i) {
           if (i == j) continue;
           for (int k : {0, 1}) {
-            Word c = reduce(k == 0 ? concatenated(t[i], tj) : concatenated(tj, t[i]));
+            Word c = k == 0 ? concat(t[i], tj) : concat(tj, t[i]);
             const size_t candidate = total - t[i].size() + c.size();
             if (candidate < best) best = candidate, bi = i, bj = j, be = e, kind = k, bt = std::move(c);
           }
-          conjugated += reduce(concatenated(concatenated(tj, t[i]), tj_inv)).size();
+          conjugated += concat({tj, t[i], tj_inv}).size();
           conjugated -= t[i].size();
         }
         if (conjugated < best) best = conjugated, bi = -1, bj = j, be = e, kind = 2;
       }
     if (best >= total) break;
-    const Word uj = be > 0 ? u[bj] : inverse_word(u[bj]);
+    const Word uj = be > 0 ? u[bj] : inverse(u[bj]);
     if (kind == 2) {
-      const Word tj = be > 0 ? t[bj] : inverse_word(t[bj]), tj_inv = inverse_word(tj), uj_inv = inverse_word(uj);
+      const Word tj = be > 0 ? t[bj] : inverse(t[bj]), tj_inv = inverse(tj), uj_inv = inverse(uj);
       for (int i = 0; i < n; ++i) {
         if (i == bj) continue;
-        t[i] = reduce(concatenated(concatenated(tj, t[i]), tj_inv));
-        u[i] = reduce(concatenated(concatenated(uj, u[i]), uj_inv));
+        t[i] = concat({tj, t[i], tj_inv});
+        u[i] = concat({uj, u[i], uj_inv});
         if (u[i].size() > max_letters) return {};
       }
     } else {
-      u[bi] = reduce(kind == 0 ? concatenated(u[bi], uj) : concatenated(uj, u[bi]));
+      u[bi] = kind == 0 ? concat(u[bi], uj) : concat(uj, u[bi]);
       if (u[bi].size() > max_letters) return {};
       t[bi] = std::move(bt);
     }
@@ -305,7 +293,7 @@ GroupMap nielsen_inverse(const GroupMap& phi, int genus, size_t max_letters) {
     const int y = c[0], k = std::abs(y) - 1;
     if (seen[k]) return {};
     seen[k] = true;
-    inverse[k] = y > 0 ? u[i] : inverse_word(u[i]);
+    inverse[k] = y > 0 ? u[i] : inverse(u[i]);
   }
   return inverse;
 }
