@@ -817,3 +817,26 @@ def test_cli_option_keywords_are_checked_and_reach_the_map():
     # session's report fields here as well.
     assert set(q["directions"]) >= {"outcome", "reason", "inverted_candidate", "chosen_class_words"}
     assert "long_starts" in r["homotopy"]["ranking"] and "status" in r["source_subdivision"]
+
+
+def test_cheap_direction_check_keyword_changes_the_two_way_verdict():
+    # Issue 14 (docs/handle_classes.md "Both directions, cheaply"), as
+    # SurfaceMapHandles.ReverseClassOnlySolvesTheOtherDirectionsClassAlone: with the two-way
+    # run forced (two_way_ratio=0), the direction whose other direction's ratio is not lower
+    # checks its class against the other's (a verdict in quality.directions);
+    # cheap_direction_check=False (CLI --no-cheap-direction-check) keeps it unchecked.
+    a = surfmap.shapes.n_hole_torus(2, 26, True)
+    b = surfmap.shapes.vase(30, True)
+    f = surfmap.surface_map(*a, *b, two_way_ratio=0)
+    r = surfmap.surface_map(*b, *a, two_way_ratio=0)
+    statuses = (f["quality"]["two_way_status"], r["quality"]["two_way_status"])
+    pair = (a, b) if "not lower" in statuses[0] else (b, a)
+    checked = f if pair[0] is a else r
+    q = checked["quality"]
+    assert "not lower; " in q["two_way_status"], statuses
+    assert q["directions"]["outcome"] in ("inverse", "symmetric: both optimal"), q["directions"]
+    off = surfmap.surface_map(*pair[0], *pair[1], two_way_ratio=0, cheap_direction_check=False)
+    assert off["quality"]["two_way_status"].endswith("not lower: kept"), off["quality"]["two_way_status"]
+    assert off["quality"]["directions"]["outcome"] == ""
+    with pytest.raises(surfmap.InputError, match="two_way_ratio"):
+        surfmap.surface_map(*a, *b, two_way_ratio=-1.0)
