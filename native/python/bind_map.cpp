@@ -206,7 +206,8 @@ void bind_map(py::module_& m) {
       "homotopy", "landmarks", "method", "tolerance", "max_iterations", "solve_progress", "homotopy_candidates",
       "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
       "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric", "homotopy_images",
-      "homotopy_both_signs", "flat_overlay"));
+      "homotopy_both_signs", "flat_overlay", "cheap_direction_check", "compare_directions", "greedy_pants",
+      "homotopy_extra_cuts", "own_weights_floor", "local_fold_repair", "target_loops", "two_way_ratio"));
   // What the module does beyond its keywords, for callers built against older modules (the
   // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
   m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
@@ -217,7 +218,9 @@ void bind_map(py::module_& m) {
          double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
          int homotopy_full_solves, const std::string& initial_map, const std::string& source_weights,
          bool homotopy_search, int homotopy_search_evaluations, py::object boundary_pairing, bool two_way, int threads, const std::string& target_metric,
-         py::object homotopy_images, bool homotopy_both_signs, bool flat_overlay) {
+         py::object homotopy_images, bool homotopy_both_signs, bool flat_overlay, bool cheap_direction_check,
+         bool compare_directions, bool greedy_pants, int homotopy_extra_cuts, double own_weights_floor,
+         bool local_fold_repair, const std::string& target_loops, double two_way_ratio) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         // Open surfaces (issue 16): either side with a boundary.
@@ -247,6 +250,22 @@ void bind_map(py::module_& m) {
         opt.homotopy.two_way = two_way;  // (options.homotopy.two_way)
         opt.homotopy.flat_both_signs = homotopy_both_signs;
         opt.homotopy.flat_overlay = flat_overlay;  // (options.homotopy.flat_overlay)
+        // The CLI's other map options, one keyword each (cmd_map.cpp: --no-cheap-direction-check,
+        // --compare-directions, --no-greedy-pants, --homotopy-extra-cuts, --own-weights-floor,
+        // --no-local-fold-repair, --target-loops), so that a Python caller can run what the CLI runs.
+        opt.homotopy.cheap_direction_check = cheap_direction_check;
+        opt.homotopy.compare_directions = compare_directions;
+        opt.homotopy.search.greedy_pants = greedy_pants;
+        if (homotopy_extra_cuts < 0) throw InputError("homotopy_extra_cuts must be 0 or more");
+        opt.homotopy.extra_cuts = homotopy_extra_cuts;
+        if (!(own_weights_floor > 0)) throw InputError("own_weights_floor must be positive");
+        opt.solve.own_weights_floor = own_weights_floor;
+        opt.solve.local_fold_repair = local_fold_repair;
+        opt.uniformization.loops = parse_enum<LoopMetric>(target_loops, "target_loops");
+        // (options.homotopy.two_way_ratio; no CLI flag: 0 runs the other direction, and with it
+        // the cheap direction check, for every pair)
+        if (!(two_way_ratio >= 0)) throw InputError("two_way_ratio must be 0 or more");
+        opt.homotopy.two_way_ratio = two_way_ratio;
         if (!homotopy_images.is_none()) {
           // (options.homotopy.source_images with images_only: that class alone)
           const RowMatrixX3d images = to_vertices(homotopy_images, "homotopy_images");
@@ -314,6 +333,10 @@ void bind_map(py::module_& m) {
       py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
       py::arg("boundary_pairing") = py::none(), py::arg("two_way") = true, py::arg("threads") = 0, py::arg("target_metric") = enum_name(UniformizationMetric::Automatic),
       py::arg("homotopy_images") = py::none(), py::arg("homotopy_both_signs") = true, py::arg("flat_overlay") = true,
+      py::arg("cheap_direction_check") = true, py::arg("compare_directions") = false, py::arg("greedy_pants") = true,
+      py::arg("homotopy_extra_cuts") = HomotopyOptions().extra_cuts, py::arg("own_weights_floor") = SolveOptions().own_weights_floor,
+      py::arg("local_fold_repair") = true, py::arg("target_loops") = enum_name(LoopMetric::Automatic),
+      py::arg("two_way_ratio") = HomotopyOptions().two_way_ratio,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
       "boundary loops (else InputError naming both); disks (0, 1) and annuli (0, 2) are mapped boundary onto boundary "
@@ -349,7 +372,12 @@ void bind_map(py::module_& m) {
       "'target_metric_choice', 'target_flips', 'target_refinement_splits' in the result; when no allowed metric can "
       "be delivered, surfmap.UniformizationError (a SolveError). `homotopy_images`: (#V_source, 3) "
       "a point on the target per source vertex (genus >= 2): the class of the source's loops carried there is the only "
-      "candidate (no ranking, search or two-way run; SolveError when they do not carry). `progress(stage, fraction)` "
+      "candidate (no ranking, search or two-way run; SolveError when they do not carry). As the CLI's map flags "
+      "(docs/python.md): `cheap_direction_check` (False: --no-cheap-direction-check), `compare_directions` "
+      "(--compare-directions), `greedy_pants` (False: --no-greedy-pants), `homotopy_extra_cuts`, `own_weights_floor`, "
+      "`local_fold_repair` (False: --no-local-fold-repair), `target_loops` ('auto', 'embedding', 'metric'); `two_way_ratio` (no CLI flag; default 2): the other direction "
+      "is mapped when the energy is at least this many times the conformal bound (0: always). "
+      "`progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
   m.def(
       "slide_ear_images",

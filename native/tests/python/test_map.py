@@ -1,6 +1,7 @@
 """The optimal map from Python and the `surfmap map` contract (genus 1)."""
 import json
 import math
+import re
 import threading
 import time
 
@@ -770,3 +771,72 @@ def test_flat_map_of_a_turned_remeshed_torus_is_placed_by_the_overlay(tmp_path, 
                 tmp_path / "r.json", "--quiet", *flag)
         assert p.returncode == 0, p.stderr
         assert json.loads((tmp_path / "r.json").read_text())["flat_placement"].startswith(start)
+
+
+def test_every_cli_map_option_has_a_python_keyword(cli):
+    # The CLI's `map` flags and surface_map's keywords are one list of options: each flag
+    # (--no-x: keyword x=False) names a keyword in CAPABILITIES, except the ones about files
+    # and the console.
+    help_text = cli("map", "--help").stdout
+    # Each option line starts with its flags ("  --x,--no-x{false}", "  --x TEXT"); a flag
+    # named inside a description ("as uniformize --loops") is not one of map's.
+    flags = set()
+    for line in help_text.splitlines():
+        head = re.match(r"  (-\S+)", line)
+        if head:
+            flags |= set(re.findall(r"--([a-z][a-z-]*)", head.group(1)))
+    assert {"no-cheap-direction-check", "compare-directions", "target-loops"} <= flags, flags
+    not_options = {"help", "out", "report", "correspondence", "initial-out", "quiet", "timings"}
+    renamed = {"base_vertex": "source_base_vertex", "boundary_swap": "boundary_pairing"}
+    missing = set()
+    for flag in flags - not_options:
+        name = flag[3:] if flag.startswith("no-") else flag
+        name = name.replace("-", "_")
+        if renamed.get(name, name) not in surfmap.CAPABILITIES:
+            missing.add(flag)
+    assert not missing, missing
+
+
+def test_cli_option_keywords_are_checked_and_reach_the_map():
+    a = surfmap.shapes.n_hole_torus(2, 30, True)
+    b = surfmap.shapes.jitter(*surfmap.shapes.n_hole_torus(2, 34, True), 0.2, 4)
+    for bad, match in (({"homotopy_extra_cuts": -1}, "homotopy_extra_cuts"),
+                       ({"own_weights_floor": 0.0}, "own_weights_floor"),
+                       ({"target_loops": "straight"}, "target_loops")):
+        with pytest.raises(surfmap.InputError, match=match):
+            surfmap.surface_map(*a, *b, **bad)
+    # compare_directions (CLI --compare-directions): the other direction is mapped even for
+    # this nearly conformal copy, where the default skips it (ratio below 2), and the two
+    # directions' classes are compared.
+    r = surfmap.surface_map(*a, *b, compare_directions=True, cheap_direction_check=False)
+    q = r["quality"]
+    assert not q["two_way_status"].startswith("not run"), q["two_way_status"]
+    assert q["two_way_status"].startswith("target -> source energy ratio"), q["two_way_status"]
+    assert not q["reverse_inverse_reason"].startswith("not compared: the two-way run did not run")
+    # The one serializer (map/map_report.cpp to_json, the CLI's --report too) gives this
+    # session's report fields here as well.
+    assert set(q["directions"]) >= {"outcome", "reason", "inverted_candidate", "chosen_class_words"}
+    assert "long_starts" in r["homotopy"]["ranking"] and "status" in r["source_subdivision"]
+
+
+def test_cheap_direction_check_keyword_changes_the_two_way_verdict():
+    # Issue 14 (docs/handle_classes.md "Both directions, cheaply"), as
+    # SurfaceMapHandles.ReverseClassOnlySolvesTheOtherDirectionsClassAlone: with the two-way
+    # run forced (two_way_ratio=0), the direction whose other direction's ratio is not lower
+    # checks its class against the other's (a verdict in quality.directions);
+    # cheap_direction_check=False (CLI --no-cheap-direction-check) keeps it unchecked.
+    a = surfmap.shapes.n_hole_torus(2, 26, True)
+    b = surfmap.shapes.vase(30, True)
+    f = surfmap.surface_map(*a, *b, two_way_ratio=0)
+    r = surfmap.surface_map(*b, *a, two_way_ratio=0)
+    statuses = (f["quality"]["two_way_status"], r["quality"]["two_way_status"])
+    pair = (a, b) if "not lower" in statuses[0] else (b, a)
+    checked = f if pair[0] is a else r
+    q = checked["quality"]
+    assert "not lower; " in q["two_way_status"], statuses
+    assert q["directions"]["outcome"] in ("inverse", "symmetric: both optimal"), q["directions"]
+    off = surfmap.surface_map(*pair[0], *pair[1], two_way_ratio=0, cheap_direction_check=False)
+    assert off["quality"]["two_way_status"].endswith("not lower: kept"), off["quality"]["two_way_status"]
+    assert off["quality"]["directions"]["outcome"] == ""
+    with pytest.raises(surfmap.InputError, match="two_way_ratio"):
+        surfmap.surface_map(*a, *b, two_way_ratio=-1.0)
