@@ -122,6 +122,7 @@ class HyperbolicPipeline {
   void release_unsolved_class_data();
   std::vector<int> accept_long_starts(bool coarse);
   const ClassData& data_for(int k);
+  void build_solver_data(const std::vector<int>& classes);
 
   // Inputs.
   const TriMesh& source;
@@ -224,6 +225,14 @@ class HyperbolicPipeline {
  private:
   ClassData data_of(const GroupMap& theta) const {
     return class_data(*space, theta, source, sc, ss.edge_word, ss.idt, solver_index, ut->layout, *deck_group);
+  }
+  // Issue 19: a listed class's data. With a coarse copy, only its side words
+  // (the coarse copy's input); the matrices and solver edges are built when
+  // the class is first solved at full resolution (build_solver_data,
+  // data_for). Without one, every class is solved at full resolution.
+  ClassData listed_data_of(const GroupMap& theta) const {
+    return class_data(*space, theta, source, sc, ss.edge_word, ss.idt, solver_index, ut->layout, *deck_group,
+                      !ss.cs.ok);
   }
   HyperbolicHarmonicResult solve_from(int n, const std::vector<WeightedEdge>& edges, const std::vector<Complex>& start,
                                       const std::vector<Word>& deck_word, const HyperbolicHarmonicOptions& o) {
@@ -407,7 +416,7 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   parallel_for(threads, static_cast<int>(evaluable.size()), [&](int i, const std::atomic<bool>*) {
     const int k = evaluable[i];
     try {
-      computed[k] = data_of(classes[k].map);
+      computed[k] = listed_data_of(classes[k].map);
     } catch (...) {
       failed[k] = std::current_exception();
     }
@@ -513,6 +522,13 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
     level = coarse_level(cs, sc, ss.edge_word, ss.sl, data, usable, *deck_group,
                          options.homotopy.search.enabled && !options.homotopy.images_only &&
                              options.homotopy.class_index < 0);
+  if (!cs.ok) {
+    // No coarse copy after all (coarse_level refused it): every class is
+    // solved at full resolution, so every class needs its solver data.
+    std::vector<int> all(ncand);
+    for (int k = 0; k < ncand; ++k) all[k] = k;
+    build_solver_data(all);
+  }
   fine_result.resize(ncand);
   full.assign(ncand, 0);
   order.resize(ncand);
@@ -781,7 +797,7 @@ void HyperbolicPipeline::search_classes() {
   if (searching && candidates.lifter && options.homotopy.search.cuts > 0 && hooks.homotopy_search_start < 0 &&
       out.candidates[order[0]].energy > gap_bound)
     for (FoundClass& f : classes_from_more_cuts(*candidates.lifter, cuts, *space, nv, threads, conformal_bound,
-                                                 [this](const GroupMap& theta) { return data_of(theta); }, pruned_solve,
+                                                 [this](const GroupMap& theta) { return listed_data_of(theta); }, pruned_solve,
                                                  options, out.homotopy_search))
       append_class(std::move(f.hc), std::move(f.data), f.evaluation);
   // Issue 14 (docs/handle_classes.md "Geometric candidates"): classes from
@@ -799,7 +815,7 @@ void HyperbolicPipeline::search_classes() {
       for (FoundClass& f : geometric_candidate_classes(
                *bounds.source, *target_lengths, *space, known,
                [&](const GroupMap& theta) { return class_curve_bound_of(bounds, *target_lengths, theta); },
-               [this](const GroupMap& theta) { return data_of(theta); }, geometric_solve, options, out.homotopy_search)) {
+               [this](const GroupMap& theta) { return listed_data_of(theta); }, geometric_solve, options, out.homotopy_search)) {
         std::string handles;
         handle_correspondence_of(ss.shb, candidates.target_basis, homology_matrix(f.evaluation.theta, space->num_letters()),
                                  &f.hc.permutation, &f.hc.sign, &handles);
@@ -879,7 +895,7 @@ std::optional<HyperbolicPipeline::FoundSearchClass> HyperbolicPipeline::found_se
   if (!found || space->loop_image_length(found->theta) > space->max_image_letters()) return std::nullopt;
   FoundSearchClass f;
   try {
-    f.data = data_of(found->theta);
+    f.data = listed_data_of(found->theta);
   } catch (const SolveError&) {
     return std::nullopt;  // (cannot happen for an exact automorphism; then the search found nothing usable)
   }
@@ -1250,6 +1266,11 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   for (int k = 0; k < ncand; ++k)
     if (full[k] && usable[k]) tasks.push_back(k);
   const bool init_ahead = threads > 1 && likely_class >= 0 && usable[likely_class];
+  // Issue 19: the solver data of the classes solved here (and of the likely
+  // class, for its initial map ahead), built now, on both threads.
+  std::vector<int> build = tasks;
+  if (init_ahead && !full[likely_class]) build.push_back(likely_class);
+  build_solver_data(build);
   if (init_ahead) tasks.insert(tasks.begin() + std::min<size_t>(1, tasks.size()), -1);
   std::exception_ptr init_error;
   // Class k's coarse solution prolonged to the fine vertices (all at the
@@ -1354,19 +1375,43 @@ std::vector<int> HyperbolicPipeline::accept_long_starts(bool coarse) {
 void HyperbolicPipeline::release_unsolved_class_data() {
   data_released.assign(ncand, 0);
   for (int k = 0; k < ncand; ++k)
-    if (!full[k] && k != likely_class && !data[k].edges.empty()) {
+    if (!full[k] && k != likely_class && !data[k].side_word_edge.empty()) {
       data[k] = ClassData{};
       data_released[k] = 1;
     }
 }
 
-// Class k's data, built again when it was released.
+// Class k's data with its solver data, built when it was released or
+// holds only its side words (listed_data_of).
 const ClassData& HyperbolicPipeline::data_for(int k) {
-  if (k < static_cast<int>(data_released.size()) && data_released[k]) {
+  const bool released = k < static_cast<int>(data_released.size()) && data_released[k];
+  if (released || (!data[k].side_word_edge.empty() && !data[k].has_solver_data())) {
     data[k] = data_of(candidates.classes[k].map);
-    data_released[k] = 0;
+    if (released) data_released[k] = 0;
   }
   return data[k];
+}
+
+// Issue 19: the solver data of `classes` (those with only their side
+// words), on both threads; the same function of the same inputs as
+// data_for, so the same data.
+void HyperbolicPipeline::build_solver_data(const std::vector<int>& classes) {
+  std::vector<int> missing;
+  for (int k : classes)
+    if (!data[k].side_word_edge.empty() && !data[k].has_solver_data()) missing.push_back(k);
+  std::vector<ClassData> built(missing.size());
+  std::vector<std::exception_ptr> failed(missing.size());
+  parallel_for(threads, static_cast<int>(missing.size()), [&](int i, const std::atomic<bool>*) {
+    try {
+      built[i] = data_of(candidates.classes[missing[i]].map);
+    } catch (...) {
+      failed[i] = std::current_exception();
+    }
+  });
+  for (size_t i = 0; i < missing.size(); ++i) {
+    if (failed[i]) std::rethrow_exception(failed[i]);
+    data[missing[i]] = std::move(built[i]);
+  }
 }
 
 // Landmarks in class k from its free optimum `free_k` (landmarks.h): plain

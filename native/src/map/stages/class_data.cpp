@@ -44,7 +44,8 @@ void index_solver_edges(const Connectivity& sc, const IntrinsicDelaunayResult& i
 
 ClassData class_data(const ClassSpace& space, const GroupMap& theta, const TriMesh& source, const Connectivity& sc,
                      const std::vector<Word>& edge_word, const IntrinsicDelaunayResult& idt,
-                     const SolverEdgeIndex& index, const DiskLayout& layout, const DeckGroup& group) {
+                     const SolverEdgeIndex& index, const DiskLayout& layout, const DeckGroup& group,
+                     bool solver_data) {
   const std::vector<Word> letter_image = space.loop_letter_images(theta);
   std::vector<Word> target_word(edge_word.size());
   // Shortest-form words keep the products of SU(1,1) matrices small. Few
@@ -77,7 +78,6 @@ ClassData class_data(const ClassSpace& space, const GroupMap& theta, const TriMe
       throw SolveError("homotopy data inconsistent around source face " + std::to_string(f));
   }
   ClassData cd;
-  cd.rho_edge.resize(edge_word.size());
   cd.side_word_edge.resize(edge_word.size());
   std::map<Word, Word> side_memo;
   auto side_word = [&](const Word& w) -> const Word& {
@@ -86,12 +86,13 @@ ClassData class_data(const ClassSpace& space, const GroupMap& theta, const TriMe
     return it->second;
   };
   const Word empty_side = side_word(reduced_empty);
+  for (size_t e = 0; e < edge_word.size(); ++e)
+    cd.side_word_edge[e] = target_word[e].empty() ? empty_side : side_word(target_word[e]);
+  if (!solver_data) return cd;
   const Mobius empty_rho = group.evaluate_side_word(empty_side);
-  for (size_t e = 0; e < edge_word.size(); ++e) {
-    const bool empty = target_word[e].empty();
-    cd.side_word_edge[e] = empty ? empty_side : side_word(target_word[e]);
-    cd.rho_edge[e] = empty ? empty_rho : group.evaluate_side_word(cd.side_word_edge[e]);
-  }
+  cd.rho_edge.resize(edge_word.size());
+  for (size_t e = 0; e < edge_word.size(); ++e)
+    cd.rho_edge[e] = target_word[e].empty() ? empty_rho : group.evaluate_side_word(cd.side_word_edge[e]);
   cd.edges.resize(idt.edges.size());
   for (size_t e = 0; e < idt.edges.size(); ++e) {
     const auto& ie = idt.edges[e];

@@ -15,13 +15,17 @@
 namespace surfmap::detail {
 
 struct ClassData {
-  std::vector<hyperbolic::Mobius> rho_edge;  ///< #E source edges (along edge_halfedge)
-  std::vector<Word> side_word_edge;          ///< #E rho_edge as reduced side words
+  /// #E source edges (along edge_halfedge); empty until the solver data are
+  /// built (class_data with solver_data false leaves them out).
+  std::vector<hyperbolic::Mobius> rho_edge;
+  std::vector<Word> side_word_edge;  ///< #E rho_edge as reduced side words (always built)
   /// The solver's edges: #idt edges with their cotangent weights, then every
   /// source edge the intrinsic triangulation flipped away (weight 0), so the
   /// image triangles of the source's own faces come out of the solve in
-  /// local charts (SolverEdgeIndex).
+  /// local charts (SolverEdgeIndex). Empty until the solver data are built.
   std::vector<WeightedEdge> edges;
+  /// Whether rho_edge and edges are built (a full-resolution solve's input).
+  bool has_solver_data() const { return !edges.empty(); }
   /// #3F halfedge elements (a twin carries the inverse): matrices, side words.
   std::vector<hyperbolic::Mobius> halfedge_rho(const Connectivity& sc) const;
   std::vector<Word> halfedge_words(const Connectivity& sc) const;
@@ -37,9 +41,15 @@ void index_solver_edges(const Connectivity& sc, const IntrinsicDelaunayResult& i
 /// a word in the source's loop letters; `idt` the energy's triangulation;
 /// the products around every source face are checked exactly (Dehn's
 /// algorithm solves the word problem): a SolveError names the face.
+/// `solver_data` false: only the side words (all the coarse copy and the
+/// prolongation read), not the matrices and solver edges (issue 19: ~30 MB
+/// per class at 50k source vertices, for ~15 classes of which a few are ever
+/// solved at full resolution); a later call with true builds the same side
+/// words again and the rest, so the data are the same either way.
 ClassData class_data(const ClassSpace& space, const GroupMap& theta, const TriMesh& source, const Connectivity& sc,
                      const std::vector<Word>& edge_word, const IntrinsicDelaunayResult& idt,
-                     const SolverEdgeIndex& index, const DiskLayout& layout, const DeckGroup& group);
+                     const SolverEdgeIndex& index, const DiskLayout& layout, const DeckGroup& group,
+                     bool solver_data = true);
 
 /// One HyperbolicHarmonicSolver (map/hyperbolic_harmonic.h) per sparsity
 /// pattern: built at the first solve, on that solve's edges (so an analysis
