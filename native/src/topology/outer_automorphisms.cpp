@@ -285,7 +285,7 @@ GroupMap nielsen_inverse(const GroupMap& phi, int genus, size_t max_letters) {
   // the inverse exists): u_i^±1 is a preimage of y up to that conjugation,
   // so the map y -> u_i^±1 is phi^-1 up to an inner automorphism; the caller
   // checks that exactly.
-  GroupMap inverse(n);
+  GroupMap preimages(n);
   std::vector<bool> seen(n, false);
   for (int i = 0; i < n; ++i) {
     const Word c = cyclic_dehn_reduce(t[i], reduce);
@@ -293,9 +293,9 @@ GroupMap nielsen_inverse(const GroupMap& phi, int genus, size_t max_letters) {
     const int y = c[0], k = std::abs(y) - 1;
     if (seen[k]) return {};
     seen[k] = true;
-    inverse[k] = y > 0 ? u[i] : inverse(u[i]);
+    preimages[k] = y > 0 ? u[i] : inverse(u[i]);
   }
-  return inverse;
+  return preimages;
 }
 
 AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const AutomorphismInverseOptions& options) {
