@@ -1169,9 +1169,8 @@ void HyperbolicPipeline::compare_directions() {
   for (const Word& w : psi)
     for (int x : w)
       if (x == 0 || std::abs(x) > n) return void(d.reason = candidates.inverted_status);
-  const DehnReducer reduce(canonical_relator(g));
-  GroupMap phi = compose(psi, theta);
-  for (Word& w : phi) w = reduce(w);
+  const OppositeClasses relation = compare_opposite_classes(psi, theta, g);
+  const GroupMap& phi = relation.composite;
   std::vector<std::string> names;
   for (int i = 1; i <= g; ++i) names.push_back("a" + std::to_string(i)), names.push_back("b" + std::to_string(i));
   d.difference.clear();
@@ -1180,14 +1179,14 @@ void HyperbolicPipeline::compare_directions() {
   const int k = candidates.inverted_class;
   d.inverted_candidate = k;
   if (k >= 0 && k < ncand) d.inverted_energy = out.candidates[k].energy;
-  const InnerTest inner = inner_automorphism_test(phi, g);
+  const InnerTest& inner = relation.inner;
   if (inner.inner) {
     d.outcome = "inverse";
     d.reason = "the composite of the two classes is inner (conjugation by a word of " +
                std::to_string(inner.conjugator.size()) + " letters; exact, Dehn's algorithm)";
     return;
   }
-  if (g == 2 && inner_automorphism_test(compose(phi, hyperelliptic_involution()), 2).inner) {
+  if (relation.up_to_hyperelliptic) {
     // (Every genus-2 surface has it as an isometry, so the two classes'
     // discrete energies tie exactly and the ranking picks either.)
     d.outcome = "symmetric: both optimal";
@@ -1205,6 +1204,7 @@ void HyperbolicPipeline::compare_directions() {
   if (target_lengths) {
     // theta' ∘ theta^-1 = (theta ∘ psi)^-1: an isometry of the target
     // exactly when theta ∘ psi is (no inverse needed).
+    const DehnReducer reduce(canonical_relator(g));
     GroupMap chi = compose(theta, psi);
     for (Word& w : chi) w = reduce(w);
     d.target_length_change = largest_length_change(

@@ -220,15 +220,13 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
   SurfaceMapResult::DirectionCheck& d = forward.directions;
   if (psi.empty()) return "directions not compared: " + why;
   const int g = forward.genus;
-  const DehnReducer reduce(canonical_relator(g));
-  std::vector<std::vector<int>> phi = compose(psi, forward.chosen_class_words);
-  for (auto& w : phi) w = reduce(w);
-  if (inner_automorphism_test(phi, g).inner) {
+  const OppositeClasses relation = compare_opposite_classes(psi, forward.chosen_class_words, g);
+  if (relation.inner.inner) {
     d.outcome = "inverse";
     d.reason = "the two directions chose inverse classes (the composite is inner; exact, Dehn's algorithm)";
     return "directions inverse";
   }
-  if (g == 2 && inner_automorphism_test(compose(phi, hyperelliptic_involution()), 2).inner) {
+  if (relation.up_to_hyperelliptic) {
     d.outcome = "symmetric: both optimal";
     d.reason = "inverse up to the hyperelliptic involution (exact), an isometry of every genus-2 surface";
     return "directions inverse up to the hyperelliptic involution";

@@ -199,6 +199,17 @@ InnerTest inner_automorphism_test(const GroupMap& phi, int genus) {
   return t;
 }
 
+OppositeClasses compare_opposite_classes(const GroupMap& psi, const GroupMap& theta, int genus) {
+  OppositeClasses r;
+  const DehnReducer reduce(canonical_relator(genus));
+  r.composite = compose(psi, theta);
+  for (Word& w : r.composite) w = reduce(w);
+  r.inner = inner_automorphism_test(r.composite, genus);
+  r.up_to_hyperelliptic =
+      !r.inner.inner && genus == 2 && inner_automorphism_test(compose(r.composite, hyperelliptic_involution()), 2).inner;
+  return r;
+}
+
 GroupMap hyperelliptic_involution() {
   const int g = 2;
   const DehnReducer reduce(canonical_relator(g));

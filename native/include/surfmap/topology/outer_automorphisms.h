@@ -108,6 +108,20 @@ InnerTest inner_automorphism_test(const GroupMap& phi, int genus);
 /// classes differing by it have the same harmonic energy.
 GroupMap hyperelliptic_involution();
 
+/// How a class theta (source -> target, 2g generator images) and a class psi
+/// of the opposite direction (target -> source) relate, exactly (issue 14):
+/// inverse when psi ∘ theta is inner; at genus 2, when it is not, inverse up
+/// to the hyperelliptic involution when psi ∘ theta ∘ iota is inner.
+struct OppositeClasses {
+  /// psi ∘ theta, each image Dehn-reduced.
+  GroupMap composite;
+  /// inner_automorphism_test of the composite.
+  InnerTest inner;
+  /// Genus 2, not inner, but inner after the hyperelliptic involution.
+  bool up_to_hyperelliptic = false;
+};
+OppositeClasses compare_opposite_classes(const GroupMap& psi, const GroupMap& theta, int genus);
+
 struct AutomorphismInverseOptions {
   /// Most descent moves (default 60); when no single move shortens, pairs
   /// of moves (default true) whose first move is one of the `pair_starts`
