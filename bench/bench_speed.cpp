@@ -17,8 +17,15 @@
 //      stages ("full-resolution solve" + "harmonic solve"); end-to-end ratio:
 //      (relaxation run's seconds until it reached that energy + the Newton
 //      run's stages after the solve, which are the same work) / Newton's end
-//      to end. With --relax-budget S the relaxation gives up after S seconds
-//      of solve (ratio then marked ">").
+//      to end. The --repeat Newton and relaxation runs alternate (N R N R
+//      ...), each pair giving its ratios, so that both sides of a ratio see
+//      about the same load; the medians of the pairs' ratios are printed,
+//      with the same ratio in CPU seconds (the process's, both threads),
+//      which the machine's load moves much less. R_newton_s: the relaxation
+//      run's "full-resolution solve" stage (the ranking's Newton solve of the
+//      best classes, which the relaxation does not start from), part of its
+//      end to end. With --relax-budget S the
+//      relaxation gives up after S seconds of solve (ratio then marked ">").
 // Each map runs in a forked child, so that its peak memory is its own.
 //
 //   build/bin/bench_speed [--sizes 50000,200000] [--repeat 3] [--threads 0] [--small 3500]
@@ -178,26 +185,32 @@ json in_child(Body body) {
 
 bool g_progress = false;  // --progress: every stage's end on stderr, as it happens
 
-// One map of the pair: the report's stage table and figures.
-json map_run(const Pair& p, int threads) {
+// One map of the pair: the report's stage table and figures; with
+// `solve_end_cpu`, also the process's CPU seconds from the start to the end
+// of the "harmonic solve" stage (the ratio rows' CPU after the solve).
+json map_run(const Pair& p, int threads, bool solve_end_cpu = false) {
   SurfaceMapOptions opt;
   opt.threads = threads;
   if (g_rank_all) opt.homotopy.ranking_gap = -1;
   const auto t0 = Clock::now();
-  if (g_progress)
-    opt.progress = [t0](const std::string& stage, double fraction) {
-      std::fprintf(stderr, "bench_speed: %8.1f s %3d%% %s\n", since(t0), static_cast<int>(100 * fraction), stage.c_str());
+  const double c0 = cpu_seconds();
+  double solve_end = NAN;
+  if (g_progress || solve_end_cpu)
+    opt.progress = [t0, c0, &solve_end](const std::string& stage, double fraction) {
+      if (stage == "harmonic solve") solve_end = cpu_seconds() - c0;
+      if (g_progress)
+        std::fprintf(stderr, "bench_speed: %8.1f s %3d%% %s\n", since(t0), static_cast<int>(100 * fraction), stage.c_str());
       return true;
     };
   // Faces crossed by the location walks: their cost whatever the load.
   testing::MapHooks hooks;
   long forward_steps = -1, inverse_steps = -1;
   hooks.location_walk_steps = [&](long f, long i) { forward_steps = f, inverse_steps = i; };
-  const double c0 = cpu_seconds();
   const SurfaceMapResult m = testing::surface_map(p.a, p.b, opt, hooks);
   const double cpu = cpu_seconds() - c0;
   const json report = to_json(m, opt);
   return {{"stages", report["stages"]},
+          {"solve_end_cpu", std::isfinite(solve_end) ? json(solve_end) : json()},
           {"walk_steps", {forward_steps, inverse_steps}},
           {"ranking", report["homotopy"].value("ranking", json::object())},
           {"converged", m.converged},
@@ -281,23 +294,33 @@ void size_rows(int v, int repeat, int threads, std::vector<std::string>& scaling
   std::fflush(stdout);
 }
 
-// The relaxation run: seconds from the start to the solve's start and to
-// the energy `target` (NaN when not reached within `budget`).
+// The relaxation run: seconds (and the process's CPU seconds) from the start
+// to the solve's start and to the energy `target` (NaN when not reached
+// within `budget`).
 json relaxation_run(const Pair& p, double target, double budget, int threads) {
   SurfaceMapOptions opt;
   opt.threads = threads;
   opt.solve.method = MapMethod::Relaxation;
   opt.solve.max_iterations = 100000000;
   const auto t0 = Clock::now();
-  double solve_start = NAN, reached = NAN, last_energy = NAN;
+  const double c0 = cpu_seconds();
+  double solve_start = NAN, reached = NAN, reached_cpu = NAN, last_energy = NAN;
+  // The stage before the relaxation, "full-resolution solve", is the
+  // ranking's Newton solve of the best classes (stages/harmonic_solve.h: not
+  // reused as the relaxation's start): its seconds are reported apart.
+  double last_stage_end = 0, full_solve = NAN;
   opt.progress = [&](const std::string& stage, double) {
-    if (stage == "initial map") solve_start = since(t0);
+    const double now = since(t0);
+    if (stage == "full-resolution solve") full_solve = now - last_stage_end;
+    if (stage == "initial map") solve_start = now;
+    last_stage_end = now;
     return true;
   };
   opt.solve_progress = [&](int, double E, double) {
     last_energy = E;
     if (E <= target * (1 + 1e-6)) {
       reached = since(t0);
+      reached_cpu = cpu_seconds() - c0;
       return false;
     }
     return !(std::isfinite(solve_start) && since(t0) - solve_start > budget);
@@ -306,17 +329,29 @@ json relaxation_run(const Pair& p, double target, double budget, int threads) {
     surface_map(p.a, p.b, opt);
   } catch (const Cancelled&) {
   }
-  return {{"solve_start", solve_start}, {"reached", reached}, {"energy", last_energy}};
+  auto num = [](double x) { return std::isfinite(x) ? json(x) : json(); };
+  return {{"solve_start", num(solve_start)}, {"reached", num(reached)}, {"reached_cpu", num(reached_cpu)},
+          {"full_solve", num(full_solve)}, {"energy", num(last_energy)}};
 }
+
+double number_or_nan(const json& j, const char* key) { return j.contains(key) && j[key].is_number() ? j[key].get<double>() : NAN; }
 
 void ratio_rows(int v, int repeat, double budget, int threads) {
   const Pair p = make_pair_of(v);
-  std::printf("\n== Newton / relaxation at the same energy, pair %d / %d vertices\n", p.a.num_vertices(),
-              p.b.num_vertices());
-  std::vector<double> solve, total, after, energy;
+  std::printf("\n== Newton / relaxation at the same energy, pair %d / %d vertices (runs alternated N R N R ...)\n",
+              p.a.num_vertices(), p.b.num_vertices());
+  std::printf("%4s %10s %10s %10s %12s %10s %10s %8s %10s %10s %10s\n", "pair", "N_solve_s", "N_total_s", "N_cpu_s",
+              "energy", "R_solve_s", "R_total_s", "R_cpu_s", "R_newton_s", "ratio_e2e", "ratio_cpu");
+  std::vector<double> solve_ratio, total_ratio, cpu_ratio, n_total, r_solve;
+  bool all_reached = true;
   for (int r = 0; r < repeat; ++r) {
-    const json run = in_child([&] { return map_run(p, threads); });
-    if (run.contains("error")) continue;
+    const json run = in_child([&] { return map_run(p, threads, true); });
+    if (run.contains("error")) {
+      std::printf("%4d the Newton run failed: %s\n", r, run["error"].get<std::string>().c_str());
+      continue;
+    }
+    // Newton's solve stages, and its stages after the solve (the same work
+    // in both runs: quality and location of the same energy's map).
     double s = 0, post = 0;
     bool past = false;
     for (const json& st : run["stages"]) {
@@ -325,24 +360,32 @@ void ratio_rows(int v, int repeat, double budget, int threads) {
       if (past && name != "total") post += st["time_s"].get<double>();
       if (name == "harmonic solve") past = true;
     }
-    solve.push_back(s), total.push_back(run["total"]), after.push_back(post), energy.push_back(run["energy"]);
+    const double total = run["total"], cpu = run["cpu"], energy = run["energy"];
+    const double post_cpu = cpu - number_or_nan(run, "solve_end_cpu");
+    const json relax = in_child([&] { return relaxation_run(p, energy, budget, threads); });
+    if (relax.contains("error")) {
+      std::printf("%4d the relaxation run failed: %s\n", r, relax["error"].get<std::string>().c_str());
+      continue;
+    }
+    const double start = number_or_nan(relax, "solve_start"), reached = number_or_nan(relax, "reached");
+    const bool got = std::isfinite(reached);
+    all_reached = all_reached && got;
+    const double relax_solve = got ? reached - start : budget;
+    const double relax_total = (got ? reached : start + budget) + post;
+    const double relax_cpu = number_or_nan(relax, "reached_cpu") + post_cpu;
+    solve_ratio.push_back(relax_solve / s), total_ratio.push_back(relax_total / total);
+    cpu_ratio.push_back(relax_cpu / cpu), n_total.push_back(total), r_solve.push_back(relax_solve);
+    std::printf("%4d %10.3f %10.3f %10.3f %12.10g %10.3f %10.3f %8.3f %10.3f %9s%.1f %9s%.1f\n", r, s, total, cpu, energy,
+                relax_solve, relax_total, relax_cpu, number_or_nan(relax, "full_solve"), got ? "" : ">", total_ratio.back(),
+                got ? "" : ">", cpu_ratio.back());
   }
-  if (energy.empty()) return void(std::printf("the Newton runs failed\n"));
-  const double target = median(energy);
-  const json relax = in_child([&] { return relaxation_run(p, target, budget, threads); });
-  if (relax.contains("error")) return void(std::printf("the relaxation run failed: %s\n", relax["error"].get<std::string>().c_str()));
-  const double start = relax["solve_start"].is_number() ? relax["solve_start"].get<double>() : NAN;
-  const double reached = relax["reached"].is_number() ? relax["reached"].get<double>() : NAN;
-  const bool got = std::isfinite(reached);
-  const double relax_solve = got ? reached - start : budget;
-  const double relax_total = (got ? reached : start + budget) + median(after);
-  std::printf("Newton: solve stages %.3f s, end to end %.3f s, energy %.10g (medians of %zu)\n", median(solve),
-              median(total), target, energy.size());
-  std::printf("relaxation: %s %.3f s of solve, end to end %.3f s (reached at %.3f s + Newton's %.3f s of later stages)\n",
-              got ? "reached it after" : "NOT reached within the budget,", relax_solve, relax_total,
-              got ? reached : start + budget, median(after));
-  std::printf("ratio relaxation/Newton: solve %s%.1fx, end to end %s%.1fx\n", got ? "" : ">", relax_solve / median(solve),
-              got ? "" : ">", relax_total / median(total));
+  if (total_ratio.empty()) return void(std::printf("no Newton / relaxation pair completed\n"));
+  const char* mark = all_reached ? "" : ">";
+  std::printf("Newton end to end %.3f s, relaxation %.3f s of solve (medians of %zu pairs)\n", median(n_total),
+              median(r_solve), total_ratio.size());
+  std::printf("ratio relaxation/Newton (median of the pairs' ratios): solve %s%.1fx, end to end %s%.1fx, end to end in CPU "
+              "seconds %s%.1fx\n",
+              mark, median(solve_ratio), mark, median(total_ratio), mark, median(cpu_ratio));
 }
 
 }  // namespace
