@@ -316,6 +316,7 @@ json relaxation_run(const Pair& p, double target, double budget, int threads) {
     last_stage_end = now;
     return true;
   };
+  double stopped_cpu = NAN;  // CPU seconds when the budget ran out
   opt.solve_progress = [&](int, double E, double) {
     last_energy = E;
     if (E <= target * (1 + 1e-6)) {
@@ -323,7 +324,11 @@ json relaxation_run(const Pair& p, double target, double budget, int threads) {
       reached_cpu = cpu_seconds() - c0;
       return false;
     }
-    return !(std::isfinite(solve_start) && since(t0) - solve_start > budget);
+    if (std::isfinite(solve_start) && since(t0) - solve_start > budget) {
+      stopped_cpu = cpu_seconds() - c0;
+      return false;
+    }
+    return true;
   };
   try {
     surface_map(p.a, p.b, opt);
@@ -331,7 +336,7 @@ json relaxation_run(const Pair& p, double target, double budget, int threads) {
   }
   auto num = [](double x) { return std::isfinite(x) ? json(x) : json(); };
   return {{"solve_start", num(solve_start)}, {"reached", num(reached)}, {"reached_cpu", num(reached_cpu)},
-          {"full_solve", num(full_solve)}, {"energy", num(last_energy)}};
+          {"stopped_cpu", num(stopped_cpu)}, {"full_solve", num(full_solve)}, {"energy", num(last_energy)}};
 }
 
 double number_or_nan(const json& j, const char* key) { return j.contains(key) && j[key].is_number() ? j[key].get<double>() : NAN; }
@@ -372,7 +377,7 @@ void ratio_rows(int v, int repeat, double budget, int threads) {
     all_reached = all_reached && got;
     const double relax_solve = got ? reached - start : budget;
     const double relax_total = (got ? reached : start + budget) + post;
-    const double relax_cpu = number_or_nan(relax, "reached_cpu") + post_cpu;
+    const double relax_cpu = number_or_nan(relax, got ? "reached_cpu" : "stopped_cpu") + post_cpu;
     solve_ratio.push_back(relax_solve / s), total_ratio.push_back(relax_total / total);
     cpu_ratio.push_back(relax_cpu / cpu), n_total.push_back(total), r_solve.push_back(relax_solve);
     std::printf("%4d %10.3f %10.3f %10.3f %12.10g %10.3f %10.3f %8.3f %10.3f %9s%.1f %9s%.1f\n", r, s, total, cpu, energy,
