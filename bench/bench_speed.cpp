@@ -24,8 +24,8 @@
 //      which the machine's load moves much less. R_newton_s: the relaxation
 //      run's "full-resolution solve" stage (the ranking's Newton solve of the
 //      best classes, which the relaxation does not start from), part of its
-//      end to end. With --relax-budget S the
-//      relaxation gives up after S seconds of solve (ratio then marked ">").
+//      end to end. With --relax-budget S the relaxation gives up after S
+//      seconds of solve (ratio then marked ">").
 // Each map runs in a forked child, so that its peak memory is its own.
 //
 //   build/bin/bench_speed [--sizes 50000,200000] [--repeat 3] [--threads 0] [--small 3500]
