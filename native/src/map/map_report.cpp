@@ -12,6 +12,8 @@ namespace surfmap {
 
 using nlohmann::json;
 
+namespace {
+
 std::string distortion_measure(int genus) {
   // (docs/handle_classes.md "Quality signal": what a reviewer measuring D' another way must
   // know; the three pipelines measure the image triangle in different places.)
@@ -58,6 +60,8 @@ std::string energy_ratio_basis(const SurfaceMapResult& r) {
     s += "; the returned map's energy.final is after the local fold repair (fold_repair), slightly above";
   return s;
 }
+
+}  // namespace
 
 json energy_json(const SurfaceMapResult& r) {
   return {{"energy", {{"initial", r.initial_energy}, {"final", r.final_energy}, {"history", r.energy_history}}},
