@@ -355,3 +355,11 @@ def test_the_result_shows_the_quality_signal_of_a_genus_2_run():
     rows = dict(ops_map.summary_rows(res, {"solve": 1.0}))
     assert rows["E / bound"] == "1" and "Warning" not in rows, rows
     assert "twisted" not in ops_map._summary(res, 1.0)
+    # With the panel's Weights: Own Edges the core's ratio is the own-edge energy's, which the
+    # bound is not about (quality.energy_ratio_basis): the panel and the status line say so.
+    res["quality"] = {"energy_ratio": 2.2885, "warning": "", "energy_ratio_basis":
+                      "the chosen class's free optimum with positive weights on the source's own "
+                      "edges (source_weights 'own') ...; NOT comparable with the bound: ..."}
+    rows = dict(ops_map.summary_rows(res, {"solve": 1.0}))
+    assert rows["E / bound"] == "2.29 (own edges)", rows
+    assert "not comparable with the bound" in ops_map._summary(res, 1.0)

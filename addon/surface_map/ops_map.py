@@ -338,6 +338,12 @@ def write_outputs(context, source, target, src, tgt, out, res, which):
 
 # --- compute_map -------------------------------------------------------------------------------
 
+def _ratio_on_own_edges(quality):
+    """The core's energy ratio was taken on the source's own-edge weights (Weights: Own Edges),
+    not on the intrinsic energy the bound is about (quality.energy_ratio_basis)."""
+    return "NOT comparable" in str(quality.get("energy_ratio_basis", ""))
+
+
 def _summary(res, elapsed):
     e = res["energy"]
     s = (f"genus {res['genus']}, energy {e['initial']:.6g} -> {e['final']:.6g} in "
@@ -361,6 +367,8 @@ def _summary(res, elapsed):
         ratio = quality.get("energy_ratio")
         if isinstance(ratio, (int, float)) and ratio == ratio:
             s += f", energy {ratio:.3g}x the conformal bound"
+            if _ratio_on_own_edges(quality):
+                s += " (own-edge weights' energy: not comparable with the bound)"
         if quality.get("warning"):
             s += f"; {quality['warning']}"
     return s
@@ -379,7 +387,8 @@ def summary_rows(res, times):
     elif isinstance(quality, dict):   # genus >= 2: energy over the conformal bound 8 pi (g - 1)
         ratio = quality.get("energy_ratio")
         if isinstance(ratio, (int, float)) and ratio == ratio:
-            rows.append(("E / bound", f"{ratio:.3g}"))
+            rows.append(("E / bound", f"{ratio:.3g}" + (" (own edges)" if _ratio_on_own_edges(quality)
+                                                          else "")))
         if quality.get("warning"):
             rows.append(("Warning", "twisted pairing?"))
     rows.append(("Iterations", f"{res.get('iterations', 0)}"

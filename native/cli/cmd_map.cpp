@@ -56,19 +56,30 @@ std::vector<std::pair<int, int>> read_landmarks(const std::string& path) {
 // is read would sit apart.
 void register_map(CLI::App& app) {
   auto* cmd = app.add_subcommand("map", "Globally optimal map from SRC onto DST (same genus)");
+  // Every default is the options structs' own (map/surface_map.h), as the Python keywords'
+  // (python/bind_map.cpp): one set of defaults for every path (docs/handle_classes.md
+  // "Quality signal"; test test_default_map_is_the_same_on_every_path).
   struct Args {
-    std::string src, dst, out, report, correspondence, method = enum_name(MapMethod::Newton), landmarks,
-        initial = enum_name(InitialMapMethod::CutGraph), initial_out, source_weights = enum_name(SourceWeights::Automatic),
-        target_metric = enum_name(UniformizationMetric::Automatic), target_loops = enum_name(LoopMetric::Automatic);
-    int threads = 0, homotopy = -1, base_vertex = -1, target_base_vertex = -1, max_iterations = 300;
-    int homotopy_candidates = 8, homotopy_full_solves = 2, homotopy_extra_cuts = 3, homotopy_search_evaluations = 24;
-    double tolerance = 1e-10, own_weights_floor = 0.1;
-    bool quiet = false, timings = false, no_homotopy_search = false, no_two_way = false, compare_directions = false;
-    bool no_cheap_direction_check = false;
-    bool no_local_fold_repair = false;
-    bool no_greedy_pants = false;  // HomotopySearchOptions::greedy_pants
-    bool homotopy_both_signs = true;     // HomotopyOptions::flat_both_signs
-    bool no_flat_overlay = false;        // HomotopyOptions::flat_overlay off
+    const SurfaceMapOptions defaults;
+    std::string src, dst, out, report, correspondence, method = enum_name(defaults.solve.method), landmarks,
+        initial = enum_name(defaults.initial.method), initial_out,
+        source_weights = enum_name(defaults.solve.source_weights),
+        target_metric = enum_name(defaults.uniformization.target_metric),
+        target_loops = enum_name(defaults.uniformization.loops);
+    int threads = defaults.threads, homotopy = defaults.homotopy.class_index,
+        base_vertex = defaults.loops.source_base_vertex, target_base_vertex = defaults.loops.target_base_vertex,
+        max_iterations = defaults.solve.max_iterations;
+    int homotopy_candidates = defaults.homotopy.candidates, homotopy_full_solves = defaults.homotopy.full_solves,
+        homotopy_extra_cuts = defaults.homotopy.extra_cuts,
+        homotopy_search_evaluations = defaults.homotopy.search.evaluations;
+    double tolerance = defaults.solve.tolerance, own_weights_floor = defaults.solve.own_weights_floor;
+    bool quiet = false, timings = false, no_homotopy_search = !defaults.homotopy.search.enabled,
+         no_two_way = !defaults.homotopy.two_way, compare_directions = defaults.homotopy.compare_directions;
+    bool no_cheap_direction_check = !defaults.homotopy.cheap_direction_check;
+    bool no_local_fold_repair = !defaults.solve.local_fold_repair;
+    bool no_greedy_pants = !defaults.homotopy.search.greedy_pants;  // HomotopySearchOptions::greedy_pants
+    bool homotopy_both_signs = defaults.homotopy.flat_both_signs;    // HomotopyOptions::flat_both_signs
+    bool no_flat_overlay = !defaults.homotopy.flat_overlay;          // HomotopyOptions::flat_overlay off
     bool boundary_swap = false;          // open surfaces (map_open.h)
     std::vector<int> boundary_pairing;  // open surfaces (map_open.h)
   };

@@ -325,17 +325,32 @@ void bind_map(py::module_& m) {
         d["target_flipped"] = dst.flipped;
         return d;
       },
-      py::arg("source_V"), py::arg("source_F"), py::arg("target_V"), py::arg("target_F"), py::arg("homotopy") = -1,
-      py::arg("source_base_vertex") = -1, py::arg("target_base_vertex") = -1, py::arg("progress") = py::none(),
-      py::arg("landmarks") = py::none(), py::arg("method") = enum_name(MapMethod::Newton), py::arg("tolerance") = 1e-10,
-      py::arg("max_iterations") = 300, py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = 8,
-      py::arg("homotopy_full_solves") = 2, py::arg("initial_map") = enum_name(InitialMapMethod::CutGraph), py::arg("source_weights") = enum_name(SourceWeights::Automatic),
-      py::arg("homotopy_search") = true, py::arg("homotopy_search_evaluations") = 24,
-      py::arg("boundary_pairing") = py::none(), py::arg("two_way") = true, py::arg("threads") = 0, py::arg("target_metric") = enum_name(UniformizationMetric::Automatic),
-      py::arg("homotopy_images") = py::none(), py::arg("homotopy_both_signs") = true, py::arg("flat_overlay") = true,
-      py::arg("cheap_direction_check") = true, py::arg("compare_directions") = false, py::arg("greedy_pants") = true,
+      // Every default is the options structs' own (map/surface_map.h), as the CLI's flags
+      // (cli/cmd_map.cpp): one set of defaults for every path (docs/handle_classes.md
+      // "Quality signal"; test test_default_map_is_the_same_on_every_path).
+      py::arg("source_V"), py::arg("source_F"), py::arg("target_V"), py::arg("target_F"),
+      py::arg("homotopy") = HomotopyOptions().class_index,
+      py::arg("source_base_vertex") = LoopOptions().source_base_vertex,
+      py::arg("target_base_vertex") = LoopOptions().target_base_vertex, py::arg("progress") = py::none(),
+      py::arg("landmarks") = py::none(), py::arg("method") = enum_name(SolveOptions().method),
+      py::arg("tolerance") = SolveOptions().tolerance, py::arg("max_iterations") = SolveOptions().max_iterations,
+      py::arg("solve_progress") = py::none(), py::arg("homotopy_candidates") = HomotopyOptions().candidates,
+      py::arg("homotopy_full_solves") = HomotopyOptions().full_solves,
+      py::arg("initial_map") = enum_name(InitialMapOptions().method),
+      py::arg("source_weights") = enum_name(SolveOptions().source_weights),
+      py::arg("homotopy_search") = HomotopySearchOptions().enabled,
+      py::arg("homotopy_search_evaluations") = HomotopySearchOptions().evaluations,
+      py::arg("boundary_pairing") = py::none(), py::arg("two_way") = HomotopyOptions().two_way,
+      py::arg("threads") = SurfaceMapOptions().threads,
+      py::arg("target_metric") = enum_name(UniformizationOptions().target_metric),
+      py::arg("homotopy_images") = py::none(), py::arg("homotopy_both_signs") = HomotopyOptions().flat_both_signs,
+      py::arg("flat_overlay") = HomotopyOptions().flat_overlay,
+      py::arg("cheap_direction_check") = HomotopyOptions().cheap_direction_check,
+      py::arg("compare_directions") = HomotopyOptions().compare_directions,
+      py::arg("greedy_pants") = HomotopySearchOptions().greedy_pants,
       py::arg("homotopy_extra_cuts") = HomotopyOptions().extra_cuts, py::arg("own_weights_floor") = SolveOptions().own_weights_floor,
-      py::arg("local_fold_repair") = true, py::arg("target_loops") = enum_name(LoopMetric::Automatic),
+      py::arg("local_fold_repair") = SolveOptions().local_fold_repair,
+      py::arg("target_loops") = enum_name(UniformizationOptions().loops),
       py::arg("two_way_ratio") = HomotopyOptions().two_way_ratio,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "

@@ -1093,6 +1093,36 @@ TEST(SurfaceMapHandles, SeparateRunsOfBothDirectionsEndOnInverseClasses) {
                                           << r.two_way_status << ")";
 }
 
+// Issue 14 (docs/handle_classes.md "The issue-14 check, every pair"): with
+// the default options (the two-way run forced by a ratio threshold of 0, so
+// both directions take it, and its cheap direction check, not
+// compare_directions), separate runs of the two directions end on inverse
+// classes. Before session 14 the cheap check accepted "the other direction
+// takes this class inverted" from a single-class solve there, while the
+// other direction's own run searched on from that class to another one
+// (fertility <-> genus-4 plate: two different pairs).
+TEST(SurfaceMapHandles, SeparateDefaultRunsOfBothDirectionsEndOnInverseClasses) {
+  const TriMesh a = samples::cad_plate(2, 32, 0.3);
+  const TriMesh b = samples::n_hole_torus(2, 26, true);
+  SurfaceMapOptions o;
+  o.homotopy.two_way_ratio = 0;
+  const SurfaceMapResult f = surface_map(a, b, o);
+  const SurfaceMapResult r = surface_map(b, a, o);
+  for (const SurfaceMapResult* m : {&f, &r}) {
+    EXPECT_TRUE(m->converged);
+    EXPECT_EQ(m->flipped_triangles, 0);
+    ASSERT_EQ(m->chosen_class_words.size(), 4u) << m->two_way_status;
+    ASSERT_EQ(m->source_as_target_inverse.size(), 4u) << m->source_as_target_status;
+  }
+  const GroupMap psi = compose(f.source_as_target_inverse, compose(r.chosen_class_words, r.source_as_target_inverse));
+  const GroupMap phi = compose(psi, f.chosen_class_words);
+  const bool inverse = inner_automorphism_test(phi, 2).inner;
+  const bool inverse_up_to_h = inner_automorphism_test(compose(phi, hyperelliptic_involution()), 2).inner;
+  EXPECT_TRUE(inverse || inverse_up_to_h) << inner_automorphism_test(phi, 2).why << " (ratios " << f.energy_ratio
+                                          << " and " << r.energy_ratio << "; " << f.two_way_status << " / "
+                                          << r.two_way_status << ")";
+}
+
 // The two-way run (forced with a ratio threshold of 0): the pair is mapped
 // the other way, the source's loops carried by that map's inverse give one
 // more candidate, and the result is no worse than the one-way map; it is a

@@ -43,9 +43,19 @@ def inverse_points(result):
     return np.asarray(f["face"]), np.asarray(f["barycentric"]), np.asarray(f["position"])
 
 
+def _finite_or_none(x):
+    """A float for JSON: None where not finite (genus < 2 has no ratio)."""
+    try:
+        x = float(x)
+    except (TypeError, ValueError):
+        return None
+    return x if np.isfinite(x) else None
+
+
 def map_report(result):
     """A small JSON-able summary of a map result (no per-vertex arrays)."""
     h = result["homotopy"]
+    quality = result.get("quality") if isinstance(result.get("quality"), dict) else {}
     chosen = h["chosen"]
     cands = h["candidates"]
     return {
@@ -55,7 +65,13 @@ def map_report(result):
         "energy": {"initial": float(result["energy"]["initial"]),
                    "final": float(result["energy"]["final"])},
         "distortion": {"mean": float(result["distortion"]["mean"]),
-                       "max": float(result["distortion"]["max"])},
+                       "max": float(result["distortion"]["max"]),
+                       "measure": result["distortion"].get("measure", "")},
+        # The quality signal as `surfmap map --report` gives it (genus >= 2; None below).
+        "quality": {"energy_ratio": _finite_or_none(quality.get("energy_ratio")),
+                    "energy_ratio_basis": quality.get("energy_ratio_basis", ""),
+                    "warning": quality.get("warning", "")},
+        "source_weights": result.get("source_weights", ""),
         "flipped_triangles": int(result["flipped_triangles"]),
         "homotopy": {"chosen": int(chosen),
                      "description": cands[chosen]["description"] if 0 <= chosen < len(cands) else "",

@@ -2,6 +2,8 @@
 #include "surfmap/map/map_report.h"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <cstdio>
 
 #include "surfmap/map/map_option_names.h"
@@ -10,9 +12,64 @@ namespace surfmap {
 
 using nlohmann::json;
 
+namespace {
+
+std::string distortion_measure(int genus) {
+  // (docs/handle_classes.md "Quality signal": what a reviewer measuring D' another way must
+  // know; the three pipelines measure the image triangle in different places.)
+  const std::string common =
+      "; mean weighted by the source faces' 3D areas (unweighted_mean: every face alike, which the slivers' "
+      "D' dominates), max over the faces; flipped or degenerate images are counted, not averaged";
+  if (genus == 0)
+    return "D' = ratio of the singular values of the affine map from each source face onto the triangle of "
+           "its corners' images on the target in 3D (chords)" + common;
+  if (genus == 1)
+    return "D' = ratio of the singular values of the affine map from each source face (3D) onto its image "
+           "triangle in the target's flat uniformization domain" + common;
+  return "D' = ratio of the singular values of the map from each source face (3D) onto its image geodesic "
+         "triangle in the target's hyperbolic uniformization metric (from the side lengths; not the chord "
+         "triangle of the 3D image points)" + common;
+}
+
+double unweighted_mean(const std::vector<double>& per_face) {
+  double sum = 0;
+  long n = 0;
+  for (double d : per_face)
+    if (std::isfinite(d)) sum += d, ++n;
+  return n ? sum / static_cast<double>(n) : std::numeric_limits<double>::quiet_NaN();
+}
+
+std::string energy_ratio_basis(const SurfaceMapResult& r) {
+  if (r.genus < 2 || !std::isfinite(r.energy_ratio)) return "";
+  char bound[96];
+  std::snprintf(bound, sizeof bound, " / 8 pi (g - 1) = %.6g (the energy of a conformal map, the least of any map)",
+                8 * M_PI * (r.genus - 1));
+  const std::string head = "the chosen class's free optimum (landmarks not held)";
+  if (std::isfinite(r.intrinsic_class_energy))
+    return head + " with intrinsic Delaunay cotangent weights, the energy the classes are ranked by" + bound +
+           "; the returned map fell back to positive weights on the source's own edges (its energy.final, and "
+           "energy_ratio_own_edges, are on those weights: not a discretisation of the Dirichlet energy, "
+           "higher for the same class)";
+  if (r.source_weights.rfind("positive on the source's own edges", 0) == 0)
+    return head + " with positive weights on the source's own edges (source_weights 'own')" + bound +
+           "; NOT comparable with the bound: those weights are not a discretisation of the Dirichlet energy "
+           "and give a higher figure than the intrinsic Delaunay energy of the same class (source_weights "
+           "'auto' reports that one)";
+  std::string s = head + " with intrinsic Delaunay cotangent weights, the energy the classes are ranked by" + bound;
+  if (r.fold_repair.status == "repaired")
+    s += "; the returned map's energy.final is after the local fold repair (fold_repair), slightly above";
+  return s;
+}
+
+}  // namespace
+
 json energy_json(const SurfaceMapResult& r) {
   return {{"energy", {{"initial", r.initial_energy}, {"final", r.final_energy}, {"history", r.energy_history}}},
-          {"distortion", {{"mean", r.mean_dilatation}, {"max", r.max_dilatation}}},
+          {"distortion",
+           {{"mean", r.mean_dilatation},
+            {"max", r.max_dilatation},
+            {"unweighted_mean", unweighted_mean(r.dilatation)},
+            {"measure", distortion_measure(r.genus)}}},
           {"initial_distortion", {{"mean", r.initial_mean_dilatation}, {"max", r.initial_max_dilatation}}},
           {"flipped_triangles", r.flipped_triangles},
           {"degenerate_triangles", r.degenerate_triangles},
@@ -198,11 +255,13 @@ json directions_json(const SurfaceMapResult& r) {
           {"difference", d.difference},
           {"chosen_class_words", r.chosen_class_words},
           {"source_as_target", r.source_as_target},
+          {"source_as_target_inverse", r.source_as_target_inverse},
           {"source_as_target_status", r.source_as_target_status}};
 }
 
 json quality_json(const SurfaceMapResult& r) {
-  return {{"energy_ratio", r.energy_ratio},           {"warning", r.quality_warning},
+  return {{"energy_ratio", r.energy_ratio},           {"energy_ratio_basis", energy_ratio_basis(r)},
+          {"warning", r.quality_warning},
           {"intrinsic_class_energy", r.intrinsic_class_energy}, {"energy_ratio_own_edges", r.energy_ratio_own_edges},
           {"reverse_candidates", r.reverse_candidates}, {"reverse_status", r.reverse_status},
           {"reverse_check", r.reverse_check}, {"reverse_inverse", r.reverse_inverse},

@@ -503,6 +503,10 @@ nlohmann::json to_json(const OpenMapResult& r, const OpenMapOptions& options) {
   };
   nlohmann::json report = to_json(r.map, SurfaceMapOptions{});
   report["method"] = "open";
+  report["distortion"]["measure"] =
+      "D' = ratio of the singular values of the affine map from each source face onto the triangle of its corners' "
+      "images on the target in 3D (the morph's triangles); mean weighted by the source faces' 3D areas "
+      "(unweighted_mean: every face alike), max over the faces; ear triangles left out (open.ear_triangles)";
   report["boundary_loops"] = r.source_topology.num_boundary_loops();
   report["source_topology"] = topology_json(r.source_topology);
   report["target_topology"] = topology_json(r.target_topology);

@@ -201,6 +201,78 @@ std::string agree_directions(const TriMesh& source, const TriMesh& target, const
   return "directions agreed on the other direction's class: " + pairs;
 }
 
+/// Issue 14, cheap direction check (below), when θ^-1 (this run's class
+/// inverted) beats the other direction's one-way class there: the other
+/// direction mapped given θ (reverse_class and this map's inverse as its
+/// source_images) with its candidates and class search, as its own run
+/// does. When it ends on a class ψ' of lower energy there than θ^-1
+/// (`alt_there`), ψ'^-1 is solved here alone, and when E(ψ'^-1) + E'(ψ') is
+/// below E(θ) + E'(θ^-1) (`own` + `alt_there`) this run adopts ψ'^-1.
+/// Returns a two_way_status when it adopted (forward replaced), else ""
+/// (with `there_text` extended by what the search found).
+std::string search_from_this_class_there(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                         const SurfaceMapResult& reverse, SurfaceMapResult& forward,
+                                         const MapFunction& map, double own, double alt_there,
+                                         std::string& there_text) {
+  std::string why;
+  SurfaceMapOptions so = reverse_options(options);
+  so.homotopy.compare_directions = false;
+  so.homotopy.reverse_class = reverse_class_here(reverse, forward, why);  // θ in the other direction's letters
+  if (static_cast<int>(forward.inverse.size()) == target.num_vertices())
+    so.homotopy.source_images = inverse_positions(forward);
+  if (so.homotopy.reverse_class.empty()) return "";
+  const double bound = 8 * M_PI * (forward.genus - 1);
+  SurfaceMapResult back;
+  try {
+    back = map(target, source, so);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    there_text += "; searched on from it there: failed (" + std::string(e.what()) + ")";
+    return "";
+  }
+  const double back_energy = chosen_energy(back);
+  if (other_class_here(back).chosen || !(back_energy < alt_there * (1 - 1e-6))) {
+    there_text += "; searched on from it there: kept it";
+    return "";
+  }
+  there_text += "; searched on from it there: another class, ratio " + number(back_energy / bound);
+  SurfaceMapOptions fo = options;
+  fo.homotopy.two_way = false;
+  fo.homotopy.compare_directions = false;
+  fo.homotopy.reverse_class = reverse_class_here(forward, back, why);  // ψ' in this run's letters
+  fo.homotopy.reverse_class_only = true;
+  if (fo.homotopy.reverse_class.empty()) {
+    there_text += " (not written in this run's letters: " + why + ")";
+    return "";
+  }
+  SurfaceMapResult here;
+  try {
+    here = map(source, target, fo);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    there_text += " (its inverse not solved here: " + std::string(e.what()) + ")";
+    return "";
+  }
+  const double alt_here = chosen_energy(here);
+  const double own_pair = own + alt_there, other_pair = alt_here + back_energy;
+  const std::string pairs = "pair totals (ratio here + ratio there): this class " + number(own_pair / bound) +
+                            ", the class searched from it there " + number(other_pair / bound);
+  if (!(other_pair < own_pair)) {
+    there_text += " (" + pairs + ")";
+    return "";
+  }
+  const std::string kept_reason = here.directions.reason;
+  forward = std::move(here);
+  forward.directions.outcome = "inverse";
+  forward.directions.reason = "inverse by agreement: the other direction, given this run's first class (" +
+                              there_text + "), searches on to another class; its inverse here, ratio " +
+                              number(alt_here / bound) + ", and it make the pair of lower total energy (" + pairs +
+                              ")" + (kept_reason.empty() ? std::string() : "; " + kept_reason);
+  return "directions agreed on the class the other direction searched from this one: " + pairs;
+}
+
 /// Issue 14 (docs/handle_classes.md "Both directions, cheaply"): the
 /// two-way run found the other direction (class ψ, in `reverse`) no better
 /// by its ratio, which says nothing about ψ^-1 here (the harmonic energy is
@@ -281,6 +353,18 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
     }
   }
   if (alt_there < own_there) {
+    // θ^-1 beats the other direction's one-way class there, so that direction's own run
+    // (two_way_map: this direction's ratio is the lower one) carries this map and searches
+    // on from θ^-1. Predict it: map the other way given θ (its words, and this map's
+    // inverse as the carried loops), with its candidates and search; when that ends on
+    // another class ψ' below θ^-1 there, ψ'^-1 is solved here alone and the pair of inverse
+    // classes of lower total energy is kept, the pair the other direction's run ends on
+    // (fertility -> genus-4 plate: θ 10.59 with θ^-1 14.3 there, against ψ'^-1 6.65 with
+    // ψ' 7.65; before, separate runs of the two directions ended on these two different
+    // pairs; docs/handle_classes.md "The issue-14 check, every pair").
+    const std::string searched = search_from_this_class_there(source, target, options, reverse, forward, map,
+                                                              own, alt_there, there_text);
+    if (!searched.empty()) return searched;
     d.outcome = "inverse";
     d.reason = "inverse by agreement: the other direction takes this class inverted (" + there_text + "; " + here_text + ")";
     return "directions agreed: the other direction takes this class inverted (" + there_text + ")";

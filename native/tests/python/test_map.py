@@ -599,6 +599,80 @@ def test_source_weights_kwarg():
         surfmap.surface_map(*a, *b, source_weights="uniform")
 
 
+def _with_caps(V, F, stride, eps):
+    """Every `stride`-th face (a, b, c) split at a point just above the midpoint of ab (`eps` of
+    the way to c): CAD-like caps, an angle near 180 degrees, which fold the intrinsic map (the
+    fixture of native/tests/sliver_caps.h)."""
+    V = [np.asarray(v, dtype=float) for v in np.asarray(V, dtype=float)]
+    out = []
+    for f, t in enumerate(np.asarray(F)):
+        if f % stride:
+            out.append(t)
+            continue
+        mid = 0.5 * (V[t[0]] + V[t[1]])
+        p = len(V)
+        V.append(mid + eps * (V[t[2]] - mid))
+        out += [(t[0], t[1], p), (t[1], t[2], p), (t[2], t[0], p)]
+    return np.array(V), np.array(out, dtype=np.int32)
+
+
+def _signature_defaults(fn):
+    """{keyword: default} from a pybind11 signature line ('name: type = value, ...')."""
+    line = fn.__doc__.splitlines()[0]
+    return {m.group(1): m.group(2) for m in re.finditer(r"(\w+): [\w.]+ = ([^,)]+)", line)}
+
+
+def test_default_map_is_the_same_on_every_path(tmp_path, cli):
+    # Issue 14 (docs/handle_classes.md "Quality signal"): a reviewer's figures for a pair must
+    # not depend on the path taken. With no options, the CLI, the Python module, the many-shape
+    # tools' call and the add-on's default panel settings must run the same options and report
+    # the same class, ratio and D'. The source has caps that fold the intrinsic map, so the
+    # automatic weights and the local fold repair (whose defaults decide the figures: own-edge
+    # weights give another energy and another D') are exercised.
+    a = _with_caps(*surfmap.shapes.n_hole_torus(2, 24, True), 37, 0.002)
+    b = surfmap.shapes.amphora(30, True)
+    src, dst, rep = tmp_path / "a.obj", tmp_path / "b.obj", tmp_path / "r.json"
+    surfmap.write_obj(str(src), *a)
+    surfmap.write_obj(str(dst), *b)
+    a, b = [(m["V"], m["F"]) for m in (surfmap.load_mesh(str(src)), surfmap.load_mesh(str(dst)))]
+    r = surfmap.surface_map(*a, *b)
+    assert r["converged"] and r["flipped_triangles"] == 0
+    assert r["fold_repair"]["status"] == "repaired", r["fold_repair"]
+    assert r["source_weights"].startswith("intrinsic Delaunay cotangent; "), r["source_weights"]
+    p = cli("map", src, dst, "--out", tmp_path / "m.obj", "--report", rep, "--quiet")
+    assert p.returncode == 0, p.stderr
+    _same_report(r, json.loads(rep.read_text()))   # every key and value, the class words too
+    # The many-shape tools (surfmap.compare, surfmap.batch, the add-on's batch operators) call
+    # through mapcall.run_map, and their summary carries the same quality signal.
+    from surfmap import mapcall
+    summary = mapcall.map_report(r)
+    assert summary["quality"]["energy_ratio"] == r["quality"]["energy_ratio"]
+    assert summary["distortion"]["mean"] == r["distortion"]["mean"]
+    assert summary["source_weights"] == r["source_weights"]
+    # The add-on's default panel settings pass nothing that differs from the core's defaults.
+    import pathlib
+    import sys
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[3] / "addon"))
+    from surface_map import map_job
+    defaults = _signature_defaults(surfmap.surface_map)
+    assert {"two_way", "local_fold_repair", "source_weights", "two_way_ratio"} <= set(defaults), defaults
+    for key, value in map_job.MapOptions().native_kwargs().items():
+        assert repr(value) == defaults[key], (key, value, defaults[key])
+    # What the figures are: the ratio names its energy, D' its measure; with own-edge weights
+    # (2.29 against 1.55 on g3_block -> g3_3holes) the report says the ratio is not comparable.
+    q = r["quality"]
+    assert q["energy_ratio_basis"].startswith("the chosen class's free optimum") and \
+        "intrinsic Delaunay" in q["energy_ratio_basis"] and "fold repair" in q["energy_ratio_basis"]
+    assert "hyperbolic uniformization metric" in r["distortion"]["measure"]
+    assert "3D areas" in r["distortion"]["measure"]
+    finite = np.isfinite(r["distortion"]["per_face"])
+    assert r["distortion"]["unweighted_mean"] == pytest.approx(r["distortion"]["per_face"][finite].mean())
+    own = surfmap.surface_map(*a, *b, source_weights="own", two_way=False)
+    assert own["source_weights"].startswith("positive on the source's own edges")
+    assert "NOT comparable" in own["quality"]["energy_ratio_basis"]
+    assert own["quality"]["energy_ratio"] > q["energy_ratio"]   # the same pair, another energy
+
+
 def test_genus2_barrier_continuation_reports_progress_and_cancels():
     # A far genus-2 landmark (its plain pin folds): the continuation's Newton iterations are
     # reported through solve_progress after the free and the pinned solves (a third run of

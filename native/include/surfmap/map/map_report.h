@@ -9,7 +9,8 @@
 // function and one line in to_json):
 //   genus, converged, iterations, method, target_metric_requested (the option:
 //   auto, flips, fixed or fixed-first), landmarks (count),
-//   energy {initial, final, history}, distortion {mean, max},
+//   energy {initial, final, history}, distortion {mean (area-weighted), max, unweighted_mean,
+//   measure (what D' is measured on, in words)},
 //   initial_distortion {mean, max}, flipped_triangles, degenerate_triangles,
 //   intrinsic_flipped_triangles, initial_flipped_triangles, repaired_vertices,
 //   landmark_error, landmark_rings, landmark_method, landmark_solves,
@@ -22,7 +23,9 @@
 //             landmark_energy, landmark_lower_bound, matrix, class_lower_bound,
 //             class_curve_bound, class_bound_curves}], search {..., evaluated
 //             [{step, move, screen, energy}]}},
-//   quality {energy_ratio, warning, reverse_candidates, reverse_status, reverse_check,
+//   quality {energy_ratio, energy_ratio_basis (which energy, in words), warning,
+//            intrinsic_class_energy, energy_ratio_own_edges, directions {..., chosen_class_words,
+//            source_as_target, source_as_target_inverse}, reverse_candidates, reverse_status, reverse_check,
 //            two_way_status, two_way_time_s, class_bound_status, class_bound_time_s},
 //   target_lattice [[re, im] of omega1, [re, im] of omega2], time_s {stage: seconds, total},
 //   stages [{name, time_s, analyses, factorisations, newton_iterations, peak_memory_mb}]
