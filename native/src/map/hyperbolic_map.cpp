@@ -111,6 +111,7 @@ class HyperbolicPipeline {
   void search_classes();
   void solve_at_full_resolution(bool after_coarse);
   void fill_class_bounds();
+  ~HyperbolicPipeline() { leaving = true; }  // (an early bounds task stops at its next Newton step)
   void choose_with_landmarks();
   void compare_with_carried_class();
   void compare_directions();
@@ -214,6 +215,12 @@ class HyperbolicPipeline {
   /// Issue 19: the ranking stopped at its first class (classes_that_can_win),
   /// so the bounds decide nothing unless a later step asks for them.
   bool bounds_not_needed = false;
+  /// Issue 19: no overlay class, so the ranking's first class is the
+  /// canonical one, which is rarely within the ranking gap: the bounds are
+  /// computed (and reported) whatever the ranking does, on the second thread
+  /// from the candidates on (start_class_bounds_early).
+  bool bounds_wanted = false;
+  void start_class_bounds_early();
   std::unique_ptr<SurfaceGroupLengths> target_lengths;  ///< the target's, for the bounds
   const SourceClassBounds& class_bounds_now();
 
@@ -254,6 +261,7 @@ class HyperbolicPipeline {
                                                      const std::vector<std::string>& moves) const;
   int push_candidate(HomotopyClass hc, ClassData cd, HomotopyCandidate c);
   int early_ranked_class() const;
+  bool ranks_every_class() const;
   bool unranked(int k) const { return k >= 0 && k < static_cast<int>(not_ranked.size()) && not_ranked[k]; }
   std::vector<int> classes_that_can_win(int first);
   int skip_isometric_twins(int first, std::vector<int>& rest, const std::function<void(int, const std::string&)>& skip);
@@ -351,6 +359,25 @@ void HyperbolicPipeline::start_class_bounds() {
   });
 }
 
+// Issue 19: when the ranking solves every class (ranks_every_class) the
+// bounds are computed for the report anyway; when no overlay class leads the
+// candidates the ranking's first
+// class is the canonical one, whose coarse energy is rarely within the
+// ranking gap, so the ranking will ask for the bounds after its first coarse
+// solve: they are wanted (computed and reported whatever the ranking does, so
+// the result does not depend on the threads) and, with two threads, start on
+// the second one now, next to the class data and the coarse level, instead of
+// waiting on the calling thread when the ranking gets there. Pairs with an
+// overlay class (remeshed or posed copies) keep them lazy.
+void HyperbolicPipeline::start_class_bounds_early() {
+  if (candidates.overlay_classes > 0 && !ranks_every_class()) return;
+  bounds_wanted = true;
+  if (threads <= 1) return;  // (computed when needed, at the latest by fill_class_bounds)
+  class_bounds_future = std::async(std::launch::async, [this] {
+    return source_class_bounds(source, sc, ss.sl, ss.scs.generators, out.genus, options, &leaving);
+  });
+}
+
 // The source's side of the bounds (waits for it the first time) and the
 // target's lengths.
 const SourceClassBounds& HyperbolicPipeline::class_bounds_now() {
@@ -369,7 +396,7 @@ const SourceClassBounds& HyperbolicPipeline::class_bounds_now() {
 // asked for them, no bound can change the choice: the source is not
 // uniformized for the report alone, and the status says so.
 void HyperbolicPipeline::fill_class_bounds() {
-  if (bounds_not_needed && !have_class_bounds) {
+  if (bounds_not_needed && !bounds_wanted && !have_class_bounds) {
     out.class_bound_status = "not computed: no decision needed them (the ranking " + out.ranking_status + ")";
     return;
   }
@@ -398,6 +425,7 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   index_solver_edges(sc, ss.idt, solver_index);
   const std::vector<HomotopyClass>& classes = candidates.classes;
   ncand = static_cast<int>(classes.size());
+  start_class_bounds_early();
   if (options.homotopy.class_index >= ncand)
     throw InputError("homotopy class " + std::to_string(options.homotopy.class_index) + " does not exist; there are " +
                      std::to_string(ncand) + " candidates (0.." + std::to_string(ncand - 1) + ")");
@@ -579,10 +607,13 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
 // landmarks: their ranking is by the energy with the landmarks held, which
 // the free energy's bounds do not bound; a test's search start, or at most
 // two candidates).
+bool HyperbolicPipeline::ranks_every_class() const {
+  return options.homotopy.ranking_gap < 0 || options.homotopy.full_solves <= 0 || options.homotopy.class_index >= 0 ||
+         !options.landmarks.empty() || hooks.homotopy_search_start >= 0 || ncand <= 2;
+}
+
 int HyperbolicPipeline::early_ranked_class() const {
-  if (options.homotopy.ranking_gap < 0 || options.homotopy.full_solves <= 0 || options.homotopy.class_index >= 0 ||
-      !options.landmarks.empty() || hooks.homotopy_search_start >= 0 || ncand <= 2)
-    return -1;
+  if (ranks_every_class()) return -1;
   for (int k = 0; k < ncand; ++k)
     if (usable[k]) return k;
   return -1;
@@ -1158,7 +1189,7 @@ void HyperbolicPipeline::compare_directions() {
   const GroupMap& psi = options.homotopy.reverse_class;
   const UniformizationMetric policy = options.uniformization.target_metric;
   const bool flip_letters = policy == UniformizationMetric::Automatic || policy == UniformizationMetric::IntrinsicDelaunay;
-  if (bounds_not_needed && !have_class_bounds && psi.empty() && flip_letters) {
+  if (bounds_not_needed && !bounds_wanted && !have_class_bounds && psi.empty() && flip_letters) {
     // Issue 19: the source's letters as a target from its own loops (no
     // uniformization: class_bound_support.h source_letters_from_own_loops).
     SourceLetters letters = source_letters_from_own_loops(source, sc, ss.sl, ss.scs.generators, g, options);
