@@ -246,6 +246,52 @@ TEST(ClassLowerBound, NeverAboveTheSolvedEnergies) {
   EXPECT_GT(informative, 0);
 }
 
+// Issue 19: the source's letters as a target read off its own loops (no
+// uniformization) are the words source_class_bounds gives from its
+// uniformized copy's class loops, on the flip path (the default metric).
+TEST(ClassLowerBound, LettersFromOwnLoopsEqualTheUniformizedCopys) {
+  const std::vector<std::pair<TriMesh, int>> shapes = {
+      {samples::n_hole_torus(2, 26, true), 2}, {samples::vase(30, true), 2}, {samples::n_hole_torus(3, 32, true), 3}};
+  for (const auto& [m, genus] : shapes) {
+    const SurfaceMapOptions options;
+    const SystemOfLoops sl = detail::source_loops(m, options);
+    const CanonicalSchema cs = canonical_schema(sl.word);
+    const Connectivity conn(m.F, m.num_vertices());
+    const detail::SourceClassBounds b = detail::source_class_bounds(m, conn, sl, cs.generators, genus, options);
+    ASSERT_TRUE(b.ok) << b.why;
+    ASSERT_TRUE(b.uniformized.class_loops) << b.uniformized.class_loops_status;
+    const detail::SourceLetters own = detail::source_letters_from_own_loops(m, conn, sl, cs.generators, genus, options);
+    ASSERT_EQ(b.letters.as_target.size(), static_cast<size_t>(2 * genus)) << b.letters.as_target_status;
+    EXPECT_EQ(own.as_target, b.letters.as_target) << own.as_target_status;
+    EXPECT_EQ(own.as_target_inverse, b.letters.as_target_inverse);
+    EXPECT_EQ(own.as_target_status, b.letters.as_target_status);
+  }
+}
+
+// Issue 19: a remeshed copy, whose ranking stops at the overlay class, is
+// mapped without the source's own uniformization: no bounds (the status says
+// why), the same class, energy and letters as a target as when every class is
+// ranked (ranking_gap < 0, which needs the bounds).
+TEST(ClassLowerBound, RankingStoppedAtTheFirstClassSkipsTheSourcesUniformization) {
+  const TriMesh a = samples::n_hole_torus(2, 30, true);
+  const TriMesh b = samples::n_hole_torus(2, 32, true);
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  const SurfaceMapResult quick = surface_map(a, b, o);
+  o.homotopy.ranking_gap = -1;
+  const SurfaceMapResult all = surface_map(a, b, o);
+  ASSERT_EQ(quick.ranking_status.rfind("stopped", 0), 0u) << quick.ranking_status;
+  EXPECT_EQ(quick.class_bound_status.rfind("not computed", 0), 0u) << quick.class_bound_status;
+  EXPECT_EQ(quick.class_bound_time_s, 0.0);
+  for (const HomotopyCandidate& c : quick.candidates) EXPECT_TRUE(std::isnan(c.class_lower_bound)) << c.description;
+  ASSERT_TRUE(all.class_bound_status.empty()) << all.class_bound_status;
+  EXPECT_EQ(quick.chosen_candidate, all.chosen_candidate);
+  EXPECT_NEAR(quick.final_energy, all.final_energy, 1e-9 * all.final_energy);
+  ASSERT_EQ(quick.source_as_target.size(), 4u) << quick.source_as_target_status;
+  EXPECT_EQ(quick.source_as_target, all.source_as_target);
+  EXPECT_EQ(quick.source_as_target_inverse, all.source_as_target_inverse);
+}
+
 // The quality signal (docs/handle_classes.md "Quality signal"): the ratio is
 // the chosen class's free energy over 8 pi (g - 1); after the fallback to
 // positive weights on the source's own edges it is the class's energy with
@@ -300,7 +346,7 @@ TEST(ClassLowerBound, CadPlateSourceCarriesOntoItsOwnUniformizedCopy) {
   const detail::SourceClassBounds b = detail::source_class_bounds(m, conn, sl, cs.generators, 4, options);
   ASSERT_TRUE(b.ok) << b.why;
   ASSERT_GT(b.uniformized.refinement_splits, 0);  // the case in question: a refined copy
-  EXPECT_EQ(b.as_target.size(), 8u) << b.as_target_status;
+  EXPECT_EQ(b.letters.as_target.size(), 8u) << b.letters.as_target_status;
   // Every canonical generator is an essential curve: positive length.
   for (int j = 1; j <= 8; ++j) EXPECT_GT(b.source->length({j}), 0.05) << j;
   // The fewest-edge join (the overlay's default) is what failed here.

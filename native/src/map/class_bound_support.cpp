@@ -28,17 +28,17 @@ ProjectedLoopsOptions self_carry_options() {
   return o;
 }
 
-/// SourceClassBounds::as_target: on the flip path the pipeline reads a
+/// SourceLetters: on the flip path the pipeline reads a
 /// target's classes in its own loops' canonical letters (map_support.h
 /// ClassLoops), so the default cut is carried onto those loops as well (the
 /// identity overlay); on the fixed path they are the layout's, `iota`.
 void as_target_letters(const TriMesh& source, const std::vector<std::vector<int>>& loops,
-                       const std::vector<Word>& generators, int genus, const UniformizedTarget& xu, const GroupMap& iota,
-                       SourceClassBounds& b) {
+                       const std::vector<Word>& generators, int genus, const ClassLoops* cl, const GroupMap& iota,
+                       SourceLetters& b) {
   const int n = 2 * genus;
   const Word R = canonical_relator(genus);
-  GroupMap m = iota;
-  if (const ClassLoops* cl = xu.class_loops.get()) {
+  GroupMap m = cl ? GroupMap(n) : iota;
+  if (cl) {
     const ProjectedLoopsResult self = project_loops(source, loops, cl->loops, cl->word, self_carry_options());
     if (!self.ok) {
       b.as_target_status = "the source's loops did not carry onto its own class loops: " + self.message;
@@ -88,7 +88,7 @@ SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity&
       throw SolveError("the source's loops carried onto its uniformized copy do not give an isomorphism");
     b.source = std::make_unique<SurfaceGroupLengths>(DeckGroup(xu.layout), xcs.generators, xu.layout.word, iota);
     b.iota = iota;
-    as_target_letters(source, loops, generators, genus, xu, iota, b);
+    as_target_letters(source, loops, generators, genus, xu.class_loops.get(), iota, b.letters);
     b.evaluator = std::make_unique<ClassBoundEvaluator>(*b.source, disjoint_curve_families(genus));
     b.ok = true;
   } catch (const Error& e) {
@@ -96,6 +96,23 @@ SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity&
     b.why = e.what();
   }
   b.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return b;
+}
+
+SourceLetters source_letters_from_own_loops(const TriMesh& source, const Connectivity& sc, const SystemOfLoops& sl,
+                                           const std::vector<Word>& generators, int genus,
+                                           const SurfaceMapOptions& options) {
+  SourceLetters b;
+  // The lo of uniformized_target for this mesh as a target (its base vertex
+  // is the source's, as in source_class_bounds).
+  SystemOfLoopsOptions lo;
+  lo.base_vertex = options.loops.source_base_vertex;
+  try {
+    const ClassLoops cl = own_class_loops(source, sc, lo, &sl);
+    as_target_letters(source, sl.loops, generators, genus, &cl, GroupMap{}, b);
+  } catch (const Error& e) {
+    b.as_target_status = std::string("the source's own loops failed: ") + e.what();
+  }
   return b;
 }
 

@@ -24,6 +24,16 @@ namespace surfmap::detail {
 /// default cut's canonical letters (`generators`: CanonicalSchema::generators
 /// of the default loops `sl.loops`). `ok` false (with `why`) when any step fails; the pipeline
 /// then reports no curve bounds.
+/// The default cut's canonical generators as words in the canonical
+/// letters the pipeline reads when this surface is the target (the class
+/// loops' schema on the flip path, else the layout's), its inverse (up to
+/// inner automorphisms; topology/outer_automorphisms.h), and why they are
+/// missing (SurfaceMapResult::source_as_target).
+struct SourceLetters {
+  GroupMap as_target, as_target_inverse;
+  std::string as_target_status;
+};
+
 struct SourceClassBounds {
   bool ok = false;
   std::string why;
@@ -34,13 +44,9 @@ struct SourceClassBounds {
   UniformizedTarget uniformized;
   CanonicalSchema schema;
   GroupMap iota;
-  /// The default cut's canonical generators as words in the canonical
-  /// letters the pipeline reads when this surface is the target (the class
-  /// loops' schema on the flip path, else the layout's), its inverse (up to
-  /// inner automorphisms; topology/outer_automorphisms.h), and why they are
-  /// missing (SurfaceMapResult::source_as_target).
-  GroupMap as_target, as_target_inverse;
-  std::string as_target_status;
+  /// The source's letters as a target, from the uniformized copy's class
+  /// loops (or its layout's letters when it has none).
+  SourceLetters letters;
   double time_s = 0;
 };
 /// `sl`: the pipeline's default (unrefined) source loops, source_loops of
@@ -49,6 +55,17 @@ struct SourceClassBounds {
 SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity& sc, const SystemOfLoops& sl,
                                       const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options,
                                       const std::atomic<bool>* stop = nullptr);
+
+/// SourceLetters without the source's uniformization (issue 19): on the flip
+/// path (the default target metric) the letters the pipeline reads of a
+/// target are its own loops' (map_support.h own_class_loops: no metric), so
+/// the source's letters as a target are a function of its loops alone, the
+/// same words source_class_bounds gives when its copy's class loops carry.
+/// Only for the flip-path policies (automatic, intrinsic Delaunay); the
+/// status says what failed.
+SourceLetters source_letters_from_own_loops(const TriMesh& source, const Connectivity& sc, const SystemOfLoops& sl,
+                                           const std::vector<Word>& generators, int genus,
+                                           const SurfaceMapOptions& options);
 
 /// Fills HomotopyCandidate::class_lower_bound, class_curve_bound and the
 /// family's name of every genus >= 2 candidate k that has none yet, from

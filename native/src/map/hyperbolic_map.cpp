@@ -111,6 +111,7 @@ class HyperbolicPipeline {
   void search_classes();
   void solve_at_full_resolution(bool after_coarse);
   void fill_class_bounds();
+  ~HyperbolicPipeline() { leaving = true; }  // (an early bounds task stops at its next Newton step)
   void choose_with_landmarks();
   void compare_with_carried_class();
   void compare_directions();
@@ -141,9 +142,6 @@ class HyperbolicPipeline {
   SourceCuts cuts;
   std::promise<SourceSide> source_promise;
   std::future<SourceSide> source_future = source_promise.get_future();
-  // With two threads, the class bounds' source uniformization runs on the
-  // second thread right after the source side (next to the target's).
-  std::promise<SourceClassBounds> class_bounds_promise;
   SourceSide ss;
   // The target: uniformization, canonical schema, deck group, polygon P.
   std::unique_ptr<UniformizedTarget> ut;
@@ -197,8 +195,7 @@ class HyperbolicPipeline {
   bool long_starts = false;
 
   // Raised on the way out (declared before the second thread, so it outlives
-  // it): the source's own uniformization there then stops at its next Newton
-  // step instead of finishing first.
+  // it): the second thread then prepares no more cuts.
   std::atomic<bool> leaving{false};
   // The second thread (joined on the way out, after the flags are raised:
   // members are destroyed in reverse order).
@@ -215,6 +212,15 @@ class HyperbolicPipeline {
   std::future<SourceClassBounds> class_bounds_future;
   SourceClassBounds class_bounds;  ///< from the future, once needed
   bool have_class_bounds = false;
+  /// Issue 19: the ranking stopped at its first class (classes_that_can_win),
+  /// so the bounds decide nothing unless a later step asks for them.
+  bool bounds_not_needed = false;
+  /// Issue 19: no overlay class, so the ranking's first class is the
+  /// canonical one, which is rarely within the ranking gap: the bounds are
+  /// computed (and reported) whatever the ranking does, on the second thread
+  /// from the candidates on (start_class_bounds_early).
+  bool bounds_wanted = false;
+  void start_class_bounds_early();
   std::unique_ptr<SurfaceGroupLengths> target_lengths;  ///< the target's, for the bounds
   const SourceClassBounds& class_bounds_now();
 
@@ -255,6 +261,7 @@ class HyperbolicPipeline {
                                                      const std::vector<std::string>& moves) const;
   int push_candidate(HomotopyClass hc, ClassData cd, HomotopyCandidate c);
   int early_ranked_class() const;
+  bool ranks_every_class() const;
   bool unranked(int k) const { return k >= 0 && k < static_cast<int>(not_ranked.size()) && not_ranked[k]; }
   std::vector<int> classes_that_can_win(int first);
   int skip_isometric_twins(int first, std::vector<int>& rest, const std::function<void(int, const std::string&)>& skip);
@@ -279,32 +286,23 @@ class HyperbolicPipeline {
 // parts (stages/source_cuts.h).
 void HyperbolicPipeline::start_source_side() {
   if (threads <= 1) return;
-  side_thread = std::async(std::launch::async, [this, genus = out.genus] {
-    SystemOfLoops loops;  // the default source loops (unrefined)
-    std::vector<Word> generators;
+  side_thread = std::async(std::launch::async, [this] {
     try {
       SourceSide side = build_source_side(source, sc, options, own_weights, cuts.graph());
       cuts.set_default(side.sl.loops, side.scs.generators);
-      loops = side.sl;
-      generators = side.scs.generators;
       source_promise.set_value(std::move(side));
     } catch (...) {
       source_promise.set_exception(std::current_exception());
       return;
     }
-    // Issue 19: the source's own uniformization (class bounds) is
-    // independent of the target's, so the two run at once; it used to start
-    // after the target's and then ran against the full-resolution solves.
+    // Issue 19: the source's own uniformization (class bounds) no longer
+    // runs here next to the target's: it is computed when a decision first
+    // needs it (class_bounds_now), which on a pair whose first class is
+    // within the ranking gap of the conformal bound is never (a fifth of
+    // the map's CPU on the 50k remeshed pair; docs/benchmarks.md).
     if (leaving) return;
     try {
-      class_bounds_promise.set_value(source_class_bounds(source, sc, loops, generators, genus, options, &leaving));
-      loops = SystemOfLoops{};  // (the copy is not needed by the cuts below)
-    } catch (...) {
-      class_bounds_promise.set_exception(std::current_exception());
-      return;
-    }
-    try {
-      // Then the homotopy.extra_cuts, which are always lifted, last first:
+      // The homotopy.extra_cuts, which are always lifted, last first:
       // the calling thread prepares them first first when it gets there
       // (stages/source_cuts.h: each once, whichever thread). Nothing else
       // speculative here: the machine's scheduler shares CPU between
@@ -352,14 +350,31 @@ void HyperbolicPipeline::uniformize_target() {
 
 // Issue 14 (docs/handle_classes.md): the source in its own uniformization
 // metric, for every candidate's energy lower bound from hyperbolic lengths
-// (map/class_lower_bound.h); on a thread of its own when there are two.
+// (map/class_lower_bound.h). Issue 19: computed on the calling thread when
+// first needed (a ranking or search decision, the report), never when the
+// ranking stopped at its first class (bounds_not_needed).
 void HyperbolicPipeline::start_class_bounds() {
-  if (threads > 1) {
-    class_bounds_future = class_bounds_promise.get_future();  // (start_source_side)
-    return;
-  }
   class_bounds_future = std::async(std::launch::deferred, [this] {
     return source_class_bounds(source, sc, ss.sl, ss.scs.generators, out.genus, options);
+  });
+}
+
+// Issue 19: when the ranking solves every class (ranks_every_class) the
+// bounds are computed for the report anyway; when no overlay class leads the
+// candidates the ranking's first
+// class is the canonical one, whose coarse energy is rarely within the
+// ranking gap, so the ranking will ask for the bounds after its first coarse
+// solve: they are wanted (computed and reported whatever the ranking does, so
+// the result does not depend on the threads) and, with two threads, start on
+// the second one now, next to the class data and the coarse level, instead of
+// waiting on the calling thread when the ranking gets there. Pairs with an
+// overlay class (remeshed or posed copies) keep them lazy.
+void HyperbolicPipeline::start_class_bounds_early() {
+  if (candidates.overlay_classes > 0 && !ranks_every_class()) return;
+  bounds_wanted = true;
+  if (threads <= 1) return;  // (computed when needed, at the latest by fill_class_bounds)
+  class_bounds_future = std::async(std::launch::async, [this] {
+    return source_class_bounds(source, sc, ss.sl, ss.scs.generators, out.genus, options, &leaving);
   });
 }
 
@@ -375,8 +390,16 @@ const SourceClassBounds& HyperbolicPipeline::class_bounds_now() {
 }
 
 // Every candidate's lower bound (HomotopyCandidate::class_lower_bound), and
-// why they are missing when the source's uniformization failed.
+// why they are missing when the source's uniformization failed. Issue 19:
+// when the ranking stopped at its first class (within ranking_gap of the
+// conformal bound, which every class's energy is above) and nothing else
+// asked for them, no bound can change the choice: the source is not
+// uniformized for the report alone, and the status says so.
 void HyperbolicPipeline::fill_class_bounds() {
+  if (bounds_not_needed && !bounds_wanted && !have_class_bounds) {
+    out.class_bound_status = "not computed: no decision needed them (the ranking " + out.ranking_status + ")";
+    return;
+  }
   const SourceClassBounds& bounds = class_bounds_now();
   std::vector<GroupMap> class_maps;
   for (const HomotopyClass& hc : candidates.classes) class_maps.push_back(hc.map);
@@ -402,6 +425,7 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   index_solver_edges(sc, ss.idt, solver_index);
   const std::vector<HomotopyClass>& classes = candidates.classes;
   ncand = static_cast<int>(classes.size());
+  start_class_bounds_early();
   if (options.homotopy.class_index >= ncand)
     throw InputError("homotopy class " + std::to_string(options.homotopy.class_index) + " does not exist; there are " +
                      std::to_string(ncand) + " candidates (0.." + std::to_string(ncand - 1) + ")");
@@ -583,10 +607,13 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
 // landmarks: their ranking is by the energy with the landmarks held, which
 // the free energy's bounds do not bound; a test's search start, or at most
 // two candidates).
+bool HyperbolicPipeline::ranks_every_class() const {
+  return options.homotopy.ranking_gap < 0 || options.homotopy.full_solves <= 0 || options.homotopy.class_index >= 0 ||
+         !options.landmarks.empty() || hooks.homotopy_search_start >= 0 || ncand <= 2;
+}
+
 int HyperbolicPipeline::early_ranked_class() const {
-  if (options.homotopy.ranking_gap < 0 || options.homotopy.full_solves <= 0 || options.homotopy.class_index >= 0 ||
-      !options.landmarks.empty() || hooks.homotopy_search_start >= 0 || ncand <= 2)
-    return -1;
+  if (ranks_every_class()) return -1;
   for (int k = 0; k < ncand; ++k)
     if (usable[k]) return k;
   return -1;
@@ -620,6 +647,7 @@ std::vector<int> HyperbolicPipeline::classes_that_can_win(int first) {
     out.ranking_status = std::string("stopped: ") + why;
     for (int k = 0; k < ncand; ++k)
       if (k != first && usable[k]) skip(k, why);
+    bounds_not_needed = true;
     return rest;
   }
   const bool finite = usable[first] && !coarse_failed[first] && std::isfinite(e);
@@ -1158,11 +1186,22 @@ void HyperbolicPipeline::compare_directions() {
   const int g = out.genus, n = 2 * g;
   const GroupMap& theta = candidates.classes[c].map;
   out.chosen_class_words = theta;
-  const SourceClassBounds& bounds = class_bounds_now();
-  out.source_as_target = bounds.as_target;
-  out.source_as_target_inverse = bounds.as_target_inverse;
-  out.source_as_target_status = !bounds.ok ? "the source's own uniformization failed: " + bounds.why : bounds.as_target_status;
   const GroupMap& psi = options.homotopy.reverse_class;
+  const UniformizationMetric policy = options.uniformization.target_metric;
+  const bool flip_letters = policy == UniformizationMetric::Automatic || policy == UniformizationMetric::IntrinsicDelaunay;
+  if (bounds_not_needed && !bounds_wanted && !have_class_bounds && psi.empty() && flip_letters) {
+    // Issue 19: the source's letters as a target from its own loops (no
+    // uniformization: class_bound_support.h source_letters_from_own_loops).
+    SourceLetters letters = source_letters_from_own_loops(source, sc, ss.sl, ss.scs.generators, g, options);
+    out.source_as_target = std::move(letters.as_target);
+    out.source_as_target_inverse = std::move(letters.as_target_inverse);
+    out.source_as_target_status = std::move(letters.as_target_status);
+    return;
+  }
+  const SourceClassBounds& bounds = class_bounds_now();
+  out.source_as_target = bounds.letters.as_target;
+  out.source_as_target_inverse = bounds.letters.as_target_inverse;
+  out.source_as_target_status = !bounds.ok ? "the source's own uniformization failed: " + bounds.why : bounds.letters.as_target_status;
   if (psi.empty()) return;
   SurfaceMapResult::DirectionCheck& d = out.directions;
   if (static_cast<int>(psi.size()) != n) return void(d.reason = candidates.inverted_status);

@@ -89,6 +89,21 @@ PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, cons
   return ps;
 }
 
+ClassLoops own_class_loops(const TriMesh& mesh, const Connectivity& conn, const SystemOfLoopsOptions& lo,
+                           const SystemOfLoops* own_loops) {
+  ClassLoops cl;
+  // The greedy basis once per mesh and base vertex (issue 19): the caller's
+  // unrefined loops of this mesh, refined, are these loops.
+  const bool reuse = own_loops && (lo.base_vertex < 0 || lo.base_vertex == own_loops->base_vertex);
+  cl.loops = reuse ? refine_system_of_loops(mesh, conn, *own_loops, lo) : system_of_loops(mesh, conn, lo);
+  cl.word = cl.loops.word;
+  const auto first = std::find(cl.word.begin(), cl.word.end(), 1);
+  if (first == cl.word.end()) throw SolveError("the target's loops have no letter 1 in their word");
+  std::rotate(cl.word.begin(), first, cl.word.end());
+  cl.schema = canonical_schema(cl.word);
+  return cl;
+}
+
 namespace {
 
 /// The location and the harmonic map read the target's layout in its one
@@ -125,16 +140,7 @@ std::shared_ptr<const ClassLoops> class_loops_on_input(const TriMesh& target, co
                                                        const RicciFlowResult& flow, const SystemOfLoops& tprime_loops,
                                                        const DiskLayout& layout, const SystemOfLoopsOptions& lo,
                                                        const SystemOfLoops* own_loops) {
-  auto cl = std::make_shared<ClassLoops>();
-  // The greedy basis once per mesh and base vertex (issue 19): the caller's
-  // unrefined loops of this mesh, refined, are these loops.
-  const bool reuse = own_loops && (lo.base_vertex < 0 || lo.base_vertex == own_loops->base_vertex);
-  cl->loops = reuse ? refine_system_of_loops(target, tc, *own_loops, lo) : system_of_loops(target, tc, lo);
-  cl->word = cl->loops.word;
-  const auto first = std::find(cl->word.begin(), cl->word.end(), 1);
-  if (first == cl->word.end()) throw SolveError("the target's loops have no letter 1 in their word");
-  std::rotate(cl->word.begin(), first, cl->word.end());
-  cl->schema = canonical_schema(cl->word);
+  auto cl = std::make_shared<ClassLoops>(own_class_loops(target, tc, lo, own_loops));
   const CarriedLoops carried = carry_loops_through_flips(target, cl->loops, flow, tprime_loops);
   cl->flips_on_loops = carried.flips_on_loops;
   cl->longest_edge_path = carried.longest_edge_path;

@@ -81,6 +81,15 @@ struct ClassLoops {
   int longest_edge_path = 0;
 };
 
+/// The part of ClassLoops that needs no metric (loops, word, schema; the
+/// rest is set when the loops are carried onto T'): `mesh`'s own system of
+/// loops with options `lo`, refined from `own_loops` (its unrefined loops)
+/// when they have lo's base vertex. The flip path builds its class loops with
+/// it; class_bound_support.h reads the source's letters as a target from it
+/// when the source is not uniformized (issue 19).
+ClassLoops own_class_loops(const TriMesh& mesh, const Connectivity& conn, const SystemOfLoopsOptions& lo,
+                           const SystemOfLoops* own_loops);
+
 /// The target laid out in its uniformization metric: system of loops (refined,
 /// as the layout needs simple loops), Ricci flow, disk layout, with the metric
 /// of SurfaceMapOptions::uniformization.target_metric: the fixed-connectivity one (refined

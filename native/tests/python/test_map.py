@@ -430,12 +430,15 @@ def test_genus2_quality_signal_and_class_bounds_are_in_the_result():
     assert abs(q["energy_ratio"] - chosen["energy"] / (8 * np.pi)) < 1e-12
     assert 1.0 <= q["energy_ratio"] < 1.1 and q["warning"] == ""
     assert q["two_way_status"].startswith("not run")
-    # Per-candidate lower bounds (no solve) never exceed the solved energies.
-    assert q["class_bound_status"] == ""
+    # Per-candidate lower bounds (no solve): a copy's ranking stops at the
+    # overlay class (within 2% of 8 pi (g - 1)), where no bound can change
+    # the choice, so the source is not uniformized for them (issue 19) and
+    # the status says why; where they are computed they never exceed the
+    # solved energies (test_class_lower_bound.cpp NeverAboveTheSolvedEnergies).
+    assert r["homotopy"]["ranking"]["status"].startswith("stopped")
+    assert q["class_bound_status"].startswith("not computed: no decision needed them")
     for c in r["homotopy"]["candidates"]:
-        assert c["class_lower_bound"] >= 8 * np.pi - 1e-9
-        if c["solved"] and np.isfinite(c["energy"]):
-            assert c["class_curve_bound"] <= c["energy"]
+        assert c["class_lower_bound"] is None or np.isnan(c["class_lower_bound"])
 
 
 def test_two_way_keyword_and_the_directions_comparison_are_in_the_result():

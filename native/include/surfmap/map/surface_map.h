@@ -459,7 +459,7 @@ struct HomotopyCandidate {
   /// (g - 1), the collar bound over disjoint simple curves of the source);
   /// `class_curve_bound` the latter alone and `class_bound_curves` its
   /// family. NaN / empty when the source's own uniformization was not
-  /// available (SurfaceMapResult::class_bound_status says why).
+  /// available or not needed (SurfaceMapResult::class_bound_status says why).
   double class_lower_bound = std::numeric_limits<double>::quiet_NaN();
   double class_curve_bound = std::numeric_limits<double>::quiet_NaN();
   std::string class_bound_curves;
@@ -826,8 +826,8 @@ struct SurfaceMapResult {
   /// class was used) and its seconds.
   std::string two_way_status;
   double two_way_time_s = 0;
-  /// Genus >= 2: why the class lower bounds are missing (empty when they
-  /// were computed) and the seconds the source's uniformization for them took.
+  /// Genus >= 2: why the class lower bounds are missing (empty when computed;
+  /// "not computed: ..." when no decision needed them) and the seconds the source's uniformization took.
   std::string class_bound_status;
   double class_bound_time_s = 0;
   /// Seconds per stage, in order, and in total.

@@ -376,7 +376,7 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
     ++num_named;
     return true;
   };
-  for (const NamedClass& c : overlays) add_named(c.theta, c.tag, c.fingerprint);
+  for (const NamedClass& c : overlays) out.overlay_classes += add_named(c.theta, c.tag, c.fingerprint) ? 1 : 0;
   // Source 3: the class of the two canonical polygon schemata, a_i -> a'_i,
   // b_i -> b'_i: short words whatever the loops look like.
   GroupMap canonical(n);

@@ -159,6 +159,9 @@ struct CandidateClasses {
   HandleBasis target_basis;
   /// An overlay within the strict jump test exists (else jumps were joined).
   bool strict_overlay = false;
+  /// How many of the first classes are overlay classes (0: the shapes do not
+  /// overlap, the canonical class is first).
+  int overlay_classes = 0;
   /// Lifts from more cuts later (the class search); null when
   /// homotopy.extra_cuts is 0.
   std::unique_ptr<CutLifter> lifter;
