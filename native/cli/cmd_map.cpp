@@ -78,6 +78,7 @@ void register_map(CLI::App& app) {
     bool no_cheap_direction_check = !defaults.homotopy.cheap_direction_check;
     bool no_local_fold_repair = !defaults.solve.local_fold_repair;
     bool no_greedy_pants = !defaults.homotopy.search.greedy_pants;  // HomotopySearchOptions::greedy_pants
+    bool no_snapped_start = !defaults.homotopy.search.snapped_start;  // HomotopySearchOptions::snapped_start
     bool homotopy_both_signs = defaults.homotopy.flat_both_signs;    // HomotopyOptions::flat_both_signs
     bool no_flat_overlay = !defaults.homotopy.flat_overlay;          // HomotopyOptions::flat_overlay off
     bool boundary_swap = false;          // open surfaces (map_open.h)
@@ -145,6 +146,9 @@ void register_map(CLI::App& app) {
   cmd->add_flag("--no-greedy-pants", a->no_greedy_pants,
                 "Genus >= 2: no classes from the greedy short pants decompositions in the geometric stage "
                 "(docs/handle_classes.md \"Greedy pants classes\")");
+  cmd->add_flag("--no-snapped-start", a->no_snapped_start,
+                "Genus >= 2, sources without a coarse copy: every class from the origin, never from the snapped 3D "
+                "overlay (docs/robustness.md \"High genus\")");
   cmd->add_flag("--compare-directions", a->compare_directions,
                 "Genus >= 2: always map the other way too and say whether the two directions' classes are inverse "
                 "(report: quality.reverse_inverse; about 3x the time)");
@@ -221,6 +225,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.search.evaluations = a->homotopy_search_evaluations;
     opt.homotopy.two_way = !a->no_two_way;
     opt.homotopy.search.greedy_pants = !a->no_greedy_pants;
+    opt.homotopy.search.snapped_start = !a->no_snapped_start;
     opt.homotopy.flat_both_signs = a->homotopy_both_signs;
     opt.homotopy.flat_overlay = !a->no_flat_overlay;
     opt.homotopy.compare_directions = a->compare_directions;

@@ -356,5 +356,46 @@ TEST(NewtonStarts, EveryCandidateRefusedAtTheOriginIsSolvedAgainAcceptingLongSta
   }
 }
 
+// Issue 13 (HomotopySearchOptions::snapped_start): a source without a coarse
+// copy solved every class from the origin, where an edge starts as long as
+// its deck element moves the origin (the genus-11 plate: 41 .. 71 units,
+// Newton stalled at 800 times the optimum). In the overlay's class the
+// snapped start (each source vertex at the nearest target vertex, sheets
+// along a tree, the root's deck conjugating the class onto the snapped
+// map) starts near the optimum. A remeshed CAD plate of genus 2 (64 and 48
+// rim segments, no coarse copy): the overlay's class starts from there, and
+// every class's optimum is the origin start's (the decks only change the
+// gauge: a wrong conjugator would change the class and its energy).
+TEST(NewtonStarts, RemeshedPlateStartsItsOverlayClassFromTheSnappedOverlay) {
+  const TriMesh a = samples::cad_plate(2, 64, 0.1), b = samples::cad_plate(2, 48, 0.1);
+  SurfaceMapOptions o;
+  o.homotopy.search.enabled = false;
+  o.homotopy.two_way = false;
+  o.homotopy.ranking_gap = -1;
+  SurfaceMapOptions origin = o;
+  origin.homotopy.search.snapped_start = false;
+  const SurfaceMapResult m = surface_map(a, b, o), reference = surface_map(a, b, origin);
+  ASSERT_TRUE(m.converged);
+  ASSERT_TRUE(reference.converged);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.chosen_candidate, reference.chosen_candidate);
+  EXPECT_NEAR(m.final_energy, reference.final_energy, 1e-6 * reference.final_energy);
+  ASSERT_EQ(m.candidates.size(), reference.candidates.size());
+  const std::string marker = "[started from the snapped overlay]";
+  int snapped = 0;
+  for (size_t k = 0; k < m.candidates.size(); ++k) {
+    EXPECT_EQ(reference.candidates[k].description.find(marker), std::string::npos);
+    if (m.candidates[k].description.find(marker) == std::string::npos) continue;
+    ++snapped;
+    ASSERT_TRUE(m.candidates[k].solved && reference.candidates[k].solved);
+    EXPECT_NEAR(m.candidates[k].energy, reference.candidates[k].energy, 1e-6 * reference.candidates[k].energy);
+    // The overlay's class of a remeshed copy is a conformal one.
+    EXPECT_LT(m.candidates[k].energy, 1.3 * 8 * M_PI);
+  }
+  EXPECT_GE(snapped, 1);
+  std::printf("E %.9g (origin starts %.9g), %d classes started from the snapped overlay\n", m.final_energy,
+              reference.final_energy, snapped);
+}
+
 }  // namespace
 }  // namespace surfmap

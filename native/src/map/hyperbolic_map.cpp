@@ -34,6 +34,7 @@
 #include "stages/source_cuts.h"
 #include "stages/source_side.h"
 #include "stages/source_weights_fallback.h"
+#include "stages/snapped_start.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/positive_edge_weights.h"
 #include "surfmap/map/fundamental_polygon.h"
@@ -165,6 +166,36 @@ class HyperbolicPipeline {
   std::vector<int> order;  ///< classes by coarse energy
   int ncand = 0, full_solves = 0;
   HyperbolicHarmonicOptions ho;  ///< the ranking's solves
+  /// Issue 13: sources without a coarse copy start each full-resolution
+  /// solve from the overlay (stages/snapped_start.h) when that start has the
+  /// lower energy; built at the first such solve (ensure_snapper).
+  std::unique_ptr<SnappedStartBuilder> snapper;
+  void ensure_snapper() {
+    if (!snapper && options.homotopy.search.snapped_start)
+      snapper = std::make_unique<SnappedStartBuilder>(source, target, ut->layout, *deck_group, *polygon);
+  }
+  /// A full-resolution solve of `edges` from the better start of the origin
+  /// and the snapped overlay (ensure_snapper first; the overlay only with
+  /// HomotopySearchOptions::snapped_start). `snapped` (optional): set when
+  /// the snapped start was solved from. A snapped start the solve refuses
+  /// falls back to the origin.
+  HyperbolicHarmonicResult solve_from_better_start(const std::vector<WeightedEdge>& edges,
+                                                   const HyperbolicHarmonicOptions& o, bool* snapped = nullptr) {
+    if (snapped) *snapped = false;
+    if (snapper) {
+      const SnappedStart s = (*snapper)(edges);
+      if (s.better()) {
+        try {
+          HyperbolicHarmonicResult r = solve_from(nv, edges, s.z, s.deck, o);
+          if (snapped) *snapped = true;
+          return r;
+        } catch (const SolveError&) {
+          // (refused or failed from there: the origin as before)
+        }
+      }
+    }
+    return solve_from(nv, edges, std::vector<Complex>(nv, Complex(0.0)), std::vector<Word>(nv), o);
+  }
   PatternSolver fine_solver, coarse_solver;
   CoarseLevel level;
   std::vector<HyperbolicHarmonicResult> coarse_result;
@@ -978,6 +1009,7 @@ void HyperbolicPipeline::geometric_classes_at_full_resolution() {
 CoarseSolve HyperbolicPipeline::full_resolution_solve(double& best, double max_start_edge_size) {
   HyperbolicHarmonicOptions o = ho;
   o.max_start_edge_size = std::max(o.max_start_edge_size, max_start_edge_size);
+  ensure_snapper();
   return [this, &best, o](const GroupMap& theta, CoarseEvaluation* ev) {
     const SourceClassBounds& bounds = class_bounds_now();  // (sets target_lengths)
     const double curve_bound = bounds.ok ? class_curve_bound_of(bounds, *target_lengths, theta) : 0.0;
@@ -987,12 +1019,10 @@ CoarseSolve HyperbolicPipeline::full_resolution_solve(double& best, double max_s
       return false;
     }
     ++out.homotopy_search.coarse_solves;  // (no coarse copy: the search's solves are these)
-    const std::vector<Complex> origin(nv, Complex(0.0));
-    const std::vector<Word> no_decks(nv);
     try {
       ev->theta = theta;
       ev->edges = data_of(theta).edges;
-      ev->result = solve_from(nv, ev->edges, origin, no_decks, o);
+      ev->result = solve_from_better_start(ev->edges, o);
     } catch (const SolveError& e) {
       ev->failure = e.what();
       return false;
@@ -1275,14 +1305,16 @@ void HyperbolicPipeline::compare_directions() {
 // coarse solution prolonged (stages/coarse_level.h; the first on this
 // thread: it may report live progress) and, on the second thread, the
 // likely class's initial map (-1 in the task list; with one thread it is
-// built when needed); without a coarse copy, every class from the origin.
+// built when needed); without a coarse copy, every class from the origin or
+// the snapped overlay, whichever starts lower (stages/snapped_start.h).
 void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   if (!after_coarse) {
-    const std::vector<Complex> origin(nv, Complex(0.0));
-    const std::vector<Word> no_decks(nv);
+    ensure_snapper();
     auto solve_class = [&](int k) {
       auto r = std::make_unique<HyperbolicHarmonicResult>();
-      if (!try_solve(k, [&] { return solve_from(nv, data[k].edges, origin, no_decks, fine_options(k)); }, *r)) return;
+      bool snapped = false;
+      if (!try_solve(k, [&] { return solve_from_better_start(data[k].edges, fine_options(k), &snapped); }, *r)) return;
+      if (snapped) out.candidates[k].description += "  [started from the snapped overlay]";
       out.candidates[k].energy = r->energy;
       out.candidates[k].solved = true;
       full[k] = 1;
