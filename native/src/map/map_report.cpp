@@ -79,6 +79,7 @@ json energy_json(const SurfaceMapResult& r) {
           {"source_subdivision",
            {{"status", r.source_subdivision.status},
             {"subdivided_faces", r.source_subdivision.subdivided_faces},
+            {"bends", r.source_subdivision.bends},
             {"inverted_faces", r.source_subdivision.inverted_faces},
             {"new_vertices", static_cast<int>(r.source_subdivision.source_points.size())},
             {"triangles", static_cast<int>(r.source_subdivision.faces.rows())},

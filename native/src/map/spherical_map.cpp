@@ -910,6 +910,7 @@ struct PiecewiseSource {
   std::vector<PointOnSurface> source_points;  ///< the new vertices on the source
   std::vector<char> replaced;   ///< per source face: delivered piecewise
   double cover = 0;             ///< Σ spherical areas / 4π
+  int bends = 0;                ///< new vertices inside an intrinsic face
 };
 
 /// Builds it: the inverted faces, grown across every input edge that an
@@ -947,16 +948,60 @@ PiecewiseSource piecewise_source(const TriMesh& source, const Connectivity& sc, 
     if (new_id[e.crossing] < 0) new_id[e.crossing] = nv + static_cast<int>(crossing_of_new.size()), crossing_of_new.push_back(e.crossing);
     return new_id[e.crossing];
   };
+  // A new vertex's ray on the uniformization's own sphere (w_a x_a + w_b x_b,
+  // + w_c x_c for a bend), and its point on its source edge.
+  auto own_sphere = [&](const SubdivisionCrossing& c) -> Eigen::Vector3d {
+    Eigen::Vector3d chord = c.wa * us.positions.row(c.a).transpose() + c.wb * us.positions.row(c.b).transpose();
+    if (c.bend()) chord += c.wc * us.positions.row(c.c).transpose();
+    return chord.normalized();
+  };
+  auto on_source = [&](const SubdivisionEnd& e) -> Eigen::Vector3d {
+    if (e.vertex >= 0) return source.V.row(e.vertex).transpose();
+    const SubdivisionCrossing& c = sub.crossings[e.crossing];
+    return (1 - c.t) * source.V.row(c.A).transpose() + c.t * source.V.row(c.B).transpose();
+  };
   std::vector<int> pieces_of(nf, 0);
   for (const SubdivisionPiece& p : pieces) {
     if (!pw.replaced[p.input_face]) continue;
     ++pieces_of[p.input_face];
-    const int m = static_cast<int>(p.corners.size());
-    const int c0 = id_of(p.corners[0]);
-    for (int i = 1; i + 1 < m; ++i) {
-      tris.push_back({c0, id_of(p.corners[i]), id_of(p.corners[i + 1])});
-      pw.origin.push_back(p.input_face);
+    // A piece is convex on the sphere unless it has a bend; ears positive
+    // on the sphere with no other corner inside, preferring those with area
+    // on the source (three corners on one source edge have none there).
+    std::vector<int> poly(p.corners.size());
+    std::vector<Eigen::Vector3d> on_sphere, src;
+    for (size_t i = 0; i < p.corners.size(); ++i) {
+      poly[i] = static_cast<int>(i);
+      const SubdivisionEnd& e = p.corners[i];
+      on_sphere.push_back(e.vertex >= 0 ? Eigen::Vector3d(us.positions.row(e.vertex).transpose())
+                                        : own_sphere(sub.crossings[e.crossing]));
+      src.push_back(on_source(e));
     }
+    const Eigen::Vector3d fa = source.V.row(source.F(p.input_face, 0)), fb = source.V.row(source.F(p.input_face, 1)),
+                          fc = source.V.row(source.F(p.input_face, 2));
+    const Eigen::Vector3d normal = (fb - fa).cross(fc - fa);
+    auto det = [&](int a, int b, int c) { return on_sphere[a].dot(on_sphere[b].cross(on_sphere[c])); };
+    while (poly.size() > 3) {
+      const int m = static_cast<int>(poly.size());
+      int best = -1, fallback = -1;
+      for (int i = 0; i < m && best < 0; ++i) {
+        const int a = poly[(i + m - 1) % m], b = poly[i], c = poly[(i + 1) % m];
+        const double scale = (on_sphere[a] - on_sphere[b]).norm() * (on_sphere[b] - on_sphere[c]).norm() *
+                             (on_sphere[c] - on_sphere[a]).norm();
+        if (!(det(a, b, c) > 1e-12 * scale)) continue;
+        bool empty = true;
+        for (int x : poly)
+          if (x != a && x != b && x != c && det(a, b, x) >= 0 && det(b, c, x) >= 0 && det(c, a, x) >= 0) empty = false;
+        if (!empty) continue;
+        if ((src[b] - src[a]).cross(src[c] - src[a]).dot(normal) > 1e-9 * normal.squaredNorm()) best = i;
+        else if (fallback < 0) fallback = i;
+      }
+      const int i = best >= 0 ? best : fallback >= 0 ? fallback : 0;  // none: left to the positivity check below
+      tris.push_back({id_of(p.corners[poly[(i + m - 1) % m]]), id_of(p.corners[poly[i]]), id_of(p.corners[poly[(i + 1) % m]])});
+      pw.origin.push_back(p.input_face);
+      poly.erase(poly.begin() + i);
+    }
+    tris.push_back({id_of(p.corners[poly[0]]), id_of(p.corners[poly[1]]), id_of(p.corners[poly[2]])});
+    pw.origin.push_back(p.input_face);
   }
   for (int f = 0; f < nf; ++f)
     if (pw.replaced[f] && pieces_of[f] == 0)
@@ -969,10 +1014,10 @@ PiecewiseSource piecewise_source(const TriMesh& source, const Connectivity& sc, 
   pw.sphere.topRows(nv) = X;
   for (int k = 0; k < nn; ++k) {
     const SubdivisionCrossing& c = sub.crossings[crossing_of_new[k]];
-    // The ray w_a x_a + w_b x_b on the uniformization's own sphere, then
-    // the alignment (a rotation and the landmarks' Möbius map).
-    const Eigen::Vector3d chord = c.wa * us.positions.row(c.a).transpose() + c.wb * us.positions.row(c.b).transpose();
-    pw.sphere.row(nv + k) = alignment(chord.normalized()).transpose();
+    // On the uniformization's own sphere, then the alignment (a rotation
+    // and the landmarks' Möbius map).
+    pw.sphere.row(nv + k) = alignment(own_sphere(c)).transpose();
+    pw.bends += c.bend();
     const int h = sc.find_halfedge(c.A, c.B);
     Eigen::Vector3d b = Eigen::Vector3d::Zero();
     b[h % 3] = 1 - c.t, b[(h % 3 + 1) % 3] = c.t;
@@ -1009,6 +1054,7 @@ void piecewise_quality(const TriMesh& source, const SphereSide& target, const Sp
   sub.source_points = pw.source_points;
   sub.forward = located_on_target(target, tloc, pw.sphere.bottomRows(pw.sphere.rows() - nv));
   sub.subdivided_faces = static_cast<int>(std::count(pw.replaced.begin(), pw.replaced.end(), 1));
+  sub.bends = pw.bends;
   sub.sphere_cover = pw.cover;
   auto src = [&](int v) -> Eigen::Vector3d { return v < nv ? Eigen::Vector3d(source.V.row(v)) : sub.source_points[v - nv].position; };
   auto img = [&](int v) -> Eigen::Vector3d { return v < nv ? out.forward[v].position : sub.forward[v - nv].position; };

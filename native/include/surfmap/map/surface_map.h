@@ -678,6 +678,9 @@ struct SurfaceMapResult {
     std::vector<PointOnSurface> forward;        ///< their images on the target
     int subdivided_faces = 0;                   ///< source faces replaced by pieces
     int inverted_faces = 0;                     ///< of them, faces whose chord triangle was inverted
+    /// Of source_points, bends of a source edge inside an intrinsic face (the
+    /// rest cross an intrinsic edge; uniformize/spherical_subdivision.h).
+    int bends = 0;
     /// Σ of the spherical areas of the map's triangles on the sphere / 4π:
     /// 1 (with every triangle positive) certifies that they tile the sphere
     /// once, i.e. the map is bijective.

@@ -15,14 +15,22 @@
 // cross it (their ends: a corner, or a crossing with a current edge, with the
 // crossing's parameter t along the input edge and its weights on the current
 // edge's two vertex vectors) gives every crossing of an input edge with an
-// intrinsic edge exactly, without tracing or point location:
+// intrinsic edge exactly, without tracing or point location. One exception
+// is kept as a point of its own: an input edge is straight across an edge of
+// the exact (Euclidean) Delaunay start, but in the light-cone picture it
+// bends there, so when a Ptolemy flip removes that edge the crossing stays as
+// a bend of the piece (SubdivisionCrossing::bend()); a Ptolemy flip's own
+// crossings join straight (one hyperbolic picture for the whole Ptolemy part
+// of the log: frame changes only rescale the vertex vectors):
 //   * a frame change g multiplies a crossing's weights by e^{-g} (the same
 //     ray in the new vertex vectors);
 //   * a flip of s–t in the quad (k, s, m, t) merges the two pieces of an
 //     input edge that met on s–t, and splits the merged piece where it meets
 //     the new diagonal k–m (the ray picture of the quad is one projective
-//     plane: the point λ on the segment between the two ends' rays with
-//     zero determinant against k and m);
+//     plane: the point λ on a straight part between two rays with zero
+//     determinant against k and m); positions in the quad are corner slots,
+//     not vertex ids, so a quad with a repeated corner (a Δ-complex) is
+//     replayed like any other;
 //   * t is affine in the unnormalised ray along an input edge (its point t is
 //     the ray (1 − t) v_A + t v_B of the input frame), so the split's t is
 //     the same combination of its ends' t.
@@ -39,13 +47,20 @@ namespace surfmap {
 
 /// One crossing of an input edge (A, B), A < B, with an intrinsic edge
 /// (a, b) of intrinsic_faces: the input edge's point (1 − t) A + t B, and
-/// the ray w_a x_a + w_b x_b on the sphere.
+/// the ray w_a x_a + w_b x_b on the sphere. With c >= 0 it is a bend of the
+/// input edge inside the intrinsic face (a, b, c) instead, the ray
+/// w_a x_a + w_b x_b + w_c x_c: where the input edge crossed an edge of the
+/// exact (Euclidean) Delaunay start that a Ptolemy flip removed, it is
+/// straight on either side in the light-cone picture but not across.
 struct SubdivisionCrossing {
   int A = -1, B = -1;
   double t = 0;
   int a = -1, b = -1;
   double wa = 0, wb = 0;
+  int c = -1;      ///< >= 0: a bend inside the intrinsic face (a, b, c)
+  double wc = 0;
   int flip = -1;  ///< the flip of the log that made it (diagnostics)
+  bool bend() const { return c >= 0; }
 };
 
 /// One end of a piece of an input edge inside an intrinsic face: an input
@@ -53,35 +68,47 @@ struct SubdivisionCrossing {
 struct SubdivisionEnd {
   int vertex = -1;    ///< input vertex id, or -1
   int crossing = -1;  ///< index into SphericalSubdivision::crossings, or -1
+  /// Where it sits in its intrinsic face's row (a Δ-complex face can hold a
+  /// vertex twice, so ids alone do not say): a vertex end's corner, or the
+  /// side (corner, corner + 1) a crossing lies on; -1 when not known.
+  int corner = -1;
+  /// A crossing whose vertex a (SubdivisionCrossing) is at corner + 1.
+  bool reversed = false;
 };
 
 /// The piece of input edge (A, B) (A < B) inside one intrinsic face, from
-/// ends[0] (the smaller t) to ends[1].
+/// ends[0] (the smaller t) to ends[1], through its bends (crossings with
+/// bend() set, in order of t): a polyline, straight between them.
 struct SubdivisionSegment {
   int A = -1, B = -1;
   SubdivisionEnd ends[2];
+  std::vector<int> bends;
 };
 
 struct SphericalSubdivision {
+  /// The crossings and the bends (SubdivisionCrossing::bend()): every point
+  /// of an input edge that is a vertex of the common subdivision.
   std::vector<SubdivisionCrossing> crossings;
   /// Per intrinsic face (row of intrinsic_faces, #F): the pieces of input
   /// edges crossing it (none: the face lies inside one input face).
   std::vector<std::vector<SubdivisionSegment>> segments;
-  /// Per input edge (A, B) with A < B: its crossings sorted by t (empty: the
-  /// input edge is an edge of intrinsic_faces).
+  /// Per input edge (A, B) with A < B: its crossings and bends sorted by t
+  /// (empty: the input edge is an edge of intrinsic_faces).
   std::vector<std::vector<int>> crossings_of_edge;  ///< indexed by the input Connectivity's edge id
   int flips_replayed = 0;
+  int bends = 0;  ///< crossings with bend()
 };
 
 /// s: a converged spherical_uniformization with flips (non-empty frame_log);
 /// input_faces: the mesh's faces. crossings_of_edge is indexed by the edge
-/// ids of Connectivity(input_faces). Throws SolveError when the log does not match the faces or a flip's quad
-/// has a repeated corner (a Δ-complex quad; no common subdivision then).
+/// ids of Connectivity(input_faces). Throws SolveError when the log does not
+/// match the faces or a flip's quad is degenerate.
 SphericalSubdivision spherical_common_subdivision(const SphericalUniformization& s, const RowMatrixX3i& input_faces);
 
-/// A face of the common subdivision: a convex polygon inside one input face
-/// and one intrinsic face, its corners counter-clockwise (input vertices and
-/// crossings).
+/// A face of the common subdivision: a polygon inside one input face and one
+/// intrinsic face, its corners counter-clockwise (input vertices, crossings
+/// and bends). Convex in the intrinsic face's chart unless a bend is one of
+/// its corners; in the input face every corner lies on the face's boundary.
 struct SubdivisionPiece {
   int input_face = -1;
   int intrinsic_face = -1;
