@@ -34,6 +34,20 @@ namespace surfmap::detail {
 struct FoldRepairOptions {
   /// Rounds of the projection over the folded faces (default 8).
   int projection_rounds = 8;
+  /// The distortion-aware untangling (second stage): its regions free the
+  /// vertices within first_rings, 2 first_rings, ... up to this many rings
+  /// of the folds the projection left (default 16; 0 skips the stage).
+  int untangle_max_rings = 16;
+  /// L-BFGS iterations per value of the regularisation ε (default 300) ...
+  int untangle_iterations = 300;
+  /// ... and at most this many values of ε (default 40).
+  int untangle_rounds = 40;
+  /// Weight θ of the area term against the conformal one (default 1/128:
+  /// the area only keeps faces from collapsing, the shape is what counts).
+  double untangle_area_weight = 1.0 / 128;
+  /// The untangled map is kept only when its area-weighted mean D' is at
+  /// most this much above the unchanged faces' (default 0.25).
+  double untangle_max_mean_rise = 0.25;
   /// Rings of vertices around the folded faces' corners re-solved in the
   /// first try (default 2); each further try doubles them.
   int first_rings = 2;
