@@ -328,6 +328,13 @@ struct SolveOptions {
   /// again with own-edge weights only when that does not unfold them.
   /// Default true; false is the global fallback alone.
   bool local_fold_repair = true;
+  /// Within the local repair, the distortion-aware untangling of the folds
+  /// the projection leaves (clusters of slivers folded together): the
+  /// vertices around them move jointly to minimise a barrier on their
+  /// faces' dilatation, the rest held (docs/handle_classes.md "Untangling
+  /// by distortion"). Default true; false: the projection, then the held
+  /// re-solves, as before.
+  bool fold_untangle = true;
 };
 
 /// The initial ("before") map (SurfaceMapOptions::initial).

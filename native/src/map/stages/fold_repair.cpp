@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <string>
 #include <utility>
@@ -192,9 +191,8 @@ class KernelProjection {
 
 // Every face is checked, the folded ones unfolded (Gauss-Seidel: each move
 // sees the ones before), for a few rounds. The moved vertices, or empty when
-// some fold stays.
-// `partial`, when given, gets the points reached either way (the folds the
-// projection undid stay undone for the untangling).
+// some fold stays; `partial`, when given, gets the points reached either way
+// (the folds the projection undid stay undone for the untangling).
 std::vector<int> project_folds(const TriMesh& source, const Connectivity& sc, const SolverEdgeIndex& index,
                                const HyperbolicHarmonicResult& hr, const std::vector<char>& held,
                                std::vector<Complex>& z, int rounds, std::vector<Complex>* partial = nullptr) {
@@ -223,7 +221,6 @@ std::vector<int> project_folds(const TriMesh& source, const Connectivity& sc, co
   if (partial) *partial = kp.points();
   return {};
 }
-
 
 Complex to_klein(Complex z) { return 2.0 * z / (1.0 + std::norm(z)); }
 Complex from_klein(Complex x) { return x / (1.0 + std::sqrt(std::max(0.0, 1.0 - std::norm(x)))); }
@@ -257,10 +254,9 @@ std::vector<char> fold_neighbourhood(const TriMesh& source, const Connectivity& 
 // a regularised conformal (MIPS) term, (K + 1/K)/2 at ε = 0 for the face's
 // dilatation K = D', plus a small area term; χ > 0 for every D while ε > 0,
 // so a folded start has finite energy, and as ε goes to 0 the energy becomes
-// a barrier that keeps every face positive. ε follows Garanzha, Kaporin,
-// Kudryavtseva, Protais, Ray and Sokolov's schedule for foldover-free maps:
-// after each L-BFGS minimisation ε shrinks by how much the energy fell, and
-// once the smallest D is clear of it ε is negligible.
+// a barrier that keeps every face positive. After each L-BFGS minimisation
+// ε shrinks by how much the energy fell, no further than the most folded
+// face allows, and once the smallest D is clear of it ε is negligible.
 class DistortionUntangler {
  public:
   DistortionUntangler(const TriMesh& source, const Connectivity& sc, const KernelProjection& sheets,
@@ -610,9 +606,6 @@ FoldRepairResult repair_folds_locally(const TriMesh& source, const Connectivity&
           kept += area * q.per_face[f], kept_area += area;
       }
       const double mean = all / all_area, kept_mean = kept / kept_area;
-      if (std::getenv("SURFMAP_UNTANGLE_DEBUG"))
-        std::fprintf(stderr, "[untangle] %s: mean D' %.4f, unchanged faces %.4f, energy %.6f -> %.6f\n",
-                     method.c_str(), mean, kept_mean, info.energy_before, energy_in_charts(edges, r.edge_local));
       if (!(mean <= (1 + max_mean_rise) * kept_mean)) {
         char text[200];
         std::snprintf(text, sizeof text, "mean D' %.3g, more than %.0f%% above the unchanged faces' %.3g", mean,

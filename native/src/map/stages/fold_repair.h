@@ -6,13 +6,21 @@
 // (slivers of 0.04 degrees on the teapot: 18 of 65020 faces). Solving the
 // whole map again with positive weights on the source's own edges unfolds
 // them but costs every face the affine reproduction of the cotangents
-// (teapot -> double torus: mean D' 3.1 -> 5.7). Here only a few vertices
+// (teapot -> double torus: mean D' 3.8 -> 5.7). Here only a few vertices
 // move, the rest stay where the intrinsic map put them:
 //  1. projection: a corner of each folded face moves into the kernel of its
 //     neighbours' polygon (every face of its star positive; Klein model,
 //     where that kernel is an intersection of half-planes), as little as
 //     it must; a few Gauss-Seidel rounds;
-//  2. if folds stay: the vertices within 2, 4, 8, 16 rings of the folded
+//  2. if folds stay (clusters of slivers folded together: no corner's
+//     kernel is open), the untangling by distortion: the free vertices
+//     within 2, 4, 8, 16 rings of the folds left move jointly, each
+//     connected region in one flat chart of the target (Klein model), the
+//     rim held, minimising a regularised conformal (MIPS) energy of their
+//     faces that becomes a barrier on their orientation as its ε goes to 0
+//     (L-BFGS); kept when the map's mean D' stays within 25% of the
+//     unchanged faces';
+//  3. if folds stay: the vertices within 2, 4, 8, 16 rings of the folded
 //     faces' corners are solved again with positive own-edge weights
 //     (positive_edge_weights), the others held, until no face folds or the
 //     region stops being local; the region is closed over slivers (its rim
