@@ -77,6 +77,7 @@ void register_map(CLI::App& app) {
          no_two_way = !defaults.homotopy.two_way, compare_directions = defaults.homotopy.compare_directions;
     bool no_cheap_direction_check = !defaults.homotopy.cheap_direction_check;
     bool no_local_fold_repair = !defaults.solve.local_fold_repair;
+    bool no_fold_untangle = !defaults.solve.fold_untangle;  // SolveOptions::fold_untangle
     bool no_greedy_pants = !defaults.homotopy.search.greedy_pants;  // HomotopySearchOptions::greedy_pants
     bool no_snapped_start = !defaults.homotopy.search.snapped_start;  // HomotopySearchOptions::snapped_start
     bool homotopy_both_signs = defaults.homotopy.flat_both_signs;    // HomotopyOptions::flat_both_signs
@@ -104,6 +105,9 @@ void register_map(CLI::App& app) {
   cmd->add_flag("--no-local-fold-repair", a->no_local_fold_repair,
                 "Genus >= 2, auto weights: when the intrinsic map folds some faces, solve the whole map again with "
                 "own-edge weights instead of first re-solving only the vertices around the folds");
+  cmd->add_flag("--no-fold-untangle", a->no_fold_untangle,
+                "Genus >= 2, local fold repair: skip the untangling of fold clusters by distortion (the projection, "
+                "then the held re-solves with own-edge weights, then the global fallback)");
   cmd->add_option("--own-weights-floor", a->own_weights_floor,
                   "Genus >= 1, own-edge weights: least weight, times the mean positive cotangent weight (default 0.1)")
       ->check(CLI::PositiveNumber);
@@ -214,6 +218,7 @@ void register_map(CLI::App& app) {
     opt.solve.tolerance = a->tolerance;
     opt.solve.own_weights_floor = a->own_weights_floor;
     opt.solve.local_fold_repair = !a->no_local_fold_repair;
+    opt.solve.fold_untangle = !a->no_fold_untangle;
     opt.solve.max_iterations = a->max_iterations;
     opt.homotopy.candidates = a->homotopy_candidates;
     opt.homotopy.full_solves = a->homotopy_full_solves;

@@ -207,7 +207,8 @@ void bind_map(py::module_& m) {
       "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
       "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric", "homotopy_images",
       "homotopy_both_signs", "flat_overlay", "cheap_direction_check", "compare_directions", "greedy_pants",
-      "homotopy_extra_cuts", "own_weights_floor", "local_fold_repair", "target_loops", "two_way_ratio"));
+      "homotopy_extra_cuts", "own_weights_floor", "local_fold_repair", "fold_untangle", "target_loops", "two_way_ratio",
+      "snapped_start"));
   // What the module does beyond its keywords, for callers built against older modules (the
   // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
   m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
@@ -220,7 +221,8 @@ void bind_map(py::module_& m) {
          bool homotopy_search, int homotopy_search_evaluations, py::object boundary_pairing, bool two_way, int threads, const std::string& target_metric,
          py::object homotopy_images, bool homotopy_both_signs, bool flat_overlay, bool cheap_direction_check,
          bool compare_directions, bool greedy_pants, int homotopy_extra_cuts, double own_weights_floor,
-         bool local_fold_repair, const std::string& target_loops, double two_way_ratio) {
+         bool local_fold_repair, bool fold_untangle, const std::string& target_loops, double two_way_ratio,
+         bool snapped_start) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         // Open surfaces (issue 16): either side with a boundary.
@@ -252,15 +254,17 @@ void bind_map(py::module_& m) {
         opt.homotopy.flat_overlay = flat_overlay;  // (options.homotopy.flat_overlay)
         // The CLI's other map options, one keyword each (cmd_map.cpp: --no-cheap-direction-check,
         // --compare-directions, --no-greedy-pants, --homotopy-extra-cuts, --own-weights-floor,
-        // --no-local-fold-repair, --target-loops), so that a Python caller can run what the CLI runs.
+        // --no-local-fold-repair, --no-fold-untangle, --target-loops), so that a Python caller can run what the CLI runs.
         opt.homotopy.cheap_direction_check = cheap_direction_check;
         opt.homotopy.compare_directions = compare_directions;
         opt.homotopy.search.greedy_pants = greedy_pants;
+        opt.homotopy.search.snapped_start = snapped_start;  // --no-snapped-start
         if (homotopy_extra_cuts < 0) throw InputError("homotopy_extra_cuts must be 0 or more");
         opt.homotopy.extra_cuts = homotopy_extra_cuts;
         if (!(own_weights_floor > 0)) throw InputError("own_weights_floor must be positive");
         opt.solve.own_weights_floor = own_weights_floor;
         opt.solve.local_fold_repair = local_fold_repair;
+        opt.solve.fold_untangle = fold_untangle;
         opt.uniformization.loops = parse_enum<LoopMetric>(target_loops, "target_loops");
         // (options.homotopy.two_way_ratio; no CLI flag: 0 runs the other direction, and with it
         // the cheap direction check, for every pair)
@@ -350,8 +354,10 @@ void bind_map(py::module_& m) {
       py::arg("greedy_pants") = HomotopySearchOptions().greedy_pants,
       py::arg("homotopy_extra_cuts") = HomotopyOptions().extra_cuts, py::arg("own_weights_floor") = SolveOptions().own_weights_floor,
       py::arg("local_fold_repair") = SolveOptions().local_fold_repair,
+      py::arg("fold_untangle") = SolveOptions().fold_untangle,
       py::arg("target_loops") = enum_name(UniformizationOptions().loops),
       py::arg("two_way_ratio") = HomotopyOptions().two_way_ratio,
+      py::arg("snapped_start") = HomotopySearchOptions().snapped_start,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
       "boundary loops (else InputError naming both); disks (0, 1) and annuli (0, 2) are mapped boundary onto boundary "
@@ -390,7 +396,7 @@ void bind_map(py::module_& m) {
       "candidate (no ranking, search or two-way run; SolveError when they do not carry). As the CLI's map flags "
       "(docs/python.md): `cheap_direction_check` (False: --no-cheap-direction-check), `compare_directions` "
       "(--compare-directions), `greedy_pants` (False: --no-greedy-pants), `homotopy_extra_cuts`, `own_weights_floor`, "
-      "`local_fold_repair` (False: --no-local-fold-repair), `target_loops` ('auto', 'embedding', 'metric'); `two_way_ratio` (no CLI flag; default 2): the other direction "
+      "`local_fold_repair` (False: --no-local-fold-repair), `fold_untangle` (False: --no-fold-untangle), `snapped_start` (False: --no-snapped-start), `target_loops` ('auto', 'embedding', 'metric'); `two_way_ratio` (no CLI flag; default 2): the other direction "
       "is mapped when the energy is at least this many times the conformal bound (0: always). "
       "`progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");

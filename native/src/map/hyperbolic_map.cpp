@@ -1698,6 +1698,7 @@ bool map_class(HyperbolicPipeline& p) {
     FoldRepairOptions fo;
     fo.tolerance = options.solve.tolerance;
     fo.max_iterations = options.solve.max_iterations;
+    if (!options.solve.fold_untangle) fo.untangle_max_rings = 0;
     std::vector<char> held;
     if (!options.landmarks.empty()) {
       held.assign(p.nv, 0);

@@ -339,6 +339,13 @@ struct SolveOptions {
   /// again with own-edge weights only when that does not unfold them.
   /// Default true; false is the global fallback alone.
   bool local_fold_repair = true;
+  /// Within the local repair, the distortion-aware untangling of the folds
+  /// the projection leaves (clusters of slivers folded together): the
+  /// vertices around them move jointly to minimise a barrier on their
+  /// faces' dilatation, the rest held (docs/handle_classes.md "Untangling
+  /// by distortion"). Default true; false: the projection, then the held
+  /// re-solves, as before.
+  bool fold_untangle = true;
 };
 
 /// The initial ("before") map (SurfaceMapOptions::initial).
@@ -734,9 +741,12 @@ struct SurfaceMapResult {
   /// `status` "" (not run: nothing folded, or not asked), "repaired", or
   /// "not repaired: ..." (then the global own-edge fallback ran); `method`
   /// "projection" (folded faces' corners moved into their neighbours'
-  /// kernel) or "held re-solve" (the vertices within `rings` rings solved
-  /// again with own-edge weights). The intrinsic map's folded and flat
-  /// source faces, the held re-solves tried, and for a repair the vertices
+  /// kernel), "untangling of R rings" (the vertices within `rings` rings of
+  /// the folds left moved jointly by the distortion barrier,
+  /// SolveOptions::fold_untangle) or "held re-solve" (the vertices within
+  /// `rings` rings solved again with own-edge weights). The intrinsic map's
+  /// folded and flat source faces, the region sizes tried (untangling and
+  /// held re-solves), and for a repair the vertices
   /// moved or re-solved and the faces with such a corner (the only faces
   /// whose image changed); the energy with the intrinsic weights before
   /// (the class's optimum) and after the repair.

@@ -6,13 +6,21 @@
 // (slivers of 0.04 degrees on the teapot: 18 of 65020 faces). Solving the
 // whole map again with positive weights on the source's own edges unfolds
 // them but costs every face the affine reproduction of the cotangents
-// (teapot -> double torus: mean D' 3.1 -> 5.7). Here only a few vertices
+// (teapot -> double torus: mean D' 3.8 -> 5.7). Here only a few vertices
 // move, the rest stay where the intrinsic map put them:
 //  1. projection: a corner of each folded face moves into the kernel of its
 //     neighbours' polygon (every face of its star positive; Klein model,
 //     where that kernel is an intersection of half-planes), as little as
 //     it must; a few Gauss-Seidel rounds;
-//  2. if folds stay: the vertices within 2, 4, 8, 16 rings of the folded
+//  2. if folds stay (clusters of slivers folded together: no corner's
+//     kernel is open), the untangling by distortion: the free vertices
+//     within 2, 4, 8, 16 rings of the folds left move jointly, each
+//     connected region in one flat chart of the target (Klein model), the
+//     rim held, minimising a regularised conformal (MIPS) energy of their
+//     faces that becomes a barrier on their orientation as its ε goes to 0
+//     (L-BFGS); kept when the map's mean D' stays within 25% of the
+//     unchanged faces';
+//  3. if folds stay: the vertices within 2, 4, 8, 16 rings of the folded
 //     faces' corners are solved again with positive own-edge weights
 //     (positive_edge_weights), the others held, until no face folds or the
 //     region stops being local; the region is closed over slivers (its rim
@@ -34,6 +42,20 @@ namespace surfmap::detail {
 struct FoldRepairOptions {
   /// Rounds of the projection over the folded faces (default 8).
   int projection_rounds = 8;
+  /// The distortion-aware untangling (second stage): its regions free the
+  /// vertices within first_rings, 2 first_rings, ... up to this many rings
+  /// of the folds the projection left (default 16; 0 skips the stage).
+  int untangle_max_rings = 16;
+  /// L-BFGS iterations per value of the regularisation ε (default 300) ...
+  int untangle_iterations = 300;
+  /// ... and at most this many values of ε (default 40).
+  int untangle_rounds = 40;
+  /// Weight θ of the area term against the conformal one (default 1/128:
+  /// the area only keeps faces from collapsing, the shape is what counts).
+  double untangle_area_weight = 1.0 / 128;
+  /// The untangled map is kept only when its area-weighted mean D' is at
+  /// most this much above the unchanged faces' (default 0.25).
+  double untangle_max_mean_rise = 0.25;
   /// Rings of vertices around the folded faces' corners re-solved in the
   /// first try (default 2); each further try doubles them.
   int first_rings = 2;
