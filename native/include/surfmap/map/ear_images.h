@@ -51,8 +51,8 @@ struct EarImagesOptions {
   int max_half_window = 2;
   /// A window is taken only when the largest D' (distortion.h) of the faces
   /// of its vertices' stars stays below this bound (the middle corner alone:
-  /// no bound). Without it the generated head's mask (subdivision 5) onto the
-  /// head righted one more ear with a neighbour's D' at 103.
+  /// no bound). Without it the generated mask (subdivision 5) onto the head
+  /// righted 2 more ears, one of them with a neighbour's D' at 103.
   double window_max_dilatation = 10.0;
   /// Vertices of `mesh` whose images never move (landmarks); empty: none.
   std::vector<int> held;
