@@ -174,8 +174,129 @@ def on_polyline(P, V, loop):
     return out
 
 
+def decimate(V, F, ratio=0.5, max_turn_deg=60.0):
+    """Another triangulation of nearly the same surface: half-edge collapses (an interior vertex
+    merged into a neighbour, which stays where it is), shortest edge first, until `ratio` of the
+    vertices remain. The kept vertices are input vertices (returned as `kept`, so the identity is
+    known for them); boundary vertices are never removed (the loops stay as they are); a collapse
+    is refused when the two vertices share other neighbours than the edge's two opposite corners
+    (the link condition: the topology is kept) or when a face of the star would turn by more than
+    `max_turn_deg` or lose its area."""
+    import heapq
+    V, F = np.asarray(V, float), [list(f) for f in np.asarray(F)]
+    alive = [True] * len(F)
+    vf = [set() for _ in range(len(V))]
+    for i, f in enumerate(F):
+        for v in f:
+            vf[v].add(i)
+    on_b = np.zeros(len(V), bool)
+    for loop in open_double.boundary_loops(V, np.asarray(F)):
+        on_b[loop] = True
+
+    def neighbours(u):
+        return {w for i in vf[u] for w in F[i] if w != u}
+
+    def normal(f):
+        return np.cross(V[f[1]] - V[f[0]], V[f[2]] - V[f[0]])
+
+    heap = []
+
+    def push(u):
+        if not on_b[u]:
+            for w in neighbours(u):
+                heapq.heappush(heap, (float(np.linalg.norm(V[u] - V[w])), u, w))
+    for u in range(len(V)):
+        push(u)
+    removed, goal, gone = 0, int((1 - ratio) * len(V)), np.zeros(len(V), bool)
+    cos_max = np.cos(np.radians(max_turn_deg))
+    while heap and removed < goal:
+        _, u, v = heapq.heappop(heap)
+        if gone[u] or gone[v]:
+            continue
+        nu = neighbours(u)
+        if v not in nu:
+            continue
+        shared = [i for i in vf[u] if v in F[i]]
+        if len(shared) != 2 or len(nu & neighbours(v)) != 2:
+            continue
+        ok = True
+        for i in vf[u]:
+            if i in shared:
+                continue
+            g = [v if w == u else w for w in F[i]]
+            n0, n1 = normal(F[i]), normal(g)
+            a0, a1 = np.linalg.norm(n0), np.linalg.norm(n1)
+            if a1 <= 1e-3 * a0 or n0 @ n1 <= cos_max * a0 * a1:
+                ok = False
+                break
+        if not ok:
+            continue
+        for i in shared:
+            alive[i] = False
+            for w in F[i]:
+                vf[w].discard(i)
+        for i in vf[u]:
+            F[i] = [v if w == u else w for w in F[i]]
+            vf[v].add(i)
+        vf[u] = set()
+        gone[u] = True
+        removed += 1
+        push(v)
+        for w in neighbours(v):
+            push(w)
+    kept = np.flatnonzero(~gone)
+    remap = -np.ones(len(V), int)
+    remap[kept] = np.arange(len(kept))
+    G = remap[np.array([f for f, a in zip(F, alive) if a])]
+    return V[kept], G, kept
+
+
+def point_triangle_distance(P, A, B, C):
+    """Distance of each point P[i] to the triangle (A[i], B[i], C[i]) (Ericson's closest point)."""
+    ab, ac, ap = B - A, C - A, P - A
+    d1, d2 = np.einsum("ij,ij->i", ab, ap), np.einsum("ij,ij->i", ac, ap)
+    bp, cp = P - B, P - C
+    d3, d4 = np.einsum("ij,ij->i", ab, bp), np.einsum("ij,ij->i", ac, bp)
+    d5, d6 = np.einsum("ij,ij->i", ab, cp), np.einsum("ij,ij->i", ac, cp)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    denom = va + vb + vc
+    denom[denom == 0] = 1e-300
+    v, w = vb / denom, vc / denom
+    Q = A + v[:, None] * ab + w[:, None] * ac                                  # inside the face
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cases = [
+            ((d1 <= 0) & (d2 <= 0), A),
+            ((d3 >= 0) & (d4 <= d3), B),
+            ((d6 >= 0) & (d5 <= d6), C),
+            ((vc <= 0) & (d1 >= 0) & (d3 <= 0), A + (d1 / (d1 - d3))[:, None] * ab),
+            ((vb <= 0) & (d2 >= 0) & (d6 <= 0), A + (d2 / (d2 - d6))[:, None] * ac),
+            ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),
+             B + ((d4 - d3) / ((d4 - d3) + (d5 - d6)))[:, None] * (C - B)),
+        ]
+    done = np.zeros(len(P), bool)
+    for mask, X in cases:
+        m = mask & ~done
+        Q[m] = X[m]
+        done |= m
+    return np.linalg.norm(P - Q, axis=1)
+
+
+def distance_to_surface(P, V, F, k=24):
+    """The distance of each point to the mesh (V, F): the nearest of the k faces whose centroids
+    are nearest (exact for the meshes here, whose faces are small against their curvature)."""
+    from scipy.spatial import cKDTree
+    c = V[F].mean(axis=1)
+    _, idx = cKDTree(c).query(P, k=min(k, len(F)))
+    best = np.full(len(P), np.inf)
+    for j in range(idx.shape[1]):
+        f = F[idx[:, j]]
+        best = np.minimum(best, point_triangle_distance(P, V[f[:, 0]], V[f[:, 1]], V[f[:, 2]]))
+    return best
+
+
 def measure(r, Vs, Fs, Vt, Ft, identity):
-    """The row's figures, counted here from the result's forward map."""
+    """The row's figures, counted here from the result's forward map. identity: None, or per
+    source vertex the point of the target that is the same point of the surface (a copy's)."""
     fw = r["forward"]
     pos, face = np.asarray(fw["position"]), np.asarray(fw["face"])
     diag = np.linalg.norm(Vt.max(axis=0) - Vt.min(axis=0))
@@ -194,29 +315,114 @@ def measure(r, Vs, Fs, Vt, Ft, identity):
     sign = -1 if r["open"].get("orientation") == "reversing" else 1
     turned = sign * np.einsum("ij,ij->i", img, nt[face[Fs]].sum(axis=1)) <= 0
     flips_here = int(np.sum(turned & ~np.all(on_b[Fs], axis=1)))
-    ident = float(np.linalg.norm(pos - Vt[:len(Vs)], axis=1).mean() / diag) if identity else float("nan")
-    return off / diag, inside / diag, flips_here, ident
+    ident = floor = float("nan")
+    if identity is not None:
+        identity = np.asarray(identity, float)
+        ident = float(np.linalg.norm(pos - identity, axis=1).mean() / diag)
+        floor = float(distance_to_surface(identity, Vt, Ft).mean() / diag)
+    return off / diag, inside / diag, flips_here, ident, floor
 
 
-def run(name, gb, Vs, Fs, Vt, Ft, identity):
+def run(name, gb, Vs, Fs, Vt, Ft, identity, **kw):
+    """One row. identity: None, True (the target's first vertices are the source's: a subdivision)
+    or per source vertex the same point on the target."""
+    if identity is True:
+        identity = Vt[:len(Vs)]
+    elif identity is False:
+        identity = None
     t0 = time.time()
     try:
-        r = surfmap.surface_map(Vs, Fs, Vt, Ft)
+        r = surfmap.surface_map(Vs, Fs, Vt, Ft, **kw)
     except Exception as e:   # a row says what failed; the table goes on
         print(f"| {name} | ({gb[0]}, {gb[1]}) | {len(Vs)} → {len(Vt)} | **failed**: {str(e)[:200]} |"
               f" | | | | | | {time.time() - t0:.0f} |", flush=True)
         return None
     dt = time.time() - t0
-    off, inside, flips_here, ident = measure(r, Vs, Fs, Vt, Ft, identity)
+    off, inside, flips_here, ident, floor = measure(r, Vs, Fs, Vt, Ft, identity)
     o = r["open"]
     path = o["domain"] + (f", {o.get('orientation', '')}" if o["domain"] == "double" else "")
+    if kw.get("boundary_pairing") is not None:
+        path += ", given"
     conv = r.get("converged", True)
     moved = o.get("untangled_vertices", 0)
+    inv = o.get("inverse_flipped_triangles", o.get("inverse_flipped", ""))
+    ident_text = "" if np.isnan(ident) else f"{100 * ident:.3f}% ({100 * floor:.3f}%)"
     print(f"| {name} | ({gb[0]}, {gb[1]}) | {len(Vs)} → {len(Vt)} | {path} | {o['boundary_pairing']} | {conv} | "
-          f"{r['flipped_triangles']} ({flips_here}) | {moved if moved else ''} | {off:.1e} / {inside:.1e} | "
-          f"{'' if np.isnan(ident) else f'{100 * ident:.3f}%'} | {r['distortion']['mean']:.3f} / "
+          f"{r['flipped_triangles']} ({flips_here}) / {inv} | {moved if moved else ''} | {off:.1e} / {inside:.1e} | "
+          f"{ident_text} | {r['distortion']['mean']:.3f} / "
           f"{r['distortion']['max']:.1f} | {dt:.0f} |", flush=True)
     return r
+
+
+def read_open(path):
+    V, polys = surfmap.read_polygon_soup(path)
+    it = surfmap.intake(np.asarray(V, float), [list(p) for p in polys], allow_boundary=True)
+    return np.asarray(it["V"], float), np.asarray(it["F"]), it["info"]
+
+
+def real_copies(path, args):
+    """A real open mesh onto three copies of itself and back: its 1-to-4 midpoint subdivision (the
+    same surface), a decimated copy (another triangulation, half the vertices, decimate()) and a
+    bent copy (x += 0.3 y^2 in coordinates over the diagonal; the same triangulation)."""
+    V, F, info = read_open(path)
+    gb = (info["genus"], info["num_boundary_loops"])
+    name = os.path.basename(path).split("_")[3] if os.path.basename(path).count("_") >= 3 else os.path.basename(path)
+    kw = {} if gb[1] <= args.auto_up_to else {"boundary_pairing": list(range(gb[1]))}
+    Vs_, Fs_ = subdivide(V, F)
+    Vd, Fd, kept = decimate(V, F)
+    Vb = bend(V, 0.3)
+    copies = {"subdivided": (Vs_, Fs_, True, Vs_), "decimated": (Vd, Fd, V, V[kept]), "bent 0.3": (Vb, F, Vb, V)}
+    for label, (Vt, Ft, fwd_identity, back_identity) in copies.items():
+        if args.copies and label.split()[0] not in args.copies:
+            continue
+        run(f"{name} → {label}", gb, V, F, Vt, Ft, fwd_identity, **kw)
+        run(f"{label} → {name}", gb, Vt, Ft, V, F, back_identity, **kw)
+
+
+def punched_real(path, holes):
+    """A closed real mesh opened by holes: (direction from the centroid to the surface point
+    punched, radius over the diagonal) each."""
+    V, polys = surfmap.read_polygon_soup(path)
+    it = surfmap.intake(np.asarray(V, float), [list(p) for p in polys])
+    V, F = np.asarray(it["V"], float), np.asarray(it["F"])
+    diag = np.linalg.norm(V.max(axis=0) - V.min(axis=0))
+    centre = V.mean(axis=0)
+    V, F = punch(V, F, [on_surface(V, d, centre) for d, _ in holes], [h[1] * diag for h in holes])
+    return V, F
+
+
+#: Real pairs of the same (g, b): each real open mesh against a closed real mesh opened by holes
+#: (an open shell of another shape), and two closed genus-2 meshes opened by one hole each.
+REAL_PAIRS = [
+    ("open_g0_b1_face_gpjs.obj", ("g0_bunny_libigl.off", [((0, -1, 0), 0.25)])),
+    ("open_g1_b1_punctured-torus_bff.obj", ("g1_bob_tri.obj", [((0, 1, 0), 0.12)])),
+    ("open_g0_b3_artery_gmsh.stl", ("g0_spot.obj", [((0, 1, 0), 0.08), ((1, 0, 0), 0.08), ((-1, 0, 0), 0.08)])),
+    ("open_g0_b4_poncho_diffavatar.obj", ("g0_spot.obj", [((0, 1, 0), 0.08), ((1, 0, 0), 0.08), ((-1, 0, 0), 0.08),
+                                                          ((0, -1, 0), 0.08)])),
+    (("g2_double-torus_gpjs.obj", [((0, 0, 1), 0.1)]), ("g2_eight_summer.off", [((0, 0, 1), 0.1)])),
+]
+
+
+def real_pairs(directory, args):
+    def load(item):
+        if isinstance(item, str):
+            V, F, _ = read_open(os.path.join(directory, item))
+            return item.split("_")[3], V, F
+        name, holes = item
+        V, F = punched_real(os.path.join(directory, name), holes)
+        return os.path.splitext(name)[0].split("_")[1] + f" ({len(holes)} hole{'s' if len(holes) > 1 else ''})", V, F
+    for a, b in REAL_PAIRS:
+        if args.only and not any(args.only in (x if isinstance(x, str) else x[0]) for x in (a, b)):
+            continue
+        (na, Va, Fa), (nb, Vb, Fb) = load(a), load(b)
+        ia = surfmap.intake(Va, Fa, allow_boundary=True)["info"]
+        ib = surfmap.intake(Vb, Fb, allow_boundary=True)["info"]
+        ga, gb = (ia["genus"], ia["num_boundary_loops"]), (ib["genus"], ib["num_boundary_loops"])
+        if ga != gb:
+            print(f"| {na} / {nb} | {ga} / {gb}: not the same topology | | | | | | | | | | |", flush=True)
+            continue
+        run(f"{na} → {nb}", ga, Va, Fa, Vb, Fb, None)
+        run(f"{nb} → {na}", ga, Vb, Fb, Va, Fa, None)
 
 
 def main():
@@ -226,12 +432,18 @@ def main():
     ap.add_argument("--quick", action="store_true", help="coarser shapes")
     ap.add_argument("--no-remeshed", action="store_true")
     ap.add_argument("--no-pairs", action="store_true")
+    ap.add_argument("--no-generated", action="store_true", help="only the real meshes (--real)")
+    ap.add_argument("--no-copies", action="store_true", help="--real: no copies of the real meshes")
+    ap.add_argument("--no-real-pairs", action="store_true", help="--real: no pairs of different real meshes")
+    ap.add_argument("--copies", default="", help="--real: only these copies (subdivided,decimated,bent)")
+    ap.add_argument("--auto-up-to", type=int, default=3,
+                    help="--real copies: the automatic pairing up to this many loops, else loop i -> loop i given")
     args = ap.parse_args()
     print("| shape | (g, b) | V | path | pairing | converged | flipped (here) | untangled | boundary off / interior to "
           "loops | identity | mean / max D' | s |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name, (gb, make_a, make_b) in shapes(args.quick).items():
-        if args.only and args.only not in name:
+        if args.no_generated or (args.only and args.only not in name):
             continue
         A, B = make_a(), make_b()
         for label, (V, F) in (("A", A), ("B", B)):
@@ -247,15 +459,13 @@ def main():
             if not args.no_remeshed:
                 run(f"{name} A → remeshed A", gb, *A, *subdivide(*A), True)
     if args.real:
-        for path in sorted(glob.glob(os.path.join(args.real, "open_*"))):
-            if args.only and args.only not in path:
-                continue
-            V, polys = surfmap.read_polygon_soup(path)
-            it = surfmap.intake(np.asarray(V, float), [list(p) for p in polys], allow_boundary=True)
-            V, F, info = np.asarray(it["V"], float), np.asarray(it["F"]), it["info"]
-            run(os.path.basename(path) + " → remeshed", (info["genus"], info["num_boundary_loops"]), V, F,
-                *subdivide(V, F), True)
-
+        if not args.no_copies:
+            for path in sorted(glob.glob(os.path.join(args.real, "open_*"))):
+                if args.only and args.only not in path:
+                    continue
+                real_copies(path, args)
+        if not args.no_real_pairs:
+            real_pairs(args.real, args)
 
 if __name__ == "__main__":
     main()

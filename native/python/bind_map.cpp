@@ -403,7 +403,7 @@ void bind_map(py::module_& m) {
   m.def(
       "slide_ear_images",
       [](py::handle V, py::handle F, py::handle Vo, py::handle Fo, py::handle face, py::handle barycentric,
-         bool reversing) {
+         bool reversing, std::vector<int> held, int max_half_window, double window_max_dilatation) {
         TriMesh mesh{to_vertices(V, "V"), to_triangles(F, "F")}, other{to_vertices(Vo, "other V"), to_triangles(Fo, "other F")};
         const OpenSurfaceTopology mt = open_surface_topology(mesh), ot = open_surface_topology(other);
         auto faces = py::array_t<long long, py::array::c_style | py::array::forcecast>::ensure(face);
@@ -422,21 +422,31 @@ void bind_map(py::module_& m) {
                                bary(i, 1) * other.V.row(other.F(f, 1)).transpose() +
                                bary(i, 2) * other.V.row(other.F(f, 2)).transpose();
         }
-        const EarImagesResult r = slide_ear_images(mesh, mt, other, ot, images, reversing);
+        EarImagesOptions options;
+        options.reversing = reversing;
+        options.held = std::move(held);
+        options.max_half_window = max_half_window;
+        options.window_max_dilatation = window_max_dilatation;
+        const EarImagesResult r = slide_ear_images(mesh, mt, other, ot, images, options);
         py::dict d = points_to_dict(images);
         d["ears"] = r.ears;
         d["turned"] = r.turned;
         d["moved"] = r.moved;
+        d["moved_with_neighbours"] = r.moved_with_neighbours;
         d["turned_after"] = r.turned_after;
         return d;
       },
       py::arg("V"), py::arg("F"), py::arg("other_V"), py::arg("other_F"), py::arg("face"), py::arg("barycentric"),
-      py::arg("reversing") = false,
+      py::arg("reversing") = false, py::arg("held") = std::vector<int>{}, py::arg("max_half_window") = 2,
+      py::arg("window_max_dilatation") = 10.0,
       "Ears (faces with three boundary corners) of the open mesh (V, F) whose images on the open mesh (other_V, "
       "other_F) turn over: the middle corner's image slid along the other boundary between its neighbours' images, "
-      "to the vertex where the ear's image is least distorted among the positively oriented ones (map/ear_images.h; "
-      "docs/open_surfaces.md 'Ears'). face, barycentric: per vertex its image on the other mesh. Returns {face, "
-      "barycentric, position, ears, turned, moved, turned_after}.");
+      "to the vertex where the ear's image is least distorted among the positively oriented ones; when none rights "
+      "it, windows of 3 .. 2 max_half_window + 1 boundary vertices around it slid together, where the largest D' of "
+      "their faces stays below window_max_dilatation (map/ear_images.h; "
+      "docs/open_surfaces.md 'Ears'). face, barycentric: per vertex its image on the other mesh; held: vertices "
+      "whose images stay (landmarks). Returns {face, barycentric, position, ears, turned, moved, "
+      "moved_with_neighbours, turned_after}.");
 }
 
 }  // namespace surfmap::python

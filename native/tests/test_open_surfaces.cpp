@@ -455,6 +455,99 @@ TEST(OpenSurfaces, TurnedEarsImageSlidAlongTheOtherBoundary) {
   }
 }
 
+// A square fan (0,0)-(4,0)-(4,3)-(0,3) around o whose bottom side carries an
+// ear (a, b, c) below the chord a c, mapped onto a fan of the same square
+// whose bottom side zigzags: notch u1, bump u2, notch u3. a's and c's images
+// lie on the edges either side of the notch u1 and b's on it, so the arc
+// between a's and c's images holds no vertex but the notch: the middle
+// corner alone cannot right the ear; sliding a, b and c together can.
+struct WindowEarCase {
+  TriMesh mesh, other;
+  std::vector<PointOnSurface> images;
+};
+
+WindowEarCase window_ear_case() {
+  WindowEarCase c;
+  c.mesh.V.resize(8, 3);
+  c.mesh.V << 0, 0, 0, 0.5, 0, 0, 1, -0.3, 0, 1.5, 0, 0, 4, 0, 0, 4, 3, 0, 0, 3, 0, 2, 1.5, 0;  // p0 a b c p4 . . o
+  c.mesh.F.resize(7, 3);
+  c.mesh.F << 0, 1, 7, 1, 3, 7, 1, 2, 3, 3, 4, 7, 4, 5, 7, 5, 6, 7, 6, 0, 7;
+  c.other.V.resize(8, 3);
+  c.other.V << 0, 0, 0, 1, 0.15, 0, 2, -0.15, 0, 3, 0.15, 0, 4, 0, 0, 4, 3, 0, 0, 3, 0, 2, 1.5, 0;  // u0 .. u4 . . o
+  c.other.F.resize(7, 3);
+  c.other.F << 0, 1, 7, 1, 2, 7, 2, 3, 7, 3, 4, 7, 4, 5, 7, 5, 6, 7, 6, 0, 7;
+  auto on_edge = [&](int f, int i, int j, double t) {  // the point (1 - t) u_i + t u_j of other's face f
+    PointOnSurface p;
+    p.face = f;
+    p.barycentric.setZero();
+    for (int k = 0; k < 3; ++k) {
+      if (c.other.F(f, k) == i) p.barycentric[k] += 1 - t;
+      if (c.other.F(f, k) == j) p.barycentric[k] += t;
+    }
+    p.position = (1 - t) * c.other.V.row(i).transpose() + t * c.other.V.row(j).transpose();
+    return p;
+  };
+  c.images = {on_edge(0, 0, 1, 0.0), on_edge(0, 0, 1, 0.5), on_edge(1, 1, 2, 0.0), on_edge(1, 1, 2, 0.5),
+              on_edge(4, 4, 5, 0.0), on_edge(4, 5, 4, 0.0), on_edge(5, 6, 7, 0.0), on_edge(0, 7, 0, 0.0)};
+  return c;
+}
+
+TEST(OpenSurfaces, TurnedEarRightedByAWindowWhenItsMiddleCornerCannot) {
+  const auto positive = [](const WindowEarCase& c, int f) {
+    const Eigen::Vector3d a = c.images[c.mesh.F(f, 0)].position, b = c.images[c.mesh.F(f, 1)].position,
+                          d = c.images[c.mesh.F(f, 2)].position;
+    return (b - a).cross(d - a).z() > 1e-12;
+  };
+  {  // the fixture: every face of both fans and every image but the ear's positively oriented
+    const WindowEarCase c = window_ear_case();
+    for (int f = 0; f < 7; ++f) {
+      const Eigen::Vector3d a = c.mesh.V.row(c.mesh.F(f, 0)), b = c.mesh.V.row(c.mesh.F(f, 1)),
+                            d = c.mesh.V.row(c.mesh.F(f, 2));
+      ASSERT_GT((b - a).cross(d - a).z(), 0) << "face " << f;
+      const Eigen::Vector3d u = c.other.V.row(c.other.F(f, 0)), v = c.other.V.row(c.other.F(f, 1)),
+                            w = c.other.V.row(c.other.F(f, 2));
+      ASSERT_GT((v - u).cross(w - u).z(), 0) << "other face " << f;
+      ASSERT_EQ(positive(c, f), f != 2) << "image of face " << f;
+    }
+  }
+  const WindowEarCase start = window_ear_case();
+  const OpenSurfaceTopology mt = open_surface_topology(start.mesh), ot = open_surface_topology(start.other);
+  for (const int max_half_window : {0, 1, 2}) {
+    WindowEarCase c = window_ear_case();
+    EarImagesOptions options;
+    options.max_half_window = max_half_window;
+    const EarImagesResult r = slide_ear_images(c.mesh, mt, c.other, ot, c.images, options);
+    EXPECT_EQ(r.ears, 1);
+    EXPECT_EQ(r.turned, 1);
+    EXPECT_EQ(r.moved, max_half_window > 0 ? 1 : 0) << max_half_window;
+    EXPECT_EQ(r.moved_with_neighbours, r.moved);
+    EXPECT_EQ(r.turned_after, max_half_window > 0 ? 0 : 1);
+    for (int f = 0; f < 7; ++f) EXPECT_EQ(positive(c, f), max_half_window > 0 || f != 2) << f;
+    // Only the window's images move, along the bottom side (y within the zigzag, x in order).
+    for (int v : {0, 4, 5, 6, 7}) EXPECT_LT((c.images[v].position - start.images[v].position).norm(), 1e-15) << v;
+    double x = 0;
+    for (int v : {1, 2, 3}) {
+      const Eigen::Vector3d p = c.images[v].position;
+      EXPECT_GT(p.x(), x) << v;
+      EXPECT_LT(std::abs(p.y()), 0.15 + 1e-12) << v;
+      x = p.x();
+      Eigen::RowVector3d at = Eigen::RowVector3d::Zero();
+      for (int k = 0; k < 3; ++k) at += c.images[v].barycentric[k] * c.other.V.row(c.other.F(c.images[v].face, k));
+      EXPECT_LT((at - p.transpose()).norm(), 1e-12) << v;
+    }
+    EXPECT_LT(x, 4.0);
+  }
+  {  // b held (a landmark) on the notch: no choice of a's and c's images rights the ear, so nothing moves
+    WindowEarCase c = window_ear_case();
+    EarImagesOptions options;
+    options.held = {2};
+    const EarImagesResult r = slide_ear_images(c.mesh, mt, c.other, ot, c.images, options);
+    EXPECT_EQ(r.moved, 0);
+    EXPECT_EQ(r.turned_after, 1);
+    for (int v = 0; v < 8; ++v) EXPECT_LT((c.images[v].position - start.images[v].position).norm(), 1e-15) << v;
+  }
+}
+
 TEST(OpenSurfaces, EarsOfACoarseMaskOnAJaggedLoopAreRighted) {
   // A coarse disk (a square grid: its corners are ears) onto a finer disk
   // whose rim zigzags (every other rim vertex pulled in): many ears' chord

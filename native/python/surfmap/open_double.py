@@ -749,14 +749,12 @@ def _turned(S, T, fw, reversing=False, faces=None, resolved_angle=np.pi / 3):
 
 def _slide_ears(A, B, points, reversing, keep):
     """_core.slide_ear_images on a half's map of A onto B ({face, barycentric, position}, changed in
-    place), the vertices `keep` (landmarks) left where they are. Returns its counts."""
+    place), the vertices `keep` (landmarks) held where they are. Returns its counts."""
     got = _core.slide_ear_images(A.V, A.F, B.V, B.F, np.asarray(points["face"]), np.asarray(points["barycentric"]),
-                                 reversing=reversing)
-    change = np.ones(A.n, dtype=bool)
-    change[np.asarray(keep, dtype=np.int64)] = False
+                                 reversing=reversing, held=[int(v) for v in np.asarray(keep, dtype=np.int64)])
     for k in ("face", "barycentric", "position"):
-        points[k][change] = np.asarray(got[k])[change]
-    return {k: int(got[k]) for k in ("ears", "turned", "moved", "turned_after")}
+        points[k][:] = np.asarray(got[k])
+    return {k: int(got[k]) for k in ("ears", "turned", "moved", "moved_with_neighbours", "turned_after")}
 
 
 def _alignment(S, T, images):
@@ -1118,7 +1116,9 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "untangled": (f"{flipped_before_untangling} folded faces; {len(untangled)} interior vertices moved "
                                  f"within their stars, {flipped} folded left" if untangled else ""),
                    "ears_turned": ears_fw["turned"], "ears_slid": ears_fw["moved"],
+                   "ears_slid_with_neighbours": ears_fw["moved_with_neighbours"],
                    "inverse_ears_turned": ears_inv["turned"], "inverse_ears_slid": ears_inv["moved"],
+                   "inverse_ears_slid_with_neighbours": ears_inv["moved_with_neighbours"],
                    "inverse_flipped_triangles": inv_flipped, "inverse_ear_triangles": inv_ears,
                    "inverse_ear_triangles_turned": inv_ears_turned, "inverse_untangled_vertices": len(inv_untangled),
                    "inverse_untangled": (f"{inv_flipped_before} folded faces; {len(inv_untangled)} interior target "

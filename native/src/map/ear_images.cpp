@@ -44,7 +44,7 @@ OnLoop nearest_on_boundary(const TriMesh& mesh, const OpenSurfaceTopology& topol
 
 EarImagesResult slide_ear_images(const TriMesh& mesh, const OpenSurfaceTopology& mesh_topology, const TriMesh& other,
                                  const OpenSurfaceTopology& other_topology, std::vector<PointOnSurface>& images,
-                                 bool reversing) {
+                                 const EarImagesOptions& options) {
   EarImagesResult r;
   const int nv = mesh.num_vertices();
   // Each boundary vertex's loop and its place in it.
@@ -68,7 +68,10 @@ EarImagesResult slide_ear_images(const TriMesh& mesh, const OpenSurfaceTopology&
                           c = other.V.row(other.F(f, 2));
     return (b - a).cross(c - a);
   };
-  const double sign = reversing ? -1.0 : 1.0;
+  const double sign = options.reversing ? -1.0 : 1.0;
+  std::vector<char> held(nv, 0);
+  for (int v : options.held)
+    if (v >= 0 && v < nv) held[v] = 1;
   // The image's signed area against the other's normals at its corners'
   // faces, over the squared longest side (<= 1e-12: turned or degenerate).
   auto orientation = [&](const PointOnSurface& p, const PointOnSurface& q, const PointOnSurface& s) {
@@ -95,15 +98,18 @@ EarImagesResult slide_ear_images(const TriMesh& mesh, const OpenSurfaceTopology&
       p[k] = image ? images[mesh.F(f, k)].position : Eigen::Vector3d(mesh.V.row(mesh.F(f, k)));
     return Eigen::Vector3d((p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm());
   };
-  // Rights the ear whose middle corner is b by sliding the images of the
-  // 2 w + 1 vertices of b's loop centred on b along the other boundary,
+  // Rights the ear `ear` whose middle corner is b by sliding the images of
+  // the 2 w + 1 vertices of b's loop centred on b along the other boundary,
   // within the arc from the image of the vertex before them to that of the
-  // vertex after them (at most `max_arc` vertices of the other boundary),
-  // each image kept or put on a vertex of that arc, all in the same order
-  // along it. The choice where every face of their stars is positively
-  // oriented and the largest D' among them is least; none: nothing moves.
-  const int max_arc = 32;
-  auto right_ear = [&](int b, int w) {
+  // vertex after them (at most half the other loop), each image kept or put
+  // on a vertex of that arc (the middle corner alone: any of up to
+  // `max_arc_alone`; a window, whose choices multiply: up to `max_arc`
+  // evenly spaced along a longer arc), all in the same order
+  // along it (held vertices keep theirs). The choice where the ear and every
+  // face of their stars that was not turned are positively oriented and the
+  // largest D' among those faces is least; none: nothing moves.
+  const int max_arc = 32, max_arc_alone = 1024;
+  auto right_ear = [&](int ear, int b, int w) {
     const auto& own = mesh_topology.boundary_loops[loop_of[b]];
     const int m = static_cast<int>(own.size());
     if (2 * w + 3 > m) return false;  // the window would wrap around the loop
@@ -124,13 +130,19 @@ EarImagesResult slide_ear_images(const TriMesh& mesh, const OpenSurfaceTopology&
     const bool forward = ahead(lp, lb) <= ahead(lp, ln);
     auto along = [&](const OnLoop& l) { return forward ? ahead(lp, l) : ahead(l, lp); };
     const double end = along(ln);
-    if (end > max_arc) return false;  // not a short arc: leave it
+    // Not a short arc (past half the loop and 32 vertices: the images run
+    // the other way round): leave it. A
+    // dense other boundary (a scan's rim under a coarse mask's ear) has long
+    // arcs: every vertex for the middle corner alone, a sample for a window.
+    if (end > std::max(0.5 * n, static_cast<double>(max_arc))) return false;
+    const int limit = w == 0 ? max_arc_alone : max_arc;
+    const int stride = std::max(1, static_cast<int>(std::ceil(end / limit)));
     struct Option {
       PointOnSurface point;
       double s;
     };
     std::vector<Option> vertices;
-    for (int step = 1; step <= max_arc + 1; ++step) {
+    for (int step = 1; step <= n; step += stride) {
       const int j = forward ? (lp.edge + step) % n : ((lp.edge + (lp.t > 0 ? 1 : 0) - step) % n + n) % n;
       // Not onto (or within 1e-6 of an edge from) the images the arc runs between.
       const double sj = along(OnLoop{lp.loop, j, 0.0});
@@ -147,57 +159,81 @@ EarImagesResult slide_ear_images(const TriMesh& mesh, const OpenSurfaceTopology&
       vertices.push_back({q, sj});
     }
     const int count = static_cast<int>(corner.size());
-    std::vector<std::vector<Option>> options(count);
+    std::vector<std::vector<Option>> choices(count);
     std::vector<PointOnSurface> kept(count), chosen(count);
     for (int k = 0; k < count; ++k) {
       kept[k] = chosen[k] = images[corner[k]];
       const OnLoop lk = nearest_on_boundary(other, other_topology, images[corner[k]].position);
       if (lk.loop != lp.loop) return false;
-      options[k].push_back({images[corner[k]], along(lk)});
-      options[k].insert(options[k].end(), vertices.begin(), vertices.end());
+      choices[k].push_back({images[corner[k]], along(lk)});
+      if (!held[corner[k]]) choices[k].insert(choices[k].end(), vertices.begin(), vertices.end());
     }
+    // The faces of the window's stars, each checked as soon as its last
+    // window corner has its image (so that a partial choice that turns a
+    // face, or is already worse than the best, is cut off early).
     std::vector<int> faces;
     for (int x : corner) faces.insert(faces.end(), star[x].begin(), star[x].end());
     std::sort(faces.begin(), faces.end());
     faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
-    double best = std::numeric_limits<double>::infinity();
+    std::vector<std::vector<int>> settled(count);
+    for (int f : faces) {
+      int last = 0;
+      for (int k = 0; k < count; ++k)
+        for (int i = 0; i < 3; ++i)
+          if (mesh.F(f, i) == corner[k]) last = std::max(last, k);
+      // Faces already turned (another ear not righted) may stay so; the ear
+      // itself and every other face must come out positively oriented.
+      if (f == ear || !turned(f)) settled[last].push_back(f);
+    }
+    // A window moves the ear's neighbours too: only below the D' bound.
+    double best = w > 0 ? options.window_max_dilatation : std::numeric_limits<double>::infinity();
+    bool found = false;
     // Every assignment strictly increasing along the arc (depth first).
-    std::function<void(int, double)> assign = [&](int k, double after_s) {
+    std::function<void(int, double, double)> assign = [&](int k, double after_s, double worst) {
       if (k == count) {
-        double worst = 0;
-        for (int f : faces) {
-          if (turned(f)) return;
-          worst = std::max(worst, triangle_dilatation(sides_of(f, false), sides_of(f, true)));
-        }
-        if (worst < best) {
-          best = worst;
-          for (int i = 0; i < count; ++i) chosen[i] = images[corner[i]];
-        }
+        best = worst;
+        found = true;
+        for (int i = 0; i < count; ++i) chosen[i] = images[corner[i]];
         return;
       }
-      for (const Option& o : options[k])
-        if (o.s > after_s && o.s < end) {
-          images[corner[k]] = o.point;
-          assign(k + 1, o.s);
+      for (const Option& o : choices[k]) {
+        if (o.s <= after_s || o.s >= end) continue;
+        images[corner[k]] = o.point;
+        double w_here = worst;
+        bool ok = true;
+        for (int f : settled[k]) {
+          if (turned(f)) {
+            ok = false;
+            break;
+          }
+          w_here = std::max(w_here, triangle_dilatation(sides_of(f, false), sides_of(f, true)));
+          if (w_here >= best) {
+            ok = false;
+            break;
+          }
         }
+        if (ok) assign(k + 1, o.s, w_here);
+      }
       images[corner[k]] = kept[k];
     };
-    assign(0, 0.0);
-    for (int k = 0; k < count; ++k) images[corner[k]] = std::isfinite(best) ? chosen[k] : kept[k];
-    return std::isfinite(best);
+    assign(0, 0.0, 0.0);
+    for (int k = 0; k < count; ++k) images[corner[k]] = found ? chosen[k] : kept[k];
+    return found;
   };
   for (int f : ears) {
     if (!turned(f)) continue;
     ++r.turned;
-    // The middle corner (between the ear's two boundary edges) alone:
-    // sliding the ear's other corners or their neighbours too (right_ear's
-    // w >= 1) rights more ears on dense jagged rims but changes their
-    // interior neighbours' images (the generated shirt's mean D' 2.35 ->
-    // 2.52), so it is not done.
+    // The middle corner (between the ear's two boundary edges) alone first;
+    // windows of its neighbours too only when that fails (header).
     for (int j = 0; j < 3; ++j) {
       const int a = mesh.F(f, (j + 2) % 3), b = mesh.F(f, j), c = mesh.F(f, (j + 1) % 3);
       if (boundary_edge(a, b) && boundary_edge(b, c)) {
-        r.moved += right_ear(b, 0);
+        for (int w = 0; w <= std::max(0, options.max_half_window); ++w)
+          if (right_ear(f, b, w)) {
+            ++r.moved;
+            r.moved_with_neighbours += w > 0;
+            break;
+          }
         break;
       }
     }

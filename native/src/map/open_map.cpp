@@ -406,14 +406,13 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
   }
   // Ears whose chord image turns over (three points of a concave or jagged
   // stretch of the other boundary): the middle corner's image slid along the
-  // other boundary (map/ear_images.h), both directions; landmarks keep theirs.
+  // other boundary, else a window of boundary vertices around it
+  // (map/ear_images.h), both directions; landmarks keep their images.
   {
-    std::vector<PointOnSurface> held_fw, held_inv;
-    for (const auto& [p, q] : options.landmarks) held_fw.push_back(out.forward[p]), held_inv.push_back(out.inverse[q]);
-    r.forward_ears = slide_ear_images(source, source_topology, target, target_topology, out.forward);
-    r.inverse_ears = slide_ear_images(target, target_topology, source, source_topology, out.inverse);
-    for (std::size_t k = 0; k < options.landmarks.size(); ++k)
-      out.forward[options.landmarks[k].first] = held_fw[k], out.inverse[options.landmarks[k].second] = held_inv[k];
+    EarImagesOptions fw_options, inv_options;
+    for (const auto& [p, q] : options.landmarks) fw_options.held.push_back(p), inv_options.held.push_back(q);
+    r.forward_ears = slide_ear_images(source, source_topology, target, target_topology, out.forward, fw_options);
+    r.inverse_ears = slide_ear_images(target, target_topology, source, source_topology, out.inverse, inv_options);
   }
   // Ears: source faces with all three corners on the boundary. Their image
   // is fixed by the boundary correspondence alone: on the annulus's straight
@@ -521,10 +520,12 @@ nlohmann::json to_json(const OpenMapResult& r, const OpenMapOptions& options) {
                     {"ear_triangles_degenerate", r.ear_triangles_degenerate},
                     {"ears_turned", r.forward_ears.turned},
                     {"ears_slid", r.forward_ears.moved},
+                    {"ears_slid_with_neighbours", r.forward_ears.moved_with_neighbours},
                     {"ears_turned_after", r.forward_ears.turned_after},
                     {"inverse_ear_triangles", r.inverse_ears.ears},
                     {"inverse_ears_turned", r.inverse_ears.turned},
                     {"inverse_ears_slid", r.inverse_ears.moved},
+                    {"inverse_ears_slid_with_neighbours", r.inverse_ears.moved_with_neighbours},
                     {"inverse_ears_turned_after", r.inverse_ears.turned_after},
                     {"source", domain_json(r.source_domain)},
                     {"target", domain_json(r.target_domain)},
