@@ -654,6 +654,35 @@ TEST(SphericalMap, CoarseBentSpheresMapBothWaysOnTheCommonSubdivision) {
   }
   EXPECT_GE(subdivided, 2);  // both bent sources have inverted chords
   EXPECT_GT(bends, 0);
+
+TEST(SphericalMap, ZeroAreaSourceFacesOnTheCommonSubdivisionAreNotDegenerateImages) {
+  // Before: a source with collinear (zero-area) faces among the faces
+  // delivered on the common subdivision stopped with "the genus-0 map has N
+  // pieces of source triangles whose image on the target is degenerate": the
+  // pieces of a zero-area face have no 3D shape, so their D' was infinite.
+  // They are now left out of D' (as planar_distortion does); the map is the
+  // same bijective map.
+  const TriMesh a = samples::insert_degenerate_faces(twisted_sphere(8, 3.0), 12, 0.5, 4);
+  const TriMesh b = samples::jitter(samples::stretched_uv_sphere(8, 16, 4.0), 0.2, 5);
+  const SurfaceMapResult m = surface_map(a, b);
+  EXPECT_TRUE(m.converged);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.degenerate_triangles, 0);
+  EXPECT_TRUE(std::isfinite(m.mean_dilatation));
+  EXPECT_NEAR(m.source_subdivision.sphere_cover, 1.0, 1e-6);
+  // Some zero-area face is among the subdivided ones (what failed before).
+  std::vector<char> replaced(a.num_faces(), 0);
+  const auto& sub = m.source_subdivision;
+  for (int i = 0; i < sub.faces.rows(); ++i) {
+    const int f = sub.face_origin[i];
+    replaced[f] |= !(sub.faces(i, 0) == a.F(f, 0) && sub.faces(i, 1) == a.F(f, 1) && sub.faces(i, 2) == a.F(f, 2));
+  }
+  int zero_area_replaced = 0;
+  for (int f = 0; f < a.num_faces(); ++f) {
+    const Eigen::Vector3d p0 = a.V.row(a.F(f, 0)), p1 = a.V.row(a.F(f, 1)), p2 = a.V.row(a.F(f, 2));
+    zero_area_replaced += replaced[f] && (p1 - p0).cross(p2 - p0).norm() <= 1e-12 * (p1 - p0).squaredNorm();
+  }
+  EXPECT_GT(zero_area_replaced, 0);
 }
 
 }  // namespace

@@ -1063,14 +1063,26 @@ void piecewise_quality(const TriMesh& source, const SphereSide& target, const Sp
   };
   double weighted = 0, total = 0, mx = 0;
   std::vector<double> piece_max(source.num_faces(), 0);
+  // A zero-area input face (coincident or collinear corners, accepted through
+  // mollification) has pieces with no 3D shape: their D' is undefined, not a
+  // degenerate image. They stay out of the mean and max (as in
+  // planar_distortion), and the face keeps the D' of its mollified lengths
+  // from sphere_map_quality.
+  std::vector<char> zero_area(source.num_faces(), 0);
   for (int f = 0; f < source.num_faces(); ++f) {
-    if (pw.replaced[f]) continue;
+    const Eigen::Vector3d q0 = source.V.row(source.F(f, 0)), q1 = source.V.row(source.F(f, 1)),
+                          q2 = source.V.row(source.F(f, 2));
+    const double longest = std::max({(q1 - q0).norm(), (q2 - q1).norm(), (q0 - q2).norm()});
+    zero_area[f] = !(area_of(q0, q1, q2) > 1e-14 * longest * longest);
+  }
+  for (int f = 0; f < source.num_faces(); ++f) {
+    if (pw.replaced[f] && !zero_area[f]) continue;
     const double a = area_of(source.V.row(source.F(f, 0)), source.V.row(source.F(f, 1)), source.V.row(source.F(f, 2)));
     if (std::isfinite(out.dilatation[f])) weighted += a * out.dilatation[f], total += a, mx = std::max(mx, out.dilatation[f]);
   }
   for (int i = 0; i < pw.faces.rows(); ++i) {
     const int f = pw.origin[i];
-    if (!pw.replaced[f]) continue;
+    if (!pw.replaced[f] || zero_area[f]) continue;
     const Eigen::Vector3d p0 = src(pw.faces(i, 0)), p1 = src(pw.faces(i, 1)), p2 = src(pw.faces(i, 2));
     const Eigen::Vector3d i0 = img(pw.faces(i, 0)), i1 = img(pw.faces(i, 1)), i2 = img(pw.faces(i, 2));
     const double a = area_of(p0, p1, p2);
@@ -1088,7 +1100,7 @@ void piecewise_quality(const TriMesh& source, const SphereSide& target, const Sp
     weighted += a * d, total += a, mx = std::max(mx, d);
   }
   for (int f = 0; f < source.num_faces(); ++f)
-    if (pw.replaced[f]) out.dilatation[f] = piece_max[f];
+    if (pw.replaced[f] && !zero_area[f]) out.dilatation[f] = piece_max[f];
   out.mean_dilatation = weighted / std::max(total, 1e-300);
   out.max_dilatation = mx;
   if (out.degenerate_triangles)
