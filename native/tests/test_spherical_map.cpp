@@ -654,6 +654,7 @@ TEST(SphericalMap, CoarseBentSpheresMapBothWaysOnTheCommonSubdivision) {
   }
   EXPECT_GE(subdivided, 2);  // both bent sources have inverted chords
   EXPECT_GT(bends, 0);
+}
 
 TEST(SphericalMap, ZeroAreaSourceFacesOnTheCommonSubdivisionAreNotDegenerateImages) {
   // Before: a source with collinear (zero-area) faces among the faces
