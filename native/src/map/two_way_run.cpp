@@ -72,6 +72,22 @@ std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward
 /// The chosen class's energy as the ranking compared it: the intrinsic
 /// Delaunay one when the map itself fell back to own-edge weights (the
 /// other candidates' energies are intrinsic).
+/// map(a, b, o) into `result`; false, with the error's text in `failure`,
+/// when that run fails. A cancellation is passed on, not read as a failed
+/// direction (Cancelled is an Error).
+bool run_map(const MapFunction& map, const TriMesh& a, const TriMesh& b, const SurfaceMapOptions& o,
+             SurfaceMapResult& result, std::string& failure) {
+  try {
+    result = map(a, b, o);
+    return true;
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    failure = e.what();
+    return false;
+  }
+}
+
 double chosen_energy(const SurfaceMapResult& r) {
   if (std::isfinite(r.intrinsic_class_energy)) return r.intrinsic_class_energy;
   const int c = r.chosen_candidate;
@@ -138,12 +154,9 @@ std::string agree_directions(const TriMesh& source, const TriMesh& target, const
   if (ro.homotopy.reverse_class.empty() && ro.homotopy.source_images.size() == 0)
     return "directions not agreed: " + why;
   SurfaceMapResult back;
-  try {
-    back = map(target, source, ro);
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    return std::string("directions not agreed: the other direction given this class failed: ") + e.what();
+  std::string back_failure;
+  if (!run_map(map, target, source, ro, back, back_failure)) {
+    return std::string("directions not agreed: the other direction given this class failed: ") + back_failure;
   }
   const double bound = 8 * M_PI * (forward.genus - 1);
   const OtherClassHere there = other_class_here(back), here = other_class_here(forward);
@@ -180,12 +193,9 @@ std::string agree_directions(const TriMesh& source, const TriMesh& target, const
   SurfaceMapOptions requested = fo;
   requested.homotopy.class_index = here.index;
   SurfaceMapResult again;
-  try {
-    again = map(source, target, requested);
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    return "directions not agreed: mapping again in the other direction's class inverted failed: " + std::string(e.what());
+  std::string again_failure;
+  if (!run_map(map, source, target, requested, again, again_failure)) {
+    return "directions not agreed: mapping again in the other direction's class inverted failed: " + again_failure;
   }
   // (Inverted algebraically, the run's own comparison finds the composite
   // inner; carried, the carried-class check compares homology and probe
@@ -223,12 +233,9 @@ std::string search_from_this_class_there(const TriMesh& source, const TriMesh& t
   if (so.homotopy.reverse_class.empty()) return "";
   const double bound = 8 * M_PI * (forward.genus - 1);
   SurfaceMapResult back;
-  try {
-    back = map(target, source, so);
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    there_text += "; searched on from it there: failed (" + std::string(e.what()) + ")";
+  std::string back_failure;
+  if (!run_map(map, target, source, so, back, back_failure)) {
+    there_text += "; searched on from it there: failed (" + back_failure + ")";
     return "";
   }
   const double back_energy = chosen_energy(back);
@@ -247,12 +254,9 @@ std::string search_from_this_class_there(const TriMesh& source, const TriMesh& t
     return "";
   }
   SurfaceMapResult here;
-  try {
-    here = map(source, target, fo);
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    there_text += " (its inverse not solved here: " + std::string(e.what()) + ")";
+  std::string here_failure;
+  if (!run_map(map, source, target, fo, here, here_failure)) {
+    there_text += " (its inverse not solved here: " + here_failure + ")";
     return "";
   }
   const double alt_here = chosen_energy(here);
@@ -311,13 +315,10 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
   fo.homotopy.reverse_class = psi;
   fo.homotopy.reverse_class_only = true;
   SurfaceMapResult here;
-  try {
-    here = map(source, target, fo);
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    d.reason = std::string("not compared: the other direction's class inverted could not be solved here: ") + e.what();
-    return "directions not compared: the other direction's class inverted not solved here (" + std::string(e.what()) + ")";
+  std::string here_failure;
+  if (!run_map(map, source, target, fo, here, here_failure)) {
+    d.reason = std::string("not compared: the other direction's class inverted could not be solved here: ") + here_failure;
+    return "directions not compared: the other direction's class inverted not solved here (" + here_failure + ")";
   }
   const double alt = chosen_energy(here);
   const std::string here_text = "the other direction's class inverted here: ratio " + number(alt / bound) +
@@ -342,14 +343,14 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
   if (ro.homotopy.reverse_class.empty()) {
     there_text = "this class not written in the other direction's letters (" + why + ")";
   } else {
-    try {
-      alt_there = chosen_energy(map(target, source, ro));
+    SurfaceMapResult there;
+    std::string there_failure;
+    if (run_map(map, target, source, ro, there, there_failure)) {
+      alt_there = chosen_energy(there);
       there_text = "this class inverted there: ratio " + number(alt_there / bound) + " against its own " +
                    number(own_there / bound);
-    } catch (const Cancelled&) {
-      throw;
-    } catch (const Error& e) {
-      there_text = std::string("this class inverted could not be solved there: ") + e.what();
+    } else {
+      there_text = "this class inverted could not be solved there: " + there_failure;
     }
   }
   if (alt_there < own_there) {
@@ -465,12 +466,9 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
     forward.two_way_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
   SurfaceMapResult reverse;
-  try {
-    reverse = map(target, source, reverse_options(options));
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    return finish(std::string("the other direction failed: ") + e.what());
+  std::string reverse_failure;
+  if (!run_map(map, target, source, reverse_options(options), reverse, reverse_failure)) {
+    return finish(std::string("the other direction failed: ") + reverse_failure);
   }
   if (static_cast<int>(reverse.inverse.size()) != source.num_vertices())
     return finish("the other direction gave no inverse correspondence");
@@ -490,12 +488,9 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
   std::string no_reverse_class;
   fo.homotopy.reverse_class = reverse_class_here(forward, reverse, no_reverse_class);  // its class, inverted there
   SurfaceMapResult again;
-  try {
-    again = map(source, target, fo);
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    return finish(rev + "; mapping again with that candidate failed: " + e.what());
+  std::string again_failure;
+  if (!run_map(map, source, target, fo, again, again_failure)) {
+    return finish(rev + "; mapping again with that candidate failed: " + again_failure);
   }
   const double before = forward.energy_ratio, after = again.energy_ratio;
   const std::string again_status = again.reverse_status;
