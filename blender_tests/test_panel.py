@@ -361,5 +361,5 @@ def test_the_result_shows_the_quality_signal_of_a_genus_2_run():
                       "the chosen class's free optimum with positive weights on the source's own "
                       "edges (source_weights 'own') ...; NOT comparable with the bound: ..."}
     rows = dict(ops_map.summary_rows(res, {"solve": 1.0}))
-    assert rows["E / bound"] == "2.29 (own edges)", rows
+    assert rows["E / bound"] == "2.29 (own)", rows
     assert "not comparable with the bound" in ops_map._summary(res, 1.0)

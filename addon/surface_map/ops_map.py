@@ -387,7 +387,7 @@ def summary_rows(res, times):
     elif isinstance(quality, dict):   # genus >= 2: energy over the conformal bound 8 pi (g - 1)
         ratio = quality.get("energy_ratio")
         if isinstance(ratio, (int, float)) and ratio == ratio:
-            rows.append(("E / bound", f"{ratio:.3g}" + (" (own edges)" if _ratio_on_own_edges(quality)
+            rows.append(("E / bound", f"{ratio:.3g}" + (" (own)" if _ratio_on_own_edges(quality)
                                                           else "")))
         if quality.get("warning"):
             rows.append(("Warning", "twisted pairing?"))
