@@ -11,6 +11,16 @@ namespace surfmap::testing_support {
 /// the midpoint of ab (height `eps` of the way to c), which leaves the cap
 /// (a, b, p) with an angle near 180 degrees at p. Same surface, same genus;
 /// #V + #F/stride vertices, #F + 2 #F/stride faces.
+/// A TriMesh from lists of vertex and face rows (the fixtures build them by push_back).
+inline TriMesh mesh_from_rows(const std::vector<Eigen::RowVector3d>& V, const std::vector<Eigen::RowVector3i>& F) {
+  TriMesh r;
+  r.V.resize(static_cast<int>(V.size()), 3);
+  for (size_t i = 0; i < V.size(); ++i) r.V.row(static_cast<int>(i)) = V[i];
+  r.F.resize(static_cast<int>(F.size()), 3);
+  for (size_t i = 0; i < F.size(); ++i) r.F.row(static_cast<int>(i)) = F[i];
+  return r;
+}
+
 inline TriMesh with_caps(const TriMesh& m, int stride, double eps) {
   std::vector<Eigen::RowVector3d> V;
   for (int i = 0; i < m.num_vertices(); ++i) V.push_back(m.V.row(i));
@@ -28,12 +38,7 @@ inline TriMesh with_caps(const TriMesh& m, int stride, double eps) {
     F.push_back({t[1], t[2], p});
     F.push_back({t[2], t[0], p});
   }
-  TriMesh r;
-  r.V.resize(static_cast<int>(V.size()), 3);
-  for (size_t i = 0; i < V.size(); ++i) r.V.row(static_cast<int>(i)) = V[i];
-  r.F.resize(static_cast<int>(F.size()), 3);
-  for (size_t i = 0; i < F.size(); ++i) r.F.row(static_cast<int>(i)) = F[i];
-  return r;
+  return mesh_from_rows(V, F);
 }
 
 }  // namespace surfmap::testing_support

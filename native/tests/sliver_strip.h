@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "surfmap/mesh/tri_mesh.h"
+#include "sliver_caps.h"
 
 namespace surfmap::testing_support {
 
@@ -92,12 +93,7 @@ inline TriMesh with_strip(const TriMesh& m, int start, int hops, double width, i
     }
   }
   F.push_back({path[k - 1], path[k], copy[k - 1]});
-  TriMesh r;
-  r.V.resize(static_cast<int>(V.size()), 3);
-  for (size_t i = 0; i < V.size(); ++i) r.V.row(static_cast<int>(i)) = V[i];
-  r.F.resize(static_cast<int>(F.size()), 3);
-  for (size_t i = 0; i < F.size(); ++i) r.F.row(static_cast<int>(i)) = F[i];
-  return r;
+  return mesh_from_rows(V, F);
 }
 
 }  // namespace surfmap::testing_support
