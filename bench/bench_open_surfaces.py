@@ -174,14 +174,15 @@ def on_polyline(P, V, loop):
     return out
 
 
-def decimate(V, F, ratio=0.5, max_turn_deg=60.0):
+def decimate(V, F, ratio=0.5, max_turn_deg=60.0, min_angle_deg=0.0):
     """Another triangulation of nearly the same surface: half-edge collapses (an interior vertex
     merged into a neighbour, which stays where it is), shortest edge first, until `ratio` of the
     vertices remain. The kept vertices are input vertices (returned as `kept`, so the identity is
     known for them); boundary vertices are never removed (the loops stay as they are); a collapse
     is refused when the two vertices share other neighbours than the edge's two opposite corners
     (the link condition: the topology is kept) or when a face of the star would turn by more than
-    `max_turn_deg` or lose its area."""
+    `max_turn_deg` or lose its area, or (min_angle_deg > 0) would get an angle below min_angle_deg
+    (without it the artery's copy has angles from 1.1 to 177.7 degrees)."""
     import heapq
     V, F = np.asarray(V, float), [list(f) for f in np.asarray(F)]
     alive = [True] * len(F)
@@ -200,6 +201,13 @@ def decimate(V, F, ratio=0.5, max_turn_deg=60.0):
         return np.cross(V[f[1]] - V[f[0]], V[f[2]] - V[f[0]])
 
     heap = []
+
+    def smallest_angle(f):
+        P = V[f]
+        u = np.roll(P, -1, axis=0) - P
+        w = np.roll(P, 1, axis=0) - P
+        c = np.einsum("ij,ij->i", u, w) / (np.linalg.norm(u, axis=1) * np.linalg.norm(w, axis=1) + 1e-300)
+        return float(np.degrees(np.arccos(np.clip(c, -1, 1))).min())
 
     def push(u):
         if not on_b[u]:
@@ -226,7 +234,8 @@ def decimate(V, F, ratio=0.5, max_turn_deg=60.0):
             g = [v if w == u else w for w in F[i]]
             n0, n1 = normal(F[i]), normal(g)
             a0, a1 = np.linalg.norm(n0), np.linalg.norm(n1)
-            if a1 <= 1e-3 * a0 or n0 @ n1 <= cos_max * a0 * a1:
+            if a1 <= 1e-3 * a0 or n0 @ n1 <= cos_max * a0 * a1 or (min_angle_deg > 0 and
+                                                                     smallest_angle(g) < min_angle_deg):
                 ok = False
                 break
         if not ok:
@@ -369,7 +378,7 @@ def real_copies(path, args):
     name = os.path.basename(path).split("_")[3] if os.path.basename(path).count("_") >= 3 else os.path.basename(path)
     kw = {} if gb[1] <= args.auto_up_to else {"boundary_pairing": list(range(gb[1]))}
     Vs_, Fs_ = subdivide(V, F)
-    Vd, Fd, kept = decimate(V, F)
+    Vd, Fd, kept = decimate(V, F, min_angle_deg=args.decimate_min_angle)
     Vb = bend(V, 0.3)
     copies = {"subdivided": (Vs_, Fs_, True, Vs_), "decimated": (Vd, Fd, V, V[kept]), "bent 0.3": (Vb, F, Vb, V)}
     for label, (Vt, Ft, fwd_identity, back_identity) in copies.items():
@@ -436,6 +445,8 @@ def main():
     ap.add_argument("--no-copies", action="store_true", help="--real: no copies of the real meshes")
     ap.add_argument("--no-real-pairs", action="store_true", help="--real: no pairs of different real meshes")
     ap.add_argument("--copies", default="", help="--real: only these copies (subdivided,decimated,bent)")
+    ap.add_argument("--decimate-min-angle", type=float, default=0.0,
+                    help="--real decimated copies: refuse collapses that make an angle below this (degrees)")
     ap.add_argument("--auto-up-to", type=int, default=3,
                     help="--real copies: the automatic pairing up to this many loops, else loop i -> loop i given")
     args = ap.parse_args()
