@@ -96,8 +96,11 @@ SurfaceMapResult map_in_automatic_cuts(const TriMesh& source, const TriMesh& tar
   }
   const double difference = std::abs(out.energy_ratio - chosen.energy_ratio) / chosen.energy_ratio;
   if (!(difference <= 1e-6))
-    return keep_automatic("in the given cuts the carried loops gave another class (energy ratio " +
-                          std::to_string(out.energy_ratio) + " against " + std::to_string(chosen.energy_ratio) + ")");
+    return keep_automatic("in the given cuts the carried class's energy ratio is " + std::to_string(out.energy_ratio) +
+                          " against " + std::to_string(chosen.energy_ratio) + " (relative difference " +
+                          std::to_string(difference) +
+                          ", above 1e-6: not taken for the same class; another class, or with landmarks the class's "
+                          "free energy measured otherwise in the automatic run's ranking)");
   std::ostringstream status;
   status.precision(7);
   status << "chosen in the automatic cuts (energy ratio " << chosen.energy_ratio << ", candidate "
