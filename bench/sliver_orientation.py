@@ -13,27 +13,19 @@ triangle (its smallest source angle, the developed relative area from the first 
 counts by the three roots' signs. Reads the meshes as given (no intake: give closed, outward
 oriented, triangulated meshes, as `surfmap map` read them)."""
 import collections
+import os
 import sys
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import perturb_mesh  # noqa: E402  (its mesh reader)
+
 
 def read_mesh(path):
-    V, F = [], []
-    if path.endswith('.obj'):
-        for line in open(path):
-            t = line.split()
-            if not t: continue
-            if t[0] == 'v': V.append([float(x) for x in t[1:4]])
-            elif t[0] == 'f': F.append([int(x.split('/')[0]) - 1 for x in t[1:4]])
-    else:
-        toks = [l.split('#')[0].split() for l in open(path)]
-        toks = [t for t in toks if t]
-        i = 1 if toks[0][0].upper() == 'OFF' and len(toks[0]) == 1 else 0
-        head = toks[i] if i == 1 else toks[0][1:]
-        nv, nf = int(head[0]), int(head[1])
-        V = [[float(x) for x in t[:3]] for t in toks[i + 1:i + 1 + nv]]
-        F = [[int(x) for x in t[1:4]] for t in toks[i + 1 + nv:i + 1 + nv + nf]]
+    """Vertices and triangles as arrays (perturb_mesh.read, beside this file)."""
+    V, F = perturb_mesh.read(path)
+    if any(len(f) != 3 for f in F): sys.exit(f'{path}: only triangle meshes are read here')
     return np.array(V), np.array(F)
 
 
