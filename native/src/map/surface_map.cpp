@@ -42,13 +42,14 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
 // map does not depend on the cut it is written in) are the one candidate of
 // a second run in the given cuts (HomotopyOptions::images_only). The same
 // class has the same harmonic map, so both runs' energies agree to the
-// solver's tolerance; when they do not (the loops carried onto another class
-// across a strongly stretched map), the automatic cuts' result is returned.
-bool chooses_class_in_automatic_cuts(const Connectivity& sc, const SurfaceMapOptions& options) {
+// solver's tolerance; when they do not, or the loops do not carry (a coarse
+// source whose edges span many target edges), the automatic cuts' result is
+// returned: the same class and map, written in the automatic cuts' letters.
+// (The genus is checked by the caller, only when these options hold.)
+bool chooses_class_in_automatic_cuts(const SurfaceMapOptions& options) {
   const HomotopyOptions& h = options.homotopy;
-  return sc.genus() >= 2 && (options.loops.source_base_vertex >= 0 || options.loops.target_base_vertex >= 0) &&
-         h.class_index < 0 && h.source_images.size() == 0 && h.reverse_class.empty() && !h.images_only &&
-         !h.reverse_class_only;
+  return (options.loops.source_base_vertex >= 0 || options.loops.target_base_vertex >= 0) && h.class_index < 0 &&
+         h.source_images.size() == 0 && h.reverse_class.empty() && !h.images_only && !h.reverse_class_only;
 }
 
 std::string base_text(int v) { return v < 0 ? std::string("automatic") : std::to_string(v); }
@@ -123,10 +124,10 @@ SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const
 
 SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                       const MapHooks& hooks) {
-  const Connectivity sc(source.F, source.num_vertices());
-  if (chooses_class_in_automatic_cuts(sc, options)) {
+  if (chooses_class_in_automatic_cuts(options)) {
+    const Connectivity sc(source.F, source.num_vertices());
     const Connectivity tc(target.F, target.num_vertices());
-    if (tc.genus() == sc.genus()) return map_in_automatic_cuts(source, target, options, hooks);
+    if (sc.genus() >= 2 && tc.genus() == sc.genus()) return map_in_automatic_cuts(source, target, options, hooks);
   }
   return map_in_given_cuts(source, target, options, hooks);
 }
