@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <sstream>
 #include <string>
 
 #include "map_support.h"
@@ -23,6 +25,97 @@ void finish_stage_table(SurfaceMapResult& out, StageRecord total) {
   out.stage_total = total;
 }
 
+SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                   const testing::MapHooks& hooks);
+
+// Genus >= 2, the default class, a base vertex given: which class is chosen
+// must not depend on it (issue 14). The candidates (the canonical schemata's
+// a_i -> a'_i, handle permutations lifted in the cut's letters) and the
+// class search (Dehn twists about the cut's generators, its ranking on the
+// coarse copy, the two-way run from the swapped base vertices) are all
+// built on the two cuts, so another cut is another search, which can stop
+// in another local minimum (g3_block -> g3_3holes at base vertices 1000 /
+// 2000: ratio 2.33 against 1.55). So the class is chosen in the automatic
+// cuts, a choice that depends on the shapes only (nearest the centroid,
+// highest valence), and the given base vertices only write it: the source's
+// loops at the given base vertex carried by the chosen map (the class of a
+// map does not depend on the cut it is written in) are the one candidate of
+// a second run in the given cuts (HomotopyOptions::images_only). The same
+// class has the same harmonic map, so both runs' energies agree to the
+// solver's tolerance; when they do not, or the loops do not carry (a coarse
+// source whose edges span many target edges), the automatic cuts' result is
+// returned: the same class and map, written in the automatic cuts' letters.
+// (The genus is checked by the caller, only when these options hold.)
+bool chooses_class_in_automatic_cuts(const SurfaceMapOptions& options) {
+  const HomotopyOptions& h = options.homotopy;
+  return (options.loops.source_base_vertex >= 0 || options.loops.target_base_vertex >= 0) && h.class_index < 0 &&
+         h.source_images.size() == 0 && h.reverse_class.empty() && !h.images_only && !h.reverse_class_only;
+}
+
+std::string base_text(int v) { return v < 0 ? std::string("automatic") : std::to_string(v); }
+
+SurfaceMapResult map_in_automatic_cuts(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                       const testing::MapHooks& hooks) {
+  const auto t0 = Clock::now();
+  SurfaceMapOptions automatic = options;
+  automatic.loops = LoopOptions{};
+  SurfaceMapResult chosen;
+  try {
+    chosen = map_in_given_cuts(source, target, automatic, hooks);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const InputError&) {
+    throw;
+  } catch (const Error& e) {
+    // The automatic cuts failed where the given ones may not (what a base
+    // vertex is given for): the class is searched in the given cuts.
+    SurfaceMapResult out = map_in_given_cuts(source, target, options, hooks);
+    out.class_cuts_status = std::string("chosen in the given cuts: the automatic cuts failed (") + e.what() + ")";
+    return out;
+  }
+  const double chosen_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  const std::string given = "source " + base_text(options.loops.source_base_vertex) + ", target " +
+                            base_text(options.loops.target_base_vertex);
+  auto keep_automatic = [&](const std::string& why) {
+    chosen.class_cuts_status = "chosen and written in the automatic cuts: " + why +
+                               " (given base vertices " + given + "); the class's words are in the automatic cuts' letters";
+    chosen.class_cuts_time_s = chosen_seconds;
+    return chosen;
+  };
+  if (static_cast<int>(chosen.forward.size()) != source.num_vertices()) return keep_automatic("no forward map to carry");
+  SurfaceMapOptions carried = options;
+  carried.homotopy.source_images.resize(source.num_vertices(), 3);
+  for (int v = 0; v < source.num_vertices(); ++v) carried.homotopy.source_images.row(v) = chosen.forward[v].position.transpose();
+  carried.homotopy.images_only = true;
+  SurfaceMapResult out;
+  try {
+    out = map_in_given_cuts(source, target, carried, hooks);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    return keep_automatic(std::string("carrying the class to the given cuts failed: ") + e.what());
+  }
+  const double difference = std::abs(out.energy_ratio - chosen.energy_ratio) / chosen.energy_ratio;
+  if (!(difference <= 1e-6))
+    return keep_automatic("in the given cuts the carried class's energy ratio is " + std::to_string(out.energy_ratio) +
+                          " against " + std::to_string(chosen.energy_ratio) + " (relative difference " +
+                          std::to_string(difference) +
+                          ", above 1e-6: not taken for the same class; another class, or with landmarks the class's "
+                          "free energy measured otherwise in the automatic run's ranking)");
+  std::ostringstream status;
+  status.precision(7);
+  status << "chosen in the automatic cuts (energy ratio " << chosen.energy_ratio << ", candidate "
+         << chosen.chosen_candidate << " of " << chosen.candidates.size() << "; two-way run: "
+         << (chosen.two_way_status.empty() ? "-" : chosen.two_way_status) << ") and carried to the given base vertices ("
+         << given << "): the same class, energy ratio " << out.energy_ratio << " (relative difference " << difference
+         << ")";
+  out.class_cuts_status = status.str();
+  out.class_cuts_time_s = chosen_seconds;
+  out.total_time += chosen_seconds;
+  out.stage_total.seconds = out.total_time;
+  return out;
+}
+
 }  // namespace
 
 SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options) {
@@ -31,6 +124,19 @@ SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const
 
 SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                       const MapHooks& hooks) {
+  if (chooses_class_in_automatic_cuts(options)) {
+    const Connectivity sc(source.F, source.num_vertices());
+    const Connectivity tc(target.F, target.num_vertices());
+    if (sc.genus() >= 2 && tc.genus() == sc.genus()) return map_in_automatic_cuts(source, target, options, hooks);
+  }
+  return map_in_given_cuts(source, target, options, hooks);
+}
+
+namespace {
+
+SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                   const testing::MapHooks& hooks) {
+  using testing::MapHooks;
   SurfaceMapResult out;
   // The two-way run's maps: the public surface_map (no hooks).
   const detail::MapFunction map_of = [](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) {
@@ -133,5 +239,7 @@ SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& targ
   finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));
   return out;
 }
+
+}  // namespace
 
 }  // namespace surfmap

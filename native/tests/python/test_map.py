@@ -430,6 +430,8 @@ def test_genus2_quality_signal_and_class_bounds_are_in_the_result():
     assert abs(q["energy_ratio"] - chosen["energy"] / (8 * np.pi)) < 1e-12
     assert 1.0 <= q["energy_ratio"] < 1.1 and q["warning"] == ""
     assert q["two_way_status"].startswith("not run")
+    # No base vertex given: the class is chosen in the cuts it is written in.
+    assert q["class_cuts_status"] == "" and q["class_cuts_time_s"] == 0
     # Per-candidate lower bounds (no solve): a copy's ranking stops at the
     # overlay class (within 2% of 8 pi (g - 1)), where no bound can change
     # the choice, so the source is not uniformized for them (issue 19) and

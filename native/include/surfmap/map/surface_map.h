@@ -358,7 +358,15 @@ struct InitialMapOptions {
 /// The systems of loops (topology/system_of_loops.h) on both surfaces
 /// (SurfaceMapOptions::loops).
 struct LoopOptions {
-  /// Base vertices of the systems of loops (default -1: automatic).
+  /// Base vertices of the systems of loops (default -1: automatic). Genus
+  /// >= 2 with the default class (no class_index, no source_images or
+  /// reverse_class): the class is chosen with the automatic base vertices
+  /// and then solved alone in the cuts at the given ones (the source's loops
+  /// at the given base vertex carried by the chosen map, the class's words
+  /// in those cuts' letters), so a given base vertex changes how the class
+  /// is written, not which class is chosen (issue 14; docs/
+  /// handle_classes.md "The class does not depend on the base vertex";
+  /// SurfaceMapResult::class_cuts_status says what was done).
   int source_base_vertex = -1, target_base_vertex = -1;
 };
 
@@ -850,6 +858,12 @@ struct SurfaceMapResult {
   /// class was used) and its seconds.
   std::string two_way_status;
   double two_way_time_s = 0;
+  /// Genus >= 2 with a given base vertex (LoopOptions): how the class was
+  /// chosen in the automatic cuts and carried to the given ones ("" when no
+  /// base vertex was given), and the seconds of the run in the automatic
+  /// cuts (included in total_time).
+  std::string class_cuts_status;
+  double class_cuts_time_s = 0;
   /// Genus >= 2: why the class lower bounds are missing (empty when computed;
   /// "not computed: ..." when no decision needed them) and the seconds the source's uniformization took.
   std::string class_bound_status;
