@@ -864,9 +864,10 @@ SphereMapQuality sphere_map_quality(const TriMesh& source, const Connectivity& s
   SphereMapQuality q;
   q.per_face.assign(source.num_faces(), std::numeric_limits<double>::infinity());
   // Thin source faces (zero-area ones among them) keep the D' of their
-  // mollified lengths per face but stay out of mean and max: against the 3D
-  // triangle it would measure digits the solvers never saw (a 179.99-degree
-  // corner read as D' 1e10 on maps whose points are right to 1e-4).
+  // mollified lengths per face but stay out of mean and max: that D'
+  // measures the mollification's reshaping (a zero-area face at D' 360 on
+  // the zero-area sphere onto a bunny, whose other faces reach 4.4), not
+  // the map.
   const std::vector<char> thin = thin_source_faces(source.V, source.F);
   double weighted = 0, total = 0;
   for (int f = 0; f < source.num_faces(); ++f) {
@@ -1159,15 +1160,17 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
   // the same map (only the relative rotation matters), the source's points
   // untouched. Landmarks' Möbius maps stay on the source's side.
   RowMatrixX3d target_sphere = ut.positions;
+  std::unique_ptr<SphereLocator> turned_tloc;
   if (options.landmarks.empty() && !alignment.rotation.isIdentity(0)) {
     const double source_chord = smallest_chord(us.positions, sside.faces);
     if (source_chord < 1e-9 && source_chord < smallest_chord(ut.positions, tside.faces)) {
       target_sphere = ut.positions * alignment.rotation;  // rows: R^T p
       X = us.positions;
       alignment.rotation.setIdentity();
+      turned_tloc = std::make_unique<SphereLocator>(target_sphere, tside.faces);
     }
   }
-  const SphereLocator aligned_tloc(target_sphere, tside.faces);
+  const SphereLocator& aligned_tloc = turned_tloc ? *turned_tloc : tloc;
   out.converged = true;
   stage_done("alignment", 0.55);
 
