@@ -298,6 +298,10 @@ void register_map(CLI::App& app) {
     if (a->timings) std::cerr << stage_table(m);
     if (!a->quiet) {
       std::cerr << "surfmap: mean dilatation " << m.mean_dilatation << ", max " << m.max_dilatation
+                << (m.thin_source_faces.empty()
+                        ? std::string()
+                        : " (" + std::to_string(m.thin_source_faces.size()) +
+                              " thin source faces left out: D' below the solvers' resolution)")
                 << ", flipped triangles " << m.flipped_triangles
                 << (std::isfinite(m.energy_ratio) ? ", energy / 8 pi (g - 1) " + std::to_string(m.energy_ratio) : std::string())
                 << ", " << m.total_time << " s\n";

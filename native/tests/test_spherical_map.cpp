@@ -12,6 +12,8 @@
 #include <Eigen/Geometry>
 
 #include "surfmap/error.h"
+#include "surfmap/map/distortion.h"
+#include "surfmap/map/map_report.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/uniformize/spherical.h"
@@ -257,6 +259,47 @@ TEST(SphericalMap, BentTaperedSpheresMapWithoutRepairs) {
   EXPECT_EQ(n.flipped_triangles, 0);
   EXPECT_EQ(n.degenerate_triangles, 0);
   EXPECT_EQ(n.repaired_vertices, 0);
+}
+
+TEST(SphericalMap, CrowdedSourceOntoABetterResolvedTargetIsNotRounded) {
+  // A bent, tapered 40:1 sphere (20 x 60) crowds its ends on the sphere to
+  // chords of 3e-19, which the coordinates near a pole still resolve. The
+  // alignment's rotation cost every point 1e-16, and the map onto a 10:1
+  // sphere was refused ("1 flipped and 2 degenerate image triangles on the
+  // sphere"). Now the target's sphere (chords >= 4e-9) is turned back
+  // instead: converged, nothing flipped, degenerate or re-placed, every
+  // point of both directions on the other side's faces.
+  const TriMesh a = samples::bent_tapered_sphere(20, 60, 40.0), b = samples::bent_tapered_sphere(20, 60, 10.0);
+  const SurfaceMapResult m = surface_map(a, b);
+  EXPECT_TRUE(m.converged);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.degenerate_triangles, 0);
+  EXPECT_EQ(m.repaired_vertices, 0);
+  ASSERT_EQ(static_cast<int>(m.forward.size()), a.num_vertices());
+  ASSERT_EQ(static_cast<int>(m.inverse.size()), b.num_vertices());
+  for (const auto& p : m.forward) {
+    ASSERT_GE(p.face, 0);
+    EXPECT_NEAR(p.barycentric.sum(), 1.0, 1e-9);
+  }
+  for (const auto& p : m.inverse) {
+    ASSERT_GE(p.face, 0);
+    EXPECT_NEAR(p.barycentric.sum(), 1.0, 1e-9);
+  }
+  // The tube onto the tube, not turned over: the top tip (largest z) lands
+  // in the target's upper part and the bottom tip in its lower part (how
+  // far along depends on the two tubes' conformal moduli: the top at 0.57
+  // of the half length from the middle).
+  auto tip = [](const TriMesh& t, bool top) {
+    int best = 0;
+    for (int i = 1; i < t.num_vertices(); ++i)
+      if ((t.V(i, 2) > t.V(best, 2)) == top) best = i;
+    return best;
+  };
+  const double half = 0.5 * (b.V(tip(b, true), 2) - b.V(tip(b, false), 2));
+  for (bool top : {true, false}) {
+    const double z = m.forward[tip(a, top)].position.z() - 0.5 * (b.V(tip(b, true), 2) + b.V(tip(b, false), 2));
+    EXPECT_GT(top ? z : -z, 0.25 * half) << (top ? "top" : "bottom");
+  }
 }
 
 TEST(SphericalMap, LandmarksAreHitExactly) {
@@ -684,6 +727,53 @@ TEST(SphericalMap, ZeroAreaSourceFacesOnTheCommonSubdivisionAreNotDegenerateImag
     zero_area_replaced += replaced[f] && (p1 - p0).cross(p2 - p0).norm() <= 1e-12 * (p1 - p0).squaredNorm();
   }
   EXPECT_GT(zero_area_replaced, 0);
+}
+
+TEST(SphericalMap, NearlyCollinearSourceFacesAreLeftOutOfTheDistortionSummary) {
+  // Nearly (not exactly) collinear source faces are what the intrinsic
+  // mollification reshapes before any solver sees them: the genus-0 map
+  // measures them on their mollified lengths, keeps that D' per face, leaves
+  // it out of mean and max like every D' summary (map/distortion.h
+  // thin_source_faces) and lists the faces (report:
+  // distortion.left_out_faces).
+  TriMesh a = samples::insert_degenerate_faces(samples::sphere(3), 12, 0.5, 4);
+  const int nv0 = samples::sphere(3).num_vertices();
+  for (int v = nv0; v < a.num_vertices(); ++v) a.V.row(v) *= 1 + 1e-7;  // off its edge: not zero-area
+  const TriMesh b = samples::jitter(samples::sphere(2), 0.2, 5);
+  const SurfaceMapResult m = surface_map(a, b);
+  EXPECT_TRUE(m.converged);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.degenerate_triangles, 0);
+  const std::vector<char> thin = thin_source_faces(a.V, a.F);
+  std::vector<int> expected;
+  for (int f = 0; f < a.num_faces(); ++f)
+    if (thin[f]) expected.push_back(f);
+  EXPECT_EQ(expected.size(), 12u);  // one per lifted vertex
+  std::vector<int> listed = m.thin_source_faces;
+  std::sort(listed.begin(), listed.end());
+  EXPECT_EQ(listed, expected);
+  // The summary is over the other faces: recomputed from the per-face D'
+  // (the source has no inverted chord here, so no face is subdivided).
+  ASSERT_TRUE(m.source_subdivision.status.empty()) << m.source_subdivision.status;
+  double weighted = 0, total = 0, mx = 0, thin_max = 0;
+  for (int f = 0; f < a.num_faces(); ++f) {
+    const double d = m.dilatation[f];
+    ASSERT_TRUE(std::isfinite(d)) << "face " << f;
+    if (thin[f]) {
+      thin_max = std::max(thin_max, d);
+      continue;
+    }
+    const double area = 0.5 * (a.V.row(a.F(f, 1)) - a.V.row(a.F(f, 0))).cross(a.V.row(a.F(f, 2)) - a.V.row(a.F(f, 0))).norm();
+    weighted += area * d, total += area, mx = std::max(mx, d);
+  }
+  EXPECT_EQ(m.max_dilatation, mx);
+  EXPECT_NEAR(m.mean_dilatation, weighted / total, 1e-12 * m.mean_dilatation);
+  EXPECT_EQ(m.thin_source_max_dilatation, thin_max);
+  EXPECT_LT(m.max_dilatation, 10.0);  // a round sphere onto a jittered one
+  const nlohmann::json j = energy_json(m);
+  EXPECT_EQ(j["distortion"]["left_out_faces"].get<int>(), 12);
+  EXPECT_EQ(j["distortion"]["left_out_max"].get<double>(), thin_max);
+  EXPECT_NE(j["distortion"]["measure"].get<std::string>().find("left out"), std::string::npos);
 }
 
 }  // namespace

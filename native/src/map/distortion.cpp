@@ -33,6 +33,25 @@ double dilatation_of(const Eigen::Matrix2d& src, const Eigen::Matrix2d& img) {
 
 }  // namespace
 
+std::vector<char> thin_source_faces(const RowMatrixX3d& V, const RowMatrixX3i& F, double relative_margin) {
+  const int nf = static_cast<int>(F.rows());
+  std::vector<char> thin(nf, 0);
+  if (nf == 0) return thin;
+  std::vector<double> margin(nf);
+  double sum = 0;
+  for (int f = 0; f < nf; ++f) {
+    const Eigen::Vector3d p0 = V.row(F(f, 0)), p1 = V.row(F(f, 1)), p2 = V.row(F(f, 2));
+    const double a = (p1 - p0).norm(), b = (p2 - p1).norm(), c = (p0 - p2).norm();
+    margin[f] = std::min({a + b - c, b + c - a, c + a - b});
+    sum += a + b + c;
+  }
+  // On a closed mesh every edge is a side of two faces: the mean side is the
+  // mean edge length mollify_edge_lengths measures its margin against.
+  const double delta = relative_margin * sum / (3.0 * nf);
+  for (int f = 0; f < nf; ++f) thin[f] = !(margin[f] >= delta);
+  return thin;
+}
+
 double triangle_dilatation(const Eigen::Vector3d& source_sides, const Eigen::Vector3d& image_sides) {
   return dilatation_of(frame_from_sides(source_sides), frame_from_sides(image_sides));
 }
@@ -75,6 +94,7 @@ DistortionStats hyperbolic_image_distortion(
   const int nf = source.num_faces();
   DistortionStats out;
   out.per_face.assign(nf, std::numeric_limits<double>::infinity());
+  const std::vector<char> thin = thin_source_faces(source.V, source.F);
   double weighted = 0, total_area = 0;
   for (int f = 0; f < nf; ++f) {
     // A zero-area source face (accepted through mollification) has no D':
@@ -85,6 +105,7 @@ DistortionStats hyperbolic_image_distortion(
       const double longest = std::max({(q1 - q0).norm(), (q2 - q1).norm(), (q0 - q2).norm()});
       if (!(0.5 * (q1 - q0).cross(q2 - q0).norm() > 1e-14 * longest * longest)) {
         ++out.degenerate_source;
+        out.thin_source.push_back(f);
         continue;
       }
     }
@@ -102,6 +123,11 @@ DistortionStats hyperbolic_image_distortion(
                           p2 = source.V.row(source.F(f, 2));
     const double d = hyperbolic_face_dilatation(p0, p1, p2, b, c, image_sides(f), thin_images);
     out.per_face[f] = d;
+    if (thin[f]) {
+      out.thin_source.push_back(f);
+      if (std::isfinite(d)) out.thin_source_max = std::max(out.thin_source_max, d);
+      continue;
+    }
     const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
     weighted += area * d;
     total_area += area;
@@ -116,6 +142,7 @@ DistortionStats planar_distortion(const RowMatrixX3d& V, const RowMatrixX3i& F,
   DistortionStats out;
   const int nf = static_cast<int>(F.rows());
   out.per_face.assign(nf, std::numeric_limits<double>::infinity());
+  const std::vector<char> thin = thin_source_faces(V, F);
   double weighted = 0, total_area = 0;
   for (int f = 0; f < nf; ++f) {
     const Eigen::Vector3d p0 = V.row(F(f, 0)), p1 = V.row(F(f, 1)), p2 = V.row(F(f, 2));
@@ -126,6 +153,7 @@ DistortionStats planar_distortion(const RowMatrixX3d& V, const RowMatrixX3i& F,
     // out of mean and max like a degenerate image, and count it.
     if (!(area > 1e-14 * std::max({s[0], s[1], s[2]}) * std::max({s[0], s[1], s[2]}))) {
       ++out.degenerate_source;
+      out.thin_source.push_back(f);
       continue;
     }
     const std::complex<double> e1 = image(f, 1) - image(f, 0), e2 = image(f, 2) - image(f, 0);
@@ -143,6 +171,11 @@ DistortionStats planar_distortion(const RowMatrixX3d& V, const RowMatrixX3i& F,
     img << e1.real(), e2.real(), e1.imag(), e2.imag();
     const double d = dilatation_of(frame_from_sides(s), img);
     out.per_face[f] = d;
+    if (thin[f]) {
+      out.thin_source.push_back(f);
+      if (std::isfinite(d)) out.thin_source_max = std::max(out.thin_source_max, d);
+      continue;
+    }
     weighted += area * d;
     total_area += area;
     out.max = std::max(out.max, d);

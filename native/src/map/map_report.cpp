@@ -19,7 +19,10 @@ std::string distortion_measure(int genus) {
   // know; the three pipelines measure the image triangle in different places.)
   const std::string common =
       "; mean weighted by the source faces' 3D areas (unweighted_mean: every face alike, which the slivers' "
-      "D' dominates), max over the faces; flipped or degenerate images are counted, not averaged";
+      "D' dominates), max over the faces; flipped or degenerate images are counted, not averaged; source faces "
+      "thinner than the solvers resolve (smallest triangle-inequality margin below 1e-4 of the mean edge: the "
+      "faces intrinsic mollification reshapes, zero-area ones included) are left out of mean, max and "
+      "unweighted_mean, counted in left_out_faces (ids: left_out_face_ids) with their largest D' in left_out_max";
   if (genus == 0)
     return "D' = ratio of the singular values of the affine map from each source face onto the triangle of "
            "its corners' images on the target in 3D (chords)" + common;
@@ -31,11 +34,14 @@ std::string distortion_measure(int genus) {
          "triangle of the 3D image points)" + common;
 }
 
-double unweighted_mean(const std::vector<double>& per_face) {
+double unweighted_mean(const std::vector<double>& per_face, const std::vector<int>& left_out) {
+  std::vector<char> skip(per_face.size(), 0);
+  for (int f : left_out)
+    if (f >= 0 && f < static_cast<int>(skip.size())) skip[f] = 1;
   double sum = 0;
   long n = 0;
-  for (double d : per_face)
-    if (std::isfinite(d)) sum += d, ++n;
+  for (size_t f = 0; f < per_face.size(); ++f)
+    if (!skip[f] && std::isfinite(per_face[f])) sum += per_face[f], ++n;
   return n ? sum / static_cast<double>(n) : std::numeric_limits<double>::quiet_NaN();
 }
 
@@ -68,7 +74,10 @@ json energy_json(const SurfaceMapResult& r) {
           {"distortion",
            {{"mean", r.mean_dilatation},
             {"max", r.max_dilatation},
-            {"unweighted_mean", unweighted_mean(r.dilatation)},
+            {"unweighted_mean", unweighted_mean(r.dilatation, r.thin_source_faces)},
+            {"left_out_faces", static_cast<int>(r.thin_source_faces.size())},
+            {"left_out_face_ids", r.thin_source_faces},
+            {"left_out_max", r.thin_source_max_dilatation},
             {"measure", distortion_measure(r.genus)}}},
           {"initial_distortion", {{"mean", r.initial_mean_dilatation}, {"max", r.initial_max_dilatation}}},
           {"flipped_triangles", r.flipped_triangles},

@@ -440,6 +440,7 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
   // D' on the morph's triangles and the morph's Dirichlet energy
   // (1/4) Σ_corners cot(angle) |opposite image edge|².
   out.dilatation.assign(source.num_faces(), std::numeric_limits<double>::infinity());
+  const std::vector<char> thin = thin_source_faces(source.V, source.F);
   double weighted = 0, total = 0, energy = 0;
   for (int f = 0; f < source.num_faces(); ++f) {
     Eigen::Vector3d p[3], q[3];
@@ -461,6 +462,11 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
       continue;
     }
     out.dilatation[f] = d;
+    if (thin[f]) {  // D' of digits no solver resolved: kept per face, left out of mean and max
+      out.thin_source_faces.push_back(f);
+      out.thin_source_max_dilatation = std::max(out.thin_source_max_dilatation, d);
+      continue;
+    }
     weighted += area * d, total += area;
     out.max_dilatation = std::max(out.max_dilatation, d);
   }

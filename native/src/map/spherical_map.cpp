@@ -747,6 +747,14 @@ struct SphereSide {
   }
 };
 
+/// The shortest edge chord of a triangulation on the unit sphere.
+double smallest_chord(const RowMatrixX3d& P, const RowMatrixX3i& F) {
+  double best = std::numeric_limits<double>::infinity();
+  for (int f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) best = std::min(best, (P.row(F(f, k)) - P.row(F(f, (k + 1) % 3))).norm());
+  return best;
+}
+
 /// The source's sphere positions (#Vs x 3) aligned to the target's
 /// (ut.positions): the best rotation of us.positions, then with landmarks
 /// the Möbius map fitting them (over the two-parameter family of maps
@@ -842,6 +850,8 @@ struct SphereMapQuality {
   std::vector<double> per_face;
   double mean = 0, max = 0;
   int degenerate = 0;
+  std::vector<int> thin_source;  ///< left out of mean and max (DistortionStats::thin_source)
+  double thin_source_max = 0;
 };
 
 /// D' of each source triangle onto the triangle of its corners' 3D images
@@ -853,6 +863,12 @@ SphereMapQuality sphere_map_quality(const TriMesh& source, const Connectivity& s
                                     const std::vector<PointOnSurface>& fw) {
   SphereMapQuality q;
   q.per_face.assign(source.num_faces(), std::numeric_limits<double>::infinity());
+  // Thin source faces (zero-area ones among them) keep the D' of their
+  // mollified lengths per face but stay out of mean and max: that D'
+  // measures the mollification's reshaping (a zero-area face at D' 360 on
+  // the zero-area sphere onto a bunny, whose other faces reach 4.4), not
+  // the map.
+  const std::vector<char> thin = thin_source_faces(source.V, source.F);
   double weighted = 0, total = 0;
   for (int f = 0; f < source.num_faces(); ++f) {
     const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
@@ -867,6 +883,11 @@ SphereMapQuality sphere_map_quality(const TriMesh& source, const Connectivity& s
       continue;
     }
     q.per_face[f] = d;
+    if (thin[f]) {
+      q.thin_source.push_back(f);
+      q.thin_source_max = std::max(q.thin_source_max, d);
+      continue;
+    }
     const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
     weighted += area * d, total += area;
     q.max = std::max(q.max, d);
@@ -875,12 +896,14 @@ SphereMapQuality sphere_map_quality(const TriMesh& source, const Connectivity& s
   return q;
 }
 
-/// The forward map of X (aligned source sphere) and its quality, and the
-/// quality of the "initial" map (both centred images, no alignment and no
-/// landmarks). Throws SolveError when an image triangle is degenerate.
+/// The forward map of X (aligned source sphere, located by tloc) and its
+/// quality, and the quality of the "initial" map (both centred images, no
+/// alignment and no landmarks: us.positions located by initial_tloc on the
+/// target's own sphere). Throws SolveError when an image triangle is
+/// degenerate.
 void forward_map_and_quality(const TriMesh& source, const SphereSide& target, const Connectivity& sc,
                              const SphericalUniformization& us, const SphereLocator& tloc,
-                             const RowMatrixX3d& X, SurfaceMapResult& out) {
+                             const SphereLocator& initial_tloc, const RowMatrixX3d& X, SurfaceMapResult& out) {
   // The source's side of D' uses its mollified lengths (the metric both
   // uniformizations run on): an exactly zero-area input face then has a
   // finite D' instead of an infinite one that would refuse the whole map.
@@ -890,11 +913,13 @@ void forward_map_and_quality(const TriMesh& source, const SphereSide& target, co
   out.dilatation = q.per_face;
   out.mean_dilatation = q.mean;
   out.max_dilatation = q.max;
+  out.thin_source_faces = q.thin_source;
+  out.thin_source_max_dilatation = q.thin_source_max;
   out.degenerate_triangles = q.degenerate;
   if (q.degenerate)
     throw SolveError("the genus-0 map has " + std::to_string(q.degenerate) +
                      " source triangles whose image on the target is degenerate; it is not returned");
-  const SphereMapQuality q0 = sphere_map_quality(source, sc, source_lengths, located_on_target(target, tloc, us.positions));
+  const SphereMapQuality q0 = sphere_map_quality(source, sc, source_lengths, located_on_target(target, initial_tloc, us.positions));
   out.initial_dilatation = q0.per_face;
   out.initial_mean_dilatation = q0.mean;
   out.initial_max_dilatation = q0.max;
@@ -1063,26 +1088,20 @@ void piecewise_quality(const TriMesh& source, const SphereSide& target, const Sp
   };
   double weighted = 0, total = 0, mx = 0;
   std::vector<double> piece_max(source.num_faces(), 0);
-  // A zero-area input face (coincident or collinear corners, accepted through
-  // mollification) has pieces with no 3D shape: their D' is undefined, not a
-  // degenerate image. They stay out of the mean and max (as in
-  // planar_distortion), and the face keeps the D' of its mollified lengths
-  // from sphere_map_quality.
-  std::vector<char> zero_area(source.num_faces(), 0);
+  // A thin input face (thin_source_faces: zero-area ones among them,
+  // accepted through mollification) has pieces with no reliable 3D shape:
+  // their D' is undefined or meaningless, not a degenerate image. They stay
+  // out of the mean and max (as in sphere_map_quality), and the face keeps
+  // the D' of its mollified lengths from sphere_map_quality.
+  const std::vector<char> thin = thin_source_faces(source.V, source.F);
   for (int f = 0; f < source.num_faces(); ++f) {
-    const Eigen::Vector3d q0 = source.V.row(source.F(f, 0)), q1 = source.V.row(source.F(f, 1)),
-                          q2 = source.V.row(source.F(f, 2));
-    const double longest = std::max({(q1 - q0).norm(), (q2 - q1).norm(), (q0 - q2).norm()});
-    zero_area[f] = !(area_of(q0, q1, q2) > 1e-14 * longest * longest);
-  }
-  for (int f = 0; f < source.num_faces(); ++f) {
-    if (pw.replaced[f] && !zero_area[f]) continue;
+    if (pw.replaced[f] || thin[f]) continue;
     const double a = area_of(source.V.row(source.F(f, 0)), source.V.row(source.F(f, 1)), source.V.row(source.F(f, 2)));
     if (std::isfinite(out.dilatation[f])) weighted += a * out.dilatation[f], total += a, mx = std::max(mx, out.dilatation[f]);
   }
   for (int i = 0; i < pw.faces.rows(); ++i) {
     const int f = pw.origin[i];
-    if (!pw.replaced[f] || zero_area[f]) continue;
+    if (!pw.replaced[f] || thin[f]) continue;
     const Eigen::Vector3d p0 = src(pw.faces(i, 0)), p1 = src(pw.faces(i, 1)), p2 = src(pw.faces(i, 2));
     const Eigen::Vector3d i0 = img(pw.faces(i, 0)), i1 = img(pw.faces(i, 1)), i2 = img(pw.faces(i, 2));
     const double a = area_of(p0, p1, p2);
@@ -1100,7 +1119,7 @@ void piecewise_quality(const TriMesh& source, const SphereSide& target, const Sp
     weighted += a * d, total += a, mx = std::max(mx, d);
   }
   for (int f = 0; f < source.num_faces(); ++f)
-    if (pw.replaced[f] && !zero_area[f]) out.dilatation[f] = piece_max[f];
+    if (pw.replaced[f] && !thin[f]) out.dilatation[f] = piece_max[f];
   out.mean_dilatation = weighted / std::max(total, 1e-300);
   out.max_dilatation = mx;
   if (out.degenerate_triangles)
@@ -1131,8 +1150,27 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
   TriMesh target_as_located = target;
   target_as_located.F = tside.faces;  // the alignment's mismatch interpolates over the located faces
   SourceAlignment alignment;
-  const RowMatrixX3d X = aligned_source_sphere(source, target_as_located, us, ut, tloc, options, out, &alignment);
+  RowMatrixX3d X = aligned_source_sphere(source, target_as_located, us, ut, tloc, options, out, &alignment);
   const int nt = target.num_vertices();
+  // A rotation costs every point 1e-16 absolute. A source whose sphere is
+  // crowded far below that (a 40:1 tube's ends: chords of 3e-19 near a
+  // pole, where the coordinates still resolve them) loses those faces to
+  // round-off once rotated (flipped and degenerate image triangles). Then
+  // the target's sphere, the better resolved one, is turned back instead:
+  // the same map (only the relative rotation matters), the source's points
+  // untouched. Landmarks' Möbius maps stay on the source's side.
+  RowMatrixX3d target_sphere = ut.positions;
+  std::unique_ptr<SphereLocator> turned_tloc;
+  if (options.landmarks.empty() && !alignment.rotation.isIdentity(0)) {
+    const double source_chord = smallest_chord(us.positions, sside.faces);
+    if (source_chord < 1e-9 && source_chord < smallest_chord(ut.positions, tside.faces)) {
+      target_sphere = ut.positions * alignment.rotation;  // rows: R^T p
+      X = us.positions;
+      alignment.rotation.setIdentity();
+      turned_tloc = std::make_unique<SphereLocator>(target_sphere, tside.faces);
+    }
+  }
+  const SphereLocator& aligned_tloc = turned_tloc ? *turned_tloc : tloc;
   out.converged = true;
   stage_done("alignment", 0.55);
 
@@ -1170,8 +1208,8 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
   } else {
     check_sphere_image_orientation(source.F, Xf, nullptr, options, out);
   }
-  forward_map_and_quality(source, tside, sc, us, tloc, Xf, out);
-  if (piecewise) piecewise_quality(source, tside, tloc, pw, out);
+  forward_map_and_quality(source, tside, sc, us, aligned_tloc, tloc, Xf, out);
+  if (piecewise) piecewise_quality(source, tside, aligned_tloc, pw, out);
   stage_done("forward location", 0.75);
 
   // Harmonic energy of the sphere-valued map, Σ w_ij |X_i − X_j|² with the
@@ -1200,7 +1238,7 @@ void map_spherical(const TriMesh& source, const TriMesh& target, const Connectiv
   int hint = -1;
   for (int v = 0; v < nt; ++v) {
     Eigen::Vector3d b;
-    hint = sloc.locate(ut.positions.row(v).transpose(), &b, hint);
+    hint = sloc.locate(target_sphere.row(v).transpose(), &b, hint);
     out.inverse[v] = sside.point(hint, b);
   }
   stage_done("inverse location", 1.0);

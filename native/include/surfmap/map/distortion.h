@@ -51,7 +51,25 @@ struct DistortionStats {
   /// Source triangles of (near) zero area (D' undefined: infinite, left out
   /// of mean and max, which they would not weigh in anyway).
   int degenerate_source = 0;
+  /// Thin source triangles (thin_source_faces; the zero-area ones among
+  /// them): their D' is kept in per_face but left out of mean and max (it
+  /// measures the 3D triangle's last digits, not the map); listed here, with
+  /// the largest finite D' among them. Flipped or degenerate images of thin
+  /// faces are still counted in flipped / degenerate.
+  std::vector<int> thin_source;
+  double thin_source_max = 0;
 };
+
+/// Per face of (V, F): 1 where the source triangle is thinner than the
+/// solvers resolve, so that its D' says nothing about the map and stays out
+/// of the D' mean and max: its smallest triangle-inequality margin
+/// min(l_a + l_b - l_c) (3D side lengths) is below relative_margin x the mean
+/// side length, the faces the intrinsic mollification of the edge lengths
+/// (geometry/mollify.h, the same default margin) reshapes before any
+/// solver sees them. Exactly zero-area faces are among them. A corner of
+/// 179.99 degrees or a side 1e-5 of the mean is thin; a 1-degree needle of
+/// ordinary sides is not.
+std::vector<char> thin_source_faces(const RowMatrixX3d& V, const RowMatrixX3i& F, double relative_margin = 1e-4);
 
 /// The figures of hyperbolic image triangles of the source's faces (paper
 /// §VII-A): `image_in_chart(f)` gives face f's image seen in a chart

@@ -635,6 +635,13 @@ struct SurfaceMapResult {
   double mean_dilatation = 0, max_dilatation = 0;
   double initial_mean_dilatation = 0, initial_max_dilatation = 0;
   std::vector<double> initial_dilatation;  ///< #F_source D' of the initial map (empty when not computed)
+  /// Source faces left out of mean_dilatation / max_dilatation (and of the
+  /// report's unweighted mean): thinner than the solvers resolve
+  /// (map/distortion.h thin_source_faces: the faces intrinsic mollification
+  /// reshapes, zero-area ones included). Their D' stays in `dilatation`; the
+  /// largest finite one is thin_source_max_dilatation.
+  std::vector<int> thin_source_faces;
+  double thin_source_max_dilatation = 0;
   int flipped_triangles = 0, degenerate_triangles = 0;
   /// Genus >= 1: flipped images among the triangles of the source's
   /// intrinsic Delaunay triangulation, on which the energy (and so the

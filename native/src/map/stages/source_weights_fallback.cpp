@@ -22,6 +22,8 @@ void store_distortion(const DistortionStats& q, SurfaceMapResult& out) {
   out.dilatation = q.per_face;
   out.mean_dilatation = q.mean;
   out.max_dilatation = q.max;
+  out.thin_source_faces = q.thin_source;
+  out.thin_source_max_dilatation = q.thin_source_max;
   out.flipped_triangles = q.flipped;
   out.degenerate_triangles = q.degenerate;
 }
