@@ -122,23 +122,26 @@ TEST(CoarseRace, AnIncumbentAloneStopsAClassAndNothingStopsWithoutOne) {
   EXPECT_FALSE(near.outcomes[0].beaten);
 }
 
-TEST(CoarseRace, ATasksErrorIsRethrownAfterEveryTaskEnded) {
-  std::atomic<int> ended{0};
+TEST(CoarseRace, ATasksErrorStopsTheOthersAndIsRethrownAfterEveryTaskEnded) {
+  std::atomic<int> ended{0}, completed{0};
+  struct Leaving {
+    std::atomic<int>& n;
+    ~Leaving() { ++n; }
+  };
   CoarseRaceOptions o;
   o.threads = 2;
   EXPECT_THROW(coarse_race(3, o,
                            [&](int q, const RaceProgress& report) {
-                             for (int k = 0; k < 5; ++k) {
-                               if (q == 1 && k == 2) {
-                                 ++ended;
-                                 throw std::runtime_error("solver failed");
-                               }
+                             Leaving leaving{ended};
+                             for (int k = 0; k < 1000; ++k) {
+                               if (q == 1 && k == 2) throw std::runtime_error("solver failed");
                                if (!report(k, 100.0 - k, 1.0)) throw Cancelled("stopped");
                              }
-                             ++ended;
+                             ++completed;
                            }),
                std::runtime_error);
   EXPECT_EQ(ended.load(), 3);
+  EXPECT_EQ(completed.load(), 0);  // the error stopped the others (after step 2 at the latest)
 }
 
 TEST(CoarseRace, CancelledFromTheCallingThreadsCallback) {

@@ -152,6 +152,7 @@ std::vector<CoarseRaceOutcome> coarse_race(int n, const CoarseRaceOptions& optio
         if (!race.outcomes()[q].beaten && !race.cancelled()) errors[q] = std::current_exception();
       } catch (...) {
         errors[q] = std::current_exception();
+        race.cancel();  // the others give up early; this error is rethrown
       }
       race.end(q, race.holds_permit(q));
     });

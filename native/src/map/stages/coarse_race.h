@@ -58,8 +58,10 @@ using RaceProgress = std::function<bool(int, double, double)>;
 /// lockstep; failed coarse solves are classes with very long edges, far
 /// above the others). `keep_going` (optional) is polled on the calling
 /// thread while it waits (about every 20 ms); false cancels every task and
-/// the race throws Cancelled. Any other exception of a task is rethrown on
-/// the calling thread after every task has ended.
+/// the race throws Cancelled. Any other exception of a task stops the
+/// others (as a cancellation) and is rethrown on the calling thread after
+/// every task has ended. With threads = 1 the tasks' threads take turns:
+/// one solve computes at a time.
 std::vector<CoarseRaceOutcome> coarse_race(int n, const CoarseRaceOptions& options,
                                            const std::function<void(int, const RaceProgress&)>& solve,
                                            const std::function<bool()>& keep_going = nullptr);
