@@ -320,6 +320,7 @@ class HyperbolicPipeline {
 void HyperbolicPipeline::start_source_side() {
   if (threads <= 1) return;
   side_thread = std::async(std::launch::async, [this] {
+    const SingleThreadedBlas single_threaded_blas;  // (per thread: OpenMP's levels)
     try {
       SourceSide side = build_source_side(source, sc, options, own_weights, cuts.graph());
       cuts.set_default(side.sl.loops, side.scs.generators);
@@ -407,6 +408,7 @@ void HyperbolicPipeline::start_class_bounds_early() {
   bounds_wanted = true;
   if (threads <= 1) return;  // (computed when needed, at the latest by fill_class_bounds)
   class_bounds_future = std::async(std::launch::async, [this] {
+    const SingleThreadedBlas single_threaded_blas;  // (per thread: OpenMP's levels)
     return source_class_bounds(source, sc, ss.sl, ss.scs.generators, out.genus, options, &leaving);
   });
 }

@@ -11,6 +11,7 @@
 #include <thread>
 #include <utility>
 
+#include "../concurrency.h"
 #include "surfmap/error.h"
 
 namespace surfmap::detail {
@@ -69,6 +70,7 @@ class Race {
     if (holds_permit) --running_;
     ended_[q] = 1;
     changed_.notify_all();
+    ended_one_.notify_all();
   }
   bool holds_permit(int q) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -89,7 +91,8 @@ class Race {
     return std::all_of(ended_.begin(), ended_.end(), [](char e) { return e != 0; });
   }
   std::mutex& mutex() { return mutex_; }
-  std::condition_variable& changed() { return changed_; }
+  // The calling thread waits on this one (a task's end), not on every report.
+  std::condition_variable& ended_one() { return ended_one_; }
   std::vector<CoarseRaceOutcome> outcomes() {
     std::lock_guard<std::mutex> lock(mutex_);
     return outcome_;
@@ -124,7 +127,7 @@ class Race {
   const CoarseRaceOptions options_;
   const int permits_;
   std::mutex mutex_;
-  std::condition_variable changed_;
+  std::condition_variable changed_, ended_one_;
   int running_ = 0;
   bool cancelled_ = false;
   std::vector<std::vector<Report>> history_;
@@ -144,6 +147,10 @@ std::vector<CoarseRaceOutcome> coarse_race(int n, const CoarseRaceOptions& optio
   threads.reserve(n);
   for (int q = 0; q < n; ++q)
     threads.emplace_back([&, q] {
+      // OpenMP's max-active-levels is per thread: without this, CHOLMOD's
+      // loops in this new thread would start teams again (concurrency.h;
+      // measured: 10% more CPU for the 4.9k bench pair with --threads 1).
+      const SingleThreadedBlas single_threaded_blas;
       race.start(q);
       try {
         solve(q, [&race, q](int, double energy, double gradient) { return race.report(q, energy, gradient); });
@@ -162,7 +169,7 @@ std::vector<CoarseRaceOutcome> coarse_race(int n, const CoarseRaceOptions& optio
     lock.unlock();
     while (!race.all_ended()) {
       lock.lock();
-      race.changed().wait_for(lock, std::chrono::milliseconds(20));
+      race.ended_one().wait_for(lock, std::chrono::milliseconds(20));
       lock.unlock();
       if (keep_going && !race.cancelled() && !keep_going()) race.cancel();
     }
