@@ -149,7 +149,7 @@ std::vector<CoarseRaceOutcome> coarse_race(int n, const CoarseRaceOptions& optio
     threads.emplace_back([&, q] {
       // OpenMP's max-active-levels is per thread: without this, CHOLMOD's
       // loops in this new thread would start teams again (concurrency.h;
-      // measured: 10% more CPU for the 4.9k bench pair with --threads 1).
+      // measured: 3-12% more CPU for the 4.9k bench pair with --threads 1).
       const SingleThreadedBlas single_threaded_blas;
       race.start(q);
       try {
