@@ -81,8 +81,13 @@ inline bool optimised_blas() {
 /// blocking follows its thread count, and its round-off moves the coarse
 /// estimates of very twisted classes (whose solves stop short of their
 /// optimum) by up to 1e-3 relative. Nothing happens with a BLAS without
-/// threads. Both settings are process-wide: construct it only while no BLAS
-/// call or OpenMP region of this process is running.
+/// threads. The BLAS's thread count is process-wide: construct it only while
+/// no BLAS call of this process is running. OpenMP's max-active-levels is
+/// per thread (a thread started with std::thread or std::async begins with
+/// the default), so every thread of ours that may factorise constructs one
+/// as well (issue 19: on the 4.9k bench pair the pipeline's other threads
+/// ran CHOLMOD's loops in teams, ~6000-8000 context switches a map against
+/// ~1100 with this, and ~8% of the map's CPU).
 class SingleThreadedBlas {
  public:
   SingleThreadedBlas() : blas_(openblas_threads()) {
@@ -137,6 +142,7 @@ void parallel_for(int threads, int n, Body body) {
   std::vector<std::future<void>> workers;
   for (int t = 1; t < threads; ++t)
     workers.push_back(std::async(std::launch::async, [&] {
+      const SingleThreadedBlas single_threaded_blas;  // (per thread: OpenMP's levels, below)
       try {
         loop(&stop);
       } catch (...) {

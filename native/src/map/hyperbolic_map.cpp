@@ -24,6 +24,7 @@
 #include "stages/class_ranking.h"
 #include "stages/class_search.h"
 #include "stages/coarse_level.h"
+#include "stages/coarse_race.h"
 #include "stages/harmonic_solve.h"
 #include "stages/homotopy_classes.h"
 #include "stages/hyperbolic_location.h"
@@ -295,6 +296,7 @@ class HyperbolicPipeline {
   bool ranks_every_class() const;
   bool unranked(int k) const { return k >= 0 && k < static_cast<int>(not_ranked.size()) && not_ranked[k]; }
   std::vector<int> classes_that_can_win(int first);
+  void beaten_in_race(const std::vector<int>& rest, const std::vector<CoarseRaceOutcome>& outcomes);
   int skip_isometric_twins(int first, std::vector<int>& rest, const std::function<void(int, const std::string&)>& skip);
   void twist_search_from(int start, const std::vector<std::string>& start_twists, const CoarseSolve& solve,
                          HomotopySearchInfo& info, const SurfaceMapOptions* opts = nullptr);
@@ -318,6 +320,7 @@ class HyperbolicPipeline {
 void HyperbolicPipeline::start_source_side() {
   if (threads <= 1) return;
   side_thread = std::async(std::launch::async, [this] {
+    const SingleThreadedBlas single_threaded_blas;  // (per thread: OpenMP's levels)
     try {
       SourceSide side = build_source_side(source, sc, options, own_weights, cuts.graph());
       cuts.set_default(side.sl.loops, side.scs.generators);
@@ -405,6 +408,7 @@ void HyperbolicPipeline::start_class_bounds_early() {
   bounds_wanted = true;
   if (threads <= 1) return;  // (computed when needed, at the latest by fill_class_bounds)
   class_bounds_future = std::async(std::launch::async, [this] {
+    const SingleThreadedBlas single_threaded_blas;  // (per thread: OpenMP's levels)
     return source_class_bounds(source, sc, ss.sl, ss.scs.generators, out.genus, options, &leaving);
   });
 }
@@ -595,40 +599,86 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   const std::vector<Word> no_decks(ncv);
   coarse_result.resize(ncand);
   cuts.stop = true;  // the second thread is needed here
-  auto coarse_solve = [&](int k, const std::atomic<bool>* stop) {
+  // A coarse solve of class k; `progress` (optional) replaces the solve's
+  // progress callback (another thread's stop flag, or the race's report).
+  auto coarse_solve_with = [&](int k, const RaceProgress& progress) {
     HyperbolicHarmonicOptions o = ho;
     o.tolerance = std::max(ho.tolerance, kRankingTolerance);
     allow_long_start_edges(k, o);
-    if (stop) o.progress = [stop](int, double, double) { return !*stop; };
+    if (progress) o.progress = progress;
     if (!try_solve(k, [&] { return solve_from(ncv, level.class_edges[k], corigin, no_decks, o); }, coarse_result[k], true))
       return;
     out.candidates[k].coarse_energy = coarse_result[k].energy;
     out.candidates[k].energy = coarse_result[k].energy;
     out.candidates[k].solved = false;
   };
+  auto coarse_solve = [&](int k, const std::atomic<bool>* stop) {
+    coarse_solve_with(k, stop ? RaceProgress([stop](int, double, double) { return !*stop; }) : RaceProgress());
+  };
   // Issue 19: the first candidate alone, then only the classes that can
-  // still win (early_ranked_class, skip_classes_that_cannot_win).
+  // still win (early_ranked_class, skip_classes_that_cannot_win), in a race
+  // that stops a solve once it is clearly beaten (beaten_in_race).
   std::vector<int> rest;
   const int first = early_ranked_class();
   if (first >= 0) {
     coarse_solve(first, nullptr);
     ++out.ranking_coarse_solves;
     rest = classes_that_can_win(first);
+    out.ranking_coarse_solves += static_cast<int>(rest.size());
+    CoarseRaceOptions ro;
+    ro.threads = threads;
+    ro.margin = kCoarseMargin;
+    if (usable[first] && !coarse_failed[first]) ro.incumbent = out.candidates[first].energy;
+    const std::vector<CoarseRaceOutcome> outcomes = coarse_race(
+        static_cast<int>(rest.size()), ro,
+        [&](int q, const RaceProgress& report) { coarse_solve_with(rest[q], report); },
+        [this] { return !ho.progress || ho.progress(0, 0.0, 0.0); });
+    beaten_in_race(rest, outcomes);
   } else {
     for (int k = 0; k < ncand; ++k)
       if (usable[k]) rest.push_back(k);
+    out.ranking_coarse_solves += static_cast<int>(rest.size());
+    // Independent solves, on two threads (concurrency.h: only this thread
+    // calls the progress callback, the other one sees a stop flag).
+    parallel_for(threads, static_cast<int>(rest.size()),
+                 [&](int q, const std::atomic<bool>* stop) { coarse_solve(rest[q], stop); });
   }
-  out.ranking_coarse_solves += static_cast<int>(rest.size());
-  // Independent solves, on two threads (concurrency.h: only this thread
-  // calls the progress callback, the other one sees a stop flag).
-  parallel_for(threads, static_cast<int>(rest.size()),
-               [&](int q, const std::atomic<bool>* stop) { coarse_solve(rest[q], stop); });
   const std::vector<int> again = accept_long_starts(true);
   out.ranking_coarse_solves += static_cast<int>(again.size());
   parallel_for(threads, static_cast<int>(again.size()),
                [&](int q, const std::atomic<bool>* stop) { coarse_solve(again[q], stop); });
   std::stable_sort(order.begin(), order.end(),
                    [&](int x, int y) { return out.candidates[x].energy < out.candidates[y].energy; });
+}
+
+// Issue 19: the classes whose coarse solves the race stopped as clearly
+// beaten (stages/coarse_race.h: their energy's lower estimate above
+// (1 + kCoarseMargin) times the lowest energy held at the same Newton step,
+// so they could neither be chosen nor solved at full resolution) are not
+// ranked: their estimate is infinite, their description says where they
+// stopped, and they stay fallbacks (map_with_fallback), as the classes the
+// bounds prune.
+void HyperbolicPipeline::beaten_in_race(const std::vector<int>& rest, const std::vector<CoarseRaceOutcome>& outcomes) {
+  int beaten = 0;
+  for (size_t q = 0; q < rest.size() && q < outcomes.size(); ++q) {
+    const CoarseRaceOutcome& o = outcomes[q];
+    const int k = rest[q];
+    if (!o.beaten) continue;
+    char why[240];
+    std::snprintf(why, sizeof why,
+                  "its coarse solve was stopped at Newton step %d, energy %.6g (at least %.6g), above %g%% over %.6g, "
+                  "the lowest coarse energy held at that step",
+                  o.step, o.energy, o.lower, 100 * kCoarseMargin, o.held);
+    not_ranked[k] = 1;
+    ++out.ranking_skipped;
+    out.candidates[k].energy = std::numeric_limits<double>::infinity();
+    out.candidates[k].solved = false;
+    out.candidates[k].description += std::string("  [not ranked: ") + why + "]";
+    ++beaten;
+  }
+  if (beaten > 0)
+    out.ranking_status += "; " + std::to_string(beaten) + (beaten == 1 ? " coarse solve" : " coarse solves") +
+                          " stopped as clearly beaten";
 }
 
 // Issue 19: the class the ranking solves alone first (the earliest usable
