@@ -414,6 +414,17 @@ void assess_quality(SurfaceMapResult& result) {
                              "pick a candidate";
 }
 
+void qualify_quality_warning(SurfaceMapResult& result) {
+  static const std::string both = "; both directions end on this class";
+  const std::string& outcome = result.directions.outcome;
+  if (result.quality_warning.empty() || result.quality_warning.find(both) != std::string::npos) return;
+  if (outcome != "inverse" && outcome != "symmetric: both optimal") return;
+  result.quality_warning += both + (outcome == "inverse" ? std::string(" (the other direction's class is its inverse)")
+                                                         : std::string(" (up to an isometry of the target)")) +
+                            ": no lower class was found from either side, so the shapes may be conformally that far "
+                            "apart (no class near the bound may exist)";
+}
+
 SurfaceMapOptions reverse_options(const SurfaceMapOptions& options) {
   SurfaceMapOptions ro = options;
   ro.homotopy.class_index = -1;
@@ -438,6 +449,42 @@ bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, c
   fo.homotopy.source_images = inverse_positions(reverse);
   out = map(source, target, fo);
   out.two_way_status = "the requested class is the two-way run's (the source's loops carried by the target -> source map)";
+  return true;
+}
+
+bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                   SurfaceMapResult& out, const MapFunction& map, std::string& why) {
+  if (!options.homotopy.two_way || options.homotopy.class_index >= 0 || options.homotopy.source_images.size() > 0 ||
+      options.homotopy.reverse_class_only || !options.landmarks.empty())
+    return false;
+  const auto t0 = std::chrono::steady_clock::now();
+  SurfaceMapResult reverse;
+  std::string failure;
+  if (!run_map(map, target, source, reverse_options(options), reverse, failure)) {
+    why = "the other direction failed too: " + failure;
+    return false;
+  }
+  if (static_cast<int>(reverse.inverse.size()) != source.num_vertices()) {
+    why = "the other direction gave no inverse correspondence";
+    return false;
+  }
+  // Only the carried class: the one-way candidates all folded already.
+  SurfaceMapOptions fo = options;
+  fo.homotopy.two_way = false;
+  fo.homotopy.source_images = inverse_positions(reverse);
+  fo.homotopy.images_only = true;
+  SurfaceMapResult again;
+  if (!run_map(map, source, target, fo, again, failure)) {
+    why = "the class carried by the other direction's map (energy ratio " + number(reverse.energy_ratio) +
+          " there) failed here too: " + failure;
+    return false;
+  }
+  out = std::move(again);
+  out.two_way_status = "every one-way candidate class folded; the class of the source's loops carried by the target -> "
+                       "source map (energy ratio " + number(reverse.energy_ratio) + " there) gave a bijective map";
+  if (out.directions.reason.empty() && out.directions.outcome.empty())
+    out.directions.reason = "not compared: the class was carried from the other direction's map (every one-way class folded)";
+  out.two_way_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return true;
 }
 
