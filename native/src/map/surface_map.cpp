@@ -107,6 +107,7 @@ SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& targ
       // may not fold (docs/handle_classes.md "Every class folded").
       if (std::string(e.what()).rfind("no candidate class gave a bijective map", 0) != 0) throw;
       std::string why;
+      // (`out` holds what the failed run set: the source's letters as a target.)
       if (!detail::rescue_by_the_other_direction(source, target, options, out, map_of, why))
         throw SolveError(std::string(e.what()) + (why.empty() ? std::string() : "; " + why));
       out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();

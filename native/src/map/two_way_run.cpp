@@ -468,20 +468,34 @@ bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target,
     why = "the other direction gave no inverse correspondence";
     return false;
   }
-  // Only the carried class: the one-way candidates all folded already.
+  // Only the other direction's class: the one-way candidates all folded
+  // already. First the source's loops carried by that map's inverse; when
+  // they give no isomorphism (a map far from conformal puts consecutive
+  // loop vertices far apart), its class inverted algebraically, written in
+  // this run's letters (`out`: the failed run's letters as a target).
   SurfaceMapOptions fo = options;
   fo.homotopy.two_way = false;
   fo.homotopy.source_images = inverse_positions(reverse);
   fo.homotopy.images_only = true;
   SurfaceMapResult again;
+  std::string how = "the class of the source's loops carried by the target -> source map";
   if (!run_map(map, source, target, fo, again, failure)) {
-    why = "the class carried by the other direction's map (energy ratio " + number(reverse.energy_ratio) +
-          " there) failed here too: " + failure;
-    return false;
+    std::string no_class;
+    SurfaceMapOptions ro = options;
+    ro.homotopy.two_way = false;
+    ro.homotopy.reverse_class = reverse_class_here(out, reverse, no_class);
+    ro.homotopy.reverse_class_only = true;
+    std::string inverted_failure = no_class;
+    if (ro.homotopy.reverse_class.empty() || !run_map(map, source, target, ro, again, inverted_failure)) {
+      why = "the other direction's class (energy ratio " + number(reverse.energy_ratio) + " there) failed here too: carried, " +
+            failure + "; inverted algebraically, " + inverted_failure;
+      return false;
+    }
+    how = "the target -> source map's class inverted algebraically (its loops carried: " + failure + ")";
   }
   out = std::move(again);
-  out.two_way_status = "every one-way candidate class folded; the class of the source's loops carried by the target -> "
-                       "source map (energy ratio " + number(reverse.energy_ratio) + " there) gave a bijective map";
+  out.two_way_status = "every one-way candidate class folded; " + how + " (energy ratio " + number(reverse.energy_ratio) +
+                       " there) gave a bijective map";
   if (out.directions.reason.empty() && out.directions.outcome.empty())
     out.directions.reason = "not compared: the class was carried from the other direction's map (every one-way class folded)";
   out.two_way_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
