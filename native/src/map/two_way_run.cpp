@@ -421,8 +421,8 @@ void qualify_quality_warning(SurfaceMapResult& result) {
   if (outcome != "inverse" && outcome != "symmetric: both optimal") return;
   result.quality_warning += both + (outcome == "inverse" ? std::string(" (the other direction's class is its inverse)")
                                                          : std::string(" (up to an isometry of the target)")) +
-                            ": no lower class was found from either side, so the shapes may be conformally that far "
-                            "apart (no class near the bound may exist)";
+                            ": neither search finds a lower one, which does not make it the best (a genus-4 pair had "
+                            "one 23% lower that neither found); the shapes may also be conformally far apart";
 }
 
 SurfaceMapOptions reverse_options(const SurfaceMapOptions& options) {
