@@ -1223,14 +1223,31 @@ TEST(SurfaceMapHandles, EveryClassFoldedMapsTheOtherDirectionsClassCarried) {
   EXPECT_NEAR(m.candidates[0].energy, free_map.candidates[free_map.chosen_candidate].energy,
               1e-6 * free_map.candidates[free_map.chosen_candidate].energy);
   EXPECT_NE(m.two_way_status.find("every one-way candidate class folded"), std::string::npos) << m.two_way_status;
-  // The other direction failing too: false, with its reason.
+  // The other direction failing too: the cuts at the source's middle vertex,
+  // one way (no two-way run).
+  std::vector<int> base_vertices;
   const detail::MapFunction failing = [&](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) -> SurfaceMapResult {
     if (s.num_vertices() == b.num_vertices()) throw SolveError("no candidate class gave a bijective map (test)");
+    base_vertices.push_back(o.loops.source_base_vertex);
+    EXPECT_FALSE(o.homotopy.two_way);
     return surface_map(s, t, o);
   };
   SurfaceMapResult m2;
-  EXPECT_FALSE(detail::rescue_by_the_other_direction(a, b, SurfaceMapOptions{}, m2, failing, why));
-  EXPECT_NE(why.find("the other direction failed too: no candidate class"), std::string::npos) << why;
+  why.clear();
+  ASSERT_TRUE(detail::rescue_by_the_other_direction(a, b, SurfaceMapOptions{}, m2, failing, why));
+  EXPECT_EQ(base_vertices, std::vector<int>{a.num_vertices() / 2});
+  expect_valid_map(m2, a, b);
+  EXPECT_NE(m2.two_way_status.find("the other direction failed too: no candidate class"), std::string::npos) << m2.two_way_status;
+  EXPECT_NE(m2.two_way_status.find("the cuts at source vertex " + std::to_string(a.num_vertices() / 2)), std::string::npos)
+      << m2.two_way_status;
+  // Every attempt failing: false, with every reason.
+  const detail::MapFunction all_failing = [&](const TriMesh&, const TriMesh&, const SurfaceMapOptions&) -> SurfaceMapResult {
+    throw SolveError("no candidate class gave a bijective map (test)");
+  };
+  why.clear();
+  EXPECT_FALSE(detail::rescue_by_the_other_direction(a, b, SurfaceMapOptions{}, m2, all_failing, why));
+  EXPECT_NE(why.find("the other direction failed too"), std::string::npos) << why;
+  EXPECT_NE(why.find("the cuts at source vertex"), std::string::npos) << why;
   // Not for a requested class or with the two-way run off.
   SurfaceMapOptions off;
   off.homotopy.two_way = false;

@@ -452,21 +452,49 @@ bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, c
   return true;
 }
 
+// The source's cuts from another base vertex (the middle vertex), mapped
+// one way: the last resort of rescue_by_the_other_direction. The perturbed
+// botijo -> genus-5 CAD plate folds in every class from the automatic base
+// vertex and in the other direction's class; from vertex 20000 of its 41158
+// it maps, 19.5 x (docs/handle_classes.md "Every class folded").
+bool rescue_by_another_cut(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                           SurfaceMapResult& out, const MapFunction& map, std::string& why) {
+  if (options.loops.source_base_vertex >= 0) return false;
+  SurfaceMapOptions bo = options;
+  bo.homotopy.two_way = false;
+  bo.loops.source_base_vertex = source.num_vertices() / 2;
+  SurfaceMapResult again;
+  std::string failure;
+  const std::string at = "the cuts at source vertex " + std::to_string(bo.loops.source_base_vertex);
+  if (!run_map(map, source, target, bo, again, failure)) {
+    why += "; " + at + ": " + failure;
+    return false;
+  }
+  out = std::move(again);
+  out.two_way_status = "every one-way candidate class folded (" + why + "); " + at +
+                       " gave a bijective map (the two-way run not applied to it)";
+  return true;
+}
+
 bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                    SurfaceMapResult& out, const MapFunction& map, std::string& why) {
   if (!options.homotopy.two_way || options.homotopy.class_index >= 0 || options.homotopy.source_images.size() > 0 ||
       options.homotopy.reverse_class_only || !options.landmarks.empty())
     return false;
   const auto t0 = std::chrono::steady_clock::now();
+  auto done = [&] {
+    out.two_way_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return true;
+  };
   SurfaceMapResult reverse;
   std::string failure;
   if (!run_map(map, target, source, reverse_options(options), reverse, failure)) {
     why = "the other direction failed too: " + failure;
-    return false;
+    return rescue_by_another_cut(source, target, options, out, map, why) && done();
   }
   if (static_cast<int>(reverse.inverse.size()) != source.num_vertices()) {
     why = "the other direction gave no inverse correspondence";
-    return false;
+    return rescue_by_another_cut(source, target, options, out, map, why) && done();
   }
   // Only the other direction's class: the one-way candidates all folded
   // already. First the source's loops carried by that map's inverse; when
@@ -489,7 +517,7 @@ bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target,
     if (ro.homotopy.reverse_class.empty() || !run_map(map, source, target, ro, again, inverted_failure)) {
       why = "the other direction's class (energy ratio " + number(reverse.energy_ratio) + " there) failed here too: carried, " +
             failure + "; inverted algebraically, " + inverted_failure;
-      return false;
+      return rescue_by_another_cut(source, target, options, out, map, why) && done();
     }
     how = "the target -> source map's class inverted algebraically (its loops carried: " + failure + ")";
   }
@@ -498,8 +526,7 @@ bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target,
                        " there) gave a bijective map";
   if (out.directions.reason.empty() && out.directions.outcome.empty())
     out.directions.reason = "not compared: the class was carried from the other direction's map (every one-way class folded)";
-  out.two_way_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return true;
+  return done();
 }
 
 void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,

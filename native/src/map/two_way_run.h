@@ -56,9 +56,14 @@ bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, c
 /// one-way run folded (`failure`: its "no candidate class gave a bijective
 /// map" error): maps the other way, and when that direction gives a map,
 /// solves here the class of the source's loops carried by its inverse alone
-/// (HomotopyOptions::images_only), into `out` (two_way_status says so).
-/// False when the two-way run does not apply or either run fails; `why`
-/// then says what failed (the caller adds it to the one-way error).
+/// (HomotopyOptions::images_only), or, when those loops do not carry, its
+/// class inverted algebraically (reverse_class_only); when that folds too or
+/// the other direction fails, and the source's base vertex was automatic,
+/// maps once more one way from the cuts at the source's middle vertex
+/// (loops.source_base_vertex = #V / 2, no two-way run). Into `out`
+/// (two_way_status says which). False when the two-way run does not apply
+/// or every attempt fails; `why` then says what failed (the caller adds it
+/// to the one-way error).
 /// docs/handle_classes.md "Every class folded: the other direction's class".
 bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                    SurfaceMapResult& out, const MapFunction& map, std::string& why);
