@@ -321,6 +321,41 @@ TEST(ClassLowerBound, QualityRatioUsesTheIntrinsicEnergyAfterTheOwnEdgeFallback)
   EXPECT_NE(r.quality_warning.find("may be twisted"), std::string::npos);
 }
 
+// Issue 14: a warned ratio on which both directions agree (inverse classes, or
+// inverse up to an isometry) says that no lower class was found from either
+// side; not when the directions differ or were not compared, not below the
+// warning, and once however often it is applied.
+TEST(ClassLowerBound, WarningSaysWhenBothDirectionsEndOnTheClass) {
+  SurfaceMapResult r;
+  r.genus = 4;
+  r.candidates.resize(1);
+  r.candidates[0].energy = 4.5 * 8 * M_PI * 3;
+  r.chosen_candidate = 0;
+  detail::assess_quality(r);
+  const std::string plain = r.quality_warning;
+  ASSERT_NE(plain.find("may be twisted"), std::string::npos);
+  for (const char* outcome : {"", "different"}) {
+    r.directions.outcome = outcome;
+    detail::qualify_quality_warning(r);
+    EXPECT_EQ(r.quality_warning, plain) << outcome;
+  }
+  r.directions.outcome = "inverse";
+  detail::qualify_quality_warning(r);
+  detail::qualify_quality_warning(r);
+  EXPECT_EQ(r.quality_warning.find(plain), 0u);
+  EXPECT_NE(r.quality_warning.find("both directions end on this class (the other direction's class is its inverse)"),
+            std::string::npos) << r.quality_warning;
+  EXPECT_EQ(r.quality_warning.find("both directions"), r.quality_warning.rfind("both directions"));
+  r.directions.outcome = "symmetric: both optimal";
+  detail::assess_quality(r);
+  detail::qualify_quality_warning(r);
+  EXPECT_NE(r.quality_warning.find("up to an isometry"), std::string::npos) << r.quality_warning;
+  r.candidates[0].energy = 1.5 * 8 * M_PI * 3;  // not warned: nothing added
+  detail::assess_quality(r);
+  detail::qualify_quality_warning(r);
+  EXPECT_EQ(r.quality_warning, "");
+}
+
 }  // namespace
 }  // namespace surfmap
 

@@ -13,7 +13,9 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/SparseLU>
+#include <string>
 #include <tuple>
+#include <utility>
 #include <set>
 
 #include "surfmap/error.h"
@@ -25,6 +27,7 @@
 #include "surfmap/topology/mapping_class_search.h"
 #include "surfmap/topology/outer_automorphisms.h"
 #include "certify_helpers.h"
+#include "../src/map/two_way_run.h"
 
 namespace surfmap {
 namespace {
@@ -1245,6 +1248,66 @@ TEST(SurfaceMapHandles, TheClassDoesNotDependOnTheBaseVertices) {
   requested.homotopy.class_index = 0;
   requested.homotopy.two_way = false;
   EXPECT_TRUE(surface_map(a, b, requested).class_cuts_status.empty());
+}
+
+// Issue 14 (perturbed botijo -> genus-5 CAD plate: every one-way class
+// folded, the other direction mapped): surface_map then maps the other way
+// and solves the class of the source's loops carried by that map's inverse
+// alone. Here on a pair whose classes do not fold, through a map function
+// that records the calls: first the other direction, then this one with the
+// carried images only; the carried class is the identity class of the
+// default map (the same energy); a failing other direction is reported.
+TEST(SurfaceMapHandles, EveryClassFoldedMapsTheOtherDirectionsClassCarried) {
+  const TriMesh a = samples::n_hole_torus(2, 30, true);
+  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 34, true), 0.2, 9);
+  const SurfaceMapResult free_map = surface_map(a, b);
+  std::vector<std::pair<int, bool>> calls;  // (source vertices, images only)
+  const detail::MapFunction recorded = [&](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) {
+    calls.emplace_back(s.num_vertices(), o.homotopy.images_only);
+    return surface_map(s, t, o);
+  };
+  SurfaceMapResult m;
+  std::string why;
+  ASSERT_TRUE(detail::rescue_by_the_other_direction(a, b, SurfaceMapOptions{}, m, recorded, why)) << why;
+  ASSERT_EQ(calls.size(), 2u);
+  EXPECT_EQ(calls[0], std::make_pair(b.num_vertices(), false));
+  EXPECT_EQ(calls[1], std::make_pair(a.num_vertices(), true));
+  expect_valid_map(m, a, b);
+  ASSERT_EQ(m.candidates.size(), 1u);
+  EXPECT_NEAR(m.candidates[0].energy, free_map.candidates[free_map.chosen_candidate].energy,
+              1e-6 * free_map.candidates[free_map.chosen_candidate].energy);
+  EXPECT_NE(m.two_way_status.find("every one-way candidate class folded"), std::string::npos) << m.two_way_status;
+  // The other direction failing too: the cuts at the source's middle vertex,
+  // one way (no two-way run).
+  std::vector<int> base_vertices;
+  const detail::MapFunction failing = [&](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) -> SurfaceMapResult {
+    if (s.num_vertices() == b.num_vertices()) throw SolveError("no candidate class gave a bijective map (test)");
+    base_vertices.push_back(o.loops.source_base_vertex);
+    EXPECT_FALSE(o.homotopy.two_way);
+    return surface_map(s, t, o);
+  };
+  SurfaceMapResult m2;
+  why.clear();
+  ASSERT_TRUE(detail::rescue_by_the_other_direction(a, b, SurfaceMapOptions{}, m2, failing, why));
+  EXPECT_EQ(base_vertices, std::vector<int>{a.num_vertices() / 2});
+  expect_valid_map(m2, a, b);
+  EXPECT_NE(m2.two_way_status.find("the other direction failed too: no candidate class"), std::string::npos) << m2.two_way_status;
+  EXPECT_NE(m2.two_way_status.find("the cuts at source vertex " + std::to_string(a.num_vertices() / 2)), std::string::npos)
+      << m2.two_way_status;
+  // Every attempt failing: false, with every reason.
+  const detail::MapFunction all_failing = [&](const TriMesh&, const TriMesh&, const SurfaceMapOptions&) -> SurfaceMapResult {
+    throw SolveError("no candidate class gave a bijective map (test)");
+  };
+  why.clear();
+  EXPECT_FALSE(detail::rescue_by_the_other_direction(a, b, SurfaceMapOptions{}, m2, all_failing, why));
+  EXPECT_NE(why.find("the other direction failed too"), std::string::npos) << why;
+  EXPECT_NE(why.find("the cuts at source vertex"), std::string::npos) << why;
+  // Not for a requested class or with the two-way run off.
+  SurfaceMapOptions off;
+  off.homotopy.two_way = false;
+  calls.clear();
+  EXPECT_FALSE(detail::rescue_by_the_other_direction(a, b, off, m2, recorded, why));
+  EXPECT_TRUE(calls.empty());
 }
 
 TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) {

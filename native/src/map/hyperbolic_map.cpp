@@ -1896,7 +1896,21 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   p.fill_class_bounds();           // issue 14: every candidate's energy lower bound
   p.choose_with_landmarks();       // lowest energy; with landmarks, §VII-C branch and bound
   p.compare_with_carried_class();  // issue 14: the two directions' classes inverse or not
-  map_with_fallback(p);            // initial map, harmonic solve, landmarks, quality, location
+  try {
+    map_with_fallback(p);          // initial map, harmonic solve, landmarks, quality, location
+  } catch (const SolveError&) {
+    // Every class folded: the source's letters as a target are still set in
+    // `out` (surface_map's rescue writes the other direction's class in
+    // them, two_way_run.h rescue_by_the_other_direction). Their failure must
+    // not hide the fold's error.
+    try {
+      p.compare_directions();
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const Error&) {
+    }
+    throw;
+  }
   p.compare_directions();          // issue 14: the class's words; both directions compared algebraically
 }
 

@@ -207,6 +207,19 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
       finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));
       return out;
     }
+    catch (const SolveError& e) {
+      // Issue 14 (perturbed botijo -> genus-5 CAD plate): every one-way class
+      // folded; the other direction may still map, and its class carried here
+      // may not fold (docs/handle_classes.md "Every class folded").
+      if (std::string(e.what()).rfind("no candidate class gave a bijective map", 0) != 0) throw;
+      std::string why;
+      // (`out` holds what the failed run set: the source's letters as a target.)
+      if (!detail::rescue_by_the_other_direction(source, target, options, out, map_of, why))
+        throw SolveError(std::string(e.what()) + (why.empty() ? std::string() : "; " + why));
+      out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();
+      finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));
+      return out;
+    }
   // How far each landmark's source vertex was located from its target
   // vertex. Held landmarks (every genus but 0 with more than 3) sit on a lift
   // of the target vertex by construction, so what remains is the round-off
@@ -235,6 +248,7 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
   }
   detail::assess_quality(out);  // issue 14: energy ratio and warning
   detail::two_way_map(source, target, options, out, map_of);  // issue 14: the other direction when poor
+  if (options.homotopy.two_way) detail::qualify_quality_warning(out);  // issue 14: both directions agree on it
   out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();
   finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));
   return out;

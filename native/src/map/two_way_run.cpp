@@ -414,6 +414,17 @@ void assess_quality(SurfaceMapResult& result) {
                              "pick a candidate";
 }
 
+void qualify_quality_warning(SurfaceMapResult& result) {
+  static const std::string both = "; both directions end on this class";
+  const std::string& outcome = result.directions.outcome;
+  if (result.quality_warning.empty() || result.quality_warning.find(both) != std::string::npos) return;
+  if (outcome != "inverse" && outcome != "symmetric: both optimal") return;
+  result.quality_warning += both + (outcome == "inverse" ? std::string(" (the other direction's class is its inverse)")
+                                                         : std::string(" (up to an isometry of the target)")) +
+                            ": neither search finds a lower one, which does not make it the best (a genus-4 pair had "
+                            "one 23% lower that neither found); the shapes may also be conformally far apart";
+}
+
 SurfaceMapOptions reverse_options(const SurfaceMapOptions& options) {
   SurfaceMapOptions ro = options;
   ro.homotopy.class_index = -1;
@@ -439,6 +450,83 @@ bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, c
   out = map(source, target, fo);
   out.two_way_status = "the requested class is the two-way run's (the source's loops carried by the target -> source map)";
   return true;
+}
+
+// The source's cuts from another base vertex (the middle vertex), mapped
+// one way: the last resort of rescue_by_the_other_direction. The perturbed
+// botijo -> genus-5 CAD plate folds in every class from the automatic base
+// vertex and in the other direction's class; from vertex 20000 of its 41158
+// it maps, 19.5 x (docs/handle_classes.md "Every class folded").
+bool rescue_by_another_cut(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                           SurfaceMapResult& out, const MapFunction& map, std::string& why) {
+  if (options.loops.source_base_vertex >= 0) return false;
+  SurfaceMapOptions bo = options;
+  bo.homotopy.two_way = false;
+  bo.loops.source_base_vertex = source.num_vertices() / 2;
+  SurfaceMapResult again;
+  std::string failure;
+  const std::string at = "the cuts at source vertex " + std::to_string(bo.loops.source_base_vertex);
+  if (!run_map(map, source, target, bo, again, failure)) {
+    why += "; " + at + ": " + failure;
+    return false;
+  }
+  out = std::move(again);
+  out.two_way_status = "every one-way candidate class folded (" + why + "); " + at +
+                       " gave a bijective map (the two-way run not applied to it)";
+  return true;
+}
+
+bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                   SurfaceMapResult& out, const MapFunction& map, std::string& why) {
+  if (!options.homotopy.two_way || options.homotopy.class_index >= 0 || options.homotopy.source_images.size() > 0 ||
+      options.homotopy.reverse_class_only || !options.landmarks.empty())
+    return false;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto done = [&] {
+    out.two_way_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return true;
+  };
+  SurfaceMapResult reverse;
+  std::string failure;
+  if (!run_map(map, target, source, reverse_options(options), reverse, failure)) {
+    why = "the other direction failed too: " + failure;
+    return rescue_by_another_cut(source, target, options, out, map, why) && done();
+  }
+  if (static_cast<int>(reverse.inverse.size()) != source.num_vertices()) {
+    why = "the other direction gave no inverse correspondence";
+    return rescue_by_another_cut(source, target, options, out, map, why) && done();
+  }
+  // Only the other direction's class: the one-way candidates all folded
+  // already. First the source's loops carried by that map's inverse; when
+  // they give no isomorphism (a map far from conformal puts consecutive
+  // loop vertices far apart), its class inverted algebraically, written in
+  // this run's letters (`out`: the failed run's letters as a target).
+  SurfaceMapOptions fo = options;
+  fo.homotopy.two_way = false;
+  fo.homotopy.source_images = inverse_positions(reverse);
+  fo.homotopy.images_only = true;
+  SurfaceMapResult again;
+  std::string how = "the class of the source's loops carried by the target -> source map";
+  if (!run_map(map, source, target, fo, again, failure)) {
+    std::string no_class;
+    SurfaceMapOptions ro = options;
+    ro.homotopy.two_way = false;
+    ro.homotopy.reverse_class = reverse_class_here(out, reverse, no_class);
+    ro.homotopy.reverse_class_only = true;
+    std::string inverted_failure = no_class;
+    if (ro.homotopy.reverse_class.empty() || !run_map(map, source, target, ro, again, inverted_failure)) {
+      why = "the other direction's class (energy ratio " + number(reverse.energy_ratio) + " there) failed here too: carried, " +
+            failure + "; inverted algebraically, " + inverted_failure;
+      return rescue_by_another_cut(source, target, options, out, map, why) && done();
+    }
+    how = "the target -> source map's class inverted algebraically (its loops carried: " + failure + ")";
+  }
+  out = std::move(again);
+  out.two_way_status = "every one-way candidate class folded; " + how + " (energy ratio " + number(reverse.energy_ratio) +
+                       " there) gave a bijective map";
+  if (out.directions.reason.empty() && out.directions.outcome.empty())
+    out.directions.reason = "not compared: the class was carried from the other direction's map (every one-way class folded)";
+  return done();
 }
 
 void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,

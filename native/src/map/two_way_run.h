@@ -19,6 +19,15 @@ using MapFunction = std::function<SurfaceMapResult(const TriMesh&, const TriMesh
 /// chosen class is one from the other direction). NaN / empty for genus < 2.
 void assess_quality(SurfaceMapResult& result);
 
+/// After the two-way run: when the ratio is warned about (3 or more) and the
+/// two directions' classes were compared and found inverse (or inverse up to
+/// an isometry), the warning says so too: both searches end on this pair of
+/// classes, which does not prove it the best (fertility -> genus-4 CAD plate:
+/// 6.65 x, and a class at 5.14 x exists, found through a third shape) nor
+/// rules out that the shapes are conformally far apart
+/// (docs/handle_classes.md "Is a better class reachable"). Once per result.
+void qualify_quality_warning(SurfaceMapResult& result);
+
 /// Genus >= 2, HomotopyOptions::two_way: maps the other way when `forward`
 /// is at least two_way_ratio x the conformal bound, and when that direction
 /// is better, maps again with the source's loops carried by its inverse as
@@ -42,6 +51,22 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
 /// `out`; false when the two-way run does not apply (the caller rethrows).
 bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                  SurfaceMapResult& out, const MapFunction& map);
+
+/// Genus >= 2 with the two-way run on, when every candidate class of the
+/// one-way run folded (`failure`: its "no candidate class gave a bijective
+/// map" error): maps the other way, and when that direction gives a map,
+/// solves here the class of the source's loops carried by its inverse alone
+/// (HomotopyOptions::images_only), or, when those loops do not carry, its
+/// class inverted algebraically (reverse_class_only); when that folds too or
+/// the other direction fails, and the source's base vertex was automatic,
+/// maps once more one way from the cuts at the source's middle vertex
+/// (loops.source_base_vertex = #V / 2, no two-way run). Into `out`
+/// (two_way_status says which). False when the two-way run does not apply
+/// or every attempt fails; `why` then says what failed (the caller adds it
+/// to the one-way error).
+/// docs/handle_classes.md "Every class folded: the other direction's class".
+bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                   SurfaceMapResult& out, const MapFunction& map, std::string& why);
 
 /// The options of the other direction's run: base vertices swapped, no
 /// landmarks (the classes are ranked by their free energies), no requested

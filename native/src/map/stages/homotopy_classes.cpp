@@ -450,18 +450,29 @@ bool carried_loops_class(const ClassSpace& space, const TriMesh& source, const S
     plo.max_gap_factor = 1e6;
     plo.max_jump_box = 2.0;
     plo.source_on_target = on_target;
-    const ProjectedLoopsResult proj = projector.project(moved, sl.loops, plo);
-    if (!proj.ok_with_joins) {
-      *why = "the carried loops did not project onto the target: " + proj.message;
-      return false;
+    // Joined first by the fewest target edges; when that gives no
+    // isomorphism, again by the shortest paths by length (issue 14: the
+    // genus-4 sculpture's loops carried through an n-hole torus onto the
+    // genus-4 CAD plate, whose faces are long fans, gave an isomorphism only
+    // so; docs/handle_classes.md "Is a better class reachable").
+    std::string failure;
+    for (const bool by_length : {false, true}) {
+      plo.join_by_length = by_length;
+      const ProjectedLoopsResult proj = projector.project(moved, sl.loops, plo);
+      if (!proj.ok_with_joins) {
+        if (failure.empty()) failure = "the carried loops did not project onto the target: " + proj.message;
+        continue;
+      }
+      const GroupMap t = space.through_loop_images(space.source_generators(), proj.loop_images);
+      if (!space.is_isomorphism(t)) {
+        if (failure.empty() || by_length) failure = "the carried loops do not give an isomorphism";
+        continue;
+      }
+      *theta = t;
+      return true;
     }
-    const GroupMap t = space.through_loop_images(space.source_generators(), proj.loop_images);
-    if (!space.is_isomorphism(t)) {
-      *why = "the carried loops do not give an isomorphism";
-      return false;
-    }
-    *theta = t;
-    return true;
+    *why = failure;
+    return false;
   } catch (const Error& e) {
     *why = e.what();
     return false;
