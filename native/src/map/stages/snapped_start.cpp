@@ -62,11 +62,12 @@ SnappedStartBuilder::SnappedStartBuilder(const TriMesh& source, const TriMesh& t
   for (const Word& w : short_words_) short_elements_.push_back(group.evaluate_side_word(w));
 }
 
-SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& edges) const {
+SnappedStartBuilder::Tree SnappedStartBuilder::tree(const std::vector<WeightedEdge>& edges) const {
   const int n = static_cast<int>(nearest_.size());
-  SnappedStart s;
+  Tree s;
   s.z.assign(n, Complex(0.0));
-  s.deck.assign(n, Word{});
+  s.T.assign(n, Word{});
+  s.R.assign(n, Word{});
   std::vector<std::vector<int>> incident(n);
   for (size_t e = 0; e < edges.size(); ++e) {
     incident[edges[e].i].push_back(static_cast<int>(e));
@@ -88,8 +89,11 @@ SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& ed
     Complex c;
     bool operator<(const Reach& o) const { return d > o.d; }
   };
-  std::vector<char> seen(n, 0), tree_edge(edges.size(), 0);
-  std::vector<Word> T(n), R(n);  // D_v = T_v D_root R_v: target-side and class-side products along the tree
+  std::vector<char> seen(n, 0);
+  std::vector<char>& tree_edge = s.tree_edge;
+  tree_edge.assign(edges.size(), 0);
+  std::vector<Word>& T = s.T;  // D_v = T_v D_root R_v: target-side and class-side products along the tree
+  std::vector<Word>& R = s.R;
   std::priority_queue<Reach> heap;
   auto offer = [&](int u) {
     for (int e : incident[u]) {
@@ -141,6 +145,18 @@ SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& ed
       offer(r.v);
     }
   }
+  return s;
+}
+
+SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& edges) const {
+  const int n = static_cast<int>(nearest_.size());
+  Tree t = tree(edges);
+  SnappedStart s;
+  s.z = std::move(t.z);
+  s.deck.assign(n, Word{});
+  const std::vector<char>& tree_edge = t.tree_edge;
+  const std::vector<Word>& T = t.T;
+  const std::vector<Word>& R = t.R;
   // The root's deck: the conjugator D with D L_e D^-1 = M_e for the loops
   // closed by the edges off the tree (L_e = R_i rho R_j^-1 the class's
   // element of the loop, M_e = T_i^-1 s_e T_j the snapped map's, s_e the
@@ -158,13 +174,7 @@ SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& ed
     Closing c;
     c.L = group_.reduce(concat({R[ed.i], ed.rho_word, inverse(R[ed.j])}));
     if (c.L.empty()) continue;
-    double best = std::numeric_limits<double>::infinity();
-    size_t bq = 0;
-    for (size_t q = 0; q < short_elements_.size(); ++q) {
-      const double d = distance_to_image(s.z[ed.i], short_elements_[q], s.z[ed.j]);
-      if (d < best) best = d, bq = q;
-    }
-    c.M = group_.reduce(concat({inverse(T[ed.i]), short_words_[bq], T[ed.j]}));
+    c.M = group_.reduce(concat({inverse(T[ed.i]), short_words_[nearest_lift(s.z[ed.i], s.z[ed.j])], T[ed.j]}));
     if (c.M.empty() || !listed.insert({c.L, c.M}).second) continue;
     closing.push_back(std::move(c));
   }
@@ -227,6 +237,14 @@ SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& ed
     }
   }
   for (int v = 0; v < n; ++v) s.deck[v] = group_.reduce(concat({T[v], root_deck, R[v]}));
+  // How far the class is from the snapped map: edges whose start element is
+  // not their nearest lift (0 in the snapped overlay's own class when the
+  // overlay is consistent).
+  for (const WeightedEdge& ed : edges) {
+    const Word w = group_.reduce(concat({T[ed.i], root_deck, R[ed.i], ed.rho_word, inverse(R[ed.j]),
+                                         inverse(root_deck), inverse(T[ed.j])}));
+    if (w != short_words_[nearest_lift(s.z[ed.i], s.z[ed.j])]) ++s.disagreeing_edges;
+  }
   for (const WeightedEdge& ed : edges) {
     const double d0 = ed.rho.displacement_of_origin();
     s.origin_energy += ed.w * d0 * d0;
@@ -234,6 +252,241 @@ SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& ed
   }
   if (!std::isfinite(s.energy)) s.energy = std::numeric_limits<double>::infinity();
   return s;
+}
+
+size_t SnappedStartBuilder::nearest_lift(Complex zi, Complex zj) const {
+  double best = std::numeric_limits<double>::infinity();
+  size_t bq = 0;
+  for (size_t q = 0; q < short_elements_.size(); ++q) {
+    const double d = distance_to_image(zi, short_elements_[q], zj);
+    if (d < best) best = d, bq = q;
+  }
+  return bq;
+}
+
+SnappedLoops SnappedStartBuilder::loop_images(const std::vector<WeightedEdge>& edges, const Connectivity& sc,
+                                              const std::vector<std::vector<int>>& loops,
+                                              const std::vector<Word>& edge_word, const Word& loop_relator) const {
+  SnappedLoops out;
+  const Tree t = tree(edges);
+  // Each source edge's element under the snapped map, in the tree's gauge:
+  // M = T_i^-1 s T_j with s its nearest lift (the empty word on tree edges).
+  std::vector<Word> edge_element(sc.num_edges());
+  for (int e = 0; e < sc.num_edges(); ++e) {
+    const int h = sc.edge_halfedge(e), i = sc.tail(h), j = sc.head(h);
+    edge_element[e] = group_.reduce(concat({inverse(t.T[i]), short_words_[nearest_lift(t.z[i], t.z[j])], t.T[j]}));
+  }
+  auto element_of = [&](int h) {
+    const int e = sc.edge(h);
+    return sc.edge_halfedge(e) == h ? edge_element[e] : inverse(edge_element[e]);
+  };
+  // The snapped map is a map of the surfaces (one homomorphism of the
+  // groups) exactly when these elements close up around every face.
+  for (int f = 0; f < sc.num_faces(); ++f)
+    if (!group_.reduce(concat({element_of(3 * f), element_of(3 * f + 1), element_of(3 * f + 2)})).empty())
+      ++out.inconsistent_faces;
+  const int letters = static_cast<int>(loops.size());
+  out.letter_side_words.assign(letters, Word{});
+  std::vector<char> have(letters, 0);
+  const DehnReducer source_reduce(loop_relator);
+  for (const std::vector<int>& loop : loops) {
+    Word source_word, image;
+    for (size_t q = 0; q + 1 < loop.size(); ++q) {
+      const int h = sc.find_halfedge(loop[q], loop[q + 1]);
+      if (h < 0) {
+        out.why = "a source loop is not an edge path of the source";
+        return out;
+      }
+      const int e = sc.edge(h);
+      source_word = concat(source_word, sc.edge_halfedge(e) == h ? edge_word[e] : inverse(edge_word[e]));
+      image = group_.reduce(concat(image, element_of(h)));
+    }
+    source_word = source_reduce(source_word);
+    // Each loop crosses the cut once (its generator edge): its word is its
+    // own letter, the image of that letter its snapped element.
+    if (source_word.size() != 1) {
+      out.why = "a source loop's word has " + std::to_string(source_word.size()) + " letters, not 1";
+      return out;
+    }
+    const int k = std::abs(source_word[0]) - 1;
+    out.letter_side_words[k] = source_word[0] > 0 ? image : inverse(image);
+    have[k] = 1;
+  }
+  for (int k = 0; k < letters; ++k)
+    if (!have[k]) {
+      out.why = "source loop letter " + std::to_string(k + 1) + " is not the word of any loop";
+      return out;
+    }
+  out.ok = true;
+  return out;
+}
+
+bool snapped_class_map(const SnappedLoops& loops, const DiskLayout& layout, const DeckGroup& group,
+                       const std::vector<Word>& canonical_of_loop_letter, const std::vector<Word>& source_generators,
+                       GroupMap* theta, std::string* why) {
+  const Word& word = layout.word;
+  const int n = static_cast<int>(word.size());
+  const int letters = n / 2;
+  if (!loops.ok) {
+    *why = loops.why;
+    return false;
+  }
+  // Side letter k+1 in loop letters: D_k Psi_i = Psi_{j+1} for the sides
+  // i (+k) and j (-k) (uniformize/layout.cpp corner_elements), and
+  // Psi_{m+1} = Psi_m g_{word[m]}, so Psi_m is the boundary word's prefix.
+  auto prefix = [&](int m) { return Word(word.begin(), word.begin() + m); };
+  std::vector<Word> side_in_loops(letters);
+  const DehnReducer reduce_loops(word);
+  for (int k = 0; k < letters; ++k) {
+    int i = -1, j = -1;
+    for (int m = 0; m < n; ++m) {
+      if (word[m] == k + 1) i = m;
+      if (word[m] == -(k + 1)) j = m;
+    }
+    if (i < 0 || j < 0) {
+      *why = "the target's boundary word lacks loop letter " + std::to_string(k + 1);
+      return false;
+    }
+    side_in_loops[k] = reduce_loops(concat(prefix(j + 1), inverse(prefix(i))));
+    if (group.side_word(side_in_loops[k]) != Word{k + 1}) {
+      *why = "side letter " + std::to_string(k + 1) + " does not rewrite in loop letters";
+      return false;
+    }
+  }
+  std::vector<Word> loop_images;
+  for (const Word& w : loops.letter_side_words) loop_images.push_back(reduce_loops(substitute(w, side_in_loops)));
+  const DehnReducer reduce_canonical(canonical_relator(letters / 2));
+  theta->assign(source_generators.size(), Word{});
+  for (size_t j = 0; j < source_generators.size(); ++j)
+    (*theta)[j] = reduce_canonical(substitute(substitute(source_generators[j], loop_images), canonical_of_loop_letter));
+  return true;
+}
+
+bool invert_canonical_generators(const std::vector<Word>& canonical_generators, const Word& layout_word,
+                                 const std::vector<Word>& hint, std::vector<Word>* loop_letters, std::string* why) {
+  const int n = static_cast<int>(canonical_generators.size());
+  const DehnReducer reduce_loops(layout_word);
+  const DehnReducer reduce_canonical(canonical_relator(n / 2));
+  auto inverts = [&](const std::vector<Word>& inv) {
+    if (static_cast<int>(inv.size()) != n) return false;
+    for (int k = 0; k < n; ++k)
+      if (reduce_loops(substitute(inv[k], canonical_generators)) != Word{k + 1}) return false;
+    return true;
+  };
+  if (inverts(hint)) {
+    *loop_letters = hint;
+    return true;
+  }
+  // u[i]: a loop word, p[i]: the canonical word it is the image of.
+  std::vector<Word> u(n), p(n);
+  for (int i = 0; i < n; ++i) u[i] = reduce_loops(canonical_generators[i]), p[i] = Word{i + 1};
+  auto total = [&] {
+    size_t t = 0;
+    for (const Word& w : u) t += w.size();
+    return t;
+  };
+  const size_t start_letters = total();
+  Word conjugator;  // the original u_i = conjugator u_i conjugator^-1
+  for (int round = 0; round < 100000; ++round) {
+    bool done = true;
+    for (const Word& w : u) done = done && w.size() == 1;
+    if (done) break;
+    size_t best = 0;
+    int bi = -1;
+    Word bu, bp;
+    for (int i = 0; i < n; ++i)
+      for (int k = 0; k < n; ++k) {
+        if (k == i) continue;
+        for (int sign : {1, -1})
+          for (int right : {1, 0}) {
+            const Word uk = sign > 0 ? u[k] : inverse(u[k]);
+            const Word pk = sign > 0 ? p[k] : inverse(p[k]);
+            Word cu = reduce_loops(right ? concat(u[i], uk) : concat(uk, u[i]));
+            if (cu.size() >= u[i].size()) continue;
+            const size_t gain = u[i].size() - cu.size();
+            if (gain > best) best = gain, bi = i, bu = std::move(cu), bp = right ? concat(p[i], pk) : concat(pk, p[i]);
+          }
+      }
+    // The generators seen from another base point (the carried loops start
+    // at the target's own base vertex): all conjugated by one letter x,
+    // u_i -> x^-1 u_i x (an inner automorphism: the inverse up to the one
+    // conjugation c, which names the same class).
+    // The conjugators tried: every letter and every prefix of a generator
+    // up to half its length (u_i = c x c^-1 starts with c).
+    if (bi < 0) {
+      size_t best_total = total();
+      Word bx;
+      std::set<Word> tried;
+      auto try_conjugator = [&](const Word& x) {
+        if (x.empty() || !tried.insert(x).second) return;
+        size_t t = 0;
+        for (const Word& w : u) t += reduce_loops(concat({inverse(x), w, x})).size();
+        if (t < best_total) best_total = t, bx = x;
+      };
+      for (int x = -n; x <= n; ++x)
+        if (x != 0) try_conjugator(Word{x});
+      for (const Word& w : u)
+        for (size_t m = 1; 2 * m < w.size(); ++m) try_conjugator(Word(w.begin(), w.begin() + m));
+      if (!bx.empty()) {
+        for (Word& w : u) w = reduce_loops(concat({inverse(bx), w, bx}));
+        conjugator = reduce_loops(concat(conjugator, bx));
+        continue;
+      }
+    }
+    // Stuck on single moves: conjugations u_k^e u_i u_k^-e, then products
+    // with two generators (a one-relator group's bases need not shorten
+    // one multiplication at a time).
+    for (int i = 0; i < n && bi < 0; ++i)
+      for (int k = 0; k < n; ++k) {
+        if (k == i) continue;
+        for (int sign : {1, -1}) {
+          const Word uk = sign > 0 ? u[k] : inverse(u[k]);
+          const Word pk = sign > 0 ? p[k] : inverse(p[k]);
+          Word cu = reduce_loops(concat({uk, u[i], inverse(uk)}));
+          if (cu.size() >= u[i].size()) continue;
+          const size_t gain = u[i].size() - cu.size();
+          if (gain > best) best = gain, bi = i, bu = std::move(cu), bp = concat({pk, p[i], inverse(pk)});
+        }
+      }
+    for (int i = 0; i < n && bi < 0; ++i)
+      for (int k = 0; k < n; ++k)
+        for (int l = 0; l < n; ++l) {
+          if (k == i || l == i) continue;
+          for (int sk : {1, -1})
+            for (int sl : {1, -1})
+              for (int right : {1, 0}) {
+                const Word uk = sk > 0 ? u[k] : inverse(u[k]), ul = sl > 0 ? u[l] : inverse(u[l]);
+                const Word pk = sk > 0 ? p[k] : inverse(p[k]), pl = sl > 0 ? p[l] : inverse(p[l]);
+                Word cu = reduce_loops(right ? concat({u[i], uk, ul}) : concat({uk, ul, u[i]}));
+                if (cu.size() >= u[i].size()) continue;
+                const size_t gain = u[i].size() - cu.size();
+                if (gain > best)
+                  best = gain, bi = i, bu = std::move(cu), bp = right ? concat({p[i], pk, pl}) : concat({pk, pl, p[i]});
+              }
+        }
+    if (bi < 0) {
+      *why = "Nielsen moves stuck at " + std::to_string(total()) + " letters (from " + std::to_string(start_letters) +
+             ", " + std::to_string(n) + " generators)";
+      return false;
+    }
+    u[bi] = std::move(bu);
+    p[bi] = reduce_canonical(bp);
+  }
+  std::vector<Word> inv(n);
+  std::vector<char> have(n, 0);
+  for (int i = 0; i < n; ++i) {
+    if (u[i].size() != 1) return (*why = "Nielsen moves did not finish"), false;
+    const int k = std::abs(u[i][0]) - 1;
+    if (have[k]) return (*why = "Nielsen moves ended on a repeated letter"), false;
+    have[k] = 1;
+    inv[k] = u[i][0] > 0 ? p[i] : inverse(p[i]);
+  }
+  for (int k = 0; k < n; ++k)
+    if (reduce_loops(substitute(inv[k], canonical_generators)) !=
+        reduce_loops(concat({conjugator, Word{k + 1}, inverse(conjugator)})))
+      return (*why = "the inverse found does not check out"), false;
+  *loop_letters = std::move(inv);
+  return true;
 }
 
 }  // namespace surfmap::detail
