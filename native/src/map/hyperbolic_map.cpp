@@ -1601,6 +1601,7 @@ void HyperbolicPipeline::choose_with_landmarks() {
       why += (k ? "; " : ": ") + std::string("class ") + std::to_string(k) + (at == std::string::npos ? std::string(" not solved") : d.substr(at + 2));
     }
     if (out.candidates.size() > 4) why += "; ... (" + std::to_string(out.candidates.size()) + " classes)";
+    if (!out.snapped_class_status.empty()) why += "; the snapped overlay's class: " + out.snapped_class_status;
     throw SolveError("the harmonic map solve failed in every candidate homotopy class" + why);
   }
   held_result.resize(ncand);

@@ -387,6 +387,9 @@ bool invert_canonical_generators(const std::vector<Word>& canonical_generators, 
   };
   const size_t start_letters = total();
   Word conjugator;  // the original u_i = conjugator u_i conjugator^-1
+  constexpr int kPlateauMoves = 2000;
+  int plateau_moves = 0;
+  std::set<std::vector<Word>> seen;
   for (int round = 0; round < 100000; ++round) {
     bool done = true;
     for (const Word& w : u) done = done && w.size() == 1;
@@ -464,6 +467,25 @@ bool invert_canonical_generators(const std::vector<Word>& canonical_generators, 
                   best = gain, bi = i, bu = std::move(cu), bp = right ? concat({p[i], pk, pl}) : concat({pk, pl, p[i]});
               }
         }
+    // Still stuck: a move that keeps the length, to a configuration not
+    // seen before (a plateau walk, at most kPlateauMoves in all).
+    for (int i = 0; i < n && bi < 0 && plateau_moves < kPlateauMoves; ++i)
+      for (int k = 0; k < n && bi < 0; ++k) {
+        if (k == i) continue;
+        for (int sign : {1, -1})
+          for (int right : {1, 0}) {
+            if (bi >= 0) break;
+            const Word uk = sign > 0 ? u[k] : inverse(u[k]);
+            Word cu = reduce_loops(right ? concat(u[i], uk) : concat(uk, u[i]));
+            if (cu.size() != u[i].size()) continue;
+            std::vector<Word> next = u;
+            next[i] = cu;
+            if (!seen.insert(next).second) continue;
+            const Word pk = sign > 0 ? p[k] : inverse(p[k]);
+            bi = i, bu = std::move(cu), bp = right ? concat(p[i], pk) : concat(pk, p[i]);
+            ++plateau_moves;
+          }
+      }
     if (bi < 0) {
       *why = "Nielsen moves stuck at " + std::to_string(total()) + " letters (from " + std::to_string(start_letters) +
              ", " + std::to_string(n) + " generators)";
