@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <queue>
 #include <set>
@@ -271,10 +272,22 @@ SnappedLoops SnappedStartBuilder::loop_images(const std::vector<WeightedEdge>& e
   const Tree t = tree(edges);
   // Each source edge's element under the snapped map, in the tree's gauge:
   // M = T_i^-1 s T_j with s its nearest lift (the empty word on tree edges).
-  std::vector<Word> edge_element(sc.num_edges());
-  for (int e = 0; e < sc.num_edges(); ++e) {
+  const int ne = sc.num_edges(), nf = sc.num_faces();
+  std::vector<Word> edge_element(ne);
+  std::vector<double> ambiguity(ne, 0.0);  // nearest lift's distance over the next nearest's
+  for (int e = 0; e < ne; ++e) {
     const int h = sc.edge_halfedge(e), i = sc.tail(h), j = sc.head(h);
-    edge_element[e] = group_.reduce(concat({inverse(t.T[i]), short_words_[nearest_lift(t.z[i], t.z[j])], t.T[j]}));
+    const size_t q = nearest_lift(t.z[i], t.z[j]);
+    edge_element[e] = group_.reduce(concat({inverse(t.T[i]), short_words_[q], t.T[j]}));
+    const double best = distance_to_image(t.z[i], short_elements_[q], t.z[j]);
+    const Complex image = short_elements_[q].apply(t.z[j]);
+    double second = std::numeric_limits<double>::infinity();
+    for (size_t r = 0; r < short_elements_.size(); ++r) {
+      if (distance_to_image(image, short_elements_[r], t.z[j]) < 1e-6) continue;  // the same lift
+      second = std::min(second, distance_to_image(t.z[i], short_elements_[r], t.z[j]));
+    }
+    ambiguity[e] = best / std::max(second, 1e-300);
+    if (!std::isfinite(ambiguity[e])) ambiguity[e] = std::numeric_limits<double>::max();
   }
   auto element_of = [&](int h) {
     const int e = sc.edge(h);
@@ -282,9 +295,50 @@ SnappedLoops SnappedStartBuilder::loop_images(const std::vector<WeightedEdge>& e
   };
   // The snapped map is a map of the surfaces (one homomorphism of the
   // groups) exactly when these elements close up around every face.
-  for (int f = 0; f < sc.num_faces(); ++f)
+  for (int f = 0; f < nf; ++f)
     if (!group_.reduce(concat({element_of(3 * f), element_of(3 * f + 1), element_of(3 * f + 2)})).empty())
       ++out.inconsistent_faces;
+  // Made consistent: the most ambiguous edges (a spanning tree of the dual
+  // graph, Kruskal by ambiguity, most ambiguous first) are derived from the
+  // others by closing the faces, leaves of that tree first; the rest (#V - 1
+  // + 2g edges, the least ambiguous) keep their nearest lifts. On the
+  // genus-11 plate onto itself 43 faces did not close (long image edges
+  // across the short collars), and the loops read through them did not
+  // give an isomorphism.
+  std::vector<int> by_ambiguity(ne);
+  for (int e = 0; e < ne; ++e) by_ambiguity[e] = e;
+  std::stable_sort(by_ambiguity.begin(), by_ambiguity.end(), [&](int x, int y) { return ambiguity[x] > ambiguity[y]; });
+  std::vector<int> component(nf);
+  for (int f = 0; f < nf; ++f) component[f] = f;
+  std::function<int(int)> find = [&](int f) { return component[f] == f ? f : component[f] = find(component[f]); };
+  std::vector<std::vector<int>> dual_tree(nf);  // per face: its dual tree halfedges
+  for (int e : by_ambiguity) {
+    const int h = sc.edge_halfedge(e), g = sc.twin(h);
+    if (g < 0) continue;
+    const int a = find(h / 3), b = find(g / 3);
+    if (a == b) continue;
+    component[a] = b;
+    dual_tree[h / 3].push_back(h);
+    dual_tree[g / 3].push_back(g);
+  }
+  std::vector<int> order{0}, parent_halfedge(nf, -1);
+  std::vector<char> reached(nf, 0);
+  reached[0] = 1;
+  for (size_t q = 0; q < order.size(); ++q)
+    for (int h : dual_tree[order[q]]) {
+      const int g = sc.twin(h), f = g / 3;
+      if (reached[f]) continue;
+      reached[f] = 1;
+      parent_halfedge[f] = g;  // f's halfedge towards its parent
+      order.push_back(f);
+    }
+  for (size_t q = order.size(); q-- > 1;) {
+    const int f = order[q], hd = parent_halfedge[f];
+    const int hb = 3 * f + (hd % 3 + 1) % 3, hc = 3 * f + (hd % 3 + 2) % 3;
+    Word derived = group_.reduce(inverse(concat(element_of(hb), element_of(hc))));
+    const int e = sc.edge(hd);
+    edge_element[e] = sc.edge_halfedge(e) == hd ? derived : inverse(derived);
+  }
   const int letters = static_cast<int>(loops.size());
   out.letter_side_words.assign(letters, Word{});
   std::vector<char> have(letters, 0);
