@@ -419,7 +419,16 @@ bool snapped_class_map(const SnappedLoops& loops, const DiskLayout& layout, cons
 bool invert_canonical_generators(const std::vector<Word>& canonical_generators, const Word& layout_word,
                                  const std::vector<Word>& hint, std::vector<Word>* loop_letters, std::string* why) {
   const int n = static_cast<int>(canonical_generators.size());
-  const DehnReducer reduce_loops(layout_word);
+  const DehnReducer reduce_exactly(layout_word);
+  // A cap on the work (Dehn reductions) of the moves: the two-generator
+  // products cost (2g)^3 reductions per stuck step, so a high-genus target
+  // whose generators do not reduce gives up instead of running for minutes.
+  constexpr long kMaxReductions = 20000000;
+  long reductions = 0;
+  auto reduce_loops = [&](const Word& w) {
+    ++reductions;
+    return reduce_exactly(w);
+  };
   const DehnReducer reduce_canonical(canonical_relator(n / 2));
   auto inverts = [&](const std::vector<Word>& inv) {
     if (static_cast<int>(inv.size()) != n) return false;
@@ -445,6 +454,11 @@ bool invert_canonical_generators(const std::vector<Word>& canonical_generators, 
   int plateau_moves = 0;
   std::set<std::vector<Word>> seen;
   for (int round = 0; round < 100000; ++round) {
+    if (reductions > kMaxReductions) {
+      *why = "Nielsen moves gave up after " + std::to_string(reductions) + " reductions at " + std::to_string(total()) +
+             " letters (from " + std::to_string(start_letters) + ")";
+      return false;
+    }
     bool done = true;
     for (const Word& w : u) done = done && w.size() == 1;
     if (done) break;
