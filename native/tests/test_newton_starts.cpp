@@ -397,5 +397,38 @@ TEST(NewtonStarts, RemeshedPlateStartsItsOverlayClassFromTheSnappedOverlay) {
               reference.final_energy, snapped);
 }
 
+// Issue 13: the snapped overlay's own class (the source's loops followed
+// through the snapped map in the target's deck group, rewritten in the
+// target's canonical letters) is a candidate of sources without a coarse
+// copy. On a remeshed plate it is the identity's class: the conformal one,
+// of the lowest energy, whichever class of the list it coincides with. A
+// wrong rewriting (side letters, loop letters, canonical letters) gives a
+// twisted class (hundreds of units of energy here) or none.
+TEST(NewtonStarts, RemeshedPlateListsTheSnappedOverlaysOwnClassAndChoosesIt) {
+  const TriMesh a = samples::cad_plate(2, 64, 0.1), b = samples::cad_plate(2, 48, 0.1);
+  SurfaceMapOptions o;
+  o.homotopy.search.enabled = false;
+  o.homotopy.two_way = false;
+  o.homotopy.ranking_gap = -1;
+  const SurfaceMapResult m = surface_map(a, b, o);
+  ASSERT_TRUE(m.converged);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  ASSERT_GE(m.snapped_class, 0) << m.snapped_class_status;
+  ASSERT_LT(m.snapped_class, static_cast<int>(m.candidates.size()));
+  const HomotopyCandidate& c = m.candidates[m.snapped_class];
+  EXPECT_NE(c.description.find("the snapped overlay's own class"), std::string::npos) << c.description;
+  ASSERT_TRUE(c.solved);
+  EXPECT_NEAR(c.energy, m.candidates[m.chosen_candidate].energy, 1e-6 * c.energy);
+  EXPECT_LT(c.energy, 1.3 * 8 * M_PI);
+  std::printf("snapped class %d (%s), E %.9g; chosen %d\n", m.snapped_class, m.snapped_class_status.c_str(), c.energy,
+              m.chosen_candidate);
+
+  // Without the snapped start the class is not read either.
+  SurfaceMapOptions off = o;
+  off.homotopy.search.snapped_start = false;
+  const SurfaceMapResult r = surface_map(a, b, off);
+  EXPECT_EQ(r.snapped_class, -1);
+}
+
 }  // namespace
 }  // namespace surfmap

@@ -171,6 +171,7 @@ class HyperbolicPipeline {
   /// solve from the overlay (stages/snapped_start.h) when that start has the
   /// lower energy; built at the first such solve (ensure_snapper).
   std::unique_ptr<SnappedStartBuilder> snapper;
+  void add_snapped_class();
   void ensure_snapper() {
     if (!snapper && options.homotopy.search.snapped_start)
       snapper = std::make_unique<SnappedStartBuilder>(source, target, ut->layout, *deck_group, *polygon);
@@ -453,6 +454,7 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   candidates = candidate_classes(*space, source, ss.sl, ss.shb, cl ? cl->loops : ut->loops, cl ? cl->schema : tcs,
                                  *projector, options, cuts);
   if (options.homotopy.extra_cuts > 0 && !ss.cs.ok) cuts.stop = true;  // no coarse copy: no class search, no more cuts needed
+  if (!ss.cs.ok && options.homotopy.search.snapped_start) add_snapped_class();
   // The two-way run's class (issue 14): listed as one from the other direction.
   if (candidates.carried_class >= 0) out.reverse_candidates.push_back(candidates.carried_class);
   if (!candidates.carried_status.empty())
@@ -506,6 +508,70 @@ void HyperbolicPipeline::candidate_classes_and_data() {
     out.candidates.push_back(c);
   }
   stage_done("source homotopy data and weights", 0.4);
+}
+
+// Issue 13: the snapped overlay's own class (stages/snapped_start.h), a
+// candidate of sources without a coarse copy. The overlay classes carry the
+// source's loops onto the target's loops in 3D and read their crossings;
+// at genus 11 (the CAD plate onto itself or a remeshed copy) none of the
+// classes listed that way was the identity's (its loops 1.8 .. 7.5 units
+// long in the target, 12.7 .. 46.8 under every candidate). This class is
+// read where the solve lives: the source's loops followed through the
+// snapped map in the target's deck group, rewritten in canonical letters.
+// A class the list already has (same fingerprint) is only marked.
+void HyperbolicPipeline::add_snapped_class() {
+  ensure_snapper();
+  if (!snapper) return;
+  auto note = [&](const std::string& s) { out.snapped_class_status = s; };
+  std::vector<WeightedEdge> tree_edges(ss.idt.edges.size());
+  for (size_t e = 0; e < ss.idt.edges.size(); ++e) {
+    tree_edges[e].i = ss.idt.edges[e].i;
+    tree_edges[e].j = ss.idt.edges[e].j;
+  }
+  const SnappedLoops loops = snapper->loop_images(tree_edges, sc, ss.sl.loops, ss.edge_word, ss.sl.word);
+  std::vector<Word> canonical_of_loop_letter;
+  std::string why;
+  if (!invert_canonical_generators(tcs.generators, ut->layout.word, tcs.letters, &canonical_of_loop_letter, &why)) {
+    note("not listed: the target's canonical generators could not be inverted in its layout's letters: " + why);
+    return;
+  }
+  GroupMap theta;
+  if (!snapped_class_map(loops, ut->layout, *deck_group, canonical_of_loop_letter, ss.scs.generators, &theta, &why)) {
+    note("not listed: " + why);
+    return;
+  }
+  space->reduce(theta);
+  if (!space->is_isomorphism(theta)) {
+    note("not listed: not an isomorphism of the groups (" + std::to_string(loops.inconsistent_faces) +
+         " source faces inconsistent)");
+    return;
+  }
+  if (space->loop_image_length(theta) > space->max_image_letters()) {
+    note("not listed: its loops' images are too long");
+    return;
+  }
+  const std::string tag = "the snapped overlay's own class: each source vertex at its nearest target vertex, " +
+                          std::to_string(loops.inconsistent_faces) + " source faces inconsistent";
+  const std::vector<double> fp = space->fingerprint(theta);
+  for (HomotopyClass& hc : candidates.classes)
+    if (space->loop_image_length(hc.map) <= space->max_image_letters() &&
+        ClassSpace::same_fingerprint(space->fingerprint(hc.map), fp)) {
+      hc.description += "  [also " + tag + "]";
+      out.snapped_class = static_cast<int>(&hc - candidates.classes.data());
+      note("the same as class " + std::to_string(out.snapped_class) + " (" + std::to_string(loops.inconsistent_faces) +
+           " source faces inconsistent)");
+      return;
+    }
+  HomotopyClass hc;
+  hc.map = theta;
+  hc.homology = homology_matrix(theta, space->num_letters());
+  std::string handles;
+  handle_correspondence_of(ss.shb, candidates.target_basis, hc.homology, &hc.permutation, &hc.sign, &handles);
+  hc.description = handles + "  [" + tag + "]";
+  candidates.classes.push_back(std::move(hc));
+  out.snapped_class = static_cast<int>(candidates.classes.size()) - 1;
+  note("listed as class " + std::to_string(out.snapped_class) + " (" + std::to_string(loops.inconsistent_faces) +
+       " source faces inconsistent)");
 }
 
 // Runs a solve of class k; a class whose solve fails numerically (deck
@@ -1585,6 +1651,7 @@ void HyperbolicPipeline::choose_with_landmarks() {
       why += (k ? "; " : ": ") + std::string("class ") + std::to_string(k) + (at == std::string::npos ? std::string(" not solved") : d.substr(at + 2));
     }
     if (out.candidates.size() > 4) why += "; ... (" + std::to_string(out.candidates.size()) + " classes)";
+    if (!out.snapped_class_status.empty()) why += "; the snapped overlay's class: " + out.snapped_class_status;
     throw SolveError("the harmonic map solve failed in every candidate homotopy class" + why);
   }
   held_result.resize(ncand);

@@ -782,6 +782,15 @@ struct SurfaceMapResult {
   int ranking_coarse_solves = 0;
   int ranking_skipped = 0;
   std::string ranking_status;
+  /// Issue 13, sources without a coarse copy (HomotopySearchOptions::
+  /// snapped_start): the candidate that is the snapped overlay's own class
+  /// (each source vertex at its nearest target vertex, the source's loops
+  /// followed through it in the target's deck group; -1: none), and what
+  /// became of it ("listed as class k", "the same as class k", "not listed:
+  /// why"), with the source faces around which the snapped edges' elements
+  /// do not close up.
+  int snapped_class = -1;
+  std::string snapped_class_status;
   /// Issue 13 (HomotopySearchOptions::start_edge_size): "" unless every
   /// candidate's solve was refused at the start-edge limit; then how many
   /// were solved again accepting long start edges, and the longest.
