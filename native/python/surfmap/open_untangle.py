@@ -147,14 +147,16 @@ class _TargetFaces:
 
 
 def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, max_passes=4, max_rings=3,
-                  relax_sweeps=2):
+                  relax_sweeps=2, kernel_radii=(0.5, 1.0, 2.0, 4.0), kernel_directions=12):
     """Moves interior source vertices of folded faces (module docstring). S, T: open_double._Side;
     fw: the half's forward map {face, barycentric, position} on T's input faces (changed in place);
     turned_of(faces) -> bool array: the pipeline's test of those source faces (open_double._turned);
     reversing: an orientation-reversing map (the charts' y axis turned). Ears (three boundary
     corners) are never counted. crease_angle: beyond it the unfolded chart; max_passes, max_rings,
-    relax_sweeps: the passes, the rings relaxed around corners that cannot move, the final sweeps.
-    Returns the moved vertices (sorted, each once)."""
+    relax_sweeps: the passes, the rings relaxed around corners that cannot move, the final sweeps;
+    kernel_radii (times the kernel's depth) and kernel_directions: the further points of the shrunk
+    kernel a folded corner tries, least distorted first, when its best point and the kernel's centre
+    leave its star turned by turned_of. Returns the moved vertices (sorted, each once)."""
     from scipy.optimize import linprog, minimize
 
     from .open_double import _dilatation as dilatation
@@ -250,7 +252,19 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
             now = float(np.sum(dilatation(src.reshape(-1, 3), Q.reshape(-1, 3), tri) ** 2))
             if not (np.isfinite(best.fun) and best.fun < 0.99 * now):
                 return False
-        for p in ((best.x if np.isfinite(best.fun) else centre),) + (() if improve else (centre,)):
+        candidates = [best.x if np.isfinite(best.fun) else centre]
+        if not improve:
+            # A folded corner: the centre, then points spread over the shrunk kernel, least distorted
+            # first. Where the target's normals turn strongly across the star's images (a saddle of
+            # the double torus), the pipeline's test (faces unfolded from a corner's face) can
+            # still read a face as turned at the chart's best point and centre, and not elsewhere
+            # in the kernel (double_torus_2 A -> B's inverse: its one face left folded unfolds at
+            # such a point).
+            ring = [centre + r * depth * np.array([np.cos(t), np.sin(t)])
+                    for r in kernel_radii for t in np.linspace(0, 2 * np.pi, kernel_directions, endpoint=False)]
+            ring = [p for p in ring if np.min(dist(p)) > 0.05 * depth]
+            candidates += [centre] + [ring[k] for k in np.argsort([worst(p) for p in ring], kind="stable")]
+        for p in candidates:
             got = place(o + p)
             # An interior vertex stays inside: a fold's corner at least a tenth of its distance to the
             # boundary away from it (the shirt's collar apex has to go nearer), an unfolded one at

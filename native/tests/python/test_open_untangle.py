@@ -87,6 +87,43 @@ def test_a_pushed_vertex_is_moved_back_into_its_star(kind):
     assert open_double._dilatation(S.V, fw["position"], S.F)[star].max() < 4
 
 
+@pytest.mark.parametrize("kernel_radii", [(), (0.5, 1.0, 2.0, 4.0)])
+def test_a_corner_tries_the_rest_of_its_kernel_when_the_test_refuses_the_best_point(kernel_radii):
+    """Where the target's normals turn strongly across a star's images (a saddle of a double torus)
+    the pipeline's test, which unfolds the target's faces from a corner's face, can read a face as
+    turned at the chart's least distorted point and at the kernel's centre and not elsewhere in the
+    kernel (double_torus_2 A -> B's inverse, docs/open_surfaces.md). Here a test that also refuses
+    every image of the pushed vertex within 0.06 of where it belongs (the grid's spacing is 0.2, the
+    best point and the centre are there) on the curved sheet: with the kernel's further points the
+    fold is undone at such a point, without them it stays."""
+    V, F = sheet()
+    S = open_double._Side(V, F, "source")
+    T = open_double._Side(shaped(V, "curved"), F, "target")
+    fw = locate(T, S.V)
+    v = int(np.argmin(np.linalg.norm(S.V - [-0.2, 0.2, 0], axis=1)))
+    w = int(np.argmin(np.linalg.norm(S.V - [0.2, 0.2, 0], axis=1)))
+    home = fw["position"][v].copy()
+    for k in fw:
+        fw[k][v] = fw[k][w]
+    star = np.flatnonzero((S.F == v).any(axis=1))
+
+    def strict(faces):
+        turned = open_double._turned(S, T, fw, False, faces=faces)
+        if np.linalg.norm(fw["position"][v] - home) < 0.06:
+            turned |= np.isin(faces, star)
+        return turned
+    assert open_double._flips(S, T, fw)[0] >= 2
+    moved = open_untangle.untangle_half(S, T, fw, strict, kernel_radii=kernel_radii)
+    left = int(np.sum(strict(np.arange(len(S.F)))))
+    if not kernel_radii:
+        assert left >= 1
+        return
+    assert left == 0 and open_double._flips(S, T, fw)[0] == 0 and v in moved
+    # Inside its star, past the refused disk, not back where it was pushed.
+    assert 0.06 <= np.linalg.norm(fw["position"][v] - home) < 0.5 * np.linalg.norm(fw["position"][w] - home)
+    assert open_double._dilatation(S.V, fw["position"], S.F)[star].max() < 6
+
+
 def test_a_fold_no_single_vertex_can_undo_is_left_as_it_was():
     """The ring of a vertex collapsed onto its image: every face around it is degenerate, and every
     kernel (of the vertex, of each ring vertex: two of its neighbours coincide) is empty, so no
