@@ -58,7 +58,7 @@ double triangle_dilatation(const Eigen::Vector3d& source_sides, const Eigen::Vec
 
 int image_orientation(std::complex<double> b, std::complex<double> c) {
   const double cross = b.real() * c.imag() - b.imag() * c.real();
-  if (!(std::abs(cross) > 1e-14 * std::max(std::norm(b), std::norm(c)))) return 0;
+  if (!(std::abs(cross) > kFlatImageRelativeCross * std::max(std::norm(b), std::norm(c)))) return 0;
   return cross < 0 ? -1 : 1;
 }
 

@@ -20,10 +20,20 @@ namespace surfmap {
 /// side lengths `image`. Returns +inf for a degenerate image.
 double triangle_dilatation(const Eigen::Vector3d& source_sides, const Eigen::Vector3d& image_sides);
 
+/// An image triangle 0, b, c is flat (degenerate) when |b x c| is not above
+/// this times max(|b|², |c|²): its D' would be about 1/this or more. 1e-9,
+/// not the round-off of the chart (1e-16): a converged map can leave a face
+/// of an ordinary source triangle at the edge of a fold with |b x c| ~ 8e-11
+/// max(|b|², |c|²) and D' 7e9 (docs/robustness.md, held-out sweep, "D' of
+/// jittered and collinear sources"); counted as flat, the fold repair moves
+/// it like a folded one. The fold repair's own "positive with a margin" is
+/// the same bound, so that what it accepts is not flat here.
+constexpr double kFlatImageRelativeCross = 1e-9;
+
 /// Orientation of the triangle with corners 0, b, c: +1, -1 (flipped) or 0
-/// (degenerate: |cross| not above 1e-14 max(|b|², |c|²), non-finite
-/// included). For a hyperbolic image seen in a chart centring its corner 0
-/// (Möbius maps preserve orientation) as for a planar one.
+/// (degenerate: |cross| not above kFlatImageRelativeCross max(|b|², |c|²),
+/// non-finite included). For a hyperbolic image seen in a chart centring its
+/// corner 0 (Möbius maps preserve orientation) as for a planar one.
 int image_orientation(std::complex<double> b, std::complex<double> c);
 
 /// D' of one source face (3D corners p0, p1, p2) onto a positively oriented

@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "surfmap/error.h"
+#include "surfmap/map/distortion.h"
 
 namespace surfmap::detail {
 
@@ -90,12 +91,14 @@ class KernelProjection {
     return (sc_.edge_halfedge(e) == h) == static_cast<bool>(index_.forward[e]) ? A : A.inverse();
   }
 
-  // Whether face f is positively oriented (Klein model centred at its corner 0).
+  // Whether face f is positively oriented and not flat (Klein model centred
+  // at its corner 0; the bound of image_orientation, so that a face the
+  // map's distortion counts as flat is unfolded here like a folded one).
   bool positive(int f) const {
     const Mobius c = Mobius::centring(z_[source_.F(f, 0)]);
     const Complex a = klein(c.apply(element(3 * f).apply(z_[source_.F(f, 1)])));
     const Complex b = klein(c.apply(element(3 * f + 2).inverse().apply(z_[source_.F(f, 2)])));
-    return cross(a, b) > 0;
+    return cross(a, b) > kFlatImageRelativeCross * std::max(std::norm(a), std::norm(b));
   }
 
   // Moves one corner of face f so that its whole star is positive; false
@@ -518,7 +521,7 @@ class DistortionUntangler {
     for (const Face& t : terms) {
       const Complex a = x[t.c[1]] - x[t.c[0]], b = x[t.c[2]] - x[t.c[0]];
       const double l2 = std::max({std::norm(a), std::norm(b), std::norm(b - a)});
-      folded += !(cross2(a, b) > 1e-10 * l2);
+      folded += !(cross2(a, b) > kFlatImageRelativeCross * l2);
     }
     for (const Complex& p : x) folded += !(std::abs(p) < 0.95);
     if (folded) {
