@@ -69,9 +69,6 @@ std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward
   return compose(forward.source_as_target_inverse, compose(reverse.chosen_class_words, reverse.source_as_target_inverse));
 }
 
-/// The chosen class's energy as the ranking compared it: the intrinsic
-/// Delaunay one when the map itself fell back to own-edge weights (the
-/// other candidates' energies are intrinsic).
 /// map(a, b, o) into `result`; false, with the error's text in `failure`,
 /// when that run fails. A cancellation is passed on, not read as a failed
 /// direction (Cancelled is an Error).
@@ -88,6 +85,9 @@ bool run_map(const MapFunction& map, const TriMesh& a, const TriMesh& b, const S
   }
 }
 
+/// The chosen class's energy as the ranking compared it: the intrinsic
+/// Delaunay one when the map itself fell back to own-edge weights (the
+/// other candidates' energies are intrinsic).
 double chosen_energy(const SurfaceMapResult& r) {
   if (std::isfinite(r.intrinsic_class_energy)) return r.intrinsic_class_energy;
   const int c = r.chosen_candidate;
