@@ -356,6 +356,16 @@ TEST(NewtonStarts, EveryCandidateRefusedAtTheOriginIsSolvedAgainAcceptingLongSta
   }
 }
 
+// Every candidate class solved at full resolution, one way, no class
+// search: the snapped start's tests compare the classes' own optima.
+SurfaceMapOptions every_class_solved_one_way() {
+  SurfaceMapOptions o;
+  o.homotopy.search.enabled = false;
+  o.homotopy.two_way = false;
+  o.homotopy.ranking_gap = -1;
+  return o;
+}
+
 // Issue 13 (HomotopySearchOptions::snapped_start): a source without a coarse
 // copy solved every class from the origin, where an edge starts as long as
 // its deck element moves the origin (the genus-11 plate: 41 .. 71 units,
@@ -368,10 +378,7 @@ TEST(NewtonStarts, EveryCandidateRefusedAtTheOriginIsSolvedAgainAcceptingLongSta
 // gauge: a wrong conjugator would change the class and its energy).
 TEST(NewtonStarts, RemeshedPlateStartsItsOverlayClassFromTheSnappedOverlay) {
   const TriMesh a = samples::cad_plate(2, 64, 0.1), b = samples::cad_plate(2, 48, 0.1);
-  SurfaceMapOptions o;
-  o.homotopy.search.enabled = false;
-  o.homotopy.two_way = false;
-  o.homotopy.ranking_gap = -1;
+  const SurfaceMapOptions o = every_class_solved_one_way();
   SurfaceMapOptions origin = o;
   origin.homotopy.search.snapped_start = false;
   const SurfaceMapResult m = surface_map(a, b, o), reference = surface_map(a, b, origin);
@@ -406,10 +413,7 @@ TEST(NewtonStarts, RemeshedPlateStartsItsOverlayClassFromTheSnappedOverlay) {
 // twisted class (hundreds of units of energy here) or none.
 TEST(NewtonStarts, RemeshedPlateListsTheSnappedOverlaysOwnClassAndChoosesIt) {
   const TriMesh a = samples::cad_plate(2, 64, 0.1), b = samples::cad_plate(2, 48, 0.1);
-  SurfaceMapOptions o;
-  o.homotopy.search.enabled = false;
-  o.homotopy.two_way = false;
-  o.homotopy.ranking_gap = -1;
+  const SurfaceMapOptions o = every_class_solved_one_way();
   const SurfaceMapResult m = surface_map(a, b, o);
   ASSERT_TRUE(m.converged);
   EXPECT_EQ(m.flipped_triangles, 0);
