@@ -174,7 +174,7 @@ class HyperbolicPipeline {
   void add_snapped_class();
   void ensure_snapper() {
     if (!snapper && options.homotopy.search.snapped_start)
-      snapper = std::make_unique<SnappedStartBuilder>(source, target, ut->layout, *deck_group, *polygon);
+      snapper = std::make_unique<SnappedStartBuilder>(source, target, ut->loops.mesh, ut->layout, *deck_group, *polygon);
   }
   /// A full-resolution solve of `edges` from the better start of the origin
   /// and the snapped overlay (ensure_snapper first; the overlay only with
@@ -523,12 +523,15 @@ void HyperbolicPipeline::add_snapped_class() {
   ensure_snapper();
   if (!snapper) return;
   auto note = [&](const std::string& s) { out.snapped_class_status = s; };
-  std::vector<WeightedEdge> tree_edges(ss.idt.edges.size());
-  for (size_t e = 0; e < ss.idt.edges.size(); ++e) {
-    tree_edges[e].i = ss.idt.edges[e].i;
-    tree_edges[e].j = ss.idt.edges[e].j;
+  const SnappedLoops loops = snapper->loop_images(sc, ss.sl.loops, ss.edge_word, ss.sl.word);
+  if (!loops.why.empty() && !loops.ok) {
+    note("not listed: " + loops.why);
+    return;
   }
-  const SnappedLoops loops = snapper->loop_images(tree_edges, sc, ss.sl.loops, ss.edge_word, ss.sl.word);
+  out.snapped_inconsistent_faces = loops.inconsistent_faces;
+  const std::string counts = std::to_string(loops.inconsistent_faces) + " of " + std::to_string(sc.num_faces()) +
+                             " source faces inconsistent; image paths up to " + std::to_string(loops.longest_path) +
+                             " target edges, " + std::to_string(loops.long_paths) + " of 2 or more";
   std::vector<Word> canonical_of_loop_letter;
   std::string why;
   if (!invert_canonical_generators(tcs.generators, ut->layout.word, tcs.letters, &canonical_of_loop_letter, &why)) {
@@ -542,8 +545,7 @@ void HyperbolicPipeline::add_snapped_class() {
   }
   space->reduce(theta);
   if (!space->is_isomorphism(theta)) {
-    note("not listed: not an isomorphism of the groups (" + std::to_string(loops.inconsistent_faces) +
-         " source faces inconsistent)");
+    note("not listed: not an isomorphism of the groups (" + counts + ")");
     return;
   }
   if (space->loop_image_length(theta) > space->max_image_letters()) {
@@ -558,8 +560,7 @@ void HyperbolicPipeline::add_snapped_class() {
         ClassSpace::same_fingerprint(space->fingerprint(hc.map), fp)) {
       hc.description += "  [also " + tag + "]";
       out.snapped_class = static_cast<int>(&hc - candidates.classes.data());
-      note("the same as class " + std::to_string(out.snapped_class) + " (" + std::to_string(loops.inconsistent_faces) +
-           " source faces inconsistent)");
+      note("the same as class " + std::to_string(out.snapped_class) + " (" + counts + ")");
       return;
     }
   HomotopyClass hc;
@@ -570,8 +571,7 @@ void HyperbolicPipeline::add_snapped_class() {
   hc.description = handles + "  [" + tag + "]";
   candidates.classes.push_back(std::move(hc));
   out.snapped_class = static_cast<int>(candidates.classes.size()) - 1;
-  note("listed as class " + std::to_string(out.snapped_class) + " (" + std::to_string(loops.inconsistent_faces) +
-       " source faces inconsistent)");
+  note("listed as class " + std::to_string(out.snapped_class) + " (" + counts + ")");
 }
 
 // Runs a solve of class k; a class whose solve fails numerically (deck

@@ -201,7 +201,10 @@ json homotopy_json(const SurfaceMapResult& r) {
   return {{"chosen", r.chosen_candidate},
           {"candidates", candidates},
           {"ranking", {{"coarse_solves", r.ranking_coarse_solves}, {"skipped", r.ranking_skipped}, {"status", r.ranking_status}, {"long_starts", r.long_starts}}},
-          {"snapped_class", {{"index", r.snapped_class}, {"status", r.snapped_class_status}}},
+          {"snapped_class",
+           {{"index", r.snapped_class},
+            {"status", r.snapped_class_status},
+            {"inconsistent_faces", r.snapped_inconsistent_faces}}},
           {"search", homotopy_search_json(r.homotopy_search)}};
 }
 

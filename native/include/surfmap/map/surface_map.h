@@ -788,9 +788,14 @@ struct SurfaceMapResult {
   /// followed through it in the target's deck group; -1: none), and what
   /// became of it ("listed as class k", "the same as class k", "not listed:
   /// why"), with the source faces around which the snapped edges' elements
-  /// do not close up.
+  /// do not close up and the longest image path of a source edge (target
+  /// edges). `snapped_inconsistent_faces`: that count (-1: not read). Each
+  /// edge's element is exact (the target's cut edges crossed by its image
+  /// path), so a face that does not close is one whose three image paths
+  /// bound no disk of the target.
   int snapped_class = -1;
   std::string snapped_class_status;
+  int snapped_inconsistent_faces = -1;
   /// Issue 13 (HomotopySearchOptions::start_edge_size): "" unless every
   /// candidate's solve was refused at the start-edge limit; then how many
   /// were solved again accepting long start edges, and the longest.

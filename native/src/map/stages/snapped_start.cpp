@@ -35,117 +35,93 @@ double distance_to_image(Complex z, const Mobius& m, Complex p) {
 
 }  // namespace
 
-SnappedStartBuilder::SnappedStartBuilder(const TriMesh& source, const TriMesh& target, const DiskLayout& layout,
-                                         const DeckGroup& group, const FundamentalPolygon& polygon)
-    : group_(group), polygon_(polygon) {
+SnappedStartBuilder::SnappedStartBuilder(const TriMesh& source, const TriMesh& target, const TriMesh& layout_mesh,
+                                         const DiskLayout& layout, const DeckGroup& group,
+                                         const FundamentalPolygon& polygon)
+    : group_(group), polygon_(polygon), layout_conn_(layout_mesh.F, layout_mesh.num_vertices()) {
   const int nt = target.num_vertices();
+  if (layout_mesh.num_vertices() < nt || layout.disk_faces.rows() != layout_mesh.num_faces())
+    layout_mismatch_ = "the layout's mesh has " + std::to_string(layout_mesh.num_faces()) + " faces, the layout " +
+                       std::to_string(layout.disk_faces.rows());
+  layout_points_.resize(layout_mesh.num_vertices());
+  for (int v = 0; v < layout_mesh.num_vertices(); ++v) layout_points_[v] = layout_mesh.V.row(v).transpose();
+  source_points_.resize(source.num_vertices());
+  for (int v = 0; v < source.num_vertices(); ++v) source_points_[v] = source.V.row(v).transpose();
   std::vector<Eigen::Vector3d> points(nt);
   for (int v = 0; v < nt; ++v) points[v] = target.V.row(v).transpose();
   const NearestPointIndex index(std::move(points));
   nearest_.resize(source.num_vertices());
   for (int v = 0; v < source.num_vertices(); ++v) nearest_[v] = index.nearest(source.V.row(v).transpose());
-  copies_.assign(nt, {});
-  for (size_t c = 0; c < layout.disk_positions.size(); ++c) {
-    const int v = layout.disk_vertex_origin[c];
-    if (v >= 0 && v < nt) copies_[v].push_back(layout.disk_positions[c]);
+  // Every cut halfedge lies on one side of the disk's boundary (the disk on
+  // its left); the side's letter is the deck map taking this copy of the
+  // edge onto the other (uniformize/layout.h), so crossing the edge out of
+  // the face of this halfedge moves to the sheet times that letter's inverse.
+  halfedge_letter_.assign(layout_conn_.num_halfedges(), 0);
+  const int sides = static_cast<int>(layout.side_start.size());
+  const int nb = static_cast<int>(layout.boundary_halfedges.size());
+  for (int s = 0; s < sides; ++s) {
+    const int end = s + 1 < sides ? layout.side_start[s + 1] : layout.side_start[0] + nb;
+    for (int i = layout.side_start[s]; i < end; ++i) halfedge_letter_[layout.boundary_halfedges[i % nb]] = layout.word[s];
   }
-  // The tiles around the polygon: two nearby points of the surface whose
-  // copies sit on either side of a side (one letter) or near a corner (the
-  // tiles there share only the corner: two letters reach most of them).
-  const int letters = static_cast<int>(group.side_pairings().size());
-  short_words_.push_back(Word{});
-  for (int a = -letters; a <= letters; ++a) {
-    if (a == 0) continue;
-    short_words_.push_back(Word{a});
-    for (int b = -letters; b <= letters; ++b)
-      if (b != 0 && b != -a) short_words_.push_back(Word{a, b});
+  // Each source vertex's home: a layout face around its target vertex, and
+  // that vertex's copy in the face (its point in the cut disk).
+  home_face_.resize(nearest_.size());
+  home_point_.resize(nearest_.size());
+  if (!layout_mismatch_.empty()) return;
+  for (size_t v = 0; v < nearest_.size(); ++v) {
+    const int h = layout_conn_.vertex_halfedge(nearest_[v]), f = Connectivity::face(h);
+    home_face_[v] = f;
+    home_point_[v] = layout.disk_positions[layout.disk_faces(f, h % 3)];
   }
-  for (const Word& w : short_words_) short_elements_.push_back(group.evaluate_side_word(w));
 }
 
 SnappedStartBuilder::Tree SnappedStartBuilder::tree(const std::vector<WeightedEdge>& edges) const {
   const int n = static_cast<int>(nearest_.size());
   Tree s;
-  s.z.assign(n, Complex(0.0));
+  s.z = home_point_;
   s.T.assign(n, Word{});
   s.R.assign(n, Word{});
+  s.tree_edge.assign(edges.size(), 0);
+  s.element.assign(edges.size(), Word{});
+  PathScratch scratch;
+  for (size_t e = 0; e < edges.size(); ++e) {
+    double length = 0;
+    int on_path = 0;
+    if (!path_element(edges[e].i, edges[e].j, scratch, &s.element[e], &length, &on_path, &s.why)) return s;
+  }
   std::vector<std::vector<int>> incident(n);
   for (size_t e = 0; e < edges.size(); ++e) {
     incident[edges[e].i].push_back(static_cast<int>(e));
     incident[edges[e].j].push_back(static_cast<int>(e));
   }
-  // Prim's tree over the edges, least ambiguous image edge first (its
-  // nearest lift's distance over the next nearest lift's: on the plates the
-  // collars' closed geodesics, 0.96 units at genus 2, are shorter than the
-  // longest image edges, 2.1, so a long edge's nearest lift can be the wrong
-  // sheet): vertex v reached from u across e takes the copy c of its nearest
-  // target vertex and the short element t minimising d(c, t z_u); with
-  // D_v = T_v D_root R_v (T the short elements, R the class's elements along
-  // the tree) e's element (solve_with_decks: D_i rho D_j^-1) is that short
-  // element once D_root is the conjugator below.
-  struct Reach {
-    double d;
-    int v, u, e;
-    size_t t;
-    Complex c;
-    bool operator<(const Reach& o) const { return d > o.d; }
-  };
+  // A breadth-first tree of the solver's edges: v reached from u across e
+  // has D_v = T_v D_root R_v with T_v = g T_u, g the element of (v, u) (the
+  // lift of u next to v's home copy is g of u's), and R the class's
+  // elements along the tree; e's element (solve_with_decks: D_i rho D_j^-1)
+  // is then the snapped map's once D_root is the conjugator below.
   std::vector<char> seen(n, 0);
-  std::vector<char>& tree_edge = s.tree_edge;
-  tree_edge.assign(edges.size(), 0);
-  std::vector<Word>& T = s.T;  // D_v = T_v D_root R_v: target-side and class-side products along the tree
-  std::vector<Word>& R = s.R;
-  std::priority_queue<Reach> heap;
-  auto offer = [&](int u) {
-    for (int e : incident[u]) {
-      const WeightedEdge& ed = edges[e];
-      const int v = ed.i == u ? ed.j : ed.i;
-      if (seen[v]) continue;
-      Reach r{std::numeric_limits<double>::infinity(), v, u, e, 0, Complex(0.0)};
-      double second = std::numeric_limits<double>::infinity();
-      bool have = false;
-      // Whether candidate (c, q) is the same lift of the vertex as the best so
-      // far (reached through another copy): not a rival.
-      auto same_lift = [&](const Complex& c, size_t q) {
-        return have && distance_to_image(r.c, short_elements_[r.t] * short_elements_[q].inverse(), c) < 1e-6;
-      };
-      for (const Complex& c : copies_[nearest_[v]])
-        for (size_t q = 0; q < short_elements_.size(); ++q) {
-          const double d = distance_to_image(c, short_elements_[q], s.z[u]);
-          if (d < r.d) {
-            if (!same_lift(c, q)) second = r.d;
-            r.d = d, r.t = q, r.c = c, have = true;
-          } else if (d < second && !same_lift(c, q)) {
-            second = d;
-          }
-        }
-      // Unambiguous first: the nearest lift against the next nearest one.
-      r.d = r.d / std::max(second, 1e-300);
-      if (!std::isfinite(r.d)) r.d = std::numeric_limits<double>::max();
-      heap.push(r);
-    }
-  };
   for (int root = 0; root < n; ++root) {
     if (seen[root]) continue;
     seen[root] = 1;
-    const auto& rc = copies_[nearest_[root]];
-    s.z[root] = rc.empty() ? Complex(0.0) : rc.front();
-    offer(root);
-    while (!heap.empty()) {
-      const Reach r = heap.top();
-      heap.pop();
-      if (seen[r.v]) continue;
-      seen[r.v] = 1;
-      tree_edge[r.e] = 1;
-      const WeightedEdge& ed = edges[r.e];
-      s.z[r.v] = r.c;
-      // u is the tail (ed.i): D_v = t D_u rho; u is the head: D_v = t D_u rho^-1.
-      const Word rho = ed.i == r.u ? ed.rho_word : inverse(ed.rho_word);
-      T[r.v] = group_.reduce(concat(short_words_[r.t], T[r.u]));
-      R[r.v] = group_.reduce(concat(R[r.u], rho));
-      offer(r.v);
+    std::vector<int> queue{root};
+    for (size_t q = 0; q < queue.size(); ++q) {
+      const int u = queue[q];
+      for (int e : incident[u]) {
+        const WeightedEdge& ed = edges[e];
+        const int v = ed.i == u ? ed.j : ed.i;
+        if (seen[v]) continue;
+        seen[v] = 1;
+        s.tree_edge[e] = 1;
+        // u is the tail (ed.i): D_v = g D_u rho with g = element(i, j)^-1; u is the head: g = element(i, j), rho^-1.
+        const Word g = ed.i == u ? inverse(s.element[e]) : s.element[e];
+        const Word rho = ed.i == u ? ed.rho_word : inverse(ed.rho_word);
+        s.T[v] = group_.reduce(concat(g, s.T[u]));
+        s.R[v] = group_.reduce(concat(s.R[u], rho));
+        queue.push_back(v);
+      }
     }
   }
+  s.ok = true;
   return s;
 }
 
@@ -153,7 +129,16 @@ SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& ed
   const int n = static_cast<int>(nearest_.size());
   Tree t = tree(edges);
   SnappedStart s;
-  s.z = std::move(t.z);
+  for (const WeightedEdge& ed : edges) {
+    const double d0 = ed.rho.displacement_of_origin();
+    s.origin_energy += ed.w * d0 * d0;
+    s.origin_longest_edge = std::max(s.origin_longest_edge, d0);
+  }
+  if (!t.ok) {  // no exact elements: never better than the origin
+    s.energy = s.longest_edge = std::numeric_limits<double>::infinity();
+    return s;
+  }
+  s.z = t.z;
   s.deck.assign(n, Word{});
   const std::vector<char>& tree_edge = t.tree_edge;
   const std::vector<Word>& T = t.T;
@@ -161,7 +146,7 @@ SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& ed
   // The root's deck: the conjugator D with D L_e D^-1 = M_e for the loops
   // closed by the edges off the tree (L_e = R_i rho R_j^-1 the class's
   // element of the loop, M_e = T_i^-1 s_e T_j the snapped map's, s_e the
-  // edge's nearest lift); D maps the axes of two such L onto those of their
+  // edge's exact element); D maps the axes of two such L onto those of their
   // M. Several pairs are tried; the deck of lowest start energy is kept
   // (the empty one included).
   struct Closing {
@@ -175,7 +160,7 @@ SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& ed
     Closing c;
     c.L = group_.reduce(concat({R[ed.i], ed.rho_word, inverse(R[ed.j])}));
     if (c.L.empty()) continue;
-    c.M = group_.reduce(concat({inverse(T[ed.i]), short_words_[nearest_lift(s.z[ed.i], s.z[ed.j])], T[ed.j]}));
+    c.M = group_.reduce(concat({inverse(T[ed.i]), t.element[e], T[ed.j]}));
     if (c.M.empty() || !listed.insert({c.L, c.M}).second) continue;
     closing.push_back(std::move(c));
   }
@@ -241,54 +226,133 @@ SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& ed
   // How far the class is from the snapped map: edges whose start element is
   // not their nearest lift (0 in the snapped overlay's own class when the
   // overlay is consistent).
-  for (const WeightedEdge& ed : edges) {
+  for (size_t e = 0; e < edges.size(); ++e) {
+    const WeightedEdge& ed = edges[e];
     const Word w = group_.reduce(concat({T[ed.i], root_deck, R[ed.i], ed.rho_word, inverse(R[ed.j]),
                                          inverse(root_deck), inverse(T[ed.j])}));
-    if (w != short_words_[nearest_lift(s.z[ed.i], s.z[ed.j])]) ++s.disagreeing_edges;
-  }
-  for (const WeightedEdge& ed : edges) {
-    const double d0 = ed.rho.displacement_of_origin();
-    s.origin_energy += ed.w * d0 * d0;
-    s.origin_longest_edge = std::max(s.origin_longest_edge, d0);
+    if (w != t.element[e]) ++s.disagreeing_edges;
   }
   if (!std::isfinite(s.energy)) s.energy = std::numeric_limits<double>::infinity();
   return s;
 }
 
-size_t SnappedStartBuilder::nearest_lift(Complex zi, Complex zj) const {
-  double best = std::numeric_limits<double>::infinity();
-  size_t bq = 0;
-  for (size_t q = 0; q < short_elements_.size(); ++q) {
-    const double d = distance_to_image(zi, short_elements_[q], zj);
-    if (d < best) best = d, bq = q;
+bool SnappedStartBuilder::walk_around(int p, int from, int to, Word& sheet) const {
+  int h0 = -1;
+  for (int k = 0; k < 3; ++k)
+    if (layout_conn_.tail(3 * from + k) == p) h0 = 3 * from + k;
+  if (h0 < 0) return false;
+  // Counter-clockwise: out of face(h) across prev(h); clockwise: across h.
+  Word ccw, cw;
+  const int valence = layout_conn_.valence(p);
+  int h = h0, steps_ccw = 0;
+  for (; Connectivity::face(h) != to; ++steps_ccw) {
+    if (steps_ccw > valence) return false;
+    const int out = Connectivity::prev(h);
+    if (halfedge_letter_[out] != 0) ccw.push_back(-halfedge_letter_[out]);
+    h = layout_conn_.rotate_ccw(h);
   }
-  return bq;
+  h = h0;
+  int steps_cw = 0;
+  for (; Connectivity::face(h) != to && steps_cw < steps_ccw; ++steps_cw) {
+    if (halfedge_letter_[h] != 0) cw.push_back(-halfedge_letter_[h]);
+    h = Connectivity::next(layout_conn_.twin(h));
+  }
+  const Word& walk = Connectivity::face(h) == to && steps_cw < steps_ccw ? cw : ccw;
+  sheet.insert(sheet.end(), walk.begin(), walk.end());
+  return true;
 }
 
-SnappedLoops SnappedStartBuilder::loop_images(const std::vector<WeightedEdge>& edges, const Connectivity& sc,
-                                              const std::vector<std::vector<int>>& loops,
+// Dijkstra on the layout's edges (3D chord lengths) from a to b, for the
+// source edges whose ends snap to target vertices that are not adjacent;
+// the scratch arrays are reset through `touched`.
+void SnappedStartBuilder::shortest_path(int a, int b, PathScratch& s) const {
+  const int nl = layout_conn_.num_vertices();
+  if (s.dist.empty()) s.dist.assign(nl, std::numeric_limits<double>::infinity()), s.via.assign(nl, -1);
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> heap;
+  s.dist[a] = 0, s.touched.push_back(a), heap.push({0.0, a});
+  while (!heap.empty()) {
+    const auto [d, u] = heap.top();
+    heap.pop();
+    if (d > s.dist[u]) continue;
+    if (u == b) break;
+    for (int h : layout_conn_.outgoing(u)) {
+      const int w = layout_conn_.head(h);
+      const double dw = d + (layout_points_[w] - layout_points_[u]).norm();
+      if (dw < s.dist[w]) {
+        if (!std::isfinite(s.dist[w])) s.touched.push_back(w);
+        s.dist[w] = dw, s.via[w] = h, heap.push({dw, w});
+      }
+    }
+  }
+  s.path.clear();
+  if (std::isfinite(s.dist[b]))
+    for (int v = b; v != a; v = layout_conn_.tail(s.via[v])) s.path.push_back(v);
+  s.path.push_back(a);
+  std::reverse(s.path.begin(), s.path.end());
+  for (int v : s.touched) s.dist[v] = std::numeric_limits<double>::infinity(), s.via[v] = -1;
+  s.touched.clear();
+}
+
+bool SnappedStartBuilder::path_element(int i, int j, PathScratch& scratch, Word* element, double* length,
+                                       int* edges_on_path, std::string* why) const {
+  if (!layout_mismatch_.empty()) return (*why = layout_mismatch_), false;
+  const int a = nearest_[i], b = nearest_[j];
+  std::vector<int>& path = scratch.path;
+  if (a == b) path.assign(1, a);
+  else if (layout_conn_.find_halfedge(a, b) >= 0) path = {a, b};
+  else shortest_path(a, b, scratch);
+  if (path.back() != b)
+    return (*why = "target vertices " + std::to_string(a) + " and " + std::to_string(b) + " are not connected"), false;
+  Word sheet;
+  int face = home_face_[i];
+  *length = 0;
+  for (size_t q = 0; q + 1 < path.size(); ++q) {
+    const int h = layout_conn_.find_halfedge(path[q], path[q + 1]);
+    if (!walk_around(path[q], face, Connectivity::face(h), sheet))
+      return (*why = "the walk around target vertex " + std::to_string(path[q]) + " lost its way"), false;
+    face = Connectivity::face(h);
+    *length += (layout_points_[path[q + 1]] - layout_points_[path[q]]).norm();
+  }
+  if (!walk_around(b, face, home_face_[j], sheet))
+    return (*why = "the walk around target vertex " + std::to_string(b) + " lost its way"), false;
+  *element = group_.reduce(sheet);
+  *edges_on_path = static_cast<int>(path.size()) - 1;
+  return true;
+}
+
+ExactEdgeElements SnappedStartBuilder::exact_edge_elements(const Connectivity& sc) const {
+  ExactEdgeElements out;
+  const int ne = sc.num_edges();
+  out.element.assign(ne, Word{});
+  out.doubt.assign(ne, 0.0);
+  PathScratch scratch;
+  for (int e = 0; e < ne; ++e) {
+    const int hs = sc.edge_halfedge(e), i = sc.tail(hs), j = sc.head(hs);
+    double length = 0;
+    int on_path = 0;
+    if (!path_element(i, j, scratch, &out.element[e], &length, &on_path, &out.why)) return out;
+    out.longest_path = std::max(out.longest_path, on_path);
+    out.long_paths += on_path >= 2;
+    out.doubt[e] = length / std::max((source_points_[j] - source_points_[i]).norm(), 1e-300);
+  }
+  out.ok = true;
+  return out;
+}
+
+SnappedLoops SnappedStartBuilder::loop_images(const Connectivity& sc, const std::vector<std::vector<int>>& loops,
                                               const std::vector<Word>& edge_word, const Word& loop_relator) const {
   SnappedLoops out;
-  const Tree t = tree(edges);
-  // Each source edge's element under the snapped map, in the tree's gauge:
-  // M = T_i^-1 s T_j with s its nearest lift (the empty word on tree edges).
-  const int ne = sc.num_edges(), nf = sc.num_faces();
-  std::vector<Word> edge_element(ne);
-  std::vector<double> ambiguity(ne, 0.0);  // nearest lift's distance over the next nearest's
-  for (int e = 0; e < ne; ++e) {
-    const int h = sc.edge_halfedge(e), i = sc.tail(h), j = sc.head(h);
-    const size_t q = nearest_lift(t.z[i], t.z[j]);
-    edge_element[e] = group_.reduce(concat({inverse(t.T[i]), short_words_[q], t.T[j]}));
-    const double best = distance_to_image(t.z[i], short_elements_[q], t.z[j]);
-    const Complex image = short_elements_[q].apply(t.z[j]);
-    double second = std::numeric_limits<double>::infinity();
-    for (size_t r = 0; r < short_elements_.size(); ++r) {
-      if (distance_to_image(image, short_elements_[r], t.z[j]) < 1e-6) continue;  // the same lift
-      second = std::min(second, distance_to_image(t.z[i], short_elements_[r], t.z[j]));
-    }
-    ambiguity[e] = best / std::max(second, 1e-300);
-    if (!std::isfinite(ambiguity[e])) ambiguity[e] = std::numeric_limits<double>::max();
+  ExactEdgeElements exact = exact_edge_elements(sc);
+  if (!exact.ok) {
+    out.why = exact.why;
+    return out;
   }
+  out.longest_path = exact.longest_path;
+  out.long_paths = exact.long_paths;
+  const int ne = sc.num_edges(), nf = sc.num_faces();
+  std::vector<Word>& edge_element = exact.element;
+  const std::vector<double>& doubt = exact.doubt;
   auto element_of = [&](int h) {
     const int e = sc.edge(h);
     return sc.edge_halfedge(e) == h ? edge_element[e] : inverse(edge_element[e]);
@@ -298,46 +362,46 @@ SnappedLoops SnappedStartBuilder::loop_images(const std::vector<WeightedEdge>& e
   for (int f = 0; f < nf; ++f)
     if (!group_.reduce(concat({element_of(3 * f), element_of(3 * f + 1), element_of(3 * f + 2)})).empty())
       ++out.inconsistent_faces;
-  // Made consistent: the most ambiguous edges (a spanning tree of the dual
-  // graph, Kruskal by ambiguity, most ambiguous first) are derived from the
-  // others by closing the faces, leaves of that tree first; the rest (#V - 1
-  // + 2g edges, the least ambiguous) keep their nearest lifts. On the
-  // genus-11 plate onto itself 43 faces did not close (long image edges
-  // across the short collars), and the loops read through them did not
-  // give an isomorphism.
-  std::vector<int> by_ambiguity(ne);
-  for (int e = 0; e < ne; ++e) by_ambiguity[e] = e;
-  std::stable_sort(by_ambiguity.begin(), by_ambiguity.end(), [&](int x, int y) { return ambiguity[x] > ambiguity[y]; });
-  std::vector<int> component(nf);
-  for (int f = 0; f < nf; ++f) component[f] = f;
-  std::function<int(int)> find = [&](int f) { return component[f] == f ? f : component[f] = find(component[f]); };
-  std::vector<std::vector<int>> dual_tree(nf);  // per face: its dual tree halfedges
-  for (int e : by_ambiguity) {
-    const int h = sc.edge_halfedge(e), g = sc.twin(h);
-    if (g < 0) continue;
-    const int a = find(h / 3), b = find(g / 3);
-    if (a == b) continue;
-    component[a] = b;
-    dual_tree[h / 3].push_back(h);
-    dual_tree[g / 3].push_back(g);
-  }
-  std::vector<int> order{0}, parent_halfedge(nf, -1);
-  std::vector<char> reached(nf, 0);
-  reached[0] = 1;
-  for (size_t q = 0; q < order.size(); ++q)
-    for (int h : dual_tree[order[q]]) {
-      const int g = sc.twin(h), f = g / 3;
-      if (reached[f]) continue;
-      reached[f] = 1;
-      parent_halfedge[f] = g;  // f's halfedge towards its parent
-      order.push_back(f);
+  // Made consistent when some face does not close: the most doubtful edges
+  // (a spanning tree of the dual graph, Kruskal by doubt, most doubtful
+  // first) are derived from the others by closing the faces, leaves of that
+  // tree first; the rest (#V - 1 + 2g edges, the least doubtful) keep their
+  // paths' elements.
+  if (out.inconsistent_faces > 0) {
+    std::vector<int> by_doubt(ne);
+    for (int e = 0; e < ne; ++e) by_doubt[e] = e;
+    std::stable_sort(by_doubt.begin(), by_doubt.end(), [&](int x, int y) { return doubt[x] > doubt[y]; });
+    std::vector<int> component(nf);
+    for (int f = 0; f < nf; ++f) component[f] = f;
+    std::function<int(int)> find = [&](int f) { return component[f] == f ? f : component[f] = find(component[f]); };
+    std::vector<std::vector<int>> dual_tree(nf);  // per face: its dual tree halfedges
+    for (int e : by_doubt) {
+      const int h = sc.edge_halfedge(e), g = sc.twin(h);
+      if (g < 0) continue;
+      const int a = find(h / 3), b = find(g / 3);
+      if (a == b) continue;
+      component[a] = b;
+      dual_tree[h / 3].push_back(h);
+      dual_tree[g / 3].push_back(g);
     }
-  for (size_t q = order.size(); q-- > 1;) {
-    const int f = order[q], hd = parent_halfedge[f];
-    const int hb = 3 * f + (hd % 3 + 1) % 3, hc = 3 * f + (hd % 3 + 2) % 3;
-    Word derived = group_.reduce(inverse(concat(element_of(hb), element_of(hc))));
-    const int e = sc.edge(hd);
-    edge_element[e] = sc.edge_halfedge(e) == hd ? derived : inverse(derived);
+    std::vector<int> order{0}, parent_halfedge(nf, -1);
+    std::vector<char> reached(nf, 0);
+    reached[0] = 1;
+    for (size_t q = 0; q < order.size(); ++q)
+      for (int h : dual_tree[order[q]]) {
+        const int g = sc.twin(h), f = g / 3;
+        if (reached[f]) continue;
+        reached[f] = 1;
+        parent_halfedge[f] = g;  // f's halfedge towards its parent
+        order.push_back(f);
+      }
+    for (size_t q = order.size(); q-- > 1;) {
+      const int f = order[q], hd = parent_halfedge[f];
+      const int hb = 3 * f + (hd % 3 + 1) % 3, hc = 3 * f + (hd % 3 + 2) % 3;
+      Word derived = group_.reduce(inverse(concat(element_of(hb), element_of(hc))));
+      const int e = sc.edge(hd);
+      edge_element[e] = sc.edge_halfedge(e) == hd ? derived : inverse(derived);
+    }
   }
   const int letters = static_cast<int>(loops.size());
   out.letter_side_words.assign(letters, Word{});

@@ -49,18 +49,43 @@ struct SnappedStart {
   int disagreeing_edges = 0;
 };
 
+/// The snapped map's deck element of every source edge, read off the
+/// target's triangulation (combinatorial, no point is compared): source
+/// vertex v sits at the copy of its nearest target vertex t(v) in a face
+/// f(v) around t(v); the image of edge (i, j) is a shortest path of target
+/// edges from t(i) to t(j) (none when they coincide, one edge when they are
+/// adjacent), walked face to face from f(i) to f(j) around each path vertex;
+/// each crossing of a cut edge multiplies the sheet by that edge's side
+/// pairing (inverse). The element of (i, j) is the sheet the walk ends in:
+/// the lift of j next to i's copy is element(j's copy), as the nearest lift
+/// was. Two walks around one vertex differ by a loop around it, which is
+/// trivial in the group: the element depends only on the path.
+struct ExactEdgeElements {
+  bool ok = false;
+  std::string why;            ///< when not ok
+  std::vector<Word> element;  ///< #E source edges, edge_halfedge's tail -> head, reduced side words
+  /// Per source edge, how doubtful its image path is: the path's 3D length
+  /// over the source edge's (0 when both ends snap to one target vertex).
+  std::vector<double> doubt;
+  int longest_path = 0;  ///< target edges on the longest image path
+  int long_paths = 0;    ///< source edges whose image path has 2 or more target edges
+};
+
 /// The snapped overlay's own class (issue 13): the deck elements the
-/// snapped map gives the source's loops (each loop's edges' nearest-lift
-/// elements multiplied along it, the tree's gauge cancelling on a closed
-/// path), per source loop letter, as side words of the target's group.
+/// snapped map gives the source's loops (each loop's edges' exact elements,
+/// ExactEdgeElements, multiplied along it), per source loop letter, as side
+/// words of the target's group.
 struct SnappedLoops {
   bool ok = false;
   std::string why;  ///< when not ok
   std::vector<Word> letter_side_words;  ///< #loops: the image of source loop letter k+1
-  /// Source faces around which the edges' elements do not close up (the
-  /// snapped map is then not one map of the surfaces there: a long image
-  /// edge took the wrong sheet); the loops' images are read anyway.
+  /// Source faces around which the edges' elements do not close up: the
+  /// image paths of the face's three edges bound no disk in the target (the
+  /// snapped map is not one map of the surfaces there). The most doubtful
+  /// edges are then derived from the others by closing the faces, and the
+  /// loops' images read anyway.
   int inconsistent_faces = 0;
+  int longest_path = 0, long_paths = 0;  ///< ExactEdgeElements's
 };
 
 /// The snapped class as theta (source canonical generator j -> word in the
@@ -91,39 +116,60 @@ bool invert_canonical_generators(const std::vector<Word>& canonical_generators, 
 
 class SnappedStartBuilder {
  public:
-  /// `layout`/`group`: the target's hyperbolic cut disk and deck group; the
-  /// first target.num_vertices() vertices of the layout's mesh are the
-  /// target's own (as every uniformized target keeps them).
-  SnappedStartBuilder(const TriMesh& source, const TriMesh& target, const DiskLayout& layout, const DeckGroup& group,
-                      const FundamentalPolygon& polygon);
+  /// `layout`/`group`: the target's hyperbolic cut disk and deck group;
+  /// `layout_mesh`: the mesh it lays out (SystemOfLoops::mesh of its loops),
+  /// whose first target.num_vertices() vertices are the target's own (as
+  /// every uniformized target keeps them).
+  SnappedStartBuilder(const TriMesh& source, const TriMesh& target, const TriMesh& layout_mesh, const DiskLayout& layout,
+                      const DeckGroup& group, const FundamentalPolygon& polygon);
   /// The start for the solver edges `edges` of one class (#V = source vertices).
   SnappedStart operator()(const std::vector<WeightedEdge>& edges) const;
+  /// Every source edge's exact element (`sc`: Connectivity(source.F)).
+  ExactEdgeElements exact_edge_elements(const Connectivity& sc) const;
   /// The snapped overlay's own class, read along the source's loops
   /// (`loops`: closed vertex paths of the source, SystemOfLoops::loops;
   /// `edge_word`: #E each source edge's element in the loop letters;
-  /// `loop_relator`: the loops' boundary word). `edges`: any class's solver
-  /// edges (only their ends are read: the tree).
-  SnappedLoops loop_images(const std::vector<WeightedEdge>& edges, const Connectivity& sc,
-                           const std::vector<std::vector<int>>& loops, const std::vector<Word>& edge_word,
-                           const Word& loop_relator) const;
+  /// `loop_relator`: the loops' boundary word).
+  SnappedLoops loop_images(const Connectivity& sc, const std::vector<std::vector<int>>& loops,
+                           const std::vector<Word>& edge_word, const Word& loop_relator) const;
 
  private:
-  /// The snapped positions and the target-side tree products T (and the
-  /// class-side ones R of `edges`' elements) along the Prim tree.
+  /// The snapped positions (each source vertex's home copy), every solver
+  /// edge's exact element, and the target-side tree products T (and the
+  /// class-side ones R of `edges`' elements) along a breadth-first tree.
   struct Tree {
+    bool ok = false;
+    std::string why;
     std::vector<std::complex<double>> z;
-    std::vector<Word> T, R;
+    std::vector<Word> T, R, element;
     std::vector<char> tree_edge;
   };
   Tree tree(const std::vector<WeightedEdge>& edges) const;
-  /// The short element q (index into short_words_) with q(zj) nearest zi.
-  size_t nearest_lift(std::complex<double> zi, std::complex<double> zj) const;
+  /// Reused arrays of the shortest-path searches.
+  struct PathScratch {
+    std::vector<double> dist;
+    std::vector<int> via, touched, path;
+  };
+  /// A shortest path of layout edges (3D chords) from a to b into s.path
+  /// (just {a} when b is not reached).
+  void shortest_path(int a, int b, PathScratch& s) const;
+  /// The exact element of source vertices (i, j) (ExactEdgeElements), the
+  /// image path's 3D length and its number of target edges.
+  bool path_element(int i, int j, PathScratch& scratch, Word* element, double* length, int* edges_on_path,
+                    std::string* why) const;
+  /// Appends to `sheet` the cut-edge crossings of the shorter walk around
+  /// layout vertex p from face `from` to face `to` (both around p).
+  bool walk_around(int p, int from, int to, Word& sheet) const;
   const DeckGroup& group_;
   const FundamentalPolygon& polygon_;
-  std::vector<int> nearest_;                              ///< #V source: target vertex
-  std::vector<std::vector<std::complex<double>>> copies_;  ///< per target vertex: its disk copies
-  std::vector<Word> short_words_;                          ///< side words of length <= 2 (and the empty word)
-  std::vector<hyperbolic::Mobius> short_elements_;
+  Connectivity layout_conn_;              ///< of the layout's mesh
+  std::vector<Eigen::Vector3d> layout_points_;  ///< its vertices in 3D (shortest image paths)
+  std::vector<Eigen::Vector3d> source_points_;  ///< the source's vertices (the paths' doubt)
+  std::vector<int> halfedge_letter_;      ///< per layout halfedge: its side's letter (0: not cut)
+  std::string layout_mismatch_;           ///< not empty: the layout's mesh is not its cut disk's (no exact elements)
+  std::vector<int> nearest_;                   ///< #V source: target vertex
+  std::vector<int> home_face_;                 ///< #V source: a layout face around its target vertex
+  std::vector<std::complex<double>> home_point_;  ///< #V source: that vertex's copy in the face (cut disk)
 };
 
 }  // namespace surfmap::detail
