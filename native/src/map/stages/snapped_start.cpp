@@ -224,7 +224,7 @@ SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& ed
   }
   for (int v = 0; v < n; ++v) s.deck[v] = group_.reduce(concat({T[v], root_deck, R[v]}));
   // How far the class is from the snapped map: edges whose start element is
-  // not their nearest lift (0 in the snapped overlay's own class when the
+  // not their exact element (0 in the snapped overlay's own class when the
   // overlay is consistent).
   for (size_t e = 0; e < edges.size(); ++e) {
     const WeightedEdge& ed = edges[e];

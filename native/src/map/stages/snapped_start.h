@@ -1,22 +1,23 @@
 #pragma once
 // A start for the harmonic solve of one class of a genus >= 2 map that
 // needs no development of the source in one chart (issue 13): every source
-// vertex at the target vertex nearest to it in 3D (its position in the
-// target's cut disk), the sheets chosen along a breadth-first tree of the
-// solver's edges so that every tree edge's element is the shortest side
-// word joining the two copies. For a pair that overlays (a remeshed copy, a
-// plate onto another triangulation of itself) the start is then the overlay
-// map itself, and in the overlay's class every edge starts a few target
-// edges long instead of as long as its deck element moves the origin (the
-// genus-11 plate: 41 .. 70 units from the origin, where Newton stalled at
-// 800 times the optimum energy). The tree fixes every vertex's deck up to
-// one element at the root: the conjugator D with D L D^-1 = M for the loops
-// the edges off the tree close (L the class's element of the loop, M the
-// snapped map's), found from the fixed points of two such pairs and read
-// as a side word by reducing D(0) into the polygon. When the class is not
-// the snapped map's (no such D: its lengths differ), the edges off the tree
-// come out long and the origin start (lower energy) is kept. Internal to
-// src/map/hyperbolic_map.cpp.
+// vertex at the target vertex nearest to it in 3D (its copy in one face of
+// the target's cut disk), the sheets chosen along a breadth-first tree of
+// the solver's edges so that every tree edge's element is the snapped
+// map's, read exactly off the target's triangulation (ExactEdgeElements:
+// the cut edges crossed by the edge's image path). For a pair that overlays
+// (a remeshed copy, a plate onto another triangulation of itself) the start
+// is then the overlay map itself, and in the overlay's class every edge
+// starts a few target edges long instead of as long as its deck element
+// moves the origin (the genus-11 plate: 41 .. 70 units from the origin,
+// where Newton stalled at 800 times the optimum energy). The tree fixes
+// every vertex's deck up to one element at the root: the conjugator D with
+// D L D^-1 = M for the loops the edges off the tree close (L the class's
+// element of the loop, M the snapped map's), found from the fixed points of
+// two such pairs and read as a side word by reducing D(0) into the polygon.
+// When the class is not the snapped map's (no such D: its lengths differ),
+// the edges off the tree come out long and the origin start (lower energy)
+// is kept. Internal to src/map/hyperbolic_map.cpp.
 #include <complex>
 #include <string>
 #include <vector>
@@ -43,9 +44,9 @@ struct SnappedStart {
   /// the solve, HyperbolicHarmonicOptions::max_start_edge_size, must not
   /// refuse a class the origin start would solve).
   bool better() const { return energy < origin_energy && longest_edge <= origin_longest_edge; }
-  /// Solver edges whose start element is not their nearest lift (the
-  /// snapped map's edge): 0 in the snapped overlay's own class when the
-  /// overlay is consistent.
+  /// Solver edges whose start element is not the snapped map's (their exact
+  /// element): 0 in the snapped overlay's own class when the overlay is
+  /// consistent.
   int disagreeing_edges = 0;
 };
 
@@ -57,9 +58,15 @@ struct SnappedStart {
 /// adjacent), walked face to face from f(i) to f(j) around each path vertex;
 /// each crossing of a cut edge multiplies the sheet by that edge's side
 /// pairing (inverse). The element of (i, j) is the sheet the walk ends in:
-/// the lift of j next to i's copy is element(j's copy), as the nearest lift
-/// was. Two walks around one vertex differ by a loop around it, which is
-/// trivial in the group: the element depends only on the path.
+/// the lift of j next to i's copy is element(j's copy). Two walks around
+/// one vertex differ by a loop around it, which is trivial in the group:
+/// the element depends only on the path. (It replaced the nearest lift, the
+/// short side word whose image of j's copy is nearest i's, which took the
+/// wrong sheet across the genus-11 plate's short collars.) The path is a
+/// shortest one in 3D chords of the layout's mesh, which on the flip path is
+/// the flipped T': an edge of the input flipped away has no edge of its own
+/// there, and its path can go round a collar (the genus-3 plate onto
+/// itself: 2 of 808 source faces do not close).
 struct ExactEdgeElements {
   bool ok = false;
   std::string why;            ///< when not ok
