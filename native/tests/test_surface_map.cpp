@@ -1298,6 +1298,8 @@ TEST(SurfaceMapHandles, EveryClassFoldedMapsTheOtherDirectionsClassCarried) {
   EXPECT_NE(m2.two_way_status.find("the cuts at source vertex " + std::to_string(a.num_vertices() / 2)), std::string::npos)
       << m2.two_way_status;
   EXPECT_TRUE(m2.class_cuts_status.empty()) << m2.class_cuts_status;  // not chosen in the automatic cuts first
+  // The same class as the default map (what the automatic cuts chose before).
+  EXPECT_NEAR(m2.energy_ratio, free_map.energy_ratio, 1e-6 * free_map.energy_ratio);
   // Every attempt failing: false, with every reason.
   const detail::MapFunction all_failing = [&](const TriMesh&, const TriMesh&, const SurfaceMapOptions&) -> SurfaceMapResult {
     throw SolveError("no candidate class gave a bijective map (test)");
