@@ -658,7 +658,7 @@ TEST(SphericalMap, ThinFlipQuadsKeepTheBendsOffTheNewEdge) {
   // face 17 lies in two input faces") and re-placing vertices left 1 flipped
   // triangle. Now every crossing and bend agrees with the point carried back
   // to 1.2e-8 of the diagonal (not to round-off as on 8 x 12: the same
-  // figure whatever the new-edge tolerance, 1e-10 or 1e-7, so the thin
+  // figure whatever the new-edge bound, 1e-10, 1e-7 or 1e-5, so the thin
   // quads' conditioning, not a rule), and the map is delivered on the common
   // subdivision.
   const TriMesh a = samples::jitter(samples::bent_tapered_sphere(6, 8, 10.0), 0.25, 2);
