@@ -646,6 +646,37 @@ TEST(SphericalMap, SourceWithInvertedInputChordsMapsOnTheCommonSubdivision) {
   }
 }
 
+TEST(SphericalMap, ThinFlipQuadsKeepTheBendsOffTheNewEdge) {
+  // The 42-vertex jittered bent 10:1 sphere (`surfmap generate bent-sphere
+  // --rings 6 --segments 8 --stretch 10 --jitter 0.25 --seed 2`): its flip
+  // log has a Ptolemy flip (502) whose quad is so thin in its chart (the new
+  // corner's vector is -2.03 v_k + 1.8e-7 v_s + 1.4e-6 v_t) that every point
+  // passed the old "bend back on the new edge" test, |σ| <= 1e-12 |μ| |h|:
+  // five bends inside the quad became crossings of k–m at the wrong places,
+  // 21 crossings cut later from their pieces were off by up to 1.35 of the
+  // 20.5 diagonal, the common subdivision was refused ("a piece of intrinsic
+  // face 17 lies in two input faces") and re-placing vertices left 1 flipped
+  // triangle. Now every crossing and bend agrees with the point carried back
+  // to 1.2e-8 of the diagonal (not to round-off as on 8 x 12: the same
+  // figure whatever the new-edge bound, 1e-10, 1e-7 or 1e-5, so the thin
+  // quads' conditioning, not a rule), and the map is delivered on the common
+  // subdivision.
+  const TriMesh a = samples::jitter(samples::bent_tapered_sphere(6, 8, 10.0), 0.25, 2);
+  ASSERT_EQ(a.num_vertices(), 42);
+  const SphericalUniformization u = spherical_uniformization(a);
+  ASSERT_TRUE(u.converged) << u.message;
+  const SphericalSubdivision sub = spherical_common_subdivision(u, a.F);
+  int checked = 0;
+  EXPECT_LT(worst_subdivision_point(a, u, sub, &checked), 1e-7 * bbox_diagonal(a));
+  EXPECT_EQ(checked, 2 * static_cast<int>(sub.crossings.size()) - sub.bends);
+  EXPECT_GT(sub.bends, 0);
+  const SurfaceMapResult m = surface_map(a, samples::sphere(2));
+  expect_converged_with_nothing_flipped_or_replaced(m);
+  EXPECT_EQ(m.source_subdivision.status, "common subdivision");
+  EXPECT_GT(m.source_subdivision.inverted_faces, 0);
+  EXPECT_NEAR(m.source_subdivision.sphere_cover, 1.0, 1e-6);
+}
+
 TEST(SphericalMap, CoarseBentSpheresMapBothWaysOnTheCommonSubdivision) {
   // Moderately bent, tapered 10:1 spheres at a coarse, jittered meshing
   // (`surfmap generate bent-sphere --rings 6 --segments 12 --stretch 10

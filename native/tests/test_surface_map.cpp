@@ -1284,6 +1284,9 @@ TEST(SurfaceMapHandles, EveryClassFoldedMapsTheOtherDirectionsClassCarried) {
     if (s.num_vertices() == b.num_vertices()) throw SolveError("no candidate class gave a bijective map (test)");
     base_vertices.push_back(o.loops.source_base_vertex);
     EXPECT_FALSE(o.homotopy.two_way);
+    // The class searched in those cuts directly: the automatic cuts are the
+    // run that just folded in every class.
+    EXPECT_TRUE(o.loops.search_in_given_cuts);
     return surface_map(s, t, o);
   };
   SurfaceMapResult m2;
@@ -1294,6 +1297,9 @@ TEST(SurfaceMapHandles, EveryClassFoldedMapsTheOtherDirectionsClassCarried) {
   EXPECT_NE(m2.two_way_status.find("the other direction failed too: no candidate class"), std::string::npos) << m2.two_way_status;
   EXPECT_NE(m2.two_way_status.find("the cuts at source vertex " + std::to_string(a.num_vertices() / 2)), std::string::npos)
       << m2.two_way_status;
+  EXPECT_TRUE(m2.class_cuts_status.empty()) << m2.class_cuts_status;  // not chosen in the automatic cuts first
+  // The same class as the default map (what the automatic cuts chose before).
+  EXPECT_NEAR(m2.energy_ratio, free_map.energy_ratio, 1e-6 * free_map.energy_ratio);
   // Every attempt failing: false, with every reason.
   const detail::MapFunction all_failing = [&](const TriMesh&, const TriMesh&, const SurfaceMapOptions&) -> SurfaceMapResult {
     throw SolveError("no candidate class gave a bijective map (test)");

@@ -45,10 +45,13 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
 // solver's tolerance; when they do not, or the loops do not carry (a coarse
 // source whose edges span many target edges), the automatic cuts' result is
 // returned: the same class and map, written in the automatic cuts' letters.
-// (The genus is checked by the caller, only when these options hold.)
+// Not when LoopOptions::search_in_given_cuts asks for the given cuts' own
+// search (the two-way run's last resort, which has just run the automatic
+// cuts). (The genus is checked by the caller, only when these options hold.)
 bool chooses_class_in_automatic_cuts(const SurfaceMapOptions& options) {
   const HomotopyOptions& h = options.homotopy;
-  return (options.loops.source_base_vertex >= 0 || options.loops.target_base_vertex >= 0) && h.class_index < 0 &&
+  return (options.loops.source_base_vertex >= 0 || options.loops.target_base_vertex >= 0) &&
+         !options.loops.search_in_given_cuts && h.class_index < 0 &&
          h.source_images.size() == 0 && h.reverse_class.empty() && !h.images_only && !h.reverse_class_only;
 }
 

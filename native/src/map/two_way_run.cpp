@@ -463,6 +463,8 @@ bool rescue_by_another_cut(const TriMesh& source, const TriMesh& target, const S
   SurfaceMapOptions bo = options;
   bo.homotopy.two_way = false;
   bo.loops.source_base_vertex = source.num_vertices() / 2;
+  // (The automatic cuts are the run that just folded in every class.)
+  bo.loops.search_in_given_cuts = true;
   SurfaceMapResult again;
   std::string failure;
   const std::string at = "the cuts at source vertex " + std::to_string(bo.loops.source_base_vertex);

@@ -364,10 +364,19 @@ struct LoopOptions {
   /// and then solved alone in the cuts at the given ones (the source's loops
   /// at the given base vertex carried by the chosen map, the class's words
   /// in those cuts' letters), so a given base vertex changes how the class
-  /// is written, not which class is chosen (issue 14; docs/
+  /// is written, not which class is chosen (unless search_in_given_cuts;
+  /// issue 14; docs/
   /// handle_classes.md "The class does not depend on the base vertex";
   /// SurfaceMapResult::class_cuts_status says what was done).
   int source_base_vertex = -1, target_base_vertex = -1;
+  /// With a base vertex given: search the class in the cuts at the given
+  /// base vertices themselves, not in the automatic ones first (default
+  /// false: chosen in the automatic cuts, as above). For a caller that has
+  /// already run the automatic cuts and wants another cut's search, e.g. the
+  /// last resort of the two-way run after every class folded (docs/
+  /// handle_classes.md "Every class folded"): the automatic cuts would only
+  /// fail again, one full one-way run for nothing.
+  bool search_in_given_cuts = false;
 };
 
 /// The uniformization of the target (and, for genus 0, of both surfaces)
@@ -881,7 +890,7 @@ struct SurfaceMapResult {
   double two_way_time_s = 0;
   /// Genus >= 2 with a given base vertex (LoopOptions): how the class was
   /// chosen in the automatic cuts and carried to the given ones ("" when no
-  /// base vertex was given), and the seconds of the run in the automatic
+  /// base vertex was given or LoopOptions::search_in_given_cuts), and the seconds of the run in the automatic
   /// cuts (included in total_time).
   std::string class_cuts_status;
   double class_cuts_time_s = 0;

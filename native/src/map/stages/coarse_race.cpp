@@ -58,10 +58,10 @@ class Race {
     return true;
   }
 
-  void start(int q) {
+  // A task's thread waits for its first permit.
+  void start() {
     std::unique_lock<std::mutex> lock(mutex_);
     acquire(lock);
-    (void)q;
   }
 
   // A task's thread is done (converged, failed, stopped or thrown).
@@ -151,7 +151,7 @@ std::vector<CoarseRaceOutcome> coarse_race(int n, const CoarseRaceOptions& optio
       // loops in this new thread would start teams again (concurrency.h;
       // measured: 3-12% more CPU for the 4.9k bench pair with --threads 1).
       const SingleThreadedBlas single_threaded_blas;
-      race.start(q);
+      race.start();
       try {
         solve(q, [&race, q](int, double energy, double gradient) { return race.report(q, energy, gradient); });
       } catch (const Cancelled&) {
