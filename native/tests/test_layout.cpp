@@ -409,5 +409,36 @@ TEST(Layout, MinimaxCentreIsAnIsometryOfTheKarcherLayout) {
   EXPECT_LE(m.layout_radius, 1.05 * diameter / 2 + 0.1);
 }
 
+// LayoutOptions::threads: the per-face checks run on a second thread next to
+// the charts; the layout is the same, field for field, and a wrong metric is
+// caught by them with either thread count (a perturbed length opens the
+// holonomy around its endpoints).
+TEST(Layout, SecondThreadGivesTheSameLayout) {
+  const TriMesh mesh = samples::n_hole_torus(2, 32, true);
+  const Pipeline p = run(mesh, Background::Hyperbolic);
+  const Connectivity conn(p.loops.mesh.F);
+  Eigen::VectorXd wrong = p.flow.edge_lengths;
+  wrong[conn.num_edges() / 3] *= 1.01;
+  const Eigen::VectorXd* right = &p.flow.edge_lengths;
+  for (const Eigen::VectorXd* lengths : {right, static_cast<const Eigen::VectorXd*>(&wrong)}) {
+    LayoutOptions one, two;
+    two.threads = 2;
+    const DiskLayout a = layout_disk(conn, *lengths, Background::Hyperbolic, p.loops, one);
+    const DiskLayout b = layout_disk(conn, *lengths, Background::Hyperbolic, p.loops, two);
+    EXPECT_EQ(a.max_vertex_holonomy, b.max_vertex_holonomy);
+    EXPECT_EQ(a.num_flipped_local, b.num_flipped_local);
+    EXPECT_EQ(a.num_flipped, b.num_flipped);
+    EXPECT_EQ(a.max_interior_mismatch, b.max_interior_mismatch);
+    EXPECT_EQ(a.product_relation_error, b.product_relation_error);
+    EXPECT_TRUE(a.corners == b.corners);
+    if (lengths == &wrong) {
+      EXPECT_GT(b.max_vertex_holonomy, 1e-4);
+    } else {
+      EXPECT_LT(b.max_vertex_holonomy, 1e-8);
+      EXPECT_EQ(b.num_flipped_local, 0);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace surfmap

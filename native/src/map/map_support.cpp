@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <limits>
+#include <optional>
 
 #include "surfmap/error.h"
 #include "surfmap/map/initial_map.h"
@@ -12,6 +14,7 @@
 #include "surfmap/uniformize/carried_loops.h"
 #include "surfmap/uniformize/intrinsic_loops.h"
 #include "surfmap/uniformize/simplicial_flips.h"
+#include "concurrency.h"
 
 namespace surfmap::detail {
 namespace {
@@ -133,15 +136,22 @@ void require_single_chart(const DiskLayout& layout, Background background, const
                    std::to_string(layout.num_flipped_above_roundoff) + " taller than their round-off flipped");
 }
 
-/// The target's loops on its own connectivity, carried onto T' (ClassLoops).
-/// Throws SolveError when the carried generators do not present the group of
-/// T' (the canonical relation, unimodular homology): that would be a bug.
-std::shared_ptr<const ClassLoops> class_loops_on_input(const TriMesh& target, const Connectivity& tc,
-                                                       const RicciFlowResult& flow, const SystemOfLoops& tprime_loops,
-                                                       const DiskLayout& layout, const SystemOfLoopsOptions& lo,
-                                                       const SystemOfLoops* own_loops) {
-  auto cl = std::make_shared<ClassLoops>(own_class_loops(target, tc, lo, own_loops));
-  const CarriedLoops carried = carry_loops_through_flips(target, cl->loops, flow, tprime_loops);
+/// The target's own loops (own_class_loops) and their words on T'
+/// (carry_loops_through_flips): combinatorial, they need neither the metric
+/// nor the layout, so the pipeline builds them next to the flow and the
+/// layout (intrinsic_target).
+struct OwnLoopsOnTPrime {
+  ClassLoops cl;
+  CarriedLoops carried;
+};
+
+/// The target's loops on its own connectivity, carried onto T' (ClassLoops),
+/// from their words on T' and the layout's word. Throws SolveError when the
+/// carried generators do not present the group of T' (the canonical
+/// relation, unimodular homology): that would be a bug.
+std::shared_ptr<const ClassLoops> class_loops_on_input(OwnLoopsOnTPrime own, const DiskLayout& layout) {
+  auto cl = std::make_shared<ClassLoops>(std::move(own.cl));
+  const CarriedLoops& carried = own.carried;
   cl->flips_on_loops = carried.flips_on_loops;
   cl->longest_edge_path = carried.longest_edge_path;
   const DehnReducer reduce(layout.word);
@@ -164,6 +174,18 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
                                    const std::atomic<bool>* stop, const std::string& mesh,
                                    const SystemOfLoops* own_loops) {
   UniformizedTarget t;
+  const bool hyperbolic = background == Background::Hyperbolic;
+  const int threads = pipeline_threads(options.threads);
+  // Issue 19: the handle classes' loops (the target's own, carried onto T')
+  // are combinatorial: with two threads the own loops are built next to the
+  // flow and carried through its flips next to the layout, off the stage's
+  // critical path (~0.2 s of CPU on a 56k target). Errors surface at get(),
+  // where the sequential path's would. Each future is declared after
+  // everything its task reads, so that an exception waits for the task
+  // before those go.
+  std::future<ClassLoops> own_future;
+  if (hyperbolic && threads > 1)
+    own_future = std::async(std::launch::async, [&] { return own_class_loops(target, tc, lo, own_loops); });
   RicciFlowOptions fo;
   fo.tolerance = options.uniformization.tolerance;
   fo.intrinsic_delaunay = true;
@@ -178,12 +200,28 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   // shortest in the metric when the 3D loops' layout fails or crowds
   // |z| = 1, where the forward location misplaced whole regions).
   const LoopMetric which = options.uniformization.loops;
-  const bool hyperbolic = background == Background::Hyperbolic;
   const bool in_metric = hyperbolic && which == LoopMetric::Metric;
   IntrinsicLoops il = intrinsic_loops(target, flow, background, lo, in_metric);
+  const std::string loop_metric = in_metric ? "metric" : "embedding";
+  // The own loops' words on T' read T''s loops and faces only.
+  auto carry = [&](ClassLoops cl, const SystemOfLoops& tprime_loops) {
+    OwnLoopsOnTPrime r{std::move(cl), CarriedLoops{}};
+    r.carried = carry_loops_through_flips(target, r.cl.loops, flow, tprime_loops);
+    return r;
+  };
+  std::future<OwnLoopsOnTPrime> carried_future;
+  if (own_future.valid())
+    carried_future = std::async(std::launch::async, [&, tprime = il.loops]() mutable {
+      return carry(own_future.get(), tprime);
+    });
+  LayoutOptions layout_options;
+  layout_options.threads = threads;
   LoopsLayout laid = lay_out_loops(target, flow, background, lo, std::move(il.loops), std::move(il.lengths),
-                                   in_metric ? "metric" : "embedding", hyperbolic && which == LoopMetric::Automatic,
-                                   LayoutOptions{}, UniformizeOptions{}.crowded_roundoff);
+                                   loop_metric, hyperbolic && which == LoopMetric::Automatic, layout_options,
+                                   UniformizeOptions{}.crowded_roundoff);
+  // (lay_out_loops keeps T''s loops unless their layout failed or crowded
+  // |z| = 1: then they are the loops shortest in the metric.)
+  const bool same_tprime_loops = laid.loop_metric == loop_metric;
   t.loops = std::move(laid.loops);
   t.layout = std::move(laid.layout);
   t.loop_metric = std::move(laid.loop_metric);
@@ -200,9 +238,26 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   // The handle classes read the loops of the user's own connectivity, as on
   // the fixed path (docs/uniformization.md "Handle classes on the flip
   // path"); when carrying them fails the classes read the loops of T'.
-  if (background == Background::Hyperbolic) {
+  if (hyperbolic) {
     try {
-      t.class_loops = class_loops_on_input(target, tc, flow, t.loops, t.layout, lo, own_loops);
+      OwnLoopsOnTPrime own;
+      if (carried_future.valid() && same_tprime_loops) {
+        own = carried_future.get();
+      } else {
+        // No task, or it carried the loops on T''s loops the layout did not
+        // keep: carried here on the kept ones.
+        std::optional<ClassLoops> cl;
+        if (carried_future.valid()) {
+          try {
+            cl = std::move(carried_future.get().cl);
+          } catch (const Error&) {
+            // (built and carried again below, which reports the error)
+          }
+        }
+        if (!cl) cl = own_class_loops(target, tc, lo, own_loops);
+        own = carry(std::move(*cl), t.loops);
+      }
+      t.class_loops = class_loops_on_input(std::move(own), t.layout);
       t.class_loops_status = "the target's own loops, carried through " + std::to_string(t.class_loops->flips_on_loops) +
                              " of the flips";
     } catch (const Error& e) {

@@ -63,6 +63,11 @@ struct LayoutOptions {
   /// lay_out_loops asks for it when the Karcher-centred layout is held by
   /// per-face charts only.
   bool minimax_centre = false;
+  /// Threads the layout may run on (default 1). With 2 or more, the checks
+  /// in per-face charts (DiskLayout::max_vertex_holonomy, num_flipped_local),
+  /// which read no chart, run on a second thread next to the charts and their
+  /// re-centring; the layout is the same with any number.
+  int threads = 1;
 };
 
 struct DiskLayout {
