@@ -1037,8 +1037,10 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     both ways, of a Dehn twist about a curve parallel to each target boundary loop (_collar_twist;
     the candidates' 'twist', e.g. 'loop 1: -1'), ranked by energy with the rest. Such a twist T_c
     doubles to T_c T_sigma(c)^-1, and sigma(c) is isotopic to c in the double (both parallel to the
-    fixed loop), so it is the doubles' own class: the twisted starts come back to the untwisted map
-    (measured, docs/open_surfaces.md "Twists about the boundary loops"); kept to check that.
+    fixed loop), so it is the doubles' own class: on the pants onto its subdivision every twisted
+    start comes back to the untwisted map; on the artery onto its bend the starts twisted about
+    the branch loops end 0.2% higher, less symmetric, and the energy keeps the untwisted one
+    (docs/open_surfaces.md "Twists about the boundary loops"). Kept to check that.
 
     Returns the result dict of surfmap.surface_map with 'forward' / 'inverse' (per input vertex
     face, barycentric, position on the other input mesh; boundary onto boundary), 'genus' g,
