@@ -82,6 +82,7 @@ void register_map(CLI::App& app) {
     bool no_snapped_start = !defaults.homotopy.search.snapped_start;  // HomotopySearchOptions::snapped_start
     bool homotopy_both_signs = defaults.homotopy.flat_both_signs;    // HomotopyOptions::flat_both_signs
     bool no_flat_overlay = !defaults.homotopy.flat_overlay;          // HomotopyOptions::flat_overlay off
+    bool landmarks_may_fold = defaults.landmarks_may_fold;          // SurfaceMapOptions::landmarks_may_fold
     bool boundary_swap = false;          // open surfaces (map_open.h)
     std::vector<int> boundary_pairing;  // open surfaces (map_open.h)
   };
@@ -153,6 +154,9 @@ void register_map(CLI::App& app) {
   cmd->add_flag("--no-snapped-start", a->no_snapped_start,
                 "Genus >= 2, sources without a coarse copy: every class from the origin, never from the snapped 3D "
                 "overlay (docs/robustness.md \"High genus\")");
+  cmd->add_flag("--landmarks-may-fold", a->landmarks_may_fold,
+                "Genus >= 1 with --landmarks: hold them by plain pins and keep the map where it folds (for its homotopy "
+                "class; flipped_triangles counts the folds) instead of an error when they cannot be held bijectively");
   cmd->add_flag("--compare-directions", a->compare_directions,
                 "Genus >= 2: always map the other way too and say whether the two directions' classes are inverse "
                 "(report: quality.reverse_inverse; about 3x the time)");
@@ -237,6 +241,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.cheap_direction_check = !a->no_cheap_direction_check;
     opt.threads = a->threads;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
+    opt.landmarks_may_fold = a->landmarks_may_fold;
     // One line per stage and percent (the relaxation reports every few sweeps).
     std::string last_line;
     if (!a->quiet)

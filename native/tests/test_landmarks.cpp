@@ -200,6 +200,30 @@ TEST(LandmarksFlat, FarLandmarksStayBijectiveByInteriorPointContinuation) {
   EXPECT_GE(both.final_energy, free.final_energy * (1 - 1e-12));
 }
 
+TEST(LandmarksFlat, FoldsAllowedReturnsThePlainPinsFolded) {
+  // SurfaceMapOptions::landmarks_may_fold on the pair above: the plain pins'
+  // folded map is returned as it is (its energy the pinned infimum the
+  // continuation stays above), the landmarks exactly on their targets.
+  const TriMesh a = samples::torus_of_revolution(1.0, 0.45, 64, 34);
+  const TriMesh b = samples::torus_of_revolution(1.4, 0.5, 64, 34, 2);
+  const SurfaceMapResult free = surface_map(a, b);
+  const int s = 34 * 30 + 5;
+  const std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
+  ASSERT_GT(path.size(), 21u);
+  SurfaceMapOptions o;
+  o.landmarks = {{0, nearest_vertex(b, free.forward[0].position)}, {s, path[20]}};
+  o.homotopy.flat_both_signs = false;
+  o.landmarks_may_fold = true;
+  const SurfaceMapResult m = surface_map(a, b, o);
+  EXPECT_EQ(m.landmark_method, "pinned (folds allowed)");
+  EXPECT_GT(m.flipped_triangles + m.degenerate_triangles, 0);
+  EXPECT_EQ(m.source_weights.rfind("intrinsic Delaunay cotangent", 0), 0u) << m.source_weights;
+  EXPECT_NEAR(m.final_energy, m.candidates[m.chosen_candidate].landmark_lower_bound, 1e-9 * m.final_energy);
+  EXPECT_GT(m.final_energy, free.final_energy * 1.01);
+  for (const auto& [v, t] : o.landmarks)
+    EXPECT_LT((m.forward[v].position - b.V.row(t).transpose()).norm(), 1e-9) << v << " -> " << t;
+}
+
 TEST(LandmarksFlat, BothSignsAddTheHalfTurnsAndHoldTheLandmarksNoWorse) {
   // HomotopyOptions::flat_both_signs (default with landmarks): each class M also as -M (the half turn
   // of the flat torus). Two landmarks: the two signs hold them with different
@@ -261,6 +285,37 @@ TEST(LandmarksHyperbolic, FarLandmarkStaysBijectiveByBarrierContinuation) {
   EXPECT_EQ(m.landmark_rings[0], 0);
   EXPECT_GT(m.final_energy, free.final_energy * 1.001);
   EXPECT_LT(m.final_energy, free.final_energy * 1.1);
+}
+
+TEST(LandmarksHyperbolic, FoldsAllowedReturnsThePlainPinsFolded) {
+  // SurfaceMapOptions::landmarks_may_fold (for callers that want the class,
+  // the open surfaces' capped maps): the same far landmark as above, held by
+  // its plain pin alone, the folded map returned (not the continuation's
+  // bijective one, not an error): the landmark exactly on its target, folds
+  // counted and kept (no repair, no own-edge weights), an energy above the
+  // free optimum's, the class's held energy the returned map's.
+  const TriMesh a = samples::n_hole_torus(2, 20, true);
+  const TriMesh b = samples::vase(24, true);
+  const SurfaceMapResult free = surface_map(a, b);
+  const int s = a.num_vertices() / 3;
+  const std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
+  ASSERT_GT(path.size(), 21u);
+  SurfaceMapOptions o;
+  o.landmarks = {{s, path[20]}};
+  o.homotopy.class_index = free.chosen_candidate;
+  o.landmarks_may_fold = true;
+  const SurfaceMapResult m = surface_map(a, b, o);
+  EXPECT_TRUE(m.converged);
+  EXPECT_EQ(m.landmark_method, "pinned (folds allowed)");
+  EXPECT_EQ(m.landmark_solves, 1);
+  EXPECT_GT(m.flipped_triangles, 0);
+  EXPECT_EQ(m.source_weights.rfind("intrinsic Delaunay cotangent", 0), 0u) << m.source_weights;
+  EXPECT_LT((m.forward[s].position - b.V.row(path[20]).transpose()).norm(), 1e-9);
+  EXPECT_LT(m.max_landmark_error, 1e-9);
+  EXPECT_GT(m.final_energy, free.final_energy * 1.001);
+  EXPECT_DOUBLE_EQ(m.candidates[m.chosen_candidate].landmark_energy, m.final_energy);
+  ASSERT_EQ(static_cast<int>(m.forward.size()), a.num_vertices());
+  ASSERT_EQ(static_cast<int>(m.inverse.size()), b.num_vertices());
 }
 
 TEST(LandmarksHyperbolic, SwappedLandmarksAreHeldBijectively) {

@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include <cmath>
+#include <complex>
 #include <functional>
 #include <tuple>
 
@@ -361,6 +362,66 @@ TEST(OpenSurfaces, AnnulusLoopsCanBeSwapped) {
   const OpenMapResult plain = open_surface_map(s, ts, t, tt);
   for (int v : ts.boundary_loops[0])
     EXPECT_NEAR(plain.map.forward[v].position.z(), t.V(tt.boundary_loops[0][0], 2), 1e-9);
+}
+
+TEST(OpenSurfaces, AnnulusTwistIsChosenByEnergyAndATwistedStartIsUntwisted) {
+  // A planar annulus 1 < |z| < 2 onto a remeshed copy of itself (other ring
+  // and sector counts): the Dehn twist about the core is ranked by the
+  // morph's energy. From twist 0 the search stays at 0 (both neighbours
+  // cost more) and the map is the identity; from a start twisted by 2 turns
+  // it steps down 2 -> 1 -> 0 and returns the same map; a twist forced
+  // without the search keeps boundary on boundary but moves the middle ring
+  // by a half turn, at a higher energy.
+  const TriMesh s = planar_annulus(64, 16, 2.0), t = planar_annulus(80, 21, 2.0);
+  const OpenSurfaceTopology ts = open_surface_topology(s), tt = open_surface_topology(t);
+  auto mean_offset = [&](const OpenMapResult& r) {
+    double sum = 0;
+    for (int i = 0; i < s.num_vertices(); ++i) sum += (r.map.forward[i].position - s.V.row(i).transpose()).norm();
+    return sum / s.num_vertices() / 4.0;  // over the diagonal (4)
+  };
+  const OpenMapResult plain = open_surface_map(s, ts, t, tt);
+  EXPECT_EQ(plain.twist, 0);
+  ASSERT_EQ(plain.twist_energies.size(), 3u);  // 0, then +1 and -1
+  EXPECT_EQ(plain.twist_energies[0].first, 0);
+  EXPECT_GT(plain.twist_energies[1].second, 2 * plain.twist_energies[0].second);
+  EXPECT_GT(plain.twist_energies[2].second, 2 * plain.twist_energies[0].second);
+  EXPECT_NEAR(plain.map.final_energy, plain.twist_energies[0].second, 1e-9 * plain.map.final_energy);
+  EXPECT_LT(mean_offset(plain), 0.005);
+  EXPECT_EQ(plain.map.flipped_triangles, 0);
+
+  OpenMapOptions twisted;
+  twisted.twist = 2;
+  const OpenMapResult back = open_surface_map(s, ts, t, tt, twisted);
+  EXPECT_EQ(back.twist, 0);
+  std::vector<int> visited;
+  for (const auto& [k, e] : back.twist_energies) visited.push_back(k);
+  EXPECT_EQ(visited, (std::vector<int>{2, 3, 1, 2, 0, 1, -1}));
+  EXPECT_LT(back.twist_energies[2].second, back.twist_energies[0].second);   // 1 below 2
+  EXPECT_LT(back.twist_energies[4].second, back.twist_energies[2].second);   // 0 below 1
+  for (int i = 0; i < s.num_vertices(); ++i)
+    EXPECT_LT((back.map.forward[i].position - plain.map.forward[i].position).norm(), 1e-9) << i;
+
+  OpenMapOptions forced;
+  forced.twist = 1;
+  forced.twist_search = false;
+  const OpenMapResult one = open_surface_map(s, ts, t, tt, forced);
+  EXPECT_EQ(one.twist, 1);
+  EXPECT_TRUE(one.twist_energies.empty());
+  EXPECT_GT(one.map.final_energy, 2 * plain.map.final_energy);
+  for (const auto& loop : ts.boundary_loops)
+    for (int v : loop) {
+      const double r = one.map.forward[v].position.head<2>().norm(), r0 = s.V.row(v).head<2>().norm();
+      EXPECT_NEAR(r, r0, 0.01) << v;  // each loop onto its own circle (chords of the other mesh)
+    }
+  // The loops turn alike (a whole turn apart), the middle ring half a turn
+  // against them (whatever the shift the alignment chose).
+  auto turn = [&](int v) {
+    const Eigen::Vector3d p = one.map.forward[v].position;
+    return std::polar(1.0, std::atan2(p.y(), p.x()) - std::atan2(s.V(v, 1), s.V(v, 0)));
+  };
+  const int inner = 3, outer = 16 * 64 + 3, mid = 8 * 64 + 3;  // rings 0, 16 (the loops), 8
+  EXPECT_LT(std::abs(turn(inner) - turn(outer)), 0.1);
+  EXPECT_GT(std::abs(turn(mid) - turn(inner)), 1.9);
 }
 
 TEST(OpenSurfaces, EarTrianglesAreDegenerateNotFlipped) {

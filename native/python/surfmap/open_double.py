@@ -283,16 +283,35 @@ def _capped_map(S, T, pairing, options, mirrored=False, tie_tolerance=1e-6, land
         cands = hom.get("candidates", [])
         chosen = int(hom.get("chosen", -1))
         desc = cands[chosen].get("description", "") if 0 <= chosen < len(cands) else ""
+        if extra.get("landmarks_may_fold") and int(r.get("flipped_triangles", 0)):
+            desc += f" [cap centres held by plain pins: {int(r['flipped_triangles'])} folded faces]"
         return (np.asarray(fw["position"])[:S.n2], np.asarray(fw["face"])[:S.n2], Vt[:T.n2], desc), cands, chosen
 
-    first, cands, chosen = solve()
+    # The capped map is used for its class only (_symmetric_images carries it to the doubles, whose
+    # own solve gives the map). The class with the cap centres held is defined whether or not its
+    # held map folds (each centre at the lift nearest its free image), so when the centres cannot
+    # be held bijectively in any class (a cap centre far from where the free map puts it: the
+    # double torus with a hole onto the eight with a hole folded 575-643 faces carrying 201
+    # vertices along, in all 15 / 14 classes), the classes are ranked by their plain pins' energy
+    # and the chosen one's folded images are taken (landmarks_may_fold;
+    # docs/open_surfaces.md "Capped maps that fold").
+    fold = {}
+    try:
+        first, cands, chosen = solve()
+    except _core.Cancelled:
+        raise
+    except _core.SolveError as e:
+        if "landmark" not in str(e):
+            raise
+        fold = {"landmarks_may_fold": True}
+        first, cands, chosen = solve(**fold)
     out = [first]
     if 0 <= chosen < len(cands):
         held = cands[chosen].get("landmark_energy", float("nan"))
         for k, c in enumerate(cands):
             bound = c.get("landmark_lower_bound", float("nan"))
             if k != chosen and np.isfinite(held) and np.isfinite(bound) and bound <= held * (1 + tie_tolerance):
-                out.append(solve(homotopy=k)[0])
+                out.append(solve(homotopy=k, **fold)[0])
     return out
 
 
@@ -429,7 +448,68 @@ def _rough_maps(S, T, pairing, options, mirrored, landmarks, classes_per_pairing
                 "Möbius map of the capped spheres" + cut_failed)
 
 
-def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz, landmarks=None):
+def _collar_twist(T, loop, turns, rings=None):
+    """A discrete Dehn twist of the target's split half about a curve parallel to boundary loop
+    `loop`, `turns` full turns (sign: the direction along the loop), as a map of its vertices
+    (n2,) -> vertex. The collar: the vertices within `rings` edge rings of the loop (default a third
+    of the ring depth of the whole half, at least 3); a vertex at depth d whose nearest loop vertex
+    (its foot, carried along the breadth-first tree) sits at arc position s in [0, 1) goes to the
+    vertex of the same depth whose foot is nearest s + turns (1 - d / rings): the loop itself turns
+    by whole turns (fixed), the collar's edge by none, so the map is the identity outside the collar
+    and on the boundary. The collar ends at the first ring that with the next is not one connected
+    band (a branch point: past it a ring runs around several loops, and turning it would not be a twist
+    about a curve parallel to this one). Not a bijection of the vertices (it only has to carry
+    loops)."""
+    V, F, L = T.V2, T.F2, T.loops[loop]
+    n = len(V)
+    nbr = [[] for _ in range(n)]
+    for a, b in np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]):
+        nbr[a].append(b)
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(V[L] - V[np.roll(L, -1)], axis=1))])
+    depth = -np.ones(n, dtype=np.int64)
+    foot = np.zeros(n)
+    depth[L] = 0
+    foot[L] = arc[:-1] / arc[-1]
+    frontier = list(L)
+    while frontier:
+        nxt = []
+        for u in frontier:
+            for w in nbr[u]:
+                if depth[w] < 0:
+                    depth[w], foot[w] = depth[u] + 1, foot[u]
+                    nxt.append(w)
+        frontier = nxt
+    if rings is None:
+        rings = max(3, int(depth.max()) // 3)
+        for d in range(1, rings):
+            # The band of rings d and d + 1 (a ring alone need not be connected by its own edges).
+            ring = set(np.flatnonzero((depth == d) | (depth == d + 1)).tolist())
+            if not ring:
+                rings = d
+                break
+            seen, stack = set(), [next(iter(ring))]
+            while stack:
+                u = stack.pop()
+                if u in seen:
+                    continue
+                seen.add(u)
+                stack.extend(w for w in nbr[u] if w in ring and w not in seen)
+            if len(seen) < len(ring):
+                rings = max(d, 2)
+                break
+    tau = np.arange(n)
+    for d in range(1, rings):
+        ring = np.flatnonzero(depth == d)
+        if len(ring) == 0:
+            continue
+        want = (foot[ring] + turns * (1 - d / rings)) % 1.0
+        gap = np.abs(want[:, None] - foot[ring][None, :])
+        gap = np.minimum(gap, 1 - gap)
+        tau[ring] = ring[np.argmin(gap, axis=1)]
+    return tau
+
+
+def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz, landmarks=None, twist=None):
     """Per vertex of the source's double a target double vertex position: the capped map's image
     moved onto the nearest target vertex (source boundary vertices onto the nearest vertex of
     the paired target loop; images inside a target cap onto that cap's loop), the mirror
@@ -438,7 +518,8 @@ def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz
     reversed_orientation: the capped map was onto the target's mirror image (orientation
     reversing); its double composed with the target's reflection (the source's half onto the
     target's mirror sheet) preserves the doubles' orientation, as the closed pipeline needs.
-    pos, face: the capped map's images; target_xyz: the target's split vertices in their frame."""
+    pos, face: the capped map's images; target_xyz: the target's split vertices in their frame.
+    twist: {target loop: turns}, the images composed with _collar_twist (a twisted start)."""
     n_target_half_faces = len(T.F2)
     DT = T.D
     target_vertex = np.empty(S.n2, dtype=np.int64)
@@ -458,6 +539,9 @@ def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz
         sel = np.flatnonzero(np.isin(s_loop, src_loop) | ((s_loop < 0) & (cap == i)))
         if len(sel):
             target_vertex[sel] = loop[_nearest(pos[sel], target_xyz[loop])]
+    for loop, turns in (twist or {}).items():
+        # A rough map twisted about target loop `loop` (surface_map_open's boundary_twists).
+        target_vertex = _collar_twist(T, loop, turns)[target_vertex]
     if landmarks is not None and len(landmarks):
         target_vertex[landmarks[:, 0]] = landmarks[:, 1]   # landmarks onto their target vertices
     sheet1 = DT["V"][target_vertex]
@@ -922,7 +1006,7 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
 
 def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),
                      max_pairings=6, symmetry_tolerance=0.05, tie_tolerance=1e-3, progress=None, landmarks=None,
-                     classes_per_pairing=2,
+                     classes_per_pairing=2, boundary_twists=0,
                      untangle=True, **options):
     """Map between two open surfaces of equal (g, b) through their doubles (module docstring).
 
@@ -949,6 +1033,14 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     landmarks: (k, 2) (source vertex, target vertex) pairs of the input meshes, held by the
     capped map and, each with its mirror pair, by the doubles' map (_landmark_pairs); a boundary
     vertex only onto a boundary vertex. 'open' then has 'landmarks' and 'landmark_error'.
+    boundary_twists (default 0): also solve each rough map composed with 1..boundary_twists turns,
+    both ways, of a Dehn twist about a curve parallel to each target boundary loop (_collar_twist;
+    the candidates' 'twist', e.g. 'loop 1: -1'), ranked by energy with the rest. Such a twist T_c
+    doubles to T_c T_sigma(c)^-1, and sigma(c) is isotopic to c in the double (both parallel to the
+    fixed loop), so it is the doubles' own class: on the pants onto its subdivision every twisted
+    start comes back to the untwisted map; on the artery onto its bend the starts twisted about
+    the branch loops end 0.2% higher, less symmetric, and the energy keeps the untwisted one
+    (docs/open_surfaces.md "Twists about the boundary loops"). Kept to check that.
 
     Returns the result dict of surfmap.surface_map with 'forward' / 'inverse' (per input vertex
     face, barycentric, position on the other input mesh; boundary onto boundary), 'genus' g,
@@ -1001,14 +1093,17 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
             candidates.append({"pairing": list(pairing), "orientation": o, "energy": float("inf"),
                                "status": f"failed: the capped map: {e}"})
             continue
-        for pos, face, target_xyz, capped_class in roughs:
+        twists = [None] + [{j: s * k} for j in range(T.b) for k in range(1, int(boundary_twists) + 1) for s in (1, -1)]
+        for (pos, face, target_xyz, capped_class), twist in itertools.product(roughs, twists):
             cand = {"pairing": list(pairing), "orientation": o, "rough_map": rough_method}
             if score is not None:
                 cand["pairing_score"] = score
             if capped_class:
                 cand["chain" if rough_method == "cut disks" else "capped_class"] = capped_class
+            if twist:
+                cand["twist"] = ", ".join(f"loop {j}: {t:+d}" for j, t in twist.items())
             try:
-                images = _symmetric_images(S, T, pairing, rev, pos, face, target_xyz, landmarks=lm)
+                images = _symmetric_images(S, T, pairing, rev, pos, face, target_xyz, landmarks=lm, twist=twist)
                 r = _double_map(S, T, images, options, _landmark_pairs(S, T, lm, rev))
                 err, sheet = _symmetry(r, S, T, rev)
                 cand.update(energy=float(r["energy"]["final"]) / 2, symmetry_error=err, same_sheet=sheet,

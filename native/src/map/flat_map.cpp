@@ -385,7 +385,9 @@ bool record_flat_map(const FlatInputs& in, const IntrinsicDelaunayResult& idt, c
   // guarantee an embedding; count its image triangles too.
   out.intrinsic_flipped_triangles =
       z_extended ? flat_intrinsic_flipped(idt, *z_extended, t_intrinsic) : flat_intrinsic_flipped(idt, z, t_intrinsic);
-  if (retry_with_own_weights(in.options, own_weights, out)) return false;
+  // (landmarks_may_fold: the held map's folds are the caller's to keep.)
+  if (!(in.options.landmarks_may_fold && !in.options.landmarks.empty()) && retry_with_own_weights(in.options, own_weights, out))
+    return false;
   in.stage_done("quality", 0.75);
 
   // Location (stages/flat_location.h); the initial map is the uniform Tutte one.
@@ -442,6 +444,7 @@ bool flat_pass(const FlatInputs& in, bool own_weights, bool first_pass, SurfaceM
   lm_problem.lm_source = lm_source, lm_problem.lm_target = lm_target, lm_problem.w1 = tgt.A, lm_problem.w2 = tgt.B;
   lm_problem.free_optimum = [&](const std::vector<Complex>& t) { return solver.solve(t).first; };
   lm_problem.pinned = pinned_cot.get();
+  lm_problem.folds_allowed = options.landmarks_may_fold;
   lm_problem.image_corners = [&](const std::vector<Complex>& te, const std::vector<Complex>& zz) {
     return flat_image_corners(in.source, in.sc, te, zz);
   };

@@ -1603,7 +1603,8 @@ void HyperbolicPipeline::build_solver_data(const std::vector<int>& classes) {
 
 // Landmarks in class k from its free optimum `free_k` (landmarks.h): plain
 // pins, else the barrier continuation, else carried neighbourhoods; the
-// returned map is bijective or this throws. Folds are the source faces
+// returned map is bijective or this throws (options.landmarks_may_fold: the
+// plain pins alone, folded or not). Folds are the source faces
 // hyperbolic_distortion leaves without a dilatation (flipped or degenerate;
 // chart elements from reduced side words when the solver kept them); the
 // continuation's face elements are the free optimum's.
@@ -1625,6 +1626,14 @@ HyperbolicHarmonicResult HyperbolicPipeline::hold_in_class(int k, const Hyperbol
       if (!std::isfinite(q.per_face[f])) bad.push_back(f);
     return bad;
   };
+  if (options.landmarks_may_fold) {
+    HyperbolicHarmonicResult pins =
+        hold_hyperbolic_landmarks(source.num_vertices(), data[k].edges, deck_group->side_pairings(),
+                                  deck_group->side_pairings(), free_k, lm_source, lm_target, lm_target_vertex, o, relax, ro,
+                                  nullptr, nullptr, &hold);
+    if (!bad_faces(pins).empty()) hold.method = "pinned (folds allowed)";
+    return pins;
+  }
   std::vector<Mobius> face_elements(3 * source.num_faces());
   for (int h = 0; h < 3 * source.num_faces(); ++h)
     face_elements[h] = effective_element(free_k, h, sc, *deck_group, halfedge_word, halfedge_rho);
@@ -1808,7 +1817,10 @@ bool map_class(HyperbolicPipeline& p) {
                             std::to_string(out.flipped_triangles) + " and flattens " +
                             std::to_string(out.degenerate_triangles) + " of the source's faces (" +
                             std::to_string(out.intrinsic_flipped_triangles) + " intrinsic triangles flipped)";
-  if ((out.flipped_triangles || out.degenerate_triangles) && !p.own_weights &&
+  // landmarks_may_fold: the held map's folds are the caller's to keep (no
+  // repair, no own-edge weights).
+  const bool keep_folds = options.landmarks_may_fold && !options.landmarks.empty();
+  if ((out.flipped_triangles || out.degenerate_triangles) && !p.own_weights && !keep_folds &&
       options.solve.source_weights == SourceWeights::Automatic && options.solve.local_fold_repair) {
     // Issue 14: repair the few folded faces where they are (stages/
     // fold_repair.h) instead of giving every face the own-edge weights.
@@ -1843,7 +1855,7 @@ bool map_class(HyperbolicPipeline& p) {
       p.own_weights_reason = folds + ": repaired locally, " + moved + ", the rest held";
     }
   }
-  if (retry_with_own_weights(options, p.own_weights, out)) {
+  if (!keep_folds && retry_with_own_weights(options, p.own_weights, out)) {
     // The classes' energies so far are the intrinsic ones (solved classes).
     p.intrinsic_energy.assign(p.ncand, std::numeric_limits<double>::quiet_NaN());
     for (int q = 0; q < p.ncand; ++q)

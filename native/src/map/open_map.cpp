@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <functional>
 #include <cmath>
 #include <set>
 
@@ -174,21 +175,43 @@ Mobius three_points(cd z1, cd z2, cd z3) { return {z2 - z3, -z1 * (z2 - z3), z2 
 // The map between the canonical domains and its inverse. Disk:
 // post(e^{i rotation} pre(z)), pre and post disk automorphisms (identity
 // unless landmarks are held, hold_landmarks).
+// Cylinder: x -> x + rotation + twist y / source_height (a Dehn twist about
+// the core, `twist` whole turns), y -> y stretch (swap: both reversed).
 struct DomainMap {
   bool cylinder = false, swap = false;
-  double rotation = 0, stretch = 1, target_height = 0;
+  double rotation = 0, stretch = 1, target_height = 0, source_height = 1;
+  int twist = 0;
   Mobius pre = kIdentity, post = kIdentity;
   cd forward(cd z) const {
     if (!cylinder) return mobius_apply(post, mobius_apply(pre, z) * std::polar(1.0, rotation));
-    if (!swap) return cd(z.real() + rotation, z.imag() * stretch);
-    return cd(rotation - z.real(), target_height - z.imag() * stretch);
+    const double x = z.real() + twist * z.imag() / source_height;
+    if (!swap) return cd(x + rotation, z.imag() * stretch);
+    return cd(rotation - x, target_height - z.imag() * stretch);
   }
   cd inverse(cd w) const {
     if (!cylinder) return mobius_apply(inverse_of(pre), mobius_apply(inverse_of(post), w) * std::polar(1.0, -rotation));
-    if (!swap) return cd(w.real() - rotation, w.imag() / stretch);
-    return cd(rotation - w.real(), (target_height - w.imag()) / stretch);
+    const double y = swap ? (target_height - w.imag()) / stretch : w.imag() / stretch;
+    const double x = swap ? rotation - w.real() : w.real() - rotation;
+    return cd(x - twist * y / source_height, y);
   }
 };
+
+// The morph's Dirichlet energy (1/4) Σ_corners cot(angle) |opposite image
+// edge|² with the source's own cotangents, for the images `image`.
+double morph_energy(const TriMesh& source, const std::function<Eigen::Vector3d(int)>& image) {
+  std::vector<Eigen::Vector3d> q(source.num_vertices());
+  for (int i = 0; i < source.num_vertices(); ++i) q[i] = image(i);
+  double energy = 0;
+  for (int f = 0; f < source.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d p0 = source.V.row(source.F(f, k)), p1 = source.V.row(source.F(f, (k + 1) % 3)),
+                            p2 = source.V.row(source.F(f, (k + 2) % 3));
+      const Eigen::Vector3d u = p1 - p0, v = p2 - p0;
+      energy += 0.25 * u.dot(v) / std::max(u.cross(v).norm(), 1e-300) *
+                (q[source.F(f, (k + 2) % 3)] - q[source.F(f, (k + 1) % 3)]).squaredNorm();
+    }
+  return energy;
+}
 
 PointOnSurface point_in_face(const TriMesh& mesh, int f, const Eigen::Vector3d& b) {
   PointOnSurface p;
@@ -380,13 +403,44 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
   if (!disk) {
     m.stretch = r.target_domain.modulus / r.source_domain.modulus;
     m.target_height = r.target_domain.modulus;
+    m.source_height = r.source_domain.modulus;
+    m.twist = options.twist;
     r.extremal_dilatation = std::max(m.stretch, 1.0 / m.stretch);
   }
   const DomainLocator tloc(target, r.target_domain), sloc(source, r.source_domain);
   const bool pinned = hold_landmarks(options.landmarks, r, source, target, m);
-  if (!pinned)
-    m.rotation = std::isnan(options.rotation) ? align(source, target, r.source_domain, tloc, m, options.alignment_samples)
-                                              : options.rotation;
+  auto place = [&] {
+    if (!pinned)
+      m.rotation = std::isnan(options.rotation) ? align(source, target, r.source_domain, tloc, m, options.alignment_samples)
+                                                : options.rotation;
+  };
+  place();
+  if (!disk && options.twist_search) {
+    // Twists about the core (issue 16): the boundary slides freely, so a
+    // twisted map is homotopic to the untwisted one through maps taking
+    // boundary to boundary (turn one loop), and the energy ranks them; from
+    // the start, step to the lower neighbour while the energy decreases.
+    auto energy_at = [&](int k) {
+      DomainMap mk = m;
+      mk.twist = k;
+      const double e = morph_energy(source, [&](int i) {
+        Eigen::Vector3d bary;
+        const int f = tloc.locate(mk.forward(r.source_domain.uv[i]), &bary);
+        return point_in_face(target, f, bary).position;
+      });
+      r.twist_energies.emplace_back(k, e);
+      return e;
+    };
+    double here = energy_at(m.twist);
+    for (int moves = 0; moves < 64; ++moves) {
+      const double up = energy_at(m.twist + 1), down = energy_at(m.twist - 1);
+      if (std::min(up, down) >= here) break;
+      m.twist += up < down ? 1 : -1;
+      here = std::min(up, down);
+    }
+    if (m.twist != options.twist) place();  // the shift aligned for the twist kept
+  }
+  r.twist = m.twist;
   r.rotation = m.rotation;
 
   SurfaceMapResult& out = r.map;
@@ -518,6 +572,9 @@ nlohmann::json to_json(const OpenMapResult& r, const OpenMapOptions& options) {
   report["open"] = {{"domain", r.domain},
                     {"rotation", r.rotation},
                     {"rotation_requested", !std::isnan(options.rotation)},
+                    {"twist", r.twist},
+                    {"twist_start", options.twist},
+                    {"twist_energies", r.twist_energies},
                     {"extremal_dilatation", r.extremal_dilatation},
                     {"boundary_pairing", r.boundary_pairing},
                     {"landmarks", options.landmarks.size()},

@@ -283,6 +283,36 @@ def test_near_tie_with_a_mirror_image_is_decided_by_the_alignment():
     assert np.linalg.norm(r["forward"]["position"] - Vs, axis=1).mean() < 0.02 * diag
 
 
+def test_twisted_starts_about_the_loops_come_back_untwisted():
+    """Issue 16: a Dehn twist about a curve c parallel to a boundary loop doubles to T_c T_sigma(c)^-1,
+    and sigma(c) is isotopic to c in the double, so the free-boundary map has no twist of its own
+    to choose: the pants onto its subdivided copy, each rough map twisted by +-1 turn about each
+    loop (boundary_twists=1, 6 twisted starts), comes back to the untwisted map: the same energy
+    and alignment, the identity. The collar twist itself turns the images (not the identity)."""
+    Vs, Fs = pants(3)
+    Vt, Ft = subdivide(Vs, Fs)
+    S, T = open_double._Side(Vs, Fs, "source"), open_double._Side(Vt, Ft, "target")
+    for j in range(T.b):
+        tau = open_double._collar_twist(T, j, 1)
+        moved = np.flatnonzero(tau != np.arange(len(tau)))
+        assert len(moved) > len(T.loops[j])                       # a collar, not a few vertices
+        assert not np.isin(T.loops[j], moved).any()               # the loop itself stays
+        diag = np.linalg.norm(Vt.max(axis=0) - Vt.min(axis=0))
+        assert np.linalg.norm(T.V2[tau[moved]] - T.V2[moved], axis=1).max() > 0.1 * diag
+    r = open_double.surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=[0, 1, 2], orientations=("preserving",),
+                                     boundary_twists=1)
+    cands = r["open"]["candidates"]
+    untwisted = next(c for c in cands if "twist" not in c)
+    twisted = [c for c in cands if "twist" in c]
+    assert len(twisted) == 6 and untwisted["status"] == "ok"
+    back = [c for c in twisted if c["status"] == "ok" and abs(c["energy"] - untwisted["energy"]) <= 1e-6 * untwisted["energy"]
+            and abs(c["alignment"] - untwisted["alignment"]) <= 1e-3 * untwisted["alignment"]]
+    assert len(back) == 6, [(c["twist"], c["energy"], c["status"]) for c in twisted]
+    assert check_map(r, Vs, Fs, Vt, Ft) == 0 and r["flipped_triangles"] == 0
+    diag = np.linalg.norm(Vt.max(axis=0) - Vt.min(axis=0))
+    assert np.linalg.norm(r["forward"]["position"] - Vs, axis=1).mean() < 0.005 * diag
+
+
 def sphere_with_four_holes(level=3):
     """Genus 0 with 4 boundary loops: caps of slightly different sizes removed around
     non-coplanar directions."""

@@ -42,6 +42,16 @@ struct OpenMapOptions {
   /// both normalised to centroid 0 and unit area, over 64 samples and a
   /// golden-section refinement).
   double rotation = std::numeric_limits<double>::quiet_NaN();
+  /// Annuli: the Dehn twist about the core curve, in whole turns of loop 0
+  /// relative to loop 1 (the cylinder map x -> x + twist y / height), where
+  /// the search over twists starts (default 0). With `twist_search` (default
+  /// true) the twist moves to a neighbour (twist +- 1) while the morph's
+  /// Dirichlet energy decreases; the free-boundary harmonic map is the
+  /// untwisted one (a twist adds energy ~ twist^2), so the search ends at 0
+  /// from any start (docs/open_surfaces.md "Twists about the boundary
+  /// loops"); false: `twist` is used as given. Disks have no twist.
+  int twist = 0;
+  bool twist_search = true;
   /// Source vertices used for the alignment (default 400, spread evenly).
   int alignment_samples = 400;
   /// Landmarks (source vertex, target vertex), held exactly where the
@@ -68,6 +78,10 @@ struct OpenMapResult {
   std::string domain;
   double rotation = 0;
   double extremal_dilatation = 1;
+  /// Annuli: the twist used (OpenMapOptions::twist) and every twist the
+  /// search evaluated with the morph's Dirichlet energy, in order.
+  int twist = 0;
+  std::vector<std::pair<int, double>> twist_energies;
   /// The target loop of each source loop (as OpenMapOptions::boundary_pairing).
   std::vector<int> boundary_pairing;
   /// Largest 3D distance between a landmark's image and its target vertex.

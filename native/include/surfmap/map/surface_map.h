@@ -445,6 +445,18 @@ struct SurfaceMapOptions {
   /// the Möbius map fixed by the landmarks (map/spherical_map.h), exact for
   /// up to 3, least squares beyond (see max_landmark_error).
   std::vector<std::pair<int, int>> landmarks;
+  /// With landmarks, genus >= 1: hold them by the plain pins alone (each at
+  /// its nearest lift: the exact held optimum of the class, which is the
+  /// infimum over all held maps) and return that map even where it folds,
+  /// instead of the barrier continuation and carried neighbourhoods and a
+  /// SolveError when they cannot keep it bijective. The classes are ranked
+  /// by that held energy; the folds are counted (flipped_triangles) and not
+  /// repaired (no local fold repair, no own-edge weights fallback);
+  /// landmark_method is "pinned (folds allowed)". Default false. For a
+  /// caller that wants the homotopy class with the landmarks held, not the
+  /// map: the class is defined whether or not its held map folds (the open
+  /// surfaces' capped maps, docs/open_surfaces.md "Capped maps that fold").
+  bool landmarks_may_fold = false;
   /// Called between stages with the stage name and a fraction in [0, 1];
   /// return false to cancel (throws Cancelled).
   std::function<bool(const std::string& stage, double fraction)> progress;

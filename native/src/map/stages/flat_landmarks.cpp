@@ -28,6 +28,10 @@ FlatHold hold_flat_landmarks(const FlatLandmarkProblem& problem, const std::vect
     return q.flipped > 0 || q.degenerate > 0;
   };
   if (!folds(h.z)) return h;
+  if (problem.folds_allowed) {
+    h.method = "pinned (folds allowed)";
+    return h;
+  }
   const FlatBarrierResult br =
       flat_barrier_landmarks(n, idt.edges, t, source.F, problem.image_corners(te, std::vector<Complex>(n, Complex(0.0))),
                              free, lm_source, lifts);

@@ -44,10 +44,15 @@ struct FlatLandmarkProblem {
   std::function<Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>(const std::vector<Complex>& te,
                                                                             const std::vector<Complex>& z)>
       image_corners;
+  /// SurfaceMapOptions::landmarks_may_fold: the plain pins' map is returned
+  /// folded or not (no continuation, no carried neighbourhoods).
+  bool folds_allowed = false;
 };
 
 /// The landmarks held in the class with translations t (#idt edges) and te
-/// (#E source edges); a SolveError when they cannot be held bijectively.
+/// (#E source edges); a SolveError when they cannot be held bijectively
+/// (unless problem.folds_allowed: then the plain pins, method "pinned (folds
+/// allowed)" when they fold).
 FlatHold hold_flat_landmarks(const FlatLandmarkProblem& problem, const std::vector<Complex>& t,
                              const std::vector<Complex>& te);
 
