@@ -1,0 +1,227 @@
+// bench_face_charts: the harmonic map in per-face charts (issue 13) on
+// surfaces whose layout one Poincaré chart cannot hold (CAD plates of genus
+// 13 .. 24). The target is uniformized and its metric turned into a
+// FaceAtlas. Without a source, the target's own triangulation is mapped
+// onto it: every vertex starts at its corner of one of its faces, jittered
+// by a fifth of its shortest edge, weights 1 (the optimum is then not the
+// identity), every edge's start element composed of the transitions around
+// its two ends. With a source (another meshing of the same shape, e.g. a
+// jittered or re-segmented plate), every source vertex starts at its
+// nearest point of the target in 3D, and every source edge's element is
+// composed of the transitions along the shortest path of faces between its
+// ends' faces (the class of the nearest-point map; weights 1). This is the
+// solve alone, not surfmap map's pipeline (no class search, location or
+// distortion). Prints one row per target: layout radius, whether the single chart holds, the solve's
+// convergence, iterations, energy, largest gradient, the largest edge
+// element |a| + |b| at the end (1 = a point; large = a global chart's
+// entries), the images flipped (each source face's image tested in the
+// chart of its first corner, in the Klein model), and the seconds.
+//
+//   bench_face_charts TARGET.obj [TARGET.obj ...]
+//   bench_face_charts --source SOURCE.obj TARGET.obj
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "surfmap/error.h"
+#include "surfmap/geometry/hyperbolic.h"
+#include "surfmap/map/hyperbolic_harmonic.h"
+#include "surfmap/mesh/connectivity.h"
+#include "surfmap/mesh/intake.h"
+#include "surfmap/uniformize/layout.h"
+#include "surfmap/uniformize/uniformize.h"
+
+using namespace surfmap;
+using hyperbolic::Mobius;
+using Complex = std::complex<double>;
+
+namespace {
+
+// face(stop)'s canonical coordinates -> face(a)'s (both halfedges outgoing
+// from one vertex), composed across the edges of that vertex's star.
+Mobius around_vertex(const Connectivity& conn, const FaceAtlas& atlas, int a, int stop) {
+  Mobius x;
+  for (int current = a, guard = 0; current != stop; ++guard) {
+    if (guard > 4096) throw SolveError("a vertex star did not close");
+    const int prev = Connectivity::next(Connectivity::next(current));
+    x = (x * atlas.transition[prev]).normalized();
+    current = conn.twin(prev);
+  }
+  return x;
+}
+
+// Closest point of triangle abc to p, as barycentrics (Ericson, Real-Time
+// Collision Detection 5.1.5).
+Eigen::Vector3d closest_barycentric(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                    const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
+  const Eigen::Vector3d bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return {0, 1, 0};
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return {1 - d1 / (d1 - d3), d1 / (d1 - d3), 0};
+  const Eigen::Vector3d cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return {0, 0, 1};
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return {1 - d2 / (d2 - d6), 0, d2 / (d2 - d6)};
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return {0, 1 - t, t};
+  }
+  const double den = 1 / (va + vb + vc);
+  return {1 - (vb + vc) * den, vb * den, vc * den};
+}
+
+// The point of a canonical triangle with hyperboloid barycentrics b.
+Complex hyperboloid_point(const std::array<Complex, 3>& corners, const Eigen::Vector3d& b) {
+  double X = 0, Y = 0, T = 0;
+  for (int k = 0; k < 3; ++k) {
+    const Complex c = corners[k];
+    const double n = 1 - std::norm(c);
+    X += b[k] * 2 * c.real() / n, Y += b[k] * 2 * c.imag() / n, T += b[k] * (1 + std::norm(c)) / n;
+  }
+  const double m = std::sqrt(T * T - X * X - Y * Y);
+  return Complex(X / m, Y / m) / (1 + T / m);
+}
+
+// face `from`'s canonical coordinates -> face `to`'s, composed along the
+// shortest path of faces between them (breadth first).
+Mobius along_shortest_path(const Connectivity& conn, const FaceAtlas& atlas, int from, int to) {
+  if (from == to) return Mobius();
+  std::vector<int> parent_h(conn.num_faces(), -2), queue{from};
+  parent_h[from] = -1;
+  for (size_t k = 0; k < queue.size() && parent_h[to] == -2; ++k)
+    for (int s = 0; s < 3; ++s) {
+      const int t = conn.twin(3 * queue[k] + s), g = Connectivity::face(t);
+      if (parent_h[g] != -2) continue;
+      parent_h[g] = t;  // in g, its twin in the parent face
+      queue.push_back(g);
+    }
+  if (parent_h[to] == -2) throw SolveError("no path of faces between two faces");
+  Mobius T;
+  for (int g = to; g != from; g = Connectivity::face(conn.twin(parent_h[g])))
+    T = (T * atlas.transition[parent_h[g]]).normalized();
+  return T;
+}
+
+void run(const char* path, const char* source_path) {
+  const TriMesh mesh = load_mesh(path).mesh;
+  const auto t0 = std::chrono::steady_clock::now();
+  const UniformizeResult u = uniformize(mesh);
+  const double t_uniformize = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const Connectivity conn(u.loops.mesh.F, u.loops.mesh.num_vertices());
+  const FaceAtlas atlas = hyperbolic_face_atlas(conn, u.edge_lengths);
+  const TriMesh source = source_path ? load_mesh(source_path).mesh : u.loops.mesh;
+  const Connectivity sc(source.F, source.num_vertices());
+  const int n = sc.num_vertices();
+  std::vector<int> face0(n), out0(n);
+  std::vector<Complex> w0(n);
+  std::vector<WeightedEdge> edges;
+  if (!source_path) {
+    std::mt19937 rng(1);
+    std::uniform_real_distribution<double> U(-1.0, 1.0);
+    for (int v = 0; v < n; ++v) {
+      const std::vector<int> out = conn.outgoing(v);
+      double shortest = 1e300;
+      for (int h : out) shortest = std::min(shortest, u.edge_lengths[conn.edge(h)]);
+      out0[v] = out.front();
+      face0[v] = Connectivity::face(out0[v]);
+      w0[v] = hyperbolic::exp_map(atlas.corners[face0[v]][out0[v] % 3],
+                                  0.2 * shortest * Complex(U(rng), U(rng)) / std::sqrt(2.0));
+    }
+    for (int e = 0; e < conn.num_edges(); ++e) {
+      const int h = conn.edge_halfedge(e), i = conn.tail(h), j = conn.head(h);
+      WeightedEdge ed;
+      ed.i = i, ed.j = j, ed.w = 1.0;
+      ed.rho = (around_vertex(conn, atlas, out0[i], h) *
+                around_vertex(conn, atlas, out0[j], Connectivity::next(h)).inverse())
+                   .normalized();
+      edges.push_back(ed);
+    }
+  } else {
+    const TriMesh& T = u.loops.mesh;
+    for (int v = 0; v < n; ++v) {
+      const Eigen::Vector3d p = source.V.row(v).transpose();
+      double best = 1e300;
+      Eigen::Vector3d best_b;
+      for (int f = 0; f < T.num_faces(); ++f) {
+        const Eigen::Vector3d a = T.V.row(T.F(f, 0)), b = T.V.row(T.F(f, 1)), c = T.V.row(T.F(f, 2));
+        const Eigen::Vector3d l = closest_barycentric(p, a, b, c);
+        const double d = (l[0] * a + l[1] * b + l[2] * c - p).squaredNorm();
+        if (d < best) best = d, best_b = l, face0[v] = f;
+      }
+      w0[v] = hyperboloid_point(atlas.corners[face0[v]], best_b);
+    }
+    for (int e = 0; e < sc.num_edges(); ++e) {
+      const int h = sc.edge_halfedge(e), i = sc.tail(h), j = sc.head(h);
+      WeightedEdge ed;
+      ed.i = i, ed.j = j, ed.w = 1.0;
+      ed.rho = along_shortest_path(conn, atlas, face0[j], face0[i]);
+      edges.push_back(ed);
+    }
+  }
+  HyperbolicHarmonicOptions o;
+  o.max_iterations = 500;
+  const auto t1 = std::chrono::steady_clock::now();
+  const HyperbolicHarmonicResult r = hyperbolic_harmonic_map_in_face_charts(n, edges, atlas, face0, w0, o);
+  const double t_solve = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  double largest = 0;
+  for (const Mobius& m : r.edge_effective) largest = std::max(largest, m.size());
+  // Head of halfedge h in the chart of its tail.
+  auto head_in_tail_chart = [&](int h) {
+    const int e = sc.edge(h);
+    const Mobius& A = r.edge_local[e];
+    return (sc.edge_halfedge(e) == h ? A : A.inverse()).apply(Complex(0.0));
+  };
+  int flipped = 0;
+  for (int f = 0; f < sc.num_faces(); ++f) {
+    const Complex p1 = hyperbolic::poincare_to_klein(head_in_tail_chart(3 * f));
+    const Complex p2 = hyperbolic::poincare_to_klein(head_in_tail_chart(sc.twin(3 * f + 2)));
+    if (!(std::imag(std::conj(p1) * p2) > 0)) ++flipped;
+  }
+  std::printf("| %s | %s | %d | %d | %.1f | %s | %s | %d | %.6f | %.1e | %.3g | %d | %.1f | %.1f |\n", path,
+              source_path ? source_path : "itself, jittered", u.genus, n, u.layout.layout_radius,
+              u.single_chart ? "yes" : "no", r.converged ? "yes" : "no", r.iterations, r.energy,
+              r.gradient_history.empty() ? 0.0 : r.gradient_history.back(), largest, flipped, t_uniformize, t_solve);
+  std::fflush(stdout);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const char* source = nullptr;
+  std::vector<const char*> targets;
+  for (int k = 1; k < argc; ++k) {
+    if (std::string(argv[k]) == "--source" && k + 1 < argc)
+      source = argv[++k];
+    else
+      targets.push_back(argv[k]);
+  }
+  if (targets.empty()) {
+    std::fprintf(stderr, "usage: bench_face_charts [--source SOURCE.obj] TARGET.obj [TARGET.obj ...]\n");
+    return 2;
+  }
+  std::printf("| target | source | genus | source vertices | layout radius | single chart | converged | iterations | "
+              "energy | last gradient | largest edge element | flipped | uniformize s | solve s |\n"
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  int failures = 0;
+  for (const char* t : targets) {
+    try {
+      run(t, source);
+    } catch (const std::exception& e) {
+      std::printf("| %s | error: %s |\n", t, e.what());
+      ++failures;
+    }
+  }
+  return failures == 0 ? 0 : 1;
+}
