@@ -11,10 +11,11 @@
 // composed of the transitions along the shortest path of faces between its
 // ends' faces (the class of the nearest-point map; weights 1). This is the
 // solve alone, not surfmap map's pipeline (no class search, location or
-// distortion). Prints one row per target: layout radius, whether the single chart holds, the solve's
-// convergence, iterations, energy, largest gradient, the largest edge
-// element |a| + |b| at the end (1 = a point; large = a global chart's
-// entries), the images flipped (each source face's image tested in the
+// distortion). Prints one row per target: layout radius, whether the
+// single chart holds, the solve's convergence, iterations, energy, last
+// largest per-vertex gradient, the largest edge element |a| + |b| at the
+// end (1 = a point; large = a global chart's entries), the images flipped
+// at the start and at the optimum (each source face's image tested in the
 // chart of its first corner, in the Klein model), and the seconds.
 //
 //   bench_face_charts TARGET.obj [TARGET.obj ...]
@@ -183,16 +184,28 @@ void run(const char* path, const char* source_path) {
     const Mobius& A = r.edge_local[e];
     return (sc.edge_halfedge(e) == h ? A : A.inverse()).apply(Complex(0.0));
   };
-  int flipped = 0;
-  for (int f = 0; f < sc.num_faces(); ++f) {
-    const Complex p1 = hyperbolic::poincare_to_klein(head_in_tail_chart(3 * f));
-    const Complex p2 = hyperbolic::poincare_to_klein(head_in_tail_chart(sc.twin(3 * f + 2)));
-    if (!(std::imag(std::conj(p1) * p2) > 0)) ++flipped;
-  }
-  std::printf("| %s | %s | %d | %d | %.1f | %s | %s | %d | %.6f | %.1e | %.3g | %d | %.1f | %.1f |\n", path,
+  auto count_flipped = [&](const auto& head_in_tail) {
+    int count = 0;
+    for (int f = 0; f < sc.num_faces(); ++f) {
+      const Complex p1 = hyperbolic::poincare_to_klein(head_in_tail(3 * f));
+      const Complex p2 = hyperbolic::poincare_to_klein(head_in_tail(sc.twin(3 * f + 2)));
+      if (!(std::imag(std::conj(p1) * p2) > 0)) ++count;
+    }
+    return count;
+  };
+  const int flipped = count_flipped(head_in_tail_chart);
+  // The start's images the same way (its edges in the start points' charts).
+  const int start_flipped = count_flipped([&](int h) {
+    const int e = sc.edge(h);
+    const WeightedEdge& ed = edges[e];
+    const Mobius A = (Mobius::translation_to(w0[ed.i]).inverse() * ed.rho * Mobius::translation_to(w0[ed.j])).normalized();
+    return (sc.edge_halfedge(e) == h ? A : A.inverse()).apply(Complex(0.0));
+  });
+  std::printf("| %s | %s | %d | %d | %.1f | %s | %s | %d | %.6f | %.1e | %.3g | %d | %d | %.1f | %.1f |\n", path,
               source_path ? source_path : "itself, jittered", u.genus, n, u.layout.layout_radius,
               u.single_chart ? "yes" : "no", r.converged ? "yes" : "no", r.iterations, r.energy,
-              r.gradient_history.empty() ? 0.0 : r.gradient_history.back(), largest, flipped, t_uniformize, t_solve);
+              r.gradient_history.empty() ? 0.0 : r.gradient_history.back(), largest, start_flipped, flipped, t_uniformize,
+              t_solve);
   std::fflush(stdout);
 }
 
@@ -212,8 +225,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   std::printf("| target | source | genus | source vertices | layout radius | single chart | converged | iterations | "
-              "energy | last gradient | largest edge element | flipped | uniformize s | solve s |\n"
-              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+              "energy | last gradient | largest edge element | start flipped | flipped | uniformize s | solve s |\n"
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   int failures = 0;
   for (const char* t : targets) {
     try {
