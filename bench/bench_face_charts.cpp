@@ -6,10 +6,11 @@
 // by a fifth of its shortest edge, weights 1 (the optimum is then not the
 // identity), every edge's start element composed of the transitions around
 // its two ends. With a source (another meshing of the same shape, e.g. a
-// jittered or re-segmented plate), every source vertex starts at its
-// nearest point of the target in 3D, and every source edge's element is
-// composed of the transitions along the shortest path of faces between its
-// ends' faces (the class of the nearest-point map; weights 1). This is the
+// jittered or re-segmented plate), every source vertex starts at the
+// target's vertex of the same index when both have as many vertices (a
+// jittered copy), else at its nearest point of the target in 3D, and every
+// source edge's element is composed of the transitions along the shortest
+// path of faces between its ends' faces (by the metric; the class of that start; weights 1). This is the
 // solve alone, not surfmap map's pipeline (no class search, location or
 // distortion). Prints one row per target: layout radius, whether the
 // single chart holds, the solve's convergence, iterations, energy, last
@@ -26,8 +27,10 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
+#include <queue>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "surfmap/error.h"
@@ -95,24 +98,71 @@ Complex hyperboloid_point(const std::array<Complex, 3>& corners, const Eigen::Ve
   return Complex(X / m, Y / m) / (1 + T / m);
 }
 
-// face `from`'s canonical coordinates -> face `to`'s, composed along the
-// shortest path of faces between them (breadth first).
-Mobius along_shortest_path(const Connectivity& conn, const FaceAtlas& atlas, int from, int to) {
-  if (from == to) return Mobius();
-  std::vector<int> parent_h(conn.num_faces(), -2), queue{from};
-  parent_h[from] = -1;
-  for (size_t k = 0; k < queue.size() && parent_h[to] == -2; ++k)
-    for (int s = 0; s < 3; ++s) {
-      const int t = conn.twin(3 * queue[k] + s), g = Connectivity::face(t);
-      if (parent_h[g] != -2) continue;
-      parent_h[g] = t;  // in g, its twin in the parent face
-      queue.push_back(g);
+// Where a source edge's end may leave or enter the target: a face, the
+// point in its canonical chart, and the element between that face's
+// coordinates and those of the face the end's vertex starts in (source
+// end: start face -> this face; target end: this face -> start face).
+struct EdgeEnd {
+  int face;
+  Complex point;
+  Mobius element;
+};
+
+// The element of a source edge j -> i: face0[j]'s canonical coordinates ->
+// face0[i]'s along the shortest path of faces from one of j's ends to one
+// of i's, measured point -> centroids -> point in the metric (Dijkstra;
+// counting faces instead picks paths around a hole across long thin faces).
+Mobius along_shortest_path(const Connectivity& conn, const FaceAtlas& atlas, const std::vector<EdgeEnd>& from,
+                           const std::vector<EdgeEnd>& to) {
+  auto centroid = [&](int f) {
+    const auto& c = atlas.corners[f];
+    return hyperbolic::geodesic_point(c[0], hyperbolic::midpoint(c[1], c[2]), 2.0 / 3.0);
+  };
+  const int nF = conn.num_faces();
+  std::vector<double> dist(nF, 1e300);
+  std::vector<int> parent_h(nF, -1), from_end(nF, -1), to_end(nF, -1);
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
+  for (size_t k = 0; k < from.size(); ++k) {
+    const int f = from[k].face;
+    const double d = hyperbolic::distance(from[k].point, centroid(f));
+    if (d < dist[f]) dist[f] = d, from_end[f] = static_cast<int>(k), queue.push({d, f});
+  }
+  for (size_t k = 0; k < to.size(); ++k) to_end[to[k].face] = static_cast<int>(k);
+  double best = 1e300;
+  int best_face = -1;
+  while (!queue.empty()) {
+    const auto [d, f] = queue.top();
+    queue.pop();
+    if (d > dist[f]) continue;
+    if (d >= best) break;
+    const Complex cf = centroid(f);
+    if (to_end[f] >= 0) {
+      const double total = d + hyperbolic::distance(cf, to[to_end[f]].point);
+      if (total < best) best = total, best_face = f;
     }
-  if (parent_h[to] == -2) throw SolveError("no path of faces between two faces");
-  Mobius T;
-  for (int g = to; g != from; g = Connectivity::face(conn.twin(parent_h[g])))
-    T = (T * atlas.transition[parent_h[g]]).normalized();
-  return T;
+    for (int s = 0; s < 3; ++s) {
+      const int t = conn.twin(3 * f + s), g = Connectivity::face(t);
+      const double step = hyperbolic::distance(atlas.transition[t].apply(cf), centroid(g));
+      if (d + step < dist[g]) dist[g] = d + step, parent_h[g] = t, from_end[g] = -1, queue.push({d + step, g});
+    }
+  }
+  if (best_face < 0) throw SolveError("no path of faces between the ends of a source edge");
+  Mobius T = to[to_end[best_face]].element;
+  int g = best_face;
+  for (; parent_h[g] >= 0; g = Connectivity::face(conn.twin(parent_h[g]))) T = (T * atlas.transition[parent_h[g]]).normalized();
+  return (T * from[from_end[g]].element).normalized();
+}
+
+// A vertex's ends: every face of its star at its corner (start face out0[v]).
+std::vector<EdgeEnd> vertex_ends(const Connectivity& conn, const FaceAtlas& atlas, int out0, int v, bool source) {
+  std::vector<EdgeEnd> ends;
+  for (int a : conn.outgoing(v)) {
+    const Mobius to_start = around_vertex(conn, atlas, out0, a);  // face(a) -> face(out0)
+    ends.push_back({Connectivity::face(a), atlas.corners[Connectivity::face(a)][a % 3],
+                    source ? to_start.inverse() : to_start});
+  }
+  return ends;
 }
 
 void run(const char* path, const char* source_path) {
@@ -128,6 +178,7 @@ void run(const char* path, const char* source_path) {
   std::vector<int> face0(n), out0(n);
   std::vector<Complex> w0(n);
   std::vector<WeightedEdge> edges;
+  int along_paths = 0;  // same vertices: edges not in the intrinsic triangulation
   if (!source_path) {
     std::mt19937 rng(1);
     std::uniform_real_distribution<double> U(-1.0, 1.0);
@@ -149,6 +200,33 @@ void run(const char* path, const char* source_path) {
                    .normalized();
       edges.push_back(ed);
     }
+  } else if (source.num_vertices() == mesh.num_vertices()) {
+    // The same vertices (a jittered copy): vertex v starts at the target's
+    // vertex v (the loops' mesh keeps the input's vertices first), at its
+    // corner of one of its faces.
+    for (int v = 0; v < n; ++v) {
+      out0[v] = conn.outgoing(v).front();
+      face0[v] = Connectivity::face(out0[v]);
+      w0[v] = atlas.corners[face0[v]][out0[v] % 3];
+    }
+    // An edge the intrinsic triangulation kept: composed around the stars
+    // of its ends (its own class); else along the shortest path of faces.
+    for (int e = 0; e < sc.num_edges(); ++e) {
+      const int h = sc.edge_halfedge(e), i = sc.tail(h), j = sc.head(h);
+      WeightedEdge ed;
+      ed.i = i, ed.j = j, ed.w = 1.0;
+      const int kept = conn.find_halfedge(i, j);
+      if (kept >= 0) {
+        ed.rho = (around_vertex(conn, atlas, out0[i], kept) *
+                  around_vertex(conn, atlas, out0[j], Connectivity::next(kept)).inverse())
+                     .normalized();
+      } else {
+        ed.rho = along_shortest_path(conn, atlas, vertex_ends(conn, atlas, out0[j], j, true),
+                                     vertex_ends(conn, atlas, out0[i], i, false));
+        ++along_paths;
+      }
+      edges.push_back(ed);
+    }
   } else {
     const TriMesh& T = u.loops.mesh;
     for (int v = 0; v < n; ++v) {
@@ -167,7 +245,7 @@ void run(const char* path, const char* source_path) {
       const int h = sc.edge_halfedge(e), i = sc.tail(h), j = sc.head(h);
       WeightedEdge ed;
       ed.i = i, ed.j = j, ed.w = 1.0;
-      ed.rho = along_shortest_path(conn, atlas, face0[j], face0[i]);
+      ed.rho = along_shortest_path(conn, atlas, {{face0[j], w0[j], Mobius()}}, {{face0[i], w0[i], Mobius()}});
       edges.push_back(ed);
     }
   }
@@ -201,11 +279,15 @@ void run(const char* path, const char* source_path) {
     const Mobius A = (Mobius::translation_to(w0[ed.i]).inverse() * ed.rho * Mobius::translation_to(w0[ed.j])).normalized();
     return (sc.edge_halfedge(e) == h ? A : A.inverse()).apply(Complex(0.0));
   });
-  std::printf("| %s | %s | %d | %d | %.1f | %s | %s | %d | %.6f | %.1e | %.3g | %d | %d | %.1f | %.1f |\n", path,
-              source_path ? source_path : "itself, jittered", u.genus, n, u.layout.layout_radius,
+  const char* start = !source_path                                 ? "itself, jittered"
+                      : source.num_vertices() == mesh.num_vertices() ? "start: same vertices"
+                                                                     : "start: nearest points";
+  std::printf("| %s | %s (%s) | %d | %d | %.1f | %s | %s | %d | %.6f | %.1e | %.3g | %d | %d | %.1f | %.1f |\n", path,
+              source_path ? source_path : "-", start, u.genus, n, u.layout.layout_radius,
               u.single_chart ? "yes" : "no", r.converged ? "yes" : "no", r.iterations, r.energy,
               r.gradient_history.empty() ? 0.0 : r.gradient_history.back(), largest, start_flipped, flipped, t_uniformize,
               t_solve);
+  if (along_paths > 0) std::printf("(%d source edges not in the intrinsic triangulation: along paths of faces)\n", along_paths);
   std::fflush(stdout);
 }
 
