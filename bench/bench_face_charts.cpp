@@ -154,6 +154,43 @@ Mobius along_shortest_path(const Connectivity& conn, const FaceAtlas& atlas, con
   return (T * from[from_end[g]].element).normalized();
 }
 
+// Source edge i -> j whose ends sit at target vertices i and j: face(j's
+// first outgoing halfedge)'s coordinates -> face(i's)'s, composed of the
+// elements of the target edges along the shortest edge path from i to j in
+// the metric (Dijkstra), each composed around the stars of its ends.
+Mobius along_shortest_edge_path(const Connectivity& conn, const FaceAtlas& atlas, const Eigen::VectorXd& lengths, int i,
+                                int j) {
+  std::vector<double> dist(conn.num_vertices(), 1e300);
+  std::vector<int> parent_h(conn.num_vertices(), -1);
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
+  dist[i] = 0;
+  queue.push({0.0, i});
+  while (!queue.empty()) {
+    const auto [d, v] = queue.top();
+    queue.pop();
+    if (d > dist[v]) continue;
+    if (v == j) break;
+    for (int h : conn.outgoing(v)) {
+      const int w = conn.head(h);
+      const double nd = d + lengths[conn.edge(h)];
+      if (nd < dist[w]) dist[w] = nd, parent_h[w] = h, queue.push({nd, w});
+    }
+  }
+  if (parent_h[j] < 0) throw SolveError("no edge path between the ends of a source edge");
+  auto first_out = [&](int v) { return conn.outgoing(v).front(); };
+  Mobius T;  // face0[j] -> face0[v], built from j back to i
+  for (int v = j; v != i; v = conn.tail(parent_h[v])) {
+    const int g = parent_h[v], a = conn.tail(g);
+    // head's start face -> tail's start face for target halfedge g.
+    const Mobius rho_g = (around_vertex(conn, atlas, first_out(a), g) *
+                          around_vertex(conn, atlas, first_out(v), Connectivity::next(g)).inverse())
+                             .normalized();
+    T = (rho_g * T).normalized();
+  }
+  return T;
+}
+
 // A vertex's ends: every face of its star at its corner (start face out0[v]).
 std::vector<EdgeEnd> vertex_ends(const Connectivity& conn, const FaceAtlas& atlas, int out0, int v, bool source) {
   std::vector<EdgeEnd> ends;
@@ -178,7 +215,9 @@ void run(const char* path, const char* source_path) {
   std::vector<int> face0(n), out0(n);
   std::vector<Complex> w0(n);
   std::vector<WeightedEdge> edges;
-  int along_paths = 0;  // same vertices: edges not in the intrinsic triangulation
+  // Same vertices: edges not in the intrinsic triangulation, and the
+  // source faces whose elements do not close before / after the repair.
+  int along_paths = 0, by_faces = 0, repaired = 0, open_faces_before = 0, open_faces_after = 0;
   if (!source_path) {
     std::mt19937 rng(1);
     std::uniform_real_distribution<double> U(-1.0, 1.0);
@@ -210,23 +249,80 @@ void run(const char* path, const char* source_path) {
       w0[v] = atlas.corners[face0[v]][out0[v] % 3];
     }
     // An edge the intrinsic triangulation kept: composed around the stars
-    // of its ends (its own class); else along the shortest path of faces.
+    // of its ends (its own class). The others, while some source face has
+    // one of them and two known edges: from the face's closing relation
+    // ρ_ab ρ_bc ρ_ca = id (the class is a cocycle); the rest along the
+    // shortest path of faces.
+    std::vector<char> known(sc.num_edges(), 0);
+    edges.resize(sc.num_edges());
     for (int e = 0; e < sc.num_edges(); ++e) {
       const int h = sc.edge_halfedge(e), i = sc.tail(h), j = sc.head(h);
-      WeightedEdge ed;
+      WeightedEdge& ed = edges[e];
       ed.i = i, ed.j = j, ed.w = 1.0;
       const int kept = conn.find_halfedge(i, j);
       if (kept >= 0) {
         ed.rho = (around_vertex(conn, atlas, out0[i], kept) *
                   around_vertex(conn, atlas, out0[j], Connectivity::next(kept)).inverse())
                      .normalized();
-      } else {
-        ed.rho = along_shortest_path(conn, atlas, vertex_ends(conn, atlas, out0[j], j, true),
-                                     vertex_ends(conn, atlas, out0[i], i, false));
+        known[e] = 1;
+      }
+    }
+    // Element of source halfedge h: its head's start face -> its tail's.
+    auto halfedge_rho = [&](int h) {
+      const int e = sc.edge(h);
+      return sc.edge_halfedge(e) == h ? edges[e].rho : edges[e].rho.inverse();
+    };
+    for (bool progress = true; progress;) {
+      progress = false;
+      for (int f = 0; f < sc.num_faces(); ++f) {
+        int unknown = -1, count = 0;
+        for (int k = 0; k < 3; ++k)
+          if (!known[sc.edge(3 * f + k)]) unknown = 3 * f + k, ++count;
+        if (count != 1) continue;
+        const int h1 = Connectivity::next(unknown), h2 = Connectivity::next(h1);
+        const Mobius rho_h = (halfedge_rho(h1) * halfedge_rho(h2)).inverse().normalized();
+        const int e = sc.edge(unknown);
+        edges[e].rho = sc.edge_halfedge(e) == unknown ? rho_h : rho_h.inverse();
+        known[e] = 1, ++by_faces, progress = true;
+      }
+    }
+    std::vector<char> exact = known;
+    for (int e = 0; e < sc.num_edges(); ++e)
+      if (!known[e]) {
+        edges[e].rho = along_shortest_edge_path(conn, atlas, u.edge_lengths, edges[e].i, edges[e].j);
         ++along_paths;
       }
-      edges.push_back(ed);
+    // A path in the wrong class shows as its faces not closing: such an
+    // edge takes the element one of its faces' other two edges give when
+    // that closes more of its two faces (repeated while anything changes;
+    // each change closes a face, so this ends).
+    auto closes = [&](int f) {
+      const Mobius p = halfedge_rho(3 * f) * halfedge_rho(3 * f + 1) * halfedge_rho(3 * f + 2);
+      return hyperbolic::distance_from_identity(p.normalized()) < 1e-6;
+    };
+    for (int f = 0; f < sc.num_faces(); ++f) open_faces_before += !closes(f);
+    for (bool progress = true; progress;) {
+      progress = false;
+      for (int e = 0; e < sc.num_edges(); ++e) {
+        if (exact[e]) continue;
+        const int h = sc.edge_halfedge(e), t = sc.twin(h);
+        const int f = Connectivity::face(h), g = Connectivity::face(t);
+        const int open = !closes(f) + !closes(g);
+        if (open == 0) continue;
+        for (int side : {h, t}) {
+          const int h1 = Connectivity::next(side), h2 = Connectivity::next(h1);
+          const Mobius rho_side = (halfedge_rho(h1) * halfedge_rho(h2)).inverse().normalized();
+          const Mobius old_rho = edges[e].rho;
+          edges[e].rho = side == h ? rho_side : rho_side.inverse();
+          if (!closes(f) + !closes(g) < open) {
+            ++repaired, progress = true;
+            break;
+          }
+          edges[e].rho = old_rho;
+        }
+      }
     }
+    for (int f = 0; f < sc.num_faces(); ++f) open_faces_after += !closes(f);
   } else {
     const TriMesh& T = u.loops.mesh;
     for (int v = 0; v < n; ++v) {
@@ -287,7 +383,10 @@ void run(const char* path, const char* source_path) {
               u.single_chart ? "yes" : "no", r.converged ? "yes" : "no", r.iterations, r.energy,
               r.gradient_history.empty() ? 0.0 : r.gradient_history.back(), largest, start_flipped, flipped, t_uniformize,
               t_solve);
-  if (along_paths > 0) std::printf("(%d source edges not in the intrinsic triangulation: along paths of faces)\n", along_paths);
+  if (along_paths + by_faces > 0)
+    std::printf("(source edges not in the intrinsic triangulation: %d closed by faces, %d along edge paths; faces not "
+                "closing %d, %d edges re-derived from a face, then %d)\n",
+                by_faces, along_paths, open_faces_before, repaired, open_faces_after);
   std::fflush(stdout);
 }
 
