@@ -17,7 +17,8 @@
 // largest per-vertex gradient, the largest edge element |a| + |b| at the
 // end (1 = a point; large = a global chart's entries), the images flipped
 // at the start and at the optimum (each source face's image tested in the
-// chart of its first corner, in the Klein model), and the seconds.
+// chart of its first corner, in the Klein model), and the seconds; then a
+// line with the same problem solved in the layout's one chart.
 //
 //   bench_face_charts TARGET.obj [TARGET.obj ...]
 //   bench_face_charts --source SOURCE.obj TARGET.obj
@@ -383,6 +384,28 @@ void run(const char* path, const char* source_path) {
               u.single_chart ? "yes" : "no", r.converged ? "yes" : "no", r.iterations, r.energy,
               r.gradient_history.empty() ? 0.0 : r.gradient_history.back(), largest, start_flipped, flipped, t_uniformize,
               t_solve);
+  // The same problem posed in the layout's one chart (what surfmap map
+  // would solve): start points and edge elements through the layout's
+  // global face charts, moves by the side pairings.
+  {
+    std::vector<Complex> z0(n);
+    std::vector<WeightedEdge> single = edges;
+    for (int v = 0; v < n; ++v) z0[v] = u.layout.face_charts[face0[v]].apply(w0[v]);
+    for (WeightedEdge& ed : single)
+      ed.rho = (u.layout.face_charts[face0[ed.i]] * ed.rho * u.layout.face_charts[face0[ed.j]].inverse()).normalized();
+    try {
+      const HyperbolicHarmonicResult one = hyperbolic_harmonic_map(n, single, u.layout.side_pairings, z0, o);
+      const int one_flipped = count_flipped([&](int h) {
+        const int e = sc.edge(h);
+        const Mobius& A = one.edge_local[e];
+        return (sc.edge_halfedge(e) == h ? A : A.inverse()).apply(Complex(0.0));
+      });
+      std::printf("(the same problem in the layout's one chart: %s, %d iterations, energy %.6f, %d flipped)\n",
+                  one.converged ? "converged" : "not converged", one.iterations, one.energy, one_flipped);
+    } catch (const std::exception& e) {
+      std::printf("(the same problem in the layout's one chart: %s)\n", e.what());
+    }
+  }
   if (along_paths + by_faces > 0)
     std::printf("(source edges not in the intrinsic triangulation: %d closed by faces, %d along edge paths; faces not "
                 "closing %d, %d edges re-derived from a face, then %d)\n",
