@@ -7,6 +7,7 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <utility>
 
 #include <cholmod.h>
 
@@ -16,6 +17,7 @@
 #include "surfmap/error.h"
 #include "surfmap/work_counters.h"
 #include "surfmap/geometry/dynamic_charts.h"
+#include "surfmap/map/point_location.h"
 
 namespace surfmap {
 namespace {
@@ -345,13 +347,21 @@ class ChartState {
   std::vector<Mobius> chart;  ///< #V chart C_i
   std::vector<LongMobius> eff;  ///< #edges effective element ρ'_e
   std::vector<Mobius> A;  ///< #edges A_e, derived by derive_edges()
+  std::vector<int> face;  ///< #V per-face charts only: the target face of chart[i]
 
   // Charts at the start points, every vertex moved to the sheet of the
   // target's domain (r.vertex_deck / vertex_deck_word record the moves).
+  //
+  // Per-face charts (`atlas` non-null, issue 13): chart[i] is vertex i's
+  // chart inside the canonical chart of target face face[i], ρ'_e takes
+  // face[j]'s canonical coordinates to face[i]'s, and the moves are the
+  // transitions crossed when a vertex is walked to the face containing it;
+  // the same bookkeeping, with no element of the deck group and no global chart.
   ChartState(int n, const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& generators,
-             const std::vector<Complex>& z0, const HyperbolicHarmonicOptions& options, HyperbolicHarmonicResult& r)
-      : edges_(edges), generators_(generators), options_(options), r_(r), words_(!options.relator.empty()),
-        reduce_word_(words_ ? options.relator : Word{}) {
+             const std::vector<Complex>& z0, const HyperbolicHarmonicOptions& options, HyperbolicHarmonicResult& r,
+             const FaceAtlas* atlas = nullptr, std::vector<int> face0 = {})
+      : face(std::move(face0)), edges_(edges), generators_(generators), options_(options), r_(r),
+        words_(!options.relator.empty() && !atlas), reduce_word_(words_ ? options.relator : Word{}), atlas_(atlas) {
     for (const auto& g : generators) moves_.push_back(g), moves_.push_back(g.inverse());
     chart.resize(n);
     for (int i = 0; i < n; ++i) chart[i] = Mobius::translation_to(z0[i]);
@@ -413,9 +423,20 @@ class ChartState {
     }
   }
 
+  bool in_face_charts() const { return atlas_ != nullptr; }
+
   // Dynamic charts: vertex v to the sheet options.reduce_point names, or
-  // greedily towards the origin by the generators.
+  // greedily towards the origin by the generators; in per-face charts, to
+  // the face containing it (kept where it is when the walk does not reach
+  // it: its chart is still exact, only farther from the face).
   void move_vertex(int v) {
+    if (atlas_) {
+      Mobius moved;
+      Eigen::Vector3d bary;
+      const int g = locate_in_face_charts(*atlas_, face[v], chart[v].apply(Complex(0.0)), kMaxWalkFaces, &moved, &bary);
+      if (g >= 0 && g != face[v]) change_sheet(v, Word{}, moved), face[v] = g;
+      return;
+    }
     if (options_.reduce_point) {
       Complex z = chart[v].apply(Complex(0.0));
       const Word w = options_.reduce_point(z);
@@ -442,8 +463,10 @@ class ChartState {
   // ρ'_e ← ρ'_e γ^-1 where it is the head, so that A_e is unchanged.
   void change_sheet(int v, const Word& w, const Mobius& gamma) {
     chart[v] = (gamma * chart[v]).normalized();
-    r_.vertex_deck[v] = (gamma * r_.vertex_deck[v]).normalized();
-    r_.vertex_deck_word[v] = concat(w, r_.vertex_deck_word[v]);
+    if (!atlas_) {  // per-face charts: gamma is a transition, not a deck element
+      r_.vertex_deck[v] = (gamma * r_.vertex_deck[v]).normalized();
+      r_.vertex_deck_word[v] = concat(w, r_.vertex_deck_word[v]);
+    }
     const LongMobius g = LongMobius::from(gamma);
     for (int k = inc_start_[v]; k < inc_start_[v + 1]; ++k) {
       const int e = inc_edge_[k];
@@ -467,6 +490,10 @@ class ChartState {
   HyperbolicHarmonicResult& r_;
   const bool words_;
   const DehnReducer reduce_word_;
+  const FaceAtlas* atlas_;
+  // A vertex moves a fraction of an edge per step (kMaxStep caps it), so
+  // its walk crosses a few faces; the cap only bounds a lost walk.
+  static constexpr int kMaxWalkFaces = 256;
   std::vector<Mobius> moves_;  // generator k at 2k, its inverse at 2k+1
   std::vector<int> inc_start_, inc_edge_;
   std::vector<Word> eff_word_;
@@ -602,12 +629,13 @@ struct HarmonicNewton {
   Eigen::VectorXd g;
 
   HarmonicNewton(int num_vertices, const std::vector<WeightedEdge>& edge_list, const std::vector<Mobius>& generators,
-                 const std::vector<Complex>& z0, const HyperbolicHarmonicOptions& opts, const HessianAnalysis* analysis)
+                 const std::vector<Complex>& z0, const HyperbolicHarmonicOptions& opts, const HessianAnalysis* analysis,
+                 const FaceAtlas* atlas = nullptr, std::vector<int> face0 = {})
       : n(num_vertices),
         edges(edge_list),
         options(opts),
         shared(analysis),
-        state(num_vertices, edge_list, generators, z0, opts, r),
+        state(num_vertices, edge_list, generators, z0, opts, r, atlas, std::move(face0)),
         A(state.A),
         chart(state.chart),
         trial_A(edge_list.size()),
@@ -856,7 +884,8 @@ struct HarmonicNewton {
   void recentre_charts() {
     // Dynamic charts: bring far-out vertices back towards the origin.
     for (int i = 0; i < n; ++i)
-      if (options.reduce_point || std::abs(chart[i].b) > 0.75) state.move_vertex(i);  // greedy: |C_i(0)| > 0.6
+      if (state.in_face_charts() || options.reduce_point || std::abs(chart[i].b) > 0.75)
+        state.move_vertex(i);  // greedy: |C_i(0)| > 0.6
     // The new charts and sheets: every A_e afresh (ChartState above), and
     // the energy the next iteration starts from.
     state.derive_edges();
@@ -869,6 +898,7 @@ struct HarmonicNewton {
     r.energy = E;
     r.z.resize(n);
     for (int i = 0; i < n; ++i) r.z[i] = chart[i].apply(Complex(0.0));
+    if (state.in_face_charts()) r.face = state.face;
     r.edge_local = A;
     r.edge_effective.resize(edges.size());
     for (size_t e = 0; e < edges.size(); ++e) r.edge_effective[e] = state.eff[e].to_double().normalized();
@@ -905,9 +935,10 @@ struct RoundoffPlateau {
 // HarmonicNewton's.
 HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& generators,
                                       std::vector<Complex> z0, const HyperbolicHarmonicOptions& options,
-                                      const HessianAnalysis* shared) {
+                                      const HessianAnalysis* shared, const FaceAtlas* atlas = nullptr,
+                                      std::vector<int> face0 = {}) {
   check_newton_input(n, edges, z0, options);
-  HarmonicNewton run(n, edges, generators, z0, options, shared);
+  HarmonicNewton run(n, edges, generators, z0, options, shared, atlas, std::move(face0));
   HyperbolicHarmonicResult& r = run.r;
   RoundoffPlateau plateau;
   for (int it = 0; it < options.max_iterations; ++it) {
@@ -939,6 +970,21 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int n, const std::vector<Weight
                                                  const std::vector<Mobius>& generators, std::vector<Complex> z0,
                                                  const HyperbolicHarmonicOptions& options) {
   return newton_solve(n, edges, generators, std::move(z0), options, nullptr);
+}
+
+HyperbolicHarmonicResult hyperbolic_harmonic_map_in_face_charts(int n, const std::vector<WeightedEdge>& edges,
+                                                                const FaceAtlas& atlas, std::vector<int> face0,
+                                                                std::vector<Complex> w0,
+                                                                const HyperbolicHarmonicOptions& options) {
+  if (!options.relator.empty() || options.reduce_point)
+    throw InputError("hyperbolic_harmonic_map_in_face_charts: per-face charts use no relator and no reduce_point");
+  if (static_cast<int>(face0.size()) != n)
+    throw InputError("hyperbolic_harmonic_map_in_face_charts: one start face per vertex needed");
+  for (int i = 0; i < n; ++i)
+    if (face0[i] < 0 || face0[i] >= atlas.num_faces())
+      throw InputError("hyperbolic_harmonic_map_in_face_charts: start face of vertex " + std::to_string(i) +
+                       " is not a face of the atlas");
+  return newton_solve(n, edges, {}, std::move(w0), options, nullptr, &atlas, std::move(face0));
 }
 
 HyperbolicHarmonicSolver::HyperbolicHarmonicSolver(int num_vertices, const std::vector<WeightedEdge>& edges) {

@@ -1,7 +1,10 @@
 #include "surfmap/map/point_location.h"
 
 #include <set>
+#include <string>
 #include <utility>
+
+#include "surfmap/error.h"
 
 namespace surfmap {
 namespace {
@@ -68,6 +71,24 @@ int locate_copies_in_frame(const TriangleGrid& grid, const PlaneTriangles& tris,
     if (f >= 0 && b.minCoeff() >= best_min) best_min = b.minCoeff(), best = f, *bary = b;
   }
   return best;
+}
+
+int locate_in_face_charts(const FaceAtlas& atlas, int f, Complex q, int max_steps, hyperbolic::Mobius* moved,
+                          Eigen::Vector3d* bary) {
+  if (f < 0 || f >= atlas.num_faces()) throw InputError("locate_in_face_charts: face " + std::to_string(f) + " out of range");
+  hyperbolic::Mobius product;
+  auto corners = [&](int g) { return atlas.corners[g]; };
+  auto cross = [&](int g, int side, Complex& c, Complex& p, int* entry) {
+    const int t = atlas.twin[3 * g + side];
+    const hyperbolic::Mobius& T = atlas.transition[t];  // g's coordinates -> face(t)'s
+    c = T.apply(c), p = T.apply(p);
+    product = (T * product).normalized();
+    *entry = t % 3;
+    return t / 3;
+  };
+  const int found = straight_walk(f, q, corners, cross, max_steps, kInsideTolerance, bary);
+  if (found >= 0) *moved = product;
+  return found;
 }
 
 int locate_periodic(const TriangleGrid& grid, Complex p, Complex centre, Complex w1, Complex w2, Eigen::Vector3d* bary) {

@@ -1052,6 +1052,20 @@ DiskLayout layout_disk(const Connectivity& conn, const Eigen::VectorXd& edge_len
   return out;
 }
 
+FaceAtlas hyperbolic_face_atlas(const Connectivity& conn, const Eigen::VectorXd& edge_lengths) {
+  if (edge_lengths.size() != conn.num_edges())
+    throw InputError("face atlas: " + std::to_string(edge_lengths.size()) + " edge lengths for " +
+                     std::to_string(conn.num_edges()) + " edges");
+  FaceAtlas atlas;
+  atlas.corners = canonical_triangles<Hyper>(conn, edge_lengths);
+  const Gluing<Hyper> glue{conn, edge_lengths, atlas.corners};
+  const int nH = conn.num_halfedges();
+  atlas.transition.resize(nH);
+  atlas.twin.resize(nH);
+  for (int h = 0; h < nH; ++h) atlas.transition[h] = glue.transition(h), atlas.twin[h] = conn.twin(h);
+  return atlas;
+}
+
 Complex reduce_modulus(Complex tau, int* matrix) {
   if (!(std::imag(tau) > 0)) throw InputError("reduce_modulus: Im tau must be positive");
   long a = 1, b = 0, c = 0, d = 1;  // tau_current = (a tau0 + b) / (c tau0 + d)

@@ -21,6 +21,7 @@
 
 #include "surfmap/geometry/hyperbolic.h"
 #include "surfmap/topology/words.h"
+#include "surfmap/uniformize/layout.h"
 
 namespace surfmap {
 
@@ -86,6 +87,9 @@ struct HyperbolicHarmonicResult {
   /// elements as freely reduced words, letter +(k+1) = generators[k], -(k+1)
   /// its inverse, product order as written) to build others exactly.
   std::vector<std::complex<double>> z;
+  /// Per-face charts only (hyperbolic_harmonic_map_in_face_charts): #V, the
+  /// target face whose canonical chart z[i] is given in (empty otherwise).
+  std::vector<int> face;
   std::vector<hyperbolic::Mobius> vertex_deck;
   std::vector<Word> vertex_deck_word;
   /// #edges: the effective element of each edge at the end, i.e.
@@ -118,6 +122,31 @@ HyperbolicHarmonicResult hyperbolic_harmonic_map(int num_vertices, const std::ve
                                                  const std::vector<hyperbolic::Mobius>& generators,
                                                  std::vector<std::complex<double>> z0,
                                                  const HyperbolicHarmonicOptions& options = {});
+
+/// The same solve with the target in per-face charts (issue 13: targets
+/// whose fundamental domain reaches past what one Poincaré chart holds in
+/// double precision, CAD plates of genus 13 .. 24). Vertex i starts in
+/// target face face0[i] at the point w0[i] of that face's canonical chart
+/// (FaceAtlas); each edge's `rho` is its start element in those charts: it
+/// takes face0[j]'s canonical coordinates to face0[i]'s, composed of the
+/// transitions along the faces between them (so its homotopy class is the
+/// class of the faces crossed), and the image of edge i->j runs from w0[i]
+/// to rho(w0[j]). Nothing is computed in a global chart: after every step a
+/// vertex is walked to the face containing it (locate_in_face_charts) and
+/// its edges' elements are conjugated by the transitions crossed, which have
+/// entries of size ~1, as does every edge element of a map with short edges.
+/// The Newton iteration, its line search and its stopping rules are those of
+/// hyperbolic_harmonic_map (the same energy, gradient and Hessian read off
+/// the same edge elements), so on a target that one chart does hold both
+/// give the same map. Words are not used: options.relator and
+/// options.reduce_point must be empty (InputError). The result's z[i] is a
+/// point in the canonical chart of face[i]; vertex_deck / vertex_deck_word
+/// are left as identities; edge_effective holds the final elements in the
+/// face charts (face[j]'s coordinates -> face[i]'s).
+HyperbolicHarmonicResult hyperbolic_harmonic_map_in_face_charts(int num_vertices, const std::vector<WeightedEdge>& edges,
+                                                                const FaceAtlas& atlas, std::vector<int> face0,
+                                                                std::vector<std::complex<double>> w0,
+                                                                const HyperbolicHarmonicOptions& options = {});
 
 struct HessianAnalysis;  // (hyperbolic_harmonic.cpp)
 

@@ -15,6 +15,7 @@
 
 #include "surfmap/geometry/hyperbolic.h"
 #include "surfmap/map/fundamental_polygon.h"
+#include "surfmap/uniformize/layout.h"
 
 namespace surfmap {
 
@@ -255,6 +256,16 @@ int locate_in_cover(const TriangleGrid& grid, const PlaneTriangles& tris, const 
 /// from every copy (docs/verification.md); the copies themselves are exact.
 int locate_copies_in_frame(const TriangleGrid& grid, const PlaneTriangles& tris,
                            const std::vector<std::complex<double>>& copies, Eigen::Vector3d* bary);
+
+/// Location in per-face charts (issue 13; uniformize/layout.h FaceAtlas):
+/// the straight walk above from face f towards q, a point given in f's
+/// canonical chart, crossing faces by the atlas's transitions, so the walk
+/// needs no global chart. Returns the face containing q (hyperboloid
+/// barycentrics in `bary`, smallest >= -kInsideTolerance) and in `moved` the
+/// product of the transitions crossed (f's canonical coordinates -> the
+/// returned face's), or -1 when max_steps faces do not reach it.
+int locate_in_face_charts(const FaceAtlas& atlas, int f, std::complex<double> q, int max_steps,
+                          hyperbolic::Mobius* moved, Eigen::Vector3d* bary);
 
 /// Flat location: p modulo the lattice (w1, w2) in `grid` (Euclidean
 /// barycentrics): p reduced to the parallelogram around `centre`, then the

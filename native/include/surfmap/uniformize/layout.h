@@ -31,6 +31,7 @@
 //    word relation g_{w_0} g_{w_1} ... g_{w_{4g−1}} = id (inverse for negative
 //    letters; canonical word a1 b1 a1⁻¹ b1⁻¹ ... gives Π [a_i, b_i] = id).
 //    Corner c_i = G_i(c_0) with G_i = g_{w_0}...g_{w_{i−1}}.
+#include <array>
 #include <complex>
 #include <vector>
 
@@ -218,6 +219,28 @@ struct DiskLayout {
 DiskLayout layout_disk(const Connectivity& conn, const Eigen::VectorXd& edge_lengths,
                        Background background, const SystemOfLoops& loops,
                        const LayoutOptions& options = {});
+
+/// A hyperbolic surface in per-face charts (issue 13): every face's
+/// canonical triangle (corner 0 at 0, corner 1 on the positive real axis,
+/// corner 2 above it) and, per halfedge h, the isometry taking the canonical
+/// coordinates of face(twin(h)) to those of face(h): the same transitions
+/// layout_disk composes its charts from. Nothing here depends on a global
+/// chart or on a cut: a point of the surface is a face and a point in its
+/// canonical chart, and two nearby points are compared by composing the
+/// transitions along the faces between them (all of size ~1), so surfaces
+/// whose fundamental domain reaches farther than double coordinates resolve
+/// (CAD plates of genus 13 .. 24, layout radius 28 .. 55) lose no digits.
+struct FaceAtlas {
+  std::vector<std::array<Complex, 3>> corners;   ///< #F canonical triangles
+  std::vector<hyperbolic::Mobius> transition;    ///< #3F, face(twin(h)) -> face(h)
+  std::vector<int> twin;                         ///< #3F, Connectivity::twin
+  int num_faces() const { return static_cast<int>(corners.size()); }
+};
+
+/// The atlas of a hyperbolic metric (`edge_lengths`: #E, edge order of
+/// `conn`). InputError on a size mismatch or a face violating the triangle
+/// inequality (naming it).
+FaceAtlas hyperbolic_face_atlas(const Connectivity& conn, const Eigen::VectorXd& edge_lengths);
 
 /// Conformal modulus of a flat torus with lattice ω1 Z + ω2 Z.
 struct TorusModulus {
