@@ -254,11 +254,6 @@ class HyperbolicPipeline {
   std::future<SourceClassBounds> coarse_bounds_future;
   SourceClassBounds coarse_bounds;
   bool have_coarse_bounds = false;
-  /// Issue 19: the ranking's first class is at least geometric_ratio x the
-  /// conformal bound, so the geometric stage (search_classes) will likely
-  /// read the source's own uniformization: the ranking reads it too instead
-  /// of computing the coarse copy's as well.
-  bool rank_with_own_bounds = false;
   /// Issue 19: the ranking stopped at its first class (classes_that_can_win),
   /// so the bounds decide nothing unless a later step asks for them.
   bool bounds_not_needed = false;
@@ -458,7 +453,7 @@ const SourceClassBounds& HyperbolicPipeline::class_bounds_now() {
 // measured on; its hyperbolic lengths are within about 1% of the source's
 // (docs/handle_classes.md "Bounds on the coarse copy").
 const SourceClassBounds& HyperbolicPipeline::ranking_bounds_now() {
-  if (!ss.cs.ok || rank_with_own_bounds) return class_bounds_now();
+  if (!ss.cs.ok) return class_bounds_now();
   if (!have_coarse_bounds) {
     coarse_bounds = coarse_bounds_future.valid()
                         ? coarse_bounds_future.get()
@@ -863,8 +858,6 @@ std::vector<int> HyperbolicPipeline::classes_that_can_win(int first) {
     return rest;
   }
   const bool finite = usable[first] && !coarse_failed[first] && std::isfinite(e);
-  rank_with_own_bounds = finite && options.homotopy.search.enabled && options.homotopy.search.geometric > 0 &&
-                         e >= options.homotopy.search.geometric_ratio * conformal;
   const SourceClassBounds* bounds = finite ? &ranking_bounds_now() : nullptr;
   int pruned = 0;
   for (int k = 0; k < ncand; ++k) {
