@@ -409,14 +409,14 @@ void HyperbolicPipeline::start_class_bounds() {
 
 // Issue 19: when the ranking solves every class (ranks_every_class) the
 // bounds are computed for the report anyway; when no overlay class leads the
-// candidates the ranking's first
-// class is the canonical one, whose coarse energy is rarely within the
-// ranking gap, so the ranking will ask for the bounds after its first coarse
-// solve: they are wanted (computed and reported whatever the ranking does, so
-// the result does not depend on the threads) and, with two threads, start on
-// the second one now, next to the class data and the coarse level, instead of
-// waiting on the calling thread when the ranking gets there. Pairs with an
-// overlay class (remeshed or posed copies) keep them lazy.
+// candidates the ranking's first class (the least screen's) is rarely within
+// the ranking gap, so the ranking will ask for the bounds after its first
+// coarse solve: they are wanted (computed and reported whatever the ranking
+// does, so the result does not depend on the threads) and, with two threads,
+// start on the second one now, next to the class data and the coarse level,
+// instead of waiting on the calling thread when the ranking gets there: the
+// ranking's bounds, on the coarse copy when there is one (ranking_bounds_now).
+// Pairs with an overlay class (remeshed or posed copies) keep them lazy.
 void HyperbolicPipeline::start_class_bounds_early() {
   if (candidates.overlay_classes > 0 && !ranks_every_class()) return;
   bounds_wanted = true;
