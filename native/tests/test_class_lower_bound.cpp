@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "surfmap/error.h"
+#include "surfmap/map/coarse_source.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/topology/canonical_schema.h"
@@ -368,6 +369,46 @@ namespace {
 // fan edges) give an isomorphism, so the plate has lengths, bounds and
 // letters as a target. Joined by the fewest edges instead, a split edge was
 // bypassed around a hole and one loop came out contractible.
+// Issue 19: the ranking's bounds on its coarse copy (coarse_class_bounds):
+// the copy's hyperbolic lengths are the source's within a few percent (the
+// same surface at a quarter of the vertices), so are the curve bounds of
+// twisted classes (what prunes), and the copy has no letters of the source.
+TEST(ClassLowerBound, CoarseCopysBoundsAreTheSourcesWithinAFewPercent) {
+  const TriMesh m = samples::n_hole_torus(2, 32, true);
+  const SurfaceMapOptions options;
+  const SystemOfLoops sl = detail::source_loops(m, options);
+  const CanonicalSchema cs = canonical_schema(sl.word);
+  const Connectivity conn(m.F, m.num_vertices());
+  const CoarseSource copy = coarse_source(m, conn, {m.num_vertices() / 4});
+  ASSERT_TRUE(copy.ok) << copy.why;
+  const detail::SourceClassBounds fine = detail::source_class_bounds(m, conn, sl, cs.generators, 2, options);
+  const detail::SourceClassBounds coarse = detail::coarse_class_bounds(copy.mesh, m, sl, cs.generators, 2, options);
+  ASSERT_TRUE(fine.ok) << fine.why;
+  ASSERT_TRUE(coarse.ok) << coarse.why;
+  EXPECT_EQ(fine.copy_vertices, 0);
+  EXPECT_EQ(coarse.copy_vertices, copy.mesh.num_vertices());
+  EXPECT_TRUE(coarse.letters.as_target.empty());
+  EXPECT_FALSE(coarse.letters.as_target_status.empty());
+  // The probe curves x_j, x_i x_j^+-1 (ClassSpace::fingerprint's).
+  for (int i = 1; i <= 4; ++i) {
+    EXPECT_NEAR(coarse.source->length({i}) / fine.source->length({i}), 1.0, 0.02) << i;
+    for (int j = i + 1; j <= 4; ++j)
+      for (int sign : {1, -1})
+        EXPECT_NEAR(coarse.source->length({i, sign * j}) / fine.source->length({i, sign * j}), 1.0, 0.02) << i << " " << j;
+  }
+  // Classes onto the source itself twisted 0..8 times along a1: the bound
+  // grows from below the conformal bound to many times it.
+  const MappingClassMove twist = twist_moves(2, false, false)[0];
+  GroupMap theta = identity_map(4);
+  for (int k = 0; k <= 8; ++k) {
+    const double bf = (*fine.evaluator)(*fine.source, theta).curve_bound;
+    const double bc = (*coarse.evaluator)(*fine.source, theta).curve_bound;
+    EXPECT_NEAR(bc / bf, 1.0, 0.03) << k << " twists: " << bc << " on the copy, " << bf << " on the source";
+    theta = compose(theta, twist.automorphism.map);
+    for (Word& w : theta) w = dehn_reduce(w, canonical_relator(2));
+  }
+}
+
 TEST(ClassLowerBound, CadPlateSourceCarriesOntoItsOwnUniformizedCopy) {
   const TriMesh m = samples::cad_plate(4, 64, 0.3);
   SurfaceMapOptions options;

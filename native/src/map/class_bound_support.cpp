@@ -62,33 +62,53 @@ void as_target_letters(const TriMesh& source, const std::vector<std::vector<int>
 
 }  // namespace
 
-SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity& sc, const SystemOfLoops& sl,
-                                      const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options,
-                                      const std::atomic<bool>* stop) {
+namespace {
+
+/// source_class_bounds on `surface` (the source itself, or a coarse copy of
+/// it: `copy`), the default loops `sl` of `source` carried onto it.
+SourceClassBounds class_bounds_on(const TriMesh& surface, const Connectivity& surface_conn, bool copy,
+                                  const TriMesh& source, const SystemOfLoops& sl, const std::vector<Word>& generators,
+                                  int genus, const SurfaceMapOptions& options, const std::atomic<bool>* stop) {
   const auto t0 = std::chrono::steady_clock::now();
   SourceClassBounds b;
+  b.copy_vertices = copy ? surface.num_vertices() : 0;
   const std::vector<std::vector<int>>& loops = sl.loops;
   try {
     SurfaceMapOptions o = options;
-    o.loops.target_base_vertex = options.loops.source_base_vertex;
-    b.uniformized = uniformized_target(source, Background::Hyperbolic, o, &sc, stop, "source", &sl);
+    // (A copy's vertex numbers are its own: its loops' base vertex is left
+    // to the loop construction.)
+    o.loops.target_base_vertex = copy ? -1 : options.loops.source_base_vertex;
+    b.uniformized = uniformized_target(surface, Background::Hyperbolic, o, &surface_conn, stop, "source",
+                                       copy ? nullptr : &sl);
     const UniformizedTarget& xu = b.uniformized;
     b.schema = canonical_schema(xu.layout.word);
     const CanonicalSchema& xcs = b.schema;
-    // The default cut's loops onto the uniformized copy's (the same surface:
-    // every loop vertex's nearest point is itself).
-    const ProjectedLoopsResult self = project_loops(source, loops, xu.loops, xu.layout.word, self_carry_options());
-    if (!self.ok) throw SolveError("the source's loops did not carry onto its own uniformized copy: " + self.message);
+    // The default cut's loops onto the uniformized copy's: on the source
+    // itself every loop vertex's nearest point is itself (joins by length
+    // follow the split edges); on a coarse copy, whose vertices are source
+    // vertices at their own positions, each loop vertex goes to the nearest
+    // copy vertex and consecutive images are joined by the copy's shortest
+    // paths (the overlay of a remeshed surface; checked below).
+    const ProjectedLoopsResult self =
+        project_loops(source, loops, xu.loops, xu.layout.word, copy ? ProjectedLoopsOptions{} : self_carry_options());
+    if (!self.ok)
+      throw SolveError(std::string("the source's loops did not carry onto its own ") +
+                       (copy ? "coarse copy's uniformization: " : "uniformized copy: ") + self.message);
     const int n = 2 * genus;
     const Word R = canonical_relator(genus);
     GroupMap iota(n);
     for (int j = 0; j < n; ++j) iota[j] = dehn_reduce(substitute(substitute(generators[j], self.loop_images), xcs.letters), R);
     const IntMatrix M = homology_matrix(iota, n), J = symplectic_form(genus);
     if (!(M.transpose() * J * M == J) || !dehn_reduce(substitute(R, iota), R).empty())
-      throw SolveError("the source's loops carried onto its uniformized copy do not give an isomorphism");
+      throw SolveError(std::string("the source's loops carried onto its ") + (copy ? "coarse copy" : "uniformized copy") +
+                       " do not give an isomorphism");
     b.source = std::make_unique<SurfaceGroupLengths>(DeckGroup(xu.layout), xcs.generators, xu.layout.word, iota);
     b.iota = iota;
-    as_target_letters(source, loops, generators, genus, xu.class_loops.get(), iota, b.letters);
+    if (copy)
+      b.letters.as_target_status = "the class bounds were computed on the source's coarse copy, whose letters are not "
+                                   "the source's";
+    else
+      as_target_letters(source, loops, generators, genus, xu.class_loops.get(), iota, b.letters);
     b.evaluator = std::make_unique<ClassBoundEvaluator>(*b.source, disjoint_curve_families(genus));
     b.ok = true;
   } catch (const Error& e) {
@@ -97,6 +117,21 @@ SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity&
   }
   b.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return b;
+}
+
+}  // namespace
+
+SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity& sc, const SystemOfLoops& sl,
+                                      const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options,
+                                      const std::atomic<bool>* stop) {
+  return class_bounds_on(source, sc, false, source, sl, generators, genus, options, stop);
+}
+
+SourceClassBounds coarse_class_bounds(const TriMesh& copy, const TriMesh& source, const SystemOfLoops& sl,
+                                      const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options,
+                                      const std::atomic<bool>* stop) {
+  return class_bounds_on(copy, Connectivity(copy.F, copy.num_vertices()), true, source, sl, generators, genus, options,
+                         stop);
 }
 
 SourceLetters source_letters_from_own_loops(const TriMesh& source, const Connectivity& sc, const SystemOfLoops& sl,

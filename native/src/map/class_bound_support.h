@@ -48,11 +48,27 @@ struct SourceClassBounds {
   /// loops (or its layout's letters when it has none).
   SourceLetters letters;
   double time_s = 0;
+  /// Vertices of the coarse copy the bounds were computed on
+  /// (coarse_class_bounds), 0 for the source itself.
+  int copy_vertices = 0;
 };
 /// `sl`: the pipeline's default (unrefined) source loops, source_loops of
 /// `source`; their greedy basis is refined for the uniformized copy's class
 /// loops rather than computed again (issue 19).
 SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity& sc, const SystemOfLoops& sl,
+                                      const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options,
+                                      const std::atomic<bool>* stop = nullptr);
+
+/// The same bounds on a coarse copy `copy` of `source` (issue 19; its
+/// vertices are source vertices at their own positions, map/coarse_source.h):
+/// the copy uniformized, `sl`'s loops carried onto it by the overlay
+/// (nearest copy vertices, shortest joins; checked to be an isomorphism).
+/// The lengths are those of the copy's hyperbolic metric, so the curve
+/// bounds bound the energy of maps from the copy, the surface the ranking's
+/// coarse energies are measured on (docs/handle_classes.md "Bounds on the
+/// coarse copy"). `letters` are left empty (the copy's letters are not the
+/// source's).
+SourceClassBounds coarse_class_bounds(const TriMesh& copy, const TriMesh& source, const SystemOfLoops& sl,
                                       const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options,
                                       const std::atomic<bool>* stop = nullptr);
 

@@ -245,6 +245,15 @@ class HyperbolicPipeline {
   std::future<SourceClassBounds> class_bounds_future;
   SourceClassBounds class_bounds;  ///< from the future, once needed
   bool have_class_bounds = false;
+  /// Issue 19: the bounds every comparison with coarse energies reads (the
+  /// ranking's pruning, the class search's), computed on the coarse copy
+  /// itself (coarse_class_bounds: the surface those energies are measured
+  /// on, at a quarter of the source's vertices or fewer); the source's own
+  /// uniformization (class_bounds) only where a decision reads full-resolution
+  /// energies or the source's own geometry (ranking_bounds_now).
+  std::future<SourceClassBounds> coarse_bounds_future;
+  SourceClassBounds coarse_bounds;
+  bool have_coarse_bounds = false;
   /// Issue 19: the ranking stopped at its first class (classes_that_can_win),
   /// so the bounds decide nothing unless a later step asks for them.
   bool bounds_not_needed = false;
@@ -256,6 +265,10 @@ class HyperbolicPipeline {
   void start_class_bounds_early();
   std::unique_ptr<SurfaceGroupLengths> target_lengths;  ///< the target's, for the bounds
   const SourceClassBounds& class_bounds_now();
+  const SourceClassBounds& ranking_bounds_now();
+  void ensure_target_lengths() {
+    if (!target_lengths) target_lengths = std::make_unique<SurfaceGroupLengths>(*deck_group, tcs.generators, ut->layout.word);
+  }
 
   HyperbolicHarmonicResult hold_in_class(int k, const HyperbolicHarmonicResult& free_k, const HyperbolicHarmonicOptions& o,
                                          bool relax, const HarmonicRelaxationOptions& ro, LandmarkHold& hold) const;
@@ -396,18 +409,26 @@ void HyperbolicPipeline::start_class_bounds() {
 
 // Issue 19: when the ranking solves every class (ranks_every_class) the
 // bounds are computed for the report anyway; when no overlay class leads the
-// candidates the ranking's first
-// class is the canonical one, whose coarse energy is rarely within the
-// ranking gap, so the ranking will ask for the bounds after its first coarse
-// solve: they are wanted (computed and reported whatever the ranking does, so
-// the result does not depend on the threads) and, with two threads, start on
-// the second one now, next to the class data and the coarse level, instead of
-// waiting on the calling thread when the ranking gets there. Pairs with an
-// overlay class (remeshed or posed copies) keep them lazy.
+// candidates the ranking's first class (the least screen's) is rarely within
+// the ranking gap, so the ranking will ask for the bounds after its first
+// coarse solve: they are wanted (computed and reported whatever the ranking
+// does, so the result does not depend on the threads) and, with two threads,
+// start on the second one now, next to the class data and the coarse level,
+// instead of waiting on the calling thread when the ranking gets there: the
+// ranking's bounds, on the coarse copy when there is one (ranking_bounds_now).
+// Pairs with an overlay class (remeshed or posed copies) keep them lazy.
 void HyperbolicPipeline::start_class_bounds_early() {
   if (candidates.overlay_classes > 0 && !ranks_every_class()) return;
   bounds_wanted = true;
   if (threads <= 1) return;  // (computed when needed, at the latest by fill_class_bounds)
+  // (The ranking's bounds: on the coarse copy when there is one.)
+  if (ss.cs.ok) {
+    coarse_bounds_future = std::async(std::launch::async, [this] {
+      const SingleThreadedBlas single_threaded_blas;  // (per thread: OpenMP's levels)
+      return coarse_class_bounds(ss.cs.mesh, source, ss.sl, ss.scs.generators, out.genus, options, &leaving);
+    });
+    return;
+  }
   class_bounds_future = std::async(std::launch::async, [this] {
     const SingleThreadedBlas single_threaded_blas;  // (per thread: OpenMP's levels)
     return source_class_bounds(source, sc, ss.sl, ss.scs.generators, out.genus, options, &leaving);
@@ -419,10 +440,30 @@ void HyperbolicPipeline::start_class_bounds_early() {
 const SourceClassBounds& HyperbolicPipeline::class_bounds_now() {
   if (!have_class_bounds) {
     class_bounds = class_bounds_future.get();
-    target_lengths = std::make_unique<SurfaceGroupLengths>(*deck_group, tcs.generators, ut->layout.word);
     have_class_bounds = true;
   }
+  ensure_target_lengths();
   return class_bounds;
+}
+
+// Issue 19: the bounds for comparisons with coarse energies: on the coarse
+// copy when the ranking has one (from the second thread when started there),
+// else the source's own (class_bounds_now). The copy's bounds bound the
+// energies of maps from the copy, the surface the coarse energies are
+// measured on; its hyperbolic lengths are within about 1% of the source's
+// (docs/handle_classes.md "Bounds on the coarse copy").
+const SourceClassBounds& HyperbolicPipeline::ranking_bounds_now() {
+  if (!ss.cs.ok) return class_bounds_now();
+  if (!have_coarse_bounds) {
+    coarse_bounds = coarse_bounds_future.valid()
+                        ? coarse_bounds_future.get()
+                        : coarse_class_bounds(ss.cs.mesh, source, ss.sl, ss.scs.generators, out.genus, options);
+    have_coarse_bounds = true;
+  }
+  // (A copy whose uniformization or loops failed: the source's own.)
+  if (!coarse_bounds.ok) return class_bounds_now();
+  ensure_target_lengths();
+  return coarse_bounds;
 }
 
 // Every candidate's lower bound (HomotopyCandidate::class_lower_bound), and
@@ -432,16 +473,19 @@ const SourceClassBounds& HyperbolicPipeline::class_bounds_now() {
 // asked for them, no bound can change the choice: the source is not
 // uniformized for the report alone, and the status says so.
 void HyperbolicPipeline::fill_class_bounds() {
-  if (bounds_not_needed && !bounds_wanted && !have_class_bounds) {
+  if (bounds_not_needed && !bounds_wanted && !have_class_bounds && !have_coarse_bounds) {
     out.class_bound_status = "not computed: no decision needed them (the ranking " + out.ranking_status + ")";
     return;
   }
-  const SourceClassBounds& bounds = class_bounds_now();
+  // Issue 19: the source's own when a decision computed them, else the
+  // ranking's (on the coarse copy when there is one).
+  const SourceClassBounds& bounds = have_class_bounds ? class_bounds_now() : ranking_bounds_now();
   std::vector<GroupMap> class_maps;
   for (const HomotopyClass& hc : candidates.classes) class_maps.push_back(hc.map);
   detail::fill_class_bounds(bounds, *target_lengths, class_maps, out.candidates);
   out.class_bound_status = bounds.why;
-  out.class_bound_time_s = bounds.time_s;
+  out.class_bound_time_s = bounds.time_s + (have_class_bounds && have_coarse_bounds ? coarse_bounds.time_s : 0.0);
+  out.class_bound_vertices = bounds.ok ? (bounds.copy_vertices > 0 ? bounds.copy_vertices : nv) : 0;
 }
 
 // The candidate classes (stages/homotopy_classes.h) and each one's data
@@ -747,9 +791,17 @@ void HyperbolicPipeline::beaten_in_race(const std::vector<int>& rest, const std:
                           " stopped as clearly beaten";
 }
 
-// Issue 19: the class the ranking solves alone first (the earliest usable
-// candidate: the overlay class when the shapes overlap, else the canonical
-// one), or -1 when every class is solved (homotopy.ranking_gap < 0, every
+// Issue 19: the class the ranking solves alone first, or -1 when every class
+// is solved (below). With an overlay class (the shapes overlap), the earliest
+// usable candidate, that class. Without one, the usable class of least
+// ClassSpace::screen (the squared target lengths of the source loops'
+// images over their source lengths, no solve; ties to the earlier), not the
+// canonical class that heads the list: its energy sets how much the bounds
+// prune and how early the race stops the others (on the 4.9k/6.9k bench pair
+// the canonical class converges at 118.7 in 11 Newton steps, the least
+// screen's, 2.22, is the winner at 26.09). Which class goes first changes no
+// choice: the classes pruned or stopped are those that could not be chosen
+// whatever ran first. Every class is solved (homotopy.ranking_gap < 0, every
 // class asked for by homotopy.full_solves <= 0, a requested class,
 // landmarks: their ranking is by the energy with the landmarks held, which
 // the free energy's bounds do not bound; a test's search start, or at most
@@ -761,9 +813,17 @@ bool HyperbolicPipeline::ranks_every_class() const {
 
 int HyperbolicPipeline::early_ranked_class() const {
   if (ranks_every_class()) return -1;
-  for (int k = 0; k < ncand; ++k)
-    if (usable[k]) return k;
-  return -1;
+  int first = -1;
+  for (int k = 0; k < ncand && first < 0; ++k)
+    if (usable[k]) first = k;
+  if (first < 0 || candidates.overlay_classes > 0) return first;
+  double least = std::numeric_limits<double>::infinity();
+  for (int k = first; k < ncand; ++k) {
+    if (!usable[k]) continue;
+    const double screen = space->screen(candidates.classes[k].map);
+    if (screen < least) least = screen, first = k;
+  }
+  return first;
 }
 
 // Issue 19: after the coarse solve of `first`, the classes still worth a
@@ -798,7 +858,7 @@ std::vector<int> HyperbolicPipeline::classes_that_can_win(int first) {
     return rest;
   }
   const bool finite = usable[first] && !coarse_failed[first] && std::isfinite(e);
-  const SourceClassBounds* bounds = finite ? &class_bounds_now() : nullptr;
+  const SourceClassBounds* bounds = finite ? &ranking_bounds_now() : nullptr;
   int pruned = 0;
   for (int k = 0; k < ncand; ++k) {
     if (k == first || !usable[k]) continue;
@@ -822,11 +882,12 @@ std::vector<int> HyperbolicPipeline::classes_that_can_win(int first) {
   return rest;
 }
 
-// Issue 19: drops from `rest` (increasing indices, all after `first`) every
+// Issue 19: drops from `rest` (increasing indices, without `first`) every
 // class whose fingerprint (ClassSpace::fingerprint: the target lengths of
-// the images of the probe curves x_j, x_i x_j^±1) is that of `first` or of
-// an earlier class kept in `rest`: the same class up to an isometry of the
-// target (the criterion by which the candidate list drops lifted classes
+// the images of the probe curves x_j, x_i x_j^±1) is that of an earlier
+// class kept (`first`, solved already, is always kept; so is an earlier
+// class of its fingerprint, which would win the tie): the same class up to
+// an isometry of the target (the criterion by which the candidate list drops lifted classes
 // already known). An isometry of the target maps the class's harmonic maps
 // onto the other's with the same energy, and energy ties go to the earlier
 // candidate (choose_class, pick_full_solves), so the later one cannot be
@@ -844,10 +905,12 @@ int HyperbolicPipeline::skip_isometric_twins(int first, std::vector<int>& rest,
                ? space->fingerprint(candidates.classes[k].map)
                : std::vector<double>{};  // (not evaluable: same_fingerprint is false for it)
   };
-  std::vector<std::pair<int, std::vector<double>>> kept{{first, fingerprint_of(first)}};
+  std::vector<int> in_order = rest;
+  in_order.insert(std::upper_bound(in_order.begin(), in_order.end(), first), first);
+  std::vector<std::pair<int, std::vector<double>>> kept;
   std::vector<int> solved;
   int twins = 0;
-  for (int k : rest) {
+  for (int k : in_order) {
     std::vector<double> fp = fingerprint_of(k);
     int twin = -1;
     for (const auto& [j, fj] : kept)
@@ -855,6 +918,10 @@ int HyperbolicPipeline::skip_isometric_twins(int first, std::vector<int>& rest,
         twin = j;
         break;
       }
+    if (k == first) {
+      kept.push_back({k, std::move(fp)});
+      continue;
+    }
     if (twin >= 0) {
       skip(k, "the same class as candidate " + std::to_string(twin) +
                   " up to an isometry of the target (every probe curve's image has the same length), so the same "
@@ -950,7 +1017,7 @@ void HyperbolicPipeline::search_classes() {
   geometric_ho.max_start_edge_size = std::max(ho.max_start_edge_size, options.homotopy.search.geometric_start_edge_size);
   const auto pruned_with = [&](const CoarseSolve& unpruned_solve) -> CoarseSolve {
    return [&, unpruned_solve](const GroupMap& theta, CoarseEvaluation* ev) {
-    const SourceClassBounds& bounds = class_bounds_now();  // (sets target_lengths)
+    const SourceClassBounds& bounds = ranking_bounds_now();  // (sets target_lengths)
     const double curve_bound = class_curve_bound_of(bounds, *target_lengths, theta);
     if (curve_bound > best_held) {
       ++out.homotopy_search.pruned;
@@ -1335,9 +1402,10 @@ void HyperbolicPipeline::compare_directions() {
   const GroupMap& psi = options.homotopy.reverse_class;
   const UniformizationMetric policy = options.uniformization.target_metric;
   const bool flip_letters = policy == UniformizationMetric::Automatic || policy == UniformizationMetric::IntrinsicDelaunay;
-  if (bounds_not_needed && !bounds_wanted && !have_class_bounds && psi.empty() && flip_letters) {
+  if (!have_class_bounds && psi.empty() && flip_letters) {
     // Issue 19: the source's letters as a target from its own loops (no
-    // uniformization: class_bound_support.h source_letters_from_own_loops).
+    // uniformization: class_bound_support.h source_letters_from_own_loops;
+    // the ranking's bounds on the coarse copy have no letters of the source).
     SourceLetters letters = source_letters_from_own_loops(source, sc, ss.sl, ss.scs.generators, g, options);
     out.source_as_target = std::move(letters.as_target);
     out.source_as_target_inverse = std::move(letters.as_target_inverse);

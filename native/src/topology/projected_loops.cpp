@@ -270,7 +270,12 @@ struct LoopProjector::Impl {
   std::unique_ptr<CutDiskEdgeWords> lazy_words;
   std::vector<Word> all_words;  // (only when lazy_words could not be built)
   EdgeWordSource edge_word;
-  std::unique_ptr<TargetFrame> frame;  // the last target frame used
+  // The target frames used so far, at most kFrames (the overlays' poses use
+  // three: as posed in the per-axis box, which the world rotations and the
+  // lifted cuts share, in proportion, and along the principal axes; with
+  // one kept, the lifted cuts after them built the first again; issue 19).
+  static constexpr size_t kFrames = 4;
+  std::vector<std::unique_ptr<TargetFrame>> frames;
   Impl(const SystemOfLoops& t, const Word& w, const Connectivity* c)
       : target(t), target_word(w), own_conn(c ? std::nullopt : std::make_optional<Connectivity>(t.mesh.F, t.mesh.num_vertices())),
         conn(c ? *c : *own_conn) {
@@ -298,9 +303,15 @@ ProjectedLoopsResult LoopProjector::project(const TriMesh& source, const std::ve
   if (options.own_mesh && !options.join_by_length && !(options.max_jump_box > 0) && !options.source_on_target &&
       source.F.rows() == m.target.mesh.F.rows() && source.V == m.target.mesh.V)
     return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, nullptr, options);
-  if (!m.frame || m.frame->transform != options.target_transform || m.frame->uniform != options.uniform_box)
-    m.frame = std::make_unique<TargetFrame>(m.target.mesh, options.target_transform, options.uniform_box);
-  return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, m.frame.get(), options);
+  const TargetFrame* frame = nullptr;
+  for (const auto& f : m.frames)
+    if (f->transform == options.target_transform && f->uniform == options.uniform_box) frame = f.get();
+  if (!frame) {
+    if (m.frames.size() >= Impl::kFrames) m.frames.erase(m.frames.begin());
+    m.frames.push_back(std::make_unique<TargetFrame>(m.target.mesh, options.target_transform, options.uniform_box));
+    frame = m.frames.back().get();
+  }
+  return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, frame, options);
 }
 
 std::vector<ProjectedLoopsResult> LoopProjector::project(const TriMesh& source,

@@ -26,7 +26,8 @@
 //   quality {energy_ratio, energy_ratio_basis (which energy, in words), warning,
 //            intrinsic_class_energy, energy_ratio_own_edges, directions {..., chosen_class_words,
 //            source_as_target, source_as_target_inverse}, reverse_candidates, reverse_status, reverse_check,
-//            two_way_status, two_way_time_s, class_bound_status, class_bound_time_s},
+//            two_way_status, two_way_time_s, class_bound_status, class_bound_time_s,
+//            class_bound_vertices},
 //   target_lattice [[re, im] of omega1, [re, im] of omega2], time_s {stage: seconds, total},
 //   stages [{name, time_s, analyses, factorisations, newton_iterations, peak_memory_mb}]
 //   (the stage table, issue 19: one row per stage of time_s, in order, then the row

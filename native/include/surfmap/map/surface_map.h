@@ -910,6 +910,12 @@ struct SurfaceMapResult {
   /// "not computed: ..." when no decision needed them) and the seconds the source's uniformization took.
   std::string class_bound_status;
   double class_bound_time_s = 0;
+  /// Genus >= 2 (issue 19): vertices of the surface the reported bounds were
+  /// computed on: the source's own count, or that of its coarse copy (the
+  /// ranking's, map/coarse_source.h) when no decision needed the source's
+  /// own uniformization (docs/handle_classes.md "Bounds on the coarse
+  /// copy"); 0 when not computed.
+  int class_bound_vertices = 0;
   /// Seconds per stage, in order, and in total.
   std::vector<std::pair<std::string, double>> stage_times;
   double total_time = 0;
