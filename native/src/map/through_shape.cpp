@@ -2,6 +2,7 @@
 // generated shape").
 #include "through_shape.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <string>
@@ -81,9 +82,13 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
     r.through_shape_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
   const std::string shape = "genus-" + std::to_string(g) + " n-hole torus";
+  // At least 12 grid cells per handle: at 32 cells the genus-4 n-hole torus
+  // (2.3k vertices) mapped onto the genus-4 CAD plate at 11.8 x, at 48
+  // (5.9k) at 1.04 x (docs/handle_classes.md "Through a generated shape").
+  const int resolution = std::max(h.through_shape_resolution, 12 * g);
   TriMesh middle;
   try {
-    middle = samples::n_hole_torus(g, h.through_shape_resolution);
+    middle = samples::n_hole_torus(g, resolution);
   } catch (const Cancelled&) {
     throw;
   } catch (const Error& e) {
