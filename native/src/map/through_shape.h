@@ -18,7 +18,7 @@ std::vector<std::vector<int>> composed_class(const SurfaceMapResult& source_to_m
 /// Genus >= 2, HomotopyOptions::through_shape, default class, no landmarks:
 /// when `forward`'s energy ratio is at least through_shape_ratio, maps the
 /// source onto a generated n-hole torus of its genus and that onto the
-/// target (one way each, `map`), solves the composed class here alone
+/// target (`map`, the two-way run as in `options`), solves the composed class here alone
 /// (HomotopyOptions::given_class) and, when its energy is lower, returns
 /// that map in `forward` with the class appended to `forward`'s candidates
 /// and chosen. Always sets through_shape_status (and through_shape_time_s
