@@ -1128,20 +1128,20 @@ TEST(SurfaceMapHandles, SeparateDefaultRunsOfBothDirectionsEndOnInverseClasses) 
 }
 
 // The through-shape step (issue 14; docs/handle_classes.md "Through a
-// generated shape"), forced with a ratio threshold of 0 and the generated
-// shape at 26 cells. When the source is that generated shape itself, the map
+// generated shape"), forced with a ratio threshold of 0; the generated
+// shape at genus 2 is n_hole_torus(2, 32). When the source is that shape itself, the map
 // onto it is the identity, so the composed class is the class the shape ->
 // target run chose: its energy here must be the one-way run's (a wrong
 // rewriting of the letters between the runs gives another class, another
 // energy). It is listed after the one-way candidates, it is an isomorphism
 // (symplectic on homology), and the first class is kept on a tie.
 TEST(SurfaceMapHandles, ThroughShapeComposesTheLettersOfBothRuns) {
-  const TriMesh a = samples::n_hole_torus(2, 26, true);
+  const TriMesh a = samples::n_hole_torus(2, 32, true);
   const TriMesh b = samples::vase(30, true);
   SurfaceMapOptions o;
   o.homotopy.two_way = false;
   o.homotopy.through_shape_ratio = 0;
-  o.homotopy.through_shape_resolution = 26;
+  o.homotopy.through_shape_resolution = 32;
   const SurfaceMapResult m = surface_map(a, b, o);
   expect_valid_map(m, a, b);
   ASSERT_NE(m.through_shape_status.find("the composed class here"), std::string::npos) << m.through_shape_status;
@@ -1200,7 +1200,6 @@ TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   ASSERT_GT(forward.energy_ratio, plain.energy_ratio * 1.2);  // (1.52 against 1.12)
   SurfaceMapOptions through = o;
   through.homotopy.through_shape_ratio = 0;
-  through.homotopy.through_shape_resolution = 26;
   detail::through_shape_map(a, b, through, forward,
                             [](const TriMesh& s, const TriMesh& g, const SurfaceMapOptions& so) { return surface_map(s, g, so); });
   ASSERT_NE(forward.through_shape_status.find(": used"), std::string::npos) << forward.through_shape_status;

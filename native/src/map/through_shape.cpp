@@ -83,10 +83,12 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
     r.through_shape_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
   const std::string shape = "genus-" + std::to_string(g) + " n-hole torus";
-  // At least 12 grid cells per handle: at 32 cells the genus-4 n-hole torus
-  // (2.3k vertices) mapped onto the genus-4 CAD plate at 11.8 x, at 48
-  // (5.9k) at 1.04 x (docs/handle_classes.md "Through a generated shape").
-  const int resolution = std::max(h.through_shape_resolution, 12 * g);
+  // At least 16 grid cells per handle in a row (genus <= 4), 64 for the
+  // wheels beyond: at 32 cells the genus-4 n-hole torus (2.3k vertices)
+  // mapped onto the genus-4 CAD plate at 11.8 x, at 48 (5.9k) at 1.04 x but
+  // the fertility onto it at 8.75 x, at 64 (10k) at 4.54 x
+  // (docs/handle_classes.md "Through a generated shape").
+  const int resolution = std::max(h.through_shape_resolution, g <= 4 ? 16 * g : 64);
   TriMesh middle;
   try {
     middle = samples::n_hole_torus(g, resolution);
