@@ -281,8 +281,9 @@ struct HomotopyOptions {
   /// two-way run) is at least `through_shape_ratio` (default 3, where the
   /// quality warning starts) x 8 pi (g - 1), the source is mapped onto a
   /// generated n-hole torus of its genus (samples::n_hole_torus, genus 1..8,
-  /// `through_shape_resolution` grid cells) and that shape onto the target,
-  /// each one way (no two-way run); the two classes composed are solved here
+  /// at least `through_shape_resolution` grid cells: 16 per handle up to
+  /// genus 4, 64 for the wheels beyond) and that shape onto the target (the
+  /// two-way run as given); the two classes composed are solved here
   /// alone (given_class) and listed as one more candidate ("[through a
   /// generated genus-g n-hole torus]"); the lower-energy result is returned
   /// (SurfaceMapResult::through_shape_status says what was done). Why: a
