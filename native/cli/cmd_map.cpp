@@ -76,6 +76,7 @@ void register_map(CLI::App& app) {
     bool quiet = false, timings = false, no_homotopy_search = !defaults.homotopy.search.enabled,
          no_two_way = !defaults.homotopy.two_way, compare_directions = defaults.homotopy.compare_directions;
     bool no_cheap_direction_check = !defaults.homotopy.cheap_direction_check;
+    bool no_through_shape = !defaults.homotopy.through_shape;
     bool no_local_fold_repair = !defaults.solve.local_fold_repair;
     bool no_fold_untangle = !defaults.solve.fold_untangle;  // SolveOptions::fold_untangle
     bool no_greedy_pants = !defaults.homotopy.search.greedy_pants;  // HomotopySearchOptions::greedy_pants
@@ -145,6 +146,9 @@ void register_map(CLI::App& app) {
                 "(report: flat_placement; docs/handle_classes.md)");
   cmd->add_flag("--no-two-way", a->no_two_way,
                 "Genus >= 2: do not map the other way when the energy is far above the conformal bound (report: quality)");
+  cmd->add_flag("--no-through-shape", a->no_through_shape,
+                "Genus >= 2: at energy ratio 3 or more, do not try the class through a generated n-hole torus of the "
+                "same genus (docs/handle_classes.md \"Through a generated shape\")");
   cmd->add_flag("--no-cheap-direction-check", a->no_cheap_direction_check,
                 "Genus >= 2: when the other direction's ratio is not lower, keep this class without solving the other "
                 "direction's class inverted here and this one there (docs/handle_classes.md \"Both directions, cheaply\")");
@@ -233,6 +237,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.search.enabled = !a->no_homotopy_search;
     opt.homotopy.search.evaluations = a->homotopy_search_evaluations;
     opt.homotopy.two_way = !a->no_two_way;
+    opt.homotopy.through_shape = !a->no_through_shape;
     opt.homotopy.search.greedy_pants = !a->no_greedy_pants;
     opt.homotopy.search.snapped_start = !a->no_snapped_start;
     opt.homotopy.flat_both_signs = a->homotopy_both_signs;

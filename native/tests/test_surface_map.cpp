@@ -27,6 +27,7 @@
 #include "surfmap/topology/mapping_class_search.h"
 #include "surfmap/topology/outer_automorphisms.h"
 #include "certify_helpers.h"
+#include "../src/map/through_shape.h"
 #include "../src/map/two_way_run.h"
 
 namespace surfmap {
@@ -1124,6 +1125,94 @@ TEST(SurfaceMapHandles, SeparateDefaultRunsOfBothDirectionsEndOnInverseClasses) 
     ASSERT_EQ(m->source_as_target_inverse.size(), 4u) << m->source_as_target_status;
   }
   expect_separate_runs_inverse(f, r);
+}
+
+// The through-shape step (issue 14; docs/handle_classes.md "Through a
+// generated shape"), forced with a ratio threshold of 0; the generated
+// shape at genus 2 is n_hole_torus(2, 32). When the source is that shape itself, the map
+// onto it is the identity, so the composed class is the class the shape ->
+// target run chose: its energy here must be the one-way run's (a wrong
+// rewriting of the letters between the runs gives another class, another
+// energy). It is listed after the one-way candidates, it is an isomorphism
+// (symplectic on homology), and the first class is kept on a tie.
+TEST(SurfaceMapHandles, ThroughShapeComposesTheLettersOfBothRuns) {
+  const TriMesh a = samples::n_hole_torus(2, 32, true);
+  const TriMesh b = samples::vase(30, true);
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  o.homotopy.through_shape_ratio = 0;
+  o.homotopy.through_shape_resolution = 32;
+  const SurfaceMapResult m = surface_map(a, b, o);
+  expect_valid_map(m, a, b);
+  ASSERT_NE(m.through_shape_status.find("the composed class here"), std::string::npos) << m.through_shape_status;
+  EXPECT_NE(m.through_shape_status.find("source -> it 1"), std::string::npos) << m.through_shape_status;
+  const HomotopyCandidate& c = m.candidates.back();
+  EXPECT_NE(c.description.find("[through a generated genus-2 n-hole torus]"), std::string::npos) << c.description;
+  EXPECT_NE(m.chosen_candidate, static_cast<int>(m.candidates.size()) - 1);
+  EXPECT_NEAR(c.energy, m.candidates[m.chosen_candidate].energy, 1e-6 * c.energy) << m.through_shape_status;
+  EXPECT_NE(m.through_shape_status.find("kept the first"), std::string::npos) << m.through_shape_status;
+  ASSERT_EQ(c.homology.size(), 16u);
+  IntMatrix h(4, 4);
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) h(i, j) = c.homology[4 * i + j];
+  EXPECT_EQ(IntMatrix(h.transpose() * symplectic_form(2) * h), symplectic_form(2));
+  EXPECT_GT(m.through_shape_time_s, 0);
+  // Below the threshold (the default 3) the step does not run.
+  SurfaceMapOptions d;
+  d.homotopy.two_way = false;
+  const SurfaceMapResult md = surface_map(a, b, d);
+  EXPECT_NE(md.through_shape_status.find("not run: energy ratio below 3"), std::string::npos) << md.through_shape_status;
+  EXPECT_EQ(md.candidates.size() + 1, m.candidates.size());
+  // The class given as words: solved alone, the same energy as where it was chosen.
+  SurfaceMapOptions given;
+  given.homotopy.given_class = m.chosen_class_words;
+  const SurfaceMapResult mg = surface_map(a, b, given);
+  ASSERT_EQ(mg.candidates.size(), 1u);
+  EXPECT_NEAR(mg.energy_ratio, m.energy_ratio, 1e-6 * m.energy_ratio);
+  // Words that are not an isomorphism are refused with a message.
+  SurfaceMapOptions bad;
+  bad.homotopy.given_class = {{1}, {1}, {3}, {4}};
+  try {
+    surface_map(a, b, bad);
+    ADD_FAILURE() << "a non-isomorphism was solved";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("not an isomorphism"), std::string::npos) << e.what();
+  }
+}
+
+// The through-shape step adopts the composed class when it is lower: the
+// first result here is the default class twisted three times along the
+// source's a_1 (b_1 -> b_1 a_1^3, an automorphism), solved alone; the class
+// through the generated shape is the untwisted one's neighbourhood, lower,
+// so it is chosen, listed last, and its map is a valid map.
+TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
+  const TriMesh a = samples::cad_plate(2, 32, 0.3);
+  const TriMesh b = samples::n_hole_torus(2, 26, true);
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  const SurfaceMapResult plain = surface_map(a, b, o);
+  ASSERT_EQ(plain.chosen_class_words.size(), 4u);
+  std::vector<std::vector<int>> twisted = plain.chosen_class_words;
+  for (int k = 0; k < 3; ++k) twisted[1].insert(twisted[1].end(), twisted[0].begin(), twisted[0].end());
+  SurfaceMapOptions t = o;
+  t.homotopy.given_class = twisted;
+  SurfaceMapResult forward = surface_map(a, b, t);
+  ASSERT_GT(forward.energy_ratio, plain.energy_ratio * 1.2);  // (1.52 against 1.12)
+  SurfaceMapOptions through = o;
+  through.homotopy.through_shape_ratio = 0;
+  detail::through_shape_map(a, b, through, forward,
+                            [](const TriMesh& s, const TriMesh& g, const SurfaceMapOptions& so) { return surface_map(s, g, so); });
+  ASSERT_NE(forward.through_shape_status.find(": used"), std::string::npos) << forward.through_shape_status;
+  ASSERT_EQ(forward.candidates.size(), 2u);
+  EXPECT_EQ(forward.chosen_candidate, 1);
+  EXPECT_NE(forward.candidates[1].description.find("through a generated genus-2 n-hole torus"), std::string::npos);
+  EXPECT_LT(forward.energy_ratio, forward.candidates[0].energy / (8 * M_PI));
+  EXPECT_LE(forward.energy_ratio, plain.energy_ratio * 1.05) << forward.through_shape_status;
+  // (The 140-vertex plate's chords do not cover the torus: no certificate here.)
+  EXPECT_TRUE(forward.converged);
+  EXPECT_EQ(forward.flipped_triangles, 0);
+  EXPECT_EQ(static_cast<int>(forward.forward.size()), a.num_vertices());
+  EXPECT_EQ(static_cast<int>(forward.inverse.size()), b.num_vertices());
 }
 
 // The two-way run (forced with a ratio threshold of 0): the pair is mapped

@@ -690,7 +690,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   if (cs.ok)
     level = coarse_level(cs, sc, ss.edge_word, ss.sl, data, usable, *deck_group,
                          options.homotopy.search.enabled && !options.homotopy.images_only &&
-                             options.homotopy.class_index < 0);
+                             options.homotopy.given_class.empty() && options.homotopy.class_index < 0);
   if (!cs.ok) {
     // No coarse copy after all (coarse_level refused it): every class is
     // solved at full resolution, so every class needs its solver data.
@@ -1156,7 +1156,7 @@ std::optional<HyperbolicPipeline::FoundSearchClass> HyperbolicPipeline::found_se
 // against the best energy held.
 void HyperbolicPipeline::geometric_classes_at_full_resolution() {
   if (!options.homotopy.search.enabled || options.homotopy.images_only || options.homotopy.reverse_class_only ||
-      options.homotopy.search.geometric <= 0 ||
+      !options.homotopy.given_class.empty() || options.homotopy.search.geometric <= 0 ||
       options.homotopy.class_index >= 0 ||
       hooks.homotopy_search_start >= 0)
     return;
@@ -1241,7 +1241,9 @@ int HyperbolicPipeline::append_full_class(HomotopyClass hc, ClassData cd, Coarse
 // search runs on full-resolution solves, from the best solved class and
 // restarted from the next best distinct ones within restart_ratio.
 void HyperbolicPipeline::twist_search_at_full_resolution() {
-  if (!options.homotopy.search.enabled || options.homotopy.class_index >= 0 || options.homotopy.reverse_class_only) return;
+  if (!options.homotopy.search.enabled || options.homotopy.class_index >= 0 || options.homotopy.reverse_class_only ||
+      !options.homotopy.given_class.empty())
+    return;
   // (With the testing hooks' start, one run from there, whatever its energy.)
   const bool hooked = hooks.homotopy_search_start >= 0;
   if (hooks.homotopy_search_start >= ncand)
@@ -2036,7 +2038,9 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   p.start_class_bounds();          // issue 14: the source's own uniformization, for class lower bounds
   p.candidate_classes_and_data();  // §V-B: candidate homotopy classes and their deck elements
   p.rank_on_coarse_copy();         // ranking: every class solved on the coarse copy
-  if (p.ss.cs.ok && !options.homotopy.images_only && !options.homotopy.reverse_class_only) p.search_classes();  // more cuts, Dehn twists (mapping_class_search.h)
+  if (p.ss.cs.ok && !options.homotopy.images_only && !options.homotopy.reverse_class_only &&
+      options.homotopy.given_class.empty())
+    p.search_classes();  // more cuts, Dehn twists (mapping_class_search.h)
   p.solve_at_full_resolution(p.ss.cs.ok);  // §VI-B: the best classes at full resolution
   if (!p.ss.cs.ok) p.geometric_classes_at_full_resolution();  // issue 14: small sources (no coarse copy)
   if (!p.ss.cs.ok) p.twist_search_at_full_resolution();  // issue 14: the twist search there too

@@ -280,7 +280,7 @@ json quality_json(const SurfaceMapResult& r) {
           {"reverse_candidates", r.reverse_candidates}, {"reverse_status", r.reverse_status},
           {"reverse_check", r.reverse_check}, {"reverse_inverse", r.reverse_inverse},
           {"reverse_inverse_reason", r.reverse_inverse_reason},   {"directions", directions_json(r)},           {"two_way_status", r.two_way_status},
-          {"two_way_time_s", r.two_way_time_s},         {"class_bound_status", r.class_bound_status},
+          {"two_way_time_s", r.two_way_time_s}, {"through_shape_status", r.through_shape_status}, {"through_shape_time_s", r.through_shape_time_s},         {"class_bound_status", r.class_bound_status},
           {"class_cuts_status", r.class_cuts_status},   {"class_cuts_time_s", r.class_cuts_time_s},
           {"class_bound_time_s", r.class_bound_time_s}, {"class_bound_vertices", r.class_bound_vertices}};
 }

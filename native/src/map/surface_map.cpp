@@ -10,6 +10,7 @@
 #include "surfmap/error.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/work_counters.h"
+#include "through_shape.h"
 #include "two_way_run.h"
 
 namespace surfmap {
@@ -51,8 +52,8 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
 bool chooses_class_in_automatic_cuts(const SurfaceMapOptions& options) {
   const HomotopyOptions& h = options.homotopy;
   return (options.loops.source_base_vertex >= 0 || options.loops.target_base_vertex >= 0) &&
-         !options.loops.search_in_given_cuts && h.class_index < 0 &&
-         h.source_images.size() == 0 && h.reverse_class.empty() && !h.images_only && !h.reverse_class_only;
+         !options.loops.search_in_given_cuts && h.class_index < 0 && h.source_images.size() == 0 &&
+         h.reverse_class.empty() && !h.images_only && !h.reverse_class_only && h.given_class.empty();
 }
 
 std::string base_text(int v) { return v < 0 ? std::string("automatic") : std::to_string(v); }
@@ -251,6 +252,7 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
   }
   detail::assess_quality(out);  // issue 14: energy ratio and warning
   detail::two_way_map(source, target, options, out, map_of);  // issue 14: the other direction when poor
+  detail::through_shape_map(source, target, options, out, map_of);  // issue 14: through a generated shape when poor
   if (options.homotopy.two_way) detail::qualify_quality_warning(out);  // issue 14: both directions agree on it
   out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();
   finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));

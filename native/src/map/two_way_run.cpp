@@ -429,6 +429,7 @@ SurfaceMapOptions reverse_options(const SurfaceMapOptions& options) {
   SurfaceMapOptions ro = options;
   ro.homotopy.class_index = -1;
   ro.homotopy.two_way = false;
+  ro.homotopy.through_shape = false;  // (its own step runs in that direction's own run)
   ro.homotopy.source_images.resize(0, 0);
   std::swap(ro.loops.source_base_vertex, ro.loops.target_base_vertex);
   // The classes are ranked by their free energies (landmarks rank them
@@ -462,6 +463,7 @@ bool rescue_by_another_cut(const TriMesh& source, const TriMesh& target, const S
   if (options.loops.source_base_vertex >= 0) return false;
   SurfaceMapOptions bo = options;
   bo.homotopy.two_way = false;
+  bo.homotopy.through_shape = false;  // (the rescue's last attempt: one run)
   bo.loops.source_base_vertex = source.num_vertices() / 2;
   // (The automatic cuts are the run that just folded in every class.)
   bo.loops.search_in_given_cuts = true;
@@ -481,7 +483,7 @@ bool rescue_by_another_cut(const TriMesh& source, const TriMesh& target, const S
 bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                    SurfaceMapResult& out, const MapFunction& map, std::string& why) {
   if (!options.homotopy.two_way || options.homotopy.class_index >= 0 || options.homotopy.source_images.size() > 0 ||
-      options.homotopy.reverse_class_only || !options.landmarks.empty())
+      options.homotopy.reverse_class_only || !options.homotopy.given_class.empty() || !options.landmarks.empty())
     return false;
   const auto t0 = std::chrono::steady_clock::now();
   auto done = [&] {
@@ -534,7 +536,7 @@ bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target,
 void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                  SurfaceMapResult& forward, const MapFunction& map) {
   if (forward.genus < 2 || options.homotopy.class_index >= 0 || options.homotopy.source_images.size() > 0 ||
-      options.homotopy.reverse_class_only)
+      options.homotopy.reverse_class_only || !options.homotopy.given_class.empty())
     return;
   if (!options.homotopy.two_way) return void(forward.two_way_status = "not run (off)");
   const bool compare = options.homotopy.compare_directions;

@@ -276,6 +276,32 @@ struct HomotopyOptions {
   /// (a diagnostic: about 3x the time; default false; CLI
   /// --compare-directions).
   bool compare_directions = false;
+  /// Genus >= 2, default class, no landmarks (issue 14; docs/handle_classes.md
+  /// "Through a generated shape"): when the chosen class's energy (after the
+  /// two-way run) is at least `through_shape_ratio` (default 3, where the
+  /// quality warning starts) x 8 pi (g - 1), the source is mapped onto a
+  /// generated n-hole torus of its genus (samples::n_hole_torus, genus 1..8,
+  /// at least `through_shape_resolution` grid cells: 16 per handle up to
+  /// genus 4, 64 for the wheels beyond) and that shape onto the target (the
+  /// two-way run as given); the two classes composed are solved here
+  /// alone (given_class) and listed as one more candidate ("[through a
+  /// generated genus-g n-hole torus]"); the lower-energy result is returned
+  /// (SurfaceMapResult::through_shape_status says what was done). Why: a
+  /// shape far from both has its classes searched from handle permutations
+  /// and twists of its own cut, which can stop in a twisted class, while the
+  /// maps onto and from an evenly sized shape of the same genus are found
+  /// reliably. About two one-way runs and one single-class solve, only for
+  /// pairs at or above the ratio. Default true.
+  bool through_shape = true;
+  double through_shape_ratio = 3.0;
+  int through_shape_resolution = 32;
+  /// Genus >= 2: a class given as words (2g: source canonical generator j+1
+  /// -> word in the target's canonical letters, as in
+  /// SurfaceMapResult::chosen_class_words, in the cuts of these options'
+  /// loops), solved alone: no other candidate, class search, geometric
+  /// classes, two-way run or through-shape step (a SolveError when it is not
+  /// an isomorphism). The through-shape step uses it. Default empty.
+  std::vector<std::vector<int>> given_class;
   /// Genus >= 2, set by the two-way run: per source vertex a point on the
   /// target (#V_source x 3; empty, the default: none), where the inverse of
   /// a target -> source map puts it. The source's loops carried to those
@@ -900,6 +926,12 @@ struct SurfaceMapResult {
   /// class was used) and its seconds.
   std::string two_way_status;
   double two_way_time_s = 0;
+  /// Genus >= 2 (HomotopyOptions::through_shape): what the through-shape
+  /// step did ("not run: ..."; the two runs' ratios through the generated
+  /// shape; the composed class's ratio here and whether it was used) and
+  /// its seconds.
+  std::string through_shape_status;
+  double through_shape_time_s = 0;
   /// Genus >= 2 with a given base vertex (LoopOptions): how the class was
   /// chosen in the automatic cuts and carried to the given ones ("" when no
   /// base vertex was given or LoopOptions::search_in_given_cuts), and the seconds of the run in the automatic

@@ -297,6 +297,23 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
     out.classes.push_back(described(theta, n, shb, thb, "the source's loops carried to the given images"));
     return out;
   }
+  // A class given as words (homotopy.given_class: the through-shape step,
+  // issue 14): it alone, when it is an isomorphism.
+  if (!options.homotopy.given_class.empty()) {
+    GroupMap theta = options.homotopy.given_class;
+    bool well_formed = static_cast<int>(theta.size()) == n;
+    for (const Word& w : theta)
+      for (int x : w) well_formed = well_formed && x != 0 && std::abs(x) <= n;
+    if (!well_formed)
+      throw InputError("homotopy.given_class must be " + std::to_string(n) + " words in letters +-1..+-" +
+                       std::to_string(n));
+    space.reduce(theta);
+    if (!space.is_isomorphism(theta))
+      throw SolveError("homotopy.given_class is not an isomorphism of the surface groups (not symplectic on homology, "
+                       "or the relator's image is not trivial)");
+    out.classes.push_back(described(theta, n, shb, thb, "the given class"));
+    return out;
+  }
   // The other direction's class alone (homotopy.reverse_class_only: the
   // two-way run's cheap check), inverted algebraically.
   if (options.homotopy.reverse_class_only) {
