@@ -258,6 +258,22 @@ TEST(LandmarksFlat, BothSignsAddTheHalfTurnsAndHoldTheLandmarksNoWorse) {
       EXPECT_GT(d.landmark_lower_bound, m.landmark_lower_bound * (1 + 1e-6));
 }
 
+// Genus 2: source vertex `s` held 20 target edges (22 mean edge lengths,
+// 0.36 of the diagonal) from its free image `free.forward[s]`, in the free
+// map's class (`options`); shared by the continuation and folds-allowed tests.
+struct FarLandmark {
+  TriMesh a = samples::n_hole_torus(2, 20, true);
+  TriMesh b = samples::vase(24, true);
+  SurfaceMapResult free = surface_map(a, b);
+  int s = a.num_vertices() / 3;
+  std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
+  SurfaceMapOptions options;
+  FarLandmark() {
+    if (path.size() > 20) options.landmarks = {{s, path[20]}};
+    options.homotopy.class_index = free.chosen_candidate;
+  }
+};
+
 TEST(LandmarksHyperbolic, FarLandmarkStaysBijectiveByBarrierContinuation) {
   // Genus 2: a landmark 20 edges (22 mean edge lengths, 0.36 of the
   // diagonal) from its free image. Its plain pin folds the map, and
@@ -265,15 +281,14 @@ TEST(LandmarksHyperbolic, FarLandmarkStaysBijectiveByBarrierContinuation) {
   // barrier continuation walks it there with the map bijective at every
   // step: hit exactly, no flips, an energy between the free optimum and
   // the folded plain-pin infimum's neighbourhood.
-  const TriMesh a = samples::n_hole_torus(2, 20, true);
-  const TriMesh b = samples::vase(24, true);
-  const SurfaceMapResult free = surface_map(a, b);
-  const int s = a.num_vertices() / 3;
-  const std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
-  ASSERT_GT(path.size(), 21u);
-  SurfaceMapOptions o;
-  o.landmarks = {{s, path[20]}};
-  o.homotopy.class_index = free.chosen_candidate;
+  const FarLandmark far;
+  ASSERT_GT(far.path.size(), 21u);
+  const TriMesh& a = far.a;
+  const TriMesh& b = far.b;
+  const SurfaceMapResult& free = far.free;
+  const int s = far.s;
+  const std::vector<int>& path = far.path;
+  SurfaceMapOptions o = far.options;
   EXPECT_GT((b.V.row(path[20]).transpose() - free.forward[s].position).norm(), 20 * mean_edge(b));
   const SurfaceMapResult m = surface_map(a, b, o);
   expect_landmarks_hit(m, a, b, o);
@@ -294,15 +309,14 @@ TEST(LandmarksHyperbolic, FoldsAllowedReturnsThePlainPinsFolded) {
   // bijective one, not an error): the landmark exactly on its target, folds
   // counted and kept (no repair, no own-edge weights), an energy above the
   // free optimum's, the class's held energy the returned map's.
-  const TriMesh a = samples::n_hole_torus(2, 20, true);
-  const TriMesh b = samples::vase(24, true);
-  const SurfaceMapResult free = surface_map(a, b);
-  const int s = a.num_vertices() / 3;
-  const std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
-  ASSERT_GT(path.size(), 21u);
-  SurfaceMapOptions o;
-  o.landmarks = {{s, path[20]}};
-  o.homotopy.class_index = free.chosen_candidate;
+  const FarLandmark far;
+  ASSERT_GT(far.path.size(), 21u);
+  const TriMesh& a = far.a;
+  const TriMesh& b = far.b;
+  const SurfaceMapResult& free = far.free;
+  const int s = far.s;
+  const std::vector<int>& path = far.path;
+  SurfaceMapOptions o = far.options;
   o.landmarks_may_fold = true;
   const SurfaceMapResult m = surface_map(a, b, o);
   EXPECT_TRUE(m.converged);

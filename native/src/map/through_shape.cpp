@@ -16,12 +16,6 @@ namespace surfmap::detail {
 
 namespace {
 
-std::string number(double x) {
-  char s[32];
-  std::snprintf(s, sizeof s, "%.4g", x);
-  return s;
-}
-
 /// The options of a run to or from the generated shape or of the composed
 /// class here: no two-way run (the caller sets it back where wanted), no
 /// through-shape step, no landmarks, no requested class, no solve-progress
@@ -74,7 +68,7 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
   if (!h.through_shape) return void(forward.through_shape_status = "not run (off)");
   if (!options.landmarks.empty()) return void(forward.through_shape_status = "not run: landmarks are held");
   if (!(forward.energy_ratio >= h.through_shape_ratio))
-    return void(forward.through_shape_status = "not run: energy ratio below " + number(h.through_shape_ratio));
+    return void(forward.through_shape_status = "not run: energy ratio below " + four_digits(h.through_shape_ratio));
   const int g = forward.genus;
   if (g > 8) return void(forward.through_shape_status = "not run: no generated n-hole torus beyond genus 8");
   const auto t0 = std::chrono::steady_clock::now();
@@ -124,8 +118,8 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
     return finish(forward, "mapping the generated " + shape + " onto the target failed: " + e.what());
   }
   const std::string runs = "through a generated " + shape + " (" + std::to_string(middle.num_vertices()) +
-                           " vertices): source -> it " + number(to_middle.energy_ratio) + ", it -> target " +
-                           number(from_middle.energy_ratio);
+                           " vertices): source -> it " + four_digits(to_middle.energy_ratio) + ", it -> target " +
+                           four_digits(from_middle.energy_ratio);
   std::string why;
   SurfaceMapOptions here = one_way_options(options);
   here.loops = options.loops;
@@ -141,8 +135,8 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
   }
   const double before = forward.energy_ratio, after = through.energy_ratio;
   const bool better = through.chosen_candidate >= 0 && after < before * (1 - 1e-6);
-  const std::string status = runs + "; the composed class here: energy ratio " + number(after) + " against " +
-                             number(before) + (better ? ": used" : ": kept the first");
+  const std::string status = runs + "; the composed class here: energy ratio " + four_digits(after) + " against " +
+                             four_digits(before) + (better ? ": used" : ": kept the first");
   if (!better) {
     // Listed (not solved to its optimum's map here, but its energy is):
     // the ranking's record of what was tried.

@@ -15,13 +15,13 @@
 
 namespace surfmap::detail {
 
-namespace {
-
-std::string number(double x) {
+std::string four_digits(double x) {
   char s[32];
   std::snprintf(s, sizeof s, "%.4g", x);
   return s;
 }
+
+namespace {
 
 /// SurfaceMapResult::reverse_check: whether the chosen class is (or ties
 /// with) one from the other direction.
@@ -161,15 +161,15 @@ std::string agree_directions(const TriMesh& source, const TriMesh& target, const
   const double bound = 8 * M_PI * (forward.genus - 1);
   const OtherClassHere there = other_class_here(back), here = other_class_here(forward);
   const std::string there_text = "the other direction, given this class (" + there.how +
-                                 (there.index >= 0 ? ", ratio " + number(there.energy / bound) : std::string()) +
+                                 (there.index >= 0 ? ", ratio " + four_digits(there.energy / bound) : std::string()) +
                                  "), chose " + (there.chosen ? std::string("it") : std::string("its own (ratio ") +
-                                 number(chosen_energy(back) / bound) + ")");
+                                 four_digits(chosen_energy(back) / bound) + ")");
   SurfaceMapResult::DirectionCheck& d = forward.directions;
   if (there.chosen) {
     d.outcome = back.directions.outcome == "symmetric: both optimal" ? back.directions.outcome : "inverse";
-    d.reason = "this direction chose its own class (ratio " + number(chosen_energy(forward) / bound) +
+    d.reason = "this direction chose its own class (ratio " + four_digits(chosen_energy(forward) / bound) +
                ") over the other direction's inverted (" + here.how +
-               (here.index >= 0 ? ", ratio " + number(here.energy / bound) : std::string()) + "); " + there_text +
+               (here.index >= 0 ? ", ratio " + four_digits(here.energy / bound) : std::string()) + "); " + there_text +
                (back.directions.reason.empty() ? std::string() : ": " + back.directions.reason);
     return "directions agreed: " + there_text;
   }
@@ -179,8 +179,8 @@ std::string agree_directions(const TriMesh& source, const TriMesh& target, const
   // Both prefer their own class: the pair of lower total energy, in both.
   const double own_pair = chosen_energy(forward) + there.energy;
   const double other_pair = here.energy + chosen_energy(back);
-  const std::string pairs = "pair totals (ratio here + ratio there): this class " + number(own_pair / bound) +
-                            ", the other direction's " + number(other_pair / bound);
+  const std::string pairs = "pair totals (ratio here + ratio there): this class " + four_digits(own_pair / bound) +
+                            ", the other direction's " + four_digits(other_pair / bound);
   if (!std::isfinite(own_pair) && !std::isfinite(other_pair))
     return "directions not agreed: neither pair's energies are known (" + there_text + "; here " + here.how + ")";
   if (!(other_pair < own_pair)) {
@@ -243,7 +243,7 @@ std::string search_from_this_class_there(const TriMesh& source, const TriMesh& t
     there_text += "; searched on from it there: kept it";
     return "";
   }
-  there_text += "; searched on from it there: another class, ratio " + number(back_energy / bound);
+  there_text += "; searched on from it there: another class, ratio " + four_digits(back_energy / bound);
   SurfaceMapOptions fo = options;
   fo.homotopy.two_way = false;
   fo.homotopy.compare_directions = false;
@@ -261,8 +261,8 @@ std::string search_from_this_class_there(const TriMesh& source, const TriMesh& t
   }
   const double alt_here = chosen_energy(here);
   const double own_pair = own + alt_there, other_pair = alt_here + back_energy;
-  const std::string pairs = "pair totals (ratio here + ratio there): this class " + number(own_pair / bound) +
-                            ", the class searched from it there " + number(other_pair / bound);
+  const std::string pairs = "pair totals (ratio here + ratio there): this class " + four_digits(own_pair / bound) +
+                            ", the class searched from it there " + four_digits(other_pair / bound);
   if (!(other_pair < own_pair)) {
     there_text += " (" + pairs + ")";
     return "";
@@ -272,7 +272,7 @@ std::string search_from_this_class_there(const TriMesh& source, const TriMesh& t
   forward.directions.outcome = "inverse";
   forward.directions.reason = "inverse by agreement: the other direction, given this run's first class (" +
                               there_text + "), searches on to another class; its inverse here, ratio " +
-                              number(alt_here / bound) + ", and it make the pair of lower total energy (" + pairs +
+                              four_digits(alt_here / bound) + ", and it make the pair of lower total energy (" + pairs +
                               ")" + (kept_reason.empty() ? std::string() : "; " + kept_reason);
   return "directions agreed on the class the other direction searched from this one: " + pairs;
 }
@@ -321,8 +321,8 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
     return "directions not compared: the other direction's class inverted not solved here (" + here_failure + ")";
   }
   const double alt = chosen_energy(here);
-  const std::string here_text = "the other direction's class inverted here: ratio " + number(alt / bound) +
-                                " against this class's " + number(own / bound);
+  const std::string here_text = "the other direction's class inverted here: ratio " + four_digits(alt / bound) +
+                                " against this class's " + four_digits(own / bound);
   auto adopt = [&](const std::string& why_adopted) {
     const std::string kept_reason = here.directions.reason;
     forward = std::move(here);
@@ -347,8 +347,8 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
     std::string there_failure;
     if (run_map(map, target, source, ro, there, there_failure)) {
       alt_there = chosen_energy(there);
-      there_text = "this class inverted there: ratio " + number(alt_there / bound) + " against its own " +
-                   number(own_there / bound);
+      there_text = "this class inverted there: ratio " + four_digits(alt_there / bound) + " against its own " +
+                   four_digits(own_there / bound);
     } else {
       there_text = "this class inverted could not be solved there: " + there_failure;
     }
@@ -376,8 +376,8 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
     return "directions not agreed: " + there_text;
   }
   const double own_pair = own + alt_there, other_pair = alt + own_there;
-  const std::string pairs = "pair totals (ratio here + ratio there): this class " + number(own_pair / bound) +
-                            ", the other direction's " + number(other_pair / bound);
+  const std::string pairs = "pair totals (ratio here + ratio there): this class " + four_digits(own_pair / bound) +
+                            ", the other direction's " + four_digits(other_pair / bound);
   if (other_pair < own_pair) {
     adopt("inverse by agreement: each direction alone prefers its own class; the pair of inverse classes with the "
           "lower total energy is the other direction's (" + pairs + ")");
@@ -409,7 +409,7 @@ void assess_quality(SurfaceMapResult& result) {
   }
   result.energy_ratio = energy / (8 * M_PI * (result.genus - 1));
   if (result.energy_ratio >= 3.0)
-    result.quality_warning = "energy " + number(result.energy_ratio) +
+    result.quality_warning = "energy " + four_digits(result.energy_ratio) +
                              " x the conformal bound 8 pi (g - 1): the handle class may be twisted; add landmarks or "
                              "pick a candidate";
 }
@@ -519,14 +519,14 @@ bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target,
     ro.homotopy.reverse_class_only = true;
     std::string inverted_failure = no_class;
     if (ro.homotopy.reverse_class.empty() || !run_map(map, source, target, ro, again, inverted_failure)) {
-      why = "the other direction's class (energy ratio " + number(reverse.energy_ratio) + " there) failed here too: carried, " +
+      why = "the other direction's class (energy ratio " + four_digits(reverse.energy_ratio) + " there) failed here too: carried, " +
             failure + "; inverted algebraically, " + inverted_failure;
       return rescue_by_another_cut(source, target, options, out, map, why) && done();
     }
     how = "the target -> source map's class inverted algebraically (its loops carried: " + failure + ")";
   }
   out = std::move(again);
-  out.two_way_status = "every one-way candidate class folded; " + how + " (energy ratio " + number(reverse.energy_ratio) +
+  out.two_way_status = "every one-way candidate class folded; " + how + " (energy ratio " + four_digits(reverse.energy_ratio) +
                        " there) gave a bijective map";
   if (out.directions.reason.empty() && out.directions.outcome.empty())
     out.directions.reason = "not compared: the class was carried from the other direction's map (every one-way class folded)";
@@ -541,9 +541,9 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
   if (!options.homotopy.two_way) return void(forward.two_way_status = "not run (off)");
   const bool compare = options.homotopy.compare_directions;
   if (!compare && !(forward.energy_ratio >= options.homotopy.two_way_ratio)) {
-    forward.two_way_status = "not run: energy ratio below " + number(options.homotopy.two_way_ratio);
+    forward.two_way_status = "not run: energy ratio below " + four_digits(options.homotopy.two_way_ratio);
     forward.reverse_inverse_reason = "not compared: the two-way run did not run (energy ratio below " +
-                                     number(options.homotopy.two_way_ratio) + ")";
+                                     four_digits(options.homotopy.two_way_ratio) + ")";
     forward.directions.reason = forward.reverse_inverse_reason;
     return;
   }
@@ -564,10 +564,10 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
   }
   if (static_cast<int>(reverse.inverse.size()) != source.num_vertices())
     return finish("the other direction gave no inverse correspondence");
-  const std::string rev = "target -> source energy ratio " + number(reverse.energy_ratio) + " (mean D' " +
-                          number(reverse.mean_dilatation) + ")";
+  const std::string rev = "target -> source energy ratio " + four_digits(reverse.energy_ratio) + " (mean D' " +
+                          four_digits(reverse.mean_dilatation) + ")";
   if ((!compare && !(reverse.energy_ratio < forward.energy_ratio)) || reverse.chosen_candidate < 0) {
-    forward.reverse_inverse_reason = "not compared: the other direction's energy ratio " + number(reverse.energy_ratio) +
+    forward.reverse_inverse_reason = "not compared: the other direction's energy ratio " + four_digits(reverse.energy_ratio) +
                                      " is not lower, its class was not carried";
     if (reverse.chosen_candidate < 0 || !options.homotopy.cheap_direction_check) return finish(rev + ", not lower: kept");
     // (The ratios of the two directions are not comparable energies.)
@@ -600,14 +600,14 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
     forward.reverse_inverse = again.reverse_inverse == 1 ? 1 : 0;
     forward.reverse_inverse_reason =
         (again.reverse_inverse == 1 ? std::string("the same class: ") : std::string("not inverse: ")) +
-        "the other direction's class inverted has energy ratio " + number(after) + " against " + number(before) +
+        "the other direction's class inverted has energy ratio " + four_digits(after) + " against " + four_digits(before) +
         (again.reverse_inverse_reason.empty() ? std::string() : " (" + again.reverse_inverse_reason + ")");
   }
   std::string agreement;
   if (forward.directions.outcome == "different")
     agreement = "; " + agree_directions(source, target, fo, reverse, forward, map);
-  finish(rev + "; with the source's loops carried by its inverse as a candidate: energy ratio " + number(after) +
-         " against " + number(before) + (better ? ": used" : ": kept the first") +
+  finish(rev + "; with the source's loops carried by its inverse as a candidate: energy ratio " + four_digits(after) +
+         " against " + four_digits(before) + (better ? ": used" : ": kept the first") +
          (again_status.empty() ? std::string() : " (" + again_status + ")") + agreement);
 }
 

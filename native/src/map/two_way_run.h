@@ -5,12 +5,17 @@
 // way, and the source's loops carried by that map's inverse give one more
 // candidate class. Not public API (used by surface_map.cpp).
 #include <functional>
+#include <string>
 
 #include "surfmap/map/surface_map.h"
 
 namespace surfmap::detail {
 
 /// The public surface_map (the two-way run calls it with two_way off).
+/// x with four significant digits (printf %.4g), as the quality statuses write
+/// energies and ratios.
+std::string four_digits(double x);
+
 using MapFunction = std::function<SurfaceMapResult(const TriMesh&, const TriMesh&, const SurfaceMapOptions&)>;
 
 /// Genus >= 2: SurfaceMapResult::energy_ratio (the chosen class's free
