@@ -328,11 +328,28 @@ void check_newton_input(int n, const std::vector<WeightedEdge>& edges, const std
 // A step ξ takes C_i to C_i τ(ξ_i) with the exact translations τ, and the
 // line search's trial elements are τ(ξ_i)^-1 A_e τ(ξ_j).
 //
-// The state carried from one iteration to the next is only the charts
-// (small: every vertex is brought back to the fundamental domain) and the
+// The state carried from one iteration to the next is the charts and the
 // effective elements (as reduced words when a relator is given, so short
-// once the edge is short); A_e is derived from them afresh after every
-// step. Updating A_e in place instead (A_e ← τ^-1 A_e τ at every step)
+// once the edge is short). Each chart is split, C_i = T_i c_i: an anchor
+// T_i in long double and the local chart c_i of the steps since, near the
+// identity (folded into T_i once it moves beyond kReanchorB); every edge
+// keeps K_e = T_i^-1 ρ'_e T_j in long double, and A_e = c_i^-1 K_e c_j is
+// derived afresh after every step. Moving a vertex to another sheet
+// changes T_i and ρ'_e but not K_e, so that only re-anchoring (rare once
+// the steps are short) and a sheet that makes K_e more accurate derive K_e
+// from T and ρ' again. Issue 13: deriving A_e from the full charts in
+// double after every step (as before) is exact only near the origin. A
+// thin CAD plate's domain reaches ~26 units out (charts with entries ~5e5,
+// deck elements ~3e7), where a chart in double is known only to
+// ~1e-16 |C|^2 ≈ 2.5e-5 in its own frame, and a vertex flipping between
+// two sheets every iteration moved its edges by 2.3e-3 each time (the two
+// sheets' words evaluate to matrices that disagree that much): E moved by
+// ±1e-5 per step while Newton's steps decreased it by 1e-6, and the raw
+// genus-8 polycube -> thin genus-8 plate solve wandered at gradient
+// 0.03..0.06 (3.5e-5 of the largest weight) for its 300 iterations; with
+// the anchors it reaches the tolerance in 3 (docs/robustness.md).
+//
+// Updating A_e in place instead (A_e ← τ^-1 A_e τ at every step)
 // accumulates the absolute round-off of its largest size: a twisted class
 // seen from an all-at-origin start has edges of size 1e8..1e14, whose
 // in-place updates had drifted by up to 0.75 in length by the end, so the
@@ -342,7 +359,9 @@ void check_newton_input(int n, const std::vector<WeightedEdge>& edges, const std
 // positions' true energy was 456.41).
 class ChartState {
  public:
-  std::vector<Mobius> chart;  ///< #V chart C_i
+  /// #V local chart c_i: the steps since vertex i was last anchored, near
+  /// the identity (re-anchored beyond kReanchorB), so kept in double.
+  std::vector<Mobius> chart;
   std::vector<LongMobius> eff;  ///< #edges effective element ρ'_e
   std::vector<Mobius> A;  ///< #edges A_e, derived by derive_edges()
 
@@ -353,8 +372,9 @@ class ChartState {
       : edges_(edges), generators_(generators), options_(options), r_(r), words_(!options.relator.empty()),
         reduce_word_(words_ ? options.relator : Word{}) {
     for (const auto& g : generators) moves_.push_back(g), moves_.push_back(g.inverse());
-    chart.resize(n);
-    for (int i = 0; i < n; ++i) chart[i] = Mobius::translation_to(z0[i]);
+    anchor_.resize(n);
+    for (int i = 0; i < n; ++i) anchor_[i] = LongMobius::from(Mobius::translation_to(z0[i]));
+    chart.assign(n, Mobius());
     if (words_)
       for (size_t e = 0; e < edges.size(); ++e)
         if (edges[e].rho_word.empty() && hyperbolic::distance_from_identity(edges[e].rho) > 1e-12)
@@ -387,6 +407,9 @@ class ChartState {
         eff[e] = LongMobius::from(edges[e].rho);
       }
     }
+    anchored_.resize(edges.size());
+    anchored_error_.resize(edges.size());
+    for (size_t e = 0; e < edges.size(); ++e) anchor_edge(static_cast<int>(e));
     A.resize(edges.size());
     derive_edges();
     // Edges longer than ~70 units at the start (entries beyond 1e15; a class
@@ -405,24 +428,60 @@ class ChartState {
     derive_edges();
   }
 
-  // Every A_e afresh from the charts and effective elements.
+  // Every A_e afresh from the local charts and the anchored elements:
+  // A_e = c_i^-1 K_e c_j.
   void derive_edges() {
     for (size_t e = 0; e < edges_.size(); ++e) {
       const LongMobius ci = LongMobius::from(chart[edges_[e].i]), cj = LongMobius::from(chart[edges_[e].j]);
-      A[e] = (ci.inverse() * eff[e] * cj).normalized().to_double().normalized();
+      A[e] = (ci.inverse() * anchored_[e] * cj).normalized().to_double().normalized();
     }
+  }
+
+  /// Vertex v's full chart C_v = T_v c_v.
+  LongMobius full_chart(int v) const { return (anchor_[v] * LongMobius::from(chart[v])).normalized(); }
+
+  /// The local chart folded into the anchor once it has moved beyond
+  /// kReanchorB (|b| = sinh(d/2): about 1.4 units), so that c_v stays near
+  /// the identity: T_v ← T_v c_v, c_v ← 1, and the incident K_e carried
+  /// along (K_e ← c_i^-1 K_e c_j, A_e unchanged), or derived afresh when that
+  /// is the more accurate (anchor_edge).
+  static constexpr double kReanchorB = 0.75;
+  void reanchor_if_moved(int v) {
+    if (!(std::abs(chart[v].b) > kReanchorB)) return;
+    const LongMobius c = LongMobius::from(chart[v]);
+    anchor_[v] = (anchor_[v] * c).normalized();
+    const long double c_size = std::abs(c.a) + std::abs(c.b);
+    for (int k = inc_start_[v]; k < inc_start_[v + 1]; ++k) {
+      const int e = inc_edge_[k];
+      LongMobius K = anchored_[e];
+      if (edges_[e].i == v) K = c.inverse() * K;
+      if (edges_[e].j == v) K = K * c;
+      anchored_[e] = K.normalized();
+      anchored_error_[e] += c_size * (std::abs(K.a) + std::abs(K.b));
+      refresh_if_better(e);
+    }
+    chart[v] = Mobius();
   }
 
   // Dynamic charts: vertex v to the sheet options.reduce_point names, or
   // greedily towards the origin by the generators.
   void move_vertex(int v) {
     if (options_.reduce_point) {
-      Complex z = chart[v].apply(Complex(0.0));
+      Complex z = position(v);
       const Word w = options_.reduce_point(z);
-      if (!w.empty()) change_sheet(v, w, evaluate_long(w).to_double().normalized());
+      if (!w.empty()) change_sheet(v, w, evaluate_long(w));
       return;
     }
-    for (int m : reduce_towards_origin(chart[v], moves_)) change_sheet(v, Word{move_letter(m)}, moves_[m]);
+    const Mobius full = full_chart(v).to_double().normalized();
+    for (int m : reduce_towards_origin(full, moves_))
+      change_sheet(v, Word{move_letter(m)}, LongMobius::from(moves_[m]));
+  }
+
+  /// z_v = C_v(0) = b / ā of the full chart.
+  Complex position(int v) const {
+    const LongMobius C = full_chart(v);
+    const std::complex<long double> z = C.b / std::conj(C.a);
+    return {static_cast<double>(z.real()), static_cast<double>(z.imag())};
   }
 
  private:
@@ -437,14 +496,35 @@ class ChartState {
     return m;
   }
 
-  // Vertex v to another sheet by γ (word w when words are kept): C_v ← γ C_v,
+  // K_e = T_i^-1 ρ'_e T_j afresh, with its round-off bound |T_i| |ρ'_e| |T_j|
+  // (in units of the long double epsilon; sizes |a| + |b|).
+  void anchor_edge(int e) {
+    const LongMobius& Ti = anchor_[edges_[e].i];
+    const LongMobius& Tj = anchor_[edges_[e].j];
+    anchored_[e] = (Ti.inverse() * eff[e] * Tj).normalized();
+    anchored_error_[e] = fresh_error(e);
+  }
+  long double fresh_error(int e) const {
+    auto size = [](const LongMobius& m) { return std::abs(m.a) + std::abs(m.b); };
+    return size(anchor_[edges_[e].i]) * size(eff[e]) * size(anchor_[edges_[e].j]);
+  }
+  // Derived afresh only when that bound is well below the carried one: a
+  // vertex that flips between two sheets from one iteration to the next
+  // then does not move its edges' elements by the round-off of the far one.
+  void refresh_if_better(int e) {
+    if (fresh_error(e) < 0.25L * anchored_error_[e]) anchor_edge(e);
+  }
+
+  // Vertex v to another sheet by γ (word w when words are kept): T_v ← γ T_v,
   // and its edges conjugated, ρ'_e ← γ ρ'_e where v is the tail and
-  // ρ'_e ← ρ'_e γ^-1 where it is the head, so that A_e is unchanged.
-  void change_sheet(int v, const Word& w, const Mobius& gamma) {
-    chart[v] = (gamma * chart[v]).normalized();
+  // ρ'_e ← ρ'_e γ^-1 where it is the head, so that K_e (and A_e) is
+  // unchanged; K_e is derived afresh only when the new sheet makes that the
+  // more accurate (fewer or shorter letters).
+  void change_sheet(int v, const Word& w, const LongMobius& g) {
+    const Mobius gamma = g.to_double().normalized();
+    anchor_[v] = (g * anchor_[v]).normalized();
     r_.vertex_deck[v] = (gamma * r_.vertex_deck[v]).normalized();
     r_.vertex_deck_word[v] = concat(w, r_.vertex_deck_word[v]);
-    const LongMobius g = LongMobius::from(gamma);
     for (int k = inc_start_[v]; k < inc_start_[v + 1]; ++k) {
       const int e = inc_edge_[k];
       const WeightedEdge& ed = edges_[e];
@@ -458,6 +538,7 @@ class ChartState {
         if (ed.i == v) eff[e] = (g * eff[e]).normalized();
         if (ed.j == v) eff[e] = (eff[e] * g.inverse()).normalized();
       }
+      refresh_if_better(e);
     }
   }
 
@@ -470,6 +551,9 @@ class ChartState {
   std::vector<Mobius> moves_;  // generator k at 2k, its inverse at 2k+1
   std::vector<int> inc_start_, inc_edge_;
   std::vector<Word> eff_word_;
+  std::vector<LongMobius> anchor_;  // #V anchor T_i (the full chart is T_i c_i)
+  std::vector<LongMobius> anchored_;  // #edges K_e = T_i^-1 ρ'_e T_j
+  std::vector<long double> anchored_error_;  // #edges round-off bound of K_e (units of epsilon)
 };
 
 // The energy Σ w d² for edge elements `a` (one per edge).
@@ -854,9 +938,12 @@ struct HarmonicNewton {
 
   /// After a step: the new charts and sheets.
   void recentre_charts() {
-    // Dynamic charts: bring far-out vertices back towards the origin.
-    for (int i = 0; i < n; ++i)
-      if (options.reduce_point || std::abs(chart[i].b) > 0.75) state.move_vertex(i);  // greedy: |C_i(0)| > 0.6
+    // Local charts that moved far into their anchors; then dynamic charts:
+    // far-out vertices back to the domain's sheet (greedy: |C_i(0)| > 0.6).
+    for (int i = 0; i < n; ++i) {
+      state.reanchor_if_moved(i);
+      if (options.reduce_point || std::abs(state.full_chart(i).b) > 0.75L) state.move_vertex(i);
+    }
     // The new charts and sheets: every A_e afresh (ChartState above), and
     // the energy the next iteration starts from.
     state.derive_edges();
@@ -868,7 +955,7 @@ struct HarmonicNewton {
   void finish() {
     r.energy = E;
     r.z.resize(n);
-    for (int i = 0; i < n; ++i) r.z[i] = chart[i].apply(Complex(0.0));
+    for (int i = 0; i < n; ++i) r.z[i] = state.position(i);
     r.edge_local = A;
     r.edge_effective.resize(edges.size());
     for (size_t e = 0; e < edges.size(); ++e) r.edge_effective[e] = state.eff[e].to_double().normalized();
