@@ -1920,12 +1920,7 @@ void map_with_fallback(HyperbolicPipeline& p) {
       reset_keeping_candidates();  // the source weights changed: the same class again
       --attempt;
     } catch (const SolveError& e) {
-      // A requested class fails as itself. Otherwise a single candidate
-      // that fails is reported like several (issue 13: raw genus-8 polycube
-      // -> thin genus-8 plate, whose second class was beaten in the race, so
-      // that only class 0 was tried, folded, and the rescue by the other
-      // direction in surface_map, which looks for this message, never ran).
-      if (attempt + 1 >= fallback.size() && attempt == 0 && p.options.homotopy.class_index >= 0) throw;
+      if (attempt + 1 >= fallback.size() && attempt == 0) throw;
       if (attempt + 1 >= fallback.size()) {
         // Issue 13: the last fallback's reason alone hid the chosen class's
         // (plate -> wheel genus 9: the chosen class, 147 x the bound, came
@@ -1935,7 +1930,6 @@ void map_with_fallback(HyperbolicPipeline& p) {
         std::snprintf(head, sizeof head, "no candidate class gave a bijective map (%d tried); the chosen class %d (energy %.6g, %.3g x 8 pi (g - 1)): ",
                       static_cast<int>(fallback.size()), c, out.candidates[c].energy,
                       out.candidates[c].energy / (8 * M_PI * (out.genus - 1)));
-        if (attempt == 0) throw SolveError(head + std::string(e.what()));
         const std::string& d = out.candidates[c].description;
         const size_t at = d.rfind("  [not used: ");
         throw SolveError(head + (at == std::string::npos ? std::string("?") : d.substr(at + 13, d.size() - at - 14)) +
