@@ -330,7 +330,8 @@ void check_newton_input(int n, const std::vector<WeightedEdge>& edges, const std
 //
 // The state carried from one iteration to the next is the charts and the
 // effective elements (as reduced words when a relator is given, so short
-// once the edge is short). Each chart is split, C_i = T_i c_i: an anchor
+// once the edge is short). Far from the origin (a chart of size 100 or
+// more, ChartState::anchor_if_far) each chart is split, C_i = T_i c_i: an anchor
 // T_i in long double and the local chart c_i of the steps since, near the
 // identity (folded into T_i once it moves beyond kReanchorB); every edge
 // keeps K_e = T_i^-1 ρ'_e T_j in long double, and A_e = c_i^-1 K_e c_j is
@@ -372,9 +373,8 @@ class ChartState {
       : edges_(edges), generators_(generators), options_(options), r_(r), words_(!options.relator.empty()),
         reduce_word_(words_ ? options.relator : Word{}) {
     for (const auto& g : generators) moves_.push_back(g), moves_.push_back(g.inverse());
-    anchor_.resize(n);
-    for (int i = 0; i < n; ++i) anchor_[i] = LongMobius::from(Mobius::translation_to(z0[i]));
-    chart.assign(n, Mobius());
+    chart.resize(n);
+    for (int i = 0; i < n; ++i) chart[i] = Mobius::translation_to(z0[i]);
     if (words_)
       for (size_t e = 0; e < edges.size(); ++e)
         if (edges[e].rho_word.empty() && hyperbolic::distance_from_identity(edges[e].rho) > 1e-12)
@@ -407,9 +407,7 @@ class ChartState {
         eff[e] = LongMobius::from(edges[e].rho);
       }
     }
-    anchored_.resize(edges.size());
-    anchored_error_.resize(edges.size());
-    for (size_t e = 0; e < edges.size(); ++e) anchor_edge(static_cast<int>(e));
+    anchor_if_far();
     A.resize(edges.size());
     derive_edges();
     // Edges longer than ~70 units at the start (entries beyond 1e15; a class
@@ -425,20 +423,56 @@ class ChartState {
     r.vertex_deck.assign(n, Mobius());
     r.vertex_deck_word.assign(n, Word{});
     for (int i = 0; i < n; ++i) move_vertex(i);
+    anchor_if_far();
     derive_edges();
   }
 
-  // Every A_e afresh from the local charts and the anchored elements:
-  // A_e = c_i^-1 K_e c_j.
+  // Every A_e afresh: A_e = c_i^-1 K_e c_j from the local charts and the
+  // anchored elements, or A_e = C_i^-1 ρ'_e C_j from the full charts while
+  // they are all near the origin.
   void derive_edges() {
     for (size_t e = 0; e < edges_.size(); ++e) {
       const LongMobius ci = LongMobius::from(chart[edges_[e].i]), cj = LongMobius::from(chart[edges_[e].j]);
-      A[e] = (ci.inverse() * anchored_[e] * cj).normalized().to_double().normalized();
+      const LongMobius& K = anchored_mode_ ? anchored_[e] : eff[e];
+      A[e] = (ci.inverse() * K * cj).normalized().to_double().normalized();
     }
   }
 
-  /// Vertex v's full chart C_v = T_v c_v.
-  LongMobius full_chart(int v) const { return (anchor_[v] * LongMobius::from(chart[v])).normalized(); }
+  /// Whether the charts are split into anchors and local charts (see
+  /// kAnchorChartSize).
+  bool anchored() const { return anchored_mode_; }
+
+  /// The anchors are needed only far from the origin: A_e derived from full
+  /// charts in double is off by ~1e-16 |C_i| |C_j| (sizes |a| + |b|), below
+  /// 1e-12 while every chart is below 100 (within ~9 units of the origin),
+  /// a hundredth of the default gradient tolerance (1e-10 of the largest
+  /// weight). Until a chart reaches that size the solve keeps the full
+  /// charts in double, as it did before the anchors, with the same
+  /// arithmetic bit for bit; the anchors cost CPU (n_hole_torus(2,32) ->
+  /// vase(2,32): 0.86 -> 1.03 s user, 5% of it in hypotl: the full chart
+  /// T_i c_i and its |b| in long double for every vertex at every
+  /// iteration, and the round-off bounds of every sheet change). The first
+  /// chart beyond it (after the start's sheet moves or after a step)
+  /// switches the whole solve to the anchors, once, for good.
+  static constexpr double kAnchorChartSize = 100.0;
+  void anchor_if_far() {
+    if (anchored_mode_) return;
+    bool far = false;
+    for (const Mobius& c : chart) far = far || !(c.size() < kAnchorChartSize);
+    if (!far) return;
+    anchored_mode_ = true;
+    anchor_.resize(chart.size());
+    for (size_t v = 0; v < chart.size(); ++v) anchor_[v] = LongMobius::from(chart[v]), chart[v] = Mobius();
+    anchored_.resize(edges_.size());
+    anchored_error_.resize(edges_.size());
+    for (size_t e = 0; e < edges_.size(); ++e) anchor_edge(static_cast<int>(e));
+  }
+
+  /// Vertex v's full chart C_v = T_v c_v (C_v itself before the anchors).
+  LongMobius full_chart(int v) const {
+    if (!anchored_mode_) return LongMobius::from(chart[v]);
+    return (anchor_[v] * LongMobius::from(chart[v])).normalized();
+  }
 
   /// The local chart folded into the anchor once it has moved beyond
   /// kReanchorB (|b| = sinh(d/2): about 1.4 units), so that c_v stays near
@@ -447,7 +481,7 @@ class ChartState {
   /// is the more accurate (anchor_edge).
   static constexpr double kReanchorB = 0.75;
   void reanchor_if_moved(int v) {
-    if (!(std::abs(chart[v].b) > kReanchorB)) return;
+    if (!anchored_mode_ || !(std::abs(chart[v].b) > kReanchorB)) return;
     const LongMobius c = LongMobius::from(chart[v]);
     anchor_[v] = (anchor_[v] * c).normalized();
     const long double c_size = std::abs(c.a) + std::abs(c.b);
@@ -469,16 +503,20 @@ class ChartState {
     if (options_.reduce_point) {
       Complex z = position(v);
       const Word w = options_.reduce_point(z);
-      if (!w.empty()) change_sheet(v, w, evaluate_long(w));
+      if (!w.empty()) {
+        const LongMobius g = evaluate_long(w);
+        change_sheet(v, w, g.to_double().normalized(), g);
+      }
       return;
     }
-    const Mobius full = full_chart(v).to_double().normalized();
+    const Mobius full = anchored_mode_ ? full_chart(v).to_double().normalized() : chart[v];
     for (int m : reduce_towards_origin(full, moves_))
-      change_sheet(v, Word{move_letter(m)}, LongMobius::from(moves_[m]));
+      change_sheet(v, Word{move_letter(m)}, moves_[m], LongMobius::from(moves_[m]));
   }
 
   /// z_v = C_v(0) = b / ā of the full chart.
   Complex position(int v) const {
+    if (!anchored_mode_) return chart[v].apply(Complex(0.0));
     const LongMobius C = full_chart(v);
     const std::complex<long double> z = C.b / std::conj(C.a);
     return {static_cast<double>(z.real()), static_cast<double>(z.imag())};
@@ -520,9 +558,14 @@ class ChartState {
   // ρ'_e ← ρ'_e γ^-1 where it is the head, so that K_e (and A_e) is
   // unchanged; K_e is derived afresh only when the new sheet makes that the
   // more accurate (fewer or shorter letters).
-  void change_sheet(int v, const Word& w, const LongMobius& g) {
-    const Mobius gamma = g.to_double().normalized();
-    anchor_[v] = (g * anchor_[v]).normalized();
+  // Before the anchors, C_v ← γ C_v in double and ρ'_e conjugated by γ as
+  // rounded to double; with them, by g (γ in long double).
+  void change_sheet(int v, const Word& w, const Mobius& gamma, const LongMobius& g_long) {
+    if (anchored_mode_)
+      anchor_[v] = (g_long * anchor_[v]).normalized();
+    else
+      chart[v] = (gamma * chart[v]).normalized();
+    const LongMobius g = anchored_mode_ ? g_long : LongMobius::from(gamma);
     r_.vertex_deck[v] = (gamma * r_.vertex_deck[v]).normalized();
     r_.vertex_deck_word[v] = concat(w, r_.vertex_deck_word[v]);
     for (int k = inc_start_[v]; k < inc_start_[v + 1]; ++k) {
@@ -538,7 +581,7 @@ class ChartState {
         if (ed.i == v) eff[e] = (g * eff[e]).normalized();
         if (ed.j == v) eff[e] = (eff[e] * g.inverse()).normalized();
       }
-      refresh_if_better(e);
+      if (anchored_mode_) refresh_if_better(e);
     }
   }
 
@@ -551,6 +594,7 @@ class ChartState {
   std::vector<Mobius> moves_;  // generator k at 2k, its inverse at 2k+1
   std::vector<int> inc_start_, inc_edge_;
   std::vector<Word> eff_word_;
+  bool anchored_mode_ = false;  // charts split T_i c_i (anchor_if_far)
   std::vector<LongMobius> anchor_;  // #V anchor T_i (the full chart is T_i c_i)
   std::vector<LongMobius> anchored_;  // #edges K_e = T_i^-1 ρ'_e T_j
   std::vector<long double> anchored_error_;  // #edges round-off bound of K_e (units of epsilon)
@@ -941,9 +985,14 @@ struct HarmonicNewton {
     // Local charts that moved far into their anchors; then dynamic charts:
     // far-out vertices back to the domain's sheet (greedy: |C_i(0)| > 0.6).
     for (int i = 0; i < n; ++i) {
+      if (!state.anchored()) {
+        if (options.reduce_point || std::abs(chart[i].b) > 0.75) state.move_vertex(i);
+        continue;
+      }
       state.reanchor_if_moved(i);
       if (options.reduce_point || std::abs(state.full_chart(i).b) > 0.75L) state.move_vertex(i);
     }
+    state.anchor_if_far();
     // The new charts and sheets: every A_e afresh (ChartState above), and
     // the energy the next iteration starts from.
     state.derive_edges();
