@@ -330,11 +330,29 @@ void check_newton_input(int n, const std::vector<WeightedEdge>& edges, const std
 // A step ξ takes C_i to C_i τ(ξ_i) with the exact translations τ, and the
 // line search's trial elements are τ(ξ_i)^-1 A_e τ(ξ_j).
 //
-// The state carried from one iteration to the next is only the charts
-// (small: every vertex is brought back to the fundamental domain) and the
+// The state carried from one iteration to the next is the charts and the
 // effective elements (as reduced words when a relator is given, so short
-// once the edge is short); A_e is derived from them afresh after every
-// step. Updating A_e in place instead (A_e ← τ^-1 A_e τ at every step)
+// once the edge is short). Far from the origin (a chart of size 100 or
+// more, ChartState::anchor_if_far) each chart is split, C_i = T_i c_i: an anchor
+// T_i in long double and the local chart c_i of the steps since, near the
+// identity (folded into T_i once it moves beyond kReanchorB); every edge
+// keeps K_e = T_i^-1 ρ'_e T_j in long double, and A_e = c_i^-1 K_e c_j is
+// derived afresh after every step. Moving a vertex to another sheet
+// changes T_i and ρ'_e but not K_e, so that only re-anchoring (rare once
+// the steps are short) and a sheet that makes K_e more accurate derive K_e
+// from T and ρ' again. Issue 13: deriving A_e from the full charts in
+// double after every step (as before) is exact only near the origin. A
+// thin CAD plate's domain reaches ~26 units out (charts with entries ~5e5,
+// deck elements ~3e7), where a chart in double is known only to
+// ~1e-16 |C|^2 ≈ 2.5e-5 in its own frame, and a vertex flipping between
+// two sheets every iteration moved its edges by 2.3e-3 each time (the two
+// sheets' words evaluate to matrices that disagree that much): E moved by
+// ±1e-5 per step while Newton's steps decreased it by 1e-6, and the raw
+// genus-8 polycube -> thin genus-8 plate solve wandered at gradient
+// 0.03..0.06 (3.5e-5 of the largest weight) for its 300 iterations; with
+// the anchors it reaches the tolerance in 3 (docs/robustness.md).
+//
+// Updating A_e in place instead (A_e ← τ^-1 A_e τ at every step)
 // accumulates the absolute round-off of its largest size: a twisted class
 // seen from an all-at-origin start has edges of size 1e8..1e14, whose
 // in-place updates had drifted by up to 0.75 in length by the end, so the
@@ -344,7 +362,11 @@ void check_newton_input(int n, const std::vector<WeightedEdge>& edges, const std
 // positions' true energy was 456.41).
 class ChartState {
  public:
-  std::vector<Mobius> chart;  ///< #V chart C_i
+  /// #V chart C_i (per-face charts: inside face[i]'s chart); once the
+  /// anchors are on (anchor_if_far), the local chart c_i: the steps since
+  /// vertex i was last anchored, near the identity (re-anchored beyond
+  /// kReanchorB), so kept in double.
+  std::vector<Mobius> chart;
   std::vector<LongMobius> eff;  ///< #edges effective element ρ'_e
   std::vector<Mobius> A;  ///< #edges A_e, derived by derive_edges()
   std::vector<int> face;  ///< #V per-face charts only: the target face of chart[i]
@@ -397,6 +419,7 @@ class ChartState {
         eff[e] = LongMobius::from(edges[e].rho);
       }
     }
+    anchor_if_far();
     A.resize(edges.size());
     derive_edges();
     // Edges longer than ~70 units at the start (entries beyond 1e15; a class
@@ -412,18 +435,81 @@ class ChartState {
     r.vertex_deck.assign(n, Mobius());
     r.vertex_deck_word.assign(n, Word{});
     for (int i = 0; i < n; ++i) move_vertex(i);
+    anchor_if_far();
     derive_edges();
   }
 
-  // Every A_e afresh from the charts and effective elements.
+  // Every A_e afresh: A_e = c_i^-1 K_e c_j from the local charts and the
+  // anchored elements, or A_e = C_i^-1 ρ'_e C_j from the full charts while
+  // they are all near the origin.
   void derive_edges() {
     for (size_t e = 0; e < edges_.size(); ++e) {
       const LongMobius ci = LongMobius::from(chart[edges_[e].i]), cj = LongMobius::from(chart[edges_[e].j]);
-      A[e] = (ci.inverse() * eff[e] * cj).normalized().to_double().normalized();
+      const LongMobius& K = anchored_mode_ ? anchored_[e] : eff[e];
+      A[e] = (ci.inverse() * K * cj).normalized().to_double().normalized();
     }
   }
 
   bool in_face_charts() const { return atlas_ != nullptr; }
+
+  /// Whether the charts are split into anchors and local charts (see
+  /// kAnchorChartSize).
+  bool anchored() const { return anchored_mode_; }
+
+  /// The anchors are needed only far from the origin: A_e derived from full
+  /// charts in double is off by ~1e-16 |C_i| |C_j| (sizes |a| + |b|), below
+  /// 1e-12 while every chart is below 100 (within ~9 units of the origin),
+  /// a hundredth of the default gradient tolerance (1e-10 of the largest
+  /// weight). Until a chart reaches that size the solve keeps the full
+  /// charts in double, as it did before the anchors, with the same
+  /// arithmetic bit for bit; the anchors cost CPU (n_hole_torus(2,32) ->
+  /// vase(2,32): 0.86 -> 1.03 s user, 5% of it in hypotl: the full chart
+  /// T_i c_i and its |b| in long double for every vertex at every
+  /// iteration, and the round-off bounds of every sheet change). The first
+  /// chart beyond it (after the start's sheet moves or after a step)
+  /// switches the whole solve to the anchors, once, for good.
+  static constexpr double kAnchorChartSize = 100.0;
+  void anchor_if_far() {
+    if (anchored_mode_ || atlas_) return;  // per-face charts stay near their face's chart
+    bool far = false;
+    for (const Mobius& c : chart) far = far || !(c.size() < kAnchorChartSize);
+    if (!far) return;
+    anchored_mode_ = true;
+    anchor_.resize(chart.size());
+    for (size_t v = 0; v < chart.size(); ++v) anchor_[v] = LongMobius::from(chart[v]), chart[v] = Mobius();
+    anchored_.resize(edges_.size());
+    anchored_error_.resize(edges_.size());
+    for (size_t e = 0; e < edges_.size(); ++e) anchor_edge(static_cast<int>(e));
+  }
+
+  /// Vertex v's full chart C_v = T_v c_v (C_v itself before the anchors).
+  LongMobius full_chart(int v) const {
+    if (!anchored_mode_) return LongMobius::from(chart[v]);
+    return (anchor_[v] * LongMobius::from(chart[v])).normalized();
+  }
+
+  /// The local chart folded into the anchor once it has moved beyond
+  /// kReanchorB (|b| = sinh(d/2): about 1.4 units), so that c_v stays near
+  /// the identity: T_v ← T_v c_v, c_v ← 1, and the incident K_e carried
+  /// along (K_e ← c_i^-1 K_e c_j, A_e unchanged), or derived afresh when that
+  /// is the more accurate (anchor_edge).
+  static constexpr double kReanchorB = 0.75;
+  void reanchor_if_moved(int v) {
+    if (!anchored_mode_ || !(std::abs(chart[v].b) > kReanchorB)) return;
+    const LongMobius c = LongMobius::from(chart[v]);
+    anchor_[v] = (anchor_[v] * c).normalized();
+    const long double c_size = std::abs(c.a) + std::abs(c.b);
+    for (int k = inc_start_[v]; k < inc_start_[v + 1]; ++k) {
+      const int e = inc_edge_[k];
+      LongMobius K = anchored_[e];
+      if (edges_[e].i == v) K = c.inverse() * K;
+      if (edges_[e].j == v) K = K * c;
+      anchored_[e] = K.normalized();
+      anchored_error_[e] += c_size * (std::abs(K.a) + std::abs(K.b));
+      refresh_if_better(e);
+    }
+    chart[v] = Mobius();
+  }
 
   // Dynamic charts: vertex v to the sheet options.reduce_point names, or
   // greedily towards the origin by the generators; in per-face charts, to
@@ -434,16 +520,29 @@ class ChartState {
       Mobius moved;
       Eigen::Vector3d bary;
       const int g = locate_in_face_charts(*atlas_, face[v], chart[v].apply(Complex(0.0)), kMaxWalkFaces, &moved, &bary);
-      if (g >= 0 && g != face[v]) change_sheet(v, Word{}, moved), face[v] = g;
+      if (g >= 0 && g != face[v]) change_sheet(v, Word{}, moved, LongMobius::from(moved)), face[v] = g;
       return;
     }
     if (options_.reduce_point) {
-      Complex z = chart[v].apply(Complex(0.0));
+      Complex z = position(v);
       const Word w = options_.reduce_point(z);
-      if (!w.empty()) change_sheet(v, w, evaluate_long(w).to_double().normalized());
+      if (!w.empty()) {
+        const LongMobius g = evaluate_long(w);
+        change_sheet(v, w, g.to_double().normalized(), g);
+      }
       return;
     }
-    for (int m : reduce_towards_origin(chart[v], moves_)) change_sheet(v, Word{move_letter(m)}, moves_[m]);
+    const Mobius full = anchored_mode_ ? full_chart(v).to_double().normalized() : chart[v];
+    for (int m : reduce_towards_origin(full, moves_))
+      change_sheet(v, Word{move_letter(m)}, moves_[m], LongMobius::from(moves_[m]));
+  }
+
+  /// z_v = C_v(0) = b / ā of the full chart.
+  Complex position(int v) const {
+    if (!anchored_mode_) return chart[v].apply(Complex(0.0));
+    const LongMobius C = full_chart(v);
+    const std::complex<long double> z = C.b / std::conj(C.a);
+    return {static_cast<double>(z.real()), static_cast<double>(z.imag())};
   }
 
  private:
@@ -458,16 +557,42 @@ class ChartState {
     return m;
   }
 
-  // Vertex v to another sheet by γ (word w when words are kept): C_v ← γ C_v,
+  // K_e = T_i^-1 ρ'_e T_j afresh, with its round-off bound |T_i| |ρ'_e| |T_j|
+  // (in units of the long double epsilon; sizes |a| + |b|).
+  void anchor_edge(int e) {
+    const LongMobius& Ti = anchor_[edges_[e].i];
+    const LongMobius& Tj = anchor_[edges_[e].j];
+    anchored_[e] = (Ti.inverse() * eff[e] * Tj).normalized();
+    anchored_error_[e] = fresh_error(e);
+  }
+  long double fresh_error(int e) const {
+    auto size = [](const LongMobius& m) { return std::abs(m.a) + std::abs(m.b); };
+    return size(anchor_[edges_[e].i]) * size(eff[e]) * size(anchor_[edges_[e].j]);
+  }
+  // Derived afresh only when that bound is well below the carried one: a
+  // vertex that flips between two sheets from one iteration to the next
+  // then does not move its edges' elements by the round-off of the far one.
+  void refresh_if_better(int e) {
+    if (fresh_error(e) < 0.25L * anchored_error_[e]) anchor_edge(e);
+  }
+
+  // Vertex v to another sheet by γ (word w when words are kept): T_v ← γ T_v,
   // and its edges conjugated, ρ'_e ← γ ρ'_e where v is the tail and
-  // ρ'_e ← ρ'_e γ^-1 where it is the head, so that A_e is unchanged.
-  void change_sheet(int v, const Word& w, const Mobius& gamma) {
-    chart[v] = (gamma * chart[v]).normalized();
+  // ρ'_e ← ρ'_e γ^-1 where it is the head, so that K_e (and A_e) is
+  // unchanged; K_e is derived afresh only when the new sheet makes that the
+  // more accurate (fewer or shorter letters).
+  // Before the anchors, C_v ← γ C_v in double and ρ'_e conjugated by γ as
+  // rounded to double; with them, by g (γ in long double).
+  void change_sheet(int v, const Word& w, const Mobius& gamma, const LongMobius& g_long) {
+    if (anchored_mode_)
+      anchor_[v] = (g_long * anchor_[v]).normalized();
+    else
+      chart[v] = (gamma * chart[v]).normalized();
+    const LongMobius g = anchored_mode_ ? g_long : LongMobius::from(gamma);
     if (!atlas_) {  // per-face charts: gamma is a transition, not a deck element
       r_.vertex_deck[v] = (gamma * r_.vertex_deck[v]).normalized();
       r_.vertex_deck_word[v] = concat(w, r_.vertex_deck_word[v]);
     }
-    const LongMobius g = LongMobius::from(gamma);
     for (int k = inc_start_[v]; k < inc_start_[v + 1]; ++k) {
       const int e = inc_edge_[k];
       const WeightedEdge& ed = edges_[e];
@@ -481,6 +606,7 @@ class ChartState {
         if (ed.i == v) eff[e] = (g * eff[e]).normalized();
         if (ed.j == v) eff[e] = (eff[e] * g.inverse()).normalized();
       }
+      if (anchored_mode_) refresh_if_better(e);
     }
   }
 
@@ -497,6 +623,10 @@ class ChartState {
   std::vector<Mobius> moves_;  // generator k at 2k, its inverse at 2k+1
   std::vector<int> inc_start_, inc_edge_;
   std::vector<Word> eff_word_;
+  bool anchored_mode_ = false;  // charts split T_i c_i (anchor_if_far)
+  std::vector<LongMobius> anchor_;  // #V anchor T_i (the full chart is T_i c_i)
+  std::vector<LongMobius> anchored_;  // #edges K_e = T_i^-1 ρ'_e T_j
+  std::vector<long double> anchored_error_;  // #edges round-off bound of K_e (units of epsilon)
 };
 
 // The energy Σ w d² for edge elements `a` (one per edge).
@@ -882,10 +1012,18 @@ struct HarmonicNewton {
 
   /// After a step: the new charts and sheets.
   void recentre_charts() {
-    // Dynamic charts: bring far-out vertices back towards the origin.
-    for (int i = 0; i < n; ++i)
-      if (state.in_face_charts() || options.reduce_point || std::abs(chart[i].b) > 0.75)
-        state.move_vertex(i);  // greedy: |C_i(0)| > 0.6
+    // Local charts that moved far into their anchors; then dynamic charts:
+    // far-out vertices back to the domain's sheet (greedy: |C_i(0)| > 0.6),
+    // or in per-face charts to the face containing them.
+    for (int i = 0; i < n; ++i) {
+      if (!state.anchored()) {
+        if (state.in_face_charts() || options.reduce_point || std::abs(chart[i].b) > 0.75) state.move_vertex(i);
+        continue;
+      }
+      state.reanchor_if_moved(i);
+      if (options.reduce_point || std::abs(state.full_chart(i).b) > 0.75L) state.move_vertex(i);
+    }
+    state.anchor_if_far();
     // The new charts and sheets: every A_e afresh (ChartState above), and
     // the energy the next iteration starts from.
     state.derive_edges();
@@ -897,7 +1035,7 @@ struct HarmonicNewton {
   void finish() {
     r.energy = E;
     r.z.resize(n);
-    for (int i = 0; i < n; ++i) r.z[i] = chart[i].apply(Complex(0.0));
+    for (int i = 0; i < n; ++i) r.z[i] = state.position(i);
     if (state.in_face_charts()) r.face = state.face;
     r.edge_local = A;
     r.edge_effective.resize(edges.size());
