@@ -283,12 +283,8 @@ TEST(LandmarksHyperbolic, FarLandmarkStaysBijectiveByBarrierContinuation) {
   // the folded plain-pin infimum's neighbourhood.
   const FarLandmark far;
   ASSERT_GT(far.path.size(), 21u);
-  const TriMesh& a = far.a;
-  const TriMesh& b = far.b;
-  const SurfaceMapResult& free = far.free;
-  const int s = far.s;
-  const std::vector<int>& path = far.path;
-  SurfaceMapOptions o = far.options;
+  const auto& [a, b, free, s, path, options] = far;
+  SurfaceMapOptions o = options;
   EXPECT_GT((b.V.row(path[20]).transpose() - free.forward[s].position).norm(), 20 * mean_edge(b));
   const SurfaceMapResult m = surface_map(a, b, o);
   expect_landmarks_hit(m, a, b, o);
@@ -311,12 +307,8 @@ TEST(LandmarksHyperbolic, FoldsAllowedReturnsThePlainPinsFolded) {
   // free optimum's, the class's held energy the returned map's.
   const FarLandmark far;
   ASSERT_GT(far.path.size(), 21u);
-  const TriMesh& a = far.a;
-  const TriMesh& b = far.b;
-  const SurfaceMapResult& free = far.free;
-  const int s = far.s;
-  const std::vector<int>& path = far.path;
-  SurfaceMapOptions o = far.options;
+  const auto& [a, b, free, s, path, options] = far;
+  SurfaceMapOptions o = options;
   o.landmarks_may_fold = true;
   const SurfaceMapResult m = surface_map(a, b, o);
   EXPECT_TRUE(m.converged);
