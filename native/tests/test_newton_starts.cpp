@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <functional>
 #include <cstdio>
 #include <random>
 #include <string>
@@ -24,9 +25,11 @@
 #include "surfmap/map/surface_map.h"
 #include "surfmap/testing/map_hooks.h"
 #include "surfmap/samples/shapes.h"
+#include "surfmap/topology/handle_basis.h"
 #include "surfmap/topology/words.h"
 #include "surfmap/uniformize/deck_group.h"
 #include "certify_helpers.h"
+#include "../src/map/stages/snapped_start.h"
 
 namespace surfmap {
 namespace {
@@ -459,6 +462,60 @@ TEST(NewtonStarts, ExactSnappedClassOfARemeshedPlateClosesUpAroundEveryFace) {
     EXPECT_LT(m.candidates[m.snapped_class].energy, 1.3 * 8 * M_PI);
     std::printf("%s: %s\n", target == &a ? "itself" : "48 segments", m.snapped_class_status.c_str());
   }
+}
+
+// Issue 13: the snapped start's root conjugator D (D L D^-1 = M for every
+// loop the start's tree closes, L the class's element, M the snapped map's)
+// is found on the words when the elements' fixed points are lost at
+// round-off (genus 11). In the surface groups of genus 2 and 3: a random D
+// of up to 14 letters and loop elements L that are random conjugates of
+// random words (as the tree's products are: a loop read from a far root);
+// M = D L D^-1 Dehn-reduced. The conjugator found must be D itself (two
+// non-commuting loops leave no freedom: the centralizer of a non-abelian
+// subgroup of a surface group is trivial), and a pair conjugated by another
+// element must be refused.
+TEST(NewtonStarts, RootConjugatorIsFoundFromTheLoopsWords) {
+  std::mt19937 rng(13);
+  int refused = 0;
+  for (int genus : {2, 3}) {
+    const int letters = 2 * genus;
+    const DehnReducer dehn(canonical_relator(genus));
+    const std::function<Word(const Word&)> reduce = [&](const Word& w) { return dehn(w); };
+    auto random_word = [&](int min_length, int max_length) {
+      const int length = std::uniform_int_distribution<int>(min_length, max_length)(rng);
+      Word w;
+      while (static_cast<int>(w.size()) < length) {
+        int x = std::uniform_int_distribution<int>(1, letters)(rng);
+        if (rng() % 2) x = -x;
+        w = reduce(concat(w, Word{x}));
+      }
+      return w;
+    };
+    for (int trial = 0; trial < 40; ++trial) {
+      const Word D = random_word(0, 14);
+      std::vector<std::pair<Word, Word>> pairs;
+      for (int k = 0; k < 6; ++k) {
+        const Word c = random_word(0, 20);
+        const Word L = reduce(concat({c, random_word(1, 8), inverse(c)}));
+        if (L.empty()) continue;
+        pairs.emplace_back(L, reduce(concat({D, L, inverse(D)})));
+      }
+      Word found;
+      std::string why;
+      ASSERT_TRUE(detail::conjugator_from_words(pairs, reduce, letters, &found, &why))
+          << "genus " << genus << " trial " << trial << ": " << why;
+      EXPECT_TRUE(reduce(concat(found, inverse(D))).empty()) << "genus " << genus << " trial " << trial;
+      // One pair conjugated by another element: no common conjugator.
+      const Word other = reduce(concat(D, random_word(1, 6)));
+      if (reduce(concat(other, inverse(D))).empty() || pairs.size() < 3) continue;
+      std::vector<std::pair<Word, Word>> wrong = pairs;
+      wrong.back().second = reduce(concat({other, wrong.back().first, inverse(other)}));
+      if (reduce(concat(wrong.back().second, inverse(pairs.back().second))).empty()) continue;  // commutes
+      EXPECT_FALSE(detail::conjugator_from_words(wrong, reduce, letters, &found, &why)) << "genus " << genus;
+      ++refused;
+    }
+  }
+  EXPECT_GE(refused, 60);
 }
 
 }  // namespace

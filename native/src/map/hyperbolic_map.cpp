@@ -173,8 +173,10 @@ class HyperbolicPipeline {
   std::unique_ptr<SnappedStartBuilder> snapper;
   void add_snapped_class();
   void ensure_snapper() {
-    if (!snapper && options.homotopy.search.snapped_start)
+    if (!snapper && options.homotopy.search.snapped_start) {
       snapper = std::make_unique<SnappedStartBuilder>(source, target, ut->loops.mesh, ut->layout, *deck_group, *polygon);
+      snapper->use_source_paths(sc, ss.idt);
+    }
   }
   /// A full-resolution solve of `edges` from the better start of the origin
   /// and the snapped overlay (ensure_snapper first; the overlay only with

@@ -33,7 +33,105 @@ double distance_to_image(Complex z, const Mobius& m, Complex p) {
   return 2.0 * std::asinh(std::sqrt(std::norm(z - w) / (den_z * den_w)));
 }
 
+Word rotated(const Word& u, size_t r) {
+  Word out(u.begin() + static_cast<long>(r), u.end());
+  out.insert(out.end(), u.begin(), u.begin() + static_cast<long>(r));
+  return out;
+}
+
+// w = a u a^-1 with u cyclically Dehn-reduced: matching ends are peeled off
+// into a, and a rotation p^-1 u p that Dehn's algorithm shortens moves p
+// into a.
+void peel(const Word& w, const std::function<Word(const Word&)>& reduce, Word* a, Word* u) {
+  a->clear();
+  *u = reduce(w);
+  for (size_t guard = 0; guard < 4 * w.size() + 8; ++guard) {
+    if (u->size() >= 2 && u->front() == -u->back()) {
+      a->push_back(u->front());
+      *u = Word(u->begin() + 1, u->end() - 1);
+      continue;
+    }
+    bool shorter = false;
+    for (size_t r = 1; r < u->size() && !shorter; ++r) {
+      Word d = reduce(rotated(*u, r));
+      if (d.size() < u->size()) {
+        *a = concat(*a, Word(u->begin(), u->begin() + static_cast<long>(r)));
+        *u = std::move(d);
+        shorter = true;
+      }
+    }
+    if (!shorter) break;
+  }
+  *a = reduce(*a);
+}
+
 }  // namespace
+
+bool conjugator_from_words(const std::vector<std::pair<Word, Word>>& pairs,
+                           const std::function<Word(const Word&)>& reduce, int letters, Word* D, std::string* why) {
+  auto equal = [&](const Word& x, const Word& y) { return reduce(concat(x, inverse(y))).empty(); };
+  size_t first = 0;
+  while (first < pairs.size() && reduce(pairs[first].first).empty()) ++first;
+  if (first == pairs.size()) return (*why = "no pair with a non-trivial element"), false;
+  const Word& L = pairs[first].first;
+  const Word& M = pairs[first].second;
+  Word a, l, b, m;
+  peel(L, reduce, &a, &l);
+  peel(M, reduce, &b, &m);
+  // x with x l x^-1 = m: a rotation p^-1 l p of l equal to m (x = p^-1),
+  // else one letter y away from it (x = y p^-1).
+  Word x;
+  bool found = false;
+  for (size_t r = 0; r < l.size() && !found; ++r)
+    if (equal(rotated(l, r), m)) x = inverse(Word(l.begin(), l.begin() + static_cast<long>(r))), found = true;
+  for (size_t r = 0; r < l.size() && !found; ++r) {
+    const Word rot = rotated(l, r);
+    for (int y = -letters; y <= letters && !found; ++y)
+      if (y != 0 && equal(concat({Word{y}, rot, Word{-y}}), m))
+        x = concat(Word{y}, inverse(Word(l.begin(), l.begin() + static_cast<long>(r)))), found = true;
+  }
+  if (!found) {
+    *why = "the first loop's elements (" + std::to_string(l.size()) + " and " + std::to_string(m.size()) +
+           " letters cyclically reduced) are not conjugate by a rotation";
+    return false;
+  }
+  // D = b x l^k a^-1; k from the first pair whose L does not commute with L.
+  auto candidate = [&](long k) {
+    Word power;
+    for (long q = 0; q < std::abs(k); ++q) power = concat(power, k > 0 ? l : inverse(l));
+    return reduce(concat({b, x, power, inverse(a)}));
+  };
+  auto conjugates = [&](const Word& d, const std::pair<Word, Word>& p) {
+    return reduce(concat({d, p.first, inverse(d), inverse(p.second)})).empty();
+  };
+  Word best = candidate(0);
+  for (size_t q = first + 1; q < pairs.size(); ++q) {
+    const Word& L2 = pairs[q].first;
+    if (reduce(concat({L, L2, inverse(L), inverse(L2)})).empty()) continue;
+    const long range = static_cast<long>((L2.size() + pairs[q].second.size()) / std::max<size_t>(l.size(), 1)) + 2;
+    bool pinned = false;
+    for (long k = 0; k <= range && !pinned; ++k)
+      for (long s : {k, -k}) {
+        const Word d = candidate(s);
+        if (conjugates(d, pairs[q])) {
+          best = d, pinned = true;
+          break;
+        }
+      }
+    if (!pinned) {
+      *why = "no power of the first loop's element conjugates pair " + std::to_string(q) + " as well";
+      return false;
+    }
+    break;
+  }
+  for (size_t q = 0; q < pairs.size(); ++q)
+    if (!conjugates(best, pairs[q])) {
+      *why = "pair " + std::to_string(q) + " is not conjugated by the conjugator of the others";
+      return false;
+    }
+  *D = std::move(best);
+  return true;
+}
 
 SnappedStartBuilder::SnappedStartBuilder(const TriMesh& source, const TriMesh& target, const TriMesh& layout_mesh,
                                          const DiskLayout& layout, const DeckGroup& group,
@@ -75,7 +173,8 @@ SnappedStartBuilder::SnappedStartBuilder(const TriMesh& source, const TriMesh& t
   }
 }
 
-SnappedStartBuilder::Tree SnappedStartBuilder::tree(const std::vector<WeightedEdge>& edges) const {
+SnappedStartBuilder::Tree SnappedStartBuilder::tree(const std::vector<WeightedEdge>& edges,
+                                                     bool through_source_edges) const {
   const int n = static_cast<int>(nearest_.size());
   Tree s;
   s.z = home_point_;
@@ -87,6 +186,21 @@ SnappedStartBuilder::Tree SnappedStartBuilder::tree(const std::vector<WeightedEd
   for (size_t e = 0; e < edges.size(); ++e) {
     double length = 0;
     int on_path = 0;
+    if (through_source_edges) {
+      const WeightedEdge& ed = edges[e];
+      const auto& ie = e < source_paths_->edges.size() ? source_paths_->edges[e] : IntrinsicEdge{};
+      if (ie.i == ed.i && ie.j == ed.j && !ie.path.empty()) {
+        Word w;
+        for (int h : ie.path) w = concat(w, source_halfedge_element(h));
+        s.element[e] = group_.reduce(w);
+        continue;
+      }
+      const int h = source_conn_->find_halfedge(ed.i, ed.j);
+      if (h >= 0) {
+        s.element[e] = source_halfedge_element(h);
+        continue;
+      }
+    }
     if (!path_element(edges[e].i, edges[e].j, scratch, &s.element[e], &length, &on_path, &s.why)) return s;
   }
   std::vector<std::vector<int>> incident(n);
@@ -126,8 +240,40 @@ SnappedStartBuilder::Tree SnappedStartBuilder::tree(const std::vector<WeightedEd
 }
 
 SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& edges) const {
+  SnappedStart s = start_from(tree(edges, false), edges);
+  // No conjugator with each solver edge's own image path: the loops the
+  // tree closes through intrinsic edges (or input edges flipped away) need
+  // not be the snapped map's, so read every solver edge through the
+  // source's own edges instead (use_source_paths), where the elements close
+  // around every face; kept when it gives a conjugator. Only then, so that a
+  // start found today keeps its very words.
+  if (!s.conjugator_found && !source_element_.empty()) {
+    SnappedStart t = start_from(tree(edges, true), edges);
+    if (t.conjugator_found) {
+      t.through_source_edges = true;
+      return t;
+    }
+    if (s.conjugator_why.empty()) s.conjugator_why = t.conjugator_why;
+    else s.conjugator_why += "; through the source's edges: " + t.conjugator_why;
+  }
+  return s;
+}
+
+Word SnappedStartBuilder::source_halfedge_element(int h) const {
+  const int e = source_conn_->edge(h);
+  return source_conn_->edge_halfedge(e) == h ? source_element_[e] : inverse(source_element_[e]);
+}
+
+void SnappedStartBuilder::use_source_paths(const Connectivity& sc, const IntrinsicDelaunayResult& idt) {
+  const ConsistentElements c = consistent_edge_elements(sc);
+  if (!c.ok) return;
+  source_conn_ = &sc;
+  source_paths_ = &idt;
+  source_element_ = c.element;
+}
+
+SnappedStart SnappedStartBuilder::start_from(const Tree& t, const std::vector<WeightedEdge>& edges) const {
   const int n = static_cast<int>(nearest_.size());
-  Tree t = tree(edges);
   SnappedStart s;
   for (const WeightedEdge& ed : edges) {
     const double d0 = ed.rho.displacement_of_origin();
@@ -200,6 +346,7 @@ SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& ed
   s.energy = energy_with(root_deck, &longest);
   s.longest_edge = longest;
   int tried = 0;
+  bool conjugator_found = false;
   for (size_t p = 0; p < closing.size() && tried < 6; ++p) {
     Complex l1a, l1r, m1a, m1r;
     fixed_points(group_.evaluate_side_word(closing[p].L), l1a, l1r);
@@ -216,10 +363,32 @@ SnappedStart SnappedStartBuilder::operator()(const std::vector<WeightedEdge>& ed
       ++tried;
       if (!(std::abs(image) < 1e-6)) break;
       const Word candidate = group_.reduce(inverse(back));
+      conjugator_found = s.conjugator_found = true;
       double cl = 0;
       const double E = energy_with(candidate, &cl);
       if (E < s.energy) s.energy = E, s.longest_edge = cl, root_deck = candidate;
       break;
+    }
+  }
+  // No conjugator from the fixed points (genus 11: they lie at round-off
+  // from |z| = 1, and D(0) comes out at |z| >= 0.997 in every try): the
+  // conjugator from the words (conjugator_from_words), checked exactly on
+  // every closing loop. Only then, so that a start the fixed points give
+  // keeps its very words (genus-2 maps byte-identical).
+  if (!conjugator_found && !closing.empty()) {
+    std::vector<std::pair<Word, Word>> pairs;
+    pairs.reserve(closing.size());
+    for (const Closing& c : closing) pairs.emplace_back(c.L, c.M);
+    Word candidate;
+    std::string why;
+    const int letters = static_cast<int>(group_.side_pairings().size());
+    if (conjugator_from_words(pairs, [&](const Word& w) { return group_.reduce(w); }, letters, &candidate, &why)) {
+      s.conjugator_from_words = s.conjugator_found = true;
+      double cl = 0;
+      const double E = energy_with(candidate, &cl);
+      if (E < s.energy) s.energy = E, s.longest_edge = cl, root_deck = candidate;
+    } else {
+      s.conjugator_why = why;
     }
   }
   for (int v = 0; v < n; ++v) s.deck[v] = group_.reduce(concat({T[v], root_deck, R[v]}));
@@ -340,9 +509,8 @@ ExactEdgeElements SnappedStartBuilder::exact_edge_elements(const Connectivity& s
   return out;
 }
 
-SnappedLoops SnappedStartBuilder::loop_images(const Connectivity& sc, const std::vector<std::vector<int>>& loops,
-                                              const std::vector<Word>& edge_word, const Word& loop_relator) const {
-  SnappedLoops out;
+SnappedStartBuilder::ConsistentElements SnappedStartBuilder::consistent_edge_elements(const Connectivity& sc) const {
+  ConsistentElements out;
   ExactEdgeElements exact = exact_edge_elements(sc);
   if (!exact.ok) {
     out.why = exact.why;
@@ -403,6 +571,27 @@ SnappedLoops SnappedStartBuilder::loop_images(const Connectivity& sc, const std:
       edge_element[e] = sc.edge_halfedge(e) == hd ? derived : inverse(derived);
     }
   }
+  out.element = std::move(edge_element);
+  out.ok = true;
+  return out;
+}
+
+SnappedLoops SnappedStartBuilder::loop_images(const Connectivity& sc, const std::vector<std::vector<int>>& loops,
+                                              const std::vector<Word>& edge_word, const Word& loop_relator) const {
+  SnappedLoops out;
+  const ConsistentElements consistent = consistent_edge_elements(sc);
+  if (!consistent.ok) {
+    out.why = consistent.why;
+    return out;
+  }
+  out.longest_path = consistent.longest_path;
+  out.long_paths = consistent.long_paths;
+  out.inconsistent_faces = consistent.inconsistent_faces;
+  const std::vector<Word>& edge_element = consistent.element;
+  auto element_of = [&](int h) {
+    const int e = sc.edge(h);
+    return sc.edge_halfedge(e) == h ? edge_element[e] : inverse(edge_element[e]);
+  };
   const int letters = static_cast<int>(loops.size());
   out.letter_side_words.assign(letters, Word{});
   std::vector<char> have(letters, 0);

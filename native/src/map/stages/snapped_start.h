@@ -19,9 +19,12 @@
 // the edges off the tree come out long and the origin start (lower energy)
 // is kept. Internal to src/map/hyperbolic_map.cpp.
 #include <complex>
+#include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/map/fundamental_polygon.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
 #include "surfmap/topology/handle_basis.h"
@@ -48,6 +51,15 @@ struct SnappedStart {
   /// element): 0 in the snapped overlay's own class when the overlay is
   /// consistent.
   int disagreeing_edges = 0;
+  /// Whether the root's conjugator came from the words (conjugator_from_words,
+  /// when the fixed points gave none), and why not when neither gave one.
+  bool conjugator_from_words = false;
+  std::string conjugator_why;
+  bool conjugator_found = false;  ///< a root conjugator was found (fixed points or words)
+  /// Whether the solver edges' elements were read through the source's own
+  /// edges (SnappedStartBuilder::use_source_paths) rather than each one's own
+  /// image path: the second try, when the first found no conjugator.
+  bool through_source_edges = false;
 };
 
 /// The snapped map's deck element of every source edge, read off the
@@ -121,6 +133,24 @@ bool snapped_class_map(const SnappedLoops& loops, const DiskLayout& layout, cons
 bool invert_canonical_generators(const std::vector<Word>& canonical_generators, const Word& layout_word,
                                  const std::vector<Word>& hint, std::vector<Word>* loop_letters, std::string* why);
 
+/// A conjugator D with D L_k D^-1 = M_k for every pair (L_k, M_k), found on
+/// the words alone (issue 13: at genus 11 the fixed points of the loops'
+/// elements lie at round-off from |z| = 1, so D cannot be read off them).
+/// `reduce`: Dehn's algorithm of the group (a one-relator surface group,
+/// C'(1/6)), which decides equality exactly. How: the first pair with a
+/// non-empty L is peeled to L = a l a^-1 and M = b m b^-1, l and m
+/// cyclically Dehn-reduced (a rotation of l that Dehn's algorithm shortens
+/// moves its prefix into a); conjugate cyclically reduced words of a
+/// small-cancellation group are rotations of one another up to a short
+/// conjugator, so x with x l x^-1 = m is a rotation's prefix (p^-1, or
+/// y p^-1 for one letter y among the 2 * `letters` signed letters). D is
+/// then b x l^k a^-1 for some k (the centralizer of l, taken as its
+/// powers), fixed by the first pair whose L does not commute with the first
+/// L, and every pair is checked exactly. False with `why` when no such D is
+/// found (the classes differ, or the search misses it).
+bool conjugator_from_words(const std::vector<std::pair<Word, Word>>& pairs,
+                           const std::function<Word(const Word&)>& reduce, int letters, Word* D, std::string* why);
+
 class SnappedStartBuilder {
  public:
   /// `layout`/`group`: the target's hyperbolic cut disk and deck group;
@@ -139,8 +169,28 @@ class SnappedStartBuilder {
   /// `loop_relator`: the loops' boundary word).
   SnappedLoops loop_images(const Connectivity& sc, const std::vector<std::vector<int>>& loops,
                            const std::vector<Word>& edge_word, const Word& loop_relator) const;
+  /// Lets the start read the solver's edges through the source's own edges
+  /// (`sc`, `idt`: the energy's intrinsic triangulation, whose edge e joins
+  /// idt.edges[e].i, j along its path of input halfedges; both must outlive
+  /// the builder): each input edge's element is its exact element made
+  /// consistent around every face (as loop_images reads the class), and an
+  /// intrinsic edge's the product along its path, so the loops the tree
+  /// closes are the snapped class's own. Without it (or when the source's
+  /// elements cannot be read) every solver edge walks its own image path.
+  void use_source_paths(const Connectivity& sc, const IntrinsicDelaunayResult& idt);
 
  private:
+  /// The exact elements of the source's edges (ExactEdgeElements), made
+  /// consistent where faces do not close: the most doubtful edges (a
+  /// spanning tree of the dual graph, by doubt) derived from the others.
+  struct ConsistentElements {
+    bool ok = false;
+    std::string why;
+    std::vector<Word> element;  ///< #E, edge_halfedge's tail -> head
+    int inconsistent_faces = 0, longest_path = 0, long_paths = 0;
+  };
+  ConsistentElements consistent_edge_elements(const Connectivity& sc) const;
+  Word source_halfedge_element(int h) const;
   /// The snapped positions (each source vertex's home copy), every solver
   /// edge's exact element, and the target-side tree products T (and the
   /// class-side ones R of `edges`' elements) along a breadth-first tree.
@@ -151,7 +201,11 @@ class SnappedStartBuilder {
     std::vector<Word> T, R, element;
     std::vector<char> tree_edge;
   };
-  Tree tree(const std::vector<WeightedEdge>& edges) const;
+  /// `through_source_edges`: each solver edge's element read through the
+  /// source's edges (use_source_paths) where it can be, else its image path.
+  Tree tree(const std::vector<WeightedEdge>& edges, bool through_source_edges) const;
+  /// The start from one tree (the root's conjugator, the decks, the energies).
+  SnappedStart start_from(const Tree& t, const std::vector<WeightedEdge>& edges) const;
   /// Reused arrays of the shortest-path searches.
   struct PathScratch {
     std::vector<double> dist;
@@ -177,6 +231,9 @@ class SnappedStartBuilder {
   std::vector<int> nearest_;                   ///< #V source: target vertex
   std::vector<int> home_face_;                 ///< #V source: a layout face around its target vertex
   std::vector<std::complex<double>> home_point_;  ///< #V source: that vertex's copy in the face (cut disk)
+  const Connectivity* source_conn_ = nullptr;              ///< use_source_paths's
+  const IntrinsicDelaunayResult* source_paths_ = nullptr;  ///< use_source_paths's
+  std::vector<Word> source_element_;                       ///< #E source edges (empty: not used)
 };
 
 }  // namespace surfmap::detail
