@@ -244,12 +244,11 @@ TEST(FaceCharts, HarmonicMapInFaceChartsIsTheSingleChartsMap) {
 }
 
 // surface_map in per-face charts (issue 13), forced on a genus-3 plate that
-// one chart holds (the plates that need it, genus >= 13, take a minute): a
-// jittered copy onto the plate maps in the snapped class, which for two
-// meshings of one shape is the identity's, so every vertex's image stays
-// near the vertex it was jittered from (a twisted class moves vertices by
-// the plate's size), with 0 flipped, converged, and every target vertex
-// found in a source face's image near it.
+// one chart holds (the plates that need it, genus >= 13, take 10-25 s): a
+// jittered copy onto the plate maps in the snapped class, converged with 0
+// flipped, every target vertex found in a source face's image, and its
+// harmonic map is the one the single-chart pipeline finds with the same
+// weights (same energy to 1e-8: the same class and optimum).
 TEST(FaceCharts, SurfaceMapInFaceChartsMapsAJitteredPlateOntoThePlate) {
   const TriMesh target = samples::cad_plate(3, 16);
   const TriMesh source = samples::jitter(target, 0.2, 1);
@@ -264,18 +263,34 @@ TEST(FaceCharts, SurfaceMapInFaceChartsMapsAJitteredPlateOntoThePlate) {
   ASSERT_EQ(static_cast<int>(r.forward.size()), source.num_vertices());
   ASSERT_EQ(static_cast<int>(r.inverse.size()), target.num_vertices());
   const double diagonal = (target.V.colwise().maxCoeff() - target.V.colwise().minCoeff()).norm();
-  double worst_forward = 0, worst_inverse = 0;
+  double worst_forward = 0, worst_inverse = 0, mean_forward = 0;
   for (int v = 0; v < source.num_vertices(); ++v) {
     const PointOnSurface& p = r.forward[v];
     Eigen::Vector3d on_face = Eigen::Vector3d::Zero();
     for (int k = 0; k < 3; ++k) on_face += p.barycentric[k] * target.V.row(target.F(p.face, k)).transpose();
     EXPECT_LT((on_face - p.position).norm(), 1e-12 * diagonal);
-    worst_forward = std::max(worst_forward, (p.position - target.V.row(v).transpose()).norm());
+    const double d = (p.position - target.V.row(v).transpose()).norm();
+    worst_forward = std::max(worst_forward, d), mean_forward += d / source.num_vertices();
   }
   for (int v = 0; v < target.num_vertices(); ++v)
     worst_inverse = std::max(worst_inverse, (r.inverse[v].position - target.V.row(v).transpose()).norm());
-  EXPECT_LT(worst_forward, 0.05 * diagonal);
-  EXPECT_LT(worst_inverse, 0.05 * diagonal);
+  // (Own-edge weights on a coarse plate slide vertices along the surface:
+  // mean 2.8%, largest 13% of the diagonal; a map in a twisted class moves
+  // whole handles.)
+  EXPECT_LT(mean_forward, 0.05 * diagonal);
+  EXPECT_LT(worst_forward, 0.2 * diagonal);
+  EXPECT_LT(worst_inverse, 0.2 * diagonal);
+  // The map in one chart, with the same weights, its class chosen by its
+  // own candidates (no search, no other direction): the same class, so the
+  // same harmonic map and energy.
+  SurfaceMapOptions single;
+  single.solve.source_weights = SourceWeights::OwnEdges;
+  single.homotopy.search.enabled = false;
+  single.homotopy.two_way = false;
+  single.homotopy.through_shape = false;
+  const SurfaceMapResult one = surface_map(source, target, single);
+  ASSERT_TRUE(one.face_charts.empty());
+  EXPECT_NEAR(r.final_energy, one.final_energy, 1e-8 * one.final_energy);
   // One class: no class search, nothing to compare.
   ASSERT_EQ(r.candidates.size(), 1u);
   EXPECT_EQ(r.two_way_status.rfind("not run", 0), 0u);

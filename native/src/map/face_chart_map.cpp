@@ -34,6 +34,11 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 // shortest loops (> 1e-3 on every surface the flow converges on) away.
 constexpr double kClosingTolerance = 1e-6;
 
+// Faces of the target's universal cover one source face's image may meet
+// before the inverse search gives up (a bound on the work, far above what
+// any image of a map with 0 flipped meets).
+constexpr size_t kMaxLiftsPerImage = 200000;
+
 // face(stop)'s canonical coordinates -> face(a)'s, for halfedges a and stop
 // outgoing from one vertex, composed across the edges of its star.
 Mobius around_vertex(const Connectivity& conn, const FaceAtlas& atlas, int a, int stop) {
@@ -339,33 +344,52 @@ double distance_to_segment(Complex p, Complex q) {
 // across sides that meet the ball around that corner holding the image
 // (a Euclidean disk of radius tanh(R) in the Klein chart centring it).
 std::vector<PointOnSurface> inverse_points(const TriMesh& source, const Connectivity& sc, const TargetCharts& t,
-                                           const HyperbolicHarmonicResult& hr, int* unlocated) {
+                                           const HyperbolicHarmonicResult& hr, const std::vector<int>& located,
+                                           const std::vector<Mobius>& moved, int* unlocated, double* worst,
+                                           int* worst_vertex) {
   const Connectivity& conn = t.conn();
   const int nt = conn.num_vertices();
   std::vector<double> best(nt, -std::numeric_limits<double>::infinity());
   std::vector<PointOnSurface> inverse(nt);
   std::vector<int> stamp(conn.num_faces(), -1);
-  std::vector<Mobius> to_chart(conn.num_faces());
+  std::vector<std::vector<Complex>> lifts(conn.num_faces());
   auto effective = [&](int h) {  // head's face chart -> tail's face chart
     const int e = sc.edge(h);
     return sc.edge_halfedge(e) == h ? hr.edge_effective[e] : hr.edge_effective[e].inverse();
   };
   for (int s = 0; s < sc.num_faces(); ++s) {
     const int h0 = 3 * s, i = sc.tail(h0), j = sc.head(h0), k = sc.tail(3 * s + 2);
-    const Complex p0 = hr.z[i];
-    const Complex p1 = effective(h0).apply(hr.z[j]);
-    const Complex p2 = effective(sc.twin(3 * s + 2)).apply(hr.z[k]);
+    // (in the chart of the face containing corner i's image)
+    const Complex p0 = moved[i].apply(hr.z[i]);
+    const Complex p1 = (moved[i] * effective(h0)).apply(hr.z[j]);
+    const Complex p2 = (moved[i] * effective(sc.twin(3 * s + 2))).apply(hr.z[k]);
     const Mobius centre = Mobius::centring(p0);
     const double reach = std::max(hyperbolic::distance(p0, p1), hyperbolic::distance(p0, p2));
     const double klein_reach = std::tanh(reach) + 1e-12;
-    std::vector<int> queue{hr.face[i]};
-    stamp[hr.face[i]] = s;
-    to_chart[hr.face[i]] = Mobius();
+    // Faces of the universal cover: one face of T' may meet the ball in
+    // several lifts where a loop of the surface is shorter than the image
+    // (a plate's thin necks have closed geodesics of 0.1 and less), so a
+    // face is skipped only when this lift of it was seen already.
+    std::vector<std::pair<int, Mobius>> queue{{located[i], Mobius()}};
+    auto seen = [&](int g, const Mobius& m) {
+      if (stamp[g] != s) {
+        stamp[g] = s, lifts[g].clear();
+      } else {
+        const Complex c0 = m.apply(t.atlas.corners[g][0]);
+        for (const Complex& c : lifts[g])
+          if (hyperbolic::distance(c, c0) < 1e-6) return true;
+      }
+      lifts[g].push_back(m.apply(t.atlas.corners[g][0]));
+      return false;
+    };
+    seen(located[i], Mobius());
     for (size_t q = 0; q < queue.size(); ++q) {
-      const int g = queue[q];
+      if (q > kMaxLiftsPerImage) throw SolveError("per-face charts: the image of source face " + std::to_string(s) + " meets more than " + std::to_string(kMaxLiftsPerImage) + " faces of the target");
+      const int g = queue[q].first;
+      const Mobius to_chart_g = queue[q].second;
       Complex c[3], kc[3];
       for (int m = 0; m < 3; ++m) {
-        c[m] = to_chart[g].apply(t.atlas.corners[g][m]);
+        c[m] = to_chart_g.apply(t.atlas.corners[g][m]);
         kc[m] = hyperbolic::poincare_to_klein(centre.apply(c[m]));
       }
       for (int m = 0; m < 3; ++m) {
@@ -380,15 +404,17 @@ std::vector<PointOnSurface> inverse_points(const TriMesh& source, const Connecti
         }
         if (distance_to_segment(kc[m], kc[(m + 1) % 3]) > klein_reach) continue;
         const int across = Connectivity::face(conn.twin(3 * g + m));
-        if (stamp[across] == s) continue;
-        stamp[across] = s;
-        to_chart[across] = (to_chart[g] * t.atlas.transition[3 * g + m]).normalized();
-        queue.push_back(across);
+        const Mobius to_chart_across = (to_chart_g * t.atlas.transition[3 * g + m]).normalized();
+        if (!seen(across, to_chart_across)) queue.push_back({across, to_chart_across});
       }
     }
   }
   *unlocated = 0;
-  for (int v = 0; v < nt; ++v) *unlocated += !(best[v] >= -kInsideTolerance);
+  *worst = std::numeric_limits<double>::infinity();
+  for (int v = 0; v < nt; ++v) {
+    *unlocated += !(best[v] >= -kInsideTolerance);
+    if (best[v] < *worst) *worst = best[v], *worst_vertex = v;
+  }
   return inverse;
 }
 
@@ -480,21 +506,27 @@ void map_in_face_charts(const TriMesh& source, const TriMesh& target, const Conn
   // Forward: each vertex in the face of T' containing it, carried back
   // through the flips onto the user's target.
   out.forward.resize(source.num_vertices());
+  std::vector<int> located(source.num_vertices());
+  std::vector<Mobius> moved(source.num_vertices());
   for (int i = 0; i < source.num_vertices(); ++i) {
-    Mobius moved;
     Eigen::Vector3d bary;
-    const int f = locate_in_face_charts(t.atlas, hr.face[i], hr.z[i], 4 * tc.num_faces(), &moved, &bary);
+    const int f = locate_in_face_charts(t.atlas, hr.face[i], hr.z[i], 4 * tc.num_faces(), &moved[i], &bary);
     if (f < 0) throw SolveError("per-face charts: source vertex " + std::to_string(i) + "'s image was not located");
+    located[i] = f;
     Eigen::Vector3d w = bary.cwiseMax(0.0);
     w /= w.sum();
     const FacePoint p = t.intrinsic->correspondence.to_input(f, w);
     out.forward[i] = point_in_face(target, p.face, p.barycentric);
   }
-  int unlocated = 0;
-  out.inverse = inverse_points(source, sc, t, hr, &unlocated);
-  if (unlocated > 0)
-    throw SolveError("per-face charts: " + std::to_string(unlocated) +
-                     " target vertices lie in no source face's image (the inverse map)");
+  int unlocated = 0, worst_vertex = -1;
+  double worst = 0;
+  out.inverse = inverse_points(source, sc, t, hr, located, moved, &unlocated, &worst, &worst_vertex);
+  if (unlocated > 0) {
+    std::ostringstream m;
+    m << "per-face charts: " << unlocated << " target vertices lie in no source face's image (the inverse map; "
+      << "target vertex " << worst_vertex << " is " << worst << " in barycentrics outside the nearest)";
+    throw SolveError(m.str());
+  }
   stage_done("location", 0.95);
 
   out.face_charts = "per-face charts (" + reason +
