@@ -65,7 +65,8 @@ void register_map(CLI::App& app) {
         initial = enum_name(defaults.initial.method), initial_out,
         source_weights = enum_name(defaults.solve.source_weights),
         target_metric = enum_name(defaults.uniformization.target_metric),
-        target_loops = enum_name(defaults.uniformization.loops);
+        target_loops = enum_name(defaults.uniformization.loops),
+        face_charts = enum_name(defaults.uniformization.face_charts);
     int threads = defaults.threads, homotopy = defaults.homotopy.class_index,
         base_vertex = defaults.loops.source_base_vertex, target_base_vertex = defaults.loops.target_base_vertex,
         max_iterations = defaults.solve.max_iterations;
@@ -182,6 +183,12 @@ void register_map(CLI::App& app) {
                   "for genus >= 2 the metric when that layout fails or crowds |z| = 1), embedding or metric "
                   "(report: target_loop_metric)")
       ->check(CLI::IsMember(enum_name_list<LoopMetric>()));
+  cmd->add_option("--face-charts", a->face_charts,
+                  "Genus >= 2: auto (default: map in per-face charts of the target only when one Poincare chart "
+                  "cannot hold its layout, e.g. CAD plates of genus >= 13), always (that path on every pair) or "
+                  "never (stop with the single-chart error). The per-face path maps the snapped class of "
+                  "near-identical shapes only, without class search or landmarks (report: face_charts)")
+      ->check(CLI::IsMember(enum_name_list<FaceCharts>()));
   cmd->add_flag("--quiet", a->quiet, "No progress lines on stderr");
   cmd->add_flag("--timings", a->timings,
                 "Print the stage table on stderr: per stage seconds, factorisations, Newton iterations, peak memory");
@@ -233,6 +240,7 @@ void register_map(CLI::App& app) {
     opt.initial.method = parse_enum<InitialMapMethod>(a->initial, "--initial-map");
     opt.uniformization.target_metric = parse_enum<UniformizationMetric>(a->target_metric, "--target-metric");
     opt.uniformization.loops = parse_enum<LoopMetric>(a->target_loops, "--target-loops");
+    opt.uniformization.face_charts = parse_enum<FaceCharts>(a->face_charts, "--face-charts");
     opt.homotopy.extra_cuts = a->homotopy_extra_cuts;
     opt.homotopy.search.enabled = !a->no_homotopy_search;
     opt.homotopy.search.evaluations = a->homotopy_search_evaluations;

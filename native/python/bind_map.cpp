@@ -208,7 +208,7 @@ void bind_map(py::module_& m) {
       "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric", "homotopy_images",
       "homotopy_both_signs", "flat_overlay", "cheap_direction_check", "compare_directions", "greedy_pants",
       "homotopy_extra_cuts", "own_weights_floor", "local_fold_repair", "fold_untangle", "target_loops", "two_way_ratio",
-      "snapped_start", "landmarks_may_fold", "through_shape"));
+      "snapped_start", "landmarks_may_fold", "through_shape", "face_charts"));
   // What the module does beyond its keywords, for callers built against older modules (the
   // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
   m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
@@ -222,7 +222,7 @@ void bind_map(py::module_& m) {
          py::object homotopy_images, bool homotopy_both_signs, bool flat_overlay, bool cheap_direction_check,
          bool compare_directions, bool greedy_pants, int homotopy_extra_cuts, double own_weights_floor,
          bool local_fold_repair, bool fold_untangle, const std::string& target_loops, double two_way_ratio,
-         bool snapped_start, bool landmarks_may_fold, bool through_shape) {
+         bool snapped_start, bool landmarks_may_fold, bool through_shape, const std::string& face_charts) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         // Open surfaces (issue 16): either side with a boundary.
@@ -267,6 +267,7 @@ void bind_map(py::module_& m) {
         opt.solve.local_fold_repair = local_fold_repair;
         opt.solve.fold_untangle = fold_untangle;
         opt.uniformization.loops = parse_enum<LoopMetric>(target_loops, "target_loops");
+        opt.uniformization.face_charts = parse_enum<FaceCharts>(face_charts, "face_charts");
         // (options.homotopy.two_way_ratio; no CLI flag: 0 runs the other direction, and with it
         // the cheap direction check, for every pair)
         if (!(two_way_ratio >= 0)) throw InputError("two_way_ratio must be 0 or more");
@@ -362,6 +363,7 @@ void bind_map(py::module_& m) {
       py::arg("snapped_start") = HomotopySearchOptions().snapped_start,
       py::arg("landmarks_may_fold") = SurfaceMapOptions().landmarks_may_fold,
       py::arg("through_shape") = HomotopyOptions().through_shape,
+      py::arg("face_charts") = enum_name(UniformizationOptions().face_charts),
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
       "boundary loops (else InputError naming both); disks (0, 1) and annuli (0, 2) are mapped boundary onto boundary "
@@ -400,7 +402,7 @@ void bind_map(py::module_& m) {
       "candidate (no ranking, search or two-way run; SolveError when they do not carry). As the CLI's map flags "
       "(docs/python.md): `cheap_direction_check` (False: --no-cheap-direction-check), `compare_directions` "
       "(--compare-directions), `greedy_pants` (False: --no-greedy-pants), `homotopy_extra_cuts`, `own_weights_floor`, "
-      "`local_fold_repair` (False: --no-local-fold-repair), `fold_untangle` (False: --no-fold-untangle), `snapped_start` (False: --no-snapped-start), `through_shape` (False: --no-through-shape: no class through a generated n-hole torus of the same genus when the energy stays at 3x the conformal bound or more), `landmarks_may_fold` (--landmarks-may-fold: the landmarks held by plain pins, the map returned where it folds, for its class), `target_loops` ('auto', 'embedding', 'metric'); `two_way_ratio` (no CLI flag; default 2): the other direction "
+      "`local_fold_repair` (False: --no-local-fold-repair), `fold_untangle` (False: --no-fold-untangle), `snapped_start` (False: --no-snapped-start), `through_shape` (False: --no-through-shape: no class through a generated n-hole torus of the same genus when the energy stays at 3x the conformal bound or more), `landmarks_may_fold` (--landmarks-may-fold: the landmarks held by plain pins, the map returned where it folds, for its class), `target_loops` ('auto', 'embedding', 'metric'), `face_charts` ('auto', 'always', 'never'; --face-charts: genus >= 2 in per-face charts of the target when one chart cannot hold it, the snapped class only); `two_way_ratio` (no CLI flag; default 2): the other direction "
       "is mapped when the energy is at least this many times the conformal bound (0: always). "
       "`progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");

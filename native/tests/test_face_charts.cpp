@@ -20,6 +20,7 @@
 #include "surfmap/error.h"
 #include "surfmap/geometry/hyperbolic.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
+#include "surfmap/map/surface_map.h"
 #include "surfmap/map/point_location.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
@@ -240,6 +241,69 @@ TEST(FaceCharts, HarmonicMapInFaceChartsIsTheSingleChartsMap) {
   HyperbolicHarmonicOptions with_relator = o;
   with_relator.relator = L.side_relator;
   EXPECT_THROW(hyperbolic_harmonic_map_in_face_charts(n, local, g.atlas, face0, w0, with_relator), InputError);
+}
+
+// surface_map in per-face charts (issue 13), forced on a genus-3 plate that
+// one chart holds (the plates that need it, genus >= 13, take 10-25 s): a
+// jittered copy onto the plate maps in the snapped class, converged with 0
+// flipped, every target vertex found in a source face's image, and its
+// harmonic map is the one the single-chart pipeline finds with the same
+// weights (same energy to 1e-8: the same class and optimum).
+TEST(FaceCharts, SurfaceMapInFaceChartsMapsAJitteredPlateOntoThePlate) {
+  const TriMesh target = samples::cad_plate(3, 16);
+  const TriMesh source = samples::jitter(target, 0.2, 1);
+  SurfaceMapOptions options;
+  options.uniformization.face_charts = FaceCharts::Always;
+  const SurfaceMapResult r = surface_map(source, target, options);
+  EXPECT_TRUE(r.converged);
+  EXPECT_EQ(r.flipped_triangles, 0);
+  EXPECT_EQ(r.degenerate_triangles, 0);
+  EXPECT_EQ(r.face_charts.rfind("per-face charts (requested)", 0), 0u) << r.face_charts;
+  EXPECT_EQ(r.snapped_inconsistent_faces, 0);
+  ASSERT_EQ(static_cast<int>(r.forward.size()), source.num_vertices());
+  ASSERT_EQ(static_cast<int>(r.inverse.size()), target.num_vertices());
+  const double diagonal = (target.V.colwise().maxCoeff() - target.V.colwise().minCoeff()).norm();
+  double worst_forward = 0, worst_inverse = 0, mean_forward = 0;
+  for (int v = 0; v < source.num_vertices(); ++v) {
+    const PointOnSurface& p = r.forward[v];
+    Eigen::Vector3d on_face = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) on_face += p.barycentric[k] * target.V.row(target.F(p.face, k)).transpose();
+    EXPECT_LT((on_face - p.position).norm(), 1e-12 * diagonal);
+    const double d = (p.position - target.V.row(v).transpose()).norm();
+    worst_forward = std::max(worst_forward, d), mean_forward += d / source.num_vertices();
+  }
+  for (int v = 0; v < target.num_vertices(); ++v)
+    worst_inverse = std::max(worst_inverse, (r.inverse[v].position - target.V.row(v).transpose()).norm());
+  // (Own-edge weights on a coarse plate slide vertices along the surface:
+  // mean 2.8%, largest 13% of the diagonal; a map in a twisted class moves
+  // whole handles.)
+  EXPECT_LT(mean_forward, 0.05 * diagonal);
+  EXPECT_LT(worst_forward, 0.2 * diagonal);
+  EXPECT_LT(worst_inverse, 0.2 * diagonal);
+  // The map in one chart, with the same weights, its class chosen by its
+  // own candidates (no search, no other direction): the same class, so the
+  // same harmonic map and energy.
+  SurfaceMapOptions single;
+  single.solve.source_weights = SourceWeights::OwnEdges;
+  single.homotopy.search.enabled = false;
+  single.homotopy.two_way = false;
+  single.homotopy.through_shape = false;
+  const SurfaceMapResult one = surface_map(source, target, single);
+  ASSERT_TRUE(one.face_charts.empty());
+  EXPECT_NEAR(r.final_energy, one.final_energy, 1e-8 * one.final_energy);
+  // One class: no class search, nothing to compare.
+  ASSERT_EQ(r.candidates.size(), 1u);
+  EXPECT_EQ(r.two_way_status.rfind("not run", 0), 0u);
+}
+
+// The per-face path maps one class and holds no landmarks: asked for both,
+// one line naming what it does not take.
+TEST(FaceCharts, SurfaceMapInFaceChartsRefusesLandmarks) {
+  const TriMesh target = samples::cad_plate(2, 16);
+  SurfaceMapOptions options;
+  options.uniformization.face_charts = FaceCharts::Always;
+  options.landmarks = {{0, 0}};
+  EXPECT_THROW(surface_map(target, target, options), InputError);
 }
 
 }  // namespace

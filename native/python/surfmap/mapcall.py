@@ -16,7 +16,7 @@ MAP_OPTION_NAMES = (
     "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search",
     "homotopy_search_evaluations", "two_way", "flat_overlay", "cheap_direction_check",
     "compare_directions", "greedy_pants", "homotopy_extra_cuts", "own_weights_floor",
-    "local_fold_repair", "fold_untangle", "target_loops", "two_way_ratio",
+    "local_fold_repair", "fold_untangle", "target_loops", "two_way_ratio", "face_charts",
 )
 
 

@@ -291,6 +291,8 @@ json to_json(const SurfaceMapResult& r, const SurfaceMapOptions& options) {
                  {"iterations", r.iterations},
                  {"method", enum_name(options.solve.method)},
                  {"target_metric_requested", enum_name(options.uniformization.target_metric)},
+                 {"face_charts_requested", enum_name(options.uniformization.face_charts)},
+                 {"face_charts", r.face_charts.empty() ? std::string("single chart") : r.face_charts},
                  {"initial_map", initial_map_json(r)},
                  {"homotopy", homotopy_json(r)},
                  {"quality", quality_json(r)},

@@ -129,8 +129,9 @@ void require_single_chart(const DiskLayout& layout, Background background, const
                             std::to_string(layout.num_unresolved) +
                             " of its triangles are below the round-off of double coordinates";
   if (layout.num_flipped_local == 0 && layout.num_flipped_above_roundoff == 0)
-    throw SingleChartError(where + ": maps of surfaces this long in their metric need per-face charts, not yet "
-                                   "supported (the layout itself is valid in per-face charts)",
+    throw SingleChartError(where + ": maps of surfaces this long in their metric need per-face charts (the layout "
+                                   "itself is valid in per-face charts; face_charts 'auto' maps the snapped class "
+                                   "there)",
                            mesh, layout.layout_radius);
   throw SolveError(where + ", and " + std::to_string(layout.num_flipped_local) + " flipped in per-face charts, " +
                    std::to_string(layout.num_flipped_above_roundoff) + " taller than their round-off flipped");

@@ -6,6 +6,7 @@
 #include <sstream>
 #include <string>
 
+#include "face_chart_map.h"
 #include "map_support.h"
 #include "surfmap/error.h"
 #include "surfmap/mesh/connectivity.h"
@@ -28,6 +29,17 @@ void finish_stage_table(SurfaceMapResult& out, StageRecord total) {
 
 SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                    const testing::MapHooks& hooks);
+
+// The per-face path's result (face_chart_map.h) as returned: no two-way run
+// or class through a generated shape (both compare classes, and this path
+// has one), no energy ratio (no class bounds), the stage table closed.
+SurfaceMapResult finish_in_face_charts(SurfaceMapResult& out, StageRecord total) {
+  out.two_way_status = "not run: per-face charts (one class)";
+  out.through_shape_status = "not run: per-face charts (one class)";
+  out.total_time = total.seconds;
+  finish_stage_table(out, total);
+  return std::move(out);
+}
 
 // Genus >= 2, the default class, a base vertex given: which class is chosen
 // must not depend on it (issue 14). The candidates (the canonical schemata's
@@ -198,9 +210,34 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
     detail::map_spherical(source, target, sc, tc, options, out, stage_done);
   else if (out.genus == 1)
     detail::map_flat(source, target, sc, tc, options, hooks, out, stage_done);
-  else
+  else if (options.uniformization.face_charts == FaceCharts::Always) {
+    std::string why;
+    if (!detail::face_chart_map_applies(options, &why)) throw InputError("face_charts 'always': " + why);
+    detail::map_in_face_charts(source, target, sc, tc, options, "requested", out, stage_done);
+    return finish_in_face_charts(out, record("total", std::chrono::duration<double>(Clock::now() - t_start).count(),
+                                             counts_start, work::counts()));
+  } else
     try {
       detail::map_hyperbolic(source, target, sc, tc, options, hooks, out, stage_done);
+    } catch (const SingleChartError& e) {
+      // Issue 13: a valid target layout no single chart holds. The map runs
+      // in per-face charts instead (face_chart_map.h), on its restricted path.
+      std::string why;
+      if (options.uniformization.face_charts == FaceCharts::Never || e.mesh != "target" ||
+          !detail::face_chart_map_applies(options, &why))
+        throw SingleChartError(std::string(e.what()) + (why.empty() ? std::string() : " (" + why + ")"), e.mesh,
+                               e.layout_radius);
+      SurfaceMapResult fresh;
+      fresh.genus = out.genus;
+      fresh.peak_memory_per_stage = out.peak_memory_per_stage;
+      fresh.stage_times = std::move(out.stage_times);
+      fresh.stages = std::move(out.stages);
+      out = std::move(fresh);
+      std::ostringstream reason;
+      reason << "one Poincare chart in double cannot hold the target: layout radius " << e.layout_radius;
+      detail::map_in_face_charts(source, target, sc, tc, options, reason.str(), out, stage_done);
+      return finish_in_face_charts(out, record("total", std::chrono::duration<double>(Clock::now() - t_start).count(),
+                                               counts_start, work::counts()));
     } catch (const InputError& e) {
       // Issue 14: a requested class index past the one-way candidates may be
       // the two-way run's class (docs/handle_classes.md).

@@ -880,6 +880,22 @@ def test_every_cli_map_option_has_a_python_keyword(cli):
     assert not missing, missing
 
 
+def test_face_charts_keyword_maps_in_per_face_charts():
+    # face_charts='always' (CLI --face-charts always): the genus >= 2 map in per-face charts
+    # of the target (issue 13; by default only where one chart cannot hold the target), the
+    # snapped class of a jittered copy, converged with 0 flipped, said so in the report; a
+    # bad name is refused naming the keyword.
+    plate = surfmap.shapes.cad_plate(3, 16, 0.1)
+    copy = surfmap.shapes.jitter(*plate, 0.2, 1)
+    r = surfmap.surface_map(*copy, *plate, face_charts="always")
+    assert r["converged"]
+    assert r["flipped_triangles"] == 0 and r["degenerate_triangles"] == 0
+    assert r["face_charts"].startswith("per-face charts (requested)"), r["face_charts"]
+    assert r["face_charts_requested"] == "always"
+    with pytest.raises(surfmap.InputError, match="face_charts"):
+        surfmap.surface_map(*copy, *plate, face_charts="sometimes")
+
+
 def test_cli_option_keywords_are_checked_and_reach_the_map():
     a = surfmap.shapes.n_hole_torus(2, 30, True)
     b = surfmap.shapes.jitter(*surfmap.shapes.n_hole_torus(2, 34, True), 0.2, 4)

@@ -40,6 +40,11 @@ inline constexpr EnumNames<LoopMetric, 3> kLoopMetricNames{{
     {LoopMetric::Embedding, "embedding"},
     {LoopMetric::Metric, "metric"},
 }};
+inline constexpr EnumNames<FaceCharts, 3> kFaceChartsNames{{
+    {FaceCharts::Automatic, "auto"},
+    {FaceCharts::Always, "always"},
+    {FaceCharts::Never, "never"},
+}};
 
 /// The table of an enum, so the functions below need only the value type.
 inline constexpr const auto& enum_names(MapMethod) { return kMapMethodNames; }
@@ -47,6 +52,7 @@ inline constexpr const auto& enum_names(InitialMapMethod) { return kInitialMapMe
 inline constexpr const auto& enum_names(SourceWeights) { return kSourceWeightsNames; }
 inline constexpr const auto& enum_names(UniformizationMetric) { return kUniformizationMetricNames; }
 inline constexpr const auto& enum_names(LoopMetric) { return kLoopMetricNames; }
+inline constexpr const auto& enum_names(FaceCharts) { return kFaceChartsNames; }
 
 /// The name of `value` in its table.
 template <class E>

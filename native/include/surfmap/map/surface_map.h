@@ -405,6 +405,10 @@ struct LoopOptions {
   bool search_in_given_cuts = false;
 };
 
+/// When the genus >= 2 map runs in per-face charts of the target
+/// (UniformizationOptions::face_charts).
+enum class FaceCharts { Automatic, Always, Never };
+
 /// The uniformization of the target (and, for genus 0, of both surfaces)
 /// (SurfaceMapOptions::uniformization).
 struct UniformizationOptions {
@@ -435,6 +439,23 @@ struct UniformizationOptions {
   /// up to 34% of the diagonal away, with "1 intrinsic flipped triangle").
   /// SurfaceMapResult::target_loop_metric says which ran.
   LoopMetric loops = LoopMetric::Automatic;
+  /// Genus >= 2: whether the map may run in per-face charts of the target
+  /// (issue 13; spelled "auto", "always", "never" in the CLI's
+  /// --face-charts, Python's face_charts= and the report's
+  /// face_charts_requested; docs/robustness.md "Maps in per-face charts"):
+  ///  * Automatic (default): only when the target's layout is valid but one
+  ///    Poincaré chart in double cannot hold it (CAD plates of genus >= 13),
+  ///    where SingleChartError used to end the map. Every other map is
+  ///    unchanged.
+  ///  * Always: the per-face path on every genus >= 2 pair (a test and
+  ///    comparison switch: it is the restricted path described below).
+  ///  * Never: SingleChartError as before.
+  /// The per-face path is restricted: one class only, the snapped class of
+  /// near-identical shapes (each source vertex at its nearest target vertex,
+  /// each source edge along the target's edges between them), no class
+  /// search, no landmarks, positive weights on the source's own edges.
+  /// SurfaceMapResult::face_charts says whether it ran and why.
+  FaceCharts face_charts = FaceCharts::Automatic;
 };
 
 /// Options of surface_map, nested by concern: `homotopy` (classes listed,
@@ -789,6 +810,11 @@ struct SurfaceMapResult {
   /// target's own loops, carried through N of the flips", or the loops of T'
   /// and why; docs/uniformization.md). Empty otherwise.
   std::string target_class_loops;
+  /// Genus >= 2: empty when the map ran in the target layout's one
+  /// Poincaré chart; otherwise "per-face charts (...)" with why (the single
+  /// chart's limit, or requested) and the path's restrictions
+  /// (UniformizationOptions::face_charts).
+  std::string face_charts;
   /// Genus >= 1: the weights the returned map was solved with:
   /// "intrinsic Delaunay cotangent" (after a local fold repair followed by
   /// "; N vertices around the folds moved (method)") or "positive on the
