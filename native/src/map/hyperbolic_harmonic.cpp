@@ -1010,12 +1010,6 @@ struct HarmonicNewton {
     return Outcome::kMoved;
   }
 
-  /// |b| of an anchored full chart beyond which its vertex is moved to the
-  /// domain's sheet: z = b / ā in double then has 1 − |z| ≈ 1 / (2|b|²)
-  /// = 5e-13, about 5e3 ulps of 1, the least a position handed to the
-  /// location stage should keep (~29 units from the origin).
-  static constexpr long double kFarSheetChartB = 1e6L;
-
   /// After a step: the new charts and sheets.
   void recentre_charts() {
     // Local charts that moved far into their anchors; then dynamic charts:
@@ -1027,20 +1021,7 @@ struct HarmonicNewton {
         continue;
       }
       state.reanchor_if_moved(i);
-      // Anchored, a vertex keeps its sheet until its chart nears what a
-      // double position holds (kFarSheetChartB): the anchors hold a far
-      // chart to round-off, while a move to the domain's sheet (P of a
-      // thin plate is ~26 units across) gives its edges to the neighbours
-      // left on the old sheet effective elements multiplied out of side
-      // pairings with partial products beyond 1e12, where long double keeps
-      // no digit. Issue 13, raw genus-8 polycube -> thin genus-8 plate: with
-      // those moves 142 intrinsic triangles' edge elements no longer closed
-      // up (the product around the face off the identity by up to 0.11),
-      // and the optimum of that corrupted energy folded a 0.02-wide face
-      // (E 235.8025); kept on their sheets, 22 faces (the relator's own
-      // face and its neighbours) stay off by at most 5.7e-4, and the map
-      // converges fold-free at the lower E 235.6920.
-      if (std::abs(state.full_chart(i).b) > kFarSheetChartB) state.move_vertex(i);
+      if (options.reduce_point || std::abs(state.full_chart(i).b) > 0.75L) state.move_vertex(i);
     }
     state.anchor_if_far();
     // The new charts and sheets: every A_e afresh (ChartState above), and
