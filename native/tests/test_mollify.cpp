@@ -17,6 +17,7 @@
 #include "surfmap/samples/shapes.h"
 #include "surfmap/uniformize/ricci_flow.h"
 #include "surfmap/uniformize/uniformize.h"
+#include "../src/map/stages/source_weights_fallback.h"
 
 namespace surfmap {
 namespace {
@@ -269,23 +270,19 @@ TEST(Shapes, CadPlateAndPeanutAreClosedWithTheirGenus) {
 }
 
 
-TEST(Distortion, NearlyFlatImagesOfOrdinaryFacesAreCountedFlat) {
-  // A converged genus-3 map of a jittered source once left one ordinary
-  // source face (angles 126/21/33 degrees) at the edge of a fold: its image
-  // in the chart had |b x c| ~ 1e-11 max(|b|², |c|²), positive, and D' 7.4e9
-  // made the map's mean D' 13,113 (docs/robustness.md, held-out sweep).
-  // Such an image is flat: counted in `degenerate` (which starts the fold
-  // repair), out of mean and max, like a zero-area one.
+// Two ordinary source faces (equilateral, sharing an edge); face 0's image
+// has the source's shape (D' ~1), face 1's has the corners 0, b, c in a
+// small chart (nearly Euclidean).
+DistortionStats two_face_image_distortion(std::complex<double> b, std::complex<double> c) {
   TriMesh src;
   src.V.resize(4, 3);
   src.V << 0, 0, 0, 1, 0, 0, 0.5, std::sqrt(0.75), 0, 1.5, std::sqrt(0.75), 0;
   src.F.resize(2, 3);
   src.F << 0, 1, 2, 1, 3, 2;
   using Complex = std::complex<double>;
-  const double s = 0.05;  // small chart triangles: nearly Euclidean
-  const std::vector<std::pair<Complex, Complex>> chart = {
-      {Complex(s, 0), Complex(0.5 * s, std::sqrt(0.75) * s)},  // the source's shape: D' ~ 1
-      {Complex(s, 0), Complex(0.5 * s, 2e-11 * s)}};            // |b x c| = 2e-11 |b|²
+  const double s = 0.05;
+  const std::vector<std::pair<Complex, Complex>> chart = {{Complex(s, 0), Complex(0.5 * s, std::sqrt(0.75) * s)},
+                                                          {b, c}};
   auto poincare_distance = [](Complex z, Complex w) {
     return 2 * std::atanh(std::abs(z - w) / std::abs(1.0 - std::conj(z) * w));
   };
@@ -294,17 +291,78 @@ TEST(Distortion, NearlyFlatImagesOfOrdinaryFacesAreCountedFlat) {
     return Eigen::Vector3d(poincare_distance(p[0], p[1]), poincare_distance(p[1], p[2]),
                            poincare_distance(p[2], p[0]));
   };
-  EXPECT_EQ(image_orientation(chart[1].first, chart[1].second), 0);
-  EXPECT_EQ(image_orientation(chart[0].first, chart[0].second), 1);
-  EXPECT_EQ(image_orientation(chart[0].second, chart[0].first), -1);
-  const DistortionStats q = hyperbolic_image_distortion(
-      src, [&](int f) { return chart[f]; }, sides, true);
+  return hyperbolic_image_distortion(src, [&](int f) { return chart[f]; }, sides, true);
+}
+
+TEST(Distortion, NearlyFlatImagesOfOrdinaryFacesAreCountedFlat) {
+  // A converged genus-3 map of a jittered source once left one ordinary
+  // source face (angles 126/21/33 degrees) at the edge of a fold: its image
+  // in the chart had |b x c| ~ 1e-11 max(|b|², |c|²), positive, and D' 7.4e9
+  // made the map's mean D' 13,113 (docs/robustness.md, held-out sweep).
+  // Such an image is flat: counted in `degenerate` (which starts the fold
+  // repair), out of mean and max, like a zero-area one.
+  using Complex = std::complex<double>;
+  const double s = 0.05;
+  const Complex b(s, 0), c(0.5 * s, 2e-11 * s);  // |b x c| = 2e-11 |b|²
+  EXPECT_EQ(image_orientation(b, c), 0);
+  EXPECT_EQ(image_orientation(Complex(s, 0), Complex(0.5 * s, std::sqrt(0.75) * s)), 1);
+  EXPECT_EQ(image_orientation(Complex(0.5 * s, std::sqrt(0.75) * s), Complex(s, 0)), -1);
+  const DistortionStats q = two_face_image_distortion(b, c);
   EXPECT_EQ(q.degenerate, 1);
   EXPECT_EQ(q.flipped, 0);
   EXPECT_TRUE(q.thin_source.empty());  // the source faces are ordinary
   EXPECT_TRUE(std::isinf(q.per_face[1]));
   EXPECT_LT(q.max, 1.05);
   EXPECT_LT(q.mean, 1.05);
+}
+
+TEST(Distortion, FlatButPositiveImagesDoNotFoldTheMap) {
+  // A far-from-conformal map (a coarse CAD plate onto the fertility, mean D'
+  // 1e4) leaves a few images flatter than kFlatImageRelativeCross in every
+  // class, yet positive far beyond round-off: one-to-one there. Counted as
+  // folds they sent every class of that pair to the own-edge retry and
+  // then out (docs/handle_classes.md, "Flat is not folded"). They stay out
+  // of the D' mean and max, but only images flat within round-off or
+  // negatively oriented fold the map.
+  using Complex = std::complex<double>;
+  const double s = 0.05;
+  SurfaceMapOptions automatic;  // SourceWeights::Automatic
+  struct Case {
+    Complex c;           // face 1's corner 2 (corner 1 at (s, 0))
+    int degenerate, flat;  // DistortionStats
+    bool folds;
+  };
+  const Case cases[] = {
+      {Complex(0.5 * s, 2e-11 * s), 1, 1, false},   // flat, positive (|b x c| = 2e-11 |b|²)
+      {Complex(0.5 * s, 5e-10 * s), 1, 1, false},   // just under the flat bound
+      {Complex(0.5 * s, 1e-16 * s), 1, 0, true},    // orientation round-off
+      {Complex(0.5 * s, -2e-11 * s), 1, 0, true},   // flat and negative
+      {Complex(0.5 * s, 1e-6 * s), 0, 0, false},    // thin, not flat: D' ~1e6, measured
+  };
+  for (const Case& k : cases) {
+    const DistortionStats q = two_face_image_distortion(Complex(s, 0), k.c);
+    SCOPED_TRACE(k.c.imag() / s);
+    EXPECT_EQ(q.degenerate, k.degenerate);
+    EXPECT_EQ(q.flat, k.flat);
+    EXPECT_EQ(q.flipped, 0);
+    SurfaceMapResult out;
+    detail::store_distortion(q, out);
+    EXPECT_EQ(out.degenerate_triangles, k.degenerate - k.flat);
+    // Automatic weights: a fold sends the class to the own-edge retry; with
+    // own-edge weights already, it is refused (the class is not used).
+    EXPECT_EQ(detail::retry_with_own_weights(automatic, false, out), k.folds);
+    if (k.folds)
+      EXPECT_THROW(detail::retry_with_own_weights(automatic, true, out), SolveError);
+    else
+      EXPECT_FALSE(detail::retry_with_own_weights(automatic, true, out));
+    if (k.degenerate) {
+      EXPECT_TRUE(std::isinf(q.per_face[1]));
+      EXPECT_LT(q.max, 1.05);  // out of the max
+    } else {
+      EXPECT_GT(q.per_face[1], 1e5);
+      EXPECT_EQ(q.max, q.per_face[1]);
+    }
+  }
 }
 
 }  // namespace

@@ -113,6 +113,8 @@ DistortionStats hyperbolic_image_distortion(
     const int orientation = image_orientation(b, c);
     if (orientation == 0) {
       ++out.degenerate;
+      const double cross = b.real() * c.imag() - b.imag() * c.real();
+      if (cross > kRoundOffRelativeCross * std::max(std::norm(b), std::norm(c))) ++out.flat;
       continue;
     }
     if (orientation < 0) {
@@ -159,7 +161,7 @@ DistortionStats planar_distortion(const RowMatrixX3d& V, const RowMatrixX3i& F,
     const std::complex<double> e1 = image(f, 1) - image(f, 0), e2 = image(f, 2) - image(f, 0);
     const double signed_area = 0.5 * (e1.real() * e2.imag() - e1.imag() * e2.real());
     const double scale2 = std::max({std::norm(e1), std::norm(e2), std::norm(image(f, 2) - image(f, 1))});
-    if (std::abs(signed_area) <= 1e-14 * scale2) {
+    if (std::abs(signed_area) <= kRoundOffRelativeCross * scale2) {
       ++out.degenerate;
       continue;
     }

@@ -1888,11 +1888,16 @@ bool map_class(HyperbolicPipeline& p) {
   const std::string folds = "the intrinsic Delaunay map of class " + std::to_string(k) + " folds " +
                             std::to_string(out.flipped_triangles) + " and flattens " +
                             std::to_string(out.degenerate_triangles) + " of the source's faces (" +
-                            std::to_string(out.intrinsic_flipped_triangles) + " intrinsic triangles flipped)";
+                            std::to_string(out.intrinsic_flipped_triangles) + " intrinsic triangles flipped" +
+                            (quality.flat ? "; " + std::to_string(quality.flat) + " more flat but positive"
+                                          : std::string()) +
+                            ")";
   // landmarks_may_fold: the held map's folds are the caller's to keep (no
   // repair, no own-edge weights).
   const bool keep_folds = options.landmarks_may_fold && !options.landmarks.empty();
-  if ((out.flipped_triangles || out.degenerate_triangles) && !p.own_weights && !keep_folds &&
+  // Flat but positive faces (quality.flat) are one-to-one: the repair tries
+  // to open them, but when it cannot the map is kept as it is.
+  if ((out.flipped_triangles || out.degenerate_triangles || quality.flat) && !p.own_weights && !keep_folds &&
       options.solve.source_weights == SourceWeights::Automatic && options.solve.local_fold_repair) {
     // Issue 14: repair the few folded faces where they are (stages/
     // fold_repair.h) instead of giving every face the own-edge weights.
@@ -1925,6 +1930,9 @@ bool map_class(HyperbolicPipeline& p) {
                                 fr.info.method + ")";
       out.source_weights += "; " + moved;
       p.own_weights_reason = folds + ": repaired locally, " + moved + ", the rest held";
+    } else if (!out.flipped_triangles && !out.degenerate_triangles) {
+      p.own_weights_reason = folds + ": kept as it is, flat but positive faces being one-to-one (local repair " +
+                             fr.info.status + ")";
     }
   }
   if (!keep_folds && retry_with_own_weights(options, p.own_weights, out)) {

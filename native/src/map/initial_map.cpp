@@ -436,7 +436,7 @@ bool repair_flattening(const TriMesh& source, const Connectivity& sc, const std:
       words[v] = group.reduce(concat(hr.vertex_deck_word[v], poly.vertex_deck_word[v]));
     if (!have_words) return false;  // chart moves without words cannot be composed exactly
     const DistortionStats q = hyperbolic_distortion(source, group, halfedge_word, hr.z, words);
-    if (q.flipped || q.degenerate) continue;
+    if (q.flipped || q.degenerate > q.flat) continue;  // flat but positive faces are embedded
     poly.z = std::move(hr.z);
     poly.vertex_deck_word = std::move(words);
     poly.vertex_deck.resize(nv);
@@ -475,10 +475,12 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
       // sliver faces), from reduced words.
       const DistortionStats q = hyperbolic_distortion(source, group, halfedge_word, cg.z, cg.vertex_deck_word);
       r.cut_graph_flipped = q.flipped;
-      r.cut_graph_degenerate = q.degenerate;
-      if (q.flipped || q.degenerate) {
+      // Flat but positive faces (DistortionStats::flat) are embedded too.
+      r.cut_graph_degenerate = q.degenerate - q.flat;
+      if (q.flipped || q.degenerate > q.flat) {
         cg.applied = false;
-        cg.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate) + " degenerate source faces";
+        cg.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate - q.flat) +
+                    " degenerate source faces";
       }
     }
     if (cg.applied) {
@@ -507,10 +509,10 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
       // faces, straight between its vertices' images, are checked too.
       const DistortionStats q = hyperbolic_distortion(source, group, halfedge_word, poly.z, poly.vertex_deck_word);
       poly.source_flipped = q.flipped;
-      poly.source_degenerate = q.degenerate;
-      if (q.flipped || q.degenerate) {
+      poly.source_degenerate = q.degenerate - q.flat;
+      if (q.flipped || q.degenerate > q.flat) {
         poly.applied = false;
-        poly.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate) +
+        poly.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate - q.flat) +
                       " degenerate source faces";
         if (q.flipped + q.degenerate <= std::max(8, source.num_faces() / 2000))
           poly.applied = repair_flattening(source, sc, halfedge_word, group, options, q.per_face, poly);

@@ -28,7 +28,22 @@ double triangle_dilatation(const Eigen::Vector3d& source_sides, const Eigen::Vec
 /// jittered and collinear sources"); counted as flat, the fold repair moves
 /// it like a folded one. The fold repair's own "positive with a margin" is
 /// the same bound, so that what it accepts is not flat here.
+///
+/// Flat is not folded: a flat image whose |b x c| is still above
+/// kRoundOffRelativeCross max(|b|², |c|²) is positively oriented beyond the
+/// chart's round-off, so the map is one-to-one there, only extremely
+/// stretched (DistortionStats::flat). Such faces start the fold repair but
+/// never reject a class: far-from-conformal maps (a 532-vertex CAD plate onto
+/// the fertility, mean D' ~150) can leave a few of them in every class, and
+/// counting them as folds had sent all of that pair's classes to the rescue
+/// (docs/handle_classes.md, "Flat is not folded").
 constexpr double kFlatImageRelativeCross = 1e-9;
+
+/// Below this |b x c| / max(|b|², |c|²) an image triangle's orientation is
+/// round-off (chart coordinates carry ~1e-16 relative error): degenerate,
+/// the map is not known to be one-to-one there. The planar measure's
+/// degenerate bound too.
+constexpr double kRoundOffRelativeCross = 1e-14;
 
 /// Orientation of the triangle with corners 0, b, c: +1, -1 (flipped) or 0
 /// (degenerate: |cross| not above kFlatImageRelativeCross max(|b|², |c|²),
@@ -57,7 +72,12 @@ struct DistortionStats {
   double mean = 0;               ///< area-weighted by the source areas
   double max = 0;
   int flipped = 0;     ///< image triangles with negative orientation
-  int degenerate = 0;  ///< image triangles with (near) zero area
+  int degenerate = 0;  ///< image triangles with (near) zero area (image_orientation 0)
+  /// Of the degenerate ones: flat but positively oriented beyond round-off
+  /// (|b x c| above kRoundOffRelativeCross max(|b|², |c|²)): D' ~1e9 or
+  /// more, left out of mean and max like the others, but not folded (the map
+  /// is one-to-one there). degenerate - flat are the truly degenerate ones.
+  int flat = 0;
   /// Source triangles of (near) zero area (D' undefined: infinite, left out
   /// of mean and max, which they would not weigh in anyway).
   int degenerate_source = 0;

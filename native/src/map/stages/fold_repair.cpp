@@ -562,6 +562,12 @@ FoldRepairResult repair_folds_locally(const TriMesh& source, const Connectivity&
     info.status = "not repaired: the solve kept no vertex deck words (relaxation)";
     return out;
   }
+  // The map being repaired: its flat but positive faces (one-to-one, D' ~1e9
+  // or more) are tried too, but need not all open: a repair is accepted when
+  // nothing folds, no more faces are flat than before, and something was
+  // mended (a fold, or a flat face opened).
+  const DistortionStats before = chart_distortion(source, sc, hr.edge_local, index);
+  const int bad_before = before.flipped + before.degenerate;
   // Which source edge each solver edge is (-1: an edge of the intrinsic
   // triangulation only, which the own-edge problem does not have).
   std::vector<int> source_edge(edges.size(), -1);
@@ -590,9 +596,10 @@ FoldRepairResult repair_folds_locally(const TriMesh& source, const Connectivity&
       return false;
     }
     const DistortionStats q = chart_distortion(source, sc, r.edge_local, index);
-    if (q.flipped || q.degenerate) {
+    if (q.flipped || q.degenerate > q.flat || q.flat > before.flat || q.flat >= bad_before) {
       last += "; " + method + ": " + std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate) +
-              " flat faces left in the solver's charts";
+              " flat faces left in the solver's charts (" + std::to_string(q.flat) + " of them positive; " +
+              std::to_string(before.flat) + " before)";
       return false;
     }
     if (max_mean_rise >= 0) {

@@ -25,7 +25,10 @@ void store_distortion(const DistortionStats& q, SurfaceMapResult& out) {
   out.thin_source_faces = q.thin_source;
   out.thin_source_max_dilatation = q.thin_source_max;
   out.flipped_triangles = q.flipped;
-  out.degenerate_triangles = q.degenerate;
+  // Flat but positive images (q.flat) are one-to-one: not counted here, so
+  // that only truly degenerate ones (orientation round-off) fold a class.
+  // Their D' is +inf in `dilatation`, out of mean and max.
+  out.degenerate_triangles = q.degenerate - q.flat;
 }
 
 bool retry_with_own_weights(const SurfaceMapOptions& options, bool own_weights, const SurfaceMapResult& out) {

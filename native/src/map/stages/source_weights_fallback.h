@@ -23,14 +23,17 @@ std::string source_weights_name(bool own_weights, int raised = 0);
 void store_initial_distortion(const DistortionStats& q0, SurfaceMapResult& out);
 
 /// D' of the optimised map (`q`, per source face) with its flipped and
-/// degenerate counts into `out`.
+/// degenerate counts into `out`; degenerate_triangles counts only the truly
+/// degenerate images (q.degenerate - q.flat: orientation round-off), not the
+/// flat but positive ones (one-to-one; their D' is +inf in `dilatation`).
 void store_distortion(const DistortionStats& q, SurfaceMapResult& out);
 
 /// What becomes of the optimised map recorded in `out` (store_distortion and
 /// out.intrinsic_flipped_triangles set): true when its source faces fold and
 /// the automatic fallback applies (weights not yet `own_weights`): the caller
 /// switches to own-edge weights and maps the chosen class again. False when
-/// no face folds. SolveError naming the counts when faces fold and the
+/// no face folds (flat but positive faces, DistortionStats::flat, do not
+/// fold: a class is not rejected for them). SolveError naming the counts when faces fold and the
 /// fallback does not apply: a folded map is not returned.
 bool retry_with_own_weights(const SurfaceMapOptions& options, bool own_weights, const SurfaceMapResult& out);
 
