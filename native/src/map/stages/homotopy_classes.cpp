@@ -298,20 +298,37 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
     return out;
   }
   // A class given as words (homotopy.given_class: the through-shape step,
-  // issue 14): it alone, when it is an isomorphism.
-  if (!options.homotopy.given_class.empty()) {
-    GroupMap theta = options.homotopy.given_class;
-    bool well_formed = static_cast<int>(theta.size()) == n;
-    for (const Word& w : theta)
-      for (int x : w) well_formed = well_formed && x != 0 && std::abs(x) <= n;
-    if (!well_formed)
-      throw InputError("homotopy.given_class must be " + std::to_string(n) + " words in letters +-1..+-" +
-                       std::to_string(n));
-    space.reduce(theta);
-    if (!space.is_isomorphism(theta))
-      throw SolveError("homotopy.given_class is not an isomorphism of the surface groups (not symplectic on homology, "
-                       "or the relator's image is not trivial)");
-    out.classes.push_back(described(theta, n, shb, thb, "the given class"));
+  // issue 14): it alone, when it is an isomorphism; with
+  // homotopy.given_classes, those too, new by fingerprint (ranked like any
+  // candidates).
+  if (!options.homotopy.given_class.empty() || !options.homotopy.given_classes.empty()) {
+    if (options.homotopy.given_class.empty())
+      throw InputError("homotopy.given_classes needs homotopy.given_class (the first class given)");
+    std::vector<GroupMap> given{options.homotopy.given_class};
+    given.insert(given.end(), options.homotopy.given_classes.begin(), options.homotopy.given_classes.end());
+    std::vector<std::vector<double>> fingerprints;
+    for (size_t k = 0; k < given.size(); ++k) {
+      GroupMap theta = given[k];
+      const std::string which =
+          k == 0 ? std::string("homotopy.given_class") : "homotopy.given_classes[" + std::to_string(k - 1) + "]";
+      bool well_formed = static_cast<int>(theta.size()) == n;
+      for (const Word& w : theta)
+        for (int x : w) well_formed = well_formed && x != 0 && std::abs(x) <= n;
+      if (!well_formed)
+        throw InputError(which + " must be " + std::to_string(n) + " words in letters +-1..+-" + std::to_string(n));
+      space.reduce(theta);
+      if (!space.is_isomorphism(theta))
+        throw SolveError(which + " is not an isomorphism of the surface groups (not symplectic on homology, "
+                                 "or the relator's image is not trivial)");
+      const std::vector<double> fp = space.fingerprint(theta);
+      if (std::any_of(fingerprints.begin(), fingerprints.end(),
+                      [&](const std::vector<double>& other) { return ClassSpace::same_fingerprint(other, fp); }))
+        continue;
+      fingerprints.push_back(fp);
+      out.classes.push_back(described(theta, n, shb, thb,
+                                      given.size() == 1 ? std::string("the given class")
+                                                        : "the given class " + std::to_string(k + 1)));
+    }
     return out;
   }
   // The other direction's class alone (homotopy.reverse_class_only: the
