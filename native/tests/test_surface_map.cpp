@@ -1180,14 +1180,15 @@ TEST(SurfaceMapHandles, ThroughShapeComposesTheLettersOfBothRuns) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("not an isomorphism"), std::string::npos) << e.what();
   }
-  // More classes without the first one given: refused with a message.
-  SurfaceMapOptions orphan;
-  orphan.homotopy.given_classes = {m.chosen_class_words};
+  // Words that are not 2g per class are refused with a message.
+  SurfaceMapOptions partial;
+  partial.homotopy.given_class = m.chosen_class_words;
+  partial.homotopy.given_class.push_back({1});
   try {
-    surface_map(a, b, orphan);
-    ADD_FAILURE() << "given_classes without given_class was solved";
+    surface_map(a, b, partial);
+    ADD_FAILURE() << "5 words were solved as genus-2 classes";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("needs homotopy.given_class"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("4 words per class"), std::string::npos) << e.what();
   }
 }
 
@@ -1213,7 +1214,9 @@ TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   ASSERT_GT(forward.energy_ratio, plain.energy_ratio * 1.2);  // (1.52 against 1.12)
   // The twisted class, the plain one and the twisted one again, ranked.
   SurfaceMapOptions ranked = t;
-  ranked.homotopy.given_classes = {plain.chosen_class_words, twisted};
+  const std::vector<std::vector<int>>& lowest = plain.chosen_class_words;
+  ranked.homotopy.given_class.insert(ranked.homotopy.given_class.end(), lowest.begin(), lowest.end());
+  ranked.homotopy.given_class.insert(ranked.homotopy.given_class.end(), twisted.begin(), twisted.end());
   const SurfaceMapResult r = surface_map(a, b, ranked);
   ASSERT_EQ(r.candidates.size(), 2u);
   EXPECT_EQ(r.chosen_candidate, 1);

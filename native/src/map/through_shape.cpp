@@ -29,7 +29,6 @@ SurfaceMapOptions one_way_options(const SurfaceMapOptions& options) {
   o.homotopy.source_images.resize(0, 0);
   o.homotopy.reverse_class.clear();
   o.homotopy.given_class.clear();
-  o.homotopy.given_classes.clear();
   o.landmarks.clear();
   o.solve_progress = nullptr;
   return o;
@@ -124,7 +123,7 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
                        SurfaceMapResult& forward, const MapFunction& map) {
   const HomotopyOptions& h = options.homotopy;
   if (forward.genus < 2 || h.class_index >= 0 || h.source_images.size() > 0 || h.reverse_class_only ||
-      !h.given_class.empty() || !h.given_classes.empty())
+      !h.given_class.empty())
     return;
   if (!h.through_shape) return void(forward.through_shape_status = "not run (off)");
   if (!options.landmarks.empty()) return void(forward.through_shape_status = "not run: landmarks are held");
@@ -224,8 +223,8 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   // solves, the best at full resolution), no class search.
   SurfaceMapOptions here = one_way_options(options);
   here.loops = options.loops;
-  here.homotopy.given_class = composed.front();
-  here.homotopy.given_classes.assign(composed.begin() + 1, composed.end());
+  for (const std::vector<std::vector<int>>& theta : composed)
+    here.homotopy.given_class.insert(here.homotopy.given_class.end(), theta.begin(), theta.end());
   SurfaceMapResult through;
   const Clock ts;
   try {

@@ -46,7 +46,7 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
 /// `stop_at_legs_that_cannot_help`, a leg whose energy ratio is not below
 /// `forward`'s ends that shape's attempt (its composed class would be about
 /// as far from conformal as that leg at least). The composed classes are
-/// solved here together (HomotopyOptions::given_class and given_classes:
+/// solved here together (HomotopyOptions::given_class, one after another:
 /// ranked like any candidates, the best at full resolution), all listed
 /// after `forward`'s candidates ("through a generated <name>"); when the
 /// best is lower than `forward`'s energy its map is returned in `forward`

@@ -297,25 +297,24 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
     out.classes.push_back(described(theta, n, shb, thb, "the source's loops carried to the given images"));
     return out;
   }
-  // A class given as words (homotopy.given_class: the through-shape step,
-  // issue 14): it alone, when it is an isomorphism; with
-  // homotopy.given_classes, those too, new by fingerprint (ranked like any
-  // candidates).
-  if (!options.homotopy.given_class.empty() || !options.homotopy.given_classes.empty()) {
-    if (options.homotopy.given_class.empty())
-      throw InputError("homotopy.given_classes needs homotopy.given_class (the first class given)");
-    std::vector<GroupMap> given{options.homotopy.given_class};
-    given.insert(given.end(), options.homotopy.given_classes.begin(), options.homotopy.given_classes.end());
+  // Classes given as words (homotopy.given_class: the through-shape step,
+  // issue 14), 2g words each: each that is an isomorphism and new by
+  // fingerprint (ranked like any candidates).
+  if (!options.homotopy.given_class.empty()) {
+    const std::vector<Word>& words = options.homotopy.given_class;
+    if (words.size() % n != 0)
+      throw InputError("homotopy.given_class must be " + std::to_string(n) + " words per class (" +
+                       std::to_string(words.size()) + " given)");
+    const size_t count = words.size() / n;
     std::vector<std::vector<double>> fingerprints;
-    for (size_t k = 0; k < given.size(); ++k) {
-      GroupMap theta = given[k];
-      const std::string which =
-          k == 0 ? std::string("homotopy.given_class") : "homotopy.given_classes[" + std::to_string(k - 1) + "]";
-      bool well_formed = static_cast<int>(theta.size()) == n;
+    for (size_t k = 0; k < count; ++k) {
+      GroupMap theta(words.begin() + k * n, words.begin() + (k + 1) * n);
+      const std::string which = count == 1 ? std::string("homotopy.given_class")
+                                           : "homotopy.given_class's class " + std::to_string(k + 1);
       for (const Word& w : theta)
-        for (int x : w) well_formed = well_formed && x != 0 && std::abs(x) <= n;
-      if (!well_formed)
-        throw InputError(which + " must be " + std::to_string(n) + " words in letters +-1..+-" + std::to_string(n));
+        for (int x : w)
+          if (x == 0 || std::abs(x) > n)
+            throw InputError(which + " must be words in letters +-1..+-" + std::to_string(n));
       space.reduce(theta);
       if (!space.is_isomorphism(theta))
         throw SolveError(which + " is not an isomorphism of the surface groups (not symplectic on homology, "
@@ -326,8 +325,8 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
         continue;
       fingerprints.push_back(fp);
       out.classes.push_back(described(theta, n, shb, thb,
-                                      given.size() == 1 ? std::string("the given class")
-                                                        : "the given class " + std::to_string(k + 1)));
+                                      count == 1 ? std::string("the given class")
+                                                 : "the given class " + std::to_string(k + 1)));
     }
     return out;
   }
