@@ -37,6 +37,11 @@ namespace {
 // rectangle with m = r / sqrt(R^2 - r^2) (docs/method.md §3).
 double modulus(double R, double r) { return r / std::sqrt(R * R - r * r); }
 
+// The through-shape and two-way steps' runs: the public map.
+detail::MapFunction map_function() {
+  return [](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) { return surface_map(s, t, o); };
+}
+
 // chord_folds: the share of source triangles whose chord images may fold
 // (EXPECT_CERTIFIED_MAP_UP_TO_CHORD_FOLDS; 0: the full certificate).
 void expect_valid_map(const SurfaceMapResult& m, const TriMesh& source, const TriMesh& target, bool default_class = true,
@@ -1128,21 +1133,23 @@ TEST(SurfaceMapHandles, SeparateDefaultRunsOfBothDirectionsEndOnInverseClasses) 
 }
 
 // The through-shape step (issue 14; docs/handle_classes.md "Through a
-// generated shape"), forced with a ratio threshold of 0; the generated
-// shape at genus 2 is n_hole_torus(2, 32). When the source is that shape itself, the map
-// onto it is the identity, so the composed class is the class the shape ->
-// target run chose: its energy here must be the one-way run's (a wrong
-// rewriting of the letters between the runs gives another class, another
-// energy). It is listed after the one-way candidates, it is an isomorphism
-// (symplectic on homology), and the first class is kept on a tie.
+// generated shape"), through one given shape M with no stop at poor legs.
+// When M is the source itself, the map onto it is the identity, so the
+// composed class is the class the M -> target run chose: its energy here
+// must be the one-way run's (a wrong rewriting of the letters between the
+// runs gives another class, another energy). It is listed after the one-way
+// candidates, it is an isomorphism (symplectic on homology), and the first
+// class is kept on a tie.
 TEST(SurfaceMapHandles, ThroughShapeComposesTheLettersOfBothRuns) {
   const TriMesh a = samples::n_hole_torus(2, 32, true);
   const TriMesh b = samples::vase(30, true);
   SurfaceMapOptions o;
   o.homotopy.two_way = false;
-  o.homotopy.through_shape_ratio = 0;
-  o.homotopy.through_shape_resolution = 32;
-  const SurfaceMapResult m = surface_map(a, b, o);
+  // Below the threshold (the default 3) the step does not run.
+  const SurfaceMapResult md = surface_map(a, b, o);
+  EXPECT_NE(md.through_shape_status.find("not run: energy ratio below 3"), std::string::npos) << md.through_shape_status;
+  SurfaceMapResult m = md;
+  detail::through_shapes_map(a, b, o, m, map_function(), {{"genus-2 n-hole torus", a}}, false);
   expect_valid_map(m, a, b);
   ASSERT_NE(m.through_shape_status.find("the composed class here"), std::string::npos) << m.through_shape_status;
   EXPECT_NE(m.through_shape_status.find("source -> it 1"), std::string::npos) << m.through_shape_status;
@@ -1157,11 +1164,6 @@ TEST(SurfaceMapHandles, ThroughShapeComposesTheLettersOfBothRuns) {
     for (int j = 0; j < 4; ++j) h(i, j) = c.homology[4 * i + j];
   EXPECT_EQ(IntMatrix(h.transpose() * symplectic_form(2) * h), symplectic_form(2));
   EXPECT_GT(m.through_shape_time_s, 0);
-  // Below the threshold (the default 3) the step does not run.
-  SurfaceMapOptions d;
-  d.homotopy.two_way = false;
-  const SurfaceMapResult md = surface_map(a, b, d);
-  EXPECT_NE(md.through_shape_status.find("not run: energy ratio below 3"), std::string::npos) << md.through_shape_status;
   EXPECT_EQ(md.candidates.size() + 1, m.candidates.size());
   // The class given as words: solved alone, the same energy as where it was chosen.
   SurfaceMapOptions given;
@@ -1178,13 +1180,25 @@ TEST(SurfaceMapHandles, ThroughShapeComposesTheLettersOfBothRuns) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("not an isomorphism"), std::string::npos) << e.what();
   }
+  // Words that are not 2g per class are refused with a message.
+  SurfaceMapOptions partial;
+  partial.homotopy.given_class = m.chosen_class_words;
+  partial.homotopy.given_class.push_back({1});
+  try {
+    surface_map(a, b, partial);
+    ADD_FAILURE() << "5 words were solved as genus-2 classes";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("4 words per class"), std::string::npos) << e.what();
+  }
 }
 
 // The through-shape step adopts the composed class when it is lower: the
 // first result here is the default class twisted three times along the
-// source's a_1 (b_1 -> b_1 a_1^3, an automorphism), solved alone; the class
-// through the generated shape is the untwisted one's neighbourhood, lower,
-// so it is chosen, listed last, and its map is a valid map.
+// source's a_1 (b_1 -> b_1 a_1^3, an automorphism), solved alone; the classes
+// through the generated shapes (the genus-2 CAD plate and n-hole torus) are
+// the untwisted one's neighbourhood, lower, so one is chosen, listed after
+// the first candidate, and its map is a valid map. Several given classes are
+// ranked and the lowest chosen; a repeated one is listed once.
 TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   const TriMesh a = samples::cad_plate(2, 32, 0.3);
   const TriMesh b = samples::n_hole_torus(2, 26, true);
@@ -1198,14 +1212,28 @@ TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   t.homotopy.given_class = twisted;
   SurfaceMapResult forward = surface_map(a, b, t);
   ASSERT_GT(forward.energy_ratio, plain.energy_ratio * 1.2);  // (1.52 against 1.12)
+  // The twisted class, the plain one and the twisted one again, ranked.
+  SurfaceMapOptions ranked = t;
+  const std::vector<std::vector<int>>& lowest = plain.chosen_class_words;
+  ranked.homotopy.given_class.insert(ranked.homotopy.given_class.end(), lowest.begin(), lowest.end());
+  ranked.homotopy.given_class.insert(ranked.homotopy.given_class.end(), twisted.begin(), twisted.end());
+  const SurfaceMapResult r = surface_map(a, b, ranked);
+  ASSERT_EQ(r.candidates.size(), 2u);
+  EXPECT_EQ(r.chosen_candidate, 1);
+  EXPECT_NE(r.candidates[1].description.find("the given class 2"), std::string::npos) << r.candidates[1].description;
+  EXPECT_NEAR(r.energy_ratio, plain.energy_ratio, 1e-3 * plain.energy_ratio);
   SurfaceMapOptions through = o;
   through.homotopy.through_shape_ratio = 0;
-  detail::through_shape_map(a, b, through, forward,
-                            [](const TriMesh& s, const TriMesh& g, const SurfaceMapOptions& so) { return surface_map(s, g, so); });
+  detail::through_shape_map(a, b, through, forward, map_function());
   ASSERT_NE(forward.through_shape_status.find(": used"), std::string::npos) << forward.through_shape_status;
-  ASSERT_EQ(forward.candidates.size(), 2u);
-  EXPECT_EQ(forward.chosen_candidate, 1);
-  EXPECT_NE(forward.candidates[1].description.find("through a generated genus-2 n-hole torus"), std::string::npos);
+  EXPECT_NE(forward.through_shape_status.find("genus-2 CAD plate"), std::string::npos) << forward.through_shape_status;
+  EXPECT_NE(forward.through_shape_status.find("genus-2 n-hole torus"), std::string::npos) << forward.through_shape_status;
+  ASSERT_GE(forward.candidates.size(), 2u);
+  ASSERT_LE(forward.candidates.size(), 3u);  // one per shape, a class through both listed once
+  EXPECT_GE(forward.chosen_candidate, 1);
+  for (size_t k = 1; k < forward.candidates.size(); ++k)
+    EXPECT_NE(forward.candidates[k].description.find("through a generated genus-2 "), std::string::npos)
+        << forward.candidates[k].description;
   EXPECT_LT(forward.energy_ratio, forward.candidates[0].energy / (8 * M_PI));
   EXPECT_LE(forward.energy_ratio, plain.energy_ratio * 1.05) << forward.through_shape_status;
   // (The 140-vertex plate's chords do not cover the torus: no certificate here.)
@@ -1213,6 +1241,36 @@ TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   EXPECT_EQ(forward.flipped_triangles, 0);
   EXPECT_EQ(static_cast<int>(forward.forward.size()), a.num_vertices());
   EXPECT_EQ(static_cast<int>(forward.inverse.size()), b.num_vertices());
+}
+
+// The generated shape that is the target itself is skipped (its legs would
+// repeat the first run), and a leg whose ratio is not below the first run's
+// ends that shape's attempt before the other leg: here the shape is the
+// target itself, given explicitly, so the source -> it leg is the first run
+// again, at the same ratio; nothing is composed and the result is unchanged.
+TEST(SurfaceMapHandles, ThroughShapeSkipsTheTargetItselfAndStopsAtALegThatCannotHelp) {
+  const TriMesh a = samples::n_hole_torus(2, 26, true);
+  const TriMesh b = samples::cad_plate(2);  // the step's genus-2 plate
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  const SurfaceMapResult plain = surface_map(a, b, o);
+  SurfaceMapResult m = plain;
+  detail::through_shapes_map(a, b, o, m, map_function(), {{"genus-2 CAD plate", b}}, true);
+  EXPECT_NE(m.through_shape_status.find("cannot help"), std::string::npos) << m.through_shape_status;
+  EXPECT_EQ(m.through_shape_status.find("it -> target"), std::string::npos) << m.through_shape_status;
+  EXPECT_NE(m.through_shape_status.find("no composed class to solve"), std::string::npos) << m.through_shape_status;
+  EXPECT_EQ(m.candidates.size(), plain.candidates.size());
+  EXPECT_EQ(m.energy_ratio, plain.energy_ratio);
+  std::string notes;
+  const std::vector<detail::MiddleShape> shapes = detail::middle_shapes(2, 32, notes);
+  ASSERT_EQ(shapes.size(), 2u) << notes;
+  EXPECT_TRUE(detail::same_shape(shapes[0].mesh, b));
+  EXPECT_FALSE(detail::same_shape(shapes[1].mesh, a));
+  TriMesh moved = b;
+  moved.V = (b.V * 2.5).rowwise() + Eigen::RowVector3d(1, -2, 3);
+  EXPECT_TRUE(detail::same_shape(moved, b));
+  moved.V(7, 0) += 1e-3;
+  EXPECT_FALSE(detail::same_shape(moved, b));
 }
 
 // The two-way run (forced with a ratio threshold of 0): the pair is mapped

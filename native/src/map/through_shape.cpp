@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <ctime>
 #include <string>
 #include <utility>
 
@@ -33,18 +34,77 @@ SurfaceMapOptions one_way_options(const SurfaceMapOptions& options) {
   return o;
 }
 
-/// The composed class as a candidate of the first run: the single-class
-/// run's candidate, tagged with where it came from.
-HomotopyCandidate listed_candidate(const SurfaceMapResult& through, const std::string& shape) {
-  HomotopyCandidate c = through.candidates[through.chosen_candidate];
-  const std::string given = "the given class", tag = "through a generated " + shape;
-  const size_t at = c.description.find(given);
-  if (at != std::string::npos) c.description.replace(at, given.size(), tag);
-  else c.description += "  [" + tag + "]";
+/// The composed classes as candidates of the first run: the ranking run's
+/// candidates, tagged with the shape each came through ("the given class
+/// k" is the k-th composed class).
+HomotopyCandidate listed_candidate(const HomotopyCandidate& given, const std::vector<std::string>& shapes) {
+  HomotopyCandidate c = given;
+  for (size_t k = shapes.size(); k-- > 0;) {
+    const std::string text = shapes.size() == 1 ? std::string("the given class") : "the given class " + std::to_string(k + 1);
+    const size_t at = c.description.find(text);
+    if (at == std::string::npos) continue;
+    c.description.replace(at, text.size(), "through a generated " + shapes[k]);
+    return c;
+  }
+  c.description += "  [through a generated shape]";
   return c;
 }
 
+double seconds_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+/// Wall and process CPU seconds since a start: on a loaded machine the wall
+/// time says little about the step's own cost, the CPU time does.
+struct Clock {
+  std::chrono::steady_clock::time_point wall = std::chrono::steady_clock::now();
+  std::clock_t cpu = std::clock();
+  std::string text() const {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.1f s, CPU %.1f s", seconds_since(wall),
+                  static_cast<double>(std::clock() - cpu) / CLOCKS_PER_SEC);
+    return buf;
+  }
+};
+
 }  // namespace
+
+// Cheapest first: the plate's few hundred vertices make its legs short runs.
+// Why two: each is easy to reach from different shapes (fertility onto the
+// n-hole torus at 4.54 x, onto the plate 10.59 x; a polycube's holes in a row
+// onto the plate), and the composed classes are ranked like any candidates.
+std::vector<MiddleShape> middle_shapes(int g, int resolution, std::string& notes) {
+  std::vector<MiddleShape> out;
+  auto add = [&](const std::string& name, auto&& generate) {
+    try {
+      out.push_back({name, generate()});
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const Error& e) {
+      notes += "; generating the " + name + " failed: " + e.what();
+    }
+  };
+  add("genus-" + std::to_string(g) + " CAD plate", [&] { return samples::cad_plate(g); });
+  if (g <= 8)
+    add("genus-" + std::to_string(g) + " n-hole torus", [&] { return samples::n_hole_torus(g, resolution); });
+  else
+    notes += "; no generated n-hole torus beyond genus 8";
+  return out;
+}
+
+// A leg onto or from the source or target itself repeats the run the step
+// tries to improve on (issue14_check's target is the generated genus-4
+// plate itself).
+bool same_shape(const TriMesh& a, const TriMesh& b) {
+  if (a.num_vertices() != b.num_vertices() || a.num_faces() != b.num_faces() || a.num_vertices() == 0 || a.F != b.F)
+    return false;
+  const Eigen::RowVector3d ca = a.V.colwise().mean(), cb = b.V.colwise().mean();
+  const double sa = (a.V.colwise().maxCoeff() - a.V.colwise().minCoeff()).norm();
+  const double sb = (b.V.colwise().maxCoeff() - b.V.colwise().minCoeff()).norm();
+  if (!(sa > 0) || !(sb > 0)) return false;
+  const double far = ((a.V.rowwise() - ca) / sa - (b.V.rowwise() - cb) / sb).rowwise().norm().maxCoeff();
+  return far <= 1e-6;
+}
 
 std::vector<std::vector<int>> composed_class(const SurfaceMapResult& source_to_middle,
                                              const SurfaceMapResult& middle_to_target, std::string& why) {
@@ -70,87 +130,139 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
   if (!(forward.energy_ratio >= h.through_shape_ratio))
     return void(forward.through_shape_status = "not run: energy ratio below " + four_digits(h.through_shape_ratio));
   const int g = forward.genus;
-  if (g > 8) return void(forward.through_shape_status = "not run: no generated n-hole torus beyond genus 8");
-  const auto t0 = std::chrono::steady_clock::now();
-  auto finish = [&](SurfaceMapResult& r, std::string status) {
-    r.through_shape_status = std::move(status);
-    r.through_shape_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  };
-  const std::string shape = "genus-" + std::to_string(g) + " n-hole torus";
   // At least 16 grid cells per handle in a row (genus <= 4), 64 for the
   // wheels beyond: at 32 cells the genus-4 n-hole torus (2.3k vertices)
   // mapped onto the genus-4 CAD plate at 11.8 x, at 48 (5.9k) at 1.04 x but
   // the fertility onto it at 8.75 x, at 64 (10k) at 4.54 x
   // (docs/handle_classes.md "Through a generated shape").
   const int resolution = std::max(h.through_shape_resolution, g <= 4 ? 16 * g : 64);
-  TriMesh middle;
-  try {
-    middle = samples::n_hole_torus(g, resolution);
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    return finish(forward, "generating the " + shape + " failed: " + e.what());
+  std::string notes;
+  std::vector<MiddleShape> middles;
+  for (MiddleShape& m : middle_shapes(g, resolution, notes)) {
+    const bool is_target = same_shape(m.mesh, target);
+    if (is_target || same_shape(m.mesh, source))
+      notes += "; the " + m.name + " is the " + (is_target ? "target" : "source") + " itself: skipped";
+    else
+      middles.push_back(std::move(m));
   }
-  // Onto the generated shape in the source's cuts (as given), from it in
-  // the target's: the letters of this run at both ends.
-  // Each with the two-way run as given: fertility -> the genus-4 n-hole
-  // torus one way ends at 8.75 x, with the two-way run at 4.54 x, and the
-  // composed class is only as good as that map.
+  through_shapes_map(source, target, options, forward, map, middles, true, notes);
+}
+
+void through_shapes_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                        SurfaceMapResult& forward, const MapFunction& map, const std::vector<MiddleShape>& middles,
+                        bool stop_at_legs_that_cannot_help, std::string notes) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto finish = [&](SurfaceMapResult& r, std::string status) {
+    r.through_shape_status = std::move(status);
+    r.through_shape_time_s = seconds_since(t0);
+  };
+  // Onto each generated shape in the source's cuts (as given), from it in
+  // the target's: the letters of this run at both ends. Each with the
+  // two-way run as given: fertility -> the genus-4 n-hole torus one way
+  // ends at 8.75 x, with the two-way run at 4.54 x, and the composed class
+  // is only as good as that map.
   SurfaceMapOptions onto = one_way_options(options);
   onto.loops.target_base_vertex = -1;
   onto.homotopy.two_way = options.homotopy.two_way;
   SurfaceMapOptions from = one_way_options(options);
   from.loops.source_base_vertex = -1;
   from.homotopy.two_way = options.homotopy.two_way;
-  SurfaceMapResult to_middle, from_middle;
-  try {
-    to_middle = map(source, middle, onto);
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    return finish(forward, "mapping onto the generated " + shape + " failed: " + e.what());
+  const double first = forward.energy_ratio;
+  std::vector<std::vector<std::vector<int>>> composed;
+  std::vector<std::string> composed_through;
+  for (const MiddleShape& m : middles) {
+    const std::string it = m.name + " (" + std::to_string(m.mesh.num_vertices()) + " vertices)";
+    // A leg at or above the first run's ratio cannot help: the composed
+    // class is then about as far from conformal as that leg at least
+    // (fertility -> the 48-cell n-hole torus 8.75 x, composed onto the
+    // plate 10.16 x; through the 64-cell one 4.54 x and 5.14 x), so the
+    // other leg and the class's solve are not run.
+    SurfaceMapResult to_middle, from_middle;
+    Clock t;
+    try {
+      to_middle = map(source, m.mesh, onto);
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const Error& e) {
+      notes += "; mapping onto the " + it + " failed: " + e.what();
+      continue;
+    }
+    std::string legs =
+        "; through the " + it + ": source -> it " + four_digits(to_middle.energy_ratio) + " (" + t.text() + ")";
+    if (stop_at_legs_that_cannot_help && !(to_middle.energy_ratio < first)) {
+      notes += legs + ", not below " + four_digits(first) + ": cannot help";
+      continue;
+    }
+    t = Clock();
+    try {
+      from_middle = map(m.mesh, target, from);
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const Error& e) {
+      notes += legs + "; mapping it onto the target failed: " + e.what();
+      continue;
+    }
+    legs += ", it -> target " + four_digits(from_middle.energy_ratio) + " (" + t.text() + ")";
+    if (stop_at_legs_that_cannot_help && !(from_middle.energy_ratio < first)) {
+      notes += legs + ", not below " + four_digits(first) + ": cannot help";
+      continue;
+    }
+    std::string why;
+    std::vector<std::vector<int>> theta = composed_class(to_middle, from_middle, why);
+    if (theta.empty()) {
+      notes += legs + "; no composed class: " + why;
+      continue;
+    }
+    notes += legs;
+    composed.push_back(std::move(theta));
+    composed_through.push_back(m.name);
   }
-  try {
-    from_middle = map(middle, target, from);
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    return finish(forward, "mapping the generated " + shape + " onto the target failed: " + e.what());
-  }
-  const std::string runs = "through a generated " + shape + " (" + std::to_string(middle.num_vertices()) +
-                           " vertices): source -> it " + four_digits(to_middle.energy_ratio) + ", it -> target " +
-                           four_digits(from_middle.energy_ratio);
-  std::string why;
+  const std::string runs = notes.empty() ? std::string("through no generated shape") : notes.substr(2);
+  if (composed.empty()) return finish(forward, runs + "; no composed class to solve");
+  // The composed classes ranked like any candidates (the coarse copy's
+  // solves, the best at full resolution), no class search.
   SurfaceMapOptions here = one_way_options(options);
   here.loops = options.loops;
-  here.homotopy.given_class = composed_class(to_middle, from_middle, why);
-  if (here.homotopy.given_class.empty()) return finish(forward, runs + "; no composed class: " + why);
+  for (const std::vector<std::vector<int>>& theta : composed)
+    here.homotopy.given_class.insert(here.homotopy.given_class.end(), theta.begin(), theta.end());
   SurfaceMapResult through;
+  const Clock ts;
   try {
     through = map(source, target, here);
   } catch (const Cancelled&) {
     throw;
   } catch (const Error& e) {
-    return finish(forward, runs + "; the composed class here failed: " + e.what());
+    return finish(forward, runs + "; the composed classes here failed: " + e.what());
   }
   const double before = forward.energy_ratio, after = through.energy_ratio;
   const bool better = through.chosen_candidate >= 0 && after < before * (1 - 1e-6);
-  const std::string status = runs + "; the composed class here: energy ratio " + four_digits(after) + " against " +
-                             four_digits(before) + (better ? ": used" : ": kept the first");
+  std::string chosen_through;
+  if (through.chosen_candidate >= 0) {
+    const std::string d = listed_candidate(through.candidates[through.chosen_candidate], composed_through).description;
+    for (const std::string& name : composed_through)
+      if (d.find("through a generated " + name) != std::string::npos) chosen_through = " (the class through the " + name + ")";
+  }
+  const std::string status = runs + "; the composed class" + (composed.size() > 1 ? "es" : "") + " here (" +
+                             ts.text() + "): energy ratio " + four_digits(after) + " against " +
+                             four_digits(before) + chosen_through + (better ? ": used" : ": kept the first");
+  // Every composed class is listed (the unchosen ones with their ranking
+  // energies): the record of what was tried.
+  std::vector<HomotopyCandidate> tried;
+  for (const HomotopyCandidate& c : through.candidates) tried.push_back(listed_candidate(c, composed_through));
   if (!better) {
-    // Listed (not solved to its optimum's map here, but its energy is):
-    // the ranking's record of what was tried.
-    if (through.chosen_candidate >= 0) forward.candidates.push_back(listed_candidate(through, shape));
+    for (HomotopyCandidate& c : tried) forward.candidates.push_back(std::move(c));
     return finish(forward, status);
   }
-  // The composed class wins: its map, with the earlier candidates listed
-  // before it. The two-way run's comparison was of the class it replaces.
+  // A composed class wins: its map, with the earlier candidates listed
+  // before the composed ones. The two-way run's comparison was of the class
+  // it replaces.
   std::vector<HomotopyCandidate> listed = std::move(forward.candidates);
-  listed.push_back(listed_candidate(through, shape));
+  const int chosen = static_cast<int>(listed.size()) + through.chosen_candidate;
+  for (HomotopyCandidate& c : tried) listed.push_back(std::move(c));
   const std::string two_way = forward.two_way_status;
   forward = std::move(through);
   forward.candidates = std::move(listed);
-  forward.chosen_candidate = static_cast<int>(forward.candidates.size()) - 1;
+  forward.chosen_candidate = chosen;
   forward.two_way_status = two_way.empty() ? std::string() : two_way + " (for the class the through-shape step replaced)";
   forward.reverse_inverse = -1;
   forward.reverse_inverse_reason = "not compared: the class through the generated shape was adopted after the two-way run";

@@ -15,15 +15,44 @@ namespace surfmap::detail {
 std::vector<std::vector<int>> composed_class(const SurfaceMapResult& source_to_middle,
                                              const SurfaceMapResult& middle_to_target, std::string& why);
 
+/// A generated shape the source is mapped onto and the target from.
+struct MiddleShape {
+  std::string name;  ///< e.g. "genus-4 n-hole torus"
+  TriMesh mesh;
+};
+
+/// The generated shapes of genus g the step maps through, cheapest first:
+/// samples::cad_plate(g) (holes in a row, 4 (g + 1) + 128 g vertices) and
+/// samples::n_hole_torus(g, resolution) (genus <= 8; a wheel from 5 on).
+/// What could not be generated is said in `notes` ("; ..." each).
+std::vector<MiddleShape> middle_shapes(int genus, int resolution, std::string& notes);
+
+/// Whether `a` is `b` itself: the same faces, and the same vertices up to a
+/// translation and a scale, to 1e-6 of the bounding box diagonal.
+bool same_shape(const TriMesh& a, const TriMesh& b);
+
 /// Genus >= 2, HomotopyOptions::through_shape, default class, no landmarks:
-/// when `forward`'s energy ratio is at least through_shape_ratio, maps the
-/// source onto a generated n-hole torus of its genus and that onto the
-/// target (`map`, the two-way run as in `options`), solves the composed class here alone
-/// (HomotopyOptions::given_class) and, when its energy is lower, returns
-/// that map in `forward` with the class appended to `forward`'s candidates
-/// and chosen. Always sets through_shape_status (and through_shape_time_s
-/// when it ran).
+/// when `forward`'s energy ratio is at least through_shape_ratio, the
+/// step through every shape of middle_shapes that is neither the source nor
+/// the target itself (through_shapes_map, stopping at legs that cannot
+/// help). Always sets through_shape_status (and through_shape_time_s when it
+/// ran).
 void through_shape_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                        SurfaceMapResult& forward, const MapFunction& map);
+
+/// The step through the given shapes, whatever `forward`'s ratio: per shape
+/// M, maps the source onto M and M onto the target (`map`, the two-way run
+/// as in `options`) and composes their classes; with
+/// `stop_at_legs_that_cannot_help`, a leg whose energy ratio is not below
+/// `forward`'s ends that shape's attempt (its composed class would be about
+/// as far from conformal as that leg at least). The composed classes are
+/// solved here together (HomotopyOptions::given_class, one after another:
+/// ranked like any candidates, the best at full resolution), all listed
+/// after `forward`'s candidates ("through a generated <name>"); when the
+/// best is lower than `forward`'s energy its map is returned in `forward`
+/// and it is chosen. `notes` (each "; ...") start the status.
+void through_shapes_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                        SurfaceMapResult& forward, const MapFunction& map, const std::vector<MiddleShape>& middles,
+                        bool stop_at_legs_that_cannot_help, std::string notes = {});
 
 }  // namespace surfmap::detail

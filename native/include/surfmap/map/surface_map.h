@@ -295,12 +295,12 @@ struct HomotopyOptions {
   bool through_shape = true;
   double through_shape_ratio = 3.0;
   int through_shape_resolution = 32;
-  /// Genus >= 2: a class given as words (2g: source canonical generator j+1
-  /// -> word in the target's canonical letters, as in
-  /// SurfaceMapResult::chosen_class_words, in the cuts of these options'
-  /// loops), solved alone: no other candidate, class search, geometric
-  /// classes, two-way run or through-shape step (a SolveError when it is not
-  /// an isomorphism). The through-shape step uses it. Default empty.
+  /// Genus >= 2: classes given as words (2g each: source generator j+1 ->
+  /// word in the target's canonical letters, as chosen_class_words, in these
+  /// options' cuts; k classes as k 2g words in a row, repeats dropped), ranked
+  /// like candidates with no other candidate, class search, geometric
+  /// classes, two-way run or through-shape step (a SolveError when one is no
+  /// isomorphism). The through-shape step uses it. Default empty.
   std::vector<std::vector<int>> given_class;
   /// Genus >= 2, set by the two-way run: per source vertex a point on the
   /// target (#V_source x 3; empty, the default: none), where the inverse of

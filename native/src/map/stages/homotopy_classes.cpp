@@ -297,21 +297,37 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
     out.classes.push_back(described(theta, n, shb, thb, "the source's loops carried to the given images"));
     return out;
   }
-  // A class given as words (homotopy.given_class: the through-shape step,
-  // issue 14): it alone, when it is an isomorphism.
+  // Classes given as words (homotopy.given_class: the through-shape step,
+  // issue 14), 2g words each: each that is an isomorphism and new by
+  // fingerprint (ranked like any candidates).
   if (!options.homotopy.given_class.empty()) {
-    GroupMap theta = options.homotopy.given_class;
-    bool well_formed = static_cast<int>(theta.size()) == n;
-    for (const Word& w : theta)
-      for (int x : w) well_formed = well_formed && x != 0 && std::abs(x) <= n;
-    if (!well_formed)
-      throw InputError("homotopy.given_class must be " + std::to_string(n) + " words in letters +-1..+-" +
-                       std::to_string(n));
-    space.reduce(theta);
-    if (!space.is_isomorphism(theta))
-      throw SolveError("homotopy.given_class is not an isomorphism of the surface groups (not symplectic on homology, "
-                       "or the relator's image is not trivial)");
-    out.classes.push_back(described(theta, n, shb, thb, "the given class"));
+    const std::vector<Word>& words = options.homotopy.given_class;
+    if (words.size() % n != 0)
+      throw InputError("homotopy.given_class must be " + std::to_string(n) + " words per class (" +
+                       std::to_string(words.size()) + " given)");
+    const size_t count = words.size() / n;
+    std::vector<std::vector<double>> fingerprints;
+    for (size_t k = 0; k < count; ++k) {
+      GroupMap theta(words.begin() + k * n, words.begin() + (k + 1) * n);
+      const std::string which = count == 1 ? std::string("homotopy.given_class")
+                                           : "homotopy.given_class's class " + std::to_string(k + 1);
+      for (const Word& w : theta)
+        for (int x : w)
+          if (x == 0 || std::abs(x) > n)
+            throw InputError(which + " must be words in letters +-1..+-" + std::to_string(n));
+      space.reduce(theta);
+      if (!space.is_isomorphism(theta))
+        throw SolveError(which + " is not an isomorphism of the surface groups (not symplectic on homology, "
+                                 "or the relator's image is not trivial)");
+      const std::vector<double> fp = space.fingerprint(theta);
+      if (std::any_of(fingerprints.begin(), fingerprints.end(),
+                      [&](const std::vector<double>& other) { return ClassSpace::same_fingerprint(other, fp); }))
+        continue;
+      fingerprints.push_back(fp);
+      out.classes.push_back(described(theta, n, shb, thb,
+                                      count == 1 ? std::string("the given class")
+                                                 : "the given class " + std::to_string(k + 1)));
+    }
     return out;
   }
   // The other direction's class alone (homotopy.reverse_class_only: the
