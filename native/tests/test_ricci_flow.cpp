@@ -625,8 +625,9 @@ TEST(RicciFlow, CoarseStartReachesTheSameHyperbolicMetricInFewerNewtonSteps) {
   so.min_vertices = 1000;
   const CoarseStart start = coarse_conformal_start(m, c, Background::Hyperbolic, so);
   ASSERT_TRUE(start.ok) << start.why;
-  EXPECT_GE(start.coarse_vertices, 400);
-  EXPECT_LT(start.coarse_vertices, c.num_vertices() / 2);
+  // About the vertices asked for (the seeds' spacing is chosen for them).
+  EXPECT_GT(start.coarse_vertices, 200);
+  EXPECT_LT(start.coarse_vertices, 1600);
   ASSERT_EQ(start.u.size(), c.num_vertices());
   // The prolonged u is the solution's large-scale part: much nearer to it
   // than u = 0 is.
@@ -677,6 +678,29 @@ TEST(RicciFlow, CoarseStartReachesTheSameFlatTorusMetric) {
   EXPECT_EQ(from.u[0], 0.0);
   EXPECT_LE(from.iterations, zero.iterations);
   EXPECT_LT((from.u - zero.u).cwiseAbs().maxCoeff(), 1e-7);
+}
+
+// RicciFlowOptions::threads: the evaluations split over two threads (meshes
+// of 20000 faces or more) give the same bits as one thread, flips included.
+TEST(RicciFlow, TwoThreadEvaluationsGiveTheSameBits) {
+  const TriMesh m = jitter3d(torus(3, 1, 150, 70), 0.05, 4);
+  const Connectivity c(m.F, m.num_vertices());
+  ASSERT_GE(c.num_faces(), 20000);
+  const Eigen::VectorXd l = edge_lengths(m, c);
+  RicciFlowOptions o;
+  o.intrinsic_delaunay = true;
+  const RicciFlowResult one = ricci_flow(c, l, Background::Euclidean, o);
+  o.threads = 2;
+  const RicciFlowResult two = ricci_flow(c, l, Background::Euclidean, o);
+  ASSERT_TRUE(one.converged) << one.message;
+  ASSERT_TRUE(two.converged) << two.message;
+  EXPECT_EQ(one.iterations, two.iterations);
+  EXPECT_EQ(one.flips, two.flips);
+  EXPECT_EQ(one.cg_iterations, two.cg_iterations);
+  EXPECT_EQ(one.residual_history, two.residual_history);
+  EXPECT_TRUE(one.u == two.u);
+  EXPECT_TRUE(one.edge_lengths == two.edge_lengths);
+  EXPECT_TRUE(one.edge_vertices == two.edge_vertices);
 }
 
 TEST(RicciFlow, CoarseStartDeclinesSmallMeshesAndBadStartsAreInputErrors) {
