@@ -12,7 +12,9 @@
 // difference; then the medians per start. Not a test: no pass / fail.
 //
 //   build/bin/bench_coarse_start [--resolution 109] [--vase-resolution 103] [--repeat 3]
-//                                [--coarse-vertices 3000] [--sweeps 10]
+//                                [--coarse-vertices 3000] [--sweeps 10] [--mesh FILE]...
+// --mesh: also a mesh file (genus >= 1; flat for a torus), e.g. --resolution 0
+// --vase-resolution 0 --mesh a.obj for that mesh alone.
 #include <dlfcn.h>
 
 #include <algorithm>
@@ -24,6 +26,7 @@
 #include <vector>
 
 #include "surfmap/mesh/connectivity.h"
+#include "surfmap/mesh/intake.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/uniformize/coarse_start.h"
 #include "surfmap/uniformize/ricci_flow.h"
@@ -51,11 +54,13 @@ struct Run {
 
 void bench_mesh(const std::string& name, const TriMesh& mesh, int repeat, const CoarseStartOptions& cso) {
   const Connectivity conn(mesh.F, mesh.num_vertices());
+  const Background bg = conn.genus() >= 2 ? Background::Hyperbolic : Background::Euclidean;
   const Eigen::VectorXd l = edge_lengths(mesh, conn);
   RicciFlowOptions fo;
   fo.intrinsic_delaunay = true;
-  std::printf("\n%s: %d vertices, %d faces, hyperbolic, intrinsic Delaunay, tolerance %.0e\n", name.c_str(),
-              conn.num_vertices(), conn.num_faces(), fo.tolerance);
+  std::printf("\n%s: %d vertices, %d faces, genus %d, %s, intrinsic Delaunay, tolerance %.0e\n", name.c_str(),
+              conn.num_vertices(), conn.num_faces(), conn.genus(), bg == Background::Hyperbolic ? "hyperbolic" : "flat",
+              fo.tolerance);
   std::printf("%-6s %7s %22s %8s %5s %5s %5s %6s %10s %10s %10s  residuals\n", "start", "coarseV",
               "coarse s (copy/flow/u)", "flow s", "Newt", "CG", "fact", "flips", "err", "max|du|", "max dl/l");
   std::vector<double> total[2], flow_s[2];
@@ -67,10 +72,10 @@ void bench_mesh(const std::string& name, const TriMesh& mesh, int repeat, const 
     Run r;
     CoarseStart cs;
     const auto t0 = std::chrono::steady_clock::now();
-    if (coarse) cs = coarse_conformal_start(mesh, conn, Background::Hyperbolic, cso);
+    if (coarse) cs = coarse_conformal_start(mesh, conn, bg, cso);
     const auto t1 = std::chrono::steady_clock::now();
-    r.flow = cs.ok ? ricci_flow_from(conn, l, Background::Hyperbolic, fo, cs.u)
-                   : ricci_flow(conn, l, Background::Hyperbolic, fo);
+    r.flow = cs.ok ? ricci_flow_from(conn, l, bg, fo, cs.u)
+                   : ricci_flow(conn, l, bg, fo);
     const auto t2 = std::chrono::steady_clock::now();
     r.start_s = std::chrono::duration<double>(t1 - t0).count();
     r.flow_s = std::chrono::duration<double>(t2 - t1).count();
@@ -117,6 +122,7 @@ void bench_mesh(const std::string& name, const TriMesh& mesh, int repeat, const 
 
 int main(int argc, char** argv) {
   int resolution = 109, vase_resolution = 103, repeat = 3;
+  std::vector<std::string> files;
   CoarseStartOptions cso;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -132,10 +138,11 @@ int main(int argc, char** argv) {
     else if (a == "--repeat") repeat = next();
     else if (a == "--coarse-vertices") cso.coarse_vertices = next();
     else if (a == "--sweeps") cso.smoothing_sweeps = next();
+    else if (a == "--mesh" && i + 1 < argc) files.push_back(argv[++i]);
     else {
       std::fprintf(stderr,
                    "usage: bench_coarse_start [--resolution 109] [--vase-resolution 103] [--repeat 3] "
-                   "[--coarse-vertices 3000] [--sweeps 10]\n");
+                   "[--coarse-vertices 3000] [--sweeps 10] [--mesh FILE]...\n");
       return 2;
     }
   }
@@ -144,5 +151,6 @@ int main(int argc, char** argv) {
                                  samples::n_hole_torus(2, resolution, true), repeat, cso);
   if (vase_resolution > 0)
     bench_mesh("vase (genus 2) r" + std::to_string(vase_resolution), samples::vase(vase_resolution, true), repeat, cso);
+  for (const std::string& f : files) bench_mesh(f, load_mesh(f).mesh, repeat, cso);
   return 0;
 }
