@@ -598,3 +598,126 @@ TEST(RicciFlow, LongHyperbolicTrianglesHaveFiniteAnglesAndJacobian) {
   }
 }
 }  // namespace surfmap
+
+#include "surfmap/uniformize/coarse_start.h"
+
+namespace surfmap {
+namespace {
+
+// Issue 19: the multilevel start (uniformize/coarse_start.h). From the coarse
+// copy's prolonged u, Newton with flips must reach the metric it reaches from
+// u = 0 (the same conformal factors within the tolerance's reach, Gauss–Bonnet
+// on the flipped triangulation) in fewer Newton steps; a prolongation that
+// misplaced the coarse values (wrong regions, wrong vertices) starts further
+// away than u = 0 and fails the step count or the distance bound.
+TEST(RicciFlow, CoarseStartReachesTheSameHyperbolicMetricInFewerNewtonSteps) {
+  const TriMesh m = samples::n_hole_torus(2, 40, true);
+  const Connectivity c(m.F, m.num_vertices());
+  ASSERT_EQ(c.genus(), 2);
+  const Eigen::VectorXd l = edge_lengths(m, c);
+  RicciFlowOptions o;
+  o.intrinsic_delaunay = true;
+  const RicciFlowResult zero = ricci_flow(c, l, Background::Hyperbolic, o);
+  ASSERT_TRUE(zero.converged) << zero.message;
+
+  CoarseStartOptions so;
+  so.coarse_vertices = 400;
+  so.min_vertices = 1000;
+  const CoarseStart start = coarse_conformal_start(m, c, Background::Hyperbolic, so);
+  ASSERT_TRUE(start.ok) << start.why;
+  // About the vertices asked for (the seeds' spacing is chosen for them).
+  EXPECT_GT(start.coarse_vertices, 200);
+  EXPECT_LT(start.coarse_vertices, 1600);
+  ASSERT_EQ(start.u.size(), c.num_vertices());
+  // The prolonged u is the solution's large-scale part: much nearer to it
+  // than u = 0 is.
+  const double spread = zero.u.cwiseAbs().maxCoeff();
+  ASSERT_GT(spread, 0.1);
+  EXPECT_LT((start.u - zero.u).cwiseAbs().maxCoeff(), 0.25 * spread);
+
+  const RicciFlowResult from = ricci_flow_from(c, l, Background::Hyperbolic, o, start.u);
+  ASSERT_TRUE(from.converged) << from.message;
+  EXPECT_LE(from.max_curvature_error, o.tolerance);
+  EXPECT_LT(from.iterations, zero.iterations);
+  EXPECT_LT((from.u - zero.u).cwiseAbs().maxCoeff(), 1e-7);
+  // Gauss–Bonnet on the flipped triangulation, angles by an independent law of cosines.
+  Eigen::VectorXd sums = Eigen::VectorXd::Zero(c.num_vertices());
+  double area = 0;
+  for (int f = 0; f < from.faces.rows(); ++f) {
+    double tsum = 0;
+    for (int k = 0; k < 3; ++k) {
+      const double a = from.edge_lengths[from.face_edges(f, k)], b = from.edge_lengths[from.face_edges(f, (k + 1) % 3)],
+                   cc = from.edge_lengths[from.face_edges(f, (k + 2) % 3)];
+      const double th = corner_angle(b, cc, a, Background::Hyperbolic);
+      sums[from.faces(f, k)] += th;
+      tsum += th;
+    }
+    area += kPi - tsum;
+  }
+  EXPECT_LT((sums.array() - 2 * kPi).abs().maxCoeff(), 1e-9);
+  EXPECT_NEAR(area / (4 * kPi), 1.0, 1e-6);
+}
+
+// The flat case: the torus's flat metric from the coarse start (u up to the
+// constant the gauge u_0 = 0 fixes) is the one from u = 0.
+TEST(RicciFlow, CoarseStartReachesTheSameFlatTorusMetric) {
+  const TriMesh m = jitter3d(torus(3, 1, 80, 40), 0.05, 3);
+  const Connectivity c(m.F, m.num_vertices());
+  const Eigen::VectorXd l = edge_lengths(m, c);
+  RicciFlowOptions o;
+  o.intrinsic_delaunay = true;
+  const RicciFlowResult zero = ricci_flow(c, l, Background::Euclidean, o);
+  ASSERT_TRUE(zero.converged) << zero.message;
+  CoarseStartOptions so;
+  so.coarse_vertices = 300;
+  so.min_vertices = 1000;
+  const CoarseStart start = coarse_conformal_start(m, c, Background::Euclidean, so);
+  ASSERT_TRUE(start.ok) << start.why;
+  const RicciFlowResult from = ricci_flow_from(c, l, Background::Euclidean, o, start.u);
+  ASSERT_TRUE(from.converged) << from.message;
+  EXPECT_EQ(from.u[0], 0.0);
+  EXPECT_LE(from.iterations, zero.iterations);
+  EXPECT_LT((from.u - zero.u).cwiseAbs().maxCoeff(), 1e-7);
+}
+
+// RicciFlowOptions::threads: the evaluations split over two threads (meshes
+// of 20000 faces or more) give the same bits as one thread, flips included.
+TEST(RicciFlow, TwoThreadEvaluationsGiveTheSameBits) {
+  const TriMesh m = jitter3d(torus(3, 1, 150, 70), 0.05, 4);
+  const Connectivity c(m.F, m.num_vertices());
+  ASSERT_GE(c.num_faces(), 20000);
+  const Eigen::VectorXd l = edge_lengths(m, c);
+  RicciFlowOptions o;
+  o.intrinsic_delaunay = true;
+  const RicciFlowResult one = ricci_flow(c, l, Background::Euclidean, o);
+  o.threads = 2;
+  const RicciFlowResult two = ricci_flow(c, l, Background::Euclidean, o);
+  ASSERT_TRUE(one.converged) << one.message;
+  ASSERT_TRUE(two.converged) << two.message;
+  EXPECT_EQ(one.iterations, two.iterations);
+  EXPECT_EQ(one.flips, two.flips);
+  EXPECT_EQ(one.cg_iterations, two.cg_iterations);
+  EXPECT_EQ(one.residual_history, two.residual_history);
+  EXPECT_TRUE(one.u == two.u);
+  EXPECT_TRUE(one.edge_lengths == two.edge_lengths);
+  EXPECT_TRUE(one.edge_vertices == two.edge_vertices);
+}
+
+TEST(RicciFlow, CoarseStartDeclinesSmallMeshesAndBadStartsAreInputErrors) {
+  const TriMesh m = samples::n_hole_torus(2, 26, true);
+  const Connectivity c(m.F, m.num_vertices());
+  const CoarseStart start = coarse_conformal_start(m, c, Background::Hyperbolic);  // default: >= 20000 vertices
+  EXPECT_FALSE(start.ok);
+  EXPECT_NE(start.why.find("vertices"), std::string::npos) << start.why;
+  CoarseStartOptions off;
+  off.coarse_vertices = 0;
+  EXPECT_FALSE(coarse_conformal_start(m, c, Background::Hyperbolic, off).ok);
+  const Eigen::VectorXd l = edge_lengths(m, c);
+  EXPECT_THROW(ricci_flow_from(c, l, Background::Hyperbolic, {}, Eigen::VectorXd::Zero(3)), InputError);
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(c.num_vertices());
+  u[5] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(ricci_flow_from(c, l, Background::Hyperbolic, {}, u), InputError);
+}
+
+}  // namespace
+}  // namespace surfmap

@@ -12,6 +12,7 @@
 #include "surfmap/uniformize/feasible_metric.h"
 #include "surfmap/topology/handle_basis.h"
 #include "surfmap/uniformize/carried_loops.h"
+#include "surfmap/uniformize/coarse_start.h"
 #include "surfmap/uniformize/intrinsic_loops.h"
 #include "surfmap/uniformize/simplicial_flips.h"
 #include "concurrency.h"
@@ -190,8 +191,25 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   RicciFlowOptions fo;
   fo.tolerance = options.uniformization.tolerance;
   fo.intrinsic_delaunay = true;
+  // The evaluations' per-face loop in two halves (the same bits as one).
+  fo.threads = threads;
   if (stop) fo.progress = [stop](int, double) { return !stop->load(); };
-  RicciFlowResult flow = ricci_flow(tc, edge_lengths(target, tc), background, fo);
+  const Eigen::VectorXd lengths = edge_lengths(target, tc);
+  // Issue 19: Newton from a coarse copy's solution, prolonged (the same
+  // metric within the tolerance, fewer Newton steps and CG iterations on
+  // large targets). Should that run not converge, the flow from u = 0 decides.
+  const CoarseStart start = coarse_conformal_start(target, tc, background);
+  RicciFlowResult flow;
+  bool started = false;
+  if (start.ok) {
+    try {
+      flow = ricci_flow_from(tc, lengths, background, fo, start.u);
+      started = flow.converged;
+    } catch (const SolveError&) {
+      // (the flow from u = 0 below reports its own failure, if any)
+    }
+  }
+  if (!started) flow = ricci_flow(tc, lengths, background, fo);
   if (!flow.converged) throw SolveError("the flow did not converge: " + flow.message);
   // A Δ-complex T' (loop or double edges) made simplicial by exact flips of
   // the final metric, as in uniformize (uniformize/simplicial_flips.h).

@@ -15,6 +15,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <future>
 #include <initializer_list>
 #include <limits>
 #include <sstream>
@@ -33,6 +34,10 @@ namespace surfmap {
 namespace detail {
 namespace {
 
+
+/// Edges / faces from which an evaluation with RicciFlowOptions::threads > 1
+/// is split over two threads (below, a thread costs more than it saves).
+constexpr int kSplitEvaluation = 20000;
 
 /// Lengths of the metric at u and their derivatives dl_e/du at both endpoints.
 class SchemeMetric {
@@ -66,7 +71,9 @@ class SchemeMetric {
 
   /// Fills l (#E) and dldu (#E x 2: d l_e / d u_{EV(e,0)}, d l_e / d u_{EV(e,1)}).
   /// Returns the first edge whose length is not a finite positive number, or -1.
-  int lengths(const Eigen::VectorXd& u, Eigen::VectorXd& l, Eigen::MatrixX2d* dldu) const {
+  /// threads > 1: the edges in two halves, the second on another thread
+  /// (each edge's length is its own: the same numbers).
+  int lengths(const Eigen::VectorXd& u, Eigen::VectorXd& l, Eigen::MatrixX2d* dldu, int threads = 1) const {
     const int ne = static_cast<int>(dom_.EV.rows());
     l.resize(ne);
     if (dldu) dldu->resize(ne, 2);
@@ -82,8 +89,22 @@ class SchemeMetric {
         }
       }
     }
+    if (threads > 1 && ne >= kSplitEvaluation) {
+      const int mid = ne / 2;
+      auto second = std::async(std::launch::async, [&] { return edge_range(u, r, mid, ne, l, dldu); });
+      const int bad0 = edge_range(u, r, 0, mid, l, dldu);
+      const int bad1 = second.get();
+      return bad0 >= 0 ? bad0 : bad1;
+    }
+    return edge_range(u, r, 0, ne, l, dldu);
+  }
+
+ private:
+  /// Lengths of edges [begin, end) (l, dldu sized); the first bad one or -1.
+  int edge_range(const Eigen::VectorXd& u, const Eigen::VectorXd& r, int begin, int end, Eigen::VectorXd& l,
+                 Eigen::MatrixX2d* dldu) const {
     int bad = -1;
-    for (int e = 0; e < ne; ++e) {
+    for (int e = begin; e < end; ++e) {
       const int i = dom_.EV(e, 0), j = dom_.EV(e, 1);
       double le, di, dj;
       if (scheme_ == RicciScheme::VertexScaling) {
@@ -124,7 +145,6 @@ class SchemeMetric {
     return bad;
   }
 
- private:
   const RicciDomain& dom_;
   Background bg_;
   RicciScheme scheme_;
@@ -443,13 +463,63 @@ struct Evaluation {
   double min_slack = 1.0;
   int min_slack_face = -1;
   std::vector<Eigen::Triplet<double>> triplets;
+  /// Scratch: the angles of face f's corners at 3f + k.
+  std::vector<double> angles;
   /// FlipContext::version of the triangulation evaluated on (0 without flips).
   long long version = 0;
 };
 
+/// The per-face part of an evaluation over faces [begin, end): each face's
+/// angles into angles[3f + k] and its 9 Jacobian entries into
+/// triplets[9f ..] (sized by the caller), the degeneracy counts into `part`.
+struct FaceScan {
+  int degenerate = 0;
+  int first_degenerate = -1;
+  double min_slack = 1.0;
+  int min_slack_face = -1;
+};
+
+void scan_faces(const RicciDomain& dom, Background bg, const Eigen::VectorXd& l_all, const Eigen::MatrixX2d* dldu,
+                int begin, int end, double* angles, Eigen::Triplet<double>* triplets, FaceScan& part) {
+  for (int f = begin; f < end; ++f) {
+    double l[3], th[3], D[3][3], slack;
+    for (int k = 0; k < 3; ++k) l[k] = l_all[dom.FE(f, k)];
+    if (!triangle_angles(l, bg, th, D, &slack)) {
+      ++part.degenerate;
+      if (part.first_degenerate < 0) part.first_degenerate = f;
+    }
+    if (slack < part.min_slack) {
+      part.min_slack = slack;
+      part.min_slack_face = f;
+    }
+    for (int k = 0; k < 3; ++k) angles[3 * static_cast<size_t>(f) + k] = th[k];
+    if (!dldu) continue;
+    // dl_m/du at the corners: side m joins corners m+1 and m+2.
+    double J[3][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};  // J(m, corner w) = dl_m/du_w
+    for (int m = 0; m < 3; ++m) {
+      const int e = dom.FE(f, m);
+      for (int q = 1; q <= 2; ++q) {
+        const int w = (m + q) % 3;
+        J[m][w] = dom.EV(e, 0) == dom.F(f, w) ? (*dldu)(e, 0) : (*dldu)(e, 1);
+      }
+    }
+    Eigen::Triplet<double>* out = triplets + 9 * static_cast<size_t>(f);
+    for (int i = 0; i < 3; ++i)
+      for (int w = 0; w < 3; ++w) {
+        double d = 0.0;
+        for (int m = 0; m < 3; ++m) d += D[i][m] * J[m][w];
+        *out++ = Eigen::Triplet<double>(dom.F(f, i), dom.F(f, w), -d);  // dK = −dθ
+      }
+  }
+}
+
+/// threads > 1 (RicciFlowOptions::threads): the lengths and the per-face
+/// part in two halves, the second half on another thread. Every face writes
+/// its own slots and the angle sums are then taken in face order, as with
+/// one thread: the same bits either way.
 void evaluate(const RicciDomain& dom, const SchemeMetric& metric, Background bg,
               const Eigen::VectorXd& u, bool jacobian, Evaluation& ev,
-              FlipContext* flips = nullptr) {
+              FlipContext* flips = nullptr, int threads = 1) {
   // A pass that runs out of its flip budget is cycling: a clear error in
   // bounded memory (the flip history grows with every flip) instead of
   // carrying on with a non-Delaunay triangulation.
@@ -463,45 +533,43 @@ void evaluate(const RicciDomain& dom, const SchemeMetric& metric, Background bg,
                      std::to_string(flips->flips) + " flips, the budget of 50 per edge)");
   ev.version = flips ? flips->version : 0;
   Eigen::MatrixX2d dldu;
-  ev.bad_edge = metric.lengths(u, ev.l, jacobian ? &dldu : nullptr);
+  ev.bad_edge = metric.lengths(u, ev.l, jacobian ? &dldu : nullptr, threads);
   ev.K = dom.full_angle;
   ev.degenerate = 0;
   ev.first_degenerate = -1;
   ev.min_slack = 1.0;
   ev.min_slack_face = -1;
-  ev.triplets.clear();
-  if (ev.bad_edge >= 0) return;
-  const int nf = static_cast<int>(dom.F.rows());
-  if (jacobian) ev.triplets.reserve(9 * static_cast<size_t>(nf));
-  for (int f = 0; f < nf; ++f) {
-    double l[3], th[3], D[3][3], slack;
-    for (int k = 0; k < 3; ++k) l[k] = ev.l[dom.FE(f, k)];
-    if (!triangle_angles(l, bg, th, D, &slack)) {
-      ++ev.degenerate;
-      if (ev.first_degenerate < 0) ev.first_degenerate = f;
-    }
-    if (slack < ev.min_slack) {
-      ev.min_slack = slack;
-      ev.min_slack_face = f;
-    }
-    for (int k = 0; k < 3; ++k) ev.K[dom.F(f, k)] -= th[k];
-    if (!jacobian) continue;
-    // dl_m/du at the corners: side m joins corners m+1 and m+2.
-    double J[3][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};  // J(m, corner w) = dl_m/du_w
-    for (int m = 0; m < 3; ++m) {
-      const int e = dom.FE(f, m);
-      for (int q = 1; q <= 2; ++q) {
-        const int w = (m + q) % 3;
-        J[m][w] = dom.EV(e, 0) == dom.F(f, w) ? dldu(e, 0) : dldu(e, 1);
-      }
-    }
-    for (int i = 0; i < 3; ++i)
-      for (int w = 0; w < 3; ++w) {
-        double d = 0.0;
-        for (int m = 0; m < 3; ++m) d += D[i][m] * J[m][w];
-        ev.triplets.emplace_back(dom.F(f, i), dom.F(f, w), -d);  // dK = −dθ
-      }
+  if (!jacobian) ev.triplets.clear();
+  if (ev.bad_edge >= 0) {
+    ev.triplets.clear();
+    return;
   }
+  const int nf = static_cast<int>(dom.F.rows());
+  if (jacobian) ev.triplets.resize(9 * static_cast<size_t>(nf));
+  ev.angles.resize(3 * static_cast<size_t>(nf));
+  const Eigen::MatrixX2d* d = jacobian ? &dldu : nullptr;
+  FaceScan parts[2];
+  if (threads > 1 && nf >= kSplitEvaluation) {
+    const int mid = nf / 2;
+    auto second = std::async(std::launch::async, [&] {
+      scan_faces(dom, bg, ev.l, d, mid, nf, ev.angles.data(), ev.triplets.data(), parts[1]);
+    });
+    scan_faces(dom, bg, ev.l, d, 0, mid, ev.angles.data(), ev.triplets.data(), parts[0]);
+    second.get();
+  } else {
+    scan_faces(dom, bg, ev.l, d, 0, nf, ev.angles.data(), ev.triplets.data(), parts[0]);
+  }
+  // The halves combined as one pass in face order would have found them.
+  for (const FaceScan& p : parts) {
+    ev.degenerate += p.degenerate;
+    if (ev.first_degenerate < 0) ev.first_degenerate = p.first_degenerate;
+    if (p.min_slack < ev.min_slack) {
+      ev.min_slack = p.min_slack;
+      ev.min_slack_face = p.min_slack_face;
+    }
+  }
+  for (int f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) ev.K[dom.F(f, k)] -= ev.angles[3 * static_cast<size_t>(f) + k];
 }
 
 /// RicciFlowResult::floor_estimate: max over vertices of ε Σ_corners
@@ -742,7 +810,7 @@ struct RicciRun {
   void evaluate_start(const Eigen::VectorXd* u_start) {
     res.background = background;
     res.u = u_start ? *u_start : Eigen::VectorXd::Zero(nv);
-    evaluate(dom, metric, background, res.u, newton, ev, flips);
+    evaluate(dom, metric, background, res.u, newton, ev, flips, options.threads);
     if (ev.bad_edge >= 0)
       throw InputError("ricci_flow: edge " + std::to_string(ev.bad_edge) +
                        " has no valid length in the initial metric");
@@ -755,7 +823,7 @@ struct RicciRun {
   /// `failure` set) when the flow broke down.
   bool flow_step() {
     res.u -= options.flow_step * g;
-    evaluate(dom, metric, background, res.u, false, ev, flips);
+    evaluate(dom, metric, background, res.u, false, ev, flips, options.threads);
     if (ev.bad_edge >= 0) {
       failure = "the flow produced an invalid length at edge " + std::to_string(ev.bad_edge) +
                 " (step too large?)";
@@ -821,13 +889,14 @@ struct RicciRun {
   /// superlinear; solving every step to 1e-12 took twice the iterations
   /// for the same Newton steps and final error (72848-vertex vase: 43
   /// against 88 preconditioned iterations over 5 steps, 0.4 s of 1.9 s).
-  Eigen::VectorXd preconditioned_step(const Eigen::VectorXd& rhs) const {
+  Eigen::VectorXd preconditioned_step(const Eigen::VectorXd& rhs) {
     Eigen::VectorXd delta = Eigen::VectorXd::Zero(nv);
     Eigen::VectorXd r = rhs, z = llt.solve(r), p = z;
     double rz = r.dot(z);
     const double stop = std::max(1e-12, std::min(1e-3, err)) * rhs.norm();
     bool ok = false;
     for (int k = 0; k < 40; ++k) {
+      ++res.cg_iterations;
       const Eigen::VectorXd Hp = H * p;
       const double pHp = p.dot(Hp);
       if (!(pHp > 0.0)) break;
@@ -862,6 +931,7 @@ struct RicciRun {
     }
     llt.factorize(A);
     ++work::factorisations;
+    ++res.factorisations;
     factor_valid = llt.info() == Eigen::Success && mu == 0.0;
     if (llt.info() == Eigen::Success) delta = llt.solve(rhs);
     if (llt.info() != Eigen::Success || !delta.allFinite()) {
@@ -890,7 +960,7 @@ struct RicciRun {
       // step halved (issue 13 item 5).
       const long long mark = flips ? static_cast<long long>(flip_ctx.history.size()) : 0;
       if (flips) flip_ctx.pass_limit = 2LL * static_cast<long long>(dom.EV.rows()) + 100;
-      evaluate(dom, metric, background, ut, true, trial, flips);
+      evaluate(dom, metric, background, ut, true, trial, flips, options.threads);
       if (flips) flip_ctx.pass_limit = 0;
       if (trial.flips_exhausted) {
         flip_ctx.roll_back(mark);
@@ -985,7 +1055,7 @@ struct RicciRun {
     // its lengths and angles do not depend on the Jacobian flag, so only
     // then is it evaluated again (issue 19: 0.1 s of the 72848-vertex vase's
     // 2 s flow).
-    if (ev.version != (flips ? flips->version : 0)) evaluate(dom, metric, background, res.u, false, ev, flips);
+    if (ev.version != (flips ? flips->version : 0)) evaluate(dom, metric, background, res.u, false, ev, flips, options.threads);
     res.edge_lengths = ev.l;
     res.flips = static_cast<int>(flip_ctx.flips);
     res.flip_history = std::move(flip_ctx.history);
@@ -1068,6 +1138,20 @@ RicciFlowResult ricci_flow(const Connectivity& mesh, const Eigen::VectorXd& edge
                            const Eigen::VectorXd& target_curvature) {
   const detail::RicciDomain dom = detail::domain_from_connectivity(mesh);
   return detail::ricci_solve(dom, edge_lengths, background, options, target_curvature, nullptr);
+}
+
+RicciFlowResult ricci_flow_from(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
+                                Background background, const RicciFlowOptions& options,
+                                const Eigen::VectorXd& u_start, const Eigen::VectorXd& target_curvature) {
+  const detail::RicciDomain dom = detail::domain_from_connectivity(mesh);
+  if (u_start.size() != dom.num_vertices)
+    throw InputError("ricci_flow: expected " + std::to_string(dom.num_vertices) + " start conformal factors, got " +
+                     std::to_string(u_start.size()));
+  if (!u_start.allFinite()) throw InputError("ricci_flow: the start conformal factors are not all finite");
+  Eigen::VectorXd u = u_start;
+  // The flat gauge of the Newton solve (u_0 = 0), which its steps keep.
+  if (background == Background::Euclidean) u.array() -= u[0];
+  return detail::ricci_solve(dom, edge_lengths, background, options, target_curvature, &u);
 }
 
 RicciLinearization ricci_linearization(const Connectivity& mesh,

@@ -86,6 +86,10 @@ struct RicciFlowOptions {
   /// not on the input edges (check result.flips). Default false: fixed
   /// connectivity, result.edge_lengths in Connectivity's edge order.
   bool intrinsic_delaunay = false;
+  /// Threads of the Newton solve's evaluations (default 1; 2: the per-face
+  /// angles and Jacobian entries of each evaluation in two halves, summed in
+  /// face order as with one, so the result is the same bits).
+  int threads = 1;
   /// Called once per iteration with the current max curvature error; return
   /// false to cancel (ricci_flow then throws Cancelled).
   std::function<bool(int iteration, double residual)> progress;
@@ -149,6 +153,10 @@ struct RicciFlowResult {
   int flips = 0;
   /// The flips, in the order they were made (flips entries).
   std::vector<EdgeFlip> flip_history;
+  /// Newton: preconditioned conjugate-gradient iterations (steps solved on
+  /// an earlier step's factor) and numeric factorisations, over the run.
+  int cg_iterations = 0;
+  int factorisations = 0;
   /// Newton line-search trial points whose Delaunay flips ran past the
   /// per-pass limit (2 #E + 100): their flips were undone (not in flips or
   /// flip_history) and the step halved, as for an invalid trial metric.
@@ -166,6 +174,15 @@ struct RicciFlowResult {
 RicciFlowResult ricci_flow(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
                            Background background, const RicciFlowOptions& options = {},
                            const Eigen::VectorXd& target_curvature = {});
+
+/// The same from the conformal factors u_start (#V) instead of u = 0, e.g. a
+/// coarse copy's solution prolonged to this mesh (uniformize/coarse_start.h).
+/// The solution is the same within the tolerance (the energy is convex); with
+/// intrinsic_delaunay the input is flipped to the Delaunay triangulation of
+/// the metric at u_start first. Euclidean: u is shifted so that u_0 = 0.
+RicciFlowResult ricci_flow_from(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
+                                Background background, const RicciFlowOptions& options,
+                                const Eigen::VectorXd& u_start, const Eigen::VectorXd& target_curvature = {});
 
 /// The linearisation at u, for tests and for callers that need it: the
 /// curvatures K (#V, angle defects of the metric given by u) and the Jacobian

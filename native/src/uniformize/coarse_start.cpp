@@ -1,0 +1,217 @@
+// Multilevel start of the Ricci flow (uniformize/coarse_start.h).
+#include "surfmap/uniformize/coarse_start.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <queue>
+#include <utility>
+#include <vector>
+
+#include "surfmap/error.h"
+
+namespace surfmap {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// The mesh's vertex graph once, as offsets into one array (CSR), with the
+/// 3D lengths of its edges.
+struct VertexGraph {
+  std::vector<int> start, next;
+  std::vector<double> length;
+  VertexGraph(const TriMesh& mesh, const Connectivity& conn) {
+    const int nv = conn.num_vertices();
+    start.assign(nv + 1, 0);
+    next.reserve(static_cast<size_t>(conn.num_halfedges()));
+    length.reserve(static_cast<size_t>(conn.num_halfedges()));
+    for (int v = 0; v < nv; ++v) {
+      for (int h : conn.outgoing(v)) {
+        const int w = conn.head(h);
+        next.push_back(w);
+        length.push_back((mesh.V.row(w) - mesh.V.row(v)).norm());
+      }
+      start[v + 1] = static_cast<int>(next.size());
+    }
+  }
+};
+
+/// A coarse copy for the start (not the ranking's: map/coarse_source.h's
+/// farthest-point sampling and edge paths cost ~0.3 s of CPU on a 56k mesh,
+/// a third of the flow it shortens). Seeds: vertices in index order that are
+/// more than `radius` edges from every earlier seed (breadth-first balls);
+/// regions: one multi-source Dijkstra over the 3D edge lengths; the coarse
+/// faces: the fine triangles with corners in three regions (the regions'
+/// dual), kept only when that is a closed oriented manifold of the mesh's
+/// Euler characteristic. Empty faces when not.
+struct CoarseCopy {
+  std::vector<int> seeds;   // coarse vertex -> fine vertex
+  std::vector<int> region;  // fine vertex -> coarse vertex
+  RowMatrixX3i F;
+  TriMesh mesh;
+};
+
+bool coarse_copy(const TriMesh& mesh, const Connectivity& conn, const VertexGraph& graph, int radius, CoarseCopy& out) {
+  const int nv = conn.num_vertices();
+  out.seeds.clear();
+  std::vector<int> hops(nv, -1), touched, queue;
+  for (int v = 0; v < nv; ++v) {
+    if (hops[v] >= 0) continue;
+    out.seeds.push_back(v);
+    // Every vertex within `radius` edges of the new seed is covered.
+    queue.assign(1, v);
+    hops[v] = 0;
+    for (size_t q = 0; q < queue.size(); ++q) {
+      const int a = queue[q];
+      if (hops[a] >= radius) continue;
+      for (int k = graph.start[a]; k < graph.start[a + 1]; ++k) {
+        const int b = graph.next[k];
+        if (hops[b] < 0 || hops[b] > hops[a] + 1) {
+          if (hops[b] < 0) queue.push_back(b);
+          hops[b] = hops[a] + 1;
+        }
+      }
+    }
+  }
+  const int nc = static_cast<int>(out.seeds.size());
+  if (nc < 4 || 2 * nc > nv) return false;
+  // Regions: nearest seed over the 3D edge lengths.
+  out.region.assign(nv, -1);
+  std::vector<double> dist(nv, std::numeric_limits<double>::infinity());
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> pq;
+  for (int c = 0; c < nc; ++c) {
+    dist[out.seeds[c]] = 0.0;
+    out.region[out.seeds[c]] = c;
+    pq.push({0.0, out.seeds[c]});
+  }
+  while (!pq.empty()) {
+    const auto [d, a] = pq.top();
+    pq.pop();
+    if (d > dist[a]) continue;
+    for (int k = graph.start[a]; k < graph.start[a + 1]; ++k) {
+      const int b = graph.next[k];
+      const double db = d + graph.length[k];
+      if (db < dist[b]) {
+        dist[b] = db;
+        out.region[b] = out.region[a];
+        pq.push({db, b});
+      }
+    }
+  }
+  // The dual faces: one per distinct oriented triple of regions.
+  std::vector<std::array<int, 3>> triples;
+  for (int f = 0; f < conn.num_faces(); ++f) {
+    std::array<int, 3> t{out.region[mesh.F(f, 0)], out.region[mesh.F(f, 1)], out.region[mesh.F(f, 2)]};
+    if (t[0] < 0 || t[1] < 0 || t[2] < 0) return false;
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
+    std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());  // smallest first, orientation kept
+    triples.push_back(t);
+  }
+  std::sort(triples.begin(), triples.end());
+  triples.erase(std::unique(triples.begin(), triples.end()), triples.end());
+  for (const auto& t : triples)  // the same triple both ways round: no oriented surface
+    if (std::binary_search(triples.begin(), triples.end(), std::array<int, 3>{t[0], t[2], t[1]})) return false;
+  out.F.resize(static_cast<int>(triples.size()), 3);
+  for (size_t f = 0; f < triples.size(); ++f)
+    for (int k = 0; k < 3; ++k) out.F(static_cast<int>(f), k) = triples[f][k];
+  try {
+    const Connectivity cc(out.F, nc);
+    if (cc.euler_characteristic() != conn.euler_characteristic()) return false;
+  } catch (const std::exception&) {
+    return false;  // not a closed manifold (Connectivity names why)
+  }
+  out.mesh.F = out.F;
+  out.mesh.V.resize(nc, 3);
+  for (int c = 0; c < nc; ++c) out.mesh.V.row(c) = mesh.V.row(out.seeds[c]);
+  return true;
+}
+
+/// u on every fine vertex: the coarse value at the seeds (held), the
+/// region's value elsewhere, then `sweeps` Gauss–Seidel sweeps of the graph
+/// Laplacian (each free vertex to the mean of its neighbours), in vertex
+/// order: deterministic.
+Eigen::VectorXd prolonged(const VertexGraph& graph, const CoarseCopy& copy, const Eigen::VectorXd& coarse_u,
+                          int sweeps) {
+  const int nv = static_cast<int>(copy.region.size());
+  Eigen::VectorXd u(nv);
+  std::vector<char> held(nv, 0);
+  for (int v = 0; v < nv; ++v) u[v] = coarse_u[copy.region[v]];
+  for (int s : copy.seeds) held[s] = 1;
+  for (int s = 0; s < sweeps; ++s)
+    for (int v = 0; v < nv; ++v) {
+      if (held[v] || graph.start[v + 1] == graph.start[v]) continue;
+      double sum = 0.0;
+      for (int q = graph.start[v]; q < graph.start[v + 1]; ++q) sum += u[graph.next[q]];
+      u[v] = sum / (graph.start[v + 1] - graph.start[v]);
+    }
+  return u;
+}
+
+}  // namespace
+
+CoarseStart coarse_conformal_start(const TriMesh& mesh, const Connectivity& conn, Background background,
+                                   const CoarseStartOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CoarseStart r;
+  const int nv = conn.num_vertices();
+  if (options.coarse_vertices <= 0) {
+    r.why = "the coarse start is off";
+    return r;
+  }
+  if (nv < options.min_vertices || nv < 4 * options.coarse_vertices) {
+    r.why = "the mesh has " + std::to_string(nv) + " vertices, fewer than the coarse start needs";
+    return r;
+  }
+  const VertexGraph graph(mesh, conn);
+  // A breadth-first ball of radius R on a mesh of valence ~6 holds 3R² + 3R + 1
+  // vertices; seeds more than R apart come out at about nv / (0.45 (3R² + 3R + 1))
+  // (measured: 6674 seeds at R = 2 on the 55886-vertex n-hole torus, 8742 on
+  // the 72848-vertex vase). The largest R with at least coarse_vertices seeds.
+  auto seeds_at = [nv](int R) { return nv / (0.45 * (3.0 * R * R + 3.0 * R + 1.0)); };
+  int radius = 1;
+  while (seeds_at(radius + 1) >= options.coarse_vertices) ++radius;
+  CoarseCopy copy;
+  bool ok = false;
+  for (int R = radius; R >= 1 && !ok; --R) ok = coarse_copy(mesh, conn, graph, R, copy);  // denser on failure
+  r.copy_seconds = seconds_since(t0);
+  if (!ok) {
+    r.why = "no coarse copy of the mesh's genus from breadth-first seeds";
+    return r;
+  }
+  r.coarse_vertices = copy.mesh.num_vertices();
+  const auto t1 = std::chrono::steady_clock::now();
+  RicciFlowResult flow;
+  try {
+    const Connectivity cc(copy.mesh.F, copy.mesh.num_vertices());
+    RicciFlowOptions fo;
+    fo.tolerance = options.coarse_tolerance;
+    fo.intrinsic_delaunay = true;
+    flow = ricci_flow(cc, edge_lengths(copy.mesh, cc), background, fo);
+  } catch (const Error& e) {
+    r.why = std::string("the coarse copy's flow failed: ") + e.what();
+    return r;
+  }
+  r.flow_seconds = seconds_since(t1);
+  r.coarse_iterations = flow.iterations;
+  r.coarse_flips = flow.flips;
+  if (!flow.converged || !flow.u.allFinite()) {
+    r.why = "the coarse copy's flow did not converge: " + flow.message;
+    return r;
+  }
+  const auto t2 = std::chrono::steady_clock::now();
+  r.u = prolonged(graph, copy, flow.u, options.smoothing_sweeps);
+  r.prolong_seconds = seconds_since(t2);
+  r.ok = true;
+  r.seconds = seconds_since(t0);
+  return r;
+}
+
+}  // namespace surfmap
