@@ -385,6 +385,37 @@ def test_collar_twist_keeps_to_the_first_half_of_a_tube_that_opens():
     assert d_wide[moved_wide].max() == d_wide.max() // 3 - 1
 
 
+def test_a_refused_cut_disk_class_is_asked_again_along_another_chain(monkeypatch):
+    """Issue 16: genus 0 with b <= 3 has one class per pairing and orientation, and the cut disks
+    along any chain of the loops give it. The artery onto its decimated copy (slivers to 177
+    degrees), preserving: the images of chain 0-1-2 carried loops that were not an isomorphism,
+    the candidate failed, and the mirror (reversing) won at 3.3% of the diagonal off the identity;
+    chain 0-2-1 gives the class (0.222%). Here chain 0-1-2's interior images are scrambled (so its
+    carried loops are refused); the candidate still maps, along another chain, to the same map as
+    the unscrambled run."""
+    from surfmap import open_cut_disk
+    Vs, Fs = pants(3)
+    Vt, Ft = bend(Vs, 0.3), Fs
+    plain = open_double.surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=[0, 1, 2], orientations=("preserving",))
+    cut = open_cut_disk.cut_disk_class_images
+
+    def scrambled_first_chain(S, T, pairing, mirrored=False, chain=None):
+        tv = cut(S, T, pairing, mirrored=mirrored, chain=chain)
+        if chain is None or list(chain) == list(range(S.b)):
+            inner = np.flatnonzero(~np.isin(tv, np.concatenate(T.loops)))
+            tv = tv.copy()
+            tv[inner] = tv[inner][np.random.default_rng(0).permutation(len(inner))]
+        return tv
+    monkeypatch.setattr(open_cut_disk, "cut_disk_class_images", scrambled_first_chain)
+    r = open_double.surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=[0, 1, 2], orientations=("preserving",))
+    (cand,) = r["open"]["candidates"]
+    assert cand["status"] == "ok" and "isomorphism" in cand["chain"] and not cand["chain"].startswith("chain 0-1-2")
+    assert abs(cand["energy"] - plain["energy"]["final"]) <= 1e-6 * plain["energy"]["final"]
+    diag = np.linalg.norm(Vt.max(axis=0) - Vt.min(axis=0))
+    assert np.linalg.norm(r["forward"]["position"] - plain["forward"]["position"], axis=1).max() < 1e-6 * diag
+    assert check_map(r, Vs, Fs, Vt, Ft) == 0 and r["flipped_triangles"] == 0
+
+
 def sphere_with_four_holes(level=3):
     """Genus 0 with 4 boundary loops: caps of slightly different sizes removed around
     non-coplanar directions."""
