@@ -484,8 +484,7 @@ def _collar_twist(T, loop, turns, rings=None, max_ring_growth=1.25):
     band (a branch point: past it a ring runs around several loops, and turning it would not be a twist
     about a curve parallel to this one), or, on a tube (rings 1-5 within `max_ring_growth` times the
     loop's vertices), at half the depth of the first ring wider than that (the tube opening towards a
-    branch point). Not a bijection of the
-    vertices (it only has to carry loops)."""
+    branch point). Not a bijection of the vertices (it only has to carry loops)."""
     V, F, L = T.V2, T.F2, T.loops[loop]
     n = len(V)
     nbr = [[] for _ in range(n)]
@@ -517,15 +516,15 @@ def _collar_twist(T, loop, turns, rings=None, max_ring_growth=1.25):
                 break
             if tube and ring_sizes[d] > max_ring_growth * len(L):
                 # A tube (its first 5 rings the loop's size) widens: it opens towards a branch
-                # point, long before the band splits (the artery's branch loops of 18 and 16 vertices: rings
-                # of 14-23 / 16-17 up to depth ~52 / ~35, then up to 77 / 38, split only at 65 /
-                # 69). A collar reaching there (a third of the depth, 51 / 54 rings) moved the
-                # branch point's vertices along feet that are no angle about the loop, and each
-                # start, +1 and -1 turns alike, carried the same other, non-symmetric class (E
-                # +0.19% / +0.26%, symmetry 0.04 of the diagonal); with 15 / 18 rings, half the
-                # depth where they widen, every start comes back to the untwisted map. A hole in a
-                # round body (the rings widen from the first: the test pants' loops of 54 vertices
-                # have rings of 68 at depth 4) keeps the third of the depth, which came back there.
+                # point, long before the band splits. The artery's branch loops of 18 and 16
+                # vertices have rings of 14-23 / 16-17 up to depth ~52 / ~35, then up to 77 / 38,
+                # and split only at 65 / 69. Collars of a third of the depth (51 / 54 rings, up to
+                # or past the widening) made starts that, +1 and -1 turns alike, carried one other,
+                # non-symmetric class (E +0.19% / +0.26%, symmetry 0.04 of the diagonal; how the
+                # collar's last rings change the class was not isolated); with 30 or 12 / 18 rings
+                # every start came back to the untwisted map. A hole in a round body (the rings
+                # widen from the first: the test pants' loops of 54 vertices have rings of 68 at
+                # depth 4) keeps the third of the depth, which came back there.
                 rings = max(d // 2, 3)
                 break
             seen, stack = set(), [next(iter(ring))]
