@@ -404,7 +404,7 @@ def _other_chains(S, T, pairing, reversed_orientation, options, lm, twist, error
     """Genus 0 with b <= 3: one class per pairing and orientation, which the cut disks along any
     chain of the loops give. When the doubles' solve refuses the class carried by the chain
     0, 1, ..., b - 1's images (the carried loops not an isomorphism: the artery onto its decimated
-    copy of 30-degree tilts, preserving, whose slivers reach 177 degrees), the same class is asked
+    copy of 30-degree tilts, preserving, slivers to 177 degrees; why was not isolated), the same class is asked
     again from the cut disks along the other chains. Returns (the doubles' map, the images, the
     chain as text); raises the first error when every chain fails."""
     for chain in itertools.permutations(range(S.b)):
