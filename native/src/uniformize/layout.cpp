@@ -368,46 +368,22 @@ KarcherTerms karcher_terms(const DiskLayout& out, Complex c) {
   return r;
 }
 
-/// A start for the Karcher mean in one pass without transcendental
-/// functions: the corners' centre of mass on the hyperboloid (each corner z
-/// as (1 + |z|², 2z) / (1 − |z|²), the sum scaled back onto the hyperboloid),
-/// read back in the disk. It is the Karcher mean's point for a cloud of zero
-/// spread and within a small fraction of the spread of it otherwise, so
-/// Newton starts inside its quadratic basin instead of at the first face's
-/// corner. Corners beyond distance ~19 from 0 (1 − |z|² < 1e-8: the long
-/// CAD plates, up to |z| rounding to 1) have lost their digits in the
-/// coordinates and would outweigh the rest; the start is then 0, as before.
-Complex hyperboloid_centre_of_corners(const DiskLayout& out) {
-  const int nF = static_cast<int>(out.corners.rows());
-  double x0 = 0, x1 = 0, x2 = 0;
-  for (int f = 0; f < nF; ++f)
-    for (int k = 0; k < 3; ++k) {
-      const Complex z = out.corners(f, k);
-      const double n2 = std::norm(z);
-      if (!(1.0 - n2 >= 1e-8)) return Complex(0.0);
-      const double s = 1.0 / (1.0 - n2);
-      x0 += (1.0 + n2) * s, x1 += 2.0 * z.real() * s, x2 += 2.0 * z.imag() * s;
-    }
-  const double q = x0 * x0 - x1 * x1 - x2 * x2;
-  if (!(q > 0)) return Complex(0.0);
-  const double r = std::sqrt(q);
-  const Complex c(x1 / (r + x0), x2 / (r + x0));  // (x1, x2) / (1 + x0) on the unit hyperboloid
-  return std::abs(c) < 1.0 ? c : Complex(0.0);
-}
-
 /// Karcher mean of the corner positions: minimise ½Σ d(c, z)² by Riemannian
-/// Newton steps c ← exp_c(H⁻¹ Σ log_c(z)) from the hyperboloid centre of
-/// mass, with backtracking on the objective (it is geodesically convex). The
+/// Newton steps c ← exp_c(H⁻¹ Σ log_c(z)) from 0 (the root face's chart),
+/// with backtracking on the objective (it is geodesically convex). The
 /// terms at an accepted trial point are the next step's. Near the mean the
 /// Newton step's predicted decrease ½ gᵀH⁻¹g falls below the objective's
 /// round-off (a sum of 3F terms), so the objective cannot confirm it: there a
 /// step is accepted when it lowers the gradient instead (issue 19: on the
 /// ranking's 1220-vertex copy the gradient stalled at 1.6e-3 above its
 /// tolerance and the backtracking spent 34 of 38 evaluations confirming
-/// steps of 1e-7). `evaluations` counts the passes over the corners.
+/// steps of 1e-7). `evaluations` counts the passes over the corners. (A
+/// start at the corners' centre of mass on the hyperboloid saved no pass on
+/// the bench pair and moved the centre of the raw genus-11 wheel's layout
+/// enough to fold one triangle of its map: not kept.)
 Complex karcher_mean_of_corners(const DiskLayout& out, int* evaluations) {
   const int nF = static_cast<int>(out.corners.rows());
-  Complex c = hyperboloid_centre_of_corners(out);
+  Complex c(0.0);
   KarcherTerms at = karcher_terms(out, c);
   int passes = 1;
   const double tolerance = 1e-10 * 3.0 * nF;  // far below any use of the centre
