@@ -340,8 +340,7 @@ KarcherTerms karcher_terms(const DiskLayout& out, Complex c) {
   double gx = 0, gy = 0;
   for (int f = 0; f < nF; ++f)
     for (int k = 0; k < 3; ++k) {
-      // t = T_c(z) = (a z + b) / (b̄ z + ā), dividing by hand: std::complex's
-      // division guards infinities the disk never holds.
+      // t = T_c(z) = (a z + b) / (b̄ z + ā), by one reciprocal of |b̄ z + ā|².
       const Complex z = out.corners(f, k);
       const Complex num = a * z + b, den = std::conj(b) * z + std::conj(a);
       const double inv = 1.0 / std::norm(den);
@@ -378,8 +377,8 @@ KarcherTerms karcher_terms(const DiskLayout& out, Complex c) {
 /// ranking's 1220-vertex copy the gradient stalled at 1.6e-3 above its
 /// tolerance and the backtracking spent 34 of 38 evaluations confirming
 /// steps of 1e-7). `evaluations` counts the passes over the corners. (A
-/// start at the corners' centre of mass on the hyperboloid saved no pass on
-/// the bench pair and moved the centre of the raw genus-11 wheel's layout
+/// start at the corners' centre of mass on the hyperboloid saved one of the
+/// bench copy's 4 passes and none of the target's, and moved the centre of the raw genus-11 wheel's layout
 /// enough to fold one triangle of its map: not kept.)
 Complex karcher_mean_of_corners(const DiskLayout& out, int* evaluations) {
   const int nF = static_cast<int>(out.corners.rows());
