@@ -172,6 +172,10 @@ struct DiskLayout {
   /// rounding, not a gluing error (long hyperbolic domains: 1e-4).
   double coordinate_roundoff = 0;
   double max_holonomy_rotation = 0;
+  /// Hyperbolic re-centring: the passes over the corners that found their
+  /// Karcher mean (each one every corner's logarithm; 0 without re-centring
+  /// or for flat layouts). A diagnostic of the Newton iteration's cost.
+  int centre_evaluations = 0;
   /// Number of corner triangles with non-positive orientation (hyperbolic:
   /// tested in the Klein model, where the triangle sides are straight),
   /// among the resolvable ones.
