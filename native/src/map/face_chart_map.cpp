@@ -86,10 +86,11 @@ struct TargetCharts {
   }
 };
 
-// The element b's home coordinates -> a's along the shortest edge path of
-// T' from a to b in the metric (Dijkstra, stopped at b).
-Mobius along_metric_path(const TargetCharts& t, int a, int b) {
-  const Connectivity& conn = t.conn();
+// The halfedges of the shortest edge path from a to b (Dijkstra on
+// `lengths`, #E, stopped at b), listed from b back to a; `what` names the
+// mesh in the error when b cannot be reached.
+std::vector<int> shortest_edge_path_back(const Connectivity& conn, const Eigen::VectorXd& lengths, int a, int b,
+                                         const char* what) {
   std::vector<double> dist(conn.num_vertices(), std::numeric_limits<double>::infinity());
   std::vector<int> parent(conn.num_vertices(), -1);
   using Item = std::pair<double, int>;
@@ -103,43 +104,33 @@ Mobius along_metric_path(const TargetCharts& t, int a, int b) {
     if (v == b) break;
     for (int h : conn.outgoing(v)) {
       const int w = conn.head(h);
-      const double nd = d + t.lengths[conn.edge(h)];
+      const double nd = d + lengths[conn.edge(h)];
       if (nd < dist[w]) dist[w] = nd, parent[w] = h, queue.push({nd, w});
     }
   }
-  if (parent[b] < 0) throw SolveError("per-face charts: no edge path of T' between target vertices " +
-                                      std::to_string(a) + " and " + std::to_string(b));
+  if (a != b && parent[b] < 0)
+    throw SolveError(std::string("per-face charts: no edge path of ") + what + " between vertices " +
+                     std::to_string(a) + " and " + std::to_string(b));
+  std::vector<int> back;
+  for (int v = b; v != a; v = conn.tail(parent[v])) back.push_back(parent[v]);
+  return back;
+}
+
+// The element b's home coordinates -> a's along the shortest edge path of
+// T' from a to b in the metric.
+Mobius along_metric_path(const TargetCharts& t, int a, int b) {
   Mobius m;
-  for (int v = b; v != a; v = conn.tail(parent[v])) m = (t.along(parent[v]) * m).normalized();
+  for (int h : shortest_edge_path_back(t.conn(), t.lengths, a, b, "T'")) m = (t.along(h) * m).normalized();
   return m;
 }
 
 // The element b's home coordinates -> a's along the shortest edge path of
-// the user's target from a to b in 3D (Dijkstra, stopped at b), composed of
-// its edges' elements (TargetCharts::input_rho).
+// the user's target from a to b in 3D, composed of its edges' elements
+// (TargetCharts::input_rho).
 Mobius along_target_path(const Connectivity& tc, const TargetCharts& t, int a, int b) {
-  std::vector<double> dist(tc.num_vertices(), std::numeric_limits<double>::infinity());
-  std::vector<int> parent(tc.num_vertices(), -1);
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
-  dist[a] = 0;
-  queue.push({0.0, a});
-  while (!queue.empty()) {
-    const auto [d, v] = queue.top();
-    queue.pop();
-    if (d > dist[v]) continue;
-    if (v == b) break;
-    for (int h : tc.outgoing(v)) {
-      const int w = tc.head(h);
-      const double nd = d + t.input_length[tc.edge(h)];
-      if (nd < dist[w]) dist[w] = nd, parent[w] = h, queue.push({nd, w});
-    }
-  }
-  if (parent[b] < 0) throw SolveError("per-face charts: no edge path of the target between vertices " +
-                                      std::to_string(a) + " and " + std::to_string(b));
   Mobius m;
-  for (int v = b; v != a; v = tc.tail(parent[v])) {
-    const int h = parent[v], e = tc.edge(h);
+  for (int h : shortest_edge_path_back(tc, t.input_length, a, b, "the target")) {
+    const int e = tc.edge(h);
     m = ((tc.edge_halfedge(e) == h ? t.input_rho[e] : t.input_rho[e].inverse()) * m).normalized();
   }
   return m;
