@@ -86,6 +86,35 @@ struct TargetCharts {
   }
 };
 
+// The class is a cocycle: around every face rho_ab rho_bc rho_ca = id. Fills
+// the element of every edge that is a face's only unknown one from the other
+// two, until no face has exactly one unknown edge. rho(e) is edge e's element
+// along its edge_halfedge (a reference into the caller's storage); `known`
+// (#E) is updated. Returns how many edges it filled.
+template <class EdgeRho>
+int close_faces(const Connectivity& conn, std::vector<char>& known, EdgeRho&& rho) {
+  auto halfedge_rho = [&](int h) -> Mobius {
+    const int e = conn.edge(h);
+    return conn.edge_halfedge(e) == h ? rho(e) : rho(e).inverse();
+  };
+  int filled = 0;
+  for (bool progress = true; progress;) {
+    progress = false;
+    for (int f = 0; f < conn.num_faces(); ++f) {
+      int unknown = -1, count = 0;
+      for (int k = 0; k < 3; ++k)
+        if (!known[conn.edge(3 * f + k)]) unknown = 3 * f + k, ++count;
+      if (count != 1) continue;
+      const int h1 = Connectivity::next(unknown), h2 = Connectivity::next(h1);
+      const Mobius rho_h = (halfedge_rho(h1) * halfedge_rho(h2)).inverse().normalized();
+      const int e = conn.edge(unknown);
+      rho(e) = conn.edge_halfedge(e) == unknown ? rho_h : rho_h.inverse();
+      known[e] = 1, ++filled, progress = true;
+    }
+  }
+  return filled;
+}
+
 // The halfedges of the shortest edge path from a to b (Dijkstra on
 // `lengths`, #E, stopped at b), listed from b back to a; `what` names the
 // mesh in the error when b cannot be reached.
@@ -182,24 +211,7 @@ TargetCharts target_charts(const TriMesh& target, const Connectivity& tc, const 
     }
     if (on_edge) t.input_rho[e] = t.along(g), known[e] = 1, ++t.kept;
   }
-  auto halfedge_rho = [&](int h) {
-    const int e = tc.edge(h);
-    return tc.edge_halfedge(e) == h ? t.input_rho[e] : t.input_rho[e].inverse();
-  };
-  for (bool progress = true; progress;) {
-    progress = false;
-    for (int f = 0; f < tc.num_faces(); ++f) {
-      int unknown = -1, count = 0;
-      for (int k = 0; k < 3; ++k)
-        if (!known[tc.edge(3 * f + k)]) unknown = 3 * f + k, ++count;
-      if (count != 1) continue;
-      const int h1 = Connectivity::next(unknown), h2 = Connectivity::next(h1);
-      const Mobius rho_h = (halfedge_rho(h1) * halfedge_rho(h2)).inverse().normalized();
-      const int e = tc.edge(unknown);
-      t.input_rho[e] = tc.edge_halfedge(e) == unknown ? rho_h : rho_h.inverse();
-      known[e] = 1, ++t.by_faces, progress = true;
-    }
-  }
+  t.by_faces = close_faces(tc, known, [&](int e) -> Mobius& { return t.input_rho[e]; });
   for (int e = 0; e < ne; ++e)
     if (!known[e]) {
       const int h = tc.edge_halfedge(e);
@@ -255,21 +267,7 @@ SnappedStart snapped_start(const TriMesh& source, const Connectivity& sc, const 
     const int e = sc.edge(h);
     return sc.edge_halfedge(e) == h ? s.edges[e].rho : s.edges[e].rho.inverse();
   };
-  // The class is a cocycle: around every source face rho_ab rho_bc rho_ca = id.
-  for (bool progress = true; progress;) {
-    progress = false;
-    for (int f = 0; f < sc.num_faces(); ++f) {
-      int unknown = -1, count = 0;
-      for (int k = 0; k < 3; ++k)
-        if (!known[sc.edge(3 * f + k)]) unknown = 3 * f + k, ++count;
-      if (count != 1) continue;
-      const int h1 = Connectivity::next(unknown), h2 = Connectivity::next(h1);
-      const Mobius rho_h = (halfedge_rho(h1) * halfedge_rho(h2)).inverse().normalized();
-      const int e = sc.edge(unknown);
-      s.edges[e].rho = sc.edge_halfedge(e) == unknown ? rho_h : rho_h.inverse();
-      known[e] = 1, ++s.by_faces, progress = true;
-    }
-  }
+  s.by_faces = close_faces(sc, known, [&](int e) -> Mobius& { return s.edges[e].rho; });
   for (int e = 0; e < ne; ++e)
     if (!known[e]) {
       s.edges[e].rho = along_target_path(tc, t, snap[s.edges[e].i], snap[s.edges[e].j]);
