@@ -242,7 +242,7 @@ class _Side:
         return lo
 
 
-def _capped_map(S, T, pairing, options, mirrored=False, tie_tolerance=1e-6, landmarks=None):
+def _capped_map(S, T, pairing, options, mirrored=False, tie_tolerance=1e-6, landmarks=None, reverse=False):
     """The capped source onto the capped target (closed, genus g) with loop i's centre held on
     target loop pairing[i]'s: a list of rough maps, each (per split-source vertex its image
     (position) on the capped target, the capped target face it lies in, the target's split
@@ -259,10 +259,19 @@ def _capped_map(S, T, pairing, options, mirrored=False, tie_tolerance=1e-6, land
     capped map cannot tell them apart (one of them maps the half onto itself rotated by 180°:
     the punctured torus onto its bend-0.5 copy moved by 31% of the diagonal). Each class within
     `tie_tolerance` (relative) of the chosen one's held energy is returned; the doubles' energy
-    (the hole is not exactly symmetric) or the alignment then chooses (surface_map_open)."""
+    (the hole is not exactly symmetric) or the alignment then chooses (surface_map_open).
+
+    reverse: the capped target mapped onto the capped source (mirrored: the source's mirror image)
+    with target loop pairing[i]'s centre held on source loop i's, bijectively only (no plain pins),
+    and its inverse taken (per split-source vertex a point on the capped target): the same held
+    class when both directions hold, and a bijective one where the source -> target direction can
+    hold its centres only by folding (_reverse_capped_class)."""
     Vs, Fs, cs = cap_holes(S.V2, S.F2, S.loops)
     Vt, Ft, ct = cap_holes(T.V2, T.F2, T.loops)
-    if mirrored:
+    if mirrored and reverse:
+        Vs = Vs * np.array([-1.0, 1.0, 1.0])
+        Fs = Fs[:, ::-1]
+    elif mirrored:
         Vt = Vt * np.array([-1.0, 1.0, 1.0])
         Ft = Ft[:, ::-1]
     # The cap centres, then the user's landmarks (input vertices keep their indices).
@@ -271,20 +280,27 @@ def _capped_map(S, T, pairing, options, mirrored=False, tie_tolerance=1e-6, land
     kw = {k: v for k, v in options.items() if k in ("threads", "tolerance", "max_iterations", "target_metric")}
 
     def solve(**extra):
-        r = _solve_closed(lambda **metric: _core.surface_map(Vs, Fs, Vt, Ft, landmarks=landmarks, two_way=False,
-                                                             homotopy_both_signs=True, **kw, **extra, **metric), kw)
+        if reverse:
+            r = _solve_closed(lambda **metric: _core.surface_map(Vt, Ft, Vs, Fs, landmarks=landmarks[:, ::-1].copy(),
+                                                                 two_way=False, homotopy_both_signs=True, **kw,
+                                                                 **extra, **metric), kw)
+        else:
+            r = _solve_closed(lambda **metric: _core.surface_map(Vs, Fs, Vt, Ft, landmarks=landmarks, two_way=False,
+                                                                 homotopy_both_signs=True, **kw, **extra, **metric), kw)
         if bool(r["source_flipped"]) != bool(r["target_flipped"]):
             raise _core.SolveError("the capped surfaces came out oriented differently (the source's faces "
                                    f"{'reversed' if r['source_flipped'] else 'kept'}, the target's "
                                    f"{'reversed' if r['target_flipped'] else 'kept'}): the open meshes' orientations "
                                    "differ")
-        fw = r["forward"]
+        fw = r["inverse"] if reverse else r["forward"]   # reverse: per capped-source vertex, on the capped target
         hom = r.get("homotopy", {})
         cands = hom.get("candidates", [])
         chosen = int(hom.get("chosen", -1))
         desc = cands[chosen].get("description", "") if 0 <= chosen < len(cands) else ""
         if extra.get("landmarks_may_fold") and int(r.get("flipped_triangles", 0)):
             desc += f" [cap centres held by plain pins: {int(r['flipped_triangles'])} folded faces]"
+        if reverse:
+            desc += " [the target -> source capped map, inverted]"
         return (np.asarray(fw["position"])[:S.n2], np.asarray(fw["face"])[:S.n2], Vt[:T.n2], desc), cands, chosen
 
     # The capped map is used for its class only (_symmetric_images carries it to the doubles, whose
@@ -301,7 +317,7 @@ def _capped_map(S, T, pairing, options, mirrored=False, tie_tolerance=1e-6, land
     except _core.Cancelled:
         raise
     except _core.SolveError as e:
-        if "landmark" not in str(e):
+        if "landmark" not in str(e) or reverse:
             raise
         fold = {"landmarks_may_fold": True}
         first, cands, chosen = solve(**fold)
@@ -424,6 +440,41 @@ def _other_chains(S, T, pairing, reversed_orientation, options, lm, twist, error
     raise error
 
 
+def _reverse_capped_class(S, T, pairing, reversed_orientation, options, lm, twist, error):
+    """Genus >= 1: when the doubles' solve refuses the class carried by the capped source -> target
+    map's images (the carried loops not an isomorphism), the class of the capped target -> source
+    map holding the same centres, inverted (_capped_map's reverse): each of its tied classes solved
+    on the doubles, the lowest energy kept (then the alignment). Why: where the source -> target
+    map can hold the cap centres only by plain pins, each pin is a spike and the loops around it
+    stay where the free map put them (the raw cup with two holes onto the jittered torus with two
+    holes: 1,012 folded faces, each source loop's images snapped onto one vertex of its target loop,
+    winding 0, so no degree-one map of the doubles), while the other direction held them
+    bijectively. Returns (the doubles' map, the images, the class's description); raises `error`
+    when the other direction cannot hold its centres either or none of its classes maps."""
+    try:
+        roughs = _capped_map(S, T, pairing, options, mirrored=reversed_orientation, landmarks=lm, reverse=True)
+    except _core.Cancelled:
+        raise
+    except _core.Error:
+        raise error from None
+    solved = []
+    for pos, face, target_xyz, desc in roughs:
+        try:
+            images = _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz, landmarks=lm,
+                                       twist=twist)
+            r = _double_map(S, T, images, options, _landmark_pairs(S, T, lm, reversed_orientation))
+        except _core.Cancelled:
+            raise
+        except _core.Error:
+            continue
+        solved.append((float(r["energy"]["final"]), _alignment(S, T, np.asarray(r["forward"]["position"])[:S.n]),
+                       len(solved), r, images, desc))
+    if not solved:
+        raise error
+    _, _, _, r, images, desc = min(solved, key=lambda x: x[:3])
+    return r, images, desc
+
+
 def _rough_maps(S, T, pairing, options, mirrored, landmarks, classes_per_pairing=1):
     """The rough maps of the halves for one pairing and orientation (_capped_map's form). Genus 0:
     the homeomorphism of the halves cut into disks along chains of shortest paths between the
@@ -436,7 +487,19 @@ def _rough_maps(S, T, pairing, options, mirrored, landmarks, classes_per_pairing
     more loops and landmarks, the capped map holding them comes first (the landmarks choose among
     the pairing's classes). Genus >= 1: _capped_map. Returns (the rough maps, how they were made: the candidates' 'rough_map')."""
     if S.genus >= 1:
-        return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks), "capped map"
+        try:
+            return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks), "capped map"
+        except _core.Cancelled:
+            raise
+        except _core.Error as e:
+            # The other direction's capped map, inverted (_reverse_capped_class says why).
+            try:
+                return _capped_map(S, T, pairing, options, mirrored=mirrored, landmarks=landmarks,
+                                   reverse=True), "capped map"
+            except _core.Cancelled:
+                raise
+            except _core.Error:
+                raise e from None
     cut_failed = ""
     if S.b >= 4 and landmarks is not None and len(landmarks):
         # With four or more loops the pairing leaves infinitely many classes, and landmarks pick
@@ -1147,10 +1210,14 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                 try:
                     r = _double_map(S, T, images, options, _landmark_pairs(S, T, lm, rev))
                 except _core.SolveError as e:
-                    if not (rough_method == "cut disks" and S.b <= 3 and "isomorphism" in str(e)):
+                    if rough_method == "cut disks" and S.b <= 3 and "isomorphism" in str(e):
+                        r, images, chain = _other_chains(S, T, pairing, rev, options, lm, twist, e)
+                        cand["chain"] = f"chain {chain} (chain {'-'.join(map(str, range(S.b)))}: {e})"
+                    elif rough_method == "capped map" and "inverted" not in capped_class and "isomorphism" in str(e):
+                        r, images, desc = _reverse_capped_class(S, T, pairing, rev, options, lm, twist, e)
+                        cand["capped_class"] = f"{desc} (source -> target: {capped_class}: {e})"
+                    else:
                         raise
-                    r, images, chain = _other_chains(S, T, pairing, rev, options, lm, twist, e)
-                    cand["chain"] = f"chain {chain} (chain {'-'.join(map(str, range(S.b)))}: {e})"
                 err, sheet = _symmetry(r, S, T, rev)
                 cand.update(energy=float(r["energy"]["final"]) / 2, symmetry_error=err, same_sheet=sheet,
                             status="ok" if err <= symmetry_tolerance and sheet >= 0.9 else
