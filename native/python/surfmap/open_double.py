@@ -449,15 +449,16 @@ def _reverse_capped_class(S, T, pairing, reversed_orientation, options, lm, twis
     stay where the free map put them (the raw cup with two holes onto the jittered torus with two
     holes: 1,012 folded faces, each source loop's images snapped onto one vertex of its target loop,
     winding 0, so no degree-one map of the doubles), while the other direction held them
-    bijectively. Returns (the doubles' map, the images, the class's description); raises `error`
-    when the other direction cannot hold its centres either or none of its classes maps."""
+    bijectively. Returns (the doubles' map, the images, the class's description); a SolveError
+    naming `error` and why when the other direction cannot hold its centres either or none of its
+    classes maps."""
     try:
         roughs = _capped_map(S, T, pairing, options, mirrored=reversed_orientation, landmarks=lm, reverse=True)
     except _core.Cancelled:
         raise
-    except _core.Error:
-        raise error from None
-    solved = []
+    except _core.Error as e:
+        raise _core.SolveError(f"{error}; the target -> source capped map: {e}") from None
+    solved, failed = [], []
     for pos, face, target_xyz, desc in roughs:
         try:
             images = _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz, landmarks=lm,
@@ -465,12 +466,13 @@ def _reverse_capped_class(S, T, pairing, reversed_orientation, options, lm, twis
             r = _double_map(S, T, images, options, _landmark_pairs(S, T, lm, reversed_orientation))
         except _core.Cancelled:
             raise
-        except _core.Error:
+        except _core.Error as e:
+            failed.append(f"{desc}: {e}")
             continue
         solved.append((float(r["energy"]["final"]), _alignment(S, T, np.asarray(r["forward"]["position"])[:S.n]),
                        len(solved), r, images, desc))
     if not solved:
-        raise error
+        raise _core.SolveError(f"{error}; the target -> source capped map, inverted: " + "; ".join(failed))
     _, _, _, r, images, desc = min(solved, key=lambda x: x[:3])
     return r, images, desc
 
@@ -629,9 +631,10 @@ def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz
     s_loop = S.loop_of_vertex()
     # Which target cap a capped-target face belongs to (-1: the half).
     cap_of_face = -np.ones(n_target_half_faces + sum(len(l) for l in T.loops), dtype=np.int64)
-    start = n_target_half_faces
+    cap_start, start = [], n_target_half_faces
     for i, loop in enumerate(T.loops):
         cap_of_face[start:start + len(loop)] = i
+        cap_start.append(start)
         start += len(loop)
     cap = cap_of_face[face] if face is not None else np.full(S.n2, -1)
     free = (s_loop < 0) & (cap < 0)
@@ -642,6 +645,19 @@ def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz
         sel = np.flatnonzero(np.isin(s_loop, src_loop) | ((s_loop < 0) & (cap == i)))
         if len(sel):
             target_vertex[sel] = loop[_nearest(pos[sel], target_xyz[loop])]
+            # An image inside the cap goes to a corner of its cap face, the nearer of the face's
+            # two loop vertices (cap face k lies on loop edge k, k + 1: cap_holes), not to the
+            # loop vertex nearest in space: that one is arbitrary near the cap's centre, and a
+            # source loop whose images circle the centre inside the cap (a source hole
+            # conformally smaller than the target's: the raw cup's onto the jittered torus's, 430
+            # of 2,289 images inside the caps) snapped onto 3-4 target loop vertices with winding 0.
+            in_cap = sel[cap[sel] == i]
+            if len(in_cap):
+                k = face[in_cap] - cap_start[i]
+                a, b = loop[k], loop[(k + 1) % len(loop)]
+                nearer_b = (np.linalg.norm(pos[in_cap] - target_xyz[b], axis=1)
+                            < np.linalg.norm(pos[in_cap] - target_xyz[a], axis=1))
+                target_vertex[in_cap] = np.where(nearer_b, b, a)
     for loop, turns in (twist or {}).items():
         # A rough map twisted about target loop `loop` (surface_map_open's boundary_twists).
         target_vertex = _collar_twist(T, loop, turns)[target_vertex]

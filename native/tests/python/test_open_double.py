@@ -416,6 +416,45 @@ def test_a_refused_cut_disk_class_is_asked_again_along_another_chain(monkeypatch
     assert check_map(r, Vs, Fs, Vt, Ft) == 0 and r["flipped_triangles"] == 0
 
 
+def test_a_capped_class_that_does_not_carry_is_taken_from_the_other_direction(monkeypatch):
+    """Issue 16, genus >= 1: the class comes from the capped source -> target map holding the cap
+    centres. Where it can hold them only by plain pins (the ugly set's raw cup with two holes onto a
+    jittered torus with two holes: 1,012 folded faces), each pin is a spike, the loops around it stay
+    where the free map put them, every source loop's images snap onto one vertex of its target loop
+    and the doubles refuse the class ("the carried loops do not give an isomorphism"): no candidate
+    mapped. The capped target -> source map held them bijectively; its class, inverted, maps. Here
+    the source -> target map's interior images are scrambled (so its carried loops are refused);
+    the candidate still maps, through the other direction, to the same map as the unscrambled run."""
+    Vs, Fs = torus_with_two_holes(32, 16)
+    Vt, Ft = bend(Vs, 0.3), Fs
+    kw = dict(boundary_pairing=[0, 1], orientations=("preserving",))
+    plain = open_double.surface_map_open(Vs, Fs, Vt, Ft, **kw)
+    capped = open_double._capped_map
+
+    def scrambled_source_to_target(S, T, pairing, options, **args):
+        out = capped(S, T, pairing, options, **args)
+        if args.get("reverse"):
+            return out
+        inner = np.flatnonzero(S.loop_of_vertex() < 0)
+        perm = inner[np.random.default_rng(0).permutation(len(inner))]
+        scrambled = []
+        for pos, face, target_xyz, desc in out:
+            pos, face = pos.copy(), face.copy()
+            pos[inner], face[inner] = pos[perm], face[perm]
+            scrambled.append((pos, face, target_xyz, desc))
+        return scrambled
+    monkeypatch.setattr(open_double, "_capped_map", scrambled_source_to_target)
+    r = open_double.surface_map_open(Vs, Fs, Vt, Ft, **kw)
+    chosen = [c for c in r["open"]["candidates"] if c["chosen"]]
+    assert len(chosen) == 1 and chosen[0]["status"] == "ok"
+    assert "inverted" in chosen[0]["capped_class"] and "isomorphism" in chosen[0]["capped_class"]
+    assert abs(r["energy"]["final"] - plain["energy"]["final"]) <= 1e-6 * plain["energy"]["final"]
+    diag = np.linalg.norm(Vt.max(axis=0) - Vt.min(axis=0))
+    assert np.linalg.norm(r["forward"]["position"] - plain["forward"]["position"], axis=1).max() < 1e-5 * diag
+    assert check_map(r, Vs, Fs, Vt, Ft) == 0 and r["flipped_triangles"] == 0
+    assert r["open"]["inverse_flipped_triangles"] == 0
+
+
 def sphere_with_four_holes(level=3):
     """Genus 0 with 4 boundary loops: caps of slightly different sizes removed around
     non-coplanar directions."""
