@@ -455,6 +455,41 @@ def test_a_capped_class_that_does_not_carry_is_taken_from_the_other_direction(mo
     assert r["open"]["inverse_flipped_triangles"] == 0
 
 
+def test_images_inside_a_target_cap_keep_the_loops_winding():
+    """A source hole conformally smaller than the target's puts the source loop's images, and the
+    interior around it, inside the target's cap, circling its centre (the raw cup with two holes
+    onto the jittered torus with two holes: 430 of 2,289 images inside the caps). Snapped onto the
+    target loop vertex nearest in space they fell on 3-4 vertices with winding 0 (near the centre
+    that vertex is arbitrary) and the doubles refused the class; snapped onto a corner of the cap
+    face holding them, each loop winds once around its target loop. Here every source loop
+    vertex's image is put on a small circle around the target cap's centre, in the cap face of
+    the target loop edge at its own arc-length fraction."""
+    Vs, Fs = torus_with_two_holes(32, 16)
+    S = open_double._Side(Vs, Fs, "source")
+    T = open_double._Side(*torus_with_two_holes(40, 20), "target")
+    Vc, Fc, centres = open_double.cap_holes(T.V2, T.F2, T.loops)
+    pos = T.V2[open_double._nearest(S.V2, T.V2)]
+    face = np.zeros(S.n2, dtype=np.int64)   # half faces: not in a cap (only the cap faces are read)
+    start = len(T.F2)
+    for i, (ls, lt) in enumerate(zip(S.loops, T.loops)):
+        def fraction(V, loop):
+            a = np.concatenate([[0.0], np.cumsum(np.linalg.norm(V[loop] - V[np.roll(loop, -1)], axis=1))])
+            return a[:-1] / a[-1]
+        edge = np.searchsorted(fraction(T.V2, lt), fraction(S.V2, ls), side="right") - 1
+        mid = 0.5 * (T.V2[lt[edge]] + T.V2[lt[(edge + 1) % len(lt)]])
+        pos[ls] = 0.95 * Vc[centres[i]] + 0.05 * mid
+        face[ls] = start + edge
+        start += len(lt)
+    images = open_double._symmetric_images(S, T, [0, 1], False, pos, face, T.V2)
+    tv = open_double._nearest(images[:S.n2], T.V2)
+    for ls, lt in zip(S.loops, T.loops):
+        where = {int(v): j for j, v in enumerate(lt)}
+        idx = np.array([where[int(v)] for v in tv[ls]])
+        steps = (np.diff(np.r_[idx, idx[0]]) + len(lt) // 2) % len(lt) - len(lt) // 2
+        assert steps.sum() == len(lt)            # once around, in the loop's direction
+        assert np.all(steps >= 0) and len(set(idx.tolist())) >= len(lt) // 2   # monotone, spread around
+
+
 def sphere_with_four_holes(level=3):
     """Genus 0 with 4 boundary loops: caps of slightly different sizes removed around
     non-coplanar directions."""
