@@ -617,7 +617,8 @@ def _collar_twist(T, loop, turns, rings=None, max_ring_growth=1.25):
 def _symmetric_images(S, T, pairing, reversed_orientation, pos, face, target_xyz, landmarks=None, twist=None):
     """Per vertex of the source's double a target double vertex position: the capped map's image
     moved onto the nearest target vertex (source boundary vertices onto the nearest vertex of
-    the paired target loop; images inside a target cap onto that cap's loop), the mirror
+    the paired target loop; images inside a target cap onto that cap's loop, at a corner of the cap
+    face holding them), the mirror
     vertices onto the mirror of their twin's image. Exact target vertex positions, so the
     pipeline's loop projection (ProjectedLoopsOptions::source_on_target) lands on them.
     reversed_orientation: the capped map was onto the target's mirror image (orientation
