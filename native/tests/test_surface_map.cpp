@@ -1198,7 +1198,9 @@ TEST(SurfaceMapHandles, ThroughShapeComposesTheLettersOfBothRuns) {
 // through the generated shapes (the genus-2 CAD plate and n-hole torus) are
 // the untwisted one's neighbourhood, lower, so one is chosen, listed after
 // the first candidate, and its map is a valid map. Several given classes are
-// ranked and the lowest chosen; a repeated one is listed once.
+// ranked and the lowest chosen; a repeated one is listed once. The twist
+// search runs on from a given class (session 18): from the twisted one it
+// finds the untwisted class's energy again, listed after the given class.
 TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   const TriMesh a = samples::cad_plate(2, 32, 0.3);
   const TriMesh b = samples::n_hole_torus(2, 26, true);
@@ -1210,6 +1212,17 @@ TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   for (int k = 0; k < 3; ++k) twisted[1].insert(twisted[1].end(), twisted[0].begin(), twisted[0].end());
   SurfaceMapOptions t = o;
   t.homotopy.given_class = twisted;
+  const SurfaceMapResult searched = surface_map(a, b, t);
+  ASSERT_GE(searched.candidates.size(), 2u);
+  EXPECT_NE(searched.candidates[0].description.find("the given class"), std::string::npos);
+  EXPECT_GT(searched.candidates[0].energy, plain.final_energy * 1.2) << searched.candidates[0].description;
+  EXPECT_GE(searched.chosen_candidate, 1);
+  EXPECT_NE(searched.candidates[searched.chosen_candidate].description.find("[class search from candidate 0"),
+            std::string::npos)
+      << searched.candidates[searched.chosen_candidate].description;
+  EXPECT_NEAR(searched.energy_ratio, plain.energy_ratio, 1e-3 * plain.energy_ratio);
+  // The twisted class alone (no search): the first result of the step below.
+  t.homotopy.search.enabled = false;
   SurfaceMapResult forward = surface_map(a, b, t);
   ASSERT_GT(forward.energy_ratio, plain.energy_ratio * 1.2);  // (1.52 against 1.12)
   // The twisted class, the plain one and the twisted one again, ranked.

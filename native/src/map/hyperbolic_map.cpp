@@ -692,7 +692,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   if (cs.ok)
     level = coarse_level(cs, sc, ss.edge_word, ss.sl, data, usable, *deck_group,
                          options.homotopy.search.enabled && !options.homotopy.images_only &&
-                             options.homotopy.given_class.empty() && options.homotopy.class_index < 0);
+                             options.homotopy.class_index < 0);
   if (!cs.ok) {
     // No coarse copy after all (coarse_level refused it): every class is
     // solved at full resolution, so every class needs its solver data.
@@ -1038,7 +1038,10 @@ void HyperbolicPipeline::search_classes() {
   const double conformal_bound = 8 * M_PI * (out.genus - 1);
   const double gap_bound = (1 + options.homotopy.search.gap) * conformal_bound;
   // (order[0] not usable: every candidate failed, energy +inf; issue 13.)
-  if (searching && candidates.lifter && options.homotopy.search.cuts > 0 && hooks.homotopy_search_start < 0 &&
+  // (Given classes: only the twists from the best of them, no other kind of
+  // class: HomotopyOptions::given_class.)
+  const bool given = !options.homotopy.given_class.empty();
+  if (searching && !given && candidates.lifter && options.homotopy.search.cuts > 0 && hooks.homotopy_search_start < 0 &&
       out.candidates[order[0]].energy > gap_bound)
     for (FoundClass& f : classes_from_more_cuts(*candidates.lifter, cuts, *space, nv, threads, conformal_bound,
                                                  [this](const GroupMap& theta) { return listed_data_of(theta); }, pruned_solve,
@@ -1049,7 +1052,7 @@ void HyperbolicPipeline::search_classes() {
   std::vector<int> restart_from;
   // Issue 19: only when the best class so far is at least geometric_ratio x
   // the bound (they cost 1-6 s on genus-2 pairs and never won below it).
-  if (searching && options.homotopy.search.geometric > 0 && hooks.homotopy_search_start < 0 &&
+  if (searching && !given && options.homotopy.search.geometric > 0 && hooks.homotopy_search_start < 0 &&
       out.candidates[order[0]].energy > gap_bound &&
       out.candidates[order[0]].energy >= options.homotopy.search.geometric_ratio * conformal_bound) {
     const SourceClassBounds& bounds = class_bounds_now();
@@ -1243,8 +1246,7 @@ int HyperbolicPipeline::append_full_class(HomotopyClass hc, ClassData cd, Coarse
 // search runs on full-resolution solves, from the best solved class and
 // restarted from the next best distinct ones within restart_ratio.
 void HyperbolicPipeline::twist_search_at_full_resolution() {
-  if (!options.homotopy.search.enabled || options.homotopy.class_index >= 0 || options.homotopy.reverse_class_only ||
-      !options.homotopy.given_class.empty())
+  if (!options.homotopy.search.enabled || options.homotopy.class_index >= 0 || options.homotopy.reverse_class_only)
     return;
   // (With the testing hooks' start, one run from there, whatever its energy.)
   const bool hooked = hooks.homotopy_search_start >= 0;
@@ -2048,8 +2050,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   p.start_class_bounds();          // issue 14: the source's own uniformization, for class lower bounds
   p.candidate_classes_and_data();  // §V-B: candidate homotopy classes and their deck elements
   p.rank_on_coarse_copy();         // ranking: every class solved on the coarse copy
-  if (p.ss.cs.ok && !options.homotopy.images_only && !options.homotopy.reverse_class_only &&
-      options.homotopy.given_class.empty())
+  if (p.ss.cs.ok && !options.homotopy.images_only && !options.homotopy.reverse_class_only)
     p.search_classes();  // more cuts, Dehn twists (mapping_class_search.h)
   p.solve_at_full_resolution(p.ss.cs.ok);  // §VI-B: the best classes at full resolution
   if (!p.ss.cs.ok) p.geometric_classes_at_full_resolution();  // issue 14: small sources (no coarse copy)

@@ -223,6 +223,9 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   // solves, the best at full resolution), no class search.
   SurfaceMapOptions here = one_way_options(options);
   here.loops = options.loops;
+  // (The twist search runs on from the best of them, HomotopyOptions::
+  // given_class: a composed class is as good as its two legs, not a local
+  // minimum here; docs/handle_classes.md "session 18".)
   for (const std::vector<std::vector<int>>& theta : composed)
     here.homotopy.given_class.insert(here.homotopy.given_class.end(), theta.begin(), theta.end());
   SurfaceMapResult through;
@@ -242,8 +245,12 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
     for (const std::string& name : composed_through)
       if (d.find("through a generated " + name) != std::string::npos) chosen_through = " (the class through the " + name + ")";
   }
+  std::string searched;
+  if (through.homotopy_search.run)
+    searched = ", searched on from the best: " + std::to_string(through.homotopy_search.moves.size()) + " moves, " +
+               std::to_string(through.homotopy_search.evaluations) + " solves (" + through.homotopy_search.stop_reason + ")";
   const std::string status = runs + "; the composed class" + (composed.size() > 1 ? "es" : "") + " here (" +
-                             ts.text() + "): energy ratio " + four_digits(after) + " against " +
+                             ts.text() + searched + "): energy ratio " + four_digits(after) + " against " +
                              four_digits(before) + chosen_through + (better ? ": used" : ": kept the first");
   // Every composed class is listed (the unchosen ones with their ranking
   // energies): the record of what was tried.

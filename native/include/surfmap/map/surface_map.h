@@ -298,9 +298,9 @@ struct HomotopyOptions {
   /// Genus >= 2: classes given as words (2g each: source generator j+1 ->
   /// word in the target's canonical letters, as chosen_class_words, in these
   /// options' cuts; k classes as k 2g words in a row, repeats dropped), ranked
-  /// like candidates with no other candidate, class search, geometric
-  /// classes, two-way run or through-shape step (a SolveError when one is no
-  /// isomorphism). The through-shape step uses it. Default empty.
+  /// like candidates with no other candidate, geometric classes, two-way run
+  /// or through-shape step; the twist search alone runs on from the best (a
+  /// SolveError when one is no isomorphism). The through-shape step uses it.
   std::vector<std::vector<int>> given_class;
   /// Genus >= 2, set by the two-way run: per source vertex a point on the
   /// target (#V_source x 3; empty, the default: none), where the inverse of
