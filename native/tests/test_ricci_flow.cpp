@@ -703,6 +703,65 @@ TEST(RicciFlow, TwoThreadEvaluationsGiveTheSameBits) {
   EXPECT_TRUE(one.edge_vertices == two.edge_vertices);
 }
 
+// ricci_flow_from_checked (the map's target stage): a start is used only
+// when the energy runs downhill to it and not much uphill at it. The coarse
+// start does (and saves Newton steps); its negation is uphill from u = 0
+// (φ'(0) = g(0)·(−u) > 0) and twice it overshoots; both are declined, after
+// which the run is the one from u = 0 bit for bit: the flips undone exactly.
+TEST(RicciFlow, CheckedStartIsUsedOnlyWhenItLowersTheEnergy) {
+  const TriMesh m = samples::n_hole_torus(2, 40, true);
+  const Connectivity c(m.F, m.num_vertices());
+  const Eigen::VectorXd l = edge_lengths(m, c);
+  RicciFlowOptions o;
+  o.intrinsic_delaunay = true;
+  const RicciFlowResult zero = ricci_flow(c, l, Background::Hyperbolic, o);
+  ASSERT_TRUE(zero.converged) << zero.message;
+  CoarseStartOptions so;
+  so.coarse_vertices = 400;
+  so.min_vertices = 1000;
+  const CoarseStart start = coarse_conformal_start(m, c, Background::Hyperbolic, so);
+  ASSERT_TRUE(start.ok) << start.why;
+
+  const CheckedFlow good = ricci_flow_from_checked(c, l, Background::Hyperbolic, o, start.u);
+  ASSERT_TRUE(good.flow.converged) << good.flow.message;
+  EXPECT_TRUE(good.start.start_used);
+  // E convex along the segment: the slope grows; a good start is downhill
+  // and near the segment's minimum.
+  EXPECT_LT(good.start.slope_at_zero, 0.0);
+  EXPECT_LE(good.start.slope_at_zero, good.start.slope_at_start);
+  EXPECT_LT(good.start.slope_at_start, 0.05 * -good.start.slope_at_zero);
+  EXPECT_EQ(good.start.residual_at_zero, zero.residual_history.front());
+  EXPECT_LT(good.flow.iterations, zero.iterations);
+  EXPECT_LT((good.flow.u - zero.u).cwiseAbs().maxCoeff(), 1e-7);
+
+  const CheckedFlow bad = ricci_flow_from_checked(c, l, Background::Hyperbolic, o, -start.u);
+  const RicciFlowResult& b = bad.flow;
+  ASSERT_TRUE(b.converged) << b.message;
+  EXPECT_FALSE(bad.start.start_used);
+  EXPECT_GT(bad.start.slope_at_zero, 0.0);
+  EXPECT_EQ(b.iterations, zero.iterations);
+  EXPECT_EQ(b.residual_history, zero.residual_history);
+  EXPECT_EQ(b.flips, zero.flips);
+  EXPECT_TRUE(b.u == zero.u);
+  EXPECT_TRUE(b.edge_lengths == zero.edge_lengths);
+  EXPECT_TRUE(b.edge_vertices == zero.edge_vertices);
+  EXPECT_TRUE(b.faces == zero.faces);
+  ASSERT_EQ(b.flip_history.size(), zero.flip_history.size());
+  for (size_t k = 0; k < b.flip_history.size(); ++k) {
+    EXPECT_EQ(b.flip_history[k].face0, zero.flip_history[k].face0);
+    EXPECT_EQ(b.flip_history[k].corner0, zero.flip_history[k].corner0);
+    EXPECT_EQ(b.flip_history[k].base_lengths, zero.flip_history[k].base_lengths);
+  }
+
+  // Twice the start overshoots its line's minimum (near t = 1/2: φ'(1) is
+  // about |φ'(0)|): declined although it is downhill from u = 0.
+  const CheckedFlow twice = ricci_flow_from_checked(c, l, Background::Hyperbolic, o, 2.0 * start.u);
+  EXPECT_FALSE(twice.start.start_used);
+  EXPECT_LT(twice.start.slope_at_zero, 0.0);
+  EXPECT_GT(twice.start.slope_at_start, 0.5 * -twice.start.slope_at_zero);
+  EXPECT_TRUE(twice.flow.u == zero.u);
+}
+
 TEST(RicciFlow, CoarseStartDeclinesSmallMeshesAndBadStartsAreInputErrors) {
   const TriMesh m = samples::n_hole_torus(2, 26, true);
   const Connectivity c(m.F, m.num_vertices());
