@@ -708,7 +708,7 @@ TEST(RicciFlow, TwoThreadEvaluationsGiveTheSameBits) {
 // start does (and saves Newton steps); its negation is uphill from u = 0
 // (φ'(0) = g(0)·(−u) > 0) and twice it overshoots; both are declined, after
 // which the run is the one from u = 0 bit for bit: the flips undone exactly.
-TEST(RicciFlow, CheckedStartIsUsedOnlyWhenItLowersTheEnergy) {
+TEST(RicciFlow, CheckedStartIsUsedOnlyWhenDownhillAndNearItsSegmentsMinimum) {
   const TriMesh m = samples::n_hole_torus(2, 40, true);
   const Connectivity c(m.F, m.num_vertices());
   const Eigen::VectorXd l = edge_lengths(m, c);
