@@ -9,10 +9,15 @@
 // iterations, conjugate-gradient iterations, factorisations, flips, the
 // residual history, and against the run from u = 0: the largest |Δu| and,
 // when both end on the same triangulation, the largest relative length
-// difference; then the medians per start. Not a test: no pass / fail.
+// difference; then the medians per start. Not a test: no pass / fail. The
+// coarse runs check the start against u = 0 as the map's target stage does
+// (ricci_flow_from_checked) and print the energy's slopes φ'(0), φ'(1) along
+// the segment and whether the start was used; --overshoot sets the check's
+// bound (default 0.05, the map's; a large value uses every downhill start and
+// still prints the slopes).
 //
 //   build/bin/bench_coarse_start [--resolution 109] [--vase-resolution 103] [--repeat 3]
-//                                [--coarse-vertices 3000] [--sweeps 10] [--mesh FILE]...
+//                                [--coarse-vertices 3000] [--sweeps 10] [--overshoot 0.05] [--mesh FILE]...
 // --mesh: also a mesh file (genus >= 1; flat for a torus), e.g. --resolution 0
 // --vase-resolution 0 --mesh a.obj for that mesh alone.
 #include <dlfcn.h>
@@ -52,7 +57,8 @@ struct Run {
   RicciFlowResult flow;
 };
 
-void bench_mesh(const std::string& name, const TriMesh& mesh, int repeat, const CoarseStartOptions& cso) {
+void bench_mesh(const std::string& name, const TriMesh& mesh, int repeat, const CoarseStartOptions& cso,
+                double overshoot) {
   const Connectivity conn(mesh.F, mesh.num_vertices());
   const Background bg = conn.genus() >= 2 ? Background::Hyperbolic : Background::Euclidean;
   const Eigen::VectorXd l = edge_lengths(mesh, conn);
@@ -74,8 +80,14 @@ void bench_mesh(const std::string& name, const TriMesh& mesh, int repeat, const 
     const auto t0 = std::chrono::steady_clock::now();
     if (coarse) cs = coarse_conformal_start(mesh, conn, bg, cso);
     const auto t1 = std::chrono::steady_clock::now();
-    r.flow = cs.ok ? ricci_flow_from(conn, l, bg, fo, cs.u)
-                   : ricci_flow(conn, l, bg, fo);
+    CheckedStart check;
+    if (cs.ok) {
+      CheckedFlow checked = ricci_flow_from_checked(conn, l, bg, fo, cs.u, overshoot);
+      r.flow = std::move(checked.flow);
+      check = checked.start;
+    } else {
+      r.flow = ricci_flow(conn, l, bg, fo);
+    }
     const auto t2 = std::chrono::steady_clock::now();
     r.start_s = std::chrono::duration<double>(t1 - t0).count();
     r.flow_s = std::chrono::duration<double>(t2 - t1).count();
@@ -110,6 +122,10 @@ void bench_mesh(const std::string& name, const TriMesh& mesh, int repeat, const 
                 r.flow.factorisations, r.flow.flips, r.flow.max_curvature_error, du, dl.c_str(), hist.c_str(),
                 r.flow.converged ? "" : "  NOT CONVERGED");
     if (coarse && !cs.ok) std::printf("       (no coarse start: %s)\n", cs.why.c_str());
+    if (coarse && cs.ok)
+      std::printf("       start %s: slopes phi'(0) %.4e phi'(1) %.4e, phi'(1)/|phi'(0)| %.4f; max residual at u = 0 %.2e\n",
+                  check.start_used ? "used" : "declined", check.slope_at_zero, check.slope_at_start,
+                  check.slope_at_start / std::abs(check.slope_at_zero), check.residual_at_zero);
     std::fflush(stdout);
     total[coarse].push_back(r.start_s + r.flow_s);
     flow_s[coarse].push_back(r.flow_s);
@@ -122,6 +138,7 @@ void bench_mesh(const std::string& name, const TriMesh& mesh, int repeat, const 
 
 int main(int argc, char** argv) {
   int resolution = 109, vase_resolution = 103, repeat = 3;
+  double overshoot = 0.05;
   std::vector<std::string> files;
   CoarseStartOptions cso;
   for (int i = 1; i < argc; ++i) {
@@ -138,19 +155,20 @@ int main(int argc, char** argv) {
     else if (a == "--repeat") repeat = next();
     else if (a == "--coarse-vertices") cso.coarse_vertices = next();
     else if (a == "--sweeps") cso.smoothing_sweeps = next();
+    else if (a == "--overshoot" && i + 1 < argc) overshoot = std::atof(argv[++i]);
     else if (a == "--mesh" && i + 1 < argc) files.push_back(argv[++i]);
     else {
       std::fprintf(stderr,
                    "usage: bench_coarse_start [--resolution 109] [--vase-resolution 103] [--repeat 3] "
-                   "[--coarse-vertices 3000] [--sweeps 10] [--mesh FILE]...\n");
+                   "[--coarse-vertices 3000] [--sweeps 10] [--overshoot 0.05] [--mesh FILE]...\n");
       return 2;
     }
   }
   single_threaded_blas();
   if (resolution > 0) bench_mesh("n-hole torus (genus 2) r" + std::to_string(resolution),
-                                 samples::n_hole_torus(2, resolution, true), repeat, cso);
+                                 samples::n_hole_torus(2, resolution, true), repeat, cso, overshoot);
   if (vase_resolution > 0)
-    bench_mesh("vase (genus 2) r" + std::to_string(vase_resolution), samples::vase(vase_resolution, true), repeat, cso);
-  for (const std::string& f : files) bench_mesh(f, load_mesh(f).mesh, repeat, cso);
+    bench_mesh("vase (genus 2) r" + std::to_string(vase_resolution), samples::vase(vase_resolution, true), repeat, cso, overshoot);
+  for (const std::string& f : files) bench_mesh(f, load_mesh(f).mesh, repeat, cso, overshoot);
   return 0;
 }

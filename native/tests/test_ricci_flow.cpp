@@ -610,38 +610,50 @@ namespace {
 // on the flipped triangulation) in fewer Newton steps; a prolongation that
 // misplaced the coarse values (wrong regions, wrong vertices) starts further
 // away than u = 0 and fails the step count or the distance bound.
-TEST(RicciFlow, CoarseStartReachesTheSameHyperbolicMetricInFewerNewtonSteps) {
-  const TriMesh m = samples::n_hole_torus(2, 40, true);
-  const Connectivity c(m.F, m.num_vertices());
-  ASSERT_EQ(c.genus(), 2);
-  const Eigen::VectorXd l = edge_lengths(m, c);
-  RicciFlowOptions o;
-  o.intrinsic_delaunay = true;
-  const RicciFlowResult zero = ricci_flow(c, l, Background::Hyperbolic, o);
-  ASSERT_TRUE(zero.converged) << zero.message;
+/// The coarse start tests' genus-2 n-hole torus (resolution 40, hyperbolic),
+/// its flow from u = 0 with flips and its coarse start (~400 coarse vertices).
+struct GenusTwoCoarseCase {
+  static RicciFlowOptions with_flips() {
+    RicciFlowOptions o;
+    o.intrinsic_delaunay = true;
+    return o;
+  }
+  static CoarseStartOptions small_copy() {
+    CoarseStartOptions so;
+    so.coarse_vertices = 400;
+    so.min_vertices = 1000;
+    return so;
+  }
+  TriMesh m = samples::n_hole_torus(2, 40, true);
+  Connectivity c{m.F, m.num_vertices()};
+  Eigen::VectorXd l = edge_lengths(m, c);
+  RicciFlowOptions o = with_flips();
+  RicciFlowResult zero = ricci_flow(c, l, Background::Hyperbolic, o);
+  CoarseStart start = coarse_conformal_start(m, c, Background::Hyperbolic, small_copy());
+};
 
-  CoarseStartOptions so;
-  so.coarse_vertices = 400;
-  so.min_vertices = 1000;
-  const CoarseStart start = coarse_conformal_start(m, c, Background::Hyperbolic, so);
-  ASSERT_TRUE(start.ok) << start.why;
+TEST(RicciFlow, CoarseStartReachesTheSameHyperbolicMetricInFewerNewtonSteps) {
+  const GenusTwoCoarseCase cs;
+  ASSERT_EQ(cs.c.genus(), 2);
+  ASSERT_TRUE(cs.zero.converged) << cs.zero.message;
+  ASSERT_TRUE(cs.start.ok) << cs.start.why;
   // About the vertices asked for (the seeds' spacing is chosen for them).
-  EXPECT_GT(start.coarse_vertices, 200);
-  EXPECT_LT(start.coarse_vertices, 1600);
-  ASSERT_EQ(start.u.size(), c.num_vertices());
+  EXPECT_GT(cs.start.coarse_vertices, 200);
+  EXPECT_LT(cs.start.coarse_vertices, 1600);
+  ASSERT_EQ(cs.start.u.size(), cs.c.num_vertices());
   // The prolonged u is the solution's large-scale part: much nearer to it
   // than u = 0 is.
-  const double spread = zero.u.cwiseAbs().maxCoeff();
+  const double spread = cs.zero.u.cwiseAbs().maxCoeff();
   ASSERT_GT(spread, 0.1);
-  EXPECT_LT((start.u - zero.u).cwiseAbs().maxCoeff(), 0.25 * spread);
+  EXPECT_LT((cs.start.u - cs.zero.u).cwiseAbs().maxCoeff(), 0.25 * spread);
 
-  const RicciFlowResult from = ricci_flow_from(c, l, Background::Hyperbolic, o, start.u);
+  const RicciFlowResult from = ricci_flow_from(cs.c, cs.l, Background::Hyperbolic, cs.o, cs.start.u);
   ASSERT_TRUE(from.converged) << from.message;
-  EXPECT_LE(from.max_curvature_error, o.tolerance);
-  EXPECT_LT(from.iterations, zero.iterations);
-  EXPECT_LT((from.u - zero.u).cwiseAbs().maxCoeff(), 1e-7);
+  EXPECT_LE(from.max_curvature_error, cs.o.tolerance);
+  EXPECT_LT(from.iterations, cs.zero.iterations);
+  EXPECT_LT((from.u - cs.zero.u).cwiseAbs().maxCoeff(), 1e-7);
   // Gauss–Bonnet on the flipped triangulation, angles by an independent law of cosines.
-  Eigen::VectorXd sums = Eigen::VectorXd::Zero(c.num_vertices());
+  Eigen::VectorXd sums = Eigen::VectorXd::Zero(cs.c.num_vertices());
   double area = 0;
   for (int f = 0; f < from.faces.rows(); ++f) {
     double tsum = 0;
@@ -701,6 +713,56 @@ TEST(RicciFlow, TwoThreadEvaluationsGiveTheSameBits) {
   EXPECT_TRUE(one.u == two.u);
   EXPECT_TRUE(one.edge_lengths == two.edge_lengths);
   EXPECT_TRUE(one.edge_vertices == two.edge_vertices);
+}
+
+// ricci_flow_from_checked (the map's target stage): a start is used only
+// when the energy runs downhill to it and not much uphill at it. The coarse
+// start does (and saves Newton steps); its negation is uphill from u = 0
+// (φ'(0) = g(0)·(−u) > 0) and twice it overshoots; both are declined, after
+// which the run is the one from u = 0 bit for bit: the flips undone exactly.
+TEST(RicciFlow, CheckedStartIsUsedOnlyWhenDownhillAndNearItsSegmentsMinimum) {
+  const GenusTwoCoarseCase cs;
+  ASSERT_TRUE(cs.zero.converged) << cs.zero.message;
+  ASSERT_TRUE(cs.start.ok) << cs.start.why;
+
+  const CheckedFlow good = ricci_flow_from_checked(cs.c, cs.l, Background::Hyperbolic, cs.o, cs.start.u);
+  ASSERT_TRUE(good.flow.converged) << good.flow.message;
+  EXPECT_TRUE(good.start.start_used);
+  // E convex along the segment: the slope grows; a good start is downhill
+  // and near the segment's minimum.
+  EXPECT_LT(good.start.slope_at_zero, 0.0);
+  EXPECT_LE(good.start.slope_at_zero, good.start.slope_at_start);
+  EXPECT_LT(good.start.slope_at_start, 0.05 * -good.start.slope_at_zero);
+  EXPECT_EQ(good.start.residual_at_zero, cs.zero.residual_history.front());
+  EXPECT_LT(good.flow.iterations, cs.zero.iterations);
+  EXPECT_LT((good.flow.u - cs.zero.u).cwiseAbs().maxCoeff(), 1e-7);
+
+  const CheckedFlow bad = ricci_flow_from_checked(cs.c, cs.l, Background::Hyperbolic, cs.o, -cs.start.u);
+  const RicciFlowResult& b = bad.flow;
+  ASSERT_TRUE(b.converged) << b.message;
+  EXPECT_FALSE(bad.start.start_used);
+  EXPECT_GT(bad.start.slope_at_zero, 0.0);
+  EXPECT_EQ(b.iterations, cs.zero.iterations);
+  EXPECT_EQ(b.residual_history, cs.zero.residual_history);
+  EXPECT_EQ(b.flips, cs.zero.flips);
+  EXPECT_TRUE(b.u == cs.zero.u);
+  EXPECT_TRUE(b.edge_lengths == cs.zero.edge_lengths);
+  EXPECT_TRUE(b.edge_vertices == cs.zero.edge_vertices);
+  EXPECT_TRUE(b.faces == cs.zero.faces);
+  ASSERT_EQ(b.flip_history.size(), cs.zero.flip_history.size());
+  for (size_t k = 0; k < b.flip_history.size(); ++k) {
+    EXPECT_EQ(b.flip_history[k].face0, cs.zero.flip_history[k].face0);
+    EXPECT_EQ(b.flip_history[k].corner0, cs.zero.flip_history[k].corner0);
+    EXPECT_EQ(b.flip_history[k].base_lengths, cs.zero.flip_history[k].base_lengths);
+  }
+
+  // Twice the start overshoots its line's minimum (near t = 1/2: φ'(1) is
+  // about |φ'(0)|): declined although it is downhill from u = 0.
+  const CheckedFlow twice = ricci_flow_from_checked(cs.c, cs.l, Background::Hyperbolic, cs.o, 2.0 * cs.start.u);
+  EXPECT_FALSE(twice.start.start_used);
+  EXPECT_LT(twice.start.slope_at_zero, 0.0);
+  EXPECT_GT(twice.start.slope_at_start, 0.5 * -twice.start.slope_at_zero);
+  EXPECT_TRUE(twice.flow.u == cs.zero.u);
 }
 
 TEST(RicciFlow, CoarseStartDeclinesSmallMeshesAndBadStartsAreInputErrors) {

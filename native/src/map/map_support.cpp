@@ -197,19 +197,26 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   const Eigen::VectorXd lengths = edge_lengths(target, tc);
   // Issue 19: Newton from a coarse copy's solution, prolonged (the same
   // metric within the tolerance, fewer Newton steps and CG iterations on
-  // large targets). Should that run not converge, the flow from u = 0 decides.
+  // large targets). Session 18: the flow first reads the energy's slopes
+  // along the segment from u = 0 to the start and starts from u = 0 when
+  // the start overshoots that segment's minimum (irregular meshes, whose
+  // copy's u is a poor guess: the vhacd teapot took 13 Newton steps from it,
+  // 7 from u = 0), then the run from u = 0 bit for bit
+  // (ricci_flow_from_checked). Should a run from the start not converge,
+  // the flow from u = 0 decides.
   const CoarseStart start = coarse_conformal_start(target, tc, background);
   RicciFlowResult flow;
-  bool started = false;
+  bool done = false;
   if (start.ok) {
     try {
-      flow = ricci_flow_from(tc, lengths, background, fo, start.u);
-      started = flow.converged;
+      CheckedFlow checked = ricci_flow_from_checked(tc, lengths, background, fo, start.u);
+      flow = std::move(checked.flow);
+      done = flow.converged || !checked.start.start_used;
     } catch (const SolveError&) {
       // (the flow from u = 0 below reports its own failure, if any)
     }
   }
-  if (!started) flow = ricci_flow(tc, lengths, background, fo);
+  if (!done) flow = ricci_flow(tc, lengths, background, fo);
   if (!flow.converged) throw SolveError("the flow did not converge: " + flow.message);
   // A Δ-complex T' (loop or double edges) made simplicial by exact flips of
   // the final metric, as in uniformize (uniformize/simplicial_flips.h).

@@ -10,6 +10,7 @@
 #include <Eigen/SparseCore>
 
 #include "surfmap/mesh/connectivity.h"
+#include "surfmap/uniformize/coarse_start.h"
 #include "surfmap/uniformize/ricci_flow.h"
 
 namespace surfmap::detail {
@@ -40,12 +41,21 @@ RicciDomain domain_from_connectivity(const Connectivity& conn);
 /// Any manifold oriented triangle list (boundary allowed).
 RicciDomain domain_from_faces(int num_vertices, const RowMatrixX3i& F);
 
+/// ricci_solve's check of u_start against u = 0 (uniformize/coarse_start.h
+/// `ricci_flow_from_checked`): the overshoot allowed in, the account out.
+struct StartCheck {
+  double overshoot = 0.05;
+  CheckedStart account;
+};
+
 /// fixed (optional, #V): vertices whose u stays at its start value
-/// (Dirichlet); their curvature is excluded from the residual.
+/// (Dirichlet); their curvature is excluded from the residual. check
+/// (optional, with u_start, Newton, no fixed vertices): start from u_start
+/// only when it beats u = 0 (see ricci_flow_from_checked).
 RicciFlowResult ricci_solve(const RicciDomain& dom, const Eigen::VectorXd& lengths,
                             Background background, const RicciFlowOptions& options,
                             const Eigen::VectorXd& target, const Eigen::VectorXd* u_start,
-                            const std::vector<char>* fixed = nullptr);
+                            const std::vector<char>* fixed = nullptr, StartCheck* check = nullptr);
 
 RicciLinearization ricci_linearize(const RicciDomain& dom, const Eigen::VectorXd& lengths,
                                    Background background, RicciScheme scheme,

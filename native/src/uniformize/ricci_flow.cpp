@@ -766,10 +766,11 @@ struct RicciRun {
   // the floating-point floor of this mesh: success (RicciFlowOptions).
   const double floor_tol;
   bool at_floor = false;
+  StartCheck* check = nullptr;  // ricci_flow_from_checked
 
   RicciRun(const RicciDomain& dom_in, const Eigen::VectorXd& lengths, Background background_in,
            const RicciFlowOptions& options_in, Eigen::VectorXd target_checked,
-           const std::vector<char>* fixed, bool has_fixed)
+           const std::vector<char>* fixed, bool has_fixed, StartCheck* start_check)
       : options(options_in),
         background(background_in),
         target(std::move(target_checked)),
@@ -782,7 +783,8 @@ struct RicciRun {
         base(lengths),
         metric(dom, base, background_in, options_in.scheme),
         H(dom_in.num_vertices, dom_in.num_vertices),
-        floor_tol(std::max(options_in.tolerance, options_in.floor_tolerance)) {}
+        floor_tol(std::max(options_in.tolerance, options_in.floor_tolerance)),
+        check(start_check) {}
   RicciRun(const RicciRun&) = delete;
   RicciRun& operator=(const RicciRun&) = delete;
 
@@ -805,12 +807,57 @@ struct RicciRun {
     }
   }
 
+  /// ricci_flow_from_checked: whether u_start beats u = 0 by the energy's
+  /// slopes along the segment between them (see there), filling check->account.
+  /// Leaves the triangulation as the input pass left it when it does not:
+  /// every flip towards u_start undone from a copy, so that the run from u = 0
+  /// is the one ricci_flow makes, bit for bit (FlipContext::roll_back would
+  /// restore the faces but not the order of EF's two faces, which orients
+  /// later flips).
+  bool start_beats_zero(const Eigen::VectorXd& u_start) {
+    CheckedStart& a = check->account;
+    const RicciDomain dom_before = dom;
+    const Eigen::VectorXd base_before = base;
+    const RowMatrixX2i ef_before = flip_ctx.EF;
+    const long long flips_before = flip_ctx.flips;
+    const size_t history_before = flip_ctx.history.size();
+    Evaluation at_zero;
+    evaluate(dom, metric, background, Eigen::VectorXd::Zero(nv), false, at_zero, flips, options.threads);
+    bool better = at_zero.bad_edge < 0;
+    if (better) {
+      const Eigen::VectorXd g0 = residual(at_zero.K);
+      a.residual_at_zero = g0.cwiseAbs().maxCoeff();
+      a.slope_at_zero = g0.dot(u_start);
+      evaluate(dom, metric, background, u_start, newton, ev, flips, options.threads);
+      better = ev.bad_edge < 0;
+      if (better) {
+        a.slope_at_start = residual(ev.K).dot(u_start);
+        better = a.slope_at_zero < 0.0 && a.slope_at_start <= check->overshoot * -a.slope_at_zero;
+      }
+    }
+    if (!better) {
+      dom = dom_before;
+      base = base_before;
+      flip_ctx.EF = ef_before;
+      flip_ctx.flips = flips_before;
+      flip_ctx.history.resize(history_before);
+      ++flip_ctx.version;
+    }
+    return better;
+  }
+
   /// The metric at the start u (u_start or zero), its residual and the
   /// first residual_history entry.
   void evaluate_start(const Eigen::VectorXd* u_start) {
     res.background = background;
+    bool evaluated = false;
+    if (u_start && check && newton && !any_fixed) {
+      check->account.start_used = start_beats_zero(*u_start);
+      evaluated = check->account.start_used;
+      if (!evaluated) u_start = nullptr;
+    }
     res.u = u_start ? *u_start : Eigen::VectorXd::Zero(nv);
-    evaluate(dom, metric, background, res.u, newton, ev, flips, options.threads);
+    if (!evaluated) evaluate(dom, metric, background, res.u, newton, ev, flips, options.threads);
     if (ev.bad_edge >= 0)
       throw InputError("ricci_flow: edge " + std::to_string(ev.bad_edge) +
                        " has no valid length in the initial metric");
@@ -1102,12 +1149,12 @@ struct RicciRun {
 RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& lengths,
                             Background background, const RicciFlowOptions& options,
                             const Eigen::VectorXd& target_in, const Eigen::VectorXd* u_start,
-                            const std::vector<char>* fixed_in) {
+                            const std::vector<char>* fixed_in, StartCheck* check) {
   const auto t0 = std::chrono::steady_clock::now();
   bool has_fixed = false;
   Eigen::VectorXd target =
       checked_target(dom_in, lengths, background, target_in, fixed_in, &has_fixed);
-  RicciRun run(dom_in, lengths, background, options, std::move(target), fixed_in, has_fixed);
+  RicciRun run(dom_in, lengths, background, options, std::move(target), fixed_in, has_fixed, check);
   run.flip_input_to_delaunay();
   run.evaluate_start(u_start);
   const int max_it =
@@ -1140,18 +1187,41 @@ RicciFlowResult ricci_flow(const Connectivity& mesh, const Eigen::VectorXd& edge
   return detail::ricci_solve(dom, edge_lengths, background, options, target_curvature, nullptr);
 }
 
-RicciFlowResult ricci_flow_from(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
-                                Background background, const RicciFlowOptions& options,
-                                const Eigen::VectorXd& u_start, const Eigen::VectorXd& target_curvature) {
-  const detail::RicciDomain dom = detail::domain_from_connectivity(mesh);
+namespace {
+
+/// ricci_flow_from's start, checked (#V finite values) and in the flat gauge
+/// of the Newton solve (u_0 = 0), which its steps keep.
+Eigen::VectorXd gauged_start(const detail::RicciDomain& dom, Background background, const Eigen::VectorXd& u_start) {
   if (u_start.size() != dom.num_vertices)
     throw InputError("ricci_flow: expected " + std::to_string(dom.num_vertices) + " start conformal factors, got " +
                      std::to_string(u_start.size()));
   if (!u_start.allFinite()) throw InputError("ricci_flow: the start conformal factors are not all finite");
   Eigen::VectorXd u = u_start;
-  // The flat gauge of the Newton solve (u_0 = 0), which its steps keep.
   if (background == Background::Euclidean) u.array() -= u[0];
+  return u;
+}
+
+}  // namespace
+
+RicciFlowResult ricci_flow_from(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
+                                Background background, const RicciFlowOptions& options,
+                                const Eigen::VectorXd& u_start, const Eigen::VectorXd& target_curvature) {
+  const detail::RicciDomain dom = detail::domain_from_connectivity(mesh);
+  const Eigen::VectorXd u = gauged_start(dom, background, u_start);
   return detail::ricci_solve(dom, edge_lengths, background, options, target_curvature, &u);
+}
+
+CheckedFlow ricci_flow_from_checked(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
+                                    Background background, const RicciFlowOptions& options,
+                                    const Eigen::VectorXd& u_start, double overshoot) {
+  const detail::RicciDomain dom = detail::domain_from_connectivity(mesh);
+  const Eigen::VectorXd u = gauged_start(dom, background, u_start);
+  detail::StartCheck check;
+  check.overshoot = overshoot;
+  CheckedFlow r;
+  r.flow = detail::ricci_solve(dom, edge_lengths, background, options, {}, &u, nullptr, &check);
+  r.start = check.account;
+  return r;
 }
 
 RicciLinearization ricci_linearization(const Connectivity& mesh,

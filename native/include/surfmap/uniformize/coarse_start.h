@@ -66,4 +66,41 @@ struct CoarseStart {
 CoarseStart coarse_conformal_start(const TriMesh& mesh, const Connectivity& conn, Background background,
                                    const CoarseStartOptions& options = {});
 
+/// Whether ricci_flow_from_checked started from u_start, and why.
+struct CheckedStart {
+  /// False: the run started from u = 0 (the run ricci_flow makes, bit for bit).
+  bool start_used = false;
+  /// The energy's slopes φ'(0) = g(0)·u_start and φ'(1) = g(u_start)·u_start
+  /// along the segment (see ricci_flow_from_checked), and the max curvature
+  /// error at u = 0 (the flow's residual_history[0] is the chosen start's).
+  double slope_at_zero = 0, slope_at_start = 0, residual_at_zero = 0;
+};
+
+struct CheckedFlow {
+  RicciFlowResult flow;
+  CheckedStart start;
+};
+
+/// ricci_flow_from (Newton) with the start checked first (session 18: the
+/// coarse start is worse than u = 0 on irregular meshes: 13 Newton steps
+/// instead of 7 on a 32508-vertex CAD teapot, 14 instead of 6 on a 50085-vertex
+/// CAD hand). The flow's energy E is convex with gradient g = K − target
+/// (Hessian dK/du), so along the segment u(t) = t u_start its slope
+/// φ'(t) = g(u(t))·u_start grows with t (E is C¹, flips included). The start
+/// is used when the segment runs downhill from u = 0 (φ'(0) < 0) and is at
+/// most `overshoot` |φ'(0)| uphill at u_start (φ'(1)): the energy's minimum
+/// along the segment, by the secant of φ', then lies at t >= 1 / (1 +
+/// overshoot). Measured (docs/benchmarks.md, session 18): φ'(1) / |φ'(0)| =
+/// 0.0005-0.005 on the smooth meshes where the start saves Newton steps, 0.25
+/// and 0.33 on the CAD meshes where it costs them: a start whose scale is off
+/// (the coarse copy's hop-ball regions on long thin triangles) overshoots its
+/// own line's minimum. Otherwise the run starts from u = 0, after every flip
+/// made towards u_start is undone from a copy of the triangulation: the run
+/// ricci_flow makes, bit for bit. Costs one evaluation at u = 0 more (the
+/// input pass has made the triangulation Delaunay there). Throws as
+/// ricci_flow_from.
+CheckedFlow ricci_flow_from_checked(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
+                                    Background background, const RicciFlowOptions& options,
+                                    const Eigen::VectorXd& u_start, double overshoot = 0.05);
+
 }  // namespace surfmap
