@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/Sparse>
 
+#include "../seconds_since.h"
 #include "disk_flattening.h"
 #include "surfmap/error.h"
 #include "surfmap/topology/cut_mesh.h"
@@ -25,9 +26,7 @@ using Complex = std::complex<double>;
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+using detail::seconds_since;
 
 // Σ_s d(p, A_s p) and its Riemannian gradient at p (orthonormal coordinates
 // of the chart centring p), everything evaluated in that chart.

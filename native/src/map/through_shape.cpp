@@ -9,6 +9,7 @@
 #include <string>
 #include <utility>
 
+#include "../seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/topology/handle_basis.h"
@@ -48,10 +49,6 @@ HomotopyCandidate listed_candidate(const HomotopyCandidate& given, const std::ve
   }
   c.description += "  [through a generated shape]";
   return c;
-}
-
-double seconds_since(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
 /// Wall and process CPU seconds since a start: on a loaded machine the wall

@@ -12,15 +12,14 @@
 #include <utility>
 #include <vector>
 
+#include "../seconds_since.h"
 #include "surfmap/error.h"
 
 namespace surfmap {
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+using detail::seconds_since;
 
 /// The mesh's vertex graph once, as offsets into one array (CSR), with the
 /// 3D lengths of its edges.
