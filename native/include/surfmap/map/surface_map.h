@@ -302,6 +302,11 @@ struct HomotopyOptions {
   /// classes, two-way run or through-shape step (a SolveError when one is no
   /// isomorphism). The through-shape step uses it. Default empty.
   std::vector<std::vector<int>> given_class;
+  /// With given_class: each class's name in its candidate's description, one
+  /// per class (the through-shape step: "through a generated <shape>");
+  /// empty, the default: "the given class", or "the given class k" for k
+  /// classes. Like given_class, no CLI flag or Python keyword.
+  std::vector<std::string> given_class_names;
   /// Genus >= 2, set by the two-way run: per source vertex a point on the
   /// target (#V_source x 3; empty, the default: none), where the inverse of
   /// a target -> source map puts it. The source's loops carried to those
@@ -557,6 +562,11 @@ struct HomotopyCandidate {
   double class_lower_bound = std::numeric_limits<double>::quiet_NaN();
   double class_curve_bound = std::numeric_limits<double>::quiet_NaN();
   std::string class_bound_curves;
+  /// Genus >= 2: which class of HomotopyOptions::given_class this candidate
+  /// is (0-based, in the order given); -1 for the classes the pipeline
+  /// found. Read by the through-shape step; not in the report (the
+  /// description names the class).
+  int given_class = -1;
 };
 
 /// Genus >= 2: the class search of SurfaceMapOptions::homotopy.search.
