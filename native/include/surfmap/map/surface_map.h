@@ -721,6 +721,13 @@ struct SurfaceMapResult {
   std::vector<int> thin_source_faces;
   double thin_source_max_dilatation = 0;
   int flipped_triangles = 0, degenerate_triangles = 0;
+  /// Genus >= 1 (closed): image triangles flat but positively oriented
+  /// beyond round-off (map/distortion.h DistortionStats::flat): one-to-one,
+  /// only extremely stretched (D' ~1e9 or more, +inf in `dilatation`, out of
+  /// mean and max), so not among degenerate_triangles, which counts only the
+  /// images degenerate within round-off. 0 for genus 0, disks and annuli
+  /// (other open surfaces: their doubles' count, like degenerate_triangles).
+  int flat_triangles = 0;
   /// Genus >= 1: flipped images among the triangles of the source's
   /// intrinsic Delaunay triangulation, on which the energy (and so the
   /// discrete harmonic map, an embedding for positive weights) is defined;
