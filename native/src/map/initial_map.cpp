@@ -447,6 +447,16 @@ bool repair_flattening(const TriMesh& source, const Connectivity& sc, const std:
   return false;
 }
 
+/// Why the source's faces, straight between their vertices' images, do not
+/// embed (`q`: their distortion): "N flipped and M degenerate source faces";
+/// empty when none is flipped or degenerate within round-off (flat but
+/// positive faces, DistortionStats::flat, are embedded).
+std::string folded_source_faces(const DistortionStats& q) {
+  if (!q.flipped && q.degenerate <= q.flat) return {};
+  return std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate - q.flat) +
+         " degenerate source faces";
+}
+
 }  // namespace
 
 HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const Connectivity& sc,
@@ -476,10 +486,10 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
       r.cut_graph_flipped = q.flipped;
       // Flat but positive faces (DistortionStats::flat) are embedded too.
       r.cut_graph_degenerate = q.degenerate - q.flat;
-      if (q.flipped || q.degenerate > q.flat) {
+      const std::string folded = folded_source_faces(q);
+      if (!folded.empty()) {
         cg.applied = false;
-        cg.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate - q.flat) +
-                    " degenerate source faces";
+        cg.reason = folded;
       }
     }
     if (cg.applied) {
@@ -509,10 +519,10 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
       const DistortionStats q = hyperbolic_distortion(source, group, halfedge_word, poly.z, poly.vertex_deck_word);
       poly.source_flipped = q.flipped;
       poly.source_degenerate = q.degenerate - q.flat;
-      if (q.flipped || q.degenerate > q.flat) {
+      const std::string folded = folded_source_faces(q);
+      if (!folded.empty()) {
         poly.applied = false;
-        poly.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate - q.flat) +
-                      " degenerate source faces";
+        poly.reason = folded;
         if (q.flipped + q.degenerate <= std::max(8, source.num_faces() / 2000))
           poly.applied = repair_flattening(source, sc, halfedge_word, group, options, q.per_face, poly);
       }
