@@ -10,6 +10,7 @@
 #include <queue>
 #include <unordered_map>
 
+#include "../seconds_since.h"
 #include "../mesh/region_dual.h"
 
 namespace surfmap {
@@ -209,7 +210,7 @@ CoarseSource coarse_source(const TriMesh& fine, const Connectivity& fc, const Co
 
   if (!coarse_edge_paths(vs, *cc, cs)) return cs;
   cs.ok = true;
-  cs.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  cs.seconds = detail::seconds_since(t0);
   return cs;
 }
 
