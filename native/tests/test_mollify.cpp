@@ -11,6 +11,7 @@
 #include "surfmap/error.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/map/distortion.h"
+#include "surfmap/map/map_report.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/mesh/intake.h"
@@ -348,6 +349,12 @@ TEST(Distortion, FlatButPositiveImagesDoNotFoldTheMap) {
     SurfaceMapResult out;
     detail::store_distortion(q, out);
     EXPECT_EQ(out.degenerate_triangles, k.degenerate - k.flat);
+    // The flat but positive ones are counted apart, in the report (CLI and
+    // Python) too.
+    EXPECT_EQ(out.flat_triangles, k.flat);
+    const nlohmann::json report = to_json(out, automatic);
+    EXPECT_EQ(report.at("flat_triangles").get<int>(), k.flat);
+    EXPECT_EQ(report.at("degenerate_triangles").get<int>(), k.degenerate - k.flat);
     // Automatic weights: a fold sends the class to the own-edge retry; with
     // own-edge weights already, it is refused (the class is not used).
     EXPECT_EQ(detail::retry_with_own_weights(automatic, false, out), k.folds);

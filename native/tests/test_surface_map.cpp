@@ -1155,6 +1155,8 @@ TEST(SurfaceMapHandles, ThroughShapeComposesTheLettersOfBothRuns) {
   EXPECT_NE(m.through_shape_status.find("source -> it 1"), std::string::npos) << m.through_shape_status;
   const HomotopyCandidate& c = m.candidates.back();
   EXPECT_NE(c.description.find("[through a generated genus-2 n-hole torus]"), std::string::npos) << c.description;
+  EXPECT_EQ(c.given_class, 0);  // the first (only) composed class
+  for (size_t k = 0; k + 1 < m.candidates.size(); ++k) EXPECT_EQ(m.candidates[k].given_class, -1);
   EXPECT_NE(m.chosen_candidate, static_cast<int>(m.candidates.size()) - 1);
   EXPECT_NEAR(c.energy, m.candidates[m.chosen_candidate].energy, 1e-6 * c.energy) << m.through_shape_status;
   EXPECT_NE(m.through_shape_status.find("kept the first"), std::string::npos) << m.through_shape_status;
@@ -1165,12 +1167,17 @@ TEST(SurfaceMapHandles, ThroughShapeComposesTheLettersOfBothRuns) {
   EXPECT_EQ(IntMatrix(h.transpose() * symplectic_form(2) * h), symplectic_form(2));
   EXPECT_GT(m.through_shape_time_s, 0);
   EXPECT_EQ(md.candidates.size() + 1, m.candidates.size());
-  // The class given as words: solved alone, the same energy as where it was chosen.
+  // The class given as words: solved alone, the same energy as where it was
+  // chosen, under the name given with it.
   SurfaceMapOptions given;
   given.homotopy.given_class = m.chosen_class_words;
+  given.homotopy.given_class_names = {"the class named here"};
   const SurfaceMapResult mg = surface_map(a, b, given);
   ASSERT_EQ(mg.candidates.size(), 1u);
   EXPECT_NEAR(mg.energy_ratio, m.energy_ratio, 1e-6 * m.energy_ratio);
+  EXPECT_NE(mg.candidates[0].description.find("  [the class named here]"), std::string::npos)
+      << mg.candidates[0].description;
+  EXPECT_EQ(mg.candidates[0].given_class, 0);
   // Words that are not an isomorphism are refused with a message.
   SurfaceMapOptions bad;
   bad.homotopy.given_class = {{1}, {1}, {3}, {4}};
@@ -1189,6 +1196,15 @@ TEST(SurfaceMapHandles, ThroughShapeComposesTheLettersOfBothRuns) {
     ADD_FAILURE() << "5 words were solved as genus-2 classes";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("4 words per class"), std::string::npos) << e.what();
+  }
+  // Names, when given, name every class.
+  SurfaceMapOptions misnamed = given;
+  misnamed.homotopy.given_class_names.push_back("a second name");
+  try {
+    surface_map(a, b, misnamed);
+    ADD_FAILURE() << "two names for one given class were accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("given_class_names"), std::string::npos) << e.what();
   }
 }
 
@@ -1234,6 +1250,8 @@ TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   ASSERT_EQ(r.candidates.size(), 2u);
   EXPECT_EQ(r.chosen_candidate, 1);
   EXPECT_NE(r.candidates[1].description.find("the given class 2"), std::string::npos) << r.candidates[1].description;
+  EXPECT_EQ(r.candidates[0].given_class, 0);
+  EXPECT_EQ(r.candidates[1].given_class, 1);  // the third, a repeat of the first, is not listed
   EXPECT_NEAR(r.energy_ratio, plain.energy_ratio, 1e-3 * plain.energy_ratio);
   SurfaceMapOptions through = o;
   through.homotopy.through_shape_ratio = 0;
@@ -1244,9 +1262,16 @@ TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   ASSERT_GE(forward.candidates.size(), 2u);
   ASSERT_LE(forward.candidates.size(), 3u);  // one per shape, a class through both listed once
   EXPECT_GE(forward.chosen_candidate, 1);
-  for (size_t k = 1; k < forward.candidates.size(); ++k)
+  for (size_t k = 1; k < forward.candidates.size(); ++k) {
     EXPECT_NE(forward.candidates[k].description.find("through a generated genus-2 "), std::string::npos)
         << forward.candidates[k].description;
+    EXPECT_GE(forward.candidates[k].given_class, 0);
+  }
+  // The status names the shape the chosen class came through.
+  const std::string chosen = forward.candidates[forward.chosen_candidate].description;
+  const std::string shape = chosen.find("CAD plate") != std::string::npos ? "genus-2 CAD plate" : "genus-2 n-hole torus";
+  EXPECT_NE(forward.through_shape_status.find("(the class through the " + shape + ")"), std::string::npos)
+      << forward.through_shape_status;
   EXPECT_LT(forward.energy_ratio, forward.candidates[0].energy / (8 * M_PI));
   EXPECT_LE(forward.energy_ratio, plain.energy_ratio * 1.05) << forward.through_shape_status;
   // (The 140-vertex plate's chords do not cover the torus: no certificate here.)

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "../seconds_since.h"
 #include "map_support.h"
 #include "surfmap/error.h"
 #include "surfmap/topology/canonical_schema.h"
@@ -115,7 +116,7 @@ SourceClassBounds class_bounds_on(const TriMesh& surface, const Connectivity& su
     b.ok = false;
     b.why = e.what();
   }
-  b.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  b.time_s = seconds_since(t0);
   return b;
 }
 

@@ -10,6 +10,8 @@
 #include <queue>
 #include <unordered_map>
 
+#include "../seconds_since.h"
+#include "../mesh/region_dual.h"
 
 namespace surfmap {
 std::vector<int> path_from_region_centre(const CoarseSource& cs, const Connectivity& fc, int v) {
@@ -92,46 +94,6 @@ struct VoronoiSampling {
     }
   }
 };
-
-/// Dual faces of the regions (one per distinct triple; a triple seen twice
-/// with the same orientation is the same face). False when a triple is also
-/// seen with the other orientation: the dual is then no oriented surface.
-bool voronoi_dual_faces(const TriMesh& fine, const VoronoiSampling& vs,
-                        std::vector<std::array<int, 3>>& faces) {
-  const std::vector<int>& region = vs.region;
-  faces.clear();
-  std::unordered_map<long long, int> seen;
-  const long long ns = static_cast<long long>(vs.seeds.size());
-  bool bad = false;
-  for (int f = 0; f < fine.num_faces() && !bad; ++f) {
-    std::array<int, 3> t{region[fine.F(f, 0)], region[fine.F(f, 1)], region[fine.F(f, 2)]};
-    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
-    const int m = static_cast<int>(std::min_element(t.begin(), t.end()) - t.begin());
-    std::rotate(t.begin(), t.begin() + m, t.end());  // smallest first, orientation kept
-    const long long key = (t[0] * ns + t[1]) * ns + t[2];
-    const long long flipped = (t[0] * ns + t[2]) * ns + t[1];
-    if (seen.count(flipped)) bad = true;
-    if (seen.emplace(key, f).second) faces.push_back(t);
-  }
-  return !bad;
-}
-
-/// The dual's connectivity over `num_seeds` vertices; null unless it is a
-/// closed manifold with the Euler characteristic of fc.
-std::unique_ptr<Connectivity> dual_surface(const std::vector<std::array<int, 3>>& faces, int num_seeds,
-                                           const Connectivity& fc) {
-  std::unique_ptr<Connectivity> cc;
-  RowMatrixX3i F(static_cast<int>(faces.size()), 3);
-  for (size_t f = 0; f < faces.size(); ++f)
-    for (int k = 0; k < 3; ++k) F(static_cast<int>(f), k) = faces[f][k];
-  try {
-    cc = std::make_unique<Connectivity>(F, num_seeds);
-    if (cc->euler_characteristic() != fc.euler_characteristic()) cc.reset();
-  } catch (const std::exception&) {
-    cc.reset();
-  }
-  return cc;
-}
 
 /// Regions not adjacent (rare): the shortest fine path from vertex s to t
 /// (halfedges in order, appended to `path`) by a Dijkstra search of at most
@@ -233,25 +195,22 @@ CoarseSource coarse_source(const TriMesh& fine, const Connectivity& fc, const Co
       return cs;
     }
     vs.sample_up_to(want);
-    if (voronoi_dual_faces(fine, vs, faces))
-      cc = dual_surface(faces, static_cast<int>(vs.seeds.size()), fc);
+    if (detail::region_dual_faces(fine.F, vs.region, static_cast<int>(vs.seeds.size()), faces))
+      cc = detail::region_dual_surface(faces, static_cast<int>(vs.seeds.size()), fc.euler_characteristic());
     if (cc) break;
     if (round >= 1) {
       cs.why = "the Voronoi dual of " + std::to_string(vs.seeds.size()) + " samples is not a surface of the source's genus";
       return cs;
     }
   }
-  const int nc = static_cast<int>(vs.seeds.size());
   cs.fine_vertex = vs.seeds;
-  cs.mesh.V.resize(nc, 3);
-  for (int c = 0; c < nc; ++c) cs.mesh.V.row(c) = fine.V.row(vs.seeds[c]);
-  cs.mesh.F = cc->faces();
+  cs.mesh = detail::region_dual_mesh(fine, vs.seeds, *cc);
   cs.region = vs.region;
   cs.parent_halfedge = vs.parent;
 
   if (!coarse_edge_paths(vs, *cc, cs)) return cs;
   cs.ok = true;
-  cs.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  cs.seconds = detail::seconds_since(t0);
   return cs;
 }
 

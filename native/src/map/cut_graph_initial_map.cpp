@@ -9,6 +9,7 @@
 
 #include <Eigen/Geometry>
 
+#include "../seconds_since.h"
 #include "disk_flattening.h"
 #include "surfmap/error.h"
 #include "surfmap/topology/cut_mesh.h"
@@ -21,9 +22,7 @@ using Complex = std::complex<double>;
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+using detail::seconds_since;
 
 // One chain of the cut graph, seen from one of its banks: from branch
 // vertex a (corner copy with deck word c_a) to branch vertex b (c_b); its

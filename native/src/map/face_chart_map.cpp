@@ -10,6 +10,7 @@
 #include <sstream>
 #include <utility>
 
+#include "../seconds_since.h"
 #include "stages/hyperbolic_quality.h"
 #include "stages/source_weights_fallback.h"
 #include "surfmap/error.h"
@@ -26,8 +27,6 @@ namespace {
 
 using hyperbolic::Mobius;
 using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 // A product of transitions closes (is the identity) up to this distance
 // from the identity: the transitions have entries ~1 and round off ~1e-15

@@ -10,6 +10,7 @@
 #include <unordered_map>
 #include <utility>
 
+#include "../seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/topology/mapping_class_search.h"
 
@@ -318,7 +319,7 @@ GreedyPantsDecomposition greedy_pants_decomposition(const SurfaceGroupLengths& l
     out.total += c.length;
   }
   out.complete = static_cast<int>(out.curves.size()) == wanted;
-  out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out.time_s = detail::seconds_since(t0);
   return out;
 }
 

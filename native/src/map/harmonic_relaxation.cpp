@@ -5,6 +5,7 @@
 #include <cmath>
 #include <string>
 
+#include "../seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/dynamic_charts.h"
 
@@ -15,7 +16,7 @@ using hyperbolic::Mobius;
 using Complex = std::complex<double>;
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+using detail::seconds_since;
 
 // Complex division without the C99 inf/nan special cases (__divdc3) that
 // dominate the sweep otherwise; the denominators here are never zero (they

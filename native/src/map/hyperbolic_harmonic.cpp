@@ -13,6 +13,7 @@
 
 #include <Eigen/Dense>
 
+#include "../seconds_since.h"
 #include "concurrency.h"
 #include "surfmap/error.h"
 #include "surfmap/work_counters.h"
@@ -715,7 +716,7 @@ void assemble_newton_system(const std::vector<WeightedEdge>& edges, const std::v
 }
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+using detail::seconds_since;
 
 // The first line-search trial moves no vertex by more than this (a bad
 // start can ask for steps of 30 units, whose translations have entries

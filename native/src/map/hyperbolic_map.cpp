@@ -534,6 +534,7 @@ void HyperbolicPipeline::candidate_classes_and_data() {
     const double letters = space->loop_image_length(hc.map);
     HomotopyCandidate c;
     c.description = hc.description;
+    c.given_class = hc.given_class;
     if (letters <= max_image_letters) {
       if (failed[k]) std::rethrow_exception(failed[k]);
       data.push_back(std::move(computed[k]));
@@ -943,6 +944,7 @@ int HyperbolicPipeline::skip_isometric_twins(int first, std::vector<int>& rest,
 // own lists (coarse or full resolution). Returns the new index.
 int HyperbolicPipeline::push_candidate(HomotopyClass hc, ClassData cd, HomotopyCandidate c) {
   c.description = hc.description;
+  c.given_class = hc.given_class;
   for (int r = 0; r < hc.homology.rows(); ++r)
     for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
   data.push_back(std::move(cd));

@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/Sparse>
 
+#include "../seconds_since.h"
 #include "disk_flattening.h"
 #include "surfmap/error.h"
 #include "surfmap/topology/cut_mesh.h"
@@ -25,9 +26,7 @@ using Complex = std::complex<double>;
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+using detail::seconds_since;
 
 // Σ_s d(p, A_s p) and its Riemannian gradient at p (orthonormal coordinates
 // of the chart centring p), everything evaluated in that chart.
@@ -448,6 +447,16 @@ bool repair_flattening(const TriMesh& source, const Connectivity& sc, const std:
   return false;
 }
 
+/// Why the source's faces, straight between their vertices' images, do not
+/// embed (`q`: their distortion): "N flipped and M degenerate source faces";
+/// empty when none is flipped or degenerate within round-off (flat but
+/// positive faces, DistortionStats::flat, are embedded).
+std::string folded_source_faces(const DistortionStats& q) {
+  if (!q.flipped && q.degenerate <= q.flat) return {};
+  return std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate - q.flat) +
+         " degenerate source faces";
+}
+
 }  // namespace
 
 HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const Connectivity& sc,
@@ -477,10 +486,10 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
       r.cut_graph_flipped = q.flipped;
       // Flat but positive faces (DistortionStats::flat) are embedded too.
       r.cut_graph_degenerate = q.degenerate - q.flat;
-      if (q.flipped || q.degenerate > q.flat) {
+      const std::string folded = folded_source_faces(q);
+      if (!folded.empty()) {
         cg.applied = false;
-        cg.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate - q.flat) +
-                    " degenerate source faces";
+        cg.reason = folded;
       }
     }
     if (cg.applied) {
@@ -510,10 +519,10 @@ HyperbolicInitialMapResult hyperbolic_initial_map(const TriMesh& source, const C
       const DistortionStats q = hyperbolic_distortion(source, group, halfedge_word, poly.z, poly.vertex_deck_word);
       poly.source_flipped = q.flipped;
       poly.source_degenerate = q.degenerate - q.flat;
-      if (q.flipped || q.degenerate > q.flat) {
+      const std::string folded = folded_source_faces(q);
+      if (!folded.empty()) {
         poly.applied = false;
-        poly.reason = std::to_string(q.flipped) + " flipped and " + std::to_string(q.degenerate - q.flat) +
-                      " degenerate source faces";
+        poly.reason = folded;
         if (q.flipped + q.degenerate <= std::max(8, source.num_faces() / 2000))
           poly.applied = repair_flattening(source, sc, halfedge_word, group, options, q.per_face, poly);
       }

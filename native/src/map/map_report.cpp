@@ -82,6 +82,7 @@ json energy_json(const SurfaceMapResult& r) {
           {"initial_distortion", {{"mean", r.initial_mean_dilatation}, {"max", r.initial_max_dilatation}}},
           {"flipped_triangles", r.flipped_triangles},
           {"degenerate_triangles", r.degenerate_triangles},
+          {"flat_triangles", r.flat_triangles},
           {"intrinsic_flipped_triangles", r.intrinsic_flipped_triangles},
           {"initial_flipped_triangles", r.initial_flipped_triangles},
           {"repaired_vertices", r.repaired_vertices},

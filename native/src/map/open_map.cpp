@@ -10,6 +10,7 @@
 
 #include <Eigen/Geometry>
 
+#include "../seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/map/distortion.h"
 #include "surfmap/map/ear_images.h"
@@ -529,7 +530,7 @@ OpenMapResult open_surface_map(const TriMesh& source, const OpenSurfaceTopology&
     r.landmark_error = std::max(r.landmark_error, (out.forward[p].position - target.V.row(q).transpose()).norm());
   out.final_energy = out.initial_energy = energy;
   out.initial_mean_dilatation = out.mean_dilatation, out.initial_max_dilatation = out.max_dilatation;
-  out.total_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  out.total_time = detail::seconds_since(start);
   out.candidates.push_back(HomotopyCandidate{});
   out.candidates.back().description = disk ? "disk: conformal, rotation aligning the shapes"
                                            : (m.swap ? "annulus: affine stretch, loop 0 -> loop 1"

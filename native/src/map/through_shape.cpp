@@ -9,6 +9,7 @@
 #include <string>
 #include <utility>
 
+#include "../seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/topology/handle_basis.h"
@@ -29,29 +30,20 @@ SurfaceMapOptions one_way_options(const SurfaceMapOptions& options) {
   o.homotopy.source_images.resize(0, 0);
   o.homotopy.reverse_class.clear();
   o.homotopy.given_class.clear();
+  o.homotopy.given_class_names.clear();
   o.landmarks.clear();
   o.solve_progress = nullptr;
   return o;
 }
 
-/// The composed classes as candidates of the first run: the ranking run's
-/// candidates, tagged with the shape each came through ("the given class
-/// k" is the k-th composed class).
-HomotopyCandidate listed_candidate(const HomotopyCandidate& given, const std::vector<std::string>& shapes) {
+/// The composed classes' run's candidates as candidates of the first run.
+/// The composed classes are named by the shape each came through where they
+/// are made (HomotopyOptions::given_class_names); any other candidate of
+/// that run (the snapped overlay's own class) is tagged here.
+HomotopyCandidate listed_candidate(const HomotopyCandidate& given) {
   HomotopyCandidate c = given;
-  for (size_t k = shapes.size(); k-- > 0;) {
-    const std::string text = shapes.size() == 1 ? std::string("the given class") : "the given class " + std::to_string(k + 1);
-    const size_t at = c.description.find(text);
-    if (at == std::string::npos) continue;
-    c.description.replace(at, text.size(), "through a generated " + shapes[k]);
-    return c;
-  }
-  c.description += "  [through a generated shape]";
+  if (c.given_class < 0) c.description += "  [through a generated shape]";
   return c;
-}
-
-double seconds_since(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
 /// Wall and process CPU seconds since a start: on a loaded machine the wall
@@ -228,6 +220,8 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   // minimum here; docs/handle_classes.md "session 18".)
   for (const std::vector<std::vector<int>>& theta : composed)
     here.homotopy.given_class.insert(here.homotopy.given_class.end(), theta.begin(), theta.end());
+  for (const std::string& name : composed_through)
+    here.homotopy.given_class_names.push_back("through a generated " + name);
   SurfaceMapResult through;
   const Clock ts;
   try {
@@ -241,9 +235,8 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   const bool better = through.chosen_candidate >= 0 && after < before * (1 - 1e-6);
   std::string chosen_through;
   if (through.chosen_candidate >= 0) {
-    const std::string d = listed_candidate(through.candidates[through.chosen_candidate], composed_through).description;
-    for (const std::string& name : composed_through)
-      if (d.find("through a generated " + name) != std::string::npos) chosen_through = " (the class through the " + name + ")";
+    const int k = through.candidates[through.chosen_candidate].given_class;
+    if (k >= 0) chosen_through = " (the class through the " + composed_through[k] + ")";
   }
   std::string searched;
   if (through.homotopy_search.run)
@@ -255,7 +248,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   // Every composed class is listed (the unchosen ones with their ranking
   // energies): the record of what was tried.
   std::vector<HomotopyCandidate> tried;
-  for (const HomotopyCandidate& c : through.candidates) tried.push_back(listed_candidate(c, composed_through));
+  for (const HomotopyCandidate& c : through.candidates) tried.push_back(listed_candidate(c));
   if (!better) {
     for (HomotopyCandidate& c : tried) forward.candidates.push_back(std::move(c));
     return finish(forward, status);

@@ -9,6 +9,7 @@
 #include <string>
 #include <utility>
 
+#include "../seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/topology/handle_basis.h"
 #include "surfmap/topology/outer_automorphisms.h"
@@ -487,7 +488,7 @@ bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target,
     return false;
   const auto t0 = std::chrono::steady_clock::now();
   auto done = [&] {
-    out.two_way_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    out.two_way_time_s = seconds_since(t0);
     return true;
   };
   SurfaceMapResult reverse;
@@ -555,7 +556,7 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
           "not compared: " + (forward.reverse_status.empty() ? forward.two_way_status : forward.reverse_status);
     if (forward.directions.outcome.empty() && forward.directions.reason.empty())
       forward.directions.reason = "not compared: " + forward.two_way_status;
-    forward.two_way_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    forward.two_way_time_s = seconds_since(t0);
   };
   SurfaceMapResult reverse;
   std::string reverse_failure;

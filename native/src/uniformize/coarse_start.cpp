@@ -12,15 +12,15 @@
 #include <utility>
 #include <vector>
 
+#include "../mesh/region_dual.h"
+#include "../seconds_since.h"
 #include "surfmap/error.h"
 
 namespace surfmap {
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+using detail::seconds_since;
 
 /// The mesh's vertex graph once, as offsets into one array (CSR), with the
 /// 3D lengths of its edges.
@@ -43,19 +43,26 @@ struct VertexGraph {
   }
 };
 
-/// A coarse copy for the start (not the ranking's: map/coarse_source.h's
-/// farthest-point sampling and edge paths cost ~0.3 s of CPU on a 56k mesh,
-/// a third of the flow it shortens). Seeds: vertices in index order that are
+/// A coarse copy for the start. Seeds: vertices in index order that are
 /// more than `radius` edges from every earlier seed (breadth-first balls);
 /// regions: one multi-source Dijkstra over the 3D edge lengths; the coarse
-/// faces: the fine triangles with corners in three regions (the regions'
-/// dual), kept only when that is a closed oriented manifold of the mesh's
-/// Euler characteristic. Empty faces when not.
+/// faces: the regions' dual (mesh/region_dual.h, shared with the ranking's
+/// copy), sorted, used only when that is a closed oriented manifold of the
+/// mesh's Euler characteristic (coarse_copy returns false when not).
+/// Not the ranking's copy (map/coarse_source.h), which is the same dual of
+/// other regions: its seeds are farthest-point samples, each region grown by
+/// its own Dijkstra as its seed is added, with every fine vertex's tree
+/// parent, and every coarse edge gets a path of fine halfedges (homotopy data
+/// is carried along them); its faces stay in the order of their first fine
+/// face, and a failed dual is retried once at twice the samples (this copy
+/// retries at a smaller radius). That costs ~0.3 s of CPU on a 56k mesh, a
+/// third of the flow this start shortens; the start needs no paths and no
+/// parents.
 struct CoarseCopy {
   std::vector<int> seeds;   // coarse vertex -> fine vertex
   std::vector<int> region;  // fine vertex -> coarse vertex
-  RowMatrixX3i F;
   TriMesh mesh;
+  std::unique_ptr<Connectivity> conn;  // of mesh
 };
 
 bool coarse_copy(const TriMesh& mesh, const Connectivity& conn, const VertexGraph& graph, int radius, CoarseCopy& out) {
@@ -106,31 +113,14 @@ bool coarse_copy(const TriMesh& mesh, const Connectivity& conn, const VertexGrap
       }
     }
   }
-  // The dual faces: one per distinct oriented triple of regions.
-  std::vector<std::array<int, 3>> triples;
-  for (int f = 0; f < conn.num_faces(); ++f) {
-    std::array<int, 3> t{out.region[mesh.F(f, 0)], out.region[mesh.F(f, 1)], out.region[mesh.F(f, 2)]};
-    if (t[0] < 0 || t[1] < 0 || t[2] < 0) return false;
-    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
-    std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());  // smallest first, orientation kept
-    triples.push_back(t);
-  }
-  std::sort(triples.begin(), triples.end());
-  triples.erase(std::unique(triples.begin(), triples.end()), triples.end());
-  for (const auto& t : triples)  // the same triple both ways round: no oriented surface
-    if (std::binary_search(triples.begin(), triples.end(), std::array<int, 3>{t[0], t[2], t[1]})) return false;
-  out.F.resize(static_cast<int>(triples.size()), 3);
-  for (size_t f = 0; f < triples.size(); ++f)
-    for (int k = 0; k < 3; ++k) out.F(static_cast<int>(f), k) = triples[f][k];
-  try {
-    const Connectivity cc(out.F, nc);
-    if (cc.euler_characteristic() != conn.euler_characteristic()) return false;
-  } catch (const std::exception&) {
-    return false;  // not a closed manifold (Connectivity names why)
-  }
-  out.mesh.F = out.F;
-  out.mesh.V.resize(nc, 3);
-  for (int c = 0; c < nc; ++c) out.mesh.V.row(c) = mesh.V.row(out.seeds[c]);
+  // The dual faces, sorted (region_dual_faces lists them in the order of
+  // their first fine face).
+  std::vector<std::array<int, 3>> faces;
+  if (!detail::region_dual_faces(mesh.F, out.region, nc, faces)) return false;
+  std::sort(faces.begin(), faces.end());
+  out.conn = detail::region_dual_surface(faces, nc, conn.euler_characteristic());
+  if (!out.conn) return false;
+  out.mesh = detail::region_dual_mesh(mesh, out.seeds, *out.conn);
   return true;
 }
 
@@ -190,11 +180,10 @@ CoarseStart coarse_conformal_start(const TriMesh& mesh, const Connectivity& conn
   const auto t1 = std::chrono::steady_clock::now();
   RicciFlowResult flow;
   try {
-    const Connectivity cc(copy.mesh.F, copy.mesh.num_vertices());
     RicciFlowOptions fo;
     fo.tolerance = options.coarse_tolerance;
     fo.intrinsic_delaunay = true;
-    flow = ricci_flow(cc, edge_lengths(copy.mesh, cc), background, fo);
+    flow = ricci_flow(*copy.conn, edge_lengths(copy.mesh, *copy.conn), background, fo);
   } catch (const Error& e) {
     r.why = std::string("the coarse copy's flow failed: ") + e.what();
     return r;

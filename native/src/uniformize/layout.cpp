@@ -11,6 +11,7 @@
 #include <string>
 #include <type_traits>
 
+#include "../seconds_since.h"
 #include "surfmap/error.h"
 
 namespace surfmap {
@@ -100,9 +101,7 @@ struct Hyper {
   static double area(double a, double b, double c) { return hyperbolic::triangle_area(a, b, c); }
 };
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+using detail::seconds_since;
 
 /// Breadth-first distances on the cut tree (adjacency lists); returns the
 /// farthest face and fills parent.

@@ -39,6 +39,22 @@ namespace {
 /// is split over two threads (below, a thread costs more than it saves).
 constexpr int kSplitEvaluation = 20000;
 
+/// part(half, begin, end) over [0, n): with threads > 1 and n >=
+/// kSplitEvaluation in two halves, part(0, 0, n / 2) here and
+/// part(1, n / 2, n) on another thread; else part(0, 0, n) alone. Each part
+/// must write only its own slots, so the numbers are the same either way.
+template <class Part>
+void in_two_halves(int n, int threads, const Part& part) {
+  if (threads > 1 && n >= kSplitEvaluation) {
+    const int mid = n / 2;
+    auto second = std::async(std::launch::async, [&] { part(1, mid, n); });
+    part(0, 0, mid);
+    second.get();
+  } else {
+    part(0, 0, n);
+  }
+}
+
 /// Lengths of the metric at u and their derivatives dl_e/du at both endpoints.
 class SchemeMetric {
  public:
@@ -89,14 +105,10 @@ class SchemeMetric {
         }
       }
     }
-    if (threads > 1 && ne >= kSplitEvaluation) {
-      const int mid = ne / 2;
-      auto second = std::async(std::launch::async, [&] { return edge_range(u, r, mid, ne, l, dldu); });
-      const int bad0 = edge_range(u, r, 0, mid, l, dldu);
-      const int bad1 = second.get();
-      return bad0 >= 0 ? bad0 : bad1;
-    }
-    return edge_range(u, r, 0, ne, l, dldu);
+    int bad[2] = {-1, -1};
+    in_two_halves(ne, threads,
+                  [&](int half, int begin, int end) { bad[half] = edge_range(u, r, begin, end, l, dldu); });
+    return bad[0] >= 0 ? bad[0] : bad[1];
   }
 
  private:
@@ -549,16 +561,9 @@ void evaluate(const RicciDomain& dom, const SchemeMetric& metric, Background bg,
   ev.angles.resize(3 * static_cast<size_t>(nf));
   const Eigen::MatrixX2d* d = jacobian ? &dldu : nullptr;
   FaceScan parts[2];
-  if (threads > 1 && nf >= kSplitEvaluation) {
-    const int mid = nf / 2;
-    auto second = std::async(std::launch::async, [&] {
-      scan_faces(dom, bg, ev.l, d, mid, nf, ev.angles.data(), ev.triplets.data(), parts[1]);
-    });
-    scan_faces(dom, bg, ev.l, d, 0, mid, ev.angles.data(), ev.triplets.data(), parts[0]);
-    second.get();
-  } else {
-    scan_faces(dom, bg, ev.l, d, 0, nf, ev.angles.data(), ev.triplets.data(), parts[0]);
-  }
+  in_two_halves(nf, threads, [&](int half, int begin, int end) {
+    scan_faces(dom, bg, ev.l, d, begin, end, ev.angles.data(), ev.triplets.data(), parts[half]);
+  });
   // The halves combined as one pass in face order would have found them.
   for (const FaceScan& p : parts) {
     ev.degenerate += p.degenerate;

@@ -16,6 +16,7 @@
 
 #include <Eigen/Geometry>
 
+#include "../seconds_since.h"
 #include "ricci_core.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/intrinsic_delaunay.h"
@@ -925,7 +926,7 @@ static SphericalUniformization attempt(const TriMesh& mesh, const Connectivity& 
   check_sphere_orientation(mesh, out);
   if (!by_gid || !out.message.empty()) out.flip_log.clear(), out.frame_log.clear();
   out.converged = out.message.empty();
-  out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out.time_s = detail::seconds_since(t0);
   return out;
 }
 
@@ -1003,7 +1004,7 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
       continue;
     }
     if (r.converged) {
-      r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      r.time_s = detail::seconds_since(t0);
       return r;
     }
     tried += (tried.empty() ? "" : "; ") + std::to_string(v0) + ": " + r.message;
@@ -1013,11 +1014,11 @@ SphericalUniformization spherical_uniformization(const TriMesh& mesh,
     }
   }
   if (have_axial) {
-    axial.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    axial.time_s = detail::seconds_since(t0);
     return axial;
   }
   best.message = "no removed vertex gave a valid map (" + tried + ")";
-  best.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  best.time_s = detail::seconds_since(t0);
   return best;
 }
 

@@ -178,7 +178,7 @@ def test_cli_map_writes_outputs(tmp_path, cli, pair):
     assert r.returncode == 0, r.stderr
     report = json.loads(rep.read_text())
     for key in ("genus", "converged", "iterations", "energy", "distortion", "initial_distortion",
-                "flipped_triangles", "homotopy", "time_s"):
+                "flipped_triangles", "degenerate_triangles", "flat_triangles", "homotopy", "time_s"):
         assert key in report
     assert report["flipped_triangles"] == 0 and report["genus"] == 1
     v = cli("verify", src, dst, "--correspondence", corr)

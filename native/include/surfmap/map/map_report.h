@@ -11,7 +11,7 @@
 //   auto, flips, fixed or fixed-first), landmarks (count),
 //   energy {initial, final, history}, distortion {mean (area-weighted), max, unweighted_mean,
 //   measure (what D' is measured on, in words)},
-//   initial_distortion {mean, max}, flipped_triangles, degenerate_triangles,
+//   initial_distortion {mean, max}, flipped_triangles, degenerate_triangles, flat_triangles,
 //   intrinsic_flipped_triangles, initial_flipped_triangles, repaired_vertices,
 //   landmark_error, landmark_rings, landmark_method, landmark_solves,
 //   landmark_steps, landmark_held_vertices,

@@ -302,6 +302,11 @@ struct HomotopyOptions {
   /// or through-shape step; the twist search alone runs on from the best (a
   /// SolveError when one is no isomorphism). The through-shape step uses it.
   std::vector<std::vector<int>> given_class;
+  /// With given_class: each class's name in its candidate's description, one
+  /// per class (the through-shape step: "through a generated <shape>");
+  /// empty, the default: "the given class", or "the given class k" for k
+  /// classes. Like given_class, no CLI flag or Python keyword.
+  std::vector<std::string> given_class_names;
   /// Genus >= 2, set by the two-way run: per source vertex a point on the
   /// target (#V_source x 3; empty, the default: none), where the inverse of
   /// a target -> source map puts it. The source's loops carried to those
@@ -557,6 +562,11 @@ struct HomotopyCandidate {
   double class_lower_bound = std::numeric_limits<double>::quiet_NaN();
   double class_curve_bound = std::numeric_limits<double>::quiet_NaN();
   std::string class_bound_curves;
+  /// Genus >= 2: which class of HomotopyOptions::given_class this candidate
+  /// is (0-based, in the order given); -1 for the classes the pipeline
+  /// found. Read by the through-shape step; not in the report (the
+  /// description names the class).
+  int given_class = -1;
 };
 
 /// Genus >= 2: the class search of SurfaceMapOptions::homotopy.search.
@@ -711,6 +721,13 @@ struct SurfaceMapResult {
   std::vector<int> thin_source_faces;
   double thin_source_max_dilatation = 0;
   int flipped_triangles = 0, degenerate_triangles = 0;
+  /// Genus >= 1 (closed): image triangles flat but positively oriented
+  /// beyond round-off (map/distortion.h DistortionStats::flat): one-to-one,
+  /// only extremely stretched (D' ~1e9 or more, +inf in `dilatation`, out of
+  /// mean and max), so not among degenerate_triangles, which counts only the
+  /// images degenerate within round-off. 0 for genus 0, disks and annuli
+  /// (other open surfaces: their doubles' count, like degenerate_triangles).
+  int flat_triangles = 0;
   /// Genus >= 1: flipped images among the triangles of the source's
   /// intrinsic Delaunay triangulation, on which the energy (and so the
   /// discrete harmonic map, an embedding for positive weights) is defined;

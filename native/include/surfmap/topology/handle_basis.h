@@ -158,6 +158,9 @@ struct HandleCandidate {
   IntMatrix homology;
   double geometric_score = 0;
   std::string description;  ///< e.g. "handle 1 -> handle 2, handle 2 -> handle 1 (half turn)"
+  /// A map's class given as words (HomotopyOptions::given_class): its index
+  /// there, 0-based; -1 for every other class.
+  int given_class = -1;
 };
 
 /// The signed handle permutation that a map with the given homology matrix

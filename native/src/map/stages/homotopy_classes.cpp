@@ -306,6 +306,10 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
       throw InputError("homotopy.given_class must be " + std::to_string(n) + " words per class (" +
                        std::to_string(words.size()) + " given)");
     const size_t count = words.size() / n;
+    const std::vector<std::string>& names = options.homotopy.given_class_names;
+    if (!names.empty() && names.size() != count)
+      throw InputError("homotopy.given_class_names must name each of the " + std::to_string(count) +
+                       " given classes (" + std::to_string(names.size()) + " names)");
     std::vector<std::vector<double>> fingerprints;
     for (size_t k = 0; k < count; ++k) {
       GroupMap theta(words.begin() + k * n, words.begin() + (k + 1) * n);
@@ -325,8 +329,10 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
         continue;
       fingerprints.push_back(fp);
       out.classes.push_back(described(theta, n, shb, thb,
-                                      count == 1 ? std::string("the given class")
-                                                 : "the given class " + std::to_string(k + 1)));
+                                      !names.empty() ? names[k]
+                                      : count == 1   ? std::string("the given class")
+                                                     : "the given class " + std::to_string(k + 1)));
+      out.classes.back().given_class = static_cast<int>(k);
     }
     return out;
   }

@@ -29,6 +29,7 @@ void store_distortion(const DistortionStats& q, SurfaceMapResult& out) {
   // that only truly degenerate ones (orientation round-off) fold a class.
   // Their D' is +inf in `dilatation`, out of mean and max.
   out.degenerate_triangles = q.degenerate - q.flat;
+  out.flat_triangles = q.flat;
 }
 
 bool retry_with_own_weights(const SurfaceMapOptions& options, bool own_weights, const SurfaceMapResult& out) {

@@ -25,7 +25,8 @@ void store_initial_distortion(const DistortionStats& q0, SurfaceMapResult& out);
 /// D' of the optimised map (`q`, per source face) with its flipped and
 /// degenerate counts into `out`; degenerate_triangles counts only the truly
 /// degenerate images (q.degenerate - q.flat: orientation round-off), not the
-/// flat but positive ones (one-to-one; their D' is +inf in `dilatation`).
+/// flat but positive ones (one-to-one; their D' is +inf in `dilatation`),
+/// which are flat_triangles.
 void store_distortion(const DistortionStats& q, SurfaceMapResult& out);
 
 /// What becomes of the optimised map recorded in `out` (store_distortion and
