@@ -61,7 +61,8 @@ struct VoronoiSampling {
       pq.pop();
       if (d > dist[v]) continue;
       taken.push_back(v);
-      for (int h : fc.outgoing(v)) {
+      const int first_out = fc.vertex_halfedge(v);  // (fc.outgoing(v) without its vector)
+      for (int h = first_out, more = 1; more; h = fc.rotate_ccw(h), more = h != first_out) {
         const int w = fc.head(h);
         const double dw = d + length(h);
         if (dw < dist[w]) {
@@ -114,7 +115,8 @@ bool shortest_fine_path(const VoronoiSampling& vs, int s, int t, std::vector<int
       break;
     }
     if (dd.size() > 20000) break;
-    for (int g : fc.outgoing(v)) {
+    const int first_out = fc.vertex_halfedge(v);  // (fc.outgoing(v) without its vector)
+    for (int g = first_out, more = 1; more; g = fc.rotate_ccw(g), more = g != first_out) {
       const int w = fc.head(g);
       const double dw = d + vs.length(g);
       auto f = dd.find(w);

@@ -20,12 +20,18 @@ FundamentalPolygon::FundamentalPolygon(const DiskLayout& layout, const DeckGroup
     side_letter_[i] = layout.word[i];
     side_map_[i] = group.evaluate_side_word(Word{layout.word[i]});
   }
+  kside_.resize(nsides);
+  kside_length_.resize(nsides);
+  for (int i = 0; i < nsides; ++i) {
+    kside_[i] = kcorner_[(i + 1) % nsides] - kcorner_[i];
+    kside_length_[i] = std::abs(kside_[i]);
+  }
 }
 
 double FundamentalPolygon::inside_of_side(int i, Complex k) const {
-  const int nsides = num_sides();
-  const Complex e = kcorner_[(i + 1) % nsides] - kcorner_[i], d = k - kcorner_[i];
-  return (e.real() * d.imag() - e.imag() * d.real()) / std::abs(e);
+  const Complex& e = kside_[i];
+  const Complex d = k - kcorner_[i];
+  return (e.real() * d.imag() - e.imag() * d.real()) / kside_length_[i];
 }
 
 Word FundamentalPolygon::reduce(Complex& z) const {

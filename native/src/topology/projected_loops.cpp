@@ -86,20 +86,38 @@ struct EdgeWordSource {
   const Word& operator()(int e) const { return lazy ? (*lazy)(e) : (*all)[e]; }
 };
 
+// The source in its box frame (the target's box with source_on_target) and
+// its mean edge length there. Issue 19: kept by the LoopProjector, which
+// projects the same source in the same few poses for every lifted cut (30
+// frames and mean edge lengths for a few distinct ones on the 5k bench pair).
+struct SourceFrame {
+  RowMatrixX3d V;  ///< #V x 3: the source it was built for (with F, compared by value)
+  RowMatrixX3i F;
+  Eigen::Matrix3d transform;
+  bool uniform = false;
+  BoxFrame frame;
+  double s_edge = 0;
+  SourceFrame(const TriMesh& source, const TriMesh& target, const TargetFrame& tf, const ProjectedLoopsOptions& options)
+      : V(source.V), F(source.F), transform(options.source_on_target ? tf.transform : options.source_transform),
+        uniform(options.source_on_target ? tf.uniform : options.uniform_box),
+        frame(options.source_on_target ? target.V : source.V, transform, uniform), s_edge(mean_edge_length(source, frame)) {}
+  bool is_for(const TriMesh& source, const Eigen::Matrix3d& t, bool u) const {
+    return t == transform && u == uniform && source.V.rows() == V.rows() && source.F.rows() == F.rows() && source.V == V &&
+           source.F == F;
+  }
+};
+
 ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::vector<int>>& source_loops,
                                   const SystemOfLoops& target, const Word& target_word, const Connectivity& conn,
-                                  const EdgeWordSource& edge_word, const TargetFrame* frame,
+                                  const EdgeWordSource& edge_word, const TargetFrame* frame, const SourceFrame* source_frame,
                                   const ProjectedLoopsOptions& options) {
   ProjectedLoopsResult out;
   const TriMesh& tm = target.mesh;
   // Without a frame (LoopProjector::project with options.own_mesh): the
   // source is the target's mesh, every loop vertex its own image, and the
   // mean edge lengths are equal.
-  std::optional<BoxFrame> sf;
-  if (frame)
-    sf.emplace(options.source_on_target ? BoxFrame(tm.V, frame->transform, frame->uniform)
-                                        : BoxFrame(source.V, options.source_transform, options.uniform_box));
-  const double s_edge = frame ? mean_edge_length(source, *sf) : 1.0, t_edge = frame ? frame->t_edge : 1.0;
+  const BoxFrame* sf = frame ? &source_frame->frame : nullptr;
+  const double s_edge = frame ? source_frame->s_edge : 1.0, t_edge = frame ? frame->t_edge : 1.0;
   const int max_gap = static_cast<int>(std::ceil(options.max_gap_factor * std::max(1.0, s_edge / t_edge)));
 
   // Halfedge from a to b, or -1.
@@ -124,7 +142,8 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
       for (int depth = 0; depth < max_gap && !found && !frontier.empty() && !options.join_by_length; ++depth) {
         next.clear();
         for (int v : frontier) {
-          for (int h : conn.outgoing(v)) {
+          const int first_out = conn.vertex_halfedge(v);  // (conn.outgoing(v) without its vector)
+          for (int h = first_out, more = 1; more; h = conn.rotate_ccw(h), more = h != first_out) {
             const int u = conn.head(h);
             if (stamp[u] == search) continue;
             stamp[u] = search;
@@ -180,7 +199,8 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
             break;
           }
           if (key > dist[v] + (tp[v] - tp[b]).norm() + 1e-15) continue;  // stale
-          for (int h : conn.outgoing(v)) {
+          const int first_out = conn.vertex_halfedge(v);  // (conn.outgoing(v) without its vector)
+          for (int h = first_out, more = 1; more; h = conn.rotate_ccw(h), more = h != first_out) {
             const int u = conn.head(h);
             const double d = dist[v] + (tp[u] - tp[v]).norm();
             if (stamp[u] == search && d >= dist[u]) continue;
@@ -276,6 +296,9 @@ struct LoopProjector::Impl {
   // one kept, the lifted cuts after them built the first again; issue 19).
   static constexpr size_t kFrames = 4;
   std::vector<std::unique_ptr<TargetFrame>> frames;
+  // The source frames used so far (SourceFrame), at most kSourceFrames.
+  static constexpr size_t kSourceFrames = 8;
+  std::vector<std::unique_ptr<SourceFrame>> source_frames;
   Impl(const SystemOfLoops& t, const Word& w, const Connectivity* c)
       : target(t), target_word(w), own_conn(c ? std::nullopt : std::make_optional<Connectivity>(t.mesh.F, t.mesh.num_vertices())),
         conn(c ? *c : *own_conn) {
@@ -302,7 +325,7 @@ ProjectedLoopsResult LoopProjector::project(const TriMesh& source, const std::ve
   // own nearest vertex (ProjectedLoopsOptions::own_mesh).
   if (options.own_mesh && !options.join_by_length && !(options.max_jump_box > 0) && !options.source_on_target &&
       source.F.rows() == m.target.mesh.F.rows() && source.V == m.target.mesh.V)
-    return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, nullptr, options);
+    return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, nullptr, nullptr, options);
   const TargetFrame* frame = nullptr;
   for (const auto& f : m.frames)
     if (f->transform == options.target_transform && f->uniform == options.uniform_box) frame = f.get();
@@ -311,7 +334,17 @@ ProjectedLoopsResult LoopProjector::project(const TriMesh& source, const std::ve
     m.frames.push_back(std::make_unique<TargetFrame>(m.target.mesh, options.target_transform, options.uniform_box));
     frame = m.frames.back().get();
   }
-  return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, frame, options);
+  const Eigen::Matrix3d& st = options.source_on_target ? frame->transform : options.source_transform;
+  const bool su = options.source_on_target ? frame->uniform : options.uniform_box;
+  const SourceFrame* source_frame = nullptr;
+  for (const auto& f : m.source_frames)
+    if (f->is_for(source, st, su)) source_frame = f.get();
+  if (!source_frame) {
+    if (m.source_frames.size() >= Impl::kSourceFrames) m.source_frames.erase(m.source_frames.begin());
+    m.source_frames.push_back(std::make_unique<SourceFrame>(source, m.target.mesh, *frame, options));
+    source_frame = m.source_frames.back().get();
+  }
+  return project_with(source, source_loops, m.target, m.target_word, m.conn, m.edge_word, frame, source_frame, options);
 }
 
 std::vector<ProjectedLoopsResult> LoopProjector::project(const TriMesh& source,

@@ -41,6 +41,11 @@ class FundamentalPolygon {
   double inside_of_side(int i, std::complex<double> k) const;
 
   std::vector<std::complex<double>> kcorner_;  ///< #sides corners in the Klein model
+  /// #sides side i's direction kcorner_[i+1] - kcorner_[i] and its length:
+  /// fixed, so computed once (issue 19: inside_of_side runs for every side
+  /// at every vertex of every Newton step, and |e| was a hypot each time).
+  std::vector<std::complex<double>> kside_;
+  std::vector<double> kside_length_;
   std::vector<hyperbolic::Mobius> side_map_;   ///< #sides
   std::vector<int> side_letter_;               ///< #sides letters (layout.word)
 };
