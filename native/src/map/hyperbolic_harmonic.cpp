@@ -605,9 +605,11 @@ class ChartState {
   // that circles the corner through tiles whose centres are up to 55 units
   // from the origin. Multiplied out alone, ρ'_e's partial products pass
   // 1e12 (sizes |a| + |b|), where long double keeps no digit, and K_e derived
-  // from it was off by 6 (142 of 22,156 triangles did not close, one
-  // folded); the same product seen from T_i has partial products of the
-  // size of the distance from vertex i to those centres (~26 units, 1e11).
+  // from it was off by up to 6; 146 of the 22,156 intrinsic triangles did not
+  // close up (by up to 0.044) and 3 folded. Seen from T_i the partial
+  // products are only as large as vertex i is far from those centres, and
+  // the triangles close to 5.6e-5, the target's own round-off
+  // (docs/robustness.md "Session 18").
   LongProduct fresh_anchored(int e) const {
     const WeightedEdge& ed = edges_[e];
     std::vector<LongMobius>& f = factor_scratch_;

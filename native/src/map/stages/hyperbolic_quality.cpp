@@ -85,45 +85,26 @@ DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc, 
       true);
 }
 
-namespace {
-// Calls visit(f, side) with the three elements of every intrinsic triangle f
-// in the solver's local charts, oriented along the face (side[k] from corner
-// k's chart to corner k+1's), when edge_local covers idt's edges and their
-// orientation is recorded.
-template <class Visit>
-void for_each_triangle_sides(const IntrinsicDelaunayResult& idt, const std::vector<Mobius>& edge_local, Visit visit) {
-  if (edge_local.size() < idt.edges.size() || idt.face_edge_forward.rows() != idt.F.rows()) return;
-  for (int f = 0; f < static_cast<int>(idt.F.rows()); ++f) {
-    Mobius side[3];
-    for (int k = 0; k < 3; ++k) {
-      const int e = idt.face_edges(f, k);
-      side[k] = idt.face_edge_forward(f, k) ? edge_local[e] : edge_local[e].inverse();
-    }
-    visit(f, side);
-  }
-}
-}  // namespace
-
 int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::vector<Mobius>& edge_local) {
   // The intrinsic Delaunay triangles (the energy's own triangulation): their
   // images from the solver's local charts, oriented by the face's corners.
   int flipped = 0;
-  for_each_triangle_sides(idt, edge_local, [&](int, const Mobius* side) {
-    const Complex p1 = side[0].apply(Complex(0.0)), p2 = side[2].inverse().apply(Complex(0.0));
-    if (p1.real() * p2.imag() - p1.imag() * p2.real() <= 0) ++flipped;
-  });
+  if (edge_local.size() >= idt.edges.size()) {
+    for (int f = 0; f < static_cast<int>(idt.F.rows()); ++f) {
+      Mobius side[3];
+      bool known = true;
+      for (int k = 0; k < 3; ++k) {
+        const int e = idt.face_edges(f, k);
+        if (idt.face_edge_forward.rows() != idt.F.rows()) known = false;  // orientation not recorded
+        else if (idt.face_edge_forward(f, k)) side[k] = edge_local[e];
+        else side[k] = edge_local[e].inverse();
+      }
+      if (!known) continue;
+      const Complex p1 = side[0].apply(Complex(0.0)), p2 = side[2].inverse().apply(Complex(0.0));
+      if (p1.real() * p2.imag() - p1.imag() * p2.real() <= 0) ++flipped;
+    }
+  }
   return flipped;
-}
-
-TriangleClosure intrinsic_triangle_closure(const IntrinsicDelaunayResult& idt, const std::vector<Mobius>& edge_local,
-                                           double tolerance) {
-  TriangleClosure c;
-  for_each_triangle_sides(idt, edge_local, [&](int, const Mobius* side) {
-    const double off = std::abs((side[0] * side[1] * side[2]).normalized().b);
-    if (off > tolerance) ++c.open;
-    c.worst = std::max(c.worst, off);
-  });
-  return c;
 }
 
 }  // namespace surfmap::detail

@@ -57,17 +57,4 @@ DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc,
 /// cover idt's edges (not computable).
 int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::vector<hyperbolic::Mobius>& edge_local);
 
-/// How well the solve's edge elements close up around the intrinsic
-/// triangles: the product of a triangle's three elements (edge_local) is the
-/// identity for the true problem, since the deck elements of a face's edges
-/// multiply to 1. `open` counts the triangles whose product moves the origin
-/// by more than `tolerance` (|b| of the product); `worst` is the largest |b|.
-/// Both 0 when edge_local does not cover idt's edges.
-struct TriangleClosure {
-  int open = 0;
-  double worst = 0;
-};
-TriangleClosure intrinsic_triangle_closure(const IntrinsicDelaunayResult& idt,
-                                           const std::vector<hyperbolic::Mobius>& edge_local, double tolerance);
-
 }  // namespace surfmap::detail
