@@ -40,6 +40,7 @@ struct OctagonSurface {
   std::vector<Mobius> generators;
   std::vector<Complex> z;  // representative points
   RowMatrixX3i F;
+  Word relator;  // of the generators; every edge's rho_word is rho as a word in them
 };
 
 OctagonSurface octagon_surface(int m) {
@@ -83,6 +84,15 @@ OctagonSurface octagon_surface(int m) {
   const int nd = static_cast<int>(disk.size());
   std::vector<int> cls(nd, -1);
   std::vector<Mobius> gamma(nd);  // copy = gamma(representative)
+  std::vector<Word> gamma_word(nd);  // gamma as a word in the generators (side maps of sides with word[i] > 0)
+  std::vector<int> letter_of(N);     // side map s as a letter: +(k+1) for the k-th positive side, else its partner's inverse
+  {
+    int k = 0;
+    for (int i = 0; i < N; ++i)
+      if (word[i] > 0) letter_of[i] = ++k;
+    for (int i = 0; i < N; ++i)
+      if (word[i] < 0) letter_of[i] = -letter_of[partner[i]];
+  }
   int n = 0;
   for (int v = 0; v < nd; ++v) {
     const Complex k = hyperbolic::poincare_to_klein(disk[v]);
@@ -97,6 +107,12 @@ OctagonSurface octagon_surface(int m) {
   {
     const int c0 = grid(0, m, 0);
     cls[c0] = n;
+    // The frontier's elements by value (their words are looked up by it).
+    auto g_key = [](const Mobius& g) {
+      return std::make_pair(std::llround(g.a.real() * 1e6) * 1000003 + std::llround(g.a.imag() * 1e6),
+                            std::llround(g.b.real() * 1e6) * 1000003 + std::llround(g.b.imag() * 1e6));
+    };
+    std::map<std::pair<long long, long long>, Word> word_at{{g_key(Mobius()), Word{}}};
     std::vector<std::pair<Complex, Mobius>> frontier{{p[0], Mobius()}};
     for (int depth = 0; depth < 8; ++depth) {
       std::vector<std::pair<Complex, Mobius>> next;
@@ -106,7 +122,11 @@ OctagonSurface octagon_surface(int m) {
           for (int k = 0; k < N; ++k)
             if (std::abs(w - p[k]) < 1e-9) {
               const int c = grid(k, m, 0);
-              if (cls[c] < 0) cls[c] = n, gamma[c] = (side_map[s] * g).normalized(), next.emplace_back(w, gamma[c]);
+              if (cls[c] < 0) {
+                cls[c] = n, gamma[c] = (side_map[s] * g).normalized(), next.emplace_back(w, gamma[c]);
+                gamma_word[c] = concat(Word{letter_of[s]}, word_at.at(g_key(g)));
+                word_at[g_key(gamma[c])] = gamma_word[c];
+              }
             }
         }
       frontier.swap(next);
@@ -120,6 +140,7 @@ OctagonSurface octagon_surface(int m) {
       const int a = grid(i, m - s, s), b = grid(j, s, m - s);
       cls[a] = n, cls[b] = n++;
       gamma[b] = side_map[i];
+      gamma_word[b] = Word{letter_of[i]};
     }
   }
   OctagonSurface S;
@@ -141,10 +162,22 @@ OctagonSurface octagon_surface(int m) {
       edge_of[key] = static_cast<int>(S.edges.size());
       WeightedEdge e;
       e.i = i, e.j = j, e.w = 1.0, e.rho = rho;
+      e.rho_word = concat(inverse(gamma_word[a]), gamma_word[b]);
       S.edges.push_back(e);
     }
   for (int i = 0; i < N; ++i)
     if (word[i] > 0) S.generators.push_back(side_map[i]);
+  // The relator: the ordering of the eight letters ±1..±4 whose product is
+  // the identity (the side maps around the one vertex), found by trying them all.
+  Word letters{-4, -3, -2, -1, 1, 2, 3, 4};
+  do {
+    Mobius prod;
+    for (int x : letters) prod = prod * (x > 0 ? S.generators[x - 1] : S.generators[-x - 1].inverse());
+    if (hyperbolic::distance_from_identity(prod.normalized()) < 1e-9) {
+      S.relator = letters;
+      break;
+    }
+  } while (std::next_permutation(letters.begin(), letters.end()));
   return S;
 }
 
@@ -162,6 +195,20 @@ TEST(OctagonSurface, IsAClosedGenusTwoSurfaceWithConsistentDeckData) {
     for (int k = 0; k < 3; ++k) prod = prod * rho.at({S.F(f, k), S.F(f, (k + 1) % 3)});
     EXPECT_LT(hyperbolic::distance_from_identity(prod.normalized()), 1e-9) << "face " << f;
   }
+  // The edges' words are their elements, and the relator holds.
+  ASSERT_EQ(S.relator.size(), 8u);
+  auto evaluate = [&](const Word& w) {
+    Mobius m;
+    for (int x : w) m = m * (x > 0 ? S.generators[x - 1] : S.generators[-x - 1].inverse());
+    return m.normalized();
+  };
+  EXPECT_LT(hyperbolic::distance_from_identity(evaluate(S.relator)), 1e-9);
+  size_t longest = 0;
+  for (const auto& e : S.edges) {
+    EXPECT_LT(mobius_error(evaluate(e.rho_word), e.rho), 1e-9);
+    longest = std::max(longest, e.rho_word.size());
+  }
+  EXPECT_GE(longest, 3u);  // the corner's edges cross several tiles
   (void)mobius_error;
 }
 
@@ -388,6 +435,72 @@ TEST(HyperbolicHarmonicMap, ADomainFarFromTheOriginStillReachesTheTolerance) {
   EXPECT_LT(worst, 1e-5);
   std::printf("20 units out: E %.12g (reference %.12g, %d iterations), %d iterations, last gradient %.3g, points within %.3g\n",
               r.energy, reference.energy, reference.iterations, r.iterations, r.gradient_history.back(), worst);
+}
+
+// How far the solve's edge elements (edge_local) are from closing up around
+// the faces of S: the largest |b| of the product of a face's three elements,
+// which is the identity for the true problem.
+double worst_face_closure(const OctagonSurface& S, const std::vector<Mobius>& edge_local) {
+  std::map<std::pair<int, int>, Mobius> local;
+  for (size_t e = 0; e < S.edges.size(); ++e)
+    local[{S.edges[e].i, S.edges[e].j}] = edge_local[e], local[{S.edges[e].j, S.edges[e].i}] = edge_local[e].inverse();
+  double worst = 0;
+  for (int f = 0; f < S.F.rows(); ++f) {
+    Mobius prod;
+    for (int k = 0; k < 3; ++k) prod = prod * local.at({S.F(f, k), S.F(f, (k + 1) % 3)});
+    worst = std::max(worst, std::abs(prod.normalized().b));
+  }
+  return worst;
+}
+
+TEST(HyperbolicHarmonicMap, LongWordsFarFromTheOriginStillCloseUpAroundEveryFace) {
+  // Issue 13, session 18: with a relator the solve keeps each edge's element
+  // as a word in the side pairings, and far from the origin (anchored
+  // charts) derives K_e = T_i^-1 ρ'_e T_j from it. On a thin CAD plate an
+  // edge across a far corner of P has a word of 9 side pairings that
+  // circles the corner through tiles far from the origin: multiplied out
+  // alone its partial products passed 1e12, K_e kept no digit, 142
+  // triangles of the raw genus-8 polycube -> plate map did not close up and
+  // the map folded. Here the octagon surface's problem is carried into the
+  // tile of a deck element G six letters long (~16 units out): vertices at
+  // G z_i, every edge's word G ρ_e G^-1, so every word passes through G's
+  // tile and back (partial products ~1e7 for elements near the identity).
+  // Seen from the vertices it is the problem at the origin, exactly (the
+  // same words, the same generators): every face must close up, the
+  // energy and the points must be those at the origin.
+  const OctagonSurface S = weighted_octagon(6, 9);
+  HyperbolicHarmonicOptions no;
+  no.tolerance = 1e-11;
+  no.relator = S.relator;
+  no.reduce_point = [](Complex&) { return Word{}; };  // one sheet: the start's words throughout
+  const HyperbolicHarmonicResult reference = hyperbolic_harmonic_map(S.n, S.edges, S.generators, S.z, no);
+  ASSERT_TRUE(reference.converged);
+  EXPECT_LT(worst_face_closure(S, reference.edge_local), 1e-12);
+  const Word G{1, 2, 1, 2, 1, 2};
+  Mobius g;
+  for (int x : G) g = (g * S.generators[x - 1]).normalized();
+  EXPECT_GT(g.displacement_of_origin(), 12.0);
+  OctagonSurface far = S;
+  size_t longest = 0;
+  for (WeightedEdge& e : far.edges) {
+    e.rho = (g * e.rho * g.inverse()).normalized();
+    e.rho_word = concat({G, e.rho_word, inverse(G)});
+    longest = std::max(longest, e.rho_word.size());
+  }
+  EXPECT_GE(longest, 12u);
+  std::vector<Complex> far_start(S.n);
+  for (int i = 0; i < S.n; ++i) far_start[i] = g.apply(S.z[i]);
+  const HyperbolicHarmonicResult r = hyperbolic_harmonic_map(S.n, far.edges, S.generators, far_start, no);
+  ASSERT_TRUE(r.converged);
+  const double closure = worst_face_closure(S, r.edge_local);
+  EXPECT_LT(closure, 1e-9);
+  EXPECT_NEAR(r.energy, reference.energy, 1e-9 * reference.energy);
+  double worst = 0;
+  for (int i = 0; i < S.n; ++i) worst = std::max(worst, hyperbolic::distance(g.inverse().apply(r.z[i]), reference.z[i]));
+  EXPECT_LT(worst, 1e-6);
+  std::printf("%.1f units out, words up to %zu letters: E %.12g (reference %.12g), %d iterations, faces close to %.3g, "
+              "points within %.3g\n",
+              g.displacement_of_origin(), longest, r.energy, reference.energy, r.iterations, closure, worst);
 }
 
 TEST(HarmonicRelaxation, TimeBudgetAndBadInput) {

@@ -50,6 +50,37 @@ struct LongMobius {
   }
 };
 
+long double size(const LongMobius& m) { return std::abs(m.a) + std::abs(m.b); }
+
+// A product in long double and the first-order estimate of its round-off,
+// in units of the long double epsilon (absolute, on the entries).
+struct LongProduct {
+  LongMobius value;
+  long double error = 0;
+};
+
+// X_1 X_2 ... X_n (`factors`, n >= 1) left to right, normalised at the end,
+// with the round-off estimate Σ_{m>=2} |X_1..X_{m-1}| |X_m| |X_{m+1}..X_n|:
+// each multiplication's error, of the size of its two operands, carried
+// through the rest of the product (sizes |a| + |b| of the partial products,
+// not of the factors: a product of large factors that cancel, as a word
+// circling a far corner of the domain, is only as inexact as its partial
+// products are large). `suffix`: scratch.
+LongProduct multiply_out(const std::vector<LongMobius>& factors, std::vector<LongMobius>& suffix) {
+  const size_t n = factors.size();
+  suffix.resize(n + 1);
+  suffix[n] = LongMobius();
+  for (size_t m = n; m-- > 1;) suffix[m] = factors[m] * suffix[m + 1];
+  LongProduct p;
+  p.value = factors[0];
+  for (size_t m = 1; m < n; ++m) {
+    p.error += size(p.value) * size(factors[m]) * size(suffix[m + 1]);
+    p.value = p.value * factors[m];
+  }
+  p.value = p.value.normalized();
+  return p;
+}
+
 // Move index (2k: generator k, 2k+1: its inverse) as a word letter.
 int move_letter(int m) { return m % 2 == 0 ? m / 2 + 1 : -(m / 2 + 1); }
 
@@ -480,7 +511,10 @@ class ChartState {
     for (size_t v = 0; v < chart.size(); ++v) anchor_[v] = LongMobius::from(chart[v]), chart[v] = Mobius();
     anchored_.resize(edges_.size());
     anchored_error_.resize(edges_.size());
-    for (size_t e = 0; e < edges_.size(); ++e) anchor_edge(static_cast<int>(e));
+    for (size_t e = 0; e < edges_.size(); ++e) {
+      const LongProduct K = fresh_anchored(static_cast<int>(e));
+      anchored_[e] = K.value, anchored_error_[e] = K.error;
+    }
   }
 
   /// Vertex v's full chart C_v = T_v c_v (C_v itself before the anchors).
@@ -493,7 +527,7 @@ class ChartState {
   /// kReanchorB (|b| = sinh(d/2): about 1.4 units), so that c_v stays near
   /// the identity: T_v ← T_v c_v, c_v ← 1, and the incident K_e carried
   /// along (K_e ← c_i^-1 K_e c_j, A_e unchanged), or derived afresh when that
-  /// is the more accurate (anchor_edge).
+  /// is the more accurate (refresh_if_better).
   static constexpr double kReanchorB = 0.75;
   void reanchor_if_moved(int v) {
     if (!anchored_mode_ || !(std::abs(chart[v].b) > kReanchorB)) return;
@@ -549,32 +583,51 @@ class ChartState {
  private:
   LongMobius evaluate_long(const Word& w) const {
     LongMobius m;
-    for (int x : w) {
-      const int k = std::abs(x) - 1;
-      if (k < 0 || k >= static_cast<int>(generators_.size()))
-        throw InputError("hyperbolic_harmonic_map: letter " + std::to_string(x) + " names no generator");
-      m = (m * LongMobius::from(moves_[x > 0 ? 2 * k : 2 * k + 1])).normalized();
-    }
+    for (int x : w) m = (m * letter(x)).normalized();
     return m;
   }
 
-  // K_e = T_i^-1 ρ'_e T_j afresh, with its round-off bound |T_i| |ρ'_e| |T_j|
-  // (in units of the long double epsilon; sizes |a| + |b|).
-  void anchor_edge(int e) {
-    const LongMobius& Ti = anchor_[edges_[e].i];
-    const LongMobius& Tj = anchor_[edges_[e].j];
-    anchored_[e] = (Ti.inverse() * eff[e] * Tj).normalized();
-    anchored_error_[e] = fresh_error(e);
-  }
-  long double fresh_error(int e) const {
-    auto size = [](const LongMobius& m) { return std::abs(m.a) + std::abs(m.b); };
-    return size(anchor_[edges_[e].i]) * size(eff[e]) * size(anchor_[edges_[e].j]);
-  }
-  // Derived afresh only when that bound is well below the carried one: a
-  // vertex that flips between two sheets from one iteration to the next
-  // then does not move its edges' elements by the round-off of the far one.
+  // K_e = T_i^-1 ρ'_e T_j afresh (fresh_anchored) when its round-off
+  // estimate is well below the one K_e carries: a vertex that flips between
+  // two sheets from one iteration to the next then does not move its edges'
+  // elements by the round-off of the far one, and an element whose product
+  // keeps no digits never replaces one that does.
   void refresh_if_better(int e) {
-    if (fresh_error(e) < 0.25L * anchored_error_[e]) anchor_edge(e);
+    const LongProduct fresh = fresh_anchored(e);
+    if (fresh.error < 0.25L * anchored_error_[e]) anchored_[e] = fresh.value, anchored_error_[e] = fresh.error;
+  }
+
+  // K_e = T_i^-1 ρ'_e T_j multiplied out as one product: with words, of T_i^-1,
+  // the letters of ρ'_e's reduced word and T_j, so that every partial
+  // product is seen from vertex i's anchor; without, of T_i^-1, ρ'_e, T_j.
+  // Issue 13 (raw genus-8 polycube -> thin genus-8 plate): the letters are
+  // side pairings with entries up to 4e4, and an edge between two vertices
+  // 0.17 apart on either side of a far corner of P has a word of 9 of them
+  // that circles the corner through tiles whose centres are up to 55 units
+  // from the origin. Multiplied out alone, ρ'_e's partial products pass
+  // 1e12 (sizes |a| + |b|), where long double keeps no digit, and K_e derived
+  // from it was off by up to 6; 146 of the 22,156 intrinsic triangles did not
+  // close up (by up to 0.044) and 3 folded. Seen from T_i the partial
+  // products are only as large as vertex i is far from those centres, and
+  // the triangles close to 5.6e-5, the target's own round-off
+  // (docs/robustness.md "Session 18").
+  LongProduct fresh_anchored(int e) const {
+    const WeightedEdge& ed = edges_[e];
+    std::vector<LongMobius>& f = factor_scratch_;
+    f.clear();
+    f.push_back(anchor_[ed.i].inverse());
+    if (words_)
+      for (int x : eff_word_[e]) f.push_back(letter(x));
+    else
+      f.push_back(eff[e]);
+    f.push_back(anchor_[ed.j]);
+    return multiply_out(f, suffix_scratch_);
+  }
+  LongMobius letter(int x) const {
+    const int k = std::abs(x) - 1;
+    if (k < 0 || k >= static_cast<int>(generators_.size()))
+      throw InputError("hyperbolic_harmonic_map: letter " + std::to_string(x) + " names no generator");
+    return LongMobius::from(moves_[x > 0 ? 2 * k : 2 * k + 1]);
   }
 
   // Vertex v to another sheet by γ (word w when words are kept): T_v ← γ T_v,
@@ -627,7 +680,8 @@ class ChartState {
   bool anchored_mode_ = false;  // charts split T_i c_i (anchor_if_far)
   std::vector<LongMobius> anchor_;  // #V anchor T_i (the full chart is T_i c_i)
   std::vector<LongMobius> anchored_;  // #edges K_e = T_i^-1 ρ'_e T_j
-  std::vector<long double> anchored_error_;  // #edges round-off bound of K_e (units of epsilon)
+  std::vector<long double> anchored_error_;  // #edges round-off estimate of K_e (units of epsilon)
+  mutable std::vector<LongMobius> factor_scratch_, suffix_scratch_;  // fresh_anchored's
 };
 
 // The energy Σ w d² for edge elements `a` (one per edge).
