@@ -34,6 +34,7 @@
 #include <utility>
 #include <vector>
 
+#include "../native/src/seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/hyperbolic.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
@@ -43,6 +44,7 @@
 #include "surfmap/uniformize/uniformize.h"
 
 using namespace surfmap;
+using detail::seconds_since;
 using hyperbolic::Mobius;
 using Complex = std::complex<double>;
 
@@ -207,7 +209,7 @@ void run(const char* path, const char* source_path) {
   const TriMesh mesh = load_mesh(path).mesh;
   const auto t0 = std::chrono::steady_clock::now();
   const UniformizeResult u = uniformize(mesh);
-  const double t_uniformize = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double t_uniformize = seconds_since(t0);
   const Connectivity conn(u.loops.mesh.F, u.loops.mesh.num_vertices());
   const FaceAtlas atlas = hyperbolic_face_atlas(conn, u.edge_lengths);
   const TriMesh source = source_path ? load_mesh(source_path).mesh : u.loops.mesh;
@@ -350,7 +352,7 @@ void run(const char* path, const char* source_path) {
   o.max_iterations = 500;
   const auto t1 = std::chrono::steady_clock::now();
   const HyperbolicHarmonicResult r = hyperbolic_harmonic_map_in_face_charts(n, edges, atlas, face0, w0, o);
-  const double t_solve = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  const double t_solve = seconds_since(t1);
   double largest = 0;
   for (const Mobius& m : r.edge_effective) largest = std::max(largest, m.size());
   // Head of halfedge h in the chart of its tail.

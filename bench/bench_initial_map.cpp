@@ -16,12 +16,14 @@
 #include <string>
 #include <vector>
 
+#include "../native/src/seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/map/map_option_names.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/samples/shapes.h"
 
 using namespace surfmap;
+using detail::seconds_since;
 
 namespace {
 
@@ -101,7 +103,7 @@ int main(int argc, char** argv) {
         std::printf("%-36s %6d %-10s | failed: %s\n", c.name.c_str(), c.a.num_vertices(), method.c_str(), e.what());
         continue;
       }
-      const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      const double total = seconds_since(t0);
       const InitialMapInfo& im = m.initial_map;
       // Folds of each flattening tried, before any repair (cut graph:
       // round-off only; polygon: the faces crossing its refined loops).

@@ -50,6 +50,7 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCore>
 
+#include "../native/src/seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/map/harmonic_relaxation.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
@@ -58,13 +59,12 @@
 #include "surfmap/samples/shapes.h"
 
 using namespace surfmap;
+using detail::seconds_since;
 using Clock = std::chrono::steady_clock;
 
 namespace {
 
 bool g_stages = false;  // --stages: every stage's time of every run, on stderr
-
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 TriMesh source_shape(int genus, int res) {
   if (genus == 1) return samples::torus_of_revolution(1.0, 0.5, 2 * res, res);
@@ -156,12 +156,12 @@ std::vector<double> run_case(int genus, int v, double budget, std::string* error
     HyperbolicHarmonicOptions no;
     const auto t0 = Clock::now();
     no.progress = [&](int, double E, double) {
-      newton_history.emplace_back(since(t0), E);
+      newton_history.emplace_back(seconds_since(t0), E);
       return true;
     };
     const HyperbolicHarmonicResult nr =
         hyperbolic_harmonic_map(problem.num_vertices, problem.edges, problem.generators, problem.start, no);
-    r[kNewtonT] = since(t0);
+    r[kNewtonT] = seconds_since(t0);
     r[kNewtonIt] = nr.iterations;
     e_star = std::min(nr.energy, m.final_energy);
   } else {
@@ -181,7 +181,7 @@ std::vector<double> run_case(int genus, int v, double budget, std::string* error
     L.setFromTriplets(trip.begin(), trip.end());
     Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> solver(L);
     const Eigen::VectorXd x = solver.solve(bx.tail(n - 1)), y = solver.solve(by.tail(n - 1));
-    r[kNewtonT] = since(t0);
+    r[kNewtonT] = seconds_since(t0);
     r[kNewtonIt] = 1;
     std::vector<std::complex<double>> z(n, 0.0);
     for (int i = 1; i < n; ++i) z[i] = {x[i - 1], y[i - 1]};

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "../native/src/seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/map/greedy_pants.h"
 #include "surfmap/map/pants_classes.h"
@@ -28,12 +29,9 @@
 #include "surfmap/uniformize/uniformize.h"
 
 using namespace surfmap;
+using detail::seconds_since;
 
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 struct Surface {
   std::string name;

@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "../native/src/seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/intake.h"
@@ -35,6 +36,7 @@
 #include "surfmap/uniformize/uniformize.h"
 
 using namespace surfmap;
+using detail::seconds_since;
 namespace s = surfmap::samples;
 
 namespace {
@@ -78,10 +80,6 @@ std::string in_child(const std::function<std::string()>& body, double* peak_mb) 
     return "TIMEOUT (more than " + std::to_string(g_row_timeout_s) + " s)";
   if (WIFSIGNALED(status)) return "CRASHED (signal " + std::to_string(WTERMSIG(status)) + ")";
   return out;
-}
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 std::string uniformize_row(const TriMesh& raw) {

@@ -23,11 +23,13 @@
 #include <string>
 #include <vector>
 
+#include "../native/src/seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/uniformize/ricci_flow.h"
 
 using namespace surfmap;
+using detail::seconds_since;
 
 namespace {
 
@@ -139,7 +141,7 @@ void run(const std::string& shape, int target_v, bool hyperbolic, bool newton, d
   if (!newton) {
     o.progress = [&](int, double r) {
       history.push_back(r);
-      return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < budget;
+      return seconds_since(t0) < budget;
     };
   }
   Row row;
@@ -157,7 +159,7 @@ void run(const std::string& shape, int target_v, bool hyperbolic, bool newton, d
     if (r.stopped_at_floor) row.note += " (stopped at the floating-point floor)";
   } catch (const Cancelled&) {
     row.iterations = static_cast<int>(history.size());
-    row.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    row.time_s = seconds_since(t0);
     row.residual = history.empty() ? NAN : history.back();
     // Observed linear rate over the second half of the run -> iterations to 1e-10.
     const size_t h = history.size() / 2;

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "../src/seconds_since.h"
 #include "commands.h"
 #include "surfmap/error.h"
 #include "surfmap/mesh/intake.h"
@@ -15,6 +16,8 @@
 #include "surfmap/topology/system_of_loops.h"
 
 namespace surfmap::cli {
+
+using detail::seconds_since;
 
 void register_loops(CLI::App& app) {
   auto* cmd = app.add_subcommand("loops", "System of loops (2g simple loops through one base vertex)");
@@ -40,7 +43,7 @@ void register_loops(CLI::App& app) {
     opt.refine = !a->no_refine;
     const auto t0 = std::chrono::steady_clock::now();
     const SystemOfLoops s = system_of_loops(in.mesh, opt);
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double seconds = seconds_since(t0);
     const int n_in = in.mesh.num_vertices();
     nlohmann::json j;
     j["input"] = a->mesh;

@@ -1,6 +1,7 @@
 #pragma once
 // Wall seconds since a start on the steady clock: the stage timings of the
-// results (time_s, *_seconds). Internal to the core (native/src).
+// results (time_s, *_seconds). Internal (native/src); the CLI and the
+// benchmarks include it by its path for their own timings.
 #include <chrono>
 
 namespace surfmap::detail {

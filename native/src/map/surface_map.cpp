@@ -6,6 +6,7 @@
 #include <sstream>
 #include <string>
 
+#include "../seconds_since.h"
 #include "face_chart_map.h"
 #include "map_support.h"
 #include "surfmap/error.h"
@@ -17,6 +18,7 @@
 namespace surfmap {
 
 using Clock = std::chrono::steady_clock;
+using detail::seconds_since;
 
 namespace {
 
@@ -89,7 +91,7 @@ SurfaceMapResult map_in_automatic_cuts(const TriMesh& source, const TriMesh& tar
     out.class_cuts_status = std::string("chosen in the given cuts: the automatic cuts failed (") + e.what() + ")";
     return out;
   }
-  const double chosen_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  const double chosen_seconds = seconds_since(t0);
   const std::string given = "source " + base_text(options.loops.source_base_vertex) + ", target " +
                             base_text(options.loops.target_base_vertex);
   auto keep_automatic = [&](const std::string& why) {
@@ -214,7 +216,7 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
     std::string why;
     if (!detail::face_chart_map_applies(options, &why)) throw InputError("face_charts 'always': " + why);
     detail::map_in_face_charts(source, target, sc, tc, options, "requested", out, stage_done);
-    return finish_in_face_charts(out, record("total", std::chrono::duration<double>(Clock::now() - t_start).count(),
+    return finish_in_face_charts(out, record("total", seconds_since(t_start),
                                              counts_start, work::counts()));
   } else
     try {
@@ -236,7 +238,7 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
       std::ostringstream reason;
       reason << "one Poincare chart in double cannot hold the target: layout radius " << e.layout_radius;
       detail::map_in_face_charts(source, target, sc, tc, options, reason.str(), out, stage_done);
-      return finish_in_face_charts(out, record("total", std::chrono::duration<double>(Clock::now() - t_start).count(),
+      return finish_in_face_charts(out, record("total", seconds_since(t_start),
                                                counts_start, work::counts()));
     } catch (const InputError& e) {
       // Issue 14: a requested class index past the one-way candidates may be
@@ -244,7 +246,7 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
       if (std::string(e.what()).find("does not exist") == std::string::npos ||
           !detail::map_requested_two_way_class(source, target, options, out, map_of))
         throw;
-      out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();
+      out.total_time = seconds_since(t_start);
       finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));
       return out;
     }
@@ -260,7 +262,7 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
       // The rescued class can be poor too (genus-4 plate -> fertility: 14.3 x,
       // while both shapes map onto the generated n-hole torus within 4.6 x).
       detail::through_shape_map(source, target, options, out, map_of);
-      out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();
+      out.total_time = seconds_since(t_start);
       finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));
       return out;
     }
@@ -294,7 +296,7 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
   detail::two_way_map(source, target, options, out, map_of);  // issue 14: the other direction when poor
   detail::through_shape_map(source, target, options, out, map_of);  // issue 14: through a generated shape when poor
   if (options.homotopy.two_way) detail::qualify_quality_warning(out);  // issue 14: both directions agree on it
-  out.total_time = std::chrono::duration<double>(Clock::now() - t_start).count();
+  out.total_time = seconds_since(t_start);
   finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));
   return out;
 }

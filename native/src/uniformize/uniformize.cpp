@@ -5,6 +5,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "../seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/uniformize/feasible_metric.h"
@@ -12,6 +13,9 @@
 #include "surfmap/uniformize/simplicial_flips.h"
 
 namespace surfmap {
+
+using detail::seconds_since;
+
 namespace {
 
 std::string fmt(double x) {
@@ -245,7 +249,7 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
     r.stopped_at_floor = r.sphere.stopped_at_floor;
     r.edge_flips = r.sphere.edge_flips + r.sphere.ring_flips;
     r.area = 4 * M_PI;
-    r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    r.time_s = seconds_since(t0);
     return r;
   }
 
@@ -347,7 +351,7 @@ UniformizeResult uniformize_one_metric(const TriMesh& mesh, const UniformizeOpti
     r.generators = r.layout.generators;
   }
   r.converged = true;
-  r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.time_s = seconds_since(t0);
   return r;
 }
 

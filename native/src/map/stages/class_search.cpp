@@ -8,6 +8,7 @@
 #include <string>
 #include <tuple>
 
+#include "../../seconds_since.h"
 #include "../concurrency.h"
 #include "surfmap/error.h"
 #include "surfmap/map/geometric_classes.h"
@@ -48,7 +49,7 @@ std::vector<FoundClass> classes_from_more_cuts(CutLifter& lifter, SourceCuts& cu
     // for, so the rest (lowest screen first) are not solved either.
     if (energy <= (1 + options.homotopy.search.gap) * conformal_bound) break;
   }
-  info.cuts_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cuts).count();
+  info.cuts_time_s = seconds_since(t_cuts);
   return found;
 }
 
@@ -141,7 +142,7 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
                          info.target_greedy_pants + ")";
         classes.push_back(std::move(gc));
       }
-      info.greedy_pants_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_greedy).count();
+      info.greedy_pants_time_s = seconds_since(t_greedy);
     }
   }
   auto list_of = [&](size_t k) { return k < marking_classes ? 0 : k < caterpillar_end ? 1 : 2; };
@@ -204,7 +205,7 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
     f.hc.description = std::string(list == 0 ? "[geometric: short markings, " : "[geometric: ") + gc.description + buf + "]";
     found.push_back(std::move(f));
   }
-  info.geometric_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  info.geometric_time_s = seconds_since(t0);
   return found;
 }
 
@@ -254,7 +255,7 @@ std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, in
   if (!ts.moves.empty())
     for (CoarseEvaluation& ev : evaluated)
       if (ev.theta == ts.best) found = ev;  // (the last match, as before)
-  info.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_search).count();
+  info.time_s = seconds_since(t_search);
   return found;
 }
 
