@@ -34,6 +34,7 @@
 #include <utility>
 #include <vector>
 
+#include "../native/src/map/face_chart_elements.h"
 #include "../native/src/seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/hyperbolic.h"
@@ -44,24 +45,16 @@
 #include "surfmap/uniformize/uniformize.h"
 
 using namespace surfmap;
+using detail::around_vertex;
+using detail::close_faces;
+using detail::OpenFaceRepair;
+using detail::rederive_open_faces;
 using detail::seconds_since;
+using detail::shortest_edge_path_back;
 using hyperbolic::Mobius;
 using Complex = std::complex<double>;
 
 namespace {
-
-// face(stop)'s canonical coordinates -> face(a)'s (both halfedges outgoing
-// from one vertex), composed across the edges of that vertex's star.
-Mobius around_vertex(const Connectivity& conn, const FaceAtlas& atlas, int a, int stop) {
-  Mobius x;
-  for (int current = a, guard = 0; current != stop; ++guard) {
-    if (guard > 4096) throw SolveError("a vertex star did not close");
-    const int prev = Connectivity::next(Connectivity::next(current));
-    x = (x * atlas.transition[prev]).normalized();
-    current = conn.twin(prev);
-  }
-  return x;
-}
 
 // Closest point of triangle abc to p, as barycentrics (Ericson, Real-Time
 // Collision Detection 5.1.5).
@@ -163,28 +156,10 @@ Mobius along_shortest_path(const Connectivity& conn, const FaceAtlas& atlas, con
 // the metric (Dijkstra), each composed around the stars of its ends.
 Mobius along_shortest_edge_path(const Connectivity& conn, const FaceAtlas& atlas, const Eigen::VectorXd& lengths, int i,
                                 int j) {
-  std::vector<double> dist(conn.num_vertices(), 1e300);
-  std::vector<int> parent_h(conn.num_vertices(), -1);
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
-  dist[i] = 0;
-  queue.push({0.0, i});
-  while (!queue.empty()) {
-    const auto [d, v] = queue.top();
-    queue.pop();
-    if (d > dist[v]) continue;
-    if (v == j) break;
-    for (int h : conn.outgoing(v)) {
-      const int w = conn.head(h);
-      const double nd = d + lengths[conn.edge(h)];
-      if (nd < dist[w]) dist[w] = nd, parent_h[w] = h, queue.push({nd, w});
-    }
-  }
-  if (parent_h[j] < 0) throw SolveError("no edge path between the ends of a source edge");
   auto first_out = [&](int v) { return conn.outgoing(v).front(); };
   Mobius T;  // face0[j] -> face0[v], built from j back to i
-  for (int v = j; v != i; v = conn.tail(parent_h[v])) {
-    const int g = parent_h[v], a = conn.tail(g);
+  for (int g : shortest_edge_path_back(conn, lengths, i, j, "the target")) {
+    const int a = conn.tail(g), v = conn.head(g);
     // head's start face -> tail's start face for target halfedge g.
     const Mobius rho_g = (around_vertex(conn, atlas, first_out(a), g) *
                           around_vertex(conn, atlas, first_out(v), Connectivity::next(g)).inverse())
@@ -270,62 +245,17 @@ void run(const char* path, const char* source_path) {
         known[e] = 1;
       }
     }
-    // Element of source halfedge h: its head's start face -> its tail's.
-    auto halfedge_rho = [&](int h) {
-      const int e = sc.edge(h);
-      return sc.edge_halfedge(e) == h ? edges[e].rho : edges[e].rho.inverse();
-    };
-    for (bool progress = true; progress;) {
-      progress = false;
-      for (int f = 0; f < sc.num_faces(); ++f) {
-        int unknown = -1, count = 0;
-        for (int k = 0; k < 3; ++k)
-          if (!known[sc.edge(3 * f + k)]) unknown = 3 * f + k, ++count;
-        if (count != 1) continue;
-        const int h1 = Connectivity::next(unknown), h2 = Connectivity::next(h1);
-        const Mobius rho_h = (halfedge_rho(h1) * halfedge_rho(h2)).inverse().normalized();
-        const int e = sc.edge(unknown);
-        edges[e].rho = sc.edge_halfedge(e) == unknown ? rho_h : rho_h.inverse();
-        known[e] = 1, ++by_faces, progress = true;
-      }
-    }
+    by_faces = close_faces(sc, known, [&](int e) -> Mobius& { return edges[e].rho; });
     std::vector<char> exact = known;
     for (int e = 0; e < sc.num_edges(); ++e)
       if (!known[e]) {
         edges[e].rho = along_shortest_edge_path(conn, atlas, u.edge_lengths, edges[e].i, edges[e].j);
         ++along_paths;
       }
-    // A path in the wrong class shows as its faces not closing: such an
-    // edge takes the element one of its faces' other two edges give when
-    // that closes more of its two faces (repeated while anything changes;
-    // each change closes a face, so this ends).
-    auto closes = [&](int f) {
-      const Mobius p = halfedge_rho(3 * f) * halfedge_rho(3 * f + 1) * halfedge_rho(3 * f + 2);
-      return hyperbolic::distance_from_identity(p.normalized()) < 1e-6;
-    };
-    for (int f = 0; f < sc.num_faces(); ++f) open_faces_before += !closes(f);
-    for (bool progress = true; progress;) {
-      progress = false;
-      for (int e = 0; e < sc.num_edges(); ++e) {
-        if (exact[e]) continue;
-        const int h = sc.edge_halfedge(e), t = sc.twin(h);
-        const int f = Connectivity::face(h), g = Connectivity::face(t);
-        const int open = !closes(f) + !closes(g);
-        if (open == 0) continue;
-        for (int side : {h, t}) {
-          const int h1 = Connectivity::next(side), h2 = Connectivity::next(h1);
-          const Mobius rho_side = (halfedge_rho(h1) * halfedge_rho(h2)).inverse().normalized();
-          const Mobius old_rho = edges[e].rho;
-          edges[e].rho = side == h ? rho_side : rho_side.inverse();
-          if (!closes(f) + !closes(g) < open) {
-            ++repaired, progress = true;
-            break;
-          }
-          edges[e].rho = old_rho;
-        }
-      }
-    }
-    for (int f = 0; f < sc.num_faces(); ++f) open_faces_after += !closes(f);
+    // Edges in the wrong class (their faces do not close) re-derived from a
+    // face (face_chart_elements.h).
+    const OpenFaceRepair repair = rederive_open_faces(sc, exact, edges);
+    open_faces_before = repair.open_before, repaired = repair.repaired, open_faces_after = repair.open_after;
   } else {
     const TriMesh& T = u.loops.mesh;
     for (int v = 0; v < n; ++v) {
@@ -361,18 +291,9 @@ void run(const char* path, const char* source_path) {
     const Mobius& A = r.edge_local[e];
     return (sc.edge_halfedge(e) == h ? A : A.inverse()).apply(Complex(0.0));
   };
-  auto count_flipped = [&](const auto& head_in_tail) {
-    int count = 0;
-    for (int f = 0; f < sc.num_faces(); ++f) {
-      const Complex p1 = hyperbolic::poincare_to_klein(head_in_tail(3 * f));
-      const Complex p2 = hyperbolic::poincare_to_klein(head_in_tail(sc.twin(3 * f + 2)));
-      if (!(std::imag(std::conj(p1) * p2) > 0)) ++count;
-    }
-    return count;
-  };
-  const int flipped = count_flipped(head_in_tail_chart);
+  const int flipped = detail::count_flipped(sc, head_in_tail_chart);
   // The start's images the same way (its edges in the start points' charts).
-  const int start_flipped = count_flipped([&](int h) {
+  const int start_flipped = detail::count_flipped(sc, [&](int h) {
     const int e = sc.edge(h);
     const WeightedEdge& ed = edges[e];
     const Mobius A = (Mobius::translation_to(w0[ed.i]).inverse() * ed.rho * Mobius::translation_to(w0[ed.j])).normalized();
@@ -397,7 +318,7 @@ void run(const char* path, const char* source_path) {
       ed.rho = (u.layout.face_charts[face0[ed.i]] * ed.rho * u.layout.face_charts[face0[ed.j]].inverse()).normalized();
     try {
       const HyperbolicHarmonicResult one = hyperbolic_harmonic_map(n, single, u.layout.side_pairings, z0, o);
-      const int one_flipped = count_flipped([&](int h) {
+      const int one_flipped = detail::count_flipped(sc, [&](int h) {
         const int e = sc.edge(h);
         const Mobius& A = one.edge_local[e];
         return (sc.edge_halfedge(e) == h ? A : A.inverse()).apply(Complex(0.0));

@@ -260,6 +260,10 @@ TEST(FaceCharts, SurfaceMapInFaceChartsMapsAJitteredPlateOntoThePlate) {
   EXPECT_EQ(r.degenerate_triangles, 0);
   EXPECT_EQ(r.face_charts.rfind("per-face charts (requested)", 0), 0u) << r.face_charts;
   EXPECT_EQ(r.snapped_inconsistent_faces, 0);
+  // The solve's elements close around every source face (its own edges).
+  EXPECT_EQ(r.layout_closure.triangles, source.num_faces());
+  EXPECT_EQ(r.layout_closure.open_triangles, 0);
+  EXPECT_LT(r.layout_closure.worst_gap, r.layout_closure.tolerance);
   ASSERT_EQ(static_cast<int>(r.forward.size()), source.num_vertices());
   ASSERT_EQ(static_cast<int>(r.inverse.size()), target.num_vertices());
   const double diagonal = (target.V.colwise().maxCoeff() - target.V.colwise().minCoeff()).norm();

@@ -22,11 +22,13 @@
 #include "surfmap/geometry/intrinsic_delaunay.h"
 #include "surfmap/uniformize/ricci_flow.h"
 #include "surfmap/map/harmonic_relaxation.h"
+#include "surfmap/map/map_report.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/topology/mapping_class_search.h"
 #include "surfmap/topology/outer_automorphisms.h"
 #include "certify_helpers.h"
+#include "../src/map/stages/hyperbolic_quality.h"
 #include "../src/map/through_shape.h"
 #include "../src/map/two_way_run.h"
 
@@ -324,6 +326,71 @@ TEST(SurfaceMap, CappedTorusFallsBackToPositiveWeightsOnItsOwnEdges) {
   const SurfaceMapResult mr = surface_map(raw, b);
   expect_valid_map(mr, raw, b);
   EXPECT_EQ(mr.source_weights, "intrinsic Delaunay cotangent");
+}
+
+// Issue 13: the layout's triangles close (LayoutClosure). A wrong element
+// opens exactly the triangles at its edge, by its distance from the
+// identity: edges of a sphere's mesh in the charts of points scattered in
+// the disk (edge element T_i^-1 T_j, head's chart -> tail's), which close
+// to round-off, then one edge turned by 1e-4.
+TEST(SurfaceMap, LayoutClosureOpensTheTrianglesOfAWrongElement) {
+  using hyperbolic::Mobius;
+  const TriMesh m = samples::sphere(2);
+  const Connectivity c(m.F, m.num_vertices());
+  std::vector<Mobius> chart(m.num_vertices());
+  for (int v = 0; v < m.num_vertices(); ++v)
+    chart[v] = Mobius::translation_to(0.6 * std::complex<double>(m.V(v, 0), m.V(v, 1)) / m.V.row(v).norm());
+  std::vector<Mobius> edge_local(c.num_edges());
+  detail::SolverEdgeIndex index;
+  index.forward.assign(c.num_edges(), 1);
+  for (int e = 0; e < c.num_edges(); ++e) {
+    const int h = c.edge_halfedge(e);
+    edge_local[e] = (chart[c.tail(h)].inverse() * chart[c.head(h)]).normalized();
+    index.solver_edge.push_back(e);
+  }
+  const LayoutClosure closed = detail::source_layout_closure(c, edge_local, index);
+  EXPECT_EQ(closed.triangles, m.num_faces());
+  EXPECT_EQ(closed.open_triangles, 0);
+  EXPECT_LT(closed.worst_gap, 1e-13);
+  const int e0 = c.num_edges() / 3, h0 = c.edge_halfedge(e0);
+  edge_local[e0] = (edge_local[e0] * Mobius::rotation(1e-4)).normalized();
+  const LayoutClosure open = detail::source_layout_closure(c, edge_local, index);
+  EXPECT_EQ(open.open_triangles, 2);
+  // The product is the turn conjugated to a point p of a chart (|p| < 0.6):
+  // Re a = cos 5e-5, |Im a| >= sin 5e-5, so the gap is 5e-5 .. ~2e-4.
+  EXPECT_GT(open.worst_gap, 0.49e-4);
+  EXPECT_LT(open.worst_gap, 1e-3);
+  EXPECT_TRUE(open.worst_triangle == Connectivity::face(h0) || open.worst_triangle == Connectivity::face(c.twin(h0)));
+  // A product that is no number is open, and the worst.
+  edge_local[e0].b = std::numeric_limits<double>::quiet_NaN();
+  const LayoutClosure broken = detail::source_layout_closure(c, edge_local, index);
+  EXPECT_EQ(broken.open_triangles, 2);
+  EXPECT_TRUE(std::isinf(broken.worst_gap));
+}
+
+// The maps' own layouts close around every intrinsic triangle: genus 1 (the
+// lattice translations) and genus 2 (the solve's Möbius elements); the
+// report carries the same account.
+TEST(SurfaceMap, LayoutClosesAroundEveryIntrinsicTriangle) {
+  const TriMesh a1 = samples::torus_of_revolution(1.0, 0.5, 40, 20);
+  const TriMesh b1 = samples::torus_of_revolution(1.5, 0.5, 48, 24, 1);
+  const TriMesh a2 = samples::n_hole_torus(2, 36, true);
+  const TriMesh b2 = samples::vase(40, true);
+  for (const auto& [a, b] : {std::make_pair(&a1, &b1), std::make_pair(&a2, &b2)}) {
+    const SurfaceMapResult m = surface_map(*a, *b);
+    const LayoutClosure& c = m.layout_closure;
+    // The intrinsic Delaunay triangulation has the source's vertices, so as many triangles.
+    EXPECT_EQ(c.triangles, a->num_faces()) << "genus " << m.genus;
+    EXPECT_EQ(c.open_triangles, 0) << "genus " << m.genus;
+    EXPECT_LT(c.worst_gap, c.tolerance) << "genus " << m.genus;
+    EXPECT_GE(c.worst_gap, 0);
+    EXPECT_TRUE(c.worst_triangle >= 0 && c.worst_triangle < c.triangles);
+    const nlohmann::json j = to_json(m, SurfaceMapOptions());
+    EXPECT_EQ(j["layout_closure"]["triangles"], c.triangles);
+    EXPECT_EQ(j["layout_closure"]["open_triangles"], 0);
+    EXPECT_EQ(j["layout_closure"]["worst_gap"], c.worst_gap);
+    EXPECT_EQ(j["layout_closure"]["tolerance"], 1e-8);
+  }
 }
 
 TEST(SurfaceMap, NeedleTipSourceMaps) {

@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "../seconds_since.h"
+#include "face_chart_elements.h"
 #include "stages/hyperbolic_quality.h"
 #include "stages/source_weights_fallback.h"
 #include "surfmap/error.h"
@@ -28,29 +29,10 @@ namespace {
 using hyperbolic::Mobius;
 using Clock = std::chrono::steady_clock;
 
-// A product of transitions closes (is the identity) up to this distance
-// from the identity: the transitions have entries ~1 and round off ~1e-15
-// per product, while a product in a wrong class moves points by a closed
-// geodesic of the surface (the plates' thinnest necks measured: ~0.08).
-constexpr double kClosingTolerance = 1e-6;
-
 // Faces of the target's universal cover one source face's image may meet
 // before the inverse search gives up (a bound on the work, far above what
 // any image of a map with 0 flipped meets).
 constexpr size_t kMaxLiftsPerImage = 200000;
-
-// face(stop)'s canonical coordinates -> face(a)'s, for halfedges a and stop
-// outgoing from one vertex, composed across the edges of its star.
-Mobius around_vertex(const Connectivity& conn, const FaceAtlas& atlas, int a, int stop) {
-  Mobius x;
-  for (int current = a, guard = 0; current != stop; ++guard) {
-    if (guard > conn.num_halfedges()) throw SolveError("per-face charts: a vertex star of T' does not close");
-    const int into = Connectivity::prev(current);
-    x = (x * atlas.transition[into]).normalized();
-    current = conn.twin(into);
-  }
-  return x;
-}
 
 // The target side: T' (the flip-based metric's triangulation of the user's
 // target), its atlas and each vertex's home halfedge (the vertex sits at the
@@ -84,65 +66,6 @@ struct TargetCharts {
         .normalized();
   }
 };
-
-// The class is a cocycle: around every face rho_ab rho_bc rho_ca = id. Fills
-// the element of every edge that is a face's only unknown one from the other
-// two, until no face has exactly one unknown edge. rho(e) is edge e's element
-// along its edge_halfedge (a reference into the caller's storage); `known`
-// (#E) is updated. Returns how many edges it filled.
-template <class EdgeRho>
-int close_faces(const Connectivity& conn, std::vector<char>& known, EdgeRho&& rho) {
-  auto halfedge_rho = [&](int h) -> Mobius {
-    const int e = conn.edge(h);
-    return conn.edge_halfedge(e) == h ? rho(e) : rho(e).inverse();
-  };
-  int filled = 0;
-  for (bool progress = true; progress;) {
-    progress = false;
-    for (int f = 0; f < conn.num_faces(); ++f) {
-      int unknown = -1, count = 0;
-      for (int k = 0; k < 3; ++k)
-        if (!known[conn.edge(3 * f + k)]) unknown = 3 * f + k, ++count;
-      if (count != 1) continue;
-      const int h1 = Connectivity::next(unknown), h2 = Connectivity::next(h1);
-      const Mobius rho_h = (halfedge_rho(h1) * halfedge_rho(h2)).inverse().normalized();
-      const int e = conn.edge(unknown);
-      rho(e) = conn.edge_halfedge(e) == unknown ? rho_h : rho_h.inverse();
-      known[e] = 1, ++filled, progress = true;
-    }
-  }
-  return filled;
-}
-
-// The halfedges of the shortest edge path from a to b (Dijkstra on
-// `lengths`, #E, stopped at b), listed from b back to a; `what` names the
-// mesh in the error when b cannot be reached.
-std::vector<int> shortest_edge_path_back(const Connectivity& conn, const Eigen::VectorXd& lengths, int a, int b,
-                                         const char* what) {
-  std::vector<double> dist(conn.num_vertices(), std::numeric_limits<double>::infinity());
-  std::vector<int> parent(conn.num_vertices(), -1);
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
-  dist[a] = 0;
-  queue.push({0.0, a});
-  while (!queue.empty()) {
-    const auto [d, v] = queue.top();
-    queue.pop();
-    if (d > dist[v]) continue;
-    if (v == b) break;
-    for (int h : conn.outgoing(v)) {
-      const int w = conn.head(h);
-      const double nd = d + lengths[conn.edge(h)];
-      if (nd < dist[w]) dist[w] = nd, parent[w] = h, queue.push({nd, w});
-    }
-  }
-  if (a != b && parent[b] < 0)
-    throw SolveError(std::string("per-face charts: no edge path of ") + what + " between vertices " +
-                     std::to_string(a) + " and " + std::to_string(b));
-  std::vector<int> back;
-  for (int v = b; v != a; v = conn.tail(parent[v])) back.push_back(parent[v]);
-  return back;
-}
 
 // The element b's home coordinates -> a's along the shortest edge path of
 // T' from a to b in the metric.
@@ -261,61 +184,15 @@ SnappedStart snapped_start(const TriMesh& source, const Connectivity& sc, const 
       ++s.own_edges;
     }
   }
-  // Element of source halfedge h: its head's home coordinates -> its tail's.
-  auto halfedge_rho = [&](int h) {
-    const int e = sc.edge(h);
-    return sc.edge_halfedge(e) == h ? s.edges[e].rho : s.edges[e].rho.inverse();
-  };
   s.by_faces = close_faces(sc, known, [&](int e) -> Mobius& { return s.edges[e].rho; });
   for (int e = 0; e < ne; ++e)
     if (!known[e]) {
       s.edges[e].rho = along_target_path(tc, t, snap[s.edges[e].i], snap[s.edges[e].j]);
       ++s.along_paths;
     }
-  // A path in another class shows as its faces not closing: such an edge
-  // takes the element one of its two faces' other edges give when that
-  // closes more of the two faces (each change closes a face, so this ends).
-  auto closes = [&](int f) {
-    const Mobius p = halfedge_rho(3 * f) * halfedge_rho(3 * f + 1) * halfedge_rho(3 * f + 2);
-    return hyperbolic::distance_from_identity(p.normalized()) < kClosingTolerance;
-  };
-  for (int f = 0; f < sc.num_faces(); ++f) s.open_before += !closes(f);
-  for (bool progress = s.open_before > 0; progress;) {
-    progress = false;
-    for (int e = 0; e < ne; ++e) {
-      if (exact[e]) continue;
-      const int h = sc.edge_halfedge(e), tw = sc.twin(h);
-      const int f = Connectivity::face(h), g = Connectivity::face(tw);
-      const int open = !closes(f) + !closes(g);
-      if (open == 0) continue;
-      for (int side : {h, tw}) {
-        const int h1 = Connectivity::next(side), h2 = Connectivity::next(h1);
-        const Mobius rho_side = (halfedge_rho(h1) * halfedge_rho(h2)).inverse().normalized();
-        const Mobius old_rho = s.edges[e].rho;
-        s.edges[e].rho = side == h ? rho_side : rho_side.inverse();
-        if (!closes(f) + !closes(g) < open) {
-          ++s.repaired, progress = true;
-          break;
-        }
-        s.edges[e].rho = old_rho;
-      }
-    }
-  }
-  for (int f = 0; f < sc.num_faces(); ++f) s.open_after += !closes(f);
+  const OpenFaceRepair repair = rederive_open_faces(sc, exact, s.edges);
+  s.open_before = repair.open_before, s.repaired = repair.repaired, s.open_after = repair.open_after;
   return s;
-}
-
-// Flipped images of the source's faces among edges in their ends' charts
-// (head of halfedge h in its tail's chart), in the Klein model.
-template <class HeadInTail>
-int count_flipped(const Connectivity& sc, const HeadInTail& head_in_tail) {
-  int count = 0;
-  for (int f = 0; f < sc.num_faces(); ++f) {
-    const Complex p1 = hyperbolic::poincare_to_klein(head_in_tail(3 * f));
-    const Complex p2 = hyperbolic::poincare_to_klein(head_in_tail(sc.twin(3 * f + 2)));
-    if (!(std::imag(std::conj(p1) * p2) > 0)) ++count;
-  }
-  return count;
 }
 
 // Euclidean distance from 0 to the segment pq.
@@ -486,6 +363,7 @@ void map_in_face_charts(const TriMesh& source, const TriMesh& target, const Conn
   index.forward.assign(sc.num_edges(), 1);
   for (int e = 0; e < sc.num_edges(); ++e) index.solver_edge[e] = e;
   store_distortion(chart_distortion(source, sc, hr.edge_local, index), out);
+  out.layout_closure = source_layout_closure(sc, hr.edge_local, index);
   if (out.flipped_triangles > 0 || out.degenerate_triangles > 0)
     throw SolveError("per-face charts: the optimised map has " + std::to_string(out.flipped_triangles) +
                      " flipped and " + std::to_string(out.degenerate_triangles) +

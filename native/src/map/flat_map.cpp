@@ -257,6 +257,21 @@ int flat_intrinsic_flipped(const IntrinsicDelaunayResult& idt, const std::vector
   return intrinsic_flipped;
 }
 
+// How well the intrinsic triangles close (LayoutClosure): the lattice
+// translations of each triangle's edges, oriented along it, sum to 0 for
+// the true problem; the gap is |that sum| / `period` (the shorter period).
+LayoutClosure flat_layout_closure(const IntrinsicDelaunayResult& idt, const std::vector<Complex>& t_intrinsic,
+                                  double period) {
+  return layout_closure(static_cast<int>(idt.F.rows()), [&](int f) {
+    Complex sum = 0;
+    for (int k = 0; k < 3; ++k) {
+      const int e = idt.face_edges(f, k);
+      sum += idt.face_edge_forward(f, k) ? t_intrinsic[e] : -t_intrinsic[e];
+    }
+    return std::abs(sum) / period;
+  });
+}
+
 // The flat harmonic-map problem as solved (testing/map_hooks.h).
 HarmonicProblem flat_problem(const IntrinsicDelaunayResult& idt, const std::vector<Complex>& t_intrinsic,
                              const std::vector<Complex>& z_init) {
@@ -327,9 +342,8 @@ int choose_flat_class(const SurfaceMapOptions& options, std::vector<HomotopyCand
                        " homotopy classes tried");
     *chosen_hold = std::move(holds[best]);
     chosen = best;
-  } else if (chosen >= static_cast<int>(candidates.size())) {
-    throw InputError("homotopy class " + std::to_string(options.homotopy.class_index) + " does not exist; there are " +
-                     std::to_string(candidates.size()) + " candidates (0.." + std::to_string(candidates.size() - 1) + ")");
+  } else {
+    check_candidate_index(chosen, static_cast<int>(candidates.size()), "homotopy class");
   }
   return chosen;
 }
@@ -385,6 +399,7 @@ bool record_flat_map(const FlatInputs& in, const IntrinsicDelaunayResult& idt, c
   // guarantee an embedding; count its image triangles too.
   out.intrinsic_flipped_triangles =
       z_extended ? flat_intrinsic_flipped(idt, *z_extended, t_intrinsic) : flat_intrinsic_flipped(idt, z, t_intrinsic);
+  out.layout_closure = flat_layout_closure(idt, t_intrinsic, std::min(std::abs(in.tgt.A), std::abs(in.tgt.B)));
   // (landmarks_may_fold: the held map's folds are the caller's to keep.)
   if (!(in.options.landmarks_may_fold && !in.options.landmarks.empty()) && retry_with_own_weights(in.options, own_weights, out))
     return false;

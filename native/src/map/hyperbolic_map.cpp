@@ -509,9 +509,7 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   const std::vector<HomotopyClass>& classes = candidates.classes;
   ncand = static_cast<int>(classes.size());
   start_class_bounds_early();
-  if (options.homotopy.class_index >= ncand)
-    throw InputError("homotopy class " + std::to_string(options.homotopy.class_index) + " does not exist; there are " +
-                     std::to_string(ncand) + " candidates (0.." + std::to_string(ncand - 1) + ")");
+  check_candidate_index(options.homotopy.class_index, ncand, "homotopy class");
   const double max_image_letters = space->max_image_letters();
   // The classes' data are independent: computed on both threads (issue 19),
   // then taken in order below, a class's error where it was thrown in order.
@@ -1073,9 +1071,7 @@ void HyperbolicPipeline::search_classes() {
       }
     }
   }
-  if (hooks.homotopy_search_start >= ncand)
-    throw InputError("homotopy_search_start " + std::to_string(hooks.homotopy_search_start) + " does not exist; there are " +
-                     std::to_string(ncand) + " candidates");
+  check_candidate_index(hooks.homotopy_search_start, ncand, "homotopy_search_start");
   const int search_start = hooks.homotopy_search_start >= 0 ? hooks.homotopy_search_start : order[0];
   const bool near_bound = hooks.homotopy_search_start_twists.empty() && out.candidates[search_start].energy <= gap_bound;
   if (searching && near_bound)
@@ -1252,9 +1248,7 @@ void HyperbolicPipeline::twist_search_at_full_resolution() {
     return;
   // (With the testing hooks' start, one run from there, whatever its energy.)
   const bool hooked = hooks.homotopy_search_start >= 0;
-  if (hooks.homotopy_search_start >= ncand)
-    throw InputError("homotopy_search_start " + std::to_string(hooks.homotopy_search_start) + " does not exist; there are " +
-                     std::to_string(ncand) + " candidates");
+  check_candidate_index(hooks.homotopy_search_start, ncand, "homotopy_search_start");
   const double gap_bound = hooked ? 0.0 : (1 + options.homotopy.search.gap) * 8 * M_PI * (out.genus - 1);
   std::vector<int> solved;
   for (int k = 0; k < ncand; ++k)
@@ -1889,6 +1883,7 @@ bool map_class(HyperbolicPipeline& p) {
   const DistortionStats quality = chart_distortion(p.source, p.sc, hr.edge_local, p.solver_index);
   store_distortion(quality, out);
   out.intrinsic_flipped_triangles = intrinsic_flipped_triangles(p.ss.idt, hr.edge_local);
+  out.layout_closure = intrinsic_layout_closure(p.ss.idt, hr.edge_local);
   const std::string folds = "the intrinsic Delaunay map of class " + std::to_string(k) + " folds " +
                             std::to_string(out.flipped_triangles) + " and flattens " +
                             std::to_string(out.degenerate_triangles) + " of the source's faces (" +
@@ -1925,6 +1920,7 @@ bool map_class(HyperbolicPipeline& p) {
                                 p.solver_index, static_cast<int>(cd.edges.size()), hr);
       store_distortion(chart_distortion(p.source, p.sc, hr.edge_local, p.solver_index), out);
       out.intrinsic_flipped_triangles = intrinsic_flipped_triangles(p.ss.idt, hr.edge_local);
+      out.layout_closure = intrinsic_layout_closure(p.ss.idt, hr.edge_local);
       // The returned map's energy with the intrinsic weights; the class's
       // (candidates[k].energy, energy_ratio) stays its optimum.
       out.final_energy = hr.energy;

@@ -456,4 +456,22 @@ SystemOfLoops source_loops(const TriMesh& source, const Connectivity& sc, const 
   return sl;
 }
 
+void check_candidate_index(int index, int count, const std::string& what) {
+  if (index >= count)
+    throw InputError(what + " " + std::to_string(index) + " does not exist; there are " + std::to_string(count) +
+                     " candidates (0.." + std::to_string(count - 1) + ")");
+}
+
+LayoutClosure layout_closure(int num_triangles, const std::function<double(int)>& gap) {
+  LayoutClosure c;
+  c.triangles = num_triangles;
+  for (int t = 0; t < num_triangles; ++t) {
+    // (A NaN gap, a product that is no longer a number, counts as infinite.)
+    const double raw = gap(t), g = std::isnan(raw) ? std::numeric_limits<double>::infinity() : raw;
+    if (g > c.tolerance) ++c.open_triangles;
+    if (c.worst_triangle < 0 || g > c.worst_gap) c.worst_gap = g, c.worst_triangle = t;
+  }
+  return c;
+}
+
 }  // namespace surfmap::detail

@@ -39,6 +39,15 @@ using Complex = std::complex<double>;
 /// Records the end of a stage (name, overall fraction) and may throw Cancelled.
 using StageDone = std::function<void(const std::string&, double)>;
 
+/// InputError when `index` (a requested candidate: `what` names the option)
+/// is not below `count`, the number of candidates listed.
+void check_candidate_index(int index, int count, const std::string& what);
+
+/// The closure account (surface_map.h LayoutClosure) of `num_triangles`
+/// triangles whose gaps `gap(t)` gives: counted against the default
+/// tolerance, the worst kept.
+LayoutClosure layout_closure(int num_triangles, const std::function<double(int)>& gap);
+
 /// The point with (clamped, renormalised) barycentrics b in face f of m.
 PointOnSurface point_in_face(const TriMesh& m, int f, Eigen::Vector3d b);
 

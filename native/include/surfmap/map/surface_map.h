@@ -689,6 +689,27 @@ struct StageRecord {
   long long peak_memory_bytes = 0;
 };
 
+/// How well the map's layout closes around its triangles (issue 13). Around
+/// every triangle the elements of its three edges compose to the identity
+/// for the true problem (the target's deck elements form a cocycle on the
+/// faces); what is left is the round-off of the target's side pairings and
+/// of the solve's charts, or an element in a wrong class. Measured on the
+/// triangles the energy lives on: the source's intrinsic Delaunay triangles
+/// (genus 1 and >= 2 in one chart), the source's own faces (per-face
+/// charts). The gap of a triangle: genus >= 2 the distance of the product of
+/// its edges' elements in the solve's charts (edge_local, oriented along the
+/// triangle) from ±identity as a matrix of determinant 1
+/// (hyperbolic::distance_from_identity, ~ the distance a point near the
+/// vertex moves); genus 1 |Σ ±t_e| of its edges' lattice translations over
+/// the shorter period |ω|.
+struct LayoutClosure {
+  double tolerance = 1e-8;  ///< a triangle is open when its gap exceeds this
+  int triangles = 0;        ///< triangles measured; 0 = not computed (genus 0, open surfaces)
+  int open_triangles = 0;   ///< gap > tolerance
+  double worst_gap = 0;     ///< the largest gap
+  int worst_triangle = -1;  ///< the triangle with it (-1 when none was measured)
+};
+
 struct SurfaceMapResult {
   int genus = 0;
   bool converged = false;
@@ -736,6 +757,9 @@ struct SurfaceMapResult {
   /// meshes with slivers that can be non-zero while this is 0, and the map
   /// then still fails (MORPH.obj uses the source's faces).
   int intrinsic_flipped_triangles = -1;
+  /// How well the triangles of the layout close (genus >= 1 closed; see
+  /// LayoutClosure): the gap of every triangle against a tolerance of 1e-8.
+  LayoutClosure layout_closure;
   /// Largest distance between a landmark's located forward image and its
   /// target vertex: the least-squares residual for genus 0 with more than 3
   /// landmarks, otherwise the round-off of locating a held landmark (those

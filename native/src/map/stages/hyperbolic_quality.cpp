@@ -64,14 +64,40 @@ MapInPolygon place_in_polygon(const TriMesh& source, const Connectivity& sc, con
   return out;
 }
 
+namespace {
+
+// Source halfedge h's element in the solve's charts of its ends (edge_local):
+// its head's chart -> its tail's.
+Mobius source_side(const Connectivity& sc, const std::vector<Mobius>& edge_local, const SolverEdgeIndex& index, int h) {
+  const int e = sc.edge(h);
+  const Mobius& A = edge_local[index.solver_edge[e]];
+  return (sc.edge_halfedge(e) == h) == static_cast<bool>(index.forward[e]) ? A : A.inverse();
+}
+
+// The elements of intrinsic triangle f's sides in the solve's charts,
+// oriented along it (side[k]: corner k + 1's chart -> corner k's); false
+// when idt does not record its faces' orientation.
+bool intrinsic_sides(const IntrinsicDelaunayResult& idt, const std::vector<Mobius>& edge_local, int f, Mobius side[3]) {
+  bool known = true;
+  for (int k = 0; k < 3; ++k) {
+    const int e = idt.face_edges(f, k);
+    if (idt.face_edge_forward.rows() != idt.F.rows()) known = false;  // orientation not recorded
+    else if (idt.face_edge_forward(f, k)) side[k] = edge_local[e];
+    else side[k] = edge_local[e].inverse();
+  }
+  return known;
+}
+
+// How far the product of a triangle's three side elements is from ±identity.
+double closure_gap(const Mobius& s0, const Mobius& s1, const Mobius& s2) {
+  return hyperbolic::distance_from_identity((s0 * s1 * s2).normalized());
+}
+
+}  // namespace
+
 DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc, const std::vector<Mobius>& edge_local,
                                  const SolverEdgeIndex& index) {
-  // Halfedge h's element in the solve's charts of its ends (edge_local).
-  auto local = [&](int h) {
-    const int e = sc.edge(h);
-    const Mobius& A = edge_local[index.solver_edge[e]];
-    return (sc.edge_halfedge(e) == h) == static_cast<bool>(index.forward[e]) ? A : A.inverse();
-  };
+  auto local = [&](int h) { return source_side(sc, edge_local, index, h); };
   // Dilatation from hyperbolic side lengths and orientation, both in the
   // chart of corner 0 where the corners are 0, A_01(0) and A_20^-1(0):
   // exact to round-off however close to |z| = 1 the triangle lies in P.
@@ -92,19 +118,30 @@ int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::v
   if (edge_local.size() >= idt.edges.size()) {
     for (int f = 0; f < static_cast<int>(idt.F.rows()); ++f) {
       Mobius side[3];
-      bool known = true;
-      for (int k = 0; k < 3; ++k) {
-        const int e = idt.face_edges(f, k);
-        if (idt.face_edge_forward.rows() != idt.F.rows()) known = false;  // orientation not recorded
-        else if (idt.face_edge_forward(f, k)) side[k] = edge_local[e];
-        else side[k] = edge_local[e].inverse();
-      }
-      if (!known) continue;
+      if (!intrinsic_sides(idt, edge_local, f, side)) continue;
       const Complex p1 = side[0].apply(Complex(0.0)), p2 = side[2].inverse().apply(Complex(0.0));
       if (p1.real() * p2.imag() - p1.imag() * p2.real() <= 0) ++flipped;
     }
   }
   return flipped;
+}
+
+LayoutClosure intrinsic_layout_closure(const IntrinsicDelaunayResult& idt, const std::vector<Mobius>& edge_local) {
+  const int nf = static_cast<int>(idt.F.rows());
+  if (edge_local.size() < idt.edges.size() || idt.face_edge_forward.rows() != nf) return {};
+  return layout_closure(nf, [&](int f) {
+    Mobius side[3];
+    intrinsic_sides(idt, edge_local, f, side);
+    return closure_gap(side[0], side[1], side[2]);
+  });
+}
+
+LayoutClosure source_layout_closure(const Connectivity& sc, const std::vector<Mobius>& edge_local,
+                                    const SolverEdgeIndex& index) {
+  return layout_closure(sc.num_faces(), [&](int f) {
+    return closure_gap(source_side(sc, edge_local, index, 3 * f), source_side(sc, edge_local, index, 3 * f + 1),
+                       source_side(sc, edge_local, index, 3 * f + 2));
+  });
 }
 
 }  // namespace surfmap::detail

@@ -57,4 +57,16 @@ DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc,
 /// cover idt's edges (not computable).
 int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::vector<hyperbolic::Mobius>& edge_local);
 
+/// How well the intrinsic Delaunay triangles close in the solve's charts
+/// (surface_map.h LayoutClosure): the product of each triangle's three
+/// edge_local elements against the identity; not computed (0 triangles)
+/// where intrinsic_flipped_triangles cannot count.
+LayoutClosure intrinsic_layout_closure(const IntrinsicDelaunayResult& idt,
+                                       const std::vector<hyperbolic::Mobius>& edge_local);
+
+/// The same on the source's own faces, edge_local indexed through `index`
+/// (the per-face charts' solve, whose edges are the source's own).
+LayoutClosure source_layout_closure(const Connectivity& sc, const std::vector<hyperbolic::Mobius>& edge_local,
+                                    const SolverEdgeIndex& index);
+
 }  // namespace surfmap::detail
