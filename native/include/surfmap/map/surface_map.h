@@ -704,7 +704,7 @@ struct StageRecord {
 /// the shorter period |ω|.
 struct LayoutClosure {
   double tolerance = 1e-8;  ///< a triangle is open when its gap exceeds this
-  int triangles = 0;        ///< triangles measured; 0 = not computed (genus 0, open surfaces)
+  int triangles = 0;        ///< triangles measured; 0 = not computed (genus 0, disks, annuli)
   int open_triangles = 0;   ///< gap > tolerance
   double worst_gap = 0;     ///< the largest gap
   int worst_triangle = -1;  ///< the triangle with it (-1 when none was measured)
