@@ -1731,6 +1731,16 @@ void HyperbolicPipeline::choose_with_landmarks() {
     }
     if (out.candidates.size() > 4) why += "; ... (" + std::to_string(out.candidates.size()) + " classes)";
     if (!out.snapped_class_status.empty()) why += "; the snapped overlay's class: " + out.snapped_class_status;
+    // The geometric classes tried last (no coarse copy: at full resolution)
+    // and why each failed, else why none was tried.
+    const HomotopySearchInfo& hs = out.homotopy_search;
+    if (hs.geometric_classes > 0 || !hs.geometric_failures.empty()) {
+      why += "; geometric classes: " + std::to_string(hs.geometric_classes) + " tried";
+      for (size_t q = 0; q < hs.geometric_failures.size() && q < 4; ++q) why += (q ? "; " : ": ") + hs.geometric_failures[q];
+      if (hs.geometric_failures.size() > 4) why += "; ... (" + std::to_string(hs.geometric_failures.size()) + " failed)";
+    } else if (!out.class_bound_status.empty()) {
+      why += "; no geometric class (" + out.class_bound_status + ")";
+    }
     throw SolveError("the harmonic map solve failed in every candidate homotopy class" + why);
   }
   held_result.resize(ncand);
