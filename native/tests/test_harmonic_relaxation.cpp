@@ -19,6 +19,7 @@
 #include "surfmap/testing/map_hooks.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
+#include "../src/map/stages/class_data.h"
 
 namespace surfmap {
 namespace {
@@ -355,8 +356,30 @@ TEST(HyperbolicHarmonicSolver, OneAnalysisServesEveryProblemOfThePatternBitForBi
       e.w = 0;  // one edge less in the Hessian's pattern
       break;
     }
+  EXPECT_TRUE(solver.fits(S.n, S.edges));
+  EXPECT_TRUE(solver.fits(S.n, other));
+  EXPECT_FALSE(solver.fits(S.n, fewer));
+  EXPECT_FALSE(solver.fits(S.n + 1, S.edges));
   EXPECT_THROW(solver.solve(fewer, S.generators, S.z, no), InputError);
   EXPECT_THROW(solver.solve(S.edges, S.generators, std::vector<Complex>(S.n + 1, 0.0), no), InputError);
+
+  // The map's PatternSolver: an analysis prepared ahead (the pipeline's
+  // second thread) serves the solves of its pattern; a solve on another
+  // pattern builds its own instead of failing. Bit for bit the direct solves.
+  std::vector<WeightedEdge> fewer_other = other;
+  for (size_t e = 0; e < fewer.size(); ++e) fewer_other[e].w = fewer[e].w;
+  const HyperbolicHarmonicResult direct_fewer = hyperbolic_harmonic_map(S.n, fewer_other, S.generators, origin, no);
+  detail::PatternSolver patterns;
+  patterns.prepare(S.n, S.edges);
+  const HyperbolicHarmonicResult prepared = patterns.solve(S.n, other, S.generators, origin, no);
+  const HyperbolicHarmonicResult rebuilt = patterns.solve(S.n, fewer_other, S.generators, origin, no);
+  for (const auto& [got, want] : {std::pair{&prepared, &direct[1]}, std::pair{&rebuilt, &direct_fewer}}) {
+    EXPECT_EQ(got->iterations, want->iterations);
+    EXPECT_EQ(got->energy, want->energy);
+    ASSERT_EQ(got->z.size(), want->z.size());
+    for (int i = 0; i < S.n; ++i) EXPECT_EQ(got->z[i], want->z[i]) << "vertex " << i;
+  }
+  EXPECT_NE(rebuilt.energy, prepared.energy);
 }
 
 TEST(HyperbolicHarmonicSolver, PreconditionedStepsOnALargeSurfaceReachTheUniqueOptimum) {

@@ -1189,11 +1189,15 @@ HyperbolicHarmonicSolver::HyperbolicHarmonicSolver(int num_vertices, const std::
 
 HyperbolicHarmonicSolver::~HyperbolicHarmonicSolver() = default;
 
+bool HyperbolicHarmonicSolver::fits(int num_vertices, const std::vector<WeightedEdge>& edges) const {
+  return analysis_->matches(num_vertices, edges);
+}
+
 HyperbolicHarmonicResult HyperbolicHarmonicSolver::solve(const std::vector<WeightedEdge>& edges,
                                                          const std::vector<Mobius>& generators, std::vector<Complex> z0,
                                                          const HyperbolicHarmonicOptions& options) const {
   const int n = static_cast<int>(z0.size());
-  if (!analysis_->matches(n, edges))
+  if (!fits(n, edges))
     throw InputError("HyperbolicHarmonicSolver::solve: the edges (endpoints, positive weights) or the vertex count "
                      "differ from those the solver was built for");
   return newton_solve(n, edges, generators, std::move(z0), options, analysis_.get());

@@ -33,11 +33,16 @@ struct VertexGraph {
     next.reserve(static_cast<size_t>(conn.num_halfedges()));
     length.reserve(static_cast<size_t>(conn.num_halfedges()));
     for (int v = 0; v < nv; ++v) {
-      for (int h : conn.outgoing(v)) {
+      // The outgoing halfedges in Connectivity::outgoing's order, walked in
+      // place (no list per vertex).
+      const int first = conn.vertex_halfedge(v);
+      int h = first;
+      do {
         const int w = conn.head(h);
         next.push_back(w);
         length.push_back((mesh.V.row(w) - mesh.V.row(v)).norm());
-      }
+        h = conn.rotate_ccw(h);
+      } while (h != first);
       start[v + 1] = static_cast<int>(next.size());
     }
   }

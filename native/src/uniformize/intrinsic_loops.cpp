@@ -37,18 +37,32 @@ Support support_of(const RowMatrixX3i& F, int face, const Eigen::RowVector3d& b,
   return s;
 }
 
-/// Faces of T' containing the point.
-std::vector<int> faces_containing(const Support& s, const Connectivity& c) {
-  std::vector<int> out;
+/// Calls visit(g) for the faces of T' containing the point (around its
+/// vertex counter-clockwise from the vertex's halfedge, the two sides of its
+/// edge, or its face) until visit returns true; returns whether one did.
+/// Issue 19: no list per call (two allocations each, ~1400 instructions per
+/// point, for every refined edge's ends and every located point).
+template <class Visit>
+bool any_face_containing(const Support& s, const Connectivity& c, const Visit& visit) {
   if (s.count == 1) {
-    for (int h : c.outgoing(s.vertex[0])) out.push_back(Connectivity::face(h));
-  } else if (s.count == 2) {
-    const int h = c.find_halfedge(s.vertex[0], s.vertex[1]);
-    if (h >= 0) out = {Connectivity::face(h), Connectivity::face(c.twin(h))};
-  } else {
-    out = {s.face};
+    const int start = c.vertex_halfedge(s.vertex[0]);
+    int h = start;
+    do {
+      if (visit(Connectivity::face(h))) return true;
+      h = c.rotate_ccw(h);
+    } while (h != start);
+    return false;
   }
-  return out;
+  if (s.count == 2) {
+    const int h = c.find_halfedge(s.vertex[0], s.vertex[1]);
+    return h >= 0 && (visit(Connectivity::face(h)) || visit(Connectivity::face(c.twin(h))));
+  }
+  return visit(s.face);
+}
+
+/// Whether face g of T' is one of those containing the point.
+bool face_contains(const Support& s, const Connectivity& c, int g) {
+  return any_face_containing(s, c, [g](int x) { return x == g; });
 }
 
 /// The point's barycentric coordinates in face g (which contains it).
@@ -121,34 +135,22 @@ Support support_of_vertex(const SystemOfLoops& loops, const RowMatrixX3i& F, int
 FacePoint intrinsic_face_point(const SystemOfLoops& loops, const RowMatrixX3i& F, const Connectivity& tc,
                                int num_input_vertices, int rf, const Eigen::Vector3d& b) {
   std::array<Support, 3> sup;
-  std::vector<int> common;
-  for (int k = 0; k < 3; ++k) {
-    sup[k] = support_of_vertex(loops, F, num_input_vertices, loops.mesh.F(rf, k));
-    std::vector<int> faces = faces_containing(sup[k], tc);
-    if (k == 0) {
-      common = std::move(faces);
-    } else {
-      std::vector<int> kept;
-      for (int g : common)
-        if (std::find(faces.begin(), faces.end(), g) != faces.end()) kept.push_back(g);
-      common = std::move(kept);
-    }
-  }
+  for (int k = 0; k < 3; ++k) sup[k] = support_of_vertex(loops, F, num_input_vertices, loops.mesh.F(rf, k));
+  // The first face around corner 0's point that holds all three points.
   FacePoint p;
-  for (int g : common) {
+  any_face_containing(sup[0], tc, [&](int g) {
+    if (!face_contains(sup[1], tc, g) || !face_contains(sup[2], tc, g)) return false;
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    bool ok = true;
-    for (int k = 0; k < 3 && ok; ++k) {
+    for (int k = 0; k < 3; ++k) {
       double w[3];
-      ok = weights_in(sup[k], F, g, w);
+      if (!weights_in(sup[k], F, g, w)) return false;
       for (int q = 0; q < 3; ++q) sum[q] += b[k] * w[q];
     }
-    if (ok) {
-      p.face = g;
-      p.barycentric = sum;
-      return p;
-    }
-  }
+    p.face = g;
+    p.barycentric = sum;
+    return true;
+  });
+  if (p.face >= 0) return p;
   throw SolveError("refined face " + std::to_string(rf) + " lies in no single face of the intrinsic triangulation");
 }
 
@@ -190,13 +192,13 @@ IntrinsicLoops intrinsic_loops(const TriMesh& input, const RicciFlowResult& flow
   out.lengths.resize(rc.num_edges());
   for (int e = 0; e < rc.num_edges(); ++e) {
     const int a = rc.edge_vertex(e, 0), b = rc.edge_vertex(e, 1);
-    const std::vector<int> fa = faces_containing(sup[a], *ct), fb = faces_containing(sup[b], *ct);
+    // The first face around a's point that also holds b's.
     int g = -1;
-    for (int x : fa)
-      if (std::find(fb.begin(), fb.end(), x) != fb.end()) {
-        g = x;
-        break;
-      }
+    any_face_containing(sup[a], *ct, [&](int x) {
+      if (!face_contains(sup[b], *ct, x)) return false;
+      g = x;
+      return true;
+    });
     double wa[3], wb[3];
     if (g < 0 || !weights_in(sup[a], F, g, wa) || !weights_in(sup[b], F, g, wb))
       throw SolveError("intrinsic_loops: refined edge " + std::to_string(e) + " (" + std::to_string(a) + ", " +

@@ -1036,6 +1036,16 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
     recentre<G>(chart, canon, out, options.minimax_centre);
     for (int& p : products) p += options.minimax_centre ? 2 : 1;
   }
+  // The corners' reach and the flipped faces read the charts and corners
+  // and write only their own fields of `out`: with a second thread they run
+  // next to the round-off bounds and the edge decks (issue 19; the same
+  // numbers either way). Declared after everything it reads.
+  auto reach_and_flips = [&] {
+    const std::vector<std::array<double, 3>> reach = corner_reach<G>(chart, canon, out);
+    count_flipped_faces<G>(conn, L, reach, out);
+  };
+  std::future<void> flips;
+  if (options.threads > 1) flips = std::async(std::launch::async, reach_and_flips);
   const std::vector<std::array<double, 3>> rounding = corner_roundoffs<G>(chart, canon, products);
   if constexpr (std::is_same_v<G, Hyper>) {
     out.face_charts = chart;
@@ -1048,13 +1058,13 @@ void layout_impl(const Connectivity& conn, const Eigen::VectorXd& L, const Syste
       out.face_translation[f] = chart[f].t;
     }
   }
-  const std::vector<std::array<double, 3>> reach = corner_reach<G>(chart, canon, out);
-  count_flipped_faces<G>(conn, L, reach, out);
+  if (!flips.valid()) reach_and_flips();
   const LocalChecks checks = local.valid() ? local.get() : local_checks<G>(glue);
   out.max_vertex_holonomy = checks.max_vertex_holonomy;
   out.num_flipped_local = checks.num_flipped_local;
 
   const std::vector<typename G::Chart> deck = edge_decks(glue, chart, rounding, out);
+  if (flips.valid()) flips.get();
   const DiskSides sides = disk_sides(conn, loops, le, out);
   const std::vector<typename G::Chart> D = side_pairings<G>(conn, L, deck, le, sides, rounding, out);
   corner_elements<G>(D, sides, out);

@@ -25,6 +25,7 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
+#include "../seconds_since.h"
 #include "ricci_core.h"
 #include "surfmap/error.h"
 #include "surfmap/work_counters.h"
@@ -814,20 +815,22 @@ struct RicciRun {
 
   /// ricci_flow_from_checked: whether u_start beats u = 0 by the energy's
   /// slopes along the segment between them (see there), filling check->account.
-  /// Leaves the triangulation as the input pass left it when it does not:
-  /// every flip towards u_start undone from a copy, so that the run from u = 0
-  /// is the one ricci_flow makes, bit for bit (FlipContext::roll_back would
-  /// restore the faces but not the order of EF's two faces, which orients
-  /// later flips).
+  /// u = 0 is evaluated first, with the Jacobian a Newton step needs, and the
+  /// triangulation it leaves is kept in a copy. When the start does not beat
+  /// it, every flip towards u_start is undone from that copy and the
+  /// evaluation at u = 0 becomes the run's start (evaluate_start evaluates
+  /// nothing again), so the run from u = 0 is the one ricci_flow makes, bit
+  /// for bit (FlipContext::roll_back would restore the faces but not the
+  /// order of EF's two faces, which orients later flips).
   bool start_beats_zero(const Eigen::VectorXd& u_start) {
     CheckedStart& a = check->account;
-    const RicciDomain dom_before = dom;
-    const Eigen::VectorXd base_before = base;
-    const RowMatrixX2i ef_before = flip_ctx.EF;
-    const long long flips_before = flip_ctx.flips;
-    const size_t history_before = flip_ctx.history.size();
     Evaluation at_zero;
-    evaluate(dom, metric, background, Eigen::VectorXd::Zero(nv), false, at_zero, flips, options.threads);
+    evaluate(dom, metric, background, Eigen::VectorXd::Zero(nv), newton, at_zero, flips, options.threads);
+    const RicciDomain dom_at_zero = dom;
+    const Eigen::VectorXd base_at_zero = base;
+    const RowMatrixX2i ef_at_zero = flip_ctx.EF;
+    const long long flips_at_zero = flip_ctx.flips;
+    const size_t history_at_zero = flip_ctx.history.size();
     bool better = at_zero.bad_edge < 0;
     if (better) {
       const Eigen::VectorXd g0 = residual(at_zero.K);
@@ -841,12 +844,14 @@ struct RicciRun {
       }
     }
     if (!better) {
-      dom = dom_before;
-      base = base_before;
-      flip_ctx.EF = ef_before;
-      flip_ctx.flips = flips_before;
-      flip_ctx.history.resize(history_before);
+      dom = dom_at_zero;
+      base = base_at_zero;
+      flip_ctx.EF = ef_at_zero;
+      flip_ctx.flips = flips_at_zero;
+      flip_ctx.history.resize(history_at_zero);
       ++flip_ctx.version;
+      at_zero.version = flips ? flip_ctx.version : 0;
+      ev = std::move(at_zero);
     }
     return better;
   }
@@ -858,8 +863,8 @@ struct RicciRun {
     bool evaluated = false;
     if (u_start && check && newton && !any_fixed) {
       check->account.start_used = start_beats_zero(*u_start);
-      evaluated = check->account.start_used;
-      if (!evaluated) u_start = nullptr;
+      evaluated = true;  // at u_start, or at u = 0 when it was declined
+      if (!check->account.start_used) u_start = nullptr;
     }
     res.u = u_start ? *u_start : Eigen::VectorXd::Zero(nv);
     if (!evaluated) evaluate(dom, metric, background, res.u, newton, ev, flips, options.threads);
@@ -1179,7 +1184,7 @@ RicciFlowResult ricci_solve(const RicciDomain& dom_in, const Eigen::VectorXd& le
     }
   }
   run.assemble_result(it, max_it);
-  run.res.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  run.res.time_s = seconds_since(t0);
   return std::move(run.res);
 }
 

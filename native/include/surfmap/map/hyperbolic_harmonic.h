@@ -165,6 +165,9 @@ class HyperbolicHarmonicSolver {
   /// ordering or the symbolic factorisation fails, InputError on bad endpoints.
   HyperbolicHarmonicSolver(int num_vertices, const std::vector<WeightedEdge>& edges);
   ~HyperbolicHarmonicSolver();
+  /// Whether `edges` on `num_vertices` vertices have the solver's pattern
+  /// (solve accepts them).
+  bool fits(int num_vertices, const std::vector<WeightedEdge>& edges) const;
   /// hyperbolic_harmonic_map(#z0, edges, generators, z0, options) for edges
   /// of the solver's pattern (InputError otherwise).
   HyperbolicHarmonicResult solve(const std::vector<WeightedEdge>& edges,

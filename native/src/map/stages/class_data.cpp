@@ -42,6 +42,26 @@ void index_solver_edges(const Connectivity& sc, const IntrinsicDelaunayResult& i
   }
 }
 
+std::vector<WeightedEdge> solver_edge_pattern(const Connectivity& sc, const IntrinsicDelaunayResult& idt,
+                                             const SolverEdgeIndex& index) {
+  std::vector<WeightedEdge> edges(idt.edges.size());
+  for (size_t e = 0; e < idt.edges.size(); ++e) {
+    edges[e].i = idt.edges[e].i;
+    edges[e].j = idt.edges[e].j;
+    edges[e].w = idt.edges[e].cot_weight;
+  }
+  for (int e = 0; e < sc.num_edges(); ++e) {
+    if (index.solver_edge[e] < static_cast<int>(idt.edges.size())) continue;
+    const int h = sc.edge_halfedge(e);
+    WeightedEdge we;
+    we.i = sc.tail(h);
+    we.j = sc.head(h);
+    we.w = 0;
+    edges.push_back(we);
+  }
+  return edges;
+}
+
 ClassData class_data(const ClassSpace& space, const GroupMap& theta, const TriMesh& source, const Connectivity& sc,
                      const std::vector<Word>& edge_word, const IntrinsicDelaunayResult& idt,
                      const SolverEdgeIndex& index, const DiskLayout& layout, const DeckGroup& group,
@@ -93,12 +113,9 @@ ClassData class_data(const ClassSpace& space, const GroupMap& theta, const TriMe
   cd.rho_edge.resize(edge_word.size());
   for (size_t e = 0; e < edge_word.size(); ++e)
     cd.rho_edge[e] = target_word[e].empty() ? empty_rho : group.evaluate_side_word(cd.side_word_edge[e]);
-  cd.edges.resize(idt.edges.size());
+  cd.edges = solver_edge_pattern(sc, idt, index);
   for (size_t e = 0; e < idt.edges.size(); ++e) {
     const auto& ie = idt.edges[e];
-    cd.edges[e].i = ie.i;
-    cd.edges[e].j = ie.j;
-    cd.edges[e].w = ie.cot_weight;
     bool empty = true;
     for (int h : ie.path) empty = empty && target_word[sc.edge(h)].empty();
     if (empty) {
@@ -111,16 +128,13 @@ ClassData class_data(const ClassSpace& space, const GroupMap& theta, const TriMe
     cd.edges[e].rho_word = side_word(reduced(w));
     cd.edges[e].rho = group.evaluate_side_word(cd.edges[e].rho_word);
   }
+  // The source edges after idt's, in solver_edge_pattern's order.
+  size_t next = idt.edges.size();
   for (int e = 0; e < sc.num_edges(); ++e) {
     if (index.solver_edge[e] < static_cast<int>(idt.edges.size())) continue;
-    const int h = sc.edge_halfedge(e);
-    WeightedEdge we;
-    we.i = sc.tail(h);
-    we.j = sc.head(h);
-    we.w = 0;
-    we.rho_word = cd.side_word_edge[e];
-    we.rho = cd.rho_edge[e];
-    cd.edges.push_back(we);
+    cd.edges[next].rho_word = cd.side_word_edge[e];
+    cd.edges[next].rho = cd.rho_edge[e];
+    ++next;
   }
   return cd;
 }
@@ -131,10 +145,20 @@ HyperbolicHarmonicResult PatternSolver::solve(int n, const std::vector<WeightedE
   std::shared_ptr<const HyperbolicHarmonicSolver> s;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!solver_) solver_ = std::make_shared<const HyperbolicHarmonicSolver>(n, edges);
+    if (!solver_ || !solver_->fits(n, edges)) solver_ = std::make_shared<const HyperbolicHarmonicSolver>(n, edges);
     s = solver_;
   }
   return s->solve(edges, generators, std::move(z0), options);
+}
+
+void PatternSolver::prepare(int n, const std::vector<WeightedEdge>& edges) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (solver_ && solver_->fits(n, edges)) return;
+  try {
+    solver_ = std::make_shared<const HyperbolicHarmonicSolver>(n, edges);
+  } catch (const Error&) {
+    // (built again by the first solve, which reports the failure)
+  }
 }
 
 void PatternSolver::reset() {

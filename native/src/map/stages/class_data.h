@@ -51,16 +51,30 @@ ClassData class_data(const ClassSpace& space, const GroupMap& theta, const TriMe
                      const SolverEdgeIndex& index, const DiskLayout& layout, const DeckGroup& group,
                      bool solver_data = true);
 
+/// The solver's edges of every class without their elements (rho and
+/// rho_word left empty): #idt edges with their cotangent weights, then every
+/// source edge `index` places after them (weight 0), as in ClassData::edges.
+/// Their endpoints and positive weights are the sparsity pattern every
+/// class's Newton system shares (PatternSolver::prepare).
+std::vector<WeightedEdge> solver_edge_pattern(const Connectivity& sc, const IntrinsicDelaunayResult& idt,
+                                             const SolverEdgeIndex& index);
+
 /// One HyperbolicHarmonicSolver (map/hyperbolic_harmonic.h) per sparsity
 /// pattern: built at the first solve, on that solve's edges (so an analysis
-/// failure is that solve's error, as for hyperbolic_harmonic_map), then
-/// serving every solve of every class on the pattern. Thread-safe. reset()
-/// when the pattern changes (other source weights).
+/// failure is that solve's error, as for hyperbolic_harmonic_map), unless
+/// prepare() built it for that pattern earlier; then serving every solve of
+/// every class on the pattern (a solve on another pattern builds its own).
+/// Thread-safe. reset() when the pattern changes (other source weights).
 class PatternSolver {
  public:
   HyperbolicHarmonicResult solve(int n, const std::vector<WeightedEdge>& edges,
                                  const std::vector<hyperbolic::Mobius>& generators, std::vector<Complex> z0,
                                  const HyperbolicHarmonicOptions& options);
+  /// Issue 19: the analysis of `edges`' pattern (n vertices) now, ahead of
+  /// the first solve (the pipeline's second thread, next to the target's
+  /// uniformization); nothing when the solver has it. A failure is dropped:
+  /// the first solve builds it again and reports it.
+  void prepare(int n, const std::vector<WeightedEdge>& edges);
   void reset();
 
  private:
