@@ -38,6 +38,18 @@ SurfaceMapOptions one_way_options(const SurfaceMapOptions& options) {
   return o;
 }
 
+/// The options of the legs source -> M (`onto`) and M -> target: the
+/// source's cuts as given at one end, the target's at the other, the
+/// two-way run as given (fertility -> the genus-4 n-hole torus one way ends
+/// at 8.75 x, with the two-way run at 4.54 x, and the composed class is only
+/// as good as that map).
+SurfaceMapOptions leg_options(const SurfaceMapOptions& options, bool onto) {
+  SurfaceMapOptions o = one_way_options(options);
+  (onto ? o.loops.target_base_vertex : o.loops.source_base_vertex) = -1;
+  o.homotopy.two_way = options.homotopy.two_way;
+  return o;
+}
+
 /// The composed classes' run's candidates as candidates of the first run.
 /// The composed classes are named by the shape each came through where they
 /// are made (HomotopyOptions::given_class_names); any other candidate of
@@ -157,15 +169,11 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   // two-way run as given: fertility -> the genus-4 n-hole torus one way
   // ends at 8.75 x, with the two-way run at 4.54 x, and the composed class
   // is only as good as that map.
-  SurfaceMapOptions onto = one_way_options(options);
-  onto.loops.target_base_vertex = -1;
-  onto.homotopy.two_way = options.homotopy.two_way;
-  SurfaceMapOptions from = one_way_options(options);
-  from.loops.source_base_vertex = -1;
-  from.homotopy.two_way = options.homotopy.two_way;
+  const SurfaceMapOptions onto = leg_options(options, true), from = leg_options(options, false);
   const double first = forward.energy_ratio;
   std::vector<std::vector<std::vector<int>>> composed;
   std::vector<std::string> composed_through;
+  std::vector<const TriMesh*> composed_middles;
   for (const MiddleShape& m : middles) {
     const std::string it = m.name + " (" + std::to_string(m.mesh.num_vertices()) + " vertices)";
     // A leg at or above the first run's ratio cannot help: the composed
@@ -212,6 +220,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
     notes += legs;
     composed.push_back(std::move(theta));
     composed_through.push_back(m.name);
+    composed_middles.push_back(&m.mesh);
   }
   const std::string runs = notes.empty() ? std::string("through no generated shape") : notes.substr(2);
   if (composed.empty()) return finish(forward, runs + "; no composed class to solve");
@@ -263,7 +272,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
       return "; both directions: not searched the other way (the other direction was not mapped, so its letters "
              "are missing)";
     return composed_classes_both_ways(source, target, options, composed, here.homotopy.given_class_names,
-                                      target_letters_inverse, forward, map);
+                                      target_letters_inverse, forward, map, composed_middles);
   };
   if (!better) {
     for (HomotopyCandidate& c : tried) forward.candidates.push_back(std::move(c));
@@ -293,7 +302,8 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
                                        const std::vector<std::vector<std::vector<int>>>& composed,
                                        const std::vector<std::string>& names,
                                        const std::vector<std::vector<int>>& target_letters_inverse,
-                                       SurfaceMapResult& forward, const MapFunction& map) {
+                                       SurfaceMapResult& forward, const MapFunction& map,
+                                       const std::vector<const TriMesh*>& middles) {
   const int g = forward.genus;
   const size_t n = static_cast<size_t>(2 * g);
   const std::string not_run = "; both directions: not searched the other way (";
@@ -313,14 +323,40 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
   for (size_t k = 0; k < composed.size(); ++k) {
     const std::vector<std::vector<int>> there =
         compose(target_letters_inverse, compose(composed[k], forward.source_as_target_inverse));
+    const std::string name = k < names.size() ? names[k] : std::string("a composed class");
     const AutomorphismInverse inv = invert_automorphism(there, g);
-    if (!inv.ok) {
-      uninverted += ", " + (k < names.size() ? names[k] : std::string("a composed class")) + " not inverted: " + inv.why;
+    if (inv.ok) {
+      ro.homotopy.given_class.insert(ro.homotopy.given_class.end(), inv.inverse.begin(), inv.inverse.end());
+      ro.homotopy.given_class_names.push_back(name + ", inverted");
       continue;
     }
-    ro.homotopy.given_class.insert(ro.homotopy.given_class.end(), inv.inverse.begin(), inv.inverse.end());
-    ro.homotopy.given_class_names.push_back((k < names.size() ? names[k] : std::string("a composed class")) +
-                                            ", inverted");
+    // Not inverted (the descent and the Nielsen reduction can stall on long
+    // words: plate g4 -> fertility's composed class): the other direction's
+    // own composed class through the same shape, from its two legs (target
+    // -> M, M -> source), which its own step would compose, not invert.
+    std::string leg_failure = inv.why;
+    if (k < middles.size() && middles[k]) {
+      // (The other direction's options, with the two-way run as given for its legs.)
+      SurfaceMapOptions other_way = reverse_options(options);
+      other_way.homotopy.two_way = options.homotopy.two_way;
+      try {
+        const SurfaceMapResult to_middle = map(target, *middles[k], leg_options(other_way, true));
+        const SurfaceMapResult from_middle = map(*middles[k], source, leg_options(other_way, false));
+        std::string why;
+        const std::vector<std::vector<int>> other = composed_class(to_middle, from_middle, why);
+        if (!other.empty()) {
+          ro.homotopy.given_class.insert(ro.homotopy.given_class.end(), other.begin(), other.end());
+          ro.homotopy.given_class_names.push_back(name + ", composed the other way (not inverted: " + inv.why + ")");
+          continue;
+        }
+        leg_failure += "; composed the other way: " + why;
+      } catch (const Cancelled&) {
+        throw;
+      } catch (const Error& e) {
+        leg_failure += std::string("; its legs the other way failed: ") + e.what();
+      }
+    }
+    uninverted += ", " + name + " not inverted: " + leg_failure;
   }
   if (ro.homotopy.given_class.empty()) return not_run + uninverted.substr(2) + ")";
   SurfaceMapResult back;

@@ -76,12 +76,17 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
 /// `forward` becomes the ψ^-1 result when that pair is lower. The other
 /// direction's own run, from the same composed classes inverted, meets the
 /// same two searches and the same four energies, so both directions end on
-/// one pair of inverse classes. Returns the status text ("; both
+/// one pair of inverse classes. A composed class that cannot be inverted
+/// (invert_automorphism stalls) is replaced there by the other direction's
+/// own composed class through the same shape (`middles[k]`, the shape of
+/// composed class k; null or missing: none), from its two legs target -> M
+/// and M -> source. Returns the status text ("; both
 /// directions: ..."); `forward.directions` says "inverse" when agreed.
 std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                        const std::vector<std::vector<std::vector<int>>>& composed,
                                        const std::vector<std::string>& names,
                                        const std::vector<std::vector<int>>& target_letters_inverse,
-                                       SurfaceMapResult& forward, const MapFunction& map);
+                                       SurfaceMapResult& forward, const MapFunction& map,
+                                       const std::vector<const TriMesh*>& middles = {});
 
 }  // namespace surfmap::detail
