@@ -1348,6 +1348,108 @@ TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   EXPECT_EQ(static_cast<int>(forward.inverse.size()), b.num_vertices());
 }
 
+// Issue 14, session 19 (docs/handle_classes.md "The composed classes searched
+// in both directions"): the same composed classes can end in different
+// classes in the two directions, because the harmonic energy is not
+// symmetric. Here two given classes of plate -> vase, X (a_1 -> a_1 b_1 on
+// the plate) and Y (a_2 -> a_2 b_2 on the vase, b_1 -> b_1 a_1^5 on the
+// plate), solved without the twist search: Y is lower plate -> vase (2.73 x
+// against 2.84 x) and X^-1 lower vase -> plate (2.48 x against 2.65 x), so
+// the two directions' own runs end on classes that are not inverse. The
+// step then solves each direction's class inverted in the other and keeps
+// the pair of lower total ratio, (X, X^-1): both directions end on inverse
+// classes (exact), the same pair from either side, each a valid map.
+TEST(SurfaceMapHandles, ComposedClassesSearchedBothWaysEndOnInverseClasses) {
+  const TriMesh a = samples::cad_plate(2, 32, 0.3);
+  const TriMesh b = samples::vase(30, true);
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  o.homotopy.through_shape = false;
+  const SurfaceMapResult pf = surface_map(a, b, o);
+  const SurfaceMapResult pr = surface_map(b, a, detail::reverse_options(o));
+  ASSERT_EQ(pf.source_as_target_inverse.size(), 4u) << pf.source_as_target_status;
+  ASSERT_EQ(pr.source_as_target_inverse.size(), 4u) << pr.source_as_target_status;
+  // Twists of the default class, along the plate's curves (on the source
+  // side: generator j's image) and the vase's (in every image).
+  const GroupMap& p0 = pf.chosen_class_words;
+  auto on_source = [](GroupMap t, int generator, int by, int times) {
+    for (int i = 0; i < times; ++i) t[generator].insert(t[generator].end(), t[by].begin(), t[by].end());
+    return t;
+  };
+  auto on_target = [](GroupMap t, int letter, int by) {
+    for (Word& w : t) {
+      Word out;
+      for (int x : w) {
+        out.push_back(x);
+        if (x == letter) out.push_back(by);
+        if (x == -letter) out.insert(out.end() - 1, -by);
+      }
+      w = out;
+    }
+    return t;
+  };
+  const GroupMap x_class = on_source(p0, 0, 1, 1);
+  const GroupMap y_class = on_source(on_target(p0, 3, 4), 1, 0, 5);
+  // The same two classes inverted, in the vase -> plate run's letters.
+  auto inverted_there = [&](const GroupMap& theta) {
+    const AutomorphismInverse inv =
+        invert_automorphism(compose(pr.source_as_target_inverse, compose(theta, pf.source_as_target_inverse)), 2);
+    EXPECT_TRUE(inv.ok) << inv.why;
+    return inv.inverse;
+  };
+  const GroupMap x_there = inverted_there(x_class), y_there = inverted_there(y_class);
+  SurfaceMapOptions fo = o;
+  fo.homotopy.search.enabled = false;
+  for (const GroupMap* c : {&x_class, &y_class})
+    fo.homotopy.given_class.insert(fo.homotopy.given_class.end(), c->begin(), c->end());
+  SurfaceMapOptions ro = detail::reverse_options(o);
+  ro.homotopy.search.enabled = false;
+  for (const GroupMap* c : {&x_there, &y_there})
+    ro.homotopy.given_class.insert(ro.homotopy.given_class.end(), c->begin(), c->end());
+  const SurfaceMapResult f = surface_map(a, b, fo);
+  const SurfaceMapResult r = surface_map(b, a, ro);
+  ASSERT_EQ(f.candidates.size(), 2u);
+  ASSERT_EQ(r.candidates.size(), 2u);
+  // Each direction alone: Y here, X^-1 there, not inverse.
+  EXPECT_EQ(f.candidates[f.chosen_candidate].given_class, 1) << f.energy_ratio;
+  EXPECT_EQ(r.candidates[r.chosen_candidate].given_class, 0) << r.energy_ratio;
+  const GroupMap psi = compose(f.source_as_target_inverse, compose(r.chosen_class_words, r.source_as_target_inverse));
+  EXPECT_FALSE(compare_opposite_classes(psi, f.chosen_class_words, 2).inner.inner);
+  // The step, from each side, with the same composed classes.
+  // (Without the twist search in either direction, as the runs above.)
+  SurfaceMapOptions unsearched = o;
+  unsearched.homotopy.search.enabled = false;
+  SurfaceMapResult fb = f, rb = r;
+  const std::string fs = detail::composed_classes_both_ways(a, b, unsearched, {x_class, y_class}, {"X", "Y"},
+                                                            pr.source_as_target_inverse, fb, map_function());
+  const std::string rs = detail::composed_classes_both_ways(b, a, detail::reverse_options(unsearched), {x_there, y_there},
+                                                            {"X inverted", "Y inverted"}, pf.source_as_target_inverse,
+                                                            rb, map_function());
+  EXPECT_NE(fs.find("used the other direction's class inverted"), std::string::npos) << fs;
+  EXPECT_NE(rs.find("kept this class"), std::string::npos) << rs;
+  expect_separate_runs_inverse(fb, rb);
+  EXPECT_EQ(fb.directions.outcome, "inverse") << fb.directions.reason;
+  EXPECT_EQ(rb.directions.outcome, "inverse") << rb.directions.reason;
+  // This direction went up to X (its own Y was lower here), the other kept
+  // X^-1, and the pair's total is the lower one: below Y's pair, Y's ratio
+  // here plus Y^-1's there (the last candidate here is X, solved alone).
+  EXPECT_GT(fb.energy_ratio, f.energy_ratio * 1.02);
+  EXPECT_NEAR(rb.energy_ratio, r.energy_ratio, 1e-9 * r.energy_ratio);
+  EXPECT_EQ(fb.chosen_candidate, static_cast<int>(fb.candidates.size()) - 1);
+  EXPECT_NE(fb.candidates.back().description.find("[the other direction's search from the composed class, inverted]"),
+            std::string::npos)
+      << fb.candidates.back().description;
+  const double y_there_ratio = rb.candidates.back().energy / (8 * M_PI);  // Y^-1 there, solved alone there
+  EXPECT_NEAR(rb.candidates.back().energy, r.candidates[1].energy, 2e-2 * r.candidates[1].energy);
+  EXPECT_LT(fb.energy_ratio + rb.energy_ratio, f.energy_ratio + y_there_ratio);
+  for (const auto& [m, s, t] : {std::tuple{&fb, &a, &b}, std::tuple{&rb, &b, &a}}) {
+    EXPECT_TRUE(m->converged);
+    EXPECT_EQ(m->flipped_triangles, 0);
+    EXPECT_EQ(static_cast<int>(m->forward.size()), s->num_vertices());
+    EXPECT_EQ(static_cast<int>(m->inverse.size()), t->num_vertices());
+  }
+}
+
 // The generated shape that is the target itself is skipped (its legs would
 // repeat the first run), and a leg whose ratio is not below the first run's
 // ends that shape's attempt before the other leg: here the shape is the

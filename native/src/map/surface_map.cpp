@@ -256,12 +256,13 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
       // may not fold (docs/handle_classes.md "Every class folded").
       if (std::string(e.what()).rfind("no candidate class gave a bijective map", 0) != 0) throw;
       std::string why;
+      std::vector<std::vector<int>> target_letters_inverse;  // (for the through-shape step's search both ways)
       // (`out` holds what the failed run set: the source's letters as a target.)
-      if (!detail::rescue_by_the_other_direction(source, target, options, out, map_of, why))
+      if (!detail::rescue_by_the_other_direction(source, target, options, out, map_of, why, &target_letters_inverse))
         throw SolveError(std::string(e.what()) + (why.empty() ? std::string() : "; " + why));
       // The rescued class can be poor too (genus-4 plate -> fertility: 14.3 x,
       // while both shapes map onto the generated n-hole torus within 4.6 x).
-      detail::through_shape_map(source, target, options, out, map_of);
+      detail::through_shape_map(source, target, options, out, map_of, target_letters_inverse);
       out.total_time = seconds_since(t_start);
       finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));
       return out;
@@ -293,8 +294,10 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
     }
   }
   detail::assess_quality(out);  // issue 14: energy ratio and warning
-  detail::two_way_map(source, target, options, out, map_of);  // issue 14: the other direction when poor
-  detail::through_shape_map(source, target, options, out, map_of);  // issue 14: through a generated shape when poor
+  std::vector<std::vector<int>> target_letters_inverse;  // the other direction's letters, when it was mapped
+  detail::two_way_map(source, target, options, out, map_of, &target_letters_inverse);  // issue 14: the other direction when poor
+  // Issue 14: through a generated shape when poor, the composed classes searched in both directions.
+  detail::through_shape_map(source, target, options, out, map_of, target_letters_inverse);
   if (options.homotopy.two_way) detail::qualify_quality_warning(out);  // issue 14: both directions agree on it
   out.total_time = seconds_since(t_start);
   finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));

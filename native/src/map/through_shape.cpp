@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <limits>
 #include <string>
 #include <utility>
 
@@ -13,6 +15,7 @@
 #include "surfmap/error.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/topology/handle_basis.h"
+#include "surfmap/topology/outer_automorphisms.h"
 
 namespace surfmap::detail {
 
@@ -33,6 +36,18 @@ SurfaceMapOptions one_way_options(const SurfaceMapOptions& options) {
   o.homotopy.given_class_names.clear();
   o.landmarks.clear();
   o.solve_progress = nullptr;
+  return o;
+}
+
+/// The options of the legs source -> M (`onto`) and M -> target: the
+/// source's cuts as given at one end, the target's at the other, the
+/// two-way run as given (fertility -> the genus-4 n-hole torus one way ends
+/// at 8.75 x, with the two-way run at 4.54 x, and the composed class is only
+/// as good as that map).
+SurfaceMapOptions leg_options(const SurfaceMapOptions& options, bool onto) {
+  SurfaceMapOptions o = one_way_options(options);
+  (onto ? o.loops.target_base_vertex : o.loops.source_base_vertex) = -1;
+  o.homotopy.two_way = options.homotopy.two_way;
   return o;
 }
 
@@ -112,7 +127,8 @@ std::vector<std::vector<int>> composed_class(const SurfaceMapResult& source_to_m
 }
 
 void through_shape_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
-                       SurfaceMapResult& forward, const MapFunction& map) {
+                       SurfaceMapResult& forward, const MapFunction& map,
+                       const std::vector<std::vector<int>>& target_letters_inverse) {
   const HomotopyOptions& h = options.homotopy;
   if (forward.genus < 2 || h.class_index >= 0 || h.source_images.size() > 0 || h.reverse_class_only ||
       !h.given_class.empty())
@@ -137,12 +153,13 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
     else
       middles.push_back(std::move(m));
   }
-  through_shapes_map(source, target, options, forward, map, middles, true, notes);
+  through_shapes_map(source, target, options, forward, map, middles, true, notes, target_letters_inverse);
 }
 
 void through_shapes_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                         SurfaceMapResult& forward, const MapFunction& map, const std::vector<MiddleShape>& middles,
-                        bool stop_at_legs_that_cannot_help, std::string notes) {
+                        bool stop_at_legs_that_cannot_help, std::string notes,
+                        const std::vector<std::vector<int>>& target_letters_inverse) {
   const auto t0 = std::chrono::steady_clock::now();
   auto finish = [&](SurfaceMapResult& r, std::string status) {
     r.through_shape_status = std::move(status);
@@ -153,15 +170,11 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   // two-way run as given: fertility -> the genus-4 n-hole torus one way
   // ends at 8.75 x, with the two-way run at 4.54 x, and the composed class
   // is only as good as that map.
-  SurfaceMapOptions onto = one_way_options(options);
-  onto.loops.target_base_vertex = -1;
-  onto.homotopy.two_way = options.homotopy.two_way;
-  SurfaceMapOptions from = one_way_options(options);
-  from.loops.source_base_vertex = -1;
-  from.homotopy.two_way = options.homotopy.two_way;
+  const SurfaceMapOptions onto = leg_options(options, true), from = leg_options(options, false);
   const double first = forward.energy_ratio;
   std::vector<std::vector<std::vector<int>>> composed;
   std::vector<std::string> composed_through;
+  std::vector<const TriMesh*> composed_middles;
   for (const MiddleShape& m : middles) {
     const std::string it = m.name + " (" + std::to_string(m.mesh.num_vertices()) + " vertices)";
     // A leg at or above the first run's ratio cannot help: the composed
@@ -208,6 +221,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
     notes += legs;
     composed.push_back(std::move(theta));
     composed_through.push_back(m.name);
+    composed_middles.push_back(&m.mesh);
   }
   const std::string runs = notes.empty() ? std::string("through no generated shape") : notes.substr(2);
   if (composed.empty()) return finish(forward, runs + "; no composed class to solve");
@@ -249,9 +263,22 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   // energies): the record of what was tried.
   std::vector<HomotopyCandidate> tried;
   for (const HomotopyCandidate& c : through.candidates) tried.push_back(listed_candidate(c));
+  // Each direction's search from the composed classes can end in its own
+  // local minimum (fertility -> genus-4 plate 2.803 x, plate -> fertility
+  // 6.029 x, not inverse): searched in both directions, the pair of lower
+  // total energy is kept (docs/handle_classes.md "session 19").
+  auto both_ways = [&]() -> std::string {
+    if (!options.homotopy.two_way) return "";
+    if (target_letters_inverse.empty())
+      return "; both directions: not searched the other way (the other direction was not mapped, so its letters "
+             "are missing)";
+    return composed_classes_both_ways(source, target, options, composed, here.homotopy.given_class_names,
+                                      target_letters_inverse, forward, map, composed_middles);
+  };
   if (!better) {
     for (HomotopyCandidate& c : tried) forward.candidates.push_back(std::move(c));
-    return finish(forward, status);
+    const std::string agreed = both_ways();
+    return finish(forward, status + agreed);
   }
   // A composed class wins: its map, with the earlier candidates listed
   // before the composed ones. The two-way run's comparison was of the class
@@ -268,7 +295,166 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   forward.reverse_inverse_reason = "not compared: the class through the generated shape was adopted after the two-way run";
   forward.directions = SurfaceMapResult{}.directions;
   forward.directions.reason = forward.reverse_inverse_reason;
-  finish(forward, status);
+  const std::string agreed = both_ways();
+  finish(forward, status + agreed);
+}
+
+std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                       const std::vector<std::vector<std::vector<int>>>& composed,
+                                       const std::vector<std::string>& names,
+                                       const std::vector<std::vector<int>>& target_letters_inverse,
+                                       SurfaceMapResult& forward, const MapFunction& map,
+                                       const std::vector<const TriMesh*>& middles) {
+  const int g = forward.genus;
+  const size_t n = static_cast<size_t>(2 * g);
+  const std::string not_run = "; both directions: not searched the other way (";
+  if (forward.chosen_class_words.size() != n) return not_run + "this direction's class words are missing)";
+  if (forward.source_as_target_inverse.size() != n)
+    return not_run + "this source's letters as a target are missing: " + forward.source_as_target_status + ")";
+  if (target_letters_inverse.size() != n) return not_run + "the target's letters as a source are missing)";
+  const Clock t;
+  const double bound = 8 * M_PI * (g - 1);
+  // The composed classes θ0 in the other direction (target -> source):
+  // ι_T^-1 ∘ θ0 ∘ ι_S^-1 is θ0 from the source's letters as a target to
+  // the target's letters as a source (the form of
+  // HomotopyOptions::reverse_class), and its inverse is θ0^-1 in that
+  // run's letters, the form of given_class.
+  SurfaceMapOptions ro = one_way_options(reverse_options(options));
+  std::string uninverted;
+  for (size_t k = 0; k < composed.size(); ++k) {
+    const std::vector<std::vector<int>> there =
+        compose(target_letters_inverse, compose(composed[k], forward.source_as_target_inverse));
+    const std::string name = k < names.size() ? names[k] : std::string("a composed class");
+    const AutomorphismInverse inv = invert_automorphism(there, g);
+    if (inv.ok) {
+      ro.homotopy.given_class.insert(ro.homotopy.given_class.end(), inv.inverse.begin(), inv.inverse.end());
+      ro.homotopy.given_class_names.push_back(name + ", inverted");
+      continue;
+    }
+    // Not inverted (the descent and the Nielsen reduction can stall on long
+    // words: plate g4 -> fertility's composed class): the other direction's
+    // own composed class through the same shape, from its two legs (target
+    // -> M, M -> source), which its own step would compose, not invert.
+    std::string leg_failure = inv.why;
+    if (k < middles.size() && middles[k]) {
+      // (The other direction's options, with the two-way run as given for its legs.)
+      SurfaceMapOptions other_way = reverse_options(options);
+      other_way.homotopy.two_way = options.homotopy.two_way;
+      try {
+        const SurfaceMapResult to_middle = map(target, *middles[k], leg_options(other_way, true));
+        const SurfaceMapResult from_middle = map(*middles[k], source, leg_options(other_way, false));
+        std::string why;
+        const std::vector<std::vector<int>> other = composed_class(to_middle, from_middle, why);
+        if (!other.empty()) {
+          ro.homotopy.given_class.insert(ro.homotopy.given_class.end(), other.begin(), other.end());
+          ro.homotopy.given_class_names.push_back(name + ", composed the other way (not inverted: " + inv.why + ")");
+          continue;
+        }
+        leg_failure += "; composed the other way: " + why;
+      } catch (const Cancelled&) {
+        throw;
+      } catch (const Error& e) {
+        leg_failure += std::string("; its legs the other way failed: ") + e.what();
+      }
+    }
+    uninverted += ", " + name + " not inverted: " + leg_failure;
+  }
+  if (ro.homotopy.given_class.empty()) return not_run + uninverted.substr(2) + ")";
+  SurfaceMapResult back;
+  try {
+    back = map(target, source, ro);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    return not_run + "the composed classes inverted failed there: " + e.what() + ")";
+  }
+  std::string why;
+  const std::vector<std::vector<int>> psi = reverse_class_here(forward, back, why);  // ψ in this run's letters
+  if (psi.empty()) return not_run + why + ")";
+  const double own = chosen_energy(forward), other_there = chosen_energy(back);
+  std::string status = "; both directions: the composed class" + std::string(composed.size() > 1 ? "es" : "") +
+                       " inverted, searched on in the other direction, ratio " + four_digits(other_there / bound);
+  if (back.homotopy_search.run)
+    status += " (" + std::to_string(back.homotopy_search.moves.size()) + " moves, " +
+              std::to_string(back.homotopy_search.evaluations) + " solves)";
+  SurfaceMapResult::DirectionCheck& d = forward.directions;
+  const OppositeClasses relation = compare_opposite_classes(psi, forward.chosen_class_words, g);
+  if (relation.inner.inner || relation.up_to_hyperelliptic) {
+    d.outcome = relation.inner.inner ? "inverse" : "symmetric: both optimal";
+    d.reason = "the other direction's search from the composed classes inverted ends on this class inverted" +
+               std::string(relation.inner.inner ? "" : " up to the hyperelliptic involution") + " (exact)";
+    return status + ": this class inverted (" + t.text() + ")";
+  }
+  // θ^-1 there alone, ψ^-1 here alone: the four energies of the two pairs.
+  SurfaceMapOptions ao = one_way_options(reverse_options(options));
+  ao.homotopy.reverse_class = reverse_class_here(back, forward, why);  // θ in the other direction's letters
+  ao.homotopy.reverse_class_only = true;
+  // A class the inversion cannot invert (the descent and the Nielsen
+  // reduction are heuristics, and depend on the words: plate g4 ->
+  // fertility's class stalls where fertility -> plate's same class, from
+  // other words, inverts) leaves its pair's total unknown: that pair cannot
+  // be kept, since its other half could not be mapped.
+  SurfaceMapResult alone_there, alone_here;
+  SurfaceMapOptions ho = one_way_options(options);
+  ho.homotopy.reverse_class = psi;
+  ho.homotopy.reverse_class_only = true;
+  auto solve_alone = [&](const TriMesh& s, const TriMesh& d, const SurfaceMapOptions& so, SurfaceMapResult& r,
+                         const std::string& which) -> std::string {
+    try {
+      r = map(s, d, so);
+      return "";
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const Error& e) {
+      return "; " + which + " not solved (" + e.what() + ")";
+    }
+  };
+  const std::string there_failed = solve_alone(target, source, ao, alone_there, "this class inverted there");
+  const std::string here_failed = solve_alone(source, target, ho, alone_here, "the other direction's class inverted here");
+  status += there_failed + here_failed;
+  if (!there_failed.empty() && !here_failed.empty()) return status + ": not compared (" + t.text() + ")";
+  const double inf = std::numeric_limits<double>::infinity();
+  const double own_there = there_failed.empty() ? chosen_energy(alone_there) : inf;
+  const double other_here = here_failed.empty() ? chosen_energy(alone_here) : inf;
+  const double own_pair = own + own_there, other_pair = other_here + other_there;
+  const std::string pairs = "pair totals (ratio here + ratio there): this class " + four_digits(own / bound) + " + " +
+                            four_digits(own_there / bound) + " = " + four_digits(own_pair / bound) +
+                            ", the other direction's " + four_digits(other_here / bound) + " + " +
+                            four_digits(other_there / bound) + " = " + four_digits(other_pair / bound);
+  // (A tie keeps this class: the other direction's run then keeps its own,
+  // each the other's inverse only when the classes are; ties of real
+  // energies to 1e-9 are not expected.)
+  if (!(other_pair < own_pair)) {
+    HomotopyCandidate c = alone_here.candidates.empty() ? HomotopyCandidate{} : alone_here.candidates[0];
+    if (!alone_here.candidates.empty()) {
+      c.description += "  [the other direction's search from the composed class, inverted]";
+      forward.candidates.push_back(std::move(c));
+    }
+    d.outcome = "inverse";
+    d.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is this one (" + pairs +
+               ")";
+    return status + "; " + pairs + ": kept this class (" + t.text() + ")";
+  }
+  std::vector<HomotopyCandidate> listed = std::move(forward.candidates);
+  for (HomotopyCandidate c : alone_here.candidates) {
+    c.description += "  [the other direction's search from the composed class, inverted]";
+    listed.push_back(std::move(c));
+  }
+  const int chosen = static_cast<int>(listed.size()) - static_cast<int>(alone_here.candidates.size()) +
+                     alone_here.chosen_candidate;
+  const std::string two_way = forward.two_way_status;
+  const double two_way_time = forward.two_way_time_s;
+  forward = std::move(alone_here);
+  forward.candidates = std::move(listed);
+  forward.chosen_candidate = chosen;
+  forward.two_way_status = two_way;
+  forward.two_way_time_s = two_way_time;
+  forward.reverse_inverse = -1;
+  forward.reverse_inverse_reason = "not compared by carried loops: the class is the other direction's, inverted";
+  forward.directions.outcome = "inverse";
+  forward.directions.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is the "
+                              "other direction's search from the composed classes (" + pairs + ")";
+  return status + "; " + pairs + ": used the other direction's class inverted (" + t.text() + ")";
 }
 
 }  // namespace surfmap::detail

@@ -37,8 +37,11 @@ bool same_shape(const TriMesh& a, const TriMesh& b);
 /// the target itself (through_shapes_map, stopping at legs that cannot
 /// help). Always sets through_shape_status (and through_shape_time_s when it
 /// ran).
+/// `target_letters_inverse`: the other direction's source_as_target_inverse
+/// (two_way_map's), for the search in both directions (through_shapes_map).
 void through_shape_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
-                       SurfaceMapResult& forward, const MapFunction& map);
+                       SurfaceMapResult& forward, const MapFunction& map,
+                       const std::vector<std::vector<int>>& target_letters_inverse = {});
 
 /// The step through the given shapes, whatever `forward`'s ratio: per shape
 /// M, maps the source onto M and M onto the target (`map`, the two-way run
@@ -50,9 +53,40 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
 /// ranked like any candidates, the best at full resolution), all listed
 /// after `forward`'s candidates ("through a generated <name>"); when the
 /// best is lower than `forward`'s energy its map is returned in `forward`
-/// and it is chosen. `notes` (each "; ...") start the status.
+/// and it is chosen. `notes` (each "; ...") start the status. With the
+/// two-way run on and `target_letters_inverse` (the target's letters as a
+/// target -> as a source, 2g words, from a target -> source run with
+/// reverse_options) given, the composed classes are then searched in both
+/// directions (composed_classes_both_ways).
 void through_shapes_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                         SurfaceMapResult& forward, const MapFunction& map, const std::vector<MiddleShape>& middles,
-                        bool stop_at_legs_that_cannot_help, std::string notes = {});
+                        bool stop_at_legs_that_cannot_help, std::string notes = {},
+                        const std::vector<std::vector<int>>& target_letters_inverse = {});
+
+/// Issue 14, session 19 (docs/handle_classes.md "The composed classes
+/// searched in both directions"): `forward` is this direction's result after
+/// the composed classes (`composed`, 2g words each in this run's letters,
+/// named by `names`) were solved and searched on here, with class θ. The
+/// composed classes, inverted and written in the other direction's letters
+/// (through `forward`'s and `target_letters_inverse`), are solved and
+/// searched on in the other direction (target -> source, one given-class
+/// run), which ends on a class ψ. Unless ψ is θ's inverse, θ^-1 is solved
+/// there alone and ψ^-1 here alone, and the pair of inverse classes with
+/// the lower sum of energy ratios, (θ, θ^-1) or (ψ^-1, ψ), is kept:
+/// `forward` becomes the ψ^-1 result when that pair is lower. The other
+/// direction's own run, from the same composed classes inverted, meets the
+/// same two searches and the same four energies, so both directions end on
+/// one pair of inverse classes. A composed class that cannot be inverted
+/// (invert_automorphism stalls) is replaced there by the other direction's
+/// own composed class through the same shape (`middles[k]`, the shape of
+/// composed class k; null or missing: none), from its two legs target -> M
+/// and M -> source. Returns the status text ("; both
+/// directions: ..."); `forward.directions` says "inverse" when agreed.
+std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                       const std::vector<std::vector<std::vector<int>>>& composed,
+                                       const std::vector<std::string>& names,
+                                       const std::vector<std::vector<int>>& target_letters_inverse,
+                                       SurfaceMapResult& forward, const MapFunction& map,
+                                       const std::vector<const TriMesh*>& middles = {});
 
 }  // namespace surfmap::detail

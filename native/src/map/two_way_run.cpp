@@ -53,23 +53,6 @@ Eigen::MatrixXd inverse_positions(const SurfaceMapResult& reverse) {
   return images;
 }
 
-/// The class chosen for target -> source (`reverse`), written in the
-/// letters of a source -> target run (`forward`): ι_S^-1 ∘ ψ ∘ ι_T^-1 with ψ
-/// the reverse's chosen class (its source's cut letters -> its target's
-/// letters) and ι the identity overlays of each surface's cut letters onto
-/// its letters as a target (SurfaceMapResult::source_as_target). Empty, with
-/// `why`, when a piece is missing.
-std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward, const SurfaceMapResult& reverse,
-                                                 std::string& why) {
-  if (reverse.chosen_class_words.empty()) why = "the other direction reported no class words";
-  else if (forward.source_as_target_inverse.empty())
-    why = "this source's letters as a target are missing (" + forward.source_as_target_status + ")";
-  else if (reverse.source_as_target_inverse.empty())
-    why = "the target's letters as a source are missing (" + reverse.source_as_target_status + ")";
-  if (!why.empty()) return {};
-  return compose(forward.source_as_target_inverse, compose(reverse.chosen_class_words, reverse.source_as_target_inverse));
-}
-
 /// map(a, b, o) into `result`; false, with the error's text in `failure`,
 /// when that run fails. A cancellation is passed on, not read as a failed
 /// direction (Cancelled is an Error).
@@ -84,16 +67,6 @@ bool run_map(const MapFunction& map, const TriMesh& a, const TriMesh& b, const S
     failure = e.what();
     return false;
   }
-}
-
-/// The chosen class's energy as the ranking compared it: the intrinsic
-/// Delaunay one when the map itself fell back to own-edge weights (the
-/// other candidates' energies are intrinsic).
-double chosen_energy(const SurfaceMapResult& r) {
-  if (std::isfinite(r.intrinsic_class_energy)) return r.intrinsic_class_energy;
-  const int c = r.chosen_candidate;
-  return c >= 0 && c < static_cast<int>(r.candidates.size()) ? r.candidates[c].energy
-                                                              : std::numeric_limits<double>::quiet_NaN();
 }
 
 /// In a run given the other direction's class (reverse_class and/or the
@@ -392,6 +365,24 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
 
 }  // namespace
 
+std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward, const SurfaceMapResult& reverse,
+                                                 std::string& why) {
+  if (reverse.chosen_class_words.empty()) why = "the other direction reported no class words";
+  else if (forward.source_as_target_inverse.empty())
+    why = "this source's letters as a target are missing (" + forward.source_as_target_status + ")";
+  else if (reverse.source_as_target_inverse.empty())
+    why = "the target's letters as a source are missing (" + reverse.source_as_target_status + ")";
+  if (!why.empty()) return {};
+  return compose(forward.source_as_target_inverse, compose(reverse.chosen_class_words, reverse.source_as_target_inverse));
+}
+
+double chosen_energy(const SurfaceMapResult& r) {
+  if (std::isfinite(r.intrinsic_class_energy)) return r.intrinsic_class_energy;
+  const int c = r.chosen_candidate;
+  return c >= 0 && c < static_cast<int>(r.candidates.size()) ? r.candidates[c].energy
+                                                              : std::numeric_limits<double>::quiet_NaN();
+}
+
 void assess_quality(SurfaceMapResult& result) {
   result.energy_ratio = std::numeric_limits<double>::quiet_NaN();
   result.quality_warning.clear();
@@ -482,7 +473,8 @@ bool rescue_by_another_cut(const TriMesh& source, const TriMesh& target, const S
 }
 
 bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
-                                   SurfaceMapResult& out, const MapFunction& map, std::string& why) {
+                                   SurfaceMapResult& out, const MapFunction& map, std::string& why,
+                                   std::vector<std::vector<int>>* target_letters_inverse) {
   if (!options.homotopy.two_way || options.homotopy.class_index >= 0 || options.homotopy.source_images.size() > 0 ||
       options.homotopy.reverse_class_only || !options.homotopy.given_class.empty() || !options.landmarks.empty())
     return false;
@@ -497,6 +489,7 @@ bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target,
     why = "the other direction failed too: " + failure;
     return rescue_by_another_cut(source, target, options, out, map, why) && done();
   }
+  if (target_letters_inverse) *target_letters_inverse = reverse.source_as_target_inverse;
   if (static_cast<int>(reverse.inverse.size()) != source.num_vertices()) {
     why = "the other direction gave no inverse correspondence";
     return rescue_by_another_cut(source, target, options, out, map, why) && done();
@@ -535,7 +528,8 @@ bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target,
 }
 
 void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
-                 SurfaceMapResult& forward, const MapFunction& map) {
+                 SurfaceMapResult& forward, const MapFunction& map,
+                 std::vector<std::vector<int>>* target_letters_inverse) {
   if (forward.genus < 2 || options.homotopy.class_index >= 0 || options.homotopy.source_images.size() > 0 ||
       options.homotopy.reverse_class_only || !options.homotopy.given_class.empty())
     return;
@@ -563,6 +557,7 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
   if (!run_map(map, target, source, reverse_options(options), reverse, reverse_failure)) {
     return finish(std::string("the other direction failed: ") + reverse_failure);
   }
+  if (target_letters_inverse) *target_letters_inverse = reverse.source_as_target_inverse;
   if (static_cast<int>(reverse.inverse.size()) != source.num_vertices())
     return finish("the other direction gave no inverse correspondence");
   const std::string rev = "target -> source energy ratio " + four_digits(reverse.energy_ratio) + " (mean D' " +

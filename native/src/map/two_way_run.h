@@ -47,8 +47,13 @@ void qualify_quality_warning(SurfaceMapResult& result);
 /// inverted is solved here alone and this class inverted there alone, with
 /// the same rules ("Both directions, cheaply"). Nothing for a requested
 /// class.
+/// `target_letters_inverse` (when given): the other direction's
+/// source_as_target_inverse (the target's letters as a target -> its
+/// letters as a source, 2g words) when that direction was mapped, for the
+/// through-shape step's search in both directions; else left as it is.
 void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
-                 SurfaceMapResult& forward, const MapFunction& map);
+                 SurfaceMapResult& forward, const MapFunction& map,
+                 std::vector<std::vector<int>>* target_letters_inverse = nullptr);
 
 /// A requested class index (homotopy.class_index) beyond the one-way
 /// candidates: the two-way run's added class (its index in a default run's
@@ -70,8 +75,25 @@ bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, c
 /// or every attempt fails; `why` then says what failed (the caller adds it
 /// to the one-way error).
 /// docs/handle_classes.md "Every class folded: the other direction's class".
+/// `target_letters_inverse` as in two_way_map.
 bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
-                                   SurfaceMapResult& out, const MapFunction& map, std::string& why);
+                                   SurfaceMapResult& out, const MapFunction& map, std::string& why,
+                                   std::vector<std::vector<int>>* target_letters_inverse = nullptr);
+
+/// The class chosen for target -> source (`reverse`), written in the
+/// letters of a source -> target run (`forward`): ι_S^-1 ∘ ψ ∘ ι_T^-1 with ψ
+/// the reverse's chosen class (its source's cut letters -> its target's
+/// letters) and ι the identity overlays of each surface's cut letters onto
+/// its letters as a target (SurfaceMapResult::source_as_target), 2g words:
+/// the form of HomotopyOptions::reverse_class. Empty, with `why`, when a
+/// piece is missing.
+std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward, const SurfaceMapResult& reverse,
+                                                 std::string& why);
+
+/// The chosen class's energy as the ranking compared it: the intrinsic
+/// Delaunay one when the map itself fell back to own-edge weights (the
+/// other candidates' energies are intrinsic). NaN without a chosen class.
+double chosen_energy(const SurfaceMapResult& r);
 
 /// The options of the other direction's run: base vertices swapped, no
 /// landmarks (the classes are ranked by their free energies), no requested
