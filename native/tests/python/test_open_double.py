@@ -777,3 +777,33 @@ def test_capped_bent_tube_sphere_from_every_cap_apex(shape):
         assert 0 < res["centring_floor"] < 1e-13
         assert res["centre_of_mass_norm"] <= max(1e-10, res["centring_floor"])
         assert res["centring_iterations"] <= 6 and not res["centring_stopped_at_floor"]
+
+
+def test_refine_near_boundary_keeps_the_loops_and_the_surface():
+    V, F = pants()
+    V2, F2, parent, mid_of = open_double.split_boundary_chords(V, F)
+    loops = open_double.boundary_loops(V, F)
+    V3, F3, within, corners, ends = open_double.refine_near_boundary(V2, F2, loops, 2)
+    assert np.allclose(V3[:len(V2)], V2) and len(ends) == len(V3) - len(V2) > 0
+    assert np.allclose(V3[len(V2):], 0.5 * (V3[ends[:, 0]] + V3[ends[:, 1]]))
+    # Each new face's corners, as barycentrics of the face it lies in, are its own corners.
+    assert np.allclose(np.einsum("fkj,fjd->fkd", corners, V2[F2[within]]), V3[F3], atol=1e-12)
+    # The same surface: the same area per parent face, the same orientation, the same loops.
+    def area(P, G):
+        return np.cross(P[G[:, 1]] - P[G[:, 0]], P[G[:, 2]] - P[G[:, 0]])
+    summed = np.zeros((len(F2), 3))
+    np.add.at(summed, within, area(V3, F3))
+    assert np.allclose(summed, area(V2, F2), atol=1e-12)
+    it = surfmap.intake(V3, F3, allow_boundary=True)
+    assert it["info"]["genus"] == 0
+    assert sorted(map(sorted, it["boundary_loops"])) == sorted(map(sorted, (l.tolist() for l in loops)))
+    # Only faces near the boundary are split (the faces with a corner within one ring, and their
+    # neighbours across a split edge): the faces with every corner three rings or more away keep
+    # their corners.
+    near = np.concatenate(loops)
+    for _ in range(2):
+        near = np.unique(F2[np.any(np.isin(F2, near), axis=1)])
+    far = ~np.any(np.isin(F2, near), axis=1)
+    assert far.sum() > len(F2) // 2
+    assert np.all(np.bincount(within, minlength=len(F2))[far] == 1)
+
