@@ -1286,7 +1286,7 @@ def _finish_half(S, T, h, reversing, lm, untangle):
 def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),
                      max_pairings=6, symmetry_tolerance=0.05, tie_tolerance=1e-3, progress=None, landmarks=None,
                      classes_per_pairing=2, boundary_twists=0,
-                     untangle=True, refine_rings=4, refine_levels=0, **options):
+                     untangle=True, refine_rings=4, refine_levels=2, **options):
     """Map between two open surfaces of equal (g, b) through their doubles (module docstring).
 
     Vs (n_s,3), Fs (m_s,3), Vt, Ft: the meshes (input faces are triangles). boundary_pairing: None
@@ -1336,13 +1336,12 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     many faces were folded and how many vertices moved. The inverse (per target vertex a point of
     the source: what the add-on's UVs and colours read) is counted and untangled the same way with
     the sides swapped ('inverse_*': target faces, target vertices moved). refine_rings (default
-    4), refine_levels (default 0: not tried): where folds are left after all that (forward or in
-    the inverse), the chosen class is solved again on doubles whose faces within refine_rings
+    4), refine_levels (default 2; 0: not tried): where folds are left after all that (forward or
+    in the inverse), the chosen class is solved again on doubles whose faces within refine_rings
     rings of the boundary are split refine_levels times (refine_near_boundary; the images onto
     the input faces as before) and kept when fewer faces fold both ways together
-    ('refined_near_boundary' says the counts). Off by default: measured, it makes the doubles'
-    map more symmetric and halves the folds before the untangling of poncho -> spot, but did not
-    clear the folds the untangling leaves (docs/open_surfaces.md "Session 19").
+    ('refined_near_boundary' says the counts). Only maps with folds left pay for it (poncho ->
+    spot: 6 / 2 folded -> 1 / 2, 240 s more; docs/open_surfaces.md "Session 19").
     Raises InputError for different (g, b) or a bad pairing, SolveError when no candidate
     maps."""
     S = _Side(Vs, Fs, "source")
