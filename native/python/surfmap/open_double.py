@@ -272,8 +272,6 @@ class _Side:
                 if np.any(~orig):
                     ends = self.mid_of[v[~orig] - self.n]
                     self.corner_in_parent[~orig, k, j] = 0.5 * ((pf[~orig, j] == ends[:, 0]) + (pf[~orig, j] == ends[:, 1]))
-        self.chords_n2 = len(self.V2)
-        self.refined_from = None
         halves = []
         for _ in range(refine_levels):
             # Faces near the boundary split (refine_near_boundary), each new face's corners carried
