@@ -93,6 +93,89 @@ def split_boundary_chords(V, F, loops=None):
             np.array([p for _, p in faces], dtype=np.int64), mid_of)
 
 
+def refine_near_boundary(V, F, loops, rings):
+    """Splits at its midpoint every interior edge of the faces with a corner within `rings` - 1
+    rings of the boundary (rings 1: the faces touching it); boundary edges are kept, so the loops
+    and their vertices stay as they are and no new vertex lies on the boundary. Each face is
+    split by how many of its edges are: 1 into two, 2 into three, 3 into four (conforming).
+
+    Why: next to a target's small hole the doubles' uniformized metric changes scale fast across
+    a face (the conformal factor is per vertex), so its faces are mapped onto their 3D faces
+    by affine maps that shear differently on either side of an edge, and a strongly compressed
+    source face whose geodesic image (positive) straddles such an edge can come out folded as
+    the chord triangle of its corners' images in 3D (docs/open_surfaces.md "Session 19").
+    Smaller faces there resolve the metric.
+
+    V (n,3), F (m,3), loops: the boundary loops (vertex indices). Returns (V2 (n+k,3), F2
+    (m',3), parent (m',) the face of F each new face lies in, corners (m',3,3) each new face's
+    corners as barycentrics of its parent's corners, midpoint_of (k,2) the edge each new vertex
+    halves). The first n vertices are the input's."""
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    n, m = len(V), len(F)
+    eye = np.broadcast_to(np.eye(3), (m, 3, 3)).copy()
+    if rings <= 0 or m == 0:
+        return V, F, np.arange(m), eye, np.zeros((0, 2), dtype=np.int64)
+    bedges = set()
+    ring = np.full(n, -1, dtype=np.int64)
+    for loop in loops:
+        ring[loop] = 0
+        for i in range(len(loop)):
+            u, w = int(loop[i]), int(loop[(i + 1) % len(loop)])
+            bedges.add((min(u, w), max(u, w)))
+    # Rings by breadth-first search over the faces' edges.
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    for r in range(1, rings):
+        front = ring[E[:, 0]] == r - 1
+        nxt = E[front, 1][ring[E[front, 1]] < 0]
+        back = ring[E[:, 1]] == r - 1
+        nxt = np.concatenate([nxt, E[back, 0][ring[E[back, 0]] < 0]])
+        ring[nxt] = r
+    near = np.any(ring[F] >= 0, axis=1)
+    split = {}
+    verts = [V]
+    count = n
+    for f in np.flatnonzero(near):
+        for k in range(3):
+            u, w = int(F[f, k]), int(F[f, (k + 1) % 3])
+            e = (min(u, w), max(u, w))
+            if e not in bedges and e not in split:
+                split[e] = count
+                count += 1
+    if not split:
+        return V, F, np.arange(m), eye, np.zeros((0, 2), dtype=np.int64)
+    ends = np.array(sorted(split, key=split.get), dtype=np.int64)
+    verts.append(0.5 * (V[ends[:, 0]] + V[ends[:, 1]]))
+    faces, parent, corners = [], [], []
+    unit = np.eye(3)
+    for f in range(m):
+        tri = [int(x) for x in F[f]]
+        mids = [split.get((min(tri[k], tri[(k + 1) % 3]), max(tri[k], tri[(k + 1) % 3]))) for k in range(3)]
+        s = sum(x is not None for x in mids)
+        if s == 0:
+            faces.append(tri)
+            parent.append(f)
+            corners.append(unit)
+            continue
+        # Local corners: 0, 1, 2 the face's own, 3 + k the midpoint of edge k (corner k to k + 1).
+        local_bary = np.vstack([unit, 0.5 * (unit + np.roll(unit, -1, axis=0))])
+        idx = tri + [mids[k] if mids[k] is not None else -1 for k in range(3)]
+        if s == 3:
+            pieces = [(0, 3, 5), (3, 1, 4), (5, 4, 2), (3, 4, 5)]
+        else:
+            # Rotate so that the split edges come first (1: edge 0; 2: edges 0 and 1).
+            r = next(k for k in range(3) if mids[k] is not None and (s == 1 or mids[(k + 1) % 3] is not None))
+            a, b, c = r, (r + 1) % 3, (r + 2) % 3
+            mab, mbc = 3 + r, 3 + (r + 1) % 3
+            pieces = [(a, mab, c), (mab, b, c)] if s == 1 else [(mab, b, mbc), (a, mab, mbc), (a, mbc, c)]
+        for p in pieces:
+            faces.append([idx[i] for i in p])
+            parent.append(f)
+            corners.append(local_bary[list(p)])
+    return (np.vstack(verts), np.array(faces, dtype=np.int64), np.array(parent, dtype=np.int64),
+            np.array(corners), ends)
+
+
 def double_surface(V, F, loops=None):
     """The double of an open mesh without boundary chords (split_boundary_chords first).
 
@@ -161,7 +244,7 @@ def _nearest(points, candidates_xyz, chunk=1024):
 class _Side:
     """One open surface: intake, chords split, the double, the capped surface."""
 
-    def __init__(self, V, F, name):
+    def __init__(self, V, F, name, refine_rings=0, refine_levels=0):
         self.name = name
         try:
             it = _core.intake(V, F, allow_boundary=True)
@@ -176,8 +259,7 @@ class _Side:
         if self.b == 0:
             return
         self.V2, self.F2, self.parent, self.mid_of = split_boundary_chords(self.V, self.F, self.loops)
-        self.D = double_surface(self.V2, self.F2, self.loops)
-        self.n, self.n2 = len(self.V), len(self.V2)
+        self.n = len(self.V)
         self.diag = float(np.linalg.norm(self.V.max(axis=0) - self.V.min(axis=0)))
         # Each split face's corners as barycentrics of its parent (input) face.
         self.corner_in_parent = np.zeros((len(self.F2), 3, 3))
@@ -190,6 +272,18 @@ class _Side:
                 if np.any(~orig):
                     ends = self.mid_of[v[~orig] - self.n]
                     self.corner_in_parent[~orig, k, j] = 0.5 * ((pf[~orig, j] == ends[:, 0]) + (pf[~orig, j] == ends[:, 1]))
+        halves = []
+        for _ in range(refine_levels):
+            # Faces near the boundary split (refine_near_boundary), each new face's corners carried
+            # to its input face through the chord-split face it lies in; each level within
+            # `refine_rings` rings of the previous level's (finer) faces.
+            self.V2, self.F2, within, corners, ends = refine_near_boundary(self.V2, self.F2, self.loops, refine_rings)
+            self.corner_in_parent = np.einsum("fkl,flj->fkj", corners, self.corner_in_parent[within])
+            self.parent = self.parent[within]
+            halves.append(ends)
+        self.refined_from = np.vstack(halves) if halves else np.zeros((0, 2), dtype=np.int64)
+        self.D = double_surface(self.V2, self.F2, self.loops)
+        self.n2 = len(self.V2)
 
     def to_input_faces(self, face2, bary2):
         """Points on the split half (face of F2, barycentrics) on the input faces."""
@@ -730,6 +824,29 @@ def _landmark_pairs(S, T, lm, reversed_orientation):
     return np.array(out, dtype=np.int64)
 
 
+def _refined_images(S, T, S2, T2, images):
+    """The rough map `images` (per vertex of S's double a vertex position of T's double, symmetric:
+    _symmetric_images) carried onto the doubles of S2, T2, the same surfaces refined near their
+    boundary (_Side refine_levels): each half vertex keeps its target vertex (on the same sheet), a
+    new source vertex takes that of an end of the edge it halves (one not on the boundary: the
+    chords were split first, so one is not), and the mirror vertices the reflection of their
+    twin's. (len(S2.D["V"]), 3)."""
+    target_vertex = _nearest(images[:S.n2], T.D["V"])
+    half_of = np.arange(len(T.D["V"]))
+    half_of[T.D["mirror"]] = np.arange(T.n2)  # the mirror sheet's vertices to their twins
+    on_mirror = target_vertex >= T.n2
+    out = np.empty(S2.n2, dtype=np.int64)
+    out[:S.n2] = np.where(on_mirror, T2.D["mirror"][half_of[target_vertex]], target_vertex)
+    on_b = S2.D["on_boundary"]
+    for k, (a, b) in enumerate(S2.refined_from):   # in order: an end may be an earlier new vertex
+        out[S.n2 + k] = out[b if on_b[a] else a]
+    full = np.empty(len(S2.D["V"]), dtype=np.int64)
+    full[:S2.n2] = out
+    interior = np.flatnonzero(~on_b)
+    full[S2.D["mirror"][interior]] = T2.D["sigma"][out[interior]]
+    return T2.D["V"][full]
+
+
 def _double_map(S, T, images, options, landmarks=None):
     kw = {k: v for k, v in options.items() if k in ("threads", "tolerance", "max_iterations", "method",
                                                     "source_weights", "solve_progress",
@@ -1124,10 +1241,50 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
         f"orientations of best loop lengths, distances{' and cap centres' if S.genus == 0 else ''}")
 
 
+def _half(S, T, r, reversing, untangle):
+    """The half's maps from the doubles' map r (_half_correspondence), the forward map's folded
+    faces untangled (open_untangle) when `untangle`: a dict of fw, inv, pairing, back_pairing,
+    snap, before (folded faces before the untangling), untangled (vertices moved), flipped, ears,
+    ears_turned, ear (_flips)."""
+    fw, inv, pairing, back_pairing, snap = _half_correspondence(r, S, T)
+    before = _flips(S, T, fw, reversing)[0]
+    untangled = []
+    if before and untangle:
+        # The few folds of strongly compressed faces (open_untangle): their interior corners moved
+        # within their stars, before the costlier solves below.
+        untangled = open_untangle.untangle_half(S, T, fw, lambda f: _turned(S, T, fw, reversing, faces=f), reversing)
+    flipped, ears, ears_turned, ear = _flips(S, T, fw, reversing)
+    return {"fw": fw, "inv": inv, "pairing": pairing, "back_pairing": back_pairing, "snap": snap, "before": before,
+            "untangled": untangled, "flipped": flipped, "ears": ears, "ears_turned": ears_turned, "ear": ear}
+
+
+def _finish_half(S, T, h, reversing, lm, untangle):
+    """Completes _half's dict h: ears whose chord images turn over slid (both directions,
+    landmarks held: ears_fw, ears_inv), the forward counts again, and the inverse (per target
+    vertex a point of the source's faces: what the add-on's UVs, colours and bakes read, so a fold
+    there is a flipped transferred UV triangle; the doubles' own inverse, with the same kind of
+    folds where the inverse map compresses) counted and untangled the same way with the sides
+    swapped: inv_before, inv_untangled (target vertices moved), inv_flipped, inv_ears,
+    inv_ears_turned."""
+    fw, inv = h["fw"], h["inv"]
+    # Ears whose chord images turn over (three points of a concave or jagged stretch of the other
+    # boundary): the middle corner's image slid along the other boundary (map/ear_images.h).
+    h["ears_fw"] = _slide_ears(S, T, fw, reversing, lm[:, 0])
+    h["ears_inv"] = _slide_ears(T, S, inv, reversing, lm[:, 1])
+    h["flipped"], h["ears"], h["ears_turned"], h["ear"] = _flips(S, T, fw, reversing)
+    inv_flipped, inv_ears, inv_ears_turned, _ = _flips(T, S, inv, reversing)
+    h["inv_before"], h["inv_untangled"] = inv_flipped, []
+    if inv_flipped and untangle:
+        h["inv_untangled"] = open_untangle.untangle_half(T, S, inv, lambda f: _turned(T, S, inv, reversing, faces=f),
+                                                         reversing)
+        inv_flipped, inv_ears, inv_ears_turned, _ = _flips(T, S, inv, reversing)
+    h["inv_flipped"], h["inv_ears"], h["inv_ears_turned"] = inv_flipped, inv_ears, inv_ears_turned
+
+
 def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),
                      max_pairings=6, symmetry_tolerance=0.05, tie_tolerance=1e-3, progress=None, landmarks=None,
                      classes_per_pairing=2, boundary_twists=0,
-                     untangle=True, **options):
+                     untangle=True, refine_rings=4, refine_levels=2, **options):
     """Map between two open surfaces of equal (g, b) through their doubles (module docstring).
 
     Vs (n_s,3), Fs (m_s,3), Vt, Ft: the meshes (input faces are triangles). boundary_pairing: None
@@ -1176,7 +1333,13 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     (open_untangle.untangle_half) before the own-edge weights' solve is tried; 'untangled' says how
     many faces were folded and how many vertices moved. The inverse (per target vertex a point of
     the source: what the add-on's UVs and colours read) is counted and untangled the same way with
-    the sides swapped ('inverse_*': target faces, target vertices moved).
+    the sides swapped ('inverse_*': target faces, target vertices moved). refine_rings (default
+    4), refine_levels (default 2; 0: not tried): where folds are left after all that (forward or
+    in the inverse), the chosen class is solved again on doubles whose faces within refine_rings
+    rings of the boundary are split refine_levels times (refine_near_boundary; the images onto
+    the input faces as before) and kept when fewer faces fold both ways together
+    ('refined_near_boundary' says the counts). Only maps with folds left pay for it (poncho ->
+    spot: 6 / 2 folded -> 1 / 2, 240 s more; docs/open_surfaces.md "Session 19").
     Raises InputError for different (g, b) or a bad pairing, SolveError when no candidate
     maps."""
     S = _Side(Vs, Fs, "source")
@@ -1264,50 +1427,53 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     for c in candidates:
         c["chosen"] = c is cand
     report("doubles: the half", 0.95)
-    fw, inv, pairing, back_pairing, snap = _half_correspondence(r, S, T)
-    flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
-    weights_fallback, untangled, flipped_before_untangling = "", [], flipped
-    if flipped and untangle:
-        # The few folds of strongly compressed faces (open_untangle): their interior corners moved
-        # within their stars, before the costlier solve on the source's own edges below.
-        untangled = open_untangle.untangle_half(S, T, fw, lambda f: _turned(S, T, fw, rev, faces=f), rev)
-        flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
-    if flipped and "source_weights" not in options:
+    h = _half(S, T, r, rev, untangle)
+    chosen_options = options
+    if h["flipped"] and "source_weights" not in options:
         # As the closed pipeline's automatic weights (SourceWeights::Automatic): the intrinsic
         # Delaunay weights' straight images of the user's faces fold (here next to the boundary,
         # where the half is cut out of a map symmetric only up to the discretization), so the
         # chosen class is solved again with positive weights on the source's own edges.
-        r2 = _double_map(S, T, chosen_images, dict(options, source_weights="own"), _landmark_pairs(S, T, lm, rev))
-        fw2, inv2, pairing2, back2, snap2 = _half_correspondence(r2, S, T)
-        before2 = _flips(S, T, fw2, rev)[0]
-        untangled2 = open_untangle.untangle_half(S, T, fw2, lambda f: _turned(S, T, fw2, rev, faces=f), rev) \
-            if untangle and before2 else []
-        flipped2, ears, ears_turned, ear = _flips(S, T, fw2, rev)
-        weights_fallback = (f"{flipped} flipped with the intrinsic Delaunay weights"
-                            f"{' after untangling' if untangled else ''}; solved again on the source's own edges: "
-                            f"{flipped2} flipped{' after untangling' if untangled2 else ''}")
-        if flipped2 < flipped:
-            r, fw, inv, pairing, back_pairing, snap, flipped = r2, fw2, inv2, pairing2, back2, snap2, flipped2
-            untangled, flipped_before_untangling = untangled2, before2
+        own = dict(options, source_weights="own")
+        r2 = _double_map(S, T, chosen_images, own, _landmark_pairs(S, T, lm, rev))
+        h2 = _half(S, T, r2, rev, untangle)
+        h2["weights_fallback"] = (f"{h['flipped']} flipped with the intrinsic Delaunay weights"
+                                  f"{' after untangling' if h['untangled'] else ''}; solved again on the source's own "
+                                  f"edges: {h2['flipped']} flipped{' after untangling' if h2['untangled'] else ''}")
+        if h2["flipped"] < h["flipped"]:
+            r, chosen_options = r2, own
             cand = dict(cand, energy=float(r2["energy"]["final"]) / 2)
             cand["symmetry_error"], cand["same_sheet"] = _symmetry(r2, S, T, rev)
+            h = h2
         else:
-            flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
-    # Ears whose chord images turn over (three points of a concave or jagged stretch of the other
-    # boundary): the middle corner's image slid along the other boundary (map/ear_images.h), both
-    # directions; landmarks keep their images.
-    ears_fw = _slide_ears(S, T, fw, rev, lm[:, 0])
-    ears_inv = _slide_ears(T, S, inv, rev, lm[:, 1])
-    flipped, ears, ears_turned, ear = _flips(S, T, fw, rev)
-    # The inverse (per target vertex a point of the source's faces): the UVs, colours and bakes the
-    # add-on transfers onto the target read it, so a fold there is a flipped transferred UV
-    # triangle. It is the doubles' own inverse, with the same kind of folds where the inverse map
-    # compresses; the same untangling, the sides swapped (T's vertices moved within S's faces).
-    inv_flipped, inv_ears, inv_ears_turned, _ = _flips(T, S, inv, rev)
-    inv_untangled, inv_flipped_before = [], inv_flipped
-    if inv_flipped and untangle:
-        inv_untangled = open_untangle.untangle_half(T, S, inv, lambda f: _turned(T, S, inv, rev, faces=f), rev)
-        inv_flipped, inv_ears, inv_ears_turned, _ = _flips(T, S, inv, rev)
+            h["weights_fallback"] = h2["weights_fallback"]
+    _finish_half(S, T, h, rev, lm, untangle)
+    refined = ""
+    if (h["flipped"] or h["inv_flipped"]) and refine_levels > 0:
+        # Folds left next to the boundary: the chosen class solved again on doubles refined near
+        # their boundaries (refine_near_boundary), where the images of a strongly compressed
+        # collar crowd into the first ring of faces of the other side's loop.
+        S2 = _Side(S.V, S.F, "source", refine_rings=refine_rings, refine_levels=refine_levels)
+        T2 = _Side(T.V, T.F, "target", refine_rings=refine_rings, refine_levels=refine_levels)
+        r3 = _double_map(S2, T2, _refined_images(S, T, S2, T2, chosen_images), chosen_options,
+                         _landmark_pairs(S2, T2, lm, rev))
+        # The half's maps through the refined sides' faces (their input meshes are S's and T's).
+        h3 = _half(S2, T2, r3, rev, untangle)
+        _finish_half(S2, T2, h3, rev, lm, untangle)
+        refined = (f"{h['flipped']} flipped / {h['inv_flipped']} in the inverse; solved again on the doubles refined "
+                   f"within {refine_rings} rings of the boundary {refine_levels} times ({S2.n2} / {T2.n2} vertices "
+                   f"on the halves): {h3['flipped']} / {h3['inv_flipped']}")
+        if h3["flipped"] + h3["inv_flipped"] < h["flipped"] + h["inv_flipped"]:
+            h3["weights_fallback"] = h.get("weights_fallback", "")
+            r, h = r3, h3
+            cand = dict(cand, energy=float(r3["energy"]["final"]) / 2)
+            cand["symmetry_error"], cand["same_sheet"] = _symmetry(r3, S2, T2, rev)
+    fw, inv, pairing, back_pairing, snap = h["fw"], h["inv"], h["pairing"], h["back_pairing"], h["snap"]
+    flipped, ears, ears_turned, ear = h["flipped"], h["ears"], h["ears_turned"], h["ear"]
+    untangled, flipped_before_untangling = h["untangled"], h["before"]
+    weights_fallback, ears_fw, ears_inv = h.get("weights_fallback", ""), h["ears_fw"], h["ears_inv"]
+    inv_flipped, inv_ears, inv_ears_turned = h["inv_flipped"], h["inv_ears"], h["inv_ears_turned"]
+    inv_untangled, inv_flipped_before = h["inv_untangled"], h["inv_before"]
     dil = _dilatation(S.V, fw["position"], S.F)
     finite = dil[~ear & np.isfinite(dil)]
     # The doubles' report, less what is per vertex or per face of the doubles (the initial map,
@@ -1344,7 +1510,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "candidates": candidates, "tied_candidates": len(tied), "symmetry_error": cand["symmetry_error"],
                    "same_sheet": cand["same_sheet"], "snap_distance": snap, "double_genus": int(r["genus"]),
                    "ear_triangles": ears, "ear_triangles_turned": ears_turned,
-                   "source_weights_fallback": weights_fallback, "untangled_vertices": len(untangled),
+                   "source_weights_fallback": weights_fallback, "refined_near_boundary": refined,
+                   "untangled_vertices": len(untangled),
                    "untangled": (f"{flipped_before_untangling} folded faces; {len(untangled)} interior vertices moved "
                                  f"within their stars, {flipped} folded left" if untangled else ""),
                    "ears_turned": ears_fw["turned"], "ears_slid": ears_fw["moved"],
