@@ -173,6 +173,10 @@ class MapJob:
         kw = self.options.native_kwargs()
         if core_supports(self.sm, "solve_progress"):
             kw["solve_progress"] = self._solve_progress
+        # The "before" morph and UVs, also from the stored correspondence later: the core
+        # locates the initial map only on request (an output, no figure depends on it).
+        if core_supports(self.sm, "locate_initial_map"):
+            kw["locate_initial_map"] = True
         return kw
 
     def run(self, with_outputs=True):

@@ -85,6 +85,7 @@ void register_map(CLI::App& app) {
     bool homotopy_both_signs = defaults.homotopy.flat_both_signs;    // HomotopyOptions::flat_both_signs
     bool no_flat_overlay = !defaults.homotopy.flat_overlay;          // HomotopyOptions::flat_overlay off
     bool landmarks_may_fold = defaults.landmarks_may_fold;          // SurfaceMapOptions::landmarks_may_fold
+    bool locate_initial_map = defaults.initial.locate;              // InitialMapOptions::locate
     bool boundary_swap = false;          // open surfaces (map_open.h)
     std::vector<int> boundary_pairing;  // open surfaces (map_open.h)
   };
@@ -130,7 +131,11 @@ void register_map(CLI::App& app) {
                   "polygon of the source's loops when convex, else uniform) or uniform (the uniform-weight harmonic map)")
       ->check(CLI::IsMember(enum_name_list<InitialMapMethod>()));
   cmd->add_option("--initial-out", a->initial_out,
-                  "INITIAL.obj: the source's connectivity at the initial map's positions on the target (genus >= 1)");
+                  "INITIAL.obj: the source's connectivity at the initial map's positions on the target (genus >= 1; "
+                  "implies --locate-initial-map)");
+  cmd->add_flag("--locate-initial-map", a->locate_initial_map,
+               "Genus >= 1: locate the initial map on the target and its inverse on the source (report: "
+               "initial_map.located; off by default, the map does not depend on it)");
   cmd->add_option("--homotopy-extra-cuts", a->homotopy_extra_cuts,
                   "Genus >= 2: other systems of source loops whose lifted handle classes are added (other twist representatives)")
       ->check(CLI::NonNegativeNumber);
@@ -238,6 +243,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.candidates = a->homotopy_candidates;
     opt.homotopy.full_solves = a->homotopy_full_solves;
     opt.initial.method = parse_enum<InitialMapMethod>(a->initial, "--initial-map");
+    opt.initial.locate = a->locate_initial_map || !a->initial_out.empty();
     opt.uniformization.target_metric = parse_enum<UniformizationMetric>(a->target_metric, "--target-metric");
     opt.uniformization.loops = parse_enum<LoopMetric>(a->target_loops, "--target-loops");
     opt.uniformization.face_charts = parse_enum<FaceCharts>(a->face_charts, "--face-charts");

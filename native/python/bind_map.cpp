@@ -208,7 +208,7 @@ void bind_map(py::module_& m) {
       "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric", "homotopy_images",
       "homotopy_both_signs", "flat_overlay", "cheap_direction_check", "compare_directions", "greedy_pants",
       "homotopy_extra_cuts", "own_weights_floor", "local_fold_repair", "fold_untangle", "target_loops", "two_way_ratio",
-      "snapped_start", "landmarks_may_fold", "through_shape", "face_charts"));
+      "snapped_start", "landmarks_may_fold", "through_shape", "face_charts", "locate_initial_map"));
   // What the module does beyond its keywords, for callers built against older modules (the
   // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
   m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
@@ -222,7 +222,8 @@ void bind_map(py::module_& m) {
          py::object homotopy_images, bool homotopy_both_signs, bool flat_overlay, bool cheap_direction_check,
          bool compare_directions, bool greedy_pants, int homotopy_extra_cuts, double own_weights_floor,
          bool local_fold_repair, bool fold_untangle, const std::string& target_loops, double two_way_ratio,
-         bool snapped_start, bool landmarks_may_fold, bool through_shape, const std::string& face_charts) {
+         bool snapped_start, bool landmarks_may_fold, bool through_shape, const std::string& face_charts,
+         bool locate_initial_map) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         // Open surfaces (issue 16): either side with a boundary.
@@ -282,6 +283,7 @@ void bind_map(py::module_& m) {
           opt.homotopy.images_only = true;
         }
         opt.initial.method = parse_enum<InitialMapMethod>(initial_map, "initial_map");
+        opt.initial.locate = locate_initial_map;
         opt.solve.source_weights = parse_enum<SourceWeights>(source_weights, "source_weights");
         if (threads < 0) throw InputError("threads must be 0 (automatic) or at least 1");
         opt.threads = threads;
@@ -364,6 +366,7 @@ void bind_map(py::module_& m) {
       py::arg("landmarks_may_fold") = SurfaceMapOptions().landmarks_may_fold,
       py::arg("through_shape") = HomotopyOptions().through_shape,
       py::arg("face_charts") = enum_name(UniformizationOptions().face_charts),
+      py::arg("locate_initial_map") = InitialMapOptions().locate,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
       "boundary loops (else InputError naming both); disks (0, 1) and annuli (0, 2) are mapped boundary onto boundary "
@@ -386,8 +389,9 @@ void bind_map(py::module_& m) {
       "along its own cut graph onto the convex polygon of that graph's harmonic map into the target, an embedding by "
       "construction; else as 'polygon'), 'polygon' (the "
       "source disk onto the target's geodesic polygon of the source's loops when convex, else uniform) or 'uniform' "
-      "('initial_map' in the result says which was used; 'initial_forward': the initial map located on the target, "
-      "'initial_inverse': each target vertex located on the source through the initial map); `source_weights`: 'auto' "
+      "('initial_map' in the result says which was used); `locate_initial_map`: also locate the initial map (default False; "
+      "'initial_forward': the initial map located on the target, 'initial_inverse': each target vertex located on the "
+      "source through the initial map, else None; 'initial_map' 'located' / 'location_requested' in the result); `source_weights`: 'auto' "
       "(intrinsic Delaunay cotangents, the source's own edges when their images fold), 'intrinsic' or 'own' "
       "('source_weights' in the result says which were used); `threads`: threads the pipeline runs at once (0: "
       "SURFMAP_THREADS, else 2 on two cores; 1: in order; the result does not depend on it); 'stages' in the result: "

@@ -36,6 +36,7 @@ TEST(SurfaceMapConcurrency, TwoThreadsGiveTheMapOfOneAndCallBackOnTheCallingThre
   SurfaceMapOptions o1, o2;
   o1.threads = 1;
   o2.threads = 2;
+  o1.initial.locate = o2.initial.locate = true;  // (located on the other thread with two: compared below)
   const std::thread::id me = std::this_thread::get_id();
   int calls = 0, foreign = 0;
   std::vector<std::string> stages;

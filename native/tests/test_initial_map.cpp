@@ -38,6 +38,7 @@ SurfaceMapResult map_and_inspect(const TriMesh& a, const TriMesh& b, InitialMapM
   SurfaceMapOptions o;
   o.homotopy.class_index = 0;  // the overlay class (identity of a remeshed copy): no ranking needed
   o.initial.method = method;
+  o.initial.locate = true;  // (initial_forward, checked on the target below)
   o.uniformization.target_metric = target_metric;
   testing::MapHooks hooks;
   hooks.inspect_initial_map = [&](const InitialMapInspection& in) {
@@ -297,9 +298,23 @@ TEST(CutGraphInitialMap, ChordOfASideIsReroutedIntoTheCutGraph) {
 TEST(PolygonInitialMap, TorusInitialMapIsLocated) {
   // Genus 1: the uniform Tutte map of the flat torus, located like the optimum.
   const TriMesh a = samples::torus_of_revolution(1.0, 0.5, 40, 20), b = samples::torus_of_revolution(1.5, 0.5, 36, 18, 1);
-  const SurfaceMapResult m = surface_map(a, b);
+  SurfaceMapOptions o;
+  o.initial.locate = true;
+  const SurfaceMapResult m = surface_map(a, b, o);
   EXPECT_EQ(m.initial_map.construction, "uniform Tutte");
+  EXPECT_TRUE(m.initial_map.location_requested);
   expect_on_target(m.initial_forward, b, a.num_vertices());
+  ASSERT_EQ(m.initial_inverse.size(), b.V.rows());
+  // Not requested (the default): neither direction located, said so, and the
+  // map itself the same bit for bit.
+  const SurfaceMapResult d = surface_map(a, b);
+  EXPECT_FALSE(d.initial_map.location_requested);
+  EXPECT_TRUE(d.initial_forward.empty());
+  EXPECT_TRUE(d.initial_inverse.empty());
+  EXPECT_EQ(d.initial_map.construction, "uniform Tutte");
+  EXPECT_EQ(d.initial_energy, m.initial_energy);
+  ASSERT_EQ(d.forward.size(), m.forward.size());
+  for (size_t i = 0; i < d.forward.size(); ++i) EXPECT_EQ(d.forward[i].position, m.forward[i].position) << i;
   // A different map from the optimum (uniform weights on a torus whose
   // triangles differ in size), still mapping the base vertex's ring nearby.
   double moved = 0;

@@ -237,6 +237,7 @@ TEST(IntrinsicTargetMap, TargetWithoutFixedMetricMapsOnItsOwnFaces) {
   SurfaceMapOptions o;
   o.homotopy.candidates = 1;  // the overlay class (more candidates cost minutes at genus 3)
   o.uniformization.target_metric = UniformizationMetric::IntrinsicDelaunay;
+  o.initial.locate = true;  // (initial_forward checked below)
   const SurfaceMapResult m = surface_map(s, t, o);
   EXPECT_TRUE(m.converged);
   EXPECT_EQ(m.target_metric, "intrinsic Delaunay");

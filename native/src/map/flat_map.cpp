@@ -407,8 +407,10 @@ bool record_flat_map(const FlatInputs& in, const IntrinsicDelaunayResult& idt, c
 
   // Location (stages/flat_location.h); the initial map is the uniform Tutte one.
   out.initial_map.construction = "uniform Tutte";
+  out.initial_map.location_requested = in.options.initial.locate;
   FlatLocationResult located = locate_flat_map(in.source, in.target, in.tc, in.tgt.loops, in.tgt.intrinsic.get(), in.tgt.layout, in.tgt.A,
-                                               in.tgt.B, z, z_extended, z_init, img, image_corners(z_init), in.stage_done);
+                                               in.tgt.B, z, z_extended, z_init, img, image_corners(z_init),
+                                               in.options.initial.locate, in.stage_done);
   out.forward = std::move(located.forward);
   out.inverse = std::move(located.inverse);
   out.initial_forward = std::move(located.initial_forward);

@@ -1830,6 +1830,7 @@ bool map_class(HyperbolicPipeline& p) {
   }
   const HyperbolicInitialMapResult& init = initial.init;
   set_initial_map_info(init, out.initial_map);
+  out.initial_map.location_requested = options.initial.locate;
   if (p.hooks.inspect_initial_map)
     p.hooks.inspect_initial_map({&initial.halfedge_rho, &initial.halfedge_word, p.deck_group.get(), &init});
   const DistortionStats q0 = initial_map_distortion(p.source, *p.deck_group, initial);
@@ -1980,6 +1981,7 @@ bool map_class(HyperbolicPipeline& p) {
   li.zp = &placed.zp, li.eff_edge = &placed.eff_edge, li.image = &placed.image;
   li.init = &init, li.halfedge_rho = &initial.halfedge_rho, li.halfedge_word = &initial.halfedge_word;
   li.threads = p.threads;
+  li.locate_initial = options.initial.locate;
   li.inverse_full_search = p.hooks.inverse_full_search;
   li.forward_index_order = p.hooks.forward_index_order;
   HyperbolicLocationResult located = locate_hyperbolic_map(li, p.stage_done);

@@ -149,7 +149,8 @@ json initial_map_json(const SurfaceMapResult& r) {
                         {"repaired_vertices", im.polygon_repaired_vertices},
                         {"time_s", im.polygon_time_s}};
   return {{"construction", im.construction}, {"cut_graph", cut_graph},     {"polygon", polygon},
-          {"iterations", im.iterations},     {"time_s", im.time_s},         {"located", !r.initial_forward.empty()}};
+          {"iterations", im.iterations},     {"time_s", im.time_s},         {"located", !r.initial_forward.empty()},
+          {"location_requested", im.location_requested}};
 }
 
 json candidate_json(const HomotopyCandidate& c, size_t index) {

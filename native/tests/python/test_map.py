@@ -525,8 +525,9 @@ def test_polygon_flattening_with_a_fold_is_repaired_locally():
 def test_genus2_initial_map_construction_and_location(tmp_path, cli):
     a = surfmap.shapes.n_hole_torus(2, 32, True)
     b = surfmap.shapes.n_hole_torus(2, 40, True)
-    r = surfmap.surface_map(*a, *b, homotopy=0)
+    r = surfmap.surface_map(*a, *b, homotopy=0, locate_initial_map=True)
     im = r["initial_map"]
+    assert im["located"] and im["location_requested"]
     # The default: the source cut along its own cut graph onto a convex polygon.
     assert im["construction"] == "cut-graph polygon" and im["cut_graph"]["status"] == "used"
     assert im["cut_graph"]["min_turn"] > 0 and im["cut_graph"]["flipped"] == 0 and im["iterations"] == 0
@@ -534,6 +535,9 @@ def test_genus2_initial_map_construction_and_location(tmp_path, cli):
     assert r["initial_flipped_triangles"] == 0
     p = surfmap.surface_map(*a, *b, homotopy=0, initial_map="polygon")
     assert p["initial_map"]["construction"] == "polygon" and p["initial_map"]["polygon"]["convex"]
+    # Not requested (the default): no location, said so; the same map.
+    assert p["initial_forward"] is None and p["initial_inverse"] is None
+    assert not p["initial_map"]["located"] and not p["initial_map"]["location_requested"]
     init = r["initial_forward"]
     Vt, Ft = b
     assert init["position"].shape == a[0].shape
@@ -557,6 +561,7 @@ def test_genus2_initial_map_construction_and_location(tmp_path, cli):
     assert p.returncode == 0, p.stderr
     report = json.loads(rep.read_text())
     assert report["initial_map"]["construction"] == "cut-graph polygon" and report["initial_map"]["located"]
+    assert report["initial_map"]["location_requested"]  # (implied by --initial-out)
     assert report["initial_map"]["cut_graph"]["status"] == "used"
     before = surfmap.load_mesh(str(ini))
     assert np.abs(before["V"] - init["position"]).max() < 1e-6
@@ -572,7 +577,7 @@ def test_initial_inverse_inverts_the_initial_map(genus):
     else:
         a, b = surfmap.shapes.n_hole_torus(2, 18, True), surfmap.shapes.vase(22, True)
     (Vs, Fs), (Vt, Ft) = a, b
-    r = surfmap.surface_map(Vs, Fs, Vt, Ft)
+    r = surfmap.surface_map(Vs, Fs, Vt, Ft, locate_initial_map=True)
     fw, iv = r["initial_forward"], r["initial_inverse"]
     assert fw is not None and iv is not None and r["initial_flipped_triangles"] == 0
     assert iv["face"].shape == (len(Vt),) and iv["barycentric"].min() >= -1e-9

@@ -76,7 +76,7 @@ FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target,
                                    const std::vector<Complex>& z_init,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& image,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& initial_image,
-                                   const StageDone& stage_done) {
+                                   bool locate_initial, const StageDone& stage_done) {
   FlatLocationResult out;
   // Forward map: locate every z_i in the target's disk (modulo the lattice).
   const int n = source.num_vertices();
@@ -100,8 +100,8 @@ FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target,
     out.forward[i] = point_on_input(target, tc, target_loops, target_intrinsic, refined_face_origin, rf, b);
   }
   // The initial (uniform Tutte) map located the same way ("before" morph).
-  out.initial_forward.resize(n);
-  for (int i = 0; i < n; ++i) {
+  if (locate_initial) out.initial_forward.resize(n);
+  for (int i = 0; locate_initial && i < n; ++i) {
     Eigen::Vector3d b;
     int rf = locate_periodic(tgrid, z_init[i], centre, w1, w2, &b);
     if (rf < 0) rf = locate_in_crack(tgrid, ttris, z_init[i], centre, w1, w2, &b);
@@ -143,7 +143,7 @@ FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target,
     throw SolveError("target vertex " + std::to_string(missed) + " could not be located in the source image");
   // The initial map's inverse the same way (the "before" UV transfer); left
   // empty, not an error, when a target vertex is not covered.
-  locate_inverse(initial_image, out.initial_inverse, &missed);
+  if (locate_initial) locate_inverse(initial_image, out.initial_inverse, &missed);
   return out;
 }
 

@@ -22,7 +22,9 @@ struct FlatLocationResult {
 /// rounding is `z` (the forward barycentrics are then computed from it); `image`/`initial_image` (#F x 3): their image triangles. Reports
 /// "forward location" to stage_done between the two directions. A vertex
 /// of the optimum that cannot be located is a SolveError; of the initial
-/// map, it leaves that output empty.
+/// map, it leaves that output empty. `locate_initial` false
+/// (InitialMapOptions::locate): the initial map is not located, both its
+/// outputs are empty.
 FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target, const Connectivity& tc,
                                    const SystemOfLoops& target_loops, const TargetIntrinsic* target_intrinsic,
                                    const DiskLayout& layout, Complex w1, Complex w2,
@@ -30,6 +32,6 @@ FlatLocationResult locate_flat_map(const TriMesh& source, const TriMesh& target,
                                    const std::vector<Complex>& z_init,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& image,
                                    const Eigen::Matrix<Complex, Eigen::Dynamic, 3, Eigen::RowMajor>& initial_image,
-                                   const StageDone& stage_done);
+                                   bool locate_initial, const StageDone& stage_done);
 
 }  // namespace surfmap::detail

@@ -418,7 +418,7 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
   // The initial map's location runs next to the optimum's (concurrency.h),
   // which reports the stages.
   const std::atomic<bool> never{false};
-  parallel_for(in.threads, 2, [&](int task, const std::atomic<bool>* stop) {
+  parallel_for(in.threads, in.locate_initial ? 2 : 1, [&](int task, const std::atomic<bool>* stop) {
     if (task == 1) return locate_initial(in, cover, stop ? stop : &never, out);
     // Forward map: the walk over the target's faces.
     std::vector<int> refined_face_origin(cover.ntf, -1);

@@ -39,6 +39,9 @@ struct HyperbolicLocationInput {
   const std::vector<hyperbolic::Mobius>* halfedge_rho = nullptr;
   const std::vector<Word>* halfedge_word = nullptr;
   int threads = 1;
+  /// Locate the initial map too (InitialMapOptions::locate); false leaves
+  /// initial_forward and initial_inverse empty.
+  bool locate_initial = true;
   /// The optimum's inverse without the waves (testing/map_hooks.h).
   bool inverse_full_search = false;
   /// The optimum's forward walks from the previous vertex's face towards
@@ -65,7 +68,7 @@ struct HyperbolicLocationResult {
 
 /// Locates the optimum (forward then inverse, reporting "forward location"
 /// to `stage_done` between them) and, on the second thread when there is
-/// one, the initial map. A vertex of the optimum that cannot be located is
+/// one, the initial map (when `locate_initial`). A vertex of the optimum that cannot be located is
 /// a SolveError; of the initial map, it leaves that output empty.
 HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in, const StageDone& stage_done);
 
