@@ -90,10 +90,20 @@ class SchemeMetric {
   /// Returns the first edge whose length is not a finite positive number, or -1.
   /// threads > 1: the edges in two halves, the second on another thread
   /// (each edge's length is its own: the same numbers).
-  int lengths(const Eigen::VectorXd& u, Eigen::VectorXd& l, Eigen::MatrixX2d* dldu, int threads = 1) const {
+  /// `half` (#E x 2, hyperbolic vertex scaling only, else emptied):
+  /// sinh(l_e/2) and cosh(l_e/2) from the Penner coordinate, for the
+  /// sinh-free angles of scan_faces (hyperbolic_angles_from_halves).
+  int lengths(const Eigen::VectorXd& u, Eigen::VectorXd& l, Eigen::MatrixX2d* dldu, int threads = 1,
+              Eigen::MatrixX2d* half = nullptr) const {
     const int ne = static_cast<int>(dom_.EV.rows());
     l.resize(ne);
     if (dldu) dldu->resize(ne, 2);
+    if (half) {
+      if (scheme_ == RicciScheme::VertexScaling && bg_ == Background::Hyperbolic)
+        half->resize(ne, 2);
+      else
+        half->resize(0, 2), half = nullptr;
+    }
     Eigen::VectorXd r;
     if (scheme_ == RicciScheme::InversiveDistance) {
       r.resize(dom_.num_vertices);
@@ -108,14 +118,14 @@ class SchemeMetric {
     }
     int bad[2] = {-1, -1};
     in_two_halves(ne, threads,
-                  [&](int half, int begin, int end) { bad[half] = edge_range(u, r, begin, end, l, dldu); });
+                  [&](int part, int begin, int end) { bad[part] = edge_range(u, r, begin, end, l, dldu, half); });
     return bad[0] >= 0 ? bad[0] : bad[1];
   }
 
  private:
-  /// Lengths of edges [begin, end) (l, dldu sized); the first bad one or -1.
+  /// Lengths of edges [begin, end) (l, dldu, half sized); the first bad one or -1.
   int edge_range(const Eigen::VectorXd& u, const Eigen::VectorXd& r, int begin, int end, Eigen::VectorXd& l,
-                 Eigen::MatrixX2d* dldu) const {
+                 Eigen::MatrixX2d* dldu, Eigen::MatrixX2d* half) const {
     int bad = -1;
     for (int e = begin; e < end; ++e) {
       const int i = dom_.EV(e, 0), j = dom_.EV(e, 1);
@@ -127,8 +137,11 @@ class SchemeMetric {
           di = dj = 0.5 * le;
         } else {
           // sinh(l/2) = e^{(ui+uj)/2} l0/2  =>  dl/du_i = tanh(l/2).
-          le = 2.0 * std::asinh(s * l0_[e] / 2.0);
-          di = dj = std::tanh(0.5 * le);
+          // (ch = sh once sh² would overflow: l > 700, far past kLongTriangle)
+          const double sh = 0.5 * s * l0_[e], ch = sh < 1e150 ? std::sqrt(1.0 + sh * sh) : sh;
+          le = 2.0 * std::asinh(sh);
+          di = dj = sh / ch;
+          if (half) (*half)(e, 0) = sh, (*half)(e, 1) = ch;
         }
       } else {
         const double ri = r[i], rj = r[j], I = inv_[e];
@@ -256,6 +269,51 @@ bool triangle_angles(const double l[3], Background bg, double theta[3], double D
   return true;
 }
 
+/// triangle_angles for a hyperbolic triangle given also sinh and cosh of
+/// its half sides (sh[k], ch[k] of l[k] / 2, from the Penner coordinates:
+/// SchemeMetric::lengths), without a transcendental call but the three
+/// atan2 (issue 19: the seven sinh per face were 0.81 G instructions of the
+/// 50k target's flow). With h_k = l_k / 2, s = Σ h and s_k = s − 2 h_k,
+/// sinh(a+b) sinh(a−b) = sinh²a − sinh²b gives the products of the
+/// half-angle formulas: sinh s sinh s_k = sinh²(h_{k+1} + h_{k+2}) − sinh²h_k,
+/// sinh s_{k+1} sinh s_{k+2} = sinh²h_k − sinh²(h_{k+1} − h_{k+2}), and
+/// sinh l_i = 2 sinh h_i cosh h_i. The same angles as triangle_angles up to
+/// round-off; where a product is not positive in floating point (a
+/// triangle at the triangle inequality) or the triangle is long (s >
+/// kLongTriangle), triangle_angles itself answers.
+bool hyperbolic_angles_from_halves(const double l[3], const double sh[3], const double ch[3], double theta[3],
+                                   double D[3][3], double* slack) {
+  // The slack and the degeneracy from the lengths, as triangle_angles.
+  const double s = 0.5 * (l[0] + l[1] + l[2]);
+  double worst = s;
+  for (int k = 0; k < 3; ++k) worst = std::min(worst, 0.5 * (l[(k + 1) % 3] + l[(k + 2) % 3] - l[k]));
+  if (!(worst > 0.0) || !(s <= kLongTriangle)) return triangle_angles(l, Background::Hyperbolic, theta, D, slack);
+  double x[3], y[3];
+  bool positive = true;
+  for (int k = 0; k < 3; ++k) {
+    const int a = (k + 1) % 3, b = (k + 2) % 3;
+    const double plus = sh[a] * ch[b] + ch[a] * sh[b], minus = sh[a] * ch[b] - ch[a] * sh[b];
+    x[k] = plus * plus - sh[k] * sh[k];
+    y[k] = sh[k] * sh[k] - minus * minus;
+    positive = positive && x[k] > 0.0 && y[k] > 0.0;
+  }
+  if (!positive) return triangle_angles(l, Background::Hyperbolic, theta, D, slack);
+  if (slack) *slack = worst / s;
+  // x_k = sinh s sinh s_k, so x_0 y_0 = sinh s Π sinh s_k.
+  const double twice = 2.0 * std::sqrt(x[0] * y[0]);
+  double cos_theta[3];
+  for (int k = 0; k < 3; ++k) {
+    theta[k] = 2.0 * std::atan2(std::sqrt(y[k]), std::sqrt(x[k]));
+    cos_theta[k] = (x[k] - y[k]) / (x[k] + y[k]);
+  }
+  for (int i = 0; i < 3; ++i) {
+    const double dii = 2.0 * sh[i] * ch[i] / twice;
+    D[i][i] = dii;
+    for (int m = 0; m < 3; ++m)
+      if (m != i) D[i][m] = -dii * cos_theta[3 - i - m];
+  }
+  return true;
+}
 
 /// Extended angles (see triangle_angles) of face f for lengths L.
 template <class LengthOf>
@@ -320,6 +378,16 @@ struct FlipContext {
     const int ne = static_cast<int>(d.EV.rows());
     const long long flips_at_start = flips;
     pass_exhausted = false;
+    // The Delaunay test's conformal factors, once per pass (issue 19: five
+    // exp per tested edge were 0.21 G instructions of the 50k target's flow):
+    // w_v = e^{(u_v − max u)/2}, so a Penner coordinate at u relative to the
+    // largest factor is w_i w_j l⁰. Empty when u is not finite everywhere.
+    std::vector<double> w;
+    if (u && u->size() > 0 && u->allFinite()) {
+      const double top = u->maxCoeff();
+      w.resize(u->size());
+      for (int v = 0; v < u->size(); ++v) w[v] = std::exp(0.5 * ((*u)[v] - top));
+    }
     std::vector<int> stack(ne);
     std::vector<char> queued(ne, 1);
     for (int e = 0; e < ne; ++e) stack[e] = ne - 1 - e;
@@ -350,13 +418,19 @@ struct FlipContext {
       // NaN tests of infinite coordinates used to flip two edges of a quad
       // back and forth until the history exhausted memory (issue 13, the
       // artery's double). A test that is not a number flips nothing.
+      // The factors w (above) serve unless one of the quad's is below 1e-100
+      // (a quad far below the largest factor: its own shift then).
       {
+        const int quad[4] = {d.F(f0, 0), d.F(f0, 1), d.F(f0, 2), d.F(f1, a1)};
+        bool by_factors = !w.empty();
+        for (int v : quad) by_factors = by_factors && w[v] > 1e-100;
         double shift = 0.0;
-        if (u) {
+        if (u && !by_factors) {
           shift = -std::numeric_limits<double>::infinity();
-          for (int v : {d.F(f0, 0), d.F(f0, 1), d.F(f0, 2), d.F(f1, a1)}) shift = std::max(shift, (*u)[v]);
+          for (int v : quad) shift = std::max(shift, (*u)[v]);
         }
         auto x = [&](int edge) {
+          if (by_factors) return w[d.EV(edge, 0)] * w[d.EV(edge, 1)] * P[edge];
           return u ? std::exp(0.5 * ((*u)[d.EV(edge, 0)] + (*u)[d.EV(edge, 1)]) - shift) * P[edge] : P[edge];
         };
         const double xe = x(e), xks = x(d.FE(f0, (a0 + 2) % 3)), xkt = x(d.FE(f0, (a0 + 1) % 3)),
@@ -493,11 +567,21 @@ struct FaceScan {
 };
 
 void scan_faces(const RicciDomain& dom, Background bg, const Eigen::VectorXd& l_all, const Eigen::MatrixX2d* dldu,
-                int begin, int end, double* angles, Eigen::Triplet<double>* triplets, FaceScan& part) {
+                const Eigen::MatrixX2d& half, int begin, int end, double* angles, Eigen::Triplet<double>* triplets,
+                FaceScan& part) {
+  const bool halves = half.rows() == l_all.size();
   for (int f = begin; f < end; ++f) {
     double l[3], th[3], D[3][3], slack;
     for (int k = 0; k < 3; ++k) l[k] = l_all[dom.FE(f, k)];
-    if (!triangle_angles(l, bg, th, D, &slack)) {
+    bool ok;
+    if (halves) {
+      double sh[3], ch[3];
+      for (int k = 0; k < 3; ++k) sh[k] = half(dom.FE(f, k), 0), ch[k] = half(dom.FE(f, k), 1);
+      ok = hyperbolic_angles_from_halves(l, sh, ch, th, D, &slack);
+    } else {
+      ok = triangle_angles(l, bg, th, D, &slack);
+    }
+    if (!ok) {
       ++part.degenerate;
       if (part.first_degenerate < 0) part.first_degenerate = f;
     }
@@ -545,8 +629,8 @@ void evaluate(const RicciDomain& dom, const SchemeMetric& metric, Background bg,
     throw SolveError("ricci_flow: the intrinsic Delaunay flips did not terminate (" +
                      std::to_string(flips->flips) + " flips, the budget of 50 per edge)");
   ev.version = flips ? flips->version : 0;
-  Eigen::MatrixX2d dldu;
-  ev.bad_edge = metric.lengths(u, ev.l, jacobian ? &dldu : nullptr, threads);
+  Eigen::MatrixX2d dldu, half;
+  ev.bad_edge = metric.lengths(u, ev.l, jacobian ? &dldu : nullptr, threads, &half);
   ev.K = dom.full_angle;
   ev.degenerate = 0;
   ev.first_degenerate = -1;
@@ -562,8 +646,8 @@ void evaluate(const RicciDomain& dom, const SchemeMetric& metric, Background bg,
   ev.angles.resize(3 * static_cast<size_t>(nf));
   const Eigen::MatrixX2d* d = jacobian ? &dldu : nullptr;
   FaceScan parts[2];
-  in_two_halves(nf, threads, [&](int half, int begin, int end) {
-    scan_faces(dom, bg, ev.l, d, begin, end, ev.angles.data(), ev.triplets.data(), parts[half]);
+  in_two_halves(nf, threads, [&](int part, int begin, int end) {
+    scan_faces(dom, bg, ev.l, d, half, begin, end, ev.angles.data(), ev.triplets.data(), parts[part]);
   });
   // The halves combined as one pass in face order would have found them.
   for (const FaceScan& p : parts) {
