@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <queue>
 #include <array>
 #include <string>
@@ -365,6 +366,83 @@ struct AngleSum {
   double total() const { return std::atan2(im, re) + 2 * M_PI * static_cast<double>(turns); }
 };
 
+// The linking number of two closed polygons from their signed crossings in
+// one parallel projection (exact: an integer count), or nullopt when that
+// projection is not generic to a safe margin: a vertex of one polygon within
+// 1e-9 (relative) of the other's segment line where the two may cross, or
+// a crossing whose two heights along the view are within 1e-9 of the
+// polygons' size (polygons touching or nearly), or the two ways of counting
+// disagree. Issue 19: the Gauss sum's solid angles for every segment pair
+// were 0.49 G instructions of the 50k pair's calling thread; the crossings
+// need a box test for most pairs. Lk = Σ over crossings of a over b of the
+// crossing's sign = the same over b over a (both are counted, as a check;
+// the sign convention is the Gauss sum's of linking_number, below).
+std::optional<int> linking_by_crossings(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
+  // A fixed direction of no special alignment with meshes' axes.
+  const Eigen::Vector3d view = Eigen::Vector3d(0.3141592653589793, 0.5772156649015329, 0.7071067811865476).normalized();
+  const Eigen::Vector3d e1 = view.unitOrthogonal(), e2 = view.cross(e1);
+  struct Point {
+    double x, y, z;
+  };
+  auto project = [&](const std::vector<Eigen::Vector3d>& p) {
+    std::vector<Point> q(p.size());
+    for (size_t i = 0; i < p.size(); ++i) q[i] = {p[i].dot(e1), p[i].dot(e2), p[i].dot(view)};
+    return q;
+  };
+  const std::vector<Point> pa = project(a), pb = project(b);
+  double size = 0;
+  for (const auto* q : {&pa, &pb})
+    for (const Point& p : *q) size = std::max({size, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+  const double height_margin = 1e-9 * size;
+  constexpr double kMargin = 1e-9;
+  // Segment boxes of b (x and y ranges), so most pairs cost a box test.
+  const size_t na = pa.size(), nb = pb.size();
+  std::vector<std::array<double, 4>> box(nb);
+  for (size_t j = 0; j < nb; ++j) {
+    const Point &p = pb[j], &q = pb[(j + 1) % nb];
+    box[j] = {std::min(p.x, q.x), std::max(p.x, q.x), std::min(p.y, q.y), std::max(p.y, q.y)};
+  }
+  // Signed area test of r against the line p -> q: the sign, 0 when within
+  // the margin of the line (relative to |q - p| |r - p|).
+  auto side = [](const Point& p, const Point& q, const Point& r) {
+    const double ux = q.x - p.x, uy = q.y - p.y, vx = r.x - p.x, vy = r.y - p.y;
+    const double d = ux * vy - uy * vx;
+    const double scale = std::sqrt((ux * ux + uy * uy) * (vx * vx + vy * vy));
+    return d > kMargin * scale ? 1 : d < -kMargin * scale ? -1 : 0;
+  };
+  int a_over = 0, b_over = 0;
+  for (size_t i = 0; i < na; ++i) {
+    const Point &p1 = pa[i], &p2 = pa[(i + 1) % na];
+    const double x0 = std::min(p1.x, p2.x), x1 = std::max(p1.x, p2.x), y0 = std::min(p1.y, p2.y),
+                 y1 = std::max(p1.y, p2.y);
+    for (size_t j = 0; j < nb; ++j) {
+      const std::array<double, 4>& bx = box[j];
+      if (bx[1] < x0 || bx[0] > x1 || bx[3] < y0 || bx[2] > y1) continue;
+      const Point &p3 = pb[j], &p4 = pb[(j + 1) % nb];
+      const int s1 = side(p3, p4, p1), s2 = side(p3, p4, p2);
+      if (s1 * s2 > 0) continue;  // a's segment on one side of b's line
+      const int s3 = side(p1, p2, p3), s4 = side(p1, p2, p4);
+      if (s3 * s4 > 0) continue;
+      if (s1 == 0 || s2 == 0 || s3 == 0 || s4 == 0) return std::nullopt;  // not generic
+      // A proper crossing at p1 + t (p2 - p1) = p3 + s (p4 - p3).
+      const double ux = p2.x - p1.x, uy = p2.y - p1.y, vx = p4.x - p3.x, vy = p4.y - p3.y;
+      const double wx = p3.x - p1.x, wy = p3.y - p1.y, den = ux * vy - uy * vx;
+      const double t = (wx * vy - wy * vx) / den, s = (wx * uy - wy * ux) / den;
+      const double za = p1.z + t * (p2.z - p1.z), zb = p3.z + s * (p4.z - p3.z);
+      if (!(std::abs(za - zb) > height_margin)) return std::nullopt;
+      // The crossing's sign: the over strand's direction turned onto the
+      // under one's (den = u x v with u along a), counter-clockwise positive.
+      const int sign = den > 0 ? 1 : -1;
+      if (za > zb)
+        a_over += sign;
+      else
+        b_over -= sign;
+    }
+  }
+  if (a_over != b_over) return std::nullopt;
+  return a_over;
+}
+
 }  // namespace
 
 double linking_number(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
@@ -381,6 +459,9 @@ double linking_number(const std::vector<Eigen::Vector3d>& a, const std::vector<E
   // integers.
   const size_t na = a.size(), nb = b.size();
   if (na == 0 || nb == 0) return 0;
+  // Exact from a generic projection's crossings where it is one (the sign
+  // convention of the Gauss sum below: HandleBasis.LinkingNumber*).
+  if (const std::optional<int> crossings = linking_by_crossings(a, b)) return *crossings;
   std::vector<Eigen::Vector3d> from1(nb), from2(nb);
   std::vector<double> len1(nb), len2(nb);
   auto differences = [&](const Eigen::Vector3d& p, std::vector<Eigen::Vector3d>& d, std::vector<double>& l) {
