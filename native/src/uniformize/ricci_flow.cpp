@@ -217,6 +217,26 @@ void hyperbolic_angles_of_long_triangle(const double l[3], double s, const doubl
   }
 }
 
+/// The half-angle formulas' last step, shared by the triangle_angles paths:
+/// θ_k = 2 atan2(√y_k, √x_k) with x_k = f(s) f(s_k), y_k = f(s_{k+1})
+/// f(s_{k+2}), so cos θ_k = (x_k − y_k) / (x_k + y_k) without a cosine
+/// (issue 19: the Jacobian is assembled at every Newton step; 6 cosines per
+/// face were a fifth of it), and D = dθ/dl from its diagonal d (d_i =
+/// dθ_i/dl_i): D[i][m] = −d_i cos θ_{3−i−m} (m != i).
+void angles_from_half_angle_products(const double x[3], const double y[3], const double d[3], double theta[3],
+                                     double D[3][3]) {
+  double cos_theta[3];
+  for (int k = 0; k < 3; ++k) {
+    theta[k] = 2.0 * std::atan2(std::sqrt(y[k]), std::sqrt(x[k]));
+    cos_theta[k] = (x[k] - y[k]) / (x[k] + y[k]);
+  }
+  for (int i = 0; i < 3; ++i) {
+    D[i][i] = d[i];
+    for (int m = 0; m < 3; ++m)
+      if (m != i) D[i][m] = -d[i] * cos_theta[3 - i - m];
+  }
+}
+
 /// Angles of a triangle with sides l[k] opposite corner k, and D(i,m) =
 /// dθ_i/dl_m. Returns false (angles π,0,0 opposite the too-long side, D = 0)
 /// when the triangle inequality fails: the extended convex energy of
@@ -251,21 +271,12 @@ bool triangle_angles(const double l[3], Background bg, double theta[3], double D
     fs = std::sinh(s);
     twice = 2.0 * std::sqrt(fs * f[0] * f[1] * f[2]);  // = sinh l_j sinh l_k sin θ_i
   }
-  // θ_k = 2 atan2(√y, √x) with x = fs f_k, y = f_{k+1} f_{k+2}, so
-  // cos θ_k = (x − y) / (x + y) without a cosine (issue 19: the Jacobian
-  // is assembled at every Newton step; 6 cosines per face were a fifth of it).
-  double cos_theta[3];
+  double x[3], y[3], d[3];
   for (int k = 0; k < 3; ++k) {
-    const double x = fs * f[k], y = f[(k + 1) % 3] * f[(k + 2) % 3];
-    theta[k] = 2.0 * std::atan2(std::sqrt(y), std::sqrt(x));
-    cos_theta[k] = (x - y) / (x + y);
+    x[k] = fs * f[k], y[k] = f[(k + 1) % 3] * f[(k + 2) % 3];
+    d[k] = (bg == Background::Euclidean ? l[k] : std::sinh(l[k])) / twice;
   }
-  for (int i = 0; i < 3; ++i) {
-    const double dii = (bg == Background::Euclidean ? l[i] : std::sinh(l[i])) / twice;
-    D[i][i] = dii;
-    for (int m = 0; m < 3; ++m)
-      if (m != i) D[i][m] = -dii * cos_theta[3 - i - m];
-  }
+  angles_from_half_angle_products(x, y, d, theta, D);
   return true;
 }
 
@@ -301,17 +312,9 @@ bool hyperbolic_angles_from_halves(const double l[3], const double sh[3], const 
   if (slack) *slack = worst / s;
   // x_k = sinh s sinh s_k, so x_0 y_0 = sinh s Π sinh s_k.
   const double twice = 2.0 * std::sqrt(x[0] * y[0]);
-  double cos_theta[3];
-  for (int k = 0; k < 3; ++k) {
-    theta[k] = 2.0 * std::atan2(std::sqrt(y[k]), std::sqrt(x[k]));
-    cos_theta[k] = (x[k] - y[k]) / (x[k] + y[k]);
-  }
-  for (int i = 0; i < 3; ++i) {
-    const double dii = 2.0 * sh[i] * ch[i] / twice;
-    D[i][i] = dii;
-    for (int m = 0; m < 3; ++m)
-      if (m != i) D[i][m] = -dii * cos_theta[3 - i - m];
-  }
+  double d[3];
+  for (int i = 0; i < 3; ++i) d[i] = 2.0 * sh[i] * ch[i] / twice;
+  angles_from_half_angle_products(x, y, d, theta, D);
   return true;
 }
 
