@@ -110,9 +110,11 @@ SurfaceAutomorphism adjacent_handle_mixing(int genus, int i);
 bool is_surface_automorphism(const SurfaceAutomorphism& a, int genus);
 
 /// Gauss linking number of two closed polygons (vertex lists, the last
-/// vertex joined to the first), exact for polygons: the sum over segment
-/// pairs of the signed solid angle they subtend, / 4 pi. The polygons must
-/// be disjoint; the result is then an integer up to round-off.
+/// vertex joined to the first), exact for polygons: the signed crossings of
+/// a generic parallel projection (an exact integer), or where that
+/// projection is not generic to a safe margin the sum over segment pairs of
+/// the signed solid angle they subtend, / 4 pi. The polygons must be
+/// disjoint; the result is then an integer up to round-off.
 double linking_number(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b);
 
 /// Meridian/longitude basis of one surface (see the file comment).
