@@ -29,6 +29,13 @@ struct Shape {
   int nv() const { return conn.num_vertices(); }
 };
 
+// Options recording parent nodes too (the checks walk them).
+DijkstraOptions with_nodes() {
+  DijkstraOptions options;
+  options.want_parent_nodes = true;
+  return options;
+}
+
 const Shape& shape() {
   static const Shape s;
   return s;
@@ -61,7 +68,7 @@ void expect_shortest_paths(const Shape& s, const DijkstraResult& r, const std::v
 TEST(Dijkstra, DistancesAreShortestPathLengths) {
   const Shape& s = shape();
   DijkstraResult r;
-  dijkstra(s.nv(), s.arcs(), {17}, {}, r);
+  dijkstra(s.nv(), s.arcs(), {17}, with_nodes(), r);
   expect_shortest_paths(s, r, {17});
   EXPECT_EQ(static_cast<int>(r.settled.size()), s.nv());
   EXPECT_EQ(r.settled.front(), 17);
@@ -69,10 +76,10 @@ TEST(Dijkstra, DistancesAreShortestPathLengths) {
   // Several sources: each vertex's distance is the least of the single-source ones.
   const std::vector<int> sources = {3, 400, s.nv() - 1};
   DijkstraResult multi;
-  dijkstra(s.nv(), s.arcs(), sources, {}, multi);
+  dijkstra(s.nv(), s.arcs(), sources, with_nodes(), multi);
   expect_shortest_paths(s, multi, sources);
   std::vector<DijkstraResult> single(sources.size());
-  for (size_t k = 0; k < sources.size(); ++k) dijkstra(s.nv(), s.arcs(), {sources[k]}, {}, single[k]);
+  for (size_t k = 0; k < sources.size(); ++k) dijkstra(s.nv(), s.arcs(), {sources[k]}, with_nodes(), single[k]);
   for (int v = 0; v < s.nv(); ++v) {
     double least = kInf;
     for (const DijkstraResult& one : single) least = std::min(least, one.distance[v]);
@@ -83,9 +90,9 @@ TEST(Dijkstra, DistancesAreShortestPathLengths) {
 TEST(Dijkstra, EarlyStopGivesTheSameDistanceToTheTarget) {
   const Shape& s = shape();
   DijkstraResult full;
-  dijkstra(s.nv(), s.arcs(), {5}, {}, full);
+  dijkstra(s.nv(), s.arcs(), {5}, with_nodes(), full);
   for (int target : {5, 6, 1000, s.nv() / 2, s.nv() - 1}) {
-    DijkstraOptions to;
+    DijkstraOptions to = with_nodes();
     to.target = target;
     DijkstraResult r;
     dijkstra(s.nv(), s.arcs(), {5}, to, r);
@@ -103,9 +110,9 @@ TEST(Dijkstra, EarlyStopGivesTheSameDistanceToTheTarget) {
 TEST(Dijkstra, AStarWithTheStraightLineFindsTheSameDistance) {
   const Shape& s = shape();
   DijkstraResult full;
-  dijkstra(s.nv(), s.arcs(), {11}, {}, full);
+  dijkstra(s.nv(), s.arcs(), {11}, with_nodes(), full);
   for (int target : {12, 900, s.nv() - 3}) {
-    DijkstraOptions to;
+    DijkstraOptions to = with_nodes();
     to.target = target;
     DijkstraResult r;
     auto straight = [&](int v) { return (s.mesh.V.row(v) - s.mesh.V.row(target)).norm(); };
@@ -124,8 +131,8 @@ TEST(Dijkstra, AStarWithTheStraightLineFindsTheSameDistance) {
 TEST(Dijkstra, BoundsStopTheSearch) {
   const Shape& s = shape();
   DijkstraResult full;
-  dijkstra(s.nv(), s.arcs(), {0}, {}, full);
-  DijkstraOptions near;
+  dijkstra(s.nv(), s.arcs(), {0}, with_nodes(), full);
+  DijkstraOptions near = with_nodes();
   near.max_key = 0.3;
   DijkstraResult r;
   dijkstra(s.nv(), s.arcs(), {0}, near, r);
@@ -133,28 +140,36 @@ TEST(Dijkstra, BoundsStopTheSearch) {
   for (int v = 0; v < s.nv(); ++v) within += full.distance[v] <= 0.3;
   EXPECT_EQ(static_cast<int>(r.settled.size()), within);
   for (int v : r.settled) EXPECT_EQ(r.distance[v], full.distance[v]);
-  DijkstraOptions few;
+  DijkstraOptions few = with_nodes();
   few.max_reached = 50;
   few.target = s.nv() - 1;
   dijkstra(s.nv(), s.arcs(), {0}, few, r);
   EXPECT_FALSE(r.reached_target);
-  EXPECT_GT(r.reached.size(), 50u);
-  EXPECT_LT(r.reached.size(), 50u + 20u);  // the last settled vertex's neighbours at most
+  EXPECT_GT(r.num_reached, 50u);
+  EXPECT_LT(r.num_reached, 50u + 20u);  // the last settled vertex's neighbours at most
 }
 
 TEST(Dijkstra, AReusedResultIsAFreshOne) {
   const Shape& s = shape();
-  DijkstraResult reused;
-  DijkstraOptions to;
+  // Earlier searches stopped at a target, at a bound (nodes left in the
+  // heap), or keeping distances: the next search is as on a fresh result.
+  DijkstraOptions to = with_nodes(), near = with_nodes(), keep = with_nodes();
   to.target = 300;
-  dijkstra(s.nv(), s.arcs(), {200}, to, reused);
-  dijkstra(s.nv(), s.arcs(), {9}, {}, reused);
+  near.max_key = 0.2;
+  keep.keep_distances = true;
   DijkstraResult fresh;
-  dijkstra(s.nv(), s.arcs(), {9}, {}, fresh);
-  EXPECT_EQ(reused.distance, fresh.distance);
-  EXPECT_EQ(reused.parent_arc, fresh.parent_arc);
-  EXPECT_EQ(reused.parent_node, fresh.parent_node);
-  EXPECT_EQ(reused.settled, fresh.settled);
+  dijkstra(s.nv(), s.arcs(), {9}, with_nodes(), fresh);
+  for (const DijkstraOptions& before : {to, near, keep}) {
+    DijkstraResult reused;
+    dijkstra(s.nv(), s.arcs(), {200}, before, reused);
+    dijkstra(s.nv(), s.arcs(), {400}, before, reused);
+    dijkstra(s.nv(), s.arcs(), {9}, with_nodes(), reused);
+    EXPECT_EQ(reused.distance, fresh.distance);
+    EXPECT_EQ(reused.parent_arc, fresh.parent_arc);
+    EXPECT_EQ(reused.parent_node, fresh.parent_node);
+    EXPECT_EQ(reused.settled, fresh.settled);
+    EXPECT_EQ(reused.num_reached, fresh.num_reached);
+  }
 }
 
 TEST(Dijkstra, KeptDistancesGrowOneRegionAtATime) {
@@ -162,7 +177,7 @@ TEST(Dijkstra, KeptDistancesGrowOneRegionAtATime) {
   // search's: each new seed settles exactly the vertices now nearer to it.
   const Shape& s = shape();
   const std::vector<int> seeds = {0, 700, 1500, s.nv() - 1};
-  DijkstraOptions keep;
+  DijkstraOptions keep = with_nodes();
   keep.keep_distances = true;
   DijkstraResult grown;
   std::vector<double> before(s.nv(), kInf);
@@ -190,7 +205,7 @@ TEST(Dijkstra, UnreachedNodesKeepNoDistance) {
       if (c.edge(3 * f + k) % 2 == 0) visit(c.edge(3 * f + k), Connectivity::face(c.twin(3 * f + k)), 1.0);
   };
   DijkstraResult r;
-  dijkstra(c.num_faces(), even_edges, {0}, {}, r);
+  dijkstra(c.num_faces(), even_edges, {0}, with_nodes(), r);
   int reached = 0;
   for (int f = 0; f < c.num_faces(); ++f) {
     if (!std::isfinite(r.distance[f])) {
@@ -201,7 +216,7 @@ TEST(Dijkstra, UnreachedNodesKeepNoDistance) {
     even_edges(f, [&](int, int g, double step) { EXPECT_LE(r.distance[g], r.distance[f] + step); });
     if (f != 0) EXPECT_EQ(r.distance[f], r.distance[r.parent_node[f]] + 1.0);
   }
-  EXPECT_EQ(reached, static_cast<int>(r.reached.size()));
+  EXPECT_EQ(reached, static_cast<int>(r.num_reached));
   EXPECT_EQ(reached, static_cast<int>(r.settled.size()));
 }
 

@@ -93,6 +93,7 @@ bool shortest_fine_path(const VoronoiSampling& vs, int s, int t, detail::Dijkstr
   detail::DijkstraOptions nearby;
   nearby.target = t;
   nearby.max_reached = 20000;
+  nearby.want_parent_nodes = true;
   detail::dijkstra(vs.nv, vs.arcs(), {s}, nearby, search);
   if (!search.reached_target) return false;
   const std::vector<int> back = detail::arcs_back_to_source(search, t);

@@ -66,6 +66,7 @@ std::vector<int> shortest_edge_path_back(const Connectivity& conn, const Eigen::
                                          const char* what) {
   DijkstraOptions to_b;
   to_b.target = b;
+  to_b.want_parent_nodes = true;
   DijkstraResult search;
   dijkstra(conn.num_vertices(), rotation_arcs(conn, [&](int h) { return lengths[conn.edge(h)]; }), {a}, to_b, search);
   if (a != b && search.parent_arc[b] < 0)

@@ -30,19 +30,24 @@ struct DijkstraOptions {
   /// Stop as soon as this node is settled (its distance final); -1: settle
   /// every node the sources reach.
   int target = -1;
-  /// Record DijkstraResult::parent_arc and parent_node.
+  /// Record DijkstraResult::parent_arc.
   bool want_parents = true;
+  /// Record DijkstraResult::parent_node too (needed by arcs_back_to_source;
+  /// off by default: a tenth of the time of a whole-mesh tree).
+  bool want_parent_nodes = false;
   /// Stop before settling a node whose key (its distance, plus its
   /// potential in A*) exceeds this.
   double max_key = std::numeric_limits<double>::infinity();
   /// Stop before settling a node once more than this many nodes hold a
-  /// distance (DijkstraResult::reached): a search bounded to a neighbourhood.
+  /// distance (DijkstraResult::num_reached): a search bounded to a
+  /// neighbourhood.
   size_t max_reached = std::numeric_limits<size_t>::max();
   /// Start from the distances and parents the result holds from earlier
   /// searches of the same graph: only shorter distances are taken (one more
   /// Voronoi seed grows only its own region). Otherwise the result is reset
-  /// first, in time of the nodes the earlier searches reached when its size
-  /// is already right (many short searches of one large graph).
+  /// first, in time of the nodes the last search reached when its size is
+  /// already right and that search did not keep distances (many short
+  /// searches of one large graph).
   bool keep_distances = false;
 };
 
@@ -53,19 +58,24 @@ struct DijkstraResult {
   /// as the caller numbers arcs (a halfedge, an edge); -1 at the sources and
   /// where not reached.
   std::vector<int> parent_arc;
-  /// #nodes (with want_parents): that arc's tail; -1 likewise.
+  /// #nodes (with want_parent_nodes): that arc's tail; -1 likewise.
   std::vector<int> parent_node;
   /// The nodes settled by the last search, in order (a node's parent before
   /// it). Without a potential each node at most once; in A* a node whose
   /// two heap keys round to the same value may be listed twice.
   std::vector<int> settled;
-  /// The nodes given a distance since the result was last reset (sources
-  /// included), each once: what the next reset clears.
-  std::vector<int> reached;
+  /// How many nodes were given a distance since the result was last reset
+  /// (sources included).
+  size_t num_reached = 0;
   /// Whether the last search stopped at DijkstraOptions::target.
   bool reached_target = false;
-  /// The heap's storage, kept between searches.
+  /// The heap's storage, kept between searches; after a search it holds
+  /// (with `settled`) every node the search reached: what the next reset
+  /// clears.
   std::vector<std::pair<double, int>> heap;
+  /// Whether `settled` and `heap` list every node reached since the last
+  /// reset (not after a search that kept earlier distances).
+  bool lists_hold_reached = false;
 };
 
 /// No potential: plain Dijkstra, the key is the distance.
@@ -90,7 +100,7 @@ auto rotation_arcs(const Connectivity& conn, Length length) {
 void prepare_dijkstra(int num_nodes, const DijkstraOptions& options, DijkstraResult& result);
 
 /// The arcs of the shortest path from a source to `node`, last arc first
-/// (empty at a source or where not reached; needs want_parents).
+/// (empty at a source or where not reached; needs want_parent_nodes).
 std::vector<int> arcs_back_to_source(const DijkstraResult& result, int node);
 
 /// Shortest paths from `sources` (distance 0 each, pushed in their order)
@@ -108,16 +118,22 @@ void dijkstra(int num_nodes, const ForEachArc& for_each_arc, const std::vector<i
   prepare_dijkstra(num_nodes, options, result);
   using Item = std::pair<double, int>;
   const std::greater<Item> later;
-  std::vector<double>& dist = result.distance;
+  // Plain pointers to the arrays of fixed size: the lists that grow (heap,
+  // settled) then cannot look to the compiler as if they moved them.
+  double* const dist = result.distance.data();
+  int* const parent_arc = options.want_parents ? result.parent_arc.data() : nullptr;
+  int* const parent_node = options.want_parent_nodes ? result.parent_node.data() : nullptr;
   std::vector<Item>& heap = result.heap;
+  size_t reached = result.num_reached;
   auto key = [&](double d, int v) {
     if constexpr (astar) return d + potential(v);
     else return d;
   };
   auto set_distance = [&](int v, double d, int arc, int from) {
-    if (dist[v] == std::numeric_limits<double>::infinity()) result.reached.push_back(v);
+    reached += dist[v] == std::numeric_limits<double>::infinity();
     dist[v] = d;
-    if (options.want_parents) result.parent_arc[v] = arc, result.parent_node[v] = from;
+    if (parent_arc) parent_arc[v] = arc;
+    if (parent_node) parent_node[v] = from;
     heap.push_back({key(d, v), v});
     std::push_heap(heap.begin(), heap.end(), later);
   };
@@ -125,22 +141,29 @@ void dijkstra(int num_nodes, const ForEachArc& for_each_arc, const std::vector<i
   while (!heap.empty()) {
     std::pop_heap(heap.begin(), heap.end(), later);
     const auto [k, v] = heap.back();
-    heap.pop_back();
     const double d = dist[v];
-    if (k > key(d, v)) continue;  // stale: v was reached by a shorter path since
+    if (k > key(d, v)) {  // stale: v was reached by a shorter path since
+      heap.pop_back();
+      continue;
+    }
+    // A bound stops the search with v still in the heap (the next reset
+    // finds it there); the target is settled at any number reached.
     if (k > options.max_key) break;
     if (v == options.target) {
+      heap.pop_back();
       result.settled.push_back(v);
       result.reached_target = true;
       break;
     }
-    if (result.reached.size() > options.max_reached) break;
+    if (reached > options.max_reached) break;
+    heap.pop_back();
     result.settled.push_back(v);
     for_each_arc(v, [&](int arc, int w, double length) {
       const double dw = d + length;
       if (dw < dist[w]) set_distance(w, dw, arc, v);
     });
   }
+  result.num_reached = reached;
 }
 
 }  // namespace surfmap::detail

@@ -193,7 +193,7 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
         detail::dijkstra(tm.num_vertices(), arcs, {a}, by_length, path_search, straight_to_b);
         found = path_search.reached_target;
         if (found)
-          for (int v = b; v != a; v = path_search.parent_node[v]) parent_h[v] = path_search.parent_arc[v];
+          for (int v = b; v != a; v = conn.tail(parent_h[v])) parent_h[v] = path_search.parent_arc[v];
         if (found && !options.join_by_length && !near_in_space) ++out.joined_jumps;
         if (found && options.join_by_length) {
           int edges = 0;

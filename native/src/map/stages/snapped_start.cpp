@@ -443,7 +443,7 @@ void SnappedStartBuilder::shortest_path(int a, int b, PathScratch& s) const {
   detail::dijkstra(layout_conn_.num_vertices(), chords, {a}, to_b, s.search);
   s.path.clear();
   if (std::isfinite(s.search.distance[b]))
-    for (int v = b; v != a; v = s.search.parent_node[v]) s.path.push_back(v);
+    for (int v = b; v != a; v = layout_conn_.tail(s.search.parent_arc[v])) s.path.push_back(v);
   s.path.push_back(a);
   std::reverse(s.path.begin(), s.path.end());
 }
