@@ -38,9 +38,7 @@ struct VoronoiSampling {
   std::vector<int> seeds;
 
   VoronoiSampling(const TriMesh& fine_mesh, const Connectivity& fine_conn)
-      : fine(fine_mesh), fc(fine_conn), nv(fine_mesh.num_vertices()), region(nv, -1) {
-    tree.distance.assign(nv, std::numeric_limits<double>::infinity());
-  }
+      : fine(fine_mesh), fc(fine_conn), nv(fine_mesh.num_vertices()), region(nv, -1) {}
 
   double length(int h) const { return (fine.V.row(fc.head(h)) - fine.V.row(fc.tail(h))).norm(); }
   auto arcs() const {

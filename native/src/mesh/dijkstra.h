@@ -14,6 +14,13 @@
 // callable lists them. Stale heap entries are skipped. So the same graph
 // listed in the same order gives the same distances, parents and
 // settling order, bit for bit.
+//
+// Not this search: the genus-0 layout's cheapest-first placement
+// (uniformize/spherical.cpp, lay_out_flat_disk). A vertex there is offered
+// by a face once two of its corners are placed, at the larger of their two
+// costs plus the face's own, and the heap's ties go by face and corner:
+// no arc of one tail, and its order (which face places a vertex) is part
+// of the result.
 #include <algorithm>
 #include <cstddef>
 #include <functional>

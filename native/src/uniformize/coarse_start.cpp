@@ -99,10 +99,11 @@ bool coarse_copy(const TriMesh& mesh, const Connectivity& conn, const VertexGrap
   auto graph_arcs = [&](int a, auto&& visit) {
     for (int k = graph.start[a]; k < graph.start[a + 1]; ++k) visit(k, graph.next[k], graph.length[k]);
   };
-  detail::DijkstraOptions with_nodes;
-  with_nodes.want_parent_nodes = true;
+  detail::DijkstraOptions tails;  // each vertex's region is its parent's
+  tails.want_parents = false;
+  tails.want_parent_nodes = true;
   detail::DijkstraResult nearest;
-  detail::dijkstra(nv, graph_arcs, out.seeds, with_nodes, nearest);
+  detail::dijkstra(nv, graph_arcs, out.seeds, tails, nearest);
   for (int c = 0; c < nc; ++c) out.region[out.seeds[c]] = c;
   for (int b : nearest.settled)  // a parent before its children
     if (nearest.parent_node[b] >= 0) out.region[b] = out.region[nearest.parent_node[b]];
