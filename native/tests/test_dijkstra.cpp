@@ -195,27 +195,35 @@ TEST(Dijkstra, KeptDistancesGrowOneRegionAtATime) {
 }
 
 TEST(Dijkstra, UnreachedNodesKeepNoDistance) {
-  // The faces of the shape, crossing only edges of even index: some faces
-  // may be cut off; those reached satisfy the triangle inequality across
-  // every crossable edge, the rest are infinite and parentless.
+  // The dual graph of the shape's faces, crossing only edges between two
+  // faces of the first half (by index), steps of 1: the second half is cut
+  // off. Reached faces satisfy the triangle inequality across every
+  // crossable edge and are one step from their parent; the rest stay
+  // infinite and parentless.
   const Shape& s = shape();
   const Connectivity& c = s.conn;
-  auto even_edges = [&](int f, auto&& visit) {
-    for (int k = 0; k < 3; ++k)
-      if (c.edge(3 * f + k) % 2 == 0) visit(c.edge(3 * f + k), Connectivity::face(c.twin(3 * f + k)), 1.0);
+  const int half = c.num_faces() / 2;
+  auto first_half = [&](int f, auto&& visit) {
+    for (int k = 0; k < 3; ++k) {
+      const int g = Connectivity::face(c.twin(3 * f + k));
+      if (f < half && g < half) visit(c.edge(3 * f + k), g, 1.0);
+    }
   };
   DijkstraResult r;
-  dijkstra(c.num_faces(), even_edges, {0}, with_nodes(), r);
+  dijkstra(c.num_faces(), first_half, {0}, with_nodes(), r);
   int reached = 0;
   for (int f = 0; f < c.num_faces(); ++f) {
     if (!std::isfinite(r.distance[f])) {
       EXPECT_EQ(r.parent_arc[f], -1);
+      EXPECT_EQ(r.parent_node[f], -1);
       continue;
     }
     ++reached;
-    even_edges(f, [&](int, int g, double step) { EXPECT_LE(r.distance[g], r.distance[f] + step); });
+    EXPECT_LT(f, half);
+    first_half(f, [&](int, int g, double step) { EXPECT_LE(r.distance[g], r.distance[f] + step); });
     if (f != 0) EXPECT_EQ(r.distance[f], r.distance[r.parent_node[f]] + 1.0);
   }
+  EXPECT_GT(reached, 1);
   EXPECT_EQ(reached, static_cast<int>(r.num_reached));
   EXPECT_EQ(reached, static_cast<int>(r.settled.size()));
 }
