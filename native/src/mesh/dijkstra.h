@@ -40,7 +40,8 @@ struct DijkstraOptions {
   /// Record DijkstraResult::parent_arc.
   bool want_parents = true;
   /// Record DijkstraResult::parent_node too (needed by arcs_back_to_source;
-  /// off by default: a tenth of the time of a whole-mesh tree).
+  /// off by default: one more array written per improvement, which the
+  /// whole-mesh trees, whose arcs name their tails, do without).
   bool want_parent_nodes = false;
   /// Stop before settling a node whose key (its distance, plus its
   /// potential in A*) exceeds this.
