@@ -13,16 +13,32 @@ namespace {
 const GroupOps<Word> kFreeGroup{Word{}, [](const Word& a, const Word& b) { return concat(a, b); },
                                 [](const Word& a) { return inverse(a); }};
 
+// A system of loops (refined or not, at a base vertex) and every edge's
+// free-group element: loop k is the letter k + 1.
+struct FreeGroupEdges {
+  SystemOfLoops loops;
+  Connectivity conn;
+  std::vector<Word> value;
+  FreeGroupEdges(const TriMesh& mesh, bool refine, int base_vertex)
+      : loops(system_of_loops(mesh, options(refine, base_vertex))), conn(loops.mesh.F, loops.mesh.num_vertices()) {
+    std::vector<Word> letters;
+    for (size_t k = 0; k < loops.loops.size(); ++k) letters.push_back({static_cast<int>(k) + 1});
+    value = edge_group_elements(conn, loops.tree_parent_halfedge, loops.dual_tree_parent_halfedge,
+                                loops.generator_edges, loop_first_vertices(loops, conn), letters, kFreeGroup);
+  }
+  static SystemOfLoopsOptions options(bool refine, int base_vertex) {
+    SystemOfLoopsOptions opt;
+    opt.refine = refine;
+    opt.base_vertex = base_vertex;
+    return opt;
+  }
+};
+
 void check_free_group_elements(const TriMesh& mesh, bool refine, int base_vertex) {
-  SystemOfLoopsOptions opt;
-  opt.refine = refine;
-  opt.base_vertex = base_vertex;
-  const SystemOfLoops s = system_of_loops(mesh, opt);
-  const Connectivity c(s.mesh.F, s.mesh.num_vertices());
-  std::vector<Word> letters;
-  for (size_t k = 0; k < s.loops.size(); ++k) letters.push_back({static_cast<int>(k) + 1});
-  const auto value = edge_group_elements(c, s.tree_parent_halfedge, s.dual_tree_parent_halfedge,
-                                         s.generator_edges, loop_first_vertices(s, c), letters, kFreeGroup);
+  const FreeGroupEdges free(mesh, refine, base_vertex);
+  const SystemOfLoops& s = free.loops;
+  const Connectivity& c = free.conn;
+  const std::vector<Word>& value = free.value;
   auto of = [&](int h) {
     const int e = c.edge(h);
     return c.edge_halfedge(e) == h ? value[e] : inverse(value[e]);
@@ -61,15 +77,10 @@ TEST(EdgeHomotopy, FreeGroupElementsSatisfyFaceRelations) {
 // and refined systems of loops, at other base vertices, and asked for in
 // any order (memoized).
 void check_cut_disk_words(const TriMesh& mesh, bool refine, int base_vertex) {
-  SystemOfLoopsOptions opt;
-  opt.refine = refine;
-  opt.base_vertex = base_vertex;
-  const SystemOfLoops s = system_of_loops(mesh, opt);
-  const Connectivity c(s.mesh.F, s.mesh.num_vertices());
-  std::vector<Word> letters;
-  for (size_t k = 0; k < s.loops.size(); ++k) letters.push_back({static_cast<int>(k) + 1});
-  const auto value = edge_group_elements(c, s.tree_parent_halfedge, s.dual_tree_parent_halfedge,
-                                         s.generator_edges, loop_first_vertices(s, c), letters, kFreeGroup);
+  const FreeGroupEdges free(mesh, refine, base_vertex);
+  const SystemOfLoops& s = free.loops;
+  const Connectivity& c = free.conn;
+  const std::vector<Word>& value = free.value;
   const CutDiskEdgeWords words(s, c);
   int nonempty = 0, mismatches = 0;
   for (int e = c.num_edges() - 1; e >= 0; e -= 2) mismatches += words(e) != value[e];

@@ -30,18 +30,8 @@ SurfaceAutomorphism known_mapping_class(int genus) {
     P(2 * t + 1, 2 * i) = 1;   // a_i -> b_t (handle i to handle i+1, a quarter turn)
     P(2 * t, 2 * i + 1) = -1;  // b_i -> a_t^-1
   }
-  SurfaceAutomorphism psi = lift_symplectic(P);
-  const std::vector<MappingClassMove> moves = twist_moves(genus, false, false);
-  const DehnReducer reduce(canonical_relator(genus));
-  for (const char* name : {"T(a1)", "T(a1)", "T(b2)^-1", "T(s1)"}) {
-    auto m = std::find_if(moves.begin(), moves.end(), [&](const MappingClassMove& x) { return x.name == name; });
-    EXPECT_NE(m, moves.end()) << name;
-    if (m == moves.end()) break;
-    psi.map = compose(psi.map, m->automorphism.map);
-    psi.inverse = compose(m->automorphism.inverse, psi.inverse);
-    for (Word& w : psi.map) w = reduce(w);
-    for (Word& w : psi.inverse) w = reduce(w);
-  }
+  const SurfaceAutomorphism psi =
+      testing_support::then_moves(lift_symplectic(P), genus, {"T(a1)", "T(a1)", "T(b2)^-1", "T(s1)"});
   EXPECT_TRUE(is_surface_automorphism(psi, genus));
   return psi;
 }

@@ -145,25 +145,44 @@ double mean_edge(const TriMesh& m) {
   return s / (3.0 * m.num_faces());
 }
 
+// Two tori, the free map between them and two landmarks: source vertex 0
+// onto its free image, source vertex s onto the target vertex 20 edges
+// from where the free map puts it (path[20]).
+struct FarLandmarkPair {
+  TriMesh a = samples::torus_of_revolution(1.0, 0.45, 64, 34);
+  TriMesh b = samples::torus_of_revolution(1.4, 0.5, 64, 34, 2);
+  SurfaceMapResult free = surface_map(a, b);
+  // (Ring 30: since the free map is placed by the 3D overlay, source ring r
+  // lands on target ring r, and from ring 20 the path 20 edges long ended
+  // on ring 0, the other landmark's target vertex. The energies quoted
+  // below and in docs/handle_classes.md were measured on that earlier pair.)
+  int s = 34 * 30 + 5;
+  std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
+  std::vector<std::pair<int, int>> landmarks() const {
+    return {{0, nearest_vertex(b, free.forward[0].position)}, {s, path.at(20)}};
+  }
+};
+
+// Built once for the tests that use it (one free map).
+const FarLandmarkPair& far_landmark_pair() {
+  static const FarLandmarkPair pair;
+  return pair;
+}
+
 TEST(LandmarksFlat, FarLandmarksStayBijectiveByInteriorPointContinuation) {
   // A landmark 20 edges (19 edge lengths, 0.46 of the diagonal) from where
   // the free map puts it: the plain pins fold (the held optimum is unique,
   // so no continuation of it helps); the barrier continuation moves the
   // landmarks there with the map bijective at every step.
-  const TriMesh a = samples::torus_of_revolution(1.0, 0.45, 64, 34);
-  const TriMesh b = samples::torus_of_revolution(1.4, 0.5, 64, 34, 2);
-  const SurfaceMapResult free = surface_map(a, b);
-  // (Ring 30: since the free map is placed by the 3D overlay, source ring r
-  // lands on target ring r, and from ring 20 the path 20 edges long ended
-  // on ring 0, the other landmark's target vertex. The energies quoted
-  // below and in docs/handle_classes.md were measured on that earlier pair.)
-  const int s = 34 * 30 + 5;
-  const std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
-  ASSERT_GT(path.size(), 21u);
-  const int t = path[20];
+  const FarLandmarkPair& pair = far_landmark_pair();
+  const TriMesh &a = pair.a, &b = pair.b;
+  const SurfaceMapResult& free = pair.free;
+  const int s = pair.s;
+  ASSERT_GT(pair.path.size(), 21u);
+  const int t = pair.path[20];
   EXPECT_GT((b.V.row(t).transpose() - free.forward[s].position).norm(), 15 * mean_edge(b));
   SurfaceMapOptions o;
-  o.landmarks = {{0, nearest_vertex(b, free.forward[0].position)}, {s, t}};
+  o.landmarks = pair.landmarks();
   // The landmark is far in the free map's class M, the canonical sign; in
   // -M it is near (the torus of revolution's half turn (u, v) -> (-u, -v)
   // carries it close: 114.05 held vs 113.03 free), so the continuation is
@@ -204,14 +223,12 @@ TEST(LandmarksFlat, FoldsAllowedReturnsThePlainPinsFolded) {
   // SurfaceMapOptions::landmarks_may_fold on the pair above: the plain pins'
   // folded map is returned as it is (its energy the pinned infimum the
   // continuation stays above), the landmarks exactly on their targets.
-  const TriMesh a = samples::torus_of_revolution(1.0, 0.45, 64, 34);
-  const TriMesh b = samples::torus_of_revolution(1.4, 0.5, 64, 34, 2);
-  const SurfaceMapResult free = surface_map(a, b);
-  const int s = 34 * 30 + 5;
-  const std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
-  ASSERT_GT(path.size(), 21u);
+  const FarLandmarkPair& pair = far_landmark_pair();
+  const TriMesh &a = pair.a, &b = pair.b;
+  const SurfaceMapResult& free = pair.free;
+  ASSERT_GT(pair.path.size(), 21u);
   SurfaceMapOptions o;
-  o.landmarks = {{0, nearest_vertex(b, free.forward[0].position)}, {s, path[20]}};
+  o.landmarks = pair.landmarks();
   o.homotopy.flat_both_signs = false;
   o.landmarks_may_fold = true;
   const SurfaceMapResult m = surface_map(a, b, o);

@@ -37,19 +37,7 @@ TriMesh renumbered(const TriMesh& mesh) {
 }
 
 SurfaceAutomorphism named_moves(int genus, const std::vector<std::string>& names) {
-  const std::vector<MappingClassMove> moves = twist_moves(genus, false, false);
-  const DehnReducer reduce(canonical_relator(genus));
-  SurfaceAutomorphism psi{identity_map(2 * genus), identity_map(2 * genus), 0};
-  for (const std::string& name : names) {
-    auto m = std::find_if(moves.begin(), moves.end(), [&](const MappingClassMove& x) { return x.name == name; });
-    EXPECT_NE(m, moves.end()) << name;
-    if (m == moves.end()) break;
-    psi.map = compose(psi.map, m->automorphism.map);
-    psi.inverse = compose(m->automorphism.inverse, psi.inverse);
-    for (Word& w : psi.map) w = reduce(w);
-    for (Word& w : psi.inverse) w = reduce(w);
-  }
-  return psi;
+  return testing_support::then_moves({identity_map(2 * genus), identity_map(2 * genus), 0}, genus, names);
 }
 
 TEST(PantsClasses, StandardTwistsAreAutomorphismsAndSymmetriesPreserveTheCurves) {

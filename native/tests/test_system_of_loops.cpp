@@ -288,6 +288,18 @@ TEST(SystemOfLoops, UnrefinedGreedyLoopsCutToADiskAndGiveTheSameWord) {
   }
 }
 
+// The same loops from two constructions: base vertex, both trees, the
+// generators, the loops, the word and the (refined) mesh's vertices.
+void expect_same_loops(const SystemOfLoops& a, const SystemOfLoops& b) {
+  EXPECT_EQ(a.base_vertex, b.base_vertex);
+  EXPECT_EQ(a.tree_parent_halfedge, b.tree_parent_halfedge);
+  EXPECT_EQ(a.dual_tree_parent_halfedge, b.dual_tree_parent_halfedge);
+  EXPECT_EQ(a.generator_edges, b.generator_edges);
+  EXPECT_EQ(a.loops, b.loops);
+  EXPECT_EQ(a.word, b.word);
+  EXPECT_EQ(a.mesh.V, b.mesh.V);
+}
+
 // Issue 19: refine_system_of_loops reads the greedy basis off an unrefined
 // system instead of computing it again; the refined system must be the one
 // system_of_loops(refine = true) builds at that base vertex, field by field
@@ -310,17 +322,11 @@ TEST(SystemOfLoops, RefiningUnrefinedLoopsEqualsRefiningFromScratch) {
         SystemOfLoopsOptions other = opt;
         other.base_vertex = -1;  // not read: the base vertex is u's
         const SystemOfLoops r = refine_system_of_loops(c.mesh, conn, u, other);
-        EXPECT_EQ(r.base_vertex, fresh.base_vertex);
-        EXPECT_EQ(r.mesh.V, fresh.mesh.V);
+        expect_same_loops(r, fresh);
         EXPECT_EQ(r.mesh.F, fresh.mesh.F);
         EXPECT_EQ(r.origin_face, fresh.origin_face);
         EXPECT_EQ(r.origin_barycentric, fresh.origin_barycentric);
         EXPECT_EQ(r.face_origin, fresh.face_origin);
-        EXPECT_EQ(r.tree_parent_halfedge, fresh.tree_parent_halfedge);
-        EXPECT_EQ(r.dual_tree_parent_halfedge, fresh.dual_tree_parent_halfedge);
-        EXPECT_EQ(r.generator_edges, fresh.generator_edges);
-        EXPECT_EQ(r.loops, fresh.loops);
-        EXPECT_EQ(r.word, fresh.word);
         EXPECT_EQ(r.shortcut_used, fresh.shortcut_used);
         check_refined(c.mesh, r);
         if (::testing::Test::HasFailure()) return;
@@ -355,13 +361,7 @@ TEST(SystemOfLoops, SharedGreedyGraphGivesTheSameLoops) {
         opt.refine = refine;
         const SystemOfLoops own = system_of_loops(c.mesh, conn, opt);
         const SystemOfLoops shared = system_of_loops(c.mesh, conn, opt, &graph);
-        EXPECT_EQ(shared.base_vertex, own.base_vertex);
-        EXPECT_EQ(shared.tree_parent_halfedge, own.tree_parent_halfedge);
-        EXPECT_EQ(shared.dual_tree_parent_halfedge, own.dual_tree_parent_halfedge);
-        EXPECT_EQ(shared.generator_edges, own.generator_edges);
-        EXPECT_EQ(shared.loops, own.loops);
-        EXPECT_EQ(shared.word, own.word);
-        EXPECT_EQ(shared.mesh.V, own.mesh.V);
+        expect_same_loops(shared, own);
         if (::testing::Test::HasFailure()) return;
       }
   }

@@ -2,17 +2,20 @@
 // Shared by the handle-class tests (test_geometric_classes.cpp,
 // test_pants_classes.cpp): a surface uniformized with its canonical schema,
 // a smooth stretch that leaves a genus-2 surface no isometries but the
-// hyperelliptic one, and the identity test of a surface's self-classes.
+// hyperelliptic one, the identity test of a surface's self-classes and
+// automorphisms composed of named Dehn twists.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "surfmap/geometry/hyperbolic.h"
 #include "surfmap/mesh/tri_mesh.h"
 #include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/handle_basis.h"
+#include "surfmap/topology/mapping_class_search.h"
 #include "surfmap/uniformize/uniformize.h"
 
 namespace surfmap::testing_support {
@@ -72,6 +75,23 @@ inline bool axes_cross(hyperbolic::Mobius p, hyperbolic::Mobius q) {
     return at > 1e-9 && at < span - 1e-9;
   };
   return inside(q1) != inside(q2);
+}
+
+// psi followed by the named Dehn twists of twist_moves(genus) in order
+// (names as "T(a1)", "T(b2)^-1"), words reduced; an unknown name fails.
+inline SurfaceAutomorphism then_moves(SurfaceAutomorphism psi, int genus, const std::vector<std::string>& names) {
+  const std::vector<MappingClassMove> moves = twist_moves(genus, false, false);
+  const DehnReducer reduce(canonical_relator(genus));
+  for (const std::string& name : names) {
+    auto m = std::find_if(moves.begin(), moves.end(), [&](const MappingClassMove& x) { return x.name == name; });
+    EXPECT_NE(m, moves.end()) << name;
+    if (m == moves.end()) break;
+    psi.map = compose(psi.map, m->automorphism.map);
+    psi.inverse = compose(m->automorphism.inverse, psi.inverse);
+    for (Word& w : psi.map) w = reduce(w);
+    for (Word& w : psi.inverse) w = reduce(w);
+  }
+  return psi;
 }
 
 // Conjugators: every reduced word of up to `radius` letters.

@@ -11,6 +11,7 @@
 #include <unordered_map>
 
 #include "../seconds_since.h"
+#include "../mesh/dijkstra.h"
 #include "../mesh/region_dual.h"
 
 namespace surfmap {
@@ -32,45 +33,29 @@ struct VoronoiSampling {
   const TriMesh& fine;
   const Connectivity& fc;
   const int nv;
-  std::vector<double> dist;
-  std::vector<int> region, parent;
+  detail::DijkstraResult tree;  // distance and parent_arc: from the nearest seed
+  std::vector<int> region;
   std::vector<int> seeds;
-  std::vector<int> taken;  // the vertices the last grow() took
 
   VoronoiSampling(const TriMesh& fine_mesh, const Connectivity& fine_conn)
-      : fine(fine_mesh),
-        fc(fine_conn),
-        nv(fine_mesh.num_vertices()),
-        dist(nv, std::numeric_limits<double>::infinity()),
-        region(nv, -1),
-        parent(nv, -1) {}
+      : fine(fine_mesh), fc(fine_conn), nv(fine_mesh.num_vertices()), region(nv, -1) {}
 
   double length(int h) const { return (fine.V.row(fc.head(h)) - fine.V.row(fc.tail(h))).norm(); }
+  auto arcs() const {
+    return detail::rotation_arcs(fc, [this](int h) { return length(h); });
+  }
+  /// The vertices the last grow() took.
+  const std::vector<int>& taken() const { return tree.settled; }
 
   /// A new seed and its region: the vertices now closer to it than to the
-  /// earlier seeds (listed in `taken`).
+  /// earlier seeds (listed in taken()).
   void grow(int seed) {
-    taken.clear();
-    std::priority_queue<Item, std::vector<Item>, std::greater<Item>> pq;
     const int c = static_cast<int>(seeds.size());
     seeds.push_back(seed);
-    dist[seed] = 0, region[seed] = c, parent[seed] = -1;
-    pq.push({0.0, seed});
-    while (!pq.empty()) {
-      const auto [d, v] = pq.top();
-      pq.pop();
-      if (d > dist[v]) continue;
-      taken.push_back(v);
-      const int first_out = fc.vertex_halfedge(v);  // (fc.outgoing(v) without its vector)
-      for (int h = first_out, more = 1; more; h = fc.rotate_ccw(h), more = h != first_out) {
-        const int w = fc.head(h);
-        const double dw = d + length(h);
-        if (dw < dist[w]) {
-          dist[w] = dw, region[w] = c, parent[w] = h;
-          pq.push({dw, w});
-        }
-      }
-    }
+    detail::DijkstraOptions nearer;
+    nearer.keep_distances = true;
+    detail::dijkstra(nv, arcs(), {seed}, nearer, tree);
+    for (int v : tree.settled) region[v] = c;
   }
 
   /// Seeds added farthest point first until there are `want`.
@@ -78,6 +63,7 @@ struct VoronoiSampling {
     if (seeds.empty()) grow(0);
     // Farthest point first: a max-heap of (distance, vertex), stale entries skipped.
     std::priority_queue<Item> far;
+    const std::vector<double>& dist = tree.distance;
     for (int v = 0; v < nv; ++v) far.push({dist[v], v});
     while (static_cast<int>(seeds.size()) < want && !far.empty()) {
       const auto [d, v] = far.top();
@@ -90,7 +76,7 @@ struct VoronoiSampling {
         far = {};
         for (int u = 0; u < nv; ++u) far.push({dist[u], u});
       } else {
-        for (int u : taken) far.push({dist[u], u});
+        for (int u : taken()) far.push({dist[u], u});
       }
     }
   }
@@ -98,34 +84,18 @@ struct VoronoiSampling {
 
 /// Regions not adjacent (rare): the shortest fine path from vertex s to t
 /// (halfedges in order, appended to `path`) by a Dijkstra search of at most
-/// ~20000 vertices. False when t was not reached.
-bool shortest_fine_path(const VoronoiSampling& vs, int s, int t, std::vector<int>& path) {
-  const Connectivity& fc = vs.fc;
-  std::unordered_map<int, double> dd{{s, 0.0}};
-  std::unordered_map<int, int> via;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> q;
-  q.push({0.0, s});
-  bool found = false;
-  while (!q.empty()) {
-    const auto [d, v] = q.top();
-    q.pop();
-    if (d > dd[v]) continue;
-    if (v == t) {
-      found = true;
-      break;
-    }
-    if (dd.size() > 20000) break;
-    const int first_out = fc.vertex_halfedge(v);  // (fc.outgoing(v) without its vector)
-    for (int g = first_out, more = 1; more; g = fc.rotate_ccw(g), more = g != first_out) {
-      const int w = fc.head(g);
-      const double dw = d + vs.length(g);
-      auto f = dd.find(w);
-      if (f == dd.end() || dw < f->second) dd[w] = dw, via[w] = g, q.push({dw, w});
-    }
-  }
-  if (!found) return false;
-  for (int v = t; v != s; v = fc.tail(via[v])) path.push_back(via[v]);
-  std::reverse(path.begin(), path.end());
+/// ~20000 vertices (in `search`, kept between calls). False when t was not
+/// reached.
+bool shortest_fine_path(const VoronoiSampling& vs, int s, int t, detail::DijkstraResult& search,
+                        std::vector<int>& path) {
+  detail::DijkstraOptions nearby;
+  nearby.target = t;
+  nearby.max_reached = 20000;
+  nearby.want_parent_nodes = true;
+  detail::dijkstra(vs.nv, vs.arcs(), {s}, nearby, search);
+  if (!search.reached_target) return false;
+  const std::vector<int> back = detail::arcs_back_to_source(search, t);
+  path.insert(path.end(), back.rbegin(), back.rend());
   return true;
 }
 
@@ -134,7 +104,7 @@ bool shortest_fine_path(const VoronoiSampling& vs, int s, int t, std::vector<int
 /// Dijkstra search. False (cs.why set) when that search fails.
 bool coarse_edge_paths(const VoronoiSampling& vs, const Connectivity& cc, CoarseSource& cs) {
   const Connectivity& fc = vs.fc;
-  const std::vector<double>& dist = vs.dist;
+  const std::vector<double>& dist = vs.tree.distance;
   const int nc = static_cast<int>(vs.seeds.size());
   std::unordered_map<long long, std::pair<double, int>> bridge;  // (region a, region b) -> (cost, fine halfedge a->b)
   for (int h = 0; h < fc.num_halfedges(); ++h) {
@@ -146,6 +116,7 @@ bool coarse_edge_paths(const VoronoiSampling& vs, const Connectivity& cc, Coarse
     if (it == bridge.end() || cost < it->second.first) bridge[key] = {cost, h};
   }
   cs.edge_path.resize(cc.num_edges());
+  detail::DijkstraResult search;  // of shortest_fine_path
   for (int e = 0; e < cc.num_edges(); ++e) {
     const int h = cc.edge_halfedge(e);
     const int a = cc.tail(h), b = cc.head(h);
@@ -159,7 +130,7 @@ bool coarse_edge_paths(const VoronoiSampling& vs, const Connectivity& cc, Coarse
       for (auto r = back.rbegin(); r != back.rend(); ++r) path.push_back(fc.twin(*r));
       continue;
     }
-    if (!shortest_fine_path(vs, cs.fine_vertex[a], cs.fine_vertex[b], path)) {
+    if (!shortest_fine_path(vs, cs.fine_vertex[a], cs.fine_vertex[b], search, path)) {
       cs.why = "no fine path found for coarse edge " + std::to_string(e);
       return false;
     }
@@ -208,7 +179,7 @@ CoarseSource coarse_source(const TriMesh& fine, const Connectivity& fc, const Co
   cs.fine_vertex = vs.seeds;
   cs.mesh = detail::region_dual_mesh(fine, vs.seeds, *cc);
   cs.region = vs.region;
-  cs.parent_halfedge = vs.parent;
+  cs.parent_halfedge = vs.tree.parent_arc;
 
   if (!coarse_edge_paths(vs, *cc, cs)) return cs;
   cs.ok = true;

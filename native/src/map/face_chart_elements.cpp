@@ -2,11 +2,12 @@
 
 #include <functional>
 #include <limits>
-#include <queue>
 #include <string>
 #include <utility>
 
 #include "surfmap/error.h"
+
+#include "../mesh/dijkstra.h"
 
 namespace surfmap::detail {
 
@@ -63,29 +64,15 @@ OpenFaceRepair rederive_open_faces(const Connectivity& conn, const std::vector<c
 
 std::vector<int> shortest_edge_path_back(const Connectivity& conn, const Eigen::VectorXd& lengths, int a, int b,
                                          const char* what) {
-  std::vector<double> dist(conn.num_vertices(), std::numeric_limits<double>::infinity());
-  std::vector<int> parent(conn.num_vertices(), -1);
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
-  dist[a] = 0;
-  queue.push({0.0, a});
-  while (!queue.empty()) {
-    const auto [d, v] = queue.top();
-    queue.pop();
-    if (d > dist[v]) continue;
-    if (v == b) break;
-    for (int h : conn.outgoing(v)) {
-      const int w = conn.head(h);
-      const double nd = d + lengths[conn.edge(h)];
-      if (nd < dist[w]) dist[w] = nd, parent[w] = h, queue.push({nd, w});
-    }
-  }
-  if (a != b && parent[b] < 0)
+  DijkstraOptions to_b;
+  to_b.target = b;
+  to_b.want_parent_nodes = true;
+  DijkstraResult search;
+  dijkstra(conn.num_vertices(), rotation_arcs(conn, [&](int h) { return lengths[conn.edge(h)]; }), {a}, to_b, search);
+  if (a != b && search.parent_arc[b] < 0)
     throw SolveError(std::string("per-face charts: no edge path of ") + what + " between vertices " +
                      std::to_string(a) + " and " + std::to_string(b));
-  std::vector<int> back;
-  for (int v = b; v != a; v = conn.tail(parent[v])) back.push_back(parent[v]);
-  return back;
+  return arcs_back_to_source(search, b);
 }
 
 }  // namespace surfmap::detail

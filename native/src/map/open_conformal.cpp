@@ -14,6 +14,8 @@
 
 #include "surfmap/error.h"
 
+#include "../mesh/dijkstra.h"
+
 namespace surfmap {
 namespace {
 
@@ -432,17 +434,14 @@ int farthest_from_boundary(const TriMesh& mesh, const WeightedEdges& e, const st
     const double l = (mesh.V.row(a) - mesh.V.row(b)).norm();
     adj[a].emplace_back(b, l), adj[b].emplace_back(a, l);
   }
-  std::vector<double> dist(e.nv, std::numeric_limits<double>::infinity());
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> heap;
-  for (int v : loop) dist[v] = 0, heap.emplace(0.0, v);
-  while (!heap.empty()) {
-    const auto [d, v] = heap.top();
-    heap.pop();
-    if (d > dist[v]) continue;
-    for (const auto& [w, l] : adj[v])
-      if (d + l < dist[w]) dist[w] = d + l, heap.emplace(d + l, w);
-  }
+  auto neighbours = [&](int v, auto&& visit) {
+    for (const auto& [w, l] : adj[v]) visit(-1, w, l);
+  };
+  detail::DijkstraOptions options;
+  options.want_parents = false;
+  detail::DijkstraResult from_boundary;
+  detail::dijkstra(e.nv, neighbours, loop, options, from_boundary);
+  const std::vector<double>& dist = from_boundary.distance;
   return static_cast<int>(std::max_element(dist.begin(), dist.end()) - dist.begin());
 }
 

@@ -5,7 +5,6 @@
 #include <limits>
 #include <memory>
 #include <optional>
-#include <queue>
 #include <unordered_map>
 
 #include <Eigen/Eigenvalues>
@@ -13,6 +12,8 @@
 #include "surfmap/geometry/nearest_point.h"
 #include "surfmap/topology/edge_homotopy.h"
 #include "surfmap/topology/edge_words.h"
+
+#include "../mesh/dijkstra.h"
 
 namespace surfmap {
 namespace {
@@ -122,7 +123,7 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
 
   // Halfedge from a to b, or -1.
   std::vector<int> parent_h(tm.num_vertices(), -1), stamp(tm.num_vertices(), -1);
-  std::vector<double> dist(tm.num_vertices(), 0.0);
+  detail::DijkstraResult path_search;  // the A* searches' (shortest path by length)
   int search = 0;
   for (const auto& loop : source_loops) {
     const size_t m = loop.size() >= 2 && loop.front() == loop.back() ? loop.size() - 1 : loop.size();
@@ -184,30 +185,15 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
       if (!found && frame &&
           (near_in_space || options.join_by_length || (options.max_jump_box > 0 && jump <= options.max_jump_box))) {
         const std::vector<Eigen::Vector3d>& tp = frame->tp;
-        ++search;
-        const double limit = 2 * jump + max_gap * t_edge;
-        using Item = std::pair<double, int>;  // (length so far + straight line to b, vertex)
-        std::priority_queue<Item, std::vector<Item>, std::greater<Item>> open;
-        stamp[a] = search, parent_h[a] = -1, dist[a] = 0;
-        open.push({jump, a});
-        while (!open.empty()) {
-          const auto [key, v] = open.top();
-          open.pop();
-          if (key > limit) break;
-          if (v == b) {
-            found = true;
-            break;
-          }
-          if (key > dist[v] + (tp[v] - tp[b]).norm() + 1e-15) continue;  // stale
-          const int first_out = conn.vertex_halfedge(v);  // (conn.outgoing(v) without its vector)
-          for (int h = first_out, more = 1; more; h = conn.rotate_ccw(h), more = h != first_out) {
-            const int u = conn.head(h);
-            const double d = dist[v] + (tp[u] - tp[v]).norm();
-            if (stamp[u] == search && d >= dist[u]) continue;
-            stamp[u] = search, parent_h[u] = h, dist[u] = d;
-            open.push({d + (tp[u] - tp[b]).norm(), u});
-          }
-        }
+        detail::DijkstraOptions by_length;
+        by_length.target = b;
+        by_length.max_key = 2 * jump + max_gap * t_edge;
+        auto arcs = detail::rotation_arcs(conn, [&](int h) { return (tp[conn.head(h)] - tp[conn.tail(h)]).norm(); });
+        auto straight_to_b = [&](int v) { return (tp[v] - tp[b]).norm(); };  // the potential: A*
+        detail::dijkstra(tm.num_vertices(), arcs, {a}, by_length, path_search, straight_to_b);
+        found = path_search.reached_target;
+        if (found)
+          for (int v = b; v != a; v = conn.tail(parent_h[v])) parent_h[v] = path_search.parent_arc[v];
         if (found && !options.join_by_length && !near_in_space) ++out.joined_jumps;
         if (found && options.join_by_length) {
           int edges = 0;

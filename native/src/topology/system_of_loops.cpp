@@ -30,7 +30,6 @@
 #include <memory>
 #include <limits>
 #include <numeric>
-#include <queue>
 #include <set>
 #include <string>
 #include <utility>
@@ -39,6 +38,8 @@
 
 #include "surfmap/error.h"
 #include "surfmap/topology/cut_mesh.h"
+
+#include "../mesh/dijkstra.h"
 
 namespace surfmap {
 namespace {
@@ -94,29 +95,12 @@ std::vector<double> edge_lengths(const TriMesh& mesh, const Connectivity& conn) 
 
 /// Dijkstra distances from x by edge weights `len` (#E).
 std::vector<double> dijkstra_distances(const Connectivity& conn, const std::vector<double>& len, int x) {
-  const int nv = conn.num_vertices();
-  std::vector<double> dist(nv, std::numeric_limits<double>::infinity());
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> pq;
-  dist[x] = 0;
-  pq.push({0.0, x});
-  while (!pq.empty()) {
-    const auto [d, v] = pq.top();
-    pq.pop();
-    if (d > dist[v]) continue;
-    const int start = conn.vertex_halfedge(v);
-    int h = start;
-    do {
-      const int w = conn.head(h);
-      const double nd = d + len[conn.edge(h)];
-      if (nd < dist[w]) {
-        dist[w] = nd;
-        pq.push({nd, w});
-      }
-      h = conn.rotate_ccw(h);
-    } while (h != start);
-  }
-  return dist;
+  detail::DijkstraOptions options;
+  options.want_parents = false;
+  detail::DijkstraResult r;
+  detail::dijkstra(conn.num_vertices(), detail::rotation_arcs(conn, [&](int h) { return len[conn.edge(h)]; }), {x},
+                   options, r);
+  return std::move(r.distance);
 }
 
 int default_base_vertex(const TriMesh& mesh, const Connectivity& conn) {
@@ -155,29 +139,16 @@ struct Greedy {
 /// fills parent (the edge crossed last, -1 at the start and unreached).
 std::vector<double> dual_dijkstra(const Connectivity& conn, const std::vector<char>& crossable,
                                   const std::vector<double>& step, int start, std::vector<int>& parent) {
-  const int nf = conn.num_faces();
-  std::vector<double> dist(nf, std::numeric_limits<double>::infinity());
-  parent.assign(nf, -1);
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> pq;
-  dist[start] = 0;
-  pq.push({0.0, start});
-  while (!pq.empty()) {
-    const auto [d, f] = pq.top();
-    pq.pop();
-    if (d > dist[f]) continue;
+  auto across_edges = [&](int f, auto&& visit) {
     for (int k = 0; k < 3; ++k) {
       const int e = conn.edge(3 * f + k);
-      if (!crossable[e]) continue;
-      const int g = Connectivity::face(conn.twin(3 * f + k));
-      if (d + step[e] < dist[g]) {
-        dist[g] = d + step[e];
-        parent[g] = e;
-        pq.push({dist[g], g});
-      }
+      if (crossable[e]) visit(e, Connectivity::face(conn.twin(3 * f + k)), step[e]);
     }
-  }
-  return dist;
+  };
+  detail::DijkstraResult r;
+  detail::dijkstra(conn.num_faces(), across_edges, {start}, {}, r);
+  parent = std::move(r.parent_arc);
+  return std::move(r.distance);
 }
 
 /// The shallow cut tree (SystemOfLoopsOptions::edge_weights given): the dual
@@ -297,32 +268,19 @@ Greedy greedy_basis(const Connectivity& conn, const GreedyGraph& graph, int x, i
   Greedy g;
   // Dijkstra shortest-path tree T from x (each vertex's neighbours in the
   // order of its rotation, as the graph lists them).
-  std::vector<double> dist(nv, std::numeric_limits<double>::infinity());
-  g.parent_he.assign(nv, -1);
+  auto out_arcs = [&](int v, auto&& visit) {
+    for (int q = graph.first_out[v]; q < graph.first_out[v + 1]; ++q)
+      visit(graph.out_halfedge[q], graph.out_head[q], graph.out_length[q]);
+  };
+  detail::DijkstraResult tree;
+  detail::dijkstra(nv, out_arcs, {x}, {}, tree);
+  const std::vector<double>& dist = tree.distance;
+  g.parent_he = std::move(tree.parent_arc);
   g.in_tree.assign(ne, 0);
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> pq;
-  dist[x] = 0;
-  pq.push({0.0, x});
-  std::vector<char> done(nv, 0);
-  while (!pq.empty()) {
-    const auto [d, v] = pq.top();
-    pq.pop();
-    if (done[v]) continue;
-    done[v] = 1;
-    if (g.parent_he[v] >= 0) g.in_tree[conn.edge(g.parent_he[v])] = 1;
-    for (int q = graph.first_out[v]; q < graph.first_out[v + 1]; ++q) {
-      const int w = graph.out_head[q];
-      const double nd = d + graph.out_length[q];
-      if (nd < dist[w]) {
-        dist[w] = nd;
-        g.parent_he[w] = graph.out_halfedge[q];
-        pq.push({nd, w});
-      }
-    }
-  }
   for (int v = 0; v < nv; ++v)
-    if (!done[v]) throw InputError("vertex " + std::to_string(v) + " is not connected to the base vertex");
+    if (g.parent_he[v] >= 0) g.in_tree[conn.edge(g.parent_he[v])] = 1;
+  for (int v = 0; v < nv; ++v)
+    if (!std::isfinite(dist[v])) throw InputError("vertex " + std::to_string(v) + " is not connected to the base vertex");
   // Maximum spanning tree T* of the dual graph of the non-tree edges, each
   // weighted by the length of its loop sigma(e) (Erickson–Whittlesey).
   std::vector<std::pair<double, int>> order;

@@ -8,10 +8,10 @@
 #include <functional>
 #include <limits>
 #include <memory>
-#include <queue>
 #include <utility>
 #include <vector>
 
+#include "../mesh/dijkstra.h"
 #include "../mesh/region_dual.h"
 #include "../seconds_since.h"
 #include "surfmap/error.h"
@@ -96,28 +96,17 @@ bool coarse_copy(const TriMesh& mesh, const Connectivity& conn, const VertexGrap
   if (nc < 4 || 2 * nc > nv) return false;
   // Regions: nearest seed over the 3D edge lengths.
   out.region.assign(nv, -1);
-  std::vector<double> dist(nv, std::numeric_limits<double>::infinity());
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> pq;
-  for (int c = 0; c < nc; ++c) {
-    dist[out.seeds[c]] = 0.0;
-    out.region[out.seeds[c]] = c;
-    pq.push({0.0, out.seeds[c]});
-  }
-  while (!pq.empty()) {
-    const auto [d, a] = pq.top();
-    pq.pop();
-    if (d > dist[a]) continue;
-    for (int k = graph.start[a]; k < graph.start[a + 1]; ++k) {
-      const int b = graph.next[k];
-      const double db = d + graph.length[k];
-      if (db < dist[b]) {
-        dist[b] = db;
-        out.region[b] = out.region[a];
-        pq.push({db, b});
-      }
-    }
-  }
+  auto graph_arcs = [&](int a, auto&& visit) {
+    for (int k = graph.start[a]; k < graph.start[a + 1]; ++k) visit(k, graph.next[k], graph.length[k]);
+  };
+  detail::DijkstraOptions tails;  // each vertex's region is its parent's
+  tails.want_parents = false;
+  tails.want_parent_nodes = true;
+  detail::DijkstraResult nearest;
+  detail::dijkstra(nv, graph_arcs, out.seeds, tails, nearest);
+  for (int c = 0; c < nc; ++c) out.region[out.seeds[c]] = c;
+  for (int b : nearest.settled)  // a parent before its children
+    if (nearest.parent_node[b] >= 0) out.region[b] = out.region[nearest.parent_node[b]];
   // The dual faces, sorted (region_dual_faces lists them in the order of
   // their first fine face).
   std::vector<std::array<int, 3>> faces;

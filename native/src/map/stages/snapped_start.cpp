@@ -4,7 +4,6 @@
 #include <cmath>
 #include <functional>
 #include <limits>
-#include <queue>
 #include <set>
 #include <utility>
 
@@ -433,34 +432,20 @@ bool SnappedStartBuilder::walk_around(int p, int from, int to, Word& sheet) cons
 
 // Dijkstra on the layout's edges (3D chord lengths) from a to b, for the
 // source edges whose ends snap to target vertices that are not adjacent;
-// the scratch arrays are reset through `touched`.
+// the search's arrays are kept in `s` (reset in the time of what the last
+// search reached).
 void SnappedStartBuilder::shortest_path(int a, int b, PathScratch& s) const {
-  const int nl = layout_conn_.num_vertices();
-  if (s.dist.empty()) s.dist.assign(nl, std::numeric_limits<double>::infinity()), s.via.assign(nl, -1);
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> heap;
-  s.dist[a] = 0, s.touched.push_back(a), heap.push({0.0, a});
-  while (!heap.empty()) {
-    const auto [d, u] = heap.top();
-    heap.pop();
-    if (d > s.dist[u]) continue;
-    if (u == b) break;
-    for (int h : layout_conn_.outgoing(u)) {
-      const int w = layout_conn_.head(h);
-      const double dw = d + (layout_points_[w] - layout_points_[u]).norm();
-      if (dw < s.dist[w]) {
-        if (!std::isfinite(s.dist[w])) s.touched.push_back(w);
-        s.dist[w] = dw, s.via[w] = h, heap.push({dw, w});
-      }
-    }
-  }
+  detail::DijkstraOptions to_b;
+  to_b.target = b;
+  auto chords = detail::rotation_arcs(layout_conn_, [&](int h) {
+    return (layout_points_[layout_conn_.head(h)] - layout_points_[layout_conn_.tail(h)]).norm();
+  });
+  detail::dijkstra(layout_conn_.num_vertices(), chords, {a}, to_b, s.search);
   s.path.clear();
-  if (std::isfinite(s.dist[b]))
-    for (int v = b; v != a; v = layout_conn_.tail(s.via[v])) s.path.push_back(v);
+  if (std::isfinite(s.search.distance[b]))
+    for (int v = b; v != a; v = layout_conn_.tail(s.search.parent_arc[v])) s.path.push_back(v);
   s.path.push_back(a);
   std::reverse(s.path.begin(), s.path.end());
-  for (int v : s.touched) s.dist[v] = std::numeric_limits<double>::infinity(), s.via[v] = -1;
-  s.touched.clear();
 }
 
 bool SnappedStartBuilder::path_element(int i, int j, PathScratch& scratch, Word* element, double* length,

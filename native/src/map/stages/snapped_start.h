@@ -33,6 +33,8 @@
 #include "surfmap/uniformize/deck_group.h"
 #include "surfmap/uniformize/layout.h"
 
+#include "../../mesh/dijkstra.h"
+
 namespace surfmap::detail {
 
 struct SnappedStart {
@@ -208,8 +210,8 @@ class SnappedStartBuilder {
   SnappedStart start_from(const Tree& t, const std::vector<WeightedEdge>& edges) const;
   /// Reused arrays of the shortest-path searches.
   struct PathScratch {
-    std::vector<double> dist;
-    std::vector<int> via, touched, path;
+    DijkstraResult search;
+    std::vector<int> path;
   };
   /// A shortest path of layout edges (3D chords) from a to b into s.path
   /// (just {a} when b is not reached).
