@@ -1478,7 +1478,9 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
             candidates.append(cand)
     if not solved:
         raise _core.SolveError("open surfaces through their doubles: no candidate mapped: " + "; ".join(
-            f"pairing {c['pairing']} {c['orientation']}: {c['status']}" for c in candidates))
+            f"pairing {c['pairing']} {c['orientation']}: {c['status']}"
+            + (f" (reflection-aware solve {c['reflection_solve']})" if c.get("reflection_solve") else "")
+            for c in candidates))
     # Lowest energy; ties (within tie_tolerance, relative) by the alignment of the shapes: every
     # pair of pants has an anticonformal involution (the reflection swapping its two hexagons),
     # so for (0, 3) each pairing's preserving and reversing maps have the same energy, as the

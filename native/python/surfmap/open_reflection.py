@@ -535,42 +535,20 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
     K = np.concatenate([_klein(_apply(M[:, None], tri)) for M, _ in versions] +
                        [_klein(_apply(M[:, None], tri[cut])) for M, cut in more])
     src_face = np.concatenate([np.tile(np.arange(len(Fs)), 3)] + [cut for _, cut in more])
-    inv_face, inv_bary, unlocated, unlocated_bary = _locate_in_triangles(K, src_face, layout, T.n2)
+    inv_face, inv_bary, unlocated, unlocated_start = _locate_in_triangles(K, src_face, layout, T.n2)
     if len(unlocated):
-        # Where the layout's cut passes more than once near the vertex: each source face with a
-        # corner located on a face around it, carried along the faces between them.
-        tri_a = _apply(W[Fs[:, 0]][:, None], tri)
-        star = {}
-        for f, t3 in enumerate(layout.F):
-            for v in t3:
-                star.setdefault(int(v), []).append(f)
-        ring = {}
-        for v in range(n):
-            ring.setdefault(int(f_out[v]), []).append(v)
-        src_faces_of = {}
-        for f, t3 in enumerate(Fs):
-            for v in t3:
-                src_faces_of.setdefault(int(v), []).append(f)
+        # A placement in no nearby copy of an image (a long, thin image next to a rim crushed by the
+        # map): walk across the source's faces from the nearest candidate's copy, each new corner
+        # carried by its edge's element, to the image holding the placement.
+        Ms = np.concatenate([M for M, _ in versions] + [M for M, _ in more])
+        across = _face_neighbours(Fs)
         still = []
-        for idx, v in enumerate(unlocated):
-            best = (unlocated_bary[idx], None, None)
-            near = set(star[int(v)])
-            for f in star[int(v)]:
-                near.update(int(g) for g in layout.neighbour[f] if g >= 0)
-            for f in star[int(v)]:
-                P = layout.klein[f, list(layout.F[f]).index(v)]
-                for g in near:
-                    for sv in ring.get(g, []):
-                        for sf in src_faces_of[sv]:
-                            M = layout.path_element(int(f_out[Fs[sf, 0]]), f)
-                            b = _klein_barycentric(_klein(_apply(M, tri_a[sf]))[None], np.array([P]))[0]
-                            if b.min() > best[0]:
-                                best = (b.min(), sf, b)
-            if best[1] is not None:
-                inv_face[v] = best[1]
-                inv_bary[v] = np.maximum(best[2], 0) / np.maximum(best[2], 0).sum()
-            if best[0] < -1e-9:
+        for v, (t, P) in zip(unlocated, unlocated_start):
+            got = _walk_images(P, int(src_face[t]), Ms[t], Fs, across, z, element)
+            if got is None:
                 still.append(int(v))
+            else:
+                inv_face[v], inv_bary[v] = got
         unlocated = np.array(still, dtype=np.int64)
     if reversing:
         f_fw, b_fw = f_out, b_out[:, ::-1]
@@ -617,7 +595,8 @@ def _locate_all(layout, z, face, max_steps=100000):
 def _locate_in_triangles(K, tri_face, layout, n_vertices, k_nearest=48):
     """Per target vertex (of the laid-out faces' corners) the source face and barycentrics of the
     Klein triangle K (t, 3) holding one of its placed positions; those in none get the nearest
-    triangle's clamped barycentrics (counted)."""
+    triangle's clamped barycentrics and are returned with that triangle and their placement
+    (Klein) for solve_half's walk."""
     from scipy.spatial import cKDTree
     F = layout.F
     vert = F.ravel()
@@ -647,4 +626,62 @@ def _locate_in_triangles(K, tri_face, layout, n_vertices, k_nearest=48):
     b = np.maximum(best_b[pick], 0)
     bary[vert[pick]] = b / b.sum(axis=1, keepdims=True)
     unlocated = np.flatnonzero(best[pick] < -1e-9)
-    return face, bary, vert[pick][unlocated], best[pick][unlocated]
+    # Per vertex left: its best candidate triangle and the placement tested in it.
+    return face, bary, vert[pick][unlocated], list(zip(best_t[pick][unlocated], pts[pick][unlocated]))
+
+
+def _face_neighbours(F):
+    """(m, 3): the face across the edge opposite corner k (-1 on the boundary)."""
+    edge_face = {}
+    for f, t in enumerate(F):
+        for k in range(3):
+            edge_face[(int(t[(k + 1) % 3]), int(t[(k + 2) % 3]))] = f
+    out = -np.ones((len(F), 3), dtype=np.int64)
+    for f, t in enumerate(F):
+        for k in range(3):
+            out[f, k] = edge_face.get((int(t[(k + 2) % 3]), int(t[(k + 1) % 3])), -1)
+    return out
+
+
+def _walk_images(P, face, M, F, across, z, element, max_steps=100000):
+    """The source face (and barycentrics) whose image holds the Klein point P: a straight walk over
+    the source's faces' images from `face`'s image carried by M (its first corner's point z[a]
+    at M z[a]); each corner's copy is N_v z[v], a new corner d next to a known u taking
+    N_u element(u, d). None when the walk leaves the source."""
+    N = {int(F[face, 0]): M}
+    N[int(F[face, 1])] = M @ element(F[face, :1], F[face, 1:2])[0]
+    N[int(F[face, 2])] = M @ element(F[face, :1], F[face, 2:3])[0]
+    for _ in range(max_steps):
+        tri = F[face]
+        X = np.array([_apply(N[int(v)], z[v]) for v in tri])
+        b = _klein_barycentric(_klein(X)[None], np.array([P]))[0]
+        k = int(np.argmin(b))
+        if b[k] >= -1e-10:
+            b = np.maximum(b, 0)
+            return face, b / b.sum()
+        g = int(across[face, k])
+        if g < 0:
+            # Beyond a boundary edge of the source: a target boundary vertex's placement lies on
+            # that edge's geodesic up to round-off (a straight line in Klein coordinates; a thin
+            # image makes the barycentric large all the same). On the edge: found; beyond one
+            # of its ends: on across the edge opposite that end.
+            K = _klein(X)
+            e0, e1 = K[(k + 1) % 3], K[(k + 2) % 3]
+            off_line = abs(((e1 - e0) * np.conj(P - e0)).imag) / max(abs(e1 - e0), 1e-300)
+            if off_line > 1e-9:
+                return None
+            t = ((P - e0) * np.conj(e1 - e0)).real / max(abs(e1 - e0) ** 2, 1e-300)
+            if 0 <= t <= 1:
+                b = np.zeros(3)
+                b[(k + 1) % 3], b[(k + 2) % 3] = 1 - t, t
+                return face, b
+            k = (k + 1) % 3 if t > 1 else (k + 2) % 3  # the corner P lies beyond
+            g = int(across[face, k])
+            if g < 0:
+                return None
+        u = int(tri[(k + 1) % 3])
+        for d in F[g]:
+            if d not in tri:
+                N[int(d)] = N[u] @ element(np.array([u]), np.array([d]))[0]
+        face = g
+    return None
