@@ -1262,13 +1262,17 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
 def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
     """The reflection-aware solve (open_reflection.solve_half) of the class of the doubles' map r:
     its result when it converged with every face positively oriented in the metric and every point
-    located, cand updated (energy: the half's, symmetry_error 0: exact by construction; the
-    doubles' own figures kept as doubles_energy, doubles_symmetry_error; status ok, since the
-    doubles' symmetry no longer matters); else None, the reason in cand['reflection_solve'].
-    layouts: the target half's HalfLayout per orientation, filled on first use."""
+    located, cand updated (reflection_energy: the half's with its own weights; symmetry_error 0:
+    exact by construction, the doubles' kept as doubles_symmetry_error; status ok, since the
+    doubles' symmetry no longer matters; 'energy' stays the doubles' halved, which ranks the
+    candidates); else None, the reason in cand['reflection_solve']. layouts: the target half's
+    HalfLayout per orientation and its metric, filled on first use."""
     try:
+        if "metric" not in layouts:
+            layouts["metric"] = open_reflection.symmetric_metric(T.D)
         if reversing not in layouts:
-            layouts[reversing] = open_reflection.HalfLayout(T.F2[:, ::-1] if reversing else T.F2, T.D)
+            layouts[reversing] = open_reflection.HalfLayout(T.F2[:, ::-1] if reversing else T.F2, T.D,
+                                                            layouts["metric"])
         sym = open_reflection.solve_half(S, T, r["forward"], pairing, reversing, layouts[reversing])
     except _core.Cancelled:
         raise
@@ -1283,11 +1287,8 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
     if why:
         cand["reflection_solve"] = "not used: " + ", ".join(why)
         return None
-    cand["doubles_energy"], cand["doubles_symmetry_error"] = cand["energy"], cand["symmetry_error"]
-    cand["doubles_status"] = cand["status"]
-    cand.update(energy=sym["energy"], symmetry_error=0.0, same_sheet=1.0, status="ok")
-    P = np.einsum("ij,ijk->ik", sym["forward"]["barycentric"], T.V2[T.F2[sym["forward"]["face"]]])
-    cand["alignment"] = _alignment(S, T, P[:S.n])
+    cand["doubles_symmetry_error"], cand["doubles_status"] = cand.get("symmetry_error"), cand.get("status")
+    cand.update(reflection_energy=sym["energy"], symmetry_error=0.0, same_sheet=1.0, status="ok")
     cand["reflection_solve"] = (f"used: {sym['iterations']} Newton steps, gradient {sym['gradient']:.2g}, boundary "
                                 f"{sym['boundary_off_geodesic']:.2g} off the geodesic, metric asymmetry "
                                 f"{sym['metric_error']:.2g} averaged out")
@@ -1395,12 +1396,13 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     the input faces as before) and kept when fewer faces fold both ways together
     ('refined_near_boundary' says the counts). Only maps with folds left pay for it (poncho ->
     spot: 6 / 2 folded -> 1 / 2, 240 s more; docs/open_surfaces.md "Session 19").
-    reflection_solve (default True; CLI --no-reflection-solve): each candidate's class solved again
-    on the source's half alone, the mirror half given by the reflections (open_reflection.solve_half:
-    symmetric to round-off, the boundary on the target's geodesic boundary exactly, own-edge
-    cotangent weights); used when it converges bijective in the metric, else the doubles' own
-    half (the reason in the candidate's 'reflection_solve'); not with landmarks (the doubles hold
-    them). 'open' 'reflection_solve' says what the chosen map used (docs/open_surfaces.md
+    reflection_solve (default True; CLI --no-reflection-solve): the chosen candidate's class solved
+    again on the source's half alone, the mirror half given by the reflections
+    (open_reflection.solve_half: symmetric to round-off, the boundary on the target's geodesic
+    boundary exactly, own-edge cotangent weights), and so too every candidate refused as not
+    symmetric (ranked by its doubles' energy like the rest); used when it converges bijective in
+    the metric, else the doubles' own half (the reason in the candidate's 'reflection_solve'); not
+    with landmarks (the doubles hold them). 'open' 'reflection_solve' says what the chosen map used (docs/open_surfaces.md
     "Session 20").
     Raises InputError for different (g, b) or a bad pairing, SolveError when no candidate
     maps."""
@@ -1467,7 +1469,10 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                             f"not symmetric (error {err:.3g} of the diagonal, {sheet:.2f} on the expected half)")
                 cand["alignment"] = _alignment(S, T, np.asarray(r["forward"]["position"])[:S.n])
                 sym = None
-                if reflection_solve and not len(lm):
+                if cand["status"] != "ok" and reflection_solve and not len(lm):
+                    # Asymmetric beyond the tolerance (the artery onto the cow's small holes): the
+                    # class may still be mapped by the reflection-aware solve. Ranked by the
+                    # doubles' energy of the class as every other candidate.
                     sym = _reflection_candidate(S, T, r, list(pairing), rev, layouts, cand)
                 if cand["status"] == "ok":
                     solved.append((cand, r, rev, images, sym))
@@ -1495,6 +1500,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     for c in candidates:
         c["chosen"] = c is cand
     report("doubles: the half", 0.95)
+    if sym is None and reflection_solve and not len(lm):
+        sym = _reflection_candidate(S, T, r, cand["pairing"], rev, layouts, cand)
     h = _half(S, T, r, rev, untangle, sym)
     chosen_options = options
     if h["flipped"] and "source_weights" not in options and sym is None:
@@ -1543,7 +1550,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         if h3["flipped"] + h3["inv_flipped"] < h["flipped"] + h["inv_flipped"]:
             h3["weights_fallback"] = h.get("weights_fallback", "")
             r, h, sym = r3, h3, sym3
-            cand = dict(cand, energy=float(r3["energy"]["final"]) / 2 if sym3 is None else sym3["energy"])
+            cand = dict(cand, energy=float(r3["energy"]["final"]) / 2)
             cand["symmetry_error"], cand["same_sheet"] = (_symmetry(r3, S2, T2, rev) if sym3 is None else
                                                           (0.0, 1.0))
     fw, inv, pairing, back_pairing, snap = h["fw"], h["inv"], h["pairing"], h["back_pairing"], h["snap"]

@@ -110,6 +110,26 @@ def _klein_barycentric(K, k):
     return np.stack([1 - l1 - l2, l1, l2], axis=1)
 
 
+def symmetric_metric(double, ricci_tolerance=1e-12):
+    """The double's hyperbolic metric on its own edges (`_core.ricci_flow`), each edge's length
+    averaged with its mirror's: (sorted edge keys a * n + b with a < b, lengths, the largest
+    relative difference averaged out). Shared by both orientations' layouts."""
+    D = double
+    r = _core.ricci_flow(D["V"], D["F"], background="hyperbolic", tolerance=ricci_tolerance)
+    if not r["converged"]:
+        raise ReflectionSolveError(f"the double's hyperbolic metric on its own edges: {r['message']}")
+    ev = np.asarray(r["edge_vertices"], dtype=np.int64)
+    L = np.asarray(r["edge_lengths"], dtype=np.float64)
+    n = len(D["V"])
+    key = np.minimum(ev[:, 0], ev[:, 1]) * n + np.maximum(ev[:, 0], ev[:, 1])
+    order = np.argsort(key)
+    key, L = key[order], L[order]
+    sig = D["sigma"]
+    ms = np.minimum(sig[ev[order, 0]], sig[ev[order, 1]]) * n + np.maximum(sig[ev[order, 0]], sig[ev[order, 1]])
+    Lm = L[np.searchsorted(key, ms)]
+    return key, 0.5 * (L + Lm), float(np.max(np.abs(L - Lm) / L))
+
+
 class HalfLayout:
     """The target half in the Poincare disk: the double's hyperbolic metric made exactly symmetric,
     the half's faces laid out along a breadth-first tree of faces from the face deepest inside.
@@ -121,23 +141,11 @@ class HalfLayout:
     across that edge (identity along the tree), metric_error (the largest relative difference of an
     edge's length and its mirror's before averaging)."""
 
-    def __init__(self, F, double, ricci_tolerance=1e-12):
+    def __init__(self, F, double, metric=None):
         F = np.asarray(F, dtype=np.int64)
         D = double
-        r = _core.ricci_flow(D["V"], D["F"], background="hyperbolic", tolerance=ricci_tolerance)
-        if not r["converged"]:
-            raise ReflectionSolveError(f"the double's hyperbolic metric on its own edges: {r['message']}")
-        ev = np.asarray(r["edge_vertices"], dtype=np.int64)
-        L = np.asarray(r["edge_lengths"], dtype=np.float64)
+        key, L, self.metric_error = symmetric_metric(D) if metric is None else metric
         n = len(D["V"])
-        key = np.minimum(ev[:, 0], ev[:, 1]) * n + np.maximum(ev[:, 0], ev[:, 1])
-        order = np.argsort(key)
-        key, L = key[order], L[order]
-        sig = D["sigma"]
-        ms = np.minimum(sig[ev[order, 0]], sig[ev[order, 1]]) * n + np.maximum(sig[ev[order, 0]], sig[ev[order, 1]])
-        Lm = L[np.searchsorted(key, ms)]
-        self.metric_error = float(np.max(np.abs(L - Lm) / L))
-        L = 0.5 * (L + Lm)
 
         def length(a, b):
             return L[np.searchsorted(key, np.minimum(a, b) * n + np.maximum(a, b))]
@@ -541,7 +549,8 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
         # map): walk across the source's faces from the nearest candidate's copy, each new corner
         # carried by its edge's element, to the image holding the placement.
         Ms = np.concatenate([M for M, _ in versions] + [M for M, _ in more])
-        across = _face_neighbours(Fs)
+        from .open_double import _face_neighbours  # (open_double imports this module)
+        across = np.roll(_face_neighbours(Fs), -1, axis=1)  # column k: across the edge opposite corner k
         still = []
         for v, (t, P) in zip(unlocated, unlocated_start):
             got = _walk_images(P, int(src_face[t]), Ms[t], Fs, across, z, element)
@@ -628,19 +637,6 @@ def _locate_in_triangles(K, tri_face, layout, n_vertices, k_nearest=48):
     unlocated = np.flatnonzero(best[pick] < -1e-9)
     # Per vertex left: its best candidate triangle and the placement tested in it.
     return face, bary, vert[pick][unlocated], list(zip(best_t[pick][unlocated], pts[pick][unlocated]))
-
-
-def _face_neighbours(F):
-    """(m, 3): the face across the edge opposite corner k (-1 on the boundary)."""
-    edge_face = {}
-    for f, t in enumerate(F):
-        for k in range(3):
-            edge_face[(int(t[(k + 1) % 3]), int(t[(k + 2) % 3]))] = f
-    out = -np.ones((len(F), 3), dtype=np.int64)
-    for f, t in enumerate(F):
-        for k in range(3):
-            out[f, k] = edge_face.get((int(t[(k + 2) % 3]), int(t[(k + 1) % 3])), -1)
-    return out
 
 
 def _walk_images(P, face, M, F, across, z, element, max_steps=100000):
