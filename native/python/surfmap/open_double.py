@@ -1273,23 +1273,33 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
         if reversing not in layouts:
             layouts[reversing] = open_reflection.HalfLayout(T.F2[:, ::-1] if reversing else T.F2, T.D,
                                                             layouts["metric"])
-        sym = open_reflection.solve_half(S, T, r["forward"], pairing, reversing, layouts[reversing])
+        why = []
+        # The source's cotangent weights as they are; where some are negative and the solve then
+        # fails, the weights floored at 0.1 of the mean (a convex energy).
+        for floor in (None, 0.1):
+            sym = open_reflection.solve_half(S, T, r["forward"], pairing, reversing, layouts[reversing],
+                                             weight_floor=floor)
+            why.append([w for w, bad in (
+                ("not converged (gradient %.3g)" % sym["gradient"], not sym["converged"]),
+                (f"{sym['intrinsic_flipped']} faces turned in the metric", sym["intrinsic_flipped"]),
+                (f"{sym['escaped']} interior images beyond the boundary", sym["escaped"]),
+                (f"{len(sym['inverse_unlocated'])} target vertices not located", len(sym["inverse_unlocated"])))
+                if bad])
+            if not why[-1]:
+                break
     except _core.Cancelled:
         raise
     except _core.Error as e:
         cand["reflection_solve"] = f"not used: {e}"
         return None
-    why = [w for w, bad in (("not converged (gradient %.3g)" % sym["gradient"], not sym["converged"]),
-                            (f"{sym['intrinsic_flipped']} faces turned in the metric", sym["intrinsic_flipped"]),
-                            (f"{sym['escaped']} interior images beyond the boundary", sym["escaped"]),
-                            (f"{len(sym['inverse_unlocated'])} target vertices not located",
-                             len(sym["inverse_unlocated"]))) if bad]
-    if why:
-        cand["reflection_solve"] = "not used: " + ", ".join(why)
+    if why[-1]:
+        cand["reflection_solve"] = "not used: " + "; ".join(f"{'cotangent weights' if k == 0 else 'floored at 0.1'}: "
+                                                           + ", ".join(w) for k, w in enumerate(why))
         return None
     cand["doubles_symmetry_error"], cand["doubles_status"] = cand.get("symmetry_error"), cand.get("status")
     cand.update(reflection_energy=sym["energy"], symmetry_error=0.0, same_sheet=1.0, status="ok")
-    cand["reflection_solve"] = (f"used: {sym['iterations']} Newton steps, gradient {sym['gradient']:.2g}, boundary "
+    cand["reflection_solve"] = (f"used: {sym['iterations']} Newton steps"
+                                f"{', weights floored at 0.1' if sym['weight_floor'] else ''}, gradient {sym['gradient']:.2g}, boundary "
                                 f"{sym['boundary_off_geodesic']:.2g} off the geodesic, metric asymmetry "
                                 f"{sym['metric_error']:.2g} averaged out")
     return sym
@@ -1589,11 +1599,10 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     out["energy"] = {k: (v / 2 if isinstance(v, (int, float)) and not isinstance(v, bool) else v)
                      for k, v in r["energy"].items() if not _has_arrays(v)}
     if sym is not None:
-        # The reflection-aware solve's own energy (its weights: the half's own edges), its Newton
-        # history; the doubles' halved energy beside it.
-        out["energy"] = {"final": sym["energy"], "initial": sym["energy_history"][0],
-                         "history": list(sym["energy_history"]), "doubles_final": out["energy"].get("final")}
-        out["converged"], out["iterations"] = sym["converged"], sym["iterations"]
+        # The energy stays the doubles' halved (the one the candidates are ranked by: the
+        # reflection-aware solve's weights are the source's own cotangents, not the doubles'
+        # intrinsic Delaunay ones, so its energy is another number: open.reflection_energy).
+        out["converged"] = bool(out.get("converged", True)) and sym["converged"]
     out["source_flipped"] = out["target_flipped"] = False
     out["open"] = {"domain": "double", "method": f"doubling (symmetric class from the {cand.get('rough_map', 'capped map')})",
                    "boundary_pairing": pairing, "requested_pairing": cand["pairing"],
@@ -1604,6 +1613,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "source_weights_fallback": weights_fallback, "refined_near_boundary": refined,
                    "reflection_solve": cand.get("reflection_solve", "off" if not reflection_solve else
                                                 "not with landmarks" if len(lm) else ""),
+                   "reflection_energy": sym["energy"] if sym is not None else float("nan"),
+                   "reflection_iterations": sym["iterations"] if sym is not None else 0,
                    "untangled_vertices": len(untangled),
                    "untangled": (f"{flipped_before_untangling} folded faces; {len(untangled)} interior vertices moved "
                                  f"within their stars, {flipped} folded left" if untangled else ""),

@@ -288,11 +288,12 @@ class HalfLayout:
         raise ReflectionSolveError("a point could not be located on the target half")
 
 
-def _edge_weights(V, F, floor=0.1):
+def _edge_weights(V, F, floor=None):
     """Undirected edges (k, 2) of the half with their cotangent weights (the two faces' halves;
-    a boundary edge has one), each at least `floor` times the mean positive weight, as the closed
-    pipeline's own-edge weights (SolveOptions::own_weights_floor): positive weights keep the
-    energy convex. Returns (edges, weights)."""
+    a boundary edge has one: the double's weight is twice it), with `floor` each at least that
+    times the mean positive weight, as the closed pipeline's own-edge weights
+    (SolveOptions::own_weights_floor: positive weights keep the energy convex). Returns (edges,
+    weights)."""
     P = V[F]
     cot = np.empty((len(F), 3))
     for k in range(3):
@@ -305,6 +306,8 @@ def _edge_weights(V, F, floor=0.1):
     edges, inverse = np.unique(np.stack([lo, hi], axis=1), axis=0, return_inverse=True)
     w = np.zeros(len(edges))
     np.add.at(w, inverse.ravel(), 0.5 * cot.T.ravel())
+    if floor is None:
+        return edges, w
     positive = w[w > 0]
     return edges, np.maximum(w, floor * (positive.mean() if len(positive) else 1.0))
 
@@ -315,12 +318,15 @@ def _rotation_block(R):
 
 
 def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, max_iterations=200,
-               weight_floor=0.1):
+               weight_floor=None):
     """The reflection-aware harmonic map of the doubles of S onto T (open_double._Side, unrefined or
     refined alike), in the class of `forward` (the doubles' map's forward points: 'face',
     'barycentric' on T's double per vertex of S's double), source loop i onto target loop
     pairing[i]; reversing: the half onto the target's mirror half. layout: a HalfLayout of T's
-    half for this orientation (built when None).
+    half for this orientation (built when None). weight_floor: None (default) the cotangent
+    weights as they are (the discrete Dirichlet energy of the source's faces; a remeshed copy then
+    maps near the identity: the punctured torus onto its subdivision 0.30% of the diagonal), else
+    each weight at least that times the mean positive one (0.1: convex, 0.81% there).
 
     Returns a dict: 'forward' (face, barycentric on T's split half faces F2, per vertex of S's
     split half), 'inverse' (face, barycentric on S's F2 per vertex of T's split half), 'energy'
@@ -567,6 +573,7 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
             "energy": E, "energy_history": history, "gradient_history": gradients, "converged": bool(converged), "iterations": it,
             "gradient": gnorm, "boundary_off_geodesic": off, "intrinsic_flipped": intrinsic_flipped,
             "escaped": escaped, "inverse_unlocated": unlocated, "metric_error": layout.metric_error,
+            "weight_floor": weight_floor,
             "layout": layout}
 
 
