@@ -336,7 +336,12 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
     'intrinsic_flipped' (source faces whose image turns over in the metric), 'inverse_unlocated'
     (target vertices found in no source face's image, given the nearest), 'metric_error',
     'layout'. Raises ReflectionSolveError when the solve cannot be set up or a point cannot be
-    located."""
+    located.
+
+    Long on purpose (~180 lines): the start (boundary vertices put on their geodesics), the edges'
+    elements and the Newton iteration share the per-vertex arrays and closures (positions,
+    energy, logs, the reduced Hessian's blocks); split, each piece would take a dozen of them as
+    arguments. The way back to the meshes is _maps_back."""
     if layout is None:
         layout = HalfLayout(T.F2[:, ::-1] if reversing else T.F2, T.D)
     n = S.n2
@@ -509,6 +514,20 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
     # Boundary images on their geodesics: distance of z_b from the geodesic M_b(real axis).
     xb = _apply(_inv(Mb), z[bnd])
     off = float(np.max(np.arcsinh(2 * np.abs(xb.imag) / (1 - np.abs(xb) ** 2)))) if len(bnd) else 0.0
+    back = _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing)
+    back.update(energy=E, energy_history=history, gradient_history=gradients, converged=bool(converged),
+                iterations=it, gradient=gnorm, boundary_off_geodesic=off, metric_error=layout.metric_error,
+                weight_floor=weight_floor, layout=layout)
+    return back
+
+
+def _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing):
+    """solve_half's points z (per vertex of S's split half, in the layout's disk, vertex i near its
+    home face) back on the meshes: 'forward' (face of T.F2, barycentrics), 'inverse' (face of S.F2,
+    barycentrics per vertex of T's split half), 'intrinsic_flipped' (source faces whose image turns
+    over in the metric), 'escaped' (interior images located beyond the boundary),
+    'inverse_unlocated' (target vertices in no source face's image)."""
+    n = S.n2
     # Orientation of each source face's image in the metric (Klein: straight sides).
     eindex = {(int(a), int(b)): k for k, (a, b) in enumerate(edges)}
 
@@ -570,11 +589,7 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
     else:
         f_fw, b_fw = f_out, b_out
     return {"forward": {"face": f_fw, "barycentric": b_fw}, "inverse": {"face": inv_face, "barycentric": inv_bary},
-            "energy": E, "energy_history": history, "gradient_history": gradients, "converged": bool(converged), "iterations": it,
-            "gradient": gnorm, "boundary_off_geodesic": off, "intrinsic_flipped": intrinsic_flipped,
-            "escaped": escaped, "inverse_unlocated": unlocated, "metric_error": layout.metric_error,
-            "weight_floor": weight_floor,
-            "layout": layout}
+            "intrinsic_flipped": intrinsic_flipped, "escaped": escaped, "inverse_unlocated": unlocated}
 
 
 def _locate_all(layout, z, face, max_steps=100000):
