@@ -592,7 +592,7 @@ def _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing):
             "intrinsic_flipped": intrinsic_flipped, "escaped": escaped, "inverse_unlocated": unlocated}
 
 
-def _locate_all(layout, z, face, max_steps=100000):
+def _locate_all(layout, z, face, max_steps=20000):
     """layout.locate for every point at once: (face, barycentrics, W (n, 2, 2), outside)."""
     n = len(z)
     face = face.copy()
@@ -661,7 +661,7 @@ def _locate_in_triangles(K, tri_face, layout, n_vertices, k_nearest=48):
     return face, bary, vert[pick][unlocated], list(zip(best_t[pick][unlocated], pts[pick][unlocated]))
 
 
-def _walk_images(P, face, M, F, across, z, element, max_steps=100000):
+def _walk_images(P, face, M, F, across, z, element, max_steps=5000):
     """The source face (and barycentrics) whose image holds the Klein point P: a straight walk over
     the source's faces' images from `face`'s image carried by M (its first corner's point z[a]
     at M z[a]); each corner's copy is N_v z[v], a new corner d next to a known u taking
