@@ -265,28 +265,6 @@ class HalfLayout:
             M = self.transition[g, kg] @ M
         return _normalized(M)
 
-    def locate(self, z, face, max_steps=100000):
-        """Walks from `face` to the laid-out face holding z (a point in `face`'s frame). Returns
-        (face, barycentrics, the element W with W(z) in that face's placement, outside: whether
-        the walk stopped at the boundary)."""
-        W = np.eye(2, dtype=complex)
-        w = z
-        for _ in range(max_steps):
-            bary = _klein_barycentric(self.klein[face][None], np.atleast_1d(_klein(w)))[0]
-            k = int(np.argmin(bary))
-            if bary[k] >= -1e-12:
-                return face, bary, W, False
-            g = int(self.neighbour[face, k])
-            if g < 0:
-                return face, bary, W, True
-            # transition[face, k] takes g's placement onto the lift adjacent to face: a point
-            # beyond that edge is in g's placement after its inverse.
-            step = _inv(self.transition[face, k])
-            w = _apply(step, w)
-            W = _normalized(step @ W)
-            face = g
-        raise ReflectionSolveError("a point could not be located on the target half")
-
 
 def _edge_weights(V, F, floor=None):
     """Undirected edges (k, 2) of the half with their cotangent weights (the two faces' halves;
@@ -593,7 +571,9 @@ def _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing):
 
 
 def _locate_all(layout, z, face, max_steps=20000):
-    """layout.locate for every point at once: (face, barycentrics, W (n, 2, 2), outside)."""
+    """Walks every point z (in the frame of its start face) to the laid-out face holding it:
+    (face, barycentrics, W (n, 2, 2) with W z in that face's placement, outside: the walk stopped at
+    the boundary)."""
     n = len(z)
     face = face.copy()
     w = z.copy()
