@@ -1409,8 +1409,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     reflection_solve (default True; CLI --no-reflection-solve): the chosen candidate's class solved
     again on the source's half alone, the mirror half given by the reflections
     (open_reflection.solve_half: symmetric to round-off, the boundary on the target's geodesic
-    boundary exactly, own-edge cotangent weights), and so too every candidate refused as not
-    symmetric (ranked by its doubles' energy like the rest); used when it converges bijective in
+    boundary exactly, own-edge cotangent weights), and, when every candidate was refused as not
+    symmetric, theirs (ranked by their doubles' energy like the rest); used when it converges bijective in
     the metric, else the doubles' own half (the reason in the candidate's 'reflection_solve'); not
     with landmarks (the doubles hold them). 'open' 'reflection_solve' says what the chosen map used (docs/open_surfaces.md
     "Session 20").
@@ -1438,7 +1438,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
             if r is not None and not r:
                 raise _core.Cancelled("cancelled by the progress callback")
 
-    candidates, solved = [], []
+    candidates, solved, refused = [], [], []
     layouts = {}  # the target half laid out for the reflection-aware solve, per orientation
     for ti, (pairing, o, score) in enumerate(tasks):
         report(f"doubles: pairing {list(pairing)}, {o}", ti / max(len(tasks), 1))
@@ -1478,19 +1478,24 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                             status="ok" if err <= symmetry_tolerance and sheet >= 0.9 else
                             f"not symmetric (error {err:.3g} of the diagonal, {sheet:.2f} on the expected half)")
                 cand["alignment"] = _alignment(S, T, np.asarray(r["forward"]["position"])[:S.n])
-                sym = None
-                if cand["status"] != "ok" and reflection_solve and not len(lm):
-                    # Asymmetric beyond the tolerance (the artery onto the cow's small holes): the
-                    # class may still be mapped by the reflection-aware solve. Ranked by the
-                    # doubles' energy of the class as every other candidate.
-                    sym = _reflection_candidate(S, T, r, list(pairing), rev, layouts, cand)
                 if cand["status"] == "ok":
-                    solved.append((cand, r, rev, images, sym))
+                    solved.append((cand, r, rev, images, None))
+                else:
+                    refused.append((cand, r, rev, images))
             except _core.Cancelled:
                 raise
             except _core.Error as e:
                 cand.update(energy=float("inf"), status=f"failed: {e}")
             candidates.append(cand)
+    if not solved and reflection_solve and not len(lm):
+        # Every candidate asymmetric beyond the tolerance (the artery onto the cow's small holes):
+        # their classes solved on the half alone, ranked by the doubles' energy as before. (Not
+        # when some candidate is symmetric: a class of another pairing costs its walks for nothing;
+        # the pants A -> remeshed A went 18 -> 62 s.)
+        for cand, r, rev, images in refused:
+            sym = _reflection_candidate(S, T, r, cand["pairing"], rev, layouts, cand)
+            if sym is not None:
+                solved.append((cand, r, rev, images, sym))
     if not solved:
         raise _core.SolveError("open surfaces through their doubles: no candidate mapped: " + "; ".join(
             f"pairing {c['pairing']} {c['orientation']}: {c['status']}"

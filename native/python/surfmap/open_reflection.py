@@ -295,7 +295,7 @@ def _rotation_block(R):
     return np.stack([np.stack([R.real, -R.imag], -1), np.stack([R.imag, R.real], -1)], -2)
 
 
-def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, max_iterations=200,
+def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, max_iterations=60,
                weight_floor=None):
     """The reflection-aware harmonic map of the doubles of S onto T (open_double._Side, unrefined or
     refined alike), in the class of `forward` (the doubles' map's forward points: 'face',
@@ -492,19 +492,23 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
     # Boundary images on their geodesics: distance of z_b from the geodesic M_b(real axis).
     xb = _apply(_inv(Mb), z[bnd])
     off = float(np.max(np.arcsinh(2 * np.abs(xb.imag) / (1 - np.abs(xb) ** 2)))) if len(bnd) else 0.0
-    back = _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing)
+    back = _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing, inverse=converged)
     back.update(energy=E, energy_history=history, gradient_history=gradients, converged=bool(converged),
                 iterations=it, gradient=gnorm, boundary_off_geodesic=off, metric_error=layout.metric_error,
                 weight_floor=weight_floor, layout=layout)
     return back
 
 
-def _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing):
+def _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing, inverse=True, max_walks=0.02):
     """solve_half's points z (per vertex of S's split half, in the layout's disk, vertex i near its
     home face) back on the meshes: 'forward' (face of T.F2, barycentrics), 'inverse' (face of S.F2,
     barycentrics per vertex of T's split half), 'intrinsic_flipped' (source faces whose image turns
     over in the metric), 'escaped' (interior images located beyond the boundary),
-    'inverse_unlocated' (target vertices in no source face's image)."""
+    'inverse_unlocated' (target vertices in no source face's image). The inverse is computed only
+    when `inverse` and the forward map is bijective in the metric (else every target vertex is
+    unlocated: the map is refused anyway), and the walks only for at most `max_walks` of the target's
+    vertices (more left unlocated mean a tangled image: a candidate of another class, whose walks
+    would cost minutes)."""
     n = S.n2
     # Orientation of each source face's image in the metric (Klein: straight sides).
     eindex = {(int(a), int(b)): k for k, (a, b) in enumerate(edges)}
@@ -529,6 +533,11 @@ def _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing):
     escaped = int(np.sum(outside & ~on_b))
     b_out = np.maximum(b_out, 0)
     b_out /= b_out.sum(axis=1, keepdims=True)
+    if not inverse or intrinsic_flipped or escaped:
+        return {"forward": {"face": f_out, "barycentric": b_out[:, ::-1] if reversing else b_out},
+                "inverse": {"face": np.zeros(T.n2, dtype=np.int64), "barycentric": np.full((T.n2, 3), 1 / 3)},
+                "intrinsic_flipped": intrinsic_flipped, "escaped": escaped,
+                "inverse_unlocated": np.arange(T.n2)}
     # Inverse: every placed corner of the target half in the source faces' images, each image
     # brought next to the laid-out face of each of its corners in turn.
     versions = [
@@ -547,7 +556,7 @@ def _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing):
                        [_klein(_apply(M[:, None], tri[cut])) for M, cut in more])
     src_face = np.concatenate([np.tile(np.arange(len(Fs)), 3)] + [cut for _, cut in more])
     inv_face, inv_bary, unlocated, unlocated_start = _locate_in_triangles(K, src_face, layout, T.n2)
-    if len(unlocated):
+    if 0 < len(unlocated) <= max_walks * T.n2:
         # A placement in no nearby copy of an image (a long, thin image next to a rim crushed by the
         # map): walk across the source's faces from the nearest candidate's copy, each new corner
         # carried by its edge's element, to the image holding the placement.
