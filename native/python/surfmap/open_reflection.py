@@ -499,7 +499,7 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
     return back
 
 
-def _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing, inverse=True, max_walks=0.02):
+def _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing, inverse=True, max_walks=0.1):
     """solve_half's points z (per vertex of S's split half, in the layout's disk, vertex i near its
     home face) back on the meshes: 'forward' (face of T.F2, barycentrics), 'inverse' (face of S.F2,
     barycentrics per vertex of T's split half), 'intrinsic_flipped' (source faces whose image turns
