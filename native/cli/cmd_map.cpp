@@ -88,6 +88,8 @@ void register_map(CLI::App& app) {
     bool locate_initial_map = defaults.initial.locate;              // InitialMapOptions::locate
     bool boundary_swap = false;          // open surfaces (map_open.h)
     std::vector<int> boundary_pairing;  // open surfaces (map_open.h)
+    int refine_rings = OpenMapCliArgs().refine_rings, refine_levels = OpenMapCliArgs().refine_levels;
+    bool no_reflection_solve = !OpenMapCliArgs().reflection_solve;
   };
   auto a = std::make_shared<Args>();
   cmd->add_option("SRC", a->src, "Source mesh")->required();
@@ -176,6 +178,18 @@ void register_map(CLI::App& app) {
                   "Open surfaces: the target boundary loop of each source loop, by index (loops longest first; "
                   "e.g. '1 0' or '1,0'; default: loop i -> loop i)")
       ->delimiter(',');
+  cmd->add_option("--refine-rings", a->refine_rings,
+                  "Open surfaces through the doubles: where folds are left, the class is solved again on doubles "
+                  "whose faces within this many rings of the boundary are split (default 4; report "
+                  "open.refined_near_boundary)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--refine-levels", a->refine_levels,
+                  "Open surfaces through the doubles: how many times those faces are split (default 2; 0: the "
+                  "refinement fallback is off)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--no-reflection-solve", a->no_reflection_solve,
+                "Open surfaces through the doubles: keep the doubles' own solve, without the reflection-aware solve "
+                "of the half (report open.reflection_solve; docs/open_surfaces.md \"Session 20\")");
   cmd->add_option("--target-metric", a->target_metric,
                   "Genus >= 1: the target's uniformization metric: auto (default: flips, fixed only when the flip "
                   "path fails; report: target_metric_choice), flips (Newton with intrinsic "
@@ -220,7 +234,8 @@ void register_map(CLI::App& app) {
     std::optional<IntakeResult> src_closed = closed_or_none(a->src), dst_closed = load_target.get();
     if (!src_closed || !dst_closed) {
       if (map_open_pair({a->src, a->dst, a->out, a->report, a->correspondence, a->initial_out, a->quiet,
-                         a->landmarks, a->boundary_swap, a->boundary_pairing}))
+                         a->landmarks, a->boundary_swap, a->boundary_pairing, a->refine_rings, a->refine_levels,
+                         !a->no_reflection_solve}))
         return;
       if (!src_closed) src_closed = load_mesh(a->src);  // throws the source's error
       if (!dst_closed) dst_closed = load_mesh(a->dst);

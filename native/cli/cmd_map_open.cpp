@@ -44,6 +44,9 @@ bool map_open_pair(const OpenMapCliArgs& a) {
     if (!a.correspondence.empty()) args.insert(args.end(), {"--correspondence", a.correspondence});
     if (a.quiet) args.push_back("--quiet");
     if (a.boundary_swap) args.push_back("--boundary-swap");
+    args.insert(args.end(), {"--refine-rings", std::to_string(a.refine_rings), "--refine-levels",
+                             std::to_string(a.refine_levels)});
+    if (!a.reflection_solve) args.push_back("--no-reflection-solve");
     if (!a.landmarks.empty()) {
       read_landmarks(a.landmarks);  // the file's errors as for the other pairs
       args.insert(args.end(), {"--landmarks", a.landmarks});

@@ -16,6 +16,12 @@ struct OpenMapCliArgs {
   /// --boundary-pairing (target loop of each source loop, by index).
   bool boundary_swap = false;
   std::vector<int> boundary_pairing;
+  /// Through the doubles (surfmap/open_double.py surface_map_open): the
+  /// refinement fallback near the boundary (--refine-rings, --refine-levels;
+  /// 0 levels: off) and the reflection-aware solve of the half
+  /// (--no-reflection-solve turns it off).
+  int refine_rings = 4, refine_levels = 2;
+  bool reflection_solve = true;
 };
 
 /// Landmark pairs, one 'source_vertex target_vertex' per line; blank lines

@@ -129,7 +129,8 @@ std::vector<std::pair<int, int>> landmark_pairs(const py::object& landmarks) {
 // annuli through map/open_map.h. Runs with the GIL held except the solve.
 py::dict open_surface_map_dict(const RowMatrixX3d& vs, const RowMatrixX3i& fs, const RowMatrixX3d& vt,
                                const RowMatrixX3i& ft, const py::object& boundary_pairing,
-                               const py::object& landmarks, const py::object& progress) {
+                               const py::object& landmarks, const py::object& progress, int refine_rings,
+                               int refine_levels, bool reflection_solve) {
   OpenMapOptions options;
   parse_boundary_pairing(boundary_pairing, options);
   options.landmarks = landmark_pairs(landmarks);
@@ -169,7 +170,9 @@ py::dict open_surface_map_dict(const RowMatrixX3d& vs, const RowMatrixX3i& fs, c
     py::object pairing = boundary_pairing;
     return py::module_::import((package_name() + ".open_double").c_str())
         .attr("surface_map_open")(to_numpy(vs), to_numpy(fs), to_numpy(vt), to_numpy(ft), py::arg("boundary_pairing") = pairing,
-                                  py::arg("progress") = progress, py::arg("landmarks") = landmarks)
+                                  py::arg("progress") = progress, py::arg("landmarks") = landmarks,
+                                  py::arg("refine_rings") = refine_rings, py::arg("refine_levels") = refine_levels,
+                                  py::arg("reflection_solve") = reflection_solve)
         .cast<py::dict>();
   }
   report_progress(0.0);
@@ -208,7 +211,8 @@ void bind_map(py::module_& m) {
       "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric", "homotopy_images",
       "homotopy_both_signs", "flat_overlay", "cheap_direction_check", "compare_directions", "greedy_pants",
       "homotopy_extra_cuts", "own_weights_floor", "local_fold_repair", "fold_untangle", "target_loops", "two_way_ratio",
-      "snapped_start", "landmarks_may_fold", "through_shape", "face_charts", "locate_initial_map"));
+      "snapped_start", "landmarks_may_fold", "through_shape", "face_charts", "locate_initial_map", "refine_rings",
+      "refine_levels", "reflection_solve"));
   // What the module does beyond its keywords, for callers built against older modules (the
   // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
   m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
@@ -223,7 +227,7 @@ void bind_map(py::module_& m) {
          bool compare_directions, bool greedy_pants, int homotopy_extra_cuts, double own_weights_floor,
          bool local_fold_repair, bool fold_untangle, const std::string& target_loops, double two_way_ratio,
          bool snapped_start, bool landmarks_may_fold, bool through_shape, const std::string& face_charts,
-         bool locate_initial_map) {
+         bool locate_initial_map, int refine_rings, int refine_levels, bool reflection_solve) {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         // Open surfaces (issue 16): either side with a boundary.
@@ -232,7 +236,11 @@ void bind_map(py::module_& m) {
           py::gil_scoped_release release;
           open = has_boundary(vs, fs) || has_boundary(vt, ft);
         }
-        if (open) return open_surface_map_dict(vs, fs, vt, ft, boundary_pairing, landmarks, progress);
+        if (refine_rings < 1) throw InputError("refine_rings must be at least 1");
+        if (refine_levels < 0) throw InputError("refine_levels must be at least 0");
+        if (open)
+          return open_surface_map_dict(vs, fs, vt, ft, boundary_pairing, landmarks, progress, refine_rings,
+                                       refine_levels, reflection_solve);
         if (!boundary_pairing.is_none()) throw InputError("boundary_pairing: only for open surfaces (meshes with boundary loops)");
         SurfaceMapOptions opt;
         opt.homotopy.class_index = homotopy;
@@ -367,6 +375,9 @@ void bind_map(py::module_& m) {
       py::arg("through_shape") = HomotopyOptions().through_shape,
       py::arg("face_charts") = enum_name(UniformizationOptions().face_charts),
       py::arg("locate_initial_map") = InitialMapOptions().locate,
+      // Open pairs through the doubles only (surfmap/open_double.py surface_map_open's keywords and
+      // defaults; docs/open_surfaces.md "Session 19", "Session 20").
+      py::arg("refine_rings") = 4, py::arg("refine_levels") = 2, py::arg("reflection_solve") = true,
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
       "boundary loops (else InputError naming both); disks (0, 1) and annuli (0, 2) are mapped boundary onto boundary "
@@ -407,7 +418,12 @@ void bind_map(py::module_& m) {
       "(docs/python.md): `cheap_direction_check` (False: --no-cheap-direction-check), `compare_directions` "
       "(--compare-directions), `greedy_pants` (False: --no-greedy-pants), `homotopy_extra_cuts`, `own_weights_floor`, "
       "`local_fold_repair` (False: --no-local-fold-repair), `fold_untangle` (False: --no-fold-untangle), `snapped_start` (False: --no-snapped-start), `through_shape` (False: --no-through-shape: no class through a generated n-hole torus of the same genus when the energy stays at 3x the conformal bound or more), `landmarks_may_fold` (--landmarks-may-fold: the landmarks held by plain pins, the map returned where it folds, for its class), `target_loops` ('auto', 'embedding', 'metric'), `face_charts` ('auto', 'always', 'never'; --face-charts: genus >= 2 in per-face charts of the target when one chart cannot hold it, the snapped class only); `two_way_ratio` (no CLI flag; default 2): the other direction "
-      "is mapped when the energy is at least this many times the conformal bound (0: always). "
+      "is mapped when the energy is at least this many times the conformal bound (0: always). Open pairs through "
+      "the doubles: `refine_rings` (default 4; --refine-rings), `refine_levels` (default 2, 0: off; --refine-levels): "
+      "where folds are left, the class solved again on doubles refined that many times within that many rings of "
+      "the boundary (report open.refined_near_boundary); `reflection_solve` (default True; False: "
+      "--no-reflection-solve): the half solved alone, its mirror given by the reflections (report "
+      "open.reflection_solve; docs/open_surfaces.md \"Session 20\"). "
       "`progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
   m.def(

@@ -36,7 +36,7 @@ import sys
 
 import numpy as np
 
-from . import _core, open_cut_disk, open_untangle
+from . import _core, open_cut_disk, open_reflection, open_untangle
 
 #: (g, b) the conformal path of map/open_map.h maps (disk, annulus); every other open pair here.
 CONFORMAL_TOPOLOGIES = {(0, 1), (0, 2)}
@@ -905,10 +905,28 @@ def _half_correspondence(res_map, S, T):
     """From the doubles' map: per input source vertex (face, bary, position) on the target's input
     faces, boundary vertices snapped onto their paired target loop; per input target vertex the
     same on the source. Returns (forward, inverse, pairing, back_pairing, snap_distance)."""
-    def one_way(A, B, points):
+    def on_half(A, B, points):
         n = A.n
         f2, b2, _ = B.half_points(np.asarray(points["face"])[:n], np.asarray(points["barycentric"])[:n])
-        face, bary = B.to_input_faces(f2, b2)
+        return f2, b2
+    return _split_half_correspondence(S, T, on_half(S, T, res_map["forward"]), on_half(T, S, res_map["inverse"]))
+
+
+def _reflected_correspondence(sym, S, T):
+    """_half_correspondence of the reflection-aware solve (open_reflection.solve_half: points on
+    the split halves' faces already)."""
+    fw, inv = sym["forward"], sym["inverse"]
+    return _split_half_correspondence(S, T, (fw["face"][:S.n], fw["barycentric"][:S.n]),
+                                      (inv["face"][:T.n], inv["barycentric"][:T.n]))
+
+
+def _split_half_correspondence(S, T, forward, inverse):
+    """forward: (face, bary) on T's split half faces per input source vertex; inverse the same on
+    S's per input target vertex. On the input faces, boundary vertices snapped onto their paired
+    loop: (forward, inverse, pairing, back_pairing, snap_distance)."""
+    def one_way(A, B, points):
+        f2, b2 = points
+        face, bary = B.to_input_faces(np.asarray(f2), np.asarray(b2))
         pos = np.einsum("ij,ijk->ik", bary, B.V[B.F[face]])
         on_b = np.concatenate(A.loops)
         # Which B loop each A loop lands on: the loop nearest to most of its vertices.
@@ -926,8 +944,8 @@ def _half_correspondence(res_map, S, T):
         snap = float(np.linalg.norm(sp - pos[on_b], axis=1).max()) if len(on_b) else 0.0
         face[on_b], bary[on_b], pos[on_b] = sf, sb, sp
         return {"face": face, "barycentric": bary, "position": pos}, pairing, snap
-    fw, pairing, snap = one_way(S, T, res_map["forward"])
-    inv, back_pairing, snap_back = one_way(T, S, res_map["inverse"])
+    fw, pairing, snap = one_way(S, T, forward)
+    inv, back_pairing, snap_back = one_way(T, S, inverse)
     return fw, inv, pairing, back_pairing, max(snap, snap_back)
 
 
@@ -1241,12 +1259,60 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
         f"orientations of best loop lengths, distances{' and cap centres' if S.genus == 0 else ''}")
 
 
-def _half(S, T, r, reversing, untangle):
-    """The half's maps from the doubles' map r (_half_correspondence), the forward map's folded
+def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
+    """The reflection-aware solve (open_reflection.solve_half) of the class of the doubles' map r:
+    its result when it converged with every face positively oriented in the metric and every point
+    located, cand updated (reflection_energy: the half's with its own weights; symmetry_error 0:
+    exact by construction, the doubles' kept as doubles_symmetry_error; status ok, since the
+    doubles' symmetry no longer matters; 'energy' stays the doubles' halved, which ranks the
+    candidates); else None, the reason in cand['reflection_solve']. layouts: the target half's
+    HalfLayout per orientation and its metric, filled on first use."""
+    try:
+        if "metric" not in layouts:
+            layouts["metric"] = open_reflection.symmetric_metric(T.D)
+        if reversing not in layouts:
+            layouts[reversing] = open_reflection.HalfLayout(T.F2[:, ::-1] if reversing else T.F2, T.D,
+                                                            layouts["metric"])
+        why = []
+        # The source's cotangent weights as they are; where some are negative and the solve then
+        # fails, the weights floored at 0.1 of the mean (a convex energy).
+        for floor in (None, 0.1):
+            sym = open_reflection.solve_half(S, T, r["forward"], pairing, reversing, layouts[reversing],
+                                             weight_floor=floor)
+            why.append([w for w, bad in (
+                ("not converged (gradient %.3g)" % sym["gradient"], not sym["converged"]),
+                (f"{sym['intrinsic_flipped']} faces turned in the metric", sym["intrinsic_flipped"]),
+                (f"{sym['escaped']} interior images beyond the boundary", sym["escaped"]),
+                (f"{len(sym['inverse_unlocated'])} target vertices not located", len(sym["inverse_unlocated"])))
+                if bad])
+            if not why[-1]:
+                break
+    except _core.Cancelled:
+        raise
+    except _core.Error as e:
+        cand["reflection_solve"] = f"not used: {e}"
+        return None
+    if why[-1]:
+        cand["reflection_solve"] = "not used: " + "; ".join(f"{'cotangent weights' if k == 0 else 'floored at 0.1'}: "
+                                                           + ", ".join(w) for k, w in enumerate(why))
+        return None
+    cand["doubles_symmetry_error"], cand["doubles_status"] = cand.get("symmetry_error"), cand.get("status")
+    cand.update(reflection_energy=sym["energy"], symmetry_error=0.0, same_sheet=1.0, status="ok")
+    cand["reflection_solve"] = (f"used: {sym['iterations']} Newton steps"
+                                f"{', weights floored at 0.1' if sym['weight_floor'] else ''}, gradient {sym['gradient']:.2g}, boundary "
+                                f"{sym['boundary_off_geodesic']:.2g} off the geodesic, metric asymmetry "
+                                f"{sym['metric_error']:.2g} averaged out")
+    return sym
+
+
+def _half(S, T, r, reversing, untangle, sym=None):
+    """The half's maps from the doubles' map r (_half_correspondence), or from the reflection-aware
+    solve `sym` when given (_reflected_correspondence), the forward map's folded
     faces untangled (open_untangle) when `untangle`: a dict of fw, inv, pairing, back_pairing,
     snap, before (folded faces before the untangling), untangled (vertices moved), flipped, ears,
     ears_turned, ear (_flips)."""
-    fw, inv, pairing, back_pairing, snap = _half_correspondence(r, S, T)
+    fw, inv, pairing, back_pairing, snap = (_half_correspondence(r, S, T) if sym is None else
+                                            _reflected_correspondence(sym, S, T))
     before = _flips(S, T, fw, reversing)[0]
     untangled = []
     if before and untangle:
@@ -1284,7 +1350,7 @@ def _finish_half(S, T, h, reversing, lm, untangle):
 def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),
                      max_pairings=6, symmetry_tolerance=0.05, tie_tolerance=1e-3, progress=None, landmarks=None,
                      classes_per_pairing=2, boundary_twists=0,
-                     untangle=True, refine_rings=4, refine_levels=2, **options):
+                     untangle=True, refine_rings=4, refine_levels=2, reflection_solve=True, **options):
     """Map between two open surfaces of equal (g, b) through their doubles (module docstring).
 
     Vs (n_s,3), Fs (m_s,3), Vt, Ft: the meshes (input faces are triangles). boundary_pairing: None
@@ -1340,6 +1406,14 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     the input faces as before) and kept when fewer faces fold both ways together
     ('refined_near_boundary' says the counts). Only maps with folds left pay for it (poncho ->
     spot: 6 / 2 folded -> 1 / 2, 240 s more; docs/open_surfaces.md "Session 19").
+    reflection_solve (default True; CLI --no-reflection-solve): the chosen candidate's class solved
+    again on the source's half alone, the mirror half given by the reflections
+    (open_reflection.solve_half: symmetric to round-off, the boundary on the target's geodesic
+    boundary exactly, own-edge cotangent weights), and, when every candidate was refused as not
+    symmetric, theirs (ranked by their doubles' energy like the rest); used when it converges bijective in
+    the metric, else the doubles' own half (the reason in the candidate's 'reflection_solve'); not
+    with landmarks (the doubles hold them). 'open' 'reflection_solve' says what the chosen map used (docs/open_surfaces.md
+    "Session 20").
     Raises InputError for different (g, b) or a bad pairing, SolveError when no candidate
     maps."""
     S = _Side(Vs, Fs, "source")
@@ -1364,7 +1438,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
             if r is not None and not r:
                 raise _core.Cancelled("cancelled by the progress callback")
 
-    candidates, solved = [], []
+    candidates, solved, refused = [], [], []
+    layouts = {}  # the target half laid out for the reflection-aware solve, per orientation
     for ti, (pairing, o, score) in enumerate(tasks):
         report(f"doubles: pairing {list(pairing)}, {o}", ti / max(len(tasks), 1))
         rev = o == "reversing"
@@ -1404,15 +1479,28 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                             f"not symmetric (error {err:.3g} of the diagonal, {sheet:.2f} on the expected half)")
                 cand["alignment"] = _alignment(S, T, np.asarray(r["forward"]["position"])[:S.n])
                 if cand["status"] == "ok":
-                    solved.append((cand, r, rev, images))
+                    solved.append((cand, r, rev, images, None))
+                else:
+                    refused.append((cand, r, rev, images))
             except _core.Cancelled:
                 raise
             except _core.Error as e:
                 cand.update(energy=float("inf"), status=f"failed: {e}")
             candidates.append(cand)
+    if not solved and reflection_solve and not len(lm):
+        # Every candidate asymmetric beyond the tolerance (the artery onto the cow's small holes):
+        # their classes solved on the half alone, ranked by the doubles' energy as before. (Not
+        # when some candidate is symmetric: a class of another pairing costs its walks for nothing;
+        # the pants A -> remeshed A went 18 -> 62 s.)
+        for cand, r, rev, images in refused:
+            sym = _reflection_candidate(S, T, r, cand["pairing"], rev, layouts, cand)
+            if sym is not None:
+                solved.append((cand, r, rev, images, sym))
     if not solved:
         raise _core.SolveError("open surfaces through their doubles: no candidate mapped: " + "; ".join(
-            f"pairing {c['pairing']} {c['orientation']}: {c['status']}" for c in candidates))
+            f"pairing {c['pairing']} {c['orientation']}: {c['status']}"
+            + (f" (reflection-aware solve {c['reflection_solve']})" if c.get("reflection_solve") else "")
+            for c in candidates))
     # Lowest energy; ties (within tie_tolerance, relative) by the alignment of the shapes: every
     # pair of pants has an anticonformal involution (the reflection swapping its two hexagons),
     # so for (0, 3) each pairing's preserving and reversing maps have the same energy, as the
@@ -1423,13 +1511,15 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     # and, within 1e-3, the alignment decides.
     lowest = min(x[0]["energy"] for x in solved)
     tied = [x for x in solved if x[0]["energy"] <= lowest * (1 + tie_tolerance)]
-    cand, r, rev, chosen_images = min(tied, key=lambda x: x[0]["alignment"])
+    cand, r, rev, chosen_images, sym = min(tied, key=lambda x: x[0]["alignment"])
     for c in candidates:
         c["chosen"] = c is cand
     report("doubles: the half", 0.95)
-    h = _half(S, T, r, rev, untangle)
+    if sym is None and reflection_solve and not len(lm):
+        sym = _reflection_candidate(S, T, r, cand["pairing"], rev, layouts, cand)
+    h = _half(S, T, r, rev, untangle, sym)
     chosen_options = options
-    if h["flipped"] and "source_weights" not in options:
+    if h["flipped"] and "source_weights" not in options and sym is None:
         # As the closed pipeline's automatic weights (SourceWeights::Automatic): the intrinsic
         # Delaunay weights' straight images of the user's faces fold (here next to the boundary,
         # where the half is cut out of a map symmetric only up to the discretization), so the
@@ -1458,16 +1548,26 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         r3 = _double_map(S2, T2, _refined_images(S, T, S2, T2, chosen_images), chosen_options,
                          _landmark_pairs(S2, T2, lm, rev))
         # The half's maps through the refined sides' faces (their input meshes are S's and T's).
-        h3 = _half(S2, T2, r3, rev, untangle)
+        sym3, refined_reflection = None, ""
+        if sym is not None:
+            c3 = {}
+            sym3 = _reflection_candidate(S2, T2, r3, cand["pairing"], rev, {}, c3)
+            if sym3 is None:
+                refined_reflection = c3.get("reflection_solve", "")
+        h3 = _half(S2, T2, r3, rev, untangle, sym3)
         _finish_half(S2, T2, h3, rev, lm, untangle)
         refined = (f"{h['flipped']} flipped / {h['inv_flipped']} in the inverse; solved again on the doubles refined "
                    f"within {refine_rings} rings of the boundary {refine_levels} times ({S2.n2} / {T2.n2} vertices "
                    f"on the halves): {h3['flipped']} / {h3['inv_flipped']}")
+        if sym is not None:
+            refined += (" (reflection-aware solve)" if sym3 is not None else
+                        f" (the doubles' half: {refined_reflection})")
         if h3["flipped"] + h3["inv_flipped"] < h["flipped"] + h["inv_flipped"]:
             h3["weights_fallback"] = h.get("weights_fallback", "")
-            r, h = r3, h3
+            r, h, sym = r3, h3, sym3
             cand = dict(cand, energy=float(r3["energy"]["final"]) / 2)
-            cand["symmetry_error"], cand["same_sheet"] = _symmetry(r3, S2, T2, rev)
+            cand["symmetry_error"], cand["same_sheet"] = (_symmetry(r3, S2, T2, rev) if sym3 is None else
+                                                          (0.0, 1.0))
     fw, inv, pairing, back_pairing, snap = h["fw"], h["inv"], h["pairing"], h["back_pairing"], h["snap"]
     flipped, ears, ears_turned, ear = h["flipped"], h["ears"], h["ears_turned"], h["ear"]
     untangled, flipped_before_untangling = h["untangled"], h["before"]
@@ -1503,6 +1603,11 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     # The half's energies: half the doubles' (the map is symmetric).
     out["energy"] = {k: (v / 2 if isinstance(v, (int, float)) and not isinstance(v, bool) else v)
                      for k, v in r["energy"].items() if not _has_arrays(v)}
+    if sym is not None:
+        # The energy stays the doubles' halved (the one the candidates are ranked by: the
+        # reflection-aware solve's weights are the source's own cotangents, not the doubles'
+        # intrinsic Delaunay ones, so its energy is another number: open.reflection_energy).
+        out["converged"] = bool(out.get("converged", True)) and sym["converged"]
     out["source_flipped"] = out["target_flipped"] = False
     out["open"] = {"domain": "double", "method": f"doubling (symmetric class from the {cand.get('rough_map', 'capped map')})",
                    "boundary_pairing": pairing, "requested_pairing": cand["pairing"],
@@ -1511,6 +1616,10 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "same_sheet": cand["same_sheet"], "snap_distance": snap, "double_genus": int(r["genus"]),
                    "ear_triangles": ears, "ear_triangles_turned": ears_turned,
                    "source_weights_fallback": weights_fallback, "refined_near_boundary": refined,
+                   "reflection_solve": cand.get("reflection_solve", "off" if not reflection_solve else
+                                                "not with landmarks" if len(lm) else ""),
+                   "reflection_energy": sym["energy"] if sym is not None else float("nan"),
+                   "reflection_iterations": sym["iterations"] if sym is not None else 0,
                    "untangled_vertices": len(untangled),
                    "untangled": (f"{flipped_before_untangling} folded faces; {len(untangled)} interior vertices moved "
                                  f"within their stars, {flipped} folded left" if untangled else ""),
@@ -1610,6 +1719,9 @@ def main(argv=None):
     ap.add_argument("--boundary-pairing", default="")
     ap.add_argument("--boundary-swap", action="store_true")
     ap.add_argument("--landmarks", default="", help="'source_vertex target_vertex' lines ('#' comments)")
+    ap.add_argument("--refine-rings", type=int, default=4)
+    ap.add_argument("--refine-levels", type=int, default=2)
+    ap.add_argument("--no-reflection-solve", action="store_true")
     ap.add_argument("--quiet", action="store_true")
     a = ap.parse_args(argv)
     try:
@@ -1634,7 +1746,9 @@ def main(argv=None):
             def progress(stage, fraction):
                 print(f"surfmap: {stage}", file=sys.stderr, flush=True)
         landmarks = _read_landmarks(a.landmarks) if a.landmarks else None
-        r = surface_map_open(*meshes[0], *meshes[1], boundary_pairing=pairing, progress=progress, landmarks=landmarks)
+        r = surface_map_open(*meshes[0], *meshes[1], boundary_pairing=pairing, progress=progress, landmarks=landmarks,
+                             refine_rings=a.refine_rings, refine_levels=a.refine_levels,
+                             reflection_solve=not a.no_reflection_solve)
         rep = report_json(r)
         rep["source"], rep["target"] = a.src, a.dst
         text = {a.report: json.dumps(rep, indent=2) + "\n"}

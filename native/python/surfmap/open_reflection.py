@@ -1,0 +1,694 @@
+"""The reflection-aware solve of the doubles (docs/open_surfaces.md "Session 20"): the harmonic map
+between two doubles restricted to the maps that commute with their reflections, solved on the
+source's half alone.
+
+Why: the doubles' harmonic map (surfmap/open_double.py) is symmetric only up to the
+discretization (the closed pipeline's system of loops refines each double's faces where its loops
+cross them, which no reflection respects, so neither the target's metric nor the source's weights
+are exactly symmetric): 0.2-1% of the diagonal. Where the map crushes a wide source band into a
+narrow rim of the target (the artery's tubes onto the small holes of a cow) that asymmetry decides
+on which side of the rim an image lands, and the half folds onto itself.
+
+What: a map f of the doubles with f sigma_S = sigma_T f is given by its restriction to the source's
+half, each mirror vertex's image being its twin's reflected, and it keeps the boundary (the fixed
+curve of sigma_S) on the fixed curve of sigma_T: the target's boundary, a geodesic of the double's
+hyperbolic metric. Its energy is twice the half's. So the unknowns are one point per vertex of the
+source's half in the target half's hyperbolic metric with geodesic boundary; each boundary vertex
+slides along the geodesic its loop's image lies on (one real unknown: its arc length), interior
+vertices move freely. The restricted energy is geodesically convex (the constraint sets are
+geodesics of a Hadamard space), so the minimiser in the class is unique, and the mirror half is its
+exact reflection: symmetric to round-off, boundary onto boundary exactly.
+
+The target half's metric is the double's hyperbolic metric on the double's own connectivity
+(`_core.ricci_flow`, fixed connectivity, symmetric up to the mirror sheet's 1e-6 offset), each
+edge's length averaged with its mirror's so that it is exactly symmetric; its boundary vertices'
+angles then sum to pi (geodesic boundary). The half is laid out in the Poincare disk along a
+breadth-first tree of its faces (one fundamental domain cut along the tree's complement); the
+class is the doubles' map's (open_double._double_map: its images reflected onto the half give
+each source vertex a target face, each source edge the deck element of the shortest path of faces
+between its ends' faces). Solved by Newton-like steps preconditioned by the weighted connection
+Laplacian (the Hessian of a flat target; the hyperbolic one is larger, so the steps are descent
+directions), with a line search on the energy. Applies to any (g, b) through the doubles;
+open_double uses it for every candidate whose doubles' map was computed, the doubles' own half as
+the fallback when it fails (metric not converged, a vertex not located, not converged)."""
+from collections import deque
+
+import numpy as np
+
+from . import _core
+
+
+class ReflectionSolveError(_core.SolveError):
+    """The reflection-aware solve cannot be done on this pair (open_double falls back)."""
+
+
+# Moebius maps of the disk as 2x2 complex matrices [[a, b], [c, d]]: z -> (a z + b) / (c z + d).
+
+def _apply(M, z):
+    return (M[..., 0, 0] * z + M[..., 0, 1]) / (M[..., 1, 0] * z + M[..., 1, 1])
+
+
+def _inv(M):
+    out = np.empty_like(M)
+    out[..., 0, 0], out[..., 0, 1] = M[..., 1, 1], -M[..., 0, 1]
+    out[..., 1, 0], out[..., 1, 1] = -M[..., 1, 0], M[..., 0, 0]
+    return out
+
+
+def _normalized(M):
+    det = M[..., 0, 0] * M[..., 1, 1] - M[..., 0, 1] * M[..., 1, 0]
+    return M / np.sqrt(det)[..., None, None]
+
+
+def _to_origin(z):
+    """(..., 2, 2): the isometry z' -> (z' - z) / (1 - conj(z) z') taking z to 0."""
+    z = np.asarray(z, dtype=complex)
+    M = np.empty(z.shape + (2, 2), dtype=complex)
+    M[..., 0, 0], M[..., 0, 1] = 1, -z
+    M[..., 1, 0], M[..., 1, 1] = -np.conj(z), 1
+    return M
+
+
+def _derivative_at_zero(M):
+    """The complex derivative of z -> M(z) at 0: det / d^2."""
+    det = M[..., 0, 0] * M[..., 1, 1] - M[..., 0, 1] * M[..., 1, 0]
+    return det / M[..., 1, 1] ** 2
+
+
+def _frame(p, q):
+    """The isometry taking p to 0 and q onto the positive real axis."""
+    A = _to_origin(p)
+    w = _apply(A, q)
+    rot = np.exp(-1j * np.angle(w))
+    R = np.zeros(np.shape(rot) + (2, 2), dtype=complex)
+    R[..., 0, 0], R[..., 1, 1] = rot, 1
+    return R @ A
+
+
+def _klein(z):
+    return 2 * z / (1 + np.abs(z) ** 2)
+
+
+def _poincare(k):
+    return k / (1 + np.sqrt(np.maximum(1 - np.abs(k) ** 2, 0)))
+
+
+def _distance(z, w):
+    """Hyperbolic distance in the Poincare disk (curvature -1)."""
+    r = np.abs(z - w) / np.abs(1 - np.conj(z) * w)
+    return 2 * np.arctanh(np.minimum(r, 1 - 1e-16))
+
+
+def _klein_barycentric(K, k):
+    """Barycentrics of Klein points k (n,) in the triangles K (n, 3) (geodesic = straight there)."""
+    a, b, c = K[:, 0], K[:, 1], K[:, 2]
+    v0, v1, v2 = b - a, c - a, k - a
+    den = v0.real * v1.imag - v0.imag * v1.real
+    den = np.where(np.abs(den) > 0, den, 1e-300)
+    l1 = (v2.real * v1.imag - v2.imag * v1.real) / den
+    l2 = (v0.real * v2.imag - v0.imag * v2.real) / den
+    return np.stack([1 - l1 - l2, l1, l2], axis=1)
+
+
+def symmetric_metric(double, ricci_tolerance=1e-12):
+    """The double's hyperbolic metric on its own edges (`_core.ricci_flow`), each edge's length
+    averaged with its mirror's: (sorted edge keys a * n + b with a < b, lengths, the largest
+    relative difference averaged out). Shared by both orientations' layouts."""
+    D = double
+    r = _core.ricci_flow(D["V"], D["F"], background="hyperbolic", tolerance=ricci_tolerance)
+    if not r["converged"]:
+        raise ReflectionSolveError(f"the double's hyperbolic metric on its own edges: {r['message']}")
+    ev = np.asarray(r["edge_vertices"], dtype=np.int64)
+    L = np.asarray(r["edge_lengths"], dtype=np.float64)
+    n = len(D["V"])
+    key = np.minimum(ev[:, 0], ev[:, 1]) * n + np.maximum(ev[:, 0], ev[:, 1])
+    order = np.argsort(key)
+    key, L = key[order], L[order]
+    sig = D["sigma"]
+    ms = np.minimum(sig[ev[order, 0]], sig[ev[order, 1]]) * n + np.maximum(sig[ev[order, 0]], sig[ev[order, 1]])
+    Lm = L[np.searchsorted(key, ms)]
+    return key, 0.5 * (L + Lm), float(np.max(np.abs(L - Lm) / L))
+
+
+class HalfLayout:
+    """The target half in the Poincare disk: the double's hyperbolic metric made exactly symmetric,
+    the half's faces laid out along a breadth-first tree of faces from the face deepest inside.
+
+    F: (m, 3) the half's faces as mapped (orientation reversing: the corners reversed); double: the
+    double_surface dict of the half. Attributes: pos (m, 3) complex corner positions of each face,
+    neighbour (m, 3) the face across the edge opposite corner k (-1: boundary), transition
+    (m, 3, 2, 2) the isometry taking the neighbour's placement to the one adjacent to this face
+    across that edge (identity along the tree), metric_error (the largest relative difference of an
+    edge's length and its mirror's before averaging)."""
+
+    def __init__(self, F, double, metric=None):
+        F = np.asarray(F, dtype=np.int64)
+        D = double
+        key, L, self.metric_error = symmetric_metric(D) if metric is None else metric
+        n = len(D["V"])
+
+        def length(a, b):
+            return L[np.searchsorted(key, np.minimum(a, b) * n + np.maximum(a, b))]
+
+        m = len(F)
+        # lengths[f, k]: the edge opposite corner k.
+        lengths = np.stack([length(F[:, (k + 1) % 3], F[:, (k + 2) % 3]) for k in range(3)], axis=1)
+        self.F, self.lengths = F, lengths
+        edge_face = {}
+        for f, tri in enumerate(F):
+            for k in range(3):
+                edge_face[(int(tri[(k + 1) % 3]), int(tri[(k + 2) % 3]))] = (f, k)
+        neighbour = -np.ones((m, 3), dtype=np.int64)
+        across = -np.ones((m, 3), dtype=np.int64)  # the corner of the neighbour opposite the shared edge
+        for f, tri in enumerate(F):
+            for k in range(3):
+                g = edge_face.get((int(tri[(k + 2) % 3]), int(tri[(k + 1) % 3])))
+                if g is not None:
+                    neighbour[f, k], across[f, k] = g
+        self.neighbour, self.across = neighbour, across
+        # Root: the face farthest (in faces) from the boundary.
+        depth = np.full(m, -1, dtype=np.int64)
+        queue = deque(np.flatnonzero((neighbour < 0).any(axis=1)).tolist())
+        depth[list(queue)] = 0
+        while queue:
+            f = queue.popleft()
+            for g in neighbour[f]:
+                if g >= 0 and depth[g] < 0:
+                    depth[g] = depth[f] + 1
+                    queue.append(g)
+        root = int(np.argmax(depth))
+        pos = np.zeros((m, 3), dtype=complex)
+        a, b, c = lengths[root]  # opposite corners 0, 1, 2
+        pos[root, 1] = np.tanh(c / 2)
+        pos[root, 2] = np.tanh(b / 2) * np.exp(1j * self._angle(b, c, a))
+        placed = np.zeros(m, dtype=bool)
+        placed[root] = True
+        tree = np.zeros((m, 3), dtype=bool)
+        queue = deque([root])
+        while queue:
+            f = queue.popleft()
+            for k in range(3):
+                g = neighbour[f, k]
+                if g < 0 or placed[g]:
+                    continue
+                kg = across[f, k]
+                # The shared edge runs (k+1) -> (k+2) in f, (kg+1) -> (kg+2) in g reversed.
+                p, q = pos[f, (k + 2) % 3], pos[f, (k + 1) % 3]  # g's corners kg+1, kg+2
+                pos[g, (kg + 1) % 3], pos[g, (kg + 2) % 3] = p, q
+                pos[g, kg] = self._third(p, q, lengths[g, (kg + 2) % 3], lengths[g, (kg + 1) % 3], lengths[g, kg])
+                placed[g] = True
+                tree[f, k] = tree[g, kg] = True
+                queue.append(g)
+        if not placed.all():
+            raise ReflectionSolveError("the target half's faces are not connected")
+        self.pos, self.root, self.tree = pos, root, tree
+        # Transitions across the tree's complement: g's placement onto the one adjacent to f.
+        transition = np.zeros((m, 3, 2, 2), dtype=complex)
+        transition[..., 0, 0] = transition[..., 1, 1] = 1
+        f_idx, k_idx = np.nonzero((neighbour >= 0) & ~tree)
+        g_idx, kg_idx = neighbour[f_idx, k_idx], across[f_idx, k_idx]
+        pf, qf = pos[f_idx, (k_idx + 2) % 3], pos[f_idx, (k_idx + 1) % 3]
+        pg, qg = pos[g_idx, (kg_idx + 1) % 3], pos[g_idx, (kg_idx + 2) % 3]
+        transition[f_idx, k_idx] = _normalized(_inv(_frame(pf, qf)) @ _frame(pg, qg))
+        self.transition = transition
+        self.klein = _klein(pos)
+
+    @staticmethod
+    def _angle(b, c, a):
+        """The angle between sides b and c of a hyperbolic triangle with opposite side a."""
+        cos = (np.cosh(b) * np.cosh(c) - np.cosh(a)) / (np.sinh(b) * np.sinh(c))
+        return np.arccos(np.clip(cos, -1, 1))
+
+    def _third(self, p, q, lp, lq, lpq):
+        """The point at distance lp from p and lq from q, left of p -> q."""
+        M = _frame(p, q)
+        ang = self._angle(lp, lpq, lq)
+        w = np.tanh(lp / 2) * np.exp(1j * ang)
+        return _apply(_inv(M), w)
+
+    def point(self, face, bary):
+        """Points given by barycentrics on laid-out faces (Klein-linear)."""
+        return _poincare(np.einsum("ij,ij->i", bary, self.klein[face]))
+
+    def path_element(self, start, goal, max_faces=20000):
+        """The element carrying `start`'s placement to the lift adjacent to `goal`'s along the
+        shortest path of faces between them (breadth first)."""
+        if start == goal:
+            return np.eye(2, dtype=complex)
+        prev = {start: (-1, -1)}
+        queue = deque([start])
+        while queue:
+            f = queue.popleft()
+            if f == goal:
+                break
+            for k in range(3):
+                g = int(self.neighbour[f, k])
+                if g >= 0 and g not in prev:
+                    prev[g] = (f, k)
+                    queue.append(g)
+            if len(prev) > max_faces:
+                raise ReflectionSolveError("a source edge's image spans too many target faces")
+        if goal not in prev:
+            raise ReflectionSolveError("a source edge's ends lie on unconnected target faces")
+        # rho = A(f_{k-1} -> f_k) ... A(f_0 -> f_1) along start = f_0, ..., f_k = goal, where
+        # A(f -> g) = transition[g, corner opposite the shared edge] takes f's placement onto the
+        # lift adjacent to g (the identity along the tree).
+        path = []
+        g = goal
+        while g != start:
+            f, k = prev[g]
+            path.append((f, k))
+            g = f
+        M = np.eye(2, dtype=complex)
+        for f, k in path[::-1]:
+            g, kg = int(self.neighbour[f, k]), int(self.across[f, k])
+            M = self.transition[g, kg] @ M
+        return _normalized(M)
+
+
+def _edge_weights(V, F, floor=None):
+    """Undirected edges (k, 2) of the half with their cotangent weights (the two faces' halves;
+    a boundary edge has one: the double's weight is twice it), with `floor` each at least that
+    times the mean positive weight, as the closed pipeline's own-edge weights
+    (SolveOptions::own_weights_floor: positive weights keep the energy convex). Returns (edges,
+    weights)."""
+    P = V[F]
+    cot = np.empty((len(F), 3))
+    for k in range(3):
+        u = P[:, (k + 1) % 3] - P[:, k]
+        v = P[:, (k + 2) % 3] - P[:, k]
+        cot[:, k] = np.einsum("ij,ij->i", u, v) / np.maximum(np.linalg.norm(np.cross(u, v), axis=1), 1e-300)
+    a = np.concatenate([F[:, (k + 1) % 3] for k in range(3)])
+    b = np.concatenate([F[:, (k + 2) % 3] for k in range(3)])
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    edges, inverse = np.unique(np.stack([lo, hi], axis=1), axis=0, return_inverse=True)
+    w = np.zeros(len(edges))
+    np.add.at(w, inverse.ravel(), 0.5 * cot.T.ravel())
+    if floor is None:
+        return edges, w
+    positive = w[w > 0]
+    return edges, np.maximum(w, floor * (positive.mean() if len(positive) else 1.0))
+
+
+def _rotation_block(R):
+    """Real 2x2 blocks of the multiplications by the complex numbers R."""
+    return np.stack([np.stack([R.real, -R.imag], -1), np.stack([R.imag, R.real], -1)], -2)
+
+
+def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, max_iterations=60,
+               weight_floor=None):
+    """The reflection-aware harmonic map of the doubles of S onto T (open_double._Side, unrefined or
+    refined alike), in the class of `forward` (the doubles' map's forward points: 'face',
+    'barycentric' on T's double per vertex of S's double), source loop i onto target loop
+    pairing[i]; reversing: the half onto the target's mirror half. layout: a HalfLayout of T's
+    half for this orientation (built when None). weight_floor: None (default) the cotangent
+    weights as they are (the discrete Dirichlet energy of the source's faces; a remeshed copy then
+    maps near the identity: the punctured torus onto its subdivision 0.30% of the diagonal), else
+    each weight at least that times the mean positive one (0.1: convex, 0.81% there).
+
+    Returns a dict: 'forward' (face, barycentric on T's split half faces F2, per vertex of S's
+    split half), 'inverse' (face, barycentric on S's F2 per vertex of T's split half), 'energy'
+    (the half's: the symmetric doubles' map's is twice it), 'converged', 'iterations',
+    'gradient' (the largest vertex gradient at the end over the largest weighted edge length),
+    'boundary_off_geodesic' (largest hyperbolic distance of a boundary image from its geodesic),
+    'intrinsic_flipped' (source faces whose image turns over in the metric), 'inverse_unlocated'
+    (target vertices found in no source face's image, given the nearest), 'metric_error',
+    'layout'. Raises ReflectionSolveError when the solve cannot be set up or a point cannot be
+    located.
+
+    Long on purpose (~180 lines): the start (boundary vertices put on their geodesics), the edges'
+    elements and the Newton iteration share the per-vertex arrays and closures (positions,
+    energy, logs, the reduced Hessian's blocks); split, each piece would take a dozen of them as
+    arguments. The way back to the meshes is _maps_back."""
+    if layout is None:
+        layout = HalfLayout(T.F2[:, ::-1] if reversing else T.F2, T.D)
+    n = S.n2
+    face2, bary2, _ = T.half_points(np.asarray(forward["face"])[:n], np.asarray(forward["barycentric"])[:n])
+    if reversing:
+        bary2 = bary2[:, ::-1]
+    home = face2.copy()
+    z = layout.point(face2, bary2)
+    # Boundary vertices: on the geodesic through the paired target loop's edge nearest to their
+    # start image (3D), parametrised by arc length s along it: z = M_b(tanh(s / 2)).
+    s_loop = S.loop_of_vertex()
+    bnd = np.flatnonzero(s_loop >= 0)
+    Fl = layout.F
+    start_xyz = np.einsum("ij,ijk->ik", bary2, T.V2[Fl[face2]])
+    edge_of = {}
+    for f in range(len(Fl)):
+        for k in range(3):
+            if layout.neighbour[f, k] < 0:
+                edge_of[(int(Fl[f, (k + 1) % 3]), int(Fl[f, (k + 2) % 3]))] = (f, k)
+    Mb = np.zeros((len(bnd), 2, 2), dtype=complex)
+    s = np.zeros(len(bnd))
+    for idx, v in enumerate(bnd):
+        loop = T.loops[pairing[s_loop[v]]]
+        A, B = T.V2[loop], T.V2[np.roll(loop, -1)]
+        d = B - A
+        t = np.clip(np.einsum("ij,ij->i", start_xyz[v] - A, d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-300), 0, 1)
+        j = int(np.argmin(np.linalg.norm(A + t[:, None] * d - start_xyz[v], axis=1)))
+        u, w = int(loop[j]), int(loop[(j + 1) % len(loop)])
+        f, k = edge_of[(u, w)] if (u, w) in edge_of else edge_of[(w, u)]
+        pu = layout.pos[f, list(Fl[f]).index(u)]
+        pw = layout.pos[f, list(Fl[f]).index(w)]
+        Mb[idx] = _normalized(_inv(_frame(pu, pw)))
+        s[idx] = t[j] * 2 * np.arctanh(np.abs(_apply(_frame(pu, pw), pw)))
+        home[v] = f
+    edges, w = _edge_weights(S.V2, S.F2, weight_floor)
+    # Each edge's element: start's placement (its j end's home face) onto the lift next to i's.
+    cache = {}
+    rho = np.empty((len(edges), 2, 2), dtype=complex)
+    for e, (i, j) in enumerate(edges):
+        key = (int(home[j]), int(home[i]))
+        if key not in cache:
+            cache[key] = layout.path_element(*key)
+        rho[e] = cache[key]
+    rho_inv = _inv(rho)
+    I, J = edges[:, 0], edges[:, 1]
+    interior = np.ones(n, dtype=bool)
+    interior[bnd] = False
+    col = -np.ones(n, dtype=np.int64)
+    n_int = int(interior.sum())
+    col[interior] = 2 * np.arange(n_int)
+    col[bnd] = 2 * n_int + np.arange(len(bnd))
+    n_var = 2 * n_int + len(bnd)
+
+    def place(z, s):
+        z = z.copy()
+        z[bnd] = _apply(Mb, np.tanh(s / 2))
+        return z
+
+    def energy(z):
+        return float(np.sum(w * _distance(z[I], _apply(rho, z[J])) ** 2))
+
+    from scipy import sparse
+    from scipy.sparse.linalg import spsolve
+
+    def logs(z, a, b, M):
+        """log at z[a] (in a's chart at 0, hyperbolic units) of M z[b]; and the chart rotation of b's
+        tangent vectors into a's."""
+        Ta = _to_origin(z[a])
+        y = _apply(Ta, _apply(M, z[b]))
+        r = np.abs(y)
+        lg = np.where(r > 0, 2 * np.arctanh(np.minimum(r, 1 - 1e-16)) / np.where(r > 0, r, 1), 0) * y
+        D = _derivative_at_zero(Ta @ M @ _inv(_to_origin(z[b])))
+        return lg, D / np.abs(D)
+
+    z = place(z, s)
+    E = energy(z)
+    history, gradients = [E], []
+    converged, it, gnorm = False, 0, np.inf
+    scale = float(np.max(w * _distance(z[I], _apply(rho, z[J]))))
+    for it in range(1, max_iterations + 1):
+        lg_ij, R_ij = logs(z, I, J, rho)
+        lg_ji, R_ji = logs(z, J, I, rho_inv)
+        g = np.zeros(n, dtype=complex)
+        np.add.at(g, I, -2 * w * lg_ij)
+        np.add.at(g, J, -2 * w * lg_ji)
+        # Boundary vertices: the geodesic's unit direction in their chart (increasing s).
+        xb = np.tanh(s / 2)
+        Db = (Mb[:, 0, 0] * Mb[:, 1, 1] - Mb[:, 0, 1] * Mb[:, 1, 0]) / (Mb[:, 1, 0] * xb + Mb[:, 1, 1]) ** 2
+        Db = Db * _derivative_at_zero(_inv(_to_origin(z[bnd]))) ** -1
+        ub = Db / np.abs(Db)
+        # Reduced gradient: interior (re, im), boundary its component along the geodesic.
+        grad = np.zeros(n_var)
+        grad[col[interior]] = g[interior].real
+        grad[col[interior] + 1] = g[interior].imag
+        grad[col[bnd]] = (g[bnd] * np.conj(ub)).real
+        gnorm = max(float(np.max(np.abs(g[interior]))) if n_int else 0.0,
+                    float(np.max(np.abs(grad[col[bnd]]))) if len(bnd) else 0.0) / max(scale, 1e-300)
+        gradients.append(gnorm)
+        if gnorm <= tolerance:
+            converged = True
+            break
+        # The connection Laplacian: 2 w per edge on both diagonal blocks, -2 w R off them.
+        U = np.ones(n, dtype=complex)
+        U[bnd] = ub
+        rows, cols, vals = [], [], []
+
+        def add_block(a, b, blocks):
+            # blocks (k, 2, 2) between vertices a's and b's tangent planes, reduced by their bases.
+            for da in range(2):
+                for db in range(2):
+                    ra = np.where(interior[a], col[a] + da, col[a])
+                    cb = np.where(interior[b], col[b] + db, col[b])
+                    v = blocks[:, da, db].copy()
+                    # A boundary vertex's one column is its direction u: the complex vector u as (re, im).
+                    ua = np.where(interior[a], 1.0, np.where(da == 0, U[a].real, U[a].imag))
+                    ub_ = np.where(interior[b], 1.0, np.where(db == 0, U[b].real, U[b].imag))
+                    rows.append(ra)
+                    cols.append(cb)
+                    vals.append(v * ua * ub_)
+
+        # The Hessian of d^2 in the hyperbolic plane, in frames carried along the edge: along the
+        # edge 2 on the diagonal, -2 across; normal to it 2 d coth d and -2 d / sinh d (Jacobi
+        # fields; docs/method.md section 7 has the same radial and normal blocks).
+        d = np.abs(lg_ij)
+        e = np.where(d > 0, lg_ij / np.where(d > 0, d, 1), 1)
+        e_ji = np.where(d > 0, lg_ji / np.where(d > 0, d, 1), 1)
+        small = d < 1e-4
+        c = np.where(small, 1 + d ** 2 / 3, d / np.tanh(np.where(small, 1, d)))
+        sn = np.where(small, 1 - d ** 2 / 6, d / np.sinh(np.where(small, 1, d)))
+        eye = np.eye(2)
+
+        def radial_normal(e, along, normal):
+            P = np.stack([np.stack([e.real * e.real, e.real * e.imag], -1),
+                          np.stack([e.real * e.imag, e.imag * e.imag], -1)], -2)
+            return along[:, None, None] * P + normal[:, None, None] * (eye - P)
+
+        w2 = 2 * w
+        add_block(I, I, radial_normal(e, w2, w2 * c))
+        add_block(J, J, radial_normal(e_ji, w2, w2 * c))
+        add_block(I, J, -radial_normal(e, w2, w2 * sn) @ _rotation_block(R_ij))
+        add_block(J, I, -radial_normal(e_ji, w2, w2 * sn) @ _rotation_block(R_ji))
+        H = sparse.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                              shape=(n_var, n_var))
+        H = H + sparse.identity(n_var, format="csc") * (1e-12 * float(H.diagonal().max()))
+        step = spsolve(H, -grad)
+        slope = float(grad @ step)
+        if not slope < 0:
+            step, slope = -grad, -float(grad @ grad)
+        alpha = 1.0
+        while True:
+            p = np.zeros(n, dtype=complex)
+            p[interior] = alpha * (step[col[interior]] + 1j * step[col[interior] + 1])
+            r = np.abs(p)
+            moved = np.where(r > 0, np.tanh(r / 2) / np.where(r > 0, r, 1), 0) * p
+            z_new = _apply(_inv(_to_origin(z)), moved)
+            s_new = s + alpha * step[col[bnd]]
+            z_new = place(z_new, s_new)
+            E_new = energy(z_new)
+            if E_new <= E + 1e-4 * alpha * slope or alpha < 1e-8:
+                break
+            alpha *= 0.5
+        if alpha < 1e-8 and E_new > E:
+            break  # no descent left: at the floating-point floor
+        rel = (E - E_new) / max(E, 1e-300)
+        z, s, E = z_new, s_new, E_new
+        history.append(E)
+        if 0 <= rel < 1e-15:
+            converged = gnorm <= 1e3 * tolerance
+            break
+    # Boundary images on their geodesics: distance of z_b from the geodesic M_b(real axis).
+    xb = _apply(_inv(Mb), z[bnd])
+    off = float(np.max(np.arcsinh(2 * np.abs(xb.imag) / (1 - np.abs(xb) ** 2)))) if len(bnd) else 0.0
+    back = _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing, inverse=converged)
+    back.update(energy=E, energy_history=history, gradient_history=gradients, converged=bool(converged),
+                iterations=it, gradient=gnorm, boundary_off_geodesic=off, metric_error=layout.metric_error,
+                weight_floor=weight_floor, layout=layout)
+    return back
+
+
+def _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing, inverse=True, max_walks=0.1):
+    """solve_half's points z (per vertex of S's split half, in the layout's disk, vertex i near its
+    home face) back on the meshes: 'forward' (face of T.F2, barycentrics), 'inverse' (face of S.F2,
+    barycentrics per vertex of T's split half), 'intrinsic_flipped' (source faces whose image turns
+    over in the metric), 'escaped' (interior images located beyond the boundary),
+    'inverse_unlocated' (target vertices in no source face's image). The inverse is computed only
+    when `inverse` and the forward map is bijective in the metric (else every target vertex is
+    unlocated: the map is refused anyway), and the walks only for at most `max_walks` of the target's
+    vertices (more left unlocated mean a tangled image: a candidate of another class, whose walks
+    would cost minutes)."""
+    n = S.n2
+    # Orientation of each source face's image in the metric (Klein: straight sides).
+    eindex = {(int(a), int(b)): k for k, (a, b) in enumerate(edges)}
+
+    def element(a, b):
+        """Per pair of vertex arrays the element taking b's lift next to a's."""
+        out = np.empty((len(a), 2, 2), dtype=complex)
+        for k, (x, y) in enumerate(zip(a, b)):
+            out[k] = rho[eindex[(x, y)]] if x < y else rho_inv[eindex[(y, x)]]
+        return out
+
+    Fs = S.F2
+    r_ab, r_ac = element(Fs[:, 0], Fs[:, 1]), element(Fs[:, 0], Fs[:, 2])
+    tri = np.stack([z[Fs[:, 0]], _apply(r_ab, z[Fs[:, 1]]), _apply(r_ac, z[Fs[:, 2]])], axis=1)
+    kt = _klein(tri)
+    orient = ((kt[:, 1] - kt[:, 0]) * np.conj(kt[:, 2] - kt[:, 0])).imag
+    intrinsic_flipped = int(np.sum(orient >= 0))  # Im((b - a) conj(c - a)) < 0: counterclockwise
+    # Forward: each source vertex located on the laid-out half.
+    f_out, b_out, W, outside = _locate_all(layout, z, home)
+    on_b = np.zeros(n, dtype=bool)
+    on_b[bnd] = True
+    escaped = int(np.sum(outside & ~on_b))
+    b_out = np.maximum(b_out, 0)
+    b_out /= b_out.sum(axis=1, keepdims=True)
+    if not inverse or intrinsic_flipped or escaped:
+        return {"forward": {"face": f_out, "barycentric": b_out[:, ::-1] if reversing else b_out},
+                "inverse": {"face": np.zeros(T.n2, dtype=np.int64), "barycentric": np.full((T.n2, 3), 1 / 3)},
+                "intrinsic_flipped": intrinsic_flipped, "escaped": escaped,
+                "inverse_unlocated": np.arange(T.n2)}
+    # Inverse: every placed corner of the target half in the source faces' images, each image
+    # brought next to the laid-out face of each of its corners in turn.
+    versions = [
+        (np.einsum("fij,fjk->fik", W[Fs[:, 0]], np.broadcast_to(np.eye(2), r_ab.shape)), 0),
+        (W[Fs[:, 1]] @ _inv(r_ab), 1),
+        (W[Fs[:, 2]] @ _inv(r_ac), 2)]
+    # An image straddling a cut edge of the layout next to that corner's face: also the copy beyond
+    # each of the face's cut edges.
+    more = []
+    for M, corner in versions:
+        loc = f_out[Fs[:, corner]]
+        for k in range(3):
+            cut = np.flatnonzero(~layout.tree[loc, k] & (layout.neighbour[loc, k] >= 0))
+            more.append((_inv(layout.transition[loc[cut], k]) @ M[cut], cut))
+    K = np.concatenate([_klein(_apply(M[:, None], tri)) for M, _ in versions] +
+                       [_klein(_apply(M[:, None], tri[cut])) for M, cut in more])
+    src_face = np.concatenate([np.tile(np.arange(len(Fs)), 3)] + [cut for _, cut in more])
+    inv_face, inv_bary, unlocated, unlocated_start = _locate_in_triangles(K, src_face, layout, T.n2)
+    if 0 < len(unlocated) <= max_walks * T.n2:
+        # A placement in no nearby copy of an image (a long, thin image next to a rim crushed by the
+        # map): walk across the source's faces from the nearest candidate's copy, each new corner
+        # carried by its edge's element, to the image holding the placement.
+        Ms = np.concatenate([M for M, _ in versions] + [M for M, _ in more])
+        from .open_double import _face_neighbours  # (open_double imports this module)
+        across = np.roll(_face_neighbours(Fs), -1, axis=1)  # column k: across the edge opposite corner k
+        still = []
+        for v, (t, P) in zip(unlocated, unlocated_start):
+            got = _walk_images(P, int(src_face[t]), Ms[t], Fs, across, z, element)
+            if got is None:
+                still.append(int(v))
+            else:
+                inv_face[v], inv_bary[v] = got
+        unlocated = np.array(still, dtype=np.int64)
+    if reversing:
+        f_fw, b_fw = f_out, b_out[:, ::-1]
+    else:
+        f_fw, b_fw = f_out, b_out
+    return {"forward": {"face": f_fw, "barycentric": b_fw}, "inverse": {"face": inv_face, "barycentric": inv_bary},
+            "intrinsic_flipped": intrinsic_flipped, "escaped": escaped, "inverse_unlocated": unlocated}
+
+
+def _locate_all(layout, z, face, max_steps=20000):
+    """Walks every point z (in the frame of its start face) to the laid-out face holding it:
+    (face, barycentrics, W (n, 2, 2) with W z in that face's placement, outside: the walk stopped at
+    the boundary)."""
+    n = len(z)
+    face = face.copy()
+    w = z.copy()
+    W = np.broadcast_to(np.eye(2, dtype=complex), (n, 2, 2)).copy()
+    bary = np.zeros((n, 3))
+    outside = np.zeros(n, dtype=bool)
+    active = np.arange(n)
+    for _ in range(max_steps):
+        if len(active) == 0:
+            break
+        b = _klein_barycentric(layout.klein[face[active]], _klein(w[active]))
+        bary[active] = b
+        k = np.argmin(b, axis=1)
+        low = b[np.arange(len(active)), k] < -1e-12
+        g = layout.neighbour[face[active], k]
+        stop = ~low | (g < 0)
+        outside[active[low & (g < 0)]] = True
+        mv = active[~stop]
+        if len(mv):
+            step = _inv(layout.transition[face[mv], k[~stop]])
+            w[mv] = _apply(step, w[mv])
+            W[mv] = _normalized(step @ W[mv])
+            face[mv] = g[~stop]
+        active = mv
+    else:
+        raise ReflectionSolveError("points could not be located on the target half")
+    return face, bary, W, outside
+
+
+def _locate_in_triangles(K, tri_face, layout, n_vertices, k_nearest=48):
+    """Per target vertex (of the laid-out faces' corners) the source face and barycentrics of the
+    Klein triangle K (t, 3) holding one of its placed positions; those in none get the nearest
+    triangle's clamped barycentrics and are returned with that triangle and their placement
+    (Klein) for solve_half's walk."""
+    from scipy.spatial import cKDTree
+    F = layout.F
+    vert = F.ravel()
+    pts = layout.klein.ravel()
+    cen = K.mean(axis=1)
+    tree = cKDTree(np.stack([cen.real, cen.imag], axis=1))
+    kq = min(k_nearest, len(K))
+    _, cand = tree.query(np.stack([pts.real, pts.imag], axis=1), k=kq)
+    cand = cand.reshape(len(pts), kq)
+    best = np.full(len(pts), -np.inf)
+    best_t = np.zeros(len(pts), dtype=np.int64)
+    best_b = np.zeros((len(pts), 3))
+    for c in range(kq):
+        t = cand[:, c]
+        b = _klein_barycentric(K[t], pts)
+        m = b.min(axis=1)
+        better = m > best
+        best[better], best_t[better], best_b[better] = m[better], t[better], b[better]
+    # Per vertex the placement with the best (largest least) barycentric.
+    order = np.lexsort((-best, vert))
+    first = np.ones(len(order), dtype=bool)
+    first[1:] = vert[order][1:] != vert[order][:-1]
+    pick = order[first]
+    face = np.zeros(n_vertices, dtype=np.int64)
+    bary = np.zeros((n_vertices, 3))
+    face[vert[pick]] = tri_face[best_t[pick]]
+    b = np.maximum(best_b[pick], 0)
+    bary[vert[pick]] = b / b.sum(axis=1, keepdims=True)
+    unlocated = np.flatnonzero(best[pick] < -1e-9)
+    # Per vertex left: its best candidate triangle and the placement tested in it.
+    return face, bary, vert[pick][unlocated], list(zip(best_t[pick][unlocated], pts[pick][unlocated]))
+
+
+def _walk_images(P, face, M, F, across, z, element, max_steps=5000):
+    """The source face (and barycentrics) whose image holds the Klein point P: a straight walk over
+    the source's faces' images from `face`'s image carried by M (its first corner's point z[a]
+    at M z[a]); each corner's copy is N_v z[v], a new corner d next to a known u taking
+    N_u element(u, d). None when the walk leaves the source."""
+    N = {int(F[face, 0]): M}
+    N[int(F[face, 1])] = M @ element(F[face, :1], F[face, 1:2])[0]
+    N[int(F[face, 2])] = M @ element(F[face, :1], F[face, 2:3])[0]
+    for _ in range(max_steps):
+        tri = F[face]
+        X = np.array([_apply(N[int(v)], z[v]) for v in tri])
+        b = _klein_barycentric(_klein(X)[None], np.array([P]))[0]
+        k = int(np.argmin(b))
+        if b[k] >= -1e-10:
+            b = np.maximum(b, 0)
+            return face, b / b.sum()
+        g = int(across[face, k])
+        if g < 0:
+            # Beyond a boundary edge of the source: a target boundary vertex's placement lies on
+            # that edge's geodesic up to round-off (a straight line in Klein coordinates; a thin
+            # image makes the barycentric large all the same). On the edge: found; beyond one
+            # of its ends: on across the edge opposite that end.
+            K = _klein(X)
+            e0, e1 = K[(k + 1) % 3], K[(k + 2) % 3]
+            off_line = abs(((e1 - e0) * np.conj(P - e0)).imag) / max(abs(e1 - e0), 1e-300)
+            if off_line > 1e-9:
+                return None
+            t = ((P - e0) * np.conj(e1 - e0)).real / max(abs(e1 - e0) ** 2, 1e-300)
+            if 0 <= t <= 1:
+                b = np.zeros(3)
+                b[(k + 1) % 3], b[(k + 2) % 3] = 1 - t, t
+                return face, b
+            k = (k + 1) % 3 if t > 1 else (k + 2) % 3  # the corner P lies beyond
+            g = int(across[face, k])
+            if g < 0:
+                return None
+        u = int(tri[(k + 1) % 3])
+        for d in F[g]:
+            if d not in tri:
+                N[int(d)] = N[u] @ element(np.array([u]), np.array([d]))[0]
+        face = g
+    return None
