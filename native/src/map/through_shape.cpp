@@ -208,6 +208,83 @@ std::string leg_through_the_first_run(const TriMesh& source, const TriMesh& targ
   return status;
 }
 
+// A stalled M -> target leg, retried as the other direction retries its
+// source -> M leg, so that both directions of a pair run the same searches
+// (torus g4 -> fertility: plate -> fertility searched from this run's class
+// composed with the source -> M leg ends at 6.029 x, the same class searched
+// fertility -> plate at 2.803 x, inverted 3.108 x there, as session 19
+// measured): this run's class inverted, composed with the source -> M leg
+// (`to_middle`), is searched on target -> M, and the class found, inverted,
+// is solved here alone (HomotopyOptions::reverse_class_only). Needs the
+// target's letters as a source (`target_letters_inverse`) and this run's
+// class inverted; without them, or when the inversion stalls, the leg
+// M -> source composed with this run's class is searched on M -> target
+// instead (leg_through_the_first_run).
+std::string leg_back_through_the_first_run(const TriMesh& source, const TriMesh& target, const TriMesh& middle,
+                                           const SurfaceMapOptions& options, const SurfaceMapResult& forward,
+                                           const SurfaceMapResult& to_middle,
+                                           const std::vector<std::vector<int>>& target_letters_inverse,
+                                           const MapFunction& map, SurfaceMapResult& from_middle) {
+  const size_t n = static_cast<size_t>(2 * forward.genus);
+  std::string why;
+  if (target_letters_inverse.size() != n) why = "the target's letters as a source are missing";
+  else if (forward.chosen_class_words.size() != n || forward.source_as_target_inverse.size() != n)
+    why = "this run's class words or letters are missing";
+  else if (to_middle.chosen_class_words.size() != n || to_middle.source_as_target_inverse.size() != n)
+    why = "the source -> it leg's class words or letters are missing";
+  AutomorphismInverse inv;
+  if (why.empty()) {
+    // (The form of composed_classes_both_ways: θ from the source's letters
+    // as a target to the target's as a source, inverted: θ^-1 in a target ->
+    // source run's letters.)
+    inv = invert_automorphism(
+        compose(target_letters_inverse, compose(forward.chosen_class_words, forward.source_as_target_inverse)),
+        forward.genus);
+    if (!inv.ok) why = "this run's class not inverted: " + inv.why;
+  }
+  if (!why.empty())
+    return "; the leg again (" + why + ")" +
+           leg_through_the_first_run(source, target, middle, options, forward, map, false, from_middle);
+  const Clock t;
+  const std::string head = "; the leg again through this run's class inverted (";
+  SurfaceMapOptions there = leg_options(reverse_options(options), true);  // target -> M
+  there.homotopy.two_way = false;
+  there.homotopy.given_class =
+      compose(to_middle.chosen_class_words, compose(to_middle.source_as_target_inverse, inv.inverse));
+  there.homotopy.given_class_names = {"through the source and this run's class inverted"};
+  SurfaceMapResult back;
+  try {
+    back = map(target, middle, there);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    return head + "target -> it failed: " + e.what() + ")";
+  }
+  std::string status = head + "target -> it, composed";
+  if (back.homotopy_search.run)
+    status += " and searched on: " + std::to_string(back.homotopy_search.moves.size()) + " moves, " +
+              std::to_string(back.homotopy_search.evaluations) + " solves";
+  status += ", " + four_digits(back.energy_ratio);
+  // The class found there, inverted, alone here (it -> target).
+  SurfaceMapOptions here = leg_options(options, false);
+  here.homotopy.two_way = false;
+  here.homotopy.reverse_class = reverse_class_here(from_middle, back, why);
+  if (here.homotopy.reverse_class.empty()) return status + "; not brought back: " + why + ")";
+  here.homotopy.reverse_class_only = true;
+  SurfaceMapResult again;
+  try {
+    again = map(middle, target, here);
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    return status + "; inverted here failed: " + e.what() + ")";
+  }
+  const bool lower = again.chosen_candidate >= 0 && again.energy_ratio < from_middle.energy_ratio * (1 - 1e-6);
+  status += "; inverted here " + four_digits(again.energy_ratio) + "; " + t.text() + (lower ? "): used" : "): kept");
+  if (lower) from_middle = std::move(again);
+  return status;
+}
+
 }  // namespace
 
 void through_shapes_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
@@ -266,7 +343,8 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
     }
     legs += ", it -> target " + four_digits(from_middle.energy_ratio) + " (" + t.text() + ")";
     if (stop_at_legs_that_cannot_help && !(from_middle.energy_ratio < first)) {
-      legs += leg_through_the_first_run(source, target, m.mesh, options, forward, map, false, from_middle);
+      legs += leg_back_through_the_first_run(source, target, m.mesh, options, forward, to_middle,
+                                             target_letters_inverse, map, from_middle);
       if (!(from_middle.energy_ratio < first)) {
         notes += legs + ", not below " + four_digits(first) + ": cannot help";
         continue;
