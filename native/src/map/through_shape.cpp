@@ -158,6 +158,24 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
 
 namespace {
 
+/// " and searched on: N moves, M solves" when a given-class run's twist
+/// search ran, else "".
+std::string searched_on(const SurfaceMapResult& r) {
+  if (!r.homotopy_search.run) return "";
+  return " and searched on: " + std::to_string(r.homotopy_search.moves.size()) + " moves, " +
+         std::to_string(r.homotopy_search.evaluations) + " solves";
+}
+
+/// The end of a retried leg's status: `again` (its ratio said first,
+/// after `what`) replaces `leg` when lower.
+std::string keep_the_lower_leg(SurfaceMapResult& leg, SurfaceMapResult& again, const std::string& what,
+                               const Clock& t) {
+  const bool lower = again.chosen_candidate >= 0 && again.energy_ratio < leg.energy_ratio * (1 - 1e-6);
+  const std::string status = what + four_digits(again.energy_ratio) + "; " + t.text() + (lower ? "): used" : "): kept");
+  if (lower) leg = std::move(again);
+  return status;
+}
+
 // A leg that cannot help, once more through this run's own class (session
 // 20, docs/handle_classes.md): fertility -> genus-4 n-hole torus ends at
 // 4.542 x, and its plate leg one way at 6.654 x, so the plate was never
@@ -176,15 +194,17 @@ std::string leg_through_the_first_run(const TriMesh& source, const TriMesh& targ
   other_way.homotopy.two_way = options.homotopy.two_way;
   SurfaceMapResult other_leg;
   try {
-    other_leg = onto ? map(target, middle, leg_options(other_way, true)) : map(middle, source, leg_options(other_way, false));
+    other_leg = onto ? map(target, middle, leg_options(other_way, true))
+                     : map(middle, source, leg_options(other_way, false));
   } catch (const Cancelled&) {
     throw;
   } catch (const Error& e) {
     return head + (onto ? "target -> it" : "it -> source") + " failed: " + e.what() + ")";
   }
-  std::string status = head + (onto ? "target -> it " : "it -> source ") + four_digits(other_leg.energy_ratio);
+  const std::string status = head + (onto ? "target -> it " : "it -> source ") + four_digits(other_leg.energy_ratio);
   std::string why;
-  std::vector<std::vector<int>> theta = onto ? composed_class(forward, other_leg, why) : composed_class(other_leg, forward, why);
+  std::vector<std::vector<int>> theta =
+      onto ? composed_class(forward, other_leg, why) : composed_class(other_leg, forward, why);
   if (theta.empty()) return status + "; no composed class: " + why + ")";
   SurfaceMapOptions o = leg_options(options, onto);
   o.homotopy.two_way = false;
@@ -198,14 +218,7 @@ std::string leg_through_the_first_run(const TriMesh& source, const TriMesh& targ
   } catch (const Error& e) {
     return status + "; composed, failed: " + e.what() + ")";
   }
-  status += ", composed";
-  if (again.homotopy_search.run)
-    status += " and searched on: " + std::to_string(again.homotopy_search.moves.size()) + " moves, " +
-              std::to_string(again.homotopy_search.evaluations) + " solves";
-  const bool lower = again.chosen_candidate >= 0 && again.energy_ratio < leg.energy_ratio * (1 - 1e-6);
-  status += ", " + four_digits(again.energy_ratio) + "; " + t.text() + (lower ? "): used" : "): kept");
-  if (lower) leg = std::move(again);
-  return status;
+  return status + keep_the_lower_leg(leg, again, ", composed" + searched_on(again) + ", ", t);
 }
 
 // A stalled M -> target leg, retried as the other direction retries its
@@ -260,11 +273,8 @@ std::string leg_back_through_the_first_run(const TriMesh& source, const TriMesh&
   } catch (const Error& e) {
     return head + "target -> it failed: " + e.what() + ")";
   }
-  std::string status = head + "target -> it, composed";
-  if (back.homotopy_search.run)
-    status += " and searched on: " + std::to_string(back.homotopy_search.moves.size()) + " moves, " +
-              std::to_string(back.homotopy_search.evaluations) + " solves";
-  status += ", " + four_digits(back.energy_ratio);
+  const std::string status =
+      head + "target -> it, composed" + searched_on(back) + ", " + four_digits(back.energy_ratio);
   // The class found there, inverted, alone here (it -> target).
   SurfaceMapOptions here = leg_options(options, false);
   here.homotopy.two_way = false;
@@ -279,10 +289,7 @@ std::string leg_back_through_the_first_run(const TriMesh& source, const TriMesh&
   } catch (const Error& e) {
     return status + "; inverted here failed: " + e.what() + ")";
   }
-  const bool lower = again.chosen_candidate >= 0 && again.energy_ratio < from_middle.energy_ratio * (1 - 1e-6);
-  status += "; inverted here " + four_digits(again.energy_ratio) + "; " + t.text() + (lower ? "): used" : "): kept");
-  if (lower) from_middle = std::move(again);
-  return status;
+  return status + keep_the_lower_leg(from_middle, again, "; inverted here ", t);
 }
 
 }  // namespace
