@@ -566,15 +566,30 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
                             four_digits(own_there / bound) + " = " + four_digits(own_pair / bound) +
                             ", the other direction's " + four_digits(other_here / bound) + " + " +
                             four_digits(other_there / bound) + " = " + four_digits(other_pair / bound);
+  // This class kept: the other direction's class inverted is listed after it.
+  auto list_the_other_class = [&] {
+    if (alone_here.candidates.empty()) return;
+    HomotopyCandidate c = alone_here.candidates[0];
+    c.description += "  [the other direction's search from the composed class, inverted]";
+    forward.candidates.push_back(std::move(c));
+  };
+  // This class's pair unknown (its inverse not solved there) is no reason to
+  // take a class that is higher here (session 20: torus g4 -> fertility
+  // through the retried plate leg, 2.882 x here, its inverse not solvable
+  // there, the other pair 6.153 + 6.18): this class is kept, the directions
+  // not compared.
+  if (!(own_there < inf) && !(other_here < own)) {
+    list_the_other_class();
+    d.outcome = SurfaceMapResult{}.directions.outcome;
+    d.reason = "not compared: this class inverted was not solved in the other direction, and the other direction's "
+               "class inverted is not lower here (" + pairs + ")";
+    return status + "; " + pairs + ": kept this class, not lower here (" + t.text() + ")";
+  }
   // (A tie keeps this class: the other direction's run then keeps its own,
   // each the other's inverse only when the classes are; ties of real
   // energies to 1e-9 are not expected.)
   if (!(other_pair < own_pair)) {
-    HomotopyCandidate c = alone_here.candidates.empty() ? HomotopyCandidate{} : alone_here.candidates[0];
-    if (!alone_here.candidates.empty()) {
-      c.description += "  [the other direction's search from the composed class, inverted]";
-      forward.candidates.push_back(std::move(c));
-    }
+    list_the_other_class();
     d.outcome = "inverse";
     d.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is this one (" + pairs +
                ")";
