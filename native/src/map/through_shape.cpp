@@ -158,6 +158,19 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
 
 namespace {
 
+/// `map(s, d, o)` into `out`: "" or the error's text (a cancel goes on).
+std::string map_or_error(const MapFunction& map, const TriMesh& s, const TriMesh& d, const SurfaceMapOptions& o,
+                         SurfaceMapResult& out) {
+  try {
+    out = map(s, d, o);
+    return "";
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    return e.what();
+  }
+}
+
 /// " and searched on: N moves, M solves" when a given-class run's twist
 /// search ran, else "".
 std::string searched_on(const SurfaceMapResult& r) {
@@ -193,14 +206,9 @@ std::string leg_through_the_first_run(const TriMesh& source, const TriMesh& targ
   SurfaceMapOptions other_way = reverse_options(options);
   other_way.homotopy.two_way = options.homotopy.two_way;
   SurfaceMapResult other_leg;
-  try {
-    other_leg = onto ? map(target, middle, leg_options(other_way, true))
-                     : map(middle, source, leg_options(other_way, false));
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    return head + (onto ? "target -> it" : "it -> source") + " failed: " + e.what() + ")";
-  }
+  const std::string failed = onto ? map_or_error(map, target, middle, leg_options(other_way, true), other_leg)
+                                  : map_or_error(map, middle, source, leg_options(other_way, false), other_leg);
+  if (!failed.empty()) return head + (onto ? "target -> it" : "it -> source") + " failed: " + failed + ")";
   const std::string status = head + (onto ? "target -> it " : "it -> source ") + four_digits(other_leg.energy_ratio);
   std::string why;
   std::vector<std::vector<int>> theta =
@@ -211,13 +219,9 @@ std::string leg_through_the_first_run(const TriMesh& source, const TriMesh& targ
   o.homotopy.given_class = std::move(theta);
   o.homotopy.given_class_names = {std::string("through this run's class and the ") + (onto ? "target" : "source")};
   SurfaceMapResult again;
-  try {
-    again = onto ? map(source, middle, o) : map(middle, target, o);
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    return status + "; composed, failed: " + e.what() + ")";
-  }
+  const std::string again_failed =
+      onto ? map_or_error(map, source, middle, o, again) : map_or_error(map, middle, target, o, again);
+  if (!again_failed.empty()) return status + "; composed, failed: " + again_failed + ")";
   return status + keep_the_lower_leg(leg, again, ", composed" + searched_on(again) + ", ", t);
 }
 
@@ -266,13 +270,8 @@ std::string leg_back_through_the_first_run(const TriMesh& source, const TriMesh&
       compose(to_middle.chosen_class_words, compose(to_middle.source_as_target_inverse, inv.inverse));
   there.homotopy.given_class_names = {"through the source and this run's class inverted"};
   SurfaceMapResult back;
-  try {
-    back = map(target, middle, there);
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    return head + "target -> it failed: " + e.what() + ")";
-  }
+  const std::string back_failed = map_or_error(map, target, middle, there, back);
+  if (!back_failed.empty()) return head + "target -> it failed: " + back_failed + ")";
   const std::string status =
       head + "target -> it, composed" + searched_on(back) + ", " + four_digits(back.energy_ratio);
   // The class found there, inverted, alone here (it -> target).
@@ -282,13 +281,8 @@ std::string leg_back_through_the_first_run(const TriMesh& source, const TriMesh&
   if (here.homotopy.reverse_class.empty()) return status + "; not brought back: " + why + ")";
   here.homotopy.reverse_class_only = true;
   SurfaceMapResult again;
-  try {
-    again = map(middle, target, here);
-  } catch (const Cancelled&) {
-    throw;
-  } catch (const Error& e) {
-    return status + "; inverted here failed: " + e.what() + ")";
-  }
+  const std::string again_failed = map_or_error(map, middle, target, here, again);
+  if (!again_failed.empty()) return status + "; inverted here failed: " + again_failed + ")";
   return status + keep_the_lower_leg(from_middle, again, "; inverted here ", t);
 }
 
@@ -545,14 +539,8 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
   ho.homotopy.reverse_class_only = true;
   auto solve_alone = [&](const TriMesh& s, const TriMesh& d, const SurfaceMapOptions& so, SurfaceMapResult& r,
                          const std::string& which) -> std::string {
-    try {
-      r = map(s, d, so);
-      return "";
-    } catch (const Cancelled&) {
-      throw;
-    } catch (const Error& e) {
-      return "; " + which + " not solved (" + e.what() + ")";
-    }
+    const std::string failed = map_or_error(map, s, d, so, r);
+    return failed.empty() ? failed : "; " + which + " not solved (" + failed + ")";
   };
   const std::string there_failed = solve_alone(target, source, ao, alone_there, "this class inverted there");
   const std::string here_failed = solve_alone(source, target, ho, alone_here, "the other direction's class inverted here");
