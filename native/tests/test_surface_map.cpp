@@ -1348,6 +1348,140 @@ TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   EXPECT_EQ(static_cast<int>(forward.inverse.size()), b.num_vertices());
 }
 
+// Issue 14, session 20 (docs/handle_classes.md "session 20"): a leg whose
+// own search stops in a twisted class (fertility -> genus-4 plate 6.65 x,
+// not below fertility -> n-hole torus 4.54 x, so that shape was never
+// composed, while the leg in the first run's class composed with n-hole
+// torus -> plate and searched on reaches 2.80 x). Here the source -> M leg
+// (plate -> the step's genus-2 plate) is made to stop so: the map function
+// returns it in its class twisted by T(a_1)^8 on the source side, searched
+// no further (3.0 x). The first run (plate -> n-hole torus, thrice twisted,
+// 1.52 x) is below that leg, so it cannot help; the step then composes the
+// first run's class with target -> M and searches on from it, which gives
+// the leg back at its best energy (1.15 x: three twists undone; a wrong
+// rewriting of the letters gives another class), and the shape's composed
+// class then takes the pair back to the untwisted ratio (1.12 x). The same
+// for a stalled M -> target leg, retried through the source. Without the
+// retry the status says "cannot help" and the first run stays at 1.52 x.
+TEST(SurfaceMapHandles, ThroughShapeRetriesALegThatCannotHelpThroughTheFirstRunsClass) {
+  const int kLegTwists = 8;
+  const TriMesh a = samples::cad_plate(2, 32, 0.3);
+  const TriMesh b = samples::n_hole_torus(2, 26, true);
+  const TriMesh middle = samples::cad_plate(2);
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  auto twisted_by = [](std::vector<std::vector<int>> words, int times) {
+    for (int k = 0; k < times; ++k) words[1].insert(words[1].end(), words[0].begin(), words[0].end());
+    return words;
+  };
+  auto thrice_twisted = [&](const std::vector<std::vector<int>>& words) { return twisted_by(words, 3); };
+  auto stalled = [&](const std::vector<std::vector<int>>& words) { return twisted_by(words, kLegTwists); };
+  const SurfaceMapResult plain = surface_map(a, b, o);
+  ASSERT_EQ(plain.chosen_class_words.size(), 4u);
+  SurfaceMapOptions t = o;
+  t.homotopy.given_class = thrice_twisted(plain.chosen_class_words);
+  t.homotopy.search.enabled = false;
+  const SurfaceMapResult forward = surface_map(a, b, t);
+  ASSERT_GT(forward.energy_ratio, plain.energy_ratio * 1.2);
+  // The source -> M leg (no given class) stops in its class twisted.
+  int stalled_legs = 0;
+  double stalled_ratio = 0;
+  // Whether a given class or the search's from one reaches the run's lowest
+  // energy (the leg's retry also lists the snapped overlay's own class,
+  // which on two plates is as low: it is chosen on the tie).
+  auto reached_from_given_class = [](const SurfaceMapResult& r) {
+    if (r.chosen_candidate < 0) return false;
+    const std::string tag = "[class search from candidate ";
+    for (const HomotopyCandidate& c : r.candidates) {
+      bool from_given = c.given_class >= 0;
+      const size_t at = c.description.find(tag);
+      if (at != std::string::npos) {
+        const int start = std::atoi(c.description.c_str() + at + tag.size());
+        from_given = start >= 0 && start < static_cast<int>(r.candidates.size()) && r.candidates[start].given_class >= 0;
+      }
+      if (from_given && c.energy <= r.candidates[r.chosen_candidate].energy * (1 + 1e-6)) return true;
+    }
+    return false;
+  };
+  bool retry_from_given = false;
+  // (The step holds its own copy of M: the shapes are told apart by same_shape.)
+  const detail::MapFunction stalling = [&](const TriMesh& s, const TriMesh& d, const SurfaceMapOptions& so) {
+    SurfaceMapResult r = surface_map(s, d, so);
+    if (!detail::same_shape(s, a) || !detail::same_shape(d, middle)) return r;
+    if (!so.homotopy.given_class.empty()) {
+      retry_from_given = reached_from_given_class(r);
+      return r;
+    }
+    SurfaceMapOptions twisted = so;
+    twisted.homotopy.given_class = stalled(r.chosen_class_words);
+    twisted.homotopy.search.enabled = false;
+    twisted.homotopy.search.snapped_start = false;  // (else the snapped overlay's class is listed beside it)
+    r = surface_map(s, d, twisted);
+    ++stalled_legs;
+    stalled_ratio = r.energy_ratio;
+    return r;
+  };
+  SurfaceMapResult retried = forward;
+  detail::through_shapes_map(a, b, o, retried, stalling, {{"genus-2 CAD plate", middle}}, true);
+  ASSERT_EQ(stalled_legs, 1);
+  ASSERT_GE(stalled_ratio, forward.energy_ratio) << "the leg must be one that cannot help";
+  EXPECT_TRUE(retry_from_given) << "the composed class, searched on, must reach the retried leg's energy";
+  const std::string& status = retried.through_shape_status;
+  EXPECT_NE(status.find("the leg again through this run's class (target -> it "), std::string::npos) << status;
+  EXPECT_NE(status.find("): used"), std::string::npos) << status;
+  EXPECT_EQ(status.find("cannot help"), std::string::npos) << status;
+  EXPECT_NE(status.find("it -> target"), std::string::npos) << status;
+  EXPECT_NE(status.find(": used"), std::string::npos) << status;
+  EXPECT_LT(retried.energy_ratio, forward.energy_ratio * 0.9) << status;
+  EXPECT_LE(retried.energy_ratio, plain.energy_ratio * 1.05) << status;
+  EXPECT_GT(retried.candidates.size(), forward.candidates.size());
+  EXPECT_TRUE(retried.converged);
+  EXPECT_EQ(retried.flipped_triangles, 0);
+  EXPECT_EQ(static_cast<int>(retried.forward.size()), a.num_vertices());
+  EXPECT_EQ(static_cast<int>(retried.inverse.size()), b.num_vertices());
+  // The M -> target leg is retried the same way (through the source): a
+  // stalled M -> target leg, the other leg as it is.
+  int stalled_from = 0;
+  const detail::MapFunction stalling_from = [&](const TriMesh& s, const TriMesh& d, const SurfaceMapOptions& so) {
+    SurfaceMapResult r = surface_map(s, d, so);
+    if (!detail::same_shape(s, middle) || !detail::same_shape(d, b) || !so.homotopy.given_class.empty() ||
+        !so.homotopy.reverse_class.empty())
+      return r;
+    SurfaceMapOptions twisted = so;
+    twisted.homotopy.given_class = stalled(r.chosen_class_words);
+    twisted.homotopy.search.enabled = false;
+    twisted.homotopy.search.snapped_start = false;
+    ++stalled_from;
+    return surface_map(s, d, twisted);
+  };
+  SurfaceMapResult from = forward;
+  detail::through_shapes_map(a, b, o, from, stalling_from, {{"genus-2 CAD plate", middle}}, true);
+  EXPECT_EQ(stalled_from, 1);
+  EXPECT_NE(from.through_shape_status.find("the leg again (the target's letters as a source are missing); the leg "
+                                          "again through this run's class (it -> source "),
+            std::string::npos)
+      << from.through_shape_status;
+  EXPECT_LT(from.energy_ratio, forward.energy_ratio * 0.9) << from.through_shape_status;
+  // With the target's letters as a source (a two-way run's), it is retried
+  // as the other direction retries its source -> M leg: this run's class
+  // inverted, composed with the source -> M leg, searched on target -> M and
+  // brought back inverted.
+  const SurfaceMapResult other_way = surface_map(b, a, detail::reverse_options(o));
+  ASSERT_EQ(other_way.source_as_target_inverse.size(), 4u) << other_way.source_as_target_status;
+  SurfaceMapResult mirrored = forward;
+  detail::through_shapes_map(a, b, o, mirrored, stalling_from, {{"genus-2 CAD plate", middle}}, true, {},
+                             other_way.source_as_target_inverse);
+  EXPECT_EQ(stalled_from, 2);
+  EXPECT_NE(mirrored.through_shape_status.find("the leg again through this run's class inverted (target -> it"),
+            std::string::npos)
+      << mirrored.through_shape_status;
+  EXPECT_NE(mirrored.through_shape_status.find("inverted here"), std::string::npos) << mirrored.through_shape_status;
+  EXPECT_LT(mirrored.energy_ratio, forward.energy_ratio * 0.9) << mirrored.through_shape_status;
+  EXPECT_LE(mirrored.energy_ratio, plain.energy_ratio * 1.05) << mirrored.through_shape_status;
+  EXPECT_TRUE(mirrored.converged);
+  EXPECT_EQ(mirrored.flipped_triangles, 0);
+}
+
 // Issue 14, session 19 (docs/handle_classes.md "The composed classes searched
 // in both directions"): the same composed classes can end in different
 // classes in the two directions, because the harmonic energy is not

@@ -156,6 +156,138 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
   through_shapes_map(source, target, options, forward, map, middles, true, notes, target_letters_inverse);
 }
 
+namespace {
+
+/// `map(s, d, o)` into `out`: "" or the error's text (a cancel goes on).
+std::string map_or_error(const MapFunction& map, const TriMesh& s, const TriMesh& d, const SurfaceMapOptions& o,
+                         SurfaceMapResult& out) {
+  try {
+    out = map(s, d, o);
+    return "";
+  } catch (const Cancelled&) {
+    throw;
+  } catch (const Error& e) {
+    return e.what();
+  }
+}
+
+/// " and searched on: N moves, M solves" when a given-class run's twist
+/// search ran, else "".
+std::string searched_on(const SurfaceMapResult& r) {
+  if (!r.homotopy_search.run) return "";
+  return " and searched on: " + std::to_string(r.homotopy_search.moves.size()) + " moves, " +
+         std::to_string(r.homotopy_search.evaluations) + " solves";
+}
+
+/// The end of a retried leg's status: `again` (its ratio said first,
+/// after `what`) replaces `leg` when lower.
+std::string keep_the_lower_leg(SurfaceMapResult& leg, SurfaceMapResult& again, const std::string& what,
+                               const Clock& t) {
+  const bool lower = again.chosen_candidate >= 0 && again.energy_ratio < leg.energy_ratio * (1 - 1e-6);
+  const std::string status = what + four_digits(again.energy_ratio) + "; " + t.text() + (lower ? "): used" : "): kept");
+  if (lower) leg = std::move(again);
+  return status;
+}
+
+// A leg that cannot help, once more through this run's own class (session
+// 20, docs/handle_classes.md): fertility -> genus-4 n-hole torus ends at
+// 4.542 x, and its plate leg one way at 6.654 x, so the plate was never
+// composed; yet this run's class composed with torus -> plate (1.036 x) and
+// searched on from there reaches 2.803 x fertility -> plate (session 18), a
+// class of the leg that its own search, moving by twists of the plate's
+// own cut from its own candidates, does not reach.
+std::string leg_through_the_first_run(const TriMesh& source, const TriMesh& target, const TriMesh& middle,
+                                      const SurfaceMapOptions& options, const SurfaceMapResult& forward,
+                                      const MapFunction& map, bool onto, SurfaceMapResult& leg) {
+  const Clock t;
+  const std::string head = "; the leg again through this run's class (";
+  // The other end's own leg, in the other direction's cuts: target -> M
+  // (whose source letters are the target's) or M -> source.
+  SurfaceMapOptions other_way = reverse_options(options);
+  other_way.homotopy.two_way = options.homotopy.two_way;
+  SurfaceMapResult other_leg;
+  const std::string failed = onto ? map_or_error(map, target, middle, leg_options(other_way, true), other_leg)
+                                  : map_or_error(map, middle, source, leg_options(other_way, false), other_leg);
+  if (!failed.empty()) return head + (onto ? "target -> it" : "it -> source") + " failed: " + failed + ")";
+  const std::string status = head + (onto ? "target -> it " : "it -> source ") + four_digits(other_leg.energy_ratio);
+  std::string why;
+  std::vector<std::vector<int>> theta =
+      onto ? composed_class(forward, other_leg, why) : composed_class(other_leg, forward, why);
+  if (theta.empty()) return status + "; no composed class: " + why + ")";
+  SurfaceMapOptions o = leg_options(options, onto);
+  o.homotopy.two_way = false;
+  o.homotopy.given_class = std::move(theta);
+  o.homotopy.given_class_names = {std::string("through this run's class and the ") + (onto ? "target" : "source")};
+  SurfaceMapResult again;
+  const std::string again_failed =
+      onto ? map_or_error(map, source, middle, o, again) : map_or_error(map, middle, target, o, again);
+  if (!again_failed.empty()) return status + "; composed, failed: " + again_failed + ")";
+  return status + keep_the_lower_leg(leg, again, ", composed" + searched_on(again) + ", ", t);
+}
+
+// A stalled M -> target leg, retried as the other direction retries its
+// source -> M leg, so that both directions of a pair run the same searches
+// (torus g4 -> fertility: plate -> fertility searched from this run's class
+// composed with the source -> M leg ends at 6.029 x, the same class searched
+// fertility -> plate at 2.803 x, inverted 3.108 x there, as session 19
+// measured): this run's class inverted, composed with the source -> M leg
+// (`to_middle`), is searched on target -> M, and the class found, inverted,
+// is solved here alone (HomotopyOptions::reverse_class_only). Needs the
+// target's letters as a source (`target_letters_inverse`) and this run's
+// class inverted; without them, or when the inversion stalls, the leg
+// M -> source composed with this run's class is searched on M -> target
+// instead (leg_through_the_first_run).
+std::string leg_back_through_the_first_run(const TriMesh& source, const TriMesh& target, const TriMesh& middle,
+                                           const SurfaceMapOptions& options, const SurfaceMapResult& forward,
+                                           const SurfaceMapResult& to_middle,
+                                           const std::vector<std::vector<int>>& target_letters_inverse,
+                                           const MapFunction& map, SurfaceMapResult& from_middle) {
+  const size_t n = static_cast<size_t>(2 * forward.genus);
+  std::string why;
+  if (target_letters_inverse.size() != n) why = "the target's letters as a source are missing";
+  else if (forward.chosen_class_words.size() != n || forward.source_as_target_inverse.size() != n)
+    why = "this run's class words or letters are missing";
+  else if (to_middle.chosen_class_words.size() != n || to_middle.source_as_target_inverse.size() != n)
+    why = "the source -> it leg's class words or letters are missing";
+  AutomorphismInverse inv;
+  if (why.empty()) {
+    // (The form of composed_classes_both_ways: θ from the source's letters
+    // as a target to the target's as a source, inverted: θ^-1 in a target ->
+    // source run's letters.)
+    inv = invert_automorphism(
+        compose(target_letters_inverse, compose(forward.chosen_class_words, forward.source_as_target_inverse)),
+        forward.genus);
+    if (!inv.ok) why = "this run's class not inverted: " + inv.why;
+  }
+  if (!why.empty())
+    return "; the leg again (" + why + ")" +
+           leg_through_the_first_run(source, target, middle, options, forward, map, false, from_middle);
+  const Clock t;
+  const std::string head = "; the leg again through this run's class inverted (";
+  SurfaceMapOptions there = leg_options(reverse_options(options), true);  // target -> M
+  there.homotopy.two_way = false;
+  there.homotopy.given_class =
+      compose(to_middle.chosen_class_words, compose(to_middle.source_as_target_inverse, inv.inverse));
+  there.homotopy.given_class_names = {"through the source and this run's class inverted"};
+  SurfaceMapResult back;
+  const std::string back_failed = map_or_error(map, target, middle, there, back);
+  if (!back_failed.empty()) return head + "target -> it failed: " + back_failed + ")";
+  const std::string status =
+      head + "target -> it, composed" + searched_on(back) + ", " + four_digits(back.energy_ratio);
+  // The class found there, inverted, alone here (it -> target).
+  SurfaceMapOptions here = leg_options(options, false);
+  here.homotopy.two_way = false;
+  here.homotopy.reverse_class = reverse_class_here(from_middle, back, why);
+  if (here.homotopy.reverse_class.empty()) return status + "; not brought back: " + why + ")";
+  here.homotopy.reverse_class_only = true;
+  SurfaceMapResult again;
+  const std::string again_failed = map_or_error(map, middle, target, here, again);
+  if (!again_failed.empty()) return status + "; inverted here failed: " + again_failed + ")";
+  return status + keep_the_lower_leg(from_middle, again, "; inverted here ", t);
+}
+
+}  // namespace
+
 void through_shapes_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                         SurfaceMapResult& forward, const MapFunction& map, const std::vector<MiddleShape>& middles,
                         bool stop_at_legs_that_cannot_help, std::string notes,
@@ -195,8 +327,11 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
     std::string legs =
         "; through the " + it + ": source -> it " + four_digits(to_middle.energy_ratio) + " (" + t.text() + ")";
     if (stop_at_legs_that_cannot_help && !(to_middle.energy_ratio < first)) {
-      notes += legs + ", not below " + four_digits(first) + ": cannot help";
-      continue;
+      legs += leg_through_the_first_run(source, target, m.mesh, options, forward, map, true, to_middle);
+      if (!(to_middle.energy_ratio < first)) {
+        notes += legs + ", not below " + four_digits(first) + ": cannot help";
+        continue;
+      }
     }
     t = Clock();
     try {
@@ -209,8 +344,12 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
     }
     legs += ", it -> target " + four_digits(from_middle.energy_ratio) + " (" + t.text() + ")";
     if (stop_at_legs_that_cannot_help && !(from_middle.energy_ratio < first)) {
-      notes += legs + ", not below " + four_digits(first) + ": cannot help";
-      continue;
+      legs += leg_back_through_the_first_run(source, target, m.mesh, options, forward, to_middle,
+                                             target_letters_inverse, map, from_middle);
+      if (!(from_middle.energy_ratio < first)) {
+        notes += legs + ", not below " + four_digits(first) + ": cannot help";
+        continue;
+      }
     }
     std::string why;
     std::vector<std::vector<int>> theta = composed_class(to_middle, from_middle, why);
@@ -400,14 +539,8 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
   ho.homotopy.reverse_class_only = true;
   auto solve_alone = [&](const TriMesh& s, const TriMesh& d, const SurfaceMapOptions& so, SurfaceMapResult& r,
                          const std::string& which) -> std::string {
-    try {
-      r = map(s, d, so);
-      return "";
-    } catch (const Cancelled&) {
-      throw;
-    } catch (const Error& e) {
-      return "; " + which + " not solved (" + e.what() + ")";
-    }
+    const std::string failed = map_or_error(map, s, d, so, r);
+    return failed.empty() ? failed : "; " + which + " not solved (" + failed + ")";
   };
   const std::string there_failed = solve_alone(target, source, ao, alone_there, "this class inverted there");
   const std::string here_failed = solve_alone(source, target, ho, alone_here, "the other direction's class inverted here");
@@ -421,15 +554,30 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
                             four_digits(own_there / bound) + " = " + four_digits(own_pair / bound) +
                             ", the other direction's " + four_digits(other_here / bound) + " + " +
                             four_digits(other_there / bound) + " = " + four_digits(other_pair / bound);
+  // This class kept: the other direction's class inverted is listed after it.
+  auto list_the_other_class = [&] {
+    if (alone_here.candidates.empty()) return;
+    HomotopyCandidate c = alone_here.candidates[0];
+    c.description += "  [the other direction's search from the composed class, inverted]";
+    forward.candidates.push_back(std::move(c));
+  };
+  // This class's pair unknown (its inverse not solved there) is no reason to
+  // take a class that is higher here (session 20: torus g4 -> fertility
+  // through the retried plate leg, 2.882 x here, its inverse not solvable
+  // there, the other pair 6.153 + 6.18): this class is kept, the directions
+  // not compared.
+  if (!(own_there < inf) && !(other_here < own)) {
+    list_the_other_class();
+    d.outcome = SurfaceMapResult{}.directions.outcome;
+    d.reason = "not compared: this class inverted was not solved in the other direction, and the other direction's "
+               "class inverted is not lower here (" + pairs + ")";
+    return status + "; " + pairs + ": kept this class, not lower here (" + t.text() + ")";
+  }
   // (A tie keeps this class: the other direction's run then keeps its own,
   // each the other's inverse only when the classes are; ties of real
   // energies to 1e-9 are not expected.)
   if (!(other_pair < own_pair)) {
-    HomotopyCandidate c = alone_here.candidates.empty() ? HomotopyCandidate{} : alone_here.candidates[0];
-    if (!alone_here.candidates.empty()) {
-      c.description += "  [the other direction's search from the composed class, inverted]";
-      forward.candidates.push_back(std::move(c));
-    }
+    list_the_other_class();
     d.outcome = "inverse";
     d.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is this one (" + pairs +
                ")";

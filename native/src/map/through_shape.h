@@ -48,7 +48,11 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
 /// as in `options`) and composes their classes; with
 /// `stop_at_legs_that_cannot_help`, a leg whose energy ratio is not below
 /// `forward`'s ends that shape's attempt (its composed class would be about
-/// as far from conformal as that leg at least). The composed classes are
+/// as far from conformal as that leg at least), unless the leg retried in
+/// `forward`'s class composed with the other end's leg and searched on
+/// (source -> M: with target -> M; M -> target: forward's class inverted
+/// with source -> M, searched on target -> M and inverted here; session
+/// 20) is below it. The composed classes are
 /// solved here together (HomotopyOptions::given_class, one after another:
 /// ranked like any candidates, the best at full resolution), all listed
 /// after `forward`'s candidates ("through a generated <name>"); when the
@@ -73,7 +77,9 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
 /// run), which ends on a class ψ. Unless ψ is θ's inverse, θ^-1 is solved
 /// there alone and ψ^-1 here alone, and the pair of inverse classes with
 /// the lower sum of energy ratios, (θ, θ^-1) or (ψ^-1, ψ), is kept:
-/// `forward` becomes the ψ^-1 result when that pair is lower. The other
+/// `forward` becomes the ψ^-1 result when that pair is lower. When θ^-1
+/// cannot be solved there, (ψ^-1, ψ) is taken only when ψ^-1 is lower here
+/// than θ (else θ is kept, the directions not compared). The other
 /// direction's own run, from the same composed classes inverted, meets the
 /// same two searches and the same four energies, so both directions end on
 /// one pair of inverse classes. A composed class that cannot be inverted

@@ -277,21 +277,32 @@ struct HomotopyOptions {
   /// --compare-directions).
   bool compare_directions = false;
   /// Genus >= 2, default class, no landmarks (issue 14; docs/handle_classes.md
-  /// "Through a generated shape"): when the chosen class's energy (after the
-  /// two-way run) is at least `through_shape_ratio` (default 3, where the
-  /// quality warning starts) x 8 pi (g - 1), the source is mapped onto a
-  /// generated n-hole torus of its genus (samples::n_hole_torus, genus 1..8,
-  /// at least `through_shape_resolution` grid cells: 16 per handle up to
-  /// genus 4, 64 for the wheels beyond) and that shape onto the target (the
-  /// two-way run as given); the two classes composed are solved here
-  /// alone (given_class) and listed as one more candidate ("[through a
-  /// generated genus-g n-hole torus]"); the lower-energy result is returned
-  /// (SurfaceMapResult::through_shape_status says what was done). Why: a
+  /// "Through a generated shape" and the sections after it): when the chosen
+  /// class's energy (after the two-way run) is at least `through_shape_ratio`
+  /// (default 3, where the quality warning starts) x 8 pi (g - 1), the source
+  /// is mapped onto each generated shape M of its genus (the CAD plate
+  /// samples::cad_plate, then the n-hole torus samples::n_hole_torus up to
+  /// genus 8 with at least `through_shape_resolution` grid cells: 16 per
+  /// handle up to genus 4, 64 for the wheels beyond; not M that is the source
+  /// or the target itself) and M onto the target (the two-way run as given).
+  /// A leg whose ratio is not below the first run's cannot help and ends
+  /// that shape's attempt, unless the same leg in this run's class composed
+  /// with the other end's own leg (target -> M, or M -> source) and searched
+  /// on from there is below it (session 20: fertility -> n-hole torus g4
+  /// through the plate). The composed classes (the two legs' classes
+  /// composed) are ranked here together (given_class), the twist search
+  /// runs on from the best (session 18), and each is listed as one more
+  /// candidate ("[through a generated genus-g n-hole torus]"); the
+  /// lower-energy result is returned. With the two-way run on, the composed
+  /// classes are then inverted and searched on in the other direction too,
+  /// and the pair of inverse classes of lower total energy is kept, so that
+  /// both directions end on inverse classes (session 19).
+  /// SurfaceMapResult::through_shape_status says what was done. Why: a
   /// shape far from both has its classes searched from handle permutations
   /// and twists of its own cut, which can stop in a twisted class, while the
   /// maps onto and from an evenly sized shape of the same genus are found
-  /// reliably. About two one-way runs and one single-class solve, only for
-  /// pairs at or above the ratio. Default true.
+  /// more reliably. Several one-way runs and a few given-class runs, only
+  /// for pairs at or above the ratio. Default true.
   bool through_shape = true;
   double through_shape_ratio = 3.0;
   int through_shape_resolution = 32;
