@@ -90,20 +90,10 @@ class SchemeMetric {
   /// Returns the first edge whose length is not a finite positive number, or -1.
   /// threads > 1: the edges in two halves, the second on another thread
   /// (each edge's length is its own: the same numbers).
-  /// `half` (#E x 2, hyperbolic vertex scaling only, else emptied):
-  /// sinh(l_e/2) and cosh(l_e/2) from the Penner coordinate, for the
-  /// sinh-free angles of scan_faces (hyperbolic_angles_from_halves).
-  int lengths(const Eigen::VectorXd& u, Eigen::VectorXd& l, Eigen::MatrixX2d* dldu, int threads = 1,
-              Eigen::MatrixX2d* half = nullptr) const {
+  int lengths(const Eigen::VectorXd& u, Eigen::VectorXd& l, Eigen::MatrixX2d* dldu, int threads = 1) const {
     const int ne = static_cast<int>(dom_.EV.rows());
     l.resize(ne);
     if (dldu) dldu->resize(ne, 2);
-    if (half) {
-      if (scheme_ == RicciScheme::VertexScaling && bg_ == Background::Hyperbolic)
-        half->resize(ne, 2);
-      else
-        half->resize(0, 2), half = nullptr;
-    }
     Eigen::VectorXd r;
     if (scheme_ == RicciScheme::InversiveDistance) {
       r.resize(dom_.num_vertices);
@@ -118,14 +108,14 @@ class SchemeMetric {
     }
     int bad[2] = {-1, -1};
     in_two_halves(ne, threads,
-                  [&](int part, int begin, int end) { bad[part] = edge_range(u, r, begin, end, l, dldu, half); });
+                  [&](int half, int begin, int end) { bad[half] = edge_range(u, r, begin, end, l, dldu); });
     return bad[0] >= 0 ? bad[0] : bad[1];
   }
 
  private:
-  /// Lengths of edges [begin, end) (l, dldu, half sized); the first bad one or -1.
+  /// Lengths of edges [begin, end) (l, dldu sized); the first bad one or -1.
   int edge_range(const Eigen::VectorXd& u, const Eigen::VectorXd& r, int begin, int end, Eigen::VectorXd& l,
-                 Eigen::MatrixX2d* dldu, Eigen::MatrixX2d* half) const {
+                 Eigen::MatrixX2d* dldu) const {
     int bad = -1;
     for (int e = begin; e < end; ++e) {
       const int i = dom_.EV(e, 0), j = dom_.EV(e, 1);
@@ -136,12 +126,12 @@ class SchemeMetric {
           le = s * l0_[e];
           di = dj = 0.5 * le;
         } else {
-          // sinh(l/2) = e^{(ui+uj)/2} l0/2  =>  dl/du_i = tanh(l/2).
-          // (ch = sh once sh² would overflow: l > 700, far past kLongTriangle)
+          // sinh(l/2) = e^{(ui+uj)/2} l0/2  =>  dl/du_i = tanh(l/2) =
+          // sinh(l/2) / cosh(l/2), without a tanh (ch = sh once sh² would
+          // overflow: l > 700).
           const double sh = 0.5 * s * l0_[e], ch = sh < 1e150 ? std::sqrt(1.0 + sh * sh) : sh;
           le = 2.0 * std::asinh(sh);
           di = dj = sh / ch;
-          if (half) (*half)(e, 0) = sh, (*half)(e, 1) = ch;
         }
       } else {
         const double ri = r[i], rj = r[j], I = inv_[e];
@@ -217,26 +207,6 @@ void hyperbolic_angles_of_long_triangle(const double l[3], double s, const doubl
   }
 }
 
-/// The half-angle formulas' last step, shared by the triangle_angles paths:
-/// θ_k = 2 atan2(√y_k, √x_k) with x_k = f(s) f(s_k), y_k = f(s_{k+1})
-/// f(s_{k+2}), so cos θ_k = (x_k − y_k) / (x_k + y_k) without a cosine
-/// (issue 19: the Jacobian is assembled at every Newton step; 6 cosines per
-/// face were a fifth of it), and D = dθ/dl from its diagonal d (d_i =
-/// dθ_i/dl_i): D[i][m] = −d_i cos θ_{3−i−m} (m != i).
-void angles_from_half_angle_products(const double x[3], const double y[3], const double d[3], double theta[3],
-                                     double D[3][3]) {
-  double cos_theta[3];
-  for (int k = 0; k < 3; ++k) {
-    theta[k] = 2.0 * std::atan2(std::sqrt(y[k]), std::sqrt(x[k]));
-    cos_theta[k] = (x[k] - y[k]) / (x[k] + y[k]);
-  }
-  for (int i = 0; i < 3; ++i) {
-    D[i][i] = d[i];
-    for (int m = 0; m < 3; ++m)
-      if (m != i) D[i][m] = -d[i] * cos_theta[3 - i - m];
-  }
-}
-
 /// Angles of a triangle with sides l[k] opposite corner k, and D(i,m) =
 /// dθ_i/dl_m. Returns false (angles π,0,0 opposite the too-long side, D = 0)
 /// when the triangle inequality fails: the extended convex energy of
@@ -271,52 +241,24 @@ bool triangle_angles(const double l[3], Background bg, double theta[3], double D
     fs = std::sinh(s);
     twice = 2.0 * std::sqrt(fs * f[0] * f[1] * f[2]);  // = sinh l_j sinh l_k sin θ_i
   }
-  double x[3], y[3], d[3];
+  // θ_k = 2 atan2(√y, √x) with x = fs f_k, y = f_{k+1} f_{k+2}, so
+  // cos θ_k = (x − y) / (x + y) without a cosine (issue 19: the Jacobian
+  // is assembled at every Newton step; 6 cosines per face were a fifth of it).
+  double cos_theta[3];
   for (int k = 0; k < 3; ++k) {
-    x[k] = fs * f[k], y[k] = f[(k + 1) % 3] * f[(k + 2) % 3];
-    d[k] = (bg == Background::Euclidean ? l[k] : std::sinh(l[k])) / twice;
+    const double x = fs * f[k], y = f[(k + 1) % 3] * f[(k + 2) % 3];
+    theta[k] = 2.0 * std::atan2(std::sqrt(y), std::sqrt(x));
+    cos_theta[k] = (x - y) / (x + y);
   }
-  angles_from_half_angle_products(x, y, d, theta, D);
+  for (int i = 0; i < 3; ++i) {
+    const double dii = (bg == Background::Euclidean ? l[i] : std::sinh(l[i])) / twice;
+    D[i][i] = dii;
+    for (int m = 0; m < 3; ++m)
+      if (m != i) D[i][m] = -dii * cos_theta[3 - i - m];
+  }
   return true;
 }
 
-/// triangle_angles for a hyperbolic triangle given also sinh and cosh of
-/// its half sides (sh[k], ch[k] of l[k] / 2, from the Penner coordinates:
-/// SchemeMetric::lengths), without a transcendental call but the three
-/// atan2 (issue 19: the seven sinh per face were 0.81 G instructions of the
-/// 50k target's flow). With h_k = l_k / 2, s = Σ h and s_k = s − 2 h_k,
-/// sinh(a+b) sinh(a−b) = sinh²a − sinh²b gives the products of the
-/// half-angle formulas: sinh s sinh s_k = sinh²(h_{k+1} + h_{k+2}) − sinh²h_k,
-/// sinh s_{k+1} sinh s_{k+2} = sinh²h_k − sinh²(h_{k+1} − h_{k+2}), and
-/// sinh l_i = 2 sinh h_i cosh h_i. The same angles as triangle_angles up to
-/// round-off; where a product is not positive in floating point (a
-/// triangle at the triangle inequality) or the triangle is long (s >
-/// kLongTriangle), triangle_angles itself answers.
-bool hyperbolic_angles_from_halves(const double l[3], const double sh[3], const double ch[3], double theta[3],
-                                   double D[3][3], double* slack) {
-  // The slack and the degeneracy from the lengths, as triangle_angles.
-  const double s = 0.5 * (l[0] + l[1] + l[2]);
-  double worst = s;
-  for (int k = 0; k < 3; ++k) worst = std::min(worst, 0.5 * (l[(k + 1) % 3] + l[(k + 2) % 3] - l[k]));
-  if (!(worst > 0.0) || !(s <= kLongTriangle)) return triangle_angles(l, Background::Hyperbolic, theta, D, slack);
-  double x[3], y[3];
-  bool positive = true;
-  for (int k = 0; k < 3; ++k) {
-    const int a = (k + 1) % 3, b = (k + 2) % 3;
-    const double plus = sh[a] * ch[b] + ch[a] * sh[b], minus = sh[a] * ch[b] - ch[a] * sh[b];
-    x[k] = plus * plus - sh[k] * sh[k];
-    y[k] = sh[k] * sh[k] - minus * minus;
-    positive = positive && x[k] > 0.0 && y[k] > 0.0;
-  }
-  if (!positive) return triangle_angles(l, Background::Hyperbolic, theta, D, slack);
-  if (slack) *slack = worst / s;
-  // x_k = sinh s sinh s_k, so x_0 y_0 = sinh s Π sinh s_k.
-  const double twice = 2.0 * std::sqrt(x[0] * y[0]);
-  double d[3];
-  for (int i = 0; i < 3; ++i) d[i] = 2.0 * sh[i] * ch[i] / twice;
-  angles_from_half_angle_products(x, y, d, theta, D);
-  return true;
-}
 
 /// Extended angles (see triangle_angles) of face f for lengths L.
 template <class LengthOf>
@@ -570,21 +512,11 @@ struct FaceScan {
 };
 
 void scan_faces(const RicciDomain& dom, Background bg, const Eigen::VectorXd& l_all, const Eigen::MatrixX2d* dldu,
-                const Eigen::MatrixX2d& half, int begin, int end, double* angles, Eigen::Triplet<double>* triplets,
-                FaceScan& part) {
-  const bool halves = half.rows() == l_all.size();
+                int begin, int end, double* angles, Eigen::Triplet<double>* triplets, FaceScan& part) {
   for (int f = begin; f < end; ++f) {
     double l[3], th[3], D[3][3], slack;
     for (int k = 0; k < 3; ++k) l[k] = l_all[dom.FE(f, k)];
-    bool ok;
-    if (halves) {
-      double sh[3], ch[3];
-      for (int k = 0; k < 3; ++k) sh[k] = half(dom.FE(f, k), 0), ch[k] = half(dom.FE(f, k), 1);
-      ok = hyperbolic_angles_from_halves(l, sh, ch, th, D, &slack);
-    } else {
-      ok = triangle_angles(l, bg, th, D, &slack);
-    }
-    if (!ok) {
+    if (!triangle_angles(l, bg, th, D, &slack)) {
       ++part.degenerate;
       if (part.first_degenerate < 0) part.first_degenerate = f;
     }
@@ -632,8 +564,8 @@ void evaluate(const RicciDomain& dom, const SchemeMetric& metric, Background bg,
     throw SolveError("ricci_flow: the intrinsic Delaunay flips did not terminate (" +
                      std::to_string(flips->flips) + " flips, the budget of 50 per edge)");
   ev.version = flips ? flips->version : 0;
-  Eigen::MatrixX2d dldu, half;
-  ev.bad_edge = metric.lengths(u, ev.l, jacobian ? &dldu : nullptr, threads, &half);
+  Eigen::MatrixX2d dldu;
+  ev.bad_edge = metric.lengths(u, ev.l, jacobian ? &dldu : nullptr, threads);
   ev.K = dom.full_angle;
   ev.degenerate = 0;
   ev.first_degenerate = -1;
@@ -649,8 +581,8 @@ void evaluate(const RicciDomain& dom, const SchemeMetric& metric, Background bg,
   ev.angles.resize(3 * static_cast<size_t>(nf));
   const Eigen::MatrixX2d* d = jacobian ? &dldu : nullptr;
   FaceScan parts[2];
-  in_two_halves(nf, threads, [&](int part, int begin, int end) {
-    scan_faces(dom, bg, ev.l, d, half, begin, end, ev.angles.data(), ev.triplets.data(), parts[part]);
+  in_two_halves(nf, threads, [&](int half, int begin, int end) {
+    scan_faces(dom, bg, ev.l, d, begin, end, ev.angles.data(), ev.triplets.data(), parts[half]);
   });
   // The halves combined as one pass in face order would have found them.
   for (const FaceScan& p : parts) {
