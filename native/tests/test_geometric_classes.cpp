@@ -89,7 +89,7 @@ TEST(GeometricClasses, RecoverAKnownMappingClass) {
   EXPECT_LT(classes[0].mismatch, 1e-8);
   const DehnReducer reduce(canonical_relator(2));
   const IntMatrix want = homology_matrix(psi.inverse, 4);
-  bool recovered = false;
+  bool recovered = false, first = false;
   for (const GeometricClass& c : classes) {
     if (c.mismatch > 1e-8) continue;
     // Every image has the length it has under psi^-1 (an isometry class).
@@ -101,9 +101,14 @@ TEST(GeometricClasses, RecoverAKnownMappingClass) {
         worst = std::max(worst, std::abs(lt - lw) / std::max(1.0, lw));
       }
     }
-    if (worst < 1e-6 && homology_matrix(c.theta, 4) == want) recovered = true;
+    if (worst < 1e-6 && homology_matrix(c.theta, 4) == want) recovered = true, first = first || &c == &classes[0];
   }
   EXPECT_TRUE(recovered);
+  // Several classes match every probe to round-off here, and only the
+  // isometry matches the longer curves too: it comes first (it did not hang
+  // on the metric's round-off: the Ricci flow's dl/du as tanh(l/2) or as
+  // sinh / cosh of l/2 moved which class the descents reached).
+  EXPECT_TRUE(first);
 }
 
 TEST(GeometricClasses, IdentityForTheSameSurface) {

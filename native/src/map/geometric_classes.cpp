@@ -55,6 +55,53 @@ double log_gap(double x, double y) {
   return d * d;
 }
 
+// A mismatch at or below this is a match: every probe keeps its length up
+// to the metrics' round-off (the descents stop there; below it the
+// mismatch is noise and says nothing about which class is better).
+constexpr double kMatched = 1e-12;
+// Costs (probe length totals, mismatches) within this fraction of each
+// other are equal up to round-off: the lengths come from traces of long
+// words and from metrics converged to ~1e-10, and a round-off change of the
+// metric moves them by ~1e-11 relative (the sinh / cosh form of the Ricci
+// flow's dl/du reordered GeometricClasses.RecoverAKnownMappingClass's
+// 4th and 5th classes, 2.29917325847 and ..849, and with them which was
+// descended).
+constexpr double kTieRelative = 1e-9;
+
+bool tied(double x, double y) {
+  if (x <= kMatched && y <= kMatched) return true;
+  return std::abs(x - y) <= kTieRelative * std::max(std::abs(x), std::abs(y));
+}
+
+// x lower than `best` by more than round-off (a near-tie keeps `best`, the
+// earlier one in the caller's fixed order).
+bool lower(double x, double best) { return x < best && !tied(x, best); }
+
+// The order of `values` ascending, where values equal up to round-off
+// (tied with the first of their run) stay in index order: a round-off
+// change of the inputs does not reorder a tie. #values.
+std::vector<size_t> order_with_ties(const std::vector<double>& values) {
+  std::vector<size_t> order(values.size());
+  std::iota(order.begin(), order.end(), size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return values[a] < values[b]; });
+  for (size_t begin = 0; begin < order.size();) {
+    size_t end = begin + 1;
+    while (end < order.size() && tied(values[order[end]], values[order[begin]])) ++end;
+    std::sort(order.begin() + begin, order.begin() + end);
+    begin = end;
+  }
+  return order;
+}
+
+// `items` permuted into `order` (a permutation of their indices).
+template <class T>
+void permute(std::vector<T>& items, const std::vector<size_t>& order) {
+  std::vector<T> out;
+  out.reserve(order.size());
+  for (size_t k : order) out.push_back(std::move(items[k]));
+  items = std::move(out);
+}
+
 }  // namespace
 
 IntMatrix pairing_homology(const std::vector<int>& perm, const std::vector<int>& rot) {
@@ -89,10 +136,22 @@ std::vector<Word> marking_probes(int genus) {
   return probes;
 }
 
+std::vector<Word> longer_probes(int genus) {
+  const int n = 2 * genus;
+  std::vector<Word> probes;
+  for (int i = 1; i <= n; ++i)
+    for (int j = i + 1; j <= n; ++j)
+      for (int k = j + 1; k <= n; ++k)
+        for (int sj : {1, -1})
+          for (int sk : {1, -1}) probes.push_back({i, sj * j, sk * k});
+  return probes;
+}
+
 EvaluableProbes evaluable_probes(const GroupMap& marking_map, const DehnReducer& reduce,
-                                 const std::function<double(const Word&)>& length_in_x) {
+                                 const std::function<double(const Word&)>& length_in_x,
+                                 const std::vector<Word>& words) {
   EvaluableProbes out;
-  for (const Word& p : marking_probes(static_cast<int>(marking_map.size()) / 2)) {
+  for (const Word& p : words.empty() ? marking_probes(static_cast<int>(marking_map.size()) / 2) : words) {
     Word w = reduce(substitute(p, marking_map));
     const double x = length_in_x(w);
     if (!std::isfinite(x) || !(x > 0)) continue;
@@ -123,7 +182,8 @@ struct Descent {
 // when `left_too`): the best single move while one lowers the cost by more
 // than `tolerance` relative, else the best pair of moves (when `pairs` and
 // the pair neighbourhood has at most `max_pairs` members), at most
-// `max_steps` steps.
+// `max_steps` steps, none once the cost is a match (kMatched). Of moves
+// whose costs tie up to round-off the first in the moves' order is taken.
 Descent descend(GroupMap map, const std::function<double(const GroupMap&)>& cost,
                 const std::vector<MappingClassMove>& moves, bool left_too, int max_steps, bool pairs, size_t max_pairs,
                 double tolerance, const DehnReducer& reduce) {
@@ -143,6 +203,10 @@ Descent descend(GroupMap map, const std::function<double(const GroupMap&)>& cost
   };
   pairs = pairs && singles.size() * singles.size() <= max_pairs;
   for (int step = 0; step < max_steps; ++step) {
+    if (d.cost <= kMatched) {
+      d.stalled = true;
+      break;
+    }
     const double bar = d.cost * (1 - tolerance);
     double best = bar;
     std::vector<DescentStep> best_steps;
@@ -150,7 +214,7 @@ Descent descend(GroupMap map, const std::function<double(const GroupMap&)>& cost
     for (const DescentStep& s : singles) {
       GroupMap next = apply(d.map, s);
       const double c = cost(next);
-      if (c < best) best = c, best_steps = {s}, best_map = std::move(next);
+      if (c < bar && (best_steps.empty() || lower(c, best))) best = c, best_steps = {s}, best_map = std::move(next);
     }
     // None: pairs of moves (a minimum of single moves often is not one of
     // pairs: a twist that only pays together with another).
@@ -160,7 +224,7 @@ Descent descend(GroupMap map, const std::function<double(const GroupMap&)>& cost
         if (s.left == singles[i].left && s.move == (singles[i].move ^ 1)) continue;  // (its inverse: back)
         GroupMap next = apply(first, s);
         const double c = cost(next);
-        if (c < best) best = c, best_steps = {singles[i], s}, best_map = std::move(next);
+        if (c < bar && (best_steps.empty() || lower(c, best))) best = c, best_steps = {singles[i], s}, best_map = std::move(next);
       }
       if (i + 1 == singles.size() && !best_steps.empty()) break;
     }
@@ -307,7 +371,13 @@ std::vector<GeometricClass> geometric_classes(const SurfaceGroupLengths& source,
       }
     } while (std::next_permutation(perm.begin(), perm.end()));
   }
-  std::stable_sort(pairings.begin(), pairings.end(), [](const Pairing& x, const Pairing& y) { return x.cost < y.cost; });
+  {
+    // (Ties up to round-off in enumeration order, so that which pairings
+    // are kept does not hang on round-off.)
+    std::vector<double> cost;
+    for (const Pairing& p : pairings) cost.push_back(p.cost);
+    permute(pairings, order_with_ties(cost));
+  }
   pairings.resize(std::min<size_t>(pairings.size(), static_cast<size_t>(keep)));
   // 2. Every half-turn pattern of the kept pairings, lifted exactly and
   // ranked by all probes.
@@ -356,33 +426,90 @@ std::vector<GeometricClass> geometric_classes(const SurfaceGroupLengths& source,
       for (int i = 0; i < g; ++i) {
         half[i] ^= 1;
         GeometricClass c = class_of(p, half);
-        if (c.mismatch < best.mismatch - 1e-12) best = std::move(c), improved = true;
+        if (lower(c.mismatch, best.mismatch)) best = std::move(c), improved = true;
         else half[i] ^= 1;
       }
     }
     out.push_back(std::move(best));
   }
-  std::stable_sort(out.begin(), out.end(), [](const GeometricClass& x, const GeometricClass& y) { return x.mismatch < y.mismatch; });
+  // Lowest mismatch first, ties up to round-off in enumeration order (which
+  // classes are kept and descend must not hang on round-off).
+  auto mismatches = [&] {
+    std::vector<double> m;
+    for (const GeometricClass& c : out) m.push_back(c.mismatch);
+    return m;
+  };
+  permute(out, order_with_ties(mismatches()));
   out.resize(std::min<size_t>(out.size(), static_cast<size_t>(std::max(1, options.max_classes))));
   // 3. The markings are local minima, not always the same ones on two
   // isometric surfaces, and the lift fixes each class only up to Torelli
   // elements: each class descends on the mismatch itself, by moves on
   // either side (singles, then pairs), towards a class under which every
   // probe keeps its length.
+  // The `descents` lowest descend, and every class tied up to round-off with
+  // the last of them: which of two tied classes descends must not hang on
+  // round-off (RecoverAKnownMappingClass: the 4th and 5th classes tie at
+  // 2.2991732585, and only one of them descends to the isometry).
   const std::vector<MappingClassMove> moves = twist_moves(g, false, false);
-  for (size_t k = 0; k < out.size() && static_cast<int>(k) < options.descents; ++k) {
+  size_t descending = std::min(out.size(), static_cast<size_t>(std::max(0, options.descents)));
+  while (descending > 0 && descending < out.size() && tied(out[descending].mismatch, out[descending - 1].mismatch))
+    ++descending;
+  // (A step costs about 2 #moves evaluations of the cost: the budget caps the steps.)
+  auto budget_steps = [&](size_t lengths_per_cost) {
+    const size_t per_step = 2 * moves.size() * std::max<size_t>(1, lengths_per_cost);
+    return static_cast<int>(std::min<size_t>(options.max_steps, (options.length_budget - spent) / per_step + 1));
+  };
+  for (size_t k = 0; k < descending; ++k) {
     GeometricClass& c = out[k];
-    if (c.mismatch <= 1e-12) continue;
+    if (c.mismatch <= kMatched) continue;
     if (spent >= options.length_budget) break;
-    // (A step costs about 2 #moves mismatches: the budget caps the steps.)
-    const size_t per_step = 2 * moves.size() * std::max<size_t>(1, probe_words.size());
-    const int steps = static_cast<int>(std::min<size_t>(options.max_steps, (options.length_budget - spent) / per_step + 1));
-    const Descent d = descend(c.theta, mismatch, moves, true, steps, true, options.max_pairs, 1e-9, reduce);
+    const Descent d =
+        descend(c.theta, mismatch, moves, true, budget_steps(probe_words.size()), true, options.max_pairs, 1e-9, reduce);
     c.theta = d.map;
     c.mismatch = d.cost;
     if (!d.steps.empty()) c.description += ", then " + std::to_string(d.steps.size()) + " twists matching lengths";
   }
-  std::stable_sort(out.begin(), out.end(), [](const GeometricClass& x, const GeometricClass& y) { return x.mismatch < y.mismatch; });
+  // 4. Classes that match every probe are not told apart by them: on the
+  // lopsided genus-2 surface against itself (RecoverAKnownMappingClass) four
+  // classes match every probe to 4e-17, and only one is an isometry (the
+  // others change longer curves by up to 4e-3 relative); which one a descent
+  // reached was decided by its steps below kMatched, i.e. by round-off. Such
+  // classes descend again on the probes and the three-letter probes
+  // (longer_probes), and come first, ordered by that mismatch.
+  const EvaluableProbes longer =
+      evaluable_probes(source_marking.marking.map, reduce, [&](const Word& w) { return source.length(w); },
+                       longer_probes(g));
+  auto refined = [&](const GroupMap& theta) {
+    spent += longer.words.size();
+    double m = mismatch(theta);
+    for (size_t k = 0; k < longer.words.size(); ++k)
+      m += log_gap(longer.lengths[k], target.length(reduce(substitute(longer.words[k], theta))));
+    return m;
+  };
+  std::vector<size_t> matched, rest;
+  std::vector<double> matched_by, rest_by;
+  for (size_t k = 0; k < out.size(); ++k) {
+    GeometricClass& c = out[k];
+    if (c.mismatch > kMatched || k >= descending) {
+      rest.push_back(k), rest_by.push_back(c.mismatch);
+      continue;
+    }
+    double m = refined(c.theta);
+    if (m > kMatched && spent < options.length_budget) {
+      const Descent d = descend(c.theta, refined, moves, true, budget_steps(probe_words.size() + longer.words.size()),
+                                true, options.max_pairs, 1e-9, reduce);
+      if (!d.steps.empty())
+        c.description += ", then " + std::to_string(d.steps.size()) + " twists matching longer curves";
+      c.theta = d.map;
+      c.mismatch = mismatch(c.theta);
+      m = d.cost;
+    }
+    matched.push_back(k), matched_by.push_back(m);
+  }
+  std::vector<size_t> order;
+  for (size_t k : order_with_ties(matched_by)) order.push_back(matched[k]);
+  for (size_t k : order_with_ties(rest_by)) order.push_back(rest[k]);
+  permute(out, order);
   return out;
 }
 

@@ -204,7 +204,9 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   // 7 from u = 0), then the run from u = 0 bit for bit
   // (ricci_flow_from_checked). Should a run from the start not converge,
   // the flow from u = 0 decides.
-  const CoarseStart start = coarse_conformal_start(target, tc, background);
+  CoarseStartOptions co;
+  co.threads = threads;  // (its flow's evaluations in two halves: the same bits)
+  const CoarseStart start = coarse_conformal_start(target, tc, background, co);
   RicciFlowResult flow;
   bool done = false;
   if (start.ok) {

@@ -177,6 +177,7 @@ CoarseStart coarse_conformal_start(const TriMesh& mesh, const Connectivity& conn
     RicciFlowOptions fo;
     fo.tolerance = options.coarse_tolerance;
     fo.intrinsic_delaunay = true;
+    fo.threads = options.threads;
     flow = ricci_flow(*copy.conn, edge_lengths(copy.mesh, *copy.conn), background, fo);
   } catch (const Error& e) {
     r.why = std::string("the coarse copy's flow failed: ") + e.what();

@@ -126,12 +126,12 @@ class SchemeMetric {
           le = s * l0_[e];
           di = dj = 0.5 * le;
         } else {
-          // sinh(l/2) = e^{(ui+uj)/2} l0/2  =>  dl/du_i = tanh(l/2). (Taken as
-          // sinh / sqrt(1 + sinh²) it saved a tanh per edge, but its round-off
-          // moved GeometricClasses.RecoverAKnownMappingClass off its class:
-          // kept as it was; docs/benchmarks.md "Session 20".)
-          le = 2.0 * std::asinh(s * l0_[e] / 2.0);
-          di = dj = std::tanh(0.5 * le);
+          // sinh(l/2) = e^{(ui+uj)/2} l0/2  =>  dl/du_i = tanh(l/2) =
+          // sinh(l/2) / cosh(l/2), without a tanh (ch = sh once sh² would
+          // overflow: l > 700).
+          const double sh = 0.5 * s * l0_[e], ch = sh < 1e150 ? std::sqrt(1.0 + sh * sh) : sh;
+          le = 2.0 * std::asinh(sh);
+          di = dj = sh / ch;
         }
       } else {
         const double ri = r[i], rj = r[j], I = inv_[e];

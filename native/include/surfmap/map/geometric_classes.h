@@ -75,6 +75,11 @@ std::string pairing_text(const std::vector<int>& perm, const std::vector<int>& r
 /// x_i x_j^-1 for i < j (2g(2g-1)), as words in the marking's letters.
 std::vector<Word> marking_probes(int genus);
 
+/// Three-letter probes x_i x_j^±1 x_k^±1 for i < j < k (4 C(2g, 3) words):
+/// what tells apart classes that match every marking probe
+/// (geometric_classes, the classes of mismatch below 1e-12).
+std::vector<Word> longer_probes(int genus);
+
 /// The marking probes of a marking (marking_map: 2g words in X's canonical
 /// letters) whose length in X is evaluable, with those lengths: the probes
 /// every ranking by probes (geometric, pants and greedy pants classes)
@@ -86,8 +91,11 @@ struct EvaluableProbes {
   std::vector<Word> words;      ///< probes in X's canonical letters, Dehn-reduced
   std::vector<double> lengths;  ///< their lengths in X (finite, > 0), one per word
 };
+/// `words`: other probes in the marking's letters instead of its
+/// marking_probes (empty: those).
 EvaluableProbes evaluable_probes(const GroupMap& marking_map, const DehnReducer& reduce,
-                                 const std::function<double(const Word&)>& length_in_x);
+                                 const std::function<double(const Word&)>& length_in_x,
+                                 const std::vector<Word>& words = {});
 
 /// The probes of a marking's handles: a_i, b_i, a_i b_i, a_i b_i^-1 per
 /// handle (4g words): the length short_marking() lowers. (Handle-local: a

@@ -45,6 +45,9 @@ struct CoarseStartOptions {
   /// Gauss–Seidel sweeps smoothing the prolonged u (default 10: the regions
   /// of a 3000-vertex copy of a 56k mesh are 2-3 edges across).
   int smoothing_sweeps = 10;
+  /// Threads of the coarse copy's flow's evaluations (RicciFlowOptions::
+  /// threads, default 1; 2: the same bits, in two halves).
+  int threads = 1;
 };
 
 struct CoarseStart {
