@@ -22,8 +22,8 @@ Word random_schema(int g, std::mt19937& rng) {
   }
 }
 
-void expect_canonical(const Word& w) {
-  const CanonicalSchema s = canonical_schema(w);
+void expect_canonical(const Word& w, const CanonicalSchemaOptions& options = {}) {
+  const CanonicalSchema s = canonical_schema(w, options);
   ASSERT_EQ(s.genus * 4, static_cast<int>(w.size()));
   ASSERT_EQ(static_cast<int>(s.generators.size()), 2 * s.genus);
   EXPECT_TRUE(conjugate(commutator_product(s.generators), w))
@@ -160,6 +160,34 @@ TEST(CanonicalSchema, RandomSchemataOfHighGenus) {
     ASSERT_EQ(schema_vertex_count(w), 1);
     expect_canonical(w);
   }
+}
+
+// Issue 13 (session 21): the classical moves conjugate the finished
+// generators by every later move's conjugator, so their words grow handle by
+// handle; with short_generators each generator is built from one rest word
+// and never conjugated again: at most 2 x 4g letters whatever the genus, and
+// still a canonical basis of the same group.
+TEST(CanonicalSchema, ShortGeneratorsStayWithinTwiceTheWordLength) {
+  std::mt19937 rng(21);
+  CanonicalSchemaOptions shortest;
+  shortest.short_generators = true;
+  size_t classical_longest = 0, short_longest = 0;
+  for (int trial = 0; trial < 120; ++trial) {
+    const int g = 2 + trial % 11;
+    const Word w = random_schema(g, rng);
+    expect_canonical(w, shortest);
+    const CanonicalSchema s = canonical_schema(w, shortest);
+    for (const Word& gen : s.generators) {
+      EXPECT_LE(gen.size(), 2 * w.size()) << "g=" << g;
+      short_longest = std::max(short_longest, gen.size());
+    }
+    for (const Word& gen : canonical_schema(w).generators) classical_longest = std::max(classical_longest, gen.size());
+  }
+  EXPECT_LT(short_longest, classical_longest);
+  // A word that is already canonical needs no rewriting either way.
+  Word canonical;
+  for (int i = 0; i < 5; ++i) canonical.insert(canonical.end(), {2 * i + 1, 2 * i + 2, -(2 * i + 1), -(2 * i + 2)});
+  for (const Word& gen : canonical_schema(canonical, shortest).generators) EXPECT_EQ(gen.size(), 1u);
 }
 
 TEST(CanonicalSchema, RejectsWordsThatAreNotSchemata) {

@@ -156,6 +156,49 @@ TEST(ClassLowerBound, ClassSpaceLengthsAreConjugationInvariantTranslationLengths
   EXPECT_NEAR(sc, si, 1e-6 * si);
 }
 
+// Issue 13 (session 21): the short canonical generators (cut-and-paste
+// moves that conjugate only the new pair) present the same surface as the
+// classical ones: every loop and product of loops has the same length
+// through either basis (their `letters` are right), the canonical relator
+// multiplied out through their matrices is +-identity to round-off relative
+// to its partial products, and no short generator's side word is longer
+// than the classical ones' longest (the classical conjugators pile up).
+TEST(ClassLowerBound, ShortCanonicalGeneratorsPresentTheSameSurface) {
+  const UniformizeResult u = uniformize(samples::wheel(5, 24, false));
+  ASSERT_TRUE(u.converged);
+  const int g = u.genus, n = 2 * g;
+  ASSERT_EQ(g, 5);
+  CanonicalSchemaOptions shortest;
+  shortest.short_generators = true;
+  const CanonicalSchema classical = canonical_schema(u.layout.word), brief = canonical_schema(u.layout.word, shortest);
+  const DeckGroup group(u.layout);
+  const SurfaceGroupLengths on_classical(group, classical.generators, u.layout.word),
+      on_short(group, brief.generators, u.layout.word);
+  for (int k = 1; k <= n; ++k)
+    for (const Word& loops : std::vector<Word>{{k}, {k, k % n + 1}, {k, -(k % n + 1)}}) {
+      const double l = on_classical.length(substitute(loops, classical.letters));
+      ASSERT_TRUE(std::isfinite(l) && l > 0) << "loop word of letter " << k;
+      EXPECT_NEAR(on_short.length(substitute(loops, brief.letters)), l, 1e-6 * l) << "loop word of letter " << k;
+    }
+  std::vector<Word> letters;
+  for (int j = 1; j <= n; ++j) letters.push_back({j});
+  std::vector<hyperbolic::Mobius> m;
+  ASSERT_TRUE(on_short.elements_in_frame_of_first(letters, &m));
+  hyperbolic::Mobius product;
+  double condition = 1;
+  for (int x : canonical_relator(g)) {
+    product = (product * (x > 0 ? m[x - 1] : m[-x - 1].inverse())).normalized();
+    condition = std::max(condition, std::pow(product.size(), 2));
+  }
+  EXPECT_LT(hyperbolic::distance_from_identity(product), 1e-10 * condition);
+  size_t classical_longest = 0, short_longest = 0;
+  for (int j = 0; j < n; ++j) {
+    classical_longest = std::max(classical_longest, group.side_word(classical.generators[j]).size());
+    short_longest = std::max(short_longest, group.side_word(brief.generators[j]).size());
+  }
+  EXPECT_LE(short_longest, classical_longest);
+}
+
 // The bound of a class X -> X twisted k times along a1 grows like k^2 (the
 // image of b1 winds k times around a1: its length grows like k l(a1)), and
 // the identity's stays below the energy of the isometry, 8 pi (g - 1).

@@ -82,7 +82,7 @@ SourceClassBounds class_bounds_on(const TriMesh& surface, const Connectivity& su
     b.uniformized = uniformized_target(surface, Background::Hyperbolic, o, &surface_conn, stop, "source",
                                        copy ? nullptr : &sl);
     const UniformizedTarget& xu = b.uniformized;
-    b.schema = canonical_schema(xu.layout.word);
+    b.schema = canonical_schema(xu.layout.word, schema_options(options));
     const CanonicalSchema& xcs = b.schema;
     // The default cut's loops onto the uniformized copy's: on the source
     // itself every loop vertex's nearest point is itself (joins by length
@@ -144,7 +144,7 @@ SourceLetters source_letters_from_own_loops(const TriMesh& source, const Connect
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.loops.source_base_vertex;
   try {
-    const ClassLoops cl = own_class_loops(source, sc, lo, &sl);
+    const ClassLoops cl = own_class_loops(source, sc, lo, &sl, schema_options(options));
     as_target_letters(source, sl.loops, generators, genus, &cl, GroupMap{}, b);
   } catch (const Error& e) {
     b.as_target_status = std::string("the source's own loops failed: ") + e.what();

@@ -390,13 +390,20 @@ void HyperbolicPipeline::start_source_side() {
 void HyperbolicPipeline::uniformize_target() {
   ut = std::make_unique<UniformizedTarget>(uniformized_target(target, Background::Hyperbolic, options, &tc));
   record_target_metric(*ut, out);
-  tcs = canonical_schema(ut->layout.word);
+  tcs = canonical_schema(ut->layout.word, schema_options(options));
   if (ut->class_loops) {
     // Flip path: the canonical generators of the target's own loops, on T'
     // (map_support.h ClassLoops); the loop letters the classes read are
     // those of the target's own loops (candidate_classes_and_data).
     tcs.generators = ut->class_loops->generators_in_layout_letters;
     tcs.letters = ut->class_loops->schema.letters;
+  }
+  {
+    size_t fewest = SIZE_MAX, most = 0;
+    for (const Word& g : tcs.generators) fewest = std::min(fewest, g.size()), most = std::max(most, g.size());
+    out.canonical_generators = std::string(options.loops.short_canonical_generators ? "short" : "classical") +
+                               ": target generators " + std::to_string(fewest) + " .. " + std::to_string(most) +
+                               " layout letters";
   }
   deck_group = std::make_unique<DeckGroup>(ut->layout);
   polygon = std::make_unique<FundamentalPolygon>(ut->layout, *deck_group);

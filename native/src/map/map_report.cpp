@@ -106,6 +106,7 @@ json energy_json(const SurfaceMapResult& r) {
           {"target_metric_choice", r.target_metric_choice},
           {"target_loop_metric", r.target_loop_metric},
           {"target_class_loops", r.target_class_loops},
+          {"canonical_generators", r.canonical_generators},
           {"source_weights", r.source_weights},
           {"source_weights_reason", r.source_weights_reason},
           {"fold_repair",

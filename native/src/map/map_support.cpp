@@ -93,8 +93,14 @@ PointOnSurface point_on_input(const TriMesh& input, const Connectivity& ic, cons
   return ps;
 }
 
+CanonicalSchemaOptions schema_options(const SurfaceMapOptions& options) {
+  CanonicalSchemaOptions o;
+  o.short_generators = options.loops.short_canonical_generators;
+  return o;
+}
+
 ClassLoops own_class_loops(const TriMesh& mesh, const Connectivity& conn, const SystemOfLoopsOptions& lo,
-                           const SystemOfLoops* own_loops) {
+                           const SystemOfLoops* own_loops, const CanonicalSchemaOptions& schema) {
   ClassLoops cl;
   // The greedy basis once per mesh and base vertex (issue 19): the caller's
   // unrefined loops of this mesh, refined, are these loops.
@@ -104,7 +110,7 @@ ClassLoops own_class_loops(const TriMesh& mesh, const Connectivity& conn, const 
   const auto first = std::find(cl.word.begin(), cl.word.end(), 1);
   if (first == cl.word.end()) throw SolveError("the target's loops have no letter 1 in their word");
   std::rotate(cl.word.begin(), first, cl.word.end());
-  cl.schema = canonical_schema(cl.word);
+  cl.schema = canonical_schema(cl.word, schema);
   return cl;
 }
 
@@ -187,7 +193,7 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   // before those go.
   std::future<ClassLoops> own_future;
   if (hyperbolic && threads > 1)
-    own_future = std::async(std::launch::async, [&] { return own_class_loops(target, tc, lo, own_loops); });
+    own_future = std::async(std::launch::async, [&] { return own_class_loops(target, tc, lo, own_loops, schema_options(options)); });
   RicciFlowOptions fo;
   fo.tolerance = options.uniformization.tolerance;
   fo.intrinsic_delaunay = true;
@@ -282,7 +288,7 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
             // (built and carried again below, which reports the error)
           }
         }
-        if (!cl) cl = own_class_loops(target, tc, lo, own_loops);
+        if (!cl) cl = own_class_loops(target, tc, lo, own_loops, schema_options(options));
         own = carry(std::move(*cl), t.loops);
       }
       t.class_loops = class_loops_on_input(std::move(own), t.layout);

@@ -97,7 +97,13 @@ struct ClassLoops {
 /// it; class_bound_support.h reads the source's letters as a target from it
 /// when the source is not uniformized (issue 19).
 ClassLoops own_class_loops(const TriMesh& mesh, const Connectivity& conn, const SystemOfLoopsOptions& lo,
-                           const SystemOfLoops* own_loops);
+                           const SystemOfLoops* own_loops, const CanonicalSchemaOptions& schema = {});
+
+/// The canonical schema's options SurfaceMapOptions asks for
+/// (LoopOptions::short_canonical_generators), for every genus >= 2 schema
+/// of the pipeline (both surfaces' loops, the source's other cuts, the
+/// uniformized source of the class bounds).
+CanonicalSchemaOptions schema_options(const SurfaceMapOptions& options);
 
 /// The target laid out in its uniformization metric: system of loops (refined,
 /// as the layout needs simple loops), Ricci flow, disk layout, with the metric

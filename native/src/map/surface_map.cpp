@@ -77,6 +77,7 @@ SurfaceMapResult map_in_automatic_cuts(const TriMesh& source, const TriMesh& tar
   const auto t0 = Clock::now();
   SurfaceMapOptions automatic = options;
   automatic.loops = LoopOptions{};
+  automatic.loops.short_canonical_generators = options.loops.short_canonical_generators;  // (not a cut's choice)
   SurfaceMapResult chosen;
   try {
     chosen = map_in_given_cuts(source, target, automatic, hooks);

@@ -59,7 +59,7 @@ int schema_vertex_count(const Word& w) {
   return classes;
 }
 
-CanonicalSchema canonical_schema(const Word& word) {
+CanonicalSchema canonical_schema(const Word& word, const CanonicalSchemaOptions& options) {
   check_schema_word(word);
   if (const int nv = schema_vertex_count(word); nv != 1)
     throw InputError("the boundary word glues the polygon's corners into " + std::to_string(nv) +
@@ -71,6 +71,39 @@ CanonicalSchema canonical_schema(const Word& word) {
   // that still uses each remaining letter once with each sign.
   Word rest = word;
   std::vector<std::array<int, 2>> consumed;  // the letters (a, b) of each move
+  while (!rest.empty() && options.short_generators) {
+    // The pair at rest[0] = a: W = a B b C a^-1 D b^-1 F (b^-1 after a^-1:
+    // with nothing before a, every partner's other occurrence is there).
+    // As below, W = Q [a', b'] F with Q = D C B; here G W = G [a'', b''] Q F
+    // with the new pair conjugated instead, a'' = Q a' Q^-1 = a C^-1 D^-1
+    // and b'' = Q b' Q^-1 = D C B b D^-1, and Q F = D C B F is the new rest.
+    const int n = static_cast<int>(rest.size());
+    const int j = position_of(rest, -rest[0]);
+    Word best_a, best_b, best_rest;
+    int best_b_letter = 0;
+    for (int k = 1; k < j; ++k) {
+      const int l = position_of(rest, -rest[k]);
+      if (l < j) continue;  // not interleaved with a
+      const Word B(rest.begin() + 1, rest.begin() + k), C(rest.begin() + k + 1, rest.begin() + j),
+          D(rest.begin() + j + 1, rest.begin() + l), F(rest.begin() + l + 1, rest.end());
+      Word a2 = concat({Word{rest[0]}, inverse(C), inverse(D)});
+      Word b2 = concat({D, C, B, Word{rest[k]}, inverse(D)});
+      if (best_b_letter != 0 && a2.size() + b2.size() >= best_a.size() + best_b.size()) continue;
+      best_a = std::move(a2), best_b = std::move(b2), best_b_letter = rest[k];
+      best_rest = D;
+      best_rest.insert(best_rest.end(), C.begin(), C.end());
+      best_rest.insert(best_rest.end(), B.begin(), B.end());
+      best_rest.insert(best_rest.end(), F.begin(), F.end());
+    }
+    if (best_b_letter == 0 || static_cast<int>(best_rest.size()) != n - 4)
+      throw InputError("the boundary word has a letter with no interleaved partner; it is not the "
+                       "word of a one-vertex schema of an orientable surface");
+    out.generators.push_back(std::move(best_a));
+    out.generators.push_back(std::move(best_b));
+    consumed.push_back({rest[0], best_b_letter});
+    rest = std::move(best_rest);
+    ++out.moves;
+  }
   while (!rest.empty()) {
     const int n = static_cast<int>(rest.size());
     // Find x at i with x^-1 at j > i and a letter y occurring once in (i, j)

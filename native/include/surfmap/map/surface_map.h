@@ -430,6 +430,16 @@ struct LoopOptions {
   /// handle_classes.md "Every class folded"): the automatic cuts would only
   /// fail again, one full one-way run for nothing.
   bool search_in_given_cuts = false;
+  /// Genus >= 2: both surfaces' canonical generators from the cut-and-paste
+  /// moves that conjugate only each new pair (CanonicalSchemaOptions::
+  /// short_generators), not the classical ones whose conjugators pile up
+  /// handle by handle (default false; CLI --short-canonical-generators;
+  /// report `canonical_generators`). Issue 13: on the raw genus-12 wheel
+  /// the classical generators are up to 253 loop letters with matrices of
+  /// |a| = 4e100 and their canonical relator multiplies out to 1e1805; the
+  /// short ones are up to 60 letters (|a| 8e11), translation lengths near
+  /// the systole's (docs/robustness.md "Session 21").
+  bool short_canonical_generators = false;
 };
 
 /// When the genus >= 2 map runs in per-face charts of the target
@@ -880,6 +890,11 @@ struct SurfaceMapResult {
   /// target's own loops, carried through N of the flips", or the loops of T'
   /// and why; docs/uniformization.md). Empty otherwise.
   std::string target_class_loops;
+  /// Genus >= 2: "classical" or "short" (LoopOptions::
+  /// short_canonical_generators), with the target's canonical generators'
+  /// lengths as the classes read them: "short: target generators 1 .. 60
+  /// layout letters". Empty otherwise.
+  std::string canonical_generators;
   /// Genus >= 2: empty when the map ran in the target layout's one
   /// Poincaré chart; otherwise "per-face charts (...)" with why (the single
   /// chart's limit, or requested) and the path's restrictions

@@ -26,6 +26,22 @@ struct CanonicalSchema {
   int moves = 0;
 };
 
+struct CanonicalSchemaOptions {
+  /// How each cut-and-paste move keeps the invariant "input word ~ finished
+  /// commutators * rest". false (default, the classical order): the rest is
+  /// rotated to the chosen pair and every finished generator is conjugated
+  /// by the rotation and by the move's conjugator, so the conjugators pile
+  /// up handle by handle (issue 13: on the raw genus-12 wheel's 48-letter
+  /// word the generators reach 351 loop letters, matrices of |a| = 4e122).
+  /// true: each move takes the pair at the first letter of the rest (every
+  /// letter of a one-vertex word has an interleaved partner, so no
+  /// rotation is needed), chooses the partner that gives the fewest
+  /// letters, and conjugates only the new pair; the finished generators are
+  /// never touched again, so each generator is a sub-word of one rest
+  /// word (at most 4g letters, docs/robustness.md "Session 21").
+  bool short_generators = false;
+};
+
 /// Number of vertices of the surface obtained by gluing the polygon's sides
 /// as the word says (1 for the word of a system of loops through one point).
 int schema_vertex_count(const Word& word);
@@ -33,6 +49,6 @@ int schema_vertex_count(const Word& word);
 /// `word`: cyclic boundary word of a one-vertex schema of an orientable closed
 /// surface, length 4g, each letter ±1..±2g exactly once with each sign.
 /// Throws InputError when the word is not of that kind (names the letter).
-CanonicalSchema canonical_schema(const Word& word);
+CanonicalSchema canonical_schema(const Word& word, const CanonicalSchemaOptions& options = {});
 
 }  // namespace surfmap

@@ -42,7 +42,7 @@ CutPrep SourceCuts::build(int base) const {
   } catch (const Error&) {
     return cp;  // no system of loops at that vertex: the default one is enough
   }
-  const CanonicalSchema scs2 = canonical_schema(sl2.word);
+  const CanonicalSchema scs2 = canonical_schema(sl2.word, schema_options(options_));
   // The default loops onto this cut's: the same mesh (source_loops does not
   // refine), so each loop vertex is its own image and sc_ is the cut's
   // connectivity (issue 19: no box frame, k-d tree or Connectivity per cut).

@@ -15,7 +15,7 @@ SourceSide build_source_side(const TriMesh& source, const Connectivity& sc, cons
   cso.target_vertices = std::min(options.homotopy.coarse_vertices, source.num_vertices() / 4);
   SourceSide ss;
   ss.sl = source_loops(source, sc, options, graph);
-  ss.scs = canonical_schema(ss.sl.word);
+  ss.scs = canonical_schema(ss.sl.word, schema_options(options));
   // Deck elements are computed as words first and multiplied out only when
   // reduced: products like g g^-1 of large SU(1,1) matrices lose digits, and
   // the words of single edges are short (their crossings with the cut).
