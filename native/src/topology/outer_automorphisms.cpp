@@ -309,6 +309,61 @@ GroupMap nielsen_inverse(const GroupMap& phi, int genus, size_t max_letters) {
   return preimages;
 }
 
+AutomorphismInverse invert_product(const std::vector<GroupMap>& factors, int genus,
+                                   const std::vector<GroupMap>& known_inverses,
+                                   const AutomorphismInverseOptions& options) {
+  AutomorphismInverse out;
+  if (factors.empty()) {
+    out.why = "no factors";
+    return out;
+  }
+  const DehnReducer reduce(canonical_relator(genus));
+  auto dehn = [&](GroupMap m) {
+    for (Word& w : m) w = reduce(w);
+    return m;
+  };
+  GroupMap product = identity_map(2 * genus), inverse = identity_map(2 * genus);
+  for (size_t i = 0; i < factors.size(); ++i) {
+    check_map(factors[i], genus, "invert_product");
+    GroupMap inverse_i;
+    if (i < known_inverses.size() && !known_inverses[i].empty()) {
+      check_map(known_inverses[i], genus, "invert_product");
+      inverse_i = known_inverses[i];
+    } else {
+      AutomorphismInverse f = invert_automorphism(factors[i], genus, options);
+      if (!f.ok) {
+        out.why = "factor " + std::to_string(i + 1) + " of " + std::to_string(factors.size()) + " not inverted: " + f.why;
+        return out;
+      }
+      out.moves += f.moves;
+      inverse_i = std::move(f.inverse);
+    }
+    // (The letters of outer ∘ inner, before reduction: the product of the
+    // factors' lengths at worst, so capped like the descent's neighbours.)
+    auto letters = [](const GroupMap& outer, const GroupMap& inner) {
+      size_t total = 0;
+      for (const Word& w : inner)
+        for (int x : w) total += outer[static_cast<size_t>(std::abs(x) - 1)].size();
+      return total;
+    };
+    if (letters(product, factors[i]) > options.max_letters || letters(inverse_i, inverse) > options.max_letters) {
+      out.why = "the product or its inverse up to factor " + std::to_string(i + 1) + " exceeds " +
+                std::to_string(options.max_letters) + " letters";
+      return out;
+    }
+    product = dehn(compose(product, factors[i]));
+    inverse = dehn(compose(inverse_i, inverse));
+  }
+  if (!inner_automorphism_test(dehn(compose(product, inverse)), genus).inner ||
+      !inner_automorphism_test(dehn(compose(inverse, product)), genus).inner) {
+    out.why = "the factors' inverses composed are not the product's inverse (a known inverse is wrong)";
+    return out;
+  }
+  out.ok = true;
+  out.inverse = std::move(inverse);
+  return out;
+}
+
 AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const AutomorphismInverseOptions& options) {
   check_map(phi, genus, "invert_automorphism");
   AutomorphismInverse out;
