@@ -49,6 +49,19 @@ GroupMap random_class(std::mt19937& rng, int g, int count, std::vector<std::stri
   return m;
 }
 
+// The class a fertility -> genus-4 CAD plate run chose (genus 4), on which
+// the probe descent alone stalls after 10 moves.
+GroupMap fertility_to_plate_class() {
+  return {{7, 8, -7, -8, 5, 6, -5, 8, 7, -8, -7, 8, -7, -8, -6, 8, 7, -8, 7, 8, -7, -8, 5, 6, 8, 7, -8, 7, 8, -7, -8, 5, -6, -5, 8, 7, -8, -7},
+          {7, 8, -7, -8, 5, 6, -5, 8, 7, -8, -7, 8, -7, -8, 6, 8, 7, -8, 7, 8, -7, -8, 5, -6, -5, 8, 7, -8, -7},
+          {8, -7, -8},
+          {6, 8, 7, -8, -7, -8},
+          {7, 8, -7, -8, 2, 1, 2, -1, -2, 8, 7, -8, -7},
+          {7, 8, -7, -8, 2, 1, -2, -1, 2, -1, -2, 8, 7, -8, -7},
+          {7, 8, -7, -8, 3, 4, -3, -4, 3, -4, -3, 8, 7, -8, -7},
+          {7, 8, -7, -8, 3, 4, 3, -4, -3, 8, 7, -8, -7}};
+}
+
 TEST(OuterAutomorphisms, ConjugationsAreInnerWithTheirConjugatorRecovered) {
   std::mt19937 rng(7);
   for (int g = 2; g <= 4; ++g) {
@@ -366,15 +379,7 @@ TEST(OuterAutomorphisms, ProbeCostWithTheMemoEqualsTheDirectComputation) {
 // (a pants class and three twists; the descent stops after 10 moves).
 TEST(OuterAutomorphisms, NielsenReductionInvertsWhatTheDescentCannot) {
   const int g = 4;
-  const GroupMap fertility_to_plate = {
-      {7, 8, -7, -8, 5, 6, -5, 8, 7, -8, -7, 8, -7, -8, -6, 8, 7, -8, 7, 8, -7, -8, 5, 6, 8, 7, -8, 7, 8, -7, -8, 5, -6, -5, 8, 7, -8, -7},
-      {7, 8, -7, -8, 5, 6, -5, 8, 7, -8, -7, 8, -7, -8, 6, 8, 7, -8, 7, 8, -7, -8, 5, -6, -5, 8, 7, -8, -7},
-      {8, -7, -8},
-      {6, 8, 7, -8, -7, -8},
-      {7, 8, -7, -8, 2, 1, 2, -1, -2, 8, 7, -8, -7},
-      {7, 8, -7, -8, 2, 1, -2, -1, 2, -1, -2, 8, 7, -8, -7},
-      {7, 8, -7, -8, 3, 4, -3, -4, 3, -4, -3, 8, 7, -8, -7},
-      {7, 8, -7, -8, 3, 4, 3, -4, -3, 8, 7, -8, -7}};
+  const GroupMap fertility_to_plate = fertility_to_plate_class();
   const DehnReducer reduce(canonical_relator(g));
   auto is_inverse = [&](const GroupMap& phi, const GroupMap& inv) {
     GroupMap a = compose(phi, inv), b = compose(inv, phi);
@@ -442,15 +447,7 @@ TEST(OuterAutomorphisms, NielsenReductionInvertsWhatTheDescentCannot) {
 // products of moves in genus 2 invert factor by factor, exactly.
 TEST(OuterAutomorphisms, ProductsInvertFactorByFactor) {
   const int g = 4;
-  const GroupMap fertility_to_plate = {
-      {7, 8, -7, -8, 5, 6, -5, 8, 7, -8, -7, 8, -7, -8, -6, 8, 7, -8, 7, 8, -7, -8, 5, 6, 8, 7, -8, 7, 8, -7, -8, 5, -6, -5, 8, 7, -8, -7},
-      {7, 8, -7, -8, 5, 6, -5, 8, 7, -8, -7, 8, -7, -8, 6, 8, 7, -8, 7, 8, -7, -8, 5, -6, -5, 8, 7, -8, -7},
-      {8, -7, -8},
-      {6, 8, 7, -8, -7, -8},
-      {7, 8, -7, -8, 2, 1, 2, -1, -2, 8, 7, -8, -7},
-      {7, 8, -7, -8, 2, 1, -2, -1, 2, -1, -2, 8, 7, -8, -7},
-      {7, 8, -7, -8, 3, 4, -3, -4, 3, -4, -3, 8, 7, -8, -7},
-      {7, 8, -7, -8, 3, 4, 3, -4, -3, 8, 7, -8, -7}};
+  const GroupMap fertility_to_plate = fertility_to_plate_class();
   const DehnReducer reduce(canonical_relator(g));
   auto dehn = [&](GroupMap m) {
     for (Word& w : m) w = reduce(w);

@@ -309,6 +309,21 @@ GroupMap nielsen_inverse(const GroupMap& phi, int genus, size_t max_letters) {
   return preimages;
 }
 
+namespace {
+
+/// Whether psi is phi's inverse up to an inner automorphism, exactly: phi ∘
+/// psi and psi ∘ phi inner (both: the check of every inverse returned).
+bool inverse_up_to_inner(const GroupMap& phi, const GroupMap& psi, int genus, const DehnReducer& reduce) {
+  auto dehn = [&](GroupMap m) {
+    for (Word& w : m) w = reduce(w);
+    return m;
+  };
+  return inner_automorphism_test(dehn(compose(phi, psi)), genus).inner &&
+         inner_automorphism_test(dehn(compose(psi, phi)), genus).inner;
+}
+
+}  // namespace
+
 AutomorphismInverse invert_product(const std::vector<GroupMap>& factors, int genus,
                                    const std::vector<GroupMap>& known_inverses,
                                    const AutomorphismInverseOptions& options) {
@@ -354,8 +369,7 @@ AutomorphismInverse invert_product(const std::vector<GroupMap>& factors, int gen
     product = dehn(compose(product, factors[i]));
     inverse = dehn(compose(inverse_i, inverse));
   }
-  if (!inner_automorphism_test(dehn(compose(product, inverse)), genus).inner ||
-      !inner_automorphism_test(dehn(compose(inverse, product)), genus).inner) {
+  if (!inverse_up_to_inner(product, inverse, genus, reduce)) {
     out.why = "the factors' inverses composed are not the product's inverse (a known inverse is wrong)";
     return out;
   }
@@ -388,8 +402,7 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
       return failed;
     }
     inv = dehn(inv);
-    if (!inner_automorphism_test(dehn(compose(phi, inv)), genus).inner ||
-        !inner_automorphism_test(dehn(compose(inv, phi)), genus).inner) {
+    if (!inverse_up_to_inner(phi, inv, genus, reduce)) {
       failed.why += "; Nielsen reduction's inverse is not one (a bug)";
       return failed;
     }
@@ -524,8 +537,7 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
   }
   GroupMap M = dehn(compose(done->right, done->left));
   GroupMap inv = std::move(M);
-  if (!inner_automorphism_test(dehn(compose(phi, inv)), genus).inner ||
-      !inner_automorphism_test(dehn(compose(inv, phi)), genus).inner) {
+  if (!inverse_up_to_inner(phi, inv, genus, reduce)) {
     out.why = "the composite with the computed inverse is not inner (a bug)";
     return out;
   }
