@@ -472,7 +472,8 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
   // run's letters, the form of given_class.
   SurfaceMapOptions ro = one_way_options(reverse_options(options));
   std::string uninverted;
-  int inverted_by_legs = 0;
+  int inverted_by_legs = 0, composed_the_other_way = 0;
+  std::string uninverted_why;  // (why the first class composed the other way was not inverted)
   for (size_t k = 0; k < composed.size(); ++k) {
     const std::vector<std::vector<int>> there =
         compose(target_letters_inverse, compose(composed[k], forward.source_as_target_inverse));
@@ -524,6 +525,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
         if (!other.empty()) {
           ro.homotopy.given_class.insert(ro.homotopy.given_class.end(), other.begin(), other.end());
           ro.homotopy.given_class_names.push_back(name + ", composed the other way (not inverted: " + inv.why + ")");
+          if (composed_the_other_way++ == 0) uninverted_why = inv.why;
           continue;
         }
         leg_failure += "; composed the other way: " + why;
@@ -550,8 +552,10 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
   const double own = chosen_energy(forward), other_there = chosen_energy(back);
   std::string status = "; both directions: the composed class" + std::string(composed.size() > 1 ? "es" : "") +
                        " inverted" + (inverted_by_legs > 0 ? std::string(" (") + std::to_string(inverted_by_legs) +
-                       " leg by leg)" : std::string()) + ", searched on in the other direction, ratio " +
-                       four_digits(other_there / bound);
+                       " leg by leg)" : std::string()) +
+                       (composed_the_other_way > 0 ? std::string(" or composed the other way (") +
+                       std::to_string(composed_the_other_way) + ": " + uninverted_why + ")" : std::string()) +
+                       ", searched on in the other direction, ratio " + four_digits(other_there / bound);
   if (back.homotopy_search.run)
     status += " (" + std::to_string(back.homotopy_search.moves.size()) + " moves, " +
               std::to_string(back.homotopy_search.evaluations) + " solves)";

@@ -354,16 +354,17 @@ AutomorphismInverse invert_product(const std::vector<GroupMap>& factors, int gen
       inverse_i = std::move(f.inverse);
     }
     // (The letters of outer ∘ inner, before reduction: the product of the
-    // factors' lengths at worst, so capped like the descent's neighbours.)
+    // factors' lengths at worst, so capped.)
     auto letters = [](const GroupMap& outer, const GroupMap& inner) {
       size_t total = 0;
       for (const Word& w : inner)
         for (int x : w) total += outer[static_cast<size_t>(std::abs(x) - 1)].size();
       return total;
     };
-    if (letters(product, factors[i]) > options.max_letters || letters(inverse_i, inverse) > options.max_letters) {
+    const size_t most = options.max_product_letters;
+    if (letters(product, factors[i]) > most || letters(inverse_i, inverse) > most) {
       out.why = "the product or its inverse up to factor " + std::to_string(i + 1) + " exceeds " +
-                std::to_string(options.max_letters) + " letters";
+                std::to_string(most) + " letters";
       return out;
     }
     product = dehn(compose(product, factors[i]));

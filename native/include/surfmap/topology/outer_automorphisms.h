@@ -139,6 +139,11 @@ struct AutomorphismInverseOptions {
   /// true; false: fail as before). Its inverse is checked exactly too, and
   /// AutomorphismInverse::why then says so.
   bool nielsen = true;
+  /// invert_product: most letters (summed over the 2g images, before
+  /// reduction) of the running product or inverse (default 2^22: a few
+  /// factors' inverses from the descent can run to thousands of letters
+  /// each, their product to gigabytes).
+  size_t max_product_letters = size_t{1} << 22;
 };
 
 struct AutomorphismInverse {
