@@ -449,6 +449,31 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   finish(forward, status + agreed);
 }
 
+namespace {
+
+/// A composed class θ0 in the other direction's letters, ι_T^-1 ∘ θ0 ∘
+/// ι_S^-1 = A ∘ B, inverted factor by factor (invert_product): B the source
+/// -> M leg from the source's letters as a target (onto ∘ ι_S^-1), A the M
+/// -> target leg into the target's letters as a source (ι_T^-1 ∘ from ∘
+/// ι_M^-1), whose inverse is known when that leg was brought back from a
+/// target -> M run (A^-1 is that run's class). The composite's long words
+/// can stall where the legs' shorter ones invert (torus g4 -> fertility
+/// through the plate, session 21). Letters: 2g words each.
+AutomorphismInverse inverted_leg_by_leg(const ComposedLegs& l, const GroupMap& source_letters_inverse,
+                                        const GroupMap& target_letters_inverse, int g) {
+  const size_t n = static_cast<size_t>(2 * g);
+  if (l.onto.size() != n || l.from.size() != n || l.middle_letters_inverse.size() != n) {
+    AutomorphismInverse missing;
+    missing.why = "a leg's words are missing";
+    return missing;
+  }
+  return invert_product({compose(target_letters_inverse, compose(l.from, l.middle_letters_inverse)),
+                         compose(l.onto, source_letters_inverse)},
+                        g, {l.from_inverse.size() == n ? l.from_inverse : GroupMap{}, {}});
+}
+
+}  // namespace
+
 std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                        const std::vector<std::vector<std::vector<int>>>& composed,
                                        const std::vector<std::string>& names,
@@ -481,25 +506,13 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
     AutomorphismInverse inv = invert_automorphism(there, g);
     bool leg_by_leg = false;
     if (!inv.ok && k < legs.size()) {
-      // Factor by factor: there = A ∘ B, with B = the source -> M leg from
-      // the source's letters as a target (onto ∘ ι_S^-1) and A = the M ->
-      // target leg into the target's letters as a source (ι_T^-1 ∘ from ∘
-      // ι_M^-1), whose inverse is known when that leg was brought back from
-      // a target -> M run (A^-1 is that run's class). The composite's long
-      // words can stall where the legs' shorter ones invert (torus g4 ->
-      // fertility through the plate, session 21).
-      const ComposedLegs& l = legs[k];
-      const bool complete = l.onto.size() == n && l.from.size() == n && l.middle_letters_inverse.size() == n;
       const AutomorphismInverse by_legs =
-          complete ? invert_product({compose(target_letters_inverse, compose(l.from, l.middle_letters_inverse)),
-                                     compose(l.onto, forward.source_as_target_inverse)},
-                                    g, {l.from_inverse.size() == n ? l.from_inverse : GroupMap{}, {}})
-                   : AutomorphismInverse{};
+          inverted_leg_by_leg(legs[k], forward.source_as_target_inverse, target_letters_inverse, g);
       if (by_legs.ok) {
         inv = by_legs;
         leg_by_leg = true;
       } else {
-        inv.why += complete ? "; leg by leg: " + by_legs.why : "; leg by leg: a leg's words are missing";
+        inv.why += "; leg by leg: " + by_legs.why;
       }
     }
     if (inv.ok) {
