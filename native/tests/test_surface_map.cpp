@@ -1582,6 +1582,58 @@ TEST(SurfaceMapHandles, ComposedClassesSearchedBothWaysEndOnInverseClasses) {
     EXPECT_EQ(static_cast<int>(m->forward.size()), s->num_vertices());
     EXPECT_EQ(static_cast<int>(m->inverse.size()), t->num_vertices());
   }
+  // Session 20's rule (docs/handle_classes.md "A leg that cannot help"):
+  // when this class inverted cannot be solved in the other direction (the
+  // inversion stalls on some words: torus g4 -> fertility), its pair's total
+  // is unknown, and the other direction's class inverted is adopted only if
+  // it is lower here. The map function refuses that single solve as the
+  // stalled inversion does.
+  int refused = 0;
+  const detail::MapFunction no_inverse_there = [&](const TriMesh& s, const TriMesh& d, const SurfaceMapOptions& so) {
+    if (so.homotopy.reverse_class_only && detail::same_shape(s, b)) {
+      ++refused;
+      throw SolveError("the other direction's class (homotopy.reverse_class) could not be inverted: refused here");
+    }
+    return surface_map(s, d, so);
+  };
+  // Y here (2.73 x), the other direction's search ends on X^-1, and X is
+  // higher here (2.84 x): Y is kept, the directions not compared (before
+  // session 20 the finite pair, X's, was adopted).
+  SurfaceMapResult kept = f;
+  const std::string ks = detail::composed_classes_both_ways(a, b, unsearched, {x_class, y_class}, {"X", "Y"},
+                                                            pr.source_as_target_inverse, kept, no_inverse_there);
+  EXPECT_EQ(refused, 1);
+  EXPECT_NE(ks.find("kept this class, not lower here"), std::string::npos) << ks;
+  EXPECT_EQ(kept.energy_ratio, f.energy_ratio) << ks;
+  EXPECT_EQ(kept.chosen_candidate, f.chosen_candidate);
+  EXPECT_EQ(kept.chosen_class_words, f.chosen_class_words);
+  EXPECT_NE(kept.directions.outcome, "inverse");
+  EXPECT_EQ(kept.directions.reason.rfind("not compared", 0), 0u) << kept.directions.reason;
+  ASSERT_EQ(kept.candidates.size(), f.candidates.size() + 1);
+  EXPECT_NE(kept.candidates.back().description.find("[the other direction's search from the composed class, inverted]"),
+            std::string::npos);
+  EXPECT_GT(kept.candidates.back().energy, f.final_energy * 1.01);  // X, higher here
+  // X here (given alone), the composed class Y: the other direction's
+  // search ends on Y^-1, and Y is lower here: adopted, though X^-1 there is
+  // not solved.
+  SurfaceMapOptions x_only = fo;
+  x_only.homotopy.given_class = x_class;
+  const SurfaceMapResult fx = surface_map(a, b, x_only);
+  ASSERT_GT(fx.energy_ratio, f.energy_ratio * 1.02);
+  SurfaceMapResult adopted = fx;
+  const std::string as = detail::composed_classes_both_ways(a, b, unsearched, {y_class}, {"Y"},
+                                                            pr.source_as_target_inverse, adopted, no_inverse_there);
+  EXPECT_EQ(refused, 2);
+  EXPECT_NE(as.find("used the other direction's class inverted"), std::string::npos) << as;
+  EXPECT_NEAR(adopted.energy_ratio, f.energy_ratio, 2e-2 * f.energy_ratio) << as;
+  EXPECT_LT(adopted.energy_ratio, fx.energy_ratio) << as;
+  EXPECT_EQ(adopted.directions.outcome, "inverse") << adopted.directions.reason;
+  const AutomorphismInverse y_inverse = invert_automorphism(y_class, 2);
+  ASSERT_TRUE(y_inverse.ok) << y_inverse.why;
+  EXPECT_TRUE(compare_opposite_classes(y_inverse.inverse, adopted.chosen_class_words, 2).inner.inner);  // Y itself
+  EXPECT_TRUE(adopted.converged);
+  EXPECT_EQ(adopted.flipped_triangles, 0);
+  EXPECT_EQ(static_cast<int>(adopted.forward.size()), a.num_vertices());
 }
 
 // The generated shape that is the target itself is skipped (its legs would

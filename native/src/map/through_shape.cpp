@@ -182,10 +182,11 @@ std::string searched_on(const SurfaceMapResult& r) {
 /// The end of a retried leg's status: `again` (its ratio said first,
 /// after `what`) replaces `leg` when lower.
 std::string keep_the_lower_leg(SurfaceMapResult& leg, SurfaceMapResult& again, const std::string& what,
-                               const Clock& t) {
+                               const Clock& t, bool* used = nullptr) {
   const bool lower = again.chosen_candidate >= 0 && again.energy_ratio < leg.energy_ratio * (1 - 1e-6);
   const std::string status = what + four_digits(again.energy_ratio) + "; " + t.text() + (lower ? "): used" : "): kept");
   if (lower) leg = std::move(again);
+  if (used) *used = lower;
   return status;
 }
 
@@ -236,12 +237,15 @@ std::string leg_through_the_first_run(const TriMesh& source, const TriMesh& targ
 // target's letters as a source (`target_letters_inverse`) and this run's
 // class inverted; without them, or when the inversion stalls, the leg
 // M -> source composed with this run's class is searched on M -> target
-// instead (leg_through_the_first_run).
+// instead (leg_through_the_first_run). When the class brought back is
+// used, `from_inverse` is the target -> M class it was inverted from (the
+// leg's exact inverse, ComposedLegs::from_inverse), else left empty.
 std::string leg_back_through_the_first_run(const TriMesh& source, const TriMesh& target, const TriMesh& middle,
                                            const SurfaceMapOptions& options, const SurfaceMapResult& forward,
                                            const SurfaceMapResult& to_middle,
                                            const std::vector<std::vector<int>>& target_letters_inverse,
-                                           const MapFunction& map, SurfaceMapResult& from_middle) {
+                                           const MapFunction& map, SurfaceMapResult& from_middle,
+                                           GroupMap& from_inverse) {
   const size_t n = static_cast<size_t>(2 * forward.genus);
   std::string why;
   if (target_letters_inverse.size() != n) why = "the target's letters as a source are missing";
@@ -283,7 +287,10 @@ std::string leg_back_through_the_first_run(const TriMesh& source, const TriMesh&
   SurfaceMapResult again;
   const std::string again_failed = map_or_error(map, middle, target, here, again);
   if (!again_failed.empty()) return status + "; inverted here failed: " + again_failed + ")";
-  return status + keep_the_lower_leg(from_middle, again, "; inverted here ", t);
+  bool used = false;
+  const std::string kept = keep_the_lower_leg(from_middle, again, "; inverted here ", t, &used);
+  if (used) from_inverse = back.chosen_class_words;
+  return status + kept;
 }
 
 }  // namespace
@@ -307,6 +314,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   std::vector<std::vector<std::vector<int>>> composed;
   std::vector<std::string> composed_through;
   std::vector<const TriMesh*> composed_middles;
+  std::vector<ComposedLegs> composed_legs;
   for (const MiddleShape& m : middles) {
     const std::string it = m.name + " (" + std::to_string(m.mesh.num_vertices()) + " vertices)";
     // A leg at or above the first run's ratio cannot help: the composed
@@ -343,9 +351,10 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
       continue;
     }
     legs += ", it -> target " + four_digits(from_middle.energy_ratio) + " (" + t.text() + ")";
+    GroupMap from_inverse;
     if (stop_at_legs_that_cannot_help && !(from_middle.energy_ratio < first)) {
       legs += leg_back_through_the_first_run(source, target, m.mesh, options, forward, to_middle,
-                                             target_letters_inverse, map, from_middle);
+                                             target_letters_inverse, map, from_middle, from_inverse);
       if (!(from_middle.energy_ratio < first)) {
         notes += legs + ", not below " + four_digits(first) + ": cannot help";
         continue;
@@ -361,6 +370,8 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
     composed.push_back(std::move(theta));
     composed_through.push_back(m.name);
     composed_middles.push_back(&m.mesh);
+    composed_legs.push_back({to_middle.chosen_class_words, from_middle.chosen_class_words,
+                             from_middle.source_as_target_inverse, std::move(from_inverse)});
   }
   const std::string runs = notes.empty() ? std::string("through no generated shape") : notes.substr(2);
   if (composed.empty()) return finish(forward, runs + "; no composed class to solve");
@@ -412,7 +423,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
       return "; both directions: not searched the other way (the other direction was not mapped, so its letters "
              "are missing)";
     return composed_classes_both_ways(source, target, options, composed, here.homotopy.given_class_names,
-                                      target_letters_inverse, forward, map, composed_middles);
+                                      target_letters_inverse, forward, map, composed_middles, composed_legs);
   };
   if (!better) {
     for (HomotopyCandidate& c : tried) forward.candidates.push_back(std::move(c));
@@ -438,12 +449,38 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   finish(forward, status + agreed);
 }
 
+namespace {
+
+/// A composed class θ0 in the other direction's letters, ι_T^-1 ∘ θ0 ∘
+/// ι_S^-1 = A ∘ B, inverted factor by factor (invert_product): B the source
+/// -> M leg from the source's letters as a target (onto ∘ ι_S^-1), A the M
+/// -> target leg into the target's letters as a source (ι_T^-1 ∘ from ∘
+/// ι_M^-1), whose inverse is known when that leg was brought back from a
+/// target -> M run (A^-1 is that run's class). The composite's long words
+/// can stall where the legs' shorter ones invert (torus g4 -> fertility
+/// through the plate, session 21). Letters: 2g words each.
+AutomorphismInverse inverted_leg_by_leg(const ComposedLegs& l, const GroupMap& source_letters_inverse,
+                                        const GroupMap& target_letters_inverse, int g) {
+  const size_t n = static_cast<size_t>(2 * g);
+  if (l.onto.size() != n || l.from.size() != n || l.middle_letters_inverse.size() != n) {
+    AutomorphismInverse missing;
+    missing.why = "a leg's words are missing";
+    return missing;
+  }
+  return invert_product({compose(target_letters_inverse, compose(l.from, l.middle_letters_inverse)),
+                         compose(l.onto, source_letters_inverse)},
+                        g, {l.from_inverse.size() == n ? l.from_inverse : GroupMap{}, {}});
+}
+
+}  // namespace
+
 std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                        const std::vector<std::vector<std::vector<int>>>& composed,
                                        const std::vector<std::string>& names,
                                        const std::vector<std::vector<int>>& target_letters_inverse,
                                        SurfaceMapResult& forward, const MapFunction& map,
-                                       const std::vector<const TriMesh*>& middles) {
+                                       const std::vector<const TriMesh*>& middles,
+                                       const std::vector<ComposedLegs>& legs) {
   const int g = forward.genus;
   const size_t n = static_cast<size_t>(2 * g);
   const std::string not_run = "; both directions: not searched the other way (";
@@ -460,14 +497,28 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
   // run's letters, the form of given_class.
   SurfaceMapOptions ro = one_way_options(reverse_options(options));
   std::string uninverted;
+  int inverted_by_legs = 0, composed_the_other_way = 0;
+  std::string uninverted_why;  // (why the first class composed the other way was not inverted)
   for (size_t k = 0; k < composed.size(); ++k) {
     const std::vector<std::vector<int>> there =
         compose(target_letters_inverse, compose(composed[k], forward.source_as_target_inverse));
     const std::string name = k < names.size() ? names[k] : std::string("a composed class");
-    const AutomorphismInverse inv = invert_automorphism(there, g);
+    AutomorphismInverse inv = invert_automorphism(there, g);
+    bool leg_by_leg = false;
+    if (!inv.ok && k < legs.size()) {
+      const AutomorphismInverse by_legs =
+          inverted_leg_by_leg(legs[k], forward.source_as_target_inverse, target_letters_inverse, g);
+      if (by_legs.ok) {
+        inv = by_legs;
+        leg_by_leg = true;
+      } else {
+        inv.why += "; leg by leg: " + by_legs.why;
+      }
+    }
     if (inv.ok) {
       ro.homotopy.given_class.insert(ro.homotopy.given_class.end(), inv.inverse.begin(), inv.inverse.end());
-      ro.homotopy.given_class_names.push_back(name + ", inverted");
+      ro.homotopy.given_class_names.push_back(name + (leg_by_leg ? ", inverted leg by leg" : ", inverted"));
+      if (leg_by_leg) inverted_by_legs += 1;
       continue;
     }
     // Not inverted (the descent and the Nielsen reduction can stall on long
@@ -487,6 +538,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
         if (!other.empty()) {
           ro.homotopy.given_class.insert(ro.homotopy.given_class.end(), other.begin(), other.end());
           ro.homotopy.given_class_names.push_back(name + ", composed the other way (not inverted: " + inv.why + ")");
+          if (composed_the_other_way++ == 0) uninverted_why = inv.why;
           continue;
         }
         leg_failure += "; composed the other way: " + why;
@@ -512,7 +564,11 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
   if (psi.empty()) return not_run + why + ")";
   const double own = chosen_energy(forward), other_there = chosen_energy(back);
   std::string status = "; both directions: the composed class" + std::string(composed.size() > 1 ? "es" : "") +
-                       " inverted, searched on in the other direction, ratio " + four_digits(other_there / bound);
+                       " inverted" + (inverted_by_legs > 0 ? std::string(" (") + std::to_string(inverted_by_legs) +
+                       " leg by leg)" : std::string()) +
+                       (composed_the_other_way > 0 ? std::string(" or composed the other way (") +
+                       std::to_string(composed_the_other_way) + ": " + uninverted_why + ")" : std::string()) +
+                       ", searched on in the other direction, ratio " + four_digits(other_there / bound);
   if (back.homotopy_search.run)
     status += " (" + std::to_string(back.homotopy_search.moves.size()) + " moves, " +
               std::to_string(back.homotopy_search.evaluations) + " solves)";

@@ -2,6 +2,7 @@
 // The through-shape step (issue 14; docs/handle_classes.md "Through a
 // generated shape"). Not public API (used by surface_map.cpp).
 #include "surfmap/map/surface_map.h"
+#include "surfmap/topology/handle_basis.h"
 #include "two_way_run.h"
 
 namespace surfmap::detail {
@@ -67,7 +68,24 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
                         bool stop_at_legs_that_cannot_help, std::string notes = {},
                         const std::vector<std::vector<int>>& target_letters_inverse = {});
 
-/// Issue 14, session 19 (docs/handle_classes.md "The composed classes
+/// The two legs a composed class came from (through_shapes_map), for
+/// inverting it factor by factor when its own words do not invert
+/// (composed_classes_both_ways; docs/handle_classes.md "session 21").
+struct ComposedLegs {
+  /// The source -> M leg's class (the source's cut letters -> M's letters
+  /// as a target), 2g words.
+  GroupMap onto;
+  /// The M -> target leg's class (M's cut letters -> the target's letters
+  /// as a target) and M's letters as a target -> as a source
+  /// (its source_as_target_inverse), 2g words each.
+  GroupMap from, middle_letters_inverse;
+  /// When the M -> target leg is a target -> M run's class inverted
+  /// (leg_back_through_the_first_run): that class (the target's cut letters
+  /// -> M's letters as a target), the leg's exact inverse; else empty.
+  GroupMap from_inverse;
+};
+
+/// Issue 14, session 19/// Issue 14, session 19 (docs/handle_classes.md "The composed classes
 /// searched in both directions"): `forward` is this direction's result after
 /// the composed classes (`composed`, 2g words each in this run's letters,
 /// named by `names`) were solved and searched on here, with class θ. The
@@ -88,11 +106,17 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
 /// composed class k; null or missing: none), from its two legs target -> M
 /// and M -> source. Returns the status text ("; both
 /// directions: ..."); `forward.directions` says "inverse" when agreed.
+/// Before that fallback, a composed class whose legs are known (`legs[k]`)
+/// is inverted factor by factor (invert_product: the source -> M leg and
+/// the M -> target leg each inverted, or the latter's known inverse), since
+/// the composite's long words can stall where the legs' do not (torus g4 ->
+/// fertility, session 21).
 std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                        const std::vector<std::vector<std::vector<int>>>& composed,
                                        const std::vector<std::string>& names,
                                        const std::vector<std::vector<int>>& target_letters_inverse,
                                        SurfaceMapResult& forward, const MapFunction& map,
-                                       const std::vector<const TriMesh*>& middles = {});
+                                       const std::vector<const TriMesh*>& middles = {},
+                                       const std::vector<ComposedLegs>& legs = {});
 
 }  // namespace surfmap::detail

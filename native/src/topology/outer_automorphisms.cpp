@@ -309,6 +309,76 @@ GroupMap nielsen_inverse(const GroupMap& phi, int genus, size_t max_letters) {
   return preimages;
 }
 
+namespace {
+
+/// Whether psi is phi's inverse up to an inner automorphism, exactly: phi ∘
+/// psi and psi ∘ phi inner (both: the check of every inverse returned).
+bool inverse_up_to_inner(const GroupMap& phi, const GroupMap& psi, int genus, const DehnReducer& reduce) {
+  auto dehn = [&](GroupMap m) {
+    for (Word& w : m) w = reduce(w);
+    return m;
+  };
+  return inner_automorphism_test(dehn(compose(phi, psi)), genus).inner &&
+         inner_automorphism_test(dehn(compose(psi, phi)), genus).inner;
+}
+
+}  // namespace
+
+AutomorphismInverse invert_product(const std::vector<GroupMap>& factors, int genus,
+                                   const std::vector<GroupMap>& known_inverses,
+                                   const AutomorphismInverseOptions& options) {
+  AutomorphismInverse out;
+  if (factors.empty()) {
+    out.why = "no factors";
+    return out;
+  }
+  const DehnReducer reduce(canonical_relator(genus));
+  auto dehn = [&](GroupMap m) {
+    for (Word& w : m) w = reduce(w);
+    return m;
+  };
+  GroupMap product = identity_map(2 * genus), inverse = identity_map(2 * genus);
+  for (size_t i = 0; i < factors.size(); ++i) {
+    check_map(factors[i], genus, "invert_product");
+    GroupMap inverse_i;
+    if (i < known_inverses.size() && !known_inverses[i].empty()) {
+      check_map(known_inverses[i], genus, "invert_product");
+      inverse_i = known_inverses[i];
+    } else {
+      AutomorphismInverse f = invert_automorphism(factors[i], genus, options);
+      if (!f.ok) {
+        out.why = "factor " + std::to_string(i + 1) + " of " + std::to_string(factors.size()) + " not inverted: " + f.why;
+        return out;
+      }
+      out.moves += f.moves;
+      inverse_i = std::move(f.inverse);
+    }
+    // (The letters of outer ∘ inner, before reduction: the product of the
+    // factors' lengths at worst, so capped.)
+    auto letters = [](const GroupMap& outer, const GroupMap& inner) {
+      size_t total = 0;
+      for (const Word& w : inner)
+        for (int x : w) total += outer[static_cast<size_t>(std::abs(x) - 1)].size();
+      return total;
+    };
+    const size_t most = options.max_product_letters;
+    if (letters(product, factors[i]) > most || letters(inverse_i, inverse) > most) {
+      out.why = "the product or its inverse up to factor " + std::to_string(i + 1) + " exceeds " +
+                std::to_string(most) + " letters";
+      return out;
+    }
+    product = dehn(compose(product, factors[i]));
+    inverse = dehn(compose(inverse_i, inverse));
+  }
+  if (!inverse_up_to_inner(product, inverse, genus, reduce)) {
+    out.why = "the factors' inverses composed are not the product's inverse (a known inverse is wrong)";
+    return out;
+  }
+  out.ok = true;
+  out.inverse = std::move(inverse);
+  return out;
+}
+
 AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const AutomorphismInverseOptions& options) {
   check_map(phi, genus, "invert_automorphism");
   AutomorphismInverse out;
@@ -333,8 +403,7 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
       return failed;
     }
     inv = dehn(inv);
-    if (!inner_automorphism_test(dehn(compose(phi, inv)), genus).inner ||
-        !inner_automorphism_test(dehn(compose(inv, phi)), genus).inner) {
+    if (!inverse_up_to_inner(phi, inv, genus, reduce)) {
       failed.why += "; Nielsen reduction's inverse is not one (a bug)";
       return failed;
     }
@@ -469,8 +538,7 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
   }
   GroupMap M = dehn(compose(done->right, done->left));
   GroupMap inv = std::move(M);
-  if (!inner_automorphism_test(dehn(compose(phi, inv)), genus).inner ||
-      !inner_automorphism_test(dehn(compose(inv, phi)), genus).inner) {
+  if (!inverse_up_to_inner(phi, inv, genus, reduce)) {
     out.why = "the composite with the computed inverse is not inner (a bug)";
     return out;
   }

@@ -139,6 +139,11 @@ struct AutomorphismInverseOptions {
   /// true; false: fail as before). Its inverse is checked exactly too, and
   /// AutomorphismInverse::why then says so.
   bool nielsen = true;
+  /// invert_product: most letters (summed over the 2g images, before
+  /// reduction) of the running product or inverse (default 2^22: a few
+  /// factors' inverses from the descent can run to thousands of letters
+  /// each, their product to gigabytes).
+  size_t max_product_letters = size_t{1} << 22;
 };
 
 struct AutomorphismInverse {
@@ -155,6 +160,21 @@ struct AutomorphismInverse {
 /// false (with `why`) when phi's homology is not symplectic, or the descent
 /// stops before reaching an inner automorphism.
 AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const AutomorphismInverseOptions& options = {});
+
+/// The inverse of the product factors[0] ∘ factors[1] ∘ ... ∘ factors[k-1]
+/// (each an automorphism of the canonical surface group of genus g >= 2, 2g
+/// generator images), factor by factor: f_(k-1)^-1 ∘ ... ∘ f_0^-1, each
+/// factor inverted by invert_automorphism unless known_inverses[i] (when
+/// given and not empty) is its inverse. For products whose long words the
+/// descent and the Nielsen reduction cannot invert while each factor's
+/// shorter words do, or whose factors came from inverses already known (a
+/// class composed through a generated shape: docs/handle_classes.md
+/// "session 21"). The result is checked exactly like invert_automorphism's
+/// (product ∘ inverse and inverse ∘ product inner; a wrong known inverse
+/// fails there); `why` names the factor that did not invert.
+AutomorphismInverse invert_product(const std::vector<GroupMap>& factors, int genus,
+                                   const std::vector<GroupMap>& known_inverses = {},
+                                   const AutomorphismInverseOptions& options = {});
 
 /// phi^-1 by Nielsen reduction of the generator images (docs/handle_classes.md
 /// "Both directions, cheaply"): the tuple t = (phi(x_1), ..., phi(x_2g)) is
