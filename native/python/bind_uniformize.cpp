@@ -77,7 +77,8 @@ std::vector<hyperbolic::Mobius> to_mobius_list(const py::handle& obj, py::ssize_
 /// hyperbolic_harmonic_map's input from Python arrays (the binding below).
 HyperbolicHarmonicResult harmonic_map_from_arrays(py::handle edges_h, py::handle weights_h, py::handle rho_h,
                                                   py::handle z0_h, py::handle slides_h, py::handle geodesics_h,
-                                                  py::handle ordered_h, double tolerance, int max_iterations) {
+                                                  py::handle ordered_h, py::handle pulls_h, double tolerance,
+                                                  int max_iterations) {
   auto ij = py::array_t<int, py::array::c_style | py::array::forcecast>::ensure(edges_h);
   auto w = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(weights_h);
   if (!ij || ij.ndim() != 2 || ij.shape(1) != 2) throw InputError("edges must be a (k, 2) integer array");
@@ -102,9 +103,19 @@ HyperbolicHarmonicResult harmonic_map_from_arrays(py::handle edges_h, py::handle
       options.boundary_slide.ordered_edges.assign(o.data(), o.data() + o.size());
     }
   }
-  std::vector<Complex> z0(z.data(), z.data() + z.size());
+  if (!pulls_h.is_none()) {
+    const auto pulls = pulls_h.cast<py::tuple>();
+    if (pulls.size() != 3) throw InputError("pulls must be (vertices, weights, geodesics)");
+    auto v = py::array_t<int, py::array::c_style | py::array::forcecast>::ensure(pulls[0]);
+    auto pw = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(pulls[1]);
+    if (!v || !pw || v.size() != pw.size()) throw InputError("pulls: one weight per vertex");
+    const auto G = to_mobius_list(pulls[2], v.size(), "pull geodesics");
+    for (py::ssize_t k = 0; k < v.size(); ++k) options.boundary_slide.pulls.push_back({v.data()[k], pw.data()[k], G[k]});
+  }
+  const int n = static_cast<int>(z.size());
+  std::vector<Complex> z0(z.data(), z.data() + n);
   py::gil_scoped_release release;
-  return hyperbolic_harmonic_map(static_cast<int>(z0.size()), edges, {}, std::move(z0), options);
+  return hyperbolic_harmonic_map(n, edges, {}, std::move(z0), options);
 }
 
 /// Wraps a Python progress(iteration, residual) callback; the GIL is taken
@@ -358,9 +369,9 @@ void bind_uniformize(py::module_& m) {
   m.def(
       "hyperbolic_harmonic_map",
       [](py::handle edges, py::handle weights, py::handle rho, py::handle z0, py::handle slides, py::handle geodesics,
-         py::handle ordered_edges, double tolerance, int max_iterations) {
+         py::handle ordered_edges, py::handle pulls, double tolerance, int max_iterations) {
         const HyperbolicHarmonicResult r = harmonic_map_from_arrays(edges, weights, rho, z0, slides, geodesics,
-                                                                    ordered_edges, tolerance, max_iterations);
+                                                                    ordered_edges, pulls, tolerance, max_iterations);
         return py::dict(py::arg("z") = complex_array(r.z), py::arg("energy") = r.energy,
                         py::arg("converged") = r.converged, py::arg("iterations") = r.iterations,
                         py::arg("energy_history") = r.energy_history, py::arg("gradient_history") = r.gradient_history,
@@ -369,13 +380,14 @@ void bind_uniformize(py::module_& m) {
                         py::arg("order_rejections") = r.order_rejections);
       },
       py::arg("edges"), py::arg("weights"), py::arg("rho"), py::arg("z0"), py::arg("slides") = py::none(),
-      py::arg("geodesics") = py::none(), py::arg("ordered_edges") = py::none(), py::arg("tolerance") = 1e-10,
+      py::arg("geodesics") = py::none(), py::arg("ordered_edges") = py::none(), py::arg("pulls") = py::none(),
+      py::arg("tolerance") = 1e-10,
       py::arg("max_iterations") = 300,
       "The core's hyperbolic harmonic map (map/hyperbolic_harmonic.h) on a simply connected chart: edges (k, 2) "
       "i -> j with weights (k) and elements rho (k, 4) (the image of edge i->j runs from z_i to rho(z_j)), start "
       "points z0 (n complex). slides (n bool) with geodesics (n, 4): vertices that slide along G(real diameter) "
       "(BoundarySlideOptions); ordered_edges: edges between sliding vertices whose order along the geodesic is "
-      "kept. Returns 'z', 'energy', 'converged', 'iterations', the histories, 'edge_local' (k, 4: each edge in "
+      "kept; pulls (vertices, weights, geodesics (p, 4)): terms w d(z_v, G(diameter))^2. Returns 'z', 'energy', 'converged', 'iterations', the histories, 'edge_local' (k, 4: each edge in "
       "its ends' charts), 'factorizations', 'slide_off_geodesic', 'order_rejections'.");
   m.def(
       "intrinsic_delaunay",

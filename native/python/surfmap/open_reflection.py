@@ -285,18 +285,22 @@ def _floored(w, floor):
     return np.maximum(w, floor * (positive.mean() if len(positive) else 1.0))
 
 
-def _energy_edges(S, edges, rho, rho_inv, weights, weight_floor):
-    """The edges the half's energy sums over, with their weights and elements: (edges (k, 2),
-    w (k,), rho (k, 2, 2), direct (k,): the edge is one of the mesh's own, note). weights 'delaunay': the intrinsic Delaunay triangulation of the
-    half (the core's intrinsic_delaunay on S's double with the boundary edges kept, so that the
-    half's edges stay in the half; 3D lengths of the half on both sheets, so both are the same
-    metric), each intrinsic edge's element the product of its path's own edges' elements, a
-    boundary edge (one face in the half) at half its double's weight: the half's energy is then
-    half the doubles' energy of the symmetric map on the doubles' own (unrefined) intrinsic
-    Delaunay weights. Weights still negative there (a kept boundary edge whose face's angle
-    opposite it is obtuse) are raised to 0.1 of the mean positive one, as the core's tip
-    weights (delaunay_energy_weights). weights 'own': the half's own cotangents, with
-    `weight_floor` each at least that times the mean positive one."""
+def _energy_edges(S, edges, rho, rho_inv, geodesic_of, weights, weight_floor):
+    """The terms of the half's energy: (edges (k, 2), w (k,), rho (k, 2, 2), direct (k,): the edge
+    is one of the mesh's own, pulls (vertices, weights, geodesics (p, 2, 2)) or None, note).
+
+    weights 'delaunay': the doubles' own weights. The intrinsic Delaunay triangulation of S's double
+    (the core's intrinsic_delaunay; 3D lengths of the half on both sheets, so both are the same
+    metric) is symmetric, so each of its edges lies in one half, or crosses the boundary from a
+    vertex v to its own mirror image (a boundary edge flipped: the angles opposite it obtuse).
+    The half's energy is half the doubles' energy of the symmetric map: the half's edges (each
+    element the product of its path's own edges' elements), a boundary edge at half its weight,
+    and per crossing edge of weight w a pull 2 w dist(z_v, boundary geodesic)^2 (w d(z_v,
+    sigma z_v)^2 / 2; the geodesic's lift is the one the path's first boundary vertex slides on:
+    geodesic_of, (n, 2, 2), carried by the path's element). Weights within the flip tolerance
+    below 0 are 0.
+    weights 'own': the half's own cotangents, with `weight_floor` each at least that times the
+    mean positive one (None: as they are, refused when one is negative)."""
     n = S.n2
     if weights == "own":
         w = _cotangent_weights(S.V2, S.F2, edges)
@@ -305,37 +309,56 @@ def _energy_edges(S, edges, rho, rho_inv, weights, weight_floor):
         elif np.any(w < 0):
             raise ReflectionSolveError(f"{int(np.sum(w < 0))} negative cotangent weights (the core's solve needs "
                                        "w >= 0: a weight floor)")
-        return edges, w, rho, np.ones(len(edges), dtype=bool), (
+        return edges, w, rho, np.ones(len(edges), dtype=bool), None, (
             "own cotangents" + (f" floored at {weight_floor}" if weight_floor is not None else ""))
     if weights != "delaunay":
         raise ValueError(f"weights must be 'delaunay' or 'own', not {weights!r}")
     D = S.D
-    half_of = np.where(np.arange(len(D["V"])) < n, np.arange(len(D["V"])), D["sigma"])
-    keep = np.array([(u, v) for loop in S.loops for u, v in zip(loop, np.roll(loop, -1))], dtype=np.int64)
-    idt = _core.intrinsic_delaunay(S.V2[half_of], D["F"], keep=keep)
+    sigma = D["sigma"]
+    half_of = np.where(np.arange(len(D["V"])) < n, np.arange(len(D["V"])), sigma)
+    idt = _core.intrinsic_delaunay(S.V2[half_of], D["F"])
     off, pv = np.asarray(idt["path_offsets"]), np.asarray(idt["path_vertices"])
     eindex = {(int(a), int(b)): k for k, (a, b) in enumerate(edges)}
     on_b = S.loop_of_vertex() >= 0
-    out_e, out_w, out_rho, direct, seen = [], [], [], [], set()
-    for e, (i, j) in enumerate(np.asarray(idt["edges"])):
-        path = pv[off[e]:off[e + 1]]
-        if np.any(path >= n) or tuple(path) in seen:
-            continue  # the mirror half's (one with a path along the boundary has its twin's path)
-        seen.add(tuple(path))
+
+    def element(path):
         M = np.eye(2, dtype=complex)
         for a, b in zip(path[:-1], path[1:]):
             k = eindex[(min(a, b), max(a, b))]
             M = M @ (rho[k] if a < b else rho_inv[k])
+        return _normalized(M)
+
+    out_e, out_w, out_rho, direct, seen = [], [], [], [], set()
+    pull_v, pull_w, pull_g = [], [], []
+    for e, (i, j) in enumerate(np.asarray(idt["edges"])):
+        path = pv[off[e]:off[e + 1]]
+        we = max(float(idt["weights"][e]), 0.0)
+        if i != j and sigma[i] == j:
+            # Across the boundary from v to its mirror image: the pull on v.
+            if i >= n:
+                path = path[::-1]
+            b = next((k for k, x in enumerate(path) if x < n and on_b[x]), None)
+            if b is None or np.any(path[:b + 1] >= n):
+                raise ReflectionSolveError("an intrinsic edge crosses the boundary off the half's vertices")
+            if we > 0:
+                pull_v.append(int(path[0]))
+                pull_w.append(2 * we)
+                pull_g.append(element(path[:b + 1]) @ geodesic_of[path[b]])
+            continue
+        inside = path[path < n]
+        if np.any(path >= n) and np.any(~on_b[inside]):
+            raise ReflectionSolveError("an intrinsic edge of the double crosses the boundary between two vertices")
+        if np.any(path >= n) or tuple(path) in seen:
+            continue  # the mirror half's (one with a path along the boundary has its twin's path)
+        seen.add(tuple(path))
         boundary_edge = len(path) == 2 and on_b[i] and on_b[j]
         out_e.append((i, j))
-        out_w.append(idt["weights"][e] * (0.5 if boundary_edge else 1.0))
-        out_rho.append(_normalized(M))
+        out_w.append(we * (0.5 if boundary_edge else 1.0))
+        out_rho.append(element(path))
         direct.append(len(path) == 2)
-    w = np.array(out_w)
-    raised = int(np.sum(w < 0))
-    w = _floored(w, 0.1) if raised else w
-    return (np.array(out_e, dtype=np.int64), w, np.array(out_rho), np.array(direct),
-            f"intrinsic Delaunay ({idt['flips']} flips{f', {raised} raised to 0.1 of the mean' if raised else ''})")
+    pulls = (np.array(pull_v, dtype=np.int64), np.array(pull_w), np.array(pull_g)) if pull_v else None
+    return (np.array(out_e, dtype=np.int64), np.array(out_w), np.array(out_rho), np.array(direct), pulls,
+            f"intrinsic Delaunay ({idt['flips']} flips, {len(pull_v)} boundary edges flipped: pulls)")
 
 
 def _as_core(M):
@@ -417,7 +440,10 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
             cache[key] = layout.path_element(*key)
         rho[e] = cache[key]
     rho_inv = _inv(rho)
-    energy_edges, w, energy_rho, direct, weights_note = _energy_edges(S, edges, rho, rho_inv, weights, weight_floor)
+    geodesic_of = np.tile(np.eye(2, dtype=complex), (n, 1, 1))
+    geodesic_of[bnd] = Mb
+    energy_edges, w, energy_rho, direct, pulls, weights_note = _energy_edges(S, edges, rho, rho_inv, geodesic_of,
+                                                                             weights, weight_floor)
     # Consecutive boundary vertices keep their order along the geodesic (the core's order check).
     eindex = {(int(i), int(j)): k for k, (i, j) in enumerate(energy_edges) if direct[k]}
     eindex.update({(j, i): k for (i, j), k in list(eindex.items())})
@@ -431,6 +457,7 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
     z0[bnd] = _apply(Mb, np.tanh(s / 2))
     res = _core.hyperbolic_harmonic_map(energy_edges, w, _as_core(energy_rho), z0, slides=slides,
                                         geodesics=geodesics, ordered_edges=np.array(ordered, dtype=np.int64),
+                                        pulls=None if pulls is None else (pulls[0], pulls[1], _as_core(pulls[2])),
                                         tolerance=tolerance, max_iterations=max_iterations)
     z = np.asarray(res["z"])
     converged = bool(res["converged"])

@@ -352,6 +352,11 @@ void check_newton_input(int n, const std::vector<WeightedEdge>& edges, const std
   } else if (!slide.ordered_edges.empty()) {
     throw InputError("hyperbolic_harmonic_map: ordered_edges without sliding vertices");
   }
+  for (const auto& p : slide.pulls)
+    if (p.vertex < 0 || p.vertex >= n || !(p.w >= 0) || !std::isfinite(p.w) || !(p.geodesic.determinant() > 0) ||
+        (!options.fixed.empty() && options.fixed[p.vertex]) || (!slide.slides.empty() && slide.slides[p.vertex]))
+      throw InputError("hyperbolic_harmonic_map: the pull on vertex " + std::to_string(p.vertex) +
+                       " needs a free vertex, a weight >= 0 and an isometry");
   for (int e : slide.ordered_edges)
     if (e < 0 || e >= static_cast<int>(edges.size()) || !slide.slides[edges[e].i] || !slide.slides[edges[e].j])
       throw InputError("hyperbolic_harmonic_map: ordered edge " + std::to_string(e) +
@@ -719,7 +724,7 @@ double chart_energy(const std::vector<WeightedEdge>& edges, const std::vector<Mo
 // `grad_buf`: #V scratch.
 double chart_gradient_norm(const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& a,
                            const std::vector<char>& fixed, const std::vector<Complex>& slide_dir,
-                           std::vector<Complex>& grad_buf) {
+                           std::vector<Complex>& grad_buf, const std::vector<Complex>& extra = {}) {
   const int n = static_cast<int>(grad_buf.size());
   std::fill(grad_buf.begin(), grad_buf.end(), Complex(0.0));
   for (size_t e = 0; e < edges.size(); ++e) {
@@ -730,6 +735,7 @@ double chart_gradient_norm(const std::vector<WeightedEdge>& edges, const std::ve
     grad_buf[edges[e].i] -= 2 * edges[e].w * d * (M.b / std::conj(M.a)) * (std::abs(M.a) / bn);
     grad_buf[edges[e].j] -= 2 * edges[e].w * d * (-M.b / M.a) * (std::abs(M.a) / bn);
   }
+  for (size_t i = 0; i < extra.size(); ++i) grad_buf[i] += extra[i];
   double gn = 0;
   for (int i = 0; i < n; ++i) {
     if (!fixed.empty() && fixed[i]) continue;
@@ -884,7 +890,7 @@ struct HarmonicNewton {
         grad_buf(num_vertices),
         g(2 * num_vertices) {
     for (const auto& e : edges) max_w = std::max(max_w, e.w);
-    E = chart_energy(edges, A);
+    E = chart_energy(edges, A) + pull_energy(false);
     r.energy_history.push_back(E);
   }
   HarmonicNewton(const HarmonicNewton&) = delete;
@@ -911,10 +917,57 @@ struct HarmonicNewton {
     trial_edges(step, 1.0);
     ++r.energy_evaluations;
     if (!order_kept(trial_A)) return false;
-    if (!(chart_gradient_norm(edges, trial_A, options.fixed, slide_dir, grad_buf) <= 0.5 * gnorm)) return false;
-    accept(chart_energy(edges, trial_A));
+    if (!(chart_gradient_norm(edges, trial_A, options.fixed, slide_dir, grad_buf, pull_gradient(true)) <= 0.5 * gnorm))
+      return false;
+    accept(chart_energy(edges, trial_A) + pull_energy(true));
     last_full_step = true;
     return true;
+  }
+
+  /// BoundarySlideOptions::pulls: the pull's geodesic seen from its vertex's
+  /// chart (times step_map for a trial): its distance δ from the origin and
+  /// the unit direction from the origin towards its nearest point (at δ = 0,
+  /// across the geodesic).
+  std::pair<double, Complex> pull_frame(const BoundarySlideOptions::Pull& p, bool trial) const {
+    LongMobius C = state.full_chart(p.vertex);
+    if (trial) C = C * LongMobius::from(step_map[p.vertex]);
+    const Mobius m =
+        (C.inverse() * LongMobius::from(r.vertex_deck[p.vertex]) * LongMobius::from(p.geodesic)).normalized().to_double();
+    const Complex y = -m.b / m.a;  // the origin in the geodesic's model (the geodesic: the real diameter)
+    const double delta = std::asinh(2 * std::abs(y.imag()) / std::max(1 - std::norm(y), 1e-300));
+    const double k = (2.0 * y / (1.0 + std::norm(y))).real();  // the foot: straight perpendicular in Klein
+    const Complex foot = m.apply(Complex(k / (1 + std::sqrt(std::max(1 - k * k, 0.0))), 0.0));
+    if (std::abs(foot) > 1e-15) return {delta, foot / std::abs(foot)};
+    const Complex along = m.derivative(Complex(k, 0.0));
+    return {delta, Complex(0.0, 1.0) * along / std::abs(along)};
+  }
+  double pull_energy(bool trial) const {
+    double sum = 0;
+    for (const auto& p : options.boundary_slide.pulls) {
+      const double delta = pull_frame(p, trial).first;
+      sum += p.w * delta * delta;
+    }
+    return sum;
+  }
+  /// #V gradients of the pulls (empty without pulls).
+  std::vector<Complex> pull_gradient(bool trial) const {
+    if (options.boundary_slide.pulls.empty()) return {};
+    std::vector<Complex> grad(n, Complex(0.0));
+    for (const auto& p : options.boundary_slide.pulls) {
+      const auto [delta, toward] = pull_frame(p, trial);
+      grad[p.vertex] -= 2 * p.w * delta * toward;
+    }
+    return grad;
+  }
+  /// The pulls' gradient and Hessian (docs in BoundarySlideOptions::pulls).
+  void add_pulls(BlockHessian& H) {
+    for (const auto& p : options.boundary_slide.pulls) {
+      const auto [delta, toward] = pull_frame(p, false);
+      g[2 * p.vertex] -= 2 * p.w * delta * toward.real();
+      g[2 * p.vertex + 1] -= 2 * p.w * delta * toward.imag();
+      const Eigen::Vector2d nv(toward.real(), toward.imag()), tv(-toward.imag(), toward.real());
+      H.add_diagonal(p.vertex, 2 * p.w * (nv * nv.transpose() + delta * std::tanh(delta) * tv * tv.transpose()));
+    }
   }
 
   /// Vertex i's geodesic seen from its chart: M = C_i^-1 deck_i G_i maps
@@ -975,6 +1028,7 @@ struct HarmonicNewton {
       if (order_sign.empty()) record_order();
     }
     assemble_newton_system(edges, A, options.fixed, slide_dir, max_w, H, g);
+    add_pulls(H);
     if (!g.allFinite() || !std::isfinite(E))
       throw SolveError("hyperbolic harmonic map: non-finite energy or gradient at iteration " + std::to_string(it));
     double gnorm = 0;
@@ -1131,7 +1185,7 @@ struct HarmonicNewton {
         alpha *= 0.5;
         continue;
       }
-      const double Et = chart_energy(edges, trial_A);
+      const double Et = chart_energy(edges, trial_A) + pull_energy(true);
       ++r.energy_evaluations;
       if (Et < E && (Et <= E + 1e-4 * alpha * slope || alpha < 1e-3)) {
         accept(Et);
@@ -1159,7 +1213,7 @@ struct HarmonicNewton {
       for (double beta = gl > kMaxStep ? kMaxStep / gl : 1.0; beta > 1e-8 && !accepted; beta *= 0.25) {
         trial_edges(gs, beta);
         if (!order_kept(trial_A)) continue;
-        const double Et = chart_energy(edges, trial_A);
+        const double Et = chart_energy(edges, trial_A) + pull_energy(true);
         ++r.energy_evaluations;
         if (Et < E) accept(Et), accepted = true;
       }
@@ -1193,7 +1247,7 @@ struct HarmonicNewton {
     // The new charts and sheets: every A_e afresh (ChartState above), and
     // the energy the next iteration starts from.
     state.derive_edges();
-    E = chart_energy(edges, A);
+    E = chart_energy(edges, A) + pull_energy(false);
     r.energy_history.push_back(E);
   }
 

@@ -46,6 +46,20 @@ struct BoundarySlideOptions {
   /// past each other. Edges starting with both images at one point are not
   /// checked.
   std::vector<int> ordered_edges;
+  /// Terms w · δ(z_v, G(diameter))² added to the energy, δ the distance of
+  /// vertex v from a geodesic (G in the start points' coordinates, like
+  /// `geodesic`): the half's share of a double's edge from v to its own
+  /// mirror image v' across the boundary (an intrinsic Delaunay edge
+  /// crossing it), w_e d(z_v, σ z_v)² / 2 = 2 w_e δ², so w = 2 w_e. Their
+  /// Hessian, 2 dδ ⊗ dδ + 2 δ tanh δ (t ⊗ t) with t along the geodesic, is
+  /// positive semidefinite: the energy stays geodesically convex. Only on
+  /// vertices that neither slide nor are held.
+  struct Pull {
+    int vertex = -1;
+    double w = 0;
+    hyperbolic::Mobius geodesic;
+  };
+  std::vector<Pull> pulls;
 };
 
 struct HyperbolicHarmonicOptions {
