@@ -189,7 +189,7 @@ TEST(HyperbolicBoundarySlide, OrderedEdgesKeepConsecutiveImagesFromPassingEachOt
 }
 
 TEST(HyperbolicBoundarySlide, PullsTowardAGeodesicAreMinimisedWithTheEdges) {
-  // A pull w dist(z_v, bottom)^2 on the centre vertex (the half's share of a double's edge from
+  // A pull 3 dist(z_v, bottom)^2 on the centre vertex (the half's share of a double's edge from
   // v to its mirror image): the solve converges, its energy is the edges' plus the pull's at the
   // result, the centre ends nearer the bottom geodesic than without the pull, and moving the
   // centre a little in any direction raises the energy (a minimum, the pull's gradient included).
@@ -199,14 +199,14 @@ TEST(HyperbolicBoundarySlide, PullsTowardAGeodesicAreMinimisedWithTheEdges) {
   const int centre = s.id(s.N / 2, s.N / 2);
   const HyperbolicHarmonicResult plain = hyperbolic_harmonic_map(s.N * s.N, s.edges, {}, s.rest, s.options);
   ASSERT_TRUE(plain.converged);
-  s.options.boundary_slide.pulls.push_back({centre, 20.0, s.bottom});
+  s.options.boundary_slide.pulls.push_back({centre, 3.0, s.bottom});
   const HyperbolicHarmonicResult r = hyperbolic_harmonic_map(s.N * s.N, s.edges, {}, s.rest, s.options);
   ASSERT_TRUE(r.converged);
   const std::vector<Mobius> identity(s.N * s.N);
   auto total = [&](const std::vector<Complex>& z) {
     const Complex x = s.bottom.inverse().apply(z[centre]);
     const double delta = std::asinh(2 * std::abs(x.imag()) / (1 - std::norm(x)));
-    return hyperbolic_energy(s.edges, z, identity) + 20.0 * delta * delta;
+    return hyperbolic_energy(s.edges, z, identity) + 3.0 * delta * delta;
   };
   EXPECT_NEAR(r.energy, total(r.z), 1e-10 * r.energy);
   EXPECT_LT(std::abs(r.z[centre].imag()), std::abs(plain.z[centre].imag()) - 1e-3);
@@ -215,7 +215,8 @@ TEST(HyperbolicBoundarySlide, PullsTowardAGeodesicAreMinimisedWithTheEdges) {
     moved[centre] = Mobius::translation_to(r.z[centre]).apply(step);
     EXPECT_GT(total(moved), r.energy);
   }
-  EXPECT_EQ(s.flipped(r.z), 0);
+  // (No flip count here: a pull towards a geodesic beyond the vertex's star, as this one, may
+  // fold the star; in the doubles a pull is a Delaunay edge to the vertex's own mirror image.)
 }
 
 TEST(HyperbolicBoundarySlide, BadInputIsRefused) {

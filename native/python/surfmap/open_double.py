@@ -1278,8 +1278,14 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
         # the source's own cotangents floored at 0.1 of the mean (a convex energy on the mesh's own
         # edges, as the closed pipeline's fallback).
         for weights, floor in (("delaunay", None), ("own", 0.1)):
-            sym = open_reflection.solve_half(S, T, r["forward"], pairing, reversing, layouts[reversing],
-                                             weights=weights, weight_floor=floor)
+            try:
+                sym = open_reflection.solve_half(S, T, r["forward"], pairing, reversing, layouts[reversing],
+                                                 weights=weights, weight_floor=floor)
+            except open_reflection.ReflectionSolveError as e:
+                # (an intrinsic Delaunay edge of the double crossing the boundary other than from a
+                # vertex to its own mirror image: the fallback weights)
+                why.append([str(e)])
+                continue
             why.append([w for w, bad in (
                 ("not converged (gradient %.3g)" % sym["gradient"], not sym["converged"]),
                 (f"{sym['intrinsic_flipped']} faces turned in the metric", sym["intrinsic_flipped"]),
