@@ -8,6 +8,8 @@
 #include "convert.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/hyperbolic.h"
+#include "surfmap/geometry/intrinsic_delaunay.h"
+#include "surfmap/map/hyperbolic_harmonic.h"
 #include "surfmap/map/map_option_names.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/mesh/intake.h"
@@ -61,6 +63,59 @@ py::array_t<Complex> to_complex(const py::handle& obj, const char* name) {
   auto a = py::array_t<Complex, py::array::c_style | py::array::forcecast>::ensure(obj);
   if (!a) throw InputError(std::string(name) + " must be an array of complex numbers");
   return a;
+}
+
+/// (k, 4) rows [a.re, a.im, b.re, b.im] as Möbius maps (normalised).
+std::vector<hyperbolic::Mobius> to_mobius_list(const py::handle& obj, py::ssize_t k, const char* name) {
+  auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
+  if (!a || a.size() != 4 * k) throw InputError(std::string(name) + " must be " + std::to_string(k) + " rows of 4 floats");
+  std::vector<hyperbolic::Mobius> out(k);
+  for (py::ssize_t e = 0; e < k; ++e) out[e] = to_mobius(py::array_t<double>(4, a.data() + 4 * e));
+  return out;
+}
+
+/// hyperbolic_harmonic_map's input from Python arrays (the binding below).
+HyperbolicHarmonicResult harmonic_map_from_arrays(py::handle edges_h, py::handle weights_h, py::handle rho_h,
+                                                  py::handle z0_h, py::handle slides_h, py::handle geodesics_h,
+                                                  py::handle ordered_h, py::handle pulls_h, double tolerance,
+                                                  int max_iterations) {
+  auto ij = py::array_t<int, py::array::c_style | py::array::forcecast>::ensure(edges_h);
+  auto w = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(weights_h);
+  if (!ij || ij.ndim() != 2 || ij.shape(1) != 2) throw InputError("edges must be a (k, 2) integer array");
+  const py::ssize_t k = ij.shape(0);
+  if (!w || w.size() != k) throw InputError("weights must have one entry per edge");
+  const auto rho = to_mobius_list(rho_h, k, "rho");
+  const auto z = to_complex(z0_h, "z0");
+  std::vector<WeightedEdge> edges(k);
+  for (py::ssize_t e = 0; e < k; ++e)
+    edges[e].i = ij.data()[2 * e], edges[e].j = ij.data()[2 * e + 1], edges[e].w = w.data()[e], edges[e].rho = rho[e];
+  HyperbolicHarmonicOptions options;
+  options.tolerance = tolerance;
+  options.max_iterations = max_iterations;
+  if (!slides_h.is_none()) {
+    auto sl = py::array_t<bool, py::array::c_style | py::array::forcecast>::ensure(slides_h);
+    if (!sl || sl.size() != z.size()) throw InputError("slides must have one entry per vertex");
+    options.boundary_slide.slides.assign(sl.data(), sl.data() + sl.size());
+    options.boundary_slide.geodesic = to_mobius_list(geodesics_h, z.size(), "geodesics");
+    if (!ordered_h.is_none()) {
+      auto o = py::array_t<int, py::array::c_style | py::array::forcecast>::ensure(ordered_h);
+      if (!o) throw InputError("ordered_edges must be an integer array");
+      options.boundary_slide.ordered_edges.assign(o.data(), o.data() + o.size());
+    }
+  }
+  if (!pulls_h.is_none()) {
+    const auto pulls = pulls_h.cast<py::tuple>();
+    if (pulls.size() != 3) throw InputError("pulls must be (vertices, weights, geodesics)");
+    auto v = py::array_t<int, py::array::c_style | py::array::forcecast>::ensure(pulls[0]);
+    auto pw = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(pulls[1]);
+    if (!v || !pw || v.size() != pw.size()) throw InputError("pulls: one weight per vertex");
+    const auto G = to_mobius_list(pulls[2], v.size(), "pull geodesics");
+    for (py::ssize_t k = 0; k < v.size(); ++k) options.boundary_slide.pulls.push_back({v.data()[k], pw.data()[k], G[k]});
+  }
+  const int n = static_cast<int>(z.size());
+  std::vector<Complex> z0(z.data(), z.data() + n);
+  py::gil_scoped_release release;
+  return hyperbolic_harmonic_map(n, edges, {}, std::move(z0), options);
 }
 
 /// Wraps a Python progress(iteration, residual) callback; the GIL is taken
@@ -311,6 +366,69 @@ void bind_uniformize(py::module_& m) {
         return out;
       },
       py::arg("z"), py::arg("w"), "Poincaré-disk distance between corresponding points of two complex arrays.");
+  m.def(
+      "hyperbolic_harmonic_map",
+      [](py::handle edges, py::handle weights, py::handle rho, py::handle z0, py::handle slides, py::handle geodesics,
+         py::handle ordered_edges, py::handle pulls, double tolerance, int max_iterations) {
+        const HyperbolicHarmonicResult r = harmonic_map_from_arrays(edges, weights, rho, z0, slides, geodesics,
+                                                                    ordered_edges, pulls, tolerance, max_iterations);
+        return py::dict(py::arg("z") = complex_array(r.z), py::arg("energy") = r.energy,
+                        py::arg("converged") = r.converged, py::arg("iterations") = r.iterations,
+                        py::arg("energy_history") = r.energy_history, py::arg("gradient_history") = r.gradient_history,
+                        py::arg("edge_local") = mobius_array(r.edge_local), py::arg("factorizations") = r.factorizations,
+                        py::arg("slide_off_geodesic") = r.slide_off_geodesic,
+                        py::arg("order_rejections") = r.order_rejections);
+      },
+      py::arg("edges"), py::arg("weights"), py::arg("rho"), py::arg("z0"), py::arg("slides") = py::none(),
+      py::arg("geodesics") = py::none(), py::arg("ordered_edges") = py::none(), py::arg("pulls") = py::none(),
+      py::arg("tolerance") = 1e-10,
+      py::arg("max_iterations") = 300,
+      "The core's hyperbolic harmonic map (map/hyperbolic_harmonic.h) on a simply connected chart: edges (k, 2) "
+      "i -> j with weights (k) and elements rho (k, 4) (the image of edge i->j runs from z_i to rho(z_j)), start "
+      "points z0 (n complex). slides (n bool) with geodesics (n, 4): vertices that slide along G(real diameter) "
+      "(BoundarySlideOptions); ordered_edges: edges between sliding vertices whose order along the geodesic is "
+      "kept; pulls (vertices, weights, geodesics (p, 4)): terms w d(z_v, G(diameter))^2. Returns 'z', 'energy', 'converged', 'iterations', the histories, 'edge_local' (k, 4: each edge in "
+      "its ends' charts), 'factorizations', 'slide_off_geodesic', 'order_rejections'.");
+  m.def(
+      "intrinsic_delaunay",
+      [](py::handle V, py::handle F, py::handle keep_h) {
+        const RowMatrixX3d Vm = to_vertices(V);
+        const Connectivity conn(to_triangles(F), static_cast<int>(Vm.rows()));
+        Eigen::VectorXd lengths(conn.num_edges());
+        for (int e = 0; e < conn.num_edges(); ++e)
+          lengths[e] = (Vm.row(conn.edge_vertex(e, 0)) - Vm.row(conn.edge_vertex(e, 1))).norm();
+        IntrinsicDelaunayOptions options;
+        if (!keep_h.is_none()) {
+          auto keep = py::array_t<int, py::array::c_style | py::array::forcecast>::ensure(keep_h);
+          if (!keep || keep.size() % 2) throw InputError("keep must be (p, 2) vertex pairs");
+          options.keep.assign(conn.num_edges(), 0);
+          for (py::ssize_t k = 0; k < keep.size() / 2; ++k) {
+            const int h = conn.find_halfedge(keep.data()[2 * k], keep.data()[2 * k + 1]);
+            if (h < 0) throw InputError("keep: pair " + std::to_string(k) + " is not an edge");
+            options.keep[conn.edge(h)] = 1;
+          }
+        }
+        const IntrinsicDelaunayResult r = intrinsic_delaunay(conn, lengths, options);
+        const py::ssize_t k = static_cast<py::ssize_t>(r.edges.size());
+        py::array_t<int> ij({k, py::ssize_t{2}});
+        py::array_t<double> w(k);
+        std::vector<int> offsets{0}, path;
+        for (py::ssize_t e = 0; e < k; ++e) {
+          const IntrinsicEdge& ie = r.edges[e];
+          ij.mutable_data()[2 * e] = ie.i, ij.mutable_data()[2 * e + 1] = ie.j, w.mutable_data()[e] = ie.cot_weight;
+          for (int h : ie.path) path.push_back(conn.tail(h));
+          path.push_back(ie.j);
+          offsets.push_back(static_cast<int>(path.size()));
+        }
+        return py::dict(py::arg("edges") = ij, py::arg("weights") = w, py::arg("path_offsets") = to_numpy(offsets),
+                        py::arg("path_vertices") = to_numpy(path), py::arg("flips") = r.flips,
+                        py::arg("delaunay") = r.delaunay);
+      },
+      py::arg("V"), py::arg("F"), py::arg("keep") = py::none(),
+      "The intrinsic Delaunay triangulation (geometry/intrinsic_delaunay.h) of a closed mesh's 3D edge lengths, "
+      "edges in `keep` ((p, 2) vertex pairs) never flipped. Returns 'edges' (k, 2) i -> j, 'weights' (k, "
+      "cotangent), each edge's path of original vertices from i to j (path_vertices[path_offsets[e]:"
+      "path_offsets[e + 1]]), 'flips', 'delaunay'.");
   m.def(
       "mobius_compose",
       [](py::handle a, py::handle b) {

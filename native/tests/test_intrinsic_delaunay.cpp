@@ -94,6 +94,33 @@ TEST(IntrinsicDelaunay, FlatTorusWeightsAreNonnegativeAndReproduceAffineFunction
   }
 }
 
+TEST(IntrinsicDelaunay, KeptEdgesAreNeverFlipped) {
+  // IntrinsicDelaunayOptions::keep: the edges the free run flips, kept, stay edges of the result
+  // (same endpoints, their own halfedge as path) and are the only non-Delaunay ones left.
+  FlatTorus t = flat_torus(14, 11, 0.9, 0.35, 1u);
+  Connectivity c(t.F);
+  attach_metric(t, c);
+  const auto free_run = intrinsic_delaunay(c, t.lengths);
+  IntrinsicDelaunayOptions o;
+  o.keep.assign(c.num_edges(), 0);
+  int kept = 0;
+  for (int e = 0; e < c.num_edges() && kept < 5; ++e)
+    if (free_run.edges[e].path.size() > 1) o.keep[e] = 1, ++kept;
+  ASSERT_EQ(kept, 5);
+  const auto r = intrinsic_delaunay(c, t.lengths, o);
+  EXPECT_FALSE(r.delaunay);
+  EXPECT_EQ(r.degree_limited, 0);
+  for (int e = 0; e < c.num_edges(); ++e) {
+    if (o.keep[e]) {
+      EXPECT_EQ(r.edges[e].path, std::vector<int>{c.edge_halfedge(e)}) << e;
+    } else {
+      EXPECT_GE(r.edges[e].cot_weight, -1e-12) << e;
+    }
+  }
+  o.keep.pop_back();
+  EXPECT_THROW(intrinsic_delaunay(c, t.lengths, o), InputError);
+}
+
 TEST(IntrinsicDelaunay, PreservesConeAnglesAndAreaOnCurvedSurface) {
   // Torus of revolution with skinny triangles (few segments around the tube).
   const int n = 60, m = 7;

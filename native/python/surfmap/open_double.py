@@ -1274,11 +1274,18 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
             layouts[reversing] = open_reflection.HalfLayout(T.F2[:, ::-1] if reversing else T.F2, T.D,
                                                             layouts["metric"])
         why = []
-        # The source's cotangent weights as they are; where some are negative and the solve then
-        # fails, the weights floored at 0.1 of the mean (a convex energy).
-        for floor in (None, 0.1):
-            sym = open_reflection.solve_half(S, T, r["forward"], pairing, reversing, layouts[reversing],
-                                             weight_floor=floor)
+        # The half's intrinsic Delaunay weights (the doubles' own); where the solve then fails,
+        # the source's own cotangents floored at 0.1 of the mean (a convex energy on the mesh's own
+        # edges, as the closed pipeline's fallback).
+        for weights, floor in (("delaunay", None), ("own", 0.1)):
+            try:
+                sym = open_reflection.solve_half(S, T, r["forward"], pairing, reversing, layouts[reversing],
+                                                 weights=weights, weight_floor=floor)
+            except open_reflection.ReflectionSolveError as e:
+                # (an intrinsic Delaunay edge of the double crossing the boundary other than from a
+                # vertex to its own mirror image: the fallback weights)
+                why.append([str(e)])
+                continue
             why.append([w for w, bad in (
                 ("not converged (gradient %.3g)" % sym["gradient"], not sym["converged"]),
                 (f"{sym['intrinsic_flipped']} faces turned in the metric", sym["intrinsic_flipped"]),
@@ -1293,13 +1300,13 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
         cand["reflection_solve"] = f"not used: {e}"
         return None
     if why[-1]:
-        cand["reflection_solve"] = "not used: " + "; ".join(f"{'cotangent weights' if k == 0 else 'floored at 0.1'}: "
+        cand["reflection_solve"] = "not used: " + "; ".join(f"{'intrinsic Delaunay weights' if k == 0 else 'own cotangents floored at 0.1'}: "
                                                            + ", ".join(w) for k, w in enumerate(why))
         return None
     cand["doubles_symmetry_error"], cand["doubles_status"] = cand.get("symmetry_error"), cand.get("status")
     cand.update(reflection_energy=sym["energy"], symmetry_error=0.0, same_sheet=1.0, status="ok")
-    cand["reflection_solve"] = (f"used: {sym['iterations']} Newton steps"
-                                f"{', weights floored at 0.1' if sym['weight_floor'] else ''}, gradient {sym['gradient']:.2g}, boundary "
+    cand["reflection_solve"] = (f"used: {sym['iterations']} Newton steps, {sym['weights']} weights"
+                                f", gradient {sym['gradient']:.2g}, boundary "
                                 f"{sym['boundary_off_geodesic']:.2g} off the geodesic, metric asymmetry "
                                 f"{sym['metric_error']:.2g} averaged out")
     return sym
@@ -1604,9 +1611,12 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     out["energy"] = {k: (v / 2 if isinstance(v, (int, float)) and not isinstance(v, bool) else v)
                      for k, v in r["energy"].items() if not _has_arrays(v)}
     if sym is not None:
-        # The energy stays the doubles' halved (the one the candidates are ranked by: the
-        # reflection-aware solve's weights are the source's own cotangents, not the doubles'
-        # intrinsic Delaunay ones, so its energy is another number: open.reflection_energy).
+        # The delivered map is the half's solve: energy.final is its energy (the half's, in the
+        # same units as the doubles' halved: half the energy of the symmetric doubles' map on the
+        # doubles' unrefined intrinsic Delaunay weights; = open.reflection_energy), energy.ranking
+        # the doubles' halved, which ranked the candidates (docs/open_surfaces.md "Session 21").
+        out["energy"]["ranking"] = out["energy"].get("final")
+        out["energy"]["final"] = float(sym["energy"])
         out["converged"] = bool(out.get("converged", True)) and sym["converged"]
     out["source_flipped"] = out["target_flipped"] = False
     out["open"] = {"domain": "double", "method": f"doubling (symmetric class from the {cand.get('rough_map', 'capped map')})",

@@ -69,12 +69,6 @@ def _to_origin(z):
     return M
 
 
-def _derivative_at_zero(M):
-    """The complex derivative of z -> M(z) at 0: det / d^2."""
-    det = M[..., 0, 0] * M[..., 1, 1] - M[..., 0, 1] * M[..., 1, 0]
-    return det / M[..., 1, 1] ** 2
-
-
 def _frame(p, q):
     """The isometry taking p to 0 and q onto the positive real axis."""
     A = _to_origin(p)
@@ -91,12 +85,6 @@ def _klein(z):
 
 def _poincare(k):
     return k / (1 + np.sqrt(np.maximum(1 - np.abs(k) ** 2, 0)))
-
-
-def _distance(z, w):
-    """Hyperbolic distance in the Poincare disk (curvature -1)."""
-    r = np.abs(z - w) / np.abs(1 - np.conj(z) * w)
-    return 2 * np.arctanh(np.minimum(r, 1 - 1e-16))
 
 
 def _klein_barycentric(K, k):
@@ -266,12 +254,16 @@ class HalfLayout:
         return _normalized(M)
 
 
-def _edge_weights(V, F, floor=None):
-    """Undirected edges (k, 2) of the half with their cotangent weights (the two faces' halves;
-    a boundary edge has one: the double's weight is twice it), with `floor` each at least that
-    times the mean positive weight, as the closed pipeline's own-edge weights
-    (SolveOptions::own_weights_floor: positive weights keep the energy convex). Returns (edges,
-    weights)."""
+def _own_edges(F):
+    """The mesh's undirected edges (k, 2), smaller vertex first, sorted."""
+    a = np.concatenate([F[:, (k + 1) % 3] for k in range(3)])
+    b = np.concatenate([F[:, (k + 2) % 3] for k in range(3)])
+    return np.unique(np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1), axis=0)
+
+
+def _cotangent_weights(V, F, edges):
+    """Each own edge's cotangent weight (the two faces' halves; a boundary edge has one: the
+    double's weight is twice it)."""
     P = V[F]
     cot = np.empty((len(F), 3))
     for k in range(3):
@@ -280,46 +272,129 @@ def _edge_weights(V, F, floor=None):
         cot[:, k] = np.einsum("ij,ij->i", u, v) / np.maximum(np.linalg.norm(np.cross(u, v), axis=1), 1e-300)
     a = np.concatenate([F[:, (k + 1) % 3] for k in range(3)])
     b = np.concatenate([F[:, (k + 2) % 3] for k in range(3)])
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    edges, inverse = np.unique(np.stack([lo, hi], axis=1), axis=0, return_inverse=True)
+    key = np.minimum(a, b) * len(V) + np.maximum(a, b)
     w = np.zeros(len(edges))
-    np.add.at(w, inverse.ravel(), 0.5 * cot.T.ravel())
-    if floor is None:
-        return edges, w
+    np.add.at(w, np.searchsorted(edges[:, 0] * len(V) + edges[:, 1], key), 0.5 * cot.T.ravel())
+    return w
+
+
+def _floored(w, floor):
+    """Each weight at least `floor` times the mean positive one (the closed pipeline's own-edge
+    weights, SolveOptions::own_weights_floor: positive weights keep the energy convex)."""
     positive = w[w > 0]
-    return edges, np.maximum(w, floor * (positive.mean() if len(positive) else 1.0))
+    return np.maximum(w, floor * (positive.mean() if len(positive) else 1.0))
 
 
-def _rotation_block(R):
-    """Real 2x2 blocks of the multiplications by the complex numbers R."""
-    return np.stack([np.stack([R.real, -R.imag], -1), np.stack([R.imag, R.real], -1)], -2)
+def _energy_edges(S, edges, rho, rho_inv, geodesic_of, weights, weight_floor):
+    """The terms of the half's energy: (edges (k, 2), w (k,), rho (k, 2, 2), direct (k,): the edge
+    is one of the mesh's own, pulls (vertices, weights, geodesics (p, 2, 2)) or None, note).
+
+    weights 'delaunay': the doubles' own weights. The intrinsic Delaunay triangulation of S's double
+    (the core's intrinsic_delaunay; 3D lengths of the half on both sheets, so both are the same
+    metric) is symmetric, so each of its edges lies in one half, or crosses the boundary from a
+    vertex v to its own mirror image (a boundary edge flipped: the angles opposite it obtuse).
+    The half's energy is half the doubles' energy of the symmetric map: the half's edges (each
+    element the product of its path's own edges' elements), a boundary edge at half its weight,
+    and per crossing edge of weight w a pull 2 w dist(z_v, boundary geodesic)^2 (w d(z_v,
+    sigma z_v)^2 / 2; the geodesic's lift is the one the path's first boundary vertex slides on:
+    geodesic_of, (n, 2, 2), carried by the path's element). Weights within the flip tolerance
+    below 0 are 0.
+    weights 'own': the half's own cotangents, with `weight_floor` each at least that times the
+    mean positive one (None: as they are, refused when one is negative)."""
+    n = S.n2
+    if weights == "own":
+        w = _cotangent_weights(S.V2, S.F2, edges)
+        if weight_floor is not None:
+            w = _floored(w, weight_floor)
+        elif np.any(w < 0):
+            raise ReflectionSolveError(f"{int(np.sum(w < 0))} negative cotangent weights (the core's solve needs "
+                                       "w >= 0: a weight floor)")
+        return edges, w, rho, np.ones(len(edges), dtype=bool), None, (
+            "own cotangents" + (f" floored at {weight_floor}" if weight_floor is not None else ""))
+    if weights != "delaunay":
+        raise ValueError(f"weights must be 'delaunay' or 'own', not {weights!r}")
+    D = S.D
+    sigma = D["sigma"]
+    half_of = np.where(np.arange(len(D["V"])) < n, np.arange(len(D["V"])), sigma)
+    idt = _core.intrinsic_delaunay(S.V2[half_of], D["F"])
+    off, pv = np.asarray(idt["path_offsets"]), np.asarray(idt["path_vertices"])
+    eindex = {(int(a), int(b)): k for k, (a, b) in enumerate(edges)}
+    on_b = S.loop_of_vertex() >= 0
+
+    def element(path):
+        M = np.eye(2, dtype=complex)
+        for a, b in zip(path[:-1], path[1:]):
+            k = eindex[(min(a, b), max(a, b))]
+            M = M @ (rho[k] if a < b else rho_inv[k])
+        return _normalized(M)
+
+    out_e, out_w, out_rho, direct, seen = [], [], [], [], set()
+    pull_v, pull_w, pull_g = [], [], []
+    for e, (i, j) in enumerate(np.asarray(idt["edges"])):
+        path = pv[off[e]:off[e + 1]]
+        we = max(float(idt["weights"][e]), 0.0)
+        if i != j and sigma[i] == j:
+            # Across the boundary from v to its mirror image: the pull on v.
+            if i >= n:
+                path = path[::-1]
+            b = next((k for k, x in enumerate(path) if x < n and on_b[x]), None)
+            if b is None or np.any(path[:b + 1] >= n):
+                raise ReflectionSolveError("an intrinsic edge crosses the boundary off the half's vertices")
+            if we > 0:
+                pull_v.append(int(path[0]))
+                pull_w.append(2 * we)
+                pull_g.append(element(path[:b + 1]) @ geodesic_of[path[b]])
+            continue
+        inside = path[path < n]
+        if np.any(path >= n) and np.any(~on_b[inside]):
+            raise ReflectionSolveError("an intrinsic edge of the double crosses the boundary between two vertices")
+        if np.any(path >= n) or tuple(path) in seen:
+            continue  # the mirror half's (one with a path along the boundary has its twin's path)
+        seen.add(tuple(path))
+        boundary_edge = len(path) == 2 and on_b[i] and on_b[j]
+        out_e.append((i, j))
+        out_w.append(we * (0.5 if boundary_edge else 1.0))
+        out_rho.append(element(path))
+        direct.append(len(path) == 2)
+    pulls = (np.array(pull_v, dtype=np.int64), np.array(pull_w), np.array(pull_g)) if pull_v else None
+    return (np.array(out_e, dtype=np.int64), np.array(out_w), np.array(out_rho), np.array(direct), pulls,
+            f"intrinsic Delaunay ({idt['flips']} flips, {len(pull_v)} boundary edges flipped: pulls)")
+
+
+def _as_core(M):
+    """(..., 2, 2) disk isometries (normalised: +-SU(1,1)) as the core's rows [a.re, a.im, b.re, b.im]."""
+    M = _normalized(np.asarray(M, dtype=complex))
+    a, b = M[..., 0, 0], M[..., 0, 1]
+    return np.stack([a.real, a.imag, b.real, b.imag], axis=-1)
 
 
 def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, max_iterations=60,
-               weight_floor=None):
+               weights="delaunay", weight_floor=None):
     """The reflection-aware harmonic map of the doubles of S onto T (open_double._Side, unrefined or
     refined alike), in the class of `forward` (the doubles' map's forward points: 'face',
     'barycentric' on T's double per vertex of S's double), source loop i onto target loop
     pairing[i]; reversing: the half onto the target's mirror half. layout: a HalfLayout of T's
-    half for this orientation (built when None). weight_floor: None (default) the cotangent
-    weights as they are (the discrete Dirichlet energy of the source's faces; a remeshed copy then
-    maps near the identity: the punctured torus onto its subdivision 0.30% of the diagonal), else
-    each weight at least that times the mean positive one (0.1: convex, 0.81% there).
+    half for this orientation (built when None). weights: 'delaunay' (default) the half's intrinsic
+    Delaunay weights with its boundary kept (_energy_edges: the doubles' own weights, so the energy
+    is half the symmetric doubles' map's); 'own' the source's own cotangents (session 20's), with
+    weight_floor each at least that times the mean positive one (0.1: convex; None: as they are,
+    refused when one is negative).
+
+    The solve is the core's (`_core.hyperbolic_harmonic_map`, map/hyperbolic_harmonic.h with
+    BoundarySlideOptions): every boundary vertex slides along the geodesic through the paired
+    target loop's edge nearest its start image (one unknown, its arc length; on the geodesic to
+    round-off), consecutive boundary vertices keep their order along it.
 
     Returns a dict: 'forward' (face, barycentric on T's split half faces F2, per vertex of S's
     split half), 'inverse' (face, barycentric on S's F2 per vertex of T's split half), 'energy'
     (the half's: the symmetric doubles' map's is twice it), 'converged', 'iterations',
-    'gradient' (the largest vertex gradient at the end over the largest weighted edge length),
+    'gradient' (the largest vertex gradient at the end over the largest weight),
     'boundary_off_geodesic' (largest hyperbolic distance of a boundary image from its geodesic),
-    'intrinsic_flipped' (source faces whose image turns over in the metric), 'inverse_unlocated'
-    (target vertices found in no source face's image, given the nearest), 'metric_error',
-    'layout'. Raises ReflectionSolveError when the solve cannot be set up or a point cannot be
-    located.
-
-    Long on purpose (~180 lines): the start (boundary vertices put on their geodesics), the edges'
-    elements and the Newton iteration share the per-vertex arrays and closures (positions,
-    energy, logs, the reduced Hessian's blocks); split, each piece would take a dozen of them as
-    arguments. The way back to the meshes is _maps_back."""
+    'order_rejections' (line-search trials shortened to keep the boundary's order), 'weights'
+    (which, in words), 'intrinsic_flipped' (source faces whose image turns over in the metric),
+    'inverse_unlocated' (target vertices found in no source face's image, given the nearest),
+    'metric_error', 'layout'. Raises ReflectionSolveError when the solve cannot be set up or a
+    point cannot be located."""
     if layout is None:
         layout = HalfLayout(T.F2[:, ::-1] if reversing else T.F2, T.D)
     n = S.n2
@@ -354,8 +429,9 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
         Mb[idx] = _normalized(_inv(_frame(pu, pw)))
         s[idx] = t[j] * 2 * np.arctanh(np.abs(_apply(_frame(pu, pw), pw)))
         home[v] = f
-    edges, w = _edge_weights(S.V2, S.F2, weight_floor)
-    # Each edge's element: start's placement (its j end's home face) onto the lift next to i's.
+    # The mesh's own edges and their elements: start's placement (the j end's home face) onto the
+    # lift next to i's (for the energy's edges below and for the way back to the meshes).
+    edges = _own_edges(S.F2)
     cache = {}
     rho = np.empty((len(edges), 2, 2), dtype=complex)
     for e, (i, j) in enumerate(edges):
@@ -364,138 +440,34 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
             cache[key] = layout.path_element(*key)
         rho[e] = cache[key]
     rho_inv = _inv(rho)
-    I, J = edges[:, 0], edges[:, 1]
-    interior = np.ones(n, dtype=bool)
-    interior[bnd] = False
-    col = -np.ones(n, dtype=np.int64)
-    n_int = int(interior.sum())
-    col[interior] = 2 * np.arange(n_int)
-    col[bnd] = 2 * n_int + np.arange(len(bnd))
-    n_var = 2 * n_int + len(bnd)
-
-    def place(z, s):
-        z = z.copy()
-        z[bnd] = _apply(Mb, np.tanh(s / 2))
-        return z
-
-    def energy(z):
-        return float(np.sum(w * _distance(z[I], _apply(rho, z[J])) ** 2))
-
-    from scipy import sparse
-    from scipy.sparse.linalg import spsolve
-
-    def logs(z, a, b, M):
-        """log at z[a] (in a's chart at 0, hyperbolic units) of M z[b]; and the chart rotation of b's
-        tangent vectors into a's."""
-        Ta = _to_origin(z[a])
-        y = _apply(Ta, _apply(M, z[b]))
-        r = np.abs(y)
-        lg = np.where(r > 0, 2 * np.arctanh(np.minimum(r, 1 - 1e-16)) / np.where(r > 0, r, 1), 0) * y
-        D = _derivative_at_zero(Ta @ M @ _inv(_to_origin(z[b])))
-        return lg, D / np.abs(D)
-
-    z = place(z, s)
-    E = energy(z)
-    history, gradients = [E], []
-    converged, it, gnorm = False, 0, np.inf
-    scale = float(np.max(w * _distance(z[I], _apply(rho, z[J]))))
-    for it in range(1, max_iterations + 1):
-        lg_ij, R_ij = logs(z, I, J, rho)
-        lg_ji, R_ji = logs(z, J, I, rho_inv)
-        g = np.zeros(n, dtype=complex)
-        np.add.at(g, I, -2 * w * lg_ij)
-        np.add.at(g, J, -2 * w * lg_ji)
-        # Boundary vertices: the geodesic's unit direction in their chart (increasing s).
-        xb = np.tanh(s / 2)
-        Db = (Mb[:, 0, 0] * Mb[:, 1, 1] - Mb[:, 0, 1] * Mb[:, 1, 0]) / (Mb[:, 1, 0] * xb + Mb[:, 1, 1]) ** 2
-        Db = Db * _derivative_at_zero(_inv(_to_origin(z[bnd]))) ** -1
-        ub = Db / np.abs(Db)
-        # Reduced gradient: interior (re, im), boundary its component along the geodesic.
-        grad = np.zeros(n_var)
-        grad[col[interior]] = g[interior].real
-        grad[col[interior] + 1] = g[interior].imag
-        grad[col[bnd]] = (g[bnd] * np.conj(ub)).real
-        gnorm = max(float(np.max(np.abs(g[interior]))) if n_int else 0.0,
-                    float(np.max(np.abs(grad[col[bnd]]))) if len(bnd) else 0.0) / max(scale, 1e-300)
-        gradients.append(gnorm)
-        if gnorm <= tolerance:
-            converged = True
-            break
-        # The connection Laplacian: 2 w per edge on both diagonal blocks, -2 w R off them.
-        U = np.ones(n, dtype=complex)
-        U[bnd] = ub
-        rows, cols, vals = [], [], []
-
-        def add_block(a, b, blocks):
-            # blocks (k, 2, 2) between vertices a's and b's tangent planes, reduced by their bases.
-            for da in range(2):
-                for db in range(2):
-                    ra = np.where(interior[a], col[a] + da, col[a])
-                    cb = np.where(interior[b], col[b] + db, col[b])
-                    v = blocks[:, da, db].copy()
-                    # A boundary vertex's one column is its direction u: the complex vector u as (re, im).
-                    ua = np.where(interior[a], 1.0, np.where(da == 0, U[a].real, U[a].imag))
-                    ub_ = np.where(interior[b], 1.0, np.where(db == 0, U[b].real, U[b].imag))
-                    rows.append(ra)
-                    cols.append(cb)
-                    vals.append(v * ua * ub_)
-
-        # The Hessian of d^2 in the hyperbolic plane, in frames carried along the edge: along the
-        # edge 2 on the diagonal, -2 across; normal to it 2 d coth d and -2 d / sinh d (Jacobi
-        # fields; docs/method.md section 7 has the same radial and normal blocks).
-        d = np.abs(lg_ij)
-        e = np.where(d > 0, lg_ij / np.where(d > 0, d, 1), 1)
-        e_ji = np.where(d > 0, lg_ji / np.where(d > 0, d, 1), 1)
-        small = d < 1e-4
-        c = np.where(small, 1 + d ** 2 / 3, d / np.tanh(np.where(small, 1, d)))
-        sn = np.where(small, 1 - d ** 2 / 6, d / np.sinh(np.where(small, 1, d)))
-        eye = np.eye(2)
-
-        def radial_normal(e, along, normal):
-            P = np.stack([np.stack([e.real * e.real, e.real * e.imag], -1),
-                          np.stack([e.real * e.imag, e.imag * e.imag], -1)], -2)
-            return along[:, None, None] * P + normal[:, None, None] * (eye - P)
-
-        w2 = 2 * w
-        add_block(I, I, radial_normal(e, w2, w2 * c))
-        add_block(J, J, radial_normal(e_ji, w2, w2 * c))
-        add_block(I, J, -radial_normal(e, w2, w2 * sn) @ _rotation_block(R_ij))
-        add_block(J, I, -radial_normal(e_ji, w2, w2 * sn) @ _rotation_block(R_ji))
-        H = sparse.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                              shape=(n_var, n_var))
-        H = H + sparse.identity(n_var, format="csc") * (1e-12 * float(H.diagonal().max()))
-        step = spsolve(H, -grad)
-        slope = float(grad @ step)
-        if not slope < 0:
-            step, slope = -grad, -float(grad @ grad)
-        alpha = 1.0
-        while True:
-            p = np.zeros(n, dtype=complex)
-            p[interior] = alpha * (step[col[interior]] + 1j * step[col[interior] + 1])
-            r = np.abs(p)
-            moved = np.where(r > 0, np.tanh(r / 2) / np.where(r > 0, r, 1), 0) * p
-            z_new = _apply(_inv(_to_origin(z)), moved)
-            s_new = s + alpha * step[col[bnd]]
-            z_new = place(z_new, s_new)
-            E_new = energy(z_new)
-            if E_new <= E + 1e-4 * alpha * slope or alpha < 1e-8:
-                break
-            alpha *= 0.5
-        if alpha < 1e-8 and E_new > E:
-            break  # no descent left: at the floating-point floor
-        rel = (E - E_new) / max(E, 1e-300)
-        z, s, E = z_new, s_new, E_new
-        history.append(E)
-        if 0 <= rel < 1e-15:
-            converged = gnorm <= 1e3 * tolerance
-            break
-    # Boundary images on their geodesics: distance of z_b from the geodesic M_b(real axis).
-    xb = _apply(_inv(Mb), z[bnd])
-    off = float(np.max(np.arcsinh(2 * np.abs(xb.imag) / (1 - np.abs(xb) ** 2)))) if len(bnd) else 0.0
+    geodesic_of = np.tile(np.eye(2, dtype=complex), (n, 1, 1))
+    geodesic_of[bnd] = Mb
+    energy_edges, w, energy_rho, direct, pulls, weights_note = _energy_edges(S, edges, rho, rho_inv, geodesic_of,
+                                                                             weights, weight_floor)
+    # Consecutive boundary vertices keep their order along the geodesic (the core's order check).
+    eindex = {(int(i), int(j)): k for k, (i, j) in enumerate(energy_edges) if direct[k]}
+    eindex.update({(j, i): k for (i, j), k in list(eindex.items())})
+    ordered = [eindex[(int(u), int(v))] for loop in S.loops for u, v in zip(loop, np.roll(loop, -1))
+               if (int(u), int(v)) in eindex]
+    slides = np.zeros(n, dtype=bool)
+    slides[bnd] = True
+    geodesics = np.tile(np.array([1.0, 0.0, 0.0, 0.0]), (n, 1))
+    geodesics[bnd] = _as_core(Mb)
+    z0 = z.copy()
+    z0[bnd] = _apply(Mb, np.tanh(s / 2))
+    res = _core.hyperbolic_harmonic_map(energy_edges, w, _as_core(energy_rho), z0, slides=slides,
+                                        geodesics=geodesics, ordered_edges=np.array(ordered, dtype=np.int64),
+                                        pulls=None if pulls is None else (pulls[0], pulls[1], _as_core(pulls[2])),
+                                        tolerance=tolerance, max_iterations=max_iterations)
+    z = np.asarray(res["z"])
+    converged = bool(res["converged"])
+    gnorm = float(res["gradient_history"][-1]) / max(float(np.max(w)), 1e-300)
     back = _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing, inverse=converged)
-    back.update(energy=E, energy_history=history, gradient_history=gradients, converged=bool(converged),
-                iterations=it, gradient=gnorm, boundary_off_geodesic=off, metric_error=layout.metric_error,
-                weight_floor=weight_floor, layout=layout)
+    back.update(energy=float(res["energy"]), energy_history=list(res["energy_history"]),
+                gradient_history=list(res["gradient_history"]), converged=converged, iterations=int(res["iterations"]),
+                gradient=gnorm, boundary_off_geodesic=float(res["slide_off_geodesic"]),
+                order_rejections=int(res["order_rejections"]), metric_error=layout.metric_error,
+                weights=weights_note, weight_floor=weight_floor, layout=layout)
     return back
 
 

@@ -89,6 +89,8 @@ IntrinsicDelaunayResult intrinsic_delaunay(const Connectivity& conn, const Eigen
   }
 
   if (options.min_degree < 1) throw InputError("intrinsic_delaunay: min_degree must be at least 1");
+  if (!options.keep.empty() && static_cast<int>(options.keep.size()) != ne)
+    throw InputError("intrinsic_delaunay: keep needs one entry per edge");
   std::vector<int> degree(conn.num_vertices(), 0);  // edge ends
   for (int h = 0; h < nh; ++h) ++degree[m.tail(h)];
   const int max_flips = options.max_flips > 0 ? options.max_flips : 100 * ne;
@@ -100,7 +102,7 @@ IntrinsicDelaunayResult intrinsic_delaunay(const Connectivity& conn, const Eigen
     const int e = queue.front();
     queue.pop_front();
     queued[e] = 0;
-    if (m.weight(e) >= -options.tolerance) continue;
+    if (m.weight(e) >= -options.tolerance || (!options.keep.empty() && options.keep[e])) continue;
     // Faces f0 = (i, j, k) with h: i->j and f1 = (j, i, l) with t: j->i.
     const int h = m.edge_he[e], t = m.twin[h];
     const int f0 = h / 3, f1 = t / 3;
@@ -170,6 +172,7 @@ IntrinsicDelaunayResult intrinsic_delaunay(const Connectivity& conn, const Eigen
     out.min_cot_weight = std::min(out.min_cot_weight, w);
     if (w >= -options.tolerance) continue;
     out.delaunay = false;
+    if (!options.keep.empty() && options.keep[e]) continue;
     const int h = m.edge_he[e], i = m.tail(h), j = m.head(h);
     if (degree[i] - 1 - (i == j) < options.min_degree || degree[j] - 1 - (i == j) < options.min_degree)
       ++out.degree_limited;

@@ -336,6 +336,31 @@ void check_newton_input(int n, const std::vector<WeightedEdge>& edges, const std
     if (!(std::abs(z0[i]) < 1)) throw InputError("hyperbolic_harmonic_map: start point of vertex " + std::to_string(i) + " is outside the disk");
   if (!options.fixed.empty() && static_cast<int>(options.fixed.size()) != n)
     throw InputError("hyperbolic_harmonic_map: the fixed mask needs one entry per vertex");
+  const BoundarySlideOptions& slide = options.boundary_slide;
+  if (!slide.slides.empty()) {
+    if (static_cast<int>(slide.slides.size()) != n || static_cast<int>(slide.geodesic.size()) != n)
+      throw InputError("hyperbolic_harmonic_map: boundary_slide needs one slide flag and one geodesic per vertex");
+    for (int i = 0; i < n; ++i) {
+      if (!slide.slides[i]) continue;
+      if (!options.fixed.empty() && options.fixed[i])
+        throw InputError("hyperbolic_harmonic_map: vertex " + std::to_string(i) + " is both held and sliding");
+      const Mobius& G = slide.geodesic[i];
+      if (!std::isfinite(std::abs(G.a)) || !std::isfinite(std::abs(G.b)) || !(G.determinant() > 0))
+        throw InputError("hyperbolic_harmonic_map: the geodesic of vertex " + std::to_string(i) +
+                         " is not an isometry of the disk");
+    }
+  } else if (!slide.ordered_edges.empty()) {
+    throw InputError("hyperbolic_harmonic_map: ordered_edges without sliding vertices");
+  }
+  for (const auto& p : slide.pulls)
+    if (p.vertex < 0 || p.vertex >= n || !(p.w >= 0) || !std::isfinite(p.w) || !(p.geodesic.determinant() > 0) ||
+        (!options.fixed.empty() && options.fixed[p.vertex]) || (!slide.slides.empty() && slide.slides[p.vertex]))
+      throw InputError("hyperbolic_harmonic_map: the pull on vertex " + std::to_string(p.vertex) +
+                       " needs a free vertex, a weight >= 0 and an isometry");
+  for (int e : slide.ordered_edges)
+    if (e < 0 || e >= static_cast<int>(edges.size()) || !slide.slides[edges[e].i] || !slide.slides[edges[e].j])
+      throw InputError("hyperbolic_harmonic_map: ordered edge " + std::to_string(e) +
+                       " is not an edge between two sliding vertices");
   double largest_w = 0;
   for (const auto& ed : edges) largest_w = std::max(largest_w, std::abs(ed.w));
   for (size_t e = 0; e < edges.size(); ++e) {
@@ -698,7 +723,8 @@ double chart_energy(const std::vector<WeightedEdge>& edges, const std::vector<Mo
 // Largest per-vertex gradient length for edge elements `a` (free vertices);
 // `grad_buf`: #V scratch.
 double chart_gradient_norm(const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& a,
-                           const std::vector<char>& fixed, std::vector<Complex>& grad_buf) {
+                           const std::vector<char>& fixed, const std::vector<Complex>& slide_dir,
+                           std::vector<Complex>& grad_buf, const std::vector<Complex>& extra = {}) {
   const int n = static_cast<int>(grad_buf.size());
   std::fill(grad_buf.begin(), grad_buf.end(), Complex(0.0));
   for (size_t e = 0; e < edges.size(); ++e) {
@@ -709,9 +735,14 @@ double chart_gradient_norm(const std::vector<WeightedEdge>& edges, const std::ve
     grad_buf[edges[e].i] -= 2 * edges[e].w * d * (M.b / std::conj(M.a)) * (std::abs(M.a) / bn);
     grad_buf[edges[e].j] -= 2 * edges[e].w * d * (-M.b / M.a) * (std::abs(M.a) / bn);
   }
+  for (size_t i = 0; i < extra.size(); ++i) grad_buf[i] += extra[i];
   double gn = 0;
-  for (int i = 0; i < n; ++i)
-    if (fixed.empty() || !fixed[i]) gn = std::max(gn, std::abs(grad_buf[i]));
+  for (int i = 0; i < n; ++i) {
+    if (!fixed.empty() && fixed[i]) continue;
+    // A sliding vertex: the gradient's component along its geodesic.
+    const bool slides = !slide_dir.empty() && slide_dir[i] != Complex(0.0);
+    gn = std::max(gn, slides ? std::abs((grad_buf[i] * std::conj(slide_dir[i])).real()) : std::abs(grad_buf[i]));
+  }
   return gn;
 }
 
@@ -723,13 +754,25 @@ double chart_gradient_norm(const std::vector<WeightedEdge>& edges, const std::ve
 // b = d / sinh d), and y's own frame is rotated by theta = arg A_e'(0).
 // Held vertices (`fixed`, landmarks): no gradient and identity rows and
 // columns (scaled by max_w), so their Newton step is 0 and the other
-// vertices see them as fixed. Fills H and g (2 #V).
+// vertices see them as fixed. Sliding vertices (`slide_dir`, empty or #V:
+// the unit direction of the vertex's geodesic in its chart, 0 for a free
+// vertex; BoundarySlideOptions): the unknowns (t, s) stand for the tangent
+// vector t u, so their blocks are B^T H B with B = [u 0] and the dead
+// unknown s gets an identity row (scaled by max_w) and no gradient, as a held
+// vertex's. Fills H and g (2 #V).
 void assemble_newton_system(const std::vector<WeightedEdge>& edges, const std::vector<Mobius>& A,
-                            const std::vector<char>& fixed, double max_w, BlockHessian& H, Eigen::VectorXd& g) {
+                            const std::vector<char>& fixed, const std::vector<Complex>& slide_dir, double max_w,
+                            BlockHessian& H, Eigen::VectorXd& g) {
   const int n = static_cast<int>(g.size() / 2);
   H.clear();
   const bool any_fixed = !fixed.empty();
   auto is_free = [&](int v) { return !any_fixed || !fixed[v]; };
+  auto slides = [&](int v) { return !slide_dir.empty() && slide_dir[v] != Complex(0.0); };
+  auto basis = [&](int v) {
+    Eigen::Matrix2d B = Eigen::Matrix2d::Identity();
+    if (slides(v)) B << slide_dir[v].real(), 0, slide_dir[v].imag(), 0;
+    return B;
+  };
   g.setZero();
   for (size_t ei = 0; ei < edges.size(); ++ei) {
     const WeightedEdge& e = edges[ei];
@@ -751,7 +794,11 @@ void assemble_newton_system(const std::vector<WeightedEdge>& edges, const std::v
     const double th = 2.0 * std::arg(M.a);  // arg A'(0) = arg 1/ā²
     Eigen::Matrix2d R;
     R << std::cos(th), -std::sin(th), std::sin(th), std::cos(th);
-    const Eigen::Matrix2d Hii = 2 * e.w * P, Hjj = 2 * e.w * R.transpose() * P * R, Hij = -2 * e.w * Q * R;
+    Eigen::Matrix2d Hii = 2 * e.w * P, Hjj = 2 * e.w * R.transpose() * P * R, Hij = -2 * e.w * Q * R;
+    if (slides(e.i) || slides(e.j)) {
+      const Eigen::Matrix2d Bi = basis(e.i), Bj = basis(e.j);
+      Hii = Bi.transpose() * Hii * Bi, Hjj = Bj.transpose() * Hjj * Bj, Hij = Bi.transpose() * Hij * Bj;
+    }
     // Held vertices: their rows and columns are left out.
     if (e.i == e.j) {
       if (is_free(e.i)) H.add_diagonal(e.i, Hii + Hjj + Hij + Hij.transpose());
@@ -766,6 +813,15 @@ void assemble_newton_system(const std::vector<WeightedEdge>& edges, const std::v
       if (fixed[i]) {
         g[2 * i] = g[2 * i + 1] = 0;
         H.add_diagonal(i, max_w * Eigen::Matrix2d::Identity());
+      }
+  if (!slide_dir.empty())
+    for (int i = 0; i < n; ++i)
+      if (slides(i)) {
+        g[2 * i] = g[2 * i] * slide_dir[i].real() + g[2 * i + 1] * slide_dir[i].imag();
+        g[2 * i + 1] = 0;
+        Eigen::Matrix2d dead = Eigen::Matrix2d::Zero();
+        dead(1, 1) = max_w;
+        H.add_diagonal(i, dead);
       }
 }
 
@@ -812,6 +868,12 @@ struct HarmonicNewton {
   std::vector<Mobius> trial_A, step_map;
   std::vector<Complex> grad_buf;
   Eigen::VectorXd g;
+  // BoundarySlideOptions: per vertex the unit direction of its geodesic in
+  // its chart (0: free), derived afresh at every Newton system, and per
+  // ordered edge the side of its head along the geodesic at the start (+1,
+  // -1; 0 unchecked).
+  std::vector<Complex> slide_dir;
+  std::vector<signed char> order_sign;
 
   HarmonicNewton(int num_vertices, const std::vector<WeightedEdge>& edge_list, const std::vector<Mobius>& generators,
                  const std::vector<Complex>& z0, const HyperbolicHarmonicOptions& opts, const HessianAnalysis* analysis,
@@ -828,7 +890,7 @@ struct HarmonicNewton {
         grad_buf(num_vertices),
         g(2 * num_vertices) {
     for (const auto& e : edges) max_w = std::max(max_w, e.w);
-    E = chart_energy(edges, A);
+    E = chart_energy(edges, A) + pull_energy(false);
     r.energy_history.push_back(E);
   }
   HarmonicNewton(const HarmonicNewton&) = delete;
@@ -836,7 +898,10 @@ struct HarmonicNewton {
 
   // Trial edge elements for the step alpha * xi (all vertices at once).
   void trial_edges(const Eigen::VectorXd& xi, double alpha) {
-    for (int i = 0; i < n; ++i) step_map[i] = Mobius::translation(alpha * Complex(xi[2 * i], xi[2 * i + 1]));
+    for (int i = 0; i < n; ++i)
+      step_map[i] = Mobius::translation(alpha * (!slide_dir.empty() && slide_dir[i] != Complex(0.0)
+                                                     ? xi[2 * i] * slide_dir[i]
+                                                     : Complex(xi[2 * i], xi[2 * i + 1])));
     for (size_t e = 0; e < edges.size(); ++e)
       trial_A[e] = (step_map[edges[e].i].inverse() * A[e] * step_map[edges[e].j]).normalized();
   }
@@ -851,9 +916,99 @@ struct HarmonicNewton {
   bool gradient_step(const Eigen::VectorXd& step, double gnorm) {
     trial_edges(step, 1.0);
     ++r.energy_evaluations;
-    if (!(chart_gradient_norm(edges, trial_A, options.fixed, grad_buf) <= 0.5 * gnorm)) return false;
-    accept(chart_energy(edges, trial_A));
+    if (!order_kept(trial_A)) return false;
+    if (!(chart_gradient_norm(edges, trial_A, options.fixed, slide_dir, grad_buf, pull_gradient(true)) <= 0.5 * gnorm))
+      return false;
+    accept(chart_energy(edges, trial_A) + pull_energy(true));
     last_full_step = true;
+    return true;
+  }
+
+  /// BoundarySlideOptions::pulls: the pull's geodesic seen from its vertex's
+  /// chart (times step_map for a trial): its distance δ from the origin and
+  /// the unit direction from the origin towards its nearest point (at δ = 0,
+  /// across the geodesic).
+  std::pair<double, Complex> pull_frame(const BoundarySlideOptions::Pull& p, bool trial) const {
+    LongMobius C = state.full_chart(p.vertex);
+    if (trial) C = C * LongMobius::from(step_map[p.vertex]);
+    const Mobius m =
+        (C.inverse() * LongMobius::from(r.vertex_deck[p.vertex]) * LongMobius::from(p.geodesic)).normalized().to_double();
+    const Complex y = -m.b / m.a;  // the origin in the geodesic's model (the geodesic: the real diameter)
+    const double delta = std::asinh(2 * std::abs(y.imag()) / std::max(1 - std::norm(y), 1e-300));
+    const double k = (2.0 * y / (1.0 + std::norm(y))).real();  // the foot: straight perpendicular in Klein
+    const Complex foot = m.apply(Complex(k / (1 + std::sqrt(std::max(1 - k * k, 0.0))), 0.0));
+    if (std::abs(foot) > 1e-15) return {delta, foot / std::abs(foot)};
+    const Complex along = m.derivative(Complex(k, 0.0));
+    return {delta, Complex(0.0, 1.0) * along / std::abs(along)};
+  }
+  double pull_energy(bool trial) const {
+    double sum = 0;
+    for (const auto& p : options.boundary_slide.pulls) {
+      const double delta = pull_frame(p, trial).first;
+      sum += p.w * delta * delta;
+    }
+    return sum;
+  }
+  /// #V gradients of the pulls (empty without pulls).
+  std::vector<Complex> pull_gradient(bool trial) const {
+    if (options.boundary_slide.pulls.empty()) return {};
+    std::vector<Complex> grad(n, Complex(0.0));
+    for (const auto& p : options.boundary_slide.pulls) {
+      const auto [delta, toward] = pull_frame(p, trial);
+      grad[p.vertex] -= 2 * p.w * delta * toward;
+    }
+    return grad;
+  }
+  /// The pulls' gradient and Hessian (docs in BoundarySlideOptions::pulls).
+  void add_pulls(BlockHessian& H) {
+    for (const auto& p : options.boundary_slide.pulls) {
+      const auto [delta, toward] = pull_frame(p, false);
+      g[2 * p.vertex] -= 2 * p.w * delta * toward.real();
+      g[2 * p.vertex + 1] -= 2 * p.w * delta * toward.imag();
+      const Eigen::Vector2d nv(toward.real(), toward.imag()), tv(-toward.imag(), toward.real());
+      H.add_diagonal(p.vertex, 2 * p.w * (nv * nv.transpose() + delta * std::tanh(delta) * tv * tv.transpose()));
+    }
+  }
+
+  /// Vertex i's geodesic seen from its chart: M = C_i^-1 deck_i G_i maps
+  /// the real diameter onto it, through the chart's origin up to round-off
+  /// (at x = M^-1(0), taken on the diameter); slide_dir[i] = M'(x) / |M'(x)|.
+  void derive_slide_directions() {
+    const BoundarySlideOptions& slide = options.boundary_slide;
+    slide_dir.assign(n, Complex(0.0));
+    for (int i = 0; i < n; ++i) {
+      if (!slide.slides[i]) continue;
+      const LongMobius M = state.full_chart(i).inverse() * LongMobius::from(r.vertex_deck[i]) *
+                           LongMobius::from(slide.geodesic[i]);
+      const Mobius m = M.normalized().to_double();
+      const double x = (-m.b / m.a).real();
+      const Complex d = m.derivative(Complex(x, 0.0));
+      slide_dir[i] = d / std::abs(d);
+    }
+  }
+  /// The side (sign along the tail's geodesic direction) of every ordered
+  /// edge's head, from edge elements `a`.
+  double order_side(const std::vector<Mobius>& a, int e) const {
+    const Mobius& M = a[e];
+    return ((M.b / std::conj(M.a)) * std::conj(slide_dir[edges[e].i])).real();
+  }
+  void record_order() {
+    const auto& ordered = options.boundary_slide.ordered_edges;
+    order_sign.assign(ordered.size(), 0);
+    for (size_t k = 0; k < ordered.size(); ++k) {
+      const double side = order_side(A, ordered[k]);
+      order_sign[k] = side > 0 ? 1 : side < 0 ? -1 : 0;
+    }
+  }
+  /// Whether the trial elements keep every ordered edge's head on its start
+  /// side (the trial's charts moved along the geodesics, which keeps their
+  /// directions, so slide_dir still holds).
+  bool order_kept(const std::vector<Mobius>& a) {
+    for (size_t k = 0; k < order_sign.size(); ++k)
+      if (order_sign[k] != 0 && !(order_sign[k] * order_side(a, options.boundary_slide.ordered_edges[k]) > 0)) {
+        ++r.order_rejections;
+        return false;
+      }
     return true;
   }
 
@@ -868,7 +1023,12 @@ struct HarmonicNewton {
       r.analysis_seconds += seconds_since(t0);
     }
     BlockHessian& H = *hessian;
-    assemble_newton_system(edges, A, options.fixed, max_w, H, g);
+    if (!options.boundary_slide.slides.empty()) {
+      derive_slide_directions();
+      if (order_sign.empty()) record_order();
+    }
+    assemble_newton_system(edges, A, options.fixed, slide_dir, max_w, H, g);
+    add_pulls(H);
     if (!g.allFinite() || !std::isfinite(E))
       throw SolveError("hyperbolic harmonic map: non-finite energy or gradient at iteration " + std::to_string(it));
     double gnorm = 0;
@@ -1021,7 +1181,11 @@ struct HarmonicNewton {
     }
     for (int ls = 0; ls < 40 && !accepted; ++ls) {
       trial_edges(step, alpha);
-      const double Et = chart_energy(edges, trial_A);
+      if (!order_kept(trial_A)) {
+        alpha *= 0.5;
+        continue;
+      }
+      const double Et = chart_energy(edges, trial_A) + pull_energy(true);
       ++r.energy_evaluations;
       if (Et < E && (Et <= E + 1e-4 * alpha * slope || alpha < 1e-3)) {
         accept(Et);
@@ -1048,7 +1212,8 @@ struct HarmonicNewton {
       for (int i = 0; i < n; ++i) gl = std::max(gl, std::hypot(gs[2 * i], gs[2 * i + 1]));
       for (double beta = gl > kMaxStep ? kMaxStep / gl : 1.0; beta > 1e-8 && !accepted; beta *= 0.25) {
         trial_edges(gs, beta);
-        const double Et = chart_energy(edges, trial_A);
+        if (!order_kept(trial_A)) continue;
+        const double Et = chart_energy(edges, trial_A) + pull_energy(true);
         ++r.energy_evaluations;
         if (Et < E) accept(Et), accepted = true;
       }
@@ -1082,7 +1247,7 @@ struct HarmonicNewton {
     // The new charts and sheets: every A_e afresh (ChartState above), and
     // the energy the next iteration starts from.
     state.derive_edges();
-    E = chart_energy(edges, A);
+    E = chart_energy(edges, A) + pull_energy(false);
     r.energy_history.push_back(E);
   }
 
@@ -1095,6 +1260,19 @@ struct HarmonicNewton {
     r.edge_local = A;
     r.edge_effective.resize(edges.size());
     for (size_t e = 0; e < edges.size(); ++e) r.edge_effective[e] = state.eff[e].to_double().normalized();
+    if (!options.boundary_slide.slides.empty()) {
+      // Distance of each sliding vertex (its chart's origin) from its
+      // geodesic M(real diameter): that of x = M^-1(0) from the diameter.
+      for (int i = 0; i < n; ++i) {
+        if (!options.boundary_slide.slides[i]) continue;
+        const LongMobius M = state.full_chart(i).inverse() * LongMobius::from(r.vertex_deck[i]) *
+                             LongMobius::from(options.boundary_slide.geodesic[i]);
+        const Mobius m = M.normalized().to_double();
+        const Complex x = -m.b / m.a;
+        r.slide_off_geodesic =
+            std::max(r.slide_off_geodesic, std::asinh(2 * std::abs(x.imag()) / std::max(1 - std::norm(x), 1e-300)));
+      }
+    }
   }
 };
 
@@ -1131,6 +1309,18 @@ HyperbolicHarmonicResult newton_solve(int n, const std::vector<WeightedEdge>& ed
                                       const HessianAnalysis* shared, const FaceAtlas* atlas = nullptr,
                                       std::vector<int> face0 = {}) {
   check_newton_input(n, edges, z0, options);
+  if (!options.boundary_slide.slides.empty()) {
+    if (atlas) throw InputError("hyperbolic_harmonic_map_in_face_charts: boundary_slide is not supported in per-face charts");
+    // Sliding vertices start on their geodesics: the orthogonal projection
+    // onto G(diameter), a straight perpendicular in the Klein model.
+    for (int i = 0; i < n; ++i) {
+      if (!options.boundary_slide.slides[i]) continue;
+      const Mobius& G = options.boundary_slide.geodesic[i];
+      const Complex x = G.inverse().apply(z0[i]);
+      const double k = (2.0 * x / (1.0 + std::norm(x))).real();
+      z0[i] = G.apply(Complex(k / (1.0 + std::sqrt(std::max(1.0 - k * k, 0.0))), 0.0));
+    }
+  }
   HarmonicNewton run(n, edges, generators, z0, options, shared, atlas, std::move(face0));
   HyperbolicHarmonicResult& r = run.r;
   RoundoffPlateau plateau;

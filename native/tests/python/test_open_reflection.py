@@ -67,10 +67,13 @@ def test_reflection_solve_is_symmetric_where_the_doubles_map_is_not():
     assert o["snap_distance"] < 1e-10 * diag
     assert r["converged"] and r["flipped_triangles"] == 0 and o["inverse_flipped_triangles"] == 0
     assert check_map(r, Vs, Fs, Vt, Fs) == 0
-    # The same class: the energies differ by the weights only (own-edge cotangents here, the
-    # doubles' intrinsic Delaunay ones there).
-    assert r["energy"]["final"] == doubles["energy"]["final"]   # the doubles' energy ranks the candidates
+    # The same class: the energies differ by the discretization only (the half's intrinsic
+    # Delaunay weights with its boundary kept here, the refined doubles' there). energy.final is
+    # the delivered map's (the half's solve), energy.ranking the doubles' halved, which ranked it.
+    assert r["energy"]["ranking"] == doubles["energy"]["final"]
+    assert r["energy"]["final"] == o["reflection_energy"]
     assert abs(o["reflection_energy"] - doubles["energy"]["final"]) < 0.01 * doubles["energy"]["final"]
+    assert "intrinsic Delaunay" in o["reflection_solve"], o["reflection_solve"]
     assert np.linalg.norm(r["forward"]["position"] - doubles["forward"]["position"], axis=1).mean() < 0.01 * diag
 
 

@@ -30,6 +30,12 @@ struct IntrinsicDelaunayOptions {
   /// Keep every flip in IntrinsicDelaunayResult::flip_history (default
   /// false): the genus-0 uniformization carries points back through them.
   bool record_flips = false;
+  /// #E (edge order of the input's Connectivity) or empty: nonzero for edges
+  /// never flipped (issue 16: the boundary of an open surface's half inside
+  /// its double, so that the half's intrinsic triangulation stays a half;
+  /// docs/open_surfaces.md "Session 21"). Such an edge may end non-Delaunay
+  /// (it is then not counted in `degree_limited`, and `delaunay` is false).
+  std::vector<char> keep;
 };
 
 /// One flip of intrinsic_delaunay (options.record_flips): the quad

@@ -25,6 +25,43 @@
 
 namespace surfmap {
 
+/// Vertices that slide along geodesics (issue 16: the boundary of an open
+/// surface's half mapped onto the target's geodesic boundary, docs/open_surfaces.md
+/// "Session 21"). Each sliding vertex has one real unknown, its arc length
+/// along its geodesic: its Newton step is a translation along the geodesic
+/// through its chart's origin, which maps that geodesic onto itself, so the
+/// vertex stays on it to round-off (the start is projected onto it). The
+/// energy restricted to such constraints is still geodesically convex.
+struct BoundarySlideOptions {
+  /// #V or empty (no sliding vertex): nonzero for a vertex that slides.
+  std::vector<char> slides;
+  /// #V (read where `slides` is set): G_i with vertex i's geodesic the image
+  /// G_i(-1..1) of the real diameter, in the coordinates of the start points
+  /// z0 (the deck moves of the solve are applied to it as to z_i).
+  std::vector<hyperbolic::Mobius> geodesic;
+  /// Indices of edges i -> j whose two ends slide on the same geodesic
+  /// (consecutive vertices of a boundary loop): the order of their images
+  /// along it is kept as at the start (a line-search trial that turns one
+  /// over is shortened), so that consecutive boundary images cannot slide
+  /// past each other. Edges starting with both images at one point are not
+  /// checked.
+  std::vector<int> ordered_edges;
+  /// Terms w · δ(z_v, G(diameter))² added to the energy, δ the distance of
+  /// vertex v from a geodesic (G in the start points' coordinates, like
+  /// `geodesic`): the half's share of a double's edge from v to its own
+  /// mirror image v' across the boundary (an intrinsic Delaunay edge
+  /// crossing it), w_e d(z_v, σ z_v)² / 2 = 2 w_e δ², so w = 2 w_e. Their
+  /// Hessian, 2 dδ ⊗ dδ + 2 δ tanh δ (t ⊗ t) with t along the geodesic, is
+  /// positive semidefinite: the energy stays geodesically convex. Only on
+  /// vertices that neither slide nor are held.
+  struct Pull {
+    int vertex = -1;
+    double w = 0;
+    hyperbolic::Mobius geodesic;
+  };
+  std::vector<Pull> pulls;
+};
+
 struct HyperbolicHarmonicOptions {
   /// Stop when the largest per-vertex gradient length is below this times
   /// the largest weight-scaled edge length (default 1e-10).
@@ -64,6 +101,9 @@ struct HyperbolicHarmonicOptions {
   /// (geometry/dynamic_charts.h), which can stall outside the domain when
   /// the polygon is not a Dirichlet domain centred at the origin.
   std::function<Word(std::complex<double>&)> reduce_point;
+  /// Optional: vertices constrained to geodesics (BoundarySlideOptions);
+  /// not with per-face charts and not on a held (`fixed`) vertex.
+  BoundarySlideOptions boundary_slide;
 };
 
 struct WeightedEdge {
@@ -112,6 +152,11 @@ struct HyperbolicHarmonicResult {
   /// iterations spent (one solve with the factor each, failed tries included).
   int preconditioned_steps = 0, cg_iterations = 0;
   double analysis_seconds = 0, factorization_seconds = 0;
+  /// With options.boundary_slide: the largest hyperbolic distance of a
+  /// sliding vertex from its geodesic at the end, and the line-search trials
+  /// shortened because they turned an ordered edge over.
+  double slide_off_geodesic = 0;
+  int order_rejections = 0;
 };
 
 /// `generators`: the deck group's generators (their inverses are used too)
