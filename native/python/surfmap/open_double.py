@@ -1610,12 +1610,14 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     # The half's energies: half the doubles' (the map is symmetric).
     out["energy"] = {k: (v / 2 if isinstance(v, (int, float)) and not isinstance(v, bool) else v)
                      for k, v in r["energy"].items() if not _has_arrays(v)}
+    # energy.ranking: the doubles' halved, which ranked the candidates (always present; equal to
+    # energy.final unless the half's solve delivered the map).
+    out["energy"]["ranking"] = out["energy"].get("final")
     if sym is not None:
         # The delivered map is the half's solve: energy.final is its energy (the half's, in the
         # same units as the doubles' halved: half the energy of the symmetric doubles' map on the
-        # doubles' unrefined intrinsic Delaunay weights; = open.reflection_energy), energy.ranking
-        # the doubles' halved, which ranked the candidates (docs/open_surfaces.md "Session 21").
-        out["energy"]["ranking"] = out["energy"].get("final")
+        # doubles' unrefined intrinsic Delaunay weights; = open.reflection_energy)
+        # (docs/open_surfaces.md "Session 21").
         out["energy"]["final"] = float(sym["energy"])
         out["converged"] = bool(out.get("converged", True)) and sym["converged"]
     out["source_flipped"] = out["target_flipped"] = False

@@ -19,10 +19,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-void dehn_reduce_all(GroupMap& m, const DehnReducer& reduce) {
-  for (Word& w : m) w = reduce(w);
-}
-
 // Σ ℓ(marking(p)) over the probes; +inf when one is not evaluable.
 double total_probe_length(const SurfaceGroupLengths& lengths, const GroupMap& marking, const std::vector<Word>& probes,
                           const DehnReducer& reduce) {
@@ -198,7 +194,7 @@ Descent descend(GroupMap map, const std::function<double(const GroupMap&)>& cost
   }
   auto apply = [&](const GroupMap& m, const DescentStep& s) {
     GroupMap next = s.left ? compose(moves[s.move].automorphism.map, m) : compose(m, moves[s.move].automorphism.map);
-    dehn_reduce_all(next, reduce);
+    next = reduce.each(std::move(next));
     return next;
   };
   pairs = pairs && singles.size() * singles.size() <= max_pairs;
@@ -273,7 +269,7 @@ ShortMarking short_marking(const SurfaceGroupLengths& lengths, const ShortMarkin
   out.marking.inverse = id;
   for (const DescentStep& s : d.steps) {
     out.marking.inverse = compose(moves[s.move].automorphism.inverse, out.marking.inverse);
-    dehn_reduce_all(out.marking.inverse, reduce);
+    out.marking.inverse = reduce.each(std::move(out.marking.inverse));
     out.moves.push_back(moves[s.move].name);
   }
   out.total = d.cost;
@@ -402,7 +398,7 @@ std::vector<GeometricClass> geometric_classes(const SurfaceGroupLengths& source,
     for (int i = 0; i < g; ++i) c.rotation.push_back(p.swap[i] + 2 * half[i]);
     const SurfaceAutomorphism P = lift_symplectic(pairing_homology(c.permutation, c.rotation));
     c.theta = compose(target_marking.marking.map, compose(P.map, source_marking.marking.inverse));
-    dehn_reduce_all(c.theta, reduce);
+    c.theta = reduce.each(std::move(c.theta));
     c.mismatch = mismatch(c.theta);
     c.description = pairing_text(c.permutation, c.rotation);
     return c;

@@ -331,10 +331,6 @@ double squared_log_gap(double x, double y) {
   return d * d;
 }
 
-void dehn_reduce_all(GroupMap& m, const DehnReducer& reduce) {
-  for (Word& w : m) w = reduce(w);
-}
-
 /// A surface's lengths remembered by word (the descent meets the same
 /// images again and again), with the count of evaluations for the budget.
 class LengthMemo {
@@ -406,8 +402,8 @@ std::vector<GreedyPantsClass> greedy_pants_classes(const SurfaceGroupLengths& so
     ClassState s;
     s.theta = compose(target_marking.marking.map, compose(P.map, source_marking.marking.inverse));
     s.inverse = compose(source_marking.marking.map, compose(P.inverse, target_marking.marking.inverse));
-    dehn_reduce_all(s.theta, reduce);
-    dehn_reduce_all(s.inverse, reduce);
+    s.theta = reduce.each(std::move(s.theta));
+    s.inverse = reduce.each(std::move(s.inverse));
     evaluate(s);
     starts.emplace_back(std::move(s), gc.description);
   }
@@ -421,8 +417,8 @@ std::vector<GreedyPantsClass> greedy_pants_classes(const SurfaceGroupLengths& so
     ClassState n;
     n.theta = left ? compose(m.automorphism.map, s.theta) : compose(s.theta, m.automorphism.map);
     n.inverse = left ? compose(s.inverse, m.automorphism.inverse) : compose(m.automorphism.inverse, s.inverse);
-    dehn_reduce_all(n.theta, reduce);
-    dehn_reduce_all(n.inverse, reduce);
+    n.theta = reduce.each(std::move(n.theta));
+    n.inverse = reduce.each(std::move(n.inverse));
     evaluate(n);
     return n;
   };

@@ -13,15 +13,11 @@ namespace {
 int A(int i) { return 2 * i + 1; }
 int B(int i) { return 2 * i + 2; }
 
-void dehn_all(GroupMap& m, const DehnReducer& reduce) {
-  for (Word& w : m) w = reduce(w);
-}
-
 // outer ∘ inner with Dehn-reduced words.
 SurfaceAutomorphism then(const SurfaceAutomorphism& outer, const SurfaceAutomorphism& inner, const DehnReducer& reduce) {
   SurfaceAutomorphism r{compose(outer.map, inner.map), compose(inner.inverse, outer.inverse), outer.moves + inner.moves};
-  dehn_all(r.map, reduce);
-  dehn_all(r.inverse, reduce);
+  r.map = reduce.each(std::move(r.map));
+  r.inverse = reduce.each(std::move(r.inverse));
   return r;
 }
 
@@ -169,7 +165,7 @@ TwistSearchResult twist_search(const GroupMap& start, double start_energy, int g
       for (int side = 0; side < 2; ++side) {
         if ((side == 0 && !options.source_side) || (side == 1 && !options.target_side)) continue;
         GroupMap theta = side == 0 ? compose(cur, m.automorphism.map) : compose(m.automorphism.map, cur);
-        dehn_all(theta, reduce);
+        theta = reduce.each(std::move(theta));
         if (letters(theta) > options.max_letters) continue;
         const double s = screen(theta);
         ++res.screened;

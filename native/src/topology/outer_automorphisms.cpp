@@ -222,15 +222,11 @@ GroupMap hyperelliptic_involution() {
   const std::vector<MappingClassMove> moves = twist_moves(g, false, false);
   const auto s1 = std::find_if(moves.begin(), moves.end(), [](const MappingClassMove& m) { return m.name == "T(s1)"; });
   if (s1 == moves.end()) throw SolveError("hyperelliptic_involution: no twist T(s1)");
-  auto dehn = [&](GroupMap m) {
-    for (Word& w : m) w = reduce(w);
-    return m;
-  };
   for (int k = 0; k <= 2; ++k)
     for (int sign : {1, -1}) {
       GroupMap c = h;
-      for (int q = 0; q < k; ++q) c = dehn(compose(c, sign > 0 ? s1->automorphism.map : s1->automorphism.inverse));
-      if (inner_automorphism_test(dehn(compose(c, c)), g).inner) return c;
+      for (int q = 0; q < k; ++q) c = reduce.each(compose(c, sign > 0 ? s1->automorphism.map : s1->automorphism.inverse));
+      if (inner_automorphism_test(reduce.each(compose(c, c)), g).inner) return c;
     }
   throw SolveError("hyperelliptic_involution: no involution among the half turns and separating twists (a bug)");
 }
@@ -314,12 +310,8 @@ namespace {
 /// Whether psi is phi's inverse up to an inner automorphism, exactly: phi ∘
 /// psi and psi ∘ phi inner (both: the check of every inverse returned).
 bool inverse_up_to_inner(const GroupMap& phi, const GroupMap& psi, int genus, const DehnReducer& reduce) {
-  auto dehn = [&](GroupMap m) {
-    for (Word& w : m) w = reduce(w);
-    return m;
-  };
-  return inner_automorphism_test(dehn(compose(phi, psi)), genus).inner &&
-         inner_automorphism_test(dehn(compose(psi, phi)), genus).inner;
+  return inner_automorphism_test(reduce.each(compose(phi, psi)), genus).inner &&
+         inner_automorphism_test(reduce.each(compose(psi, phi)), genus).inner;
 }
 
 }  // namespace
@@ -333,10 +325,6 @@ AutomorphismInverse invert_product(const std::vector<GroupMap>& factors, int gen
     return out;
   }
   const DehnReducer reduce(canonical_relator(genus));
-  auto dehn = [&](GroupMap m) {
-    for (Word& w : m) w = reduce(w);
-    return m;
-  };
   GroupMap product = identity_map(2 * genus), inverse = identity_map(2 * genus);
   for (size_t i = 0; i < factors.size(); ++i) {
     check_map(factors[i], genus, "invert_product");
@@ -367,8 +355,8 @@ AutomorphismInverse invert_product(const std::vector<GroupMap>& factors, int gen
                 std::to_string(most) + " letters";
       return out;
     }
-    product = dehn(compose(product, factors[i]));
-    inverse = dehn(compose(inverse_i, inverse));
+    product = reduce.each(compose(product, factors[i]));
+    inverse = reduce.each(compose(inverse_i, inverse));
   }
   if (!inverse_up_to_inner(product, inverse, genus, reduce)) {
     out.why = "the factors' inverses composed are not the product's inverse (a known inverse is wrong)";
@@ -389,10 +377,6 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
     return out;
   }
   const DehnReducer reduce(canonical_relator(genus));
-  auto dehn = [&](GroupMap m) {
-    for (Word& w : m) w = reduce(w);
-    return m;
-  };
   // When the descent stalls: Nielsen reduction of phi's generator images
   // (nielsen_inverse), checked exactly like the descent's inverse.
   auto nielsen_fallback = [&](AutomorphismInverse& failed) {
@@ -402,7 +386,7 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
       failed.why += "; Nielsen reduction of the generator images stalled";
       return failed;
     }
-    inv = dehn(inv);
+    inv = reduce.each(inv);
     if (!inverse_up_to_inner(phi, inv, genus, reduce)) {
       failed.why += "; Nielsen reduction's inverse is not one (a bug)";
       return failed;
@@ -423,14 +407,14 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
   const std::vector<MappingClassMove> moves = twist_moves(genus);
   const std::vector<Word> probes = probe_words(genus);
   CyclicLengthMemo memo(reduce);
-  std::vector<State> beam{{dehn(phi), identity_map(n), identity_map(n), probe_cost(dehn(phi), probes, memo)}};
+  std::vector<State> beam{{reduce.each(phi), identity_map(n), identity_map(n), probe_cost(reduce.each(phi), probes, memo)}};
   // A second start: the exact lift sigma of the inverse homology on the
   // right (lift_symplectic), leaving a Torelli element to descend.
   if (P != IntMatrix::Identity(n, n)) try {
       const SurfaceAutomorphism sigma = lift_symplectic(-J * P.transpose() * J);  // P^-1
-      GroupMap tau = dehn(compose(phi, sigma.map));
+      GroupMap tau = reduce.each(compose(phi, sigma.map));
       const size_t c = probe_cost(tau, probes, memo);
-      beam.push_back({std::move(tau), identity_map(n), dehn(sigma.map), c});
+      beam.push_back({std::move(tau), identity_map(n), reduce.each(sigma.map), c});
     } catch (const Error&) {
       // (entries too large to lift: the first start alone)
     }
@@ -444,10 +428,10 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
     if (H == IntMatrix::Identity(n, n)) return false;
     try {
       const SurfaceAutomorphism sigma = lift_symplectic(-J * H.transpose() * J);
-      GroupMap t = dehn(compose(st.tau, sigma.map));
+      GroupMap t = reduce.each(compose(st.tau, sigma.map));
       if (!inner_automorphism_test(t, genus).inner) return false;
       st.tau = std::move(t);
-      st.right = dehn(compose(st.right, sigma.map));
+      st.right = reduce.each(compose(st.right, sigma.map));
       return true;
     } catch (const Error&) {
       return false;
@@ -462,10 +446,10 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
     GroupMap power = st.tau;  // tau^m
     for (int m = 2; m <= 4 * genus + 2; ++m) {
       GroupMap previous = power;  // tau^(m-1)
-      power = dehn(compose(power, st.tau));
+      power = reduce.each(compose(power, st.tau));
       if (total_letters(power) > std::max(options.max_letters, 2 * total_letters(st.tau))) return false;
       if (!inner_automorphism_test(power, genus).inner) continue;
-      st.right = dehn(compose(st.right, previous));
+      st.right = reduce.each(compose(st.right, previous));
       st.tau = std::move(power);
       return true;
     }
@@ -489,13 +473,13 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
       const size_t letter_cap = std::max(options.max_letters, 2 * total_letters(st.tau));
       std::vector<std::pair<size_t, size_t>> singles;  // (cost, right move)
       auto consider = [&](const GroupMap& m, bool right, size_t* cost_out) {
-        GroupMap cand = dehn(right ? compose(st.tau, m) : compose(m, st.tau));
+        GroupMap cand = reduce.each(right ? compose(st.tau, m) : compose(m, st.tau));
         if (total_letters(cand) > letter_cap) return false;
         const size_t c = probe_cost(cand, probes, memo, cost_out ? std::numeric_limits<size_t>::max() : st.cost);
         if (cost_out) *cost_out = c;
         if (!(c < st.cost)) return false;
-        next.push_back({std::move(cand), right ? st.left : dehn(compose(m, st.left)),
-                        right ? dehn(compose(st.right, m)) : st.right, c});
+        next.push_back({std::move(cand), right ? st.left : reduce.each(compose(m, st.left)),
+                        right ? reduce.each(compose(st.right, m)) : st.right, c});
         return true;
       };
       bool any = false;
@@ -509,7 +493,7 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
         std::sort(singles.begin(), singles.end());
         for (size_t q = 0; q < singles.size() && q < static_cast<size_t>(options.pair_starts); ++q)
           for (const MappingClassMove& m2 : moves)
-            consider(dehn(compose(moves[singles[q].second].automorphism.map, m2.automorphism.map)), true, nullptr);
+            consider(reduce.each(compose(moves[singles[q].second].automorphism.map, m2.automorphism.map)), true, nullptr);
       }
     }
     if (next.empty()) {
@@ -536,7 +520,7 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
     }
     ++out.moves;
   }
-  GroupMap M = dehn(compose(done->right, done->left));
+  GroupMap M = reduce.each(compose(done->right, done->left));
   GroupMap inv = std::move(M);
   if (!inverse_up_to_inner(phi, inv, genus, reduce)) {
     out.why = "the composite with the computed inverse is not inner (a bug)";

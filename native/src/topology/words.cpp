@@ -182,6 +182,11 @@ Word DehnReducer::operator()(const Word& w) const {
   return out;
 }
 
+std::vector<Word> DehnReducer::each(std::vector<Word> words) const {
+  for (Word& w : words) w = (*this)(w);
+  return words;
+}
+
 bool DehnReducer::holds_more_than_half(const Word& u, size_t start) const {
   const size_t m = window(), n = u.size();
   if (m == 0 || n < m) throw InputError("DehnReducer::holds_more_than_half: a window of " + std::to_string(m) +

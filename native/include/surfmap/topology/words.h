@@ -44,6 +44,8 @@ class DehnReducer {
  public:
   explicit DehnReducer(const Word& relator);
   Word operator()(const Word& w) const;
+  /// Every word of `words` reduced (e.g. a group map's generator images).
+  std::vector<Word> each(std::vector<Word> words) const;
   /// The same as (*this)(rotation of u starting at letter r), letter for
   /// letter, for u Dehn-reduced and freely reduced (an output of this
   /// reducer or a subword of one; u.size() >= r). Only the letters near the
