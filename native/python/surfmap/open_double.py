@@ -93,11 +93,13 @@ def split_boundary_chords(V, F, loops=None):
             np.array([p for _, p in faces], dtype=np.int64), mid_of)
 
 
-def refine_near_boundary(V, F, loops, rings):
+def refine_near_boundary(V, F, loops, rings, split_boundary=False):
     """Splits at its midpoint every interior edge of the faces with a corner within `rings` - 1
     rings of the boundary (rings 1: the faces touching it); boundary edges are kept, so the loops
-    and their vertices stay as they are and no new vertex lies on the boundary. Each face is
-    split by how many of its edges are: 1 into two, 2 into three, 3 into four (conforming).
+    and their vertices stay as they are and no new vertex lies on the boundary (split_boundary:
+    the boundary edges of those faces are split too, their midpoints new boundary vertices, so a
+    face with a boundary edge is split into four). Each face is split by how many of its edges
+    are: 1 into two, 2 into three, 3 into four (conforming).
 
     Why: next to a target's small hole the doubles' uniformized metric changes scale fast across
     a face (the conformal factor is per vertex), so its faces are mapped onto their 3D faces
@@ -139,7 +141,7 @@ def refine_near_boundary(V, F, loops, rings):
         for k in range(3):
             u, w = int(F[f, k]), int(F[f, (k + 1) % 3])
             e = (min(u, w), max(u, w))
-            if e not in bedges and e not in split:
+            if (split_boundary or e not in bedges) and e not in split:
                 split[e] = count
                 count += 1
     if not split:
@@ -254,6 +256,7 @@ class _Side:
         self.F = np.asarray(it["F"], dtype=np.int64)
         self.genus = int(it["info"]["genus"])
         self.loops = [np.asarray(l, dtype=np.int64) for l in it["boundary_loops"]]
+        self.half_loops = self.loops  # the split half's loops (open_reflection.RefinedHalf adds vertices)
         self.b = len(self.loops)
         self.describe = it["info"].get("topology", f"genus {self.genus} with {self.b} boundary loops")
         if self.b == 0:
@@ -330,8 +333,9 @@ class _Side:
         return out_f, out_b, out_p
 
     def loop_of_vertex(self):
+        """Per vertex of the split half the loop it lies on (-1: interior)."""
         lo = -np.ones(self.n2, dtype=np.int64)
-        for i, loop in enumerate(self.loops):
+        for i, loop in enumerate(self.half_loops):
             lo[loop] = i
         return lo
 
@@ -1259,56 +1263,95 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
         f"orientations of best loop lengths, distances{' and cap centres' if S.genus == 0 else ''}")
 
 
+#: The half's solve on the halves refined at their boundary (open_reflection.RefinedHalf), the
+#: unrefined ones where it fails (docs/open_surfaces.md "Session 23"); False: the unrefined ones only
+#: (to compare).
+REFINE_HALF = True
+
+
 def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
     """The reflection-aware solve (open_reflection.solve_half) of the class of the doubles' map r:
     its result when it converged with every face positively oriented in the metric and every point
     located, cand updated (reflection_energy: the half's with its own weights; symmetry_error 0:
     exact by construction, the doubles' kept as doubles_symmetry_error; status ok, since the
     doubles' symmetry no longer matters; 'energy' stays the doubles' halved, which ranks the
-    candidates); else None, the reason in cand['reflection_solve']. layouts: the target half's
-    HalfLayout per orientation and its metric, filled on first use."""
-    try:
-        if "metric" not in layouts:
-            layouts["metric"] = open_reflection.symmetric_metric(T.D)
-        if reversing not in layouts:
-            layouts[reversing] = open_reflection.HalfLayout(T.F2[:, ::-1] if reversing else T.F2, T.D,
-                                                            layouts["metric"])
-        why = []
-        # The half's intrinsic Delaunay weights (the doubles' own); where the solve then fails,
-        # the source's own cotangents floored at 0.1 of the mean (a convex energy on the mesh's own
-        # edges, as the closed pipeline's fallback).
-        for weights, floor in (("delaunay", None), ("own", 0.1)):
+    candidates); else None, the reason in cand['reflection_solve']. layouts: per pair of sides (the
+    halves refined at their boundary, RefinedHalf, and the unrefined ones) the target half's metric
+    and HalfLayout per orientation, filled on first use. The result's 'sides' are the pair it was
+    solved on (_half maps it back through them)."""
+    def sides(refined):
+        if not refined:
+            return S, T
+        if "refined" not in layouts:
+            layouts["refined"] = (open_reflection.RefinedHalf(S, split_boundary=False),
+                                  open_reflection.RefinedHalf(T, split_boundary=True))
+        return layouts["refined"]
+
+    def cached(key, make):
+        # (a failure kept too: the metric is one Ricci flow per pair of sides, not one per attempt)
+        if key not in layouts:
             try:
-                sym = open_reflection.solve_half(S, T, r["forward"], pairing, reversing, layouts[reversing],
-                                                 weights=weights, weight_floor=floor)
-            except open_reflection.ReflectionSolveError as e:
-                # (an intrinsic Delaunay edge of the double crossing the boundary other than from a
-                # vertex to its own mirror image: the fallback weights)
-                why.append([str(e)])
-                continue
-            why.append([w for w, bad in (
-                ("not converged (gradient %.3g)" % sym["gradient"], not sym["converged"]),
-                (f"{sym['intrinsic_flipped']} faces turned in the metric", sym["intrinsic_flipped"]),
-                (f"{sym['escaped']} interior images beyond the boundary", sym["escaped"]),
-                (f"{len(sym['inverse_unlocated'])} target vertices not located", len(sym["inverse_unlocated"])))
-                if bad])
-            if not why[-1]:
-                break
-    except _core.Cancelled:
-        raise
-    except _core.Error as e:
-        cand["reflection_solve"] = f"not used: {e}"
-        return None
-    if why[-1]:
-        cand["reflection_solve"] = "not used: " + "; ".join(f"{'intrinsic Delaunay weights' if k == 0 else 'own cotangents floored at 0.1'}: "
-                                                           + ", ".join(w) for k, w in enumerate(why))
+                layouts[key] = make()
+            except _core.Cancelled:
+                raise
+            except _core.Error as e:
+                layouts[key] = e
+        if isinstance(layouts[key], Exception):
+            raise layouts[key]
+        return layouts[key]
+
+    def layout(refined, A, B):
+        metric = cached((refined, "metric"), lambda: open_reflection.symmetric_metric(B.D))
+        return cached((refined, reversing), lambda: open_reflection.HalfLayout(
+            B.F2[:, ::-1] if reversing else B.F2, B.D, metric))
+
+    # The half's intrinsic Delaunay weights (the doubles' own), on the refined halves first; where
+    # the solve fails, the source's own cotangents floored at 0.1 of the mean (a convex energy on the
+    # mesh's own edges, as the closed pipeline's fallback).
+    attempts = [(refined, weights, floor) for weights, floor in (("delaunay", None), ("own", 0.1))
+                for refined in ((True, False) if REFINE_HALF else (False,))]
+    why, sym = [], None
+    for refined, weights, floor in attempts:
+        label = (("refined halves, " if refined else "") +
+                 ("intrinsic Delaunay weights" if weights == "delaunay" else "own cotangents floored at 0.1"))
+        try:
+            A, B = sides(refined)
+            forward = open_reflection.refined_forward(A, B, r["forward"]) if refined else r["forward"]
+            got = open_reflection.solve_half(A, B, forward, pairing, reversing, layout(refined, A, B),
+                                             weights=weights, weight_floor=floor)
+        except _core.Cancelled:
+            raise
+        except _core.Error as e:
+            # (open_reflection.ReflectionSolveError: e.g. an intrinsic Delaunay edge of the double
+            # that the half cannot express; the next attempt)
+            why.append(f"{label}: {e}")
+            continue
+        bad = [w for w, b in (
+            ("not converged (gradient %.3g)" % got["gradient"], not got["converged"]),
+            (f"{got['intrinsic_flipped']} faces turned in the metric", got["intrinsic_flipped"]),
+            (f"{got['escaped']} interior images beyond the boundary", got["escaped"]),
+            (f"{len(got['inverse_unlocated'])} target vertices not located", len(got["inverse_unlocated"])))
+            if b]
+        if bad:
+            why.append(f"{label}: " + ", ".join(bad))
+            continue
+        sym = got
+        sym["sides"] = (A, B)
+        sym["refined"] = refined
+        break
+    if sym is None:
+        cand["reflection_solve"] = "not used: " + "; ".join(why)
         return None
     cand["doubles_symmetry_error"], cand["doubles_status"] = cand.get("symmetry_error"), cand.get("status")
     cand.update(reflection_energy=sym["energy"], symmetry_error=0.0, same_sheet=1.0, status="ok")
+    A, B = sym["sides"]
     cand["reflection_solve"] = (f"used: {sym['iterations']} Newton steps, {sym['weights']} weights"
-                                f", gradient {sym['gradient']:.2g}, boundary "
+                                + (f", on the halves refined at their boundary ({A.n2} / {B.n2} vertices)"
+                                   if sym["refined"] else "")
+                                + f", gradient {sym['gradient']:.2g}, boundary "
                                 f"{sym['boundary_off_geodesic']:.2g} off the geodesic, metric asymmetry "
-                                f"{sym['metric_error']:.2g} averaged out")
+                                f"{sym['metric_error']:.2g} averaged out"
+                                + (" (before: " + "; ".join(why) + ")" if why else ""))
     return sym
 
 
@@ -1319,7 +1362,7 @@ def _half(S, T, r, reversing, untangle, sym=None):
     snap, before (folded faces before the untangling), untangled (vertices moved), flipped, ears,
     ears_turned, ear (_flips)."""
     fw, inv, pairing, back_pairing, snap = (_half_correspondence(r, S, T) if sym is None else
-                                            _reflected_correspondence(sym, S, T))
+                                            _reflected_correspondence(sym, *sym.get("sides", (S, T))))
     before = _flips(S, T, fw, reversing)[0]
     untangled = []
     if before and untangle:

@@ -87,15 +87,51 @@ def _poincare(k):
     return k / (1 + np.sqrt(np.maximum(1 - np.abs(k) ** 2, 0)))
 
 
-def _klein_barycentric(K, k):
-    """Barycentrics of Klein points k (n,) in the triangles K (n, 3) (geodesic = straight there)."""
-    a, b, c = K[:, 0], K[:, 1], K[:, 2]
-    v0, v1, v2 = b - a, c - a, k - a
-    den = v0.real * v1.imag - v0.imag * v1.real
-    den = np.where(np.abs(den) > 0, den, 1e-300)
-    l1 = (v2.real * v1.imag - v2.imag * v1.real) / den
-    l2 = (v0.real * v2.imag - v0.imag * v2.real) / den
-    return np.stack([1 - l1 - l2, l1, l2], axis=1)
+def _centred(p, z):
+    """T_p(z) = (z - p) / (1 - conj(p) z), the points z in the chart centring p (the core's
+    hyperbolic::centred: the denominator as (1 - |p|^2) - conj(p) (z - p), which keeps its digits
+    near |z| = 1)."""
+    d = z - p
+    r = np.abs(p)
+    return d / ((1 - r) * (1 + r) - np.conj(p) * d)
+
+
+def _hyperboloid_barycentric(Z, q):
+    """Barycentrics (n, 3) of the points q (n,) in the geodesic triangles Z (n, 3) (Poincare disk):
+    q proportional to sum_k l_k X_k with X_k the corners on the hyperboloid, the barycentrics of the
+    hyperbolic triangle the core uses (geometry/hyperbolic.h triangle_barycentric). Unlike Klein
+    barycentrics they do not depend on where the triangle is laid out (isometries act linearly on
+    the hyperboloid); all are >= 0 exactly when q is in the triangle. Computed in the chart
+    centring q: the Klein barycentrics mu of the origin there, l_k proportional to
+    mu_k / cosh d(q, c_k). Sum 1 when q is inside (or the weights' sum is positive); else divided
+    by the sum of their absolute values, so that the signs still say which sides q lies beyond."""
+    w = _centred(np.asarray(q)[:, None], np.asarray(Z))
+    n = np.abs(w) ** 2
+    k = 2 * w / (1 + n)
+    inv_cosh = (1 - n) / (1 + n)
+    cross = np.stack([(np.conj(k[:, (i + 1) % 3]) * k[:, (i + 2) % 3]).imag for i in range(3)], axis=1)
+    area = cross.sum(axis=1)
+    area = np.where(np.abs(area) > 0, area, 1e-300)
+    lam = cross / area[:, None] * inv_cosh
+    total = lam.sum(axis=1)
+    den = np.where(total > 0, total, np.abs(lam).sum(axis=1))
+    return lam / np.maximum(den, 1e-300)[:, None]
+
+
+def _hyperboloid_point(Z, bary):
+    """The points (n,) of the geodesic triangles Z (n, 3) with hyperboloid barycentrics bary (n, 3)
+    (the inverse of _hyperboloid_barycentric), computed in the chart centring each first corner."""
+    Z = np.asarray(Z)
+    c0 = Z[:, 0]
+    w = _centred(c0[:, None], Z)
+    n = np.abs(w) ** 2
+    x0 = (1 + n) / (1 - n)
+    xs = 2 * w / (1 - n)
+    X0 = np.einsum("ij,ij->i", bary, x0)
+    Xs = np.einsum("ij,ij->i", bary, xs)
+    norm = np.sqrt(np.maximum((X0 - np.abs(Xs)) * (X0 + np.abs(Xs)), 1e-300))
+    p = Xs / (norm + X0)
+    return (p + c0) / (1 + np.conj(c0) * p)
 
 
 def symmetric_metric(double, ricci_tolerance=1e-12):
@@ -215,8 +251,8 @@ class HalfLayout:
         return _apply(_inv(M), w)
 
     def point(self, face, bary):
-        """Points given by barycentrics on laid-out faces (Klein-linear)."""
-        return _poincare(np.einsum("ij,ij->i", bary, self.klein[face]))
+        """Points given by (hyperboloid) barycentrics on laid-out faces."""
+        return _hyperboloid_point(self.pos[face], bary)
 
     def path_element(self, start, goal, max_faces=20000):
         """The element carrying `start`'s placement to the lift adjacent to `goal`'s along the
@@ -328,37 +364,199 @@ def _energy_edges(S, edges, rho, rho_inv, geodesic_of, weights, weight_floor):
             M = M @ (rho[k] if a < b else rho_inv[k])
         return _normalized(M)
 
+    def same_geodesic(G, H):
+        """Whether the geodesics G(real diameter), H(real diameter) are one (either direction)."""
+        g, h = _apply(G, np.array([-1.0, 1.0])), _apply(H, np.array([-1.0, 1.0]))
+        return min(np.abs(g - h).max(), np.abs(g - h[::-1]).max()) < 1e-8
+
+    raw = np.asarray(idt["weights"], dtype=np.float64)
+    tie = 1e-12 * max(float(np.abs(raw).max(initial=0.0)), 1e-300)
+    # Per vertex of the double: +1 on the half's interior, -1 on the mirror's, 0 on the boundary.
+    sheet = np.where(np.arange(len(D["V"])) < n, 1, -1)
+    sheet[:n][on_b] = 0
     out_e, out_w, out_rho, direct, seen = [], [], [], [], set()
     pull_v, pull_w, pull_g = [], [], []
+    ties, folded = 0, 0
     for e, (i, j) in enumerate(np.asarray(idt["edges"])):
         path = pv[off[e]:off[e + 1]]
-        we = max(float(idt["weights"][e]), 0.0)
+        we = max(float(raw[e]), 0.0)
         if i != j and sigma[i] == j:
             # Across the boundary from v to its mirror image: the pull on v.
             if i >= n:
                 path = path[::-1]
             b = next((k for k, x in enumerate(path) if x < n and on_b[x]), None)
             if b is None or np.any(path[:b + 1] >= n):
+                if abs(raw[e]) <= tie:
+                    ties += 1
+                    continue
                 raise ReflectionSolveError("an intrinsic edge crosses the boundary off the half's vertices")
             if we > 0:
                 pull_v.append(int(path[0]))
                 pull_w.append(2 * we)
                 pull_g.append(element(path[:b + 1]) @ geodesic_of[path[b]])
             continue
-        inside = path[path < n]
-        if np.any(path >= n) and np.any(~on_b[inside]):
-            raise ReflectionSolveError("an intrinsic edge of the double crosses the boundary between two vertices")
-        if np.any(path >= n) or tuple(path) in seen:
-            continue  # the mirror half's (one with a path along the boundary has its twin's path)
-        seen.add(tuple(path))
-        boundary_edge = len(path) == 2 and on_b[i] and on_b[j]
-        out_e.append((i, j))
-        out_w.append(we * (0.5 if boundary_edge else 1.0))
-        out_rho.append(element(path))
+        # The path of the double's own edges folded onto the half (its mirror stretches reflected:
+        # the symmetric map's images of a mirror stretch are the reflections of its twin's).
+        # Where it goes from one sheet to the other at a boundary vertex, the true end's lift is the
+        # folded one reflected in that vertex's boundary geodesic; all those crossings on one
+        # geodesic lift, an even number of them cancel, and an odd number leaves the end unmoved
+        # when the end lies on that geodesic (a boundary vertex). Otherwise (an edge from a vertex
+        # to another's mirror image: a reflection, which the half's Moebius elements cannot
+        # express) only a tie is left out: a diagonal of a cocircular quad, weight 0 (to round-off),
+        # which the two sheets may break differently.
+        sides = sheet[path]
+        nz = np.flatnonzero(sides != 0)
+        fp = half_of[path]
+        crossings = [int(k) for a_, b_ in zip(nz[:-1], nz[1:]) if sides[a_] != sides[b_]
+                     for k in [next(x for x in range(a_ + 1, b_) if sides[x] == 0)]]
+        if len(nz) and sides[nz[0]] < 0 and not crossings:
+            continue  # on the mirror sheet (and the boundary): its twin on the half is kept
+        if crossings:
+            # (Relative to the sheet it starts on: the whole path reflected onto the half first,
+            # which moves no distance, a boundary start staying where it is.)
+            G = [element(fp[:k + 1]) @ geodesic_of[fp[k]] for k in crossings]
+            ok = all(same_geodesic(G[0], H) for H in G[1:])
+            if ok and len(crossings) % 2 == 1:
+                # The end reflected: unmoved only on the geodesic itself.
+                ok = sides[-1] == 0 and same_geodesic(G[0], element(fp) @ geodesic_of[fp[-1]])
+            if not ok:
+                if abs(raw[e]) <= tie:
+                    ties += 1
+                    continue
+                raise ReflectionSolveError("an intrinsic edge of the double crosses the boundary between two vertices")
+            folded += 1
+        key = tuple(int(x) for x in fp)
+        if key in seen:
+            continue  # the twin of an edge kept (or of one along the boundary)
+        seen.add(key)
+        along_boundary = not len(nz)  # every vertex of its path on the boundary: its own twin
+        out_e.append((int(fp[0]), int(fp[-1])))
+        out_w.append(we * (0.5 if along_boundary else 1.0))
+        out_rho.append(element(fp))
         direct.append(len(path) == 2)
     pulls = (np.array(pull_v, dtype=np.int64), np.array(pull_w), np.array(pull_g)) if pull_v else None
     return (np.array(out_e, dtype=np.int64), np.array(out_w), np.array(out_rho), np.array(direct), pulls,
-            f"intrinsic Delaunay ({idt['flips']} flips, {len(pull_v)} boundary edges flipped: pulls)")
+            f"intrinsic Delaunay ({idt['flips']} flips, {len(pull_v)} boundary edges flipped: pulls"
+            + (f", {folded} paths folded onto the half" if folded else "")
+            + (f", {ties} tied diagonals across the boundary left out" if ties else "") + ")")
+
+
+class RefinedHalf:
+    """A side's split half (open_double._Side) with its faces touching the boundary split, for the
+    half's solve: on the target (split_boundary) into four, the boundary edges halved too (their
+    midpoints new boundary vertices, on the 3D polyline of the loop); on the source the interior
+    edges of those faces only, the boundary vertices kept (refine_near_boundary with one ring).
+    Why: the half's boundary strip is one face wide, so a source face with two corners on the
+    boundary had one free corner to follow the target's boundary geodesic with, and the target's
+    boundary faces, the largest in its metric next to a small hole, carried the change of scale
+    from the metric to 3D over one face (docs/open_surfaces.md "Session 23").
+
+    The attributes solve_half and open_double._reflected_correspondence read: the input mesh's
+    (V, F, loops, n, ...), the refined half's V2, F2, D (its double), n2, half_loops (the loops
+    through the new boundary vertices), parent / corner_in_parent (each face's input face and
+    corners there), refined_from (the edge of the side's split half each new vertex halves),
+    within / corners (each face's face of the side's split half and its corners there)."""
+
+    def __init__(self, side, split_boundary):
+        from .open_double import double_surface, refine_near_boundary  # (open_double imports this module)
+        self.base = side
+        for k in ("name", "V", "F", "genus", "loops", "b", "describe", "n", "diag"):
+            setattr(self, k, getattr(side, k))
+        self.V2, self.F2, self.within, self.corners, ends = refine_near_boundary(
+            side.V2, side.F2, side.half_loops, 1, split_boundary=split_boundary)
+        self.parent = side.parent[self.within]
+        self.corner_in_parent = np.einsum("fkl,flj->fkj", self.corners, side.corner_in_parent[self.within])
+        self.refined_from = ends
+        mid = {(int(min(a, b)), int(max(a, b))): side.n2 + k for k, (a, b) in enumerate(ends)}
+        loops = []
+        for loop in side.half_loops:
+            out = []
+            for u, w in zip(loop, np.roll(loop, -1)):
+                out.append(int(u))
+                m = mid.get((int(min(u, w)), int(max(u, w))))
+                if m is not None:
+                    out.append(m)
+            loops.append(np.array(out, dtype=np.int64))
+        self.half_loops = loops
+        self.n2 = len(self.V2)
+        self.D = double_surface(self.V2, self.F2, loops)
+        # Per face of the side's split half its (up to four) faces here.
+        order = np.argsort(self.within, kind="stable")
+        count = np.bincount(self.within, minlength=len(side.F2))
+        first = np.concatenate([[0], np.cumsum(count)[:-1]])
+        self.children = -np.ones((len(side.F2), 4), dtype=np.int64)
+        for c in range(4):
+            has = count > c
+            self.children[has, c] = order[first[has] + c]
+
+    def to_input_faces(self, face2, bary2):
+        """Points on the refined half (face of F2, barycentrics) on the input faces."""
+        bary = np.einsum("ik,ikj->ij", bary2, self.corner_in_parent[face2])
+        return self.parent[face2], bary
+
+    def half_points(self, face, bary):
+        """Points on the double (face, barycentrics) reflected onto the half; also whether each was
+        on the mirror sheet."""
+        face = np.asarray(face, dtype=np.int64).copy()
+        bary = np.asarray(bary, dtype=np.float64).copy()
+        m = face >= self.D["half_faces"]
+        face[m] -= self.D["half_faces"]
+        bary[m] = bary[m][:, ::-1]
+        return face, bary, m
+
+    def snap_to_loops(self, P, loop_of_point):
+        """The side's (open_double._Side.snap_to_loops: on the input mesh's loops)."""
+        return self.base.snap_to_loops(P, loop_of_point)
+
+    def loop_of_vertex(self):
+        """Per vertex of the refined half the loop it lies on (-1: interior)."""
+        lo = -np.ones(self.n2, dtype=np.int64)
+        for i, loop in enumerate(self.half_loops):
+            lo[loop] = i
+        return lo
+
+    def from_base(self, face, bary):
+        """Points on the side's split half (face of its F2, barycentrics) as points of the refined
+        half: the piece holding each (largest smallest barycentric), its barycentrics there."""
+        face = np.asarray(face, dtype=np.int64)
+        bary = np.asarray(bary, dtype=np.float64)
+        best = np.full(len(face), -np.inf)
+        out_f = self.children[face, 0].copy()
+        out_b = np.zeros((len(face), 3))
+        for c in range(4):
+            child = self.children[face, c]
+            ok = child >= 0
+            if not np.any(ok):
+                continue
+            # point = sum_k beta_k corners[child, k]: beta = bary corners^-1.
+            beta = np.einsum("ij,ijk->ik", bary[ok], np.linalg.inv(self.corners[child[ok]]))
+            low = beta.min(axis=1)
+            idx = np.flatnonzero(ok)
+            better = low > best[idx]
+            best[idx[better]] = low[better]
+            out_f[idx[better]] = child[ok][better]
+            out_b[idx[better]] = beta[better]
+        out_b = np.maximum(out_b, 0)
+        return out_f, out_b / out_b.sum(axis=1, keepdims=True)
+
+
+def refined_forward(S_r, T_r, forward):
+    """The doubles' map's forward points ('face', 'barycentric' on the unrefined target's double per
+    vertex of the unrefined source's double) as a start for the refined halves (RefinedHalf):
+    per vertex of S_r's half a point of T_r's half. A new source vertex takes the image of an end of
+    the edge it halves, one not on the boundary (the chords were split first, so one is not)."""
+    S, T = S_r.base, T_r.base
+    n = S.n2
+    face, bary, _ = T.half_points(np.asarray(forward["face"])[:n], np.asarray(forward["barycentric"])[:n])
+    f0, b0 = T_r.from_base(face, bary)
+    out_f = np.empty(S_r.n2, dtype=np.int64)
+    out_b = np.empty((S_r.n2, 3))
+    out_f[:n], out_b[:n] = f0, b0
+    on_b = S_r.loop_of_vertex() >= 0
+    for k, (a, b) in enumerate(S_r.refined_from):  # in order: an end may be an earlier new vertex
+        src = b if on_b[a] else a
+        out_f[n + k], out_b[n + k] = out_f[src], out_b[src]
+    return {"face": out_f, "barycentric": out_b}
 
 
 def _as_core(M):
@@ -404,7 +602,8 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
     home = face2.copy()
     z = layout.point(face2, bary2)
     # Boundary vertices: on the geodesic through the paired target loop's edge nearest to their
-    # start image (3D), parametrised by arc length s along it: z = M_b(tanh(s / 2)).
+    # start image (3D), parametrised by arc length s along it: z = M_b(tanh(s / 2)). (T's
+    # half_loops: a RefinedHalf's loops run through its new boundary vertices.)
     s_loop = S.loop_of_vertex()
     bnd = np.flatnonzero(s_loop >= 0)
     Fl = layout.F
@@ -417,7 +616,7 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
     Mb = np.zeros((len(bnd), 2, 2), dtype=complex)
     s = np.zeros(len(bnd))
     for idx, v in enumerate(bnd):
-        loop = T.loops[pairing[s_loop[v]]]
+        loop = T.half_loops[pairing[s_loop[v]]]
         A, B = T.V2[loop], T.V2[np.roll(loop, -1)]
         d = B - A
         t = np.clip(np.einsum("ij,ij->i", start_xyz[v] - A, d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-300), 0, 1)
@@ -427,7 +626,9 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
         pu = layout.pos[f, list(Fl[f]).index(u)]
         pw = layout.pos[f, list(Fl[f]).index(w)]
         Mb[idx] = _normalized(_inv(_frame(pu, pw)))
-        s[idx] = t[j] * 2 * np.arctanh(np.abs(_apply(_frame(pu, pw), pw)))
+        # The point with hyperboloid barycentrics (1 - t, t) on the edge, of length L, as arc length.
+        L = 2 * np.arctanh(np.abs(_apply(_frame(pu, pw), pw)))
+        s[idx] = np.arctanh(t[j] * np.sinh(L) / ((1 - t[j]) + t[j] * np.cosh(L)))
         home[v] = f
     # The mesh's own edges and their elements: start's placement (the j end's home face) onto the
     # lift next to i's (for the energy's edges below and for the way back to the meshes).
@@ -447,7 +648,7 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
     # Consecutive boundary vertices keep their order along the geodesic (the core's order check).
     eindex = {(int(i), int(j)): k for k, (i, j) in enumerate(energy_edges) if direct[k]}
     eindex.update({(j, i): k for (i, j), k in list(eindex.items())})
-    ordered = [eindex[(int(u), int(v))] for loop in S.loops for u, v in zip(loop, np.roll(loop, -1))
+    ordered = [eindex[(int(u), int(v))] for loop in S.half_loops for u, v in zip(loop, np.roll(loop, -1))
                if (int(u), int(v)) in eindex]
     slides = np.zeros(n, dtype=bool)
     slides[bnd] = True
@@ -524,8 +725,8 @@ def _maps_back(S, T, layout, z, home, bnd, edges, rho, rho_inv, reversing, inver
         for k in range(3):
             cut = np.flatnonzero(~layout.tree[loc, k] & (layout.neighbour[loc, k] >= 0))
             more.append((_inv(layout.transition[loc[cut], k]) @ M[cut], cut))
-    K = np.concatenate([_klein(_apply(M[:, None], tri)) for M, _ in versions] +
-                       [_klein(_apply(M[:, None], tri[cut])) for M, cut in more])
+    K = np.concatenate([_apply(M[:, None], tri) for M, _ in versions] +
+                       [_apply(M[:, None], tri[cut]) for M, cut in more])
     src_face = np.concatenate([np.tile(np.arange(len(Fs)), 3)] + [cut for _, cut in more])
     inv_face, inv_bary, unlocated, unlocated_start = _locate_in_triangles(K, src_face, layout, T.n2)
     if 0 < len(unlocated) <= max_walks * T.n2:
@@ -565,7 +766,7 @@ def _locate_all(layout, z, face, max_steps=20000):
     for _ in range(max_steps):
         if len(active) == 0:
             break
-        b = _klein_barycentric(layout.klein[face[active]], _klein(w[active]))
+        b = _hyperboloid_barycentric(layout.pos[face[active]], w[active])
         bary[active] = b
         k = np.argmin(b, axis=1)
         low = b[np.arange(len(active)), k] < -1e-12
@@ -585,25 +786,27 @@ def _locate_all(layout, z, face, max_steps=20000):
 
 
 def _locate_in_triangles(K, tri_face, layout, n_vertices, k_nearest=48):
-    """Per target vertex (of the laid-out faces' corners) the source face and barycentrics of the
-    Klein triangle K (t, 3) holding one of its placed positions; those in none get the nearest
-    triangle's clamped barycentrics and are returned with that triangle and their placement
-    (Klein) for solve_half's walk."""
+    """Per target vertex (of the laid-out faces' corners) the source face and (hyperboloid)
+    barycentrics of the geodesic triangle K (t, 3, Poincare disk) holding one of its placed
+    positions; those in none get the nearest triangle's clamped barycentrics and are returned with
+    that triangle and their placement for solve_half's walk. Candidates: the triangles whose Klein
+    centroids are nearest."""
     from scipy.spatial import cKDTree
     F = layout.F
     vert = F.ravel()
-    pts = layout.klein.ravel()
-    cen = K.mean(axis=1)
+    pts = layout.pos.ravel()
+    pts_k = layout.klein.ravel()
+    cen = _klein(K).mean(axis=1)
     tree = cKDTree(np.stack([cen.real, cen.imag], axis=1))
     kq = min(k_nearest, len(K))
-    _, cand = tree.query(np.stack([pts.real, pts.imag], axis=1), k=kq)
+    _, cand = tree.query(np.stack([pts_k.real, pts_k.imag], axis=1), k=kq)
     cand = cand.reshape(len(pts), kq)
     best = np.full(len(pts), -np.inf)
     best_t = np.zeros(len(pts), dtype=np.int64)
     best_b = np.zeros((len(pts), 3))
     for c in range(kq):
         t = cand[:, c]
-        b = _klein_barycentric(K[t], pts)
+        b = _hyperboloid_barycentric(K[t], pts)
         m = b.min(axis=1)
         better = m > best
         best[better], best_t[better], best_b[better] = m[better], t[better], b[better]
@@ -623,7 +826,7 @@ def _locate_in_triangles(K, tri_face, layout, n_vertices, k_nearest=48):
 
 
 def _walk_images(P, face, M, F, across, z, element, max_steps=5000):
-    """The source face (and barycentrics) whose image holds the Klein point P: a straight walk over
+    """The source face (and barycentrics) whose image holds the point P: a straight walk over
     the source's faces' images from `face`'s image carried by M (its first corner's point z[a]
     at M z[a]); each corner's copy is N_v z[v], a new corner d next to a known u taking
     N_u element(u, d). None when the walk leaves the source."""
@@ -633,7 +836,7 @@ def _walk_images(P, face, M, F, across, z, element, max_steps=5000):
     for _ in range(max_steps):
         tri = F[face]
         X = np.array([_apply(N[int(v)], z[v]) for v in tri])
-        b = _klein_barycentric(_klein(X)[None], np.array([P]))[0]
+        b = _hyperboloid_barycentric(X[None], np.array([P]))[0]
         k = int(np.argmin(b))
         if b[k] >= -1e-10:
             b = np.maximum(b, 0)
@@ -644,16 +847,17 @@ def _walk_images(P, face, M, F, across, z, element, max_steps=5000):
             # that edge's geodesic up to round-off (a straight line in Klein coordinates; a thin
             # image makes the barycentric large all the same). On the edge: found; beyond one
             # of its ends: on across the edge opposite that end.
-            K = _klein(X)
+            K, Pk = _klein(X), _klein(P)
             e0, e1 = K[(k + 1) % 3], K[(k + 2) % 3]
-            off_line = abs(((e1 - e0) * np.conj(P - e0)).imag) / max(abs(e1 - e0), 1e-300)
+            off_line = abs(((e1 - e0) * np.conj(Pk - e0)).imag) / max(abs(e1 - e0), 1e-300)
             if off_line > 1e-9:
                 return None
-            t = ((P - e0) * np.conj(e1 - e0)).real / max(abs(e1 - e0) ** 2, 1e-300)
+            t = ((Pk - e0) * np.conj(e1 - e0)).real / max(abs(e1 - e0) ** 2, 1e-300)
             if 0 <= t <= 1:
-                b = np.zeros(3)
-                b[(k + 1) % 3], b[(k + 2) % 3] = 1 - t, t
-                return face, b
+                b = _hyperboloid_barycentric(X[None], np.array([_poincare(e0 + t * (e1 - e0))]))[0]
+                b[k] = 0
+                b = np.maximum(b, 0)
+                return face, b / max(b.sum(), 1e-300)
             k = (k + 1) % 3 if t > 1 else (k + 2) % 3  # the corner P lies beyond
             g = int(across[face, k])
             if g < 0:
