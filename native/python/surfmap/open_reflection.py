@@ -529,7 +529,12 @@ class RefinedHalf:
             if not np.any(ok):
                 continue
             # point = sum_k beta_k corners[child, k]: beta = bary corners^-1.
-            beta = np.einsum("ij,ijk->ik", bary[ok], np.linalg.inv(self.corners[child[ok]]))
+            C = self.corners[child[ok]]
+            # (the inverse by its adjugate: np.linalg.inv of a stack of 3 x 3 matrices costs seconds
+            # under load, in threads)
+            adj = np.stack([np.cross(C[:, 1], C[:, 2]), np.cross(C[:, 2], C[:, 0]), np.cross(C[:, 0], C[:, 1])], axis=2)
+            det = np.einsum("ij,ij->i", C[:, 0], adj[:, :, 0])
+            beta = np.einsum("ij,ijk->ik", bary[ok], adj) / det[:, None]
             low = beta.min(axis=1)
             idx = np.flatnonzero(ok)
             better = low > best[idx]

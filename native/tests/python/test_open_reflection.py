@@ -77,17 +77,22 @@ def test_reflection_solve_is_symmetric_where_the_doubles_map_is_not():
     assert np.linalg.norm(r["forward"]["position"] - doubles["forward"]["position"], axis=1).mean() < 0.01 * diag
 
 
-def test_the_half_solve_is_a_critical_point_with_the_boundary_on_its_geodesic():
-    # solve_half directly: the energy decreases from the doubles' images to a point where the
-    # gradient (over the largest weighted edge length) is below 1e-9, no boundary image is more
-    # than 1e-12 off its geodesic, and a random small move of the interior images (each within its
-    # chart) raises the energy.
+def pants_doubles_map():
+    """The test pants onto their bend 0.3, loops 0,1,2 preserving: the sides and the doubles' map."""
     Vs, Fs = pants(3)
     S = open_double._Side(Vs, Fs, "source")
     T = open_double._Side(bend(Vs, 0.3), Fs, "target")
     pos, face, target_xyz, _ = open_double._rough_maps(S, T, [0, 1, 2], {}, False, np.zeros((0, 2), int))[0][0]
     images = open_double._symmetric_images(S, T, [0, 1, 2], False, pos, face, target_xyz)
-    r = open_double._double_map(S, T, images, {})
+    return S, T, open_double._double_map(S, T, images, {})
+
+
+def test_the_half_solve_is_a_critical_point_with_the_boundary_on_its_geodesic():
+    # solve_half directly: the energy decreases from the doubles' images to a point where the
+    # gradient (over the largest weighted edge length) is below 1e-9, no boundary image is more
+    # than 1e-12 off its geodesic, and a random small move of the interior images (each within its
+    # chart) raises the energy.
+    S, T, r = pants_doubles_map()
     h = open_reflection.solve_half(S, T, r["forward"], [0, 1, 2], False)
     assert h["converged"] and h["gradient"] < 1e-9 and h["iterations"] <= 10
     assert h["boundary_off_geodesic"] < 1e-12
@@ -121,3 +126,116 @@ def test_cli_flags_and_keywords_of_the_open_options(tmp_path, cli):
     assert r["open"]["reflection_solve"] == "off"
     for kw in ("refine_rings", "refine_levels", "reflection_solve"):
         assert kw in surfmap.CAPABILITIES
+
+
+def test_hyperboloid_barycentrics_reproduce_the_point_in_any_chart():
+    # The barycentrics of a point of a hyperbolic triangle are those of the hyperboloid model (q
+    # proportional to sum l_k X_k), the core's: they reproduce the point, are the same wherever
+    # the triangle is laid out (an isometry moving it toward the rim of the disk), and have a
+    # negative entry exactly when the point lies outside. The Klein model's affine barycentrics
+    # (the previous ones) change under that isometry: the test tells the two apart.
+    rng = np.random.default_rng(7)
+    n = 200
+    Z = 0.6 * np.sqrt(rng.random((n, 3))) * np.exp(2j * np.pi * rng.random((n, 3)))
+    lam = rng.random((n, 3)) + 0.05
+    lam /= lam.sum(axis=1, keepdims=True)
+    q = open_reflection._hyperboloid_point(Z, lam)
+
+    def hyperboloid(z):
+        r2 = np.abs(z) ** 2
+        return np.stack([(1 + r2) / (1 - r2), 2 * z.real / (1 - r2), 2 * z.imag / (1 - r2)], axis=-1)
+
+    X = np.einsum("ij,ijk->ik", lam, hyperboloid(Z))
+    X /= np.sqrt(X[:, 0] ** 2 - X[:, 1] ** 2 - X[:, 2] ** 2)[:, None]
+    assert np.abs(X - hyperboloid(q)).max() < 1e-10
+    assert np.abs(open_reflection._hyperboloid_barycentric(Z, q) - lam).max() < 1e-10
+    # An isometry taking the origin to 0.9: the same barycentrics.
+    M = np.linalg.inv(open_reflection._to_origin(0.9 * np.exp(0.3j)))
+    Zm, qm = open_reflection._apply(M, Z), open_reflection._apply(M, q)
+    assert np.abs(open_reflection._hyperboloid_barycentric(Zm, qm) - lam).max() < 1e-9
+
+    def klein_barycentric(Z, q):
+        K, k = open_reflection._klein(Z), open_reflection._klein(q)
+        a, b, c = K[:, 0], K[:, 1], K[:, 2]
+        cross = lambda u, v: (np.conj(u) * v).imag
+        den = cross(b - a, c - a)
+        l1, l2 = cross(k - a, c - a) / den, cross(b - a, k - a) / den
+        return np.stack([1 - l1 - l2, l1, l2], axis=1)
+
+    assert np.abs(klein_barycentric(Zm, qm) - klein_barycentric(Z, q)).max() > 1e-2
+    # Outside: beyond the side opposite corner 0 (reflected across it), l_0 < 0 and the others not.
+    beyond = np.tile([-0.1, 0.55, 0.55], (n, 1))
+    Y = np.einsum("ij,ijk->ik", beyond, hyperboloid(Z))
+    timelike = Y[:, 0] ** 2 - Y[:, 1] ** 2 - Y[:, 2] ** 2 > 0  # (a point of the plane)
+    assert timelike.sum() > n / 2
+    b = open_reflection._hyperboloid_barycentric(Z[timelike], open_reflection._hyperboloid_point(Z, beyond)[timelike])
+    assert np.all(b[:, 0] < 0) and np.all(b[:, 1:] > 0)
+
+
+def test_refined_halves_keep_the_boundary_and_the_surface():
+    # RefinedHalf: the target's faces touching the boundary split into four, its loops through
+    # the same input vertices in the same order with each new boundary vertex the midpoint of a
+    # loop edge; the source's split keeping its boundary vertices. Both: every vertex where its
+    # face's input corners put it (so the surface and its area are unchanged), points of the
+    # unrefined half found on the refined faces at the same 3D position, and the target's metric
+    # with a geodesic boundary (angle sum pi at every boundary vertex, old and new).
+    Vs, Fs = pants(3)
+    side = open_double._Side(bend(Vs, 0.3), Fs, "target")
+    src = open_reflection.RefinedHalf(side, split_boundary=False)
+    tgt = open_reflection.RefinedHalf(side, split_boundary=True)
+    assert all(np.array_equal(a, b) for a, b in zip(src.half_loops, side.loops))
+    for loop, new in zip(side.loops, tgt.half_loops):
+        assert len(new) == 2 * len(loop) and np.array_equal(new[::2], loop)
+        assert np.allclose(tgt.V2[new[1::2]], 0.5 * (side.V[loop] + side.V[np.roll(loop, -1)]))
+    touching = np.isin(side.F2, np.concatenate(side.loops)).any(axis=1)
+    for R in (src, tgt):
+        assert len(R.F2) >= len(side.F2) + 2 * touching.sum()
+        P = np.einsum("fkj,fjd->fkd", R.corner_in_parent, side.V[side.F[R.parent]])
+        assert np.abs(P - R.V2[R.F2]).max() < 1e-12
+
+        def area(V, F):
+            return 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1).sum()
+
+        assert abs(area(R.V2, R.F2) - area(side.V2, side.F2)) < 1e-12 * area(side.V2, side.F2)
+        rng = np.random.default_rng(1)
+        face = rng.integers(0, len(side.F2), 300)
+        bary = rng.random((300, 3))
+        bary /= bary.sum(axis=1, keepdims=True)
+        f, b = R.from_base(face, bary)
+        assert np.all(R.within[f] == face)
+        assert np.abs(np.einsum("ij,ijk->ik", b, R.V2[R.F2[f]]) -
+                      np.einsum("ij,ijk->ik", bary, side.V2[side.F2[face]])).max() < 1e-12
+    layout = open_reflection.HalfLayout(tgt.F2, tgt.D)
+    total = angle_sums(layout, tgt.n2)
+    on_b = tgt.loop_of_vertex() >= 0
+    assert on_b.sum() == 2 * sum(len(l) for l in side.loops)
+    assert np.abs(total[on_b] - np.pi).max() < 1e-8 and np.abs(total[~on_b] - 2 * np.pi).max() < 1e-8
+
+
+def test_every_intrinsic_delaunay_edge_of_the_double_is_in_the_half_energy_once():
+    # The half's energy with the doubles' own weights (_energy_edges, 'delaunay') is half the
+    # symmetric doubles' map's: every edge of the double's intrinsic Delaunay triangulation counts
+    # once in all, by its share: an edge of one sheet (its twin on the other) at its weight, one
+    # along the boundary (its own twin) at half, one from a vertex to its mirror image as a pull
+    # 2 w dist(z, geodesic)^2 (stored 2 w: w d(z, sigma z)^2 / 2). So the weights add up to half
+    # the double's total, ties (weight 0) apart. On the refined source half, whose split faces make
+    # tied diagonals across the boundary (left out: 44 here) and 108 pulls.
+    S, T, r = pants_doubles_map()
+    S_r = open_reflection.RefinedHalf(S, split_boundary=False)
+    T_r = open_reflection.RefinedHalf(T, split_boundary=True)
+    h = open_reflection.solve_half(S_r, T_r, open_reflection.refined_forward(S_r, T_r, r["forward"]), [0, 1, 2],
+                                   False)
+    assert h["converged"] and h["intrinsic_flipped"] == 0 and len(h["inverse_unlocated"]) == 0
+    assert h["boundary_off_geodesic"] < 1e-12 and "tied diagonals" in h["weights"], h["weights"]
+    n = S_r.n2
+    sigma = S_r.D["sigma"]
+    half_of = np.where(np.arange(len(sigma)) < n, np.arange(len(sigma)), sigma)
+    idt = surfmap._core.intrinsic_delaunay(S_r.V2[half_of], S_r.D["F"])
+    w_all = np.asarray(idt["weights"])
+    edges = open_reflection._own_edges(S_r.F2)
+    rho = np.tile(np.eye(2, dtype=complex), (len(edges), 1, 1))
+    geodesic_of = np.tile(np.eye(2, dtype=complex), (n, 1, 1))
+    e, w, _, _, pulls, note = open_reflection._energy_edges(S_r, edges, rho, rho, geodesic_of, "delaunay", None)
+    total = w.sum() + (pulls[1].sum() / 4 if pulls is not None else 0.0)
+    assert abs(total - 0.5 * np.maximum(w_all, 0).sum()) < 1e-9 * w_all.sum()
+    assert np.all(e < n) and np.all(w >= 0)
