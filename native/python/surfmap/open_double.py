@@ -1351,6 +1351,8 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
                                 + f", gradient {sym['gradient']:.2g}, boundary "
                                 f"{sym['boundary_off_geodesic']:.2g} off the geodesic, metric asymmetry "
                                 f"{sym['metric_error']:.2g} averaged out"
+                                + ("" if sym["metric_scheme"] == "vertex scaling" else
+                                   f", the target's metric by {sym['metric_scheme']}")
                                 + (" (before: " + "; ".join(why) + ")" if why else ""))
     return sym
 
@@ -1675,6 +1677,9 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                                                 "not with landmarks" if len(lm) else ""),
                    "reflection_energy": sym["energy"] if sym is not None else float("nan"),
                    "reflection_iterations": sym["iterations"] if sym is not None else 0,
+                   # the vertices of the source's and the target's halves it was solved on (the
+                   # halves refined at their boundary: more than the split halves'; Session 23)
+                   "reflection_half_vertices": [int(x.n2) for x in sym["sides"]] if sym is not None else [],
                    "untangled_vertices": len(untangled),
                    "untangled": (f"{flipped_before_untangling} folded faces; {len(untangled)} interior vertices moved "
                                  f"within their stars, {flipped} folded left" if untangled else ""),

@@ -137,11 +137,20 @@ def _hyperboloid_point(Z, bary):
 def symmetric_metric(double, ricci_tolerance=1e-12):
     """The double's hyperbolic metric on its own edges (`_core.ricci_flow`), each edge's length
     averaged with its mirror's: (sorted edge keys a * n + b with a < b, lengths, the largest
-    relative difference averaged out). Shared by both orientations' layouts."""
+    relative difference averaged out, the scheme in words). Shared by both orientations' layouts. The vertex-scaling
+    scheme first; where it leaves a face degenerate (a triangle inequality violated: the metric
+    needs other edges), the inversive-distance one, another discrete conformal metric on the same
+    edges (the torus_1 bench shape's double, its faces at the boundary split: vertex scaling
+    leaves 2 degenerate faces, inversive distance converges; docs/open_surfaces.md "Session 23")."""
     D = double
-    r = _core.ricci_flow(D["V"], D["F"], background="hyperbolic", tolerance=ricci_tolerance)
-    if not r["converged"]:
-        raise ReflectionSolveError(f"the double's hyperbolic metric on its own edges: {r['message']}")
+    why = []
+    for scheme in ("yamabe", "inversive"):
+        r = _core.ricci_flow(D["V"], D["F"], background="hyperbolic", scheme=scheme, tolerance=ricci_tolerance)
+        if r["converged"]:
+            break
+        why.append(f"{'vertex scaling' if scheme == 'yamabe' else 'inversive distance'}: {r['message']}")
+    else:
+        raise ReflectionSolveError("the double's hyperbolic metric on its own edges: " + "; ".join(why))
     ev = np.asarray(r["edge_vertices"], dtype=np.int64)
     L = np.asarray(r["edge_lengths"], dtype=np.float64)
     n = len(D["V"])
@@ -151,7 +160,8 @@ def symmetric_metric(double, ricci_tolerance=1e-12):
     sig = D["sigma"]
     ms = np.minimum(sig[ev[order, 0]], sig[ev[order, 1]]) * n + np.maximum(sig[ev[order, 0]], sig[ev[order, 1]])
     Lm = L[np.searchsorted(key, ms)]
-    return key, 0.5 * (L + Lm), float(np.max(np.abs(L - Lm) / L))
+    return key, 0.5 * (L + Lm), float(np.max(np.abs(L - Lm) / L)), (
+        "vertex scaling" if scheme == "yamabe" else "inversive distance (vertex scaling: " + why[0] + ")")
 
 
 class HalfLayout:
@@ -162,13 +172,14 @@ class HalfLayout:
     double_surface dict of the half. Attributes: pos (m, 3) complex corner positions of each face,
     neighbour (m, 3) the face across the edge opposite corner k (-1: boundary), transition
     (m, 3, 2, 2) the isometry taking the neighbour's placement to the one adjacent to this face
-    across that edge (identity along the tree), metric_error (the largest relative difference of an
+    across that edge (identity along the tree), metric_scheme (symmetric_metric's, in words),
+    metric_error (the largest relative difference of an
     edge's length and its mirror's before averaging)."""
 
     def __init__(self, F, double, metric=None):
         F = np.asarray(F, dtype=np.int64)
         D = double
-        key, L, self.metric_error = symmetric_metric(D) if metric is None else metric
+        key, L, self.metric_error, self.metric_scheme = symmetric_metric(D) if metric is None else metric
         n = len(D["V"])
 
         def length(a, b):
@@ -596,7 +607,7 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
     'order_rejections' (line-search trials shortened to keep the boundary's order), 'weights'
     (which, in words), 'intrinsic_flipped' (source faces whose image turns over in the metric),
     'inverse_unlocated' (target vertices found in no source face's image, given the nearest),
-    'metric_error', 'layout'. Raises ReflectionSolveError when the solve cannot be set up or a
+    'metric_error', 'metric_scheme', 'layout'. Raises ReflectionSolveError when the solve cannot be set up or a
     point cannot be located."""
     if layout is None:
         layout = HalfLayout(T.F2[:, ::-1] if reversing else T.F2, T.D)
@@ -673,6 +684,7 @@ def solve_half(S, T, forward, pairing, reversing, layout=None, tolerance=1e-10, 
                 gradient_history=list(res["gradient_history"]), converged=converged, iterations=int(res["iterations"]),
                 gradient=gnorm, boundary_off_geodesic=float(res["slide_off_geodesic"]),
                 order_rejections=int(res["order_rejections"]), metric_error=layout.metric_error,
+                metric_scheme=layout.metric_scheme,
                 weights=weights_note, weight_floor=weight_floor, layout=layout)
     return back
 
