@@ -1263,9 +1263,9 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
         f"orientations of best loop lengths, distances{' and cap centres' if S.genus == 0 else ''}")
 
 
-#: The half's solve on the halves refined at their boundary (open_reflection.RefinedHalf), the
-#: unrefined ones where it fails (docs/open_surfaces.md "Session 23"); False: the unrefined ones only
-#: (to compare).
+#: The half's solve on the halves refined at their boundary (open_reflection.RefinedHalf), then on
+#: the target's refined only, then on the unrefined ones, where each fails (docs/open_surfaces.md
+#: "Session 23"); False: the unrefined ones only (to compare).
 REFINE_HALF = True
 
 
@@ -1280,12 +1280,14 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
     and HalfLayout per orientation, filled on first use. The result's 'sides' are the pair it was
     solved on (_half maps it back through them)."""
     def sides(refined):
+        # refined: 2 both halves refined at their boundary, 1 the target's only, 0 neither.
         if not refined:
             return S, T
         if "refined" not in layouts:
             layouts["refined"] = (open_reflection.RefinedHalf(S, split_boundary=False),
+                                  open_reflection.RefinedHalf(S, split_boundary=False, rings=0),
                                   open_reflection.RefinedHalf(T, split_boundary=True))
-        return layouts["refined"]
+        return layouts["refined"][2 - refined], layouts["refined"][2]
 
     def cached(key, make):
         # (a failure kept too: the metric is one Ricci flow per pair of sides, not one per attempt)
@@ -1301,18 +1303,20 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
         return layouts[key]
 
     def layout(refined, A, B):
-        metric = cached((refined, "metric"), lambda: open_reflection.symmetric_metric(B.D))
-        return cached((refined, reversing), lambda: open_reflection.HalfLayout(
+        metric = cached((refined > 0, "metric"), lambda: open_reflection.symmetric_metric(B.D))
+        return cached((refined > 0, reversing), lambda: open_reflection.HalfLayout(
             B.F2[:, ::-1] if reversing else B.F2, B.D, metric))
 
-    # The half's intrinsic Delaunay weights (the doubles' own), on the refined halves first; where
-    # the solve fails, the source's own cotangents floored at 0.1 of the mean (a convex energy on the
-    # mesh's own edges, as the closed pipeline's fallback).
+    # The half's intrinsic Delaunay weights (the doubles' own), on both halves refined at their
+    # boundary first, then on the target's only (the generated shirt A -> B: 2 source faces turned
+    # in the metric with both refined), then on neither; where the solve fails, the source's own
+    # cotangents floored at 0.1 of the mean (a convex energy on the mesh's own edges, as the closed
+    # pipeline's fallback), in the same order.
     attempts = [(refined, weights, floor) for weights, floor in (("delaunay", None), ("own", 0.1))
-                for refined in ((True, False) if REFINE_HALF else (False,))]
+                for refined in ((2, 1, 0) if REFINE_HALF else (0,))]
     why, sym = [], None
     for refined, weights, floor in attempts:
-        label = (("refined halves, " if refined else "") +
+        label = (("both halves refined, " if refined == 2 else "the target's half refined, " if refined else "") +
                  ("intrinsic Delaunay weights" if weights == "delaunay" else "own cotangents floored at 0.1"))
         try:
             A, B = sides(refined)
@@ -1346,8 +1350,8 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
     cand.update(reflection_energy=sym["energy"], symmetry_error=0.0, same_sheet=1.0, status="ok")
     A, B = sym["sides"]
     cand["reflection_solve"] = (f"used: {sym['iterations']} Newton steps, {sym['weights']} weights"
-                                + (f", on the halves refined at their boundary ({A.n2} / {B.n2} vertices)"
-                                   if sym["refined"] else "")
+                                + (f", on the {'halves' if sym['refined'] == 2 else 'target half'} refined at "
+                                   f"the boundary ({A.n2} / {B.n2} vertices)" if sym["refined"] else "")
                                 + f", gradient {sym['gradient']:.2g}, boundary "
                                 f"{sym['boundary_off_geodesic']:.2g} off the geodesic, metric asymmetry "
                                 f"{sym['metric_error']:.2g} averaged out"

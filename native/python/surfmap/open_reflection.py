@@ -161,7 +161,7 @@ def symmetric_metric(double, ricci_tolerance=1e-12):
     ms = np.minimum(sig[ev[order, 0]], sig[ev[order, 1]]) * n + np.maximum(sig[ev[order, 0]], sig[ev[order, 1]])
     Lm = L[np.searchsorted(key, ms)]
     return key, 0.5 * (L + Lm), float(np.max(np.abs(L - Lm) / L)), (
-        "vertex scaling" if scheme == "yamabe" else "inversive distance (vertex scaling: " + why[0] + ")")
+        "vertex scaling" if scheme == "yamabe" else "inversive distance (" + why[0] + ")")
 
 
 class HalfLayout:
@@ -466,15 +466,17 @@ class RefinedHalf:
     (V, F, loops, n, ...), the refined half's V2, F2, D (its double), n2, half_loops (the loops
     through the new boundary vertices), parent / corner_in_parent (each face's input face and
     corners there), refined_from (the edge of the side's split half each new vertex halves),
-    within / corners (each face's face of the side's split half and its corners there)."""
+    within / corners (each face's face of the side's split half and its corners there). rings
+    (default 1): refine_near_boundary's (0: nothing split, the side's split half as it is, for a
+    pair of which only the target is refined)."""
 
-    def __init__(self, side, split_boundary):
+    def __init__(self, side, split_boundary, rings=1):
         from .open_double import double_surface, refine_near_boundary  # (open_double imports this module)
         self.base = side
         for k in ("name", "V", "F", "genus", "loops", "b", "describe", "n", "diag"):
             setattr(self, k, getattr(side, k))
         self.V2, self.F2, self.within, self.corners, ends = refine_near_boundary(
-            side.V2, side.F2, side.half_loops, 1, split_boundary=split_boundary)
+            side.V2, side.F2, side.half_loops, rings, split_boundary=split_boundary)
         self.parent = side.parent[self.within]
         self.corner_in_parent = np.einsum("fkl,flj->fkj", self.corners, side.corner_in_parent[self.within])
         self.refined_from = ends
