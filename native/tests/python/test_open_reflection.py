@@ -239,3 +239,26 @@ def test_every_intrinsic_delaunay_edge_of_the_double_is_in_the_half_energy_once(
     total = w.sum() + (pulls[1].sum() / 4 if pulls is not None else 0.0)
     assert abs(total - 0.5 * np.maximum(w_all, 0).sum()) < 1e-9 * w_all.sum()
     assert np.all(e < n) and np.all(w >= 0)
+
+
+def test_refined_halves_lower_the_largest_distortion_of_the_test_pants(monkeypatch):
+    # The test pants onto their bend 0.3, loops 0,1,2 preserving: the half's solve on the halves
+    # refined at their boundary (the default) against the unrefined halves (REFINE_HALF False):
+    # both bijective (0 flipped both ways, check_map), the refined one's largest D' (ears apart)
+    # at most 0.9 of the unrefined one's (measured 3.71 against 4.56, on faces with two corners on
+    # the boundary; main, with Klein barycentrics: 5.59), its mean not above it.
+    Vs, Fs = pants(3)
+    Vt = bend(Vs, 0.3)
+    kw = dict(boundary_pairing=[0, 1, 2], orientations=("preserving",))
+    r = open_double.surface_map_open(Vs, Fs, Vt, Fs, **kw)
+    monkeypatch.setattr(open_double, "REFINE_HALF", False)
+    r0 = open_double.surface_map_open(Vs, Fs, Vt, Fs, **kw)
+    S = open_double._Side(Vs, Fs, "source")
+    assert "on the halves refined at the boundary" in r["open"]["reflection_solve"], r["open"]["reflection_solve"]
+    assert r0["open"]["reflection_half_vertices"] == [S.n2, S.n2]
+    assert all(k > S.n2 for k in r["open"]["reflection_half_vertices"])
+    for x in (r, r0):
+        assert x["flipped_triangles"] == 0 and x["open"]["inverse_flipped_triangles"] == 0
+        assert check_map(x, Vs, Fs, Vt, Fs) == 0
+    assert r["distortion"]["max"] <= 0.9 * r0["distortion"]["max"]
+    assert r["distortion"]["mean"] <= r0["distortion"]["mean"]
