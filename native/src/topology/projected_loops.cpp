@@ -125,11 +125,22 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
   std::vector<int> parent_h(tm.num_vertices(), -1), stamp(tm.num_vertices(), -1);
   detail::DijkstraResult path_search;  // the A* searches' (shortest path by length)
   int search = 0;
+  // Issue 19 (session 23): each source vertex framed and its nearest target
+  // vertex found once, not once per loop through it (the loops of a system
+  // share their tree paths to the base vertex). Keyed by source vertex.
+  std::unordered_map<int, std::pair<Eigen::Vector3d, int>> framed;
+  auto frame_of = [&](int v) -> const std::pair<Eigen::Vector3d, int>& {
+    auto [it, added] = framed.try_emplace(v);
+    if (added) {
+      it->second.first = (*sf)(source.V.row(v).transpose());
+      it->second.second = frame->nearest_vertex->nearest(it->second.first);
+    }
+    return it->second;
+  };
   for (const auto& loop : source_loops) {
     const size_t m = loop.size() >= 2 && loop.front() == loop.back() ? loop.size() - 1 : loop.size();
     std::vector<int> img(m);
-    for (size_t i = 0; i < m; ++i)
-      img[i] = frame ? frame->nearest_vertex->nearest((*sf)(source.V.row(loop[i]).transpose())) : loop[i];
+    for (size_t i = 0; i < m; ++i) img[i] = frame ? frame_of(loop[i]).second : loop[i];
     Word w;
     for (size_t i = 0; i < m; ++i) {
       const int a = img[i], b = img[(i + 1) % m];
@@ -179,7 +190,7 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
       // 0.34-edge step.)
       bool near_in_space = false;
       if (!found && frame) {
-        const double step = ((*sf)(source.V.row(loop[i]).transpose()) - (*sf)(source.V.row(loop[(i + 1) % m]).transpose())).norm();
+        const double step = (frame_of(loop[i]).first - frame_of(loop[(i + 1) % m]).first).norm();
         near_in_space = jump <= step + 2 * t_edge;
       }
       if (!found && frame &&

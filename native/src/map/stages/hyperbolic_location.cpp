@@ -400,6 +400,60 @@ void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover,
   }
 }
 
+// The optimum's inverse: every target vertex located in the source's image
+// triangles (locate_target_vertices). Gives up when `stop` is raised (the
+// forward location failed on the calling thread); nullptr: never.
+void locate_inverse(const HyperbolicLocationInput& in, const TargetCover& cover, const std::atomic<bool>* stop,
+                    HyperbolicLocationResult& out) {
+  const TriMesh& source = *in.source;
+  const Connectivity& sc = *in.sc;
+  const DiskLayout& layout = *in.layout;
+  const FundamentalPolygon& polygon = *in.polygon;
+  const auto& img = *in.image;
+  auto eff = [&](int h) {
+    const int e = sc.edge(h);
+    return sc.edge_halfedge(e) == h ? (*in.eff_edge)[e] : (*in.eff_edge)[e].inverse();
+  };
+  PlaneTriangles spoints(source.num_faces()), stris(source.num_faces());
+  for (int f = 0; f < source.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      spoints[f][k] = img(f, k);
+      stris[f][k] = hyperbolic::poincare_to_klein(img(f, k));
+    }
+  const TriangleGrid sgrid(stris, 1e-12);
+  // Inverse map: the same walk over the source's image triangles. Face f's
+  // image is stored with corner k at γ_{f,k}(zp[F(f,k)]) (γ_{f,0} = id,
+  // γ_{f,1} = eff(h0), γ_{f,2} = eff(h2)^-1); crossing into face g through
+  // the vertex u they share maps the query by γ_{g,u} γ_{f,u}^-1 (identity
+  // unless the edge straddles a side of P).
+  auto corner_element = [&](int f, int k) {
+    return k == 0 ? Mobius() : k == 1 ? eff(3 * f) : eff(3 * f + 2).inverse();
+  };
+  auto source_corners = [&](int f) { return std::array<Complex, 3>{img(f, 0), img(f, 1), img(f, 2)}; };
+  auto source_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
+    ++out.inverse_walk_steps;
+    const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
+    // Shared vertex u = tail(h) = corner s of f = corner (t+1)%3 of g.
+    const int cg = (t % 3 + 1) % 3;
+    const Mobius M = (corner_element(g, cg) * corner_element(f, s).inverse()).normalized();
+    c = M.apply(c), q = M.apply(q);
+    *entry = t % 3;
+    return g;
+  };
+  const std::vector<std::vector<Complex>> copies = target_vertex_copies(layout, in.target->num_vertices());
+  std::vector<Eigen::Vector3d> bary;
+  const std::vector<int> face = locate_target_vertices(copies, layout, cover.neighbours, polygon, sgrid, spoints,
+                                                       source_corners, source_cross, 4 * source.num_faces() + 100,
+                                                       bary, stop, &out.inverse_counts,
+                                                       in.inverse_full_search);
+  if (stop && *stop) return;  // (the forward location failed: its error is reported)
+  out.inverse.resize(in.target->num_vertices());
+  for (int v = 0; v < in.target->num_vertices(); ++v) {
+    if (face[v] < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
+    out.inverse[v] = point_in_face(source, face[v], bary[v]);
+  }
+}
+
 }  // namespace
 
 HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in, const StageDone& stage_done) {
@@ -408,18 +462,18 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
   const DiskLayout& layout = *in.layout;
   const FundamentalPolygon& polygon = *in.polygon;
   const std::vector<Complex>& zp = *in.zp;
-  const auto& img = *in.image;
   const TargetCover cover(in);
   HyperbolicLocationResult out;
-  auto eff = [&](int h) {
-    const int e = sc.edge(h);
-    return sc.edge_halfedge(e) == h ? (*in.eff_edge)[e] : (*in.eff_edge)[e].inverse();
-  };
-  // The initial map's location runs next to the optimum's (concurrency.h),
-  // which reports the stages.
+  // Three independent tasks (concurrency.h): the optimum's forward location
+  // on the calling thread, which reports the stage; its inverse (issue 19,
+  // session 23: on the second thread beside the forward walks) and the
+  // initial map's location (when asked for) taken in that order by
+  // whichever thread is free. Each writes only its own outputs and reads
+  // the shared cover, so the result does not depend on the threads.
   const std::atomic<bool> never{false};
-  parallel_for(in.threads, in.locate_initial ? 2 : 1, [&](int task, const std::atomic<bool>* stop) {
-    if (task == 1) return locate_initial(in, cover, stop ? stop : &never, out);
+  parallel_for(in.threads, in.locate_initial ? 3 : 2, [&](int task, const std::atomic<bool>* stop) {
+    if (task == 2) return locate_initial(in, cover, stop ? stop : &never, out);
+    if (task == 1) return locate_inverse(in, cover, stop, out);
     // Forward map: the walk over the target's faces.
     std::vector<int> refined_face_origin(cover.ntf, -1);
     out.forward.resize(source.num_vertices());
@@ -438,43 +492,6 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
       out.forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, in.target_intrinsic, refined_face_origin, rf, b);
     }
     stage_done("forward location", 0.85);
-    PlaneTriangles spoints(source.num_faces()), stris(source.num_faces());
-    for (int f = 0; f < source.num_faces(); ++f)
-      for (int k = 0; k < 3; ++k) {
-        spoints[f][k] = img(f, k);
-        stris[f][k] = hyperbolic::poincare_to_klein(img(f, k));
-      }
-    const TriangleGrid sgrid(stris, 1e-12);
-    // Inverse map: the same walk over the source's image triangles. Face f's
-    // image is stored with corner k at γ_{f,k}(zp[F(f,k)]) (γ_{f,0} = id,
-    // γ_{f,1} = eff(h0), γ_{f,2} = eff(h2)^-1); crossing into face g through
-    // the vertex u they share maps the query by γ_{g,u} γ_{f,u}^-1 (identity
-    // unless the edge straddles a side of P).
-    auto corner_element = [&](int f, int k) {
-      return k == 0 ? Mobius() : k == 1 ? eff(3 * f) : eff(3 * f + 2).inverse();
-    };
-    auto source_corners = [&](int f) { return std::array<Complex, 3>{img(f, 0), img(f, 1), img(f, 2)}; };
-    auto source_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
-      ++out.inverse_walk_steps;
-      const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
-      // Shared vertex u = tail(h) = corner s of f = corner (t+1)%3 of g.
-      const int cg = (t % 3 + 1) % 3;
-      const Mobius M = (corner_element(g, cg) * corner_element(f, s).inverse()).normalized();
-      c = M.apply(c), q = M.apply(q);
-      *entry = t % 3;
-      return g;
-    };
-    const std::vector<std::vector<Complex>> copies = target_vertex_copies(layout, in.target->num_vertices());
-    std::vector<Eigen::Vector3d> bary;
-    const std::vector<int> face = locate_target_vertices(copies, layout, cover.neighbours, polygon, sgrid, spoints,
-                                                         source_corners, source_cross, 4 * source.num_faces() + 100,
-                                                         bary, nullptr, &out.inverse_counts,
-                                                         in.inverse_full_search);
-    out.inverse.resize(in.target->num_vertices());
-    for (int v = 0; v < in.target->num_vertices(); ++v) {
-      if (face[v] < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
-      out.inverse[v] = point_in_face(source, face[v], bary[v]);
-    }
   });
   return out;
 }

@@ -66,10 +66,13 @@ struct HyperbolicLocationResult {
   long inverse_walk_steps = 0;                  ///< faces crossed by the optimum's inverse walks
 };
 
-/// Locates the optimum (forward then inverse, reporting "forward location"
-/// to `stage_done` between them) and, on the second thread when there is
-/// one, the initial map (when `locate_initial`). A vertex of the optimum that cannot be located is
-/// a SolveError; of the initial map, it leaves that output empty.
+/// Locates the optimum, forward on the calling thread (reporting "forward
+/// location" to `stage_done` when it is done) and inverse on the second
+/// thread when there is one (after the forward with one thread), and the
+/// initial map (when `locate_initial`) on whichever thread is free next. A
+/// vertex of the optimum that cannot be located is a SolveError (the
+/// forward's first); of the initial map, it leaves that output empty. The
+/// result does not depend on `threads`.
 HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in, const StageDone& stage_done);
 
 }  // namespace surfmap::detail
