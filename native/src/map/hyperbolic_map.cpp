@@ -214,6 +214,16 @@ class HyperbolicPipeline {
   /// loops (compare_directions), built next to the full-resolution solves
   /// on the second thread when they will be read (letters_from_own_loops).
   std::optional<SourceLetters> letters_ahead;
+  /// Issue 19 (session 23): what the location walks over (the target's
+  /// cover, both surfaces' neighbours), built next to the full-resolution
+  /// solves on the second thread; null: built by the location.
+  std::shared_ptr<const LocationCover> cover_ahead;
+  HyperbolicLocationInput cover_input() const {
+    HyperbolicLocationInput li;
+    li.source = &source, li.target = &target, li.target_loops = &ut->loops, li.layout = &ut->layout;
+    li.polygon = polygon.get();
+    return li;
+  }
   bool letters_from_own_loops() const {
     const UniformizationMetric policy = options.uniformization.target_metric;
     return !have_class_bounds && options.homotopy.reverse_class.empty() &&
@@ -1561,6 +1571,7 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   // Issue 19 (session 23): the source's letters for compare_directions, on
   // the second thread after the initial map (the solves leave it idle).
   if (threads > 1 && letters_from_own_loops()) tasks.push_back(-2);
+  if (threads > 1) tasks.push_back(-3);  // and the location's cover
   std::exception_ptr init_error;
   // Class k's coarse solution prolonged to the fine vertices (all at the
   // origin when its coarse solve failed).
@@ -1574,6 +1585,14 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   };
   parallel_for(threads, static_cast<int>(tasks.size()), [&](int t, const std::atomic<bool>* stop) {
     const int k = tasks[t];
+    if (k == -3) {
+      try {
+        cover_ahead = location_cover(cover_input());
+      } catch (...) {
+        // (built again by the location, which reports the error)
+      }
+      return;
+    }
     if (k == -2) {
       try {
         letters_ahead = source_letters_from_own_loops(source, sc, ss.sl, ss.scs.generators, out.genus, options);
@@ -2027,6 +2046,7 @@ bool map_class(HyperbolicPipeline& p) {
   li.zp = &placed.zp, li.eff_edge = &placed.eff_edge, li.image = &placed.image;
   li.init = &init, li.halfedge_rho = &initial.halfedge_rho, li.halfedge_word = &initial.halfedge_word;
   li.threads = p.threads;
+  li.cover = p.cover_ahead.get();
   li.locate_initial = options.initial.locate;
   li.inverse_full_search = p.hooks.inverse_full_search;
   li.forward_index_order = p.hooks.forward_index_order;

@@ -34,13 +34,17 @@ struct VertexNeighbours {
   }
 };
 
+}  // namespace
+
 // The target's laid-out faces (the refined mesh of its system of loops) as
 // a triangulation of the universal cover: a straight walk over them, from
 // the face found for the previous vertex, crossing a cut edge by its deck
 // map (so the walk never leaves the layout and does not depend on how the
-// cut disk differs from P), with locate_in_cover as the fallback.
-struct TargetCover {
-  const HyperbolicLocationInput& in;
+// cut disk differs from P), with locate_in_cover as the fallback. Reads the
+// target's layout and P and both surfaces' connectivity, not the class.
+struct LocationCover {
+  const DiskLayout* layout_ptr;
+  const FundamentalPolygon* polygon;
   const int ntf;
   const Connectivity tconn;
   PlaneTriangles tpoints, ttris;  ///< #F refined target: Poincaré corners, Klein corners
@@ -48,8 +52,8 @@ struct TargetCover {
   const VertexNeighbours neighbours;  ///< of the input target's vertices (the inverse's walks)
   const VertexNeighbours source_neighbours;  ///< of the source's vertices (the forward walks' starts)
 
-  explicit TargetCover(const HyperbolicLocationInput& input)
-      : in(input), ntf(in.target_loops->mesh.num_faces()),
+  explicit LocationCover(const HyperbolicLocationInput& in)
+      : layout_ptr(in.layout), polygon(in.polygon), ntf(in.target_loops->mesh.num_faces()),
         tconn(in.target_loops->mesh.F, in.target_loops->mesh.num_vertices()), tpoints(ntf), ttris(ntf),
         neighbours(*in.target), source_neighbours(*in.source) {
     for (int f = 0; f < ntf; ++f)
@@ -62,7 +66,7 @@ struct TargetCover {
   /// Refined target face containing q (in P) with barycentrics, or -1;
   /// adds the faces the walk crossed to `steps`.
   int locate(int start_face, Complex q, Eigen::Vector3d* b, long* steps) const {
-    const DiskLayout& layout = *in.layout;
+    const DiskLayout& layout = *layout_ptr;
     auto corners = [&](int f) {
       return std::array<Complex, 3>{layout.corners(f, 0), layout.corners(f, 1), layout.corners(f, 2)};
     };
@@ -77,10 +81,16 @@ struct TargetCover {
       return Connectivity::face(t);
     };
     int rf = straight_walk(start_face, q, corners, cross, 4 * ntf + 100, kInsideTolerance, b);
-    if (rf < 0) rf = locate_in_cover(*grid, tpoints, *in.polygon, q, b);
+    if (rf < 0) rf = locate_in_cover(*grid, tpoints, *polygon, q, b);
     return rf;
   }
 };
+
+std::shared_ptr<const LocationCover> location_cover(const HyperbolicLocationInput& in) {
+  return std::make_shared<const LocationCover>(in);
+}
+
+namespace {
 
 // Per target vertex (#V of the input target, whose indices the refined mesh
 // keeps) its copies in the cut disk: 1 inside, 2 on a loop, 4g at the base
@@ -328,7 +338,7 @@ std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>&
 // The initial map located like the optimum (its "before" morph and UVs); a
 // vertex that cannot be located leaves that output empty, not an error.
 // Gives up when `stop` is raised (the other task failed).
-void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover, const std::atomic<bool>* stop,
+void locate_initial(const HyperbolicLocationInput& in, const LocationCover& cover, const std::atomic<bool>* stop,
                     HyperbolicLocationResult& out) {
   const TriMesh& source = *in.source;
   const Connectivity& sc = *in.sc;
@@ -403,7 +413,7 @@ void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover,
 // The optimum's inverse: every target vertex located in the source's image
 // triangles (locate_target_vertices). Gives up when `stop` is raised (the
 // forward location failed on the calling thread); nullptr: never.
-void locate_inverse(const HyperbolicLocationInput& in, const TargetCover& cover, const std::atomic<bool>* stop,
+void locate_inverse(const HyperbolicLocationInput& in, const LocationCover& cover, const std::atomic<bool>* stop,
                     HyperbolicLocationResult& out) {
   const TriMesh& source = *in.source;
   const Connectivity& sc = *in.sc;
@@ -458,11 +468,12 @@ void locate_inverse(const HyperbolicLocationInput& in, const TargetCover& cover,
 
 HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in, const StageDone& stage_done) {
   const TriMesh& source = *in.source;
-  const Connectivity& sc = *in.sc;
   const DiskLayout& layout = *in.layout;
   const FundamentalPolygon& polygon = *in.polygon;
   const std::vector<Complex>& zp = *in.zp;
-  const TargetCover cover(in);
+  // (built here unless the caller built it ahead: it does not depend on the class)
+  const std::shared_ptr<const LocationCover> own_cover = in.cover ? nullptr : location_cover(in);
+  const LocationCover& cover = in.cover ? *in.cover : *own_cover;
   HyperbolicLocationResult out;
   // Three independent tasks (concurrency.h): the optimum's forward location
   // on the calling thread, which reports the stage; its inverse (issue 19,
