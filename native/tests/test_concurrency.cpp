@@ -116,6 +116,58 @@ TEST(SurfaceMapConcurrency, TwoThreadsGiveTheMapOfOneAndCallBackOnTheCallingThre
   }
 }
 
+// Issue 19 (session 23): the result does not depend on the threads, bit for
+// bit. The tasks that run side by side with two threads (the source side,
+// the classes' data and coarse solves, the full-resolution solves beside
+// the likely class's initial map and its D' and the source's letters, the
+// optimum moved into P beside its distortion, the forward location beside
+// the inverse and the initial map's) each write their own outputs from the
+// same inputs, and the BLAS runs single-threaded in both runs, so every
+// output is equal, not merely close: a task that read another's output
+// before it was final, or a reduction split across threads, shows here.
+TEST(SurfaceMapConcurrency, OneAndTwoThreadsGiveTheSameBits) {
+  const Pair& p = pair();
+  SurfaceMapOptions o1, o2;
+  o1.threads = 1;
+  o2.threads = 2;
+  o1.initial.locate = o2.initial.locate = true;  // (the third location task)
+  const SurfaceMapResult m1 = surface_map(p.a, p.b, o1), m2 = surface_map(p.a, p.b, o2);
+  ASSERT_TRUE(m1.converged && m2.converged);
+  EXPECT_EQ(m1.chosen_candidate, m2.chosen_candidate);
+  EXPECT_EQ(m1.final_energy, m2.final_energy);
+  EXPECT_EQ(m1.initial_energy, m2.initial_energy);
+  EXPECT_EQ(m1.iterations, m2.iterations);
+  ASSERT_EQ(m1.candidates.size(), m2.candidates.size());
+  for (size_t k = 0; k < m1.candidates.size(); ++k) {
+    EXPECT_EQ(m1.candidates[k].solved, m2.candidates[k].solved) << k;
+    EXPECT_EQ(m1.candidates[k].energy, m2.candidates[k].energy) << k;
+  }
+  EXPECT_EQ(m1.flipped_triangles, m2.flipped_triangles);
+  EXPECT_EQ(m1.intrinsic_flipped_triangles, m2.intrinsic_flipped_triangles);
+  EXPECT_EQ(m1.mean_dilatation, m2.mean_dilatation);
+  EXPECT_EQ(m1.initial_mean_dilatation, m2.initial_mean_dilatation);
+  EXPECT_EQ(m1.initial_flipped_triangles, m2.initial_flipped_triangles);
+  EXPECT_EQ(m1.source_image, m2.source_image);
+  EXPECT_EQ(m1.source_as_target, m2.source_as_target);
+  EXPECT_EQ(m1.source_as_target_inverse, m2.source_as_target_inverse);
+  EXPECT_EQ(m1.source_as_target_status, m2.source_as_target_status);
+  auto same_points = [](const std::vector<PointOnSurface>& a, const std::vector<PointOnSurface>& b, const char* what) {
+    ASSERT_EQ(a.size(), b.size()) << what;
+    int differ = 0;
+    for (size_t i = 0; i < a.size(); ++i)
+      differ += a[i].face != b[i].face || a[i].barycentric != b[i].barycentric || a[i].position != b[i].position;
+    EXPECT_EQ(differ, 0) << what;
+  };
+  ASSERT_EQ(m1.forward.size(), static_cast<size_t>(p.a.num_vertices()));
+  ASSERT_EQ(m1.inverse.size(), static_cast<size_t>(p.b.num_vertices()));
+  ASSERT_FALSE(m1.initial_forward.empty());
+  ASSERT_FALSE(m1.initial_inverse.empty());
+  same_points(m1.forward, m2.forward, "forward");
+  same_points(m1.inverse, m2.inverse, "inverse");
+  same_points(m1.initial_forward, m2.initial_forward, "initial forward");
+  same_points(m1.initial_inverse, m2.initial_inverse, "initial inverse");
+}
+
 TEST(SurfaceMapConcurrency, CancellingDuringParallelSectionsThrowsCancelled) {
   const Pair& p = pair();
   // From the coarse solves' progress (the ranking runs on two threads).

@@ -210,6 +210,25 @@ class HyperbolicPipeline {
   // full-resolution solves.
   int likely_class = -1;
   std::unique_ptr<ClassInitialMap> likely_init;
+  /// Issue 19 (session 23): the source's letters as a target from its own
+  /// loops (compare_directions), built next to the full-resolution solves
+  /// on the second thread when they will be read (letters_from_own_loops).
+  std::optional<SourceLetters> letters_ahead;
+  /// Issue 19 (session 23): what the location walks over (the target's
+  /// cover, both surfaces' neighbours), built next to the full-resolution
+  /// solves on the second thread; null: built by the location.
+  std::shared_ptr<const LocationCover> cover_ahead;
+  HyperbolicLocationInput cover_input() const {
+    HyperbolicLocationInput li;
+    li.source = &source, li.target = &target, li.target_loops = &ut->loops, li.layout = &ut->layout;
+    li.polygon = polygon.get();
+    return li;
+  }
+  bool letters_from_own_loops() const {
+    const UniformizationMetric policy = options.uniformization.target_metric;
+    return !have_class_bounds && options.homotopy.reverse_class.empty() &&
+           (policy == UniformizationMetric::Automatic || policy == UniformizationMetric::IntrinsicDelaunay);
+  }
   // Per class, its free energy at full resolution with the intrinsic
   // Delaunay weights, kept when the weights fall back to the source's own
   // edges (SurfaceMapResult::intrinsic_class_energy); NaN: none.
@@ -1420,13 +1439,15 @@ void HyperbolicPipeline::compare_directions() {
   const GroupMap& theta = candidates.classes[c].map;
   out.chosen_class_words = theta;
   const GroupMap& psi = options.homotopy.reverse_class;
-  const UniformizationMetric policy = options.uniformization.target_metric;
-  const bool flip_letters = policy == UniformizationMetric::Automatic || policy == UniformizationMetric::IntrinsicDelaunay;
-  if (!have_class_bounds && psi.empty() && flip_letters) {
+  if (letters_from_own_loops()) {
     // Issue 19: the source's letters as a target from its own loops (no
     // uniformization: class_bound_support.h source_letters_from_own_loops;
-    // the ranking's bounds on the coarse copy have no letters of the source).
-    SourceLetters letters = source_letters_from_own_loops(source, sc, ss.sl, ss.scs.generators, g, options);
+    // the ranking's bounds on the coarse copy have no letters of the source),
+    // built ahead on the second thread when there is one (the same function
+    // of the same inputs).
+    SourceLetters letters = letters_ahead ? std::move(*letters_ahead)
+                                          : source_letters_from_own_loops(source, sc, ss.sl, ss.scs.generators, g, options);
+    letters_ahead.reset();
     out.source_as_target = std::move(letters.as_target);
     out.source_as_target_inverse = std::move(letters.as_target_inverse);
     out.source_as_target_status = std::move(letters.as_target_status);
@@ -1547,6 +1568,10 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   if (init_ahead && !full[likely_class]) build.push_back(likely_class);
   build_solver_data(build);
   if (init_ahead) tasks.insert(tasks.begin() + std::min<size_t>(1, tasks.size()), -1);
+  // Issue 19 (session 23): the source's letters for compare_directions, on
+  // the second thread after the initial map (the solves leave it idle).
+  if (threads > 1 && letters_from_own_loops()) tasks.push_back(-2);
+  if (threads > 1) tasks.push_back(-3);  // and the location's cover
   std::exception_ptr init_error;
   // Class k's coarse solution prolonged to the fine vertices (all at the
   // origin when its coarse solve failed).
@@ -1560,6 +1585,22 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   };
   parallel_for(threads, static_cast<int>(tasks.size()), [&](int t, const std::atomic<bool>* stop) {
     const int k = tasks[t];
+    if (k == -3) {
+      try {
+        cover_ahead = location_cover(cover_input());
+      } catch (...) {
+        // (built again by the location, which reports the error)
+      }
+      return;
+    }
+    if (k == -2) {
+      try {
+        letters_ahead = source_letters_from_own_loops(source, sc, ss.sl, ss.scs.generators, out.genus, options);
+      } catch (...) {
+        // (built again by compare_directions, which reports the error)
+      }
+      return;
+    }
     if (k < 0) {
       try {
         // The uniform-weight fallback (polygon not usable) starts from the
@@ -1568,6 +1609,7 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
         std::vector<Word> deck;
         if (!coarse_failed[likely_class]) prolonged(likely_class, z, deck);
         likely_init = std::make_unique<ClassInitialMap>(initial_of(likely_class, stop, std::move(z), std::move(deck)));
+        likely_init->distortion = initial_map_distortion(source, *deck_group, *likely_init);  // (issue 19: D' too)
       } catch (...) {
         init_error = std::current_exception();  // rethrown only if the class is chosen: built again then
       }
@@ -1840,7 +1882,8 @@ bool map_class(HyperbolicPipeline& p) {
   out.initial_map.location_requested = options.initial.locate;
   if (p.hooks.inspect_initial_map)
     p.hooks.inspect_initial_map({&initial.halfedge_rho, &initial.halfedge_word, p.deck_group.get(), &init});
-  const DistortionStats q0 = initial_map_distortion(p.source, *p.deck_group, initial);
+  const DistortionStats q0 =
+      initial.distortion ? *initial.distortion : initial_map_distortion(p.source, *p.deck_group, initial);
   store_initial_distortion(q0, out);
   p.stage_done("initial map", 0.45);
 
@@ -1907,12 +1950,27 @@ bool map_class(HyperbolicPipeline& p) {
   out.candidates[k].solved = true;
   p.stage_done("harmonic solve", 0.7);
 
-  MapInPolygon placed = place_in_polygon(p.source, p.sc, *p.polygon, *p.deck_group, cd.side_word_edge, cd.rho_edge,
-                                         p.solver_index, static_cast<int>(cd.edges.size()), hr);
-  const DistortionStats quality = chart_distortion(p.source, p.sc, hr.edge_local, p.solver_index);
+  // Issue 19 (session 23): the optimum moved into P and its distortion are
+  // independent when the solver kept its local charts (Newton; the
+  // relaxation's are built by place_in_polygon, so they wait for it): two
+  // tasks, on both threads when there are two.
+  MapInPolygon placed;
+  DistortionStats quality;
+  int intrinsic_flips = 0;
+  LayoutClosure closure;
+  const bool charts_kept = static_cast<int>(hr.edge_local.size()) == static_cast<int>(cd.edges.size());
+  parallel_for(charts_kept ? p.threads : 1, 2, [&](int task, const std::atomic<bool>*) {
+    if (task == 0)
+      placed = place_in_polygon(p.source, p.sc, *p.polygon, *p.deck_group, cd.side_word_edge, cd.rho_edge,
+                                p.solver_index, static_cast<int>(cd.edges.size()), hr);
+    else
+      quality = chart_distortion(p.source, p.sc, hr.edge_local, p.solver_index),
+      intrinsic_flips = intrinsic_flipped_triangles(p.ss.idt, hr.edge_local),
+      closure = intrinsic_layout_closure(p.ss.idt, hr.edge_local);
+  });
   store_distortion(quality, out);
-  out.intrinsic_flipped_triangles = intrinsic_flipped_triangles(p.ss.idt, hr.edge_local);
-  out.layout_closure = intrinsic_layout_closure(p.ss.idt, hr.edge_local);
+  out.intrinsic_flipped_triangles = intrinsic_flips;
+  out.layout_closure = closure;
   const std::string folds = "the intrinsic Delaunay map of class " + std::to_string(k) + " folds " +
                             std::to_string(out.flipped_triangles) + " and flattens " +
                             std::to_string(out.degenerate_triangles) + " of the source's faces (" +
@@ -1988,6 +2046,7 @@ bool map_class(HyperbolicPipeline& p) {
   li.zp = &placed.zp, li.eff_edge = &placed.eff_edge, li.image = &placed.image;
   li.init = &init, li.halfedge_rho = &initial.halfedge_rho, li.halfedge_word = &initial.halfedge_word;
   li.threads = p.threads;
+  li.cover = p.cover_ahead.get();
   li.locate_initial = options.initial.locate;
   li.inverse_full_search = p.hooks.inverse_full_search;
   li.forward_index_order = p.hooks.forward_index_order;

@@ -34,11 +34,19 @@ struct BoxFrame {
   Eigen::Vector3d operator()(const Eigen::Vector3d& p) const { return (T * p - centre).cwiseProduct(scale); }
 };
 
-double mean_edge_length(const TriMesh& m, const BoxFrame& frame) {
+// Every vertex of m in `frame` (issue 19, session 23: each vertex framed
+// once, not once per face corner and loop visit).
+std::vector<Eigen::Vector3d> framed_points(const TriMesh& m, const BoxFrame& frame) {
+  std::vector<Eigen::Vector3d> p(m.num_vertices());
+  for (int v = 0; v < m.num_vertices(); ++v) p[v] = frame(m.V.row(v).transpose());
+  return p;
+}
+
+// The mean edge length of m, its vertices at `points` (framed_points).
+double mean_edge_length(const TriMesh& m, const std::vector<Eigen::Vector3d>& points) {
   double s = 0;
   for (int f = 0; f < m.num_faces(); ++f)
-    for (int k = 0; k < 3; ++k)
-      s += (frame(m.V.row(m.F(f, k)).transpose()) - frame(m.V.row(m.F(f, (k + 1) % 3)).transpose())).norm();
+    for (int k = 0; k < 3; ++k) s += (points[m.F(f, k)] - points[m.F(f, (k + 1) % 3)]).norm();
   return s / std::max(1, 3 * m.num_faces());
 }
 
@@ -70,10 +78,8 @@ struct TargetFrame {
   double t_edge = 0;
   std::unique_ptr<NearestPointIndex> nearest_vertex;
   TargetFrame(const TriMesh& tm, const Eigen::Matrix3d& transform, bool uniform) : transform(transform), uniform(uniform) {
-    const BoxFrame tf(tm.V, transform, uniform);
-    t_edge = mean_edge_length(tm, tf);
-    tp.resize(tm.num_vertices());
-    for (int v = 0; v < tm.num_vertices(); ++v) tp[v] = tf(tm.V.row(v).transpose());
+    tp = framed_points(tm, BoxFrame(tm.V, transform, uniform));
+    t_edge = mean_edge_length(tm, tp);
     nearest_vertex = std::make_unique<NearestPointIndex>(tp);
   }
 };
@@ -97,11 +103,13 @@ struct SourceFrame {
   Eigen::Matrix3d transform;
   bool uniform = false;
   BoxFrame frame;
+  std::vector<Eigen::Vector3d> points;  ///< #V: the source's vertices in `frame`
   double s_edge = 0;
   SourceFrame(const TriMesh& source, const TriMesh& target, const TargetFrame& tf, const ProjectedLoopsOptions& options)
       : V(source.V), F(source.F), transform(options.source_on_target ? tf.transform : options.source_transform),
         uniform(options.source_on_target ? tf.uniform : options.uniform_box),
-        frame(options.source_on_target ? target.V : source.V, transform, uniform), s_edge(mean_edge_length(source, frame)) {}
+        frame(options.source_on_target ? target.V : source.V, transform, uniform), points(framed_points(source, frame)),
+        s_edge(mean_edge_length(source, points)) {}
   bool is_for(const TriMesh& source, const Eigen::Matrix3d& t, bool u) const {
     return t == transform && u == uniform && source.V.rows() == V.rows() && source.F.rows() == F.rows() && source.V == V &&
            source.F == F;
@@ -117,7 +125,6 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
   // Without a frame (LoopProjector::project with options.own_mesh): the
   // source is the target's mesh, every loop vertex its own image, and the
   // mean edge lengths are equal.
-  const BoxFrame* sf = frame ? &source_frame->frame : nullptr;
   const double s_edge = frame ? source_frame->s_edge : 1.0, t_edge = frame ? frame->t_edge : 1.0;
   const int max_gap = static_cast<int>(std::ceil(options.max_gap_factor * std::max(1.0, s_edge / t_edge)));
 
@@ -125,11 +132,19 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
   std::vector<int> parent_h(tm.num_vertices(), -1), stamp(tm.num_vertices(), -1);
   detail::DijkstraResult path_search;  // the A* searches' (shortest path by length)
   int search = 0;
+  // Issue 19 (session 23): each source vertex's nearest target vertex found
+  // once, not once per loop through it (the loops of a system share their
+  // tree paths to the base vertex); the points framed once per source frame.
+  std::unordered_map<int, int> nearest;
+  auto image_of = [&](int v) {
+    auto [it, added] = nearest.try_emplace(v, -1);
+    if (added) it->second = frame->nearest_vertex->nearest(source_frame->points[v]);
+    return it->second;
+  };
   for (const auto& loop : source_loops) {
     const size_t m = loop.size() >= 2 && loop.front() == loop.back() ? loop.size() - 1 : loop.size();
     std::vector<int> img(m);
-    for (size_t i = 0; i < m; ++i)
-      img[i] = frame ? frame->nearest_vertex->nearest((*sf)(source.V.row(loop[i]).transpose())) : loop[i];
+    for (size_t i = 0; i < m; ++i) img[i] = frame ? image_of(loop[i]) : loop[i];
     Word w;
     for (size_t i = 0; i < m; ++i) {
       const int a = img[i], b = img[(i + 1) % m];
@@ -179,7 +194,7 @@ ProjectedLoopsResult project_with(const TriMesh& source, const std::vector<std::
       // 0.34-edge step.)
       bool near_in_space = false;
       if (!found && frame) {
-        const double step = ((*sf)(source.V.row(loop[i]).transpose()) - (*sf)(source.V.row(loop[(i + 1) % m]).transpose())).norm();
+        const double step = (source_frame->points[loop[i]] - source_frame->points[loop[(i + 1) % m]]).norm();
         near_in_space = jump <= step + 2 * t_edge;
       }
       if (!found && frame &&

@@ -34,13 +34,17 @@ struct VertexNeighbours {
   }
 };
 
+}  // namespace
+
 // The target's laid-out faces (the refined mesh of its system of loops) as
 // a triangulation of the universal cover: a straight walk over them, from
 // the face found for the previous vertex, crossing a cut edge by its deck
 // map (so the walk never leaves the layout and does not depend on how the
-// cut disk differs from P), with locate_in_cover as the fallback.
-struct TargetCover {
-  const HyperbolicLocationInput& in;
+// cut disk differs from P), with locate_in_cover as the fallback. Reads the
+// target's layout and P and both surfaces' connectivity, not the class.
+struct LocationCover {
+  const DiskLayout* layout_ptr;
+  const FundamentalPolygon* polygon;
   const int ntf;
   const Connectivity tconn;
   PlaneTriangles tpoints, ttris;  ///< #F refined target: Poincaré corners, Klein corners
@@ -48,8 +52,8 @@ struct TargetCover {
   const VertexNeighbours neighbours;  ///< of the input target's vertices (the inverse's walks)
   const VertexNeighbours source_neighbours;  ///< of the source's vertices (the forward walks' starts)
 
-  explicit TargetCover(const HyperbolicLocationInput& input)
-      : in(input), ntf(in.target_loops->mesh.num_faces()),
+  explicit LocationCover(const HyperbolicLocationInput& in)
+      : layout_ptr(in.layout), polygon(in.polygon), ntf(in.target_loops->mesh.num_faces()),
         tconn(in.target_loops->mesh.F, in.target_loops->mesh.num_vertices()), tpoints(ntf), ttris(ntf),
         neighbours(*in.target), source_neighbours(*in.source) {
     for (int f = 0; f < ntf; ++f)
@@ -62,7 +66,7 @@ struct TargetCover {
   /// Refined target face containing q (in P) with barycentrics, or -1;
   /// adds the faces the walk crossed to `steps`.
   int locate(int start_face, Complex q, Eigen::Vector3d* b, long* steps) const {
-    const DiskLayout& layout = *in.layout;
+    const DiskLayout& layout = *layout_ptr;
     auto corners = [&](int f) {
       return std::array<Complex, 3>{layout.corners(f, 0), layout.corners(f, 1), layout.corners(f, 2)};
     };
@@ -77,10 +81,16 @@ struct TargetCover {
       return Connectivity::face(t);
     };
     int rf = straight_walk(start_face, q, corners, cross, 4 * ntf + 100, kInsideTolerance, b);
-    if (rf < 0) rf = locate_in_cover(*grid, tpoints, *in.polygon, q, b);
+    if (rf < 0) rf = locate_in_cover(*grid, tpoints, *polygon, q, b);
     return rf;
   }
 };
+
+std::shared_ptr<const LocationCover> location_cover(const HyperbolicLocationInput& in) {
+  return std::make_shared<const LocationCover>(in);
+}
+
+namespace {
 
 // Per target vertex (#V of the input target, whose indices the refined mesh
 // keeps) its copies in the cut disk: 1 inside, 2 on a loop, 4g at the base
@@ -328,7 +338,7 @@ std::vector<int> locate_target_vertices(const std::vector<std::vector<Complex>>&
 // The initial map located like the optimum (its "before" morph and UVs); a
 // vertex that cannot be located leaves that output empty, not an error.
 // Gives up when `stop` is raised (the other task failed).
-void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover, const std::atomic<bool>* stop,
+void locate_initial(const HyperbolicLocationInput& in, const LocationCover& cover, const std::atomic<bool>* stop,
                     HyperbolicLocationResult& out) {
   const TriMesh& source = *in.source;
   const Connectivity& sc = *in.sc;
@@ -400,26 +410,81 @@ void locate_initial(const HyperbolicLocationInput& in, const TargetCover& cover,
   }
 }
 
-}  // namespace
-
-HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in, const StageDone& stage_done) {
+// The optimum's inverse: every target vertex located in the source's image
+// triangles (locate_target_vertices). Gives up when `stop` is raised (the
+// forward location failed on the calling thread); nullptr: never.
+void locate_inverse(const HyperbolicLocationInput& in, const LocationCover& cover, const std::atomic<bool>* stop,
+                    HyperbolicLocationResult& out) {
   const TriMesh& source = *in.source;
   const Connectivity& sc = *in.sc;
   const DiskLayout& layout = *in.layout;
   const FundamentalPolygon& polygon = *in.polygon;
-  const std::vector<Complex>& zp = *in.zp;
   const auto& img = *in.image;
-  const TargetCover cover(in);
-  HyperbolicLocationResult out;
   auto eff = [&](int h) {
     const int e = sc.edge(h);
     return sc.edge_halfedge(e) == h ? (*in.eff_edge)[e] : (*in.eff_edge)[e].inverse();
   };
-  // The initial map's location runs next to the optimum's (concurrency.h),
-  // which reports the stages.
+  PlaneTriangles spoints(source.num_faces()), stris(source.num_faces());
+  for (int f = 0; f < source.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      spoints[f][k] = img(f, k);
+      stris[f][k] = hyperbolic::poincare_to_klein(img(f, k));
+    }
+  const TriangleGrid sgrid(stris, 1e-12);
+  // Inverse map: the same walk over the source's image triangles. Face f's
+  // image is stored with corner k at γ_{f,k}(zp[F(f,k)]) (γ_{f,0} = id,
+  // γ_{f,1} = eff(h0), γ_{f,2} = eff(h2)^-1); crossing into face g through
+  // the vertex u they share maps the query by γ_{g,u} γ_{f,u}^-1 (identity
+  // unless the edge straddles a side of P).
+  auto corner_element = [&](int f, int k) {
+    return k == 0 ? Mobius() : k == 1 ? eff(3 * f) : eff(3 * f + 2).inverse();
+  };
+  auto source_corners = [&](int f) { return std::array<Complex, 3>{img(f, 0), img(f, 1), img(f, 2)}; };
+  auto source_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
+    ++out.inverse_walk_steps;
+    const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
+    // Shared vertex u = tail(h) = corner s of f = corner (t+1)%3 of g.
+    const int cg = (t % 3 + 1) % 3;
+    const Mobius M = (corner_element(g, cg) * corner_element(f, s).inverse()).normalized();
+    c = M.apply(c), q = M.apply(q);
+    *entry = t % 3;
+    return g;
+  };
+  const std::vector<std::vector<Complex>> copies = target_vertex_copies(layout, in.target->num_vertices());
+  std::vector<Eigen::Vector3d> bary;
+  const std::vector<int> face = locate_target_vertices(copies, layout, cover.neighbours, polygon, sgrid, spoints,
+                                                       source_corners, source_cross, 4 * source.num_faces() + 100,
+                                                       bary, stop, &out.inverse_counts,
+                                                       in.inverse_full_search);
+  if (stop && *stop) return;  // (the forward location failed: its error is reported)
+  out.inverse.resize(in.target->num_vertices());
+  for (int v = 0; v < in.target->num_vertices(); ++v) {
+    if (face[v] < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
+    out.inverse[v] = point_in_face(source, face[v], bary[v]);
+  }
+}
+
+}  // namespace
+
+HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in, const StageDone& stage_done) {
+  const TriMesh& source = *in.source;
+  const DiskLayout& layout = *in.layout;
+  const FundamentalPolygon& polygon = *in.polygon;
+  const std::vector<Complex>& zp = *in.zp;
+  // (built here unless the caller built it ahead: it does not depend on the class)
+  const std::shared_ptr<const LocationCover> own_cover = in.cover ? nullptr : location_cover(in);
+  const LocationCover& cover = in.cover ? *in.cover : *own_cover;
+  HyperbolicLocationResult out;
+  // Three independent tasks (concurrency.h): the optimum's forward location
+  // on the calling thread, which reports the stage; its inverse (issue 19,
+  // session 23: on the second thread beside the forward walks) and the
+  // initial map's location (when asked for) taken in that order by
+  // whichever thread is free. Each writes only its own outputs and reads
+  // the shared cover, so the result does not depend on the threads.
   const std::atomic<bool> never{false};
-  parallel_for(in.threads, in.locate_initial ? 2 : 1, [&](int task, const std::atomic<bool>* stop) {
-    if (task == 1) return locate_initial(in, cover, stop ? stop : &never, out);
+  parallel_for(in.threads, in.locate_initial ? 3 : 2, [&](int task, const std::atomic<bool>* stop) {
+    if (task == 2) return locate_initial(in, cover, stop ? stop : &never, out);
+    if (task == 1) return locate_inverse(in, cover, stop, out);
     // Forward map: the walk over the target's faces.
     std::vector<int> refined_face_origin(cover.ntf, -1);
     out.forward.resize(source.num_vertices());
@@ -438,43 +503,6 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
       out.forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, in.target_intrinsic, refined_face_origin, rf, b);
     }
     stage_done("forward location", 0.85);
-    PlaneTriangles spoints(source.num_faces()), stris(source.num_faces());
-    for (int f = 0; f < source.num_faces(); ++f)
-      for (int k = 0; k < 3; ++k) {
-        spoints[f][k] = img(f, k);
-        stris[f][k] = hyperbolic::poincare_to_klein(img(f, k));
-      }
-    const TriangleGrid sgrid(stris, 1e-12);
-    // Inverse map: the same walk over the source's image triangles. Face f's
-    // image is stored with corner k at γ_{f,k}(zp[F(f,k)]) (γ_{f,0} = id,
-    // γ_{f,1} = eff(h0), γ_{f,2} = eff(h2)^-1); crossing into face g through
-    // the vertex u they share maps the query by γ_{g,u} γ_{f,u}^-1 (identity
-    // unless the edge straddles a side of P).
-    auto corner_element = [&](int f, int k) {
-      return k == 0 ? Mobius() : k == 1 ? eff(3 * f) : eff(3 * f + 2).inverse();
-    };
-    auto source_corners = [&](int f) { return std::array<Complex, 3>{img(f, 0), img(f, 1), img(f, 2)}; };
-    auto source_cross = [&](int f, int s, Complex& c, Complex& q, int* entry) {
-      ++out.inverse_walk_steps;
-      const int h = 3 * f + s, t = sc.twin(h), g = Connectivity::face(t);
-      // Shared vertex u = tail(h) = corner s of f = corner (t+1)%3 of g.
-      const int cg = (t % 3 + 1) % 3;
-      const Mobius M = (corner_element(g, cg) * corner_element(f, s).inverse()).normalized();
-      c = M.apply(c), q = M.apply(q);
-      *entry = t % 3;
-      return g;
-    };
-    const std::vector<std::vector<Complex>> copies = target_vertex_copies(layout, in.target->num_vertices());
-    std::vector<Eigen::Vector3d> bary;
-    const std::vector<int> face = locate_target_vertices(copies, layout, cover.neighbours, polygon, sgrid, spoints,
-                                                         source_corners, source_cross, 4 * source.num_faces() + 100,
-                                                         bary, nullptr, &out.inverse_counts,
-                                                         in.inverse_full_search);
-    out.inverse.resize(in.target->num_vertices());
-    for (int v = 0; v < in.target->num_vertices(); ++v) {
-      if (face[v] < 0) throw SolveError("target vertex " + std::to_string(v) + " could not be located in the source image");
-      out.inverse[v] = point_in_face(source, face[v], bary[v]);
-    }
   });
   return out;
 }

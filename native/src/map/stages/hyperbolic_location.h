@@ -6,6 +6,7 @@
 // walk over the target's laid-out faces in the universal cover, resp. over
 // the map's image triangles, with locate_in_cover (map/point_location.h) as
 // the fallback. Internal to the pipeline (src/map/hyperbolic_map.cpp).
+#include <memory>
 #include <vector>
 
 #include "../map_support.h"
@@ -14,6 +15,8 @@
 #include "surfmap/uniformize/deck_group.h"
 
 namespace surfmap::detail {
+
+struct LocationCover;
 
 /// What the location reads. Sizes: #V / #F of the source, #3F halfedges.
 struct HyperbolicLocationInput {
@@ -42,6 +45,9 @@ struct HyperbolicLocationInput {
   /// Locate the initial map too (InitialMapOptions::locate); false leaves
   /// initial_forward and initial_inverse empty.
   bool locate_initial = true;
+  /// The target's cover (location_cover) when built ahead; nullptr: built
+  /// by locate_hyperbolic_map.
+  const LocationCover* cover = nullptr;
   /// The optimum's inverse without the waves (testing/map_hooks.h).
   bool inverse_full_search = false;
   /// The optimum's forward walks from the previous vertex's face towards
@@ -66,10 +72,21 @@ struct HyperbolicLocationResult {
   long inverse_walk_steps = 0;                  ///< faces crossed by the optimum's inverse walks
 };
 
-/// Locates the optimum (forward then inverse, reporting "forward location"
-/// to `stage_done` between them) and, on the second thread when there is
-/// one, the initial map (when `locate_initial`). A vertex of the optimum that cannot be located is
-/// a SolveError; of the initial map, it leaves that output empty.
+/// The target's laid-out faces as a triangulation of the universal cover,
+/// with their grid, and both surfaces' vertex neighbours: what every
+/// location of one map walks over, whatever the class (issue 19, session
+/// 23: built ahead, next to the full-resolution solves). Reads `source`,
+/// `target`, `target_loops`, `layout` and `polygon` of `in`, which it
+/// must not outlive.
+std::shared_ptr<const LocationCover> location_cover(const HyperbolicLocationInput& in);
+
+/// Locates the optimum, forward on the calling thread (reporting "forward
+/// location" to `stage_done` when it is done) and inverse on the second
+/// thread when there is one (after the forward with one thread), and the
+/// initial map (when `locate_initial`) on whichever thread is free next. A
+/// vertex of the optimum that cannot be located is a SolveError (the
+/// forward's first); of the initial map, it leaves that output empty. The
+/// result does not depend on `threads`.
 HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in, const StageDone& stage_done);
 
 }  // namespace surfmap::detail

@@ -3,6 +3,7 @@
 // map/initial_map.h): the chosen class's "before" map and the default start
 // of its harmonic solve. Internal to src/map/hyperbolic_map.cpp.
 #include <atomic>
+#include <optional>
 #include <vector>
 
 #include "class_data.h"
@@ -17,6 +18,9 @@ struct ClassInitialMap {
   std::vector<hyperbolic::Mobius> halfedge_rho;
   std::vector<Word> halfedge_word;
   HyperbolicInitialMapResult init;
+  /// Its D' (initial_map_distortion) when computed ahead, next to the
+  /// full-resolution solves (issue 19); empty: computed when needed.
+  std::optional<DistortionStats> distortion;
 };
 
 /// The initial map of the class with data `cd` (map/initial_map.h, by
