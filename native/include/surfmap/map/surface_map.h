@@ -1049,10 +1049,11 @@ struct SurfaceMapResult {
     /// the agreement of the two directions did ("" when it did not run):
     /// which pair of inverse classes was kept, by which rule (lower total,
     /// a tie broken by the meshes' order, the other direction's class kept
-    /// by its own run), or why it could not decide. `pair_ratios`: the two
-    /// pairs' totals, E(θ) + E'(θ^-1) and E(ψ^-1) + E'(ψ) over 8 pi (g - 1)
-    /// (θ this run's first class, ψ the other direction's; NaN when not
-    /// solved, infinite when a class could not be solved).
+    /// by its own run), or why it could not decide. `own_pair_ratio` and
+    /// `other_pair_ratio`: the two pairs' totals, E(θ) + E'(θ^-1) and
+    /// E(ψ^-1) + E'(ψ), over 8 pi (g - 1) (θ this run's first class, ψ the
+    /// other direction's; NaN when the step solved nothing, infinite when a
+    /// class of that pair could not be solved).
     std::string agreement;
     double own_pair_ratio = std::numeric_limits<double>::quiet_NaN();
     double other_pair_ratio = std::numeric_limits<double>::quiet_NaN();
