@@ -74,6 +74,7 @@ void register_map(CLI::App& app) {
         homotopy_extra_cuts = defaults.homotopy.extra_cuts,
         homotopy_search_evaluations = defaults.homotopy.search.evaluations;
     double tolerance = defaults.solve.tolerance, own_weights_floor = defaults.solve.own_weights_floor;
+    double agreement_ratio = defaults.homotopy.agreement_ratio;  // HomotopyOptions::agreement_ratio
     bool quiet = false, timings = false, no_homotopy_search = !defaults.homotopy.search.enabled,
          no_two_way = !defaults.homotopy.two_way, compare_directions = defaults.homotopy.compare_directions;
     bool no_cheap_direction_check = !defaults.homotopy.cheap_direction_check;
@@ -161,6 +162,12 @@ void register_map(CLI::App& app) {
   cmd->add_flag("--no-cheap-direction-check", a->no_cheap_direction_check,
                 "Genus >= 2: when the other direction's ratio is not lower, keep this class without solving the other "
                 "direction's class inverted here and this one there (docs/handle_classes.md \"Both directions, cheaply\")");
+  cmd->add_option("--agreement-ratio", a->agreement_ratio,
+                  "Genus >= 2, below the two-way run's ratio 2: from this energy ratio on (default 1.1) map the other "
+                  "direction too and keep the pair of inverse classes of lower total energy, so that both directions "
+                  "agree (report: quality.directions.agreement; about 3x the time; 2 or more: off; "
+                  "docs/handle_classes.md \"Session 23\")")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--no-greedy-pants", a->no_greedy_pants,
                 "Genus >= 2: no classes from the greedy short pants decompositions in the geometric stage "
                 "(docs/handle_classes.md \"Greedy pants classes\")");
@@ -278,6 +285,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.flat_overlay = !a->no_flat_overlay;
     opt.homotopy.compare_directions = a->compare_directions;
     opt.homotopy.cheap_direction_check = !a->no_cheap_direction_check;
+    opt.homotopy.agreement_ratio = a->agreement_ratio;
     opt.threads = a->threads;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     opt.landmarks_may_fold = a->landmarks_may_fold;
@@ -352,7 +360,7 @@ void register_map(CLI::App& app) {
       if (!m.quality_warning.empty()) std::cerr << "surfmap: warning: " << m.quality_warning << "\n";
       if (!m.directions.outcome.empty())
         std::cerr << "surfmap: both directions: " << m.directions.outcome << " (" << m.directions.reason << ")\n";
-      else if (opt.homotopy.compare_directions && !m.directions.reason.empty())
+      else if ((opt.homotopy.compare_directions || !m.directions.agreement.empty()) && !m.directions.reason.empty())
         std::cerr << "surfmap: both directions: " << m.directions.reason << "\n";
       if (!opt.landmarks.empty() && !m.landmark_method.empty())
         std::cerr << "surfmap: " << opt.landmarks.size() << " landmark(s) held by "

@@ -17,6 +17,7 @@ MAP_OPTION_NAMES = (
     "homotopy_search_evaluations", "two_way", "flat_overlay", "cheap_direction_check",
     "compare_directions", "greedy_pants", "homotopy_extra_cuts", "own_weights_floor",
     "local_fold_repair", "fold_untangle", "target_loops", "two_way_ratio", "face_charts",
+    "agreement_ratio",
 )
 
 

@@ -48,6 +48,10 @@ SurfaceMapOptions leg_options(const SurfaceMapOptions& options, bool onto) {
   SurfaceMapOptions o = one_way_options(options);
   (onto ? o.loops.target_base_vertex : o.loops.source_base_vertex) = -1;
   o.homotopy.two_way = options.homotopy.two_way;
+  // Not the agreement below the two-way ratio (session 23): a leg needs its
+  // lowest class, not one its own other direction agrees on, and it would
+  // map each leg's other direction and two single classes more per leg.
+  o.homotopy.agreement_ratio = std::numeric_limits<double>::infinity();
   return o;
 }
 

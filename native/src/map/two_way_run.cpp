@@ -363,6 +363,162 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
   return "directions agreed on this class: " + pairs;
 }
 
+/// A fixed order of two meshes that does not depend on which one is the
+/// source: -1 when `a` comes first, 1 when `b` does, 0 when they are the
+/// same mesh (vertex count, face count, then the coordinates and the faces
+/// in storage order).
+int mesh_order(const TriMesh& a, const TriMesh& b) {
+  if (a.num_vertices() != b.num_vertices()) return a.num_vertices() < b.num_vertices() ? -1 : 1;
+  if (a.num_faces() != b.num_faces()) return a.num_faces() < b.num_faces() ? -1 : 1;
+  const double *va = a.V.data(), *vb = b.V.data();
+  for (Eigen::Index k = 0; k < a.V.size(); ++k)
+    if (va[k] != vb[k]) return va[k] < vb[k] ? -1 : 1;
+  const int *fa = a.F.data(), *fb = b.F.data();
+  for (Eigen::Index k = 0; k < a.F.size(); ++k)
+    if (fa[k] != fb[k]) return fa[k] < fb[k] ? -1 : 1;
+  return 0;
+}
+
+/// A single-class run's energy for the pair totals: infinite when it failed,
+/// did not converge or folds (the same rule for all four classes, so both
+/// directions' runs read the same totals).
+double usable_energy(const SurfaceMapResult& r) {
+  const double e = chosen_energy(r);
+  return r.converged && r.flipped_triangles == 0 && std::isfinite(e) ? e : std::numeric_limits<double>::infinity();
+}
+
+/// Issue 14 below the two-way run (HomotopyOptions::agreement_ratio;
+/// docs/handle_classes.md "Session 23"): `forward` (class θ) is at
+/// agreement_ratio or more but below two_way_ratio. The other direction is
+/// mapped one way (class ψ: the first run of that direction's own run, the
+/// same options); unless θ and ψ are inverse (exact; genus 2 also up to the
+/// hyperelliptic involution), ψ^-1 is solved here alone and θ^-1 there
+/// alone (reverse_class_only), and the pair of inverse classes of lower
+/// total energy, E(θ) + E'(θ^-1) against E(ψ^-1) + E'(ψ), is kept: the same
+/// four solves, so the same figures, from either direction's run. Ties
+/// (within 1e-6) go to the class chosen from the mesh first in mesh_order.
+/// When the other direction is itself below agreement_ratio its own run
+/// keeps ψ, so this run takes ψ^-1 when that maps below two_way_ratio here
+/// even when θ's pair is lower (else it keeps θ and says "different").
+/// Returns the status (directions.agreement; two_way_status adds it).
+std::string agree_below_two_way_ratio(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                      SurfaceMapResult& forward, const MapFunction& map,
+                                      std::vector<std::vector<int>>* target_letters_inverse) {
+  SurfaceMapResult::DirectionCheck& d = forward.directions;
+  const int g = forward.genus;
+  const double bound = 8 * M_PI * (g - 1);
+  SurfaceMapResult reverse;
+  std::string failure;
+  if (!run_map(map, target, source, reverse_options(options), reverse, failure)) {
+    d.reason = "not compared: the other direction failed: " + failure;
+    return "not agreed: the other direction failed: " + failure;
+  }
+  if (target_letters_inverse) *target_letters_inverse = reverse.source_as_target_inverse;
+  const std::string other = "the other direction one way: ratio " + four_digits(reverse.energy_ratio);
+  std::string why;
+  const std::vector<std::vector<int>> psi = reverse_class_here(forward, reverse, why);
+  if (psi.empty() || forward.chosen_class_words.empty()) {
+    if (why.empty()) why = "this run reported no class words";
+    d.reason = "not compared: " + why;
+    return "not agreed (" + other + "): " + why;
+  }
+  const OppositeClasses relation = compare_opposite_classes(psi, forward.chosen_class_words, g);
+  if (relation.inner.inner) {
+    d.outcome = "inverse";
+    d.reason = "the two directions chose inverse classes (the composite is inner; exact, Dehn's algorithm)";
+    return "inverse (" + other + "): nothing solved";
+  }
+  if (relation.up_to_hyperelliptic) {
+    d.outcome = "symmetric: both optimal";
+    d.reason = "inverse up to the hyperelliptic involution (exact), an isometry of every genus-2 surface";
+    return "inverse up to the hyperelliptic involution (" + other + "): nothing solved";
+  }
+  // ψ^-1 here alone and θ^-1 there alone: one class each, no search.
+  auto single = [](SurfaceMapOptions o, std::vector<std::vector<int>> words) {
+    o.homotopy.class_index = -1;
+    o.homotopy.two_way = false;
+    o.homotopy.through_shape = false;
+    o.homotopy.compare_directions = false;
+    o.homotopy.source_images.resize(0, 0);
+    o.homotopy.reverse_class = std::move(words);
+    o.homotopy.reverse_class_only = true;
+    o.landmarks.clear();
+    o.solve_progress = nullptr;
+    return o;
+  };
+  SurfaceMapResult here, there;
+  std::string here_failure, there_failure;
+  const bool here_ok = run_map(map, source, target, single(options, psi), here, here_failure);
+  const std::vector<std::vector<int>> theta_there = reverse_class_here(reverse, forward, why);
+  const bool there_ok = !theta_there.empty() &&
+                        run_map(map, target, source, single(reverse_options(options), theta_there), there, there_failure);
+  if (theta_there.empty()) there_failure = "this class not written in the other direction's letters (" + why + ")";
+  const double inf = std::numeric_limits<double>::infinity();
+  const double own = usable_energy(forward), own_there = usable_energy(reverse);
+  const double alt_here = here_ok ? usable_energy(here) : inf, alt_there = there_ok ? usable_energy(there) : inf;
+  const double own_pair = own + alt_there, other_pair = alt_here + own_there;
+  d.own_pair_ratio = own_pair / bound;
+  d.other_pair_ratio = other_pair / bound;
+  auto ratio_text = [&](double e, bool ok, const std::string& fail) {
+    return ok ? (std::isfinite(e) ? four_digits(e / bound) : std::string("not usable (not converged or folded)"))
+              : "not solved (" + fail + ")";
+  };
+  const std::string figures = other + "; this class " + four_digits(own / bound) + " here, inverted there " +
+                              ratio_text(alt_there, there_ok, there_failure) + "; the other direction's class " +
+                              four_digits(own_there / bound) + " there, inverted here " +
+                              ratio_text(alt_here, here_ok, here_failure) + "; pair totals " +
+                              four_digits(own_pair / bound) + " (this class) and " + four_digits(other_pair / bound) +
+                              " (the other direction's)";
+  if (!std::isfinite(own_pair) && !std::isfinite(other_pair)) {
+    d.outcome = "different";
+    d.reason = "each direction keeps its own class: neither pair of inverse classes could be solved (" + figures + ")";
+    return "not agreed: neither pair solved (" + figures + ")";
+  }
+  // Which pair: the lower total; a tie to the class chosen from the mesh that comes first.
+  std::string rule;
+  bool other_pair_kept;
+  if (std::abs(own_pair - other_pair) <= 1e-6 * std::max(own_pair, other_pair)) {
+    const int order = mesh_order(source, target);
+    other_pair_kept = order > 0;
+    rule = std::string("a tie (within 1e-6), broken by the meshes' order: the class chosen from the ") +
+           (order < 0 ? "source, which comes first" : order > 0 ? "target, which comes first" : "same mesh (this one)");
+  } else {
+    other_pair_kept = other_pair < own_pair;
+    rule = "the pair of lower total energy";
+  }
+  // The other direction's own run below agreement_ratio does not run this step: it keeps ψ.
+  const bool other_keeps_its_own = reverse.energy_ratio < options.homotopy.agreement_ratio;
+  const bool adopt_anyway = !other_pair_kept && other_keeps_its_own && std::isfinite(alt_here) &&
+                            alt_here / bound < options.homotopy.two_way_ratio;
+  if (other_pair_kept || adopt_anyway) {
+    if (adopt_anyway)
+      rule = "the other direction is below the agreement ratio " + four_digits(options.homotopy.agreement_ratio) +
+             ", so its own run keeps its class; its inverse maps here below " +
+             four_digits(options.homotopy.two_way_ratio) + " (this pair's total is lower: " + rule + ")";
+    const std::string kept_reason = here.directions.reason;
+    const double own_ratio = d.own_pair_ratio, other_ratio = d.other_pair_ratio;
+    forward = std::move(here);
+    SurfaceMapResult::DirectionCheck& a = forward.directions;
+    a.outcome = "inverse";
+    a.reason = "inverse by agreement: kept the other direction's class inverted (" + rule + "; " + figures + ")" +
+               (kept_reason.empty() ? std::string() : "; " + kept_reason);
+    a.own_pair_ratio = own_ratio;
+    a.other_pair_ratio = other_ratio;
+    return "the other direction's class inverted (" + rule + "; " + figures + ")";
+  }
+  if (other_keeps_its_own) {
+    d.outcome = "different";
+    d.reason = "each direction keeps its own class: the other direction is below the agreement ratio " +
+               four_digits(options.homotopy.agreement_ratio) + " (its own run keeps its class), and its class " +
+               "inverted here is " + ratio_text(alt_here, here_ok, here_failure) + ", not below " +
+               four_digits(options.homotopy.two_way_ratio) + " (" + figures + ")";
+    return "not agreed: kept this class (" + figures + ")";
+  }
+  d.outcome = "inverse";
+  d.reason = "inverse by agreement: kept this class (" + rule + "; " + figures + ")";
+  return "this class (" + rule + "; " + figures + ")";
+}
+
 }  // namespace
 
 std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward, const SurfaceMapResult& reverse,
@@ -540,6 +696,19 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
     forward.reverse_inverse_reason = "not compared: the two-way run did not run (energy ratio below " +
                                      four_digits(options.homotopy.two_way_ratio) + ")";
     forward.directions.reason = forward.reverse_inverse_reason;
+    // Issue 14: between agreement_ratio and two_way_ratio, both directions agree on one pair.
+    if (!(forward.energy_ratio >= options.homotopy.agreement_ratio)) return;
+    if (!options.landmarks.empty()) {
+      forward.directions.agreement = "not run: landmarks given (they choose the class)";
+      return;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::string agreement = agree_below_two_way_ratio(source, target, options, forward, map, target_letters_inverse);
+    forward.directions.agreement = agreement;
+    forward.two_way_status = "not run: energy ratio below " + four_digits(options.homotopy.two_way_ratio) +
+                             "; both directions agree (ratio " + four_digits(options.homotopy.agreement_ratio) +
+                             " or more): " + agreement;
+    forward.two_way_time_s = seconds_since(t0);
     return;
   }
   const auto t0 = std::chrono::steady_clock::now();

@@ -45,8 +45,12 @@ void qualify_quality_warning(SurfaceMapResult& result);
 /// class inverted when that pair is lower). When the other direction's
 /// ratio is not lower (HomotopyOptions::cheap_direction_check), its class
 /// inverted is solved here alone and this class inverted there alone, with
-/// the same rules ("Both directions, cheaply"). Nothing for a requested
-/// class.
+/// the same rules ("Both directions, cheaply"). Below two_way_ratio, at
+/// HomotopyOptions::agreement_ratio or more, the other direction is mapped
+/// one way and the pair of inverse classes of lower total energy is kept
+/// (ties by a fixed order of the two meshes; directions.agreement says
+/// what was done; docs/handle_classes.md "Session 23"). Nothing for a
+/// requested class.
 /// `target_letters_inverse` (when given): the other direction's
 /// source_as_target_inverse (the target's letters as a target -> its
 /// letters as a source, 2g words) when that direction was mapped, for the

@@ -923,6 +923,45 @@ def test_cli_option_keywords_are_checked_and_reach_the_map():
     assert "long_starts" in r["homotopy"]["ranking"] and "status" in r["source_subdivision"]
 
 
+def test_agreement_ratio_keyword_and_flag_reach_the_map(cli, tmp_path):
+    # Issue 14 below the two-way run (docs/handle_classes.md "Session 23"): the generated
+    # genus-3 CAD plate -> n-hole torus maps at about 1.2 x the conformal bound, between
+    # agreement_ratio (default 1.1) and two_way_ratio (2), so by default the other direction
+    # is mapped too and quality.directions.agreement says what was done (here the two
+    # directions' classes are already inverse: nothing else solved, the map unchanged);
+    # agreement_ratio=2 (CLI --agreement-ratio 2) turns it off; a negative ratio is refused.
+    a = surfmap.shapes.cad_plate(3)
+    b = surfmap.shapes.n_hole_torus(3, 26, True)
+    on = surfmap.surface_map(*a, *b)
+    off = surfmap.surface_map(*a, *b, agreement_ratio=2.0)
+    assert 1.1 <= off["quality"]["energy_ratio"] < 2, off["quality"]["energy_ratio"]
+    d_on, d_off = on["quality"]["directions"], off["quality"]["directions"]
+    assert d_off["agreement"] == "" and off["quality"]["two_way_status"] == "not run: energy ratio below 2"
+    assert d_on["agreement"] != "", on["quality"]["two_way_status"]
+    assert "both directions agree" in on["quality"]["two_way_status"]
+    assert d_on["outcome"] in ("inverse", "symmetric: both optimal"), d_on
+    if d_on["agreement"].startswith(("inverse", "inverse up to")):
+        # Nothing solved: the first run's map and class are returned.
+        assert on["quality"]["energy_ratio"] == off["quality"]["energy_ratio"]
+        assert d_on["chosen_class_words"] == d_off["chosen_class_words"]
+    with pytest.raises(surfmap.InputError, match="agreement_ratio"):
+        surfmap.surface_map(*a, *b, agreement_ratio=-1.0)
+    assert "agreement_ratio" in surfmap.CAPABILITIES
+    from surfmap import mapcall
+    assert "agreement_ratio" in mapcall.MAP_OPTION_NAMES
+    # The CLI flag reaches the same option.
+    surfmap.write_obj(str(tmp_path / "a.obj"), *a)
+    surfmap.write_obj(str(tmp_path / "b.obj"), *b)
+    p = cli("map", tmp_path / "a.obj", tmp_path / "b.obj", "--out", tmp_path / "o.obj", "--report",
+            tmp_path / "r.json", "--quiet", "--agreement-ratio", "2")
+    assert p.returncode == 0, p.stderr
+    q = json.loads((tmp_path / "r.json").read_text())["quality"]
+    assert q["directions"]["agreement"] == "" and q["two_way_status"] == "not run: energy ratio below 2"
+    bad = cli("map", tmp_path / "a.obj", tmp_path / "b.obj", "--out", tmp_path / "o.obj", "--report",
+              tmp_path / "r.json", "--quiet", "--agreement-ratio", "-1")
+    assert bad.returncode != 0 and "agreement-ratio" in bad.stderr, bad.stderr
+
+
 def test_cheap_direction_check_keyword_changes_the_two_way_verdict():
     # Issue 14 (docs/handle_classes.md "Both directions, cheaply"), as
     # SurfaceMapHandles.ReverseClassOnlySolvesTheOtherDirectionsClassAlone: with the two-way

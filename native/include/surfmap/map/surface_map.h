@@ -261,6 +261,20 @@ struct HomotopyOptions {
   /// ratio. Default true.
   bool two_way = true;
   double two_way_ratio = 2.0;
+  /// With two_way, below two_way_ratio (issue 14; docs/handle_classes.md
+  /// "Session 23"): when the chosen class's energy is at least
+  /// `agreement_ratio` (default 1.1) x 8 pi (g - 1), the other direction is
+  /// mapped too (one way), and unless its class ψ is this class θ inverted
+  /// (or, genus 2, inverted up to the hyperelliptic involution), θ^-1 is
+  /// solved there alone and ψ^-1 here alone; the pair of inverse classes of
+  /// lower total energy, E(θ) + E'(θ^-1) against E(ψ^-1) + E'(ψ), is kept
+  /// (this map becomes the ψ^-1 map when that pair is lower; a tie goes to
+  /// the class chosen from the mesh that comes first in a fixed order of
+  /// the two meshes, whichever is the source), so that separate runs of the
+  /// two directions end on inverse classes. SurfaceMapResult::directions
+  /// `agreement` says what was done. About 3x the time for such pairs;
+  /// nothing below the ratio. agreement_ratio >= two_way_ratio turns it off.
+  double agreement_ratio = 1.1;
   /// With two_way, when the other direction's ratio is not lower (issue 14;
   /// docs/handle_classes.md "Both directions, cheaply"): its class inverted
   /// is solved here alone and adopted when lower; else this class inverted
@@ -1031,6 +1045,18 @@ struct SurfaceMapResult {
     double length_tolerance = 0.02;
     /// The difference mapping class (source canonical letter -> word) as text.
     std::string difference;
+    /// Below HomotopyOptions::two_way_ratio, at agreement_ratio or more: what
+    /// the agreement of the two directions did ("" when it did not run):
+    /// which pair of inverse classes was kept, by which rule (lower total,
+    /// a tie broken by the meshes' order, the other direction's class kept
+    /// by its own run), or why it could not decide. `own_pair_ratio` and
+    /// `other_pair_ratio`: the two pairs' totals, E(θ) + E'(θ^-1) and
+    /// E(ψ^-1) + E'(ψ), over 8 pi (g - 1) (θ this run's first class, ψ the
+    /// other direction's; NaN when the step solved nothing, infinite when a
+    /// class of that pair could not be solved).
+    std::string agreement;
+    double own_pair_ratio = std::numeric_limits<double>::quiet_NaN();
+    double other_pair_ratio = std::numeric_limits<double>::quiet_NaN();
   } directions;
   /// Genus >= 2 (HomotopyOptions::two_way): what the two-way run did ("not
   /// run: ..."; the other direction's energy ratio; whether the carried
