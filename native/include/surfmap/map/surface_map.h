@@ -433,13 +433,16 @@ struct LoopOptions {
   /// Genus >= 2: both surfaces' canonical generators from the cut-and-paste
   /// moves that conjugate only each new pair (CanonicalSchemaOptions::
   /// short_generators), not the classical ones whose conjugators pile up
-  /// handle by handle (default false; CLI --short-canonical-generators;
-  /// report `canonical_generators`). Issue 13: on the raw genus-12 wheel
-  /// the classical generators are up to 253 loop letters with matrices of
-  /// |a| = 4e100 and their canonical relator multiplies out to 1e1805; the
-  /// short ones are up to 60 letters (|a| 8e11), translation lengths near
-  /// the systole's (docs/robustness.md "Session 21").
-  bool short_canonical_generators = false;
+  /// handle by handle (default true since session 23; false: CLI
+  /// --classical-canonical-generators; report `canonical_generators`).
+  /// Issue 13: on the raw genus-12 wheel the classical generators are up to
+  /// 253 loop letters with matrices of |a| = 4e100 and their canonical
+  /// relator multiplies out to 1e1805; the short ones are up to 60 letters
+  /// (|a| 8e11), translation lengths near the systole's (docs/robustness.md
+  /// "Session 21"). The candidate classes are listed in both bases either
+  /// way (src/map/stages/other_basis.h; docs/robustness.md "Session 23"),
+  /// so the classes found do not depend on this choice.
+  bool short_canonical_generators = true;
 };
 
 /// When the genus >= 2 map runs in per-face charts of the target

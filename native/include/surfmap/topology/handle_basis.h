@@ -163,6 +163,10 @@ struct HandleCandidate {
   /// A map's class given as words (HomotopyOptions::given_class): its index
   /// there, 0-based; -1 for every other class.
   int given_class = -1;
+  /// Genus >= 2 map (src/map/stages/other_basis.h): a class listed in the
+  /// other canonical basis only, not in the run's: `map` written in that
+  /// basis (its class search runs there). Empty otherwise.
+  GroupMap other_basis_map;
 };
 
 /// The signed handle permutation that a map with the given homology matrix
