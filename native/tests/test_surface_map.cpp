@@ -1919,10 +1919,13 @@ TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) 
 // searched by that basis's twists, so the basis the run presents the groups
 // in (LoopOptions::short_canonical_generators) does not change the class
 // chosen. On this pair each basis alone (the behaviour before, kept by the
-// testing hook one_canonical_basis) chooses a different class.
+// testing hook one_canonical_basis) chooses a different class: main's
+// code before session 23 gave 73.19 in the classical basis and 64.86 in the
+// short one (the overlay class's twist search found a better neighbour by
+// the short basis's twists only).
 TEST(SurfaceMapHandles, TheChosenClassDoesNotDependOnTheCanonicalBasis) {
-  const TriMesh a = PAIR_A;
-  const TriMesh b = PAIR_B;
+  const TriMesh a = samples::polycube(3, 30, true);
+  const TriMesh b = samples::cad_plate(3, 32, 1.5);
   std::vector<SurfaceMapResult> both, alone;
   for (const bool brief : {false, true}) {
     SurfaceMapOptions o;
@@ -1949,7 +1952,7 @@ TEST(SurfaceMapHandles, TheChosenClassDoesNotDependOnTheCanonicalBasis) {
   for (int v = 0; v < a.num_vertices(); ++v)
     worst = std::max(worst, (both[0].forward[v].position - both[1].forward[v].position).norm());
   EXPECT_LT(worst, 1e-3 * diagonal);
-  // Each basis alone lists a subset: never a lower energy; and here the two
+  // On this pair neither basis alone finds a lower class, and the two
   // disagree, so the pair tells the union from either basis alone.
   for (int k = 0; k < 2; ++k) EXPECT_GE(alone[k].final_energy, both[k].final_energy * (1 - 1e-6)) << k;
   EXPECT_GT(std::abs(alone[0].final_energy - alone[1].final_energy), 1e-3 * both[0].final_energy);

@@ -647,6 +647,9 @@ void HyperbolicPipeline::add_snapped_class() {
   std::string handles;
   handle_correspondence_of(ss.shb, candidates.target_basis, hc.homology, &hc.permutation, &hc.sign, &handles);
   hc.description = handles + "  [" + tag + "]";
+  // (The same class in either basis: searched in the short one,
+  // stages/other_basis.h.)
+  if (other_basis && other_basis->name() == "short") hc.other_basis_map = other_basis->from_run(theta);
   candidates.classes.push_back(std::move(hc));
   out.snapped_class = static_cast<int>(candidates.classes.size()) - 1;
   note("listed as class " + std::to_string(out.snapped_class) + " (" + counts + ")");
@@ -1151,7 +1154,8 @@ void HyperbolicPipeline::twist_search_from(int start, const std::vector<std::str
                                            const SurfaceMapOptions* opts) {
   const SurfaceMapOptions& o = opts ? *opts : options;
   info.starts.push_back(start);
-  // A class listed in the other canonical basis only (stages/other_basis.h)
+  // A class with a map in the other canonical basis (stages/other_basis.h:
+  // listed there only, or listed in both when the other is the short one)
   // is searched there, by the twists of that basis's generators, so that
   // the search does not depend on which basis the run uses; each class is
   // solved in the run's.

@@ -171,15 +171,22 @@ std::vector<HomotopyClass> CutLifter::lift(const std::vector<int>& cut_bases) {
         GroupMap theta = compose(space_.through_loop_images(cp.generators, proj.loop_images), cp.psi);
         space_.reduce(theta);
         if (space_.is_isomorphism(theta) && space_.loop_image_length(theta) <= space_.max_image_letters() &&
-            is_new(space_.fingerprint(theta)))
+            is_new(space_.fingerprint(theta))) {
           overlaid.push_back(described(theta, n, shb_, thb_,
                                        "as the shapes overlap: the loops at source vertex " + std::to_string(base) +
                                            " carried to the nearest points" + (proj.ok ? "" : ", jumps joined")));
+          // (The overlay is the same class in either basis: searched in the
+          // short one, stages/other_basis.h.)
+          if (other_ && other_->name() == "short") overlaid.back().other_basis_map = other_->from_run(theta);
+        }
       }
     }
-    // In the run's canonical basis, then (stages/other_basis.h) in the
-    // other one, written in the run's: the lifts depend on the basis.
-    for (const bool in_other : {false, true}) {
+    // In both canonical bases (stages/other_basis.h), the short one first:
+    // the lifts depend on the basis, and a class lifted in both is kept as
+    // the short basis's (its twist search runs there, whichever basis the
+    // run uses).
+    const bool other_first = other_ && other_->name() == "short";
+    for (const bool in_other : {other_first, !other_first}) {
       if (in_other && (!other_ || !cp.other_ok)) continue;
       const ClassSpace& sp = in_other ? other_->space() : space_;
       for (HomotopyClass hc :
@@ -458,9 +465,15 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
       space.reduce(c.theta);
       if (!space.is_isomorphism(c.theta) || space.loop_image_length(c.theta) > space.max_image_letters()) continue;
       const std::vector<double> fp = space.fingerprint(c.theta);
-      if (std::any_of(known.begin(), known.end(),
-                      [&](const std::vector<double>& k) { return ClassSpace::same_fingerprint(k, fp); }))
+      const auto same = std::find_if(known.begin(), known.end(),
+                                     [&](const std::vector<double>& k) { return ClassSpace::same_fingerprint(k, fp); });
+      if (same != known.end()) {
+        // Listed in both: searched in the short basis whichever the run's
+        // (class_search.h; the twists depend on the basis).
+        HomotopyClass& both = classes[same - known.begin()];
+        if (other->name() == "short" && both.other_basis_map.empty()) both.other_basis_map = c.theta_other;
         continue;
+      }
       known.push_back(fp);
       HomotopyClass hc;
       hc.other_basis_map = std::move(c.theta_other);
@@ -491,6 +504,7 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
     if (carried_loops_class(space, source, sl, projector, options.homotopy.source_images, &theta, &out.carried_status)) {
       out.carried_class = static_cast<int>(classes.size());
       classes.push_back(described(theta, n, shb, thb, "the source's loops carried by the target -> source map"));
+      if (other && other->name() == "short") classes.back().other_basis_map = other->from_run(theta);
     }
   }
   // Source 6 (issue 14; docs/handle_classes.md "Both directions"): the
@@ -510,6 +524,7 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
       } else {
         out.inverted_class = static_cast<int>(classes.size());
         classes.push_back(described(inv.inverse, n, shb, thb, "the other direction's class, inverted algebraically"));
+        if (other && other->name() == "short") classes.back().other_basis_map = other->from_run(inv.inverse);
       }
     }
   }
