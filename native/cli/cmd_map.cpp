@@ -82,8 +82,8 @@ void register_map(CLI::App& app) {
     bool no_fold_untangle = !defaults.solve.fold_untangle;  // SolveOptions::fold_untangle
     bool no_greedy_pants = !defaults.homotopy.search.greedy_pants;  // HomotopySearchOptions::greedy_pants
     bool no_snapped_start = !defaults.homotopy.search.snapped_start;  // HomotopySearchOptions::snapped_start
-    bool short_canonical_generators = false;  // (the default since session 23; still accepted)
-    bool classical_canonical_generators = !defaults.loops.short_canonical_generators;  // LoopOptions
+    bool short_canonical_generators = false;      // LoopOptions::short_canonical_generators = true
+    bool classical_canonical_generators = false;  // LoopOptions::short_canonical_generators = false
     bool homotopy_both_signs = defaults.homotopy.flat_both_signs;    // HomotopyOptions::flat_both_signs
     bool no_flat_overlay = !defaults.homotopy.flat_overlay;          // HomotopyOptions::flat_overlay off
     bool landmarks_may_fold = defaults.landmarks_may_fold;          // SurfaceMapOptions::landmarks_may_fold
@@ -258,7 +258,9 @@ void register_map(CLI::App& app) {
     opt.loops.target_base_vertex = a->target_base_vertex;
     if (a->short_canonical_generators && a->classical_canonical_generators)
       throw InputError("--short-canonical-generators and --classical-canonical-generators exclude each other");
-    opt.loops.short_canonical_generators = !a->classical_canonical_generators;
+    opt.loops.short_canonical_generators = a->classical_canonical_generators ? false
+                                           : a->short_canonical_generators   ? true
+                                                                             : SurfaceMapOptions().loops.short_canonical_generators;
     opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
     opt.solve.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
     opt.solve.tolerance = a->tolerance;
