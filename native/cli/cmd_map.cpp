@@ -83,7 +83,8 @@ void register_map(CLI::App& app) {
     bool no_fold_untangle = !defaults.solve.fold_untangle;  // SolveOptions::fold_untangle
     bool no_greedy_pants = !defaults.homotopy.search.greedy_pants;  // HomotopySearchOptions::greedy_pants
     bool no_snapped_start = !defaults.homotopy.search.snapped_start;  // HomotopySearchOptions::snapped_start
-    bool short_canonical_generators = defaults.loops.short_canonical_generators;  // LoopOptions
+    bool short_canonical_generators = false;      // LoopOptions::short_canonical_generators = true
+    bool classical_canonical_generators = false;  // LoopOptions::short_canonical_generators = false
     bool homotopy_both_signs = defaults.homotopy.flat_both_signs;    // HomotopyOptions::flat_both_signs
     bool no_flat_overlay = !defaults.homotopy.flat_overlay;          // HomotopyOptions::flat_overlay off
     bool landmarks_may_fold = defaults.landmarks_may_fold;          // SurfaceMapOptions::landmarks_may_fold
@@ -174,9 +175,13 @@ void register_map(CLI::App& app) {
   cmd->add_flag("--no-snapped-start", a->no_snapped_start,
                 "Genus >= 2, sources without a coarse copy: every class from the origin, never from the snapped 3D "
                 "overlay (docs/robustness.md \"High genus\")");
+  cmd->add_flag("--classical-canonical-generators", a->classical_canonical_generators,
+                "Genus >= 2: the classical canonical generators (cut-and-paste moves that conjugate the finished pairs; "
+                "the default, accepted to say so)");
   cmd->add_flag("--short-canonical-generators", a->short_canonical_generators,
-                "Genus >= 2: canonical generators from cut-and-paste moves that conjugate only the new pair, so none "
-                "is a far conjugate (docs/robustness.md \"Session 21\"; report: canonical_generators)");
+                "Genus >= 2: canonical generators from cut-and-paste moves that conjugate only the new pair, not the default "
+                "classical ones; the candidate classes are listed in both bases either way (docs/robustness.md "
+                "\"Session 23\"; report: canonical_generators)");
   cmd->add_flag("--landmarks-may-fold", a->landmarks_may_fold,
                 "Genus >= 1 with --landmarks: hold them by plain pins and keep the map where it folds (for its homotopy "
                 "class; flipped_triangles counts the folds) instead of an error when they cannot be held bijectively");
@@ -259,7 +264,11 @@ void register_map(CLI::App& app) {
     opt.homotopy.class_index = a->homotopy;
     opt.loops.source_base_vertex = a->base_vertex;
     opt.loops.target_base_vertex = a->target_base_vertex;
-    opt.loops.short_canonical_generators = a->short_canonical_generators;
+    if (a->short_canonical_generators && a->classical_canonical_generators)
+      throw InputError("--short-canonical-generators and --classical-canonical-generators exclude each other");
+    opt.loops.short_canonical_generators = a->classical_canonical_generators ? false
+                                           : a->short_canonical_generators   ? true
+                                                                             : SurfaceMapOptions().loops.short_canonical_generators;
     opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
     opt.solve.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
     opt.solve.tolerance = a->tolerance;

@@ -27,6 +27,7 @@
 #include "stages/coarse_race.h"
 #include "stages/harmonic_solve.h"
 #include "stages/homotopy_classes.h"
+#include "stages/other_basis.h"
 #include "stages/hyperbolic_location.h"
 #include "stages/fold_repair.h"
 #include "stages/hyperbolic_quality.h"
@@ -107,6 +108,12 @@ class HyperbolicPipeline {
 
   void start_source_side();
   void uniformize_target();
+  /// The source's default canonical generators in the other basis
+  /// (stages/other_basis.h), none with hooks.one_canonical_basis.
+  std::vector<Word> other_default_generators(const SourceSide& side) const {
+    if (hooks.one_canonical_basis) return {};
+    return canonical_schema(side.sl.word, other_schema_options(options)).generators;
+  }
   void start_class_bounds();
   void candidate_classes_and_data();
   void rank_on_coarse_copy();
@@ -155,6 +162,7 @@ class HyperbolicPipeline {
   // estimate's solve, the full-resolution solve, the landmark holds.
   std::unique_ptr<ClassSpace> space;
   std::unique_ptr<LoopProjector> projector;
+  std::unique_ptr<OtherBasis> other_basis;  ///< the other canonical basis (stages/other_basis.h)
   CandidateClasses candidates;
   SolverEdgeIndex solver_index;
   std::vector<ClassData> data;  ///< per class; released ones (data_released) are empty until data_for
@@ -359,7 +367,7 @@ void HyperbolicPipeline::start_source_side() {
     std::vector<WeightedEdge> pattern;
     try {
       SourceSide side = build_source_side(source, sc, options, own_weights, cuts.graph());
-      cuts.set_default(side.sl.loops, side.scs.generators);
+      cuts.set_default(side.sl.loops, side.scs.generators, other_default_generators(side));
       SolverEdgeIndex index;
       index_solver_edges(sc, side.idt, index);
       pattern = solver_edge_pattern(sc, side.idt, index);
@@ -431,7 +439,7 @@ void HyperbolicPipeline::uniformize_target() {
     ss = source_future.get();
   } else {
     ss = build_source_side(source, sc, options, own_weights, cuts.graph());
-    cuts.set_default(ss.sl.loops, ss.scs.generators);
+    cuts.set_default(ss.sl.loops, ss.scs.generators, other_default_generators(ss));
   }
 }
 
@@ -534,8 +542,15 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   space = std::make_unique<ClassSpace>(out.genus, ss.sl, ss.scs, tcs, ut->layout, *deck_group);
   const ClassLoops* cl = ut->class_loops.get();
   projector = std::make_unique<LoopProjector>(cl ? cl->loops : ut->loops, cl ? cl->word : ut->layout.word);
+  // Issue 13/14 (docs/robustness.md "Session 23"): the classes of the
+  // other canonical basis too (stages/other_basis.h).
+  if (!hooks.one_canonical_basis) {
+    other_basis = std::make_unique<OtherBasis>(out.genus, ss.sl, ss.scs, tcs, cl ? cl->schema : tcs,
+                                               cl ? cl->word : ut->layout.word, ut->layout, *deck_group,
+                                               other_schema_options(options));
+  }
   candidates = candidate_classes(*space, source, ss.sl, ss.shb, cl ? cl->loops : ut->loops, cl ? cl->schema : tcs,
-                                 *projector, options, cuts);
+                                 *projector, options, cuts, other_basis.get());
   if (options.homotopy.extra_cuts > 0 && !ss.cs.ok) cuts.stop = true;  // no coarse copy: no class search, no more cuts needed
   if (!ss.cs.ok && options.homotopy.search.snapped_start) add_snapped_class();
   // The two-way run's class (issue 14): listed as one from the other direction.
@@ -651,6 +666,9 @@ void HyperbolicPipeline::add_snapped_class() {
   std::string handles;
   handle_correspondence_of(ss.shb, candidates.target_basis, hc.homology, &hc.permutation, &hc.sign, &handles);
   hc.description = handles + "  [" + tag + "]";
+  // (The same class in either basis: searched in the short one,
+  // stages/other_basis.h.)
+  if (other_basis && other_basis->name() == "short") hc.other_basis_map = other_basis->from_run(theta);
   candidates.classes.push_back(std::move(hc));
   out.snapped_class = static_cast<int>(candidates.classes.size()) - 1;
   note("listed as class " + std::to_string(out.snapped_class) + " (" + counts + ")");
@@ -1155,15 +1173,38 @@ void HyperbolicPipeline::twist_search_from(int start, const std::vector<std::str
                                            const SurfaceMapOptions* opts) {
   const SurfaceMapOptions& o = opts ? *opts : options;
   info.starts.push_back(start);
-  std::optional<CoarseEvaluation> found =
-      twist_class_search(candidates.classes[start].map, start, out.candidates[start].energy, *space, solve, start_twists, o,
-                         info);
+  // A class with a map in the other canonical basis (stages/other_basis.h:
+  // listed there only, or listed in both when the other is the short one)
+  // is searched there, by the twists of that basis's generators, so that
+  // the search does not depend on which basis the run uses; each class is
+  // solved in the run's.
+  const HomotopyClass& from = candidates.classes[start];
+  std::optional<CoarseEvaluation> found;
+  if (other_basis && !from.other_basis_map.empty()) {
+    const CoarseSolve in_other = [&](const GroupMap& theta_other, CoarseEvaluation* ev) {
+      GroupMap theta = other_basis->to_run(theta_other);
+      space->reduce(theta);
+      const bool ok = solve(theta, ev);
+      ev->theta = theta_other;  // (the search compares its own words)
+      return ok;
+    };
+    found = twist_class_search(from.other_basis_map, start, out.candidates[start].energy, other_basis->space(), in_other,
+                               start_twists, o, info);
+    if (found) {
+      found->theta = other_basis->to_run(found->theta);
+      space->reduce(found->theta);
+    }
+  } else {
+    found = twist_class_search(from.map, start, out.candidates[start].energy, *space, solve, start_twists, o, info);
+  }
   std::optional<FoundSearchClass> f = found_search_class(found, start, start_twists, info.moves);
   if (!f) return;
   f->hc.homology = homology_matrix(found->theta, space->num_letters());
   std::string handles;
   handle_correspondence_of(ss.shb, candidates.target_basis, f->hc.homology, &f->hc.permutation, &f->hc.sign, &handles);
   f->hc.description = handles + "  " + f->hc.description;
+  if (other_basis && !candidates.classes[start].other_basis_map.empty())
+    f->hc.description += "  [twists of the " + other_basis->name() + " canonical basis]";
   info.found_candidate = append_class(std::move(f->hc), std::move(f->data), *found);
 }
 

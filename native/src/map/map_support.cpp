@@ -99,6 +99,12 @@ CanonicalSchemaOptions schema_options(const SurfaceMapOptions& options) {
   return o;
 }
 
+CanonicalSchemaOptions other_schema_options(const SurfaceMapOptions& options) {
+  CanonicalSchemaOptions o = schema_options(options);
+  o.short_generators = !o.short_generators;
+  return o;
+}
+
 ClassLoops own_class_loops(const TriMesh& mesh, const Connectivity& conn, const SystemOfLoopsOptions& lo,
                            const SystemOfLoops* own_loops, const CanonicalSchemaOptions& schema) {
   ClassLoops cl;

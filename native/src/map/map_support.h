@@ -104,6 +104,10 @@ ClassLoops own_class_loops(const TriMesh& mesh, const Connectivity& conn, const 
 /// of the pipeline (both surfaces' loops, the source's other cuts, the
 /// uniformized source of the class bounds).
 CanonicalSchemaOptions schema_options(const SurfaceMapOptions& options);
+/// The other canonical basis's options (classical when the run's are short,
+/// and the other way round): the candidates are listed in both
+/// (stages/other_basis.h, docs/robustness.md "Session 23").
+CanonicalSchemaOptions other_schema_options(const SurfaceMapOptions& options);
 
 /// The target laid out in its uniformization metric: system of loops (refined,
 /// as the layout needs simple loops), Ricci flow, disk layout, with the metric

@@ -447,12 +447,19 @@ struct LoopOptions {
   /// Genus >= 2: both surfaces' canonical generators from the cut-and-paste
   /// moves that conjugate only each new pair (CanonicalSchemaOptions::
   /// short_generators), not the classical ones whose conjugators pile up
-  /// handle by handle (default false; CLI --short-canonical-generators;
-  /// report `canonical_generators`). Issue 13: on the raw genus-12 wheel
-  /// the classical generators are up to 253 loop letters with matrices of
-  /// |a| = 4e100 and their canonical relator multiplies out to 1e1805; the
-  /// short ones are up to 60 letters (|a| 8e11), translation lengths near
-  /// the systole's (docs/robustness.md "Session 21").
+  /// handle by handle (default false: on fertility -> CAD plate g4 the
+  /// short basis ends at 2.964 x, just under the 3 x of the through-shape
+  /// step, where the classical one goes on to 2.129 x; docs/robustness.md
+  /// "Session 23"; true: CLI --short-canonical-generators; report
+  /// `canonical_generators`).
+  /// Issue 13: on the raw genus-12 wheel the classical generators are up to
+  /// 253 loop letters with matrices of |a| = 4e100 and their canonical
+  /// relator multiplies out to 1e1805; the short ones are up to 60 letters
+  /// (|a| 8e11), translation lengths near the systole's (docs/robustness.md
+  /// "Session 21"). The candidate classes are listed in both bases either
+  /// way (src/map/stages/other_basis.h; docs/robustness.md "Session 23"),
+  /// so the candidate list does not depend on this choice (the geometric
+  /// classes still do).
   bool short_canonical_generators = false;
 };
 

@@ -163,6 +163,12 @@ struct HandleCandidate {
   /// A map's class given as words (HomotopyOptions::given_class): its index
   /// there, 0-based; -1 for every other class.
   int given_class = -1;
+  /// Genus >= 2 map (src/map/stages/other_basis.h): `map` written in the
+  /// other canonical basis than the run's, when its class search runs there
+  /// (listed in the other basis only; or, in a classical run, listed in
+  /// both bases or the same in either, searched in the short one). Empty
+  /// otherwise.
+  GroupMap other_basis_map;
 };
 
 /// The signed handle permutation that a map with the given homology matrix

@@ -1,5 +1,7 @@
 #include "homotopy_classes.h"
 
+#include "other_basis.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -117,8 +119,10 @@ HomotopyClass described(const GroupMap& theta, int n, const HandleBasis& shb, co
 
 CutLifter::CutLifter(const ClassSpace& space, const TriMesh& source, int default_base, const HandleBasis& shb,
                      const HandleBasis& thb, const LoopProjector& projector, bool strict_overlay,
-                     const SurfaceMapOptions& options, SourceCuts& cuts, const std::vector<HomotopyClass>& classes)
-    : space_(space), source_(source), shb_(shb), thb_(thb), projector_(projector), strict_overlay_(strict_overlay),
+                     const SurfaceMapOptions& options, SourceCuts& cuts, const std::vector<HomotopyClass>& classes,
+                     const OtherBasis* other, const HandleBasis* thb_other)
+    : space_(space), source_(source), shb_(shb), thb_(thb), other_(thb_other ? other : nullptr),
+      thb_other_(thb_other ? *thb_other : HandleBasis{}), projector_(projector), strict_overlay_(strict_overlay),
       options_(options), cuts_(cuts), bases_used_{default_base} {
   size_t longest = 0;  // total word length of the longest lifted class from the default cut
   for (const HomotopyClass& hc : classes) {
@@ -167,24 +171,44 @@ std::vector<HomotopyClass> CutLifter::lift(const std::vector<int>& cut_bases) {
         GroupMap theta = compose(space_.through_loop_images(cp.generators, proj.loop_images), cp.psi);
         space_.reduce(theta);
         if (space_.is_isomorphism(theta) && space_.loop_image_length(theta) <= space_.max_image_letters() &&
-            is_new(space_.fingerprint(theta)))
+            is_new(space_.fingerprint(theta))) {
           overlaid.push_back(described(theta, n, shb_, thb_,
                                        "as the shapes overlap: the loops at source vertex " + std::to_string(base) +
                                            " carried to the nearest points" + (proj.ok ? "" : ", jumps joined")));
+          // (The overlay is the same class in either basis: searched in the
+          // short one, stages/other_basis.h.)
+          if (other_ && other_->name() == "short") overlaid.back().other_basis_map = other_->from_run(theta);
+        }
       }
     }
-    for (HomotopyClass hc : handle_candidates(cp.shb, thb_, options_.homotopy.candidates)) {
-      if (total_letters(hc.map) > 4 * word_cap_) continue;  // composing would only make it longer
-      GroupMap theta = compose(hc.map, cp.psi);
-      space_.reduce(theta);
-      if (total_letters(theta) > word_cap_ || !dehn_reduce(substitute(space_.relator(), theta), space_.relator()).empty())
-        continue;
-      theta = reduce_separating_twists(theta, space_.genus(), [&](const GroupMap& t) { return space_.loop_image_length(t); },
-                                       10);
-      if (!is_new(space_.fingerprint(theta))) continue;
-      const double score = space_.screen(theta);
-      extra.push_back(
-          {score, described(theta, n, shb_, thb_, "lifted from the loops at source vertex " + std::to_string(base), std::move(hc))});
+    // In both canonical bases (stages/other_basis.h), the short one first:
+    // the lifts depend on the basis, and a class lifted in both is kept as
+    // the short basis's (its twist search runs there, whichever basis the
+    // run uses).
+    const bool other_first = other_ && other_->name() == "short";
+    for (const bool in_other : {other_first, !other_first}) {
+      if (in_other && (!other_ || !cp.other_ok)) continue;
+      const ClassSpace& sp = in_other ? other_->space() : space_;
+      for (HomotopyClass hc :
+           handle_candidates(in_other ? cp.shb_other : cp.shb, in_other ? thb_other_ : thb_, options_.homotopy.candidates)) {
+        if (total_letters(hc.map) > 4 * word_cap_) continue;  // composing would only make it longer
+        GroupMap theta = compose(hc.map, in_other ? cp.psi_other : cp.psi);
+        sp.reduce(theta);
+        if (total_letters(theta) > word_cap_ || !dehn_reduce(substitute(sp.relator(), theta), sp.relator()).empty())
+          continue;
+        theta = reduce_separating_twists(theta, sp.genus(), [&](const GroupMap& t) { return sp.loop_image_length(t); }, 10);
+        std::string tag = "lifted from the loops at source vertex " + std::to_string(base);
+        if (in_other) {
+          hc.other_basis_map = theta;
+          theta = other_->to_run(theta);
+          space_.reduce(theta);
+          if (!space_.is_isomorphism(theta) || space_.loop_image_length(theta) > space_.max_image_letters()) continue;
+          tag += "; listed in the " + other_->name() + " canonical basis";
+        }
+        if (!is_new(space_.fingerprint(theta))) continue;
+        const double score = space_.screen(theta);
+        extra.push_back({score, described(theta, n, shb_, thb_, tag, std::move(hc))});
+      }
     }
   }
   // Only the most promising new classes get homotopy data and a coarse
@@ -280,7 +304,8 @@ OverlayClasses overlay_classes(const ClassSpace& space, const TriMesh& source, c
 
 CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
                                    const HandleBasis& shb, const SystemOfLoops& tl, const CanonicalSchema& tcs,
-                                   const LoopProjector& projector, const SurfaceMapOptions& options, SourceCuts& cuts) {
+                                   const LoopProjector& projector, const SurfaceMapOptions& options, SourceCuts& cuts,
+                                   const OtherBasis* other) {
   const int n = space.num_letters();
   CandidateClasses out;
   HandleBasis& thb = out.target_basis;
@@ -421,6 +446,41 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
   GroupMap canonical(n);
   for (int j = 0; j < n; ++j) canonical[j] = {j + 1};
   add_named(canonical, "a_i -> a'_i, b_i -> b'_i of the canonical polygon schemata", space.fingerprint(canonical));
+  // Sources 1-3 again in the other canonical basis (stages/other_basis.h;
+  // docs/robustness.md "Session 23"): the canonical class and the lifts of
+  // the signed handle permutations depend on which canonical generators
+  // present the groups (3holes g3 -> block g3: the classical basis's best
+  // class is not listed in the short one). Each new by fingerprint and
+  // within the letters a solve can evaluate is appended, so both runs list
+  // the union of the two bases' classes.
+  HandleBasis thb_other;
+  if (other) {
+    std::vector<std::vector<double>> known;
+    for (const HomotopyClass& hc : classes)
+      known.push_back(space.loop_image_length(hc.map) <= space.max_image_letters() ? space.fingerprint(hc.map)
+                                                                                   : std::vector<double>{});
+    OtherBasisListing listing = classes_in_other_basis(*other, source, sl, tl, projector, options, cuts);
+    thb_other = std::move(listing.target_basis);
+    for (OtherBasisClass& c : listing.classes) {
+      space.reduce(c.theta);
+      if (!space.is_isomorphism(c.theta) || space.loop_image_length(c.theta) > space.max_image_letters()) continue;
+      const std::vector<double> fp = space.fingerprint(c.theta);
+      const auto same = std::find_if(known.begin(), known.end(),
+                                     [&](const std::vector<double>& k) { return ClassSpace::same_fingerprint(k, fp); });
+      if (same != known.end()) {
+        // Listed in both: searched in the short basis whichever the run's
+        // (class_search.h; the twists depend on the basis).
+        HomotopyClass& both = classes[same - known.begin()];
+        if (other->name() == "short" && both.other_basis_map.empty()) both.other_basis_map = c.theta_other;
+        continue;
+      }
+      known.push_back(fp);
+      HomotopyClass hc;
+      hc.other_basis_map = std::move(c.theta_other);
+      classes.push_back(
+          described(c.theta, n, shb, thb, c.tag + "; listed in the " + other->name() + " canonical basis", std::move(hc)));
+    }
+  }
   // Source 4: lifted classes from homotopy.extra_cuts other source cuts
   // (CutLifter), new by fingerprint, at most homotopy.extra_cut_classes,
   // lowest screen first. Base vertices spread over the vertex list
@@ -429,7 +489,7 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
   // no geometric class from the two farthest; from 3 of 7 spread ones).
   if (options.homotopy.extra_cuts > 0) {
     out.lifter = std::make_unique<CutLifter>(space, source, sl.base_vertex, shb, thb, projector, out.strict_overlay,
-                                             options, cuts, classes);
+                                             options, cuts, classes, other, other ? &thb_other : nullptr);
     for (HomotopyClass& hc : out.lifter->lift(spread_bases(source.num_vertices(), options.homotopy.extra_cuts)))
       classes.push_back(std::move(hc));
   }
@@ -444,6 +504,7 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
     if (carried_loops_class(space, source, sl, projector, options.homotopy.source_images, &theta, &out.carried_status)) {
       out.carried_class = static_cast<int>(classes.size());
       classes.push_back(described(theta, n, shb, thb, "the source's loops carried by the target -> source map"));
+      if (other && other->name() == "short") classes.back().other_basis_map = other->from_run(theta);
     }
   }
   // Source 6 (issue 14; docs/handle_classes.md "Both directions"): the
@@ -463,6 +524,7 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
       } else {
         out.inverted_class = static_cast<int>(classes.size());
         classes.push_back(described(inv.inverse, n, shb, thb, "the other direction's class, inverted algebraically"));
+        if (other && other->name() == "short") classes.back().other_basis_map = other->from_run(inv.inverse);
       }
     }
   }

@@ -18,6 +18,8 @@
 
 namespace surfmap::detail {
 
+class OtherBasis;
+
 /// One candidate homotopy class of maps source -> target (genus >= 2):
 /// `map` is the isomorphism theta of the canonical surface groups (2g
 /// words: source canonical generator j -> word in the target's canonical
@@ -121,9 +123,13 @@ class CutLifter {
  public:
   /// `classes`: the candidates so far (their fingerprints are known, and
   /// the longest of them caps the words accepted from other cuts).
+  /// `other` (optional, with `thb_other`, the target's handle basis in it):
+  /// each cut's signed handle permutations are lifted in the other
+  /// canonical basis too (CutPrep::psi_other), written in the run's.
   CutLifter(const ClassSpace& space, const TriMesh& source, int default_base, const HandleBasis& shb,
             const HandleBasis& thb, const LoopProjector& projector, bool strict_overlay, const SurfaceMapOptions& options,
-            SourceCuts& cuts, const std::vector<HomotopyClass>& classes);
+            SourceCuts& cuts, const std::vector<HomotopyClass>& classes, const OtherBasis* other = nullptr,
+            const HandleBasis* thb_other = nullptr);
   /// The new classes from the cuts at `cut_bases` not lifted from before:
   /// overlay classes first, then at most homotopy.extra_cut_classes lifted
   /// ones, lowest screen first.
@@ -135,6 +141,8 @@ class CutLifter {
   const TriMesh& source_;
   const HandleBasis shb_;  // (copies: the caller's may move)
   const HandleBasis thb_;
+  const OtherBasis* other_;
+  HandleBasis thb_other_;
   const LoopProjector& projector_;
   bool strict_overlay_;
   const SurfaceMapOptions& options_;
@@ -177,10 +185,16 @@ struct CandidateClasses {
 
 /// `sl`/`shb`: the source's default loops and handle basis; `tl`: the
 /// target's (refined) loops; `projector`: the target's loop projector (must
-/// outlive the result's lifter, as must everything else passed).
+/// outlive the result's lifter, as must everything else passed). `other`
+/// (optional, stages/other_basis.h): the classes the same sources give in
+/// the other canonical basis are listed too (after the canonical class,
+/// before the other cuts' lifts), those new by fingerprint, so that the
+/// list does not depend on which basis the run uses (docs/robustness.md
+/// "Session 23").
 CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
                                    const HandleBasis& shb, const SystemOfLoops& tl, const CanonicalSchema& tcs,
-                                   const LoopProjector& projector, const SurfaceMapOptions& options, SourceCuts& cuts);
+                                   const LoopProjector& projector, const SurfaceMapOptions& options, SourceCuts& cuts,
+                                   const OtherBasis* other = nullptr);
 
 /// The class of the source's loops `sl` carried to `images` (per source
 /// vertex a point on the target, #V x 3: the inverse of a target -> source

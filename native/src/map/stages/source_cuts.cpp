@@ -26,9 +26,11 @@ SourceCuts::SourceCuts(const TriMesh& source, const Connectivity& sc, const Surf
   slots_ = std::vector<Slot>(bases_.size());
 }
 
-void SourceCuts::set_default(const std::vector<std::vector<int>>& loops, const std::vector<Word>& generators) {
+void SourceCuts::set_default(const std::vector<std::vector<int>>& loops, const std::vector<Word>& generators,
+                             const std::vector<Word>& other_generators) {
   default_loops_ = loops;
   default_generators_ = generators;
+  default_other_generators_ = other_generators;
 }
 
 CutPrep SourceCuts::build(int base) const {
@@ -61,6 +63,20 @@ CutPrep SourceCuts::build(int base) const {
       cp.loops = sl2.loops;
       cp.generators = scs2.generators;
       cp.ok = true;
+      // The other canonical basis (stages/other_basis.h): the same overlay
+      // read through both bases' schemata.
+      if (!default_other_generators_.empty()) {
+        const CanonicalSchema other2 = canonical_schema(sl2.word, other_schema_options(options_));
+        cp.psi_other.assign(n2, Word{});
+        for (int j = 0; j < n2; ++j)
+          cp.psi_other[j] =
+              dehn_reduce(substitute(substitute(default_other_generators_[j], self.loop_images), other2.letters), R2);
+        const IntMatrix M = homology_matrix(cp.psi_other, n2);
+        if (M.transpose() * J2 * M == J2 && dehn_reduce(substitute(R2, cp.psi_other), R2).empty()) {
+          cp.shb_other = handle_basis(source_, sl2.loops, other2);
+          cp.other_ok = true;
+        }
+      }
     }
   }
   return cp;

@@ -23,6 +23,13 @@ struct CutPrep {
   HandleBasis shb;  ///< this cut's handle basis (topology/handle_basis.h)
   std::vector<std::vector<int>> loops;  ///< this cut's loops (vertex paths) and canonical generators (for its overlay)
   std::vector<Word> generators;
+  /// The same in the other canonical basis (stages/other_basis.h), when the
+  /// default cut's other generators were given (SourceCuts::set_default):
+  /// the default's other canonical generators -> words in this cut's other
+  /// canonical generators, and this cut's handle basis in them.
+  bool other_ok = false;
+  GroupMap psi_other;
+  HandleBasis shb_other;
 };
 
 /// The cuts the class search may ask for, in the order it asks: the
@@ -35,8 +42,11 @@ class SourceCuts {
   /// `sc`: Connectivity(source.F).
   SourceCuts(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options, int genus);
   /// The default cut's loops and canonical generators: set once, before
-  /// any cut is prepared.
-  void set_default(const std::vector<std::vector<int>>& loops, const std::vector<Word>& generators);
+  /// any cut is prepared. `other_generators` (optional): its canonical
+  /// generators in the other basis (other_schema_options), for the cuts'
+  /// CutPrep::psi_other.
+  void set_default(const std::vector<std::vector<int>>& loops, const std::vector<Word>& generators,
+                   const std::vector<Word>& other_generators = {});
   /// The planned cuts' base vertices (#planned, in order).
   const std::vector<int>& planned_bases() const { return bases_; }
   /// Prepares planned cut k (once; thread-safe).
@@ -67,6 +77,7 @@ class SourceCuts {
   std::vector<Slot> slots_;
   std::vector<std::vector<int>> default_loops_;
   std::vector<Word> default_generators_;
+  std::vector<Word> default_other_generators_;
 };
 
 /// Base vertices c * nv / (count + 1), c = 1..count (deterministic spread).
