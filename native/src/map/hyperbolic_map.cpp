@@ -2001,13 +2001,14 @@ bool map_class(HyperbolicPipeline& p) {
   LayoutClosure closure;
   const bool charts_kept = static_cast<int>(hr.edge_local.size()) == static_cast<int>(cd.edges.size());
   parallel_for(charts_kept ? p.threads : 1, 2, [&](int task, const std::atomic<bool>*) {
-    if (task == 0)
+    if (task == 0) {
       placed = place_in_polygon(p.source, p.sc, *p.polygon, *p.deck_group, cd.side_word_edge, cd.rho_edge,
                                 p.solver_index, static_cast<int>(cd.edges.size()), hr);
-    else
-      quality = chart_distortion(p.source, p.sc, hr.edge_local, p.solver_index),
-      intrinsic_flips = intrinsic_flipped_triangles(p.ss.idt, hr.edge_local),
-      closure = intrinsic_layout_closure(p.ss.idt, hr.edge_local);
+      return;
+    }
+    quality = chart_distortion(p.source, p.sc, hr.edge_local, p.solver_index);
+    intrinsic_flips = intrinsic_flipped_triangles(p.ss.idt, hr.edge_local);
+    closure = intrinsic_layout_closure(p.ss.idt, hr.edge_local);
   });
   store_distortion(quality, out);
   out.intrinsic_flipped_triangles = intrinsic_flips;
