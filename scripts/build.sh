@@ -11,6 +11,9 @@ jobs="${SURFMAP_JOBS:-$(nproc)}"
 launcher=()
 if command -v ccache >/dev/null 2>&1; then
   launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+  # Paths below the checkout are hashed relative to it, so that two worktrees
+  # of the same sources hit the same cache entries.
+  export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$repo}"
 fi
 cmake -S "$repo" -B "$build" -DCMAKE_BUILD_TYPE="${SURFMAP_BUILD_TYPE:-Release}" -DPython_EXECUTABLE=/usr/bin/python3 "${launcher[@]}" >/dev/null
 cmake --build "$build" -j"$jobs"
