@@ -280,14 +280,12 @@ TEST(ClassLowerBound, NeverAboveTheSolvedEnergies) {
     o.homotopy.full_solves = 0;
     o.homotopy.search.cuts = 0;
     o.homotopy.two_way = false;
-    // (The classical basis's candidates alone, as before session 23: the
-    // classes listed in both canonical bases (stages/other_basis.h) include
-    // one below geometric_ratio x the bound, so the geometric stage would
-    // not run.)
+    // (The classical basis's candidates alone, the default: the classes
+    // listed in both canonical bases (LoopOptions::both_canonical_bases)
+    // include one below geometric_ratio x the bound, so the geometric stage
+    // would not run.)
     o.loops.short_canonical_generators = false;
-    testing::MapHooks one_basis;
-    one_basis.one_canonical_basis = true;
-    const SurfaceMapResult m = testing::surface_map(a, b, o, one_basis);
+    const SurfaceMapResult m = surface_map(a, b, o);
     EXPECT_GT(m.homotopy_search.geometric_classes, 0);
     int geometric = 0;
     for (const HomotopyCandidate& c : m.candidates) geometric += c.description.find("[geometric") != std::string::npos;

@@ -396,16 +396,21 @@ TEST(NewtonStarts, RemeshedPlateStartsItsOverlayClassFromTheSnappedOverlay) {
   ASSERT_EQ(m.candidates.size(), reference.candidates.size());
   const std::string marker = "[started from the snapped overlay]";
   int snapped = 0;
+  double lowest_snapped = INFINITY;
   for (size_t k = 0; k < m.candidates.size(); ++k) {
     EXPECT_EQ(reference.candidates[k].description.find(marker), std::string::npos);
     if (m.candidates[k].description.find(marker) == std::string::npos) continue;
     ++snapped;
     ASSERT_TRUE(m.candidates[k].solved && reference.candidates[k].solved);
     EXPECT_NEAR(m.candidates[k].energy, reference.candidates[k].energy, 1e-6 * reference.candidates[k].energy);
-    // The overlay's class of a remeshed copy is a conformal one.
-    EXPECT_LT(m.candidates[k].energy, 1.3 * 8 * M_PI);
+    lowest_snapped = std::min(lowest_snapped, m.candidates[k].energy);
   }
   EXPECT_GE(snapped, 1);
+  // The overlay's class of a remeshed copy is a conformal one, and it starts
+  // from the snapped overlay. (Other classes may start there too, wherever
+  // that start is lower than the origin's: the other canonical basis's
+  // classes do; each must still reach the origin start's optimum, above.)
+  EXPECT_LT(lowest_snapped, 1.3 * 8 * M_PI);
   std::printf("E %.9g (origin starts %.9g), %d classes started from the snapped overlay\n", m.final_energy,
               reference.final_energy, snapped);
 }

@@ -109,9 +109,9 @@ class HyperbolicPipeline {
   void start_source_side();
   void uniformize_target();
   /// The source's default canonical generators in the other basis
-  /// (stages/other_basis.h), none with hooks.one_canonical_basis.
+  /// (stages/other_basis.h), none unless LoopOptions::both_canonical_bases.
   std::vector<Word> other_default_generators(const SourceSide& side) const {
-    if (hooks.one_canonical_basis) return {};
+    if (!options.loops.both_canonical_bases) return {};
     return canonical_schema(side.sl.word, other_schema_options(options)).generators;
   }
   void start_class_bounds();
@@ -544,7 +544,7 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   projector = std::make_unique<LoopProjector>(cl ? cl->loops : ut->loops, cl ? cl->word : ut->layout.word);
   // Issue 13/14 (docs/robustness.md "Session 23"): the classes of the
   // other canonical basis too (stages/other_basis.h).
-  if (!hooks.one_canonical_basis) {
+  if (options.loops.both_canonical_bases) {
     other_basis = std::make_unique<OtherBasis>(out.genus, ss.sl, ss.scs, tcs, cl ? cl->schema : tcs,
                                                cl ? cl->word : ut->layout.word, ut->layout, *deck_group,
                                                other_schema_options(options));

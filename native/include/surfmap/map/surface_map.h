@@ -461,6 +461,17 @@ struct LoopOptions {
   /// so the candidate list does not depend on this choice (the geometric
   /// classes still do).
   bool short_canonical_generators = false;
+  /// Genus >= 2: list the candidate classes (overlays, the canonical
+  /// schemata's class, signed handle permutations, other cuts' lifts) in
+  /// both canonical bases, the classical and the short, each written in the
+  /// run's, and twist-search a class listed in the short basis by the short
+  /// basis's twists (src/map/stages/other_basis.h; docs/robustness.md
+  /// "Session 23"). Default false: with it on, fertility -> CAD plate g4
+  /// goes from 2.803 x to 2.129 x the bound and polycube g3 -> plate g3 from
+  /// 73.19 to 64.86, but four genus-2 landmark tests change class (a class
+  /// index from a run without landmarks then names another class) and that
+  /// is not understood yet. CLI --both-canonical-bases.
+  bool both_canonical_bases = false;
 };
 
 /// When the genus >= 2 map runs in per-face charts of the target

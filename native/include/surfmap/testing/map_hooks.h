@@ -46,10 +46,6 @@ struct MapHooks {
   /// inverse location walks (issue 19: their cost, independent of load).
   std::function<void(long forward_steps, long inverse_steps)> location_walk_steps;
   std::vector<std::string> homotopy_search_start_twists;
-  /// Genus >= 2: list the candidate classes in the run's canonical basis
-  /// only, not also in the other one (stages/other_basis.h; the behaviour
-  /// before session 23), for tests that show what the other basis adds.
-  bool one_canonical_basis = false;
 };
 
 /// surface_map (map/surface_map.h) with the hooks.
