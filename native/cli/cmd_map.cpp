@@ -181,7 +181,7 @@ void register_map(CLI::App& app) {
                 "the default, accepted to say so)");
   cmd->add_flag("--short-canonical-generators", a->short_canonical_generators,
                 "Genus >= 2: canonical generators from cut-and-paste moves that conjugate only the new pair, not the default "
-                "classical ones; the candidate classes are listed in both bases either way (docs/robustness.md "
+                "classical ones (with --both-canonical-bases the candidate classes are listed in both; docs/robustness.md "
                 "\"Session 23\"; report: canonical_generators)");
   cmd->add_flag("--both-canonical-bases", a->both_canonical_bases,
                 "Genus >= 2: list the candidate classes in both canonical bases (classical and short) and twist-search "

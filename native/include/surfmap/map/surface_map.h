@@ -456,10 +456,10 @@ struct LoopOptions {
   /// 253 loop letters with matrices of |a| = 4e100 and their canonical
   /// relator multiplies out to 1e1805; the short ones are up to 60 letters
   /// (|a| 8e11), translation lengths near the systole's (docs/robustness.md
-  /// "Session 21"). The candidate classes are listed in both bases either
-  /// way (src/map/stages/other_basis.h; docs/robustness.md "Session 23"),
-  /// so the candidate list does not depend on this choice (the geometric
-  /// classes still do).
+  /// "Session 21"). With both_canonical_bases the candidate classes are
+  /// listed in both bases (src/map/stages/other_basis.h; docs/robustness.md
+  /// "Session 23"), so the candidate list does not depend on this choice
+  /// (the geometric classes still do).
   bool short_canonical_generators = false;
   /// Genus >= 2: list the candidate classes (overlays, the canonical
   /// schemata's class, signed handle permutations, other cuts' lifts) in
