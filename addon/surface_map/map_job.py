@@ -4,6 +4,7 @@ mode; in slices, so progress and Esc are seen between them), ready for the bpy s
 (ops_map.write_outputs) to write. Data flow: docs/addon.md.
 """
 from dataclasses import dataclass, field
+import json
 import os
 import sys
 import threading
@@ -75,10 +76,26 @@ def parse_boundary_pairing(text):
         raise ValueError(f"Boundary Loops '{text}': give loop indices such as '1 0'") from None
 
 
+def listed_class_words(settings):
+    """The words of the pairing `settings.homotopy` names in the last run's list (the panel's
+    candidates, each with its words as JSON), or None: automatic, not listed, or genus 1 (a
+    torus's pairings have no words)."""
+    k = int(getattr(settings, "homotopy", -1))
+    for item in getattr(settings, "candidates", ()):
+        if int(item.index) == k and getattr(item, "words", ""):
+            words = json.loads(item.words)
+            return words or None
+    return None
+
+
 @dataclass
 class MapOptions:
     """What the panel asks for, already in the core's spelling (see from_settings)."""
     homotopy: int = -1
+    # Genus >= 2: the picked pairing by its words (the core's class_words), which name it in
+    # the next run too; `homotopy` is an index into the last run's list, which the next run
+    # (other options, landmarks) may order otherwise (docs/handle_classes.md "Session 24").
+    class_words: Optional[list] = None
     landmarks: Optional[np.ndarray] = None   # (k,2) source vertex, target vertex
     method: str = "newton"
     tolerance: float = 0.0                   # 0: the core's default
@@ -92,7 +109,8 @@ class MapOptions:
     @classmethod
     def from_settings(cls, settings, landmarks=None, outputs=None):
         """From the scene's PropertyGroup (any object with its attribute names)."""
-        return cls(homotopy=int(settings.homotopy), landmarks=landmarks,
+        return cls(homotopy=int(settings.homotopy), class_words=listed_class_words(settings),
+                   landmarks=landmarks,
                    method=METHODS.get(settings.method, str(settings.method).lower()),
                    tolerance=float(settings.tolerance),
                    source_weights=SOURCE_WEIGHTS.get(settings.source_weights,
@@ -106,6 +124,8 @@ class MapOptions:
     def native_kwargs(self):
         """The surface_map keywords that differ from the core's defaults."""
         kw = {"homotopy": int(self.homotopy)}
+        if self.class_words:
+            kw = {"homotopy": -1, "class_words": [list(map(int, w)) for w in self.class_words]}
         if self.landmarks is not None and len(self.landmarks):
             kw["landmarks"] = np.ascontiguousarray(self.landmarks, dtype=np.int32)
         if self.method != "newton":
@@ -121,7 +141,7 @@ class MapOptions:
     def unsupported(self, sm):
         """The first option this native module does not take, or None."""
         for word in self.native_kwargs():
-            if word != "homotopy" and not core_supports(sm, word):
+            if word not in ("homotopy", "class_words") and not core_supports(sm, word):
                 return word
         return None
 
@@ -171,6 +191,9 @@ class MapJob:
 
     def native_kwargs(self):
         kw = self.options.native_kwargs()
+        if "class_words" in kw and not core_supports(self.sm, "class_words"):
+            kw.pop("class_words")   # an older core: the pairing by its index in the last run's list
+            kw["homotopy"] = int(self.options.homotopy)
         if core_supports(self.sm, "solve_progress"):
             kw["solve_progress"] = self._solve_progress
         # The "before" morph and UVs, also from the stored correspondence later: the core

@@ -3,6 +3,7 @@ a worker thread, the outputs in timer slices, so Blender keeps drawing), writes 
 the run's summary; surfmap.solve_candidate re-solves with a chosen handle pairing. Everything
 that can fail is checked before the first write, so a refusal leaves the scene as it was. The
 maths is in map_job.py and the modules it imports; the data flow is in docs/addon.md."""
+import json
 import math
 import time
 
@@ -401,25 +402,41 @@ def summary_rows(res, times):
     return rows
 
 
+def _candidate_energies(item, c):
+    """A listed pairing's energies from the report's candidate `c`; its line for the summary."""
+    e = float(c.get("energy", math.nan))
+    if not math.isfinite(e):
+        e = float(c.get("coarse_energy", math.nan))
+    item.solved = bool(c.get("solved", True)) and math.isfinite(e)
+    item.estimated = not item.solved and math.isfinite(e)
+    item.energy = e if math.isfinite(e) else 0.0
+    held = float(c.get("landmark_energy", math.nan))
+    item.landmark_energy = held
+    return (f"E = {e:.6g}" if item.solved else f"E ≈ {e:.6g} (estimated)" if item.estimated
+            else "no energy") + (f", with landmarks {held:.6g}" if not math.isnan(held) else "")
+
+
 def store_candidates(settings, res):
     """The handle pairings of a run as the panel's list: the solved energy, or the core's
-    estimate (marked estimated) for the pairings it only estimated."""
+    estimate (marked estimated) for the pairings it only estimated. A run asked for a listed
+    pairing by its words (map_job.listed_class_words) lists that pairing alone: the list stays,
+    so that its numbers keep naming the same pairings, and the picked one gets this run's
+    energies."""
+    cands = res["homotopy"]["candidates"]
+    picked = map_job.listed_class_words(settings)
+    if picked is not None and len(cands) == 1 and cands[0].get("words") == picked:
+        k = int(settings.homotopy)
+        item = next(it for it in settings.candidates if int(it.index) == k)
+        settings.chosen_candidate = k
+        settings.candidate_index = -1
+        return [f"{k}: " + _candidate_energies(item, cands[0])]
     settings.candidates.clear()
     lines = []
-    for i, c in enumerate(res["homotopy"]["candidates"]):
+    for i, c in enumerate(cands):
         item = settings.candidates.add()
-        e = float(c.get("energy", math.nan))
-        if not math.isfinite(e):
-            e = float(c.get("coarse_energy", math.nan))
         item.index, item.description = i, str(c.get("description", ""))
-        item.solved = bool(c.get("solved", True)) and math.isfinite(e)
-        item.estimated = not item.solved and math.isfinite(e)
-        item.energy = e if math.isfinite(e) else 0.0
-        held = float(c.get("landmark_energy", math.nan))
-        item.landmark_energy = held
-        lines.append(f"{i}: " + (f"E = {e:.6g}" if item.solved else
-                                 f"E ≈ {e:.6g} (estimated)" if item.estimated else "no energy")
-                     + (f", with landmarks {held:.6g}" if not math.isnan(held) else ""))
+        item.words = json.dumps(c.get("words") or [])   # the pairing's name in the next run
+        lines.append(f"{i}: " + _candidate_energies(item, c))
     settings.chosen_candidate = int(res["homotopy"]["chosen"])
     settings.candidate_index = -1
     return lines

@@ -77,6 +77,10 @@ class SURFMAP_PG_candidate(bpy.types.PropertyGroup):
     estimated: BoolProperty(name="Estimated", default=False,
                             description="The energy is an estimate (a quick solve on a "
                             "coarser copy); it was not solved in full")
+    words: StringProperty(
+        name="Words", default="",
+        description="Genus 2 and up: the pairing as words (JSON), by which the next run is asked "
+                    "for it (its number in this list may name another pairing there)")
     landmark_energy: FloatProperty(
         name="Energy With Landmarks", default=float("nan"),
         description="With landmarks: the energy with them held (the ranking's key; inf where "

@@ -50,6 +50,25 @@ std::vector<std::pair<int, int>> read_landmarks(const std::string& path) {
   return pairs;
 }
 
+// --class-words: a JSON list of 2g lists of int letters (the report's
+// homotopy.chosen_words), one-line errors.
+std::vector<std::vector<int>> parse_class_words(const std::string& text) {
+  const std::string expected = "--class-words: expected a JSON list of lists of integer letters such as "
+                               "[[1],[2],[3],[4]] (the report's homotopy.chosen_words)";
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.is_array() || j.empty()) throw InputError(expected);
+  std::vector<std::vector<int>> words;
+  for (const auto& w : j) {
+    if (!w.is_array()) throw InputError(expected);
+    words.emplace_back();
+    for (const auto& x : w) {
+      if (!x.is_number_integer()) throw InputError(expected);
+      words.back().push_back(x.get<int>());
+    }
+  }
+  return words;
+}
+
 // Long on purpose: one flat list of the subcommand's flags (each one
 // add_option/add_flag with its help text) and the one callback that fills
 // SurfaceMapOptions from them and runs the map; split, a flag and where it
@@ -66,7 +85,7 @@ void register_map(CLI::App& app) {
         source_weights = enum_name(defaults.solve.source_weights),
         target_metric = enum_name(defaults.uniformization.target_metric),
         target_loops = enum_name(defaults.uniformization.loops),
-        face_charts = enum_name(defaults.uniformization.face_charts);
+        face_charts = enum_name(defaults.uniformization.face_charts), class_words;
     int threads = defaults.threads, homotopy = defaults.homotopy.class_index,
         base_vertex = defaults.loops.source_base_vertex, target_base_vertex = defaults.loops.target_base_vertex,
         max_iterations = defaults.solve.max_iterations;
@@ -104,6 +123,10 @@ void register_map(CLI::App& app) {
                   "CORR.txt: one line per source vertex, 'target_face b0 b1 b2', then after a '# inverse' line one per "
                   "target vertex, 'source_face b0 b1 b2' (surfmap verify checks it)");
   cmd->add_option("--homotopy", a->homotopy, "Homotopy class (index into the report's candidates; default: lowest energy)");
+  cmd->add_option("--class-words", a->class_words,
+                  "Genus >= 2: the class named by its words, a JSON list of 2g lists of letters as the report's "
+                  "homotopy.chosen_words or a candidate's words from an earlier run of the same pair and loop options "
+                  "(a --homotopy index names a class only within one run's list; docs/handle_classes.md \"Session 24\")");
   cmd->add_option("--base-vertex", a->base_vertex, "Base vertex of the source's system of loops");
   cmd->add_option("--target-base-vertex", a->target_base_vertex, "Base vertex of the target's system of loops");
   cmd->add_option("--method", a->method, "Optimiser of the harmonic energy (genus >= 2)")
@@ -266,6 +289,7 @@ void register_map(CLI::App& app) {
     check_same_genus(src.info, dst.info);
     SurfaceMapOptions opt;
     opt.homotopy.class_index = a->homotopy;
+    if (!a->class_words.empty()) opt.homotopy.class_words = parse_class_words(a->class_words);
     opt.loops.source_base_vertex = a->base_vertex;
     opt.loops.target_base_vertex = a->target_base_vertex;
     if (a->short_canonical_generators && a->classical_canonical_generators)

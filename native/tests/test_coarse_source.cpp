@@ -186,8 +186,9 @@ TEST(CoarseRanking, IsometricTwinIsNotSolvedAndHasItsTwinsEnergy) {
   EXPECT_TRUE(std::isinf(m.candidates[k].energy));
   EXPECT_NE(m.ranking_status.find("up to an isometry of the target"), std::string::npos) << m.ranking_status;
   SurfaceMapOptions ok, otwin;
-  ok.homotopy.class_index = k;
-  otwin.homotopy.class_index = twin;
+  // (By their words: an index names a class only within one run's list.)
+  ok.homotopy.class_words = m.candidates[k].words;
+  otwin.homotopy.class_words = m.candidates[twin].words;
   const SurfaceMapResult mk = surface_map(a, b, ok), mt = surface_map(a, b, otwin);
   ASSERT_TRUE(mk.converged && mt.converged);
   EXPECT_NEAR(mk.final_energy, mt.final_energy, 1e-8 * mt.final_energy);

@@ -287,7 +287,9 @@ struct FarLandmark {
   SurfaceMapOptions options;
   FarLandmark() {
     if (path.size() > 20) options.landmarks = {{s, path[20]}};
-    options.homotopy.class_index = free.chosen_candidate;
+    // The free map's class by its words: an index names a class only within
+    // one run's list (this run's list, with a landmark, is another).
+    options.homotopy.class_words = free.chosen_class_words;
   }
 };
 
@@ -365,7 +367,7 @@ TEST(LandmarksHyperbolic, SwappedLandmarksAreHeldBijectively) {
   ASSERT_NE(t1, t2);
   SurfaceMapOptions o;
   o.landmarks = {{s, t2}, {s2, t1}};
-  o.homotopy.class_index = free.chosen_candidate;
+  o.homotopy.class_words = free.chosen_class_words;  // (by its name, not an index into another run's list)
   const SurfaceMapResult m = surface_map(a, b, o);
   expect_landmarks_hit(m, a, b, o);
   EXPECT_EQ(m.landmark_method, "barrier continuation");

@@ -164,9 +164,9 @@ void check_direct_solves(const HarmonicProblem& problem, double tol) {
 TEST(NewtonStarts, TwistedClassReachesTheSameOptimumFromEveryStart) {
   // ~2.6k source vertices: enough for the coarse ranking copy (>= 2000).
   const TriMesh a = samples::n_hole_torus(2, 24, true), b = samples::vase(24, true);
-  // (Without the classes the search appends, geometric ones included: the
-  // class picked below must be one of the listed candidates that the runs
-  // with homotopy.class_index = k below see. With the corrected screen the
+  // (Without the classes the search appends, geometric ones included. The
+  // runs below are given the class picked by its words, since an index
+  // names a class only within one run's list. With the corrected screen the
   // extra cuts list another class at 5.3x, whose optimum squashes 394 faces:
   // hence 3x, not 8x, below.)
   SurfaceMapOptions listed;
@@ -193,7 +193,7 @@ TEST(NewtonStarts, TwistedClassReachesTheSameOptimumFromEveryStart) {
   // every vertex at the origin (no coarse copy).
   const double tol = 1e-12;
   SurfaceMapOptions coarse, origin;
-  for (SurfaceMapOptions* o : {&coarse, &origin}) o->homotopy.class_index = k, o->solve.tolerance = tol;
+  for (SurfaceMapOptions* o : {&coarse, &origin}) o->homotopy.class_words = best.candidates[k].words, o->solve.tolerance = tol;
   origin.homotopy.coarse_vertices = 0;
   // The same class's problem (edges in the initial map's charts, as side
   // words) solved directly, inside the callback (its reduce_point is the

@@ -2037,6 +2037,72 @@ TEST(SurfaceMapHandles, TheChosenClassDoesNotDependOnTheCanonicalBasis) {
   EXPECT_GT(std::abs(alone[0].final_energy - alone[1].final_energy), 1e-3 * both[0].final_energy);
 }
 
+// Session 24 (issue 14; docs/handle_classes.md "Session 24"): a class of
+// one run asked for in another by its words (HomotopyOptions::class_words),
+// not by its index: the other run's list (landmarks, a class given, the
+// other bases' listing) is another, and on this pair the free run's index
+// names another class there (session 23: the landmark tests held their
+// landmarks in it). Named, the class is the one solved, whichever listing
+// either run used: the same words, energy and map, for the chosen class and
+// for another listed one.
+TEST(SurfaceMapHandles, AClassIsAskedForByItsWordsInAnotherRun) {
+  const TriMesh a = samples::n_hole_torus(2, 14, true);
+  const TriMesh b = samples::vase(18, true);
+  const double diagonal = (b.V.colwise().maxCoeff() - b.V.colwise().minCoeff()).norm();
+  std::vector<std::vector<std::vector<int>>> chosen_words;
+  for (const bool both : {false, true}) {
+    SurfaceMapOptions o;
+    o.loops.both_canonical_bases = both;
+    const SurfaceMapResult free = surface_map(a, b, o);
+    ASSERT_GE(free.chosen_candidate, 0);
+    ASSERT_EQ(free.chosen_class_words.size(), 4u);
+    EXPECT_EQ(free.candidates[free.chosen_candidate].words, free.chosen_class_words);
+    chosen_words.push_back(free.chosen_class_words);
+    // Both listings: the name does not depend on the run's listing.
+    for (const bool again_both : {false, true}) {
+      SurfaceMapOptions named;
+      named.loops.both_canonical_bases = again_both;
+      named.homotopy.class_words = free.chosen_class_words;
+      const SurfaceMapResult r = surface_map(a, b, named);
+      ASSERT_EQ(r.candidates.size(), 1u) << both << again_both;
+      EXPECT_EQ(r.chosen_candidate, 0);
+      EXPECT_EQ(r.chosen_class_words, free.chosen_class_words);
+      EXPECT_NEAR(r.final_energy, free.final_energy, 1e-6 * free.final_energy) << both << again_both;
+      ASSERT_EQ(r.forward.size(), free.forward.size());
+      double worst = 0;
+      for (int v = 0; v < a.num_vertices(); ++v)
+        worst = std::max(worst, (r.forward[v].position - free.forward[v].position).norm());
+      EXPECT_LT(worst, 1e-3 * diagonal) << both << again_both;
+    }
+    // Another listed class of a clearly different energy: its words give it.
+    int k = -1;
+    for (int c = 0; c < static_cast<int>(free.candidates.size()) && k < 0; ++c)
+      if (c != free.chosen_candidate && free.candidates[c].solved && std::isfinite(free.candidates[c].energy) &&
+          free.candidates[c].energy > 1.01 * free.final_energy && !free.candidates[c].words.empty())
+        k = c;
+    ASSERT_GE(k, 0);
+    SurfaceMapOptions other = o;
+    other.homotopy.class_words = free.candidates[k].words;
+    const SurfaceMapResult r = surface_map(a, b, other);
+    ASSERT_EQ(r.candidates.size(), 1u);
+    EXPECT_NEAR(r.candidates[0].energy, free.candidates[k].energy, 1e-6 * free.candidates[k].energy)
+        << free.candidates[k].description;
+  }
+  // Bad names are errors.
+  SurfaceMapOptions bad;
+  bad.homotopy.class_words = chosen_words[0];
+  bad.homotopy.class_index = 0;
+  EXPECT_THROW(surface_map(a, b, bad), InputError);
+  bad.homotopy.class_index = -1;
+  bad.homotopy.class_words.pop_back();
+  EXPECT_THROW(surface_map(a, b, bad), InputError);  // 3 words for genus 2
+  bad.homotopy.class_words = {{1}, {1}, {3}, {4}};
+  EXPECT_THROW(surface_map(a, b, bad), SolveError);  // no isomorphism
+  bad.homotopy.class_words = chosen_words[0];
+  const TriMesh torus = samples::torus_of_revolution(1.0, 0.5, 20, 10);
+  EXPECT_THROW(surface_map(torus, torus, bad), InputError);  // genus 1: no words
+}
+
 }  // namespace
 }  // namespace surfmap
 

@@ -585,6 +585,7 @@ void HyperbolicPipeline::candidate_classes_and_data() {
     HomotopyCandidate c;
     c.description = hc.description;
     c.given_class = hc.given_class;
+    c.words = hc.map;
     if (letters <= max_image_letters) {
       if (failed[k]) std::rethrow_exception(failed[k]);
       data.push_back(std::move(computed[k]));
@@ -668,7 +669,7 @@ void HyperbolicPipeline::add_snapped_class() {
   hc.description = handles + "  [" + tag + "]";
   // (The same class in either basis: searched in the short one,
   // stages/other_basis.h.)
-  if (other_basis && other_basis->name() == "short") hc.other_basis_map = other_basis->from_run(theta);
+  hc.other_basis_map = OtherBasis::short_form(other_basis.get(), theta);
   candidates.classes.push_back(std::move(hc));
   out.snapped_class = static_cast<int>(candidates.classes.size()) - 1;
   note("listed as class " + std::to_string(out.snapped_class) + " (" + counts + ")");
@@ -998,6 +999,7 @@ int HyperbolicPipeline::skip_isometric_twins(int first, std::vector<int>& rest,
 int HyperbolicPipeline::push_candidate(HomotopyClass hc, ClassData cd, HomotopyCandidate c) {
   c.description = hc.description;
   c.given_class = hc.given_class;
+  c.words = hc.map;
   for (int r = 0; r < hc.homology.rows(); ++r)
     for (int q = 0; q < hc.homology.cols(); ++q) c.homology.push_back(static_cast<int>(hc.homology(r, q)));
   data.push_back(std::move(cd));

@@ -165,7 +165,8 @@ json candidate_json(const HomotopyCandidate& c, size_t index) {
           {"matrix", {c.matrix[0], c.matrix[1], c.matrix[2], c.matrix[3]}},
           {"class_lower_bound", c.class_lower_bound},
           {"class_curve_bound", c.class_curve_bound},
-          {"class_bound_curves", c.class_bound_curves}};
+          {"class_bound_curves", c.class_bound_curves},
+          {"words", c.words}};
 }
 
 json homotopy_search_json(const HomotopySearchInfo& hs) {
@@ -208,6 +209,7 @@ json homotopy_json(const SurfaceMapResult& r) {
   json candidates = json::array();
   for (size_t i = 0; i < r.candidates.size(); ++i) candidates.push_back(candidate_json(r.candidates[i], i));
   return {{"chosen", r.chosen_candidate},
+          {"chosen_words", r.chosen_class_words},
           {"candidates", candidates},
           {"ranking", {{"coarse_solves", r.ranking_coarse_solves}, {"skipped", r.ranking_skipped}, {"status", r.ranking_status}, {"long_starts", r.long_starts}}},
           {"snapped_class",

@@ -143,6 +143,20 @@ SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const
 
 SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                       const MapHooks& hooks) {
+  // A class named by its words (issue 14, session 24): the one candidate
+  // (stages/homotopy_classes.cpp), chosen as class 0 of that one-entry list,
+  // so that everything a class index turns off (ranking, class search,
+  // geometric classes, two-way run, through-shape step) is off for it too.
+  const HomotopyOptions& h = options.homotopy;
+  if (!h.class_words.empty()) {
+    if (h.class_index >= 0 || !h.given_class.empty() || h.source_images.size() > 0 || !h.reverse_class.empty() ||
+        h.images_only || h.reverse_class_only)
+      throw InputError("homotopy.class_words names the one class to map in: give no class index (nor given_class, "
+                       "source_images or reverse_class) with it");
+    SurfaceMapOptions named = options;
+    named.homotopy.class_index = 0;
+    return map_in_given_cuts(source, target, named, hooks);
+  }
   if (chooses_class_in_automatic_cuts(options)) {
     const Connectivity sc(source.F, source.num_vertices());
     const Connectivity tc(target.F, target.num_vertices());
@@ -194,6 +208,9 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
     throw InputError("the source has genus " + std::to_string(sc.genus()) + " but the target has genus " +
                      std::to_string(tc.genus()) + "; both surfaces must have the same genus");
   out.genus = sc.genus();
+  if (out.genus < 2 && !options.homotopy.class_words.empty())
+    throw InputError("homotopy.class_words: genus >= 2 only (this pair has genus " + std::to_string(out.genus) +
+                     "; a torus's class is named by its matrix, a sphere has one class)");
   // Landmarks: valid, one-to-one (a vertex pinned to two places has no map).
   std::vector<int> src_used(source.num_vertices(), -1), dst_used(target.num_vertices(), -1);
   for (size_t k = 0; k < options.landmarks.size(); ++k) {

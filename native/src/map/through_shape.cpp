@@ -34,6 +34,7 @@ SurfaceMapOptions one_way_options(const SurfaceMapOptions& options) {
   o.homotopy.reverse_class.clear();
   o.homotopy.given_class.clear();
   o.homotopy.given_class_names.clear();
+  o.homotopy.class_words.clear();
   o.landmarks.clear();
   o.solve_progress = nullptr;
   return o;
@@ -283,11 +284,9 @@ std::string leg_back_through_the_first_run(const TriMesh& source, const TriMesh&
   const std::string status =
       head + "target -> it, composed" + searched_on(back) + ", " + four_digits(back.energy_ratio);
   // The class found there, inverted, alone here (it -> target).
-  SurfaceMapOptions here = leg_options(options, false);
-  here.homotopy.two_way = false;
-  here.homotopy.reverse_class = reverse_class_here(from_middle, back, why);
+  const SurfaceMapOptions here =
+      single_class_options(leg_options(options, false), reverse_class_here(from_middle, back, why), SingleClass::KeepTheRest);
   if (here.homotopy.reverse_class.empty()) return status + "; not brought back: " + why + ")";
-  here.homotopy.reverse_class_only = true;
   SurfaceMapResult again;
   const std::string again_failed = map_or_error(map, middle, target, here, again);
   if (!again_failed.empty()) return status + "; inverted here failed: " + again_failed + ")";
@@ -585,18 +584,16 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
     return status + ": this class inverted (" + t.text() + ")";
   }
   // θ^-1 there alone, ψ^-1 here alone: the four energies of the two pairs.
-  SurfaceMapOptions ao = one_way_options(reverse_options(options));
-  ao.homotopy.reverse_class = reverse_class_here(back, forward, why);  // θ in the other direction's letters
-  ao.homotopy.reverse_class_only = true;
+  // (θ in the other direction's letters.)
+  const SurfaceMapOptions ao = single_class_options(one_way_options(reverse_options(options)),
+                                                    reverse_class_here(back, forward, why), SingleClass::KeepTheRest);
   // A class the inversion cannot invert (the descent and the Nielsen
   // reduction are heuristics, and depend on the words: plate g4 ->
   // fertility's class stalls where fertility -> plate's same class, from
   // other words, inverts) leaves its pair's total unknown: that pair cannot
   // be kept, since its other half could not be mapped.
   SurfaceMapResult alone_there, alone_here;
-  SurfaceMapOptions ho = one_way_options(options);
-  ho.homotopy.reverse_class = psi;
-  ho.homotopy.reverse_class_only = true;
+  const SurfaceMapOptions ho = single_class_options(one_way_options(options), psi, SingleClass::KeepTheRest);
   auto solve_alone = [&](const TriMesh& s, const TriMesh& d, const SurfaceMapOptions& so, SurfaceMapResult& r,
                          const std::string& which) -> std::string {
     const std::string failed = map_or_error(map, s, d, so, r);

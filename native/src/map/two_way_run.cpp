@@ -218,11 +218,9 @@ std::string search_from_this_class_there(const TriMesh& source, const TriMesh& t
     return "";
   }
   there_text += "; searched on from it there: another class, ratio " + four_digits(back_energy / bound);
-  SurfaceMapOptions fo = options;
-  fo.homotopy.two_way = false;
-  fo.homotopy.compare_directions = false;
-  fo.homotopy.reverse_class = reverse_class_here(forward, back, why);  // ψ' in this run's letters
-  fo.homotopy.reverse_class_only = true;
+  // ψ' in this run's letters
+  const SurfaceMapOptions fo =
+      single_class_options(options, reverse_class_here(forward, back, why), SingleClass::KeepTheRest);
   if (fo.homotopy.reverse_class.empty()) {
     there_text += " (not written in this run's letters: " + why + ")";
     return "";
@@ -283,11 +281,7 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
   }
   const double bound = 8 * M_PI * (g - 1);
   const double own = chosen_energy(forward), own_there = chosen_energy(reverse);
-  SurfaceMapOptions fo = options;
-  fo.homotopy.two_way = false;
-  fo.homotopy.compare_directions = false;
-  fo.homotopy.reverse_class = psi;
-  fo.homotopy.reverse_class_only = true;
+  const SurfaceMapOptions fo = single_class_options(options, psi, SingleClass::KeepTheRest);
   SurfaceMapResult here;
   std::string here_failure;
   if (!run_map(map, source, target, fo, here, here_failure)) {
@@ -308,10 +302,8 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
     return "directions agreed: adopted the other direction's class inverted (" + here_text + ")";
   }
   // Vice versa: θ^-1 solved alone the other way.
-  SurfaceMapOptions ro = reverse_options(options);
-  ro.homotopy.compare_directions = false;
-  ro.homotopy.reverse_class = reverse_class_here(reverse, forward, why);
-  ro.homotopy.reverse_class_only = true;
+  const SurfaceMapOptions ro =
+      single_class_options(reverse_options(options), reverse_class_here(reverse, forward, why), SingleClass::KeepTheRest);
   double alt_there = std::numeric_limits<double>::infinity();
   std::string there_text;
   if (ro.homotopy.reverse_class.empty()) {
@@ -434,24 +426,12 @@ std::string agree_below_two_way_ratio(const TriMesh& source, const TriMesh& targ
     return "inverse up to the hyperelliptic involution (" + other + "): nothing solved";
   }
   // ψ^-1 here alone and θ^-1 there alone: one class each, no search.
-  auto single = [](SurfaceMapOptions o, std::vector<std::vector<int>> words) {
-    o.homotopy.class_index = -1;
-    o.homotopy.two_way = false;
-    o.homotopy.through_shape = false;
-    o.homotopy.compare_directions = false;
-    o.homotopy.source_images.resize(0, 0);
-    o.homotopy.reverse_class = std::move(words);
-    o.homotopy.reverse_class_only = true;
-    o.landmarks.clear();
-    o.solve_progress = nullptr;
-    return o;
-  };
   SurfaceMapResult here, there;
   std::string here_failure, there_failure;
-  const bool here_ok = run_map(map, source, target, single(options, psi), here, here_failure);
+  const bool here_ok = run_map(map, source, target, single_class_options(options, psi, SingleClass::Alone), here, here_failure);
   const std::vector<std::vector<int>> theta_there = reverse_class_here(reverse, forward, why);
   const bool there_ok = !theta_there.empty() &&
-                        run_map(map, target, source, single(reverse_options(options), theta_there), there, there_failure);
+                        run_map(map, target, source, single_class_options(reverse_options(options), theta_there, SingleClass::Alone), there, there_failure);
   if (theta_there.empty()) there_failure = "this class not written in the other direction's letters (" + why + ")";
   const double inf = std::numeric_limits<double>::infinity();
   const double own = usable_energy(forward), own_there = usable_energy(reverse);
@@ -576,6 +556,7 @@ void qualify_quality_warning(SurfaceMapResult& result) {
 SurfaceMapOptions reverse_options(const SurfaceMapOptions& options) {
   SurfaceMapOptions ro = options;
   ro.homotopy.class_index = -1;
+  ro.homotopy.class_words.clear();
   ro.homotopy.two_way = false;
   ro.homotopy.through_shape = false;  // (its own step runs in that direction's own run)
   ro.homotopy.source_images.resize(0, 0);
@@ -586,6 +567,23 @@ SurfaceMapOptions reverse_options(const SurfaceMapOptions& options) {
   ro.landmarks.clear();
   ro.solve_progress = nullptr;
   return ro;
+}
+
+SurfaceMapOptions single_class_options(SurfaceMapOptions o, std::vector<std::vector<int>> reverse_class,
+                                       SingleClass scope) {
+  o.homotopy.two_way = false;
+  o.homotopy.compare_directions = false;  // (read only by the two-way run)
+  o.homotopy.class_words.clear();
+  o.homotopy.reverse_class = std::move(reverse_class);
+  o.homotopy.reverse_class_only = true;
+  if (scope == SingleClass::Alone) {
+    o.homotopy.class_index = -1;
+    o.homotopy.through_shape = false;
+    o.homotopy.source_images.resize(0, 0);
+    o.landmarks.clear();
+    o.solve_progress = nullptr;
+  }
+  return o;
 }
 
 bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
@@ -663,10 +661,8 @@ bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target,
   std::string how = "the class of the source's loops carried by the target -> source map";
   if (!run_map(map, source, target, fo, again, failure)) {
     std::string no_class;
-    SurfaceMapOptions ro = options;
-    ro.homotopy.two_way = false;
-    ro.homotopy.reverse_class = reverse_class_here(out, reverse, no_class);
-    ro.homotopy.reverse_class_only = true;
+    const SurfaceMapOptions ro =
+        single_class_options(options, reverse_class_here(out, reverse, no_class), SingleClass::KeepTheRest);
     std::string inverted_failure = no_class;
     if (ro.homotopy.reverse_class.empty() || !run_map(map, source, target, ro, again, inverted_failure)) {
       why = "the other direction's class (energy ratio " + four_digits(reverse.energy_ratio) + " there) failed here too: carried, " +

@@ -104,4 +104,30 @@ double chosen_energy(const SurfaceMapResult& r);
 /// class, no two-way run, no solve-progress callback.
 SurfaceMapOptions reverse_options(const SurfaceMapOptions& options);
 
+/// What single_class_options clears besides the class search.
+enum class SingleClass {
+  /// Nothing more: the caller's landmarks, through-shape flag, class index
+  /// and source images stay as `options` has them (the callers pass options
+  /// that already lack what must not apply: the run's own options from
+  /// paths that run only without a class index or source images, where the
+  /// landmarks are held in the class too; or reverse_options,
+  /// one_way_options, the through-shape legs' options).
+  KeepTheRest,
+  /// Also no class index, no through-shape step, no source images, no
+  /// landmarks and no solve-progress callback: the class's free energy
+  /// alone (agree_below_two_way_ratio compares pairs of inverse classes by
+  /// their free energies).
+  Alone,
+};
+
+/// Options that solve one class alone (issue 14): `reverse_class` (the
+/// other direction's class, in the letters of the run these options are
+/// for) inverted algebraically is the only candidate
+/// (HomotopyOptions::reverse_class_only), so no ranking, class search or
+/// geometric classes; always no two-way run and no directions' comparison,
+/// and no class_words (the one class is this one); what else is cleared:
+/// `scope`.
+SurfaceMapOptions single_class_options(SurfaceMapOptions options, std::vector<std::vector<int>> reverse_class,
+                                       SingleClass scope);
+
 }  // namespace surfmap::detail

@@ -699,7 +699,7 @@ def test_genus2_barrier_continuation_reports_progress_and_cancels():
     t0 = nearest_vertex(b[0], free["forward"]["position"][s])
     far = int(np.argmax(((b[0] - b[0][t0]) ** 2).sum(1)))
     t = shortest_path(adjacency(b[1], len(b[0])), t0, far)[6]
-    kw = dict(homotopy=free["homotopy"]["chosen"])
+    kw = dict(class_words=free["homotopy"]["chosen_words"])   # (by its name, not another run's index)
 
     def runs(lm):
         calls = []
@@ -885,6 +885,38 @@ def test_every_cli_map_option_has_a_python_keyword(cli):
         if renamed.get(name, name) not in surfmap.CAPABILITIES:
             missing.add(flag)
     assert not missing, missing
+
+
+def test_a_class_is_asked_for_by_its_words_in_another_run(tmp_path, cli):
+    # Issue 14, session 24: a class of one run named in another by its words (class_words=,
+    # --class-words), as the report gives them (homotopy.chosen_words, each candidate's words):
+    # the one candidate, the same class (words, energy) in Python and the CLI; an index names a
+    # class only within one run's list. Bad names are InputErrors.
+    a = surfmap.shapes.n_hole_torus(2, 14, True)
+    b = surfmap.shapes.vase(18, True)
+    free = surfmap.surface_map(*a, *b)
+    h = free["homotopy"]
+    words = h["chosen_words"]
+    assert len(words) == 4 and words == h["candidates"][h["chosen"]]["words"]
+    r = surfmap.surface_map(*a, *b, class_words=words)
+    assert len(r["homotopy"]["candidates"]) == 1 and r["homotopy"]["chosen_words"] == words
+    assert r["energy"]["final"] == pytest.approx(free["energy"]["final"], rel=1e-6)
+    src, dst, out, rep = (tmp_path / n for n in ("a.obj", "b.obj", "m.obj", "r.json"))
+    surfmap.write_obj(str(src), *a)
+    surfmap.write_obj(str(dst), *b)
+    c = cli("map", src, dst, "--out", out, "--report", rep, "--quiet", "--class-words", json.dumps(words))
+    assert c.returncode == 0, c.stderr
+    report = json.loads(rep.read_text())
+    assert report["homotopy"]["chosen_words"] == words
+    assert report["energy"]["final"] == pytest.approx(free["energy"]["final"], rel=1e-6)
+    bad = cli("map", src, dst, "--out", out, "--report", rep, "--class-words", "[[1],[2]")
+    assert bad.returncode != 0 and "--class-words" in bad.stderr
+    with pytest.raises(surfmap.InputError, match="class_words"):
+        surfmap.surface_map(*a, *b, class_words=words[:3])
+    with pytest.raises(surfmap.InputError, match="class_words"):
+        surfmap.surface_map(*a, *b, class_words=words, homotopy=0)
+    with pytest.raises(surfmap.InputError, match="class_words"):
+        surfmap.surface_map(*a, *b, class_words="1 2 3 4")
 
 
 def test_face_charts_keyword_maps_in_per_face_charts():

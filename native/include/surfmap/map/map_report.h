@@ -20,9 +20,9 @@
 //   target_refinement_splits, target_metric, target_flips, target_metric_choice, target_class_loops, source_weights,
 //   source_weights_reason, fold_repair {status, folded_faces, tries, rings, free_vertices, changed_faces,
 //   energy_before, energy_after},
-//   homotopy {chosen, candidates [{index, description, energy, solved, coarse_energy,
+//   homotopy {chosen, chosen_words, candidates [{index, description, energy, solved, coarse_energy,
 //             landmark_energy, landmark_lower_bound, matrix, class_lower_bound,
-//             class_curve_bound, class_bound_curves}], search {..., evaluated
+//             class_curve_bound, class_bound_curves, words}], search {..., evaluated
 //             [{step, move, screen, energy}]}},
 //   quality {energy_ratio, energy_ratio_basis (which energy, in words), warning,
 //            intrinsic_class_energy, energy_ratio_own_edges, directions {..., chosen_class_words,

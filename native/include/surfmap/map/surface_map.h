@@ -191,8 +191,24 @@ struct HomotopySearchOptions {
 /// (SurfaceMapOptions::homotopy; the ranking: the header comment above).
 struct HomotopyOptions {
   /// Homotopy class to use: index into SurfaceMapResult::candidates, or -1
-  /// (default) for the one of lowest energy.
+  /// (default) for the one of lowest energy. An index names a class within
+  /// one run's list only: another run (other options, landmarks, or a class
+  /// given) lists other candidates in another order, so to ask a later run
+  /// for a class of an earlier one give its class_words instead (issue 14,
+  /// docs/handle_classes.md "Session 24").
   int class_index = -1;
+  /// Genus >= 2: the class to use, named by its words (2g words: source
+  /// canonical generator j+1 -> word in the target's canonical letters, as
+  /// SurfaceMapResult::chosen_class_words or HomotopyCandidate::words of an
+  /// earlier run of the same two meshes with the same LoopOptions, whose
+  /// cuts write them; empty, the default: none). A name that does not depend
+  /// on the run's list: it is the only candidate, solved like a class_index
+  /// (no ranking, class search, geometric classes, two-way run or
+  /// through-shape step; with landmarks they are held in it). An InputError
+  /// with class_index, on genus 0 or 1, or with malformed words; a
+  /// SolveError when the words are no isomorphism of the surface groups.
+  /// CLI --class-words, Python class_words=.
+  std::vector<std::vector<int>> class_words;
   /// Genus 1 with landmarks: list each class M of the flat torus with both
   /// signs, M and -M (default true; false: up to the sign, the canonical
   /// sign only, as before issue 16). Without landmarks the list is always up
@@ -467,10 +483,15 @@ struct LoopOptions {
   /// run's, and twist-search a class listed in the short basis by the short
   /// basis's twists (src/map/stages/other_basis.h; docs/robustness.md
   /// "Session 23"). Default false: with it on, fertility -> CAD plate g4
-  /// goes from 2.803 x to 2.129 x the bound and polycube g3 -> plate g3 from
-  /// 73.19 to 64.86, but four genus-2 landmark tests change class (a class
-  /// index from a run without landmarks then names another class) and that
-  /// is not understood yet. CLI --both-canonical-bases.
+  /// goes from 2.803 x to 2.129 x the bound and polycube g3 -> plate g3
+  /// from 73.19 to 64.86, but three genus-2 landmark tests fail with it on
+  /// (n-hole torus g2 -> vase). Session 24 (docs/handle_classes.md "Session
+  /// 24"): they named the free run's class by its index, which names
+  /// another class in the landmark run's list; named by its words
+  /// (HomotopyOptions::class_words) they hold the free run's class, and
+  /// with both bases they still fail (a held energy of 40.7 against the
+  /// free 28.7; the relaxation ending at 86.8 where Newton ends at 27.4),
+  /// not understood. CLI --both-canonical-bases.
   bool both_canonical_bases = false;
 };
 
@@ -631,6 +652,11 @@ struct HomotopyCandidate {
   /// found. Read by the through-shape step; not in the report (the
   /// description names the class).
   int given_class = -1;
+  /// Genus >= 2: the class as words (2g: source canonical generator j+1 ->
+  /// word in the target's canonical letters, as chosen_class_words), the
+  /// name by which a later run of the same pair and LoopOptions is asked for
+  /// it (HomotopyOptions::class_words); empty for genus 0 and 1.
+  std::vector<std::vector<int>> words;
 };
 
 /// Genus >= 2: the class search of SurfaceMapOptions::homotopy.search.

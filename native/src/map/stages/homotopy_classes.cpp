@@ -177,7 +177,7 @@ std::vector<HomotopyClass> CutLifter::lift(const std::vector<int>& cut_bases) {
                                            " carried to the nearest points" + (proj.ok ? "" : ", jumps joined")));
           // (The overlay is the same class in either basis: searched in the
           // short one, stages/other_basis.h.)
-          if (other_ && other_->name() == "short") overlaid.back().other_basis_map = other_->from_run(theta);
+          overlaid.back().other_basis_map = OtherBasis::short_form(other_, theta);
         }
       }
     }
@@ -300,6 +300,24 @@ OverlayClasses overlay_classes(const ClassSpace& space, const TriMesh& source, c
   return out;
 }
 
+// A class given as words (HomotopyOptions::class_words, one class of
+// given_class), checked and reduced: 2g words in letters +-1..+-2g that are
+// an isomorphism of the surface groups. `which` names it in the errors.
+GroupMap named_class(const ClassSpace& space, const std::vector<Word>& words, const std::string& which) {
+  const int n = space.num_letters();
+  if (static_cast<int>(words.size()) != n)
+    throw InputError(which + " must be " + std::to_string(n) + " words (" + std::to_string(words.size()) + " given)");
+  for (const Word& w : words)
+    for (int x : w)
+      if (x == 0 || std::abs(x) > n) throw InputError(which + " must be words in letters +-1..+-" + std::to_string(n));
+  GroupMap theta = words;
+  space.reduce(theta);
+  if (!space.is_isomorphism(theta))
+    throw SolveError(which + " is not an isomorphism of the surface groups (not symplectic on homology, "
+                             "or the relator's image is not trivial)");
+  return theta;
+}
+
 }  // namespace
 
 CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
@@ -310,6 +328,14 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
   CandidateClasses out;
   HandleBasis& thb = out.target_basis;
   thb = handle_basis(tl.mesh, tl.loops, tcs);
+  // A class named by its words (homotopy.class_words, issue 14 session 24:
+  // a class of an earlier run, named so that no list index is needed): it
+  // alone.
+  if (!options.homotopy.class_words.empty()) {
+    out.classes.push_back(described(named_class(space, options.homotopy.class_words, "homotopy.class_words"), n, shb, thb,
+                                    "the class given by its words"));
+    return out;
+  }
   // A caller that knows the class (homotopy.images_only): it alone.
   if (options.homotopy.images_only) {
     if (options.homotopy.source_images.size() == 0)
@@ -337,17 +363,10 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
                        " given classes (" + std::to_string(names.size()) + " names)");
     std::vector<std::vector<double>> fingerprints;
     for (size_t k = 0; k < count; ++k) {
-      GroupMap theta(words.begin() + k * n, words.begin() + (k + 1) * n);
       const std::string which = count == 1 ? std::string("homotopy.given_class")
                                            : "homotopy.given_class's class " + std::to_string(k + 1);
-      for (const Word& w : theta)
-        for (int x : w)
-          if (x == 0 || std::abs(x) > n)
-            throw InputError(which + " must be words in letters +-1..+-" + std::to_string(n));
-      space.reduce(theta);
-      if (!space.is_isomorphism(theta))
-        throw SolveError(which + " is not an isomorphism of the surface groups (not symplectic on homology, "
-                                 "or the relator's image is not trivial)");
+      const GroupMap theta =
+          named_class(space, GroupMap(words.begin() + k * n, words.begin() + (k + 1) * n), which);
       const std::vector<double> fp = space.fingerprint(theta);
       if (std::any_of(fingerprints.begin(), fingerprints.end(),
                       [&](const std::vector<double>& other) { return ClassSpace::same_fingerprint(other, fp); }))
@@ -504,7 +523,7 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
     if (carried_loops_class(space, source, sl, projector, options.homotopy.source_images, &theta, &out.carried_status)) {
       out.carried_class = static_cast<int>(classes.size());
       classes.push_back(described(theta, n, shb, thb, "the source's loops carried by the target -> source map"));
-      if (other && other->name() == "short") classes.back().other_basis_map = other->from_run(theta);
+      classes.back().other_basis_map = OtherBasis::short_form(other, theta);
     }
   }
   // Source 6 (issue 14; docs/handle_classes.md "Both directions"): the
@@ -524,7 +543,7 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
       } else {
         out.inverted_class = static_cast<int>(classes.size());
         classes.push_back(described(inv.inverse, n, shb, thb, "the other direction's class, inverted algebraically"));
-        if (other && other->name() == "short") classes.back().other_basis_map = other->from_run(inv.inverse);
+        classes.back().other_basis_map = OtherBasis::short_form(other, inv.inverse);
       }
     }
   }

@@ -41,6 +41,10 @@ GroupMap OtherBasis::from_run(const GroupMap& theta_run) const {
   return theta;
 }
 
+GroupMap OtherBasis::short_form(const OtherBasis* other, const GroupMap& theta_run) {
+  return other && other->name() == "short" ? other->from_run(theta_run) : GroupMap{};
+}
+
 OtherBasisListing classes_in_other_basis(const OtherBasis& other, const TriMesh& source, const SystemOfLoops& sl,
                                          const SystemOfLoops& tl, const LoopProjector& projector,
                                          const SurfaceMapOptions& options, SourceCuts& cuts) {

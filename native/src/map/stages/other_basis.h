@@ -52,6 +52,10 @@ class OtherBasis {
   GroupMap to_run(const GroupMap& theta_other) const;
   /// A run class as the same homomorphism in the other basis.
   GroupMap from_run(const GroupMap& theta_run) const;
+  /// A run class in the short basis when `other` is the short one (where
+  /// its twist search runs: HomotopyClass::other_basis_map), else empty
+  /// (no other basis, or the run's own basis is the short one).
+  static GroupMap short_form(const OtherBasis* other, const GroupMap& theta_run);
 
  private:
   int n_;
