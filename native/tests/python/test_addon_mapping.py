@@ -3,6 +3,7 @@ landmarks, morph, side, map_job), imported as a package outside Blender (its __i
 bpy half when bpy is missing): UV transfer across seams, distortion measures, colour scales,
 landmarks, fingerprints, the map job's options and its sliced outputs."""
 import importlib
+import json
 import math
 import pathlib
 import sys
@@ -247,6 +248,29 @@ def test_map_options_spell_the_core_names_in_one_place():
     assert o.outputs == {"UV"} and o.morph_space == "WORLD" and o.colour_percentile == 95.0
     default = M.MapOptions().native_kwargs()
     assert default == {"homotopy": -1}          # the core's own defaults otherwise
+
+
+def test_a_listed_pairing_is_asked_for_by_its_words():
+    """A pairing picked from the last run's list goes to the core by its words (class_words),
+    which name it in the next run too; its list number may name another pairing there. Not
+    listed, or listed without words (genus 1): the number, as before."""
+    words = [[1, 2, -1], [2], [3], [4]]
+    listed = [types.SimpleNamespace(index=0, words="[]"),
+              types.SimpleNamespace(index=3, words=json.dumps(words))]
+    settings = types.SimpleNamespace(homotopy=3, candidates=listed, method='NEWTON', tolerance=0.0,
+                                     source_weights='AUTO', write_uvs_before=False,
+                                     morph_space='IN_PLACE', colour_percentile=99.0)
+    assert M.listed_class_words(settings) == words
+    kw = M.MapOptions.from_settings(settings).native_kwargs()
+    assert kw == {"homotopy": -1, "class_words": words}
+    settings.homotopy = 0                       # listed without words (a torus): its number
+    assert M.MapOptions.from_settings(settings).native_kwargs() == {"homotopy": 0}
+    settings.homotopy = 5                       # not listed: its number
+    assert M.MapOptions.from_settings(settings).native_kwargs() == {"homotopy": 5}
+    settings.homotopy = -1                      # automatic
+    assert M.MapOptions.from_settings(settings).native_kwargs() == {"homotopy": -1}
+    assert M.MapOptions(class_words=words).unsupported(types.SimpleNamespace(
+        surface_map=lambda: None, CAPABILITIES={"homotopy"})) is None
 
 
 def test_core_supports_prefers_the_capabilities_attribute():
