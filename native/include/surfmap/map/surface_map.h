@@ -483,15 +483,12 @@ struct LoopOptions {
   /// run's, and twist-search a class listed in the short basis by the short
   /// basis's twists (src/map/stages/other_basis.h; docs/robustness.md
   /// "Session 23"). Default false: with it on, fertility -> CAD plate g4
-  /// goes from 2.803 x to 2.129 x the bound and polycube g3 -> plate g3
-  /// from 73.19 to 64.86, but three genus-2 landmark tests fail with it on
-  /// (n-hole torus g2 -> vase). Session 24 (docs/handle_classes.md "Session
-  /// 24"): they named the free run's class by its index, which names
-  /// another class in the landmark run's list; named by its words
-  /// (HomotopyOptions::class_words) they hold the free run's class, and
-  /// with both bases they still fail (a held energy of 40.7 against the
-  /// free 28.7; the relaxation ending at 86.8 where Newton ends at 27.4),
-  /// not understood. CLI --both-canonical-bases.
+  /// goes from 2.803 x to 2.129 x the bound and polycube g3 -> plate g3 from
+  /// 73.19 to 64.86, but two genus-2 landmark tests fail (session 24: they
+  /// named the free run's class by an index, which names another class in
+  /// the landmark run's list; named by its words, HomotopyOptions::
+  /// class_words, they still fail with both bases: docs/handle_classes.md
+  /// "Session 24"). CLI --both-canonical-bases.
   bool both_canonical_bases = false;
 };
 
