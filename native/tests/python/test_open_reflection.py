@@ -3,13 +3,14 @@
 boundary on it to round-off where the doubles' own map is asymmetric (measured here), 0 flipped
 both ways by the independent count of test_open_double.check_map; the CLI flags and keywords of
 the open options reach the map."""
+import copy
 import json
 
 import numpy as np
 
 import surfmap
 from surfmap import open_double, open_reflection
-from test_open_double import bend, check_map, compact, holed_sphere, pants, punctured_torus
+from test_open_double import bend, check_map, compact, holed_sphere, pants, punctured_torus, subdivide
 
 
 def angle_sums(layout, n_vertices):
@@ -332,3 +333,39 @@ def test_the_half_solve_pairs_the_loops_as_the_doubles_map_does():
     assert m["converged"] and m["flipped_triangles"] == 0 and o["inverse_flipped_triangles"] == 0
     assert o["boundary_pairing"] == [1, 2, 0]
     assert check_map(m, Vs, Fs, Vt, Ft) == 0
+
+
+def test_the_inverse_locates_the_target_wherever_the_half_is_laid_out(monkeypatch):
+    # The half's maps do not depend on where its layout lies in the disk: the test pants onto their
+    # remeshed copy (1-to-4 subdivision), the target half laid out as usual and again moved by an
+    # isometry taking the origin to 0.995 (6.0 from it: the far faces of a large layout, such as
+    # the bench's double_torus_2's, lie up to 4.8 from the origin), and solved on both. Every target
+    # vertex is located in both, in the same source face. The inverse's candidate triangles were
+    # found by their Klein centroids (LOCATE_CHART "klein"), where triangles far from the origin
+    # are squeezed radially (cosh d to one): there 1,159 of double_torus_2 A's remeshed copy's
+    # 10,157 vertices were not located (every set-up, the doubles' half kept), here most of the
+    # moved layout's; in the (conformal) Poincare disk none.
+    Vs, Fs = pants(3)
+    Vt, Ft = subdivide(Vs, Fs)
+    S = open_double._Side(Vs, Fs, "source")
+    T = open_double._Side(Vt, Ft, "target")
+    pos, face, target_xyz, _ = open_double._rough_maps(S, T, [0, 1, 2], {}, False, np.zeros((0, 2), int))[0][0]
+    images = open_double._symmetric_images(S, T, [0, 1, 2], False, pos, face, target_xyz)
+    r = open_double._double_map(S, T, images, {})
+    layout = open_reflection.HalfLayout(T.F2, T.D)
+    moved = copy.copy(layout)
+    M = open_reflection._inv(open_reflection._to_origin(0.995))
+    moved.pos = open_reflection._apply(M, layout.pos)
+    moved.klein = open_reflection._klein(moved.pos)
+    moved.transition = open_reflection._normalized(M @ layout.transition @ open_reflection._inv(M))
+    assert 2 * np.arctanh(np.abs(moved.pos)).max() > 5.5
+    h = open_reflection.solve_half(S, T, r["forward"], [0, 1, 2], False, layout)
+    g = open_reflection.solve_half(S, T, r["forward"], [0, 1, 2], False, moved)
+    for x in (h, g):
+        assert x["converged"] and x["intrinsic_flipped"] == 0 and len(x["inverse_unlocated"]) == 0
+    assert np.all(g["forward"]["face"] == h["forward"]["face"])
+    assert np.abs(g["forward"]["barycentric"] - h["forward"]["barycentric"]).max() < 1e-3  # (the solves stop at 1e-10)
+    assert np.mean(g["inverse"]["face"] == h["inverse"]["face"]) > 0.99
+    monkeypatch.setattr(open_reflection, "LOCATE_CHART", "klein")
+    k = open_reflection.solve_half(S, T, r["forward"], [0, 1, 2], False, moved)
+    assert len(k["inverse_unlocated"]) > 0.01 * T.n2
