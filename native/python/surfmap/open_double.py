@@ -1314,7 +1314,10 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
     candidates); else None, the reason in cand['reflection_solve']. layouts: per pair of sides (the
     halves refined at their boundary, RefinedHalf, and the unrefined ones) the target half's metric
     and HalfLayout per orientation, filled on first use. The result's 'sides' are the pair it was
-    solved on (_half maps it back through them)."""
+    solved on (_half maps it back through them), 'half' its map finished (_setup_quality), which
+    surface_map_open delivers. Every set-up is solved and the best measured kept (SETUP_CHOICE);
+    cand['reflection_setups'] lists them. The boundary loops are paired as r's images pair them
+    (_realized_pairing), whatever `pairing` requested (docs/open_surfaces.md "Session 24")."""
     def sides(refined):
         # refined: 2 both halves refined at their boundary, 1 the target's only, 0 neither.
         if not refined:
