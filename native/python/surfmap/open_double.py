@@ -1268,8 +1268,44 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
 #: "Session 23"); False: the unrefined ones only (to compare).
 REFINE_HALF = True
 
+#: Which of the set-ups that succeed is kept (_reflection_candidate): "measured" (default) every one
+#: solved and the best by _setup_quality; "first" the first in the order above (session 23's rule,
+#: to compare; docs/open_surfaces.md "Session 24").
+SETUP_CHOICE = "measured"
 
-def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
+
+def _setup_quality(S, T, r, sym, reversing, untangle):
+    """The delivered map of a set-up's half solve, measured as the report measures it: the half's
+    maps (_half: the untangling when `untangle`) finished (_finish_half: the ear slides, the
+    inverse's untangling), then the folded faces left forward and in the inverse and the largest and
+    the area-weighted mean D' of the forward map's chord triangles, ears left out. Returns (the
+    measures, the finished half's dict, which surface_map_open then delivers as it is)."""
+    h = _half(S, T, r, reversing, untangle, sym)
+    _finish_half(S, T, h, reversing, np.zeros((0, 2), dtype=np.int64), untangle)
+    dil = _dilatation(S.V, h["fw"]["position"], S.F)
+    keep = ~h["ear"] & np.isfinite(dil)
+    P = S.V[S.F]
+    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)[keep]
+    return {"flipped": int(h["flipped"]), "inverse_flipped": int(h["inv_flipped"]),
+            "max_distortion": float(dil[keep].max()) if keep.any() else float("nan"),
+            "mean_distortion": float(np.dot(area, dil[keep]) / area.sum()) if area.sum() > 0 else float("nan")}, h
+
+
+def _realized_pairing(S, T, r, requested):
+    """The target loop of each source loop as the doubles' map r realises it: the loop of T nearest
+    to most of the source loop's images (r's forward positions of the input vertices); `requested`
+    when that is not a permutation."""
+    pos = np.asarray(r["forward"]["position"])[:S.n]
+    t_vertices = np.concatenate(T.loops)
+    t_loop = np.concatenate([np.full(len(l), i) for i, l in enumerate(T.loops)])
+    got = []
+    for loop in S.loops:
+        votes = t_loop[_nearest(pos[loop], T.V[t_vertices])]
+        got.append(int(np.bincount(votes, minlength=T.b).argmax()))
+    return got if sorted(got) == list(range(T.b)) else list(requested)
+
+
+def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=True):
     """The reflection-aware solve (open_reflection.solve_half) of the class of the doubles' map r:
     its result when it converged with every face positively oriented in the metric and every point
     located, cand updated (reflection_energy: the half's with its own weights; symmetry_error 0:
@@ -1278,7 +1314,10 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
     candidates); else None, the reason in cand['reflection_solve']. layouts: per pair of sides (the
     halves refined at their boundary, RefinedHalf, and the unrefined ones) the target half's metric
     and HalfLayout per orientation, filled on first use. The result's 'sides' are the pair it was
-    solved on (_half maps it back through them)."""
+    solved on (_half maps it back through them), 'half' its map finished (_setup_quality), which
+    surface_map_open delivers. Every set-up is solved and the best measured kept (SETUP_CHOICE);
+    cand['reflection_setups'] lists them. The boundary loops are paired as r's images pair them
+    (_realized_pairing), whatever `pairing` requested (docs/open_surfaces.md "Session 24")."""
     def sides(refined):
         # refined: 2 both halves refined at their boundary, 1 the target's only, 0 neither.
         if not refined:
@@ -1307,42 +1346,72 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
         return cached((refined > 0, reversing), lambda: open_reflection.HalfLayout(
             B.F2[:, ::-1] if reversing else B.F2, B.D, metric))
 
-    # The half's intrinsic Delaunay weights (the doubles' own), on both halves refined at their
-    # boundary first, then on the target's only (the generated shirt A -> B: 2 source faces turned
-    # in the metric with both refined), then on neither; where the solve fails, the source's own
+    # The half's intrinsic Delaunay weights (the doubles' own) on three set-ups: both halves
+    # refined at their boundary, the target's only, neither; where none succeeds, the source's own
     # cotangents floored at 0.1 of the mean (a convex energy on the mesh's own edges, as the closed
-    # pipeline's fallback), in the same order.
-    attempts = [(refined, weights, floor) for weights, floor in (("delaunay", None), ("own", 0.1))
-                for refined in ((2, 1, 0) if REFINE_HALF else (0,))]
-    why, sym = [], None
-    for refined, weights, floor in attempts:
-        label = (("both halves refined, " if refined == 2 else "the target's half refined, " if refined else "") +
-                 ("intrinsic Delaunay weights" if weights == "delaunay" else "own cotangents floored at 0.1"))
-        try:
-            A, B = sides(refined)
-            forward = open_reflection.refined_forward(A, B, r["forward"]) if refined else r["forward"]
-            got = open_reflection.solve_half(A, B, forward, pairing, reversing, layout(refined, A, B),
-                                             weights=weights, weight_floor=floor)
-        except _core.Cancelled:
-            raise
-        except _core.Error as e:
-            # (open_reflection.ReflectionSolveError: e.g. an intrinsic Delaunay edge of the double
-            # that the half cannot express; the next attempt)
-            why.append(f"{label}: {e}")
-            continue
-        bad = [w for w, b in (
-            ("not converged (gradient %.3g)" % got["gradient"], not got["converged"]),
-            (f"{got['intrinsic_flipped']} faces turned in the metric", got["intrinsic_flipped"]),
-            (f"{got['escaped']} interior images beyond the boundary", got["escaped"]),
-            (f"{len(got['inverse_unlocated'])} target vertices not located", len(got["inverse_unlocated"])))
-            if b]
-        if bad:
-            why.append(f"{label}: " + ", ".join(bad))
-            continue
-        sym = got
-        sym["sides"] = (A, B)
-        sym["refined"] = refined
-        break
+    # pipeline's fallback) on the same three. Within a group every set-up is solved and the one
+    # whose delivered map measures best is kept (_setup_quality: fewest folded faces both ways,
+    # then the smallest largest D'); SETUP_CHOICE "first": the first that succeeds, in that order
+    # (session 23's rule: double_torus_1 A -> B 9.73 where the unrefined halves give 8.63,
+    # docs/open_surfaces.md "Session 24").
+    # The boundary loops as the doubles' map r pairs them (its class is what the half's solve
+    # solves): each source loop onto the target loop nearest most of its images. The requested
+    # pairing may differ (the fold test's pair: requested [0, 1, 2], r's images on [1, 2, 0]), and a
+    # boundary vertex sliding on another loop's geodesic than its image's stalls the solve
+    # (docs/open_surfaces.md "Session 24").
+    requested = [int(x) for x in pairing]
+    pairing = _realized_pairing(S, T, r, requested)
+    groups = [[(refined, weights, floor) for refined in ((2, 1, 0) if REFINE_HALF else (0,))]
+              for weights, floor in (("delaunay", None), ("own", 0.1))]
+    why, sym, setups = [], None, []
+    for group in groups:
+        done = []
+        for refined, weights, floor in group:
+            label = (("both halves refined, " if refined == 2 else "the target's half refined, " if refined else "") +
+                     ("intrinsic Delaunay weights" if weights == "delaunay" else "own cotangents floored at 0.1"))
+            try:
+                A, B = sides(refined)
+                forward = open_reflection.refined_forward(A, B, r["forward"]) if refined else r["forward"]
+                got = open_reflection.solve_half(A, B, forward, pairing, reversing, layout(refined, A, B),
+                                                 weights=weights, weight_floor=floor)
+            except _core.Cancelled:
+                raise
+            except _core.Error as e:
+                # (open_reflection.ReflectionSolveError: e.g. an intrinsic Delaunay edge of the double
+                # that the half cannot express; the next attempt)
+                why.append(f"{label}: {e}")
+                setups.append({"setup": label, "status": f"failed: {e}"})
+                continue
+            bad = [w for w, b in (
+                ("not converged (gradient %.3g)" % got["gradient"], not got["converged"]),
+                (f"{got['intrinsic_flipped']} faces turned in the metric", got["intrinsic_flipped"]),
+                (f"{got['escaped']} interior images beyond the boundary", got["escaped"]),
+                (f"{len(got['inverse_unlocated'])} target vertices not located", len(got["inverse_unlocated"])))
+                if b]
+            if bad:
+                why.append(f"{label}: " + ", ".join(bad))
+                setups.append({"setup": label, "status": "failed: " + ", ".join(bad)})
+                continue
+            got["sides"] = (A, B)
+            got["refined"] = refined
+            quality, got["half"] = _setup_quality(S, T, r, got, reversing, untangle)
+            setups.append(dict({"setup": label, "status": "ok"}, **quality))
+            done.append((quality, label, got, len(setups) - 1))
+            if SETUP_CHOICE == "first":
+                break
+        if done:
+            quality, label, sym, chosen = min(done, key=lambda x: (x[0]["flipped"] + x[0]["inverse_flipped"],
+                                                                   x[0]["max_distortion"]))
+            setups[chosen]["chosen"] = True
+            others = [f"{lab}: max D' {q['max_distortion']:.3g}" + (
+                f", {q['flipped']} / {q['inverse_flipped']} folded" if q["flipped"] + q["inverse_flipped"] else "")
+                for q, lab, _, _ in done if lab != label]
+            if others:
+                why.append("also solved, measured worse: " + "; ".join(others))
+            break
+    cand["reflection_setups"] = setups
+    if pairing != requested:
+        why.insert(0, f"the loops paired as the doubles' map's images lie, {pairing} (requested {requested})")
     if sym is None:
         cand["reflection_solve"] = "not used: " + "; ".join(why)
         return None
@@ -1357,7 +1426,7 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand):
                                 f"{sym['metric_error']:.2g} averaged out"
                                 + ("" if sym["metric_scheme"] == "vertex scaling" else
                                    f", the target's metric by {sym['metric_scheme']}")
-                                + (" (before: " + "; ".join(why) + ")" if why else ""))
+                                + (" (" + "; ".join(why) + ")" if why else ""))
     return sym
 
 
@@ -1549,7 +1618,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         # when some candidate is symmetric: a class of another pairing costs its walks for nothing;
         # the pants A -> remeshed A went 18 -> 62 s.)
         for cand, r, rev, images in refused:
-            sym = _reflection_candidate(S, T, r, cand["pairing"], rev, layouts, cand)
+            sym = _reflection_candidate(S, T, r, cand["pairing"], rev, layouts, cand, untangle)
             if sym is not None:
                 solved.append((cand, r, rev, images, sym))
     if not solved:
@@ -1572,8 +1641,9 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         c["chosen"] = c is cand
     report("doubles: the half", 0.95)
     if sym is None and reflection_solve and not len(lm):
-        sym = _reflection_candidate(S, T, r, cand["pairing"], rev, layouts, cand)
-    h = _half(S, T, r, rev, untangle, sym)
+        sym = _reflection_candidate(S, T, r, cand["pairing"], rev, layouts, cand, untangle)
+    # (the half's solve's map was finished when its set-up was measured: _setup_quality)
+    h = sym["half"] if sym is not None else _half(S, T, r, rev, untangle)
     chosen_options = options
     if h["flipped"] and "source_weights" not in options and sym is None:
         # As the closed pipeline's automatic weights (SourceWeights::Automatic): the intrinsic
@@ -1593,7 +1663,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
             h = h2
         else:
             h["weights_fallback"] = h2["weights_fallback"]
-    _finish_half(S, T, h, rev, lm, untangle)
+    if sym is None:
+        _finish_half(S, T, h, rev, lm, untangle)
     refined = ""
     if (h["flipped"] or h["inv_flipped"]) and refine_levels > 0:
         # Folds left next to the boundary: the chosen class solved again on doubles refined near
@@ -1607,11 +1678,12 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         sym3, refined_reflection = None, ""
         if sym is not None:
             c3 = {}
-            sym3 = _reflection_candidate(S2, T2, r3, cand["pairing"], rev, {}, c3)
+            sym3 = _reflection_candidate(S2, T2, r3, cand["pairing"], rev, {}, c3, untangle)
             if sym3 is None:
                 refined_reflection = c3.get("reflection_solve", "")
-        h3 = _half(S2, T2, r3, rev, untangle, sym3)
-        _finish_half(S2, T2, h3, rev, lm, untangle)
+        h3 = sym3["half"] if sym3 is not None else _half(S2, T2, r3, rev, untangle)
+        if sym3 is None:
+            _finish_half(S2, T2, h3, rev, lm, untangle)
         refined = (f"{h['flipped']} flipped / {h['inv_flipped']} in the inverse; solved again on the doubles refined "
                    f"within {refine_rings} rings of the boundary {refine_levels} times ({S2.n2} / {T2.n2} vertices "
                    f"on the halves): {h3['flipped']} / {h3['inv_flipped']}")
@@ -1624,6 +1696,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
             cand = dict(cand, energy=float(r3["energy"]["final"]) / 2)
             cand["symmetry_error"], cand["same_sheet"] = (_symmetry(r3, S2, T2, rev) if sym3 is None else
                                                           (0.0, 1.0))
+            if sym3 is not None:
+                cand["reflection_setups"] = c3.get("reflection_setups", [])
     fw, inv, pairing, back_pairing, snap = h["fw"], h["inv"], h["pairing"], h["back_pairing"], h["snap"]
     flipped, ears, ears_turned, ear = h["flipped"], h["ears"], h["ears_turned"], h["ear"]
     untangled, flipped_before_untangling = h["untangled"], h["before"]
@@ -1681,6 +1755,9 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                                                 "not with landmarks" if len(lm) else ""),
                    "reflection_energy": sym["energy"] if sym is not None else float("nan"),
                    "reflection_iterations": sym["iterations"] if sym is not None else 0,
+                   # each set-up of the half's solve tried: its words, status, and the measures it
+                   # was chosen by (flipped, inverse_flipped, max / mean_distortion; Session 24)
+                   "reflection_setups": cand.get("reflection_setups", []) if sym is not None else [],
                    # the vertices of the source's and the target's halves it was solved on (the
                    # halves refined at their boundary: more than the split halves'; Session 23)
                    "reflection_half_vertices": [int(x.n2) for x in sym["sides"]] if sym is not None else [],

@@ -804,6 +804,13 @@ def _locate_all(layout, z, face, max_steps=20000):
     return face, bary, W, outside
 
 
+#: The coordinates the inverse's candidate triangles are found in (_locate_in_triangles):
+#: "poincare" (default; the Poincare disk is conformal, so the nearest centroids of a point are
+#: those around it in every direction) or "klein" (session 23's: the Klein model squeezes
+#: triangles radially near the rim of the disk, cosh d to one at distance d from the origin).
+LOCATE_CHART = "poincare"
+
+
 def _locate_in_triangles(K, tri_face, layout, n_vertices, k_nearest=48):
     """Per target vertex (of the laid-out faces' corners) the source face and (hyperboloid)
     barycentrics of the geodesic triangle K (t, 3, Poincare disk) holding one of its placed
@@ -815,10 +822,13 @@ def _locate_in_triangles(K, tri_face, layout, n_vertices, k_nearest=48):
     vert = F.ravel()
     pts = layout.pos.ravel()
     pts_k = layout.klein.ravel()
-    cen = _klein(K).mean(axis=1)
+    if LOCATE_CHART == "klein":
+        cen, query = _klein(K).mean(axis=1), pts_k
+    else:
+        cen, query = _poincare(_klein(K).mean(axis=1)), pts
     tree = cKDTree(np.stack([cen.real, cen.imag], axis=1))
     kq = min(k_nearest, len(K))
-    _, cand = tree.query(np.stack([pts_k.real, pts_k.imag], axis=1), k=kq)
+    _, cand = tree.query(np.stack([query.real, query.imag], axis=1), k=kq)
     cand = cand.reshape(len(pts), kq)
     best = np.full(len(pts), -np.inf)
     best_t = np.zeros(len(pts), dtype=np.int64)
