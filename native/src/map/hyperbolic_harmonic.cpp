@@ -201,10 +201,12 @@ struct HessianAnalysis {
 
 namespace {
 
-// The Newton systems from this many unknowns on solve from a simplicial
-// copy of the factor (BlockHessian::factorize): those of the preconditioned
-// steps (kPreconditionedVertices), where one factor serves many solves.
-constexpr int kSimplicialSolveUnknowns = 8000;
+// The Newton systems with this many unknowns solve from a simplicial copy
+// of the factor (BlockHessian::factorize): those of the preconditioned steps
+// (kPreconditionedVertices), where one factor serves many solves, on small
+// sources only (the 50k bench pair's source, with the copy: 114 MiB more
+// peak memory and no CPU saved).
+constexpr int kSimplicialSolveUnknowns = 8000, kSimplicialSolveMaxUnknowns = 40000;
 
 // The numeric side of the Newton system for one solve: values on the
 // analysis's pattern and a numeric factor (a copy of the symbolic one, so
@@ -273,7 +275,7 @@ class BlockHessian {
     // supernodal factor (its solve's two BLAS calls per supernode cost more
     // than the arithmetic; ricci_flow.cpp SupernodalFactorSimplicialSolves),
     // where a factor serves many solves (the preconditioned steps).
-    if (ok && L_->is_super && 2 * n_ >= kSimplicialSolveUnknowns) {
+    if (ok && L_->is_super && 2 * n_ >= kSimplicialSolveUnknowns && 2 * n_ <= kSimplicialSolveMaxUnknowns) {
       solves_ = cholmod_copy_factor(L_, &c_);
       if (solves_ && !cholmod_change_factor(CHOLMOD_REAL, 1, 0, 1, 1, solves_, &c_)) cholmod_free_factor(&solves_, &c_);
     }

@@ -708,9 +708,12 @@ namespace {
 /// against 0.36 ms supernodal at 6.9k vertices, 3.5 against 5.1 ms at 69k
 /// (one BLAS thread), and the preconditioned CG steps solve with one factor
 /// tens of times (41 solves for the 6.9k bench target's 6 Newton steps). The
-/// copy costs one pass over the factor per factorisation. The solves' sums
-/// run in another order than the supernodal ones: the same step up to
-/// round-off.
+/// copy costs one pass over the factor per factorisation; on small meshes
+/// only (up to kSimplicialSolveVertices: the 55.9k bench target, whose flow
+/// starts from a coarse copy's solution and solves little, held 34 MiB more
+/// for it). The solves' sums run in another order than the supernodal ones:
+/// the same step up to round-off.
+constexpr Eigen::Index kSimplicialSolveVertices = 20000;
 class SupernodalFactorSimplicialSolves
     : public Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> {
   using Base = Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower>;
@@ -728,7 +731,7 @@ class SupernodalFactorSimplicialSolves
   void factorize(const Eigen::SparseMatrix<double>& A) {
     free_copy();
     Base::factorize(A);
-    if (Base::info() != Eigen::Success || !m_cholmodFactor) return;
+    if (Base::info() != Eigen::Success || !m_cholmodFactor || A.rows() > kSimplicialSolveVertices) return;
     copy_ = cholmod_copy_factor(m_cholmodFactor, &cholmod());
     // (simplicial LL', packed, monotonic: the layout cholmod_solve expects)
     if (copy_ && !cholmod_change_factor(CHOLMOD_REAL, 1, 0, 1, 1, copy_, &cholmod())) free_copy();
