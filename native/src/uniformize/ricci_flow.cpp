@@ -708,8 +708,8 @@ namespace {
 /// against 0.36 ms supernodal at 6.9k vertices, 3.5 against 5.1 ms at 69k
 /// (one BLAS thread), and the preconditioned CG steps solve with one factor
 /// tens of times (41 solves for the 6.9k bench target's 6 Newton steps). The
-/// copy costs one pass over the factor per factorisation; on small meshes
-/// only (up to kSimplicialSolveVertices: the 55.9k bench target, whose flow
+/// copy costs one pass over the factor per factorisation; hyperbolic flows
+/// on small meshes only (up to kSimplicialSolveVertices: the 55.9k bench target, whose flow
 /// starts from a coarse copy's solution and solves little, held 34 MiB more
 /// for it). The solves' sums run in another order than the supernodal ones:
 /// the same step up to round-off.
@@ -719,6 +719,11 @@ class SupernodalFactorSimplicialSolves
   using Base = Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower>;
 
  public:
+  /// Off: the supernodal solves (flat flows: the genus-1 maps whose images
+  /// crowd below the ulps of their coordinates, SurfaceMap.
+  /// CrowdedFingerImagesKeepTheirOrientation, certify with the supernodal
+  /// solves' round-off and fold with the simplicial one's).
+  bool simplicial_solves = true;
   SupernodalFactorSimplicialSolves() = default;
   SupernodalFactorSimplicialSolves(const SupernodalFactorSimplicialSolves&) = delete;
   SupernodalFactorSimplicialSolves& operator=(const SupernodalFactorSimplicialSolves&) = delete;
@@ -731,7 +736,8 @@ class SupernodalFactorSimplicialSolves
   void factorize(const Eigen::SparseMatrix<double>& A) {
     free_copy();
     Base::factorize(A);
-    if (Base::info() != Eigen::Success || !m_cholmodFactor || A.rows() > kSimplicialSolveVertices) return;
+    if (!simplicial_solves || Base::info() != Eigen::Success || !m_cholmodFactor || A.rows() > kSimplicialSolveVertices)
+      return;
     copy_ = cholmod_copy_factor(m_cholmodFactor, &cholmod());
     // (simplicial LL', packed, monotonic: the layout cholmod_solve expects)
     if (copy_ && !cholmod_change_factor(CHOLMOD_REAL, 1, 0, 1, 1, copy_, &cholmod())) free_copy();
@@ -859,7 +865,9 @@ struct RicciRun {
         metric(dom, base, background_in, options_in.scheme),
         H(dom_in.num_vertices, dom_in.num_vertices),
         floor_tol(std::max(options_in.tolerance, options_in.floor_tolerance)),
-        check(start_check) {}
+        check(start_check) {
+    llt.simplicial_solves = background_in == Background::Hyperbolic;
+  }
   RicciRun(const RicciRun&) = delete;
   RicciRun& operator=(const RicciRun&) = delete;
 
