@@ -79,8 +79,10 @@ SourceClassBounds class_bounds_on(const TriMesh& surface, const Connectivity& su
     // (A copy's vertex numbers are its own: its loops' base vertex is left
     // to the loop construction.)
     o.loops.target_base_vertex = copy ? -1 : options.loops.source_base_vertex;
+    // (A copy's handle-class loops are never read: as_target_letters runs on
+    // the source itself only.)
     b.uniformized = uniformized_target(surface, Background::Hyperbolic, o, &surface_conn, stop, "source",
-                                       copy ? nullptr : &sl);
+                                       copy ? nullptr : &sl, !copy);
     const UniformizedTarget& xu = b.uniformized;
     b.schema = canonical_schema(xu.layout.word, schema_options(options));
     const CanonicalSchema& xcs = b.schema;

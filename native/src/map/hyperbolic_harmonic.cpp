@@ -13,6 +13,7 @@
 
 #include <Eigen/Dense>
 
+#include "../cholmod_vector_solve.h"
 #include "../seconds_since.h"
 #include "concurrency.h"
 #include "surfmap/error.h"
@@ -200,6 +201,13 @@ struct HessianAnalysis {
 
 namespace {
 
+// The Newton systems with this many unknowns solve from a simplicial copy
+// of the factor (BlockHessian::factorize): those of the preconditioned steps
+// (kPreconditionedVertices), where one factor serves many solves, on small
+// sources only (the 50k bench pair's source, with the copy: 114 MiB more
+// peak memory and no CPU saved).
+constexpr int kSimplicialSolveUnknowns = 8000, kSimplicialSolveMaxUnknowns = 40000;
+
 // The numeric side of the Newton system for one solve: values on the
 // analysis's pattern and a numeric factor (a copy of the symbolic one, so
 // solves on two threads do not share CHOLMOD state).
@@ -219,6 +227,7 @@ class BlockHessian {
     if (!L_) throw SolveError("hyperbolic harmonic map: copying the symbolic factorisation of the Hessian failed");
   }
   ~BlockHessian() {
+    if (solves_) cholmod_free_factor(&solves_, &c_);
     cholmod_free_factor(&L_, &c_);
     cholmod_free_sparse(&A_, &c_);
     cholmod_finish(&c_);
@@ -260,7 +269,17 @@ class BlockHessian {
     }
     cholmod_factorize(A_, L_, &c_);
     ++work::factorisations;
-    return c_.status == CHOLMOD_OK && L_->minor == L_->n;
+    if (solves_) cholmod_free_factor(&solves_, &c_);
+    const bool ok = c_.status == CHOLMOD_OK && L_->minor == L_->n;
+    // Issue 19 (session 24): the solves from a simplicial copy of a
+    // supernodal factor (its solve's two BLAS calls per supernode cost more
+    // than the arithmetic; ricci_flow.cpp SupernodalFactorSimplicialSolves),
+    // where a factor serves many solves (the preconditioned steps).
+    if (ok && L_->is_super && 2 * n_ >= kSimplicialSolveUnknowns && 2 * n_ <= kSimplicialSolveMaxUnknowns) {
+      solves_ = cholmod_copy_factor(L_, &c_);
+      if (solves_ && !cholmod_change_factor(CHOLMOD_REAL, 1, 0, 1, 1, solves_, &c_)) cholmod_free_factor(&solves_, &c_);
+    }
+    return ok;
   }
   // (assembled matrix + shift·I) x, from the upper triangle it stores (the
   // matrix assembled last, whatever the factor holds).
@@ -283,28 +302,14 @@ class BlockHessian {
     }
     return y;
   }
-  Eigen::VectorXd solve(const Eigen::VectorXd& b) {
-    cholmod_dense B;
-    B.nrow = B.d = static_cast<size_t>(b.size());
-    B.ncol = 1;
-    B.nzmax = B.nrow;
-    B.x = const_cast<double*>(b.data());
-    B.z = nullptr;
-    B.xtype = CHOLMOD_REAL;
-    B.dtype = CHOLMOD_DOUBLE;
-    cholmod_dense* X = cholmod_solve(CHOLMOD_A, L_, &B, &c_);
-    Eigen::VectorXd x(b.size());
-    if (!X) x.setConstant(std::numeric_limits<double>::quiet_NaN());
-    else std::copy(static_cast<double*>(X->x), static_cast<double*>(X->x) + b.size(), x.data());
-    cholmod_free_dense(&X, &c_);
-    return x;
-  }
+  Eigen::VectorXd solve(const Eigen::VectorXd& b) { return detail::cholmod_vector_solve(solves_ ? solves_ : L_, b, &c_); }
 
  private:
   int n_;
   cholmod_common c_{};
   cholmod_sparse* A_ = nullptr;
   cholmod_factor* L_ = nullptr;
+  cholmod_factor* solves_ = nullptr;  // simplicial copy of L_ for the solves, or null
   const std::vector<int>& colptr_;
   const std::vector<int>& rows_;
   const std::vector<int>& pair_;
@@ -836,10 +841,13 @@ constexpr double kMaxStep = 4.0;
 // Issue 19: from this many vertices on, the Newton steps after the first
 // factorisation are CG on the current Hessian preconditioned by the kept
 // factor (HarmonicNewton::preconditioned_step); below it (the ranking's
-// coarse copies, ~3000 vertices, where a factorisation costs a few solves)
-// the chord steps. kMaxCgIterations: CG gives up after this many (about
-// half a factorisation's worth of solves at 10^5 unknowns).
-constexpr int kPreconditionedVertices = 10000;
+// coarse copies, at most 3000 vertices by default, where a factorisation
+// costs a few solves) the chord steps. Session 24: 4000, was 10000 (the
+// 4.9k bench source's full-resolution solve: 1 factorisation and 3 Newton
+// steps instead of 2 and 5 with --threads 1, 0.42 G instructions instead of
+// 0.48 G, the energy equal to 1e-13 relative). kMaxCgIterations: CG gives up after this
+// many (about half a factorisation's worth of solves at 10^5 unknowns).
+constexpr int kPreconditionedVertices = 4000;
 constexpr int kMaxCgIterations = 15;
 
 /// One newton_solve run: the chart state, the factorisation kept across

@@ -186,9 +186,10 @@ std::shared_ptr<const ClassLoops> class_loops_on_input(OwnLoopsOnTPrime own, con
 UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc, Background background,
                                    const SurfaceMapOptions& options, const SystemOfLoopsOptions& lo,
                                    const std::atomic<bool>* stop, const std::string& mesh,
-                                   const SystemOfLoops* own_loops) {
+                                   const SystemOfLoops* own_loops, bool class_loops) {
   UniformizedTarget t;
   const bool hyperbolic = background == Background::Hyperbolic;
+  const bool with_class_loops = hyperbolic && class_loops;
   const int threads = pipeline_threads(options.threads);
   // Issue 19: the handle classes' loops (the target's own, carried onto T')
   // are combinatorial: with two threads the own loops are built next to the
@@ -198,7 +199,7 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   // everything its task reads, so that an exception waits for the task
   // before those go.
   std::future<ClassLoops> own_future;
-  if (hyperbolic && threads > 1)
+  if (with_class_loops && threads > 1)
     own_future = std::async(std::launch::async, [&] { return own_class_loops(target, tc, lo, own_loops, schema_options(options)); });
   RicciFlowOptions fo;
   fo.tolerance = options.uniformization.tolerance;
@@ -278,7 +279,7 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   // The handle classes read the loops of the user's own connectivity, as on
   // the fixed path (docs/uniformization.md "Handle classes on the flip
   // path"); when carrying them fails the classes read the loops of T'.
-  if (hyperbolic) {
+  if (with_class_loops) {
     try {
       OwnLoopsOnTPrime own;
       if (carried_future.valid() && same_tprime_loops) {
@@ -366,15 +367,15 @@ UniformizedTarget typed_target(const Path& path) {
 
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
                                      const Connectivity* conn, const std::atomic<bool>* stop,
-                                     const std::string& mesh, const SystemOfLoops* own_loops) {
+                                     const std::string& mesh, const SystemOfLoops* own_loops, bool class_loops) {
   SystemOfLoopsOptions lo;
   lo.base_vertex = options.loops.target_base_vertex;
   const UniformizationMetric policy = options.uniformization.target_metric;
   auto flips = [&] {
     return typed_target([&] {
-      if (conn) return intrinsic_target(target, *conn, background, options, lo, stop, mesh, own_loops);
+      if (conn) return intrinsic_target(target, *conn, background, options, lo, stop, mesh, own_loops, class_loops);
       return intrinsic_target(target, Connectivity(target.F, target.num_vertices()), background, options, lo, stop,
-                              mesh, own_loops);
+                              mesh, own_loops, class_loops);
     });
   };
   auto fixed = [&](const std::string& flip_failure) {

@@ -152,10 +152,14 @@ struct UniformizedTarget {
 /// at the base vertex options.loops.target_base_vertex chooses (the
 /// pipeline's source loops when the source is uniformized), whose greedy
 /// basis the flip path's class loops then refine instead of computing it
-/// again (issue 19; the same loops).
+/// again (issue 19; the same loops). `class_loops` false: no handle-class
+/// loops (UniformizedTarget::class_loops stays empty; session 24: the
+/// source's coarse copy uniformized for the class bounds reads only its
+/// layout and loops).
 UniformizedTarget uniformized_target(const TriMesh& target, Background background, const SurfaceMapOptions& options,
                                      const Connectivity* conn = nullptr, const std::atomic<bool>* stop = nullptr,
-                                     const std::string& mesh = "target", const SystemOfLoops* own_loops = nullptr);
+                                     const std::string& mesh = "target", const SystemOfLoops* own_loops = nullptr,
+                                     bool class_loops = true);
 
 /// The target metric's account (which metric, why, its flips and exact
 /// splits) recorded in the result's target_* fields; one place for every

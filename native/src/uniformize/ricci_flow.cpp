@@ -25,6 +25,7 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
+#include "../cholmod_vector_solve.h"
 #include "../seconds_since.h"
 #include "ricci_core.h"
 #include "surfmap/error.h"
@@ -696,8 +697,63 @@ namespace {
 // Supernodal: with an optimised BLAS (scripts/bootstrap.sh) its factorisation
 // takes a third of the simplicial one's time (72848-vertex vase, one BLAS
 // thread: 0.32 s against 0.9 s), for preconditioner solves ~30% slower.
-#define SURFMAP_RICCI_SOLVER Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower>
+#define SURFMAP_RICCI_SOLVER SupernodalFactorSimplicialSolves
 #endif
+
+/// Issue 19 (session 24): the supernodal factorisation (a third of the
+/// simplicial one's time on large meshes), its solves from a simplicial copy
+/// of the factor. CHOLMOD's supernodal solve makes two BLAS calls per
+/// supernode, which on these Laplacians' many small supernodes cost more
+/// than the arithmetic: the same factor's solves took 0.21 ms simplicial
+/// against 0.36 ms supernodal at 6.9k vertices, 3.5 against 5.1 ms at 69k
+/// (one BLAS thread), and the preconditioned CG steps solve with one factor
+/// tens of times (41 solves for the 6.9k bench target's 6 Newton steps). The
+/// copy costs one pass over the factor per factorisation; hyperbolic flows
+/// on small meshes only (up to kSimplicialSolveVertices: the 55.9k bench target, whose flow
+/// starts from a coarse copy's solution and solves little, held 34 MiB more
+/// for it). The solves' sums run in another order than the supernodal ones:
+/// the same step up to round-off.
+constexpr Eigen::Index kSimplicialSolveVertices = 20000;
+class SupernodalFactorSimplicialSolves
+    : public Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> {
+  using Base = Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower>;
+
+ public:
+  /// Off: the supernodal solves (flat flows: the genus-1 maps whose images
+  /// crowd below the ulps of their coordinates, SurfaceMap.
+  /// CrowdedFingerImagesKeepTheirOrientation, certify with the supernodal
+  /// solves' round-off and fold with the simplicial one's).
+  bool simplicial_solves = true;
+  SupernodalFactorSimplicialSolves() = default;
+  SupernodalFactorSimplicialSolves(const SupernodalFactorSimplicialSolves&) = delete;
+  SupernodalFactorSimplicialSolves& operator=(const SupernodalFactorSimplicialSolves&) = delete;
+  ~SupernodalFactorSimplicialSolves() { free_copy(); }
+
+  void analyzePattern(const Eigen::SparseMatrix<double>& A) {
+    free_copy();
+    Base::analyzePattern(A);
+  }
+  void factorize(const Eigen::SparseMatrix<double>& A) {
+    free_copy();
+    Base::factorize(A);
+    if (!simplicial_solves || Base::info() != Eigen::Success || !m_cholmodFactor || A.rows() > kSimplicialSolveVertices)
+      return;
+    copy_ = cholmod_copy_factor(m_cholmodFactor, &cholmod());
+    // (simplicial LL', packed, monotonic: the layout cholmod_solve expects)
+    if (copy_ && !cholmod_change_factor(CHOLMOD_REAL, 1, 0, 1, 1, copy_, &cholmod())) free_copy();
+  }
+  Eigen::VectorXd solve(const Eigen::VectorXd& b) {
+    if (!copy_) return Base::solve(b);
+    return cholmod_vector_solve(copy_, b, &cholmod());
+  }
+
+ private:
+  void free_copy() {
+    if (copy_) cholmod_free_factor(&copy_, &cholmod());
+    copy_ = nullptr;
+  }
+  cholmod_factor* copy_ = nullptr;
+};
 
 /// Checks ricci_solve's inputs (one InputError naming the edge, face or
 /// count at fault): #E finite positive lengths satisfying the triangle
@@ -809,7 +865,9 @@ struct RicciRun {
         metric(dom, base, background_in, options_in.scheme),
         H(dom_in.num_vertices, dom_in.num_vertices),
         floor_tol(std::max(options_in.tolerance, options_in.floor_tolerance)),
-        check(start_check) {}
+        check(start_check) {
+    llt.simplicial_solves = background_in == Background::Hyperbolic;
+  }
   RicciRun(const RicciRun&) = delete;
   RicciRun& operator=(const RicciRun&) = delete;
 
