@@ -523,5 +523,69 @@ TEST(NewtonStarts, RootConjugatorIsFoundFromTheLoopsWords) {
   EXPECT_GE(refused, 60);
 }
 
+
+// Issue 13 (session 24): the genus-12 block -> wheel pair's twisted classes
+// had start elements multiplied out from Dehn-reduced words whose partial
+// products reach tiles 10^100 away for elements of 10^10 (a long thin
+// domain), so the elements kept no digit; the solve refused them as
+// "N units long (beyond double range)" when the garbage came out large and
+// solved them into maps of no surface when it came out small. The start
+// check now reads the round-off of each start element's product and refuses
+// one that keeps fewer than three digits as not evaluable. Here: a
+// translation g by 36 units and h = g^-1 as a second letter (the relator,
+// on two other letters, leaves g^k h^k unreduced): g^4 h^4 is the identity,
+// but its partial products reach |g^4| ~ e^72 and long double keeps no digit
+// of it. The same length of word without the cancellation, g^4 x g^-4 (x a
+// short translation), is a far element that keeps its digits: not refused
+// as unevaluable (it may be refused as long, or solved, as before).
+TEST(NewtonStarts, AStartElementWhoseWordKeepsNoDigitIsRefusedAsNotEvaluable) {
+  using hyperbolic::Mobius;
+  const Mobius g = Mobius::translation(Complex(36.0, 0.0));
+  const Mobius x = Mobius::translation(Complex(0.0, 0.4)), y = Mobius::translation(Complex(0.3, 0.2));
+  const std::vector<Mobius> gens = {g, g.inverse(), x, y};
+  HyperbolicHarmonicOptions ho;
+  ho.relator = {3, 4, -3, -4};
+  ho.max_start_edge_size = 1e150;  // (so that the size is not what refuses)
+  ho.max_iterations = 5;
+  auto triangle = [&](const Word& w) {
+    std::vector<WeightedEdge> edges(3);
+    const Element m = evaluate(w, gens);
+    edges[0] = {0, 1, 1.0,
+                Mobius{Complex(static_cast<double>(m.a.real()), static_cast<double>(m.a.imag())),
+                       Complex(static_cast<double>(m.b.real()), static_cast<double>(m.b.imag()))},
+                w};
+    edges[1] = {1, 2, 1.0, Mobius(), Word{}};
+    edges[2] = {2, 0, 1.0, Mobius(), Word{}};
+    return edges;
+  };
+  const std::vector<Complex> start = {Complex(0.0), Complex(0.1, 0.0), Complex(0.0, 0.1)};
+  const Word cancelling = {1, 1, 1, 1, 2, 2, 2, 2};
+  ASSERT_EQ(DehnReducer(ho.relator)(cancelling), cancelling);  // not reduced away by the solve
+  // The solve's error message, empty when it solves.
+  auto outcome = [&](const Word& w, const HyperbolicHarmonicOptions& o) -> std::string {
+    try {
+      hyperbolic_harmonic_map(3, triangle(w), gens, start, o);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return {};
+  };
+  const std::string refusal = outcome(cancelling, ho);
+  EXPECT_NE(refusal.find("cannot be evaluated"), std::string::npos) << refusal;
+  EXPECT_NE(refusal.find("edge 0"), std::string::npos) << refusal;
+  EXPECT_NE(refusal.find("8 side letters"), std::string::npos) << refusal;
+  // The check off: the old behaviour (no such refusal).
+  HyperbolicHarmonicOptions off = ho;
+  off.max_start_round_off = 0;
+  const std::string without = outcome(cancelling, off);
+  EXPECT_EQ(without.find("cannot be evaluated"), std::string::npos) << without;
+  // A far element whose word does not cancel keeps its digits.
+  const Word far = {1, 1, 1, 1, 3, -1, -1, -1, -1};
+  const std::string far_outcome = outcome(far, ho);
+  EXPECT_EQ(far_outcome.find("cannot be evaluated"), std::string::npos) << far_outcome;
+  std::printf("refused: %s\ncheck off: %s\nfar element: %s\n", refusal.c_str(),
+              without.empty() ? "(solved)" : without.c_str(), far_outcome.empty() ? "(solved)" : far_outcome.c_str());
+}
+
 }  // namespace
 }  // namespace surfmap

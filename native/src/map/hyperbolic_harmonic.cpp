@@ -4,6 +4,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <memory>
 #include <string>
@@ -481,6 +482,7 @@ class ChartState {
         eff[e] = LongMobius::from(edges[e].rho);
       }
     }
+    if (words_ && options_.max_start_round_off > 0) refuse_unevaluable_starts(z0);
     anchor_if_far();
     A.resize(edges.size());
     derive_edges();
@@ -499,6 +501,41 @@ class ChartState {
     for (int i = 0; i < n; ++i) move_vertex(i);
     anchor_if_far();
     derive_edges();
+  }
+
+  // Issue 13 (session 24): every edge's start element T_i^-1 ρ'_e T_j
+  // multiplied out as A_e will be (the start charts T_i, then the letters of
+  // its reduced word), with the round-off estimate of multiply_out; an
+  // element that keeps fewer digits than options.max_start_round_off asks
+  // (or comes out non-finite) is refused, naming the edge, its letters and
+  // how far its partial products went: the class cannot be evaluated in
+  // this domain, which is not the same as a class twisted too far.
+  void refuse_unevaluable_starts(const std::vector<Complex>& z0) {
+    const long double eps = std::numeric_limits<long double>::epsilon();
+    std::vector<LongMobius> f, suffix;
+    for (size_t e = 0; e < edges_.size(); ++e) {
+      const Word& w = eff_word_[e];
+      if (w.size() < 2) continue;  // one letter or none: exact up to its own rounding
+      const WeightedEdge& ed = edges_[e];
+      f.clear();
+      f.push_back(LongMobius::from(Mobius::translation_to(z0[ed.i]).inverse()));
+      for (int x : w) f.push_back(letter(x));
+      f.push_back(LongMobius::from(Mobius::translation_to(z0[ed.j])));
+      const LongProduct p = multiply_out(f, suffix);
+      const long double s = size(p.value), relative = p.error * eps / s;
+      if (std::isfinite(static_cast<double>(s)) && relative <= options_.max_start_round_off) continue;
+      long double widest = 1;  // the largest partial product from the left
+      LongMobius m;
+      for (const LongMobius& x : f) m = m * x, widest = std::max(widest, size(m));
+      char text[320];
+      std::snprintf(text, sizeof text,
+                    "hyperbolic harmonic map: edge %zu's deck element cannot be evaluated in this domain (its "
+                    "reduced word of %zu side letters has partial products up to 10^%.1f for an element of size "
+                    "10^%.1f, round-off %.2g of it)",
+                    e, w.size(), static_cast<double>(std::log10(widest)), static_cast<double>(std::log10(s)),
+                    static_cast<double>(relative));
+      throw SolveError(text);
+    }
   }
 
   // Every A_e afresh: A_e = c_i^-1 K_e c_j from the local charts and the

@@ -77,6 +77,17 @@ struct HyperbolicHarmonicOptions {
   /// as words and multiplied out in long double, so the size is not a
   /// precision limit up to ~1e150.
   double max_start_edge_size = 1e15;
+  /// Issue 13 (session 24): with words (`relator`), a start whose edge
+  /// element, multiplied out letter by letter in long double, carries a
+  /// round-off estimate beyond this fraction of its own size (default 1e-3:
+  /// fewer than three digits left) is refused with a SolveError saying so:
+  /// its word's partial products wander far beyond the element (a
+  /// Dehn-reduced word of hundreds of letters through a long thin domain
+  /// reaches tiles 10^100 away for an element of 10^10), so the element is
+  /// not evaluable, whatever its apparent size. Such a class was refused as
+  /// "beyond double range" when its garbage came out large, and solved into
+  /// a map of no surface when it came out small. 0 or less: no check.
+  double max_start_round_off = 1e-3;
   /// Called every iteration with (iteration, energy, gradient norm); return
   /// false to cancel (throws Cancelled).
   std::function<bool(int, double, double)> progress;
