@@ -321,6 +321,8 @@ TEST(LandmarksHyperbolic, FarLandmarkStaysBijectiveByBarrierContinuation) {
   EXPECT_EQ(m.landmark_method, "barrier continuation");
   EXPECT_GT(m.landmark_steps, 0);
   EXPECT_EQ(m.landmark_solves, 1 + m.landmark_steps);  // the plain pins, then the steps
+  EXPECT_EQ(m.intrinsic_flipped_triangles, 0);
+  EXPECT_EQ(m.layout_closure.open_triangles, 0) << m.layout_closure.worst_gap;
   ASSERT_EQ(m.landmark_rings.size(), 1u);
   EXPECT_EQ(m.landmark_rings[0], 0);
   EXPECT_GT(m.final_energy, free.final_energy * 1.001);
@@ -353,6 +355,12 @@ TEST(LandmarksHyperbolic, FarLandmarkHeldInTheFreeClassNamedByWords) {
   EXPECT_NEAR(m.candidates[0].landmark_energy, m.final_energy, 1e-12 * m.final_energy);
   EXPECT_EQ(m.landmark_method, "barrier continuation");
   EXPECT_GT(m.landmark_steps, 0);
+  // The energy's own (intrinsic Delaunay) triangles are not flipped either,
+  // and the held map's layout closes (its edges' charts kept, not rebuilt
+  // for the source's edges alone).
+  EXPECT_EQ(m.intrinsic_flipped_triangles, 0);
+  EXPECT_GT(m.layout_closure.triangles, 0);
+  EXPECT_EQ(m.layout_closure.open_triangles, 0) << m.layout_closure.worst_gap;
   // The plain pins in the same class (folds allowed): the held problem's
   // infimum, folded, so the bijective map lies strictly above it.
   o.landmarks_may_fold = true;
