@@ -485,15 +485,26 @@ struct HeldLandmarkSolve {
 };
 
 // The barrier continuation's result as a held harmonic map: the free
-// optimum's charts and decks with the continuation's points.
-HyperbolicHarmonicResult barrier_as_held(const HyperbolicHarmonicResult& free, const HyperbolicBarrierResult& br) {
+// optimum's charts and decks with the continuation's points, and every
+// solver edge (`held_edges`, in those charts) in the charts of its ends,
+// A_e = C_i^-1 ρ_e C_j (C_i: the translation taking 0 to z[i]), as the
+// Newton solve leaves them. (Cleared, the quality stage rebuilt them for the
+// source's edges only, leaving the intrinsic Delaunay triangulation's other
+// edges at the identity: their triangles were counted flipped.)
+HyperbolicHarmonicResult barrier_as_held(const HyperbolicHarmonicResult& free, const HyperbolicBarrierResult& br,
+                                         const std::vector<WeightedEdge>& held_edges) {
+  using hyperbolic::Mobius;
   HyperbolicHarmonicResult held = free;  // same charts and decks, new points
   held.z = br.z;
   held.energy = br.energy;
   held.iterations = br.newton_iterations;
   held.energy_history = {br.energy};
   held.gradient_history.clear();
-  held.edge_local.clear();  // not kept by the continuation (rebuilt from the points)
+  held.edge_local.resize(held_edges.size());
+  for (size_t e = 0; e < held_edges.size(); ++e) {
+    const WeightedEdge& w = held_edges[e];
+    held.edge_local[e] = (Mobius::centring(br.z[w.i]) * w.rho * Mobius::translation_to(br.z[w.j])).normalized();
+  }
   held.converged = true;
   return held;
 }
@@ -560,7 +571,7 @@ HyperbolicHarmonicResult hold_hyperbolic_landmarks(int n, const std::vector<Weig
     record.barrier_reached = br.reached;
     record.solves += br.steps;
     if (br.ok) {
-      HyperbolicHarmonicResult held = barrier_as_held(free, br);
+      HyperbolicHarmonicResult held = barrier_as_held(free, br, held_edges);
       if (bad_faces(held).empty()) {
         record.method = "barrier continuation";
         if (hold) *hold = record;
