@@ -1,5 +1,7 @@
 """The sidebar (sub-panels, short labels, the pairings' list, the progress bar) and the buttons
 that show the outputs (colours on both objects with a legend, texture, morph, back)."""
+import json
+
 import bpy
 import numpy as np
 
@@ -260,6 +262,29 @@ def test_solve_with_a_picked_pairing():
     assert bpy.ops.surfmap.solve_candidate() == {'FINISHED'}
     assert settings.chosen_candidate == other and settings.homotopy == other
     assert a.data["surfmap_map"]["homotopy"] == other
+
+
+def test_a_genus_2_pairing_solved_by_its_words_is_recorded_by_its_list_number():
+    """Genus 2: the picked pairing goes to the core by its words and comes back as the core's
+    class 0 of a one-entry list; the panel and the map's record on both objects keep the
+    list's number (the record read 0 before)."""
+    a = helpers.load_sample("double_torus_g2", (-3, 0, 0))
+    b = helpers.load_sample("vase_g2", (3, 0, 0))
+    helpers.select([a, b], b)
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    settings = bpy.context.scene.surfmap
+    listed = [(c.index, c.description) for c in settings.candidates]
+    best = settings.chosen_candidate
+    # (not 0: the core numbers a class asked for by its words 0)
+    other = next(c.index for c in settings.candidates
+                 if c.index not in (best, 0) and json.loads(c.words or "[]"))
+    settings.candidate_index = other
+    assert bpy.ops.surfmap.solve_candidate() == {'FINISHED'}
+    assert settings.chosen_candidate == other and settings.homotopy == other
+    assert [(c.index, c.description) for c in settings.candidates] == listed
+    for ob in (a, b):
+        assert ob.data["surfmap_map"]["homotopy"] == other, ob.name
 
 
 def test_outputs_are_computed_in_slices():

@@ -206,13 +206,15 @@ def _destination(context, obj, side):
     return obj
 
 
-def _meta(side, partner, role, res):
+def _meta(side, partner, role, res, pairing=None):
+    """The map's record on an object. pairing: the chosen pairing's number in the panel's list
+    (panel_pairing), which differs from the core's when the run asked for it by its words."""
     m = {"partner": partner["dest_name"], "role": role, "fingerprint": side.fingerprint,
          "partner_fingerprint": partner["fingerprint"], "flipped": int(side.flipped),
          "partner_flipped": int(partner["flipped"]), "evaluated": int(side.evaluated)}
     if res is not None and "genus" in res:
         m.update(genus=int(res["genus"]), energy=float(res["energy"]["final"]),
-                 homotopy=int(res["homotopy"]["chosen"]),
+                 homotopy=int(res["homotopy"]["chosen"] if pairing is None else pairing),
                  mean_dilatation=float(res["distortion"]["mean"]))
     return m
 
@@ -228,9 +230,11 @@ def before_uv_name(source_uv_name):
     return f"surfmap before {n}"
 
 
-def write_outputs(context, source, target, src, tgt, out, res, which):
+def write_outputs(context, source, target, src, tgt, out, res, which, pairing=None):
     """Writes the outputs in `which` ({'CORRESPONDENCE','UV','MORPH','DISTORTION'}); returns
-    report lines. source/target: the objects; src/tgt: their sides; out: compute_outputs'."""
+    report lines. source/target: the objects; src/tgt: their sides; out: compute_outputs';
+    pairing: the chosen pairing's number in the panel's list (panel_pairing), or None for the
+    core's."""
     lines = []
     # Checks that could refuse come first (nothing written yet).
     uv_names = ([target_uv_name(n) for n in out["uv"]]
@@ -259,9 +263,9 @@ def write_outputs(context, source, target, src, tgt, out, res, which):
         # morph and UVs are then regenerated from the stored map).
         i_fw, i_iv = out.get("initial_forward"), out.get("initial_inverse")
         both = i_fw is not None and i_iv is not None
-        blender_io.write_correspondence(s_obj.data, fw_f, fw_b, _meta(src, tgt, "source", res),
+        blender_io.write_correspondence(s_obj.data, fw_f, fw_b, _meta(src, tgt, "source", res, pairing),
                                         i_fw if both else None)
-        blender_io.write_correspondence(t_obj.data, iv_f, iv_b, _meta(tgt, src, "target", res),
+        blender_io.write_correspondence(t_obj.data, iv_f, iv_b, _meta(tgt, src, "target", res, pairing),
                                         i_iv if both else None)
         lines.append(f"correspondence stored on '{s_obj.name}' and '{t_obj.name}' (attributes "
                      f"{blender_io.CORR_FACE}, {blender_io.CORR_BARY}"
@@ -416,6 +420,20 @@ def _candidate_energies(item, c):
             else "no energy") + (f", with landmarks {held:.6g}" if not math.isnan(held) else "")
 
 
+def _asked_by_words(settings, res):
+    """Whether the run asked for the panel's picked pairing by its words
+    (map_job.listed_class_words), so that the core listed that pairing alone as its class 0."""
+    cands = res["homotopy"]["candidates"]
+    picked = map_job.listed_class_words(settings)
+    return picked is not None and len(cands) == 1 and cands[0].get("words") == picked
+
+
+def panel_pairing(settings, res):
+    """The number the run's chosen pairing has in the panel's list after store_candidates: the
+    picked one's for a run that asked for it by its words, else the core's."""
+    return int(settings.homotopy) if _asked_by_words(settings, res) else int(res["homotopy"]["chosen"])
+
+
 def store_candidates(settings, res):
     """The handle pairings of a run as the panel's list: the solved energy, or the core's
     estimate (marked estimated) for the pairings it only estimated. A run asked for a listed
@@ -423,8 +441,7 @@ def store_candidates(settings, res):
     so that its numbers keep naming the same pairings, and the picked one gets this run's
     energies."""
     cands = res["homotopy"]["candidates"]
-    picked = map_job.listed_class_words(settings)
-    if picked is not None and len(cands) == 1 and cands[0].get("words") == picked:
+    if _asked_by_words(settings, res):
         k = int(settings.homotopy)
         item = next(it for it in settings.candidates if int(it.index) == k)
         settings.chosen_candidate = k
@@ -591,7 +608,8 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
         which = {"CORRESPONDENCE"} | set(job.options.outputs)
         t_write = time.time()
         try:
-            lines = write_outputs(context, source, target, src, tgt, out, res, which)
+            lines = write_outputs(context, source, target, src, tgt, out, res, which,
+                                  panel_pairing(context.scene.surfmap, res))
         except ObjectProblem as e:
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}
