@@ -1362,9 +1362,10 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
     # docs/open_surfaces.md "Session 24").
     # The boundary loops as the doubles' map r pairs them (its class is what the half's solve
     # solves): each source loop onto the target loop nearest most of its images. The requested
-    # pairing may differ (the fold test's pair: requested [0, 1, 2], r's images on [1, 2, 0]), and a
-    # boundary vertex sliding on another loop's geodesic than its image's stalls the solve
-    # (docs/open_surfaces.md "Session 24").
+    # pairing differed when the closed pipeline ranked the snapped class beside the given one (the
+    # fold test's pair: requested [0, 1, 2], r's images on [1, 2, 0]; fixed, and a requested pairing
+    # that r does not keep is refused in surface_map_open), and a boundary vertex sliding on another
+    # loop's geodesic than its image's stalls the solve (docs/open_surfaces.md "Session 24").
     requested = [int(x) for x in pairing]
     pairing = _realized_pairing(S, T, r, requested)
     groups = [[(refined, weights, floor) for refined in ((2, 1, 0) if REFINE_HALF else (0,))]
