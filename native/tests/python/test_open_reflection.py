@@ -7,6 +7,7 @@ import copy
 import json
 
 import numpy as np
+import pytest
 
 import surfmap
 from surfmap import open_double, open_reflection
@@ -334,6 +335,21 @@ def test_a_requested_boundary_pairing_is_honoured():
             corners = T.F[fw_face[v]][fw_bary[v] > 1e-9]
             assert len(corners) <= 2 and set(corners.tolist()) <= on_target_loop, (i, v, corners)
     assert check_map(m, Vs, Fs, Vt, Ft) == 0
+
+
+def test_a_requested_pairing_the_doubles_map_does_not_keep_is_refused(monkeypatch):
+    # The guard behind the fix above: when the doubles' map of a requested pairing's class puts the
+    # source loops on other target loops (here made to, by the loops' vote), the candidate fails and
+    # the map is refused with a one-line error naming both pairings, never delivered on another
+    # pairing. The test pants onto their bend 0.3, [0, 1, 2] requested.
+    Vs, Fs = pants(3)
+    Vt = bend(Vs, 0.3)
+    monkeypatch.setattr(open_double, "_voted_pairing", lambda S, T, r: [1, 0, 2])
+    with pytest.raises(surfmap.SolveError) as e:
+        open_double.surface_map_open(Vs, Fs, Vt, Fs, boundary_pairing=[0, 1, 2], refine_levels=0)
+    message = str(e.value)
+    assert "\n" not in message
+    assert message.count("puts the source loops on target loops [1, 0, 2], not the requested [0, 1, 2]") == 2
 
 
 def test_the_inverse_locates_the_target_wherever_the_half_is_laid_out(monkeypatch):
