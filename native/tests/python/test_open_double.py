@@ -823,7 +823,7 @@ def test_a_fold_next_to_small_holes_is_cleared_on_doubles_refined_near_the_bound
     face of the inverse stays folded after the untangling (on main: 0 forward, 1 in the inverse).
     The chosen class solved again on doubles refined near their boundaries leaves none. (The doubles'
     half: since session 24 the reflection-aware solve maps this pair with none unrefined,
-    test_open_reflection.py::test_a_requested_boundary_pairing_is_honoured.)"""
+    test_open_reflection.py::test_the_half_solve_pairs_the_loops_as_the_doubles_map_does.)"""
     Vs, Fs = holed_sphere(3, [0.7, 0.75, 0.65])
     Vt, Ft = holed_sphere(3, [0.97] * 3)
     r = open_double.surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=[0, 1, 2], orientations=("preserving",),
