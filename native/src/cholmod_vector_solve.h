@@ -1,6 +1,7 @@
 #pragma once
 // One solve L x = b (CHOLMOD_A) of a CHOLMOD factor for an Eigen vector,
-// without copying b in: NaNs when CHOLMOD fails. Internal (ricci_flow.cpp,
+// without copying b in: NaNs when CHOLMOD fails; and the simplicial copy of
+// a supernodal factor those solves run faster from. Internal (ricci_flow.cpp,
 // hyperbolic_harmonic.cpp).
 #include <algorithm>
 #include <cstddef>
@@ -26,6 +27,18 @@ inline Eigen::VectorXd cholmod_vector_solve(cholmod_factor* L, const Eigen::Vect
   std::copy(static_cast<const double*>(X->x), static_cast<const double*>(X->x) + b.size(), x.data());
   cholmod_free_dense(&X, c);
   return x;
+}
+
+/// A simplicial copy of factor L for its solves (simplicial LL', packed,
+/// monotonic: the layout cholmod_solve expects), or null when CHOLMOD cannot
+/// make one. The supernodal solve makes two BLAS calls per supernode, which
+/// on the Laplacians' many small supernodes cost more than the arithmetic
+/// (issue 19, docs/benchmarks.md "Session 24"). Free it with
+/// cholmod_free_factor.
+inline cholmod_factor* simplicial_copy(cholmod_factor* L, cholmod_common* c) {
+  cholmod_factor* copy = cholmod_copy_factor(L, c);
+  if (copy && !cholmod_change_factor(CHOLMOD_REAL, 1, 0, 1, 1, copy, c)) cholmod_free_factor(&copy, c);
+  return copy;
 }
 
 }  // namespace surfmap::detail

@@ -276,10 +276,8 @@ class BlockHessian {
     // supernodal factor (its solve's two BLAS calls per supernode cost more
     // than the arithmetic; ricci_flow.cpp SupernodalFactorSimplicialSolves),
     // where a factor serves many solves (the preconditioned steps).
-    if (ok && L_->is_super && 2 * n_ >= kSimplicialSolveUnknowns && 2 * n_ <= kSimplicialSolveMaxUnknowns) {
-      solves_ = cholmod_copy_factor(L_, &c_);
-      if (solves_ && !cholmod_change_factor(CHOLMOD_REAL, 1, 0, 1, 1, solves_, &c_)) cholmod_free_factor(&solves_, &c_);
-    }
+    if (ok && L_->is_super && 2 * n_ >= kSimplicialSolveUnknowns && 2 * n_ <= kSimplicialSolveMaxUnknowns)
+      solves_ = detail::simplicial_copy(L_, &c_);
     return ok;
   }
   // (assembled matrix + shift·I) x, from the upper triangle it stores (the

@@ -738,9 +738,7 @@ class SupernodalFactorSimplicialSolves
     Base::factorize(A);
     if (!simplicial_solves || Base::info() != Eigen::Success || !m_cholmodFactor || A.rows() > kSimplicialSolveVertices)
       return;
-    copy_ = cholmod_copy_factor(m_cholmodFactor, &cholmod());
-    // (simplicial LL', packed, monotonic: the layout cholmod_solve expects)
-    if (copy_ && !cholmod_change_factor(CHOLMOD_REAL, 1, 0, 1, 1, copy_, &cholmod())) free_copy();
+    copy_ = simplicial_copy(m_cholmodFactor, &cholmod());
   }
   Eigen::VectorXd solve(const Eigen::VectorXd& b) {
     if (!copy_) return Base::solve(b);
