@@ -26,17 +26,10 @@ namespace {
 /// through-shape step, no landmarks, no requested class, no solve-progress
 /// callback.
 SurfaceMapOptions one_way_options(const SurfaceMapOptions& options) {
-  SurfaceMapOptions o = options;
-  o.homotopy.class_index = -1;
-  o.homotopy.two_way = false;
-  o.homotopy.through_shape = false;
-  o.homotopy.source_images.resize(0, 0);
+  SurfaceMapOptions o = without_the_runs_own(options);
   o.homotopy.reverse_class.clear();
   o.homotopy.given_class.clear();
   o.homotopy.given_class_names.clear();
-  o.homotopy.class_words.clear();
-  o.landmarks.clear();
-  o.solve_progress = nullptr;
   return o;
 }
 

@@ -553,36 +553,34 @@ void qualify_quality_warning(SurfaceMapResult& result) {
                             "one 23% lower that neither found); the shapes may also be conformally far apart";
 }
 
-SurfaceMapOptions reverse_options(const SurfaceMapOptions& options) {
-  SurfaceMapOptions ro = options;
-  ro.homotopy.class_index = -1;
-  ro.homotopy.class_words.clear();
-  ro.homotopy.two_way = false;
-  ro.homotopy.through_shape = false;  // (its own step runs in that direction's own run)
-  ro.homotopy.source_images.resize(0, 0);
-  std::swap(ro.loops.source_base_vertex, ro.loops.target_base_vertex);
+SurfaceMapOptions without_the_runs_own(SurfaceMapOptions o) {
+  o.homotopy.class_index = -1;
+  o.homotopy.class_words.clear();
+  o.homotopy.two_way = false;
+  o.homotopy.through_shape = false;  // (a through-shape step runs in its own run)
+  o.homotopy.source_images.resize(0, 0);
   // The classes are ranked by their free energies (landmarks rank them
-  // separately afterwards), so the other direction is mapped without them:
-  // the same run whatever landmarks are given.
-  ro.landmarks.clear();
-  ro.solve_progress = nullptr;
+  // separately afterwards), so the runs made from these options are mapped
+  // without them: the same run whatever landmarks are given.
+  o.landmarks.clear();
+  o.solve_progress = nullptr;
+  return o;
+}
+
+SurfaceMapOptions reverse_options(const SurfaceMapOptions& options) {
+  SurfaceMapOptions ro = without_the_runs_own(options);
+  std::swap(ro.loops.source_base_vertex, ro.loops.target_base_vertex);
   return ro;
 }
 
 SurfaceMapOptions single_class_options(SurfaceMapOptions o, std::vector<std::vector<int>> reverse_class,
                                        SingleClass scope) {
+  if (scope == SingleClass::Alone) o = without_the_runs_own(std::move(o));
   o.homotopy.two_way = false;
   o.homotopy.compare_directions = false;  // (read only by the two-way run)
   o.homotopy.class_words.clear();
   o.homotopy.reverse_class = std::move(reverse_class);
   o.homotopy.reverse_class_only = true;
-  if (scope == SingleClass::Alone) {
-    o.homotopy.class_index = -1;
-    o.homotopy.through_shape = false;
-    o.homotopy.source_images.resize(0, 0);
-    o.landmarks.clear();
-    o.solve_progress = nullptr;
-  }
   return o;
 }
 

@@ -99,9 +99,17 @@ std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward
 /// other candidates' energies are intrinsic). NaN without a chosen class.
 double chosen_energy(const SurfaceMapResult& r);
 
-/// The options of the other direction's run: base vertices swapped, no
-/// landmarks (the classes are ranked by their free energies), no requested
-/// class, no two-way run, no solve-progress callback.
+/// `options` without what belongs to the run they were given for, the one
+/// list of what reverse_options, one_way_options (through_shape.cpp) and
+/// single_class_options(.., SingleClass::Alone) clear: no class index, no
+/// class words, no two-way run, no through-shape step, no source images, no
+/// landmarks (the classes are ranked by their free energies) and no
+/// solve-progress callback. A new option that must not pass from a run to
+/// the runs it makes is cleared here.
+SurfaceMapOptions without_the_runs_own(SurfaceMapOptions options);
+
+/// The options of the other direction's run: without_the_runs_own, base
+/// vertices swapped.
 SurfaceMapOptions reverse_options(const SurfaceMapOptions& options);
 
 /// What single_class_options clears besides the class search.
@@ -113,10 +121,10 @@ enum class SingleClass {
   /// landmarks are held in the class too; or reverse_options,
   /// one_way_options, the through-shape legs' options).
   KeepTheRest,
-  /// Also no class index, no through-shape step, no source images, no
-  /// landmarks and no solve-progress callback: the class's free energy
-  /// alone (agree_below_two_way_ratio compares pairs of inverse classes by
-  /// their free energies).
+  /// Also without_the_runs_own (no class index, no through-shape step, no
+  /// source images, no landmarks, no solve-progress callback): the class's
+  /// free energy alone (agree_below_two_way_ratio compares pairs of inverse
+  /// classes by their free energies).
   Alone,
 };
 
