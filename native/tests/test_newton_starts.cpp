@@ -26,6 +26,7 @@
 #include "surfmap/testing/map_hooks.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/topology/handle_basis.h"
+#include "surfmap/topology/outer_automorphisms.h"
 #include "surfmap/topology/words.h"
 #include "surfmap/uniformize/deck_group.h"
 #include "certify_helpers.h"
@@ -443,6 +444,51 @@ TEST(NewtonStarts, RemeshedPlateListsTheSnappedOverlaysOwnClassAndChoosesIt) {
   off.homotopy.search.snapped_start = false;
   const SurfaceMapResult r = surface_map(a, b, off);
   EXPECT_EQ(r.snapped_class, -1);
+}
+
+// Session 25: a run given the other direction's class alone
+// (HomotopyOptions::reverse_class_only, the two-way run's single-class
+// solves) asks for that one class, as a class named by its words does. On a
+// source without a coarse copy the snapped overlay's own class was listed
+// beside it, and the ranking could choose that one instead. Here the other
+// direction's class is a twisted one (its lowest solved class above 1.5 x
+// that direction's chosen energy) and the snapped class is the identity's
+// (the conformal one, above): the run must come back with the class asked
+// for, inverted, and nothing else.
+TEST(NewtonStarts, ReverseClassOnlyGetsNoSnappedClassBesideIt) {
+  const TriMesh a = samples::cad_plate(2, 64, 0.1), b = samples::cad_plate(2, 48, 0.1);
+  const SurfaceMapOptions o = every_class_solved_one_way();
+  const SurfaceMapResult f = surface_map(a, b, o), r = surface_map(b, a, o);
+  ASSERT_EQ(f.source_as_target_inverse.size(), 4u) << f.source_as_target_status;
+  ASSERT_EQ(r.source_as_target_inverse.size(), 4u) << r.source_as_target_status;
+  ASSERT_GE(r.chosen_candidate, 0);
+  const double lowest_there = r.candidates[r.chosen_candidate].energy;
+  int k = -1;
+  for (size_t c = 0; c < r.candidates.size(); ++c) {
+    const HomotopyCandidate& rc = r.candidates[c];
+    if (rc.solved && std::isfinite(rc.energy) && rc.energy > 1.5 * lowest_there &&
+        (k < 0 || rc.energy < r.candidates[k].energy))
+      k = static_cast<int>(c);
+  }
+  ASSERT_GE(k, 0) << "no twisted class solved in the other direction";
+  // That class in this run's letters (as the two-way run writes it).
+  const GroupMap psi = compose(f.source_as_target_inverse, compose(r.candidates[k].words, r.source_as_target_inverse));
+  SurfaceMapOptions only = o;
+  only.homotopy.reverse_class = psi;
+  only.homotopy.reverse_class_only = true;
+  const SurfaceMapResult m = surface_map(a, b, only);
+  std::printf("other direction's class %d (E %.6g, its chosen %.6g); this run: %zu candidates, chosen %d, E %.6g, "
+              "snapped class %d (%s)\n",
+              k, r.candidates[k].energy, lowest_there, m.candidates.size(), m.chosen_candidate,
+              m.chosen_candidate >= 0 ? m.candidates[m.chosen_candidate].energy : -1.0, m.snapped_class,
+              m.snapped_class_status.c_str());
+  ASSERT_TRUE(m.converged);
+  EXPECT_EQ(m.snapped_class, -1) << m.snapped_class_status;
+  ASSERT_EQ(m.candidates.size(), 1u);
+  ASSERT_EQ(m.chosen_candidate, 0);
+  // The class asked for: ψ^-1 exactly (ψ ∘ θ inner), not the identity's.
+  EXPECT_TRUE(inner_automorphism_test(compose(psi, m.chosen_class_words), 2).inner);
+  EXPECT_GT(m.candidates[0].energy, 1.3 * f.candidates[f.chosen_candidate].energy);
 }
 
 // Issue 13: the snapped class is read exactly (each source edge's element

@@ -623,7 +623,16 @@ void HyperbolicPipeline::candidate_classes_and_data() {
 // read where the solve lives: the source's loops followed through the
 // snapped map in the target's deck group, rewritten in canonical letters.
 // A class the list already has (same fingerprint) is only marked.
+// Session 25: not beside the other direction's class alone
+// (reverse_class_only, the two-way run's single-class solves), which asks
+// for that one class as class_words does: on a remeshed genus-2 plate the
+// snapped class (the identity's) was chosen over the twisted class asked
+// for (test_newton_starts.cpp ReverseClassOnlyGetsNoSnappedClassBesideIt).
 void HyperbolicPipeline::add_snapped_class() {
+  if (options.homotopy.reverse_class_only) {
+    out.snapped_class_status = "not listed: the run solves the other direction's class alone (reverse_class_only)";
+    return;
+  }
   ensure_snapper();
   if (!snapper) return;
   auto note = [&](const std::string& s) { out.snapped_class_status = s; };
