@@ -310,6 +310,53 @@ TEST(NewtonStarts, StartEdgesBeyondSeventyUnitsAreRefusedByDefaultAndReachTheOpt
   EXPECT_EQ(inspected, 1);
 }
 
+// Session 25 (docs/code_map.md "Session 25"): a source without a coarse
+// copy solves every class from the origin, and the ranking's start check
+// (HomotopySearchOptions::start_edge_size, about 70 units) refuses the
+// classes whose start has a longer edge: 6 of 15 on this n-hole torus ->
+// vase pair, at 73.7-132.4 units. The refusal is a cost limit and here it
+// loses no class that could be chosen: each refused class's lower bound is
+// above the chosen class's energy (137-888 against 26.05), and with the
+// limit raised the refused classes solve (0 flipped) to energies at or above
+// their bounds and the same class is chosen. A check that refused a class
+// below the chosen energy, or bounds that did not bound, fail here.
+TEST(NewtonStarts, ClassesRefusedForLongStartEdgesCouldNotHaveBeenChosen) {
+  const TriMesh a = samples::n_hole_torus(2, 20, true), b = samples::vase(32, true);
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  const SurfaceMapResult m = surface_map(a, b, o);
+  ASSERT_TRUE(m.converged);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  ASSERT_GE(m.chosen_candidate, 0);
+  const double chosen = m.candidates[m.chosen_candidate].energy;
+  std::vector<int> refused;
+  for (size_t k = 0; k < m.candidates.size(); ++k) {
+    const HomotopyCandidate& c = m.candidates[k];
+    if (c.description.find("units long") == std::string::npos) continue;
+    refused.push_back(static_cast<int>(k));
+    EXPECT_FALSE(c.solved);
+    ASSERT_TRUE(std::isfinite(c.class_lower_bound)) << m.class_bound_status;
+    EXPECT_GT(c.class_lower_bound, chosen) << c.description;
+  }
+  ASSERT_GE(refused.size(), 1u) << "no class refused for its start: the case is gone";
+  SurfaceMapOptions raised = o;
+  raised.homotopy.search.start_edge_size = o.homotopy.search.geometric_start_edge_size;
+  const SurfaceMapResult r = surface_map(a, b, raised);
+  ASSERT_TRUE(r.converged);
+  EXPECT_EQ(r.flipped_triangles, 0);
+  ASSERT_EQ(r.candidates.size(), m.candidates.size());
+  EXPECT_EQ(r.chosen_candidate, m.chosen_candidate);
+  EXPECT_NEAR(r.final_energy, m.final_energy, 1e-9 * m.final_energy);
+  for (int k : refused) {
+    const HomotopyCandidate& c = r.candidates[k];
+    EXPECT_TRUE(c.solved) << c.description;
+    EXPECT_GE(c.energy, c.class_lower_bound * (1 - 1e-9)) << c.description;
+    EXPECT_GT(c.energy, chosen);
+    std::printf("class %d: refused, lower bound %.6g; solved with the limit raised: E %.6g\n", k,
+                m.candidates[k].class_lower_bound, c.energy);
+  }
+}
+
 // Issue 13 (HomotopySearchOptions::start_edge_size): the genus-9 and 11
 // plate -> wheel pairs failed with "the harmonic map solve failed in every
 // candidate homotopy class: class 0 [... edge 117 starts 85.08 units long
