@@ -488,12 +488,17 @@ class ChartState {
     // twisted by dozens of tiles, seen from a start at the origin) would take
     // the solve hundreds of capped steps (minutes at genus 5 when the class
     // ranking tries such classes), and no map with such an edge is an
-    // embedding of a mesh of this size: refused at once.
+    // embedding of a mesh of this size: refused at once. A cost limit, not a
+    // precision one: the elements are words multiplied out in long double,
+    // and raised, such starts converge (session 25: the n-hole torus -> vase
+    // classes refused at 73.7-132.4 units solve with 0 flipped), so the
+    // message says which limit, not "beyond double range" as it did.
     for (size_t e = 0; e < edges.size(); ++e)
       if (!(A[e].size() < options_.max_start_edge_size))
         throw SolveError("hyperbolic harmonic map: edge " + std::to_string(e) + " starts " +
                          std::to_string(A[e].displacement_of_origin()) +
-                         " units long (deck element beyond double range for this solve)");
+                         " units long (beyond this solve's start-edge limit: such a start costs hundreds of "
+                         "capped steps)");
     r.vertex_deck.assign(n, Mobius());
     r.vertex_deck_word.assign(n, Word{});
     for (int i = 0; i < n; ++i) move_vertex(i);
