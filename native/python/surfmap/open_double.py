@@ -851,10 +851,16 @@ def _refined_images(S, T, S2, T2, images):
     return T2.D["V"][full]
 
 
-def _double_map(S, T, images, options, landmarks=None):
+def _double_map(S, T, images, options, landmarks=None, homotopy=None):
+    """The doubles' map of the class of `images` (the closed pipeline's images_only run: that class,
+    and, the doubles having no coarse copy, the snapped overlay's own class ranked beside it;
+    _keep_requested_pairing). homotopy: the index of the class to solve in that list (None: the
+    lower energy)."""
     kw = {k: v for k, v in options.items() if k in ("threads", "tolerance", "max_iterations", "method",
                                                     "source_weights", "solve_progress",
                                                     "target_metric")}
+    if homotopy is not None:
+        kw["homotopy"] = int(homotopy)
 
     def solve(**extra):
         return _core.surface_map(S.D["V"], S.D["F"], T.D["V"], T.D["F"], homotopy_images=images,
@@ -1291,10 +1297,10 @@ def _setup_quality(S, T, r, sym, reversing, untangle):
             "mean_distortion": float(np.dot(area, dil[keep]) / area.sum()) if area.sum() > 0 else float("nan")}, h
 
 
-def _realized_pairing(S, T, r, requested):
-    """The target loop of each source loop as the doubles' map r realises it: the loop of T nearest
-    to most of the source loop's images (r's forward positions of the input vertices); `requested`
-    when that is not a permutation."""
+def _voted_pairing(S, T, r):
+    """The target loop of each source loop as the doubles' map r puts it: the loop of T nearest to
+    most of the source loop's images (r's forward positions of the input vertices); not always a
+    permutation. (The delivered pairing is the same vote on the half's map: _split_half_correspondence.)"""
     pos = np.asarray(r["forward"]["position"])[:S.n]
     t_vertices = np.concatenate(T.loops)
     t_loop = np.concatenate([np.full(len(l), i) for i, l in enumerate(T.loops)])
@@ -1302,7 +1308,55 @@ def _realized_pairing(S, T, r, requested):
     for loop in S.loops:
         votes = t_loop[_nearest(pos[loop], T.V[t_vertices])]
         got.append(int(np.bincount(votes, minlength=T.b).argmax()))
+    return got
+
+
+def _realized_pairing(S, T, r, requested):
+    """_voted_pairing, or `requested` when that is not a permutation."""
+    got = _voted_pairing(S, T, r)
     return got if sorted(got) == list(range(T.b)) else list(requested)
+
+
+class PairingNotKept(_core.SolveError):
+    """A requested boundary pairing that the doubles' map of its class does not keep."""
+
+
+def _keep_requested_pairing(S, T, r, images, options, landmarks, requested):
+    """The doubles' map r of a requested pairing's class (`images`), kept to that pairing: returns
+    (r or its replacement, a note for the candidate's 'snapped_class', '' when nothing was done).
+
+    The doubles' solve asks for the class of `images` alone (images_only), but the doubles have no
+    coarse copy, so the closed pipeline also ranks the snapped overlay's own class beside it
+    (hyperbolic_map.cpp add_snapped_class) and the lower energy wins. That class is kept (it brings
+    a start twisted about a loop back to the untwisted class: test_open_double.py twisted starts),
+    but it may pair the loops otherwise (the fold test's pair, [0, 1, 2] requested: the snapped
+    class puts them on [1, 2, 0], 61.00 against 62.70 on the doubles). So when the winner is the
+    snapped class and its map does not put the source loops on the requested target loops, the
+    other class of the list (the images' own) is solved alone (`homotopy` index) and taken. When
+    the map taken does not keep the pairing either, PairingNotKept (a SolveError, one line)
+    (docs/open_surfaces.md "Session 25")."""
+    requested = [int(x) for x in requested]
+    got = _voted_pairing(S, T, r)
+    if got == requested:
+        return r, ""
+    hom = r.get("homotopy", {})
+    cands = hom.get("candidates", [])
+    chosen = int(hom.get("chosen", -1))
+    snapped = int(hom.get("snapped_class", {}).get("index", -1))
+    note = ""
+    others = [k for k, c in enumerate(cands) if k != snapped and np.isfinite(float(c.get("energy", np.inf)))]
+    if chosen == snapped >= 0 and others:
+        k = min(others, key=lambda k: float(cands[k]["energy"]))
+        note = (f"not ranked: its doubles' map puts the source loops on target loops {got}, not the requested "
+                f"{requested} (energy {float(cands[snapped]['energy']) / 2:.6g} against the images' class's "
+                f"{float(cands[k]['energy']) / 2:.6g}, halved)")
+        r = _double_map(S, T, images, options, landmarks, homotopy=k)
+        snapped_got, got = got, _voted_pairing(S, T, r)
+        if got == requested:
+            return r, note
+        note = f" (nor does the snapped overlay's class ranked beside it: {snapped_got})"
+    raise PairingNotKept(f"the doubles' map of this class puts the source loops on target loops {got}, not the "
+                         f"requested {requested}{note}")
 
 
 def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=True):
@@ -1598,6 +1652,13 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                         cand["capped_class"] = f"{desc} (source -> target: {capped_class}: {e})"
                     else:
                         raise
+                if boundary_pairing is not None:
+                    # A requested pairing is kept or the candidate fails (one line), never swapped
+                    # for the snapped overlay's class's pairing (docs/open_surfaces.md "Session 25").
+                    r, note = _keep_requested_pairing(S, T, r, images, options, _landmark_pairs(S, T, lm, rev),
+                                                      pairing)
+                    if note:
+                        cand["snapped_class"] = note
                 err, sheet = _symmetry(r, S, T, rev)
                 cand.update(energy=float(r["energy"]["final"]) / 2, symmetry_error=err, same_sheet=sheet,
                             status="ok" if err <= symmetry_tolerance and sheet >= 0.9 else
@@ -1652,17 +1713,28 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         # chosen class is solved again with positive weights on the source's own edges.
         own = dict(options, source_weights="own")
         r2 = _double_map(S, T, chosen_images, own, _landmark_pairs(S, T, lm, rev))
-        h2 = _half(S, T, r2, rev, untangle)
-        h2["weights_fallback"] = (f"{h['flipped']} flipped with the intrinsic Delaunay weights"
-                                  f"{' after untangling' if h['untangled'] else ''}; solved again on the source's own "
-                                  f"edges: {h2['flipped']} flipped{' after untangling' if h2['untangled'] else ''}")
-        if h2["flipped"] < h["flipped"]:
-            r, chosen_options = r2, own
-            cand = dict(cand, energy=float(r2["energy"]["final"]) / 2)
-            cand["symmetry_error"], cand["same_sheet"] = _symmetry(r2, S, T, rev)
-            h = h2
+        not_kept = ""
+        if boundary_pairing is not None:
+            try:
+                r2 = _keep_requested_pairing(S, T, r2, chosen_images, own, _landmark_pairs(S, T, lm, rev),
+                                             cand["pairing"])[0]
+            except PairingNotKept as e:
+                not_kept = str(e)
+        if not_kept:
+            h["weights_fallback"] = (f"{h['flipped']} flipped with the intrinsic Delaunay weights; solved again on "
+                                     f"the source's own edges: not used, {not_kept}")
         else:
-            h["weights_fallback"] = h2["weights_fallback"]
+            h2 = _half(S, T, r2, rev, untangle)
+            h2["weights_fallback"] = (f"{h['flipped']} flipped with the intrinsic Delaunay weights"
+                                      f"{' after untangling' if h['untangled'] else ''}; solved again on the source's "
+                                      f"own edges: {h2['flipped']} flipped{' after untangling' if h2['untangled'] else ''}")
+            if h2["flipped"] < h["flipped"]:
+                r, chosen_options = r2, own
+                cand = dict(cand, energy=float(r2["energy"]["final"]) / 2)
+                cand["symmetry_error"], cand["same_sheet"] = _symmetry(r2, S, T, rev)
+                h = h2
+            else:
+                h["weights_fallback"] = h2["weights_fallback"]
     if sym is None:
         _finish_half(S, T, h, rev, lm, untangle)
     refined = ""
@@ -1672,33 +1744,49 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         # collar crowd into the first ring of faces of the other side's loop.
         S2 = _Side(S.V, S.F, "source", refine_rings=refine_rings, refine_levels=refine_levels)
         T2 = _Side(T.V, T.F, "target", refine_rings=refine_rings, refine_levels=refine_levels)
-        r3 = _double_map(S2, T2, _refined_images(S, T, S2, T2, chosen_images), chosen_options,
-                         _landmark_pairs(S2, T2, lm, rev))
-        # The half's maps through the refined sides' faces (their input meshes are S's and T's).
-        sym3, refined_reflection = None, ""
-        if sym is not None:
-            c3 = {}
-            sym3 = _reflection_candidate(S2, T2, r3, cand["pairing"], rev, {}, c3, untangle)
+        images3 = _refined_images(S, T, S2, T2, chosen_images)
+        r3 = _double_map(S2, T2, images3, chosen_options, _landmark_pairs(S2, T2, lm, rev))
+        not_kept = ""
+        if boundary_pairing is not None:
+            try:
+                r3 = _keep_requested_pairing(S2, T2, r3, images3, chosen_options, _landmark_pairs(S2, T2, lm, rev),
+                                             cand["pairing"])[0]
+            except PairingNotKept as e:
+                not_kept = str(e)
+        if not_kept:
+            refined = (f"{h['flipped']} flipped / {h['inv_flipped']} in the inverse; solved again on the doubles "
+                       f"refined within {refine_rings} rings of the boundary {refine_levels} times: not used, "
+                       f"{not_kept}")
+        else:
+            # The half's maps through the refined sides' faces (their input meshes are S's and T's).
+            sym3, refined_reflection = None, ""
+            if sym is not None:
+                c3 = {}
+                sym3 = _reflection_candidate(S2, T2, r3, cand["pairing"], rev, {}, c3, untangle)
+                if sym3 is None:
+                    refined_reflection = c3.get("reflection_solve", "")
+            h3 = sym3["half"] if sym3 is not None else _half(S2, T2, r3, rev, untangle)
             if sym3 is None:
-                refined_reflection = c3.get("reflection_solve", "")
-        h3 = sym3["half"] if sym3 is not None else _half(S2, T2, r3, rev, untangle)
-        if sym3 is None:
-            _finish_half(S2, T2, h3, rev, lm, untangle)
-        refined = (f"{h['flipped']} flipped / {h['inv_flipped']} in the inverse; solved again on the doubles refined "
-                   f"within {refine_rings} rings of the boundary {refine_levels} times ({S2.n2} / {T2.n2} vertices "
-                   f"on the halves): {h3['flipped']} / {h3['inv_flipped']}")
-        if sym is not None:
-            refined += (" (reflection-aware solve)" if sym3 is not None else
-                        f" (the doubles' half: {refined_reflection})")
-        if h3["flipped"] + h3["inv_flipped"] < h["flipped"] + h["inv_flipped"]:
-            h3["weights_fallback"] = h.get("weights_fallback", "")
-            r, h, sym = r3, h3, sym3
-            cand = dict(cand, energy=float(r3["energy"]["final"]) / 2)
-            cand["symmetry_error"], cand["same_sheet"] = (_symmetry(r3, S2, T2, rev) if sym3 is None else
-                                                          (0.0, 1.0))
-            if sym3 is not None:
-                cand["reflection_setups"] = c3.get("reflection_setups", [])
+                _finish_half(S2, T2, h3, rev, lm, untangle)
+            refined = (f"{h['flipped']} flipped / {h['inv_flipped']} in the inverse; solved again on the doubles refined "
+                       f"within {refine_rings} rings of the boundary {refine_levels} times ({S2.n2} / {T2.n2} vertices "
+                       f"on the halves): {h3['flipped']} / {h3['inv_flipped']}")
+            if sym is not None:
+                refined += (" (reflection-aware solve)" if sym3 is not None else
+                            f" (the doubles' half: {refined_reflection})")
+            if h3["flipped"] + h3["inv_flipped"] < h["flipped"] + h["inv_flipped"]:
+                h3["weights_fallback"] = h.get("weights_fallback", "")
+                r, h, sym = r3, h3, sym3
+                cand = dict(cand, energy=float(r3["energy"]["final"]) / 2)
+                cand["symmetry_error"], cand["same_sheet"] = (_symmetry(r3, S2, T2, rev) if sym3 is None else
+                                                              (0.0, 1.0))
+                if sym3 is not None:
+                    cand["reflection_setups"] = c3.get("reflection_setups", [])
     fw, inv, pairing, back_pairing, snap = h["fw"], h["inv"], h["pairing"], h["back_pairing"], h["snap"]
+    if boundary_pairing is not None and list(pairing) != list(cand["pairing"]):
+        # (The half's loops by the same vote as _keep_requested_pairing's: not expected to differ.)
+        raise PairingNotKept(f"boundary_pairing {cand['pairing']}: the map found puts the source loops on target "
+                             f"loops {list(pairing)} ({cand['orientation']}), not the requested pairing")
     flipped, ears, ears_turned, ear = h["flipped"], h["ears"], h["ears_turned"], h["ear"]
     untangled, flipped_before_untangling = h["untangled"], h["before"]
     weights_fallback, ears_fw, ears_inv = h.get("weights_fallback", ""), h["ears_fw"], h["ears_inv"]
