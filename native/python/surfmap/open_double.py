@@ -1409,10 +1409,11 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
     # (session 23's rule: double_torus_1 A -> B 9.73 where the unrefined halves give 8.63,
     # docs/open_surfaces.md "Session 24").
     # The boundary loops as the doubles' map r pairs them (its class is what the half's solve
-    # solves): each source loop onto the target loop nearest most of its images. The requested
-    # pairing may differ (the fold test's pair: requested [0, 1, 2], r's images on [1, 2, 0]), and a
-    # boundary vertex sliding on another loop's geodesic than its image's stalls the solve
-    # (docs/open_surfaces.md "Session 24").
+    # solves): each source loop onto the target loop nearest most of its images. The candidate's
+    # pairing may differ (the fold test's pair, [0, 1, 2] asked: the snapped overlay's class's images
+    # on [1, 2, 0]; a requested pairing no longer does, _keep_requested_pairing, but an automatic
+    # pairing's candidate still can), and a boundary vertex sliding on another loop's geodesic than
+    # its image's stalls the solve (docs/open_surfaces.md "Session 24").
     requested = [int(x) for x in pairing]
     pairing = _realized_pairing(S, T, r, requested)
     groups = [[(refined, weights, floor) for refined in ((2, 1, 0) if REFINE_HALF else (0,))]
@@ -1535,7 +1536,11 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     Vs (n_s,3), Fs (m_s,3), Vt, Ft: the meshes (input faces are triangles). boundary_pairing: None
     (b >= 2: every pairing tried when there are at most `max_pairings`, else the `max_pairings`
     (pairing, orientation) pairs of best _pairing_score) or the
-    target loop of each source loop; 'swap' for two loops. orientations: which of 'preserving'
+    target loop of each source loop; 'swap' for two loops. A given pairing is delivered as given or
+    refused: a candidate whose doubles' map puts the source loops on other target loops fails
+    ("the doubles' map of this class puts the source loops on target loops [...], not the requested
+    [...]"), after the snapped overlay's class, when it won and pairs them otherwise, was replaced by
+    the images' class (_keep_requested_pairing; the candidate's 'snapped_class' says so). orientations: which of 'preserving'
     (the halves onto the halves) and 'reversing' (the source's half onto the target's mirror
     half: an orientation-reversing map of the open surfaces) are tried. The lowest energy wins;
     candidates within `tie_tolerance` (relative, default 1e-3) of it are told apart by the
@@ -1570,7 +1575,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     'distortion' {mean, max, per_face} of the morph (ears left out of mean and max), 'energy'
     {'final': the half's energy}, and 'open' {domain 'double', method, boundary_pairing,
     orientation, pairing_choice, candidates [{pairing, orientation, energy, symmetry_error,
-    same_sheet, alignment, status, chosen}], tied_candidates, symmetry_error, same_sheet,
+    same_sheet, alignment, status, chosen, snapped_class (a given pairing only, when set)}], tied_candidates, symmetry_error, same_sheet,
     snap_distance, double_genus, ear_triangles, ear_triangles_turned, source_weights_fallback,
     untangled_vertices, untangled, inverse_flipped_triangles, inverse_ear_triangles,
     inverse_ear_triangles_turned, inverse_untangled_vertices, inverse_untangled}. untangle (default
