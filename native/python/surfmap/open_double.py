@@ -1317,6 +1317,19 @@ def _realized_pairing(S, T, r, requested):
     return got if sorted(got) == list(range(T.b)) else list(requested)
 
 
+def _chosen_class_again(S, T, images, options, landmarks, requested):
+    """The chosen class's doubles' map solved again (other weights, doubles refined near the
+    boundary): (r, ''); with a requested pairing (not None) that map does not keep
+    (_keep_requested_pairing): (None, why)."""
+    r = _double_map(S, T, images, options, landmarks)
+    if requested is None:
+        return r, ""
+    try:
+        return _keep_requested_pairing(S, T, r, images, options, landmarks, requested)[0], ""
+    except PairingNotKept as e:
+        return None, str(e)
+
+
 class PairingNotKept(_core.SolveError):
     """A requested boundary pairing that the doubles' map of its class does not keep."""
 
@@ -1711,20 +1724,14 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     # (the half's solve's map was finished when its set-up was measured: _setup_quality)
     h = sym["half"] if sym is not None else _half(S, T, r, rev, untangle)
     chosen_options = options
+    requested = cand["pairing"] if boundary_pairing is not None else None
     if h["flipped"] and "source_weights" not in options and sym is None:
         # As the closed pipeline's automatic weights (SourceWeights::Automatic): the intrinsic
         # Delaunay weights' straight images of the user's faces fold (here next to the boundary,
         # where the half is cut out of a map symmetric only up to the discretization), so the
         # chosen class is solved again with positive weights on the source's own edges.
         own = dict(options, source_weights="own")
-        r2 = _double_map(S, T, chosen_images, own, _landmark_pairs(S, T, lm, rev))
-        not_kept = ""
-        if boundary_pairing is not None:
-            try:
-                r2 = _keep_requested_pairing(S, T, r2, chosen_images, own, _landmark_pairs(S, T, lm, rev),
-                                             cand["pairing"])[0]
-            except PairingNotKept as e:
-                not_kept = str(e)
+        r2, not_kept = _chosen_class_again(S, T, chosen_images, own, _landmark_pairs(S, T, lm, rev), requested)
         if not_kept:
             h["weights_fallback"] = (f"{h['flipped']} flipped with the intrinsic Delaunay weights; solved again on "
                                      f"the source's own edges: not used, {not_kept}")
@@ -1750,14 +1757,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         S2 = _Side(S.V, S.F, "source", refine_rings=refine_rings, refine_levels=refine_levels)
         T2 = _Side(T.V, T.F, "target", refine_rings=refine_rings, refine_levels=refine_levels)
         images3 = _refined_images(S, T, S2, T2, chosen_images)
-        r3 = _double_map(S2, T2, images3, chosen_options, _landmark_pairs(S2, T2, lm, rev))
-        not_kept = ""
-        if boundary_pairing is not None:
-            try:
-                r3 = _keep_requested_pairing(S2, T2, r3, images3, chosen_options, _landmark_pairs(S2, T2, lm, rev),
-                                             cand["pairing"])[0]
-            except PairingNotKept as e:
-                not_kept = str(e)
+        r3, not_kept = _chosen_class_again(S2, T2, images3, chosen_options, _landmark_pairs(S2, T2, lm, rev),
+                                           requested)
         if not_kept:
             refined = (f"{h['flipped']} flipped / {h['inv_flipped']} in the inverse; solved again on the doubles "
                        f"refined within {refine_rings} rings of the boundary {refine_levels} times: not used, "
