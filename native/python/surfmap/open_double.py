@@ -1106,6 +1106,107 @@ def _slide_ears(A, B, points, reversing, keep):
     return {k: int(got[k]) for k in ("ears", "turned", "moved", "moved_with_neighbours", "turned_after")}
 
 
+#: Reflex-corner slides (off by default; an experiment of docs/open_surfaces.md "Session 25"): in
+#: _finish_half, a boundary image next to a reflex corner of the other side's loop slid onto it.
+REFLEX_CORNER_SLIDES = False
+
+#: The 3D face-angle sum at a boundary vertex from which the slides call it a reflex corner (the
+#: punched holes' staircase corners: up to 312 degrees on double_torus_1 A).
+REFLEX_CORNER_ANGLE = np.radians(240.0)
+
+
+def _boundary_angle_sums(side):
+    """Per vertex of side's input mesh the sum of its faces' 3D angles there (n,)."""
+    V, F = side.V, side.F
+    total = np.zeros(len(V))
+    for k in range(3):
+        u = V[F[:, (k + 1) % 3]] - V[F[:, k]]
+        w = V[F[:, (k + 2) % 3]] - V[F[:, k]]
+        c = np.einsum("ij,ij->i", u, w) / np.maximum(np.linalg.norm(u, axis=1) * np.linalg.norm(w, axis=1), 1e-300)
+        np.add.at(total, F[:, k], np.arccos(np.clip(c, -1, 1)))
+    return total
+
+
+def _slide_to_reflex_corners(A, B, points, reversing, keep):
+    """A half's map of A onto B ({face, barycentric, position} per input vertex of A, boundary
+    vertices on B's loops; changed in place): where two consecutive boundary vertices of an A loop
+    have their images on the two B loop edges of a reflex corner c of B (face angles summing to
+    REFLEX_CORNER_ANGLE or more), one on each side, the face of A on their edge has its two
+    boundary corners' images cutting across the corner, squeezed (double_torus_1 B -> A: D' 10.6 on
+    the corner of 312 degrees, the next face 8.1). The one of the two whose image slid onto c gives
+    its star's faces the smaller largest D' is slid, when that is smaller than before and no face
+    of the star turns over (_turned); `keep` (landmarks) stay. Returns the number of vertices slid."""
+    on_b = {}
+    for li, loop in enumerate(B.loops):
+        for j, v in enumerate(loop):
+            on_b[int(v)] = (li, j)
+    reflex = _boundary_angle_sums(B) >= REFLEX_CORNER_ANGLE
+    face, bary = points["face"], points["barycentric"]
+    held = set(int(v) for v in np.asarray(keep).ravel())
+    stars = {}
+
+    def star(v):
+        if v not in stars:
+            stars[v] = np.flatnonzero((A.F == v).any(axis=1))
+        return stars[v]
+
+    def loop_edge(v):
+        # (loop, index of the edge's first vertex) of the B loop edge v's image lies on, or None
+        corners = [int(x) for x, t in zip(B.F[face[v]], bary[v]) if t > 1e-12]
+        if len(corners) != 2 or any(c not in on_b for c in corners):
+            return None
+        (l0, j0), (l1, j1) = on_b[corners[0]], on_b[corners[1]]
+        n = len(B.loops[l0])
+        if l0 != l1 or (j1 - j0) % n not in (1, n - 1):
+            return None
+        return l0, j0 if (j1 - j0) % n == 1 else j1
+
+    a_on_b = np.zeros(len(A.V), dtype=bool)
+    a_on_b[np.concatenate(A.loops)] = True
+
+    def worst(faces):
+        # the largest D' of the faces, ears apart (as the report measures it)
+        faces = faces[~a_on_b[A.F[faces]].all(axis=1)]
+        return float(np.nanmax(_dilatation(A.V, points["position"], A.F[faces]), initial=0.0))
+
+    moved = 0
+    for loop in A.loops:
+        for k in range(len(loop)):
+            u, w = int(loop[k]), int(loop[(k + 1) % len(loop)])
+            eu, ew = loop_edge(u), loop_edge(w)
+            if eu is None or ew is None or eu[0] != ew[0]:
+                continue
+            n = len(B.loops[eu[0]])
+            if (ew[1] - eu[1]) % n == 1:
+                c = int(B.loops[eu[0]][ew[1]])          # the corner between u's edge and w's
+            elif (eu[1] - ew[1]) % n == 1:
+                c = int(B.loops[eu[0]][eu[1]])
+            else:
+                continue
+            if not reflex[c]:
+                continue
+            c_face = int(np.flatnonzero((B.F == c).any(axis=1))[0])
+            c_bary = (B.F[c_face] == c).astype(float)
+            best = None
+            for v in (u, w):
+                if v in held:
+                    continue
+                faces = star(v)
+                before = worst(faces)
+                saved = face[v], bary[v].copy(), points["position"][v].copy()
+                face[v], bary[v], points["position"][v] = c_face, c_bary, B.V[c]
+                after = worst(faces)
+                turned = _turned(A, B, points, reversing, faces=faces).any()
+                face[v], bary[v], points["position"][v] = saved
+                if after < before and not turned and (best is None or after < best[0]):
+                    best = (after, v)
+            if best is not None:
+                v = best[1]
+                face[v], bary[v], points["position"][v] = c_face, c_bary, B.V[c]
+                moved += 1
+    return moved
+
+
 def _alignment(S, T, images):
     """Mean squared distance between the source's vertices and their images, both shapes moved
     to centroid 0 and scaled to unit area (the disk map's alignment measure, map/open_map.h)."""
@@ -1530,6 +1631,9 @@ def _finish_half(S, T, h, reversing, lm, untangle):
     # boundary): the middle corner's image slid along the other boundary (map/ear_images.h).
     h["ears_fw"] = _slide_ears(S, T, fw, reversing, lm[:, 0])
     h["ears_inv"] = _slide_ears(T, S, inv, reversing, lm[:, 1])
+    if REFLEX_CORNER_SLIDES:
+        h["corners_fw"] = _slide_to_reflex_corners(S, T, fw, reversing, lm[:, 0])
+        h["corners_inv"] = _slide_to_reflex_corners(T, S, inv, reversing, lm[:, 1])
     h["flipped"], h["ears"], h["ears_turned"], h["ear"] = _flips(S, T, fw, reversing)
     inv_flipped, inv_ears, inv_ears_turned, _ = _flips(T, S, inv, reversing)
     h["inv_before"], h["inv_untangled"] = inv_flipped, []
@@ -1862,6 +1966,10 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "ears_slid_with_neighbours": ears_fw["moved_with_neighbours"],
                    "inverse_ears_turned": ears_inv["turned"], "inverse_ears_slid": ears_inv["moved"],
                    "inverse_ears_slid_with_neighbours": ears_inv["moved_with_neighbours"],
+                   # boundary images slid onto a reflex corner of the other side's loop
+                   # (REFLEX_CORNER_SLIDES, off by default; Session 25)
+                   "reflex_corner_slides": h.get("corners_fw", 0),
+                   "inverse_reflex_corner_slides": h.get("corners_inv", 0),
                    "inverse_flipped_triangles": inv_flipped, "inverse_ear_triangles": inv_ears,
                    "inverse_ear_triangles_turned": inv_ears_turned, "inverse_untangled_vertices": len(inv_untangled),
                    "inverse_untangled": (f"{inv_flipped_before} folded faces; {len(inv_untangled)} interior target "

@@ -302,6 +302,37 @@ def test_the_half_solve_keeps_the_set_up_whose_map_measures_best(monkeypatch):
     assert first["distortion"]["max"] > 2 * r["distortion"]["max"]
 
 
+def test_reflex_corner_slides_right_the_face_cut_across_a_staircase_corner(monkeypatch):
+    # The coarse torus with a jagged hole onto the punctured torus (whose punched loop has 5
+    # corners of 240 degrees or more): off (the default), the delivered map has max D' 4.06, on a
+    # face whose two boundary corners' images lie on either side of such a corner. With
+    # REFLEX_CORNER_SLIDES one boundary image is slid onto the corner: max D' 3.60, still 0 folded
+    # both ways and boundary onto boundary (docs/open_surfaces.md "Session 25").
+    Vs, Fs = coarse_torus_with_a_jagged_hole()
+    Vt, Ft = punctured_torus(32, 16)
+    off = open_double.surface_map_open(Vs, Fs, Vt, Ft)
+    assert off["open"]["reflex_corner_slides"] == 0
+    monkeypatch.setattr(open_double, "REFLEX_CORNER_SLIDES", True)
+    on = open_double.surface_map_open(Vs, Fs, Vt, Ft)
+    o = on["open"]
+    assert o["reflex_corner_slides"] >= 1
+    assert on["flipped_triangles"] == 0 and o["inverse_flipped_triangles"] == 0
+    assert check_map(on, Vs, Fs, Vt, Ft) == 0
+    assert on["distortion"]["max"] < 0.95 * off["distortion"]["max"]
+    # The slid images sit exactly on reflex corners of the target's loop, and only boundary
+    # vertices moved.
+    S = open_double._Side(Vs, Fs, "source")
+    T = open_double._Side(Vt, Ft, "target")
+    moved = np.flatnonzero(np.linalg.norm(on["forward"]["position"] - off["forward"]["position"], axis=1) > 1e-12)
+    assert set(moved.tolist()) <= set(np.concatenate(S.loops).tolist())
+    angles = open_double._boundary_angle_sums(T)
+    t_loop = np.concatenate(T.loops)
+    for v in moved:
+        at = t_loop[np.argmin(np.linalg.norm(Vt[t_loop] - on["forward"]["position"][v], axis=1))]
+        assert np.linalg.norm(Vt[at] - on["forward"]["position"][v]) < 1e-12
+        assert angles[at] >= open_double.REFLEX_CORNER_ANGLE
+
+
 def fold_pair_doubles_map():
     # The fold test's pair (large holes onto small ones, test_open_double.py): the doubles' map of
     # the cut disks' class for loops 0, 1, 2, as surface_map_open first solves it: the closed
