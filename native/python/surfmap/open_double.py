@@ -1695,7 +1695,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     same_sheet, alignment, status, chosen, snapped_class (a given pairing only, when set)}], tied_candidates, symmetry_error, same_sheet,
     snap_distance, double_genus, ear_triangles, ear_triangles_turned, source_weights_fallback,
     untangled_vertices, untangled, inverse_flipped_triangles, inverse_ear_triangles,
-    inverse_ear_triangles_turned, inverse_untangled_vertices, inverse_untangled}. untangle (default
+    inverse_ear_triangles_turned, inverse_untangled_vertices, inverse_untangled, reflex_corner_slides,
+    inverse_reflex_corner_slides (REFLEX_CORNER_SLIDES, off by default: 0)}. untangle (default
     True): the interior corners of the half's folded faces are moved within their stars
     (open_untangle.untangle_half) before the own-edge weights' solve is tried; 'untangled' says how
     many faces were folded and how many vertices moved. The inverse (per target vertex a point of
