@@ -1106,9 +1106,9 @@ def _slide_ears(A, B, points, reversing, keep):
     return {k: int(got[k]) for k in ("ears", "turned", "moved", "moved_with_neighbours", "turned_after")}
 
 
-#: Reflex-corner slides (off by default; an experiment of docs/open_surfaces.md "Session 25"): in
-#: _finish_half, a boundary image next to a reflex corner of the other side's loop slid onto it.
-REFLEX_CORNER_SLIDES = False
+#: Reflex-corner slides (docs/open_surfaces.md "Session 25"): in _finish_half, a boundary image
+#: next to a reflex corner of the other side's loop slid onto it; False: not (to compare).
+REFLEX_CORNER_SLIDES = True
 
 #: The 3D face-angle sum at a boundary vertex from which the slides call it a reflex corner (the
 #: punched holes' staircase corners: up to 312 degrees on double_torus_1 A).
@@ -1696,7 +1696,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     snap_distance, double_genus, ear_triangles, ear_triangles_turned, source_weights_fallback,
     untangled_vertices, untangled, inverse_flipped_triangles, inverse_ear_triangles,
     inverse_ear_triangles_turned, inverse_untangled_vertices, inverse_untangled, reflex_corner_slides,
-    inverse_reflex_corner_slides (REFLEX_CORNER_SLIDES, off by default: 0)}. untangle (default
+    inverse_reflex_corner_slides (vertices slid, REFLEX_CORNER_SLIDES)}. untangle (default
     True): the interior corners of the half's folded faces are moved within their stars
     (open_untangle.untangle_half) before the own-edge weights' solve is tried; 'untangled' says how
     many faces were folded and how many vertices moved. The inverse (per target vertex a point of
@@ -1968,7 +1968,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "inverse_ears_turned": ears_inv["turned"], "inverse_ears_slid": ears_inv["moved"],
                    "inverse_ears_slid_with_neighbours": ears_inv["moved_with_neighbours"],
                    # boundary images slid onto a reflex corner of the other side's loop
-                   # (REFLEX_CORNER_SLIDES, off by default; Session 25)
+                   # (REFLEX_CORNER_SLIDES; Session 25)
                    "reflex_corner_slides": h.get("corners_fw", 0),
                    "inverse_reflex_corner_slides": h.get("corners_inv", 0),
                    "inverse_flipped_triangles": inv_flipped, "inverse_ear_triangles": inv_ears,

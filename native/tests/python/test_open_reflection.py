@@ -247,7 +247,9 @@ def test_refined_halves_lower_the_largest_distortion_of_the_test_pants(monkeypat
     # refined at their boundary (the default) against the unrefined halves (REFINE_HALF False):
     # both bijective (0 flipped both ways, check_map), the refined one's largest D' (ears apart)
     # at most 0.9 of the unrefined one's (measured 3.71 against 4.56, on faces with two corners on
-    # the boundary; main, with Klein barycentrics: 5.59), its mean not above it.
+    # the boundary; main, with Klein barycentrics: 5.59), its mean not above it. Without the
+    # reflex-corner slides (session 25), which right most of those faces in either set-up.
+    monkeypatch.setattr(open_double, "REFLEX_CORNER_SLIDES", False)
     Vs, Fs = pants(3)
     Vt = bend(Vs, 0.3)
     kw = dict(boundary_pairing=[0, 1, 2], orientations=("preserving",))
@@ -281,7 +283,9 @@ def test_the_half_solve_keeps_the_set_up_whose_map_measures_best(monkeypatch):
     # (open.reflection_setups) and the one with the fewest folds and the smallest largest D' kept:
     # the unrefined halves, max D' 4.06, where the first set-up that succeeds (session 23's rule,
     # SETUP_CHOICE "first") delivers 18.5 (both halves refined, on faces with two corners on the
-    # boundary).
+    # boundary). Without the reflex-corner slides (session 25), which right those faces in every
+    # set-up (both halves refined 18.5 -> 3.81; test_reflex_corner_slides_right_the_face_...).
+    monkeypatch.setattr(open_double, "REFLEX_CORNER_SLIDES", False)
     Vs, Fs = coarse_torus_with_a_jagged_hole()
     Vt, Ft = punctured_torus(32, 16)
     r = open_double.surface_map_open(Vs, Fs, Vt, Ft)
@@ -304,16 +308,16 @@ def test_the_half_solve_keeps_the_set_up_whose_map_measures_best(monkeypatch):
 
 def test_reflex_corner_slides_right_the_face_cut_across_a_staircase_corner(monkeypatch):
     # The coarse torus with a jagged hole onto the punctured torus (whose punched loop has 5
-    # corners of 240 degrees or more): off (the default), the delivered map has max D' 4.06, on a
-    # face whose two boundary corners' images lie on either side of such a corner. With
-    # REFLEX_CORNER_SLIDES one boundary image is slid onto the corner: max D' 3.60, still 0 folded
-    # both ways and boundary onto boundary (docs/open_surfaces.md "Session 25").
+    # corners of 240 degrees or more): without the slides (REFLEX_CORNER_SLIDES False) the delivered
+    # map has max D' 4.06, on a face whose two boundary corners' images lie on either side of such
+    # a corner. With them (the default) one boundary image is slid onto the corner: max D' 3.60,
+    # still 0 folded both ways and boundary onto boundary (docs/open_surfaces.md "Session 25").
     Vs, Fs = coarse_torus_with_a_jagged_hole()
     Vt, Ft = punctured_torus(32, 16)
+    on = open_double.surface_map_open(Vs, Fs, Vt, Ft)
+    monkeypatch.setattr(open_double, "REFLEX_CORNER_SLIDES", False)
     off = open_double.surface_map_open(Vs, Fs, Vt, Ft)
     assert off["open"]["reflex_corner_slides"] == 0
-    monkeypatch.setattr(open_double, "REFLEX_CORNER_SLIDES", True)
-    on = open_double.surface_map_open(Vs, Fs, Vt, Ft)
     o = on["open"]
     assert o["reflex_corner_slides"] >= 1
     assert on["flipped_triangles"] == 0 and o["inverse_flipped_triangles"] == 0
