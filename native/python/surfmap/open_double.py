@@ -851,10 +851,16 @@ def _refined_images(S, T, S2, T2, images):
     return T2.D["V"][full]
 
 
-def _double_map(S, T, images, options, landmarks=None):
+def _double_map(S, T, images, options, landmarks=None, homotopy=None):
+    """The doubles' map of the class of `images` (the closed pipeline's images_only run: that class,
+    and, the doubles having no coarse copy, the snapped overlay's own class ranked beside it;
+    _keep_requested_pairing). homotopy: the index of the class to solve in that list (None: the
+    lower energy)."""
     kw = {k: v for k, v in options.items() if k in ("threads", "tolerance", "max_iterations", "method",
                                                     "source_weights", "solve_progress",
                                                     "target_metric")}
+    if homotopy is not None:
+        kw["homotopy"] = int(homotopy)
 
     def solve(**extra):
         return _core.surface_map(S.D["V"], S.D["F"], T.D["V"], T.D["F"], homotopy_images=images,
@@ -1100,6 +1106,107 @@ def _slide_ears(A, B, points, reversing, keep):
     return {k: int(got[k]) for k in ("ears", "turned", "moved", "moved_with_neighbours", "turned_after")}
 
 
+#: Reflex-corner slides (docs/open_surfaces.md "Session 25"): in _finish_half, a boundary image
+#: next to a reflex corner of the other side's loop slid onto it; False: not (to compare).
+REFLEX_CORNER_SLIDES = True
+
+#: The 3D face-angle sum at a boundary vertex from which the slides call it a reflex corner (the
+#: punched holes' staircase corners: up to 312 degrees on double_torus_1 A).
+REFLEX_CORNER_ANGLE = np.radians(240.0)
+
+
+def _boundary_angle_sums(side):
+    """Per vertex of side's input mesh the sum of its faces' 3D angles there (n,)."""
+    V, F = side.V, side.F
+    total = np.zeros(len(V))
+    for k in range(3):
+        u = V[F[:, (k + 1) % 3]] - V[F[:, k]]
+        w = V[F[:, (k + 2) % 3]] - V[F[:, k]]
+        c = np.einsum("ij,ij->i", u, w) / np.maximum(np.linalg.norm(u, axis=1) * np.linalg.norm(w, axis=1), 1e-300)
+        np.add.at(total, F[:, k], np.arccos(np.clip(c, -1, 1)))
+    return total
+
+
+def _slide_to_reflex_corners(A, B, points, reversing, keep):
+    """A half's map of A onto B ({face, barycentric, position} per input vertex of A, boundary
+    vertices on B's loops; changed in place): where two consecutive boundary vertices of an A loop
+    have their images on the two B loop edges of a reflex corner c of B (face angles summing to
+    REFLEX_CORNER_ANGLE or more), one on each side, the face of A on their edge has its two
+    boundary corners' images cutting across the corner, squeezed (double_torus_1 B -> A: D' 10.6 on
+    the corner of 312 degrees, the next face 8.1). The one of the two whose image slid onto c gives
+    its star's faces the smaller largest D' is slid, when that is smaller than before and no face
+    of the star turns over (_turned); `keep` (landmarks) stay. Returns the number of vertices slid."""
+    on_b = {}
+    for li, loop in enumerate(B.loops):
+        for j, v in enumerate(loop):
+            on_b[int(v)] = (li, j)
+    reflex = _boundary_angle_sums(B) >= REFLEX_CORNER_ANGLE
+    face, bary = points["face"], points["barycentric"]
+    held = set(int(v) for v in np.asarray(keep).ravel())
+    stars = {}
+
+    def star(v):
+        if v not in stars:
+            stars[v] = np.flatnonzero((A.F == v).any(axis=1))
+        return stars[v]
+
+    def loop_edge(v):
+        # (loop, index of the edge's first vertex) of the B loop edge v's image lies on, or None
+        corners = [int(x) for x, t in zip(B.F[face[v]], bary[v]) if t > 1e-12]
+        if len(corners) != 2 or any(c not in on_b for c in corners):
+            return None
+        (l0, j0), (l1, j1) = on_b[corners[0]], on_b[corners[1]]
+        n = len(B.loops[l0])
+        if l0 != l1 or (j1 - j0) % n not in (1, n - 1):
+            return None
+        return l0, j0 if (j1 - j0) % n == 1 else j1
+
+    a_on_b = np.zeros(len(A.V), dtype=bool)
+    a_on_b[np.concatenate(A.loops)] = True
+
+    def worst(faces):
+        # the largest D' of the faces, ears apart (as the report measures it)
+        faces = faces[~a_on_b[A.F[faces]].all(axis=1)]
+        return float(np.nanmax(_dilatation(A.V, points["position"], A.F[faces]), initial=0.0))
+
+    moved = 0
+    for loop in A.loops:
+        for k in range(len(loop)):
+            u, w = int(loop[k]), int(loop[(k + 1) % len(loop)])
+            eu, ew = loop_edge(u), loop_edge(w)
+            if eu is None or ew is None or eu[0] != ew[0]:
+                continue
+            n = len(B.loops[eu[0]])
+            if (ew[1] - eu[1]) % n == 1:
+                c = int(B.loops[eu[0]][ew[1]])          # the corner between u's edge and w's
+            elif (eu[1] - ew[1]) % n == 1:
+                c = int(B.loops[eu[0]][eu[1]])
+            else:
+                continue
+            if not reflex[c]:
+                continue
+            c_face = int(np.flatnonzero((B.F == c).any(axis=1))[0])
+            c_bary = (B.F[c_face] == c).astype(float)
+            best = None
+            for v in (u, w):
+                if v in held:
+                    continue
+                faces = star(v)
+                before = worst(faces)
+                saved = face[v], bary[v].copy(), points["position"][v].copy()
+                face[v], bary[v], points["position"][v] = c_face, c_bary, B.V[c]
+                after = worst(faces)
+                turned = _turned(A, B, points, reversing, faces=faces).any()
+                face[v], bary[v], points["position"][v] = saved
+                if after < before and not turned and (best is None or after < best[0]):
+                    best = (after, v)
+            if best is not None:
+                v = best[1]
+                face[v], bary[v], points["position"][v] = c_face, c_bary, B.V[c]
+                moved += 1
+    return moved
+
+
 def _alignment(S, T, images):
     """Mean squared distance between the source's vertices and their images, both shapes moved
     to centroid 0 and scaled to unit area (the disk map's alignment measure, map/open_map.h)."""
@@ -1291,10 +1398,10 @@ def _setup_quality(S, T, r, sym, reversing, untangle):
             "mean_distortion": float(np.dot(area, dil[keep]) / area.sum()) if area.sum() > 0 else float("nan")}, h
 
 
-def _realized_pairing(S, T, r, requested):
-    """The target loop of each source loop as the doubles' map r realises it: the loop of T nearest
-    to most of the source loop's images (r's forward positions of the input vertices); `requested`
-    when that is not a permutation."""
+def _voted_pairing(S, T, r):
+    """The target loop of each source loop as the doubles' map r puts it: the loop of T nearest to
+    most of the source loop's images (r's forward positions of the input vertices); not always a
+    permutation. (The delivered pairing is the same vote on the half's map: _split_half_correspondence.)"""
     pos = np.asarray(r["forward"]["position"])[:S.n]
     t_vertices = np.concatenate(T.loops)
     t_loop = np.concatenate([np.full(len(l), i) for i, l in enumerate(T.loops)])
@@ -1302,7 +1409,68 @@ def _realized_pairing(S, T, r, requested):
     for loop in S.loops:
         votes = t_loop[_nearest(pos[loop], T.V[t_vertices])]
         got.append(int(np.bincount(votes, minlength=T.b).argmax()))
+    return got
+
+
+def _realized_pairing(S, T, r, requested):
+    """_voted_pairing, or `requested` when that is not a permutation."""
+    got = _voted_pairing(S, T, r)
     return got if sorted(got) == list(range(T.b)) else list(requested)
+
+
+def _chosen_class_again(S, T, images, options, landmarks, requested):
+    """The chosen class's doubles' map solved again (other weights, doubles refined near the
+    boundary): (r, ''); with a requested pairing (not None) that map does not keep
+    (_keep_requested_pairing): (None, why)."""
+    r = _double_map(S, T, images, options, landmarks)
+    if requested is None:
+        return r, ""
+    try:
+        return _keep_requested_pairing(S, T, r, images, options, landmarks, requested)[0], ""
+    except PairingNotKept as e:
+        return None, str(e)
+
+
+class PairingNotKept(_core.SolveError):
+    """A requested boundary pairing that the doubles' map of its class does not keep."""
+
+
+def _keep_requested_pairing(S, T, r, images, options, landmarks, requested):
+    """The doubles' map r of a requested pairing's class (`images`), kept to that pairing: returns
+    (r or its replacement, a note for the candidate's 'snapped_class', '' when nothing was done).
+
+    The doubles' solve asks for the class of `images` alone (images_only), but the doubles have no
+    coarse copy, so the closed pipeline also ranks the snapped overlay's own class beside it
+    (hyperbolic_map.cpp add_snapped_class) and the lower energy wins. That class is kept (it brings
+    a start twisted about a loop back to the untwisted class: test_open_double.py twisted starts),
+    but it may pair the loops otherwise (the fold test's pair, [0, 1, 2] requested: the snapped
+    class puts them on [1, 2, 0], 61.00 against 62.70 on the doubles). So when the winner is the
+    snapped class and its map does not put the source loops on the requested target loops, the
+    other class of the list (the images' own) is solved alone (`homotopy` index) and taken. When
+    the map taken does not keep the pairing either, PairingNotKept (a SolveError, one line)
+    (docs/open_surfaces.md "Session 25")."""
+    requested = [int(x) for x in requested]
+    got = _voted_pairing(S, T, r)
+    if got == requested:
+        return r, ""
+    hom = r.get("homotopy", {})
+    cands = hom.get("candidates", [])
+    chosen = int(hom.get("chosen", -1))
+    snapped = int(hom.get("snapped_class", {}).get("index", -1))
+    note = ""
+    others = [k for k, c in enumerate(cands) if k != snapped and np.isfinite(float(c.get("energy", np.inf)))]
+    if chosen == snapped >= 0 and others:
+        k = min(others, key=lambda k: float(cands[k]["energy"]))
+        note = (f"not ranked: its doubles' map puts the source loops on target loops {got}, not the requested "
+                f"{requested} (energy {float(cands[snapped]['energy']) / 2:.6g} against the images' class's "
+                f"{float(cands[k]['energy']) / 2:.6g}, halved)")
+        r = _double_map(S, T, images, options, landmarks, homotopy=k)
+        snapped_got, got = got, _voted_pairing(S, T, r)
+        if got == requested:
+            return r, note
+        note = f" (nor does the snapped overlay's class ranked beside it: {snapped_got})"
+    raise PairingNotKept(f"the doubles' map of this class puts the source loops on target loops {got}, not the "
+                         f"requested {requested}{note}")
 
 
 def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=True):
@@ -1355,10 +1523,11 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
     # (session 23's rule: double_torus_1 A -> B 9.73 where the unrefined halves give 8.63,
     # docs/open_surfaces.md "Session 24").
     # The boundary loops as the doubles' map r pairs them (its class is what the half's solve
-    # solves): each source loop onto the target loop nearest most of its images. The requested
-    # pairing may differ (the fold test's pair: requested [0, 1, 2], r's images on [1, 2, 0]), and a
-    # boundary vertex sliding on another loop's geodesic than its image's stalls the solve
-    # (docs/open_surfaces.md "Session 24").
+    # solves): each source loop onto the target loop nearest most of its images. The candidate's
+    # pairing may differ (the fold test's pair, [0, 1, 2] asked: the snapped overlay's class's images
+    # on [1, 2, 0]; a requested pairing no longer does, _keep_requested_pairing, but an automatic
+    # pairing's candidate still can), and a boundary vertex sliding on another loop's geodesic than
+    # its image's stalls the solve (docs/open_surfaces.md "Session 24").
     requested = [int(x) for x in pairing]
     pairing = _realized_pairing(S, T, r, requested)
     groups = [[(refined, weights, floor) for refined in ((2, 1, 0) if REFINE_HALF else (0,))]
@@ -1462,6 +1631,9 @@ def _finish_half(S, T, h, reversing, lm, untangle):
     # boundary): the middle corner's image slid along the other boundary (map/ear_images.h).
     h["ears_fw"] = _slide_ears(S, T, fw, reversing, lm[:, 0])
     h["ears_inv"] = _slide_ears(T, S, inv, reversing, lm[:, 1])
+    if REFLEX_CORNER_SLIDES:
+        h["corners_fw"] = _slide_to_reflex_corners(S, T, fw, reversing, lm[:, 0])
+        h["corners_inv"] = _slide_to_reflex_corners(T, S, inv, reversing, lm[:, 1])
     h["flipped"], h["ears"], h["ears_turned"], h["ear"] = _flips(S, T, fw, reversing)
     inv_flipped, inv_ears, inv_ears_turned, _ = _flips(T, S, inv, reversing)
     h["inv_before"], h["inv_untangled"] = inv_flipped, []
@@ -1481,7 +1653,11 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     Vs (n_s,3), Fs (m_s,3), Vt, Ft: the meshes (input faces are triangles). boundary_pairing: None
     (b >= 2: every pairing tried when there are at most `max_pairings`, else the `max_pairings`
     (pairing, orientation) pairs of best _pairing_score) or the
-    target loop of each source loop; 'swap' for two loops. orientations: which of 'preserving'
+    target loop of each source loop; 'swap' for two loops. A given pairing is delivered as given or
+    refused: a candidate whose doubles' map puts the source loops on other target loops fails
+    ("the doubles' map of this class puts the source loops on target loops [...], not the requested
+    [...]"), after the snapped overlay's class, when it won and pairs them otherwise, was replaced by
+    the images' class (_keep_requested_pairing; the candidate's 'snapped_class' says so). orientations: which of 'preserving'
     (the halves onto the halves) and 'reversing' (the source's half onto the target's mirror
     half: an orientation-reversing map of the open surfaces) are tried. The lowest energy wins;
     candidates within `tie_tolerance` (relative, default 1e-3) of it are told apart by the
@@ -1516,10 +1692,11 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     'distortion' {mean, max, per_face} of the morph (ears left out of mean and max), 'energy'
     {'final': the half's energy}, and 'open' {domain 'double', method, boundary_pairing,
     orientation, pairing_choice, candidates [{pairing, orientation, energy, symmetry_error,
-    same_sheet, alignment, status, chosen}], tied_candidates, symmetry_error, same_sheet,
+    same_sheet, alignment, status, chosen, snapped_class (a given pairing only, when set)}], tied_candidates, symmetry_error, same_sheet,
     snap_distance, double_genus, ear_triangles, ear_triangles_turned, source_weights_fallback,
     untangled_vertices, untangled, inverse_flipped_triangles, inverse_ear_triangles,
-    inverse_ear_triangles_turned, inverse_untangled_vertices, inverse_untangled}. untangle (default
+    inverse_ear_triangles_turned, inverse_untangled_vertices, inverse_untangled, reflex_corner_slides,
+    inverse_reflex_corner_slides (vertices slid, REFLEX_CORNER_SLIDES)}. untangle (default
     True): the interior corners of the half's folded faces are moved within their stars
     (open_untangle.untangle_half) before the own-edge weights' solve is tried; 'untangled' says how
     many faces were folded and how many vertices moved. The inverse (per target vertex a point of
@@ -1598,6 +1775,13 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                         cand["capped_class"] = f"{desc} (source -> target: {capped_class}: {e})"
                     else:
                         raise
+                if boundary_pairing is not None:
+                    # A requested pairing is kept or the candidate fails (one line), never swapped
+                    # for the snapped overlay's class's pairing (docs/open_surfaces.md "Session 25").
+                    r, note = _keep_requested_pairing(S, T, r, images, options, _landmark_pairs(S, T, lm, rev),
+                                                      pairing)
+                    if note:
+                        cand["snapped_class"] = note
                 err, sheet = _symmetry(r, S, T, rev)
                 cand.update(energy=float(r["energy"]["final"]) / 2, symmetry_error=err, same_sheet=sheet,
                             status="ok" if err <= symmetry_tolerance and sheet >= 0.9 else
@@ -1645,24 +1829,29 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     # (the half's solve's map was finished when its set-up was measured: _setup_quality)
     h = sym["half"] if sym is not None else _half(S, T, r, rev, untangle)
     chosen_options = options
+    requested = cand["pairing"] if boundary_pairing is not None else None
     if h["flipped"] and "source_weights" not in options and sym is None:
         # As the closed pipeline's automatic weights (SourceWeights::Automatic): the intrinsic
         # Delaunay weights' straight images of the user's faces fold (here next to the boundary,
         # where the half is cut out of a map symmetric only up to the discretization), so the
         # chosen class is solved again with positive weights on the source's own edges.
         own = dict(options, source_weights="own")
-        r2 = _double_map(S, T, chosen_images, own, _landmark_pairs(S, T, lm, rev))
-        h2 = _half(S, T, r2, rev, untangle)
-        h2["weights_fallback"] = (f"{h['flipped']} flipped with the intrinsic Delaunay weights"
-                                  f"{' after untangling' if h['untangled'] else ''}; solved again on the source's own "
-                                  f"edges: {h2['flipped']} flipped{' after untangling' if h2['untangled'] else ''}")
-        if h2["flipped"] < h["flipped"]:
-            r, chosen_options = r2, own
-            cand = dict(cand, energy=float(r2["energy"]["final"]) / 2)
-            cand["symmetry_error"], cand["same_sheet"] = _symmetry(r2, S, T, rev)
-            h = h2
+        r2, not_kept = _chosen_class_again(S, T, chosen_images, own, _landmark_pairs(S, T, lm, rev), requested)
+        if not_kept:
+            h["weights_fallback"] = (f"{h['flipped']} flipped with the intrinsic Delaunay weights; solved again on "
+                                     f"the source's own edges: not used, {not_kept}")
         else:
-            h["weights_fallback"] = h2["weights_fallback"]
+            h2 = _half(S, T, r2, rev, untangle)
+            h2["weights_fallback"] = (f"{h['flipped']} flipped with the intrinsic Delaunay weights"
+                                      f"{' after untangling' if h['untangled'] else ''}; solved again on the source's "
+                                      f"own edges: {h2['flipped']} flipped{' after untangling' if h2['untangled'] else ''}")
+            if h2["flipped"] < h["flipped"]:
+                r, chosen_options = r2, own
+                cand = dict(cand, energy=float(r2["energy"]["final"]) / 2)
+                cand["symmetry_error"], cand["same_sheet"] = _symmetry(r2, S, T, rev)
+                h = h2
+            else:
+                h["weights_fallback"] = h2["weights_fallback"]
     if sym is None:
         _finish_half(S, T, h, rev, lm, untangle)
     refined = ""
@@ -1672,33 +1861,43 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         # collar crowd into the first ring of faces of the other side's loop.
         S2 = _Side(S.V, S.F, "source", refine_rings=refine_rings, refine_levels=refine_levels)
         T2 = _Side(T.V, T.F, "target", refine_rings=refine_rings, refine_levels=refine_levels)
-        r3 = _double_map(S2, T2, _refined_images(S, T, S2, T2, chosen_images), chosen_options,
-                         _landmark_pairs(S2, T2, lm, rev))
-        # The half's maps through the refined sides' faces (their input meshes are S's and T's).
-        sym3, refined_reflection = None, ""
-        if sym is not None:
-            c3 = {}
-            sym3 = _reflection_candidate(S2, T2, r3, cand["pairing"], rev, {}, c3, untangle)
+        images3 = _refined_images(S, T, S2, T2, chosen_images)
+        r3, not_kept = _chosen_class_again(S2, T2, images3, chosen_options, _landmark_pairs(S2, T2, lm, rev),
+                                           requested)
+        if not_kept:
+            refined = (f"{h['flipped']} flipped / {h['inv_flipped']} in the inverse; solved again on the doubles "
+                       f"refined within {refine_rings} rings of the boundary {refine_levels} times: not used, "
+                       f"{not_kept}")
+        else:
+            # The half's maps through the refined sides' faces (their input meshes are S's and T's).
+            sym3, refined_reflection = None, ""
+            if sym is not None:
+                c3 = {}
+                sym3 = _reflection_candidate(S2, T2, r3, cand["pairing"], rev, {}, c3, untangle)
+                if sym3 is None:
+                    refined_reflection = c3.get("reflection_solve", "")
+            h3 = sym3["half"] if sym3 is not None else _half(S2, T2, r3, rev, untangle)
             if sym3 is None:
-                refined_reflection = c3.get("reflection_solve", "")
-        h3 = sym3["half"] if sym3 is not None else _half(S2, T2, r3, rev, untangle)
-        if sym3 is None:
-            _finish_half(S2, T2, h3, rev, lm, untangle)
-        refined = (f"{h['flipped']} flipped / {h['inv_flipped']} in the inverse; solved again on the doubles refined "
-                   f"within {refine_rings} rings of the boundary {refine_levels} times ({S2.n2} / {T2.n2} vertices "
-                   f"on the halves): {h3['flipped']} / {h3['inv_flipped']}")
-        if sym is not None:
-            refined += (" (reflection-aware solve)" if sym3 is not None else
-                        f" (the doubles' half: {refined_reflection})")
-        if h3["flipped"] + h3["inv_flipped"] < h["flipped"] + h["inv_flipped"]:
-            h3["weights_fallback"] = h.get("weights_fallback", "")
-            r, h, sym = r3, h3, sym3
-            cand = dict(cand, energy=float(r3["energy"]["final"]) / 2)
-            cand["symmetry_error"], cand["same_sheet"] = (_symmetry(r3, S2, T2, rev) if sym3 is None else
-                                                          (0.0, 1.0))
-            if sym3 is not None:
-                cand["reflection_setups"] = c3.get("reflection_setups", [])
+                _finish_half(S2, T2, h3, rev, lm, untangle)
+            refined = (f"{h['flipped']} flipped / {h['inv_flipped']} in the inverse; solved again on the doubles refined "
+                       f"within {refine_rings} rings of the boundary {refine_levels} times ({S2.n2} / {T2.n2} vertices "
+                       f"on the halves): {h3['flipped']} / {h3['inv_flipped']}")
+            if sym is not None:
+                refined += (" (reflection-aware solve)" if sym3 is not None else
+                            f" (the doubles' half: {refined_reflection})")
+            if h3["flipped"] + h3["inv_flipped"] < h["flipped"] + h["inv_flipped"]:
+                h3["weights_fallback"] = h.get("weights_fallback", "")
+                r, h, sym = r3, h3, sym3
+                cand = dict(cand, energy=float(r3["energy"]["final"]) / 2)
+                cand["symmetry_error"], cand["same_sheet"] = (_symmetry(r3, S2, T2, rev) if sym3 is None else
+                                                              (0.0, 1.0))
+                if sym3 is not None:
+                    cand["reflection_setups"] = c3.get("reflection_setups", [])
     fw, inv, pairing, back_pairing, snap = h["fw"], h["inv"], h["pairing"], h["back_pairing"], h["snap"]
+    if boundary_pairing is not None and list(pairing) != list(cand["pairing"]):
+        # (The half's loops by the same vote as _keep_requested_pairing's: not expected to differ.)
+        raise PairingNotKept(f"boundary_pairing {cand['pairing']}: the map found puts the source loops on target "
+                             f"loops {list(pairing)} ({cand['orientation']}), not the requested pairing")
     flipped, ears, ears_turned, ear = h["flipped"], h["ears"], h["ears_turned"], h["ear"]
     untangled, flipped_before_untangling = h["untangled"], h["before"]
     weights_fallback, ears_fw, ears_inv = h.get("weights_fallback", ""), h["ears_fw"], h["ears_inv"]
@@ -1768,6 +1967,10 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "ears_slid_with_neighbours": ears_fw["moved_with_neighbours"],
                    "inverse_ears_turned": ears_inv["turned"], "inverse_ears_slid": ears_inv["moved"],
                    "inverse_ears_slid_with_neighbours": ears_inv["moved_with_neighbours"],
+                   # boundary images slid onto a reflex corner of the other side's loop
+                   # (REFLEX_CORNER_SLIDES; Session 25)
+                   "reflex_corner_slides": h.get("corners_fw", 0),
+                   "inverse_reflex_corner_slides": h.get("corners_inv", 0),
                    "inverse_flipped_triangles": inv_flipped, "inverse_ear_triangles": inv_ears,
                    "inverse_ear_triangles_turned": inv_ears_turned, "inverse_untangled_vertices": len(inv_untangled),
                    "inverse_untangled": (f"{inv_flipped_before} folded faces; {len(inv_untangled)} interior target "

@@ -823,12 +823,16 @@ def test_a_fold_next_to_small_holes_is_cleared_on_doubles_refined_near_the_bound
     face of the inverse stays folded after the untangling (on main: 0 forward, 1 in the inverse).
     The chosen class solved again on doubles refined near their boundaries leaves none. (The doubles'
     half: since session 24 the reflection-aware solve maps this pair with none unrefined,
-    test_open_reflection.py::test_the_half_solve_pairs_the_loops_as_the_doubles_map_does.)"""
+    test_open_reflection.py::test_the_half_solve_pairs_the_loops_as_the_doubles_map_does.) The
+    loops paired as the nearest holes, [1, 2, 0]: the class that folds. Until session 25 this test
+    requested [0, 1, 2] and got that class anyway (the snapped overlay's class, ranked beside the
+    requested one, won); the requested class [0, 1, 2] is now kept, and its map has no fold to clear
+    (test_open_reflection.py::test_a_requested_boundary_pairing_is_kept)."""
     Vs, Fs = holed_sphere(3, [0.7, 0.75, 0.65])
     Vt, Ft = holed_sphere(3, [0.97] * 3)
-    r = open_double.surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=[0, 1, 2], orientations=("preserving",),
+    r = open_double.surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=[1, 2, 0], orientations=("preserving",),
                                      reflection_solve=False)
-    assert r["converged"]
+    assert r["converged"] and r["open"]["boundary_pairing"] == [1, 2, 0]
     assert check_map(r, Vs, Fs, Vt, Ft) == 0 and r["flipped_triangles"] == 0
     assert r["open"]["inverse_flipped_triangles"] == 0
     # The refined solve was taken: folds were left before it (its report: forward / inverse).
