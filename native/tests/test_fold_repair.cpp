@@ -126,7 +126,7 @@ TEST(SurfaceMapFallbacks, FoldedFallbacksAreRefusedOnTheirSolveAsMappingThemWoul
   const TriMesh s = testing_support::with_caps(samples::n_hole_torus(2, 32, true), 37, 0.002);
   const TriMesh t = samples::amphora(36, true);
   SurfaceMapOptions o;
-  o.homotopy.candidates = 4;
+  o.homotopy.candidates = 2;
   o.homotopy.two_way = false;
   o.homotopy.search.enabled = false;
   o.homotopy.full_solves = 0;  // (every class solved at full resolution: each fallback has its solve kept)
