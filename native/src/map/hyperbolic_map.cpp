@@ -2160,9 +2160,11 @@ bool map_class(HyperbolicPipeline& p) {
 // requested weights) any folded or flattened face of it is refused by
 // retry_with_own_weights. The same figures are read here, the same way
 // (the optimum placed in P, its charts' distortion), so the outcome is
-// map_class's; only the initial map and the location it would have built
-// first are saved (on the genus-12 block -> wheel pair, minutes per class).
-// Returns the refusal ("" when the class must be mapped).
+// map_class's; only the initial map (and its distortion) that map_class
+// builds first is saved. Classes without a kept solve (coarse-ranked only)
+// are mapped as before (docs/robustness.md "Session 25": on the genus-12
+// block <-> wheel pair those are the cost). Returns the refusal ("" when
+// the class must be mapped).
 std::string refused_by_its_solve(HyperbolicPipeline& p, int k) {
   const SurfaceMapOptions& o = p.options;
   if (p.hooks.map_every_fallback) return {};
