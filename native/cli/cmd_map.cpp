@@ -105,6 +105,7 @@ void register_map(CLI::App& app) {
     bool short_canonical_generators = false;      // LoopOptions::short_canonical_generators = true
     bool classical_canonical_generators = false;  // LoopOptions::short_canonical_generators = false
     bool both_canonical_bases = defaults.loops.both_canonical_bases;  // LoopOptions::both_canonical_bases
+    bool geometric_layout_basis = defaults.homotopy.search.geometric_layout_basis;  // HomotopySearchOptions::geometric_layout_basis
     bool homotopy_both_signs = defaults.homotopy.flat_both_signs;    // HomotopyOptions::flat_both_signs
     bool no_flat_overlay = !defaults.homotopy.flat_overlay;          // HomotopyOptions::flat_overlay off
     bool landmarks_may_fold = defaults.landmarks_may_fold;          // SurfaceMapOptions::landmarks_may_fold
@@ -209,6 +210,10 @@ void register_map(CLI::App& app) {
   cmd->add_flag("--both-canonical-bases", a->both_canonical_bases,
                 "Genus >= 2: list the candidate classes in both canonical bases (classical and short) and twist-search "
                 "the short basis's by its own twists (docs/robustness.md \"Session 23\")");
+  cmd->add_flag("--geometric-layout-basis", a->geometric_layout_basis,
+                "Genus >= 2: the geometric classes read the target's lengths in the short canonical basis of its "
+                "layout's word, then are written in its class loops' letters (off by default; docs/robustness.md "
+                "\"Session 25\")");
   cmd->add_flag("--landmarks-may-fold", a->landmarks_may_fold,
                 "Genus >= 1 with --landmarks: hold them by plain pins and keep the map where it folds (for its homotopy "
                 "class; flipped_triangles counts the folds) instead of an error when they cannot be held bijectively");
@@ -298,6 +303,7 @@ void register_map(CLI::App& app) {
                                            : a->short_canonical_generators   ? true
                                                                              : SurfaceMapOptions().loops.short_canonical_generators;
     opt.loops.both_canonical_bases = a->both_canonical_bases;
+    opt.homotopy.search.geometric_layout_basis = a->geometric_layout_basis;
     opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
     opt.solve.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
     opt.solve.tolerance = a->tolerance;

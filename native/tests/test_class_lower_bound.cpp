@@ -17,6 +17,7 @@
 #include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/mapping_class_search.h"
 #include "surfmap/uniformize/uniformize.h"
+#include "../src/map/stages/class_search.h"
 #include "../src/map/stages/homotopy_classes.h"
 #include "../src/map/two_way_run.h"
 #include "../src/map/class_bound_support.h"
@@ -198,6 +199,42 @@ TEST(ClassLowerBound, ShortCanonicalGeneratorsPresentTheSameSurface) {
     short_longest = std::max(short_longest, group.side_word(brief.generators[j]).size());
   }
   EXPECT_LE(short_longest, classical_longest);
+}
+
+// Issue 13 (session 25; --geometric-layout-basis): the layout's short
+// canonical basis written in another canonical basis's letters (here the
+// classical schema's, as the class loops' are in the pipeline) presents the
+// same elements: every generator and product of two has the same length
+// read either way, and the layout basis's canonical relator is the identity
+// in the class letters (Dehn's algorithm decides it exactly). Read as the
+// same letters instead, the two bases disagree, so the change of letters is
+// not the identity.
+TEST(ClassLowerBound, LayoutShortBasisIsWrittenInTheClassLetters) {
+  const UniformizeResult u = uniformize(samples::wheel(5, 24, false));
+  ASSERT_TRUE(u.converged);
+  const int g = u.genus, n = 2 * g;
+  const CanonicalSchema classical = canonical_schema(u.layout.word);
+  CanonicalSchema layout;
+  GroupMap in_class;
+  std::string why;
+  ASSERT_TRUE(detail::layout_short_basis(u.layout.word, classical.generators, classical.letters, &layout, &in_class, &why))
+      << why;
+  ASSERT_EQ(static_cast<int>(in_class.size()), n);
+  ASSERT_EQ(static_cast<int>(layout.generators.size()), n);
+  EXPECT_TRUE(dehn_reduce(substitute(canonical_relator(g), in_class), canonical_relator(g)).empty());
+  const DeckGroup group(u.layout);
+  const SurfaceGroupLengths on_class(group, classical.generators, u.layout.word),
+      on_layout(group, layout.generators, u.layout.word);
+  int differ = 0;
+  for (int j = 1; j <= n; ++j)
+    for (int k = j; k <= n; ++k)
+      for (const Word& w : j == k ? std::vector<Word>{{j}} : std::vector<Word>{{j, k}, {j, -k}}) {
+        const double l = on_layout.length(w);
+        ASSERT_TRUE(std::isfinite(l) && l > 0) << "word " << j << " " << w.back();
+        EXPECT_NEAR(on_class.length(substitute(w, in_class)), l, 1e-6 * l) << "word " << j << " " << w.back();
+        differ += !(std::abs(on_class.length(w) - l) <= 1e-3 * l);
+      }
+  EXPECT_GT(differ, 0);
 }
 
 // The bound of a class X -> X twisted k times along a1 grows like k^2 (the

@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,7 @@
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/connectivity.h"
 #include "surfmap/samples/shapes.h"
+#include "surfmap/testing/map_hooks.h"
 #include "certify_helpers.h"
 #include "sliver_caps.h"
 #include "sliver_strip.h"
@@ -113,6 +115,56 @@ TEST(FoldRepair, SliverStripIsUntangledByDistortion) {
   EXPECT_EQ(mg.chosen_candidate, m.chosen_candidate);
   EXPECT_EQ(mg.fold_repair.method.find("untangling"), std::string::npos) << mg.fold_repair.method;
   EXPECT_LE(m.mean_dilatation, mg.mean_dilatation);
+}
+
+// Issue 13 (session 25): once no repair is left to try (weights other than
+// Automatic here; after the own-edge fallback in a default run), a fallback
+// class whose kept full-resolution solve folds is refused on that solve,
+// without its initial map, with the refusal mapping it would give. The
+// sliver-capped source folds in every class with the intrinsic weights.
+TEST(SurfaceMapFallbacks, FoldedFallbacksAreRefusedOnTheirSolveAsMappingThemWould) {
+  const TriMesh s = testing_support::with_caps(samples::n_hole_torus(2, 32, true), 37, 0.002);
+  const TriMesh t = samples::amphora(36, true);
+  SurfaceMapOptions o;
+  o.homotopy.candidates = 2;
+  o.homotopy.two_way = false;
+  o.homotopy.search.enabled = false;
+  o.homotopy.full_solves = 0;  // (every class solved at full resolution: each fallback has its solve kept)
+  o.solve.source_weights = SourceWeights::IntrinsicDelaunay;
+  auto failure = [&](const testing::MapHooks& hooks) {
+    try {
+      surface_map(s, t, o, hooks);
+    } catch (const SolveError& e) {
+      return std::string(e.what());
+    }
+    ADD_FAILURE() << "mapped: the fixture must fold in every class";
+    return std::string();
+  };
+  testing::MapHooks every;
+  every.map_every_fallback = true;  // (the loop before: every fallback mapped)
+  const std::string mapped = failure(every), read = failure({});
+  // "no candidate class gave a bijective map (N tried[, M of them refused
+  // ...]); the chosen class C (...): <its reason>; the last, class L: <its reason>"
+  auto tried = [](const std::string& e) {
+    const size_t at = e.find("bijective map (");
+    return at == std::string::npos ? -1 : std::atoi(e.c_str() + at + 15);
+  };
+  ASSERT_GE(tried(mapped), 2) << mapped;
+  EXPECT_EQ(tried(read), tried(mapped)) << read;
+  EXPECT_EQ(mapped.find("refused on their full-resolution solves"), std::string::npos) << mapped;
+  const std::string refused = std::to_string(tried(mapped) - 1) + " of them refused on their full-resolution solves";
+  EXPECT_NE(read.find(refused), std::string::npos) << read;
+  // The chosen class is mapped as before; each fallback's refusal is the one
+  // mapping it gave, word for word (the same flipped, degenerate and
+  // intrinsic counts), read off its solve.
+  const size_t last_m = mapped.find("; the last, class "), last_r = read.find("; the last, class ");
+  ASSERT_NE(last_m, std::string::npos);
+  ASSERT_NE(last_r, std::string::npos);
+  EXPECT_EQ(read.substr(read.find("); the chosen class"), last_r - read.find("); the chosen class")),
+            mapped.substr(mapped.find("); the chosen class"), last_m - mapped.find("); the chosen class")));
+  const std::string suffix = " (read on its full-resolution solve before its initial map: not mapped again)";
+  EXPECT_EQ(read.substr(last_r), mapped.substr(last_m) + suffix);
+  EXPECT_NE(mapped.find("the optimised map has "), std::string::npos) << mapped;
 }
 
 // Clean sources never run it.

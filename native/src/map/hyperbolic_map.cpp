@@ -298,6 +298,25 @@ class HyperbolicPipeline {
   void ensure_target_lengths() {
     if (!target_lengths) target_lengths = std::make_unique<SurfaceGroupLengths>(*deck_group, tcs.generators, ut->layout.word);
   }
+  /// Issue 13 (session 25; HomotopySearchOptions::geometric_layout_basis):
+  /// the target's lengths in the short canonical basis of its layout's own
+  /// word, and that basis's generators as words in the class letters
+  /// (tcs); null when the option is off or the basis could not be written
+  /// in the class letters (said in homotopy_search.geometric_failures).
+  std::unique_ptr<SurfaceGroupLengths> layout_basis_lengths;
+  GroupMap layout_basis_in_class_letters;
+  bool layout_basis_tried = false;
+  void ensure_layout_basis();
+  /// The target lengths the geometric classes read (after class_bounds_now)
+  /// and the change of letters to pass with them (null: none).
+  const SurfaceGroupLengths& geometric_target() {
+    ensure_target_lengths();
+    ensure_layout_basis();
+    return layout_basis_lengths ? *layout_basis_lengths : *target_lengths;
+  }
+  const GroupMap* geometric_target_letters() const {
+    return layout_basis_lengths ? &layout_basis_in_class_letters : nullptr;
+  }
 
   HyperbolicHarmonicResult hold_in_class(int k, const HyperbolicHarmonicResult& free_k, const HyperbolicHarmonicOptions& o,
                                          bool relax, const HarmonicRelaxationOptions& ro, LandmarkHold& hold) const;
@@ -1131,10 +1150,12 @@ void HyperbolicPipeline::search_classes() {
     if (bounds.ok && bounds.source) {
       std::vector<GroupMap> known;
       for (const HomotopyClass& hc : candidates.classes) known.push_back(hc.map);
+      const SurfaceGroupLengths& geometric_lengths = geometric_target();
       for (FoundClass& f : geometric_candidate_classes(
-               *bounds.source, *target_lengths, *space, known,
+               *bounds.source, geometric_lengths, *space, known,
                [&](const GroupMap& theta) { return class_curve_bound_of(bounds, *target_lengths, theta); },
-               [this](const GroupMap& theta) { return listed_data_of(theta); }, geometric_solve, options, out.homotopy_search)) {
+               [this](const GroupMap& theta) { return listed_data_of(theta); }, geometric_solve, options, out.homotopy_search,
+               geometric_target_letters())) {
         std::string handles;
         handle_correspondence_of(ss.shb, candidates.target_basis, homology_matrix(f.evaluation.theta, space->num_letters()),
                                  &f.hc.permutation, &f.hc.sign, &handles);
@@ -1273,13 +1294,30 @@ void HyperbolicPipeline::geometric_classes_at_full_resolution() {
   std::vector<GroupMap> known;
   for (const HomotopyClass& hc : candidates.classes) known.push_back(hc.map);
   const CoarseSolve solve_full = full_resolution_solve(best, options.homotopy.search.geometric_start_edge_size);
+  const SurfaceGroupLengths& geometric_lengths = geometric_target();
   for (FoundClass& f : geometric_candidate_classes(
-           *bounds.source, *target_lengths, *space, known,
+           *bounds.source, geometric_lengths, *space, known,
            [&](const GroupMap& theta) { return class_curve_bound_of(bounds, *target_lengths, theta); },
-           [this](const GroupMap& theta) { return data_of(theta); }, solve_full, options, out.homotopy_search)) {
+           [this](const GroupMap& theta) { return data_of(theta); }, solve_full, options, out.homotopy_search,
+           geometric_target_letters())) {
     f.hc.description += "  [solved at full resolution: no coarse copy]";
     append_full_class(std::move(f.hc), std::move(f.data), f.evaluation);
   }
+}
+
+void HyperbolicPipeline::ensure_layout_basis() {
+  if (layout_basis_tried || !options.homotopy.search.geometric_layout_basis) return;
+  layout_basis_tried = true;
+  CanonicalSchema layout_schema;
+  std::string why;
+  if (!layout_short_basis(ut->layout.word, tcs.generators, tcs.letters, &layout_schema, &layout_basis_in_class_letters,
+                          &why)) {
+    out.homotopy_search.geometric_failures.push_back(
+        "the layout's short basis not used: the class loops' canonical generators could not be inverted in the "
+        "layout's letters: " + why);
+    return;
+  }
+  layout_basis_lengths = std::make_unique<SurfaceGroupLengths>(*deck_group, layout_schema.generators, ut->layout.word);
 }
 
 // A converged solve of class theta at full resolution from the origin
@@ -2123,10 +2161,48 @@ bool map_class(HyperbolicPipeline& p) {
   return true;
 }
 
+// Issue 13 (session 25): whether map_class would refuse class k on its
+// full-resolution solve alone, read before its initial map is built.
+// map_class keeps that solve (solve_chosen_class: Newton from the default
+// start, no landmarks), and once no repair is left to try (the own-edge
+// weights are in use, after the chosen class fell back to them or as the
+// requested weights) any folded or flattened face of it is refused by
+// retry_with_own_weights. The same figures are read here, the same way
+// (the optimum placed in P, its charts' distortion), so the outcome is
+// map_class's; only the initial map (and its distortion) that map_class
+// builds first is saved. Classes without a kept solve (coarse-ranked only)
+// are mapped as before (docs/robustness.md "Session 25": on the genus-12
+// block <-> wheel pair those are the cost). Returns the refusal ("" when
+// the class must be mapped).
+std::string refused_by_its_solve(HyperbolicPipeline& p, int k) {
+  const SurfaceMapOptions& o = p.options;
+  if (p.hooks.map_every_fallback) return {};
+  if (!o.landmarks.empty() || o.solve.method != MapMethod::Newton || o.solve.start_seed != 0) return {};
+  if (!p.own_weights && o.solve.source_weights == SourceWeights::Automatic) return {};  // (repairs left)
+  if (k >= static_cast<int>(p.fine_result.size()) || !p.fine_result[k]) return {};
+  const ClassData& cd = p.data_for(k);
+  HyperbolicHarmonicResult hr = *p.fine_result[k];
+  place_in_polygon(p.source, p.sc, *p.polygon, *p.deck_group, cd.side_word_edge, cd.rho_edge, p.solver_index,
+                   static_cast<int>(cd.edges.size()), hr);
+  SurfaceMapResult read;
+  store_distortion(chart_distortion(p.source, p.sc, hr.edge_local, p.solver_index), read);
+  read.intrinsic_flipped_triangles = intrinsic_flipped_triangles(p.ss.idt, hr.edge_local);
+  try {
+    // (false: nothing folds, the class is mapped; it cannot ask for the
+    // own-edge weights here, the condition above having excluded that)
+    retry_with_own_weights(o, p.own_weights, read);
+  } catch (const SolveError& e) {
+    return std::string(e.what()) + " (read on its full-resolution solve before its initial map: not mapped again)";
+  }
+  return {};
+}
+
 // The chosen class, then (when it was the default and fails in map_class:
 // flips, location) the next ones: solved classes by energy, then the
 // coarse-ranked ones by their estimate (solved from their initial maps).
-// A class that fails gets "[not used: ...]" in its description.
+// A class that fails gets "[not used: ...]" in its description; one that
+// refused_by_its_solve decides is not mapped (SurfaceMapResult::
+// fallbacks_refused_unmapped).
 void map_with_fallback(HyperbolicPipeline& p) {
   SurfaceMapResult& out = p.out;
   std::vector<int> fallback;
@@ -2141,20 +2217,28 @@ void map_with_fallback(HyperbolicPipeline& p) {
   if (p.options.homotopy.class_index >= 0) fallback.clear();
   fallback.insert(fallback.begin(), out.chosen_candidate);
   const SurfaceMapResult before_attempts = out;
+  int refused_unmapped = 0;
   auto reset_keeping_candidates = [&] {
     const std::vector<HomotopyCandidate> cands = out.candidates;
     out = before_attempts;
     out.candidates = cands;
+    out.fallbacks_refused_unmapped = refused_unmapped;
   };
   for (size_t attempt = 0; attempt < fallback.size(); ++attempt) {
     try {
       if (attempt > 0) reset_keeping_candidates();
       out.chosen_candidate = fallback[attempt];
+      const std::string refused = attempt > 0 ? refused_by_its_solve(p, fallback[attempt]) : std::string();
+      if (!refused.empty()) {
+        ++refused_unmapped;
+        throw SolveError(refused);
+      }
       if (map_class(p)) {
         const int k = out.chosen_candidate;
         if (p.own_weights && k < static_cast<int>(p.intrinsic_energy.size())) out.intrinsic_class_energy = p.intrinsic_energy[k];
         out.source_weights_reason = p.own_weights_reason;
         out.fold_repair = p.fold_repair;
+        out.fallbacks_refused_unmapped = refused_unmapped;
         return;
       }
       reset_keeping_candidates();  // the source weights changed: the same class again
@@ -2166,9 +2250,12 @@ void map_with_fallback(HyperbolicPipeline& p) {
         // (plate -> wheel genus 9: the chosen class, 147 x the bound, came
         // out with 3 folds, the last fallback with 415).
         const int c = fallback[0];
-        char head[160];
-        std::snprintf(head, sizeof head, "no candidate class gave a bijective map (%d tried); the chosen class %d (energy %.6g, %.3g x 8 pi (g - 1)): ",
-                      static_cast<int>(fallback.size()), c, out.candidates[c].energy,
+        char head[240], unmapped[120] = "";
+        if (refused_unmapped)
+          std::snprintf(unmapped, sizeof unmapped, ", %d of them refused on their full-resolution solves without being mapped again",
+                        refused_unmapped);
+        std::snprintf(head, sizeof head, "no candidate class gave a bijective map (%d tried%s); the chosen class %d (energy %.6g, %.3g x 8 pi (g - 1)): ",
+                      static_cast<int>(fallback.size()), unmapped, c, out.candidates[c].energy,
                       out.candidates[c].energy / (8 * M_PI * (out.genus - 1)));
         const std::string& d = out.candidates[c].description;
         const size_t at = d.rfind("  [not used: ");

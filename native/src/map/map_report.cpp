@@ -212,6 +212,7 @@ json homotopy_json(const SurfaceMapResult& r) {
           {"chosen_words", r.chosen_class_words},
           {"candidates", candidates},
           {"ranking", {{"coarse_solves", r.ranking_coarse_solves}, {"skipped", r.ranking_skipped}, {"status", r.ranking_status}, {"long_starts", r.long_starts}}},
+          {"fallbacks", {{"refused_unmapped", r.fallbacks_refused_unmapped}}},
           {"snapped_class",
            {{"index", r.snapped_class},
             {"status", r.snapped_class_status},

@@ -955,6 +955,8 @@ def test_cli_option_keywords_are_checked_and_reach_the_map():
     # session's report fields here as well.
     assert set(q["directions"]) >= {"outcome", "reason", "inverted_candidate", "chosen_class_words"}
     assert "long_starts" in r["homotopy"]["ranking"] and "status" in r["source_subdivision"]
+    # (session 25: no class failed here, so no fallback was refused on its solve)
+    assert r["homotopy"]["fallbacks"]["refused_unmapped"] == 0
 
 
 def test_agreement_ratio_keyword_and_flag_reach_the_map(cli, tmp_path):

@@ -168,6 +168,17 @@ struct HomotopySearchOptions {
   /// length with the twists matched (map/greedy_pants.h
   /// greedy_pants_classes; default true; CLI --no-greedy-pants).
   bool greedy_pants = true;
+  /// Issue 13 (session 25; docs/robustness.md "Session 25"): the geometric
+  /// classes read the target's lengths in the short canonical basis of its
+  /// layout's own boundary word (CanonicalSchemaOptions::short_generators),
+  /// whose generators are short elements (the raw genus-12 wheel: 1.6 ..
+  /// 7.5 units), instead of the canonical basis of the target's own class
+  /// loops, whose b_i can grow handle by handle (the same wheel: up to 36
+  /// units, matrices beyond 1e12, no short marking found); each class is
+  /// then written in the class loops' letters (the inverse of their
+  /// canonical generators in the layout's letters, checked exactly). Off by
+  /// default; CLI --geometric-layout-basis, Python geometric_layout_basis.
+  bool geometric_layout_basis = false;
   /// Issue 13: sources without a coarse copy (under coarse_vertices) start
   /// each full-resolution solve of a class from the snapped overlay (every
   /// source vertex at the target vertex nearest to it in 3D, sheets along a
@@ -984,6 +995,16 @@ struct SurfaceMapResult {
     double energy_before = std::numeric_limits<double>::quiet_NaN();
     double energy_after = std::numeric_limits<double>::quiet_NaN();
   } fold_repair;
+  /// Genus >= 2, issue 13 (session 25): fallback classes (tried after the
+  /// chosen one failed) refused on their kept full-resolution solve's
+  /// folded or flattened faces once no repair was left to try (the own-edge
+  /// weights in use, or other weights than Automatic requested), without
+  /// building their initial map: the refusal mapping them would give, read
+  /// the same way; each such class's description ends "[not used: the
+  /// optimised map has ... (read on its full-resolution solve before its
+  /// initial map: not mapped again)]". Report
+  /// `homotopy.fallbacks.refused_unmapped`.
+  int fallbacks_refused_unmapped = 0;
   std::vector<HomotopyCandidate> candidates;
   int chosen_candidate = -1;
   /// Genus >= 2 (issue 19; HomotopyOptions::ranking_gap): coarse solves the

@@ -45,6 +45,10 @@ struct MapHooks {
   /// Genus >= 2: called with the faces crossed by the optimum's forward and
   /// inverse location walks (issue 19: their cost, independent of load).
   std::function<void(long forward_steps, long inverse_steps)> location_walk_steps;
+  /// Genus >= 2: the fallback loop maps every fallback class as before
+  /// issue 13's session 25, none refused on its full-resolution solve
+  /// without its initial map (the reference of a test).
+  bool map_every_fallback = false;
   std::vector<std::string> homotopy_search_start_twists;
 };
 

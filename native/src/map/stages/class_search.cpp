@@ -10,10 +10,12 @@
 
 #include "../../seconds_since.h"
 #include "../concurrency.h"
+#include "snapped_start.h"
 #include "surfmap/error.h"
 #include "surfmap/map/geometric_classes.h"
 #include "surfmap/map/greedy_pants.h"
 #include "surfmap/map/pants_classes.h"
+#include "surfmap/topology/canonical_schema.h"
 #include "surfmap/topology/mapping_class_search.h"
 
 namespace surfmap::detail {
@@ -64,12 +66,29 @@ std::string lengths_text(const std::vector<double>& l) {
 
 }  // namespace
 
+bool layout_short_basis(const Word& layout_word, const std::vector<Word>& class_generators,
+                        const std::vector<Word>& class_letters, CanonicalSchema* layout_schema,
+                        GroupMap* in_class_letters, std::string* why) {
+  CanonicalSchemaOptions short_schema;
+  short_schema.short_generators = true;
+  *layout_schema = canonical_schema(layout_word, short_schema);
+  // Each layout letter as a word in the class letters.
+  std::vector<Word> class_of_layout_letter;
+  if (!invert_canonical_generators(class_generators, layout_word, class_letters, &class_of_layout_letter, why))
+    return false;
+  const DehnReducer reduce(canonical_relator(static_cast<int>(layout_word.size() / 4)));
+  in_class_letters->assign(layout_schema->generators.size(), Word{});
+  for (size_t j = 0; j < layout_schema->generators.size(); ++j)
+    (*in_class_letters)[j] = reduce(substitute(layout_schema->generators[j], class_of_layout_letter));
+  return true;
+}
+
 std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& source, const SurfaceGroupLengths& target,
                                                     const ClassSpace& space, const std::vector<GroupMap>& known,
                                                     const std::function<double(const GroupMap&)>& bound_of,
                                                     const std::function<ClassData(const GroupMap&)>& data_of,
                                                     const CoarseSolve& solve_coarse, const SurfaceMapOptions& options,
-                                                    HomotopySearchInfo& info) {
+                                                    HomotopySearchInfo& info, const GroupMap* target_letters) {
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<FoundClass> found;
   const ShortMarking mx = short_marking(source), my = short_marking(target);
@@ -160,6 +179,8 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
   double fewest_letters = std::numeric_limits<double>::infinity();
   for (size_t k = 0; k < classes.size(); ++k) {
     GroupMap& theta = classes[k].theta;
+    if (target_letters)
+      for (Word& w : theta) w = substitute(w, *target_letters);  // (reduced next, in the space's letters)
     space.reduce(theta);
     if (!space.is_isomorphism(theta)) continue;
     const double letters = space.loop_image_length(theta);
@@ -222,7 +243,9 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
     }
     char buf[96];
     std::snprintf(buf, sizeof buf, ", length mismatch %.3g, curve bound %.4g", gc.mismatch, bound);
-    f.hc.description = std::string(list == 0 ? "[geometric: short markings, " : "[geometric: ") + gc.description + buf + "]";
+    f.hc.description = std::string(list == 0 ? "[geometric: short markings, " : "[geometric: ") +
+                       (target_letters ? "the target's lengths in its layout's short basis, " : "") + gc.description +
+                       buf + "]";
     found.push_back(std::move(f));
   }
   info.geometric_time_s = seconds_since(t0);

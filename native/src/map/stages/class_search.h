@@ -15,6 +15,7 @@
 #include "surfmap/map/class_lower_bound.h"
 #include "surfmap/map/hyperbolic_harmonic.h"
 #include "surfmap/map/surface_map.h"
+#include "surfmap/topology/canonical_schema.h"
 
 namespace surfmap::detail {
 
@@ -62,13 +63,30 @@ std::vector<FoundClass> classes_from_more_cuts(CutLifter& lifter, SourceCuts& cu
 /// against `known`, at most options.homotopy.search.geometric of each kind,
 /// lowest curve lower bound first (`bound_of`), each solved on the coarse
 /// copy by `solve_coarse` (which prunes by the bound). Fills
-/// info.geometric_* (both kinds) and the markings.
+/// info.geometric_* (both kinds) and the markings. `target_letters`
+/// (optional, 2g words): when `target` reads another canonical basis than
+/// `space` (HomotopySearchOptions::geometric_layout_basis), each of its
+/// canonical letters as a word in the space's target letters; every class
+/// is written in those before anything else reads it.
+/// Issue 13 (session 25; HomotopySearchOptions::geometric_layout_basis):
+/// the short canonical basis of a layout's boundary word `layout_word`
+/// (CanonicalSchemaOptions::short_generators; `layout_schema`, generators
+/// in the layout's letters) and each of its 2g generators as a Dehn-reduced
+/// word in the canonical letters of `class_generators` (2g words in the
+/// same layout letters generating the group; `class_letters`, their
+/// schema's inverse, is tried first): `in_class_letters`. Exact up to one
+/// common conjugation (invert_canonical_generators), which changes no
+/// class. False with `why` when the class generators cannot be inverted.
+bool layout_short_basis(const Word& layout_word, const std::vector<Word>& class_generators,
+                        const std::vector<Word>& class_letters, CanonicalSchema* layout_schema,
+                        GroupMap* in_class_letters, std::string* why);
+
 std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& source, const SurfaceGroupLengths& target,
                                                     const ClassSpace& space, const std::vector<GroupMap>& known,
                                                     const std::function<double(const GroupMap&)>& bound_of,
                                                     const std::function<ClassData(const GroupMap&)>& data_of,
                                                     const CoarseSolve& solve_coarse, const SurfaceMapOptions& options,
-                                                    HomotopySearchInfo& info);
+                                                    HomotopySearchInfo& info, const GroupMap* target_letters = nullptr);
 
 /// Stage 2: the twist search from `start_map` (candidate `start_index`,
 /// composed with `start_twists`, testing/map_hooks.h; `start_energy` its
