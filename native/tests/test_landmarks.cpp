@@ -487,6 +487,31 @@ struct HyperbolicDiskGrid {
     }
     return bad;
   }
+  /// The boundary held where it is, then `more` vertices held at `at`.
+  void hold(std::vector<int>& source, std::vector<Complex>& lifts, const std::vector<int>& more,
+            const std::vector<Complex>& at) const {
+    source = boundary;
+    lifts.clear();
+    for (int v : boundary) lifts.push_back(z0[v]);
+    source.insert(source.end(), more.begin(), more.end());
+    lifts.insert(lifts.end(), at.begin(), at.end());
+  }
+  /// The continuation from the grid to those holds, checked: it arrived,
+  /// every face positively oriented, every held vertex exactly on its
+  /// point, the energy recomputed by hyperbolic_energy the one reported.
+  detail::HyperbolicBarrierResult continuation(const std::vector<int>& source, const std::vector<Complex>& lifts) const {
+    const int n = static_cast<int>(z0.size());
+    const std::vector<hyperbolic::Mobius> face_elements(3 * F.rows());
+    const detail::HyperbolicBarrierResult r = detail::hyperbolic_barrier_landmarks(n, edges, F, face_elements, z0, source, lifts);
+    EXPECT_TRUE(r.ok) << r.reached;
+    if (!r.ok) return r;
+    EXPECT_GT(r.steps, 0);
+    EXPECT_EQ(oriented(r.z), 0);
+    for (size_t k = 0; k < source.size(); ++k) EXPECT_EQ(r.z[source[k]], lifts[k]) << k;
+    const double E = hyperbolic_energy(edges, r.z, std::vector<hyperbolic::Mobius>(n));
+    EXPECT_NEAR(E, r.energy, 1e-12 * E);
+    return r;
+  }
 };
 
 TEST(LandmarksHyperbolic, BarrierContinuationOnAHyperbolicDisk) {
@@ -497,37 +522,24 @@ TEST(LandmarksHyperbolic, BarrierContinuationOnAHyperbolicDisk) {
   // boundary where it was, and its energy recomputed by hyperbolic_energy
   // is the one it reports, above the folded infimum.
   const HyperbolicDiskGrid grid;
-  const std::vector<Complex>& z0 = grid.z0;
-  const RowMatrixX3i& F = grid.F;
-  const std::vector<WeightedEdge>& edges = grid.edges;
-  const std::vector<int>& boundary = grid.boundary;
-  const int n = static_cast<int>(z0.size()), N = HyperbolicDiskGrid::N;
-  std::vector<int> source = boundary;
+  const int n = static_cast<int>(grid.z0.size()), N = HyperbolicDiskGrid::N;
+  std::vector<int> source;
   std::vector<Complex> lifts;
-  for (int v : boundary) lifts.push_back(z0[v]);
-  const int centre = HyperbolicDiskGrid::id(N / 2, N / 2);
-  const Complex target(0.3, 0.3);
-  source.push_back(centre), lifts.push_back(target);
-  ASSERT_EQ(grid.oriented(z0), 0);
+  grid.hold(source, lifts, {HyperbolicDiskGrid::id(N / 2, N / 2)}, {Complex(0.3, 0.3)});
+  ASSERT_EQ(grid.oriented(grid.z0), 0);
   // The plain pins: Newton with the held vertices fixed.
   HyperbolicHarmonicOptions ho;
   ho.fixed.assign(n, 0);
-  std::vector<Complex> start = z0;
+  std::vector<Complex> start = grid.z0;
   for (size_t k = 0; k < source.size(); ++k) ho.fixed[source[k]] = 1, start[source[k]] = lifts[k];
-  const HyperbolicHarmonicResult plain = hyperbolic_harmonic_map(n, edges, {}, start, ho);
+  const HyperbolicHarmonicResult plain = hyperbolic_harmonic_map(n, grid.edges, {}, start, ho);
   ASSERT_TRUE(plain.converged);
   EXPECT_GT(grid.oriented(plain.z), 0);
-  const std::vector<hyperbolic::Mobius> face_elements(3 * F.rows());
-  const detail::HyperbolicBarrierResult r = detail::hyperbolic_barrier_landmarks(n, edges, F, face_elements, z0, source, lifts);
+  const detail::HyperbolicBarrierResult r = grid.continuation(source, lifts);
   ASSERT_TRUE(r.ok);
-  EXPECT_GT(r.steps, 0);
   EXPECT_EQ(r.bend, 0);  // on its geodesic
-  EXPECT_EQ(grid.oriented(r.z), 0);
-  for (size_t k = 0; k < source.size(); ++k) EXPECT_EQ(r.z[source[k]], lifts[k]) << k;
-  const double E = hyperbolic_energy(edges, r.z, std::vector<hyperbolic::Mobius>(n));
-  EXPECT_NEAR(E, r.energy, 1e-12 * E);
-  EXPECT_GT(E, plain.energy * (1 + 1e-6));
-  EXPECT_LT(E, plain.energy * 1.5);
+  EXPECT_GT(r.energy, plain.energy * (1 + 1e-6));
+  EXPECT_LT(r.energy, plain.energy * 1.5);
 }
 
 TEST(LandmarksHyperbolic, LandmarksSentHeadOnPassSideBySide) {
@@ -539,26 +551,15 @@ TEST(LandmarksHyperbolic, LandmarksSentHeadOnPassSideBySide) {
   // twist of the pair: the map bijective, both exactly on their targets,
   // the boundary where it was.
   const HyperbolicDiskGrid grid;
-  const std::vector<Complex>& z0 = grid.z0;
-  const RowMatrixX3i& F = grid.F;
-  const std::vector<WeightedEdge>& edges = grid.edges;
-  const std::vector<int>& boundary = grid.boundary;
-  const int n = static_cast<int>(z0.size()), N = HyperbolicDiskGrid::N;
+  const int n = static_cast<int>(grid.z0.size()), N = HyperbolicDiskGrid::N;
   const int p = HyperbolicDiskGrid::id(N / 2 - 2, N / 2), q = HyperbolicDiskGrid::id(N / 2 + 2, N / 2);
-  std::vector<int> source = boundary;
+  std::vector<int> source;
   std::vector<Complex> lifts;
-  for (int v : boundary) lifts.push_back(z0[v]);
-  source.push_back(p), lifts.push_back(z0[q]);
-  source.push_back(q), lifts.push_back(z0[p]);
-  const std::vector<hyperbolic::Mobius> face_elements(3 * F.rows());
-  const detail::HyperbolicBarrierResult r = detail::hyperbolic_barrier_landmarks(n, edges, F, face_elements, z0, source, lifts);
-  ASSERT_TRUE(r.ok) << r.reached;
+  grid.hold(source, lifts, {p, q}, {grid.z0[q], grid.z0[p]});
+  const detail::HyperbolicBarrierResult r = grid.continuation(source, lifts);
+  ASSERT_TRUE(r.ok);
   EXPECT_NE(r.bend, 0);  // the geodesics stalled
-  EXPECT_EQ(grid.oriented(r.z), 0);
-  for (size_t k = 0; k < source.size(); ++k) EXPECT_EQ(r.z[source[k]], lifts[k]) << k;
-  const double E = hyperbolic_energy(edges, r.z, std::vector<hyperbolic::Mobius>(n));
-  EXPECT_NEAR(E, r.energy, 1e-12 * E);
-  EXPECT_GT(E, hyperbolic_energy(edges, z0, std::vector<hyperbolic::Mobius>(n)) * (1 + 1e-6));
+  EXPECT_GT(r.energy, hyperbolic_energy(grid.edges, grid.z0, std::vector<hyperbolic::Mobius>(n)) * (1 + 1e-6));
 }
 
 TEST(LandmarksHyperbolic, RelaxationHoldsThemLikeNewton) {
