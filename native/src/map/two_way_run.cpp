@@ -455,9 +455,13 @@ std::string agree_below_two_way_ratio(const TriMesh& source, const TriMesh& targ
     return "not agreed: neither pair solved (" + figures + ")";
   }
   // Which pair: the lower total; a tie to the class chosen from the mesh that comes first.
+  // (Both totals finite for a tie: |x - inf| <= 1e-6 inf holds for every x, and
+  // an unsolved class inverted here was taken for a tie and adopted, an empty
+  // result: teapot -> double torus with both canonical bases, session 25.)
   std::string rule;
   bool other_pair_kept;
-  if (std::abs(own_pair - other_pair) <= 1e-6 * std::max(own_pair, other_pair)) {
+  if (std::isfinite(own_pair) && std::isfinite(other_pair) &&
+      std::abs(own_pair - other_pair) <= 1e-6 * std::max(own_pair, other_pair)) {
     const int order = mesh_order(source, target);
     other_pair_kept = order > 0;
     rule = std::string("a tie (within 1e-6), broken by the meshes' order: the class chosen from the ") +
