@@ -2038,6 +2038,23 @@ TEST(SurfaceMapHandles, TheChosenClassDoesNotDependOnTheCanonicalBasis) {
   EXPECT_GT(std::abs(alone[0].final_energy - alone[1].final_energy), 1e-3 * both[0].final_energy);
 }
 
+// Session 25 (docs/handle_classes.md "Session 25"): the agreement step
+// below the two-way ratio keeps the pair of inverse classes of lower total
+// energy, a tie going to the mesh that comes first. An unsolved class
+// counts infinite, and a finite total against an infinite one is no tie:
+// it was, since |x - inf| <= 1e-6 inf, and teapot -> double torus (both
+// canonical bases, the other direction's class not invertible here) adopted
+// the unsolved class, an empty map on which the CLI crashed.
+TEST(SurfaceMapHandles, AnUnsolvedPairIsNoTie) {
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(detail::pair_totals_tie(2.993 * 8 * M_PI, inf));
+  EXPECT_FALSE(detail::pair_totals_tie(inf, 2.993 * 8 * M_PI));
+  EXPECT_FALSE(detail::pair_totals_tie(inf, inf));
+  EXPECT_FALSE(detail::pair_totals_tie(std::nan(""), 1.0));
+  EXPECT_TRUE(detail::pair_totals_tie(2.283854022, 2.283853702));  // the vase and cup's tie (session 23)
+  EXPECT_FALSE(detail::pair_totals_tie(3.5652, 3.5655));
+}
+
 // Session 24 (issue 14; docs/handle_classes.md "Session 24"): a class of
 // one run asked for in another by its words (HomotopyOptions::class_words),
 // not by its index: the other run's list (landmarks, a class given, the
