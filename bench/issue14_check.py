@@ -3,6 +3,7 @@
 directions (docs/handle_classes.md "The issue-14 check, every pair"):
 
   python3 bench/issue14_check.py --meshes DIR [--build build] [--out DIR] [--jobs 2] [--genus 2 3]
+                                 [--map-arg=--one-canonical-basis ...]
 
 Each ordered pair is mapped with the defaults (`nice surfmap map A B --out o.obj --report
 r.json --quiet`, the command a user runs); the table gives per direction the report's
@@ -49,14 +50,14 @@ def short(name):
     return name.split(".")[0]
 
 
-def run_map(exe, meshes, out, a, b, timeout):
+def run_map(exe, meshes, out, a, b, timeout, extra=()):
     stem = f"{short(a)}__{short(b)}"
     rep = out / f"{stem}.json"
     if rep.exists():
         return stem, json.loads(rep.read_text())
     t0 = time.time()
     p = subprocess.run(["nice", str(exe), "map", str(meshes[a]), str(meshes[b]), "--out",
-                        str(out / f"{stem}.obj"), "--report", str(rep), "--quiet"],
+                        str(out / f"{stem}.obj"), "--report", str(rep), "--quiet", *extra],
                        capture_output=True, text=True, timeout=timeout)
     wall = time.time() - t0
     if p.returncode != 0:
@@ -86,6 +87,9 @@ def main():
     ap.add_argument("--timeout", type=float, default=3000)
     ap.add_argument("--genus", type=int, nargs="+", metavar="G",
                     help="only the pairs of these genera (default: every pair, genus 2-4)")
+    ap.add_argument("--map-arg", action="append", default=[], metavar="ARG",
+                    help="one more argument of every `surfmap map` run (repeat for more; write "
+                         "--map-arg=--flag for a flag), e.g. --map-arg=--one-canonical-basis")
     a = ap.parse_args()
     if not a.meshes:
         ap.error("--meshes DIR (or $SURFMAP_MESHES) is required")
@@ -111,7 +115,7 @@ def main():
     jobs = [job for x, y in pairs for job in ((x, y), (y, x))]   # quick pairs first
     results = {}
     with concurrent.futures.ThreadPoolExecutor(max_workers=a.jobs) as pool:
-        futures = [pool.submit(run_map, exe, meshes, out, x, y, a.timeout) for x, y in jobs]
+        futures = [pool.submit(run_map, exe, meshes, out, x, y, a.timeout, a.map_arg) for x, y in jobs]
         for f in concurrent.futures.as_completed(futures):
             stem, r = f.result()
             results[stem] = r

@@ -104,7 +104,8 @@ void register_map(CLI::App& app) {
     bool no_snapped_start = !defaults.homotopy.search.snapped_start;  // HomotopySearchOptions::snapped_start
     bool short_canonical_generators = false;      // LoopOptions::short_canonical_generators = true
     bool classical_canonical_generators = false;  // LoopOptions::short_canonical_generators = false
-    bool both_canonical_bases = defaults.loops.both_canonical_bases;  // LoopOptions::both_canonical_bases
+    bool both_canonical_bases = false;  // LoopOptions::both_canonical_bases = true (the default, said so)
+    bool one_canonical_basis = false;   // LoopOptions::both_canonical_bases = false
     bool geometric_layout_basis = defaults.homotopy.search.geometric_layout_basis;  // HomotopySearchOptions::geometric_layout_basis
     bool homotopy_both_signs = defaults.homotopy.flat_both_signs;    // HomotopyOptions::flat_both_signs
     bool no_flat_overlay = !defaults.homotopy.flat_overlay;          // HomotopyOptions::flat_overlay off
@@ -209,7 +210,10 @@ void register_map(CLI::App& app) {
                 "\"Session 23\"; report: canonical_generators)");
   cmd->add_flag("--both-canonical-bases", a->both_canonical_bases,
                 "Genus >= 2: list the candidate classes in both canonical bases (classical and short) and twist-search "
-                "the short basis's by its own twists (docs/robustness.md \"Session 23\")");
+                "the short basis's by its own twists (the default, accepted to say so; docs/robustness.md \"Session 23\", "
+                "docs/handle_classes.md \"Session 25\")");
+  cmd->add_flag("--one-canonical-basis", a->one_canonical_basis,
+                "Genus >= 2: list the candidate classes in the run's canonical basis only (the default before session 25)");
   cmd->add_flag("--geometric-layout-basis", a->geometric_layout_basis,
                 "Genus >= 2: the geometric classes read the target's lengths in the short canonical basis of its "
                 "layout's word, then are written in its class loops' letters (off by default; docs/robustness.md "
@@ -302,7 +306,11 @@ void register_map(CLI::App& app) {
     opt.loops.short_canonical_generators = a->classical_canonical_generators ? false
                                            : a->short_canonical_generators   ? true
                                                                              : SurfaceMapOptions().loops.short_canonical_generators;
-    opt.loops.both_canonical_bases = a->both_canonical_bases;
+    if (a->both_canonical_bases && a->one_canonical_basis)
+      throw InputError("--both-canonical-bases and --one-canonical-basis exclude each other");
+    opt.loops.both_canonical_bases = a->one_canonical_basis ? false
+                                     : a->both_canonical_bases ? true
+                                                               : SurfaceMapOptions().loops.both_canonical_bases;
     opt.homotopy.search.geometric_layout_basis = a->geometric_layout_basis;
     opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
     opt.solve.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");

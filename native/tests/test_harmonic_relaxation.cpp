@@ -313,6 +313,31 @@ TEST(HarmonicRelaxation, FarSheetStartReachesTheSameOptimumInBothSolvers) {
   const HarmonicRelaxationResult relax = harmonic_relaxation(S.n, far, S.generators, origin, ro);
   ASSERT_TRUE(relax.converged) << relax.stop_reason << " after " << relax.iterations;
   EXPECT_NEAR(relax.energy, reference.energy, 1e-8 * reference.energy);
+  // The decks as words (session 25: the held solves after a long class need
+  // them, docs/handle_classes.md "Session 25"): each evaluates to its deck
+  // matrix, and each edge's effective element, kept move by move, is the
+  // product of the decks with the edge's element (exact enough at these
+  // lengths). As Möbius maps: compared by where they send two points.
+  ASSERT_EQ(relax.vertex_deck_word.size(), static_cast<size_t>(S.n));
+  ASSERT_EQ(relax.edge_effective.size(), far.size());
+  auto same = [](const Mobius& x, const Mobius& y) {
+    double d = 0;
+    for (const Complex w : {Complex(0.0), Complex(0.3, -0.2)}) d = std::max(d, std::abs(x.apply(w) - y.apply(w)));
+    return d;
+  };
+  int moved = 0;
+  for (int i = 0; i < S.n; ++i) {
+    Mobius w;
+    for (int x : relax.vertex_deck_word[i])
+      w = (w * (x > 0 ? S.generators[x - 1] : S.generators[-x - 1].inverse())).normalized();
+    EXPECT_LT(same(w, relax.vertex_deck[i]), 1e-9) << i;
+    moved += !relax.vertex_deck_word[i].empty();
+  }
+  EXPECT_GT(moved, S.n / 2);  // the far sheets: most vertices changed charts
+  for (size_t e = 0; e < far.size(); ++e) {
+    const Mobius product = (relax.vertex_deck[far[e].i] * far[e].rho * relax.vertex_deck[far[e].j].inverse()).normalized();
+    EXPECT_LT(same(relax.edge_effective[e], product), 1e-7) << e;
+  }
   std::printf("far sheets (edges up to %.1f units): reference E %.12g, Newton %.12g (%d iterations), relaxation %.12g (%d sweeps)\n",
               longest, reference.energy, newton.energy, newton.iterations, relax.energy, relax.iterations);
 }

@@ -282,13 +282,25 @@ TEST(LandmarksFlat, BothSignsAddTheHalfTurnsAndHoldTheLandmarksNoWorse) {
 // Genus 2: source vertex `s` held 20 target edges (22 mean edge lengths,
 // 0.36 of the diagonal) from its free image `free.forward[s]`, in the free
 // map's class (`options`); shared by the continuation and folds-allowed tests.
+// (One canonical basis, the default until session 25, for the free run and
+// the landmark runs: the index below is read from the free run's list and
+// names the twin class only in the one-basis landmark run's list. With both
+// bases listed the same index names another class of the landmark run,
+// held at 35.97, above 1.1 x the free optimum: an index names a class within
+// one run's list only (docs/handle_classes.md "Session 24" and "Session 25").)
+SurfaceMapOptions one_basis() {
+  SurfaceMapOptions o;
+  o.loops.both_canonical_bases = false;
+  return o;
+}
+
 struct FarLandmark {
   TriMesh a = samples::n_hole_torus(2, 20, true);
   TriMesh b = samples::vase(24, true);
-  SurfaceMapResult free = surface_map(a, b);
+  SurfaceMapResult free = surface_map(a, b, one_basis());
   int s = a.num_vertices() / 3;
   std::vector<int> path = path_away(b, nearest_vertex(b, free.forward[s].position));
-  SurfaceMapOptions options;
+  SurfaceMapOptions options = one_basis();
   FarLandmark() {
     if (path.size() > 20) options.landmarks = {{s, path[20]}};
     // (Session 24, docs/handle_classes.md "Session 24": this index names
@@ -426,48 +438,58 @@ TEST(LandmarksHyperbolic, SwappedLandmarksAreHeldBijectively) {
   o.landmarks = {{s, t2}, {s2, t1}};
   o.homotopy.class_words = free.chosen_class_words;  // (by its name, not an index into another run's list)
   const SurfaceMapResult m = surface_map(a, b, o);
-  expect_landmarks_hit(m, a, b, o);
+  // (Not "no worse than the initial map": with both canonical bases listed,
+  // the default since session 25, the free class starts from the snapped
+  // overlay at 27.67, 1.1% above its optimum 27.38, and the plain pins'
+  // infimum of the held problem, folds allowed, is already 28.05: no held
+  // map is below the initial map there. With one basis the class started
+  // at 31.09 and the bound held by that start's excess alone;
+  // docs/handle_classes.md "Session 25".)
+  expect_landmarks_hit(m, a, b, o, /*below_initial=*/false);
   EXPECT_EQ(m.landmark_method, "barrier continuation");
   EXPECT_GT(m.final_energy, free.final_energy * (1 + 1e-6));
+  // The plain pins in the same class fold; the bijective map lies strictly
+  // above their energy (the held problem's infimum) and near it (measured
+  // 2.5% above).
+  o.landmarks_may_fold = true;
+  const SurfaceMapResult pins = surface_map(a, b, o);
+  EXPECT_EQ(pins.landmark_method, "pinned (folds allowed)");
+  EXPECT_GT(pins.flipped_triangles, 0);
+  EXPECT_GT(m.final_energy, pins.final_energy * (1 + 1e-6));
+  EXPECT_LT(m.final_energy, 1.1 * pins.final_energy);
 }
 
-TEST(LandmarksHyperbolic, BarrierContinuationOnAHyperbolicDisk) {
-  // The continuation alone (landmarks.h), on a grid in the Poincaré disk
-  // (|x|, |y| <= 0.5) with its boundary held and its centre dragged 0.6 of
-  // the way towards a corner: the plain pinned harmonic map folds; the
-  // continuation's map has every face positively oriented (tested in Klein
-  // coordinates, where geodesics are straight), the landmark exactly on
-  // its target, the boundary where it was, and its energy recomputed by
-  // hyperbolic_energy is the one it reports, above the folded infimum.
-  const int N = 16;
+// A grid in the Poincaré disk (|x|, |y| <= 0.5, (N + 1)^2 points, two
+// triangles per cell) with its boundary held, for the continuation alone
+// (landmarks.h): `oriented(z)` counts the faces not positively oriented (in
+// Klein coordinates, where geodesics are straight).
+struct HyperbolicDiskGrid {
+  static constexpr int N = 16;
   std::vector<Complex> z0;
-  for (int i = 0; i <= N; ++i)
-    for (int j = 0; j <= N; ++j) z0.emplace_back(-0.5 + double(i) / N, -0.5 + double(j) / N);
-  const int n = static_cast<int>(z0.size());
-  auto id = [&](int i, int j) { return i * (N + 1) + j; };
-  RowMatrixX3i F(2 * N * N, 3);
+  RowMatrixX3i F{2 * N * N, 3};
   std::vector<WeightedEdge> edges;
-  std::set<std::pair<int, int>> seen;
-  int f = 0;
-  auto edge = [&](int u, int v) {
-    if (seen.insert({std::min(u, v), std::max(u, v)}).second) edges.push_back({u, v, 1.0, {}, {}});
-  };
-  for (int i = 0; i < N; ++i)
-    for (int j = 0; j < N; ++j) {
-      const int p = id(i, j), q = id(i + 1, j), r = id(i + 1, j + 1), t = id(i, j + 1);
-      F.row(f++) << p, q, r;
-      F.row(f++) << p, r, t;
-      edge(p, q), edge(q, r), edge(r, p), edge(r, t), edge(t, p);
-    }
-  std::vector<int> source;
-  std::vector<Complex> lifts;
-  for (int i = 0; i <= N; ++i)
-    for (int j = 0; j <= N; ++j)
-      if (i == 0 || j == 0 || i == N || j == N) source.push_back(id(i, j)), lifts.push_back(z0[id(i, j)]);
-  const int centre = id(N / 2, N / 2);
-  const Complex target(0.3, 0.3);
-  source.push_back(centre), lifts.push_back(target);
-  auto oriented = [&](const std::vector<Complex>& z) {
+  std::vector<int> boundary;
+  static int id(int i, int j) { return i * (N + 1) + j; }
+  HyperbolicDiskGrid() {
+    for (int i = 0; i <= N; ++i)
+      for (int j = 0; j <= N; ++j) z0.emplace_back(-0.5 + double(i) / N, -0.5 + double(j) / N);
+    std::set<std::pair<int, int>> seen;
+    int f = 0;
+    auto edge = [&](int u, int v) {
+      if (seen.insert({std::min(u, v), std::max(u, v)}).second) edges.push_back({u, v, 1.0, {}, {}});
+    };
+    for (int i = 0; i < N; ++i)
+      for (int j = 0; j < N; ++j) {
+        const int p = id(i, j), q = id(i + 1, j), r = id(i + 1, j + 1), t = id(i, j + 1);
+        F.row(f++) << p, q, r;
+        F.row(f++) << p, r, t;
+        edge(p, q), edge(q, r), edge(r, p), edge(r, t), edge(t, p);
+      }
+    for (int i = 0; i <= N; ++i)
+      for (int j = 0; j <= N; ++j)
+        if (i == 0 || j == 0 || i == N || j == N) boundary.push_back(id(i, j));
+  }
+  int oriented(const std::vector<Complex>& z) const {
     int bad = 0;
     for (int g = 0; g < F.rows(); ++g) {
       Complex k[3];
@@ -476,26 +498,80 @@ TEST(LandmarksHyperbolic, BarrierContinuationOnAHyperbolicDisk) {
       if (!(e1.real() * e2.imag() - e1.imag() * e2.real() > 0)) ++bad;
     }
     return bad;
-  };
-  ASSERT_EQ(oriented(z0), 0);
+  }
+  /// The boundary held where it is, then `more` vertices held at `at`.
+  void hold(std::vector<int>& source, std::vector<Complex>& lifts, const std::vector<int>& more,
+            const std::vector<Complex>& at) const {
+    source = boundary;
+    lifts.clear();
+    for (int v : boundary) lifts.push_back(z0[v]);
+    source.insert(source.end(), more.begin(), more.end());
+    lifts.insert(lifts.end(), at.begin(), at.end());
+  }
+  /// The continuation from the grid to those holds, checked: it arrived,
+  /// every face positively oriented, every held vertex exactly on its
+  /// point, the energy recomputed by hyperbolic_energy the one reported.
+  detail::HyperbolicBarrierResult continuation(const std::vector<int>& source, const std::vector<Complex>& lifts) const {
+    const int n = static_cast<int>(z0.size());
+    const std::vector<hyperbolic::Mobius> face_elements(3 * F.rows());
+    const detail::HyperbolicBarrierResult r = detail::hyperbolic_barrier_landmarks(n, edges, F, face_elements, z0, source, lifts);
+    EXPECT_TRUE(r.ok) << r.reached;
+    if (!r.ok) return r;
+    EXPECT_GT(r.steps, 0);
+    EXPECT_EQ(oriented(r.z), 0);
+    for (size_t k = 0; k < source.size(); ++k) EXPECT_EQ(r.z[source[k]], lifts[k]) << k;
+    const double E = hyperbolic_energy(edges, r.z, std::vector<hyperbolic::Mobius>(n));
+    EXPECT_NEAR(E, r.energy, 1e-12 * E);
+    return r;
+  }
+};
+
+TEST(LandmarksHyperbolic, BarrierContinuationOnAHyperbolicDisk) {
+  // The continuation alone (landmarks.h), on the disk grid with its
+  // boundary held and its centre dragged 0.6 of the way towards a corner:
+  // the plain pinned harmonic map folds; the continuation's map has every
+  // face positively oriented, the landmark exactly on its target, the
+  // boundary where it was, and its energy recomputed by hyperbolic_energy
+  // is the one it reports, above the folded infimum.
+  const HyperbolicDiskGrid grid;
+  const int n = static_cast<int>(grid.z0.size()), N = HyperbolicDiskGrid::N;
+  std::vector<int> source;
+  std::vector<Complex> lifts;
+  grid.hold(source, lifts, {HyperbolicDiskGrid::id(N / 2, N / 2)}, {Complex(0.3, 0.3)});
+  ASSERT_EQ(grid.oriented(grid.z0), 0);
   // The plain pins: Newton with the held vertices fixed.
   HyperbolicHarmonicOptions ho;
   ho.fixed.assign(n, 0);
-  std::vector<Complex> start = z0;
+  std::vector<Complex> start = grid.z0;
   for (size_t k = 0; k < source.size(); ++k) ho.fixed[source[k]] = 1, start[source[k]] = lifts[k];
-  const HyperbolicHarmonicResult plain = hyperbolic_harmonic_map(n, edges, {}, start, ho);
+  const HyperbolicHarmonicResult plain = hyperbolic_harmonic_map(n, grid.edges, {}, start, ho);
   ASSERT_TRUE(plain.converged);
-  EXPECT_GT(oriented(plain.z), 0);
-  const std::vector<hyperbolic::Mobius> face_elements(3 * F.rows());
-  const detail::HyperbolicBarrierResult r = detail::hyperbolic_barrier_landmarks(n, edges, F, face_elements, z0, source, lifts);
+  EXPECT_GT(grid.oriented(plain.z), 0);
+  const detail::HyperbolicBarrierResult r = grid.continuation(source, lifts);
   ASSERT_TRUE(r.ok);
-  EXPECT_GT(r.steps, 0);
-  EXPECT_EQ(oriented(r.z), 0);
-  for (size_t k = 0; k < source.size(); ++k) EXPECT_EQ(r.z[source[k]], lifts[k]) << k;
-  const double E = hyperbolic_energy(edges, r.z, std::vector<hyperbolic::Mobius>(n));
-  EXPECT_NEAR(E, r.energy, 1e-12 * E);
-  EXPECT_GT(E, plain.energy * (1 + 1e-6));
-  EXPECT_LT(E, plain.energy * 1.5);
+  EXPECT_EQ(r.bend, 0);  // on its geodesic
+  EXPECT_GT(r.energy, plain.energy * (1 + 1e-6));
+  EXPECT_LT(r.energy, plain.energy * 1.5);
+}
+
+TEST(LandmarksHyperbolic, LandmarksSentHeadOnPassSideBySide) {
+  // Two landmarks on one grid line, 4 cells apart, each sent to the other's
+  // place (session 25, docs/handle_classes.md "Session 25"): on their
+  // geodesics they meet half-way, where the faces between them must vanish,
+  // so the continuation along them stalls before 1/2; stepping aside each to
+  // its own left (LandmarkGeodesics::bend) they pass side by side, a half
+  // twist of the pair: the map bijective, both exactly on their targets,
+  // the boundary where it was.
+  const HyperbolicDiskGrid grid;
+  const int n = static_cast<int>(grid.z0.size()), N = HyperbolicDiskGrid::N;
+  const int p = HyperbolicDiskGrid::id(N / 2 - 2, N / 2), q = HyperbolicDiskGrid::id(N / 2 + 2, N / 2);
+  std::vector<int> source;
+  std::vector<Complex> lifts;
+  grid.hold(source, lifts, {p, q}, {grid.z0[q], grid.z0[p]});
+  const detail::HyperbolicBarrierResult r = grid.continuation(source, lifts);
+  ASSERT_TRUE(r.ok);
+  EXPECT_NE(r.bend, 0);  // the geodesics stalled
+  EXPECT_GT(r.energy, hyperbolic_energy(grid.edges, grid.z0, std::vector<hyperbolic::Mobius>(n)) * (1 + 1e-6));
 }
 
 TEST(LandmarksHyperbolic, RelaxationHoldsThemLikeNewton) {

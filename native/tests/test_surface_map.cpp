@@ -2005,8 +2005,8 @@ TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) 
 // (stages/other_basis.h), and a class listed in the other basis only is
 // searched by that basis's twists, so the basis the run presents the groups
 // in (LoopOptions::short_canonical_generators) does not change the class
-// chosen. On this pair each basis alone (the behaviour before, kept by the
-// default, LoopOptions::both_canonical_bases false) chooses a different class: main's
+// chosen. On this pair each basis alone (the behaviour before, the default
+// until session 25, LoopOptions::both_canonical_bases false) chooses a different class: main's
 // code before session 23 gave 73.19 in the classical basis and 64.86 in the
 // short one (the overlay class's twist search found a better neighbour by
 // the short basis's twists only).
@@ -2018,6 +2018,7 @@ TEST(SurfaceMapHandles, TheChosenClassDoesNotDependOnTheCanonicalBasis) {
     SurfaceMapOptions o;
     o.loops.short_canonical_generators = brief;
     o.homotopy.two_way = false;
+    o.loops.both_canonical_bases = false;
     alone.push_back(surface_map(a, b, o));
     o.loops.both_canonical_bases = true;
     both.push_back(surface_map(a, b, o));
@@ -2042,6 +2043,23 @@ TEST(SurfaceMapHandles, TheChosenClassDoesNotDependOnTheCanonicalBasis) {
   // disagree, so the pair tells the union from either basis alone.
   for (int k = 0; k < 2; ++k) EXPECT_GE(alone[k].final_energy, both[k].final_energy * (1 - 1e-6)) << k;
   EXPECT_GT(std::abs(alone[0].final_energy - alone[1].final_energy), 1e-3 * both[0].final_energy);
+}
+
+// Session 25 (docs/handle_classes.md "Session 25"): the agreement step
+// below the two-way ratio keeps the pair of inverse classes of lower total
+// energy, a tie going to the mesh that comes first. An unsolved class
+// counts infinite, and a finite total against an infinite one is no tie:
+// it was, since |x - inf| <= 1e-6 inf, and teapot -> double torus (both
+// canonical bases, the other direction's class not invertible here) adopted
+// the unsolved class, an empty map on which the CLI crashed.
+TEST(SurfaceMapHandles, AnUnsolvedPairIsNoTie) {
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(detail::pair_totals_tie(2.993 * 8 * M_PI, inf));
+  EXPECT_FALSE(detail::pair_totals_tie(inf, 2.993 * 8 * M_PI));
+  EXPECT_FALSE(detail::pair_totals_tie(inf, inf));
+  EXPECT_FALSE(detail::pair_totals_tie(std::nan(""), 1.0));
+  EXPECT_TRUE(detail::pair_totals_tie(2.283854022, 2.283853702));  // the vase and cup's tie (session 23)
+  EXPECT_FALSE(detail::pair_totals_tie(3.5652, 3.5655));
 }
 
 // Session 24 (issue 14; docs/handle_classes.md "Session 24"): a class of

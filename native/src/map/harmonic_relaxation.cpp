@@ -8,6 +8,7 @@
 #include "../seconds_since.h"
 #include "surfmap/error.h"
 #include "surfmap/geometry/dynamic_charts.h"
+#include "surfmap/topology/words.h"
 
 namespace surfmap {
 namespace {
@@ -37,12 +38,20 @@ inline Complex quick_apply(const Mobius& m, Complex z) { return quick_div(m.a * 
 // Moves z towards the origin (geometry/dynamic_charts.h, the same rule as
 // the Newton solver's dynamic charts); returns the element applied, and in
 // `moved` whether any move was.
-Mobius move_towards_origin(Complex& z, const std::vector<Mobius>& moves, bool* moved = nullptr) {
+// `word` (optional): the element as a word in the generators' letters
+// (move 2k is generator k, letter k + 1; move 2k + 1 its inverse, -(k + 1)),
+// product order as written, as HyperbolicHarmonicResult::vertex_deck_word.
+Mobius move_towards_origin(Complex& z, const std::vector<Mobius>& moves, bool* moved = nullptr, Word* word = nullptr) {
   Mobius acc;
   const std::vector<int> applied = reduce_towards_origin(Mobius::translation_to(z), moves);
   for (int k : applied) {
     z = moves[k].apply(z);
     acc = (moves[k] * acc).normalized();
+  }
+  if (word) {
+    word->clear();
+    for (auto it = applied.rbegin(); it != applied.rend(); ++it) word->push_back(*it % 2 == 0 ? *it / 2 + 1 : -(*it / 2 + 1));
+    *word = reduce(*word);
   }
   if (moved) *moved = !applied.empty();
   return acc;
@@ -165,7 +174,8 @@ HarmonicRelaxationResult harmonic_relaxation(int n, const std::vector<WeightedEd
   HarmonicRelaxationResult r;
   r.z = std::move(z0);
   r.vertex_deck.assign(n, Mobius());
-  for (int i = 0; i < n; ++i) r.vertex_deck[i] = move_towards_origin(r.z[i], moves);
+  r.vertex_deck_word.assign(n, Word{});
+  for (int i = 0; i < n; ++i) r.vertex_deck[i] = move_towards_origin(r.z[i], moves, nullptr, &r.vertex_deck_word[i]);
   // Effective element per edge (i -> j) and its inverse, kept up to date
   // when a vertex changes chart.
   std::vector<Mobius> eff(edges.size()), eff_inv(edges.size());
@@ -244,11 +254,13 @@ HarmonicRelaxationResult harmonic_relaxation(int n, const std::vector<WeightedEd
       const double r2 = std::norm(r.z[v]);
       if (r2 <= 0.36 || r2 <= settled[v]) continue;
       bool moved = false;
-      const Mobius gk = move_towards_origin(r.z[v], moves, &moved);
+      Word wk;
+      const Mobius gk = move_towards_origin(r.z[v], moves, &moved, &wk);
       const double after = std::norm(r.z[v]);
       settled[v] = std::min(1.0, std::sqrt(after) + 0.02) * std::min(1.0, std::sqrt(after) + 0.02);
       if (!moved) continue;
       r.vertex_deck[v] = (gk * r.vertex_deck[v]).normalized();
+      r.vertex_deck_word[v] = concat(wk, r.vertex_deck_word[v]);
       for (int k = inc.start[v]; k < inc.start[v + 1]; ++k) {
         const size_t e = inc.edge[k];
         if (edges[e].i == v) eff[e] = (gk * eff[e]).normalized();
@@ -274,6 +286,7 @@ HarmonicRelaxationResult harmonic_relaxation(int n, const std::vector<WeightedEd
       if (!any_fixed || !options.fixed[v]) g = std::max(g, std::abs(grad[v]));
   };
   relax_loop(r, max_w, options, sweep, evaluate);
+  r.edge_effective = std::move(eff);
   return r;
 }
 
@@ -335,6 +348,8 @@ HyperbolicHarmonicResult as_harmonic_result(HarmonicRelaxationResult r) {
   h.gradient_history = std::move(r.gradient_history);
   h.z = std::move(r.z);
   h.vertex_deck = std::move(r.vertex_deck);
+  h.vertex_deck_word = std::move(r.vertex_deck_word);
+  h.edge_effective = std::move(r.edge_effective);
   h.energy = r.energy;
   return h;
 }

@@ -265,13 +265,20 @@ struct HyperbolicBarrierProblem {
 
 // The landmarks' paths: each walks the geodesic from its free image to its
 // lift; place(z, s) puts them at fraction s of the way (exactly on the
-// lifts at s >= 1).
+// lifts at s >= 1). With `bend` b != 0 each steps aside to its own left
+// (right for b < 0) on the way, by b x its geodesic's length x sin(pi s)
+// at fraction s (measured along the perpendicular at the point s of the
+// way): two landmarks sent head on towards each other's places then pass
+// side by side, a half twist of the pair (b = 1/2: they keep at least 0.87
+// of their first distance apart), where on the geodesics they meet
+// half-way and the faces between them must vanish.
 struct LandmarkGeodesics {
   const std::vector<Complex>& free;
   const std::vector<int>& source;
   const std::vector<Complex>& lifts;
   std::vector<hyperbolic::Mobius> back;
   std::vector<Complex> far;
+  double bend = 0;
 
   LandmarkGeodesics(const std::vector<Complex>& free_points, const std::vector<int>& landmarks,
                     const std::vector<Complex>& lift_points)
@@ -284,9 +291,22 @@ struct LandmarkGeodesics {
   void place(std::vector<Complex>& z, double s) const {
     for (size_t a = 0; a < source.size(); ++a) {
       const double r = std::abs(far[a]);
-      z[source[a]] = s >= 1 ? lifts[a]
-                     : r == 0 ? free[source[a]]
-                              : back[a].apply(std::tanh(s * std::atanh(r)) * (far[a] / r));
+      if (s >= 1 || r == 0) {
+        z[source[a]] = s >= 1 ? lifts[a] : free[source[a]];
+        continue;
+      }
+      const Complex u = far[a] / r;
+      const Complex p = std::tanh(s * std::atanh(r)) * u;  // s of the way along the geodesic (centred chart)
+      if (bend == 0) {
+        z[source[a]] = back[a].apply(p);
+        continue;
+      }
+      // Aside by h along the perpendicular at p: the point at distance h on
+      // the perpendicular at 0, carried to p by the translation along the
+      // geodesic (z + p) / (1 + conj(p) z).
+      const double h = bend * 2 * std::atanh(r) * std::sin(M_PI * s);
+      const Complex q = std::tanh(h / 2) * Complex(0, 1) * u;
+      z[source[a]] = back[a].apply((q + p) / (1.0 + std::conj(p) * q));
     }
   }
 };
@@ -365,7 +385,7 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
     }
     return true;
   };
-  const LandmarkGeodesics paths(free, source, lifts);
+  LandmarkGeodesics paths(free, source, lifts);
   auto place = [&](std::vector<Complex>& z, double s) { paths.place(z, s); };
   // Euler predictor along the path of optima: the free unknowns' response
   // −H⁻¹ ∂g/∂s to the landmarks' move (∂g/∂s by a difference).
@@ -384,8 +404,20 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
     return trial;
   };
   std::vector<Complex> z = free;
-  const double s = barrier_continuation(z, predict, place, objective, newton, out.steps);
+  double s = barrier_continuation(z, predict, place, objective, newton, out.steps);
   out.reached = s;
+  // Stalled with more than one landmark: two of them may be meeting head on
+  // (sent to each other's places: on their geodesics they meet half-way).
+  // Again from the free map, each stepping aside to its left, then to its
+  // right (LandmarkGeodesics::bend; docs/handle_classes.md "Session 25").
+  for (double bend : {0.5, -0.5}) {
+    if (s >= 1 || source.size() < 2) break;
+    paths.bend = bend;
+    z = free;
+    s = barrier_continuation(z, predict, place, objective, newton, out.steps);
+    out.reached = std::max(out.reached, s);
+    out.bend = bend;
+  }
   if (s < 1) return out;
   place(z, 1.0);
   newton(z, 40);

@@ -122,6 +122,10 @@ struct FlatBarrierResult {
   double energy = 0;       ///< E(z), the harmonic part only
   int steps = 0, newton_iterations = 0;
   double reached = 0;  ///< fraction of the way the landmarks got (1 when ok)
+  /// The paths of the last continuation run: 0 the geodesics, else how far
+  /// each landmark stepped aside to its left (> 0) or right (< 0), a
+  /// fraction of its geodesic's length, after the geodesics stalled.
+  double bend = 0;
 };
 FlatBarrierResult flat_barrier_landmarks(int num_vertices, const std::vector<IntrinsicEdge>& edges,
                                          const std::vector<Complex>& translations,
@@ -157,6 +161,10 @@ struct HyperbolicBarrierResult {
   double energy = 0;       ///< E(z), the harmonic part only
   int steps = 0, newton_iterations = 0;
   double reached = 0;  ///< fraction of the way the landmarks got (1 when ok)
+  /// The paths of the last continuation run: 0 the geodesics, else how far
+  /// each landmark stepped aside to its left (> 0) or right (< 0), a
+  /// fraction of its geodesic's length, after the geodesics stalled.
+  double bend = 0;
 };
 /// `progress` (optional, as HyperbolicHarmonicOptions::progress): called
 /// every Newton iteration with (iterations so far, objective, gradient);

@@ -454,10 +454,10 @@ std::string agree_below_two_way_ratio(const TriMesh& source, const TriMesh& targ
     d.reason = "each direction keeps its own class: neither pair of inverse classes could be solved (" + figures + ")";
     return "not agreed: neither pair solved (" + figures + ")";
   }
-  // Which pair: the lower total; a tie to the class chosen from the mesh that comes first.
+  // Which pair: the lower total; a tie (pair_totals_tie) to the class chosen from the mesh that comes first.
   std::string rule;
   bool other_pair_kept;
-  if (std::abs(own_pair - other_pair) <= 1e-6 * std::max(own_pair, other_pair)) {
+  if (pair_totals_tie(own_pair, other_pair)) {
     const int order = mesh_order(source, target);
     other_pair_kept = order > 0;
     rule = std::string("a tie (within 1e-6), broken by the meshes' order: the class chosen from the ") +
@@ -510,6 +510,11 @@ std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward
     why = "the target's letters as a source are missing (" + reverse.source_as_target_status + ")";
   if (!why.empty()) return {};
   return compose(forward.source_as_target_inverse, compose(reverse.chosen_class_words, reverse.source_as_target_inverse));
+}
+
+bool pair_totals_tie(double own_pair, double other_pair) {
+  return std::isfinite(own_pair) && std::isfinite(other_pair) &&
+         std::abs(own_pair - other_pair) <= 1e-6 * std::max(own_pair, other_pair);
 }
 
 double chosen_energy(const SurfaceMapResult& r) {

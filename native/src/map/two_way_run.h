@@ -98,6 +98,11 @@ std::vector<std::vector<int>> reverse_class_here(const SurfaceMapResult& forward
 /// Delaunay one when the map itself fell back to own-edge weights (the
 /// other candidates' energies are intrinsic). NaN without a chosen class.
 double chosen_energy(const SurfaceMapResult& r);
+/// The agreement step's tie between two pairs of inverse classes' total
+/// energies: both finite and within 1e-6 of each other. (An unsolved class
+/// counts infinite, and |x - inf| <= 1e-6 inf holds for every x: taken for
+/// a tie, an unsolved class inverted was adopted, an empty map; session 25.)
+bool pair_totals_tie(double own_pair, double other_pair);
 
 /// `options` without what belongs to the run they were given for, the one
 /// list of what reverse_options, one_way_options (through_shape.cpp) and

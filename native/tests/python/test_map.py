@@ -875,9 +875,11 @@ def test_every_cli_map_option_has_a_python_keyword(cli):
             flags |= set(re.findall(r"--([a-z][a-z-]*)", head.group(1)))
     assert {"no-cheap-direction-check", "compare-directions", "target-loops"} <= flags, flags
     not_options = {"help", "out", "report", "correspondence", "initial-out", "quiet", "timings"}
-    # (--classical-canonical-generators: short_canonical_generators=False, the default said aloud)
+    # (--classical-canonical-generators: short_canonical_generators=False, the default said aloud;
+    # --one-canonical-basis: both_canonical_bases=False)
     renamed = {"base_vertex": "source_base_vertex", "boundary_swap": "boundary_pairing",
-               "classical_canonical_generators": "short_canonical_generators"}
+               "classical_canonical_generators": "short_canonical_generators",
+               "one_canonical_basis": "both_canonical_bases"}
     missing = set()
     for flag in flags - not_options:
         name = flag[3:] if flag.startswith("no-") else flag
@@ -917,6 +919,36 @@ def test_a_class_is_asked_for_by_its_words_in_another_run(tmp_path, cli):
         surfmap.surface_map(*a, *b, class_words=words, homotopy=0)
     with pytest.raises(surfmap.InputError, match="class_words"):
         surfmap.surface_map(*a, *b, class_words="1 2 3 4")
+
+
+def test_both_canonical_bases_is_the_default_and_one_basis_is_asked_for(tmp_path, cli):
+    # Session 25 (docs/handle_classes.md "Session 25"): the candidate classes are listed in both
+    # canonical bases by default (some listed "in the short canonical basis"); both_canonical_bases=
+    # False and the CLI's --one-canonical-basis list the run's basis only, the same list; the two
+    # flags together are refused in one line.
+    a = surfmap.shapes.n_hole_torus(2, 14, True)
+    b = surfmap.shapes.vase(18, True)
+
+    def short_listed(candidates):
+        return sum("in the short canonical basis" in c["description"] for c in candidates)
+
+    both = surfmap.surface_map(*a, *b, two_way=False, agreement_ratio=2)
+    one = surfmap.surface_map(*a, *b, two_way=False, agreement_ratio=2, both_canonical_bases=False)
+    assert short_listed(both["homotopy"]["candidates"]) > 0
+    assert short_listed(one["homotopy"]["candidates"]) == 0
+    assert len(one["homotopy"]["candidates"]) < len(both["homotopy"]["candidates"])
+    src, dst, out, rep = (tmp_path / n for n in ("a.obj", "b.obj", "m.obj", "r.json"))
+    surfmap.write_obj(str(src), *a)
+    surfmap.write_obj(str(dst), *b)
+    c = cli("map", src, dst, "--out", out, "--report", rep, "--quiet", "--no-two-way", "--agreement-ratio", "2",
+            "--one-canonical-basis")
+    assert c.returncode == 0, c.stderr
+    listed = json.loads(rep.read_text())["homotopy"]["candidates"]
+    assert short_listed(listed) == 0
+    assert [x["words"] for x in listed] == [x["words"] for x in one["homotopy"]["candidates"]]
+    bad = cli("map", src, dst, "--out", out, "--report", rep, "--both-canonical-bases", "--one-canonical-basis")
+    assert bad.returncode != 0 and "exclude each other" in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1, bad.stderr
 
 
 def test_face_charts_keyword_maps_in_per_face_charts():

@@ -91,9 +91,14 @@ def test_unresolved_images_are_undecided_unless_strict():
     # a thin part of the vase (its neighbours' images lie where the vase's normal has turned by
     # more than 60 degrees), so its winding cannot be measured in one tangent plane. That check
     # is undecided (listed, not failed); strict=True fails it. Everything resolved passes.
+    # (The map of one canonical basis's class, lifted from the loops at source vertex 218, 27.37744:
+    # with both bases listed, the default since session 25, the near-mirror class listed in the
+    # short basis, 27.37818, ties with it within choose_class's 1e-4 and is listed first, and its
+    # map has every star resolved and winding once. Which of two tied classes is chosen is not what
+    # this test is about; docs/handle_classes.md "Session 25".)
     a = surfmap.shapes.n_hole_torus(2, 14, True)
     b = surfmap.shapes.vase(18, True)
-    r = surfmap.surface_map(*a, *b)
+    r = surfmap.surface_map(*a, *b, both_canonical_bases=False)
     c = surfmap.verify(*a, *b, r)
     assert c["certified"] and not c["failures"], c["summary"]
     assert c["undecided"] and c["unresolved_triangles"] > 0, c["summary"]

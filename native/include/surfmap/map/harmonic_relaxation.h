@@ -77,6 +77,17 @@ struct HarmonicRelaxationResult {
   /// vertex (effective element of edge i->j: vertex_deck[i] · ρ · vertex_deck[j]⁻¹).
   std::vector<std::complex<double>> z;
   std::vector<hyperbolic::Mobius> vertex_deck;
+  /// Hyperbolic only (empty for the flat one): the same decks as freely
+  /// reduced words in the generators' letters (+(k+1) = generators[k],
+  /// -(k+1) its inverse, product order as written), and per edge its
+  /// effective element at the end, kept up to date move by move from small
+  /// matrices: as HyperbolicHarmonicResult::vertex_deck_word and
+  /// edge_effective. A deck accumulated over a long class's edges has huge
+  /// entries and vertex_deck[i] * rho * vertex_deck[j]^-1 keeps no digits;
+  /// the held solves after it (landmarks) need these instead
+  /// (docs/handle_classes.md "Session 25").
+  std::vector<Word> vertex_deck_word;
+  std::vector<hyperbolic::Mobius> edge_effective;
   double energy = 0;
   /// Wall time of the whole call (sweeps and evaluations).
   double time_s = 0;

@@ -493,14 +493,13 @@ struct LoopOptions {
   /// both canonical bases, the classical and the short, each written in the
   /// run's, and twist-search a class listed in the short basis by the short
   /// basis's twists (src/map/stages/other_basis.h; docs/robustness.md
-  /// "Session 23"). Default false: with it on, fertility -> CAD plate g4
-  /// goes from 2.803 x to 2.129 x the bound and polycube g3 -> plate g3 from
-  /// 73.19 to 64.86, but two genus-2 landmark tests fail (session 24: they
-  /// named the free run's class by an index, which names another class in
-  /// the landmark run's list; named by its words, HomotopyOptions::
-  /// class_words, they still fail with both bases: docs/handle_classes.md
-  /// "Session 24"). CLI --both-canonical-bases.
-  bool both_canonical_bases = false;
+  /// "Session 23"). Default true (session 25): fertility -> CAD plate g4
+  /// goes from 2.803 x to 2.13 x the bound and polycube g3 -> plate g3 from
+  /// 73.19 to 64.86. (Off until session 25: two genus-2 landmark tests
+  /// failed with it, from faults of the landmark code that the short
+  /// basis's long class words exposed, fixed there: docs/handle_classes.md
+  /// "Session 24" and "Session 25".) False: CLI --one-canonical-basis.
+  bool both_canonical_bases = true;
 };
 
 /// When the genus >= 2 map runs in per-face charts of the target
