@@ -2250,13 +2250,29 @@ void map_with_fallback(HyperbolicPipeline& p) {
         // (plate -> wheel genus 9: the chosen class, 147 x the bound, came
         // out with 3 folds, the last fallback with 415).
         const int c = fallback[0];
-        char head[240], unmapped[120] = "";
+        char head[320], unmapped[120] = "";
         if (refused_unmapped)
           std::snprintf(unmapped, sizeof unmapped, ", %d of them refused on their full-resolution solves without being mapped again",
                         refused_unmapped);
-        std::snprintf(head, sizeof head, "no candidate class gave a bijective map (%d tried%s); the chosen class %d (energy %.6g, %.3g x 8 pi (g - 1)): ",
-                      static_cast<int>(fallback.size()), unmapped, c, out.candidates[c].energy,
-                      out.candidates[c].energy / (8 * M_PI * (out.genus - 1)));
+        // Session 25: after the own-edge weights fallback a candidate's
+        // energy is its own-edge one, a coarser discretisation than the
+        // intrinsic Delaunay energy the ranking and the conformal bound
+        // speak of (block -> wheel g12: 127468 own-edge, 461 x the bound,
+        // against its intrinsic 19822.5, 71.7 x); the head gives the class's
+        // intrinsic energy and names the other.
+        // (The switch may have come at a later class, c then keeping its
+        // intrinsic energy: nothing to name.)
+        const double intrinsic = p.own_weights && c < static_cast<int>(p.intrinsic_energy.size()) &&
+                                         p.intrinsic_energy[c] != out.candidates[c].energy
+                                     ? p.intrinsic_energy[c]
+                                     : std::numeric_limits<double>::quiet_NaN();
+        const double energy = std::isfinite(intrinsic) ? intrinsic : out.candidates[c].energy;
+        char own_edges[80] = "";
+        if (std::isfinite(intrinsic))
+          std::snprintf(own_edges, sizeof own_edges, "; %.6g with the own-edge weights", out.candidates[c].energy);
+        std::snprintf(head, sizeof head, "no candidate class gave a bijective map (%d tried%s); the chosen class %d (energy %.6g, %.3g x 8 pi (g - 1)%s): ",
+                      static_cast<int>(fallback.size()), unmapped, c, energy, energy / (8 * M_PI * (out.genus - 1)),
+                      own_edges);
         const std::string& d = out.candidates[c].description;
         const size_t at = d.rfind("  [not used: ");
         throw SolveError(head + (at == std::string::npos ? std::string("?") : d.substr(at + 13, d.size() - at - 14)) +
