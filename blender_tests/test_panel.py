@@ -165,7 +165,7 @@ def test_the_picked_pairing_is_described_under_the_list():
     settings.candidate_index = -1
     assert under_button(draw_all_panels()) == []
     blf.size(0, 11, 72) if bpy.app.version < (4, 0) else blf.size(0, 11)
-    # seen whole at the default width beside the icon (ui25 screenshot), the next word not
+    # seen whole at the default width beside the icon (Blender 3.4 window), the next word not
     whole = blf.dimensions(0, "#8: handle 1 -> handle")[0]
     for pick in (1, 0, 2):
         settings.candidate_index = pick
@@ -318,6 +318,33 @@ def test_solve_with_a_picked_pairing():
     assert bpy.ops.surfmap.solve_candidate() == {'FINISHED'}
     assert settings.chosen_candidate == other and settings.homotopy == other
     assert a.data["surfmap_map"]["homotopy"] == other
+
+
+def test_solve_with_a_pairing_when_compute_map_refuses_is_one_line():
+    """Session 25 (ui check: a click in the empty 3D view had deselected both meshes): Solve
+    With This Pairing passed Compute Map's refusal on as a Python traceback ("Python:
+    Traceback ... RuntimeError: Error: no mesh selected") and left the pairing set to the
+    picked number (Auto unticked) though nothing was solved. Now: Compute Map's one-line error,
+    and the pairing setting as it was."""
+    a, b = _torus_pair()
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    settings = bpy.context.scene.surfmap
+    other = next(c.index for c in settings.candidates if c.index != settings.chosen_candidate)
+    for ob in (a, b):
+        ob.select_set(False)
+    for how in ('EXEC_DEFAULT', 'INVOKE_DEFAULT'):
+        settings.homotopy = -1
+        settings.candidate_index = other
+        try:
+            r = bpy.ops.surfmap.solve_candidate(how)
+            err = ""
+        except RuntimeError as e:
+            r, err = None, str(e)
+        assert r is None and "no mesh selected" in err, (how, r, err)
+        assert "Traceback" not in err and "Python" not in err, (how, err)
+        assert settings.homotopy == -1 and settings.homotopy_auto, (how, settings.homotopy)
+    assert a.data["surfmap_map"]["homotopy"] == settings.chosen_candidate   # map unchanged
 
 
 def test_a_genus_2_pairing_solved_by_its_words_is_recorded_by_its_list_number():

@@ -192,7 +192,7 @@ def draw_map(layout, settings, region=None):
 PICKED_LINES = 8   # lines of the picked pairing's description under the list
 # Text width of a label with an icon in a sub-panel at Blender's default sidebar width (229 px,
 # UI scale 1), in blf pixels of the 11 pt UI font: under Solve With This Pairing the text
-# "#8: handle 1 -> handle" (116 px) was whole and the next word cut (ui25 screenshots).
+# "#8: handle 1 -> handle" (116 px) was whole and the next word cut (Blender 3.4 window).
 LABEL_WIDTH_DEFAULT = 120
 SIDEBAR_WIDTH_DEFAULT = 229
 
@@ -215,16 +215,21 @@ def label_width(region=None):
     """Text width (blf pixels at UI scale 1) of an icon label in a sub-panel of `region`, the
     sidebar (its default width when unknown)."""
     width = getattr(region, "width", 0) or 0
-    scale = bpy.context.preferences.view.ui_scale if bpy.context else 1.0
     if width <= 0:
         return LABEL_WIDTH_DEFAULT
-    return max(60, LABEL_WIDTH_DEFAULT + int(width / (scale or 1.0)) - SIDEBAR_WIDTH_DEFAULT)
+    prefs = bpy.context.preferences
+    # the region's pixels include the resolution scale (system.ui_scale: 0 in background mode)
+    scale = getattr(prefs.system, "ui_scale", 0.0) or prefs.view.ui_scale or 1.0
+    return max(60, LABEL_WIDTH_DEFAULT + int(width / scale) - SIDEBAR_WIDTH_DEFAULT)
 
 
 def text_width(text):
     """Width of `text` in the UI's label font (11 pt, UI scale 1), in pixels."""
     import blf
-    blf.size(0, 11, 72) if bpy.app.version < (4, 0) else blf.size(0, 11)
+    try:
+        blf.size(0, 11)
+    except TypeError:          # Blender 3.x also takes a dpi
+        blf.size(0, 11, 72)
     return blf.dimensions(0, text)[0]
 
 
