@@ -135,6 +135,62 @@ def test_pairings_list_sorted_by_energy_with_estimates():
     assert ("operator", "surfmap.solve_candidate") in log
 
 
+def test_the_picked_pairing_is_described_under_the_list():
+    """Session 25: with both canonical bases a genus-2 run lists 14-15 pairings, most of them
+    '—', and the rows show only '#k' and the energy: a picked row's description (the core's
+    text: which handle goes where, 'listed in the short canonical basis', 'the same class as
+    candidate 0 ...') shows under Solve With This Pairing, wrapped to lines that fit the
+    default sidebar width in pixels; nothing when no row is picked."""
+    import blf
+    from surface_map import panel
+    settings = bpy.context.scene.surfmap
+    descs = ["handle 1 -> handle 1 (half turn), handle 2 -> handle 2 (half turn)  [a_i -> a'_i, "
+             "b_i -> b'_i of the canonical polygon schemata]",
+             "handle 1 -> handle 1, handle 2 -> handle 2  [closest handle positions]",
+             "handle 1 -> handle 1 (half turn), handle 2 -> handle 2 (half turn)  [a_i -> a'_i, "
+             "b_i -> b'_i of the canonical polygon schemata; listed in the short canonical "
+             "basis]  [not ranked: its coarse solve was stopped at Newton step 4, energy 37.8 "
+             "(at least 1.5x candidate 0's), an_unbreakable_word_longer_than_any_line_of_the_panel]"]
+    for i, d in enumerate(descs):
+        c = settings.candidates.add()
+        c.index, c.description, c.energy, c.solved = i, d, 26.4 if i == 0 else 0.0, i == 0
+    settings.chosen_candidate = 0
+
+    def under_button(log):
+        k = log.index(("operator", "surfmap.solve_candidate"))
+        rest = log[k + 1:]
+        end = next((j for j, x in enumerate(rest) if x[0] != "label"), len(rest))
+        return [x[1] for x in rest[:end]]
+
+    settings.candidate_index = -1
+    assert under_button(draw_all_panels()) == []
+    blf.size(0, 11, 72) if bpy.app.version < (4, 0) else blf.size(0, 11)
+    # seen whole at the default width beside the icon (Blender 3.4 window), the next word not
+    whole = blf.dimensions(0, "#8: handle 1 -> handle")[0]
+    for pick in (1, 0, 2):
+        settings.candidate_index = pick
+        lines = under_button(draw_all_panels())
+        assert lines, pick
+        for line in lines:
+            assert blf.dimensions(0, line)[0] <= max(whole, panel.LABEL_WIDTH_DEFAULT), line
+        text = f"#{pick}: " + " ".join(descs[pick].split())
+        if pick < 2:       # short: every word, in order, on whole lines
+            assert " ".join(lines) == text, (lines, text)
+            assert len(lines) >= 2    # wrapped: one row of the sidebar holds ~24 characters
+        else:              # too long: PICKED_LINES lines, the last one ending in '…'
+            assert len(lines) == panel.PICKED_LINES and lines[-1].endswith("…"), lines
+            shown = "".join(lines)[:-1].replace(" ", "")
+            assert text.replace(" ", "").startswith(shown), (lines, text)
+    long = panel.picked_lines("x" * 300, panel.LABEL_WIDTH_DEFAULT)
+    assert len(long) == panel.PICKED_LINES and all(
+        blf.dimensions(0, x)[0] <= panel.LABEL_WIDTH_DEFAULT for x in long), long
+    # a wider sidebar takes longer lines
+    class _Region:
+        width = 400
+    wide = panel.picked_lines(f"#1: {descs[1]}", panel.label_width(_Region()))
+    assert len(wide) < len(panel.picked_lines(f"#1: {descs[1]}", panel.label_width(None)))
+
+
 def test_a_run_fills_the_list_summary_and_colours_both_objects():
     a, b = _torus_pair()
     res, err = run("compute_map")
@@ -262,6 +318,33 @@ def test_solve_with_a_picked_pairing():
     assert bpy.ops.surfmap.solve_candidate() == {'FINISHED'}
     assert settings.chosen_candidate == other and settings.homotopy == other
     assert a.data["surfmap_map"]["homotopy"] == other
+
+
+def test_solve_with_a_pairing_when_compute_map_refuses_is_one_line():
+    """Session 25 (ui check: a click in the empty 3D view had deselected both meshes): Solve
+    With This Pairing passed Compute Map's refusal on as a Python traceback ("Python:
+    Traceback ... RuntimeError: Error: no mesh selected") and left the pairing set to the
+    picked number (Auto unticked) though nothing was solved. Now: Compute Map's one-line error,
+    and the pairing setting as it was."""
+    a, b = _torus_pair()
+    res, err = run("compute_map")
+    assert res == {'FINISHED'}, err
+    settings = bpy.context.scene.surfmap
+    other = next(c.index for c in settings.candidates if c.index != settings.chosen_candidate)
+    for ob in (a, b):
+        ob.select_set(False)
+    for how in ('EXEC_DEFAULT', 'INVOKE_DEFAULT'):
+        settings.homotopy = -1
+        settings.candidate_index = other
+        try:
+            r = bpy.ops.surfmap.solve_candidate(how)
+            err = ""
+        except RuntimeError as e:
+            r, err = None, str(e)
+        assert r is None and "no mesh selected" in err, (how, r, err)
+        assert "Traceback" not in err and "Python" not in err, (how, err)
+        assert settings.homotopy == -1 and settings.homotopy_auto, (how, settings.homotopy)
+    assert a.data["surfmap_map"]["homotopy"] == settings.chosen_candidate   # map unchanged
 
 
 def test_a_genus_2_pairing_solved_by_its_words_is_recorded_by_its_list_number():

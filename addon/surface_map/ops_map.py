@@ -674,15 +674,30 @@ class SURFMAP_OT_solve_candidate(bpy.types.Operator):
         settings.homotopy = settings.candidates[i].index
         return True
 
-    def execute(self, context):
+    def _compute(self, context, how):
+        """Compute Map for the picked pairing. When it refuses (no mesh selected, two meshes of
+        different genus, ...) bpy.ops raises its error as a RuntimeError: reported here as its
+        one line (not a Python traceback), and the pairing setting goes back to what it was,
+        since nothing was solved."""
+        settings = context.scene.surfmap
+        before = settings.homotopy
         if not self._pick(context):
             return {'CANCELLED'}
-        return bpy.ops.surfmap.compute_map('EXEC_DEFAULT')
+        try:
+            return bpy.ops.surfmap.compute_map(how)
+        except RuntimeError as e:
+            settings.homotopy = before
+            lines = [x.strip() for x in str(e).splitlines() if x.strip()]
+            line = next((x for x in lines if x.startswith("Error:")), lines[0] if lines else "")
+            line = line[len("Error:"):].strip() if line.startswith("Error:") else line
+            self.report({'ERROR'}, line or "Compute Map failed")
+            return {'CANCELLED'}
+
+    def execute(self, context):
+        return self._compute(context, 'EXEC_DEFAULT')
 
     def invoke(self, context, event):
-        if not self._pick(context):
-            return {'CANCELLED'}
-        r = bpy.ops.surfmap.compute_map('INVOKE_DEFAULT')
+        r = self._compute(context, 'INVOKE_DEFAULT')
         return {'FINISHED'} if 'RUNNING_MODAL' in r else r
 
 

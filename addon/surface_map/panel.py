@@ -148,10 +148,10 @@ class SURFMAP_PT_map(_SubPanel, bpy.types.Panel):
     bl_label = "Map"
 
     def draw(self, context):
-        draw_map(self.layout, context.scene.surfmap)
+        draw_map(self.layout, context.scene.surfmap, getattr(context, "region", None))
 
 
-def draw_map(layout, settings):
+def draw_map(layout, settings, region=None):
     """The map's options, its button, and the pairings of the last run."""
     layout.use_property_split = True
     layout.use_property_decorate = False
@@ -180,6 +180,85 @@ def draw_map(layout, settings):
         layout.template_list("SURFMAP_UL_candidates", "", settings, "candidates", settings,
                              "candidate_index", rows=3, maxrows=5)
         layout.operator("surfmap.solve_candidate", icon='FILE_REFRESH')
+        # What the picked row is (the rows show only '#k' and the energy), under the button
+        # so that picking a row does not move the button.
+        picked = picked_description(settings)
+        if picked:
+            col = layout.column(align=True)
+            for i, line in enumerate(picked_lines(picked, label_width(region))):
+                col.label(text=line, icon='INFO' if i == 0 else 'BLANK1')
+
+
+PICKED_LINES = 8   # lines of the picked pairing's description under the list
+# Text width of a label with an icon in a sub-panel at Blender's default sidebar width (229 px,
+# UI scale 1), in blf pixels of the 11 pt UI font: under Solve With This Pairing the text
+# "#8: handle 1 -> handle" (116 px) was whole and the next word cut (Blender 3.4 window).
+LABEL_WIDTH_DEFAULT = 120
+SIDEBAR_WIDTH_DEFAULT = 229
+
+
+def picked_description(settings):
+    """'#k: <the core's description>' of the pairing picked in the list, '' when none is
+    picked. The list's rows show only the number and the energy (the description does not fit
+    a row at the default width), and for genus >= 2 most rows read '—': the description tells
+    them apart (which handle goes where, 'listed in the short canonical basis', 'the same class
+    as candidate 0 up to an isometry', why it was not ranked)."""
+    i = int(settings.candidate_index)
+    if not 0 <= i < len(settings.candidates):
+        return ""
+    c = settings.candidates[i]
+    text = " ".join(c.description.split())
+    return f"#{c.index}: {text}" if text else ""
+
+
+def label_width(region=None):
+    """Text width (blf pixels at UI scale 1) of an icon label in a sub-panel of `region`, the
+    sidebar (its default width when unknown)."""
+    width = getattr(region, "width", 0) or 0
+    if width <= 0:
+        return LABEL_WIDTH_DEFAULT
+    prefs = bpy.context.preferences
+    # the region's pixels include the resolution scale (system.ui_scale: 0 in background mode)
+    scale = getattr(prefs.system, "ui_scale", 0.0) or prefs.view.ui_scale or 1.0
+    return max(60, LABEL_WIDTH_DEFAULT + int(width / scale) - SIDEBAR_WIDTH_DEFAULT)
+
+
+def text_width(text):
+    """Width of `text` in the UI's label font (11 pt, UI scale 1), in pixels."""
+    import blf
+    try:
+        blf.size(0, 11)
+    except TypeError:          # Blender 3.x also takes a dpi
+        blf.size(0, 11, 72)
+    return blf.dimensions(0, text)[0]
+
+
+def picked_lines(text, width=LABEL_WIDTH_DEFAULT):
+    """`text` wrapped into lines of at most `width` pixels (a word wider than a line is cut),
+    at most PICKED_LINES lines, the last one ending in '…' when the rest is left out."""
+    lines, cur = [], ""
+    for w in text.split():
+        cand = (cur + " " + w) if cur else w
+        if cur and text_width(cand) > width:
+            lines.append(cur)
+            cur = w
+        else:
+            cur = cand
+        while text_width(cur) > width and len(cur) > 1:   # one word too wide for a line
+            k = len(cur)
+            while k > 1 and text_width(cur[:k]) > width:
+                k -= 1
+            lines.append(cur[:k])
+            cur = cur[k:]
+    if cur:
+        lines.append(cur)
+    if len(lines) > PICKED_LINES:
+        lines = lines[:PICKED_LINES]
+        last = lines[-1]
+        while last and text_width(last + "…") > width:
+            last = last[:-1]
+        lines[-1] = last.rstrip() + "…"
+    return lines
 
 
 class SURFMAP_PT_outputs(_SubPanel, bpy.types.Panel):
