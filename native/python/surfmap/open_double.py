@@ -851,6 +851,14 @@ def _refined_images(S, T, S2, T2, images):
     return T2.D["V"][full]
 
 
+def _own_images(S, T, r, pairing, reversed_orientation, landmarks):
+    """The doubles' map r's images of the source half's vertices as a rough map's images
+    (_symmetric_images: each on the nearest target vertex, the boundary on its paired loop of
+    `pairing`): the start of a re-solve of r's own class (_chosen_class_again)."""
+    pos = np.asarray(r["forward"]["position"])[:S.n2]
+    return _symmetric_images(S, T, pairing, reversed_orientation, pos, None, T.D["V"][:T.n2], landmarks=landmarks)
+
+
 def _double_map(S, T, images, options, landmarks=None, homotopy=None):
     """The doubles' map of the class of `images` (the closed pipeline's images_only run: that class,
     and, the doubles having no coarse copy, the snapped overlay's own class ranked beside it;
@@ -1442,7 +1450,9 @@ def _chosen_class_again(S, T, images, options, landmarks, keep, whose="the reque
     try:
         r, note = _keep_requested_pairing(S, T, _double_map(S, T, images, options, landmarks), images, options,
                                           landmarks, keep, whose)
-    except PairingNotKept as e:
+    except _core.Cancelled:
+        raise
+    except _core.Error as e:
         return None, "", f"{why}; from the chosen map's own images: {e}"
     return r, (f"from the chosen map's own images ({why})" + (f"; {note}" if note else "")), ""
 
@@ -1875,10 +1885,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     chosen_pairing = list(h["pairing"])
 
     def own_images(r=r):
-        # The chosen doubles' map's images of the half's vertices, as a rough map's
-        # (_symmetric_images: each on the nearest target vertex, the boundary on its paired loop).
-        pos = np.asarray(r["forward"]["position"])[:S.n2]
-        return _symmetric_images(S, T, requested, rev, pos, None, T.D["V"][:T.n2], landmarks=lm)
+        return _own_images(S, T, r, requested, rev, lm)
     if h["flipped"] and "source_weights" not in options and sym is None:
         # As the closed pipeline's automatic weights (SourceWeights::Automatic): the intrinsic
         # Delaunay weights' straight images of the user's faces fold (here next to the boundary,
