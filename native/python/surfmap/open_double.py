@@ -1696,7 +1696,12 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     refused: a candidate whose doubles' map puts the source loops on other target loops fails
     ("the doubles' map of this class puts the source loops on target loops [...], not the requested
     [...]"), after the snapped overlay's class, when it won and pairs them otherwise, was replaced by
-    the images' class (_keep_requested_pairing; the candidate's 'snapped_class' says so). orientations: which of 'preserving'
+    the images' class (_keep_requested_pairing; the candidate's 'snapped_class' says so). With the
+    automatic pairing each candidate's map is ranked on whatever pairing it realizes (the
+    candidate's 'realized_pairing'; its 'pairing' is where its rough map started), and the chosen
+    class's re-solves (own-edge weights, doubles refined near the boundary) keep the chosen map's:
+    one that pairs otherwise, also from the chosen map's own images, is not used (its
+    'source_weights_fallback' / 'refined_near_boundary' says why). orientations: which of 'preserving'
     (the halves onto the halves) and 'reversing' (the source's half onto the target's mirror
     half: an orientation-reversing map of the open surfaces) are tried. The lowest energy wins;
     candidates within `tie_tolerance` (relative, default 1e-3) of it are told apart by the
@@ -1731,7 +1736,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     'distortion' {mean, max, per_face} of the morph (ears left out of mean and max), 'energy'
     {'final': the half's energy}, and 'open' {domain 'double', method, boundary_pairing,
     orientation, pairing_choice, candidates [{pairing, orientation, energy, symmetry_error,
-    same_sheet, alignment, status, chosen, snapped_class (a given pairing only, when set)}], tied_candidates, symmetry_error, same_sheet,
+    same_sheet, alignment, status, chosen, realized_pairing (the loops as its doubles' map pairs
+    them), snapped_class (a given pairing only, when set)}], tied_candidates, symmetry_error, same_sheet,
     snap_distance, double_genus, ear_triangles, ear_triangles_turned, source_weights_fallback,
     untangled_vertices, untangled, inverse_flipped_triangles, inverse_ear_triangles,
     inverse_ear_triangles_turned, inverse_untangled_vertices, inverse_untangled, reflex_corner_slides,
