@@ -851,6 +851,14 @@ def _refined_images(S, T, S2, T2, images):
     return T2.D["V"][full]
 
 
+def _own_images(S, T, r, pairing, reversed_orientation, landmarks):
+    """The doubles' map r's images of the source half's vertices as a rough map's images
+    (_symmetric_images: each on the nearest target vertex, the boundary on its paired loop of
+    `pairing`): the start of a re-solve of r's own class (_chosen_class_again)."""
+    pos = np.asarray(r["forward"]["position"])[:S.n2]
+    return _symmetric_images(S, T, pairing, reversed_orientation, pos, None, T.D["V"][:T.n2], landmarks=landmarks)
+
+
 def _double_map(S, T, images, options, landmarks=None, homotopy=None):
     """The doubles' map of the class of `images` (the closed pipeline's images_only run: that class,
     and, the doubles having no coarse copy, the snapped overlay's own class ranked beside it;
@@ -1418,24 +1426,42 @@ def _realized_pairing(S, T, r, requested):
     return got if sorted(got) == list(range(T.b)) else list(requested)
 
 
-def _chosen_class_again(S, T, images, options, landmarks, requested):
+def _chosen_class_again(S, T, images, options, landmarks, keep, whose="the requested", own_images=None):
     """The chosen class's doubles' map solved again (other weights, doubles refined near the
-    boundary): (r, ''); with a requested pairing (not None) that map does not keep
-    (_keep_requested_pairing): (None, why)."""
+    boundary): (r, note, ''), note _keep_requested_pairing's when the class ranked beside the
+    chosen one keeps the pairing `keep` and the winner does not; (None, '', why) when neither keeps
+    it. `keep`: the requested pairing, or with an automatic pairing the one the chosen candidate's
+    map realized (`whose` then "the chosen candidate's"); None: not checked. own_images: when
+    given (a function returning images), tried as the start when `images`' classes do not keep it
+    (the note then says so)."""
     r = _double_map(S, T, images, options, landmarks)
-    if requested is None:
-        return r, ""
+    if keep is None:
+        return r, "", ""
     try:
-        return _keep_requested_pairing(S, T, r, images, options, landmarks, requested)[0], ""
+        return (*_keep_requested_pairing(S, T, r, images, options, landmarks, keep, whose), "")
     except PairingNotKept as e:
-        return None, str(e)
+        why = str(e)
+    if own_images is None:
+        return None, "", why
+    # The chosen map's own class: its images (snapped to target vertices as a rough map's are)
+    # as the start. Its class is the snapped overlay's when that won on the unrefined doubles,
+    # which the refined doubles may not list (the fold test's pair: "not an isomorphism").
+    images = own_images()
+    try:
+        r, note = _keep_requested_pairing(S, T, _double_map(S, T, images, options, landmarks), images, options,
+                                          landmarks, keep, whose)
+    except _core.Cancelled:
+        raise
+    except _core.Error as e:
+        return None, "", f"{why}; from the chosen map's own images: {e}"
+    return r, (f"from the chosen map's own images ({why})" + (f"; {note}" if note else "")), ""
 
 
 class PairingNotKept(_core.SolveError):
     """A requested boundary pairing that the doubles' map of its class does not keep."""
 
 
-def _keep_requested_pairing(S, T, r, images, options, landmarks, requested):
+def _keep_requested_pairing(S, T, r, images, options, landmarks, requested, whose="the requested"):
     """The doubles' map r of a requested pairing's class (`images`), kept to that pairing: returns
     (r or its replacement, a note for the candidate's 'snapped_class', '' when nothing was done).
 
@@ -1444,11 +1470,14 @@ def _keep_requested_pairing(S, T, r, images, options, landmarks, requested):
     (hyperbolic_map.cpp add_snapped_class) and the lower energy wins. That class is kept (it brings
     a start twisted about a loop back to the untwisted class: test_open_double.py twisted starts),
     but it may pair the loops otherwise (the fold test's pair, [0, 1, 2] requested: the snapped
-    class puts them on [1, 2, 0], 61.00 against 62.70 on the doubles). So when the winner is the
-    snapped class and its map does not put the source loops on the requested target loops, the
-    other class of the list (the images' own) is solved alone (`homotopy` index) and taken. When
-    the map taken does not keep the pairing either, PairingNotKept (a SolveError, one line)
-    (docs/open_surfaces.md "Session 25")."""
+    class puts them on [1, 2, 0], 61.00 against 62.70 on the doubles). So when the map does not put
+    the source loops on the requested target loops, the other classes of the list (in order of
+    energy: the images' own when the snapped class won, the snapped class when the images' class
+    won) are solved alone (`homotopy` index) and the first whose map keeps the pairing is taken.
+    When none does, PairingNotKept (a SolveError, one line) (docs/open_surfaces.md "Session 25").
+    The chosen class's re-solves call it with an automatic pairing too, `requested` then the
+    pairing the chosen candidate's map realized and `whose` "the chosen candidate's"
+    (docs/open_surfaces.md "Session 25 (open25)")."""
     requested = [int(x) for x in requested]
     got = _voted_pairing(S, T, r)
     if got == requested:
@@ -1457,20 +1486,30 @@ def _keep_requested_pairing(S, T, r, images, options, landmarks, requested):
     cands = hom.get("candidates", [])
     chosen = int(hom.get("chosen", -1))
     snapped = int(hom.get("snapped_class", {}).get("index", -1))
-    note = ""
-    others = [k for k, c in enumerate(cands) if k != snapped and np.isfinite(float(c.get("energy", np.inf)))]
-    if chosen == snapped >= 0 and others:
-        k = min(others, key=lambda k: float(cands[k]["energy"]))
-        note = (f"not ranked: its doubles' map puts the source loops on target loops {got}, not the requested "
-                f"{requested} (energy {float(cands[snapped]['energy']) / 2:.6g} against the images' class's "
-                f"{float(cands[k]['energy']) / 2:.6g}, halved)")
-        r = _double_map(S, T, images, options, landmarks, homotopy=k)
-        snapped_got, got = got, _voted_pairing(S, T, r)
-        if got == requested:
-            return r, note
-        note = f" (nor does the snapped overlay's class ranked beside it: {snapped_got})"
-    raise PairingNotKept(f"the doubles' map of this class puts the source loops on target loops {got}, not the "
-                         f"requested {requested}{note}")
+    energy = lambda k: float(cands[k].get("energy", np.inf))
+    name = lambda k: ("the snapped overlay's class" if k == snapped else "the images' class" if snapped >= 0 and
+                      len(cands) == 2 else f"class {k}")
+    others = sorted((k for k in range(len(cands)) if k != chosen and np.isfinite(energy(k))), key=energy)
+    paired = {chosen: got}
+    for k in others:
+        r2 = _double_map(S, T, images, options, landmarks, homotopy=k)
+        paired[k] = _voted_pairing(S, T, r2)
+        if paired[k] != requested:
+            continue
+        if chosen == snapped:
+            return r2, (f"not ranked: its doubles' map puts the source loops on target loops {got}, not {whose} "
+                        f"{requested} (energy {energy(chosen) / 2:.6g} against the images' class's "
+                        f"{energy(k) / 2:.6g}, halved)")
+        return r2, (f"taken instead of {name(chosen)}, whose doubles' map puts the source loops on target loops "
+                    f"{got}, not {whose} {requested}: {name(k)} (energy {energy(k) / 2:.6g} against "
+                    f"{energy(chosen) / 2:.6g}, halved)")
+    # The images' class's pairing first (the class asked for), the snapped overlay's beside it.
+    own = [k for k in paired if k != snapped]
+    first = paired[own[0]] if own else got
+    note = (f" (nor does the snapped overlay's class ranked beside it: {paired[snapped]})"
+            if snapped in paired and own else "")
+    raise PairingNotKept(f"the doubles' map of this class puts the source loops on target loops {first}, not "
+                         f"{whose} {requested}{note}")
 
 
 def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=True):
@@ -1657,7 +1696,12 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     refused: a candidate whose doubles' map puts the source loops on other target loops fails
     ("the doubles' map of this class puts the source loops on target loops [...], not the requested
     [...]"), after the snapped overlay's class, when it won and pairs them otherwise, was replaced by
-    the images' class (_keep_requested_pairing; the candidate's 'snapped_class' says so). orientations: which of 'preserving'
+    the images' class (_keep_requested_pairing; the candidate's 'snapped_class' says so). With the
+    automatic pairing each candidate's map is ranked on whatever pairing it realizes (the
+    candidate's 'realized_pairing'; its 'pairing' is where its rough map started), and the chosen
+    class's re-solves (own-edge weights, doubles refined near the boundary) keep the chosen map's:
+    one that pairs otherwise, also from the chosen map's own images, is not used (its
+    'source_weights_fallback' / 'refined_near_boundary' says why). orientations: which of 'preserving'
     (the halves onto the halves) and 'reversing' (the source's half onto the target's mirror
     half: an orientation-reversing map of the open surfaces) are tried. The lowest energy wins;
     candidates within `tie_tolerance` (relative, default 1e-3) of it are told apart by the
@@ -1692,7 +1736,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     'distortion' {mean, max, per_face} of the morph (ears left out of mean and max), 'energy'
     {'final': the half's energy}, and 'open' {domain 'double', method, boundary_pairing,
     orientation, pairing_choice, candidates [{pairing, orientation, energy, symmetry_error,
-    same_sheet, alignment, status, chosen, snapped_class (a given pairing only, when set)}], tied_candidates, symmetry_error, same_sheet,
+    same_sheet, alignment, status, chosen, realized_pairing (the loops as its doubles' map pairs
+    them), snapped_class (a given pairing only, when set)}], tied_candidates, symmetry_error, same_sheet,
     snap_distance, double_genus, ear_triangles, ear_triangles_turned, source_weights_fallback,
     untangled_vertices, untangled, inverse_flipped_triangles, inverse_ear_triangles,
     inverse_ear_triangles_turned, inverse_untangled_vertices, inverse_untangled, reflex_corner_slides,
@@ -1782,6 +1827,10 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                                                       pairing)
                     if note:
                         cand["snapped_class"] = note
+                # The loops as this candidate's doubles' map pairs them (its 'pairing' is where its
+                # rough map started; with an automatic pairing the two may differ, and the chosen
+                # candidate's realized pairing is what its re-solves keep below).
+                cand["realized_pairing"] = _voted_pairing(S, T, r)
                 err, sheet = _symmetry(r, S, T, rev)
                 cand.update(energy=float(r["energy"]["final"]) / 2, symmetry_error=err, same_sheet=sheet,
                             status="ok" if err <= symmetry_tolerance and sheet >= 0.9 else
@@ -1829,22 +1878,40 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     # (the half's solve's map was finished when its set-up was measured: _setup_quality)
     h = sym["half"] if sym is not None else _half(S, T, r, rev, untangle)
     chosen_options = options
-    requested = cand["pairing"] if boundary_pairing is not None else None
+    # The chosen class's re-solves below (the own-edge weights, the doubles refined near the
+    # boundary) keep the pairing of the map that was ranked and chosen: the requested one, or with
+    # an automatic pairing the one the chosen candidate's doubles' map realized (its half's solve
+    # slid the boundary on those loops, _reflection_candidate); a re-solve that pairs otherwise,
+    # even with the class ranked beside it solved alone, is not used (docs/open_surfaces.md
+    # "Session 25 (open25)").
+    if boundary_pairing is not None:
+        requested, whose = cand["pairing"], "the requested"
+    else:
+        requested, whose = _realized_pairing(S, T, r, cand["pairing"]), "the chosen candidate's"
+    chosen_pairing = list(h["pairing"])
+
+    def own_images(r=r):
+        return _own_images(S, T, r, requested, rev, lm)
     if h["flipped"] and "source_weights" not in options and sym is None:
         # As the closed pipeline's automatic weights (SourceWeights::Automatic): the intrinsic
         # Delaunay weights' straight images of the user's faces fold (here next to the boundary,
         # where the half is cut out of a map symmetric only up to the discretization), so the
         # chosen class is solved again with positive weights on the source's own edges.
         own = dict(options, source_weights="own")
-        r2, not_kept = _chosen_class_again(S, T, chosen_images, own, _landmark_pairs(S, T, lm, rev), requested)
+        r2, kept_by, not_kept = _chosen_class_again(S, T, chosen_images, own, _landmark_pairs(S, T, lm, rev),
+                                                    requested, whose, own_images)
+        h2 = None if not_kept else _half(S, T, r2, rev, untangle)
+        if h2 is not None and list(h2["pairing"]) != chosen_pairing:
+            not_kept = (f"its half puts the source loops on target loops {list(h2['pairing'])}, not {chosen_pairing} "
+                        f"as the chosen map's")
         if not_kept:
             h["weights_fallback"] = (f"{h['flipped']} flipped with the intrinsic Delaunay weights; solved again on "
                                      f"the source's own edges: not used, {not_kept}")
         else:
-            h2 = _half(S, T, r2, rev, untangle)
             h2["weights_fallback"] = (f"{h['flipped']} flipped with the intrinsic Delaunay weights"
                                       f"{' after untangling' if h['untangled'] else ''}; solved again on the source's "
-                                      f"own edges: {h2['flipped']} flipped{' after untangling' if h2['untangled'] else ''}")
+                                      f"own edges: {h2['flipped']} flipped{' after untangling' if h2['untangled'] else ''}"
+                                      + (f" ({kept_by})" if kept_by else ""))
             if h2["flipped"] < h["flipped"]:
                 r, chosen_options = r2, own
                 cand = dict(cand, energy=float(r2["energy"]["final"]) / 2)
@@ -1862,8 +1929,9 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         S2 = _Side(S.V, S.F, "source", refine_rings=refine_rings, refine_levels=refine_levels)
         T2 = _Side(T.V, T.F, "target", refine_rings=refine_rings, refine_levels=refine_levels)
         images3 = _refined_images(S, T, S2, T2, chosen_images)
-        r3, not_kept = _chosen_class_again(S2, T2, images3, chosen_options, _landmark_pairs(S2, T2, lm, rev),
-                                           requested)
+        r3, kept_by, not_kept = _chosen_class_again(S2, T2, images3, chosen_options,
+                                                    _landmark_pairs(S2, T2, lm, rev), requested, whose,
+                                                    lambda: _refined_images(S, T, S2, T2, own_images(r)))
         if not_kept:
             refined = (f"{h['flipped']} flipped / {h['inv_flipped']} in the inverse; solved again on the doubles "
                        f"refined within {refine_rings} rings of the boundary {refine_levels} times: not used, "
@@ -1885,7 +1953,13 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
             if sym is not None:
                 refined += (" (reflection-aware solve)" if sym3 is not None else
                             f" (the doubles' half: {refined_reflection})")
-            if h3["flipped"] + h3["inv_flipped"] < h["flipped"] + h["inv_flipped"]:
+            if kept_by:
+                refined += f" ({kept_by})"
+            moved_loops = list(h3["pairing"]) != chosen_pairing
+            if moved_loops:
+                refined += (f": not used, its half puts the source loops on target loops {list(h3['pairing'])}, "
+                            f"not {chosen_pairing} as the chosen map's")
+            if not moved_loops and h3["flipped"] + h3["inv_flipped"] < h["flipped"] + h["inv_flipped"]:
                 h3["weights_fallback"] = h.get("weights_fallback", "")
                 r, h, sym = r3, h3, sym3
                 cand = dict(cand, energy=float(r3["energy"]["final"]) / 2)

@@ -427,10 +427,59 @@ def test_a_requested_pairing_the_doubles_map_does_not_keep_is_refused(monkeypatc
     assert "\n" not in message
     assert message.count("the doubles' map of this class puts the source loops on target loops [1, 0, 2], not the "
                          "requested [0, 1, 2]") == 2, message
-    # Without a requested pairing the same maps are taken (an automatic pairing is not checked).
+    # Without a requested pairing the same maps are taken (an automatic pairing's candidates are not
+    # checked; only the chosen one's re-solves keep its realized pairing, none here).
     m = open_double.surface_map_open(Vs, Fs, Vt, Fs, orientations=("preserving",), refine_levels=0,
                                      reflection_solve=False)
     assert m["flipped_triangles"] == 0
+
+
+def test_an_automatic_pairing_keeps_the_chosen_candidates_pairing_through_its_re_solves():
+    # The fold test's pair with the automatic pairing and the doubles' own half
+    # (reflection_solve=False). The candidates' maps tie within 1e-3 (five at 30.4976, the snapped
+    # overlay's class on loops [1, 2, 0]; one at 30.4693 on [2, 1, 0]) and the alignment chooses
+    # the start [0, 1, 2], whose doubles' map (fold_pair_doubles_map) realizes [1, 2, 0]. That map
+    # leaves one folded face in the inverse, so the chosen class is solved again on doubles refined
+    # near the boundary. From the candidate's images that re-solve comes back on [0, 1, 2] (the
+    # refined doubles do not list the snapped overlay's class: not an isomorphism), and on
+    # 995b24d it was delivered: a map of a class that was never ranked. Now it is not used; the
+    # re-solve from the chosen map's own images keeps [1, 2, 0] and clears the fold
+    # (docs/open_surfaces.md "Session 25 (open25)").
+    Vs, Fs, Vt, Ft, S, T, images, r = fold_pair_doubles_map()
+    realized = open_double._realized_pairing(S, T, r, [0, 1, 2])
+    assert realized == [1, 2, 0]
+    m = open_double.surface_map_open(Vs, Fs, Vt, Ft, orientations=("preserving",), reflection_solve=False)
+    o = m["open"]
+    (chosen,) = [c for c in o["candidates"] if c["chosen"]]
+    assert chosen["pairing"] == [0, 1, 2]
+    assert o["boundary_pairing"] == realized, o["refined_near_boundary"]   # 995b24d: [0, 1, 2]
+    assert chosen["realized_pairing"] == realized
+    assert boundary_vertices_on_loops(m, S, T, realized)
+    assert not boundary_vertices_on_loops(m, S, T, [0, 1, 2])
+    # The refined re-solve was taken (the unrefined map had a folded face), on the chosen pairing.
+    assert o["refined_near_boundary"].startswith("0 flipped / 1 in the inverse"), o["refined_near_boundary"]
+    assert "not used" not in o["refined_near_boundary"]
+    assert "not the chosen candidate's [1, 2, 0]" in o["refined_near_boundary"]
+    assert m["converged"] and m["flipped_triangles"] == 0 and o["inverse_flipped_triangles"] == 0
+    assert check_map(m, Vs, Fs, Vt, Ft) == 0
+    # Every candidate reports the pairing its map realized: the tie's five on the snapped class's.
+    assert sorted(map(tuple, (c["realized_pairing"] for c in o["candidates"]))) == [(1, 2, 0)] * 5 + [(2, 1, 0)]
+
+
+def test_a_re_solve_that_pairs_otherwise_is_not_used(monkeypatch):
+    # The same run with the chosen map's own images (the re-solves' second start) replaced by the
+    # candidate's images, whose refined re-solve pairs the loops [0, 1, 2]: no re-solve keeps
+    # [1, 2, 0], so none is used and the unrefined map is delivered on its own pairing, its one
+    # folded face in the inverse left, the reason in refined_near_boundary.
+    Vs, Fs, Vt, Ft, S, T, images, r = fold_pair_doubles_map()
+    monkeypatch.setattr(open_double, "_own_images", lambda *a: images)
+    m = open_double.surface_map_open(Vs, Fs, Vt, Ft, orientations=("preserving",), reflection_solve=False)
+    o = m["open"]
+    assert o["boundary_pairing"] == [1, 2, 0]
+    assert "not used, the doubles' map of this class puts the source loops on target loops [0, 1, 2], not the " \
+           "chosen candidate's [1, 2, 0]" in o["refined_near_boundary"], o["refined_near_boundary"]
+    assert o["inverse_flipped_triangles"] == 1 and m["flipped_triangles"] == 0
+    assert boundary_vertices_on_loops(m, S, T, [1, 2, 0])
 
 
 def test_the_inverse_locates_the_target_wherever_the_half_is_laid_out(monkeypatch):
