@@ -571,13 +571,7 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   candidates = candidate_classes(*space, source, ss.sl, ss.shb, cl ? cl->loops : ut->loops, cl ? cl->schema : tcs,
                                  *projector, options, cuts, other_basis.get());
   if (options.homotopy.extra_cuts > 0 && !ss.cs.ok) cuts.stop = true;  // no coarse copy: no class search, no more cuts needed
-  // Not for a class named by its words: it is the one class asked for (run as
-  // class 0), so it must come back as a one-entry list (the add-on keeps its
-  // pairings' list by that). (images_only keeps it: on the open surfaces'
-  // doubles the snapped class is what brings the pants' twisted starts back
-  // untwisted, test_open_double.py.)
-  if (!ss.cs.ok && options.homotopy.search.snapped_start && options.homotopy.class_words.empty())
-    add_snapped_class();
+  if (!ss.cs.ok && options.homotopy.search.snapped_start) add_snapped_class();
   // The two-way run's class (issue 14): listed as one from the other direction.
   if (candidates.carried_class >= 0) out.reverse_candidates.push_back(candidates.carried_class);
   if (!candidates.carried_status.empty())
@@ -642,14 +636,20 @@ void HyperbolicPipeline::candidate_classes_and_data() {
 // read where the solve lives: the source's loops followed through the
 // snapped map in the target's deck group, rewritten in canonical letters.
 // A class the list already has (same fingerprint) is only marked.
-// Session 25: not beside the other direction's class alone
-// (reverse_class_only, the two-way run's single-class solves), which asks
-// for that one class as class_words does: on a remeshed genus-2 plate the
-// snapped class (the identity's) was chosen over the twisted class asked
-// for (test_newton_starts.cpp ReverseClassOnlyGetsNoSnappedClassBesideIt).
+// Not in a run that asks for one class alone: a class named by its words
+// (run as class 0, it must come back as a one-entry list: the add-on keeps
+// its pairings' list by that) or the other direction's class alone
+// (reverse_class_only, the two-way run's single-class solves; session 25:
+// on a remeshed genus-2 plate the snapped class, the identity's, was chosen
+// over the twisted class asked for, test_newton_starts.cpp
+// ReverseClassOnlyGetsNoSnappedClassBesideIt). images_only keeps it: on the
+// open surfaces' doubles the snapped class is what brings the pants'
+// twisted starts back untwisted (test_open_double.py).
 void HyperbolicPipeline::add_snapped_class() {
-  if (options.homotopy.reverse_class_only) {
-    out.snapped_class_status = "not listed: the run solves the other direction's class alone (reverse_class_only)";
+  if (!options.homotopy.class_words.empty() || options.homotopy.reverse_class_only) {
+    out.snapped_class_status = options.homotopy.reverse_class_only
+                                   ? "not listed: the run solves the other direction's class alone (reverse_class_only)"
+                                   : "not listed: the run solves the class named by its words alone (class_words)";
     return;
   }
   ensure_snapper();
