@@ -184,6 +184,10 @@ def test_the_picked_pairing_is_described_under_the_list():
     long = panel.picked_lines("x" * 300, panel.LABEL_WIDTH_DEFAULT)
     assert len(long) == panel.PICKED_LINES and all(
         blf.dimensions(0, x)[0] <= panel.LABEL_WIDTH_DEFAULT for x in long), long
+    # a redraw with the same row picked at the same width does not wrap again
+    hits = panel.picked_lines.cache_info().hits
+    assert panel.picked_lines("x" * 300, panel.LABEL_WIDTH_DEFAULT) == long
+    assert panel.picked_lines.cache_info().hits == hits + 1
     # a wider sidebar takes longer lines
     class _Region:
         width = 400

@@ -1,6 +1,7 @@
 """The 'Surface Map' sidebar of the 3D view (N-panel, tab 'Surface Map'): a main panel (module,
 selection, progress) with the sub-panels Cut Loops, Map, Outputs and Result, the way Blender's
 own panels nest, with labels short enough for the default sidebar width."""
+import functools
 import math
 
 import bpy
@@ -233,9 +234,13 @@ def text_width(text):
     return blf.dimensions(0, text)[0]
 
 
+@functools.lru_cache(maxsize=32)
 def picked_lines(text, width=LABEL_WIDTH_DEFAULT):
     """`text` wrapped into lines of at most `width` pixels (a word wider than a line is cut),
-    at most PICKED_LINES lines, the last one ending in '…' when the rest is left out."""
+    at most PICKED_LINES lines, the last one ending in '…' when the rest is left out. A tuple,
+    cached: the panel draws on every redraw (each mouse move over it), and the wrap measures
+    each word's width with blf several times; the text and width change only when another
+    row is picked or the sidebar is resized."""
     lines, cur = [], ""
     for w in text.split():
         cand = (cur + " " + w) if cur else w
@@ -258,7 +263,7 @@ def picked_lines(text, width=LABEL_WIDTH_DEFAULT):
         while last and text_width(last + "…") > width:
             last = last[:-1]
         lines[-1] = last.rstrip() + "…"
-    return lines
+    return tuple(lines)
 
 
 class SURFMAP_PT_outputs(_SubPanel, bpy.types.Panel):
