@@ -699,27 +699,21 @@ void bind_map(py::module_& m) {
   // What the module does beyond its keywords, for callers built against older modules (the
   // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
   m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
-  py::class_<MapJob>(m, "MapJob", "A closed pair's map being computed on a thread of its own that never takes the GIL "
-                    "(made by start_surface_map; docs/python.md \"Session 26\").")
-      .def("progress", &MapJob::progress,
-           "The job's progress: {stage, fraction (of the current stage), iteration, energy, gradient (the "
-           "harmonic solve's last iteration; None before it), cancelled, done}. Never blocks on the solve.")
-      .def("cancel", &MapJob::cancel,
-           "Asks the solve to stop at its next progress point: result() then raises surfmap.Cancelled (a job that "
-           "finished first keeps its result).")
-      .def("done", &MapJob::done, "Whether the solve has finished (result() then returns at once).")
-      .def("wait", &MapJob::wait, py::arg("timeout") = py::none(),
-           "Waits up to `timeout` seconds (None: until done) with the GIL released; returns done().")
-      .def("result", &MapJob::result,
-           "The result dict, as surface_map returns it for the same arguments (waits for the solve first, the GIL "
-           "released); the solve's error re-raised with surface_map's classes (InputError, SolveError, "
-           "Cancelled, ...).")
-      .def_property_readonly("niceness", &MapJob::niceness,
-                             "How much the solve's thread lowered its priority (0 until it started, and where "
-                             "not supported).")
-      .def_property_readonly("thread_id", &MapJob::thread_id,
-                             "The solve thread's native id (as threading.get_native_id; 0 until it started, "
-                             "and off Linux).");
+  // (the methods' documentation: docs/python.md "Session 26")
+  py::class_<MapJob>(m, "MapJob", "A closed pair's map computed on a thread that never takes the GIL (made by "
+                                  "start_surface_map): progress() {stage, fraction, iteration, energy, gradient, "
+                                  "cancelled, done} and done() never block on the solve; cancel() stops it at its next "
+                                  "progress point (result() then raises surfmap.Cancelled); wait(timeout=None) waits "
+                                  "with the GIL released and returns done(); result() waits, then returns "
+                                  "surface_map's dict or raises its error; niceness: the priority step the thread "
+                                  "applied; thread_id: its native id (0 until it started, and off Linux).")
+      .def("progress", &MapJob::progress)
+      .def("cancel", &MapJob::cancel)
+      .def("done", &MapJob::done)
+      .def("wait", &MapJob::wait, py::arg("timeout") = py::none())
+      .def("result", &MapJob::result)
+      .def_property_readonly("niceness", &MapJob::niceness)
+      .def_property_readonly("thread_id", &MapJob::thread_id);
   // Blender quitting (or any interpreter exiting) mid-solve: every job is cancelled and its thread
   // joined before the process's globals go.
   py::module_::import("atexit").attr("register")(py::cpp_function([] { stop_every_job(); }));
