@@ -1,6 +1,7 @@
 """One map computation as plain data (no bpy): the options as the core spells them, the native
-solve and every output computed with numpy (on a worker thread in the UI, inline in background
-mode; in slices, so progress and Esc are seen between them), ready for the bpy side
+solve and every output computed with numpy (on a worker thread in the UI, a closed pair's solve
+on the core's own niced thread, which runs no Python; inline in background mode; in slices, so
+progress and Esc are seen between them), ready for the bpy side
 (ops_map.write_outputs) to write. Data flow: docs/addon.md.
 """
 from dataclasses import dataclass, field

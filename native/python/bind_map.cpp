@@ -371,6 +371,7 @@ class MapJobRunner {
     join();
   }
   void join() {
+    if (joined_) return;  // (no GIL handoff for a job joined already, e.g. at the interpreter's exit)
     if (Py_IsInitialized() && PyGILState_Check()) {
       py::gil_scoped_release release;
       join_now();
@@ -401,10 +402,12 @@ class MapJobRunner {
   void join_now() {
     std::lock_guard<std::mutex> lock(join_mutex_);
     if (thread_.joinable()) thread_.join();
+    joined_ = true;
   }
 
   std::shared_ptr<MapJobState> s_;
   std::mutex join_mutex_;
+  std::atomic<bool> joined_{false};
   std::thread thread_;
 };
 
