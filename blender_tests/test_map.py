@@ -601,11 +601,11 @@ def test_modal_compute_keeps_the_main_thread_ticking():
     while r in ({'RUNNING_MODAL'}, {'PASS_THROUGH'}):
         ticks.append(time.time())
         stages.append(job.stage)
-        solver = job.solve_thread
+        solver = job.solve_job   # the core's job: its thread runs no Python (Session 26)
         if worker_nice is None and hasattr(os, "getpriority") and solver is not None \
-                and solver.is_alive() and job.niceness:
+                and not solver.done() and solver.thread_id and job.niceness:
             try:
-                worker_nice = os.getpriority(os.PRIO_PROCESS, solver.native_id)
+                worker_nice = os.getpriority(os.PRIO_PROCESS, solver.thread_id)
             except (OSError, AttributeError):
                 pass
         r = op.modal(ctx, _Event('TIMER'))
@@ -621,6 +621,7 @@ def test_modal_compute_keeps_the_main_thread_ticking():
     assert gaps[k] < limit, (f"the main thread paused {gaps[k]:.2f} s between '{stages[k]}' and "
                              f"'{stages[k + 1]}' (limit {limit:.2f} s)")
     assert len(set(stages)) >= 4, stages   # the ticks saw the solve's stages and the outputs'
+    assert job.solve_job is not None and job.solve_job.done(), "not solved on the core's thread"
     if sys.platform.startswith("linux"):
         main_nice = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
         expected = min(map_job.MapJob.WORKER_NICENESS, 19 - main_nice)

@@ -1,6 +1,7 @@
 """One map computation as plain data (no bpy): the options as the core spells them, the native
-solve and every output computed with numpy (on a worker thread in the UI, inline in background
-mode; in slices, so progress and Esc are seen between them), ready for the bpy side
+solve and every output computed with numpy (on a worker thread in the UI, a closed pair's solve
+on the core's own niced thread, which runs no Python; inline in background mode; in slices, so
+progress and Esc are seen between them), ready for the bpy side
 (ops_map.write_outputs) to write. Data flow: docs/addon.md.
 """
 from dataclasses import dataclass, field
@@ -171,7 +172,7 @@ class MapJob:
         self.times = {}          # wall seconds per stage: solve, outputs (+ write, by the op)
         self._slices = None
         self.niceness = 0        # how much lower the solve thread's priority was set
-        self.solve_thread = None
+        self.solve_job = None    # the core's job (surfmap.MapJob) of a closed pair
 
     # -- the solve ----------------------------------------------------------------------------
 
@@ -286,49 +287,66 @@ class MapJob:
     # The solve's thread (and the core's threads, which inherit it) runs this much nicer than
     # Blender's main thread, so drawing (software OpenGL's rasterizer threads too) gets the
     # CPU first when the machine is busy; the solve takes what remains (docs/addon.md, "UI
-    # ticks during the compute").
+    # ticks during the compute"). Only a thread that never runs Python is niced: the core's
+    # own (surfmap.start_surface_map), never a Python thread (docs/addon.md "Session 26").
     WORKER_NICENESS = 10
 
-    @classmethod
-    def lower_thread_priority(cls):
-        """Lowers the calling thread's scheduling priority (only this thread and the threads
-        it starts later: Linux's nice is per thread; Windows: below normal). Returns the
-        niceness step applied (0 where not supported). Never raises."""
-        try:
-            if sys.platform.startswith("linux"):
-                tid = threading.get_native_id()
-                now = os.getpriority(os.PRIO_PROCESS, tid)
-                os.setpriority(os.PRIO_PROCESS, tid, min(now + cls.WORKER_NICENESS, 19))
-                return os.getpriority(os.PRIO_PROCESS, tid) - now
-            if sys.platform == "win32":
-                import ctypes
-                k32 = ctypes.windll.kernel32
-                below_normal = -1   # THREAD_PRIORITY_BELOW_NORMAL
-                return cls.WORKER_NICENESS if k32.SetThreadPriority(k32.GetCurrentThread(),
-                                                                    below_normal) else 0
-        except (AttributeError, OSError):
-            pass
-        return 0
+    # Seconds between two reads of the native job's progress (and of Esc) by the worker.
+    POLL = 0.05
 
-    def _solve_niced(self):
-        self.niceness = self.lower_thread_priority()
-        self._guarded(self._solve)
+    def native_job_possible(self):
+        """Whether the solve can run on the core's own thread (surfmap.start_surface_map): a
+        closed pair and a core that offers it. Open pairs run their driver's Python, on the
+        worker thread at Blender's priority (docs/addon.md "Session 26")."""
+        return (not (self.source.boundary_loops or self.target.boundary_loops)
+                and _module_attribute(self.sm, "start_surface_map") is not None)
+
+    def _take_progress(self, p):
+        self._progress(p["stage"], p["fraction"])
+        if p.get("energy") is not None:
+            self.energy = float(p["energy"])
+
+    def _solve_in_native_job(self):
+        """The solve on the core's thread, which lowers its own priority and never takes the
+        GIL: this (worker, not niced) thread converts the arguments, polls the progress, passes
+        Esc on and converts the result; a niced thread asking for the GIL would stall Blender's
+        main thread until the scheduler ran it (seconds under load)."""
+        t = time.time()
+        kw = self.native_kwargs()   # prepare_job checked the core accepts them
+        kw.pop("solve_progress", None)   # the job's progress() carries the solve's energy
+        start = _module_attribute(self.sm, "start_surface_map")
+        job = self.solve_job = start(self.source.V, self.source.F, self.target.V,
+                                     self.target.F, niceness=self.WORKER_NICENESS, **kw)
+        try:
+            while not job.wait(self.POLL):
+                self._take_progress(job.progress())
+                if not self.niceness:
+                    self.niceness = job.niceness
+                if self.cancel:
+                    job.cancel()
+            self.niceness = job.niceness
+            self._take_progress(job.progress())
+            self.result = job.result()
+        finally:
+            if not job.done():   # (an error of ours while polling: stop the solve)
+                job.cancel()
+        self.times["solve"] = time.time() - t
+        if self.cancel:
+            raise self.sm.Cancelled("cancelled")
 
     def _run_threaded(self):
-        """The solve on a thread of its own at lower priority (the core's threads inherit
-        it; the GIL is released there), then the outputs on this thread at Blender's
-        priority: they run Python holding the GIL, and a niced thread preempted while
-        holding it would make the main thread wait (a priority inversion: pauses of 0.5 s
-        at load 23 in test_map's tick test)."""
+        """The solve, then the outputs, on this worker thread at Blender's priority: the
+        outputs run Python holding the GIL, and a niced thread preempted while holding it (or
+        asking for it) would make the main thread wait (a priority inversion: pauses of 0.5 s
+        at load 23, of 7.9 s in a loaded CI, in test_map's tick test). The closed solve itself
+        runs on the core's niced thread (_solve_in_native_job)."""
         before = sys.getswitchinterval()
         sys.setswitchinterval(min(before, self.SWITCH_INTERVAL))
         try:
             if self.t0 is None:
                 self.t0 = time.time()
-            self.solve_thread = threading.Thread(target=self._solve_niced, daemon=True,
-                                                 name="surfmap solve (niced)")
-            self.solve_thread.start()
-            self.solve_thread.join()
+            self._guarded(self._solve_in_native_job if self.native_job_possible()
+                          else self._solve)
             self.compute_outputs()
             self.elapsed = time.time() - self.t0
         finally:

@@ -1,7 +1,22 @@
 // Map layer bindings: the globally optimal surface map (paper §III–VII).
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <condition_variable>
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
+#include <vector>
+
+#ifdef __linux__
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
 
 #include "bindings.h"
 #include "convert.h"
@@ -191,35 +206,323 @@ bool has_boundary(const RowMatrixX3d& V, const RowMatrixX3i& F) {
   return inspect(to_soup(V, F)).num_boundary_loops > 0;
 }
 
-}  // namespace
+// What a closed pair's solve reads, converted from surface_map's arguments on
+// the calling thread: no Python object, so that it can cross to a thread that
+// never takes the GIL (MapJob).
+struct ClosedInputs {
+  RowMatrixX3d vs, vt;
+  RowMatrixX3i fs, ft;
+  SurfaceMapOptions opt;  // progress hooks left to the caller
+};
 
-// Long on purpose: the map's entry points, each one m.def with its keyword list (one py::arg per
-// option, in the options struct's order) and docstring, read like a table; split, a keyword and
-// its documentation would sit apart.
-void bind_map(py::module_& m) {
-  {
-    const std::string name = py::str(m.attr("__name__"));
-    const size_t dot = name.rfind('.');
-    if (dot != std::string::npos) package_name() = name.substr(0, dot);
+// surface_map's arguments after conversion (def_with_map_arguments): the
+// meshes and closed options, and what the open path and the callbacks read.
+struct MapCall {
+  ClosedInputs in;
+  bool open = false;
+  py::object progress, solve_progress, boundary_pairing, landmarks;
+  int refine_rings = 4, refine_levels = 2;
+  bool reflection_solve = true;
+};
+
+// A closed pair's solve: intake, the genus check, the map. Runs no Python.
+struct ClosedSolve {
+  IntakeResult src, dst;
+  SurfaceMapResult r;
+};
+void solve_closed(const ClosedInputs& in, ClosedSolve& s) {
+  intake_source_and_target(in.vs, in.fs, in.vt, in.ft, s.src, s.dst);
+  check_same_genus(s.src.info, s.dst.info);
+  s.r = surface_map(s.src.mesh, s.dst.mesh, in.opt);
+}
+
+// The result dict of a closed solve: the report's keys and values
+// (map/map_report.h, as the CLI's --report file), plus the arrays as numpy
+// arrays. Needs the GIL.
+py::dict closed_result(const ClosedSolve& s, const SurfaceMapOptions& opt) {
+  py::dict d = result_dict(to_json(s.r, opt), s.r);
+  d["source_flipped"] = s.src.flipped;
+  d["target_flipped"] = s.dst.flipped;
+  return d;
+}
+
+// surface_map: the solve on the calling thread, the GIL released during it;
+// the callbacks re-acquire it (a Python exception inside one stops the solve
+// and is re-raised as is).
+py::object surface_map_now(MapCall& c) {
+  if (c.open)
+    return open_surface_map_dict(c.in.vs, c.in.fs, c.in.vt, c.in.ft, c.boundary_pairing, c.landmarks, c.progress,
+                                 c.refine_rings, c.refine_levels, c.reflection_solve);
+  SurfaceMapOptions& opt = c.in.opt;
+  std::optional<py::error_already_set> callback_error;
+  if (!c.progress.is_none())
+    opt.progress = [&](const std::string& stage, double fraction) {
+      py::gil_scoped_acquire gil;
+      try {
+        const py::object r = c.progress(stage, fraction);
+        return r.is_none() || r.cast<bool>();
+      } catch (py::error_already_set& e) {
+        callback_error.emplace(std::move(e));
+        return false;
+      }
+    };
+  if (!c.solve_progress.is_none())
+    opt.solve_progress = [&](int iteration, double energy, double gradient) {
+      py::gil_scoped_acquire gil;
+      try {
+        const py::object r = c.solve_progress(iteration, energy, gradient);
+        return r.is_none() || r.cast<bool>();
+      } catch (py::error_already_set& e) {
+        callback_error.emplace(std::move(e));
+        return false;
+      }
+    };
+  ClosedSolve s;
+  try {
+    py::gil_scoped_release release;
+    solve_closed(c.in, s);
+  } catch (const Cancelled&) {
+    if (callback_error) throw std::move(*callback_error);
+    throw;
   }
-  // What this build's surface_map accepts beyond the meshes, by keyword
-  // argument name, for callers that must work with older builds (the
-  // add-on): read this set instead of searching docstrings.
-  m.attr("CAPABILITIES") = py::frozenset(py::make_tuple(
-      "homotopy", "landmarks", "method", "tolerance", "max_iterations", "solve_progress", "homotopy_candidates",
-      "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
-      "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric", "homotopy_images",
-      "homotopy_both_signs", "flat_overlay", "cheap_direction_check", "compare_directions", "greedy_pants",
-      "homotopy_extra_cuts", "own_weights_floor", "local_fold_repair", "fold_untangle", "target_loops", "two_way_ratio",
-      "snapped_start", "landmarks_may_fold", "through_shape", "face_charts", "locate_initial_map", "refine_rings",
-      "refine_levels", "reflection_solve", "short_canonical_generators", "agreement_ratio",
-      "both_canonical_bases", "class_words", "geometric_layout_basis"));
-  // What the module does beyond its keywords, for callers built against older modules (the
-  // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
-  m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
+  return closed_result(s, opt);
+}
+
+// --- MapJob: a closed pair's solve on a C++ thread that never takes the GIL
+// (docs/python.md "Session 26"). Its progress goes to a mutex-guarded state the
+// caller polls; its cancel flag is read by the core's progress hooks, which
+// then return false (the core throws Cancelled, as for surface_map's
+// callbacks).
+
+// Lowers the calling thread's scheduling priority by `step` (Linux: nice is
+// per thread, and threads it starts later inherit it; a no-op elsewhere).
+// Returns the step applied (0 when none); never throws.
+int lower_this_thread_priority(int step) {
+#ifdef __linux__
+  if (step <= 0) return 0;
+  const auto tid = static_cast<id_t>(syscall(SYS_gettid));
+  errno = 0;
+  const int now = getpriority(PRIO_PROCESS, tid);
+  if (now == -1 && errno != 0) return 0;
+  if (setpriority(PRIO_PROCESS, tid, std::min(now + step, 19)) != 0) return 0;
+  return getpriority(PRIO_PROCESS, tid) - now;
+#else
+  (void)step;
+  return 0;
+#endif
+}
+
+long this_thread_native_id() {
+#ifdef __linux__
+  return static_cast<long>(syscall(SYS_gettid));
+#else
+  return 0;
+#endif
+}
+
+// Written by the job's thread (and the core's threads through the hooks),
+// read by the polls: every field behind `mutex`, but `cancel`.
+struct MapJobState {
+  std::mutex mutex;
+  std::condition_variable finished;
+  std::string stage = "starting";
+  double fraction = 0;
+  int iteration = -1;  // the harmonic solve's last (iteration, energy, gradient); -1: none yet
+  double energy = 0, gradient = 0;
+  bool done = false;
+  int niceness = 0;
+  long thread_id = 0;
+  std::atomic<bool> cancel{false};
+  ClosedInputs in;
+  ClosedSolve out;
+  std::exception_ptr error;
+};
+
+// The thread and its state; shared by the Python object and the exit
+// registry (stop_every_job), so that either may stop it first.
+class MapJobRunner {
+ public:
+  MapJobRunner(ClosedInputs in, int niceness) : s_(std::make_shared<MapJobState>()) {
+    s_->in = std::move(in);
+    MapJobState* s = s_.get();
+    s->in.opt.progress = [s](const std::string& stage, double fraction) {
+      std::lock_guard<std::mutex> lock(s->mutex);
+      s->stage = stage;
+      s->fraction = fraction;
+      return !s->cancel.load();
+    };
+    s->in.opt.solve_progress = [s](int iteration, double energy, double gradient) {
+      std::lock_guard<std::mutex> lock(s->mutex);
+      s->iteration = iteration;
+      s->energy = energy;
+      s->gradient = gradient;
+      return !s->cancel.load();
+    };
+    thread_ = std::thread([state = s_, niceness] { run(*state, niceness); });
+  }
+  ~MapJobRunner() { stop(); }  // (stop released the GIL already when called from Python)
+  MapJobRunner(const MapJobRunner&) = delete;
+  MapJobRunner& operator=(const MapJobRunner&) = delete;
+
+  MapJobState& state() { return *s_; }
+  // Asks the solve to stop and waits for its thread (the GIL released meanwhile when held).
+  void stop() {
+    s_->cancel = true;
+    join();
+  }
+  void join() {
+    if (joined_) return;  // (no GIL handoff for a job joined already, e.g. at the interpreter's exit)
+    if (Py_IsInitialized() && PyGILState_Check()) {
+      py::gil_scoped_release release;
+      join_now();
+    } else {
+      join_now();
+    }
+  }
+
+ private:
+  static void run(MapJobState& s, int niceness) {
+    const int step = lower_this_thread_priority(niceness);
+    {
+      std::lock_guard<std::mutex> lock(s.mutex);
+      s.niceness = step;
+      s.thread_id = this_thread_native_id();
+    }
+    try {
+      solve_closed(s.in, s.out);
+    } catch (...) {
+      s.error = std::current_exception();
+    }
+    {
+      std::lock_guard<std::mutex> lock(s.mutex);
+      s.done = true;
+    }
+    s.finished.notify_all();
+  }
+  void join_now() {
+    std::lock_guard<std::mutex> lock(join_mutex_);
+    if (thread_.joinable()) thread_.join();
+    joined_ = true;
+  }
+
+  std::shared_ptr<MapJobState> s_;
+  std::mutex join_mutex_;
+  std::atomic<bool> joined_{false};
+  std::thread thread_;
+};
+
+// Every running job, so that an interpreter that exits (Blender quitting
+// mid-solve) stops them before the process's globals go: registered with
+// Python's atexit by bind_map.
+std::mutex& jobs_mutex() {
+  static std::mutex m;
+  return m;
+}
+std::vector<std::weak_ptr<MapJobRunner>>& jobs() {
+  static std::vector<std::weak_ptr<MapJobRunner>> v;
+  return v;
+}
+void stop_every_job() {
+  std::vector<std::shared_ptr<MapJobRunner>> live;
+  {
+    std::lock_guard<std::mutex> lock(jobs_mutex());
+    for (const auto& w : jobs())
+      if (auto j = w.lock()) live.push_back(std::move(j));
+  }
+  for (const auto& j : live) j->stop();
+}
+
+// The Python object surfmap.MapJob (made by start_surface_map).
+class MapJob {
+ public:
+  MapJob(ClosedInputs in, int niceness) : runner_(std::make_shared<MapJobRunner>(std::move(in), niceness)) {
+    std::lock_guard<std::mutex> lock(jobs_mutex());
+    auto& v = jobs();
+    v.erase(std::remove_if(v.begin(), v.end(), [](const auto& w) { return w.expired(); }), v.end());
+    v.push_back(runner_);
+  }
+  // Dropped while running: cancelled, and its thread joined (the GIL released).
+  ~MapJob() { runner_->stop(); }
+
+  py::dict progress() {
+    MapJobState& s = runner_->state();
+    std::lock_guard<std::mutex> lock(s.mutex);
+    py::dict d;
+    d["stage"] = s.stage;
+    d["fraction"] = s.fraction;
+    d["iteration"] = s.iteration >= 0 ? py::object(py::int_(s.iteration)) : py::object(py::none());
+    d["energy"] = s.iteration >= 0 ? py::object(py::float_(s.energy)) : py::object(py::none());
+    d["gradient"] = s.iteration >= 0 ? py::object(py::float_(s.gradient)) : py::object(py::none());
+    d["cancelled"] = s.cancel.load();
+    d["done"] = s.done;
+    return d;
+  }
+  void cancel() { runner_->state().cancel = true; }
+  bool done() {
+    MapJobState& s = runner_->state();
+    std::lock_guard<std::mutex> lock(s.mutex);
+    return s.done;
+  }
+  // Waits up to `timeout` seconds (None: until done) with the GIL released; returns done().
+  bool wait(const py::object& timeout) {
+    const double seconds = timeout.is_none() ? -1.0 : timeout.cast<double>();
+    MapJobState& s = runner_->state();
+    py::gil_scoped_release release;
+    std::unique_lock<std::mutex> lock(s.mutex);
+    if (seconds < 0)
+      s.finished.wait(lock, [&] { return s.done; });
+    else
+      s.finished.wait_for(lock, std::chrono::duration<double>(seconds), [&] { return s.done; });
+    return s.done;
+  }
+  // The map's dict, as surface_map returns it (waits for the solve first); the
+  // solve's error re-raised here as surface_map raises it.
+  py::dict result() {
+    wait(py::none());
+    runner_->join();
+    MapJobState& s = runner_->state();
+    if (s.error) std::rethrow_exception(s.error);
+    return closed_result(s.out, s.in.opt);
+  }
+  int niceness() {
+    MapJobState& s = runner_->state();
+    std::lock_guard<std::mutex> lock(s.mutex);
+    return s.niceness;
+  }
+  long thread_id() {
+    MapJobState& s = runner_->state();
+    std::lock_guard<std::mutex> lock(s.mutex);
+    return s.thread_id;
+  }
+
+ private:
+  std::shared_ptr<MapJobRunner> runner_;
+};
+
+// start_surface_map: the arguments converted here, the solve started on a MapJob's thread.
+py::object start_map_job(MapCall& c, int niceness) {
+  if (c.open)
+    throw InputError("start_surface_map: closed surfaces only (an open pair's driver runs Python: call "
+                     "surface_map on a thread of your own; docs/python.md \"Session 26\")");
+  if (!c.progress.is_none() || !c.solve_progress.is_none())
+    throw InputError("start_surface_map takes no progress callbacks (they would run Python on the solve's "
+                     "thread): poll the job's progress()");
+  if (niceness < 0) throw InputError("niceness must be 0 or more");
+  return py::cast(new MapJob(std::move(c.in), niceness), py::return_value_policy::take_ownership);
+}
+
+// Defines `name` in `m` with surface_map's keywords, defaults and conversions,
+// then the `Extra` parameters (their py::args in `extra_args`): body(call,
+// extra...) gets the converted arguments. surface_map and start_surface_map
+// share this one list, so their keywords cannot drift apart.
+//
+// Long on purpose: one py::arg per option, in the options struct's order, read
+// like a table.
+template <class... Extra, class Body, class... ExtraArgs>
+void def_with_map_arguments(py::module_& m, const char* name, Body body, const char* doc, ExtraArgs... extra_args) {
   m.def(
-      "surface_map",
-      [](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
+      name,
+      [body](py::handle Vs, py::handle Fs, py::handle Vt, py::handle Ft, int homotopy, int source_base_vertex,
          int target_base_vertex, py::object progress, py::object landmarks, const std::string& method,
          double tolerance, int max_iterations, py::object solve_progress, int homotopy_candidates,
          int homotopy_full_solves, const std::string& initial_map, const std::string& source_weights,
@@ -230,7 +533,7 @@ void bind_map(py::module_& m) {
          bool snapped_start, bool landmarks_may_fold, bool through_shape, const std::string& face_charts,
          bool locate_initial_map, int refine_rings, int refine_levels, bool reflection_solve,
          bool short_canonical_generators, double agreement_ratio, bool both_canonical_bases, py::object class_words,
-         bool geometric_layout_basis) {
+         bool geometric_layout_basis, Extra... extra) -> py::object {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         // Open surfaces (issue 16): either side with a boundary.
@@ -241,9 +544,19 @@ void bind_map(py::module_& m) {
         }
         if (refine_rings < 1) throw InputError("refine_rings must be at least 1");
         if (refine_levels < 0) throw InputError("refine_levels must be at least 0");
-        if (open)
-          return open_surface_map_dict(vs, fs, vt, ft, boundary_pairing, landmarks, progress, refine_rings,
-                                       refine_levels, reflection_solve);
+        MapCall call;
+        call.progress = progress;
+        call.solve_progress = solve_progress;
+        if (open) {
+          call.open = true;
+          call.in = ClosedInputs{vs, vt, fs, ft, {}};
+          call.boundary_pairing = boundary_pairing;
+          call.landmarks = landmarks;
+          call.refine_rings = refine_rings;
+          call.refine_levels = refine_levels;
+          call.reflection_solve = reflection_solve;
+          return body(call, extra...);
+        }
         if (!boundary_pairing.is_none()) throw InputError("boundary_pairing: only for open surfaces (meshes with boundary loops)");
         SurfaceMapOptions opt;
         opt.homotopy.class_index = homotopy;
@@ -318,48 +631,8 @@ void bind_map(py::module_& m) {
         opt.uniformization.target_metric = parse_enum<UniformizationMetric>(target_metric, "target_metric");
         opt.landmarks = landmark_pairs(landmarks);
         opt.landmarks_may_fold = landmarks_may_fold;  // (--landmarks-may-fold)
-        // The callback runs on this thread with the GIL re-acquired; a Python
-        // exception inside it stops the solve and is re-raised as is.
-        std::optional<py::error_already_set> callback_error;
-        if (!progress.is_none())
-          opt.progress = [&](const std::string& stage, double fraction) {
-            py::gil_scoped_acquire gil;
-            try {
-              const py::object r = progress(stage, fraction);
-              return r.is_none() || r.cast<bool>();
-            } catch (py::error_already_set& e) {
-              callback_error.emplace(std::move(e));
-              return false;
-            }
-          };
-        if (!solve_progress.is_none())
-          opt.solve_progress = [&](int iteration, double energy, double gradient) {
-            py::gil_scoped_acquire gil;
-            try {
-              const py::object r = solve_progress(iteration, energy, gradient);
-              return r.is_none() || r.cast<bool>();
-            } catch (py::error_already_set& e) {
-              callback_error.emplace(std::move(e));
-              return false;
-            }
-          };
-        SurfaceMapResult r;
-        IntakeResult src, dst;
-        try {
-          py::gil_scoped_release release;
-          intake_source_and_target(vs, fs, vt, ft, src, dst);
-          check_same_genus(src.info, dst.info);
-          r = surface_map(src.mesh, dst.mesh, opt);
-        } catch (const Cancelled&) {
-          if (callback_error) throw std::move(*callback_error);
-          throw;
-        }
-        // The report's keys and values (map/map_report.h, as the CLI's
-        // --report file), plus the arrays as numpy arrays.
-        py::dict d = result_dict(to_json(r, opt), r);
-        d["source_flipped"] = src.flipped;
-        d["target_flipped"] = dst.flipped;
-        return d;
+        call.in = ClosedInputs{vs, vt, fs, ft, std::move(opt)};
+        return body(call, extra...);
       },
       // Every default is the options structs' own (map/surface_map.h), as the CLI's flags
       // (cli/cmd_map.cpp): one set of defaults for every path (docs/handle_classes.md
@@ -401,6 +674,53 @@ void bind_map(py::module_& m) {
       py::arg("agreement_ratio") = HomotopyOptions().agreement_ratio,
       py::arg("both_canonical_bases") = LoopOptions().both_canonical_bases, py::arg("class_words") = py::none(),
       py::arg("geometric_layout_basis") = HomotopySearchOptions().geometric_layout_basis,
+      extra_args..., doc);
+}
+
+}  // namespace
+
+// Long on purpose: the map's entry points, each with its docstring, read like a table; split, a
+// keyword and its documentation would sit apart (surface_map's keyword list: def_with_map_arguments).
+void bind_map(py::module_& m) {
+  {
+    const std::string name = py::str(m.attr("__name__"));
+    const size_t dot = name.rfind('.');
+    if (dot != std::string::npos) package_name() = name.substr(0, dot);
+  }
+  // What this build's surface_map accepts beyond the meshes, by keyword
+  // argument name, for callers that must work with older builds (the
+  // add-on): read this set instead of searching docstrings.
+  m.attr("CAPABILITIES") = py::frozenset(py::make_tuple(
+      "homotopy", "landmarks", "method", "tolerance", "max_iterations", "solve_progress", "homotopy_candidates",
+      "homotopy_full_solves", "initial_map", "source_weights", "homotopy_search", "homotopy_search_evaluations",
+      "progress", "source_base_vertex", "target_base_vertex", "boundary_pairing", "two_way", "threads", "target_metric", "homotopy_images",
+      "homotopy_both_signs", "flat_overlay", "cheap_direction_check", "compare_directions", "greedy_pants",
+      "homotopy_extra_cuts", "own_weights_floor", "local_fold_repair", "fold_untangle", "target_loops", "two_way_ratio",
+      "snapped_start", "landmarks_may_fold", "through_shape", "face_charts", "locate_initial_map", "refine_rings",
+      "refine_levels", "reflection_solve", "short_canonical_generators", "agreement_ratio",
+      "both_canonical_bases", "class_words", "geometric_layout_basis"));
+  // What the module does beyond its keywords, for callers built against older modules (the
+  // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
+  m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
+  // (the methods' documentation: docs/python.md "Session 26")
+  py::class_<MapJob>(m, "MapJob", "A closed pair's map computed on a thread that never takes the GIL (made by "
+                                  "start_surface_map): progress() {stage, fraction, iteration, energy, gradient, "
+                                  "cancelled, done} and done() never block on the solve; cancel() stops it at its next "
+                                  "progress point (result() then raises surfmap.Cancelled); wait(timeout=None) waits "
+                                  "with the GIL released and returns done(); result() waits, then returns "
+                                  "surface_map's dict or raises its error; niceness: the priority step the thread "
+                                  "applied; thread_id: its native id (0 until it started, and off Linux).")
+      .def("progress", &MapJob::progress)
+      .def("cancel", &MapJob::cancel)
+      .def("done", &MapJob::done)
+      .def("wait", &MapJob::wait, py::arg("timeout") = py::none())
+      .def("result", &MapJob::result)
+      .def_property_readonly("niceness", &MapJob::niceness)
+      .def_property_readonly("thread_id", &MapJob::thread_id);
+  // Blender quitting (or any interpreter exiting) mid-solve: every job is cancelled and its thread
+  // joined before the process's globals go.
+  py::module_::import("atexit").attr("register")(py::cpp_function([] { stop_every_job(); }));
+  static const char* const surface_map_doc =
       "Globally optimal map from the source onto the target (same genus; genus 0 through the sphere). Open surfaces "
       "(meshes with boundary loops, docs/open_surfaces.md): both sides must have the same genus g and number b of "
       "boundary loops (else InputError naming both); disks (0, 1) and annuli (0, 2) are mapped boundary onto boundary "
@@ -451,7 +771,19 @@ void bind_map(py::module_& m) {
       "--no-reflection-solve): the half solved alone, its mirror given by the reflections (report "
       "open.reflection_solve; docs/open_surfaces.md \"Session 20\"). "
       "`progress(stage, fraction)` "
-      "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.");
+      "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.";
+  def_with_map_arguments(m, "surface_map", [](MapCall& c) { return surface_map_now(c); }, surface_map_doc);
+  def_with_map_arguments<int>(
+      m, "start_surface_map", [](MapCall& c, int niceness) { return start_map_job(c, niceness); },
+      "start_surface_map(source_V, source_F, target_V, target_F, ..., niceness=10): surface_map for a closed pair, "
+      "started on a thread of its own that never takes the GIL; returns a surfmap.MapJob at once (poll its "
+      "progress(), done(); cancel(); result() gives surface_map's dict or raises its error). The same keywords and "
+      "defaults as surface_map, but no `progress` / `solve_progress` callbacks (InputError: they would run Python on "
+      "the solve's thread) and no open pairs (InputError: their driver runs Python). The arguments are converted on "
+      "the calling thread (their errors raised here); the mesh intake and the solve run on the job's thread, which "
+      "lowers its priority by `niceness` (Linux: nice steps, up to 19; the core's threads inherit it; 0: unchanged; "
+      "a no-op elsewhere). docs/python.md \"Session 26\".",
+      py::arg("niceness") = 10);
   m.def(
       "slide_ear_images",
       [](py::handle V, py::handle F, py::handle Vo, py::handle Fo, py::handle face, py::handle barycentric,
