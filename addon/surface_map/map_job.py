@@ -26,7 +26,12 @@ STAGE_NAMES = {
     "quality": "Measuring distortion",
     "forward location": "Locating source on target",
     "inverse location": "Locating target on source",
+    "landmarks": "Holding landmarks",
 }
+
+def _stage_name(stage):
+    return STAGE_NAMES.get(stage, stage[:1].upper() + stage[1:])
+
 
 # The solve's share of the progress bar; the outputs take the rest.
 SOLVE_SHARE = 0.85
@@ -374,7 +379,13 @@ class MapJob:
         return self.thread is None or not self.thread.is_alive()
 
     def stage_text(self):
-        return STAGE_NAMES.get(self.stage, self.stage[:1].upper() + self.stage[1:])
+        """The stage as the status bar and the sidebar show it. An open pair's driver names a
+        closed solve inside a candidate '<candidate> (<closed stage>)' (open_double): the closed
+        stage comes first, so that the sidebar's narrow label shows what runs."""
+        outer, _, inner = self.stage.rpartition(" (")
+        if self.stage.startswith("doubles:") and outer and inner.endswith(")"):
+            return f"{_stage_name(inner[:-1])} · {_stage_name(outer)}"
+        return _stage_name(self.stage)
 
     def status_text(self):
         s = f"Surface Map: {self.stage_text()} ({100 * self.fraction:.0f}%)"
