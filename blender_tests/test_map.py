@@ -1117,13 +1117,15 @@ def test_modal_compute_lets_the_quit_shortcut_through():
 
 def test_an_open_pairs_closed_stage_comes_first_in_the_stage_text():
     """Session 26 (ui26): an open pair's driver now names the closed solve running inside a
-    candidate, '<candidate> (<closed stage>)'; the sidebar's label (229 px) showed only
-    'Doubles: pairing [0], pres...'. The closed stage comes first, by the name the status bar
-    gives it for a closed pair; other stages (an output's '(before)' among them) are unchanged."""
+    candidate, '<candidate> (<closed stage>)'; the sidebar's label (229 px, clipped in its
+    middle) showed 'Doubles: pairing [0], pres...'. The closed stage comes first, by the name the
+    status bar gives it for a closed pair, and alone in the sidebar (short); other stages (an
+    output's '(before)' among them) are unchanged."""
     from surface_map import map_job
     job = map_job.MapJob(None, None, None, None)
     job.stage = "doubles: pairing [0], preserving (target uniformization)"
     assert job.stage_text() == "Uniformizing target · Doubles: pairing [0], preserving"
+    assert job.stage_text(short=True) == "Uniformizing target"   # the sidebar's label
     job.stage = "doubles: pairing [1, 0], reversing (landmarks)"
     assert job.stage_text().startswith("Holding landmarks · Doubles: pairing [1, 0]")
     job.stage = "doubles: pairing [0], preserving"

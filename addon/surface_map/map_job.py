@@ -378,13 +378,14 @@ class MapJob:
     def done(self):
         return self.thread is None or not self.thread.is_alive()
 
-    def stage_text(self):
-        """The stage as the status bar and the sidebar show it. An open pair's driver names a
-        closed solve inside a candidate '<candidate> (<closed stage>)' (open_double): the closed
-        stage comes first, so that the sidebar's narrow label shows what runs."""
+    def stage_text(self, short=False):
+        """The stage as the status bar (and, `short`, the sidebar) shows it. An open pair's
+        driver names a closed solve inside a candidate '<candidate> (<closed stage>)'
+        (open_double): the closed stage comes first, and alone when `short` (the sidebar's
+        229 px label clips long text in its middle)."""
         outer, _, inner = self.stage.rpartition(" (")
         if self.stage.startswith("doubles:") and outer and inner.endswith(")"):
-            return f"{_stage_name(inner[:-1])} · {_stage_name(outer)}"
+            return _stage_name(inner[:-1]) + ("" if short else f" · {_stage_name(outer)}")
         return _stage_name(self.stage)
 
     def status_text(self):
