@@ -29,6 +29,7 @@ STAGE_NAMES = {
     "landmarks": "Holding landmarks",
 }
 
+
 def _stage_name(stage):
     return STAGE_NAMES.get(stage, stage[:1].upper() + stage[1:])
 
