@@ -1028,3 +1028,109 @@ def test_verify_refuses_a_folded_stored_map():
         setattr(data[v], field, getattr(data[w], field))
     res, err = run("verify_map")
     assert res is None and "negatively oriented" in err, err
+
+
+_QUIT_MID_SOLVE = r'''
+import os, sys, time
+sys.path[:0] = [os.path.join(REPO, "blender_tests"), os.path.join(REPO, "addon")]
+import addon_utils, bpy
+addon_utils.enable("surface_map", default_set=True, handle_error=None)
+import helpers
+from surface_map import ops_map
+a = helpers.load_sample("double_torus_g2", (-3, 0, 0))
+b = helpers.load_sample("vase_g2", (3, 0, 0))
+helpers.select([a, b], b)
+job, notes = ops_map.prepare_job(bpy.context, helpers.sm())
+job.start()                                  # the worker thread, as Compute Map's invoke
+t = time.time()
+while job.solve_job is None and time.time() - t < 60:
+    time.sleep(0.01)
+time.sleep(DELAY)
+print("QUIT worker alive", job.thread.is_alive(), "solve done", job.solve_job.done(), flush=True)
+bpy.ops.wm.quit_blender()
+'''
+
+
+def test_quitting_mid_solve_exits_cleanly():
+    """Session 26 (ui26): Blender quitting while Compute Map's worker polls the core's job. In a
+    real window Ctrl+Q then aborted Blender ("terminate called without an active exception",
+    exit code 134): Python's exit ended the daemon worker where it took the GIL back inside a
+    native call (the job's wait), a C++ frame. Now atexit (map_job.stop_running_jobs) cancels
+    the job and joins the worker first. A child Blender starts the worker on the genus-2 pair
+    and quits at several moments (mid-solve, then possibly during the outputs); every child must
+    exit with code 0 without the abort (before the fix, the quit 1 s in aborted)."""
+    import subprocess
+    for delay in (0.0, 0.2, 0.5, 1.0, 2.0):
+        with tempfile.NamedTemporaryFile("w", suffix=".py", delete=False) as f:
+            f.write(f"REPO = {helpers.REPO!r}\nDELAY = {delay}\n" + _QUIT_MID_SOLVE)
+        try:
+            p = subprocess.run([bpy.app.binary_path, "-b", "--factory-startup", "--python", f.name],
+                               capture_output=True, text=True, timeout=300, env=dict(os.environ))
+        finally:
+            os.unlink(f.name)
+        out = p.stdout + p.stderr
+        quit_lines = [x for x in out.splitlines() if x.startswith("QUIT ")]
+        assert len(quit_lines) == 1 and quit_lines[0].startswith("QUIT worker alive True"), \
+            (delay, out[-3000:])
+        if delay <= 0.5:   # (later ones may quit during the outputs, on the worker too)
+            assert quit_lines[0].endswith("solve done False"), (delay, out[-3000:])
+        assert "terminate called" not in out and p.returncode == 0, (delay, p.returncode, out[-3000:])
+
+
+class _KeyEvent(_Event):
+    def __init__(self, type, value='PRESS', **mods):
+        super().__init__(type, value)
+        for m in ("ctrl", "shift", "alt", "oskey"):
+            setattr(self, m, bool(mods.get(m, False)))
+
+
+def test_modal_compute_lets_the_quit_shortcut_through():
+    """Session 26 (ui26): in a real window Ctrl+Q did nothing while Compute Map ran (its modal
+    handler held every key but navigation), so Blender could not be quit mid-solve without Esc
+    first. The Quit shortcut now passes through (the job keeps running until Blender quits);
+    other keys, Ctrl+S or a plain Q among them, are still held. With a user keymap the shortcut
+    is read from its wm.quit_blender items (here a stand-in remapping Quit to Alt+F4)."""
+    from types import SimpleNamespace
+    from surface_map import ops_map
+    sm = helpers.sm()
+    _torus_pair()
+    job, notes = ops_map.prepare_job(bpy.context, sm)
+    op, ctx = _modal_operator(job, notes), _Context()
+    job.start()
+    assert op.modal(ctx, _KeyEvent('Q', ctrl=True)) == {'PASS_THROUGH'}
+    for ev in (_KeyEvent('Q'), _KeyEvent('S', ctrl=True), _KeyEvent('Q', ctrl=True, shift=True),
+               _KeyEvent('Q', 'RELEASE', ctrl=True)):
+        assert op.modal(ctx, ev) == {'RUNNING_MODAL'}, (ev.type, ev.value)
+    assert not job.cancel
+    assert _drive(op, ctx, _Event('ESC', 'PRESS')) == {'CANCELLED'}
+    job.thread.join(60)
+    item = SimpleNamespace(idname="wm.quit_blender", active=True, type='F4', value='PRESS',
+                           any=False, ctrl=False, shift=False, alt=True, oskey=False)
+    km = SimpleNamespace(keymap_items=[item])
+    user = SimpleNamespace(keymaps={"Window": km})
+    remapped = SimpleNamespace(window_manager=SimpleNamespace(
+        keyconfigs=SimpleNamespace(user=user)))
+    assert ops_map.is_quit_shortcut(remapped, _KeyEvent('F4', alt=True))
+    assert not ops_map.is_quit_shortcut(remapped, _KeyEvent('Q', ctrl=True))
+    assert not ops_map.is_quit_shortcut(remapped, _KeyEvent('F4'))
+
+
+def test_an_open_pairs_closed_stage_comes_first_in_the_stage_text():
+    """Session 26 (ui26): an open pair's driver now names the closed solve running inside a
+    candidate, '<candidate> (<closed stage>)'; the sidebar's label (229 px, clipped in its
+    middle) showed 'Doubles: pairing [0], pres...'. The closed stage comes first, by the name the
+    status bar gives it for a closed pair, and alone in the sidebar (short); other stages (an
+    output's '(before)' among them) are unchanged."""
+    from surface_map import map_job
+    job = map_job.MapJob(None, None, None, None)
+    job.stage = "doubles: pairing [0], preserving (target uniformization)"
+    assert job.stage_text() == "Uniformizing target · Doubles: pairing [0], preserving"
+    assert job.stage_text(short=True) == "Uniformizing target"   # the sidebar's label
+    job.stage = "doubles: pairing [1, 0], reversing (landmarks)"
+    assert job.stage_text().startswith("Holding landmarks · Doubles: pairing [1, 0]")
+    job.stage = "doubles: pairing [0], preserving"
+    assert job.stage_text() == "Doubles: pairing [0], preserving"
+    job.stage = "UV map UVMap (before)"
+    assert job.stage_text() == "UV map UVMap (before)"
+    job.stage, job.fraction = "homotopy candidates", 0.3
+    assert job.status_text().startswith("Surface Map: Ranking handle pairings (30%)")

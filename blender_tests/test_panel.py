@@ -86,7 +86,7 @@ def test_progress_bar_reads_the_running_job():
     class Job:
         fraction, stage = 0.42, "harmonic solve"
 
-        def stage_text(self):
+        def stage_text(self, short=False):   # (short: the sidebar's form, MapJob.stage_text)
             return map_job.STAGE_NAMES[self.stage]
     map_job.ACTIVE["job"] = Job()
     try:

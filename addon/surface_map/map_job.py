@@ -4,6 +4,7 @@ on the core's own niced thread, which runs no Python; inline in background mode;
 progress and Esc are seen between them), ready for the bpy side
 (ops_map.write_outputs) to write. Data flow: docs/addon.md.
 """
+import atexit
 from dataclasses import dataclass, field
 import json
 import os
@@ -25,7 +26,13 @@ STAGE_NAMES = {
     "quality": "Measuring distortion",
     "forward location": "Locating source on target",
     "inverse location": "Locating target on source",
+    "landmarks": "Holding landmarks",
 }
+
+
+def _stage_name(stage):
+    return STAGE_NAMES.get(stage, stage[:1].upper() + stage[1:])
+
 
 # The solve's share of the progress bar; the outputs take the rest.
 SOLVE_SHARE = 0.85
@@ -318,7 +325,12 @@ class MapJob:
         job = self.solve_job = start(self.source.V, self.source.F, self.target.V,
                                      self.target.F, niceness=self.WORKER_NICENESS, **kw)
         try:
-            while not job.wait(self.POLL):
+            # time.sleep, not job.wait: a daemon thread that Python's exit finds inside a
+            # native call that released the GIL is ended (pthread_exit) in that call's C++
+            # frame, which aborts the process ("terminate called without an active
+            # exception"); time.sleep's frame is C. stop_running_jobs joins the worker first.
+            while not job.done():
+                time.sleep(self.POLL)
                 self._take_progress(job.progress())
                 if not self.niceness:
                     self.niceness = job.niceness
@@ -342,6 +354,7 @@ class MapJob:
         runs on the core's niced thread (_solve_in_native_job)."""
         before = sys.getswitchinterval()
         sys.setswitchinterval(min(before, self.SWITCH_INTERVAL))
+        RUNNING.add(self)
         try:
             if self.t0 is None:
                 self.t0 = time.time()
@@ -351,6 +364,7 @@ class MapJob:
             self.elapsed = time.time() - self.t0
         finally:
             sys.setswitchinterval(before)
+            RUNNING.discard(self)
 
     def start(self):
         """The native solve AND the numpy outputs on a worker thread, so Blender's main thread
@@ -365,8 +379,15 @@ class MapJob:
     def done(self):
         return self.thread is None or not self.thread.is_alive()
 
-    def stage_text(self):
-        return STAGE_NAMES.get(self.stage, self.stage[:1].upper() + self.stage[1:])
+    def stage_text(self, short=False):
+        """The stage as the status bar (and, `short`, the sidebar) shows it. An open pair's
+        driver names a closed solve inside a candidate '<candidate> (<closed stage>)'
+        (open_double): the closed stage comes first, and alone when `short` (the sidebar's
+        229 px label clips long text in its middle)."""
+        outer, _, inner = self.stage.rpartition(" (")
+        if self.stage.startswith("doubles:") and outer and inner.endswith(")"):
+            return _stage_name(inner[:-1]) + ("" if short else f" · {_stage_name(outer)}")
+        return _stage_name(self.stage)
 
     def status_text(self):
         s = f"Surface Map: {self.stage_text()} ({100 * self.fraction:.0f}%)"
@@ -621,3 +642,30 @@ def compute_outputs(source, target, res, options, only=None):
         pass
     return c.out
 ACTIVE = {"job": None}   # the job the UI is running (read by the panel progress bar)
+
+# The jobs whose worker thread runs (MapJob._run_threaded): stopped when Python exits.
+RUNNING = set()
+
+# Seconds Python's exit waits for each worker to stop (normally the core's next progress point).
+STOP_AT_EXIT = 120.0
+
+
+def stop_running_jobs(timeout=STOP_AT_EXIT):
+    """Cancels every running job and joins its worker thread (Blender quitting mid-solve,
+    registered with atexit). Python's exit then finds no worker: a daemon thread still running
+    when the interpreter finalizes is ended where it next takes the GIL, and where that is in a
+    native call's C++ frame (the core job's wait or result, the open driver's progress
+    callback) the process aborts instead of quitting (docs/addon.md "Session 26 (ui26)")."""
+    jobs = [j for j in list(RUNNING) if j.thread is not None
+            and j.thread is not threading.current_thread()]
+    for job in jobs:
+        job.cancel = True
+        if job.solve_job is not None:
+            job.solve_job.cancel()
+    for job in jobs:
+        if job.thread.is_alive():
+            print("surfmap: stopping the map computation before quitting", flush=True)
+            job.thread.join(timeout)
+
+
+atexit.register(stop_running_jobs)

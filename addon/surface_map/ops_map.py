@@ -459,6 +459,32 @@ def store_candidates(settings, res):
     return lines
 
 
+def is_quit_shortcut(context, event):
+    """Whether `event` presses the window's Quit shortcut (the user keymap's wm.quit_blender
+    items; Ctrl+Q / Cmd+Q when there is no keymap): Compute Map's modal handler holds every
+    other key, and quitting mid-solve must still work (docs/addon.md "Session 26 (ui26)")."""
+    if getattr(event, "value", None) != 'PRESS':
+        return False
+    mods = {m: bool(getattr(event, m, False)) for m in ("ctrl", "shift", "alt", "oskey")}
+    try:
+        km = context.window_manager.keyconfigs.user.keymaps.get("Window")
+        items = [k for k in km.keymap_items if k.idname == "wm.quit_blender" and k.active] \
+            if km is not None else []
+    except AttributeError:   # (no window manager or keyconfig: the stand-ins of the tests)
+        items = []
+    if not items:
+        return event.type == 'Q' and (mods["ctrl"] or mods["oskey"]) \
+            and not (mods["shift"] or mods["alt"])
+    for k in items:
+        if k.type != event.type or k.value not in ('PRESS', 'ANY'):
+            continue
+        # (a modifier of -1 is "any" in Blender 4; KeyMapItem.any is "any" in 3.x)
+        if getattr(k, "any", False) or all(int(getattr(k, m)) == -1
+                                          or bool(getattr(k, m)) == mods[m] for m in mods):
+            return True
+    return False
+
+
 class SURFMAP_OT_compute_map(bpy.types.Operator):
     """Compute the best map from the selected source onto the active target and write UVs,
     morph shape keys, distortion colours and the correspondence (Esc cancels)"""
@@ -589,6 +615,8 @@ class SURFMAP_OT_compute_map(bpy.types.Operator):
         if event.type in {'MIDDLEMOUSE', 'WHEELUPMOUSE', 'WHEELDOWNMOUSE', 'TRACKPADPAN',
                           'TRACKPADZOOM', 'MOUSEMOVE', 'INBETWEEN_MOUSEMOVE'}:
             return {'PASS_THROUGH'}  # the view can be navigated, nothing edited
+        if is_quit_shortcut(context, event):
+            return {'PASS_THROUGH'}  # Ctrl+Q quits (map_job.stop_running_jobs stops the job)
         return {'RUNNING_MODAL'}
 
     def _finish(self, context, job):

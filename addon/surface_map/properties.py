@@ -28,7 +28,7 @@ def _progress_get(self):
 
 def _stage_get(self):
     job = _active_job()
-    return job.stage_text() if job is not None else ""
+    return job.stage_text(short=True) if job is not None else ""
 
 
 def _tolerance_text_get(self):

@@ -839,3 +839,31 @@ def test_a_fold_next_to_small_holes_is_cleared_on_doubles_refined_near_the_bound
     before = r["open"]["refined_near_boundary"].split(";")[0]
     forward, inverse = (int(x.split()[0]) for x in before.split(" / "))
     assert forward + inverse > 0
+
+
+def test_a_cancel_is_seen_inside_a_candidate(monkeypatch):
+    """Session 26 (ui26): Esc in Blender's Compute Map on an open genus-2 pair (30k / 43k
+    vertices, one hole each) took over 4 minutes to stop: the progress callback was called once
+    per candidate, never during its closed solves (the capped map, the doubles' map). Those now
+    report their stages through it (named '<candidate stage> (<closed stage>)'), so a callback
+    that says stop at its first call inside a candidate stops the first closed solve at its first
+    stage end: one closed solve started, not the candidate's several (before the fix the stop was
+    seen at the next candidate, after all of the first one's closed solves)."""
+    Vs, Fs = punctured_torus()
+    Vt = bend(Vs, 0.3)
+    started, calls = [], []
+    real = open_double._core.surface_map
+
+    def counting(*a, **kw):
+        started.append(kw.get("progress") is not None)
+        return real(*a, **kw)
+    monkeypatch.setattr(open_double._core, "surface_map", counting)
+
+    def progress(stage, fraction):
+        calls.append((stage, fraction))
+        return len(calls) < 2   # the first call (the candidate's start) goes on; the next stops
+    with pytest.raises(surfmap.Cancelled):
+        surfmap.surface_map(Vs, Fs, Vt, Fs, progress=progress)
+    assert calls[0][0].startswith("doubles: pairing"), calls
+    assert calls[1][0].startswith(calls[0][0] + " ("), calls   # inside the candidate's solve
+    assert started == [True], (started, calls)
