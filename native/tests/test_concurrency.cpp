@@ -8,6 +8,7 @@
 #include <cmath>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "surfmap/error.h"
@@ -184,6 +185,44 @@ TEST(SurfaceMapConcurrency, CancellingDuringParallelSectionsThrowsCancelled) {
   o2.homotopy.class_index = 0;
   o2.solve_progress = [](int it, double, double) { return it < 1; };
   EXPECT_THROW(surface_map(p.a, p.b, o2), Cancelled);
+}
+
+// Session 26 (ui26): the target's flow, the first long stage of a map,
+// reports each Newton step as "target uniformization" with a fraction that
+// rises below the stage's end (0.3) and reads the answer: a cancel there
+// stops the map before any later stage. Before, the stage reported once, at
+// its end, so a progress bar sat at 0% and a cancel waited for the flow.
+TEST(SurfaceMapConcurrency, TheTargetsFlowReportsEachStepAndCanBeCancelledInIt) {
+  const Pair& p = pair();
+  SurfaceMapOptions o;
+  std::vector<std::pair<std::string, double>> seen;
+  o.progress = [&](const std::string& s, double f) {
+    seen.emplace_back(s, f);
+    return true;
+  };
+  (void)surface_map(p.a, p.b, o);
+  std::vector<double> during;  // the target stage's reports before its end
+  for (const auto& [s, f] : seen) {
+    if (s != "target uniformization") break;
+    if (f < 0.3) during.push_back(f);
+  }
+  ASSERT_GE(during.size(), 2u) << "the flow's Newton steps are not reported";
+  EXPECT_TRUE(std::is_sorted(during.begin(), during.end()));
+  EXPECT_GT(during.back(), 0.1);  // (the residual fell most of its way on a log scale)
+  const auto end = std::find_if(seen.begin(), seen.end(), [](const auto& x) { return x.second >= 0.3; });
+  ASSERT_NE(end, seen.end());
+  EXPECT_EQ(end->first, "target uniformization");
+  EXPECT_DOUBLE_EQ(end->second, 0.3);
+
+  // Cancelled at the flow's first step: no later stage runs.
+  std::vector<std::string> stages;
+  SurfaceMapOptions c;
+  c.progress = [&](const std::string& s, double f) {
+    stages.push_back(s);
+    return !(s == "target uniformization" && f < 0.3);
+  };
+  EXPECT_THROW(surface_map(p.a, p.b, c), Cancelled);
+  EXPECT_EQ(stages, std::vector<std::string>{"target uniformization"});
 }
 
 }  // namespace

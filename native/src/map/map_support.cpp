@@ -4,6 +4,7 @@
 #include <cmath>
 #include <future>
 #include <limits>
+#include <memory>
 #include <optional>
 
 #include "surfmap/error.h"
@@ -179,6 +180,40 @@ std::shared_ptr<const ClassLoops> class_loops_on_input(OwnLoopsOnTPrime own, con
   return cl;
 }
 
+/// The flow's per-Newton-step hook of intrinsic_target: false once `stop` is
+/// set; for the target (`mesh` "target") also the map's progress callback,
+/// as stage "target uniformization". Session 26 (ui26): the target's flow is
+/// the first long stage of a map (7 of 14 s on a 123k -> 174k vertex genus-2
+/// pair) and reported nothing, so a progress bar sat at 0% and a cancel
+/// waited for the stage's end. The fraction runs from 0 to
+/// kTargetFlowFraction as the residual falls from its first value to the
+/// tolerance on a log scale (Newton's steps), never backwards (the coarse
+/// start's flow and the flow from u = 0 share it). The source's flow (the
+/// class bounds, on the second thread) reports nothing: its stage is not
+/// the one the caller shows.
+constexpr double kTargetFlowFraction = 0.25;  // (the stage ends at 0.3 in every pipeline)
+std::function<bool(int, double)> flow_progress(const SurfaceMapOptions& options, const std::atomic<bool>* stop,
+                                               const std::string& mesh) {
+  const auto report = mesh == "target" ? options.progress : nullptr;
+  if (!stop && !report) return nullptr;
+  struct Shown {
+    double first = 0, fraction = 0;
+  };
+  auto shown = std::make_shared<Shown>();
+  const double tolerance = options.uniformization.tolerance;
+  return [stop, report, shown, tolerance](int, double residual) {
+    if (stop && stop->load()) return false;
+    if (!report) return true;
+    if (shown->first <= 0) shown->first = residual;
+    const double first = shown->first, floor = std::max(tolerance, 1e-300);
+    if (first > floor && residual > 0) {
+      const double f = std::log(first / std::max(residual, floor)) / std::log(first / floor);
+      shown->fraction = std::max(shown->fraction, std::clamp(f, 0.0, 1.0));
+    }
+    return report("target uniformization", kTargetFlowFraction * shown->fraction);
+  };
+}
+
 /// The flip-based path of uniformized_target: Newton with intrinsic Delaunay
 /// flips on the user's target, loops on T' (uniformize/intrinsic_loops.h),
 /// disk layout. Throws SolveError when any step fails (typed_target makes it
@@ -206,7 +241,7 @@ UniformizedTarget intrinsic_target(const TriMesh& target, const Connectivity& tc
   fo.intrinsic_delaunay = true;
   // The evaluations' per-face loop in two halves (the same bits as one).
   fo.threads = threads;
-  if (stop) fo.progress = [stop](int, double) { return !stop->load(); };
+  fo.progress = flow_progress(options, stop, mesh);
   const Eigen::VectorXd lengths = edge_lengths(target, tc);
   // Issue 19: Newton from a coarse copy's solution, prolonged (the same
   // metric within the tolerance, fewer Newton steps and CG iterations on
