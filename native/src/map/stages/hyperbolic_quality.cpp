@@ -108,7 +108,13 @@ DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc, 
         return Eigen::Vector3d(local(3 * f).displacement_of_origin(), local(3 * f + 1).displacement_of_origin(),
                                local(3 * f + 2).displacement_of_origin());
       },
-      true);
+      true,
+      // Corner k's chart: corner k + 1 through side k, corner k + 2 through
+      // side k + 2 inverted (long thin images are read from their widest corner).
+      [&](int f, int k) {
+        return std::make_pair(local(3 * f + k).apply(Complex(0.0)),
+                              local(3 * f + (k + 2) % 3).inverse().apply(Complex(0.0)));
+      });
 }
 
 int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::vector<Mobius>& edge_local) {
@@ -119,7 +125,16 @@ int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::v
     for (int f = 0; f < static_cast<int>(idt.F.rows()); ++f) {
       Mobius side[3];
       if (!intrinsic_sides(idt, edge_local, f, side)) continue;
-      const Complex p1 = side[0].apply(Complex(0.0)), p2 = side[2].inverse().apply(Complex(0.0));
+      Complex p1 = side[0].apply(Complex(0.0)), p2 = side[2].inverse().apply(Complex(0.0));
+      if (image_orientation(p1, p2) != 1) {
+        // Not clearly positive from corner 0: read from the widest corner,
+        // as chart_distortion does (a long thin image's far corners lie
+        // within round-off of each other seen from its sharp ends).
+        const int k = widest_corner(Eigen::Vector3d(side[0].displacement_of_origin(), side[1].displacement_of_origin(),
+                                                    side[2].displacement_of_origin()));
+        p1 = side[k].apply(Complex(0.0));
+        p2 = side[(k + 2) % 3].inverse().apply(Complex(0.0));
+      }
       if (p1.real() * p2.imag() - p1.imag() * p2.real() <= 0) ++flipped;
     }
   }
