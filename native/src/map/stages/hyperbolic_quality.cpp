@@ -117,6 +117,39 @@ DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc, 
       });
 }
 
+ImageCover image_cover(const TriMesh&, const Connectivity& sc, const std::vector<Mobius>& edge_local,
+                       const SolverEdgeIndex& index) {
+  ImageCover out;
+  const int nf = sc.num_faces(), nv = sc.num_vertices();
+  const int chi = nv - sc.num_edges() + nf;
+  if (chi >= 0 || index.solver_edge.size() != static_cast<size_t>(sc.num_edges())) return out;
+  std::vector<double> angle_sum(nv, 0.0);
+  double area = 0;
+  for (int f = 0; f < nf; ++f) {
+    double angles = 0;
+    for (int k = 0; k < 3; ++k) {
+      // Corner k's angle, signed, in its own chart (corners k + 1 and k + 2
+      // as in chart_distortion): resolved however long the sides.
+      const Complex b = source_side(sc, edge_local, index, 3 * f + k).apply(Complex(0.0));
+      const Complex c = source_side(sc, edge_local, index, 3 * f + (k + 2) % 3).inverse().apply(Complex(0.0));
+      const double angle = std::arg(c / b);
+      angle_sum[sc.tail(3 * f + k)] += angle;
+      angles += angle;
+    }
+    // A positive triangle's area is pi minus its angles; a flipped one's
+    // angles are all negative, its signed area -(pi - their sizes).
+    area += (angles < 0 ? -M_PI : M_PI) - angles;
+  }
+  out.triangles = nf;
+  out.area_ratio = area / (-2 * M_PI * chi);
+  for (int v = 0; v < nv; ++v) {
+    const double gap = std::abs(angle_sum[v] - 2 * M_PI);
+    if (!(gap <= 1e-6)) ++out.vertices_off;
+    if (!(gap <= out.worst_angle_gap)) out.worst_angle_gap = gap;
+  }
+  return out;
+}
+
 int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::vector<Mobius>& edge_local) {
   // The intrinsic Delaunay triangles (the energy's own triangulation): their
   // images from the solver's local charts, oriented by the face's corners.
