@@ -18,6 +18,7 @@
 #include "surfmap/samples/shapes.h"
 #include "surfmap/uniformize/ricci_flow.h"
 #include "surfmap/uniformize/uniformize.h"
+#include "../src/map/stages/hyperbolic_quality.h"
 #include "../src/map/stages/source_weights_fallback.h"
 
 namespace surfmap {
@@ -370,6 +371,78 @@ TEST(Distortion, FlatButPositiveImagesDoNotFoldTheMap) {
       EXPECT_EQ(q.max, q.per_face[1]);
     }
   }
+}
+
+// An ordinary source triangle (equilateral) and its back (a closed
+// two-face sphere), the image of vertex k at g[k](0), each corner in its own
+// chart as the solver keeps them: edge (tail, head) carries g[tail]^-1
+// g[head] (head's chart -> tail's). Both faces list their corners from
+// vertex `first` on; the back's image is the front's mirror.
+DistortionStats one_face_chart_distortion(const hyperbolic::Mobius (&g)[3], int first) {
+  TriMesh src;
+  src.V.resize(3, 3);
+  src.V << 0, 0, 0, 1, 0, 0, 0.5, std::sqrt(0.75), 0;
+  src.F.resize(2, 3);
+  src.F << first, (first + 1) % 3, (first + 2) % 3, first, (first + 2) % 3, (first + 1) % 3;
+  const Connectivity sc(src.F, 3);
+  detail::SolverEdgeIndex index;
+  std::vector<hyperbolic::Mobius> edge_local;
+  for (int e = 0; e < sc.num_edges(); ++e) {
+    const int h = sc.edge_halfedge(e);
+    index.solver_edge.push_back(e);
+    index.forward.push_back(1);
+    edge_local.push_back(g[sc.tail(h)].inverse() * g[sc.head(h)]);
+  }
+  return detail::chart_distortion(src, sc, edge_local, index);
+}
+
+TEST(Distortion, LongThinImagesAreReadFromTheirWidestCorner) {
+  // Issue 13 (block g12 -> raw wheel g12, docs/robustness.md "Session 26"):
+  // a twisted class maps source faces of an ordinary size to hyperbolic
+  // triangles 30-56 units long. Seen from the chart centring a sharp corner
+  // of such an image, the other two corners lie within e^-(side length) of
+  // each other on the chart's boundary circle, so |b x c| is below round-off
+  // however large the triangle's area: the face was counted degenerate and
+  // refused the class's own-edge map, which had no flipped face. From its
+  // widest corner (opposite its longest side) the orientation is resolved.
+  using hyperbolic::Mobius;
+  const double L = 35, base = 0.5, lean = 0.3;
+  for (const int sign : {1, -1}) {
+    // Corner 0 (the apex) at distance L from corner 1, corner 2 at `base`
+    // from corner 1: positively oriented for sign 1, mirrored for -1.
+    const Mobius g[3] = {Mobius::translation(std::polar(L, sign * (M_PI / 2 + lean))), Mobius::identity(),
+                         Mobius::translation(std::complex<double>(base, 0))};
+    SCOPED_TRACE(sign);
+    // Listed from the apex (the old reading's blind corner), from corner 1
+    // (the widest) and from corner 2: one orientation, and one D'.
+    const DistortionStats apex = one_face_chart_distortion(g, 0);
+    const DistortionStats widest = one_face_chart_distortion(g, 1);
+    const DistortionStats third = one_face_chart_distortion(g, 2);
+    // The front (face 0) is positive for sign 1 and the back flipped, the
+    // other way round for -1: one flipped face, none degenerate.
+    const int positive = sign > 0 ? 0 : 1;
+    for (const DistortionStats* q : {&apex, &widest, &third}) {
+      EXPECT_EQ(q->degenerate, 0);
+      EXPECT_EQ(q->flipped, 1);
+      EXPECT_TRUE(std::isinf(q->per_face[1 - positive]));
+      ASSERT_TRUE(std::isfinite(q->per_face[positive]));
+      EXPECT_GT(q->per_face[positive], 10);  // stretched (D' ~93), measured
+      EXPECT_NEAR(q->per_face[positive], widest.per_face[positive], 1e-6 * widest.per_face[positive]);
+    }
+    // What refused the class's own-edge map: no face is left degenerate.
+    SurfaceMapResult out;
+    detail::store_distortion(apex, out);
+    EXPECT_EQ(out.degenerate_triangles, 0);
+    EXPECT_EQ(out.flipped_triangles, 1);
+  }
+  // An ordinary image reads the same from every corner, as before.
+  const Mobius h[3] = {Mobius::translation(std::complex<double>(0, 0.4)), Mobius::identity(),
+                       Mobius::translation(std::complex<double>(0.5, 0))};
+  const DistortionStats a = one_face_chart_distortion(h, 0), b = one_face_chart_distortion(h, 1);
+  EXPECT_EQ(a.flipped, 1);
+  EXPECT_EQ(b.flipped, 1);
+  EXPECT_EQ(a.degenerate + b.degenerate, 0);
+  EXPECT_NEAR(a.per_face[0], b.per_face[0], 1e-9 * b.per_face[0]);
 }
 
 }  // namespace

@@ -328,6 +328,20 @@ TEST(SurfaceMap, CappedTorusFallsBackToPositiveWeightsOnItsOwnEdges) {
   EXPECT_EQ(mr.source_weights, "intrinsic Delaunay cotangent");
 }
 
+// Every edge (tail, head) of `c` carries T_tail^-1 T_head (head's chart ->
+// tail's) for the vertex charts `chart`: a layout that closes to round-off.
+void elements_between_charts(const Connectivity& c, const std::vector<hyperbolic::Mobius>& chart,
+                             std::vector<hyperbolic::Mobius>& edge_local, detail::SolverEdgeIndex& index) {
+  edge_local.assign(c.num_edges(), {});
+  index.forward.assign(c.num_edges(), 1);
+  index.solver_edge.clear();
+  for (int e = 0; e < c.num_edges(); ++e) {
+    const int h = c.edge_halfedge(e);
+    edge_local[e] = (chart[c.tail(h)].inverse() * chart[c.head(h)]).normalized();
+    index.solver_edge.push_back(e);
+  }
+}
+
 // Issue 13: the layout's triangles close (LayoutClosure). A wrong element
 // opens exactly the triangles at its edge, by its distance from the
 // identity: edges of a sphere's mesh in the charts of points scattered in
@@ -340,14 +354,9 @@ TEST(SurfaceMap, LayoutClosureOpensTheTrianglesOfAWrongElement) {
   std::vector<Mobius> chart(m.num_vertices());
   for (int v = 0; v < m.num_vertices(); ++v)
     chart[v] = Mobius::translation_to(0.6 * std::complex<double>(m.V(v, 0), m.V(v, 1)) / m.V.row(v).norm());
-  std::vector<Mobius> edge_local(c.num_edges());
+  std::vector<Mobius> edge_local;
   detail::SolverEdgeIndex index;
-  index.forward.assign(c.num_edges(), 1);
-  for (int e = 0; e < c.num_edges(); ++e) {
-    const int h = c.edge_halfedge(e);
-    edge_local[e] = (chart[c.tail(h)].inverse() * chart[c.head(h)]).normalized();
-    index.solver_edge.push_back(e);
-  }
+  elements_between_charts(c, chart, edge_local, index);
   const LayoutClosure closed = detail::source_layout_closure(c, edge_local, index);
   EXPECT_EQ(closed.triangles, m.num_faces());
   EXPECT_EQ(closed.open_triangles, 0);
@@ -391,6 +400,40 @@ TEST(SurfaceMap, LayoutClosesAroundEveryIntrinsicTriangle) {
     EXPECT_EQ(j["layout_closure"]["worst_gap"], c.worst_gap);
     EXPECT_EQ(j["layout_closure"]["tolerance"], 1e-8);
   }
+}
+
+// Issue 13 (session 26): the returned map's image triangles cover the
+// target once in its hyperbolic metric (ImageCover): signed area 4 pi (g -
+// 1) and every vertex's angle sum 2 pi. Charts from points of one disk (a
+// map of the genus-2 surface into a disk, degree 0) cover nothing: their
+// signed areas cancel and, as F - 2V = 4 for genus 2, some vertex's angle
+// sum is not 2 pi.
+TEST(SurfaceMap, ImageCoverCountsTheSheetsOfTheImage) {
+  using hyperbolic::Mobius;
+  const TriMesh a = samples::n_hole_torus(2, 36, true);
+  const TriMesh b = samples::vase(40, true);
+  const SurfaceMapResult m = surface_map(a, b);
+  expect_valid_map(m, a, b);
+  EXPECT_EQ(m.image_cover.triangles, a.num_faces());
+  EXPECT_NEAR(m.image_cover.area_ratio, 1.0, 1e-9);
+  EXPECT_EQ(m.image_cover.vertices_off, 0);
+  EXPECT_LT(m.image_cover.worst_angle_gap, 1e-9);
+  const nlohmann::json j = to_json(m, SurfaceMapOptions());
+  EXPECT_EQ(j["image_cover"]["vertices_off"], 0);
+  EXPECT_EQ(j["image_cover"]["area_ratio"], m.image_cover.area_ratio);
+
+  const Connectivity c(a.F, a.num_vertices());
+  std::vector<Mobius> chart(a.num_vertices());
+  for (int v = 0; v < a.num_vertices(); ++v)
+    chart[v] = Mobius::translation_to(0.3 * std::complex<double>(a.V(v, 0), a.V(v, 1) + 0.1 * a.V(v, 2)));
+  std::vector<Mobius> edge_local;
+  detail::SolverEdgeIndex index;
+  elements_between_charts(c, chart, edge_local, index);
+  const ImageCover flat = detail::image_cover(a, c, edge_local, index);
+  EXPECT_EQ(flat.triangles, a.num_faces());
+  EXPECT_NEAR(flat.area_ratio, 0.0, 1e-9);
+  EXPECT_GT(flat.vertices_off, 0);
+  EXPECT_GT(flat.worst_angle_gap, 1.0);
 }
 
 TEST(SurfaceMap, NeedleTipSourceMaps) {

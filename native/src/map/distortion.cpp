@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <tuple>
 
 #include <Eigen/Dense>
 
@@ -87,10 +88,20 @@ double hyperbolic_face_dilatation(const Eigen::Vector3d& p0, const Eigen::Vector
   return d;
 }
 
+int widest_corner(const Eigen::Vector3d& sides) {
+  if (!sides.allFinite()) return 0;
+  int longest = 0;
+  for (int k = 1; k < 3; ++k)
+    if (sides[k] > sides[longest]) longest = k;
+  return (longest + 2) % 3;
+}
+
 DistortionStats hyperbolic_image_distortion(
     const TriMesh& source,
     const std::function<std::pair<std::complex<double>, std::complex<double>>(int f)>& image_in_chart,
-    const std::function<Eigen::Vector3d(int f)>& image_sides, bool thin_images) {
+    const std::function<Eigen::Vector3d(int f)>& image_sides, bool thin_images,
+    const std::function<std::pair<std::complex<double>, std::complex<double>>(int f, int corner)>&
+        image_in_corner_chart) {
   const int nf = source.num_faces();
   DistortionStats out;
   out.per_face.assign(nf, std::numeric_limits<double>::infinity());
@@ -109,8 +120,19 @@ DistortionStats hyperbolic_image_distortion(
         continue;
       }
     }
-    const auto [b, c] = image_in_chart(f);
-    const int orientation = image_orientation(b, c);
+    auto [b, c] = image_in_chart(f);
+    int orientation = image_orientation(b, c);
+    // The corner the face is read from (image_in_corner_chart).
+    int r = 0;
+    Eigen::Vector3d sides;
+    if (orientation != 1 && image_in_corner_chart) {
+      sides = image_sides(f);
+      r = widest_corner(sides);
+      if (r != 0) {
+        std::tie(b, c) = image_in_corner_chart(f, r);
+        orientation = image_orientation(b, c);
+      }
+    }
     if (orientation == 0) {
       ++out.degenerate;
       const double cross = b.real() * c.imag() - b.imag() * c.real();
@@ -121,9 +143,15 @@ DistortionStats hyperbolic_image_distortion(
       ++out.flipped;
       continue;
     }
-    const Eigen::Vector3d p0 = source.V.row(source.F(f, 0)), p1 = source.V.row(source.F(f, 1)),
-                          p2 = source.V.row(source.F(f, 2));
-    const double d = hyperbolic_face_dilatation(p0, p1, p2, b, c, image_sides(f), thin_images);
+    const Eigen::Vector3d p0 = source.V.row(source.F(f, r)), p1 = source.V.row(source.F(f, (r + 1) % 3)),
+                          p2 = source.V.row(source.F(f, (r + 2) % 3));
+    double d;
+    if (r == 0) {
+      d = hyperbolic_face_dilatation(p0, p1, p2, b, c, image_sides(f), thin_images);
+    } else {
+      const Eigen::Vector3d rotated(sides[r], sides[(r + 1) % 3], sides[(r + 2) % 3]);
+      d = hyperbolic_face_dilatation(p0, p1, p2, b, c, rotated, thin_images);
+    }
     out.per_face[f] = d;
     if (thin[f]) {
       out.thin_source.push_back(f);

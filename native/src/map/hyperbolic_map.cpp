@@ -2135,6 +2135,8 @@ bool map_class(HyperbolicPipeline& p) {
     return false;
   }
   out.source_image = placed.zp;
+  if (static_cast<int>(hr.edge_local.size()) == static_cast<int>(cd.edges.size()))
+    out.image_cover = image_cover(p.source, p.sc, hr.edge_local, p.solver_index);
   p.stage_done("quality", 0.75);
 
   HyperbolicLocationInput li;

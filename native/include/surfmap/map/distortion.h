@@ -110,10 +110,28 @@ std::vector<char> thin_source_faces(const RowMatrixX3d& V, const RowMatrixX3i& F
 /// image_orientation; zero-area source faces are left out and counted in
 /// degenerate_source (as planar_distortion does). The one loop behind every hyperbolic D' figure
 /// (initial map, optimum, landmark folds).
+///
+/// `image_in_corner_chart(f, k)` (optional; issue 13, session 26): the image
+/// seen in the chart centring corner k (corners k + 1 and k + 2 as b and c).
+/// Seen from a corner of a long thin image its other corners lie near the
+/// same point of the chart's boundary circle: the angle there is about
+/// e^-(side length), so at 30-odd units |b x c| is below round-off whatever
+/// the triangle's area. When it is given, a face whose orientation from
+/// corner 0 is not clearly positive is read again from the corner opposite
+/// its longest image side (its largest angle, where the chart resolves it),
+/// and that reading (orientation and D') is the face's. Faces positive from
+/// corner 0 are read as before.
 DistortionStats hyperbolic_image_distortion(
     const TriMesh& source,
     const std::function<std::pair<std::complex<double>, std::complex<double>>(int f)>& image_in_chart,
-    const std::function<Eigen::Vector3d(int f)>& image_sides, bool thin_images);
+    const std::function<Eigen::Vector3d(int f)>& image_sides, bool thin_images,
+    const std::function<std::pair<std::complex<double>, std::complex<double>>(int f, int corner)>&
+        image_in_corner_chart = {});
+
+/// The corner opposite the longest of the three sides (side k joins corners
+/// k and k + 1): the largest angle, from which a long thin hyperbolic image's
+/// orientation is resolved. 0 when a side is not finite.
+int widest_corner(const Eigen::Vector3d& sides);
 
 /// Source triangles in 3D, images as #F x 3 planar corner positions (complex
 /// numbers; corner k of face f is the image of F(f,k)). Flipped and

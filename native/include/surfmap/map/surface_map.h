@@ -814,6 +814,23 @@ struct LayoutClosure {
   int worst_triangle = -1;  ///< the triangle with it (-1 when none was measured)
 };
 
+/// Genus >= 2: how the returned map's image triangles cover the target, in
+/// its hyperbolic metric, from the solver's local charts (issue 13, session
+/// 26). Each image triangle's angles are read at its corners (signed, in
+/// the chart centring each corner), its signed area pi minus their sum
+/// (minus pi minus their sum for a flipped one, whose angles are negative); a map
+/// whose every vertex star turns once (angle sum 2 pi) and whose triangles
+/// are all positive covers the target once, with area 4 pi (g - 1). Exact
+/// where the 3D check (`surfmap verify`) cannot resolve the images: a
+/// twisted class can map an ordinary source face to a triangle tens of units
+/// long, whose straight chord triangle in 3D says nothing.
+struct ImageCover {
+  int triangles = 0;              ///< source faces measured; 0 = not computed
+  double area_ratio = 0;          ///< sum of the signed image areas / 4 pi (g - 1) (1: degree one)
+  int vertices_off = 0;           ///< source vertices whose angle sum is off 2 pi by more than 1e-6
+  double worst_angle_gap = 0;     ///< the largest |angle sum - 2 pi| (radians)
+};
+
 struct SurfaceMapResult {
   int genus = 0;
   bool converged = false;
@@ -864,6 +881,7 @@ struct SurfaceMapResult {
   /// How well the triangles of the layout close (genus >= 1 closed; see
   /// LayoutClosure): the gap of every triangle against a tolerance of 1e-8.
   LayoutClosure layout_closure;
+  ImageCover image_cover;  ///< genus >= 2, the returned map (ImageCover)
   /// Largest distance between a landmark's located forward image and its
   /// target vertex: the least-squares residual for genus 0 with more than 3
   /// landmarks, otherwise the round-off of locating a held landmark (those

@@ -108,7 +108,46 @@ DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc, 
         return Eigen::Vector3d(local(3 * f).displacement_of_origin(), local(3 * f + 1).displacement_of_origin(),
                                local(3 * f + 2).displacement_of_origin());
       },
-      true);
+      true,
+      // Corner k's chart: corner k + 1 through side k, corner k + 2 through
+      // side k + 2 inverted (long thin images are read from their widest corner).
+      [&](int f, int k) {
+        return std::make_pair(local(3 * f + k).apply(Complex(0.0)),
+                              local(3 * f + (k + 2) % 3).inverse().apply(Complex(0.0)));
+      });
+}
+
+ImageCover image_cover(const TriMesh&, const Connectivity& sc, const std::vector<Mobius>& edge_local,
+                       const SolverEdgeIndex& index) {
+  ImageCover out;
+  const int nf = sc.num_faces(), nv = sc.num_vertices();
+  const int chi = nv - sc.num_edges() + nf;
+  if (chi >= 0 || index.solver_edge.size() != static_cast<size_t>(sc.num_edges())) return out;
+  std::vector<double> angle_sum(nv, 0.0);
+  double area = 0;
+  for (int f = 0; f < nf; ++f) {
+    double angles = 0;
+    for (int k = 0; k < 3; ++k) {
+      // Corner k's angle, signed, in its own chart (corners k + 1 and k + 2
+      // as in chart_distortion): resolved however long the sides.
+      const Complex b = source_side(sc, edge_local, index, 3 * f + k).apply(Complex(0.0));
+      const Complex c = source_side(sc, edge_local, index, 3 * f + (k + 2) % 3).inverse().apply(Complex(0.0));
+      const double angle = std::arg(c / b);
+      angle_sum[sc.tail(3 * f + k)] += angle;
+      angles += angle;
+    }
+    // A positive triangle's area is pi minus its angles; a flipped one's
+    // angles are all negative, its signed area -(pi - their sizes).
+    area += (angles < 0 ? -M_PI : M_PI) - angles;
+  }
+  out.triangles = nf;
+  out.area_ratio = area / (-2 * M_PI * chi);
+  for (int v = 0; v < nv; ++v) {
+    const double gap = std::abs(angle_sum[v] - 2 * M_PI);
+    if (!(gap <= 1e-6)) ++out.vertices_off;
+    if (!(gap <= out.worst_angle_gap)) out.worst_angle_gap = gap;
+  }
+  return out;
 }
 
 int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::vector<Mobius>& edge_local) {
@@ -119,7 +158,16 @@ int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::v
     for (int f = 0; f < static_cast<int>(idt.F.rows()); ++f) {
       Mobius side[3];
       if (!intrinsic_sides(idt, edge_local, f, side)) continue;
-      const Complex p1 = side[0].apply(Complex(0.0)), p2 = side[2].inverse().apply(Complex(0.0));
+      Complex p1 = side[0].apply(Complex(0.0)), p2 = side[2].inverse().apply(Complex(0.0));
+      if (image_orientation(p1, p2) != 1) {
+        // Not clearly positive from corner 0: read from the widest corner,
+        // as chart_distortion does (a long thin image's far corners lie
+        // within round-off of each other seen from its sharp ends).
+        const int k = widest_corner(Eigen::Vector3d(side[0].displacement_of_origin(), side[1].displacement_of_origin(),
+                                                    side[2].displacement_of_origin()));
+        p1 = side[k].apply(Complex(0.0));
+        p2 = side[(k + 2) % 3].inverse().apply(Complex(0.0));
+      }
       if (p1.real() * p2.imag() - p1.imag() * p2.real() <= 0) ++flipped;
     }
   }

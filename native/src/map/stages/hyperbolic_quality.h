@@ -52,6 +52,11 @@ MapInPolygon place_in_polygon(const TriMesh& source, const Connectivity& sc, con
 DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc,
                                  const std::vector<hyperbolic::Mobius>& edge_local, const SolverEdgeIndex& index);
 
+/// The signed image areas and vertex angle sums of the source's faces in
+/// the solver's local charts (surface_map.h ImageCover).
+ImageCover image_cover(const TriMesh& source, const Connectivity& sc, const std::vector<hyperbolic::Mobius>& edge_local,
+                       const SolverEdgeIndex& index);
+
 /// Flipped images among the triangles of the intrinsic triangulation `idt`
 /// (the energy's own), from the local charts; -> 0 when edge_local does not
 /// cover idt's edges (not computable).
