@@ -92,6 +92,17 @@ int main(int argc, char** argv) {
     std::stable_sort(idx.begin(), idx.end(), [&](size_t x, size_t y) { return h.evaluated_energy[x] < h.evaluated_energy[y]; });
     int finite = 0;
     for (double e : h.evaluated_energy) finite += std::isfinite(e) ? 1 : 0;
+    // Single moves and pairs from the start (step 0), and how many were
+    // solved (finite) or pruned by the curve bound (infinite).
+    int singles = 0, singles_finite = 0, pairs = 0, pairs_finite = 0;
+    for (size_t k = 0; k < h.evaluated_moves.size(); ++k) {
+      const std::string& m = h.evaluated_moves[k];
+      if (h.evaluated_step[k] != 0 || m.rfind("screen", 0) == 0) continue;
+      const bool pair = m.find(", ") != std::string::npos;
+      (pair ? pairs : singles) += 1;
+      (pair ? pairs_finite : singles_finite) += std::isfinite(h.evaluated_energy[k]) ? 1 : 0;
+    }
+    std::printf("  step 0: %d single moves (%d solved), %d pairs (%d solved)\n", singles, singles_finite, pairs, pairs_finite);
     std::printf("  evaluated %zu (%d finite); lowest:\n", idx.size(), finite);
     for (size_t k = 0; k < std::min<size_t>(12, idx.size()); ++k)
       std::printf("    %.4f  step %d  %.200s\n", h.evaluated_energy[idx[k]], h.evaluated_step[idx[k]],
