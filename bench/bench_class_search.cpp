@@ -7,7 +7,12 @@
 //
 //   build/bin/bench_class_search SOURCE TARGET [--words FILE] [--per-step N] [--evaluations N]
 //       [--kicks N] [--kick-moves N] [--kick-evaluations N] [--kick-choices N] [--seed S] [--restart-ratio R]
-//       [--threads N] [--out-words FILE]
+//       [--threads N] [--out-words FILE] [--move source:NAME | target:NAME ...] [--alone]
+//
+// --move composes the given class with a move of twist_moves (source side:
+// theta o m; target side: m o theta), as the twist search forms its
+// neighbours; --alone maps in that class alone at full resolution
+// (HomotopyOptions::class_words: no ranking, no search).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -21,6 +26,7 @@
 #include "surfmap/error.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/intake.h"
+#include "surfmap/topology/mapping_class_search.h"
 
 int main(int argc, char** argv) {
   if (argc < 3) {
@@ -29,6 +35,8 @@ int main(int argc, char** argv) {
   }
   surfmap::SurfaceMapOptions o;
   std::string words_file, out_words;
+  std::vector<std::string> moves;
+  bool alone = false;
   for (int i = 3; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -40,6 +48,8 @@ int main(int argc, char** argv) {
     };
     if (a == "--words") words_file = next();
     else if (a == "--out-words") out_words = next();
+    else if (a == "--move") moves.push_back(next());
+    else if (a == "--alone") alone = true;
     else if (a == "--per-step") o.homotopy.search.evaluations_per_step = std::atoi(next());
     else if (a == "--evaluations") o.homotopy.search.evaluations = std::atoi(next());
     else if (a == "--kicks") o.homotopy.search.kicks = std::atoi(next());
@@ -64,6 +74,30 @@ int main(int argc, char** argv) {
       while (ls >> x) w.push_back(x);
       o.homotopy.given_class.push_back(w);
     }
+  }
+  if (!moves.empty() || alone) {
+    if (o.homotopy.given_class.empty()) {
+      std::fprintf(stderr, "--move and --alone need --words\n");
+      return 2;
+    }
+    const int genus = static_cast<int>(o.homotopy.given_class.size()) / 2;
+    const std::vector<surfmap::MappingClassMove> all = surfmap::twist_moves(genus);
+    const surfmap::DehnReducer reduce(surfmap::canonical_relator(genus));
+    surfmap::GroupMap theta(o.homotopy.given_class.begin(), o.homotopy.given_class.end());
+    for (const std::string& m : moves) {
+      const size_t colon = m.find(':');
+      const std::string side = m.substr(0, colon), name = colon == std::string::npos ? "" : m.substr(colon + 1);
+      auto it = std::find_if(all.begin(), all.end(), [&](const surfmap::MappingClassMove& x) { return x.name == name; });
+      if (it == all.end() || (side != "source" && side != "target")) {
+        std::fprintf(stderr, "no move %s\n", m.c_str());
+        return 2;
+      }
+      theta = reduce.each(side == "source" ? surfmap::compose(theta, it->automorphism.map)
+                                           : surfmap::compose(it->automorphism.map, theta));
+    }
+    o.homotopy.given_class.clear();
+    if (alone) o.homotopy.class_words.assign(theta.begin(), theta.end());
+    else o.homotopy.given_class.assign(theta.begin(), theta.end());
   }
   try {
     const surfmap::TriMesh s = surfmap::load_mesh(argv[1]).mesh, t = surfmap::load_mesh(argv[2]).mesh;
