@@ -142,7 +142,8 @@ struct TwistSearchResult {
   /// below the best class held before them.
   int kicks = 0, improving_kicks = 0;
   /// "no improving neighbour", "no improving neighbour or pair", "step
-  /// budget", "evaluation budget".
+  /// budget", "evaluation budget"; with kicks followed by "; N kicks, M
+  /// lower".
   std::string stop_reason;
 };
 
