@@ -92,20 +92,33 @@ TEST(MappingClassSearch, TwistMovesAreExactAutomorphismsWithTheTwistsHomology) {
 // of the generators' images (conjugation invariant, minimal, 2g, exactly at
 // the identity class among these). From the identity composed with twists
 // along a_1 (twice) and b_2 and a separating twist, it must come back.
-TEST(MappingClassSearch, DescentUndoesKnownTwists) {
-  const int g = 2, n = 4;
-  const std::vector<MappingClassMove> moves = twist_moves(g);
-  const DehnReducer reduce(canonical_relator(g));
-  auto length = [&](const GroupMap& theta) {
+// The identity composed with the named moves on the source side, and the
+// total length of a class's cyclically reduced words (the identity's: 2g).
+struct TwistedClasses {
+  explicit TwistedClasses(int genus) : g(genus), moves(twist_moves(genus)), reduce(canonical_relator(genus)) {}
+  GroupMap after(std::initializer_list<const char*> names) const {
+    GroupMap theta = identity_map(2 * g);
+    for (const char* name : names) {
+      theta = compose(theta, move_named(moves, name).automorphism.map);
+      for (Word& w : theta) w = reduce(w);
+    }
+    return theta;
+  }
+  double length(const GroupMap& theta) const {
     double total = 0;
     for (const Word& w : theta) total += static_cast<double>(cyclic_reduce(reduce(w)).size());
     return total;
-  };
-  GroupMap start = identity_map(n);
-  for (const char* name : {"T(a1)", "T(a1)", "T(b2)^-1", "T(s1)"}) {
-    start = compose(start, move_named(moves, name).automorphism.map);
-    for (Word& w : start) w = reduce(w);
   }
+  int g;
+  std::vector<MappingClassMove> moves;
+  DehnReducer reduce;
+};
+
+TEST(MappingClassSearch, DescentUndoesKnownTwists) {
+  const int g = 2;
+  const TwistedClasses tc(g);
+  auto length = [&](const GroupMap& theta) { return tc.length(theta); };
+  const GroupMap start = tc.after({"T(a1)", "T(a1)", "T(b2)^-1", "T(s1)"});
   ASSERT_GT(length(start), 2.0 * g);
   int evaluations = 0;
   TwistSearchOptions o;
@@ -149,6 +162,59 @@ TEST(MappingClassSearch, DescentUndoesKnownTwists) {
   const TwistSearchResult b = twist_search(start, length(start), g, length, length, o);
   EXPECT_EQ(b.evaluations.size(), 1u);
   EXPECT_EQ(b.stop_reason, "evaluation budget");
+}
+
+// Issue 14 (session 26): the iterated local search (TwistSearchOptions::
+// kicks). The energy is the words' length (the identity, 2g letters, is the
+// one minimum) except at a trap T three twists from the identity, given 2g +
+// 1/2 (T = T(a1)^2 T(b2)^-1): lower than every neighbour and pair of T (their words are longer), so
+// the descent from T stops there, with pairs too; kicks of three random
+// moves followed by descents reach the identity.
+TEST(MappingClassSearch, KicksLeaveALocalMinimumThatPairsCannot) {
+  const int g = 2;
+  const TwistedClasses tc(g);
+  auto length = [&](const GroupMap& theta) { return tc.length(theta); };
+  const GroupMap trap = tc.after({"T(a1)", "T(a1)", "T(b2)^-1"});
+  const double trap_energy = 2.0 * g + 0.5;
+  ASSERT_GT(length(trap), trap_energy + 1);
+  auto energy = [&](const GroupMap& theta) { return theta == trap ? trap_energy : length(theta); };
+  TwistSearchOptions o;
+  o.max_evaluations = 3000;
+  o.max_steps = 20;
+  o.evaluations_per_step = 200;
+  o.screen_steps = 0;
+  const TwistSearchResult stuck = twist_search(trap, trap_energy, g, length, energy, o);
+  EXPECT_EQ(stuck.energy, trap_energy);
+  EXPECT_EQ(stuck.stop_reason, "no improving neighbour or pair");
+  EXPECT_EQ(stuck.kicks, 0);
+  o.kicks = 4;
+  o.kick_moves = 3;
+  o.kick_evaluations = 400;
+  int evaluations = 0;
+  const TwistSearchResult kicked = twist_search(trap, trap_energy, g, length, [&](const GroupMap& t) {
+    ++evaluations;
+    return energy(t);
+  }, o);
+  EXPECT_EQ(kicked.energy, 2.0 * g);
+  EXPECT_EQ(length(kicked.best), 2.0 * g);
+  EXPECT_EQ(kicked.kicks, 4);
+  EXPECT_GE(kicked.improving_kicks, 1);
+  // Every evaluation is reported and within the budget; the kicks' are
+  // marked by step -1 and named by their moves.
+  EXPECT_EQ(static_cast<int>(kicked.evaluations.size()), evaluations);
+  EXPECT_LE(evaluations, o.max_evaluations);
+  int kick_evaluations = 0;
+  for (const TwistSearchEvaluation& ev : kicked.evaluations)
+    if (ev.step == -1) {
+      ++kick_evaluations;
+      EXPECT_EQ(ev.move.rfind("kick ", 0), 0u) << ev.move;
+    }
+  EXPECT_EQ(kick_evaluations, evaluations - static_cast<int>(stuck.evaluations.size()));
+  EXPECT_NE(kicked.stop_reason.find("4 kicks"), std::string::npos) << kicked.stop_reason;
+  // The kicks are drawn from the seed: the same seed, the same search.
+  const TwistSearchResult again = twist_search(trap, trap_energy, g, length, energy, o);
+  ASSERT_EQ(again.evaluations.size(), kicked.evaluations.size());
+  for (size_t k = 0; k < again.evaluations.size(); ++k) EXPECT_EQ(again.evaluations[k].move, kicked.evaluations[k].move);
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <complex>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -832,6 +833,64 @@ TEST(SurfaceMapHandles, ClassSearchAtFullResolutionUndoesKnownTwists) {
   EXPECT_LT(m.mean_dilatation, 1.1);
   EXPECT_EQ(m.flipped_triangles, 0);
   EXPECT_CERTIFIED_MAP(a, b, m);
+}
+
+// Issue 14 (session 26; docs/handle_classes.md "Session 26"): the search
+// options of the iterated local search reach the twist search. On the pair
+// above from the same twisted start: one solve per step when asked
+// (evaluations_per_step), and two kicks after the descent, each named by its
+// moves, counted with the evaluations and in the stop reason, ending no
+// higher. (This source has no coarse copy: the budget is scaled up by the
+// full-resolution search, twist_search_at_full_resolution.)
+TEST(SurfaceMapHandles, ClassSearchTakesItsStepWidthAndKicks) {
+  const TriMesh a = samples::n_hole_torus(2, 18, true);
+  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  SurfaceMapOptions plain;
+  plain.homotopy.search.enabled = false;
+  plain.homotopy.two_way = false;
+  const SurfaceMapResult m0 = surface_map(a, b, plain);
+  testing::MapHooks hooks;
+  hooks.homotopy_search_start = m0.chosen_candidate;
+  hooks.homotopy_search_start_twists = {"T(a1)", "T(a1)", "T(b2)^-1"};
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  o.homotopy.search.evaluations_per_step = 1;
+  o.homotopy.search.pair_moves = false;
+  const SurfaceMapResult narrow = surface_map(a, b, o, hooks);
+  const HomotopySearchInfo& n = narrow.homotopy_search;
+  ASSERT_TRUE(n.run);
+  std::map<int, int> per_step;
+  for (size_t k = 0; k < n.evaluated_moves.size(); ++k)
+    if (n.evaluated_moves[k].rfind("screen descent", 0) != 0) ++per_step[n.evaluated_step[k]];
+  ASSERT_FALSE(per_step.empty());
+  for (const auto& [step, count] : per_step) EXPECT_EQ(count, 1) << "step " << step;
+
+  o.homotopy.search.evaluations_per_step = 8;
+  o.homotopy.search.pair_moves = true;
+  const SurfaceMapResult descent = surface_map(a, b, o, hooks);
+  o.homotopy.search.kicks = 2;
+  o.homotopy.search.kick_evaluations = 3;
+  const SurfaceMapResult kicked = surface_map(a, b, o, hooks);
+  expect_valid_map(kicked, a, b);
+  const HomotopySearchInfo& d = descent.homotopy_search;
+  const HomotopySearchInfo& k = kicked.homotopy_search;
+  ASSERT_TRUE(k.run);
+  EXPECT_EQ(d.stop_reason.find("kicks"), std::string::npos);
+  EXPECT_NE(k.stop_reason.find("; 2 kicks, "), std::string::npos) << k.stop_reason;
+  EXPECT_LE(k.energy, d.energy);
+  EXPECT_EQ(k.coarse_solves + k.pruned, k.evaluations + 1);
+  int kick_solves = 0;
+  bool first = false, second = false;
+  for (size_t j = 0; j < k.evaluated_moves.size(); ++j) {
+    if (k.evaluated_moves[j].rfind("kick ", 0) != 0) continue;
+    ++kick_solves;
+    EXPECT_EQ(k.evaluated_step[j], -1);
+    first = first || k.evaluated_moves[j].rfind("kick 1 (", 0) == 0;
+    second = second || k.evaluated_moves[j].rfind("kick 2 (", 0) == 0;
+  }
+  EXPECT_TRUE(first && second);
+  EXPECT_LE(kick_solves, 2 * (1 + o.homotopy.search.kick_evaluations));
+  EXPECT_EQ(k.evaluations, d.evaluations + kick_solves);  // (the same descent first)
 }
 
 // Shapes not posed alike (docs/method.md §2.10, projected_loops.h

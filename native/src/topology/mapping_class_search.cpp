@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <random>
 #include <string>
 
 #include "surfmap/error.h"
@@ -272,6 +273,64 @@ TwistSearchResult twist_search(const GroupMap& start, double start_energy, int g
       res.stop_reason = "evaluation budget";
       break;
     }
+  }
+  // Iterated local search (TwistSearchOptions::kicks): kick the best class
+  // by random moves, descend from there, keep the end when it is lower.
+  if (options.kicks > 0) {
+    std::mt19937 rng(options.kick_seed);
+    TwistSearchOptions inner = options;
+    inner.kicks = 0;
+    inner.screen_steps = 0;
+    for (int kick = 0; kick < options.kicks && evaluations < options.max_evaluations; ++kick) {
+      // Each kick move: one of the current class's `kick_choices` neighbours
+      // of lowest screen, drawn at random (uniform moves would mostly leave
+      // the letter limit or the caller's bound).
+      GroupMap cur = res.best;
+      std::string path;
+      bool made = true;
+      for (int j = 0; j < options.kick_moves && made; ++j) {
+        std::vector<Neighbour> nb = neighbours(cur, false);
+        std::stable_sort(nb.begin(), nb.end(), [](const Neighbour& x, const Neighbour& y) { return x.screen < y.screen; });
+        nb.resize(std::min<size_t>(nb.size(), static_cast<size_t>(std::max(1, options.kick_choices))));
+        if (nb.empty()) {
+          made = false;
+          break;
+        }
+        std::uniform_int_distribution<size_t> pick(0, nb.size() - 1);
+        Neighbour& x = nb[pick(rng)];
+        cur = std::move(x.theta);
+        path += (path.empty() ? "" : ", ") + x.move;
+      }
+      ++res.kicks;
+      if (!made) continue;
+      const double s = screen(cur);
+      if (!std::isfinite(s)) continue;
+      const std::string name = "kick " + std::to_string(kick + 1) + " (" + path + ")";
+      const double e = energy(cur);
+      ++evaluations;
+      res.evaluations.push_back({-1, name, s, std::isfinite(e) ? e : std::numeric_limits<double>::infinity()});
+      // (An infinite start, e.g. a kick the caller's bound prunes, is
+      // descended from too: any finite neighbour is lower.)
+      inner.max_evaluations = std::min(options.kick_evaluations, options.max_evaluations - evaluations);
+      TwistSearchResult r = inner.max_evaluations > 0 ? twist_search(cur, e, genus, screen, energy, inner) : TwistSearchResult{};
+      if (inner.max_evaluations <= 0) r.best = cur, r.energy = std::isfinite(e) ? e : std::numeric_limits<double>::infinity();
+      evaluations += static_cast<int>(r.evaluations.size());
+      res.screened += r.screened;
+      for (TwistSearchEvaluation& ev : r.evaluations) {
+        ev.move = name + ": " + ev.move;
+        ev.step = -1;
+        res.evaluations.push_back(std::move(ev));
+      }
+      if (r.energy < res.energy * (1 - options.tolerance)) {
+        ++res.improving_kicks;
+        res.best = std::move(r.best);
+        res.energy = r.energy;
+        res.moves.push_back(name);
+        res.energies.push_back(e);
+        for (size_t k = 0; k < r.moves.size(); ++k) res.moves.push_back(r.moves[k]), res.energies.push_back(r.energies[k]);
+      }
+    }
+    res.stop_reason += "; " + std::to_string(res.kicks) + " kicks, " + std::to_string(res.improving_kicks) + " lower";
   }
   return res;
 }

@@ -196,6 +196,21 @@ struct HomotopySearchOptions {
   /// tries pairs of twists when no single twist improves (default true).
   double restart_ratio = 1.5;
   bool pair_moves = true;
+  /// Issue 14 (session 26; docs/handle_classes.md "Session 26"), C++ only,
+  /// for measuring how wide a search the pipeline's class needs: the twist
+  /// search's coarse solves per step (TwistSearchOptions::
+  /// evaluations_per_step, default 8, the lowest screens first; raise it
+  /// with `evaluations` to solve every neighbour), and its iterated local
+  /// search (TwistSearchOptions::kicks: `kicks` random kicks of
+  /// `kick_moves` moves from the best class, each move among the
+  /// `kick_choices` neighbours of lowest screen, each kick followed by a
+  /// descent of at most `kick_evaluations` solves; default 0, none).
+  int evaluations_per_step = 8;
+  int kicks = 0;
+  int kick_moves = 3;
+  int kick_evaluations = 24;
+  int kick_choices = 16;
+  unsigned kick_seed = 1;
 };
 
 /// Which homotopy classes are listed, ranked and searched

@@ -97,6 +97,20 @@ struct TwistSearchOptions {
   /// new ones evaluated, lowest screen first (default true, 3).
   bool pair_moves = true;
   int pair_starts = 3;
+  /// Issue 14 (session 26; docs/handle_classes.md "Session 26"): iterated
+  /// local search. After the descent stops, this many kicks (default 0:
+  /// none): the best class so far composed with `kick_moves` moves, each
+  /// drawn at random (seeded by `kick_seed`) among the `kick_choices`
+  /// neighbours of lowest screen (within max_letters, finite screen), its
+  /// energy evaluated, then a descent from it (these options without kicks
+  /// or screening descent, at most `kick_evaluations` evaluations); its end
+  /// replaces the best class when lower by more than the tolerance. Every
+  /// evaluation counts against max_evaluations.
+  int kicks = 0;
+  int kick_moves = 3;
+  int kick_evaluations = 24;
+  int kick_choices = 16;
+  unsigned kick_seed = 1;
 };
 
 /// One evaluated neighbour of the search.
@@ -124,8 +138,12 @@ struct TwistSearchResult {
   std::vector<double> screen_scores;
   /// Steps taken by a pair of moves (TwistSearchOptions::pair_moves).
   int pair_steps = 0;
+  /// Kicks made (TwistSearchOptions::kicks) and how many of them ended
+  /// below the best class held before them.
+  int kicks = 0, improving_kicks = 0;
   /// "no improving neighbour", "no improving neighbour or pair", "step
-  /// budget", "evaluation budget".
+  /// budget", "evaluation budget"; with kicks followed by "; N kicks, M
+  /// lower".
   std::string stop_reason;
 };
 

@@ -280,6 +280,12 @@ std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, in
   TwistSearchOptions tso;
   tso.max_evaluations = options.homotopy.search.evaluations;
   tso.pair_moves = options.homotopy.search.pair_moves;
+  tso.evaluations_per_step = options.homotopy.search.evaluations_per_step;
+  tso.kicks = options.homotopy.search.kicks;
+  tso.kick_moves = options.homotopy.search.kick_moves;
+  tso.kick_evaluations = options.homotopy.search.kick_evaluations;
+  tso.kick_choices = options.homotopy.search.kick_choices;
+  tso.kick_seed = options.homotopy.search.kick_seed;
   const TwistSearchResult ts = twist_search(search_from, info.start_energy, space.genus(),
                                             [&](const GroupMap& theta) { return space.screen(theta); }, coarse_energy, tso);
   info.moves = ts.moves;
