@@ -408,6 +408,29 @@ TEST(ClassLowerBound, QualityRatioUsesTheIntrinsicEnergyAfterTheOwnEdgeFallback)
   detail::assess_quality(r);
   EXPECT_NEAR(r.energy_ratio, 3.2, 1e-12);
   EXPECT_NE(r.quality_warning.find("may be twisted"), std::string::npos);
+  EXPECT_EQ(r.quality_warning.find("mean D'"), std::string::npos);
+}
+
+// Session 26: a map whose images are stretched far past what straight
+// triangles between them can show (mean D' >= 100) says so, beside the
+// energy ratio's warning or alone; a usual mean D' adds nothing.
+TEST(ClassLowerBound, WarningSaysWhenImagesAreTooStretchedForStraightTriangles) {
+  SurfaceMapResult r;
+  r.genus = 12;
+  r.candidates.resize(1);
+  r.candidates[0].energy = 71.7 * 8 * M_PI * 11;
+  r.chosen_candidate = 0;
+  r.mean_dilatation = 1.27e7;
+  detail::assess_quality(r);
+  EXPECT_NE(r.quality_warning.find("may be twisted"), std::string::npos) << r.quality_warning;
+  EXPECT_NE(r.quality_warning.find("mean D' 1.27e+07"), std::string::npos) << r.quality_warning;
+  EXPECT_NE(r.quality_warning.find("may fold"), std::string::npos) << r.quality_warning;
+  r.candidates[0].energy = 1.5 * 8 * M_PI * 11;  // low energy, stretched images: still said
+  detail::assess_quality(r);
+  EXPECT_EQ(r.quality_warning.find("mean D' 1.27e+07"), 0u) << r.quality_warning;
+  r.mean_dilatation = 4.0;
+  detail::assess_quality(r);
+  EXPECT_EQ(r.quality_warning, "");
 }
 
 // Issue 14: a warned ratio on which both directions agree (inverse classes, or

@@ -524,6 +524,11 @@ double chosen_energy(const SurfaceMapResult& r) {
                                                               : std::numeric_limits<double>::quiet_NaN();
 }
 
+// Mean D' from which the quality warning says the images are too stretched for
+// straight triangles (good maps: mean D' 1-5; the twisted classes of issue 14's
+// table: 12-1676).
+constexpr double kStretchedImagesMeanDilatation = 100;
+
 void assess_quality(SurfaceMapResult& result) {
   result.energy_ratio = std::numeric_limits<double>::quiet_NaN();
   result.quality_warning.clear();
@@ -545,6 +550,18 @@ void assess_quality(SurfaceMapResult& result) {
     result.quality_warning = "energy " + four_digits(result.energy_ratio) +
                              " x the conformal bound 8 pi (g - 1): the handle class may be twisted; add landmarks or "
                              "pick a candidate";
+  // Session 26 (edge26): a map in a far twisted class is one-to-one on the
+  // surfaces (0 flipped geodesic image triangles) while its image triangles
+  // are tens of hyperbolic units long and cross many target triangles; the
+  // straight triangles between the images, which the UVs and the morph are
+  // made of, then fold (CAD block g12 -> raw wheel g12: mean D' 1.3e7, 829
+  // negatively oriented in `surfmap verify`). Said plainly, beside the ratio.
+  if (result.mean_dilatation >= kStretchedImagesMeanDilatation)
+    result.quality_warning += (result.quality_warning.empty() ? "" : "; ") + std::string("mean D' ") +
+                              four_digits(result.mean_dilatation) +
+                              ": image triangles this stretched span many target triangles, so the straight "
+                              "triangles between the images (UVs, the morph) may fold where the map does not; "
+                              "`surfmap verify` checks them";
 }
 
 void qualify_quality_warning(SurfaceMapResult& result) {
