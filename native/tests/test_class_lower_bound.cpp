@@ -411,15 +411,21 @@ TEST(ClassLowerBound, QualityRatioUsesTheIntrinsicEnergyAfterTheOwnEdgeFallback)
   EXPECT_EQ(r.quality_warning.find("mean D'"), std::string::npos);
 }
 
+// A genus-g result whose one candidate, chosen, has `ratio` x 8 pi (g - 1).
+SurfaceMapResult one_class_result(int genus, double ratio) {
+  SurfaceMapResult r;
+  r.genus = genus;
+  r.candidates.resize(1);
+  r.candidates[0].energy = ratio * 8 * M_PI * (genus - 1);
+  r.chosen_candidate = 0;
+  return r;
+}
+
 // Session 26: a map whose images are stretched far past what straight
 // triangles between them can show (mean D' >= 100) says so, beside the
 // energy ratio's warning or alone; a usual mean D' adds nothing.
 TEST(ClassLowerBound, WarningSaysWhenImagesAreTooStretchedForStraightTriangles) {
-  SurfaceMapResult r;
-  r.genus = 12;
-  r.candidates.resize(1);
-  r.candidates[0].energy = 71.7 * 8 * M_PI * 11;
-  r.chosen_candidate = 0;
+  SurfaceMapResult r = one_class_result(12, 71.7);
   r.mean_dilatation = 1.27e7;
   detail::assess_quality(r);
   EXPECT_NE(r.quality_warning.find("may be twisted"), std::string::npos) << r.quality_warning;
@@ -438,11 +444,7 @@ TEST(ClassLowerBound, WarningSaysWhenImagesAreTooStretchedForStraightTriangles) 
 // side; not when the directions differ or were not compared, not below the
 // warning, and once however often it is applied.
 TEST(ClassLowerBound, WarningSaysWhenBothDirectionsEndOnTheClass) {
-  SurfaceMapResult r;
-  r.genus = 4;
-  r.candidates.resize(1);
-  r.candidates[0].energy = 4.5 * 8 * M_PI * 3;
-  r.chosen_candidate = 0;
+  SurfaceMapResult r = one_class_result(4, 4.5);
   detail::assess_quality(r);
   const std::string plain = r.quality_warning;
   ASSERT_NE(plain.find("may be twisted"), std::string::npos);
