@@ -1060,6 +1060,7 @@ def test_quitting_mid_solve_exits_cleanly():
     and quits at several moments (mid-solve, then possibly during the outputs); every child must
     exit with code 0 without the abort (before the fix, the quit 1 s in aborted)."""
     import subprocess
+    mid_solve = []     # the delays whose quit came before the solve was done
     for delay in (0.0, 0.2, 0.5, 1.0, 2.0):
         with tempfile.NamedTemporaryFile("w", suffix=".py", delete=False) as f:
             f.write(f"REPO = {helpers.REPO!r}\nDELAY = {delay}\n" + _QUIT_MID_SOLVE)
@@ -1070,11 +1071,14 @@ def test_quitting_mid_solve_exits_cleanly():
             os.unlink(f.name)
         out = p.stdout + p.stderr
         quit_lines = [x for x in out.splitlines() if x.startswith("QUIT ")]
-        assert len(quit_lines) == 1 and quit_lines[0].startswith("QUIT worker alive True"), \
-            (delay, out[-3000:])
-        if delay <= 0.5:   # (later ones may quit during the outputs, on the worker too)
-            assert quit_lines[0].endswith("solve done False"), (delay, out[-3000:])
+        assert len(quit_lines) == 1, (delay, out[-3000:])
+        if quit_lines[0] == "QUIT worker alive True solve done False":
+            mid_solve.append(delay)
         assert "terminate called" not in out and p.returncode == 0, (delay, p.returncode, out[-3000:])
+    # At least the quit right after the job started came mid-solve (on an idle machine the pair
+    # solves in under 0.5 s and the whole job ends within 2 s, so later quits may come during
+    # the outputs or after the worker: those must exit cleanly too, checked above).
+    assert 0.0 in mid_solve, mid_solve
 
 
 class _KeyEvent(_Event):
