@@ -24,7 +24,12 @@ distance to the boundary), so the count can only go down; boundary vertices neve
 unfolds nothing is undone and retried after relaxing the interior vertices within 1, 2, 3 rings
 (each to its own star's least distorted point, kept only where that lowers the distortion), which
 widens the folded corners' kernels; the moved vertices and their neighbours are relaxed the same way
-at the end. A vertex whose kernel stays empty is left as it was (its faces stay counted).
+at the end. Folds that no vertex alone can clear (a cluster whose corners' kernels are all empty,
+because the neighbours' images are folded too) are untangled jointly: the interior vertices within
+1, 2, ... PATCH_RINGS rings of the cluster moved together in the target's chart, where an untangling
+energy (finite for turned faces, a barrier against turning once none is) is least, the ring around
+them held; kept only when nothing in the patch is turned afterwards and every point lands inside the
+target. What neither clears is left as it was (its faces stay counted).
 """
 import numpy as np
 

@@ -124,12 +124,9 @@ def test_a_corner_tries_the_rest_of_its_kernel_when_the_test_refuses_the_best_po
     assert open_double._dilatation(S.V, fw["position"], S.F)[star].max() < 6
 
 
-def test_a_fold_no_single_vertex_can_undo_is_left_as_it_was():
-    """The ring of a vertex collapsed onto its image: every face around it is degenerate, and every
-    kernel (of the vertex, of each ring vertex: two of its neighbours coincide) is empty, so no
-    single move unfolds anything. With the single moves alone (patch_rings=0, the joint step off)
-    the map is left exactly as it was (moves that unfold nothing are undone) and the faces stay
-    counted; the joint step unfolds it (test_folds_no_single_vertex_can_clear_are_untangled_jointly)."""
+def collapsed_ring():
+    """The 6 x 6 sheet onto itself by the identity but for the ring of its centre vertex v, whose
+    images are all v's: (S, T, fw, v, ring)."""
     V, F = sheet(6)
     S = open_double._Side(V, F, "source")
     T = open_double._Side(V, F, "target")
@@ -138,6 +135,16 @@ def test_a_fold_no_single_vertex_can_undo_is_left_as_it_was():
     ring = np.setdiff1d(np.unique(S.F[(S.F == v).any(axis=1)]), [v])
     for k in ("face", "barycentric", "position"):
         fw[k][ring] = fw[k][v]
+    return S, T, fw, v, ring
+
+
+def test_a_fold_no_single_vertex_can_undo_is_left_as_it_was():
+    """The ring of a vertex collapsed onto its image: every face around it is degenerate, and every
+    kernel (of the vertex, of each ring vertex: two of its neighbours coincide) is empty, so no
+    single move unfolds anything. With the single moves alone (patch_rings=0, the joint step off)
+    the map is left exactly as it was (moves that unfold nothing are undone) and the faces stay
+    counted; the joint step unfolds it (test_folds_no_single_vertex_can_clear_are_untangled_jointly)."""
+    S, T, fw, v, ring = collapsed_ring()
     start = {k: np.array(x, copy=True) for k, x in fw.items()}
     before = open_double._flips(S, T, fw)[0]
     assert before == int(np.sum((S.F == v).any(axis=1) | np.isin(S.F, ring).sum(axis=1) >= 2))
@@ -193,29 +200,26 @@ def test_folds_no_single_vertex_can_clear_are_untangled_jointly(kind):
     still = np.max(np.abs(S.V[:, :2]), axis=1) > 0.5 + (open_untangle.PATCH_RINGS + 1) / 6
     assert np.allclose(fw["position"][still], home["position"][still])
     if kind == "flat":
-        Q = fw["position"][S.F]
-        signed = 0.5 * np.cross(Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0])[:, 2]
-        assert signed.min() > 0 and abs(signed.sum() - 4.0) < 1e-9
+        assert_tiles_the_square(S, fw)
+
+
+def assert_tiles_the_square(S, fw):
+    """Every image triangle of the flat sheet positive and their areas adding up to the square's
+    (4): with the boundary fixed, a bijection of the square."""
+    Q = fw["position"][S.F]
+    signed = 0.5 * np.cross(Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0])[:, 2]
+    assert signed.min() > 0 and abs(signed.sum() - 4.0) < 1e-9
 
 
 def test_a_collapsed_ring_is_untangled_jointly():
     """The collapsed ring of test_a_fold_no_single_vertex_can_undo_is_left_as_it_was, with the joint
     step (the default): unfolded, every image triangle of the flat sheet positive and the sheet's
     area covered once."""
-    V, F = sheet(6)
-    S = open_double._Side(V, F, "source")
-    T = open_double._Side(V, F, "target")
-    fw = locate(T, S.V)
-    v = int(np.argmin(np.linalg.norm(S.V - [0, 0, 0], axis=1)))
-    ring = np.setdiff1d(np.unique(S.F[(S.F == v).any(axis=1)]), [v])
-    for k in ("face", "barycentric", "position"):
-        fw[k][ring] = fw[k][v]
+    S, T, fw, v, ring = collapsed_ring()
     assert open_double._flips(S, T, fw)[0] > 0
     open_untangle.untangle_half(S, T, fw, lambda f: open_double._turned(S, T, fw, False, faces=f))
     assert open_double._flips(S, T, fw)[0] == 0
-    Q = fw["position"][S.F]
-    signed = 0.5 * np.cross(Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0])[:, 2]
-    assert signed.min() > 0 and abs(signed.sum() - 4.0) < 1e-9
+    assert_tiles_the_square(S, fw)
 
 
 def holed_sphere(level, dirs, sizes, stretch):
