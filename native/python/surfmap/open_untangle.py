@@ -24,7 +24,12 @@ distance to the boundary), so the count can only go down; boundary vertices neve
 unfolds nothing is undone and retried after relaxing the interior vertices within 1, 2, 3 rings
 (each to its own star's least distorted point, kept only where that lowers the distortion), which
 widens the folded corners' kernels; the moved vertices and their neighbours are relaxed the same way
-at the end. A vertex whose kernel stays empty is left as it was (its faces stay counted).
+at the end. Folds that no vertex alone can clear (a cluster whose corners' kernels are all empty,
+because the neighbours' images are folded too) are untangled jointly: the interior vertices within
+1, 2, ... PATCH_RINGS rings of the cluster moved together in the target's chart, where an untangling
+energy (finite for turned faces, a barrier against turning once none is) is least, the ring around
+them held; kept only when nothing in the patch is turned afterwards and every point lands inside the
+target. What neither clears is left as it was (its faces stay counted).
 """
 import numpy as np
 
@@ -129,6 +134,222 @@ def _unfolded_chart(T, root, held, sign):
     return plane, place
 
 
+#: untangle_half's joint re-embedding of the folds no vertex alone clears: up to this many rings
+#: around a cluster's corners (0: off; docs/open_surfaces.md "Session 26").
+PATCH_RINGS = 4
+
+
+def _clusters(F, faces):
+    """The faces `faces` of F grouped by shared corners (connected through vertices)."""
+    faces = [int(f) for f in faces]
+    parent = {f: f for f in faces}
+
+    def find(f):
+        while parent[f] != f:
+            parent[f] = parent[parent[f]]
+            f = parent[f]
+        return f
+    by_vertex = {}
+    for f in faces:
+        for v in F[f]:
+            if int(v) in by_vertex:
+                parent[find(f)] = find(by_vertex[int(v)])
+            else:
+                by_vertex[int(v)] = f
+    groups = {}
+    for f in faces:
+        groups.setdefault(find(f), []).append(f)
+    return [np.array(g) for g in groups.values()]
+
+
+def _projected_place(T, faces, corners):
+    """place(p) for a chart given by the target faces' planar corners (k, 3, 2): the face holding p
+    deepest (its barycentrics there, the 3D point), None when none does; each face's projected
+    orientation must be positive (a face seen from behind does not count)."""
+    A, B, C = corners[:, 0], corners[:, 1], corners[:, 2]
+    det = (B[:, 0] - A[:, 0]) * (C[:, 1] - A[:, 1]) - (B[:, 1] - A[:, 1]) * (C[:, 0] - A[:, 0])
+
+    def place(p):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            l1 = ((p[0] - A[:, 0]) * (C[:, 1] - A[:, 1]) - (p[1] - A[:, 1]) * (C[:, 0] - A[:, 0])) / det
+            l2 = ((B[:, 0] - A[:, 0]) * (p[1] - A[:, 1]) - (B[:, 1] - A[:, 1]) * (p[0] - A[:, 0])) / det
+        bary = np.stack([1 - l1 - l2, l1, l2], axis=1)
+        least = np.where(det > 0, bary.min(axis=1), -np.inf)
+        k = int(np.argmax(least))
+        if not least[k] > -1e-12:     # (a point on an edge or a vertex counts)
+            return None
+        b = np.clip(bary[k], 0.0, None)
+        b /= b.sum()
+        f = int(faces[k])
+        return f, b, b @ T.V[T.F[f]]
+    return place
+
+
+def _patch_untangle(S, T, fw, free, star_of, turned_of, ear, unit, tf, sign, crease_angle):
+    """The source vertices `free` (interior) moved together: in a planar chart of the target around
+    their images and their neighbours' (the tangent plane where the normals agree within
+    crease_angle, else the target's faces unfolded), placed where the patch's untangling energy is
+    least (_untangled_positions; the neighbours outside `free` held), put back on the target.
+    Kept (fw changed, True) when every point lands inside the target and no face of the patch (the
+    stars of `free`, ears apart) is turned by turned_of afterwards; else fw is left as it was
+    (False)."""
+    if len(free) == 0:
+        return False
+    faces = np.unique(np.concatenate([star_of(int(v)) for v in free]))
+    verts = np.unique(S.F[faces])
+    held = np.unique(fw["face"][verts])
+    nrm = unit[held].sum(axis=0)
+    if np.linalg.norm(nrm) > 1e-12 and np.min(unit[held] @ (nrm / np.linalg.norm(nrm))) >= np.cos(crease_angle):
+        plane, _ = _tangent_chart(T, tf, fw["position"][int(free[0])], nrm / np.linalg.norm(nrm), held, sign)
+        # The inverse of the projection itself (the tangent chart's own `place` takes the nearest
+        # point in 3D, which next to the rim of a curved target can fall on a boundary edge for a
+        # point the projection puts inside).
+        near = tf.around(held, 2)
+        corners = plane(np.repeat(near, 3), np.tile(np.eye(3), (len(near), 1)),
+                        T.V[T.F[near]].reshape(-1, 3)).reshape(-1, 3, 2)
+        place = _projected_place(T, near, corners)
+    else:
+        chart = _unfolded_chart(T, fw["face"][int(free[0])], held, sign)
+        if chart is None:
+            return False
+        plane, place = chart
+    xy = plane(fw["face"][verts], fw["barycentric"][verts], fw["position"][verts])
+    p = _untangled_positions(S, faces, verts, xy, free)
+    if p is None:
+        # From the images as they are the energy can sit still (a ring collapsed onto one point:
+        # every Jacobian 0, so is the gradient); again from each free vertex at the average of its
+        # neighbours (a Tutte embedding of the patch, the ring around it held).
+        p = _untangled_positions(S, faces, verts, _averaged(S.F[faces], verts, xy, free), free)
+    if p is None or not np.all(np.isfinite(p)):
+        return False
+    old = {k: np.array(fw[k][free], copy=True) for k in ("face", "barycentric", "position")}
+    for i, v in enumerate(free):
+        got = place(p[i])
+        if got is None:     # beyond the target's boundary or the chart
+            for k, x in old.items():
+                fw[k][free] = x
+            return False
+        fw["face"][v], fw["barycentric"][v], fw["position"][v] = got
+    if np.any(turned_of(faces) & ~ear[faces]):
+        for k, x in old.items():
+            fw[k][free] = x
+        return False
+    return True
+
+
+def _averaged(F, verts, xy, free):
+    """xy (of `verts`, the vertices of faces F) with each vertex of `free` at the average of its
+    neighbours in F, the others held: a sparse linear solve."""
+    from scipy.sparse import coo_matrix, identity
+    from scipy.sparse.linalg import spsolve
+    idx = np.searchsorted(verts, F)
+    e = np.concatenate([idx[:, [0, 1]], idx[:, [1, 2]], idx[:, [2, 0]]])
+    e = np.unique(np.sort(e, axis=1), axis=0)
+    n = len(verts)
+    A = coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), shape=(n, n)).tocsr()
+    deg = np.asarray(A.sum(axis=1)).ravel()
+    f = np.searchsorted(verts, free)
+    held = np.setdiff1d(np.arange(n), f)
+    L = (identity(n, format="csr").multiply(deg[:, None]) - A).tocsr()
+    out = np.array(xy, dtype=float)
+    rhs = -L[f][:, held] @ out[held]
+    M = L[f][:, f].tocsc()
+    out[f] = np.column_stack([spsolve(M, rhs[:, 0]), spsolve(M, rhs[:, 1])])
+    return out
+
+
+def _untangled_positions(S, faces, verts, xy, free, rounds=12, lam=1.0, polish=2, polish_lam=0.01):
+    """Planar positions of `free` (among `verts`, at xy now; the others held) minimizing the
+    untangling energy of the patch `faces` of S: per face, area-weighted, with J its Jacobian from
+    the source triangle (in its own plane) to the chart, (|J|^2 / 2 + lam (det J^2 + 1) / 2) /
+    chi(det J, eps), chi(D, eps) = (D + sqrt(eps^2 + D^2)) / 2, which is finite for turned faces
+    and becomes a barrier against turning as eps -> 0; eps (relative to the faces' median |det J|)
+    is lowered tenfold each round while a face stays turned. Once none is, `polish` rounds at
+    eps 1e-3 times smaller with lam = polish_lam (mostly the conformal term |J|^2 / det J, which
+    D' measures) lower the distortion, each kept only while nothing turns. None when a face is
+    still turned after `rounds`."""
+    from scipy.optimize import minimize
+    pos = {int(v): i for i, v in enumerate(verts)}
+    Fi = np.array([[pos[int(x)] for x in S.F[f]] for f in faces])
+    P = S.V[S.F[faces]]
+    e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    l1 = np.linalg.norm(e1, axis=1)
+    x = e1 / l1[:, None]
+    n = np.cross(e1, e2)
+    y = np.cross(n / np.linalg.norm(n, axis=1)[:, None], x)
+    # Reference triangles (0, 0), (l1, 0), (u, w): Jacobian J = [q1 - q0, q2 - q0] R^-1.
+    u, w = np.einsum("ij,ij->i", e2, x), np.einsum("ij,ij->i", e2, y)
+    area = 0.5 * l1 * w
+    if not np.all(area > 0):
+        return None     # a degenerate source face: no Jacobian
+    Rinv = np.zeros((len(faces), 2, 2))
+    Rinv[:, 0, 0], Rinv[:, 0, 1], Rinv[:, 1, 1] = 1 / l1, -u / (l1 * w), 1 / w
+    is_free = np.zeros(len(verts), dtype=bool)
+    is_free[[pos[int(v)] for v in free]] = True
+    X0 = np.array(xy, dtype=float)
+
+    def jac(X):
+        Q = X[Fi]
+        E = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]], axis=2)    # columns q1 - q0, q2 - q0
+        return E @ Rinv
+
+    def energy(z, eps, lam=lam):
+        X = X0.copy()
+        X[is_free] = z.reshape(-1, 2)
+        J = jac(X)
+        D = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
+        r = np.sqrt(eps * eps + D * D)
+        # (D + r) / 2 without the cancellation for D << 0
+        with np.errstate(divide="ignore", invalid="ignore"):   # np.where evaluates both
+            chi = np.where(D >= 0, 0.5 * (D + r), 0.5 * eps * eps / (r - D))
+        dchi = 0.5 * (1 + D / r)
+        num = 0.5 * np.einsum("ijk,ijk->i", J, J) + 0.5 * lam * (D * D + 1)
+        f = num / chi
+        # d f / dJ = J / chi + (lam D / chi - num dchi / chi^2) cof(J), cof(J) = d det J / dJ
+        cof = np.stack([np.stack([J[:, 1, 1], -J[:, 1, 0]], 1), np.stack([-J[:, 0, 1], J[:, 0, 0]], 1)], 1)
+        G = J / chi[:, None, None] + (lam * D / chi - num * dchi / chi ** 2)[:, None, None] * cof
+        G = G * area[:, None, None]
+        dE = G @ np.transpose(Rinv, (0, 2, 1))   # d energy / d (q1 - q0, q2 - q0)
+        grad = np.zeros_like(X)
+        np.add.at(grad, Fi[:, 1], dE[:, :, 0])
+        np.add.at(grad, Fi[:, 2], dE[:, :, 1])
+        np.add.at(grad, Fi[:, 0], -dE[:, :, 0] - dE[:, :, 1])
+        return float(np.dot(area, f)), grad[is_free].ravel()
+
+    # The chart scaled so that the faces' median |det J| is 1 (eps is relative to it).
+    J = jac(X0)
+    unit_scale = np.sqrt(max(float(np.median(np.abs(J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]))), 1e-300))
+    X0 = X0 / unit_scale
+    z = X0[is_free].ravel()
+    eps = 1.0
+    for _ in range(rounds):
+        res = minimize(energy, z, args=(eps,), jac=True, method="L-BFGS-B", options={"maxiter": 2000})
+        z = res.x
+        X = X0.copy()
+        X[is_free] = z.reshape(-1, 2)
+        J = jac(X)
+        D = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
+        if D.min() > 0:
+            break
+        eps *= 0.1
+    else:
+        return None
+    # Unfolded: the same energy with eps near 0 (the barrier form, which lowers the distortion; the
+    # first unfolded point is often a sliver at the edge of the feasible set), kept while unfolded.
+    for _ in range(polish):
+        eps *= 1e-3
+        res = minimize(energy, z, args=(eps, polish_lam), jac=True, method="L-BFGS-B", options={"maxiter": 2000})
+        X = X0.copy()
+        X[is_free] = res.x.reshape(-1, 2)
+        J = jac(X)
+        if np.min(J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]) <= 0:
+            break
+        z = res.x
+    X = X0.copy()
+    X[is_free] = z.reshape(-1, 2)
+    return X[is_free] * unit_scale
+
+
 class _TargetFaces:
     """The target's faces around a set of faces (rings of faces sharing a vertex)."""
 
@@ -147,7 +368,7 @@ class _TargetFaces:
 
 
 def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, max_passes=4, max_rings=3,
-                  relax_sweeps=2, kernel_radii=(0.5, 1.0, 2.0, 4.0), kernel_directions=12):
+                  relax_sweeps=2, kernel_radii=(0.5, 1.0, 2.0, 4.0), kernel_directions=12, patch_rings=None):
     """Moves interior source vertices of folded faces (module docstring). S, T: open_double._Side;
     fw: the half's forward map {face, barycentric, position} on T's input faces (changed in place);
     turned_of(faces) -> bool array: the pipeline's test of those source faces (open_double._turned);
@@ -156,7 +377,10 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
     relax_sweeps: the passes, the rings relaxed around corners that cannot move, the final sweeps;
     kernel_radii (times the kernel's depth) and kernel_directions: the further points of the shrunk
     kernel a folded corner tries, least distorted first, when its best point and the kernel's centre
-    leave its star turned by turned_of. Returns the moved vertices (sorted, each once)."""
+    leave its star turned by turned_of. patch_rings (default PATCH_RINGS; 0: off): the folds no
+    vertex alone can clear (every corner's kernel empty) re-embedded a cluster at a time, its
+    interior vertices within 1..patch_rings rings moved together (_patch_untangle). Returns the
+    moved vertices (sorted, each once)."""
     from scipy.optimize import linprog, minimize
 
     from .open_double import _dilatation as dilatation
@@ -312,6 +536,22 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
                 break
             continue
         bad = now
+    # Folds that no vertex alone can clear: every corner's kernel is empty because its neighbours'
+    # images are folded too (poncho -> spot: 4 faces next to a 306-degree corner of one of spot's
+    # rims, 8 corners, every kernel empty; docs/open_surfaces.md "Session 26"). Each cluster of such
+    # faces is untangled jointly: the interior vertices within k rings of its corners (k = 1 ..
+    # patch_rings) moved together in the target's chart (_patch_untangle), the ring around them held.
+    patch_rings = PATCH_RINGS if patch_rings is None else patch_rings
+    bad = np.flatnonzero(turned_of(np.arange(len(S.F))) & ~ear)
+    if len(bad) and patch_rings:
+        for cluster in _clusters(S.F, bad):
+            corners = np.unique(S.F[cluster])
+            for k in range(1, patch_rings + 1):
+                free = within(corners, k)
+                free = free[~on_b[free]]
+                if _patch_untangle(S, T, fw, free, star_of, turned_of, ear, unit, tf, sign, crease_angle):
+                    moved.extend(int(v) for v in free)
+                    break
     # The moved vertices' stars were made unfolded by the least distorted point of each star given
     # its neighbours, one vertex at a time, so a star next to a moved one can be left far more
     # distorted than before (a valence-4 corner's faces at D' 22-29 on the double torus, from

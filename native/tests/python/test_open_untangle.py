@@ -124,11 +124,9 @@ def test_a_corner_tries_the_rest_of_its_kernel_when_the_test_refuses_the_best_po
     assert open_double._dilatation(S.V, fw["position"], S.F)[star].max() < 6
 
 
-def test_a_fold_no_single_vertex_can_undo_is_left_as_it_was():
-    """The ring of a vertex collapsed onto its image: every face around it is degenerate, and every
-    kernel (of the vertex, of each ring vertex: two of its neighbours coincide) is empty, so no
-    single move unfolds anything. The map is left exactly as it was (moves that unfold nothing are
-    undone) and the faces stay counted."""
+def collapsed_ring():
+    """The 6 x 6 sheet onto itself by the identity but for the ring of its centre vertex v, whose
+    images are all v's: (S, T, fw, v, ring)."""
     V, F = sheet(6)
     S = open_double._Side(V, F, "source")
     T = open_double._Side(V, F, "target")
@@ -137,13 +135,91 @@ def test_a_fold_no_single_vertex_can_undo_is_left_as_it_was():
     ring = np.setdiff1d(np.unique(S.F[(S.F == v).any(axis=1)]), [v])
     for k in ("face", "barycentric", "position"):
         fw[k][ring] = fw[k][v]
+    return S, T, fw, v, ring
+
+
+def test_a_fold_no_single_vertex_can_undo_is_left_as_it_was():
+    """The ring of a vertex collapsed onto its image: every face around it is degenerate, and every
+    kernel (of the vertex, of each ring vertex: two of its neighbours coincide) is empty, so no
+    single move unfolds anything. With the single moves alone (patch_rings=0, the joint step off)
+    the map is left exactly as it was (moves that unfold nothing are undone) and the faces stay
+    counted; the joint step unfolds it (test_folds_no_single_vertex_can_clear_are_untangled_jointly)."""
+    S, T, fw, v, ring = collapsed_ring()
     start = {k: np.array(x, copy=True) for k, x in fw.items()}
     before = open_double._flips(S, T, fw)[0]
     assert before == int(np.sum((S.F == v).any(axis=1) | np.isin(S.F, ring).sum(axis=1) >= 2))
-    moved = open_untangle.untangle_half(S, T, fw, lambda f: open_double._turned(S, T, fw, False, faces=f))
+    moved = open_untangle.untangle_half(S, T, fw, lambda f: open_double._turned(S, T, fw, False, faces=f),
+                                        patch_rings=0)
     assert moved == []
     assert all(np.array_equal(fw[k], start[k]) for k in fw)
     assert open_double._flips(S, T, fw)[0] == before
+
+
+def folded_block(kind, n=12, half_width=0.55):
+    """The sheet (n x n) onto its shaped copy by the identity, except that the images of the 7 x 7
+    block of vertices within half_width of the centre are mirrored (the vertex at (x, y) takes the
+    image of (-x, y)): about 80 folded faces, a cluster where every corner's neighbours are folded
+    too, so no corner's kernel is the star it needs (as poncho -> spot's four faces by one of
+    spot's rim corners, docs/open_surfaces.md "Session 26")."""
+    V, F = sheet(n)
+    S = open_double._Side(V, F, "source")
+    T = open_double._Side(shaped(V, kind), F, "target")
+    fw = locate(T, S.V)
+    home = {k: np.array(x, copy=True) for k, x in fw.items()}
+    block = np.flatnonzero(np.max(np.abs(S.V[:, :2]), axis=1) < half_width)
+    for v in block:
+        w = int(np.argmin(np.linalg.norm(S.V - S.V[v] * [-1, 1, 1], axis=1)))
+        for k in fw:
+            fw[k][v] = home[k][w]
+    return S, T, fw, home, block
+
+
+@pytest.mark.parametrize("kind", ["flat", "curved", "creased"])
+def test_folds_no_single_vertex_can_clear_are_untangled_jointly(kind):
+    """A cluster of folds that single moves cannot clear (folded_block; on main, without the joint
+    step, 28 / 28 / 22 of 84 folded faces were left on the flat / curved / creased sheets) is
+    untangled by moving the interior vertices around it together (open_untangle._patch_untangle):
+    no face folded by the pipeline's own count, every image on a target face, no vertex moved
+    farther than the cluster's rings, boundary vertices held; on the flat sheet the images tile the
+    square (all positive, total area 4: a bijection of the square fixing its boundary)."""
+    S, T, fw, home, block = folded_block(kind)
+    single = {k: np.array(x, copy=True) for k, x in fw.items()}
+    before = open_double._flips(S, T, fw)[0]
+    assert before >= 60
+    open_untangle.untangle_half(S, T, single, lambda f: open_double._turned(S, T, single, False, faces=f),
+                                patch_rings=0)
+    assert open_double._flips(S, T, single)[0] > 0      # single moves alone leave folds
+    moved = open_untangle.untangle_half(S, T, fw, lambda f: open_double._turned(S, T, fw, False, faces=f))
+    assert open_double._flips(S, T, fw)[0] == 0
+    assert np.allclose(np.einsum("ij,ijk->ik", fw["barycentric"], T.V[T.F[fw["face"]]]), fw["position"], atol=1e-12)
+    assert np.all(fw["barycentric"] >= -1e-12)
+    on_b = np.concatenate(S.loops)
+    assert not set(moved) & set(int(x) for x in on_b)
+    assert np.allclose(fw["position"][on_b], home["position"][on_b])
+    # Only vertices near the block move: within PATCH_RINGS rings of it (the grid's spacing 1/6).
+    still = np.max(np.abs(S.V[:, :2]), axis=1) > 0.5 + (open_untangle.PATCH_RINGS + 1) / 6
+    assert np.allclose(fw["position"][still], home["position"][still])
+    if kind == "flat":
+        assert_tiles_the_square(S, fw)
+
+
+def assert_tiles_the_square(S, fw):
+    """Every image triangle of the flat sheet positive and their areas adding up to the square's
+    (4): with the boundary fixed, a bijection of the square."""
+    Q = fw["position"][S.F]
+    signed = 0.5 * np.cross(Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0])[:, 2]
+    assert signed.min() > 0 and abs(signed.sum() - 4.0) < 1e-9
+
+
+def test_a_collapsed_ring_is_untangled_jointly():
+    """The collapsed ring of test_a_fold_no_single_vertex_can_undo_is_left_as_it_was, with the joint
+    step (the default): unfolded, every image triangle of the flat sheet positive and the sheet's
+    area covered once."""
+    S, T, fw, v, ring = collapsed_ring()
+    assert open_double._flips(S, T, fw)[0] > 0
+    open_untangle.untangle_half(S, T, fw, lambda f: open_double._turned(S, T, fw, False, faces=f))
+    assert open_double._flips(S, T, fw)[0] == 0
+    assert_tiles_the_square(S, fw)
 
 
 def holed_sphere(level, dirs, sizes, stretch):
