@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <tuple>
 
 #include <Eigen/Dense>
@@ -122,12 +123,12 @@ DistortionStats hyperbolic_image_distortion(
     }
     auto [b, c] = image_in_chart(f);
     int orientation = image_orientation(b, c);
-    // The corner the face is read from (image_in_corner_chart).
+    // The corner the face is read from (image_in_corner_chart); its sides, read once.
     int r = 0;
-    Eigen::Vector3d sides;
+    std::optional<Eigen::Vector3d> sides;
     if (orientation != 1 && image_in_corner_chart) {
       sides = image_sides(f);
-      r = widest_corner(sides);
+      r = widest_corner(*sides);
       if (r != 0) {
         std::tie(b, c) = image_in_corner_chart(f, r);
         orientation = image_orientation(b, c);
@@ -145,13 +146,10 @@ DistortionStats hyperbolic_image_distortion(
     }
     const Eigen::Vector3d p0 = source.V.row(source.F(f, r)), p1 = source.V.row(source.F(f, (r + 1) % 3)),
                           p2 = source.V.row(source.F(f, (r + 2) % 3));
-    double d;
-    if (r == 0) {
-      d = hyperbolic_face_dilatation(p0, p1, p2, b, c, image_sides(f), thin_images);
-    } else {
-      const Eigen::Vector3d rotated(sides[r], sides[(r + 1) % 3], sides[(r + 2) % 3]);
-      d = hyperbolic_face_dilatation(p0, p1, p2, b, c, rotated, thin_images);
-    }
+    if (!sides) sides = image_sides(f);
+    const Eigen::Vector3d& l = *sides;
+    const Eigen::Vector3d sides_from_r(l[r], l[(r + 1) % 3], l[(r + 2) % 3]);
+    const double d = hyperbolic_face_dilatation(p0, p1, p2, b, c, sides_from_r, thin_images);
     out.per_face[f] = d;
     if (thin[f]) {
       out.thin_source.push_back(f);
