@@ -713,7 +713,8 @@ void bind_map(py::module_& m) {
                                   "start_surface_map): progress() {stage, fraction, iteration, energy, gradient, "
                                   "cancelled, done} and done() never block on the solve; cancel() stops it at its next "
                                   "progress point (result() then raises surfmap.Cancelled); wait(timeout=None) waits "
-                                  "with the GIL released and returns done(); result() waits, then returns "
+                                  "with the GIL released (None or inf: until done; 0 or less: not at all) and returns "
+                                  "done(); result() waits, then returns "
                                   "surface_map's dict or raises its error; niceness: the priority step the thread "
                                   "applied; thread_id: its native id (0 until it started, and off Linux).")
       .def("progress", &MapJob::progress)
