@@ -1138,3 +1138,25 @@ def test_an_open_pairs_closed_stage_comes_first_in_the_stage_text():
     assert job.stage_text() == "UV map UVMap (before)"
     job.stage, job.fraction = "homotopy candidates", 0.3
     assert job.status_text().startswith("Surface Map: Ranking handle pairings (30%)")
+
+
+def test_a_started_job_is_registered_before_its_worker_runs():
+    """stop_running_jobs (atexit) joins the jobs in map_job.RUNNING. The worker used to register
+    itself only once it ran: a quit between start() and the new thread's first time slice (a
+    loaded machine) found nothing to stop, and Python's exit could then end the worker inside a
+    native call (the abort of test_quitting_mid_solve_exits_cleanly). Here the worker is held at
+    its first line: the job must be registered already, and stop_running_jobs must wait for it."""
+    from surface_map import map_job
+    gate = threading.Event()
+    job = map_job.MapJob(None, None, None, None)
+    job._run_threaded = lambda: gate.wait(30)   # the worker, held before it does anything
+    try:
+        job.start()
+        assert job in map_job.RUNNING, "a started job is not registered until its worker runs"
+        threading.Timer(0.2, gate.set).start()
+        map_job.stop_running_jobs(timeout=30)
+        assert job.cancel and not job.thread.is_alive()
+    finally:
+        gate.set()
+        job.thread.join(30)
+        map_job.RUNNING.discard(job)

@@ -374,6 +374,10 @@ class MapJob:
         self.t0 = time.time()
         self.thread = threading.Thread(target=self._run_threaded, name="surfmap solve",
                                        daemon=True)
+        # Registered here, on the main thread, not only by the worker once it runs: a quit
+        # before the new thread was first scheduled (a loaded machine) would otherwise find it
+        # unregistered, and Python's exit could end it inside a native call (stop_running_jobs).
+        RUNNING.add(self)
         self.thread.start()
 
     def done(self):

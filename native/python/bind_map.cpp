@@ -3,8 +3,10 @@
 #include <atomic>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -463,16 +465,20 @@ class MapJob {
     std::lock_guard<std::mutex> lock(s.mutex);
     return s.done;
   }
-  // Waits up to `timeout` seconds (None: until done) with the GIL released; returns done().
+  // Waits up to `timeout` seconds (None or inf: until done; 0 or less: not at
+  // all, as threading.Event.wait) with the GIL released; returns done(). An
+  // infinite or huge double would overflow wait_for's clock arithmetic (it
+  // returned at once), so anything past a year waits without a deadline.
   bool wait(const py::object& timeout) {
-    const double seconds = timeout.is_none() ? -1.0 : timeout.cast<double>();
+    const double seconds = timeout.is_none() ? std::numeric_limits<double>::infinity() : timeout.cast<double>();
+    if (std::isnan(seconds)) throw InputError("wait: timeout is NaN (give seconds, or None to wait until done)");
     MapJobState& s = runner_->state();
     py::gil_scoped_release release;
     std::unique_lock<std::mutex> lock(s.mutex);
-    if (seconds < 0)
+    if (seconds > 365.0 * 24 * 3600)
       s.finished.wait(lock, [&] { return s.done; });
     else
-      s.finished.wait_for(lock, std::chrono::duration<double>(seconds), [&] { return s.done; });
+      s.finished.wait_for(lock, std::chrono::duration<double>(std::max(seconds, 0.0)), [&] { return s.done; });
     return s.done;
   }
   // The map's dict, as surface_map returns it (waits for the solve first); the
@@ -707,7 +713,8 @@ void bind_map(py::module_& m) {
                                   "start_surface_map): progress() {stage, fraction, iteration, energy, gradient, "
                                   "cancelled, done} and done() never block on the solve; cancel() stops it at its next "
                                   "progress point (result() then raises surfmap.Cancelled); wait(timeout=None) waits "
-                                  "with the GIL released and returns done(); result() waits, then returns "
+                                  "with the GIL released (None or inf: until done; 0 or less: not at all) and returns "
+                                  "done(); result() waits, then returns "
                                   "surface_map's dict or raises its error; niceness: the priority step the thread "
                                   "applied; thread_id: its native id (0 until it started, and off Linux).")
       .def("progress", &MapJob::progress)

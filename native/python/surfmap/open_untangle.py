@@ -367,6 +367,9 @@ class _TargetFaces:
         return faces
 
 
+# Long on purpose: its steps (the single moves with ring relaxation, the joint patches, the final
+# sweeps) share the closures star_of, try_move and within and the state they keep over fw; split,
+# each piece would take all of them as arguments.
 def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, max_passes=4, max_rings=3,
                   relax_sweeps=2, kernel_radii=(0.5, 1.0, 2.0, 4.0), kernel_directions=12, patch_rings=None):
     """Moves interior source vertices of folded faces (module docstring). S, T: open_double._Side;

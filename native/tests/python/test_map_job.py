@@ -55,6 +55,20 @@ def test_a_polled_job_gives_surface_maps_result(genus2):
     assert job.wait(0) and job.wait()
 
 
+def test_wait_timeouts_follow_threading_event_wait(genus2):
+    """wait(t): t <= 0 does not wait (it waited until done for a negative t), inf waits until
+    done (it returned at once: the deadline overflowed the clock), NaN is refused."""
+    a, b = genus2
+    job = surfmap.start_surface_map(*a, *b)
+    t = time.monotonic()
+    assert job.wait(-1.0) is False   # (the intake alone takes longer than this call)
+    assert time.monotonic() - t < 0.5
+    with pytest.raises(surfmap.InputError, match="NaN"):
+        job.wait(float("nan"))
+    assert job.wait(float("inf")) is True and job.done()
+    assert job.wait(-1.0) is True    # done: returns done() without waiting
+
+
 def test_genus1_job_with_keywords_gives_the_same_map():
     a, b = torus(1.0, 0.5, 40, 20), torus(1.5, 0.5, 50, 20, 1)
     kw = dict(landmarks=[(0, 7)], method="relaxation", tolerance=1e-8)
