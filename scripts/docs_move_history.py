@@ -9,6 +9,7 @@ later line starting with `end` (end None: to the end of the file). Moved text is
 original order; a range that does not start with a heading is preceded by one line naming the
 section it came from. Prints non-blank line counts.
 """
+import os
 import re
 import subprocess
 import sys
@@ -16,7 +17,7 @@ from pathlib import Path
 
 BASE = sys.argv[1] if len(sys.argv) > 1 else "s27merge"
 ROOT = Path(__file__).resolve().parent.parent
-DOCS = ROOT / "docs"
+DOCS = Path(os.environ.get("DOCS_OUT", ROOT / "docs"))
 
 SPECS = {
     "robustness": [
@@ -40,6 +41,7 @@ SPECS = {
         ("R", "**Fixed since: that inverse fold.**", "## Intake and validation"),
         ("H", "## Measurements"),
         ("H", "### Capped maps that fold"),
+        ("H", "## What is left"),
         ("H", "## Session 26 (ui26)"),
     ],
     "benchmarks": [
