@@ -70,6 +70,8 @@ CITATIONS = [
     ("Bădoiu–Clarkson steps", "core-set steps"),
     ("Maskit's comparison", "the classical comparison of extremal length and length"),
     ("surface has that length: Yamada;", "surface has that length (a classical bound;"),
+    ("Erickson–Whittlesey's maximum spanning cut tree T*)", "the greedy loops' maximum spanning cut tree T*)"),
+    ("(Bobenko–Springborn allow", "(intrinsic Delaunay triangulations allow"),
 ]
 
 HEADER = """# History: {title}
@@ -182,7 +184,7 @@ def main():
             body = body.replace(old, new)
         hist = header + "\n" + body + "\n"
         kept_text = re.sub(r"\n{3,}", "\n\n", "\n".join(kept))
-        (DOCS / "history").mkdir(exist_ok=True)
+        (DOCS / "history").mkdir(parents=True, exist_ok=True)
         (DOCS / "history" / f"{topic}.md").write_text(hist)
         (DOCS / f"{topic}.md").write_text(kept_text)
         b_, k_, h_ = nonblank(text), nonblank(kept_text), nonblank(hist)
