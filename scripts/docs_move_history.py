@@ -15,7 +15,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-BASE = sys.argv[1] if len(sys.argv) > 1 else "s27merge"
+BASE = next((a for a in sys.argv[1:] if not a.startswith("--")), "s27merge")
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = Path(os.environ.get("DOCS_OUT", ROOT / "docs"))
 
@@ -131,7 +131,72 @@ def nonblank(text):
     return sum(1 for l in text.splitlines() if l.strip())
 
 
+# Pass 2 (`--pass2`): ranges moved later from the working tree's topic files, after the topic
+# files were rewritten, so pass 1 (which writes the topic files from BASE) is not re-run over them.
+# Each chunk goes into the history file in its original order (by its first line's position in
+# BASE), preceded by one line naming the section it came from.
+PASS2 = {
+    "handle_classes": [
+        ("R", '**Where "2.29 x the bound, mean D\' 3.44" came from**', "**One set of defaults.**"),
+    ],
+    "open_surfaces": [
+        ("R", "Re-run in session 15 (2026-12-03", "## Intake and validation"),
+    ],
+}
+
+
+def base_position(base_lines, line):
+    try:
+        return base_lines.index(line)
+    except ValueError:
+        return -1
+
+
+def pass2():
+    written = 0
+    for topic, items in PASS2.items():
+        base = subprocess.run(["git", "-C", str(ROOT), "show", f"{BASE}:docs/{topic}.md"],
+                              capture_output=True, text=True, check=True).stdout.split("\n")
+        tpath, hpath = DOCS / f"{topic}.md", DOCS / "history" / f"{topic}.md"
+        lines = tpath.read_text().split("\n")
+        hist = hpath.read_text().split("\n")
+        before = nonblank(tpath.read_text()) + nonblank(hpath.read_text())
+        mask = code_mask(lines)
+        for item in items:
+            i = find_unique(lines, item[1], mask)
+            j = find_unique(lines, item[2], mask, i + 1, first=True)
+            chunk = lines[i:j]
+            while chunk and not chunk[-1].strip():
+                chunk.pop()
+            note = f"### From “{enclosing_heading(lines, i, mask)}”"
+            pos = base_position(base, chunk[0])
+            # history blocks start at headings; insert before the first whose BASE position is later
+            hmask = code_mask(hist)
+            at = len(hist)
+            for k, l in enumerate(hist):
+                if hmask[k] or not heading_level(l) or k == 0:
+                    continue
+                first = l
+                if l.startswith("### From “"):
+                    first = next((x for x in hist[k + 1:] if x.strip()), l)
+                if base_position(base, first) > pos:
+                    at = k
+                    break
+            hist[at:at] = [note, ""] + chunk + [""]
+            del lines[i:j]
+            mask = code_mask(lines)
+            written += 1
+        tpath.write_text(re.sub(r"\n{3,}", "\n\n", "\n".join(lines)))
+        hpath.write_text(re.sub(r"\n{3,}", "\n\n", "\n".join(hist)))
+        after = nonblank(tpath.read_text()) + nonblank(hpath.read_text())
+        print(f"{topic:16s} pass 2: non-blank {before} -> {after} ({len(items)} note lines)")
+    return written
+
+
 def main():
+    if "--pass2" in sys.argv:
+        pass2()
+        return
     total_before = total_after = written = 0
     for topic, items in SPECS.items():
         text = subprocess.run(["git", "-C", str(ROOT), "show", f"{BASE}:docs/{topic}.md"],
