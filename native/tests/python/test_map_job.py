@@ -119,13 +119,24 @@ def test_errors_are_surface_maps(genus2):
 
 
 def test_dropping_a_running_job_stops_it(genus2):
+    """A dropped job is cancelled and joined. Its harmonic solves here run to 10^6 iterations
+    (tolerance 1e-300 is never met): uncancelled, the solve lasts hours, so only the cancel ends
+    the drop (a destructor that joined without cancelling returned within 30 s on the default
+    solve: the old test could not fail). The drop runs on a thread of its own so that a failure
+    fails rather than hangs (the interpreter's exit hook cancels the job then)."""
     a, b = genus2
-    job = surfmap.start_surface_map(*a, *b)
-    while job.progress()["stage"] == "starting":
+    box = [surfmap.start_surface_map(*a, *b, tolerance=1e-300, max_iterations=10**6)]
+    while box[0].progress()["iteration"] is None:   # inside a harmonic solve
+        assert not box[0].done(), box[0].result()
         time.sleep(0.001)
-    t = time.monotonic()
-    del job   # cancelled and joined: returns once the solve reaches its next progress point
-    assert time.monotonic() - t < 30
+    dropped = threading.Event()
+
+    def drop():
+        box.clear()   # the last reference: MapJob's destructor runs here
+        dropped.set()
+
+    threading.Thread(target=drop, daemon=True).start()
+    assert dropped.wait(120), "dropping the job did not stop its solve"
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="per-thread nice is Linux's")
