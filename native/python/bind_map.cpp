@@ -446,17 +446,31 @@ class MapJob {
   // Dropped while running: cancelled, and its thread joined (the GIL released).
   ~MapJob() { runner_->stop(); }
 
+  // The state copied under the mutex, the dict built after it (building
+  // Python objects under it would hold the solve's hooks while Python runs).
   py::dict progress() {
     MapJobState& s = runner_->state();
-    std::lock_guard<std::mutex> lock(s.mutex);
+    std::string stage;
+    double fraction, energy, gradient;
+    int iteration;
+    bool done;
+    {
+      std::lock_guard<std::mutex> lock(s.mutex);
+      stage = s.stage;
+      fraction = s.fraction;
+      iteration = s.iteration;
+      energy = s.energy;
+      gradient = s.gradient;
+      done = s.done;
+    }
     py::dict d;
-    d["stage"] = s.stage;
-    d["fraction"] = s.fraction;
-    d["iteration"] = s.iteration >= 0 ? py::object(py::int_(s.iteration)) : py::object(py::none());
-    d["energy"] = s.iteration >= 0 ? py::object(py::float_(s.energy)) : py::object(py::none());
-    d["gradient"] = s.iteration >= 0 ? py::object(py::float_(s.gradient)) : py::object(py::none());
+    d["stage"] = stage;
+    d["fraction"] = fraction;
+    d["iteration"] = iteration >= 0 ? py::object(py::int_(iteration)) : py::object(py::none());
+    d["energy"] = iteration >= 0 ? py::object(py::float_(energy)) : py::object(py::none());
+    d["gradient"] = iteration >= 0 ? py::object(py::float_(gradient)) : py::object(py::none());
     d["cancelled"] = s.cancel.load();
-    d["done"] = s.done;
+    d["done"] = done;
     return d;
   }
   void cancel() { runner_->state().cancel = true; }
