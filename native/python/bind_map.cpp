@@ -396,7 +396,13 @@ class MapJobRunner {
       s.error = std::current_exception();
     }
     {
+      // A cancel that came after the solve's last progress point, but before
+      // it was done, still cancels (cancel() returned True: result() raises).
       std::lock_guard<std::mutex> lock(s.mutex);
+      if (!s.error && s.cancel.load()) {
+        s.error = std::make_exception_ptr(Cancelled("cancelled after the solve's last progress point"));
+        s.out = ClosedSolve{};
+      }
       s.done = true;
     }
     s.finished.notify_all();
@@ -473,7 +479,16 @@ class MapJob {
     d["done"] = done;
     return d;
   }
-  void cancel() { runner_->state().cancel = true; }
+  // As concurrent.futures.Future.cancel: False once the job is done (its
+  // result or error stands), else True and result() raises Cancelled (the
+  // flag is set under the mutex that `run` reads it under when it finishes).
+  bool cancel() {
+    MapJobState& s = runner_->state();
+    std::lock_guard<std::mutex> lock(s.mutex);
+    if (s.done) return false;
+    s.cancel = true;
+    return true;
+  }
   bool done() {
     MapJobState& s = runner_->state();
     std::lock_guard<std::mutex> lock(s.mutex);
@@ -726,7 +741,9 @@ void bind_map(py::module_& m) {
   py::class_<MapJob>(m, "MapJob", "A closed pair's map computed on a thread that never takes the GIL (made by "
                                   "start_surface_map): progress() {stage, fraction, iteration, energy, gradient, "
                                   "cancelled, done} and done() never block on the solve; cancel() stops it at its next "
-                                  "progress point (result() then raises surfmap.Cancelled); wait(timeout=None) waits "
+                                  "progress point and returns True (result() then raises surfmap.Cancelled), or returns "
+                                  "False when the job is done already (its result or error stands, as "
+                                  "concurrent.futures.Future.cancel); wait(timeout=None) waits "
                                   "with the GIL released (None or inf: until done; 0 or less: not at all) and returns "
                                   "done(); result() waits, then returns "
                                   "surface_map's dict or raises its error; niceness: the priority step the thread "

@@ -82,13 +82,38 @@ def test_cancel_mid_solve_raises_cancelled(genus2):
     while job.progress()["iteration"] is None:   # inside a harmonic solve
         assert not job.done(), "the job finished before a harmonic solve was seen"
         time.sleep(0.0005)
-    job.cancel()
+    assert job.cancel() is True
     assert job.progress()["cancelled"]
     with pytest.raises(surfmap.Cancelled):
         job.result()
     assert job.done()
     with pytest.raises(surfmap.Cancelled):   # every call says so
         job.result()
+    assert job.cancel() is False             # done (cancelled): nothing left to cancel
+
+
+def test_cancel_follows_future_cancel(genus2):
+    """cancel() as concurrent.futures.Future.cancel: False once the job is done, and its result
+    stands (it returned None and result() gave the map, against the docstring's Cancelled); True
+    while it runs, and then result() raises Cancelled, also for a cancel that comes after the
+    solve's last progress point (the map was returned then)."""
+    a, b = genus2
+    job = surfmap.start_surface_map(*a, *b)
+    assert job.wait()
+    assert job.cancel() is False
+    assert not job.progress()["cancelled"]
+    assert job.result()["energy"]["final"] > 0
+    # A cancel late in the job (the last stage, or done already): either outcome is consistent.
+    late = surfmap.start_surface_map(*a, *b)
+    while late.progress()["fraction"] < 0.99 and not late.done():
+        time.sleep(0.0005)
+    if late.cancel():
+        assert late.progress()["cancelled"]
+        with pytest.raises(surfmap.Cancelled):
+            late.result()
+    else:
+        assert late.done() and not late.progress()["cancelled"]
+        assert late.result()["energy"]["final"] > 0
 
 
 def test_errors_are_surface_maps(genus2):
