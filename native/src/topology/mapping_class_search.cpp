@@ -104,8 +104,8 @@ std::vector<MappingClassMove> twist_moves(int genus, bool torelli_conjugates, bo
   }
   if (bounding_pairs && genus >= 3) {
     // Genus-1 bounding pairs (Torelli elements the separating twists do not
-    // generate; Johnson: for genus >= 3 the bounding pair maps generate the
-    // Torelli group). The 3-chain a_j, b_j, c_j has a neighbourhood of genus
+    // generate; for genus >= 3 the bounding pair maps generate the Torelli
+    // group, a known theorem). The 3-chain a_j, b_j, c_j has a neighbourhood of genus
     // 1 whose two boundary curves d, d' are disjoint and both homologous to
     // a_j+1, and the chain relation gives (T(a_j) T(b_j) T(c_j))^4 =
     // T(d) T(d'); so T(a_j+1)^2 (T(a_j) T(b_j) T(c_j))^-4 has the identity

@@ -39,7 +39,7 @@
 //  - with `bounding_pairs`, genus >= 3: bounding pair maps T(d) T(d')^-1
 //    (d, d' disjoint, homologous, together bounding a genus-1 piece), from
 //    the chain relation; for genus >= 3 such maps generate the Torelli group
-//    (Johnson), which separating twists alone do not (only these 4(g - 1)
+//    (a known theorem), which separating twists alone do not (only these 4(g - 1)
 //    are listed, not their conjugates).
 // Each comes with both directions (the move and its inverse).
 #include <functional>
