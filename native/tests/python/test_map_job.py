@@ -230,19 +230,20 @@ def test_the_solve_thread_never_takes_the_gil(genus2):
     assert stalled and finished.is_set() and calls
 
 
-@pytest.mark.parametrize("threads", [1, 2])
-def test_progress_fractions_never_decrease(genus2, threads):
+@pytest.mark.parametrize("kw", [dict(threads=1), dict(threads=2), dict(threads=1, source_base_vertex=5)])
+def test_progress_fractions_never_decrease(genus2, kw):
     """Review of session 26: the fraction stepped back from 0.42 to 0.40 (the full-resolution
-    solves' hook reported the ranking's 0.40 after the ranking's end at 0.42). Within a run the
-    fractions given to `progress` never decrease, and run from 0 up to 1; a polled job's too."""
+    solves' hook reported the ranking's 0.40 after the ranking's end at 0.42), and a given base
+    vertex's run (the automatic cuts' map, then the given cuts') counted from 0 twice. Within a
+    run the fractions given to `progress` never decrease and end at 1; a polled job's too."""
     a, b = genus2
     calls = []
-    surfmap.surface_map(*a, *b, threads=threads, progress=lambda s, f: calls.append((s, f)) or True)
+    surfmap.surface_map(*a, *b, **kw, progress=lambda s, f: calls.append((s, f)) or True)
     fractions = [f for _, f in calls]
     assert fractions and fractions[-1] == 1.0
     back = [(calls[i], calls[i + 1]) for i in range(len(calls) - 1) if fractions[i + 1] < fractions[i]]
     assert not back, back
-    job = surfmap.start_surface_map(*a, *b, threads=threads)
+    job = surfmap.start_surface_map(*a, *b, **kw)
     polled = []
     while not job.done():
         polled.append(job.progress()["fraction"])
