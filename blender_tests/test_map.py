@@ -1086,6 +1086,9 @@ class _KeyEvent(_Event):
         super().__init__(type, value)
         for m in ("ctrl", "shift", "alt", "oskey"):
             setattr(self, m, bool(mods.get(m, False)))
+        for m in ("hyper", "type_prev"):   # (Blender 4.4's modifier; the key held before)
+            if m in mods:
+                setattr(self, m, mods[m])
 
 
 def test_modal_compute_lets_the_quit_shortcut_through():
@@ -1117,6 +1120,41 @@ def test_modal_compute_lets_the_quit_shortcut_through():
     assert ops_map.is_quit_shortcut(remapped, _KeyEvent('F4', alt=True))
     assert not ops_map.is_quit_shortcut(remapped, _KeyEvent('Q', ctrl=True))
     assert not ops_map.is_quit_shortcut(remapped, _KeyEvent('F4'))
+
+
+def _quit_keymap(**item):
+    """A stand-in context whose user keymap holds one wm.quit_blender item."""
+    from types import SimpleNamespace
+    fields = dict(idname="wm.quit_blender", active=True, value='PRESS', any=False, ctrl=False,
+                  shift=False, alt=False, oskey=False)
+    fields.update(item)
+    km = SimpleNamespace(keymap_items=[SimpleNamespace(**fields)])
+    return SimpleNamespace(window_manager=SimpleNamespace(
+        keyconfigs=SimpleNamespace(user=SimpleNamespace(keymaps={"Window": km}))))
+
+
+def test_the_quit_shortcut_compares_hyper_and_the_key_modifier():
+    """Review of session 26: is_quit_shortcut compared ctrl/shift/alt/oskey only, so a Quit
+    item needing Blender 4.4's Hyper, or a held key (key_modifier), matched the key without
+    them. Both are compared where the item has them (getattr defaults: Blender 3.4's items and
+    events have no hyper; an item without key_modifier needs no held key)."""
+    from surface_map import ops_map
+    hyper = _quit_keymap(type='Q', hyper=True, key_modifier='NONE')
+    assert ops_map.is_quit_shortcut(hyper, _KeyEvent('Q', hyper=True))
+    assert not ops_map.is_quit_shortcut(hyper, _KeyEvent('Q'))
+    plain = _quit_keymap(type='Q', ctrl=True)       # an item of 3.4: no hyper, no key_modifier
+    assert ops_map.is_quit_shortcut(plain, _KeyEvent('Q', ctrl=True))
+    assert not ops_map.is_quit_shortcut(plain, _KeyEvent('Q', ctrl=True, hyper=True))
+    any_hyper = _quit_keymap(type='Q', ctrl=True, hyper=-1)   # Blender 4: -1 is "any"
+    assert ops_map.is_quit_shortcut(any_hyper, _KeyEvent('Q', ctrl=True, hyper=True))
+    assert ops_map.is_quit_shortcut(any_hyper, _KeyEvent('Q', ctrl=True))
+    held = _quit_keymap(type='Q', key_modifier='X')
+    assert ops_map.is_quit_shortcut(held, _KeyEvent('Q', type_prev='X'))
+    assert not ops_map.is_quit_shortcut(held, _KeyEvent('Q'))
+    assert not ops_map.is_quit_shortcut(held, _KeyEvent('Q', type_prev='Y'))
+    # (no keymap: Ctrl+Q, not with Hyper)
+    assert ops_map.is_quit_shortcut(object(), _KeyEvent('Q', ctrl=True))
+    assert not ops_map.is_quit_shortcut(object(), _KeyEvent('Q', ctrl=True, hyper=True))
 
 
 def test_an_open_pairs_closed_stage_comes_first_in_the_stage_text():

@@ -195,6 +195,59 @@ def test_the_picked_pairing_is_described_under_the_list():
     assert len(wide) < len(panel.picked_lines(f"#1: {descs[1]}", panel.label_width(None)))
 
 
+def test_the_picked_lines_follow_the_font_size_and_ui_scale():
+    """Review of session 26: picked_lines was cached on the text and width only, so after the
+    label font's size was changed in the preferences the panel kept the lines wrapped for the
+    old size (cut or too short). The cache is keyed on the font's points and the UI scale too:
+    a larger font wraps the same text into more lines, each fitting the width in that font."""
+    import blf
+    from surface_map import panel
+    settings = bpy.context.scene.surfmap
+    c = settings.candidates.add()
+    c.index, c.energy, c.solved = 0, 26.4, True
+    c.description = "handle 1 -> handle 1, handle 2 -> handle 2  [closest handle positions]"
+    settings.candidate_index = 0
+
+    def lines_drawn():
+        log = draw_all_panels()
+        k = log.index(("operator", "surfmap.solve_candidate"))
+        rest = log[k + 1:]
+        end = next((j for j, x in enumerate(rest) if x[0] != "label"), len(rest))
+        return [x[1] for x in rest[:end]]
+
+    prefs = bpy.context.preferences
+    style = prefs.ui_styles[0]
+    font = getattr(style, "widget_label", None) or getattr(style, "widget", None)
+    points, view_scale = font.points, prefs.view.ui_scale
+    try:
+        font.points = 11
+        small = lines_drawn()
+        assert small and lines_drawn() == small
+        font.points = 16
+        large = lines_drawn()
+        assert len(large) > len(small), (small, large)
+        assert " ".join(large) == " ".join(small)    # the same words, wrapped again
+        size = 16 * panel.ui_scale()
+        blf.size(0, size, 72) if bpy.app.version < (4, 0) else blf.size(0, size)
+        for line in large:
+            assert blf.dimensions(0, line)[0] / panel.ui_scale() <= panel.LABEL_WIDTH_DEFAULT, line
+        font.points = 11
+        assert lines_drawn() == small
+        # the UI scale is part of the key: the text is measured at its size in pixels
+        prefs.view.ui_scale = 2.0
+        assert panel.label_font() == (11.0, 2.0)
+        misses = panel.picked_lines.cache_info().misses
+        scaled = lines_drawn()
+        assert panel.picked_lines.cache_info().misses == misses + 1
+        assert " ".join(scaled) == " ".join(small)
+        blf.size(0, 22, 72) if bpy.app.version < (4, 0) else blf.size(0, 22)
+        for line in scaled:
+            assert blf.dimensions(0, line)[0] / 2 <= panel.LABEL_WIDTH_DEFAULT, line
+    finally:
+        font.points, prefs.view.ui_scale = points, view_scale
+
+
+
 def test_a_run_fills_the_list_summary_and_colours_both_objects():
     a, b = _torus_pair()
     res, err = run("compute_map")

@@ -1,5 +1,5 @@
 """Surface Map: globally optimal maps between closed surfaces of equal genus
-(Li et al., TVCG 2008). Blender side of the surfmap project.
+(the method: docs/method.md). Blender side of the surfmap project.
 
 Module layout (like the glTF add-on; the data flow file by file is in docs/addon.md):
   no bpy (plain pytest can import them):

@@ -465,7 +465,9 @@ def is_quit_shortcut(context, event):
     other key, and quitting mid-solve must still work (docs/addon.md "Session 26 (ui26)")."""
     if getattr(event, "value", None) != 'PRESS':
         return False
-    mods = {m: bool(getattr(event, m, False)) for m in ("ctrl", "shift", "alt", "oskey")}
+    # (hyper: Blender 4.4's modifier; event and keymap item lack it on older versions, and
+    # getattr's defaults then compare equal)
+    mods = {m: bool(getattr(event, m, False)) for m in ("ctrl", "shift", "alt", "oskey", "hyper")}
     try:
         km = context.window_manager.keyconfigs.user.keymaps.get("Window")
         items = [k for k in km.keymap_items if k.idname == "wm.quit_blender" and k.active] \
@@ -474,13 +476,17 @@ def is_quit_shortcut(context, event):
         items = []
     if not items:
         return event.type == 'Q' and (mods["ctrl"] or mods["oskey"]) \
-            and not (mods["shift"] or mods["alt"])
+            and not (mods["shift"] or mods["alt"] or mods["hyper"])
     for k in items:
         if k.type != event.type or k.value not in ('PRESS', 'ANY'):
             continue
+        # The item's extra key held with it (key_modifier, 'NONE' for none): the event's.
+        held = getattr(k, "key_modifier", 'NONE') or 'NONE'
+        if held != 'NONE' and held != getattr(event, "type_prev", None):
+            continue
         # (a modifier of -1 is "any" in Blender 4; KeyMapItem.any is "any" in 3.x)
-        if getattr(k, "any", False) or all(int(getattr(k, m)) == -1
-                                          or bool(getattr(k, m)) == mods[m] for m in mods):
+        if getattr(k, "any", False) or all(int(getattr(k, m, 0)) == -1
+                                          or bool(getattr(k, m, 0)) == mods[m] for m in mods):
             return True
     return False
 

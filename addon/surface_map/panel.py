@@ -186,7 +186,7 @@ def draw_map(layout, settings, region=None):
         picked = picked_description(settings)
         if picked:
             col = layout.column(align=True)
-            for i, line in enumerate(picked_lines(picked, label_width(region))):
+            for i, line in enumerate(picked_lines(picked, label_width(region), *label_font())):
                 col.label(text=line, icon='INFO' if i == 0 else 'BLANK1')
 
 
@@ -218,40 +218,57 @@ def label_width(region=None):
     width = getattr(region, "width", 0) or 0
     if width <= 0:
         return LABEL_WIDTH_DEFAULT
+    return max(60, LABEL_WIDTH_DEFAULT + int(width / ui_scale()) - SIDEBAR_WIDTH_DEFAULT)
+
+
+def ui_scale():
+    """The factor of the UI's pixels: the region's pixels include the resolution scale
+    (system.ui_scale: 0 in background mode, then the preference's UI scale)."""
     prefs = bpy.context.preferences
-    # the region's pixels include the resolution scale (system.ui_scale: 0 in background mode)
-    scale = getattr(prefs.system, "ui_scale", 0.0) or prefs.view.ui_scale or 1.0
-    return max(60, LABEL_WIDTH_DEFAULT + int(width / scale) - SIDEBAR_WIDTH_DEFAULT)
+    return getattr(prefs.system, "ui_scale", 0.0) or prefs.view.ui_scale or 1.0
 
 
-def text_width(text):
-    """Width of `text` in the UI's label font (11 pt, UI scale 1), in pixels."""
+def label_font():
+    """(points, UI scale) the labels' text is drawn at: the UI style's label points (11 by
+    default; 'widget_label', or 'widget' where a version has no label style) and ui_scale()."""
+    style = bpy.context.preferences.ui_styles[0]
+    font = getattr(style, "widget_label", None) or getattr(style, "widget", None)
+    return float(getattr(font, "points", 11) or 11), float(ui_scale())
+
+
+def text_width(text, points=11, scale=1.0):
+    """Width of `text` in the UI's label font of `points` drawn at UI scale `scale` (the size
+    in pixels, hinted), in pixels at UI scale 1."""
     import blf
+    size = points * scale
     try:
-        blf.size(0, 11)
+        blf.size(0, size)
     except TypeError:          # Blender 3.x also takes a dpi
-        blf.size(0, 11, 72)
-    return blf.dimensions(0, text)[0]
+        blf.size(0, size, 72)
+    return blf.dimensions(0, text)[0] / scale
 
 
 @functools.lru_cache(maxsize=32)
-def picked_lines(text, width=LABEL_WIDTH_DEFAULT):
-    """`text` wrapped into lines of at most `width` pixels (a word wider than a line is cut),
-    at most PICKED_LINES lines, the last one ending in '…' when the rest is left out. A tuple,
-    cached: the panel draws on every redraw (each mouse move over it), and the wrap measures
-    each word's width with blf several times; the text and width change only when another
-    row is picked or the sidebar is resized."""
+def picked_lines(text, width=LABEL_WIDTH_DEFAULT, points=11, scale=1.0):
+    """`text` wrapped into lines of at most `width` pixels (at UI scale 1) in the label font
+    of `points` at UI scale `scale` (label_font()); a word wider than a line is cut; at most
+    PICKED_LINES lines, the last one ending in '…' when the rest is left out. A tuple, cached
+    on all four: the panel draws on every redraw (each mouse move over it), and the wrap
+    measures each word's width with blf several times; they change only when another row is
+    picked, the sidebar is resized, or the font size or UI scale is changed."""
+    def fits(t):
+        return text_width(t, points, scale) <= width
     lines, cur = [], ""
     for w in text.split():
         cand = (cur + " " + w) if cur else w
-        if cur and text_width(cand) > width:
+        if cur and not fits(cand):
             lines.append(cur)
             cur = w
         else:
             cur = cand
-        while text_width(cur) > width and len(cur) > 1:   # one word too wide for a line
+        while not fits(cur) and len(cur) > 1:   # one word too wide for a line
             k = len(cur)
-            while k > 1 and text_width(cur[:k]) > width:
+            while k > 1 and not fits(cur[:k]):
                 k -= 1
             lines.append(cur[:k])
             cur = cur[k:]
@@ -260,7 +277,7 @@ def picked_lines(text, width=LABEL_WIDTH_DEFAULT):
     if len(lines) > PICKED_LINES:
         lines = lines[:PICKED_LINES]
         last = lines[-1]
-        while last and text_width(last + "…") > width:
+        while last and not fits(last + "…"):
             last = last[:-1]
         lines[-1] = last.rstrip() + "…"
     return tuple(lines)

@@ -396,7 +396,13 @@ class MapJobRunner {
       s.error = std::current_exception();
     }
     {
+      // A cancel that came after the solve's last progress point, but before
+      // it was done, still cancels (cancel() returned True: result() raises).
       std::lock_guard<std::mutex> lock(s.mutex);
+      if (!s.error && s.cancel.load()) {
+        s.error = std::make_exception_ptr(Cancelled("cancelled after the solve's last progress point"));
+        s.out = ClosedSolve{};
+      }
       s.done = true;
     }
     s.finished.notify_all();
@@ -446,20 +452,43 @@ class MapJob {
   // Dropped while running: cancelled, and its thread joined (the GIL released).
   ~MapJob() { runner_->stop(); }
 
+  // The state copied under the mutex, the dict built after it (building
+  // Python objects under it would hold the solve's hooks while Python runs).
   py::dict progress() {
     MapJobState& s = runner_->state();
-    std::lock_guard<std::mutex> lock(s.mutex);
+    std::string stage;
+    double fraction, energy, gradient;
+    int iteration;
+    bool done;
+    {
+      std::lock_guard<std::mutex> lock(s.mutex);
+      stage = s.stage;
+      fraction = s.fraction;
+      iteration = s.iteration;
+      energy = s.energy;
+      gradient = s.gradient;
+      done = s.done;
+    }
     py::dict d;
-    d["stage"] = s.stage;
-    d["fraction"] = s.fraction;
-    d["iteration"] = s.iteration >= 0 ? py::object(py::int_(s.iteration)) : py::object(py::none());
-    d["energy"] = s.iteration >= 0 ? py::object(py::float_(s.energy)) : py::object(py::none());
-    d["gradient"] = s.iteration >= 0 ? py::object(py::float_(s.gradient)) : py::object(py::none());
+    d["stage"] = stage;
+    d["fraction"] = fraction;
+    d["iteration"] = iteration >= 0 ? py::object(py::int_(iteration)) : py::object(py::none());
+    d["energy"] = iteration >= 0 ? py::object(py::float_(energy)) : py::object(py::none());
+    d["gradient"] = iteration >= 0 ? py::object(py::float_(gradient)) : py::object(py::none());
     d["cancelled"] = s.cancel.load();
-    d["done"] = s.done;
+    d["done"] = done;
     return d;
   }
-  void cancel() { runner_->state().cancel = true; }
+  // As concurrent.futures.Future.cancel: False once the job is done (its
+  // result or error stands), else True and result() raises Cancelled (the
+  // flag is set under the mutex that `run` reads it under when it finishes).
+  bool cancel() {
+    MapJobState& s = runner_->state();
+    std::lock_guard<std::mutex> lock(s.mutex);
+    if (s.done) return false;
+    s.cancel = true;
+    return true;
+  }
   bool done() {
     MapJobState& s = runner_->state();
     std::lock_guard<std::mutex> lock(s.mutex);
@@ -712,7 +741,9 @@ void bind_map(py::module_& m) {
   py::class_<MapJob>(m, "MapJob", "A closed pair's map computed on a thread that never takes the GIL (made by "
                                   "start_surface_map): progress() {stage, fraction, iteration, energy, gradient, "
                                   "cancelled, done} and done() never block on the solve; cancel() stops it at its next "
-                                  "progress point (result() then raises surfmap.Cancelled); wait(timeout=None) waits "
+                                  "progress point and returns True (result() then raises surfmap.Cancelled), or returns "
+                                  "False when the job is done already (its result or error stands, as "
+                                  "concurrent.futures.Future.cancel); wait(timeout=None) waits "
                                   "with the GIL released (None or inf: until done; 0 or less: not at all) and returns "
                                   "done(); result() waits, then returns "
                                   "surface_map's dict or raises its error; niceness: the priority step the thread "

@@ -145,7 +145,7 @@ double largest_side_pairing_gap(const DiskLayout& L, const RowMatrixX3i& F) {
 }
 
 // Issue 13 beyond genus 12: the raw wheels' one-vertex 4g-gon, cut along
-// loops shortest in 3D with Erickson–Whittlesey's maximum cut tree T*,
+// loops shortest in 3D with the greedy basis's maximum cut tree T*,
 // reaches 18.6 from the centre at genus 13 (23 at 16, 32 and 2 flipped
 // triangles at 24): the disk is the faces glued along T*, and that tree is a
 // long path. Automatic loops lay it out again on loops shortest in the

@@ -1,6 +1,8 @@
 #include "surfmap/topology/mapping_class_search.h"
 
+#include <limits>
 #include <set>
+#include <utility>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -211,10 +213,79 @@ TEST(MappingClassSearch, KicksLeaveALocalMinimumThatPairsCannot) {
     }
   EXPECT_EQ(kick_evaluations, evaluations - static_cast<int>(stuck.evaluations.size()));
   EXPECT_NE(kicked.stop_reason.find("4 kicks"), std::string::npos) << kicked.stop_reason;
+  // Every screening is counted, the kicks' and their descents' too (they were left out).
+  int screens = 0;
+  const TwistSearchResult counted = twist_search(trap, trap_energy, g, [&](const GroupMap& t) {
+    ++screens;
+    return length(t);
+  }, energy, o);
+  EXPECT_EQ(counted.screened, screens);
+  EXPECT_GT(counted.screened, stuck.screened);
   // The kicks are drawn from the seed: the same seed, the same search.
   const TwistSearchResult again = twist_search(trap, trap_energy, g, length, energy, o);
   ASSERT_EQ(again.evaluations.size(), kicked.evaluations.size());
   for (size_t k = 0; k < again.evaluations.size(); ++k) EXPECT_EQ(again.evaluations[k].move, kicked.evaluations[k].move);
+}
+
+// A kick with no neighbour to move to is not made, nor counted (every kick
+// was counted before, made or not).
+TEST(MappingClassSearch, KicksWithNoNeighbourAreNotCounted) {
+  const int g = 2;
+  const TwistedClasses tc(g);
+  const GroupMap start = tc.after({"T(a1)"});
+  // Only the start has a finite screen: no neighbour to evaluate or kick to.
+  auto screen = [&](const GroupMap& theta) {
+    return theta == start ? 1.0 : std::numeric_limits<double>::infinity();
+  };
+  int evaluations = 0;
+  auto energy = [&](const GroupMap&) {
+    ++evaluations;
+    return 1.0;
+  };
+  TwistSearchOptions o;
+  o.kicks = 3;
+  const TwistSearchResult r = twist_search(start, 1.0, g, screen, energy, o);
+  EXPECT_EQ(r.kicks, 0);
+  EXPECT_EQ(r.improving_kicks, 0);
+  EXPECT_EQ(evaluations, 0);
+  EXPECT_TRUE(r.evaluations.empty());
+  EXPECT_NE(r.stop_reason.find("; 0 kicks, 0 lower"), std::string::npos) << r.stop_reason;
+}
+
+// A count below its least is a one-line InputError naming the option (a
+// kick of no moves, no choices or no descent evaluations was run before).
+TEST(MappingClassSearch, SearchOptionsBelowTheirLeastAreInputErrors) {
+  const int g = 2;
+  const TwistedClasses tc(g);
+  auto length = [&](const GroupMap& theta) { return tc.length(theta); };
+  const GroupMap start = tc.after({"T(a1)"});
+  const std::pair<const char*, void (*)(TwistSearchOptions&)> bad[] = {
+      {"kicks", [](TwistSearchOptions& o) { o.kicks = -1; }},
+      {"kick_moves", [](TwistSearchOptions& o) { o.kick_moves = 0; }},
+      {"kick_choices", [](TwistSearchOptions& o) { o.kick_choices = 0; }},
+      {"kick_evaluations", [](TwistSearchOptions& o) { o.kick_evaluations = 0; }},
+      {"kick_evaluations", [](TwistSearchOptions& o) { o.kick_evaluations = -5; }},
+      {"evaluations_per_step", [](TwistSearchOptions& o) { o.evaluations_per_step = 0; }},
+      {"max_evaluations", [](TwistSearchOptions& o) { o.max_evaluations = -1; }},
+      {"max_steps", [](TwistSearchOptions& o) { o.max_steps = -1; }},
+      {"screen_steps", [](TwistSearchOptions& o) { o.screen_steps = -1; }},
+      {"pair_starts", [](TwistSearchOptions& o) { o.pair_starts = -1; }},
+      {"tolerance", [](TwistSearchOptions& o) { o.tolerance = std::numeric_limits<double>::quiet_NaN(); }},
+      {"tolerance", [](TwistSearchOptions& o) { o.tolerance = -1e-3; }},
+  };
+  for (const auto& [name, spoil] : bad) {
+    TwistSearchOptions o;
+    o.kicks = 2;
+    spoil(o);
+    try {
+      twist_search(start, length(start), g, length, length, o);
+      ADD_FAILURE() << name << ": no error";
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(name), std::string::npos) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    }
+  }
 }
 
 }  // namespace

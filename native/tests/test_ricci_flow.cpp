@@ -457,7 +457,7 @@ TEST(RicciFlow, WithoutFlipsResultTriangulationIsTheInput) {
 TEST(RicciFlow, IntrinsicDelaunayFlipsMakeSliverToriFlat) {
   // The meshes whose fixed-connectivity solve may degenerate
   // (SliverMeshEitherFlatOrHonestFailure) always get a flat metric with
-  // Ptolemy flips (Gillespie–Springborn–Crane 2021).
+  // Ptolemy flips (docs/uniformization.md).
   int total_flips = 0;
   for (unsigned seed : {11u, 12u, 13u}) {
     SCOPED_TRACE(seed);

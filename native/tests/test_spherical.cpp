@@ -365,7 +365,7 @@ TEST(SphericalFlips, BentTaperedSphere40To1At12x40Converges) {
 }
 
 TEST(SphericalFlips, UniformizationIsUniqueUpToMobius) {
-  // Discrete uniformization is unique up to Möbius maps (Springborn 2020):
+  // Discrete uniformization is unique up to Möbius maps (a known theorem):
   // two different vertices at infinity must give sphere images that differ
   // by a Möbius map, vertex by vertex. The Möbius map through three
   // vertices is exact; the other vertices then test it.

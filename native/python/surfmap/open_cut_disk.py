@@ -8,7 +8,7 @@ paired loops pairing[0], pairing[1], ...). The disk's boundary is 4(b - 1) runs 
 end loops once, the middle loops in two arcs) in an order fixed by the chain, so source run r
 corresponds to target run r. Both disks are laid out by Tutte's embedding (uniform weights) with run r
 on the same arc of the unit circle (by arc length within the run); for positive weights and a
-strictly convex boundary the embedding is bijective (Floater 2003), so composing the source's with
+strictly convex boundary the embedding is bijective (a Tutte-type theorem), so composing the source's with
 the inverse of the target's is a homeomorphism of the halves sending loop i onto loop pairing[i]. Its
 class is the one the doubles need: for b <= 3 the only one with that pairing and orientation (the
 mapping class group of a pair of pants with free boundary is finite, and its elements permute the

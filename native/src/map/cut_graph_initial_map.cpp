@@ -368,7 +368,7 @@ CornerPolygon corner_polygon(const CutDisk& d, std::vector<Word>& c, const std::
                    " of the polygon has no length (a chain collapsed, or the polygon is too large for double precision)"};
   }
   // The chart centred near the centre of the corners' smallest enclosing
-  // disk (Badoiu-Clarkson steps towards the farthest corner): long, thin
+  // disk (steps towards the farthest corner, each shorter): long, thin
   // polygons (many sides, genus >= 5) keep every corner as far from the
   // Klein boundary as they can, which the Klein centroid does not.
   Complex centre = Q[0];

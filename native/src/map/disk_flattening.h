@@ -2,8 +2,8 @@
 // The flattening step shared by the genus >= 2 polygon initial maps
 // (map/initial_map.h, map/cut_graph_initial_map.h): a cut disk with its
 // boundary fixed on a convex polygon in the Klein model, its interior placed
-// by linear solves with positive weights (Tutte / Floater), so that the
-// result embeds the disk (Floater 2003, "Mean value coordinates").
+// by linear solves with positive weights (Tutte-type, mean value weights),
+// so that the result embeds the disk.
 #include <complex>
 #include <functional>
 #include <string>

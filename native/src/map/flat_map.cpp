@@ -612,7 +612,7 @@ constexpr double kFlatEnergyTie = 1e-4;
 // of the user's faces fold with the intrinsic Delaunay cotangents (caps: a
 // vertex just off the opposite edge; with positive weights on the mesh's own
 // edges the harmonic map into the flat torus embeds the mesh itself, the
-// Tutte-type theorem on the torus, Gortler-Gotsman-Thurston 2006). The
+// Tutte-type theorem on the torus). The
 // class chosen with the intrinsic weights stays.
 void map_flat(const TriMesh& source, const TriMesh& target, const Connectivity& sc, const Connectivity& tc,
               const SurfaceMapOptions& options, const testing::MapHooks& hooks, SurfaceMapResult& out,

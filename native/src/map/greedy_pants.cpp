@@ -245,7 +245,7 @@ bool same_by_length_and_generators(IntersectionCounter& count, int genus, const 
 
 /// Every closed geodesic shorter than 4 arcsinh(1) = 2 log(3 + 2√2) ≈ 3.5255
 /// on a hyperbolic surface is simple (the shortest closed geodesic with a
-/// self-intersection is at least that long: Yamada 1982; the bound is the
+/// self-intersection is at least that long, a known bound, attained by the
 /// figure eight of the thrice-punctured sphere).
 const double kShortestNonSimple = 4 * std::asinh(1.0);
 

@@ -1652,6 +1652,9 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   likely_class = picked.likely_class;
   release_unsolved_class_data();
   stage_done("homotopy candidates", 0.42);
+  // The solves below belong to the next stage (ho's hook said "homotopy
+  // candidates", 0.4, after that stage's end at 0.42).
+  if (options.progress) ho.progress = [this](int, double, double) { return options.progress("full-resolution solve", 0.42); };
   const CoarseSource& cs = ss.cs;
   const std::vector<int> settle = prolongation_order(cs, sc);
   std::vector<int> tasks;

@@ -438,7 +438,7 @@ UniformizedTarget uniformized_target(const TriMesh& target, Background backgroun
     return t;
   }
   // Flips (requested) or automatic: the flip path, whose metric exists on
-  // every closed mesh (Gu-Luo-Sun-Wu 2018; docs/uniformization.md "Which
+  // every closed mesh (docs/uniformization.md "Which
   // target metric runs"); the handle classes read the target's own loops on
   // both paths (carried onto T'; when carrying fails, the loops of T', as
   // `target_class_loops` says), so they are the same objects. The

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
+#include <mutex>
 #include <sstream>
 #include <string>
 
@@ -141,8 +143,38 @@ SurfaceMapResult surface_map(const TriMesh& source, const TriMesh& target, const
   return testing::surface_map(source, target, options, testing::MapHooks{});
 }
 
+namespace {
+SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                 const testing::MapHooks& hooks);
+}  // namespace
+
+// The progress callback sees fractions that never decrease within a run:
+// each is raised to the largest given before (a stage's solves report the
+// stage's own fraction, which may come after a later stage's end was
+// reported, e.g. the full-resolution solves after the ranking's 0.42; and
+// the automatic cuts' runs each count from 0). Calls are serialised, so
+// that two threads' reports arrive in order.
 SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                       const MapHooks& hooks) {
+  if (!options.progress) return surface_map_run(source, target, options, hooks);
+  struct Monotone {
+    std::mutex mutex;
+    double last = 0;
+  };
+  auto state = std::make_shared<Monotone>();
+  SurfaceMapOptions monotone = options;
+  monotone.progress = [inner = options.progress, state](const std::string& stage, double fraction) {
+    std::lock_guard<std::mutex> lock(state->mutex);
+    if (fraction > state->last) state->last = fraction;
+    return inner(stage, state->last);
+  };
+  return surface_map_run(source, target, monotone, hooks);
+}
+
+namespace {
+
+SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                 const testing::MapHooks& hooks) {
   // A class named by its words (issue 14, session 24): the one candidate
   // (stages/homotopy_classes.cpp), chosen as class 0 of that one-entry list,
   // so that everything a class index turns off (ranking, class search,
@@ -164,8 +196,6 @@ SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& targ
   }
   return map_in_given_cuts(source, target, options, hooks);
 }
-
-namespace {
 
 SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                    const testing::MapHooks& hooks) {

@@ -329,8 +329,8 @@ namespace {
 
 // The signed solid angle of a triangle (x, y, z) seen from the origin, with
 // |x|, |y|, |z| given, is 2 atan2(num, den), num = x . (y x z), den = |x||y||z|
-// + (x . y)|z| + (x . z)|y| + (y . z)|x| (Van Oosterom & Strackee, IEEE TBME
-// 1983); 0 when the three directions are coplanar (num = 0).
+// + (x . y)|z| + (x . z)|y| + (y . z)|x| (the triangle's solid angle formula);
+// 0 when the three directions are coplanar (num = 0).
 // The running product of the solid angles' complex numbers (den + i num,
 // whose arguments are the atan2 terms) and the number of whole turns its
 // argument made: sum of the terms = arg(product) + 2 pi turns.

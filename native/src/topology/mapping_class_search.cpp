@@ -104,8 +104,8 @@ std::vector<MappingClassMove> twist_moves(int genus, bool torelli_conjugates, bo
   }
   if (bounding_pairs && genus >= 3) {
     // Genus-1 bounding pairs (Torelli elements the separating twists do not
-    // generate; Johnson: for genus >= 3 the bounding pair maps generate the
-    // Torelli group). The 3-chain a_j, b_j, c_j has a neighbourhood of genus
+    // generate; for genus >= 3 the bounding pair maps generate the Torelli
+    // group, a known theorem). The 3-chain a_j, b_j, c_j has a neighbourhood of genus
     // 1 whose two boundary curves d, d' are disjoint and both homologous to
     // a_j+1, and the chain relation gives (T(a_j) T(b_j) T(c_j))^4 =
     // T(d) T(d'); so T(a_j+1)^2 (T(a_j) T(b_j) T(c_j))^-4 has the identity
@@ -140,6 +140,22 @@ std::vector<MappingClassMove> twist_moves(int genus, bool torelli_conjugates, bo
 TwistSearchResult twist_search(const GroupMap& start, double start_energy, int genus,
                                const std::function<double(const GroupMap&)>& screen,
                                const std::function<double(const GroupMap&)>& energy, const TwistSearchOptions& options) {
+  auto at_least = [](const char* name, long long value, long long least) {
+    if (value < least)
+      throw InputError(std::string("twist_search: ") + name + " must be at least " + std::to_string(least) + ", got " +
+                       std::to_string(value));
+  };
+  at_least("max_steps", options.max_steps, 0);
+  at_least("max_evaluations", options.max_evaluations, 0);
+  at_least("evaluations_per_step", options.evaluations_per_step, 1);
+  at_least("screen_steps", options.screen_steps, 0);
+  at_least("pair_starts", options.pair_starts, 0);
+  at_least("kicks", options.kicks, 0);
+  at_least("kick_moves", options.kick_moves, 1);
+  at_least("kick_evaluations", options.kick_evaluations, 1);
+  at_least("kick_choices", options.kick_choices, 1);
+  if (!(options.tolerance >= 0) || !std::isfinite(options.tolerance))
+    throw InputError("twist_search: tolerance must be finite and at least 0, got " + std::to_string(options.tolerance));
   const std::vector<MappingClassMove> moves = twist_moves(genus);
   const DehnReducer reduce(canonical_relator(genus));
   const Word R = canonical_relator(genus);
@@ -148,7 +164,12 @@ TwistSearchResult twist_search(const GroupMap& start, double start_energy, int g
   TwistSearchResult res;
   res.best = start;
   res.start_energy = res.energy = start_energy;
-  std::vector<double> seen{screen(start)};
+  // Every screening is counted (TwistSearchResult::screened), the kicks' searches' too.
+  auto screened = [&](const GroupMap& theta) {
+    ++res.screened;
+    return screen(theta);
+  };
+  std::vector<double> seen{screened(start)};
   auto is_seen = [&](double s) {
     for (double t : seen)
       if (std::abs(s - t) <= 1e-9 * std::max({1.0, std::abs(s), std::abs(t)})) return true;
@@ -168,8 +189,7 @@ TwistSearchResult twist_search(const GroupMap& start, double start_energy, int g
         GroupMap theta = side == 0 ? compose(cur, m.automorphism.map) : compose(m.automorphism.map, cur);
         theta = reduce.each(std::move(theta));
         if (letters(theta) > options.max_letters) continue;
-        const double s = screen(theta);
-        ++res.screened;
+        const double s = screened(theta);
         if (!std::isfinite(s) || (only_new && is_seen(s))) continue;
         nb.push_back({std::move(theta), (side == 0 ? "source " : "target ") + m.name, s});
       }
@@ -285,13 +305,16 @@ TwistSearchResult twist_search(const GroupMap& start, double start_energy, int g
       // Each kick move: one of the current class's `kick_choices` neighbours
       // of lowest screen, drawn at random (uniform moves would mostly leave
       // the letter limit or the caller's bound).
+      // (Neighbours are screened by `neighbours`, counted in `screened`; the
+      // kick's end is its last move's neighbour, whose screen is finite.)
       GroupMap cur = res.best;
+      double s = 0;
       std::string path;
       bool made = true;
       for (int j = 0; j < options.kick_moves && made; ++j) {
         std::vector<Neighbour> nb = neighbours(cur, false);
         std::stable_sort(nb.begin(), nb.end(), [](const Neighbour& x, const Neighbour& y) { return x.screen < y.screen; });
-        nb.resize(std::min<size_t>(nb.size(), static_cast<size_t>(std::max(1, options.kick_choices))));
+        nb.resize(std::min<size_t>(nb.size(), static_cast<size_t>(options.kick_choices)));
         if (nb.empty()) {
           made = false;
           break;
@@ -299,12 +322,11 @@ TwistSearchResult twist_search(const GroupMap& start, double start_energy, int g
         std::uniform_int_distribution<size_t> pick(0, nb.size() - 1);
         Neighbour& x = nb[pick(rng)];
         cur = std::move(x.theta);
+        s = x.screen;
         path += (path.empty() ? "" : ", ") + x.move;
       }
+      if (!made) continue;  // (no neighbour to move to: not a kick)
       ++res.kicks;
-      if (!made) continue;
-      const double s = screen(cur);
-      if (!std::isfinite(s)) continue;
       const std::string name = "kick " + std::to_string(kick + 1) + " (" + path + ")";
       const double e = energy(cur);
       ++evaluations;

@@ -282,7 +282,7 @@ Greedy greedy_basis(const Connectivity& conn, const GreedyGraph& graph, int x, i
   for (int v = 0; v < nv; ++v)
     if (!std::isfinite(dist[v])) throw InputError("vertex " + std::to_string(v) + " is not connected to the base vertex");
   // Maximum spanning tree T* of the dual graph of the non-tree edges, each
-  // weighted by the length of its loop sigma(e) (Erickson–Whittlesey).
+  // weighted by the length of its loop sigma(e) (the greedy homotopy basis).
   std::vector<std::pair<double, int>> order;
   order.reserve(ne);
   for (int e = 0; e < ne; ++e)

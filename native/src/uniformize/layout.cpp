@@ -411,7 +411,7 @@ Complex karcher_mean_of_corners(const DiskLayout& out, int* evaluations) {
 }
 
 /// The isometry T (T(0) = c) whose centre c approximately minimises the
-/// largest distance to a corner (the domain's 1-centre), by Bădoiu–Clarkson
+/// largest distance to a corner (the domain's 1-centre), by shrinking
 /// steps: move c towards the farthest corner by 1/(i + 2) of its distance
 /// (the farthest corner's distance converges to the least radius; the
 /// method needs only a geodesically convex distance, which the disk's is).

@@ -7,7 +7,7 @@
 //             = sinh l_i / (sinh l_j sinh l_k sin θ_i)   (hyperbolic)
 //   dθ_i/dl_j = −dθ_i/dl_i · cos θ_k               (both; k the third corner)
 // (differentiate the law of cosines). K_i = full_i − Σθ_i, so dK/du = −Σ dθ/du;
-// for vertex scaling this is the Hessian of the Bobenko–Pinkall–Springborn
+// for vertex scaling this is the Hessian of the vertex-scaling flow's
 // convex energy (Euclidean: the cotangent Laplacian / 2).
 #include "surfmap/uniformize/ricci_flow.h"
 
@@ -210,8 +210,8 @@ void hyperbolic_angles_of_long_triangle(const double l[3], double s, const doubl
 
 /// Angles of a triangle with sides l[k] opposite corner k, and D(i,m) =
 /// dθ_i/dl_m. Returns false (angles π,0,0 opposite the too-long side, D = 0)
-/// when the triangle inequality fails: the extended convex energy of
-/// Bobenko–Pinkall–Springborn / Luo.
+/// when the triangle inequality fails: the convex energy extended past
+/// degenerate triangles.
 bool triangle_angles(const double l[3], Background bg, double theta[3], double D[3][3],
                      double* slack) {
   const double s = 0.5 * (l[0] + l[1] + l[2]);
@@ -270,8 +270,8 @@ void face_angles(const RicciDomain& d, int f, Background bg, const LengthOf& L, 
 }
 
 /// Mutable intrinsic triangulation for the Delaunay-flip variant of the
-/// vertex-scaling flow (Gillespie–Springborn–Crane 2021 for the Euclidean
-/// case; Gu–Guo–Luo–Sun–Wu 2018 for the hyperbolic one): the domain's
+/// vertex-scaling flow (Euclidean and hyperbolic; docs/uniformization.md):
+/// the domain's
 /// faces/edges change by flips; `pen` holds the base lengths l⁰ of the
 /// current edges, so that l = e^{(u_i+u_j)/2} l⁰ (Euclidean) or
 /// sinh(l/2) = e^{(u_i+u_j)/2} l⁰/2 (hyperbolic). Both Ptolemy relations —
@@ -348,7 +348,7 @@ struct FlipContext {
       while (d.FE(f1, a1) != e) ++a1;
       // Delaunay test on the Penner coordinates x (Euclidean: the lengths;
       // hyperbolic: 2 sinh(l/2)) through the horocyclic arcs x_opp/(x_a x_b)
-      // of the corners (Epstein–Penner / Springborn 2020): e is Delaunay
+      // of the corners (the decorated-triangle criterion): e is Delaunay
       // when the arcs at the two opposite corners sum to at most the arcs at
       // its ends. For triangles this equals the circumcircle condition
       // (Euclidean α + β <= π; hyperbolic: opposite angles <= angles at the

@@ -1,6 +1,7 @@
 #pragma once
-// Intrinsic mollification of edge lengths (Sharp & Crane, "A Laplacian for
-// Nonmanifold Triangle Meshes", SGP 2020, section 4.5; docs/robustness.md).
+// Intrinsic mollification of edge lengths: every length raised by one
+// common amount, just enough for every triangle inequality to hold with a
+// margin (docs/robustness.md).
 // Nearly or exactly degenerate triangles (collinear vertices, coincident
 // positions, angles of 1e-4 degrees) break cotangent weights, angle sums and
 // layouts. Adding one small uniform epsilon to every edge length gives every

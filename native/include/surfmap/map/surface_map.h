@@ -204,7 +204,8 @@ struct HomotopySearchOptions {
   /// search (TwistSearchOptions::kicks: `kicks` random kicks of
   /// `kick_moves` moves from the best class, each move among the
   /// `kick_choices` neighbours of lowest screen, each kick followed by a
-  /// descent of at most `kick_evaluations` solves; default 0, none).
+  /// descent of at most `kick_evaluations` solves; default 0, none). A
+  /// count below its least (0 for kicks, 1 for the others) is an InputError.
   int evaluations_per_step = 8;
   int kicks = 0;
   int kick_moves = 3;
@@ -698,7 +699,8 @@ struct HomotopySearchInfo {
   std::vector<std::string> evaluated_moves;
   std::vector<int> evaluated_step;
   std::vector<double> evaluated_screen, evaluated_energy;
-  /// Coarse solves run, neighbours screened, why it stopped, seconds.
+  /// Coarse solves run, classes screened (TwistSearchResult::screened), why
+  /// it stopped, seconds.
   int evaluations = 0, screened = 0;
   std::string stop_reason;
   double time_s = 0;

@@ -39,7 +39,7 @@
 //  - with `bounding_pairs`, genus >= 3: bounding pair maps T(d) T(d')^-1
 //    (d, d' disjoint, homologous, together bounding a genus-1 piece), from
 //    the chain relation; for genus >= 3 such maps generate the Torelli group
-//    (Johnson), which separating twists alone do not (only these 4(g - 1)
+//    (a known theorem), which separating twists alone do not (only these 4(g - 1)
 //    are listed, not their conjugates).
 // Each comes with both directions (the move and its inverse).
 #include <functional>
@@ -105,7 +105,10 @@ struct TwistSearchOptions {
   /// energy evaluated, then a descent from it (these options without kicks
   /// or screening descent, at most `kick_evaluations` evaluations); its end
   /// replaces the best class when lower by more than the tolerance. Every
-  /// evaluation counts against max_evaluations.
+  /// evaluation counts against max_evaluations. twist_search throws
+  /// InputError for a count below its least (kicks, max_steps, max_evaluations,
+  /// screen_steps, pair_starts: 0; kick_moves, kick_evaluations, kick_choices,
+  /// evaluations_per_step: 1) or a negative or non-finite tolerance.
   int kicks = 0;
   int kick_moves = 3;
   int kick_evaluations = 24;
@@ -131,15 +134,18 @@ struct TwistSearchResult {
   std::vector<double> energies;
   /// Every energy evaluation, in order.
   std::vector<TwistSearchEvaluation> evaluations;
-  /// Neighbours generated and screened (before the evaluations).
+  /// Calls of `screen`: the start's, every neighbour generated within
+  /// max_letters, and the kicks' descents' (a kick's end is its last move's
+  /// neighbour, not screened again).
   int screened = 0;
   /// The screening descent: moves taken and the score after each.
   std::vector<std::string> screen_moves;
   std::vector<double> screen_scores;
   /// Steps taken by a pair of moves (TwistSearchOptions::pair_moves).
   int pair_steps = 0;
-  /// Kicks made (TwistSearchOptions::kicks) and how many of them ended
-  /// below the best class held before them.
+  /// Kicks made (TwistSearchOptions::kicks; one with no neighbour to move
+  /// to is not made) and how many of them ended below the best class held
+  /// before them.
   int kicks = 0, improving_kicks = 0;
   /// "no improving neighbour", "no improving neighbour or pair", "step
   /// budget", "evaluation budget"; with kicks followed by "; N kicks, M

@@ -184,7 +184,7 @@ AutomorphismInverse invert_product(const std::vector<GroupMap>& factors, int gen
 /// u = (x_1, ..., x_2g), so that phi(u_i) = t_i throughout. When no move
 /// shortens and every t_i is conjugate to a single letter, distinct up to
 /// sign, u gives the preimages of the generators up to that conjugation:
-/// phi^-1 up to an inner automorphism (Dehn-reduced words). Zieschang: every
+/// phi^-1 up to an inner automorphism (Dehn-reduced words). Every
 /// generating 2g-tuple of a surface group is Nielsen equivalent to the
 /// standard one, but the greedy order can stall; then, or when a u_i grows
 /// beyond `max_letters`, the result is empty. The

@@ -1,6 +1,6 @@
 #pragma once
-// Greedy system of loops (paper §IV-A; Erickson–Whittlesey greedy homotopy
-// basis; docs/method.md §2.2) and the refinement that makes the 2g loops simple and
+// Greedy system of loops (the greedy homotopy basis: a shortest-path tree T
+// and a maximum spanning tree T* of the dual; docs/method.md §2.2) and the refinement that makes the 2g loops simple and
 // disjoint except at the base vertex.
 #include <string>
 #include <vector>
@@ -22,8 +22,8 @@ struct SystemOfLoopsOptions {
   /// full Euler tour of the tree (also the automatic fallback).
   bool shortcut_branches = true;
   /// Edge weights (#E, edge order of Connectivity(mesh.F)); empty (default):
-  /// 3D lengths, greedy loops (T* Erickson–Whittlesey's maximum spanning
-  /// tree). Given the uniformization metric: T is its shortest-path tree from
+  /// 3D lengths, greedy loops (T* the dual's maximum spanning tree by loop
+  /// length). Given the uniformization metric: T is its shortest-path tree from
   /// its centre (metric_centre_vertex unless base_vertex is set) and T* a
   /// shortest-path tree of the dual (edges not in T) from its centre face:
   /// the disk is the faces glued along T*, so a shallow T* keeps the domain

@@ -1,7 +1,7 @@
 #pragma once
 // Points of the flip-based uniformization metric expressed on the user's
-// input mesh (docs/uniformization.md, "Points back on the input faces";
-// Gillespie–Springborn–Crane 2021 §5, projective interpolation).
+// input mesh (docs/uniformization.md, "Points back on the input faces":
+// projective interpolation across the flips).
 //
 // The flow with RicciFlowOptions::intrinsic_delaunay returns a metric on a
 // flipped triangulation T' of the input's vertices, with its flips recorded

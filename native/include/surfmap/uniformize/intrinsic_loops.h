@@ -1,8 +1,7 @@
 #pragma once
 // The system of loops and the uniformization metric on an intrinsic
 // triangulation (docs/uniformization.md). The flip-based flow
-// (RicciFlowOptions::intrinsic_delaunay; Gillespie–Springborn–Crane 2021,
-// Gu–Guo–Luo–Sun–Wu 2018) returns a flat or hyperbolic metric on a flipped
+// (RicciFlowOptions::intrinsic_delaunay; docs/uniformization.md) returns a flat or hyperbolic metric on a flipped
 // triangulation T' of the input's vertices. This computes a system of loops
 // on T' (combinatorially: T' with the input's vertex positions as a mesh) and
 // the metric's exact lengths on the loops' refined mesh: every refined vertex

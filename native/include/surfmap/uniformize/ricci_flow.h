@@ -6,7 +6,7 @@
 // (hyperbolic background, genus >= 2).
 //
 // Schemes:
-//  * VertexScaling (default; discrete Yamabe, Bobenko–Pinkall–Springborn 2015):
+//  * VertexScaling (default; discrete Yamabe flow of a convex energy):
 //      Euclidean   l̃_ij = e^{(u_i+u_j)/2} l_ij
 //      Hyperbolic  sinh(l̃_ij/2) = e^{(u_i+u_j)/2} l_ij/2   (l_ij: the input,
 //                  Euclidean, lengths; i.e. the initial hyperbolic metric has
@@ -78,9 +78,8 @@ struct RicciFlowOptions {
   double flow_step = 0.1;
   /// Vertex scaling only (ignored for inversive distance): keep the
   /// triangulation intrinsically Delaunay during the solve — exact flips of
-  /// the input metric first, then Ptolemy flips (Gillespie–Springborn–Crane
-  /// 2021 "Discrete conformal equivalence of polyhedral surfaces"; hyperbolic:
-  /// Gu–Guo–Luo–Sun–Wu 2018). A flat / hyperbolic metric then exists for
+  /// the input metric first, then Ptolemy flips (docs/uniformization.md;
+  /// the same for the hyperbolic metric). A flat / hyperbolic metric then exists for
   /// every mesh and admissible target (no degenerate triangles), but it
   /// lives on the flipped triangulation result.faces / result.edge_vertices,
   /// not on the input edges (check result.flips). Default false: fixed

@@ -11,8 +11,7 @@
 // plane, project stereographically (v0 -> the pole): the chord lengths on the
 // sphere are then again a vertex scaling of the input lengths, i.e. the
 // result is a discrete conformal map onto a polyhedron inscribed in the unit
-// sphere (Springborn–Schröder–Pinkall 2008; Bobenko–Pinkall–Springborn
-// 2015). With flips (default) the start is the intrinsic Delaunay
+// sphere (docs/uniformization.md). With flips (default) the start is the intrinsic Delaunay
 // triangulation of the whole sphere, and the removed vertex's ring and star
 // edges flip between rounds of the flow (ring flips at degenerate
 // triangles, star flips at reflex ring vertices; docs/uniformization.md

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <tuple>
+#include <utility>
 
 namespace surfmap::detail {
 
@@ -88,6 +90,14 @@ bool intrinsic_sides(const IntrinsicDelaunayResult& idt, const std::vector<Mobiu
   return known;
 }
 
+// Corner k's chart of a triangle whose side j is side(j) (corner j + 1's
+// chart -> corner j's): corner k at 0, corner k + 1 through side k, corner
+// k + 2 through side k + 2 inverted; returns those two corners.
+template <class Side>
+std::pair<Complex, Complex> corner_chart(const Side& side, int k) {
+  return {side(k).apply(Complex(0.0)), side((k + 2) % 3).inverse().apply(Complex(0.0))};
+}
+
 // How far the product of a triangle's three side elements is from ±identity.
 double closure_gap(const Mobius& s0, const Mobius& s1, const Mobius& s2) {
   return hyperbolic::distance_from_identity((s0 * s1 * s2).normalized());
@@ -98,23 +108,20 @@ double closure_gap(const Mobius& s0, const Mobius& s1, const Mobius& s2) {
 DistortionStats chart_distortion(const TriMesh& source, const Connectivity& sc, const std::vector<Mobius>& edge_local,
                                  const SolverEdgeIndex& index) {
   auto local = [&](int h) { return source_side(sc, edge_local, index, h); };
+  auto corners = [&](int f, int k) { return corner_chart([&](int j) { return local(3 * f + j); }, k); };
   // Dilatation from hyperbolic side lengths and orientation, both in the
   // chart of corner 0 where the corners are 0, A_01(0) and A_20^-1(0):
   // exact to round-off however close to |z| = 1 the triangle lies in P.
   return hyperbolic_image_distortion(
       source,
-      [&](int f) { return std::make_pair(local(3 * f).apply(Complex(0.0)), local(3 * f + 2).inverse().apply(Complex(0.0))); },
+      [&](int f) { return corners(f, 0); },
       [&](int f) {
         return Eigen::Vector3d(local(3 * f).displacement_of_origin(), local(3 * f + 1).displacement_of_origin(),
                                local(3 * f + 2).displacement_of_origin());
       },
       true,
-      // Corner k's chart: corner k + 1 through side k, corner k + 2 through
-      // side k + 2 inverted (long thin images are read from their widest corner).
-      [&](int f, int k) {
-        return std::make_pair(local(3 * f + k).apply(Complex(0.0)),
-                              local(3 * f + (k + 2) % 3).inverse().apply(Complex(0.0)));
-      });
+      // Corner k's chart (long thin images are read from their widest corner).
+      corners);
 }
 
 ImageCover image_cover(const TriMesh&, const Connectivity& sc, const std::vector<Mobius>& edge_local,
@@ -130,8 +137,7 @@ ImageCover image_cover(const TriMesh&, const Connectivity& sc, const std::vector
     for (int k = 0; k < 3; ++k) {
       // Corner k's angle, signed, in its own chart (corners k + 1 and k + 2
       // as in chart_distortion): resolved however long the sides.
-      const Complex b = source_side(sc, edge_local, index, 3 * f + k).apply(Complex(0.0));
-      const Complex c = source_side(sc, edge_local, index, 3 * f + (k + 2) % 3).inverse().apply(Complex(0.0));
+      const auto [b, c] = corner_chart([&](int j) { return source_side(sc, edge_local, index, 3 * f + j); }, k);
       const double angle = std::arg(c / b);
       angle_sum[sc.tail(3 * f + k)] += angle;
       angles += angle;
@@ -158,15 +164,15 @@ int intrinsic_flipped_triangles(const IntrinsicDelaunayResult& idt, const std::v
     for (int f = 0; f < static_cast<int>(idt.F.rows()); ++f) {
       Mobius side[3];
       if (!intrinsic_sides(idt, edge_local, f, side)) continue;
-      Complex p1 = side[0].apply(Complex(0.0)), p2 = side[2].inverse().apply(Complex(0.0));
+      auto sides = [&](int j) { return side[j]; };
+      auto [p1, p2] = corner_chart(sides, 0);
       if (image_orientation(p1, p2) != 1) {
         // Not clearly positive from corner 0: read from the widest corner,
         // as chart_distortion does (a long thin image's far corners lie
         // within round-off of each other seen from its sharp ends).
         const int k = widest_corner(Eigen::Vector3d(side[0].displacement_of_origin(), side[1].displacement_of_origin(),
                                                     side[2].displacement_of_origin()));
-        p1 = side[k].apply(Complex(0.0));
-        p2 = side[(k + 2) % 3].inverse().apply(Complex(0.0));
+        std::tie(p1, p2) = corner_chart(sides, k);
       }
       if (p1.real() * p2.imag() - p1.imag() * p2.real() <= 0) ++flipped;
     }

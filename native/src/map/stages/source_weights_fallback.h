@@ -4,7 +4,7 @@
 // with intrinsic Delaunay cotangent weights the intrinsic triangulation's
 // image is an embedding, but straight images of the user's own faces can
 // fold (slivers, caps); positive weights on the source's own edges embed
-// those faces (the Tutte-type theorem, Gortler-Gotsman-Thurston 2006). With
+// those faces (the Tutte-type theorem on the torus and beyond). With
 // SourceWeights::Automatic the chosen class is then solved again with them;
 // the class stays (docs/method.md §2.8). Internal to the pipeline.
 #include <string>
