@@ -104,9 +104,11 @@ void register_map(CLI::App& app) {
     bool no_snapped_start = !defaults.homotopy.search.snapped_start;  // HomotopySearchOptions::snapped_start
     bool short_canonical_generators = false;      // LoopOptions::short_canonical_generators = true
     bool classical_canonical_generators = false;  // LoopOptions::short_canonical_generators = false
+    bool no_short_generators_fallback = !defaults.loops.short_generators_fallback;  // LoopOptions::short_generators_fallback
     bool both_canonical_bases = false;  // LoopOptions::both_canonical_bases = true (the default, said so)
     bool one_canonical_basis = false;   // LoopOptions::both_canonical_bases = false
     bool geometric_layout_basis = defaults.homotopy.search.geometric_layout_basis;  // HomotopySearchOptions::geometric_layout_basis
+    bool short_curve_twists = defaults.homotopy.search.curve_twists;  // HomotopySearchOptions::curve_twists
     bool homotopy_both_signs = defaults.homotopy.flat_both_signs;    // HomotopyOptions::flat_both_signs
     bool no_flat_overlay = !defaults.homotopy.flat_overlay;          // HomotopyOptions::flat_overlay off
     bool landmarks_may_fold = defaults.landmarks_may_fold;          // SurfaceMapOptions::landmarks_may_fold
@@ -203,7 +205,11 @@ void register_map(CLI::App& app) {
                 "overlay (docs/robustness.md \"High genus\")");
   cmd->add_flag("--classical-canonical-generators", a->classical_canonical_generators,
                 "Genus >= 2: the classical canonical generators (cut-and-paste moves that conjugate the finished pairs; "
-                "the default, accepted to say so)");
+                "the default, accepted to say so; given, it also turns the automatic retry with the short ones off)");
+  cmd->add_flag("--no-short-generators-fallback", a->no_short_generators_fallback,
+                "Genus >= 2: when the classical canonical generators fail at their start edges, fail (default: run "
+                "again with the short ones and say so in the report's notes; --classical-canonical-generators implies "
+                "this)");
   cmd->add_flag("--short-canonical-generators", a->short_canonical_generators,
                 "Genus >= 2: canonical generators from cut-and-paste moves that conjugate only the new pair, not the default "
                 "classical ones (with --both-canonical-bases the candidate classes are listed in both; docs/robustness.md "
@@ -218,6 +224,9 @@ void register_map(CLI::App& app) {
                 "Genus >= 2: the geometric classes read the target's lengths in the short canonical basis of its "
                 "layout's word, then are written in its class loops' letters (off by default; docs/robustness.md "
                 "\"Session 25\")");
+  cmd->add_flag("--short-curve-twists", a->short_curve_twists,
+                "Genus >= 2: the class search also moves by Dehn twists along each surface's short curves (its short "
+                "marking's generators and short pants curves; off by default; docs/history/s27-edge27.md)");
   cmd->add_flag("--landmarks-may-fold", a->landmarks_may_fold,
                 "Genus >= 1 with --landmarks: hold them by plain pins and keep the map where it folds (for its homotopy "
                 "class; flipped_triangles counts the folds) instead of an error when they cannot be held bijectively");
@@ -306,12 +315,14 @@ void register_map(CLI::App& app) {
     opt.loops.short_canonical_generators = a->classical_canonical_generators ? false
                                            : a->short_canonical_generators   ? true
                                                                              : SurfaceMapOptions().loops.short_canonical_generators;
+    opt.loops.short_generators_fallback = !a->no_short_generators_fallback && !a->classical_canonical_generators;
     if (a->both_canonical_bases && a->one_canonical_basis)
       throw InputError("--both-canonical-bases and --one-canonical-basis exclude each other");
     opt.loops.both_canonical_bases = a->one_canonical_basis ? false
                                      : a->both_canonical_bases ? true
                                                                : SurfaceMapOptions().loops.both_canonical_bases;
     opt.homotopy.search.geometric_layout_basis = a->geometric_layout_basis;
+    opt.homotopy.search.curve_twists = a->short_curve_twists;
     opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
     opt.solve.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
     opt.solve.tolerance = a->tolerance;
@@ -375,6 +386,7 @@ void register_map(CLI::App& app) {
     nlohmann::json notes = nlohmann::json::array();
     for (const auto* r : {&src, &dst})
       for (const auto& n : r->info.notes) notes.push_back((r == &src ? "source: " : "target: ") + n);
+    if (!m.canonical_generators_fallback.empty()) notes.push_back("map: " + m.canonical_generators_fallback);
     nlohmann::json report = to_json(m, opt);
     report["source"] = a->src;
     report["target"] = a->dst;

@@ -1,5 +1,6 @@
 #include "surfmap/topology/mapping_class_search.h"
 
+#include <algorithm>
 #include <limits>
 #include <set>
 #include <utility>
@@ -286,6 +287,77 @@ TEST(MappingClassSearch, SearchOptionsBelowTheirLeastAreInputErrors) {
       EXPECT_EQ(what.find('\n'), std::string::npos) << what;
     }
   }
+}
+
+// Issue 13 (session 27): one-sided moves (TwistSearchOptions::source_moves,
+// target_moves), e.g. the Dehn twist along a short curve c = M(a1) that the
+// canonical basis reaches only through a long conjugator M. The energy: 4 +
+// 10 |k| on the powers T(c)^k (|k| <= 3, told apart by their homology, the
+// transvection x -> x + k <v, x> v of c's class v), 1000 + the words' length
+// elsewhere. From T(c)^3, three steps of T(c)^-1 on the source side return
+// to the identity; the canonical moves alone lower nothing.
+TEST(MappingClassSearch, OneSidedMovesUndoTwistsAlongAConjugatedCurve) {
+  const int g = 2;
+  const TwistedClasses tc(g);
+  auto length = [&](const GroupMap& theta) { return tc.length(theta); };
+  // M: a long automorphism; T(c) = M T(a1) M^-1.
+  SurfaceAutomorphism M{identity_map(2 * g), identity_map(2 * g), 0};
+  for (const char* name : {"T(b1)", "T(c1)", "T(a2)^-1", "T(s1)", "T(b2)", "T(c1)", "T(b1)^-1"}) {
+    const auto m = std::find_if(tc.moves.begin(), tc.moves.end(), [&](const MappingClassMove& x) { return x.name == name; });
+    ASSERT_NE(m, tc.moves.end()) << name;
+    M.map = compose(M.map, m->automorphism.map);
+    M.inverse = compose(m->automorphism.inverse, M.inverse);
+    for (Word& w : M.map) w = tc.reduce(w);
+    for (Word& w : M.inverse) w = tc.reduce(w);
+  }
+  SurfaceAutomorphism Ta1{identity_map(2 * g), identity_map(2 * g), 1};
+  Ta1.map[1] = {2, 1};
+  Ta1.inverse[1] = {2, -1};
+  SurfaceAutomorphism Tc{compose(M.map, compose(Ta1.map, M.inverse)), compose(M.map, compose(Ta1.inverse, M.inverse)), 1};
+  for (Word& w : Tc.map) w = tc.reduce(w);
+  for (Word& w : Tc.inverse) w = tc.reduce(w);
+  ASSERT_TRUE(is_surface_automorphism(Tc, g));
+  GroupMap start = identity_map(2 * g);
+  for (int k = 0; k < 3; ++k) {
+    start = compose(start, Tc.map);
+    for (Word& w : start) w = tc.reduce(w);
+  }
+  ASSERT_GT(length(start), 2.0 * g + 10);
+  const IntMatrix J = symplectic_form(g);
+  const Eigen::Matrix<long long, Eigen::Dynamic, 1> v = abelianize(M.map[0], 2 * g);
+  const IntMatrix V = v;
+  auto energy = [&](const GroupMap& theta) {
+    const IntMatrix H = homology_matrix(theta, 2 * g);
+    for (int k = -3; k <= 3; ++k)
+      if (H == IntMatrix::Identity(2 * g, 2 * g) + k * V * (V.transpose() * J)) return 4.0 + 10.0 * std::abs(k);
+    return 1000 + length(theta);
+  };
+  ASSERT_EQ(energy(start), 34.0);
+  ASSERT_EQ(energy(identity_map(2 * g)), 4.0);
+  TwistSearchOptions o;
+  o.max_evaluations = 1000;
+  o.max_steps = 3;
+  o.evaluations_per_step = 1000;
+  o.screen_steps = 0;
+  o.pair_moves = false;
+  const TwistSearchResult without = twist_search(start, energy(start), g, length, energy, o);
+  EXPECT_EQ(without.energy, 34.0);
+  EXPECT_TRUE(without.moves.empty());
+  o.source_moves = {{"T(c)", Tc}, {"T(c)^-1", {Tc.inverse, Tc.map, 1}}};
+  const TwistSearchResult with = twist_search(start, energy(start), g, length, energy, o);
+  EXPECT_EQ(with.energy, 4.0);
+  ASSERT_EQ(with.moves.size(), 3u);
+  for (const std::string& m : with.moves) EXPECT_EQ(m, "source T(c)^-1");
+  // The same move offered on the target side only, with the source side
+  // off: from the identity twisted on the target side (T(c)^3 as a map of
+  // the target letters), the search names it "target".
+  o.source_moves.clear();
+  o.target_moves = {{"T(c)", Tc}, {"T(c)^-1", {Tc.inverse, Tc.map, 1}}};
+  o.source_side = false;
+  const TwistSearchResult target = twist_search(start, energy(start), g, length, energy, o);
+  EXPECT_EQ(target.energy, 4.0);
+  ASSERT_EQ(target.moves.size(), 3u);
+  for (const std::string& m : target.moves) EXPECT_EQ(m, "target T(c)^-1");
 }
 
 }  // namespace

@@ -183,5 +183,73 @@ TEST(PantsClasses, Genus3IdentityForTheSameSurface) {
   EXPECT_TRUE(has_identity_class(classes, 6));
 }
 
+// Issue 13 (session 27): the twists along a surface's short curves
+// (short_curve_twists: the short marking's generators and the short pants
+// curves). Each is an automorphism whose map and inverse compose to the
+// identity, fixes its curve (the same element: the same length), acts on
+// homology as the transvection x -> x + <c, x> c of its curve's class (the
+// identity for a separating curve), and lengthens the curves crossing its
+// own while the pants curves disjoint from a pants curve keep their
+// lengths; the list is sorted, each curve once, with the marking's and the
+// pants decomposition's lengths.
+TEST(PantsClasses, ShortCurveTwistsAreDehnTwistsAlongTheirCurves) {
+  for (int genus : {2, 3}) {
+    const Uniformized x = uniformized(lopsided(samples::n_hole_torus(genus, 22, true)));
+    const SurfaceGroupLengths X(DeckGroup(x.u.layout), x.cs.generators, x.u.layout.word);
+    const ShortMarking mk = short_marking(X);
+    const PantsDecomposition p = short_pants_decomposition(X, mk);
+    const std::vector<CurveTwist> twists = short_curve_twists(X, mk, &p);
+    const int n = 2 * genus;
+    const DehnReducer reduce(canonical_relator(genus));
+    const IntMatrix J = symplectic_form(genus);
+    ASSERT_GE(static_cast<int>(twists.size()), n) << genus;
+    ASSERT_LE(static_cast<int>(twists.size()), n + 3 * genus - 3);
+    EXPECT_EQ(short_curve_twists(X, mk).size(), static_cast<size_t>(n));  // (the marking's alone: 2g distinct curves)
+    int pants_listed = 0;
+    for (size_t k = 0; k < twists.size(); ++k) {
+      const CurveTwist& c = twists[k];
+      SCOPED_TRACE(c.name);
+      ASSERT_TRUE(std::isfinite(c.length));
+      if (k > 0) EXPECT_LE(twists[k - 1].length, c.length);
+      EXPECT_NEAR(X.length(c.curve), c.length, 1e-9 * c.length);
+      EXPECT_TRUE(is_surface_automorphism(c.twist, genus));
+      GroupMap round = compose(c.twist.map, c.twist.inverse);
+      for (Word& w : round) w = reduce(w);
+      EXPECT_EQ(round, identity_map(n));
+      // Its curve is fixed: the same closed geodesic.
+      EXPECT_NEAR(X.length(reduce(substitute(c.curve, c.twist.map))), c.length, 1e-7 * c.length);
+      // The transvection of its class v: H x = x + s <v, x> v, one sign s.
+      const IntMatrix H = homology_matrix(c.twist.map, n);
+      const Eigen::Matrix<long long, Eigen::Dynamic, 1> v = abelianize(c.curve, n);
+      const IntMatrix V = v.cast<IntMatrix::Scalar>();
+      const IntMatrix plus = IntMatrix::Identity(n, n) + V * (V.transpose() * J);
+      const IntMatrix minus = IntMatrix::Identity(n, n) - V * (V.transpose() * J);
+      EXPECT_TRUE(H == plus || H == minus) << H;
+      // It changes the length of a curve crossing its own: of some probe
+      // x_i, x_i x_j^±1 of the marking (they cross every essential curve).
+      double change = 0;
+      for (const Word& probe : marking_probes(genus)) {
+        const Word w = reduce(substitute(probe, mk.marking.map));
+        change = std::max(change, std::abs(X.length(reduce(substitute(w, c.twist.map))) - X.length(w)));
+      }
+      EXPECT_GT(change, 1e-3);
+      if (c.name.rfind("marking ", 0) == 0) {
+        const int j = 2 * (std::stoi(c.name.substr(9)) - 1) + (c.name[8] == 'b');
+        EXPECT_NEAR(c.length, mk.generator_lengths[j], 1e-9 * c.length);
+      } else {
+        ++pants_listed;
+        // A pants twist leaves the other pants curves (disjoint) alone.
+        for (const PantsCurve& q : p.curves)
+          EXPECT_NEAR(X.length(reduce(substitute(q.word, c.twist.map))), q.length, 1e-7 * q.length) << q.name;
+        const auto same = std::find_if(p.curves.begin(), p.curves.end(),
+                                       [&](const PantsCurve& q) { return "pants " + q.name == c.name; });
+        ASSERT_NE(same, p.curves.end());
+        EXPECT_NEAR(c.length, same->length, 1e-9 * c.length);
+      }
+    }
+    EXPECT_GE(pants_listed, genus - 1);  // (the separating curves s_j are never a marking's generators)
+  }
+}
+
 }  // namespace
 }  // namespace surfmap

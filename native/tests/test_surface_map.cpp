@@ -797,34 +797,51 @@ TEST(SurfaceMapHandles, ClassSearchUndoesKnownTwists) {
   EXPECT_THROW(surface_map(a, b, o, hooks), InputError);
 }
 
+// A small genus-2 pair without a coarse copy (source under 2000 vertices),
+// mapped without search (`m0`, in the identity class of energy `e0`), then
+// with `o` (two-way off) and the search started from that class twisted by
+// the named moves: the twisted map is returned, after checks common to its
+// tests (the start is worse, the search comes back to e0).
+struct TwistedIdentitySearch {
+  TriMesh a = samples::n_hole_torus(2, 18, true);
+  TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  SurfaceMapResult m0;
+  double e0 = 0;
+  SurfaceMapResult search(SurfaceMapOptions o, const std::vector<std::string>& twists) {
+    SurfaceMapOptions plain;
+    plain.homotopy.search.enabled = false;
+    plain.homotopy.two_way = false;
+    m0 = surface_map(a, b, plain);
+    const int identity = m0.chosen_candidate;
+    EXPECT_NE(m0.candidates[identity].description.find("as the shapes overlap"), std::string::npos);
+    EXPECT_TRUE(m0.candidates[identity].solved);  // (no coarse copy: solved at full resolution)
+    e0 = m0.candidates[identity].energy;
+    EXPECT_TRUE(std::isfinite(e0));
+    o.homotopy.two_way = false;
+    testing::MapHooks hooks;
+    hooks.homotopy_search_start = identity;
+    hooks.homotopy_search_start_twists = twists;
+    SurfaceMapResult m = surface_map(a, b, o, hooks);
+    expect_valid_map(m, a, b);
+    const HomotopySearchInfo& s = m.homotopy_search;
+    EXPECT_TRUE(s.run);
+    EXPECT_GT(s.start_energy, 1.05 * e0);  // the twisted start is worse
+    EXPECT_NEAR(s.energy, e0, 1e-4 * e0);  // back to the identity class's optimum (convex per class)
+    return m;
+  }
+};
+
 // The same for a source too small for a coarse copy (under 2000 vertices:
 // every class is solved at full resolution, and so is the search; issue 14,
 // docs/handle_classes.md): before, such sources had no twist search at all.
 TEST(SurfaceMapHandles, ClassSearchAtFullResolutionUndoesKnownTwists) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  ASSERT_LT(a.num_vertices(), 2000);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
-  SurfaceMapOptions plain;
-  plain.homotopy.search.enabled = false;
-  plain.homotopy.two_way = false;
-  const SurfaceMapResult m0 = surface_map(a, b, plain);
-  const int identity = m0.chosen_candidate;
-  ASSERT_NE(m0.candidates[identity].description.find("as the shapes overlap"), std::string::npos);
-  ASSERT_TRUE(m0.candidates[identity].solved);  // (no coarse copy: solved at full resolution)
-  const double e0 = m0.candidates[identity].energy;
-  ASSERT_TRUE(std::isfinite(e0));
-
-  SurfaceMapOptions o;
-  o.homotopy.two_way = false;
-  testing::MapHooks hooks;
-  hooks.homotopy_search_start = identity;
-  hooks.homotopy_search_start_twists = {"T(a1)", "T(a1)", "T(b2)^-1"};
-  const SurfaceMapResult m = surface_map(a, b, o, hooks);
-  expect_valid_map(m, a, b);
+  TwistedIdentitySearch t;
+  ASSERT_LT(t.a.num_vertices(), 2000);
+  const SurfaceMapResult m = t.search(SurfaceMapOptions{}, {"T(a1)", "T(a1)", "T(b2)^-1"});
+  const TriMesh& a = t.a;
+  const TriMesh& b = t.b;
+  const SurfaceMapResult& m0 = t.m0;
   const HomotopySearchInfo& s = m.homotopy_search;
-  ASSERT_TRUE(s.run);
-  EXPECT_GT(s.start_energy, 1.05 * e0);  // the twisted start is worse
-  EXPECT_NEAR(s.energy, e0, 1e-4 * e0);  // back to the identity class's optimum (convex per class)
   EXPECT_GE(s.moves.size(), 1u);
   EXPECT_EQ(s.coarse_solves + s.pruned, s.evaluations + 1);  // the twisted start and each neighbour, solved or pruned
   ASSERT_GE(s.found_candidate, 0);
@@ -833,6 +850,88 @@ TEST(SurfaceMapHandles, ClassSearchAtFullResolutionUndoesKnownTwists) {
   EXPECT_LT(m.mean_dilatation, 1.1);
   EXPECT_EQ(m.flipped_triangles, 0);
   EXPECT_CERTIFIED_MAP(a, b, m);
+}
+
+// Issue 13 (session 27; HomotopySearchOptions::curve_twists): the twist
+// search moves by the Dehn twists along the two surfaces' short curves.
+// Started from the identity class twisted twice along the source's short
+// marking's first curve and once along its first separating pants curve
+// (start twists may name those moves), it comes back to the identity class's
+// optimum, and the report lists the curves. Without the option those moves
+// do not exist (the start twists are refused).
+TEST(SurfaceMapHandles, ClassSearchUndoesTwistsAlongShortCurves) {
+  TwistedIdentitySearch t;
+  SurfaceMapOptions o;
+  o.homotopy.search.curve_twists = true;
+  o.homotopy.search.pair_moves = false;
+  const std::vector<std::string> twists = {"T(marking a1)", "T(marking a1)", "T(pants s1)^-1"};
+  const SurfaceMapResult m = t.search(o, twists);  // (back to the identity class's energy: checked there)
+  const HomotopySearchInfo& s = m.homotopy_search;
+  ASSERT_FALSE(s.curve_twists.empty());
+  EXPECT_GE(std::stoi(s.curve_twists), 4) << s.curve_twists;  // (2g marking curves at least)
+  EXPECT_NE(s.curve_twists.find(" source curves "), std::string::npos) << s.curve_twists;
+  EXPECT_NE(s.curve_twists.find(" target curves "), std::string::npos) << s.curve_twists;
+  // The neighbours include the curve twists: from a start twisted along
+  // canonical curves, more are screened with them than without.
+  SurfaceMapOptions canonical = o;
+  canonical.homotopy.search.curve_twists = false;
+  const int without = t.search(canonical, {"T(a1)", "T(a1)", "T(b2)^-1"}).homotopy_search.screened;
+  const int with = t.search(o, {"T(a1)", "T(a1)", "T(b2)^-1"}).homotopy_search.screened;
+  EXPECT_GT(with, without);
+  EXPECT_NEAR(m.final_energy, t.m0.final_energy, 1e-5 * t.m0.final_energy);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  // Without the option there are no such moves.
+  o.homotopy.search.curve_twists = false;
+  o.homotopy.two_way = false;
+  testing::MapHooks hooks;
+  hooks.homotopy_search_start = t.m0.chosen_candidate;
+  hooks.homotopy_search_start_twists = twists;
+  EXPECT_THROW(surface_map(t.a, t.b, o, hooks), InputError);
+}
+
+// Issue 13 (session 27; LoopOptions::short_generators_fallback): a run with
+// the classical canonical generators that fails at its start edges is made
+// again with the short ones. Here every solve refuses its start edges (a
+// start edge size far below any deck element's), so the retry fails too and
+// the error gives both runs' reasons; without the fallback, or with the
+// short generators asked for, there is one run and one reason.
+TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
+  const TriMesh a = samples::n_hole_torus(2, 18, true);
+  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  o.homotopy.through_shape = false;
+  o.homotopy.search.snapped_start = false;  // (every solve from the origin: edges start as long as their deck elements)
+  o.homotopy.search.start_edge_size = 1.5;
+  o.homotopy.search.geometric_start_edge_size = 1.5;
+  auto error_of = [&](const SurfaceMapOptions& opt) {
+    try {
+      surface_map(a, b, opt);
+    } catch (const SolveError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::string retried = error_of(o);
+  EXPECT_NE(retried.find(" units long"), std::string::npos) << retried;
+  const size_t again = retried.find("; again with the short canonical generators (the automatic retry): ");
+  ASSERT_NE(again, std::string::npos) << retried;
+  EXPECT_NE(retried.find(" units long", again), std::string::npos) << retried;  // (the retry's own reason)
+  SurfaceMapOptions off = o;
+  off.loops.short_generators_fallback = false;
+  const std::string once = error_of(off);
+  EXPECT_NE(once.find(" units long"), std::string::npos) << once;
+  EXPECT_EQ(once.find("again with the short"), std::string::npos) << once;
+  EXPECT_EQ(retried.substr(0, again), once);  // (the first run's reason, unchanged)
+  SurfaceMapOptions short_asked = o;
+  short_asked.loops.short_canonical_generators = true;
+  const std::string short_once = error_of(short_asked);
+  EXPECT_EQ(short_once.find("again with the short"), std::string::npos) << short_once;
+  // A map that succeeds says nothing of a fallback.
+  SurfaceMapOptions plain;
+  plain.homotopy.two_way = false;
+  plain.homotopy.search.enabled = false;
+  EXPECT_TRUE(surface_map(a, b, plain).canonical_generators_fallback.empty());
 }
 
 // Issue 14 (session 26; docs/handle_classes.md "Session 26"): the search

@@ -307,6 +307,13 @@ class HyperbolicPipeline {
   GroupMap layout_basis_in_class_letters;
   bool layout_basis_tried = false;
   void ensure_layout_basis();
+  /// Issue 13 (session 27; HomotopySearchOptions::curve_twists): the twists
+  /// along the two surfaces' short curves, in the run's class letters
+  /// (source_curve_moves on the source side, target_curve_moves on the
+  /// target side), made once, when the first twist search starts.
+  std::vector<MappingClassMove> source_curve_moves, target_curve_moves;
+  bool curve_moves_tried = false;
+  void ensure_curve_moves();
   /// The target lengths the geometric classes read (after class_bounds_now)
   /// and the change of letters to pass with them (null: none).
   const SurfaceGroupLengths& geometric_target() {
@@ -1218,7 +1225,11 @@ void HyperbolicPipeline::twist_search_from(int start, const std::vector<std::str
   // solved in the run's.
   const HomotopyClass& from = candidates.classes[start];
   std::optional<CoarseEvaluation> found;
+  if (o.homotopy.search.curve_twists) ensure_curve_moves();
   if (other_basis && !from.other_basis_map.empty()) {
+    std::vector<MappingClassMove> source_moves = source_curve_moves, target_moves = target_curve_moves;
+    for (MappingClassMove& m : source_moves) m.automorphism = other_basis->automorphism_from_run(m.automorphism, true);
+    for (MappingClassMove& m : target_moves) m.automorphism = other_basis->automorphism_from_run(m.automorphism, false);
     const CoarseSolve in_other = [&](const GroupMap& theta_other, CoarseEvaluation* ev) {
       GroupMap theta = other_basis->to_run(theta_other);
       space->reduce(theta);
@@ -1227,13 +1238,14 @@ void HyperbolicPipeline::twist_search_from(int start, const std::vector<std::str
       return ok;
     };
     found = twist_class_search(from.other_basis_map, start, out.candidates[start].energy, other_basis->space(), in_other,
-                               start_twists, o, info);
+                               start_twists, o, info, source_moves, target_moves);
     if (found) {
       found->theta = other_basis->to_run(found->theta);
       space->reduce(found->theta);
     }
   } else {
-    found = twist_class_search(from.map, start, out.candidates[start].energy, *space, solve, start_twists, o, info);
+    found = twist_class_search(from.map, start, out.candidates[start].energy, *space, solve, start_twists, o, info,
+                               source_curve_moves, target_curve_moves);
   }
   std::optional<FoundSearchClass> f = found_search_class(found, start, start_twists, info.moves);
   if (!f) return;
@@ -1303,6 +1315,29 @@ void HyperbolicPipeline::geometric_classes_at_full_resolution() {
     f.hc.description += "  [solved at full resolution: no coarse copy]";
     append_full_class(std::move(f.hc), std::move(f.data), f.evaluation);
   }
+}
+
+void HyperbolicPipeline::ensure_curve_moves() {
+  if (curve_moves_tried) return;
+  curve_moves_tried = true;
+  const SourceClassBounds& bounds = class_bounds_now();
+  if (!bounds.ok || !bounds.source) {
+    out.homotopy_search.curve_twists = "none: the source's own uniformization is not available (class_bound_status)";
+    return;
+  }
+  ensure_target_lengths();
+  std::string source_lengths, target_lengths_text;
+  try {
+    source_curve_moves = short_curve_moves(*bounds.source, &source_lengths);
+    target_curve_moves = short_curve_moves(*target_lengths, &target_lengths_text);
+  } catch (const SolveError& e) {
+    source_curve_moves.clear(), target_curve_moves.clear();
+    out.homotopy_search.curve_twists = std::string("none: ") + e.what();
+    return;
+  }
+  out.homotopy_search.curve_twists = std::to_string(source_curve_moves.size() / 2) + " source curves " + source_lengths +
+                                     "; " + std::to_string(target_curve_moves.size() / 2) + " target curves " +
+                                     target_lengths_text;
 }
 
 void HyperbolicPipeline::ensure_layout_basis() {
@@ -1414,9 +1449,11 @@ void HyperbolicPipeline::twist_search_at_full_resolution() {
     SurfaceMapOptions ro = options;
     ro.homotopy.search.evaluations = std::max(1, static_cast<int>(std::lround(evaluation_scale * options.homotopy.search.evaluations)));
     if (info.run) ro.homotopy.search.evaluations = std::max(1, ro.homotopy.search.evaluations / 2);
+    if (options.homotopy.search.curve_twists) ensure_curve_moves();
     std::optional<CoarseEvaluation> found =
         twist_class_search(candidates.classes[start].map, start, e0, *space, solve_full,
-                           hooked ? hooks.homotopy_search_start_twists : std::vector<std::string>{}, ro, run);
+                           hooked ? hooks.homotopy_search_start_twists : std::vector<std::string>{}, ro, run,
+                           source_curve_moves, target_curve_moves);
     const bool first = !info.run;
     if (first) {
       // (The search's own figures; the geometric classes' and the solve

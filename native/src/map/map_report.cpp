@@ -112,6 +112,7 @@ json energy_json(const SurfaceMapResult& r) {
           {"target_loop_metric", r.target_loop_metric},
           {"target_class_loops", r.target_class_loops},
           {"canonical_generators", r.canonical_generators},
+          {"canonical_generators_fallback", r.canonical_generators_fallback},
           {"source_weights", r.source_weights},
           {"source_weights_reason", r.source_weights_reason},
           {"fold_repair",
@@ -205,6 +206,7 @@ json homotopy_search_json(const HomotopySearchInfo& hs) {
           {"source_greedy_pants", hs.source_greedy_pants},
           {"target_greedy_pants", hs.target_greedy_pants},
           {"greedy_pants_time_s", hs.greedy_pants_time_s},
+          {"curve_twists", hs.curve_twists},
           {"coarse_solves", hs.coarse_solves},
           {"starts", hs.starts},
           {"evaluated", evaluated}};

@@ -413,6 +413,45 @@ PantsDecomposition descend_pants(const SurfaceGroupLengths& lengths, const Surfa
 
 }  // namespace
 
+std::vector<CurveTwist> short_curve_twists(const SurfaceGroupLengths& lengths, const ShortMarking& marking,
+                                           const PantsDecomposition* pants) {
+  const int g = lengths.genus();
+  const DehnReducer reduce(canonical_relator(g));
+  std::vector<CurveTwist> out;
+  // M T M^-1 for a marking M (standard letter -> caller word, both ways) and
+  // a twist T in the standard letters.
+  auto add = [&](const std::string& name, const SurfaceAutomorphism& m, const Word& curve,
+                 const SurfaceAutomorphism& twist) {
+    CurveTwist c;
+    c.name = name;
+    c.curve = reduce(substitute(curve, m.map));
+    c.twist.map = compose(m.map, compose(twist.map, m.inverse));
+    c.twist.inverse = compose(m.map, compose(twist.inverse, m.inverse));
+    reduce_all(c.twist.map, reduce), reduce_all(c.twist.inverse, reduce);
+    c.twist.moves = 1;
+    for (const CurveTwist& e : out)
+      if (e.twist.map == c.twist.map || e.twist.map == c.twist.inverse) return;  // (the same curve, either way round)
+    c.length = lengths.length(c.curve);
+    out.push_back(std::move(c));
+  };
+  const std::vector<StandardPantsCurve> standard = standard_pants_curves(g);
+  for (int j = 1; j <= g; ++j) {
+    add("marking a" + std::to_string(j), marking.marking, {letter_a(j)}, standard[j - 1].twist);
+    // T(b_j): a_j -> a_j b_j^-1 (the handedness of twist_moves' T(b_j)).
+    SurfaceAutomorphism tb{identity_map(2 * g), identity_map(2 * g), 1};
+    tb.map[letter_a(j) - 1] = {letter_a(j), -letter_b(j)};
+    tb.inverse[letter_a(j) - 1] = {letter_a(j), letter_b(j)};
+    add("marking b" + std::to_string(j), marking.marking, {letter_b(j)}, tb);
+  }
+  if (pants)
+    for (const StandardPantsCurve& s : standard) add("pants " + s.name, pants->marking, s.curve, s.twist);
+  std::stable_sort(out.begin(), out.end(), [](const CurveTwist& x, const CurveTwist& y) {
+    const bool fx = std::isfinite(x.length), fy = std::isfinite(y.length);
+    return fx != fy ? fx : fx && x.length < y.length;
+  });
+  return out;
+}
+
 PantsDecomposition short_pants_decomposition(const SurfaceGroupLengths& lengths, const ShortMarking& start,
                                              const PantsDecompositionOptions& options) {
   const int g = lengths.genus();

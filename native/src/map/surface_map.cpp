@@ -189,12 +189,39 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
     named.homotopy.class_index = 0;
     return map_in_given_cuts(source, target, named, hooks);
   }
-  if (chooses_class_in_automatic_cuts(options)) {
-    const Connectivity sc(source.F, source.num_vertices());
-    const Connectivity tc(target.F, target.num_vertices());
-    if (sc.genus() >= 2 && tc.genus() == sc.genus()) return map_in_automatic_cuts(source, target, options, hooks);
+  auto map_in_chosen_cuts = [&](const SurfaceMapOptions& o) {
+    if (chooses_class_in_automatic_cuts(o)) {
+      const Connectivity sc(source.F, source.num_vertices());
+      const Connectivity tc(target.F, target.num_vertices());
+      if (sc.genus() >= 2 && tc.genus() == sc.genus()) return map_in_automatic_cuts(source, target, o, hooks);
+    }
+    return map_in_given_cuts(source, target, o, hooks);
+  };
+  try {
+    return map_in_chosen_cuts(options);
+  } catch (const SolveError& e) {
+    // Issue 13 (session 27; LoopOptions::short_generators_fallback): a run
+    // with the classical generators that stopped at its start edges is made
+    // again with the short ones (the genus-12 CAD block -> raw wheel: the
+    // classical run refuses every class at edges "335 units long", the short
+    // one maps).
+    const std::string what = e.what();
+    if (options.loops.short_canonical_generators || !options.loops.short_generators_fallback ||
+        what.find(" units long") == std::string::npos)
+      throw;
+    SurfaceMapOptions retry = options;
+    retry.loops.short_canonical_generators = true;
+    SurfaceMapResult out;
+    try {
+      out = map_in_chosen_cuts(retry);
+    } catch (const SolveError& again) {
+      throw SolveError(what + "; again with the short canonical generators (the automatic retry): " + again.what());
+    }
+    out.canonical_generators_fallback =
+        "made with the short canonical generators: the classical ones failed at their start edges (" +
+        (what.size() > 300 ? what.substr(0, 300) + " ..." : what) + ")";
+    return out;
   }
-  return map_in_given_cuts(source, target, options, hooks);
 }
 
 SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,

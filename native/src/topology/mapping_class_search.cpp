@@ -183,16 +183,22 @@ TwistSearchResult twist_search(const GroupMap& start, double start_energy, int g
   };
   auto neighbours = [&](const GroupMap& cur, bool only_new) {
     std::vector<Neighbour> nb;
+    auto try_move = [&](const MappingClassMove& m, int side) {
+      GroupMap theta = side == 0 ? compose(cur, m.automorphism.map) : compose(m.automorphism.map, cur);
+      theta = reduce.each(std::move(theta));
+      if (letters(theta) > options.max_letters) return;
+      const double s = screened(theta);
+      if (!std::isfinite(s) || (only_new && is_seen(s))) return;
+      nb.push_back({std::move(theta), (side == 0 ? "source " : "target ") + m.name, s});
+    };
+    const bool side_on[2] = {options.source_side, options.target_side};
     for (const MappingClassMove& m : moves)
-      for (int side = 0; side < 2; ++side) {
-        if ((side == 0 && !options.source_side) || (side == 1 && !options.target_side)) continue;
-        GroupMap theta = side == 0 ? compose(cur, m.automorphism.map) : compose(m.automorphism.map, cur);
-        theta = reduce.each(std::move(theta));
-        if (letters(theta) > options.max_letters) continue;
-        const double s = screened(theta);
-        if (!std::isfinite(s) || (only_new && is_seen(s))) continue;
-        nb.push_back({std::move(theta), (side == 0 ? "source " : "target ") + m.name, s});
-      }
+      for (int side = 0; side < 2; ++side)
+        if (side_on[side]) try_move(m, side);
+    // The one-sided moves (TwistSearchOptions::source_moves, target_moves).
+    for (int side = 0; side < 2; ++side)
+      if (side_on[side])
+        for (const MappingClassMove& m : side == 0 ? options.source_moves : options.target_moves) try_move(m, side);
     return nb;
   };
   // Descent on the screening score (cheap), then one evaluation of its end.

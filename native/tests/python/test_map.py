@@ -991,6 +991,24 @@ def test_cli_option_keywords_are_checked_and_reach_the_map():
     assert r["homotopy"]["fallbacks"]["refused_unmapped"] == 0
 
 
+def test_short_curve_twists_and_generators_fallback_keywords_reach_the_map():
+    # Issue 13, session 27: short_curve_twists=True (--short-curve-twists) gives the class
+    # search the twists along both surfaces' short curves, listed in the report;
+    # short_generators_fallback (--no-short-generators-fallback) is a keyword, and a map
+    # that needs no retry says nothing of one. The genus-3 plate -> n-hole torus maps at
+    # about 1.2 x the conformal bound, above the search's gap, so the search runs.
+    a = surfmap.shapes.cad_plate(3)
+    b = surfmap.shapes.n_hole_torus(3, 26, True)
+    r = surfmap.surface_map(*a, *b, short_curve_twists=True, two_way=False, through_shape=False,
+                            short_generators_fallback=False)
+    s = r["homotopy"]["search"]
+    assert s["run"], s["stop_reason"]
+    assert " source curves " in s["curve_twists"] and " target curves " in s["curve_twists"], s["curve_twists"]
+    assert int(s["curve_twists"].split()[0]) >= 6  # (2g marking curves at least)
+    assert r["canonical_generators_fallback"] == ""
+    assert {"short_curve_twists", "short_generators_fallback"} <= surfmap.CAPABILITIES
+
+
 def test_agreement_ratio_keyword_and_flag_reach_the_map(cli, tmp_path):
     # Issue 14 below the two-way run (docs/handle_classes.md "Session 23"): the generated
     # genus-3 CAD plate -> n-hole torus maps at about 1.2 x the conformal bound, between

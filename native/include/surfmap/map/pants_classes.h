@@ -139,6 +139,28 @@ PantsDecomposition short_pants_decomposition(const SurfaceGroupLengths& lengths,
 /// tests.
 std::vector<PantsCurve> pants_coordinates(const SurfaceGroupLengths& lengths, const GroupMap& marking);
 
+/// Issue 13 (session 27; docs/history/s27-edge27.md): the Dehn twists along
+/// a surface's short simple closed curves, as exact automorphisms in the
+/// caller's canonical letters, for the class search
+/// (HomotopySearchOptions::curve_twists): along the 2g generators of the
+/// short marking `marking` (M T(a_i) M^-1, M T(b_i) M^-1, M: marking letter
+/// -> caller word) and, when `pants` is given, along its 3g - 3 pants curves
+/// (P T_c P^-1 with standard_pants_curves' twists). A twist along the image
+/// of a simple closed curve under a homeomorphism is the conjugate of the
+/// twist along the curve, so each is a Dehn twist along that short curve
+/// (a plate's hole tunnels, a wheel's short spokes), which the canonical
+/// bases' twists (twist_moves) reach only through long products. Curves
+/// whose twists are equal as maps are listed once (the first kept); sorted
+/// by length, the curves not evaluable (NaN) last.
+struct CurveTwist {
+  std::string name;           ///< "marking b3" or "pants s2"
+  Word curve;                 ///< the curve in the caller's canonical letters (Dehn-reduced)
+  double length = 0;          ///< its length in `lengths`
+  SurfaceAutomorphism twist;  ///< the Dehn twist along it (map and its exact inverse, Dehn-reduced)
+};
+std::vector<CurveTwist> short_curve_twists(const SurfaceGroupLengths& lengths, const ShortMarking& marking,
+                                           const PantsDecomposition* pants = nullptr);
+
 struct PantsClassOptions {
   /// Handle permutations kept after the pants-length comparison (default
   /// 4); each is tried with every half-turn pattern.

@@ -179,6 +179,18 @@ struct HomotopySearchOptions {
   /// canonical generators in the layout's letters, checked exactly). Off by
   /// default; CLI --geometric-layout-basis, Python geometric_layout_basis.
   bool geometric_layout_basis = false;
+  /// Issue 13 (session 27; docs/history/s27-edge27.md): the twist search
+  /// also moves by Dehn twists along each surface's short simple closed
+  /// curves, the 2g generators of its short marking and the 3g - 3 curves
+  /// of its short pants decomposition (map/pants_classes.h
+  /// short_curve_twists): the source's on the source side, the target's on
+  /// the target side, each way round, screened and solved like the other
+  /// moves (a plate's hole tunnels are not among the canonical bases'
+  /// curves). Needs the source's own uniformization, as the geometric
+  /// classes do (without it the search runs without them, said in
+  /// HomotopySearchInfo::curve_twists). Off by default; CLI
+  /// --short-curve-twists, Python short_curve_twists=True.
+  bool curve_twists = false;
   /// Issue 13: sources without a coarse copy (under coarse_vertices) start
   /// each full-resolution solve of a class from the snapped overlay (every
   /// source vertex at the target vertex nearest to it in 3D, sheets along a
@@ -504,6 +516,17 @@ struct LoopOptions {
   /// "Session 23"), so the candidate list does not depend on this choice
   /// (the geometric classes still do).
   bool short_canonical_generators = false;
+  /// Issue 13 (session 27; docs/history/s27-edge27.md): when a genus >= 2
+  /// run with the classical generators fails at its start edges (a
+  /// SolveError saying an edge "starts ... units long": deck elements that
+  /// the classical generators' long words put beyond what the solve
+  /// accepts), it is run again with the short ones, and the result says so
+  /// (SurfaceMapResult::canonical_generators_fallback; the error, when that
+  /// fails too, gives both). Default true; false: CLI
+  /// --no-short-generators-fallback (or --classical-canonical-generators,
+  /// which asks for the classical basis), Python
+  /// short_generators_fallback=False.
+  bool short_generators_fallback = true;
   /// Genus >= 2: list the candidate classes (overlays, the canonical
   /// schemata's class, signed handle permutations, other cuts' lifts) in
   /// both canonical bases, the classical and the short, each written in the
@@ -731,6 +754,10 @@ struct HomotopySearchInfo {
   /// greedy pants classes'.
   std::string source_greedy_pants, target_greedy_pants;
   double greedy_pants_time_s = 0;
+  /// HomotopySearchOptions::curve_twists: the short curves whose twists the
+  /// search moved by, "<n> source curves <lengths>; <m> target curves
+  /// <lengths>" (ascending), or why none ("" when the option is off).
+  std::string curve_twists;
   /// Every coarse solve of the search (stage 1, geometric classes, every
   /// twist search start), and the starts of the twist search.
   int coarse_solves = 0;
@@ -995,6 +1022,10 @@ struct SurfaceMapResult {
   /// lengths as the classes read them: "short: target generators 1 .. 60
   /// layout letters". Empty otherwise.
   std::string canonical_generators;
+  /// LoopOptions::short_generators_fallback: empty, or why this map was made
+  /// with the short canonical generators though the classical ones were
+  /// asked for (the classical run's error, shortened).
+  std::string canonical_generators_fallback;
   /// Genus >= 2: empty when the map ran in the target layout's one
   /// Poincaré chart; otherwise "per-face charts (...)" with why (the single
   /// chart's limit, or requested) and the path's restrictions

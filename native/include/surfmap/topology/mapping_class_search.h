@@ -91,6 +91,15 @@ struct TwistSearchOptions {
   /// Moves on the source side (theta ∘ phi) and on the target side
   /// (phi ∘ theta); both by default.
   bool source_side = true, target_side = true;
+  /// Issue 13 (session 27; docs/history/s27-edge27.md): more moves for one
+  /// side only, beside twist_moves' (which act on both sides): source_moves
+  /// as theta ∘ m, target_moves as m ∘ theta (automorphisms of the source's
+  /// and of the target's canonical letters; e.g. the Dehn twists along
+  /// either surface's short curves, map/pants_classes.h
+  /// short_curve_twists), each listed with its inverse by the caller.
+  /// Screened, evaluated, paired and kicked like the others; their
+  /// neighbours are named "source <name>" / "target <name>". Default none.
+  std::vector<MappingClassMove> source_moves, target_moves;
   /// When no single move improves: pairs of moves, the best
   /// `pair_starts` neighbours of that step (lowest energy) each composed
   /// with every move again, screened, and up to evaluations_per_step of the

@@ -57,7 +57,7 @@ std::vector<FoundClass> classes_from_more_cuts(CutLifter& lifter, SourceCuts& cu
 
 namespace {
 
-std::string lengths_text(const std::vector<double>& l) {
+std::string lengths_text_of(const std::vector<double>& l) {
   std::string s;
   char buf[32];
   for (double x : l) std::snprintf(buf, sizeof buf, "%s%.3g", s.empty() ? "" : " ", x), s += buf;
@@ -92,8 +92,8 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<FoundClass> found;
   const ShortMarking mx = short_marking(source), my = short_marking(target);
-  info.source_marking = lengths_text(mx.generator_lengths);
-  info.target_marking = lengths_text(my.generator_lengths);
+  info.source_marking = lengths_text_of(mx.generator_lengths);
+  info.target_marking = lengths_text_of(my.generator_lengths);
   // The shortest closed geodesics of both (words of up to 3 letters of the
   // markings, 2 from genus 5: 24^3 words would cost more than the rest).
   const int letters = source.genus() <= 4 ? 3 : 2;
@@ -101,7 +101,7 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
        {std::tuple(&source, &mx, &info.source_geodesics), std::tuple(&target, &my, &info.target_geodesics)}) {
     std::vector<double> l;
     for (const ShortGeodesic& sg : short_geodesics(*lengths, *marking, letters, 8)) l.push_back(sg.length);
-    *text = lengths_text(l);
+    *text = lengths_text_of(l);
   }
   GeometricClassOptions go;
   go.max_classes = std::max(6, 2 * options.homotopy.search.geometric);
@@ -122,7 +122,7 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
     std::vector<double> lx, ly;
     for (const PantsCurve& c : px.curves) lx.push_back(c.length);
     for (const PantsCurve& c : py.curves) ly.push_back(c.length);
-    const std::string pants_lengths = "pants lengths " + lengths_text(lx) + " -> " + lengths_text(ly);
+    const std::string pants_lengths = "pants lengths " + lengths_text_of(lx) + " -> " + lengths_text_of(ly);
     PantsClassOptions po;
     po.max_classes = go.max_classes;
     for (PantsClass& pc : pants_classes(source, px, target, py, po)) {
@@ -147,8 +147,8 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
       std::vector<double> glx, gly;
       for (const GreedyPantsCurve& c : gx.curves) glx.push_back(c.length);
       for (const GreedyPantsCurve& c : gy.curves) gly.push_back(c.length);
-      info.source_greedy_pants = lengths_text(glx) + (gx.complete ? "" : " (incomplete)");
-      info.target_greedy_pants = lengths_text(gly) + (gy.complete ? "" : " (incomplete)");
+      info.source_greedy_pants = lengths_text_of(glx) + (gx.complete ? "" : " (incomplete)");
+      info.target_greedy_pants = lengths_text_of(gly) + (gy.complete ? "" : " (incomplete)");
       GreedyPantsClassOptions gpo;
       gpo.max_classes = go.max_classes;
       for (GreedyPantsClass& c : greedy_pants_classes(source, mx, gx, target, my, gy, gpo)) {
@@ -255,13 +255,16 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
 std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, int start_index, double start_energy,
                                                    const ClassSpace& space, const CoarseSolve& solve_coarse,
                                                    const std::vector<std::string>& start_twists,
-                                                   const SurfaceMapOptions& options, HomotopySearchInfo& info) {
+                                                   const SurfaceMapOptions& options, HomotopySearchInfo& info,
+                                                   const std::vector<MappingClassMove>& source_moves,
+                                                   const std::vector<MappingClassMove>& target_moves) {
   const auto t_search = std::chrono::steady_clock::now();
   info.run = true;
   info.start_candidate = start_index;
   GroupMap search_from = start_map;
   if (!start_twists.empty()) {
-    const std::vector<MappingClassMove> moves = twist_moves(space.genus());
+    std::vector<MappingClassMove> moves = twist_moves(space.genus());
+    moves.insert(moves.end(), source_moves.begin(), source_moves.end());
     for (const std::string& name : start_twists) {
       auto it = std::find_if(moves.begin(), moves.end(), [&](const MappingClassMove& m) { return m.name == name; });
       if (it == moves.end()) throw InputError("homotopy_search_start_twists: no move named '" + name + "'");
@@ -286,6 +289,8 @@ std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, in
   tso.kick_evaluations = options.homotopy.search.kick_evaluations;
   tso.kick_choices = options.homotopy.search.kick_choices;
   tso.kick_seed = options.homotopy.search.kick_seed;
+  tso.source_moves = source_moves;
+  tso.target_moves = target_moves;
   const TwistSearchResult ts = twist_search(search_from, info.start_energy, space.genus(),
                                             [&](const GroupMap& theta) { return space.screen(theta); }, coarse_energy, tso);
   info.moves = ts.moves;
@@ -306,6 +311,25 @@ std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, in
       if (ev.theta == ts.best) found = ev;  // (the last match, as before)
   info.time_s = seconds_since(t_search);
   return found;
+}
+
+}  // namespace surfmap::detail
+
+namespace surfmap::detail {
+
+std::vector<MappingClassMove> short_curve_moves(const SurfaceGroupLengths& lengths, std::string* lengths_text) {
+  const ShortMarking marking = short_marking(lengths);
+  const PantsDecomposition pants = short_pants_decomposition(lengths, marking);
+  std::vector<MappingClassMove> moves;
+  std::vector<double> l;
+  for (const CurveTwist& c : short_curve_twists(lengths, marking, &pants)) {
+    const std::string name = "T(" + c.name + ")";
+    moves.push_back({name, c.twist});
+    moves.push_back({name + "^-1", {c.twist.inverse, c.twist.map, c.twist.moves}});
+    l.push_back(c.length);
+  }
+  *lengths_text = lengths_text_of(l);
+  return moves;
 }
 
 }  // namespace surfmap::detail

@@ -16,6 +16,7 @@
 #include "surfmap/map/hyperbolic_harmonic.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/topology/canonical_schema.h"
+#include "surfmap/topology/mapping_class_search.h"
 
 namespace surfmap::detail {
 
@@ -93,9 +94,23 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
 /// coarse energy, re-evaluated when twists are given). Fills `info` (moves,
 /// energies, evaluations, stop reason, seconds) and returns the coarse
 /// evaluation of the class reached when it improved on the start.
+/// `source_moves`, `target_moves` (issue 13, session 27): one-sided moves
+/// in `space`'s letters (TwistSearchOptions::source_moves, target_moves:
+/// the twists along the surfaces' short curves); a start twist may also
+/// name a source move.
 std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, int start_index, double start_energy,
                                                    const ClassSpace& space, const CoarseSolve& solve_coarse,
                                                    const std::vector<std::string>& start_twists,
-                                                   const SurfaceMapOptions& options, HomotopySearchInfo& info);
+                                                   const SurfaceMapOptions& options, HomotopySearchInfo& info,
+                                                   const std::vector<MappingClassMove>& source_moves = {},
+                                                   const std::vector<MappingClassMove>& target_moves = {});
+
+/// Issue 13 (session 27; HomotopySearchOptions::curve_twists): the twists
+/// along a surface's short curves (map/pants_classes.h short_curve_twists
+/// from its short marking and short pants decomposition, `lengths` in the
+/// class letters), each followed by its inverse, named "T(marking b3)",
+/// "T(pants s2)^-1" (short_curve_twists' names);
+/// `lengths_text` gets their curves' lengths, ascending.
+std::vector<MappingClassMove> short_curve_moves(const SurfaceGroupLengths& lengths, std::string* lengths_text);
 
 }  // namespace surfmap::detail

@@ -41,6 +41,18 @@ GroupMap OtherBasis::from_run(const GroupMap& theta_run) const {
   return theta;
 }
 
+SurfaceAutomorphism OtherBasis::automorphism_from_run(const SurfaceAutomorphism& phi, bool source) const {
+  // (other letter -> run word, then phi, then back in the other letters.)
+  const GroupMap& in = source ? other_source_in_run_ : other_target_in_run_;
+  const GroupMap& back = source ? run_source_in_other_ : run_target_in_other_;
+  SurfaceAutomorphism r{GroupMap(n_), GroupMap(n_), phi.moves};
+  for (int j = 0; j < n_; ++j) {
+    r.map[j] = reduce_(substitute(reduce_(substitute(in[j], phi.map)), back));
+    r.inverse[j] = reduce_(substitute(reduce_(substitute(in[j], phi.inverse)), back));
+  }
+  return r;
+}
+
 GroupMap OtherBasis::short_form(const OtherBasis* other, const GroupMap& theta_run) {
   return other && other->name() == "short" ? other->from_run(theta_run) : GroupMap{};
 }

@@ -52,6 +52,12 @@ class OtherBasis {
   GroupMap to_run(const GroupMap& theta_other) const;
   /// A run class as the same homomorphism in the other basis.
   GroupMap from_run(const GroupMap& theta_run) const;
+  /// Issue 13 (session 27): an automorphism of the run's source letters
+  /// (`source`) or target letters as the same automorphism in the other
+  /// basis's letters (S phi S^-1, T^-1 psi T), so that theta' composed
+  /// with it is to_run's theta composed with `phi` (a one-sided move of the
+  /// twist search, TwistSearchOptions::source_moves).
+  SurfaceAutomorphism automorphism_from_run(const SurfaceAutomorphism& phi, bool source) const;
   /// A run class in the short basis when `other` is the short one (where
   /// its twist search runs: HomotopyClass::other_basis_map), else empty
   /// (no other basis, or the run's own basis is the short one).
