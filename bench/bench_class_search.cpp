@@ -7,6 +7,7 @@
 //
 //   build/bin/bench_class_search SOURCE TARGET [--words FILE] [--per-step N] [--evaluations N]
 //       [--kicks N] [--kick-moves N] [--kick-evaluations N] [--kick-choices N] [--seed S] [--restart-ratio R]
+//       [--through-shape-ratio R]
 //       [--threads N] [--out-words FILE] [--move source:NAME | target:NAME ...] [--alone]
 //
 // --move composes the given class with a move of twist_moves (source side:
@@ -58,6 +59,7 @@ int main(int argc, char** argv) {
     else if (a == "--kick-choices") o.homotopy.search.kick_choices = std::atoi(next());
     else if (a == "--seed") o.homotopy.search.kick_seed = static_cast<unsigned>(std::atoi(next()));
     else if (a == "--restart-ratio") o.homotopy.search.restart_ratio = std::atof(next());
+    else if (a == "--through-shape-ratio") o.homotopy.through_shape_ratio = std::atof(next());
     else if (a == "--threads") o.threads = std::atoi(next());
     else {
       std::fprintf(stderr, "unknown option %s\n", a.c_str());
@@ -106,6 +108,8 @@ int main(int argc, char** argv) {
     const double e = r.chosen_candidate >= 0 ? r.candidates[r.chosen_candidate].energy : NAN;
     std::printf("chosen %d  energy %.6f  ratio %.4f  mean D' %.3f  converged %d  flipped %d\n", r.chosen_candidate, e,
                 e / bound, r.mean_dilatation, r.converged ? 1 : 0, r.flipped_triangles);
+    if (!r.two_way_status.empty()) std::printf("  two-way: %s\n", r.two_way_status.c_str());
+    if (!r.through_shape_status.empty()) std::printf("  through-shape: %s\n", r.through_shape_status.c_str());
     for (size_t k = 0; k < r.candidates.size(); ++k) {
       const auto& c = r.candidates[k];
       std::printf("  cand %2zu E %.4f coarse %.4f solved %d  %.160s\n", k, c.energy, c.coarse_energy, c.solved ? 1 : 0,

@@ -3,6 +3,7 @@
 directions (docs/handle_classes.md "The issue-14 check, every pair"):
 
   python3 bench/issue14_check.py --meshes DIR [--build build] [--out DIR] [--jobs 2] [--genus 2 3]
+                                 [--set dev|held-out|all] [--pair A B ...]
                                  [--map-arg=--one-canonical-basis ...]
 
 Each ordered pair is mapped with the defaults (`nice surfmap map A B --out o.obj --report
@@ -14,6 +15,13 @@ exact relation the two-way run computes). Criteria (issue 14): converged, 0 flip
 mean D' <= 5, classes inverse. Genus 4 has one mesh in the set; the other two are generated here
 (`surfmap generate cad-plate --genus 4`, `surfmap generate n-hole-torus --genus 4`).
 Reports are kept in --out and reused on a second run (delete them to map again).
+
+`--set held-out` runs instead pairs nobody tuned the search on (docs/history/s27-class27.md):
+generated shapes of other kinds at equal genus (cup, amphora, vase, polycube, wheel, thick and
+thin cad-plate, a raw jittered n-hole torus), each at a low resolution, against each other and
+against development meshes in combinations the development set does not run. `--pair A B`
+(repeatable) runs the given pairs instead; A and B are file names in --meshes, names of
+GENERATED below, or paths. A generated or given name must start with its genus (`g3_...`).
 """
 import argparse
 import concurrent.futures
@@ -22,6 +30,7 @@ import math
 import os
 import pathlib
 import subprocess
+import sys
 import time
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
@@ -37,28 +46,65 @@ PAIRS = [
     ("g4_fertility_libigl.off", "g4_cadplate.obj"),
     ("g4_fertility_libigl.off", "g4_nholetorus.obj"),
 ]
+HELD_OUT = [
+    ("g2_amphora36.obj", "g2_cup32.obj"),
+    ("g2_teapot_vhacd.obj", "g2_cup32.obj"),
+    ("g2_vase36.obj", "g2_double-torus_gpjs.obj"),
+    ("g2_polycube32.obj", "g2_eight_summer.off"),
+    ("g2_cadblock.obj", "g2_modular_universal_joint.off"),
+    ("g2_nholetorus36_raw_jitter.obj", "g2_amphora36.obj"),
+    ("g3_block.off", "g3_cadplate.obj"),
+    ("g3_block.off", "g3_polycube36.obj"),
+    ("g3_3holes.off", "g3_wheel36.obj"),
+    ("g3_cup36_jitter.obj", "g3_cadplate.obj"),
+    ("g4_fertility_libigl.off", "g4_polycube36.obj"),
+    ("g4_fertility_libigl.off", "g4_cup36.obj"),
+    ("g4_wheel36.obj", "g4_cadblock.obj"),
+]
 GENERATED = {"g4_cadplate.obj": ["cad-plate", "--genus", "4"],
-             "g4_nholetorus.obj": ["n-hole-torus", "--genus", "4"]}
+             "g4_nholetorus.obj": ["n-hole-torus", "--genus", "4"],
+             # the held-out set's shapes (`surfmap generate ...`)
+             "g2_amphora36.obj": ["amphora", "--resolution", "36"],
+             "g2_cup32.obj": ["cup", "--genus", "2", "--resolution", "32"],
+             "g2_vase36.obj": ["vase", "--resolution", "36"],
+             "g2_polycube32.obj": ["polycube", "--genus", "2", "--resolution", "32"],
+             "g2_cadblock.obj": ["cad-plate", "--genus", "2", "--thickness", "1"],
+             "g2_nholetorus36_raw_jitter.obj": ["n-hole-torus", "--genus", "2", "--resolution", "36",
+                                                "--raw", "--jitter", "0.2", "--seed", "3"],
+             "g3_cadplate.obj": ["cad-plate", "--genus", "3"],
+             "g3_polycube36.obj": ["polycube", "--genus", "3", "--resolution", "36"],
+             "g3_wheel36.obj": ["wheel", "--genus", "3", "--resolution", "36"],
+             "g3_cup36_jitter.obj": ["cup", "--genus", "3", "--resolution", "36", "--jitter", "0.2",
+                                     "--seed", "5"],
+             "g4_polycube36.obj": ["polycube", "--genus", "4", "--resolution", "36"],
+             "g4_cup36.obj": ["cup", "--genus", "4", "--resolution", "36"],
+             "g4_wheel36.obj": ["wheel", "--genus", "4", "--resolution", "36"],
+             "g4_cadblock.obj": ["cad-plate", "--genus", "4", "--thickness", "1"]}
 
 
 def genus_of(name):
     """The genus a mesh's name starts with ("g3_block.off": 3)."""
-    return int(name.split("_")[0][1:])
+    return int(pathlib.Path(name).name.split("_")[0][1:])
 
 
 def short(name):
-    return name.split(".")[0]
+    return pathlib.Path(name).name.split(".")[0]
 
 
-def run_map(exe, meshes, out, a, b, timeout, extra=()):
+def run_map(exe, meshes, out, a, b, timeout, extra=(), kept_only=False):
     stem = f"{short(a)}__{short(b)}"
     rep = out / f"{stem}.json"
     if rep.exists():
         return stem, json.loads(rep.read_text())
+    if kept_only:
+        return stem, {"error": "not run (--kept-only)", "wall_s": 0.0}
     t0 = time.time()
-    p = subprocess.run(["nice", str(exe), "map", str(meshes[a]), str(meshes[b]), "--out",
-                        str(out / f"{stem}.obj"), "--report", str(rep), "--quiet", *extra],
-                       capture_output=True, text=True, timeout=timeout)
+    try:
+        p = subprocess.run(["nice", str(exe), "map", str(meshes[a]), str(meshes[b]), "--out",
+                            str(out / f"{stem}.obj"), "--report", str(rep), "--quiet", *extra],
+                           capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return stem, {"error": f"timed out after {timeout:g} s", "wall_s": time.time() - t0}
     wall = time.time() - t0
     if p.returncode != 0:
         return stem, {"error": (p.stderr.strip().splitlines() or ["?"])[-1], "wall_s": wall}
@@ -90,13 +136,28 @@ def main():
     ap.add_argument("--map-arg", action="append", default=[], metavar="ARG",
                     help="one more argument of every `surfmap map` run (repeat for more; write "
                          "--map-arg=--flag for a flag), e.g. --map-arg=--one-canonical-basis")
+    ap.add_argument("--set", choices=("dev", "held-out", "all"), default="dev",
+                    help="dev: the development pairs (default); held-out: generated shapes and pairs "
+                         "nobody tuned on; all: both")
+    ap.add_argument("--pair", nargs=2, action="append", metavar=("A", "B"),
+                    help="run this pair (both directions) instead of a set; repeat for more")
+    ap.add_argument("--kept-only", action="store_true",
+                    help="map nothing: print the table from the reports kept in --out")
     a = ap.parse_args()
     if not a.meshes:
         ap.error("--meshes DIR (or $SURFMAP_MESHES) is required")
-    pairs = [(x, y) for x, y in PAIRS if a.genus is None or genus_of(x) in a.genus]
+    chosen = ([tuple(p) for p in a.pair] if a.pair else
+              {"dev": PAIRS, "held-out": HELD_OUT, "all": PAIRS + HELD_OUT}[a.set])
+    for x, y in chosen:
+        for name in (x, y):
+            if not pathlib.Path(name).name[:1] == "g" or not pathlib.Path(name).name.split("_")[0][1:].isdigit():
+                ap.error(f"--pair: {name} does not start with its genus (g2_..., g3_...)")
+        if genus_of(x) != genus_of(y):
+            ap.error(f"--pair {x} {y}: the genera differ ({genus_of(x)} and {genus_of(y)})")
+    pairs = [(x, y) for x, y in chosen if a.genus is None or genus_of(x) in a.genus]
     if not pairs:
         ap.error(f"--genus {' '.join(map(str, a.genus))}: no pair of these genera (the pairs have genus "
-                 f"{', '.join(sorted({str(genus_of(x)) for x, _ in PAIRS}))})")
+                 f"{', '.join(sorted({str(genus_of(x)) for x, _ in chosen}))})")
     build = pathlib.Path(a.build)
     exe, directions = build / "bin" / "surfmap", build / "bin" / "bench_directions"
     out = pathlib.Path(a.out)
@@ -110,15 +171,24 @@ def main():
                     subprocess.run([str(exe), "generate", *GENERATED[name], "-o", str(path)], check=True,
                                    capture_output=True)
                 meshes[name] = path
-            else:
+            elif (pathlib.Path(a.meshes) / name).exists() or not pathlib.Path(name).exists():
                 meshes[name] = pathlib.Path(a.meshes) / name
+            else:
+                meshes[name] = pathlib.Path(name)
+            if not meshes[name].exists():
+                ap.error(f"{name}: no such mesh in {a.meshes}, generated name or file")
     jobs = [job for x, y in pairs for job in ((x, y), (y, x))]   # quick pairs first
     results = {}
     with concurrent.futures.ThreadPoolExecutor(max_workers=a.jobs) as pool:
-        futures = [pool.submit(run_map, exe, meshes, out, x, y, a.timeout, a.map_arg) for x, y in jobs]
+        futures = [pool.submit(run_map, exe, meshes, out, x, y, a.timeout, a.map_arg, a.kept_only)
+                   for x, y in jobs]
         for f in concurrent.futures.as_completed(futures):
             stem, r = f.result()
             results[stem] = r
+            if not a.kept_only:
+                print(f"{time.strftime('%H:%M:%S')} {stem}: "
+                      + (r["error"] if "error" in r else f"ratio {fmt(r['quality']['energy_ratio'])}"),
+                      file=sys.stderr, flush=True)
     print("| pair (source -> target) | ratio | mean D' | max D' | flips | converged | directions inverse "
           "| s | criteria |")
     print("|---|---|---|---|---|---|---|---|---|")
