@@ -327,24 +327,11 @@ def test_several_classes_per_pairing_at_four_loops():
 
 
 def slotted_square(n=10):
-    """The square [-1, 1]^2 (n x n grid, alternating diagonals) with a slot cut up from the middle of
-    its bottom side, |x| < 0.2 and y < 0.6: a disk whose rim turns through two reflex corners at
-    the slot's top."""
-    t = np.linspace(-1, 1, n + 1)
-    X, Y = np.meshgrid(t, t, indexing="ij")
-    V = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], 1)
-    F = []
-    for i in range(n):
-        for j in range(n):
-            if i in (n // 2 - 1, n // 2) and j < n - 2:
-                continue
-            a, b, c, d = i * (n + 1) + j, (i + 1) * (n + 1) + j, (i + 1) * (n + 1) + j + 1, i * (n + 1) + j + 1
-            F += [[a, b, c], [a, c, d]] if (i + j) % 2 else [[a, b, d], [b, c, d]]
-    F = np.array(F)
-    used = np.unique(F)
-    remap = -np.ones(len(V), dtype=np.int64)
-    remap[used] = np.arange(len(used))
-    return V[used], remap[F]
+    """The sheet (n x n) with a slot cut up from the middle of its bottom side, |x| < 0.2 and
+    y < 0.6: a disk whose rim turns through two reflex corners at the slot's top."""
+    V, F = sheet(n)
+    c = V[F].mean(axis=1)
+    return compact(V, F[~((np.abs(c[:, 0]) < 0.2) & (c[:, 1] < 0.6))])
 
 
 def on_rim(T, xy):
