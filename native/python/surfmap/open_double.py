@@ -1746,6 +1746,16 @@ def _finish_half(S, T, h, reversing, lm, untangle):
     h["inv_flipped"], h["inv_ears"], h["inv_ears_turned"] = inv_flipped, inv_ears, inv_ears_turned
 
 
+def _moved_text(side, moved, whose):
+    """The report's words for the untangling's moved vertices of `side`: interior ones moved within
+    their stars, boundary ones slid along the other rim (open_untangle._slide_boundary_corners)."""
+    on_b = np.zeros(side.n, dtype=bool)
+    on_b[np.concatenate(side.loops)] = True
+    slid = int(on_b[np.asarray(moved, dtype=np.int64)].sum())
+    text = f"{len(moved) - slid} interior {whose}vertices moved within their stars"
+    return text + (f" and {slid} boundary {whose}vertices slid along the other rim" if slid else "")
+
+
 def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),
                      max_pairings=6, symmetry_tolerance=0.05, tie_tolerance=1e-3, progress=None, landmarks=None,
                      classes_per_pairing=2, boundary_twists=0,
@@ -2111,8 +2121,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    # halves refined at their boundary: more than the split halves'; Session 23)
                    "reflection_half_vertices": [int(x.n2) for x in sym["sides"]] if sym is not None else [],
                    "untangled_vertices": len(untangled),
-                   "untangled": (f"{flipped_before_untangling} folded faces; {len(untangled)} interior vertices moved "
-                                 f"within their stars, {flipped} folded left" if untangled else ""),
+                   "untangled": (f"{flipped_before_untangling} folded faces; {_moved_text(S, untangled, '')}, "
+                                 f"{flipped} folded left" if untangled else ""),
                    "ears_turned": ears_fw["turned"], "ears_slid": ears_fw["moved"],
                    "ears_slid_with_neighbours": ears_fw["moved_with_neighbours"],
                    "inverse_ears_turned": ears_inv["turned"], "inverse_ears_slid": ears_inv["moved"],
@@ -2123,9 +2133,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "inverse_reflex_corner_slides": h.get("corners_inv", 0),
                    "inverse_flipped_triangles": inv_flipped, "inverse_ear_triangles": inv_ears,
                    "inverse_ear_triangles_turned": inv_ears_turned, "inverse_untangled_vertices": len(inv_untangled),
-                   "inverse_untangled": (f"{inv_flipped_before} folded faces; {len(inv_untangled)} interior target "
-                                         f"vertices moved within their stars, {inv_flipped} folded left"
-                                         if inv_untangled else ""),
+                   "inverse_untangled": (f"{inv_flipped_before} folded faces; {_moved_text(T, inv_untangled, 'target ')}, "
+                                         f"{inv_flipped} folded left" if inv_untangled else ""),
                    "landmarks": len(lm),
                    "landmark_error": float(np.max(np.linalg.norm(fw["position"][lm[:, 0]] - T.V[lm[:, 1]], axis=1),
                                                   initial=0.0))}
