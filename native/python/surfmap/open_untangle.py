@@ -29,7 +29,11 @@ because the neighbours' images are folded too) are untangled jointly: the interi
 1, 2, ... PATCH_RINGS rings of the cluster moved together in the target's chart, where an untangling
 energy (finite for turned faces, a barrier against turning once none is) is least, the ring around
 them held; kept only when nothing in the patch is turned afterwards and every point lands inside the
-target. What neither clears is left as it was (its faces stay counted).
+target. Folds held by the boundary's images (a face whose rim corners' images cut across a reflex
+corner of the other rim, so that no interior position unfolds it) get their boundary corners slid
+along the other rim, between their loop neighbours' images, then the joint step again
+(_slide_boundary_corners; docs/history/s27-open27.md). What none of these clears is left as it
+was (its faces stay counted).
 """
 import numpy as np
 
