@@ -1067,7 +1067,10 @@ def _turned(S, T, fw, reversing=False, faces=None, resolved_angle=np.pi / 3):
     against the sum of those normals decides; elsewhere the chord triangle means nothing (a
     correct near-identity image of a face next to a sharp crease of the poncho tested 'turned'
     against faces folded by 100°+, docs/open_surfaces.md) and the triangle is measured in the
-    target's faces unfolded into one plane (_unfolded_signed_area)."""
+    target's faces unfolded into one plane (_unfolded_signed_area): from each corner's face along a
+    breadth-first tree, the shortest valid unfolding deciding; where none reaches or they disagree,
+    also along the shortest paths between the corners' faces (_path_unfolded_signed_area), the
+    majority of the valid unfoldings deciding (docs/history/s27-open27.md)."""
     Vt, Ft = T.V, T.F
     if getattr(T, "face_normals", None) is None:
         T.face_normals = np.cross(Vt[Ft[:, 1]] - Vt[Ft[:, 0]], Vt[Ft[:, 2]] - Vt[Ft[:, 0]])
@@ -1097,15 +1100,71 @@ def _turned(S, T, fw, reversing=False, faces=None, resolved_angle=np.pi / 3):
             # other two). The shortest valid one (nearest the geodesic triangle) decides; none: the
             # chord test stays.
             chord = np.linalg.norm(q[f] - np.roll(q[f], -1, axis=0), axis=1).sum()
-            best = None
+            got = []
             for r in range(3):
                 order = [r, (r + 1) % 3, (r + 2) % 3]
-                got = _unfolded_signed_area(Vt, Ft, T.face_neighbours, corner_faces[f][order], bary[SF[f]][order])
-                if got is not None and got[1] >= chord * (1 - 1e-9) and (best is None or got[1] < best[1]):
-                    best = got
-            if best is not None:
-                turned[f] = sign * best[0] <= 0
+                got.append(_unfolded_signed_area(Vt, Ft, T.face_neighbours, corner_faces[f][order], bary[SF[f]][order]))
+            valid = [g for g in got if g is not None and g[1] >= chord * (1 - 1e-9)]
+            if not valid or len({g[0] > 0 for g in valid}) > 1:
+                # No tree reaches the other corners' faces within its 400 faces (an image many faces
+                # across), or the trees' unfoldings disagree (a fewest-faces tree far from the
+                # shortest paths; docs/history/s27-open27.md: poncho -> spot's inverse, faces 3025
+                # and 455, both read turned here and positive along the shortest paths): the faces
+                # on the shortest paths between the corners' faces unfolded too, from each corner,
+                # and the majority of the valid unfoldings decides (a tie: the shortest).
+                for r in range(3):
+                    order = [r, (r + 1) % 3, (r + 2) % 3]
+                    g = _path_unfolded_signed_area(T, corner_faces[f][order], bary[SF[f]][order], 10 * chord)
+                    if g is not None and g[1] >= chord * (1 - 1e-9):
+                        valid.append(g)
+            if valid:
+                positive = sum(g[0] > 0 for g in valid)
+                if 2 * positive == len(valid):
+                    turned[f] = sign * min(valid, key=lambda g: g[1])[0] <= 0
+                else:
+                    turned[f] = (sign > 0) != (2 * positive > len(valid))
     return turned
+
+
+def _path_unfolded_signed_area(T, faces, bary, reach):
+    """_unfolded_signed_area along the shortest paths only: the faces on the shortest paths of T's
+    face graph (_face_graph) from faces[0] to faces[1] and to faces[2], unfolded into faces[0]'s
+    plane along those paths, however many faces apart. None when a face is farther than `reach`
+    along the surface."""
+    from scipy.sparse.csgraph import dijkstra
+    graph = _face_graph(T)
+    dist, pred = dijkstra(graph, indices=int(faces[0]), limit=reach, return_predecessors=True)
+    keep = {int(faces[0])}
+    for target in faces[1:]:
+        g = int(target)
+        if not np.isfinite(dist[g]):
+            return None
+        while g not in keep:
+            keep.add(g)
+            g = int(pred[g])
+    nb = np.where(np.isin(T.face_neighbours, list(keep)), T.face_neighbours, -1)
+    return _unfolded_signed_area(T.V, T.F, nb, faces, bary, max_faces=len(keep) + 1)
+
+
+def _face_graph(T):
+    """T's faces as a graph (scipy sparse, cached on T): neighbours across an edge, weighted by the
+    path from one centroid to the other through the shared edge's midpoint."""
+    if getattr(T, "face_graph", None) is None:
+        from scipy.sparse import coo_matrix
+        if getattr(T, "face_neighbours", None) is None:
+            T.face_neighbours = _face_neighbours(T.F)
+        c = T.V[T.F].mean(axis=1)
+        rows, cols, w = [], [], []
+        for k in range(3):
+            g = T.face_neighbours[:, k]
+            f = np.flatnonzero(g >= 0)
+            mid = 0.5 * (T.V[T.F[f, k]] + T.V[T.F[f, (k + 1) % 3]])
+            rows.append(f)
+            cols.append(g[f])
+            w.append(np.linalg.norm(c[f] - mid, axis=1) + np.linalg.norm(mid - c[g[f]], axis=1) + 1e-300)
+        T.face_graph = coo_matrix((np.concatenate(w), (np.concatenate(rows), np.concatenate(cols))),
+                                  shape=(len(T.F), len(T.F))).tocsr()
+    return T.face_graph
 
 
 def _slide_ears(A, B, points, reversing, keep):
@@ -1687,6 +1746,16 @@ def _finish_half(S, T, h, reversing, lm, untangle):
     h["inv_flipped"], h["inv_ears"], h["inv_ears_turned"] = inv_flipped, inv_ears, inv_ears_turned
 
 
+def _moved_text(side, moved, whose):
+    """The report's words for the untangling's moved vertices of `side`: interior ones moved within
+    their stars, boundary ones slid along the other rim (open_untangle._slide_boundary_corners)."""
+    on_b = np.zeros(side.n, dtype=bool)
+    on_b[np.concatenate(side.loops)] = True
+    slid = int(on_b[np.asarray(moved, dtype=np.int64)].sum())
+    text = f"{len(moved) - slid} interior {whose}vertices moved within their stars"
+    return text + (f" and {slid} boundary {whose}vertices slid along the other rim" if slid else "")
+
+
 def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("preserving", "reversing"),
                      max_pairings=6, symmetry_tolerance=0.05, tie_tolerance=1e-3, progress=None, landmarks=None,
                      classes_per_pairing=2, boundary_twists=0,
@@ -2052,8 +2121,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    # halves refined at their boundary: more than the split halves'; Session 23)
                    "reflection_half_vertices": [int(x.n2) for x in sym["sides"]] if sym is not None else [],
                    "untangled_vertices": len(untangled),
-                   "untangled": (f"{flipped_before_untangling} folded faces; {len(untangled)} interior vertices moved "
-                                 f"within their stars, {flipped} folded left" if untangled else ""),
+                   "untangled": (f"{flipped_before_untangling} folded faces; {_moved_text(S, untangled, '')}, "
+                                 f"{flipped} folded left" if untangled else ""),
                    "ears_turned": ears_fw["turned"], "ears_slid": ears_fw["moved"],
                    "ears_slid_with_neighbours": ears_fw["moved_with_neighbours"],
                    "inverse_ears_turned": ears_inv["turned"], "inverse_ears_slid": ears_inv["moved"],
@@ -2064,9 +2133,8 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "inverse_reflex_corner_slides": h.get("corners_inv", 0),
                    "inverse_flipped_triangles": inv_flipped, "inverse_ear_triangles": inv_ears,
                    "inverse_ear_triangles_turned": inv_ears_turned, "inverse_untangled_vertices": len(inv_untangled),
-                   "inverse_untangled": (f"{inv_flipped_before} folded faces; {len(inv_untangled)} interior target "
-                                         f"vertices moved within their stars, {inv_flipped} folded left"
-                                         if inv_untangled else ""),
+                   "inverse_untangled": (f"{inv_flipped_before} folded faces; {_moved_text(T, inv_untangled, 'target ')}, "
+                                         f"{inv_flipped} folded left" if inv_untangled else ""),
                    "landmarks": len(lm),
                    "landmark_error": float(np.max(np.linalg.norm(fw["position"][lm[:, 0]] - T.V[lm[:, 1]], axis=1),
                                                   initial=0.0))}

@@ -29,7 +29,11 @@ because the neighbours' images are folded too) are untangled jointly: the interi
 1, 2, ... PATCH_RINGS rings of the cluster moved together in the target's chart, where an untangling
 energy (finite for turned faces, a barrier against turning once none is) is least, the ring around
 them held; kept only when nothing in the patch is turned afterwards and every point lands inside the
-target. What neither clears is left as it was (its faces stay counted).
+target. Folds held by the boundary's images (a face whose rim corners' images cut across a reflex
+corner of the other rim, so that no interior position unfolds it) get their boundary corners slid
+along the other rim, between their loop neighbours' images, then the joint step again
+(_slide_boundary_corners; docs/history/s27-open27.md). What none of these clears is left as it
+was (its faces stay counted).
 """
 import numpy as np
 
@@ -350,6 +354,113 @@ def _untangled_positions(S, faces, verts, xy, free, rounds=12, lam=1.0, polish=2
     return X[is_free] * unit_scale
 
 
+def _loop_places(T):
+    """Per loop of T its polyline as (vertices (n,), for each loop edge j (loop[j] -> loop[j + 1]) a
+    face of T holding it and the two corners' slots in that face)."""
+    if getattr(T, "loop_edge_faces", None) is None:
+        edge_face = {}
+        for f, tri in enumerate(T.F):
+            for k in range(3):
+                edge_face[(int(tri[k]), int(tri[(k + 1) % 3]))] = (f, k, (k + 1) % 3)
+        out = []
+        for loop in T.loops:
+            rows = []
+            for u, w in zip(loop, np.roll(loop, -1)):
+                f, a, b = edge_face[(int(u), int(w))] if (int(u), int(w)) in edge_face else (
+                    lambda x: (x[0], x[2], x[1]))(edge_face[(int(w), int(u))])
+                rows.append((f, a, b))
+            out.append(np.array(rows, dtype=np.int64))
+        T.loop_edge_faces = out
+    return T.loop_edge_faces
+
+
+def _loop_parameter(T, face, bary):
+    """Where a point of T's boundary (face, barycentrics) lies along T's loops: (loop, s) with s =
+    j + t on loop edge j at t from loop[j]; None off the boundary."""
+    tri = T.F[face]
+    on = [int(tri[k]) for k in range(3) if bary[k] > 1e-12]
+    if getattr(T, "loop_position", None) is None:
+        T.loop_position = {int(v): (li, j) for li, loop in enumerate(T.loops) for j, v in enumerate(loop)}
+    if len(on) == 1 and on[0] in T.loop_position:
+        return T.loop_position[on[0]][0], float(T.loop_position[on[0]][1])
+    if len(on) != 2 or any(v not in T.loop_position for v in on):
+        return None
+    (l0, j0), (l1, j1) = T.loop_position[on[0]], T.loop_position[on[1]]
+    n = len(T.loops[l0])
+    if l0 != l1:
+        return None
+    t_of = {on[0]: float(bary[list(tri).index(on[0])]), on[1]: float(bary[list(tri).index(on[1])])}
+    if (j1 - j0) % n == 1:
+        return l0, j0 + t_of[on[1]]
+    if (j0 - j1) % n == 1:
+        return l0, j1 + t_of[on[0]]
+    return None
+
+
+def _loop_point(T, loop, s):
+    """The point at parameter s (_loop_parameter) of T's loop `loop`: (face, barycentrics, position)."""
+    L = T.loops[loop]
+    n = len(L)
+    j = int(np.floor(s)) % n
+    t = s - np.floor(s)
+    f, a, b = _loop_places(T)[loop][j]
+    bary = np.zeros(3)
+    bary[a], bary[b] = 1 - t, t
+    return int(f), bary, bary @ T.V[T.F[f]]
+
+
+def _slide_boundary_corners(S, T, fw, turned_of, ear, bad, on_b, star_of, steps=4):
+    """Boundary corners of the folded faces `bad` slid along the target's loop (a boundary vertex's
+    image may lie anywhere between its two loop neighbours' images: the map still sends boundary
+    onto boundary in the same order). Each corner v's image tried at every target loop vertex in
+    that arc and at `steps` - 1 points evenly along each arc edge; kept at the point where the
+    fewest faces of v's star turn (pipeline's test, ears apart), then the least largest D', when
+    that is fewer than now. Returns the vertices slid."""
+    from .open_double import _dilatation
+    if getattr(S, "loop_neighbours", None) is None:
+        S.loop_neighbours = {int(v): (int(loop[k - 1]), int(loop[(k + 1) % len(loop)]))
+                             for loop in S.loops for k, v in enumerate(loop)}
+    slid = []
+    for v in np.unique(S.F[bad]):
+        v = int(v)
+        if not on_b[v]:
+            continue
+        star = star_of(v)
+        star = star[~ear[star]]
+        now = int(np.sum(turned_of(star)))
+        if now == 0:
+            continue
+        here = _loop_parameter(T, fw["face"][v], fw["barycentric"][v])
+        prev, nxt = (_loop_parameter(T, fw["face"][u], fw["barycentric"][u]) for u in S.loop_neighbours[v])
+        if here is None or prev is None or nxt is None or not here[0] == prev[0] == nxt[0]:
+            continue
+        n = len(T.loops[here[0]])
+        # The arc from prev to nxt that holds v's image now (either way round the loop).
+        fwd = (here[1] - prev[1]) % n <= (nxt[1] - prev[1]) % n
+        a, b = (prev[1], nxt[1]) if fwd else (nxt[1], prev[1])
+        length = (b - a) % n
+        if length <= 0:
+            continue
+        grid = np.concatenate([np.arange(np.floor(a) + k / steps, np.floor(a) + length + 1, 1.0)
+                               for k in range(steps)])
+        grid = np.sort(grid[((grid - a) > 1e-9) & ((grid - a) < length - 1e-9)])
+        old = (fw["face"][v], fw["barycentric"][v].copy(), fw["position"][v].copy())
+        best = None
+        for s in grid:
+            fw["face"][v], fw["barycentric"][v], fw["position"][v] = _loop_point(T, here[0], s % n)
+            k = int(np.sum(turned_of(star)))
+            if k < now:
+                worst = float(np.max(_dilatation(S.V, fw["position"], S.F[star]), initial=0.0))
+                if best is None or (k, worst) < best[:2]:
+                    best = (k, worst, s % n)
+        if best is None:
+            fw["face"][v], fw["barycentric"][v], fw["position"][v] = old
+            continue
+        fw["face"][v], fw["barycentric"][v], fw["position"][v] = _loop_point(T, here[0], best[2])
+        slid.append(v)
+    return slid
+
+
 class _TargetFaces:
     """The target's faces around a set of faces (rings of faces sharing a vertex)."""
 
@@ -371,7 +482,8 @@ class _TargetFaces:
 # sweeps) share the closures star_of, try_move and within and the state they keep over fw; split,
 # each piece would take all of them as arguments.
 def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, max_passes=4, max_rings=3,
-                  relax_sweeps=2, kernel_radii=(0.5, 1.0, 2.0, 4.0), kernel_directions=12, patch_rings=None):
+                  relax_sweeps=2, kernel_radii=(0.5, 1.0, 2.0, 4.0), kernel_directions=12, patch_rings=None,
+                 boundary_slides=True):
     """Moves interior source vertices of folded faces (module docstring). S, T: open_double._Side;
     fw: the half's forward map {face, barycentric, position} on T's input faces (changed in place);
     turned_of(faces) -> bool array: the pipeline's test of those source faces (open_double._turned);
@@ -545,16 +657,28 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
     # faces is untangled jointly: the interior vertices within k rings of its corners (k = 1 ..
     # patch_rings) moved together in the target's chart (_patch_untangle), the ring around them held.
     patch_rings = PATCH_RINGS if patch_rings is None else patch_rings
+
+    def joint():
+        bad = np.flatnonzero(turned_of(np.arange(len(S.F))) & ~ear)
+        if len(bad) and patch_rings:
+            for cluster in _clusters(S.F, bad):
+                corners = np.unique(S.F[cluster])
+                for k in range(1, patch_rings + 1):
+                    free = within(corners, k)
+                    free = free[~on_b[free]]
+                    if _patch_untangle(S, T, fw, free, star_of, turned_of, ear, unit, tf, sign, crease_angle):
+                        moved.extend(int(v) for v in free)
+                        break
+    joint()
+    # Folds held by the boundary's images (no interior vertex can unfold a face whose boundary
+    # corners' images cut across a reflex corner of the other rim): those corners slid along the
+    # target's loop between their loop neighbours' images, then the joint step again.
     bad = np.flatnonzero(turned_of(np.arange(len(S.F))) & ~ear)
-    if len(bad) and patch_rings:
-        for cluster in _clusters(S.F, bad):
-            corners = np.unique(S.F[cluster])
-            for k in range(1, patch_rings + 1):
-                free = within(corners, k)
-                free = free[~on_b[free]]
-                if _patch_untangle(S, T, fw, free, star_of, turned_of, ear, unit, tf, sign, crease_angle):
-                    moved.extend(int(v) for v in free)
-                    break
+    if len(bad) and boundary_slides:
+        slid = _slide_boundary_corners(S, T, fw, turned_of, ear, bad, on_b, star_of)
+        if slid:
+            moved.extend(slid)
+            joint()
     # The moved vertices' stars were made unfolded by the least distorted point of each star given
     # its neighbours, one vertex at a time, so a star next to a moved one can be left far more
     # distorted than before (a valence-4 corner's faces at D' 22-29 on the double torus, from

@@ -649,6 +649,45 @@ def test_flip_count_is_intrinsic_across_a_sharp_crease():
     assert open_double._flips(S, T, fw)[0] >= 1
 
 
+@pytest.mark.parametrize("degrees", [120, 150, 165])
+def test_flip_count_is_intrinsic_for_images_many_faces_across_a_crease(degrees):
+    """A coarse sheet (6 x 6) onto the same sheet finely meshed (60 x 60), both creased by
+    `degrees` along x = 0, by the identity: each image spans some 200 target faces, farther than
+    the breadth-first unfolding's 400 faces reach, so the chord triangle across the crease used to
+    decide, and read 4 / 6 / 6 faces as folded (poncho -> spot's inverse face 3025, onto 18-39
+    poncho faces over a crease, docs/history/s27-open27.md). Unfolded along the shortest paths
+    between the corners' faces (the creased sheet is flat), none is. The mirrored map (x -> -x,
+    orientation reversing) is read as turned on every face."""
+    from test_open_untangle import sheet
+    Vt, Ft = sheet(60)
+    Vs, Fs = sheet(6)
+    bend = np.radians(degrees)
+
+    def creased(V):
+        W = V.copy()
+        right = V[:, 0] > 0
+        W[right, 0], W[right, 2] = V[right, 0] * np.cos(bend), V[right, 0] * np.sin(bend)
+        return W
+    S, T = open_double._Side(Vs, Fs, "source"), open_double._Side(creased(Vt), Ft, "target")
+    on_b = np.zeros(len(Vs), bool)
+    on_b[np.concatenate(S.loops)] = True
+    ear = np.all(on_b[Fs], axis=1)
+    for mirror in (1, -1):
+        # each source vertex is a vertex of the fine sheet
+        idx = [int(np.argmin(np.linalg.norm(Vt - v * [mirror, 1, 1], axis=1))) for v in Vs]
+        face = np.array([int(np.flatnonzero((T.F == i).any(axis=1))[0]) for i in idx])
+        bary = np.array([(T.F[f] == i).astype(float) for f, i in zip(face, idx)])
+        fw = {"face": face, "barycentric": bary, "position": T.V[idx]}
+        q = fw["position"][Fs]
+        far = np.linalg.norm(q - np.roll(q, -1, axis=1), axis=2).max(axis=1) > 0.3
+        assert far.sum() >= 50
+        turned = open_double._turned(S, T, fw)
+        if mirror == 1:
+            assert open_double._flips(S, T, fw)[0] == 0
+        else:
+            assert np.all(turned[~ear])
+
+
 def tube_with_side_hole(length=8.0, rings=64, segments=20, hole_radius=0.6):
     """An open cylinder of radius 1 along y with a hole in its side (genus 0, 3 boundary loops): a
     thin tube like the artery's branches. The hole: the faces whose centroid is within hole_radius

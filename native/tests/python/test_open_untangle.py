@@ -324,3 +324,66 @@ def test_several_classes_per_pairing_at_four_loops():
     assert several["energy"]["ranking"] == min(c["energy"] for c in cands)
     assert several["flipped_triangles"] == 0 and several["open"]["inverse_flipped_triangles"] == 0
     assert check_map(several, *A, *B) == 0
+
+
+def slotted_square(n=10):
+    """The sheet (n x n) with a slot cut up from the middle of its bottom side, |x| < 0.2 and
+    y < 0.6: a disk whose rim turns through two reflex corners at the slot's top."""
+    V, F = sheet(n)
+    c = V[F].mean(axis=1)
+    return compact(V, F[~((np.abs(c[:, 0]) < 0.2) & (c[:, 1] < 0.6))])
+
+
+def on_rim(T, xy):
+    """(face, barycentric, position) of the point xy of T's rim (on one of its loop's edges)."""
+    loop = T.loops[0]
+    for u, w in zip(loop, np.roll(loop, -1)):
+        a, b = T.V[u, :2], T.V[w, :2]
+        t = np.dot(np.asarray(xy) - a, b - a) / np.dot(b - a, b - a)
+        if -1e-12 <= t <= 1 + 1e-12 and np.linalg.norm(a + t * (b - a) - xy) < 1e-12:
+            f = int(np.flatnonzero((T.F == u).any(axis=1) & (T.F == w).any(axis=1))[0])
+            bary = np.zeros(3)
+            bary[list(T.F[f]).index(u)], bary[list(T.F[f]).index(w)] = 1 - t, t
+            return f, bary, bary @ T.V[T.F[f]]
+    raise AssertionError(f"{xy} is not on the rim")
+
+
+def test_a_fold_held_by_the_rim_images_is_cleared_by_sliding_them():
+    """A hexagon with one interior vertex onto the slotted square: its rim's images lie on the
+    square's rim in the same order, two of its chords cutting across the slot, so that no position
+    of the centre unfolds all six faces (the images' polygon has no kernel inside the square), and
+    the interior moves alone (single and joint) leave 2 faces folded, as spot -> poncho's inverse's
+    faces by spot's jagged rims (docs/history/s27-open27.md). A rim image may slide along the
+    target's rim between its two neighbours' images (boundary still onto boundary, in the same
+    order): with the slides (open_untangle._slide_boundary_corners) nothing is folded, the images
+    tile their polygon once, every rim image is still on the rim, in the same cyclic order."""
+    Vt, Ft = slotted_square()
+    T = open_double._Side(Vt, Ft, "target")
+    a = np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    S = open_double._Side(np.vstack([[0, 0, 0], np.stack([np.cos(a), np.sin(a), 0 * a], 1)]),
+                          np.array([[0, 1 + i, 1 + (i + 1) % 6] for i in range(6)]), "source")
+    rim = [(0.2, -0.2), (1.0, -1.0), (1.0, -0.1), (-1.0, -0.4), (-1.0, -1.0), (-0.2, -0.2)]
+    fw = {"face": np.zeros(7, dtype=np.int64), "barycentric": np.zeros((7, 3)), "position": np.zeros((7, 3))}
+    for v, xy in zip(S.loops[0], rim):
+        fw["face"][v], fw["barycentric"][v], fw["position"][v] = on_rim(T, np.array(xy))
+    centre = int(np.flatnonzero(np.all(np.isclose(T.V, [0.4, 0.4, 0.0]), axis=1))[0])
+    f = int(np.flatnonzero((T.F == centre).any(axis=1))[0])
+    fw["face"][0], fw["barycentric"][0], fw["position"][0] = f, (T.F[f] == centre).astype(float), T.V[centre]
+    assert open_double._flips(S, T, fw)[0] == 2
+    held = {k: np.array(x, copy=True) for k, x in fw.items()}
+    open_untangle.untangle_half(S, T, held, lambda f: open_double._turned(S, T, held, False, faces=f),
+                                boundary_slides=False)
+    assert open_double._flips(S, T, held)[0] == 2        # the interior moves alone leave both
+    moved = open_untangle.untangle_half(S, T, fw, lambda f: open_double._turned(S, T, fw, False, faces=f))
+    assert open_double._flips(S, T, fw)[0] == 0
+    assert set(moved) & set(int(v) for v in S.loops[0])
+    Q = fw["position"][S.F]
+    signed = 0.5 * np.cross(Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0])[:, 2]
+    ring = fw["position"][S.loops[0], :2]
+    polygon = 0.5 * np.sum(ring[:, 0] * np.roll(ring[:, 1], -1) - np.roll(ring[:, 0], -1) * ring[:, 1])
+    assert signed.min() > 0 and abs(signed.sum() - polygon) < 1e-12
+    # Still on the rim, in the same cyclic order along it.
+    where = [open_untangle._loop_parameter(T, fw["face"][v], fw["barycentric"][v]) for v in S.loops[0]]
+    assert all(w is not None and w[0] == 0 for w in where)
+    s = np.array([w[1] for w in where])
+    assert np.sum(np.diff(np.append(s, s[0])) % len(T.loops[0])) == len(T.loops[0])
