@@ -16,7 +16,7 @@ mean D' <= 5, classes inverse. Genus 4 has one mesh in the set; the other two ar
 (`surfmap generate cad-plate --genus 4`, `surfmap generate n-hole-torus --genus 4`).
 Reports are kept in --out and reused on a second run (delete them to map again).
 
-`--set held-out` runs instead pairs nobody tuned the search on (docs/history/s27-class27.md):
+`--set held-out` runs instead pairs nobody tuned the search on (docs/history/handle_classes.md "Session 27, branch class27"):
 generated shapes of other kinds at equal genus (cup, amphora, vase, polycube, wheel, thick and
 thin cad-plate, a raw jittered n-hole torus), each at a low resolution, against each other and
 against development meshes in combinations the development set does not run. `--pair A B`

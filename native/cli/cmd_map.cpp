@@ -226,7 +226,7 @@ void register_map(CLI::App& app) {
                 "\"Session 25\")");
   cmd->add_flag("--short-curve-twists", a->short_curve_twists,
                 "Genus >= 2: the class search also moves by Dehn twists along each surface's short curves (its short "
-                "marking's generators and short pants curves; off by default; docs/history/s27-edge27.md)");
+                "marking's generators and short pants curves; off by default; docs/handle_classes.md)");
   cmd->add_flag("--landmarks-may-fold", a->landmarks_may_fold,
                 "Genus >= 1 with --landmarks: hold them by plain pins and keep the map where it folds (for its homotopy "
                 "class; flipped_triangles counts the folds) instead of an error when they cannot be held bijectively");

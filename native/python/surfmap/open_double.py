@@ -1070,7 +1070,7 @@ def _turned(S, T, fw, reversing=False, faces=None, resolved_angle=np.pi / 3):
     target's faces unfolded into one plane (_unfolded_signed_area): from each corner's face along a
     breadth-first tree, the shortest valid unfolding deciding; where none reaches or they disagree,
     also along the shortest paths between the corners' faces (_path_unfolded_signed_area), the
-    majority of the valid unfoldings deciding (docs/history/s27-open27.md)."""
+    majority of the valid unfoldings deciding (docs/history/open_surfaces.md "Session 27 (open27)")."""
     Vt, Ft = T.V, T.F
     if getattr(T, "face_normals", None) is None:
         T.face_normals = np.cross(Vt[Ft[:, 1]] - Vt[Ft[:, 0]], Vt[Ft[:, 2]] - Vt[Ft[:, 0]])
@@ -1108,7 +1108,7 @@ def _turned(S, T, fw, reversing=False, faces=None, resolved_angle=np.pi / 3):
             if not valid or len({g[0] > 0 for g in valid}) > 1:
                 # No tree reaches the other corners' faces within its 400 faces (an image many faces
                 # across), or the trees' unfoldings disagree (a fewest-faces tree far from the
-                # shortest paths; docs/history/s27-open27.md: poncho -> spot's inverse, faces 3025
+                # shortest paths; docs/history/open_surfaces.md "Session 27 (open27)": poncho -> spot's inverse, faces 3025
                 # and 455, both read turned here and positive along the shortest paths): the faces
                 # on the shortest paths between the corners' faces unfolded too, from each corner,
                 # and the majority of the valid unfoldings decides (a tie: the shortest).

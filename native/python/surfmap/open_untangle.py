@@ -32,7 +32,7 @@ them held; kept only when nothing in the patch is turned afterwards and every po
 target. Folds held by the boundary's images (a face whose rim corners' images cut across a reflex
 corner of the other rim, so that no interior position unfolds it) get their boundary corners slid
 along the other rim, between their loop neighbours' images, then the joint step again
-(_slide_boundary_corners; docs/history/s27-open27.md). What none of these clears is left as it
+(_slide_boundary_corners; docs/history/open_surfaces.md "Session 27 (open27)"). What none of these clears is left as it
 was (its faces stay counted).
 """
 import numpy as np

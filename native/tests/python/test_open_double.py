@@ -655,7 +655,7 @@ def test_flip_count_is_intrinsic_for_images_many_faces_across_a_crease(degrees):
     `degrees` along x = 0, by the identity: each image spans some 200 target faces, farther than
     the breadth-first unfolding's 400 faces reach, so the chord triangle across the crease used to
     decide, and read 4 / 6 / 6 faces as folded (poncho -> spot's inverse face 3025, onto 18-39
-    poncho faces over a crease, docs/history/s27-open27.md). Unfolded along the shortest paths
+    poncho faces over a crease, docs/history/open_surfaces.md "Session 27 (open27)"). Unfolded along the shortest paths
     between the corners' faces (the creased sheet is flat), none is. The mirrored map (x -> -x,
     orientation reversing) is read as turned on every face."""
     from test_open_untangle import sheet

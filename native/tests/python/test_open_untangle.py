@@ -353,7 +353,7 @@ def test_a_fold_held_by_the_rim_images_is_cleared_by_sliding_them():
     square's rim in the same order, two of its chords cutting across the slot, so that no position
     of the centre unfolds all six faces (the images' polygon has no kernel inside the square), and
     the interior moves alone (single and joint) leave 2 faces folded, as spot -> poncho's inverse's
-    faces by spot's jagged rims (docs/history/s27-open27.md). A rim image may slide along the
+    faces by spot's jagged rims (docs/history/open_surfaces.md "Session 27 (open27)"). A rim image may slide along the
     target's rim between its two neighbours' images (boundary still onto boundary, in the same
     order): with the slides (open_untangle._slide_boundary_corners) nothing is folded, the images
     tile their polygon once, every rim image is still on the rim, in the same cyclic order."""

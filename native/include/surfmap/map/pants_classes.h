@@ -139,7 +139,7 @@ PantsDecomposition short_pants_decomposition(const SurfaceGroupLengths& lengths,
 /// tests.
 std::vector<PantsCurve> pants_coordinates(const SurfaceGroupLengths& lengths, const GroupMap& marking);
 
-/// Issue 13 (session 27; docs/history/s27-edge27.md): the Dehn twists along
+/// Issue 13 (session 27; docs/history/robustness.md "Session 27 (branch edge27)"): the Dehn twists along
 /// a surface's short simple closed curves, as exact automorphisms in the
 /// caller's canonical letters, for the class search
 /// (HomotopySearchOptions::curve_twists): along the 2g generators of the

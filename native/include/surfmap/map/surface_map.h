@@ -179,7 +179,7 @@ struct HomotopySearchOptions {
   /// canonical generators in the layout's letters, checked exactly). Off by
   /// default; CLI --geometric-layout-basis, Python geometric_layout_basis.
   bool geometric_layout_basis = false;
-  /// Issue 13 (session 27; docs/history/s27-edge27.md): the twist search
+  /// Issue 13 (session 27; docs/history/robustness.md "Session 27 (branch edge27)"): the twist search
   /// also moves by Dehn twists along each surface's short simple closed
   /// curves, the 2g generators of its short marking and the 3g - 3 curves
   /// of its short pants decomposition (map/pants_classes.h
@@ -516,7 +516,7 @@ struct LoopOptions {
   /// "Session 23"), so the candidate list does not depend on this choice
   /// (the geometric classes still do).
   bool short_canonical_generators = false;
-  /// Issue 13 (session 27; docs/history/s27-edge27.md): when a genus >= 2
+  /// Issue 13 (session 27; docs/history/robustness.md "Session 27 (branch edge27)"): when a genus >= 2
   /// run with the classical generators fails at its start edges (a
   /// SolveError saying an edge "starts ... units long": deck elements that
   /// the classical generators' long words put beyond what the solve

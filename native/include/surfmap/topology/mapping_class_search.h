@@ -91,7 +91,7 @@ struct TwistSearchOptions {
   /// Moves on the source side (theta ∘ phi) and on the target side
   /// (phi ∘ theta); both by default.
   bool source_side = true, target_side = true;
-  /// Issue 13 (session 27; docs/history/s27-edge27.md): more moves for one
+  /// Issue 13 (session 27; docs/history/robustness.md "Session 27 (branch edge27)"): more moves for one
   /// side only, beside twist_moves' (which act on both sides): source_moves
   /// as theta ∘ m, target_moves as m ∘ theta (automorphisms of the source's
   /// and of the target's canonical letters; e.g. the Dehn twists along
