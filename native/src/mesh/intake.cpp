@@ -219,7 +219,8 @@ EdgeCheck check_edges(const Triangulation& tri, const IntakeOptions& options, Me
     if (!options.allow_boundary)  // open surfaces: mesh/open_surface.h
       problems.push_back("the surface is open: " + plural(c.boundary, "boundary edge") + " in " +
                        plural(loops, "boundary loop") + ", first: edge " + first_boundary +
-                       "; open surfaces are not supported yet (close the holes first)");
+                       "; this step needs a closed surface (open surfaces are mapped by `surfmap map` "
+                       "and surfmap.surface_map; close the holes for the others)");
   }
   if (c.misoriented)
     problems.push_back(plural(c.misoriented, "edge") + " with inconsistently oriented faces, first: " +

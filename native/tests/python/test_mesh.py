@@ -1,4 +1,5 @@
 """Mesh intake from Python and the `surfmap info` contract."""
+import json
 import math
 
 import numpy as np
@@ -77,15 +78,42 @@ def test_cli_info_exit_status(tmp_path, cli):
     r = cli("info", good)
     assert r.returncode == 0, r.stderr
     assert "genus 0" in r.stdout
-    bad = tmp_path / "open.obj"
-    surfmap.write_obj(str(bad), OCTA_V, OCTA_F[:-1])
+    bad = tmp_path / "bad.obj"
+    surfmap.write_obj(str(bad), OCTA_V, np.vstack([OCTA_F, OCTA_F[:1]]))
     r = cli("info", bad)
     assert r.returncode == 1
-    assert "open" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert "non-manifold" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     r = cli("info", tmp_path / "missing.obj")
     assert r.returncode == 1 and "does not exist" in r.stderr
     r = cli("info", "--json", good)
     assert '"genus": 0' in r.stdout
+
+
+def test_cli_info_accepts_a_valid_open_surface(tmp_path, cli):
+    # Issue 16: `surfmap map` takes open surfaces, so `info` says what one is (genus, loops)
+    # and exits 0, where it said "not supported yet" and exited 1; an open mesh with another
+    # problem (a bowtie vertex) still exits 1 naming it, and the closed-only commands say
+    # which command takes open surfaces.
+    disk = tmp_path / "disk.obj"
+    surfmap.write_obj(str(disk), OCTA_V, OCTA_F[:-1])
+    r = cli("info", disk)
+    assert r.returncode == 0, r.stderr
+    assert "valid open manifold surface: genus 0 with 1 boundary loop" in r.stdout
+    assert "not supported" not in r.stdout
+    j = json.loads(cli("info", "--json", disk).stdout)
+    assert j["open"]["genus"] == 0 and j["open"]["boundary_loops"] == 1
+    assert j["open"]["boundary_lengths"][0] == pytest.approx(3 * np.sqrt(2))
+    assert j["problems"] == [] and j["valid"] is False
+    bowtie = tmp_path / "bowtie.obj"
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 2, 0], [3, 2, 0], [3, 3, 0]], float)
+    surfmap.write_obj(str(bowtie), V, np.array([[0, 1, 4], [0, 4, 3], [1, 2, 4], [4, 5, 6]]))
+    r = cli("info", bowtie)
+    assert r.returncode == 1
+    assert "vertex 4" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    r = cli("uniformize", disk, "--report", tmp_path / "u.json")
+    assert r.returncode == 1
+    assert "needs a closed surface" in r.stderr and "surfmap map" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
 
 
 def test_zero_area_faces_are_mollified_with_a_note():
