@@ -1,4 +1,4 @@
-"""Surface Map: globally optimal maps between closed surfaces of equal genus
+"""Surface Map: globally optimal maps between surfaces of equal topology, closed or open
 (the method: docs/method.md). Blender side of the surfmap project.
 
 Module layout (like the glTF add-on; the data flow file by file is in docs/addon.md):
@@ -24,7 +24,7 @@ bl_info = {
     "version": (0, 2, 0),
     "blender": (3, 4, 0),
     "location": "3D Viewport > Sidebar (N) > Surface Map",
-    "description": "Cut loops and globally optimal maps between closed surfaces of equal genus",
+    "description": "Cut loops and globally optimal maps between surfaces of equal topology (closed or open)",
     "category": "Mesh",
 }
 
