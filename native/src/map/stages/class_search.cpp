@@ -293,8 +293,7 @@ std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, in
   if (high_kicks) {
     // (No descent: the kicks alone, from the class the search ended on.)
     const HomotopySearchOptions& s = options.homotopy.search;
-    tso.max_steps = 0;
-    tso.screen_steps = 0;
+    tso.kicks_only = true;
     tso.kicks = s.high_kicks;
     tso.max_evaluations = static_cast<int>(
         std::min<long long>(std::numeric_limits<int>::max(), static_cast<long long>(s.high_kicks) * (1LL + s.kick_evaluations)));
