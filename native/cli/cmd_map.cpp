@@ -188,7 +188,7 @@ void register_map(CLI::App& app) {
   cmd->add_flag("--no-two-way", a->no_two_way,
                 "Genus >= 2: do not map the other way when the energy is far above the conformal bound (report: quality)");
   cmd->add_flag("--no-through-shape", a->no_through_shape,
-                "Genus >= 2: at energy ratio 2 or more, do not try the class through a generated n-hole torus of the "
+                "Genus >= 2: at energy ratio 3 or more, do not try the class through a generated n-hole torus of the "
                 "same genus (docs/handle_classes.md \"Through a generated shape\")");
   cmd->add_flag("--no-cheap-direction-check", a->no_cheap_direction_check,
                 "Genus >= 2: when the other direction's ratio is not lower, keep this class without solving the other "

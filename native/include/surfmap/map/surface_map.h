@@ -362,10 +362,7 @@ struct HomotopyOptions {
   /// Genus >= 2, default class, no landmarks (issue 14; docs/handle_classes.md
   /// "Through a generated shape" and the sections after it): when the chosen
   /// class's energy (after the two-way run) is at least `through_shape_ratio`
-  /// (default 2, the two-way run's ratio; 3, where the quality warning
-  /// starts, before session 28: jittered cup g3 <-> thin CAD plate g3 at
-  /// 2.18 / 2.80 ended on classes not inverse, docs/history/
-  /// handle_classes.md "Session 28 (prep, branch class28)") x 8 pi (g - 1), the source
+  /// (default 3, where the quality warning starts) x 8 pi (g - 1), the source
   /// is mapped onto each generated shape M of its genus (the CAD plate
   /// samples::cad_plate, then the n-hole torus samples::n_hole_torus up to
   /// genus 8 with at least `through_shape_resolution` grid cells: 16 per
@@ -390,7 +387,7 @@ struct HomotopyOptions {
   /// more reliably. Several one-way runs and a few given-class runs, only
   /// for pairs at or above the ratio. Default true.
   bool through_shape = true;
-  double through_shape_ratio = 2.0;
+  double through_shape_ratio = 3.0;
   int through_shape_resolution = 32;
   /// Genus >= 2: classes given as words (2g each: source generator j+1 ->
   /// word in the target's canonical letters, as chosen_class_words, in these
