@@ -934,6 +934,23 @@ TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
   EXPECT_TRUE(surface_map(a, b, plain).canonical_generators_fallback.empty());
 }
 
+// The small genus-2 pair of the twist-search tests below (an n-hole torus
+// and a jittered finer one: no coarse copy) and hooks that start the search
+// from its default class (search off, one way) composed with `twists`.
+struct TwistedStartPair {
+  TriMesh a, b;
+  testing::MapHooks hooks;
+};
+TwistedStartPair twisted_start_pair(const std::vector<std::string>& twists) {
+  TwistedStartPair p{samples::n_hole_torus(2, 18, true), samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5), {}};
+  SurfaceMapOptions plain;
+  plain.homotopy.search.enabled = false;
+  plain.homotopy.two_way = false;
+  p.hooks.homotopy_search_start = surface_map(p.a, p.b, plain).chosen_candidate;
+  p.hooks.homotopy_search_start_twists = twists;
+  return p;
+}
+
 // Issue 14 (session 26; docs/handle_classes.md "Session 26"): the search
 // options of the iterated local search reach the twist search. On the pair
 // above from the same twisted start: one solve per step when asked
@@ -942,15 +959,10 @@ TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
 // higher. (This source has no coarse copy: the budget is scaled up by the
 // full-resolution search, twist_search_at_full_resolution.)
 TEST(SurfaceMapHandles, ClassSearchTakesItsStepWidthAndKicks) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
-  SurfaceMapOptions plain;
-  plain.homotopy.search.enabled = false;
-  plain.homotopy.two_way = false;
-  const SurfaceMapResult m0 = surface_map(a, b, plain);
-  testing::MapHooks hooks;
-  hooks.homotopy_search_start = m0.chosen_candidate;
-  hooks.homotopy_search_start_twists = {"T(a1)", "T(a1)", "T(b2)^-1"};
+  const TwistedStartPair p = twisted_start_pair({"T(a1)", "T(a1)", "T(b2)^-1"});
+  const TriMesh& a = p.a;
+  const TriMesh& b = p.b;
+  const testing::MapHooks& hooks = p.hooks;
   SurfaceMapOptions o;
   o.homotopy.two_way = false;
   o.homotopy.search.evaluations_per_step = 1;
@@ -1002,15 +1014,10 @@ TEST(SurfaceMapHandles, ClassSearchTakesItsStepWidthAndKicks) {
 // there; with the default the kicks leave it for a lower class (2.1x),
 // and the report says how many kicks ran and that one was lower.
 TEST(SurfaceMapHandles, SearchEndingHighIsKickedByDefault) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
-  SurfaceMapOptions plain;
-  plain.homotopy.search.enabled = false;
-  plain.homotopy.two_way = false;
-  const SurfaceMapResult m0 = surface_map(a, b, plain);
-  testing::MapHooks hooks;
-  hooks.homotopy_search_start = m0.chosen_candidate;
-  hooks.homotopy_search_start_twists = {"T(a1)", "T(b1)", "T(a1)", "T(a2)", "T(b2)", "T(a2)"};
+  const TwistedStartPair p = twisted_start_pair({"T(a1)", "T(b1)", "T(a1)", "T(a2)", "T(b2)", "T(a2)"});
+  const TriMesh& a = p.a;
+  const TriMesh& b = p.b;
+  const testing::MapHooks& hooks = p.hooks;
   SurfaceMapOptions o;
   o.homotopy.two_way = false;
   o.homotopy.through_shape = false;
@@ -1072,22 +1079,11 @@ TEST(SurfaceMapHandles, SearchEndingHighIsKickedByDefault) {
 // Below high_kick_ratio the kicks do not run, and the report says why: the
 // default search on the pair above ends near the bound.
 TEST(SurfaceMapHandles, SearchEndingLowIsNotKicked) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
-  SurfaceMapResult base;
-  {
-    SurfaceMapOptions plain;
-    plain.homotopy.search.enabled = false;
-    plain.homotopy.two_way = false;
-    base = surface_map(a, b, plain);
-  }
-  testing::MapHooks hooks;
-  hooks.homotopy_search_start = base.chosen_candidate;
-  hooks.homotopy_search_start_twists = {"T(a1)"};
+  const TwistedStartPair p = twisted_start_pair({"T(a1)"});
   SurfaceMapOptions o;
   o.homotopy.two_way = false;
   o.homotopy.through_shape = false;
-  const SurfaceMapResult m = surface_map(a, b, o, hooks);
+  const SurfaceMapResult m = surface_map(p.a, p.b, o, p.hooks);
   const HomotopySearchInfo& h = m.homotopy_search;
   ASSERT_TRUE(h.run);
   ASSERT_LT(h.energy, 2 * 8 * M_PI);
