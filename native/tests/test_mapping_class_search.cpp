@@ -228,6 +228,35 @@ TEST(MappingClassSearch, KicksLeaveALocalMinimumThatPairsCannot) {
   for (size_t k = 0; k < again.evaluations.size(); ++k) EXPECT_EQ(again.evaluations[k].move, kicked.evaluations[k].move);
 }
 
+// Issue 14 (session 28; TwistSearchOptions::kicks_only, the pipeline's
+// high kicks): from the trap above, no descent from the start (its first
+// evaluation is a kick), but each kick is still followed by its own
+// descent, which reaches the identity (the pipeline ran the kicks without
+// their descents at first: 8 kicks, 8 solves, none lower).
+TEST(MappingClassSearch, KicksOnlyStillDescendAfterEachKick) {
+  const int g = 2;
+  const TwistedClasses tc(g);
+  auto length = [&](const GroupMap& theta) { return tc.length(theta); };
+  const GroupMap trap = tc.after({"T(a1)", "T(a1)", "T(b2)^-1"});
+  const double trap_energy = 2.0 * g + 0.5;
+  auto energy = [&](const GroupMap& theta) { return theta == trap ? trap_energy : length(theta); };
+  TwistSearchOptions o;
+  o.kicks_only = true;
+  o.kicks = 4;
+  o.kick_evaluations = 400;
+  o.max_evaluations = 4 * 401;
+  const TwistSearchResult r = twist_search(trap, trap_energy, g, length, energy, o);
+  ASSERT_FALSE(r.evaluations.empty());
+  EXPECT_EQ(r.evaluations[0].move.rfind("kick 1 (", 0), 0u) << r.evaluations[0].move;
+  for (const TwistSearchEvaluation& ev : r.evaluations) EXPECT_EQ(ev.step, -1) << ev.move;
+  EXPECT_TRUE(r.screen_moves.empty());
+  EXPECT_EQ(r.kicks, 4);
+  EXPECT_GT(static_cast<int>(r.evaluations.size()), r.kicks);  // (the kicks' descents)
+  EXPECT_EQ(r.energy, 2.0 * g);
+  EXPECT_EQ(length(r.best), 2.0 * g);
+  EXPECT_EQ(r.stop_reason.rfind("kicks only; 4 kicks, ", 0), 0u) << r.stop_reason;
+}
+
 // A kick with no neighbour to move to is not made, nor counted (every kick
 // was counted before, made or not).
 TEST(MappingClassSearch, KicksWithNoNeighbourAreNotCounted) {

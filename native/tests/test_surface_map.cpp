@@ -934,6 +934,23 @@ TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
   EXPECT_TRUE(surface_map(a, b, plain).canonical_generators_fallback.empty());
 }
 
+// The small genus-2 pair of the twist-search tests below (an n-hole torus
+// and a jittered finer one: no coarse copy) and hooks that start the search
+// from its default class (search off, one way) composed with `twists`.
+struct TwistedStartPair {
+  TriMesh a, b;
+  testing::MapHooks hooks;
+};
+TwistedStartPair twisted_start_pair(const std::vector<std::string>& twists) {
+  TwistedStartPair p{samples::n_hole_torus(2, 18, true), samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5), {}};
+  SurfaceMapOptions plain;
+  plain.homotopy.search.enabled = false;
+  plain.homotopy.two_way = false;
+  p.hooks.homotopy_search_start = surface_map(p.a, p.b, plain).chosen_candidate;
+  p.hooks.homotopy_search_start_twists = twists;
+  return p;
+}
+
 // Issue 14 (session 26; docs/handle_classes.md "Session 26"): the search
 // options of the iterated local search reach the twist search. On the pair
 // above from the same twisted start: one solve per step when asked
@@ -942,19 +959,15 @@ TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
 // higher. (This source has no coarse copy: the budget is scaled up by the
 // full-resolution search, twist_search_at_full_resolution.)
 TEST(SurfaceMapHandles, ClassSearchTakesItsStepWidthAndKicks) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
-  SurfaceMapOptions plain;
-  plain.homotopy.search.enabled = false;
-  plain.homotopy.two_way = false;
-  const SurfaceMapResult m0 = surface_map(a, b, plain);
-  testing::MapHooks hooks;
-  hooks.homotopy_search_start = m0.chosen_candidate;
-  hooks.homotopy_search_start_twists = {"T(a1)", "T(a1)", "T(b2)^-1"};
+  const TwistedStartPair p = twisted_start_pair({"T(a1)", "T(a1)", "T(b2)^-1"});
+  const TriMesh& a = p.a;
+  const TriMesh& b = p.b;
+  const testing::MapHooks& hooks = p.hooks;
   SurfaceMapOptions o;
   o.homotopy.two_way = false;
   o.homotopy.search.evaluations_per_step = 1;
   o.homotopy.search.pair_moves = false;
+  o.homotopy.search.high_kicks = 0;  // (the descent alone, to compare with the given kicks)
   const SurfaceMapResult narrow = surface_map(a, b, o, hooks);
   const HomotopySearchInfo& n = narrow.homotopy_search;
   ASSERT_TRUE(n.run);
@@ -990,6 +1003,93 @@ TEST(SurfaceMapHandles, ClassSearchTakesItsStepWidthAndKicks) {
   EXPECT_TRUE(first && second);
   EXPECT_LE(kick_solves, 2 * (1 + o.homotopy.search.kick_evaluations));
   EXPECT_EQ(k.evaluations, d.evaluations + kick_solves);  // (the same descent first)
+}
+
+// Issue 14 (session 28; HomotopySearchOptions::high_kicks): a search that
+// ends at 2x the conformal bound or more is kicked by default. From the
+// twisted start, a narrow descent (one solve per step, no pairs)
+// stops at 3.1x in a local minimum of its neighbourhood (the start is both
+// handles turned by T(a)T(b)T(a); the default, wider search leaves it by
+// pairs); without the kicks (high_kicks 0, as before) the class stays
+// there; with the default the kicks leave it for a lower class (2.1x),
+// and the report says how many kicks ran and that one was lower.
+TEST(SurfaceMapHandles, SearchEndingHighIsKickedByDefault) {
+  const TwistedStartPair p = twisted_start_pair({"T(a1)", "T(b1)", "T(a1)", "T(a2)", "T(b2)", "T(a2)"});
+  const TriMesh& a = p.a;
+  const TriMesh& b = p.b;
+  const testing::MapHooks& hooks = p.hooks;
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  o.homotopy.through_shape = false;
+  o.homotopy.search.evaluations_per_step = 1;
+  o.homotopy.search.pair_moves = false;
+  const double bound = 8 * M_PI;
+  SurfaceMapOptions off = o;
+  off.homotopy.search.high_kicks = 0;
+  const SurfaceMapResult before = surface_map(a, b, off, hooks);
+  const HomotopySearchInfo& hb = before.homotopy_search;
+  ASSERT_TRUE(hb.run);
+  ASSERT_GE(hb.energy, 2 * bound) << hb.stop_reason;  // (the premise: the search ends high)
+  EXPECT_EQ(hb.kicks, 0);
+  EXPECT_EQ(hb.high_kicks_status, "off");
+
+  const SurfaceMapResult after = surface_map(a, b, o, hooks);
+  expect_valid_map(after, a, b);
+  const HomotopySearchInfo& ha = after.homotopy_search;
+  ASSERT_TRUE(ha.run);
+  EXPECT_EQ(ha.kicks, o.homotopy.search.high_kicks);
+  EXPECT_GE(ha.lower_kicks, 1);
+  EXPECT_EQ(ha.high_kicks_status.rfind(std::to_string(ha.kicks) + " kicks from candidate ", 0), 0u) << ha.high_kicks_status;
+  EXPECT_NE(ha.high_kicks_status.find(", reached "), std::string::npos) << ha.high_kicks_status;
+  // The same descent first, then the kicks' solves, at most their budget.
+  int kick_solves = 0;
+  for (const std::string& m : ha.evaluated_moves) kick_solves += m.find("kick ") != std::string::npos;
+  EXPECT_GE(kick_solves, ha.kicks);
+  EXPECT_LE(kick_solves, o.homotopy.search.high_kicks * (1 + o.homotopy.search.kick_evaluations));
+  EXPECT_EQ(ha.evaluations, hb.evaluations + kick_solves);
+  // A lower class, listed as a candidate and solved. (The map is made in
+  // the lowest class of the run, here the untwisted start, 1.005 x: the
+  // hooks only move the search's start.)
+  EXPECT_LT(ha.energy, hb.energy * (1 - 1e-3));
+  ASSERT_GE(ha.found_candidate, 0);
+  EXPECT_EQ(hb.found_candidate, -1);
+  const HomotopyCandidate& kicked = after.candidates[ha.found_candidate];
+  EXPECT_NE(kicked.description.find("kick "), std::string::npos) << kicked.description;
+  EXPECT_TRUE(kicked.solved);
+  EXPECT_NEAR(kicked.energy, ha.energy, 1e-9 * ha.energy);
+  EXPECT_LE(after.energy_ratio, before.energy_ratio * (1 + 1e-6));
+
+  // Given kicks: the high kicks are not added to them.
+  SurfaceMapOptions given = o;
+  given.homotopy.search.kicks = 1;
+  given.homotopy.search.kick_evaluations = 2;
+  const SurfaceMapResult g = surface_map(a, b, given, hooks);
+  EXPECT_EQ(g.homotopy_search.kicks, 1);
+  EXPECT_EQ(g.homotopy_search.high_kicks_status, "not run: kicks given (1)");
+
+  // A bad count or ratio is an InputError.
+  SurfaceMapOptions bad = o;
+  bad.homotopy.search.high_kicks = -1;
+  EXPECT_THROW(surface_map(a, b, bad), InputError);
+  bad = o;
+  bad.homotopy.search.high_kick_ratio = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(surface_map(a, b, bad), InputError);
+}
+
+// Below high_kick_ratio the kicks do not run, and the report says why: the
+// default search on the pair above ends near the bound.
+TEST(SurfaceMapHandles, SearchEndingLowIsNotKicked) {
+  const TwistedStartPair p = twisted_start_pair({"T(a1)"});
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  o.homotopy.through_shape = false;
+  const SurfaceMapResult m = surface_map(p.a, p.b, o, p.hooks);
+  const HomotopySearchInfo& h = m.homotopy_search;
+  ASSERT_TRUE(h.run);
+  ASSERT_LT(h.energy, 2 * 8 * M_PI);
+  EXPECT_EQ(h.kicks, 0);
+  EXPECT_EQ(h.high_kicks_status.rfind("not run: the search ended at ", 0), 0u) << h.high_kicks_status;
+  EXPECT_EQ(h.stop_reason.find("kick"), std::string::npos) << h.stop_reason;
 }
 
 // Shapes not posed alike (docs/method.md §2.10, projected_loops.h
@@ -1183,9 +1283,11 @@ TEST(SurfaceMapHandles, ClassSearchStageOneFindsTheGeometricClassFromLateCuts) {
   EXPECT_FALSE(mg.homotopy_search.source_geodesics.empty());
   EXPECT_FALSE(mg.homotopy_search.target_marking.empty());
   EXPECT_LT(mg.final_energy, 1.1 * bound) << mg.candidates[mg.chosen_candidate].description;
-  // The rest: without them.
+  // The rest: without them. (Nor the high kicks, session 28: from this
+  // class, above 2x the bound, they find a lower one, 1.61 x.)
   o.homotopy.search.geometric = 0;
   o.homotopy.search.restart_ratio = 0;
+  o.homotopy.search.high_kicks = 0;
   const SurfaceMapResult m0 = surface_map(a, b, o);
   // This worse class (energy > 2x the bound, mean D' ~10) is unflipped in the
   // uniformization domain, but the chord triangles between its vertex images

@@ -78,12 +78,21 @@ std::string solve_failure(const HyperbolicHarmonicResult& r) {
          ")";
 }
 
+// HomotopySearchOptions::high_kicks and high_kick_ratio (InputError).
+void check_high_kicks(const HomotopySearchOptions& s) {
+  if (s.high_kicks < 0) throw InputError("high_kicks must be at least 0, got " + std::to_string(s.high_kicks));
+  if (!(s.high_kick_ratio >= 0))
+    throw InputError("high_kick_ratio must be at least 0 (not NaN), got " + std::to_string(s.high_kick_ratio));
+}
+
 // Adds a restarted twist search's figures to the search's account `info`:
 // the start, the evaluation and screening counts, the time, and the moves
 // it evaluated (tagged with the candidate it started from).
 void add_restart_figures(HomotopySearchInfo& info, const HomotopySearchInfo& run, int start) {
   info.starts.push_back(start);
   info.evaluations += run.evaluations;
+  info.kicks += run.kicks;
+  info.lower_kicks += run.lower_kicks;
   info.screened += run.screened;
   info.time_s += run.time_s;
   for (size_t q = 0; q < run.evaluated_moves.size(); ++q) {
@@ -368,7 +377,9 @@ class HyperbolicPipeline {
   void beaten_in_race(const std::vector<int>& rest, const std::vector<CoarseRaceOutcome>& outcomes);
   int skip_isometric_twins(int first, std::vector<int>& rest, const std::function<void(int, const std::string&)>& skip);
   void twist_search_from(int start, const std::vector<std::string>& start_twists, const CoarseSolve& solve,
-                         HomotopySearchInfo& info, const SurfaceMapOptions* opts = nullptr);
+                         HomotopySearchInfo& info, const SurfaceMapOptions* opts = nullptr, bool high_kicks = false);
+  void kicks_when_high(int search_start, const std::vector<std::string>& start_twists, const CoarseSolve& solve,
+                       bool full_resolution);
   HyperbolicHarmonicOptions fine_options(int k) const;
   // The other direction's class (inverted algebraically or carried) is
   // solved like a geometric class: its loops' images can be as long
@@ -1188,7 +1199,8 @@ void HyperbolicPipeline::search_classes() {
   // other direction (two-way run) within restart_ratio of the best coarse
   // energy, each with half the evaluations; the runs' figures are added up
   // in `info`, the classes they find appended.
-  if (hooks.homotopy_search_start >= 0 || !hooks.homotopy_search_start_twists.empty()) return;
+  if (hooks.homotopy_search_start >= 0 || !hooks.homotopy_search_start_twists.empty())
+    return kicks_when_high(search_start, hooks.homotopy_search_start_twists, pruned_solve, false);
   if (candidates.carried_class >= 0) restart_from.push_back(candidates.carried_class);
   for (int k : restart_from) {
     if (options.homotopy.search.restart_ratio <= 0) break;
@@ -1208,6 +1220,62 @@ void HyperbolicPipeline::search_classes() {
                           std::to_string(out.candidates[restart.found_candidate].energy);
     }
   }
+  kicks_when_high(search_start, {}, pruned_solve, false);
+}
+
+// Issue 14 (session 28; HomotopySearchOptions::high_kicks): when the search
+// (restarts included) ended at or above high_kick_ratio x 8 pi (g - 1) and
+// no kicks were asked for, kicks from the best class it reached (the
+// CAD block <-> polycube g3 pair stops in a local minimum of single and
+// paired moves at 2.03 x; a kick of three moves leaves it, to 1.81 x). The
+// class found is appended like a restart's; `start_twists` (testing hooks)
+// when the search from them took no move. Given classes (the through-shape
+// step) are not kicked: their legs' own runs were.
+void HyperbolicPipeline::kicks_when_high(int search_start, const std::vector<std::string>& start_twists,
+                                         const CoarseSolve& solve, bool full_resolution) {
+  HomotopySearchInfo& info = out.homotopy_search;
+  const HomotopySearchOptions& s = options.homotopy.search;
+  if (!info.run) return;
+  if (s.high_kicks == 0) return void(info.high_kicks_status = "off");
+  if (s.kicks > 0) return void(info.high_kicks_status = "not run: kicks given (" + std::to_string(s.kicks) + ")");
+  if (!options.homotopy.given_class.empty()) return void(info.high_kicks_status = "not run: given classes");
+  const int from = info.found_candidate >= 0 ? info.found_candidate : search_start;
+  const std::vector<std::string> twists = info.found_candidate >= 0 ? std::vector<std::string>{} : start_twists;
+  const double energy = info.found_candidate >= 0 ? out.candidates[from].energy : info.energy;
+  const double conformal_bound = 8 * M_PI * (out.genus - 1);
+  char ratio[64];
+  std::snprintf(ratio, sizeof ratio, "%.4g x", energy / conformal_bound);
+  if (!(energy >= s.high_kick_ratio * conformal_bound)) {
+    char below[64];
+    std::snprintf(below, sizeof below, "%.4g x", s.high_kick_ratio);
+    return void(info.high_kicks_status = std::string("not run: the search ended at ") + ratio +
+                                          " the conformal bound, below " + below);
+  }
+  HomotopySearchInfo run;
+  if (full_resolution) {
+    // (No coarse copy: the classes are listed in the run's basis only.)
+    std::optional<CoarseEvaluation> found = twist_class_search(
+        candidates.classes[from].map, from, energy, *space, solve, twists, options, run, source_curve_moves,
+        target_curve_moves, true);
+    if (std::optional<FoundSearchClass> f = found_search_class(found, from, twists, run.moves)) {
+      f->hc.description += "  [solved at full resolution: no coarse copy]";
+      run.found_candidate = append_full_class(std::move(f->hc), std::move(f->data), *found);
+    }
+  } else {
+    twist_search_from(from, twists, solve, run, nullptr, true);
+  }
+  add_restart_figures(info, run, from);
+  std::string status = std::to_string(run.kicks) + " kicks from candidate " + std::to_string(from) + " at " + ratio + ": " +
+                       std::to_string(run.lower_kicks) + " lower";
+  if (run.found_candidate >= 0 && out.candidates[run.found_candidate].energy < energy) {
+    info.found_candidate = run.found_candidate;
+    info.energy = out.candidates[run.found_candidate].energy;
+    char reached[64];
+    std::snprintf(reached, sizeof reached, ", reached %.6g (%.4g x)", info.energy, info.energy / conformal_bound);
+    status += reached;
+  }
+  info.high_kicks_status = status;
+  info.stop_reason += "; high kicks: " + status;
 }
 
 // One twist search (stages/class_search.h) from candidate `start` (with
@@ -1215,7 +1283,7 @@ void HyperbolicPipeline::search_classes() {
 // improved (info.found_candidate). `opts`: other options (restarts).
 void HyperbolicPipeline::twist_search_from(int start, const std::vector<std::string>& start_twists,
                                            const CoarseSolve& solve, HomotopySearchInfo& info,
-                                           const SurfaceMapOptions* opts) {
+                                           const SurfaceMapOptions* opts, bool high_kicks) {
   const SurfaceMapOptions& o = opts ? *opts : options;
   info.starts.push_back(start);
   // A class with a map in the other canonical basis (stages/other_basis.h:
@@ -1238,14 +1306,14 @@ void HyperbolicPipeline::twist_search_from(int start, const std::vector<std::str
       return ok;
     };
     found = twist_class_search(from.other_basis_map, start, out.candidates[start].energy, other_basis->space(), in_other,
-                               start_twists, o, info, source_moves, target_moves);
+                               start_twists, o, info, source_moves, target_moves, high_kicks);
     if (found) {
       found->theta = other_basis->to_run(found->theta);
       space->reduce(found->theta);
     }
   } else {
     found = twist_class_search(from.map, start, out.candidates[start].energy, *space, solve, start_twists, o, info,
-                               source_curve_moves, target_curve_moves);
+                               source_curve_moves, target_curve_moves, high_kicks);
   }
   std::optional<FoundSearchClass> f = found_search_class(found, start, start_twists, info.moves);
   if (!f) return;
@@ -1464,6 +1532,7 @@ void HyperbolicPipeline::twist_search_at_full_resolution() {
       info.evaluated_moves = run.evaluated_moves, info.evaluated_step = run.evaluated_step;
       info.evaluated_screen = run.evaluated_screen, info.evaluated_energy = run.evaluated_energy;
       info.screened = run.screened, info.stop_reason = run.stop_reason, info.time_s = run.time_s;
+      info.kicks = run.kicks, info.lower_kicks = run.lower_kicks;
       info.starts.assign(1, start);
     } else {
       add_restart_figures(info, run, start);
@@ -1479,6 +1548,7 @@ void HyperbolicPipeline::twist_search_at_full_resolution() {
       info.found_candidate = k, info.energy = e;
     }
   }
+  kicks_when_high(solved[0], hooked ? hooks.homotopy_search_start_twists : std::vector<std::string>{}, solve_full, true);
 }
 
 namespace {
@@ -2335,6 +2405,7 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
                     const SurfaceMapOptions& options, const testing::MapHooks& hooks, SurfaceMapResult& out,
                     const StageDone& stage_done) {
   const SingleThreadedBlas single_threaded_blas;  // concurrency.h: our own threads instead
+  check_high_kicks(options.homotopy.search);
   HyperbolicPipeline p(source, target, sc, tc, options, hooks, out, stage_done);
   p.start_source_side();           // §V-A on the second thread: loops, edge words, weights, coarse copy
   p.uniformize_target();           // §IV-C: hyperbolic metric, layout, deck group, polygon P

@@ -202,7 +202,7 @@ TwistSearchResult twist_search(const GroupMap& start, double start_energy, int g
     return nb;
   };
   // Descent on the screening score (cheap), then one evaluation of its end.
-  if (options.screen_steps > 0) {
+  if (options.screen_steps > 0 && !options.kicks_only) {
     GroupMap cur = start;
     double cur_s = seen[0];
     for (int step = 0; step < options.screen_steps; ++step) {
@@ -233,8 +233,8 @@ TwistSearchResult twist_search(const GroupMap& start, double start_energy, int g
       }
     }
   }
-  res.stop_reason = "step budget";
-  for (int step = 0; step < options.max_steps; ++step) {
+  res.stop_reason = options.kicks_only ? "kicks only" : "step budget";
+  for (int step = 0; step < options.max_steps && !options.kicks_only; ++step) {
     std::vector<Neighbour> nb;
     for (Neighbour& x : neighbours(res.best, true))
       if (!is_seen(x.screen)) seen.push_back(x.screen), nb.push_back(std::move(x));
@@ -307,6 +307,7 @@ TwistSearchResult twist_search(const GroupMap& start, double start_energy, int g
     TwistSearchOptions inner = options;
     inner.kicks = 0;
     inner.screen_steps = 0;
+    inner.kicks_only = false;
     for (int kick = 0; kick < options.kicks && evaluations < options.max_evaluations; ++kick) {
       // Each kick move: one of the current class's `kick_choices` neighbours
       // of lowest screen, drawn at random (uniform moves would mostly leave

@@ -1009,6 +1009,36 @@ def test_short_curve_twists_and_generators_fallback_keywords_reach_the_map():
     assert {"short_curve_twists", "short_generators_fallback"} <= surfmap.CAPABILITIES
 
 
+def test_high_kicks_keyword_and_flag_reach_the_map(cli, tmp_path):
+    # Issue 14, session 28: high_kicks= (--high-kicks N, --no-high-kicks) reaches the class
+    # search, and the report says what was done. The genus-3 plate -> n-hole torus maps at
+    # about 1.2 x the conformal bound: the search runs and ends below 2 x, so no kick is made
+    # by default; with high_kicks=0 the step is off. A negative count is an InputError.
+    a = surfmap.shapes.cad_plate(3)
+    b = surfmap.shapes.n_hole_torus(3, 26, True)
+    r = surfmap.surface_map(*a, *b, two_way=False, through_shape=False)
+    s = r["homotopy"]["search"]
+    assert s["run"], s["stop_reason"]
+    assert s["high_kicks_status"].startswith("not run: the search ended at "), s["high_kicks_status"]
+    assert s["high_kicks_status"].endswith("below 2 x"), s["high_kicks_status"]
+    assert s["kicks"] == 0 and s["lower_kicks"] == 0
+    off = surfmap.surface_map(*a, *b, two_way=False, through_shape=False, high_kicks=0)
+    assert off["homotopy"]["search"]["high_kicks_status"] == "off"
+    assert off["energy"]["final"] == pytest.approx(r["energy"]["final"], rel=1e-9)
+    with pytest.raises(surfmap.InputError, match="high_kicks must be at least 0"):
+        surfmap.surface_map(*a, *b, high_kicks=-1)
+    assert "high_kicks" in surfmap.CAPABILITIES
+    surfmap.write_obj(str(tmp_path / "s.obj"), *a)
+    surfmap.write_obj(str(tmp_path / "t.obj"), *b)
+    for flags in (["--no-high-kicks"], ["--high-kicks", "0"]):
+        p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--report",
+                tmp_path / "r.json", "--quiet", "--no-two-way", "--no-through-shape", *flags)
+        assert p.returncode == 0, p.stderr
+        assert json.loads((tmp_path / "r.json").read_text())["homotopy"]["search"]["high_kicks_status"] == "off"
+    p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--high-kicks", "-1")
+    assert p.returncode != 0 and "high-kicks" in p.stderr, p.stderr
+
+
 def test_agreement_ratio_keyword_and_flag_reach_the_map(cli, tmp_path):
     # Issue 14 below the two-way run (docs/handle_classes.md "Session 23"): the generated
     # genus-3 CAD plate -> n-hole torus maps at about 1.2 x the conformal bound, between

@@ -224,6 +224,20 @@ struct HomotopySearchOptions {
   int kick_evaluations = 24;
   int kick_choices = 16;
   unsigned kick_seed = 1;
+  /// Issue 14 (session 28; docs/history/handle_classes.md "Session 28
+  /// (prep, branch class28)"): when `kicks` is 0 and the twist search (its
+  /// restarts included) ends at or above `high_kick_ratio` (default 2) x
+  /// the conformal bound 8 pi (g - 1), `high_kicks` kicks (default 8; 0:
+  /// none) are made from the best class it reached, as `kicks` are
+  /// (kick_moves, kick_evaluations, kick_choices, kick_seed), with their
+  /// own budget of high_kicks x (1 + kick_evaluations) solves (200 by
+  /// default; the CAD block <-> polycube g3 pair's lower class, 2.03 -> 1.81
+  /// x, came at the fifth kick, about 150 solves). HomotopySearchInfo::
+  /// high_kicks_status, kicks and lower_kicks say what was done. A count
+  /// below 0 or a ratio that is negative or NaN is an InputError.
+  /// CLI --high-kicks N (0: --no-high-kicks), Python high_kicks=N.
+  int high_kicks = 8;
+  double high_kick_ratio = 2.0;
 };
 
 /// Which homotopy classes are listed, ranked and searched
@@ -764,6 +778,15 @@ struct HomotopySearchInfo {
   std::vector<int> starts;
   /// Candidate index of the class found (-1: no improvement, nothing added).
   int found_candidate = -1;
+  /// Kicks made by every twist search of this run (HomotopySearchOptions::
+  /// kicks and high_kicks; restarts included) and how many of them ended
+  /// below the best class held before them.
+  int kicks = 0, lower_kicks = 0;
+  /// HomotopySearchOptions::high_kicks: "off", "not run: ..." (kicks
+  /// given, or the search ended below high_kick_ratio x 8 pi (g - 1)), or
+  /// "<n> kicks from candidate <k> at <ratio> x: <m> lower[, reached <E>]"
+  /// ("" when the search did not run).
+  std::string high_kicks_status;
 };
 
 struct PointOnSurface {

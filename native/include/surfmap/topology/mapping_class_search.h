@@ -123,6 +123,10 @@ struct TwistSearchOptions {
   int kick_evaluations = 24;
   int kick_choices = 16;
   unsigned kick_seed = 1;
+  /// Issue 14 (session 28): no screening descent and no descent from the
+  /// start, which is taken as a local minimum already searched: only the
+  /// kicks, each followed by its descent as above (default false).
+  bool kicks_only = false;
 };
 
 /// One evaluated neighbour of the search.

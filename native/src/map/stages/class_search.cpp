@@ -257,7 +257,8 @@ std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, in
                                                    const std::vector<std::string>& start_twists,
                                                    const SurfaceMapOptions& options, HomotopySearchInfo& info,
                                                    const std::vector<MappingClassMove>& source_moves,
-                                                   const std::vector<MappingClassMove>& target_moves) {
+                                                   const std::vector<MappingClassMove>& target_moves,
+                                                   bool high_kicks) {
   const auto t_search = std::chrono::steady_clock::now();
   info.run = true;
   info.start_candidate = start_index;
@@ -289,6 +290,14 @@ std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, in
   tso.kick_evaluations = options.homotopy.search.kick_evaluations;
   tso.kick_choices = options.homotopy.search.kick_choices;
   tso.kick_seed = options.homotopy.search.kick_seed;
+  if (high_kicks) {
+    // (No descent: the kicks alone, from the class the search ended on.)
+    const HomotopySearchOptions& s = options.homotopy.search;
+    tso.kicks_only = true;
+    tso.kicks = s.high_kicks;
+    tso.max_evaluations = static_cast<int>(
+        std::min<long long>(std::numeric_limits<int>::max(), static_cast<long long>(s.high_kicks) * (1LL + s.kick_evaluations)));
+  }
   tso.source_moves = source_moves;
   tso.target_moves = target_moves;
   const TwistSearchResult ts = twist_search(search_from, info.start_energy, space.genus(),
@@ -305,6 +314,8 @@ std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, in
   }
   info.screened = ts.screened;
   info.stop_reason = ts.stop_reason;
+  info.kicks = ts.kicks;
+  info.lower_kicks = ts.improving_kicks;
   std::optional<CoarseEvaluation> found;
   if (!ts.moves.empty())
     for (CoarseEvaluation& ev : evaluated)

@@ -97,13 +97,16 @@ std::vector<FoundClass> geometric_candidate_classes(const SurfaceGroupLengths& s
 /// `source_moves`, `target_moves` (issue 13, session 27): one-sided moves
 /// in `space`'s letters (TwistSearchOptions::source_moves, target_moves:
 /// the twists along the surfaces' short curves); a start twist may also
-/// name a source move.
+/// name a source move. `high_kicks` (issue 14, session 28): no descent,
+/// only HomotopySearchOptions::high_kicks kicks from the start, with their
+/// own budget of high_kicks x (1 + kick_evaluations) solves.
 std::optional<CoarseEvaluation> twist_class_search(const GroupMap& start_map, int start_index, double start_energy,
                                                    const ClassSpace& space, const CoarseSolve& solve_coarse,
                                                    const std::vector<std::string>& start_twists,
                                                    const SurfaceMapOptions& options, HomotopySearchInfo& info,
                                                    const std::vector<MappingClassMove>& source_moves = {},
-                                                   const std::vector<MappingClassMove>& target_moves = {});
+                                                   const std::vector<MappingClassMove>& target_moves = {},
+                                                   bool high_kicks = false);
 
 /// Issue 13 (session 27; HomotopySearchOptions::curve_twists): the twists
 /// along a surface's short curves (map/pants_classes.h short_curve_twists
