@@ -109,8 +109,7 @@ void register_map(CLI::App& app) {
     bool one_canonical_basis = false;   // LoopOptions::both_canonical_bases = false
     bool geometric_layout_basis = defaults.homotopy.search.geometric_layout_basis;  // HomotopySearchOptions::geometric_layout_basis
     bool short_curve_twists = defaults.homotopy.search.curve_twists;  // HomotopySearchOptions::curve_twists
-    int high_kicks = defaults.homotopy.search.high_kicks;  // HomotopySearchOptions::high_kicks
-    bool no_high_kicks = false;                             // high_kicks = 0
+    int high_kicks = defaults.homotopy.search.high_kicks;  // HomotopySearchOptions::high_kicks (0: none)
     bool homotopy_both_signs = defaults.homotopy.flat_both_signs;    // HomotopyOptions::flat_both_signs
     bool no_flat_overlay = !defaults.homotopy.flat_overlay;          // HomotopyOptions::flat_overlay off
     bool landmarks_may_fold = defaults.landmarks_may_fold;          // SurfaceMapOptions::landmarks_may_fold
@@ -235,8 +234,6 @@ void register_map(CLI::App& app) {
                   "8 x 25 coarse solves; 0: none; report: homotopy.search.high_kicks_status, kicks, lower_kicks; "
                   "docs/handle_classes.md)")
       ->check(CLI::NonNegativeNumber);
-  cmd->add_flag("--no-high-kicks", a->no_high_kicks, "Genus >= 2: no kicks when the class search ends at 2x the "
-                                                     "conformal bound or more (--high-kicks 0)");
   cmd->add_flag("--landmarks-may-fold", a->landmarks_may_fold,
                 "Genus >= 1 with --landmarks: hold them by plain pins and keep the map where it folds (for its homotopy "
                 "class; flipped_triangles counts the folds) instead of an error when they cannot be held bijectively");
@@ -333,7 +330,7 @@ void register_map(CLI::App& app) {
                                                                : SurfaceMapOptions().loops.both_canonical_bases;
     opt.homotopy.search.geometric_layout_basis = a->geometric_layout_basis;
     opt.homotopy.search.curve_twists = a->short_curve_twists;
-    opt.homotopy.search.high_kicks = a->no_high_kicks ? 0 : a->high_kicks;
+    opt.homotopy.search.high_kicks = a->high_kicks;
     opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
     opt.solve.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
     opt.solve.tolerance = a->tolerance;

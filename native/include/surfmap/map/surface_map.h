@@ -235,7 +235,7 @@ struct HomotopySearchOptions {
   /// x, came at the fifth kick, about 150 solves). HomotopySearchInfo::
   /// high_kicks_status, kicks and lower_kicks say what was done. A count
   /// below 0 or a ratio that is negative or NaN is an InputError.
-  /// CLI --high-kicks N (0: --no-high-kicks), Python high_kicks=N.
+  /// CLI --high-kicks N, Python high_kicks=N (0: none).
   int high_kicks = 8;
   double high_kick_ratio = 2.0;
 };
