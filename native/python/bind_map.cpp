@@ -291,7 +291,7 @@ py::object surface_map_now(MapCall& c) {
 }
 
 // --- MapJob: a closed pair's solve on a C++ thread that never takes the GIL
-// (docs/python.md "Session 26"). Its progress goes to a mutex-guarded state the
+// (docs/python.md "start_surface_map and MapJob"). Its progress goes to a mutex-guarded state the
 // caller polls; its cancel flag is read by the core's progress hooks, which
 // then return false (the core throws Cancelled, as for surface_map's
 // callbacks).
@@ -538,7 +538,7 @@ class MapJob {
 py::object start_map_job(MapCall& c, int niceness) {
   if (c.open)
     throw InputError("start_surface_map: closed surfaces only (an open pair's driver runs Python: call "
-                     "surface_map on a thread of your own; docs/python.md \"Session 26\")");
+                     "surface_map on a thread of your own; docs/python.md \"start_surface_map and MapJob\")");
   if (!c.progress.is_none() || !c.solve_progress.is_none())
     throw InputError("start_surface_map takes no progress callbacks (they would run Python on the solve's "
                      "thread): poll the job's progress()");
@@ -708,7 +708,7 @@ void def_with_map_arguments(py::module_& m, const char* name, Body body, const c
       py::arg("face_charts") = enum_name(UniformizationOptions().face_charts),
       py::arg("locate_initial_map") = InitialMapOptions().locate,
       // Open pairs through the doubles only (surfmap/open_double.py surface_map_open's keywords and
-      // defaults; docs/open_surfaces.md "Session 19", "Session 20").
+      // defaults; docs/open_surfaces.md "Options", "The half's solve").
       py::arg("refine_rings") = 4, py::arg("refine_levels") = 2, py::arg("reflection_solve") = true,
       py::arg("short_canonical_generators") = LoopOptions().short_canonical_generators,
       py::arg("agreement_ratio") = HomotopyOptions().agreement_ratio,
@@ -746,7 +746,7 @@ void bind_map(py::module_& m) {
   // What the module does beyond its keywords, for callers built against older modules (the
   // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
   m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
-  // (the methods' documentation: docs/python.md "Session 26")
+  // (the methods' documentation: docs/python.md "start_surface_map and MapJob")
   py::class_<MapJob>(m, "MapJob", "A closed pair's map computed on a thread that never takes the GIL (made by "
                                   "start_surface_map): progress() {stage, fraction, iteration, energy, gradient, "
                                   "cancelled, done} and done() never block on the solve; cancel() stops it at its next "
@@ -816,7 +816,7 @@ void bind_map(py::module_& m) {
       "where folds are left, the class solved again on doubles refined that many times within that many rings of "
       "the boundary (report open.refined_near_boundary); `reflection_solve` (default True; False: "
       "--no-reflection-solve): the half solved alone, its mirror given by the reflections (report "
-      "open.reflection_solve; docs/open_surfaces.md \"Session 20\"). "
+      "open.reflection_solve; docs/open_surfaces.md \"The half's solve\"). "
       "`progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.";
   def_with_map_arguments(m, "surface_map", [](MapCall& c) { return surface_map_now(c); }, surface_map_doc);
@@ -829,7 +829,7 @@ void bind_map(py::module_& m) {
       "the solve's thread) and no open pairs (InputError: their driver runs Python). The arguments are converted on "
       "the calling thread (their errors raised here); the mesh intake and the solve run on the job's thread, which "
       "lowers its priority by `niceness` (Linux: nice steps, up to 19; the core's threads inherit it; 0: unchanged; "
-      "a no-op elsewhere). docs/python.md \"Session 26\".",
+      "a no-op elsewhere). docs/python.md \"start_surface_map and MapJob\".",
       py::arg("niceness") = 10);
   m.def(
       "slide_ear_images",

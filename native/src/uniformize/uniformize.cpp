@@ -85,8 +85,8 @@ void check_single_chart(const DiskLayout& L, double residual) {
 
 }  // namespace
 
-/// All checks of a layout (docs/robustness.md "CAD plates of genus 13 ..
-/// 24"). The per-face checks always; then the single chart's. A hyperbolic
+/// All checks of a layout (docs/robustness.md "High genus"). The per-face checks always; then the
+/// single chart's. A hyperbolic
 /// layout with faces its coordinates cannot resolve (DiskLayout::
 /// num_unresolved: a domain reaching 37 .. 73 from the centre puts corners
 /// where 1 − |z| is below double resolution) is never held by the single

@@ -922,7 +922,7 @@ def test_a_class_is_asked_for_by_its_words_in_another_run(tmp_path, cli):
 
 
 def test_both_canonical_bases_is_the_default_and_one_basis_is_asked_for(tmp_path, cli):
-    # Session 25 (docs/handle_classes.md "Session 25"): the candidate classes are listed in both
+    # Session 25 (docs/handle_classes.md "Classes named by words"): the candidate classes are listed in both
     # canonical bases by default (some listed "in the short canonical basis"); both_canonical_bases=
     # False and the CLI's --one-canonical-basis list the run's basis only, the same list; the two
     # flags together are refused in one line.
@@ -1043,7 +1043,7 @@ def test_high_kicks_keyword_and_flag_reach_the_map(cli, tmp_path):
 
 
 def test_agreement_ratio_keyword_and_flag_reach_the_map(cli, tmp_path):
-    # Issue 14 below the two-way run (docs/handle_classes.md "Session 23"): the generated
+    # Issue 14 below the two-way run (docs/handle_classes.md "The two directions today"): the generated
     # genus-3 CAD plate -> n-hole torus maps at about 1.2 x the conformal bound, between
     # agreement_ratio (default 1.1) and two_way_ratio (2), so by default the other direction
     # is mapped too and quality.directions.agreement says what was done (here the two
@@ -1082,7 +1082,7 @@ def test_agreement_ratio_keyword_and_flag_reach_the_map(cli, tmp_path):
 
 
 def test_cheap_direction_check_keyword_changes_the_two_way_verdict():
-    # Issue 14 (docs/handle_classes.md "Both directions, cheaply"), as
+    # Issue 14 (docs/handle_classes.md "The two directions today"), as
     # SurfaceMapHandles.ReverseClassOnlySolvesTheOtherDirectionsClassAlone: with the two-way
     # run forced (two_way_ratio=0), the direction whose other direction's ratio is not lower
     # checks its class against the other's (a verdict in quality.directions);
