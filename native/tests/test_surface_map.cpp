@@ -1450,13 +1450,11 @@ void expect_separate_runs_inverse(const SurfaceMapResult& f, const SurfaceMapRes
 }
 
 // Issue 14, both directions agree (docs/handle_classes.md "The two directions today"): a generated
-// dissimilar pair mapped each way with
-// compare_directions, as two separate runs. Each run's final class and the
-// other run's final class, carried into one letter system through each
-// surface's identity overlay, are inverse (the composite is inner, exact),
-// or (genus 2) inverse up to the hyperelliptic involution, an isometry of
-// both; each report says so. The rule that settles a disagreement (the pair
-// of inverse classes with the lower total energy) is the same from either
+// dissimilar pair mapped each way with compare_directions, as two separate runs. Each run's final
+// class and the other run's final class, carried into one letter system through each surface's
+// identity overlay, are inverse (the composite is inner, exact), or (genus 2) inverse up to the
+// hyperelliptic involution, an isometry of both; each report says so. The rule that settles a
+// disagreement (the pair of inverse classes with the lower total energy) is the same from either
 // side, so the separate runs cannot end on classes that are not inverse.
 TEST(SurfaceMapHandles, SeparateRunsOfBothDirectionsEndOnInverseClasses) {
   // (A CAD plate, 140 vertices of long thin fans, against a smooth double
@@ -1861,16 +1859,13 @@ TEST(SurfaceMapHandles, ThroughShapeRetriesALegThatCannotHelpThroughTheFirstRuns
 }
 
 // Issue 14, session 19 (docs/handle_classes.md "Through generated shapes"): the same composed
-// classes can end in different
-// classes in the two directions, because the harmonic energy is not
-// symmetric. Here two given classes of plate -> vase, X (a_1 -> a_1 b_1 on
-// the plate) and Y (a_2 -> a_2 b_2 on the vase, b_1 -> b_1 a_1^5 on the
-// plate), solved without the twist search: Y is lower plate -> vase (2.73 x
-// against 2.84 x) and X^-1 lower vase -> plate (2.48 x against 2.65 x), so
-// the two directions' own runs end on classes that are not inverse. The
-// step then solves each direction's class inverted in the other and keeps
-// the pair of lower total ratio, (X, X^-1): both directions end on inverse
-// classes (exact), the same pair from either side, each a valid map.
+// classes can end in different classes in the two directions, because the harmonic energy is not
+// symmetric. Here two given classes of plate -> vase, X (a_1 -> a_1 b_1 on the plate) and Y (a_2 ->
+// a_2 b_2 on the vase, b_1 -> b_1 a_1^5 on the plate), solved without the twist search: Y is lower
+// plate -> vase (2.73 x against 2.84 x) and X^-1 lower vase -> plate (2.48 x against 2.65 x), so
+// the two directions' own runs end on classes that are not inverse. The step then solves each
+// direction's class inverted in the other and keeps the pair of lower total ratio, (X, X^-1): both
+// directions end on inverse classes (exact), the same pair from either side, each a valid map.
 TEST(SurfaceMapHandles, ComposedClassesSearchedBothWaysEndOnInverseClasses) {
   const TriMesh a = samples::cad_plate(2, 32, 0.3);
   const TriMesh b = samples::vase(30, true);

@@ -653,9 +653,9 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
     # Folds that no vertex alone can clear: every corner's kernel is empty because its neighbours'
     # images are folded too (poncho -> spot: 4 faces next to a 306-degree corner of one of spot's
     # rims, 8 corners, every kernel empty; docs/history/open_surfaces.md "Session 26: poncho"). Each
-    # cluster of such
-    # faces is untangled jointly: the interior vertices within k rings of its corners (k = 1 ..
-    # patch_rings) moved together in the target's chart (_patch_untangle), the ring around them held.
+    # cluster of such faces is untangled jointly: the interior vertices within k rings of its
+    # corners (k = 1 .. patch_rings) moved together in the target's chart (_patch_untangle), the
+    # ring around them held.
     patch_rings = PATCH_RINGS if patch_rings is None else patch_rings
 
     def joint():

@@ -85,9 +85,8 @@ struct ComposedLegs {
   GroupMap from_inverse;
 };
 
-/// Issue 14, session 19 (docs/handle_classes.md "Through generated shapes"): `forward` is this
-/// direction's result after
-/// the composed classes (`composed`, 2g words each in this run's letters,
+/// Issue 14, session 19 (docs/handle_classes.md "Through generated shapes"): `forward` is
+/// this direction's result after the composed classes (`composed`, 2g words each in this run's letters,
 /// named by `names`) were solved and searched on here, with class θ. The
 /// composed classes, inverted and written in the other direction's letters
 /// (through `forward`'s and `target_letters_inverse`), are solved and
