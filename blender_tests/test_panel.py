@@ -575,3 +575,9 @@ def test_main_panel_names_the_pairs_topology_and_leaves_boundary_out_for_closed_
     assert ("prop", "boundary_pairing_auto") in log
     helpers.select([ring], ring)
     assert ("label", "Genus 0, 2 boundary loops") in draw_all_panels()
+    # with modifiers, the mesh Compute Map reads: a solidified disk is a closed sphere
+    disk.modifiers.new("thick", 'SOLIDIFY').thickness = 0.1
+    bpy.context.view_layer.update()
+    assert topology(disk) == (0, 0)
+    helpers.select([disk], disk)
+    assert ("label", "Closed, genus 0") in draw_all_panels()

@@ -120,10 +120,14 @@ _TOPOLOGY = {}
 
 
 def topology(ob):
-    """(genus, boundary loops) of a mesh object's own mesh (no modifiers), cached on its counts:
+    """(genus, boundary loops) of the mesh Compute Map reads (the evaluated one when the object
+    has modifiers shown in the viewport, as blender_io.read_object_mesh), cached on its counts:
     the panel draws on every redraw, and the add-on maps in Object Mode only."""
     me = ob.data
-    key = (me.name_full, len(me.vertices), len(me.edges), len(me.polygons), len(me.loops))
+    if any(m.show_viewport for m in ob.modifiers):
+        me = ob.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    key = (ob.name_full, me.name_full, len(me.vertices), len(me.edges), len(me.polygons),
+           len(me.loops))
     if key not in _TOPOLOGY:
         import numpy as np
         ev = np.empty(2 * len(me.edges), dtype=np.int32)
