@@ -541,7 +541,7 @@ struct LoopOptions {
   /// which asks for the classical basis), Python
   /// short_generators_fallback=False.
   bool short_generators_fallback = true;
-  /// Issue 13 (session 28; docs/robustness.md "Retry after folds"): when a
+  /// Issue 13 (session 28; docs/robustness.md "Canonical generators"): when a
   /// genus >= 2 run of the default class with the classical generators fails
   /// because every class it mapped folds (a SolveError of reason
   /// SolveFailure::folds, after the two-way run's rescue), it is run once more
