@@ -105,6 +105,7 @@ void register_map(CLI::App& app) {
     bool short_canonical_generators = false;      // LoopOptions::short_canonical_generators = true
     bool classical_canonical_generators = false;  // LoopOptions::short_canonical_generators = false
     bool no_short_generators_fallback = !defaults.loops.short_generators_fallback;  // LoopOptions::short_generators_fallback
+    bool no_fold_fallback = !defaults.loops.fold_fallback;  // LoopOptions::fold_fallback
     bool both_canonical_bases = false;  // LoopOptions::both_canonical_bases = true (the default, said so)
     bool one_canonical_basis = false;   // LoopOptions::both_canonical_bases = false
     bool geometric_layout_basis = defaults.homotopy.search.geometric_layout_basis;  // HomotopySearchOptions::geometric_layout_basis
@@ -213,6 +214,10 @@ void register_map(CLI::App& app) {
                 "Genus >= 2: when the classical canonical generators fail at their start edges, fail (default: run "
                 "again with the short ones and say so in the report's notes; --classical-canonical-generators implies "
                 "this)");
+  cmd->add_flag("--no-fold-fallback", a->no_fold_fallback,
+                "Genus >= 2: when every class of the default run (classical canonical generators) folds, fail "
+                "(default: run once more with the short generators, one way, and say so in the report's notes; "
+                "--classical-canonical-generators implies this)");
   cmd->add_flag("--short-canonical-generators", a->short_canonical_generators,
                 "Genus >= 2: canonical generators from cut-and-paste moves that conjugate only the new pair, not the default "
                 "classical ones (with --both-canonical-bases the candidate classes are listed in both; docs/robustness.md "
@@ -326,6 +331,7 @@ void register_map(CLI::App& app) {
                                            : a->short_canonical_generators   ? true
                                                                              : SurfaceMapOptions().loops.short_canonical_generators;
     opt.loops.short_generators_fallback = !a->no_short_generators_fallback && !a->classical_canonical_generators;
+    opt.loops.fold_fallback = !a->no_fold_fallback && !a->classical_canonical_generators;
     if (a->both_canonical_bases && a->one_canonical_basis)
       throw InputError("--both-canonical-bases and --one-canonical-basis exclude each other");
     opt.loops.both_canonical_bases = a->one_canonical_basis ? false
@@ -398,6 +404,7 @@ void register_map(CLI::App& app) {
     for (const auto* r : {&src, &dst})
       for (const auto& n : r->info.notes) notes.push_back((r == &src ? "source: " : "target: ") + n);
     if (!m.canonical_generators_fallback.empty()) notes.push_back("map: " + m.canonical_generators_fallback);
+    if (!m.fold_fallback.empty()) notes.push_back("map: " + m.fold_fallback);
     nlohmann::json report = to_json(m, opt);
     report["source"] = a->src;
     report["target"] = a->dst;

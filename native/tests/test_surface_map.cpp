@@ -914,6 +914,11 @@ TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
   };
   const std::string retried = error_of(o);
   EXPECT_NE(retried.find(" units long"), std::string::npos) << retried;
+  try {  // (the reason the retry reads, on both runs' error)
+    surface_map(a, b, o);
+  } catch (const SolveError& e) {
+    EXPECT_EQ(e.reason(), SolveFailure::start_edges) << e.what();
+  }
   const size_t again = retried.find("; again with the short canonical generators (the automatic retry): ");
   ASSERT_NE(again, std::string::npos) << retried;
   EXPECT_NE(retried.find(" units long", again), std::string::npos) << retried;  // (the retry's own reason)
@@ -932,6 +937,131 @@ TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
   plain.homotopy.two_way = false;
   plain.homotopy.search.enabled = false;
   EXPECT_TRUE(surface_map(a, b, plain).canonical_generators_fallback.empty());
+}
+
+// Issue 13 (session 28): the retries read the error's reason
+// (SolveFailure), not its words. A first run that fails with a start-edge
+// reason in other words is retried with the short generators; one whose
+// message says " units long" with no such reason is not. (The hook fails the
+// classical runs only; the retry then maps the pair for real.)
+TEST(SurfaceMapHandles, StartEdgeRetryReadsTheReasonNotTheWords) {
+  const TriMesh a = samples::n_hole_torus(2, 18, true);
+  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  o.homotopy.search.enabled = false;
+  auto failing_classical = [](const std::string& message, SolveFailure why, std::vector<bool>* runs) {
+    testing::MapHooks hooks;
+    hooks.before_run = [=](const SurfaceMapOptions& run) {
+      runs->push_back(run.loops.short_canonical_generators);
+      if (!run.loops.short_canonical_generators) throw SolveError(message, why);
+    };
+    return hooks;
+  };
+  std::vector<bool> runs;
+  const SurfaceMapResult m =
+      testing::surface_map(a, b, o, failing_classical("the start was refused (reworded)", SolveFailure::start_edges, &runs));
+  EXPECT_EQ(runs, (std::vector<bool>{false, true}));
+  expect_valid_map(m, a, b);
+  EXPECT_NE(m.canonical_generators_fallback.find(" s (the start was refused (reworded))"), std::string::npos)
+      << m.canonical_generators_fallback;
+  EXPECT_EQ(m.canonical_generators.rfind("short", 0), 0u) << m.canonical_generators;
+  EXPECT_TRUE(m.fold_fallback.empty()) << m.fold_fallback;
+  // The old words without the reason: one run, its error as it was.
+  runs.clear();
+  const std::string words = "hyperbolic harmonic map: edge 3 starts 99.5 units long";
+  try {
+    testing::surface_map(a, b, o, failing_classical(words, SolveFailure::unspecified, &runs));
+    ADD_FAILURE() << "mapped";
+  } catch (const SolveError& e) {
+    EXPECT_EQ(std::string(e.what()), words);
+  }
+  EXPECT_EQ(runs, std::vector<bool>{false});
+}
+
+// Issue 13 (session 28; LoopOptions::fold_fallback): a default-class run with
+// the classical generators in which every class folds is made once more with
+// the short generators, one way; the result says so, its progress goes on
+// from where the first run stopped under stages named for the retry, and
+// the callback can cancel it. Not with the option off, nor for a class
+// asked for, nor when the short generators were the first run's. (The hook
+// fails the classical runs with a fold error; the retry maps for real.)
+TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
+  const TriMesh a = samples::n_hole_torus(2, 18, true);
+  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  SurfaceMapOptions o;  // (two-way run on: the retry turns it off)
+  o.homotopy.search.enabled = false;
+  std::vector<SurfaceMapOptions> runs;
+  testing::MapHooks hooks;
+  hooks.before_run = [&](const SurfaceMapOptions& run) {
+    runs.push_back(run);
+    if (!run.loops.short_canonical_generators) throw SolveError("every class folded (a test's words)", SolveFailure::folds);
+  };
+  std::vector<std::pair<std::string, double>> reports;
+  SurfaceMapOptions with_progress = o;
+  with_progress.progress = [&](const std::string& stage, double fraction) {
+    reports.emplace_back(stage, fraction);
+    return true;
+  };
+  const SurfaceMapResult m = testing::surface_map(a, b, with_progress, hooks);
+  ASSERT_EQ(runs.size(), 2u);
+  EXPECT_TRUE(runs[0].homotopy.two_way);
+  EXPECT_TRUE(runs[1].loops.short_canonical_generators);
+  EXPECT_FALSE(runs[1].homotopy.two_way);
+  expect_valid_map(m, a, b);
+  EXPECT_EQ(m.fold_fallback.rfind("made with the short canonical generators, one way: the default run folded in every "
+                                   "class after ",
+                                   0),
+            0u)
+      << m.fold_fallback;
+  EXPECT_NE(m.fold_fallback.find(" s (every class folded (a test's words))"), std::string::npos) << m.fold_fallback;
+  EXPECT_TRUE(m.canonical_generators_fallback.empty()) << m.canonical_generators_fallback;
+  EXPECT_EQ(m.canonical_generators.rfind("short", 0), 0u) << m.canonical_generators;
+  ASSERT_FALSE(reports.empty());
+  for (const auto& [stage, fraction] : reports) {
+    EXPECT_EQ(stage.rfind("retry after folds: ", 0), 0u) << stage;  // (the first run reported nothing: the hook threw)
+    EXPECT_GE(fraction, 0.0);
+    EXPECT_LE(fraction, 1.0);
+  }
+  for (size_t k = 1; k < reports.size(); ++k) EXPECT_GE(reports[k].second, reports[k - 1].second);
+  // The retry is cancelled like any run.
+  SurfaceMapOptions cancelling = o;
+  cancelling.progress = [](const std::string& stage, double) { return stage.rfind("retry after folds: ", 0) != 0; };
+  EXPECT_THROW(testing::surface_map(a, b, cancelling, hooks), Cancelled);
+  // No retry: the first run's error as it was, with its reason.
+  auto one_run = [&](const SurfaceMapOptions& opt) {
+    runs.clear();
+    try {
+      testing::surface_map(a, b, opt, hooks);
+      ADD_FAILURE() << "mapped";
+    } catch (const SolveError& e) {
+      EXPECT_EQ(std::string(e.what()), "every class folded (a test's words)");
+      EXPECT_EQ(e.reason(), SolveFailure::folds);
+    }
+    EXPECT_EQ(runs.size(), 1u);
+  };
+  SurfaceMapOptions off = o;
+  off.loops.fold_fallback = false;
+  one_run(off);
+  SurfaceMapOptions asked = o;
+  asked.homotopy.class_index = 0;
+  one_run(asked);
+  // The short generators asked for: the hook lets that run map, so fail it too.
+  hooks.before_run = [&](const SurfaceMapOptions& run) {
+    runs.push_back(run);
+    throw SolveError("every class folded (a test's words)", SolveFailure::folds);
+  };
+  SurfaceMapOptions short_asked = o;
+  short_asked.loops.short_canonical_generators = true;
+  one_run(short_asked);
+  // A failure of another kind is not retried.
+  runs.clear();
+  hooks.before_run = [&](const SurfaceMapOptions& run) {
+    runs.push_back(run);
+    if (!run.loops.short_canonical_generators) throw SolveError("the optimised map has 3 flipped (words alone)");
+  };
+  EXPECT_THROW(testing::surface_map(a, b, o, hooks), SolveError);
+  EXPECT_EQ(runs.size(), 1u);
 }
 
 // The small genus-2 pair of the twist-search tests below (an n-hole torus

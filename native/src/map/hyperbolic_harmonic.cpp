@@ -498,7 +498,8 @@ class ChartState {
         throw SolveError("hyperbolic harmonic map: edge " + std::to_string(e) + " starts " +
                          std::to_string(A[e].displacement_of_origin()) +
                          " units long (beyond this solve's start-edge limit: such a start costs hundreds of "
-                         "capped steps)");
+                         "capped steps)",
+                         SolveFailure::start_edges);
     r.vertex_deck.assign(n, Mobius());
     r.vertex_deck_word.assign(n, Word{});
     for (int i = 0; i < n; ++i) move_vertex(i);

@@ -180,6 +180,15 @@ class HyperbolicPipeline {
   /// them again (a fallback). Shorter than data: the rest are not released.
   std::vector<char> data_released;
   std::vector<char> usable, coarse_failed, full;
+  /// Solves of this run refused at their start edges (SolveFailure::
+  /// start_edges: a candidate's, a geometric class's, a search neighbour's):
+  /// a run that then fails in every class fails with that reason, which the
+  /// short-generators retry reads (map/surface_map.cpp). Atomic: the class
+  /// search's solves may run on other threads.
+  std::atomic<int> start_edge_refusals{0};
+  void note_refusal(const SolveError& e) {
+    if (e.reason() == SolveFailure::start_edges) ++start_edge_refusals;
+  }
   std::vector<char> not_ranked;  ///< classes the ranking did not solve (issue 19; still fallbacks)
   std::vector<int> order;  ///< classes by coarse energy
   int ncand = 0, full_solves = 0;
@@ -747,13 +756,16 @@ bool HyperbolicPipeline::try_solve(int k, const std::function<HyperbolicHarmonic
     else return true;
   } catch (const SolveError& e) {
     why = e.what();
+    note_refusal(e);
   }
   const bool needed = options.homotopy.class_index == k || (options.homotopy.class_index < 0 && ncand == 1);
   if (needed && coarse) {
     coarse_failed[k] = 1;
     return false;
   }
-  if (needed) throw SolveError("the harmonic map solve of homotopy class " + std::to_string(k) + " failed: " + why);
+  if (needed)
+    throw SolveError("the harmonic map solve of homotopy class " + std::to_string(k) + " failed: " + why,
+                     start_edge_refusals > 0 ? SolveFailure::start_edges : SolveFailure::unspecified);
   usable[k] = 0;
   out.candidates[k].energy = std::numeric_limits<double>::infinity();
   out.candidates[k].solved = false;
@@ -1110,6 +1122,7 @@ void HyperbolicPipeline::search_classes() {
     } catch (const SolveError& e) {
       ev->theta = theta;
       ev->failure = e.what();
+      note_refusal(e);
       return false;
     }
    };
@@ -1447,6 +1460,7 @@ CoarseSolve HyperbolicPipeline::full_resolution_solve(double& best, double max_s
       ev->result = solve_from_better_start(ev->edges, o);
     } catch (const SolveError& e) {
       ev->failure = e.what();
+      note_refusal(e);
       return false;
     }
     ev->failure = solve_failure(ev->result);
@@ -2007,7 +2021,8 @@ void HyperbolicPipeline::choose_with_landmarks() {
     } else if (!out.class_bound_status.empty()) {
       why += "; no geometric class (" + out.class_bound_status + ")";
     }
-    throw SolveError("the harmonic map solve failed in every candidate homotopy class" + why);
+    throw SolveError("the harmonic map solve failed in every candidate homotopy class" + why,
+                     start_edge_refusals > 0 ? SolveFailure::start_edges : SolveFailure::unspecified);
   }
   held_result.resize(ncand);
   held_record.resize(ncand);
@@ -2388,7 +2403,8 @@ void map_with_fallback(HyperbolicPipeline& p) {
         const std::string& d = out.candidates[c].description;
         const size_t at = d.rfind("  [not used: ");
         throw SolveError(head + (at == std::string::npos ? std::string("?") : d.substr(at + 13, d.size() - at - 14)) +
-                         "; the last, class " + std::to_string(fallback[attempt]) + ": " + e.what());
+                             "; the last, class " + std::to_string(fallback[attempt]) + ": " + e.what(),
+                         SolveFailure::folds);
       }
       out.candidates[fallback[attempt]].description += std::string("  [not used: ") + e.what() + "]";
     }

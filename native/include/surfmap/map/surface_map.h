@@ -541,6 +541,18 @@ struct LoopOptions {
   /// which asks for the classical basis), Python
   /// short_generators_fallback=False.
   bool short_generators_fallback = true;
+  /// Issue 13 (session 28; docs/robustness.md "Canonical generators"): when a
+  /// genus >= 2 run of the default class with the classical generators fails
+  /// because every class it mapped folds (a SolveError of reason
+  /// SolveFailure::folds, after the two-way run's rescue), it is run once more
+  /// with the short canonical generators and one way (HomotopyOptions::
+  /// two_way off), the settings that map the CAD block g12 -> raw wheel g12
+  /// one-to-one; the result says so (SurfaceMapResult::fold_fallback), and
+  /// when the retry fails too the error gives both reasons. Its progress is
+  /// reported as stages "retry after folds: ..." and the callback can cancel
+  /// it. Default true; false: CLI --no-fold-fallback (or
+  /// --classical-canonical-generators), Python fold_fallback=False.
+  bool fold_fallback = true;
   /// Genus >= 2: list the candidate classes (overlays, the canonical
   /// schemata's class, signed handle permutations, other cuts' lifts) in
   /// both canonical bases, the classical and the short, each written in the
@@ -1049,6 +1061,10 @@ struct SurfaceMapResult {
   /// with the short canonical generators though the classical ones were
   /// asked for (the classical run's error, shortened).
   std::string canonical_generators_fallback;
+  /// LoopOptions::fold_fallback: empty, or why this map was made by the
+  /// retry after folds (the short canonical generators, one way): the first
+  /// run's error, shortened.
+  std::string fold_fallback;
   /// Genus >= 2: empty when the map ran in the target layout's one
   /// Poincaré chart; otherwise "per-face charts (...)" with why (the single
   /// chart's limit, or requested) and the path's restrictions
