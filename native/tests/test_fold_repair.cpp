@@ -1,5 +1,5 @@
 // The local repair of folded faces (src/map/stages/fold_repair.h; issue 14,
-// docs/handle_classes.md "Local fold repair"): a generated genus-2 source
+// docs/handle_classes.md "Flat images, folds and the own-edge retry"): a generated genus-2 source
 // with a few slivers folds under the intrinsic Delaunay map; only the
 // vertices around the folds are solved again, and the map keeps the
 // intrinsic weights everywhere else.

@@ -1,5 +1,4 @@
-"""Untangling the half's few folded faces (issue 16; docs/open_surfaces.md, "Folds between strongly
-different shapes").
+"""Untangling the half's few folded faces (issue 16; docs/open_surfaces.md, "The half's solve").
 
 Why: the doubles' harmonic map is computed in the target's uniformized metric, where the image of
 every source face is positively oriented (`intrinsic_flipped_triangles` 0). The output, though, is
@@ -139,7 +138,7 @@ def _unfolded_chart(T, root, held, sign):
 
 
 #: untangle_half's joint re-embedding of the folds no vertex alone clears: up to this many rings
-#: around a cluster's corners (0: off; docs/open_surfaces.md "Session 26").
+#: around a cluster's corners (0: off; docs/open_surfaces.md "The half's solve").
 PATCH_RINGS = 4
 
 
@@ -653,9 +652,10 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
         bad = now
     # Folds that no vertex alone can clear: every corner's kernel is empty because its neighbours'
     # images are folded too (poncho -> spot: 4 faces next to a 306-degree corner of one of spot's
-    # rims, 8 corners, every kernel empty; docs/open_surfaces.md "Session 26"). Each cluster of such
-    # faces is untangled jointly: the interior vertices within k rings of its corners (k = 1 ..
-    # patch_rings) moved together in the target's chart (_patch_untangle), the ring around them held.
+    # rims, 8 corners, every kernel empty; docs/history/open_surfaces.md "Session 26: poncho"). Each
+    # cluster of such faces is untangled jointly: the interior vertices within k rings of its
+    # corners (k = 1 .. patch_rings) moved together in the target's chart (_patch_untangle), the
+    # ring around them held.
     patch_rings = PATCH_RINGS if patch_rings is None else patch_rings
 
     def joint():

@@ -680,7 +680,7 @@ class ChartState {
   // close up (by up to 0.044) and 3 folded. Seen from T_i the partial
   // products are only as large as vertex i is far from those centres, and
   // the triangles close to 5.6e-5, the target's own round-off
-  // (docs/robustness.md "Session 18").
+  // (docs/robustness.md "Long deck elements").
   LongProduct fresh_anchored(int e) const {
     const WeightedEdge& ed = edges_[e];
     std::vector<LongMobius>& f = factor_scratch_;

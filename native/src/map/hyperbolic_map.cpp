@@ -385,7 +385,7 @@ class HyperbolicPipeline {
   // solved like a geometric class: its loops' images can be as long
   // untwisted (fertility -> genus-4 plate: the plate's class inverted had a
   // start edge of 80.5 units and was refused, so the two directions were
-  // never compared; docs/handle_classes.md "Both directions, cheaply").
+  // never compared; docs/handle_classes.md "The two directions today").
   void allow_long_start_edges(int k, HyperbolicHarmonicOptions& o) const {
     if (k >= 0 && (k == candidates.inverted_class || k == candidates.carried_class))
       o.max_start_edge_size = std::max(o.max_start_edge_size, options.homotopy.search.geometric_start_edge_size);
@@ -535,7 +535,7 @@ const SourceClassBounds& HyperbolicPipeline::class_bounds_now() {
 // else the source's own (class_bounds_now). The copy's bounds bound the
 // energies of maps from the copy, the surface the coarse energies are
 // measured on; its hyperbolic lengths are within about 1% of the source's
-// (docs/handle_classes.md "Bounds on the coarse copy").
+// (docs/history/handle_classes.md "Bounds on the coarse copy").
 const SourceClassBounds& HyperbolicPipeline::ranking_bounds_now() {
   if (!ss.cs.ok) return class_bounds_now();
   if (!have_coarse_bounds) {
@@ -579,7 +579,7 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   space = std::make_unique<ClassSpace>(out.genus, ss.sl, ss.scs, tcs, ut->layout, *deck_group);
   const ClassLoops* cl = ut->class_loops.get();
   projector = std::make_unique<LoopProjector>(cl ? cl->loops : ut->loops, cl ? cl->word : ut->layout.word);
-  // Issue 13/14 (docs/robustness.md "Session 23"): the classes of the
+  // Issue 13/14 (docs/robustness.md "Canonical generators"): the classes of the
   // other canonical basis too (stages/other_basis.h).
   if (options.loops.both_canonical_bases) {
     other_basis = std::make_unique<OtherBasis>(out.genus, ss.sl, ss.scs, tcs, cl ? cl->schema : tcs,
@@ -2283,7 +2283,7 @@ bool map_class(HyperbolicPipeline& p) {
 // (the optimum placed in P, its charts' distortion), so the outcome is
 // map_class's; only the initial map (and its distortion) that map_class
 // builds first is saved. Classes without a kept solve (coarse-ranked only)
-// are mapped as before (docs/robustness.md "Session 25": on the genus-12
+// are mapped as before (docs/history/robustness.md "Session 25": on the genus-12
 // block <-> wheel pair those are the cost). Returns the refusal ("" when
 // the class must be mapped).
 std::string refused_by_its_solve(HyperbolicPipeline& p, int k) {

@@ -328,7 +328,7 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
     catch (const SolveError& e) {
       // Issue 14 (perturbed botijo -> genus-5 CAD plate): every one-way class
       // folded; the other direction may still map, and its class carried here
-      // may not fold (docs/handle_classes.md "Every class folded").
+      // may not fold (docs/handle_classes.md "The two directions today").
       if (std::string(e.what()).rfind("no candidate class gave a bijective map", 0) != 0) throw;
       std::string why;
       std::vector<std::vector<int>> target_letters_inverse;  // (for the through-shape step's search both ways)

@@ -1,5 +1,5 @@
-"""The half's folded faces untangled (surfmap.open_untangle; docs/open_surfaces.md, "Folds between
-strongly different shapes"): a vertex's image pushed across its neighbours on a flat, a curved and
+"""The half's folded faces untangled (surfmap.open_untangle; docs/open_surfaces.md, "The half's
+solve"): a vertex's image pushed across its neighbours on a flat, a curved and
 a creased sheet is moved back so that no face folds, nothing else moves, boundary stays on the
 boundary; and the generated shirt pair whose map through the doubles folded 2 faces maps with none,
 counted independently."""
@@ -160,7 +160,7 @@ def folded_block(kind, n=12, half_width=0.55):
     block of vertices within half_width of the centre are mirrored (the vertex at (x, y) takes the
     image of (-x, y)): about 80 folded faces, a cluster where every corner's neighbours are folded
     too, so no corner's kernel is the star it needs (as poncho -> spot's four faces by one of
-    spot's rim corners, docs/open_surfaces.md "Session 26")."""
+    spot's rim corners, docs/history/open_surfaces.md "Session 26: poncho")."""
     V, F = sheet(n)
     S = open_double._Side(V, F, "source")
     T = open_double._Side(shaped(V, kind), F, "target")
