@@ -94,6 +94,7 @@ void register_map(CLI::App& app) {
         homotopy_search_evaluations = defaults.homotopy.search.evaluations;
     double tolerance = defaults.solve.tolerance, own_weights_floor = defaults.solve.own_weights_floor;
     double agreement_ratio = defaults.homotopy.agreement_ratio;  // HomotopyOptions::agreement_ratio
+    double through_shape_ratio = defaults.homotopy.through_shape_ratio;  // HomotopyOptions::through_shape_ratio
     bool quiet = false, timings = false, no_homotopy_search = !defaults.homotopy.search.enabled,
          no_two_way = !defaults.homotopy.two_way, compare_directions = defaults.homotopy.compare_directions;
     bool no_cheap_direction_check = !defaults.homotopy.cheap_direction_check;
@@ -191,6 +192,10 @@ void register_map(CLI::App& app) {
   cmd->add_flag("--no-through-shape", a->no_through_shape,
                 "Genus >= 2: at energy ratio 3 or more, do not try the class through a generated n-hole torus of the "
                 "same genus (docs/handle_classes.md \"Through generated shapes\")");
+  cmd->add_option("--through-shape-ratio", a->through_shape_ratio,
+                  "Genus >= 2: the energy ratio from which the class through a generated shape is tried (default 3; "
+                  "docs/handle_classes.md \"Through generated shapes\")")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--no-cheap-direction-check", a->no_cheap_direction_check,
                 "Genus >= 2: when the other direction's ratio is not lower, keep this class without solving the other "
                 "direction's class inverted here and this one there "
@@ -366,6 +371,7 @@ void register_map(CLI::App& app) {
     opt.homotopy.compare_directions = a->compare_directions;
     opt.homotopy.cheap_direction_check = !a->no_cheap_direction_check;
     opt.homotopy.agreement_ratio = a->agreement_ratio;
+    opt.homotopy.through_shape_ratio = a->through_shape_ratio;
     opt.threads = a->threads;
     if (!a->landmarks.empty()) opt.landmarks = read_landmarks(a->landmarks);
     opt.landmarks_may_fold = a->landmarks_may_fold;

@@ -569,7 +569,7 @@ void def_with_map_arguments(py::module_& m, const char* name, Body body, const c
          bool locate_initial_map, int refine_rings, int refine_levels, bool reflection_solve,
          bool short_canonical_generators, double agreement_ratio, bool both_canonical_bases, py::object class_words,
          bool geometric_layout_basis, bool short_curve_twists, bool short_generators_fallback, int high_kicks,
-         bool fold_fallback, Extra... extra) -> py::object {
+         bool fold_fallback, double through_shape_ratio, Extra... extra) -> py::object {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         // Open surfaces (issue 16): either side with a boundary.
@@ -639,6 +639,9 @@ void def_with_map_arguments(py::module_& m, const char* name, Body body, const c
         opt.homotopy.search.greedy_pants = greedy_pants;
         opt.homotopy.search.snapped_start = snapped_start;  // --no-snapped-start
         opt.homotopy.through_shape = through_shape;  // --no-through-shape
+        // (options.homotopy.through_shape_ratio; CLI --through-shape-ratio)
+        if (!(through_shape_ratio >= 0)) throw InputError("through_shape_ratio must be 0 or more");
+        opt.homotopy.through_shape_ratio = through_shape_ratio;
         if (homotopy_extra_cuts < 0) throw InputError("homotopy_extra_cuts must be 0 or more");
         opt.homotopy.extra_cuts = homotopy_extra_cuts;
         if (!(own_weights_floor > 0)) throw InputError("own_weights_floor must be positive");
@@ -719,6 +722,7 @@ void def_with_map_arguments(py::module_& m, const char* name, Body body, const c
       py::arg("short_generators_fallback") = LoopOptions().short_generators_fallback,
       py::arg("high_kicks") = HomotopySearchOptions().high_kicks,
       py::arg("fold_fallback") = LoopOptions().fold_fallback,
+      py::arg("through_shape_ratio") = HomotopyOptions().through_shape_ratio,
       extra_args..., doc);
 }
 
@@ -744,7 +748,7 @@ void bind_map(py::module_& m) {
       "snapped_start", "landmarks_may_fold", "through_shape", "face_charts", "locate_initial_map", "refine_rings",
       "refine_levels", "reflection_solve", "short_canonical_generators", "agreement_ratio",
       "both_canonical_bases", "class_words", "geometric_layout_basis", "short_curve_twists",
-      "short_generators_fallback", "high_kicks", "fold_fallback"));
+      "short_generators_fallback", "high_kicks", "fold_fallback", "through_shape_ratio"));
   // What the module does beyond its keywords, for callers built against older modules (the
   // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
   m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
@@ -809,7 +813,7 @@ void bind_map(py::module_& m) {
       "candidate (no ranking, search or two-way run; SolveError when they do not carry). As the CLI's map flags "
       "(docs/python.md): `cheap_direction_check` (False: --no-cheap-direction-check), `compare_directions` "
       "(--compare-directions), `greedy_pants` (False: --no-greedy-pants), `homotopy_extra_cuts`, `own_weights_floor`, "
-      "`local_fold_repair` (False: --no-local-fold-repair), `fold_untangle` (False: --no-fold-untangle), `snapped_start` (False: --no-snapped-start), `short_canonical_generators` (default False; True: --short-canonical-generators: genus >= 2 canonical generators whose cut-and-paste moves conjugate only the new pair; --classical-canonical-generators is the default; report 'canonical_generators'), `both_canonical_bases` (default True: the candidate classes listed in both canonical bases, --both-canonical-bases; False: --one-canonical-basis, the run's basis only), `geometric_layout_basis` (--geometric-layout-basis: genus >= 2, the geometric classes read the target's lengths in its layout's short canonical basis), `short_curve_twists` (--short-curve-twists: genus >= 2, the class search also moves by Dehn twists along each surface's short marking and short pants curves), `high_kicks` (default 8; --high-kicks N, 0: none): genus >= 2, when the class search ends at 2x the conformal bound or more, this many kicks of three random twists, each followed by a short descent, from its best class (report homotopy.search 'high_kicks_status', 'kicks', 'lower_kicks'), `short_generators_fallback` (default True; False: --no-short-generators-fallback: genus >= 2, a run with the classical canonical generators that fails at its start edges is not made again with the short ones; report 'canonical_generators_fallback'), `fold_fallback` (default True; False: --no-fold-fallback: genus >= 2, a default-class run with the classical canonical generators in which every class folds is not made once more with the short ones, one way; report 'fold_fallback'), `class_words` (--class-words: genus >= 2, the class named by its words, 2g lists of letters as the report's homotopy.chosen_words or a candidate's words from an earlier run of the same pair and loop options; solved alone like `homotopy`, whose index names a class only within one run's list), `through_shape` (False: --no-through-shape: no class through a generated n-hole torus of the same genus when the energy stays at 3x the conformal bound or more), `landmarks_may_fold` (--landmarks-may-fold: the landmarks held by plain pins, the map returned where it folds, for its class), `target_loops` ('auto', 'embedding', 'metric'), `face_charts` ('auto', 'always', 'never'; --face-charts: genus >= 2 in per-face charts of the target when one chart cannot hold it, the snapped class only); `two_way_ratio` (no CLI flag; default 2): the other direction "
+      "`local_fold_repair` (False: --no-local-fold-repair), `fold_untangle` (False: --no-fold-untangle), `snapped_start` (False: --no-snapped-start), `short_canonical_generators` (default False; True: --short-canonical-generators: genus >= 2 canonical generators whose cut-and-paste moves conjugate only the new pair; --classical-canonical-generators is the default; report 'canonical_generators'), `both_canonical_bases` (default True: the candidate classes listed in both canonical bases, --both-canonical-bases; False: --one-canonical-basis, the run's basis only), `geometric_layout_basis` (--geometric-layout-basis: genus >= 2, the geometric classes read the target's lengths in its layout's short canonical basis), `short_curve_twists` (--short-curve-twists: genus >= 2, the class search also moves by Dehn twists along each surface's short marking and short pants curves), `high_kicks` (default 8; --high-kicks N, 0: none): genus >= 2, when the class search ends at 2x the conformal bound or more, this many kicks of three random twists, each followed by a short descent, from its best class (report homotopy.search 'high_kicks_status', 'kicks', 'lower_kicks'), `short_generators_fallback` (default True; False: --no-short-generators-fallback: genus >= 2, a run with the classical canonical generators that fails at its start edges is not made again with the short ones; report 'canonical_generators_fallback'), `fold_fallback` (default True; False: --no-fold-fallback: genus >= 2, a default-class run with the classical canonical generators in which every class folds is not made once more with the short ones, one way; report 'fold_fallback'), `class_words` (--class-words: genus >= 2, the class named by its words, 2g lists of letters as the report's homotopy.chosen_words or a candidate's words from an earlier run of the same pair and loop options; solved alone like `homotopy`, whose index names a class only within one run's list), `through_shape` (False: --no-through-shape: no class through a generated n-hole torus of the same genus when the energy stays at 3x the conformal bound or more), `through_shape_ratio` (default 3; --through-shape-ratio R: the energy ratio from which that step runs; it adopts a class only when its pair of inverse classes has the lower total), `landmarks_may_fold` (--landmarks-may-fold: the landmarks held by plain pins, the map returned where it folds, for its class), `target_loops` ('auto', 'embedding', 'metric'), `face_charts` ('auto', 'always', 'never'; --face-charts: genus >= 2 in per-face charts of the target when one chart cannot hold it, the snapped class only); `two_way_ratio` (no CLI flag; default 2): the other direction "
       "is mapped when the energy is at least this many times the conformal bound (0: always); `agreement_ratio` "
       "(--agreement-ratio; default 1.1): below `two_way_ratio`, from this ratio on the other direction is mapped too "
       "and the pair of inverse classes of lower total energy kept, so both directions agree (result "

@@ -1854,6 +1854,99 @@ TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   EXPECT_EQ(static_cast<int>(forward.inverse.size()), b.num_vertices());
 }
 
+// The through-shape step keeps the pair of inverse classes of lower total
+// (session 28, branch class29). The thick genus-2 CAD plate (268 vertices)
+// and the two-handled cup disagree one way: the plate's best class θ* is
+// 1.747 x here and its inverse 1.658 x on the cup, the cup's best ψ is
+// 1.495 x there and its inverse 1.794 x here, so the pair (ψ^-1, ψ), 3.288,
+// is lower than (θ*, θ*^-1), 3.405. The first class here is ψ^-1 (the pair
+// the agreement step keeps). The step goes through a copy of the source,
+// and the map function stands in for searches that stop where they start
+// (every class search off) and for an M -> target leg that ends in θ*: the
+// composed class is θ*, lower here than ψ^-1, and its inverse there stays
+// θ*^-1. One-direction rule (before): θ* adopted, its pair 3.405 above the
+// first's 3.288, so the directions part. Now the first class stays. From a
+// class higher both ways (ψ^-1 twisted along a_1) the step still adopts.
+TEST(SurfaceMapHandles, ThroughShapeAdoptsAClassOnlyWhenItsPairTotalIsLower) {
+  const TriMesh a = samples::cad_plate(2, 64, 1.0);
+  const TriMesh b = samples::cup(2, 30, true);
+  const TriMesh middle = a;
+  SurfaceMapOptions one_way;
+  one_way.homotopy.two_way = false;
+  one_way.homotopy.through_shape = false;
+  const SurfaceMapResult f = surface_map(a, b, one_way), r = surface_map(b, a, one_way);
+  ASSERT_EQ(f.chosen_class_words.size(), 4u);
+  ASSERT_EQ(r.chosen_class_words.size(), 4u);
+  ASSERT_EQ(f.source_as_target_inverse.size(), 4u) << f.source_as_target_status;
+  ASSERT_EQ(r.source_as_target_inverse.size(), 4u) << r.source_as_target_status;
+  const double bound = 8 * M_PI;
+  auto here_alone = [&](const GroupMap& words) {
+    SurfaceMapOptions x = one_way;
+    x.homotopy.given_class = words;
+    x.homotopy.search.enabled = false;
+    return surface_map(a, b, x);
+  };
+  auto there_alone = [&](const GroupMap& words) {  // the class inverted, alone, target -> source
+    return detail::chosen_energy(surface_map(
+        b, a,
+        detail::single_class_options(detail::reverse_options(one_way),
+                                     compose(r.source_as_target_inverse, compose(words, f.source_as_target_inverse)),
+                                     detail::SingleClass::KeepTheRest)));
+  };
+  const GroupMap psi_here = compose(f.source_as_target_inverse, compose(r.chosen_class_words, r.source_as_target_inverse));
+  const SurfaceMapResult first =
+      surface_map(a, b, detail::single_class_options(one_way, psi_here, detail::SingleClass::KeepTheRest));
+  ASSERT_EQ(first.chosen_class_words.size(), 4u);
+  const double theta_pair = detail::chosen_energy(f) + there_alone(f.chosen_class_words);
+  const double first_pair = detail::chosen_energy(first) + there_alone(first.chosen_class_words);
+  // The premise: θ* lower here, its pair higher.
+  ASSERT_LT(f.energy_ratio, first.energy_ratio * (1 - 1e-3));
+  ASSERT_LT(first_pair, theta_pair * (1 - 1e-3)) << first_pair / bound << " against " << theta_pair / bound;
+  detail::MapFunction stalled = [&](const TriMesh& s, const TriMesh& t, SurfaceMapOptions x) {
+    x.homotopy.search.enabled = false;
+    x.homotopy.search.high_kicks = 0;
+    const bool leg_from_middle = s.num_vertices() == middle.num_vertices() && t.num_vertices() == b.num_vertices() &&
+                                 x.homotopy.given_class.empty() && !x.homotopy.reverse_class_only;
+    if (leg_from_middle) x.homotopy.given_class = f.chosen_class_words;  // (the copy's letters are the source's)
+    return surface_map(s, t, x);
+  };
+  SurfaceMapOptions o;
+  o.homotopy.search.enabled = false;
+  SurfaceMapResult m = first;
+  detail::through_shapes_map(a, b, o, m, stalled, {{"copy of the source", middle}}, false, {},
+                             r.source_as_target_inverse);
+  const std::string& status = m.through_shape_status;
+  // The composed class was lower here (": used"), and the pairs were compared.
+  ASSERT_NE(status.find(": used"), std::string::npos) << status;
+  EXPECT_NE(status.find("the first class's pair: "), std::string::npos) << status;
+  EXPECT_NE(status.find("kept the first class"), std::string::npos) << status;
+  EXPECT_EQ(m.chosen_class_words, first.chosen_class_words) << status;
+  EXPECT_NEAR(m.energy_ratio, first.energy_ratio, 1e-9 * first.energy_ratio) << status;
+  ASSERT_GT(m.candidates.size(), first.candidates.size());
+  EXPECT_EQ(m.chosen_candidate, first.chosen_candidate);
+  EXPECT_NE(m.candidates.back().description.find("through a generated copy of the source"), std::string::npos)
+      << m.candidates.back().description;
+  EXPECT_NE(m.directions.reason.find("the first class kept"), std::string::npos) << m.directions.reason;
+  // (No certificate: the plate's long fans make straight image triangles fold on
+  // the cup in every class; the map itself is one-to-one.)
+  for (const SurfaceMapResult* x : {static_cast<const SurfaceMapResult*>(&m), &first}) {
+    EXPECT_TRUE(x->converged);
+    EXPECT_EQ(x->flipped_triangles, 0);
+  }
+  // From a class higher in both directions the composed class (θ*) is adopted.
+  GroupMap twisted = first.chosen_class_words;
+  twisted[1].insert(twisted[1].end(), twisted[0].begin(), twisted[0].end());
+  SurfaceMapResult high = here_alone(twisted);
+  ASSERT_GT(high.energy_ratio, f.energy_ratio * 1.05);
+  detail::through_shapes_map(a, b, o, high, stalled, {{"copy of the source", middle}}, false, {},
+                             r.source_as_target_inverse);
+  EXPECT_NE(high.through_shape_status.find("the adopted pair is lower"), std::string::npos) << high.through_shape_status;
+  EXPECT_NEAR(high.energy_ratio, f.energy_ratio, 1e-6 * f.energy_ratio) << high.through_shape_status;
+  EXPECT_EQ(high.directions.outcome, "inverse") << high.directions.reason;
+  EXPECT_TRUE(high.converged);
+  EXPECT_EQ(high.flipped_triangles, 0);
+}
+
 // Issue 14, session 20 (docs/handle_classes.md "Through generated shapes"): a leg whose
 // own search stops in a twisted class (fertility -> genus-4 plate 6.65 x,
 // not below fertility -> n-hole torus 4.54 x, so that shape was never
@@ -2646,6 +2739,7 @@ TEST(SurfaceMapHighGenus, GenusSixSelfMapFromARandomStart) {
   o.solve.start_seed = 7;
   expect_near_identity_self_map(samples::n_hole_torus(6, 32, true), o);
 }
+
 
 }  // namespace
 }  // namespace surfmap

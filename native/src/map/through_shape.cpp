@@ -288,6 +288,51 @@ std::string leg_back_through_the_first_run(const TriMesh& source, const TriMesh&
   return status + kept;
 }
 
+/// The through-shape step's pair rule (session 28, branch class29): a class
+/// composed through a generated shape and lower here than the first run's
+/// class θ0 replaced θ0 in `adopted`, and composed_classes_both_ways kept
+/// the pair of inverse classes of total energy `new_pair` (E here + E' of
+/// its inverse in the other direction; NaN when it compared none). θ0's pair
+/// is E(θ0) + E'(θ0^-1), θ0^-1 solved alone in the other direction (target
+/// -> source). When that total is not above
+/// `new_pair`, `adopted` becomes `first` again (every candidate still
+/// listed): a class lower in one direction and higher as a pair would leave
+/// the two directions on different classes (thick CAD plate g2 -> joint,
+/// session 28: 2.254 + 2.177 adopted over 2.29 + 1.921). When either total
+/// is unknown the class lower here stays. Returns the status's tail.
+std::string keep_the_lower_pair(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                                SurfaceMapResult& first, double new_pair,
+                                const std::vector<std::vector<int>>& target_letters_inverse, const MapFunction& map,
+                                SurfaceMapResult& adopted) {
+  const size_t n = static_cast<size_t>(2 * first.genus);
+  if (!std::isfinite(new_pair)) return "";
+  const std::string head = "; the first class's pair: ";
+  if (target_letters_inverse.size() != n || first.chosen_class_words.size() != n ||
+      first.source_as_target_inverse.size() != n)
+    return head + "not compared (its words or letters are missing): kept the class lower here";
+  const double bound = 8 * M_PI * (first.genus - 1);
+  const double own = chosen_energy(first);
+  const SurfaceMapOptions ao = single_class_options(
+      one_way_options(reverse_options(options)),
+      compose(target_letters_inverse, compose(first.chosen_class_words, first.source_as_target_inverse)),
+      SingleClass::KeepTheRest);
+  SurfaceMapResult inverted;
+  const std::string failed = map_or_error(map, target, source, ao, inverted);
+  if (!failed.empty())
+    return head + "its inverse not solved in the other direction (" + failed + "): kept the class lower here";
+  const double own_there = chosen_energy(inverted), first_pair = own + own_there;
+  const std::string totals = four_digits(own / bound) + " + " + four_digits(own_there / bound) + " = " +
+                             four_digits(first_pair / bound) + " against the adopted pair's " +
+                             four_digits(new_pair / bound);
+  if (!(first_pair <= new_pair)) return head + totals + ": the adopted pair is lower";
+  first.candidates = std::move(adopted.candidates);  // (first's candidates lead the list, at their indices)
+  const std::string reason = "the first class kept: its pair of inverse classes has the lower total (" + totals +
+                             "; the class through the generated shape is lower here only)";
+  first.directions.reason += (first.directions.reason.empty() ? "" : "; ") + reason;
+  adopted = std::move(first);
+  return head + totals + ": kept the first class (the class through the generated shape is lower here only)";
+}
+
 }  // namespace
 
 void through_shapes_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
@@ -412,22 +457,26 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   // local minimum (fertility -> genus-4 plate 2.803 x, plate -> fertility
   // 6.029 x, not inverse): searched in both directions, the pair of lower
   // total energy is kept (docs/handle_classes.md "Through generated shapes").
-  auto both_ways = [&]() -> std::string {
+  // `pair_total`: the kept pair's total energy, NaN when the pairs were not compared.
+  auto both_ways = [&](double* pair_total) -> std::string {
     if (!options.homotopy.two_way) return "";
     if (target_letters_inverse.empty())
       return "; both directions: not searched the other way (the other direction was not mapped, so its letters "
              "are missing)";
     return composed_classes_both_ways(source, target, options, composed, here.homotopy.given_class_names,
-                                      target_letters_inverse, forward, map, composed_middles, composed_legs);
+                                      target_letters_inverse, forward, map, composed_middles, composed_legs,
+                                      pair_total);
   };
   if (!better) {
     for (HomotopyCandidate& c : tried) forward.candidates.push_back(std::move(c));
-    const std::string agreed = both_ways();
+    const std::string agreed = both_ways(nullptr);
     return finish(forward, status + agreed);
   }
-  // A composed class wins: its map, with the earlier candidates listed
+  // A composed class wins here: its map, with the earlier candidates listed
   // before the composed ones. The two-way run's comparison was of the class
-  // it replaces.
+  // it replaces. (`first_result`: that class's result, kept when its pair
+  // of inverse classes has the lower total; below.)
+  SurfaceMapResult first_result = forward;
   std::vector<HomotopyCandidate> listed = std::move(forward.candidates);
   const int chosen = static_cast<int>(listed.size()) + through.chosen_candidate;
   for (HomotopyCandidate& c : tried) listed.push_back(std::move(c));
@@ -440,8 +489,10 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   forward.reverse_inverse_reason = "not compared: the class through the generated shape was adopted after the two-way run";
   forward.directions = SurfaceMapResult{}.directions;
   forward.directions.reason = forward.reverse_inverse_reason;
-  const std::string agreed = both_ways();
-  finish(forward, status + agreed);
+  double new_pair = std::numeric_limits<double>::quiet_NaN();
+  const std::string agreed = both_ways(&new_pair);
+  finish(forward, status + agreed + keep_the_lower_pair(source, target, options, first_result, new_pair,
+                                                         target_letters_inverse, map, forward));
 }
 
 namespace {
@@ -475,7 +526,8 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
                                        const std::vector<std::vector<int>>& target_letters_inverse,
                                        SurfaceMapResult& forward, const MapFunction& map,
                                        const std::vector<const TriMesh*>& middles,
-                                       const std::vector<ComposedLegs>& legs) {
+                                       const std::vector<ComposedLegs>& legs, double* kept_pair_total) {
+  if (kept_pair_total) *kept_pair_total = std::numeric_limits<double>::quiet_NaN();
   const int g = forward.genus;
   const size_t n = static_cast<size_t>(2 * g);
   const std::string not_run = "; both directions: not searched the other way (";
@@ -573,6 +625,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
     d.outcome = relation.inner.inner ? "inverse" : "symmetric: both optimal";
     d.reason = "the other direction's search from the composed classes inverted ends on this class inverted" +
                std::string(relation.inner.inner ? "" : " up to the hyperelliptic involution") + " (exact)";
+    if (kept_pair_total) *kept_pair_total = own + other_there;
     return status + ": this class inverted (" + t.text() + ")";
   }
   // θ^-1 there alone, ψ^-1 here alone: the four energies of the two pairs.
@@ -627,6 +680,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
   // energies to 1e-9 are not expected.)
   if (!(other_pair < own_pair)) {
     list_the_other_class();
+    if (kept_pair_total) *kept_pair_total = own_pair;
     d.outcome = "inverse";
     d.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is this one (" + pairs +
                ")";
@@ -651,6 +705,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
   forward.directions.outcome = "inverse";
   forward.directions.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is the "
                               "other direction's search from the composed classes (" + pairs + ")";
+  if (kept_pair_total) *kept_pair_total = other_pair;
   return status + "; " + pairs + ": used the other direction's class inverted (" + t.text() + ")";
 }
 

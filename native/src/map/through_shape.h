@@ -58,7 +58,11 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
 /// ranked like any candidates, the best at full resolution), all listed
 /// after `forward`'s candidates ("through a generated <name>"); when the
 /// best is lower than `forward`'s energy its map is returned in `forward`
-/// and it is chosen. `notes` (each "; ...") start the status. With the
+/// and it is chosen, unless the search in both directions below compared
+/// pairs and `forward`'s class θ0 with θ0^-1 solved alone in the other
+/// direction makes a pair of no higher total energy than the pair kept
+/// there: then `forward` stays (session 28, branch class29: a class lower
+/// here only would leave the two directions on different classes). `notes` (each "; ...") start the status. With the
 /// two-way run on and `target_letters_inverse` (the target's letters as a
 /// target -> as a source, 2g words, from a target -> source run with
 /// reverse_options) given, the composed classes are then searched in both
@@ -110,12 +114,16 @@ struct ComposedLegs {
 /// the M -> target leg each inverted, or the latter's known inverse), since
 /// the composite's long words can stall where the legs' do not (torus g4 ->
 /// fertility, session 21).
+/// `kept_pair_total` (when given): the total energy (E here + E' there, not
+/// divided by the bound) of the pair of inverse classes `forward` ends on,
+/// NaN when no pair was compared.
 std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                        const std::vector<std::vector<std::vector<int>>>& composed,
                                        const std::vector<std::string>& names,
                                        const std::vector<std::vector<int>>& target_letters_inverse,
                                        SurfaceMapResult& forward, const MapFunction& map,
                                        const std::vector<const TriMesh*>& middles = {},
-                                       const std::vector<ComposedLegs>& legs = {});
+                                       const std::vector<ComposedLegs>& legs = {},
+                                       double* kept_pair_total = nullptr);
 
 }  // namespace surfmap::detail

@@ -1064,6 +1064,36 @@ def test_high_kicks_keyword_and_flag_reach_the_map(cli, tmp_path):
     assert p.returncode != 0 and "high-kicks" in p.stderr, p.stderr
 
 
+def test_through_shape_ratio_keyword_and_flag_reach_the_map(cli, tmp_path):
+    # Issue 14, session 28 (branch class29): through_shape_ratio= (CLI --through-shape-ratio R)
+    # is the energy ratio from which the through-shape step runs. The genus-2 CAD plate -> n-hole
+    # torus maps at about 1.1 x the conformal bound: below the default 3 and below 2, the step
+    # does not run and says below what; from ratio 1 it runs and names the shapes it went
+    # through. A negative ratio is refused (InputError; the CLI's own check).
+    a = surfmap.shapes.cad_plate(2)
+    b = surfmap.shapes.n_hole_torus(2, 26, True)
+    r = surfmap.surface_map(*a, *b, two_way=False)
+    assert r["quality"]["through_shape_status"] == "not run: energy ratio below 3"
+    low = surfmap.surface_map(*a, *b, two_way=False, through_shape_ratio=2)
+    assert low["quality"]["through_shape_status"] == "not run: energy ratio below 2"
+    ran = surfmap.surface_map(*a, *b, two_way=False, through_shape_ratio=1)
+    assert "through the genus-2 n-hole torus" in ran["quality"]["through_shape_status"], \
+        ran["quality"]["through_shape_status"]
+    assert ran["quality"]["energy_ratio"] <= r["quality"]["energy_ratio"] * (1 + 1e-6)
+    with pytest.raises(surfmap.InputError, match="through_shape_ratio must be 0 or more"):
+        surfmap.surface_map(*a, *b, through_shape_ratio=-1)
+    assert "through_shape_ratio" in surfmap.CAPABILITIES
+    surfmap.write_obj(str(tmp_path / "s.obj"), *a)
+    surfmap.write_obj(str(tmp_path / "t.obj"), *b)
+    p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--report",
+            tmp_path / "r.json", "--quiet", "--no-two-way", "--through-shape-ratio", "2")
+    assert p.returncode == 0, p.stderr
+    status = json.loads((tmp_path / "r.json").read_text())["quality"]["through_shape_status"]
+    assert status == "not run: energy ratio below 2", status
+    p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--through-shape-ratio", "-1")
+    assert p.returncode != 0 and "through-shape-ratio" in p.stderr, p.stderr
+
+
 def test_agreement_ratio_keyword_and_flag_reach_the_map(cli, tmp_path):
     # Issue 14 below the two-way run (docs/handle_classes.md "The two directions today"): the generated
     # genus-3 CAD plate -> n-hole torus maps at about 1.2 x the conformal bound, between
