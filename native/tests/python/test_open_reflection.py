@@ -516,3 +516,38 @@ def test_the_inverse_locates_the_target_wherever_the_half_is_laid_out(monkeypatc
     monkeypatch.setattr(open_reflection, "LOCATE_CHART", "klein")
     k = open_reflection.solve_half(S, T, r["forward"], [0, 1, 2], False, moved)
     assert len(k["inverse_unlocated"]) > 0.01 * T.n2
+
+
+def test_refused_candidates_are_solved_on_the_half_only_up_to_the_lowest_that_maps(monkeypatch):
+    """Every candidate refused as not symmetric (symmetry_tolerance 0, as the artery onto spot with
+    three holes refuses all 12 of its own): their classes are solved on the half in order of their
+    doubles' energy, and those beyond the ties of the lowest that maps are not solved (they could
+    not be chosen: the lowest energy wins, ties by the alignment). The test pants onto their bend
+    0.3, the automatic pairing, preserving: 6 candidates, one half's solve instead of six; the map
+    chosen is the lowest-energy candidate whose half's solve is used, 0 flipped both ways by the
+    independent count, and each candidate left out says so."""
+    Vs, Fs = pants(3)
+    Vt = bend(Vs, 0.3)
+    calls = []
+    solve = open_double._reflection_candidate
+
+    def counted(S, T, r, pairing, *a, **k):
+        calls.append(list(pairing))
+        return solve(S, T, r, pairing, *a, **k)
+    monkeypatch.setattr(open_double, "_reflection_candidate", counted)
+    r = open_double.surface_map_open(Vs, Fs, Vt, Fs, orientations=("preserving",), symmetry_tolerance=0.0)
+    o = r["open"]
+    cands = o["candidates"]
+    assert len(cands) == 6 and all((c.get("doubles_status") or c["status"]).startswith("not symmetric") for c in cands)
+    chosen = next(c for c in cands if c["chosen"])
+    assert chosen["reflection_solve"].startswith("used") and o["reflection_solve"].startswith("used")
+    used = [c for c in cands if c["reflection_solve"].startswith("used")]
+    first = min(c["energy"] for c in used)
+    assert chosen["energy"] <= first * (1 + 1e-3)
+    lower = [c for c in cands if c["energy"] < first]
+    assert all(c["reflection_solve"].startswith("not used") for c in lower), [(c["energy"], c["reflection_solve"]) for c in cands]
+    beyond = [c for c in cands if c["energy"] > first * (1 + 1e-3)]
+    assert beyond and all(c["reflection_solve"].startswith("not tried") for c in beyond)
+    assert len(calls) == len(cands) - len(beyond) < len(cands)
+    assert r["converged"] and r["flipped_triangles"] == 0 and o["inverse_flipped_triangles"] == 0
+    assert check_map(r, Vs, Fs, Vt, Fs) == 0
