@@ -892,4 +892,9 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
             for v in patch:
                 if not on_b[v] and try_move(int(v), improve=True):
                     moved.append(int(v))
+        # The sweeps widen the room around folds still left: the rim-sliding joint step once more
+        # (spot -> poncho's full run left poncho face 3842 folded; a second pass over its delivered
+        # inverse clears it; docs/history/open_surfaces.md "Session 28 (open29)").
+        if boundary_slides and np.any(turned_of(np.arange(len(S.F))) & ~ear):
+            joint(slide_rim=True)
     return sorted(set(moved))
