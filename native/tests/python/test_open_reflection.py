@@ -9,8 +9,8 @@ import json
 import numpy as np
 
 import surfmap
-from surfmap import open_double, open_reflection, open_untangle
-from test_open_double import bend, check_map, compact, holed_sphere, pants, punctured_torus, subdivide
+from surfmap import open_double, open_reflection
+from test_open_double import bend, check_map, compact, holed_sphere, pants, punctured_torus, rim_held, subdivide
 
 
 def angle_sums(layout, n_vertices):
@@ -432,13 +432,6 @@ def test_a_requested_pairing_the_doubles_map_does_not_keep_is_refused(monkeypatc
     m = open_double.surface_map_open(Vs, Fs, Vt, Fs, orientations=("preserving",), refine_levels=0,
                                      reflection_solve=False)
     assert m["flipped_triangles"] == 0
-
-
-def rim_held(monkeypatch):
-    """The untangling's joint step without the rim sliding (open_untangle._rim_sliders refuses
-    every patch), as before session 28: the fold pair's one inverse fold is then left for the
-    re-solves below to clear."""
-    monkeypatch.setattr(open_untangle, "_rim_sliders", lambda *a: None)
 
 
 def test_the_fold_pairs_inverse_fold_is_cleared_by_the_rim_sliding(monkeypatch):
