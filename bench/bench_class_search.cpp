@@ -1,5 +1,5 @@
 // How wide a class search does a pair need? (issue 14, session 26;
-// docs/handle_classes.md "Session 26"). Not a test: maps SOURCE -> TARGET
+// docs/history/handle_classes.md "Session 26"). Not a test: maps SOURCE -> TARGET
 // with the default options, or with a given class (words written by an
 // earlier run's report, homotopy.chosen_words, saved as one word per line of
 // space-separated letters), changed by the search options below, and prints

@@ -1,7 +1,7 @@
 """The main thread's pauses while a map is solved beside it on a niced thread, under CPU load:
 the old design (surface_map with progress callbacks on a Python thread niced by 10, as the
 add-on ran it until session 25) against the new (start_surface_map: the core's own thread niced
-by 10 runs no Python, polled by a worker at normal priority). docs/addon.md "Session 26".
+by 10 runs no Python, polled by a worker at normal priority). docs/addon.md "The solve's thread".
 
   SURFMAP_PYTHONPATH=build/python python3 bench/bench_gil_handoff.py [--burners N]
       [--seconds S] [--designs old new] [--rounds R] [--work-ms W] [--switch-interval I]

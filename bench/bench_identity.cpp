@@ -1,5 +1,5 @@
 // bench_identity: how far a map of a shape onto (a meshing of) the same shape is from the identity.
-// Used by the held-out sweep (docs/robustness.md, "Held-out sweep, 2026-12-03").
+// Used by the held-out sweep (docs/history/robustness.md, "Held-out sweep, 2026-12-03").
 //
 //   bench_identity SOURCE.obj TARGET.obj MORPH.obj      (MORPH.obj: surfmap map ... --out)
 //

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Is a better handle class reachable? A class for A -> C composed through an intermediate shape B
-(docs/handle_classes.md "Is a better class reachable?"):
+(docs/history/handle_classes.md "Is a better class reachable"):
 
   python3 bench/bench_through_shape.py A B C [--build build]
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Issue 14's check on every equal-genus pair of the development meshes of genus 2-4, both
-directions (docs/handle_classes.md "The issue-14 check, every pair"):
+directions (docs/history/handle_classes.md "The issue-14 check, every pair"):
 
   python3 bench/issue14_check.py --meshes DIR [--build build] [--out DIR] [--jobs 2] [--genus 2 3]
                                  [--set dev|held-out|all] [--pair A B ...]

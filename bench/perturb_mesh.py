@@ -1,4 +1,4 @@
-"""Used by the held-out sweep (docs/robustness.md, "Held-out sweep, 2026-12-03"):
+"""Used by the held-out sweep (docs/history/robustness.md, "Held-out sweep, 2026-12-03"):
 
     python3 bench/perturb_mesh.py IN.obj|IN.off OUT.obj NOISE K SEED
 

@@ -172,6 +172,10 @@ def manifest_problems(m, package_dir_name, bl_info):
             out.append(f"{k} {m[k]!r}")
     if (e := _terse(m["tagline"])) is not None:
         out.append(f"tagline: {e}")
+    if bl_info.get("description") != m["tagline"]:
+        # Blender 3.4-4.1 show bl_info's description in Preferences > Add-ons, cut in the
+        # middle past ~70 characters at the window's default width; 4.2+ show the tagline
+        out.append(f"tagline {m['tagline']!r} differs from bl_info's description {bl_info.get('description')!r}")
     if not m["license"] or not all(isinstance(x, str) and x.startswith("SPDX:") for x in m["license"]):
         out.append(f"license {m['license']!r}: 'SPDX:' identifiers")
     out += [f"tag {t!r} is not an add-on tag" for t in m.get("tags", []) if t not in ADDON_TAGS]
@@ -199,5 +203,5 @@ def test_manifest_is_valid_for_blender_4_2():
                permissions={"files": "x" * 70, "disk": "reads"})
     found = " | ".join(manifest_problems(bad, os.path.basename(ADDON), surface_map.bl_info))
     for word in ("tagline: ends with punctuation", "tag 'Meshes'", "not semantic",
-                 "64", "permission 'disk'"):
+                 "64", "permission 'disk'", "differs from bl_info's description"):
         assert word in found, (word, found)

@@ -528,3 +528,56 @@ def test_the_result_shows_the_quality_signal_of_a_genus_2_run():
     rows = dict(ops_map.summary_rows(res, {"solve": 1.0}))
     assert rows["E / bound"] == "2.29 (own)", rows
     assert "not comparable with the bound" in ops_map._summary(res, 1.0)
+
+
+def _grid(name, n, hole, x):
+    """An n x n quad grid (genus 0, 1 boundary loop), with its middle cells cut out (2 loops)."""
+    V = [(i / n * 2 - 1 + x, j / n * 2 - 1, 0.0) for j in range(n + 1) for i in range(n + 1)]
+    F = [(j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1, (j + 1) * (n + 1) + i)
+         for j in range(n) for i in range(n) if not (hole and 1 <= i < n - 1 and 1 <= j < n - 1)]
+    used = sorted({v for f in F for v in f})
+    remap = {v: k for k, v in enumerate(used)}
+    return helpers.mesh_object(name, [V[v] for v in used], [[remap[v] for v in f] for f in F])
+
+
+def test_main_panel_names_the_pairs_topology_and_leaves_boundary_out_for_closed_pairs():
+    """Under the names, one line says what the pair is ('Both closed, genus 1'), or that a pair
+    of different topology cannot be mapped (before Compute Map refuses it); the Boundary row is
+    drawn only when a selected mesh is open (session 28 review: a closed pair showed it)."""
+    from surface_map.panel import topology
+    a, b = _torus_pair()
+    assert topology(a) == (1, 0) and topology(b) == (1, 0)
+    log = draw_all_panels()
+    assert ("label", "Both closed, genus 1") in log, log[:12]
+    assert ("prop", "boundary_pairing_auto") not in log
+    assert ("prop", "homotopy_auto") in log
+    disk, ring = _grid("Disk", 6, False, 6.0), _grid("Ring", 6, True, 9.0)
+    assert topology(disk) == (0, 1) and topology(ring) == (0, 2)
+    helpers.select([disk, b], b)
+    lines = [x[1] for x in draw_all_panels() if x[0] == "label"]
+    labels = " ".join(lines)
+    assert "Different topology: source genus 0, 1 boundary loop; target closed, genus 1" in labels, labels
+    # wrapped by pixels: each line fits a label at the default sidebar width (by characters,
+    # 34 a line, Blender cut the first one to 'Different topology: sourc…')
+    from surface_map.panel import LABEL_WIDTH_DEFAULT, MAIN_PANEL_EXTRA, label_font, text_width
+    first = next(i for i, t in enumerate(lines) if t.startswith("Different topology"))
+    k = next(k for k in range(first + 1, len(lines) + 1) if " ".join(lines[first:k]).endswith("genus 1"))
+    wrapped = lines[first:k]
+    assert len(wrapped) >= 2 and all(text_width(t, *label_font()) <= LABEL_WIDTH_DEFAULT + MAIN_PANEL_EXTRA for t in wrapped), wrapped
+    helpers.select([disk, ring], ring)
+    log = draw_all_panels()
+    labels = " ".join(x[1] for x in log if x[0] == "label")
+    assert "Different topology: source genus 0, 1 boundary loop; target genus 0, 2 boundary loops" in labels
+    assert ("prop", "boundary_pairing_auto") in log
+    helpers.select([disk, _grid("Disk2", 4, False, 12.0)], disk)
+    log = draw_all_panels()
+    assert ("label", "Both genus 0, 1 boundary loop") in log
+    assert ("prop", "boundary_pairing_auto") in log
+    helpers.select([ring], ring)
+    assert ("label", "Genus 0, 2 boundary loops") in draw_all_panels()
+    # with modifiers, the mesh Compute Map reads: a solidified disk is a closed sphere
+    disk.modifiers.new("thick", 'SOLIDIFY').thickness = 0.1
+    bpy.context.view_layer.update()
+    assert topology(disk) == (0, 0)
+    helpers.select([disk], disk)
+    assert ("label", "Closed, genus 0") in draw_all_panels()

@@ -24,7 +24,7 @@ bl_info = {
     "version": (0, 2, 0),
     "blender": (3, 4, 0),
     "location": "3D Viewport > Sidebar (N) > Surface Map",
-    "description": "Cut loops and globally optimal maps between surfaces of equal topology (closed or open)",
+    "description": "Optimal maps between closed or open meshes of equal topology",
     "category": "Mesh",
 }
 

@@ -102,7 +102,7 @@ class MapOptions:
     homotopy: int = -1
     # Genus >= 2: the picked pairing by its words (the core's class_words), which name it in
     # the next run too; `homotopy` is an index into the last run's list, which the next run
-    # (other options, landmarks) may order otherwise (docs/handle_classes.md "Session 24").
+    # (other options, landmarks) may order otherwise (docs/handle_classes.md "Classes named by words").
     class_words: Optional[list] = None
     landmarks: Optional[np.ndarray] = None   # (k,2) source vertex, target vertex
     method: str = "newton"
@@ -295,7 +295,7 @@ class MapJob:
     # Blender's main thread, so drawing (software OpenGL's rasterizer threads too) gets the
     # CPU first when the machine is busy; the solve takes what remains (docs/addon.md, "UI
     # ticks during the compute"). Only a thread that never runs Python is niced: the core's
-    # own (surfmap.start_surface_map), never a Python thread (docs/addon.md "Session 26").
+    # own (surfmap.start_surface_map), never a Python thread (docs/addon.md "The solve's thread").
     WORKER_NICENESS = 10
 
     # Seconds between two reads of the native job's progress (and of Esc) by the worker.
@@ -304,7 +304,7 @@ class MapJob:
     def native_job_possible(self):
         """Whether the solve can run on the core's own thread (surfmap.start_surface_map): a
         closed pair and a core that offers it. Open pairs run their driver's Python, on the
-        worker thread at Blender's priority (docs/addon.md "Session 26")."""
+        worker thread at Blender's priority (docs/addon.md "The solve's thread")."""
         return (not (self.source.boundary_loops or self.target.boundary_loops)
                 and _module_attribute(self.sm, "start_surface_map") is not None)
 
@@ -659,7 +659,7 @@ def stop_running_jobs(timeout=STOP_AT_EXIT):
     registered with atexit). Python's exit then finds no worker: a daemon thread still running
     when the interpreter finalizes is ended where it next takes the GIL, and where that is in a
     native call's C++ frame (the core job's wait or result, the open driver's progress
-    callback) the process aborts instead of quitting (docs/addon.md "Session 26 (ui26)")."""
+    callback) the process aborts instead of quitting (docs/addon.md "The solve's thread")."""
     jobs = [j for j in list(RUNNING) if j.thread is not None
             and j.thread is not threading.current_thread()]
     for job in jobs:

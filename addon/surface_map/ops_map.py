@@ -462,7 +462,7 @@ def store_candidates(settings, res):
 def is_quit_shortcut(context, event):
     """Whether `event` presses the window's Quit shortcut (the user keymap's wm.quit_blender
     items; Ctrl+Q / Cmd+Q when there is no keymap): Compute Map's modal handler holds every
-    other key, and quitting mid-solve must still work (docs/addon.md "Session 26 (ui26)")."""
+    other key, and quitting mid-solve must still work (docs/addon.md "The solve's thread")."""
     if getattr(event, "value", None) != 'PRESS':
         return False
     # (hyper: Blender 4.4's modifier; event and keymap item lack it on older versions, and

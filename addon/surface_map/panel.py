@@ -8,6 +8,7 @@ import bpy
 
 from . import batch_operators, map_job, native
 from .properties import _wrap, extra_module_dirs
+from .side import describe_counts, mesh_topology
 
 WRAP = 34   # characters per label line at the default sidebar width
 
@@ -105,12 +106,59 @@ class SURFMAP_PT_main(bpy.types.Panel):
             src = sel[0] if sel[1] == act else sel[1]
             col.label(text=f"Source: {src.name}", icon='MESH_DATA')
             col.label(text=f"Target: {act.name}", icon='MESH_DATA')
+            draw_pair_topology(col, topology(src), topology(act), getattr(context, "region", None))
         elif len(sel) == 1:
             col.label(text=f"Object: {sel[0].name}", icon='MESH_DATA')
+            col.label(text=describe_counts(*topology(sel[0])).capitalize(), icon='BLANK1')
         else:
             col.label(text="Select 2 meshes", icon='INFO')
             col.label(text="(the active one is the target)", icon='BLANK1')
         draw_progress(layout, context.scene.surfmap)
+
+
+_TOPOLOGY = {}
+
+
+def topology(ob):
+    """(genus, boundary loops) of the mesh Compute Map reads (the evaluated one when the object
+    has modifiers shown in the viewport, as blender_io.read_object_mesh), cached on its counts:
+    the panel draws on every redraw, and the add-on maps in Object Mode only."""
+    me = ob.data
+    if any(m.show_viewport for m in ob.modifiers):
+        me = ob.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    key = (ob.name_full, me.name_full, len(me.vertices), len(me.edges), len(me.polygons),
+           len(me.loops))
+    if key not in _TOPOLOGY:
+        import numpy as np
+        ev = np.empty(2 * len(me.edges), dtype=np.int32)
+        me.edges.foreach_get("vertices", ev)
+        le = np.empty(len(me.loops), dtype=np.int32)
+        me.loops.foreach_get("edge_index", le)
+        if len(_TOPOLOGY) > 64:
+            _TOPOLOGY.clear()
+        _TOPOLOGY[key] = mesh_topology(len(me.vertices), len(me.polygons), ev, le)
+    return _TOPOLOGY[key]
+
+
+def draw_pair_topology(col, source, target, region=None):
+    """One line under the names: 'Both closed, genus 2' or 'Both genus 0, 1 boundary loop';
+    a pair of different topology cannot be mapped, and the panel says so before Compute Map
+    refuses it (wrapped by the labels' pixel width: by characters, 34 a line, the sidebar cut
+    'Different topology: sourc…' at its default width)."""
+    if source == target and source[0] is not None:
+        col.label(text="Both " + describe_counts(*source), icon='BLANK1')
+        return
+    text = (f"Different topology: source {describe_counts(*source)}; target "
+            f"{describe_counts(*target)}")
+    width = label_width(region) + MAIN_PANEL_EXTRA
+    for i, line in enumerate(picked_lines(text, width, *label_font())):
+        col.label(text=line, icon='ERROR' if i == 0 else 'BLANK1')
+
+
+def pair_is_closed(context):
+    """True when every selected mesh is closed (the Boundary row is then left out)."""
+    sel = [o for o in context.selected_objects if o.type == 'MESH']
+    return bool(sel) and all(topology(o)[1] == 0 and topology(o)[0] is not None for o in sel)
 
 
 def draw_progress(layout, settings):
@@ -149,10 +197,11 @@ class SURFMAP_PT_map(_SubPanel, bpy.types.Panel):
     bl_label = "Map"
 
     def draw(self, context):
-        draw_map(self.layout, context.scene.surfmap, getattr(context, "region", None))
+        draw_map(self.layout, context.scene.surfmap, getattr(context, "region", None),
+                 boundary=not pair_is_closed(context))
 
 
-def draw_map(layout, settings, region=None):
+def draw_map(layout, settings, region=None, boundary=True):
     """The map's options, its button, and the pairings of the last run."""
     layout.use_property_split = True
     layout.use_property_decorate = False
@@ -169,10 +218,11 @@ def draw_map(layout, settings, region=None):
     col.prop(settings, "method")
     col.prop(settings, "source_weights")
     col.prop(settings, "tolerance_text")
-    row = col.row(heading="Boundary", align=True)   # ("Boundary Loops" is cut)
-    row.prop(settings, "boundary_pairing_auto")
-    if not settings.boundary_pairing_auto:
-        row.prop(settings, "boundary_pairing", text="")
+    if boundary:   # (left out when the selected meshes are all closed)
+        row = col.row(heading="Boundary", align=True)   # ("Boundary Loops" is cut)
+        row.prop(settings, "boundary_pairing_auto")
+        if not settings.boundary_pairing_auto:
+            row.prop(settings, "boundary_pairing", text="")
     row = layout.row()
     row.scale_y = 1.4
     row.operator("surfmap.compute_map", icon='PLAY')
@@ -196,6 +246,9 @@ PICKED_LINES = 8   # lines of the picked pairing's description under the list
 # "#8: handle 1 -> handle" (116 px) was whole and the next word cut (Blender 3.4 window).
 LABEL_WIDTH_DEFAULT = 120
 SIDEBAR_WIDTH_DEFAULT = 229
+# The main panel's icon labels are that much wider (no sub-panel indent): at the default width
+# Blender cut "Different topology: source ..." to "Different topology: sourc…" (133 px).
+MAIN_PANEL_EXTRA = 10
 
 
 def picked_description(settings):

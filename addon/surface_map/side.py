@@ -24,6 +24,42 @@ def fingerprint(V, F):
     return h.hexdigest()[:20]
 
 
+def mesh_topology(num_vertices, num_faces, edge_vertices, loop_edges):
+    """(genus, boundary loops) of a mesh from its connectivity alone, for the panel's summary
+    before any solve: `edge_vertices` (E, 2) the edges' vertex pairs, `loop_edges` (L,) the
+    edge of each face corner (Blender's `loops[].edge_index`). Boundary edges are those of one
+    face; the boundary loops are the connected pieces of those edges; V - E + F = 2 - 2g - b for
+    one connected surface. The genus is None when that gives no whole number >= 0 (several
+    pieces, loose or non-manifold parts: Compute Map's intake then says what is wrong)."""
+    edge_vertices = np.asarray(edge_vertices, dtype=np.int64).reshape(-1, 2)
+    loop_edges = np.asarray(loop_edges, dtype=np.int64).ravel()
+    uses = np.bincount(loop_edges, minlength=len(edge_vertices))
+    parent = {}
+
+    def root(v):
+        while parent.setdefault(v, v) != v:
+            parent[v] = parent[parent[v]]
+            v = parent[v]
+        return v
+    for a, b in edge_vertices[uses == 1].tolist():
+        ra, rb = root(a), root(b)
+        if ra != rb:
+            parent[ra] = rb
+    loops = len({root(v) for v in list(parent)})
+    twice_genus = 2 - (num_vertices - len(edge_vertices) + num_faces) - loops
+    genus = twice_genus // 2 if twice_genus >= 0 and twice_genus % 2 == 0 else None
+    return genus, loops
+
+
+def describe_counts(genus, loops):
+    """'closed, genus 2' / 'genus 0, 1 boundary loop' / 'not one surface' for the panel."""
+    if genus is None:
+        return "not one surface"
+    if not loops:
+        return f"closed, genus {genus}"
+    return f"genus {genus}, {loops} boundary loop{'s' if loops != 1 else ''}"
+
+
 @dataclass
 class MeshSide:
     """The source or the target of a map.

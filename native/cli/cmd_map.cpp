@@ -105,12 +105,12 @@ void register_map(CLI::App& app) {
     bool short_canonical_generators = false;      // LoopOptions::short_canonical_generators = true
     bool classical_canonical_generators = false;  // LoopOptions::short_canonical_generators = false
     bool no_short_generators_fallback = !defaults.loops.short_generators_fallback;  // LoopOptions::short_generators_fallback
+    bool no_fold_fallback = !defaults.loops.fold_fallback;  // LoopOptions::fold_fallback
     bool both_canonical_bases = false;  // LoopOptions::both_canonical_bases = true (the default, said so)
     bool one_canonical_basis = false;   // LoopOptions::both_canonical_bases = false
     bool geometric_layout_basis = defaults.homotopy.search.geometric_layout_basis;  // HomotopySearchOptions::geometric_layout_basis
     bool short_curve_twists = defaults.homotopy.search.curve_twists;  // HomotopySearchOptions::curve_twists
-    int high_kicks = defaults.homotopy.search.high_kicks;  // HomotopySearchOptions::high_kicks
-    bool no_high_kicks = false;                             // high_kicks = 0
+    int high_kicks = defaults.homotopy.search.high_kicks;  // HomotopySearchOptions::high_kicks (0: none)
     bool homotopy_both_signs = defaults.homotopy.flat_both_signs;    // HomotopyOptions::flat_both_signs
     bool no_flat_overlay = !defaults.homotopy.flat_overlay;          // HomotopyOptions::flat_overlay off
     bool landmarks_may_fold = defaults.landmarks_may_fold;          // SurfaceMapOptions::landmarks_may_fold
@@ -132,7 +132,8 @@ void register_map(CLI::App& app) {
   cmd->add_option("--class-words", a->class_words,
                   "Genus >= 2: the class named by its words, a JSON list of 2g lists of letters as the report's "
                   "homotopy.chosen_words or a candidate's words from an earlier run of the same pair and loop options "
-                  "(a --homotopy index names a class only within one run's list; docs/handle_classes.md \"Session 24\")");
+                  "(a --homotopy index names a class only within one run's list; "
+                  "docs/handle_classes.md \"Classes named by words\")");
   cmd->add_option("--base-vertex", a->base_vertex, "Base vertex of the source's system of loops");
   cmd->add_option("--target-base-vertex", a->target_base_vertex, "Base vertex of the target's system of loops");
   cmd->add_option("--method", a->method, "Optimiser of the harmonic energy (genus >= 2)")
@@ -189,15 +190,16 @@ void register_map(CLI::App& app) {
                 "Genus >= 2: do not map the other way when the energy is far above the conformal bound (report: quality)");
   cmd->add_flag("--no-through-shape", a->no_through_shape,
                 "Genus >= 2: at energy ratio 3 or more, do not try the class through a generated n-hole torus of the "
-                "same genus (docs/handle_classes.md \"Through a generated shape\")");
+                "same genus (docs/handle_classes.md \"Through generated shapes\")");
   cmd->add_flag("--no-cheap-direction-check", a->no_cheap_direction_check,
                 "Genus >= 2: when the other direction's ratio is not lower, keep this class without solving the other "
-                "direction's class inverted here and this one there (docs/handle_classes.md \"Both directions, cheaply\")");
+                "direction's class inverted here and this one there "
+                "(docs/handle_classes.md \"The two directions today\")");
   cmd->add_option("--agreement-ratio", a->agreement_ratio,
                   "Genus >= 2, below the two-way run's ratio 2: from this energy ratio on (default 1.1) map the other "
                   "direction too and keep the pair of inverse classes of lower total energy, so that both directions "
                   "agree (report: quality.directions.agreement; about 3x the time; 2 or more: off; "
-                  "docs/handle_classes.md \"Session 23\")")
+                  "docs/handle_classes.md \"The two directions today\")")
       ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--no-greedy-pants", a->no_greedy_pants,
                 "Genus >= 2: no classes from the greedy short pants decompositions in the geometric stage "
@@ -212,14 +214,19 @@ void register_map(CLI::App& app) {
                 "Genus >= 2: when the classical canonical generators fail at their start edges, fail (default: run "
                 "again with the short ones and say so in the report's notes; --classical-canonical-generators implies "
                 "this)");
+  cmd->add_flag("--no-fold-fallback", a->no_fold_fallback,
+                "Genus >= 2: when every class of the default run (classical canonical generators) folds, fail "
+                "(default: run once more with the short generators, one way, and say so in the report's notes; "
+                "--classical-canonical-generators implies this)");
   cmd->add_flag("--short-canonical-generators", a->short_canonical_generators,
                 "Genus >= 2: canonical generators from cut-and-paste moves that conjugate only the new pair, not the default "
                 "classical ones (with --both-canonical-bases the candidate classes are listed in both; docs/robustness.md "
                 "\"Session 23\"; report: canonical_generators)");
   cmd->add_flag("--both-canonical-bases", a->both_canonical_bases,
                 "Genus >= 2: list the candidate classes in both canonical bases (classical and short) and twist-search "
-                "the short basis's by its own twists (the default, accepted to say so; docs/robustness.md \"Session 23\", "
-                "docs/handle_classes.md \"Session 25\")");
+                "the short basis's by its own twists (the default, accepted to say so; "
+                "docs/robustness.md \"Canonical generators\", "
+                "docs/handle_classes.md \"Classes named by words\")");
   cmd->add_flag("--one-canonical-basis", a->one_canonical_basis,
                 "Genus >= 2: list the candidate classes in the run's canonical basis only (the default before session 25)");
   cmd->add_flag("--geometric-layout-basis", a->geometric_layout_basis,
@@ -235,8 +242,6 @@ void register_map(CLI::App& app) {
                   "8 x 25 coarse solves; 0: none; report: homotopy.search.high_kicks_status, kicks, lower_kicks; "
                   "docs/handle_classes.md)")
       ->check(CLI::NonNegativeNumber);
-  cmd->add_flag("--no-high-kicks", a->no_high_kicks, "Genus >= 2: no kicks when the class search ends at 2x the "
-                                                     "conformal bound or more (--high-kicks 0)");
   cmd->add_flag("--landmarks-may-fold", a->landmarks_may_fold,
                 "Genus >= 1 with --landmarks: hold them by plain pins and keep the map where it folds (for its homotopy "
                 "class; flipped_triangles counts the folds) instead of an error when they cannot be held bijectively");
@@ -260,7 +265,7 @@ void register_map(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--no-reflection-solve", a->no_reflection_solve,
                 "Open surfaces through the doubles: keep the doubles' own solve, without the reflection-aware solve "
-                "of the half (report open.reflection_solve; docs/open_surfaces.md \"Session 20\")");
+                "of the half (report open.reflection_solve; docs/open_surfaces.md \"The half's solve\")");
   cmd->add_option("--target-metric", a->target_metric,
                   "Genus >= 1: the target's uniformization metric: auto (default: flips, fixed only when the flip "
                   "path fails; report: target_metric_choice), flips (Newton with intrinsic "
@@ -326,6 +331,7 @@ void register_map(CLI::App& app) {
                                            : a->short_canonical_generators   ? true
                                                                              : SurfaceMapOptions().loops.short_canonical_generators;
     opt.loops.short_generators_fallback = !a->no_short_generators_fallback && !a->classical_canonical_generators;
+    opt.loops.fold_fallback = !a->no_fold_fallback && !a->classical_canonical_generators;
     if (a->both_canonical_bases && a->one_canonical_basis)
       throw InputError("--both-canonical-bases and --one-canonical-basis exclude each other");
     opt.loops.both_canonical_bases = a->one_canonical_basis ? false
@@ -333,7 +339,7 @@ void register_map(CLI::App& app) {
                                                                : SurfaceMapOptions().loops.both_canonical_bases;
     opt.homotopy.search.geometric_layout_basis = a->geometric_layout_basis;
     opt.homotopy.search.curve_twists = a->short_curve_twists;
-    opt.homotopy.search.high_kicks = a->no_high_kicks ? 0 : a->high_kicks;
+    opt.homotopy.search.high_kicks = a->high_kicks;
     opt.solve.method = parse_enum<MapMethod>(a->method, "--method");
     opt.solve.source_weights = parse_enum<SourceWeights>(a->source_weights, "--source-weights");
     opt.solve.tolerance = a->tolerance;
@@ -398,6 +404,7 @@ void register_map(CLI::App& app) {
     for (const auto* r : {&src, &dst})
       for (const auto& n : r->info.notes) notes.push_back((r == &src ? "source: " : "target: ") + n);
     if (!m.canonical_generators_fallback.empty()) notes.push_back("map: " + m.canonical_generators_fallback);
+    if (!m.fold_fallback.empty()) notes.push_back("map: " + m.fold_fallback);
     nlohmann::json report = to_json(m, opt);
     report["source"] = a->src;
     report["target"] = a->dst;

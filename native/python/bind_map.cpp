@@ -291,7 +291,7 @@ py::object surface_map_now(MapCall& c) {
 }
 
 // --- MapJob: a closed pair's solve on a C++ thread that never takes the GIL
-// (docs/python.md "Session 26"). Its progress goes to a mutex-guarded state the
+// (docs/python.md "start_surface_map and MapJob"). Its progress goes to a mutex-guarded state the
 // caller polls; its cancel flag is read by the core's progress hooks, which
 // then return false (the core throws Cancelled, as for surface_map's
 // callbacks).
@@ -538,7 +538,7 @@ class MapJob {
 py::object start_map_job(MapCall& c, int niceness) {
   if (c.open)
     throw InputError("start_surface_map: closed surfaces only (an open pair's driver runs Python: call "
-                     "surface_map on a thread of your own; docs/python.md \"Session 26\")");
+                     "surface_map on a thread of your own; docs/python.md \"start_surface_map and MapJob\")");
   if (!c.progress.is_none() || !c.solve_progress.is_none())
     throw InputError("start_surface_map takes no progress callbacks (they would run Python on the solve's "
                      "thread): poll the job's progress()");
@@ -569,7 +569,7 @@ void def_with_map_arguments(py::module_& m, const char* name, Body body, const c
          bool locate_initial_map, int refine_rings, int refine_levels, bool reflection_solve,
          bool short_canonical_generators, double agreement_ratio, bool both_canonical_bases, py::object class_words,
          bool geometric_layout_basis, bool short_curve_twists, bool short_generators_fallback, int high_kicks,
-         Extra... extra) -> py::object {
+         bool fold_fallback, Extra... extra) -> py::object {
         const RowMatrixX3d vs = to_vertices(Vs, "source V"), vt = to_vertices(Vt, "target V");
         const RowMatrixX3i fs = to_triangles(Fs, "source F"), ft = to_triangles(Ft, "target F");
         // Open surfaces (issue 16): either side with a boundary.
@@ -613,8 +613,9 @@ void def_with_map_arguments(py::module_& m, const char* name, Body body, const c
         opt.homotopy.search.geometric_layout_basis = geometric_layout_basis;  // --geometric-layout-basis
         opt.homotopy.search.curve_twists = short_curve_twists;  // --short-curve-twists
         if (high_kicks < 0) throw InputError("high_kicks must be at least 0, got " + std::to_string(high_kicks));
-        opt.homotopy.search.high_kicks = high_kicks;  // --high-kicks N, --no-high-kicks
+        opt.homotopy.search.high_kicks = high_kicks;  // --high-kicks N (0: none)
         opt.loops.short_generators_fallback = short_generators_fallback;  // --no-short-generators-fallback
+        opt.loops.fold_fallback = fold_fallback;  // --no-fold-fallback
         opt.solve.method = parse_enum<MapMethod>(method, "method");
         if (!(tolerance > 0)) throw InputError("tolerance must be positive");
         if (max_iterations < 1) throw InputError("max_iterations must be at least 1");
@@ -708,7 +709,7 @@ void def_with_map_arguments(py::module_& m, const char* name, Body body, const c
       py::arg("face_charts") = enum_name(UniformizationOptions().face_charts),
       py::arg("locate_initial_map") = InitialMapOptions().locate,
       // Open pairs through the doubles only (surfmap/open_double.py surface_map_open's keywords and
-      // defaults; docs/open_surfaces.md "Session 19", "Session 20").
+      // defaults; docs/open_surfaces.md "Options", "The half's solve").
       py::arg("refine_rings") = 4, py::arg("refine_levels") = 2, py::arg("reflection_solve") = true,
       py::arg("short_canonical_generators") = LoopOptions().short_canonical_generators,
       py::arg("agreement_ratio") = HomotopyOptions().agreement_ratio,
@@ -717,6 +718,7 @@ void def_with_map_arguments(py::module_& m, const char* name, Body body, const c
       py::arg("short_curve_twists") = HomotopySearchOptions().curve_twists,
       py::arg("short_generators_fallback") = LoopOptions().short_generators_fallback,
       py::arg("high_kicks") = HomotopySearchOptions().high_kicks,
+      py::arg("fold_fallback") = LoopOptions().fold_fallback,
       extra_args..., doc);
 }
 
@@ -742,11 +744,11 @@ void bind_map(py::module_& m) {
       "snapped_start", "landmarks_may_fold", "through_shape", "face_charts", "locate_initial_map", "refine_rings",
       "refine_levels", "reflection_solve", "short_canonical_generators", "agreement_ratio",
       "both_canonical_bases", "class_words", "geometric_layout_basis", "short_curve_twists",
-      "short_generators_fallback", "high_kicks"));
+      "short_generators_fallback", "high_kicks", "fold_fallback"));
   // What the module does beyond its keywords, for callers built against older modules (the
   // add-on): "open_landmarks" = open pairs hold `landmarks` (docs/open_surfaces.md "Landmarks").
   m.attr("FEATURES") = py::frozenset(py::make_tuple("open_landmarks"));
-  // (the methods' documentation: docs/python.md "Session 26")
+  // (the methods' documentation: docs/python.md "start_surface_map and MapJob")
   py::class_<MapJob>(m, "MapJob", "A closed pair's map computed on a thread that never takes the GIL (made by "
                                   "start_surface_map): progress() {stage, fraction, iteration, energy, gradient, "
                                   "cancelled, done} and done() never block on the solve; cancel() stops it at its next "
@@ -807,7 +809,7 @@ void bind_map(py::module_& m) {
       "candidate (no ranking, search or two-way run; SolveError when they do not carry). As the CLI's map flags "
       "(docs/python.md): `cheap_direction_check` (False: --no-cheap-direction-check), `compare_directions` "
       "(--compare-directions), `greedy_pants` (False: --no-greedy-pants), `homotopy_extra_cuts`, `own_weights_floor`, "
-      "`local_fold_repair` (False: --no-local-fold-repair), `fold_untangle` (False: --no-fold-untangle), `snapped_start` (False: --no-snapped-start), `short_canonical_generators` (default False; True: --short-canonical-generators: genus >= 2 canonical generators whose cut-and-paste moves conjugate only the new pair; --classical-canonical-generators is the default; report 'canonical_generators'), `both_canonical_bases` (default True: the candidate classes listed in both canonical bases, --both-canonical-bases; False: --one-canonical-basis, the run's basis only), `geometric_layout_basis` (--geometric-layout-basis: genus >= 2, the geometric classes read the target's lengths in its layout's short canonical basis), `short_curve_twists` (--short-curve-twists: genus >= 2, the class search also moves by Dehn twists along each surface's short marking and short pants curves), `high_kicks` (default 8; --high-kicks N, 0 or --no-high-kicks: none): genus >= 2, when the class search ends at 2x the conformal bound or more, this many kicks of three random twists, each followed by a short descent, from its best class (report homotopy.search 'high_kicks_status', 'kicks', 'lower_kicks'), `short_generators_fallback` (default True; False: --no-short-generators-fallback: genus >= 2, a run with the classical canonical generators that fails at its start edges is not made again with the short ones; report 'canonical_generators_fallback'), `class_words` (--class-words: genus >= 2, the class named by its words, 2g lists of letters as the report's homotopy.chosen_words or a candidate's words from an earlier run of the same pair and loop options; solved alone like `homotopy`, whose index names a class only within one run's list), `through_shape` (False: --no-through-shape: no class through a generated n-hole torus of the same genus when the energy stays at 3x the conformal bound or more), `landmarks_may_fold` (--landmarks-may-fold: the landmarks held by plain pins, the map returned where it folds, for its class), `target_loops` ('auto', 'embedding', 'metric'), `face_charts` ('auto', 'always', 'never'; --face-charts: genus >= 2 in per-face charts of the target when one chart cannot hold it, the snapped class only); `two_way_ratio` (no CLI flag; default 2): the other direction "
+      "`local_fold_repair` (False: --no-local-fold-repair), `fold_untangle` (False: --no-fold-untangle), `snapped_start` (False: --no-snapped-start), `short_canonical_generators` (default False; True: --short-canonical-generators: genus >= 2 canonical generators whose cut-and-paste moves conjugate only the new pair; --classical-canonical-generators is the default; report 'canonical_generators'), `both_canonical_bases` (default True: the candidate classes listed in both canonical bases, --both-canonical-bases; False: --one-canonical-basis, the run's basis only), `geometric_layout_basis` (--geometric-layout-basis: genus >= 2, the geometric classes read the target's lengths in its layout's short canonical basis), `short_curve_twists` (--short-curve-twists: genus >= 2, the class search also moves by Dehn twists along each surface's short marking and short pants curves), `high_kicks` (default 8; --high-kicks N, 0: none): genus >= 2, when the class search ends at 2x the conformal bound or more, this many kicks of three random twists, each followed by a short descent, from its best class (report homotopy.search 'high_kicks_status', 'kicks', 'lower_kicks'), `short_generators_fallback` (default True; False: --no-short-generators-fallback: genus >= 2, a run with the classical canonical generators that fails at its start edges is not made again with the short ones; report 'canonical_generators_fallback'), `fold_fallback` (default True; False: --no-fold-fallback: genus >= 2, a default-class run with the classical canonical generators in which every class folds is not made once more with the short ones, one way; report 'fold_fallback'), `class_words` (--class-words: genus >= 2, the class named by its words, 2g lists of letters as the report's homotopy.chosen_words or a candidate's words from an earlier run of the same pair and loop options; solved alone like `homotopy`, whose index names a class only within one run's list), `through_shape` (False: --no-through-shape: no class through a generated n-hole torus of the same genus when the energy stays at 3x the conformal bound or more), `landmarks_may_fold` (--landmarks-may-fold: the landmarks held by plain pins, the map returned where it folds, for its class), `target_loops` ('auto', 'embedding', 'metric'), `face_charts` ('auto', 'always', 'never'; --face-charts: genus >= 2 in per-face charts of the target when one chart cannot hold it, the snapped class only); `two_way_ratio` (no CLI flag; default 2): the other direction "
       "is mapped when the energy is at least this many times the conformal bound (0: always); `agreement_ratio` "
       "(--agreement-ratio; default 1.1): below `two_way_ratio`, from this ratio on the other direction is mapped too "
       "and the pair of inverse classes of lower total energy kept, so both directions agree (result "
@@ -816,7 +818,7 @@ void bind_map(py::module_& m) {
       "where folds are left, the class solved again on doubles refined that many times within that many rings of "
       "the boundary (report open.refined_near_boundary); `reflection_solve` (default True; False: "
       "--no-reflection-solve): the half solved alone, its mirror given by the reflections (report "
-      "open.reflection_solve; docs/open_surfaces.md \"Session 20\"). "
+      "open.reflection_solve; docs/open_surfaces.md \"The half's solve\"). "
       "`progress(stage, fraction)` "
       "may return False to cancel (raises surfmap.Cancelled). The GIL is released during the solve.";
   def_with_map_arguments(m, "surface_map", [](MapCall& c) { return surface_map_now(c); }, surface_map_doc);
@@ -829,7 +831,7 @@ void bind_map(py::module_& m) {
       "the solve's thread) and no open pairs (InputError: their driver runs Python). The arguments are converted on "
       "the calling thread (their errors raised here); the mesh intake and the solve run on the job's thread, which "
       "lowers its priority by `niceness` (Linux: nice steps, up to 19; the core's threads inherit it; 0: unchanged; "
-      "a no-op elsewhere). docs/python.md \"Session 26\".",
+      "a no-op elsewhere). docs/python.md \"start_surface_map and MapJob\".",
       py::arg("niceness") = 10);
   m.def(
       "slide_ear_images",

@@ -33,7 +33,7 @@ inline Eigen::VectorXd cholmod_vector_solve(cholmod_factor* L, const Eigen::Vect
 /// monotonic: the layout cholmod_solve expects), or null when CHOLMOD cannot
 /// make one. The supernodal solve makes two BLAS calls per supernode, which
 /// on the Laplacians' many small supernodes cost more than the arithmetic
-/// (issue 19, docs/benchmarks.md "Session 24"). Free it with
+/// (issue 19, docs/history/benchmarks.md "Session 24"). Free it with
 /// cholmod_free_factor.
 inline cholmod_factor* simplicial_copy(cholmod_factor* L, cholmod_common* c) {
   cholmod_factor* copy = cholmod_copy_factor(L, c);

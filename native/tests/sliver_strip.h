@@ -1,8 +1,7 @@
 #pragma once
 // A test shape: the same closed surface with a thin strip of long slivers
 // put in along a path of its edges, as a CAD tessellation leaves along a
-// fillet (the teapot's handle strip, docs/handle_classes.md "Untangling by
-// distortion").
+// fillet (the teapot's handle strip, docs/handle_classes.md "Flat images, folds and the own-edge retry").
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,5 @@
 // The local repair of folded faces (src/map/stages/fold_repair.h; issue 14,
-// docs/handle_classes.md "Local fold repair"): a generated genus-2 source
+// docs/handle_classes.md "Flat images, folds and the own-edge retry"): a generated genus-2 source
 // with a few slivers folds under the intrinsic Delaunay map; only the
 // vertices around the folds are solved again, and the map keeps the
 // intrinsic weights everywhere else.
@@ -131,10 +131,12 @@ TEST(SurfaceMapFallbacks, FoldedFallbacksAreRefusedOnTheirSolveAsMappingThemWoul
   o.homotopy.search.enabled = false;
   o.homotopy.full_solves = 0;  // (every class solved at full resolution: each fallback has its solve kept)
   o.solve.source_weights = SourceWeights::IntrinsicDelaunay;
+  o.loops.fold_fallback = false;  // (one run: the retry after folds is checked at the end)
   auto failure = [&](const testing::MapHooks& hooks) {
     try {
       surface_map(s, t, o, hooks);
     } catch (const SolveError& e) {
+      EXPECT_EQ(e.reason(), SolveFailure::folds) << e.what();
       return std::string(e.what());
     }
     ADD_FAILURE() << "mapped: the fixture must fold in every class";
@@ -165,6 +167,15 @@ TEST(SurfaceMapFallbacks, FoldedFallbacksAreRefusedOnTheirSolveAsMappingThemWoul
   const std::string suffix = " (read on its full-resolution solve before its initial map: not mapped again)";
   EXPECT_EQ(read.substr(last_r), mapped.substr(last_m) + suffix);
   EXPECT_NE(mapped.find("the optimised map has "), std::string::npos) << mapped;
+  // Issue 13 (session 28; LoopOptions::fold_fallback): with the retry after
+  // folds on, the same run is made once more with the short generators, one
+  // way; these forced weights fold there too, so the error is the first
+  // run's, word for word, then the retry's, and its reason is still folds.
+  o.loops.fold_fallback = true;
+  const std::string retried = failure({});
+  const std::string again = "; again with the short canonical generators, one way (the automatic retry after folds): ";
+  ASSERT_EQ(retried.rfind(read + again, 0), 0u) << retried;
+  EXPECT_NE(retried.find("bijective map (", read.size()), std::string::npos) << retried;
 }
 
 // Clean sources never run it.

@@ -314,7 +314,7 @@ TEST(HarmonicRelaxation, FarSheetStartReachesTheSameOptimumInBothSolvers) {
   ASSERT_TRUE(relax.converged) << relax.stop_reason << " after " << relax.iterations;
   EXPECT_NEAR(relax.energy, reference.energy, 1e-8 * reference.energy);
   // The decks as words (session 25: the held solves after a long class need
-  // them, docs/handle_classes.md "Session 25"): each evaluates to its deck
+  // them, docs/history/handle_classes.md "Session 25"): each evaluates to its deck
   // matrix, and each edge's effective element, kept move by move, is the
   // product of the decks with the edge's element (exact enough at these
   // lengths). As Möbius maps: compared by where they send two points.

@@ -287,7 +287,7 @@ TEST(LandmarksFlat, BothSignsAddTheHalfTurnsAndHoldTheLandmarksNoWorse) {
 // names the twin class only in the one-basis landmark run's list. With both
 // bases listed the same index names another class of the landmark run,
 // held at 35.97, above 1.1 x the free optimum: an index names a class within
-// one run's list only (docs/handle_classes.md "Session 24" and "Session 25").)
+// one run's list only (docs/handle_classes.md "Classes named by words").)
 SurfaceMapOptions one_basis() {
   SurfaceMapOptions o;
   o.loops.both_canonical_bases = false;
@@ -303,7 +303,7 @@ struct FarLandmark {
   SurfaceMapOptions options = one_basis();
   FarLandmark() {
     if (path.size() > 20) options.landmarks = {{s, path[20]}};
-    // (Session 24, docs/handle_classes.md "Session 24": this index names
+    // (Session 24, docs/handle_classes.md "Classes named by words": this index names
     // another class in the landmark run's list than in the free run's, the
     // source's loops carried by the target -> source map, at the same free
     // energy: an isometric twin of the free class, where the landmark is
@@ -350,8 +350,7 @@ TEST(LandmarksHyperbolic, FarLandmarkHeldInTheFreeClassNamedByWords) {
   // barrier continuation holds it bijectively: hit exactly, no flipped or
   // degenerate image triangle, converged, strictly above the folded plain
   // pins' infimum (measured 40.70 = 1.223 x it, the barrier map of least
-  // energy; docs/handle_classes.md "Session 24: the barrier continuation in
-  // the free class").
+  // energy; docs/history/handle_classes.md "Session 24: the barrier continuation").
   const FarLandmark far;
   ASSERT_GT(far.path.size(), 21u);
   const auto& [a, b, free, s, path, options] = far;
@@ -444,7 +443,7 @@ TEST(LandmarksHyperbolic, SwappedLandmarksAreHeldBijectively) {
   // infimum of the held problem, folds allowed, is already 28.05: no held
   // map is below the initial map there. With one basis the class started
   // at 31.09 and the bound held by that start's excess alone;
-  // docs/handle_classes.md "Session 25".)
+  // docs/history/handle_classes.md "Session 25".)
   expect_landmarks_hit(m, a, b, o, /*below_initial=*/false);
   EXPECT_EQ(m.landmark_method, "barrier continuation");
   EXPECT_GT(m.final_energy, free.final_energy * (1 + 1e-6));
@@ -556,7 +555,7 @@ TEST(LandmarksHyperbolic, BarrierContinuationOnAHyperbolicDisk) {
 
 TEST(LandmarksHyperbolic, LandmarksSentHeadOnPassSideBySide) {
   // Two landmarks on one grid line, 4 cells apart, each sent to the other's
-  // place (session 25, docs/handle_classes.md "Session 25"): on their
+  // place (session 25, docs/history/handle_classes.md "Session 25"): on their
   // geodesics they meet half-way, where the faces between them must vanish,
   // so the continuation along them stalls before 1/2; stepping aside each to
   // its own left (LandmarkGeodesics::bend) they pass side by side, a half

@@ -230,7 +230,7 @@ TEST(Distortion, NearlyCollinearTorusFacesDoNotMakeTheMapsDistortion) {
   // Before, D' of a nearly (not exactly) collinear source face was measured
   // against its 3D triangle, whose almost-180-degree corner no conformal
   // image matches: D' max 1e10 on genus 3-4 maps whose points were right
-  // (docs/robustness.md, "D' of jittered and collinear sources"). Now the
+  // (docs/robustness.md, "The source side"). Now the
   // faces mollification reshapes are left out of mean and max and listed;
   // their own D' stays per face (here far above the rest).
   const TriMesh clean = samples::torus_of_revolution(1.0, 0.4, 24, 12);
@@ -323,7 +323,7 @@ TEST(Distortion, FlatButPositiveImagesDoNotFoldTheMap) {
   // 1e4) leaves a few images flatter than kFlatImageRelativeCross in every
   // class, yet positive far beyond round-off: one-to-one there. Counted as
   // folds they sent every class of that pair to the own-edge retry and
-  // then out (docs/handle_classes.md, "Flat is not folded"). They stay out
+  // then out (docs/handle_classes.md, "Flat images, folds and the own-edge retry"). They stay out
   // of the D' mean and max, but only images flat within round-off or
   // negatively oriented fold the map.
   using Complex = std::complex<double>;
@@ -397,7 +397,7 @@ DistortionStats one_face_chart_distortion(const hyperbolic::Mobius (&g)[3], int 
 }
 
 TEST(Distortion, LongThinImagesAreReadFromTheirWidestCorner) {
-  // Issue 13 (block g12 -> raw wheel g12, docs/robustness.md "Session 26"):
+  // Issue 13 (block g12 -> raw wheel g12, docs/robustness.md "Fallback classes and reading long images"):
   // a twisted class maps source faces of an ordinary size to hyperbolic
   // triangles 30-56 units long. Seen from the chart centring a sharp corner
   // of such an image, the other two corners lie within e^-(side length) of

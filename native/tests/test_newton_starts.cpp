@@ -231,7 +231,7 @@ TEST(NewtonStarts, TwistedClassReachesTheSameOptimumFromEveryStart) {
   EXPECT_NEAR(direct_energy, mc.final_energy, 1e-9 * mc.final_energy);
 }
 
-// Issue 14 (docs/handle_classes.md "Why the geometric classes failed"): on
+// Issue 14 (docs/history/handle_classes.md "Why the geometric classes failed"): on
 // the fertility -> genus-4 plate pair every marking and greedy pants class
 // was refused by its coarse solve ("edge 11 starts 77.9 units long (deck
 // element beyond double range for this solve)"): the images of the source's
@@ -310,7 +310,7 @@ TEST(NewtonStarts, StartEdgesBeyondSeventyUnitsAreRefusedByDefaultAndReachTheOpt
   EXPECT_EQ(inspected, 1);
 }
 
-// Session 25 (docs/code_map.md "Session 25"): a source without a coarse
+// Session 25 (docs/history/code_map.md "Session 25"): a source without a coarse
 // copy solves every class from the origin, and the ranking's start check
 // (HomotopySearchOptions::start_edge_size, about 70 units) refuses the
 // classes whose start has a longer edge: 6 of 15 on this n-hole torus ->

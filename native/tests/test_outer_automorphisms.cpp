@@ -372,7 +372,7 @@ TEST(OuterAutomorphisms, ProbeCostWithTheMemoEqualsTheDirectComputation) {
   }
 }
 
-// Issue 14 (docs/handle_classes.md "Both directions, cheaply"): the probe
+// Issue 14 (docs/handle_classes.md "The two directions today"): the probe
 // descent sees only conjugacy classes and stalls on classes far from the
 // identity; Nielsen reduction of the generator images inverts them. The
 // literal class is the one the fertility -> genus-4 CAD plate run chose

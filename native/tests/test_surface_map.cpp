@@ -522,7 +522,7 @@ TEST(SurfaceMap, CrowdedFingerImagesKeepTheirOrientation) {
   // images come out degenerate or flipped; solved and measured as long
   // double offsets they are all positive, and the forward barycentrics
   // computed from them keep the certificate's 3D orientations
-  // (docs/robustness.md, "Crowded images").
+  // (docs/robustness.md, "The source side").
   TriMesh a = samples::torus_of_revolution(1.0, 0.35, 48, 16);
   const double outer = 1.35 - 1e-9;
   std::vector<int> tips;
@@ -547,7 +547,7 @@ TEST(SurfaceMap, CrowdedFingerImagesKeepTheirOrientation) {
   // triangles negative in 10 of 14 runs (the solver's long double count 0).
   // At 5.7 all 14 certify (the least relative area 0.0026) while the images
   // rounded to double still fold (1-7 source triangles negative in each),
-  // the regime this test is for (docs/code_map.md "Session 25").
+  // the regime this test is for (docs/history/code_map.md "Session 25").
   for (int v : tips) a = samples::finger(a, v, 5.7, 40);
   const TriMesh b = samples::torus_of_revolution(1.5, 0.5, 60, 24);
   HarmonicProblem p;
@@ -914,6 +914,11 @@ TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
   };
   const std::string retried = error_of(o);
   EXPECT_NE(retried.find(" units long"), std::string::npos) << retried;
+  try {  // (the reason the retry reads, on both runs' error)
+    surface_map(a, b, o);
+  } catch (const SolveError& e) {
+    EXPECT_EQ(e.reason(), SolveFailure::start_edges) << e.what();
+  }
   const size_t again = retried.find("; again with the short canonical generators (the automatic retry): ");
   ASSERT_NE(again, std::string::npos) << retried;
   EXPECT_NE(retried.find(" units long", again), std::string::npos) << retried;  // (the retry's own reason)
@@ -934,6 +939,131 @@ TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
   EXPECT_TRUE(surface_map(a, b, plain).canonical_generators_fallback.empty());
 }
 
+// Issue 13 (session 28): the retries read the error's reason
+// (SolveFailure), not its words. A first run that fails with a start-edge
+// reason in other words is retried with the short generators; one whose
+// message says " units long" with no such reason is not. (The hook fails the
+// classical runs only; the retry then maps the pair for real.)
+TEST(SurfaceMapHandles, StartEdgeRetryReadsTheReasonNotTheWords) {
+  const TriMesh a = samples::n_hole_torus(2, 18, true);
+  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;
+  o.homotopy.search.enabled = false;
+  auto failing_classical = [](const std::string& message, SolveFailure why, std::vector<bool>* runs) {
+    testing::MapHooks hooks;
+    hooks.before_run = [=](const SurfaceMapOptions& run) {
+      runs->push_back(run.loops.short_canonical_generators);
+      if (!run.loops.short_canonical_generators) throw SolveError(message, why);
+    };
+    return hooks;
+  };
+  std::vector<bool> runs;
+  const SurfaceMapResult m =
+      testing::surface_map(a, b, o, failing_classical("the start was refused (reworded)", SolveFailure::start_edges, &runs));
+  EXPECT_EQ(runs, (std::vector<bool>{false, true}));
+  expect_valid_map(m, a, b);
+  EXPECT_NE(m.canonical_generators_fallback.find(" s (the start was refused (reworded))"), std::string::npos)
+      << m.canonical_generators_fallback;
+  EXPECT_EQ(m.canonical_generators.rfind("short", 0), 0u) << m.canonical_generators;
+  EXPECT_TRUE(m.fold_fallback.empty()) << m.fold_fallback;
+  // The old words without the reason: one run, its error as it was.
+  runs.clear();
+  const std::string words = "hyperbolic harmonic map: edge 3 starts 99.5 units long";
+  try {
+    testing::surface_map(a, b, o, failing_classical(words, SolveFailure::unspecified, &runs));
+    ADD_FAILURE() << "mapped";
+  } catch (const SolveError& e) {
+    EXPECT_EQ(std::string(e.what()), words);
+  }
+  EXPECT_EQ(runs, std::vector<bool>{false});
+}
+
+// Issue 13 (session 28; LoopOptions::fold_fallback): a default-class run with
+// the classical generators in which every class folds is made once more with
+// the short generators, one way; the result says so, its progress goes on
+// from where the first run stopped under stages named for the retry, and
+// the callback can cancel it. Not with the option off, nor for a class
+// asked for, nor when the short generators were the first run's. (The hook
+// fails the classical runs with a fold error; the retry maps for real.)
+TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
+  const TriMesh a = samples::n_hole_torus(2, 18, true);
+  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  SurfaceMapOptions o;  // (two-way run on: the retry turns it off)
+  o.homotopy.search.enabled = false;
+  std::vector<SurfaceMapOptions> runs;
+  testing::MapHooks hooks;
+  hooks.before_run = [&](const SurfaceMapOptions& run) {
+    runs.push_back(run);
+    if (!run.loops.short_canonical_generators) throw SolveError("every class folded (a test's words)", SolveFailure::folds);
+  };
+  std::vector<std::pair<std::string, double>> reports;
+  SurfaceMapOptions with_progress = o;
+  with_progress.progress = [&](const std::string& stage, double fraction) {
+    reports.emplace_back(stage, fraction);
+    return true;
+  };
+  const SurfaceMapResult m = testing::surface_map(a, b, with_progress, hooks);
+  ASSERT_EQ(runs.size(), 2u);
+  EXPECT_TRUE(runs[0].homotopy.two_way);
+  EXPECT_TRUE(runs[1].loops.short_canonical_generators);
+  EXPECT_FALSE(runs[1].homotopy.two_way);
+  expect_valid_map(m, a, b);
+  EXPECT_EQ(m.fold_fallback.rfind("made with the short canonical generators, one way: the default run folded in every "
+                                   "class after ",
+                                   0),
+            0u)
+      << m.fold_fallback;
+  EXPECT_NE(m.fold_fallback.find(" s (every class folded (a test's words))"), std::string::npos) << m.fold_fallback;
+  EXPECT_TRUE(m.canonical_generators_fallback.empty()) << m.canonical_generators_fallback;
+  EXPECT_EQ(m.canonical_generators.rfind("short", 0), 0u) << m.canonical_generators;
+  ASSERT_FALSE(reports.empty());
+  for (const auto& [stage, fraction] : reports) {
+    EXPECT_EQ(stage.rfind("retry after folds: ", 0), 0u) << stage;  // (the first run reported nothing: the hook threw)
+    EXPECT_GE(fraction, 0.0);
+    EXPECT_LE(fraction, 1.0);
+  }
+  for (size_t k = 1; k < reports.size(); ++k) EXPECT_GE(reports[k].second, reports[k - 1].second);
+  // The retry is cancelled like any run.
+  SurfaceMapOptions cancelling = o;
+  cancelling.progress = [](const std::string& stage, double) { return stage.rfind("retry after folds: ", 0) != 0; };
+  EXPECT_THROW(testing::surface_map(a, b, cancelling, hooks), Cancelled);
+  // No retry: the first run's error as it was, with its reason.
+  auto one_run = [&](const SurfaceMapOptions& opt) {
+    runs.clear();
+    try {
+      testing::surface_map(a, b, opt, hooks);
+      ADD_FAILURE() << "mapped";
+    } catch (const SolveError& e) {
+      EXPECT_EQ(std::string(e.what()), "every class folded (a test's words)");
+      EXPECT_EQ(e.reason(), SolveFailure::folds);
+    }
+    EXPECT_EQ(runs.size(), 1u);
+  };
+  SurfaceMapOptions off = o;
+  off.loops.fold_fallback = false;
+  one_run(off);
+  SurfaceMapOptions asked = o;
+  asked.homotopy.class_index = 0;
+  one_run(asked);
+  // The short generators asked for: the hook lets that run map, so fail it too.
+  hooks.before_run = [&](const SurfaceMapOptions& run) {
+    runs.push_back(run);
+    throw SolveError("every class folded (a test's words)", SolveFailure::folds);
+  };
+  SurfaceMapOptions short_asked = o;
+  short_asked.loops.short_canonical_generators = true;
+  one_run(short_asked);
+  // A failure of another kind is not retried.
+  runs.clear();
+  hooks.before_run = [&](const SurfaceMapOptions& run) {
+    runs.push_back(run);
+    if (!run.loops.short_canonical_generators) throw SolveError("the optimised map has 3 flipped (words alone)");
+  };
+  EXPECT_THROW(testing::surface_map(a, b, o, hooks), SolveError);
+  EXPECT_EQ(runs.size(), 1u);
+}
+
 // The small genus-2 pair of the twist-search tests below (an n-hole torus
 // and a jittered finer one: no coarse copy) and hooks that start the search
 // from its default class (search off, one way) composed with `twists`.
@@ -951,7 +1081,7 @@ TwistedStartPair twisted_start_pair(const std::vector<std::string>& twists) {
   return p;
 }
 
-// Issue 14 (session 26; docs/handle_classes.md "Session 26"): the search
+// Issue 14 (session 26; docs/handle_classes.md "The search, restarted"): the search
 // options of the iterated local search reach the twist search. On the pair
 // above from the same twisted start: one solve per step when asked
 // (evaluations_per_step), and two kicks after the descent, each named by its
@@ -1387,7 +1517,7 @@ TEST(SurfaceMapHandles, BothDirectionsGiveInverseClassesAlgebraically) {
   EXPECT_GE(c.directions.inverted_candidate, 0) << c.directions.reason;
 }
 
-// Issue 14 (docs/handle_classes.md "Both directions, cheaply"): with
+// Issue 14 (docs/handle_classes.md "The two directions today"): with
 // homotopy.reverse_class_only the other direction's class, inverted
 // algebraically, is the only candidate: chosen, and exactly inverse to it.
 // And the default two-way run (here forced for every ratio), in the
@@ -1449,14 +1579,12 @@ void expect_separate_runs_inverse(const SurfaceMapResult& f, const SurfaceMapRes
       << " / " << r.two_way_status << ")";
 }
 
-// Issue 14, both directions agree (docs/handle_classes.md "Both directions
-// agree"): a generated dissimilar pair mapped each way with
-// compare_directions, as two separate runs. Each run's final class and the
-// other run's final class, carried into one letter system through each
-// surface's identity overlay, are inverse (the composite is inner, exact),
-// or (genus 2) inverse up to the hyperelliptic involution, an isometry of
-// both; each report says so. The rule that settles a disagreement (the pair
-// of inverse classes with the lower total energy) is the same from either
+// Issue 14, both directions agree (docs/handle_classes.md "The two directions today"): a generated
+// dissimilar pair mapped each way with compare_directions, as two separate runs. Each run's final
+// class and the other run's final class, carried into one letter system through each surface's
+// identity overlay, are inverse (the composite is inner, exact), or (genus 2) inverse up to the
+// hyperelliptic involution, an isometry of both; each report says so. The rule that settles a
+// disagreement (the pair of inverse classes with the lower total energy) is the same from either
 // side, so the separate runs cannot end on classes that are not inverse.
 TEST(SurfaceMapHandles, SeparateRunsOfBothDirectionsEndOnInverseClasses) {
   // (A CAD plate, 140 vertices of long thin fans, against a smooth double
@@ -1485,7 +1613,7 @@ TEST(SurfaceMapHandles, SeparateRunsOfBothDirectionsEndOnInverseClasses) {
   expect_separate_runs_inverse(f, r);
 }
 
-// Issue 14 (docs/handle_classes.md "The issue-14 check, every pair"): with
+// Issue 14 (docs/history/handle_classes.md "The issue-14 check, every pair"): with
 // the default options (the two-way run forced by a ratio threshold of 0, so
 // both directions take it, and its cheap direction check, not
 // compare_directions), separate runs of the two directions end on inverse
@@ -1510,7 +1638,7 @@ TEST(SurfaceMapHandles, SeparateDefaultRunsOfBothDirectionsEndOnInverseClasses) 
 }
 
 // Issue 14 below the two-way run (session 23; docs/handle_classes.md
-// "Session 23"): the generated vase and two-handled cup map both ways at
+// "The two directions today"): the generated vase and two-handled cup map both ways at
 // about 1.14 x 8π(g−1), above agreement_ratio (1.1) and below two_way_ratio
 // (2). With the step off (agreement_ratio 2) the two separate runs end on
 // classes that are not inverse, not even up to the hyperelliptic involution
@@ -1577,8 +1705,8 @@ TEST(SurfaceMapHandles, SeparateRunsBelowTheTwoWayRatioEndOnInverseClasses) {
   }
 }
 
-// The through-shape step (issue 14; docs/handle_classes.md "Through a
-// generated shape"), through one given shape M with no stop at poor legs.
+// The through-shape step (issue 14; docs/handle_classes.md "Through generated shapes"), through one
+// given shape M with no stop at poor legs.
 // When M is the source itself, the map onto it is the identity, so the
 // composed class is the class the M -> target run chose: its energy here
 // must be the one-way run's (a wrong rewriting of the letters between the
@@ -1726,7 +1854,7 @@ TEST(SurfaceMapHandles, ThroughShapeClassIsChosenWhenItWins) {
   EXPECT_EQ(static_cast<int>(forward.inverse.size()), b.num_vertices());
 }
 
-// Issue 14, session 20 (docs/handle_classes.md "session 20"): a leg whose
+// Issue 14, session 20 (docs/handle_classes.md "Through generated shapes"): a leg whose
 // own search stops in a twisted class (fertility -> genus-4 plate 6.65 x,
 // not below fertility -> n-hole torus 4.54 x, so that shape was never
 // composed, while the leg in the first run's class composed with n-hole
@@ -1860,17 +1988,14 @@ TEST(SurfaceMapHandles, ThroughShapeRetriesALegThatCannotHelpThroughTheFirstRuns
   EXPECT_EQ(mirrored.flipped_triangles, 0);
 }
 
-// Issue 14, session 19 (docs/handle_classes.md "The composed classes searched
-// in both directions"): the same composed classes can end in different
-// classes in the two directions, because the harmonic energy is not
-// symmetric. Here two given classes of plate -> vase, X (a_1 -> a_1 b_1 on
-// the plate) and Y (a_2 -> a_2 b_2 on the vase, b_1 -> b_1 a_1^5 on the
-// plate), solved without the twist search: Y is lower plate -> vase (2.73 x
-// against 2.84 x) and X^-1 lower vase -> plate (2.48 x against 2.65 x), so
-// the two directions' own runs end on classes that are not inverse. The
-// step then solves each direction's class inverted in the other and keeps
-// the pair of lower total ratio, (X, X^-1): both directions end on inverse
-// classes (exact), the same pair from either side, each a valid map.
+// Issue 14, session 19 (docs/handle_classes.md "Through generated shapes"): the same composed
+// classes can end in different classes in the two directions, because the harmonic energy is not
+// symmetric. Here two given classes of plate -> vase, X (a_1 -> a_1 b_1 on the plate) and Y (a_2 ->
+// a_2 b_2 on the vase, b_1 -> b_1 a_1^5 on the plate), solved without the twist search: Y is lower
+// plate -> vase (2.73 x against 2.84 x) and X^-1 lower vase -> plate (2.48 x against 2.65 x), so
+// the two directions' own runs end on classes that are not inverse. The step then solves each
+// direction's class inverted in the other and keeps the pair of lower total ratio, (X, X^-1): both
+// directions end on inverse classes (exact), the same pair from either side, each a valid map.
 TEST(SurfaceMapHandles, ComposedClassesSearchedBothWaysEndOnInverseClasses) {
   const TriMesh a = samples::cad_plate(2, 32, 0.3);
   const TriMesh b = samples::vase(30, true);
@@ -1964,7 +2089,7 @@ TEST(SurfaceMapHandles, ComposedClassesSearchedBothWaysEndOnInverseClasses) {
     EXPECT_EQ(static_cast<int>(m->forward.size()), s->num_vertices());
     EXPECT_EQ(static_cast<int>(m->inverse.size()), t->num_vertices());
   }
-  // Session 20's rule (docs/handle_classes.md "A leg that cannot help"):
+  // Session 20's rule (docs/handle_classes.md "Through generated shapes"):
   // when this class inverted cannot be solved in the other direction (the
   // inversion stalls on some words: torus g4 -> fertility), its pair's total
   // is unknown, and the other direction's class inverted is adopted only if
@@ -2303,7 +2428,7 @@ TEST(SurfaceMapHandles, EveryCandidateIsSolvedExactlyAndTheDefaultIsTheMinimum) 
   EXPECT_NEAR(m3.final_energy, m.final_energy, 1e-8 * m.final_energy);
 }
 
-// Session 23 (issues 13/14; docs/robustness.md "Session 23"): the candidate
+// Session 23 (issues 13/14; docs/robustness.md "Canonical generators"): the candidate
 // classes are listed in both canonical bases, the classical and the short
 // (stages/other_basis.h), and a class listed in the other basis only is
 // searched by that basis's twists, so the basis the run presents the groups
@@ -2348,7 +2473,7 @@ TEST(SurfaceMapHandles, TheChosenClassDoesNotDependOnTheCanonicalBasis) {
   EXPECT_GT(std::abs(alone[0].final_energy - alone[1].final_energy), 1e-3 * both[0].final_energy);
 }
 
-// Session 25 (docs/handle_classes.md "Session 25"): the agreement step
+// Session 25 (docs/handle_classes.md "The two directions today"): the agreement step
 // below the two-way ratio keeps the pair of inverse classes of lower total
 // energy, a tie going to the mesh that comes first. An unsolved class
 // counts infinite, and a finite total against an infinite one is no tie:
@@ -2365,7 +2490,7 @@ TEST(SurfaceMapHandles, AnUnsolvedPairIsNoTie) {
   EXPECT_FALSE(detail::pair_totals_tie(3.5652, 3.5655));
 }
 
-// Session 24 (issue 14; docs/handle_classes.md "Session 24"): a class of
+// Session 24 (issue 14; docs/handle_classes.md "Classes named by words"): a class of
 // one run asked for in another by its words (HomotopyOptions::class_words),
 // not by its index: the other run's list (landmarks, a class given, the
 // other bases' listing) is another, and on this pair the free run's index

@@ -21,9 +21,31 @@ struct InputError : Error {
   using Error::Error;
 };
 
+/// Why a SolveError was thrown, for callers that act on the kind of failure
+/// (the map's automatic retries, map/surface_map.cpp) instead of reading
+/// messages, whose wording may change.
+enum class SolveFailure {
+  /// Any other failure.
+  unspecified,
+  /// A harmonic map solve refused its start: an edge starts longer than the
+  /// solve's start-edge limit (HyperbolicHarmonicOptions::max_start_edge_size),
+  /// or a map failed in every class and some solve of its run was refused so.
+  start_edges,
+  /// The map folds: flipped or degenerate image triangles in the class(es)
+  /// mapped ("the optimised map has N flipped ...", "no candidate class gave
+  /// a bijective map ...").
+  folds,
+};
+
 /// A numerical solve did not reach its tolerance, or produced an invalid result.
+/// `reason()` says which kind of failure when the thrower knows it.
 struct SolveError : Error {
-  using Error::Error;
+  explicit SolveError(const std::string& message, SolveFailure why = SolveFailure::unspecified)
+      : Error(message), reason_(why) {}
+  SolveFailure reason() const { return reason_; }
+
+ private:
+  SolveFailure reason_;
 };
 
 /// A uniformization metric could not be delivered: the flow did not converge

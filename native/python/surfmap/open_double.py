@@ -105,7 +105,7 @@ def refine_near_boundary(V, F, loops, rings, split_boundary=False):
     a face (the conformal factor is per vertex), so its faces are mapped onto their 3D faces
     by affine maps that shear differently on either side of an edge, and a strongly compressed
     source face whose geodesic image (positive) straddles such an edge can come out folded as
-    the chord triangle of its corners' images in 3D (docs/open_surfaces.md "Session 19").
+    the chord triangle of its corners' images in 3D (docs/history/open_surfaces.md "Session 19").
     Smaller faces there resolve the metric.
 
     V (n,3), F (m,3), loops: the boundary loops (vertex indices). Returns (V2 (n+k,3), F2
@@ -410,7 +410,7 @@ def _capped_map(S, T, pairing, options, mirrored=False, tie_tolerance=1e-6, land
     # double torus with a hole onto the eight with a hole folded 575-643 faces carrying 201
     # vertices along, in all 15 / 14 classes), the classes are ranked by their plain pins' energy
     # and the chosen one's folded images are taken (landmarks_may_fold;
-    # docs/open_surfaces.md "Capped maps that fold").
+    # docs/history/open_surfaces.md "Capped maps that fold").
     fold = {}
     try:
         first, cands, chosen = solve()
@@ -1185,7 +1185,7 @@ def _slide_ears(A, B, points, reversing, keep):
     return {k: int(got[k]) for k in ("ears", "turned", "moved", "moved_with_neighbours", "turned_after")}
 
 
-#: Reflex-corner slides (docs/open_surfaces.md "Session 25"): in _finish_half, a boundary image
+#: Reflex-corner slides (docs/open_surfaces.md "The half's solve"): in _finish_half, a boundary image
 #: next to a reflex corner of the other side's loop slid onto it; False: not (to compare).
 REFLEX_CORNER_SLIDES = True
 
@@ -1451,12 +1451,12 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
 
 #: The half's solve on the halves refined at their boundary (open_reflection.RefinedHalf), then on
 #: the target's refined only, then on the unrefined ones, where each fails (docs/open_surfaces.md
-#: "Session 23"); False: the unrefined ones only (to compare).
+#: "The half's solve"); False: the unrefined ones only (to compare).
 REFINE_HALF = True
 
 #: Which of the set-ups that succeed is kept (_reflection_candidate): "measured" (default) every one
 #: solved and the best by _setup_quality; "first" the first in the order above (session 23's rule,
-#: to compare; docs/open_surfaces.md "Session 24").
+#: to compare; docs/open_surfaces.md "The half's solve").
 SETUP_CHOICE = "measured"
 
 
@@ -1545,10 +1545,10 @@ def _keep_requested_pairing(S, T, r, images, options, landmarks, requested, whos
     the source loops on the requested target loops, the other classes of the list (in order of
     energy: the images' own when the snapped class won, the snapped class when the images' class
     won) are solved alone (`homotopy` index) and the first whose map keeps the pairing is taken.
-    When none does, PairingNotKept (a SolveError, one line) (docs/open_surfaces.md "Session 25").
+    When none does, PairingNotKept (a SolveError, one line) (docs/open_surfaces.md "The half's solve").
     The chosen class's re-solves call it with an automatic pairing too, `requested` then the
     pairing the chosen candidate's map realized and `whose` "the chosen candidate's"
-    (docs/open_surfaces.md "Session 25 (open25)")."""
+    (docs/open_surfaces.md "The half's solve")."""
     requested = [int(x) for x in requested]
     got = _voted_pairing(S, T, r)
     if got == requested:
@@ -1595,7 +1595,7 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
     solved on (_half maps it back through them), 'half' its map finished (_setup_quality), which
     surface_map_open delivers. Every set-up is solved and the best measured kept (SETUP_CHOICE);
     cand['reflection_setups'] lists them. The boundary loops are paired as r's images pair them
-    (_realized_pairing), whatever `pairing` requested (docs/open_surfaces.md "Session 24")."""
+    (_realized_pairing), whatever `pairing` requested (docs/open_surfaces.md "The half's solve")."""
     def sides(refined):
         # refined: 2 both halves refined at their boundary, 1 the target's only, 0 neither.
         if not refined:
@@ -1631,13 +1631,13 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
     # whose delivered map measures best is kept (_setup_quality: fewest folded faces both ways,
     # then the smallest largest D'); SETUP_CHOICE "first": the first that succeeds, in that order
     # (session 23's rule: double_torus_1 A -> B 9.73 where the unrefined halves give 8.63,
-    # docs/open_surfaces.md "Session 24").
+    # docs/history/open_surfaces.md "Session 24").
     # The boundary loops as the doubles' map r pairs them (its class is what the half's solve
     # solves): each source loop onto the target loop nearest most of its images. The candidate's
     # pairing may differ (the fold test's pair, [0, 1, 2] asked: the snapped overlay's class's images
     # on [1, 2, 0]; a requested pairing no longer does, _keep_requested_pairing, but an automatic
     # pairing's candidate still can), and a boundary vertex sliding on another loop's geodesic than
-    # its image's stalls the solve (docs/open_surfaces.md "Session 24").
+    # its image's stalls the solve (docs/open_surfaces.md "The half's solve").
     requested = [int(x) for x in pairing]
     pairing = _realized_pairing(S, T, r, requested)
     groups = [[(refined, weights, floor) for refined in ((2, 1, 0) if REFINE_HALF else (0,))]
@@ -1833,7 +1833,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     rings of the boundary are split refine_levels times (refine_near_boundary; the images onto
     the input faces as before) and kept when fewer faces fold both ways together
     ('refined_near_boundary' says the counts). Only maps with folds left pay for it (poncho ->
-    spot: 6 / 2 folded -> 1 / 2, 240 s more; docs/open_surfaces.md "Session 19").
+    spot: 6 / 2 folded -> 1 / 2, 240 s more; docs/history/open_surfaces.md "Session 19").
     reflection_solve (default True; CLI --no-reflection-solve): the chosen candidate's class solved
     again on the source's half alone, the mirror half given by the reflections
     (open_reflection.solve_half: symmetric to round-off, the boundary on the target's geodesic
@@ -1841,7 +1841,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     symmetric, theirs (ranked by their doubles' energy like the rest); used when it converges bijective in
     the metric, else the doubles' own half (the reason in the candidate's 'reflection_solve'); not
     with landmarks (the doubles hold them). 'open' 'reflection_solve' says what the chosen map used (docs/open_surfaces.md
-    "Session 20").
+    "The half's solve").
     Raises InputError for different (g, b) or a bad pairing, SolveError when no candidate
     maps."""
     S = _Side(Vs, Fs, "source")
@@ -1873,7 +1873,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         # The closed solves inside a candidate (its capped map, its doubles' map) report their
         # stage ends through this, so that a cancel is seen at their next stage instead of after
         # the whole candidate (over 4 minutes for a 30k-vertex genus-2 pair with one hole each:
-        # Esc in Blender's Compute Map; docs/addon.md "Session 26 (ui26)").
+        # Esc in Blender's Compute Map; docs/addon.md "The solve's thread").
         def inner_progress(stage, fraction):
             r = progress(f"{current['stage']} ({stage})", current["fraction"])
             return r is None or bool(r)
@@ -1916,7 +1916,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                         raise
                 if boundary_pairing is not None:
                     # A requested pairing is kept or the candidate fails (one line), never swapped
-                    # for the snapped overlay's class's pairing (docs/open_surfaces.md "Session 25").
+                    # for the snapped overlay's class's pairing (docs/open_surfaces.md "The half's solve").
                     r, note = _keep_requested_pairing(S, T, r, images, options, _landmark_pairs(S, T, lm, rev),
                                                       pairing)
                     if note:
@@ -1988,7 +1988,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
     # an automatic pairing the one the chosen candidate's doubles' map realized (its half's solve
     # slid the boundary on those loops, _reflection_candidate); a re-solve that pairs otherwise,
     # even with the class ranked beside it solved alone, is not used (docs/open_surfaces.md
-    # "Session 25 (open25)").
+    # "The half's solve").
     if boundary_pairing is not None:
         requested, whose = cand["pairing"], "the requested"
     else:
@@ -2118,7 +2118,7 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         # The delivered map is the half's solve: energy.final is its energy (the half's, in the
         # same units as the doubles' halved: half the energy of the symmetric doubles' map on the
         # doubles' unrefined intrinsic Delaunay weights; = open.reflection_energy)
-        # (docs/open_surfaces.md "Session 21").
+        # (docs/open_surfaces.md "The half's solve").
         out["energy"]["final"] = float(sym["energy"])
         out["converged"] = bool(out.get("converged", True)) and sym["converged"]
     out["source_flipped"] = out["target_flipped"] = False

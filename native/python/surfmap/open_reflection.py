@@ -1,4 +1,4 @@
-"""The reflection-aware solve of the doubles (docs/open_surfaces.md "Session 20"): the harmonic map
+"""The reflection-aware solve of the doubles (docs/open_surfaces.md "The half's solve"): the harmonic map
 between two doubles restricted to the maps that commute with their reflections, solved on the
 source's half alone.
 
@@ -141,7 +141,7 @@ def symmetric_metric(double, ricci_tolerance=1e-12):
     scheme first; where it leaves a face degenerate (a triangle inequality violated: the metric
     needs other edges), the inversive-distance one, another discrete conformal metric on the same
     edges (the torus_1 bench shape's double, its faces at the boundary split: vertex scaling
-    leaves 2 degenerate faces, inversive distance converges; docs/open_surfaces.md "Session 23")."""
+    leaves 2 degenerate faces, inversive distance converges; docs/history/open_surfaces.md "Session 23")."""
     D = double
     why = []
     for scheme in ("yamabe", "inversive"):
@@ -460,7 +460,7 @@ class RefinedHalf:
     Why: the half's boundary strip is one face wide, so a source face with two corners on the
     boundary had one free corner to follow the target's boundary geodesic with, and the target's
     boundary faces, the largest in its metric next to a small hole, carried the change of scale
-    from the metric to 3D over one face (docs/open_surfaces.md "Session 23").
+    from the metric to 3D over one face (docs/history/open_surfaces.md "Session 23").
 
     The attributes solve_half and open_double._reflected_correspondence read: the input mesh's
     (V, F, loops, n, ...), the refined half's V2, F2, D (its double), n2, half_loops (the loops

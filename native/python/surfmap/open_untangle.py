@@ -1,5 +1,4 @@
-"""Untangling the half's few folded faces (issue 16; docs/open_surfaces.md, "Folds between strongly
-different shapes").
+"""Untangling the half's few folded faces (issue 16; docs/open_surfaces.md, "The half's solve").
 
 Why: the doubles' harmonic map is computed in the target's uniformized metric, where the image of
 every source face is positively oriented (`intrinsic_flipped_triangles` 0). The output, though, is
@@ -36,7 +35,7 @@ along the other rim, between their loop neighbours' images, then the joint step 
 clear because its positions fall beyond the rim (into the target's hole, next to a boundary edge
 whose image chords across a notch of the other rim) get it once more with the boundary vertices
 within its rings sliding along the rim as unknowns too and the free ones kept inside the chart's
-faces by a penalty (_rim_sliders, _walls; docs/history/open_surfaces.md "Session 28 (open29)"). What
+faces by a penalty (_rim_sliders, _walls; docs/open_surfaces.md "The half's solve"). What
 none of these clears is left as it was (its faces stay counted).
 """
 import numpy as np
@@ -144,7 +143,7 @@ def _unfolded_chart(T, root, held, sign):
 
 
 #: untangle_half's joint re-embedding of the folds no vertex alone clears: up to this many rings
-#: around a cluster's corners (0: off; docs/open_surfaces.md "Session 26").
+#: around a cluster's corners (0: off; docs/open_surfaces.md "The half's solve").
 PATCH_RINGS = 4
 
 
@@ -849,9 +848,10 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
         bad = now
     # Folds that no vertex alone can clear: every corner's kernel is empty because its neighbours'
     # images are folded too (poncho -> spot: 4 faces next to a 306-degree corner of one of spot's
-    # rims, 8 corners, every kernel empty; docs/open_surfaces.md "Session 26"). Each cluster of such
-    # faces is untangled jointly: the interior vertices within k rings of its corners (k = 1 ..
-    # patch_rings) moved together in the target's chart (_patch_untangle), the ring around them held.
+    # rims, 8 corners, every kernel empty; docs/history/open_surfaces.md "Session 26: poncho"). Each
+    # cluster of such faces is untangled jointly: the interior vertices within k rings of its
+    # corners (k = 1 .. patch_rings) moved together in the target's chart (_patch_untangle), the
+    # ring around them held.
     patch_rings = PATCH_RINGS if patch_rings is None else patch_rings
 
     def joint(slide_rim=False):
@@ -894,7 +894,7 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
                     moved.append(int(v))
         # The sweeps widen the room around folds still left: the rim-sliding joint step once more
         # (spot -> poncho's full run left poncho face 3842 folded; a second pass over its delivered
-        # inverse clears it; docs/history/open_surfaces.md "Session 28 (open29)").
+        # inverse clears it; docs/open_surfaces.md "The half's solve").
         if boundary_slides and np.any(turned_of(np.arange(len(S.F))) & ~ear):
             joint(slide_rim=True)
     return sorted(set(moved))

@@ -65,8 +65,8 @@ SourceClassBounds source_class_bounds(const TriMesh& source, const Connectivity&
 /// (nearest copy vertices, shortest joins; checked to be an isomorphism).
 /// The lengths are those of the copy's hyperbolic metric, so the curve
 /// bounds bound the energy of maps from the copy, the surface the ranking's
-/// coarse energies are measured on (docs/handle_classes.md "Bounds on the
-/// coarse copy"). `letters` are left empty (the copy's letters are not the
+/// coarse energies are measured on (docs/history/handle_classes.md "Bounds on the coarse copy").
+/// `letters` are left empty (the copy's letters are not the
 /// source's).
 SourceClassBounds coarse_class_bounds(const TriMesh& copy, const TriMesh& source, const SystemOfLoops& sl,
                                       const std::vector<Word>& generators, int genus, const SurfaceMapOptions& options,

@@ -6,7 +6,7 @@
 // (uniformize/layout.h FaceAtlas); nothing reads a global chart, a deck
 // group or a fundamental polygon. Internal to src/map (surface_map.cpp).
 //
-// What it does, in order (docs/robustness.md "Maps in per-face charts"):
+// What it does, in order (docs/robustness.md "High genus"):
 //  1. the target's flip-based hyperbolic metric (as the single-chart path's
 //     target stage, without loops or layout) and its FaceAtlas on T';
 //  2. the start: every source vertex at the target vertex nearest it in 3D

@@ -498,7 +498,8 @@ class ChartState {
         throw SolveError("hyperbolic harmonic map: edge " + std::to_string(e) + " starts " +
                          std::to_string(A[e].displacement_of_origin()) +
                          " units long (beyond this solve's start-edge limit: such a start costs hundreds of "
-                         "capped steps)");
+                         "capped steps)",
+                         SolveFailure::start_edges);
     r.vertex_deck.assign(n, Mobius());
     r.vertex_deck_word.assign(n, Word{});
     for (int i = 0; i < n; ++i) move_vertex(i);
@@ -680,7 +681,7 @@ class ChartState {
   // close up (by up to 0.044) and 3 folded. Seen from T_i the partial
   // products are only as large as vertex i is far from those centres, and
   // the triangles close to 5.6e-5, the target's own round-off
-  // (docs/robustness.md "Session 18").
+  // (docs/robustness.md "Long deck elements").
   LongProduct fresh_anchored(int e) const {
     const WeightedEdge& ed = edges_[e];
     std::vector<LongMobius>& f = factor_scratch_;

@@ -409,7 +409,7 @@ HyperbolicBarrierResult hyperbolic_barrier_landmarks(int n, const std::vector<We
   // Stalled with more than one landmark: two of them may be meeting head on
   // (sent to each other's places: on their geodesics they meet half-way).
   // Again from the free map, each stepping aside to its left, then to its
-  // right (LandmarkGeodesics::bend; docs/handle_classes.md "Session 25").
+  // right (LandmarkGeodesics::bend; docs/history/handle_classes.md "Session 25").
   for (double bend : {0.5, -0.5}) {
     if (s >= 1 || source.size() < 2) break;
     paths.bend = bend;

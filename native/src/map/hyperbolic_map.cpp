@@ -180,6 +180,15 @@ class HyperbolicPipeline {
   /// them again (a fallback). Shorter than data: the rest are not released.
   std::vector<char> data_released;
   std::vector<char> usable, coarse_failed, full;
+  /// Solves of this run refused at their start edges (SolveFailure::
+  /// start_edges: a candidate's, a geometric class's, a search neighbour's):
+  /// a run that then fails in every class fails with that reason, which the
+  /// short-generators retry reads (map/surface_map.cpp). Atomic: the class
+  /// search's solves may run on other threads.
+  std::atomic<int> start_edge_refusals{0};
+  void note_refusal(const SolveError& e) {
+    if (e.reason() == SolveFailure::start_edges) ++start_edge_refusals;
+  }
   std::vector<char> not_ranked;  ///< classes the ranking did not solve (issue 19; still fallbacks)
   std::vector<int> order;  ///< classes by coarse energy
   int ncand = 0, full_solves = 0;
@@ -385,7 +394,7 @@ class HyperbolicPipeline {
   // solved like a geometric class: its loops' images can be as long
   // untwisted (fertility -> genus-4 plate: the plate's class inverted had a
   // start edge of 80.5 units and was refused, so the two directions were
-  // never compared; docs/handle_classes.md "Both directions, cheaply").
+  // never compared; docs/handle_classes.md "The two directions today").
   void allow_long_start_edges(int k, HyperbolicHarmonicOptions& o) const {
     if (k >= 0 && (k == candidates.inverted_class || k == candidates.carried_class))
       o.max_start_edge_size = std::max(o.max_start_edge_size, options.homotopy.search.geometric_start_edge_size);
@@ -535,7 +544,7 @@ const SourceClassBounds& HyperbolicPipeline::class_bounds_now() {
 // else the source's own (class_bounds_now). The copy's bounds bound the
 // energies of maps from the copy, the surface the coarse energies are
 // measured on; its hyperbolic lengths are within about 1% of the source's
-// (docs/handle_classes.md "Bounds on the coarse copy").
+// (docs/history/handle_classes.md "Bounds on the coarse copy").
 const SourceClassBounds& HyperbolicPipeline::ranking_bounds_now() {
   if (!ss.cs.ok) return class_bounds_now();
   if (!have_coarse_bounds) {
@@ -579,7 +588,7 @@ void HyperbolicPipeline::candidate_classes_and_data() {
   space = std::make_unique<ClassSpace>(out.genus, ss.sl, ss.scs, tcs, ut->layout, *deck_group);
   const ClassLoops* cl = ut->class_loops.get();
   projector = std::make_unique<LoopProjector>(cl ? cl->loops : ut->loops, cl ? cl->word : ut->layout.word);
-  // Issue 13/14 (docs/robustness.md "Session 23"): the classes of the
+  // Issue 13/14 (docs/robustness.md "Canonical generators"): the classes of the
   // other canonical basis too (stages/other_basis.h).
   if (options.loops.both_canonical_bases) {
     other_basis = std::make_unique<OtherBasis>(out.genus, ss.sl, ss.scs, tcs, cl ? cl->schema : tcs,
@@ -747,13 +756,16 @@ bool HyperbolicPipeline::try_solve(int k, const std::function<HyperbolicHarmonic
     else return true;
   } catch (const SolveError& e) {
     why = e.what();
+    note_refusal(e);
   }
   const bool needed = options.homotopy.class_index == k || (options.homotopy.class_index < 0 && ncand == 1);
   if (needed && coarse) {
     coarse_failed[k] = 1;
     return false;
   }
-  if (needed) throw SolveError("the harmonic map solve of homotopy class " + std::to_string(k) + " failed: " + why);
+  if (needed)
+    throw SolveError("the harmonic map solve of homotopy class " + std::to_string(k) + " failed: " + why,
+                     start_edge_refusals > 0 ? SolveFailure::start_edges : SolveFailure::unspecified);
   usable[k] = 0;
   out.candidates[k].energy = std::numeric_limits<double>::infinity();
   out.candidates[k].solved = false;
@@ -1110,6 +1122,7 @@ void HyperbolicPipeline::search_classes() {
     } catch (const SolveError& e) {
       ev->theta = theta;
       ev->failure = e.what();
+      note_refusal(e);
       return false;
     }
    };
@@ -1447,6 +1460,7 @@ CoarseSolve HyperbolicPipeline::full_resolution_solve(double& best, double max_s
       ev->result = solve_from_better_start(ev->edges, o);
     } catch (const SolveError& e) {
       ev->failure = e.what();
+      note_refusal(e);
       return false;
     }
     ev->failure = solve_failure(ev->result);
@@ -2007,7 +2021,8 @@ void HyperbolicPipeline::choose_with_landmarks() {
     } else if (!out.class_bound_status.empty()) {
       why += "; no geometric class (" + out.class_bound_status + ")";
     }
-    throw SolveError("the harmonic map solve failed in every candidate homotopy class" + why);
+    throw SolveError("the harmonic map solve failed in every candidate homotopy class" + why,
+                     start_edge_refusals > 0 ? SolveFailure::start_edges : SolveFailure::unspecified);
   }
   held_result.resize(ncand);
   held_record.resize(ncand);
@@ -2283,7 +2298,7 @@ bool map_class(HyperbolicPipeline& p) {
 // (the optimum placed in P, its charts' distortion), so the outcome is
 // map_class's; only the initial map (and its distortion) that map_class
 // builds first is saved. Classes without a kept solve (coarse-ranked only)
-// are mapped as before (docs/robustness.md "Session 25": on the genus-12
+// are mapped as before (docs/history/robustness.md "Session 25": on the genus-12
 // block <-> wheel pair those are the cost). Returns the refusal ("" when
 // the class must be mapped).
 std::string refused_by_its_solve(HyperbolicPipeline& p, int k) {
@@ -2388,7 +2403,8 @@ void map_with_fallback(HyperbolicPipeline& p) {
         const std::string& d = out.candidates[c].description;
         const size_t at = d.rfind("  [not used: ");
         throw SolveError(head + (at == std::string::npos ? std::string("?") : d.substr(at + 13, d.size() - at - 14)) +
-                         "; the last, class " + std::to_string(fallback[attempt]) + ": " + e.what());
+                             "; the last, class " + std::to_string(fallback[attempt]) + ": " + e.what(),
+                         SolveFailure::folds);
       }
       out.candidates[fallback[attempt]].description += std::string("  [not used: ") + e.what() + "]";
     }

@@ -113,6 +113,7 @@ json energy_json(const SurfaceMapResult& r) {
           {"target_class_loops", r.target_class_loops},
           {"canonical_generators", r.canonical_generators},
           {"canonical_generators_fallback", r.canonical_generators_fallback},
+          {"fold_fallback", r.fold_fallback},
           {"source_weights", r.source_weights},
           {"source_weights_reason", r.source_weights_reason},
           {"fold_repair",

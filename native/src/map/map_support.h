@@ -106,7 +106,7 @@ ClassLoops own_class_loops(const TriMesh& mesh, const Connectivity& conn, const 
 CanonicalSchemaOptions schema_options(const SurfaceMapOptions& options);
 /// The other canonical basis's options (classical when the run's are short,
 /// and the other way round): the candidates are listed in both
-/// (stages/other_basis.h, docs/robustness.md "Session 23").
+/// (stages/other_basis.h, docs/robustness.md "Canonical generators").
 CanonicalSchemaOptions other_schema_options(const SurfaceMapOptions& options);
 
 /// The target laid out in its uniformization metric: system of loops (refined,

@@ -72,6 +72,14 @@ bool chooses_class_in_automatic_cuts(const SurfaceMapOptions& options) {
          h.reverse_class.empty() && !h.images_only && !h.reverse_class_only && h.given_class.empty();
 }
 
+// The class is the default's, chosen by the run (no class named, given or
+// carried): what the retry after folds may choose again.
+bool chooses_default_class(const SurfaceMapOptions& options) {
+  const HomotopyOptions& h = options.homotopy;
+  return h.class_index < 0 && h.source_images.size() == 0 && h.reverse_class.empty() && !h.images_only &&
+         !h.reverse_class_only && h.given_class.empty() && h.class_words.empty();
+}
+
 std::string base_text(int v) { return v < 0 ? std::string("automatic") : std::to_string(v); }
 
 SurfaceMapResult map_in_automatic_cuts(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
@@ -190,6 +198,7 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
     return map_in_given_cuts(source, target, named, hooks);
   }
   auto map_in_chosen_cuts = [&](const SurfaceMapOptions& o) {
+    if (hooks.before_run) hooks.before_run(o);
     if (chooses_class_in_automatic_cuts(o)) {
       const Connectivity sc(source.F, source.num_vertices());
       const Connectivity tc(target.F, target.num_vertices());
@@ -197,30 +206,95 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
     }
     return map_in_given_cuts(source, target, o, hooks);
   };
+  // The automatic retries below report their progress as stages "<name>:
+  // ..." with fractions from the largest the first run reached up to 1
+  // (testing::surface_map keeps them from decreasing), so a retry does not
+  // sit at the first run's last fraction; the callback can cancel it.
+  struct Reached {
+    std::mutex mutex;  // (the first run's solves may report from several threads)
+    double fraction = 0;
+  };
+  auto reached = std::make_shared<Reached>();
+  SurfaceMapOptions first = options;
+  if (options.progress)
+    first.progress = [inner = options.progress, reached](const std::string& stage, double fraction) {
+      {
+        std::lock_guard<std::mutex> lock(reached->mutex);
+        reached->fraction = std::max(reached->fraction, fraction);
+      }
+      return inner(stage, fraction);
+    };
+  const auto t_first = Clock::now();
+  double first_seconds = 0;
+  // The retry's map, its times counting the first run's too.
+  auto retried = [&](SurfaceMapOptions retry, const std::string& name) {
+    first_seconds = seconds_since(t_first);
+    if (options.progress) {
+      std::lock_guard<std::mutex> lock(reached->mutex);
+      retry.progress = [inner = options.progress, from = reached->fraction, name](const std::string& stage,
+                                                                                   double fraction) {
+        return inner(name + ": " + stage, from + (1 - from) * std::clamp(fraction, 0.0, 1.0));
+      };
+    }
+    SurfaceMapResult out = map_in_chosen_cuts(retry);
+    out.total_time += first_seconds;
+    out.stage_total.seconds = out.total_time;
+    return out;
+  };
+  auto shortened = [](const std::string& what) { return what.size() > 300 ? what.substr(0, 300) + " ..." : what; };
   try {
-    return map_in_chosen_cuts(options);
+    return map_in_chosen_cuts(first);
   } catch (const SolveError& e) {
+    const std::string what = e.what();
     // Issue 13 (session 27; LoopOptions::short_generators_fallback): a run
     // with the classical generators that stopped at its start edges is made
     // again with the short ones (the genus-12 CAD block -> raw wheel: the
-    // classical run refuses every class at edges "335 units long", the short
-    // one maps).
-    const std::string what = e.what();
-    if (options.loops.short_canonical_generators || !options.loops.short_generators_fallback ||
-        what.find(" units long") == std::string::npos)
-      throw;
-    SurfaceMapOptions retry = options;
-    retry.loops.short_canonical_generators = true;
-    SurfaceMapResult out;
-    try {
-      out = map_in_chosen_cuts(retry);
-    } catch (const SolveError& again) {
-      throw SolveError(what + "; again with the short canonical generators (the automatic retry): " + again.what());
+    // classical run refused every class at edges "335 units long", the short
+    // one maps). Read from the error's reason (SolveFailure::start_edges),
+    // not its words.
+    if (!options.loops.short_canonical_generators && options.loops.short_generators_fallback &&
+        e.reason() == SolveFailure::start_edges) {
+      SurfaceMapOptions retry = options;
+      retry.loops.short_canonical_generators = true;
+      SurfaceMapResult out;
+      try {
+        out = retried(retry, "retry with the short generators");
+      } catch (const SolveError& again) {
+        throw SolveError(what + "; again with the short canonical generators (the automatic retry): " + again.what(),
+                         again.reason());
+      }
+      out.canonical_generators_fallback =
+          "made with the short canonical generators: the classical ones failed at their start edges after " +
+          std::to_string(static_cast<int>(first_seconds)) + " s (" + shortened(what) + ")";
+      return out;
     }
-    out.canonical_generators_fallback =
-        "made with the short canonical generators: the classical ones failed at their start edges (" +
-        (what.size() > 300 ? what.substr(0, 300) + " ..." : what) + ")";
-    return out;
+    // Issue 13 (session 28; LoopOptions::fold_fallback): a default-class run
+    // with the classical generators in which every class folded (after the
+    // two-way run's rescue, when on) is made once more with the short
+    // generators and one way: on the CAD block g12 -> raw wheel g12 the
+    // classical run's class search stops in a class that folds (128 x the
+    // bound), the short run's reaches one that maps one-to-one (71.7 x).
+    // One way: the first run has already tried the other direction, and the
+    // retry's cost stays that of one one-way run.
+    if (!options.loops.short_canonical_generators && options.loops.fold_fallback &&
+        e.reason() == SolveFailure::folds && chooses_default_class(options) &&
+        Connectivity(source.F, source.num_vertices()).genus() >= 2) {
+      SurfaceMapOptions retry = options;
+      retry.loops.short_canonical_generators = true;
+      retry.homotopy.two_way = false;
+      SurfaceMapResult out;
+      try {
+        out = retried(retry, "retry after folds");
+      } catch (const SolveError& again) {
+        throw SolveError(what + "; again with the short canonical generators, one way (the automatic retry after folds): " +
+                             again.what(),
+                         again.reason());
+      }
+      out.fold_fallback = "made with the short canonical generators, one way: the default run folded in every class after " +
+                          std::to_string(static_cast<int>(first_seconds)) + " s (" + shortened(what) + ")";
+      return out;
+    }
+    throw;
   }
 }
 
@@ -328,13 +402,13 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
     catch (const SolveError& e) {
       // Issue 14 (perturbed botijo -> genus-5 CAD plate): every one-way class
       // folded; the other direction may still map, and its class carried here
-      // may not fold (docs/handle_classes.md "Every class folded").
+      // may not fold (docs/handle_classes.md "The two directions today").
       if (std::string(e.what()).rfind("no candidate class gave a bijective map", 0) != 0) throw;
       std::string why;
       std::vector<std::vector<int>> target_letters_inverse;  // (for the through-shape step's search both ways)
       // (`out` holds what the failed run set: the source's letters as a target.)
       if (!detail::rescue_by_the_other_direction(source, target, options, out, map_of, why, &target_letters_inverse))
-        throw SolveError(std::string(e.what()) + (why.empty() ? std::string() : "; " + why));
+        throw SolveError(std::string(e.what()) + (why.empty() ? std::string() : "; " + why), e.reason());
       // The rescued class can be poor too (genus-4 plate -> fertility: 14.3 x,
       // while both shapes map onto the generated n-hole torus within 4.6 x).
       detail::through_shape_map(source, target, options, out, map_of, target_letters_inverse);

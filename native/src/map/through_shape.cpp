@@ -1,5 +1,4 @@
-// The through-shape step (issue 14; docs/handle_classes.md "Through a
-// generated shape").
+// The through-shape step (issue 14; docs/handle_classes.md "Through generated shapes").
 #include "through_shape.h"
 
 #include <algorithm>
@@ -140,7 +139,7 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
   // wheels beyond: at 32 cells the genus-4 n-hole torus (2.3k vertices)
   // mapped onto the genus-4 CAD plate at 11.8 x, at 48 (5.9k) at 1.04 x but
   // the fertility onto it at 8.75 x, at 64 (10k) at 4.54 x
-  // (docs/handle_classes.md "Through a generated shape").
+  // (docs/handle_classes.md "Through generated shapes").
   const int resolution = std::max(h.through_shape_resolution, g <= 4 ? 16 * g : 64);
   std::string notes;
   std::vector<MiddleShape> middles;
@@ -377,7 +376,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   here.loops = options.loops;
   // (The twist search runs on from the best of them, HomotopyOptions::
   // given_class: a composed class is as good as its two legs, not a local
-  // minimum here; docs/handle_classes.md "session 18".)
+  // minimum here; docs/handle_classes.md "Through generated shapes".)
   for (const std::vector<std::vector<int>>& theta : composed)
     here.homotopy.given_class.insert(here.homotopy.given_class.end(), theta.begin(), theta.end());
   for (const std::string& name : composed_through)
@@ -412,7 +411,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   // Each direction's search from the composed classes can end in its own
   // local minimum (fertility -> genus-4 plate 2.803 x, plate -> fertility
   // 6.029 x, not inverse): searched in both directions, the pair of lower
-  // total energy is kept (docs/handle_classes.md "session 19").
+  // total energy is kept (docs/handle_classes.md "Through generated shapes").
   auto both_ways = [&]() -> std::string {
     if (!options.homotopy.two_way) return "";
     if (target_letters_inverse.empty())

@@ -1,6 +1,6 @@
 #pragma once
-// The through-shape step (issue 14; docs/handle_classes.md "Through a
-// generated shape"). Not public API (used by surface_map.cpp).
+// The through-shape step (issue 14; docs/handle_classes.md "Through generated shapes"). Not public
+// API (used by surface_map.cpp).
 #include "surfmap/map/surface_map.h"
 #include "surfmap/topology/handle_basis.h"
 #include "two_way_run.h"
@@ -70,7 +70,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
 
 /// The two legs a composed class came from (through_shapes_map), for
 /// inverting it factor by factor when its own words do not invert
-/// (composed_classes_both_ways; docs/handle_classes.md "session 21").
+/// (composed_classes_both_ways; docs/handle_classes.md "Through generated shapes").
 struct ComposedLegs {
   /// The source -> M leg's class (the source's cut letters -> M's letters
   /// as a target), 2g words.
@@ -85,9 +85,8 @@ struct ComposedLegs {
   GroupMap from_inverse;
 };
 
-/// Issue 14, session 19/// Issue 14, session 19 (docs/handle_classes.md "The composed classes
-/// searched in both directions"): `forward` is this direction's result after
-/// the composed classes (`composed`, 2g words each in this run's letters,
+/// Issue 14, session 19 (docs/handle_classes.md "Through generated shapes"): `forward` is
+/// this direction's result after the composed classes (`composed`, 2g words each in this run's letters,
 /// named by `names`) were solved and searched on here, with class θ. The
 /// composed classes, inverted and written in the other direction's letters
 /// (through `forward`'s and `target_letters_inverse`), are solved and

@@ -104,8 +104,8 @@ OtherClassHere other_class_here(const SurfaceMapResult& r) {
   return o;
 }
 
-/// Issue 14, both directions agree (docs/handle_classes.md "Both directions
-/// agree"): `forward` (mapped with `fo`, given the other direction's class
+/// Issue 14, both directions agree (docs/handle_classes.md "The two directions today"): `forward`
+/// (mapped with `fo`, given the other direction's class
 /// ψ from `reverse`) chose θ, not ψ^-1, and θ, ψ^-1 are not isometric
 /// ("different"). The other direction is mapped again given θ (its words
 /// as reverse_class, and the source_images of `forward`'s inverse, so θ^-1
@@ -249,7 +249,7 @@ std::string search_from_this_class_there(const TriMesh& source, const TriMesh& t
   return "directions agreed on the class the other direction searched from this one: " + pairs;
 }
 
-/// Issue 14 (docs/handle_classes.md "Both directions, cheaply"): the
+/// Issue 14 (docs/handle_classes.md "The two directions today"): the
 /// two-way run found the other direction (class ψ, in `reverse`) no better
 /// by its ratio, which says nothing about ψ^-1 here (the harmonic energy is
 /// not symmetric). So, unless θ (this run's class) and ψ are already
@@ -328,7 +328,7 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
     // classes of lower total energy is kept, the pair the other direction's run ends on
     // (fertility -> genus-4 plate: θ 10.59 with θ^-1 14.3 there, against ψ'^-1 6.65 with
     // ψ' 7.65; before, separate runs of the two directions ended on these two different
-    // pairs; docs/handle_classes.md "The issue-14 check, every pair").
+    // pairs; docs/history/handle_classes.md "The issue-14 check, every pair").
     const std::string searched = search_from_this_class_there(source, target, options, reverse, forward, map,
                                                               own, alt_there, there_text);
     if (!searched.empty()) return searched;
@@ -380,7 +380,7 @@ double usable_energy(const SurfaceMapResult& r) {
 }
 
 /// Issue 14 below the two-way run (HomotopyOptions::agreement_ratio;
-/// docs/handle_classes.md "Session 23"): `forward` (class θ) is at
+/// docs/handle_classes.md "The two directions today"): `forward` (class θ) is at
 /// agreement_ratio or more but below two_way_ratio. The other direction is
 /// mapped one way (class ψ: the first run of that direction's own run, the
 /// same options); unless θ and ψ are inverse (exact; genus 2 also up to the
@@ -623,7 +623,7 @@ bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, c
 // one way: the last resort of rescue_by_the_other_direction. The perturbed
 // botijo -> genus-5 CAD plate folds in every class from the automatic base
 // vertex and in the other direction's class; from vertex 20000 of its 41158
-// it maps, 19.5 x (docs/handle_classes.md "Every class folded").
+// it maps, 19.5 x (docs/history/handle_classes.md "Every class folded").
 bool rescue_by_another_cut(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                            SurfaceMapResult& out, const MapFunction& map, std::string& why) {
   if (options.loops.source_base_vertex >= 0) return false;

@@ -30,7 +30,7 @@ void assess_quality(SurfaceMapResult& result);
 /// classes, which does not prove it the best (fertility -> genus-4 CAD plate:
 /// 6.65 x, and a class at 5.14 x exists, found through a third shape) nor
 /// rules out that the shapes are conformally far apart
-/// (docs/handle_classes.md "Is a better class reachable"). Once per result.
+/// (docs/history/handle_classes.md "Is a better class reachable"). Once per result.
 void qualify_quality_warning(SurfaceMapResult& result);
 
 /// Genus >= 2, HomotopyOptions::two_way: maps the other way when `forward`
@@ -40,8 +40,8 @@ void qualify_quality_warning(SurfaceMapResult& result);
 /// (two_way_status, two_way_time_s set). When that result's class and the
 /// other direction's are not inverse ("different"), the other direction is
 /// mapped once more given this class, and the pair of inverse classes of
-/// lower total energy is kept in both (docs/handle_classes.md "Both
-/// directions agree"; `forward` is mapped again in the other direction's
+/// lower total energy is kept in both (docs/handle_classes.md "The two directions today"; `forward`
+/// is mapped again in the other direction's
 /// class inverted when that pair is lower). When the other direction's
 /// ratio is not lower (HomotopyOptions::cheap_direction_check), its class
 /// inverted is solved here alone and this class inverted there alone, with
@@ -49,7 +49,7 @@ void qualify_quality_warning(SurfaceMapResult& result);
 /// HomotopyOptions::agreement_ratio or more, the other direction is mapped
 /// one way and the pair of inverse classes of lower total energy is kept
 /// (ties by a fixed order of the two meshes; directions.agreement says
-/// what was done; docs/handle_classes.md "Session 23"). Nothing for a
+/// what was done; docs/handle_classes.md "The two directions today"). Nothing for a
 /// requested class.
 /// `target_letters_inverse` (when given): the other direction's
 /// source_as_target_inverse (the target's letters as a target -> its
@@ -78,7 +78,7 @@ bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, c
 /// (two_way_status says which). False when the two-way run does not apply
 /// or every attempt fails; `why` then says what failed (the caller adds it
 /// to the one-way error).
-/// docs/handle_classes.md "Every class folded: the other direction's class".
+/// docs/handle_classes.md "The two directions today".
 /// `target_letters_inverse` as in two_way_map.
 bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                    SurfaceMapResult& out, const MapFunction& map, std::string& why,

@@ -723,7 +723,7 @@ class SupernodalFactorSimplicialSolves
   /// SurfaceMap.CrowdedFingerImagesKeepTheirOrientation certified with the
   /// supernodal solves' round-off and not with the simplicial one's; session
   /// 25 found that a draw of round-off (the supernodal solves fail it too
-  /// with the target scaled by 1 + 1e-15, docs/code_map.md "Session 25") and
+  /// with the target scaled by 1 + 1e-15, docs/history/code_map.md "Session 25") and
   /// moved the test off the double-resolution edge. Flat flows could take
   /// the simplicial solves now; not switched, since that moves every genus-1
   /// and annulus result by round-off and wants their suites rerun.

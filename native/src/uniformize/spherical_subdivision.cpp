@@ -153,7 +153,7 @@ SphericalSubdivision spherical_common_subdivision(const SphericalUniformization&
     // onto k–m (|σ| was 11-90% of its two terms; bends truly back on their
     // edge leave at most 9.3e-9 of them on the bent spheres measured, bends
     // of the same two corners not on it at least 76%: the bound 1e-5 sits
-    // far from both; docs/uniformization.md "The common subdivision").
+    // far from both; docs/uniformization.md "The map on the common subdivision").
     auto on_new_edge = [&](const ChartPoint& p) {
       const std::array<int, 4>& made_on = flips[X[p.crossing].flip].quad;
       if (!((made_on[0] == q[0] && made_on[2] == q[2]) || (made_on[0] == q[2] && made_on[2] == q[0]))) return false;

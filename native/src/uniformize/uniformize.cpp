@@ -85,20 +85,16 @@ void check_single_chart(const DiskLayout& L, double residual) {
 
 }  // namespace
 
-/// All checks of a layout (docs/robustness.md "CAD plates of genus 13 ..
-/// 24"). The per-face checks always; then the single chart's. A hyperbolic
-/// layout with faces its coordinates cannot resolve (DiskLayout::
-/// num_unresolved: a domain reaching 37 .. 73 from the centre puts corners
-/// where 1 − |z| is below double resolution) is never held by the single
-/// chart, even when its checks pass: whether the slivers out there turn
-/// over is decided by round-off (the genus-13 plate: 2, 1 or none flipped
-/// as the flow's angles were computed one way or another, with the metric
-/// the same to 1e-12), and the single chart's readers (location, the
-/// harmonic map) refuse such a layout anyway (map_support.cpp
-/// require_single_chart). Its failure is then the coordinates', not the
-/// metric's: the per-face checks decide, provided no triangle taller than
-/// its corners' round-off is flipped. Returns true when the single chart
-/// passed (UniformizeResult::single_chart), false with `why` set to its
+/// All checks of a layout (docs/robustness.md "High genus"). The per-face checks always; then the
+/// single chart's. A hyperbolic layout with faces its coordinates cannot resolve (DiskLayout::
+/// num_unresolved: a domain reaching 37 .. 73 from the centre puts corners where 1 − |z| is below
+/// double resolution) is never held by the single chart, even when its checks pass: whether the
+/// slivers out there turn over is decided by round-off (the genus-13 plate: 2, 1 or none flipped as
+/// the flow's angles were computed one way or another, with the metric the same to 1e-12), and the
+/// single chart's readers (location, the harmonic map) refuse such a layout anyway (map_support.cpp
+/// require_single_chart). Its failure is then the coordinates', not the metric's: the per-face
+/// checks decide, provided no triangle taller than its corners' round-off is flipped. Returns true
+/// when the single chart passed (UniformizeResult::single_chart), false with `why` set to its
 /// failure otherwise.
 bool check_layout(const DiskLayout& L, double residual, std::string* why) {
   check_local(L, residual);

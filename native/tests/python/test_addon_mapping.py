@@ -363,3 +363,32 @@ def test_outputs_read_the_map_at_the_vertices(tori):
     _, _, naive, strad, _ = _transfer(Vs, Fs, Ft, m, torus_corner_uv(Vs, Fs, 1.0))
     assert np.sum(M.signed_uv_areas(uv) <= 0) == 0
     assert np.allclose(uv[~strad], naive[~strad], rtol=0, atol=1e-6)   # (float32 UVs)
+
+
+def _quad_mesh(quads):
+    """(V, F, edge vertex pairs, each corner's edge) of a quad mesh, as Blender stores it."""
+    edges, corner_edges = {}, []
+    for q in quads:
+        for k in range(4):
+            e = tuple(sorted((q[k], q[(k + 1) % 4])))
+            corner_edges.append(edges.setdefault(e, len(edges)))
+    return len({v for q in quads for v in q}), len(quads), np.array(list(edges)), np.array(corner_edges)
+
+
+def test_mesh_topology_counts_genus_and_boundary_loops():
+    # The panel's one-line summary (side.mesh_topology): a torus of 6 x 4 quads is closed of
+    # genus 1; a 5 x 5 grid is a disk; the grid with its middle 3 x 3 cut out an annulus; two
+    # disjoint grids are not one surface (V - E + F = 2 with 2 loops: no genus).
+    from surface_map.side import describe_counts, mesh_topology
+    n, m = 6, 4
+    torus = [(i * m + j, ((i + 1) % n) * m + j, ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m)
+             for i in range(n) for j in range(m)]
+    assert mesh_topology(*_quad_mesh(torus)) == (1, 0)
+    grid = [(j * 6 + i, j * 6 + i + 1, (j + 1) * 6 + i + 1, (j + 1) * 6 + i) for j in range(5) for i in range(5)]
+    assert mesh_topology(*_quad_mesh(grid)) == (0, 1)
+    ring = [q for k, q in enumerate(grid) if not (1 <= k % 5 <= 3 and 1 <= k // 5 <= 3)]
+    assert mesh_topology(*_quad_mesh(ring)) == (0, 2)
+    two = grid + [tuple(v + 36 for v in q) for q in grid]
+    assert mesh_topology(*_quad_mesh(two)) == (None, 2)
+    assert [describe_counts(1, 0), describe_counts(0, 2), describe_counts(None, 2)] == \
+        ["closed, genus 1", "genus 0, 2 boundary loops", "not one surface"]

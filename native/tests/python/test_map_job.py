@@ -1,4 +1,4 @@
-"""surfmap.start_surface_map / surfmap.MapJob (docs/python.md "Session 26"): a closed pair's
+"""surfmap.start_surface_map / surfmap.MapJob (docs/python.md "start_surface_map and MapJob"): a closed pair's
 solve on a C++ thread that never takes the GIL; progress polled, cancel, result and errors on the
 calling thread."""
 import sys
@@ -205,7 +205,7 @@ def _spin_holding_the_gil(until, seconds):
 
 
 def test_the_solve_thread_never_takes_the_gil(genus2):
-    """The add-on's tick test failure (docs/addon.md "Session 26"): a niced solve thread that
+    """The add-on's tick test failure (docs/addon.md "The solve's thread"): a niced solve thread that
     asks for the GIL stalls the thread holding it. Here the main thread holds the GIL the whole
     time: the job must still run to its end. The control is the old design, surface_map with a
     progress callback on a Python thread: its first callback waits for the GIL, so it cannot

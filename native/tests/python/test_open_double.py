@@ -866,7 +866,7 @@ def rim_held(monkeypatch):
 
 
 def test_a_fold_next_to_small_holes_is_cleared_on_doubles_refined_near_the_boundary(monkeypatch):
-    """Large holes onto small ones (as the poncho onto spot, docs/open_surfaces.md "Session 19"):
+    """Large holes onto small ones (as the poncho onto spot, docs/history/open_surfaces.md "Session 19"):
     the doubles' images crowd into the first ring of faces around the small holes; unrefined, one
     face of the inverse stays folded after the untangling (on main: 0 forward, 1 in the inverse).
     The chosen class solved again on doubles refined near their boundaries leaves none. (The doubles'

@@ -1,5 +1,5 @@
 """The reflection-aware solve of the doubles (surfmap.open_reflection; docs/open_surfaces.md
-"Session 20"): the target half's metric has a geodesic boundary, the half's harmonic map keeps the
+"The half's solve"): the target half's metric has a geodesic boundary, the half's harmonic map keeps the
 boundary on it to round-off where the doubles' own map is asymmetric (measured here), 0 flipped
 both ways by the independent count of test_open_double.check_map; the CLI flags and keywords of
 the open options reach the map."""
@@ -311,7 +311,7 @@ def test_reflex_corner_slides_right_the_face_cut_across_a_staircase_corner(monke
     # corners of 240 degrees or more): without the slides (REFLEX_CORNER_SLIDES False) the delivered
     # map has max D' 4.06, on a face whose two boundary corners' images lie on either side of such
     # a corner. With them (the default) one boundary image is slid onto the corner: max D' 3.60,
-    # still 0 folded both ways and boundary onto boundary (docs/open_surfaces.md "Session 25").
+    # still 0 folded both ways and boundary onto boundary (docs/open_surfaces.md "The half's solve").
     Vs, Fs = coarse_torus_with_a_jagged_hole()
     Vt, Ft = punctured_torus(32, 16)
     on = open_double.surface_map_open(Vs, Fs, Vt, Ft)
@@ -386,7 +386,7 @@ def test_a_requested_boundary_pairing_is_kept():
     # with the loops on [1, 2, 0]; main delivered that pairing. Now that class is not ranked for a
     # requested pairing it does not keep: the images' class is solved alone and delivered, every
     # source boundary vertex on its requested target loop, 0 folded both ways, by the half's solve
-    # and by the doubles' own half alike (docs/open_surfaces.md "Session 25").
+    # and by the doubles' own half alike (docs/open_surfaces.md "The half's solve").
     Vs, Fs, Vt, Ft, S, T, images, r = fold_pair_doubles_map()
     hom = r["homotopy"]
     assert len(hom["candidates"]) == 2 and hom["chosen"] == hom["snapped_class"]["index"] == 1
@@ -440,7 +440,7 @@ def test_the_fold_pairs_inverse_fold_is_cleared_by_the_rim_sliding(monkeypatch):
     # joint step and the corner slides do not clear; the joint step with the rim sliding does
     # (a target boundary vertex slid), so no re-solve on refined doubles is made (before: "0
     # flipped / 1 in the inverse; solved again ..."), 0 flipped both ways by the independent count
-    # (docs/history/open_surfaces.md "Session 28 (open29)").
+    # (docs/open_surfaces.md "The half's solve").
     Vs, Fs, Vt, Ft = fold_pair_doubles_map()[:4]
     m = open_double.surface_map_open(Vs, Fs, Vt, Ft, orientations=("preserving",), reflection_solve=False)
     o = m["open"]
@@ -464,7 +464,7 @@ def test_an_automatic_pairing_keeps_the_chosen_candidates_pairing_through_its_re
     # refined doubles do not list the snapped overlay's class: not an isomorphism), and on
     # 995b24d it was delivered: a map of a class that was never ranked. Now it is not used; the
     # re-solve from the chosen map's own images keeps [1, 2, 0] and clears the fold
-    # (docs/open_surfaces.md "Session 25 (open25)"). The rim held in the untangling (rim_held):
+    # (docs/open_surfaces.md "The half's solve"). The rim held in the untangling (rim_held):
     # with it sliding the fold is cleared before any re-solve
     # (test_the_fold_pairs_inverse_fold_is_cleared_by_the_rim_sliding).
     rim_held(monkeypatch)

@@ -1,5 +1,5 @@
-"""The half's folded faces untangled (surfmap.open_untangle; docs/open_surfaces.md, "Folds between
-strongly different shapes"): a vertex's image pushed across its neighbours on a flat, a curved and
+"""The half's folded faces untangled (surfmap.open_untangle; docs/open_surfaces.md, "The half's
+solve"): a vertex's image pushed across its neighbours on a flat, a curved and
 a creased sheet is moved back so that no face folds, nothing else moves, boundary stays on the
 boundary; and the generated shirt pair whose map through the doubles folded 2 faces maps with none,
 counted independently."""
@@ -160,7 +160,7 @@ def folded_block(kind, n=12, half_width=0.55):
     block of vertices within half_width of the centre are mirrored (the vertex at (x, y) takes the
     image of (-x, y)): about 80 folded faces, a cluster where every corner's neighbours are folded
     too, so no corner's kernel is the star it needs (as poncho -> spot's four faces by one of
-    spot's rim corners, docs/open_surfaces.md "Session 26")."""
+    spot's rim corners, docs/history/open_surfaces.md "Session 26: poncho")."""
     V, F = sheet(n)
     S = open_double._Side(V, F, "source")
     T = open_double._Side(shaped(V, kind), F, "target")
@@ -426,8 +426,8 @@ def test_joint_positions_beyond_the_rim_are_kept_inside_with_the_rim_sliding():
     above it, (0, -2/3), is collapsed with it onto a point above the notch: 6 folded faces (4 of
     them interior), and the joint step's positions (the collapsed vertex just above the chord
     across the mouth) fall into the notch, so with the rim held (boundary_slides=False) all 6 stay,
-    as spot -> poncho's inverse faces 3842, 3915 (docs/history/open_surfaces.md "Session 28
-    (open29)"); on s28merge, whose slides move the boundary corners of folded faces one at a time,
+    as spot -> poncho's inverse faces 3842, 3915 (docs/open_surfaces.md "The half's solve"); on
+    s28merge, whose slides move the boundary corners of folded faces one at a time,
     all 6 stay too.
     With the rim's vertices sliding along it in the same joint step and the free vertices kept inside
     the chart's faces (open_untangle._rim_sliders, _walls): nothing folded by the pipeline's count;

@@ -95,7 +95,7 @@ def test_unresolved_images_are_undecided_unless_strict():
     # with both bases listed, the default since session 25, the near-mirror class listed in the
     # short basis, 27.37818, ties with it within choose_class's 1e-4 and is listed first, and its
     # map has every star resolved and winding once. Which of two tied classes is chosen is not what
-    # this test is about; docs/handle_classes.md "Session 25".)
+    # this test is about; docs/history/handle_classes.md "Session 25".)
     a = surfmap.shapes.n_hole_torus(2, 14, True)
     b = surfmap.shapes.vase(18, True)
     r = surfmap.surface_map(*a, *b, both_canonical_bases=False)

@@ -33,7 +33,7 @@ struct IntrinsicDelaunayOptions {
   /// #E (edge order of the input's Connectivity) or empty: nonzero for edges
   /// never flipped (issue 16: the boundary of an open surface's half inside
   /// its double, so that the half's intrinsic triangulation stays a half;
-  /// docs/open_surfaces.md "Session 21"). Such an edge may end non-Delaunay
+  /// docs/open_surfaces.md "The half's solve"). Such an edge may end non-Delaunay
   /// (it is then not counted in `degree_limited`, and `delaunay` is false).
   std::vector<char> keep;
 };

@@ -33,7 +33,7 @@ struct PositiveEdgeWeightsOptions {
 IntrinsicDelaunayResult positive_edge_weights(const Connectivity& mesh, const Eigen::VectorXd& edge_lengths,
                                               const PositiveEdgeWeightsOptions& options = {}, int* raised = nullptr);
 
-/// The source's harmonic-energy triangulation (docs/robustness.md, "Tips"):
+/// The source's harmonic-energy triangulation (docs/robustness.md, "The source side"):
 /// the intrinsic Delaunay triangulation (intrinsic_delaunay, default
 /// options) when its flips finish. They stop short when Delaunay needs a
 /// vertex with a single edge: a tip whose cone angle is below pi (g1_twirl

@@ -36,7 +36,7 @@ double triangle_dilatation(const Eigen::Vector3d& source_sides, const Eigen::Vec
 /// never reject a class: far-from-conformal maps (a 532-vertex CAD plate onto
 /// the fertility, mean D' ~150) can leave a few of them in every class, and
 /// counting them as folds had sent all of that pair's classes to the rescue
-/// (docs/handle_classes.md, "Flat is not folded").
+/// (docs/handle_classes.md, "Flat images, folds and the own-edge retry").
 constexpr double kFlatImageRelativeCross = 1e-9;
 
 /// Below this |b x c| / max(|b|², |c|²) an image triangle's orientation is

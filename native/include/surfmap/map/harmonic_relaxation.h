@@ -85,7 +85,7 @@ struct HarmonicRelaxationResult {
   /// edge_effective. A deck accumulated over a long class's edges has huge
   /// entries and vertex_deck[i] * rho * vertex_deck[j]^-1 keeps no digits;
   /// the held solves after it (landmarks) need these instead
-  /// (docs/handle_classes.md "Session 25").
+  /// (docs/history/handle_classes.md "Session 25").
   std::vector<Word> vertex_deck_word;
   std::vector<hyperbolic::Mobius> edge_effective;
   double energy = 0;

@@ -27,7 +27,7 @@ namespace surfmap {
 
 /// Vertices that slide along geodesics (issue 16: the boundary of an open
 /// surface's half mapped onto the target's geodesic boundary, docs/open_surfaces.md
-/// "Session 21"). Each sliding vertex has one real unknown, its arc length
+/// "The half's solve"). Each sliding vertex has one real unknown, its arc length
 /// along its geodesic: its Newton step is a translation along the geodesic
 /// through its chart's origin, which maps that geodesic onto itself, so the
 /// vertex stays on it to round-off (the start is projected onto it). The

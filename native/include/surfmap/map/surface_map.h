@@ -168,7 +168,7 @@ struct HomotopySearchOptions {
   /// length with the twists matched (map/greedy_pants.h
   /// greedy_pants_classes; default true; CLI --no-greedy-pants).
   bool greedy_pants = true;
-  /// Issue 13 (session 25; docs/robustness.md "Session 25"): the geometric
+  /// Issue 13 (session 25; docs/robustness.md "Canonical generators"): the geometric
   /// classes read the target's lengths in the short canonical basis of its
   /// layout's own boundary word (CanonicalSchemaOptions::short_generators),
   /// whose generators are short elements (the raw genus-12 wheel: 1.6 ..
@@ -208,7 +208,7 @@ struct HomotopySearchOptions {
   /// tries pairs of twists when no single twist improves (default true).
   double restart_ratio = 1.5;
   bool pair_moves = true;
-  /// Issue 14 (session 26; docs/handle_classes.md "Session 26"), C++ only,
+  /// Issue 14 (session 26; docs/handle_classes.md "The search, restarted"), C++ only,
   /// for measuring how wide a search the pipeline's class needs: the twist
   /// search's coarse solves per step (TwistSearchOptions::
   /// evaluations_per_step, default 8, the lowest screens first; raise it
@@ -235,7 +235,7 @@ struct HomotopySearchOptions {
   /// x, came at the fifth kick, about 150 solves). HomotopySearchInfo::
   /// high_kicks_status, kicks and lower_kicks say what was done. A count
   /// below 0 or a ratio that is negative or NaN is an InputError.
-  /// CLI --high-kicks N (0: --no-high-kicks), Python high_kicks=N.
+  /// CLI --high-kicks N, Python high_kicks=N (0: none).
   int high_kicks = 8;
   double high_kick_ratio = 2.0;
 };
@@ -248,7 +248,7 @@ struct HomotopyOptions {
   /// one run's list only: another run (other options, landmarks, or a class
   /// given) lists other candidates in another order, so to ask a later run
   /// for a class of an earlier one give its class_words instead (issue 14,
-  /// docs/handle_classes.md "Session 24").
+  /// docs/handle_classes.md "Classes named by words").
   int class_index = -1;
   /// Genus >= 2: the class to use, named by its words (2g words: source
   /// canonical generator j+1 -> word in the target's canonical letters, as
@@ -331,7 +331,7 @@ struct HomotopyOptions {
   bool two_way = true;
   double two_way_ratio = 2.0;
   /// With two_way, below two_way_ratio (issue 14; docs/handle_classes.md
-  /// "Session 23"): when the chosen class's energy is at least
+  /// "The two directions today"): when the chosen class's energy is at least
   /// `agreement_ratio` (default 1.1) x 8 pi (g - 1), the other direction is
   /// mapped too (one way), and unless its class ψ is this class θ inverted
   /// (or, genus 2, inverted up to the hyperelliptic involution), θ^-1 is
@@ -345,7 +345,7 @@ struct HomotopyOptions {
   /// nothing below the ratio. agreement_ratio >= two_way_ratio turns it off.
   double agreement_ratio = 1.1;
   /// With two_way, when the other direction's ratio is not lower (issue 14;
-  /// docs/handle_classes.md "Both directions, cheaply"): its class inverted
+  /// docs/handle_classes.md "The two directions today"): its class inverted
   /// is solved here alone and adopted when lower; else this class inverted
   /// is solved alone the other way, and the pair of inverse classes of
   /// lower total energy is kept, so the two directions' classes are
@@ -360,7 +360,7 @@ struct HomotopyOptions {
   /// --compare-directions).
   bool compare_directions = false;
   /// Genus >= 2, default class, no landmarks (issue 14; docs/handle_classes.md
-  /// "Through a generated shape" and the sections after it): when the chosen
+  /// "Through generated shapes" and the sections after it): when the chosen
   /// class's energy (after the two-way run) is at least `through_shape_ratio`
   /// (default 3, where the quality warning starts) x 8 pi (g - 1), the source
   /// is mapped onto each generated shape M of its genus (the CAD plate
@@ -425,8 +425,8 @@ struct HomotopyOptions {
   /// With reverse_class: its inverse (inverted algebraically) is the only
   /// candidate, solved at full resolution, no class search, no geometric
   /// classes, no two-way run (a SolveError when it cannot be inverted). The
-  /// two-way run's cheap check uses it (docs/handle_classes.md "Both
-  /// directions, cheaply"): one solve of the other direction's class in this
+  /// two-way run's cheap check uses it (docs/handle_classes.md "The two directions today"): one
+  /// solve of the other direction's class in this
   /// direction instead of a whole run. Default false.
   bool reverse_class_only = false;
 };
@@ -454,21 +454,21 @@ struct SolveOptions {
   /// (PositiveEdgeWeightsOptions::floor; default 0.1, must be > 0). Any
   /// positive floor embeds the user's faces; a lower one stays closer to the
   /// cotangents (lower D' where they were negative), see
-  /// docs/handle_classes.md "Own-edge weights' floor".
+  /// docs/handle_classes.md "Flat images, folds and the own-edge retry".
   double own_weights_floor = 0.1;
   /// Genus >= 2, SourceWeights::Automatic: when straight images of some of
   /// the source's faces fold under the intrinsic map, first re-solve only
   /// the vertices within a few rings of them with positive own-edge
   /// weights, every other vertex held (SurfaceMapResult::fold_repair;
-  /// docs/handle_classes.md "Local fold repair"); the whole map is solved
+  /// docs/handle_classes.md "Flat images, folds and the own-edge retry"); the whole map is solved
   /// again with own-edge weights only when that does not unfold them.
   /// Default true; false is the global fallback alone.
   bool local_fold_repair = true;
   /// Within the local repair, the distortion-aware untangling of the folds
   /// the projection leaves (clusters of slivers folded together): the
   /// vertices around them move jointly to minimise a barrier on their
-  /// faces' dilatation, the rest held (docs/handle_classes.md "Untangling
-  /// by distortion"). Default true; false: the projection, then the held
+  /// faces' dilatation, the rest held (docs/handle_classes.md "Flat images, folds and the own-edge
+  /// retry"). Default true; false: the projection, then the held
   /// re-solves, as before.
   bool fold_untangle = true;
 };
@@ -519,15 +519,15 @@ struct LoopOptions {
   /// handle by handle (default false: on fertility -> CAD plate g4 the
   /// short basis ends at 2.964 x, just under the 3 x of the through-shape
   /// step, where the classical one goes on to 2.129 x; docs/robustness.md
-  /// "Session 23"; true: CLI --short-canonical-generators; report
+  /// "Canonical generators"; true: CLI --short-canonical-generators; report
   /// `canonical_generators`).
   /// Issue 13: on the raw genus-12 wheel the classical generators are up to
   /// 253 loop letters with matrices of |a| = 4e100 and their canonical
   /// relator multiplies out to 1e1805; the short ones are up to 60 letters
   /// (|a| 8e11), translation lengths near the systole's (docs/robustness.md
-  /// "Session 21"). With both_canonical_bases the candidate classes are
+  /// "Canonical generators"). With both_canonical_bases the candidate classes are
   /// listed in both bases (src/map/stages/other_basis.h; docs/robustness.md
-  /// "Session 23"), so the candidate list does not depend on this choice
+  /// "Canonical generators"), so the candidate list does not depend on this choice
   /// (the geometric classes still do).
   bool short_canonical_generators = false;
   /// Issue 13 (session 27; docs/history/robustness.md "Session 27 (branch edge27)"): when a genus >= 2
@@ -541,16 +541,28 @@ struct LoopOptions {
   /// which asks for the classical basis), Python
   /// short_generators_fallback=False.
   bool short_generators_fallback = true;
+  /// Issue 13 (session 28; docs/robustness.md "Canonical generators"): when a
+  /// genus >= 2 run of the default class with the classical generators fails
+  /// because every class it mapped folds (a SolveError of reason
+  /// SolveFailure::folds, after the two-way run's rescue), it is run once more
+  /// with the short canonical generators and one way (HomotopyOptions::
+  /// two_way off), the settings that map the CAD block g12 -> raw wheel g12
+  /// one-to-one; the result says so (SurfaceMapResult::fold_fallback), and
+  /// when the retry fails too the error gives both reasons. Its progress is
+  /// reported as stages "retry after folds: ..." and the callback can cancel
+  /// it. Default true; false: CLI --no-fold-fallback (or
+  /// --classical-canonical-generators), Python fold_fallback=False.
+  bool fold_fallback = true;
   /// Genus >= 2: list the candidate classes (overlays, the canonical
   /// schemata's class, signed handle permutations, other cuts' lifts) in
   /// both canonical bases, the classical and the short, each written in the
   /// run's, and twist-search a class listed in the short basis by the short
   /// basis's twists (src/map/stages/other_basis.h; docs/robustness.md
-  /// "Session 23"). Default true (session 25): fertility -> CAD plate g4
+  /// "Canonical generators"). Default true (session 25): fertility -> CAD plate g4
   /// goes from 2.803 x to 2.13 x the bound and polycube g3 -> plate g3 from
   /// 73.19 to 64.86. (Off until session 25: two genus-2 landmark tests
   /// failed with it, from faults of the landmark code that the short
-  /// basis's long class words exposed, fixed there: docs/handle_classes.md
+  /// basis's long class words exposed, fixed there: docs/history/handle_classes.md
   /// "Session 24" and "Session 25".) False: CLI --one-canonical-basis.
   bool both_canonical_bases = true;
 };
@@ -592,7 +604,7 @@ struct UniformizationOptions {
   /// Genus >= 2: whether the map may run in per-face charts of the target
   /// (issue 13; spelled "auto", "always", "never" in the CLI's
   /// --face-charts, Python's face_charts= and the report's
-  /// face_charts_requested; docs/robustness.md "Maps in per-face charts"):
+  /// face_charts_requested; docs/robustness.md "High genus"):
   ///  * Automatic (default): only when the target's layout is valid but one
   ///    Poincaré chart in double cannot hold it (CAD plates of genus >= 13),
   ///    where SingleChartError used to end the map. Every other map is
@@ -652,7 +664,7 @@ struct SurfaceMapOptions {
   /// landmark_method is "pinned (folds allowed)". Default false. For a
   /// caller that wants the homotopy class with the landmarks held, not the
   /// map: the class is defined whether or not its held map folds (the open
-  /// surfaces' capped maps, docs/open_surfaces.md "Capped maps that fold").
+  /// surfaces' capped maps, docs/history/open_surfaces.md "Capped maps that fold").
   bool landmarks_may_fold = false;
   /// Called between stages with the stage name and a fraction in [0, 1];
   /// return false to cancel (throws Cancelled).
@@ -1049,6 +1061,10 @@ struct SurfaceMapResult {
   /// with the short canonical generators though the classical ones were
   /// asked for (the classical run's error, shortened).
   std::string canonical_generators_fallback;
+  /// LoopOptions::fold_fallback: empty, or why this map was made by the
+  /// retry after folds (the short canonical generators, one way): the first
+  /// run's error, shortened.
+  std::string fold_fallback;
   /// Genus >= 2: empty when the map ran in the target layout's one
   /// Poincaré chart; otherwise "per-face charts (...)" with why (the single
   /// chart's limit, or requested) and the path's restrictions
@@ -1232,8 +1248,7 @@ struct SurfaceMapResult {
   /// Genus >= 2 (issue 19): vertices of the surface the reported bounds were
   /// computed on: the source's own count, or that of its coarse copy (the
   /// ranking's, map/coarse_source.h) when no decision needed the source's
-  /// own uniformization (docs/handle_classes.md "Bounds on the coarse
-  /// copy"); 0 when not computed.
+  /// own uniformization (docs/history/handle_classes.md "Bounds on the coarse copy"); 0 when not computed.
   int class_bound_vertices = 0;
   /// Seconds per stage, in order, and in total.
   std::vector<std::pair<std::string, double>> stage_times;

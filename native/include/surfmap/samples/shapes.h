@@ -137,7 +137,7 @@ TriMesh needle(const TriMesh& mesh, int v, double height, double gap);
 /// (each a copy of the link moved by length / segments), capped by v's star
 /// with v at `length` plus half the link's mean radius. A harmonic map into a
 /// flat torus squeezes such a tube by about exp(-2 pi length / circumference)
-/// (docs/robustness.md, "Crowded images"). Same genus; adds
+/// (docs/robustness.md, "The source side"). Same genus; adds
 /// segments x #link vertices. Throws InputError on a bad vertex, length <= 0
 /// or segments < 1.
 TriMesh finger(const TriMesh& mesh, int v, double length, int segments);

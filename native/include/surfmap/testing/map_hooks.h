@@ -50,6 +50,11 @@ struct MapHooks {
   /// without its initial map (the reference of a test).
   bool map_every_fallback = false;
   std::vector<std::string> homotopy_search_start_twists;
+  /// Called with the options of each run surface_map makes of the pair, the
+  /// first and the automatic retries' (LoopOptions::short_generators_fallback,
+  /// fold_fallback), before it starts; what it throws ends that run as the
+  /// run's own failure would (a test's way to fail one run and not its retry).
+  std::function<void(const SurfaceMapOptions&)> before_run;
 };
 
 /// surface_map (map/surface_map.h) with the hooks.

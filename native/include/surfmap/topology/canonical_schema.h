@@ -38,7 +38,7 @@ struct CanonicalSchemaOptions {
   /// rotation is needed), chooses the partner that gives the fewest
   /// letters, and conjugates only the new pair; the finished generators are
   /// never touched again, so each generator is a sub-word of one rest
-  /// word (at most 4g letters, docs/robustness.md "Session 21").
+  /// word (at most 4g letters, docs/robustness.md "Canonical generators").
   bool short_generators = false;
 };
 

@@ -106,7 +106,7 @@ struct TwistSearchOptions {
   /// new ones evaluated, lowest screen first (default true, 3).
   bool pair_moves = true;
   int pair_starts = 3;
-  /// Issue 14 (session 26; docs/handle_classes.md "Session 26"): iterated
+  /// Issue 14 (session 26; docs/handle_classes.md "The search, restarted"): iterated
   /// local search. After the descent stops, this many kicks (default 0:
   /// none): the best class so far composed with `kick_moves` moves, each
   /// drawn at random (seeded by `kick_seed`) among the `kick_choices`

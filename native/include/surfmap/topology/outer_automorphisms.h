@@ -169,7 +169,7 @@ AutomorphismInverse invert_automorphism(const GroupMap& phi, int genus, const Au
 /// descent and the Nielsen reduction cannot invert while each factor's
 /// shorter words do, or whose factors came from inverses already known (a
 /// class composed through a generated shape: docs/handle_classes.md
-/// "session 21"). The result is checked exactly like invert_automorphism's
+/// "Through generated shapes"). The result is checked exactly like invert_automorphism's
 /// (product ∘ inverse and inverse ∘ product inner; a wrong known inverse
 /// fails there); `why` names the factor that did not invert.
 AutomorphismInverse invert_product(const std::vector<GroupMap>& factors, int genus,
@@ -177,7 +177,7 @@ AutomorphismInverse invert_product(const std::vector<GroupMap>& factors, int gen
                                    const AutomorphismInverseOptions& options = {});
 
 /// phi^-1 by Nielsen reduction of the generator images (docs/handle_classes.md
-/// "Both directions, cheaply"): the tuple t = (phi(x_1), ..., phi(x_2g)) is
+/// "The two directions today"): the tuple t = (phi(x_1), ..., phi(x_2g)) is
 /// shortened by Nielsen moves t_i <- t_i t_j^±1 or t_j^±1 t_i, or every
 /// other t_i conjugated by t_j^±1 (the move that lowers the total
 /// Dehn-reduced length most, each step), the same moves applied to

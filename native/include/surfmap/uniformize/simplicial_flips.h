@@ -1,6 +1,6 @@
 #pragma once
 // A simplicial triangulation of the flip-based metric by exact flips
-// (docs/uniformization.md, "Non-simplicial T'").
+// (docs/uniformization.md, "What is implemented").
 //
 // The intrinsic Delaunay triangulation T' that the flip-based flow returns
 // is a Δ-complex: after Ptolemy flips two edges may join the same pair of

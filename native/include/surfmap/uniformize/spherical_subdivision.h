@@ -1,7 +1,7 @@
 #pragma once
 // The common subdivision of a genus-0 mesh's input faces and the intrinsic
 // triangulation its spherical uniformization embeds (docs/uniformization.md,
-// "Genus 0", "The common subdivision"; issue 13 items 2 and 5).
+// "Genus 0", "The map on the common subdivision"; issue 13 items 2 and 5).
 //
 // spherical_uniformization with flips embeds intrinsic_faces in the sphere,
 // not the input faces. The conformal map φ from the input faces to the

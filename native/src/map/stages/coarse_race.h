@@ -1,8 +1,7 @@
 #pragma once
 // Issue 19: the ranking's coarse solves of the classes that can still win,
 // run in lockstep so that a class clearly beaten by another is stopped
-// before its solve has converged (docs/handle_classes.md "Coarse solves
-// stopped when beaten"). Internal.
+// before its solve has converged (docs/history/benchmarks.md "Coarse solves stopped when beaten"). Internal.
 #include <functional>
 #include <limits>
 #include <vector>

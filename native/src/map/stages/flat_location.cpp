@@ -46,7 +46,7 @@ int locate_in_crack(const TriangleGrid& grid, const std::vector<std::array<Compl
 // translate, computed in long double. Why: source triangles crowded to
 // ~1e-14 of the torus have images of a few ulps of the double coordinates;
 // barycentrics from the extended point keep their shapes to the rounding of
-// the barycentrics themselves (docs/robustness.md, "Crowded images").
+// the barycentrics themselves (docs/robustness.md, "The source side").
 Eigen::Vector3d extended_barycentric(const std::array<Complex, 3>& tri, const Eigen::Vector3d& b, Complex p,
                                      const std::complex<long double>& pl, Complex w1, Complex w2) {
   using LD = long double;

@@ -466,7 +466,7 @@ CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& sourc
   for (int j = 0; j < n; ++j) canonical[j] = {j + 1};
   add_named(canonical, "a_i -> a'_i, b_i -> b'_i of the canonical polygon schemata", space.fingerprint(canonical));
   // Sources 1-3 again in the other canonical basis (stages/other_basis.h;
-  // docs/robustness.md "Session 23"): the canonical class and the lifts of
+  // docs/robustness.md "Canonical generators"): the canonical class and the lifts of
   // the signed handle permutations depend on which canonical generators
   // present the groups (3holes g3 -> block g3: the classical basis's best
   // class is not listed in the short one). Each new by fingerprint and
@@ -574,7 +574,7 @@ bool carried_loops_class(const ClassSpace& space, const TriMesh& source, const S
     // isomorphism, again by the shortest paths by length (issue 14: the
     // genus-4 sculpture's loops carried through an n-hole torus onto the
     // genus-4 CAD plate, whose faces are long fans, gave an isomorphism only
-    // so; docs/handle_classes.md "Is a better class reachable").
+    // so; docs/history/handle_classes.md "Is a better class reachable").
     std::string failure;
     for (const bool by_length : {false, true}) {
       plo.join_by_length = by_length;

@@ -190,7 +190,7 @@ struct CandidateClasses {
 /// the other canonical basis are listed too (after the canonical class,
 /// before the other cuts' lifts), those new by fingerprint, so that the
 /// list does not depend on which basis the run uses (docs/robustness.md
-/// "Session 23").
+/// "Canonical generators").
 CandidateClasses candidate_classes(const ClassSpace& space, const TriMesh& source, const SystemOfLoops& sl,
                                    const HandleBasis& shb, const SystemOfLoops& tl, const CanonicalSchema& tcs,
                                    const LoopProjector& projector, const SurfaceMapOptions& options, SourceCuts& cuts,

@@ -1,5 +1,5 @@
 #pragma once
-// Issue 13/14 (docs/robustness.md "Session 23"): the genus >= 2 candidate
+// Issue 13/14 (docs/robustness.md "Canonical generators"): the genus >= 2 candidate
 // classes listed in both canonical bases, so that which basis presents the
 // surface groups (LoopOptions::short_canonical_generators) does not change
 // the classes the ranking sees. Internal to src/map/hyperbolic_map.cpp and

@@ -38,7 +38,8 @@ bool retry_with_own_weights(const SurfaceMapOptions& options, bool own_weights, 
   throw SolveError("the optimised map has " + std::to_string(out.flipped_triangles) + " flipped and " +
                    std::to_string(out.degenerate_triangles) + " degenerate image triangles of the source's faces (" +
                    std::to_string(out.intrinsic_flipped_triangles) +
-                   " flipped on its intrinsic Delaunay triangulation, where the energy lives); it is not returned");
+                   " flipped on its intrinsic Delaunay triangulation, where the energy lives); it is not returned",
+                   SolveFailure::folds);
 }
 
 }  // namespace surfmap::detail
