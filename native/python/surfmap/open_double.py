@@ -990,43 +990,51 @@ def _unfold(V, F, neighbours, root, wanted, max_faces=400):
     """The faces of a breadth-first tree from face `root` until every face of `wanted` is reached,
     unfolded isometrically into the plane of `root` (its own orientation counter-clockwise): a dict
     face -> (3, 2) planar corners, in the order the faces were reached. None when some wanted face
-    is more than max_faces away."""
+    is more than max_faces away. (Per face in plain floats: the fold test calls it per star, and
+    numpy's per-call cost on 2- and 3-vectors was most of the untangling's time.)"""
     root = int(root)
     P0 = V[F[root]]
     e1 = P0[1] - P0[0]
     x = e1 / np.linalg.norm(e1)
     nrm = np.cross(e1, P0[2] - P0[0])
     y = np.cross(nrm / np.linalg.norm(nrm), x)
-    planar = {root: np.array([[0.0, 0.0], [np.linalg.norm(e1), 0.0], [(P0[2] - P0[0]) @ x, (P0[2] - P0[0]) @ y]])}
+    corners = {root: [(0.0, 0.0), (float(np.linalg.norm(e1)), 0.0),
+                      (float((P0[2] - P0[0]) @ x), float((P0[2] - P0[0]) @ y))]}
     wanted = {int(f) for f in wanted} - {root}
     queue, head = [root], 0
+    sqrt = math.sqrt
     while wanted and head < len(queue) and len(queue) <= max_faces:
         f = queue[head]
         head += 1
+        Ff, nf, qf = F[f].tolist(), neighbours[f].tolist(), corners[f]
         for k in range(3):
-            g = int(neighbours[f, k])
-            if g < 0 or g in planar:
+            g = nf[k]
+            if g < 0 or g in corners:
                 continue
             # The shared edge (u, w) runs u -> w in f and w -> u in g; g's third corner lies on the
             # other side of it from f's, at its 3D distances from u and w.
-            u, w = F[f, k], F[f, (k + 1) % 3]
-            pu, pw = planar[f][k], planar[f][(k + 1) % 3]
-            kg = list(F[g]).index(w)   # g lists w, u, c
-            c = F[g, (kg + 2) % 3]
-            d = pw - pu
-            L = np.linalg.norm(d)
-            ru, rw = np.linalg.norm(V[c] - V[u]), np.linalg.norm(V[c] - V[w])
-            t = (ru * ru - rw * rw + L * L) / (2 * L)
-            h = np.sqrt(max(ru * ru - t * t, 0.0))
-            ex = d / L
-            ey = np.array([-ex[1], ex[0]])          # left of u -> w: f's side
-            pc = pu + t * ex - h * ey
-            q = np.empty((3, 2))
-            q[kg], q[(kg + 1) % 3], q[(kg + 2) % 3] = pw, pu, pc
-            planar[g] = q
+            u, w = Ff[k], Ff[(k + 1) % 3]
+            (pux, puy), (pwx, pwy) = qf[k], qf[(k + 1) % 3]
+            Fg = F[g].tolist()
+            kg = Fg.index(w)   # g lists w, u, c
+            c = Fg[(kg + 2) % 3]
+            dx, dy = pwx - pux, pwy - puy
+            L = sqrt(dx * dx + dy * dy)
+            vc, vu, vw = V[c].tolist(), V[u].tolist(), V[w].tolist()
+            ru2 = (vc[0] - vu[0]) ** 2 + (vc[1] - vu[1]) ** 2 + (vc[2] - vu[2]) ** 2
+            rw2 = (vc[0] - vw[0]) ** 2 + (vc[1] - vw[1]) ** 2 + (vc[2] - vw[2]) ** 2
+            t = (ru2 - rw2 + L * L) / (2 * L)
+            h = sqrt(max(ru2 - t * t, 0.0))
+            ex, ey = dx / L, dy / L             # left of u -> w (f's side): (-ey, ex)
+            q = [None, None, None]
+            q[kg], q[(kg + 1) % 3] = (pwx, pwy), (pux, puy)
+            q[(kg + 2) % 3] = (pux + t * ex + h * ey, puy + t * ey - h * ex)
+            corners[g] = q
             queue.append(g)
             wanted.discard(g)
-    return None if wanted else planar
+    if wanted:
+        return None
+    return {f: np.array(q) for f, q in corners.items()}
 
 
 def _unfolded_signed_area(V, F, neighbours, faces, bary, max_faces=400):
@@ -1936,10 +1944,21 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
         # their classes solved on the half alone, ranked by the doubles' energy as before. (Not
         # when some candidate is symmetric: a class of another pairing costs its walks for nothing;
         # the pants A -> remeshed A went 18 -> 62 s.)
-        for cand, r, rev, images in refused:
+        # In order of that energy, and only until one maps and the next lies beyond its ties: the
+        # choice below takes the lowest energy and, within tie_tolerance of it, the best alignment,
+        # so a candidate above those cannot be chosen and its solves (each set-up finished and
+        # measured, the untangling both ways) are not made (artery -> spot with three holes: 12
+        # candidates, every one refused; docs/open_surfaces.md "The half's solve").
+        first = None
+        for cand, r, rev, images in sorted(refused, key=lambda x: x[0]["energy"]):
+            if first is not None and cand["energy"] > first * (1 + tie_tolerance):
+                cand["reflection_solve"] = (f"not tried: a candidate of lower energy ({first:.6g}) maps on the "
+                                            f"half; this one ({cand['energy']:.6g}) is beyond its ties")
+                continue
             sym = _reflection_candidate(S, T, r, cand["pairing"], rev, layouts, cand, untangle)
             if sym is not None:
                 solved.append((cand, r, rev, images, sym))
+                first = cand["energy"] if first is None else first
     if not solved:
         raise _core.SolveError("open surfaces through their doubles: no candidate mapped: " + "; ".join(
             f"pairing {c['pairing']} {c['orientation']}: {c['status']}"

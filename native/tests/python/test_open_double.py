@@ -856,7 +856,16 @@ def test_refine_near_boundary_keeps_the_loops_and_the_surface():
 
 
 
-def test_a_fold_next_to_small_holes_is_cleared_on_doubles_refined_near_the_boundary():
+def rim_held(monkeypatch):
+    """The untangling's joint step without the rim sliding (open_untangle._rim_sliders refuses
+    every patch), as before session 28: the fold pair's one inverse fold is then left for the
+    re-solves on refined doubles to clear (with the rim sliding the untangling clears it:
+    test_open_reflection.py::test_the_fold_pairs_inverse_fold_is_cleared_by_the_rim_sliding)."""
+    from surfmap import open_untangle
+    monkeypatch.setattr(open_untangle, "_rim_sliders", lambda *a: None)
+
+
+def test_a_fold_next_to_small_holes_is_cleared_on_doubles_refined_near_the_boundary(monkeypatch):
     """Large holes onto small ones (as the poncho onto spot, docs/history/open_surfaces.md "Session 19"):
     the doubles' images crowd into the first ring of faces around the small holes; unrefined, one
     face of the inverse stays folded after the untangling (on main: 0 forward, 1 in the inverse).
@@ -867,6 +876,7 @@ def test_a_fold_next_to_small_holes_is_cleared_on_doubles_refined_near_the_bound
     requested [0, 1, 2] and got that class anyway (the snapped overlay's class, ranked beside the
     requested one, won); the requested class [0, 1, 2] is now kept, and its map has no fold to clear
     (test_open_reflection.py::test_a_requested_boundary_pairing_is_kept)."""
+    rim_held(monkeypatch)     # (the rim sliding clears the fold without the refined solve)
     Vs, Fs = holed_sphere(3, [0.7, 0.75, 0.65])
     Vt, Ft = holed_sphere(3, [0.97] * 3)
     r = open_double.surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=[1, 2, 0], orientations=("preserving",),

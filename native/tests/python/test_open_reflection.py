@@ -10,7 +10,7 @@ import numpy as np
 
 import surfmap
 from surfmap import open_double, open_reflection
-from test_open_double import bend, check_map, compact, holed_sphere, pants, punctured_torus, subdivide
+from test_open_double import bend, check_map, compact, holed_sphere, pants, punctured_torus, rim_held, subdivide
 
 
 def angle_sums(layout, n_vertices):
@@ -434,7 +434,27 @@ def test_a_requested_pairing_the_doubles_map_does_not_keep_is_refused(monkeypatc
     assert m["flipped_triangles"] == 0
 
 
-def test_an_automatic_pairing_keeps_the_chosen_candidates_pairing_through_its_re_solves():
+def test_the_fold_pairs_inverse_fold_is_cleared_by_the_rim_sliding(monkeypatch):
+    # The fold pair through the whole pipeline (automatic pairing, preserving, the doubles' own
+    # half): the doubles' map leaves one folded face in the inverse that the single moves, the
+    # joint step and the corner slides do not clear; the joint step with the rim sliding does
+    # (a target boundary vertex slid), so no re-solve on refined doubles is made (before: "0
+    # flipped / 1 in the inverse; solved again ..."), 0 flipped both ways by the independent count
+    # (docs/open_surfaces.md "The half's solve").
+    Vs, Fs, Vt, Ft = fold_pair_doubles_map()[:4]
+    m = open_double.surface_map_open(Vs, Fs, Vt, Ft, orientations=("preserving",), reflection_solve=False)
+    o = m["open"]
+    assert o["refined_near_boundary"] == "", o["refined_near_boundary"]
+    assert "boundary target vertices slid along the other rim" in o["inverse_untangled"], o["inverse_untangled"]
+    assert o["inverse_untangled"].endswith("0 folded left"), o["inverse_untangled"]
+    assert m["converged"] and m["flipped_triangles"] == 0 and o["inverse_flipped_triangles"] == 0
+    assert check_map(m, Vs, Fs, Vt, Ft) == 0
+    rim_held(monkeypatch)
+    held = open_double.surface_map_open(Vs, Fs, Vt, Ft, orientations=("preserving",), reflection_solve=False)
+    assert held["open"]["refined_near_boundary"].startswith("0 flipped / 1 in the inverse")
+
+
+def test_an_automatic_pairing_keeps_the_chosen_candidates_pairing_through_its_re_solves(monkeypatch):
     # The fold test's pair with the automatic pairing and the doubles' own half
     # (reflection_solve=False). The candidates' maps tie within 1e-3 (five at 30.4976, the snapped
     # overlay's class on loops [1, 2, 0]; one at 30.4693 on [2, 1, 0]) and the alignment chooses
@@ -444,7 +464,10 @@ def test_an_automatic_pairing_keeps_the_chosen_candidates_pairing_through_its_re
     # refined doubles do not list the snapped overlay's class: not an isomorphism), and on
     # 995b24d it was delivered: a map of a class that was never ranked. Now it is not used; the
     # re-solve from the chosen map's own images keeps [1, 2, 0] and clears the fold
-    # (docs/open_surfaces.md "The half's solve").
+    # (docs/open_surfaces.md "The half's solve"). The rim held in the untangling (rim_held):
+    # with it sliding the fold is cleared before any re-solve
+    # (test_the_fold_pairs_inverse_fold_is_cleared_by_the_rim_sliding).
+    rim_held(monkeypatch)
     Vs, Fs, Vt, Ft, S, T, images, r = fold_pair_doubles_map()
     realized = open_double._realized_pairing(S, T, r, [0, 1, 2])
     assert realized == [1, 2, 0]
@@ -470,7 +493,8 @@ def test_a_re_solve_that_pairs_otherwise_is_not_used(monkeypatch):
     # The same run with the chosen map's own images (the re-solves' second start) replaced by the
     # candidate's images, whose refined re-solve pairs the loops [0, 1, 2]: no re-solve keeps
     # [1, 2, 0], so none is used and the unrefined map is delivered on its own pairing, its one
-    # folded face in the inverse left, the reason in refined_near_boundary.
+    # folded face in the inverse left, the reason in refined_near_boundary (the rim held: rim_held).
+    rim_held(monkeypatch)
     Vs, Fs, Vt, Ft, S, T, images, r = fold_pair_doubles_map()
     monkeypatch.setattr(open_double, "_own_images", lambda *a: images)
     m = open_double.surface_map_open(Vs, Fs, Vt, Ft, orientations=("preserving",), reflection_solve=False)
@@ -516,3 +540,38 @@ def test_the_inverse_locates_the_target_wherever_the_half_is_laid_out(monkeypatc
     monkeypatch.setattr(open_reflection, "LOCATE_CHART", "klein")
     k = open_reflection.solve_half(S, T, r["forward"], [0, 1, 2], False, moved)
     assert len(k["inverse_unlocated"]) > 0.01 * T.n2
+
+
+def test_refused_candidates_are_solved_on_the_half_only_up_to_the_lowest_that_maps(monkeypatch):
+    """Every candidate refused as not symmetric (symmetry_tolerance 0, as the artery onto spot with
+    three holes refuses all 12 of its own): their classes are solved on the half in order of their
+    doubles' energy, and those beyond the ties of the lowest that maps are not solved (they could
+    not be chosen: the lowest energy wins, ties by the alignment). The test pants onto their bend
+    0.3, the automatic pairing, preserving: 6 candidates, one half's solve instead of six; the map
+    chosen is the lowest-energy candidate whose half's solve is used, 0 flipped both ways by the
+    independent count, and each candidate left out says so."""
+    Vs, Fs = pants(3)
+    Vt = bend(Vs, 0.3)
+    calls = []
+    solve = open_double._reflection_candidate
+
+    def counted(S, T, r, pairing, *a, **k):
+        calls.append(list(pairing))
+        return solve(S, T, r, pairing, *a, **k)
+    monkeypatch.setattr(open_double, "_reflection_candidate", counted)
+    r = open_double.surface_map_open(Vs, Fs, Vt, Fs, orientations=("preserving",), symmetry_tolerance=0.0)
+    o = r["open"]
+    cands = o["candidates"]
+    assert len(cands) == 6 and all((c.get("doubles_status") or c["status"]).startswith("not symmetric") for c in cands)
+    chosen = next(c for c in cands if c["chosen"])
+    assert chosen["reflection_solve"].startswith("used") and o["reflection_solve"].startswith("used")
+    used = [c for c in cands if c["reflection_solve"].startswith("used")]
+    first = min(c["energy"] for c in used)
+    assert chosen["energy"] <= first * (1 + 1e-3)
+    lower = [c for c in cands if c["energy"] < first]
+    assert all(c["reflection_solve"].startswith("not used") for c in lower), [(c["energy"], c["reflection_solve"]) for c in cands]
+    beyond = [c for c in cands if c["energy"] > first * (1 + 1e-3)]
+    assert beyond and all(c["reflection_solve"].startswith("not tried") for c in beyond)
+    assert len(calls) == len(cands) - len(beyond) < len(cands)
+    assert r["converged"] and r["flipped_triangles"] == 0 and o["inverse_flipped_triangles"] == 0
+    assert check_map(r, Vs, Fs, Vt, Fs) == 0

@@ -370,10 +370,18 @@ def test_a_fold_held_by_the_rim_images_is_cleared_by_sliding_them():
     f = int(np.flatnonzero((T.F == centre).any(axis=1))[0])
     fw["face"][0], fw["barycentric"][0], fw["position"][0] = f, (T.F[f] == centre).astype(float), T.V[centre]
     assert open_double._flips(S, T, fw)[0] == 2
+    assert_slides_clear_the_folds(S, T, fw, 2)      # the interior moves alone leave both
+
+
+def assert_slides_clear_the_folds(S, T, fw, folded):
+    """With the rim held (boundary_slides=False) the `folded` faces of fw (a flat pair, one loop)
+    stay; with the slides (the default) none: a rim vertex moved, every image triangle positive
+    and together tiling the polygon of the rim's images once, every rim image still on the rim in
+    the same cyclic order along it. Returns the vertices moved."""
     held = {k: np.array(x, copy=True) for k, x in fw.items()}
     open_untangle.untangle_half(S, T, held, lambda f: open_double._turned(S, T, held, False, faces=f),
                                 boundary_slides=False)
-    assert open_double._flips(S, T, held)[0] == 2        # the interior moves alone leave both
+    assert open_double._flips(S, T, held)[0] == folded
     moved = open_untangle.untangle_half(S, T, fw, lambda f: open_double._turned(S, T, fw, False, faces=f))
     assert open_double._flips(S, T, fw)[0] == 0
     assert set(moved) & set(int(v) for v in S.loops[0])
@@ -381,9 +389,72 @@ def test_a_fold_held_by_the_rim_images_is_cleared_by_sliding_them():
     signed = 0.5 * np.cross(Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0])[:, 2]
     ring = fw["position"][S.loops[0], :2]
     polygon = 0.5 * np.sum(ring[:, 0] * np.roll(ring[:, 1], -1) - np.roll(ring[:, 0], -1) * ring[:, 1])
-    assert signed.min() > 0 and abs(signed.sum() - polygon) < 1e-12
-    # Still on the rim, in the same cyclic order along it.
+    assert signed.min() > 0 and abs(signed.sum() - polygon) < 1e-9
     where = [open_untangle._loop_parameter(T, fw["face"][v], fw["barycentric"][v]) for v in S.loops[0]]
     assert all(w is not None and w[0] == 0 for w in where)
     s = np.array([w[1] for w in where])
     assert np.sum(np.diff(np.append(s, s[0])) % len(T.loops[0])) == len(T.loops[0])
+    return moved
+
+
+def notched_square(n=12, half_width=1 / 6, top=-0.5):
+    """The sheet (n x n) with a notch cut up from the middle of its bottom side, |x| < half_width
+    and y < top: a disk whose rim runs up, across and down the notch."""
+    V, F = sheet(n)
+    c = V[F].mean(axis=1)
+    return compact(V, F[~((np.abs(c[:, 0]) < half_width) & (c[:, 1] < top))])
+
+
+def on_flat(T, xy):
+    """(face, barycentric, position) of the point xy of the flat T (inside a face or on an edge)."""
+    P = T.V[T.F][:, :, :2]
+    A, B, C = P[:, 0], P[:, 1], P[:, 2]
+    det = (B[:, 0] - A[:, 0]) * (C[:, 1] - A[:, 1]) - (B[:, 1] - A[:, 1]) * (C[:, 0] - A[:, 0])
+    l1 = ((xy[0] - A[:, 0]) * (C[:, 1] - A[:, 1]) - (xy[1] - A[:, 1]) * (C[:, 0] - A[:, 0])) / det
+    l2 = ((B[:, 0] - A[:, 0]) * (xy[1] - A[:, 1]) - (B[:, 1] - A[:, 1]) * (xy[0] - A[:, 0])) / det
+    bary = np.stack([1 - l1 - l2, l1, l2], axis=1)
+    f = int(np.argmax(bary.min(axis=1)))
+    assert bary[f].min() > -1e-12, f"{xy} is not on the target"
+    b = np.clip(bary[f], 0, None) / np.clip(bary[f], 0, None).sum()
+    return f, b, b @ T.V[T.F[f]]
+
+
+def test_joint_positions_beyond_the_rim_are_kept_inside_with_the_rim_sliding():
+    """The 6 x 6 sheet onto the 12 x 12 sheet with a notch cut up from its bottom side (notched_square),
+    by the identity except that the source's bottom edge from (0, -1) to (1/3, -1) spans the notch's
+    mouth (its left end's image at the notch's corner (-1/6, -1)) and the interior ring of the vertex
+    above it, (0, -2/3), is collapsed with it onto a point above the notch: 6 folded faces (4 of
+    them interior), and the joint step's positions (the collapsed vertex just above the chord
+    across the mouth) fall into the notch, so with the rim held (boundary_slides=False) all 6 stay,
+    as spot -> poncho's inverse faces 3842, 3915 (docs/open_surfaces.md "The half's solve"); on
+    s28merge, whose slides move the boundary corners of folded faces one at a time,
+    all 6 stay too.
+    With the rim's vertices sliding along it in the same joint step and the free vertices kept inside
+    the chart's faces (open_untangle._rim_sliders, _walls): nothing folded by the pipeline's count;
+    independently every image triangle is positive and together they tile the polygon of the rim's
+    images once; every interior image lies inside the target, off the rim; every rim image is still
+    on the target's rim, in the same cyclic order."""
+    Vt, Ft = notched_square()
+    T = open_double._Side(Vt, Ft, "target")
+    S = open_double._Side(*sheet(6), "source")
+
+    def vertex(x, y):
+        return int(np.argmin(np.linalg.norm(S.V[:, :2] - [x, y], axis=1)))
+    img = S.V[:, :2].copy()
+    img[vertex(0, -1)] = (-1 / 6, -1)
+    centre = vertex(0, -2 / 3)
+    on_b = np.zeros(S.n, bool)
+    on_b[np.concatenate(S.loops)] = True
+    ring = np.unique(S.F[(S.F == centre).any(axis=1)])
+    img[ring[~on_b[ring]]] = (0, -0.4)
+    fw = {"face": np.zeros(S.n, dtype=np.int64), "barycentric": np.zeros((S.n, 3)), "position": np.zeros((S.n, 3))}
+    for v in range(S.n):
+        fw["face"][v], fw["barycentric"][v], fw["position"][v] = on_flat(T, img[v])
+    start = [open_untangle._loop_parameter(T, fw["face"][v], fw["barycentric"][v]) for v in S.loops[0]]
+    assert all(w is not None for w in start)
+    assert open_double._flips(S, T, fw)[0] == 6
+    assert_slides_clear_the_folds(S, T, fw, 6)      # the rim held: the positions fall in the notch
+    assert np.allclose(np.einsum("ij,ijk->ik", fw["barycentric"], T.V[T.F[fw["face"]]]), fw["position"], atol=1e-12)
+    inner = np.flatnonzero(~on_b)
+    assert all(open_untangle._loop_parameter(T, fw["face"][v], fw["barycentric"][v]) is None for v in inner)
+    assert not np.any((np.abs(fw["position"][inner, 0]) < 1 / 6) & (fw["position"][inner, 1] < -0.5))
