@@ -1178,6 +1178,21 @@ def test_an_open_pairs_closed_stage_comes_first_in_the_stage_text():
     assert job.status_text().startswith("Surface Map: Ranking handle pairings (30%)")
 
 
+def test_the_runs_after_the_main_one_are_named_in_the_stage_text():
+    """Session 28: the core names the stages of the runs made after the main one (the other
+    direction, the through-shape step) 'other runs (<stage>)' and reports ('done', 1) when the
+    map is made; the bar used to read 100% with the main run's last stage while they worked."""
+    from surface_map import map_job
+    job = map_job.MapJob(None, None, None, None)
+    job.stage = "other runs (harmonic solve)"
+    assert job.stage_text() == "Harmonic solve · Other runs"
+    assert job.stage_text(short=True) == "Harmonic solve"
+    job.stage = "doubles: pairing [0], preserving (other runs (landmarks))"
+    assert job.stage_text(short=True) == "Holding landmarks"
+    job.stage = "done"
+    assert job.stage_text() == "Map made"
+
+
 def test_a_started_job_is_registered_before_its_worker_runs():
     """stop_running_jobs (atexit) joins the jobs in map_job.RUNNING. The worker used to register
     itself only once it ran: a quit between start() and the new thread's first time slice (a

@@ -27,6 +27,7 @@ STAGE_NAMES = {
     "forward location": "Locating source on target",
     "inverse location": "Locating target on source",
     "landmarks": "Holding landmarks",
+    "done": "Map made",
 }
 
 
@@ -386,11 +387,12 @@ class MapJob:
     def stage_text(self, short=False):
         """The stage as the status bar (and, `short`, the sidebar) shows it. An open pair's
         driver names a closed solve inside a candidate '<candidate> (<closed stage>)'
-        (open_double): the closed stage comes first, and alone when `short` (the sidebar's
-        229 px label clips long text in its middle)."""
+        (open_double), and the core names the runs after the main one (the other direction,
+        the through-shape step) 'other runs (<stage>)': the inner stage comes first, and
+        alone when `short` (the sidebar's 229 px label clips long text in its middle)."""
         outer, _, inner = self.stage.rpartition(" (")
-        if self.stage.startswith("doubles:") and outer and inner.endswith(")"):
-            return _stage_name(inner[:-1]) + ("" if short else f" · {_stage_name(outer)}")
+        if self.stage.startswith(("doubles:", "other runs")) and outer and inner.endswith(")"):
+            return _stage_name(inner.rstrip(")")) + ("" if short else f" · {_stage_name(outer)}")
         return _stage_name(self.stage)
 
     def status_text(self):

@@ -1017,11 +1017,13 @@ TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
   EXPECT_NE(m.fold_fallback.find(" s (every class folded (a test's words))"), std::string::npos) << m.fold_fallback;
   EXPECT_TRUE(m.canonical_generators_fallback.empty()) << m.canonical_generators_fallback;
   EXPECT_EQ(m.canonical_generators.rfind("short", 0), 0u) << m.canonical_generators;
-  ASSERT_FALSE(reports.empty());
-  for (const auto& [stage, fraction] : reports) {
+  ASSERT_GE(reports.size(), 2u);
+  EXPECT_EQ(reports.back(), std::make_pair(std::string("done"), 1.0));
+  for (size_t k = 0; k + 1 < reports.size(); ++k) {
+    const auto& [stage, fraction] = reports[k];
     EXPECT_EQ(stage.rfind("retry after folds: ", 0), 0u) << stage;  // (the first run reported nothing: the hook threw)
     EXPECT_GE(fraction, 0.0);
-    EXPECT_LE(fraction, 1.0);
+    EXPECT_LT(fraction, 1.0);
   }
   for (size_t k = 1; k < reports.size(); ++k) EXPECT_GE(reports[k].second, reports[k - 1].second);
   // The retry is cancelled like any run.
@@ -1062,6 +1064,45 @@ TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
   };
   EXPECT_THROW(testing::surface_map(a, b, o, hooks), SolveError);
   EXPECT_EQ(runs.size(), 1u);
+}
+
+// Session 28: the runs made after the main one (here the other direction,
+// asked for always) report their stages as "other runs (<stage>)", below a
+// full bar: the fractions stay under 1 until the map is made, and the last
+// report is ("done", 1). Before, the main run's last stage reported 1 and the
+// bar read full while the other direction was still being solved.
+TEST(SurfaceMapHandles, TheBarIsFullOnlyWhenTheMapIsMade) {
+  const TriMesh a = samples::n_hole_torus(2, 18, true);
+  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  SurfaceMapOptions o;
+  o.homotopy.search.enabled = false;
+  o.homotopy.two_way_ratio = 0;  // (the other direction always)
+  o.homotopy.through_shape = false;
+  std::vector<std::pair<std::string, double>> reports;
+  o.progress = [&](const std::string& stage, double fraction) {
+    reports.emplace_back(stage, fraction);
+    return true;
+  };
+  const SurfaceMapResult m = surface_map(a, b, o);
+  expect_valid_map(m, a, b);
+  ASSERT_GE(reports.size(), 3u);
+  EXPECT_EQ(reports.back(), std::make_pair(std::string("done"), 1.0));
+  size_t other = 0;
+  for (size_t k = 0; k + 1 < reports.size(); ++k) {
+    EXPECT_LT(reports[k].second, 1.0) << reports[k].first;
+    if (k > 0) EXPECT_GE(reports[k].second, reports[k - 1].second) << reports[k].first;
+    other += reports[k].first.rfind("other runs (", 0) == 0;
+  }
+  EXPECT_GT(other, 0u) << "the other direction's stages are not named";
+  // The other runs come after the main run's last stage.
+  const auto first_other = std::find_if(reports.begin(), reports.end(),
+                                        [](const auto& r) { return r.first.rfind("other runs (", 0) == 0; });
+  EXPECT_NE(std::find_if(reports.begin(), first_other, [](const auto& r) { return r.first == "inverse location"; }),
+            first_other);
+  // A cancel at the last report still cancels.
+  SurfaceMapOptions at_the_end = o;
+  at_the_end.progress = [](const std::string& stage, double) { return stage != "done"; };
+  EXPECT_THROW(surface_map(a, b, at_the_end), Cancelled);
 }
 
 // The small genus-2 pair of the twist-search tests below (an n-hole torus

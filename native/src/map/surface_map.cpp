@@ -161,10 +161,15 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
 // stage's own fraction, which may come after a later stage's end was
 // reported, e.g. the full-resolution solves after the ranking's 0.42; and
 // the automatic cuts' runs each count from 0). Calls are serialised, so
-// that two threads' reports arrive in order.
+// that two threads' reports arrive in order. The fractions stay at most
+// kBeforeDone until the run returns, which reports ("done", 1): the main
+// run's last stage reports 1, and the two-way run and the through-shape
+// step may still work for as long again after it (a genus-12 pair: ten
+// minutes at a full bar, session 28).
 SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                       const MapHooks& hooks) {
   if (!options.progress) return surface_map_run(source, target, options, hooks);
+  static constexpr double kBeforeDone = 0.98;
   struct Monotone {
     std::mutex mutex;
     double last = 0;
@@ -173,10 +178,12 @@ SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& targ
   SurfaceMapOptions monotone = options;
   monotone.progress = [inner = options.progress, state](const std::string& stage, double fraction) {
     std::lock_guard<std::mutex> lock(state->mutex);
-    if (fraction > state->last) state->last = fraction;
+    state->last = std::max(state->last, std::min(fraction, kBeforeDone));
     return inner(stage, state->last);
   };
-  return surface_map_run(source, target, monotone, hooks);
+  SurfaceMapResult out = surface_map_run(source, target, monotone, hooks);
+  if (!options.progress("done", 1.0)) throw Cancelled("cancelled after the map was made");
+  return out;
 }
 
 namespace {
@@ -303,8 +310,14 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
   using testing::MapHooks;
   SurfaceMapResult out;
   // The two-way run's maps: the public surface_map (no hooks).
+  // Their stages are reported as "other runs (<stage>)" (SurfaceMapOptions::progress).
   const detail::MapFunction map_of = [](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) {
-    return surface_map(s, t, o);
+    if (!o.progress) return surface_map(s, t, o);
+    SurfaceMapOptions named = o;
+    named.progress = [outer = o.progress](const std::string& stage, double fraction) {
+      return outer("other runs (" + stage + ")", fraction);
+    };
+    return surface_map(s, t, named);
   };
   const auto t_start = Clock::now();
   auto t_stage = t_start;

@@ -667,7 +667,12 @@ struct SurfaceMapOptions {
   /// surfaces' capped maps, docs/history/open_surfaces.md "Capped maps that fold").
   bool landmarks_may_fold = false;
   /// Called between stages with the stage name and a fraction in [0, 1];
-  /// return false to cancel (throws Cancelled).
+  /// return false to cancel (throws Cancelled). The fractions never
+  /// decrease and stay below 1 (at most 0.98) until the map is made: the
+  /// last call is ("done", 1). Runs made after the main one (the other
+  /// direction, the through-shape step's legs) report their stages as
+  /// "other runs (<stage>)" at the fraction reached, so a bar does not read
+  /// full while they work.
   std::function<bool(const std::string& stage, double fraction)> progress;
   /// Called during the harmonic solve (genus >= 2) at every Newton
   /// iteration / relaxation check with (iteration, energy, gradient norm);
