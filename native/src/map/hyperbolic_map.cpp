@@ -189,6 +189,10 @@ class HyperbolicPipeline {
   void note_refusal(const SolveError& e) {
     if (e.reason() == SolveFailure::start_edges) ++start_edge_refusals;
   }
+  /// The reason a failure of this run carries: start_edges once a solve was refused so.
+  SolveFailure refusal_reason() const {
+    return start_edge_refusals > 0 ? SolveFailure::start_edges : SolveFailure::unspecified;
+  }
   std::vector<char> not_ranked;  ///< classes the ranking did not solve (issue 19; still fallbacks)
   std::vector<int> order;  ///< classes by coarse energy
   int ncand = 0, full_solves = 0;
@@ -765,7 +769,7 @@ bool HyperbolicPipeline::try_solve(int k, const std::function<HyperbolicHarmonic
   }
   if (needed)
     throw SolveError("the harmonic map solve of homotopy class " + std::to_string(k) + " failed: " + why,
-                     start_edge_refusals > 0 ? SolveFailure::start_edges : SolveFailure::unspecified);
+                     refusal_reason());
   usable[k] = 0;
   out.candidates[k].energy = std::numeric_limits<double>::infinity();
   out.candidates[k].solved = false;
@@ -2022,7 +2026,7 @@ void HyperbolicPipeline::choose_with_landmarks() {
       why += "; no geometric class (" + out.class_bound_status + ")";
     }
     throw SolveError("the harmonic map solve failed in every candidate homotopy class" + why,
-                     start_edge_refusals > 0 ? SolveFailure::start_edges : SolveFailure::unspecified);
+                     refusal_reason());
   }
   held_result.resize(ncand);
   held_record.resize(ncand);
