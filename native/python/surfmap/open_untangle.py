@@ -242,16 +242,16 @@ def _patch_untangle(S, T, fw, free, star_of, turned_of, ear, unit, tf, sign, cre
     # With the rim sliding, the free vertices are also kept inside the chart's faces (a penalty
     # near its walls: _walls), where the positions would otherwise fall into the hole.
     walls = _walls(T, *place.region, sign) if rims is not None else None
-    p = _untangled_positions(S, faces, verts, xy, free, rims=rims, walls=walls)
-    if p is None:
+    solved = _untangled_positions(S, faces, verts, xy, free, rims=rims, walls=walls)
+    if solved is None:
         # From the images as they are the energy can sit still (a ring collapsed onto one point:
         # every Jacobian 0, so is the gradient); again from each free vertex at the average of its
         # neighbours (a Tutte embedding of the patch, the ring around it held).
-        p = _untangled_positions(S, faces, verts, _averaged(S.F[faces], verts, xy, free), free, rims=rims,
-                                 walls=walls)
-    if p is None or not np.all(np.isfinite(p[0] if rims else p)):
+        solved = _untangled_positions(S, faces, verts, _averaged(S.F[faces], verts, xy, free), free, rims=rims,
+                                      walls=walls)
+    if solved is None or not np.all(np.isfinite(solved[0])):
         return False
-    p, s = p if rims else (p, None)
+    p, s = solved   # (positions of `free`; the rim's parameters)
     moving = np.concatenate([free, sliding])
     old = {k: np.array(fw[k][moving], copy=True) for k in ("face", "barycentric", "position")}
 
@@ -433,8 +433,9 @@ def _untangled_positions(S, faces, verts, xy, free, rounds=12, lam=1.0, polish=2
     is lowered tenfold each round while a face stays turned. Once none is, `polish` rounds at
     eps 1e-3 times smaller with lam = polish_lam (mostly the conformal term |J|^2 / det J, which
     D' measures) lower the distortion, each kept only while nothing turns. None when a face is
-    still turned after `rounds`. rims (_rim_sliders): its vertices are unknowns too, each a
-    parameter along the target's rim within its bounds; then (positions of `free`, parameters).
+    still turned after `rounds`; else (positions (k, 2) of `free`, parameters of the rim's
+    vertices). rims (_rim_sliders): its vertices are unknowns too, each a parameter along the
+    target's rim within its bounds (no rims: no parameters, an empty array).
     walls (_walls): a penalty wall_weight * (patch area) / delta^2 * max(0, delta - sd)^2 per free
     vertex, delta = wall_margin times the patch's median image edge, keeps the free vertices inside
     the chart's faces; None when one ends outside them."""
@@ -546,7 +547,7 @@ def _untangled_positions(S, faces, verts, xy, free, rounds=12, lam=1.0, polish=2
     p = z[:m].reshape(-1, 2) * unit_scale
     if walls is not None and len(p) and np.min(walls(p)[0]) <= 0:
         return None
-    return (p, z[m:]) if rims else p
+    return p, z[m:]
 
 
 def _loop_places(T):
