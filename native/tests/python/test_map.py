@@ -21,6 +21,18 @@ def pair():
     return torus(1.0, 0.5, 120, 60), torus(1.5, 0.5, 150, 60, 1)
 
 
+def cli_map(cli, tmp_path, *flags, pair=None):
+    """`surfmap map s.obj t.obj --out o.obj --report r.json --quiet *flags` in tmp_path, the pair
+    ((V, F) source, (V, F) target) written there first when given: (the finished process, the
+    report as a dict, or None when the map failed)."""
+    if pair is not None:
+        for name, (V, F) in zip(("s.obj", "t.obj"), pair):
+            surfmap.write_obj(str(tmp_path / name), V, F)
+    p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--report",
+            tmp_path / "r.json", "--quiet", *flags)
+    return p, (json.loads((tmp_path / "r.json").read_text()) if p.returncode == 0 else None)
+
+
 def test_extremal_map_between_tori(pair):
     (Vs, Fs), (Vt, Ft) = pair
     r = surfmap.surface_map(Vs, Fs, Vt, Ft)
@@ -852,13 +864,10 @@ def test_flat_map_of_a_turned_remeshed_torus_is_placed_by_the_overlay(tmp_path, 
     assert off["flat_placement"].startswith("base vertex")
     assert off["energy"]["final"] == pytest.approx(r["energy"]["final"], rel=1e-9)
     # The CLI: the same placement and the flag.
-    surfmap.write_obj(str(tmp_path / "s.obj"), Vs, Fs)
-    surfmap.write_obj(str(tmp_path / "t.obj"), Vt, Ft)
     for flag, start in (([], "3D overlay (as posed)"), (["--no-flat-overlay"], "base vertex")):
-        p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--report",
-                tmp_path / "r.json", "--quiet", *flag)
+        p, report = cli_map(cli, tmp_path, *flag, pair=((Vs, Fs), (Vt, Ft)))
         assert p.returncode == 0, p.stderr
-        assert json.loads((tmp_path / "r.json").read_text())["flat_placement"].startswith(start)
+        assert report["flat_placement"].startswith(start)
 
 
 def test_every_cli_map_option_has_a_python_keyword(cli):
@@ -1022,12 +1031,8 @@ def test_fold_fallback_keyword_and_flag_reach_the_map(cli, tmp_path):
     assert "fold_fallback" in surfmap.CAPABILITIES
     with pytest.raises(TypeError):
         surfmap.surface_map(*a, *b, fold_fallback="no")
-    surfmap.write_obj(str(tmp_path / "s.obj"), *a)
-    surfmap.write_obj(str(tmp_path / "t.obj"), *b)
-    p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--report",
-            tmp_path / "r.json", "--quiet", "--no-two-way", "--no-fold-fallback")
+    p, q = cli_map(cli, tmp_path, "--no-two-way", "--no-fold-fallback", pair=(a, b))
     assert p.returncode == 0, p.stderr
-    q = json.loads((tmp_path / "r.json").read_text())
     assert q["fold_fallback"] == "" and not any("made with the short" in n for n in q["notes"])
 
 
@@ -1050,17 +1055,13 @@ def test_high_kicks_keyword_and_flag_reach_the_map(cli, tmp_path):
     with pytest.raises(surfmap.InputError, match="high_kicks must be at least 0"):
         surfmap.surface_map(*a, *b, high_kicks=-1)
     assert "high_kicks" in surfmap.CAPABILITIES
-    surfmap.write_obj(str(tmp_path / "s.obj"), *a)
-    surfmap.write_obj(str(tmp_path / "t.obj"), *b)
-    p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--report",
-            tmp_path / "r.json", "--quiet", "--no-two-way", "--no-through-shape", "--high-kicks", "0")
+    p, report = cli_map(cli, tmp_path, "--no-two-way", "--no-through-shape", "--high-kicks", "0", pair=(a, b))
     assert p.returncode == 0, p.stderr
-    assert json.loads((tmp_path / "r.json").read_text())["homotopy"]["search"]["high_kicks_status"] == "off"
+    assert report["homotopy"]["search"]["high_kicks_status"] == "off"
     # One spelling, as the other counts (--refine-levels 0): no --no-high-kicks beside it (session 28 review).
-    p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--report",
-            tmp_path / "r.json", "--no-high-kicks")
+    p, _ = cli_map(cli, tmp_path, "--no-high-kicks")
     assert p.returncode != 0 and "--no-high-kicks" in p.stderr, p.stderr
-    p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--high-kicks", "-1")
+    p, _ = cli_map(cli, tmp_path, "--high-kicks", "-1")
     assert p.returncode != 0 and "high-kicks" in p.stderr, p.stderr
 
 
@@ -1083,14 +1084,11 @@ def test_through_shape_ratio_keyword_and_flag_reach_the_map(cli, tmp_path):
     with pytest.raises(surfmap.InputError, match="through_shape_ratio must be 0 or more"):
         surfmap.surface_map(*a, *b, through_shape_ratio=-1)
     assert "through_shape_ratio" in surfmap.CAPABILITIES
-    surfmap.write_obj(str(tmp_path / "s.obj"), *a)
-    surfmap.write_obj(str(tmp_path / "t.obj"), *b)
-    p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--report",
-            tmp_path / "r.json", "--quiet", "--no-two-way", "--through-shape-ratio", "2")
+    p, report = cli_map(cli, tmp_path, "--no-two-way", "--through-shape-ratio", "2", pair=(a, b))
     assert p.returncode == 0, p.stderr
-    status = json.loads((tmp_path / "r.json").read_text())["quality"]["through_shape_status"]
+    status = report["quality"]["through_shape_status"]
     assert status == "not run: energy ratio below 2", status
-    p = cli("map", tmp_path / "s.obj", tmp_path / "t.obj", "--out", tmp_path / "o.obj", "--through-shape-ratio", "-1")
+    p, _ = cli_map(cli, tmp_path, "--through-shape-ratio", "-1")
     assert p.returncode != 0 and "through-shape-ratio" in p.stderr, p.stderr
 
 
@@ -1121,15 +1119,11 @@ def test_agreement_ratio_keyword_and_flag_reach_the_map(cli, tmp_path):
     from surfmap import mapcall
     assert "agreement_ratio" in mapcall.MAP_OPTION_NAMES
     # The CLI flag reaches the same option.
-    surfmap.write_obj(str(tmp_path / "a.obj"), *a)
-    surfmap.write_obj(str(tmp_path / "b.obj"), *b)
-    p = cli("map", tmp_path / "a.obj", tmp_path / "b.obj", "--out", tmp_path / "o.obj", "--report",
-            tmp_path / "r.json", "--quiet", "--agreement-ratio", "2")
+    p, report = cli_map(cli, tmp_path, "--agreement-ratio", "2", pair=(a, b))
     assert p.returncode == 0, p.stderr
-    q = json.loads((tmp_path / "r.json").read_text())["quality"]
+    q = report["quality"]
     assert q["directions"]["agreement"] == "" and q["two_way_status"] == "not run: energy ratio below 2"
-    bad = cli("map", tmp_path / "a.obj", tmp_path / "b.obj", "--out", tmp_path / "o.obj", "--report",
-              tmp_path / "r.json", "--quiet", "--agreement-ratio", "-1")
+    bad, _ = cli_map(cli, tmp_path, "--agreement-ratio", "-1")
     assert bad.returncode != 0 and "agreement-ratio" in bad.stderr, bad.stderr
 
 
