@@ -1359,7 +1359,7 @@ void expect_holes_in_order(int genus, int res) {
   const TriMesh b = samples::polycube(genus, res, true);
   const SurfaceMapResult m = surface_map(a, b);
   expect_valid_map(m, a, b);
-  const double bound = 8 * M_PI * (genus - 1);
+  const double bound = conformal_bound(genus);
   EXPECT_LT(m.final_energy, 1.2 * bound);
   EXPECT_LT(m.mean_dilatation, 2.2);
   const Eigen::RowVector3d alo = a.V.colwise().minCoeff(), ahi = a.V.colwise().maxCoeff();

@@ -310,7 +310,7 @@ std::string keep_the_lower_pair(const TriMesh& source, const TriMesh& target, co
   if (target_letters_inverse.size() != n || first.chosen_class_words.size() != n ||
       first.source_as_target_inverse.size() != n)
     return head + "not compared (its words or letters are missing): kept the class lower here";
-  const double bound = 8 * M_PI * (first.genus - 1);
+  const double bound = conformal_bound(first.genus);
   const double own = chosen_energy(first);
   const SurfaceMapOptions ao = single_class_options(
       one_way_options(reverse_options(options)),
@@ -536,7 +536,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
     return not_run + "this source's letters as a target are missing: " + forward.source_as_target_status + ")";
   if (target_letters_inverse.size() != n) return not_run + "the target's letters as a source are missing)";
   const Clock t;
-  const double bound = 8 * M_PI * (g - 1);
+  const double bound = conformal_bound(g);
   // The composed classes θ0 in the other direction (target -> source):
   // ι_T^-1 ∘ θ0 ∘ ι_S^-1 is θ0 from the source's letters as a target to
   // the target's letters as a source (the form of

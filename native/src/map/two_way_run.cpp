@@ -132,7 +132,7 @@ std::string agree_directions(const TriMesh& source, const TriMesh& target, const
   if (!run_map(map, target, source, ro, back, back_failure)) {
     return std::string("directions not agreed: the other direction given this class failed: ") + back_failure;
   }
-  const double bound = 8 * M_PI * (forward.genus - 1);
+  const double bound = conformal_bound(forward.genus);
   const OtherClassHere there = other_class_here(back), here = other_class_here(forward);
   const std::string there_text = "the other direction, given this class (" + there.how +
                                  (there.index >= 0 ? ", ratio " + four_digits(there.energy / bound) : std::string()) +
@@ -205,7 +205,7 @@ std::string search_from_this_class_there(const TriMesh& source, const TriMesh& t
   if (static_cast<int>(forward.inverse.size()) == target.num_vertices())
     so.homotopy.source_images = inverse_positions(forward);
   if (so.homotopy.reverse_class.empty()) return "";
-  const double bound = 8 * M_PI * (forward.genus - 1);
+  const double bound = conformal_bound(forward.genus);
   SurfaceMapResult back;
   std::string back_failure;
   if (!run_map(map, target, source, so, back, back_failure)) {
@@ -279,7 +279,7 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
     d.reason = "inverse up to the hyperelliptic involution (exact), an isometry of every genus-2 surface";
     return "directions inverse up to the hyperelliptic involution";
   }
-  const double bound = 8 * M_PI * (g - 1);
+  const double bound = conformal_bound(g);
   const double own = chosen_energy(forward), own_there = chosen_energy(reverse);
   const SurfaceMapOptions fo = single_class_options(options, psi, SingleClass::KeepTheRest);
   SurfaceMapResult here;
@@ -398,7 +398,7 @@ std::string agree_below_two_way_ratio(const TriMesh& source, const TriMesh& targ
                                       std::vector<std::vector<int>>* target_letters_inverse) {
   SurfaceMapResult::DirectionCheck& d = forward.directions;
   const int g = forward.genus;
-  const double bound = 8 * M_PI * (g - 1);
+  const double bound = conformal_bound(g);
   SurfaceMapResult reverse;
   std::string failure;
   if (!run_map(map, target, source, reverse_options(options), reverse, failure)) {
@@ -542,10 +542,10 @@ void assess_quality(SurfaceMapResult& result) {
   result.energy_ratio_own_edges = std::numeric_limits<double>::quiet_NaN();
   if (std::isfinite(result.intrinsic_class_energy)) {
     // (The own-edge fallback's energy is kept beside it.)
-    result.energy_ratio_own_edges = energy / (8 * M_PI * (result.genus - 1));
+    result.energy_ratio_own_edges = energy / conformal_bound(result.genus);
     energy = result.intrinsic_class_energy;
   }
-  result.energy_ratio = energy / (8 * M_PI * (result.genus - 1));
+  result.energy_ratio = energy / conformal_bound(result.genus);
   if (result.energy_ratio >= 3.0)
     result.quality_warning = "energy " + four_digits(result.energy_ratio) +
                              " x the conformal bound 8 pi (g - 1): the handle class may be twisted; add landmarks or "
