@@ -213,8 +213,8 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
     }
     return map_in_given_cuts(source, target, o, hooks);
   };
-  // The automatic retries below report their progress as stages "<name>:
-  // ..." with fractions from the largest the first run reached up to 1
+  // The automatic retries below report their progress as stages "<name>
+  // (<stage>)" with fractions from the largest the first run reached up to 1
   // (testing::surface_map keeps them from decreasing), so a retry does not
   // sit at the first run's last fraction; the callback can cancel it.
   struct Reached {
@@ -240,7 +240,7 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
       std::lock_guard<std::mutex> lock(reached->mutex);
       retry.progress = [inner = options.progress, from = reached->fraction, name](const std::string& stage,
                                                                                    double fraction) {
-        return inner(name + ": " + stage, from + (1 - from) * std::clamp(fraction, 0.0, 1.0));
+        return inner(name + " (" + stage + ")", from + (1 - from) * std::clamp(fraction, 0.0, 1.0));
       };
     }
     SurfaceMapResult out = map_in_chosen_cuts(retry);

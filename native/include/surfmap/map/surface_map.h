@@ -549,8 +549,8 @@ struct LoopOptions {
   /// two_way off), the settings that map the CAD block g12 -> raw wheel g12
   /// one-to-one; the result says so (SurfaceMapResult::fold_fallback), and
   /// when the retry fails too the error gives both reasons. Its progress is
-  /// reported as stages "retry after folds: ..." and the callback can cancel
-  /// it. Default true; false: CLI --no-fold-fallback (or
+  /// reported as stages "retry after folds (<stage>)" and the callback can
+  /// cancel it. Default true; false: CLI --no-fold-fallback (or
   /// --classical-canonical-generators), Python fold_fallback=False.
   bool fold_fallback = true;
   /// Genus >= 2: list the candidate classes (overlays, the canonical
