@@ -797,14 +797,21 @@ TEST(SurfaceMapHandles, ClassSearchUndoesKnownTwists) {
   EXPECT_THROW(surface_map(a, b, o, hooks), InputError);
 }
 
-// A small genus-2 pair without a coarse copy (source under 2000 vertices),
+namespace {
+// The small genus-2 pair of the tests below: an n-hole torus and a jittered
+// finer one (the source under 2000 vertices: no coarse copy).
+TriMesh small_genus2_source() { return samples::n_hole_torus(2, 18, true); }
+TriMesh small_genus2_target() { return samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5); }
+}  // namespace
+
+// The small genus-2 pair (small_genus2_source, small_genus2_target),
 // mapped without search (`m0`, in the identity class of energy `e0`), then
 // with `o` (two-way off) and the search started from that class twisted by
 // the named moves: the twisted map is returned, after checks common to its
 // tests (the start is worse, the search comes back to e0).
 struct TwistedIdentitySearch {
-  TriMesh a = samples::n_hole_torus(2, 18, true);
-  TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  TriMesh a = small_genus2_source();
+  TriMesh b = small_genus2_target();
   SurfaceMapResult m0;
   double e0 = 0;
   SurfaceMapResult search(SurfaceMapOptions o, const std::vector<std::string>& twists) {
@@ -896,8 +903,7 @@ TEST(SurfaceMapHandles, ClassSearchUndoesTwistsAlongShortCurves) {
 // the error gives both runs' reasons; without the fallback, or with the
 // short generators asked for, there is one run and one reason.
 TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  const TriMesh a = small_genus2_source(), b = small_genus2_target();
   SurfaceMapOptions o;
   o.homotopy.two_way = false;
   o.homotopy.through_shape = false;
@@ -945,8 +951,7 @@ TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
 // message says " units long" with no such reason is not. (The hook fails the
 // classical runs only; the retry then maps the pair for real.)
 TEST(SurfaceMapHandles, StartEdgeRetryReadsTheReasonNotTheWords) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  const TriMesh a = small_genus2_source(), b = small_genus2_target();
   SurfaceMapOptions o;
   o.homotopy.two_way = false;
   o.homotopy.search.enabled = false;
@@ -987,8 +992,7 @@ TEST(SurfaceMapHandles, StartEdgeRetryReadsTheReasonNotTheWords) {
 // asked for, nor when the short generators were the first run's. (The hook
 // fails the classical runs with a fold error; the retry maps for real.)
 TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  const TriMesh a = small_genus2_source(), b = small_genus2_target();
   SurfaceMapOptions o;  // (two-way run on: the retry turns it off)
   o.homotopy.search.enabled = false;
   std::vector<SurfaceMapOptions> runs;
@@ -1073,8 +1077,7 @@ TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
 // report is ("done", 1). Before, the main run's last stage reported 1 and the
 // bar read full while the other direction was still being solved.
 TEST(SurfaceMapHandles, TheBarIsFullOnlyWhenTheMapIsMade) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  const TriMesh a = small_genus2_source(), b = small_genus2_target();
   SurfaceMapOptions o;
   o.homotopy.search.enabled = false;
   o.homotopy.two_way_ratio = 0;  // (the other direction always)
@@ -1106,15 +1109,15 @@ TEST(SurfaceMapHandles, TheBarIsFullOnlyWhenTheMapIsMade) {
   EXPECT_THROW(surface_map(a, b, at_the_end), Cancelled);
 }
 
-// The small genus-2 pair of the twist-search tests below (an n-hole torus
-// and a jittered finer one: no coarse copy) and hooks that start the search
+// The small genus-2 pair (small_genus2_source, small_genus2_target) for the
+// twist-search tests below and hooks that start the search
 // from its default class (search off, one way) composed with `twists`.
 struct TwistedStartPair {
   TriMesh a, b;
   testing::MapHooks hooks;
 };
 TwistedStartPair twisted_start_pair(const std::vector<std::string>& twists) {
-  TwistedStartPair p{samples::n_hole_torus(2, 18, true), samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5), {}};
+  TwistedStartPair p{small_genus2_source(), small_genus2_target(), {}};
   SurfaceMapOptions plain;
   plain.homotopy.search.enabled = false;
   plain.homotopy.two_way = false;
