@@ -115,9 +115,10 @@ def test_the_sidebar_names_the_run_after_the_main_one_under_the_stage():
     sidebar read 'Uniformizing target' at 83%, the main run's first stage at the bar's held
     fraction, as if the compute had started over. The run is now named on a line of its own
     under the stage (the status bar names it after the stage), and only there: the main run
-    draws no such line. Each run's name fits the main panel's label, measured against 'Locating
-    target on source' (127 px), seen whole there at the default width."""
-    from surface_map import map_job
+    draws no such line. Each run's name fits the main panel's icon label at the default width
+    (panel.LABEL_WIDTH_DEFAULT + MAIN_PANEL_EXTRA, 130 px; 'Locating target on source', 127 px,
+    is seen whole there)."""
+    from surface_map import map_job, panel
     settings = bpy.context.scene.surfmap
     job = map_job.MapJob(None, None, None, None)
     job.fraction = 0.5
@@ -145,7 +146,7 @@ def test_the_sidebar_names_the_run_after_the_main_one_under_the_stage():
         map_job.ACTIVE["job"] = None
     import blf
     blf.size(0, 11, 72) if bpy.app.version < (4, 0) else blf.size(0, 11)
-    whole = blf.dimensions(0, "Locating target on source")[0]
+    whole = panel.LABEL_WIDTH_DEFAULT + panel.MAIN_PANEL_EXTRA
     for run in ("other runs", "retry after folds", "retry with the short generators"):
         job.stage = run + " (harmonic solve)"
         assert blf.dimensions(0, job.run_text())[0] <= whole, job.run_text()
