@@ -532,11 +532,12 @@ struct LoopOptions {
   bool short_canonical_generators = false;
   /// Issue 13 (session 27; docs/history/robustness.md "Session 27 (branch edge27)"): when a genus >= 2
   /// run with the classical generators fails at its start edges (a
-  /// SolveError saying an edge "starts ... units long": deck elements that
-  /// the classical generators' long words put beyond what the solve
-  /// accepts), it is run again with the short ones, and the result says so
+  /// SolveError of reason SolveFailure::start_edges: deck elements that the
+  /// classical generators' long words put beyond what the solve accepts), it
+  /// is run again with the short ones, and the result says so
   /// (SurfaceMapResult::canonical_generators_fallback; the error, when that
-  /// fails too, gives both). Default true; false: CLI
+  /// fails too, gives both). Its progress is reported as stages "retry with
+  /// the short generators (<stage>)". Default true; false: CLI
   /// --no-short-generators-fallback (or --classical-canonical-generators,
   /// which asks for the classical basis), Python
   /// short_generators_fallback=False.
@@ -672,7 +673,9 @@ struct SurfaceMapOptions {
   /// last call is ("done", 1). Runs made after the main one (the other
   /// direction, the through-shape step's legs) report their stages as
   /// "other runs (<stage>)" at the fraction reached, so a bar does not read
-  /// full while they work.
+  /// full while they work; the automatic retries report theirs as "retry
+  /// after folds (<stage>)" and "retry with the short generators (<stage>)"
+  /// (LoopOptions::fold_fallback, short_generators_fallback).
   std::function<bool(const std::string& stage, double fraction)> progress;
   /// Called during the harmonic solve (genus >= 2) at every Newton
   /// iteration / relaxation check with (iteration, energy, gradient norm);
