@@ -123,17 +123,54 @@ std::vector<std::vector<int>> composed_class(const SurfaceMapResult& source_to_m
                  compose(middle_to_target.source_as_target_inverse, source_to_middle.chosen_class_words));
 }
 
+bool through_shape_reached(const SurfaceMapResult& forward, double one_way_ratio, double ratio, std::string& why) {
+  why.clear();
+  if (forward.energy_ratio >= ratio) return true;
+  const SurfaceMapResult::DirectionCheck& d = forward.directions;
+  const std::string below = "energy ratio below " + four_digits(ratio);
+  if (d.outcome == "inverse" || d.outcome == "symmetric: both optimal") {
+    // Agreed: the other direction's run ends on this class inverted, and
+    // takes the step when that class's ratio there reaches `ratio`.
+    if (d.inverse_there_ratio >= ratio) {
+      why = below + " here, but this class inverted is at " + four_digits(d.inverse_there_ratio) +
+            " in the other direction, whose own run takes the step";
+      return true;
+    }
+    why = below + (std::isnan(d.inverse_there_ratio) ? std::string(" (this class inverted not solved there)")
+                                                     : " in both directions (this class inverted: " +
+                                                           four_digits(d.inverse_there_ratio) + " there)");
+    return false;
+  }
+  // Not agreed: the other direction's run may end anywhere up to its one-way
+  // ratio, so both runs read the larger of the two one-way ratios (each run
+  // maps the other direction one way with the same options).
+  double larger = std::numeric_limits<double>::quiet_NaN();
+  for (double r : {one_way_ratio, d.other_one_way_ratio})
+    if (std::isfinite(r) && !(r <= larger)) larger = r;
+  if (larger >= ratio) {
+    why = below + " here, the directions not agreed, and a one-way ratio at " + four_digits(ratio) +
+          " or more (this direction " + four_digits(one_way_ratio) + ", the other " +
+          four_digits(d.other_one_way_ratio) + "), so the other direction's own run may take the step";
+    return true;
+  }
+  why = below + (std::isfinite(larger) ? " (one way: this direction " + four_digits(one_way_ratio) +
+                                             ", the other " + four_digits(d.other_one_way_ratio) + ")"
+                                       : std::string());
+  return false;
+}
+
 void through_shape_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                        SurfaceMapResult& forward, const MapFunction& map,
-                       const std::vector<std::vector<int>>& target_letters_inverse) {
+                       const std::vector<std::vector<int>>& target_letters_inverse, double one_way_ratio) {
   const HomotopyOptions& h = options.homotopy;
   if (forward.genus < 2 || h.class_index >= 0 || h.source_images.size() > 0 || h.reverse_class_only ||
       !h.given_class.empty())
     return;
   if (!h.through_shape) return void(forward.through_shape_status = "not run (off)");
   if (!options.landmarks.empty()) return void(forward.through_shape_status = "not run: landmarks are held");
-  if (!(forward.energy_ratio >= h.through_shape_ratio))
-    return void(forward.through_shape_status = "not run: energy ratio below " + four_digits(h.through_shape_ratio));
+  std::string reached;
+  if (!through_shape_reached(forward, one_way_ratio, h.through_shape_ratio, reached))
+    return void(forward.through_shape_status = "not run: " + reached);
   const int g = forward.genus;
   // At least 16 grid cells per handle in a row (genus <= 4), 64 for the
   // wheels beyond: at 32 cells the genus-4 n-hole torus (2.3k vertices)
@@ -141,7 +178,8 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
   // the fertility onto it at 8.75 x, at 64 (10k) at 4.54 x
   // (docs/handle_classes.md "Through generated shapes").
   const int resolution = std::max(h.through_shape_resolution, g <= 4 ? 16 * g : 64);
-  std::string notes;
+  // (Run from below the ratio: the status says why first.)
+  std::string notes = reached.empty() ? std::string() : "; run for the other direction: " + reached;
   std::vector<MiddleShape> middles;
   for (MiddleShape& m : middle_shapes(g, resolution, notes)) {
     const bool is_target = same_shape(m.mesh, target);
