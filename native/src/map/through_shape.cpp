@@ -519,6 +519,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   const int chosen = static_cast<int>(listed.size()) + through.chosen_candidate;
   for (HomotopyCandidate& c : tried) listed.push_back(std::move(c));
   const std::string two_way = forward.two_way_status;
+  const double other_one_way = forward.directions.other_one_way_ratio;
   forward = std::move(through);
   forward.candidates = std::move(listed);
   forward.chosen_candidate = chosen;
@@ -527,6 +528,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   forward.reverse_inverse_reason = "not compared: the class through the generated shape was adopted after the two-way run";
   forward.directions = SurfaceMapResult{}.directions;
   forward.directions.reason = forward.reverse_inverse_reason;
+  forward.directions.other_one_way_ratio = other_one_way;
   double new_pair = std::numeric_limits<double>::quiet_NaN();
   const std::string agreed = both_ways(&new_pair);
   finish(forward, status + agreed + keep_the_lower_pair(source, target, options, first_result, new_pair,
@@ -663,6 +665,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
     d.outcome = relation.inner.inner ? "inverse" : "symmetric: both optimal";
     d.reason = "the other direction's search from the composed classes inverted ends on this class inverted" +
                std::string(relation.inner.inner ? "" : " up to the hyperelliptic involution") + " (exact)";
+    d.inverse_there_ratio = other_there / bound;
     if (kept_pair_total) *kept_pair_total = own + other_there;
     return status + ": this class inverted (" + t.text() + ")";
   }
@@ -720,6 +723,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
     list_the_other_class();
     if (kept_pair_total) *kept_pair_total = own_pair;
     d.outcome = "inverse";
+    d.inverse_there_ratio = own_there / bound;
     d.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is this one (" + pairs +
                ")";
     return status + "; " + pairs + ": kept this class (" + t.text() + ")";
@@ -733,6 +737,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
                      alone_here.chosen_candidate;
   const std::string two_way = forward.two_way_status;
   const double two_way_time = forward.two_way_time_s;
+  const double other_one_way = forward.directions.other_one_way_ratio;
   forward = std::move(alone_here);
   forward.candidates = std::move(listed);
   forward.chosen_candidate = chosen;
@@ -741,6 +746,8 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
   forward.reverse_inverse = -1;
   forward.reverse_inverse_reason = "not compared by carried loops: the class is the other direction's, inverted";
   forward.directions.outcome = "inverse";
+  forward.directions.other_one_way_ratio = other_one_way;
+  forward.directions.inverse_there_ratio = other_there / bound;
   forward.directions.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is the "
                               "other direction's search from the composed classes (" + pairs + ")";
   if (kept_pair_total) *kept_pair_total = other_pair;
