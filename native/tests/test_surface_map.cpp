@@ -2334,6 +2334,8 @@ TEST(SurfaceMapHandles, ThroughShapeRunsForTheOtherDirectionBelowItsRatio) {
   EXPECT_FALSE(detail::through_shape_reached(r, nan, 3, why)) << why;
   r.directions.other_one_way_ratio = nan;
   EXPECT_FALSE(detail::through_shape_reached(r, nan, 3, why)) << why;
+  EXPECT_FALSE(detail::through_shape_reached(r, 2.797, 3, why)) << why;
+  EXPECT_EQ(why, "energy ratio below 3");  // (the other direction not mapped: the status as before)
   // Agreed: this class inverted there decides, not the one-way ratios
   // (fertility -> polycube g4: 4.568 x one way, then 2.158 x here and 2.083 x
   // there, inverse: no step in either direction).

@@ -147,15 +147,16 @@ bool through_shape_reached(const SurfaceMapResult& forward, double one_way_ratio
   double larger = std::numeric_limits<double>::quiet_NaN();
   for (double r : {one_way_ratio, d.other_one_way_ratio})
     if (std::isfinite(r) && !(r <= larger)) larger = r;
+  auto ratio_or_unknown = [](double r) { return std::isfinite(r) ? four_digits(r) : std::string("unknown"); };
+  const std::string both = "this direction " + ratio_or_unknown(one_way_ratio) + ", the other " +
+                           ratio_or_unknown(d.other_one_way_ratio);
   if (larger >= ratio) {
-    why = below + " here, the directions not agreed, and a one-way ratio at " + four_digits(ratio) +
-          " or more (this direction " + four_digits(one_way_ratio) + ", the other " +
-          four_digits(d.other_one_way_ratio) + "), so the other direction's own run may take the step";
+    why = below + " here, the directions not agreed, and a one-way ratio at " + four_digits(ratio) + " or more (" +
+          both + "), so the other direction's own run may take the step";
     return true;
   }
-  why = below + (std::isfinite(larger) ? " (one way: this direction " + four_digits(one_way_ratio) +
-                                             ", the other " + four_digits(d.other_one_way_ratio) + ")"
-                                       : std::string());
+  // (The other direction not mapped: the status is the one-direction rule's.)
+  why = below + (std::isfinite(d.other_one_way_ratio) ? " (one way: " + both + ")" : std::string());
   return false;
 }
 
