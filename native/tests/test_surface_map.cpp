@@ -1988,6 +1988,8 @@ TEST(SurfaceMapHandles, ThroughShapeAdoptsAClassOnlyWhenItsPairTotalIsLower) {
   EXPECT_NE(high.through_shape_status.find("the adopted pair is lower"), std::string::npos) << high.through_shape_status;
   EXPECT_NEAR(high.energy_ratio, f.energy_ratio, 1e-6 * f.energy_ratio) << high.through_shape_status;
   EXPECT_EQ(high.directions.outcome, "inverse") << high.directions.reason;
+  // (This class inverted there, as the step solved it: read by the step of a later run; session 29.)
+  EXPECT_GE(high.directions.inverse_there_ratio, 1 - 1e-6) << high.directions.reason;
   EXPECT_TRUE(high.converged);
   EXPECT_EQ(high.flipped_triangles, 0);
 }
@@ -2311,6 +2313,83 @@ TEST(SurfaceMapHandles, ThroughShapeSkipsTheTargetItselfAndStopsAtALegThatCannot
   EXPECT_FALSE(detail::same_shape(moved, b));
 }
 
+// The through-shape step read the same way from either direction (session 29,
+// branch class30). Jittered cup g3 -> thin CAD plate g3 ran it (7.306 x after
+// the two-way run) and adopted a pair of inverse classes; thin plate -> cup
+// (2.797 x, the directions not agreed, the other direction 7.306 x one way) did
+// not, and the two separate runs ended on classes that were not inverse.
+// through_shape_reached on results like these, then the step itself from
+// below its ratio, with a map function that records the legs asked for and
+// fails them (so nothing is solved).
+TEST(SurfaceMapHandles, ThroughShapeRunsForTheOtherDirectionBelowItsRatio) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::string why;
+  SurfaceMapResult r;
+  r.genus = 3;
+  r.energy_ratio = 2.797;
+  r.directions.other_one_way_ratio = 7.306;
+  EXPECT_TRUE(detail::through_shape_reached(r, 2.797, 3, why));  // (the old rule: not run, 2.797 < 3)
+  EXPECT_NE(why.find("the directions not agreed"), std::string::npos) << why;
+  // Not agreed: the larger one-way ratio, this direction's counting the same.
+  r.directions.other_one_way_ratio = 2.5;
+  EXPECT_TRUE(detail::through_shape_reached(r, 3.54, 3, why)) << why;
+  EXPECT_FALSE(detail::through_shape_reached(r, 2.797, 3, why)) << why;
+  EXPECT_NE(why.find("below 3"), std::string::npos) << why;
+  EXPECT_FALSE(detail::through_shape_reached(r, nan, 3, why)) << why;
+  r.directions.other_one_way_ratio = nan;
+  EXPECT_FALSE(detail::through_shape_reached(r, nan, 3, why)) << why;
+  EXPECT_FALSE(detail::through_shape_reached(r, 2.797, 3, why)) << why;
+  EXPECT_EQ(why, "energy ratio below 3");  // (the other direction not mapped: the status as before)
+  // Agreed: this class inverted there decides, not the one-way ratios
+  // (fertility -> polycube g4: 4.568 x one way, then 2.158 x here and 2.083 x
+  // there, inverse: no step in either direction).
+  r.energy_ratio = 2.158;
+  r.directions.outcome = "inverse";
+  r.directions.other_one_way_ratio = 2.083;
+  r.directions.inverse_there_ratio = 2.083;
+  EXPECT_FALSE(detail::through_shape_reached(r, 4.568, 3, why)) << why;
+  r.directions.inverse_there_ratio = 3.25;
+  EXPECT_TRUE(detail::through_shape_reached(r, 2.158, 3, why));
+  EXPECT_NE(why.find("3.25 in the other direction"), std::string::npos) << why;
+  r.directions.outcome = "symmetric: both optimal";
+  EXPECT_TRUE(detail::through_shape_reached(r, 2.158, 3, why)) << why;
+  r.directions.inverse_there_ratio = nan;  // (unknown: as before, not run)
+  r.directions.other_one_way_ratio = 7;
+  EXPECT_FALSE(detail::through_shape_reached(r, 7, 3, why)) << why;
+  r.energy_ratio = 3;  // at the ratio here: run, as before
+  EXPECT_TRUE(detail::through_shape_reached(r, 7, 3, why));
+  EXPECT_TRUE(why.empty()) << why;
+
+  // The step from below its ratio: the legs onto both generated shapes are asked for.
+  const TriMesh a = samples::n_hole_torus(2, 26, true), b = samples::vase(30, true);
+  std::vector<int> legs;  // (each leg's target, by its vertex count)
+  const detail::MapFunction failing = [&](const TriMesh&, const TriMesh& t, const SurfaceMapOptions&) -> SurfaceMapResult {
+    legs.push_back(t.num_vertices());
+    throw SolveError("a leg that fails in this test");
+  };
+  SurfaceMapResult forward;
+  forward.genus = 2;
+  forward.energy_ratio = 2.5;
+  forward.directions.other_one_way_ratio = 4;
+  const SurfaceMapOptions o;  // (through_shape_ratio 3)
+  ASSERT_EQ(o.homotopy.through_shape_ratio, 3);
+  detail::through_shape_map(a, b, o, forward, failing, {}, 2.5);
+  EXPECT_EQ(forward.through_shape_status.rfind("run for the other direction: energy ratio below 3 here", 0), 0u)
+      << forward.through_shape_status;
+  EXPECT_NE(forward.through_shape_status.find("mapping onto the genus-2 CAD plate"), std::string::npos)
+      << forward.through_shape_status;
+  ASSERT_EQ(legs.size(), 2u);  // the plate and the n-hole torus
+  EXPECT_EQ(legs[0], samples::cad_plate(2).num_vertices());
+  EXPECT_EQ(forward.energy_ratio, 2.5);  // (nothing composed: the class stays)
+  // The other direction below the ratio one way too: not run, nothing asked.
+  legs.clear();
+  forward.through_shape_status.clear();
+  forward.directions.other_one_way_ratio = 2.9;
+  detail::through_shape_map(a, b, o, forward, failing, {}, 2.5);
+  EXPECT_TRUE(legs.empty());
+  EXPECT_EQ(forward.through_shape_status, "not run: energy ratio below 3 (one way: this direction 2.5, the other 2.9)");
+}
+
 // The two-way run (forced with a ratio threshold of 0): the pair is mapped
 // the other way, the source's loops carried by that map's inverse give one
 // more candidate, and the result is no worse than the one-way map; it is a
@@ -2342,6 +2421,19 @@ TEST(SurfaceMapHandles, TwoWayRunIsNoWorseAndListsTheOtherDirection) {
   }
   EXPECT_EQ(m1.reverse_inverse, -1);
   EXPECT_FALSE(m2.reverse_inverse_reason.empty());
+  // The other direction's one-way ratio is reported (the through-shape step
+  // reads it; session 29, branch class30), and when the two directions agree,
+  // this class inverted there.
+  SurfaceMapOptions back = one;
+  back.homotopy.through_shape = false;
+  const double other_one_way = surface_map(b, a, back).energy_ratio;
+  EXPECT_NEAR(m2.directions.other_one_way_ratio, other_one_way, 1e-9 * other_one_way);
+  if (m2.directions.outcome == "inverse" || m2.directions.outcome == "symmetric: both optimal") {
+    EXPECT_GE(m2.directions.inverse_there_ratio, 1 - 1e-6) << m2.directions.reason;
+  } else {
+    EXPECT_TRUE(std::isnan(m2.directions.inverse_there_ratio)) << m2.directions.outcome;
+  }
+  EXPECT_TRUE(std::isnan(m1.directions.other_one_way_ratio));
   if (m2.two_way_status.find("not lower") == std::string::npos && m2.two_way_status.find("failed") == std::string::npos)
     EXPECT_NE(m2.reverse_inverse, -1) << m2.two_way_status << " / " << m2.reverse_inverse_reason;
   SurfaceMapOptions high;

@@ -294,6 +294,8 @@ json directions_json(const SurfaceMapResult& r) {
           {"agreement", d.agreement},
           {"own_pair_ratio", d.own_pair_ratio},
           {"other_pair_ratio", d.other_pair_ratio},
+          {"other_one_way_ratio", d.other_one_way_ratio},
+          {"inverse_there_ratio", d.inverse_there_ratio},
           {"chosen_class_words", r.chosen_class_words},
           {"source_as_target", r.source_as_target},
           {"source_as_target_inverse", r.source_as_target_inverse},

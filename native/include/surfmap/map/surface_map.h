@@ -1231,6 +1231,16 @@ struct SurfaceMapResult {
     std::string agreement;
     double own_pair_ratio = std::numeric_limits<double>::quiet_NaN();
     double other_pair_ratio = std::numeric_limits<double>::quiet_NaN();
+    /// The other direction's energy ratio mapped one way in this run (the
+    /// two-way run, the agreement below it, the rescue when every class
+    /// folded; NaN when it was not mapped), and, when the two directions
+    /// agree ("inverse", "symmetric: both optimal"), the ratio of this
+    /// class's inverse in the other direction as this run solved or read it
+    /// (NaN when unknown). The through-shape step reads both, so that the
+    /// direction below through_shape_ratio runs it when the other direction
+    /// does (docs/handle_classes.md "Through generated shapes").
+    double other_one_way_ratio = std::numeric_limits<double>::quiet_NaN();
+    double inverse_there_ratio = std::numeric_limits<double>::quiet_NaN();
   } directions;
   /// Genus >= 2 (HomotopyOptions::two_way): what the two-way run did ("not
   /// run: ..."; the other direction's energy ratio; whether the carried
