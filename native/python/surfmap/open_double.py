@@ -1464,8 +1464,7 @@ REFINE_HALF = True
 #: the untangling in that rank's order until one comes out without folds both ways (at most
 #: SETUP_FINISHED_AT_MOST of them), the best finished kept; "measured" every one finished with the
 #: untangling and the best kept (session 24's rule, to compare); "first" the first in the order above
-#: (session 23's rule; docs/open_surfaces.md "The half's solve, the set-up, the pairing kept, the
-#: untangling").
+#: (session 23's rule; docs/open_surfaces.md "The half's solve").
 SETUP_CHOICE = "ranked"
 
 #: With SETUP_CHOICE "ranked": how many set-ups of a group at most are finished with the untangling
@@ -1620,8 +1619,9 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
     halves refined at their boundary, RefinedHalf, and the unrefined ones) the target half's metric
     and HalfLayout per orientation, filled on first use. The result's 'sides' are the pair it was
     solved on (_half maps it back through them), 'half' its map finished (_setup_quality), which
-    surface_map_open delivers. Every set-up is solved and the best measured kept (SETUP_CHOICE);
-    cand['reflection_setups'] lists them. The boundary loops are paired as r's images pair them
+    surface_map_open delivers. Every set-up is solved and measured before the untangling, the first
+    by that rank finished with it (the next only while folds are left) and the best finished kept
+    (SETUP_CHOICE, _finish_ranked_setups); cand['reflection_setups'] lists them. The boundary loops are paired as r's images pair them
     (_realized_pairing), whatever `pairing` requested (docs/open_surfaces.md "The half's solve")."""
     def sides(refined):
         # refined: 2 both halves refined at their boundary, 1 the target's only, 0 neither.
@@ -1654,9 +1654,12 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
     # The half's intrinsic Delaunay weights (the doubles' own) on three set-ups: both halves
     # refined at their boundary, the target's only, neither; where none succeeds, the source's own
     # cotangents floored at 0.1 of the mean (a convex energy on the mesh's own edges, as the closed
-    # pipeline's fallback) on the same three. Within a group every set-up is solved and the one
-    # whose delivered map measures best is kept (_setup_quality: fewest folded faces both ways,
-    # then the smallest largest D'); SETUP_CHOICE "first": the first that succeeds, in that order
+    # pipeline's fallback) on the same three. Within a group every set-up is solved and measured
+    # before the untangling; in the order of their largest D' away from the folds they are finished
+    # with the untangling until one leaves no fold (at most SETUP_FINISHED_AT_MOST), and of those
+    # the one whose delivered map measures best is kept (_setup_rank: fewest folded faces both ways,
+    # then the smallest largest D'); SETUP_CHOICE "measured": every set-up finished before the
+    # choice (session 24's rule); "first": the first that succeeds, in that order
     # (session 23's rule: double_torus_1 A -> B 9.73 where the unrefined halves give 8.63,
     # docs/history/open_surfaces.md "Session 24").
     # The boundary loops as the doubles' map r pairs them (its class is what the half's solve
@@ -2209,7 +2212,9 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "reflection_energy": sym["energy"] if sym is not None else float("nan"),
                    "reflection_iterations": sym["iterations"] if sym is not None else 0,
                    # each set-up of the half's solve tried: its words, status, and the measures it
-                   # was chosen by (flipped, inverse_flipped, max / mean_distortion; Session 24)
+                   # was ranked and chosen by (flipped, inverse_flipped, flipped_before_untangling,
+                   # max / mean_distortion, max_distortion_away_from_folds; finished,
+                   # before_untangling: docs/open_surfaces.md "The half's solve")
                    "reflection_setups": cand.get("reflection_setups", []) if sym is not None else [],
                    # the vertices of the source's and the target's halves it was solved on (the
                    # halves refined at their boundary: more than the split halves'; Session 23)
