@@ -1060,10 +1060,15 @@ def _flips(S, T, fw, reversing=False, resolved_angle=np.pi / 3):
     fixed by their boundary points alone) and how many of them turn: (flipped, ears, ears turned,
     ear mask). The test of each face: _turned."""
     turned = _turned(S, T, fw, reversing, resolved_angle=resolved_angle)
+    ear = _flips_ear(S)
+    return int(np.sum(turned & ~ear)), int(ear.sum()), int(np.sum(turned & ear)), ear
+
+
+def _flips_ear(S):
+    """Per face of S whether it is an ear (three boundary corners), as _flips counts them."""
     on_b = np.zeros(S.n, dtype=bool)
     on_b[np.concatenate(S.loops)] = True
-    ear = np.all(on_b[S.F], axis=1)
-    return int(np.sum(turned & ~ear)), int(ear.sum()), int(np.sum(turned & ear)), ear
+    return np.all(on_b[S.F], axis=1)
 
 
 def _turned(S, T, fw, reversing=False, faces=None, resolved_angle=np.pi / 3):
@@ -1454,10 +1459,17 @@ def _candidate_tasks(S, T, boundary_pairing, orientations, max_pairings, options
 #: "The half's solve"); False: the unrefined ones only (to compare).
 REFINE_HALF = True
 
-#: Which of the set-ups that succeed is kept (_reflection_candidate): "measured" (default) every one
-#: solved and the best by _setup_quality; "first" the first in the order above (session 23's rule,
-#: to compare; docs/open_surfaces.md "The half's solve").
-SETUP_CHOICE = "measured"
+#: Which of the set-ups that succeed is kept (_reflection_candidate): "ranked" (default) every one
+#: solved and measured before the untangling (_setup_quality with untangle=False), then finished with
+#: the untangling in that rank's order until one comes out without folds both ways (at most
+#: SETUP_FINISHED_AT_MOST of them), the best finished kept; "measured" every one finished with the
+#: untangling and the best kept (session 24's rule, to compare); "first" the first in the order above
+#: (session 23's rule; docs/open_surfaces.md "The half's solve").
+SETUP_CHOICE = "ranked"
+
+#: With SETUP_CHOICE "ranked": how many set-ups of a group at most are finished with the untangling
+#: (the next in rank is finished only while every one finished so far leaves folds).
+SETUP_FINISHED_AT_MOST = 2
 
 
 def _setup_quality(S, T, r, sym, reversing, untangle):
@@ -1472,9 +1484,23 @@ def _setup_quality(S, T, r, sym, reversing, untangle):
     keep = ~h["ear"] & np.isfinite(dil)
     P = S.V[S.F]
     area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)[keep]
+    # The largest D' away from the folds (faces sharing no corner with a folded one, ears apart): what
+    # the untangling, which moves the folds' corners and their neighbours, leaves about as it is;
+    # ranks the set-ups before the untangling (_finish_ranked_setups).
+    # (The folds as the untangling would find them, before the ear and corner slides, and as left.)
+    away = keep.copy()
+    if h["flipped"] or h.get("before_faces") is not None:
+        folded = (_turned(S, T, h["fw"], reversing) if h["flipped"] else np.zeros(len(S.F), dtype=bool)) & ~h["ear"]
+        if h.get("before_faces") is not None:
+            folded[h["before_faces"]] = True
+        near = np.zeros(S.n, dtype=bool)
+        near[S.F[folded].reshape(-1)] = True
+        away &= ~np.any(near[S.F], axis=1)
     return {"flipped": int(h["flipped"]), "inverse_flipped": int(h["inv_flipped"]),
+            "flipped_before_untangling": int(h["before"]),
             "max_distortion": float(dil[keep].max()) if keep.any() else float("nan"),
-            "mean_distortion": float(np.dot(area, dil[keep]) / area.sum()) if area.sum() > 0 else float("nan")}, h
+            "mean_distortion": float(np.dot(area, dil[keep]) / area.sum()) if area.sum() > 0 else float("nan"),
+            "max_distortion_away_from_folds": float(dil[away].max()) if away.any() else float("nan")}, h
 
 
 def _voted_pairing(S, T, r):
@@ -1593,8 +1619,9 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
     halves refined at their boundary, RefinedHalf, and the unrefined ones) the target half's metric
     and HalfLayout per orientation, filled on first use. The result's 'sides' are the pair it was
     solved on (_half maps it back through them), 'half' its map finished (_setup_quality), which
-    surface_map_open delivers. Every set-up is solved and the best measured kept (SETUP_CHOICE);
-    cand['reflection_setups'] lists them. The boundary loops are paired as r's images pair them
+    surface_map_open delivers. Every set-up is solved and measured before the untangling, the first
+    by that rank finished with it (the next only while folds are left) and the best finished kept
+    (SETUP_CHOICE, _finish_ranked_setups); cand['reflection_setups'] lists them. The boundary loops are paired as r's images pair them
     (_realized_pairing), whatever `pairing` requested (docs/open_surfaces.md "The half's solve")."""
     def sides(refined):
         # refined: 2 both halves refined at their boundary, 1 the target's only, 0 neither.
@@ -1627,9 +1654,12 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
     # The half's intrinsic Delaunay weights (the doubles' own) on three set-ups: both halves
     # refined at their boundary, the target's only, neither; where none succeeds, the source's own
     # cotangents floored at 0.1 of the mean (a convex energy on the mesh's own edges, as the closed
-    # pipeline's fallback) on the same three. Within a group every set-up is solved and the one
-    # whose delivered map measures best is kept (_setup_quality: fewest folded faces both ways,
-    # then the smallest largest D'); SETUP_CHOICE "first": the first that succeeds, in that order
+    # pipeline's fallback) on the same three. Within a group every set-up is solved and measured
+    # before the untangling; in the order of their largest D' away from the folds they are finished
+    # with the untangling until one leaves no fold (at most SETUP_FINISHED_AT_MOST), and of those
+    # the one whose delivered map measures best is kept (_setup_rank: fewest folded faces both ways,
+    # then the smallest largest D'); SETUP_CHOICE "measured": every set-up finished before the
+    # choice (session 24's rule); "first": the first that succeeds, in that order
     # (session 23's rule: double_torus_1 A -> B 9.73 where the unrefined halves give 8.63,
     # docs/history/open_surfaces.md "Session 24").
     # The boundary loops as the doubles' map r pairs them (its class is what the half's solve
@@ -1673,20 +1703,30 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
                 continue
             got["sides"] = (A, B)
             got["refined"] = refined
-            quality, got["half"] = _setup_quality(S, T, r, got, reversing, untangle)
+            # "ranked": measured before the untangling only (finished below, in rank order)
+            measured_now = SETUP_CHOICE != "ranked" or not untangle
+            quality, got["half"] = _setup_quality(S, T, r, got, reversing, untangle and measured_now)
             setups.append(dict({"setup": label, "status": "ok"}, **quality))
+            if not measured_now:
+                setups[-1].update(finished=False, before_untangling=dict(quality))
             done.append((quality, label, got, len(setups) - 1))
             if SETUP_CHOICE == "first":
                 break
+        if done and SETUP_CHOICE == "ranked" and untangle:
+            done = _finish_ranked_setups(S, T, r, reversing, done, setups)
         if done:
-            quality, label, sym, chosen = min(done, key=lambda x: (x[0]["flipped"] + x[0]["inverse_flipped"],
-                                                                   x[0]["max_distortion"]))
+            quality, label, sym, chosen = min(done, key=lambda x: _setup_rank(x[0]))
             setups[chosen]["chosen"] = True
             others = [f"{lab}: max D' {q['max_distortion']:.3g}" + (
                 f", {q['flipped']} / {q['inverse_flipped']} folded" if q["flipped"] + q["inverse_flipped"] else "")
                 for q, lab, _, _ in done if lab != label]
             if others:
                 why.append("also solved, measured worse: " + "; ".join(others))
+            unfinished = [f"{s['setup']}: max D' {s['max_distortion']:.3g} ({s['max_distortion_away_from_folds']:.3g} "
+                          f"away from the folds), {s['flipped_before_untangling']} / {s['inverse_flipped']} folded "
+                          f"before the untangling" for s in setups if s.get("finished") is False]
+            if unfinished:
+                why.append("also solved, ranked below and not untangled: " + "; ".join(unfinished))
             break
     cand["reflection_setups"] = setups
     if pairing != requested:
@@ -1709,6 +1749,38 @@ def _reflection_candidate(S, T, r, pairing, reversing, layouts, cand, untangle=T
     return sym
 
 
+def _setup_rank(quality):
+    """The order in which set-ups are kept or finished: fewest folded faces (forward plus inverse),
+    then the smallest largest D'."""
+    return quality["flipped"] + quality["inverse_flipped"], quality["max_distortion"]
+
+
+def _finish_ranked_setups(S, T, r, reversing, done, setups):
+    """SETUP_CHOICE "ranked": done lists (quality before the untangling, label, solve, index in
+    setups) of the set-ups that succeeded. In the order of their largest D' away from the folds, then
+    the fewest folds (what the untangling leaves about as it is; the folds are what it clears), each is
+    finished as the delivered map is (_setup_quality with the untangling both ways: the map made
+    again from its solve) until one leaves no folded face either way, at most
+    SETUP_FINISHED_AT_MOST; setups[index] then holds the finished measures ('finished' True, the
+    earlier ones in 'before_untangling'). A set-up without folds where the untangling would start
+    (forward before the ear and corner slides, the inverse after them: _half, _finish_half) needs
+    none, so it is finished as measured. Returns the finished ones, as done, to choose from."""
+    finished = []
+    def rank(x):
+        away = x[0]["max_distortion_away_from_folds"]
+        return (away if np.isfinite(away) else np.inf), x[0]["flipped"] + x[0]["inverse_flipped"]
+    for quality, label, got, index in sorted(done, key=rank):
+        if len(finished) >= max(1, SETUP_FINISHED_AT_MOST):
+            break
+        if quality["flipped_before_untangling"] + quality["inverse_flipped"]:
+            quality, got["half"] = _setup_quality(S, T, r, got, reversing, True)
+        setups[index].update(quality, finished=True)
+        finished.append((quality, label, got, index))
+        if quality["flipped"] + quality["inverse_flipped"] == 0:
+            break
+    return finished
+
+
 def _half(S, T, r, reversing, untangle, sym=None):
     """The half's maps from the doubles' map r (_half_correspondence), or from the reflection-aware
     solve `sym` when given (_reflected_correspondence), the forward map's folded
@@ -1718,6 +1790,11 @@ def _half(S, T, r, reversing, untangle, sym=None):
     fw, inv, pairing, back_pairing, snap = (_half_correspondence(r, S, T) if sym is None else
                                             _reflected_correspondence(sym, *sym.get("sides", (S, T))))
     before = _flips(S, T, fw, reversing)[0]
+    # (where the untangling is not made, the folded faces it would start from: _setup_quality's
+    # measures away from them)
+    before_faces = None
+    if before and not untangle:
+        before_faces = np.flatnonzero(_turned(S, T, fw, reversing) & ~_flips_ear(S))
     untangled = []
     if before and untangle:
         # The few folds of strongly compressed faces (open_untangle): their interior corners moved
@@ -1725,7 +1802,8 @@ def _half(S, T, r, reversing, untangle, sym=None):
         untangled = open_untangle.untangle_half(S, T, fw, lambda f: _turned(S, T, fw, reversing, faces=f), reversing)
     flipped, ears, ears_turned, ear = _flips(S, T, fw, reversing)
     return {"fw": fw, "inv": inv, "pairing": pairing, "back_pairing": back_pairing, "snap": snap, "before": before,
-            "untangled": untangled, "flipped": flipped, "ears": ears, "ears_turned": ears_turned, "ear": ear}
+            "untangled": untangled, "flipped": flipped, "ears": ears, "ears_turned": ears_turned, "ear": ear,
+            "before_faces": before_faces}
 
 
 def _finish_half(S, T, h, reversing, lm, untangle):
@@ -2134,7 +2212,9 @@ def surface_map_open(Vs, Fs, Vt, Ft, boundary_pairing=None, orientations=("prese
                    "reflection_energy": sym["energy"] if sym is not None else float("nan"),
                    "reflection_iterations": sym["iterations"] if sym is not None else 0,
                    # each set-up of the half's solve tried: its words, status, and the measures it
-                   # was chosen by (flipped, inverse_flipped, max / mean_distortion; Session 24)
+                   # was ranked and chosen by (flipped, inverse_flipped, flipped_before_untangling,
+                   # max / mean_distortion, max_distortion_away_from_folds; finished,
+                   # before_untangling: docs/open_surfaces.md "The half's solve")
                    "reflection_setups": cand.get("reflection_setups", []) if sym is not None else [],
                    # the vertices of the source's and the target's halves it was solved on (the
                    # halves refined at their boundary: more than the split halves'; Session 23)

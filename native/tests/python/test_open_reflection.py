@@ -7,9 +7,10 @@ import copy
 import json
 
 import numpy as np
+import pytest
 
 import surfmap
-from surfmap import open_double, open_reflection
+from surfmap import open_double, open_reflection, open_untangle
 from test_open_double import bend, check_map, compact, holed_sphere, pants, punctured_torus, rim_held, subdivide
 
 
@@ -304,6 +305,44 @@ def test_the_half_solve_keeps_the_set_up_whose_map_measures_best(monkeypatch):
     first = open_double.surface_map_open(Vs, Fs, Vt, Ft)
     assert len(first["open"]["reflection_setups"]) == 1
     assert first["distortion"]["max"] > 2 * r["distortion"]["max"]
+
+
+@pytest.mark.parametrize("corner_slides", [True, False])
+def test_only_the_set_up_ranked_first_before_the_untangling_is_untangled(monkeypatch, corner_slides):
+    # The coarse torus with a jagged hole onto the punctured torus, as above: all three set-ups
+    # succeed and two of them leave one folded face for the untangling. The set-ups are ranked
+    # before the untangling by their largest D' away from the folds and only the first is untangled
+    # (SETUP_CHOICE "ranked"): one call of untangle_half, where finishing every set-up (session
+    # 24's rule, "measured") makes two; the delivered map is the same one (the unrefined halves:
+    # max D' 3.60 with the corner slides, 4.06 without), 0 folded both ways.
+    monkeypatch.setattr(open_double, "REFLEX_CORNER_SLIDES", corner_slides)
+    calls = []
+    untangle_half = open_untangle.untangle_half
+
+    def counted(*a, **k):
+        calls.append(1)
+        return untangle_half(*a, **k)
+    monkeypatch.setattr(open_untangle, "untangle_half", counted)
+    Vs, Fs = coarse_torus_with_a_jagged_hole()
+    Vt, Ft = punctured_torus(32, 16)
+    r = open_double.surface_map_open(Vs, Fs, Vt, Ft)
+    ranked_calls = len(calls)
+    monkeypatch.setattr(open_double, "SETUP_CHOICE", "measured")
+    m = open_double.surface_map_open(Vs, Fs, Vt, Ft)
+    assert ranked_calls == 1 and len(calls) - ranked_calls == 2, calls
+    o = r["open"]
+    ok = [s for s in o["reflection_setups"] if s["status"] == "ok"]
+    assert len(ok) == 3, o["reflection_setups"]
+    assert sum(s["flipped_before_untangling"] + s["inverse_flipped"] > 0 for s in ok) == 2
+    assert [s.get("finished") for s in ok].count(True) == 1
+    chosen = [s for s in ok if s.get("chosen")]
+    assert len(chosen) == 1 and chosen[0]["finished"] and chosen[0]["before_untangling"]["flipped_before_untangling"] == 1
+    assert "ranked below and not untangled" in o["reflection_solve"], o["reflection_solve"]
+    assert r["flipped_triangles"] == 0 and o["inverse_flipped_triangles"] == 0
+    assert check_map(r, Vs, Fs, Vt, Ft) == 0
+    assert np.allclose(r["forward"]["position"], m["forward"]["position"], atol=1e-12)
+    assert np.allclose(r["inverse"]["position"], m["inverse"]["position"], atol=1e-12)
+    assert abs(r["distortion"]["max"] - m["distortion"]["max"]) < 1e-12 and r["distortion"]["max"] < 4.5
 
 
 def test_reflex_corner_slides_right_the_face_cut_across_a_staircase_corner(monkeypatch):
