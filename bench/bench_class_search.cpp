@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "surfmap/error.h"
+#include "surfmap/map/class_lower_bound.h"
 #include "surfmap/map/surface_map.h"
 #include "surfmap/mesh/intake.h"
 #include "surfmap/topology/mapping_class_search.h"
@@ -104,7 +105,7 @@ int main(int argc, char** argv) {
   try {
     const surfmap::TriMesh s = surfmap::load_mesh(argv[1]).mesh, t = surfmap::load_mesh(argv[2]).mesh;
     const surfmap::SurfaceMapResult r = surfmap::surface_map(s, t, o);
-    const double bound = 8 * M_PI * (r.genus - 1);
+    const double bound = surfmap::conformal_bound(r.genus);
     const double e = r.chosen_candidate >= 0 ? r.candidates[r.chosen_candidate].energy : NAN;
     std::printf("chosen %d  energy %.6f  ratio %.4f  mean D' %.3f  converged %d  flipped %d\n", r.chosen_candidate, e,
                 e / bound, r.mean_dilatation, r.converged ? 1 : 0, r.flipped_triangles);

@@ -134,7 +134,7 @@ int main(int argc, char** argv) {
     std::printf("%s -> %s: greedy pants classes %.2f s\n", x.name.c_str(), y.name.c_str(), seconds_since(t0));
     for (const GreedyPantsClass& c : classes)
       std::printf("  cost %.4g (pants %.4g, twists %.4g), greedy collar bound %.4g (8 pi (g-1) = %.4g): %s\n", c.cost,
-                  c.pants_mismatch, c.twist_mismatch, c.collar_bound, 8 * M_PI * (x.lengths->genus() - 1),
+                  c.pants_mismatch, c.twist_mismatch, c.collar_bound, conformal_bound(x.lengths->genus()),
                   c.description.c_str());
   }
   return 0;

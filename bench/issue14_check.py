@@ -16,6 +16,14 @@ mean D' <= 5, classes inverse. Genus 4 has one mesh in the set; the other two ar
 (`surfmap generate cad-plate --genus 4`, `surfmap generate n-hole-torus --genus 4`).
 Reports are kept in --out and reused on a second run (delete them to map again).
 
+`--self-maps` also maps every source of the table onto itself (`surfmap map A A --no-two-way
+--no-through-shape`) and adds a column: the row's ratio over its source's self-map ratio. That
+self-map ratio is a discretisation baseline, not a bound: the identity is the conformal map, so
+what it costs above 1 is the source mesh's own discretisation (a coarse CAD plate: 1.2; it is
+the source's mesh that counts: the genus-3 plate onto a fine n-hole torus 1.218, the torus onto
+the plate 1.034; docs/handle_classes.md "Quality signal"). The criteria are unchanged: the
+column is beside them.
+
 `--set held-out` runs instead pairs nobody tuned the search on (docs/history/handle_classes.md "Session 27, branch class27"):
 generated shapes of other kinds at equal genus (cup, amphora, vase, polycube, wheel, thick and
 thin cad-plate, a raw jittered n-hole torus), each at a low resolution, against each other and
@@ -115,6 +123,46 @@ def run_map(exe, meshes, out, a, b, timeout, extra=(), kept_only=False):
     return stem, r
 
 
+def run_self_map(exe, meshes, out, a, timeout):
+    """`a` mapped onto itself, one way (the discretisation baseline of --self-maps)."""
+    stem = f"self__{short(a)}"
+    rep = out / f"{stem}.json"
+    if rep.exists():
+        return stem, json.loads(rep.read_text())
+    t0 = time.time()
+    try:
+        p = subprocess.run(["nice", str(exe), "map", str(meshes[a]), str(meshes[a]), "--out",
+                            str(out / f"{stem}.obj"), "--report", str(rep), "--quiet", "--no-two-way",
+                            "--no-through-shape"], capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return stem, {"error": f"timed out after {timeout:g} s", "wall_s": time.time() - t0}
+    if p.returncode != 0:
+        return stem, {"error": (p.stderr.strip().splitlines() or ["?"])[-1], "wall_s": time.time() - t0}
+    r = json.loads(rep.read_text())
+    r["wall_s"] = time.time() - t0
+    rep.write_text(json.dumps(r))
+    (out / f"{stem}.obj").unlink(missing_ok=True)
+    return stem, r
+
+
+def vertex_count(path):
+    """The vertices of an .obj or .off file ("-" for another format)."""
+    path = pathlib.Path(path)
+    if path.suffix == ".obj":
+        with open(path) as f:
+            return sum(1 for line in f if line.startswith("v "))
+    if path.suffix == ".off":
+        with open(path) as f:
+            words = []
+            for line in f:
+                line = line.split("#")[0].strip()
+                if line:
+                    words += line.split()
+                if len(words) >= 2 and words[0] == "OFF":
+                    return int(words[1])
+    return "-"
+
+
 def fmt(x, digits=4):
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "-"
@@ -141,6 +189,9 @@ def main():
                          "nobody tuned on; all: both")
     ap.add_argument("--pair", nargs=2, action="append", metavar=("A", "B"),
                     help="run this pair (both directions) instead of a set; repeat for more")
+    ap.add_argument("--self-maps", action="store_true",
+                    help="also map each source onto itself and give each row's ratio over that "
+                         "self-map ratio (a discretisation baseline, beside the criteria)")
     ap.add_argument("--kept-only", action="store_true",
                     help="map nothing: print the table from the reports kept in --out")
     a = ap.parse_args()
@@ -189,9 +240,36 @@ def main():
                 print(f"{time.strftime('%H:%M:%S')} {stem}: "
                       + (r["error"] if "error" in r else f"ratio {fmt(r['quality']['energy_ratio'])}"),
                       file=sys.stderr, flush=True)
+    selfs = {}
+    if a.self_maps:
+        sources = sorted({x for x, _ in pairs} | {y for _, y in pairs})
+        for name in sources:
+            stem, r = (run_self_map(exe, meshes, out, name, a.timeout) if not a.kept_only else
+                       (f"self__{short(name)}", json.loads((out / f"self__{short(name)}.json").read_text())
+                        if (out / f"self__{short(name)}.json").exists() else {"error": "not run"}))
+            selfs[name] = r
+            print(f"{time.strftime('%H:%M:%S')} {stem}: "
+                  + (r["error"] if "error" in r else f"ratio {fmt(r['quality']['energy_ratio'])}"),
+                  file=sys.stderr, flush=True)
+        print("| mesh | vertices | self-map ratio | s |")
+        print("|---|---|---|---|")
+        for name in sources:
+            r = selfs[name]
+            if "error" in r:
+                print(f"| {short(name)} | | failed: {r['error']} | {r.get('wall_s', 0):.0f} |")
+            else:
+                print(f"| {short(name)} | {vertex_count(meshes[name])} | {fmt(r['quality']['energy_ratio'])} "
+                      f"| {r['wall_s']:.0f} |")
+        print()
+
+    def over_self(ratio, s):
+        base = selfs.get(s, {}).get("quality", {}).get("energy_ratio") if a.self_maps else None
+        return fmt(ratio / base) if ratio is not None and base else "-"
+
+    extra_head, extra_rule = (" ratio / source's self-map |", "---|") if a.self_maps else ("", "")
     print("| pair (source -> target) | ratio | mean D' | max D' | flips | converged | directions inverse "
-          "| s | criteria |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          f"| s |{extra_head} criteria |")
+    print(f"|---|---|---|---|---|---|---|---|{extra_rule}---|")
     for x, y in pairs:
         fwd, rev = f"{short(x)}__{short(y)}", f"{short(y)}__{short(x)}"
         rel = "-"
@@ -202,7 +280,8 @@ def main():
         for stem, (s, t) in ((fwd, (x, y)), (rev, (y, x))):
             r = results[stem]
             if "error" in r:
-                print(f"| {short(s)} -> {short(t)} | failed: {r['error']} | | | | | {rel} | {r['wall_s']:.0f} | fails |")
+                print(f"| {short(s)} -> {short(t)} | failed: {r['error']} | | | | | {rel} | {r['wall_s']:.0f} |"
+                      f"{' - |' if a.self_maps else ''} fails |")
                 continue
             ratio = r["quality"]["energy_ratio"]
             mean, mx = r["distortion"]["mean"], r["distortion"]["max"]
@@ -219,7 +298,8 @@ def main():
                 fails.append("classes not inverse")
             print(f"| {short(s)} -> {short(t)} | {fmt(ratio)} | {fmt(mean, 3)} | {fmt(mx, 3)} | "
                   f"{r['flipped_triangles']} | {'yes' if r['converged'] else 'no'} | {rel} | "
-                  f"{r.get('wall_s', r['time_s']['total']):.0f} | {'; '.join(fails) or 'pass'} |")
+                  f"{r.get('wall_s', r['time_s']['total']):.0f} |"
+                  f"{' ' + over_self(ratio, s) + ' |' if a.self_maps else ''} {'; '.join(fails) or 'pass'} |")
 
 
 if __name__ == "__main__":

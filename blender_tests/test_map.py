@@ -1189,8 +1189,52 @@ def test_the_runs_after_the_main_one_are_named_in_the_stage_text():
     assert job.stage_text(short=True) == "Harmonic solve"
     job.stage = "doubles: pairing [0], preserving (other runs (landmarks))"
     assert job.stage_text(short=True) == "Holding landmarks"
+    # (the long form named the outer run as 'Doubles: pairing [0], preserving (other runs')
+    assert job.stage_text() == "Holding landmarks · Other runs · Doubles: pairing [0], preserving"
     job.stage = "done"
     assert job.stage_text() == "Map made"
+
+
+def test_the_automatic_retries_are_named_in_the_stage_text():
+    """Session 29: the retries after folds and with the short generators used to report
+    'retry after folds: <stage>', which the add-on did not split ('Retry after folds: harmonic
+    solve' in the sidebar, clipped); they now report '<retry> (<stage>)' like the other runs."""
+    from surface_map import map_job
+    job = map_job.MapJob(None, None, None, None)
+    job.stage = "retry after folds (harmonic solve)"
+    assert job.stage_text() == "Harmonic solve · Retry after folds"
+    assert job.stage_text(short=True) == "Harmonic solve"
+    job.stage = "retry with the short generators (target uniformization)"
+    assert job.stage_text() == "Uniformizing target · Retry, short generators"
+    job.stage = "retry after folds (other runs (quality))"
+    assert job.stage_text() == "Measuring distortion · Other runs · Retry after folds"
+    assert job.stage_text(short=True) == "Measuring distortion"
+    job.stage, job.fraction = "retry after folds (harmonic solve)", 0.5
+    assert job.status_text().startswith("Surface Map: Harmonic solve · Retry after folds (50%)")
+
+
+def test_the_status_text_shows_the_final_energy_once_the_map_is_made():
+    """Session 29 (read30), seen under Xvfb: while the outputs were written the status bar still
+    showed the energy of the first class solved (40.44), not the map's (27.18, the class the
+    pair rule kept after the other runs, which report no iterations). The worker now takes the
+    result's final energy before the outputs."""
+    from surface_map import map_job
+    job = map_job.MapJob(None, None, None, None)
+    job.energy = 40.4424
+
+    def solved():
+        job.result = {"energy": {"initial": 32.85, "final": 27.182}}
+    job.native_job_possible = lambda: False
+    job._solve = solved
+    seen = []
+    job.compute_outputs = lambda: seen.append(job.status_text())
+    job._run_threaded()
+    assert job.error is None, job.error
+    assert seen and ", energy 27.182," in seen[0], seen
+    job = map_job.MapJob(None, None, None, None)   # a failed solve: nothing to take
+    job.energy = 40.4424
+    job._take_final_energy()
+    assert job.energy == 40.4424
 
 
 def test_a_started_job_is_registered_before_its_worker_runs():

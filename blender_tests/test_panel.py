@@ -88,6 +88,9 @@ def test_progress_bar_reads_the_running_job():
 
         def stage_text(self, short=False):   # (short: the sidebar's form, MapJob.stage_text)
             return map_job.STAGE_NAMES[self.stage]
+
+        def run_text(self):
+            return ""
     map_job.ACTIVE["job"] = Job()
     try:
         assert abs(settings.progress - 42.0) < 1e-4
@@ -105,6 +108,48 @@ def test_progress_bar_reads_the_running_job():
     log = draw_all_panels()
     assert ("prop", "progress") not in log
     assert ("operator", "surfmap.compute_map") in log and ("prop", "write_uvs") in log
+
+
+def test_the_sidebar_names_the_run_after_the_main_one_under_the_stage():
+    """Session 29 (read30), seen in a Blender window: during the runs after the main one the
+    sidebar read 'Uniformizing target' at 83%, the main run's first stage at the bar's held
+    fraction, as if the compute had started over. The run is now named on a line of its own
+    under the stage (the status bar names it after the stage), and only there: the main run
+    draws no such line. Each run's name fits the main panel's icon label at the default width
+    (panel.LABEL_WIDTH_DEFAULT + MAIN_PANEL_EXTRA, 130 px; 'Locating target on source', 127 px,
+    is seen whole there)."""
+    from surface_map import map_job, panel
+    settings = bpy.context.scene.surfmap
+    job = map_job.MapJob(None, None, None, None)
+    job.fraction = 0.5
+    map_job.ACTIVE["job"] = job
+    try:
+        job.stage = "harmonic solve"
+        assert settings.progress_run == ""
+        log = draw_all_panels()
+        labels = [x[1] for x in log if x[0] == "label"]
+        assert "Harmonic solve" in labels and "Other runs" not in labels
+        job.stage = "other runs (target uniformization)"
+        assert settings.progress_stage == "Uniformizing target"
+        assert settings.progress_run == "Other runs"
+        labels = [x[1] for x in draw_all_panels() if x[0] == "label"]
+        assert labels.index("Other runs") == labels.index("Uniformizing target") + 1, labels
+        job.stage = "retry after folds (other runs (harmonic solve))"   # the innermost run
+        assert (settings.progress_stage, settings.progress_run) == ("Harmonic solve", "Other runs")
+        job.stage = "retry with the short generators (harmonic solve)"
+        assert settings.progress_run == "Retry, short generators"
+        job.stage = "doubles: pairing [0], preserving (landmarks)"   # (a candidate: status bar)
+        assert settings.progress_run == ""
+        job.stage = "doubles: pairing [0], preserving (other runs (landmarks))"
+        assert settings.progress_run == "Other runs"
+    finally:
+        map_job.ACTIVE["job"] = None
+    import blf
+    blf.size(0, 11, 72) if bpy.app.version < (4, 0) else blf.size(0, 11)
+    whole = panel.LABEL_WIDTH_DEFAULT + panel.MAIN_PANEL_EXTRA
+    for run in ("other runs", "retry after folds", "retry with the short generators"):
+        job.stage = run + " (harmonic solve)"
+        assert blf.dimensions(0, job.run_text())[0] <= whole, job.run_text()
 
 
 def _sub_panels():

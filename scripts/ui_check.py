@@ -7,7 +7,9 @@ ticks, Ctrl+Z / Ctrl+Shift+Z on the outputs, then each Show button and Cut Seams
   Xvfb :99 -screen 0 1600x1200x24 &  DISPLAY=:99 twm -f RC &   (a window manager: focus)
   with RC a file holding 'RandomPlacement' and 'UsePPosition "on"': twm's default asks the
   user to place each new window and grabs the X server meanwhile (Blender and every X client
-  then hang)
+  then hang). Its title bar pushes the status bar off the screen; 'NoTitle' in RC shows it,
+  but the click on Compute Map then misses (the coordinates assume the title bar): add
+  UI_CHECK_INVOKE=1
   blender -b --factory-startup --python-expr \
       "import bpy; bpy.ops.wm.save_as_mainfile(filepath='/tmp/empty.blend')"
   DISPLAY=:99 SURFMAP_PYTHONPATH=build/python blender --factory-startup \
@@ -26,8 +28,9 @@ for 4 s; a click still lost is repeated after 8 s).
 UI_CHECK_PAIR may name mesh files by path (an open pair, e.g. two meshes written by
 bench/bench_open_surfaces.py's shapes). UI_CHECK_PAIRINGS_GIVEN='1 0 2' (with UI_CHECK_QUICK): a
 second screenshot with both pairings' Auto boxes unticked and these boundary loops typed in.
-UI_CHECK_NO_PRESHOT=1: no screenshot before a repeated run's click; UI_CHECK_LEAVE_REGION=1:
-the pointer over the 3D view before it moves onto the button; UI_CHECK_CLICK=batched and
+UI_CHECK_STAGE_SHOTS=1: a screenshot at each new stage text during the run (each is logged
+either way, with the status bar's text and the sidebar's). UI_CHECK_NO_PRESHOT=1: no
+screenshot before a repeated run's click; UI_CHECK_LEAVE_REGION=1: the pointer over the 3D view before it moves onto the button; UI_CHECK_CLICK=batched and
 UI_CHECK_NO_SETTLE=1: the old click (sent from inside the script's callback; 3 s after the
 run); UI_CHECK_EVENT_LOG=1: every event Blender hands out around each click, logged;
 UI_CHECK_DEBUG_EVENTS=1: Blender's own event/handler debug output around each click.
@@ -529,6 +532,14 @@ def step():
             if job.fraction > 0.3 and not STATE["progress_shot"]:
                 shot("02_progress.png", wait=False)
                 STATE["progress_shot"] = True
+            text = job.stage_text()
+            if text != STATE.get("stage_text"):   # every stage as the status bar names it
+                STATE["stage_text"] = text
+                log(f"stage at {time.time() - STATE['t_start']:.1f}s: {job.status_text()!r}, "
+                    f"sidebar {job.stage_text(short=True)!r}")
+                if os.environ.get("UI_CHECK_STAGE_SHOTS"):
+                    STATE["stage_shots"] = STATE.get("stage_shots", 0) + 1
+                    shot(f"02_stage_{STATE['stage_shots']:02d}.png", wait=False)
             return 0.2     # stay on this step
         STATE["t_end"] = time.time()
         tick_report()

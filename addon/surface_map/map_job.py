@@ -28,11 +28,30 @@ STAGE_NAMES = {
     "inverse location": "Locating target on source",
     "landmarks": "Holding landmarks",
     "done": "Map made",
+    "retry with the short generators": "Retry, short generators",   # (fits the sidebar)
 }
 
 
 def _stage_name(stage):
     return STAGE_NAMES.get(stage, stage[:1].upper() + stage[1:])
+
+
+# The prefixes of the stages that name a run and the stage inside it, '<run> (<stage>)': the
+# core's runs after the main one and its retries, and an open pair's candidates (open_double).
+CORE_RUNS = ("other runs", "retry ")
+RUN_PREFIXES = CORE_RUNS + ("doubles:",)
+
+
+def _stage_parts(stage):
+    """[the innermost stage, then the runs around it from the inside out]: 'doubles: pairing
+    [0], preserving (other runs (landmarks))' -> ['landmarks', 'other runs', 'doubles: pairing
+    [0], preserving']; a stage that names no run -> [stage]."""
+    runs = []
+    while stage.startswith(RUN_PREFIXES) and stage.endswith(")") and " (" in stage:
+        run, _, inner = stage.partition(" (")
+        runs.append(run)
+        stage = inner[:-1]
+    return [stage] + runs[::-1]
 
 
 # The solve's share of the progress bar; the outputs take the rest.
@@ -314,6 +333,17 @@ class MapJob:
         if p.get("energy") is not None:
             self.energy = float(p["energy"])
 
+    def _take_final_energy(self):
+        """The status text's energy once the map is made: the result's final energy. The solve
+        reports the energy of its Newton iterations, and the runs after the main one report
+        none, so the text kept the first class's energy while the outputs were written, also
+        when the map returned is another class's (40.44 shown for a map of 27.18, double torus
+        -> genus-2 block, seen under Xvfb)."""
+        energy = self.result.get("energy") if isinstance(self.result, dict) else None
+        final = energy.get("final") if isinstance(energy, dict) else None
+        if final is not None:
+            self.energy = float(final)
+
     def _solve_in_native_job(self):
         """The solve on the core's thread, which lowers its own priority and never takes the
         GIL: this (worker, not niced) thread converts the arguments, polls the progress, passes
@@ -361,6 +391,7 @@ class MapJob:
                 self.t0 = time.time()
             self._guarded(self._solve_in_native_job if self.native_job_possible()
                           else self._solve)
+            self._take_final_energy()
             self.compute_outputs()
             self.elapsed = time.time() - self.t0
         finally:
@@ -385,15 +416,25 @@ class MapJob:
         return self.thread is None or not self.thread.is_alive()
 
     def stage_text(self, short=False):
-        """The stage as the status bar (and, `short`, the sidebar) shows it. An open pair's
-        driver names a closed solve inside a candidate '<candidate> (<closed stage>)'
-        (open_double), and the core names the runs after the main one (the other direction,
-        the through-shape step) 'other runs (<stage>)': the inner stage comes first, and
-        alone when `short` (the sidebar's 229 px label clips long text in its middle)."""
-        outer, _, inner = self.stage.rpartition(" (")
-        if self.stage.startswith(("doubles:", "other runs")) and outer and inner.endswith(")"):
-            return _stage_name(inner.rstrip(")")) + ("" if short else f" · {_stage_name(outer)}")
-        return _stage_name(self.stage)
+        """The stage as the status bar (and, `short`, the sidebar) shows it. Some stages name
+        the run they belong to, '<run> (<stage>)', and nest: an open pair's driver names a
+        closed solve inside a candidate '<candidate> (<closed stage>)' (open_double), and the
+        core names the runs after the main one (the other direction, the through-shape step)
+        'other runs (<stage>)' and its automatic retries 'retry after folds (<stage>)' and
+        'retry with the short generators (<stage>)'. The innermost stage comes first, then
+        the runs from the inside out, joined by ' · ', and it comes alone when `short` (the
+        sidebar's 229 px label clips long text in its middle)."""
+        parts = _stage_parts(self.stage)
+        return _stage_name(parts[0]) if short else " · ".join(_stage_name(p) for p in parts)
+
+    def run_text(self):
+        """The sidebar's line under the stage: the core's run the stage belongs to, the
+        innermost of its runs after the main one and its retries ('Other runs', 'Retry after
+        folds', 'Retry, short generators'); "" in the main run. Without it the other runs'
+        stages read as the main run's started over at the same percentage. (An open pair's
+        candidate is named in the status bar only: wider than the sidebar.)"""
+        runs = [p for p in _stage_parts(self.stage)[1:] if p.startswith(CORE_RUNS)]
+        return _stage_name(runs[0]) if runs else ""
 
     def status_text(self):
         s = f"Surface Map: {self.stage_text()} ({100 * self.fraction:.0f}%)"

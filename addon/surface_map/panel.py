@@ -167,6 +167,8 @@ def draw_progress(layout, settings):
         return
     col = layout.column(align=True)
     col.label(text=settings.progress_stage or "Working", icon='SORTTIME')
+    if settings.progress_run:   # (the other runs, a retry: not the main run started over)
+        col.label(text=settings.progress_run, icon='BLANK1')
     col.prop(settings, "progress", text="", slider=True)
     col.label(text="Esc cancels", icon='BLANK1')
 

@@ -31,6 +31,11 @@ def _stage_get(self):
     return job.stage_text(short=True) if job is not None else ""
 
 
+def _run_get(self):
+    job = _active_job()
+    return job.run_text() if job is not None else ""
+
+
 def _tolerance_text_get(self):
     t = self.tolerance
     return "default" if t <= 0 else f"{t:.1e}"
@@ -226,6 +231,9 @@ class SURFMAP_PG_settings(bpy.types.PropertyGroup):
                             description="How far the running computation is")
     progress_stage: StringProperty(name="Stage", get=_stage_get,
                                    description="What the running computation is doing")
+    progress_run: StringProperty(name="Run", get=_run_get,
+                                 description="The run after the main one, or the retry, that "
+                                             "the stage belongs to (empty in the main run)")
 
 
 class SURFMAP_AP_preferences(bpy.types.AddonPreferences):

@@ -193,7 +193,8 @@ void register_map(CLI::App& app) {
                 "Genus >= 2: at energy ratio 3 or more, do not try the class through a generated n-hole torus of the "
                 "same genus (docs/handle_classes.md \"Through generated shapes\")");
   cmd->add_option("--through-shape-ratio", a->through_shape_ratio,
-                  "Genus >= 2: the energy ratio from which the class through a generated shape is tried (default 3; "
+                  "Genus >= 2: the energy ratio from which the class through a generated shape is tried, here or, "
+                  "read the same way, in the other direction's run (default 3; "
                   "docs/handle_classes.md \"Through generated shapes\")")
       ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--no-cheap-direction-check", a->no_cheap_direction_check,

@@ -274,11 +274,11 @@ void expect_bounds_below_energies(const SurfaceMapResult& m, int* informative) {
   ASSERT_TRUE(m.class_bound_status.empty()) << m.class_bound_status;
   for (const HomotopyCandidate& c : m.candidates) {
     ASSERT_TRUE(std::isfinite(c.class_lower_bound)) << c.description;
-    EXPECT_GE(c.class_lower_bound, 8 * M_PI * (m.genus - 1));
+    EXPECT_GE(c.class_lower_bound, conformal_bound(m.genus));
     EXPECT_LE(c.class_curve_bound, c.class_lower_bound);
     if (!c.solved || !std::isfinite(c.energy)) continue;
     EXPECT_LE(c.class_curve_bound, c.energy) << c.description << " (" << c.class_bound_curves << ")";
-    if (c.class_curve_bound > 8 * M_PI * (m.genus - 1)) ++*informative;
+    if (c.class_curve_bound > conformal_bound(m.genus)) ++*informative;
   }
 }
 
@@ -416,7 +416,7 @@ SurfaceMapResult one_class_result(int genus, double ratio) {
   SurfaceMapResult r;
   r.genus = genus;
   r.candidates.resize(1);
-  r.candidates[0].energy = ratio * 8 * M_PI * (genus - 1);
+  r.candidates[0].energy = ratio * conformal_bound(genus);
   r.chosen_candidate = 0;
   return r;
 }

@@ -100,6 +100,44 @@ double worst_distance(const HarmonicProblem& p, const Word& relator, const Hyper
   return worst;
 }
 
+// Far sheets: a random side word W_i per vertex, `length` letters of the
+// generators (a letter never next to its inverse) drawn from `rng`,
+// Dehn-reduced once the word is long enough, or after every letter
+// (`reduce_each_letter`: the word keeps growing to `length` reduced letters).
+std::vector<Word> random_sheet_words(std::mt19937& rng, int count, int generators, size_t length,
+                                     const DehnReducer& reduce, bool reduce_each_letter) {
+  std::uniform_int_distribution<int> letter(1, generators);
+  std::bernoulli_distribution sign(0.5);
+  std::vector<Word> sheet(count);
+  for (Word& w : sheet) {
+    while (w.size() < length) {
+      const int x = sign(rng) ? letter(rng) : -letter(rng);
+      if (w.empty() || x != -w.back()) w.push_back(x);
+      if (reduce_each_letter) w = reduce(w);
+    }
+    if (!reduce_each_letter) w = reduce(w);
+  }
+  return sheet;
+}
+
+// The same problem with every edge i -> j conjugated by the sheet words,
+// ρ_e -> W_i ρ_e W_j⁻¹ (its solution's decks relative to the given edges are
+// D_i W_i); `longest`: the longest start edge from the origin, 2 asinh |b|
+// of the edge's element multiplied out in long double.
+HarmonicProblem in_far_sheets(const HarmonicProblem& p, const std::vector<Word>& sheet, const DehnReducer& reduce,
+                              double* longest) {
+  HarmonicProblem far = p;
+  *longest = 0;
+  for (WeightedEdge& e : far.edges) {
+    e.rho_word = reduce(concat({sheet[e.i], e.rho_word, inverse(sheet[e.j])}));
+    const Element m = evaluate(e.rho_word, far.generators);
+    e.rho = hyperbolic::Mobius{Complex(static_cast<double>(m.a.real()), static_cast<double>(m.a.imag())),
+                               Complex(static_cast<double>(m.b.real()), static_cast<double>(m.b.imag()))};
+    *longest = std::max(*longest, 2.0 * static_cast<double>(std::asinh(std::abs(m.b))));
+  }
+  return far;
+}
+
 double direct_energy = 0;  // of the first direct solve, for the comparison with the pipeline
 
 void check_direct_solves(const HarmonicProblem& problem, double tol) {
@@ -118,25 +156,10 @@ void check_direct_solves(const HarmonicProblem& problem, double tol) {
   // letters per vertex (the same problem; its solution's decks relative to
   // the given edges are D_i W_i), every vertex at the origin.
   const DehnReducer reduce(relator);
-  std::vector<Word> sheet(problem.num_vertices);
-  std::uniform_int_distribution<int> letter(1, static_cast<int>(problem.generators.size()));
-  std::bernoulli_distribution sign(0.5);
-  for (Word& w : sheet) {
-    while (w.size() < 4) {
-      const int x = sign(rng) ? letter(rng) : -letter(rng);
-      if (w.empty() || x != -w.back()) w.push_back(x);
-    }
-    w = reduce(w);
-  }
-  HarmonicProblem far = problem;
+  const std::vector<Word> sheet = random_sheet_words(rng, problem.num_vertices,
+                                                     static_cast<int>(problem.generators.size()), 4, reduce, false);
   double longest = 0;
-  for (WeightedEdge& e : far.edges) {
-    e.rho_word = reduce(concat({sheet[e.i], e.rho_word, inverse(sheet[e.j])}));
-    const Element m = evaluate(e.rho_word, far.generators);
-    e.rho = hyperbolic::Mobius{Complex(static_cast<double>(m.a.real()), static_cast<double>(m.a.imag())),
-                               Complex(static_cast<double>(m.b.real()), static_cast<double>(m.b.imag()))};
-    longest = std::max(longest, e.rho.displacement_of_origin());
-  }
+  const HarmonicProblem far = in_far_sheets(problem, sheet, reduce, &longest);
   EXPECT_GT(longest, 25.0);
   double max_w = 0;
   for (const auto& e : problem.edges) max_w = std::max(max_w, e.w);
@@ -264,25 +287,10 @@ TEST(NewtonStarts, StartEdgesBeyondSeventyUnitsAreRefusedByDefaultAndReachTheOpt
     // 16 letters, so the longest start edge is beyond 70 units.
     const DehnReducer reduce(p.relator);
     std::mt19937 rng(11);
-    std::uniform_int_distribution<int> letter(1, static_cast<int>(p.generators.size()));
-    std::bernoulli_distribution sign(0.5);
-    std::vector<Word> sheet(p.num_vertices);
-    for (Word& w : sheet) {
-      while (w.size() < 16) {
-        const int x = sign(rng) ? letter(rng) : -letter(rng);
-        if (w.empty() || x != -w.back()) w.push_back(x);
-        w = reduce(w);
-      }
-    }
-    HarmonicProblem far = p;
+    const std::vector<Word> sheet =
+        random_sheet_words(rng, p.num_vertices, static_cast<int>(p.generators.size()), 16, reduce, true);
     double longest = 0;
-    for (WeightedEdge& e : far.edges) {
-      e.rho_word = reduce(concat({sheet[e.i], e.rho_word, inverse(sheet[e.j])}));
-      const Element m = evaluate(e.rho_word, far.generators);
-      e.rho = hyperbolic::Mobius{Complex(static_cast<double>(m.a.real()), static_cast<double>(m.a.imag())),
-                                 Complex(static_cast<double>(m.b.real()), static_cast<double>(m.b.imag()))};
-      longest = std::max(longest, 2.0 * static_cast<double>(std::asinh(std::abs(m.b))));
-    }
+    const HarmonicProblem far = in_far_sheets(p, sheet, reduce, &longest);
     ASSERT_GT(longest, 75.0);
     const std::vector<Complex> at_origin(p.num_vertices, 0.0);
     // The default guard refuses it, naming the edge and its length.

@@ -20,6 +20,7 @@
 #include "surfmap/error.h"
 #include "surfmap/samples/shapes.h"
 #include "surfmap/mesh/connectivity.h"
+#include "holed_plate.h"
 
 namespace surfmap {
 namespace {
@@ -45,69 +46,7 @@ TriMesh torus(double R, double r, int n, int m) {
   return t;
 }
 
-// Boundary of a 1-voxel-thick plate of (2g+1) x 3 unit cubes with the cubes
-// (2k+1, 1) removed: a closed genus-g surface. Every unit square is split
-// into s x s cells, two triangles each.
-TriMesh holed_plate(int g, int s) {
-  const int W = 2 * g + 1, Hh = 3;
-  auto solid = [&](int x, int y) {
-    if (x < 0 || y < 0 || x >= W || y >= Hh) return false;
-    return !(y == 1 && x % 2 == 1);
-  };
-  std::map<std::array<int, 3>, int> index;
-  std::vector<Eigen::Vector3d> pts;
-  std::vector<Eigen::Vector3i> tris;
-  auto vid = [&](int x, int y, int z) {  // coordinates in units of 1/s
-    const std::array<int, 3> k{x, y, z};
-    auto it = index.find(k);
-    if (it != index.end()) return it->second;
-    index[k] = static_cast<int>(pts.size());
-    pts.emplace_back(double(x) / s, double(y) / s, double(z) / s);
-    return static_cast<int>(pts.size()) - 1;
-  };
-  // Emit the square at cube c, with outward normal direction d (axis, sign).
-  auto square = [&](int cx, int cy, int cz, int axis, int sign) {
-    int o[3] = {cx * s, cy * s, cz * s};
-    if (sign > 0) o[axis] += s;
-    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-    for (int i = 0; i < s; ++i)
-      for (int j = 0; j < s; ++j) {
-        int p[4][3];
-        const int du[4] = {i, i + 1, i + 1, i}, dv[4] = {j, j, j + 1, j + 1};
-        for (int q = 0; q < 4; ++q) {
-          p[q][axis] = o[axis];
-          p[q][u] = o[u] + du[q];
-          p[q][v] = o[v] + dv[q];
-        }
-        int id[4];
-        for (int q = 0; q < 4; ++q) id[q] = vid(p[q][0], p[q][1], p[q][2]);
-        // (u, v, axis) is right-handed, so u×v = +axis: ccw seen from +axis.
-        if (sign > 0) {
-          tris.emplace_back(id[0], id[1], id[2]);
-          tris.emplace_back(id[0], id[2], id[3]);
-        } else {
-          tris.emplace_back(id[0], id[2], id[1]);
-          tris.emplace_back(id[0], id[3], id[2]);
-        }
-      }
-  };
-  for (int x = 0; x < W; ++x)
-    for (int y = 0; y < Hh; ++y) {
-      if (!solid(x, y)) continue;
-      square(x, y, 0, 2, -1);
-      square(x, y, 0, 2, +1);
-      if (!solid(x - 1, y)) square(x, y, 0, 0, -1);
-      if (!solid(x + 1, y)) square(x, y, 0, 0, +1);
-      if (!solid(x, y - 1)) square(x, y, 0, 1, -1);
-      if (!solid(x, y + 1)) square(x, y, 0, 1, +1);
-    }
-  TriMesh t;
-  t.V.resize(static_cast<int>(pts.size()), 3);
-  for (size_t i = 0; i < pts.size(); ++i) t.V.row(i) = pts[i].transpose();
-  t.F.resize(static_cast<int>(tris.size()), 3);
-  for (size_t i = 0; i < tris.size(); ++i) t.F.row(i) = tris[i].transpose();
-  return t;
-}
+using testing_support::holed_plate;
 
 // Random 3D displacement of every vertex by up to `amp` (absolute): obtuse
 // triangles and, for large amp, slivers. Lengths stay a valid metric as long

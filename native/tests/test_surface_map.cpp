@@ -797,14 +797,21 @@ TEST(SurfaceMapHandles, ClassSearchUndoesKnownTwists) {
   EXPECT_THROW(surface_map(a, b, o, hooks), InputError);
 }
 
-// A small genus-2 pair without a coarse copy (source under 2000 vertices),
+namespace {
+// The small genus-2 pair of the tests below: an n-hole torus and a jittered
+// finer one (the source under 2000 vertices: no coarse copy).
+TriMesh small_genus2_source() { return samples::n_hole_torus(2, 18, true); }
+TriMesh small_genus2_target() { return samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5); }
+}  // namespace
+
+// The small genus-2 pair (small_genus2_source, small_genus2_target),
 // mapped without search (`m0`, in the identity class of energy `e0`), then
 // with `o` (two-way off) and the search started from that class twisted by
 // the named moves: the twisted map is returned, after checks common to its
 // tests (the start is worse, the search comes back to e0).
 struct TwistedIdentitySearch {
-  TriMesh a = samples::n_hole_torus(2, 18, true);
-  TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  TriMesh a = small_genus2_source();
+  TriMesh b = small_genus2_target();
   SurfaceMapResult m0;
   double e0 = 0;
   SurfaceMapResult search(SurfaceMapOptions o, const std::vector<std::string>& twists) {
@@ -896,8 +903,7 @@ TEST(SurfaceMapHandles, ClassSearchUndoesTwistsAlongShortCurves) {
 // the error gives both runs' reasons; without the fallback, or with the
 // short generators asked for, there is one run and one reason.
 TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  const TriMesh a = small_genus2_source(), b = small_genus2_target();
   SurfaceMapOptions o;
   o.homotopy.two_way = false;
   o.homotopy.through_shape = false;
@@ -945,8 +951,7 @@ TEST(SurfaceMapHandles, StartEdgeFailuresAreRetriedWithTheShortGenerators) {
 // message says " units long" with no such reason is not. (The hook fails the
 // classical runs only; the retry then maps the pair for real.)
 TEST(SurfaceMapHandles, StartEdgeRetryReadsTheReasonNotTheWords) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  const TriMesh a = small_genus2_source(), b = small_genus2_target();
   SurfaceMapOptions o;
   o.homotopy.two_way = false;
   o.homotopy.search.enabled = false;
@@ -987,8 +992,7 @@ TEST(SurfaceMapHandles, StartEdgeRetryReadsTheReasonNotTheWords) {
 // asked for, nor when the short generators were the first run's. (The hook
 // fails the classical runs with a fold error; the retry maps for real.)
 TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  const TriMesh a = small_genus2_source(), b = small_genus2_target();
   SurfaceMapOptions o;  // (two-way run on: the retry turns it off)
   o.homotopy.search.enabled = false;
   std::vector<SurfaceMapOptions> runs;
@@ -1021,14 +1025,15 @@ TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
   EXPECT_EQ(reports.back(), std::make_pair(std::string("done"), 1.0));
   for (size_t k = 0; k + 1 < reports.size(); ++k) {
     const auto& [stage, fraction] = reports[k];
-    EXPECT_EQ(stage.rfind("retry after folds: ", 0), 0u) << stage;  // (the first run reported nothing: the hook threw)
+    EXPECT_EQ(stage.rfind("retry after folds (", 0), 0u) << stage;  // (the first run reported nothing: the hook threw)
+    EXPECT_EQ(stage.back(), ')') << stage;  // "<retry> (<stage>)", as the add-on splits it
     EXPECT_GE(fraction, 0.0);
     EXPECT_LT(fraction, 1.0);
   }
   for (size_t k = 1; k < reports.size(); ++k) EXPECT_GE(reports[k].second, reports[k - 1].second);
   // The retry is cancelled like any run.
   SurfaceMapOptions cancelling = o;
-  cancelling.progress = [](const std::string& stage, double) { return stage.rfind("retry after folds: ", 0) != 0; };
+  cancelling.progress = [](const std::string& stage, double) { return stage.rfind("retry after folds (", 0) != 0; };
   EXPECT_THROW(testing::surface_map(a, b, cancelling, hooks), Cancelled);
   // No retry: the first run's error as it was, with its reason.
   auto one_run = [&](const SurfaceMapOptions& opt) {
@@ -1072,8 +1077,7 @@ TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
 // report is ("done", 1). Before, the main run's last stage reported 1 and the
 // bar read full while the other direction was still being solved.
 TEST(SurfaceMapHandles, TheBarIsFullOnlyWhenTheMapIsMade) {
-  const TriMesh a = samples::n_hole_torus(2, 18, true);
-  const TriMesh b = samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5);
+  const TriMesh a = small_genus2_source(), b = small_genus2_target();
   SurfaceMapOptions o;
   o.homotopy.search.enabled = false;
   o.homotopy.two_way_ratio = 0;  // (the other direction always)
@@ -1105,15 +1109,15 @@ TEST(SurfaceMapHandles, TheBarIsFullOnlyWhenTheMapIsMade) {
   EXPECT_THROW(surface_map(a, b, at_the_end), Cancelled);
 }
 
-// The small genus-2 pair of the twist-search tests below (an n-hole torus
-// and a jittered finer one: no coarse copy) and hooks that start the search
+// The small genus-2 pair (small_genus2_source, small_genus2_target) for the
+// twist-search tests below and hooks that start the search
 // from its default class (search off, one way) composed with `twists`.
 struct TwistedStartPair {
   TriMesh a, b;
   testing::MapHooks hooks;
 };
 TwistedStartPair twisted_start_pair(const std::vector<std::string>& twists) {
-  TwistedStartPair p{samples::n_hole_torus(2, 18, true), samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5), {}};
+  TwistedStartPair p{small_genus2_source(), small_genus2_target(), {}};
   SurfaceMapOptions plain;
   plain.homotopy.search.enabled = false;
   plain.homotopy.two_way = false;
@@ -1359,7 +1363,7 @@ void expect_holes_in_order(int genus, int res) {
   const TriMesh b = samples::polycube(genus, res, true);
   const SurfaceMapResult m = surface_map(a, b);
   expect_valid_map(m, a, b);
-  const double bound = 8 * M_PI * (genus - 1);
+  const double bound = conformal_bound(genus);
   EXPECT_LT(m.final_energy, 1.2 * bound);
   EXPECT_LT(m.mean_dilatation, 2.2);
   const Eigen::RowVector3d alo = a.V.colwise().minCoeff(), ahi = a.V.colwise().maxCoeff();
@@ -1984,6 +1988,8 @@ TEST(SurfaceMapHandles, ThroughShapeAdoptsAClassOnlyWhenItsPairTotalIsLower) {
   EXPECT_NE(high.through_shape_status.find("the adopted pair is lower"), std::string::npos) << high.through_shape_status;
   EXPECT_NEAR(high.energy_ratio, f.energy_ratio, 1e-6 * f.energy_ratio) << high.through_shape_status;
   EXPECT_EQ(high.directions.outcome, "inverse") << high.directions.reason;
+  // (This class inverted there, as the step solved it: read by the step of a later run; session 29.)
+  EXPECT_GE(high.directions.inverse_there_ratio, 1 - 1e-6) << high.directions.reason;
   EXPECT_TRUE(high.converged);
   EXPECT_EQ(high.flipped_triangles, 0);
 }
@@ -2307,6 +2313,83 @@ TEST(SurfaceMapHandles, ThroughShapeSkipsTheTargetItselfAndStopsAtALegThatCannot
   EXPECT_FALSE(detail::same_shape(moved, b));
 }
 
+// The through-shape step read the same way from either direction (session 29,
+// branch class30). Jittered cup g3 -> thin CAD plate g3 ran it (7.306 x after
+// the two-way run) and adopted a pair of inverse classes; thin plate -> cup
+// (2.797 x, the directions not agreed, the other direction 7.306 x one way) did
+// not, and the two separate runs ended on classes that were not inverse.
+// through_shape_reached on results like these, then the step itself from
+// below its ratio, with a map function that records the legs asked for and
+// fails them (so nothing is solved).
+TEST(SurfaceMapHandles, ThroughShapeRunsForTheOtherDirectionBelowItsRatio) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::string why;
+  SurfaceMapResult r;
+  r.genus = 3;
+  r.energy_ratio = 2.797;
+  r.directions.other_one_way_ratio = 7.306;
+  EXPECT_TRUE(detail::through_shape_reached(r, 2.797, 3, why));  // (the old rule: not run, 2.797 < 3)
+  EXPECT_NE(why.find("the directions not agreed"), std::string::npos) << why;
+  // Not agreed: the larger one-way ratio, this direction's counting the same.
+  r.directions.other_one_way_ratio = 2.5;
+  EXPECT_TRUE(detail::through_shape_reached(r, 3.54, 3, why)) << why;
+  EXPECT_FALSE(detail::through_shape_reached(r, 2.797, 3, why)) << why;
+  EXPECT_NE(why.find("below 3"), std::string::npos) << why;
+  EXPECT_FALSE(detail::through_shape_reached(r, nan, 3, why)) << why;
+  r.directions.other_one_way_ratio = nan;
+  EXPECT_FALSE(detail::through_shape_reached(r, nan, 3, why)) << why;
+  EXPECT_FALSE(detail::through_shape_reached(r, 2.797, 3, why)) << why;
+  EXPECT_EQ(why, "energy ratio below 3");  // (the other direction not mapped: the status as before)
+  // Agreed: this class inverted there decides, not the one-way ratios
+  // (fertility -> polycube g4: 4.568 x one way, then 2.158 x here and 2.083 x
+  // there, inverse: no step in either direction).
+  r.energy_ratio = 2.158;
+  r.directions.outcome = "inverse";
+  r.directions.other_one_way_ratio = 2.083;
+  r.directions.inverse_there_ratio = 2.083;
+  EXPECT_FALSE(detail::through_shape_reached(r, 4.568, 3, why)) << why;
+  r.directions.inverse_there_ratio = 3.25;
+  EXPECT_TRUE(detail::through_shape_reached(r, 2.158, 3, why));
+  EXPECT_NE(why.find("3.25 in the other direction"), std::string::npos) << why;
+  r.directions.outcome = "symmetric: both optimal";
+  EXPECT_TRUE(detail::through_shape_reached(r, 2.158, 3, why)) << why;
+  r.directions.inverse_there_ratio = nan;  // (unknown: as before, not run)
+  r.directions.other_one_way_ratio = 7;
+  EXPECT_FALSE(detail::through_shape_reached(r, 7, 3, why)) << why;
+  r.energy_ratio = 3;  // at the ratio here: run, as before
+  EXPECT_TRUE(detail::through_shape_reached(r, 7, 3, why));
+  EXPECT_TRUE(why.empty()) << why;
+
+  // The step from below its ratio: the legs onto both generated shapes are asked for.
+  const TriMesh a = samples::n_hole_torus(2, 26, true), b = samples::vase(30, true);
+  std::vector<int> legs;  // (each leg's target, by its vertex count)
+  const detail::MapFunction failing = [&](const TriMesh&, const TriMesh& t, const SurfaceMapOptions&) -> SurfaceMapResult {
+    legs.push_back(t.num_vertices());
+    throw SolveError("a leg that fails in this test");
+  };
+  SurfaceMapResult forward;
+  forward.genus = 2;
+  forward.energy_ratio = 2.5;
+  forward.directions.other_one_way_ratio = 4;
+  const SurfaceMapOptions o;  // (through_shape_ratio 3)
+  ASSERT_EQ(o.homotopy.through_shape_ratio, 3);
+  detail::through_shape_map(a, b, o, forward, failing, {}, 2.5);
+  EXPECT_EQ(forward.through_shape_status.rfind("run for the other direction: energy ratio below 3 here", 0), 0u)
+      << forward.through_shape_status;
+  EXPECT_NE(forward.through_shape_status.find("mapping onto the genus-2 CAD plate"), std::string::npos)
+      << forward.through_shape_status;
+  ASSERT_EQ(legs.size(), 2u);  // the plate and the n-hole torus
+  EXPECT_EQ(legs[0], samples::cad_plate(2).num_vertices());
+  EXPECT_EQ(forward.energy_ratio, 2.5);  // (nothing composed: the class stays)
+  // The other direction below the ratio one way too: not run, nothing asked.
+  legs.clear();
+  forward.through_shape_status.clear();
+  forward.directions.other_one_way_ratio = 2.9;
+  detail::through_shape_map(a, b, o, forward, failing, {}, 2.5);
+  EXPECT_TRUE(legs.empty());
+  EXPECT_EQ(forward.through_shape_status, "not run: energy ratio below 3 (one way: this direction 2.5, the other 2.9)");
+}
+
 // The two-way run (forced with a ratio threshold of 0): the pair is mapped
 // the other way, the source's loops carried by that map's inverse give one
 // more candidate, and the result is no worse than the one-way map; it is a
@@ -2338,6 +2421,19 @@ TEST(SurfaceMapHandles, TwoWayRunIsNoWorseAndListsTheOtherDirection) {
   }
   EXPECT_EQ(m1.reverse_inverse, -1);
   EXPECT_FALSE(m2.reverse_inverse_reason.empty());
+  // The other direction's one-way ratio is reported (the through-shape step
+  // reads it; session 29, branch class30), and when the two directions agree,
+  // this class inverted there.
+  SurfaceMapOptions back = one;
+  back.homotopy.through_shape = false;
+  const double other_one_way = surface_map(b, a, back).energy_ratio;
+  EXPECT_NEAR(m2.directions.other_one_way_ratio, other_one_way, 1e-9 * other_one_way);
+  if (m2.directions.outcome == "inverse" || m2.directions.outcome == "symmetric: both optimal") {
+    EXPECT_GE(m2.directions.inverse_there_ratio, 1 - 1e-6) << m2.directions.reason;
+  } else {
+    EXPECT_TRUE(std::isnan(m2.directions.inverse_there_ratio)) << m2.directions.outcome;
+  }
+  EXPECT_TRUE(std::isnan(m1.directions.other_one_way_ratio));
   if (m2.two_way_status.find("not lower") == std::string::npos && m2.two_way_status.find("failed") == std::string::npos)
     EXPECT_NE(m2.reverse_inverse, -1) << m2.two_way_status << " / " << m2.reverse_inverse_reason;
   SurfaceMapOptions high;

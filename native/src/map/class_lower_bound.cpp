@@ -216,7 +216,7 @@ ClassBoundEvaluator::ClassBoundEvaluator(const SurfaceGroupLengths& source, std:
 
 ClassLowerBound ClassBoundEvaluator::operator()(const SurfaceGroupLengths& target, const GroupMap& theta) const {
   ClassLowerBound r;
-  r.conformal_bound = 8 * M_PI * (genus_ - 1);
+  r.conformal_bound = conformal_bound(genus_);
   if (target.genus() != genus_ || static_cast<int>(theta.size()) != 2 * genus_)
     throw InputError("class_lower_bound: the class has " + std::to_string(theta.size()) + " generator images, the surfaces genus " +
                      std::to_string(genus_) + " and " + std::to_string(target.genus()));

@@ -962,7 +962,7 @@ int HyperbolicPipeline::early_ranked_class() const {
 // classes not solved keep an infinite energy, say why in their description
 // and stay fallbacks (map_with_fallback).
 std::vector<int> HyperbolicPipeline::classes_that_can_win(int first) {
-  const double conformal = 8 * M_PI * (out.genus - 1);
+  const double conformal = conformal_bound(out.genus);
   const double e = out.candidates[first].energy;
   char why[200];
   std::vector<int> rest;
@@ -1161,7 +1161,7 @@ void HyperbolicPipeline::search_classes() {
   const CoarseSolve pruned_solve = pruned_with(solve_coarse);
   const CoarseSolve geometric_solve = pruned_with(solve_coarse_with(geometric_ho));
   const bool searching = !level.source_word.empty();
-  const double conformal_bound = 8 * M_PI * (out.genus - 1);
+  const double conformal_bound = surfmap::conformal_bound(out.genus);
   const double gap_bound = (1 + options.homotopy.search.gap) * conformal_bound;
   // (order[0] not usable: every candidate failed, energy +inf; issue 13.)
   // (Given classes: only the twists from the best of them, no other kind of
@@ -1259,7 +1259,7 @@ void HyperbolicPipeline::kicks_when_high(int search_start, const std::vector<std
   const int from = info.found_candidate >= 0 ? info.found_candidate : search_start;
   const std::vector<std::string> twists = info.found_candidate >= 0 ? std::vector<std::string>{} : start_twists;
   const double energy = info.found_candidate >= 0 ? out.candidates[from].energy : info.energy;
-  const double conformal_bound = 8 * M_PI * (out.genus - 1);
+  const double conformal_bound = surfmap::conformal_bound(out.genus);
   char ratio[64];
   std::snprintf(ratio, sizeof ratio, "%.4g x", energy / conformal_bound);
   if (!(energy >= s.high_kick_ratio * conformal_bound)) {
@@ -1383,7 +1383,7 @@ void HyperbolicPipeline::geometric_classes_at_full_resolution() {
   // Issue 13: when every candidate failed (best infinite: the genus-11
   // plate -> wheel, whose combinatorial classes are all twisted far beyond
   // double range) the geometric classes are the only ones left.
-  const double conformal = 8 * M_PI * (out.genus - 1);
+  const double conformal = conformal_bound(out.genus);
   if (best <= (1 + options.homotopy.search.gap) * conformal || best < options.homotopy.search.geometric_ratio * conformal)
     return;
   const SourceClassBounds& bounds = class_bounds_now();
@@ -1503,7 +1503,7 @@ void HyperbolicPipeline::twist_search_at_full_resolution() {
   // (With the testing hooks' start, one run from there, whatever its energy.)
   const bool hooked = hooks.homotopy_search_start >= 0;
   check_candidate_index(hooks.homotopy_search_start, ncand, "homotopy_search_start");
-  const double gap_bound = hooked ? 0.0 : (1 + options.homotopy.search.gap) * 8 * M_PI * (out.genus - 1);
+  const double gap_bound = hooked ? 0.0 : (1 + options.homotopy.search.gap) * conformal_bound(out.genus);
   std::vector<int> solved;
   for (int k = 0; k < ncand; ++k)
     if (usable[k] && out.candidates[k].solved && std::isfinite(out.candidates[k].energy) &&
@@ -2402,7 +2402,7 @@ void map_with_fallback(HyperbolicPipeline& p) {
         if (std::isfinite(intrinsic))
           std::snprintf(own_edges, sizeof own_edges, "; %.6g with the own-edge weights", out.candidates[c].energy);
         std::snprintf(head, sizeof head, "no candidate class gave a bijective map (%d tried%s); the chosen class %d (energy %.6g, %.3g x 8 pi (g - 1)%s): ",
-                      static_cast<int>(fallback.size()), unmapped, c, energy, energy / (8 * M_PI * (out.genus - 1)),
+                      static_cast<int>(fallback.size()), unmapped, c, energy, energy / conformal_bound(out.genus),
                       own_edges);
         const std::string& d = out.candidates[c].description;
         const size_t at = d.rfind("  [not used: ");

@@ -6,6 +6,7 @@
 #include <limits>
 #include <cstdio>
 
+#include "surfmap/map/class_lower_bound.h"
 #include "surfmap/map/map_option_names.h"
 
 namespace surfmap {
@@ -49,7 +50,7 @@ std::string energy_ratio_basis(const SurfaceMapResult& r) {
   if (r.genus < 2 || !std::isfinite(r.energy_ratio)) return "";
   char bound[96];
   std::snprintf(bound, sizeof bound, " / 8 pi (g - 1) = %.6g (the energy of a conformal map, the least of any map)",
-                8 * M_PI * (r.genus - 1));
+                conformal_bound(r.genus));
   const std::string head = "the chosen class's free optimum (landmarks not held)";
   if (std::isfinite(r.intrinsic_class_energy))
     return head + " with intrinsic Delaunay cotangent weights, the energy the classes are ranked by" + bound +
@@ -293,6 +294,8 @@ json directions_json(const SurfaceMapResult& r) {
           {"agreement", d.agreement},
           {"own_pair_ratio", d.own_pair_ratio},
           {"other_pair_ratio", d.other_pair_ratio},
+          {"other_one_way_ratio", d.other_one_way_ratio},
+          {"inverse_there_ratio", d.inverse_there_ratio},
           {"chosen_class_words", r.chosen_class_words},
           {"source_as_target", r.source_as_target},
           {"source_as_target_inverse", r.source_as_target_inverse},

@@ -234,8 +234,8 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
     }
     return map_in_given_cuts(source, target, o, hooks, left);
   };
-  // The automatic retries below report their progress as stages "<name>:
-  // ..." with fractions from the largest the first run reached up to 1
+  // The automatic retries below report their progress as stages "<name>
+  // (<stage>)" with fractions from the largest the first run reached up to 1
   // (testing::surface_map keeps them from decreasing), so a retry does not
   // sit at the first run's last fraction; the callback can cancel it.
   struct Reached {
@@ -259,7 +259,7 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
     if (options.progress) {
       std::lock_guard<std::mutex> lock(reached->mutex);
       o.progress = [inner = options.progress, from = reached->fraction, name](const std::string& stage, double fraction) {
-        return inner(name + ": " + stage, from + (1 - from) * std::clamp(fraction, 0.0, 1.0));
+        return inner(name + " (" + stage + ")", from + (1 - from) * std::clamp(fraction, 0.0, 1.0));
       };
     }
     return o;
@@ -510,10 +510,12 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
     }
   }
   detail::assess_quality(out);  // issue 14: energy ratio and warning
+  const double one_way_ratio = out.energy_ratio;  // (before the two-way run; the through-shape step reads it)
   std::vector<std::vector<int>> target_letters_inverse;  // the other direction's letters, when it was mapped
   detail::two_way_map(source, target, options, out, map_of, &target_letters_inverse);  // issue 14: the other direction when poor
-  // Issue 14: through a generated shape when poor, the composed classes searched in both directions.
-  detail::through_shape_map(source, target, options, out, map_of, target_letters_inverse);
+  // Issue 14: through a generated shape when poor (here or in the other direction), the composed classes
+  // searched in both directions.
+  detail::through_shape_map(source, target, options, out, map_of, target_letters_inverse, one_way_ratio);
   if (options.homotopy.two_way) detail::qualify_quality_warning(out);  // issue 14: both directions agree on it
   out.total_time = seconds_since(t_start);
   finish_stage_table(out, record("total", out.total_time, counts_start, work::counts()));

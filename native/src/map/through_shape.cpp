@@ -123,17 +123,55 @@ std::vector<std::vector<int>> composed_class(const SurfaceMapResult& source_to_m
                  compose(middle_to_target.source_as_target_inverse, source_to_middle.chosen_class_words));
 }
 
+bool through_shape_reached(const SurfaceMapResult& forward, double one_way_ratio, double ratio, std::string& why) {
+  why.clear();
+  if (forward.energy_ratio >= ratio) return true;
+  const SurfaceMapResult::DirectionCheck& d = forward.directions;
+  const std::string below = "energy ratio below " + four_digits(ratio);
+  if (d.outcome == "inverse" || d.outcome == "symmetric: both optimal") {
+    // Agreed: the other direction's run ends on this class inverted, and
+    // takes the step when that class's ratio there reaches `ratio`.
+    if (d.inverse_there_ratio >= ratio) {
+      why = below + " here, but this class inverted is at " + four_digits(d.inverse_there_ratio) +
+            " in the other direction, whose own run takes the step";
+      return true;
+    }
+    why = below + (std::isnan(d.inverse_there_ratio) ? std::string(" (this class inverted not solved there)")
+                                                     : " in both directions (this class inverted: " +
+                                                           four_digits(d.inverse_there_ratio) + " there)");
+    return false;
+  }
+  // Not agreed: the other direction's run may end anywhere up to its one-way
+  // ratio, so both runs read the larger of the two one-way ratios (each run
+  // maps the other direction one way with the same options).
+  double larger = std::numeric_limits<double>::quiet_NaN();
+  for (double r : {one_way_ratio, d.other_one_way_ratio})
+    if (std::isfinite(r) && !(r <= larger)) larger = r;
+  auto ratio_or_unknown = [](double r) { return std::isfinite(r) ? four_digits(r) : std::string("unknown"); };
+  const std::string both = "this direction " + ratio_or_unknown(one_way_ratio) + ", the other " +
+                           ratio_or_unknown(d.other_one_way_ratio);
+  if (larger >= ratio) {
+    why = below + " here, the directions not agreed, and a one-way ratio at " + four_digits(ratio) + " or more (" +
+          both + "), so the other direction's own run may take the step";
+    return true;
+  }
+  // (The other direction not mapped: the status is the one-direction rule's.)
+  why = below + (std::isfinite(d.other_one_way_ratio) ? " (one way: " + both + ")" : std::string());
+  return false;
+}
+
 void through_shape_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                        SurfaceMapResult& forward, const MapFunction& map,
-                       const std::vector<std::vector<int>>& target_letters_inverse) {
+                       const std::vector<std::vector<int>>& target_letters_inverse, double one_way_ratio) {
   const HomotopyOptions& h = options.homotopy;
   if (forward.genus < 2 || h.class_index >= 0 || h.source_images.size() > 0 || h.reverse_class_only ||
       !h.given_class.empty())
     return;
   if (!h.through_shape) return void(forward.through_shape_status = "not run (off)");
   if (!options.landmarks.empty()) return void(forward.through_shape_status = "not run: landmarks are held");
-  if (!(forward.energy_ratio >= h.through_shape_ratio))
-    return void(forward.through_shape_status = "not run: energy ratio below " + four_digits(h.through_shape_ratio));
+  std::string reached;
+  if (!through_shape_reached(forward, one_way_ratio, h.through_shape_ratio, reached))
+    return void(forward.through_shape_status = "not run: " + reached);
   const int g = forward.genus;
   // At least 16 grid cells per handle in a row (genus <= 4), 64 for the
   // wheels beyond: at 32 cells the genus-4 n-hole torus (2.3k vertices)
@@ -141,7 +179,8 @@ void through_shape_map(const TriMesh& source, const TriMesh& target, const Surfa
   // the fertility onto it at 8.75 x, at 64 (10k) at 4.54 x
   // (docs/handle_classes.md "Through generated shapes").
   const int resolution = std::max(h.through_shape_resolution, g <= 4 ? 16 * g : 64);
-  std::string notes;
+  // (Run from below the ratio: the status says why first.)
+  std::string notes = reached.empty() ? std::string() : "; run for the other direction: " + reached;
   std::vector<MiddleShape> middles;
   for (MiddleShape& m : middle_shapes(g, resolution, notes)) {
     const bool is_target = same_shape(m.mesh, target);
@@ -310,7 +349,7 @@ std::string keep_the_lower_pair(const TriMesh& source, const TriMesh& target, co
   if (target_letters_inverse.size() != n || first.chosen_class_words.size() != n ||
       first.source_as_target_inverse.size() != n)
     return head + "not compared (its words or letters are missing): kept the class lower here";
-  const double bound = 8 * M_PI * (first.genus - 1);
+  const double bound = conformal_bound(first.genus);
   const double own = chosen_energy(first);
   const SurfaceMapOptions ao = single_class_options(
       one_way_options(reverse_options(options)),
@@ -481,6 +520,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   const int chosen = static_cast<int>(listed.size()) + through.chosen_candidate;
   for (HomotopyCandidate& c : tried) listed.push_back(std::move(c));
   const std::string two_way = forward.two_way_status;
+  const double other_one_way = forward.directions.other_one_way_ratio;
   forward = std::move(through);
   forward.candidates = std::move(listed);
   forward.chosen_candidate = chosen;
@@ -489,6 +529,7 @@ void through_shapes_map(const TriMesh& source, const TriMesh& target, const Surf
   forward.reverse_inverse_reason = "not compared: the class through the generated shape was adopted after the two-way run";
   forward.directions = SurfaceMapResult{}.directions;
   forward.directions.reason = forward.reverse_inverse_reason;
+  forward.directions.other_one_way_ratio = other_one_way;
   double new_pair = std::numeric_limits<double>::quiet_NaN();
   const std::string agreed = both_ways(&new_pair);
   finish(forward, status + agreed + keep_the_lower_pair(source, target, options, first_result, new_pair,
@@ -536,7 +577,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
     return not_run + "this source's letters as a target are missing: " + forward.source_as_target_status + ")";
   if (target_letters_inverse.size() != n) return not_run + "the target's letters as a source are missing)";
   const Clock t;
-  const double bound = 8 * M_PI * (g - 1);
+  const double bound = conformal_bound(g);
   // The composed classes θ0 in the other direction (target -> source):
   // ι_T^-1 ∘ θ0 ∘ ι_S^-1 is θ0 from the source's letters as a target to
   // the target's letters as a source (the form of
@@ -625,6 +666,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
     d.outcome = relation.inner.inner ? "inverse" : "symmetric: both optimal";
     d.reason = "the other direction's search from the composed classes inverted ends on this class inverted" +
                std::string(relation.inner.inner ? "" : " up to the hyperelliptic involution") + " (exact)";
+    d.inverse_there_ratio = other_there / bound;
     if (kept_pair_total) *kept_pair_total = own + other_there;
     return status + ": this class inverted (" + t.text() + ")";
   }
@@ -682,6 +724,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
     list_the_other_class();
     if (kept_pair_total) *kept_pair_total = own_pair;
     d.outcome = "inverse";
+    d.inverse_there_ratio = own_there / bound;
     d.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is this one (" + pairs +
                ")";
     return status + "; " + pairs + ": kept this class (" + t.text() + ")";
@@ -695,6 +738,7 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
                      alone_here.chosen_candidate;
   const std::string two_way = forward.two_way_status;
   const double two_way_time = forward.two_way_time_s;
+  const double other_one_way = forward.directions.other_one_way_ratio;
   forward = std::move(alone_here);
   forward.candidates = std::move(listed);
   forward.chosen_candidate = chosen;
@@ -703,6 +747,8 @@ std::string composed_classes_both_ways(const TriMesh& source, const TriMesh& tar
   forward.reverse_inverse = -1;
   forward.reverse_inverse_reason = "not compared by carried loops: the class is the other direction's, inverted";
   forward.directions.outcome = "inverse";
+  forward.directions.other_one_way_ratio = other_one_way;
+  forward.directions.inverse_there_ratio = other_there / bound;
   forward.directions.reason = "inverse by agreement: the pair of inverse classes with the lower total energy is the "
                               "other direction's search from the composed classes (" + pairs + ")";
   if (kept_pair_total) *kept_pair_total = other_pair;

@@ -32,17 +32,33 @@ std::vector<MiddleShape> middle_shapes(int genus, int resolution, std::string& n
 /// translation and a scale, to 1e-6 of the bounding box diagonal.
 bool same_shape(const TriMesh& a, const TriMesh& b);
 
+/// Whether the through-shape step runs for `forward` (after the two-way
+/// run) at threshold `ratio` (HomotopyOptions::through_shape_ratio), read the
+/// same way from either direction (session 29, branch class30): when its
+/// energy ratio is at least `ratio`; else, when the two directions agree
+/// (directions.outcome "inverse" or "symmetric: both optimal"), when this
+/// class inverted is at `ratio` or more in the other direction
+/// (directions.inverse_there_ratio), whose own run then takes the step;
+/// else (not agreed) when the larger of the two one-way ratios
+/// (`one_way_ratio`, this direction's first run, and
+/// directions.other_one_way_ratio; NaN: unknown) is at least `ratio`. `why`:
+/// "" when the ratio here reached it, else the reason (run or not run).
+bool through_shape_reached(const SurfaceMapResult& forward, double one_way_ratio, double ratio, std::string& why);
+
 /// Genus >= 2, HomotopyOptions::through_shape, default class, no landmarks:
-/// when `forward`'s energy ratio is at least through_shape_ratio, the
+/// when through_shape_reached, the
 /// step through every shape of middle_shapes that is neither the source nor
 /// the target itself (through_shapes_map, stopping at legs that cannot
 /// help). Always sets through_shape_status (and through_shape_time_s when it
 /// ran).
 /// `target_letters_inverse`: the other direction's source_as_target_inverse
 /// (two_way_map's), for the search in both directions (through_shapes_map).
+/// `one_way_ratio`: this direction's energy ratio before the two-way run
+/// (NaN when its one-way run failed).
 void through_shape_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                        SurfaceMapResult& forward, const MapFunction& map,
-                       const std::vector<std::vector<int>>& target_letters_inverse = {});
+                       const std::vector<std::vector<int>>& target_letters_inverse = {},
+                       double one_way_ratio = std::numeric_limits<double>::quiet_NaN());
 
 /// The step through the given shapes, whatever `forward`'s ratio: per shape
 /// M, maps the source onto M and M onto the target (`map`, the two-way run

@@ -132,15 +132,18 @@ std::string agree_directions(const TriMesh& source, const TriMesh& target, const
   if (!run_map(map, target, source, ro, back, back_failure)) {
     return std::string("directions not agreed: the other direction given this class failed: ") + back_failure;
   }
-  const double bound = 8 * M_PI * (forward.genus - 1);
+  const double bound = conformal_bound(forward.genus);
   const OtherClassHere there = other_class_here(back), here = other_class_here(forward);
   const std::string there_text = "the other direction, given this class (" + there.how +
                                  (there.index >= 0 ? ", ratio " + four_digits(there.energy / bound) : std::string()) +
                                  "), chose " + (there.chosen ? std::string("it") : std::string("its own (ratio ") +
                                  four_digits(chosen_energy(back) / bound) + ")");
   SurfaceMapResult::DirectionCheck& d = forward.directions;
+  // (θ^-1's ratio there, for the through-shape step; infinite when not listed there.)
+  const double there_ratio = std::isfinite(there.energy) ? there.energy / bound : std::numeric_limits<double>::quiet_NaN();
   if (there.chosen) {
     d.outcome = back.directions.outcome == "symmetric: both optimal" ? back.directions.outcome : "inverse";
+    d.inverse_there_ratio = there_ratio;
     d.reason = "this direction chose its own class (ratio " + four_digits(chosen_energy(forward) / bound) +
                ") over the other direction's inverted (" + here.how +
                (here.index >= 0 ? ", ratio " + four_digits(here.energy / bound) : std::string()) + "); " + there_text +
@@ -159,6 +162,7 @@ std::string agree_directions(const TriMesh& source, const TriMesh& target, const
     return "directions not agreed: neither pair's energies are known (" + there_text + "; here " + here.how + ")";
   if (!(other_pair < own_pair)) {
     d.outcome = "inverse";
+    d.inverse_there_ratio = there_ratio;
     d.reason = "inverse by agreement: each direction alone prefers its own class; the pair of inverse classes "
                "with the lower total energy is this one (" + pairs + "), which the other direction, given this "
                "class, takes by the same rule (" + there_text + ")";
@@ -175,7 +179,10 @@ std::string agree_directions(const TriMesh& source, const TriMesh& target, const
   // inner; carried, the carried-class check compares homology and probe
   // lengths.)
   const bool inverse = again.directions.outcome == "inverse" || again.reverse_inverse == 1;
-  if (inverse) again.directions.outcome = "inverse";
+  if (inverse) {
+    again.directions.outcome = "inverse";
+    again.directions.inverse_there_ratio = chosen_energy(back) / bound;
+  }
   again.directions.reason = std::string(inverse ? "inverse by agreement" : "not confirmed inverse") +
                             ": the pair of inverse classes with the lower total energy is the other direction's (" +
                             pairs + "), so this direction takes that class inverted (candidate " +
@@ -205,7 +212,7 @@ std::string search_from_this_class_there(const TriMesh& source, const TriMesh& t
   if (static_cast<int>(forward.inverse.size()) == target.num_vertices())
     so.homotopy.source_images = inverse_positions(forward);
   if (so.homotopy.reverse_class.empty()) return "";
-  const double bound = 8 * M_PI * (forward.genus - 1);
+  const double bound = conformal_bound(forward.genus);
   SurfaceMapResult back;
   std::string back_failure;
   if (!run_map(map, target, source, so, back, back_failure)) {
@@ -242,6 +249,7 @@ std::string search_from_this_class_there(const TriMesh& source, const TriMesh& t
   const std::string kept_reason = here.directions.reason;
   forward = std::move(here);
   forward.directions.outcome = "inverse";
+  forward.directions.inverse_there_ratio = back_energy / bound;
   forward.directions.reason = "inverse by agreement: the other direction, given this run's first class (" +
                               there_text + "), searches on to another class; its inverse here, ratio " +
                               four_digits(alt_here / bound) + ", and it make the pair of lower total energy (" + pairs +
@@ -271,15 +279,17 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
   const OppositeClasses relation = compare_opposite_classes(psi, forward.chosen_class_words, g);
   if (relation.inner.inner) {
     d.outcome = "inverse";
+    d.inverse_there_ratio = reverse.energy_ratio;
     d.reason = "the two directions chose inverse classes (the composite is inner; exact, Dehn's algorithm)";
     return "directions inverse";
   }
   if (relation.up_to_hyperelliptic) {
     d.outcome = "symmetric: both optimal";
+    d.inverse_there_ratio = reverse.energy_ratio;  // (the twins' energies tie)
     d.reason = "inverse up to the hyperelliptic involution (exact), an isometry of every genus-2 surface";
     return "directions inverse up to the hyperelliptic involution";
   }
-  const double bound = 8 * M_PI * (g - 1);
+  const double bound = conformal_bound(g);
   const double own = chosen_energy(forward), own_there = chosen_energy(reverse);
   const SurfaceMapOptions fo = single_class_options(options, psi, SingleClass::KeepTheRest);
   SurfaceMapResult here;
@@ -295,6 +305,7 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
     const std::string kept_reason = here.directions.reason;
     forward = std::move(here);
     forward.directions.outcome = "inverse";
+    forward.directions.inverse_there_ratio = own_there / bound;  // (ψ, the other direction's own class)
     forward.directions.reason = why_adopted + (kept_reason.empty() ? std::string() : "; " + kept_reason);
   };
   if (alt < own) {
@@ -333,6 +344,7 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
                                                               own, alt_there, there_text);
     if (!searched.empty()) return searched;
     d.outcome = "inverse";
+    d.inverse_there_ratio = alt_there / bound;
     d.reason = "inverse by agreement: the other direction takes this class inverted (" + there_text + "; " + here_text + ")";
     return "directions agreed: the other direction takes this class inverted (" + there_text + ")";
   }
@@ -350,6 +362,7 @@ std::string cheap_direction_check(const TriMesh& source, const TriMesh& target, 
     return "directions agreed on the other direction's class: " + pairs;
   }
   d.outcome = "inverse";
+  d.inverse_there_ratio = alt_there / bound;
   d.reason = "inverse by agreement: each direction alone prefers its own class; the pair of inverse classes with the "
              "lower total energy is this one (" + pairs + ")";
   return "directions agreed on this class: " + pairs;
@@ -398,7 +411,7 @@ std::string agree_below_two_way_ratio(const TriMesh& source, const TriMesh& targ
                                       std::vector<std::vector<int>>* target_letters_inverse) {
   SurfaceMapResult::DirectionCheck& d = forward.directions;
   const int g = forward.genus;
-  const double bound = 8 * M_PI * (g - 1);
+  const double bound = conformal_bound(g);
   SurfaceMapResult reverse;
   std::string failure;
   if (!run_map(map, target, source, reverse_options(options), reverse, failure)) {
@@ -406,6 +419,7 @@ std::string agree_below_two_way_ratio(const TriMesh& source, const TriMesh& targ
     return "not agreed: the other direction failed: " + failure;
   }
   if (target_letters_inverse) *target_letters_inverse = reverse.source_as_target_inverse;
+  d.other_one_way_ratio = reverse.energy_ratio;
   const std::string other = "the other direction one way: ratio " + four_digits(reverse.energy_ratio);
   std::string why;
   const std::vector<std::vector<int>> psi = reverse_class_here(forward, reverse, why);
@@ -417,11 +431,13 @@ std::string agree_below_two_way_ratio(const TriMesh& source, const TriMesh& targ
   const OppositeClasses relation = compare_opposite_classes(psi, forward.chosen_class_words, g);
   if (relation.inner.inner) {
     d.outcome = "inverse";
+    d.inverse_there_ratio = reverse.energy_ratio;
     d.reason = "the two directions chose inverse classes (the composite is inner; exact, Dehn's algorithm)";
     return "inverse (" + other + "): nothing solved";
   }
   if (relation.up_to_hyperelliptic) {
     d.outcome = "symmetric: both optimal";
+    d.inverse_there_ratio = reverse.energy_ratio;
     d.reason = "inverse up to the hyperelliptic involution (exact), an isometry of every genus-2 surface";
     return "inverse up to the hyperelliptic involution (" + other + "): nothing solved";
   }
@@ -484,6 +500,8 @@ std::string agree_below_two_way_ratio(const TriMesh& source, const TriMesh& targ
                (kept_reason.empty() ? std::string() : "; " + kept_reason);
     a.own_pair_ratio = own_ratio;
     a.other_pair_ratio = other_ratio;
+    a.other_one_way_ratio = reverse.energy_ratio;
+    a.inverse_there_ratio = own_there / bound;
     return "the other direction's class inverted (" + rule + "; " + figures + ")";
   }
   if (other_keeps_its_own) {
@@ -495,6 +513,7 @@ std::string agree_below_two_way_ratio(const TriMesh& source, const TriMesh& targ
     return "not agreed: kept this class (" + figures + ")";
   }
   d.outcome = "inverse";
+  d.inverse_there_ratio = alt_there / bound;
   d.reason = "inverse by agreement: kept this class (" + rule + "; " + figures + ")";
   return "this class (" + rule + "; " + figures + ")";
 }
@@ -542,10 +561,10 @@ void assess_quality(SurfaceMapResult& result) {
   result.energy_ratio_own_edges = std::numeric_limits<double>::quiet_NaN();
   if (std::isfinite(result.intrinsic_class_energy)) {
     // (The own-edge fallback's energy is kept beside it.)
-    result.energy_ratio_own_edges = energy / (8 * M_PI * (result.genus - 1));
+    result.energy_ratio_own_edges = energy / conformal_bound(result.genus);
     energy = result.intrinsic_class_energy;
   }
-  result.energy_ratio = energy / (8 * M_PI * (result.genus - 1));
+  result.energy_ratio = energy / conformal_bound(result.genus);
   if (result.energy_ratio >= 3.0)
     result.quality_warning = "energy " + four_digits(result.energy_ratio) +
                              " x the conformal bound 8 pi (g - 1): the handle class may be twisted; add landmarks or "
@@ -702,6 +721,7 @@ bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target,
     how = "the target -> source map's class inverted algebraically (its loops carried: " + failure + ")";
   }
   out = std::move(again);
+  out.directions.other_one_way_ratio = reverse.energy_ratio;
   out.two_way_status = "every one-way candidate class folded; " + how + " (energy ratio " + four_digits(reverse.energy_ratio) +
                        " there) gave a bijective map";
   if (out.directions.reason.empty() && out.directions.outcome.empty())
@@ -738,8 +758,10 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
     return;
   }
   const auto t0 = std::chrono::steady_clock::now();
+  SurfaceMapResult reverse;
   auto finish = [&](std::string status) {
     forward.two_way_status = std::move(status);
+    if (reverse.chosen_candidate >= 0) forward.directions.other_one_way_ratio = reverse.energy_ratio;
     if (forward.reverse_inverse < 0 && forward.reverse_inverse_reason.empty())
       forward.reverse_inverse_reason =
           "not compared: " + (forward.reverse_status.empty() ? forward.two_way_status : forward.reverse_status);
@@ -747,7 +769,6 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
       forward.directions.reason = "not compared: " + forward.two_way_status;
     forward.two_way_time_s = seconds_since(t0);
   };
-  SurfaceMapResult reverse;
   std::string reverse_failure;
   if (!run_map(map, target, source, reverse_options(options), reverse, reverse_failure)) {
     return finish(std::string("the other direction failed: ") + reverse_failure);
@@ -782,6 +803,9 @@ void two_way_map(const TriMesh& source, const TriMesh& target, const SurfaceMapO
   if (fo.homotopy.reverse_class.empty()) again.directions.reason = "not compared: " + no_reverse_class;
   if (better) {
     forward = std::move(again);
+    // (Agreed here: the class is the other direction's, inverted, or isometric to it.)
+    if (forward.directions.outcome == "inverse" || forward.directions.outcome == "symmetric: both optimal")
+      forward.directions.inverse_there_ratio = reverse.energy_ratio;
   } else {
     // (The second run's comparison is of its own chosen class.)
     forward.directions = again.directions;

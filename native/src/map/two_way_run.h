@@ -7,6 +7,7 @@
 #include <functional>
 #include <string>
 
+#include "surfmap/map/class_lower_bound.h"  // conformal_bound
 #include "surfmap/map/surface_map.h"
 
 namespace surfmap::detail {

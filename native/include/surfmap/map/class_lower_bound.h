@@ -22,6 +22,7 @@
 // Lengths come from the deck groups of the uniformized surfaces: a deck
 // element A (SU(1,1)) translates along its axis by 2 arccosh(|tr A| / 2),
 // the length of the closed geodesic freely homotopic to the loop.
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -31,6 +32,14 @@
 #include "surfmap/uniformize/deck_group.h"
 
 namespace surfmap {
+
+/// The conformal lower bound 8π(g−1) of the harmonic energy E(f) = ∫|∇f|² dA
+/// of a degree-one map between closed hyperbolic surfaces of genus `genus`
+/// (twice the area 4π(g−1); a conformal map attains it): no class's energy
+/// lies below it, and energy ratios are given over it (docs/handle_classes.md
+/// "The lower bound"). Negative for genus 0 and zero for genus 1, where it
+/// bounds nothing: callers use it for genus >= 2.
+inline double conformal_bound(int genus) { return 8 * M_PI * (genus - 1); }
 
 /// A closed hyperbolic surface's lengths of closed curves given as words in
 /// canonical generators (a1, b1, a2, b2, ... = letters 1..2g).

@@ -532,11 +532,12 @@ struct LoopOptions {
   bool short_canonical_generators = false;
   /// Issue 13 (session 27; docs/history/robustness.md "Session 27 (branch edge27)"): when a genus >= 2
   /// run with the classical generators fails at its start edges (a
-  /// SolveError saying an edge "starts ... units long": deck elements that
-  /// the classical generators' long words put beyond what the solve
-  /// accepts), it is run again with the short ones, and the result says so
+  /// SolveError of reason SolveFailure::start_edges: deck elements that the
+  /// classical generators' long words put beyond what the solve accepts), it
+  /// is run again with the short ones, and the result says so
   /// (SurfaceMapResult::canonical_generators_fallback; the error, when that
-  /// fails too, gives both). Default true; false: CLI
+  /// fails too, gives both). Its progress is reported as stages "retry with
+  /// the short generators (<stage>)". Default true; false: CLI
   /// --no-short-generators-fallback (or --classical-canonical-generators,
   /// which asks for the classical basis), Python
   /// short_generators_fallback=False.
@@ -549,8 +550,8 @@ struct LoopOptions {
   /// two_way off), the settings that map the CAD block g12 -> raw wheel g12
   /// one-to-one; the result says so (SurfaceMapResult::fold_fallback), and
   /// when the retry fails too the error gives both reasons. Its progress is
-  /// reported as stages "retry after folds: ..." and the callback can cancel
-  /// it. Default true; false: CLI --no-fold-fallback (or
+  /// reported as stages "retry after folds (<stage>)" and the callback can
+  /// cancel it. Default true; false: CLI --no-fold-fallback (or
   /// --classical-canonical-generators), Python fold_fallback=False.
   bool fold_fallback = true;
   /// Genus >= 2: list the candidate classes (overlays, the canonical
@@ -672,7 +673,9 @@ struct SurfaceMapOptions {
   /// last call is ("done", 1). Runs made after the main one (the other
   /// direction, the through-shape step's legs) report their stages as
   /// "other runs (<stage>)" at the fraction reached, so a bar does not read
-  /// full while they work.
+  /// full while they work; the automatic retries report theirs as "retry
+  /// after folds (<stage>)" and "retry with the short generators (<stage>)"
+  /// (LoopOptions::fold_fallback, short_generators_fallback).
   std::function<bool(const std::string& stage, double fraction)> progress;
   /// Called during the harmonic solve (genus >= 2) at every Newton
   /// iteration / relaxation check with (iteration, energy, gradient norm);
@@ -1228,6 +1231,16 @@ struct SurfaceMapResult {
     std::string agreement;
     double own_pair_ratio = std::numeric_limits<double>::quiet_NaN();
     double other_pair_ratio = std::numeric_limits<double>::quiet_NaN();
+    /// The other direction's energy ratio mapped one way in this run (the
+    /// two-way run, the agreement below it, the rescue when every class
+    /// folded; NaN when it was not mapped), and, when the two directions
+    /// agree ("inverse", "symmetric: both optimal"), the ratio of this
+    /// class's inverse in the other direction as this run solved or read it
+    /// (NaN when unknown). The through-shape step reads both, so that the
+    /// direction below through_shape_ratio runs it when the other direction
+    /// does (docs/handle_classes.md "Through generated shapes").
+    double other_one_way_ratio = std::numeric_limits<double>::quiet_NaN();
+    double inverse_there_ratio = std::numeric_limits<double>::quiet_NaN();
   } directions;
   /// Genus >= 2 (HomotopyOptions::two_way): what the two-way run did ("not
   /// run: ..."; the other direction's energy ratio; whether the carried
