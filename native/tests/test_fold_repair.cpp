@@ -178,6 +178,93 @@ TEST(SurfaceMapFallbacks, FoldedFallbacksAreRefusedOnTheirSolveAsMappingThemWoul
   EXPECT_NE(retried.find("bijective map (", read.size()), std::string::npos) << retried;
 }
 
+// Issue 13 (session 29): when every class folds and the two-way run's rescue
+// finds the other direction failing too, the retry after folds comes before
+// the rescue's last attempt (the cuts at the source's middle vertex), which
+// runs only when the retry fails. The sliver-capped source folds in every
+// class for real with the intrinsic weights, in the first run and in the
+// retry; the hook fails the other direction and records the order.
+TEST(SurfaceMapFallbacks, BothDirectionsFoldedRetryBeforeTheCutsAtAnotherVertex) {
+  const TriMesh s = testing_support::with_caps(samples::n_hole_torus(2, 32, true), 37, 0.002);
+  const TriMesh t = samples::amphora(36, true);
+  SurfaceMapOptions o;  // (the two-way run on: its rescue runs)
+  o.homotopy.candidates = 2;
+  o.homotopy.search.enabled = false;
+  o.homotopy.full_solves = 0;
+  o.homotopy.through_shape = false;
+  o.solve.source_weights = SourceWeights::IntrinsicDelaunay;
+  const int middle = s.num_vertices() / 2;
+  std::vector<std::string> order;
+  bool cut_maps = false;  // (the cuts at the middle vertex with the weights that map)
+  testing::MapHooks hooks;
+  hooks.before_run = [&](const SurfaceMapOptions& run) {
+    order.push_back(run.loops.short_canonical_generators ? "retry" : "first");
+  };
+  hooks.rescue_run = [&](const TriMesh& a, const TriMesh& b, const SurfaceMapOptions& run) {
+    EXPECT_FALSE(run.loops.fold_fallback);  // (no retry of its own)
+    EXPECT_FALSE(run.homotopy.two_way);
+    if (a.num_vertices() == t.num_vertices()) {
+      order.push_back("other direction");
+      throw SolveError("the other direction folded (a test's words)", SolveFailure::folds);
+    }
+    order.push_back("cut at " + std::to_string(run.loops.source_base_vertex));
+    SurfaceMapOptions cut = run;
+    if (cut_maps) cut.solve.source_weights = SourceWeights::Automatic;
+    return surface_map(a, b, cut);
+  };
+  auto failure = [&](const SurfaceMapOptions& opt) {
+    order.clear();
+    try {
+      testing::surface_map(s, t, opt, hooks);
+    } catch (const SolveError& e) {
+      EXPECT_EQ(e.reason(), SolveFailure::folds) << e.what();
+      return std::string(e.what());
+    }
+    ADD_FAILURE() << "mapped";
+    return std::string();
+  };
+  const std::string cut_at = "cut at " + std::to_string(middle);
+  // Every attempt folds: first, the other direction, the retry, the cut.
+  const std::string all = failure(o);
+  EXPECT_EQ(order, (std::vector<std::string>{"first", "other direction", "retry", cut_at})) << all;
+  const size_t other = all.find("; the other direction failed too: the other direction folded (a test's words)");
+  const size_t later = all.find("; the cuts at another base vertex: after the retry after folds");
+  const size_t again = all.find("; again with the short canonical generators, one way (the automatic retry after folds): ");
+  const size_t cut = all.find("; the cuts at source vertex " + std::to_string(middle) + ": ");
+  EXPECT_EQ(all.rfind("no candidate class gave a bijective map (", 0), 0u) << all;
+  ASSERT_NE(other, std::string::npos) << all;
+  ASSERT_NE(later, std::string::npos) << all;
+  ASSERT_NE(again, std::string::npos) << all;
+  ASSERT_NE(cut, std::string::npos) << all;
+  EXPECT_LT(other, later);
+  EXPECT_LT(later, again);
+  EXPECT_LT(again, cut);
+  // The cuts at the middle vertex mapping after the retry: their map, saying so.
+  cut_maps = true;
+  order.clear();
+  const SurfaceMapResult m = testing::surface_map(s, t, o, hooks);
+  EXPECT_EQ(order, (std::vector<std::string>{"first", "other direction", "retry", cut_at}));
+  EXPECT_TRUE(m.converged);
+  EXPECT_EQ(m.flipped_triangles, 0);
+  EXPECT_EQ(m.degenerate_triangles, 0);
+  // (The sliver caps leave a few chord triangles reversed: 48 of 10296.)
+  EXPECT_CERTIFIED_MAP_UP_TO_CHORD_FOLDS(s, t, m, 0.02);
+  EXPECT_EQ(m.fold_fallback.rfind("not used: the retry after folds failed too (no candidate class gave a bijective map", 0), 0u)
+      << m.fold_fallback;
+  EXPECT_NE(m.two_way_status.find("; the cuts at source vertex " + std::to_string(middle) + " gave a bijective map"),
+            std::string::npos)
+      << m.two_way_status;
+  EXPECT_EQ(m.canonical_generators.rfind("classical", 0), 0u) << m.canonical_generators;
+  EXPECT_GE(m.total_time, m.two_way_time_s);
+  // With the retry off, the rescue's order as before: the cut right after the other direction.
+  cut_maps = false;
+  SurfaceMapOptions off = o;
+  off.loops.fold_fallback = false;
+  const std::string without = failure(off);
+  EXPECT_EQ(order, (std::vector<std::string>{"first", "other direction", cut_at})) << without;
+  EXPECT_EQ(without.find("again with the short"), std::string::npos) << without;
+}
+
 // Clean sources never run it.
 TEST(FoldRepair, CleanSourceDoesNotRunIt) {
   const TriMesh s = samples::n_hole_torus(2, 32, true);

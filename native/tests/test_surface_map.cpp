@@ -2541,6 +2541,9 @@ TEST(SurfaceMapHandles, EveryClassFoldedMapsTheOtherDirectionsClassCarried) {
   std::vector<std::pair<int, bool>> calls;  // (source vertices, images only)
   const detail::MapFunction recorded = [&](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) {
     calls.emplace_back(s.num_vertices(), o.homotopy.images_only);
+    // (The other direction's run makes no retry after folds: the caller's
+    // run makes it once. The carried class is no default class.)
+    if (!o.homotopy.images_only) EXPECT_FALSE(o.loops.fold_fallback);
     return surface_map(s, t, o);
   };
   SurfaceMapResult m;
@@ -2564,6 +2567,7 @@ TEST(SurfaceMapHandles, EveryClassFoldedMapsTheOtherDirectionsClassCarried) {
     // The class searched in those cuts directly: the automatic cuts are the
     // run that just folded in every class.
     EXPECT_TRUE(o.loops.search_in_given_cuts);
+    EXPECT_FALSE(o.loops.fold_fallback);
     return surface_map(s, t, o);
   };
   SurfaceMapResult m2;
@@ -2577,6 +2581,22 @@ TEST(SurfaceMapHandles, EveryClassFoldedMapsTheOtherDirectionsClassCarried) {
   EXPECT_TRUE(m2.class_cuts_status.empty()) << m2.class_cuts_status;  // not chosen in the automatic cuts first
   // The same class as the default map (what the automatic cuts chose before).
   EXPECT_NEAR(m2.energy_ratio, free_map.energy_ratio, 1e-6 * free_map.energy_ratio);
+  // Session 29: the cuts at the middle vertex left to the caller (for after
+  // its retry after folds): false, no run of the source, the flag set, the
+  // other direction's failure in `why`.
+  base_vertices.clear();
+  why.clear();
+  bool another_cut_left = false;
+  EXPECT_FALSE(detail::rescue_by_the_other_direction(a, b, SurfaceMapOptions{}, m2, failing, why, nullptr, &another_cut_left));
+  EXPECT_TRUE(another_cut_left);
+  EXPECT_TRUE(base_vertices.empty());
+  EXPECT_EQ(why, "the other direction failed too: no candidate class gave a bijective map (test)");
+  // The other direction mapping: nothing left, the rescue as before.
+  another_cut_left = false;
+  calls.clear();
+  ASSERT_TRUE(detail::rescue_by_the_other_direction(a, b, SurfaceMapOptions{}, m2, recorded, why, nullptr, &another_cut_left));
+  EXPECT_FALSE(another_cut_left);
+  EXPECT_EQ(calls.size(), 2u);
   // Every attempt failing: false, with every reason.
   const detail::MapFunction all_failing = [&](const TriMesh&, const TriMesh&, const SurfaceMapOptions&) -> SurfaceMapResult {
     throw SolveError("no candidate class gave a bijective map (test)");

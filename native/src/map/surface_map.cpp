@@ -31,8 +31,29 @@ void finish_stage_table(SurfaceMapResult& out, StageRecord total) {
   out.stage_total = total;
 }
 
+// What the first run's rescue by the other direction left for after the
+// retry after folds (surface_map_run): the cuts at another base vertex.
+struct LeftForAfterTheRetry {
+  bool another_cut = false;
+  std::string why;  // the rescue's failure so far
+};
+
 SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
-                                   const testing::MapHooks& hooks);
+                                   const testing::MapHooks& hooks, LeftForAfterTheRetry* left = nullptr);
+
+// The maps a run makes of other pairs or other settings (the two-way run, the
+// rescue, the through-shape step): the public surface_map (no hooks), their
+// stages reported as "other runs (<stage>)" (SurfaceMapOptions::progress).
+SurfaceMapOptions named_other_run(SurfaceMapOptions o) {
+  if (o.progress)
+    o.progress = [outer = o.progress](const std::string& stage, double fraction) {
+      return outer("other runs (" + stage + ")", fraction);
+    };
+  return o;
+}
+SurfaceMapResult other_run(const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) {
+  return surface_map(s, t, named_other_run(o));
+}
 
 // The per-face path's result (face_chart_map.h) as returned: no two-way run
 // or class through a generated shape (both compare classes, and this path
@@ -204,14 +225,14 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
     named.homotopy.class_index = 0;
     return map_in_given_cuts(source, target, named, hooks);
   }
-  auto map_in_chosen_cuts = [&](const SurfaceMapOptions& o) {
+  auto map_in_chosen_cuts = [&](const SurfaceMapOptions& o, LeftForAfterTheRetry* left = nullptr) {
     if (hooks.before_run) hooks.before_run(o);
     if (chooses_class_in_automatic_cuts(o)) {
       const Connectivity sc(source.F, source.num_vertices());
       const Connectivity tc(target.F, target.num_vertices());
       if (sc.genus() >= 2 && tc.genus() == sc.genus()) return map_in_automatic_cuts(source, target, o, hooks);
     }
-    return map_in_given_cuts(source, target, o, hooks);
+    return map_in_given_cuts(source, target, o, hooks, left);
   };
   // The automatic retries below report their progress as stages "<name>
   // (<stage>)" with fractions from the largest the first run reached up to 1
@@ -234,23 +255,31 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
   const auto t_first = Clock::now();
   double first_seconds = 0;
   // The retry's map, its times counting the first run's too.
-  auto retried = [&](SurfaceMapOptions retry, const std::string& name) {
-    first_seconds = seconds_since(t_first);
+  auto named_after_the_first = [&](SurfaceMapOptions o, const std::string& name) {
     if (options.progress) {
       std::lock_guard<std::mutex> lock(reached->mutex);
-      retry.progress = [inner = options.progress, from = reached->fraction, name](const std::string& stage,
-                                                                                   double fraction) {
+      o.progress = [inner = options.progress, from = reached->fraction, name](const std::string& stage, double fraction) {
         return inner(name + " (" + stage + ")", from + (1 - from) * std::clamp(fraction, 0.0, 1.0));
       };
     }
-    SurfaceMapResult out = map_in_chosen_cuts(retry);
+    return o;
+  };
+  auto retried = [&](const SurfaceMapOptions& retry, const std::string& name) {
+    first_seconds = seconds_since(t_first);
+    SurfaceMapResult out = map_in_chosen_cuts(named_after_the_first(retry, name));
     out.total_time += first_seconds;
     out.stage_total.seconds = out.total_time;
     return out;
   };
   auto shortened = [](const std::string& what) { return what.size() > 300 ? what.substr(0, 300) + " ..." : what; };
+  // The retry after folds (below) applies to this run: the first run's
+  // rescue by the other direction then leaves its last attempt, the cuts at
+  // another base vertex, for after the retry.
+  const bool fold_retry = !options.loops.short_canonical_generators && options.loops.fold_fallback &&
+                          chooses_default_class(options) && Connectivity(source.F, source.num_vertices()).genus() >= 2;
+  LeftForAfterTheRetry left;
   try {
-    return map_in_chosen_cuts(first);
+    return map_in_chosen_cuts(first, fold_retry ? &left : nullptr);
   } catch (const SolveError& e) {
     const std::string what = e.what();
     // Issue 13 (session 27; LoopOptions::short_generators_fallback): a run
@@ -283,9 +312,12 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
     // bound), the short run's reaches one that maps one-to-one (71.7 x).
     // One way: the first run has already tried the other direction, and the
     // retry's cost stays that of one one-way run.
-    if (!options.loops.short_canonical_generators && options.loops.fold_fallback &&
-        e.reason() == SolveFailure::folds && chooses_default_class(options) &&
-        Connectivity(source.F, source.num_vertices()).genus() >= 2) {
+    //
+    // Session 29: when the two-way run's rescue found the other direction
+    // failing too, the retry comes before the rescue's last attempt (the
+    // cuts at the source's middle vertex, one more run of the classical
+    // generators), which is made only when the retry fails.
+    if (fold_retry && e.reason() == SolveFailure::folds) {
       SurfaceMapOptions retry = options;
       retry.loops.short_canonical_generators = true;
       retry.homotopy.two_way = false;
@@ -293,9 +325,27 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
       try {
         out = retried(retry, "retry after folds");
       } catch (const SolveError& again) {
-        throw SolveError(what + "; again with the short canonical generators, one way (the automatic retry after folds): " +
-                             again.what(),
-                         again.reason());
+        std::string failure =
+            what + "; again with the short canonical generators, one way (the automatic retry after folds): " + again.what();
+        if (!left.another_cut) throw SolveError(failure, again.reason());
+        const double before_cut = seconds_since(t_first);
+        SurfaceMapResult cut;
+        std::string why = left.why;
+        const detail::MapFunction after_the_retry = [&](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) {
+          const SurfaceMapOptions named = named_after_the_first(o, "after the retry after folds");
+          return hooks.rescue_run ? hooks.rescue_run(s, t, named) : surface_map(s, t, named);
+        };
+        if (!detail::rescue_by_another_cut(source, target, options, cut, after_the_retry, why)) {
+          const size_t at = why.rfind("; the cuts at source vertex ");
+          throw SolveError(failure + (at == std::string::npos ? std::string() : why.substr(at)), again.reason());
+        }
+        cut.two_way_time_s = seconds_since(t_first) - before_cut;
+        detail::through_shape_map(source, target, options, cut, other_run);
+        cut.total_time = seconds_since(t_first);
+        cut.stage_total.seconds = cut.total_time;
+        cut.fold_fallback = "not used: the retry after folds failed too (" + shortened(again.what()) +
+                            "); the map is the two-way run's last resort, made after it";
+        return cut;
       }
       out.fold_fallback = "made with the short canonical generators, one way: the default run folded in every class after " +
                           std::to_string(static_cast<int>(first_seconds)) + " s (" + shortened(what) + ")";
@@ -306,19 +356,10 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
 }
 
 SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
-                                   const testing::MapHooks& hooks) {
+                                   const testing::MapHooks& hooks, LeftForAfterTheRetry* left) {
   using testing::MapHooks;
   SurfaceMapResult out;
-  // The two-way run's maps: the public surface_map (no hooks).
-  // Their stages are reported as "other runs (<stage>)" (SurfaceMapOptions::progress).
-  const detail::MapFunction map_of = [](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) {
-    if (!o.progress) return surface_map(s, t, o);
-    SurfaceMapOptions named = o;
-    named.progress = [outer = o.progress](const std::string& stage, double fraction) {
-      return outer("other runs (" + stage + ")", fraction);
-    };
-    return surface_map(s, t, named);
-  };
+  const detail::MapFunction map_of = other_run;
   const auto t_start = Clock::now();
   auto t_stage = t_start;
   // The stage table (issue 19): counters and the peak memory at every
@@ -420,8 +461,21 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
       std::string why;
       std::vector<std::vector<int>> target_letters_inverse;  // (for the through-shape step's search both ways)
       // (`out` holds what the failed run set: the source's letters as a target.)
-      if (!detail::rescue_by_the_other_direction(source, target, options, out, map_of, why, &target_letters_inverse))
+      bool another_cut_left = false;
+      const detail::MapFunction rescue_map =
+          hooks.rescue_run ? detail::MapFunction([&](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) {
+            return hooks.rescue_run(s, t, named_other_run(o));
+          })
+                           : map_of;
+      if (!detail::rescue_by_the_other_direction(source, target, options, out, rescue_map, why, &target_letters_inverse,
+                                                 left ? &another_cut_left : nullptr)) {
+        if (another_cut_left) {
+          left->another_cut = true;
+          left->why = why;
+          why += "; the cuts at another base vertex: after the retry after folds";
+        }
         throw SolveError(std::string(e.what()) + (why.empty() ? std::string() : "; " + why), e.reason());
+      }
       // The rescued class can be poor too (genus-4 plate -> fertility: 14.3 x,
       // while both shapes map onto the generated n-hole torus within 4.6 x).
       detail::through_shape_map(source, target, options, out, map_of, target_letters_inverse);

@@ -649,6 +649,7 @@ bool rescue_by_another_cut(const TriMesh& source, const TriMesh& target, const S
   SurfaceMapOptions bo = options;
   bo.homotopy.two_way = false;
   bo.homotopy.through_shape = false;  // (the rescue's last attempt: one run)
+  bo.loops.fold_fallback = false;     // (the retry after folds is the whole run's, made once)
   bo.loops.source_base_vertex = source.num_vertices() / 2;
   // (The automatic cuts are the run that just folded in every class.)
   bo.loops.search_in_given_cuts = true;
@@ -667,7 +668,7 @@ bool rescue_by_another_cut(const TriMesh& source, const TriMesh& target, const S
 
 bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                    SurfaceMapResult& out, const MapFunction& map, std::string& why,
-                                   std::vector<std::vector<int>>* target_letters_inverse) {
+                                   std::vector<std::vector<int>>* target_letters_inverse, bool* another_cut_left) {
   if (!options.homotopy.two_way || options.homotopy.class_index >= 0 || options.homotopy.source_images.size() > 0 ||
       options.homotopy.reverse_class_only || !options.homotopy.given_class.empty() || !options.landmarks.empty())
     return false;
@@ -678,8 +679,17 @@ bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target,
   };
   SurfaceMapResult reverse;
   std::string failure;
-  if (!run_map(map, target, source, reverse_options(options), reverse, failure)) {
+  SurfaceMapOptions ro = reverse_options(options);
+  ro.loops.fold_fallback = false;  // (the retry after folds is the whole run's, made once)
+  if (!run_map(map, target, source, ro, reverse, failure)) {
     why = "the other direction failed too: " + failure;
+    // Both directions folded (or this one folded and the other failed): the
+    // caller's retry after folds comes before the cuts at another vertex
+    // (docs/robustness.md "Canonical generators").
+    if (another_cut_left && options.loops.source_base_vertex < 0) {
+      *another_cut_left = true;
+      return false;
+    }
     return rescue_by_another_cut(source, target, options, out, map, why) && done();
   }
   if (target_letters_inverse) *target_letters_inverse = reverse.source_as_target_inverse;

@@ -80,10 +80,23 @@ bool map_requested_two_way_class(const TriMesh& source, const TriMesh& target, c
 /// or every attempt fails; `why` then says what failed (the caller adds it
 /// to the one-way error).
 /// docs/handle_classes.md "The two directions today".
-/// `target_letters_inverse` as in two_way_map.
+/// `target_letters_inverse` as in two_way_map. The other direction's run
+/// and the cuts at the middle vertex make no retry after folds of their own
+/// (LoopOptions::fold_fallback off: the caller's run makes it once). With
+/// `another_cut_left` given, when the other direction fails the cuts at the
+/// middle vertex are left to the caller (for after its retry after folds,
+/// docs/robustness.md "Canonical generators"): false, with
+/// *another_cut_left set and `why` the other direction's failure.
 bool rescue_by_the_other_direction(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                    SurfaceMapResult& out, const MapFunction& map, std::string& why,
-                                   std::vector<std::vector<int>>* target_letters_inverse = nullptr);
+                                   std::vector<std::vector<int>>* target_letters_inverse = nullptr,
+                                   bool* another_cut_left = nullptr);
+/// The rescue's last attempt: the source's cuts at its middle vertex
+/// (loops.source_base_vertex = #V / 2), mapped one way with the class
+/// searched in those cuts, no retry after folds. False (and `why` extended)
+/// when a base vertex was given or it fails; else `out` is its map.
+bool rescue_by_another_cut(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+                           SurfaceMapResult& out, const MapFunction& map, std::string& why);
 
 /// The class chosen for target -> source (`reverse`), written in the
 /// letters of a source -> target run (`forward`): ι_S^-1 ∘ ψ ∘ ι_T^-1 with ψ

@@ -55,6 +55,12 @@ struct MapHooks {
   /// fold_fallback), before it starts; what it throws ends that run as the
   /// run's own failure would (a test's way to fail one run and not its retry).
   std::function<void(const SurfaceMapOptions&)> before_run;
+  /// Makes the maps of the runs a genus >= 2 run makes of other settings in
+  /// its rescue by the other direction (two_way_run.h
+  /// rescue_by_the_other_direction: the other direction, the cuts at another
+  /// vertex), in place of the public surface_map, which the hook may call (a
+  /// test's way to record them or fail one).
+  std::function<SurfaceMapResult(const TriMesh&, const TriMesh&, const SurfaceMapOptions&)> rescue_run;
 };
 
 /// surface_map (map/surface_map.h) with the hooks.
