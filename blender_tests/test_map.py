@@ -1206,6 +1206,8 @@ def test_the_automatic_retries_are_named_in_the_stage_text():
     assert job.stage_text(short=True) == "Harmonic solve"
     job.stage = "retry with the short generators (target uniformization)"
     assert job.stage_text() == "Uniformizing target · Retry, short generators"
+    job.stage = "retry at another base vertex (other runs (harmonic solve))"   # (after the retry)
+    assert job.stage_text() == "Harmonic solve · Other runs · Retry, another vertex"
     job.stage = "retry after folds (other runs (quality))"
     assert job.stage_text() == "Measuring distortion · Other runs · Retry after folds"
     assert job.stage_text(short=True) == "Measuring distortion"

@@ -147,7 +147,8 @@ def test_the_sidebar_names_the_run_after_the_main_one_under_the_stage():
     import blf
     blf.size(0, 11, 72) if bpy.app.version < (4, 0) else blf.size(0, 11)
     whole = panel.LABEL_WIDTH_DEFAULT + panel.MAIN_PANEL_EXTRA
-    for run in ("other runs", "retry after folds", "retry with the short generators"):
+    for run in ("other runs", "retry after folds", "retry with the short generators",
+                "retry at another base vertex"):
         job.stage = run + " (harmonic solve)"
         assert blf.dimensions(0, job.run_text())[0] <= whole, job.run_text()
 

@@ -29,6 +29,7 @@ STAGE_NAMES = {
     "landmarks": "Holding landmarks",
     "done": "Map made",
     "retry with the short generators": "Retry, short generators",   # (fits the sidebar)
+    "retry at another base vertex": "Retry, another vertex",        # (fits the sidebar)
 }
 
 
@@ -420,8 +421,9 @@ class MapJob:
         the run they belong to, '<run> (<stage>)', and nest: an open pair's driver names a
         closed solve inside a candidate '<candidate> (<closed stage>)' (open_double), and the
         core names the runs after the main one (the other direction, the through-shape step)
-        'other runs (<stage>)' and its automatic retries 'retry after folds (<stage>)' and
-        'retry with the short generators (<stage>)'. The innermost stage comes first, then
+        'other runs (<stage>)' and its automatic retries 'retry after folds (<stage>)',
+        'retry with the short generators (<stage>)' and 'retry at another base vertex
+        (<stage>)'. The innermost stage comes first, then
         the runs from the inside out, joined by ' · ', and it comes alone when `short` (the
         sidebar's 229 px label clips long text in its middle)."""
         parts = _stage_parts(self.stage)

@@ -332,7 +332,7 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
         SurfaceMapResult cut;
         std::string why = left.why;
         const detail::MapFunction after_the_retry = [&](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) {
-          const SurfaceMapOptions named = named_after_the_first(o, "after the retry after folds");
+          const SurfaceMapOptions named = named_after_the_first(o, "retry at another base vertex");
           return hooks.rescue_run ? hooks.rescue_run(s, t, named) : surface_map(s, t, named);
         };
         if (!detail::rescue_by_another_cut(source, target, options, cut, after_the_retry, why)) {
