@@ -331,14 +331,13 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
         const double before_cut = seconds_since(t_first);
         SurfaceMapResult cut;
         std::string why = left.why;
+        const size_t rescue_said = why.size();  // (what rescue_by_another_cut appends is its own failure)
         const detail::MapFunction after_the_retry = [&](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& o) {
           const SurfaceMapOptions named = named_after_the_first(o, "retry at another base vertex");
           return hooks.rescue_run ? hooks.rescue_run(s, t, named) : surface_map(s, t, named);
         };
-        if (!detail::rescue_by_another_cut(source, target, options, cut, after_the_retry, why)) {
-          const size_t at = why.rfind("; the cuts at source vertex ");
-          throw SolveError(failure + (at == std::string::npos ? std::string() : why.substr(at)), again.reason());
-        }
+        if (!detail::rescue_by_another_cut(source, target, options, cut, after_the_retry, why))
+          throw SolveError(failure + why.substr(rescue_said), again.reason());
         cut.two_way_time_s = seconds_since(t_first) - before_cut;
         detail::through_shape_map(source, target, options, cut, other_run);
         cut.total_time = seconds_since(t_first);
