@@ -423,16 +423,16 @@ class MapJob:
         core names the runs after the main one (the other direction, the through-shape step)
         'other runs (<stage>)' and its automatic retries 'retry after folds (<stage>)',
         'retry with the short generators (<stage>)' and 'retry at another base vertex
-        (<stage>)'. The innermost stage comes first, then
-        the runs from the inside out, joined by ' · ', and it comes alone when `short` (the
-        sidebar's 229 px label clips long text in its middle)."""
+        (<stage>)'. The innermost stage comes first, then the runs from the inside out, joined
+        by ' · ', and it comes alone when `short` (the sidebar's 229 px label clips long text in
+        its middle)."""
         parts = _stage_parts(self.stage)
         return _stage_name(parts[0]) if short else " · ".join(_stage_name(p) for p in parts)
 
     def run_text(self):
         """The sidebar's line under the stage: the core's run the stage belongs to, the
         innermost of its runs after the main one and its retries ('Other runs', 'Retry after
-        folds', 'Retry, short generators'); "" in the main run. Without it the other runs'
+        folds', 'Retry, short generators', 'Retry, another vertex'); "" in the main run. Without it the other runs'
         stages read as the main run's started over at the same percentage. (An open pair's
         candidate is named in the status bar only: wider than the sidebar.)"""
         runs = [p for p in _stage_parts(self.stage)[1:] if p.startswith(CORE_RUNS)]

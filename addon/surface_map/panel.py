@@ -158,7 +158,7 @@ def draw_pair_topology(col, source, target, region=None):
 def pair_is_closed(context):
     """True when every selected mesh is closed (the Boundary row is then left out)."""
     sel = [o for o in context.selected_objects if o.type == 'MESH']
-    return bool(sel) and all(topology(o)[1] == 0 and topology(o)[0] is not None for o in sel)
+    return bool(sel) and all(genus is not None and loops == 0 for genus, loops in map(topology, sel))
 
 
 def draw_progress(layout, settings):
