@@ -71,6 +71,20 @@ def identity_words(a, b, images):
     return surfmap.surface_map(a[0], a[1], b[0], b[1], homotopy_images=images)["homotopy"]["chosen_words"]
 
 
+def words_on_refined(words, base, before, before_words, refined):
+    """A class from `base` (its `words`) written in the cuts of `refined`, the subdivision of
+    `before` (itself `base` or a subdivision of it, the class's words there `before_words`):
+    refined's generators carried by the identity onto base (its vertices lie on base's surface),
+    then the class. When that carry fails (the thin CAD plates' long fans, two levels down),
+    through `before` instead, whose cuts as a source and as a target must agree (checked)."""
+    try:
+        return substitute(words, identity_words(refined, base, refined[0]))
+    except surfmap.Error:
+        if before is base or identity_words(before, before, before[0]) != [[k + 1] for k in range(len(words))]:
+            raise
+        return substitute(before_words, identity_words(refined, before, refined[0]))
+
+
 def richardson(energies):
     """Observed order and extrapolated limit from the last three levels (h halves per level)."""
     if len(energies) < 3:
@@ -130,15 +144,7 @@ def main():
         try:
             if level:
                 before, S = S, bench_open_surfaces.subdivide(*S)
-                # the refined source's generators in SRC's letters (its vertices lie on SRC), then
-                # the class; when that carry fails (the thin CAD plates' long fans at level 2),
-                # through the level before (its cuts as a source and as a target checked equal)
-                try:
-                    given = substitute(words, identity_words(S, S0, S[0]))
-                except surfmap.Error:
-                    if identity_words(before, before, before[0]) != [[k + 1] for k in range(len(words))]:
-                        raise
-                    given = substitute(given, identity_words(S, before, S[0]))
+                given = words_on_refined(words, S0, before, given, S)
             m = surfmap.surface_map(S[0], S[1], T[0], T[1], threads=a.threads, class_words=given)
         except surfmap.Error as e:
             rows.append({"level": level, "vertices": len(S[0]), "error": str(e).splitlines()[0],
