@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The energy of one handle class on a refined source (issue 14; docs/handle_classes.md
-"Quality signal", docs/history/handle_classes.md "Session 30, branch class31"):
+"Quality signal"):
 
   SURFMAP_PYTHONPATH=build/python nice python3 bench/refined_source.py SRC DST
       (--words-from REPORT.json | --class-words JSON | --identity) [--levels 2] [--target-levels 0]
@@ -11,12 +11,15 @@ midpoint subdivision (bench_open_surfaces.subdivide: the new vertices on the fla
 surface and its conformal structure are unchanged, only the triangulation the map is represented
 on), once per level, and the same class is solved on each level: level 0 in the class named by
 its words (`--words-from` a `surfmap map` report's homotopy.chosen_words, or `--class-words`, in
-the cuts of that run, so give the same two meshes), each later level in the class of the source's
-loops carried by the level before's map (`homotopy_images`: every input vertex at its image on the
-target, each new vertex at its parent vertex's image). `--identity` (SRC and DST the same
-surface) starts from the identity instead: a self-map, the discretisation baseline.
-`--target-levels K` subdivides the target K times too (its surface unchanged, so the images stay on
-it; its discrete conformal structure moves toward the surface's).
+the cuts of that run, so give the same two meshes). The refined mesh has other cuts, so the words
+are carried to them (`words_on_refined`): the refined mesh mapped onto SRC by its own vertices
+(`homotopy_images`; they lie on SRC's surface) gives its generators in SRC's letters, and the
+class's words are substituted for those letters. That needs SRC's cuts as a source and as a
+target to agree, checked first (SRC onto itself by its own vertices gives the identity words).
+`--identity` (SRC and DST the same mesh) starts from the identity class: a self-map, the
+discretisation baseline. `--target-levels K` subdivides the target K times too, the class composed
+after the target's own identity carry (its surface unchanged; its discrete conformal structure
+moves toward the surface's).
 
 Per level: vertices, quality.energy_ratio (E / 8 pi (g - 1)), distortion.mean / max, flips,
 converged, seconds, and `drift`: the mean and largest distance of the input vertices' images from
