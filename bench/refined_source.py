@@ -117,14 +117,20 @@ def main():
     a = ap.parse_args()
     if a.levels < 0 or a.target_levels < 0:
         ap.error("--levels and --target-levels must be 0 or more")
-    S0, T0 = load(a.source), load(a.target)
+    try:
+        S0, T0 = load(a.source), load(a.target)
+    except surfmap.Error as e:
+        ap.error(str(e).splitlines()[0])
     if a.identity:
         if S0[0].shape != T0[0].shape or np.abs(S0[0] - T0[0]).max() > 0 or (S0[1] != T0[1]).any():
             ap.error("--identity: SRC and DST must be the same mesh")
         words = [[k + 1] for k in range(2 * surfmap.inspect(*S0)["genus"])]
     else:
-        words = (json.load(open(a.words_from))["homotopy"]["chosen_words"] if a.words_from
-                 else json.loads(a.class_words))
+        try:
+            words = (json.load(open(a.words_from))["homotopy"]["chosen_words"] if a.words_from
+                     else json.loads(a.class_words))
+        except (OSError, KeyError, TypeError, ValueError) as e:
+            ap.error(f"{'--words-from' if a.words_from else '--class-words'}: no class words ({e})")
     checks = []
     # The words are in SRC's letters as a source and DST's as a target; the identities below are
     # in SRC's letters as a target and DST's as a source: the same when the surface's cuts as a
