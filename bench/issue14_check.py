@@ -27,7 +27,8 @@ column is beside them.
 `--refined-source` also solves each row's chosen class on its source refined once by 1-to-4 midpoint
 subdivision (bench/refined_source.py --levels 1: the same surface, only the triangulation finer)
 and adds a column, the ratio there: how much of the row's ratio is the source's discretisation
-(session 30: 0.2-0.7% on the fine sources of the genus 3-4 rows, 6-8% on the coarse CAD plates;
+(session 30, once refined: at most 0.5% on every fine source of the held-out-like set, 3.5-7.3%
+on the coarse CAD plates;
 docs/handle_classes.md "Quality signal"). Beside the criteria, which it does not change.
 
 `--set held-out` runs instead pairs nobody tuned the search on (docs/history/handle_classes.md "Session 27, branch class27"):
