@@ -22,8 +22,6 @@ def ratio_on(source, target, words):
     return m
 
 
-
-
 def test_substitute_composes_words_and_reduces():
     outer = [[1, 2], [-1], [3], [4]]
     assert refined_source.substitute(outer, [[1], [2, -2], [-1, 3], [2, 1]]) == [[1, 2], [], [-2, -1, 3], [2]]
