@@ -1071,6 +1071,76 @@ TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
   EXPECT_EQ(runs.size(), 1u);
 }
 
+// Issue 13 (session 30): the two-way run's rescue by the other direction
+// starts on the reason SolveFailure::no_bijective_class (every candidate
+// class failed to map one-to-one), not on the error's words. The hook fails
+// the first run's one-way map; the rescue's runs then map the pair for real.
+// A no_bijective_class failure in other words is rescued (the other
+// direction first, then its class here); the old words with another
+// reason, and a single class's fold (folds), are not: their error ends the
+// run as it was (the retry after folds off), and with the retry on a
+// single class's fold is retried without the rescue.
+TEST(SurfaceMapHandles, RescueByTheOtherDirectionReadsTheReasonNotTheWords) {
+  const TriMesh a = small_genus2_source(), b = small_genus2_target();
+  SurfaceMapOptions o;  // (the two-way run on: its rescue applies)
+  o.homotopy.search.enabled = false;
+  o.homotopy.through_shape = false;
+  o.loops.fold_fallback = false;
+  std::string message;
+  SolveFailure reason = SolveFailure::unspecified;
+  std::vector<std::string> runs;
+  testing::MapHooks hooks;
+  hooks.before_one_way_map = [&](const SurfaceMapOptions& run) {
+    runs.push_back(run.loops.short_canonical_generators ? "retry" : "first");
+    if (!run.loops.short_canonical_generators) throw SolveError(message, reason);
+  };
+  hooks.rescue_run = [&](const TriMesh& s, const TriMesh& t, const SurfaceMapOptions& run) {
+    runs.push_back(s.num_vertices() == b.num_vertices() ? "other direction" : "this direction");
+    return surface_map(s, t, run);
+  };
+  // Every class failed, in words the trigger never read: rescued.
+  message = "every candidate class folded (reworded)";
+  reason = SolveFailure::no_bijective_class;
+  const SurfaceMapResult m = testing::surface_map(a, b, o, hooks);
+  ASSERT_GE(runs.size(), 3u);
+  EXPECT_EQ(runs[0], "first");
+  EXPECT_EQ(runs[1], "other direction");
+  EXPECT_EQ(runs[2], "this direction");
+  expect_valid_map(m, a, b);
+  EXPECT_NE(m.two_way_status.find("every one-way candidate class folded"), std::string::npos) << m.two_way_status;
+  EXPECT_TRUE(m.fold_fallback.empty()) << m.fold_fallback;
+  // Not rescued: the error as it was, with its reason, after the one run.
+  auto not_rescued = [&](const SurfaceMapOptions& opt) {
+    runs.clear();
+    try {
+      testing::surface_map(a, b, opt, hooks);
+      ADD_FAILURE() << "mapped";
+    } catch (const SolveError& e) {
+      EXPECT_EQ(std::string(e.what()), message);
+      EXPECT_EQ(e.reason(), reason);
+    }
+    EXPECT_EQ(runs, std::vector<std::string>{"first"});
+  };
+  message = "no candidate class gave a bijective map (the old words, another reason)";
+  reason = SolveFailure::unspecified;
+  not_rescued(o);
+  reason = SolveFailure::start_edges;
+  o.loops.short_generators_fallback = false;  // (its own retry reads start_edges)
+  not_rescued(o);
+  o.loops.short_generators_fallback = true;
+  message = "the optimised map has 3 flipped and 0 degenerate image triangles (one class)";
+  reason = SolveFailure::folds;
+  not_rescued(o);
+  // A single class's fold with the retry after folds on: retried, not rescued.
+  SurfaceMapOptions retried = o;
+  retried.loops.fold_fallback = true;
+  runs.clear();
+  const SurfaceMapResult r = testing::surface_map(a, b, retried, hooks);
+  EXPECT_EQ(runs, (std::vector<std::string>{"first", "retry"}));
+  expect_valid_map(r, a, b);
+  EXPECT_EQ(r.fold_fallback.rfind("made with the short canonical generators, one way", 0), 0u) << r.fold_fallback;
+}
+
 // Session 28: the runs made after the main one (here the other direction,
 // asked for always) report their stages as "other runs (<stage>)", below a
 // full bar: the fractions stay under 1 until the map is made, and the last

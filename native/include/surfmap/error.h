@@ -31,11 +31,26 @@ enum class SolveFailure {
   /// solve's start-edge limit (HyperbolicHarmonicOptions::max_start_edge_size),
   /// or a map failed in every class and some solve of its run was refused so.
   start_edges,
-  /// The map folds: flipped or degenerate image triangles in the class(es)
-  /// mapped ("the optimised map has N flipped ...", "no candidate class gave
-  /// a bijective map ...").
+  /// The map folds: flipped or degenerate image triangles in the class
+  /// mapped ("the optimised map has N flipped ..."). A default-class run
+  /// that fails so is made again by the retry after folds
+  /// (LoopOptions::fold_fallback; map/surface_map.cpp reads `is_fold_failure`).
   folds,
+  /// A default-class run mapped two or more candidate classes and none gave
+  /// a bijective map ("no candidate class gave a bijective map ..."; the
+  /// last ones may have been refused on their solves). A kind of folds
+  /// (`is_fold_failure`: the retry after folds reads it too); the one reason that
+  /// starts the two-way run's rescue by the other direction
+  /// (map/surface_map.cpp; docs/handle_classes.md "The two directions
+  /// today"), which a single class's fold does not start.
+  no_bijective_class,
 };
+
+/// Whether a failure of this reason means the map folds (folds,
+/// no_bijective_class).
+inline bool is_fold_failure(SolveFailure why) {
+  return why == SolveFailure::folds || why == SolveFailure::no_bijective_class;
+}
 
 /// A numerical solve did not reach its tolerance, or produced an invalid result.
 /// `reason()` says which kind of failure when the thrower knows it.

@@ -2408,7 +2408,7 @@ void map_with_fallback(HyperbolicPipeline& p) {
         const size_t at = d.rfind("  [not used: ");
         throw SolveError(head + (at == std::string::npos ? std::string("?") : d.substr(at + 13, d.size() - at - 14)) +
                              "; the last, class " + std::to_string(fallback[attempt]) + ": " + e.what(),
-                         SolveFailure::folds);
+                         SolveFailure::no_bijective_class);
       }
       out.candidates[fallback[attempt]].description += std::string("  [not used: ") + e.what() + "]";
     }

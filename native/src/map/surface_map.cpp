@@ -317,7 +317,7 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
     // failing too, the retry comes before the rescue's last attempt (the
     // cuts at the source's middle vertex, one more run of the classical
     // generators), which is made only when the retry fails.
-    if (fold_retry && e.reason() == SolveFailure::folds) {
+    if (fold_retry && is_fold_failure(e.reason())) {
       SurfaceMapOptions retry = options;
       retry.loops.short_canonical_generators = true;
       retry.homotopy.two_way = false;
@@ -422,6 +422,7 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
                                              counts_start, work::counts()));
   } else
     try {
+      if (hooks.before_one_way_map) hooks.before_one_way_map(options);
       detail::map_hyperbolic(source, target, sc, tc, options, hooks, out, stage_done);
     } catch (const SingleChartError& e) {
       // Issue 13: a valid target layout no single chart holds. The map runs
@@ -456,7 +457,9 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
       // Issue 14 (perturbed botijo -> genus-5 CAD plate): every one-way class
       // folded; the other direction may still map, and its class carried here
       // may not fold (docs/handle_classes.md "The two directions today").
-      if (std::string(e.what()).rfind("no candidate class gave a bijective map", 0) != 0) throw;
+      // Read from the error's reason (SolveFailure::no_bijective_class), not
+      // its words; a single class's fold (folds) does not start it.
+      if (e.reason() != SolveFailure::no_bijective_class) throw;
       std::string why;
       std::vector<std::vector<int>> target_letters_inverse;  // (for the through-shape step's search both ways)
       // (`out` holds what the failed run set: the source's letters as a target.)

@@ -545,7 +545,8 @@ struct LoopOptions {
   /// Issue 13 (session 28; docs/robustness.md "Canonical generators"): when a
   /// genus >= 2 run of the default class with the classical generators fails
   /// because every class it mapped folds (a SolveError of reason
-  /// SolveFailure::folds, after the two-way run's rescue), it is run once more
+  /// SolveFailure::folds or no_bijective_class, after the two-way run's
+  /// rescue), it is run once more
   /// with the short canonical generators and one way (HomotopyOptions::
   /// two_way off), the settings that map the CAD block g12 -> raw wheel g12
   /// one-to-one; the result says so (SurfaceMapResult::fold_fallback), and

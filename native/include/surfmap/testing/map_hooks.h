@@ -55,6 +55,11 @@ struct MapHooks {
   /// fold_fallback), before it starts; what it throws ends that run as the
   /// run's own failure would (a test's way to fail one run and not its retry).
   std::function<void(const SurfaceMapOptions&)> before_run;
+  /// Genus >= 2, the one Poincare chart's path: called with the run's
+  /// options just before its one-way map; what it throws ends that map as
+  /// its own failure would, where the two-way run's rescue reads it (a
+  /// test's way to give that failure a chosen reason and words).
+  std::function<void(const SurfaceMapOptions&)> before_one_way_map;
   /// Makes the maps of the runs a genus >= 2 run makes of other settings in
   /// its rescue by the other direction (two_way_run.h
   /// rescue_by_the_other_direction: the other direction, the cuts at another
