@@ -5,6 +5,7 @@
 // only holds what the stages hand each other.
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -161,6 +162,27 @@ class HyperbolicPipeline {
   std::promise<SourceSide> source_promise;
   std::future<SourceSide> source_future = source_promise.get_future();
   SourceSide ss;
+  // How much of the source side the second thread has built
+  // (build_source_side's steps), for the stage's progress points.
+  std::atomic<double> side_done{0};
+  // The ranking's and the full-resolution solves' progress inside their
+  // stages (session 30: the ranking is a genus-2 run's longest stage, 20 s
+  // of 31 s with a 50k-vertex source, and the other direction's of a
+  // 268-vertex block held the bar for 52 s): the classes solved of those
+  // to solve. Fractions: the ranking 0.4 .. 0.6, the full-resolution
+  // solves 0.6 .. 0.68, the initial map 0.7, the harmonic solve .. 0.8,
+  // the quality 0.83, the forward location 0.9.
+  std::atomic<int> solved_in_stage{0}, to_solve_in_stage{1};
+  double in_stage() const {
+    return std::min(1.0, static_cast<double>(solved_in_stage) / std::max(1, static_cast<int>(to_solve_in_stage)));
+  }
+  // A progress point inside the stage "source homotopy data and weights"
+  // (0.3 to 0.4; the candidate classes take its last 0.02): the side's
+  // fraction done. Throws Cancelled when the callback says stop.
+  void source_side_point(double side_fraction) const {
+    if (options.progress && !options.progress("source homotopy data and weights", 0.3 + 0.08 * side_fraction))
+      throw Cancelled("cancelled in the stage source homotopy data and weights");
+  }
   // The target: uniformization, canonical schema, deck group, polygon P.
   std::unique_ptr<UniformizedTarget> ut;
   CanonicalSchema tcs;
@@ -416,7 +438,11 @@ void HyperbolicPipeline::start_source_side() {
     const SingleThreadedBlas single_threaded_blas;  // (per thread: OpenMP's levels)
     std::vector<WeightedEdge> pattern;
     try {
-      SourceSide side = build_source_side(source, sc, options, own_weights, cuts.graph());
+      // (Its steps stop it once the calling thread has left: a cancel.)
+      SourceSide side = build_source_side(source, sc, options, own_weights, cuts.graph(), [this](double fraction) {
+        side_done = fraction;
+        return !leaving;
+      });
       cuts.set_default(side.sl.loops, side.scs.generators, other_default_generators(side));
       SolverEdgeIndex index;
       index_solver_edges(sc, side.idt, index);
@@ -485,12 +511,21 @@ void HyperbolicPipeline::uniformize_target() {
   deck_group = std::make_unique<DeckGroup>(ut->layout);
   polygon = std::make_unique<FundamentalPolygon>(ut->layout, *deck_group);
   stage_done("target uniformization", 0.3);
+  // Progress points (and a cancel) inside the source side, which takes
+  // seconds at 50k vertices (the coarse copy most): every 0.2 s while the
+  // second thread finishes it, else at its steps.
   if (threads > 1) {
+    while (source_future.wait_for(std::chrono::milliseconds(200)) != std::future_status::ready)
+      source_side_point(side_done);
     ss = source_future.get();
   } else {
-    ss = build_source_side(source, sc, options, own_weights, cuts.graph());
+    ss = build_source_side(source, sc, options, own_weights, cuts.graph(), [this](double fraction) {
+      source_side_point(fraction);
+      return true;
+    });
     cuts.set_default(ss.sl.loops, ss.scs.generators, other_default_generators(ss));
   }
+  source_side_point(1);  // (then the candidate classes)
 }
 
 // Issue 14 (docs/handle_classes.md): the source in its own uniformization
@@ -783,7 +818,7 @@ HyperbolicHarmonicOptions HyperbolicPipeline::fine_options(int k) const {
   allow_long_start_edges(k, o);
   if (options.homotopy.class_index == k && options.solve_progress)
     o.progress = [this](int it, double E, double g) {
-      return options.solve_progress(it, E, g) && (!options.progress || options.progress("harmonic solve", 0.43));
+      return options.solve_progress(it, E, g) && (!options.progress || options.progress("harmonic solve", 0.64));
     };
   return o;
 }
@@ -808,7 +843,9 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   ho.reduce_point = [this](Complex& z) { return polygon->reduce(z); };
   ho.max_start_edge_size = options.homotopy.search.start_edge_size;
   if (options.progress)
-    ho.progress = [this](int, double, double) { return options.progress("homotopy candidates", 0.4); };
+    ho.progress = [this](int, double, double) { return options.progress("homotopy candidates", 0.4 + 0.2 * in_stage()); };
+  solved_in_stage = 0;
+  to_solve_in_stage = static_cast<int>(std::count(usable.begin(), usable.end(), 1));
   coarse_failed.assign(ncand, 0);
   not_ranked.assign(ncand, 0);
   CoarseSource& cs = ss.cs;
@@ -841,8 +878,10 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
     o.tolerance = std::max(ho.tolerance, kRankingTolerance);
     allow_long_start_edges(k, o);
     if (progress) o.progress = progress;
-    if (!try_solve(k, [&] { return solve_from(ncv, level.class_edges[k], corigin, no_decks, o); }, coarse_result[k], true))
-      return;
+    const bool solved = try_solve(k, [&] { return solve_from(ncv, level.class_edges[k], corigin, no_decks, o); },
+                                  coarse_result[k], true);
+    ++solved_in_stage;
+    if (!solved) return;
     out.candidates[k].coarse_energy = coarse_result[k].energy;
     out.candidates[k].energy = coarse_result[k].energy;
     out.candidates[k].solved = false;
@@ -859,6 +898,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
     coarse_solve(first, nullptr);
     ++out.ranking_coarse_solves;
     rest = classes_that_can_win(first);
+    to_solve_in_stage = 1 + static_cast<int>(rest.size());
     out.ranking_coarse_solves += static_cast<int>(rest.size());
     CoarseRaceOptions ro;
     ro.threads = threads;
@@ -872,6 +912,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   } else {
     for (int k = 0; k < ncand; ++k)
       if (usable[k]) rest.push_back(k);
+    to_solve_in_stage = static_cast<int>(rest.size());
     out.ranking_coarse_solves += static_cast<int>(rest.size());
     // Independent solves, on two threads (concurrency.h: only this thread
     // calls the progress callback, the other one sees a stop flag).
@@ -879,6 +920,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
                  [&](int q, const std::atomic<bool>* stop) { coarse_solve(rest[q], stop); });
   }
   const std::vector<int> again = accept_long_starts(true);
+  to_solve_in_stage += static_cast<int>(again.size());
   out.ranking_coarse_solves += static_cast<int>(again.size());
   parallel_for(threads, static_cast<int>(again.size()),
                [&](int q, const std::atomic<bool>* stop) { coarse_solve(again[q], stop); });
@@ -1759,7 +1801,9 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
     auto solve_class = [&](int k) {
       auto r = std::make_unique<HyperbolicHarmonicResult>();
       bool snapped = false;
-      if (!try_solve(k, [&] { return solve_from_better_start(data[k].edges, fine_options(k), &snapped); }, *r)) return;
+      const bool solved = try_solve(k, [&] { return solve_from_better_start(data[k].edges, fine_options(k), &snapped); }, *r);
+      ++solved_in_stage;
+      if (!solved) return;
       if (snapped) out.candidates[k].description += "  [started from the snapped overlay]";
       out.candidates[k].energy = r->energy;
       out.candidates[k].solved = true;
@@ -1768,18 +1812,21 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
     };
     for (int k = 0; k < ncand; ++k)
       if (usable[k]) solve_class(k);
-    for (int k : accept_long_starts(false)) solve_class(k);
-    stage_done("homotopy candidates", 0.42);
+    const std::vector<int> again = accept_long_starts(false);
+    to_solve_in_stage += static_cast<int>(again.size());
+    for (int k : again) solve_class(k);
+    stage_done("homotopy candidates", 0.6);
     return;
   }
   FullSolvePick picked = pick_full_solves(out.candidates, order, usable, full_solves, options);
   full = std::move(picked.full);
   likely_class = picked.likely_class;
   release_unsolved_class_data();
-  stage_done("homotopy candidates", 0.42);
+  stage_done("homotopy candidates", 0.6);
   // The solves below belong to the next stage (ho's hook said "homotopy
-  // candidates", 0.4, after that stage's end at 0.42).
-  if (options.progress) ho.progress = [this](int, double, double) { return options.progress("full-resolution solve", 0.42); };
+  // candidates" up to 0.6, that stage's end).
+  if (options.progress)
+    ho.progress = [this](int, double, double) { return options.progress("full-resolution solve", 0.6 + 0.08 * in_stage()); };
   const CoarseSource& cs = ss.cs;
   const std::vector<int> settle = prolongation_order(cs, sc);
   std::vector<int> tasks;
@@ -1796,6 +1843,8 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   // the second thread after the initial map (the solves leave it idle).
   if (threads > 1 && letters_from_own_loops()) tasks.push_back(-2);
   if (threads > 1) tasks.push_back(-3);  // and the location's cover
+  solved_in_stage = 0;
+  to_solve_in_stage = static_cast<int>(std::count_if(tasks.begin(), tasks.end(), [](int k) { return k >= 0; }));
   std::exception_ptr init_error;
   // Class k's coarse solution prolonged to the fine vertices (all at the
   // origin when its coarse solve failed).
@@ -1845,7 +1894,9 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
     HyperbolicHarmonicOptions o = fine_options(k);
     if (stop) o.progress = [stop](int, double, double) { return !*stop; };
     auto r = std::make_unique<HyperbolicHarmonicResult>();
-    if (!try_solve(k, [&] { return solve_from(nv, data[k].edges, z, deck, o); }, *r)) return;
+    const bool solved = try_solve(k, [&] { return solve_from(nv, data[k].edges, z, deck, o); }, *r);
+    ++solved_in_stage;
+    if (!solved) return;
     out.candidates[k].energy = r->energy;
     out.candidates[k].solved = true;
     fine_result[k] = std::move(r);
@@ -2034,7 +2085,7 @@ void HyperbolicPipeline::choose_with_landmarks() {
     HyperbolicHarmonicOptions lo;
     lo.tolerance = options.solve.tolerance;
     lo.max_iterations = options.solve.max_iterations;
-    lo.progress = [this](int, double, double) { return !options.progress || options.progress("landmarks", 0.44); };
+    lo.progress = [this](int, double, double) { return !options.progress || options.progress("landmarks", 0.68); };
     std::vector<int> lm_s, lm_t;
     std::vector<Complex> lm_p;
     for (const auto& [s, t] : options.landmarks)
@@ -2060,7 +2111,7 @@ void HyperbolicPipeline::choose_with_landmarks() {
     });
     if (best >= 0) out.chosen_candidate = best;
   }
-  stage_done("full-resolution solve", 0.44);
+  stage_done("full-resolution solve", 0.68);
 }
 
 // The automatic source weights' fallback (stages/source_weights_fallback.h):
@@ -2110,7 +2161,7 @@ bool map_class(HyperbolicPipeline& p) {
   const DistortionStats q0 =
       initial.distortion ? *initial.distortion : initial_map_distortion(p.source, *p.deck_group, initial);
   store_initial_distortion(q0, out);
-  p.stage_done("initial map", 0.45);
+  p.stage_done("initial map", 0.7);
 
   const SolveProgress solve_progress = chosen_solve_progress(options);
   // Issue 13: the second solve of a class after the own-edge weights
@@ -2173,7 +2224,7 @@ bool map_class(HyperbolicPipeline& p) {
   out.final_energy = hr.energy;
   out.candidates[k].energy = hr.energy;
   out.candidates[k].solved = true;
-  p.stage_done("harmonic solve", 0.7);
+  p.stage_done("harmonic solve", 0.8);
 
   // Issue 19 (session 23): the optimum moved into P and its distortion are
   // independent when the solver kept its local charts (Newton; the
@@ -2266,7 +2317,7 @@ bool map_class(HyperbolicPipeline& p) {
   out.source_image = placed.zp;
   if (static_cast<int>(hr.edge_local.size()) == static_cast<int>(cd.edges.size()))
     out.image_cover = image_cover(p.source, p.sc, hr.edge_local, p.solver_index);
-  p.stage_done("quality", 0.75);
+  p.stage_done("quality", 0.83);
 
   HyperbolicLocationInput li;
   li.source = &p.source, li.target = &p.target, li.sc = &p.sc, li.tc = &p.tc;
