@@ -169,12 +169,26 @@ class HyperbolicPipeline {
   // stages (session 30: the ranking is a genus-2 run's longest stage, 20 s
   // of 31 s with a 50k-vertex source, and the other direction's of a
   // 268-vertex block held the bar for 52 s): the classes solved of those
-  // to solve. Fractions: the ranking 0.4 .. 0.6, the full-resolution
-  // solves 0.6 .. 0.68, the initial map 0.7, the harmonic solve .. 0.8,
-  // the quality 0.83, the forward location 0.9.
+  // to solve make 80% of the stage; the Newton steps after them (the class
+  // search's solves, whose number is not known ahead) the rest, 1 - 1 / (1 +
+  // steps / 50) of it (all of a stage with no classes planned: the small
+  // sources' geometric classes and twist search). Fractions: the ranking 0.4 .. 0.6, the
+  // full-resolution solves 0.6 .. 0.68, the initial map 0.7, the harmonic
+  // solve .. 0.8, the quality 0.83, the forward location 0.9. (Read and
+  // counted by the progress hooks, on the calling thread.)
   std::atomic<int> solved_in_stage{0}, to_solve_in_stage{1};
-  double in_stage() const {
-    return std::min(1.0, static_cast<double>(solved_in_stage) / std::max(1, static_cast<int>(to_solve_in_stage)));
+  int steps_after_the_classes = 0;
+  void count_in_stage(int to_solve) {
+    solved_in_stage = 0;
+    to_solve_in_stage = to_solve;
+    steps_after_the_classes = 0;
+  }
+  double in_stage() {
+    const int total = to_solve_in_stage;
+    const double classes = total > 0 ? 0.8 : 0.0;  // (a stage of searches alone: all by the steps)
+    if (total > 0 && solved_in_stage < total) return classes * solved_in_stage / total;
+    const double steps = ++steps_after_the_classes;
+    return classes + (1 - classes) * (1 - 1 / (1 + steps / 50));
   }
   // A progress point inside the stage "source homotopy data and weights"
   // (0.3 to 0.4; the candidate classes take its last 0.02): the side's
@@ -844,8 +858,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   ho.max_start_edge_size = options.homotopy.search.start_edge_size;
   if (options.progress)
     ho.progress = [this](int, double, double) { return options.progress("homotopy candidates", 0.4 + 0.2 * in_stage()); };
-  solved_in_stage = 0;
-  to_solve_in_stage = static_cast<int>(std::count(usable.begin(), usable.end(), 1));
+  count_in_stage(static_cast<int>(std::count(usable.begin(), usable.end(), 1)));
   coarse_failed.assign(ncand, 0);
   not_ranked.assign(ncand, 0);
   CoarseSource& cs = ss.cs;
@@ -1816,6 +1829,11 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
     to_solve_in_stage += static_cast<int>(again.size());
     for (int k : again) solve_class(k);
     stage_done("homotopy candidates", 0.6);
+    // The geometric classes and the twist search at full resolution (small
+    // sources) belong to the next stage.
+    if (options.progress)
+      ho.progress = [this](int, double, double) { return options.progress("full-resolution solve", 0.6 + 0.08 * in_stage()); };
+    count_in_stage(0);
     return;
   }
   FullSolvePick picked = pick_full_solves(out.candidates, order, usable, full_solves, options);
@@ -1843,8 +1861,7 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   // the second thread after the initial map (the solves leave it idle).
   if (threads > 1 && letters_from_own_loops()) tasks.push_back(-2);
   if (threads > 1) tasks.push_back(-3);  // and the location's cover
-  solved_in_stage = 0;
-  to_solve_in_stage = static_cast<int>(std::count_if(tasks.begin(), tasks.end(), [](int k) { return k >= 0; }));
+  count_in_stage(static_cast<int>(std::count_if(tasks.begin(), tasks.end(), [](int k) { return k >= 0; })));
   std::exception_ptr init_error;
   // Class k's coarse solution prolonged to the fine vertices (all at the
   // origin when its coarse solve failed).
