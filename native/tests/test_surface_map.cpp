@@ -1160,6 +1160,37 @@ TEST(SurfaceMapHandles, TheBarIsFullOnlyWhenTheMapIsMade) {
   EXPECT_THROW(surface_map(a, b, at_the_end), Cancelled);
 }
 
+// Session 30: a source too small for a coarse copy is ranked at full
+// resolution (0.4 .. 0.5), and its geometric classes and twist search, which
+// take longest there, report as the next stage, "full-resolution solve",
+// with a fraction that moves (0.5 .. 0.68). Before, they reported
+// "homotopy candidates" at the ranking's end for as long as they ran.
+TEST(SurfaceMapHandles, ASmallSourcesSearchReportsAsTheFullResolutionStage) {
+  // (The genus-2 block of docs/addon.md's screenshot, 268 vertices, onto a
+  // double torus: the ranking's class is poor, so the search runs.)
+  const TriMesh a = samples::cad_plate(2, 64, 1.5), b = samples::n_hole_torus(2, 20, true);
+  SurfaceMapOptions o;
+  o.homotopy.two_way = false;  // (no run follows: the main run's fractions as they are)
+  o.homotopy.through_shape = false;
+  std::vector<std::pair<std::string, double>> reports;
+  o.progress = [&](const std::string& stage, double fraction) {
+    reports.emplace_back(stage, fraction);
+    return true;
+  };
+  const SurfaceMapResult m = surface_map(a, b, o);
+  ASSERT_TRUE(m.homotopy_search.run || m.homotopy_search.geometric_classes > 0) << "no search at full resolution";
+  const auto ranked = std::find(reports.begin(), reports.end(), std::make_pair(std::string("homotopy candidates"), 0.5));
+  ASSERT_NE(ranked, reports.end()) << "the ranking's end";
+  std::set<double> search;
+  for (auto r = ranked + 1; r != reports.end() && r->first == "full-resolution solve"; ++r) {
+    EXPECT_GE(r->second, 0.5);
+    EXPECT_LE(r->second, 0.68);
+    search.insert(r->second);
+  }
+  EXPECT_GE(search.size(), 3u) << "the search's fraction does not move";
+  EXPECT_TRUE(std::none_of(ranked + 1, reports.end(), [](const auto& r) { return r.first == "homotopy candidates"; }));
+}
+
 // The small genus-2 pair (small_genus2_source, small_genus2_target) for the
 // twist-search tests below and hooks that start the search
 // from its default class (search off, one way) composed with `twists`.

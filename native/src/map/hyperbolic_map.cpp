@@ -169,26 +169,42 @@ class HyperbolicPipeline {
   // stages (session 30: the ranking is a genus-2 run's longest stage, 20 s
   // of 31 s with a 50k-vertex source, and the other direction's of a
   // 268-vertex block held the bar for 52 s): the classes solved of those
-  // to solve make 80% of the stage; the Newton steps after them (the class
-  // search's solves, whose number is not known ahead) the rest, 1 - 1 / (1 +
-  // steps / 50) of it (all of a stage with no classes planned: the small
-  // sources' geometric classes and twist search). Fractions: the ranking 0.4 .. 0.6, the
-  // full-resolution solves 0.6 .. 0.68, the initial map 0.7, the harmonic
-  // solve .. 0.8, the quality 0.83, the forward location 0.9. (Read and
-  // counted by the progress hooks, on the calling thread.)
+  // to solve make 80% of the stage; the time after them (the class search,
+  // whose number of solves is not known ahead) the rest, 1 - 1 / (1 + t / T)
+  // of it, T the time the classes took (all of a stage with no classes
+  // planned: the small sources' geometric classes and twist search, T the
+  // ranking's). Fractions: the ranking 0.4 .. ranking_end (0.6; 0.5 without
+  // a coarse copy, when the search at full resolution takes longest), the
+  // full-resolution solves and searches .. 0.68, the initial map 0.7, the
+  // harmonic solve .. 0.8, the quality 0.83, the forward location 0.9. (Read
+  // by the progress hooks, on the calling thread.)
+  using Clock = std::chrono::steady_clock;
   std::atomic<int> solved_in_stage{0}, to_solve_in_stage{1};
-  int steps_after_the_classes = 0;
+  double ranking_end = 0.6;
+  Clock::time_point stage_start = Clock::now(), classes_done;
+  double classes_seconds = 1;
+  bool classes_all_done = false;
   void count_in_stage(int to_solve) {
     solved_in_stage = 0;
     to_solve_in_stage = to_solve;
-    steps_after_the_classes = 0;
+    if (classes_all_done) classes_seconds = std::max(0.5, seconds_between(stage_start, classes_done));
+    stage_start = Clock::now();
+    classes_all_done = false;
   }
   double in_stage() {
     const int total = to_solve_in_stage;
-    const double classes = total > 0 ? 0.8 : 0.0;  // (a stage of searches alone: all by the steps)
+    const double classes = total > 0 ? 0.8 : 0.0;
     if (total > 0 && solved_in_stage < total) return classes * solved_in_stage / total;
-    const double steps = ++steps_after_the_classes;
-    return classes + (1 - classes) * (1 - 1 / (1 + steps / 50));
+    if (!classes_all_done) {
+      classes_all_done = true;
+      classes_done = Clock::now();
+      if (total > 0) classes_seconds = std::max(0.5, seconds_between(stage_start, classes_done));
+    }
+    const double t = seconds_between(classes_done, Clock::now());
+    return classes + (1 - classes) * (1 - 1 / (1 + t / classes_seconds));
+  }
+  static double seconds_between(Clock::time_point a, Clock::time_point b) {
+    return std::chrono::duration<double>(b - a).count();
   }
   // A progress point inside the stage "source homotopy data and weights"
   // (0.3 to 0.4; the candidate classes take its last 0.02): the side's
@@ -857,7 +873,9 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   ho.reduce_point = [this](Complex& z) { return polygon->reduce(z); };
   ho.max_start_edge_size = options.homotopy.search.start_edge_size;
   if (options.progress)
-    ho.progress = [this](int, double, double) { return options.progress("homotopy candidates", 0.4 + 0.2 * in_stage()); };
+    ho.progress = [this](int, double, double) {
+      return options.progress("homotopy candidates", 0.4 + (ranking_end - 0.4) * in_stage());
+    };
   count_in_stage(static_cast<int>(std::count(usable.begin(), usable.end(), 1)));
   coarse_failed.assign(ncand, 0);
   not_ranked.assign(ncand, 0);
@@ -873,6 +891,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
     for (int k = 0; k < ncand; ++k) all[k] = k;
     build_solver_data(all);
   }
+  ranking_end = cs.ok ? 0.6 : 0.5;
   fine_result.resize(ncand);
   full.assign(ncand, 0);
   order.resize(ncand);
@@ -1828,11 +1847,13 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
     const std::vector<int> again = accept_long_starts(false);
     to_solve_in_stage += static_cast<int>(again.size());
     for (int k : again) solve_class(k);
-    stage_done("homotopy candidates", 0.6);
+    stage_done("homotopy candidates", ranking_end);
     // The geometric classes and the twist search at full resolution (small
     // sources) belong to the next stage.
     if (options.progress)
-      ho.progress = [this](int, double, double) { return options.progress("full-resolution solve", 0.6 + 0.08 * in_stage()); };
+      ho.progress = [this](int, double, double) {
+        return options.progress("full-resolution solve", ranking_end + (0.68 - ranking_end) * in_stage());
+      };
     count_in_stage(0);
     return;
   }
