@@ -1071,6 +1071,17 @@ TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
   EXPECT_EQ(runs.size(), 1u);
 }
 
+// Options with no through-shape step, every progress report kept in `reports`.
+SurfaceMapOptions reporting_to(std::vector<std::pair<std::string, double>>& reports) {
+  SurfaceMapOptions o;
+  o.homotopy.through_shape = false;
+  o.progress = [&reports](const std::string& stage, double fraction) {
+    reports.emplace_back(stage, fraction);
+    return true;
+  };
+  return o;
+}
+
 // Session 28: the runs made after the main one (here the other direction,
 // asked for always) report their stages as "other runs (<stage>)", below a
 // full bar: the fractions stay under 1 until the map is made, and the last
@@ -1084,15 +1095,10 @@ TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
 // bar sat at 83% for minutes, session 29).
 TEST(SurfaceMapHandles, TheBarIsFullOnlyWhenTheMapIsMade) {
   const TriMesh a = small_genus2_source(), b = small_genus2_target();
-  SurfaceMapOptions o;
+  std::vector<std::pair<std::string, double>> reports;
+  SurfaceMapOptions o = reporting_to(reports);
   o.homotopy.search.enabled = false;
   o.homotopy.two_way_ratio = 0;  // (the other direction always)
-  o.homotopy.through_shape = false;
-  std::vector<std::pair<std::string, double>> reports;
-  o.progress = [&](const std::string& stage, double fraction) {
-    reports.emplace_back(stage, fraction);
-    return true;
-  };
   const SurfaceMapResult m = surface_map(a, b, o);
   expect_valid_map(m, a, b);
   ASSERT_GE(reports.size(), 3u);
@@ -1169,14 +1175,9 @@ TEST(SurfaceMapHandles, ASmallSourcesSearchReportsAsTheFullResolutionStage) {
   // (The genus-2 block of docs/addon.md's screenshot, 268 vertices, onto a
   // double torus: the ranking's class is poor, so the search runs.)
   const TriMesh a = samples::cad_plate(2, 64, 1.5), b = samples::n_hole_torus(2, 20, true);
-  SurfaceMapOptions o;
-  o.homotopy.two_way = false;  // (no run follows: the main run's fractions as they are)
-  o.homotopy.through_shape = false;
   std::vector<std::pair<std::string, double>> reports;
-  o.progress = [&](const std::string& stage, double fraction) {
-    reports.emplace_back(stage, fraction);
-    return true;
-  };
+  SurfaceMapOptions o = reporting_to(reports);
+  o.homotopy.two_way = false;  // (no run follows: the main run's fractions as they are)
   const SurfaceMapResult m = surface_map(a, b, o);
   ASSERT_TRUE(m.homotopy_search.run || m.homotopy_search.geometric_classes > 0) << "no search at full resolution";
   const auto ranked = std::find(reports.begin(), reports.end(), std::make_pair(std::string("homotopy candidates"), 0.5));
