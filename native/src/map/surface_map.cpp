@@ -261,7 +261,7 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
 // The progress callback sees fractions that never decrease within a run:
 // each is raised to the largest given before (a stage's solves report the
 // stage's own fraction, which may come after a later stage's end was
-// reported, e.g. the full-resolution solves after the ranking's 0.42; and
+// reported, e.g. the full-resolution solves after the ranking's end; and
 // the automatic cuts' runs each count from 0). Calls are serialised, so
 // that two threads' reports arrive in order. The fractions stay at most
 // kBeforeDone until the run returns, which reports ("done", 1): the two-way
