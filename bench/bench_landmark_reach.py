@@ -1,5 +1,5 @@
 """How far a landmark can be moved from where the map without landmarks puts it before the
-map is refused (paper §VII-C landmarks; src/map/landmarks.h). One table row per distance.
+map is refused (docs/method.md §2.10 landmarks; src/map/landmarks.h). One table row per distance.
 
   SURFMAP_PYTHONPATH=build/python /usr/bin/python3 bench/bench_landmark_reach.py g1|g2|real [HOPS,...]
 

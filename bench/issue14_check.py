@@ -24,6 +24,13 @@ the source's mesh that counts: the genus-3 plate onto a fine n-hole torus 1.218,
 the plate 1.034; docs/handle_classes.md "Quality signal"). The criteria are unchanged: the
 column is beside them.
 
+`--refined-source` also solves each row's chosen class on its source refined once by 1-to-4 midpoint
+subdivision (bench/refined_source.py --levels 1: the same surface, only the triangulation finer)
+and adds a column, the ratio there: how much of the row's ratio is the source's discretisation
+(session 30, once refined: at most 0.5% on every fine source of the held-out-like set, 3.5-7.3%
+on the coarse CAD plates;
+docs/handle_classes.md "Quality signal"). Beside the criteria, which it does not change.
+
 `--set held-out` runs instead pairs nobody tuned the search on (docs/history/handle_classes.md "Session 27, branch class27"):
 generated shapes of other kinds at equal genus (cup, amphora, vase, polycube, wheel, thick and
 thin cad-plate, a raw jittered n-hole torus), each at a low resolution, against each other and
@@ -192,6 +199,9 @@ def main():
     ap.add_argument("--self-maps", action="store_true",
                     help="also map each source onto itself and give each row's ratio over that "
                          "self-map ratio (a discretisation baseline, beside the criteria)")
+    ap.add_argument("--refined-source", action="store_true",
+                    help="also solve each row's class on its source refined once (bench/refined_source.py) "
+                         "and give that ratio (the source's discretisation, beside the criteria)")
     ap.add_argument("--kept-only", action="store_true",
                     help="map nothing: print the table from the reports kept in --out")
     a = ap.parse_args()
@@ -259,14 +269,37 @@ def main():
                 print(f"| {short(name)} | | failed: {r['error']} | {r.get('wall_s', 0):.0f} |")
             else:
                 print(f"| {short(name)} | {vertex_count(meshes[name])} | {fmt(r['quality']['energy_ratio'])} "
-                      f"| {r['wall_s']:.0f} |")
+                      f"| {r.get('wall_s', r['time_s']['total']):.0f} |")
         print()
+
+    refined = {}
+    if a.refined_source:
+        env = dict(os.environ, SURFMAP_PYTHONPATH=str(build / "python"))
+        for x, y in pairs:
+            for s, t in ((x, y), (y, x)):
+                stem = f"{short(s)}__{short(t)}"
+                rep, out_json = out / f"{stem}.json", out / f"refined__{stem}.json"
+                if "error" in results[stem] or (not out_json.exists() and a.kept_only):
+                    continue
+                if not out_json.exists():
+                    p = subprocess.run(["nice", sys.executable, str(REPO / "bench" / "refined_source.py"),
+                                        str(meshes[s]), str(meshes[t]), "--words-from", str(rep), "--levels", "1",
+                                        "--json", str(out_json)], env=env, capture_output=True, text=True,
+                                       timeout=a.timeout)
+                    if p.returncode != 0:
+                        print(f"refined {stem}: " + (p.stderr.strip().splitlines() or ["?"])[-1], file=sys.stderr)
+                rows = json.loads(out_json.read_text())["rows"] if out_json.exists() else []
+                refined[stem] = rows[1]["energy_ratio"] if len(rows) > 1 and "energy_ratio" in rows[1] else None
+                print(f"{time.strftime('%H:%M:%S')} refined {stem}: {fmt(refined[stem])}", file=sys.stderr,
+                      flush=True)
 
     def over_self(ratio, s):
         base = selfs.get(s, {}).get("quality", {}).get("energy_ratio") if a.self_maps else None
         return fmt(ratio / base) if ratio is not None and base else "-"
 
     extra_head, extra_rule = (" ratio / source's self-map |", "---|") if a.self_maps else ("", "")
+    if a.refined_source:
+        extra_head, extra_rule = extra_head + " ratio, source refined once |", extra_rule + "---|"
     print("| pair (source -> target) | ratio | mean D' | max D' | flips | converged | directions inverse "
           f"| s |{extra_head} criteria |")
     print(f"|---|---|---|---|---|---|---|---|{extra_rule}---|")
@@ -281,7 +314,7 @@ def main():
             r = results[stem]
             if "error" in r:
                 print(f"| {short(s)} -> {short(t)} | failed: {r['error']} | | | | | {rel} | {r['wall_s']:.0f} |"
-                      f"{' - |' if a.self_maps else ''} fails |")
+                      f"{' - |' if a.self_maps else ''}{' - |' if a.refined_source else ''} fails |")
                 continue
             ratio = r["quality"]["energy_ratio"]
             mean, mx = r["distortion"]["mean"], r["distortion"]["max"]
@@ -299,7 +332,8 @@ def main():
             print(f"| {short(s)} -> {short(t)} | {fmt(ratio)} | {fmt(mean, 3)} | {fmt(mx, 3)} | "
                   f"{r['flipped_triangles']} | {'yes' if r['converged'] else 'no'} | {rel} | "
                   f"{r.get('wall_s', r['time_s']['total']):.0f} |"
-                  f"{' ' + over_self(ratio, s) + ' |' if a.self_maps else ''} {'; '.join(fails) or 'pass'} |")
+                  f"{' ' + over_self(ratio, s) + ' |' if a.self_maps else ''}"
+                  f"{' ' + fmt(refined.get(stem)) + ' |' if a.refined_source else ''} {'; '.join(fails) or 'pass'} |")
 
 
 if __name__ == "__main__":

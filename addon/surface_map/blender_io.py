@@ -430,7 +430,7 @@ REFINED_KEY = "surfmap_refined_of"   # object property: the refined morph object
 
 def refined_morph_object(source_obj, src, tgt, image, image_face, morph_matrix, key_name,
                          max_bend=0.02, rounds=4):
-    """The source refined where its image is long or bends (paper §VII-E), as a new object
+    """The source refined where its image is long or bends (docs/method.md §2.12), as a new object
     '<source> refined morph' (replacing the one made earlier) with the source's UV maps and
     materials and a shape key onto the target. Returns (object, refinement dict)."""
     from mathutils import Vector

@@ -1,5 +1,5 @@
-"""How much a map distorts (no bpy): per-face dilatation D' (paper §VII-A), the conformal
-factor (paper §VIII-D), the scale-free mean curvature and its difference across the map, and
+"""How much a map distorts (no bpy): per-face dilatation D' (docs/method.md §2.11), the conformal
+factor (docs/method.md §2.13), the scale-free mean curvature and its difference across the map, and
 triangle values gathered per polygon."""
 import math
 
@@ -30,7 +30,7 @@ def _local_2d(P):
 
 
 def dilatation(V_src, F_src, image, image_normals=None):
-    """Per-face dilatation D' = Γ/γ (paper §VII-A): the ratio of the singular values of the
+    """Per-face dilatation D' = Γ/γ (docs/method.md §2.11): the ratio of the singular values of the
     affine map from each source triangle onto the triangle of its corners' images.
 
     V_src (n,3), F_src (m,3); image (n,3): the image of every source vertex (e.g. the forward
@@ -62,7 +62,7 @@ def dilatation(V_src, F_src, image, image_normals=None):
 
 
 def conformal_factor(V_src, F_src, image):
-    """Conformal factor λ per source vertex (paper §VIII-D): area of the image of its one-ring
+    """Conformal factor λ per source vertex (docs/method.md §2.13): area of the image of its one-ring
     over the area of the one-ring, divided by the ratio of the total areas (so λ = 1 means 'as
     much area as on average'). Returns (n,)."""
     F = np.asarray(F_src, dtype=np.int64)

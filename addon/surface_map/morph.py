@@ -1,5 +1,5 @@
 """The morph (no bpy): the matrix placing the other object's shape, and the connectivity
-refinement of the source for a morph that follows the target's detail (paper §VII-E)."""
+refinement of the source for a morph that follows the target's detail (docs/method.md §2.12)."""
 import numpy as np
 
 
@@ -52,7 +52,7 @@ def _split_triangles(F, origin_bary, split, new):
 def refine_for_morph(V, F, image, image_normal, project, max_length, max_bend=0.02,
                      rounds=4, max_vertices=250000):
     """Connectivity refinement of the source for a morph that follows the target's detail
-    (paper §VII-E): source edges whose image is long (|f(v_i) − f(v_j)| > max_length) or bends
+    (docs/method.md §2.12): source edges whose image is long (|f(v_i) − f(v_j)| > max_length) or bends
     ((1 − N_i·N_j)/2 > max_bend, N the target's normals at the images) are split at their
     midpoints, red-green style (1, 2 or 3 split edges per triangle), for up to `rounds` rounds.
 

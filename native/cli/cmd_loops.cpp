@@ -1,5 +1,5 @@
 // surfmap loops MESH --out LOOPS.json --mesh-out REFINED.obj: the system of
-// loops (paper §IV-A) of a closed surface of genus >= 1, refined so that the
+// loops (docs/method.md §2.2) of a closed surface of genus >= 1, refined so that the
 // 2g loops are simple and meet only at the base vertex. Vertex indices in the
 // JSON are 0-based indices into REFINED.obj.
 #include <chrono>

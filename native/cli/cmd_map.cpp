@@ -1,5 +1,5 @@
 // surfmap map SRC DST: the globally optimal map from SRC onto DST (paper
-// §III–VII). Writes the morph (SRC's connectivity at the mapped positions),
+// docs/method.md §2). Writes the morph (SRC's connectivity at the mapped positions),
 // a JSON report and optionally the per-vertex correspondence.
 #include <cmath>
 #include <fstream>

@@ -1,4 +1,4 @@
-// Map layer bindings: the globally optimal surface map (paper §III–VII).
+// Map layer bindings: the globally optimal surface map (docs/method.md §2).
 #include <algorithm>
 #include <atomic>
 #include <cerrno>

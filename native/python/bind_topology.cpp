@@ -1,4 +1,4 @@
-// Topology layer bindings: the system of loops (paper §IV-A).
+// Topology layer bindings: the system of loops (docs/method.md §2.2).
 #include "bindings.h"
 #include "convert.h"
 
@@ -42,7 +42,7 @@ void bind_topology(py::module_& m) {
         return d;
       },
       py::arg("V"), py::arg("F"), py::arg("base_vertex") = -1, py::arg("refine") = true,
-      R"doc(System of loops of a closed surface of genus g >= 1 (paper §IV-A).
+      R"doc(System of loops of a closed surface of genus g >= 1 (docs/method.md §2.2).
 
 V: float64 (n, 3), F: int (m, 3). Returns a dict: refined mesh "V", "F" (its
 first n vertices are the input's), "origin_face" / "origin_barycentric" (where

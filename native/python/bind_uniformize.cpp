@@ -196,7 +196,8 @@ void bind_uniformize(py::module_& m) {
   m.def(
       "uniformize",
       [](py::handle Vh, py::handle Fh, const std::string& scheme, const std::string& method, double tolerance,
-         int base_vertex, py::object progress, double floor_tolerance, const std::string& metric, const std::string& loop_metric) {
+         int base_vertex, py::object progress, double floor_tolerance, const std::string& metric, const std::string& loop_metric,
+         bool refine) {
         const RowMatrixX3d V = to_vertices(Vh, "V");
         const RowMatrixX3i F = to_triangles(Fh, "F");
         UniformizeOptions opt;
@@ -207,6 +208,8 @@ void bind_uniformize(py::module_& m) {
         opt.metric = parse_enum<UniformizationMetric>(metric, "metric");
         opt.loops = parse_enum<LoopMetric>(loop_metric, "loops");
         opt.base_vertex = base_vertex;
+        // The altitude-foot refinement of the fixed-connectivity path is opt-in, as in the CLI.
+        opt.fixed_connectivity_refinement = refine;
         Progress p{progress, {}};
         opt.progress = p.make();
         UniformizeResult r;
@@ -276,6 +279,7 @@ void bind_uniformize(py::module_& m) {
       py::arg("V"), py::arg("F"), py::arg("scheme") = "yamabe", py::arg("method") = "newton",
       py::arg("tolerance") = 1e-10, py::arg("base_vertex") = -1, py::arg("progress") = py::none(),
       py::arg("floor_tolerance") = 1e-7, py::arg("metric") = "flips", py::arg("loops") = "auto",
+      py::arg("refine") = false,
       "Uniformization of a closed mesh (V: (n,3) float, F: (m,3) int): genus 0 -> unit sphere "
       "('sphere_positions'), genus 1 -> flat torus ('tau', 'tau_reduced', 'lattice'), genus >= 2 -> "
       "hyperbolic ('generators' as (2g,4) [a.re,a.im,b.re,b.im] of z -> (az+b)/(conj(b)z+conj(a))). "
@@ -287,7 +291,7 @@ void bind_uniformize(py::module_& m) {
       "the same), 'fixed' (the input connectivity) or 'fixed-first' ('fixed', 'flips' when it fails; 'metric' in the "
       "result says). loops: 'auto' (default), 'embedding' or 'metric': the lengths the loops are shortest in "
       "(genus >= 2, flip path; 'auto': 3D, the metric's when that layout fails or crowds |z| = 1; 'loop_metric' "
-      "says). The GIL is released during the solve.");
+      "says). refine: with metric 'fixed', refine the mesh exactly (altitude-foot splits) when the metric does not exist ('refinement_splits' counts them; the CLI's --refine). The GIL is released during the solve.");
 
   m.def(
       "ricci_flow",

@@ -121,7 +121,7 @@ TEST(PolygonInitialMap, CleanPairFlattensOntoAConvexPolygonAndReachesTheSameOpti
   EXPECT_EQ(mu.initial_map.construction, "uniform harmonic");
   EXPECT_EQ(mu.initial_map.polygon_status, "not tried");
   EXPECT_GT(std::abs(mp.initial_energy - mu.initial_energy), 1e-3 * mu.initial_energy);
-  // ... and the convex energy has one minimum (paper §VII-D): same energy,
+  // ... and the convex energy has one minimum (docs/method.md §3): same energy,
   // same points on the target.
   EXPECT_NEAR(mp.final_energy, mu.final_energy, 1e-8 * mu.final_energy);
   const double diag = (b.V.colwise().maxCoeff() - b.V.colwise().minCoeff()).norm();
@@ -214,7 +214,7 @@ void expect_cut_graph_start(const TriMesh& a, const TriMesh& b) {
   EXPECT_EQ(mc.flipped_triangles, 0);
   EXPECT_NEAR(energy_by_hand(sc.problem), mc.initial_energy, 1e-9 * mc.initial_energy);
   expect_on_target(mc.initial_forward, b, a.num_vertices());
-  // Another start, one optimum (paper §VII-D).
+  // Another start, one optimum (docs/method.md §3).
   const SurfaceMapResult mu = map_and_inspect(a, b, InitialMapMethod::UniformHarmonic, &su);
   EXPECT_EQ(mu.initial_map.construction, "uniform harmonic");
   EXPECT_GT(std::abs(mc.initial_energy - mu.initial_energy), 1e-3 * mu.initial_energy);

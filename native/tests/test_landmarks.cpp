@@ -1,4 +1,4 @@
-// Landmarks (paper §VII-C): source vertices held on their target vertices
+// Landmarks (docs/method.md §2.10): source vertices held on their target vertices
 // for genus >= 1 (map/landmarks.h); genus 0 is in test_spherical_map.cpp.
 #include <gtest/gtest.h>
 

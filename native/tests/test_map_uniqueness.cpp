@@ -1,4 +1,4 @@
-// Uniqueness across different cuts (paper §VII-D; docs/method.md §3): the
+// Uniqueness across different cuts (docs/method.md §3): the
 // harmonic energy is strictly convex in a homotopy class, so the optimal map
 // must not depend on where the systems of loops are rooted. Different base
 // vertices give different loops, different canonical schemata, different

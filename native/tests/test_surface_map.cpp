@@ -622,7 +622,7 @@ TEST(SurfaceMapHyperbolic, ZeroAreaSourceFacesHaveNoDPrime) {
 }
 
 TEST(SurfaceMapHyperbolic, ResultDoesNotDependOnTheStartPoint) {
-  // Paper §VII-D: the energy is convex, so different initial maps give the
+  // docs/method.md §3: the energy is convex, so different initial maps give the
   // same optimum.
   const TriMesh a = samples::n_hole_torus(2, 30, true);
   const TriMesh b = samples::vase(34, true);

@@ -1,4 +1,4 @@
-// Properties of the greedy system of loops and its refinement (paper §IV-A):
+// Properties of the greedy system of loops and its refinement (docs/method.md §2.2):
 // 2g simple loops through x, pairwise disjoint except at x, cutting the
 // surface into one disk whose boundary reads a 4g-gon word; refined vertices
 // lie on the input surface; T and T* are complementary spanning trees.

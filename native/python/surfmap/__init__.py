@@ -21,7 +21,7 @@ features = _core.FEATURES
 
 
 def system_of_loops(V, F, base_vertex=-1, refine=True):
-    """System of loops of a closed surface of genus >= 1 (paper §IV-A).
+    """System of loops of a closed surface of genus >= 1 (docs/method.md §2.2).
 
     V: float64 (n, 3), F: int (m, 3). Returns a dict with the refined mesh
     ("V", "F", "origin_face", "origin_barycentric"), "genus", "base_vertex",

@@ -249,7 +249,7 @@ CutDisk cut_into_disk(const TriMesh& source, const Connectivity& sc, std::vector
 }
 
 // Step 3. The corner points: the harmonic map of the metric cut graph.
-// Dynamic charts (the algebraic form of the paper's, §VI-A): branch vertex
+// Dynamic charts (the algebraic form of docs/method.md §2.6): branch vertex
 // b's point is H_b(q_b) with q_b kept in the target's domain by
 // options.reduce_point, so corner d of b sits at (c_d H_b)(q_b). In a
 // twisted class the development's words are long (chain elements displacing

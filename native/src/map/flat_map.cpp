@@ -1,4 +1,4 @@
-// Genus 1: the flat-torus case of the optimal map (paper §VI; docs/method.md §2.8).
+// Genus 1: the flat-torus case of the optimal map (docs/method.md §2.8).
 #include <algorithm>
 #include <utility>
 #include <array>
@@ -287,7 +287,7 @@ HarmonicProblem flat_problem(const IntrinsicDelaunayResult& idt, const std::vect
 }
 
 
-// The homotopy data of the class a -> a_img, b -> b_img (paper §V-B, flat
+// The homotopy data of the class a -> a_img, b -> b_img (docs/method.md §2.10, flat
 // case: translations): the translation of every intrinsic edge (#idt edges)
 // and of every source edge (#E, along its edge_halfedge); the translations
 // around every source face (the root of T* included) must cancel, the
@@ -317,7 +317,7 @@ std::pair<std::vector<Complex>, std::vector<Complex>> class_translations(
 
 
 // The default genus-1 class: the requested one, else the lowest free
-// energy, else with landmarks the lowest held energy (paper §VII-C,
+// energy, else with landmarks the lowest held energy (docs/method.md §2.10,
 // stages/landmark_ranking.h: branch and bound on the plain pins' lower
 // bounds, every class has one here; +inf where the landmarks cannot be held
 // bijectively, a SolveError when that is every class). `hold(k)` holds the
@@ -605,7 +605,7 @@ constexpr double kFlatEnergyTie = 1e-4;
 
 }  // namespace
 
-// Genus 1 (paper §VI, flat case): one exact sparse solve per class, in
+// Genus 1 (docs/method.md §2.8, flat case): one exact sparse solve per class, in
 // passes (flat_pass), one per choice of source weights: the automatic
 // fallback (stages/source_weights_fallback.h) maps the chosen class again
 // with positive weights on the source's own edges when the straight images

@@ -381,7 +381,7 @@ void check_newton_input(int n, const std::vector<WeightedEdge>& edges, const std
   }
 }
 
-// The solve runs in charts (paper §VI-A, done algebraically): vertex i has
+// The solve runs in charts (docs/method.md §2.6, done algebraically): vertex i has
 // a chart C_i (an isometry with C_i(0) = z_i, its frame parallel-transported
 // along the steps), and every edge its element in the charts of its ends,
 // A_e = C_i^-1 ρ'_e C_j, so that the image of the edge runs from 0 to A_e(0)

@@ -1,4 +1,4 @@
-// Genus >= 2 landmarks (paper §VII-C; landmarks.h): the hyperbolic barrier
+// Genus >= 2 landmarks (docs/method.md §2.10; landmarks.h): the hyperbolic barrier
 // continuation (hyperbolic_barrier_landmarks) and the held solves
 // (hold_hyperbolic_landmarks). The flat case and the carried
 // neighbourhoods are in landmarks.cpp.

@@ -1,5 +1,5 @@
-// Genus >= 2: the hyperbolic case of the optimal map (paper §VI; docs/
-// method notes). map_hyperbolic is the driver: a page of stage calls in the
+// Genus >= 2: the hyperbolic case of the optimal map (docs/method.md §2.8 and its
+// notes). map_hyperbolic is the driver: a page of stage calls in the
 // order of the paper; the stages live in stages/ (one file each, with
 // their inputs, outputs and paper sections), and HyperbolicPipeline below
 // only holds what the stages hand each other.
@@ -853,7 +853,7 @@ HyperbolicHarmonicOptions HyperbolicPipeline::fine_options(int k) const {
   return o;
 }
 
-// Ranking (paper §V-B; docs/method.md). The energy of a class is a
+// Ranking (docs/method.md §2.10). The energy of a class is a
 // property of the two continuous surfaces, so every candidate is solved to
 // convergence on a coarse copy of the source (map/coarse_source.h,
 // stages/coarse_level.h; its vertices are fine vertices, its deck elements
@@ -2506,7 +2506,7 @@ void map_with_fallback(HyperbolicPipeline& p) {
 
 }  // namespace
 
-// Genus >= 2 (paper §VI): hyperbolic target, harmonic map by
+// Genus >= 2 (docs/method.md §2.8): hyperbolic target, harmonic map by
 // preconditioned Riemannian Newton (map/hyperbolic_harmonic.h) or the
 // paper's relaxation, in the homotopy class of lowest energy among the
 // candidates of stages/homotopy_classes.h.
@@ -2516,18 +2516,18 @@ void map_hyperbolic(const TriMesh& source, const TriMesh& target, const Connecti
   const SingleThreadedBlas single_threaded_blas;  // concurrency.h: our own threads instead
   check_high_kicks(options.homotopy.search);
   HyperbolicPipeline p(source, target, sc, tc, options, hooks, out, stage_done);
-  p.start_source_side();           // §V-A on the second thread: loops, edge words, weights, coarse copy
-  p.uniformize_target();           // §IV-C: hyperbolic metric, layout, deck group, polygon P
+  p.start_source_side();           // docs/method.md §2.6 on the second thread: loops, edge words, weights, coarse copy
+  p.uniformize_target();           // docs/method.md §2.4-2.5: hyperbolic metric, layout, deck group, polygon P
   p.start_class_bounds();          // issue 14: the source's own uniformization, for class lower bounds
-  p.candidate_classes_and_data();  // §V-B: candidate homotopy classes and their deck elements
+  p.candidate_classes_and_data();  // docs/method.md §2.10: candidate homotopy classes and their deck elements
   p.rank_on_coarse_copy();         // ranking: every class solved on the coarse copy
   if (p.ss.cs.ok && !options.homotopy.images_only && !options.homotopy.reverse_class_only)
     p.search_classes();  // more cuts, Dehn twists (mapping_class_search.h)
-  p.solve_at_full_resolution(p.ss.cs.ok);  // §VI-B: the best classes at full resolution
+  p.solve_at_full_resolution(p.ss.cs.ok);  // docs/method.md §2.8: the best classes at full resolution
   if (!p.ss.cs.ok) p.geometric_classes_at_full_resolution();  // issue 14: small sources (no coarse copy)
   if (!p.ss.cs.ok) p.twist_search_at_full_resolution();  // issue 14: the twist search there too
   p.fill_class_bounds();           // issue 14: every candidate's energy lower bound
-  p.choose_with_landmarks();       // lowest energy; with landmarks, §VII-C branch and bound
+  p.choose_with_landmarks();       // lowest energy; with landmarks, docs/method.md §2.10 branch and bound
   p.compare_with_carried_class();  // issue 14: the two directions' classes inverse or not
   try {
     map_with_fallback(p);          // initial map, harmonic solve, landmarks, quality, location

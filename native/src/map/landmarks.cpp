@@ -1,4 +1,4 @@
-// Landmarks (paper §VII-C; landmarks.h): genus-1 lifts and the pinned flat
+// Landmarks (docs/method.md §2.10; landmarks.h): genus-1 lifts and the pinned flat
 // solve, carried neighbourhoods (grow_landmark_patches) and the flat barrier
 // continuation. Genus >= 2 is in hyperbolic_landmarks.cpp; the pieces both
 // continuations share in landmark_barrier.h.

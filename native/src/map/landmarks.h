@@ -1,5 +1,5 @@
 #pragma once
-// Landmarks for genus >= 1 (paper §VII-C; docs/method.md §2.10): each landmark
+// Landmarks for genus >= 1 (docs/method.md §2.10): each landmark
 // source vertex s is held at a lift of its target vertex t's position in the
 // universal cover of the target. Not part of the public API.
 //
@@ -72,7 +72,7 @@ struct LandmarkPatch {
   std::vector<char> head;
 };
 
-/// Far landmarks (paper §VII-C asks for a bijective map): a source vertex
+/// Far landmarks (docs/method.md §2.10 asks for a bijective map): a source vertex
 /// pinned far from where the free optimum puts it makes the held optimum
 /// fold around it — the held problem is convex (flat: strictly; hyperbolic:
 /// a non-positively curved target), so its minimiser is unique and no

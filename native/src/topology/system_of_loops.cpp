@@ -1,5 +1,5 @@
 // Greedy system of loops and its refinement into simple loops that meet only
-// at the base vertex (paper §IV-A, docs/method.md §2.2).
+// at the base vertex (docs/method.md §2.2).
 //
 // Refinement, in our own construction. The greedy loops are
 // sigma_k = path(x, a_k) + (a_k, b_k) + path(b_k, x) along the shortest-path

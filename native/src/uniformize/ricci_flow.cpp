@@ -1,4 +1,4 @@
-// Discrete Ricci flow (paper §V; docs/method.md §2.4). See ricci_flow.h.
+// Discrete Ricci flow (docs/method.md §2.4). See ricci_flow.h.
 //
 // Everything is written as "lengths as functions of u" (per scheme) composed
 // with "angles as functions of lengths" (per background), so that one

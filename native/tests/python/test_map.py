@@ -558,7 +558,7 @@ def test_genus2_initial_map_construction_and_location(tmp_path, cli):
     assert np.abs(q - init["position"]).max() < 1e-9 and init["barycentric"].min() >= -1e-9
     u = surfmap.surface_map(*a, *b, homotopy=0, initial_map="uniform")
     assert u["initial_map"]["construction"] == "uniform harmonic" and u["initial_map"]["iterations"] > 0
-    # One optimum from either start (paper §VII-D).
+    # One optimum from either start (docs/method.md §3).
     assert abs(u["energy"]["final"] - r["energy"]["final"]) <= 1e-8 * r["energy"]["final"]
     diag = np.linalg.norm(Vt.max(0) - Vt.min(0))
     assert np.abs(u["forward"]["position"] - r["forward"]["position"]).max() < 1e-3 * diag

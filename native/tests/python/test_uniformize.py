@@ -241,3 +241,24 @@ def test_cli_report_and_layout(cli, tmp_path):
     assert p.returncode == 1 and "error" in p.stderr and not rep_bad.exists()
     p = cli("uniformize", mesh2, "--report", rep_bad, "--scheme", "bogus")
     assert p.returncode == 2
+
+
+
+def test_refine_keyword_refines_the_fixed_metric_exactly_as_the_clis_refine(cli, tmp_path):
+    # The generated genus-3 torus whose fixed-connectivity metric does not exist
+    # (test_exact_refinement.cpp): without `refine` the fixed metric is a UniformizationError; with
+    # it the mesh is refined by altitude-foot splits and the metric meets Gauss-Bonnet, with the
+    # same split count as the CLI's `--refine`.
+    V, F = surfmap.shapes.n_hole_torus(3, 32, False)
+    with pytest.raises(surfmap.UniformizationError):
+        surfmap.uniformize(V, F, metric="fixed")
+    u = surfmap.uniformize(V, F, metric="fixed", refine=True)
+    assert u["converged"] and u["genus"] == 3
+    assert u["refinement_splits"] > 0 and len(u["refined_V"]) > len(V)
+    assert abs(u["area"] - 4 * math.pi * 2) < 1e-6
+    assert u["layout"]["num_flipped"] == 0
+    mesh, rep = tmp_path / "g3.obj", tmp_path / "g3.json"
+    _core.write_obj(str(mesh), V, F)
+    p = cli("uniformize", mesh, "--metric", "fixed", "--refine", "--report", rep, "--quiet")
+    assert p.returncode == 0, p.stderr
+    assert json.loads(rep.read_text())["refinement_splits"] == u["refinement_splits"]

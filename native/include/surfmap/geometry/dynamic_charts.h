@@ -1,6 +1,6 @@
 #pragma once
 // Bringing a point of the universal cover back towards the origin by deck
-// elements (the algebraic form of the paper's dynamic charts, §VI-A), shared
+// elements (the algebraic form of the paper's dynamic charts, docs/method.md §2.6), shared
 // by the Newton solver (map/hyperbolic_harmonic.h) and the relaxation
 // (map/harmonic_relaxation.h) when no reduction into the fundamental polygon
 // is supplied.

@@ -1,6 +1,6 @@
 #pragma once
 // Nearest point among a fixed set of 3D points (a k-d tree), for the loop
-// overlay (topology/projected_loops.h, paper §V-A: a source loop's vertices
+// overlay (topology/projected_loops.h, docs/method.md §2.6: a source loop's vertices
 // are sent to the nearest target vertex). Issue 19 (docs/benchmarks.md): the
 // overlay used a uniform grid searched ring by ring, whose cost grows like
 // (distance / cell)^3 when the query lies off the point set; cells shrink

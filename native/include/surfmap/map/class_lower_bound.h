@@ -1,7 +1,7 @@
 #pragma once
 // A lower bound of the harmonic energy of a homotopy class of maps between
 // closed hyperbolic surfaces, from hyperbolic lengths of curves alone, with
-// no solve (docs/handle_classes.md; paper §VII-B ranks classes by energy).
+// no solve (docs/handle_classes.md; docs/method.md §2.10 ranks classes by energy).
 //
 // With E(f) = ∫|∇f|² dA (a conformal map between hyperbolic surfaces of
 // genus g has E = 8π(g−1)), for every map f: X -> Y in the class θ and

@@ -1,6 +1,6 @@
 #pragma once
 // A genus >= 2 initial map that embeds the source by construction (paper
-// §IV-B in spirit; docs/method.md §2.7): the source's disk cut along a cut graph
+// docs/method.md §2.7 in spirit): the source's disk cut along a cut graph
 // of its own edges, flattened onto a convex geodesic polygon of the target.
 //
 //  1. Cut graph G: the union of the source's UNREFINED greedy loops
@@ -26,7 +26,7 @@
 //     polygon of initial_map.h has no such property, its 4g corners share
 //     one angle sum of 2π). Simplicity and strict convexity are checked in
 //     the Klein model; when they fail the map is not built (applied = false).
-//     The branch points live in dynamic charts (paper §VI-A in algebraic
+//     The branch points live in dynamic charts (docs/method.md §2.6 in algebraic
 //     form): p_b = H_b(q_b) with q_b kept in the target's domain by
 //     reduce_point and H_b a deck word folded into the corners' words, and
 //     the whole development is moved by one deck element so that corner 0
@@ -55,7 +55,7 @@
 // Measured where it does not apply: very twisted classes (real
 // block -> 3holes, fertility -> generated genus 4: corner elements with
 // entries of 1e7) are too large for double precision; the fallbacks run.
-// Where it differs from the paper (§IV-B): the paper cuts both surfaces
+// Where it differs from the paper (docs/method.md §2.7): the paper cuts both surfaces
 // along canonical loops and composes two flattenings onto one canonical
 // 4g-gon; here only the source is cut, along its own cut graph, and the
 // target enters through its universal cover (the polygon's corners are deck

@@ -1,5 +1,5 @@
 #pragma once
-// Quality measures of a piecewise-linear map (paper §VII-A; docs/method.md §2.11):
+// Quality measures of a piecewise-linear map (docs/method.md §2.11):
 // per-triangle dilatation D' = Γ/γ (ratio of the singular values of the
 // affine map from a source triangle to its image), its area-weighted mean and
 // max, and flipped / degenerate image triangles.
@@ -54,7 +54,7 @@ int image_orientation(std::complex<double> b, std::complex<double> c);
 /// D' of one source face (3D corners p0, p1, p2) onto a positively oriented
 /// geodesic triangle of the Poincaré disk with corners 0, b, c in a chart and
 /// hyperbolic side lengths `image_sides` (side k from corner k to k+1): from
-/// the side lengths (paper §VII-A). With `thin_images`, a needle-thin image
+/// the side lengths (docs/method.md §2.11). With `thin_images`, a needle-thin image
 /// (a + b - c below 1e-4 of the perimeter: the lengths' round-off, ~1e-9
 /// relative after a long solve, leaves the frame built from them
 /// meaningless, although the orientation was resolved) is measured by the
@@ -102,7 +102,7 @@ struct DistortionStats {
 std::vector<char> thin_source_faces(const RowMatrixX3d& V, const RowMatrixX3i& F, double relative_margin = 1e-4);
 
 /// The figures of hyperbolic image triangles of the source's faces (paper
-/// §VII-A): `image_in_chart(f)` gives face f's image seen in a chart
+/// docs/method.md §2.11): `image_in_chart(f)` gives face f's image seen in a chart
 /// centring its corner 0 (corners 0, b, c), `image_sides(f)` its hyperbolic
 /// side lengths (asked for positively oriented images only); D' per face by
 /// hyperbolic_face_dilatation, the area-weighted (3D areas) mean and the

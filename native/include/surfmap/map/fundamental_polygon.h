@@ -1,5 +1,5 @@
 #pragma once
-// The target's fundamental polygon P (paper §VI-A; docs/method.md): the
+// The target's fundamental polygon P (docs/method.md §2.6): the
 // geodesic 4g-gon on the corners of the target's disk layout, a convex
 // fundamental domain of its deck group in the Klein model, with the side
 // maps built from those corners. Side i (corner c_i -> c_i+1, letter x) is

@@ -1,7 +1,7 @@
 #pragma once
 // Handle classes from the hyperbolic geometry of the two surfaces, independent
 // of pose, cut and base vertex (issue 14; docs/handle_classes.md "Geometric
-// candidates"; paper §VII-B ranks classes by energy, this lists them).
+// candidates"; docs/method.md §2.10 ranks classes by energy, this lists them).
 //
 // A marking of a closed hyperbolic surface of genus g is a canonical basis
 // a_1, b_1, ..., a_g, b_g of its surface group (relator [a1,b1]...[ag,bg]).

@@ -1,6 +1,6 @@
 #pragma once
 // The paper's relaxation for the discrete harmonic map into a hyperbolic
-// surface (paper §VI-B, "heat diffusion" in Möbius-centred local charts;
+// surface (docs/method.md §2.8, "heat diffusion" in Möbius-centred local charts;
 // docs/method.md §2.8), kept beside the Riemannian Newton solver
 // (map/hyperbolic_harmonic.h) so the two can be compared on the same input.
 //
@@ -21,7 +21,7 @@
 // about 3.8; longer ones (far from the optimum, e.g. an all-at-origin start)
 // get a backtracking check on the vertex's energy, so E never increases.
 // Vertices that wander far from the origin are moved back by deck elements
-// after each sweep (the paper's dynamic charts, §VI-A), exactly as the Newton
+// after each sweep (the paper's dynamic charts, docs/method.md §2.6), exactly as the Newton
 // solver does. Convergence test: the same relative gradient tolerance as
 // Newton (largest per-vertex gradient |2 Σ w log| <= tolerance · max w).
 //
@@ -58,7 +58,7 @@ struct HarmonicRelaxationOptions {
   /// false to cancel (throws Cancelled).
   std::function<bool(int, double, double)> progress;
   /// #V or empty (default): vertices held at their start point (landmarks,
-  /// paper §VII-C), as HyperbolicHarmonicOptions::fixed: never relaxed, and
+  /// docs/method.md §2.10), as HyperbolicHarmonicOptions::fixed: never relaxed, and
   /// left out of the convergence test's gradient. A chart move may still
   /// change a held vertex's point by a deck element (same point on the target).
   std::vector<char> fixed;

@@ -1,5 +1,5 @@
 #pragma once
-// Discrete harmonic map into a hyperbolic surface (paper §VI-B; docs/method.md
+// Discrete harmonic map into a hyperbolic surface (docs/method.md
 // §2.8 and §7): minimises E(z) = Σ_e w_e d(z_i, ρ_e z_j)² over one point z_i
 // per vertex in the Poincaré disk, with a deck element ρ_e per edge i->j and
 // weights w_e >= 0. E is geodesically convex (the disk is a Hadamard space),
@@ -13,7 +13,7 @@
 // computed between points near |z| = 1 and no deck matrix is multiplied by a
 // chart (see the .cpp). Vertices that wander far from the origin are moved to
 // another sheet by deck elements (the algebraic form of the paper's dynamic
-// charts, §VI-A): z_i ← γ z_i and, implicitly, ρ_e ← γ_i ρ_e γ_j⁻¹.
+// charts, docs/method.md §2.6): z_i ← γ z_i and, implicitly, ρ_e ← γ_i ρ_e γ_j⁻¹.
 #include <complex>
 #include <functional>
 #include <memory>
@@ -92,7 +92,7 @@ struct HyperbolicHarmonicOptions {
   /// false to cancel (throws Cancelled).
   std::function<bool(int, double, double)> progress;
   /// #V or empty (default): vertices held at their start point (landmarks,
-  /// paper §VII-C). Their Newton step is zero; the chart moves may still
+  /// docs/method.md §2.10). Their Newton step is zero; the chart moves may still
   /// re-express them by a deck element, which is the same point of the surface.
   std::vector<char> fixed;
   /// Optional: the group's relator in generator letters (e.g.

@@ -1,7 +1,7 @@
 #pragma once
-// The initial ("before") map of the hyperbolic case (genus >= 2; paper §IV-B,
+// The initial ("before") map of the hyperbolic case (genus >= 2; docs/method.md §2.7,
 // docs/method.md §2.7) and the quality of any map given by points and deck
-// elements (paper §VII-A).
+// elements (docs/method.md §2.11).
 //
 // What is built (hyperbolic_initial_map with the source mesh, the default):
 //  0. First, the cut-graph polygon (map/cut_graph_initial_map.h): the source
@@ -74,7 +74,7 @@
 // polygon start costs the main Newton solve 0-1 extra iteration against the
 // uniform start; the fallback started from the flattening needs 3-5 Newton
 // steps instead of 5-8.
-// Where this differs from the paper (§IV-B; docs/method.md §2.7): the paper cuts
+// Where this differs from the paper (docs/method.md §2.7): the paper cuts
 // BOTH surfaces along corresponding canonical loops, flattens both disks
 // onto the same canonical 4g-gon and composes the two maps. Here the
 // target is never cut along the source's loops (its canonical generators are
@@ -261,7 +261,7 @@ struct InitialMapInspection {
 /// `vertex_deck` (#V) and `halfedge_rho` (#3F, as above): the image of face f
 /// is the geodesic triangle on z_{F0}, ρ_eff(3f) z_{F1}, ρ_eff(3f+2)⁻¹ z_{F2}
 /// with ρ_eff(h) = deck[tail] · ρ(h) · deck[head]⁻¹; D' from the hyperbolic
-/// side lengths against the 3D ones (paper §VII-A), orientation tested in
+/// side lengths against the 3D ones (docs/method.md §2.11), orientation tested in
 /// the chart centring corner 0. Flipped and degenerate images have D' = +inf
 /// and are left out of mean and max. `image` receives the #F x 3 corners.
 DistortionStats hyperbolic_distortion(const TriMesh& source, const std::vector<hyperbolic::Mobius>& halfedge_rho,

@@ -1,7 +1,7 @@
 #pragma once
 // Handle classes from short pants decompositions with Fenchel–Nielsen
 // coordinates (issue 14; docs/handle_classes.md "Pants decompositions";
-// paper §VII-B ranks classes by energy, this lists them).
+// docs/method.md §2.10 ranks classes by energy, this lists them).
 //
 // Standard pants decomposition of the canonical surface group
 // < a_1, b_1, ..., a_g, b_g | [a_1,b_1] ... [a_g,b_g] > (genus g >= 2), with

@@ -1,5 +1,5 @@
 #pragma once
-// Point location for the maps' outputs (paper §VII: every vertex's image,
+// Point location for the maps' outputs (docs/method.md §2.9: every vertex's image,
 // and every target vertex's preimage, as a face and barycentrics): a uniform
 // grid over planar triangles proposing candidates, a straight walk over a
 // triangulation in the universal cover (hyperbolic), location modulo the

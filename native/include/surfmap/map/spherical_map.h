@@ -1,5 +1,5 @@
 #pragma once
-// Genus-0 surface maps (docs/method.md §2.4, §2.10; paper §V, §VII-C): the pieces
+// Genus-0 surface maps (docs/method.md §2.4, §2.10): the pieces
 // of the spherical path of surface_map().
 //
 // For genus 0 every harmonic map between the uniformized surfaces is
@@ -24,7 +24,7 @@
 //     rotations of the cube group before a local pattern search refines the
 //     best start. Principal axes were not used: their signs and their order
 //     are ambiguous exactly on the near-symmetric shapes that are common.
-//   * Landmarks (paper §VII-C): after that rotation, 1 pair is hit by the
+//   * Landmarks (docs/method.md §2.10): after that rotation, 1 pair is hit by the
 //     smallest rotation taking one point to the other (an isometry: centring
 //     kept); 2 pairs by the Möbius map taking both points to their targets
 //     that minimises the same shape mismatch J over the two real parameters

@@ -1,5 +1,5 @@
 #pragma once
-// The globally optimal surface map (paper §III–VII; docs/method.md §2.3–2.11).
+// The globally optimal surface map (docs/method.md §2.3–2.11).
 //
 // Flat case (genus 1), implemented here: the target is uniformized to a flat
 // torus C / (ω1 Z + ω2 Z); the map is given by one point z_i per source
@@ -70,7 +70,7 @@ namespace surfmap {
 /// linear solve either way).
 enum class MapMethod {
   Newton,      ///< Riemannian Newton with line search (docs/method.md §7), the default
-  /// the paper's per-vertex relaxation in Möbius-centred charts (§VI-B,
+  /// the paper's per-vertex relaxation in Möbius-centred charts (docs/method.md §2.8,
   /// map/harmonic_relaxation.h), for comparison; genus 1 keeps the exact solve
   Relaxation,
 };
@@ -640,7 +640,7 @@ struct SurfaceMapOptions {
   int threads = 0;
   /// Landmark pairs (source vertex, target vertex) whose images are held
   /// fixed: the source vertex maps exactly onto the target vertex (paper
-  /// §VII-C). Indices must be valid and each vertex used at most once.
+  /// docs/method.md §2.10). Indices must be valid and each vertex used at most once.
   /// Genus >= 1: each source vertex is held at the lift of its target vertex
   /// (in the universal cover) nearest to where the map without landmarks
   /// puts it, so landmarks add no winding (src/map/landmarks.h). When the
@@ -933,7 +933,7 @@ struct SurfaceMapResult {
   /// map into the target (map/cut_graph_initial_map.h), else the source's
   /// cut disk flattened onto the target's geodesic polygon of the source's
   /// loops when it is convex, else the uniform-weight Tutte-type map in the class
-  /// (map/initial_map.h: how both differ from the paper's §IV-B
+  /// (map/initial_map.h: how both differ from docs/method.md §2.7
   /// composition); it is also the default start.
   double initial_energy = 0, final_energy = 0;
   std::vector<double> energy_history;

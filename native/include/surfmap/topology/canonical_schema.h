@@ -1,6 +1,6 @@
 #pragma once
 // Canonical polygon schema, computed algebraically (docs/method.md §2.3 and §7;
-// paper §IV-A). The cut along a system of loops gives a 4g-gon whose cyclic
+// docs/method.md §2.2). The cut along a system of loops gives a 4g-gon whose cyclic
 // boundary word W uses every loop letter once with each sign, but not in the
 // canonical order a1 b1 a1^-1 b1^-1 ... ag bg ag^-1 bg^-1. The classical
 // cut-and-paste moves of the classification of surfaces, done on words

@@ -1,7 +1,7 @@
 #pragma once
 // Handles of a closed surface in R^3 and the handle correspondences between
 // two surfaces of genus g >= 2 (docs/method.md §2.10 and §7 "Meridians and
-// longitudes"; paper §VII-B).
+// longitudes"; docs/method.md §2.10).
 //
 // Homotopy classes of maps S1 -> S2 are outer isomorphisms of the surface
 // groups. Both groups are presented canonically (topology/canonical_schema.h):

@@ -1,6 +1,6 @@
 #pragma once
 // Local search in the mapping class group for the homotopy class of least
-// harmonic energy (docs/method.md §2.10; paper §VII-B).
+// harmonic energy (docs/method.md §2.10).
 //
 // A class of maps S1 -> S2 between closed surfaces of genus g >= 2 is an
 // isomorphism theta of the canonical surface groups (topology/handle_basis.h);

@@ -1,6 +1,6 @@
 #pragma once
 // Well-conditioned arithmetic in the deck group of a hyperbolic layout
-// (docs/method.md §2.5, §2.6; paper §VI-A "dynamic charts").
+// (docs/method.md §2.5, §2.6 "dynamic charts").
 //
 // Homotopy data are words in the target's loop letters (generators g_k of
 // uniformize/layout.h). Those generators are loops seen from the base corner

@@ -1,7 +1,7 @@
 #pragma once
 // Isometric layout of the disk obtained by cutting a closed surface along its
 // system of loops, and the deck transformations that glue it back
-// (paper §V-C "embedding"; docs/method.md §2.5).
+// (docs/method.md §2.5).
 //
 // Input: a flat (genus 1) or hyperbolic (genus >= 2) metric given by edge
 // lengths (the output of ricci_flow) and the system of loops of the same mesh.

@@ -1,5 +1,5 @@
 #pragma once
-// Discrete Ricci flow / discrete uniformization metric (paper §V; docs/method.md
+// Discrete Ricci flow / discrete uniformization metric (docs/method.md
 // §2.4). Finds conformal factors u (one per vertex) such that the conformally
 // changed metric has the wanted angle defect K_i = 2π − Σθ_i at every vertex:
 // flat (Euclidean background, genus 1 and punctured spheres) or curvature −1

@@ -1,5 +1,5 @@
 #pragma once
-// Genus-0 uniformization (paper §V; docs/method.md §2.4): a map of a closed genus-0
+// Genus-0 uniformization (docs/method.md §2.4): a map of a closed genus-0
 // mesh onto the unit sphere.
 //
 // Method: send one vertex v0 to infinity. Remove its star and flatten the

@@ -1,5 +1,5 @@
 #pragma once
-// One-call uniformization (paper §IV-A, §V; docs/method.md §2.2-2.5): system of
+// One-call uniformization (docs/method.md §2.2-2.5): system of
 // loops -> discrete Ricci flow on the (refined) mesh -> isometric layout of
 // the cut disk with its deck group. Genus 0 goes to the unit sphere
 // (spherical.h), genus 1 to a flat torus (lattice, modulus τ), genus >= 2 to

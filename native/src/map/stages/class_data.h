@@ -1,5 +1,5 @@
 #pragma once
-// The homotopy data of one class (paper §V-B, §VI): a deck element of the
+// The homotopy data of one class (docs/method.md §2.6, §2.8): a deck element of the
 // target per source edge and per edge of the energy's triangulation, the
 // input of every harmonic solve in that class. Internal to the genus >= 2
 // pipeline (src/map/hyperbolic_map.cpp).

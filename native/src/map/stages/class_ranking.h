@@ -1,5 +1,5 @@
 #pragma once
-// Choices of the genus >= 2 class ranking (paper §V-B; ranking in docs/
+// Choices of the genus >= 2 class ranking (docs/method.md §2.10; ranking in docs/
 // method notes): which classes are solved at full resolution after the
 // coarse ranking, and which solved class is the default. Internal.
 #include <vector>

@@ -1,5 +1,5 @@
 #pragma once
-// The ranking level of the genus >= 2 class ranking (paper §V-B, ranking in
+// The ranking level of the genus >= 2 class ranking (docs/method.md §2.10, ranking in
 // docs/method.md): the coarse copy of the source (map/coarse_source.h)
 // with every candidate class's deck elements on its edges, products of the
 // fine ones along the fine paths. Internal to src/map/hyperbolic_map.cpp.

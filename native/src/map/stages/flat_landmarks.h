@@ -1,5 +1,5 @@
 #pragma once
-// Landmarks of the genus-1 map (paper §VII-C; src/map/landmarks.h): each
+// Landmarks of the genus-1 map (docs/method.md §2.10; src/map/landmarks.h): each
 // source vertex held at the lift of its target vertex nearest to where the
 // class's free optimum puts it; plain pins first (the exact held optimum),
 // if that folds the interior-point continuation (the bijective map of least

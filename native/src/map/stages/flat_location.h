@@ -1,5 +1,5 @@
 #pragma once
-// Stage "location" of the genus-1 map (paper §VII: the outputs): every
+// Stage "location" of the genus-1 map (docs/method.md §2.9: the outputs): every
 // source vertex's image on the target's input mesh (forward), every target
 // vertex's preimage on the source (inverse), and both for the initial
 // (uniform Tutte) map, by location modulo the target lattice

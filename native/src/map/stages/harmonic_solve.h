@@ -1,6 +1,6 @@
 #pragma once
-// Stage "harmonic solve" of the genus >= 2 map (paper §VI-B; docs/ method
-// notes): the chosen class's harmonic map, by Riemannian Newton
+// Stage "harmonic solve" of the genus >= 2 map (docs/method.md §2.8 and
+// its notes): the chosen class's harmonic map, by Riemannian Newton
 // (map/hyperbolic_harmonic.h) or the paper's relaxation
 // (map/harmonic_relaxation.h), from its initial map. Internal to
 // src/map/hyperbolic_map.cpp.

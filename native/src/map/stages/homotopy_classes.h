@@ -1,5 +1,5 @@
 #pragma once
-// Stage "homotopy-class candidates" of the genus >= 2 map (paper §V-B with
+// Stage "homotopy-class candidates" of the genus >= 2 map (docs/method.md §2.10 with
 // the candidate sources of docs/method.md): which classes of maps
 // source -> target are worth solving. Internal to the pipeline
 // (src/map/hyperbolic_map.cpp).
@@ -152,7 +152,7 @@ class CutLifter {
   std::vector<int> bases_used_;
 };
 
-/// The candidate classes, in order (paper §V-B; docs/method.md):
+/// The candidate classes, in order (docs/method.md §2.10):
 /// (0) the overlay classes (the source's loops carried to the nearest
 /// target points, as posed and after rigid alignments; the identity for a
 /// remeshed copy), (1) a_i -> a'_i, b_i -> b'_i of the canonical polygon

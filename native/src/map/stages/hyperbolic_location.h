@@ -1,5 +1,5 @@
 #pragma once
-// Stage "location" of the genus >= 2 map (paper §VII: the outputs): every
+// Stage "location" of the genus >= 2 map (docs/method.md §2.9: the outputs): every
 // source vertex's image as a point on the target's input mesh (forward),
 // every target vertex's preimage on the source (inverse), and the same two
 // for the initial map (the "before" morph and UV transfer). One straight

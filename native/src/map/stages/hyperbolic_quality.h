@@ -1,5 +1,5 @@
 #pragma once
-// Stage "quality" of the genus >= 2 map (paper §VII-A): the optimum moved
+// Stage "quality" of the genus >= 2 map (docs/method.md §2.11): the optimum moved
 // into the fundamental polygon P, its image triangles, and its dilatation D'
 // per source face from the solver's local charts, flipped / degenerate
 // images of the source's faces and of its intrinsic Delaunay triangles.
@@ -43,7 +43,7 @@ MapInPolygon place_in_polygon(const TriMesh& source, const Connectivity& sc, con
                               const std::vector<hyperbolic::Mobius>& rho_edge, const SolverEdgeIndex& index,
                               int num_solver_edges, HyperbolicHarmonicResult& hr);
 
-/// D' of every source face (paper §VII-A) from the solver's local charts
+/// D' of every source face (docs/method.md §2.11) from the solver's local charts
 /// `edge_local` (one element per solver edge): side lengths and orientation
 /// in the chart of corner 0, exact to round-off however close to |z| = 1
 /// the triangle lies; needle-thin images from the affine map seen from the

@@ -1,5 +1,5 @@
 #pragma once
-// Stage "initial map" of the genus >= 2 map (paper §IV-B as adapted in
+// Stage "initial map" of the genus >= 2 map (docs/method.md §2.7 as adapted in
 // map/initial_map.h): the chosen class's "before" map and the default start
 // of its harmonic solve. Internal to src/map/hyperbolic_map.cpp.
 #include <atomic>

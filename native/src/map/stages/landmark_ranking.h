@@ -1,5 +1,5 @@
 #pragma once
-// Ranking of homotopy classes with landmarks (paper §VII-C), shared by the
+// Ranking of homotopy classes with landmarks (docs/method.md §2.10), shared by the
 // genus-1 and genus >= 2 pipelines: landmarks change which class is best,
 // so classes are ranked by their energy with the landmarks held the way the
 // returned map holds them (plain pins, else the barrier continuation, else

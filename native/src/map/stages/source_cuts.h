@@ -1,7 +1,7 @@
 #pragma once
 // Other systems of loops on the source ("cuts"), for lifting homotopy
-// classes from them (stages/homotopy_classes.h, paper §V with docs/method.md notes
-// on Torelli representatives in docs/): the loops at another base vertex,
+// classes from them (stages/homotopy_classes.h, docs/method.md §2.10; the Torelli
+// representatives in docs/handle_classes.md): the loops at another base vertex,
 // the default cut's canonical generators as words in that cut's, and its
 // handle basis. Source-only (~0.2 s per cut at 50k vertices), so prepared
 // on the second thread while the target is uniformized. Internal.

@@ -1,5 +1,5 @@
 #pragma once
-// The source's side of the genus >= 2 homotopy data (paper §V-A), which
+// The source's side of the genus >= 2 homotopy data (docs/method.md §2.6), which
 // needs no target: built on the second thread while the target is
 // uniformized. Internal to src/map/hyperbolic_map.cpp.
 #include <functional>
