@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <set>
 #include <cmath>
 #include <string>
 #include <thread>
@@ -27,6 +28,21 @@ struct Pair {
 const Pair& pair() {
   static const Pair p;
   return p;
+}
+
+// One way, no through-shape step (no run may follow, so the main run's
+// stages report their fractions as they are: 0.3 at the target's end, 0.4
+// at the source side's, 0.6 at the ranking's), every report kept in `seen`.
+SurfaceMapOptions one_way_reporting_to(std::vector<std::pair<std::string, double>>& seen, int threads = 0) {
+  SurfaceMapOptions o;
+  o.threads = threads;
+  o.homotopy.two_way = false;
+  o.homotopy.through_shape = false;
+  o.progress = [&seen](const std::string& s, double f) {
+    seen.emplace_back(s, f);
+    return true;
+  };
+  return o;
 }
 
 TEST(SurfaceMapConcurrency, TwoThreadsGiveTheMapOfOneAndCallBackOnTheCallingThread) {
@@ -194,13 +210,8 @@ TEST(SurfaceMapConcurrency, CancellingDuringParallelSectionsThrowsCancelled) {
 // its end, so a progress bar sat at 0% and a cancel waited for the flow.
 TEST(SurfaceMapConcurrency, TheTargetsFlowReportsEachStepAndCanBeCancelledInIt) {
   const Pair& p = pair();
-  SurfaceMapOptions o;
   std::vector<std::pair<std::string, double>> seen;
-  o.progress = [&](const std::string& s, double f) {
-    seen.emplace_back(s, f);
-    return true;
-  };
-  (void)surface_map(p.a, p.b, o);
+  (void)surface_map(p.a, p.b, one_way_reporting_to(seen));
   std::vector<double> during;  // the target stage's reports before its end
   for (const auto& [s, f] : seen) {
     if (s != "target uniformization") break;
@@ -216,13 +227,108 @@ TEST(SurfaceMapConcurrency, TheTargetsFlowReportsEachStepAndCanBeCancelledInIt) 
 
   // Cancelled at the flow's first step: no later stage runs.
   std::vector<std::string> stages;
-  SurfaceMapOptions c;
+  SurfaceMapOptions c = one_way_reporting_to(seen);
   c.progress = [&](const std::string& s, double f) {
     stages.push_back(s);
     return !(s == "target uniformization" && f < 0.3);
   };
   EXPECT_THROW(surface_map(p.a, p.b, c), Cancelled);
   EXPECT_EQ(stages, std::vector<std::string>{"target uniformization"});
+}
+
+// Session 30: the source side (loops, edge words, weights, handle basis and
+// the coarse copy for the ranking: 3-3.6 s without a progress point on a
+// 50k-vertex source at load 7) reports inside its stage, "source homotopy
+// data and weights" between the target's end (0.3) and its own (0.4): with
+// one thread at its steps and inside the coarse copy's sampling, with two
+// every 0.2 s while the calling thread waits for it, and once it is built.
+// A cancel there stops the map in that stage. Before, the stage reported at
+// its end only.
+TEST(SurfaceMapConcurrency, TheSourceSideReportsInsideItsStageAndCanBeCancelledThere) {
+  const Pair& p = pair();
+  const std::string stage = "source homotopy data and weights";
+  for (int threads : {1, 2}) {
+    SCOPED_TRACE("threads " + std::to_string(threads));
+    std::vector<std::pair<std::string, double>> seen;
+    const SurfaceMapOptions o = one_way_reporting_to(seen, threads);
+    (void)surface_map(p.a, p.b, o);
+    std::vector<double> inside;
+    for (const auto& [s, f] : seen)
+      if (s == stage && f < 0.4) inside.push_back(f);
+    ASSERT_FALSE(inside.empty()) << "no point inside the stage";
+    EXPECT_TRUE(std::is_sorted(inside.begin(), inside.end()));
+    EXPECT_GT(inside.front(), 0.3);
+    if (threads == 1) {
+      // Inside the coarse copy's sampling (the side's 0.35 .. 0.95).
+      EXPECT_TRUE(std::any_of(inside.begin(), inside.end(), [](double f) { return f > 0.3 + 0.08 * 0.35 && f < 0.3 + 0.08 * 0.95; }));
+      EXPECT_GE(inside.size(), 5u);
+    }
+    // The stage's first point inside it cancels: no later stage is reported.
+    std::vector<std::pair<std::string, double>> stages;
+    SurfaceMapOptions c = o;
+    c.progress = [&](const std::string& s, double f) {
+      stages.emplace_back(s, f);
+      return !(s == stage && f < 0.4);
+    };
+    EXPECT_THROW(surface_map(p.a, p.b, c), Cancelled);
+    ASSERT_FALSE(stages.empty());
+    EXPECT_EQ(stages.back().first, stage);
+    EXPECT_LT(stages.back().second, 0.4);
+    for (size_t k = 0; k + 1 < stages.size(); ++k) EXPECT_EQ(stages[k].first, "target uniformization");
+    // Cancelled inside the coarse copy's sampling (one thread: the point's place is known).
+    if (threads == 1) {
+      stages.clear();
+      c.progress = [&](const std::string& s, double f) {
+        stages.emplace_back(s, f);
+        return !(s == stage && f > 0.3 + 0.08 * 0.35 && f < 0.4);
+      };
+      EXPECT_THROW(surface_map(p.a, p.b, c), Cancelled);
+      ASSERT_FALSE(stages.empty());
+      EXPECT_EQ(stages.back().first, stage);
+      EXPECT_LT(stages.back().second, 0.3 + 0.08 * 0.95);
+    }
+  }
+}
+
+// Session 30: the ranking (a genus-2 run's longest stage: 20 s of 31 s with
+// a 50k-vertex source) reports its fraction by the classes solved, 0.4 to
+// its end at 0.6, and the full-resolution solves theirs, 0.6 to 0.68; a
+// cancel at the ranking's first point past 0.4 stops the map in the ranking.
+// Before, the ranking reported 0.4 at every Newton step until its end.
+TEST(SurfaceMapConcurrency, TheRankingsFractionMovesByTheClassesSolved) {
+  const Pair& p = pair();
+  for (int threads : {1, 2}) {
+    SCOPED_TRACE("threads " + std::to_string(threads));
+    std::vector<std::pair<std::string, double>> seen;
+    SurfaceMapOptions o = one_way_reporting_to(seen, threads);
+    o.homotopy.ranking_gap = -1;  // (every class solved on the coarse copy)
+    const SurfaceMapResult m = surface_map(p.a, p.b, o);
+    ASSERT_GE(m.ranking_coarse_solves, 3);
+    std::set<double> ranking;
+    for (const auto& [s, f] : seen)
+      if (s == "homotopy candidates" && f < 0.6) ranking.insert(f);
+    // A fraction for each class solved (first 0.4: none solved yet).
+    EXPECT_GE(ranking.size(), 3u);
+    EXPECT_DOUBLE_EQ(*ranking.begin(), 0.4);
+    const auto end = std::find(seen.begin(), seen.end(), std::make_pair(std::string("homotopy candidates"), 0.6));
+    ASSERT_NE(end, seen.end());
+    EXPECT_TRUE(std::none_of(seen.begin(), end, [](const auto& x) { return x.first == "full-resolution solve"; }));
+    for (auto r = end + 1; r != seen.end() && r->first == "full-resolution solve"; ++r) {
+      EXPECT_GE(r->second, 0.6);
+      EXPECT_LE(r->second, 0.68);
+    }
+    // Cancelled inside the ranking, after its first class: no later stage.
+    std::vector<std::string> stages;
+    SurfaceMapOptions c = o;
+    c.progress = [&](const std::string& s, double f) {
+      stages.push_back(s);
+      return !(s == "homotopy candidates" && f > 0.4 && f < 0.6);
+    };
+    EXPECT_THROW(surface_map(p.a, p.b, c), Cancelled);
+    ASSERT_FALSE(stages.empty());
+    EXPECT_EQ(stages.back(), "homotopy candidates");
+    EXPECT_EQ(std::count(stages.begin(), stages.end(), "full-resolution solve"), 0);
+  }
 }
 
 }  // namespace

@@ -1141,22 +1141,34 @@ TEST(SurfaceMapHandles, RescueByTheOtherDirectionReadsTheReasonNotTheWords) {
   EXPECT_EQ(r.fold_fallback.rfind("made with the short canonical generators, one way", 0), 0u) << r.fold_fallback;
 }
 
+// Options with no through-shape step, every progress report kept in `reports`.
+SurfaceMapOptions reporting_to(std::vector<std::pair<std::string, double>>& reports) {
+  SurfaceMapOptions o;
+  o.homotopy.through_shape = false;
+  o.progress = [&reports](const std::string& stage, double fraction) {
+    reports.emplace_back(stage, fraction);
+    return true;
+  };
+  return o;
+}
+
 // Session 28: the runs made after the main one (here the other direction,
 // asked for always) report their stages as "other runs (<stage>)", below a
 // full bar: the fractions stay under 1 until the map is made, and the last
 // report is ("done", 1). Before, the main run's last stage reported 1 and the
 // bar read full while the other direction was still being solved.
+// Session 30: and the bar moves during them. The main run's stages take half
+// the fractions when such runs may follow; each further run reports ("other
+// runs (starting)", f) and then its stages in half of what is left below
+// 0.98, its "done" at its share's end. Before, the main run's last stage
+// reported 0.98 and every other run's report was held there (the add-on's
+// bar sat at 83% for minutes, session 29).
 TEST(SurfaceMapHandles, TheBarIsFullOnlyWhenTheMapIsMade) {
   const TriMesh a = small_genus2_source(), b = small_genus2_target();
-  SurfaceMapOptions o;
+  std::vector<std::pair<std::string, double>> reports;
+  SurfaceMapOptions o = reporting_to(reports);
   o.homotopy.search.enabled = false;
   o.homotopy.two_way_ratio = 0;  // (the other direction always)
-  o.homotopy.through_shape = false;
-  std::vector<std::pair<std::string, double>> reports;
-  o.progress = [&](const std::string& stage, double fraction) {
-    reports.emplace_back(stage, fraction);
-    return true;
-  };
   const SurfaceMapResult m = surface_map(a, b, o);
   expect_valid_map(m, a, b);
   ASSERT_GE(reports.size(), 3u);
@@ -1173,10 +1185,81 @@ TEST(SurfaceMapHandles, TheBarIsFullOnlyWhenTheMapIsMade) {
                                         [](const auto& r) { return r.first.rfind("other runs (", 0) == 0; });
   EXPECT_NE(std::find_if(reports.begin(), first_other, [](const auto& r) { return r.first == "inverse location"; }),
             first_other);
+  const auto main_end = std::find_if(reports.begin(), reports.end(),
+                                     [](const auto& r) { return r.first == "inverse location"; });
+  ASSERT_NE(main_end, reports.end());
+  EXPECT_NEAR(main_end->second, 0.5, 1e-12) << "the main run's share";
+  // Each run after it: from where the bar is, to half of what is left below 0.98.
+  std::vector<std::pair<double, double>> runs;  // (starting, done)
+  for (auto r = main_end + 1; r != reports.end() - 1; ++r) {
+    ASSERT_EQ(r->first.rfind("other runs (", 0), 0u) << r->first;
+    EXPECT_GE(r->second, (r - 1)->second) << r->first;
+    EXPECT_LT(r->second, 0.98) << r->first;
+    if (r->first == "other runs (starting)") runs.emplace_back(r->second, -1.0);
+    if (r->first == "other runs (done)") {
+      ASSERT_FALSE(runs.empty());
+      runs.back().second = r->second;
+    }
+  }
+  ASSERT_GE(runs.size(), 1u) << "no run after the main one";
+  double end = main_end->second;
+  for (const auto& [from, to] : runs) {
+    EXPECT_DOUBLE_EQ(from, end) << "a run starts where the last one ended";
+    EXPECT_NEAR(to, from + 0.5 * (0.98 - from), 1e-12) << "its share";
+    EXPECT_GT(to, from);
+    end = to;
+  }
+  // Inside the other direction's run the bar moves too: more than its two ends.
+  std::set<double> seen;
+  for (auto r = main_end + 1; r != reports.end() - 1; ++r) seen.insert(r->second);
+  EXPECT_GT(seen.size(), runs.size() + 2);
+  // A cancel as another run starts stops the run there.
+  SurfaceMapOptions cancelling = o;
+  int other_stages = 0;
+  cancelling.progress = [&](const std::string& stage, double) {
+    other_stages += stage.rfind("other runs (", 0) == 0 && stage != "other runs (starting)";
+    return stage != "other runs (starting)";
+  };
+  EXPECT_THROW(surface_map(a, b, cancelling), Cancelled);
+  EXPECT_EQ(other_stages, 0);
+  // No run may follow (one way, no through-shape step): the main run's stages take the whole bar.
+  SurfaceMapOptions one_way = o;
+  one_way.homotopy.two_way = false;
+  reports.clear();
+  surface_map(a, b, one_way);
+  const auto last = std::find_if(reports.begin(), reports.end(), [](const auto& r) { return r.first == "inverse location"; });
+  ASSERT_NE(last, reports.end());
+  EXPECT_DOUBLE_EQ(last->second, 0.98);
   // A cancel at the last report still cancels.
   SurfaceMapOptions at_the_end = o;
   at_the_end.progress = [](const std::string& stage, double) { return stage != "done"; };
   EXPECT_THROW(surface_map(a, b, at_the_end), Cancelled);
+}
+
+// Session 30: a source too small for a coarse copy is ranked at full
+// resolution (0.4 .. 0.5), and its geometric classes and twist search, which
+// take longest there, report as the next stage, "full-resolution solve",
+// with a fraction that moves (0.5 .. 0.68). Before, they reported
+// "homotopy candidates" at the ranking's end for as long as they ran.
+TEST(SurfaceMapHandles, ASmallSourcesSearchReportsAsTheFullResolutionStage) {
+  // (The genus-2 block of docs/addon.md's screenshot, 268 vertices, onto a
+  // double torus: the ranking's class is poor, so the search runs.)
+  const TriMesh a = samples::cad_plate(2, 64, 1.5), b = samples::n_hole_torus(2, 20, true);
+  std::vector<std::pair<std::string, double>> reports;
+  SurfaceMapOptions o = reporting_to(reports);
+  o.homotopy.two_way = false;  // (no run follows: the main run's fractions as they are)
+  const SurfaceMapResult m = surface_map(a, b, o);
+  ASSERT_TRUE(m.homotopy_search.run || m.homotopy_search.geometric_classes > 0) << "no search at full resolution";
+  const auto ranked = std::find(reports.begin(), reports.end(), std::make_pair(std::string("homotopy candidates"), 0.5));
+  ASSERT_NE(ranked, reports.end()) << "the ranking's end";
+  std::set<double> search;
+  for (auto r = ranked + 1; r != reports.end() && r->first == "full-resolution solve"; ++r) {
+    EXPECT_GE(r->second, 0.5);
+    EXPECT_LE(r->second, 0.68);
+    search.insert(r->second);
+  }
+  EXPECT_GE(search.size(), 3u) << "the search's fraction does not move";
+  EXPECT_TRUE(std::none_of(ranked + 1, reports.end(), [](const auto& r) { return r.first == "homotopy candidates"; }));
 }
 
 // The small genus-2 pair (small_genus2_source, small_genus2_target) for the

@@ -13,6 +13,7 @@
 #include "../seconds_since.h"
 #include "../mesh/dijkstra.h"
 #include "../mesh/region_dual.h"
+#include "surfmap/error.h"
 
 namespace surfmap {
 std::vector<int> path_from_region_centre(const CoarseSource& cs, const Connectivity& fc, int v) {
@@ -58,8 +59,9 @@ struct VoronoiSampling {
     for (int v : tree.settled) region[v] = c;
   }
 
-  /// Seeds added farthest point first until there are `want`.
-  void sample_up_to(int want) {
+  /// Seeds added farthest point first until there are `want`; `keep_going`
+  /// (CoarseSourceOptions) every 64 seeds.
+  void sample_up_to(int want, const std::function<bool(double)>& keep_going) {
     if (seeds.empty()) grow(0);
     // Farthest point first: a max-heap of (distance, vertex), stale entries skipped.
     std::priority_queue<Item> far;
@@ -70,6 +72,8 @@ struct VoronoiSampling {
       far.pop();
       if (d != dist[v] || d == 0) continue;
       grow(v);
+      if (keep_going && seeds.size() % 64 == 0 && !keep_going(static_cast<double>(seeds.size()) / want))
+        throw Cancelled("the source's coarse copy cancelled");
       // Vertices whose distance dropped are re-queued lazily: push the
       // current value of every vertex the new region took.
       if (far.size() > static_cast<size_t>(4 * nv)) {
@@ -167,7 +171,7 @@ CoarseSource coarse_source(const TriMesh& fine, const Connectivity& fc, const Co
       cs.why = "no valid coarse copy below half the source's vertices";
       return cs;
     }
-    vs.sample_up_to(want);
+    vs.sample_up_to(want, options.keep_going);
     if (detail::region_dual_faces(fine.F, vs.region, static_cast<int>(vs.seeds.size()), faces))
       cc = detail::region_dual_surface(faces, static_cast<int>(vs.seeds.size()), fc.euler_characteristic());
     if (cc) break;

@@ -5,6 +5,7 @@
 // only holds what the stages hand each other.
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -161,6 +162,57 @@ class HyperbolicPipeline {
   std::promise<SourceSide> source_promise;
   std::future<SourceSide> source_future = source_promise.get_future();
   SourceSide ss;
+  // How much of the source side the second thread has built
+  // (build_source_side's steps), for the stage's progress points.
+  std::atomic<double> side_done{0};
+  // The ranking's and the full-resolution solves' progress inside their
+  // stages (session 30: the ranking is a genus-2 run's longest stage, 20 s
+  // of 31 s with a 50k-vertex source, and the other direction's of a
+  // 268-vertex block held the bar for 52 s): the classes solved of those
+  // to solve make 80% of the stage; the time after them (the class search,
+  // whose number of solves is not known ahead) the rest, 1 - 1 / (1 + t / T)
+  // of it, T the time the classes took (all of a stage with no classes
+  // planned: the small sources' geometric classes and twist search, T the
+  // ranking's). Fractions: the ranking 0.4 .. ranking_end (0.6; 0.5 without
+  // a coarse copy, when the search at full resolution takes longest), the
+  // full-resolution solves and searches .. 0.68, the initial map 0.7, the
+  // harmonic solve .. 0.8, the quality 0.83, the forward location 0.9. (Read
+  // by the progress hooks, on the calling thread.)
+  using Clock = std::chrono::steady_clock;
+  std::atomic<int> solved_in_stage{0}, to_solve_in_stage{1};
+  double ranking_end = 0.6;
+  Clock::time_point stage_start = Clock::now(), classes_done;
+  double classes_seconds = 1;
+  bool classes_all_done = false;
+  void count_in_stage(int to_solve) {
+    solved_in_stage = 0;
+    to_solve_in_stage = to_solve;
+    if (classes_all_done) classes_seconds = std::max(0.5, seconds_between(stage_start, classes_done));
+    stage_start = Clock::now();
+    classes_all_done = false;
+  }
+  double in_stage() {
+    const int total = to_solve_in_stage;
+    const double classes = total > 0 ? 0.8 : 0.0;
+    if (total > 0 && solved_in_stage < total) return classes * solved_in_stage / total;
+    if (!classes_all_done) {
+      classes_all_done = true;
+      classes_done = Clock::now();
+      if (total > 0) classes_seconds = std::max(0.5, seconds_between(stage_start, classes_done));
+    }
+    const double t = seconds_between(classes_done, Clock::now());
+    return classes + (1 - classes) * (1 - 1 / (1 + t / classes_seconds));
+  }
+  static double seconds_between(Clock::time_point a, Clock::time_point b) {
+    return std::chrono::duration<double>(b - a).count();
+  }
+  // A progress point inside the stage "source homotopy data and weights"
+  // (0.3 to 0.4; the candidate classes take its last 0.02): the side's
+  // fraction done. Throws Cancelled when the callback says stop.
+  void source_side_point(double side_fraction) const {
+    if (options.progress && !options.progress("source homotopy data and weights", 0.3 + 0.08 * side_fraction))
+      throw Cancelled("cancelled in the stage source homotopy data and weights");
+  }
   // The target: uniformization, canonical schema, deck group, polygon P.
   std::unique_ptr<UniformizedTarget> ut;
   CanonicalSchema tcs;
@@ -416,7 +468,11 @@ void HyperbolicPipeline::start_source_side() {
     const SingleThreadedBlas single_threaded_blas;  // (per thread: OpenMP's levels)
     std::vector<WeightedEdge> pattern;
     try {
-      SourceSide side = build_source_side(source, sc, options, own_weights, cuts.graph());
+      // (Its steps stop it once the calling thread has left: a cancel.)
+      SourceSide side = build_source_side(source, sc, options, own_weights, cuts.graph(), [this](double fraction) {
+        side_done = fraction;
+        return !leaving;
+      });
       cuts.set_default(side.sl.loops, side.scs.generators, other_default_generators(side));
       SolverEdgeIndex index;
       index_solver_edges(sc, side.idt, index);
@@ -485,12 +541,21 @@ void HyperbolicPipeline::uniformize_target() {
   deck_group = std::make_unique<DeckGroup>(ut->layout);
   polygon = std::make_unique<FundamentalPolygon>(ut->layout, *deck_group);
   stage_done("target uniformization", 0.3);
+  // Progress points (and a cancel) inside the source side, which takes
+  // seconds at 50k vertices (the coarse copy most): every 0.2 s while the
+  // second thread finishes it, else at its steps.
   if (threads > 1) {
+    while (source_future.wait_for(std::chrono::milliseconds(200)) != std::future_status::ready)
+      source_side_point(side_done);
     ss = source_future.get();
   } else {
-    ss = build_source_side(source, sc, options, own_weights, cuts.graph());
+    ss = build_source_side(source, sc, options, own_weights, cuts.graph(), [this](double fraction) {
+      source_side_point(fraction);
+      return true;
+    });
     cuts.set_default(ss.sl.loops, ss.scs.generators, other_default_generators(ss));
   }
+  source_side_point(1);  // (then the candidate classes)
 }
 
 // Issue 14 (docs/handle_classes.md): the source in its own uniformization
@@ -783,7 +848,7 @@ HyperbolicHarmonicOptions HyperbolicPipeline::fine_options(int k) const {
   allow_long_start_edges(k, o);
   if (options.homotopy.class_index == k && options.solve_progress)
     o.progress = [this](int it, double E, double g) {
-      return options.solve_progress(it, E, g) && (!options.progress || options.progress("harmonic solve", 0.43));
+      return options.solve_progress(it, E, g) && (!options.progress || options.progress("harmonic solve", 0.64));
     };
   return o;
 }
@@ -808,7 +873,10 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   ho.reduce_point = [this](Complex& z) { return polygon->reduce(z); };
   ho.max_start_edge_size = options.homotopy.search.start_edge_size;
   if (options.progress)
-    ho.progress = [this](int, double, double) { return options.progress("homotopy candidates", 0.4); };
+    ho.progress = [this](int, double, double) {
+      return options.progress("homotopy candidates", 0.4 + (ranking_end - 0.4) * in_stage());
+    };
+  count_in_stage(static_cast<int>(std::count(usable.begin(), usable.end(), 1)));
   coarse_failed.assign(ncand, 0);
   not_ranked.assign(ncand, 0);
   CoarseSource& cs = ss.cs;
@@ -823,6 +891,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
     for (int k = 0; k < ncand; ++k) all[k] = k;
     build_solver_data(all);
   }
+  ranking_end = cs.ok ? 0.6 : 0.5;
   fine_result.resize(ncand);
   full.assign(ncand, 0);
   order.resize(ncand);
@@ -841,8 +910,10 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
     o.tolerance = std::max(ho.tolerance, kRankingTolerance);
     allow_long_start_edges(k, o);
     if (progress) o.progress = progress;
-    if (!try_solve(k, [&] { return solve_from(ncv, level.class_edges[k], corigin, no_decks, o); }, coarse_result[k], true))
-      return;
+    const bool solved = try_solve(k, [&] { return solve_from(ncv, level.class_edges[k], corigin, no_decks, o); },
+                                  coarse_result[k], true);
+    ++solved_in_stage;
+    if (!solved) return;
     out.candidates[k].coarse_energy = coarse_result[k].energy;
     out.candidates[k].energy = coarse_result[k].energy;
     out.candidates[k].solved = false;
@@ -859,6 +930,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
     coarse_solve(first, nullptr);
     ++out.ranking_coarse_solves;
     rest = classes_that_can_win(first);
+    to_solve_in_stage = 1 + static_cast<int>(rest.size());
     out.ranking_coarse_solves += static_cast<int>(rest.size());
     CoarseRaceOptions ro;
     ro.threads = threads;
@@ -872,6 +944,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
   } else {
     for (int k = 0; k < ncand; ++k)
       if (usable[k]) rest.push_back(k);
+    to_solve_in_stage = static_cast<int>(rest.size());
     out.ranking_coarse_solves += static_cast<int>(rest.size());
     // Independent solves, on two threads (concurrency.h: only this thread
     // calls the progress callback, the other one sees a stop flag).
@@ -879,6 +952,7 @@ void HyperbolicPipeline::rank_on_coarse_copy() {
                  [&](int q, const std::atomic<bool>* stop) { coarse_solve(rest[q], stop); });
   }
   const std::vector<int> again = accept_long_starts(true);
+  to_solve_in_stage += static_cast<int>(again.size());
   out.ranking_coarse_solves += static_cast<int>(again.size());
   parallel_for(threads, static_cast<int>(again.size()),
                [&](int q, const std::atomic<bool>* stop) { coarse_solve(again[q], stop); });
@@ -1759,7 +1833,9 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
     auto solve_class = [&](int k) {
       auto r = std::make_unique<HyperbolicHarmonicResult>();
       bool snapped = false;
-      if (!try_solve(k, [&] { return solve_from_better_start(data[k].edges, fine_options(k), &snapped); }, *r)) return;
+      const bool solved = try_solve(k, [&] { return solve_from_better_start(data[k].edges, fine_options(k), &snapped); }, *r);
+      ++solved_in_stage;
+      if (!solved) return;
       if (snapped) out.candidates[k].description += "  [started from the snapped overlay]";
       out.candidates[k].energy = r->energy;
       out.candidates[k].solved = true;
@@ -1768,18 +1844,28 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
     };
     for (int k = 0; k < ncand; ++k)
       if (usable[k]) solve_class(k);
-    for (int k : accept_long_starts(false)) solve_class(k);
-    stage_done("homotopy candidates", 0.42);
+    const std::vector<int> again = accept_long_starts(false);
+    to_solve_in_stage += static_cast<int>(again.size());
+    for (int k : again) solve_class(k);
+    stage_done("homotopy candidates", ranking_end);
+    // The geometric classes and the twist search at full resolution (small
+    // sources) belong to the next stage.
+    if (options.progress)
+      ho.progress = [this](int, double, double) {
+        return options.progress("full-resolution solve", ranking_end + (0.68 - ranking_end) * in_stage());
+      };
+    count_in_stage(0);
     return;
   }
   FullSolvePick picked = pick_full_solves(out.candidates, order, usable, full_solves, options);
   full = std::move(picked.full);
   likely_class = picked.likely_class;
   release_unsolved_class_data();
-  stage_done("homotopy candidates", 0.42);
+  stage_done("homotopy candidates", 0.6);
   // The solves below belong to the next stage (ho's hook said "homotopy
-  // candidates", 0.4, after that stage's end at 0.42).
-  if (options.progress) ho.progress = [this](int, double, double) { return options.progress("full-resolution solve", 0.42); };
+  // candidates" up to 0.6, that stage's end).
+  if (options.progress)
+    ho.progress = [this](int, double, double) { return options.progress("full-resolution solve", 0.6 + 0.08 * in_stage()); };
   const CoarseSource& cs = ss.cs;
   const std::vector<int> settle = prolongation_order(cs, sc);
   std::vector<int> tasks;
@@ -1796,6 +1882,7 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   // the second thread after the initial map (the solves leave it idle).
   if (threads > 1 && letters_from_own_loops()) tasks.push_back(-2);
   if (threads > 1) tasks.push_back(-3);  // and the location's cover
+  count_in_stage(static_cast<int>(std::count_if(tasks.begin(), tasks.end(), [](int k) { return k >= 0; })));
   std::exception_ptr init_error;
   // Class k's coarse solution prolonged to the fine vertices (all at the
   // origin when its coarse solve failed).
@@ -1845,7 +1932,9 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
     HyperbolicHarmonicOptions o = fine_options(k);
     if (stop) o.progress = [stop](int, double, double) { return !*stop; };
     auto r = std::make_unique<HyperbolicHarmonicResult>();
-    if (!try_solve(k, [&] { return solve_from(nv, data[k].edges, z, deck, o); }, *r)) return;
+    const bool solved = try_solve(k, [&] { return solve_from(nv, data[k].edges, z, deck, o); }, *r);
+    ++solved_in_stage;
+    if (!solved) return;
     out.candidates[k].energy = r->energy;
     out.candidates[k].solved = true;
     fine_result[k] = std::move(r);
@@ -2034,7 +2123,7 @@ void HyperbolicPipeline::choose_with_landmarks() {
     HyperbolicHarmonicOptions lo;
     lo.tolerance = options.solve.tolerance;
     lo.max_iterations = options.solve.max_iterations;
-    lo.progress = [this](int, double, double) { return !options.progress || options.progress("landmarks", 0.44); };
+    lo.progress = [this](int, double, double) { return !options.progress || options.progress("landmarks", 0.68); };
     std::vector<int> lm_s, lm_t;
     std::vector<Complex> lm_p;
     for (const auto& [s, t] : options.landmarks)
@@ -2060,7 +2149,7 @@ void HyperbolicPipeline::choose_with_landmarks() {
     });
     if (best >= 0) out.chosen_candidate = best;
   }
-  stage_done("full-resolution solve", 0.44);
+  stage_done("full-resolution solve", 0.68);
 }
 
 // The automatic source weights' fallback (stages/source_weights_fallback.h):
@@ -2110,7 +2199,7 @@ bool map_class(HyperbolicPipeline& p) {
   const DistortionStats q0 =
       initial.distortion ? *initial.distortion : initial_map_distortion(p.source, *p.deck_group, initial);
   store_initial_distortion(q0, out);
-  p.stage_done("initial map", 0.45);
+  p.stage_done("initial map", 0.7);
 
   const SolveProgress solve_progress = chosen_solve_progress(options);
   // Issue 13: the second solve of a class after the own-edge weights
@@ -2173,7 +2262,7 @@ bool map_class(HyperbolicPipeline& p) {
   out.final_energy = hr.energy;
   out.candidates[k].energy = hr.energy;
   out.candidates[k].solved = true;
-  p.stage_done("harmonic solve", 0.7);
+  p.stage_done("harmonic solve", 0.8);
 
   // Issue 19 (session 23): the optimum moved into P and its distortion are
   // independent when the solver kept its local charts (Newton; the
@@ -2266,7 +2355,7 @@ bool map_class(HyperbolicPipeline& p) {
   out.source_image = placed.zp;
   if (static_cast<int>(hr.edge_local.size()) == static_cast<int>(cd.edges.size()))
     out.image_cover = image_cover(p.source, p.sc, hr.edge_local, p.solver_index);
-  p.stage_done("quality", 0.75);
+  p.stage_done("quality", 0.83);
 
   HyperbolicLocationInput li;
   li.source = &p.source, li.target = &p.target, li.sc = &p.sc, li.tc = &p.tc;

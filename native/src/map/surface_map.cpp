@@ -55,6 +55,87 @@ SurfaceMapResult other_run(const TriMesh& s, const TriMesh& t, const SurfaceMapO
   return surface_map(s, t, named_other_run(o));
 }
 
+// The largest fraction reported before the map is made (testing::surface_map).
+constexpr double kBeforeDone = 0.98;
+
+// The progress of one run and of the runs it makes after its own stages (the
+// other direction, the through-shape step's legs, the rescue's runs;
+// SurfaceMapOptions::progress). When such runs may follow, the run's stages
+// report kMainShare of their fractions; each run after them takes
+// kFurtherShare of what is left below kBeforeDone, from the largest fraction
+// reported so far: it reports ("other runs (starting)", that fraction) as it
+// starts (a cancel is seen there), then its stages as "other runs (<stage>)"
+// at its own fractions mapped into its share, its ("done", 1) at the share's
+// end. So the bar moves during every run and never goes back; when no run
+// follows, the last stage reports kMainShare and ("done", 1) follows.
+// Session 29 (double torus -> genus-2 block): the main run took 41 s, the
+// other runs 290 s after it, at a fraction held at 0.98.
+class RunProgress {
+ public:
+  static constexpr double kMainShare = 0.5, kFurtherShare = 0.5;
+  using Progress = std::function<bool(const std::string&, double)>;
+
+  explicit RunProgress(Progress outer) : outer_(std::move(outer)) {}
+
+  // `given` with its progress reporting the run's own stages at the run's
+  // share of each fraction (1 until runs_may_follow).
+  SurfaceMapOptions own_stages(const SurfaceMapOptions& given) const {
+    SurfaceMapOptions o = given;
+    if (outer_)
+      o.progress = [outer = outer_, state = state_](const std::string& stage, double fraction) {
+        return outer(stage, state->reach(state->share * std::clamp(fraction, 0.0, 1.0)));
+      };
+    return o;
+  }
+  void runs_may_follow() {
+    std::lock_guard<std::mutex> lock(state_->mutex);
+    state_->share = kMainShare;
+  }
+  // The runs after the run's stages, made by the public surface_map with their
+  // progress in the next share (a run whose options carry no progress reports none).
+  detail::MapFunction further_runs() const {
+    return [outer = outer_, state = state_](const TriMesh& s, const TriMesh& t, SurfaceMapOptions o) {
+      if (outer && o.progress) {
+        double from = 0;
+        {
+          std::lock_guard<std::mutex> lock(state->mutex);
+          from = state->reached;
+        }
+        const double to = from + kFurtherShare * std::max(0.0, kBeforeDone - from);
+        if (!outer("other runs (starting)", from)) throw Cancelled("cancelled before another run");
+        o.progress = [outer, state, from, to](const std::string& stage, double fraction) {
+          return outer("other runs (" + stage + ")", state->reach(from + (to - from) * std::clamp(fraction, 0.0, 1.0)));
+        };
+      }
+      return surface_map(s, t, o);
+    };
+  }
+
+ private:
+  struct State {
+    std::mutex mutex;  // (a run's solves may report from several threads)
+    double share = 1, reached = 0;
+    double reach(double fraction) {
+      std::lock_guard<std::mutex> lock(mutex);
+      reached = std::max(reached, fraction);
+      return fraction;
+    }
+  };
+  Progress outer_;
+  std::shared_ptr<State> state_ = std::make_shared<State>();
+};
+
+// Whether runs may follow a run's stages: what detail::two_way_map, the
+// rescue by the other direction and detail::through_shape_map each require
+// before their own conditions (genus >= 2, the default class, one of them on,
+// one Poincare chart).
+bool runs_may_follow(const SurfaceMapOptions& o, int genus) {
+  const HomotopyOptions& h = o.homotopy;
+  return genus >= 2 && h.class_index < 0 && h.source_images.size() == 0 && !h.reverse_class_only &&
+         h.given_class.empty() && (h.two_way || h.through_shape) &&
+         o.uniformization.face_charts != FaceCharts::Always;
+}
+
 // The per-face path's result (face_chart_map.h) as returned: no two-way run
 // or class through a generated shape (both compare classes, and this path
 // has one), no energy ratio (no class bounds), the stage table closed.
@@ -180,17 +261,16 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
 // The progress callback sees fractions that never decrease within a run:
 // each is raised to the largest given before (a stage's solves report the
 // stage's own fraction, which may come after a later stage's end was
-// reported, e.g. the full-resolution solves after the ranking's 0.42; and
+// reported, e.g. the full-resolution solves after the ranking's end; and
 // the automatic cuts' runs each count from 0). Calls are serialised, so
 // that two threads' reports arrive in order. The fractions stay at most
-// kBeforeDone until the run returns, which reports ("done", 1): the main
-// run's last stage reports 1, and the two-way run and the through-shape
-// step may still work for as long again after it (a genus-12 pair: ten
-// minutes at a full bar, session 28).
+// kBeforeDone until the run returns, which reports ("done", 1): the two-way
+// run and the through-shape step may still work for as long again after the
+// main run's last stage (a genus-12 pair: ten minutes at a full bar, session
+// 28); they report in their shares (RunProgress).
 SurfaceMapResult testing::surface_map(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
                                       const MapHooks& hooks) {
   if (!options.progress) return surface_map_run(source, target, options, hooks);
-  static constexpr double kBeforeDone = 0.98;
   struct Monotone {
     std::mutex mutex;
     double last = 0;
@@ -354,11 +434,13 @@ SurfaceMapResult surface_map_run(const TriMesh& source, const TriMesh& target, c
   }
 }
 
-SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& options,
+SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target, const SurfaceMapOptions& given,
                                    const testing::MapHooks& hooks, LeftForAfterTheRetry* left) {
   using testing::MapHooks;
   SurfaceMapResult out;
-  const detail::MapFunction map_of = other_run;
+  RunProgress progress(given.progress);
+  const SurfaceMapOptions options = progress.own_stages(given);
+  const detail::MapFunction map_of = progress.further_runs();
   const auto t_start = Clock::now();
   auto t_stage = t_start;
   // The stage table (issue 19): counters and the peak memory at every
@@ -392,6 +474,7 @@ SurfaceMapResult map_in_given_cuts(const TriMesh& source, const TriMesh& target,
     throw InputError("the source has genus " + std::to_string(sc.genus()) + " but the target has genus " +
                      std::to_string(tc.genus()) + "; both surfaces must have the same genus");
   out.genus = sc.genus();
+  if (runs_may_follow(options, out.genus)) progress.runs_may_follow();
   if (out.genus < 2 && !options.homotopy.class_words.empty())
     throw InputError("homotopy.class_words: genus >= 2 only (this pair has genus " + std::to_string(out.genus) +
                      "; a torus's class is named by its matrix, a sphere has one class)");

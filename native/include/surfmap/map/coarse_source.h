@@ -15,6 +15,7 @@
 // with the same deck element, so a coarse solution is a start for the fine
 // solve. That a path triangle around every coarse face is contractible is not
 // assumed: the caller checks that its product is the identity, exactly.
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,9 @@ struct CoarseSourceOptions {
   /// energies on it are within a few percent of the fine ones, see
   /// map/hyperbolic_map.cpp; a converged Newton solve there costs tens of ms).
   int target_vertices = 3000;
+  /// Called every 64 seeds of the sampling (the copy's longest part) with the
+  /// fraction of the seeds placed; false stops the copy with Cancelled.
+  std::function<bool(double)> keep_going;
 };
 
 struct CoarseSource {

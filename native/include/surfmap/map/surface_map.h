@@ -672,9 +672,14 @@ struct SurfaceMapOptions {
   /// return false to cancel (throws Cancelled). The fractions never
   /// decrease and stay below 1 (at most 0.98) until the map is made: the
   /// last call is ("done", 1). Runs made after the main one (the other
-  /// direction, the through-shape step's legs) report their stages as
-  /// "other runs (<stage>)" at the fraction reached, so a bar does not read
-  /// full while they work; the automatic retries report theirs as "retry
+  /// direction, the through-shape step's legs, the rescue's runs) report
+  /// ("other runs (starting)", f) as each starts, then their stages as
+  /// "other runs (<stage>)": when such runs may follow (genus >= 2, the
+  /// default class, two_way or through_shape on), the main run's stages
+  /// take the first half of the fractions and each further run half of what
+  /// is left below 0.98, so the fraction moves during every run (when none
+  /// follows, the main run's last stage reports 0.5 and ("done", 1) comes
+  /// next); the automatic retries report theirs as "retry
   /// after folds (<stage>)" and "retry with the short generators (<stage>)"
   /// (LoopOptions::fold_fallback, short_generators_fallback).
   std::function<bool(const std::string& stage, double fraction)> progress;

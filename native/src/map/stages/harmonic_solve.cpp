@@ -26,7 +26,7 @@ SolveProgress chosen_solve_progress(const SurfaceMapOptions& options) {
       const double decades = std::log(*first_gradient / std::max(options.solve.tolerance, 1e-300));
       done = decades > 0 ? std::clamp(std::log(*first_gradient / g) / decades, 0.0, 1.0) : 1.0;
     }
-    return !options.progress || options.progress("harmonic solve", 0.45 + 0.25 * done);
+    return !options.progress || options.progress("harmonic solve", 0.7 + 0.1 * done);
   };
 }
 

@@ -502,7 +502,7 @@ HyperbolicLocationResult locate_hyperbolic_map(const HyperbolicLocationInput& in
       last_face = found[i] = rf;
       out.forward[i] = point_on_input(*in.target, *in.tc, *in.target_loops, in.target_intrinsic, refined_face_origin, rf, b);
     }
-    stage_done("forward location", 0.85);
+    stage_done("forward location", 0.9);
   });
   return out;
 }

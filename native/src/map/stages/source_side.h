@@ -2,6 +2,7 @@
 // The source's side of the genus >= 2 homotopy data (docs/method.md §2.6), which
 // needs no target: built on the second thread while the target is
 // uniformized. Internal to src/map/hyperbolic_map.cpp.
+#include <functional>
 #include <vector>
 
 #include "surfmap/geometry/intrinsic_delaunay.h"
@@ -28,7 +29,11 @@ struct SourceSide {
 /// when options.homotopy.coarse_vertices > 0 and min(that, #V / 4) >= 500.
 /// Throws SolveError when the intrinsic Delaunay flips do not finish.
 /// `graph`: the source's greedy graph when the caller has one (SourceCuts).
+/// `step` (optional): called between the side's parts and inside the coarse
+/// copy's sampling with the fraction of the side done (about its share of
+/// the time at 50k vertices); false stops the side with Cancelled.
 SourceSide build_source_side(const TriMesh& source, const Connectivity& sc, const SurfaceMapOptions& options,
-                             bool own_weights, const GreedyGraph* graph = nullptr);
+                             bool own_weights, const GreedyGraph* graph = nullptr,
+                             const std::function<bool(double)>& step = nullptr);
 
 }  // namespace surfmap::detail
