@@ -458,3 +458,59 @@ def test_joint_positions_beyond_the_rim_are_kept_inside_with_the_rim_sliding():
     inner = np.flatnonzero(~on_b)
     assert all(open_untangle._loop_parameter(T, fw["face"][v], fw["barycentric"][v]) is None for v in inner)
     assert not np.any((np.abs(fw["position"][inner, 0]) < 1 / 6) & (fw["position"][inner, 1] < -0.5))
+
+
+def rim_patch(rim_xy, n=8):
+    """The n x n sheet as one patch of the joint step: its boundary loop held at the points rim_xy(t),
+    t = 0 .. 1 along the loop (the source's loop runs counter-clockwise, surface on its left), its
+    interior vertices free, each starting at the average of its neighbours (open_untangle._averaged).
+    Returns (S, faces, verts, xy, free)."""
+    V, F = sheet(n)
+    S = open_double._Side(V, F, "source")
+    loop = S.loops[0]
+    xy = np.zeros((S.n, 2))
+    xy[loop] = rim_xy(np.arange(len(loop)) / len(loop))
+    on_b = np.zeros(S.n, bool)
+    on_b[loop] = True
+    free = np.flatnonzero(~on_b)
+    return S, np.arange(len(S.F)), np.arange(S.n), open_untangle._averaged(S.F, np.arange(S.n), xy, free), free
+
+
+def ellipse(t):
+    return np.stack([1.5 * np.cos(2 * np.pi * t), np.sin(2 * np.pi * t)], axis=1)
+
+
+def figure_eight(t):
+    """A figure eight (sin, sin cos of 2 pi t): its right lobe runs clockwise, its left one,
+    stretched 1.5 times, counter-clockwise, so the area it encloses is positive."""
+    x, y = np.sin(2 * np.pi * t), np.sin(2 * np.pi * t) * np.cos(2 * np.pi * t)
+    return np.stack([x, y], axis=1) * np.where(x < 0, 1.5, 1.0)[:, None]
+
+
+@pytest.mark.parametrize("rim", ["ellipse", "mirrored ellipse", "figure eight"])
+def test_a_rim_that_admits_no_unfolded_patch_is_refused_without_the_rounds(rim):
+    """The joint step's patch with its rim held (open_untangle._untangled_positions): on an ellipse
+    it unfolds (every face positive). A rim running clockwise (the ellipse mirrored: it encloses a
+    negative area) or a figure eight whose larger lobe runs counter-clockwise (positive area, but
+    the smaller lobe winds -1 about its points) admits no placing with every face positive (each
+    positive face adds 1 to the number of times a point is covered, which is the rim's winding
+    number about it): the rounds, run anyway (refuse=False), end with faces turned, and the rim
+    check (_rim_refuses) says so at once, with no evaluation of the energy."""
+    shape = {"ellipse": ellipse, "mirrored ellipse": lambda t: ellipse(t) * [-1, 1], "figure eight": figure_eight}[rim]
+    S, faces, verts, xy, free = rim_patch(shape)
+    Fi = S.F[faces]
+    why = open_untangle._rim_refuses(Fi, xy)
+    ran, checked = {}, {}
+    out = open_untangle._untangled_positions(S, faces, verts, xy, free, refuse=False, stats=ran)
+    if rim == "ellipse":
+        assert why == "" and out is not None
+        X = xy.copy()
+        X[free] = out[0]
+        Q = X[Fi]
+        signed = (Q[:, 1, 0] - Q[:, 0, 0]) * (Q[:, 2, 1] - Q[:, 0, 1]) - (Q[:, 1, 1] - Q[:, 0, 1]) * (Q[:, 2, 0] - Q[:, 0, 0])
+        assert signed.min() > 0
+        return
+    assert why.startswith("the rim encloses the area -" if rim == "mirrored ellipse" else "the rim winds -1 times")
+    assert out is None and ran["rounds"][-1][1] > 0 and ran["evaluations"] > 0
+    assert open_untangle._untangled_positions(S, faces, verts, xy, free, stats=checked) is None
+    assert checked["evaluations"] == 0 and checked["refused"] == why
