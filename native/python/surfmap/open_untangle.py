@@ -28,7 +28,8 @@ because the neighbours' images are folded too) are untangled jointly: the interi
 1, 2, ... PATCH_RINGS rings of the cluster moved together in the target's chart, where an untangling
 energy (finite for turned faces, a barrier against turning once none is) is least, the ring around
 them held; kept only when nothing in the patch is turned afterwards and every point lands inside the
-target. Folds held by the boundary's images (a face whose rim corners' images cut across a reflex
+target. A patch whose held rim admits no unfolded placing (it encloses no positive area, or winds
+negatively about a point: _rim_refuses) is refused before the minimization. Folds held by the boundary's images (a face whose rim corners' images cut across a reflex
 corner of the other rim, so that no interior position unfolds it) get their boundary corners slid
 along the other rim, between their loop neighbours' images, then the joint step again
 (_slide_boundary_corners; docs/history/open_surfaces.md "Session 27 (open27)"). Folds the joint step cannot
