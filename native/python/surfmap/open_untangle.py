@@ -28,7 +28,8 @@ because the neighbours' images are folded too) are untangled jointly: the interi
 1, 2, ... PATCH_RINGS rings of the cluster moved together in the target's chart, where an untangling
 energy (finite for turned faces, a barrier against turning once none is) is least, the ring around
 them held; kept only when nothing in the patch is turned afterwards and every point lands inside the
-target. Folds held by the boundary's images (a face whose rim corners' images cut across a reflex
+target. A patch whose held rim admits no unfolded placing (it encloses no positive area, or winds
+negatively about a point: _rim_refuses) is refused before the minimization. Folds held by the boundary's images (a face whose rim corners' images cut across a reflex
 corner of the other rim, so that no interior position unfolds it) get their boundary corners slid
 along the other rim, between their loop neighbours' images, then the joint step again
 (_slide_boundary_corners; docs/history/open_surfaces.md "Session 27 (open27)"). Folds the joint step cannot
@@ -423,8 +424,107 @@ def _averaged(F, verts, xy, free):
     return out
 
 
+#: The joint step's minimizer (_untangled_positions): "newton" (the default: Newton steps on the
+#: patch's sparse Hessian, each face's 4 x 4 Hessian in its Jacobian made positive semi-definite,
+#: with a backtracking line search and the rim's parameters kept in their bounds) or "lbfgs"
+#: (scipy's L-BFGS-B, the step of sessions 25-29, which took thousands of evaluations per round on
+#: the artery's patches; docs/open_surfaces.md "The half's solve").
+JOINT_METHOD = "lbfgs"
+
+
+def _newton(fun, z, lo, hi, maxiter=200, ftol=2.2e-9, gtol=1e-5, done=None):
+    """Minimizes fun(z, order) (order 0: value; 1: value, gradient; 2: value, gradient, sparse
+    Hessian, positive semi-definite) from z within the bounds lo <= z <= hi (arrays, +-inf where
+    free): projected Newton steps (the variables at a bound that the gradient pushes outwards held),
+    a backtracking (Armijo) line search on the clipped step. Stops on L-BFGS-B's tests (the relative
+    decrease below ftol, the projected gradient below gtol), when the line search finds no
+    decrease, or when done(z) holds after a step. Returns z."""
+    from scipy.sparse import identity
+    from scipy.sparse.linalg import spsolve
+    f, g, H = fun(z, 2)
+    for _ in range(maxiter):
+        at_lo, at_hi = z <= lo, z >= hi
+        if np.max(np.abs(z - np.clip(z - g, lo, hi)), initial=0.0) <= gtol:
+            break
+        held = (at_lo & (g > 0)) | (at_hi & (g < 0))
+        move = np.flatnonzero(~held)
+        Hm = H[move][:, move].tocsc()
+        diag = Hm.diagonal()
+        delta = 1e-12 * max(float(np.mean(np.abs(diag))), 1e-300)
+        p = np.zeros_like(z)
+        for _ in range(6):
+            with np.errstate(all="ignore"):
+                step = spsolve(Hm + delta * identity(len(move), format="csc"), -g[move])
+            step = np.atleast_1d(step)
+            if np.all(np.isfinite(step)) and float(step @ g[move]) < 0:
+                break
+            delta *= 1e3
+        else:
+            step = -g[move]
+        p[move] = step
+        t, accepted = 1.0, False
+        for _ in range(60):
+            zn = np.clip(z + t * p, lo, hi)
+            fn = fun(zn, 0)
+            if np.isfinite(fn) and fn <= f + 1e-4 * float(g @ (zn - z)):
+                accepted = True
+                break
+            t *= 0.5
+        if not accepted:
+            break
+        decrease = f - fn
+        z = zn
+        if decrease <= ftol * max(abs(f), abs(fn), 1.0) or (done is not None and done(z)):
+            break
+        f, g, H = fun(z, 2)
+    return z
+
+
+def _rim_refuses(Fi, X):
+    """Why no placing of a patch's free vertices leaves every face positive, its rim held: '' when
+    nothing proves it. Fi: the patch's faces (rows of X); X: planar positions, the rim's held (the
+    rim's edges: those of a face whose reverse is in no face, joining held vertices only).
+    Each positive triangle adds 1 to the number of times the map covers a point, so wherever the
+    faces are all positive that count is >= 0 everywhere; it is the rim's winding number about the
+    point, which the free vertices do not change, and so is the total area (the integral of the
+    winding number; the faces' signed areas add up to it whatever the free vertices do). Refused:
+    the total area <= 0, or a winding number < 0 on either side of a rim edge's midpoint (the
+    rim edges' sides point into every cell of the plane the rim bounds that reaches the middle of
+    one of its edges; a point within 1e-9 of the rim's scale of an edge's line is not read)."""
+    Q = X[Fi]
+    signed = ((Q[:, 1, 0] - Q[:, 0, 0]) * (Q[:, 2, 1] - Q[:, 0, 1]) - (Q[:, 1, 1] - Q[:, 0, 1]) * (Q[:, 2, 0] - Q[:, 0, 0]))
+    if not float(np.sum(signed)) > 0:
+        return f"the rim encloses the area {0.5 * float(np.sum(signed)):.3g}"
+    edges = np.concatenate([Fi[:, [0, 1]], Fi[:, [1, 2]], Fi[:, [2, 0]]])
+    n = len(X)
+    code = edges[:, 0] * n + edges[:, 1]
+    rim = edges[~np.isin(code, edges[:, 1] * n + edges[:, 0])]
+    if len(rim) == 0:
+        return ""
+    A, B = X[rim[:, 0]], X[rim[:, 1]]
+    d = B - A
+    length = np.linalg.norm(d, axis=1)
+    scale = float(length.max())
+    if not scale > 0:
+        return ""
+    side = np.stack([-d[:, 1], d[:, 0]], axis=1) / np.maximum(length, 1e-300)[:, None] * (1e-6 * length)[:, None]
+    mid = 0.5 * (A + B)
+    P = np.concatenate([mid + side, mid - side])
+    a, b = A[None] - P[:, None], B[None] - P[:, None]
+    cross = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    dot = np.einsum("pkj,pkj->pk", a, b)
+    # (distance of each point to each edge's line, to leave out points on or next to an edge)
+    near = np.abs(cross) / np.maximum(length[None], 1e-300) <= 1e-9 * scale
+    turn = np.arctan2(cross, dot).sum(axis=1) / (2 * np.pi)
+    read = ~np.any(near & (dot <= 0), axis=1)
+    winding = np.rint(turn[read])
+    if len(winding) and float(winding.min()) < 0:
+        return f"the rim winds {int(winding.min())} times about a point beside it"
+    return ""
+
+
 def _untangled_positions(S, faces, verts, xy, free, rounds=12, lam=1.0, polish=2, polish_lam=0.01, rims=None,
-                         walls=None, wall_margin=0.1, wall_weight=100.0):
+                         walls=None, wall_margin=0.1, wall_weight=100.0, method=None, stats=None, refuse=True):
     """Planar positions of `free` (among `verts`, at xy now; the others held) minimizing the
     untangling energy of the patch `faces` of S: per face, area-weighted, with J its Jacobian from
     the source triangle (in its own plane) to the chart, (|J|^2 / 2 + lam (det J^2 + 1) / 2) /
@@ -438,8 +538,19 @@ def _untangled_positions(S, faces, verts, xy, free, rounds=12, lam=1.0, polish=2
     target's rim within its bounds (no rims: no parameters, an empty array).
     walls (_walls): a penalty wall_weight * (patch area) / delta^2 * max(0, delta - sd)^2 per free
     vertex, delta = wall_margin times the patch's median image edge, keeps the free vertices inside
-    the chart's faces; None when one ends outside them."""
+    the chart's faces; None when one ends outside them.
+    method: the minimizer of each round (JOINT_METHOD when None; "newton": _newton on the energy's
+    gradient and Hessian, the faces' Hessians in J projected onto the positive semi-definite ones;
+    "lbfgs": scipy's L-BFGS-B on the gradient). stats (a dict): gets "evaluations" (the energy's
+    evaluations, each with its gradient, and with the Newton step's line search the values alone),
+    "rounds" (per round the evaluations so far and the faces turned after it) and, when the rim
+    is refused, "refused" (why). refuse (default True): a held rim that admits no unfolded placing
+    (_rim_refuses) returns None at once, without the rounds."""
     from scipy.optimize import minimize
+    from scipy.sparse import coo_matrix
+    method = JOINT_METHOD if method is None else method
+    if method not in ("newton", "lbfgs"):
+        raise ValueError(f"unknown joint step method {method!r}: 'newton' or 'lbfgs'")
     pos = {int(v): i for i, v in enumerate(verts)}
     Fi = np.array([[pos[int(x)] for x in S.F[f]] for f in faces])
     P = S.V[S.F[faces]]
@@ -461,6 +572,35 @@ def _untangled_positions(S, faces, verts, xy, free, rounds=12, lam=1.0, polish=2
     slid = np.array([pos[int(v)] for v in rims["sliding"]], dtype=np.int64) if rims else np.zeros(0, np.int64)
     m = 2 * int(is_free.sum())
     scale, margin, mu = [1.0], [0.0], [0.0]
+    count = [0]
+    k = len(faces)
+    # The gradient gathered onto the vertices (rows: patch vertices; columns: face corners) with
+    # one sparse product instead of np.add.at.
+    gather = coo_matrix((np.ones(3 * k), (Fi.T.ravel(), np.arange(3 * k))), shape=(len(verts), 3 * k)).tocsr()
+    # d J / d (corner c, coordinate i): J_ij = sum_c q_c,i B_cj.
+    Bc = np.stack([-(Rinv[:, 0] + Rinv[:, 1]), Rinv[:, 0], Rinv[:, 1]], axis=1)    # (k, 3, 2)
+    M = np.zeros((k, 4, 6))
+    for i in range(2):
+        for j in range(2):
+            for c in range(3):
+                M[:, 2 * i + j, 2 * c + i] = Bc[:, c, j]
+    # Each face corner's unknowns: a free vertex's two coordinates, a sliding vertex's parameter.
+    free_index = np.full(len(verts), -1, dtype=np.int64)
+    free_index[is_free] = np.arange(int(is_free.sum()))
+    slid_index = np.full(len(verts), -1, dtype=np.int64)
+    slid_index[slid] = np.arange(len(slid))
+    corner_dof = np.full((k, 6), -1, dtype=np.int64)
+    for c in range(3):
+        fr, sl = free_index[Fi[:, c]], slid_index[Fi[:, c]]
+        for i in range(2):
+            corner_dof[:, 2 * c + i] = np.where(fr >= 0, 2 * fr + i, np.where(sl >= 0, m + sl, -1))
+    pair_rows = np.repeat(corner_dof, 6, axis=1).reshape(k, 6, 6)
+    pair_cols = np.tile(corner_dof, (1, 6)).reshape(k, 6, 6)
+    pair_ok = (pair_rows >= 0) & (pair_cols >= 0)
+    n_dof = m + len(slid)
+    HD = np.zeros((4, 4))
+    HD[0, 3] = HD[3, 0] = 1.0
+    HD[1, 2] = HD[2, 1] = -1.0
 
     def put(z):
         X = X0.copy()
@@ -477,7 +617,8 @@ def _untangled_positions(S, faces, verts, xy, free, rounds=12, lam=1.0, polish=2
         E = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]], axis=2)    # columns q1 - q0, q2 - q0
         return E @ Rinv
 
-    def energy(z, eps, lam=lam):
+    def energy(z, eps, lam=lam, order=1):
+        count[0] += 1
         X, der = put(z)
         J = jac(X)
         D = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
@@ -485,29 +626,71 @@ def _untangled_positions(S, faces, verts, xy, free, rounds=12, lam=1.0, polish=2
         # (D + r) / 2 without the cancellation for D << 0
         with np.errstate(divide="ignore", invalid="ignore"):   # np.where evaluates both
             chi = np.where(D >= 0, 0.5 * (D + r), 0.5 * eps * eps / (r - D))
-        dchi = 0.5 * (1 + D / r)
         num = 0.5 * np.einsum("ijk,ijk->i", J, J) + 0.5 * lam * (D * D + 1)
-        f = num / chi
+        value = float(np.dot(area, num / chi))
+        if walls is not None:
+            d, dd = walls(X[is_free] * scale[0])
+            short = np.maximum(0.0, margin[0] - d / scale[0])
+            value += mu[0] * float(np.sum(short * short))
+        if order == 0:
+            return value
+        dchi = 0.5 * (1 + D / r)
         # d f / dJ = J / chi + (lam D / chi - num dchi / chi^2) cof(J), cof(J) = d det J / dJ
         cof = np.stack([np.stack([J[:, 1, 1], -J[:, 1, 0]], 1), np.stack([-J[:, 0, 1], J[:, 0, 0]], 1)], 1)
         G = J / chi[:, None, None] + (lam * D / chi - num * dchi / chi ** 2)[:, None, None] * cof
         G = G * area[:, None, None]
         dE = G @ np.transpose(Rinv, (0, 2, 1))   # d energy / d (q1 - q0, q2 - q0)
-        grad = np.zeros_like(X)
-        np.add.at(grad, Fi[:, 1], dE[:, :, 0])
-        np.add.at(grad, Fi[:, 2], dE[:, :, 1])
-        np.add.at(grad, Fi[:, 0], -dE[:, :, 0] - dE[:, :, 1])
-        value = float(np.dot(area, f))
+        grad = gather @ np.concatenate([-dE[:, :, 0] - dE[:, :, 1], dE[:, :, 0], dE[:, :, 1]])
         if walls is not None:
-            d, dd = walls(X[is_free] * scale[0])
-            short = np.maximum(0.0, margin[0] - d / scale[0])
-            value += mu[0] * float(np.sum(short * short))
             grad[is_free] -= 2 * mu[0] * short[:, None] * dd
         g = grad[is_free].ravel()
         if len(slid):
             g = np.concatenate([g, np.einsum("ij,ij->i", grad[slid], der)])
-        return value, g
+        if order == 1:
+            return value, g
+        # The Hessian of f(J) = num / chi (J flattened row by row; gD = cof flattened = d det / dJ,
+        # HD = d^2 det / dJ^2): d^2 num / chi - (d num gD' + gD d num') chi' / chi^2
+        # + num (2 chi'^2 / chi^3 - chi'' / chi^2) gD gD' - num chi' / chi^2 HD.
+        j = J.reshape(k, 4)
+        gD = cof.reshape(k, 4)
+        dnum = j + (lam * D)[:, None] * gD
+        ddchi = 0.5 * eps * eps / r ** 3
+        outer = gD[:, :, None] * gD[:, None, :]
+        Hf = ((np.eye(4)[None] + lam * (outer + D[:, None, None] * HD[None])) / chi[:, None, None]
+              - (dnum[:, :, None] * gD[:, None, :] + gD[:, :, None] * dnum[:, None, :]) * (dchi / chi ** 2)[:, None, None]
+              + (num * (2 * dchi ** 2 / chi ** 3 - ddchi / chi ** 2))[:, None, None] * outer
+              - (num * dchi / chi ** 2)[:, None, None] * HD[None])
+        Hf = 0.5 * (Hf + np.transpose(Hf, (0, 2, 1)))
+        lam_, vec = np.linalg.eigh(Hf)
+        Hf = np.einsum("kab,kb,kcb->kac", vec, np.maximum(lam_, 0.0), vec)
+        Hl = np.einsum("kai,kab,kbj->kij", M, Hf, M) * area[:, None, None]     # (k, 6, 6) in the corners
+        coef = np.ones((k, 6))
+        if len(slid):
+            for c in range(3):
+                sl = slid_index[Fi[:, c]]
+                on = sl >= 0
+                coef[on, 2 * c] = der[sl[on], 0]
+                coef[on, 2 * c + 1] = der[sl[on], 1]
+        data = (Hl * coef[:, :, None] * coef[:, None, :])[pair_ok]
+        rows, cols = pair_rows[pair_ok], pair_cols[pair_ok]
+        if walls is not None:
+            hit = np.flatnonzero(short > 0)
+            ww = 2 * mu[0] * dd[hit][:, :, None] * dd[hit][:, None, :]
+            r2 = 2 * hit[:, None, None] + np.arange(2)[None, :, None] + np.zeros((1, 1, 2), dtype=np.int64)
+            c2 = 2 * hit[:, None, None] + np.arange(2)[None, None, :] + np.zeros((1, 2, 1), dtype=np.int64)
+            data, rows, cols = np.r_[data, ww.ravel()], np.r_[rows, r2.ravel()], np.r_[cols, c2.ravel()]
+        H = coo_matrix((data, (rows, cols)), shape=(n_dof, n_dof)).tocsr()
+        return value, g, H
 
+    # Without sliding vertices the patch's rim is held (the free vertices are interior to the patch:
+    # their whole stars are in it), and some rims admit no unfolded placing at all (_rim_refuses):
+    # then no round can end unfolded, and none is run.
+    if refuse and not len(slid):
+        refused = _rim_refuses(Fi, X0)
+        if refused:
+            if stats is not None:
+                stats.update(evaluations=0, rounds=[], refused=refused)
+            return None
     # The chart scaled so that the faces' median |det J| is 1 (eps is relative to it).
     J = jac(X0)
     unit_scale = np.sqrt(max(float(np.median(np.abs(J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]))), 1e-300))
@@ -519,31 +702,47 @@ def _untangled_positions(S, faces, verts, xy, free, rounds=12, lam=1.0, polish=2
         mu[0] = wall_weight * float(area.sum()) / max(margin[0] ** 2, 1e-300)
     z = X0[is_free].ravel()
     bounds = None
+    lo, hi = np.full(n_dof, -np.inf), np.full(n_dof, np.inf)
     if len(slid):
         z = np.concatenate([z, rims["s"]])
         bounds = [(None, None)] * m + list(rims["bounds"])
+        lo[m:], hi[m:] = np.array(rims["bounds"]).T
+
+    def least(z, eps, lam, done=None):
+        if method == "newton":
+            return _newton(lambda y, order: energy(y, eps, lam, order), np.clip(z, lo, hi), lo, hi, done=done)
+        return minimize(energy, z, args=(eps, lam), jac=True, method="L-BFGS-B", bounds=bounds,
+                        options={"maxiter": 2000}).x
+
+    def dets(z):
+        J = jac(put(z)[0])
+        return J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
 
     def least_det(z):
-        J = jac(put(z)[0])
-        return float(np.min(J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]))
+        return float(np.min(dets(z)))
     eps = 1.0
     for _ in range(rounds):
-        res = minimize(energy, z, args=(eps,), jac=True, method="L-BFGS-B", bounds=bounds, options={"maxiter": 2000})
-        z = res.x
+        # (Newton: the round ends as soon as no face is turned; the polish below starts from there.)
+        z = least(z, eps, lam, done=lambda y: least_det(y) > 0)
+        if stats is not None:
+            stats.setdefault("rounds", []).append((count[0], int(np.sum(dets(z) <= 0))))
         if least_det(z) > 0:
             break
         eps *= 0.1
     else:
+        if stats is not None:
+            stats["evaluations"] = count[0]
         return None
     # Unfolded: the same energy with eps near 0 (the barrier form, which lowers the distortion; the
     # first unfolded point is often a sliver at the edge of the feasible set), kept while unfolded.
     for _ in range(polish):
         eps *= 1e-3
-        res = minimize(energy, z, args=(eps, polish_lam), jac=True, method="L-BFGS-B", bounds=bounds,
-                       options={"maxiter": 2000})
-        if least_det(res.x) <= 0:
+        got = least(z, eps, polish_lam)
+        if least_det(got) <= 0:
             break
-        z = res.x
+        z = got
+    if stats is not None:
+        stats["evaluations"] = count[0]
     p = z[:m].reshape(-1, 2) * unit_scale
     if walls is not None and len(p) and np.min(walls(p)[0]) <= 0:
         return None
@@ -694,8 +893,6 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
     moved vertices (sorted, each once)."""
     from scipy.optimize import linprog, minimize
 
-    from .open_double import _dilatation as dilatation
-
     on_b = np.zeros(S.n, dtype=bool)
     on_b[np.concatenate(S.loops)] = True
     ear = np.all(on_b[S.F], axis=1)
@@ -763,17 +960,30 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
         if res.status != 0 or res.x[2] <= 1e-12 * scale:
             return False
         centre, depth = res.x[:2], res.x[2]
-        # The star's source triangles in their own planes, for D' of each image (open_double's
-        # _dilatation, here in the chart).
+        # D' of each star face's image (open_double._dilatation's, here in the chart): the image's
+        # edges E = [a - p, b - p] against the source triangle's edges, whose Gram matrix G is
+        # fixed, |J|^2 = tr(E G^-1 E') and det J = det E / sqrt(det G) with J = E (source frame)^-1.
         src = S.V[np.stack([np.full(len(ab), v), ab[:, 0], ab[:, 1]], axis=1)]
+        s1, s2 = src[:, 1] - src[:, 0], src[:, 2] - src[:, 0]
+        g11, g12, g22 = np.einsum("ij,ij->i", s1, s1), np.einsum("ij,ij->i", s1, s2), np.einsum("ij,ij->i", s2, s2)
+        det_g = g11 * g22 - g12 * g12
+        root_g = np.sqrt(np.maximum(det_g, 0.0))
+
+        def squared_dilatation(p):
+            e1, e2 = a - p, b - p
+            with np.errstate(divide="ignore", invalid="ignore"):
+                fro = (g22 * np.einsum("ij,ij->i", e1, e1) - 2 * g12 * np.einsum("ij,ij->i", e1, e2)
+                       + g11 * np.einsum("ij,ij->i", e2, e2)) / det_g
+                det = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) / root_g
+                t = fro / det   # D' + 1 / D'
+                d = 0.5 * (t + np.sqrt(np.maximum(t * t - 4, 0)))
+            d[~np.isfinite(d)] = np.inf
+            return float(np.sum(d * d))
 
         def worst(p):
             if np.min(dist(p)) <= 0.05 * depth:
                 return np.inf
-            Q = np.zeros((len(ab), 3, 3))
-            Q[:, 0, :2], Q[:, 1, :2], Q[:, 2, :2] = p, a, b
-            return float(np.sum(dilatation(src.reshape(-1, 3), Q.reshape(-1, 3), tri) ** 2))
-        tri = np.arange(3 * len(ab)).reshape(-1, 3)
+            return squared_dilatation(p)
         # From the kernel's deepest point, the position of least distortion of the star (the sum of
         # the squared D', infinite at the kernel's shrunk sides): the harmonic position itself has
         # folded, and the least move out of the fold leaves a sliver (D' 20-45 measured).
@@ -782,9 +992,7 @@ def untangle_half(S, T, fw, turned_of, reversing=False, crease_angle=np.pi / 3, 
                             options={"initial_simplex": [centre, centre + [0.5 * depth, 0], centre + [0, 0.5 * depth]],
                                      "xatol": 1e-3 * depth, "fatol": 1e-6, "maxiter": 400})
         if improve:
-            Q = np.zeros((len(ab), 3, 3))
-            Q[:, 1, :2], Q[:, 2, :2] = a, b
-            now = float(np.sum(dilatation(src.reshape(-1, 3), Q.reshape(-1, 3), tri) ** 2))
+            now = squared_dilatation(np.zeros(2))
             if not (np.isfinite(best.fun) and best.fun < 0.99 * now):
                 return False
         candidates = [best.x if np.isfinite(best.fun) else centre]

@@ -458,3 +458,102 @@ def test_joint_positions_beyond_the_rim_are_kept_inside_with_the_rim_sliding():
     inner = np.flatnonzero(~on_b)
     assert all(open_untangle._loop_parameter(T, fw["face"][v], fw["barycentric"][v]) is None for v in inner)
     assert not np.any((np.abs(fw["position"][inner, 0]) < 1 / 6) & (fw["position"][inner, 1] < -0.5))
+
+
+def rim_patch(rim_xy, n=8):
+    """The n x n sheet as one patch of the joint step: its boundary loop held at the points rim_xy(t),
+    t = 0 .. 1 along the loop (the source's loop runs counter-clockwise, surface on its left), its
+    interior vertices free, each starting at the average of its neighbours (open_untangle._averaged).
+    Returns (S, faces, verts, xy, free)."""
+    V, F = sheet(n)
+    S = open_double._Side(V, F, "source")
+    loop = S.loops[0]
+    xy = np.zeros((S.n, 2))
+    xy[loop] = rim_xy(np.arange(len(loop)) / len(loop))
+    on_b = np.zeros(S.n, bool)
+    on_b[loop] = True
+    free = np.flatnonzero(~on_b)
+    return S, np.arange(len(S.F)), np.arange(S.n), open_untangle._averaged(S.F, np.arange(S.n), xy, free), free
+
+
+def ellipse(t):
+    return np.stack([1.5 * np.cos(2 * np.pi * t), np.sin(2 * np.pi * t)], axis=1)
+
+
+def figure_eight(t):
+    """A figure eight (sin, sin cos of 2 pi t): its right lobe runs clockwise, its left one,
+    stretched 1.5 times, counter-clockwise, so the area it encloses is positive."""
+    x, y = np.sin(2 * np.pi * t), np.sin(2 * np.pi * t) * np.cos(2 * np.pi * t)
+    return np.stack([x, y], axis=1) * np.where(x < 0, 1.5, 1.0)[:, None]
+
+
+@pytest.mark.parametrize("rim", ["ellipse", "mirrored ellipse", "figure eight"])
+def test_a_rim_that_admits_no_unfolded_patch_is_refused_without_the_rounds(rim):
+    """The joint step's patch with its rim held (open_untangle._untangled_positions): on an ellipse
+    it unfolds (every face positive). A rim running clockwise (the ellipse mirrored: it encloses a
+    negative area) or a figure eight whose larger lobe runs counter-clockwise (positive area, but
+    the smaller lobe winds -1 about its points) admits no placing with every face positive (each
+    positive face adds 1 to the number of times a point is covered, which is the rim's winding
+    number about it): the rounds, run anyway (refuse=False), end with faces turned, and the rim
+    check (_rim_refuses) says so at once, with no evaluation of the energy."""
+    shape = {"ellipse": ellipse, "mirrored ellipse": lambda t: ellipse(t) * [-1, 1], "figure eight": figure_eight}[rim]
+    S, faces, verts, xy, free = rim_patch(shape)
+    Fi = S.F[faces]
+    why = open_untangle._rim_refuses(Fi, xy)
+    ran, checked = {}, {}
+    out = open_untangle._untangled_positions(S, faces, verts, xy, free, refuse=False, stats=ran)
+    if rim == "ellipse":
+        assert why == "" and out is not None
+        X = xy.copy()
+        X[free] = out[0]
+        Q = X[Fi]
+        signed = (Q[:, 1, 0] - Q[:, 0, 0]) * (Q[:, 2, 1] - Q[:, 0, 1]) - (Q[:, 1, 1] - Q[:, 0, 1]) * (Q[:, 2, 0] - Q[:, 0, 0])
+        assert signed.min() > 0
+        return
+    assert why.startswith("the rim encloses the area -" if rim == "mirrored ellipse" else "the rim winds -1 times")
+    assert out is None and ran["rounds"][-1][1] > 0 and ran["evaluations"] > 0
+    assert open_untangle._untangled_positions(S, faces, verts, xy, free, stats=checked) is None
+    assert checked["evaluations"] == 0 and checked["refused"] == why
+
+
+def polished_energy(S, faces, verts, X, lam=0.01):
+    """The joint step's polished energy (eps -> 0) of the patch at planar positions X (of verts),
+    computed here from each source triangle's edge Gram matrix G: per face (area-weighted)
+    (|J|^2 / 2 + lam (det J^2 + 1) / 2) / det J with |J|^2 = tr(E G^-1 E'), det J = det E / sqrt(det G),
+    E the image's edges. Returns (energy, least det J)."""
+    Q = X[np.searchsorted(verts, S.F[faces])]
+    E = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]], axis=2)
+    P = S.V[S.F[faces]]
+    s1, s2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    G = np.stack([np.stack([np.sum(s1 * s1, 1), np.sum(s1 * s2, 1)], 1), np.stack([np.sum(s1 * s2, 1), np.sum(s2 * s2, 1)], 1)], 1)
+    root = np.sqrt(np.linalg.det(G))
+    det = np.linalg.det(E) / root
+    frob = np.einsum("kij,kjl,kil->k", E, np.linalg.inv(G), E)
+    return float(np.sum(0.5 * root * (0.5 * frob + 0.5 * lam * (det ** 2 + 1)) / det)), float(det.min())
+
+
+def test_the_newton_joint_step_reaches_the_same_unfolded_minimum_with_fewer_evaluations():
+    """The joint step's minimizer JOINT_METHOD 'newton' (projected Newton on the energy's Hessian,
+    open_untangle._newton) against 'lbfgs' (scipy's L-BFGS-B, the default) on the patch of
+    folded_block's flat sheet (the mirrored block and two rings around it free, the rest held):
+    both unfold it (every face positive, counted here), reach the same polished energy (computed here)
+    to 1e-7, and Newton takes fewer evaluations of the energy."""
+    S, T, fw, home, block = folded_block("flat")
+    on_b = np.zeros(S.n, bool)
+    on_b[np.concatenate(S.loops)] = True
+    free = np.flatnonzero((np.max(np.abs(S.V[:, :2]), axis=1) < 0.55 + 2 / 6) & ~on_b)
+    faces = np.flatnonzero(np.isin(S.F, free).any(axis=1))
+    verts = np.unique(S.F[faces])
+    xy = fw["position"][verts, :2]
+    got = {}
+    for method in ("lbfgs", "newton"):
+        stats = {}
+        p, _ = open_untangle._untangled_positions(S, faces, verts, xy, free, method=method, stats=stats)
+        X = xy.copy()
+        X[np.searchsorted(verts, free)] = p
+        got[method] = polished_energy(S, faces, verts, X) + (stats["evaluations"],)
+    assert polished_energy(S, faces, verts, xy)[1] < 0      # folded before
+    (e_l, least_l, n_l), (e_n, least_n, n_n) = got["lbfgs"], got["newton"]
+    assert least_l > 0 and least_n > 0
+    assert abs(e_n - e_l) <= 1e-7 * e_l
+    assert n_n < n_l
