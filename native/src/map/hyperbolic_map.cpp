@@ -181,6 +181,7 @@ class HyperbolicPipeline {
   using Clock = std::chrono::steady_clock;
   std::atomic<int> solved_in_stage{0}, to_solve_in_stage{1};
   double ranking_end = 0.6;
+  static constexpr double kFullSolvesEnd = 0.68;
   Clock::time_point stage_start = Clock::now(), classes_done;
   double classes_seconds = 1;
   bool classes_all_done = false;
@@ -202,6 +203,14 @@ class HyperbolicPipeline {
     }
     const double t = seconds_between(classes_done, Clock::now());
     return classes + (1 - classes) * (1 - 1 / (1 + t / classes_seconds));
+  }
+  // The full-resolution solves and searches report from the ranking's end
+  // to kFullSolvesEnd (the class search's Newton steps, through `ho`).
+  void report_full_resolution_solves() {
+    if (options.progress)
+      ho.progress = [this](int, double, double) {
+        return options.progress("full-resolution solve", ranking_end + (kFullSolvesEnd - ranking_end) * in_stage());
+      };
   }
   static double seconds_between(Clock::time_point a, Clock::time_point b) {
     return std::chrono::duration<double>(b - a).count();
@@ -1850,10 +1859,7 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
     stage_done("homotopy candidates", ranking_end);
     // The geometric classes and the twist search at full resolution (small
     // sources) belong to the next stage.
-    if (options.progress)
-      ho.progress = [this](int, double, double) {
-        return options.progress("full-resolution solve", ranking_end + (0.68 - ranking_end) * in_stage());
-      };
+    report_full_resolution_solves();
     count_in_stage(0);
     return;
   }
@@ -1861,11 +1867,10 @@ void HyperbolicPipeline::solve_at_full_resolution(bool after_coarse) {
   full = std::move(picked.full);
   likely_class = picked.likely_class;
   release_unsolved_class_data();
-  stage_done("homotopy candidates", 0.6);
+  stage_done("homotopy candidates", ranking_end);
   // The solves below belong to the next stage (ho's hook said "homotopy
-  // candidates" up to 0.6, that stage's end).
-  if (options.progress)
-    ho.progress = [this](int, double, double) { return options.progress("full-resolution solve", 0.6 + 0.08 * in_stage()); };
+  // candidates" up to ranking_end, that stage's end).
+  report_full_resolution_solves();
   const CoarseSource& cs = ss.cs;
   const std::vector<int> settle = prolongation_order(cs, sc);
   std::vector<int> tasks;
@@ -2149,7 +2154,7 @@ void HyperbolicPipeline::choose_with_landmarks() {
     });
     if (best >= 0) out.chosen_candidate = best;
   }
-  stage_done("full-resolution solve", 0.68);
+  stage_done("full-resolution solve", kFullSolvesEnd);
 }
 
 // The automatic source weights' fallback (stages/source_weights_fallback.h):
