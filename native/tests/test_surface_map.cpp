@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <complex>
 #include <cstdio>
 #include <limits>
@@ -802,6 +803,18 @@ namespace {
 // finer one (the source under 2000 vertices: no coarse copy).
 TriMesh small_genus2_source() { return samples::n_hole_torus(2, 18, true); }
 TriMesh small_genus2_target() { return samples::jitter(samples::n_hole_torus(2, 22, true), 0.2, 5); }
+
+// Runs `map`, which must end in a SolveError, and checks the error's words
+// and reason (the tests of the automatic retries and the rescue).
+void expect_solve_error(const std::function<void()>& map, const std::string& words, SolveFailure reason) {
+  try {
+    map();
+    ADD_FAILURE() << "mapped";
+  } catch (const SolveError& e) {
+    EXPECT_EQ(std::string(e.what()), words);
+    EXPECT_EQ(e.reason(), reason);
+  }
+}
 }  // namespace
 
 // The small genus-2 pair (small_genus2_source, small_genus2_target),
@@ -975,12 +988,8 @@ TEST(SurfaceMapHandles, StartEdgeRetryReadsTheReasonNotTheWords) {
   // The old words without the reason: one run, its error as it was.
   runs.clear();
   const std::string words = "hyperbolic harmonic map: edge 3 starts 99.5 units long";
-  try {
-    testing::surface_map(a, b, o, failing_classical(words, SolveFailure::unspecified, &runs));
-    ADD_FAILURE() << "mapped";
-  } catch (const SolveError& e) {
-    EXPECT_EQ(std::string(e.what()), words);
-  }
+  expect_solve_error([&] { testing::surface_map(a, b, o, failing_classical(words, SolveFailure::unspecified, &runs)); },
+                     words, SolveFailure::unspecified);
   EXPECT_EQ(runs, std::vector<bool>{false});
 }
 
@@ -1038,13 +1047,8 @@ TEST(SurfaceMapHandles, FoldFailuresAreRetriedWithTheShortGeneratorsOneWay) {
   // No retry: the first run's error as it was, with its reason.
   auto one_run = [&](const SurfaceMapOptions& opt) {
     runs.clear();
-    try {
-      testing::surface_map(a, b, opt, hooks);
-      ADD_FAILURE() << "mapped";
-    } catch (const SolveError& e) {
-      EXPECT_EQ(std::string(e.what()), "every class folded (a test's words)");
-      EXPECT_EQ(e.reason(), SolveFailure::folds);
-    }
+    expect_solve_error([&] { testing::surface_map(a, b, opt, hooks); }, "every class folded (a test's words)",
+                       SolveFailure::folds);
     EXPECT_EQ(runs.size(), 1u);
   };
   SurfaceMapOptions off = o;
@@ -1112,13 +1116,7 @@ TEST(SurfaceMapHandles, RescueByTheOtherDirectionReadsTheReasonNotTheWords) {
   // Not rescued: the error as it was, with its reason, after the one run.
   auto not_rescued = [&](const SurfaceMapOptions& opt) {
     runs.clear();
-    try {
-      testing::surface_map(a, b, opt, hooks);
-      ADD_FAILURE() << "mapped";
-    } catch (const SolveError& e) {
-      EXPECT_EQ(std::string(e.what()), message);
-      EXPECT_EQ(e.reason(), reason);
-    }
+    expect_solve_error([&] { testing::surface_map(a, b, opt, hooks); }, message, reason);
     EXPECT_EQ(runs, std::vector<std::string>{"first"});
   };
   message = "no candidate class gave a bijective map (the old words, another reason)";
