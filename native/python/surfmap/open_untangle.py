@@ -424,11 +424,12 @@ def _averaged(F, verts, xy, free):
     return out
 
 
-#: The joint step's minimizer (_untangled_positions): "newton" (the default: Newton steps on the
-#: patch's sparse Hessian, each face's 4 x 4 Hessian in its Jacobian made positive semi-definite,
-#: with a backtracking line search and the rim's parameters kept in their bounds) or "lbfgs"
-#: (scipy's L-BFGS-B, the step of sessions 25-29, which took thousands of evaluations per round on
-#: the artery's patches; docs/open_surfaces.md "The half's solve").
+#: The joint step's minimizer (_untangled_positions): "lbfgs" (the default: scipy's L-BFGS-B, which
+#: takes thousands of evaluations per round on the artery's patches) or "newton" (Newton steps on
+#: the patch's sparse Hessian, each face's 4 x 4 Hessian in its Jacobian made positive
+#: semi-definite, with a backtracking line search and the rim's parameters kept in their bounds:
+#: fewer evaluations, but slower than L-BFGS-B on the artery's patches; docs/open_surfaces.md
+#: "The half's solve").
 JOINT_METHOD = "lbfgs"
 
 
